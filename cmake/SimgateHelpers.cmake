@@ -1,0 +1,46 @@
+# Helpers shared by the tree and by out-of-tree plugins (installed with the package).
+
+# simgate_add_transport_plugin(NAME SOURCES...)
+#   Builds libsimgate_transport_<NAME>.so, a module the gateway loads with dlopen.
+#   The sources must use SIMGATE_TRANSPORT_PLUGIN(<NAME>, Class) once.
+function(simgate_add_transport_plugin name)
+  set(target simgate_transport_${name})
+  add_library(${target} MODULE ${ARGN})
+  if(TARGET simgate_core)
+    target_link_libraries(${target} PRIVATE simgate_core)
+  else()
+    target_link_libraries(${target} PRIVATE simgate::core)
+  endif()
+  set_target_properties(${target} PROPERTIES
+    CXX_VISIBILITY_PRESET hidden
+    VISIBILITY_INLINES_HIDDEN ON)
+  if(DEFINED SIMGATE_PLUGIN_BUILD_DIR)
+    set_target_properties(${target} PROPERTIES LIBRARY_OUTPUT_DIRECTORY ${SIMGATE_PLUGIN_BUILD_DIR})
+  endif()
+  if(DEFINED SIMGATE_PLUGIN_INSTALL_DIR AND TARGET simgate_core)
+    install(TARGETS ${target} LIBRARY DESTINATION ${SIMGATE_PLUGIN_INSTALL_DIR})
+  endif()
+endfunction()
+
+# simgate_add_test(NAME SOURCES... [LIBS libs...] [LABELS labels...] [TIMEOUT s])
+#   A GoogleTest executable registered with CTest, test by test.
+function(simgate_add_test name)
+  cmake_parse_arguments(arg "" "TIMEOUT" "SOURCES;LIBS;LABELS;ENV" ${ARGN})
+  find_package(GTest REQUIRED)
+  include(GoogleTest)
+  add_executable(${name} ${arg_SOURCES} ${arg_UNPARSED_ARGUMENTS})
+  target_link_libraries(${name} PRIVATE GTest::gtest GTest::gtest_main GTest::gmock ${arg_LIBS})
+  if(NOT arg_TIMEOUT)
+    set(arg_TIMEOUT 120)
+  endif()
+  # where tests find the tree, the build and the plugins (never hard-coded paths)
+  target_compile_definitions(${name} PRIVATE
+    SIMGATE_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
+    SIMGATE_BINARY_DIR="${PROJECT_BINARY_DIR}"
+    SIMGATE_TEST_PLUGIN_DIR="${SIMGATE_PLUGIN_BUILD_DIR}"
+    SIMGATE_LOOPBACK_DDS_XML="${PROJECT_SOURCE_DIR}/config/dds/loopback.xml")
+  gtest_discover_tests(${name}
+    PROPERTIES TIMEOUT ${arg_TIMEOUT} LABELS "${arg_LABELS}"
+               ENVIRONMENT "CYCLONEDDS_URI=file://${PROJECT_SOURCE_DIR}/config/dds/loopback.xml"
+    DISCOVERY_TIMEOUT 60)
+endfunction()

@@ -1,0 +1,93 @@
+// simgate/core/component.h — a named object whose services transports expose.
+//
+// A Component (robot, actuator, sensor, or a pseudo-component such as `simulation`)
+// registers its services in its constructor with add_service / add_async_service, then is
+// handed to the request managers that serve it (RequestManager::register_component). All
+// its methods run on the simulation thread: services, default_action(), interrupt().
+//
+// Async services (MORSE's @async_service): the start method returns quickly; the
+// component finishes the request later with completed(status, result), typically from
+// default_action(). At most one async request runs per component; a second one follows
+// the running service's local policy (interruptible: the running one is interrupted and
+// ends PREEMPTED; non-interruptible: the new one FAILS) or, without one, the receiving
+// manager's global policy.
+#ifndef SIMGATE_CORE_COMPONENT_H_
+#define SIMGATE_CORE_COMPONENT_H_
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "simgate/core/service.h"
+
+namespace simgate {
+
+class Component {
+ public:
+  explicit Component(std::string name);
+  virtual ~Component() = default;
+  Component(const Component&) = delete;
+  Component& operator=(const Component&) = delete;
+
+  // Full name, e.g. "robot.waypoint" or "simulation".
+  const std::string& name() const { return name_; }
+
+  // Called once per simulation step, after requests are processed and before physics.
+  virtual void default_action() {}
+
+  // Ends the running async request. Override to really stop what it does (halt the robot)
+  // and call Component::interrupt() last; the default completes it PREEMPTED. If an
+  // override forgets, the request manager ends the request PREEMPTED anyway.
+  virtual void interrupt();
+
+  // Finishes the running async request (MORSE's completed). Ignored, with a warning,
+  // when none is running.
+  void completed(Status status, json result = nullptr);
+
+  // True while an async request of this component is running.
+  bool has_running_request() const { return slot_->busy(); }
+  // "component.service" of the running request, or "".
+  std::string running_service() const;
+
+  // Every service registered by the component, in registration order.
+  const std::vector<std::shared_ptr<Service>>& services() const { return services_; }
+  // The slot shared by this component's async services.
+  const std::shared_ptr<AsyncSlot>& async_slot() const { return slot_; }
+
+ protected:
+  // add_service("set_speed", &MotionVW::set_speed, {"v", "w"}).doc("...");
+  // fn: a member function of the derived class, or any callable.
+  template <class F>
+  ServiceBuilder add_service(std::string name, F fn, std::vector<Param> params = {}) {
+    return add(std::move(name), std::move(fn), std::move(params), false);
+  }
+  // add_async_service("goto", &Waypoint::go_to, {"x", "y", "z", {"tolerance", 0.5}})
+  //     .interruptible();
+  template <class F>
+  ServiceBuilder add_async_service(std::string name, F fn, std::vector<Param> params = {}) {
+    return add(std::move(name), std::move(fn), std::move(params), true);
+  }
+
+ private:
+  template <class F>
+  ServiceBuilder add(std::string name, F fn, std::vector<Param> params, bool is_async) {
+    std::shared_ptr<Service> service;
+    if constexpr (std::is_member_function_pointer_v<F>) {
+      using C = typename detail::fn_traits<F>::cls;
+      service = make_service(name_, std::move(name), detail::bind_member(static_cast<C*>(this), fn),
+                             std::move(params), is_async);
+    } else {
+      service = make_service(name_, std::move(name), std::move(fn), std::move(params), is_async);
+    }
+    return adopt(std::move(service));
+  }
+  ServiceBuilder adopt(std::shared_ptr<Service> service);
+
+  std::string name_;                                // full component name
+  std::shared_ptr<AsyncSlot> slot_;                 // the one running async request
+  std::vector<std::shared_ptr<Service>> services_;  // registration order
+};
+
+}  // namespace simgate
+
+#endif  // SIMGATE_CORE_COMPONENT_H_

@@ -1,0 +1,66 @@
+// simgate/core/config.h — reading a JSON configuration object with precise errors.
+//
+// A ConfigObject wraps one JSON object and the path that leads to it
+// ("transports.socket"). Typed getters throw ConfigError naming the full path, what was
+// expected and what was found; finish() throws for every key nobody asked for, so typos
+// never pass silently. Used by the gateway for the deployment file and by each transport
+// for its options.
+#ifndef SIMGATE_CORE_CONFIG_H_
+#define SIMGATE_CORE_CONFIG_H_
+
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "simgate/core/errors.h"
+#include "simgate/core/status.h"
+
+namespace simgate {
+
+// A short description of a JSON value for error messages: `string "abc"`, `number 3`.
+std::string describe_json(const json& value);
+
+class ConfigObject {
+ public:
+  // Throws ConfigError if value is not an object.
+  ConfigObject(const json& value, std::string path);
+
+  const std::string& path() const { return path_; }
+  const json& raw() const { return value_; }
+  bool has(const std::string& key) const;
+  // "<path>.<key>" (or just key at the root).
+  std::string path_of(const std::string& key) const;
+
+  // Typed access. `required` throws if missing; `optional`/`get` return the default.
+  std::string get_string(const std::string& key, const std::string& fallback);
+  std::string required_string(const std::string& key);
+  long long get_int(const std::string& key, long long fallback, long long min, long long max);
+  double get_number(const std::string& key, double fallback, double min, double max);
+  bool get_bool(const std::string& key, bool fallback);
+  // One of `choices`.
+  std::string get_choice(const std::string& key, const std::string& fallback,
+                         const std::vector<std::string>& choices);
+  // Any JSON value (marks the key as used); nullopt if absent.
+  std::optional<json> get_json(const std::string& key);
+  // A nested object; nullopt if absent.
+  std::optional<ConfigObject> get_object(const std::string& key);
+
+  // Throws ConfigError listing every key that no getter asked for, with the known keys.
+  void finish() const;
+  // Throws if a key of the object is not in `allowed` (no getters needed).
+  void allow_only(const std::vector<std::string>& allowed) const;
+
+  [[noreturn]] void fail(const std::string& key, const std::string& expected) const;
+
+ private:
+  const json* find(const std::string& key);
+
+  json value_;                   // the object itself (copied: configs are small)
+  std::string path_;             // JSON path of this object, "" at the root
+  std::set<std::string> used_;   // keys a getter asked for
+};
+
+}  // namespace simgate
+
+#endif  // SIMGATE_CORE_CONFIG_H_

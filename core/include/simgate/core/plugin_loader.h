@@ -1,0 +1,68 @@
+// simgate/core/plugin_loader.h — finding, checking and instantiating transport plugins.
+//
+// load_transport("socket") searches, in order:
+//   1. an explicit path (a name containing '/' or ending in ".so"),
+//   2. each directory of $SIMGATE_PLUGIN_PATH (colon-separated),
+//   3. extra directories given by the caller (e.g. next to the config file),
+//   4. the build tree's plugin directory, then the install prefix's lib/simgate/plugins,
+// for libsimgate_transport_<name>.so, opens it with dlopen(RTLD_NOW | RTLD_LOCAL), finds
+// simgate_transport_<name>_entry, and checks the ABI version, descriptor size, build tag,
+// name and required functions. Every refusal throws PluginError naming the plugin, the
+// path, the reason and every path tried.
+//
+// A TransportHandle keeps the library loaded for as long as the manager it created lives.
+#ifndef SIMGATE_CORE_PLUGIN_LOADER_H_
+#define SIMGATE_CORE_PLUGIN_LOADER_H_
+
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "simgate/core/plugin.h"
+#include "simgate/core/request_manager.h"
+
+namespace simgate {
+
+class PluginError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// A loaded, checked plugin library.
+class TransportPlugin {
+ public:
+  const simgate_transport_descriptor& descriptor() const { return *descriptor_; }
+  const std::string& path() const { return path_; }
+  const std::string& name() const { return name_; }
+  std::vector<std::string> option_keys() const;
+
+  // Creates a manager from the plugin. Options with keys the plugin does not declare, or
+  // that its constructor rejects, throw ConfigError prefixed with `config_path`.
+  // The returned manager keeps the library loaded.
+  std::shared_ptr<RequestManager> create(const json& options, const std::string& config_path) const;
+
+ private:
+  friend std::shared_ptr<TransportPlugin> load_transport_plugin(const std::string&,
+                                                                const std::vector<std::string>&);
+  std::shared_ptr<void> library_;                     // dlclose on last reference
+  const simgate_transport_descriptor* descriptor_ = nullptr;  // inside library_
+  std::string path_;                                  // where it was found
+  std::string name_;                                  // requested name
+};
+
+// The directories searched for `name` (after an explicit path), in order.
+std::vector<std::string> plugin_search_path(const std::vector<std::string>& extra_dirs = {});
+
+// Finds, opens and checks a plugin. Throws PluginError.
+std::shared_ptr<TransportPlugin> load_transport_plugin(const std::string& name_or_path,
+                                                       const std::vector<std::string>& extra_dirs = {});
+
+// load_transport_plugin + create, for standalone programs:
+//   auto rm = simgate::load_transport("socket", {{"port", 4000}});
+std::shared_ptr<RequestManager> load_transport(const std::string& name_or_path,
+                                               const json& options = json::object());
+
+}  // namespace simgate
+
+#endif  // SIMGATE_CORE_PLUGIN_LOADER_H_

@@ -1,0 +1,175 @@
+// simgate/core/request_manager.h — the base of every transport (MORSE's RequestManager).
+//
+// A request manager owns a table of services (registered by hand, or a component's), a
+// queue of requests handed over by its transport, and the life cycle of each request:
+//
+//   I/O thread:  id = new_request_id(); remember (client, id); submit(id, call)
+//   sim thread:  process() -> on_incoming_request() -> sync: runs, on_service_completion()
+//                                                    -> async: started; later the component
+//                                                       calls completed() -> next process()
+//                                                       -> on_service_completion()
+//   I/O thread:  the transport's on_service_completion() posts the reply to the client.
+//
+// Every submitted request gets exactly one on_service_completion() (even unknown services,
+// bad arguments and requests still running at stop()). Services run only on the thread
+// that calls process(). submit() and cancel() are thread-safe and never block for long;
+// process() wakes at once when a request arrives (see Wakeup).
+//
+// A transport plugin subclasses RequestManager, does its I/O on its own threads between
+// start() and stop(), and overrides on_service_completion(). See
+// docs/writing-a-transport.md.
+#ifndef SIMGATE_CORE_REQUEST_MANAGER_H_
+#define SIMGATE_CORE_REQUEST_MANAGER_H_
+
+#include <chrono>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "simgate/core/component.h"
+#include "simgate/core/service.h"
+#include "simgate/core/status.h"
+#include "simgate/core/wakeup.h"
+
+namespace simgate {
+
+// What to do with a new async request when the running one has no local policy.
+enum class GlobalPolicy : std::uint8_t {
+  reject,   // the new request FAILS (MORSE's behaviour, the default)
+  preempt,  // the running request is interrupted (PREEMPTED), the new one starts
+};
+
+// One request as a transport hands it over.
+struct Call {
+  std::string component;  // "robot.waypoint"
+  std::string service;    // "goto"
+  json params;            // array (positional), object (named) or null (no arguments)
+};
+
+namespace detail {
+class Inbox;
+}
+
+class RequestManager {
+ public:
+  // `name` appears in error messages: "Socket service manager".
+  explicit RequestManager(std::string name);
+  virtual ~RequestManager();
+  RequestManager(const RequestManager&) = delete;
+  RequestManager& operator=(const RequestManager&) = delete;
+
+  const std::string& name() const { return name_; }
+
+  // ---- registration (before start(), or on the process() thread) ----
+
+  // A free function as a service of a (pseudo-)component (MORSE's register_service):
+  //   rm.register_service("test_component", add, "add", {"a", "b"});
+  template <class F>
+  ServiceBuilder register_service(const std::string& component, F fn, std::string service_name,
+                                  std::vector<Param> params = {}) {
+    return add_service(make_service(component, std::move(service_name), std::move(fn),
+                                    std::move(params), false));
+  }
+  // An async free function; it may take a Completion first (MORSE's result_setter):
+  //   rm.register_async_service("test_component", start_computation, "compute", {"start"});
+  template <class F>
+  ServiceBuilder register_async_service(const std::string& component, F fn,
+                                        std::string service_name, std::vector<Param> params = {}) {
+    return add_service(make_service(component, std::move(service_name), std::move(fn),
+                                    std::move(params), true));
+  }
+  // Serves every service of `component` (shared, not copied: the component must outlive
+  // this manager's use of it).
+  void register_component(Component& component);
+  // Low level: adds one service (replacing one with the same component and name).
+  // Async services without a slot get this manager's slot for their component.
+  ServiceBuilder add_service(std::shared_ptr<Service> service);
+
+  // Descriptors of everything this manager serves (thread-safe snapshot).
+  std::vector<ServiceDescriptor> descriptors() const;
+  // MORSE's services(): component -> service names.
+  std::map<std::string, std::vector<std::string>> services() const;
+  bool serves_component(const std::string& component) const;
+
+  void set_global_policy(GlobalPolicy policy) { global_policy_ = policy; }
+  GlobalPolicy global_policy() const { return global_policy_; }
+
+  // The wake-up shared with the simulation loop (default: one of its own).
+  void set_wakeup(std::shared_ptr<Wakeup> wakeup);
+  const std::shared_ptr<Wakeup>& wakeup() const { return wakeup_; }
+
+  // ---- life cycle (host thread) ----
+
+  // Starts the transport's I/O. Called once, after registration. Must not throw.
+  virtual void start() {}
+  // Stops the I/O; idempotent; after it returns the transport calls nothing on the core.
+  // Requests still pending are finished with Failure::shutdown by the destructor.
+  virtual void stop() {}
+  // Human-readable endpoints ("tcp://127.0.0.1:4000") once started or bound.
+  virtual std::vector<std::string> endpoints() const { return {}; }
+
+  // ---- the simulation thread ----
+
+  // Executes queued requests and cancels, then delivers finished async requests.
+  // Waits up to `wait` for work when there is none. Returns the number of events handled.
+  // Calls start() first if nobody has.
+  std::size_t process(std::chrono::nanoseconds wait = std::chrono::nanoseconds::zero());
+
+  // Executes one request now (MORSE's on_incoming_request). Sync: returns the outcome.
+  // Async: starts it and returns nullopt (the outcome arrives through
+  // on_service_completion). Errors return a FAILED outcome.
+  std::optional<Outcome> on_incoming_request(RequestId id, const Call& call);
+
+  // ---- the transport side (any thread) ----
+
+  RequestId new_request_id();
+  // Queues a request for the next process().
+  void submit(RequestId id, Call call);
+  // Queues several requests so that they all run in the same process() (JSON-RPC batches).
+  void submit_batch(std::vector<std::pair<RequestId, Call>> calls);
+  // Cancels a running async request of this manager: it ends PREEMPTED with
+  // Failure::cancelled. `done(found)` runs on the simulation thread afterwards.
+  void cancel(RequestId id, std::function<void(bool found)> done = {});
+  // Runs `task` on the simulation thread, in order with requests (e.g. introspection that
+  // must see a consistent state).
+  void post(std::function<void()> task);
+
+  // Number of async requests started and not yet delivered.
+  std::size_t pending_count() const;
+
+ protected:
+  // Delivers the final outcome of request `id`, exactly once per submitted request.
+  // Simulation thread; must not block (post the reply to the I/O thread) and must not throw.
+  virtual void on_service_completion(RequestId id, Outcome outcome) = 0;
+
+  // Stops accepting work and finishes every pending request with Failure::shutdown.
+  // Subclasses call it from stop() once their I/O threads are gone, or rely on the
+  // destructor.
+  void abandon_pending();
+
+ private:
+  struct Table;
+  void execute_cancel(RequestId id, const std::function<void(bool)>& done);
+  void deliver(RequestId id, Outcome outcome);
+  std::shared_ptr<AsyncSlot> slot_for(const std::string& component);
+
+  std::string name_;                       // for error messages
+  std::shared_ptr<detail::Inbox> inbox_;   // requests, cancels, tasks and completions
+  std::shared_ptr<Wakeup> wakeup_;         // shared with the simulation loop
+  mutable std::mutex table_mutex_;         // guards services_ and slots_
+  // component -> service name -> service
+  std::unordered_map<std::string, std::unordered_map<std::string, std::shared_ptr<Service>>> services_;
+  std::unordered_map<std::string, std::shared_ptr<AsyncSlot>> slots_;  // free-function slots
+  // async requests this manager started and has not delivered (simulation thread only)
+  std::unordered_map<RequestId, std::pair<std::shared_ptr<detail::CallState>, std::shared_ptr<AsyncSlot>>> running_;
+  GlobalPolicy global_policy_ = GlobalPolicy::reject;  // when the running service has no policy
+  bool started_ = false;                   // start() called by process()
+};
+
+}  // namespace simgate
+
+#endif  // SIMGATE_CORE_REQUEST_MANAGER_H_
