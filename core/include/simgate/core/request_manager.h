@@ -138,24 +138,29 @@ class RequestManager {
   // must see a consistent state).
   void post(std::function<void()> task);
 
-  // Number of async requests started and not yet delivered.
-  std::size_t pending_count() const;
+  // Number of async requests started and not yet finished (simulation thread).
+  std::size_t pending_count() const { return running_.size(); }
+
+  // Finishes every request not yet answered (queued or running async) FAILED with
+  // Failure::shutdown, delivering each through on_service_completion, and refuses later
+  // submissions the same way. Simulation thread (or the host once the loop has ended),
+  // before stop(): this is how clients get a reply at shutdown.
+  void abandon_pending(const std::string& reason = "the simulation is shutting down");
 
  protected:
   // Delivers the final outcome of request `id`, exactly once per submitted request.
   // Simulation thread; must not block (post the reply to the I/O thread) and must not throw.
   virtual void on_service_completion(RequestId id, Outcome outcome) = 0;
 
-  // Stops accepting work and finishes every pending request with Failure::shutdown.
-  // Subclasses call it from stop() once their I/O threads are gone, or rely on the
-  // destructor.
-  void abandon_pending();
-
  private:
   struct Table;
+  std::optional<Outcome> start_async(RequestId id, const Service& service,
+                                     std::span<const json* const> args);
+  void interrupt_running(AsyncSlot& slot, Failure reason, std::string message);
   void execute_cancel(RequestId id, const std::function<void(bool)>& done);
   void deliver(RequestId id, Outcome outcome);
   std::shared_ptr<AsyncSlot> slot_for(const std::string& component);
+  Outcome unknown_service(const Call& call) const;
 
   std::string name_;                       // for error messages
   std::shared_ptr<detail::Inbox> inbox_;   // requests, cancels, tasks and completions
@@ -167,7 +172,7 @@ class RequestManager {
   // async requests this manager started and has not delivered (simulation thread only)
   std::unordered_map<RequestId, std::pair<std::shared_ptr<detail::CallState>, std::shared_ptr<AsyncSlot>>> running_;
   GlobalPolicy global_policy_ = GlobalPolicy::reject;  // when the running service has no policy
-  bool started_ = false;                   // start() called by process()
+  bool started_ = false;                   // start() called (by process() if nobody did)
 };
 
 }  // namespace simgate

@@ -1,0 +1,40 @@
+#include "simgate/core/component.h"
+
+#include "simgate/core/log.h"
+
+namespace simgate {
+
+Component::Component(std::string name) : name_(std::move(name)), slot_(std::make_shared<AsyncSlot>()) {
+  slot_->component = name_;
+  slot_->interrupt = [this] { interrupt(); };
+}
+
+void Component::interrupt() {
+  // MORSE's default: the running request ends PREEMPTED
+  if (slot_->busy()) slot_->running_completion(Status::preempted);
+}
+
+void Component::completed(Status status, json result) {
+  if (!slot_->busy()) {
+    log::warning(name_, ": completed(", to_string(status), ") with no async request running");
+    return;
+  }
+  slot_->running_completion(status, std::move(result));
+}
+
+std::string Component::running_service() const {
+  return slot_->busy() ? slot_->running->service : std::string();
+}
+
+ServiceBuilder Component::adopt(std::shared_ptr<Service> service) {
+  if (service->descriptor().is_async) service->set_slot(slot_);
+  for (auto& existing : services_)
+    if (existing->descriptor().name == service->descriptor().name) {
+      existing = std::move(service);
+      return ServiceBuilder(*existing);
+    }
+  services_.push_back(std::move(service));
+  return ServiceBuilder(*services_.back());
+}
+
+}  // namespace simgate

@@ -1,0 +1,134 @@
+#include "simgate/core/config.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+namespace simgate {
+
+std::string describe_json(const json& value) {
+  std::string text;
+  switch (value.type()) {
+    case json::value_t::null: return "null";
+    case json::value_t::boolean: return std::string("boolean ") + (value.get<bool>() ? "true" : "false");
+    case json::value_t::string: text = "string "; break;
+    case json::value_t::number_integer:
+    case json::value_t::number_unsigned:
+    case json::value_t::number_float: text = "number "; break;
+    case json::value_t::array: text = "array "; break;
+    case json::value_t::object: text = "object "; break;
+    default: return "invalid value";
+  }
+  std::string dumped = value.dump(-1, ' ', false, json::error_handler_t::replace);
+  if (dumped.size() > 60) dumped = dumped.substr(0, 57) + "...";
+  return text + dumped;
+}
+
+ConfigObject::ConfigObject(const json& value, std::string path) : value_(value), path_(std::move(path)) {
+  if (!value_.is_object())
+    throw ConfigError((path_.empty() ? std::string("configuration") : path_) +
+                      ": expected an object, found " + describe_json(value_));
+}
+
+bool ConfigObject::has(const std::string& key) const { return value_.contains(key); }
+
+std::string ConfigObject::path_of(const std::string& key) const {
+  return path_.empty() ? key : path_ + "." + key;
+}
+
+const json* ConfigObject::find(const std::string& key) {
+  used_.insert(key);
+  auto it = value_.find(key);
+  return it == value_.end() ? nullptr : &*it;
+}
+
+void ConfigObject::fail(const std::string& key, const std::string& expected) const {
+  auto it = value_.find(key);
+  std::string found = it == value_.end() ? "nothing" : describe_json(*it);
+  throw ConfigError(path_of(key) + ": expected " + expected + ", found " + found);
+}
+
+std::string ConfigObject::get_string(const std::string& key, const std::string& fallback) {
+  const json* v = find(key);
+  if (!v) return fallback;
+  if (!v->is_string()) fail(key, "a string");
+  return v->get<std::string>();
+}
+
+std::string ConfigObject::required_string(const std::string& key) {
+  const json* v = find(key);
+  if (!v || !v->is_string() || v->get<std::string>().empty()) fail(key, "a non-empty string");
+  return v->get<std::string>();
+}
+
+long long ConfigObject::get_int(const std::string& key, long long fallback, long long min, long long max) {
+  const json* v = find(key);
+  if (!v) return fallback;
+  std::string expected = "an integer from " + std::to_string(min) + " to " + std::to_string(max);
+  if (!v->is_number_integer()) fail(key, expected);
+  long long n = v->is_number_unsigned() && v->get<unsigned long long>() > (unsigned long long)max
+                    ? max + 1
+                    : v->get<long long>();
+  if (n < min || n > max) fail(key, expected);
+  return n;
+}
+
+double ConfigObject::get_number(const std::string& key, double fallback, double min, double max) {
+  const json* v = find(key);
+  if (!v) return fallback;
+  std::ostringstream expected;
+  expected << "a number from " << min << " to " << max;
+  if (!v->is_number()) fail(key, expected.str());
+  double n = v->get<double>();
+  if (!std::isfinite(n) || n < min || n > max) fail(key, expected.str());
+  return n;
+}
+
+bool ConfigObject::get_bool(const std::string& key, bool fallback) {
+  const json* v = find(key);
+  if (!v) return fallback;
+  if (!v->is_boolean()) fail(key, "true or false");
+  return v->get<bool>();
+}
+
+std::string ConfigObject::get_choice(const std::string& key, const std::string& fallback,
+                                     const std::vector<std::string>& choices) {
+  std::string expected = "one of";
+  for (std::size_t i = 0; i < choices.size(); ++i) expected += (i ? ", \"" : " \"") + choices[i] + "\"";
+  const json* v = find(key);
+  if (!v) return fallback;
+  if (!v->is_string() ||
+      std::find(choices.begin(), choices.end(), v->get<std::string>()) == choices.end())
+    fail(key, expected);
+  return v->get<std::string>();
+}
+
+std::optional<json> ConfigObject::get_json(const std::string& key) {
+  const json* v = find(key);
+  if (!v) return std::nullopt;
+  return *v;
+}
+
+std::optional<ConfigObject> ConfigObject::get_object(const std::string& key) {
+  const json* v = find(key);
+  if (!v) return std::nullopt;
+  if (!v->is_object()) fail(key, "an object");
+  return ConfigObject(*v, path_of(key));
+}
+
+void ConfigObject::finish() const {
+  std::vector<std::string> known(used_.begin(), used_.end());
+  allow_only(known);
+}
+
+void ConfigObject::allow_only(const std::vector<std::string>& allowed) const {
+  for (auto it = value_.begin(); it != value_.end(); ++it) {
+    if (std::find(allowed.begin(), allowed.end(), it.key()) != allowed.end()) continue;
+    std::string known;
+    for (const auto& k : allowed) known += (known.empty() ? "" : ", ") + k;
+    throw ConfigError(path_of(it.key()) + ": unknown key (known keys: " +
+                      (known.empty() ? "none" : known) + ")");
+  }
+}
+
+}  // namespace simgate

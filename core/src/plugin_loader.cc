@@ -1,0 +1,147 @@
+#include "simgate/core/plugin_loader.h"
+
+#include <dlfcn.h>
+#include <sys/stat.h>
+
+#include <cstdlib>
+#include <sstream>
+
+#include "simgate/core/config.h"
+#include "simgate/core/log.h"
+
+namespace simgate {
+namespace {
+
+bool is_regular_file(const std::string& path) {
+  struct stat st {};
+  return ::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode);
+}
+
+std::string file_name_for(const std::string& name) { return "libsimgate_transport_" + name + ".so"; }
+
+// "plugins/libsimgate_transport_x.so" -> "x"
+std::string name_from_path(const std::string& path) {
+  std::string file = path.substr(path.find_last_of('/') + 1);
+  const std::string prefix = "libsimgate_transport_", suffix = ".so";
+  if (file.rfind(prefix, 0) == 0) file = file.substr(prefix.size());
+  if (file.size() > suffix.size() && file.compare(file.size() - suffix.size(), suffix.size(), suffix) == 0)
+    file.resize(file.size() - suffix.size());
+  return file;
+}
+
+std::string list(const std::vector<std::string>& items) {
+  std::string out;
+  for (const auto& i : items) out += "\n  " + i;
+  return out;
+}
+
+}  // namespace
+
+std::vector<std::string> plugin_search_path(const std::vector<std::string>& extra_dirs) {
+  std::vector<std::string> dirs;
+  if (const char* env = std::getenv("SIMGATE_PLUGIN_PATH")) {
+    std::stringstream in(env);
+    for (std::string dir; std::getline(in, dir, ':');)
+      if (!dir.empty()) dirs.push_back(dir);
+  }
+  dirs.insert(dirs.end(), extra_dirs.begin(), extra_dirs.end());
+  dirs.push_back(SIMGATE_BUILD_PLUGIN_DIR);
+  dirs.push_back(SIMGATE_INSTALL_PLUGIN_DIR);
+  return dirs;
+}
+
+std::shared_ptr<TransportPlugin> load_transport_plugin(const std::string& name_or_path,
+                                                       const std::vector<std::string>& extra_dirs) {
+  // candidates: an explicit path, or <dir>/libsimgate_transport_<name>.so for each dir
+  const bool explicit_path = name_or_path.find('/') != std::string::npos ||
+                             (name_or_path.size() > 3 && name_or_path.ends_with(".so"));
+  std::vector<std::string> candidates;
+  if (explicit_path) {
+    candidates.push_back(name_or_path);
+  } else {
+    for (const auto& dir : plugin_search_path(extra_dirs)) candidates.push_back(dir + "/" + file_name_for(name_or_path));
+  }
+  const std::string name = explicit_path ? name_from_path(name_or_path) : name_or_path;
+  const std::string what = "transport plugin '" + name + "'";
+
+  std::string path;
+  for (const auto& c : candidates)
+    if (is_regular_file(c)) {
+      path = c;
+      break;
+    }
+  if (path.empty())
+    throw PluginError(what + ": no " + (explicit_path ? "file " + name_or_path : file_name_for(name)) +
+                      " found; paths tried:" + list(candidates) +
+                      "\n(set SIMGATE_PLUGIN_PATH or give the library's path)");
+
+  // open it: RTLD_LOCAL keeps each plugin's symbols to itself
+  void* handle = ::dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+  if (!handle) {
+    const char* err = ::dlerror();
+    throw PluginError(what + " (" + path + "): dlopen failed: " + (err ? err : "unknown error") +
+                      "\npaths tried:" + list(candidates));
+  }
+  std::shared_ptr<void> library(handle, [](void* h) { ::dlclose(h); });
+
+  const std::string entry_name = "simgate_transport_" + name + "_entry";
+  ::dlerror();
+  void* symbol = ::dlsym(handle, entry_name.c_str());
+  if (!symbol)
+    throw PluginError(what + " (" + path + "): entry function " + entry_name +
+                      " not found; is it built with SIMGATE_TRANSPORT_PLUGIN(" + name + ", ...)?");
+  auto entry = reinterpret_cast<simgate_transport_entry_fn>(symbol);
+  const simgate_transport_descriptor* d = entry();
+
+  // check before trusting anything beyond the first two fields
+  auto refuse = [&](const std::string& why) { throw PluginError(what + " (" + path + "): " + why); };
+  if (!d) refuse(entry_name + "() returned no descriptor");
+  if (d->abi_version != SIMGATE_PLUGIN_ABI_VERSION)
+    refuse("ABI version " + std::to_string(d->abi_version) + ", expected " +
+           std::to_string(SIMGATE_PLUGIN_ABI_VERSION) + " (rebuild the plugin against this simgate)");
+  if (d->descriptor_size < sizeof(simgate_transport_descriptor))
+    refuse("descriptor of " + std::to_string(d->descriptor_size) + " bytes, expected at least " +
+           std::to_string(sizeof(simgate_transport_descriptor)));
+  if (!d->build_tag || std::string(d->build_tag) != SIMGATE_BUILD_TAG)
+    refuse(std::string("built with '") + (d->build_tag ? d->build_tag : "(none)") + "', expected '" +
+           SIMGATE_BUILD_TAG + "' (C++ library ABI and JSON library must match)");
+  if (!d->name || name != d->name)
+    refuse(std::string("calls itself '") + (d->name ? d->name : "(null)") + "', expected '" + name + "'");
+  if (!d->create) refuse("required function create is missing");
+  if (!d->destroy) refuse("required function destroy is missing");
+
+  auto plugin = std::make_shared<TransportPlugin>();
+  plugin->library_ = std::move(library);
+  plugin->descriptor_ = d;
+  plugin->path_ = path;
+  plugin->name_ = name;
+  log::debug("loaded ", what, " version ", d->version ? d->version : "?", " from ", path);
+  return plugin;
+}
+
+std::vector<std::string> TransportPlugin::option_keys() const {
+  std::vector<std::string> keys;
+  for (const char* const* k = descriptor_->option_keys; k && *k; ++k) keys.emplace_back(*k);
+  return keys;
+}
+
+std::shared_ptr<RequestManager> TransportPlugin::create(const json& options, const std::string& config_path) const {
+  // unknown keys are refused before the plugin sees them
+  ConfigObject(options, config_path).allow_only(option_keys());
+
+  char error[1024] = {0};
+  RequestManager* manager = descriptor_->create(options.dump().c_str(), error, sizeof(error));
+  if (!manager)
+    throw ConfigError(config_path + ": transport '" + name_ + "' refused its options: " +
+                      (error[0] ? error : "no reason given"));
+  // the deleter keeps the library loaded until the manager is gone
+  auto library = library_;
+  auto destroy = descriptor_->destroy;
+  return std::shared_ptr<RequestManager>(manager, [library, destroy](RequestManager* m) { destroy(m); });
+}
+
+std::shared_ptr<RequestManager> load_transport(const std::string& name_or_path, const json& options) {
+  return load_transport_plugin(name_or_path)->create(options, "transport '" + name_or_path + "'");
+}
+
+}  // namespace simgate

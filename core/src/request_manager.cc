@@ -1,0 +1,398 @@
+#include "simgate/core/request_manager.h"
+
+#include <atomic>
+#include <variant>
+
+#include "simgate/core/errors.h"
+#include "simgate/core/log.h"
+
+namespace simgate {
+namespace detail {
+
+// The hand-over point between transport threads and the simulation thread.
+class Inbox : public CompletionSink {
+ public:
+  struct Request { RequestId id; Call call; };
+  struct Cancel { RequestId id; std::function<void(bool)> done; };
+  struct Task { std::function<void()> run; };
+  using Event = std::variant<Request, Cancel, Task>;
+
+  // any thread
+  void push(Event event) {
+    std::shared_ptr<Wakeup> wakeup;
+    {
+      std::lock_guard lock(mutex_);
+      if (closed_) {
+        refuse(std::move(event));
+      } else {
+        events_.push_back(std::move(event));
+      }
+      wakeup = wakeup_;
+    }
+    wakeup->signal();
+  }
+  void push_all(std::vector<Event> events) {
+    std::shared_ptr<Wakeup> wakeup;
+    {
+      std::lock_guard lock(mutex_);
+      for (auto& e : events) {
+        if (closed_)
+          refuse(std::move(e));
+        else
+          events_.push_back(std::move(e));
+      }
+      wakeup = wakeup_;
+    }
+    wakeup->signal();
+  }
+  void finished(RequestId id, Outcome outcome) override {
+    std::shared_ptr<Wakeup> wakeup;
+    {
+      std::lock_guard lock(mutex_);
+      finished_.emplace_back(id, std::move(outcome));
+      wakeup = wakeup_;
+    }
+    wakeup->signal();
+  }
+
+  // simulation thread
+  void take(std::vector<Event>& events, std::vector<std::pair<RequestId, Outcome>>& finished) {
+    std::lock_guard lock(mutex_);
+    events.swap(events_);
+    finished.swap(finished_);
+  }
+  void take_finished(std::vector<std::pair<RequestId, Outcome>>& finished) {
+    std::lock_guard lock(mutex_);
+    finished.swap(finished_);
+  }
+  bool empty() {
+    std::lock_guard lock(mutex_);
+    return events_.empty() && finished_.empty();
+  }
+  // after close(), requests are answered FAILED (shutdown) at the next process()
+  void close() {
+    std::lock_guard lock(mutex_);
+    closed_ = true;
+    for (auto& e : events_) refuse(std::move(e));
+    events_.clear();
+  }
+
+  void set_wakeup(std::shared_ptr<Wakeup> w) {
+    std::lock_guard lock(mutex_);
+    wakeup_ = std::move(w);
+  }
+  std::shared_ptr<Wakeup> wakeup() {
+    std::lock_guard lock(mutex_);
+    return wakeup_;
+  }
+
+ private:
+  // caller holds mutex_
+  void refuse(Event event) {
+    if (auto* r = std::get_if<Request>(&event))
+      finished_.emplace_back(r->id, Outcome::failed(Failure::shutdown, "the request manager has stopped"));
+    // cancels and tasks after close have nothing left to act on: dropped
+  }
+
+  std::mutex mutex_;                                        // guards everything below
+  std::vector<Event> events_;                               // requests, cancels, tasks in order
+  std::vector<std::pair<RequestId, Outcome>> finished_;     // async completions, any thread
+  std::shared_ptr<Wakeup> wakeup_ = std::make_shared<Wakeup>();  // signalled on every push
+  bool closed_ = false;                                     // abandon_pending() was called
+};
+
+}  // namespace detail
+
+RequestManager::RequestManager(std::string name)
+    : name_(std::move(name)), inbox_(std::make_shared<detail::Inbox>()), wakeup_(inbox_->wakeup()) {}
+
+RequestManager::~RequestManager() = default;
+
+// ---- registration
+
+ServiceBuilder RequestManager::add_service(std::shared_ptr<Service> service) {
+  const auto& d = service->descriptor();
+  if (d.is_async && !service->slot()) service->set_slot(slot_for(d.component));
+  std::lock_guard lock(table_mutex_);
+  auto& slot = services_[d.component][d.name];
+  if (slot) log::debug(name_, ": service ", d.qualified_name(), " registered again, replacing it");
+  slot = std::move(service);
+  return ServiceBuilder(*slot);
+}
+
+void RequestManager::register_component(Component& component) {
+  for (const auto& service : component.services()) add_service(service);
+  // a component without services is still known (so errors say "no service", not "no component")
+  std::lock_guard lock(table_mutex_);
+  services_.try_emplace(component.name());
+}
+
+std::shared_ptr<AsyncSlot> RequestManager::slot_for(const std::string& component) {
+  std::lock_guard lock(table_mutex_);
+  auto& slot = slots_[component];
+  if (!slot) {
+    slot = std::make_shared<AsyncSlot>();
+    slot->component = component;
+    // free functions have no interrupt(): the running request simply ends PREEMPTED
+    slot->interrupt = [raw = slot.get()] {
+      if (raw->busy()) raw->running_completion(Status::preempted);
+    };
+  }
+  return slot;
+}
+
+std::vector<ServiceDescriptor> RequestManager::descriptors() const {
+  std::lock_guard lock(table_mutex_);
+  std::vector<ServiceDescriptor> out;
+  for (const auto& [component, table] : services_)
+    for (const auto& [name, service] : table) out.push_back(service->descriptor());
+  std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) {
+    return std::tie(a.component, a.name) < std::tie(b.component, b.name);
+  });
+  return out;
+}
+
+std::map<std::string, std::vector<std::string>> RequestManager::services() const {
+  std::map<std::string, std::vector<std::string>> out;
+  for (const auto& d : descriptors()) out[d.component].push_back(d.name);
+  return out;
+}
+
+bool RequestManager::serves_component(const std::string& component) const {
+  std::lock_guard lock(table_mutex_);
+  return services_.count(component) > 0;
+}
+
+void RequestManager::set_wakeup(std::shared_ptr<Wakeup> wakeup) {
+  wakeup_ = wakeup;
+  inbox_->set_wakeup(std::move(wakeup));
+}
+
+// ---- transport side
+
+RequestId RequestManager::new_request_id() {
+  static std::atomic<RequestId> next{1};  // process-wide: ids never collide across managers
+  return next.fetch_add(1, std::memory_order_relaxed);
+}
+
+void RequestManager::submit(RequestId id, Call call) {
+  inbox_->push(detail::Inbox::Request{id, std::move(call)});
+}
+
+void RequestManager::submit_batch(std::vector<std::pair<RequestId, Call>> calls) {
+  std::vector<detail::Inbox::Event> events;
+  events.reserve(calls.size());
+  for (auto& [id, call] : calls) events.emplace_back(detail::Inbox::Request{id, std::move(call)});
+  inbox_->push_all(std::move(events));
+}
+
+void RequestManager::cancel(RequestId id, std::function<void(bool)> done) {
+  inbox_->push(detail::Inbox::Cancel{id, std::move(done)});
+}
+
+void RequestManager::post(std::function<void()> task) { inbox_->push(detail::Inbox::Task{std::move(task)}); }
+
+// ---- simulation thread
+
+std::size_t RequestManager::process(std::chrono::nanoseconds wait) {
+  if (!started_) {
+    started_ = true;
+    start();
+  }
+  if (wait.count() > 0 && inbox_->empty()) wakeup_->wait_for(wait);
+
+  std::vector<detail::Inbox::Event> events;
+  std::vector<std::pair<RequestId, Outcome>> finished;
+  inbox_->take(events, finished);
+  std::size_t handled = events.size() + finished.size();
+
+  // completions that arrived before these requests go out first
+  for (auto& [id, outcome] : finished) deliver(id, std::move(outcome));
+
+  for (auto& event : events) {
+    if (auto* r = std::get_if<detail::Inbox::Request>(&event)) {
+      if (auto outcome = on_incoming_request(r->id, r->call)) deliver(r->id, std::move(*outcome));
+    } else if (auto* c = std::get_if<detail::Inbox::Cancel>(&event)) {
+      execute_cancel(c->id, c->done);
+    } else if (auto* t = std::get_if<detail::Inbox::Task>(&event)) {
+      try {
+        t->run();
+      } catch (const std::exception& e) {
+        log::error(name_, ": posted task threw: ", e.what());
+      }
+    }
+  }
+
+  // completions produced while executing (immediate completion, preemption, cancel); requests
+  // that arrived meanwhile wait for the next process(), which the wakeup makes immediate
+  finished.clear();
+  inbox_->take_finished(finished);
+  for (auto& [id, outcome] : finished) deliver(id, std::move(outcome));
+  return handled + finished.size();
+}
+
+Outcome RequestManager::unknown_service(const Call& call) const {
+  std::string detail;
+  {
+    std::lock_guard lock(table_mutex_);
+    auto it = services_.find(call.component);
+    if (it == services_.end()) {
+      detail = "no component '" + call.component + "'";
+    } else {
+      std::vector<std::string> names;
+      for (const auto& [name, s] : it->second) names.push_back(name);
+      std::sort(names.begin(), names.end());
+      std::string list;
+      for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
+      detail = "component '" + call.component + "' has no service '" + call.service + "'" +
+               (list.empty() ? "" : " (services: " + list + ")");
+    }
+  }
+  return Outcome::failed(Failure::unknown_service,
+                         "The request " + call.service + " has not been registered in " + name_ + ": " + detail,
+                         json{{"component", call.component}, {"service", call.service}});
+}
+
+std::optional<Outcome> RequestManager::on_incoming_request(RequestId id, const Call& call) {
+  std::shared_ptr<Service> service;
+  {
+    std::lock_guard lock(table_mutex_);
+    auto c = services_.find(call.component);
+    if (c != services_.end()) {
+      auto s = c->second.find(call.service);
+      if (s != c->second.end()) service = s->second;
+    }
+  }
+  if (!service) return unknown_service(call);
+  const ServiceDescriptor& d = service->descriptor();
+
+  try {
+    std::vector<const json*> args = bind_arguments(d, call.params);
+    if (d.is_async) return start_async(id, *service, args);
+    return Outcome::success(service->invoke(args, Completion()));
+  } catch (const ServiceError& e) {
+    json data = e.data();
+    data["component"] = d.component;
+    data["service"] = d.name;
+    return Outcome::failed(e.failure(), e.what(), std::move(data));
+  } catch (const std::exception& e) {
+    log::warning(name_, ": ", d.qualified_name(), " threw: ", e.what());
+    return Outcome::failed(Failure::internal,
+                           "Internal error in service " + d.qualified_name() + ": " + e.what(),
+                           json{{"component", d.component}, {"service", d.name}});
+  } catch (...) {
+    return Outcome::failed(Failure::internal,
+                           "Internal error in service " + d.qualified_name() + ": unknown exception",
+                           json{{"component", d.component}, {"service", d.name}});
+  }
+}
+
+std::optional<Outcome> RequestManager::start_async(RequestId id, const Service& service,
+                                                   std::span<const json* const> args) {
+  const ServiceDescriptor& d = service.descriptor();
+  AsyncSlot& slot = *service.slot();
+
+  // one async request per component: the running service's local policy decides, then ours
+  if (slot.busy()) {
+    const std::string running = slot.running->service;
+    Policy policy = slot.running_policy;
+    if (policy == Policy::noninterruptible)
+      throw ServiceAlreadyRunning("A non-interruptible service (" + running + ") is already running", running);
+    if (policy == Policy::unspecified && global_policy_ == GlobalPolicy::reject)
+      throw ServiceAlreadyRunning(
+          "A service (" + running + ") is already running. I do not know what to do.", running);
+    interrupt_running(slot, Failure::preempted, "preempted by a new request for " + d.qualified_name());
+  }
+
+  auto state = std::make_shared<detail::CallState>();
+  state->id = id;
+  state->service = d.qualified_name();
+  state->sink = inbox_;
+  Completion completion(state);
+  slot.running = state;
+  slot.running_policy = d.policy;
+  slot.running_completion = completion;
+  running_[id] = {state, service.slot()};
+
+  try {
+    service.invoke(args, completion);  // the start method's return value is informative only
+  } catch (...) {
+    running_.erase(id);
+    if (slot.running == state) {
+      slot.running.reset();
+      slot.running_completion = Completion();
+    }
+    if (state->finished.exchange(true)) {
+      // it completed and then threw: the completion stands
+      log::warning(name_, ": ", d.qualified_name(), " threw after completing; exception ignored");
+      return std::nullopt;
+    }
+    throw;  // reported by on_incoming_request
+  }
+  return std::nullopt;
+}
+
+void RequestManager::interrupt_running(AsyncSlot& slot, Failure reason, std::string message) {
+  auto state = slot.running;
+  state->interrupt_reason = reason;
+  state->interrupt_message = std::move(message);
+  try {
+    if (slot.interrupt) slot.interrupt();
+  } catch (const std::exception& e) {
+    log::error(name_, ": interrupt() of ", slot.component, " threw: ", e.what());
+  }
+  // an interrupt() override that forgot Component::interrupt(): end it anyway
+  if (!state->finished) Completion{state}(Status::preempted);
+}
+
+void RequestManager::execute_cancel(RequestId id, const std::function<void(bool)>& done) {
+  bool found = false;
+  auto it = running_.find(id);
+  if (it != running_.end()) {
+    auto& [state, slot] = it->second;
+    if (!state->finished && slot->running == state) {
+      interrupt_running(*slot, Failure::cancelled, "cancelled by its client");
+      found = true;
+    }
+  }
+  if (done) {
+    try {
+      done(found);
+    } catch (const std::exception& e) {
+      log::error(name_, ": cancel callback threw: ", e.what());
+    }
+  }
+}
+
+void RequestManager::deliver(RequestId id, Outcome outcome) {
+  running_.erase(id);
+  try {
+    on_service_completion(id, std::move(outcome));
+  } catch (const std::exception& e) {
+    log::error(name_, ": on_service_completion threw: ", e.what());
+  } catch (...) {
+    log::error(name_, ": on_service_completion threw an unknown exception");
+  }
+}
+
+void RequestManager::abandon_pending(const std::string& reason) {
+  inbox_->close();
+  // running async requests: finish them (the component may still hold the completion;
+  // its later completed() is then ignored)
+  auto running = std::move(running_);
+  running_.clear();
+  for (auto& [id, entry] : running) {
+    auto& [state, slot] = entry;
+    if (slot->running == state) {
+      slot->running.reset();
+      slot->running_completion = Completion();
+    }
+    Completion{state}.finish(Outcome::failed(Failure::shutdown, reason));
+  }
+  // deliver everything queued: refused requests and these shutdowns
+  std::vector<std::pair<RequestId, Outcome>> finished;
+  inbox_->take_finished(finished);
+  for (auto& [id, outcome] : finished) deliver(id, std::move(outcome));
+}
+
+}  // namespace simgate
