@@ -216,6 +216,7 @@ struct first_is_completion<std::tuple<First, Rest...>>
 
 template <class Tuple> struct drop_first;
 template <class First, class... Rest> struct drop_first<std::tuple<First, Rest...>> { using type = std::tuple<Rest...>; };
+template <> struct drop_first<std::tuple<>> { using type = std::tuple<>; };
 
 // Throws WrongArguments naming the parameter, the expected type and what was received.
 [[noreturn]] void throw_type_mismatch(const ServiceDescriptor& d, std::size_t index,
@@ -239,14 +240,14 @@ std::optional<json> result_to_json(R&& r) {
   return j;
 }
 
-template <class F, class... A, std::size_t... I>
+template <bool WithCompletion, class F, class... A, std::size_t... I>
 std::optional<json> invoke_typed(F& fn, const ServiceDescriptor& d, std::span<const json* const> args,
-                                 const Completion* completion, std::index_sequence<I...>) {
+                                 const Completion& completion, std::index_sequence<I...>) {
   // braced initialisation converts left to right: the first bad parameter is reported
   std::tuple<std::decay_t<A>...> values{convert_argument<A>(d, I, *args[I])...};
   auto call = [&]() -> decltype(auto) {
-    if (completion)
-      return fn(*completion, std::forward<std::decay_t<A>>(std::get<I>(values))...);
+    if constexpr (WithCompletion)
+      return fn(completion, std::forward<std::decay_t<A>>(std::get<I>(values))...);
     else
       return fn(std::forward<std::decay_t<A>>(std::get<I>(values))...);
   };
@@ -262,9 +263,10 @@ std::optional<json> invoke_typed(F& fn, const ServiceDescriptor& d, std::span<co
 template <class F, class Tuple> struct typed_invoker;
 template <class F, class... A>
 struct typed_invoker<F, std::tuple<A...>> {
+  template <bool WithCompletion>
   static std::optional<json> run(F& fn, const ServiceDescriptor& d, std::span<const json* const> args,
-                                 const Completion* completion) {
-    return invoke_typed<F, A...>(fn, d, args, completion, std::index_sequence_for<A...>{});
+                                 const Completion& completion) {
+    return invoke_typed<WithCompletion, F, A...>(fn, d, args, completion, std::index_sequence_for<A...>{});
   }
   static std::vector<ParamDescriptor> describe() {
     return {ParamDescriptor{"", ArgTraits<std::decay_t<A>>::schema(),
@@ -321,10 +323,7 @@ std::shared_ptr<Service> make_service(std::string component, std::string name, F
   const Service* self = service.get();
   service->set_invoker([fn = std::move(fn), self](std::span<const json* const> args,
                                                   const Completion& c) mutable -> std::optional<json> {
-    if constexpr (takes_completion)
-      return Invoker::run(fn, self->descriptor(), args, &c);
-    else
-      return Invoker::run(fn, self->descriptor(), args, nullptr);
+    return Invoker::template run<takes_completion>(fn, self->descriptor(), args, c);
   });
   return service;
 }

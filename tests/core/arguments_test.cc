@@ -1,0 +1,78 @@
+// Conversion of JSON arguments to C++ parameter types (core/include/simgate/core/arguments.h).
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "simgate/core/arguments.h"
+#include "simgate/core/eigen.h"
+
+namespace simgate {
+namespace {
+
+using ::testing::HasSubstr;
+
+template <class T>
+std::string mismatch(const json& j) {
+  try {
+    (void)ArgTraits<T>::from_json(j);
+  } catch (const TypeMismatch& m) {
+    return "expected " + m.expected + " at '" + m.where + "', found " + m.found;
+  }
+  return "no mismatch";
+}
+
+TEST(ArgumentsTest, IntegersAcceptIntegralNumbersOnly) {
+  EXPECT_EQ(ArgTraits<int>::from_json(json(5)), 5);
+  EXPECT_EQ(ArgTraits<int>::from_json(json(5.0)), 5);
+  EXPECT_THAT(mismatch<int>(json(5.5)), HasSubstr("expected integer"));
+  EXPECT_THAT(mismatch<int>(json("5")), HasSubstr("found string \"5\""));
+  EXPECT_THAT(mismatch<int>(json(true)), HasSubstr("found boolean true"));
+}
+
+TEST(ArgumentsTest, IntegersAreRangeChecked) {
+  EXPECT_THAT(mismatch<std::int8_t>(json(300)), HasSubstr("in range"));
+  EXPECT_THAT(mismatch<unsigned>(json(-1)), HasSubstr("non-negative"));
+  EXPECT_EQ(ArgTraits<std::uint64_t>::from_json(json(18446744073709551615ull)), 18446744073709551615ull);
+}
+
+TEST(ArgumentsTest, FloatingPointAcceptsAnyNumber) {
+  EXPECT_DOUBLE_EQ(ArgTraits<double>::from_json(json(2)), 2.0);
+  EXPECT_DOUBLE_EQ(ArgTraits<double>::from_json(json(1.5)), 1.5);
+  EXPECT_THAT(mismatch<double>(json(nullptr)), HasSubstr("expected number"));
+}
+
+TEST(ArgumentsTest, BoolsAndStringsAreStrict) {
+  EXPECT_TRUE(ArgTraits<bool>::from_json(json(true)));
+  EXPECT_THAT(mismatch<bool>(json(1)), HasSubstr("expected boolean"));
+  EXPECT_EQ(ArgTraits<std::string>::from_json(json("héllo")), "héllo");
+  EXPECT_THAT(mismatch<std::string>(json(3)), HasSubstr("expected string"));
+}
+
+TEST(ArgumentsTest, ContainersLocateTheBadElement) {
+  EXPECT_EQ(ArgTraits<std::vector<int>>::from_json(json{1, 2, 3}), (std::vector<int>{1, 2, 3}));
+  EXPECT_THAT(mismatch<std::vector<int>>(json{1, "x"}), HasSubstr("at '[1]'"));
+  EXPECT_THAT(mismatch<std::vector<std::vector<double>>>(json{{1.0}, {2.0, "y"}}), HasSubstr("at '[1][1]'"));
+  EXPECT_THAT((mismatch<std::array<double, 3>>(json{1, 2})), HasSubstr("array of 3 numbers"));
+  EXPECT_THAT((mismatch<std::map<std::string, int>>(json{{"a", 1}, {"b", "no"}})), HasSubstr("at '.b'"));
+}
+
+TEST(ArgumentsTest, OptionalAcceptsNull) {
+  EXPECT_FALSE(ArgTraits<std::optional<int>>::from_json(json(nullptr)).has_value());
+  EXPECT_EQ(ArgTraits<std::optional<int>>::from_json(json(4)), 4);
+}
+
+TEST(ArgumentsTest, EigenVectorsConvertBothWays) {
+  Eigen::Vector3d v = ArgTraits<Eigen::Vector3d>::from_json(json{1.0, 2.0, 3.0});
+  EXPECT_EQ(v, Eigen::Vector3d(1, 2, 3));
+  EXPECT_EQ(ArgTraits<Eigen::Vector3d>::to_json(v), (json{1.0, 2.0, 3.0}));
+  EXPECT_THAT(mismatch<Eigen::Vector3d>(json{1.0, 2.0}), HasSubstr("array of 3 numbers"));
+  EXPECT_EQ(ArgTraits<Eigen::VectorXd>::from_json(json{1, 2, 3, 4}).size(), 4);
+}
+
+TEST(ArgumentsTest, SchemasDescribeTypes) {
+  EXPECT_EQ(ArgTraits<double>::schema(), (json{{"type", "number"}}));
+  EXPECT_EQ(ArgTraits<std::vector<int>>::schema()["items"]["type"], "integer");
+  EXPECT_EQ(ArgTraits<Eigen::Vector3d>::schema()["maxItems"], 3);
+}
+
+}  // namespace
+}  // namespace simgate

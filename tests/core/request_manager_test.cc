@@ -1,0 +1,414 @@
+// The request life cycle (core/src/request_manager.cc): sync and async services, arity and
+// type errors, named arguments, policies, preemption, cancel, exceptions, shutdown.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <thread>
+
+#include "simgate/core/component.h"
+#include "simgate/core/eigen.h"
+#include "test_manager.h"
+
+namespace simgate {
+namespace {
+
+using ::testing::HasSubstr;
+using testing::TestManager;
+
+int add(int a, int b) { return a + b; }
+
+// A component like MORSE's waypoint actuator: async goto, sync stop/status.
+class Mover : public Component {
+ public:
+  explicit Mover(std::string name) : Component(std::move(name)) {
+    add_async_service("goto", &Mover::go_to, {"x", "y", {"tolerance", 0.5}}).interruptible().doc("drive");
+    add_async_service("lock", &Mover::lock, {}).noninterruptible();
+    add_async_service("wander", &Mover::wander, {});  // no local policy
+    add_service("position", &Mover::position);
+    add_service("fail", &Mover::fail, {"message"});
+    add_service("crash", &Mover::crash);
+  }
+  void go_to(double x, double y, double tolerance) {
+    target_ = {x, y};
+    tolerance_ = tolerance;
+    moving_ = true;
+  }
+  void lock() {}
+  void wander() {}
+  Eigen::Vector2d position() const { return position_; }
+  void fail(const std::string& message) { throw ServiceError(message); }
+  int crash() { throw std::out_of_range("index 7 out of range"); }
+
+  void default_action() override {
+    if (!moving_) return;
+    position_ = target_;
+    moving_ = false;
+    completed(Status::success, "Arrived");
+  }
+  void interrupt() override {
+    moving_ = false;
+    ++interrupts;
+    Component::interrupt();
+  }
+  int interrupts = 0;
+
+ private:
+  Eigen::Vector2d position_{0, 0}, target_{0, 0};
+  double tolerance_ = 0;
+  bool moving_ = false;
+};
+
+class RequestManagerTest : public ::testing::Test {
+ protected:
+  void SetUp() override { rm.register_component(mover); }
+  TestManager rm;
+  Mover mover{"robot.mover"};
+};
+
+TEST_F(RequestManagerTest, SyncFreeFunctionReturnsItsResult) {
+  rm.register_service("test_component", add, "add", {"a", "b"});
+  auto o = rm.run("test_component", "add", json{1, 2});
+  ASSERT_TRUE(o);
+  EXPECT_EQ(o->status, Status::success);
+  EXPECT_EQ(o->value, json(3));
+}
+
+TEST_F(RequestManagerTest, VoidServiceHasNoValueButFalsyResultsDo) {
+  rm.register_service("c", [] {}, "nothing");
+  rm.register_service("c", [] { return 0; }, "zero");
+  rm.register_service("c", [] { return std::string(); }, "empty");
+  rm.register_service("c", [] { return false; }, "no");
+  EXPECT_FALSE(rm.run("c", "nothing")->value.has_value());
+  EXPECT_EQ(rm.run("c", "zero")->value, json(0));
+  EXPECT_EQ(rm.run("c", "empty")->value, json(""));
+  EXPECT_EQ(rm.run("c", "no")->value, json(false));
+}
+
+TEST_F(RequestManagerTest, UnknownComponentAndServiceHaveNotBeenRegistered) {
+  auto o = rm.run("nobody", "move", json::array());
+  EXPECT_EQ(o->status, Status::failed);
+  EXPECT_EQ(o->failure, Failure::unknown_service);
+  EXPECT_THAT(o->message, HasSubstr("The request move has not been registered in Test service manager"));
+  EXPECT_THAT(o->message, HasSubstr("no component 'nobody'"));
+  auto s = rm.run("robot.mover", "fly", json::array());
+  EXPECT_THAT(s->message, HasSubstr("has not been registered"));
+  EXPECT_THAT(s->message, HasSubstr("has no service 'fly' (services: crash, fail, goto, lock, position, wander)"));
+  EXPECT_EQ(s->value, json(s->message));
+}
+
+TEST_F(RequestManagerTest, WrongArityMentionsWrongNumberOfParameters) {
+  rm.register_service("test_component", add, "add", {"a", "b"});
+  auto o = rm.run("test_component", "add", json{1});
+  EXPECT_EQ(o->failure, Failure::bad_arguments);
+  EXPECT_THAT(o->message, HasSubstr("wrong # of parameters for service test_component.add: expected 2 (a, b), got 1"));
+  EXPECT_THAT(rm.run("test_component", "add", json{1, 2, 3})->message, HasSubstr("wrong # of parameters"));
+  EXPECT_THAT(rm.run("test_component", "add")->message, HasSubstr("wrong # of parameters"));
+}
+
+TEST_F(RequestManagerTest, WrongTypeNamesTheParameterAndWhatCame) {
+  rm.register_service("test_component", add, "add", {"a", "b"});
+  auto o = rm.run("test_component", "add", json{1, "two"});
+  EXPECT_EQ(o->failure, Failure::bad_arguments);
+  EXPECT_THAT(o->message, HasSubstr("parameter 'b' expects integer, got string \"two\""));
+  EXPECT_EQ(o->data["parameter"], "b");
+}
+
+TEST_F(RequestManagerTest, NamedArgumentsAndDefaults) {
+  auto id = rm.call("robot.mover", "goto", json{{"y", 2.0}, {"x", 1.0}});
+  rm.process();
+  EXPECT_TRUE(mover.has_running_request());
+  mover.default_action();
+  rm.process();
+  EXPECT_EQ(rm.outcome(id)->value, json("Arrived"));
+  EXPECT_EQ(rm.run("robot.mover", "position")->value, (json{1.0, 2.0}));
+}
+
+TEST_F(RequestManagerTest, NamedArgumentsReportMissingAndUnknownNames) {
+  auto missing = rm.run("robot.mover", "goto", json{{"x", 1.0}});
+  EXPECT_THAT(missing->message, HasSubstr("wrong # of parameters"));
+  EXPECT_THAT(missing->message, HasSubstr("missing 'y'"));
+  auto unknown = rm.run("robot.mover", "goto", json{{"x", 1.0}, {"y", 1.0}, {"speed", 3}});
+  EXPECT_THAT(unknown->message, HasSubstr("no parameter named 'speed' (parameters: x, y, tolerance=0.5)"));
+  auto scalar = rm.run("robot.mover", "goto", json(5));
+  EXPECT_THAT(scalar->message, HasSubstr("must be a list (positional) or an object (named)"));
+}
+
+TEST_F(RequestManagerTest, ServiceErrorBecomesFailedWithItsMessage) {
+  auto o = rm.run("robot.mover", "fail", json{"Our human cannot walk at negative speed!"});
+  EXPECT_EQ(o->status, Status::failed);
+  EXPECT_EQ(o->failure, Failure::service_error);
+  EXPECT_EQ(o->value, json("Our human cannot walk at negative speed!"));
+}
+
+TEST_F(RequestManagerTest, OtherExceptionsFailClearlyAndTheManagerLivesOn) {
+  auto o = rm.run("robot.mover", "crash");
+  EXPECT_EQ(o->failure, Failure::internal);
+  EXPECT_THAT(o->message, HasSubstr("robot.mover.crash"));
+  EXPECT_THAT(o->message, HasSubstr("index 7 out of range"));
+  EXPECT_EQ(rm.run("robot.mover", "position")->status, Status::success);
+}
+
+TEST_F(RequestManagerTest, AsyncCompletesThroughCompleted) {
+  auto id = rm.call("robot.mover", "goto", json{3, 4});
+  rm.process();
+  EXPECT_FALSE(rm.outcome(id));
+  EXPECT_EQ(rm.pending_count(), 1u);
+  EXPECT_EQ(mover.running_service(), "robot.mover.goto");
+  mover.default_action();
+  rm.process();
+  ASSERT_TRUE(rm.outcome(id));
+  EXPECT_EQ(rm.outcome(id)->status, Status::success);
+  EXPECT_EQ(rm.pending_count(), 0u);
+  EXPECT_FALSE(mover.has_running_request());
+}
+
+TEST_F(RequestManagerTest, SecondAsyncPreemptsInterruptible) {
+  auto first = rm.call("robot.mover", "goto", json{1, 1});
+  auto second = rm.call("robot.mover", "goto", json{2, 2});
+  rm.process();
+  ASSERT_TRUE(rm.outcome(first));
+  EXPECT_EQ(rm.outcome(first)->status, Status::preempted);
+  EXPECT_EQ(rm.outcome(first)->failure, Failure::preempted);
+  EXPECT_FALSE(rm.outcome(first)->value.has_value());
+  EXPECT_EQ(mover.interrupts, 1);
+  EXPECT_FALSE(rm.outcome(second));
+  mover.default_action();
+  rm.process();
+  EXPECT_EQ(rm.outcome(second)->status, Status::success);
+}
+
+TEST_F(RequestManagerTest, NonInterruptibleRefusesTheNewRequest) {
+  auto first = rm.call("robot.mover", "lock");
+  auto second = rm.call("robot.mover", "goto", json{2, 2});
+  rm.process();
+  EXPECT_FALSE(rm.outcome(first));
+  EXPECT_EQ(rm.outcome(second)->status, Status::failed);
+  EXPECT_EQ(rm.outcome(second)->failure, Failure::busy);
+  EXPECT_THAT(rm.outcome(second)->message,
+              HasSubstr("A non-interruptible service (robot.mover.lock) is already running"));
+  EXPECT_EQ(mover.running_service(), "robot.mover.lock");
+}
+
+TEST_F(RequestManagerTest, GlobalPolicyRejectsByDefault) {
+  auto first = rm.call("robot.mover", "wander");
+  auto second = rm.call("robot.mover", "goto", json{2, 2});
+  rm.process();
+  EXPECT_FALSE(rm.outcome(first));
+  EXPECT_THAT(rm.outcome(second)->message,
+              HasSubstr("A service (robot.mover.wander) is already running. I do not know what to do."));
+  EXPECT_EQ(rm.outcome(second)->data["running"], "robot.mover.wander");
+}
+
+TEST_F(RequestManagerTest, GlobalPolicyPreemptInterruptsServicesWithoutLocalPolicy) {
+  rm.set_global_policy(GlobalPolicy::preempt);
+  auto first = rm.call("robot.mover", "wander");
+  auto second = rm.call("robot.mover", "lock");
+  auto third = rm.call("robot.mover", "goto", json{1, 1});
+  rm.process();
+  EXPECT_EQ(rm.outcome(first)->status, Status::preempted);  // no local policy: global preempts
+  EXPECT_FALSE(rm.outcome(second));                          // lock keeps running
+  EXPECT_EQ(rm.outcome(third)->failure, Failure::busy);     // local policy beats global
+}
+
+TEST_F(RequestManagerTest, CancelEndsTheRunningRequestPreempted) {
+  auto id = rm.call("robot.mover", "goto", json{1, 1});
+  std::optional<bool> found;
+  rm.cancel(id, [&](bool f) { found = f; });
+  rm.process();
+  ASSERT_TRUE(found);
+  EXPECT_TRUE(*found);
+  EXPECT_EQ(rm.outcome(id)->status, Status::preempted);
+  EXPECT_EQ(rm.outcome(id)->failure, Failure::cancelled);
+  EXPECT_EQ(mover.interrupts, 1);
+  std::optional<bool> again;
+  rm.cancel(id, [&](bool f) { again = f; });
+  rm.process();
+  EXPECT_FALSE(*again);
+  EXPECT_EQ(rm.completion_count(id), 1u);
+}
+
+TEST_F(RequestManagerTest, CancelOfASyncOrUnknownRequestFindsNothing) {
+  auto id = rm.call("robot.mover", "position");
+  std::optional<bool> found;
+  rm.cancel(id, [&](bool f) { found = f; });
+  rm.cancel(987654321, {});
+  rm.process();
+  EXPECT_FALSE(*found);
+}
+
+TEST_F(RequestManagerTest, CancelAfterPreemptionDoesNotTouchTheNewRequest) {
+  // MORSE interrupted whatever ran on the component; simgate cancels only its target
+  auto first = rm.call("robot.mover", "goto", json{1, 1});
+  auto second = rm.call("robot.mover", "goto", json{2, 2});
+  rm.cancel(first, {});
+  rm.process();
+  EXPECT_EQ(rm.outcome(first)->status, Status::preempted);
+  EXPECT_FALSE(rm.outcome(second));
+  EXPECT_TRUE(mover.has_running_request());
+}
+
+class Forgetful : public Component {
+ public:
+  Forgetful() : Component("forgetful") { add_async_service("run", [] {}).interruptible(); }
+  void interrupt() override { ++calls; }  // forgets Component::interrupt()
+  int calls = 0;
+};
+
+TEST_F(RequestManagerTest, InterruptOverrideThatForgetsTheBaseStillEndsTheRequest) {
+  Forgetful f;
+  rm.register_component(f);
+  auto first = rm.call("forgetful", "run");
+  auto second = rm.call("forgetful", "run");
+  rm.process();
+  EXPECT_EQ(f.calls, 1);
+  EXPECT_EQ(rm.outcome(first)->status, Status::preempted);
+  EXPECT_TRUE(f.has_running_request());
+  (void)second;
+}
+
+TEST_F(RequestManagerTest, AsyncFreeFunctionTakesACompletion) {
+  Completion saved;
+  rm.register_async_service("test_component", [&](Completion done, int start) {
+    saved = done;
+    return start > 0;
+  }, "compute", {"start_value"});
+  auto id = rm.call("test_component", "compute", json{5});
+  rm.process();
+  EXPECT_FALSE(rm.outcome(id));
+  EXPECT_TRUE(saved(Status::success, "done!"));
+  EXPECT_FALSE(saved(Status::success, "twice"));  // exactly once
+  rm.process();
+  EXPECT_EQ(rm.outcome(id)->value, json("done!"));
+  EXPECT_EQ(rm.completion_count(id), 1u);
+}
+
+TEST_F(RequestManagerTest, AsyncFreeFunctionsShareTheirComponentSlot) {
+  rm.register_async_service("tc", [](Completion) {}, "a");
+  rm.register_async_service("tc", [](Completion) {}, "b");
+  auto first = rm.call("tc", "a");
+  auto second = rm.call("tc", "b");
+  rm.process();
+  EXPECT_FALSE(rm.outcome(first));
+  EXPECT_THAT(rm.outcome(second)->message, HasSubstr("A service (tc.a) is already running"));
+}
+
+TEST_F(RequestManagerTest, CompletionFromAnotherThreadWakesProcess) {
+  Completion saved;
+  rm.register_async_service("tc", [&](Completion done) { saved = done; }, "work");
+  auto id = rm.call("tc", "work");
+  rm.process();
+  std::thread worker([&] { saved(Status::failed, json{{"code", 7}}); });
+  auto start = std::chrono::steady_clock::now();
+  for (int i = 0; i < 100 && !rm.outcome(id); ++i) rm.process(std::chrono::seconds(10));
+  worker.join();
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(5));
+  ASSERT_TRUE(rm.outcome(id));
+  EXPECT_EQ(rm.outcome(id)->status, Status::failed);
+  EXPECT_EQ(rm.outcome(id)->value, (json{{"code", 7}}));
+}
+
+TEST_F(RequestManagerTest, ExceptionInAsyncStartFailsAndFreesTheSlot) {
+  rm.register_async_service("tc", [](int x) { if (x < 0) throw ServiceError("negative"); }, "go", {"x"});
+  auto bad = rm.call("tc", "go", json{-1});
+  auto good = rm.call("tc", "go", json{1});
+  rm.process();
+  EXPECT_EQ(rm.outcome(bad)->value, json("negative"));
+  EXPECT_FALSE(rm.outcome(good));  // started: the slot was free again
+}
+
+TEST_F(RequestManagerTest, BadArgumentsDoNotPreemptTheRunningRequest) {
+  auto first = rm.call("robot.mover", "goto", json{1, 1});
+  auto bad = rm.call("robot.mover", "goto", json{"x"});
+  rm.process();
+  EXPECT_FALSE(rm.outcome(first));
+  EXPECT_EQ(rm.outcome(bad)->failure, Failure::bad_arguments);
+}
+
+TEST_F(RequestManagerTest, ProcessWakesAtOnceForARequestFromAnotherThread) {
+  rm.register_service("test_component", add, "add", {"a", "b"});
+  RequestId id = 0;
+  std::thread io([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    id = rm.call("test_component", "add", json{2, 2});
+  });
+  auto start = std::chrono::steady_clock::now();
+  std::size_t handled = 0;
+  while (handled == 0 && std::chrono::steady_clock::now() - start < std::chrono::seconds(30))
+    handled = rm.process(std::chrono::seconds(10));
+  io.join();
+  // generous bound: a missed wake-up would take the full 10 s wait
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(5));
+  EXPECT_EQ(rm.outcome(id)->value, json(4));
+}
+
+TEST_F(RequestManagerTest, BatchRunsInOneProcess) {
+  rm.register_service("test_component", add, "add", {"a", "b"});
+  std::vector<std::pair<RequestId, Call>> batch;
+  for (int i = 0; i < 3; ++i)
+    batch.emplace_back(rm.new_request_id(), Call{"test_component", "add", json{i, i}});
+  auto ids = std::vector<RequestId>{batch[0].first, batch[1].first, batch[2].first};
+  rm.submit_batch(std::move(batch));
+  rm.process();
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(rm.outcome(ids[i])->value, json(2 * i));
+}
+
+TEST_F(RequestManagerTest, AbandonPendingAnswersEveryPendingRequest) {
+  auto running = rm.call("robot.mover", "goto", json{1, 1});
+  rm.process();
+  auto queued = rm.call("robot.mover", "position");
+  rm.abandon_pending();
+  EXPECT_EQ(rm.outcome(running)->failure, Failure::shutdown);
+  EXPECT_EQ(rm.outcome(queued)->failure, Failure::shutdown);
+  EXPECT_FALSE(mover.has_running_request());
+  auto late = rm.call("robot.mover", "position");
+  rm.process();
+  EXPECT_EQ(rm.outcome(late)->failure, Failure::shutdown);
+  mover.completed(Status::success);  // ignored: nothing running any more
+  EXPECT_EQ(rm.completion_count(running), 1u);
+}
+
+TEST_F(RequestManagerTest, ComponentsAreSharedBetweenManagers) {
+  TestManager other;
+  other.register_component(mover);
+  auto a = rm.call("robot.mover", "lock");
+  rm.process();
+  auto b = other.call("robot.mover", "goto", json{1, 1});
+  other.process();
+  EXPECT_EQ(other.outcome(b)->failure, Failure::busy);  // one async request per component
+  (void)a;
+}
+
+TEST_F(RequestManagerTest, DescriptorsCarryTypesDefaultsAndPolicy) {
+  auto ds = rm.descriptors();
+  auto it = std::find_if(ds.begin(), ds.end(), [](auto& d) { return d.name == "goto"; });
+  ASSERT_NE(it, ds.end());
+  EXPECT_TRUE(it->is_async);
+  EXPECT_EQ(it->policy, Policy::interruptible);
+  EXPECT_EQ(it->doc, "drive");
+  ASSERT_EQ(it->params.size(), 3u);
+  EXPECT_EQ(it->params[0].schema, (json{{"type", "number"}}));
+  EXPECT_EQ(it->params[2].default_value, json(0.5));
+  EXPECT_EQ(it->signature(), "x, y, tolerance=0.5");
+  EXPECT_EQ(it->to_json()["policy"], "interruptible");
+  EXPECT_EQ(rm.services().at("robot.mover").size(), 6u);
+}
+
+TEST(ServiceRegistrationTest, MistakesAreCaughtAtRegistration) {
+  TestManager rm;
+  EXPECT_THROW(rm.register_service("c", add, "add", {"a"}), std::logic_error);
+  EXPECT_THROW(rm.register_service("c", add, "add", {"a", "a"}), std::logic_error);
+  EXPECT_THROW(rm.register_service("c", add, "add", {{"a", 1}, "b"}), std::logic_error);
+  EXPECT_THROW(rm.register_service("c", add, "add", {"a", {"b", "two"}}), std::logic_error);
+  EXPECT_THROW(rm.register_service("c", [](Completion) {}, "sync_with_completion"), std::logic_error);
+  EXPECT_THROW(rm.register_service("c", add, "add").interruptible(), std::logic_error);
+}
+
+TEST(ServiceRegistrationTest, ParametersWithoutNamesAreNumbered) {
+  TestManager rm;
+  rm.register_service("c", add, "add");
+  EXPECT_EQ(rm.descriptors()[0].signature(), "arg0, arg1");
+}
+
+}  // namespace
+}  // namespace simgate
