@@ -1,0 +1,402 @@
+#include "simgate/client/dds_client.h"
+
+#include <algorithm>
+#include <atomic>
+#include <condition_variable>
+#include <cstring>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <thread>
+#include <unordered_map>
+
+#include "dds_support.h"
+#include "simgate/core/config.h"
+
+namespace simgate::client {
+
+using dds::ClientId;
+using dds::retcode_text;
+
+namespace {
+
+constexpr dds_attach_t k_token_replies = 1;
+constexpr dds_attach_t k_token_guard = 2;
+constexpr dds_attach_t k_token_status = 3;
+
+dds_entity_t check(dds_entity_t rc, const std::string& what) {
+  if (rc < 0) throw ClientError("DDS client: cannot create " + what + ": " + retcode_text(rc));
+  return rc;
+}
+
+// Replies keyed with another client's id never reach our reader.
+bool is_ours(const void* sample, void* arg) {
+  return std::memcmp(static_cast<const simgate_Reply*>(sample)->client, arg, 16) == 0;
+}
+
+json parse_or_string(const char* text) {
+  json value = json::parse(text, nullptr, false);
+  return value.is_discarded() ? json(text) : value;
+}
+
+}  // namespace
+
+DdsClientOptions DdsClientOptions::from_json(const json& options) {
+  try {
+    ConfigObject config(options.is_null() ? json::object() : options, "dds client");
+    DdsClientOptions out;
+    out.domain = static_cast<std::uint32_t>(config.get_int("domain", 0, 0, 230));
+    out.partition = config.get_string("partition", out.partition);
+    out.config = config.get_string("config", "");
+    out.discovery_timeout =
+        std::chrono::milliseconds(config.get_int("discovery_timeout_ms", out.discovery_timeout.count(), 0, 3'600'000));
+    config.finish();
+    return out;
+  } catch (const ConfigError& e) {
+    throw ClientError(e.what());
+  }
+}
+
+class DdsClient::Impl {
+ public:
+  // The state of one call (or cancel) until its final reply is consumed.
+  struct Slot {
+    bool accepted = false;           // ST_ACCEPTED seen (or final reply)
+    std::optional<Outcome> outcome;  // the final reply
+    std::string error;               // the server went away
+  };
+
+  explicit Impl(DdsClientOptions options);
+  ~Impl();
+
+  bool wait_for_server(std::chrono::milliseconds timeout);
+  CallId send(simgate_Op op, const std::string& component, const std::string& service, const json& params,
+              CallId target);
+  bool wait_accepted(CallId id, std::chrono::milliseconds timeout);
+  Outcome wait(CallId id, std::chrono::milliseconds timeout);
+  json list_services(std::chrono::milliseconds timeout);
+
+  DdsClientOptions options_;                       // as given
+  std::unique_ptr<dds::Participant> participant_;  // owns every entity
+  ClientId client_id_{};                           // our request writer's GUID
+  std::string id_hex_;                             // the same, hex
+  dds_entity_t publisher_ = 0, subscriber_ = 0;    // in the partition
+  dds_entity_t request_writer_ = 0;                // simgate_Request
+  dds_entity_t reply_reader_ = 0;                  // simgate_Reply, filtered on client_id_
+  dds_entity_t waitset_ = 0, guard_ = 0;           // the receive thread's waitset
+  dds_entity_t read_condition_ = 0;                // replies available
+  std::atomic<CallId> next_seq_{1};                // call numbering
+
+  std::mutex mutex_;                               // guards everything below
+  std::condition_variable changed_;                // a reply, a match, or stop
+  std::unordered_map<CallId, Slot> slots_;         // calls not yet consumed
+  int server_readers_ = 0;                         // matched request readers
+  int server_writers_ = 0;                         // matched reply writers
+  bool stopping_ = false;                          // the receive thread must leave
+  dds_entity_t catalog_reader_ = 0;                // created by the first list_services
+
+  std::thread thread_;                             // the receive thread
+
+ private:
+  void run();
+  void take_replies();
+  void update_matches();
+};
+
+DdsClient::Impl::Impl(DdsClientOptions options) : options_(std::move(options)) {
+  try {
+    participant_ = std::make_unique<dds::Participant>(options_.domain, dds::resolve_config(options_.config),
+                                                      "DDS client (domain " + std::to_string(options_.domain) + ")");
+  } catch (const std::runtime_error& e) {
+    throw ClientError(e.what());
+  }
+  dds_entity_t pp = participant_->handle();
+  dds::QosPtr partition_qos(dds_create_qos());
+  dds_qset_partition1(partition_qos.get(), options_.partition.c_str());
+  publisher_ = check(dds_create_publisher(pp, partition_qos.get(), nullptr), "publisher");
+  subscriber_ = check(dds_create_subscriber(pp, partition_qos.get(), nullptr), "subscriber");
+
+  // the request writer; its GUID is our id
+  dds_entity_t request_topic = check(
+      dds_create_topic(pp, &simgate_Request_desc, dds::k_request_topic, nullptr, nullptr), "topic simgate_Request");
+  dds::QosPtr request_qos = dds::make_qos(false, 0, DDS_SECS(1));
+  request_writer_ = check(dds_create_writer(publisher_, request_topic, request_qos.get(), nullptr), "request writer");
+  dds_guid_t guid;
+  check(dds_get_guid(request_writer_, &guid), "client id");
+  client_id_ = dds::to_client_id(guid);
+  id_hex_ = dds::to_hex(client_id_);
+
+  // the reply reader: only our instance, and announced so the server knows when it matched
+  dds_entity_t reply_topic =
+      check(dds_create_topic(pp, &simgate_Reply_desc, dds::k_reply_topic, nullptr, nullptr), "topic simgate_Reply");
+  dds_topic_filter filter{};
+  filter.mode = DDS_TOPIC_FILTER_SAMPLE_ARG;
+  filter.f.sample_arg = &is_ours;
+  filter.arg = client_id_.data();
+  check(dds_set_topic_filter_extended(reply_topic, &filter), "reply filter");
+  dds::QosPtr reply_qos = dds::make_qos(false, 0, DDS_SECS(1));
+  std::string userdata = "simgate.role=client;simgate.v=1;simgate.id=" + id_hex_;
+  dds_qset_userdata(reply_qos.get(), userdata.data(), userdata.size());
+  reply_reader_ = check(dds_create_reader(subscriber_, reply_topic, reply_qos.get(), nullptr), "reply reader");
+
+  // the receive thread waits for replies, match changes and stop
+  waitset_ = check(dds_create_waitset(pp), "waitset");
+  guard_ = check(dds_create_guardcondition(pp), "guard condition");
+  read_condition_ = check(dds_create_readcondition(reply_reader_, DDS_ANY_STATE), "read condition");
+  dds_set_status_mask(reply_reader_, DDS_SUBSCRIPTION_MATCHED_STATUS);
+  dds_set_status_mask(request_writer_, DDS_PUBLICATION_MATCHED_STATUS);
+  check(dds_waitset_attach(waitset_, read_condition_, k_token_replies), "waitset attachment");
+  check(dds_waitset_attach(waitset_, guard_, k_token_guard), "waitset attachment");
+  check(dds_waitset_attach(waitset_, reply_reader_, k_token_status), "waitset attachment");
+  check(dds_waitset_attach(waitset_, request_writer_, k_token_status), "waitset attachment");
+  thread_ = std::thread([this] { run(); });
+}
+
+DdsClient::Impl::~Impl() {
+  {
+    std::lock_guard lock(mutex_);
+    stopping_ = true;
+  }
+  if (guard_ > 0) dds_set_guardcondition(guard_, true);
+  if (thread_.joinable()) thread_.join();
+  participant_.reset();
+}
+
+void DdsClient::Impl::run() {
+  update_matches();
+  dds_attach_t triggered[8];
+  for (;;) {
+    {
+      std::lock_guard lock(mutex_);
+      if (stopping_) return;
+    }
+    dds_return_t n = dds_waitset_wait(waitset_, triggered, 8, DDS_SECS(1));
+    if (n < 0) return;
+    bool replies = false, status = false;
+    for (dds_return_t i = 0; i < std::min<dds_return_t>(n, 8); ++i) {
+      replies |= triggered[i] == k_token_replies;
+      status |= triggered[i] == k_token_status;
+    }
+    if (replies) take_replies();
+    if (status) update_matches();
+  }
+}
+
+void DdsClient::Impl::update_matches() {
+  // reading the statuses resets them
+  dds_publication_matched_status_t pub{};
+  dds_subscription_matched_status_t sub{};
+  dds_get_publication_matched_status(request_writer_, &pub);
+  dds_get_subscription_matched_status(reply_reader_, &sub);
+  std::lock_guard lock(mutex_);
+  server_readers_ = static_cast<int>(pub.current_count);
+  server_writers_ = static_cast<int>(sub.current_count);
+  // no server left: nobody will answer the calls in flight
+  if (server_writers_ == 0 || server_readers_ == 0) {
+    for (auto& [id, slot] : slots_)
+      if (!slot.outcome && slot.error.empty())
+        slot.error = "DDS client: the server of partition '" + options_.partition + "' (domain " +
+                     std::to_string(options_.domain) + ") went away before answering call " + std::to_string(id);
+  }
+  changed_.notify_all();
+}
+
+void DdsClient::Impl::take_replies() {
+  constexpr int batch = 16;
+  void* samples[batch];
+  dds_sample_info_t infos[batch];
+  for (;;) {
+    samples[0] = nullptr;
+    dds_return_t n = dds_take(reply_reader_, samples, infos, batch, batch);
+    if (n <= 0) return;
+    {
+      std::lock_guard lock(mutex_);
+      for (dds_return_t i = 0; i < n; ++i) {
+        if (!infos[i].valid_data) continue;
+        const auto& reply = *static_cast<const simgate_Reply*>(samples[i]);
+        auto it = slots_.find(reply.seq);
+        if (it == slots_.end()) continue;  // nobody waits any more
+        Slot& slot = it->second;
+        slot.accepted = true;
+        if (reply.status == simgate_ST_ACCEPTED && !reply.last) continue;
+        Outcome outcome;
+        switch (reply.status) {
+          case simgate_ST_FAILED: outcome.status = Status::failed; break;
+          case simgate_ST_PREEMPTED: outcome.status = Status::preempted; break;
+          default: outcome.status = Status::success; break;
+        }
+        outcome.failure = dds::from_wire(reply.failure);
+        if (reply.result && *reply.result) outcome.value = parse_or_string(reply.result);
+        if (reply.message) outcome.message = reply.message;
+        if (reply.data && *reply.data) outcome.data = parse_or_string(reply.data);
+        slot.outcome = std::move(outcome);
+      }
+      changed_.notify_all();
+    }
+    dds_return_loan(reply_reader_, samples, n);
+    if (n < batch) return;
+  }
+}
+
+bool DdsClient::Impl::wait_for_server(std::chrono::milliseconds timeout) {
+  std::unique_lock lock(mutex_);
+  return changed_.wait_for(lock, timeout, [&] { return server_readers_ > 0 && server_writers_ > 0; });
+}
+
+DdsClient::CallId DdsClient::Impl::send(simgate_Op op, const std::string& component, const std::string& service,
+                                        const json& params, CallId target) {
+  if (!wait_for_server(options_.discovery_timeout))
+    throw ClientError("DDS client: no simgate server in partition '" + options_.partition + "' of domain " +
+                      std::to_string(options_.domain) + " after " +
+                      std::to_string(options_.discovery_timeout.count()) + " ms");
+  CallId seq = next_seq_++;
+  {
+    std::lock_guard lock(mutex_);
+    slots_.emplace(seq, Slot{});
+  }
+  std::string params_text = params.is_null() ? std::string() : params.dump(-1, ' ', false, json::error_handler_t::replace);
+  simgate_Request request{};
+  std::memcpy(request.id.client, client_id_.data(), client_id_.size());
+  request.id.seq = seq;
+  request.op = op;
+  request.component = const_cast<char*>(component.c_str());
+  request.service = const_cast<char*>(service.c_str());
+  request.params = const_cast<char*>(params_text.c_str());
+  request.target = target;
+  dds_return_t rc = dds_write(request_writer_, &request);
+  if (rc < 0) {
+    std::lock_guard lock(mutex_);
+    slots_.erase(seq);
+    throw ClientError("DDS client: request " + component + "." + service + " not sent: " + retcode_text(rc));
+  }
+  return seq;
+}
+
+bool DdsClient::Impl::wait_accepted(CallId id, std::chrono::milliseconds timeout) {
+  std::unique_lock lock(mutex_);
+  // looked up each time: another thread may wait() for the same call and consume it
+  auto accepted = [&] {
+    auto it = slots_.find(id);
+    return it == slots_.end() || it->second.accepted || !it->second.error.empty();
+  };
+  changed_.wait_for(lock, timeout, accepted);
+  auto it = slots_.find(id);
+  return it != slots_.end() && it->second.accepted;
+}
+
+Outcome DdsClient::Impl::wait(CallId id, std::chrono::milliseconds timeout) {
+  std::unique_lock lock(mutex_);
+  auto finished = [&] {
+    auto it = slots_.find(id);
+    return it == slots_.end() || it->second.outcome || !it->second.error.empty();
+  };
+  if (slots_.find(id) == slots_.end()) throw ClientError("DDS client: no call " + std::to_string(id) + " to wait for");
+  bool done = changed_.wait_for(lock, timeout, finished);
+  auto it = slots_.find(id);
+  if (it == slots_.end()) throw ClientError("DDS client: call " + std::to_string(id) + " was consumed by another wait()");
+  Slot slot = std::move(it->second);
+  slots_.erase(it);
+  if (slot.outcome) return std::move(*slot.outcome);
+  if (!done)
+    throw ClientError("DDS client: no reply to call " + std::to_string(id) + " within " +
+                      std::to_string(timeout.count()) + " ms");
+  throw ClientError(slot.error);
+}
+
+json DdsClient::Impl::list_services(std::chrono::milliseconds timeout) {
+  auto deadline = std::chrono::steady_clock::now() + timeout;
+  dds_entity_t pp = participant_->handle();
+  {
+    // the catalog reader, created once: transient-local, so it receives what was published
+    std::lock_guard lock(mutex_);
+    if (catalog_reader_ == 0) {
+      dds_entity_t topic = check(
+          dds_create_topic(pp, &simgate_CatalogEntry_desc, dds::k_catalog_topic, nullptr, nullptr), "topic simgate_Catalog");
+      dds::QosPtr qos = dds::make_qos(true, 1, DDS_SECS(1));
+      catalog_reader_ = check(dds_create_reader(subscriber_, topic, qos.get(), nullptr), "catalog reader");
+    }
+  }
+  dds_entity_t waitset = check(dds_create_waitset(pp), "catalog waitset");
+  dds_entity_t fresh = check(dds_create_readcondition(catalog_reader_, DDS_NOT_READ_SAMPLE_STATE), "catalog condition");
+  dds_waitset_attach(waitset, fresh, 0);
+  struct Entry {
+    std::string server;   // who publishes it
+    std::uint32_t count;  // how many entries that server publishes
+    json services;        // its descriptors
+  };
+  std::map<std::string, Entry> entries;
+  for (;;) {
+    // everything alive in the catalog (read, not taken: later calls see it too)
+    void* samples[64];
+    dds_sample_info_t infos[64];
+    samples[0] = nullptr;
+    dds_return_t n = dds_read_mask(catalog_reader_, samples, infos, 64, 64, DDS_ANY_SAMPLE_STATE | DDS_ANY_VIEW_STATE | DDS_ALIVE_INSTANCE_STATE);
+    entries.clear();
+    for (dds_return_t i = 0; i < n; ++i) {
+      if (!infos[i].valid_data) continue;
+      const auto& e = *static_cast<const simgate_CatalogEntry*>(samples[i]);
+      json services = json::parse(e.services ? e.services : "", nullptr, false);
+      if (!services.is_array()) continue;
+      entries[e.component ? e.component : ""] = Entry{e.server ? e.server : "", e.count, std::move(services)};
+    }
+    if (n > 0) dds_return_loan(catalog_reader_, samples, n);
+    // complete when every server's entries are all there
+    std::map<std::string, std::uint32_t> present, expected;
+    for (const auto& [component, entry] : entries) {
+      ++present[entry.server];
+      expected[entry.server] = entry.count;
+    }
+    bool complete = !entries.empty() && std::all_of(expected.begin(), expected.end(), [&](const auto& server) {
+      return present[server.first] >= server.second;
+    });
+    auto now = std::chrono::steady_clock::now();
+    if (complete || now >= deadline) break;
+    dds_waitset_wait(waitset, nullptr, 0,
+                     std::chrono::duration_cast<std::chrono::nanoseconds>(deadline - now).count());
+  }
+  dds_delete(fresh);
+  dds_delete(waitset);
+  if (entries.empty())
+    throw ClientError("DDS client: no catalog in partition '" + options_.partition + "' of domain " +
+                      std::to_string(options_.domain) + " within " + std::to_string(timeout.count()) + " ms");
+  json out = json::array();
+  for (auto& [component, entry] : entries)
+    for (auto& service : entry.services) out.push_back(std::move(service));
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------
+
+DdsClient::DdsClient(DdsClientOptions options) : impl_(std::make_unique<Impl>(std::move(options))) {}
+DdsClient::~DdsClient() = default;
+
+bool DdsClient::wait_for_server(std::chrono::milliseconds timeout) { return impl_->wait_for_server(timeout); }
+
+DdsClient::CallId DdsClient::start(const std::string& component, const std::string& service, const json& params) {
+  return impl_->send(simgate_OP_CALL, component, service, params, 0);
+}
+
+bool DdsClient::wait_accepted(CallId id, std::chrono::milliseconds timeout) { return impl_->wait_accepted(id, timeout); }
+
+Outcome DdsClient::wait(CallId id, std::chrono::milliseconds timeout) { return impl_->wait(id, timeout); }
+
+bool DdsClient::cancel(CallId id, std::chrono::milliseconds timeout) {
+  CallId seq = impl_->send(simgate_OP_CANCEL, "", "", nullptr, id);
+  Outcome answer = impl_->wait(seq, timeout);
+  return answer.value && answer.value->is_boolean() && answer.value->get<bool>();
+}
+
+Outcome DdsClient::call(const std::string& component, const std::string& service, const json& params,
+                        std::chrono::milliseconds timeout) {
+  return impl_->wait(start(component, service, params), timeout);
+}
+
+json DdsClient::list_services(std::chrono::milliseconds timeout) { return impl_->list_services(timeout); }
+
+const std::string& DdsClient::id() const { return impl_->id_hex_; }
+
+std::unique_ptr<Client> make_dds_client(const json& options) {
+  return std::make_unique<DdsClient>(DdsClientOptions::from_json(options));
+}
+
+}  // namespace simgate::client

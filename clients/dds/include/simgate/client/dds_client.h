@@ -1,0 +1,84 @@
+// simgate/client/dds_client.h — a C++ client of simgate's DDS transport.
+//
+// Terms (see docs/transports/dds.md and plugins/dds/simgate_dds.idl):
+//  - A DdsClient joins a DDS domain and partition (those of the simulation it talks to) with
+//    its own participant, a request writer and a reply reader. Its id is the GUID of its
+//    request writer; its reply reader announces it in USER_DATA ("simgate.id=<hex>") and
+//    only receives replies keyed with it.
+//  - A call is numbered (CallId = the request's seq). start() sends it; wait() returns its
+//    final Outcome; async services are acknowledged first (wait_accepted()); cancel()
+//    cancels the client's own pending call.
+//  - list_services() reads the transient-local catalog: every component's descriptors.
+//
+// Life cycle: the constructor creates the DDS entities and a receive thread; the destructor
+// stops the thread and leaves the domain (the server then cancels this client's pending
+// async calls). Cyclone stays on loopback unless `config` says otherwise.
+//
+// Threads: every method is thread-safe; call/wait/cancel/list block the calling thread up
+// to their timeout. Replies are received on the client's own thread, never on Cyclone's.
+#ifndef SIMGATE_CLIENT_DDS_CLIENT_H_
+#define SIMGATE_CLIENT_DDS_CLIENT_H_
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "simgate/client/client.h"
+
+namespace simgate::client {
+
+struct DdsClientOptions {
+  std::uint32_t domain = 0;            // DDS domain id of the simulation
+  std::string partition = "simgate";   // its partition
+  std::string config;                  // Cyclone XML or file:// URI; "" = loopback; "env"
+  std::chrono::milliseconds discovery_timeout{10000};  // how long start() waits for a server
+
+  // From {"domain", "partition", "config", "discovery_timeout_ms"}; throws ClientError.
+  static DdsClientOptions from_json(const json& options);
+};
+
+class DdsClient final : public Client {
+ public:
+  using CallId = std::uint64_t;
+
+  // Throws ClientError when DDS cannot be set up (bad XML, domain id...).
+  explicit DdsClient(DdsClientOptions options = {});
+  ~DdsClient() override;
+  DdsClient(const DdsClient&) = delete;
+  DdsClient& operator=(const DdsClient&) = delete;
+
+  // Waits until a server's request reader and reply writer are matched. False on timeout.
+  bool wait_for_server(std::chrono::milliseconds timeout);
+
+  // Sends component.service(params) (array, object or null) and returns its id at once.
+  // Waits up to discovery_timeout for a server first; throws ClientError if there is none.
+  CallId start(const std::string& component, const std::string& service, const json& params);
+  // True once the server acknowledged the call (ST_ACCEPTED, async services) or finished it.
+  // False on timeout.
+  bool wait_accepted(CallId id, std::chrono::milliseconds timeout);
+  // The call's final outcome. Throws ClientError on timeout or when the server goes away.
+  // Each call's outcome can be waited for once.
+  Outcome wait(CallId id, std::chrono::milliseconds timeout);
+  // Cancels a pending call of this client. True if the server found it running (it then
+  // ends PREEMPTED, Failure::cancelled). Throws ClientError on timeout.
+  bool cancel(CallId id, std::chrono::milliseconds timeout);
+
+  // Client interface: start() + wait().
+  Outcome call(const std::string& component, const std::string& service, const json& params,
+               std::chrono::milliseconds timeout) override;
+  // The catalog: a JSON array of ServiceDescriptor::to_json() objects, by component name.
+  // Throws ClientError when no complete catalog arrives within `timeout`.
+  json list_services(std::chrono::milliseconds timeout) override;
+
+  // This client's id on the wire (32 hex digits).
+  const std::string& id() const;
+
+ private:
+  class Impl;
+  std::unique_ptr<Impl> impl_;  // DDS entities, the receive thread and the call table
+};
+
+}  // namespace simgate::client
+
+#endif  // SIMGATE_CLIENT_DDS_CLIENT_H_

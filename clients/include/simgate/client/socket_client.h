@@ -1,0 +1,82 @@
+// simgate/client/socket_client.h — a client of the socket transport (MORSE's text protocol).
+//
+// One TCP connection to a `socket` transport. Three levels of use:
+//   - call(): blocking, one request at a time, with a deadline (the Client interface);
+//   - send_request() / cancel() / wait_reply(): several requests in flight, matched by id
+//     (replies for other ids that arrive meanwhile are kept until asked for);
+//   - send_line() / send_raw() / read_line(): raw protocol access for tests and pipelined
+//     benchmarks.
+// Replies are parsed like pymorse does: "<id> <STATUS>[ <json>]"; "OK" is read as SUCCESS.
+//
+// Threads: not thread-safe; use one SocketClient per thread. Every wait has a deadline;
+// connection loss, timeouts and unparsable replies throw ClientError.
+#ifndef SIMGATE_CLIENT_SOCKET_CLIENT_H_
+#define SIMGATE_CLIENT_SOCKET_CLIENT_H_
+
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "simgate/client/client.h"
+
+namespace simgate::client {
+
+// One reply line, split.
+struct SocketReply {
+  std::string id;             // the request id it answers
+  std::string status;         // "SUCCESS", "OK", "FAILED", "PREEMPTED"
+  std::optional<json> value;  // the payload, absent on a bare status
+};
+
+class SocketClient : public Client {
+ public:
+  // Connects to host:port (TCP_NODELAY). Throws ClientError if it cannot.
+  SocketClient(const std::string& host, std::uint16_t port,
+               std::chrono::milliseconds timeout = std::chrono::seconds(5));
+  ~SocketClient() override;
+  SocketClient(const SocketClient&) = delete;
+  SocketClient& operator=(const SocketClient&) = delete;
+
+  Outcome call(const std::string& component, const std::string& service, const json& params,
+               std::chrono::milliseconds timeout) override;
+  // `simulation list_services`; throws ClientError if the server has no such service.
+  json list_services(std::chrono::milliseconds timeout) override;
+
+  // Sends "<id> <component> <service> <params as JSON>" with a fresh id; returns the id.
+  std::string send_request(const std::string& component, const std::string& service,
+                           const json& params);
+  // Sends "<id> cancel" (no reply of its own: the request ends PREEMPTED).
+  void cancel(const std::string& id);
+  // Waits for the reply to `id`, keeping others for later.
+  SocketReply wait_reply(const std::string& id, std::chrono::milliseconds timeout);
+
+  // Sends `line` + "\n" / exactly `bytes`.
+  void send_line(std::string_view line);
+  void send_raw(std::string_view bytes);
+  // The next line (without '\n'), or nullopt when `timeout` passes first. Throws
+  // ClientError when the server closed the connection (closed() then returns true).
+  std::optional<std::string> read_line(std::chrono::milliseconds timeout);
+  bool closed() const { return closed_; }
+  // Half-closes: the server sees the end of input (replies still arrive).
+  void shutdown_send();
+  // Closes the connection.
+  void close();
+
+  static SocketReply parse_reply(std::string_view line);
+  static Outcome to_outcome(const SocketReply& reply);
+
+ private:
+  int fd_ = -1;                              // the connected socket
+  std::string buffer_;                       // bytes received, not yet returned as lines
+  std::map<std::string, SocketReply> early_;  // replies that arrived before they were awaited
+  std::uint64_t next_id_ = 0;                // ids are decimal counters, as pymorse's
+  bool closed_ = false;                      // the peer closed the connection
+  std::string peer_;                         // "host:port", for messages
+};
+
+}  // namespace simgate::client
+
+#endif  // SIMGATE_CLIENT_SOCKET_CLIENT_H_

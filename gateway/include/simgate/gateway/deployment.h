@@ -1,0 +1,82 @@
+// simgate/gateway/deployment.h — the deployment file: what to simulate and how to serve it.
+//
+// One JSON file per deployment (docs/configuration.md):
+//   scene       {mjcf, timestep?, realtime_factor? (number >= 0, or "max")}
+//   transports  {name: {plugin?, options?}}
+//   robots      [{name, type?, body?, options?, components?: [{name, type, body?, options?}]}]
+//   services    {"default": [transports], "<component or glob>": [transports]}
+//   log_level   "trace" | "debug" | "info" | "warning" | "error" | "off"
+// parse_deployment() checks the structure (types, names, unknown keys, the mapping against
+// the declared transports and components); the gateway then checks what needs the scene
+// and the plugins (bodies, component types and options, plugin loading). Every error is a
+// ConfigError whose message starts with the JSON path, says what was expected and what
+// was found.
+//
+// Mapping: a component's transports come from its exact name if listed, else from the most
+// specific matching glob (the one with the most literal characters), else from "default".
+// A component that nothing maps is unreachable. Without a "services" section every
+// component is served by every transport.
+#ifndef SIMGATE_GATEWAY_DEPLOYMENT_H_
+#define SIMGATE_GATEWAY_DEPLOYMENT_H_
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "simgate/core/config.h"
+
+namespace simgate::gateway {
+
+struct TransportConfig {
+  std::string name;    // key in "transports"
+  std::string plugin;  // plugin name or path (default: the name)
+  json options;        // passed to the plugin's create()
+  std::string path;    // "transports.socket"
+};
+
+struct ComponentConfig {
+  std::string name;       // full name: "robot" or "robot.motion"
+  std::string type;       // registry type
+  std::string body;       // MuJoCo body
+  json options;           // type-specific options (object)
+  std::string path;       // "robots[0].components[1]"
+};
+
+struct RobotConfig {
+  ComponentConfig robot;                  // the robot itself
+  std::vector<ComponentConfig> components;  // its actuators and sensors
+};
+
+struct ServiceRule {
+  std::string pattern;                  // exact name or glob
+  std::vector<std::string> transports;  // transport names
+  std::string path;                     // "services.robot.*"
+};
+
+struct Deployment {
+  std::string file;                      // the config file ("" for in-memory documents)
+  std::string base_dir;                  // relative paths resolve here
+  std::string mjcf;                      // absolute or base_dir-relative, resolved
+  std::optional<double> timestep;        // overrides the MJCF's
+  double realtime_factor = 1.0;          // 0 = as fast as possible
+  std::vector<TransportConfig> transports;  // sorted by name
+  std::vector<RobotConfig> robots;       // in file order
+  bool has_services = false;             // a "services" section exists
+  std::vector<ServiceRule> rules;        // exact names and globs
+  std::optional<std::vector<std::string>> default_transports;  // "default"
+  std::optional<std::string> log_level;  // validated level name
+
+  // Every component name: robots, their components, then "simulation" and "time".
+  std::vector<std::string> component_names() const;
+  // The transports that serve `component` (see the mapping rules above).
+  std::vector<std::string> transports_for(const std::string& component) const;
+};
+
+// Validates and converts a parsed document. `base_dir` resolves relative paths.
+Deployment parse_deployment(const json& document, const std::string& base_dir, const std::string& file = "");
+// Reads and parses a file (JSON syntax errors name the file, line and column).
+Deployment load_deployment(const std::string& file);
+
+}  // namespace simgate::gateway
+
+#endif  // SIMGATE_GATEWAY_DEPLOYMENT_H_

@@ -1,0 +1,154 @@
+// simgate/dds — the Cyclone DDS transport: request/reply over DDS topics, and a catalog.
+//
+// Terms (wire types in simgate_dds.idl, design in docs/transports/dds.md):
+//  - Request / Reply topics: a client writes Request{id = (client, seq), component,
+//    service, params JSON}; the server answers on the Reply topic, keyed by client. Async
+//    calls get ST_ACCEPTED first, then one terminal reply.
+//  - Catalog topic (TRANSIENT_LOCAL): one CatalogEntry per served component, so a client
+//    that joins late still sees what it can call.
+//  - Partition: every endpoint lives in the partition named by the "partition" option, so
+//    several simulations share a domain without crosstalk.
+//  - Parked reply: a reply for a client whose reply reader the server has not matched yet
+//    (discovery is asymmetric); it is written as soon as that reader matches, or after
+//    park_timeout_ms at the latest.
+//
+// Life cycle: the constructor validates the options and creates every DDS entity (so a bad
+// Cyclone XML fails at load time); start() writes the catalog and starts the DDS thread;
+// stop() joins it, answers every pending request FAILED (shutdown) and deletes the
+// participant.
+//
+// Threads: all DDS I/O happens on the transport's own thread, which waits on a waitset
+// (requests, a guard condition, match-status changes). Nothing runs on Cyclone's listener
+// threads. The simulation thread only calls on_service_completion(), which queues the
+// outcome and triggers the guard condition — it never waits on DDS.
+#ifndef SIMGATE_PLUGINS_DDS_DDS_REQUEST_MANAGER_H_
+#define SIMGATE_PLUGINS_DDS_DDS_REQUEST_MANAGER_H_
+
+#include <atomic>
+#include <chrono>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <unordered_map>
+#include <vector>
+
+#include "dds_support.h"
+#include "simgate/core/request_manager.h"
+
+namespace simgate::dds {
+
+// The transport's options ("transports.<name>" in a deployment file).
+struct DdsOptions {
+  uint32_t domain = 0;                 // DDS domain id (0..230)
+  std::string partition = "simgate";   // one per simulation
+  std::string config;                  // Cyclone XML or file:// URI; "" = loopback; "env"
+  int32_t max_samples = 1024;          // resource limit: queued requests, parked replies per client
+  std::chrono::milliseconds park_timeout{10000};  // how long a reply waits for its reader
+  std::size_t max_params = 1 << 20;    // largest accepted params text, in bytes
+  GlobalPolicy global_policy = GlobalPolicy::reject;  // async calls without a local policy
+
+  // Reads and validates `options` (unknown keys are errors). Throws ConfigError.
+  static DdsOptions parse(const json& options);
+};
+
+class DdsRequestManager : public RequestManager {
+ public:
+  // Host thread. Throws ConfigError (bad options) or std::runtime_error (DDS failed).
+  explicit DdsRequestManager(const json& options);
+  ~DdsRequestManager() override;
+
+  void start() override;
+  void stop() override;
+  // {"dds:domain=<id>;partition=<name>"}
+  std::vector<std::string> endpoints() const override;
+
+  const DdsOptions& options() const { return options_; }
+
+ protected:
+  // Simulation thread: queues the outcome for the DDS thread. Never blocks on DDS.
+  void on_service_completion(RequestId id, Outcome outcome) override;
+
+ private:
+  // A reply not yet written (parked, or queued from the simulation thread).
+  struct ReplyData {
+    std::uint64_t seq = 0;                       // the request it answers
+    simgate_ReplyStatus status = simgate_ST_SUCCESS;  // wire status
+    simgate_Failure failure = simgate_FL_NONE;   // why, for failures
+    bool last = true;                            // final reply of the request
+    std::string result;                          // JSON text or ""
+    std::string message;                         // human-readable reason
+    std::string data;                            // JSON object text or ""
+    std::chrono::steady_clock::time_point deadline;  // parked: when to give up waiting
+  };
+  // What the simulation thread hands to the DDS thread.
+  struct Outbound {
+    RequestId id = 0;           // completed request (0 for a cancel answer)
+    Outcome outcome;            // its outcome
+    ClientId client{};          // cancel answer: the client
+    std::uint64_t seq = 0;      // cancel answer: the cancel request's seq
+    bool found = false;         // cancel answer: whether the target was running
+  };
+  // A request handed to the core and not yet completed.
+  struct Pending {
+    ClientId client;            // who asked
+    std::uint64_t seq = 0;      // their sequence number
+    bool is_async = false;      // cancelled if the client disappears
+  };
+  // What the server knows about one client (DDS thread only).
+  struct ClientState {
+    dds_instance_handle_t writer = 0;                   // its request writer
+    std::unordered_map<std::uint64_t, RequestId> calls;  // seq -> request in the core
+    std::vector<ReplyData> parked;                      // replies waiting for its reader
+    bool gone = false;                                  // its request writer disappeared
+  };
+
+  void create_entities();
+  void run();
+  void publish_catalog();
+  void take_requests();
+  void handle_request(const simgate_Request& request, dds_instance_handle_t writer);
+  void drain_outbox(bool final_flush);
+  void refresh_reply_readers();
+  void sweep_clients();
+  void client_gone(const ClientId& id, ClientState& client);
+  void expire_parked();
+  void send_reply(const ClientId& client, ReplyData reply, bool final_flush = false);
+  void write_reply(const ClientId& client, const ReplyData& reply);
+  void forget_client(const ClientId& id);
+  bool lookup_async(const std::string& component, const std::string& service);
+  static ReplyData to_reply(std::uint64_t seq, const Outcome& outcome);
+  static ReplyData failure_reply(std::uint64_t seq, simgate_Failure failure, std::string message);
+
+  DdsOptions options_;                       // validated options
+  std::unique_ptr<Participant> participant_;  // owns every entity below
+  dds_entity_t publisher_ = 0;               // in our partition
+  dds_entity_t subscriber_ = 0;              // in our partition
+  dds_entity_t request_reader_ = 0;          // simgate_Request
+  dds_entity_t reply_writer_ = 0;            // simgate_Reply
+  dds_entity_t catalog_writer_ = 0;          // simgate_Catalog (transient-local)
+  dds_entity_t waitset_ = 0;                 // what the DDS thread waits on
+  dds_entity_t guard_ = 0;                   // raised by the sim thread and by stop()
+  dds_entity_t read_condition_ = 0;          // requests available
+  std::string server_id_;                    // our participant GUID, hex
+  std::thread thread_;                       // the DDS thread
+  std::atomic<bool> stopping_{false};        // asks the DDS thread to leave
+  std::atomic<bool> stopped_{false};         // stop() ran
+  std::atomic<bool> started_{false};         // start() ran
+
+  std::mutex outbox_mutex_;                  // guards outbox_
+  std::vector<Outbound> outbox_;             // sim thread -> DDS thread
+
+  // ---- DDS thread only ----
+  std::unordered_map<RequestId, Pending> pending_;  // requests in the core
+  std::map<ClientId, ClientState> clients_;         // known clients
+  std::map<dds_instance_handle_t, std::optional<ClientId>> reply_readers_;  // matched readers
+  std::map<ClientId, int> matched_ids_;             // client id -> matched reply readers
+  std::unordered_map<std::string, bool> async_services_;  // "component.service" -> is_async
+  std::size_t parked_count_ = 0;                    // replies parked over all clients
+};
+
+}  // namespace simgate::dds
+
+#endif  // SIMGATE_PLUGINS_DDS_DDS_REQUEST_MANAGER_H_

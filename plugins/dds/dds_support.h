@@ -1,0 +1,90 @@
+// simgate/dds support — what the DDS server (plugins/dds) and client (clients/dds) share.
+//
+// Terms:
+//  - Domain: a Cyclone domain created with dds_create_domain(id, xml) so that the XML
+//    settings (by default: loopback only, multicast off) apply to every participant of it
+//    in this process. Several simgate objects of one process may share a domain; the last
+//    one to leave deletes it.
+//  - ClientId: the 16 bytes that name a client on the wire (Reply key, Request id.client),
+//    shown as 32 lowercase hex digits, and announced in the USER_DATA of the client's reply
+//    reader as "simgate.id=<hex>" so the server can tell when that reader is matched.
+//  - Topics: simgate_Request, simgate_Reply, simgate_Catalog (see simgate_dds.idl).
+//
+// Everything here is thread-safe except where noted; nothing blocks for long.
+#ifndef SIMGATE_PLUGINS_DDS_DDS_SUPPORT_H_
+#define SIMGATE_PLUGINS_DDS_DDS_SUPPORT_H_
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include <dds/dds.h>
+
+#include "simgate/core/status.h"
+#include "simgate_dds.h"
+
+namespace simgate::dds {
+
+inline constexpr const char* k_request_topic = "simgate_Request";
+inline constexpr const char* k_reply_topic = "simgate_Reply";
+inline constexpr const char* k_catalog_topic = "simgate_Catalog";
+// USER_DATA prefix of a client's reply reader.
+inline constexpr std::string_view k_userdata_id_prefix = "simgate.id=";
+
+// The content of config/dds/loopback.xml, compiled in: Cyclone on "lo", multicast off,
+// unicast discovery to 127.0.0.1.
+extern const char* const k_loopback_xml;
+
+using ClientId = std::array<std::uint8_t, 16>;
+
+std::string to_hex(const ClientId& id);
+std::optional<ClientId> client_id_from_hex(std::string_view hex);
+ClientId to_client_id(const dds_guid_t& guid);
+
+// "simgate.id=<hex>" read from an endpoint's USER_DATA (nullopt if absent or malformed).
+std::optional<ClientId> client_id_from_userdata(const dds_qos_t* qos);
+
+// "DDS_RETCODE_TIMEOUT (-10)".
+std::string retcode_text(dds_return_t rc);
+
+// Resolves the "config" option: "" -> the loopback XML; "env" -> CYCLONEDDS_URI / Cyclone
+// defaults (nullptr); anything else (XML text or file:// URI) is passed through.
+const char* resolve_config(const std::string& config);
+
+struct QosDeleter {
+  void operator()(dds_qos_t* q) const { dds_delete_qos(q); }
+};
+using QosPtr = std::unique_ptr<dds_qos_t, QosDeleter>;
+// Reliable (max_blocking_time), the given history depth (0 = KEEP_ALL) and durability.
+QosPtr make_qos(bool transient_local, int32_t keep_last, dds_duration_t max_blocking);
+
+// A participant on a domain created from XML settings. Owns the participant (and the domain
+// when it is the last user). Not copyable; destroy on any thread once nobody uses it.
+class Participant {
+ public:
+  // `what` names the owner in errors ("DDS transport", "DDS client"). Throws
+  // std::runtime_error naming the domain and Cyclone's reason.
+  Participant(uint32_t domain, const char* config, const std::string& what);
+  ~Participant();
+  Participant(const Participant&) = delete;
+  Participant& operator=(const Participant&) = delete;
+
+  dds_entity_t handle() const { return participant_; }
+  uint32_t domain() const { return domain_; }
+
+ private:
+  uint32_t domain_;                // DDS domain id
+  dds_entity_t domain_entity_ = 0;  // the domain (parent of the participant)
+  dds_entity_t participant_ = 0;   // ours
+};
+
+// Wire <-> core conversions.
+simgate_Failure to_wire(Failure failure);
+Failure from_wire(simgate_Failure failure);
+
+}  // namespace simgate::dds
+
+#endif  // SIMGATE_PLUGINS_DDS_DDS_SUPPORT_H_

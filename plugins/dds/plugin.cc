@@ -1,0 +1,6 @@
+// The plugin entry point: libsimgate_transport_dds.so exports simgate_transport_dds_entry.
+#include "dds_request_manager.h"
+#include "simgate/core/plugin.h"
+
+SIMGATE_TRANSPORT_PLUGIN(dds, simgate::dds::DdsRequestManager, "0.1.0", "domain", "partition", "config",
+                         "max_samples", "park_timeout_ms", "max_params", "global_policy")

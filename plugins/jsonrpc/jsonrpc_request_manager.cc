@@ -1,0 +1,594 @@
+#include "jsonrpc_request_manager.h"
+
+#include <cstring>
+#include <exception>
+#include <stdexcept>
+
+#include <boost/asio/post.hpp>
+#include <boost/asio/write.hpp>
+
+#include "protocol.h"
+#include "simgate/core/config.h"
+#include "simgate/core/errors.h"
+#include "simgate/core/log.h"
+#include "simgate/core/plugin.h"
+
+namespace simgate::jsonrpc {
+
+namespace asio = boost::asio;
+using asio::ip::tcp;
+using boost::system::error_code;
+
+namespace {
+constexpr std::string_view k_version = "0.1.0";
+constexpr std::size_t k_read_chunk = 64 * 1024;
+
+// "127.0.0.1:4001" or "[::1]:4001"
+std::string to_string(const tcp::endpoint& ep) {
+  const auto address = ep.address().to_string();
+  return (ep.address().is_v6() ? "[" + address + "]" : address) + ":" + std::to_string(ep.port());
+}
+
+json result_response(const json& id, json result) {
+  return {{"jsonrpc", "2.0"}, {"id", id}, {"result", std::move(result)}};
+}
+}  // namespace
+
+// ---------------------------------------------------------------------------------------
+// Options
+
+Options Options::parse(const json& options) {
+  ConfigObject config(options.is_null() ? json::object() : options, "");
+  Options o;
+  o.host = config.get_string("host", o.host);
+  o.port = static_cast<std::uint16_t>(config.get_int("port", o.port, 0, 65535));
+  o.max_message_bytes = static_cast<std::size_t>(
+      config.get_int("max_message_bytes", static_cast<long long>(o.max_message_bytes), 64, 1ll << 30));
+  o.max_depth = static_cast<std::size_t>(config.get_int("max_depth", static_cast<long long>(o.max_depth), 2, 10000));
+  o.max_in_flight = static_cast<std::size_t>(
+      config.get_int("max_in_flight", static_cast<long long>(o.max_in_flight), 1, 1 << 20));
+  o.max_unsent_bytes = static_cast<std::size_t>(
+      config.get_int("max_unsent_bytes", static_cast<long long>(o.max_unsent_bytes), 1024, 1ll << 32));
+  o.max_connections = static_cast<std::size_t>(
+      config.get_int("max_connections", static_cast<long long>(o.max_connections), 1, 1 << 20));
+  o.cancel_on_disconnect = config.get_choice("on_disconnect", "cancel", {"cancel", "let_run"}) == "cancel";
+  o.global_policy = config.get_choice("global_policy", "reject", {"reject", "preempt"}) == "preempt"
+                        ? GlobalPolicy::preempt
+                        : GlobalPolicy::reject;
+  config.finish();
+  // the address must parse here, so the error names the option
+  error_code ec;
+  (void)asio::ip::make_address(o.host == "localhost" ? "127.0.0.1" : o.host, ec);
+  if (ec) config.fail("host", "an IP address such as \"127.0.0.1\" or \"::1\"");
+  return o;
+}
+
+// ---------------------------------------------------------------------------------------
+// Session: one connection. Reads lines, hands them to the manager, writes replies.
+
+class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Session> {
+ public:
+  Session(JsonRpcRequestManager& owner, tcp::socket socket)
+      : owner_(owner), socket_(std::move(socket)), read_buf_(k_read_chunk) {
+    error_code ec;
+    auto ep = socket_.remote_endpoint(ec);
+    peer_ = ec ? std::string("unknown peer") : to_string(ep);
+  }
+
+  const std::string& peer() const { return peer_; }
+  bool closed() const { return closed_; }
+
+  void start() { read(); }
+
+  // Queues one line (a newline is added). Closes the session when the client lets too
+  // many bytes pile up; pauses reading at half that.
+  void send(std::string_view line) {
+    if (closed_) return;
+    out_.append(line);
+    out_.push_back('\n');
+    const std::size_t unsent = out_.size() + writing_.size();
+    if (unsent > owner_.options_.max_unsent_bytes) {
+      close("it does not read its replies (" + std::to_string(unsent) + " bytes unsent, max_unsent_bytes " +
+            std::to_string(owner_.options_.max_unsent_bytes) + ")");
+      return;
+    }
+    if (unsent > owner_.options_.max_unsent_bytes / 2) paused_ = true;
+    if (!write_active_) write_next();
+  }
+
+  // ---- pending calls (ids scoped to this connection) ----
+  std::size_t in_flight() const { return in_flight_; }
+  void add_in_flight() { ++in_flight_; }
+  bool has_id(const std::string& key) const { return calls_.count(key) != 0; }
+  void track(const std::string& key, RequestId id) { calls_.emplace(key, id); }
+  std::optional<RequestId> find(const std::string& key) const {
+    auto it = calls_.find(key);
+    if (it == calls_.end()) return std::nullopt;
+    return it->second;
+  }
+  // A pending call (or cancel) produced its reply.
+  void done(const std::string& key) {
+    if (!key.empty()) calls_.erase(key);
+    if (in_flight_ > 0) --in_flight_;
+    maybe_finish();
+  }
+  // The calls to cancel when the client leaves.
+  std::vector<RequestId> take_calls() {
+    std::vector<RequestId> ids;
+    ids.reserve(calls_.size());
+    for (const auto& [key, id] : calls_) ids.push_back(id);
+    return ids;
+  }
+
+  void close(const std::string& reason) {
+    if (closed_) return;
+    closed_ = true;
+    log::debug("jsonrpc: closing connection from ", peer_, ": ", reason);
+    error_code ec;
+    socket_.shutdown(tcp::socket::shutdown_both, ec);
+    socket_.close(ec);
+    owner_.session_closed(*this);
+  }
+
+ private:
+  void read() {
+    if (closed_ || reading_ || paused_ || eof_) return;
+    reading_ = true;
+    socket_.async_read_some(asio::buffer(read_buf_),
+                            [self = shared_from_this()](const error_code& ec, std::size_t n) {
+                              self->on_read(ec, n);
+                            });
+  }
+
+  void on_read(const error_code& ec, std::size_t n) {
+    reading_ = false;
+    if (closed_) return;
+    try {
+      if (ec == asio::error::eof) {
+        on_eof();
+        return;
+      }
+      if (ec) {
+        close("read failed: " + ec.message());
+        return;
+      }
+      split_lines(read_buf_.data(), n);
+      read();
+    } catch (const std::exception& e) {
+      // nothing escapes an Asio handler; the server keeps serving everyone else
+      log::error("jsonrpc: connection from ", peer_, ": ", e.what());
+      close(std::string("internal error: ") + e.what());
+    }
+  }
+
+  // Splits received bytes into lines; keeps a partial line for the next read.
+  void split_lines(const char* p, std::size_t n) {
+    const char* end = p + n;
+    const std::size_t max = owner_.options_.max_message_bytes;
+    while (p < end && !closed_) {
+      const char* nl = static_cast<const char*>(std::memchr(p, '\n', static_cast<std::size_t>(end - p)));
+      if (!nl) {
+        if (!discarding_) {
+          partial_.append(p, end);
+          if (partial_.size() > max) too_large(partial_.size());
+        }
+        return;
+      }
+      if (discarding_) {
+        // the rest of an oversized message: already answered
+        discarding_ = false;
+      } else if (partial_.empty()) {
+        owner_.handle_message(shared_from_this(), std::string_view(p, static_cast<std::size_t>(nl - p)));
+      } else {
+        partial_.append(p, nl);
+        std::string line;
+        line.swap(partial_);
+        owner_.handle_message(shared_from_this(), line);
+      }
+      p = nl + 1;
+    }
+  }
+
+  void too_large(std::size_t size) {
+    partial_.clear();
+    partial_.shrink_to_fit();
+    discarding_ = true;
+    const auto max = owner_.options_.max_message_bytes;
+    send(dump(error_response(nullptr, code::invalid_request,
+                             "Invalid Request: message exceeds max_message_bytes (" + std::to_string(max) + ")",
+                             json{{"reason", "message too large"}, {"bytes_so_far", size}, {"max_message_bytes", max}})));
+  }
+
+  // The client will send nothing more: answer a last line without newline, apply the
+  // disconnect policy, and close once every reply is out.
+  void on_eof() {
+    eof_ = true;
+    if (!partial_.empty() && !discarding_) {
+      std::string line;
+      line.swap(partial_);
+      owner_.handle_message(shared_from_this(), line);
+    }
+    if (owner_.options_.cancel_on_disconnect)
+      for (RequestId id : take_calls()) owner_.cancel(id);
+    maybe_finish();
+  }
+
+  void maybe_finish() {
+    if (!closed_ && eof_ && in_flight_ == 0 && out_.empty() && !write_active_) close("client closed the connection");
+  }
+
+  void write_next() {
+    writing_.clear();
+    writing_.swap(out_);
+    write_active_ = true;
+    asio::async_write(socket_, asio::buffer(writing_), [self = shared_from_this()](const error_code& ec, std::size_t) {
+      self->on_write(ec);
+    });
+  }
+
+  void on_write(const error_code& ec) {
+    write_active_ = false;
+    if (closed_) return;
+    if (ec) {
+      close("write failed: " + ec.message());
+      return;
+    }
+    if (!out_.empty()) {
+      write_next();
+      return;
+    }
+    writing_.clear();
+    // resume reading once the backlog is gone
+    if (paused_) {
+      paused_ = false;
+      read();
+    }
+    maybe_finish();
+  }
+
+  JsonRpcRequestManager& owner_;                   // outlives every session (stop() joins)
+  tcp::socket socket_;                             // the connection
+  std::string peer_;                               // "127.0.0.1:53122", for logs
+  std::vector<char> read_buf_;                     // one read
+  std::string partial_;                            // an incomplete line
+  bool discarding_ = false;                        // skipping the rest of an oversized line
+  bool reading_ = false;                           // a read is in flight
+  bool paused_ = false;                            // not reading: too many unsent bytes
+  bool eof_ = false;                               // the client sent FIN
+  bool closed_ = false;                            // socket closed, manager told
+  std::string out_;                                // replies waiting for the next write
+  std::string writing_;                            // the bytes of the write in flight
+  bool write_active_ = false;                      // a write is in flight
+  std::unordered_map<std::string, RequestId> calls_;  // dumped JSON-RPC id -> pending request
+  std::size_t in_flight_ = 0;                      // pending calls, notifications and cancels
+};
+
+// A batch: the responses collected in entry order, sent as one array when all are in.
+struct JsonRpcRequestManager::Batch {
+  explicit Batch(std::size_t n) : responses(n), remaining(n) {}
+  std::vector<json> responses;  // null = no response (notification)
+  std::size_t remaining;        // entries not yet finished
+};
+
+// ---------------------------------------------------------------------------------------
+// JsonRpcRequestManager
+
+JsonRpcRequestManager::JsonRpcRequestManager(const json& options)
+    : RequestManager("JSON-RPC service manager"),
+      options_(Options::parse(options)),
+      work_(asio::make_work_guard(io_)),
+      acceptor_(io_),
+      accept_retry_(io_) {
+  set_global_policy(options_.global_policy);
+  const std::string host = options_.host == "localhost" ? "127.0.0.1" : options_.host;
+  tcp::endpoint endpoint(asio::ip::make_address(host), options_.port);
+  try {
+    acceptor_.open(endpoint.protocol());
+    acceptor_.set_option(asio::socket_base::reuse_address(true));
+    acceptor_.bind(endpoint);
+    acceptor_.listen(asio::socket_base::max_listen_connections);
+  } catch (const boost::system::system_error& e) {
+    throw std::runtime_error("transport 'jsonrpc': cannot listen on " + to_string(endpoint) + ": " +
+                             e.code().message());
+  }
+  port_ = acceptor_.local_endpoint().port();
+}
+
+JsonRpcRequestManager::~JsonRpcRequestManager() { stop(); }
+
+std::vector<std::string> JsonRpcRequestManager::endpoints() const {
+  const std::string host = options_.host == "localhost" ? "127.0.0.1" : options_.host;
+  tcp::endpoint ep(asio::ip::make_address(host), port_);
+  return {"tcp://" + to_string(ep)};
+}
+
+void JsonRpcRequestManager::start() {
+  std::lock_guard lock(life_mutex_);
+  if (started_ || stopped_) return;
+  started_ = true;
+  asio::post(io_, [this] { accept_next(); });
+  thread_ = std::thread([this] {
+    // handlers catch their own exceptions; this is the last line of defence
+    for (;;) {
+      try {
+        io_.run();
+        return;
+      } catch (const std::exception& e) {
+        log::error("jsonrpc: I/O thread: ", e.what());
+      }
+    }
+  });
+  log::info("jsonrpc: listening on ", endpoints().front());
+}
+
+void JsonRpcRequestManager::stop() {
+  {
+    std::lock_guard lock(life_mutex_);
+    if (stopped_) return;
+    stopped_ = true;
+  }
+  if (thread_.joinable()) {
+    asio::post(io_, [this] { shutdown_io(); });
+    work_.reset();
+    thread_.join();
+  } else {
+    shutdown_io();
+  }
+  // finish what the core still holds (replies can no longer be sent)
+  abandon_pending();
+}
+
+void JsonRpcRequestManager::shutdown_io() {
+  stopping_ = true;
+  error_code ec;
+  acceptor_.close(ec);
+  accept_retry_.cancel();
+  auto sessions = sessions_;
+  for (const auto& s : sessions) s->close("server stopping");
+  sessions_.clear();
+  // completions posted from now on are dropped with the io_context
+  io_.stop();
+}
+
+void JsonRpcRequestManager::accept_next() {
+  if (stopping_) return;
+  acceptor_.async_accept([this](const error_code& ec, tcp::socket socket) {
+    if (stopping_ || ec == asio::error::operation_aborted) return;
+    try {
+      if (ec) {
+        // e.g. out of file descriptors: back off instead of spinning
+        log::warning("jsonrpc: accept failed: ", ec.message());
+        accept_retry_.expires_after(std::chrono::milliseconds(100));
+        accept_retry_.async_wait([this](const error_code& e) {
+          if (!e) accept_next();
+        });
+        return;
+      }
+      if (sessions_.size() >= options_.max_connections) {
+        // tell the client why, best effort, without blocking
+        error_code ignored;
+        socket.non_blocking(true, ignored);
+        const std::string line =
+            dump(error_response(nullptr, code::overloaded,
+                                "Overloaded: too many connections (max_connections " +
+                                    std::to_string(options_.max_connections) + ")")) +
+            "\n";
+        socket.write_some(asio::buffer(line), ignored);
+        socket.close(ignored);
+      } else {
+        socket.set_option(tcp::no_delay(true));
+        auto session = std::make_shared<Session>(*this, std::move(socket));
+        sessions_.insert(session);
+        log::debug("jsonrpc: connection from ", session->peer());
+        session->start();
+      }
+    } catch (const std::exception& e) {
+      log::error("jsonrpc: accepting a connection: ", e.what());
+    }
+    accept_next();
+  });
+}
+
+void JsonRpcRequestManager::session_closed(Session& session) {
+  auto self = session.shared_from_this();
+  sessions_.erase(self);
+  if (stopping_ || !options_.cancel_on_disconnect) return;
+  // the client is gone: its pending calls end (their replies are dropped)
+  for (RequestId id : session.take_calls()) cancel(id);
+}
+
+void JsonRpcRequestManager::handle_message(const std::shared_ptr<Session>& session, std::string_view line) {
+  // framing: optional "\r" before the "\n"; blank lines are keep-alives
+  if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+  if (line.find_first_not_of(" \t\r") == std::string_view::npos) return;
+
+  ReplyTo single{session, nullptr, false, nullptr, 0};
+  if (line.size() > options_.max_message_bytes) {
+    reply(single, error_response(nullptr, code::invalid_request,
+                                 "Invalid Request: message exceeds max_message_bytes (" +
+                                     std::to_string(options_.max_message_bytes) + ")",
+                                 json{{"reason", "message too large"}, {"bytes", line.size()}}));
+    return;
+  }
+  if (nests_deeper_than(line, options_.max_depth)) {
+    reply(single, error_response(nullptr, code::invalid_request,
+                                 "Invalid Request: message nests deeper than max_depth (" +
+                                     std::to_string(options_.max_depth) + ")",
+                                 json{{"reason", "nesting too deep"}}));
+    return;
+  }
+  json message;
+  try {
+    message = json::parse(line.begin(), line.end());
+  } catch (const json::parse_error& e) {
+    reply(single, error_response(nullptr, code::parse_error, "Parse error", json{{"reason", e.what()}}));
+    return;
+  }
+
+  std::vector<std::pair<RequestId, Call>> calls;
+  if (message.is_array()) {
+    if (message.empty()) {
+      reply(single, error_response(nullptr, code::invalid_request, "Invalid Request: empty batch",
+                                   json{{"reason", "a batch must contain at least one request"}}));
+      return;
+    }
+    // every entry answers into the batch; the array goes out when the last one is in
+    auto batch = std::make_shared<Batch>(message.size());
+    for (std::size_t i = 0; i < message.size(); ++i)
+      handle_request(session, message[i], ReplyTo{session, nullptr, false, batch, i}, calls);
+    if (!calls.empty()) submit_batch(std::move(calls));
+    return;
+  }
+  handle_request(session, message, single, calls);
+  if (!calls.empty()) submit(calls.front().first, std::move(calls.front().second));
+}
+
+void JsonRpcRequestManager::handle_request(const std::shared_ptr<Session>& session, const json& message,
+                                           ReplyTo to, std::vector<std::pair<RequestId, Call>>& calls) {
+  // validate; invalid requests are answered even without an id
+  Request request;
+  if (auto error = parse_request(message, request)) {
+    to.id = (*error)["id"];
+    reply(to, std::move(*error));
+    return;
+  }
+  to.id = request.id;
+  to.notification = !request.has_id;
+
+  // reserved methods run here, on the I/O thread
+  const std::string& method = request.method;
+  if (method == "rpc.cancel" || method == "$/cancelRequest") {
+    handle_cancel(session, method, request.params, std::move(to));
+    return;
+  }
+  if (method == "rpc.discover") {
+    reply(to, result_response(to.id, openrpc_document(descriptors(), k_version,
+                                                      global_policy() == GlobalPolicy::preempt ? "preempt" : "reject")));
+    return;
+  }
+  std::string component, service;
+  if (method.rfind("rpc.", 0) == 0 || !split_method(method, component, service)) {
+    const std::string reason = method.rfind("rpc.", 0) == 0
+                                   ? "'" + method + "' is not a method of this server (rpc.* is reserved)"
+                                   : "'" + method + "' is not of the form 'component.service'";
+    reply(to, error_response(to.id, code::method_not_found, "Method not found: " + reason,
+                             json{{"method", method}, {"reason", reason}}));
+    return;
+  }
+
+  // limits: calls in flight on this connection, ids unique among them
+  if (session->in_flight() >= options_.max_in_flight) {
+    if (to.notification) log::debug("jsonrpc: ", session->peer(), ": notification ", method, " dropped: overloaded");
+    reply(to, error_response(to.id, code::overloaded,
+                             "Overloaded: " + std::to_string(session->in_flight()) +
+                                 " calls in flight on this connection (max_in_flight " +
+                                 std::to_string(options_.max_in_flight) + ")",
+                             json{{"method", method}, {"max_in_flight", options_.max_in_flight}}));
+    return;
+  }
+  std::string key;
+  if (request.has_id && !request.id.is_null()) {
+    key = dump(request.id);
+    if (session->has_id(key)) {
+      reply(to, error_response(to.id, code::invalid_request,
+                               "Invalid Request: id " + key + " is already used by a pending call on this connection",
+                               json{{"method", method}, {"reason", "duplicate id"}}));
+      return;
+    }
+  }
+
+  // hand over to the simulation thread
+  const RequestId id = new_request_id();
+  if (!key.empty()) session->track(key, id);
+  session->add_in_flight();
+  pending_.emplace(id, Pending{std::move(to), method, std::move(key)});
+  calls.emplace_back(id, Call{std::move(component), std::move(service), std::move(request.params)});
+}
+
+void JsonRpcRequestManager::handle_cancel(const std::shared_ptr<Session>& session, const std::string& method,
+                                          const json& params, ReplyTo to) {
+  // {"id": X} or [X]
+  const json* target = nullptr;
+  if (params.is_object() && params.contains("id")) target = &params["id"];
+  if (params.is_array() && params.size() == 1) target = &params[0];
+  if (!target || !(target->is_string() || target->is_number())) {
+    reply(to, error_response(to.id, code::invalid_params,
+                             "Invalid params: " + method + " takes {\"id\": <id of one of your pending calls>}",
+                             json{{"method", method}, {"parameter", "id"}}));
+    return;
+  }
+  const auto id = session->find(dump(*target));
+  if (!id) {
+    reply(to, result_response(to.id, false));
+    return;
+  }
+  // the answer comes from the simulation thread once the cancel ran
+  session->add_in_flight();
+  cancel(*id, [this, to](bool found) mutable {
+    try {
+      asio::post(io_, [this, to = std::move(to), found]() mutable {
+        auto session = to.session.lock();
+        reply(to, result_response(to.id, found));
+        if (session) session->done("");
+      });
+    } catch (const std::exception& e) {
+      log::error("jsonrpc: cancel reply lost: ", e.what());
+    }
+  });
+}
+
+void JsonRpcRequestManager::on_service_completion(RequestId id, Outcome outcome) {
+  try {
+    asio::post(io_, [this, id, outcome = std::move(outcome)]() mutable { finish_call(id, std::move(outcome)); });
+  } catch (const std::exception& e) {
+    log::error("jsonrpc: reply to request ", id, " lost: ", e.what());
+  }
+}
+
+void JsonRpcRequestManager::finish_call(RequestId id, Outcome outcome) {
+  auto it = pending_.find(id);
+  if (it == pending_.end()) return;
+  Pending pending = std::move(it->second);
+  pending_.erase(it);
+  auto session = pending.to.session.lock();
+  try {
+    if (outcome.status == Status::success) {
+      json result = outcome.value ? std::move(*outcome.value) : json(nullptr);
+      if (pending.to.batch) reply(pending.to, result_response(pending.to.id, std::move(result)));
+      else if (!pending.to.notification) reply_line(pending.to, result_line(pending.to.id, result));
+    } else {
+      reply(pending.to, outcome_response(pending.to.id, outcome, pending.method));
+    }
+  } catch (const std::exception& e) {
+    log::error("jsonrpc: reply to ", pending.method, ": ", e.what());
+  }
+  if (session) session->done(pending.id_key);
+}
+
+void JsonRpcRequestManager::reply(ReplyTo& to, std::optional<json> response) {
+  if (to.batch) {
+    auto& batch = *to.batch;
+    if (response && !to.notification) batch.responses[to.index] = std::move(*response);
+    if (--batch.remaining > 0) return;
+    // the last entry: send what the batch answers, nothing if it held only notifications
+    json array = json::array();
+    for (auto& r : batch.responses)
+      if (!r.is_null()) array.push_back(std::move(r));
+    auto session = to.session.lock();
+    if (session && !array.empty()) session->send(dump(array));
+    return;
+  }
+  if (to.notification || !response) return;
+  if (auto session = to.session.lock()) session->send(dump(*response));
+}
+
+void JsonRpcRequestManager::reply_line(ReplyTo& to, std::string line) {
+  if (to.notification) return;
+  if (auto session = to.session.lock()) session->send(line);
+}
+
+}  // namespace simgate::jsonrpc
+
+SIMGATE_TRANSPORT_PLUGIN(jsonrpc, simgate::jsonrpc::JsonRpcRequestManager, "0.1.0", "host", "port",
+                         "max_message_bytes", "max_depth", "max_in_flight", "max_unsent_bytes",
+                         "max_connections", "on_disconnect", "global_policy")

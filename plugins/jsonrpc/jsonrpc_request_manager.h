@@ -1,0 +1,130 @@
+// plugins/jsonrpc/jsonrpc_request_manager.h — JSON-RPC 2.0 over TCP (newline-delimited).
+//
+// What: a RequestManager whose clients speak JSON-RPC 2.0, one message (request or batch)
+// per `\n`-terminated line, in both directions. Method "component.service" (split at the
+// last dot); params positional (array) or named (object). Sync calls answer after they
+// ran; async calls answer when they complete, out of order, matched by id. Reserved
+// methods: rpc.discover (OpenRPC document of the services served here), rpc.cancel
+// {"id": X} (cancels the caller's own pending call). Wire details and the error table:
+// docs/transports/jsonrpc.md.
+//
+// Terms:
+//  - session: one accepted TCP connection; call ids are scoped to it.
+//  - pending call: submitted to the core, its reply not yet produced.
+//  - unsent bytes: replies queued on a session and not yet accepted by the kernel.
+//
+// Life cycle: the constructor reads the options (ConfigError on bad ones) and binds the
+// listening socket (std::runtime_error if the port is taken); start() launches the I/O
+// thread; stop() closes every connection, joins the thread and finishes what is still
+// pending with Failure::shutdown. stop() is idempotent and the destructor calls it.
+//
+// Threads: one I/O thread runs the io_context (accept, read, parse, submit, write). The
+// simulation thread calls on_service_completion, which only posts the outcome to the I/O
+// thread. Sessions, pending calls and batches are touched by the I/O thread only.
+#ifndef SIMGATE_PLUGINS_JSONRPC_JSONRPC_REQUEST_MANAGER_H_
+#define SIMGATE_PLUGINS_JSONRPC_JSONRPC_REQUEST_MANAGER_H_
+
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <unordered_map>
+#include <unordered_set>
+#include <vector>
+
+#include <boost/asio/executor_work_guard.hpp>
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/steady_timer.hpp>
+
+#include "simgate/core/request_manager.h"
+
+namespace simgate::jsonrpc {
+
+// The transport's options (plugin option keys in parentheses).
+struct Options {
+  std::string host = "127.0.0.1";               // ("host") IP address to bind
+  std::uint16_t port = 4001;                    // ("port") 0 = any free port
+  std::size_t max_message_bytes = 8u << 20;     // ("max_message_bytes") one line, batch included
+  std::size_t max_depth = 128;                  // ("max_depth") bracket nesting of one message
+  std::size_t max_in_flight = 1024;             // ("max_in_flight") pending calls per connection
+  std::size_t max_unsent_bytes = 16u << 20;     // ("max_unsent_bytes") queued replies per connection
+  std::size_t max_connections = 512;            // ("max_connections") simultaneous clients
+  bool cancel_on_disconnect = true;             // ("on_disconnect": "cancel" | "let_run")
+  GlobalPolicy global_policy = GlobalPolicy::reject;  // ("global_policy": "reject" | "preempt")
+
+  // Reads and checks `options`; unknown keys are errors (ConfigError naming the key).
+  static Options parse(const json& options);
+};
+
+class JsonRpcRequestManager : public RequestManager {
+ public:
+  // Parses the options and binds; throws ConfigError or std::runtime_error.
+  explicit JsonRpcRequestManager(const json& options);
+  ~JsonRpcRequestManager() override;
+
+  void start() override;
+  void stop() override;
+  // {"tcp://127.0.0.1:<port>"} with the bound port.
+  std::vector<std::string> endpoints() const override;
+
+  const Options& options() const { return options_; }
+  std::uint16_t port() const { return port_; }
+
+ protected:
+  // Simulation thread: hands the outcome to the I/O thread; never blocks.
+  void on_service_completion(RequestId id, Outcome outcome) override;
+
+ private:
+  class Session;
+  struct Batch;
+
+  // Where the response of one call goes.
+  struct ReplyTo {
+    std::weak_ptr<Session> session;  // gone when the client left
+    json id;                         // JSON-RPC id (null for notifications)
+    bool notification = false;       // no response at all
+    std::shared_ptr<Batch> batch;    // set for batch entries
+    std::size_t index = 0;           // entry index inside the batch
+  };
+  // A call submitted to the core and not yet finished.
+  struct Pending {
+    ReplyTo to;          // where the response goes
+    std::string method;  // "component.service", for error data
+    std::string id_key;  // the session's key for the id ("" when untracked)
+  };
+
+  // I/O thread.
+  void accept_next();
+  void handle_message(const std::shared_ptr<Session>& session, std::string_view line);
+  // Handles one request object: answers at once (into `to`), or queues a call.
+  void handle_request(const std::shared_ptr<Session>& session, const json& message, ReplyTo to,
+                      std::vector<std::pair<RequestId, Call>>& calls);
+  void handle_cancel(const std::shared_ptr<Session>& session, const std::string& method,
+                     const json& params, ReplyTo to);
+  void finish_call(RequestId id, Outcome outcome);
+  void reply(ReplyTo& to, std::optional<json> response);
+  void reply_line(ReplyTo& to, std::string line);
+  void session_closed(Session& session);
+  void shutdown_io();
+
+  Options options_;                                  // as parsed
+  boost::asio::io_context io_;                       // all sockets; declared first, destroyed last
+  boost::asio::executor_work_guard<boost::asio::io_context::executor_type> work_;  // keeps run() alive
+  boost::asio::ip::tcp::acceptor acceptor_;          // the listening socket
+  boost::asio::steady_timer accept_retry_;           // backs off after accept errors (EMFILE)
+  std::uint16_t port_ = 0;                           // bound port
+  std::thread thread_;                               // runs io_
+  std::mutex life_mutex_;                            // guards started_ / stopped_
+  bool started_ = false;                             // start() ran
+  bool stopped_ = false;                             // stop() ran
+  bool stopping_ = false;                            // shutdown_io() ran (I/O thread)
+  std::unordered_set<std::shared_ptr<Session>> sessions_;  // open connections (I/O thread)
+  std::unordered_map<RequestId, Pending> pending_;   // submitted calls (I/O thread)
+};
+
+}  // namespace simgate::jsonrpc
+
+#endif  // SIMGATE_PLUGINS_JSONRPC_JSONRPC_REQUEST_MANAGER_H_

@@ -1,0 +1,83 @@
+// plugins/jsonrpc/protocol.h — the JSON-RPC 2.0 wire vocabulary of the jsonrpc transport.
+//
+// Pure functions, no I/O: error codes and the Outcome -> code mapping, building response
+// lines, validating one request object, splitting "component.service" at the last dot, the
+// nesting-depth pre-scan that protects the parser's callers, and the OpenRPC document that
+// `rpc.discover` returns. Used by the I/O thread of JsonRpcRequestManager only.
+//
+// Terms: a *message* is one line of the stream: a request object or a batch (array). A
+// *call* has an id and gets a response; a *notification* has none and gets nothing.
+#ifndef SIMGATE_PLUGINS_JSONRPC_PROTOCOL_H_
+#define SIMGATE_PLUGINS_JSONRPC_PROTOCOL_H_
+
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "simgate/core/service.h"
+#include "simgate/core/status.h"
+
+namespace simgate::jsonrpc {
+
+// Error codes: the spec's, then the server block (-32000..-32099) documented in
+// docs/transports/jsonrpc.md. Keep in sync with clients/jsonrpc (JsonRpcClient).
+namespace code {
+inline constexpr int parse_error = -32700;       // the line is not JSON
+inline constexpr int invalid_request = -32600;   // not a request object / too large / dup id
+inline constexpr int method_not_found = -32601;  // unknown component, service or rpc.* method
+inline constexpr int invalid_params = -32602;    // arity, types, names
+inline constexpr int internal_error = -32603;    // the service threw something unexpected
+inline constexpr int service_failed = -32000;    // ServiceError / completed(FAILED)
+inline constexpr int preempted = -32001;         // interrupted by a newer call
+inline constexpr int cancelled = -32002;         // rpc.cancel, or the client went away
+inline constexpr int timeout = -32003;           // reserved (no server-side timeouts yet)
+inline constexpr int busy = -32004;              // a non-interruptible async call is running
+inline constexpr int unauthorized = -32005;      // reserved (no auth yet)
+inline constexpr int overloaded = -32006;        // too many calls in flight on the connection
+inline constexpr int shutting_down = -32007;     // the server stopped before the call ended
+}  // namespace code
+
+// The spec's short text for a code ("Method not found"), or a name for server codes.
+std::string_view code_message(int error_code) noexcept;
+
+// The JSON-RPC code for a failed or preempted Outcome.
+int code_for(const Outcome& outcome) noexcept;
+
+// Serialises without throwing: invalid UTF-8 in strings is replaced by U+FFFD.
+std::string dump(const json& value);
+
+// {"jsonrpc":"2.0","id":<id>,"result":<result>} (no newline).
+std::string result_line(const json& id, const json& result);
+// {"jsonrpc":"2.0","id":<id>,"error":{"code","message","data"?}} as a JSON value.
+json error_response(const json& id, int error_code, std::string message, json data = nullptr);
+// The response (result or error) for a finished call.
+json outcome_response(const json& id, const Outcome& outcome, const std::string& method);
+
+// One request object, checked against the spec.
+struct Request {
+  json id;              // string, number or null (null also when absent)
+  bool has_id = false;  // false: a notification
+  std::string method;   // as sent
+  json params;          // array, object or null (absent)
+};
+
+// Validates `message` as a request object. On error returns the -32600 response to send
+// (id copied from the message when it is itself valid) and leaves `out` unspecified.
+std::optional<json> parse_request(const json& message, Request& out);
+
+// Splits "robot.arm.move" into {"robot.arm", "move"} at the last dot. False when there is
+// no dot or either side is empty.
+bool split_method(const std::string& method, std::string& component, std::string& service);
+
+// True if brackets nest deeper than `max_depth` anywhere in `text` (strings skipped).
+// Cheap linear pre-scan so that deep inputs are refused before they are parsed or copied.
+bool nests_deeper_than(std::string_view text, std::size_t max_depth) noexcept;
+
+// The OpenRPC 1.2.6 document for `services` (rpc.discover's result).
+json openrpc_document(const std::vector<ServiceDescriptor>& services, std::string_view version,
+                      std::string_view global_policy);
+
+}  // namespace simgate::jsonrpc
+
+#endif  // SIMGATE_PLUGINS_JSONRPC_PROTOCOL_H_

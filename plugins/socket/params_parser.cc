@@ -1,0 +1,364 @@
+#include "params_parser.h"
+
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+
+namespace simgate::socket {
+namespace {
+
+// Thrown inside the parser only; parse_params() turns it into a ParamsParse.
+struct SyntaxError {
+  std::string message;  // what was wrong
+  std::size_t offset;   // byte offset into the text
+};
+
+bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\f' || c == '\v'; }
+bool is_digit(char c) { return c >= '0' && c <= '9'; }
+bool is_ident(char c) {
+  return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || is_digit(c) || c == '_';
+}
+
+int hex_value(char c) {
+  if (c >= '0' && c <= '9') return c - '0';
+  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+  return -1;
+}
+
+void append_utf8(std::string& out, std::uint32_t cp) {
+  if (cp < 0x80) {
+    out += char(cp);
+  } else if (cp < 0x800) {
+    out += char(0xC0 | (cp >> 6));
+    out += char(0x80 | (cp & 0x3F));
+  } else if (cp < 0x10000) {
+    out += char(0xE0 | (cp >> 12));
+    out += char(0x80 | ((cp >> 6) & 0x3F));
+    out += char(0x80 | (cp & 0x3F));
+  } else {
+    out += char(0xF0 | (cp >> 18));
+    out += char(0x80 | ((cp >> 12) & 0x3F));
+    out += char(0x80 | ((cp >> 6) & 0x3F));
+    out += char(0x80 | (cp & 0x3F));
+  }
+}
+
+// Length of the valid UTF-8 sequence starting at s[i], or 0 if it is invalid.
+std::size_t utf8_sequence_length(std::string_view s, std::size_t i) {
+  auto b = [&](std::size_t k) { return static_cast<unsigned char>(s[k]); };
+  unsigned char c = b(i);
+  std::size_t n;
+  std::uint32_t cp;
+  if (c < 0x80) return 1;
+  if (c >= 0xC2 && c <= 0xDF) { n = 2; cp = c & 0x1F; }
+  else if (c >= 0xE0 && c <= 0xEF) { n = 3; cp = c & 0x0F; }
+  else if (c >= 0xF0 && c <= 0xF4) { n = 4; cp = c & 0x07; }
+  else return 0;
+  if (i + n > s.size()) return 0;
+  for (std::size_t k = 1; k < n; ++k) {
+    if ((b(i + k) & 0xC0) != 0x80) return 0;
+    cp = (cp << 6) | (b(i + k) & 0x3F);
+  }
+  // overlong forms, surrogates and code points past U+10FFFF
+  if ((n == 3 && cp < 0x800) || (n == 4 && cp < 0x10000) || cp > 0x10FFFF ||
+      (cp >= 0xD800 && cp <= 0xDFFF))
+    return 0;
+  return n;
+}
+
+class Parser {
+ public:
+  explicit Parser(std::string_view text) : text_(text) {}
+
+  json parse_all() {
+    skip_blanks();
+    if (pos_ == text_.size()) return nullptr;
+    json value = parse_value(0);
+    skip_blanks();
+    if (pos_ != text_.size())
+      fail("unexpected " + describe_here() + " after the end of the parameters");
+    return value;
+  }
+
+ private:
+  [[noreturn]] void fail(std::string message) { throw SyntaxError{std::move(message), pos_}; }
+  [[noreturn]] void fail_at(std::size_t offset, std::string message) {
+    throw SyntaxError{std::move(message), offset};
+  }
+
+  // "'x'", "byte 0xff" or "the end of the parameters", for messages.
+  std::string describe_here() const {
+    if (pos_ >= text_.size()) return "the end of the parameters";
+    unsigned char c = static_cast<unsigned char>(text_[pos_]);
+    if (c >= 0x20 && c < 0x7F) return std::string("'") + char(c) + "'";
+    static const char* digits = "0123456789abcdef";
+    return std::string("byte 0x") + digits[c >> 4] + digits[c & 15];
+  }
+
+  void skip_blanks() {
+    while (pos_ < text_.size() && is_blank(text_[pos_])) ++pos_;
+  }
+
+  json parse_value(std::size_t depth) {
+    skip_blanks();
+    if (pos_ >= text_.size()) fail("expected a value but found the end of the parameters");
+    char c = text_[pos_];
+    switch (c) {
+      case '[': return parse_sequence(depth, ']');
+      case '(': return parse_sequence(depth, ')');
+      case '{': return parse_dict(depth);
+      case '"':
+      case '\'': return parse_string();
+      default: break;
+    }
+    if (is_digit(c) || c == '-' || c == '+' || c == '.') return parse_number();
+    if (is_ident(c)) return parse_word();
+    fail("expected a value but found " + describe_here());
+  }
+
+  json parse_sequence(std::size_t depth, char close) {
+    if (depth + 1 > k_max_depth)
+      fail("nesting deeper than " + std::to_string(k_max_depth) + " levels");
+    const char* kind = close == ']' ? "list" : "tuple";
+    ++pos_;  // the opening bracket
+    json out = json::array();
+    for (;;) {
+      skip_blanks();
+      if (pos_ < text_.size() && text_[pos_] == close) {
+        ++pos_;
+        return out;
+      }
+      out.push_back(parse_value(depth + 1));
+      skip_blanks();
+      if (pos_ < text_.size() && text_[pos_] == ',') {
+        ++pos_;
+        continue;
+      }
+      if (pos_ < text_.size() && text_[pos_] == close) {
+        ++pos_;
+        return out;
+      }
+      fail(std::string("expected ',' or '") + close + "' in " + kind + " but found " + describe_here());
+    }
+  }
+
+  json parse_dict(std::size_t depth) {
+    if (depth + 1 > k_max_depth)
+      fail("nesting deeper than " + std::to_string(k_max_depth) + " levels");
+    ++pos_;  // '{'
+    json out = json::object();
+    for (;;) {
+      skip_blanks();
+      if (pos_ < text_.size() && text_[pos_] == '}') {
+        ++pos_;
+        return out;
+      }
+      // key: a string only (JSON objects have string keys)
+      if (pos_ >= text_.size() || (text_[pos_] != '"' && text_[pos_] != '\''))
+        fail("expected a string key in dict but found " + describe_here());
+      std::string key = parse_string();
+      skip_blanks();
+      if (pos_ >= text_.size() || text_[pos_] != ':')
+        fail("expected ':' after dict key but found " + describe_here());
+      ++pos_;
+      out[key] = parse_value(depth + 1);
+      skip_blanks();
+      if (pos_ < text_.size() && text_[pos_] == ',') {
+        ++pos_;
+        continue;
+      }
+      if (pos_ < text_.size() && text_[pos_] == '}') {
+        ++pos_;
+        return out;
+      }
+      fail("expected ',' or '}' in dict but found " + describe_here());
+    }
+  }
+
+  // \uHHHH (and a following low surrogate) or \UHHHHHHHH or \xHH; pos_ is on the letter.
+  std::uint32_t parse_hex_escape(std::size_t digits, std::size_t escape_start) {
+    ++pos_;
+    if (pos_ + digits > text_.size()) fail_at(escape_start, "truncated escape sequence");
+    std::uint32_t cp = 0;
+    for (std::size_t k = 0; k < digits; ++k) {
+      int h = hex_value(text_[pos_ + k]);
+      if (h < 0) fail_at(escape_start, "invalid hexadecimal digit in escape sequence");
+      cp = (cp << 4) | std::uint32_t(h);
+    }
+    pos_ += digits;
+    return cp;
+  }
+
+  std::string parse_string() {
+    const char quote = text_[pos_];
+    const std::size_t start = pos_;
+    ++pos_;
+    std::string out;
+    for (;;) {
+      if (pos_ >= text_.size()) fail_at(start, "unterminated string");
+      char c = text_[pos_];
+      if (c == quote) {
+        ++pos_;
+        return out;
+      }
+      if (c == '\\') {
+        const std::size_t escape_start = pos_;
+        ++pos_;
+        if (pos_ >= text_.size()) fail_at(start, "unterminated string");
+        char e = text_[pos_];
+        switch (e) {
+          case 'n': out += '\n'; ++pos_; break;
+          case 't': out += '\t'; ++pos_; break;
+          case 'r': out += '\r'; ++pos_; break;
+          case 'b': out += '\b'; ++pos_; break;
+          case 'f': out += '\f'; ++pos_; break;
+          case 'v': out += '\v'; ++pos_; break;
+          case 'a': out += '\a'; ++pos_; break;
+          case '0': out += '\0'; ++pos_; break;
+          case '\\': out += '\\'; ++pos_; break;
+          case '\'': out += '\''; ++pos_; break;
+          case '"': out += '"'; ++pos_; break;
+          case '/': out += '/'; ++pos_; break;
+          case 'x': append_utf8(out, parse_hex_escape(2, escape_start)); break;
+          case 'U': {
+            std::uint32_t cp = parse_hex_escape(8, escape_start);
+            if (cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF))
+              fail_at(escape_start, "escape sequence is not a valid code point");
+            append_utf8(out, cp);
+            break;
+          }
+          case 'u': {
+            std::uint32_t cp = parse_hex_escape(4, escape_start);
+            if (cp >= 0xD800 && cp <= 0xDBFF) {
+              // a high surrogate must be followed by \u and a low surrogate
+              if (pos_ + 1 < text_.size() && text_[pos_] == '\\' && text_[pos_ + 1] == 'u') {
+                ++pos_;
+                std::uint32_t low = parse_hex_escape(4, escape_start);
+                if (low < 0xDC00 || low > 0xDFFF)
+                  fail_at(escape_start, "high surrogate not followed by a low surrogate");
+                cp = 0x10000 + ((cp - 0xD800) << 10) + (low - 0xDC00);
+              } else {
+                fail_at(escape_start, "high surrogate not followed by a low surrogate");
+              }
+            } else if (cp >= 0xDC00 && cp <= 0xDFFF) {
+              fail_at(escape_start, "lone low surrogate in escape sequence");
+            }
+            append_utf8(out, cp);
+            break;
+          }
+          default:
+            fail_at(escape_start, std::string("unknown escape sequence '\\") +
+                                      ((e >= 0x20 && e < 0x7F) ? std::string(1, e) : "?") + "'");
+        }
+        continue;
+      }
+      if (static_cast<unsigned char>(c) < 0x20) fail("control character in string");
+      std::size_t n = utf8_sequence_length(text_, pos_);
+      if (n == 0) fail("invalid UTF-8 in string");
+      out.append(text_.substr(pos_, n));
+      pos_ += n;
+    }
+  }
+
+  json parse_number() {
+    const std::size_t start = pos_;
+    bool negative = false;
+    if (text_[pos_] == '+' || text_[pos_] == '-') {
+      negative = text_[pos_] == '-';
+      ++pos_;
+      // -Infinity / +Infinity
+      if (text_.substr(pos_, 8) == "Infinity" &&
+          (pos_ + 8 == text_.size() || !is_ident(text_[pos_ + 8]))) {
+        pos_ += 8;
+        return negative ? -std::numeric_limits<double>::infinity()
+                        : std::numeric_limits<double>::infinity();
+      }
+    }
+    const std::size_t digits_start = pos_;
+    std::size_t int_digits = 0, frac_digits = 0;
+    bool is_float = false;
+    while (pos_ < text_.size() && is_digit(text_[pos_])) ++pos_, ++int_digits;
+    if (pos_ < text_.size() && text_[pos_] == '.') {
+      is_float = true;
+      ++pos_;
+      while (pos_ < text_.size() && is_digit(text_[pos_])) ++pos_, ++frac_digits;
+    }
+    if (int_digits + frac_digits == 0) {
+      pos_ = start;
+      fail("malformed number");
+    }
+    if (int_digits > 1 && text_[digits_start] == '0' && !is_float &&
+        (pos_ >= text_.size() || (text_[pos_] != 'e' && text_[pos_] != 'E'))) {
+      pos_ = start;
+      fail("malformed number: leading zeros are not allowed");
+    }
+    if (pos_ < text_.size() && (text_[pos_] == 'e' || text_[pos_] == 'E')) {
+      is_float = true;
+      ++pos_;
+      if (pos_ < text_.size() && (text_[pos_] == '+' || text_[pos_] == '-')) ++pos_;
+      std::size_t exp_digits = 0;
+      while (pos_ < text_.size() && is_digit(text_[pos_])) ++pos_, ++exp_digits;
+      if (exp_digits == 0) {
+        pos_ = start;
+        fail("malformed number: missing exponent digits");
+      }
+    }
+    if (pos_ < text_.size() && is_ident(text_[pos_])) fail("malformed number: unexpected " + describe_here());
+    std::string_view body = text_.substr(digits_start, pos_ - digits_start);
+
+    if (!is_float) {
+      std::uint64_t magnitude = 0;
+      auto [end, ec] = std::from_chars(body.data(), body.data() + body.size(), magnitude);
+      if (ec == std::errc() && end == body.data() + body.size()) {
+        if (!negative) {
+          if (magnitude <= std::uint64_t(std::numeric_limits<std::int64_t>::max()))
+            return std::int64_t(magnitude);
+          return magnitude;
+        }
+        if (magnitude <= std::uint64_t(std::numeric_limits<std::int64_t>::max()) + 1)
+          return magnitude == 0 ? std::int64_t(0) : std::int64_t(0 - magnitude);
+      }
+      fail_at(start, "integer out of range");
+    }
+    double value = 0;
+    auto [end, ec] = std::from_chars(body.data(), body.data() + body.size(), value);
+    if (ec == std::errc::result_out_of_range) fail_at(start, "number out of range");
+    if (ec != std::errc() || end != body.data() + body.size()) fail_at(start, "malformed number");
+    return negative ? -value : value;
+  }
+
+  json parse_word() {
+    const std::size_t start = pos_;
+    while (pos_ < text_.size() && is_ident(text_[pos_])) ++pos_;
+    std::string_view word = text_.substr(start, pos_ - start);
+    if (word == "True" || word == "true") return true;
+    if (word == "False" || word == "false") return false;
+    if (word == "None" || word == "null") return nullptr;
+    if (word == "NaN") return std::numeric_limits<double>::quiet_NaN();
+    if (word == "Infinity") return std::numeric_limits<double>::infinity();
+    fail_at(start, "unknown name '" + std::string(word.substr(0, 40)) +
+                       "' (expected a number, a quoted string, True, False or None)");
+  }
+
+  std::string_view text_;  // the parameters text
+  std::size_t pos_ = 0;    // next byte to read
+};
+
+}  // namespace
+
+ParamsParse parse_params(std::string_view text, std::size_t first_column) {
+  ParamsParse result;
+  Parser parser(text);
+  try {
+    result.value = parser.parse_all();
+    result.ok = true;
+  } catch (const SyntaxError& e) {
+    result.error = e.message;
+    result.column = first_column + e.offset;
+  }
+  return result;
+}
+
+}  // namespace simgate::socket

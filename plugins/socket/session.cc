@@ -1,0 +1,168 @@
+#include "session.h"
+
+#include <boost/asio/write.hpp>
+
+#include "simgate/core/log.h"
+
+namespace simgate::socket {
+
+namespace asio = boost::asio;
+using boost::system::error_code;
+
+Session::Session(asio::ip::tcp::socket socket, SessionHost& host, SessionLimits limits,
+                 std::uint64_t number)
+    : socket_(std::move(socket)), host_(host), limits_(limits) {
+  error_code ec;
+  auto peer = socket_.remote_endpoint(ec);
+  label_ = "client #" + std::to_string(number);
+  if (!ec) label_ += " (" + peer.address().to_string() + ":" + std::to_string(peer.port()) + ")";
+  socket_.set_option(asio::ip::tcp::no_delay(true), ec);  // replies are small: no Nagle delay
+}
+
+void Session::start() { read_more(); }
+
+void Session::read_more() {
+  if (closed_ || reading_ || eof_) return;
+  // backpressure: a client with too many unanswered requests waits for answers
+  if (pending_.size() >= limits_.max_pending_requests) return;
+  reading_ = true;
+  socket_.async_read_some(asio::buffer(read_buffer_),
+                          [self = shared_from_this()](const error_code& ec, std::size_t n) {
+                            self->on_read(ec, n);
+                          });
+}
+
+void Session::on_read(const error_code& ec, std::size_t n) {
+  reading_ = false;
+  if (closed_) return;
+  if (ec == asio::error::eof) {
+    // the client finished sending: answer what it asked, then close
+    if (!partial_.empty() && !discarding_) {
+      // a last request without its '\n' still counts (telnet users, `printf` without \n)
+      std::string last = std::move(partial_);
+      partial_.clear();
+      host_.on_line(shared_from_this(), last);
+    }
+    eof_ = true;
+    maybe_finish();
+    return;
+  }
+  if (ec) {
+    close(ec.message());
+    return;
+  }
+  consume(std::string_view(read_buffer_.data(), n));
+  read_more();
+}
+
+void Session::consume(std::string_view data) {
+  auto self = shared_from_this();
+  while (!data.empty() && !closed_) {
+    std::size_t nl = data.find('\n');
+    if (discarding_) {
+      // the tail of an oversized line: skip to its end
+      if (nl == std::string_view::npos) return;
+      discarding_ = false;
+      data.remove_prefix(nl + 1);
+      continue;
+    }
+    if (nl == std::string_view::npos) {
+      // an unfinished line: keep it, unless it is already too long
+      if (partial_.size() + data.size() > limits_.max_line_bytes) {
+        partial_.append(data.substr(0, std::min<std::size_t>(data.size(), 1024)));
+        host_.on_oversized_line(self, partial_);
+        partial_.clear();
+        discarding_ = true;
+      } else {
+        partial_.append(data);
+      }
+      return;
+    }
+    std::string_view piece = data.substr(0, nl);
+    data.remove_prefix(nl + 1);
+    if (partial_.size() + piece.size() > limits_.max_line_bytes) {
+      partial_.append(piece.substr(0, std::min<std::size_t>(piece.size(), 1024)));
+      host_.on_oversized_line(self, partial_);
+      partial_.clear();
+      continue;
+    }
+    if (partial_.empty()) {
+      host_.on_line(self, piece);  // fast path: the whole line is in this read
+    } else {
+      partial_.append(piece);
+      std::string line = std::move(partial_);
+      partial_.clear();
+      host_.on_line(self, line);
+    }
+  }
+}
+
+void Session::send(std::string_view bytes) {
+  if (closed_) return;
+  outbox_.append(bytes);
+  if (outbox_.size() + in_flight_.size() > limits_.max_unsent_bytes) {
+    // the client does not read its replies: it may not grow our memory
+    log::warning("Socket service manager: ", label_, " disconnected: more than ",
+                 limits_.max_unsent_bytes, " bytes of replies unread (max_pending_replies_bytes)");
+    close("too many unread replies");
+    return;
+  }
+  if (!writing_) start_write();
+}
+
+void Session::start_write() {
+  // everything queued goes out in one write
+  in_flight_.swap(outbox_);
+  outbox_.clear();
+  writing_ = true;
+  asio::async_write(socket_, asio::buffer(in_flight_),
+                    [self = shared_from_this()](const error_code& ec, std::size_t) {
+                      self->writing_ = false;
+                      self->in_flight_.clear();
+                      if (self->closed_) return;
+                      if (ec) {
+                        self->close(ec.message());
+                        return;
+                      }
+                      if (!self->outbox_.empty())
+                        self->start_write();
+                      else
+                        self->maybe_finish();
+                    });
+}
+
+void Session::maybe_finish() {
+  if (eof_ && pending_.empty() && !writing_ && outbox_.empty()) close("end of input");
+}
+
+void Session::close(std::string_view reason) {
+  if (closed_) return;
+  closed_ = true;
+  log::debug("Socket service manager: ", label_, " closed: ", reason);
+  error_code ec;
+  socket_.shutdown(asio::ip::tcp::socket::shutdown_both, ec);
+  socket_.close(ec);
+  outbox_.clear();
+  partial_.clear();
+  host_.on_session_closed(shared_from_this());
+  pending_.clear();
+}
+
+std::optional<RequestId> Session::find_pending(std::string_view client_id) const {
+  auto it = pending_.find(std::string(client_id));
+  if (it == pending_.end()) return std::nullopt;
+  return it->second;
+}
+
+void Session::add_pending(std::string_view client_id, RequestId id) {
+  pending_.emplace(std::string(client_id), id);
+}
+
+void Session::remove_pending(std::string_view client_id) {
+  pending_.erase(std::string(client_id));
+  if (closed_) return;
+  read_more();
+  maybe_finish();
+}
+
+}  // namespace simgate::socket

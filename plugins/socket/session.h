@@ -1,0 +1,107 @@
+// session.h — one client connection of the socket transport.
+//
+// A Session owns its TCP socket, turns the byte stream into lines and writes replies.
+//   - Reading: bytes accumulate until '\n', so a request split over several TCP segments
+//     works and several requests in one segment are all seen. A line longer than
+//     `max_line_bytes` is answered FAILED by the host (on_oversized_line) and skipped up to
+//     its '\n'; the connection keeps working. Reading pauses while the connection has
+//     `max_pending_requests` unanswered requests (backpressure instead of unbounded queues).
+//   - Writing: one async write in flight; replies queued meanwhile are written together in
+//     the next one (coalesced). If the unsent bytes exceed `max_unsent_bytes` the client is
+//     not reading: the session is closed and forgotten.
+//   - Pending requests: the client's ids of requests not yet answered, mapped to the core's
+//     RequestId, so ids and cancel are scoped to the connection.
+//   - End of input (client shut down its sending side): the session stays open until every
+//     pending reply has been written, then closes (so `echo req | nc` gets its answer).
+//
+// Life cycle: created by the acceptor, start()ed, kept alive by its own pending handlers
+// (shared_from_this) and by the host's session set; close() ends it (idempotent).
+// Threads: every member function runs on the host's single I/O thread (io_context::run).
+#ifndef SIMGATE_PLUGINS_SOCKET_SESSION_H_
+#define SIMGATE_PLUGINS_SOCKET_SESSION_H_
+
+#include <array>
+#include <cstddef>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <unordered_map>
+#include <utility>  // before Asio: Boost 1.74 needs std::exchange in C++20 mode
+
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/tcp.hpp>
+
+#include "simgate/core/status.h"
+
+namespace simgate::socket {
+
+class Session;
+
+// What a session needs from the server that owns it (the SocketRequestManager).
+class SessionHost {
+ public:
+  virtual ~SessionHost() = default;
+  // One complete line, without '\n'.
+  virtual void on_line(const std::shared_ptr<Session>& session, std::string_view line) = 0;
+  // A line exceeded the limit; `prefix` is its beginning (to find the client's id).
+  virtual void on_oversized_line(const std::shared_ptr<Session>& session, std::string_view prefix) = 0;
+  // The session closed (error, peer gone, limit exceeded or server stopping).
+  virtual void on_session_closed(const std::shared_ptr<Session>& session) = 0;
+};
+
+struct SessionLimits {
+  std::size_t max_line_bytes = 1 << 20;           // longest request line accepted
+  std::size_t max_unsent_bytes = 8 << 20;         // unsent replies before disconnecting
+  std::size_t max_pending_requests = 1024;        // unanswered requests before pausing reads
+};
+
+class Session : public std::enable_shared_from_this<Session> {
+ public:
+  Session(boost::asio::ip::tcp::socket socket, SessionHost& host, SessionLimits limits,
+          std::uint64_t number);
+
+  // Starts reading.
+  void start();
+  // Queues reply bytes (whole lines) and writes them as soon as possible.
+  void send(std::string_view bytes);
+  // Closes the socket and tells the host; idempotent.
+  void close(std::string_view reason);
+  bool closed() const { return closed_; }
+
+  // Pending requests of this connection, by the client's id.
+  std::optional<RequestId> find_pending(std::string_view client_id) const;
+  void add_pending(std::string_view client_id, RequestId id);
+  // Forgets an answered request; resumes reading if it was paused.
+  void remove_pending(std::string_view client_id);
+  const std::unordered_map<std::string, RequestId>& pending() const { return pending_; }
+
+  // "client #3 (127.0.0.1:51234)", for log messages.
+  const std::string& label() const { return label_; }
+
+ private:
+  void read_more();
+  void on_read(const boost::system::error_code& ec, std::size_t n);
+  void consume(std::string_view data);
+  void start_write();
+  void maybe_finish();
+
+  boost::asio::ip::tcp::socket socket_;   // the connection
+  SessionHost& host_;                     // the server (outlives every session)
+  SessionLimits limits_;                  // from the transport options
+  std::string label_;                     // for logs
+  std::array<char, 16384> read_buffer_;   // one read's bytes
+  std::string partial_;                   // the start of an unfinished line
+  bool discarding_ = false;               // skipping the rest of an oversized line
+  bool reading_ = false;                  // a read is in flight
+  bool eof_ = false;                      // the client will send nothing more
+  bool closed_ = false;                   // close() was called
+  std::string outbox_;                    // replies waiting for the next write
+  std::string in_flight_;                 // replies being written
+  bool writing_ = false;                  // a write is in flight
+  std::unordered_map<std::string, RequestId> pending_;  // client id -> core request id
+};
+
+}  // namespace simgate::socket
+
+#endif  // SIMGATE_PLUGINS_SOCKET_SESSION_H_

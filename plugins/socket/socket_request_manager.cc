@@ -1,0 +1,273 @@
+#include "socket_request_manager.h"
+
+#include <boost/asio/post.hpp>
+
+#include "params_parser.h"
+#include "simgate/core/config.h"
+#include "simgate/core/errors.h"
+#include "simgate/core/log.h"
+#include "simgate/core/plugin.h"
+#include "wire.h"
+
+namespace simgate::socket {
+
+namespace asio = boost::asio;
+using asio::ip::tcp;
+using boost::system::error_code;
+
+namespace {
+
+constexpr std::string_view k_failed = "FAILED";
+constexpr std::string_view k_preempted = "PREEMPTED";
+// Longest client id echoed in the reply to an oversized line (the line itself is dropped).
+constexpr std::size_t k_max_echoed_id = 256;
+
+// The address to listen on: a literal, or the first result of resolving a name.
+tcp::endpoint resolve_listen_endpoint(const std::string& host, std::uint16_t port) {
+  error_code ec;
+  auto address = asio::ip::make_address(host, ec);
+  if (!ec) return tcp::endpoint(address, port);
+  asio::io_context io;
+  tcp::resolver resolver(io);
+  auto results = resolver.resolve(host, std::to_string(port), ec);
+  if (ec || results.empty())
+    throw ConfigError("host: cannot resolve '" + host + "': " +
+                      (ec ? ec.message() : std::string("no address")));
+  return results.begin()->endpoint();
+}
+
+}  // namespace
+
+SocketRequestManager::SocketRequestManager(const json& options)
+    : RequestManager("Socket service manager"), work_(asio::make_work_guard(io_)), acceptor_(io_) {
+  // options: every key read here, unknown keys refused by finish()
+  ConfigObject config(options, "");
+  host_ = config.get_string("host", "127.0.0.1");
+  const auto requested_port = static_cast<std::uint16_t>(config.get_int("port", 4000, 0, 65535));
+  success_word_ = config.get_choice("success_word", "SUCCESS", {"SUCCESS", "OK"});
+  limits_.max_line_bytes =
+      static_cast<std::size_t>(config.get_int("max_line_bytes", 1 << 20, 64, 1LL << 30));
+  limits_.max_unsent_bytes = static_cast<std::size_t>(
+      config.get_int("max_pending_replies_bytes", 8 << 20, 1024, 1LL << 34));
+  limits_.max_pending_requests =
+      static_cast<std::size_t>(config.get_int("max_pending_requests", 1024, 1, 1 << 20));
+  max_clients_ = static_cast<std::size_t>(config.get_int("max_clients", 1024, 1, 1 << 20));
+  std::string policy = config.get_choice("global_policy", "reject", {"reject", "preempt"});
+  set_global_policy(policy == "preempt" ? GlobalPolicy::preempt : GlobalPolicy::reject);
+  config.finish();
+
+  // bind now, so that a port in use fails the creation of the transport
+  tcp::endpoint endpoint = resolve_listen_endpoint(host_, requested_port);
+  auto fail = [&](const char* step, const error_code& ec) {
+    std::string hint;
+    if (ec == asio::error::address_in_use)
+      hint = " (another program listens there: stop it, or choose another 'port', 0 for any free one)";
+    else if (ec == asio::error::access_denied)
+      hint = " (ports below 1024 need privileges)";
+    throw std::runtime_error(name() + ": cannot listen on " + host_ + ":" +
+                             std::to_string(requested_port) + ": " + step + " failed: " +
+                             ec.message() + hint);
+  };
+  error_code ec;
+  acceptor_.open(endpoint.protocol(), ec);
+  if (ec) fail("open", ec);
+  acceptor_.set_option(tcp::acceptor::reuse_address(true), ec);  // TIME_WAIT only, not a live listener
+  acceptor_.bind(endpoint, ec);
+  if (ec) fail("bind", ec);
+  acceptor_.listen(asio::socket_base::max_listen_connections, ec);
+  if (ec) fail("listen", ec);
+  auto bound = acceptor_.local_endpoint(ec);
+  if (ec) fail("getsockname", ec);
+  port_ = bound.port();
+  endpoint_ = bound.address().is_v6()
+                  ? "tcp://[" + bound.address().to_string() + "]:" + std::to_string(port_)
+                  : "tcp://" + bound.address().to_string() + ":" + std::to_string(port_);
+  log::info(name(), " now listening on port ", port_, " (", endpoint_, ")");
+}
+
+SocketRequestManager::~SocketRequestManager() {
+  stop();
+  // the host stopped calling process(): finish what is left (replies go nowhere)
+  abandon_pending("the socket transport has stopped");
+}
+
+void SocketRequestManager::start() {
+  std::lock_guard lock(life_mutex_);
+  if (started_ || stopped_) return;
+  started_ = true;
+  accept_next();
+  thread_ = std::thread([this] {
+    for (;;) {
+      try {
+        io_.run();
+        return;
+      } catch (const std::exception& e) {
+        // handlers do not throw; this is a last line of defence that keeps the server up
+        log::error(name(), ": I/O handler threw: ", e.what());
+      }
+    }
+  });
+}
+
+void SocketRequestManager::stop() {
+  std::lock_guard lock(life_mutex_);
+  if (stopped_) return;
+  stopped_ = true;
+  if (thread_.joinable()) {
+    // close everything on the I/O thread, then let run() return
+    asio::post(io_, [this] { close_all(); });
+    work_.reset();
+    thread_.join();
+  } else {
+    close_all();
+  }
+  // handlers that never ran (outcomes posted after the close) are dropped here
+  io_.stop();
+}
+
+std::vector<std::string> SocketRequestManager::endpoints() const { return {endpoint_}; }
+
+void SocketRequestManager::close_all() {
+  error_code ec;
+  acceptor_.close(ec);
+  auto sessions = std::move(sessions_);
+  sessions_.clear();
+  for (const auto& s : sessions) s->close("server stopping");
+  requests_.clear();
+}
+
+void SocketRequestManager::accept_next() {
+  acceptor_.async_accept([this](const error_code& ec, tcp::socket socket) {
+    if (ec == asio::error::operation_aborted || !acceptor_.is_open()) return;
+    if (ec) {
+      // e.g. out of file descriptors: log, and keep accepting the others
+      log::warning(name(), ": accept failed: ", ec.message());
+      accept_next();
+      return;
+    }
+    if (sessions_.size() >= max_clients_) {
+      log::warning(name(), ": refused a connection: ", max_clients_, " clients already (max_clients)");
+      error_code ignored;
+      socket.close(ignored);
+    } else {
+      SessionHost& host = *this;
+      auto session = std::make_shared<Session>(std::move(socket), host, limits_, next_session_++);
+      sessions_.insert(session);
+      log::debug(name(), ": ", session->label(), " connected");
+      session->start();
+    }
+    accept_next();
+  });
+}
+
+// ---- requests (I/O thread)
+
+void SocketRequestManager::reply(Session& session, std::string_view id, std::string_view status,
+                                 const json* value) {
+  scratch_.clear();
+  append_reply(scratch_, id, status, value);
+  session.send(scratch_);
+}
+
+void SocketRequestManager::on_line(const std::shared_ptr<Session>& session, std::string_view line) {
+  RequestLine request = parse_request_line(line);
+  switch (request.kind) {
+    case RequestLine::Kind::blank:
+      return;
+    case RequestLine::Kind::malformed: {
+      json message = request.error;
+      reply(*session, request.id, k_failed, &message);
+      return;
+    }
+    case RequestLine::Kind::cancel:
+      // no reply of its own: the request ends PREEMPTED; unknown ids are ignored (as MORSE)
+      if (auto id = session->find_pending(request.id)) cancel(*id);
+      return;
+    case RequestLine::Kind::call:
+      break;
+  }
+
+  // one pending request per id and connection, or replies could not be told apart
+  if (session->find_pending(request.id)) {
+    json message = "Request id '" + std::string(request.id) +
+                   "' is already pending on this connection: wait for its reply or use another id";
+    reply(*session, request.id, k_failed, &message);
+    return;
+  }
+
+  ParamsParse params = parse_params(request.params, request.params_column);
+  if (!params.ok) {
+    json message = "Invalid request syntax: error while parsing the parameters at column " +
+                   std::to_string(params.column) + ": " + params.error;
+    reply(*session, request.id, k_failed, &message);
+    return;
+  }
+
+  RequestId id = new_request_id();
+  session->add_pending(request.id, id);
+  requests_.emplace(id, Pending{session, std::string(request.id)});
+  submit(id, Call{std::string(request.component), std::string(request.service), std::move(params.value)});
+}
+
+void SocketRequestManager::on_oversized_line(const std::shared_ptr<Session>& session,
+                                             std::string_view prefix) {
+  // answer with the line's id when it has a usable one, "-" otherwise
+  std::size_t begin = 0;
+  while (begin < prefix.size() && (prefix[begin] == ' ' || prefix[begin] == '\t')) ++begin;
+  std::size_t end = begin;
+  while (end < prefix.size() && prefix[end] != ' ' && prefix[end] != '\t' && prefix[end] != '\r') ++end;
+  std::string_view id = prefix.substr(begin, end - begin);
+  if (id.empty() || id.size() > k_max_echoed_id || end == prefix.size()) id = "-";
+  json message = "Request too long: the line exceeds " + std::to_string(limits_.max_line_bytes) +
+                 " bytes (max_line_bytes); it was ignored";
+  log::warning(name(), ": ", session->label(), ": request line longer than ",
+               limits_.max_line_bytes, " bytes ignored");
+  reply(*session, id, k_failed, &message);
+}
+
+void SocketRequestManager::on_session_closed(const std::shared_ptr<Session>& session) {
+  // its outcomes have nowhere to go: forget them (the requests themselves run on)
+  for (const auto& [client_id, id] : session->pending()) requests_.erase(id);
+  sessions_.erase(session);
+}
+
+// ---- outcomes
+
+void SocketRequestManager::on_service_completion(RequestId id, Outcome outcome) {
+  // simulation thread: hand over to the I/O thread, never block here
+  asio::post(io_, [this, id, outcome = std::move(outcome)]() mutable {
+    try {
+      deliver(id, outcome);
+    } catch (const std::exception& e) {
+      log::error(name(), ": cannot deliver the outcome of request ", id, ": ", e.what());
+    }
+  });
+}
+
+void SocketRequestManager::deliver(RequestId id, Outcome& outcome) {
+  auto it = requests_.find(id);
+  if (it == requests_.end()) return;  // its client is gone
+  std::shared_ptr<Session> session = it->second.session.lock();
+  std::string client_id = std::move(it->second.client_id);
+  requests_.erase(it);
+  if (!session || session->closed()) return;
+
+  std::string_view status = success_word_;
+  if (outcome.status == Status::failed) status = k_failed;
+  if (outcome.status == Status::preempted) status = k_preempted;
+  // the value is sent even when falsy (0, false, "", []); FAILED without one carries the message
+  const json* value = outcome.value ? &*outcome.value : nullptr;
+  json message;
+  if (!value && outcome.status == Status::failed && !outcome.message.empty()) {
+    message = outcome.message;
+    value = &message;
+  }
+  reply(*session, client_id, status, value);
+  session->remove_pending(client_id);
+}
+
+}  // namespace simgate::socket
+
+SIMGATE_TRANSPORT_PLUGIN(socket, simgate::socket::SocketRequestManager, "0.1.0", "host", "port",
+                         "success_word", "max_line_bytes", "max_pending_replies_bytes",
+                         "max_pending_requests", "max_clients", "global_policy")

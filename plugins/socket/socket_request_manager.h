@@ -1,0 +1,97 @@
+// socket_request_manager.h — the `socket` transport: MORSE's text protocol over TCP.
+//
+// A SocketRequestManager ("Socket service manager", as in MORSE's error messages) listens
+// on a TCP port (default 127.0.0.1:4000) and serves any number of clients speaking the
+// line protocol of wire.h. Each line becomes a core request (submit); each outcome comes
+// back through on_service_completion and is written to the connection that asked, with the
+// client's id. Ids and cancel are scoped to the connection.
+//
+// Options (plugins/socket/README.md): host, port (0 = ephemeral), success_word
+// ("SUCCESS" | "OK"), max_line_bytes, max_pending_replies_bytes, max_pending_requests,
+// max_clients, global_policy ("reject" | "preempt").
+//
+// Life cycle: the constructor validates the options and binds the listening socket (a
+// port in use fails here, with a clear message); start() launches the I/O thread;
+// stop() closes the acceptor and every connection and joins the thread (idempotent; the
+// destructor calls it, then finishes requests still pending).
+//
+// Threads: one I/O thread runs the io_context; it owns the acceptor, every Session and the
+// request table, so none of them needs a lock. on_service_completion runs on the
+// simulation thread and only posts the outcome to the I/O thread (never blocks).
+#ifndef SIMGATE_PLUGINS_SOCKET_SOCKET_REQUEST_MANAGER_H_
+#define SIMGATE_PLUGINS_SOCKET_SOCKET_REQUEST_MANAGER_H_
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <unordered_map>
+#include <unordered_set>
+#include <utility>
+#include <vector>
+
+#include <boost/asio/executor_work_guard.hpp>
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/tcp.hpp>
+
+#include "session.h"
+#include "simgate/core/request_manager.h"
+
+namespace simgate::socket {
+
+class SocketRequestManager : public RequestManager, private SessionHost {
+ public:
+  explicit SocketRequestManager(const json& options);
+  ~SocketRequestManager() override;
+
+  void start() override;
+  void stop() override;
+  std::vector<std::string> endpoints() const override;
+
+  // The bound TCP port (useful with port 0).
+  std::uint16_t port() const { return port_; }
+
+ protected:
+  void on_service_completion(RequestId id, Outcome outcome) override;
+
+ private:
+  // SessionHost (I/O thread)
+  void on_line(const std::shared_ptr<Session>& session, std::string_view line) override;
+  void on_oversized_line(const std::shared_ptr<Session>& session, std::string_view prefix) override;
+  void on_session_closed(const std::shared_ptr<Session>& session) override;
+
+  void accept_next();
+  void deliver(RequestId id, Outcome& outcome);
+  void reply(Session& session, std::string_view id, std::string_view status, const json* value);
+  void close_all();
+
+  // A request sent to the core and not yet answered.
+  struct Pending {
+    std::weak_ptr<Session> session;  // may be gone when the outcome arrives
+    std::string client_id;           // the client's id, echoed in the reply
+  };
+
+  boost::asio::io_context io_;  // runs every handler, on thread_
+  boost::asio::executor_work_guard<boost::asio::io_context::executor_type> work_;  // keeps run() going
+  boost::asio::ip::tcp::acceptor acceptor_;  // the listening socket, bound in the constructor
+  std::string host_;                         // as configured, for messages
+  std::uint16_t port_ = 0;                   // the bound port
+  std::string endpoint_;                     // "tcp://127.0.0.1:4000"
+  std::string success_word_;                 // "SUCCESS" (MORSE) or "OK" (MORSE's docs)
+  SessionLimits limits_;                     // per-connection limits
+  std::size_t max_clients_ = 1024;           // connections beyond this are refused
+  std::uint64_t next_session_ = 1;           // numbers sessions in logs
+  std::unordered_set<std::shared_ptr<Session>> sessions_;  // open connections (I/O thread)
+  std::unordered_map<RequestId, Pending> requests_;         // unanswered requests (I/O thread)
+  std::string scratch_;                      // reply formatting buffer (I/O thread)
+  std::thread thread_;                       // runs io_
+  std::mutex life_mutex_;                    // serialises start() and stop()
+  bool started_ = false;                     // start() ran
+  bool stopped_ = false;                     // stop() ran
+};
+
+}  // namespace simgate::socket
+
+#endif  // SIMGATE_PLUGINS_SOCKET_SOCKET_REQUEST_MANAGER_H_

@@ -1,0 +1,237 @@
+#include "wire.h"
+
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+
+namespace simgate::socket {
+namespace {
+
+bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v'; }
+
+// The next token of `line` at or after `pos`: [begin, end) offsets, end == begin at the end.
+std::pair<std::size_t, std::size_t> next_token(std::string_view line, std::size_t pos) {
+  while (pos < line.size() && is_blank(line[pos])) ++pos;
+  std::size_t end = pos;
+  while (end < line.size() && !is_blank(line[end])) ++end;
+  return {pos, end};
+}
+
+// Decodes one UTF-8 sequence at s[i]; returns its length (0 if invalid) and the code point.
+std::size_t decode_utf8(std::string_view s, std::size_t i, std::uint32_t& cp) {
+  auto b = [&](std::size_t k) { return static_cast<unsigned char>(s[k]); };
+  unsigned char c = b(i);
+  std::size_t n;
+  if (c < 0x80) {
+    cp = c;
+    return 1;
+  }
+  if (c >= 0xC2 && c <= 0xDF) { n = 2; cp = c & 0x1F; }
+  else if (c >= 0xE0 && c <= 0xEF) { n = 3; cp = c & 0x0F; }
+  else if (c >= 0xF0 && c <= 0xF4) { n = 4; cp = c & 0x07; }
+  else return 0;
+  if (i + n > s.size()) return 0;
+  for (std::size_t k = 1; k < n; ++k) {
+    if ((b(i + k) & 0xC0) != 0x80) return 0;
+    cp = (cp << 6) | (b(i + k) & 0x3F);
+  }
+  if ((n == 3 && cp < 0x800) || (n == 4 && cp < 0x10000) || cp > 0x10FFFF ||
+      (cp >= 0xD800 && cp <= 0xDFFF))
+    return 0;
+  return n;
+}
+
+const char k_hex[] = "0123456789abcdef";
+
+void append_u_escape(std::string& out, std::uint32_t unit) {
+  char buf[6] = {'\\', 'u', k_hex[(unit >> 12) & 15], k_hex[(unit >> 8) & 15],
+                 k_hex[(unit >> 4) & 15], k_hex[unit & 15]};
+  out.append(buf, 6);
+}
+
+// A JSON string with ensure_ascii, like Python's json.dumps.
+void append_string(std::string& out, std::string_view s) {
+  out += '"';
+  std::size_t i = 0;
+  while (i < s.size()) {
+    // runs of plain printable ASCII are copied in one go
+    std::size_t run = i;
+    while (run < s.size()) {
+      unsigned char c = static_cast<unsigned char>(s[run]);
+      if (c < 0x20 || c >= 0x7F || c == '"' || c == '\\') break;
+      ++run;
+    }
+    out.append(s.substr(i, run - i));
+    i = run;
+    if (i >= s.size()) break;
+    unsigned char c = static_cast<unsigned char>(s[i]);
+    switch (c) {
+      case '"': out += "\\\""; ++i; continue;
+      case '\\': out += "\\\\"; ++i; continue;
+      case '\n': out += "\\n"; ++i; continue;
+      case '\r': out += "\\r"; ++i; continue;
+      case '\t': out += "\\t"; ++i; continue;
+      case '\b': out += "\\b"; ++i; continue;
+      case '\f': out += "\\f"; ++i; continue;
+      default: break;
+    }
+    if (c < 0x20 || c == 0x7F) {
+      append_u_escape(out, c);  // control characters and DEL, as Python does
+      ++i;
+      continue;
+    }
+    std::uint32_t cp = 0;
+    std::size_t n = decode_utf8(s, i, cp);
+    if (n == 0) {
+      append_u_escape(out, 0xFFFD);  // invalid byte: replacement character
+      ++i;
+      continue;
+    }
+    if (cp >= 0x10000) {
+      cp -= 0x10000;
+      append_u_escape(out, 0xD800 + (cp >> 10));
+      append_u_escape(out, 0xDC00 + (cp & 0x3FF));
+    } else {
+      append_u_escape(out, cp);
+    }
+    i += n;
+  }
+  out += '"';
+}
+
+void append_number(std::string& out, const json& value) {
+  char buf[32];
+  if (value.is_number_unsigned()) {
+    auto r = std::to_chars(buf, buf + sizeof buf, value.get<std::uint64_t>());
+    out.append(buf, r.ptr);
+  } else if (value.is_number_integer()) {
+    auto r = std::to_chars(buf, buf + sizeof buf, value.get<std::int64_t>());
+    out.append(buf, r.ptr);
+  } else {
+    double d = value.get<double>();
+    if (std::isnan(d)) out += "NaN";
+    else if (std::isinf(d)) out += d > 0 ? "Infinity" : "-Infinity";
+    else out += value.dump();  // shortest round trip, Python repr's layout ("1.0", "1e-05")
+  }
+}
+
+}  // namespace
+
+bool valid_utf8(std::string_view s, std::size_t& bad_offset) {
+  std::uint32_t cp;
+  for (std::size_t i = 0; i < s.size();) {
+    if (static_cast<unsigned char>(s[i]) < 0x80) {
+      ++i;
+      continue;
+    }
+    std::size_t n = decode_utf8(s, i, cp);
+    if (n == 0) {
+      bad_offset = i;
+      return false;
+    }
+    i += n;
+  }
+  return true;
+}
+
+RequestLine parse_request_line(std::string_view line) {
+  RequestLine r;
+  auto [id_begin, id_end] = next_token(line, 0);
+  if (id_begin == id_end) return r;  // blank
+  r.id = line.substr(id_begin, id_end - id_begin);
+
+  auto [c_begin, c_end] = next_token(line, id_end);
+  if (c_begin == c_end) {
+    r.kind = RequestLine::Kind::malformed;
+    r.error = "Malformed request! expected '<id> <component> <service> [params]' or '<id> cancel', "
+              "got only an id";
+    return r;
+  }
+  r.component = line.substr(c_begin, c_end - c_begin);
+
+  auto [s_begin, s_end] = next_token(line, c_end);
+  if (s_begin == s_end) {
+    if (r.component == "cancel") {
+      r.kind = RequestLine::Kind::cancel;
+      return r;
+    }
+    r.kind = RequestLine::Kind::malformed;
+    r.error = "Malformed request! missing the service name after the component at column " +
+              std::to_string(c_end + 1) + " (expected '<id> <component> <service> [params]')";
+    return r;
+  }
+  r.service = line.substr(s_begin, s_end - s_begin);
+
+  // the parameters: the rest of the line without surrounding blanks
+  std::size_t p_begin = s_end;
+  while (p_begin < line.size() && is_blank(line[p_begin])) ++p_begin;
+  std::size_t p_end = line.size();
+  while (p_end > p_begin && is_blank(line[p_end - 1])) --p_end;
+  r.params = line.substr(p_begin, p_end - p_begin);
+  r.params_column = p_begin + 1;
+  r.kind = RequestLine::Kind::call;
+
+  // names must be text: say where they are not
+  std::size_t bad = 0;
+  if (!valid_utf8(r.component, bad)) {
+    r.kind = RequestLine::Kind::malformed;
+    r.error = "Invalid request syntax: the component name is not valid UTF-8 (column " +
+              std::to_string(c_begin + bad + 1) + ")";
+  } else if (!valid_utf8(r.service, bad)) {
+    r.kind = RequestLine::Kind::malformed;
+    r.error = "Invalid request syntax: the service name is not valid UTF-8 (column " +
+              std::to_string(s_begin + bad + 1) + ")";
+  }
+  return r;
+}
+
+void append_json(std::string& out, const json& value) {
+  switch (value.type()) {
+    case json::value_t::null: out += "null"; return;
+    case json::value_t::boolean: out += value.get<bool>() ? "true" : "false"; return;
+    case json::value_t::string: append_string(out, value.get_ref<const std::string&>()); return;
+    case json::value_t::number_integer:
+    case json::value_t::number_unsigned:
+    case json::value_t::number_float: append_number(out, value); return;
+    case json::value_t::array: {
+      out += '[';
+      bool first = true;
+      for (const auto& e : value) {
+        if (!first) out += ", ";
+        first = false;
+        append_json(out, e);
+      }
+      out += ']';
+      return;
+    }
+    case json::value_t::object: {
+      out += '{';
+      bool first = true;
+      for (auto it = value.begin(); it != value.end(); ++it) {
+        if (!first) out += ", ";
+        first = false;
+        append_string(out, it.key());
+        out += ": ";
+        append_json(out, it.value());
+      }
+      out += '}';
+      return;
+    }
+    case json::value_t::binary:
+    case json::value_t::discarded: out += "null"; return;
+  }
+}
+
+void append_reply(std::string& out, std::string_view id, std::string_view status,
+                  const json* value) {
+  out.append(id);
+  out += ' ';
+  out.append(status);
+  if (value) {
+    out += ' ';
+    append_json(out, *value);
+  }
+  out += '\n';
+}
+
+}  // namespace simgate::socket

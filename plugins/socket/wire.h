@@ -1,0 +1,63 @@
+// wire.h — the socket transport's line grammar and reply formatting (MORSE's text protocol).
+//
+// Requests, one per line (LF or CRLF; blanks between tokens are any run of spaces/tabs):
+//
+//   <id> <component> <service> [<params>]      a call (params: see params_parser.h)
+//   <id> cancel                                cancels this connection's pending <id>
+//
+// Replies, one per line, LF-terminated, single spaces:
+//
+//   <id> <STATUS>                              service returned nothing / PREEMPTED
+//   <id> <STATUS> <json>                       result (SUCCESS) or message (FAILED)
+//
+// JSON is written the way MORSE's Python `json.dumps` writes it (separators ", " and
+// ": ", non-ASCII escaped as \uXXXX, NaN/Infinity bare), so clients that compare bytes
+// with MORSE see the same text. Invalid UTF-8 inside strings is replaced by U+FFFD, so
+// formatting never fails.
+//
+// Threads: pure functions, callable from any thread.
+#ifndef SIMGATE_PLUGINS_SOCKET_WIRE_H_
+#define SIMGATE_PLUGINS_SOCKET_WIRE_H_
+
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "simgate/core/status.h"
+
+namespace simgate::socket {
+
+// One request line, split into tokens (views into the line).
+struct RequestLine {
+  enum class Kind {
+    blank,      // nothing but blanks: ignored
+    call,       // <id> <component> <service> [params]
+    cancel,     // <id> cancel
+    malformed,  // an id and something unusable; `error` says what (reply FAILED)
+  };
+  Kind kind = Kind::blank;
+  std::string_view id;            // the client's request id, echoed verbatim
+  std::string_view component;     // call only
+  std::string_view service;       // call only
+  std::string_view params;        // call only: the rest of the line, trimmed (may be empty)
+  std::size_t params_column = 0;  // 1-based column of params[0] in the line
+  std::string error;              // malformed only
+};
+
+// Splits one line (without its '\n'; a trailing '\r' and surrounding blanks are ignored).
+RequestLine parse_request_line(std::string_view line);
+
+// True if `s` is valid UTF-8; otherwise `bad_offset` is the first invalid byte.
+bool valid_utf8(std::string_view s, std::size_t& bad_offset);
+
+// Appends `value` as Python's json.dumps would write it.
+void append_json(std::string& out, const json& value);
+
+// Appends "<id> <status>[ <json>]\n".
+void append_reply(std::string& out, std::string_view id, std::string_view status,
+                  const json* value);
+
+}  // namespace simgate::socket
+
+#endif  // SIMGATE_PLUGINS_SOCKET_WIRE_H_

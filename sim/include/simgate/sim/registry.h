@@ -1,0 +1,108 @@
+// simgate/sim/registry.h — creating components by type name from the configuration.
+//
+// A ComponentRegistry maps a type name ("motion_vw", "ground_robot") to a factory. A robot
+// type creates a Robot; a component type creates a SimComponent that belongs to a robot.
+// New types join by calling add() — in register_builtin_components() for the built-ins, or
+// in any program that owns a registry — without touching the gateway.
+//
+// A factory receives a ComponentContext: the component's name, its JSON path in the
+// config, its options (a ConfigObject: read them with the typed getters; keys nobody reads
+// are reported as errors), the simulation and the parent robot. Helpers resolve MuJoCo
+// names and throw ConfigError naming the JSON path, what was expected and what was found.
+//
+// Threads: creation happens before the simulation runs, on the thread that builds it.
+#ifndef SIMGATE_SIM_REGISTRY_H_
+#define SIMGATE_SIM_REGISTRY_H_
+
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "simgate/core/config.h"
+#include "simgate/sim/sim_component.h"
+
+namespace simgate::sim {
+
+enum class Kind { robot, component };
+
+// Where a component comes from in the config.
+struct ComponentSpec {
+  std::string name;  // full name: "robot" or "robot.motion"
+  std::string type;  // registry type name
+  std::string body;  // MuJoCo body it binds to (components default to their robot's)
+  std::string path;  // JSON path of its config object, "robots[0].components[1]"
+};
+
+class ComponentContext {
+ public:
+  ComponentContext(Simulation& sim, const ComponentSpec& spec, ConfigObject& options, Robot* robot)
+      : sim_(sim), spec_(spec), options_(options), robot_(robot) {}
+
+  Simulation& sim() const { return sim_; }
+  const std::string& name() const { return spec_.name; }
+  const ComponentSpec& spec() const { return spec_; }
+  // The component's "options" object.
+  ConfigObject& options() const { return options_; }
+  // The parent robot; throws ConfigError for components without one.
+  Robot& robot() const;
+  // The parent robot's drive; throws ConfigError naming the robot's type otherwise.
+  DifferentialDrive& drive() const;
+
+  // The bound body id; throws "<path>.body: no body 'x' in scene '<file>'".
+  int body() const;
+  // The free joint of the bound body; throws when it has none.
+  int free_joint() const;
+  // Reads option `key` (default `fallback`) and resolves it as an actuator name.
+  int actuator_option(const std::string& key, const std::string& fallback) const;
+
+  [[noreturn]] void fail(const std::string& where, const std::string& message) const;
+
+ private:
+  Simulation& sim_;         // the simulation being built
+  const ComponentSpec& spec_;  // name, type, body, path
+  ConfigObject& options_;   // the component's options
+  Robot* robot_;            // parent robot (null for robots)
+};
+
+using ComponentFactory = std::function<std::unique_ptr<SimComponent>(ComponentContext&)>;
+
+struct ComponentType {
+  std::string name;          // "motion_vw"
+  Kind kind;                 // robot or component
+  std::string doc;           // one line
+  ComponentFactory factory;  // creates it
+};
+
+class ComponentRegistry {
+ public:
+  // Adds or replaces a type.
+  void add(std::string name, Kind kind, std::string doc, ComponentFactory factory);
+  // Shorthand for a class constructible from (ComponentContext&).
+  template <class T>
+  void add(std::string name, Kind kind, std::string doc) {
+    add(std::move(name), kind, std::move(doc),
+        [](ComponentContext& c) -> std::unique_ptr<SimComponent> { return std::make_unique<T>(c); });
+  }
+
+  const ComponentType* find(const std::string& name) const;
+  std::vector<std::string> names(Kind kind) const;
+
+  // Creates one component: checks the type exists and is of `kind`, runs the factory,
+  // then rejects unread option keys. Throws ConfigError.
+  std::unique_ptr<SimComponent> create(Kind kind, const ComponentSpec& spec, const json& options,
+                                       Simulation& sim, Robot* robot) const;
+
+ private:
+  std::map<std::string, ComponentType> types_;  // by name
+};
+
+// ground_robot, human, robot (robots); motion_vw, waypoint, teleport, pose (components).
+void register_builtin_components(ComponentRegistry& registry);
+// A registry holding the built-ins.
+ComponentRegistry builtin_registry();
+
+}  // namespace simgate::sim
+
+#endif  // SIMGATE_SIM_REGISTRY_H_

@@ -1,0 +1,147 @@
+// simgate/sim/simulation.h — the simulation: a MuJoCo model, its components, the request
+// managers that serve them, and the step loop.
+//
+// Terms:
+//  - step: process requests, default_action() of every active component, mj_step.
+//  - pacing: real time times `realtime_factor` (1 = real time, 2 = twice as fast), or as
+//    fast as possible when the factor is 0.
+//  - entry: a component plus what the simulation knows about it (type name, robot, body,
+//    active flag, the transports that serve it).
+//
+// Life cycle: construct from a Model; add_component() for every robot and component (the
+// `simulation` and `time` pseudo-components are added by add_supervision_services());
+// add_request_manager() for every transport (the simulation gives each one its Wakeup);
+// run() until request_stop() (any thread, or the `simulation quit` service); shutdown()
+// answers what is left, stops the transports and destroys them, then the components.
+//
+// Threads: run(), step(), process_requests() and every component run on one thread, the
+// simulation thread. request_stop(), stop_requested() and steps() may be called from any
+// thread. Transports wake the loop through the shared Wakeup: a request is served as soon
+// as it arrives, never "at the next frame", and never makes the physics step early.
+#ifndef SIMGATE_SIM_SIMULATION_H_
+#define SIMGATE_SIM_SIMULATION_H_
+
+#include <atomic>
+#include <chrono>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "simgate/core/component.h"
+#include "simgate/core/request_manager.h"
+#include "simgate/core/wakeup.h"
+#include "simgate/sim/model.h"
+
+namespace simgate::sim {
+
+class SimComponent;
+
+struct SimulationOptions {
+  std::optional<double> timestep;  // seconds; overrides the MJCF's <option timestep>
+  double realtime_factor = 1.0;    // sim seconds per wall second; 0 = as fast as possible
+};
+
+// What the simulation knows about one component.
+struct ComponentEntry {
+  std::unique_ptr<Component> component;  // owned
+  SimComponent* sim_component = nullptr;  // the same object when it is a SimComponent
+  std::string type;                       // registry type name, "simulation", "time"
+  std::string robot;                      // owning robot ("" for robots and pseudo-components)
+  bool is_robot = false;                  // a robot (top-level object of `details`)
+  bool active = true;                     // default_action() runs (simulation activate/deactivate)
+  std::vector<std::string> interfaces;    // names of the transports that serve it
+};
+
+// Counters for `time statistics` and benchmarks.
+struct SimulationStatistics {
+  std::uint64_t steps = 0;        // physics steps since start
+  double sim_time = 0;            // simulated seconds (mjData::time)
+  double wall_time = 0;           // wall seconds since run() started
+  double realtime_factor = 0;     // measured sim_time / wall_time over the run
+  double target_factor = 0;       // configured factor (0 = as fast as possible)
+  double timestep = 0;            // physics step, seconds
+  std::uint64_t overruns = 0;     // times the loop fell behind real time and resynchronised
+};
+
+class Simulation {
+ public:
+  Simulation(Model model, SimulationOptions options = {});
+  ~Simulation();
+  Simulation(const Simulation&) = delete;
+  Simulation& operator=(const Simulation&) = delete;
+
+  Model& model() { return model_; }
+  const Model& model() const { return model_; }
+  mjModel* m() const { return model_.model(); }
+  mjData* d() const { return model_.data(); }
+
+  double timestep() const { return m()->opt.timestep; }
+  double realtime_factor() const { return realtime_factor_; }
+  // 0 = as fast as possible. Simulation thread (or before run()).
+  void set_realtime_factor(double factor);
+
+  // ---- components (before run(), or on the simulation thread) ----
+
+  // Takes ownership; names must be unique (throws std::invalid_argument otherwise).
+  ComponentEntry& add_component(std::unique_ptr<Component> component, std::string type,
+                                std::string robot = "", bool is_robot = false);
+  // Adds the `simulation` and `time` pseudo-components.
+  void add_supervision_services();
+  ComponentEntry* find(const std::string& name);
+  const std::vector<std::unique_ptr<ComponentEntry>>& components() const { return entries_; }
+  // Names of the robots, in order.
+  std::vector<std::string> robot_names() const;
+
+  // ---- transports ----
+
+  // The simulation processes `manager` every step and shares its Wakeup with it.
+  void add_request_manager(std::shared_ptr<RequestManager> manager, std::string transport);
+  const std::shared_ptr<Wakeup>& wakeup() const { return wakeup_; }
+  const std::vector<std::shared_ptr<RequestManager>>& request_managers() const { return managers_; }
+
+  // ---- the loop (simulation thread) ----
+
+  // Runs until request_stop(). Exceptions from MuJoCo or components propagate.
+  void run();
+  // One step without pacing or request processing: default actions, then physics.
+  void step();
+  // process() of every request manager; returns the events handled.
+  std::size_t process_requests();
+  // Answers what is still queued, stops every transport, destroys the transports, then
+  // the components. Idempotent; called by the destructor.
+  void shutdown();
+
+  // Any thread.
+  void request_stop();
+  bool stop_requested() const { return stop_.load(std::memory_order_acquire); }
+  std::uint64_t steps() const { return steps_.load(std::memory_order_relaxed); }
+
+  // ---- supervision (simulation thread) ----
+
+  double sim_time() const { return d()->time; }
+  // Restores the initial state of every object; components get on_reset().
+  void reset();
+  void set_dynamics_suspended(bool suspended) { dynamics_suspended_ = suspended; }
+  bool dynamics_suspended() const { return dynamics_suspended_; }
+  SimulationStatistics statistics() const;
+
+ private:
+  Model model_;                                              // mjModel + mjData
+  double realtime_factor_;                                   // 0 = as fast as possible
+  std::shared_ptr<Wakeup> wakeup_;                           // shared with every manager
+  std::vector<std::unique_ptr<ComponentEntry>> entries_;     // every component, in order
+  std::vector<std::shared_ptr<RequestManager>> managers_;    // every transport
+  std::vector<std::string> manager_names_;                   // transport name of each manager
+  std::atomic<bool> stop_{false};                            // run() returns when set
+  std::atomic<std::uint64_t> steps_{0};                      // physics steps taken
+  bool dynamics_suspended_ = false;                          // step() skips mj_step
+  std::chrono::steady_clock::time_point run_started_{};      // wall start of run()
+  bool running_ = false;                                     // run() has started
+  std::uint64_t overruns_ = 0;                               // pacing resynchronisations
+  bool shut_down_ = false;                                   // shutdown() done
+};
+
+}  // namespace simgate::sim
+
+#endif  // SIMGATE_SIM_SIMULATION_H_

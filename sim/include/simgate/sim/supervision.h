@@ -1,0 +1,64 @@
+// simgate/sim/supervision.h — the `simulation` and `time` pseudo-components (MORSE's
+// supervision and time services).
+//
+// simulation: list_robots, details (the shape pymorse reads at connect: robots with their
+// components, services and service interfaces; no stream interfaces), list_services (every
+// component's services with parameters), reset_objects, activate / deactivate
+// component_name, suspend_dynamics / restore_dynamics, get_scene_objects, quit (the loop
+// stops after this step; the reply is sent first).
+// time: now (simulated time, seconds since the epoch at start), async sleep t (completes
+// when t simulated seconds have passed; no local policy), statistics, mode.
+//
+// Threads: simulation thread only.
+#ifndef SIMGATE_SIM_SUPERVISION_H_
+#define SIMGATE_SIM_SUPERVISION_H_
+
+#include <string>
+
+#include "simgate/core/component.h"
+#include "simgate/sim/simulation.h"
+
+namespace simgate::sim {
+
+class SupervisionServices : public Component {
+ public:
+  explicit SupervisionServices(Simulation& sim);
+
+  std::vector<std::string> list_robots() const;
+  json details() const;
+  json list_services() const;
+  std::string reset_objects();
+  void activate(const std::string& component_name);
+  void deactivate(const std::string& component_name);
+  std::string suspend_dynamics();
+  std::string restore_dynamics();
+  json get_scene_objects() const;
+  void quit();
+
+ private:
+  void set_active(const std::string& component_name, bool active);
+  json body_tree(int body) const;
+
+  Simulation& sim_;  // supervised
+};
+
+class TimeServices : public Component {
+ public:
+  explicit TimeServices(Simulation& sim);
+
+  double now() const;
+  void sleep(double seconds);
+  json statistics() const;
+  std::string mode() const;
+
+  void default_action() override;
+
+ private:
+  Simulation& sim_;       // whose clock
+  double epoch_;          // wall-clock seconds since the epoch when the simulation started
+  double wake_at_ = 0;    // simulated time at which the running sleep completes
+};
+
+}  // namespace simgate::sim
+
+#endif  // SIMGATE_SIM_SUPERVISION_H_

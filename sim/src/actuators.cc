@@ -1,0 +1,164 @@
+#include <algorithm>
+#include <cmath>
+
+#include "simgate/core/errors.h"
+#include "simgate/core/log.h"
+#include "simgate/sim/components.h"
+
+namespace simgate::sim {
+
+namespace {
+void require_finite(const char* what, double value) {
+  if (!std::isfinite(value)) throw ServiceError(std::string(what) + " must be a finite number");
+}
+
+double wrap_angle(double a) { return std::remainder(a, 2 * M_PI); }
+}  // namespace
+
+// ---- motion_vw -------------------------------------------------------------------------------
+
+MotionVW::MotionVW(ComponentContext& c) : SimComponent(c.name(), c.sim()), drive_(c.drive()) {
+  add_service("set_speed", &MotionVW::set_speed, {"v", "w"})
+      .doc("Linear speed v (m/s) and angular speed w (rad/s, counter-clockwise)");
+  add_service("stop", &MotionVW::stop).doc("Stop the robot");
+}
+
+void MotionVW::set_speed(double v, double w) {
+  require_finite("v", v);
+  require_finite("w", w);
+  drive_.set_velocity(v, w);
+}
+
+void MotionVW::stop() { drive_.set_velocity(0, 0); }
+
+// ---- waypoint --------------------------------------------------------------------------------
+
+Waypoint::Waypoint(ComponentContext& c)
+    : SimComponent(c.name(), c.sim()), robot_(c.robot()), drive_(c.drive()) {
+  max_angular_speed_ = c.options().get_number("max_angular_speed", 1.5, 1e-3, 100);
+  heading_gain_ = c.options().get_number("heading_gain", 2.0, 1e-3, 100);
+  add_async_service("goto", &Waypoint::go_to, {"x", "y", "z", {"tolerance", 0.5}, {"speed", 1.0}})
+      .interruptible()
+      .doc("Drive to (x, y, z); completes SUCCESS \"Arrived\" within tolerance (metres, ground plane)");
+  add_service("setdest", &Waypoint::setdest, {"x", "y", "z", {"tolerance", 0.5}, {"speed", 1.0}})
+      .doc("Set a new destination; false when already within tolerance");
+  add_service("stop", &Waypoint::stop).doc("Halt; a running goto stays pending (status Stop)");
+  add_service("resume", &Waypoint::resume).doc("Continue towards the destination (status Transit)");
+  add_service("get_status", &Waypoint::get_status).doc("Transit, Arrived or Stop");
+}
+
+void Waypoint::set_target(double x, double y, double z, double tolerance, double speed) {
+  require_finite("x", x);
+  require_finite("y", y);
+  require_finite("z", z);
+  require_finite("tolerance", tolerance);
+  require_finite("speed", speed);
+  if (tolerance < 0) throw ServiceError("tolerance must not be negative");
+  if (speed <= 0) throw ServiceError("speed must be positive");
+  target_ = {x, y, z};
+  tolerance_ = tolerance;
+  speed_ = speed;
+}
+
+double Waypoint::distance() const {
+  Eigen::Vector3d p = robot_.position();
+  return std::hypot(target_.x() - p.x(), target_.y() - p.y());
+}
+
+void Waypoint::go_to(double x, double y, double z, double tolerance, double speed) {
+  set_target(x, y, z, tolerance, speed);
+  // completion (possibly immediate) happens in default_action()
+  state_ = State::transit;
+}
+
+bool Waypoint::setdest(double x, double y, double z, double tolerance, double speed) {
+  set_target(x, y, z, tolerance, speed);
+  if (distance() <= tolerance_) {
+    state_ = State::arrived;
+    drive_.set_velocity(0, 0);
+    return false;
+  }
+  state_ = State::transit;
+  return true;
+}
+
+std::string Waypoint::stop() {
+  state_ = State::stop;
+  drive_.set_velocity(0, 0);
+  return "Stop";
+}
+
+std::string Waypoint::resume() {
+  state_ = State::transit;
+  return "Transit";
+}
+
+std::string Waypoint::get_status() const {
+  switch (state_) {
+    case State::transit: return "Transit";
+    case State::stop: return "Stop";
+    case State::arrived: break;
+  }
+  return "Arrived";
+}
+
+void Waypoint::default_action() {
+  if (state_ != State::transit) return;
+  Eigen::Vector3d p = robot_.position();
+  double dx = target_.x() - p.x(), dy = target_.y() - p.y();
+  double dist = std::hypot(dx, dy);
+  // arrived: halt and finish the goto, if one is waiting
+  if (dist <= tolerance_) {
+    state_ = State::arrived;
+    drive_.set_velocity(0, 0);
+    if (has_running_request()) completed(Status::success, "Arrived");
+    return;
+  }
+  // steer towards the target; drive forward only when roughly facing it, slower near it
+  double error = wrap_angle(std::atan2(dy, dx) - robot_.yaw());
+  double w = std::clamp(heading_gain_ * error, -max_angular_speed_, max_angular_speed_);
+  double v = speed_ * std::max(0.0, std::cos(error));
+  v = std::min(v, std::max(0.1, 1.5 * dist));
+  drive_.set_velocity(v, w);
+}
+
+void Waypoint::interrupt() {
+  // MORSE: the destination becomes the current position, the robot stops
+  state_ = State::arrived;
+  target_ = robot_.position();
+  drive_.set_velocity(0, 0);
+  Component::interrupt();
+}
+
+void Waypoint::on_reset() {
+  if (state_ == State::transit) return;  // a goto in progress keeps going from the new pose
+  drive_.set_velocity(0, 0);
+}
+
+// ---- teleport --------------------------------------------------------------------------------
+
+Teleport::Teleport(ComponentContext& c)
+    : SimComponent(c.name(), c.sim()), body_(c.body()), free_joint_(c.free_joint()) {
+  add_service("translate", &Teleport::translate, {"x", {"y", 0.0}, {"z", 0.0}})
+      .doc("Move by (x, y, z) metres in the world frame, instantly");
+  add_service("rotate", &Teleport::rotate, {"roll", {"pitch", 0.0}, {"yaw", 0.0}})
+      .doc("Turn by roll, pitch, yaw radians (body frame), instantly");
+}
+
+void Teleport::translate(double x, double y, double z) {
+  require_finite("x", x);
+  require_finite("y", y);
+  require_finite("z", z);
+  set_free_body_pose(sim(), free_joint_, body_position(sim(), body_) + Eigen::Vector3d(x, y, z),
+                     body_orientation(sim(), body_));
+}
+
+void Teleport::rotate(double roll, double pitch, double yaw) {
+  require_finite("roll", roll);
+  require_finite("pitch", pitch);
+  require_finite("yaw", yaw);
+  set_free_body_pose(sim(), free_joint_, body_position(sim(), body_),
+                     body_orientation(sim(), body_) * from_roll_pitch_yaw(roll, pitch, yaw));
+}
+
+}  // namespace simgate::sim

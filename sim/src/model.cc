@@ -1,0 +1,83 @@
+#include "simgate/sim/model.h"
+
+#include <cstring>
+#include <mutex>
+#include <vector>
+
+#include "simgate/core/log.h"
+
+namespace simgate::sim {
+
+namespace {
+
+// MuJoCo calls this instead of exit(1). The engine is built with unwind tables, so the
+// exception propagates through its C frames to the caller of mj_step / mj_forward.
+void on_mujoco_error(const char* message) { throw MujocoError(std::string("MuJoCo error: ") + message); }
+
+void on_mujoco_warning(const char* message) { log::warning("MuJoCo: ", message); }
+
+}  // namespace
+
+void install_mujoco_handlers() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    mju_user_error = &on_mujoco_error;
+    mju_user_warning = &on_mujoco_warning;
+  });
+}
+
+Model::Model(mjModel* m, std::string source) : model_(m), source_(std::move(source)) {
+  data_.reset(mj_makeData(m));
+  if (!data_) throw MujocoError("scene '" + source_ + "': could not allocate mjData");
+  mj_forward(model(), data());
+}
+
+Model Model::load_file(const std::string& path) {
+  install_mujoco_handlers();
+  char error[1024] = "";
+  mjModel* m = nullptr;
+  try {
+    m = mj_loadXML(path.c_str(), nullptr, error, sizeof error);
+  } catch (const MujocoError& e) {
+    throw MujocoError("scene '" + path + "': " + e.what());
+  }
+  if (!m) throw MujocoError("scene '" + path + "': " + (error[0] ? error : "MuJoCo could not load it"));
+  if (error[0]) log::warning("scene '", path, "': ", error);
+  return Model(m, path);
+}
+
+Model Model::load_string(const std::string& xml, const std::string& name) {
+  install_mujoco_handlers();
+  // a virtual file system holding the one file (mjVFS is large: keep it off the stack)
+  auto vfs = std::make_unique<mjVFS>();
+  mj_defaultVFS(vfs.get());
+  if (mj_makeEmptyFileVFS(vfs.get(), name.c_str(), static_cast<int>(xml.size())) != 0)
+    throw MujocoError("scene '" + name + "': could not create a virtual file");
+  int index = mj_findFileVFS(vfs.get(), name.c_str());
+  std::memcpy(vfs->filedata[index], xml.data(), xml.size());
+  char error[1024] = "";
+  mjModel* m = nullptr;
+  try {
+    m = mj_loadXML(name.c_str(), vfs.get(), error, sizeof error);
+  } catch (const MujocoError& e) {
+    mj_deleteVFS(vfs.get());
+    throw MujocoError("scene '" + name + "': " + e.what());
+  }
+  mj_deleteVFS(vfs.get());
+  if (!m) throw MujocoError("scene '" + name + "': " + (error[0] ? error : "MuJoCo could not load it"));
+  return Model(m, name);
+}
+
+std::string Model::body_name(int id) const {
+  const char* n = mj_id2name(model(), mjOBJ_BODY, id);
+  return n && *n ? std::string(n) : "body" + std::to_string(id);
+}
+
+int Model::free_joint_of(int body) const {
+  const mjModel* m = model();
+  for (int j = m->body_jntadr[body]; j >= 0 && j < m->body_jntadr[body] + m->body_jntnum[body]; ++j)
+    if (m->jnt_type[j] == mjJNT_FREE) return j;
+  return -1;
+}
+
+}  // namespace simgate::sim

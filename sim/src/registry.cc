@@ -1,0 +1,101 @@
+#include "simgate/sim/registry.h"
+
+#include "simgate/core/errors.h"
+
+namespace simgate::sim {
+
+namespace {
+std::string kind_name(Kind kind) { return kind == Kind::robot ? "robot" : "component"; }
+
+std::string join(const std::vector<std::string>& items) {
+  std::string out;
+  for (const auto& i : items) out += (out.empty() ? "" : ", ") + i;
+  return out;
+}
+}  // namespace
+
+void ComponentContext::fail(const std::string& where, const std::string& message) const {
+  throw ConfigError(spec_.path + (where.empty() ? "" : "." + where) + ": " + message);
+}
+
+Robot& ComponentContext::robot() const {
+  if (!robot_) fail("type", "component type '" + spec_.type + "' must belong to a robot");
+  return *robot_;
+}
+
+DifferentialDrive& ComponentContext::drive() const {
+  Robot& r = robot();
+  DifferentialDrive* d = r.drive();
+  if (!d) {
+    auto* entry = sim_.find(r.name());
+    fail("type", "component type '" + spec_.type + "' needs a robot that can drive (type ground_robot); robot '" +
+                     r.name() + "' is of type '" + (entry ? entry->type : "?") + "'");
+  }
+  return *d;
+}
+
+int ComponentContext::body() const {
+  int id = sim_.model().body_id(spec_.body);
+  if (id < 0) fail("body", "expected the name of a body of scene '" + sim_.model().source() + "', found '" + spec_.body + "' (no such body)");
+  if (id == 0) fail("body", "expected a body other than the world body");
+  return id;
+}
+
+int ComponentContext::free_joint() const {
+  int b = body();
+  int j = sim_.model().free_joint_of(b);
+  if (j < 0)
+    fail("body", "component type '" + spec_.type + "' needs a body with a free joint; body '" + spec_.body +
+                     "' has none (add <freejoint/> to it in the MJCF)");
+  return j;
+}
+
+int ComponentContext::actuator_option(const std::string& key, const std::string& fallback) const {
+  std::string name = options_.get_string(key, fallback);
+  int id = sim_.model().actuator_id(name);
+  if (id < 0)
+    throw ConfigError(options_.path_of(key) + ": expected the name of an actuator of scene '" +
+                      sim_.model().source() + "', found '" + name + "' (no such actuator)");
+  return id;
+}
+
+void ComponentRegistry::add(std::string name, Kind kind, std::string doc, ComponentFactory factory) {
+  ComponentType t{name, kind, std::move(doc), std::move(factory)};
+  types_[name] = std::move(t);
+}
+
+const ComponentType* ComponentRegistry::find(const std::string& name) const {
+  auto it = types_.find(name);
+  return it == types_.end() ? nullptr : &it->second;
+}
+
+std::vector<std::string> ComponentRegistry::names(Kind kind) const {
+  std::vector<std::string> out;
+  for (const auto& [name, t] : types_)
+    if (t.kind == kind) out.push_back(name);
+  return out;
+}
+
+std::unique_ptr<SimComponent> ComponentRegistry::create(Kind kind, const ComponentSpec& spec, const json& options,
+                                                        Simulation& sim, Robot* robot) const {
+  const ComponentType* type = find(spec.type);
+  if (!type)
+    throw ConfigError(spec.path + ".type: expected a " + kind_name(kind) + " type (" + join(names(kind)) +
+                      "), found '" + spec.type + "' (unknown type)");
+  if (type->kind != kind)
+    throw ConfigError(spec.path + ".type: expected a " + kind_name(kind) + " type (" + join(names(kind)) +
+                      "), found '" + spec.type + "', which is a " + kind_name(type->kind) + " type");
+  ConfigObject object(options.is_null() ? json::object() : options, spec.path + ".options");
+  ComponentContext context(sim, spec, object, robot);
+  auto component = type->factory(context);
+  object.finish();
+  return component;
+}
+
+ComponentRegistry builtin_registry() {
+  ComponentRegistry r;
+  register_builtin_components(r);
+  return r;
+}
+
+}  // namespace simgate::sim

@@ -1,0 +1,175 @@
+#include "simgate/sim/simulation.h"
+
+#include <cmath>
+#include <stdexcept>
+
+#include "simgate/core/log.h"
+#include "simgate/sim/sim_component.h"
+#include "simgate/sim/supervision.h"
+
+namespace simgate::sim {
+
+namespace {
+using Clock = std::chrono::steady_clock;
+// Behind real time by more than this, the loop stops trying to catch up.
+constexpr std::chrono::milliseconds k_max_lag{100};
+}  // namespace
+
+Simulation::Simulation(Model model, SimulationOptions options)
+    : model_(std::move(model)), wakeup_(std::make_shared<Wakeup>()) {
+  if (options.timestep) {
+    if (!(*options.timestep > 0) || !std::isfinite(*options.timestep))
+      throw std::invalid_argument("simulation: timestep must be a positive number, not " +
+                                  std::to_string(*options.timestep));
+    m()->opt.timestep = *options.timestep;
+  }
+  set_realtime_factor(options.realtime_factor);
+}
+
+Simulation::~Simulation() {
+  try {
+    shutdown();
+  } catch (const std::exception& e) {
+    log::error("simulation: shutdown failed: ", e.what());
+  }
+}
+
+void Simulation::set_realtime_factor(double factor) {
+  if (!(factor >= 0) || !std::isfinite(factor))
+    throw std::invalid_argument("simulation: realtime_factor must be >= 0 (0 = as fast as possible), not " +
+                                std::to_string(factor));
+  realtime_factor_ = factor;
+}
+
+ComponentEntry& Simulation::add_component(std::unique_ptr<Component> component, std::string type,
+                                          std::string robot, bool is_robot) {
+  if (!component) throw std::invalid_argument("simulation: add_component(nullptr)");
+  if (find(component->name()))
+    throw std::invalid_argument("simulation: a component named '" + component->name() + "' already exists");
+  auto entry = std::make_unique<ComponentEntry>();
+  entry->sim_component = dynamic_cast<SimComponent*>(component.get());
+  entry->component = std::move(component);
+  entry->type = std::move(type);
+  entry->robot = std::move(robot);
+  entry->is_robot = is_robot;
+  entries_.push_back(std::move(entry));
+  return *entries_.back();
+}
+
+void Simulation::add_supervision_services() {
+  add_component(std::make_unique<SupervisionServices>(*this), "simulation");
+  add_component(std::make_unique<TimeServices>(*this), "time");
+}
+
+ComponentEntry* Simulation::find(const std::string& name) {
+  for (auto& e : entries_)
+    if (e->component->name() == name) return e.get();
+  return nullptr;
+}
+
+std::vector<std::string> Simulation::robot_names() const {
+  std::vector<std::string> names;
+  for (const auto& e : entries_)
+    if (e->is_robot) names.push_back(e->component->name());
+  return names;
+}
+
+void Simulation::add_request_manager(std::shared_ptr<RequestManager> manager, std::string transport) {
+  manager->set_wakeup(wakeup_);
+  managers_.push_back(std::move(manager));
+  manager_names_.push_back(std::move(transport));
+}
+
+std::size_t Simulation::process_requests() {
+  std::size_t handled = 0;
+  for (auto& manager : managers_) handled += manager->process();
+  return handled;
+}
+
+void Simulation::step() {
+  // components act on the state the requests left
+  for (auto& e : entries_)
+    if (e->active) e->component->default_action();
+  // physics (or only the clock while dynamics are suspended)
+  if (dynamics_suspended_) {
+    d()->time += m()->opt.timestep;
+  } else {
+    mj_step(m(), d());
+  }
+  steps_.fetch_add(1, std::memory_order_relaxed);
+}
+
+void Simulation::run() {
+  running_ = true;
+  run_started_ = Clock::now();
+  auto next_step = run_started_;
+  while (!stop_requested()) {
+    // requests first, whenever the loop wakes
+    process_requests();
+    if (stop_requested()) break;
+    if (realtime_factor_ == 0) {
+      step();
+      continue;
+    }
+    auto now = Clock::now();
+    if (now >= next_step) {
+      step();
+      next_step += std::chrono::duration_cast<Clock::duration>(
+          std::chrono::duration<double>(timestep() / realtime_factor_));
+      // fell behind (slow machine, long service): resynchronise instead of racing
+      if (now - next_step > k_max_lag) {
+        next_step = now;
+        ++overruns_;
+      }
+      continue;
+    }
+    // sleep until the next step, or until a request arrives
+    wakeup_->wait_until(next_step);
+  }
+}
+
+void Simulation::request_stop() {
+  stop_.store(true, std::memory_order_release);
+  wakeup_->signal();
+}
+
+void Simulation::shutdown() {
+  if (shut_down_) return;
+  shut_down_ = true;
+  // answer what already arrived (the caller of `quit` is answered in its own process())
+  try {
+    process_requests();
+  } catch (const std::exception& e) {
+    log::error("simulation: while answering the last requests: ", e.what());
+  }
+  // stop the I/O, then destroy the managers (pending requests end with Failure::shutdown)
+  for (std::size_t i = 0; i < managers_.size(); ++i) {
+    log::debug("simulation: stopping transport '", manager_names_[i], "'");
+    managers_[i]->stop();
+  }
+  managers_.clear();
+  manager_names_.clear();
+  // components last: the managers referred to their services
+  entries_.clear();
+}
+
+void Simulation::reset() {
+  mj_resetData(m(), d());
+  mj_forward(m(), d());
+  for (auto& e : entries_)
+    if (e->sim_component) e->sim_component->on_reset();
+}
+
+SimulationStatistics Simulation::statistics() const {
+  SimulationStatistics s;
+  s.steps = steps();
+  s.sim_time = d()->time;
+  s.wall_time = running_ ? std::chrono::duration<double>(Clock::now() - run_started_).count() : 0.0;
+  s.realtime_factor = s.wall_time > 0 ? s.sim_time / s.wall_time : 0.0;
+  s.target_factor = realtime_factor_;
+  s.timestep = timestep();
+  s.overruns = overruns_;
+  return s;
+}
+
+}  // namespace simgate::sim

@@ -1,0 +1,123 @@
+#include "simgate/sim/supervision.h"
+
+#include "simgate/core/errors.h"
+#include "simgate/core/log.h"
+#include "simgate/sim/sim_component.h"
+
+namespace simgate::sim {
+
+namespace {
+json service_names(const Component& c) {
+  json names = json::array();
+  for (const auto& s : c.services()) names.push_back(s->descriptor().name);
+  return names;
+}
+}  // namespace
+
+SupervisionServices::SupervisionServices(Simulation& sim) : Component("simulation"), sim_(sim) {
+  add_service("list_robots", &SupervisionServices::list_robots).doc("Names of the robots");
+  add_service("details", &SupervisionServices::details)
+      .doc("Robots, their components and services (what pymorse reads at connect)");
+  add_service("list_services", &SupervisionServices::list_services)
+      .doc("Every component's services with their parameters and transports");
+  add_service("reset_objects", &SupervisionServices::reset_objects).doc("Restore every object's initial pose");
+  add_service("activate", &SupervisionServices::activate, {"component_name"})
+      .doc("Resume a component's default action");
+  add_service("deactivate", &SupervisionServices::deactivate, {"component_name"})
+      .doc("Suspend a component's default action");
+  add_service("suspend_dynamics", &SupervisionServices::suspend_dynamics).doc("Freeze physics (time goes on)");
+  add_service("restore_dynamics", &SupervisionServices::restore_dynamics).doc("Resume physics");
+  add_service("get_scene_objects", &SupervisionServices::get_scene_objects)
+      .doc("{name: [children, [x, y, z], [qx, qy, qz, qw]]} for every body");
+  add_service("quit", &SupervisionServices::quit).doc("Stop the simulation cleanly (replies are sent first)");
+}
+
+std::vector<std::string> SupervisionServices::list_robots() const { return sim_.robot_names(); }
+
+json SupervisionServices::details() const {
+  json robots = json::array();
+  for (const auto& r : sim_.components()) {
+    if (!r->is_robot) continue;
+    const std::string& name = r->component->name();
+    json robot{{"name", name}, {"type", r->type}, {"components", json::object()}};
+    // robot-level services (note MORSE's spelling: services_interfaces)
+    if (!r->interfaces.empty() && !r->component->services().empty()) {
+      robot["services"] = service_names(*r->component);
+      robot["services_interfaces"] = r->interfaces;
+    }
+    for (const auto& c : sim_.components()) {
+      if (c->robot != name) continue;
+      json component{{"type", c->type}};
+      // services only where a transport serves them; no stream_interfaces (no datastreams)
+      if (!c->interfaces.empty() && !c->component->services().empty()) {
+        component["services"] = service_names(*c->component);
+        component["service_interfaces"] = c->interfaces;
+      }
+      robot["components"][c->component->name()] = std::move(component);
+    }
+    robots.push_back(std::move(robot));
+  }
+  return {{"robots", std::move(robots)}, {"environment", sim_.model().source()}};
+}
+
+json SupervisionServices::list_services() const {
+  json out = json::array();
+  for (const auto& c : sim_.components())
+    for (const auto& s : c->component->services()) {
+      json d = s->descriptor().to_json();
+      d["transports"] = c->interfaces;
+      out.push_back(std::move(d));
+    }
+  return out;
+}
+
+std::string SupervisionServices::reset_objects() {
+  sim_.reset();
+  return "Objects restored to initial position";
+}
+
+void SupervisionServices::set_active(const std::string& component_name, bool active) {
+  ComponentEntry* e = sim_.find(component_name);
+  if (!e)
+    throw ServiceError("Component '" + component_name + "' not found. Can't " + (active ? "activate" : "deactivate"),
+                       Failure::bad_arguments, {{"parameter", "component_name"}});
+  e->active = active;
+}
+
+void SupervisionServices::activate(const std::string& component_name) { set_active(component_name, true); }
+void SupervisionServices::deactivate(const std::string& component_name) { set_active(component_name, false); }
+
+std::string SupervisionServices::suspend_dynamics() {
+  sim_.set_dynamics_suspended(true);
+  return "Physics is suspended";
+}
+
+std::string SupervisionServices::restore_dynamics() {
+  sim_.set_dynamics_suspended(false);
+  return "Physics is resumed";
+}
+
+json SupervisionServices::body_tree(int body) const {
+  const mjModel* m = sim_.m();
+  json children = json::object();
+  for (int b = body + 1; b < m->nbody; ++b)
+    if (m->body_parentid[b] == body) children[sim_.model().body_name(b)] = body_tree(b);
+  Eigen::Vector3d p = body_position(sim_, body);
+  Eigen::Quaterniond q = body_orientation(sim_, body);
+  return json::array({std::move(children), {p.x(), p.y(), p.z()}, {q.x(), q.y(), q.z(), q.w()}});
+}
+
+json SupervisionServices::get_scene_objects() const {
+  json out = json::object();
+  const mjModel* m = sim_.m();
+  for (int b = 1; b < m->nbody; ++b)
+    if (m->body_parentid[b] == 0) out[sim_.model().body_name(b)] = body_tree(b);
+  return out;
+}
+
+void SupervisionServices::quit() {
+  log::info("simulation: quit requested");
+  sim_.request_stop();
+}
+
+}  // namespace simgate::sim

@@ -1,0 +1,59 @@
+// SimModel: loading MJCF scenes, MuJoCo errors as exceptions (never a process exit).
+#include <gtest/gtest.h>
+
+#include "simgate/sim/model.h"
+#include "sim_fixture.h"
+
+namespace simgate::sim {
+namespace {
+
+constexpr const char* k_box = R"(<mujoco><worldbody>
+  <body name="box" pos="0 0 1"><freejoint name="box_root"/><geom type="box" size=".1 .1 .1"/></body>
+</worldbody></mujoco>)";
+
+TEST(SimModelTest, LoadsInlineSceneAndFindsNames) {
+  Model m = Model::load_string(k_box);
+  EXPECT_GT(m.body_id("box"), 0);
+  EXPECT_EQ(m.body_id("nope"), -1);
+  EXPECT_EQ(m.free_joint_of(m.body_id("box")), m.joint_id("box_root"));
+  EXPECT_EQ(m.body_name(m.body_id("box")), "box");
+}
+
+TEST(SimModelTest, LoadsTheDemoScene) {
+  Model m = Model::load_file(testing::demo_scene());
+  EXPECT_GT(m.body_id("robot"), 0);
+  EXPECT_GE(m.actuator_id("robot_left_motor"), 0);
+}
+
+TEST(SimModelTest, InvalidXmlIsAnExceptionNamingTheScene) {
+  try {
+    Model::load_string("<mujoco><worldbody><body name='x'><geom type='sphere'/></worldbod></mujoco>", "broken.xml");
+    FAIL() << "no exception";
+  } catch (const MujocoError& e) {
+    EXPECT_NE(std::string(e.what()).find("broken.xml"), std::string::npos) << e.what();
+  }
+}
+
+TEST(SimModelTest, MissingFileNamesThePath) {
+  try {
+    Model::load_file("/nonexistent/scene.xml");
+    FAIL() << "no exception";
+  } catch (const MujocoError& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/scene.xml"), std::string::npos) << e.what();
+  }
+}
+
+TEST(SimModelTest, EngineErrorBecomesAnExceptionNotAnExit) {
+  install_mujoco_handlers();
+  EXPECT_THROW(mju_error("deliberate test error"), MujocoError);
+}
+
+TEST(SimModelTest, SteppingTheModelMovesTheFreeBody) {
+  Model m = Model::load_string(k_box);
+  double z0 = m.data()->xpos[3 * m.body_id("box") + 2];
+  for (int i = 0; i < 100; ++i) mj_step(m.model(), m.data());
+  EXPECT_LT(m.data()->xpos[3 * m.body_id("box") + 2], z0);  // it falls
+}
+
+}  // namespace
+}  // namespace simgate::sim

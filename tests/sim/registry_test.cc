@@ -1,0 +1,116 @@
+// SimRegistry: components created by type name; errors name the JSON path, what was
+// expected and what was found; new types join without touching the gateway.
+#include <gtest/gtest.h>
+
+#include "sim_fixture.h"
+
+namespace simgate::sim {
+namespace {
+
+using ::testing::HasSubstr;
+
+class SimRegistryTest : public ::testing::Test {
+ protected:
+  SimRegistryTest() : sim_(Model::load_file(testing::demo_scene()), SimulationOptions{std::nullopt, 0.0}) {}
+
+  std::string error_of(Kind kind, ComponentSpec spec, json options = json::object(), Robot* robot = nullptr) {
+    try {
+      registry_.create(kind, spec, options, sim_, robot);
+    } catch (const ConfigError& e) {
+      return e.what();
+    }
+    return "";
+  }
+  Robot* add_robot(const std::string& type, const std::string& name, const std::string& body) {
+    auto r = registry_.create(Kind::robot, {name, type, body, "robots[0]"}, json::object(), sim_, nullptr);
+    auto* p = static_cast<Robot*>(r.get());
+    sim_.add_component(std::move(r), type, "", true);
+    return p;
+  }
+
+  Simulation sim_;
+  ComponentRegistry registry_ = builtin_registry();
+};
+
+TEST_F(SimRegistryTest, UnknownTypeNamesPathAndKnownTypes) {
+  std::string e = error_of(Kind::component, {"robot.x", "motion_wv", "robot", "robots[0].components[2]"});
+  EXPECT_THAT(e, HasSubstr("robots[0].components[2].type"));
+  EXPECT_THAT(e, HasSubstr("motion_wv"));
+  EXPECT_THAT(e, HasSubstr("motion_vw"));  // lists what exists
+}
+
+TEST_F(SimRegistryTest, RobotTypeUsedAsComponentIsRejected) {
+  std::string e = error_of(Kind::component, {"robot.x", "human", "robot", "robots[0].components[0]"});
+  EXPECT_THAT(e, HasSubstr("which is a robot type"));
+}
+
+TEST_F(SimRegistryTest, MissingBodyNamesTheBodyAndScene) {
+  std::string e = error_of(Kind::robot, {"robot", "ground_robot", "robto", "robots[0]"});
+  EXPECT_THAT(e, HasSubstr("robots[0].body"));
+  EXPECT_THAT(e, HasSubstr("'robto'"));
+  EXPECT_THAT(e, HasSubstr("demo.xml"));
+}
+
+TEST_F(SimRegistryTest, MissingActuatorNamesTheOption) {
+  std::string e = error_of(Kind::robot, {"robot", "ground_robot", "robot", "robots[0]"},
+                           {{"left_actuator", "no_such_motor"}});
+  EXPECT_THAT(e, HasSubstr("robots[0].options.left_actuator"));
+  EXPECT_THAT(e, HasSubstr("no_such_motor"));
+}
+
+TEST_F(SimRegistryTest, UnknownOptionKeyIsAnError) {
+  std::string e = error_of(Kind::robot, {"robot", "ground_robot", "robot", "robots[0]"}, {{"wheel_radus", 0.1}});
+  EXPECT_THAT(e, HasSubstr("robots[0].options.wheel_radus"));
+  EXPECT_THAT(e, HasSubstr("unknown key"));
+}
+
+TEST_F(SimRegistryTest, OptionOfTheWrongTypeIsAnError) {
+  std::string e = error_of(Kind::robot, {"robot", "ground_robot", "robot", "robots[0]"}, {{"wheel_radius", "big"}});
+  EXPECT_THAT(e, HasSubstr("robots[0].options.wheel_radius"));
+  EXPECT_THAT(e, HasSubstr("expected"));
+}
+
+TEST_F(SimRegistryTest, MotionNeedsARobotThatDrives) {
+  Robot* human = add_robot("human", "human", "human");
+  std::string e = error_of(Kind::component, {"human.motion", "motion_vw", "human", "robots[0].components[0]"},
+                           json::object(), human);
+  EXPECT_THAT(e, HasSubstr("ground_robot"));
+  EXPECT_THAT(e, HasSubstr("'human'"));
+}
+
+TEST_F(SimRegistryTest, TeleportNeedsAFreeJoint) {
+  Robot* robot = add_robot("ground_robot", "robot", "robot");
+  std::string e = error_of(Kind::component, {"robot.tp", "teleport", "robot_left_wheel", "robots[0].components[0]"},
+                           json::object(), robot);
+  EXPECT_THAT(e, HasSubstr("free joint"));
+}
+
+// A new component type joins the registry from the outside (no gateway change).
+class Counter : public SimComponent {
+ public:
+  explicit Counter(ComponentContext& c) : SimComponent(c.name(), c.sim()) {
+    step_ = c.options().get_int("step", 1, 1, 100);
+    add_service("get", &Counter::get);
+  }
+  long long get() const { return count_; }
+  void default_action() override { count_ += step_; }
+
+ private:
+  long long step_;       // increment per simulation step
+  long long count_ = 0;  // steps seen times step_
+};
+
+TEST_F(SimRegistryTest, NewTypeJoinsTheRegistry) {
+  registry_.add<Counter>("counter", Kind::component, "counts steps");
+  Robot* robot = add_robot("robot", "robot", "robot");
+  auto c = registry_.create(Kind::component, {"robot.counter", "counter", "robot", "x"}, {{"step", 2}}, sim_, robot);
+  ASSERT_NE(c, nullptr);
+  auto* counter = static_cast<Counter*>(c.get());
+  sim_.add_component(std::move(c), "counter", "robot");
+  sim_.step();
+  sim_.step();
+  EXPECT_EQ(counter->get(), 4);
+}
+
+}  // namespace
+}  // namespace simgate::sim

@@ -1,0 +1,132 @@
+// Test helpers: a request manager that records outcomes, and a fixture holding the demo
+// scene with its robot (motion, waypoint, teleport, pose) and human, as fast as possible.
+#ifndef SIMGATE_TESTS_SIM_SIM_FIXTURE_H_
+#define SIMGATE_TESTS_SIM_SIM_FIXTURE_H_
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <condition_variable>
+#include <map>
+#include <mutex>
+
+#include "simgate/core/request_manager.h"
+#include "simgate/sim/components.h"
+#include "simgate/sim/registry.h"
+#include "simgate/sim/simulation.h"
+
+namespace simgate::sim::testing {
+
+class RecordingManager : public RequestManager {
+ public:
+  RecordingManager() : RequestManager("Test service manager") {}
+  ~RecordingManager() override { stop(); }
+
+  // Like a real transport: what is still pending ends with Failure::shutdown.
+  void stop() override { abandon_pending(); }
+
+  RequestId call(const std::string& component, const std::string& service, json params = json::array()) {
+    RequestId id = new_request_id();
+    submit(id, Call{component, service, std::move(params)});
+    return id;
+  }
+  std::optional<Outcome> outcome(RequestId id) {
+    std::lock_guard lock(mutex_);
+    auto it = outcomes_.find(id);
+    if (it == outcomes_.end()) return std::nullopt;
+    return it->second;
+  }
+  // Waits (bounded) for an outcome delivered by another thread's process().
+  std::optional<Outcome> wait(RequestId id, std::chrono::milliseconds timeout) {
+    std::unique_lock lock(mutex_);
+    cv_.wait_for(lock, timeout, [&] { return outcomes_.count(id) > 0; });
+    auto it = outcomes_.find(id);
+    if (it == outcomes_.end()) return std::nullopt;
+    return it->second;
+  }
+
+ protected:
+  void on_service_completion(RequestId id, Outcome outcome) override {
+    std::lock_guard lock(mutex_);
+    outcomes_[id] = std::move(outcome);
+    cv_.notify_all();
+  }
+
+ private:
+  std::mutex mutex_;                     // guards outcomes_
+  std::condition_variable cv_;           // outcome arrived
+  std::map<RequestId, Outcome> outcomes_;  // delivered outcomes
+};
+
+inline std::string demo_scene() { return std::string(SIMGATE_SOURCE_DIR) + "/config/scenes/demo.xml"; }
+
+class DemoSim : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    sim_ = std::make_unique<Simulation>(Model::load_file(demo_scene()), SimulationOptions{std::nullopt, 0.0});
+    auto registry = builtin_registry();
+    auto robot = registry.create(Kind::robot, {"robot", "ground_robot", "robot", "robots[0]"}, json::object(), *sim_,
+                                 nullptr);
+    auto* r = static_cast<Robot*>(robot.get());
+    sim_->add_component(std::move(robot), "ground_robot", "", true);
+    int i = 0;
+    for (auto type : {"motion_vw", "waypoint", "teleport", "pose"}) {
+      std::string short_name = type == std::string("motion_vw") ? "motion" : type;
+      auto c = registry.create(Kind::component,
+                               {"robot." + short_name, type, "robot", "robots[0].components[" + std::to_string(i++) + "]"},
+                               json::object(), *sim_, r);
+      sim_->add_component(std::move(c), type, "robot");
+    }
+    sim_->add_component(
+        registry.create(Kind::robot, {"human", "human", "human", "robots[1]"}, json::object(), *sim_, nullptr),
+        "human", "", true);
+    sim_->add_supervision_services();
+    rm_ = std::make_shared<RecordingManager>();
+    for (auto& e : sim_->components()) {
+      rm_->register_component(*e->component);
+      e->interfaces.push_back("test");
+    }
+    sim_->add_request_manager(rm_, "test");
+  }
+  void TearDown() override {
+    rm_.reset();
+    sim_.reset();
+  }
+
+  // A sync call: submitted, processed, answered.
+  Outcome call(const std::string& component, const std::string& service, json params = json::array()) {
+    RequestId id = rm_->call(component, service, std::move(params));
+    sim_->process_requests();
+    auto o = rm_->outcome(id);
+    EXPECT_TRUE(o.has_value()) << component << " " << service << " not answered";
+    return o.value_or(Outcome::failed(Failure::internal, "no answer"));
+  }
+  // Steps (processing requests each step) until `id` is answered or `max_steps` pass.
+  std::optional<Outcome> step_until(RequestId id, int max_steps) {
+    for (int i = 0; i < max_steps; ++i) {
+      sim_->process_requests();
+      if (auto o = rm_->outcome(id)) return o;
+      sim_->step();
+    }
+    sim_->process_requests();
+    return rm_->outcome(id);
+  }
+  void run_for(double seconds) {
+    int n = static_cast<int>(seconds / sim_->timestep());
+    for (int i = 0; i < n; ++i) {
+      sim_->process_requests();
+      sim_->step();
+    }
+  }
+  json pose() {
+    Outcome o = call("robot.pose", "get_local_data");
+    return o.value.value_or(json());
+  }
+
+  std::unique_ptr<Simulation> sim_;
+  std::shared_ptr<RecordingManager> rm_;
+};
+
+}  // namespace simgate::sim::testing
+
+#endif  // SIMGATE_TESTS_SIM_SIM_FIXTURE_H_

@@ -1,0 +1,147 @@
+// SimSupervision: the `simulation` and `time` pseudo-components.
+#include "sim_fixture.h"
+
+namespace simgate::sim {
+namespace {
+
+using testing::DemoSim;
+using ::testing::HasSubstr;
+
+class SimSupervisionTest : public DemoSim {};
+
+TEST_F(SimSupervisionTest, ListRobots) {
+  EXPECT_EQ(call("simulation", "list_robots").value, json({"robot", "human"}));
+}
+
+TEST_F(SimSupervisionTest, DetailsHasTheShapePymorseReads) {
+  json d = call("simulation", "details").value.value_or(json());
+  ASSERT_TRUE(d.contains("robots"));
+  ASSERT_EQ(d["robots"].size(), 2u);
+  json robot = d["robots"][0];
+  EXPECT_EQ(robot["name"], "robot");
+  ASSERT_TRUE(robot["components"].is_object());
+  json waypoint = robot["components"]["robot.waypoint"];
+  EXPECT_EQ(waypoint["type"], "waypoint");
+  EXPECT_EQ(waypoint["service_interfaces"], json({"test"}));
+  EXPECT_NE(std::find(waypoint["services"].begin(), waypoint["services"].end(), json("goto")),
+            waypoint["services"].end());
+  EXPECT_FALSE(waypoint.contains("stream_interfaces"));  // pymorse would ask for stream ports
+  json human = d["robots"][1];
+  EXPECT_EQ(human["services"], json({"move"}));
+  EXPECT_EQ(human["services_interfaces"], json({"test"}));  // MORSE's robot-level spelling
+}
+
+TEST_F(SimSupervisionTest, DetailsOmitsServicesOfComponentsNoTransportServes) {
+  sim_->find("robot.teleport")->interfaces.clear();
+  json d = call("simulation", "details").value.value_or(json());
+  EXPECT_FALSE(d["robots"][0]["components"]["robot.teleport"].contains("services"));
+}
+
+TEST_F(SimSupervisionTest, ListServicesGivesEveryServiceWithItsParameters) {
+  json list = call("simulation", "list_services").value.value_or(json());
+  bool found = false;
+  for (const auto& s : list)
+    if (s["component"] == "robot.waypoint" && s["name"] == "goto") {
+      found = true;
+      EXPECT_EQ(s["async"], true);
+      ASSERT_EQ(s["params"].size(), 5u);
+      EXPECT_EQ(s["params"][3]["name"], "tolerance");
+      EXPECT_EQ(s["params"][3]["default"], 0.5);
+      EXPECT_EQ(s["transports"], json({"test"}));
+    }
+  EXPECT_TRUE(found);
+}
+
+TEST_F(SimSupervisionTest, ResetObjectsRestoresInitialPoses) {
+  call("robot.teleport", "translate", {3.0, 0.0, 0.0});
+  call("robot.motion", "set_speed", {1.0, 0.0});
+  EXPECT_EQ(call("simulation", "reset_objects").value, json("Objects restored to initial position"));
+  EXPECT_NEAR(pose()["x"].get<double>(), 0.0, 1e-9);
+  run_for(0.5);
+  EXPECT_NEAR(pose()["x"].get<double>(), 0.0, 0.01);  // the command was dropped too
+}
+
+TEST_F(SimSupervisionTest, DeactivatedComponentSkipsItsDefaultAction) {
+  EXPECT_EQ(call("simulation", "deactivate", {"robot.waypoint"}).status, Status::success);
+  call("robot.waypoint", "setdest", {3.0, 0.0, 0.0});
+  run_for(1.0);
+  EXPECT_NEAR(pose()["x"].get<double>(), 0.0, 0.01);  // no steering, no driving
+  EXPECT_EQ(call("simulation", "activate", {"robot.waypoint"}).status, Status::success);
+  run_for(1.0);
+  EXPECT_GT(pose()["x"].get<double>(), 0.2);
+}
+
+TEST_F(SimSupervisionTest, ActivatingAnUnknownComponentFails) {
+  Outcome o = call("simulation", "activate", {"robot.nope"});
+  EXPECT_EQ(o.status, Status::failed);
+  EXPECT_THAT(o.message, HasSubstr("Component 'robot.nope' not found"));
+}
+
+TEST_F(SimSupervisionTest, SuspendDynamicsFreezesPhysicsButNotTime) {
+  call("robot.motion", "set_speed", {1.0, 0.0});
+  EXPECT_EQ(call("simulation", "suspend_dynamics").value, json("Physics is suspended"));
+  double t = sim_->sim_time();
+  run_for(1.0);
+  EXPECT_NEAR(pose()["x"].get<double>(), 0.0, 1e-9);
+  EXPECT_NEAR(sim_->sim_time() - t, 1.0, 0.01);
+  EXPECT_EQ(call("simulation", "restore_dynamics").value, json("Physics is resumed"));
+  run_for(1.0);
+  EXPECT_GT(pose()["x"].get<double>(), 0.5);
+}
+
+TEST_F(SimSupervisionTest, GetSceneObjectsListsBodiesWithPoses) {
+  json objects = call("simulation", "get_scene_objects").value.value_or(json());
+  ASSERT_TRUE(objects.contains("robot"));
+  ASSERT_TRUE(objects.contains("crate1"));
+  EXPECT_TRUE(objects["robot"][0].contains("robot_left_wheel"));  // children
+  EXPECT_NEAR(objects["crate1"][1][0].get<double>(), 3.0, 1e-6);
+  EXPECT_EQ(objects["crate1"][2].size(), 4u);
+}
+
+TEST_F(SimSupervisionTest, QuitRequestsStopAndAnswers) {
+  EXPECT_FALSE(sim_->stop_requested());
+  EXPECT_EQ(call("simulation", "quit").status, Status::success);
+  EXPECT_TRUE(sim_->stop_requested());
+}
+
+TEST_F(SimSupervisionTest, TimeSleepCompletesAfterSimulatedTime) {
+  double start = sim_->sim_time();
+  RequestId id = rm_->call("time", "sleep", {0.5});
+  auto o = step_until(id, 1000);
+  ASSERT_TRUE(o.has_value());
+  EXPECT_EQ(o->status, Status::success);
+  EXPECT_FALSE(o->value.has_value());  // bare SUCCESS, like MORSE
+  EXPECT_NEAR(sim_->sim_time() - start, 0.5, 2 * sim_->timestep());
+}
+
+TEST_F(SimSupervisionTest, SecondSleepIsRefusedWithoutPolicy) {
+  RequestId first = rm_->call("time", "sleep", {10.0});
+  sim_->process_requests();
+  Outcome o = call("time", "sleep", {1.0});
+  EXPECT_EQ(o.status, Status::failed);
+  EXPECT_THAT(o.message, HasSubstr("is already running"));
+  EXPECT_FALSE(rm_->outcome(first).has_value());  // the first keeps running
+}
+
+TEST_F(SimSupervisionTest, NegativeSleepFails) {
+  EXPECT_EQ(call("time", "sleep", {-1.0}).status, Status::failed);
+}
+
+TEST_F(SimSupervisionTest, TimeNowFollowsSimulatedTime) {
+  double t0 = call("time", "now").value->get<double>();
+  run_for(1.0);
+  double t1 = call("time", "now").value->get<double>();
+  EXPECT_NEAR(t1 - t0, 1.0, 0.01);
+  EXPECT_GT(t0, 1.6e9);  // seconds since the epoch
+}
+
+TEST_F(SimSupervisionTest, StatisticsCountSteps) {
+  run_for(0.1);
+  json s = call("time", "statistics").value.value_or(json());
+  EXPECT_EQ(s["steps"], 50);
+  EXPECT_NEAR(s["sim_time"].get<double>(), 0.1, 1e-9);
+  EXPECT_EQ(s["timestep"], 0.002);
+}
+
+}  // namespace
+}  // namespace simgate::sim

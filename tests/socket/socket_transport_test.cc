@@ -1,0 +1,507 @@
+// Golden transcripts of the socket transport over real TCP: every rule of the protocol.
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+
+#include "socket_test_fixture.h"
+
+namespace simgate::socket::testing {
+namespace {
+
+using ::testing::HasSubstr;
+using ::testing::StartsWith;
+
+class SocketTransport : public SocketFixture {
+ protected:
+  void SetUp() override { start_server(); }
+};
+
+// ---- calls and parameters
+
+TEST_F(SocketTransport, SeedAddWithPythonTuple) {
+  auto c = connect();
+  EXPECT_EQ(roundtrip(*c, "req1 test_component add (1,2)"), "req1 SUCCESS 3");
+}
+
+TEST_F(SocketTransport, JsonArrayParamsLikePymorse) {
+  auto c = connect();
+  EXPECT_EQ(roundtrip(*c, "0 test_component add [1, 2]"), "0 SUCCESS 3");
+  EXPECT_EQ(roundtrip(*c, "1 test_component add [1.0, 1.6]"), "1 SUCCESS 2.6");
+  EXPECT_EQ(roundtrip(*c, "2 test_component add [\"a\", \"b\"]"), "2 SUCCESS \"ab\"");
+}
+
+TEST_F(SocketTransport, PythonLiteralParams) {
+  auto c = connect();
+  EXPECT_EQ(roundtrip(*c, "r1 test_component add ('a', \"b\")"), "r1 SUCCESS \"ab\"");
+  EXPECT_EQ(roundtrip(*c, "r2 test_component add ([1, 2], [3],)"), "r2 SUCCESS [1, 2, 3]");
+  EXPECT_EQ(roundtrip(*c, "r3 test echo (True,)"), "r3 SUCCESS true");
+  EXPECT_EQ(roundtrip(*c, "r4 test echo ({'k': (None, False)},)"), "r4 SUCCESS {\"k\": [null, false]}");
+  EXPECT_EQ(roundtrip(*c, "r5 test echo (5,)"), "r5 SUCCESS 5");
+  EXPECT_EQ(roundtrip(*c, "r6 test echo (5)"), "r6 SUCCESS 5");
+}
+
+TEST_F(SocketTransport, ObjectParamsAreNamedArguments) {
+  auto c = connect();
+  EXPECT_EQ(roundtrip(*c, "n1 test_component add {\"b\": 2, \"a\": 40}"), "n1 SUCCESS 42");
+  EXPECT_EQ(roundtrip(*c, "n2 test_component add {'a': 'x', 'b': 'y'}"), "n2 SUCCESS \"xy\"");
+}
+
+TEST_F(SocketTransport, NoParamsEmptyListAndEmptyTupleCallWithoutArguments) {
+  auto c = connect();
+  EXPECT_EQ(roundtrip(*c, "e1 test ping"), "e1 SUCCESS \"pong\"");
+  EXPECT_EQ(roundtrip(*c, "e2 test ping []"), "e2 SUCCESS \"pong\"");
+  EXPECT_EQ(roundtrip(*c, "e3 test ping ()"), "e3 SUCCESS \"pong\"");
+}
+
+TEST_F(SocketTransport, WhitespaceBetweenTokensCrLfAndSurroundingBlanks) {
+  auto c = connect();
+  EXPECT_EQ(roundtrip(*c, "w1  test_component  add  (1,2)"), "w1 SUCCESS 3");
+  EXPECT_EQ(roundtrip(*c, "w2\ttest_component\tadd\t(1,2)"), "w2 SUCCESS 3");
+  EXPECT_EQ(roundtrip(*c, "w3 \t test_component\t add \t[1, 2]"), "w3 SUCCESS 3");
+  EXPECT_EQ(roundtrip(*c, "   w4 test_component add (1,2)   "), "w4 SUCCESS 3");
+  EXPECT_EQ(roundtrip(*c, "w5 test_component add (1,2)\r"), "w5 SUCCESS 3");
+  EXPECT_EQ(roundtrip(*c, "w6 test ping\r"), "w6 SUCCESS \"pong\"");
+}
+
+TEST_F(SocketTransport, BlankLinesAreIgnored) {
+  auto c = connect();
+  c->send_raw("\n\r\n   \n");
+  EXPECT_EQ(roundtrip(*c, "b1 test ping"), "b1 SUCCESS \"pong\"");
+}
+
+TEST_F(SocketTransport, FalsyResultsAreSent) {
+  auto c = connect();
+  EXPECT_EQ(roundtrip(*c, "f1 test echo (0,)"), "f1 SUCCESS 0");
+  EXPECT_EQ(roundtrip(*c, "f2 test echo (False,)"), "f2 SUCCESS false");
+  EXPECT_EQ(roundtrip(*c, "f3 test echo ('',)"), "f3 SUCCESS \"\"");
+  EXPECT_EQ(roundtrip(*c, "f4 test echo ([],)"), "f4 SUCCESS []");
+  EXPECT_EQ(roundtrip(*c, "f5 test echo ({},)"), "f5 SUCCESS {}");
+  EXPECT_EQ(roundtrip(*c, "f6 test echo (0.0,)"), "f6 SUCCESS 0.0");
+  EXPECT_EQ(roundtrip(*c, "f7 test_component add [0, 0]"), "f7 SUCCESS 0");
+}
+
+TEST_F(SocketTransport, NothingOrNullGivesBareSuccess) {
+  auto c = connect();
+  EXPECT_EQ(roundtrip(*c, "v1 test nothing"), "v1 SUCCESS");
+  EXPECT_EQ(roundtrip(*c, "v2 test none []"), "v2 SUCCESS");
+  EXPECT_EQ(roundtrip(*c, "v3 test echo (None,)"), "v3 SUCCESS");
+}
+
+TEST_F(SocketTransport, JsonIsWrittenLikePythonJsonDumps) {
+  auto c = connect();
+  EXPECT_EQ(roundtrip(*c, "j1 test echo ([1, 'x', {'a': 1.5}],)"), "j1 SUCCESS [1, \"x\", {\"a\": 1.5}]");
+  EXPECT_EQ(roundtrip(*c, "j2 test echo ('caf\xc3\xa9 \xf0\x9f\x98\x80',)"),
+            "j2 SUCCESS \"caf\\u00e9 \\ud83d\\ude00\"");
+  EXPECT_EQ(roundtrip(*c, "j3 test echo ('a\\tb\\n\"',)"), "j3 SUCCESS \"a\\tb\\n\\\"\"");
+  EXPECT_EQ(roundtrip(*c, "j4 test echo (1e-05,)"), "j4 SUCCESS 1e-05");
+  EXPECT_EQ(roundtrip(*c, "j5 test echo (NaN,)"), "j5 SUCCESS NaN");
+  EXPECT_EQ(roundtrip(*c, "j6 test echo (-Infinity,)"), "j6 SUCCESS -Infinity");
+}
+
+TEST_F(SocketTransport, IdIsEchoedVerbatim) {
+  auto c = connect();
+  EXPECT_EQ(roundtrip(*c, "some-ID_42.x test ping"), "some-ID_42.x SUCCESS \"pong\"");
+  EXPECT_EQ(roundtrip(*c, "\xc3\xa9t\xc3\xa9 test ping"), "\xc3\xa9t\xc3\xa9 SUCCESS \"pong\"");
+}
+
+// ---- errors: MORSE's phrases, and the connection keeps working
+
+TEST_F(SocketTransport, UnknownServiceOrComponentHasNotBeenRegistered) {
+  auto c = connect();
+  std::string unknown_service = roundtrip(*c, "u1 test_component nope (1,2)");
+  EXPECT_THAT(unknown_service,
+              StartsWith("u1 FAILED \"The request nope has not been registered in Socket service manager"));
+  std::string unknown_component = roundtrip(*c, "u2 ghost add (1,2)");
+  EXPECT_THAT(unknown_component,
+              StartsWith("u2 FAILED \"The request add has not been registered in Socket service manager"));
+  EXPECT_THAT(unknown_component, HasSubstr("ghost"));
+  EXPECT_EQ(roundtrip(*c, "u3 test_component add (1,2)"), "u3 SUCCESS 3");
+}
+
+TEST_F(SocketTransport, ArityErrorsSayWrongNumberOfParameters) {
+  auto c = connect();
+  EXPECT_THAT(roundtrip(*c, "a1 test_component add (1,)"), AllOf(StartsWith("a1 FAILED \""), HasSubstr("wrong # of parameters")));
+  EXPECT_THAT(roundtrip(*c, "a2 test_component add (1,2,3)"), AllOf(StartsWith("a2 FAILED \""), HasSubstr("wrong # of parameters")));
+  EXPECT_THAT(roundtrip(*c, "a3 test_component add"), AllOf(StartsWith("a3 FAILED \""), HasSubstr("wrong # of parameters")));
+}
+
+TEST_F(SocketTransport, TypeErrorsSayWrongParameterType) {
+  auto c = connect();
+  EXPECT_EQ(roundtrip(*c, "t1 test scale (2,)"), "t1 SUCCESS 4.0");
+  EXPECT_THAT(roundtrip(*c, "t2 test scale ('two',)"),
+              AllOf(StartsWith("t2 FAILED \""), HasSubstr("wrong parameter type"), HasSubstr("'x'")));
+}
+
+TEST_F(SocketTransport, BadParamsSyntaxSaysWhatAndWhere) {
+  auto c = connect();
+  EXPECT_EQ(roundtrip(*c, "p1 test_component add (1,2"),
+            "p1 FAILED \"Invalid request syntax: error while parsing the parameters at column 27: "
+            "expected ',' or ')' in tuple but found the end of the parameters\"");
+  EXPECT_EQ(roundtrip(*c, "p2 test_component add (1, x)"),
+            "p2 FAILED \"Invalid request syntax: error while parsing the parameters at column 27: "
+            "unknown name 'x' (expected a number, a quoted string, True, False or None)\"");
+  EXPECT_EQ(roundtrip(*c, "p3 test_component add [1, 2] extra"),
+            "p3 FAILED \"Invalid request syntax: error while parsing the parameters at column 31: "
+            "unexpected 'e' after the end of the parameters\"");
+  EXPECT_EQ(roundtrip(*c, "p4 test echo ('abc"),
+            "p4 FAILED \"Invalid request syntax: error while parsing the parameters at column 15: "
+            "unterminated string\"");
+  EXPECT_EQ(roundtrip(*c, "p5 test_component add (1,2)"), "p5 SUCCESS 3");
+}
+
+TEST_F(SocketTransport, ScalarParamsAreRefusedByTheCore) {
+  auto c = connect();
+  EXPECT_THAT(roundtrip(*c, "s1 test echo 5"), AllOf(StartsWith("s1 FAILED \""), HasSubstr("must be a list")));
+}
+
+TEST_F(SocketTransport, ServiceErrorMessageIsTheFailedPayload) {
+  auto c = connect();
+  EXPECT_EQ(roundtrip(*c, "x1 test fail ('Our human cannot walk at negative speed!',)"),
+            "x1 FAILED \"Our human cannot walk at negative speed!\"");
+}
+
+TEST_F(SocketTransport, OtherExceptionsFailTheRequestNotTheServer) {
+  auto c = connect();
+  EXPECT_THAT(roundtrip(*c, "x2 test crash"), AllOf(StartsWith("x2 FAILED \""), HasSubstr("boom")));
+  EXPECT_EQ(roundtrip(*c, "x3 test ping"), "x3 SUCCESS \"pong\"");
+}
+
+TEST_F(SocketTransport, MalformedLinesGetFailedAndTheConnectionLives) {
+  auto c = connect();
+  EXPECT_THAT(roundtrip(*c, "m1"), StartsWith("m1 FAILED \"Malformed request! "));
+  EXPECT_THAT(roundtrip(*c, "m2 test_component"), StartsWith("m2 FAILED \"Malformed request! missing the service"));
+  // binary garbage: unknown component (printable replacement in the message)
+  EXPECT_THAT(roundtrip(*c, std::string("m3 \x01\x02\x7f\x00zz yy", 14)), StartsWith("m3 FAILED \""));
+  // invalid UTF-8 in a name
+  EXPECT_EQ(roundtrip(*c, "m4 te\xff\xfest ping"),
+            "m4 FAILED \"Invalid request syntax: the component name is not valid UTF-8 (column 6)\"");
+  // invalid UTF-8 inside a string parameter
+  EXPECT_THAT(roundtrip(*c, "m5 test echo ('\xc3\x28',)"), StartsWith("m5 FAILED \"Invalid request syntax"));
+  EXPECT_EQ(roundtrip(*c, "m6 test_component add (1,2)"), "m6 SUCCESS 3");
+}
+
+TEST_F(SocketTransport, MalformedLinesFromOneClientDoNotDisturbAnother) {
+  auto hostile = connect();
+  auto good = connect();
+  hostile->send_raw(std::string("\xff\xfe\x00\x01 garbage\n\x80\n \t\n", 20));
+  EXPECT_EQ(roundtrip(*good, "g1 test_component add (1,2)"), "g1 SUCCESS 3");
+  EXPECT_THAT(next_line(*hostile), HasSubstr("FAILED"));
+}
+
+// ---- framing
+
+TEST_F(SocketTransport, RequestSplitOverManySegments) {
+  auto c = connect();
+  const std::string line = "split1 test_component add (1,2)\n";
+  for (char ch : line) c->send_raw(std::string(1, ch));  // TCP_NODELAY: one segment per byte
+  EXPECT_EQ(next_line(*c), "split1 SUCCESS 3");
+  c->send_raw("split2 test_comp");
+  c->send_raw("onent add [40,");
+  c->send_raw(" 2]\r");
+  c->send_raw("\n");
+  EXPECT_EQ(next_line(*c), "split2 SUCCESS 42");
+}
+
+TEST_F(SocketTransport, SeveralRequestsInOneSegment) {
+  auto c = connect();
+  c->send_raw("k1 test_component add (1,2)\nk2 test_component add (3,4)\r\nk3 test ping\n");
+  EXPECT_EQ(next_line(*c), "k1 SUCCESS 3");
+  EXPECT_EQ(next_line(*c), "k2 SUCCESS 7");
+  EXPECT_EQ(next_line(*c), "k3 SUCCESS \"pong\"");
+}
+
+TEST_F(SocketTransport, LastRequestIsAnsweredAfterClientShutsDownSending) {
+  auto c = connect();
+  c->send_raw("eof1 test_component add (1,2)\neof2 test_component add (2,2)");  // no final '\n'
+  c->shutdown_send();
+  EXPECT_EQ(next_line(*c), "eof1 SUCCESS 3");
+  EXPECT_EQ(next_line(*c), "eof2 SUCCESS 4");
+  EXPECT_THROW(c->read_line(10s), client::ClientError);  // then the server closes
+  EXPECT_TRUE(c->closed());
+}
+
+// ---- async services, cancel, policies
+
+TEST_F(SocketTransport, AsyncResultIsPushedWhenItCompletes) {
+  auto c = connect();
+  c->send_line("req2 worker hold (5,)");
+  // other replies flow while it runs
+  EXPECT_EQ(roundtrip(*c, "q1 test_component add (1,2)"), "q1 SUCCESS 3");
+  EXPECT_EQ(roundtrip(*c, "q2 test ping"), "q2 SUCCESS \"pong\"");
+  c->send_line("q3 worker release ('done!',)");
+  EXPECT_EQ(next_lines(*c, 2), (std::multiset<std::string>{"q3 SUCCESS true", "req2 SUCCESS \"done!\""}));
+}
+
+TEST_F(SocketTransport, AsyncResultGoesToTheConnectionThatAsked) {
+  auto asker = connect();
+  auto other = connect();
+  asker->send_line("a1 worker hold (1,)");
+  // the other connection completes it
+  EXPECT_EQ(roundtrip(*asker, "sync test ping"), "sync SUCCESS \"pong\"");  // a1 has started
+  EXPECT_EQ(roundtrip(*other, "r1 worker release (7,)"), "r1 SUCCESS true");
+  EXPECT_EQ(next_line(*asker), "a1 SUCCESS 7");
+  EXPECT_EQ(roundtrip(*other, "r2 test ping"), "r2 SUCCESS \"pong\"");  // nothing else arrived
+}
+
+TEST_F(SocketTransport, CancelEndsPreemptedAndGetsNoReplyOfItsOwn) {
+  auto c = connect();
+  c->send_line("c1 worker hold (1,)");
+  c->send_line("c1 cancel");
+  EXPECT_EQ(next_line(*c), "c1 PREEMPTED");
+  EXPECT_EQ(roundtrip(*c, "c2 test ping"), "c2 SUCCESS \"pong\"");
+  // the component is free again
+  c->send_line("c3 worker hold (2,)");
+  c->send_line("c4 worker release (0,)");
+  EXPECT_EQ(next_lines(*c, 2), (std::multiset<std::string>{"c4 SUCCESS true", "c3 SUCCESS 0"}));
+}
+
+TEST_F(SocketTransport, CancelOfUnknownOrFinishedIdIsIgnored) {
+  auto c = connect();
+  c->send_line("nobody cancel");
+  EXPECT_EQ(roundtrip(*c, "z1 test_component add (1,2)"), "z1 SUCCESS 3");
+  c->send_line("z1 cancel");  // already answered
+  EXPECT_EQ(roundtrip(*c, "z2 test ping"), "z2 SUCCESS \"pong\"");
+}
+
+TEST_F(SocketTransport, CancelIsScopedToTheConnection) {
+  auto owner = connect();
+  auto stranger = connect();
+  owner->send_line("x worker hold (1,)");
+  EXPECT_EQ(roundtrip(*owner, "sync test ping"), "sync SUCCESS \"pong\"");
+  stranger->send_line("x cancel");  // same id, other connection: not its request
+  EXPECT_EQ(roundtrip(*stranger, "s1 test ping"), "s1 SUCCESS \"pong\"");
+  EXPECT_EQ(roundtrip(*stranger, "s2 worker release ('still running',)"), "s2 SUCCESS true");
+  EXPECT_EQ(next_line(*owner), "x SUCCESS \"still running\"");
+}
+
+TEST_F(SocketTransport, SameIdOnTwoConnectionsIsFine) {
+  auto a = connect();
+  auto b = connect();
+  a->send_line("same worker hold (1,)");
+  EXPECT_EQ(roundtrip(*a, "sync test ping"), "sync SUCCESS \"pong\"");
+  EXPECT_EQ(roundtrip(*b, "same test_component add (1,2)"), "same SUCCESS 3");
+  EXPECT_EQ(roundtrip(*b, "r worker release (1,)"), "r SUCCESS true");
+  EXPECT_EQ(next_line(*a), "same SUCCESS 1");
+}
+
+TEST_F(SocketTransport, SecondPendingRequestWithSameIdIsRefused) {
+  auto c = connect();
+  c->send_line("d1 worker hold (1,)");
+  EXPECT_EQ(roundtrip(*c, "d1 test_component add (1,2)"),
+            "d1 FAILED \"Request id 'd1' is already pending on this connection: wait for its reply or "
+            "use another id\"");
+  c->send_line("d2 worker release (1,)");
+  EXPECT_EQ(next_lines(*c, 2), (std::multiset<std::string>{"d2 SUCCESS true", "d1 SUCCESS 1"}));
+  EXPECT_EQ(roundtrip(*c, "d1 test_component add (1,2)"), "d1 SUCCESS 3");  // free again
+}
+
+TEST_F(SocketTransport, InterruptibleServiceIsPreemptedByTheNextRequest) {
+  auto c = connect();
+  c->send_line("c3 worker hold (20,)");
+  c->send_line("c4 worker hold (2,)");
+  EXPECT_EQ(next_line(*c), "c3 PREEMPTED");
+  c->send_line("r worker release ('done!',)");
+  EXPECT_EQ(next_lines(*c, 2), (std::multiset<std::string>{"r SUCCESS true", "c4 SUCCESS \"done!\""}));
+}
+
+TEST_F(SocketTransport, NonInterruptibleServiceRefusesTheNextRequest) {
+  auto c = connect();
+  c->send_line("c5 strict hold (20,)");
+  EXPECT_EQ(roundtrip(*c, "c6 strict hold (2,)"),
+            "c6 FAILED \"A non-interruptible service (strict.hold) is already running\"");
+  c->send_line("r strict release ('done!',)");
+  EXPECT_EQ(next_lines(*c, 2), (std::multiset<std::string>{"r SUCCESS true", "c5 SUCCESS \"done!\""}));
+}
+
+TEST_F(SocketTransport, NoLocalPolicyFollowsTheGlobalRejectPolicy) {
+  auto c = connect();
+  c->send_line("c7 plain hold (20,)");
+  EXPECT_EQ(roundtrip(*c, "c8 plain hold (2,)"),
+            "c8 FAILED \"A service (plain.hold) is already running. I do not know what to do.\"");
+  c->send_line("r plain release (1,)");
+  EXPECT_EQ(next_lines(*c, 2), (std::multiset<std::string>{"r SUCCESS true", "c7 SUCCESS 1"}));
+}
+
+// ---- clients that vanish, flood or stop reading
+
+TEST_F(SocketTransport, VanishedClientsResultIsDroppedWithoutDisturbingOthers) {
+  {
+    auto gone = connect();
+    gone->send_line("v1 worker hold (1,)");
+    EXPECT_EQ(roundtrip(*gone, "sync test ping"), "sync SUCCESS \"pong\"");
+  }  // closed with v1 pending
+  auto c = connect();
+  EXPECT_EQ(roundtrip(*c, "r worker release (1,)"), "r SUCCESS true");
+  EXPECT_EQ(roundtrip(*c, "p test ping"), "p SUCCESS \"pong\"");  // v1's result went nowhere
+}
+
+TEST_F(SocketTransport, ManyClientsAtOnce) {
+  constexpr int k_clients = 8, k_requests = 25;
+  std::vector<std::thread> threads;
+  std::atomic<int> ok{0};
+  for (int t = 0; t < k_clients; ++t) {
+    threads.emplace_back([&, t] {
+      try {
+        SocketClient c("127.0.0.1", port_);
+        for (int i = 0; i < k_requests; ++i) {
+          std::string id = "c" + std::to_string(t) + "-" + std::to_string(i);
+          c.send_line(id + " test_component add (" + std::to_string(t) + "," + std::to_string(i) + ")");
+          auto line = c.read_line(10s);
+          if (line && *line == id + " SUCCESS " + std::to_string(t + i)) ++ok;
+        }
+      } catch (const std::exception&) {
+      }
+    });
+  }
+  for (auto& th : threads) th.join();
+  EXPECT_EQ(ok.load(), k_clients * k_requests);
+}
+
+TEST_F(SocketTransport, PipelinedRequestsAreAllAnswered) {
+  auto c = connect();
+  std::string batch;
+  constexpr int k_count = 500;
+  for (int i = 0; i < k_count; ++i) batch += std::to_string(i) + " test_component add (" + std::to_string(i) + ",1)\n";
+  c->send_raw(batch);
+  for (int i = 0; i < k_count; ++i)
+    ASSERT_EQ(next_line(*c), std::to_string(i) + " SUCCESS " + std::to_string(i + 1));
+}
+
+class SocketTransportLimits : public SocketFixture {};
+
+TEST_F(SocketTransportLimits, OversizedLineGetsFailedAndConnectionKeepsWorking) {
+  start_server({{"max_line_bytes", 1024}});
+  auto c = connect();
+  std::string huge = "big1 test echo ('" + std::string(5000, 'a') + "',)";
+  EXPECT_EQ(roundtrip(*c, huge),
+            "big1 FAILED \"Request too long: the line exceeds 1024 bytes (max_line_bytes); it was ignored\"");
+  // a long line arriving in pieces, with its end much later
+  c->send_raw("big2 test echo ('" + std::string(3000, 'b'));
+  c->send_raw(std::string(3000, 'b') + "',)\nok1 test ping\n");
+  EXPECT_EQ(next_line(*c),
+            "big2 FAILED \"Request too long: the line exceeds 1024 bytes (max_line_bytes); it was ignored\"");
+  EXPECT_EQ(next_line(*c), "ok1 SUCCESS \"pong\"");
+  // exactly at the limit is fine
+  std::string prefix = "ok2 test echo ('";
+  std::string at_limit = prefix + std::string(1024 - prefix.size() - 3, 'c') + "',)";
+  ASSERT_EQ(at_limit.size(), 1024u);
+  EXPECT_THAT(roundtrip(*c, at_limit), StartsWith("ok2 SUCCESS \"ccc"));
+}
+
+TEST_F(SocketTransportLimits, ClientThatStopsReadingIsDisconnectedOthersAreServed) {
+  start_server({{"max_pending_replies_bytes", 65536}});
+  // a client with a tiny receive window that never reads its replies
+  int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  ASSERT_GE(fd, 0);
+  int small = 4096;
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(port_);
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ASSERT_EQ(::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
+  constexpr int k_requests = 300;  // 300 x 64 KiB of replies: far beyond every buffer
+  std::string flood;
+  for (int i = 0; i < k_requests; ++i) flood += "h" + std::to_string(i) + " test big (65536,)\n";
+  ASSERT_EQ(::send(fd, flood.data(), flood.size(), MSG_NOSIGNAL), static_cast<ssize_t>(flood.size()));
+
+  // meanwhile a well-behaved client is answered
+  auto good = connect();
+  EXPECT_EQ(roundtrip(*good, "g1 test_component add (1,2)"), "g1 SUCCESS 3");
+
+  // the flooder is cut off: it can read what the kernel buffered, then the end
+  timeval tv{10, 0};
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  std::size_t received = 0;
+  bool ended = false;
+  char buffer[65536];
+  for (int reads = 0; reads < 100000; ++reads) {
+    ssize_t n = ::recv(fd, buffer, sizeof buffer, 0);
+    if (n == 0 || (n < 0 && errno == ECONNRESET)) {
+      ended = true;
+      break;
+    }
+    if (n < 0) break;  // timeout: not disconnected
+    received += static_cast<std::size_t>(n);
+  }
+  ::close(fd);
+  EXPECT_TRUE(ended) << "the server kept a client that does not read";
+  EXPECT_LT(received, std::size_t(k_requests) * 65536);
+  EXPECT_EQ(roundtrip(*good, "g2 test ping"), "g2 SUCCESS \"pong\"");
+}
+
+TEST_F(SocketTransportLimits, SuccessWordOkForTheDocumentation) {
+  start_server({{"success_word", "OK"}});
+  auto c = connect();
+  EXPECT_EQ(roundtrip(*c, "req1 test_component add (1,2)"), "req1 OK 3");
+  EXPECT_EQ(roundtrip(*c, "req2 test nothing"), "req2 OK");
+  EXPECT_THAT(roundtrip(*c, "req3 test fail ('no',)"), "req3 FAILED \"no\"");
+}
+
+TEST_F(SocketTransportLimits, GlobalPolicyPreemptAppliesToServicesWithoutLocalPolicy) {
+  start_server({{"global_policy", "preempt"}});
+  auto c = connect();
+  c->send_line("c7 plain hold (20,)");
+  c->send_line("c8 plain hold (2,)");
+  EXPECT_EQ(next_line(*c), "c7 PREEMPTED");
+  c->send_line("r plain release (1,)");
+  EXPECT_EQ(next_lines(*c, 2), (std::multiset<std::string>{"r SUCCESS true", "c8 SUCCESS 1"}));
+  // a local policy still wins
+  c->send_line("s1 strict hold (1,)");
+  EXPECT_THAT(roundtrip(*c, "s2 strict hold (1,)"), HasSubstr("non-interruptible"));
+  c->send_line("r2 strict release (1,)");
+  EXPECT_EQ(next_lines(*c, 2), (std::multiset<std::string>{"r2 SUCCESS true", "s1 SUCCESS 1"}));
+}
+
+TEST_F(SocketTransportLimits, MaxClientsRefusesExtraConnections) {
+  start_server({{"max_clients", 1}});
+  auto first = connect();
+  EXPECT_EQ(roundtrip(*first, "a test ping"), "a SUCCESS \"pong\"");
+  auto second = connect();  // accepted by the kernel, closed by the server
+  EXPECT_THROW(
+      {
+        second->send_line("b test ping");
+        second->read_line(10s);
+      },
+      client::ClientError);
+  EXPECT_EQ(roundtrip(*first, "c test ping"), "c SUCCESS \"pong\"");
+}
+
+TEST_F(SocketTransportLimits, EndpointIsLoopbackWithTheBoundPort) {
+  start_server();
+  EXPECT_NE(port_, 0);
+  EXPECT_EQ(manager_->endpoints().at(0), "tcp://127.0.0.1:" + std::to_string(port_));
+  EXPECT_EQ(manager_->name(), "Socket service manager");
+}
+
+TEST_F(SocketTransportLimits, PortInUseIsAClearStartupError) {
+  start_server();
+  auto plugin = load_transport_plugin(std::string(SIMGATE_TEST_PLUGIN_DIR) + "/libsimgate_transport_socket.so");
+  try {
+    plugin->create({{"port", port_}}, "transports.socket");
+    FAIL() << "a second server started on a port in use";
+  } catch (const std::exception& e) {
+    EXPECT_THAT(e.what(), HasSubstr("cannot listen on 127.0.0.1:" + std::to_string(port_)));
+    EXPECT_THAT(e.what(), HasSubstr("in use"));
+  }
+}
+
+TEST_F(SocketTransportLimits, UnknownOrInvalidOptionsAreRefused) {
+  auto plugin = load_transport_plugin(std::string(SIMGATE_TEST_PLUGIN_DIR) + "/libsimgate_transport_socket.so");
+  EXPECT_THROW(plugin->create({{"port", 0}, {"prot", 1}}, "transports.socket"), std::exception);
+  try {
+    plugin->create({{"port", 0}, {"success_word", "YES"}}, "transports.socket");
+    FAIL() << "success_word YES accepted";
+  } catch (const std::exception& e) {
+    EXPECT_THAT(e.what(), HasSubstr("success_word"));
+  }
+  EXPECT_THROW(plugin->create({{"port", 70000}}, "transports.socket"), std::exception);
+  EXPECT_THROW(plugin->create({{"port", 0}, {"max_line_bytes", 1}}, "transports.socket"), std::exception);
+}
+
+}  // namespace
+}  // namespace simgate::socket::testing
