@@ -207,7 +207,13 @@ int cmd_run(Args& args, bool check_only) {
 
   Deployment deployment = load(positional[0], level);
   auto registry = sim::builtin_registry();
-  Gateway gateway(deployment, registry, options);
+  std::unique_ptr<Gateway> built;
+  try {
+    built = std::make_unique<Gateway>(deployment, registry, options);
+  } catch (const ConfigError& e) {
+    throw ConfigError("config '" + positional[0] + "': " + e.what());
+  }
+  Gateway& gateway = *built;
   if (check_only) {
     std::size_t components = 0;
     for (const auto& r : deployment.robots) components += 1 + r.components.size();

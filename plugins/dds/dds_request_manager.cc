@@ -400,6 +400,8 @@ void DdsRequestManager::send_reply(const ClientId& client_id, ReplyData reply, b
     write_reply(client_id, reply);
     return;
   }
+  log::debug("DDS transport: reply ", reply.seq, " to client ", to_hex(client_id),
+             " parked until its reply reader matches");
   reply.deadline = std::chrono::steady_clock::now() + options_.park_timeout;
   client.parked.push_back(std::move(reply));
   ++parked_count_;

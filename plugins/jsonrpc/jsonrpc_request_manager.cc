@@ -80,14 +80,16 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
 
   void start() { read(); }
 
-  // Queues one line (a newline is added). Closes the session when the client lets too
-  // many bytes pile up; pauses reading at half that.
+  // Queues one line (a newline is added). Closes the session when the client lets more
+  // than max_unsent_bytes pile up behind a reply; stops reading at half that.
   void send(std::string_view line) {
     if (closed_) return;
+    // one reply always goes out, however large; the limit applies to a backlog behind it
+    const bool backlog = !out_.empty() || write_active_;
     out_.append(line);
     out_.push_back('\n');
     const std::size_t unsent = out_.size() + writing_.size();
-    if (unsent > owner_.options_.max_unsent_bytes) {
+    if (backlog && unsent > owner_.options_.max_unsent_bytes) {
       close("it does not read its replies (" + std::to_string(unsent) + " bytes unsent, max_unsent_bytes " +
             std::to_string(owner_.options_.max_unsent_bytes) + ")");
       return;

@@ -169,16 +169,32 @@ void SocketRequestManager::reply(Session& session, std::string_view id, std::str
   session.send(scratch_);
 }
 
+void SocketRequestManager::fail_in_order(const std::shared_ptr<Session>& session, std::string_view id,
+                                         std::string message) {
+  json text = std::move(message);
+  if (session->pending().empty()) {
+    reply(*session, id, k_failed, &text);
+    return;
+  }
+  // earlier requests are still with the core: queue this answer behind them, so that a
+  // client reading replies in order (telnet, scripts) sees them in order
+  scratch_.clear();
+  append_reply(scratch_, id, k_failed, &text);
+  post([this, weak = std::weak_ptr<Session>(session), line = scratch_]() mutable {
+    asio::post(io_, [weak = std::move(weak), line = std::move(line)] {
+      if (auto s = weak.lock()) s->send(line);
+    });
+  });
+}
+
 void SocketRequestManager::on_line(const std::shared_ptr<Session>& session, std::string_view line) {
   RequestLine request = parse_request_line(line);
   switch (request.kind) {
     case RequestLine::Kind::blank:
       return;
-    case RequestLine::Kind::malformed: {
-      json message = request.error;
-      reply(*session, request.id, k_failed, &message);
+    case RequestLine::Kind::malformed:
+      fail_in_order(session, request.id, std::move(request.error));
       return;
-    }
     case RequestLine::Kind::cancel:
       // no reply of its own: the request ends PREEMPTED; unknown ids are ignored (as MORSE)
       if (auto id = session->find_pending(request.id)) cancel(*id);
@@ -189,17 +205,17 @@ void SocketRequestManager::on_line(const std::shared_ptr<Session>& session, std:
 
   // one pending request per id and connection, or replies could not be told apart
   if (session->find_pending(request.id)) {
-    json message = "Request id '" + std::string(request.id) +
-                   "' is already pending on this connection: wait for its reply or use another id";
-    reply(*session, request.id, k_failed, &message);
+    fail_in_order(session, request.id,
+                  "Request id '" + std::string(request.id) +
+                      "' is already pending on this connection: wait for its reply or use another id");
     return;
   }
 
   ParamsParse params = parse_params(request.params, request.params_column);
   if (!params.ok) {
-    json message = "Invalid request syntax: error while parsing the parameters at column " +
-                   std::to_string(params.column) + ": " + params.error;
-    reply(*session, request.id, k_failed, &message);
+    fail_in_order(session, request.id,
+                  "Invalid request syntax: error while parsing the parameters at column " +
+                      std::to_string(params.column) + ": " + params.error);
     return;
   }
 
@@ -218,11 +234,11 @@ void SocketRequestManager::on_oversized_line(const std::shared_ptr<Session>& ses
   while (end < prefix.size() && prefix[end] != ' ' && prefix[end] != '\t' && prefix[end] != '\r') ++end;
   std::string_view id = prefix.substr(begin, end - begin);
   if (id.empty() || id.size() > k_max_echoed_id || end == prefix.size()) id = "-";
-  json message = "Request too long: the line exceeds " + std::to_string(limits_.max_line_bytes) +
-                 " bytes (max_line_bytes); it was ignored";
   log::warning(name(), ": ", session->label(), ": request line longer than ",
                limits_.max_line_bytes, " bytes ignored");
-  reply(*session, id, k_failed, &message);
+  fail_in_order(session, id,
+                "Request too long: the line exceeds " + std::to_string(limits_.max_line_bytes) +
+                    " bytes (max_line_bytes); it was ignored");
 }
 
 void SocketRequestManager::on_session_closed(const std::shared_ptr<Session>& session) {

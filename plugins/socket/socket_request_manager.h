@@ -65,6 +65,8 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   void accept_next();
   void deliver(RequestId id, Outcome& outcome);
   void reply(Session& session, std::string_view id, std::string_view status, const json* value);
+  // Answers FAILED `message` after the connection's earlier requests have been answered.
+  void fail_in_order(const std::shared_ptr<Session>& session, std::string_view id, std::string message);
   void close_all();
 
   // A request sent to the core and not yet answered.

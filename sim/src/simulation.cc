@@ -136,8 +136,18 @@ void Simulation::request_stop() {
 void Simulation::shutdown() {
   if (shut_down_) return;
   shut_down_ = true;
-  // answer what already arrived (the caller of `quit` is answered in its own process())
   try {
+    // answer what already arrived (the caller of `quit` is answered in its own process())
+    process_requests();
+    // async requests still running end now, so their clients get a reply before the
+    // transports close
+    for (auto& e : entries_) {
+      AsyncSlot& slot = *e->component->async_slot();
+      if (!slot.busy()) continue;
+      std::string service = slot.running ? slot.running->service : e->component->name();
+      slot.running_completion.finish(
+          Outcome::failed(Failure::shutdown, "the simulation stopped before " + service + " completed"));
+    }
     process_requests();
   } catch (const std::exception& e) {
     log::error("simulation: while answering the last requests: ", e.what());

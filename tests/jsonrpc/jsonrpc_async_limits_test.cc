@@ -115,8 +115,8 @@ TEST_F(JsonRpcAsync, DuplicatePendingIdIsRefusedThenReusable) {
 }
 
 TEST_F(JsonRpcAsync, BatchWithAsyncEntryAnswersWhenAllAreDone) {
-  client_->send_line(R"([{"jsonrpc":"2.0","method":"robot.arm.add","params":[1,2],"id":1},
-                         {"jsonrpc":"2.0","method":"robot.arm.hold","params":["bt"],"id":2}])");
+  client_->send_line(one_line(R"([{"jsonrpc":"2.0","method":"robot.arm.add","params":[1,2],"id":1},
+                         {"jsonrpc":"2.0","method":"robot.arm.hold","params":["bt"],"id":2}])"));
   auto other = connect();
   EXPECT_TRUE(eventually(*other, "ctl.pending", json::array({"bt"}), true));
   EXPECT_FALSE(client_->receive(50ms).has_value());
@@ -266,9 +266,13 @@ TEST_F(JsonRpcLimits, ConnectionsBeyondTheMaximumAreRefused) {
   clients.pop_back();
   bool served = false;
   for (int attempt = 0; attempt < 200 && !served; ++attempt) {
-    JsonRpcClient again("127.0.0.1", host_->port());
-    auto m = again.request("robot.arm.add", json::array({1, 1}), k_timeout);
-    served = m.contains("result");
+    // until the server has seen the departure, it refuses and closes
+    try {
+      JsonRpcClient again("127.0.0.1", host_->port());
+      auto m = again.request("robot.arm.add", json::array({1, 1}), k_timeout);
+      served = m.contains("result");
+    } catch (const client::ClientError&) {
+    }
   }
   EXPECT_TRUE(served);
 }
@@ -294,15 +298,18 @@ TEST(JsonRpcPlugin, PortInUseIsAClearCreateError) {
 }
 
 TEST(JsonRpcPlugin, BadOptionsAreRefusedWithTheirName) {
-  for (const json& options : {json{{"port", 0}, {"prot", 1}}, json{{"port", 0}, {"on_disconnect", "explode"}},
-                              json{{"port", 0}, {"host", "not an address"}}, json{{"port", 70000}}}) {
+  const std::vector<std::pair<json, std::string>> cases = {
+      {{{"port", 0}, {"prot", 1}}, "prot"},
+      {{{"port", 0}, {"on_disconnect", "explode"}}, "on_disconnect"},
+      {{{"port", 0}, {"host", "not an address"}}, "host"},
+      {{{"port", 70000}}, "port"},
+      {{{"port", 0}, {"max_in_flight", 0}}, "max_in_flight"}};
+  for (const auto& [options, key] : cases) {
     try {
       load_transport(TestHost::default_plugin_path(), options);
-      FAIL() << "accepted " << options.dump();
+      ADD_FAILURE() << "accepted " << options.dump();
     } catch (const std::exception& e) {
-      const std::string what = e.what();
-      const std::string key = options.size() > 1 ? std::prev(options.end()).key() : "port";
-      EXPECT_NE(what.find(options.contains("prot") ? "prot" : key), std::string::npos) << what;
+      EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
     }
   }
 }

@@ -132,14 +132,14 @@ TEST_F(JsonRpcConformance, BatchOfInvalidEntries) {
 }
 
 TEST_F(JsonRpcConformance, MixedBatch) {
-  auto r = round_trip(*client_, R"([
+  auto r = round_trip(*client_, one_line(R"([
     {"jsonrpc": "2.0", "method": "spec.sum", "params": [1,2,4], "id": "1"},
     {"jsonrpc": "2.0", "method": "spec.notify_hello", "params": [7]},
     {"jsonrpc": "2.0", "method": "spec.subtract", "params": [42,23], "id": "2"},
     {"foo": "boo"},
     {"jsonrpc": "2.0", "method": "spec.foo.get", "params": {"name": "myself"}, "id": "5"},
     {"jsonrpc": "2.0", "method": "spec.get_data", "id": "9"}
-  ])");
+  ])"));
   ASSERT_TRUE(r.is_array()) << r.dump();
   ASSERT_EQ(r.size(), 5u) << r.dump();
   std::map<std::string, json> by_id;
@@ -152,8 +152,8 @@ TEST_F(JsonRpcConformance, MixedBatch) {
 }
 
 TEST_F(JsonRpcConformance, BatchOfNotificationsReturnsNothing) {
-  client_->send_line(R"([{"jsonrpc": "2.0", "method": "spec.notify_sum", "params": [1,2,4]},
-                         {"jsonrpc": "2.0", "method": "spec.notify_hello", "params": [7]}])");
+  client_->send_line(one_line(R"([{"jsonrpc": "2.0", "method": "spec.notify_sum", "params": [1,2,4]},
+                         {"jsonrpc": "2.0", "method": "spec.notify_hello", "params": [7]}])"));
   auto r = client_->request("robot.arm.add", json::array({1, 1}), k_timeout);
   EXPECT_EQ(r["result"], 2.0);
   EXPECT_FALSE(client_->receive(100ms).has_value());
@@ -319,7 +319,9 @@ TEST_F(JsonRpcClientTest, ListServicesMatchesDescriptors) {
     EXPECT_EQ((*it)["async"], expected["async"]);
     EXPECT_EQ((*it)["params"], expected["params"]) << d.qualified_name();
     EXPECT_EQ((*it)["doc"], expected["doc"]);
-    if (d.is_async) EXPECT_EQ((*it)["policy"], expected["policy"]);
+    if (d.is_async) {
+      EXPECT_EQ((*it)["policy"], expected["policy"]);
+    }
   }
 }
 

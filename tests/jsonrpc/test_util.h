@@ -30,6 +30,13 @@ inline json next(JsonRpcClient& c) {
   return *m;
 }
 
+// Joins a multi-line literal into one line (one message per line on the wire).
+inline std::string one_line(std::string text) {
+  for (char& c : text)
+    if (c == '\n') c = ' ';
+  return text;
+}
+
 // Sends one raw line and returns the next message.
 inline json round_trip(JsonRpcClient& c, const std::string& line) {
   c.send_line(line);

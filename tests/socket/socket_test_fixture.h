@@ -18,6 +18,7 @@
 #ifndef SIMGATE_TESTS_SOCKET_SOCKET_TEST_FIXTURE_H_
 #define SIMGATE_TESTS_SOCKET_SOCKET_TEST_FIXTURE_H_
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -34,7 +35,7 @@
 #include "simgate/core/plugin_loader.h"
 #include "simgate/core/request_manager.h"
 
-namespace simgate::socket::testing {
+namespace simgate::socket::test {
 
 using namespace std::chrono_literals;
 using client::SocketClient;
@@ -136,6 +137,6 @@ class SocketFixture : public ::testing::Test {
   std::atomic<bool> stop_{false};              // ends loop_
 };
 
-}  // namespace simgate::socket::testing
+}  // namespace simgate::socket::test
 
 #endif  // SIMGATE_TESTS_SOCKET_SOCKET_TEST_FIXTURE_H_

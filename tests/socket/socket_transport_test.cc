@@ -9,11 +9,12 @@
 
 #include "socket_test_fixture.h"
 
-namespace simgate::socket::testing {
+namespace simgate::socket::test {
 namespace {
 
 using ::testing::HasSubstr;
 using ::testing::StartsWith;
+using ::testing::AllOf;
 
 class SocketTransport : public SocketFixture {
  protected:
@@ -145,7 +146,7 @@ TEST_F(SocketTransport, BadParamsSyntaxSaysWhatAndWhere) {
             "p2 FAILED \"Invalid request syntax: error while parsing the parameters at column 27: "
             "unknown name 'x' (expected a number, a quoted string, True, False or None)\"");
   EXPECT_EQ(roundtrip(*c, "p3 test_component add [1, 2] extra"),
-            "p3 FAILED \"Invalid request syntax: error while parsing the parameters at column 31: "
+            "p3 FAILED \"Invalid request syntax: error while parsing the parameters at column 30: "
             "unexpected 'e' after the end of the parameters\"");
   EXPECT_EQ(roundtrip(*c, "p4 test echo ('abc"),
             "p4 FAILED \"Invalid request syntax: error while parsing the parameters at column 15: "
@@ -175,7 +176,9 @@ TEST_F(SocketTransport, MalformedLinesGetFailedAndTheConnectionLives) {
   EXPECT_THAT(roundtrip(*c, "m1"), StartsWith("m1 FAILED \"Malformed request! "));
   EXPECT_THAT(roundtrip(*c, "m2 test_component"), StartsWith("m2 FAILED \"Malformed request! missing the service"));
   // binary garbage: unknown component (printable replacement in the message)
-  EXPECT_THAT(roundtrip(*c, std::string("m3 \x01\x02\x7f\x00zz yy", 14)), StartsWith("m3 FAILED \""));
+  static const char garbage[] = "m3 \x01\x02\x7f\x00zz yy";
+  EXPECT_THAT(roundtrip(*c, std::string(garbage, sizeof garbage - 1)),
+              StartsWith("m3 FAILED \"The request yy has not been registered"));
   // invalid UTF-8 in a name
   EXPECT_EQ(roundtrip(*c, "m4 te\xff\xfest ping"),
             "m4 FAILED \"Invalid request syntax: the component name is not valid UTF-8 (column 6)\"");
@@ -187,7 +190,8 @@ TEST_F(SocketTransport, MalformedLinesGetFailedAndTheConnectionLives) {
 TEST_F(SocketTransport, MalformedLinesFromOneClientDoNotDisturbAnother) {
   auto hostile = connect();
   auto good = connect();
-  hostile->send_raw(std::string("\xff\xfe\x00\x01 garbage\n\x80\n \t\n", 20));
+  static const char garbage[] = "\xff\xfe\x00\x01 garbage\n\x80\n \t\n";
+  hostile->send_raw(std::string(garbage, sizeof garbage - 1));
   EXPECT_EQ(roundtrip(*good, "g1 test_component add (1,2)"), "g1 SUCCESS 3");
   EXPECT_THAT(next_line(*hostile), HasSubstr("FAILED"));
 }
@@ -212,6 +216,15 @@ TEST_F(SocketTransport, SeveralRequestsInOneSegment) {
   EXPECT_EQ(next_line(*c), "k1 SUCCESS 3");
   EXPECT_EQ(next_line(*c), "k2 SUCCESS 7");
   EXPECT_EQ(next_line(*c), "k3 SUCCESS \"pong\"");
+}
+
+TEST_F(SocketTransport, ErrorRepliesKeepTheOrderOfSyncRequests) {
+  auto c = connect();
+  c->send_raw("o1 test_component add (1,2)\no2\no3 test_component add (1,\no4 test ping\n");
+  EXPECT_EQ(next_line(*c), "o1 SUCCESS 3");
+  EXPECT_THAT(next_line(*c), StartsWith("o2 FAILED \"Malformed request!"));
+  EXPECT_THAT(next_line(*c), StartsWith("o3 FAILED \"Invalid request syntax"));
+  EXPECT_EQ(next_line(*c), "o4 SUCCESS \"pong\"");
 }
 
 TEST_F(SocketTransport, LastRequestIsAnsweredAfterClientShutsDownSending) {
@@ -439,7 +452,7 @@ TEST_F(SocketTransportLimits, SuccessWordOkForTheDocumentation) {
   auto c = connect();
   EXPECT_EQ(roundtrip(*c, "req1 test_component add (1,2)"), "req1 OK 3");
   EXPECT_EQ(roundtrip(*c, "req2 test nothing"), "req2 OK");
-  EXPECT_THAT(roundtrip(*c, "req3 test fail ('no',)"), "req3 FAILED \"no\"");
+  EXPECT_EQ(roundtrip(*c, "req3 test fail ('no',)"), "req3 FAILED \"no\"");
 }
 
 TEST_F(SocketTransportLimits, GlobalPolicyPreemptAppliesToServicesWithoutLocalPolicy) {
@@ -504,4 +517,4 @@ TEST_F(SocketTransportLimits, UnknownOrInvalidOptionsAreRefused) {
 }
 
 }  // namespace
-}  // namespace simgate::socket::testing
+}  // namespace simgate::socket::test

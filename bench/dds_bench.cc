@@ -1,0 +1,228 @@
+// dds_bench.cc — DDS round trips: simgate's DDS transport against a raw Cyclone ping-pong.
+//
+// Modes (--mode):
+//   pong     the raw server: reads simgate_Request samples and answers each at once with a
+//            simgate_Reply (result "3"), on its own waitset thread. No simgate core at all.
+//   ping     the raw client: writes a Request, waits for its Reply, --count times.
+//   client   simgate's DdsClient calling `test_component add [1, 2]` on a transport host
+//            (simgate_bench_host --transport dds) --count times.
+// ping and pong use simgate's own wire types (plugins/dds/simgate_dds.idl), the same topics,
+// the same payload ("test_component", "add", "[1,2]") and the same QoS as the transport
+// (RELIABLE, KEEP_ALL, VOLATILE, partition), so the ratio is what simgate adds on top of
+// Cyclone: the request table, the hand-off to process(), JSON, the reply filter.
+// Cyclone is restricted to loopback with multicast off (the compiled-in loopback XML).
+//
+// Usage: simgate_bench_dds --mode pong|ping|client [--domain D] [--partition P]
+//        [--count N] [--warmup W] [--timeout S]
+// pong prints {"ready": true} once its entities exist and runs until SIGTERM/SIGINT or
+// --timeout; ping and client print latency percentiles (µs) as JSON.
+#include <atomic>
+#include <csignal>
+#include <cstring>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "bench_util.h"
+#include "dds_support.h"
+#include "simgate/client/dds_client.h"
+
+namespace {
+
+using simgate::bench::Clock;
+using simgate::bench::json;
+
+std::atomic<bool> g_stop{false};  // set by the signal handler
+extern "C" void on_signal(int) { g_stop.store(true); }
+
+dds_entity_t check(dds_entity_t e, const char* what) {
+  if (e < 0) throw std::runtime_error(std::string("raw DDS ") + what + ": " + simgate::dds::retcode_text(e));
+  return e;
+}
+
+// Participant, partitioned publisher/subscriber and the two topics, like the transport.
+struct RawEndpoints {
+  simgate::dds::Participant participant;
+  dds_entity_t publisher = 0, subscriber = 0, request_topic = 0, reply_topic = 0;
+
+  RawEndpoints(std::uint32_t domain, const std::string& partition)
+      : participant(domain, simgate::dds::k_loopback_xml, "raw DDS ping-pong") {
+    dds_entity_t pp = participant.handle();
+    simgate::dds::QosPtr partition_qos(dds_create_qos());
+    dds_qset_partition1(partition_qos.get(), partition.c_str());
+    publisher = check(dds_create_publisher(pp, partition_qos.get(), nullptr), "publisher");
+    subscriber = check(dds_create_subscriber(pp, partition_qos.get(), nullptr), "subscriber");
+    request_topic = check(dds_create_topic(pp, &simgate_Request_desc, simgate::dds::k_request_topic, nullptr, nullptr),
+                          "request topic");
+    reply_topic = check(dds_create_topic(pp, &simgate_Reply_desc, simgate::dds::k_reply_topic, nullptr, nullptr),
+                        "reply topic");
+  }
+  // reliable, keep-all, volatile: the transport's request and reply QoS
+  static simgate::dds::QosPtr qos() { return simgate::dds::make_qos(false, 0, DDS_SECS(1)); }
+};
+
+// Waits until `entity` reports `status` (a match) or the deadline passes.
+void wait_matched(dds_entity_t entity, bool writer, Clock::time_point deadline) {
+  for (;;) {
+    std::int32_t count = 0;
+    if (writer) {
+      dds_publication_matched_status_t s;
+      dds_get_publication_matched_status(entity, &s);
+      count = static_cast<std::int32_t>(s.current_count);
+    } else {
+      dds_subscription_matched_status_t s;
+      dds_get_subscription_matched_status(entity, &s);
+      count = static_cast<std::int32_t>(s.current_count);
+    }
+    if (count > 0) return;
+    if (Clock::now() > deadline) throw std::runtime_error("raw DDS: no peer matched before the timeout");
+    dds_sleepfor(DDS_MSECS(5));
+  }
+}
+
+int run_pong(std::uint32_t domain, const std::string& partition, double timeout_s) {
+  RawEndpoints ep(domain, partition);
+  auto qos = RawEndpoints::qos();
+  dds_entity_t reader = check(dds_create_reader(ep.subscriber, ep.request_topic, qos.get(), nullptr), "reader");
+  dds_entity_t writer = check(dds_create_writer(ep.publisher, ep.reply_topic, qos.get(), nullptr), "writer");
+  dds_entity_t waitset = check(dds_create_waitset(ep.participant.handle()), "waitset");
+  dds_entity_t cond = check(dds_create_readcondition(reader, DDS_ANY_STATE), "read condition");
+  check(dds_waitset_attach(waitset, cond, 0), "waitset attach");
+  std::cout << json{{"ready", true}}.dump() << std::endl;
+
+  // answer every request at once, until a signal or the time limit
+  auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(timeout_s));
+  void* samples[16] = {};
+  dds_sample_info_t infos[16];
+  static char k_result[] = "3", k_empty[] = "";
+  while (!g_stop.load() && Clock::now() < deadline) {
+    dds_waitset_wait(waitset, nullptr, 0, DDS_MSECS(50));
+    for (;;) {
+      dds_return_t n = dds_take(reader, samples, infos, 16, 16);
+      if (n <= 0) break;
+      for (int i = 0; i < n; ++i) {
+        if (!infos[i].valid_data) continue;
+        auto* req = static_cast<simgate_Request*>(samples[i]);
+        simgate_Reply reply{};
+        std::memcpy(reply.client, req->id.client, sizeof reply.client);
+        reply.seq = req->id.seq;
+        reply.status = simgate_ST_SUCCESS;
+        reply.failure = simgate_FL_NONE;
+        reply.last = true;
+        reply.result = k_result;
+        reply.message = k_empty;
+        reply.data = k_empty;
+        dds_write(writer, &reply);
+      }
+      dds_return_loan(reader, samples, n);
+    }
+  }
+  return 0;
+}
+
+json run_ping(std::uint32_t domain, const std::string& partition, std::size_t count, std::size_t warmup,
+              double timeout_s) {
+  RawEndpoints ep(domain, partition);
+  auto qos = RawEndpoints::qos();
+  dds_entity_t writer = check(dds_create_writer(ep.publisher, ep.request_topic, qos.get(), nullptr), "writer");
+  dds_entity_t reader = check(dds_create_reader(ep.subscriber, ep.reply_topic, qos.get(), nullptr), "reader");
+  dds_entity_t waitset = check(dds_create_waitset(ep.participant.handle()), "waitset");
+  dds_entity_t cond = check(dds_create_readcondition(reader, DDS_ANY_STATE), "read condition");
+  check(dds_waitset_attach(waitset, cond, 0), "waitset attach");
+  auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(timeout_s));
+  wait_matched(writer, true, deadline);
+  wait_matched(reader, false, deadline);
+
+  static char k_component[] = "test_component", k_service[] = "add", k_params[] = "[1,2]";
+  simgate_Request req{};
+  for (int i = 0; i < 16; ++i) req.id.client[i] = static_cast<std::uint8_t>(i + 1);
+  req.op = simgate_OP_CALL;
+  req.component = k_component;
+  req.service = k_service;
+  req.params = k_params;
+  std::vector<std::int64_t> samples;
+  std::size_t errors = 0;
+  void* got[1] = {};
+  dds_sample_info_t info;
+  for (std::size_t i = 0; i < warmup + count; ++i) {
+    req.id.seq = i + 1;
+    auto t0 = Clock::now();
+    if (dds_write(writer, &req) < 0) ++errors;
+    bool answered = false;
+    while (!answered) {
+      if (Clock::now() > deadline) throw std::runtime_error("raw DDS ping: timed out");
+      dds_waitset_wait(waitset, nullptr, 0, DDS_MSECS(100));
+      dds_return_t n = dds_take(reader, got, &info, 1, 1);
+      if (n <= 0) continue;
+      if (info.valid_data) {
+        auto* reply = static_cast<simgate_Reply*>(got[0]);
+        answered = reply->seq == req.id.seq;
+        if (answered && std::strcmp(reply->result, "3") != 0) ++errors;
+      }
+      dds_return_loan(reader, got, n);
+    }
+    if (i >= warmup) samples.push_back(simgate::bench::ns_between(t0, Clock::now()));
+  }
+  json out = simgate::bench::summarize_us(std::move(samples));
+  out["errors"] = errors;
+  return out;
+}
+
+json run_client(std::uint32_t domain, const std::string& partition, std::size_t count, std::size_t warmup,
+                double timeout_s) {
+  simgate::client::DdsClientOptions options;
+  options.domain = domain;
+  options.partition = partition;
+  options.discovery_timeout = std::chrono::milliseconds(static_cast<long long>(timeout_s * 1000));
+  simgate::client::DdsClient client(options);
+  if (!client.wait_for_server(options.discovery_timeout))
+    throw std::runtime_error("simgate DDS client: no server in partition '" + partition + "'");
+  std::vector<std::int64_t> samples;
+  std::size_t errors = 0;
+  const simgate::json params = simgate::json::array({1, 2});
+  std::string first;
+  for (std::size_t i = 0; i < warmup + count; ++i) {
+    auto t0 = Clock::now();
+    auto outcome = client.call("test_component", "add", params, std::chrono::seconds(10));
+    auto t1 = Clock::now();
+    bool ok = outcome.status == simgate::Status::success && outcome.value && *outcome.value == 3;
+    if (!ok) ++errors;
+    if (i == 0) first = outcome.value ? outcome.value->dump() : std::string(simgate::to_string(outcome.status));
+    if (i >= warmup) samples.push_back(simgate::bench::ns_between(t0, t1));
+  }
+  json out = simgate::bench::summarize_us(std::move(samples));
+  out["errors"] = errors;
+  out["first_reply"] = first;
+  return out;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    simgate::bench::Args args(argc, argv);
+    std::string mode = args.get("mode", "");
+    auto domain = static_cast<std::uint32_t>(args.number("domain", 0));
+    std::string partition = args.get("partition", "simgate-bench");
+    auto count = static_cast<std::size_t>(args.number("count", 2000));
+    auto warmup = static_cast<std::size_t>(args.number("warmup", static_cast<double>(count) / 10));
+    double timeout = args.number("timeout", 120);
+    args.finish();
+    std::signal(SIGINT, on_signal);
+    std::signal(SIGTERM, on_signal);
+    if (mode == "pong") return run_pong(domain, partition, timeout);
+    json out;
+    if (mode == "ping")
+      out = run_ping(domain, partition, count, warmup, timeout);
+    else if (mode == "client")
+      out = run_client(domain, partition, count, warmup, timeout);
+    else
+      throw std::invalid_argument("--mode: expected pong, ping or client, found '" + mode + "'");
+    out["mode"] = mode;
+    std::cout << out.dump() << std::endl;
+    return 0;
+  } catch (const std::exception& e) {
+    std::cerr << "simgate_bench_dds: " << e.what() << "\n";
+    return 1;
+  }
+}

@@ -1,0 +1,429 @@
+// loadgen.cc — the one TCP client every line-protocol server is measured with.
+//
+// The echo limit, simgate's socket and JSON-RPC transports, MORSE's Python request manager,
+// the npm JSON-RPC peer and the gateway are all driven by this program, so a ratio between
+// two of them compares servers, not clients. It speaks raw lines over 127.0.0.1 TCP
+// (TCP_NODELAY) and never parses more than it must to validate a reply.
+//
+// Modes (--mode):
+//   latency      one connection, one request outstanding: --count round trips after
+//                --warmup, reported as percentiles (µs).
+//   throughput   --connections C connections, each keeping --window W requests in flight
+//                (every reply read is answered by a new request, all written at once) for
+//                --duration seconds after --warmup-seconds; reports replies per second.
+//   rate         open loop: --rate R requests per second over one connection for
+//                --duration seconds (the load while the gateway runs in real time);
+//                reports the achieved rate and latency percentiles (replies arrive in order).
+//   hold         opens --count idle connections, prints {"connected": N}, keeps them until
+//                its standard input closes or --duration passes (memory per connection).
+//
+// Request lines (--proto): `socket` sends "<id> <--request>" (default
+// "test_component add [1, 2]") and expects "<id> SUCCESS|OK ..."; `jsonrpc` sends
+// {"jsonrpc":"2.0","id":<id>,"method":<--method>,"params":<--params>} and expects a
+// "result". --echo expects the request back unchanged (the echo server). A reply that does
+// not match counts as an error; the harness refuses results with errors.
+//
+// Every loop is bounded by a count and a deadline. Results: one JSON object on stdout.
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <deque>
+#include <iostream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "bench_util.h"
+
+namespace {
+
+using simgate::bench::Clock;
+using simgate::bench::json;
+
+// How requests are written and replies recognised.
+struct Protocol {
+  std::string proto = "socket";  // "socket" or "jsonrpc"
+  std::string request = "test_component add [1, 2]";  // socket: everything after the id
+  std::string method = "test_component.add";          // jsonrpc method
+  std::string params = "[1,2]";                       // jsonrpc params (JSON text)
+  bool echo = false;                                  // replies are the requests, unchanged
+
+  // Appends request `id` (with its '\n') to `out`.
+  void append_request(std::uint64_t id, std::string& out) const {
+    if (proto == "jsonrpc") {
+      out += R"({"jsonrpc":"2.0","id":)";
+      out += std::to_string(id);
+      out += R"(,"method":")";
+      out += method;
+      out += R"(","params":)";
+      out += params;
+      out += "}\n";
+    } else {
+      out += std::to_string(id);
+      out += ' ';
+      out += request;
+      out += '\n';
+    }
+  }
+
+  // True when `line` (without '\n') is a successful reply.
+  bool reply_ok(std::string_view line) const {
+    if (echo) return !line.empty();
+    if (proto == "jsonrpc") return line.find("\"result\"") != std::string_view::npos;
+    auto space = line.find(' ');
+    if (space == std::string_view::npos) return false;
+    auto status = line.substr(space + 1);
+    return status.rfind("SUCCESS", 0) == 0 || status.rfind("OK", 0) == 0;
+  }
+};
+
+// One TCP connection with a line reader. Non-blocking; waits use poll with deadlines.
+class Connection {
+ public:
+  Connection(const std::string& host, int port) {
+    fd_ = ::socket(AF_INET, SOCK_STREAM, 0);
+    if (fd_ < 0) throw std::runtime_error(std::string("socket: ") + std::strerror(errno));
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_port = htons(static_cast<std::uint16_t>(port));
+    if (inet_pton(AF_INET, host.c_str(), &addr.sin_addr) != 1)
+      throw std::runtime_error("host '" + host + "': expected an IPv4 address");
+    if (::connect(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0)
+      throw std::runtime_error("connect " + host + ":" + std::to_string(port) + ": " + std::strerror(errno));
+    int one = 1;
+    ::setsockopt(fd_, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+    ::fcntl(fd_, F_SETFL, ::fcntl(fd_, F_GETFL) | O_NONBLOCK);
+  }
+  ~Connection() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  Connection(const Connection&) = delete;
+  Connection& operator=(const Connection&) = delete;
+
+  int fd() const { return fd_; }
+
+  // Queues bytes and writes what the socket takes now.
+  void send(std::string_view bytes) {
+    out_.append(bytes);
+    flush();
+  }
+  // Writes queued bytes until the socket would block.
+  void flush() {
+    while (sent_ < out_.size()) {
+      ssize_t n = ::send(fd_, out_.data() + sent_, out_.size() - sent_, MSG_NOSIGNAL);
+      if (n > 0) {
+        sent_ += static_cast<std::size_t>(n);
+      } else if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) {
+        return;
+      } else if (n < 0 && errno == EINTR) {
+        continue;
+      } else {
+        throw std::runtime_error(std::string("send: ") + std::strerror(errno));
+      }
+    }
+    out_.clear();
+    sent_ = 0;
+  }
+  bool wants_write() const { return sent_ < out_.size(); }
+
+  // Reads what is available; returns false if nothing was (would block).
+  bool read_some() {
+    char chunk[65536];
+    ssize_t n = ::recv(fd_, chunk, sizeof chunk, 0);
+    if (n > 0) {
+      in_.append(chunk, static_cast<std::size_t>(n));
+      return true;
+    }
+    if (n == 0) throw std::runtime_error("the server closed the connection");
+    if (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) return false;
+    throw std::runtime_error(std::string("recv: ") + std::strerror(errno));
+  }
+
+  // Calls fn(line) for every complete line received; returns how many.
+  template <class F>
+  std::size_t take_lines(F&& fn) {
+    std::size_t count = 0, start = 0;
+    for (;;) {
+      auto nl = in_.find('\n', start);
+      if (nl == std::string::npos) break;
+      std::string_view line(in_.data() + start, nl - start);
+      if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+      fn(line);
+      ++count;
+      start = nl + 1;
+    }
+    in_.erase(0, start);
+    return count;
+  }
+
+  // Waits for the next line until `deadline`; throws on timeout.
+  std::string wait_line(Clock::time_point deadline) {
+    for (;;) {
+      auto nl = in_.find('\n');
+      if (nl != std::string::npos) {
+        std::string line = in_.substr(0, nl);
+        in_.erase(0, nl + 1);
+        if (!line.empty() && line.back() == '\r') line.pop_back();
+        return line;
+      }
+      if (read_some()) continue;
+      wait(POLLIN, deadline);
+    }
+  }
+
+  // Blocks until `events` or `deadline` (throws on timeout).
+  void wait(short events, Clock::time_point deadline) {
+    auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count();
+    if (left <= 0) throw std::runtime_error("timed out waiting for the server");
+    pollfd p{fd_, events, 0};
+    ::poll(&p, 1, static_cast<int>(std::min<long long>(left, 1000)));
+  }
+
+ private:
+  int fd_ = -1;           // the socket
+  std::string in_;        // received, not yet returned as lines
+  std::string out_;       // queued for sending
+  std::size_t sent_ = 0;  // bytes of out_ already sent
+};
+
+Clock::duration seconds(double s) {
+  return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s));
+}
+
+// One request outstanding: round-trip percentiles.
+json run_latency(const std::string& host, int port, const Protocol& p, std::size_t count,
+                 std::size_t warmup, double timeout_s) {
+  Connection c(host, port);
+  std::vector<std::int64_t> samples;
+  samples.reserve(count);
+  std::size_t errors = 0;
+  std::string first_reply, request;
+  auto deadline = Clock::now() + seconds(timeout_s);
+  for (std::size_t i = 0; i < warmup + count; ++i) {
+    request.clear();
+    p.append_request(i + 1, request);
+    auto t0 = Clock::now();
+    c.send(request);
+    while (c.wants_write()) {
+      c.wait(POLLOUT, deadline);
+      c.flush();
+    }
+    std::string line = c.wait_line(deadline);
+    auto t1 = Clock::now();
+    if (i == 0) first_reply = line;
+    if (!p.reply_ok(line) || (p.echo && line + "\n" != request)) ++errors;
+    if (i >= warmup) samples.push_back(simgate::bench::ns_between(t0, t1));
+  }
+  json out = simgate::bench::summarize_us(std::move(samples));
+  out["mode"] = "latency";
+  out["errors"] = errors;
+  out["first_reply"] = first_reply;
+  return out;
+}
+
+// --connections C, --window W in flight each, for --duration seconds after a warm-up.
+json run_throughput(const std::string& host, int port, const Protocol& p, int connections,
+                    int window, double warmup_s, double duration_s) {
+  std::vector<std::unique_ptr<Connection>> conns;
+  std::vector<std::size_t> in_flight(connections, 0);
+  for (int i = 0; i < connections; ++i) conns.push_back(std::make_unique<Connection>(host, port));
+  std::uint64_t next_id = 1;
+  std::string batch;
+  auto send_requests = [&](int i, std::size_t n) {
+    batch.clear();
+    for (std::size_t k = 0; k < n; ++k) p.append_request(next_id++, batch);
+    conns[i]->send(batch);
+    in_flight[i] += n;
+  };
+  // fill every window, then keep it full
+  for (int i = 0; i < connections; ++i) send_requests(i, static_cast<std::size_t>(window));
+
+  auto start = Clock::now();
+  auto measure_from = start + seconds(warmup_s);
+  auto measure_to = measure_from + seconds(duration_s);
+  auto drain_deadline = measure_to + std::chrono::seconds(10);
+  bool measuring = false, sending = true;
+  std::uint64_t replies = 0, errors = 0;
+  std::string first_reply;
+  Clock::time_point t_first{}, t_last{};
+  std::vector<pollfd> fds(connections);
+  for (;;) {
+    auto now = Clock::now();
+    if (!measuring && now >= measure_from) {
+      measuring = true;
+      t_first = now;
+      replies = 0;
+    }
+    if (sending && now >= measure_to) {
+      sending = false;
+      t_last = now;
+    }
+    std::size_t outstanding = 0;
+    for (auto n : in_flight) outstanding += n;
+    if (!sending && outstanding == 0) break;
+    if (now >= drain_deadline) throw std::runtime_error("replies still missing 10 s after the run");
+    for (int i = 0; i < connections; ++i)
+      fds[i] = pollfd{conns[i]->fd(), static_cast<short>(POLLIN | (conns[i]->wants_write() ? POLLOUT : 0)), 0};
+    ::poll(fds.data(), fds.size(), 100);
+    for (int i = 0; i < connections; ++i) {
+      if (fds[i].revents & POLLOUT) conns[i]->flush();
+      if (!(fds[i].revents & (POLLIN | POLLHUP | POLLERR))) continue;
+      while (conns[i]->read_some()) {
+      }
+      std::size_t got = conns[i]->take_lines([&](std::string_view line) {
+        if (first_reply.empty()) first_reply = line;
+        if (!p.reply_ok(line)) ++errors;
+      });
+      in_flight[i] -= got;
+      if (sending) {
+        replies += got;
+        if (got) send_requests(i, got);
+      }
+    }
+  }
+  double elapsed = std::chrono::duration<double>(t_last - t_first).count();
+  return {{"mode", "throughput"},
+          {"connections", connections},
+          {"window", window},
+          {"replies", replies},
+          {"seconds", elapsed},
+          {"rps", elapsed > 0 ? static_cast<double>(replies) / elapsed : 0.0},
+          {"errors", errors},
+          {"first_reply", first_reply}};
+}
+
+// Open loop at --rate requests per second over one connection.
+json run_rate(const std::string& host, int port, const Protocol& p, double rate, double duration_s,
+              std::size_t max_outstanding) {
+  Connection c(host, port);
+  std::deque<Clock::time_point> sent_at;  // send times of requests not yet answered (FIFO)
+  std::vector<std::int64_t> samples;
+  std::uint64_t sent = 0, replies = 0, errors = 0, skipped = 0;
+  std::string batch;
+  auto start = Clock::now();
+  auto stop_sending = start + seconds(duration_s);
+  auto drain_deadline = stop_sending + std::chrono::seconds(10);
+  for (;;) {
+    auto now = Clock::now();
+    if (now < stop_sending) {
+      // send what is due by now (bounded outstanding: a stalled server cannot grow the queue)
+      auto due = static_cast<std::uint64_t>(std::chrono::duration<double>(now - start).count() * rate);
+      batch.clear();
+      while (sent + skipped < due) {
+        if (sent_at.size() >= max_outstanding) {
+          ++skipped;
+          continue;
+        }
+        p.append_request(sent + 1, batch);
+        sent_at.push_back(now);
+        ++sent;
+      }
+      if (!batch.empty()) c.send(batch);
+    } else if (sent_at.empty()) {
+      break;
+    } else if (now >= drain_deadline) {
+      throw std::runtime_error("replies still missing 10 s after the run");
+    }
+    pollfd pfd{c.fd(), static_cast<short>(POLLIN | (c.wants_write() ? POLLOUT : 0)), 0};
+    ::poll(&pfd, 1, 1);
+    if (pfd.revents & POLLOUT) c.flush();
+    if (pfd.revents & (POLLIN | POLLHUP | POLLERR)) {
+      while (c.read_some()) {
+      }
+      auto t = Clock::now();
+      c.take_lines([&](std::string_view line) {
+        if (!p.reply_ok(line)) ++errors;
+        if (!sent_at.empty()) {
+          samples.push_back(simgate::bench::ns_between(sent_at.front(), t));
+          sent_at.pop_front();
+        }
+        ++replies;
+      });
+    }
+  }
+  double elapsed = std::chrono::duration<double>(stop_sending - start).count();
+  json out = simgate::bench::summarize_us(std::move(samples));
+  out["mode"] = "rate";
+  out["target_rps"] = rate;
+  out["achieved_rps"] = static_cast<double>(replies) / elapsed;
+  out["sent"] = sent;
+  out["replies"] = replies;
+  out["skipped"] = skipped;
+  out["errors"] = errors;
+  return out;
+}
+
+// Opens `count` idle connections and keeps them until stdin closes or the time is up.
+json run_hold(const std::string& host, int port, std::size_t count, double duration_s) {
+  std::vector<std::unique_ptr<Connection>> conns;
+  for (std::size_t i = 0; i < count; ++i) conns.push_back(std::make_unique<Connection>(host, port));
+  std::cout << json{{"connected", conns.size()}}.dump() << std::endl;
+  auto deadline = Clock::now() + seconds(duration_s);
+  char byte;
+  while (Clock::now() < deadline) {
+    pollfd p{0, POLLIN, 0};
+    if (::poll(&p, 1, 100) > 0 && ::read(0, &byte, 1) <= 0) break;  // stdin closed
+  }
+  // the connections must still be open: a server that dropped them would show here
+  std::size_t alive = 0;
+  for (auto& c : conns) {
+    pollfd p{c->fd(), POLLIN, 0};
+    if (::poll(&p, 1, 0) == 0) ++alive;
+  }
+  return {{"mode", "hold"}, {"connections", count}, {"still_open", alive}};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    simgate::bench::Args args(argc, argv);
+    std::string mode = args.get("mode", "latency");
+    std::string host = args.get("host", "127.0.0.1");
+    int port = static_cast<int>(args.number("port", 0));
+    Protocol p;
+    p.proto = args.get("proto", "socket");
+    p.request = args.get("request", p.request);
+    p.method = args.get("method", p.method);
+    p.params = args.get("params", p.params);
+    p.echo = args.flag("echo");
+    auto count = static_cast<std::size_t>(args.number("count", 2000));
+    auto warmup = static_cast<std::size_t>(args.number("warmup", static_cast<double>(count) / 10));
+    double timeout = args.number("timeout", 60);
+    int connections = static_cast<int>(args.number("connections", 1));
+    int window = static_cast<int>(args.number("window", 1));
+    double warmup_s = args.number("warmup-seconds", 0.3);
+    double duration = args.number("duration", 2);
+    double rate = args.number("rate", 10000);
+    auto max_outstanding = static_cast<std::size_t>(args.number("max-outstanding", 4096));
+    args.finish();
+    if (port <= 0) throw std::invalid_argument("--port is required");
+    if (p.proto != "socket" && p.proto != "jsonrpc")
+      throw std::invalid_argument("--proto: expected socket or jsonrpc, found '" + p.proto + "'");
+    if (connections < 1 || window < 1) throw std::invalid_argument("--connections and --window must be >= 1");
+
+    json out;
+    if (mode == "latency")
+      out = run_latency(host, port, p, count, warmup, timeout);
+    else if (mode == "throughput")
+      out = run_throughput(host, port, p, connections, window, warmup_s, duration);
+    else if (mode == "rate")
+      out = run_rate(host, port, p, rate, duration, max_outstanding);
+    else if (mode == "hold")
+      out = run_hold(host, port, count, duration);
+    else
+      throw std::invalid_argument("--mode: expected latency, throughput, rate or hold, found '" + mode + "'");
+    std::cout << out.dump() << std::endl;
+    return 0;
+  } catch (const std::exception& e) {
+    std::cerr << "simgate_bench_loadgen: " << e.what() << "\n";
+    return 1;
+  }
+}

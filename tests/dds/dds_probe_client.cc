@@ -1,0 +1,79 @@
+// dds_probe_client — a DdsClient in its own process, for tests that need the client
+// elsewhere (another network namespace) or killable (client death).
+//
+//   dds_probe_client DOMAIN PARTITION CONFIG waypoint X Y
+//       waits for the server, lists its services, calls robot.waypoint goto(X, Y, 0) and
+//       robot.pose get_local_data(); prints one JSON object and exits 0 (1 on any failure).
+//   dds_probe_client DOMAIN PARTITION CONFIG hang COMPONENT SERVICE PARAMS_JSON
+//       starts an async call, prints "accepted" once acknowledged, then waits (at most 60 s)
+//       to be killed.
+//
+// CONFIG is Cyclone XML text or a file:// URI. Every wait is bounded.
+#include <chrono>
+#include <iostream>
+#include <string>
+#include <thread>
+
+#include "simgate/client/dds_client.h"
+
+using namespace std::chrono_literals;
+using simgate::json;
+using simgate::client::DdsClient;
+using simgate::client::DdsClientOptions;
+
+namespace {
+
+json outcome_json(const simgate::Outcome& o) {
+  json out = {{"status", simgate::to_string(o.status)}, {"message", o.message}};
+  out["value"] = o.value ? *o.value : json();
+  return out;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 5) {
+    std::cerr << "usage: dds_probe_client DOMAIN PARTITION CONFIG (waypoint X Y | hang COMPONENT SERVICE PARAMS)\n";
+    return 2;
+  }
+  try {
+    DdsClientOptions options;
+    options.domain = static_cast<std::uint32_t>(std::stoul(argv[1]));
+    options.partition = argv[2];
+    options.config = argv[3];
+    options.discovery_timeout = 30s;
+    std::string mode = argv[4];
+    DdsClient client(options);
+    if (!client.wait_for_server(30s)) {
+      std::cerr << "dds_probe_client: no server in partition " << options.partition << "\n";
+      return 1;
+    }
+
+    if (mode == "waypoint" && argc == 7) {
+      json result;
+      json services = client.list_services(30s);
+      result["services"] = json::array();
+      for (const json& s : services) result["services"].push_back(s["component"].get<std::string>() + "." + s["name"].get<std::string>());
+      double x = std::stod(argv[5]), y = std::stod(argv[6]);
+      result["goto"] = outcome_json(client.call("robot.waypoint", "goto", {x, y, 0.0}, 120s));
+      result["pose"] = outcome_json(client.call("robot.pose", "get_local_data", nullptr, 30s));
+      std::cout << result.dump() << std::endl;
+      return 0;
+    }
+    if (mode == "hang" && argc == 8) {
+      auto id = client.start(argv[5], argv[6], json::parse(argv[7]));
+      if (!client.wait_accepted(id, 30s)) {
+        std::cerr << "dds_probe_client: call not accepted\n";
+        return 1;
+      }
+      std::cout << "accepted" << std::endl;
+      std::this_thread::sleep_for(60s);  // until killed
+      return 1;
+    }
+    std::cerr << "dds_probe_client: unknown mode or wrong arguments\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "dds_probe_client: " << e.what() << "\n";
+    return 1;
+  }
+}

@@ -1,0 +1,251 @@
+// DDS tests with more than one process:
+//  - a client process killed mid-call (no clean DDS goodbye): the server notices when its
+//    lease expires and cancels the client's async call;
+//  - "two machines on one machine": the gateway in one network namespace, a client in
+//    another, joined by a veth pair; Cyclone bound to the veth interfaces, no multicast,
+//    nothing sent anywhere else. Needs root (skipped with a message otherwise).
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "dds_test_support.h"
+
+extern char** environ;
+
+namespace simgate::dds::test {
+namespace {
+
+namespace fs = std::filesystem;
+
+const char* const k_plugin = SIMGATE_TEST_PLUGIN_DIR "/libsimgate_transport_dds.so";
+const char* const k_probe = SIMGATE_BINARY_DIR "/bin/dds_probe_client";
+const char* const k_gateway = SIMGATE_BINARY_DIR "/bin/simgate";
+const char* const k_c_client = SIMGATE_BINARY_DIR "/bin/dds_c_client";
+
+std::string read_file(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// A child process with its stdout on a pipe; killed and reaped on destruction.
+class Child {
+ public:
+  explicit Child(const std::vector<std::string>& argv) {
+    int fds[2];
+    if (pipe2(fds, O_CLOEXEC) != 0) return;
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_adddup2(&actions, fds[1], STDOUT_FILENO);
+    std::vector<char*> args;
+    for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+    args.push_back(nullptr);
+    if (posix_spawn(&pid_, args[0], &actions, nullptr, args.data(), environ) != 0) pid_ = -1;
+    posix_spawn_file_actions_destroy(&actions);
+    close(fds[1]);
+    out_ = fds[0];
+  }
+  ~Child() {
+    kill_now();
+    if (out_ >= 0) close(out_);
+  }
+  bool running() const { return pid_ > 0; }
+
+  // Everything the child printed up to `needle` (or up to EOF / timeout).
+  std::string read_until(const std::string& needle, std::chrono::milliseconds timeout) {
+    auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (output_.find(needle) == std::string::npos) {
+      auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+      if (left.count() <= 0) break;
+      pollfd p{out_, POLLIN, 0};
+      if (poll(&p, 1, static_cast<int>(left.count())) <= 0) break;
+      char buffer[4096];
+      ssize_t n = read(out_, buffer, sizeof buffer);
+      if (n <= 0) break;
+      output_.append(buffer, static_cast<std::size_t>(n));
+    }
+    return output_;
+  }
+
+  // Waits for the exit status (-1 on timeout).
+  int wait_exit(std::chrono::milliseconds timeout) {
+    int status = 0;
+    bool exited = eventually([&] { return waitpid(pid_, &status, WNOHANG) == pid_; }, timeout);
+    if (!exited) return -1;
+    pid_ = -1;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  }
+
+  void kill_now(int signal = SIGKILL) {
+    if (pid_ <= 0) return;
+    ::kill(pid_, signal);
+    waitpid(pid_, nullptr, 0);
+    pid_ = -1;
+  }
+
+  // Asks politely (SIGTERM), then insists.
+  void terminate() {
+    if (pid_ <= 0) return;
+    ::kill(pid_, SIGTERM);
+    if (wait_exit(10s) == -1) kill_now();
+  }
+
+ private:
+  pid_t pid_ = -1;      // the child, -1 once reaped
+  int out_ = -1;        // its stdout
+  std::string output_;  // read so far
+};
+
+TEST(DdsProcessTest, KilledClientHasItsAsyncCallsCancelled) {
+  auto server = load_transport(k_plugin, server_options(test_partition()));
+  AsyncProbe probe;
+  server->register_async_service("robot", [&](Completion c, double) { probe.on_start(c); }, "goto", {"x"});
+  SimThread sim(server);
+
+  // the client announces a 1 s lease, so its death is noticed quickly
+  std::string xml = read_file(SIMGATE_LOOPBACK_DDS_XML);
+  auto at = xml.find("<Discovery>");
+  ASSERT_NE(at, std::string::npos);
+  xml.insert(at + std::string("<Discovery>").size(), "<LeaseDuration>1s</LeaseDuration>");
+  Child client({k_probe, std::to_string(test_domain()), test_partition(), xml, "hang", "robot", "goto", "[1.0]"});
+  ASSERT_TRUE(client.running());
+  ASSERT_NE(client.read_until("accepted", 30s).find("accepted"), std::string::npos);
+  ASSERT_TRUE(probe.wait_started(1));
+  Completion running = probe.completion();
+  EXPECT_FALSE(running.done());
+
+  client.kill_now(SIGKILL);  // no goodbye on the wire
+  EXPECT_TRUE(eventually([&] { return running.done(); }, 30s)) << "the killed client's call is still running";
+}
+
+// The C client of docs/transports/dds.md, written against the IDL alone.
+TEST(DdsProcessTest, PlainCClientFromTheDocsCallsAService) {
+  auto server = load_transport(k_plugin, server_options(test_partition()));
+  server->register_service("calc", [](double a, double b) { return a + b; }, "add", {"a", "b"});
+  AsyncProbe probe;
+  server->register_async_service("robot", [&](Completion c) { probe.on_start(c); c(Status::success, "done"); }, "go");
+  SimThread sim(server);
+  std::string xml = read_file(SIMGATE_LOOPBACK_DDS_XML);
+  Child sync_call({k_c_client, std::to_string(test_domain()), test_partition(), "calc", "add", "[2, 40]", xml});
+  EXPECT_NE(sync_call.read_until("\n", 60s).find("SUCCESS 42"), std::string::npos);
+  EXPECT_EQ(sync_call.wait_exit(30s), 0);
+  Child async_call({k_c_client, std::to_string(test_domain()), test_partition(), "robot", "go", "[]", xml});
+  EXPECT_NE(async_call.read_until("\n", 60s).find("SUCCESS \"done\""), std::string::npos);
+  EXPECT_EQ(async_call.wait_exit(30s), 0);
+}
+
+// Runs a command, returns its exit code.
+int run(const std::string& command) { return std::system((command + " >/dev/null 2>&1").c_str()); }
+
+// Two network namespaces joined by a veth pair; deleted on destruction (also on failure).
+class TwoHosts {
+ public:
+  TwoHosts() {
+    std::string tag = std::to_string(getpid());
+    ns_a = "sgdds_a_" + tag;
+    ns_b = "sgdds_b_" + tag;
+    if_a = "sgA" + tag.substr(0, 10);
+    if_b = "sgB" + tag.substr(0, 10);
+    const std::vector<std::string> steps = {
+        "ip netns add " + ns_a,
+        "ip netns add " + ns_b,
+        "ip link add " + if_a + " type veth peer name " + if_b,
+        "ip link set " + if_a + " netns " + ns_a,
+        "ip link set " + if_b + " netns " + ns_b,
+        "ip -n " + ns_a + " addr add " + addr_a + "/24 dev " + if_a,
+        "ip -n " + ns_b + " addr add " + addr_b + "/24 dev " + if_b,
+        "ip -n " + ns_a + " link set " + if_a + " up",
+        "ip -n " + ns_b + " link set " + if_b + " up",
+        "ip -n " + ns_a + " link set lo up",
+        "ip -n " + ns_b + " link set lo up",
+    };
+    for (const auto& step : steps)
+      if (run(step) != 0) {
+        error = "'" + step + "' failed";
+        return;
+      }
+    ok = true;
+  }
+  ~TwoHosts() {
+    // deleting a namespace deletes its end of the veth pair, and with it the other end
+    run("ip netns del " + ns_a);
+    run("ip netns del " + ns_b);
+    run("ip link del " + if_a);
+  }
+
+  // Cyclone settings of one host: its veth only, unicast discovery of both addresses.
+  std::string cyclone_xml(const std::string& interface) const {
+    return "<CycloneDDS xmlns=\"https://cdds.io/config\"><Domain Id=\"any\"><General><Interfaces>"
+           "<NetworkInterface name=\"" + interface + "\" multicast=\"false\"/></Interfaces>"
+           "<AllowMulticast>false</AllowMulticast></General><Discovery><ParticipantIndex>auto</ParticipantIndex>"
+           "<MaxAutoParticipantIndex>20</MaxAutoParticipantIndex><Peers><Peer address=\"" + addr_a +
+           "\"/><Peer address=\"" + addr_b + "\"/></Peers></Discovery></Domain></CycloneDDS>";
+  }
+
+  std::string ns_a, ns_b;                   // namespace names ("hosts")
+  std::string if_a, if_b;                   // veth ends
+  std::string addr_a = "10.203.77.1";       // inside ns_a only
+  std::string addr_b = "10.203.77.2";       // inside ns_b only
+  bool ok = false;                          // everything was created
+  std::string error;                        // why not
+};
+
+TEST(DdsNetnsTest, ClientOnAnotherHostDiscoversListsAndDrivesRobotToWaypoint) {
+  if (geteuid() != 0) GTEST_SKIP() << "needs root to create network namespaces (ip netns add); skipped";
+  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  TwoHosts hosts;
+  if (!hosts.ok) GTEST_SKIP() << "cannot create two network namespaces joined by veth: " << hosts.error;
+
+  // the demo deployment, served over DDS on host A's veth only
+  json config = json::parse(read_file(SIMGATE_SOURCE_DIR "/config/demo.json"));
+  config["scene"]["mjcf"] = SIMGATE_SOURCE_DIR "/config/scenes/demo.xml";
+  config["transports"] = {{"dds", {{"plugin", "dds"},
+                                   {"options", {{"domain", test_domain()},
+                                                {"partition", test_partition()},
+                                                {"config", hosts.cyclone_xml(hosts.if_a)}}}}}};
+  config["services"] = {{"default", {"dds"}}};
+  fs::path dir = fs::path(SIMGATE_BINARY_DIR) / "tests" / "dds" / ("netns-" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  std::string config_path = (dir / "deployment.json").string();
+  std::ofstream(config_path) << config.dump(2);
+
+  Child gateway({"/usr/sbin/ip", "netns", "exec", hosts.ns_a, k_gateway, "run", config_path, "--realtime-factor",
+                 "4", "--plugin-path", SIMGATE_TEST_PLUGIN_DIR});
+  ASSERT_TRUE(gateway.running());
+  Child client({"/usr/sbin/ip", "netns", "exec", hosts.ns_b, k_probe, std::to_string(test_domain()), test_partition(),
+                hosts.cyclone_xml(hosts.if_b), "waypoint", "2.0", "1.0"});
+  ASSERT_TRUE(client.running());
+  std::string output = client.read_until("\n", 150s);
+  int code = client.wait_exit(10s);
+  gateway.terminate();
+  fs::remove_all(dir);
+  ASSERT_EQ(code, 0) << "client output: " << output;
+
+  json result = json::parse(output);
+  std::set<std::string> services(result["services"].begin(), result["services"].end());
+  EXPECT_TRUE(services.count("robot.waypoint.goto")) << output;
+  EXPECT_TRUE(services.count("robot.pose.get_local_data")) << output;
+  EXPECT_EQ(result["goto"]["status"], "SUCCESS") << output;
+  ASSERT_EQ(result["pose"]["status"], "SUCCESS") << output;
+  const json& pose = result["pose"]["value"];
+  ASSERT_TRUE(pose.contains("x") && pose.contains("y")) << output;
+  EXPECT_NEAR(pose["x"].get<double>(), 2.0, 0.6) << output;
+  EXPECT_NEAR(pose["y"].get<double>(), 1.0, 0.6) << output;
+}
+
+}  // namespace
+}  // namespace simgate::dds::test

@@ -1,0 +1,506 @@
+// Integration tests of the DDS transport over real Cyclone DDS (loopback only): the plugin
+// loaded with dlopen serves test services; DdsClient and a raw Cyclone client call them.
+#include <atomic>
+#include <cstring>
+#include <memory>
+#include <set>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "dds_support.h"
+#include "dds_test_support.h"
+#include "simgate/client/dds_client.h"
+#include "simgate/core/log.h"
+
+namespace simgate::dds::test {
+namespace {
+
+using client::ClientError;
+using client::DdsClient;
+using client::DdsClientOptions;
+
+const char* const k_plugin = SIMGATE_TEST_PLUGIN_DIR "/libsimgate_transport_dds.so";
+
+// A client speaking the wire types directly (no DdsClient), to control every field and
+// the moment its reply reader appears.
+class RawClient {
+ public:
+  explicit RawClient(const std::string& partition)
+      : participant_(test_domain(), ("file://" + std::string(SIMGATE_LOOPBACK_DDS_XML)).c_str(), "raw client") {
+    dds_entity_t pp = participant_.handle();
+    QosPtr partition_qos(dds_create_qos());
+    dds_qset_partition1(partition_qos.get(), partition.c_str());
+    publisher_ = dds_create_publisher(pp, partition_qos.get(), nullptr);
+    subscriber_ = dds_create_subscriber(pp, partition_qos.get(), nullptr);
+    dds_entity_t topic = dds_create_topic(pp, &simgate_Request_desc, k_request_topic, nullptr, nullptr);
+    QosPtr qos = make_qos(false, 0, DDS_SECS(1));
+    writer_ = dds_create_writer(publisher_, topic, qos.get(), nullptr);
+    dds_guid_t guid;
+    dds_get_guid(writer_, &guid);
+    id_ = to_client_id(guid);
+  }
+
+  bool wait_request_matched(std::chrono::milliseconds timeout = 10s) {
+    return eventually([&] {
+      dds_publication_matched_status_t st;
+      dds_get_publication_matched_status(writer_, &st);
+      return st.current_count > 0;
+    }, timeout);
+  }
+
+  void create_reply_reader() {
+    dds_entity_t pp = participant_.handle();
+    dds_entity_t topic = dds_create_topic(pp, &simgate_Reply_desc, k_reply_topic, nullptr, nullptr);
+    QosPtr qos = make_qos(false, 0, DDS_SECS(1));
+    std::string userdata = "simgate.id=" + to_hex(id_);
+    dds_qset_userdata(qos.get(), userdata.data(), userdata.size());
+    reader_ = dds_create_reader(subscriber_, topic, qos.get(), nullptr);
+    ASSERT_GT(reader_, 0);
+  }
+
+  void write(std::uint64_t seq, simgate_Op op, const char* component, const char* service, const char* params,
+             std::uint64_t target = 0) {
+    simgate_Request rq{};
+    std::memcpy(rq.id.client, id_.data(), 16);
+    rq.id.seq = seq;
+    rq.op = op;
+    rq.component = const_cast<char*>(component);
+    rq.service = const_cast<char*>(service);
+    rq.params = const_cast<char*>(params);
+    rq.target = target;
+    ASSERT_EQ(dds_write(writer_, &rq), DDS_RETCODE_OK);
+  }
+
+  struct Reply {
+    std::uint64_t seq = 0;
+    simgate_ReplyStatus status = simgate_ST_SUCCESS;
+    simgate_Failure failure = simgate_FL_NONE;
+    bool last = false;
+    std::string result, message;
+  };
+
+  // The next reply for this client, or nullopt after `timeout`.
+  std::optional<Reply> next(std::chrono::milliseconds timeout = 10s) {
+    std::optional<Reply> out;
+    eventually([&] {
+      void* samples[1] = {nullptr};
+      dds_sample_info_t info;
+      while (dds_take(reader_, samples, &info, 1, 1) == 1) {
+        const auto& r = *static_cast<const simgate_Reply*>(samples[0]);
+        bool mine = info.valid_data && std::memcmp(r.client, id_.data(), 16) == 0;
+        if (mine) out = Reply{r.seq, r.status, r.failure, r.last, r.result, r.message};
+        dds_return_loan(reader_, samples, 1);
+        if (mine) return true;
+        samples[0] = nullptr;
+      }
+      return false;
+    }, timeout);
+    return out;
+  }
+
+ private:
+  Participant participant_;      // own participant
+  dds_entity_t publisher_ = 0;   // in the partition
+  dds_entity_t subscriber_ = 0;  // in the partition
+  dds_entity_t writer_ = 0;      // requests
+  dds_entity_t reader_ = 0;      // replies (created on demand)
+  ClientId id_{};                // our request writer's GUID
+};
+
+class DdsTransportTest : public ::testing::Test {
+ protected:
+  // A server with: calc.add(a, b), calc.echo(text), calc.fail(), calc.count(),
+  // calc.whoami() -> `name`, robot.goto(x) async interruptible, arm.grasp() async
+  // non-interruptible, tool.use() async without a local policy.
+  std::shared_ptr<RequestManager> make_server(const std::string& partition, const std::string& name = "server",
+                                              json extra = json::object()) {
+    auto rm = load_transport(k_plugin, server_options(partition, extra));
+    rm->register_service("calc", [](double a, double b) { return a + b; }, "add", {"a", "b"}).doc("a + b");
+    rm->register_service("calc", [](std::string text) { return text; }, "echo", {"text"});
+    rm->register_service("calc", []() -> int { throw ServiceError("calc.fail: it failed on purpose"); }, "fail");
+    rm->register_service("calc", [this]() { return ++count_; }, "count");
+    rm->register_service("calc", [name]() { return name; }, "whoami");
+    rm->register_async_service("robot", [this](Completion c, double) { goto_.on_start(c); }, "goto", {"x"})
+        .interruptible();
+    rm->register_async_service("arm", [this](Completion c) { grasp_.on_start(c); }, "grasp").noninterruptible();
+    rm->register_async_service("tool", [this](Completion c) { use_.on_start(c); }, "use");
+    return rm;
+  }
+
+  std::unique_ptr<DdsClient> make_client(const std::string& partition) {
+    auto c = std::make_unique<DdsClient>(DdsClientOptions::from_json(client_options(partition)));
+    EXPECT_TRUE(c->wait_for_server(10s));
+    return c;
+  }
+
+  std::atomic<int> count_{0};  // calc.count
+  AsyncProbe goto_;            // robot.goto
+  AsyncProbe grasp_;           // arm.grasp
+  AsyncProbe use_;             // tool.use
+};
+
+TEST_F(DdsTransportTest, SyncCallReturnsItsResult) {
+  auto server = make_server(test_partition());
+  SimThread sim(server);
+  auto client = make_client(test_partition());
+  Outcome out = client->call("calc", "add", {2, 3.5}, 10s);
+  EXPECT_EQ(out.status, Status::success);
+  ASSERT_TRUE(out.value);
+  EXPECT_DOUBLE_EQ(out.value->get<double>(), 5.5);
+  // named parameters too
+  out = client->call("calc", "add", {{"a", 1}, {"b", 2}}, 10s);
+  ASSERT_TRUE(out.value);
+  EXPECT_DOUBLE_EQ(out.value->get<double>(), 3.0);
+}
+
+TEST_F(DdsTransportTest, ServiceErrorsFailWithTheirReasonAndServerKeepsServing) {
+  auto server = make_server(test_partition());
+  SimThread sim(server);
+  auto client = make_client(test_partition());
+
+  Outcome unknown = client->call("calc", "nope", nullptr, 10s);
+  EXPECT_EQ(unknown.status, Status::failed);
+  EXPECT_EQ(unknown.failure, Failure::unknown_service);
+
+  Outcome arity = client->call("calc", "add", {1}, 10s);
+  EXPECT_EQ(arity.status, Status::failed);
+  EXPECT_EQ(arity.failure, Failure::bad_arguments);
+  EXPECT_NE(arity.message.find("wrong # of parameters"), std::string::npos) << arity.message;
+
+  Outcome failed = client->call("calc", "fail", nullptr, 10s);
+  EXPECT_EQ(failed.status, Status::failed);
+  EXPECT_EQ(failed.failure, Failure::service_error);
+  EXPECT_NE(failed.message.find("on purpose"), std::string::npos) << failed.message;
+
+  EXPECT_EQ(client->call("calc", "add", {1, 1}, 10s).value, json(2.0));
+}
+
+TEST_F(DdsTransportTest, ParamsThatAreNotJsonFailWithBadArguments) {
+  auto server = make_server(test_partition());
+  SimThread sim(server);
+  RawClient raw(test_partition());
+  raw.create_reply_reader();
+  ASSERT_TRUE(raw.wait_request_matched());
+  raw.write(1, simgate_OP_CALL, "calc", "add", "[1, 2");
+  auto reply = raw.next();
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->seq, 1u);
+  EXPECT_EQ(reply->status, simgate_ST_FAILED);
+  EXPECT_EQ(reply->failure, simgate_FL_BAD_ARGUMENTS);
+  EXPECT_NE(reply->message.find("calc.add"), std::string::npos) << reply->message;
+  // a scalar is not a parameter list either
+  raw.write(2, simgate_OP_CALL, "calc", "add", "42");
+  reply = raw.next();
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->failure, simgate_FL_BAD_ARGUMENTS);
+  // and the next good call works
+  raw.write(3, simgate_OP_CALL, "calc", "add", "[1, 2]");
+  reply = raw.next();
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->seq, 3u);
+  EXPECT_EQ(reply->status, simgate_ST_SUCCESS);
+  EXPECT_EQ(json::parse(reply->result), json(3.0));
+}
+
+TEST_F(DdsTransportTest, DuplicateSeqOfAPendingCallIsABadRequest) {
+  auto server = make_server(test_partition());
+  SimThread sim(server);
+  RawClient raw(test_partition());
+  raw.create_reply_reader();
+  ASSERT_TRUE(raw.wait_request_matched());
+  // seq 2 is pending (async), so a second seq 2 is refused
+  raw.write(2, simgate_OP_CALL, "robot", "goto", "[1]");
+  auto reply = raw.next();
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->status, simgate_ST_ACCEPTED);
+  ASSERT_TRUE(goto_.wait_started(1));
+  raw.write(2, simgate_OP_CALL, "calc", "add", "[1, 2]");
+  reply = raw.next();
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->failure, simgate_FL_BAD_REQUEST);
+  EXPECT_NE(reply->message.find("duplicate"), std::string::npos) << reply->message;
+  goto_.completion()(Status::success, "arrived");
+  reply = raw.next();
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->seq, 2u);
+  EXPECT_EQ(reply->status, simgate_ST_SUCCESS);
+  EXPECT_TRUE(reply->last);
+}
+
+TEST_F(DdsTransportTest, AsyncCallIsAcceptedThenCompleted) {
+  auto server = make_server(test_partition());
+  SimThread sim(server);
+  auto client = make_client(test_partition());
+  auto id = client->start("robot", "goto", {4.0});
+  EXPECT_TRUE(client->wait_accepted(id, 10s));
+  ASSERT_TRUE(goto_.wait_started(1));
+  goto_.completion()(Status::success, {{"x", 4.0}});
+  Outcome out = client->wait(id, 10s);
+  EXPECT_EQ(out.status, Status::success);
+  EXPECT_EQ(out.value, (json{{"x", 4.0}}));
+}
+
+TEST_F(DdsTransportTest, CancelEndsTheCallerOwnAsyncCall) {
+  auto server = make_server(test_partition());
+  SimThread sim(server);
+  auto client = make_client(test_partition());
+  auto id = client->start("robot", "goto", {1.0});
+  ASSERT_TRUE(client->wait_accepted(id, 10s));
+  ASSERT_TRUE(goto_.wait_started(1));
+  EXPECT_TRUE(client->cancel(id, 10s));
+  Outcome out = client->wait(id, 10s);
+  EXPECT_EQ(out.status, Status::preempted);
+  EXPECT_EQ(out.failure, Failure::cancelled);
+  // nothing left to cancel, and ids of other clients are out of reach
+  EXPECT_FALSE(client->cancel(id, 10s));
+  auto other = make_client(test_partition());
+  auto id2 = client->start("robot", "goto", {2.0});
+  ASSERT_TRUE(client->wait_accepted(id2, 10s));
+  EXPECT_FALSE(other->cancel(id2, 10s));
+  EXPECT_TRUE(client->cancel(id2, 10s));
+  EXPECT_EQ(client->wait(id2, 10s).failure, Failure::cancelled);
+}
+
+TEST_F(DdsTransportTest, SecondCallPreemptsInterruptibleService) {
+  auto server = make_server(test_partition());
+  SimThread sim(server);
+  auto first_client = make_client(test_partition());
+  auto second_client = make_client(test_partition());
+  auto first = first_client->start("robot", "goto", {1.0});
+  ASSERT_TRUE(goto_.wait_started(1));
+  auto second = second_client->start("robot", "goto", {2.0});
+  Outcome preempted = first_client->wait(first, 10s);
+  EXPECT_EQ(preempted.status, Status::preempted);
+  EXPECT_EQ(preempted.failure, Failure::preempted);
+  ASSERT_TRUE(goto_.wait_started(2));
+  goto_.completion()(Status::success);
+  EXPECT_EQ(second_client->wait(second, 10s).status, Status::success);
+}
+
+TEST_F(DdsTransportTest, NonInterruptibleServiceRefusesSecondCall) {
+  auto server = make_server(test_partition());
+  SimThread sim(server);
+  auto client = make_client(test_partition());
+  auto first = client->start("arm", "grasp", nullptr);
+  ASSERT_TRUE(grasp_.wait_started(1));
+  Outcome refused = client->call("arm", "grasp", nullptr, 10s);
+  EXPECT_EQ(refused.status, Status::failed);
+  EXPECT_EQ(refused.failure, Failure::busy);
+  grasp_.completion()(Status::success, true);
+  EXPECT_EQ(client->wait(first, 10s).value, json(true));
+}
+
+TEST_F(DdsTransportTest, GlobalPolicyOptionDecidesForServicesWithoutLocalPolicy) {
+  auto server = make_server(test_partition(), "server", {{"global_policy", "preempt"}});
+  SimThread sim(server);
+  auto client = make_client(test_partition());
+  auto first = client->start("tool", "use", nullptr);
+  ASSERT_TRUE(use_.wait_started(1));
+  auto second = client->start("tool", "use", nullptr);
+  EXPECT_EQ(client->wait(first, 10s).status, Status::preempted);
+  ASSERT_TRUE(use_.wait_started(2));
+  use_.completion()(Status::success);
+  EXPECT_EQ(client->wait(second, 10s).status, Status::success);
+}
+
+TEST_F(DdsTransportTest, CatalogListsEveryServiceForLateJoiners) {
+  auto server = make_server(test_partition());
+  SimThread sim(server);
+  // the client joins after the catalog was published
+  auto client = make_client(test_partition());
+  json services = client->list_services(10s);
+  ASSERT_TRUE(services.is_array());
+  std::set<std::string> names;
+  json add, go;
+  for (const json& s : services) {
+    names.insert(s.at("component").get<std::string>() + "." + s.at("name").get<std::string>());
+    if (s["component"] == "calc" && s["name"] == "add") add = s;
+    if (s["component"] == "robot" && s["name"] == "goto") go = s;
+  }
+  EXPECT_EQ(names, (std::set<std::string>{"calc.add", "calc.echo", "calc.fail", "calc.count", "calc.whoami",
+                                          "robot.goto", "arm.grasp", "tool.use"}));
+  ASSERT_TRUE(add.is_object());
+  EXPECT_EQ(add["params"].size(), 2u);
+  EXPECT_EQ(add["params"][0]["name"], "a");
+  EXPECT_EQ(add["doc"], "a + b");
+  EXPECT_EQ(go["async"], true);
+  // listing again gives the same answer
+  EXPECT_EQ(client->list_services(10s).size(), services.size());
+}
+
+TEST_F(DdsTransportTest, ListWithoutServerFailsClearly) {
+  DdsClient client(DdsClientOptions::from_json(client_options(test_partition())));
+  try {
+    client.list_services(300ms);
+    FAIL() << "list_services without a server returned";
+  } catch (const ClientError& e) {
+    EXPECT_NE(std::string(e.what()).find(test_partition()), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(DdsTransportTest, CallWithoutServerFailsClearly) {
+  json options = client_options(test_partition());
+  options["discovery_timeout_ms"] = 300;
+  DdsClient client(DdsClientOptions::from_json(options));
+  try {
+    client.call("calc", "add", {1, 2}, 1s);
+    FAIL() << "call without a server returned";
+  } catch (const ClientError& e) {
+    EXPECT_NE(std::string(e.what()).find("no simgate server"), std::string::npos) << e.what();
+  }
+}
+
+// The discovery race: the request reaches the server before the server has matched the
+// client's reply reader (here: before that reader even exists). The reply waits for it.
+TEST_F(DdsTransportTest, ReplyWaitsForTheClientReaderToMatch) {
+  std::mutex mutex;
+  std::condition_variable cv;
+  bool parked = false;
+  log::set_level(log::Level::debug);
+  log::set_sink([&](log::Level, std::string_view message) {
+    if (message.find("parked until its reply reader matches") == std::string_view::npos) return;
+    std::lock_guard lock(mutex);
+    parked = true;
+    cv.notify_all();
+  });
+  {
+    auto server = make_server(test_partition());
+    SimThread sim(server);
+    RawClient raw(test_partition());
+    ASSERT_TRUE(raw.wait_request_matched());
+    raw.write(1, simgate_OP_CALL, "calc", "add", "[20, 22]");
+    {
+      std::unique_lock lock(mutex);
+      ASSERT_TRUE(cv.wait_for(lock, 10s, [&] { return parked; }));
+    }
+    raw.create_reply_reader();
+    auto reply = raw.next();
+    ASSERT_TRUE(reply);
+    EXPECT_EQ(reply->seq, 1u);
+    EXPECT_EQ(reply->status, simgate_ST_SUCCESS);
+    EXPECT_EQ(json::parse(reply->result), json(42.0));
+  }
+  log::set_sink({});
+  log::set_level(log::Level::info);
+}
+
+TEST_F(DdsTransportTest, ClientThatDisappearsHasItsAsyncCallsCancelled) {
+  auto server = make_server(test_partition());
+  SimThread sim(server);
+  auto client = make_client(test_partition());
+  auto id = client->start("robot", "goto", {3.0});
+  ASSERT_TRUE(client->wait_accepted(id, 10s));
+  ASSERT_TRUE(goto_.wait_started(1));
+  Completion running = goto_.completion();
+  EXPECT_FALSE(running.done());
+  client.reset();  // leaves the domain with its call pending
+  EXPECT_TRUE(eventually([&] { return running.done(); }));
+  // everyone else is still served
+  auto other = make_client(test_partition());
+  EXPECT_EQ(other->call("calc", "add", {1, 2}, 10s).value, json(3.0));
+}
+
+TEST_F(DdsTransportTest, ServerShutdownAnswersPendingCalls) {
+  auto server = make_server(test_partition());
+  auto sim = std::make_unique<SimThread>(server);
+  auto client = make_client(test_partition());
+  auto id = client->start("robot", "goto", {3.0});
+  ASSERT_TRUE(client->wait_accepted(id, 10s));
+  sim.reset();
+  server.reset();
+  try {
+    Outcome out = client->wait(id, 10s);
+    EXPECT_EQ(out.status, Status::failed);
+    EXPECT_EQ(out.failure, Failure::shutdown);
+  } catch (const ClientError& e) {
+    // the server left; the client said so instead of hanging
+    EXPECT_NE(std::string(e.what()).find("went away"), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(DdsTransportTest, TwoSimulationsInTwoPartitionsOfOneDomainDoNotMix) {
+  auto server_a = make_server(test_partition("a"), "a");
+  auto server_b = make_server(test_partition("b"), "b");
+  SimThread sim_a(server_a);
+  SimThread sim_b(server_b);
+  auto client_a = make_client(test_partition("a"));
+  auto client_b = make_client(test_partition("b"));
+  for (int i = 0; i < 5; ++i) {
+    EXPECT_EQ(client_a->call("calc", "whoami", nullptr, 10s).value, json("a"));
+    EXPECT_EQ(client_b->call("calc", "whoami", nullptr, 10s).value, json("b"));
+  }
+  // each catalog lists its own server's services once
+  EXPECT_EQ(client_a->list_services(10s).size(), 8u);
+  EXPECT_EQ(client_b->list_services(10s).size(), 8u);
+}
+
+TEST_F(DdsTransportTest, ManyClientsCallConcurrently) {
+  auto server = make_server(test_partition());
+  SimThread sim(server);
+  constexpr int k_clients = 4, k_calls = 25;
+  std::vector<std::unique_ptr<DdsClient>> clients;
+  for (int c = 0; c < k_clients; ++c) clients.push_back(make_client(test_partition()));
+  std::atomic<int> good{0};
+  std::vector<std::thread> threads;
+  for (int c = 0; c < k_clients; ++c)
+    threads.emplace_back([&, c] {
+      // pipelined: all calls out, then all answers
+      std::vector<DdsClient::CallId> ids;
+      for (int i = 0; i < k_calls; ++i) ids.push_back(clients[c]->start("calc", "add", {c, i}));
+      for (int i = 0; i < k_calls; ++i) {
+        Outcome out = clients[c]->wait(ids[i], 20s);
+        if (out.value == json(double(c + i))) ++good;
+      }
+    });
+  for (auto& t : threads) t.join();
+  EXPECT_EQ(good, k_clients * k_calls);
+}
+
+TEST_F(DdsTransportTest, LargePayloadsTravelBothWays) {
+  auto server = make_server(test_partition());
+  SimThread sim(server);
+  auto client = make_client(test_partition());
+  std::string big(256 * 1024, 'x');
+  big[1000] = 'y';
+  Outcome out = client->call("calc", "echo", {big}, 20s);
+  ASSERT_TRUE(out.value);
+  EXPECT_EQ(out.value->get<std::string>(), big);
+}
+
+TEST_F(DdsTransportTest, ParamsLargerThanMaxParamsAreRefused) {
+  auto server = make_server(test_partition(), "server", {{"max_params", 100}});
+  SimThread sim(server);
+  auto client = make_client(test_partition());
+  Outcome out = client->call("calc", "echo", {std::string(200, 'x')}, 10s);
+  EXPECT_EQ(out.failure, Failure::bad_arguments);
+  EXPECT_NE(out.message.find("max_params"), std::string::npos) << out.message;
+}
+
+TEST(DdsTransportConfig, UnknownKeysAndBadValuesAreRejectedWithTheirName) {
+  auto expect_error = [](json options, const std::string& needle) {
+    try {
+      load_transport(k_plugin, options);
+      ADD_FAILURE() << "accepted " << options.dump();
+    } catch (const std::exception& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  };
+  std::string loopback = loopback_uri();
+  expect_error({{"domain", test_domain()}, {"config", loopback}, {"bogus", 1}}, "bogus");
+  expect_error({{"domain", 999}, {"config", loopback}}, "domain");
+  expect_error({{"domain", test_domain()}, {"config", loopback}, {"partition", "sim*"}}, "partition");
+  expect_error({{"domain", test_domain()}, {"config", loopback}, {"global_policy", "maybe"}}, "global_policy");
+  expect_error({{"domain", test_domain()}, {"config", "<CycloneDDS><Domain><General><NoSuchSetting/>"}}, "domain");
+}
+
+TEST(DdsTransportConfig, EndpointsNameDomainAndPartition) {
+  auto rm = load_transport(k_plugin, server_options(test_partition()));
+  auto endpoints = rm->endpoints();
+  ASSERT_EQ(endpoints.size(), 1u);
+  EXPECT_EQ(endpoints[0], "dds:domain=" + std::to_string(test_domain()) + ";partition=" + test_partition());
+}
+
+}  // namespace
+}  // namespace simgate::dds::test

@@ -1,0 +1,108 @@
+// GatewayCli: the `simgate` executable — help, version, check, run (endpoints file,
+// SIGTERM, `simulation quit`), call.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "test_support.h"
+
+namespace simgate::gateway {
+namespace {
+
+using ::testing::HasSubstr;
+using namespace testing;
+
+TEST(GatewayCliTest, HelpAndVersion) {
+  TempDir dir;
+  auto [code, out] = run_simgate({"--help"}, dir);
+  EXPECT_EQ(code, 0);
+  EXPECT_THAT(out, HasSubstr("simgate run CONFIG"));
+  EXPECT_THAT(out, HasSubstr("simgate call"));
+  auto [vcode, vout] = run_simgate({"--version"}, dir);
+  EXPECT_EQ(vcode, 0);
+  EXPECT_THAT(vout, HasSubstr("simgate 0."));
+  EXPECT_THAT(vout, HasSubstr("MuJoCo"));
+}
+
+TEST(GatewayCliTest, UnknownCommandIsAUsageError) {
+  TempDir dir;
+  auto [code, out] = run_simgate({"fly"}, dir);
+  EXPECT_EQ(code, 2);
+  EXPECT_THAT(out, HasSubstr("unknown command 'fly'"));
+}
+
+TEST(GatewayCliTest, CheckAcceptsTheDemo) {
+  TempDir dir;
+  auto [code, out] = run_simgate({"check", source_path("config/demo.json")}, dir);
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_THAT(out, HasSubstr("OK"));
+}
+
+TEST(GatewayCliTest, CheckRejectsABrokenConfigWithItsPath) {
+  TempDir dir;
+  json c = demo_config();
+  c["robots"][0]["components"][0]["type"] = "motion_wv";
+  std::string file = dir.write("broken.json", c.dump());
+  auto [code, out] = run_simgate({"check", file}, dir);
+  EXPECT_EQ(code, 2);
+  EXPECT_THAT(out, HasSubstr("robots[0].components[0].type"));
+  EXPECT_THAT(out, HasSubstr("broken.json"));
+}
+
+TEST(GatewayCliTest, RunWritesEndpointsServesAndStopsOnSigterm) {
+  TempDir dir;
+  std::string config = dir.write("demo.json", demo_config().dump());
+  std::string endpoints = dir.file("endpoints.json");
+  Process p({simgate_binary(), "run", config, "--endpoints-file", endpoints}, dir.file(""));
+  json e = json::parse(wait_for_file(endpoints), nullptr, false);
+  ASSERT_TRUE(e.contains("socket")) << p.err();
+  int port = port_of(e["socket"][0].get<std::string>());
+  {
+    LineClient c(port);
+    EXPECT_EQ(c.request("1", "simulation list_robots"), "1 SUCCESS [\"robot\", \"human\"]");
+    // the command-line client
+    auto [code, out] = run_simgate({"call", "--port", std::to_string(port), "simulation", "list_robots"}, dir);
+    EXPECT_EQ(code, 0) << out;
+    EXPECT_THAT(out, HasSubstr("[\"robot\",\"human\"]"));
+    auto [fcode, fout] = run_simgate({"call", "--port", std::to_string(port), "human", "move", "-1", "0"}, dir);
+    EXPECT_EQ(fcode, 1);
+    EXPECT_THAT(fout, HasSubstr("Our human cannot walk at negative speed!"));
+  }
+  p.signal(SIGTERM);
+  EXPECT_EQ(p.wait(), 0) << p.err();
+  EXPECT_THAT(p.out(), HasSubstr("socket: tcp://127.0.0.1:"));
+  EXPECT_THAT(p.out(), HasSubstr("telnet 127.0.0.1"));
+  EXPECT_FALSE(std::filesystem::exists(endpoints));
+}
+
+TEST(GatewayCliTest, SimulationQuitEndsTheProcessCleanly) {
+  TempDir dir;
+  std::string config = dir.write("demo.json", demo_config().dump());
+  std::string endpoints = dir.file("endpoints.json");
+  Process p({simgate_binary(), "run", config, "--endpoints-file", endpoints, "--log-level", "error"}, dir.file(""));
+  json e = json::parse(wait_for_file(endpoints), nullptr, false);
+  ASSERT_TRUE(e.contains("socket")) << p.err();
+  LineClient c(port_of(e["socket"][0].get<std::string>()));
+  EXPECT_EQ(c.request("q", "simulation quit"), "q SUCCESS");
+  EXPECT_EQ(p.wait(), 0) << p.err();
+}
+
+TEST(GatewayCliTest, RunWithAPortInUseFailsClearly) {
+  TempDir dir;
+  // hold a port with a first gateway, then start a second one on it
+  std::string config = dir.write("demo.json", demo_config().dump());
+  std::string endpoints = dir.file("endpoints.json");
+  Process first({simgate_binary(), "run", config, "--endpoints-file", endpoints}, dir.file(""));
+  json e = json::parse(wait_for_file(endpoints), nullptr, false);
+  ASSERT_TRUE(e.contains("socket"));
+  json c = demo_config();
+  c["transports"]["socket"]["options"]["port"] = port_of(e["socket"][0].get<std::string>());
+  TempDir dir2;
+  auto [code, out] = run_simgate({"run", dir2.write("taken.json", c.dump())}, dir2);
+  EXPECT_NE(code, 0);
+  EXPECT_THAT(out, HasSubstr("transports.socket"));
+  first.signal(SIGINT);
+  EXPECT_EQ(first.wait(), 0);
+}
+
+}  // namespace
+}  // namespace simgate::gateway

@@ -1,0 +1,170 @@
+// GatewayConfig: the deployment file is validated before anything starts; every error names
+// the JSON path, what was expected and what was found (a broken-config catalogue).
+// GatewayMapping: exact names, globs and a default map components to transports.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <functional>
+
+#include "simgate/core/errors.h"
+#include "simgate/gateway/gateway.h"
+#include "test_support.h"
+
+namespace simgate::gateway {
+namespace {
+
+using ::testing::HasSubstr;
+using testing::demo_config;
+
+// Validates like `simgate check`: structure, then scene, components and plugins.
+std::string error_of(const json& config) {
+  try {
+    Deployment d = parse_deployment(config, SIMGATE_SOURCE_DIR "/config");
+    auto registry = sim::builtin_registry();
+    Gateway g(d, registry, GatewayOptions{true, std::nullopt, {}});
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(GatewayConfigTest, TheDemoConfigIsValid) { EXPECT_EQ(error_of(demo_config()), ""); }
+
+TEST(GatewayConfigTest, TheShippedDemoFileLoads) {
+  Deployment d = load_deployment(SIMGATE_SOURCE_DIR "/config/demo.json");
+  EXPECT_EQ(d.robots.size(), 2u);
+  EXPECT_EQ(d.robots[0].components.size(), 4u);
+  EXPECT_EQ(d.robots[0].components[0].name, "robot.motion");
+  EXPECT_EQ(d.realtime_factor, 1.0);
+}
+
+struct BrokenCase {
+  const char* name;                   // what is broken
+  std::function<void(json&)> breaks;  // how
+  std::vector<std::string> expected;  // substrings of the error
+};
+
+class GatewayConfigCatalogueTest : public ::testing::TestWithParam<BrokenCase> {};
+
+TEST_P(GatewayConfigCatalogueTest, IsRejectedWithPathExpectedAndFound) {
+  json config = demo_config();
+  GetParam().breaks(config);
+  std::string error = error_of(config);
+  ASSERT_NE(error, "") << GetParam().name << " was accepted";
+  for (const auto& s : GetParam().expected) EXPECT_THAT(error, HasSubstr(s)) << GetParam().name;
+}
+
+const BrokenCase k_cases[] = {
+    {"unknown top-level key", [](json& c) { c["robtos"] = json::array(); }, {"robtos", "unknown key"}},
+    {"scene missing", [](json& c) { c.erase("scene"); }, {"scene", "expected"}},
+    {"scene key typo", [](json& c) { c["scene"]["timestpe"] = 0.01; }, {"scene.timestpe", "unknown key"}},
+    {"mjcf file missing", [](json& c) { c["scene"]["mjcf"] = "nope.xml"; }, {"scene.mjcf", "nope.xml", "no such file"}},
+    {"mjcf not a scene", [](json& c) { c["scene"]["mjcf"] = SIMGATE_SOURCE_DIR "/config/demo.json"; },
+     {"scene.mjcf", "loadable MJCF"}},
+    {"timestep negative", [](json& c) { c["scene"]["timestep"] = -1; }, {"scene.timestep", "expected", "-1"}},
+    {"realtime factor word", [](json& c) { c["scene"]["realtime_factor"] = "fast"; },
+     {"scene.realtime_factor", "\"max\"", "fast"}},
+    {"transports missing", [](json& c) { c.erase("transports"); }, {"transports", "expected"}},
+    {"transport key typo", [](json& c) { c["transports"]["socket"]["option"] = json::object(); },
+     {"transports.socket.option", "unknown key"}},
+    {"plugin that will not load", [](json& c) { c["transports"]["socket"]["plugin"] = "nosuch"; },
+     {"transports.socket.plugin", "nosuch"}},
+    {"unknown transport option", [](json& c) { c["transports"]["socket"]["options"]["prot"] = 4000; },
+     {"transports.socket.options.prot", "unknown key", "port"}},
+    {"services names an unknown transport", [](json& c) { c["services"]["robot.*"] = {"sokcet"}; },
+     {"services.robot.*[0]", "sokcet", "socket"}},
+    {"services pattern matches nothing", [](json& c) { c["services"]["robot.motino"] = {"socket"}; },
+     {"services.robot.motino", "matches none"}},
+    {"services value not a list", [](json& c) { c["services"]["default"] = "socket"; },
+     {"services.default", "array"}},
+    {"robots not a list", [](json& c) { c["robots"] = json::object(); }, {"robots", "array"}},
+    {"duplicate robot", [](json& c) { c["robots"][1]["name"] = "robot"; }, {"robots[1].name", "unique", "robot"}},
+    {"reserved robot name", [](json& c) { c["robots"][1]["name"] = "simulation"; }, {"robots[1].name", "reserved"}},
+    {"dotted component name", [](json& c) { c["robots"][0]["components"][0]["name"] = "mo.tion"; },
+     {"robots[0].components[0].name", "mo.tion"}},
+    {"component without type", [](json& c) { c["robots"][0]["components"][0].erase("type"); },
+     {"robots[0].components[0].type"}},
+    {"unknown component type", [](json& c) { c["robots"][0]["components"][0]["type"] = "motion_wv"; },
+     {"robots[0].components[0].type", "motion_wv", "motion_vw"}},
+    {"unknown robot type", [](json& c) { c["robots"][1]["type"] = "android"; }, {"robots[1].type", "android"}},
+    {"missing MJCF body", [](json& c) { c["robots"][1]["body"] = "humn"; },
+     {"robots[1].body", "humn", "no such body"}},
+    {"missing MJCF actuator", [](json& c) { c["robots"][0]["options"]["left_actuator"] = "lm"; },
+     {"robots[0].options.left_actuator", "lm", "no such actuator"}},
+    {"unknown component option", [](json& c) { c["robots"][0]["components"][1]["options"]["max_sped"] = 1; },
+     {"robots[0].components[1].options.max_sped", "unknown key"}},
+    {"component key typo", [](json& c) { c["robots"][0]["components"][2]["bdy"] = "robot"; },
+     {"robots[0].components[2].bdy", "unknown key"}},
+    {"log level word", [](json& c) { c["log_level"] = "loud"; }, {"log_level", "loud"}},
+};
+
+INSTANTIATE_TEST_SUITE_P(Catalogue, GatewayConfigCatalogueTest, ::testing::ValuesIn(k_cases),
+                         [](const auto& info) {
+                           std::string n = info.param.name;
+                           for (auto& ch : n)
+                             if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+                           return n;
+                         });
+
+TEST(GatewayConfigTest, InvalidJsonSyntaxNamesTheFile) {
+  testing::TempDir dir;
+  std::string file = dir.write("broken.json", "{\"scene\": {\"mjcf\": \"x.xml\",}\n");
+  try {
+    load_deployment(file);
+    FAIL() << "accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("broken.json"));
+    EXPECT_THAT(e.what(), HasSubstr("invalid JSON"));
+  }
+}
+
+TEST(GatewayConfigTest, RelativeSceneIsResolvedNextToTheConfig) {
+  Deployment d = load_deployment(SIMGATE_SOURCE_DIR "/config/demo.json");
+  EXPECT_THAT(d.mjcf, HasSubstr("config/scenes/demo.xml"));
+}
+
+TEST(GatewayConfigTest, MaxMeansAsFastAsPossible) {
+  json c = demo_config();
+  c["scene"]["realtime_factor"] = "max";
+  EXPECT_EQ(parse_deployment(c, "/").realtime_factor, 0.0);
+}
+
+// ---- mapping ----
+
+json mapping_config(json services) {
+  json c = demo_config();
+  c["transports"]["other"] = {{"plugin", "socket"}, {"options", {{"port", 0}}}};
+  c["services"] = std::move(services);
+  return c;
+}
+
+TEST(GatewayMappingTest, ExactNameBeatsGlobBeatsDefault) {
+  Deployment d = parse_deployment(
+      mapping_config({{"default", {"socket"}}, {"robot.*", {"other"}}, {"robot.pose", {"socket", "other"}}}), "/");
+  EXPECT_EQ(d.transports_for("robot.pose"), std::vector<std::string>({"socket", "other"}));
+  EXPECT_EQ(d.transports_for("robot.motion"), std::vector<std::string>({"other"}));
+  EXPECT_EQ(d.transports_for("human"), std::vector<std::string>({"socket"}));
+  EXPECT_EQ(d.transports_for("simulation"), std::vector<std::string>({"socket"}));
+}
+
+TEST(GatewayMappingTest, MoreSpecificGlobWins) {
+  Deployment d = parse_deployment(mapping_config({{"*", {"socket"}}, {"robot.w*", {"other"}}}), "/");
+  EXPECT_EQ(d.transports_for("robot.waypoint"), std::vector<std::string>({"other"}));
+  EXPECT_EQ(d.transports_for("robot.motion"), std::vector<std::string>({"socket"}));
+}
+
+TEST(GatewayMappingTest, UnmappedComponentHasNoTransport) {
+  Deployment d = parse_deployment(mapping_config({{"robot.*", {"socket"}}}), "/");
+  EXPECT_TRUE(d.transports_for("human").empty());
+  EXPECT_TRUE(d.transports_for("simulation").empty());
+}
+
+TEST(GatewayMappingTest, WithoutServicesEveryTransportServesEverything) {
+  json c = mapping_config({});
+  c.erase("services");
+  Deployment d = parse_deployment(c, "/");
+  EXPECT_EQ(d.transports_for("human").size(), 2u);
+}
+
+}  // namespace
+}  // namespace simgate::gateway

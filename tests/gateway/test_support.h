@@ -1,0 +1,250 @@
+// Helpers for the gateway tests: configs in temporary files, a line-oriented TCP client
+// for the MORSE socket protocol (loopback only, every read has a deadline), and a child
+// process runner with a deadline.
+#ifndef SIMGATE_TESTS_GATEWAY_TEST_SUPPORT_H_
+#define SIMGATE_TESTS_GATEWAY_TEST_SUPPORT_H_
+
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+extern char** environ;
+
+namespace simgate::gateway::testing {
+
+using json = nlohmann::json;
+using namespace std::chrono_literals;
+
+inline std::string source_path(const std::string& rel) { return std::string(SIMGATE_SOURCE_DIR) + "/" + rel; }
+inline std::string simgate_binary() { return std::string(SIMGATE_BINARY_DIR) + "/bin/simgate"; }
+
+// A unique temporary directory, removed with the object.
+class TempDir {
+ public:
+  TempDir() {
+    std::string pattern = (std::filesystem::temp_directory_path() / "simgate-test-XXXXXX").string();
+    std::vector<char> buf(pattern.begin(), pattern.end());
+    buf.push_back('\0');
+    if (!mkdtemp(buf.data())) throw std::runtime_error("mkdtemp failed");
+    path_ = buf.data();
+  }
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path_, ec);
+  }
+  std::string file(const std::string& name) const { return path_ + "/" + name; }
+  std::string write(const std::string& name, const std::string& text) const {
+    std::ofstream(file(name)) << text;
+    return file(name);
+  }
+
+ private:
+  std::string path_;  // the directory
+};
+
+// The demo deployment on an ephemeral port, with an absolute scene path.
+inline json demo_config(double factor = 1.0) {
+  json c = json::parse(std::ifstream(source_path("config/demo.json")));
+  c["scene"]["mjcf"] = source_path("config/scenes/demo.xml");
+  c["scene"]["realtime_factor"] = factor;
+  c["transports"]["socket"]["options"]["port"] = 0;
+  c["log_level"] = "warning";
+  return c;
+}
+
+// One TCP connection speaking lines.
+class LineClient {
+ public:
+  explicit LineClient(int port) {
+    fd_ = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_port = htons(static_cast<uint16_t>(port));
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (::connect(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
+      ::close(fd_);
+      throw std::runtime_error("connect to 127.0.0.1:" + std::to_string(port) + " failed");
+    }
+  }
+  ~LineClient() { ::close(fd_); }
+  LineClient(const LineClient&) = delete;
+  LineClient& operator=(const LineClient&) = delete;
+
+  void send(const std::string& text) {
+    std::size_t sent = 0;
+    while (sent < text.size()) {
+      ssize_t n = ::send(fd_, text.data() + sent, text.size() - sent, MSG_NOSIGNAL);
+      if (n <= 0) throw std::runtime_error("send failed");
+      sent += static_cast<std::size_t>(n);
+    }
+  }
+  // The next line (without '\n'), or nullopt on timeout or end of stream.
+  std::optional<std::string> read_line(std::chrono::milliseconds timeout = 20s) {
+    auto deadline = std::chrono::steady_clock::now() + timeout;
+    for (;;) {
+      auto nl = buffer_.find('\n');
+      if (nl != std::string::npos) {
+        std::string line = buffer_.substr(0, nl);
+        buffer_.erase(0, nl + 1);
+        return line;
+      }
+      auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+      if (left.count() <= 0) return std::nullopt;
+      pollfd p{fd_, POLLIN, 0};
+      if (::poll(&p, 1, static_cast<int>(left.count())) <= 0) continue;
+      char chunk[4096];
+      ssize_t n = ::recv(fd_, chunk, sizeof chunk, 0);
+      if (n <= 0) {
+        closed_ = true;
+        return std::nullopt;
+      }
+      buffer_.append(chunk, static_cast<std::size_t>(n));
+    }
+  }
+  // Sends "<id> <request>" and returns the answer line for that id (other ids are kept).
+  std::string request(const std::string& id, const std::string& request, std::chrono::milliseconds timeout = 20s) {
+    send(id + " " + request + "\n");
+    return wait_for(id, timeout);
+  }
+  std::string wait_for(const std::string& id, std::chrono::milliseconds timeout = 20s) {
+    for (auto it = others_.begin(); it != others_.end(); ++it)
+      if (it->rfind(id + " ", 0) == 0) {
+        std::string line = *it;
+        others_.erase(it);
+        return line;
+      }
+    auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < deadline) {
+      auto line = read_line(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()));
+      if (!line) break;
+      if (line->rfind(id + " ", 0) == 0) return *line;
+      others_.push_back(*line);
+    }
+    return "<no answer for " + id + ">";
+  }
+  // True once the server closed the connection (waits up to `timeout`).
+  bool closed_by_server(std::chrono::milliseconds timeout = 20s) {
+    auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (!closed_ && std::chrono::steady_clock::now() < deadline) {
+      auto line = read_line(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()));
+      if (line) others_.push_back(*line);
+    }
+    return closed_;
+  }
+  const std::vector<std::string>& other_lines() const { return others_; }
+
+ private:
+  int fd_ = -1;                      // the connection
+  std::string buffer_;               // bytes after the last complete line
+  std::vector<std::string> others_;  // lines read while waiting for another id
+  bool closed_ = false;              // end of stream seen
+};
+
+// The JSON payload of "<id> STATUS <json>".
+inline json payload(const std::string& line) {
+  auto first = line.find(' ');
+  auto second = line.find(' ', first + 1);
+  if (second == std::string::npos) return nullptr;
+  return json::parse(line.substr(second + 1));
+}
+
+inline std::string read_file(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// A child process with stdout/stderr in files.
+class Process {
+ public:
+  Process(std::vector<std::string> args, const std::string& out_dir)
+      : out_(out_dir + "/stdout" + std::to_string(next_id())), err_(out_dir + "/stderr" + std::to_string(next_id())) {
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, 1, out_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_addopen(&actions, 2, err_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    if (posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ) != 0) pid_ = -1;
+    posix_spawn_file_actions_destroy(&actions);
+  }
+  ~Process() {
+    if (pid_ > 0 && !exit_code_) {
+      ::kill(pid_, SIGKILL);
+      int status;
+      ::waitpid(pid_, &status, 0);
+    }
+  }
+  // Exit code (128 + signal for a signal), or nullopt if still running after `timeout`.
+  std::optional<int> wait(std::chrono::milliseconds timeout = 60s) {
+    if (exit_code_) return exit_code_;
+    auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < deadline) {
+      int status = 0;
+      pid_t r = ::waitpid(pid_, &status, WNOHANG);
+      if (r == pid_) {
+        exit_code_ = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+        return exit_code_;
+      }
+      std::this_thread::sleep_for(10ms);  // polling a child's state; bounded by the deadline
+    }
+    return std::nullopt;
+  }
+  void signal(int sig) { ::kill(pid_, sig); }
+  static int next_id() {
+    static std::atomic<int> id{0};
+    return ++id;
+  }
+  std::string out() const { return read_file(out_); }
+  std::string err() const { return read_file(err_); }
+
+ private:
+  pid_t pid_ = -1;                // the child
+  std::string out_, err_;         // capture files
+  std::optional<int> exit_code_;  // once reaped
+};
+
+// Runs simgate to completion.
+inline std::pair<int, std::string> run_simgate(std::vector<std::string> args, const TempDir& dir) {
+  args.insert(args.begin(), simgate_binary());
+  Process p(args, dir.file(""));
+  auto code = p.wait(60s);
+  return {code.value_or(-1), p.out() + p.err()};
+}
+
+// Waits (bounded) for a file to appear; returns its contents or "".
+inline std::string wait_for_file(const std::string& path, std::chrono::milliseconds timeout = 60s) {
+  auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (std::filesystem::exists(path)) return read_file(path);
+    std::this_thread::sleep_for(10ms);  // polling for a file another process writes
+  }
+  return "";
+}
+
+inline int port_of(const std::string& endpoint) { return std::stoi(endpoint.substr(endpoint.rfind(':') + 1)); }
+
+}  // namespace simgate::gateway::testing
+
+#endif  // SIMGATE_TESTS_GATEWAY_TEST_SUPPORT_H_

@@ -1,0 +1,95 @@
+// The socket transport's line grammar and Python-compatible JSON formatting.
+#include "wire.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace simgate::socket {
+namespace {
+
+using ::testing::HasSubstr;
+using Kind = RequestLine::Kind;
+
+std::string dumps(const json& value) {
+  std::string out;
+  append_json(out, value);
+  return out;
+}
+
+TEST(SocketWire, RequestTokens) {
+  RequestLine r = parse_request_line("req1 test_component add (1,2)");
+  EXPECT_EQ(r.kind, Kind::call);
+  EXPECT_EQ(r.id, "req1");
+  EXPECT_EQ(r.component, "test_component");
+  EXPECT_EQ(r.service, "add");
+  EXPECT_EQ(r.params, "(1,2)");
+  EXPECT_EQ(r.params_column, 25u);
+}
+
+TEST(SocketWire, AnyBlanksBetweenTokensAndAroundTheLine) {
+  RequestLine r = parse_request_line("  \tid \t comp\t\tsvc   [1,  2]  \r");
+  EXPECT_EQ(r.kind, Kind::call);
+  EXPECT_EQ(r.id, "id");
+  EXPECT_EQ(r.component, "comp");
+  EXPECT_EQ(r.service, "svc");
+  EXPECT_EQ(r.params, "[1,  2]");
+  r = parse_request_line("id comp svc\r");
+  EXPECT_EQ(r.kind, Kind::call);
+  EXPECT_EQ(r.service, "svc");
+  EXPECT_EQ(r.params, "");
+}
+
+TEST(SocketWire, CancelBlankAndMalformed) {
+  EXPECT_EQ(parse_request_line("x1 cancel").kind, Kind::cancel);
+  EXPECT_EQ(parse_request_line(" x1\tcancel \r").kind, Kind::cancel);
+  EXPECT_EQ(parse_request_line("x1 cancel now").kind, Kind::call);  // component "cancel"
+  EXPECT_EQ(parse_request_line("").kind, Kind::blank);
+  EXPECT_EQ(parse_request_line(" \t\r").kind, Kind::blank);
+  RequestLine alone = parse_request_line("x1");
+  EXPECT_EQ(alone.kind, Kind::malformed);
+  EXPECT_EQ(alone.id, "x1");
+  EXPECT_THAT(alone.error, HasSubstr("Malformed request!"));
+  RequestLine two = parse_request_line("x1 comp");
+  EXPECT_EQ(two.kind, Kind::malformed);
+  EXPECT_THAT(two.error, HasSubstr("missing the service name"));
+  RequestLine utf = parse_request_line("x1 comp sv\xc3");
+  EXPECT_EQ(utf.kind, Kind::malformed);
+  EXPECT_THAT(utf.error, HasSubstr("service name is not valid UTF-8 (column 11)"));
+}
+
+TEST(SocketWire, JsonLikePythonDumps) {
+  EXPECT_EQ(dumps(json::parse(R"([1, "a", {"k": [true, false, null]}, 2.5, -3])")),
+            R"([1, "a", {"k": [true, false, null]}, 2.5, -3])");
+  EXPECT_EQ(dumps(json::parse(R"({"a": 1, "b": {}})")), R"({"a": 1, "b": {}})");
+  EXPECT_EQ(dumps(1.0), "1.0");
+  EXPECT_EQ(dumps(0.1), "0.1");
+  EXPECT_EQ(dumps(1e-5), "1e-05");
+  EXPECT_EQ(dumps(1e16), "1e+16");
+  EXPECT_EQ(dumps(std::uint64_t(18446744073709551615ull)), "18446744073709551615");
+  EXPECT_EQ(dumps(NAN), "NaN");
+  EXPECT_EQ(dumps(-INFINITY), "-Infinity");
+}
+
+TEST(SocketWire, StringsAreAsciiEscapedLikePython) {
+  EXPECT_EQ(dumps("caf\xc3\xa9"), R"("caf\u00e9")");
+  EXPECT_EQ(dumps("\xf0\x9f\x98\x80"), R"("\ud83d\ude00")");
+  EXPECT_EQ(dumps("a\"b\\c\n\t\r\b\f"), R"("a\"b\\c\n\t\r\b\f")");
+  EXPECT_EQ(dumps(std::string("\x01\x7f/", 3)), R"("\u0001\u007f/")");
+  // invalid UTF-8 never breaks a reply
+  EXPECT_EQ(dumps("a\xff" "b\xc3"), R"("a\ufffdb\ufffd")");
+}
+
+TEST(SocketWire, ReplyLines) {
+  std::string out;
+  append_reply(out, "req1", "SUCCESS", nullptr);
+  json three = 3;
+  append_reply(out, "req2", "OK", &three);
+  json message = "no";
+  append_reply(out, "r3", "FAILED", &message);
+  EXPECT_EQ(out, "req1 SUCCESS\nreq2 OK 3\nr3 FAILED \"no\"\n");
+}
+
+}  // namespace
+}  // namespace simgate::socket
