@@ -251,9 +251,10 @@ int cmd_run(Args& args, bool check_only) {
     log::error("simgate: the simulation stopped: ", e.what());
     code = 1;
   }
-  gateway.shutdown();
+  // the signal thread goes first: it must not call stop() on a gateway being torn down
   finished = true;
   signal_thread.join();
+  gateway.shutdown();
   if (endpoints_file) std::filesystem::remove(*endpoints_file);
   log::info("simgate: stopped");
   return code;

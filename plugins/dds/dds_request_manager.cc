@@ -267,6 +267,14 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
   auto [it, inserted] = clients_.try_emplace(client_id);
   ClientState& client = it->second;
   if (inserted) {
+    // a writer that already left (its samples outlive it) would never be swept
+    dds_builtintopic_endpoint_t* ep = dds_get_matched_publication_data(request_reader_, writer);
+    if (!ep) {
+      clients_.erase(it);
+      log::debug("DDS transport: request ", seq, " of client ", to_hex(client_id), " ignored: its writer left");
+      return;
+    }
+    dds_builtintopic_free_endpoint(ep);
     client.writer = writer;
   } else if (client.writer != writer) {
     log::warning("DDS transport: request ", seq, " ignored: client id ", to_hex(client_id),

@@ -51,6 +51,7 @@ Options Options::parse(const json& options) {
       config.get_int("max_unsent_bytes", static_cast<long long>(o.max_unsent_bytes), 1024, 1ll << 32));
   o.max_connections = static_cast<std::size_t>(
       config.get_int("max_connections", static_cast<long long>(o.max_connections), 1, 1 << 20));
+  o.io_spin = std::chrono::microseconds(config.get_int("io_spin_us", o.io_spin.count(), 0, 10000));
   o.cancel_on_disconnect = config.get_choice("on_disconnect", "cancel", {"cancel", "let_run"}) == "cancel";
   o.global_policy = config.get_choice("global_policy", "reject", {"reject", "preempt"}) == "preempt"
                         ? GlobalPolicy::preempt
@@ -95,7 +96,22 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
       return;
     }
     if (unsent > owner_.options_.max_unsent_bytes / 2) paused_ = true;
-    if (!write_active_) write_next();
+    if (write_active_) return;
+    if (owner_.deferring_writes_) {
+      // coalesced: written once the current burst of replies is complete
+      if (!dirty_) {
+        dirty_ = true;
+        owner_.dirty_.push_back(shared_from_this());
+      }
+      return;
+    }
+    write_next();
+  }
+
+  // Starts the write of what send() deferred.
+  void flush() {
+    dirty_ = false;
+    if (!closed_ && !write_active_ && !out_.empty()) write_next();
   }
 
   // ---- pending calls (ids scoped to this connection) ----
@@ -154,7 +170,23 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
         close("read failed: " + ec.message());
         return;
       }
-      split_lines(read_buf_.data(), n);
+      // every message of this read: calls handed over together, replies written together
+      {
+        struct Burst {
+          JsonRpcRequestManager& m;
+          ~Burst() {
+            try {
+              m.flush_submissions();
+              m.flush_writes();
+            } catch (const std::exception& e) {
+              m.deferring_writes_ = false;
+              log::error("jsonrpc: ", e.what());
+            }
+          }
+        } burst{owner_};
+        owner_.deferring_writes_ = true;
+        split_lines(read_buf_.data(), n);
+      }
       read();
     } catch (const std::exception& e) {
       // nothing escapes an Asio handler; the server keeps serving everyone else
@@ -209,6 +241,7 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
       std::string line;
       line.swap(partial_);
       owner_.handle_message(shared_from_this(), line);
+      owner_.flush_submissions();
     }
     if (owner_.options_.cancel_on_disconnect)
       for (RequestId id : take_calls()) owner_.cancel(id);
@@ -261,6 +294,7 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
   std::string out_;                                // replies waiting for the next write
   std::string writing_;                            // the bytes of the write in flight
   bool write_active_ = false;                      // a write is in flight
+  bool dirty_ = false;                             // listed in the manager's dirty_
   std::unordered_map<std::string, RequestId> calls_;  // dumped JSON-RPC id -> pending request
   std::size_t in_flight_ = 0;                      // pending calls, notifications and cancels
 };
@@ -309,18 +343,28 @@ void JsonRpcRequestManager::start() {
   if (started_ || stopped_) return;
   started_ = true;
   asio::post(io_, [this] { accept_next(); });
-  thread_ = std::thread([this] {
-    // handlers catch their own exceptions; this is the last line of defence
-    for (;;) {
-      try {
-        io_.run();
-        return;
-      } catch (const std::exception& e) {
-        log::error("jsonrpc: I/O thread: ", e.what());
-      }
-    }
-  });
+  thread_ = std::thread([this] { run_io(); });
   log::info("jsonrpc: listening on ", endpoints().front());
+}
+
+void JsonRpcRequestManager::run_io() {
+  // After activity the thread polls for a short while before sleeping in epoll: a reply
+  // that the simulation thread posts within microseconds goes out without a wake-up.
+  using Clock = std::chrono::steady_clock;
+  auto active_until = Clock::now();
+  while (!io_.stopped()) {
+    try {
+      if (io_.poll() > 0) {
+        active_until = Clock::now() + options_.io_spin;
+        continue;
+      }
+      if (Clock::now() < active_until) continue;
+      if (io_.run_one() > 0) active_until = Clock::now() + options_.io_spin;
+    } catch (const std::exception& e) {
+      // handlers catch their own exceptions; this is the last line of defence
+      log::error("jsonrpc: I/O thread: ", e.what());
+    }
+  }
 }
 
 void JsonRpcRequestManager::stop() {
@@ -427,7 +471,6 @@ void JsonRpcRequestManager::handle_message(const std::shared_ptr<Session>& sessi
     return;
   }
 
-  std::vector<std::pair<RequestId, Call>> calls;
   if (message.is_array()) {
     if (message.empty()) {
       reply(single, error_response(nullptr, code::invalid_request, "Invalid Request: empty batch",
@@ -437,16 +480,30 @@ void JsonRpcRequestManager::handle_message(const std::shared_ptr<Session>& sessi
     // every entry answers into the batch; the array goes out when the last one is in
     auto batch = std::make_shared<Batch>(message.size());
     for (std::size_t i = 0; i < message.size(); ++i)
-      handle_request(session, message[i], ReplyTo{session, nullptr, false, batch, i}, calls);
-    if (!calls.empty()) submit_batch(std::move(calls));
+      handle_request(session, message[i], ReplyTo{session, nullptr, false, batch, i});
     return;
   }
-  handle_request(session, message, single, calls);
-  if (!calls.empty()) submit(calls.front().first, std::move(calls.front().second));
+  handle_request(session, message, single);
+}
+
+void JsonRpcRequestManager::flush_submissions() {
+  // one hand-over per read: a batch's calls always travel together, so they run in the
+  // same process()
+  if (to_submit_.empty()) return;
+  if (to_submit_.size() == 1) submit(to_submit_.front().first, std::move(to_submit_.front().second));
+  else submit_batch(std::move(to_submit_));
+  to_submit_.clear();
+}
+
+void JsonRpcRequestManager::flush_writes() {
+  deferring_writes_ = false;
+  auto dirty = std::move(dirty_);
+  dirty_.clear();
+  for (const auto& s : dirty) s->flush();
 }
 
 void JsonRpcRequestManager::handle_request(const std::shared_ptr<Session>& session, const json& message,
-                                           ReplyTo to, std::vector<std::pair<RequestId, Call>>& calls) {
+                                           ReplyTo to) {
   // validate; invalid requests are answered even without an id
   Request request;
   if (auto error = parse_request(message, request)) {
@@ -504,7 +561,7 @@ void JsonRpcRequestManager::handle_request(const std::shared_ptr<Session>& sessi
   if (!key.empty()) session->track(key, id);
   session->add_in_flight();
   pending_.emplace(id, Pending{std::move(to), method, std::move(key)});
-  calls.emplace_back(id, Call{std::move(component), std::move(service), std::move(request.params)});
+  to_submit_.emplace_back(id, Call{std::move(component), std::move(service), std::move(request.params)});
 }
 
 void JsonRpcRequestManager::handle_cancel(const std::shared_ptr<Session>& session, const std::string& method,
@@ -519,6 +576,8 @@ void JsonRpcRequestManager::handle_cancel(const std::shared_ptr<Session>& sessio
                              json{{"method", method}, {"parameter", "id"}}));
     return;
   }
+  // calls read before this cancel reach the simulation thread first
+  flush_submissions();
   const auto id = session->find(dump(*target));
   if (!id) {
     reply(to, result_response(to.id, false));
@@ -540,11 +599,32 @@ void JsonRpcRequestManager::handle_cancel(const std::shared_ptr<Session>& sessio
 }
 
 void JsonRpcRequestManager::on_service_completion(RequestId id, Outcome outcome) {
+  // queue it; one drain per burst of completions (one process() usually)
   try {
-    asio::post(io_, [this, id, outcome = std::move(outcome)]() mutable { finish_call(id, std::move(outcome)); });
+    bool post_drain = false;
+    {
+      std::lock_guard lock(completions_mutex_);
+      completions_.emplace_back(id, std::move(outcome));
+      post_drain = !drain_posted_;
+      drain_posted_ = true;
+    }
+    if (post_drain) asio::post(io_, [this] { drain_completions(); });
   } catch (const std::exception& e) {
     log::error("jsonrpc: reply to request ", id, " lost: ", e.what());
   }
+}
+
+void JsonRpcRequestManager::drain_completions() {
+  std::vector<std::pair<RequestId, Outcome>> completions;
+  {
+    std::lock_guard lock(completions_mutex_);
+    completions.swap(completions_);
+    drain_posted_ = false;
+  }
+  // replies of the whole burst go out with one write per connection
+  deferring_writes_ = true;
+  for (auto& [id, outcome] : completions) finish_call(id, std::move(outcome));
+  flush_writes();
 }
 
 void JsonRpcRequestManager::finish_call(RequestId id, Outcome outcome) {
@@ -593,4 +673,4 @@ void JsonRpcRequestManager::reply_line(ReplyTo& to, std::string line) {
 
 SIMGATE_TRANSPORT_PLUGIN(jsonrpc, simgate::jsonrpc::JsonRpcRequestManager, "0.1.0", "host", "port",
                          "max_message_bytes", "max_depth", "max_in_flight", "max_unsent_bytes",
-                         "max_connections", "on_disconnect", "global_policy")
+                         "max_connections", "io_spin_us", "on_disconnect", "global_policy")

@@ -24,6 +24,7 @@
 #ifndef SIMGATE_PLUGINS_JSONRPC_JSONRPC_REQUEST_MANAGER_H_
 #define SIMGATE_PLUGINS_JSONRPC_JSONRPC_REQUEST_MANAGER_H_
 
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -52,6 +53,7 @@ struct Options {
   std::size_t max_in_flight = 1024;             // ("max_in_flight") pending calls per connection
   std::size_t max_unsent_bytes = 16u << 20;     // ("max_unsent_bytes") queued replies per connection
   std::size_t max_connections = 512;            // ("max_connections") simultaneous clients
+  std::chrono::microseconds io_spin{50};        // ("io_spin_us") I/O thread polls this long before sleeping
   bool cancel_on_disconnect = true;             // ("on_disconnect": "cancel" | "let_run")
   GlobalPolicy global_policy = GlobalPolicy::reject;  // ("global_policy": "reject" | "preempt")
 
@@ -97,14 +99,17 @@ class JsonRpcRequestManager : public RequestManager {
   };
 
   // I/O thread.
+  void run_io();
   void accept_next();
   void handle_message(const std::shared_ptr<Session>& session, std::string_view line);
-  // Handles one request object: answers at once (into `to`), or queues a call.
-  void handle_request(const std::shared_ptr<Session>& session, const json& message, ReplyTo to,
-                      std::vector<std::pair<RequestId, Call>>& calls);
+  // Handles one request object: answers at once (into `to`), or queues a call in to_submit_.
+  void handle_request(const std::shared_ptr<Session>& session, const json& message, ReplyTo to);
   void handle_cancel(const std::shared_ptr<Session>& session, const std::string& method,
                      const json& params, ReplyTo to);
+  void flush_submissions();
+  void drain_completions();
   void finish_call(RequestId id, Outcome outcome);
+  void flush_writes();
   void reply(ReplyTo& to, std::optional<json> response);
   void reply_line(ReplyTo& to, std::string line);
   void session_closed(Session& session);
@@ -123,6 +128,12 @@ class JsonRpcRequestManager : public RequestManager {
   bool stopping_ = false;                            // shutdown_io() ran (I/O thread)
   std::unordered_set<std::shared_ptr<Session>> sessions_;  // open connections (I/O thread)
   std::unordered_map<RequestId, Pending> pending_;   // submitted calls (I/O thread)
+  std::vector<std::pair<RequestId, Call>> to_submit_;  // calls parsed, handed over together (I/O thread)
+  bool deferring_writes_ = false;                    // replies wait for flush_writes() (I/O thread)
+  std::vector<std::shared_ptr<Session>> dirty_;      // sessions with replies to flush (I/O thread)
+  std::mutex completions_mutex_;                     // guards completions_ and drain_posted_
+  std::vector<std::pair<RequestId, Outcome>> completions_;  // outcomes from the simulation thread
+  bool drain_posted_ = false;                        // a drain_completions() is queued
 };
 
 }  // namespace simgate::jsonrpc

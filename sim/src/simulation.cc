@@ -88,8 +88,15 @@ std::size_t Simulation::process_requests() {
 
 void Simulation::step() {
   // components act on the state the requests left
-  for (auto& e : entries_)
-    if (e->active) e->component->default_action();
+  for (auto& e : entries_) {
+    if (!e->active) continue;
+    try {
+      e->component->default_action();
+    } catch (const std::exception& error) {
+      // a faulty component is switched off; the simulation and everyone else go on
+      fail_component(*e, error.what());
+    }
+  }
   // physics (or only the clock while dynamics are suspended)
   if (dynamics_suspended_) {
     d()->time += m()->opt.timestep;
@@ -97,6 +104,17 @@ void Simulation::step() {
     mj_step(m(), d());
   }
   steps_.fetch_add(1, std::memory_order_relaxed);
+}
+
+void Simulation::fail_component(ComponentEntry& entry, const std::string& reason) {
+  const std::string& name = entry.component->name();
+  log::error(name, ": default_action() failed: ", reason, "; the component is deactivated",
+             " (simulation activate \"", name, "\" turns it back on)");
+  entry.active = false;
+  AsyncSlot& slot = *entry.component->async_slot();
+  if (slot.busy())
+    slot.running_completion.finish(
+        Outcome::failed(Failure::internal, name + ": default_action() failed: " + reason));
 }
 
 void Simulation::run() {

@@ -98,7 +98,7 @@ const BrokenCase k_cases[] = {
     {"log level word", [](json& c) { c["log_level"] = "loud"; }, {"log_level", "loud"}},
 };
 
-INSTANTIATE_TEST_SUITE_P(Catalogue, GatewayConfigCatalogueTest, ::testing::ValuesIn(k_cases),
+INSTANTIATE_TEST_SUITE_P(GatewayBrokenConfig, GatewayConfigCatalogueTest, ::testing::ValuesIn(k_cases),
                          [](const auto& info) {
                            std::string n = info.param.name;
                            for (auto& ch : n)

@@ -284,7 +284,8 @@ TEST(JsonRpcDiscoveryScope, ServicesOfOtherManagersAreNeitherListedNorCallable) 
   other->register_service("hidden", [] { return 42; }, "secret");
   TestHost host;
   JsonRpcClient c("127.0.0.1", host.port());
-  for (const auto& m : c.discover(k_timeout)["methods"])
+  const json doc = c.discover(k_timeout);
+  for (const auto& m : doc["methods"])
     EXPECT_NE(m["x-component"], "hidden") << m.dump();
   EXPECT_EQ(error_code(c.request("hidden.secret", nullptr, k_timeout)), -32601);
   other->stop();

@@ -112,5 +112,41 @@ TEST_F(SimRegistryTest, NewTypeJoinsTheRegistry) {
   EXPECT_EQ(counter->get(), 4);
 }
 
+// A component whose default action fails.
+class Faulty : public SimComponent {
+ public:
+  explicit Faulty(ComponentContext& c) : SimComponent(c.name(), c.sim()) {
+    add_async_service("work", [] {});
+  }
+  void default_action() override { throw std::runtime_error("sensor unplugged"); }
+};
+
+TEST_F(SimRegistryTest, FaultyDefaultActionDeactivatesOnlyThatComponent) {
+  registry_.add<Faulty>("faulty", Kind::component, "always fails");
+  registry_.add<Counter>("counter", Kind::component, "counts steps");
+  Robot* robot = add_robot("robot", "robot", "robot");
+  auto& faulty = sim_.add_component(
+      registry_.create(Kind::component, {"robot.faulty", "faulty", "robot", "x"}, json::object(), sim_, robot),
+      "faulty", "robot");
+  auto c = registry_.create(Kind::component, {"robot.counter", "counter", "robot", "y"}, json::object(), sim_, robot);
+  auto* counter = static_cast<Counter*>(c.get());
+  sim_.add_component(std::move(c), "counter", "robot");
+  auto rm = std::make_shared<testing::RecordingManager>();
+  rm->register_component(*faulty.component);
+  sim_.add_request_manager(rm, "test");
+  RequestId id = rm->call("robot.faulty", "work");
+  sim_.process_requests();
+  sim_.step();
+  sim_.step();
+  sim_.process_requests();
+  EXPECT_FALSE(faulty.active);
+  EXPECT_EQ(counter->get(), 2);  // the others go on
+  auto o = rm->outcome(id);
+  ASSERT_TRUE(o.has_value());
+  EXPECT_EQ(o->status, Status::failed);
+  EXPECT_THAT(o->message, HasSubstr("sensor unplugged"));
+  sim_.shutdown();
+}
+
 }  // namespace
 }  // namespace simgate::sim

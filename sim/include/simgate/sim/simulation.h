@@ -104,7 +104,9 @@ class Simulation {
 
   // Runs until request_stop(). Exceptions from MuJoCo or components propagate.
   void run();
-  // One step without pacing or request processing: default actions, then physics.
+  // One step without pacing or request processing: default actions, then physics. A
+  // component whose default_action() throws is deactivated (logged, its running request
+  // FAILED); MuJoCo errors propagate.
   void step();
   // process() of every request manager; returns the events handled.
   std::size_t process_requests();
@@ -127,6 +129,9 @@ class Simulation {
   SimulationStatistics statistics() const;
 
  private:
+  // Deactivates a component whose default_action() threw; fails its running request.
+  void fail_component(ComponentEntry& entry, const std::string& reason);
+
   Model model_;                                              // mjModel + mjData
   double realtime_factor_;                                   // 0 = as fast as possible
   std::shared_ptr<Wakeup> wakeup_;                           // shared with every manager

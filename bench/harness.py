@@ -1,0 +1,745 @@
+#!/usr/bin/python3
+"""simgate benchmark harness: runs every comparison of issue 7 and writes the results.
+
+Each figure is measured beside its baseline in the same run, repeated, and reported as a
+ratio with its median and spread (min..max over the repeats); a ratio is always computed
+between two measurements of the same repeat. Everything talks to 127.0.0.1 only; every
+loop is bounded in count and time; every process it starts is stopped before it returns.
+
+Sections (each ends "ok", "error" with the reason, or "skipped" when a part was not built):
+  socket   the socket transport vs the Asio line-echo limit: round-trip latency (1
+           outstanding) and pipelined throughput (windows 1/64/256 x 1/4 connections)
+  jsonrpc  the JSON-RPC transport vs the same echo limit (JSON-RPC-sized lines)
+  dds      simgate's DDS round trip vs a raw Cyclone ping-pong (same types, QoS, payload)
+  peers    MORSE's Python SocketRequestManager vs the socket transport; jayson@5's TCP
+           server vs the JSON-RPC transport; all with the same client
+  sim      gateway steps/s (as fast as possible) vs a bare mj_step loop on the same MJCF;
+           real-time factor and step jitter at real-time pacing, idle and under
+           10 000 requests/s
+  memory   resident memory of an idle gateway (demo config) and with 1 000 idle connections
+
+Usage: bench/harness.py --build-dir DIR [--out DIR] [--smoke] [--repeats N]
+Normally run through bench/run, which builds first. Writes DIR/results.json and
+DIR/results.md; exits 1 if a section failed.
+"""
+import argparse
+import datetime
+import json
+import os
+import platform
+import select
+import signal
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+PINNING = "none: every server, client and peer runs unpinned (no taskset), on both sides of every comparison"
+
+
+class BenchError(Exception):
+    """A measurement could not be made (a process failed, a reply was wrong, a timeout)."""
+
+
+# ---------------------------------------------------------------------------------------
+# processes
+
+
+class Process:
+    """A server or peer started for a section; reads its JSON announcement from stdout."""
+
+    def __init__(self, name, argv, logs, env=None, stdin=subprocess.DEVNULL):
+        self.name = name
+        self.log_path = os.path.join(logs, name + ".log")
+        self.log = open(self.log_path, "w")
+        self.proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=self.log, stdin=stdin,
+                                     env=env, cwd=ROOT)
+        self.buffer = b""
+
+    def read_json(self, key, timeout):
+        """The first JSON object on stdout that has `key` (other lines are ignored)."""
+        deadline = time.monotonic() + timeout
+        fd = self.proc.stdout.fileno()
+        while True:
+            while b"\n" in self.buffer:
+                line, self.buffer = self.buffer.split(b"\n", 1)
+                line = line.strip()
+                if line.startswith(b"{"):
+                    try:
+                        obj = json.loads(line)
+                    except ValueError:
+                        continue
+                    if key in obj:
+                        return obj
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise BenchError(f"{self.name}: no '{key}' on stdout within {timeout:.0f} s (log: {self.log_path})")
+            ready, _, _ = select.select([fd], [], [], min(left, 0.5))
+            if ready:
+                chunk = os.read(fd, 65536)
+                if not chunk:
+                    code = self.proc.wait(timeout=5)
+                    raise BenchError(f"{self.name}: exited with code {code} before printing '{key}' "
+                                     f"({tail(self.log_path)})")
+                self.buffer += chunk
+
+    def rss_kib(self):
+        with open(f"/proc/{self.proc.pid}/status") as f:
+            for line in f:
+                if line.startswith("VmRSS:"):
+                    return int(line.split()[1])
+        raise BenchError(f"{self.name}: no VmRSS in /proc/{self.proc.pid}/status")
+
+    def stop(self, timeout=20):
+        """SIGTERM, then the exit code (SIGKILL after `timeout`); non-zero codes are errors."""
+        if self.proc.stdin:
+            # programs told to stop by closing stdin finish on their own first
+            self.proc.stdin.close()
+            try:
+                self.proc.wait(timeout=timeout)
+            except subprocess.TimeoutExpired:
+                pass
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+        try:
+            code = self.proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+            code = "killed"
+        self.proc.stdout.close()
+        self.log.close()
+        return code
+
+    def check_stopped(self):
+        """Stops; a non-zero exit code is an error, unless another error is already on its
+        way (called from `finally`: the first error is the one worth reporting)."""
+        pending = sys.exc_info()[1]
+        code = self.stop()
+        if code != 0 and pending is None:
+            raise BenchError(f"{self.name}: exit code {code} at shutdown ({tail(self.log_path)})")
+
+
+def tail(path, lines=5):
+    try:
+        with open(path, errors="replace") as f:
+            text = f.read().strip().splitlines()[-lines:]
+        return "log tail: " + " | ".join(text) if text else "empty log"
+    except OSError:
+        return "no log"
+
+
+def run_json(argv, timeout, env=None):
+    """Runs a client to completion and returns the last JSON object it printed."""
+    try:
+        done = subprocess.run(argv, capture_output=True, text=True, timeout=timeout, env=env, cwd=ROOT)
+    except subprocess.TimeoutExpired:
+        raise BenchError(f"{os.path.basename(argv[0])}: still running after {timeout:.0f} s")
+    if done.returncode != 0:
+        raise BenchError(f"{os.path.basename(argv[0])} {' '.join(argv[1:])}: exit code {done.returncode}: "
+                         f"{done.stderr.strip()[-400:]}")
+    for line in reversed(done.stdout.strip().splitlines()):
+        if line.startswith("{"):
+            return json.loads(line)
+    raise BenchError(f"{os.path.basename(argv[0])}: no JSON result on stdout")
+
+
+def port_of(endpoints):
+    """The port of the first tcp:// endpoint."""
+    for e in endpoints:
+        if e.startswith("tcp://"):
+            return int(e.rsplit(":", 1)[1])
+    raise BenchError(f"no tcp:// endpoint in {endpoints}")
+
+
+# ---------------------------------------------------------------------------------------
+# statistics
+
+
+def spread(values):
+    values = [v for v in values if v is not None]
+    if not values:
+        return None
+    return {"median": statistics.median(values), "min": min(values), "max": max(values), "n": len(values)}
+
+
+def in_order(repeat, first, second):
+    """Runs both measurements of a pair, swapping their order on odd repeats so that neither
+    side always runs first (a warm cache or a quieter moment); returns (first, second)."""
+    if repeat % 2 == 0:
+        a = first()
+        return a, second()
+    b = second()
+    return first(), b
+
+
+def ratio(a, b):
+    return a / b if a is not None and b not in (None, 0) else None
+
+
+# ---------------------------------------------------------------------------------------
+# the harness
+
+
+class Harness:
+    def __init__(self, args):
+        self.args = args
+        self.smoke = args.smoke
+        self.build = os.path.abspath(args.build_dir)
+        self.bin = os.path.join(self.build, "bin")
+        self.out = os.path.abspath(args.out)
+        self.logs = os.path.join(self.out, "logs")
+        os.makedirs(self.logs, exist_ok=True)
+        self.repeats = args.repeats or (1 if self.smoke else 3)
+        # sizes: seconds of each throughput run, round trips of each latency run
+        self.duration = 0.15 if self.smoke else 1.0
+        self.warmup_s = 0.05 if self.smoke else 0.3
+        self.count = 50 if self.smoke else 2000
+        self.windows = [1, 64] if self.smoke else [1, 64, 256]
+        self.connections = [1] if self.smoke else [1, 4]
+        self.env = dict(os.environ)
+        self.env["SIMGATE_PLUGIN_PATH"] = os.path.join(self.build, "plugins")
+        self.env["CYCLONEDDS_URI"] = "file://" + os.path.join(ROOT, "config", "dds", "loopback.xml")
+        self.env.setdefault("ASAN_OPTIONS", "detect_leaks=1")
+        self.results = {"sections": {}, "targets": []}
+        self.timeout = 120 if self.smoke else 300  # per client run (sanitizer builds are slow)
+
+    def exe(self, name):
+        path = os.path.join(self.bin, name)
+        if not os.access(path, os.X_OK):
+            raise FileNotFoundError(path)
+        return path
+
+    def plugin_built(self, name):
+        return os.path.exists(os.path.join(self.build, "plugins", f"libsimgate_transport_{name}.so"))
+
+    # ---- common measurements
+
+    def loadgen(self, port, proto_args, mode_args):
+        return run_json([self.exe("simgate_bench_loadgen"), "--port", str(port)] + proto_args + mode_args,
+                        self.timeout, self.env)
+
+    def latency(self, port, proto_args):
+        r = self.loadgen(port, proto_args, ["--mode", "latency", "--count", str(self.count)])
+        if r["errors"]:
+            raise BenchError(f"{r['errors']} wrong replies (first: {r.get('first_reply')!r})")
+        return r
+
+    def throughput(self, port, proto_args, window, connections):
+        r = self.loadgen(port, proto_args, ["--mode", "throughput", "--window", str(window),
+                                            "--connections", str(connections), "--duration", str(self.duration),
+                                            "--warmup-seconds", str(self.warmup_s)])
+        if r["errors"]:
+            raise BenchError(f"{r['errors']} wrong replies (first: {r.get('first_reply')!r})")
+        return r
+
+    def host(self, transport, options):
+        p = Process(f"host-{transport}", [self.exe("simgate_bench_host"), "--transport", transport,
+                                          "--options", json.dumps(options)], self.logs, self.env)
+        p.announcement = p.read_json("endpoints", 60)
+        return p
+
+    def echo(self):
+        p = Process("echo", [self.exe("simgate_bench_echo")], self.logs, self.env)
+        p.port = p.read_json("port", 30)["port"]
+        return p
+
+    def compare_tcp(self, name, server_port, echo_port, proto_args, windows, connections):
+        """Latency and throughput of a server and of the echo limit, interleaved per repeat."""
+        rows = {"latency": [], "throughput": {}}
+        for rep in range(self.repeats):
+            echo, server = in_order(rep, lambda: self.latency(echo_port, proto_args + ["--echo"]),
+                                    lambda: self.latency(server_port, proto_args))
+            rows["latency"].append({"echo": echo, name: server, "ratio_p50": ratio(server["p50_us"], echo["p50_us"]),
+                                    "ratio_p99": ratio(server["p99_us"], echo["p99_us"])})
+            for c in connections:
+                for w in windows:
+                    key = f"w{w}_c{c}"
+                    echo_t, server_t = in_order(rep, lambda: self.throughput(echo_port, proto_args + ["--echo"], w, c),
+                                                lambda: self.throughput(server_port, proto_args, w, c))
+                    rows["throughput"].setdefault(key, []).append(
+                        {"echo": echo_t, name: server_t, "ratio": ratio(server_t["rps"], echo_t["rps"])})
+        return rows
+
+    @staticmethod
+    def summarize_tcp(rows, name):
+        out = {"latency": {
+            "server_p50_us": spread([r[name]["p50_us"] for r in rows["latency"]]),
+            "server_p99_us": spread([r[name]["p99_us"] for r in rows["latency"]]),
+            "echo_p50_us": spread([r["echo"]["p50_us"] for r in rows["latency"]]),
+            "echo_p99_us": spread([r["echo"]["p99_us"] for r in rows["latency"]]),
+            "ratio_p50": spread([r["ratio_p50"] for r in rows["latency"]]),
+            "ratio_p99": spread([r["ratio_p99"] for r in rows["latency"]]),
+        }, "throughput": {}}
+        for key, runs in rows["throughput"].items():
+            out["throughput"][key] = {
+                "server_rps": spread([r[name]["rps"] for r in runs]),
+                "echo_rps": spread([r["echo"]["rps"] for r in runs]),
+                "ratio": spread([r["ratio"] for r in runs]),
+            }
+        return out
+
+    def target(self, what, value, op, threshold, unit=""):
+        """Records a target of the issue and whether this run met it (never asserted)."""
+        v = value["median"] if isinstance(value, dict) and value else value
+        met = None if v is None else (v <= threshold if op == "<=" else v >= threshold)
+        self.results["targets"].append({"target": what, "value": value, "op": op, "threshold": threshold,
+                                        "unit": unit, "met": met})
+
+    # ---- sections
+
+    def section_socket(self):
+        if not self.plugin_built("socket"):
+            return {"status": "skipped", "reason": "libsimgate_transport_socket.so is not built"}
+        echo = self.echo()
+        host = self.host("socket", {"host": "127.0.0.1", "port": 0})
+        try:
+            port = port_of(host.announcement["endpoints"])
+            rows = self.compare_tcp("socket", port, echo.port, ["--proto", "socket"], self.windows, self.connections)
+            self.socket_port_rows = rows
+        finally:
+            echo.check_stopped()
+            host.check_stopped()
+        s = self.summarize_tcp(rows, "socket")
+        self.target("socket sync round trip p50 / echo p50", s["latency"]["ratio_p50"], "<=", 1.3, "x")
+        self.target("socket pipelined throughput (window 64, 1 connection) / echo", s["throughput"]["w64_c1"]["ratio"],
+                    ">=", 0.5, "x")
+        return {"status": "ok", "summary": s, "runs": rows}
+
+    def section_jsonrpc(self):
+        if not self.plugin_built("jsonrpc"):
+            return {"status": "skipped", "reason": "libsimgate_transport_jsonrpc.so is not built"}
+        echo = self.echo()
+        host = self.host("jsonrpc", {"host": "127.0.0.1", "port": 0})
+        try:
+            port = port_of(host.announcement["endpoints"])
+            rows = self.compare_tcp("jsonrpc", port, echo.port, ["--proto", "jsonrpc"], self.windows, self.connections)
+        finally:
+            echo.check_stopped()
+            host.check_stopped()
+        s = self.summarize_tcp(rows, "jsonrpc")
+        self.target("JSON-RPC sync round trip p50 / echo p50", s["latency"]["ratio_p50"], "<=", 1.3, "x")
+        self.target("JSON-RPC pipelined throughput (window 64, 1 connection) / echo",
+                    s["throughput"]["w64_c1"]["ratio"], ">=", 0.35, "x")
+        return {"status": "ok", "summary": s, "runs": rows}
+
+    def section_dds(self):
+        if not self.plugin_built("dds") or not os.access(os.path.join(self.bin, "simgate_bench_dds"), os.X_OK):
+            return {"status": "skipped", "reason": "the DDS transport or simgate_bench_dds is not built"}
+        domain = 17  # away from the default domain 0 that tests and demos use
+        tag = f"simgate-bench-{os.getpid()}"
+        pong = Process("dds-pong", [self.exe("simgate_bench_dds"), "--mode", "pong", "--domain", str(domain),
+                                    "--partition", tag + "-raw", "--timeout", "900"], self.logs, self.env)
+        host = None
+        runs = []
+        try:
+            pong.read_json("ready", 60)
+            host = self.host("dds", {"domain": domain, "partition": tag + "-simgate"})
+            common = ["--domain", str(domain), "--count", str(self.count), "--timeout", "120"]
+            for rep in range(self.repeats):
+                raw, sg = in_order(
+                    rep,
+                    lambda: run_json([self.exe("simgate_bench_dds"), "--mode", "ping", "--partition", tag + "-raw"]
+                                     + common, self.timeout, self.env),
+                    lambda: run_json([self.exe("simgate_bench_dds"), "--mode", "client", "--partition",
+                                      tag + "-simgate"] + common, self.timeout, self.env))
+                if raw["errors"] or sg["errors"]:
+                    raise BenchError(f"DDS replies wrong: raw {raw['errors']}, simgate {sg['errors']}")
+                runs.append({"raw": raw, "simgate": sg, "ratio_p50": ratio(sg["p50_us"], raw["p50_us"]),
+                             "ratio_p99": ratio(sg["p99_us"], raw["p99_us"])})
+        finally:
+            pong.check_stopped()
+            if host:
+                host.check_stopped()
+        s = {"simgate_p50_us": spread([r["simgate"]["p50_us"] for r in runs]),
+             "simgate_p99_us": spread([r["simgate"]["p99_us"] for r in runs]),
+             "raw_p50_us": spread([r["raw"]["p50_us"] for r in runs]),
+             "raw_p99_us": spread([r["raw"]["p99_us"] for r in runs]),
+             "ratio_p50": spread([r["ratio_p50"] for r in runs]),
+             "ratio_p99": spread([r["ratio_p99"] for r in runs])}
+        self.target("DDS round trip p50 / raw Cyclone ping-pong p50", s["ratio_p50"], "<=", 1.3, "x")
+        return {"status": "ok", "summary": s, "runs": runs}
+
+    def peer_compare(self, peer_name, peer_argv, transport, proto_args, windows, env):
+        """A peer server against a simgate transport, same client, interleaved per repeat."""
+        peer = Process(peer_name, peer_argv, self.logs, env)
+        host = None
+        runs = []
+        try:
+            peer_port = peer.read_json("port", 60)["port"]
+            host = self.host(transport, {"host": "127.0.0.1", "port": 0})
+            port = port_of(host.announcement["endpoints"])
+            for rep in range(self.repeats):
+                lp, ls = in_order(rep, lambda: self.latency(peer_port, proto_args),
+                                  lambda: self.latency(port, proto_args))
+                run = {"latency": {"peer": lp, "simgate": ls, "ratio_p50": ratio(ls["p50_us"], lp["p50_us"])},
+                       "throughput": {}}
+                for w in windows:
+                    tp, ts = in_order(rep, lambda: self.throughput(peer_port, proto_args, w, 1),
+                                      lambda: self.throughput(port, proto_args, w, 1))
+                    run["throughput"][f"w{w}_c1"] = {"peer": tp, "simgate": ts, "ratio": ratio(ts["rps"], tp["rps"])}
+                runs.append(run)
+        finally:
+            peer.check_stopped()
+            if host:
+                host.check_stopped()
+        s = {"latency": {"peer_p50_us": spread([r["latency"]["peer"]["p50_us"] for r in runs]),
+                         "simgate_p50_us": spread([r["latency"]["simgate"]["p50_us"] for r in runs]),
+                         "ratio_p50": spread([r["latency"]["ratio_p50"] for r in runs])},
+             "throughput": {}}
+        for w in windows:
+            key = f"w{w}_c1"
+            s["throughput"][key] = {"peer_rps": spread([r["throughput"][key]["peer"]["rps"] for r in runs]),
+                                    "simgate_rps": spread([r["throughput"][key]["simgate"]["rps"] for r in runs]),
+                                    "ratio": spread([r["throughput"][key]["ratio"] for r in runs])}
+        return {"summary": s, "runs": runs}
+
+    def section_peers(self):
+        out = {"status": "ok"}
+        # MORSE's request manager: at most 4096 bytes per read, so windows stay below that
+        if not self.plugin_built("socket"):
+            out["morse"] = {"status": "skipped", "reason": "the socket transport is not built"}
+        else:
+            m = self.peer_compare("morse", ["/usr/bin/python3", os.path.join(ROOT, "bench", "peers", "morse_peer.py")],
+                                  "socket", ["--proto", "socket"], [1, 64], self.env)
+            out["morse"] = dict(status="ok", **m)
+            self.target("socket throughput (window 64) / MORSE's Python request manager",
+                        m["summary"]["throughput"]["w64_c1"]["ratio"], ">=", 50, "x")
+            self.target("socket round trip p50 / MORSE's", m["summary"]["latency"]["ratio_p50"], "<=", 0.5, "x")
+        if not self.plugin_built("jsonrpc"):
+            out["jayson"] = {"status": "skipped", "reason": "the JSON-RPC transport is not built"}
+        else:
+            if not os.path.isdir(os.path.join(ROOT, "bench", "node_modules", "jayson")):
+                raise BenchError("bench/node_modules/jayson is missing: run `npm install` in bench/ "
+                                 "(scripts/test and bench/run do)")
+            j = self.peer_compare("jayson", ["node", os.path.join(ROOT, "bench", "peers", "jayson_peer.js")],
+                                  "jsonrpc", ["--proto", "jsonrpc"], [1, 64], self.env)
+            out["jayson"] = dict(status="ok", **j)
+            self.target("JSON-RPC throughput (window 64) / jayson@5 TCP server",
+                        j["summary"]["throughput"]["w64_c1"]["ratio"], ">=", 10, "x")
+        return out
+
+    def demo_config(self, port=0):
+        """config/demo.json with the socket transport on an ephemeral port and an absolute MJCF."""
+        with open(os.path.join(ROOT, "config", "demo.json")) as f:
+            cfg = json.load(f)
+        cfg["scene"]["mjcf"] = os.path.join(ROOT, "config", cfg["scene"]["mjcf"])
+        for t in cfg.get("transports", {}).values():
+            if "options" in t and "port" in t["options"]:
+                t["options"]["port"] = port
+        cfg["log_level"] = "warning"
+        path = os.path.join(self.out, "demo-bench.json")
+        with open(path, "w") as f:
+            json.dump(cfg, f, indent=1)
+        return path, cfg["scene"]["mjcf"]
+
+    def sim_gateway(self, config, factor, duration, load_rate=None, label="gateway"):
+        p = Process(f"sim-{label}", [self.exe("simgate_bench_sim"), "--mode", "gateway", "--config", config,
+                                     "--realtime-factor", str(factor), "--duration", str(duration + 60),
+                                     "--until-stdin-closes"], self.logs, self.env, stdin=subprocess.PIPE)
+        try:
+            endpoints = p.read_json("endpoints", 60)["endpoints"]
+            load = None
+            if load_rate:
+                port = port_of(endpoints.get("socket", []))
+                load = self.loadgen(port, ["--proto", "socket", "--request", "time now"],
+                                    ["--mode", "rate", "--rate", str(load_rate), "--duration", str(duration)])
+                if load["errors"]:
+                    raise BenchError(f"{load['errors']} wrong replies from `time now` under load")
+            else:
+                time.sleep(duration)
+            p.proc.stdin.close()
+            result = p.read_json("steps_per_s", 120)
+            result["load"] = load
+        finally:
+            p.check_stopped()
+        return result
+
+    def section_sim(self):
+        if not os.access(os.path.join(self.bin, "simgate_bench_sim"), os.X_OK):
+            return {"status": "skipped", "reason": "simgate_bench_sim (needs the gateway) is not built"}
+        config, mjcf = self.demo_config()
+        duration = 0.5 if self.smoke else 3.0
+        runs = []
+        for rep in range(self.repeats):
+            bare, gw = in_order(rep, lambda: run_json([self.exe("simgate_bench_sim"), "--mode", "bare", "--mjcf", mjcf,
+                                                       "--duration", str(duration)], self.timeout, self.env),
+                                lambda: self.sim_gateway(config, 0, duration, label="max"))
+            runs.append({"bare": bare, "gateway": gw, "ratio": ratio(gw["steps_per_s"], bare["steps_per_s"])})
+        rt_duration = 1.0 if self.smoke else 5.0
+        rate = 1000 if self.smoke else 10000
+        idle = self.sim_gateway(config, 1, rt_duration, label="realtime-idle")
+        loaded = self.sim_gateway(config, 1, rt_duration, load_rate=rate, label="realtime-load")
+        s = {"bare_steps_per_s": spread([r["bare"]["steps_per_s"] for r in runs]),
+             "gateway_steps_per_s": spread([r["gateway"]["steps_per_s"] for r in runs]),
+             "ratio": spread([r["ratio"] for r in runs]),
+             "realtime_idle": {"realtime_factor": idle["realtime_factor"], "jitter_p99_us": idle["jitter"]["p99_us"],
+                               "jitter_p50_us": idle["jitter"]["p50_us"], "overruns": idle["overruns"]},
+             "realtime_load": {"realtime_factor": loaded["realtime_factor"],
+                               "jitter_p99_us": loaded["jitter"]["p99_us"], "jitter_p50_us": loaded["jitter"]["p50_us"],
+                               "overruns": loaded["overruns"], "target_rps": rate,
+                               "achieved_rps": loaded["load"]["achieved_rps"],
+                               "request_p50_us": loaded["load"]["p50_us"], "request_p99_us": loaded["load"]["p99_us"]}}
+        self.target("gateway steps/s (as fast as possible) / bare mj_step", s["ratio"], ">=", 0.95, "x")
+        self.target(f"real-time factor under {rate} req/s", loaded["realtime_factor"], ">=", 0.99)
+        return {"status": "ok", "summary": s, "runs": runs, "realtime_idle": idle, "realtime_load": loaded}
+
+    def section_memory(self):
+        gateway = os.path.join(self.bin, "simgate")
+        if not os.access(gateway, os.X_OK) or not self.plugin_built("socket"):
+            return {"status": "skipped", "reason": "build/bin/simgate or the socket transport is not built"}
+        config, _ = self.demo_config()
+        n = 50 if self.smoke else 1000
+        endpoints_file = os.path.join(self.out, "endpoints.json")
+        p = Process("gateway-memory", [gateway, "run", config, "--endpoints-file", endpoints_file,
+                                       "--log-level", "warning"], self.logs, self.env)
+        hold = None
+        try:
+            deadline = time.monotonic() + 60
+            while not os.path.exists(endpoints_file):
+                if p.proc.poll() is not None:
+                    raise BenchError(f"simgate run exited with {p.proc.returncode} ({tail(p.log_path)})")
+                if time.monotonic() > deadline:
+                    raise BenchError("simgate run wrote no endpoints file within 60 s")
+                time.sleep(0.05)
+            with open(endpoints_file) as f:
+                port = port_of(json.load(f)["socket"])
+            time.sleep(0.5 if self.smoke else 1.0)  # let start-up allocations settle
+            idle_kib = p.rss_kib()
+            hold = Process("hold", [self.exe("simgate_bench_loadgen"), "--mode", "hold", "--port", str(port),
+                                    "--count", str(n), "--duration", "120"], self.logs, self.env,
+                           stdin=subprocess.PIPE)
+            connected = hold.read_json("connected", 60)["connected"]
+            # the gateway has accepted them all when a request on a new connection is answered
+            self.loadgen(port, ["--proto", "socket", "--request", "time now"], ["--mode", "latency", "--count", "5",
+                                                                               "--warmup", "0"])
+            time.sleep(0.5)
+            loaded_kib = p.rss_kib()
+            hold.proc.stdin.close()
+            held = hold.read_json("still_open", 60)
+            if held["still_open"] != n:
+                raise BenchError(f"the gateway dropped {n - held['still_open']} of {n} idle connections")
+        finally:
+            if hold:
+                hold.stop()
+            p.check_stopped()
+        s = {"idle_mib": idle_kib / 1024, "with_connections_mib": loaded_kib / 1024,
+             "added_mib": (loaded_kib - idle_kib) / 1024, "connections": connected,
+             "per_connection_kib": (loaded_kib - idle_kib) / max(connected, 1)}
+        self.target("idle gateway resident memory", s["idle_mib"], "<=", 40, "MiB")
+        self.target(f"memory added by {n} idle connections", s["added_mib"], "<=", 64 * n / 1000, "MiB")
+        return {"status": "ok", "summary": s}
+
+    # ---- driver
+
+    def machine(self):
+        cpu = "unknown"
+        try:
+            with open("/proc/cpuinfo") as f:
+                for line in f:
+                    if line.startswith("model name"):
+                        cpu = line.split(":", 1)[1].strip()
+                        break
+        except OSError:
+            pass
+        try:
+            commit = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"], capture_output=True,
+                                    text=True, timeout=10).stdout.strip()
+        except (OSError, subprocess.TimeoutExpired):
+            commit = ""
+        mem_kib = 0
+        with open("/proc/meminfo") as f:
+            mem_kib = int(f.readline().split()[1])
+        cache = {}
+        try:
+            with open(os.path.join(self.build, "CMakeCache.txt")) as f:
+                for line in f:
+                    for key in ("CMAKE_BUILD_TYPE", "SIMGATE_SANITIZE"):
+                        if line.startswith(key + ":"):
+                            cache[key] = line.split("=", 1)[1].strip()
+        except OSError:
+            pass
+        return {"cpu": cpu, "vcpus": os.cpu_count(), "memory_gib": round(mem_kib / 1024 / 1024, 1),
+                "kernel": platform.release(), "python": platform.python_version(),
+                "load_average_at_start": os.getloadavg(), "commit": commit,
+                "build_type": cache.get("CMAKE_BUILD_TYPE", ""), "sanitize": cache.get("SIMGATE_SANITIZE", ""),
+                "pinning": PINNING}
+
+    def run(self):
+        started = time.monotonic()
+        self.results["date"] = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+        self.results["mode"] = "smoke" if self.smoke else "full"
+        self.results["repeats"] = self.repeats
+        self.results["machine"] = self.machine()
+        only = set(self.args.only.split(",")) if self.args.only else None
+        for name in ("socket", "jsonrpc", "dds", "peers", "sim", "memory"):
+            if only and name not in only:
+                continue
+            t0 = time.monotonic()
+            print(f"[bench] {name} ...", file=sys.stderr, flush=True)
+            try:
+                section = getattr(self, "section_" + name)()
+            except Exception as e:  # one failed section must not hide the others
+                section = {"status": "error", "reason": f"{type(e).__name__}: {e}"}
+            section["seconds"] = round(time.monotonic() - t0, 1)
+            self.results["sections"][name] = section
+            print(f"[bench] {name}: {section['status']} ({section['seconds']} s)"
+                  + (f" {section.get('reason')}" if section["status"] != "ok" else ""), file=sys.stderr, flush=True)
+        self.results["seconds"] = round(time.monotonic() - started, 1)
+        with open(os.path.join(self.out, "results.json"), "w") as f:
+            json.dump(self.results, f, indent=1)
+        with open(os.path.join(self.out, "results.md"), "w") as f:
+            f.write(markdown(self.results))
+        failed = [n for n, s in self.results["sections"].items() if s["status"] == "error"]
+        return 1 if failed else 0
+
+
+# ---------------------------------------------------------------------------------------
+# the Markdown report
+
+
+def fmt(v, digits=1):
+    if v is None:
+        return "–"
+    if isinstance(v, dict):
+        if v.get("n", 1) > 1:
+            return f"{fmt(v['median'], digits)} ({fmt(v['min'], digits)}–{fmt(v['max'], digits)})"
+        return fmt(v["median"], digits)
+    if abs(v) >= 10000:
+        return f"{v:,.0f}"
+    return f"{v:.{digits}f}"
+
+
+def markdown(r):
+    m = r["machine"]
+    lines = [f"# simgate benchmark results ({r['mode']})", "",
+             f"- Date: {r['date']}; commit {m['commit'] or '?'}; build {m['build_type'] or '?'}"
+             + (f", sanitizer {m['sanitize']}" if m.get("sanitize") else ""),
+             f"- Machine: {m['cpu']}, {m['vcpus']} vCPUs, {m['memory_gib']} GiB, Linux {m['kernel']}; "
+             f"load average at start {', '.join(f'{x:.1f}' for x in m['load_average_at_start'])}",
+             f"- Pinning: {m['pinning']}",
+             f"- Repeats: {r['repeats']}; figures are medians with (min–max) over the repeats; every ratio "
+             "pairs two measurements of the same repeat; latencies in µs, throughput in replies/s.",
+             f"- Whole run: {r['seconds']} s", ""]
+    s = r["sections"]
+
+    def status_line(name):
+        sec = s.get(name)
+        if sec is None:
+            return f"_{name}: not run_"
+        if sec["status"] != "ok":
+            return f"_{name}: {sec['status']}: {sec.get('reason', '')}_"
+        return None
+
+    # targets first: what the issue asks
+    lines += ["## Targets", "", "| target | this run | goal | met |", "|---|---|---|---|"]
+    for t in r["targets"]:
+        met = {True: "yes", False: "**no**", None: "–"}[t["met"]]
+        lines.append(f"| {t['target']} | {fmt(t['value'], 2)} {t['unit']} | {t['op']} {t['threshold']} {t['unit']} | {met} |")
+    lines.append("")
+
+    for name, title in (("socket", "Socket transport (MORSE text protocol) vs Asio line echo"),
+                        ("jsonrpc", "JSON-RPC transport vs Asio line echo (JSON-RPC-sized lines)")):
+        lines += [f"## {title}", ""]
+        st = status_line(name)
+        if st:
+            lines += [st, ""]
+            continue
+        sm = s[name]["summary"]
+        lat = sm["latency"]
+        lines += ["| measure | simgate | echo limit | simgate / echo |", "|---|---|---|---|",
+                  f"| sync round trip p50 (µs) | {fmt(lat['server_p50_us'])} | {fmt(lat['echo_p50_us'])} | {fmt(lat['ratio_p50'], 2)} |",
+                  f"| sync round trip p99 (µs) | {fmt(lat['server_p99_us'])} | {fmt(lat['echo_p99_us'])} | {fmt(lat['ratio_p99'], 2)} |"]
+        for key, t in sm["throughput"].items():
+            w, c = key[1:].split("_c")
+            lines.append(f"| throughput, window {w}, {c} conn. (req/s) | {fmt(t['server_rps'])} | "
+                         f"{fmt(t['echo_rps'])} | {fmt(t['ratio'], 2)} |")
+        lines.append("")
+
+    lines += ["## DDS transport vs raw Cyclone ping-pong", ""]
+    st = status_line("dds")
+    if st:
+        lines += [st, ""]
+    else:
+        d = s["dds"]["summary"]
+        lines += ["| measure | simgate | raw Cyclone | simgate / raw |", "|---|---|---|---|",
+                  f"| round trip p50 (µs) | {fmt(d['simgate_p50_us'])} | {fmt(d['raw_p50_us'])} | {fmt(d['ratio_p50'], 2)} |",
+                  f"| round trip p99 (µs) | {fmt(d['simgate_p99_us'])} | {fmt(d['raw_p99_us'])} | {fmt(d['ratio_p99'], 2)} |", ""]
+
+    lines += ["## Peers (same client)", ""]
+    st = status_line("peers")
+    if st:
+        lines += [st, ""]
+    else:
+        lines += ["| measure | simgate | peer | simgate / peer |", "|---|---|---|---|"]
+        for key, label, transport in (("morse", "MORSE Python SocketRequestManager", "socket"),
+                                      ("jayson", "jayson@5 TCP server", "JSON-RPC")):
+            p = s["peers"].get(key, {})
+            if p.get("status") != "ok":
+                lines.append(f"| {label} | {p.get('status', 'not run')}: {p.get('reason', '')} | | |")
+                continue
+            sm = p["summary"]
+            lines.append(f"| {transport} vs {label}: round trip p50 (µs) | {fmt(sm['latency']['simgate_p50_us'])} | "
+                         f"{fmt(sm['latency']['peer_p50_us'])} | {fmt(sm['latency']['ratio_p50'], 3)} |")
+            for k, t in sm["throughput"].items():
+                w = k[1:].split("_c")[0]
+                lines.append(f"| {transport} vs {label}: throughput, window {w} (req/s) | {fmt(t['simgate_rps'])} | "
+                             f"{fmt(t['peer_rps'])} | {fmt(t['ratio'], 1)} |")
+        lines.append("")
+
+    lines += ["## Simulation (demo scene)", ""]
+    st = status_line("sim")
+    if st:
+        lines += [st, ""]
+    else:
+        sm = s["sim"]["summary"]
+        idle, load = sm["realtime_idle"], sm["realtime_load"]
+        lines += ["| measure | value |", "|---|---|",
+                  f"| bare mj_step loop (steps/s) | {fmt(sm['bare_steps_per_s'])} |",
+                  f"| gateway, as fast as possible (steps/s) | {fmt(sm['gateway_steps_per_s'])} |",
+                  f"| gateway / bare | {fmt(sm['ratio'], 3)} |",
+                  f"| real time, idle: real-time factor / step jitter p50, p99 (µs) / overruns | "
+                  f"{fmt(idle['realtime_factor'], 4)} / {fmt(idle['jitter_p50_us'])}, {fmt(idle['jitter_p99_us'])} / {idle['overruns']} |",
+                  f"| real time, {load['target_rps']} req/s offered ({fmt(load['achieved_rps'])} answered/s): "
+                  f"real-time factor / step jitter p50, p99 (µs) / overruns | {fmt(load['realtime_factor'], 4)} / "
+                  f"{fmt(load['jitter_p50_us'])}, {fmt(load['jitter_p99_us'])} / {load['overruns']} |",
+                  f"| request latency under that load p50 / p99 (µs) | {fmt(load['request_p50_us'])} / "
+                  f"{fmt(load['request_p99_us'])} |", ""]
+
+    lines += ["## Memory (simgate run, demo config)", ""]
+    st = status_line("memory")
+    if st:
+        lines += [st, ""]
+    else:
+        mm = s["memory"]["summary"]
+        lines += ["| measure | value |", "|---|---|",
+                  f"| idle gateway resident (MiB) | {fmt(mm['idle_mib'])} |",
+                  f"| with {mm['connections']} idle connections (MiB) | {fmt(mm['with_connections_mib'])} |",
+                  f"| added (MiB) / per connection (KiB) | {fmt(mm['added_mib'])} / {fmt(mm['per_connection_kib'])} |", ""]
+
+    lines += ["## Sections", "", "| section | status | seconds |", "|---|---|---|"]
+    for name, sec in s.items():
+        lines.append(f"| {name} | {sec['status']}{(': ' + sec.get('reason', '')) if sec['status'] != 'ok' else ''} "
+                     f"| {sec.get('seconds', '')} |")
+    return "\n".join(lines) + "\n"
+
+
+def main():
+    parser = argparse.ArgumentParser(description="simgate benchmark harness (see docs/performance.md)")
+    parser.add_argument("--build-dir", default=os.path.join(ROOT, "build"))
+    parser.add_argument("--out", default=None, help="results directory (default: BUILD_DIR/bench-results)")
+    parser.add_argument("--smoke", action="store_true", help="seconds-long run that only proves every part works")
+    parser.add_argument("--repeats", type=int, default=0)
+    parser.add_argument("--only", default="", help="comma-separated sections to run (default: all)")
+    args = parser.parse_args()
+    if args.out is None:
+        args.out = os.path.join(args.build_dir, "bench-results-smoke" if args.smoke else "bench-results")
+    code = Harness(args).run()
+    print(os.path.join(os.path.abspath(args.out), "results.md"))
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

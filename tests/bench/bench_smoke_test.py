@@ -1,0 +1,110 @@
+#!/usr/bin/python3
+"""BenchSmoke: runs bench/harness.py --smoke and checks that its results are well formed.
+
+Checks, never timing thresholds:
+  * the harness exits 0 and writes results.json and results.md;
+  * every section (socket, jsonrpc, dds, peers, sim, memory) is present and "ok", or
+    "skipped" with a reason (a part this build does not have, e.g. DDS switched off);
+  * every figure an ok section reports is a finite, positive number (a silently empty
+    measurement, such as zero replies, fails here);
+  * every target of the issue has a value, a threshold and a verdict;
+  * results.md has the targets table and a table per section.
+Prints one line per check and "N passed, N failed" at the end.
+"""
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(HERE))
+SECTIONS = ("socket", "jsonrpc", "dds", "peers", "sim", "memory")
+
+passed, failed = 0, 0
+
+
+def check(ok, what):
+    global passed, failed
+    if ok:
+        passed += 1
+        print(f"[ OK ] {what}")
+    else:
+        failed += 1
+        print(f"[FAIL] {what}")
+    return ok
+
+
+def numbers(value, path=""):
+    """Every number inside a summary, with its JSON path."""
+    if isinstance(value, bool):
+        return
+    if isinstance(value, (int, float)):
+        yield path, value
+    elif isinstance(value, dict):
+        for k, v in value.items():
+            yield from numbers(v, f"{path}.{k}")
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            yield from numbers(v, f"{path}[{i}]")
+
+
+def main():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--build-dir", required=True)
+    parser.add_argument("--out", required=True)
+    args = parser.parse_args()
+
+    harness = os.path.join(ROOT, "bench", "harness.py")
+    done = subprocess.run([sys.executable, harness, "--smoke", "--build-dir", args.build_dir, "--out", args.out],
+                          capture_output=True, text=True, timeout=840)
+    sys.stdout.write(done.stderr)
+    check(done.returncode == 0, f"harness exit code {done.returncode} (0 expected)")
+
+    results_path = os.path.join(args.out, "results.json")
+    if not check(os.path.exists(results_path), "results.json written"):
+        return 1
+    with open(results_path) as f:
+        results = json.load(f)
+    check(results.get("mode") == "smoke", "results.json says mode smoke")
+    for key in ("date", "machine", "sections", "targets"):
+        check(key in results, f"results.json has '{key}'")
+    check(bool(results["machine"].get("pinning")), "the pinning policy is stated")
+
+    for name in SECTIONS:
+        section = results["sections"].get(name)
+        if not check(section is not None, f"section {name} ran"):
+            continue
+        status = section.get("status")
+        if status == "skipped":
+            check(bool(section.get("reason")), f"section {name} skipped with a reason: {section.get('reason')}")
+            continue
+        check(status == "ok", f"section {name} ok (status {status}: {section.get('reason', '')})")
+        summaries = [section.get("summary")] if "summary" in section else \
+            [v.get("summary") for v in section.values() if isinstance(v, dict) and v.get("status") == "ok"]
+        for summary in summaries:
+            bad = [(p, v) for p, v in numbers(summary)
+                   if not math.isfinite(v) or (v <= 0 and not p.endswith("overruns") and "jitter" not in p
+                                               and not p.endswith(".min") and not p.endswith("added_mib"))]
+            check(summary is not None and not bad, f"section {name}: figures finite and positive {bad[:3]}")
+
+    for t in results["targets"]:
+        ok = t.get("threshold") is not None and t.get("op") in ("<=", ">=") and t.get("met") in (True, False)
+        check(ok, f"target '{t.get('target')}' has a value and a verdict")
+    check(len(results["targets"]) >= 1, "targets recorded")
+
+    md_path = os.path.join(args.out, "results.md")
+    if check(os.path.exists(md_path), "results.md written"):
+        with open(md_path) as f:
+            md = f.read()
+        for heading in ("## Targets", "## Socket transport", "## JSON-RPC transport", "## DDS transport",
+                        "## Peers", "## Simulation", "## Memory"):
+            check(heading in md, f"results.md has '{heading}'")
+
+    print(f"{passed} passed, {failed} failed")
+    return 0 if failed == 0 else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
