@@ -147,7 +147,12 @@ void print_banner(Gateway& g) {
   auto& sim = g.simulation();
   std::size_t robots = d.robots.size(), components = 0;
   for (const auto& r : d.robots) components += r.components.size();
-  std::cout << "simgate " << SIMGATE_VERSION << ": scene " << d.mjcf << ", " << robots << " robot(s), " << components
+  // the scene as the user would type it: relative to the current directory when inside it
+  std::string scene = d.mjcf;
+  std::error_code ec;
+  auto relative = std::filesystem::relative(d.mjcf, std::filesystem::current_path(), ec);
+  if (!ec && !relative.empty() && relative.begin()->string() != "..") scene = relative.string();
+  std::cout << "simgate " << SIMGATE_VERSION << ": scene " << scene << ", " << robots << " robot(s), " << components
             << " component(s), timestep " << sim.timestep() << " s, "
             << (sim.realtime_factor() == 0 ? std::string("as fast as possible")
                                            : "real time x" + std::to_string(sim.realtime_factor()).substr(0, 4))

@@ -502,7 +502,7 @@ void JsonRpcRequestManager::flush_writes() {
   for (const auto& s : dirty) s->flush();
 }
 
-void JsonRpcRequestManager::handle_request(const std::shared_ptr<Session>& session, const json& message,
+void JsonRpcRequestManager::handle_request(const std::shared_ptr<Session>& session, json& message,
                                            ReplyTo to) {
   // validate; invalid requests are answered even without an id
   Request request;
@@ -633,6 +633,8 @@ void JsonRpcRequestManager::finish_call(RequestId id, Outcome outcome) {
   Pending pending = std::move(it->second);
   pending_.erase(it);
   auto session = pending.to.session.lock();
+  // nobody to answer: skip serialising (results can be large)
+  if (!session || session->closed()) return;
   try {
     if (outcome.status == Status::success) {
       json result = outcome.value ? std::move(*outcome.value) : json(nullptr);
@@ -644,7 +646,7 @@ void JsonRpcRequestManager::finish_call(RequestId id, Outcome outcome) {
   } catch (const std::exception& e) {
     log::error("jsonrpc: reply to ", pending.method, ": ", e.what());
   }
-  if (session) session->done(pending.id_key);
+  session->done(pending.id_key);
 }
 
 void JsonRpcRequestManager::reply(ReplyTo& to, std::optional<json> response) {

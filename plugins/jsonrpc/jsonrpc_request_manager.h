@@ -103,7 +103,7 @@ class JsonRpcRequestManager : public RequestManager {
   void accept_next();
   void handle_message(const std::shared_ptr<Session>& session, std::string_view line);
   // Handles one request object: answers at once (into `to`), or queues a call in to_submit_.
-  void handle_request(const std::shared_ptr<Session>& session, const json& message, ReplyTo to);
+  void handle_request(const std::shared_ptr<Session>& session, json& message, ReplyTo to);
   void handle_cancel(const std::shared_ptr<Session>& session, const std::string& method,
                      const json& params, ReplyTo to);
   void flush_submissions();

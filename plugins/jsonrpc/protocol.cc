@@ -77,7 +77,7 @@ json outcome_response(const json& id, const Outcome& outcome, const std::string&
   return error_response(id, error_code, std::move(message), std::move(data));
 }
 
-std::optional<json> parse_request(const json& message, Request& out) {
+std::optional<json> parse_request(json& message, Request& out) {
   auto invalid = [](const json& id, const std::string& why) {
     return error_response(id, code::invalid_request, "Invalid Request: " + why, json{{"reason", why}});
   };
@@ -106,7 +106,7 @@ std::optional<json> parse_request(const json& message, Request& out) {
   if (auto params = message.find("params"); params != message.end()) {
     if (!params->is_array() && !params->is_object())
       return invalid(out.id, "'params' must be an array or an object, not " + describe_json(*params));
-    out.params = *params;
+    out.params = std::move(*params);
   }
   return std::nullopt;
 }

@@ -62,9 +62,10 @@ struct Request {
   json params;          // array, object or null (absent)
 };
 
-// Validates `message` as a request object. On error returns the -32600 response to send
-// (id copied from the message when it is itself valid) and leaves `out` unspecified.
-std::optional<json> parse_request(const json& message, Request& out);
+// Validates `message` as a request object; its params are moved into `out`. On error
+// returns the -32600 response to send (id copied from the message when it is itself
+// valid) and leaves `out` unspecified.
+std::optional<json> parse_request(json& message, Request& out);
 
 // Splits "robot.arm.move" into {"robot.arm", "move"} at the last dot. False when there is
 // no dot or either side is empty.

@@ -30,6 +30,13 @@ TEST(GatewayCliTest, UnknownCommandIsAUsageError) {
   EXPECT_THAT(out, HasSubstr("unknown command 'fly'"));
 }
 
+TEST(GatewayCliTest, BadLogLevelIsAUsageError) {
+  TempDir dir;
+  auto [code, out] = run_simgate({"run", source_path("config/demo.json"), "--log-level", "loud"}, dir);
+  EXPECT_EQ(code, 2);
+  EXPECT_THAT(out, HasSubstr("--log-level"));
+}
+
 TEST(GatewayCliTest, CheckAcceptsTheDemo) {
   TempDir dir;
   auto [code, out] = run_simgate({"check", source_path("config/demo.json")}, dir);

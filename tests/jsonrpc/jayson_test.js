@@ -3,10 +3,12 @@
 // team wrote: jayson's TCP client (npm, tests/jsonrpc/package.json). jayson opens one TCP
 // connection per call and ends it right after a notification.
 //
-//   node jayson_test.js <server program> [its arguments...]
-// The server program (jsonrpc_test_host, or `simgate run CONFIG`) must print
-// "listening on tcp://127.0.0.1:<port>" on stdout and serve the test services of
-// tests/jsonrpc/test_services.h. Exit code: 0 passed, 1 failed, 77 jayson not installed.
+//   node jayson_test.js [--suite host|gateway] <server program> [its arguments...]
+// Suite `host` (default): the server is jsonrpc_test_host, serving the test services of
+// tests/jsonrpc/test_services.h; it prints "listening on tcp://127.0.0.1:<port>" and stops
+// when its stdin closes. Suite `gateway`: the server is `simgate run gateway_jsonrpc.json`,
+// the demo scene's real components; it prints "jsonrpc: tcp://127.0.0.1:<port>" and stops
+// on SIGTERM. Exit code: 0 passed, 1 failed, 77 jayson not installed.
 'use strict';
 
 const path = require('path');
@@ -38,7 +40,7 @@ function startServer(argv) {
     let out = '';
     child.stdout.on('data', (chunk) => {
       out += chunk.toString();
-      const m = out.match(/listening on tcp:\/\/127\.0\.0\.1:(\d+)/);
+      const m = out.match(/(?:listening on |jsonrpc: )tcp:\/\/127\.0\.0\.1:(\d+)/);
       if (m) resolve(Number(m[1]));
     });
     child.on('exit', (code) => reject(new Error(`server exited early with code ${code}`)));
@@ -163,8 +165,48 @@ async function run(client) {
         r.result.methods.some((m) => m.name === 'robot.arm.hold' && m['x-async'] === true), r.error);
 }
 
+// The demo scene through the gateway: real components, real simulation time.
+async function runGateway(client) {
+  let r = await call(client, 'time.now', []);
+  check('sync service of the gateway (time.now)', typeof r.result === 'number' && !r.error, r);
+  r = await call(client, 'simulation.list_robots', []);
+  check('simulation.list_robots lists the robot', Array.isArray(r.result) && r.result.includes('robot'), r);
+
+  // async: time.sleep completes after simulated time passed; other calls go on meanwhile
+  const before = (await call(client, 'time.now', [])).result;
+  const sleeping = call(client, 'time.sleep', [0.2], 'time.sleep');
+  r = await call(client, 'simulation.list_robots', []);
+  check('sync call while time.sleep is pending', Array.isArray(r.result), r);
+  r = await sleeping;
+  const after = (await call(client, 'time.now', [])).result;
+  check('async time.sleep completes without error', !r.error, r);
+  check('simulated time advanced by the sleep', after - before >= 0.2 - 1e-6, { before, after });
+
+  // errors as jayson reports them
+  r = await call(client, 'robot.motion.set_speed', ['fast', 0]);
+  check('wrong parameter type is -32602 naming the parameter',
+        r.error && r.error.code === -32602 && r.error.data && r.error.data.parameter === 'v', r);
+  r = await call(client, 'robot.nothing.go', []);
+  check('unknown component is -32601', r.error && r.error.code === -32601, r);
+  r = await call(client, 'robot.motion.set_speed', { v: 0.0, w: 0.0 });
+  check('named params on a real component', !r.error, r);
+
+  // discovery of the real services
+  r = await call(client, 'rpc.discover', []);
+  const methods = r.result ? r.result.methods : [];
+  const goto = methods.find((m) => m.name === 'robot.waypoint.goto');
+  check('rpc.discover describes robot.waypoint.goto as async with defaults',
+        goto && goto['x-async'] === true && goto.params.some((p) => p.name === 'tolerance' && p.required === false),
+        goto);
+}
+
 async function main() {
-  const argv = process.argv.slice(2);
+  let argv = process.argv.slice(2);
+  let suite = 'host';
+  if (argv[0] === '--suite') {
+    suite = argv[1];
+    argv = argv.slice(2);
+  }
   if (argv.length === 0) {
     console.error('usage: jayson_test.js <server program> [args...]');
     process.exit(2);
@@ -179,7 +221,7 @@ async function main() {
   try {
     const port = await server.port;
     const client = jayson.client.tcp({ host: '127.0.0.1', port });
-    await run(client);
+    await (suite === 'gateway' ? runGateway(client) : run(client));
   } catch (e) {
     console.log(`not ok - ${e.stack || e}`);
     failures++;
@@ -187,7 +229,8 @@ async function main() {
   // stop the server: it exits when its stdin closes
   server.child.removeAllListeners('exit');
   const exited = new Promise((resolve) => server.child.on('exit', (c, sig) => resolve(sig ? sig : c)));
-  server.child.stdin.end();
+  if (suite === 'gateway') server.child.kill('SIGTERM');
+  else server.child.stdin.end();
   const status = await withTimeout(exited, 'server exit').catch((e) => {
     server.child.kill('SIGKILL');
     return e.message;

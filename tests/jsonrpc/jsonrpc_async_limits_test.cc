@@ -222,12 +222,17 @@ TEST_F(JsonRpcLimits, TooManyCallsInFlightAreOverloaded) {
   EXPECT_EQ(client_->request("robot.arm.add", json::array({1, 2}), k_timeout)["result"], 3.0);
 }
 
-TEST_F(JsonRpcLimits, ClientThatNeverReadsIsDroppedOthersAreServed) {
-  // requests for ~20 MB of replies in one write; the client reads nothing
+class JsonRpcSlowReader : public JsonRpcFixture {
+  json options() override { return {{"max_unsent_bytes", 65536}}; }
+};
+
+TEST_F(JsonRpcSlowReader, ClientThatNeverReadsIsDroppedOthersAreServed) {
+  // requests for 64 x 256 KiB of replies in one write, far more than the kernel buffers of
+  // a connection whose reader never reads; the client reads nothing
   JsonRpcClient hog("127.0.0.1", host_->port());
   std::string lines;
-  for (int i = 0; i < 2; ++i)
-    lines += R"({"jsonrpc":"2.0","method":"robot.arm.blob","params":[10000000],"id":)" + std::to_string(i) + "}\n";
+  for (int i = 0; i < 64; ++i)
+    lines += R"({"jsonrpc":"2.0","method":"robot.arm.blob","params":[262144],"id":)" + std::to_string(i) + "}\n";
   hog.send_raw(lines);
   // meanwhile another client is served normally
   for (int i = 0; i < 5; ++i)

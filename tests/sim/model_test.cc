@@ -1,6 +1,7 @@
 // SimModel: loading MJCF scenes, MuJoCo errors as exceptions (never a process exit).
 #include <gtest/gtest.h>
 
+#include "simgate/core/log.h"
 #include "simgate/sim/model.h"
 #include "sim_fixture.h"
 
@@ -46,6 +47,18 @@ TEST(SimModelTest, MissingFileNamesThePath) {
 TEST(SimModelTest, EngineErrorBecomesAnExceptionNotAnExit) {
   install_mujoco_handlers();
   EXPECT_THROW(mju_error("deliberate test error"), MujocoError);
+}
+
+TEST(SimModelTest, EngineWarningBecomesALogLine) {
+  install_mujoco_handlers();
+  std::vector<std::string> lines;
+  log::set_sink([&](log::Level level, std::string_view text) {
+    if (level == log::Level::warning) lines.emplace_back(text);
+  });
+  mju_warning("deliberate test warning");
+  log::set_sink({});
+  ASSERT_EQ(lines.size(), 1u);
+  EXPECT_NE(lines[0].find("deliberate test warning"), std::string::npos);
 }
 
 TEST(SimModelTest, SteppingTheModelMovesTheFreeBody) {
