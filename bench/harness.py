@@ -298,7 +298,6 @@ class Harness:
         try:
             port = port_of(host.announcement["endpoints"])
             rows = self.compare_tcp("socket", port, echo.port, ["--proto", "socket"], self.windows, self.connections)
-            self.socket_port_rows = rows
         finally:
             echo.check_stopped()
             host.check_stopped()

@@ -22,6 +22,8 @@ using boost::system::error_code;
 namespace {
 constexpr std::string_view k_version = "0.1.0";
 constexpr std::size_t k_read_chunk = 64 * 1024;
+// a burst of replies is written early once this much is queued
+constexpr std::size_t k_coalesce_bytes = 256 * 1024;
 
 // "127.0.0.1:4001" or "[::1]:4001"
 std::string to_string(const tcp::endpoint& ep) {
@@ -79,39 +81,46 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
   const std::string& peer() const { return peer_; }
   bool closed() const { return closed_; }
 
-  void start() { read(); }
+  void start() {
+    // writes are tried at once (write_now); reads stay asynchronous
+    socket_.non_blocking(true);
+    read();
+  }
 
-  // Queues one line (a newline is added). Closes the session when the client lets more
-  // than max_unsent_bytes pile up behind a reply; stops reading at half that.
+  // Queues one line (a newline is added) and writes what the kernel accepts at once.
+  // Bytes the kernel refused are the backlog: reading pauses when it passes half of
+  // max_unsent_bytes, and a reply that finds more than max_unsent_bytes already waiting
+  // closes the connection (the client does not read).
   void send(std::string_view line) {
     if (closed_) return;
-    // one reply always goes out, however large; the limit applies to a backlog behind it
-    const bool backlog = !out_.empty() || write_active_;
-    out_.append(line);
-    out_.push_back('\n');
-    const std::size_t unsent = out_.size() + writing_.size();
-    if (backlog && unsent > owner_.options_.max_unsent_bytes) {
-      close("it does not read its replies (" + std::to_string(unsent) + " bytes unsent, max_unsent_bytes " +
+    const std::size_t waiting = out_.size() + writing_.size();
+    if (waiting > owner_.options_.max_unsent_bytes) {
+      close("it does not read its replies (" + std::to_string(waiting) + " bytes unsent, max_unsent_bytes " +
             std::to_string(owner_.options_.max_unsent_bytes) + ")");
       return;
     }
-    if (unsent > owner_.options_.max_unsent_bytes / 2) paused_ = true;
-    if (write_active_) return;
-    if (owner_.deferring_writes_) {
-      // coalesced: written once the current burst of replies is complete
-      if (!dirty_) {
-        dirty_ = true;
-        owner_.dirty_.push_back(shared_from_this());
+    out_.append(line);
+    out_.push_back('\n');
+    if (!write_active_) {
+      if (owner_.deferring_writes_ && out_.size() < k_coalesce_bytes) {
+        // coalesced: written once the current burst of replies is complete
+        if (!dirty_) {
+          dirty_ = true;
+          owner_.dirty_.push_back(shared_from_this());
+        }
+      } else {
+        write_now();
       }
-      return;
     }
-    write_next();
+    if (out_.size() + writing_.size() > owner_.options_.max_unsent_bytes / 2) paused_ = true;
   }
 
-  // Starts the write of what send() deferred.
+  // Writes what send() deferred (end of a burst).
   void flush() {
     dirty_ = false;
-    if (!closed_ && !write_active_ && !out_.empty()) write_next();
+    if (closed_ || write_active_) return;
+    write_now();
+    maybe_finish();
   }
 
   // ---- pending calls (ids scoped to this connection) ----
@@ -159,7 +168,9 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
   }
 
   void on_read(const error_code& ec, std::size_t n) {
-    reading_ = false;
+    // reading_ stays true while read_buf_ is being parsed: nothing may start another read
+    // into it until then (replies written meanwhile may try to resume reading)
+    if (closed_ || ec) reading_ = false;
     if (closed_) return;
     try {
       if (ec == asio::error::eof) {
@@ -187,8 +198,10 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
         owner_.deferring_writes_ = true;
         split_lines(read_buf_.data(), n);
       }
+      reading_ = false;
       read();
     } catch (const std::exception& e) {
+      reading_ = false;
       // nothing escapes an Asio handler; the server keeps serving everyone else
       log::error("jsonrpc: connection from ", peer_, ": ", e.what());
       close(std::string("internal error: ") + e.what());
@@ -252,7 +265,21 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
     if (!closed_ && eof_ && in_flight_ == 0 && out_.empty() && !write_active_) close("client closed the connection");
   }
 
-  void write_next() {
+  // A non-blocking write of out_ now, then an async write of what the kernel refused.
+  void write_now() {
+    if (!out_.empty()) {
+      error_code ec;
+      const std::size_t n = socket_.write_some(asio::buffer(out_), ec);
+      if (ec && ec != asio::error::would_block && ec != asio::error::try_again) {
+        close("write failed: " + ec.message());
+        return;
+      }
+      out_.erase(0, ec ? 0 : n);
+    }
+    if (out_.empty()) {
+      resume_reading();
+      return;
+    }
     writing_.clear();
     writing_.swap(out_);
     write_active_ = true;
@@ -263,22 +290,23 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
 
   void on_write(const error_code& ec) {
     write_active_ = false;
+    writing_.clear();
     if (closed_) return;
     if (ec) {
       close("write failed: " + ec.message());
       return;
     }
-    if (!out_.empty()) {
-      write_next();
-      return;
-    }
-    writing_.clear();
-    // resume reading once the backlog is gone
-    if (paused_) {
+    write_now();
+    if (closed_) return;
+    maybe_finish();
+  }
+
+  // Reading resumes once the backlog is gone.
+  void resume_reading() {
+    if (paused_ && out_.empty() && !write_active_) {
       paused_ = false;
       read();
     }
-    maybe_finish();
   }
 
   JsonRpcRequestManager& owner_;                   // outlives every session (stop() joins)
@@ -348,12 +376,18 @@ void JsonRpcRequestManager::start() {
 }
 
 void JsonRpcRequestManager::run_io() {
-  // After activity the thread polls for a short while before sleeping in epoll: a reply
-  // that the simulation thread posts within microseconds goes out without a wake-up.
+  // io_spin_us > 0: after activity the thread polls for a short while before sleeping in
+  // epoll, so a reply the simulation thread posts within microseconds goes out without a
+  // wake-up. 0 (default): plain run().
   using Clock = std::chrono::steady_clock;
   auto active_until = Clock::now();
+  const bool spin = options_.io_spin.count() > 0;
   while (!io_.stopped()) {
     try {
+      if (!spin) {
+        io_.run();
+        continue;
+      }
       if (io_.poll() > 0) {
         active_until = Clock::now() + options_.io_spin;
         continue;

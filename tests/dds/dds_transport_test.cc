@@ -50,20 +50,22 @@ class RawClient {
     }, timeout);
   }
 
-  void create_reply_reader() {
+  // announce: put "simgate.id=<our id>" in the reader's USER_DATA, as clients should
+  void create_reply_reader(bool announce = true) {
     dds_entity_t pp = participant_.handle();
     dds_entity_t topic = dds_create_topic(pp, &simgate_Reply_desc, k_reply_topic, nullptr, nullptr);
     QosPtr qos = make_qos(false, 0, DDS_SECS(1));
     std::string userdata = "simgate.id=" + to_hex(id_);
-    dds_qset_userdata(qos.get(), userdata.data(), userdata.size());
+    if (announce) dds_qset_userdata(qos.get(), userdata.data(), userdata.size());
     reader_ = dds_create_reader(subscriber_, topic, qos.get(), nullptr);
     ASSERT_GT(reader_, 0);
   }
 
+  // as_client: write with another client's id (what a spoofer would do)
   void write(std::uint64_t seq, simgate_Op op, const char* component, const char* service, const char* params,
-             std::uint64_t target = 0) {
+             std::uint64_t target = 0, const ClientId* as_client = nullptr) {
     simgate_Request rq{};
-    std::memcpy(rq.id.client, id_.data(), 16);
+    std::memcpy(rq.id.client, (as_client ? *as_client : id_).data(), 16);
     rq.id.seq = seq;
     rq.op = op;
     rq.component = const_cast<char*>(component);
@@ -99,6 +101,8 @@ class RawClient {
     }, timeout);
     return out;
   }
+
+  const ClientId& id() const { return id_; }
 
  private:
   Participant participant_;      // own participant
@@ -384,6 +388,56 @@ TEST_F(DdsTransportTest, ReplyWaitsForTheClientReaderToMatch) {
   }
   log::set_sink({});
   log::set_level(log::Level::info);
+}
+
+// A reader without simgate.id USER_DATA is never recognised as matched: its replies are
+// written anyway after park_timeout_ms.
+TEST_F(DdsTransportTest, ParkedReplyIsWrittenAnywayAfterParkTimeout) {
+  auto server = make_server(test_partition(), "server", {{"park_timeout_ms", 200}});
+  SimThread sim(server);
+  RawClient raw(test_partition());
+  raw.create_reply_reader(false);
+  ASSERT_TRUE(raw.wait_request_matched());
+  raw.write(1, simgate_OP_CALL, "calc", "add", "[1, 1]");
+  auto reply = raw.next(10s);
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(json::parse(reply->result), json(2.0));
+}
+
+// A client id belongs to the writer that used it first: another writer cannot cancel
+// (or otherwise act for) that client.
+TEST_F(DdsTransportTest, AnotherWriterCannotCancelForAClient) {
+  auto server = make_server(test_partition());
+  SimThread sim(server);
+  RawClient owner(test_partition()), spoofer(test_partition());
+  owner.create_reply_reader();
+  spoofer.create_reply_reader();
+  ASSERT_TRUE(owner.wait_request_matched());
+  ASSERT_TRUE(spoofer.wait_request_matched());
+  owner.write(1, simgate_OP_CALL, "robot", "goto", "[1]");
+  auto reply = owner.next();
+  ASSERT_TRUE(reply);
+  ASSERT_EQ(reply->status, simgate_ST_ACCEPTED);
+  ASSERT_TRUE(goto_.wait_started(1));
+  // the spoofed cancel, then a call of the spoofer's own: once that is answered, the
+  // cancel (same writer, earlier) has been handled
+  spoofer.write(7, simgate_OP_CANCEL, "", "", "", 1, &owner.id());
+  spoofer.write(1, simgate_OP_CALL, "calc", "add", "[1, 1]");
+  reply = spoofer.next();
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->seq, 1u);
+  EXPECT_FALSE(goto_.completion().done());
+  // the owner still can
+  owner.write(2, simgate_OP_CANCEL, "", "", "", 1);
+  std::set<std::uint64_t> seen;
+  for (int i = 0; i < 2; ++i) {
+    reply = owner.next();
+    ASSERT_TRUE(reply);
+    seen.insert(reply->seq);
+    if (reply->seq == 1) EXPECT_EQ(reply->failure, simgate_FL_CANCELLED);
+    if (reply->seq == 2) EXPECT_EQ(reply->result, "true");
+  }
+  EXPECT_EQ(seen, (std::set<std::uint64_t>{1, 2}));
 }
 
 TEST_F(DdsTransportTest, ClientThatDisappearsHasItsAsyncCallsCancelled) {
