@@ -69,6 +69,19 @@ TEST_F(JsonRpcAsync, CancelEndsThePendingCallAndAnswersTrue) {
   EXPECT_EQ(client_->request("ctl.pending", json::array({"c"}), k_timeout)["result"], false);
 }
 
+TEST_F(JsonRpcAsync, CancelAsNotificationAndLspAliasCancelSilently) {
+  auto a = client_->send_request("robot.arm.hold", json::array({"n1"}));
+  barrier(*client_);
+  client_->send_notification("rpc.cancel", {{"id", a}});
+  EXPECT_EQ(error_code(client_->wait_for(a, k_timeout)), -32002);
+  auto b = client_->send_request("robot.cam.hold", json::array({"n2"}));
+  barrier(*client_);
+  client_->send_notification("$/cancelRequest", {{"id", b}});
+  EXPECT_EQ(error_code(client_->wait_for(b, k_timeout)), -32002);
+  // neither notification produced a response of its own
+  EXPECT_FALSE(client_->receive(100ms).has_value());
+}
+
 TEST_F(JsonRpcAsync, CancelOfUnknownIdAnswersFalse) {
   EXPECT_FALSE(client_->cancel(12345, k_timeout));
   EXPECT_FALSE(client_->cancel("nope", k_timeout));

@@ -241,8 +241,9 @@ std::optional<json> result_to_json(R&& r) {
 }
 
 template <bool WithCompletion, class F, class... A, std::size_t... I>
-std::optional<json> invoke_typed(F& fn, const ServiceDescriptor& d, [[maybe_unused]] std::span<const json* const> args,
-                                 const Completion& completion, std::index_sequence<I...>) {
+std::optional<json> invoke_typed(F& fn, [[maybe_unused]] const ServiceDescriptor& d,
+                                 [[maybe_unused]] std::span<const json* const> args,
+                                 [[maybe_unused]] const Completion& completion, std::index_sequence<I...>) {
   // braced initialisation converts left to right: the first bad parameter is reported
   std::tuple<std::decay_t<A>...> values{convert_argument<A>(d, I, *args[I])...};
   auto call = [&]() -> decltype(auto) {
