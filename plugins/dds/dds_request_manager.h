@@ -20,7 +20,8 @@
 // Threads: all DDS I/O happens on the transport's own thread, which waits on a waitset
 // (requests, a guard condition, match-status changes). Nothing runs on Cyclone's listener
 // threads. The simulation thread only calls on_service_completion(), which queues the
-// outcome and triggers the guard condition — it never waits on DDS.
+// outcome and triggers the guard condition — it never waits on DDS. stop() writes the
+// final (shutdown) replies from the calling thread, after the DDS thread has been joined.
 #ifndef SIMGATE_PLUGINS_DDS_DDS_REQUEST_MANAGER_H_
 #define SIMGATE_PLUGINS_DDS_DDS_REQUEST_MANAGER_H_
 

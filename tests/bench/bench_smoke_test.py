@@ -8,7 +8,8 @@ Checks, never timing thresholds:
   * every figure an ok section reports is a finite, positive number (a silently empty
     measurement, such as zero replies, fails here);
   * every target of the issue has a value, a threshold and a verdict;
-  * results.md has the targets table and a table per section.
+  * results.md has the targets table and a table per section;
+  * the load generator counts a wrong reply as an error, never as a measurement.
 Prints one line per check and "N passed, N failed" at the end.
 """
 import argparse
@@ -48,6 +49,31 @@ def numbers(value, path=""):
     elif isinstance(value, list):
         for i, v in enumerate(value):
             yield from numbers(v, f"{path}[{i}]")
+
+
+def check_wrong_replies_counted(build_dir):
+    """The load generator must not count a wrong reply as a measurement: the echo server
+    answers a socket request with the request itself, not "<id> SUCCESS ...", so every reply
+    of a socket-protocol run against it is an error (and the harness refuses such runs)."""
+    bin_dir = os.path.join(os.path.abspath(build_dir), "bin")
+    echo = subprocess.Popen([os.path.join(bin_dir, "simgate_bench_echo"), "--max-seconds", "120"],
+                            stdout=subprocess.PIPE, text=True)
+    try:
+        port = json.loads(echo.stdout.readline())["port"]
+        done = subprocess.run([os.path.join(bin_dir, "simgate_bench_loadgen"), "--port", str(port), "--proto",
+                               "socket", "--count", "5", "--warmup", "0"], capture_output=True, text=True,
+                              timeout=120)
+        result = json.loads(done.stdout.strip().splitlines()[-1]) if done.returncode == 0 else {}
+        check(result.get("errors") == 5, f"loadgen counts non-SUCCESS replies as errors ({result.get('errors')} of 5)")
+        done = subprocess.run([os.path.join(bin_dir, "simgate_bench_loadgen"), "--port", str(port), "--proto",
+                               "socket", "--echo", "--count", "5", "--warmup", "0"], capture_output=True, text=True,
+                              timeout=120)
+        result = json.loads(done.stdout.strip().splitlines()[-1]) if done.returncode == 0 else {}
+        check(result.get("errors") == 0 and result.get("n") == 5, "loadgen --echo accepts echoed requests")
+    finally:
+        echo.terminate()
+        check(echo.wait(timeout=30) == 0, "echo server exits cleanly on SIGTERM")
+        echo.stdout.close()
 
 
 def main():
@@ -102,6 +128,7 @@ def main():
                         "## Peers", "## Simulation", "## Memory"):
             check(heading in md, f"results.md has '{heading}'")
 
+    check_wrong_replies_counted(args.build_dir)
     print(f"{passed} passed, {failed} failed")
     return 0 if failed == 0 else 1
 
