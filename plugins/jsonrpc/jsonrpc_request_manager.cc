@@ -610,8 +610,9 @@ void JsonRpcRequestManager::handle_cancel(const std::shared_ptr<Session>& sessio
                              json{{"method", method}, {"parameter", "id"}}));
     return;
   }
-  // calls read before this cancel reach the simulation thread first
-  flush_submissions();
+  // calls read before this cancel reach the simulation thread first (inside a batch the
+  // batch's calls stay together: a cancel there sees the calls of earlier messages only)
+  if (!to.batch) flush_submissions();
   const auto id = session->find(dump(*target));
   if (!id) {
     reply(to, result_response(to.id, false));
