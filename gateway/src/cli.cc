@@ -36,7 +36,9 @@ usage:
   simgate call [options] COMPONENT SERVICE [ARGS...]
                                    call a service; each ARG is JSON (5, "text", [1,2]) or a bare word
       --transport T                socket (default), jsonrpc or dds
-      --host H --port P            server address (default 127.0.0.1, 4000)
+      --host H --port P            socket/jsonrpc server address (default 127.0.0.1, 4000 or 4001)
+      --domain N --partition P     dds: the simulation's domain and partition (default 0, simgate)
+      --dds-config XML             dds: Cyclone XML or file:// URI (default: loopback only)
       --timeout S                  seconds to wait for the answer (default 30)
   simgate list [options]           list the services a server offers (same options as call)
   simgate --help | --version
@@ -273,23 +275,41 @@ json parse_call_argument(const std::string& text) {
   }
 }
 
+// a positive integer option within [min, max], or the fallback
+int int_option(Args& args, const std::string& name, int fallback, int min, int max) {
+  auto text = args.option(name);
+  if (!text) return fallback;
+  try {
+    std::size_t used = 0;
+    int value = std::stoi(*text, &used);
+    if (used == text->size() && value >= min && value <= max) return value;
+  } catch (const std::exception&) {
+  }
+  throw UsageError(name + ": expected an integer from " + std::to_string(min) + " to " + std::to_string(max) +
+                   ", found '" + *text + "'");
+}
+
 std::unique_ptr<client::Client> connect(Args& args, std::chrono::milliseconds& timeout) {
   std::string transport = args.option("--transport").value_or("socket");
-  std::string host = args.option("--host").value_or("127.0.0.1");
-  std::string port_text = args.option("--port").value_or(transport == "jsonrpc" ? "4100" : "4000");
   std::string timeout_text = args.option("--timeout").value_or("30");
-  int port = 0;
   double seconds = 0;
   try {
-    port = std::stoi(port_text);
     seconds = std::stod(timeout_text);
   } catch (const std::exception&) {
-    throw UsageError("--port and --timeout take numbers");
   }
-  if (port <= 0 || port > 65535) throw UsageError("--port: expected 1..65535, found " + port_text);
-  if (!(seconds > 0)) throw UsageError("--timeout: expected a positive number of seconds");
+  if (!(seconds > 0)) throw UsageError("--timeout: expected a positive number of seconds, found '" + timeout_text + "'");
   timeout = std::chrono::milliseconds(static_cast<long long>(seconds * 1000));
-  json options = {{"host", host}, {"port", port}};
+
+  json options;
+  if (transport == "dds") {
+    // DDS finds the simulation by domain and partition, not by address
+    options = {{"domain", int_option(args, "--domain", 0, 0, 232)},
+               {"partition", args.option("--partition").value_or("simgate")}};
+    if (auto xml = args.option("--dds-config")) options["config"] = *xml;
+  } else {
+    options = {{"host", args.option("--host").value_or("127.0.0.1")},
+               {"port", int_option(args, "--port", transport == "jsonrpc" ? 4001 : 4000, 1, 65535)}};
+  }
   return client::make_client(transport, options);
 }
 

@@ -42,6 +42,7 @@ void Session::on_read(const error_code& ec, std::size_t n) {
       std::string last = std::move(partial_);
       partial_.clear();
       host_.on_line(shared_from_this(), last);
+      host_.on_lines_done(shared_from_this());
     }
     eof_ = true;
     maybe_finish();
@@ -52,6 +53,7 @@ void Session::on_read(const error_code& ec, std::size_t n) {
     return;
   }
   consume(std::string_view(read_buffer_.data(), n));
+  host_.on_lines_done(shared_from_this());
   read_more();
 }
 
@@ -98,6 +100,11 @@ void Session::consume(std::string_view data) {
 }
 
 void Session::send(std::string_view bytes) {
+  queue(bytes);
+  flush_writes();
+}
+
+void Session::queue(std::string_view bytes) {
   if (closed_) return;
   outbox_.append(bytes);
   if (outbox_.size() + in_flight_.size() > limits_.max_unsent_bytes) {
@@ -105,9 +112,12 @@ void Session::send(std::string_view bytes) {
     log::warning("Socket service manager: ", label_, " disconnected: more than ",
                  limits_.max_unsent_bytes, " bytes of replies unread (max_pending_replies_bytes)");
     close("too many unread replies");
-    return;
   }
-  if (!writing_) start_write();
+}
+
+void Session::flush_writes() {
+  if (closed_ || writing_ || outbox_.empty()) return;
+  start_write();
 }
 
 void Session::start_write() {

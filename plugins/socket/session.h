@@ -7,7 +7,7 @@
 //     its '\n'; the connection keeps working. Reading pauses while the connection has
 //     `max_pending_requests` unanswered requests (backpressure instead of unbounded queues).
 //   - Writing: one async write in flight; replies queued meanwhile are written together in
-//     the next one (coalesced). If the unsent bytes exceed `max_unsent_bytes` the client is
+//     the next one (coalesced). The host may queue() several replies and flush_writes() once. If the unsent bytes exceed `max_unsent_bytes` the client is
 //     not reading: the session is closed and forgotten.
 //   - Pending requests: the client's ids of requests not yet answered, mapped to the core's
 //     RequestId, so ids and cancel are scoped to the connection.
@@ -44,6 +44,9 @@ class SessionHost {
   virtual ~SessionHost() = default;
   // One complete line, without '\n'.
   virtual void on_line(const std::shared_ptr<Session>& session, std::string_view line) = 0;
+  // Every line of one read has been passed to on_line/on_oversized_line (the host hands
+  // the requests of that read to the core together).
+  virtual void on_lines_done(const std::shared_ptr<Session>& session) = 0;
   // A line exceeded the limit; `prefix` is its beginning (to find the client's id).
   virtual void on_oversized_line(const std::shared_ptr<Session>& session, std::string_view prefix) = 0;
   // The session closed (error, peer gone, limit exceeded or server stopping).
@@ -65,6 +68,10 @@ class Session : public std::enable_shared_from_this<Session> {
   void start();
   // Queues reply bytes (whole lines) and writes them as soon as possible.
   void send(std::string_view bytes);
+  // Queues reply bytes without starting a write (several replies, then one flush_writes()).
+  void queue(std::string_view bytes);
+  // Starts writing what queue() gathered, unless a write is in flight (it takes them next).
+  void flush_writes();
   // Closes the socket and tells the host; idempotent.
   void close(std::string_view reason);
   bool closed() const { return closed_; }

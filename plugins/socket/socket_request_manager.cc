@@ -163,11 +163,29 @@ void SocketRequestManager::accept_next() {
 // ---- requests (I/O thread)
 
 void SocketRequestManager::reply(Session& session, std::string_view id, std::string_view status,
-                                 const json* value) {
+                                 const json* value, bool write_now) {
   scratch_.clear();
   append_reply(scratch_, id, status, value);
-  session.send(scratch_);
+  if (write_now)
+    session.send(scratch_);
+  else
+    session.queue(scratch_);
 }
+
+void SocketRequestManager::submit_batch_now() {
+  if (batch_.empty()) return;
+  if (batch_.size() == 1) {
+    submit(batch_.front().first, std::move(batch_.front().second));
+    batch_.clear();
+    return;
+  }
+  std::vector<std::pair<RequestId, Call>> calls;
+  calls.reserve(batch_.size());
+  calls.swap(batch_);
+  submit_batch(std::move(calls));
+}
+
+void SocketRequestManager::on_lines_done(const std::shared_ptr<Session>&) { submit_batch_now(); }
 
 void SocketRequestManager::fail_in_order(const std::shared_ptr<Session>& session, std::string_view id,
                                          std::string message) {
@@ -177,13 +195,16 @@ void SocketRequestManager::fail_in_order(const std::shared_ptr<Session>& session
     return;
   }
   // earlier requests are still with the core: queue this answer behind them, so that a
-  // client reading replies in order (telnet, scripts) sees them in order
+  // client reading replies in order (telnet, scripts) sees them in order. The simulation
+  // thread puts it on the reply list after their outcomes.
+  submit_batch_now();
   scratch_.clear();
   append_reply(scratch_, id, k_failed, &text);
   post([this, weak = std::weak_ptr<Session>(session), line = scratch_]() mutable {
-    asio::post(io_, [weak = std::move(weak), line = std::move(line)] {
-      if (auto s = weak.lock()) s->send(line);
-    });
+    Reply r;
+    r.session = std::move(weak);
+    r.line = std::move(line);
+    enqueue_reply(std::move(r));
   });
 }
 
@@ -197,7 +218,10 @@ void SocketRequestManager::on_line(const std::shared_ptr<Session>& session, std:
       return;
     case RequestLine::Kind::cancel:
       // no reply of its own: the request ends PREEMPTED; unknown ids are ignored (as MORSE)
-      if (auto id = session->find_pending(request.id)) cancel(*id);
+      if (auto id = session->find_pending(request.id)) {
+        submit_batch_now();  // the request may be in this read's batch
+        cancel(*id);
+      }
       return;
     case RequestLine::Kind::call:
       break;
@@ -222,7 +246,9 @@ void SocketRequestManager::on_line(const std::shared_ptr<Session>& session, std:
   RequestId id = new_request_id();
   session->add_pending(request.id, id);
   requests_.emplace(id, Pending{session, std::string(request.id)});
-  submit(id, Call{std::string(request.component), std::string(request.service), std::move(params.value)});
+  // handed to the core with the rest of this read (on_lines_done)
+  batch_.emplace_back(id, Call{std::string(request.component), std::string(request.service),
+                               std::move(params.value)});
 }
 
 void SocketRequestManager::on_oversized_line(const std::shared_ptr<Session>& session,
@@ -251,22 +277,58 @@ void SocketRequestManager::on_session_closed(const std::shared_ptr<Session>& ses
 
 void SocketRequestManager::on_service_completion(RequestId id, Outcome outcome) {
   // simulation thread: hand over to the I/O thread, never block here
-  asio::post(io_, [this, id, outcome = std::move(outcome)]() mutable {
-    try {
-      deliver(id, outcome);
-    } catch (const std::exception& e) {
-      log::error(name(), ": cannot deliver the outcome of request ", id, ": ", e.what());
-    }
-  });
+  Reply r;
+  r.id = id;
+  r.outcome = std::move(outcome);
+  enqueue_reply(std::move(r));
 }
 
-void SocketRequestManager::deliver(RequestId id, Outcome& outcome) {
+void SocketRequestManager::enqueue_reply(Reply reply) {
+  bool post_flush = false;
+  {
+    std::lock_guard lock(replies_mutex_);
+    replies_.push_back(std::move(reply));
+    if (!flush_scheduled_) flush_scheduled_ = post_flush = true;
+  }
+  // one wake of the I/O thread for every reply gathered until the flush takes them
+  if (post_flush) asio::post(io_, [this] { flush_replies(); });
+}
+
+void SocketRequestManager::flush_replies() {
+  {
+    std::lock_guard lock(replies_mutex_);
+    flushing_.swap(replies_);
+    flush_scheduled_ = false;  // replies added from now on need a new flush
+  }
+  // queue every reply on its connection, in the order the simulation thread produced them
+  for (Reply& r : flushing_) {
+    try {
+      Session* session = nullptr;
+      if (r.line.empty()) {
+        session = deliver(r.id, r.outcome);
+      } else if (auto s = r.session.lock(); s && !s->closed()) {
+        s->queue(r.line);
+        session = s.get();
+      }
+      if (session && (touched_.empty() || touched_.back().get() != session))
+        touched_.push_back(session->shared_from_this());
+    } catch (const std::exception& e) {
+      log::error(name(), ": cannot deliver the outcome of request ", r.id, ": ", e.what());
+    }
+  }
+  flushing_.clear();
+  // then one write per connection
+  for (const auto& s : touched_) s->flush_writes();
+  touched_.clear();
+}
+
+Session* SocketRequestManager::deliver(RequestId id, Outcome& outcome) {
   auto it = requests_.find(id);
-  if (it == requests_.end()) return;  // its client is gone
+  if (it == requests_.end()) return nullptr;  // its client is gone
   std::shared_ptr<Session> session = it->second.session.lock();
   std::string client_id = std::move(it->second.client_id);
   requests_.erase(it);
-  if (!session || session->closed()) return;
+  if (!session || session->closed()) return nullptr;
 
   std::string_view status = success_word_;
   if (outcome.status == Status::failed) status = k_failed;
@@ -278,8 +340,9 @@ void SocketRequestManager::deliver(RequestId id, Outcome& outcome) {
     message = outcome.message;
     value = &message;
   }
-  reply(*session, client_id, status, value);
+  reply(*session, client_id, status, value, /*write_now=*/false);
   session->remove_pending(client_id);
+  return session.get();
 }
 
 }  // namespace simgate::socket

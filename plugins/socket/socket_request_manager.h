@@ -17,7 +17,16 @@
 //
 // Threads: one I/O thread runs the io_context; it owns the acceptor, every Session and the
 // request table, so none of them needs a lock. on_service_completion runs on the
-// simulation thread and only posts the outcome to the I/O thread (never blocks).
+// simulation thread and only appends the outcome to a short mutex-guarded list (never
+// blocks for long).
+//
+// Hand-offs are batched both ways: the requests found in one read go to the core in one
+// submit_batch() (one wake of the simulation thread), and the outcomes gathered while the
+// I/O thread was busy are delivered by one posted flush (one wake of the I/O thread), which
+// queues each reply on its connection and then starts one write per connection. The
+// transport's own error replies that must wait for earlier requests travel through the same
+// list, so a connection's replies keep the order in which the simulation thread produced
+// them.
 #ifndef SIMGATE_PLUGINS_SOCKET_SOCKET_REQUEST_MANAGER_H_
 #define SIMGATE_PLUGINS_SOCKET_SOCKET_REQUEST_MANAGER_H_
 
@@ -60,11 +69,28 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   // SessionHost (I/O thread)
   void on_line(const std::shared_ptr<Session>& session, std::string_view line) override;
   void on_oversized_line(const std::shared_ptr<Session>& session, std::string_view prefix) override;
+  void on_lines_done(const std::shared_ptr<Session>& session) override;
   void on_session_closed(const std::shared_ptr<Session>& session) override;
 
+  // An outcome or a ready-made reply line on its way from the simulation thread.
+  struct Reply {
+    RequestId id = 0;                // the request (outcome replies)
+    Outcome outcome;                 // its outcome (outcome replies)
+    std::weak_ptr<Session> session;  // the connection (line replies)
+    std::string line;                // a formatted reply; empty for outcome replies
+  };
+  // Submits the calls gathered from the current read (before anything that must follow them).
+  void submit_batch_now();
+  // Any thread: appends to replies_ and posts flush_replies() unless one is already due.
+  void enqueue_reply(Reply reply);
+  // I/O thread: delivers every gathered reply, then starts one write per connection.
+  void flush_replies();
+
   void accept_next();
-  void deliver(RequestId id, Outcome& outcome);
-  void reply(Session& session, std::string_view id, std::string_view status, const json* value);
+  // Queues the reply to `id` on its connection; returns that connection (null if gone).
+  Session* deliver(RequestId id, Outcome& outcome);
+  void reply(Session& session, std::string_view id, std::string_view status, const json* value,
+             bool write_now = true);
   // Answers FAILED `message` after the connection's earlier requests have been answered.
   void fail_in_order(const std::shared_ptr<Session>& session, std::string_view id, std::string message);
   void close_all();
@@ -88,6 +114,12 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   std::unordered_set<std::shared_ptr<Session>> sessions_;  // open connections (I/O thread)
   std::unordered_map<RequestId, Pending> requests_;         // unanswered requests (I/O thread)
   std::string scratch_;                      // reply formatting buffer (I/O thread)
+  std::vector<std::pair<RequestId, Call>> batch_;  // calls of the current read, not yet submitted (I/O thread)
+  std::mutex replies_mutex_;                 // guards replies_ and flush_scheduled_
+  std::vector<Reply> replies_;               // replies waiting for the I/O thread
+  bool flush_scheduled_ = false;             // a flush_replies() is posted and has not taken replies_
+  std::vector<Reply> flushing_;              // replies being delivered (I/O thread)
+  std::vector<std::shared_ptr<Session>> touched_;  // connections with replies queued by a flush (I/O thread)
   std::thread thread_;                       // runs io_
   std::mutex life_mutex_;                    // serialises start() and stop()
   bool started_ = false;                     // start() ran
