@@ -1,11 +1,13 @@
 # Helpers shared by the tree and by out-of-tree plugins (installed with the package).
 
-# simgate_add_transport_plugin(NAME SOURCES...)
+# simgate_add_transport_plugin(NAME [NO_INSTALL] SOURCES...)
 #   Builds libsimgate_transport_<NAME>.so, a module the gateway loads with dlopen.
-#   The sources must use SIMGATE_TRANSPORT_PLUGIN(<NAME>, Class) once.
+#   The sources must use SIMGATE_TRANSPORT_PLUGIN(<NAME>, Class) once. NO_INSTALL: a
+#   test-only plugin, never installed.
 function(simgate_add_transport_plugin name)
+  cmake_parse_arguments(arg "NO_INSTALL" "" "" ${ARGN})
   set(target simgate_transport_${name})
-  add_library(${target} MODULE ${ARGN})
+  add_library(${target} MODULE ${arg_UNPARSED_ARGUMENTS})
   if(TARGET simgate_core)
     target_link_libraries(${target} PRIVATE simgate_core)
   else()
@@ -17,7 +19,7 @@ function(simgate_add_transport_plugin name)
   if(DEFINED SIMGATE_PLUGIN_BUILD_DIR)
     set_target_properties(${target} PROPERTIES LIBRARY_OUTPUT_DIRECTORY ${SIMGATE_PLUGIN_BUILD_DIR})
   endif()
-  if(DEFINED SIMGATE_PLUGIN_INSTALL_DIR AND TARGET simgate_core)
+  if(DEFINED SIMGATE_PLUGIN_INSTALL_DIR AND TARGET simgate_core AND NOT arg_NO_INSTALL)
     install(TARGETS ${target} LIBRARY DESTINATION ${SIMGATE_PLUGIN_INSTALL_DIR})
   endif()
 endfunction()
@@ -39,8 +41,11 @@ function(simgate_add_test name)
     SIMGATE_BINARY_DIR="${PROJECT_BINARY_DIR}"
     SIMGATE_TEST_PLUGIN_DIR="${SIMGATE_PLUGIN_BUILD_DIR}"
     SIMGATE_LOOPBACK_DDS_XML="${PROJECT_SOURCE_DIR}/config/dds/loopback.xml")
-  gtest_discover_tests(${name}
-    PROPERTIES TIMEOUT ${arg_TIMEOUT} LABELS "${arg_LABELS}"
-               ENVIRONMENT "CYCLONEDDS_URI=file://${PROJECT_SOURCE_DIR}/config/dds/loopback.xml"
-    DISCOVERY_TIMEOUT 60)
+  # Cyclone stays on loopback in every test, even one that forgets to pass the XML
+  set(properties TIMEOUT ${arg_TIMEOUT}
+                 ENVIRONMENT "CYCLONEDDS_URI=file://${PROJECT_SOURCE_DIR}/config/dds/loopback.xml")
+  if(arg_LABELS)
+    list(APPEND properties LABELS "${arg_LABELS}")
+  endif()
+  gtest_discover_tests(${name} PROPERTIES ${properties} DISCOVERY_TIMEOUT 60)
 endfunction()

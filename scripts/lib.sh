@@ -10,8 +10,10 @@ SIMGATE_PACKAGES=(
   cyclonedds-dev cyclonedds-tools
   libgtest-dev libgmock-dev libbenchmark-dev
   python3 python3-morse-simulator
-  nodejs npm iproute2 procps
+  iproute2 procps
 )
+# node and npm run the third-party JSON-RPC clients; any install will do (Debian's or
+# NodeSource's, which bundles npm and conflicts with Debian's npm package)
 
 log() { printf '\033[1m[simgate]\033[0m %s\n' "$*" >&2; }
 
@@ -20,6 +22,8 @@ ensure_packages() {
   for p in "${SIMGATE_PACKAGES[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
   done
+  command -v node >/dev/null || missing+=(nodejs)
+  command -v npm >/dev/null || missing+=(npm)
   [ ${#missing[@]} -eq 0 ] && return 0
   if [ "$(id -u)" -eq 0 ]; then
     log "installing: ${missing[*]}"

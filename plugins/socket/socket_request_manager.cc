@@ -303,15 +303,14 @@ void SocketRequestManager::flush_replies() {
   // queue every reply on its connection, in the order the simulation thread produced them
   for (Reply& r : flushing_) {
     try {
-      Session* session = nullptr;
+      std::shared_ptr<Session> session;
       if (r.line.empty()) {
         session = deliver(r.id, r.outcome);
       } else if (auto s = r.session.lock(); s && !s->closed()) {
         s->queue(r.line);
-        session = s.get();
+        session = std::move(s);
       }
-      if (session && (touched_.empty() || touched_.back().get() != session))
-        touched_.push_back(session->shared_from_this());
+      if (session && (touched_.empty() || touched_.back() != session)) touched_.push_back(std::move(session));
     } catch (const std::exception& e) {
       log::error(name(), ": cannot deliver the outcome of request ", r.id, ": ", e.what());
     }
@@ -322,7 +321,7 @@ void SocketRequestManager::flush_replies() {
   touched_.clear();
 }
 
-Session* SocketRequestManager::deliver(RequestId id, Outcome& outcome) {
+std::shared_ptr<Session> SocketRequestManager::deliver(RequestId id, Outcome& outcome) {
   auto it = requests_.find(id);
   if (it == requests_.end()) return nullptr;  // its client is gone
   std::shared_ptr<Session> session = it->second.session.lock();
@@ -342,7 +341,7 @@ Session* SocketRequestManager::deliver(RequestId id, Outcome& outcome) {
   }
   reply(*session, client_id, status, value, /*write_now=*/false);
   session->remove_pending(client_id);
-  return session.get();
+  return session;
 }
 
 }  // namespace simgate::socket

@@ -88,7 +88,7 @@ class SocketRequestManager : public RequestManager, private SessionHost {
 
   void accept_next();
   // Queues the reply to `id` on its connection; returns that connection (null if gone).
-  Session* deliver(RequestId id, Outcome& outcome);
+  std::shared_ptr<Session> deliver(RequestId id, Outcome& outcome);
   void reply(Session& session, std::string_view id, std::string_view status, const json* value,
              bool write_now = true);
   // Answers FAILED `message` after the connection's earlier requests have been answered.
