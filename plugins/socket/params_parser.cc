@@ -1,5 +1,7 @@
 #include "params_parser.h"
 
+#include "wire.h"
+
 #include <charconv>
 #include <cmath>
 #include <cstdint>
@@ -45,28 +47,6 @@ void append_utf8(std::string& out, std::uint32_t cp) {
   }
 }
 
-// Length of the valid UTF-8 sequence starting at s[i], or 0 if it is invalid.
-std::size_t utf8_sequence_length(std::string_view s, std::size_t i) {
-  auto b = [&](std::size_t k) { return static_cast<unsigned char>(s[k]); };
-  unsigned char c = b(i);
-  std::size_t n;
-  std::uint32_t cp;
-  if (c < 0x80) return 1;
-  if (c >= 0xC2 && c <= 0xDF) { n = 2; cp = c & 0x1F; }
-  else if (c >= 0xE0 && c <= 0xEF) { n = 3; cp = c & 0x0F; }
-  else if (c >= 0xF0 && c <= 0xF4) { n = 4; cp = c & 0x07; }
-  else return 0;
-  if (i + n > s.size()) return 0;
-  for (std::size_t k = 1; k < n; ++k) {
-    if ((b(i + k) & 0xC0) != 0x80) return 0;
-    cp = (cp << 6) | (b(i + k) & 0x3F);
-  }
-  // overlong forms, surrogates and code points past U+10FFFF
-  if ((n == 3 && cp < 0x800) || (n == 4 && cp < 0x10000) || cp > 0x10FFFF ||
-      (cp >= 0xD800 && cp <= 0xDFFF))
-    return 0;
-  return n;
-}
 
 class Parser {
  public:
@@ -255,7 +235,8 @@ class Parser {
         continue;
       }
       if (static_cast<unsigned char>(c) < 0x20) fail("control character in string");
-      std::size_t n = utf8_sequence_length(text_, pos_);
+      std::uint32_t cp = 0;
+      std::size_t n = decode_utf8(text_, pos_, cp);
       if (n == 0) fail("invalid UTF-8 in string");
       out.append(text_.substr(pos_, n));
       pos_ += n;

@@ -20,6 +20,7 @@
 #define SIMGATE_PLUGINS_SOCKET_WIRE_H_
 
 #include <cstddef>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -47,6 +48,10 @@ struct RequestLine {
 
 // Splits one line (without its '\n'; a trailing '\r' and surrounding blanks are ignored).
 RequestLine parse_request_line(std::string_view line);
+
+// Decodes one UTF-8 sequence at s[i]: its length (0 if invalid: truncated, overlong,
+// surrogate, past U+10FFFF) and, through `cp`, the code point.
+std::size_t decode_utf8(std::string_view s, std::size_t i, std::uint32_t& cp);
 
 // True if `s` is valid UTF-8; otherwise `bad_offset` is the first invalid byte.
 bool valid_utf8(std::string_view s, std::size_t& bad_offset);
