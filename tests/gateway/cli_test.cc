@@ -111,5 +111,48 @@ TEST(GatewayCliTest, RunWithAPortInUseFailsClearly) {
   EXPECT_EQ(first.wait(), 0);
 }
 
+TEST(GatewayCliTest, CallAndListReachEveryTransport) {
+  TempDir dir;
+  json c = demo_config();
+  // a partition of its own keeps this DDS traffic apart from other tests (loopback only)
+  const std::string partition = "cli-test-" + std::to_string(::getpid());
+  c["transports"]["jsonrpc"] = {{"plugin", "jsonrpc"}, {"options", {{"port", 0}}}};
+  c["transports"]["dds"] = {{"plugin", "dds"}, {"options", {{"domain", 42}, {"partition", partition}}}};
+  for (auto& [pattern, transports] : c["services"].items()) transports = {"socket", "jsonrpc", "dds"};
+  std::string config = dir.write("all.json", c.dump());
+  std::string endpoints = dir.file("endpoints.json");
+  Process p({simgate_binary(), "run", config, "--endpoints-file", endpoints}, dir.file(""));
+  json e = json::parse(wait_for_file(endpoints), nullptr, false);
+  ASSERT_TRUE(e.contains("jsonrpc") && e.contains("dds")) << p.err();
+  const std::string jsonrpc_port = std::to_string(port_of(e["jsonrpc"][0].get<std::string>()));
+
+  auto [jcode, jout] = run_simgate({"call", "--transport", "jsonrpc", "--port", jsonrpc_port, "human", "move", "-1", "0"}, dir);
+  EXPECT_EQ(jcode, 1);
+  EXPECT_THAT(jout, HasSubstr("Our human cannot walk at negative speed!"));
+  auto [dcode, dout] = run_simgate({"call", "--transport", "dds", "--domain", "42", "--partition", partition,
+                                    "simulation", "list_robots"}, dir);
+  EXPECT_EQ(dcode, 0) << dout;
+  EXPECT_THAT(dout, HasSubstr("[\"robot\",\"human\"]"));
+  auto [lcode, lout] = run_simgate({"list", "--transport", "dds", "--domain", "42", "--partition", partition}, dir);
+  EXPECT_EQ(lcode, 0) << lout;
+  EXPECT_THAT(lout, HasSubstr("robot.waypoint goto(x, y, z, tolerance=0.5, speed=1.0) async"));
+
+  p.signal(SIGTERM);
+  EXPECT_EQ(p.wait(), 0) << p.err();
+}
+
+TEST(GatewayCliTest, ClientOptionsAreChecked) {
+  TempDir dir;
+  auto [dcode, dout] = run_simgate({"call", "--transport", "dds", "--domain", "999", "simulation", "list_robots"}, dir);
+  EXPECT_EQ(dcode, 2);
+  EXPECT_THAT(dout, HasSubstr("--domain: expected an integer from 0 to 232, found '999'"));
+  auto [pcode, pout] = run_simgate({"call", "--port", "70000", "simulation", "list_robots"}, dir);
+  EXPECT_EQ(pcode, 2);
+  EXPECT_THAT(pout, HasSubstr("--port: expected an integer from 1 to 65535, found '70000'"));
+  auto [hcode, hout] = run_simgate({"call", "--transport", "dds", "--host", "127.0.0.1", "simulation", "list_robots"}, dir);
+  EXPECT_EQ(hcode, 2);
+  EXPECT_THAT(hout, HasSubstr("--host"));
+}
+
 }  // namespace
 }  // namespace simgate::gateway
