@@ -112,6 +112,11 @@ TEST(GatewayCliTest, RunWithAPortInUseFailsClearly) {
 }
 
 TEST(GatewayCliTest, CallAndListReachEveryTransport) {
+  // Under ASan, LeakSanitizer's stop-the-world tracer has crashed (signal 11, "LeakSanitizer
+  // has encountered a fatal error", exit 134) at the exit of a gateway running Cyclone's
+  // threads: an LSan failure, not a leak. The processes this test starts skip the leak check;
+  // the gateway's leak checking stays in the other gateway tests.
+  ::setenv("ASAN_OPTIONS", "detect_leaks=0:abort_on_error=1", 1);
   TempDir dir;
   json c = demo_config();
   // a partition of its own keeps this DDS traffic apart from other tests (loopback only)
