@@ -362,37 +362,53 @@ class Harness:
         return {"status": "ok", "summary": s, "runs": runs}
 
     def peer_compare(self, peer_name, peer_argv, transport, proto_args, windows, env):
-        """A peer server against a simgate transport, same client, interleaved per repeat."""
+        """A peer server against a simgate transport, same client, interleaved per repeat.
+
+        The echo limit is measured in the same repeat with the same lines: echo / peer is
+        the highest ratio any server could show against this peer on this machine."""
         peer = Process(peer_name, peer_argv, self.logs, env)
         host = None
+        echo = None
         runs = []
         try:
             peer_port = peer.read_json("port", 60)["port"]
             host = self.host(transport, {"host": "127.0.0.1", "port": 0})
+            echo = self.echo()
             port = port_of(host.announcement["endpoints"])
             for rep in range(self.repeats):
                 lp, ls = in_order(rep, lambda: self.latency(peer_port, proto_args),
                                   lambda: self.latency(port, proto_args))
-                run = {"latency": {"peer": lp, "simgate": ls, "ratio_p50": ratio(ls["p50_us"], lp["p50_us"])},
+                le = self.latency(echo.port, proto_args + ["--echo"])
+                run = {"latency": {"peer": lp, "simgate": ls, "echo": le, "ratio_p50": ratio(ls["p50_us"], lp["p50_us"]),
+                                   "echo_ratio_p50": ratio(le["p50_us"], lp["p50_us"])},
                        "throughput": {}}
                 for w in windows:
                     tp, ts = in_order(rep, lambda: self.throughput(peer_port, proto_args, w, 1),
                                       lambda: self.throughput(port, proto_args, w, 1))
-                    run["throughput"][f"w{w}_c1"] = {"peer": tp, "simgate": ts, "ratio": ratio(ts["rps"], tp["rps"])}
+                    te = self.throughput(echo.port, proto_args + ["--echo"], w, 1)
+                    run["throughput"][f"w{w}_c1"] = {"peer": tp, "simgate": ts, "echo": te,
+                                                     "ratio": ratio(ts["rps"], tp["rps"]),
+                                                     "echo_ratio": ratio(te["rps"], tp["rps"])}
                 runs.append(run)
         finally:
             peer.check_stopped()
             if host:
                 host.check_stopped()
+            if echo:
+                echo.check_stopped()
         s = {"latency": {"peer_p50_us": spread([r["latency"]["peer"]["p50_us"] for r in runs]),
                          "simgate_p50_us": spread([r["latency"]["simgate"]["p50_us"] for r in runs]),
-                         "ratio_p50": spread([r["latency"]["ratio_p50"] for r in runs])},
+                         "echo_p50_us": spread([r["latency"]["echo"]["p50_us"] for r in runs]),
+                         "ratio_p50": spread([r["latency"]["ratio_p50"] for r in runs]),
+                         "echo_ratio_p50": spread([r["latency"]["echo_ratio_p50"] for r in runs])},
              "throughput": {}}
         for w in windows:
             key = f"w{w}_c1"
             s["throughput"][key] = {"peer_rps": spread([r["throughput"][key]["peer"]["rps"] for r in runs]),
                                     "simgate_rps": spread([r["throughput"][key]["simgate"]["rps"] for r in runs]),
-                                    "ratio": spread([r["throughput"][key]["ratio"] for r in runs])}
+                                    "echo_rps": spread([r["throughput"][key]["echo"]["rps"] for r in runs]),
+                                    "ratio": spread([r["throughput"][key]["ratio"] for r in runs]),
+                                    "echo_ratio": spread([r["throughput"][key]["echo_ratio"] for r in runs])}
         return {"summary": s, "runs": runs}
 
     def section_peers(self):
@@ -672,20 +688,26 @@ def markdown(r):
     if st:
         lines += [st, ""]
     else:
-        lines += ["| measure | simgate | peer | simgate / peer |", "|---|---|---|---|"]
+        lines += ["The echo limit runs in the same repeat with the same lines: echo / peer is the best "
+                  "ratio any server could reach against that peer here.", "",
+                  "| measure | simgate | peer | echo limit | simgate / peer | echo / peer |",
+                  "|---|---|---|---|---|---|"]
         for key, label, transport in (("morse", "MORSE Python SocketRequestManager", "socket"),
                                       ("jayson", "jayson@5 TCP server", "JSON-RPC")):
             p = s["peers"].get(key, {})
             if p.get("status") != "ok":
-                lines.append(f"| {label} | {p.get('status', 'not run')}: {p.get('reason', '')} | | |")
+                lines.append(f"| {label} | {p.get('status', 'not run')}: {p.get('reason', '')} | | | | |")
                 continue
             sm = p["summary"]
-            lines.append(f"| {transport} vs {label}: round trip p50 (µs) | {fmt(sm['latency']['simgate_p50_us'])} | "
-                         f"{fmt(sm['latency']['peer_p50_us'])} | {fmt(sm['latency']['ratio_p50'], 3)} |")
+            la = sm["latency"]
+            lines.append(f"| {transport} vs {label}: round trip p50 (µs) | {fmt(la['simgate_p50_us'])} | "
+                         f"{fmt(la['peer_p50_us'])} | {fmt(la.get('echo_p50_us'))} | {fmt(la['ratio_p50'], 3)} | "
+                         f"{fmt(la.get('echo_ratio_p50'), 3)} |")
             for k, t in sm["throughput"].items():
                 w = k[1:].split("_c")[0]
                 lines.append(f"| {transport} vs {label}: throughput, window {w} (req/s) | {fmt(t['simgate_rps'])} | "
-                             f"{fmt(t['peer_rps'])} | {fmt(t['ratio'], 1)} |")
+                             f"{fmt(t['peer_rps'])} | {fmt(t.get('echo_rps'))} | {fmt(t['ratio'], 1)} | "
+                             f"{fmt(t.get('echo_ratio'), 1)} |")
         lines.append("")
 
     lines += ["## Simulation (demo scene)", ""]

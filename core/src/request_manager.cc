@@ -17,42 +17,33 @@ class Inbox : public CompletionSink {
   struct Task { std::function<void()> run; };
   using Event = std::variant<Request, Cancel, Task>;
 
-  // any thread
+  // any thread; `wake` signals the gate (run_or_submit signals only if it cannot run them)
   void push(Event event) {
-    std::shared_ptr<Wakeup> wakeup;
+    std::shared_ptr<SimulationGate> gate;
     {
       std::lock_guard lock(mutex_);
-      if (closed_) {
-        refuse(std::move(event));
-      } else {
-        events_.push_back(std::move(event));
-      }
-      wakeup = wakeup_;
+      add(std::move(event));
+      gate = gate_;
     }
-    wakeup->signal();
+    gate->signal();
   }
-  void push_all(std::vector<Event> events) {
-    std::shared_ptr<Wakeup> wakeup;
+  void push_all(std::vector<Event> events, bool wake = true) {
+    std::shared_ptr<SimulationGate> gate;
     {
       std::lock_guard lock(mutex_);
-      for (auto& e : events) {
-        if (closed_)
-          refuse(std::move(e));
-        else
-          events_.push_back(std::move(e));
-      }
-      wakeup = wakeup_;
+      for (auto& e : events) add(std::move(e));
+      gate = gate_;
     }
-    wakeup->signal();
+    if (wake) gate->signal();
   }
   void finished(RequestId id, Outcome outcome) override {
-    std::shared_ptr<Wakeup> wakeup;
+    std::shared_ptr<SimulationGate> gate;
     {
       std::lock_guard lock(mutex_);
       finished_.emplace_back(id, std::move(outcome));
-      wakeup = wakeup_;
+      gate = gate_;
     }
-    wakeup->signal();
+    gate->signal();
   }
 
   // simulation thread
@@ -77,16 +68,23 @@ class Inbox : public CompletionSink {
     events_.clear();
   }
 
-  void set_wakeup(std::shared_ptr<Wakeup> w) {
+  void set_gate(std::shared_ptr<SimulationGate> g) {
     std::lock_guard lock(mutex_);
-    wakeup_ = std::move(w);
+    gate_ = std::move(g);
   }
-  std::shared_ptr<Wakeup> wakeup() {
+  std::shared_ptr<SimulationGate> gate() {
     std::lock_guard lock(mutex_);
-    return wakeup_;
+    return gate_;
   }
 
  private:
+  // caller holds mutex_
+  void add(Event event) {
+    if (closed_)
+      refuse(std::move(event));
+    else
+      events_.push_back(std::move(event));
+  }
   // caller holds mutex_
   void refuse(Event event) {
     if (auto* r = std::get_if<Request>(&event))
@@ -97,14 +95,14 @@ class Inbox : public CompletionSink {
   std::mutex mutex_;                                        // guards everything below
   std::vector<Event> events_;                               // requests, cancels, tasks in order
   std::vector<std::pair<RequestId, Outcome>> finished_;     // async completions, any thread
-  std::shared_ptr<Wakeup> wakeup_ = std::make_shared<Wakeup>();  // signalled on every push
+  std::shared_ptr<SimulationGate> gate_ = std::make_shared<SimulationGate>();  // signalled on every push
   bool closed_ = false;                                     // abandon_pending() was called
 };
 
 }  // namespace detail
 
 RequestManager::RequestManager(std::string name)
-    : name_(std::move(name)), inbox_(std::make_shared<detail::Inbox>()), wakeup_(inbox_->wakeup()) {}
+    : name_(std::move(name)), inbox_(std::make_shared<detail::Inbox>()), gate_(inbox_->gate()) {}
 
 RequestManager::~RequestManager() = default;
 
@@ -163,9 +161,9 @@ bool RequestManager::serves_component(const std::string& component) const {
   return services_.count(component) > 0;
 }
 
-void RequestManager::set_wakeup(std::shared_ptr<Wakeup> wakeup) {
-  wakeup_ = wakeup;
-  inbox_->set_wakeup(std::move(wakeup));
+void RequestManager::set_gate(std::shared_ptr<SimulationGate> gate) {
+  gate_ = gate;
+  inbox_->set_gate(std::move(gate));
 }
 
 // ---- transport side
@@ -179,11 +177,39 @@ void RequestManager::submit(RequestId id, Call call) {
   inbox_->push(detail::Inbox::Request{id, std::move(call)});
 }
 
-void RequestManager::submit_batch(std::vector<std::pair<RequestId, Call>> calls) {
+namespace {
+std::vector<detail::Inbox::Event> as_events(std::vector<std::pair<RequestId, Call>> calls) {
   std::vector<detail::Inbox::Event> events;
   events.reserve(calls.size());
   for (auto& [id, call] : calls) events.emplace_back(detail::Inbox::Request{id, std::move(call)});
-  inbox_->push_all(std::move(events));
+  return events;
+}
+}  // namespace
+
+void RequestManager::submit_batch(std::vector<std::pair<RequestId, Call>> calls) {
+  inbox_->push_all(as_events(std::move(calls)));
+}
+
+bool RequestManager::run_or_submit(std::vector<std::pair<RequestId, Call>> calls) {
+  // queued first, so they run after whatever this manager already had queued; no signal
+  // unless the lock is taken: waking the simulation thread for work done here would only
+  // make it compete for the CPU
+  inbox_->push_all(as_events(std::move(calls)), /*wake=*/false);
+  std::unique_lock lock(*gate_, std::try_to_lock);
+  if (!lock) {
+    // the holder (stepping, or another transport) may be past our queue: its next
+    // process() must come
+    gate_->signal();
+    return false;
+  }
+  process_locked();
+  return true;
+}
+
+bool RequestManager::run_or_submit(RequestId id, Call call) {
+  std::vector<std::pair<RequestId, Call>> calls;
+  calls.emplace_back(id, std::move(call));
+  return run_or_submit(std::move(calls));
 }
 
 void RequestManager::cancel(RequestId id, std::function<void(bool)> done) {
@@ -195,11 +221,16 @@ void RequestManager::post(std::function<void()> task) { inbox_->push(detail::Inb
 // ---- simulation thread
 
 std::size_t RequestManager::process(std::chrono::nanoseconds wait) {
+  if (wait.count() > 0 && inbox_->empty()) gate_->wait_for(wait);
+  std::lock_guard lock(*gate_);
+  return process_locked();
+}
+
+std::size_t RequestManager::process_locked() {
   if (!started_) {
     started_ = true;
     start();
   }
-  if (wait.count() > 0 && inbox_->empty()) wakeup_->wait_for(wait);
 
   std::vector<detail::Inbox::Event> events;
   std::vector<std::pair<RequestId, Outcome>> finished;
@@ -224,7 +255,7 @@ std::size_t RequestManager::process(std::chrono::nanoseconds wait) {
   }
 
   // completions produced while executing (immediate completion, preemption, cancel); requests
-  // that arrived meanwhile wait for the next process(), which the wakeup makes immediate
+  // that arrived meanwhile wait for the next process(), which the gate makes immediate
   finished.clear();
   inbox_->take_finished(finished);
   for (auto& [id, outcome] : finished) deliver(id, std::move(outcome));
@@ -376,6 +407,7 @@ void RequestManager::deliver(RequestId id, Outcome outcome) {
 }
 
 void RequestManager::abandon_pending(const std::string& reason) {
+  std::lock_guard lock(*gate_);
   inbox_->close();
   // running async requests: finish them (the component may still hold the completion;
   // its later completed() is then ignored)

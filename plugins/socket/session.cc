@@ -142,7 +142,7 @@ void Session::start_write() {
 }
 
 void Session::maybe_finish() {
-  if (eof_ && pending_.empty() && !writing_ && outbox_.empty()) close("end of input");
+  if (eof_ && !has_unanswered() && !writing_ && outbox_.empty()) close("end of input");
 }
 
 void Session::close(std::string_view reason) {
@@ -172,6 +172,14 @@ void Session::remove_pending(std::string_view client_id) {
   pending_.erase(std::string(client_id));
   if (closed_) return;
   read_more();
+  maybe_finish();
+}
+
+void Session::defer_reply() { ++deferred_replies_; }
+
+void Session::queue_deferred_reply(std::string_view bytes) {
+  if (deferred_replies_ > 0) --deferred_replies_;
+  queue(bytes);
   maybe_finish();
 }
 

@@ -82,6 +82,13 @@ class Session : public std::enable_shared_from_this<Session> {
   // Forgets an answered request; resumes reading if it was paused.
   void remove_pending(std::string_view client_id);
   const std::unordered_map<std::string, RequestId>& pending() const { return pending_; }
+  // A reply the host made itself (an error) but that must follow the replies of earlier
+  // requests travels through the core in order: defer_reply() when it leaves,
+  // queue_deferred_reply() when it comes back.
+  void defer_reply();
+  void queue_deferred_reply(std::string_view bytes);
+  // Requests or deferred replies not answered yet: a new error reply must wait for them.
+  bool has_unanswered() const { return !pending_.empty() || deferred_replies_ > 0; }
 
   // "client #3 (127.0.0.1:51234)", for log messages.
   const std::string& label() const { return label_; }
@@ -107,6 +114,7 @@ class Session : public std::enable_shared_from_this<Session> {
   std::string in_flight_;                 // replies being written
   bool writing_ = false;                  // a write is in flight
   std::unordered_map<std::string, RequestId> pending_;  // client id -> core request id
+  std::size_t deferred_replies_ = 0;      // host error replies travelling behind earlier requests
 };
 
 }  // namespace simgate::socket

@@ -174,15 +174,13 @@ void SocketRequestManager::reply(Session& session, std::string_view id, std::str
 
 void SocketRequestManager::submit_batch_now() {
   if (batch_.empty()) return;
-  if (batch_.size() == 1) {
-    submit(batch_.front().first, std::move(batch_.front().second));
-    batch_.clear();
-    return;
-  }
   std::vector<std::pair<RequestId, Call>> calls;
   calls.reserve(batch_.size());
   calls.swap(batch_);
-  submit_batch(std::move(calls));
+  // outcomes produced here, on the I/O thread, are queued on their connections
+  // (enqueue_reply), then written together
+  run_or_submit(std::move(calls));
+  flush_touched();
 }
 
 void SocketRequestManager::on_lines_done(const std::shared_ptr<Session>&) { submit_batch_now(); }
@@ -190,16 +188,18 @@ void SocketRequestManager::on_lines_done(const std::shared_ptr<Session>&) { subm
 void SocketRequestManager::fail_in_order(const std::shared_ptr<Session>& session, std::string_view id,
                                          std::string message) {
   json text = std::move(message);
-  if (session->pending().empty()) {
+  // earlier requests of this read may run at once, answering them
+  if (session->has_unanswered()) submit_batch_now();
+  if (!session->has_unanswered()) {
     reply(*session, id, k_failed, &text);
     return;
   }
   // earlier requests are still with the core: queue this answer behind them, so that a
-  // client reading replies in order (telnet, scripts) sees them in order. The simulation
-  // thread puts it on the reply list after their outcomes.
-  submit_batch_now();
+  // client reading replies in order (telnet, scripts) sees them in order. Whoever runs
+  // process() puts it on the reply list after their outcomes.
   scratch_.clear();
   append_reply(scratch_, id, k_failed, &text);
+  session->defer_reply();
   post([this, weak = std::weak_ptr<Session>(session), line = scratch_]() mutable {
     Reply r;
     r.session = std::move(weak);
@@ -276,7 +276,6 @@ void SocketRequestManager::on_session_closed(const std::shared_ptr<Session>& ses
 // ---- outcomes
 
 void SocketRequestManager::on_service_completion(RequestId id, Outcome outcome) {
-  // simulation thread: hand over to the I/O thread, never block here
   Reply r;
   r.id = id;
   r.outcome = std::move(outcome);
@@ -284,6 +283,14 @@ void SocketRequestManager::on_service_completion(RequestId id, Outcome outcome) 
 }
 
 void SocketRequestManager::enqueue_reply(Reply reply) {
+  if (io_.get_executor().running_in_this_thread()) {
+    // the I/O thread itself runs process() (run_or_submit): straight to the connection,
+    // after the replies the simulation thread produced before (same order as produced)
+    queue_gathered_replies();
+    queue_reply(reply);
+    return;
+  }
+  // another thread (the simulation's): hand over to the I/O thread, never block here
   bool post_flush = false;
   {
     std::lock_guard lock(replies_mutex_);
@@ -295,28 +302,39 @@ void SocketRequestManager::enqueue_reply(Reply reply) {
 }
 
 void SocketRequestManager::flush_replies() {
+  queue_gathered_replies();
+  flush_touched();
+}
+
+void SocketRequestManager::queue_gathered_replies() {
   {
     std::lock_guard lock(replies_mutex_);
+    if (replies_.empty()) return;
     flushing_.swap(replies_);
     flush_scheduled_ = false;  // replies added from now on need a new flush
   }
-  // queue every reply on its connection, in the order the simulation thread produced them
-  for (Reply& r : flushing_) {
-    try {
-      std::shared_ptr<Session> session;
-      if (r.line.empty()) {
-        session = deliver(r.id, r.outcome);
-      } else if (auto s = r.session.lock(); s && !s->closed()) {
-        s->queue(r.line);
-        session = std::move(s);
-      }
-      if (session && (touched_.empty() || touched_.back() != session)) touched_.push_back(std::move(session));
-    } catch (const std::exception& e) {
-      log::error(name(), ": cannot deliver the outcome of request ", r.id, ": ", e.what());
-    }
-  }
+  // each on its connection, in the order the simulation thread produced them
+  for (Reply& r : flushing_) queue_reply(r);
   flushing_.clear();
-  // then one write per connection
+}
+
+void SocketRequestManager::queue_reply(Reply& r) {
+  try {
+    std::shared_ptr<Session> session;
+    if (r.line.empty()) {
+      session = deliver(r.id, r.outcome);
+    } else if (auto s = r.session.lock(); s && !s->closed()) {
+      s->queue_deferred_reply(r.line);
+      session = std::move(s);
+    }
+    if (session && (touched_.empty() || touched_.back() != session)) touched_.push_back(std::move(session));
+  } catch (const std::exception& e) {
+    log::error(name(), ": cannot deliver the outcome of request ", r.id, ": ", e.what());
+  }
+}
+
+void SocketRequestManager::flush_touched() {
+  // one write per connection
   for (const auto& s : touched_) s->flush_writes();
   touched_.clear();
 }

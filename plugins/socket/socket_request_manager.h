@@ -16,17 +16,17 @@
 // destructor calls it, then finishes requests still pending).
 //
 // Threads: one I/O thread runs the io_context; it owns the acceptor, every Session and the
-// request table, so none of them needs a lock. on_service_completion runs on the
-// simulation thread and only appends the outcome to a short mutex-guarded list (never
-// blocks for long).
+// request table, so none of them needs a lock.
 //
-// Hand-offs are batched both ways: the requests found in one read go to the core in one
-// submit_batch() (one wake of the simulation thread), and the outcomes gathered while the
-// I/O thread was busy are delivered by one posted flush (one wake of the I/O thread), which
-// queues each reply on its connection and then starts one write per connection. The
-// transport's own error replies that must wait for earlier requests travel through the same
-// list, so a connection's replies keep the order in which the simulation thread produced
-// them.
+// The requests found in one read go to the core together (run_or_submit). When the
+// simulation lock is free, the I/O thread runs them itself: their outcomes come back to
+// on_service_completion on this same thread, are queued on their connections, and one write
+// per connection sends them: no thread hand-off at all. When the simulation is stepping,
+// they are queued and on_service_completion runs on the simulation thread: it only appends
+// the outcome to a short mutex-guarded list and posts one flush for every outcome gathered
+// until the I/O thread takes them (never blocks for long). The transport's own error
+// replies that must wait for earlier requests travel through the core in order (post), so
+// a connection's replies keep the order of its requests.
 #ifndef SIMGATE_PLUGINS_SOCKET_SOCKET_REQUEST_MANAGER_H_
 #define SIMGATE_PLUGINS_SOCKET_SOCKET_REQUEST_MANAGER_H_
 
@@ -81,10 +81,17 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   };
   // Submits the calls gathered from the current read (before anything that must follow them).
   void submit_batch_now();
-  // Any thread: appends to replies_ and posts flush_replies() unless one is already due.
+  // On the I/O thread inside run_or_submit: queues the reply on its connection at once.
+  // Any other thread: appends to replies_ and posts flush_replies() unless one is due.
   void enqueue_reply(Reply reply);
   // I/O thread: delivers every gathered reply, then starts one write per connection.
   void flush_replies();
+  // I/O thread: queues the replies gathered in replies_ on their connections.
+  void queue_gathered_replies();
+  // I/O thread: queues one reply on its connection and remembers the connection in touched_.
+  void queue_reply(Reply& reply);
+  // I/O thread: starts one write on every connection in touched_.
+  void flush_touched();
 
   void accept_next();
   // Queues the reply to `id` on its connection; returns that connection (null if gone).
@@ -119,7 +126,7 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   std::vector<Reply> replies_;               // replies waiting for the I/O thread
   bool flush_scheduled_ = false;             // a flush_replies() is posted and has not taken replies_
   std::vector<Reply> flushing_;              // replies being delivered (I/O thread)
-  std::vector<std::shared_ptr<Session>> touched_;  // connections with replies queued by a flush (I/O thread)
+  std::vector<std::shared_ptr<Session>> touched_;  // connections with replies queued, not yet written (I/O thread)
   std::thread thread_;                       // runs io_
   std::mutex life_mutex_;                    // serialises start() and stop()
   bool started_ = false;                     // start() ran

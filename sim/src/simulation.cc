@@ -16,7 +16,7 @@ constexpr std::chrono::milliseconds k_max_lag{100};
 }  // namespace
 
 Simulation::Simulation(Model model, SimulationOptions options)
-    : model_(std::move(model)), wakeup_(std::make_shared<Wakeup>()) {
+    : model_(std::move(model)), gate_(std::make_shared<SimulationGate>()) {
   if (options.timestep) {
     if (!(*options.timestep > 0) || !std::isfinite(*options.timestep))
       throw std::invalid_argument("simulation: timestep must be a positive number, not " +
@@ -75,7 +75,7 @@ std::vector<std::string> Simulation::robot_names() const {
 }
 
 void Simulation::add_request_manager(std::shared_ptr<RequestManager> manager, std::string transport) {
-  manager->set_wakeup(wakeup_);
+  manager->set_gate(gate_);
   managers_.push_back(std::move(manager));
   manager_names_.push_back(std::move(transport));
 }
@@ -106,6 +106,11 @@ void Simulation::step() {
   steps_.fetch_add(1, std::memory_order_relaxed);
 }
 
+void Simulation::locked_step() {
+  std::lock_guard lock(*gate_);
+  step();
+}
+
 void Simulation::fail_component(ComponentEntry& entry, const std::string& reason) {
   const std::string& name = entry.component->name();
   log::error(name, ": default_action() failed: ", reason, "; the component is deactivated",
@@ -126,12 +131,12 @@ void Simulation::run() {
     process_requests();
     if (stop_requested()) break;
     if (realtime_factor_ == 0) {
-      step();
+      locked_step();
       continue;
     }
     auto now = Clock::now();
     if (now >= next_step) {
-      step();
+      locked_step();
       next_step += std::chrono::duration_cast<Clock::duration>(
           std::chrono::duration<double>(timestep() / realtime_factor_));
       // fell behind (slow machine, long service): resynchronise instead of racing
@@ -141,14 +146,15 @@ void Simulation::run() {
       }
       continue;
     }
-    // sleep until the next step, or until a request arrives
-    wakeup_->wait_until(next_step);
+    // sleep until the next step, or until queued work arrives; meanwhile transports run
+    // their requests themselves under the simulation lock
+    gate_->wait_until(next_step);
   }
 }
 
 void Simulation::request_stop() {
   stop_.store(true, std::memory_order_release);
-  wakeup_->signal();
+  gate_->signal();
 }
 
 void Simulation::shutdown() {
@@ -159,6 +165,7 @@ void Simulation::shutdown() {
     process_requests();
     // async requests still running end now, so their clients get a reply before the
     // transports close
+    std::unique_lock lock(*gate_);
     for (auto& e : entries_) {
       AsyncSlot& slot = *e->component->async_slot();
       if (!slot.busy()) continue;
@@ -166,6 +173,7 @@ void Simulation::shutdown() {
       slot.running_completion.finish(
           Outcome::failed(Failure::shutdown, "the simulation stopped before " + service + " completed"));
     }
+    lock.unlock();
     process_requests();
   } catch (const std::exception& e) {
     log::error("simulation: while answering the last requests: ", e.what());

@@ -3,7 +3,9 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <chrono>
+#include <mutex>
 #include <thread>
 
 #include "simgate/core/component.h"
@@ -351,6 +353,76 @@ TEST_F(RequestManagerTest, BatchRunsInOneProcess) {
   rm.submit_batch(std::move(batch));
   rm.process();
   for (int i = 0; i < 3; ++i) EXPECT_EQ(rm.outcome(ids[i])->value, json(2 * i));
+}
+
+TEST_F(RequestManagerTest, RunOrSubmitRunsOnTheCallingThreadWhenTheLockIsFree) {
+  std::thread::id ran_on;
+  rm.register_service("test_component", [&](int a, int b) { ran_on = std::this_thread::get_id(); return a + b; },
+                      "add", {"a", "b"});
+  // queued earlier: runs first, in the same process()
+  auto earlier = rm.call("robot.mover", "position");
+  rm.gate()->consume();  // submit() signalled
+  RequestId id = rm.new_request_id();
+  EXPECT_TRUE(rm.run_or_submit(id, Call{"test_component", "add", json{2, 3}}));
+  EXPECT_EQ(ran_on, std::this_thread::get_id());
+  auto done = rm.completions();
+  ASSERT_EQ(done.size(), 2u);
+  EXPECT_EQ(done[0].first, earlier);
+  EXPECT_EQ(done[1].first, id);
+  EXPECT_EQ(done[1].second.value, json(5));
+  // nothing left to wake the simulation thread for
+  EXPECT_FALSE(rm.gate()->consume());
+}
+
+TEST_F(RequestManagerTest, RunOrSubmitQueuesWhileTheSimulationLockIsHeld) {
+  rm.register_service("test_component", add, "add", {"a", "b"});
+  std::vector<std::pair<RequestId, Call>> calls;
+  calls.emplace_back(rm.new_request_id(), Call{"test_component", "add", json{1, 1}});
+  calls.emplace_back(rm.new_request_id(), Call{"test_component", "add", json{2, 2}});
+  auto first = calls[0].first, second = calls[1].first;
+  bool ran = true;
+  {
+    // the simulation thread is stepping
+    std::lock_guard stepping(*rm.gate());
+    std::thread io([&] { ran = rm.run_or_submit(std::move(calls)); });
+    io.join();
+  }
+  EXPECT_FALSE(ran);
+  EXPECT_TRUE(rm.completions().empty());
+  // the holder is told to come back: its wait returns at once
+  EXPECT_TRUE(rm.gate()->wait_for(std::chrono::seconds(10)));
+  rm.process();
+  EXPECT_EQ(rm.outcome(first)->value, json(2));
+  EXPECT_EQ(rm.outcome(second)->value, json(4));
+}
+
+TEST_F(RequestManagerTest, ServicesNeverRunConcurrentlyFromTwoThreads) {
+  // the simulation thread processing and a transport thread running inline share one lock
+  int inside = 0, overlaps = 0, calls = 0;
+  rm.register_service("test_component", [&] {
+    if (++inside > 1) ++overlaps;
+    ++calls;
+    std::this_thread::yield();
+    --inside;
+  }, "touch");
+  std::atomic<bool> stop{false};
+  std::thread sim([&] {
+    while (!stop) rm.process(std::chrono::milliseconds(5));
+  });
+  std::thread queuer([&] {
+    for (int i = 0; i < 300; ++i) rm.call("test_component", "touch");
+  });
+  for (int i = 0; i < 300; ++i) rm.run_or_submit(rm.new_request_id(), Call{"test_component", "touch", nullptr});
+  queuer.join();
+  for (int i = 0; i < 1000 && rm.completions().size() < 600; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  stop = true;
+  rm.gate()->signal();
+  sim.join();
+  EXPECT_EQ(rm.completions().size(), 600u);
+  std::lock_guard holder(*rm.gate());  // the counters were written under the lock
+  EXPECT_EQ(calls, 600);
+  EXPECT_EQ(overlaps, 0);
 }
 
 TEST_F(RequestManagerTest, AbandonPendingAnswersEveryPendingRequest) {

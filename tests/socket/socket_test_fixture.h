@@ -74,7 +74,7 @@ class SocketFixture : public ::testing::Test {
   void shutdown() {
     if (loop_.joinable()) {
       stop_ = true;
-      manager_->wakeup()->signal();
+      manager_->gate()->signal();
       loop_.join();
     }
     if (manager_) manager_->stop();

@@ -227,6 +227,25 @@ TEST_F(SocketTransport, ErrorRepliesKeepTheOrderOfSyncRequests) {
   EXPECT_EQ(next_line(*c), "o4 SUCCESS \"pong\"");
 }
 
+TEST_F(SocketTransport, RepliesKeepTheirOrderWhenTheSimulationIsBusy) {
+  // the simulation lock is held (a long step): requests and the error replies behind them
+  // are queued, then answered in order by the simulation thread
+  auto c = connect();
+  {
+    std::lock_guard stepping(*manager_->gate());
+    c->send_raw("b1 test_component add (1,2)\nb2\nb3 test_component add (1,\nb4 test ping\n");
+    // give the I/O thread time to read them while the lock is held (if it reads later, the
+    // requests run on it instead: the order must hold either way)
+    std::this_thread::sleep_for(100ms);
+  }
+  EXPECT_EQ(next_line(*c), "b1 SUCCESS 3");
+  EXPECT_THAT(next_line(*c), StartsWith("b2 FAILED \"Malformed request!"));
+  EXPECT_THAT(next_line(*c), StartsWith("b3 FAILED \"Invalid request syntax"));
+  EXPECT_EQ(next_line(*c), "b4 SUCCESS \"pong\"");
+  // and afterwards requests run at once again
+  EXPECT_EQ(roundtrip(*c, "b5 test_component add (2,2)"), "b5 SUCCESS 4");
+}
+
 TEST_F(SocketTransport, LastRequestIsAnsweredAfterClientShutsDownSending) {
   auto c = connect();
   c->send_raw("eof1 test_component add (1,2)\neof2 test_component add (2,2)");  // no final '\n'

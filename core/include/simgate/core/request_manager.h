@@ -3,17 +3,23 @@
 // A request manager owns a table of services (registered by hand, or a component's), a
 // queue of requests handed over by its transport, and the life cycle of each request:
 //
-//   I/O thread:  id = new_request_id(); remember (client, id); submit(id, call)
-//   sim thread:  process() -> on_incoming_request() -> sync: runs, on_service_completion()
-//                                                    -> async: started; later the component
-//                                                       calls completed() -> next process()
-//                                                       -> on_service_completion()
-//   I/O thread:  the transport's on_service_completion() posts the reply to the client.
+//   I/O thread:  id = new_request_id(); remember (client, id); run_or_submit(id, call)
+//   either:      the simulation lock is free (the loop waits for its next step): the I/O
+//                thread takes it and runs process() itself, at once
+//   or:          the lock is held (the loop is stepping): the request is queued and the
+//                simulation thread's next process() runs it
+//   process():   on_incoming_request() -> sync: runs, on_service_completion()
+//                                      -> async: started; later the component calls
+//                                         completed() -> next process()
+//                                         -> on_service_completion()
+//   transport:   on_service_completion() sends the reply (directly when it runs on the
+//                transport's own thread, posted to it otherwise).
 //
 // Every submitted request gets exactly one on_service_completion() (even unknown services,
-// bad arguments and requests still running at stop()). Services run only on the thread
-// that calls process(). submit() and cancel() are thread-safe and never block for long;
-// process() wakes at once when a request arrives (see Wakeup).
+// bad arguments and requests still running at stop()). Services run only under the
+// simulation lock (SimulationGate), on whichever thread runs process(). submit() and
+// cancel() are thread-safe and never block for long; a queued request wakes process() at
+// once.
 //
 // A transport plugin subclasses RequestManager, does its I/O on its own threads between
 // start() and stop(), and overrides on_service_completion(). See
@@ -33,7 +39,7 @@
 #include "simgate/core/component.h"
 #include "simgate/core/service.h"
 #include "simgate/core/status.h"
-#include "simgate/core/wakeup.h"
+#include "simgate/core/simulation_gate.h"
 
 namespace simgate {
 
@@ -98,9 +104,10 @@ class RequestManager {
   void set_global_policy(GlobalPolicy policy) { global_policy_ = policy; }
   GlobalPolicy global_policy() const { return global_policy_; }
 
-  // The wake-up shared with the simulation loop (default: one of its own).
-  void set_wakeup(std::shared_ptr<Wakeup> wakeup);
-  const std::shared_ptr<Wakeup>& wakeup() const { return wakeup_; }
+  // The gate shared with the simulation loop and the other managers (default: one of its
+  // own). Before start().
+  void set_gate(std::shared_ptr<SimulationGate> gate);
+  const std::shared_ptr<SimulationGate>& gate() const { return gate_; }
 
   // ---- life cycle (host thread) ----
 
@@ -115,13 +122,14 @@ class RequestManager {
   // ---- the simulation thread ----
 
   // Executes queued requests and cancels, then delivers finished async requests.
-  // Waits up to `wait` for work when there is none. Returns the number of events handled.
-  // Calls start() first if nobody has.
+  // Waits up to `wait` for work when there is none (without the simulation lock), then
+  // takes the lock for the work. Returns the number of events handled. Calls start() first
+  // if nobody has. Must not be called with the simulation lock held.
   std::size_t process(std::chrono::nanoseconds wait = std::chrono::nanoseconds::zero());
 
   // Executes one request now (MORSE's on_incoming_request). Sync: returns the outcome.
   // Async: starts it and returns nullopt (the outcome arrives through
-  // on_service_completion). Errors return a FAILED outcome.
+  // on_service_completion). Errors return a FAILED outcome. Under the simulation lock.
   std::optional<Outcome> on_incoming_request(RequestId id, const Call& call);
 
   // ---- the transport side (any thread) ----
@@ -131,6 +139,14 @@ class RequestManager {
   void submit(RequestId id, Call call);
   // Queues several requests so that they all run in the same process() (JSON-RPC batches).
   void submit_batch(std::vector<std::pair<RequestId, Call>> calls);
+  // Queues the requests (in one batch), then, if the simulation lock is free, takes it and
+  // runs process() on this thread: the outcomes of sync requests (and of anything else
+  // this manager had queued) reach on_service_completion before this returns, on this
+  // thread. If the lock is held, the requests wait for the holder's next process(), as
+  // with submit_batch(). Returns true if they ran here. The caller must not hold anything
+  // its own on_service_completion() needs.
+  bool run_or_submit(std::vector<std::pair<RequestId, Call>> calls);
+  bool run_or_submit(RequestId id, Call call);
   // Cancels a running async request of this manager: it ends PREEMPTED with
   // Failure::cancelled. `done(found)` runs on the simulation thread afterwards.
   void cancel(RequestId id, std::function<void(bool found)> done = {});
@@ -138,18 +154,20 @@ class RequestManager {
   // must see a consistent state).
   void post(std::function<void()> task);
 
-  // Number of async requests started and not yet finished (simulation thread).
+  // Number of async requests started and not yet finished (under the simulation lock).
   std::size_t pending_count() const { return running_.size(); }
 
   // Finishes every request not yet answered (queued or running async) FAILED with
   // Failure::shutdown, delivering each through on_service_completion, and refuses later
   // submissions the same way. Simulation thread (or the host once the loop has ended),
-  // before stop(): this is how clients get a reply at shutdown.
+  // before stop(): this is how clients get a reply at shutdown. Takes the simulation lock.
   void abandon_pending(const std::string& reason = "the simulation is shutting down");
 
  protected:
   // Delivers the final outcome of request `id`, exactly once per submitted request.
-  // Simulation thread; must not block (post the reply to the I/O thread) and must not throw.
+  // Runs under the simulation lock: on the simulation thread, or on a transport thread
+  // inside run_or_submit(). Must not block (post the reply to the I/O thread when on
+  // another thread) and must not throw.
   virtual void on_service_completion(RequestId id, Outcome outcome) = 0;
 
  private:
@@ -159,20 +177,22 @@ class RequestManager {
   void interrupt_running(AsyncSlot& slot, Failure reason, std::string message);
   void execute_cancel(RequestId id, const std::function<void(bool)>& done);
   void deliver(RequestId id, Outcome outcome);
+  // process() once the lock is held
+  std::size_t process_locked();
   std::shared_ptr<AsyncSlot> slot_for(const std::string& component);
   Outcome unknown_service(const Call& call) const;
 
   std::string name_;                       // for error messages
   std::shared_ptr<detail::Inbox> inbox_;   // requests, cancels, tasks and completions
-  std::shared_ptr<Wakeup> wakeup_;         // shared with the simulation loop
+  std::shared_ptr<SimulationGate> gate_;   // wake-up and simulation lock, shared with the loop
   mutable std::mutex table_mutex_;         // guards services_ and slots_
   // component -> service name -> service
   std::unordered_map<std::string, std::unordered_map<std::string, std::shared_ptr<Service>>> services_;
   std::unordered_map<std::string, std::shared_ptr<AsyncSlot>> slots_;  // free-function slots
-  // async requests this manager started and has not delivered (simulation thread only)
+  // async requests this manager started and has not delivered (under the simulation lock)
   std::unordered_map<RequestId, std::pair<std::shared_ptr<detail::CallState>, std::shared_ptr<AsyncSlot>>> running_;
   GlobalPolicy global_policy_ = GlobalPolicy::reject;  // when the running service has no policy
-  bool started_ = false;                   // start() called (by process() if nobody did)
+  bool started_ = false;                   // start() called (by process() if nobody did; under the lock)
 };
 
 }  // namespace simgate

@@ -3,7 +3,7 @@
 // Building a Gateway validates everything before anything starts: the deployment file
 // (see deployment.h), the MJCF scene, every component (type, bodies, actuators, options)
 // and every transport plugin (found, ABI-compatible, options known). In check mode it stops
-// there; otherwise it creates each transport, shares the simulation's Wakeup with it and
+// there; otherwise it creates each transport, shares the simulation's gate with it and
 // registers the components mapped to it. start() opens the transports; run() is the
 // simulation loop on the calling thread, until stop() or `simulation quit`; the destructor
 // (or shutdown()) answers pending clients, stops the transports, destroys them and then

@@ -10,14 +10,18 @@
 //
 // Life cycle: construct from a Model; add_component() for every robot and component (the
 // `simulation` and `time` pseudo-components are added by add_supervision_services());
-// add_request_manager() for every transport (the simulation gives each one its Wakeup);
+// add_request_manager() for every transport (the simulation gives each one its gate);
 // run() until request_stop() (any thread, or the `simulation quit` service); shutdown()
 // answers what is left, stops the transports and destroys them, then the components.
 //
-// Threads: run(), step(), process_requests() and every component run on one thread, the
-// simulation thread. request_stop(), stop_requested() and steps() may be called from any
-// thread. Transports wake the loop through the shared Wakeup: a request is served as soon
-// as it arrives, never "at the next frame", and never makes the physics step early.
+// Threads: simulation state (MuJoCo data, every component and service) is touched only
+// under the simulation lock of the shared SimulationGate. run() is the simulation thread:
+// it takes the lock for each step() and each manager's process(), and releases it while it
+// waits for the next step; in that time a transport thread may take it to run its requests
+// at once (RequestManager::run_or_submit). So a request is served as soon as it arrives,
+// never "at the next frame", and never makes the physics step early. Called directly,
+// step() expects the caller to hold the lock or to be the only thread. request_stop(),
+// stop_requested() and steps() may be called from any thread.
 #ifndef SIMGATE_SIM_SIMULATION_H_
 #define SIMGATE_SIM_SIMULATION_H_
 
@@ -30,7 +34,7 @@
 
 #include "simgate/core/component.h"
 #include "simgate/core/request_manager.h"
-#include "simgate/core/wakeup.h"
+#include "simgate/core/simulation_gate.h"
 #include "simgate/sim/model.h"
 
 namespace simgate::sim {
@@ -95,9 +99,9 @@ class Simulation {
 
   // ---- transports ----
 
-  // The simulation processes `manager` every step and shares its Wakeup with it.
+  // The simulation processes `manager` every step and shares its gate with it.
   void add_request_manager(std::shared_ptr<RequestManager> manager, std::string transport);
-  const std::shared_ptr<Wakeup>& wakeup() const { return wakeup_; }
+  const std::shared_ptr<SimulationGate>& gate() const { return gate_; }
   const std::vector<std::shared_ptr<RequestManager>>& request_managers() const { return managers_; }
 
   // ---- the loop (simulation thread) ----
@@ -129,12 +133,14 @@ class Simulation {
   SimulationStatistics statistics() const;
 
  private:
+  // step() under the simulation lock
+  void locked_step();
   // Deactivates a component whose default_action() threw; fails its running request.
   void fail_component(ComponentEntry& entry, const std::string& reason);
 
   Model model_;                                              // mjModel + mjData
   double realtime_factor_;                                   // 0 = as fast as possible
-  std::shared_ptr<Wakeup> wakeup_;                           // shared with every manager
+  std::shared_ptr<SimulationGate> gate_;                     // shared with every manager
   std::vector<std::unique_ptr<ComponentEntry>> entries_;     // every component, in order
   std::vector<std::shared_ptr<RequestManager>> managers_;    // every transport
   std::vector<std::string> manager_names_;                   // transport name of each manager
