@@ -17,7 +17,7 @@ class Inbox : public CompletionSink {
   struct Task { std::function<void()> run; };
   using Event = std::variant<Request, Cancel, Task>;
 
-  // any thread; `wake` signals the gate (run_or_submit signals only if it cannot run them)
+  // any thread; signals the gate
   void push(Event event) {
     std::shared_ptr<SimulationGate> gate;
     {
@@ -27,13 +27,15 @@ class Inbox : public CompletionSink {
     }
     gate->signal();
   }
-  void push_all(std::vector<Event> events, bool wake = true) {
+  // requests moved out of `calls` (left empty); `wake`: see push()
+  void push_requests(std::vector<std::pair<RequestId, Call>>& calls, bool wake) {
     std::shared_ptr<SimulationGate> gate;
     {
       std::lock_guard lock(mutex_);
-      for (auto& e : events) add(std::move(e));
+      for (auto& [id, call] : calls) add(Request{id, std::move(call)});
       gate = gate_;
     }
+    calls.clear();
     if (wake) gate->signal();
   }
   void finished(RequestId id, Outcome outcome) override {
@@ -46,12 +48,17 @@ class Inbox : public CompletionSink {
     gate->signal();
   }
 
-  // simulation thread
+  // under the simulation lock; `events` and `finished` come empty and keep their capacity
+  // for the next push (no allocation per process())
   void take(std::vector<Event>& events, std::vector<std::pair<RequestId, Outcome>>& finished) {
     std::lock_guard lock(mutex_);
     events.swap(events_);
     finished.swap(finished_);
   }
+  // what process() is working on (under the simulation lock only)
+  std::vector<Event> work_events;
+  std::vector<std::pair<RequestId, Outcome>> work_finished;
+
   void take_finished(std::vector<std::pair<RequestId, Outcome>>& finished) {
     std::lock_guard lock(mutex_);
     finished.swap(finished_);
@@ -177,24 +184,15 @@ void RequestManager::submit(RequestId id, Call call) {
   inbox_->push(detail::Inbox::Request{id, std::move(call)});
 }
 
-namespace {
-std::vector<detail::Inbox::Event> as_events(std::vector<std::pair<RequestId, Call>> calls) {
-  std::vector<detail::Inbox::Event> events;
-  events.reserve(calls.size());
-  for (auto& [id, call] : calls) events.emplace_back(detail::Inbox::Request{id, std::move(call)});
-  return events;
-}
-}  // namespace
-
 void RequestManager::submit_batch(std::vector<std::pair<RequestId, Call>> calls) {
-  inbox_->push_all(as_events(std::move(calls)));
+  inbox_->push_requests(calls, /*wake=*/true);
 }
 
 bool RequestManager::run_or_submit(std::vector<std::pair<RequestId, Call>> calls) {
   // queued first, so they run after whatever this manager already had queued; no signal
   // unless the lock is taken: waking the simulation thread for work done here would only
   // make it compete for the CPU
-  inbox_->push_all(as_events(std::move(calls)), /*wake=*/false);
+  inbox_->push_requests(calls, /*wake=*/false);
   std::unique_lock lock(*gate_, std::try_to_lock);
   if (!lock) {
     // the holder (stepping, or another transport) may be past our queue: its next
@@ -232,8 +230,17 @@ std::size_t RequestManager::process_locked() {
     start();
   }
 
-  std::vector<detail::Inbox::Event> events;
-  std::vector<std::pair<RequestId, Outcome>> finished;
+  // the inbox's work vectors (their capacity is reused); emptied however this ends, so that
+  // nothing handled here can be swapped back into the queue
+  auto& events = inbox_->work_events;
+  auto& finished = inbox_->work_finished;
+  struct Clear {
+    detail::Inbox& inbox;
+    ~Clear() {
+      inbox.work_events.clear();
+      inbox.work_finished.clear();
+    }
+  } clear_on_exit{*inbox_};
   inbox_->take(events, finished);
   std::size_t handled = events.size() + finished.size();
 
@@ -256,6 +263,7 @@ std::size_t RequestManager::process_locked() {
 
   // completions produced while executing (immediate completion, preemption, cancel); requests
   // that arrived meanwhile wait for the next process(), which the gate makes immediate
+  events.clear();
   finished.clear();
   inbox_->take_finished(finished);
   for (auto& [id, outcome] : finished) deliver(id, std::move(outcome));

@@ -104,6 +104,7 @@ class Parser {
     const char* kind = close == ']' ? "list" : "tuple";
     ++pos_;  // the opening bracket
     json out = json::array();
+    out.get_ref<json::array_t&>().reserve(4);  // most calls have a few arguments: one allocation
     for (;;) {
       skip_blanks();
       if (pos_ < text_.size() && text_[pos_] == close) {
