@@ -79,6 +79,72 @@ TEST_F(SimLoopTest, ShutdownAnswersPendingAsyncRequests) {
   EXPECT_EQ(o->failure, Failure::shutdown);
 }
 
+TEST_F(SimLoopTest, ATransportThreadRunsRequestsItselfWhileTheLoopWaits) {
+  // one step every 30 s: the loop waits, the simulation lock is free
+  start(30.0, 1.0);
+  for (int i = 0; i < 2000 && sim_->steps() < 1; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  ASSERT_EQ(sim_->steps(), 1u);
+  RequestId id = rm_->new_request_id();
+  // the loop may still be finishing its first iteration: retry (bounded) until the lock is free
+  bool ran_here = false;
+  for (int i = 0; i < 200 && !ran_here; ++i) {
+    ran_here = rm_->run_or_submit(id, Call{"time", "statistics", json::array()});
+    if (!ran_here) {
+      ASSERT_TRUE(rm_->wait(id, std::chrono::seconds(20)));
+      id = rm_->new_request_id();
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+  }
+  ASSERT_TRUE(ran_here);
+  // answered before run_or_submit returned, without a step
+  auto o = rm_->outcome(id);
+  ASSERT_TRUE(o);
+  EXPECT_EQ((*o->value)["steps"].get<std::uint64_t>(), 1u);
+}
+
+// Counts what it sees: a service must never run while a step is under way.
+class StepProbe : public Component {
+ public:
+  StepProbe() : Component("probe") { add_service("look", &StepProbe::look); }
+  void default_action() override {
+    stepping_ = true;
+    std::this_thread::yield();  // widen the window a concurrent service would fall in
+    stepping_ = false;
+  }
+  int look() {
+    if (stepping_) ++overlaps;
+    return ++looks;
+  }
+  int overlaps = 0, looks = 0;
+
+ private:
+  bool stepping_ = false;
+};
+
+TEST(SimLoopLockTest, ServicesNeverRunDuringAStepWhicheverThreadRunsThem) {
+  auto sim = std::make_unique<Simulation>(Model::load_string(k_scene), SimulationOptions{0.001, 0.0});
+  auto& probe = static_cast<StepProbe&>(*sim->add_component(std::make_unique<StepProbe>(), "probe").component);
+  auto rm = std::make_shared<testing::RecordingManager>();
+  rm->register_component(probe);
+  sim->add_request_manager(rm, "test");
+  std::thread loop([&] { sim->run(); });
+  // as fast as possible: the loop holds the lock nearly always; requests run inline when
+  // they catch it free and are queued otherwise
+  std::vector<RequestId> ids;
+  for (int i = 0; i < 500; ++i) {
+    RequestId id = rm->new_request_id();
+    rm->run_or_submit(id, Call{"probe", "look", json::array()});
+    ids.push_back(id);
+  }
+  for (RequestId id : ids) ASSERT_TRUE(rm->wait(id, std::chrono::seconds(20)));
+  sim->request_stop();
+  loop.join();
+  EXPECT_EQ(probe.looks, 500);
+  EXPECT_EQ(probe.overlaps, 0);
+  rm.reset();
+  sim.reset();
+}
+
 TEST(SimLoopOptionsTest, InvalidPacingIsRejected) {
   EXPECT_THROW(Simulation(Model::load_string(k_scene), SimulationOptions{std::nullopt, -1.0}), std::invalid_argument);
   EXPECT_THROW(Simulation(Model::load_string(k_scene), SimulationOptions{0.0, 1.0}), std::invalid_argument);
