@@ -20,7 +20,6 @@ using dds::retcode_text;
 
 namespace {
 
-constexpr dds_attach_t k_token_replies = 1;
 constexpr dds_attach_t k_token_guard = 2;
 constexpr dds_attach_t k_token_status = 3;
 
@@ -76,6 +75,13 @@ class DdsClient::Impl {
   Outcome wait(CallId id, std::chrono::milliseconds timeout);
   json list_services(std::chrono::milliseconds timeout);
 
+  // Caller's thread, with `lock` (on mutex_) held: returns true once done() holds, false at
+  // the deadline. The first waiter without a reader becomes the reader: it waits on the
+  // reply reader itself and takes every reply (its own and the other callers'); the others
+  // wait on changed_ until their reply is in their slot or the reader role is free.
+  template <class Done>
+  bool await(std::unique_lock<std::mutex>& lock, std::chrono::steady_clock::time_point deadline, Done done);
+
   DdsClientOptions options_;                       // as given
   std::unique_ptr<dds::Participant> participant_;  // owns every entity
   ClientId client_id_{};                           // our request writer's GUID
@@ -83,8 +89,10 @@ class DdsClient::Impl {
   dds_entity_t publisher_ = 0, subscriber_ = 0;    // in the partition
   dds_entity_t request_writer_ = 0;                // simgate_Request
   dds_entity_t reply_reader_ = 0;                  // simgate_Reply, filtered on client_id_
-  dds_entity_t waitset_ = 0, guard_ = 0;           // the receive thread's waitset
-  dds_entity_t read_condition_ = 0;                // replies available
+  dds_entity_t waitset_ = 0, guard_ = 0;           // the status thread's waitset and its stop guard
+  dds_entity_t reader_waitset_ = 0;                // the reading caller's waitset
+  dds_entity_t read_condition_ = 0;                // replies available (on reader_waitset_)
+  dds_entity_t reader_guard_ = 0;                  // wakes the reading caller (match change, stop)
   std::atomic<CallId> next_seq_{1};                // call numbering
 
   std::mutex mutex_;                               // guards everything below
@@ -92,10 +100,11 @@ class DdsClient::Impl {
   std::unordered_map<CallId, Slot> slots_;         // calls not yet consumed
   int server_readers_ = 0;                         // matched request readers
   int server_writers_ = 0;                         // matched reply writers
-  bool stopping_ = false;                          // the receive thread must leave
+  bool reading_ = false;                           // a caller is the reader (see await)
+  bool stopping_ = false;                          // the status thread must leave
   dds_entity_t catalog_reader_ = 0;                // created by the first list_services
 
-  std::thread thread_;                             // the receive thread
+  std::thread thread_;                             // the status thread
 
  private:
   void run();
@@ -139,13 +148,18 @@ DdsClient::Impl::Impl(DdsClientOptions options) : options_(std::move(options)) {
   dds_qset_userdata(reply_qos.get(), userdata.data(), userdata.size());
   reply_reader_ = check(dds_create_reader(subscriber_, reply_topic, reply_qos.get(), nullptr), "reply reader");
 
-  // the receive thread waits for replies, match changes and stop
+  // callers wait for replies themselves (one at a time is the reader: see await)
+  reader_waitset_ = check(dds_create_waitset(pp), "reply waitset");
+  read_condition_ = check(dds_create_readcondition(reply_reader_, DDS_ANY_STATE), "read condition");
+  reader_guard_ = check(dds_create_guardcondition(pp), "reply guard condition");
+  check(dds_waitset_attach(reader_waitset_, read_condition_, 0), "waitset attachment");
+  check(dds_waitset_attach(reader_waitset_, reader_guard_, 0), "waitset attachment");
+
+  // the status thread waits for match changes and stop
   waitset_ = check(dds_create_waitset(pp), "waitset");
   guard_ = check(dds_create_guardcondition(pp), "guard condition");
-  read_condition_ = check(dds_create_readcondition(reply_reader_, DDS_ANY_STATE), "read condition");
   dds_set_status_mask(reply_reader_, DDS_SUBSCRIPTION_MATCHED_STATUS);
   dds_set_status_mask(request_writer_, DDS_PUBLICATION_MATCHED_STATUS);
-  check(dds_waitset_attach(waitset_, read_condition_, k_token_replies), "waitset attachment");
   check(dds_waitset_attach(waitset_, guard_, k_token_guard), "waitset attachment");
   check(dds_waitset_attach(waitset_, reply_reader_, k_token_status), "waitset attachment");
   check(dds_waitset_attach(waitset_, request_writer_, k_token_status), "waitset attachment");
@@ -172,12 +186,8 @@ void DdsClient::Impl::run() {
     }
     dds_return_t n = dds_waitset_wait(waitset_, triggered, 8, DDS_SECS(1));
     if (n < 0) return;
-    bool replies = false, status = false;
-    for (dds_return_t i = 0; i < std::min<dds_return_t>(n, 8); ++i) {
-      replies |= triggered[i] == k_token_replies;
-      status |= triggered[i] == k_token_status;
-    }
-    if (replies) take_replies();
+    bool status = false;
+    for (dds_return_t i = 0; i < std::min<dds_return_t>(n, 8); ++i) status |= triggered[i] == k_token_status;
     if (status) update_matches();
   }
 }
@@ -188,6 +198,8 @@ void DdsClient::Impl::update_matches() {
   dds_subscription_matched_status_t sub{};
   dds_get_publication_matched_status(request_writer_, &pub);
   dds_get_subscription_matched_status(reply_reader_, &sub);
+  // replies already received are outcomes, not losses
+  take_replies();
   std::lock_guard lock(mutex_);
   server_readers_ = static_cast<int>(pub.current_count);
   server_writers_ = static_cast<int>(sub.current_count);
@@ -199,6 +211,8 @@ void DdsClient::Impl::update_matches() {
                      std::to_string(options_.domain) + ") went away before answering call " + std::to_string(id);
   }
   changed_.notify_all();
+  // the reading caller waits on DDS, not on changed_
+  if (reading_) dds_set_guardcondition(reader_guard_, true);
 }
 
 void DdsClient::Impl::take_replies() {
@@ -235,6 +249,33 @@ void DdsClient::Impl::take_replies() {
     }
     dds_return_loan(reply_reader_, samples, n);
     if (n < batch) return;
+  }
+}
+
+template <class Done>
+bool DdsClient::Impl::await(std::unique_lock<std::mutex>& lock, std::chrono::steady_clock::time_point deadline,
+                            Done done) {
+  for (;;) {
+    if (done()) return true;
+    auto now = std::chrono::steady_clock::now();
+    if (now >= deadline) return false;
+    if (reading_) {
+      // another caller reads: it hands us our reply, or the role when it leaves
+      changed_.wait_until(lock, deadline);
+      continue;
+    }
+    // be the reader: wait on the reply reader (or the guard), take every reply there is
+    reading_ = true;
+    lock.unlock();
+    auto left = std::chrono::duration_cast<std::chrono::nanoseconds>(deadline - now).count();
+    dds_waitset_wait(reader_waitset_, nullptr, 0, static_cast<dds_duration_t>(left));
+    bool ignored;
+    dds_take_guardcondition(reader_guard_, &ignored);
+    take_replies();
+    lock.lock();
+    reading_ = false;
+    // a waiting caller takes over the role (or finds its reply)
+    changed_.notify_all();
   }
 }
 
@@ -279,7 +320,7 @@ bool DdsClient::Impl::wait_accepted(CallId id, std::chrono::milliseconds timeout
     auto it = slots_.find(id);
     return it == slots_.end() || it->second.accepted || !it->second.error.empty();
   };
-  changed_.wait_for(lock, timeout, accepted);
+  await(lock, std::chrono::steady_clock::now() + timeout, accepted);
   auto it = slots_.find(id);
   return it != slots_.end() && it->second.accepted;
 }
@@ -291,7 +332,7 @@ Outcome DdsClient::Impl::wait(CallId id, std::chrono::milliseconds timeout) {
     return it == slots_.end() || it->second.outcome || !it->second.error.empty();
   };
   if (slots_.find(id) == slots_.end()) throw ClientError("DDS client: no call " + std::to_string(id) + " to wait for");
-  bool done = changed_.wait_for(lock, timeout, finished);
+  bool done = await(lock, std::chrono::steady_clock::now() + timeout, finished);
   auto it = slots_.find(id);
   if (it == slots_.end()) throw ClientError("DDS client: call " + std::to_string(id) + " was consumed by another wait()");
   Slot slot = std::move(it->second);

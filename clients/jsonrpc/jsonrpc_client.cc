@@ -1,173 +1,33 @@
 #include "simgate/client/jsonrpc_client.h"
 
-#include <cerrno>
-#include <cstring>
-
-#include <fcntl.h>
-#include <netdb.h>
-#include <netinet/in.h>
-#include <netinet/tcp.h>
-#include <poll.h>
-#include <sys/socket.h>
-#include <unistd.h>
-
 namespace simgate::client {
 
 namespace {
 using Clock = std::chrono::steady_clock;
-
-// Milliseconds left until `deadline`, for poll() (0 when passed).
-int remaining_ms(Clock::time_point deadline) {
-  auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count();
-  if (left <= 0) return 0;
-  return left > 1000000 ? 1000000 : static_cast<int>(left);
-}
-
-std::string errno_text(int err) { return std::strerror(err); }
-
-// How long a blocked send may wait for the server to read.
-constexpr auto k_send_timeout = std::chrono::seconds(30);
 }  // namespace
 
 JsonRpcClient::JsonRpcClient(const std::string& host, std::uint16_t port, std::chrono::milliseconds timeout)
-    : peer_(host + ":" + std::to_string(port)) {
-  // resolve (numeric hosts and names such as localhost)
-  addrinfo hints{};
-  hints.ai_family = AF_UNSPEC;
-  hints.ai_socktype = SOCK_STREAM;
-  addrinfo* found = nullptr;
-  const std::string service = std::to_string(port);
-  if (int rc = ::getaddrinfo(host.c_str(), service.c_str(), &hints, &found); rc != 0)
-    throw ClientError("jsonrpc client: cannot resolve '" + host + "': " + gai_strerror(rc));
-  const auto deadline = Clock::now() + timeout;
-  std::string last_error = "no address";
-  for (addrinfo* a = found; a && fd_ < 0; a = a->ai_next) {
-    int fd = ::socket(a->ai_family, a->ai_socktype | SOCK_NONBLOCK | SOCK_CLOEXEC, a->ai_protocol);
-    if (fd < 0) {
-      last_error = errno_text(errno);
-      continue;
-    }
-    // non-blocking connect, bounded by the deadline
-    int rc = ::connect(fd, a->ai_addr, a->ai_addrlen);
-    if (rc != 0 && errno == EINPROGRESS) {
-      pollfd p{fd, POLLOUT, 0};
-      const int ready = ::poll(&p, 1, remaining_ms(deadline));
-      if (ready == 1) {
-        int err = 0;
-        socklen_t len = sizeof err;
-        ::getsockopt(fd, SOL_SOCKET, SO_ERROR, &err, &len);
-        rc = err == 0 ? 0 : -1;
-        errno = err;
-      } else {
-        rc = -1;
-        if (ready == 0) errno = ETIMEDOUT;
-      }
-    }
-    if (rc != 0) {
-      last_error = errno_text(errno);
-      ::close(fd);
-      continue;
-    }
-    int one = 1;
-    ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
-    fd_ = fd;
-  }
-  ::freeaddrinfo(found);
-  if (fd_ < 0) throw ClientError("jsonrpc client: cannot connect to " + peer_ + ": " + last_error);
-}
+    : connection_("jsonrpc client", host, port, timeout), peer_(connection_.peer()) {}
 
-JsonRpcClient::~JsonRpcClient() { close(); }
+JsonRpcClient::~JsonRpcClient() = default;
 
-void JsonRpcClient::close() {
-  if (fd_ >= 0) ::close(fd_);
-  fd_ = -1;
-}
+void JsonRpcClient::close() { connection_.close(); }
 
-void JsonRpcClient::shutdown_write() {
-  if (fd_ >= 0) ::shutdown(fd_, SHUT_WR);
-}
+void JsonRpcClient::shutdown_write() { connection_.shutdown_send(); }
 
 // ---- raw
 
-void JsonRpcClient::send_raw(std::string_view bytes) {
-  if (fd_ < 0) throw ClientError("jsonrpc client: " + peer_ + ": connection is closed");
-  const auto deadline = Clock::now() + k_send_timeout;
-  while (!bytes.empty()) {
-    ssize_t n = ::send(fd_, bytes.data(), bytes.size(), MSG_NOSIGNAL);
-    if (n > 0) {
-      bytes.remove_prefix(static_cast<std::size_t>(n));
-      continue;
-    }
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) {
-      // the server is not reading: wait, but not forever
-      pollfd p{fd_, POLLOUT, 0};
-      if (::poll(&p, 1, remaining_ms(deadline)) == 0)
-        throw ClientError("jsonrpc client: " + peer_ + ": send timed out (server not reading)");
-      continue;
-    }
-    closed_ = true;
-    throw ClientError("jsonrpc client: " + peer_ + ": send failed: " + errno_text(errno));
-  }
-}
+void JsonRpcClient::send_raw(std::string_view bytes) { connection_.send_raw(bytes); }
 
-void JsonRpcClient::send_line(std::string_view line) {
-  std::string bytes;
-  bytes.reserve(line.size() + 1);
-  bytes.append(line);
-  bytes.push_back('\n');
-  send_raw(bytes);
-}
-
-bool JsonRpcClient::fill(Clock::time_point deadline) {
-  if (fd_ < 0 || closed_) throw ClientError("jsonrpc client: " + peer_ + ": connection closed by the server");
-  for (;;) {
-    char chunk[65536];
-    ssize_t n = ::recv(fd_, chunk, sizeof chunk, 0);
-    if (n > 0) {
-      buffer_.append(chunk, static_cast<std::size_t>(n));
-      return true;
-    }
-    if (n == 0) {
-      closed_ = true;
-      throw ClientError("jsonrpc client: " + peer_ + ": connection closed by the server");
-    }
-    if (errno == EINTR) continue;
-    if (errno != EAGAIN && errno != EWOULDBLOCK) {
-      closed_ = true;
-      throw ClientError("jsonrpc client: " + peer_ + ": receive failed: " + errno_text(errno));
-    }
-    pollfd p{fd_, POLLIN, 0};
-    const int timeout = remaining_ms(deadline);
-    if (timeout == 0 || ::poll(&p, 1, timeout) == 0) return false;
-  }
-}
+void JsonRpcClient::send_line(std::string_view line) { connection_.send_line(line); }
 
 std::optional<std::string> JsonRpcClient::read_line(std::chrono::milliseconds timeout) {
-  const auto deadline = Clock::now() + timeout;
-  std::size_t scanned = 0;
-  for (;;) {
-    auto nl = buffer_.find('\n', scanned);
-    if (nl != std::string::npos) {
-      std::string line = buffer_.substr(0, nl);
-      buffer_.erase(0, nl + 1);
-      if (!line.empty() && line.back() == '\r') line.pop_back();
-      return line;
-    }
-    scanned = buffer_.size();
-    if (!fill(deadline)) return std::nullopt;
-  }
+  auto line = connection_.read_line(timeout);
+  if (line && !line->empty() && line->back() == '\r') line->pop_back();
+  return line;
 }
 
-bool JsonRpcClient::wait_closed(std::chrono::milliseconds timeout) {
-  const auto deadline = Clock::now() + timeout;
-  try {
-    while (fill(deadline)) buffer_.clear();
-    return false;
-  } catch (const ClientError&) {
-    return true;
-  }
-}
+bool JsonRpcClient::wait_closed(std::chrono::milliseconds timeout) { return connection_.wait_closed(timeout); }
 
 // ---- pipelined
 

@@ -1,14 +1,6 @@
 #include "simgate/client/socket_client.h"
 
-#include <netdb.h>
-#include <netinet/in.h>
-#include <netinet/tcp.h>
-#include <poll.h>
-#include <sys/socket.h>
-#include <unistd.h>
-
-#include <cerrno>
-#include <cstring>
+#include <algorithm>
 #include <memory>
 
 namespace simgate::client {
@@ -17,127 +9,28 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-int remaining_ms(Clock::time_point deadline) {
-  auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count();
-  return left < 0 ? 0 : static_cast<int>(std::min<long long>(left, 1 << 30));
+std::chrono::milliseconds remaining(Clock::time_point deadline) {
+  return std::max(std::chrono::milliseconds(0),
+                  std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()));
 }
 
 }  // namespace
 
 SocketClient::SocketClient(const std::string& host, std::uint16_t port, std::chrono::milliseconds timeout)
-    : peer_(host + ":" + std::to_string(port)) {
-  addrinfo hints{};
-  hints.ai_family = AF_UNSPEC;
-  hints.ai_socktype = SOCK_STREAM;
-  addrinfo* found = nullptr;
-  int rc = ::getaddrinfo(host.c_str(), std::to_string(port).c_str(), &hints, &found);
-  if (rc != 0) throw ClientError("socket client: cannot resolve " + peer_ + ": " + gai_strerror(rc));
-  std::unique_ptr<addrinfo, decltype(&::freeaddrinfo)> list(found, &::freeaddrinfo);
+    : connection_("socket client", host, port, timeout) {}
 
-  std::string last_error = "no address";
-  const auto deadline = Clock::now() + timeout;
-  for (addrinfo* a = found; a; a = a->ai_next) {
-    int fd = ::socket(a->ai_family, a->ai_socktype | SOCK_NONBLOCK | SOCK_CLOEXEC, a->ai_protocol);
-    if (fd < 0) {
-      last_error = std::strerror(errno);
-      continue;
-    }
-    // non-blocking connect, so the deadline holds
-    if (::connect(fd, a->ai_addr, a->ai_addrlen) != 0 && errno != EINPROGRESS) {
-      last_error = std::strerror(errno);
-      ::close(fd);
-      continue;
-    }
-    pollfd p{fd, POLLOUT, 0};
-    int ready = ::poll(&p, 1, remaining_ms(deadline));
-    int err = 0;
-    socklen_t len = sizeof err;
-    if (ready <= 0) {
-      last_error = ready == 0 ? "timed out" : std::strerror(errno);
-      ::close(fd);
-      continue;
-    }
-    ::getsockopt(fd, SOL_SOCKET, SO_ERROR, &err, &len);
-    if (err != 0) {
-      last_error = std::strerror(err);
-      ::close(fd);
-      continue;
-    }
-    int one = 1;
-    ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
-    fd_ = fd;
-    return;
-  }
-  throw ClientError("socket client: cannot connect to " + peer_ + ": " + last_error);
-}
+SocketClient::~SocketClient() = default;
 
-SocketClient::~SocketClient() { close(); }
+void SocketClient::close() { connection_.close(); }
 
-void SocketClient::close() {
-  if (fd_ >= 0) ::close(fd_);
-  fd_ = -1;
-}
+void SocketClient::shutdown_send() { connection_.shutdown_send(); }
 
-void SocketClient::shutdown_send() {
-  if (fd_ >= 0) ::shutdown(fd_, SHUT_WR);
-}
+void SocketClient::send_raw(std::string_view bytes) { connection_.send_raw(bytes); }
 
-void SocketClient::send_raw(std::string_view bytes) {
-  if (fd_ < 0) throw ClientError("socket client: not connected to " + peer_);
-  while (!bytes.empty()) {
-    ssize_t n = ::send(fd_, bytes.data(), bytes.size(), MSG_NOSIGNAL);
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      if (errno == EAGAIN || errno == EWOULDBLOCK) {
-        pollfd p{fd_, POLLOUT, 0};
-        if (::poll(&p, 1, 10000) <= 0)
-          throw ClientError("socket client: " + peer_ + " does not accept data (send timed out)");
-        continue;
-      }
-      throw ClientError("socket client: send to " + peer_ + " failed: " + std::strerror(errno));
-    }
-    bytes.remove_prefix(static_cast<std::size_t>(n));
-  }
-}
-
-void SocketClient::send_line(std::string_view line) {
-  std::string data;
-  data.reserve(line.size() + 1);
-  data.append(line);
-  data += '\n';
-  send_raw(data);
-}
+void SocketClient::send_line(std::string_view line) { connection_.send_line(line); }
 
 std::optional<std::string> SocketClient::read_line(std::chrono::milliseconds timeout) {
-  const auto deadline = Clock::now() + timeout;
-  for (;;) {
-    std::size_t nl = buffer_.find('\n');
-    if (nl != std::string::npos) {
-      std::string line = buffer_.substr(0, nl);
-      buffer_.erase(0, nl + 1);
-      return line;
-    }
-    if (closed_ || fd_ < 0) throw ClientError("socket client: " + peer_ + " closed the connection");
-    pollfd p{fd_, POLLIN, 0};
-    int ready = ::poll(&p, 1, remaining_ms(deadline));
-    if (ready < 0) {
-      if (errno == EINTR) continue;
-      throw ClientError("socket client: poll failed: " + std::string(std::strerror(errno)));
-    }
-    if (ready == 0) return std::nullopt;
-    char chunk[16384];
-    ssize_t n = ::recv(fd_, chunk, sizeof chunk, 0);
-    if (n < 0) {
-      if (errno == EINTR || errno == EAGAIN || errno == EWOULDBLOCK) continue;
-      closed_ = true;
-      throw ClientError("socket client: receive from " + peer_ + " failed: " + std::strerror(errno));
-    }
-    if (n == 0) {
-      closed_ = true;
-      throw ClientError("socket client: " + peer_ + " closed the connection");
-    }
-    buffer_.append(chunk, static_cast<std::size_t>(n));
-  }
+  return connection_.read_line(timeout);
 }
 
 SocketReply SocketClient::parse_reply(std::string_view line) {
@@ -205,8 +98,9 @@ SocketReply SocketClient::wait_reply(const std::string& id, std::chrono::millise
   }
   const auto deadline = Clock::now() + timeout;
   for (;;) {
-    auto line = read_line(std::chrono::milliseconds(remaining_ms(deadline)));
-    if (!line) throw ClientError("socket client: no reply to request " + id + " from " + peer_ + " in time");
+    auto line = read_line(remaining(deadline));
+    if (!line)
+      throw ClientError("socket client: no reply to request " + id + " from " + connection_.peer() + " in time");
     SocketReply r = parse_reply(*line);
     if (r.id == id) return r;
     early_[r.id] = std::move(r);

@@ -23,6 +23,7 @@
 #include <string_view>
 
 #include "simgate/client/client.h"
+#include "simgate/client/line_connection.h"
 
 namespace simgate::client {
 
@@ -87,22 +88,17 @@ class JsonRpcClient : public Client {
   bool wait_closed(std::chrono::milliseconds timeout);
   // Half-closes (shutdown SHUT_WR): the server sees end of input.
   void shutdown_write();
-  bool closed() const { return closed_; }
+  bool closed() const { return connection_.closed(); }
   void close();
 
   // An Outcome from a response object (result -> success; error code -> Failure).
   static Outcome to_outcome(const json& response);
 
  private:
-  // Reads more bytes into buffer_ until `deadline`; false on timeout.
-  bool fill(std::chrono::steady_clock::time_point deadline);
-
-  int fd_ = -1;                 // the connected socket
-  std::string buffer_;          // bytes received, not yet returned as lines
+  LineConnection connection_;   // the TCP connection and its line buffer
+  std::string peer_;            // "host:port", for messages
   std::deque<json> early_;      // messages that arrived before they were asked for
   std::int64_t next_id_ = 0;    // last id used
-  bool closed_ = false;         // the peer closed the connection
-  std::string peer_;            // "host:port", for messages
 };
 
 }  // namespace simgate::client

@@ -21,6 +21,7 @@
 #include <string_view>
 
 #include "simgate/client/client.h"
+#include "simgate/client/line_connection.h"
 
 namespace simgate::client {
 
@@ -59,7 +60,7 @@ class SocketClient : public Client {
   // The next line (without '\n'), or nullopt when `timeout` passes first. Throws
   // ClientError when the server closed the connection (closed() then returns true).
   std::optional<std::string> read_line(std::chrono::milliseconds timeout);
-  bool closed() const { return closed_; }
+  bool closed() const { return connection_.closed(); }
   // Half-closes: the server sees the end of input (replies still arrive).
   void shutdown_send();
   // Closes the connection.
@@ -69,12 +70,9 @@ class SocketClient : public Client {
   static Outcome to_outcome(const SocketReply& reply);
 
  private:
-  int fd_ = -1;                              // the connected socket
-  std::string buffer_;                       // bytes received, not yet returned as lines
+  LineConnection connection_;                // the TCP connection and its line buffer
   std::map<std::string, SocketReply> early_;  // replies that arrived before they were awaited
   std::uint64_t next_id_ = 0;                // ids are decimal counters, as pymorse's
-  bool closed_ = false;                      // the peer closed the connection
-  std::string peer_;                         // "host:port", for messages
 };
 
 }  // namespace simgate::client

@@ -10,12 +10,19 @@
 //    cancels the client's own pending call.
 //  - list_services() reads the transient-local catalog: every component's descriptors.
 //
-// Life cycle: the constructor creates the DDS entities and a receive thread; the destructor
+// Life cycle: the constructor creates the DDS entities and a status thread; the destructor
 // stops the thread and leaves the domain (the server then cancels this client's pending
 // async calls). Cyclone stays on loopback unless `config` says otherwise.
 //
-// Threads: every method is thread-safe; call/wait/cancel/list block the calling thread up
-// to their timeout. Replies are received on the client's own thread, never on Cyclone's.
+// Threads: every method is thread-safe; call/wait/wait_accepted/cancel/list block the
+// calling thread up to their timeout. A caller waiting for a reply takes it from the reply
+// reader itself (no receive thread between Cyclone and the caller): the first waiting
+// caller becomes the reader, waits on the reader's read condition, and takes every reply
+// that arrived — its own and those of other callers, which it files in their slots and
+// wakes them; when it has its reply it leaves the role to another waiting caller. Replies
+// that arrive while nobody waits stay in the reader until someone does. The client's own
+// status thread only watches matches (a server appearing or going away) and wakes the
+// waiters; nothing runs on Cyclone's threads.
 #ifndef SIMGATE_CLIENT_DDS_CLIENT_H_
 #define SIMGATE_CLIENT_DDS_CLIENT_H_
 
@@ -76,7 +83,7 @@ class DdsClient final : public Client {
 
  private:
   class Impl;
-  std::unique_ptr<Impl> impl_;  // DDS entities, the receive thread and the call table
+  std::unique_ptr<Impl> impl_;  // DDS entities, the status thread and the call table
 };
 
 }  // namespace simgate::client
