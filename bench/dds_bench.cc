@@ -9,7 +9,9 @@
 // ping and pong use simgate's own wire types (plugins/dds/simgate_dds.idl), the same topics,
 // the same payload ("test_component", "add", "[1,2]") and the same QoS as the transport
 // (RELIABLE, KEEP_ALL, VOLATILE, partition), so the ratio is what simgate adds on top of
-// Cyclone: the request table, the hand-off to process(), JSON, the reply filter.
+// Cyclone: the request table, the core's process() (run on the transport's DDS thread when
+// the simulation lock is free, as in the host here), JSON, the reply filter, and the
+// client's call table (DdsClient's caller takes its own reply, as ping does).
 // Cyclone is restricted to loopback with multicast off (the compiled-in loopback XML).
 //
 // Usage: simgate_bench_dds --mode pong|ping|client [--domain D] [--partition P]

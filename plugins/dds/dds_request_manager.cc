@@ -21,6 +21,10 @@ constexpr dds_attach_t k_token_request_matched = 4;
 // How many requests one dds_take returns at most.
 constexpr int k_take_batch = 32;
 
+// The manager whose DDS thread this is (null on every other thread): tells
+// on_service_completion whether it runs inside that thread's run_or_submit().
+thread_local const DdsRequestManager* t_dds_thread_of = nullptr;
+
 std::string dump(const json& value) { return value.dump(-1, ' ', false, json::error_handler_t::replace); }
 
 // Throws std::runtime_error when a Cyclone call returned an error.
@@ -125,6 +129,7 @@ void DdsRequestManager::stop() {
   if (guard_ > 0) dds_set_guardcondition(guard_, true);
   if (thread_.joinable()) thread_.join();
   // answer what is still pending (FAILED, shutdown), then leave the domain
+  if (!batch_.empty()) submit_batch(std::move(batch_));
   abandon_pending();
   if (participant_) {
     try {
@@ -140,12 +145,20 @@ void DdsRequestManager::on_service_completion(RequestId id, Outcome outcome) {
   Outbound out;
   out.id = id;
   out.outcome = std::move(outcome);
+  post_outbound(std::move(out));
+}
+
+void DdsRequestManager::post_outbound(Outbound out) {
+  // the DDS thread itself (inside run_or_submit): it drains the outbox as soon as
+  // run_or_submit returns, after the replies queued before, outside the simulation lock
+  const bool on_dds_thread = t_dds_thread_of == this;
   bool wake;
   {
     std::lock_guard lock(outbox_mutex_);
-    wake = outbox_.empty();
+    wake = !on_dds_thread && outbox_.empty();
     outbox_.push_back(std::move(out));
   }
+  // any other thread: wake the DDS thread (once per burst), never wait on DDS
   if (wake) dds_set_guardcondition(guard_, true);
 }
 
@@ -153,6 +166,7 @@ void DdsRequestManager::on_service_completion(RequestId id, Outcome outcome) {
 // the DDS thread
 
 void DdsRequestManager::run() {
+  t_dds_thread_of = this;
   try {
     publish_catalog();
   } catch (const std::exception& e) {
@@ -225,7 +239,8 @@ void DdsRequestManager::publish_catalog() {
 }
 
 bool DdsRequestManager::lookup_async(const std::string& component, const std::string& service) {
-  std::string key = component + "." + service;
+  std::string& key = lookup_key_;  // reused: no allocation per call
+  key.assign(component).append(".").append(service);
   auto it = async_services_.find(key);
   if (it != async_services_.end()) return it->second;
   // registered after start(), or unknown: look again (unknown names are remembered as sync)
@@ -254,8 +269,21 @@ void DdsRequestManager::take_requests() {
       }
     }
     dds_return_loan(request_reader_, samples, n);
+    // the calls of this take, run here when the simulation lock is free
+    run_batch();
     if (n < k_take_batch) return;
   }
+}
+
+void DdsRequestManager::run_batch() {
+  if (batch_.empty() && !run_pending_) return;
+  run_pending_ = false;
+  std::vector<std::pair<RequestId, Call>> calls;
+  calls.swap(batch_);
+  // outcomes produced here come back to on_service_completion on this thread, queued in
+  // the outbox behind the earlier ones; written now, without the simulation lock
+  run_or_submit(std::move(calls));
+  drain_outbox(false);
 }
 
 void DdsRequestManager::handle_request(const simgate_Request& request, dds_instance_handle_t writer) {
@@ -286,6 +314,7 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
   switch (request.op) {
     case simgate_OP_CALL: {
       if (client.calls.count(seq)) {
+        run_batch();
         send_reply(client_id, failure_reply(seq, simgate_FL_BAD_REQUEST,
                                             "DDS transport: call " + std::to_string(seq) + " of client " +
                                                 to_hex(client_id) + " is already pending (duplicate seq)"));
@@ -296,6 +325,7 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
       call.service = request.service ? request.service : "";
       std::string_view params_text = request.params ? request.params : "";
       if (params_text.size() > options_.max_params) {
+        run_batch();
         send_reply(client_id, failure_reply(seq, simgate_FL_BAD_ARGUMENTS,
                                             call.component + "." + call.service + ": params are " +
                                                 std::to_string(params_text.size()) + " bytes, more than max_params (" +
@@ -305,6 +335,7 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
       if (!params_text.empty()) {
         call.params = json::parse(params_text, nullptr, false);
         if (call.params.is_discarded() || !(call.params.is_array() || call.params.is_object() || call.params.is_null())) {
+          run_batch();
           send_reply(client_id, failure_reply(seq, simgate_FL_BAD_ARGUMENTS,
                                               call.component + "." + call.service +
                                                   ": params must be a JSON array, object or \"\", not '" +
@@ -312,22 +343,26 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
           return;
         }
       }
-      // hand the call to the core; async calls are acknowledged at once
+      // into the batch for the core; async calls are acknowledged at once, after the
+      // replies of the calls before them
       bool is_async = lookup_async(call.component, call.service);
       RequestId id = new_request_id();
       pending_.emplace(id, Pending{client_id, seq, is_async});
       client.calls.emplace(seq, id);
       if (is_async) {
+        run_batch();
         ReplyData accepted;
         accepted.seq = seq;
         accepted.status = simgate_ST_ACCEPTED;
         accepted.last = false;
         send_reply(client_id, std::move(accepted));
       }
-      submit(id, std::move(call));
+      batch_.emplace_back(id, std::move(call));
       return;
     }
     case simgate_OP_CANCEL: {
+      // after the calls before it (its target may be one of them)
+      run_batch();
       auto target = client.calls.find(request.target);
       if (target == client.calls.end()) {
         ReplyData answer;
@@ -338,31 +373,30 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
         return;
       }
       cancel(target->second, [this, client_id, seq](bool found) {
-        // simulation thread: queue the answer like a completion
+        // whoever runs process(): the answer goes out like a completion
         Outbound out;
         out.client = client_id;
         out.seq = seq;
         out.found = found;
-        bool wake;
-        {
-          std::lock_guard lock(outbox_mutex_);
-          wake = outbox_.empty();
-          outbox_.push_back(std::move(out));
-        }
-        if (wake) dds_set_guardcondition(guard_, true);
+        post_outbound(std::move(out));
       });
+      run_pending_ = true;  // the next run_batch() executes it here if it can
       return;
     }
   }
+  run_batch();
   send_reply(client_id, failure_reply(seq, simgate_FL_BAD_REQUEST,
                                       "DDS transport: unknown op " + std::to_string(int(request.op)) +
                                           " (expected OP_CALL or OP_CANCEL)"));
 }
 
 void DdsRequestManager::drain_outbox(bool final_flush) {
-  std::vector<Outbound> batch;
+  // swapped, not moved: both vectors keep their capacity
+  std::vector<Outbound>& batch = draining_;
+  batch.clear();
   {
     std::lock_guard lock(outbox_mutex_);
+    if (outbox_.empty()) return;
     batch.swap(outbox_);
   }
   for (Outbound& out : batch) {
@@ -390,6 +424,7 @@ void DdsRequestManager::drain_outbox(bool final_flush) {
     }
     send_reply(pending.client, to_reply(pending.seq, out.outcome), final_flush);
   }
+  batch.clear();
 }
 
 void DdsRequestManager::send_reply(const ClientId& client_id, ReplyData reply, bool final_flush) {
@@ -487,6 +522,8 @@ void DdsRequestManager::sweep_clients() {
   for (const auto& [id, client] : clients_)
     if (!client.gone && !live.count(client.writer)) gone.push_back(id);
   for (const ClientId& id : gone) client_gone(id, clients_.at(id));
+  // their cancels, here if the simulation lock is free
+  run_batch();
 }
 
 void DdsRequestManager::client_gone(const ClientId& id, ClientState& client) {
@@ -502,6 +539,7 @@ void DdsRequestManager::client_gone(const ClientId& id, ClientState& client) {
       ++cancelled;
     }
   }
+  if (cancelled > 0) run_pending_ = true;
   log::info("DDS transport: client ", to_hex(id), " disappeared; ", cancelled, " async call(s) cancelled");
   if (client.calls.empty()) forget_client(id);
 }

@@ -17,11 +17,24 @@
 // stop() joins it, answers every pending request FAILED (shutdown) and deletes the
 // participant.
 //
-// Threads: all DDS I/O happens on the transport's own thread, which waits on a waitset
-// (requests, a guard condition, match-status changes). Nothing runs on Cyclone's listener
-// threads. The simulation thread only calls on_service_completion(), which queues the
-// outcome and triggers the guard condition — it never waits on DDS. stop() writes the
-// final (shutdown) replies from the calling thread, after the DDS thread has been joined.
+// Threads: all DDS I/O happens on the transport's own thread (the DDS thread), which waits
+// on a waitset (requests, a guard condition, match-status changes). Nothing runs on
+// Cyclone's listener threads.
+//  - The requests of one dds_take go to the core together with run_or_submit(): when the
+//    simulation lock is free (the loop waits for its next step), the DDS thread runs them
+//    itself, so on_service_completion() is called on the DDS thread; it queues the outcome
+//    in the outbox behind anything queued before, and the DDS thread writes the replies as
+//    soon as run_or_submit() returns, outside the simulation lock: no thread hand-off
+//    between a request and its reply. Cancels are run the same way.
+//  - When the lock is busy (the loop is stepping), the requests are queued and the
+//    simulation thread runs them: on_service_completion() then only queues the outcome and
+//    triggers the guard condition (once per burst) — it never waits on DDS; the DDS thread
+//    wakes and writes the reply. Async completions from other threads take this path too.
+//  - Order: the replies of a client leave in the order they were produced; an async call's
+//    ST_ACCEPTED is written before the call runs, so before its terminal reply; replies the
+//    transport writes itself (bad requests, cancel answers) wait for the calls before them.
+// stop() writes the final (shutdown) replies from the calling thread, after the DDS thread
+// has been joined.
 #ifndef SIMGATE_PLUGINS_DDS_DDS_REQUEST_MANAGER_H_
 #define SIMGATE_PLUGINS_DDS_DDS_REQUEST_MANAGER_H_
 
@@ -68,7 +81,9 @@ class DdsRequestManager : public RequestManager {
   const DdsOptions& options() const { return options_; }
 
  protected:
-  // Simulation thread: queues the outcome for the DDS thread. Never blocks on DDS.
+  // Under the simulation lock: on the DDS thread (inside run_or_submit) queues the outcome
+  // for the write that follows at once; on any other thread queues it and wakes the DDS
+  // thread. Never blocks on DDS.
   void on_service_completion(RequestId id, Outcome outcome) override;
 
  private:
@@ -110,6 +125,11 @@ class DdsRequestManager : public RequestManager {
   void publish_catalog();
   void take_requests();
   void handle_request(const simgate_Request& request, dds_instance_handle_t writer);
+  // Any thread: queues an outcome or cancel answer for the DDS thread (see Threads).
+  void post_outbound(Outbound out);
+  // DDS thread: hands batch_ (and pending cancels) to run_or_submit(), then writes the
+  // replies it produced. Called after each take, and before any reply that must follow them.
+  void run_batch();
   void drain_outbox(bool final_flush);
   void refresh_reply_readers();
   void sweep_clients();
@@ -140,6 +160,7 @@ class DdsRequestManager : public RequestManager {
 
   std::mutex outbox_mutex_;                  // guards outbox_
   std::vector<Outbound> outbox_;             // sim thread -> DDS thread
+  std::vector<Outbound> draining_;           // the outbox being written (DDS thread; stop() after the join)
 
   // ---- DDS thread only ----
   std::unordered_map<RequestId, Pending> pending_;  // requests in the core
@@ -147,6 +168,9 @@ class DdsRequestManager : public RequestManager {
   std::map<dds_instance_handle_t, std::optional<ClientId>> reply_readers_;  // matched readers
   std::map<ClientId, int> matched_ids_;             // client id -> matched reply readers
   std::unordered_map<std::string, bool> async_services_;  // "component.service" -> is_async
+  std::string lookup_key_;                          // lookup_async's key buffer
+  std::vector<std::pair<RequestId, Call>> batch_;   // calls taken, not yet given to the core
+  bool run_pending_ = false;                        // a cancel was queued: run_batch() runs it
   std::size_t parked_count_ = 0;                    // replies parked over all clients
 };
 
