@@ -2,6 +2,7 @@
 
 #include <cstring>
 #include <exception>
+#include <iterator>
 #include <stdexcept>
 
 #include <boost/asio/post.hpp>
@@ -24,6 +25,8 @@ constexpr std::string_view k_version = "0.1.0";
 constexpr std::size_t k_read_chunk = 64 * 1024;
 // a burst of replies is written early once this much is queued
 constexpr std::size_t k_coalesce_bytes = 256 * 1024;
+// table nodes kept for reuse (per manager, per connection)
+constexpr std::size_t k_spare_nodes = 256;
 
 // "127.0.0.1:4001" or "[::1]:4001"
 std::string to_string(const tcp::endpoint& ep) {
@@ -127,7 +130,18 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
   std::size_t in_flight() const { return in_flight_; }
   void add_in_flight() { ++in_flight_; }
   bool has_id(const std::string& key) const { return calls_.count(key) != 0; }
-  void track(const std::string& key, RequestId id) { calls_.emplace(key, id); }
+  void track(const std::string& key, RequestId id) {
+    if (spare_calls_.empty()) {
+      calls_.emplace(key, id);
+      return;
+    }
+    // a node of an earlier call: no allocation
+    auto node = std::move(spare_calls_.back());
+    spare_calls_.pop_back();
+    node.key() = key;
+    node.mapped() = id;
+    calls_.insert(std::move(node));
+  }
   std::optional<RequestId> find(const std::string& key) const {
     auto it = calls_.find(key);
     if (it == calls_.end()) return std::nullopt;
@@ -135,7 +149,10 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
   }
   // A pending call (or cancel) produced its reply.
   void done(const std::string& key) {
-    if (!key.empty()) calls_.erase(key);
+    if (!key.empty()) {
+      auto node = calls_.extract(key);
+      if (!node.empty() && spare_calls_.size() < k_spare_nodes) spare_calls_.push_back(std::move(node));
+    }
     if (in_flight_ > 0) --in_flight_;
     maybe_finish();
   }
@@ -324,6 +341,7 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
   bool write_active_ = false;                      // a write is in flight
   bool dirty_ = false;                             // listed in the manager's dirty_
   std::unordered_map<std::string, RequestId> calls_;  // dumped JSON-RPC id -> pending request
+  std::vector<decltype(calls_)::node_type> spare_calls_;  // nodes of finished calls, reused by track()
   std::size_t in_flight_ = 0;                      // pending calls, notifications and cancels
 };
 
@@ -490,6 +508,12 @@ void JsonRpcRequestManager::handle_message(const std::shared_ptr<Session>& sessi
                                  json{{"reason", "message too large"}, {"bytes", line.size()}}));
     return;
   }
+  // the common shape (one plain request object) without a DOM; anything else, errors
+  // included, takes the full path below
+  if (parse_request_fast(line, options_.max_depth, request_)) {
+    dispatch(session, request_, std::move(single));
+    return;
+  }
   if (nests_deeper_than(line, options_.max_depth)) {
     reply(single, error_response(nullptr, code::invalid_request,
                                  "Invalid Request: message nests deeper than max_depth (" +
@@ -500,7 +524,8 @@ void JsonRpcRequestManager::handle_message(const std::shared_ptr<Session>& sessi
   json message;
   try {
     message = json::parse(line.begin(), line.end());
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {
+    // parse_error, and out_of_range for numbers beyond a double ("1e400")
     reply(single, error_response(nullptr, code::parse_error, "Parse error", json{{"reason", e.what()}}));
     return;
   }
@@ -522,11 +547,14 @@ void JsonRpcRequestManager::handle_message(const std::shared_ptr<Session>& sessi
 
 void JsonRpcRequestManager::flush_submissions() {
   // one hand-over per read: a batch's calls always travel together, so they run in the
-  // same process()
+  // same process(); when the simulation lock is free they run here, on this thread, and
+  // their replies are queued on their connections before run_or_submit returns
   if (to_submit_.empty()) return;
-  if (to_submit_.size() == 1) submit(to_submit_.front().first, std::move(to_submit_.front().second));
-  else submit_batch(std::move(to_submit_));
-  to_submit_.clear();
+  std::vector<std::pair<RequestId, Call>> calls;
+  calls.reserve(to_submit_.size());
+  std::move(to_submit_.begin(), to_submit_.end(), std::back_inserter(calls));
+  to_submit_.clear();  // keeps its capacity for the next read
+  run_or_submit(std::move(calls));
 }
 
 void JsonRpcRequestManager::flush_writes() {
@@ -545,6 +573,10 @@ void JsonRpcRequestManager::handle_request(const std::shared_ptr<Session>& sessi
     reply(to, std::move(*error));
     return;
   }
+  dispatch(session, request, std::move(to));
+}
+
+void JsonRpcRequestManager::dispatch(const std::shared_ptr<Session>& session, Request& request, ReplyTo to) {
   to.id = request.id;
   to.notification = !request.has_id;
 
@@ -581,7 +613,7 @@ void JsonRpcRequestManager::handle_request(const std::shared_ptr<Session>& sessi
   }
   std::string key;
   if (request.has_id && !request.id.is_null()) {
-    key = dump(request.id);
+    key = request.id_text.empty() ? dump(request.id) : std::move(request.id_text);
     if (session->has_id(key)) {
       reply(to, error_response(to.id, code::invalid_request,
                                "Invalid Request: id " + key + " is already used by a pending call on this connection",
@@ -590,12 +622,16 @@ void JsonRpcRequestManager::handle_request(const std::shared_ptr<Session>& sessi
     }
   }
 
-  // hand over to the simulation thread
+  // gathered; flush_submissions() hands the calls of this read to the core together
   const RequestId id = new_request_id();
   if (!key.empty()) session->track(key, id);
   session->add_in_flight();
-  pending_.emplace(id, Pending{std::move(to), method, std::move(key)});
   to_submit_.emplace_back(id, Call{std::move(component), std::move(service), std::move(request.params)});
+  Pending& pending = new_pending(id);
+  pending.to = std::move(to);
+  pending.method.assign(method);
+  pending.id_key.assign(key);
+  pending.cancel = false;
 }
 
 void JsonRpcRequestManager::handle_cancel(const std::shared_ptr<Session>& session, const std::string& method,
@@ -618,30 +654,39 @@ void JsonRpcRequestManager::handle_cancel(const std::shared_ptr<Session>& sessio
     reply(to, result_response(to.id, false));
     return;
   }
-  // the answer comes from the simulation thread once the cancel ran
+  // the answer comes once the cancel ran, through the same list as outcomes, so it keeps
+  // its place among the replies (before the cancelled call's -32002)
+  const RequestId cancel_id = new_request_id();
   session->add_in_flight();
-  cancel(*id, [this, to](bool found) mutable {
-    try {
-      asio::post(io_, [this, to = std::move(to), found]() mutable {
-        auto session = to.session.lock();
-        reply(to, result_response(to.id, found));
-        if (session) session->done("");
-      });
-    } catch (const std::exception& e) {
-      log::error("jsonrpc: cancel reply lost: ", e.what());
-    }
-  });
+  Pending& pending = new_pending(cancel_id);
+  pending.to = std::move(to);
+  pending.method.assign(method);
+  pending.id_key.clear();
+  pending.cancel = true;
+  cancel(*id, [this, cancel_id](bool found) { complete(cancel_id, Outcome::success(json(found))); });
 }
 
 void JsonRpcRequestManager::on_service_completion(RequestId id, Outcome outcome) {
-  // queue it; one drain per burst of completions (one process() usually)
+  complete(id, std::move(outcome));
+}
+
+void JsonRpcRequestManager::complete(RequestId id, Outcome outcome) {
   try {
+    if (io_.get_executor().running_in_this_thread()) {
+      // run_or_submit runs process() on the I/O thread: straight to the connection, after
+      // the outcomes the simulation thread produced before (same order as produced)
+      queue_gathered_completions();
+      finish_call(id, std::move(outcome));
+      return;
+    }
+    // another thread (the simulation's): queue it; one drain per burst of completions
     bool post_drain = false;
     {
       std::lock_guard lock(completions_mutex_);
       completions_.emplace_back(id, std::move(outcome));
       post_drain = !drain_posted_;
       drain_posted_ = true;
+      gathered_.store(true, std::memory_order_relaxed);
     }
     if (post_drain) asio::post(io_, [this] { drain_completions(); });
   } catch (const std::exception& e) {
@@ -650,31 +695,66 @@ void JsonRpcRequestManager::on_service_completion(RequestId id, Outcome outcome)
 }
 
 void JsonRpcRequestManager::drain_completions() {
+  // replies of the whole burst go out with one write per connection
+  deferring_writes_ = true;
+  queue_gathered_completions();
+  flush_writes();
+}
+
+void JsonRpcRequestManager::queue_gathered_completions() {
+  // nothing gathered: no lock (called for every outcome produced on the I/O thread)
+  if (!gathered_.load(std::memory_order_relaxed)) return;
   std::vector<std::pair<RequestId, Outcome>> completions;
   {
     std::lock_guard lock(completions_mutex_);
+    gathered_.store(false, std::memory_order_relaxed);
+    if (completions_.empty()) return;
     completions.swap(completions_);
-    drain_posted_ = false;
+    drain_posted_ = false;  // outcomes added from now on need a new drain
   }
-  // replies of the whole burst go out with one write per connection
-  deferring_writes_ = true;
   for (auto& [id, outcome] : completions) finish_call(id, std::move(outcome));
-  flush_writes();
+}
+
+JsonRpcRequestManager::Pending& JsonRpcRequestManager::new_pending(RequestId id) {
+  // a node of an earlier call when there is one: no allocation, strings keep their capacity
+  if (spare_pending_.empty()) return pending_[id];
+  auto node = std::move(spare_pending_.back());
+  spare_pending_.pop_back();
+  node.key() = id;
+  return pending_.insert(std::move(node)).position->second;
 }
 
 void JsonRpcRequestManager::finish_call(RequestId id, Outcome outcome) {
   auto it = pending_.find(id);
   if (it == pending_.end()) return;
-  Pending pending = std::move(it->second);
-  pending_.erase(it);
+  // taken out of the table; its node is kept for a later call
+  struct Recycle {
+    JsonRpcRequestManager& m;
+    decltype(pending_)::node_type node;
+    ~Recycle() {
+      Pending& p = node.mapped();
+      p.to = ReplyTo{};
+      if (m.spare_pending_.size() < k_spare_nodes) m.spare_pending_.push_back(std::move(node));
+    }
+  } recycle{*this, pending_.extract(it)};
+  Pending& pending = recycle.node.mapped();
   auto session = pending.to.session.lock();
   // nobody to answer: skip serialising (results can be large)
   if (!session || session->closed()) return;
   try {
-    if (outcome.status == Status::success) {
+    if (pending.cancel) {
+      // rpc.cancel's own answer: true if the call was still running
+      reply(pending.to, result_response(pending.to.id, outcome.value ? std::move(*outcome.value) : json(false)));
+    } else if (outcome.status == Status::success) {
       json result = outcome.value ? std::move(*outcome.value) : json(nullptr);
       if (pending.to.batch) reply(pending.to, result_response(pending.to.id, std::move(result)));
-      else if (!pending.to.notification) reply_line(pending.to, result_line(pending.to.id, result));
+      else if (!pending.to.notification) {
+        // the envelope by hand around the result; id_key is dump(id) ("" for a null id)
+        line_.clear();
+        append_result_line(line_, pending.id_key.empty() ? std::string_view("null") : pending.id_key, result);
+        session->send(line_);
+        if (line_.capacity() > k_coalesce_bytes) std::string().swap(line_);  // keep no large buffer
+      }
     } else {
       reply(pending.to, outcome_response(pending.to.id, outcome, pending.method));
     }
@@ -699,11 +779,6 @@ void JsonRpcRequestManager::reply(ReplyTo& to, std::optional<json> response) {
   }
   if (to.notification || !response) return;
   if (auto session = to.session.lock()) session->send(dump(*response));
-}
-
-void JsonRpcRequestManager::reply_line(ReplyTo& to, std::string line) {
-  if (to.notification) return;
-  if (auto session = to.session.lock()) session->send(line);
 }
 
 }  // namespace simgate::jsonrpc

@@ -18,12 +18,18 @@
 // thread; stop() closes every connection, joins the thread and finishes what is still
 // pending with Failure::shutdown. stop() is idempotent and the destructor calls it.
 //
-// Threads: one I/O thread runs the io_context (accept, read, parse, submit, write). The
-// simulation thread calls on_service_completion, which only posts the outcome to the I/O
-// thread. Sessions, pending calls and batches are touched by the I/O thread only.
+// Threads: one I/O thread runs the io_context (accept, read, parse, hand over, write).
+// The calls of one read go to the core together with run_or_submit: if the simulation
+// lock is free, the I/O thread runs them itself and on_service_completion is called on it
+// (the reply is queued at once, after the outcomes gathered from the simulation thread
+// before it: a connection's replies keep the order in which outcomes were produced). If
+// the lock is held, the simulation thread runs them later and its on_service_completion
+// only appends the outcome to completions_ and posts one drain_completions() per burst.
+// Sessions, pending calls and batches are touched by the I/O thread only.
 #ifndef SIMGATE_PLUGINS_JSONRPC_JSONRPC_REQUEST_MANAGER_H_
 #define SIMGATE_PLUGINS_JSONRPC_JSONRPC_REQUEST_MANAGER_H_
 
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <memory>
@@ -40,6 +46,7 @@
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/steady_timer.hpp>
 
+#include "protocol.h"
 #include "simgate/core/request_manager.h"
 
 namespace simgate::jsonrpc {
@@ -76,7 +83,8 @@ class JsonRpcRequestManager : public RequestManager {
   std::uint16_t port() const { return port_; }
 
  protected:
-  // Simulation thread: hands the outcome to the I/O thread; never blocks.
+  // Under the simulation lock. On the I/O thread (run_or_submit): queues the reply at
+  // once. On the simulation thread: hands the outcome to the I/O thread; never blocks.
   void on_service_completion(RequestId id, Outcome outcome) override;
 
  private:
@@ -91,11 +99,12 @@ class JsonRpcRequestManager : public RequestManager {
     std::shared_ptr<Batch> batch;    // set for batch entries
     std::size_t index = 0;           // entry index inside the batch
   };
-  // A call submitted to the core and not yet finished.
+  // A call submitted to the core and not yet finished (or an rpc.cancel waiting for its answer).
   struct Pending {
     ReplyTo to;          // where the response goes
     std::string method;  // "component.service", for error data
-    std::string id_key;  // the session's key for the id ("" when untracked)
+    std::string id_key;  // the session's key for the id, dump(id) ("" when untracked)
+    bool cancel = false;  // an rpc.cancel waiting for the core's answer (outcome value: found)
   };
 
   // I/O thread.
@@ -104,14 +113,24 @@ class JsonRpcRequestManager : public RequestManager {
   void handle_message(const std::shared_ptr<Session>& session, std::string_view line);
   // Handles one request object: answers at once (into `to`), or queues a call in to_submit_.
   void handle_request(const std::shared_ptr<Session>& session, json& message, ReplyTo to);
+  // Handles one valid request (its params and id_text are moved from).
+  void dispatch(const std::shared_ptr<Session>& session, Request& request, ReplyTo to);
   void handle_cancel(const std::shared_ptr<Session>& session, const std::string& method,
                      const json& params, ReplyTo to);
+  // Hands the calls gathered from the current read to the core (run_or_submit).
   void flush_submissions();
+  // Any thread: on the I/O thread, finishes the call at once (after the outcomes gathered
+  // before it); elsewhere, appends to completions_ and posts drain_completions().
+  void complete(RequestId id, Outcome outcome);
+  // I/O thread (posted): finishes the gathered outcomes, then one write per connection.
   void drain_completions();
+  // I/O thread: finishes the outcomes gathered in completions_, in the order produced.
+  void queue_gathered_completions();
+  // The entry for a new pending call (a recycled node when there is one); fields to fill.
+  Pending& new_pending(RequestId id);
   void finish_call(RequestId id, Outcome outcome);
   void flush_writes();
   void reply(ReplyTo& to, std::optional<json> response);
-  void reply_line(ReplyTo& to, std::string line);
   void session_closed(Session& session);
   void shutdown_io();
 
@@ -128,12 +147,18 @@ class JsonRpcRequestManager : public RequestManager {
   bool stopping_ = false;                            // shutdown_io() ran (I/O thread)
   std::unordered_set<std::shared_ptr<Session>> sessions_;  // open connections (I/O thread)
   std::unordered_map<RequestId, Pending> pending_;   // submitted calls (I/O thread)
+  std::vector<decltype(pending_)::node_type> spare_pending_;  // nodes of finished calls, reused (I/O thread)
+  Request request_;                                  // the message being read by the fast path (I/O thread)
   std::vector<std::pair<RequestId, Call>> to_submit_;  // calls parsed, handed over together (I/O thread)
   bool deferring_writes_ = false;                    // replies wait for flush_writes() (I/O thread)
   std::vector<std::shared_ptr<Session>> dirty_;      // sessions with replies to flush (I/O thread)
   std::mutex completions_mutex_;                     // guards completions_ and drain_posted_
   std::vector<std::pair<RequestId, Outcome>> completions_;  // outcomes from the simulation thread
   bool drain_posted_ = false;                        // a drain_completions() is queued
+  // completions_ may be non-empty (a hint read without the mutex: the outcomes that matter
+  // to an inline reply were appended under the simulation lock, which the reader holds)
+  std::atomic<bool> gathered_{false};
+  std::string line_;                                 // a response being built (I/O thread; capacity reused)
 };
 
 }  // namespace simgate::jsonrpc

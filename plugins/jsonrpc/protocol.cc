@@ -1,6 +1,10 @@
 #include "protocol.h"
 
 #include <algorithm>
+#include <array>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
 
 #include "simgate/core/config.h"
 
@@ -56,6 +60,38 @@ std::string result_line(const json& id, const json& result) {
   return line;
 }
 
+namespace {
+
+// Appends dump(value) to `out`, without the serializer for the common scalars.
+void append_json(std::string& out, const json& value) {
+  char digits[24];
+  switch (value.type()) {
+    case json::value_t::number_unsigned: {
+      auto r = std::to_chars(digits, digits + sizeof digits, value.get_ref<const json::number_unsigned_t&>());
+      out.append(digits, r.ptr);
+      return;
+    }
+    case json::value_t::number_integer: {
+      auto r = std::to_chars(digits, digits + sizeof digits, value.get_ref<const json::number_integer_t&>());
+      out.append(digits, r.ptr);
+      return;
+    }
+    case json::value_t::boolean: out += value.get<bool>() ? "true" : "false"; return;
+    case json::value_t::null: out += "null"; return;
+    default: out += dump(value); return;
+  }
+}
+
+}  // namespace
+
+void append_result_line(std::string& out, std::string_view id_text, const json& result) {
+  out += R"({"jsonrpc":"2.0","id":)";
+  out += id_text;
+  out += R"(,"result":)";
+  append_json(out, result);
+  out += '}';
+}
+
 json error_response(const json& id, int error_code, std::string message, json data) {
   json error = {{"code", error_code}, {"message", std::move(message)}};
   if (!data.is_null()) error["data"] = std::move(data);
@@ -109,6 +145,257 @@ std::optional<json> parse_request(json& message, Request& out) {
     out.params = std::move(*params);
   }
   return std::nullopt;
+}
+
+namespace {
+
+// Bytes a plain string may hold: printable ASCII except the quote and the backslash.
+constexpr std::array<bool, 256> k_plain = [] {
+  std::array<bool, 256> table{};
+  for (int c = 0x20; c <= 0x7e; ++c) table[static_cast<std::size_t>(c)] = c != '"' && c != '\\';
+  return table;
+}();
+
+// A one-pass reader of the request shapes parse_request_fast accepts. Every function
+// returns false as soon as the input leaves that shape (the caller then gives up).
+class FastReader {
+ public:
+  explicit FastReader(std::string_view text) : p_(text.data()), end_(text.data() + text.size()) {}
+
+  void skip_ws() {
+    while (p_ < end_ && (*p_ == ' ' || *p_ == '\t' || *p_ == '\n' || *p_ == '\r')) ++p_;
+  }
+  bool at_end() const { return p_ == end_; }
+  // The next character after white space, consumed if it is `c`.
+  bool eat(char c) {
+    skip_ws();
+    if (p_ < end_ && *p_ == c) {
+      ++p_;
+      return true;
+    }
+    return false;
+  }
+  char peek() {
+    skip_ws();
+    return p_ < end_ ? *p_ : '\0';
+  }
+
+  // A string of printable ASCII without escapes: its content is the text between the
+  // quotes, exactly as json::parse reads it and dump() writes it back.
+  bool plain_string(std::string_view& s) {
+    skip_ws();
+    if (p_ >= end_ || *p_ != '"') return false;
+    const char* begin = ++p_;
+    while (p_ < end_ && k_plain[static_cast<unsigned char>(*p_)]) ++p_;
+    if (p_ >= end_ || *p_ != '"') return false;
+    s = std::string_view(begin, static_cast<std::size_t>(p_ - begin));
+    ++p_;
+    return true;
+  }
+
+  // A number as json::parse stores it: non-negative integers unsigned, negative ones
+  // signed (up to 18 digits: no overflow), others double (finite, correctly rounded).
+  bool number(json& value) {
+    skip_ws();
+    const char* begin = p_;
+    bool negative = false;
+    if (p_ < end_ && *p_ == '-') {
+      negative = true;
+      ++p_;
+    }
+    // int part: 0 | [1-9][0-9]*
+    const char* digits = p_;
+    if (p_ >= end_ || !is_digit(*p_)) return false;
+    if (*p_ == '0') ++p_;
+    else
+      while (p_ < end_ && is_digit(*p_)) ++p_;
+    const std::size_t int_digits = static_cast<std::size_t>(p_ - digits);
+    bool integer = true;
+    if (p_ < end_ && *p_ == '.') {
+      integer = false;
+      ++p_;
+      if (p_ >= end_ || !is_digit(*p_)) return false;
+      while (p_ < end_ && is_digit(*p_)) ++p_;
+    }
+    if (p_ < end_ && (*p_ == 'e' || *p_ == 'E')) {
+      integer = false;
+      ++p_;
+      if (p_ < end_ && (*p_ == '+' || *p_ == '-')) ++p_;
+      if (p_ >= end_ || !is_digit(*p_)) return false;
+      while (p_ < end_ && is_digit(*p_)) ++p_;
+    }
+    if (integer) {
+      if (int_digits > 18) return false;
+      std::uint64_t magnitude = 0;
+      for (const char* d = digits; d < p_; ++d) magnitude = magnitude * 10 + static_cast<std::uint64_t>(*d - '0');
+      if (negative) value = -static_cast<std::int64_t>(magnitude);
+      else value = magnitude;
+      return true;
+    }
+    double d = 0;
+    auto r = std::from_chars(begin, p_, d);
+    if (r.ec != std::errc() || r.ptr != p_ || !std::isfinite(d)) return false;
+    value = d;
+    return true;
+  }
+
+  // A literal (true, false, null) or a number or a plain string.
+  bool scalar(json& value) {
+    const char c = peek();
+    if (c == '"') {
+      std::string_view s;
+      if (!plain_string(s)) return false;
+      value = std::string(s);
+      return true;
+    }
+    if (c == 't') return literal("true", value, json(true));
+    if (c == 'f') return literal("false", value, json(false));
+    if (c == 'n') return literal("null", value, json(nullptr));
+    return number(value);
+  }
+
+  // params: an array or an object of scalars, or any array/object that json::parse accepts
+  // (parsed from its own text) when nested no deeper than `max_depth` - 1.
+  bool params(json& value, std::size_t max_depth) {
+    const char* begin = (skip_ws(), p_);
+    if (flat_container(value)) return true;
+    p_ = begin;
+    const char* end = container_end(max_depth);
+    if (!end) return false;
+    try {
+      value = json::parse(begin, end);
+    } catch (const json::exception&) {
+      return false;
+    }
+    p_ = end;
+    return true;
+  }
+
+ private:
+  static bool is_digit(char c) { return c >= '0' && c <= '9'; }
+
+  bool literal(std::string_view word, json& value, json v) {
+    if (static_cast<std::size_t>(end_ - p_) < word.size() || std::string_view(p_, word.size()) != word) return false;
+    p_ += word.size();
+    value = std::move(v);
+    return true;
+  }
+
+  bool flat_container(json& value) {
+    if (eat('[')) {
+      value = json::array();
+      if (eat(']')) return true;
+      value.get_ref<json::array_t&>().reserve(4);  // no regrowth for the usual few arguments
+      auto& elements = value.get_ref<json::array_t&>();
+      do {
+        // read in place: no temporary value per element
+        if (!scalar(elements.emplace_back())) return false;
+      } while (eat(','));
+      return eat(']');
+    }
+    if (eat('{')) {
+      value = json::object();
+      if (eat('}')) return true;
+      do {
+        std::string_view key;
+        json element;
+        if (!plain_string(key) || !eat(':') || !scalar(element)) return false;
+        value[std::string(key)] = std::move(element);  // a repeated key: the last wins, as in json::parse
+      } while (eat(','));
+      return eat('}');
+    }
+    return false;
+  }
+
+  // Where the array or object at p_ ends (one past its closing bracket), or null when it
+  // does not close or nests deeper than max_depth - 1 (the envelope is one more level).
+  const char* container_end(std::size_t max_depth) const {
+    if (p_ >= end_ || (*p_ != '[' && *p_ != '{')) return nullptr;
+    std::size_t depth = 0;
+    bool in_string = false;
+    bool escaped = false;
+    for (const char* q = p_; q < end_; ++q) {
+      const char c = *q;
+      if (in_string) {
+        if (escaped) escaped = false;
+        else if (c == '\\') escaped = true;
+        else if (c == '"') in_string = false;
+        continue;
+      }
+      if (c == '"') {
+        in_string = true;
+      } else if (c == '[' || c == '{') {
+        if (++depth + 1 > max_depth) return nullptr;
+      } else if (c == ']' || c == '}') {
+        if (--depth == 0) return q + 1;
+      }
+    }
+    return nullptr;
+  }
+
+  const char* p_;    // next character
+  const char* end_;  // end of the text
+};
+
+void append_id_text(std::string& out, const json& id) {
+  if (id.is_string()) {
+    out += '"';
+    out += id.get_ref<const std::string&>();
+    out += '"';
+  } else {
+    append_json(out, id);
+  }
+}
+
+}  // namespace
+
+bool parse_request_fast(std::string_view line, std::size_t max_depth, Request& out) {
+  FastReader in(line);
+  if (!in.eat('{')) return false;
+  bool has_version = false, has_method = false, has_params = false;
+  out.has_id = false;
+  out.id = nullptr;
+  out.params = nullptr;
+  out.id_text.clear();
+  // members, each once; anything else goes to the full parser
+  do {
+    std::string_view key;
+    if (!in.plain_string(key) || !in.eat(':')) return false;
+    if (key == "jsonrpc") {
+      std::string_view version;
+      if (has_version || !in.plain_string(version) || version != "2.0") return false;
+      has_version = true;
+    } else if (key == "method") {
+      std::string_view method;
+      if (has_method || !in.plain_string(method)) return false;
+      out.method.assign(method);
+      has_method = true;
+    } else if (key == "id") {
+      if (out.has_id) return false;
+      const char c = in.peek();
+      if (c == '"') {
+        std::string_view id;
+        if (!in.plain_string(id)) return false;
+        out.id = std::string(id);
+      } else if (c == 'n' || c == '-' || (c >= '0' && c <= '9')) {
+        if (!in.scalar(out.id) || !(out.id.is_null() || out.id.is_number_integer())) return false;
+      } else {
+        return false;
+      }
+      out.has_id = true;
+    } else if (key == "params") {
+      const char c = in.peek();
+      if (has_params || (c != '[' && c != '{') || !in.params(out.params, max_depth)) return false;
+      has_params = true;
+    } else {
+      return false;
+    }
+  } while (in.eat(','));
+  if (!in.eat('}')) return false;
+  in.skip_ws();
+  if (!in.at_end() || !has_version || !has_method) return false;
+  if (out.has_id) append_id_text(out.id_text, out.id);
+  return true;
 }
 
 bool split_method(const std::string& method, std::string& component, std::string& service) {

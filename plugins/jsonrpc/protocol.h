@@ -1,7 +1,8 @@
 // plugins/jsonrpc/protocol.h — the JSON-RPC 2.0 wire vocabulary of the jsonrpc transport.
 //
 // Pure functions, no I/O: error codes and the Outcome -> code mapping, building response
-// lines, validating one request object, splitting "component.service" at the last dot, the
+// lines, validating one request object (and its fast path, which reads the common shape of
+// a request straight from the text), splitting "component.service" at the last dot, the
 // nesting-depth pre-scan that protects the parser's callers, and the OpenRPC document that
 // `rpc.discover` returns. Used by the I/O thread of JsonRpcRequestManager only.
 //
@@ -60,12 +61,28 @@ struct Request {
   bool has_id = false;  // false: a notification
   std::string method;   // as sent
   json params;          // array, object or null (absent)
+  std::string id_text;  // dump(id) when has_id; filled by parse_request_fast only ("" otherwise)
 };
 
 // Validates `message` as a request object; its params are moved into `out`. On error
 // returns the -32600 response to send (id copied from the message when it is itself
 // valid) and leaves `out` unspecified.
 std::optional<json> parse_request(json& message, Request& out);
+
+// The fast path for the common shape of a message: one request object whose members are
+// "jsonrpc" ("2.0"), "method" (a string), and optionally "id" (an integer, a string or null)
+// and "params" (an array or an object), each once, in any order. Reads `line` in one pass,
+// without building a DOM for the envelope; flat params are converted directly, nested ones
+// with json::parse of their own text. Returns true only for a valid request, with `out`
+// exactly as json::parse + parse_request would fill it (plus id_text); returns false for
+// anything else (a batch, an error, escapes or non-ASCII in the envelope, other members,
+// deep nesting): the caller then takes the full path, which reports errors. Never throws
+// for bad input.
+bool parse_request_fast(std::string_view line, std::size_t max_depth, Request& out);
+
+// Appends {"jsonrpc":"2.0","id":<id_text>,"result":<result>} (no newline) to `out`;
+// `id_text` is the id as dump() writes it. Same bytes as result_line.
+void append_result_line(std::string& out, std::string_view id_text, const json& result);
 
 // Splits "robot.arm.move" into {"robot.arm", "move"} at the last dot. False when there is
 // no dot or either side is empty.

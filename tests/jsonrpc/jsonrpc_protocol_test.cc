@@ -82,6 +82,14 @@ TEST_F(JsonRpcConformance, InvalidJsonIsParseError) {
   EXPECT_EQ(error_code(r), -32700) << r.dump();
 }
 
+TEST_F(JsonRpcConformance, NumberBeyondADoubleIsParseErrorAndTheConnectionLivesOn) {
+  // json::parse throws out_of_range (not parse_error) for it: it used to close the connection
+  auto r = round_trip(*client_, R"({"jsonrpc":"2.0","method":"robot.arm.echo","params":[1e400],"id":1})");
+  EXPECT_EQ(error_code(r), -32700) << r.dump();
+  EXPECT_TRUE(r["id"].is_null());
+  EXPECT_EQ(client_->request("robot.arm.add", json::array({1, 2}), k_timeout)["result"], 3.0);
+}
+
 TEST_F(JsonRpcConformance, InvalidRequestObject) {
   auto r = round_trip(*client_, R"({"jsonrpc": "2.0", "method": 1, "params": "bar"})");
   EXPECT_EQ(error_code(r), -32600) << r.dump();

@@ -11,8 +11,10 @@
 //   ctl.*        release(key, value), release_fail(key, message), pending(key) (true while
 //                the held call runs), mark(key)/marked(key), iteration() (process() count)
 //
-// Threads: every service runs on the host's simulation thread (the one calling process()),
-// so the shared state needs no lock.
+// Threads: every service runs under the simulation lock (SimulationGate): on the host's
+// simulation thread (the one calling process()) or on the transport's I/O thread when it
+// runs its requests itself (run_or_submit). The shared state is touched only under that
+// lock; the host's loop takes it to count iterations.
 #ifndef SIMGATE_TESTS_JSONRPC_TEST_SERVICES_H_
 #define SIMGATE_TESTS_JSONRPC_TEST_SERVICES_H_
 
@@ -21,6 +23,7 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <set>
 #include <stdexcept>
 #include <string>
@@ -32,7 +35,7 @@
 
 namespace simgate::jsonrpc_test {
 
-// State shared by the services (simulation thread only).
+// State shared by the services (under the simulation lock only).
 struct ServiceState {
   std::map<std::string, Completion> held;  // key -> the async call waiting for release
   std::set<std::string> marks;             // keys set by ctl.mark
@@ -110,6 +113,8 @@ class TestHost {
     sim_ = std::thread([this] {
       while (!quit_.load()) {
         rm_->process(std::chrono::milliseconds(20));
+        // services also run on the transport's I/O thread (run_or_submit), under the lock
+        std::lock_guard lock(*rm_->gate());
         ++state_->iteration;
       }
     });
