@@ -189,17 +189,21 @@ void RequestManager::submit_batch(std::vector<std::pair<RequestId, Call>> calls)
 }
 
 bool RequestManager::run_or_submit(std::vector<std::pair<RequestId, Call>> calls) {
-  // queued first, so they run after whatever this manager already had queued; no signal
-  // unless the lock is taken: waking the simulation thread for work done here would only
-  // make it compete for the CPU
-  inbox_->push_requests(calls, /*wake=*/false);
   std::unique_lock lock(*gate_, std::try_to_lock);
   if (!lock) {
-    // the holder (stepping, or another transport) may be past our queue: its next
-    // process() must come
-    gate_->signal();
+    // the holder (stepping, or another transport) may be past our queue: queue them and
+    // make sure its next process() comes
+    inbox_->push_requests(calls, /*wake=*/true);
     return false;
   }
+  // whatever this manager had queued runs first, then these, straight from the vector (no
+  // signal: waking the simulation thread for work done here would only make it compete
+  // for the CPU)
+  process_locked();
+  for (auto& [id, call] : calls)
+    if (auto outcome = on_incoming_request(id, call)) deliver(id, std::move(*outcome));
+  // completions these produced at once (preemption of a running request, an async service
+  // that finished in its start method)
   process_locked();
   return true;
 }

@@ -54,8 +54,9 @@ struct Outcome {
   Failure failure = Failure::none;
   // Human-readable reason for failures and preemptions (empty on success).
   std::string message;
-  // Structured detail for richer transports: {"component", "service", "parameter", "by", ...}.
-  json data = json::object();
+  // Structured detail for richer transports: {"component", "service", "parameter", "by", ...};
+  // null when there is none (successes: no allocation per reply).
+  json data;
 
   static Outcome success(std::optional<json> value);
   static Outcome failed(Failure failure, std::string message, json data = json::object());
