@@ -485,11 +485,16 @@ class Harness:
             runs.append({"bare": bare, "gateway": gw, "ratio": ratio(gw["steps_per_s"], bare["steps_per_s"])})
         rt_duration = 1.0 if self.smoke else 5.0
         rate = 1000 if self.smoke else 10000
+        # the machine's own timer jitter, same period, just before: what the loop cannot beat
+        sleep = run_json([self.exe("simgate_bench_sim"), "--mode", "sleep", "--mjcf", mjcf,
+                          "--duration", str(rt_duration)], self.timeout, self.env)
         idle = self.sim_gateway(config, 1, rt_duration, label="realtime-idle")
         loaded = self.sim_gateway(config, 1, rt_duration, load_rate=rate, label="realtime-load")
         s = {"bare_steps_per_s": spread([r["bare"]["steps_per_s"] for r in runs]),
              "gateway_steps_per_s": spread([r["gateway"]["steps_per_s"] for r in runs]),
              "ratio": spread([r["ratio"] for r in runs]),
+             "sleep_baseline": {"realtime_factor": sleep["realtime_factor"], "jitter_p50_us": sleep["jitter"]["p50_us"],
+                                "jitter_p99_us": sleep["jitter"]["p99_us"], "overruns": sleep["overruns"]},
              "realtime_idle": {"realtime_factor": idle["realtime_factor"], "jitter_p99_us": idle["jitter"]["p99_us"],
                                "jitter_p50_us": idle["jitter"]["p50_us"], "overruns": idle["overruns"]},
              "realtime_load": {"realtime_factor": loaded["realtime_factor"],
@@ -499,7 +504,8 @@ class Harness:
                                "request_p50_us": loaded["load"]["p50_us"], "request_p99_us": loaded["load"]["p99_us"]}}
         self.target("gateway steps/s (as fast as possible) / bare mj_step", s["ratio"], ">=", 0.95, "x")
         self.target(f"real-time factor under {rate} req/s", loaded["realtime_factor"], ">=", 0.99)
-        return {"status": "ok", "summary": s, "runs": runs, "realtime_idle": idle, "realtime_load": loaded}
+        return {"status": "ok", "summary": s, "runs": runs, "sleep_baseline": sleep, "realtime_idle": idle,
+                "realtime_load": loaded}
 
     def section_memory(self):
         gateway = os.path.join(self.bin, "simgate")
@@ -721,6 +727,10 @@ def markdown(r):
                   f"| bare mj_step loop (steps/s) | {fmt(sm['bare_steps_per_s'])} |",
                   f"| gateway, as fast as possible (steps/s) | {fmt(sm['gateway_steps_per_s'])} |",
                   f"| gateway / bare | {fmt(sm['ratio'], 3)} |",
+                  f"| baseline: a loop that only sleeps until each step time (same period): real-time factor / "
+                  f"jitter p50, p99 (µs) / overruns | {fmt(sm['sleep_baseline']['realtime_factor'], 4)} / "
+                  f"{fmt(sm['sleep_baseline']['jitter_p50_us'])}, {fmt(sm['sleep_baseline']['jitter_p99_us'])} / "
+                  f"{sm['sleep_baseline']['overruns']} |",
                   f"| real time, idle: real-time factor / step jitter p50, p99 (µs) / overruns | "
                   f"{fmt(idle['realtime_factor'], 4)} / {fmt(idle['jitter_p50_us'])}, {fmt(idle['jitter_p99_us'])} / {idle['overruns']} |",
                   f"| real time, {load['target_rps']} req/s offered ({fmt(load['achieved_rps'])} answered/s): "

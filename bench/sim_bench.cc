@@ -11,6 +11,9 @@
 //            clients meanwhile). Prints {"endpoints": ...} when serving, then the results:
 //            steps per second, real-time factor, overruns, and the jitter of the step
 //            period (|interval - timestep/factor|, µs percentiles).
+//   sleep    the machine's timer baseline for that jitter: a loop with no work that sleeps
+//            until the next period (the MJCF's timestep, real time) for --duration seconds,
+//            scheduling as the gateway's loop does; the same figures as `gateway`.
 //
 // The probe costs one clock read per step; both modes run on the main thread, unpinned.
 #include <poll.h>
@@ -78,6 +81,50 @@ json run_bare(const std::string& mjcf, double duration_s) {
   return out;
 }
 
+// |interval - period| of consecutive stamps, in µs percentiles.
+json period_jitter(const std::vector<Clock::time_point>& stamps, double period_ns) {
+  std::vector<std::int64_t> deviation;
+  for (std::size_t i = 1; i < stamps.size(); ++i) {
+    double interval = static_cast<double>(simgate::bench::ns_between(stamps[i - 1], stamps[i]));
+    deviation.push_back(static_cast<std::int64_t>(std::fabs(interval - period_ns)));
+  }
+  return simgate::bench::summarize_us(std::move(deviation));
+}
+
+json run_sleep(const std::string& mjcf, double duration_s) {
+  char error[1000] = "";
+  mjModel* m = mj_loadXML(mjcf.c_str(), nullptr, error, sizeof error);
+  if (!m) throw std::runtime_error("MJCF '" + mjcf + "': " + error);
+  const double timestep = m->opt.timestep;
+  mj_deleteModel(m);
+  // the gateway's pacing: a fixed schedule, resynchronised when 100 ms behind
+  const auto period = seconds(timestep);
+  std::vector<Clock::time_point> stamps;
+  std::uint64_t periods = 0, overruns = 0;
+  auto start = Clock::now(), end = start + seconds(duration_s), next = start;
+  for (auto now = start; now < end; now = Clock::now()) {
+    if (now < next) {
+      std::this_thread::sleep_until(next);
+      continue;
+    }
+    stamps.push_back(now);
+    ++periods;
+    next += period;
+    if (now - next > std::chrono::milliseconds(100)) {
+      next = now;
+      ++overruns;
+    }
+  }
+  double wall = std::chrono::duration<double>(Clock::now() - start).count();
+  return json{{"mode", "sleep"},
+              {"periods", periods},
+              {"wall_s", wall},
+              {"timestep", timestep},
+              {"realtime_factor", static_cast<double>(periods) * timestep / wall},
+              {"overruns", overruns},
+              {"jitter", period_jitter(stamps, timestep * 1e9)}};
+}
+
 json run_gateway(const std::string& config, double factor, double duration_s, bool until_stdin) {
   namespace gw = simgate::gateway;
   gw::Deployment deployment = gw::load_deployment(config);
@@ -112,13 +159,8 @@ json run_gateway(const std::string& config, double factor, double duration_s, bo
   auto stats = gateway.simulation().statistics();
 
   // jitter of the step period against the paced period
-  const auto& stamps = probe->stamps();
-  std::vector<std::int64_t> deviation;
   const double period_ns = factor > 0 ? stats.timestep / factor * 1e9 : 0;
-  for (std::size_t i = 1; i < stamps.size(); ++i) {
-    double interval = static_cast<double>(simgate::bench::ns_between(stamps[i - 1], stamps[i]));
-    deviation.push_back(static_cast<std::int64_t>(std::fabs(interval - period_ns)));
-  }
+  json jitter = period_jitter(probe->stamps(), period_ns);
   json out{{"mode", "gateway"},
            {"steps", stats.steps},
            {"wall_s", stats.wall_time},
@@ -127,7 +169,7 @@ json run_gateway(const std::string& config, double factor, double duration_s, bo
            {"target_factor", factor},
            {"realtime_factor", stats.realtime_factor},
            {"overruns", stats.overruns},
-           {"jitter", simgate::bench::summarize_us(std::move(deviation))}};
+           {"jitter", std::move(jitter)}};
   gateway.shutdown();
   return out;
 }
@@ -148,11 +190,14 @@ int main(int argc, char** argv) {
     if (mode == "bare") {
       if (mjcf.empty()) throw std::invalid_argument("--mjcf PATH is required");
       out = run_bare(mjcf, duration);
+    } else if (mode == "sleep") {
+      if (mjcf.empty()) throw std::invalid_argument("--mjcf PATH is required");
+      out = run_sleep(mjcf, duration);
     } else if (mode == "gateway") {
       if (config.empty()) throw std::invalid_argument("--config PATH is required");
       out = run_gateway(config, factor, duration, until_stdin);
     } else {
-      throw std::invalid_argument("--mode: expected bare or gateway, found '" + mode + "'");
+      throw std::invalid_argument("--mode: expected bare, sleep or gateway, found '" + mode + "'");
     }
     std::cout << out.dump() << std::endl;
     return 0;
