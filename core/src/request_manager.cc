@@ -63,6 +63,10 @@ class Inbox : public CompletionSink {
     std::lock_guard lock(mutex_);
     finished.swap(finished_);
   }
+  bool closed() {
+    std::lock_guard lock(mutex_);
+    return closed_;
+  }
   bool empty() {
     std::lock_guard lock(mutex_);
     return events_.empty() && finished_.empty();
@@ -195,6 +199,12 @@ bool RequestManager::run_or_submit(std::vector<std::pair<RequestId, Call>> calls
     // make sure its next process() comes
     inbox_->push_requests(calls, /*wake=*/true);
     return false;
+  }
+  if (inbox_->closed()) {
+    // abandon_pending() ran: the inbox refuses them (shutdown), delivered here
+    inbox_->push_requests(calls, /*wake=*/false);
+    process_locked();
+    return true;
   }
   // whatever this manager had queued runs first, then these, straight from the vector (no
   // signal: waking the simulation thread for work done here would only make it compete

@@ -396,6 +396,15 @@ TEST_F(RequestManagerTest, RunOrSubmitQueuesWhileTheSimulationLockIsHeld) {
   EXPECT_EQ(rm.outcome(second)->value, json(4));
 }
 
+TEST_F(RequestManagerTest, RunOrSubmitAfterAbandonPendingIsRefused) {
+  rm.register_service("test_component", add, "add", {"a", "b"});
+  rm.abandon_pending();
+  RequestId id = rm.new_request_id();
+  rm.run_or_submit(id, Call{"test_component", "add", json{1, 2}});
+  ASSERT_TRUE(rm.outcome(id));
+  EXPECT_EQ(rm.outcome(id)->failure, Failure::shutdown);
+}
+
 TEST_F(RequestManagerTest, ServicesNeverRunConcurrentlyFromTwoThreads) {
   // the simulation thread processing and a transport thread running inline share one lock
   int inside = 0, overlaps = 0, calls = 0;
