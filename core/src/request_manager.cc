@@ -55,10 +55,6 @@ class Inbox : public CompletionSink {
     events.swap(events_);
     finished.swap(finished_);
   }
-  // what process() is working on (under the simulation lock only)
-  std::vector<Event> work_events;
-  std::vector<std::pair<RequestId, Outcome>> work_finished;
-
   void take_finished(std::vector<std::pair<RequestId, Outcome>>& finished) {
     std::lock_guard lock(mutex_);
     finished.swap(finished_);
@@ -87,6 +83,10 @@ class Inbox : public CompletionSink {
     std::lock_guard lock(mutex_);
     return gate_;
   }
+
+  // what process() is working on (under the simulation lock, not mutex_)
+  std::vector<Event> work_events;
+  std::vector<std::pair<RequestId, Outcome>> work_finished;
 
  private:
   // caller holds mutex_

@@ -172,7 +172,7 @@ void SocketRequestManager::reply(Session& session, std::string_view id, std::str
     session.queue(scratch_);
 }
 
-void SocketRequestManager::submit_batch_now() {
+void SocketRequestManager::run_batch() {
   if (batch_.empty()) return;
   std::vector<std::pair<RequestId, Call>> calls;
   calls.reserve(batch_.size());
@@ -183,13 +183,13 @@ void SocketRequestManager::submit_batch_now() {
   flush_touched();
 }
 
-void SocketRequestManager::on_lines_done(const std::shared_ptr<Session>&) { submit_batch_now(); }
+void SocketRequestManager::on_lines_done(const std::shared_ptr<Session>&) { run_batch(); }
 
 void SocketRequestManager::fail_in_order(const std::shared_ptr<Session>& session, std::string_view id,
                                          std::string message) {
   json text = std::move(message);
   // earlier requests of this read may run at once, answering them
-  if (session->has_unanswered()) submit_batch_now();
+  if (session->has_unanswered()) run_batch();
   if (!session->has_unanswered()) {
     reply(*session, id, k_failed, &text);
     return;
@@ -219,7 +219,7 @@ void SocketRequestManager::on_line(const std::shared_ptr<Session>& session, std:
     case RequestLine::Kind::cancel:
       // no reply of its own: the request ends PREEMPTED; unknown ids are ignored (as MORSE)
       if (auto id = session->find_pending(request.id)) {
-        submit_batch_now();  // the request may be in this read's batch
+        run_batch();  // the request may be in this read's batch
         cancel(*id);
       }
       return;

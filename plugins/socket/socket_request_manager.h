@@ -79,8 +79,10 @@ class SocketRequestManager : public RequestManager, private SessionHost {
     std::weak_ptr<Session> session;  // the connection (line replies)
     std::string line;                // a formatted reply; empty for outcome replies
   };
-  // Submits the calls gathered from the current read (before anything that must follow them).
-  void submit_batch_now();
+  // Hands the calls gathered from the current read to the core (run_or_submit) and writes
+  // the replies that ran here; called at the end of a read and before anything that must
+  // follow those calls.
+  void run_batch();
   // On the I/O thread inside run_or_submit: queues the reply on its connection at once.
   // Any other thread: appends to replies_ and posts flush_replies() unless one is due.
   void enqueue_reply(Reply reply);
