@@ -233,6 +233,8 @@ class Harness:
                                             "--warmup-seconds", str(self.warmup_s)])
         if r["errors"]:
             raise BenchError(f"{r['errors']} wrong replies (first: {r.get('first_reply')!r})")
+        if not r["replies"]:
+            raise BenchError(f"no replies counted at window {window}, {connections} connection(s)")
         return r
 
     def host(self, transport, options):

@@ -110,6 +110,17 @@ class Inbox : public CompletionSink {
   bool closed_ = false;                                     // abandon_pending() was called
 };
 
+// nlohmann's destructor first moves an array's elements to a heap-allocated stack (to
+// avoid deep recursion). The usual positional arguments, an array of scalars, are cleared
+// here instead once the call has run: one allocation less per request.
+void release_params(json& params) noexcept {
+  if (!params.is_array()) return;
+  auto& elements = params.get_ref<json::array_t&>();
+  for (const auto& e : elements)
+    if (e.is_structured()) return;
+  elements.clear();
+}
+
 }  // namespace detail
 
 RequestManager::RequestManager(std::string name)
@@ -210,8 +221,10 @@ bool RequestManager::run_or_submit(std::vector<std::pair<RequestId, Call>> calls
   // signal: waking the simulation thread for work done here would only make it compete
   // for the CPU)
   process_locked();
-  for (auto& [id, call] : calls)
+  for (auto& [id, call] : calls) {
     if (auto outcome = on_incoming_request(id, call)) deliver(id, std::move(*outcome));
+    detail::release_params(call.params);
+  }
   // completions these produced at once (preemption of a running request, an async service
   // that finished in its start method)
   process_locked();
@@ -264,6 +277,7 @@ std::size_t RequestManager::process_locked() {
   for (auto& event : events) {
     if (auto* r = std::get_if<detail::Inbox::Request>(&event)) {
       if (auto outcome = on_incoming_request(r->id, r->call)) deliver(r->id, std::move(*outcome));
+      detail::release_params(r->call.params);
     } else if (auto* c = std::get_if<detail::Inbox::Cancel>(&event)) {
       execute_cancel(c->id, c->done);
     } else if (auto* t = std::get_if<detail::Inbox::Task>(&event)) {
@@ -320,9 +334,9 @@ std::optional<Outcome> RequestManager::on_incoming_request(RequestId id, const C
   const ServiceDescriptor& d = service->descriptor();
 
   try {
-    std::vector<const json*> args = bind_arguments(d, call.params);
-    if (d.is_async) return start_async(id, *service, args);
-    return Outcome::success(service->invoke(args, Completion()));
+    BoundArguments args = bind_arguments(d, call.params);
+    if (d.is_async) return start_async(id, *service, args.span());
+    return Outcome::success(service->invoke(args.span(), Completion()));
   } catch (const ServiceError& e) {
     json data = e.data();
     data["component"] = d.component;
@@ -417,7 +431,7 @@ void RequestManager::execute_cancel(RequestId id, const std::function<void(bool)
   }
 }
 
-void RequestManager::deliver(RequestId id, Outcome outcome) {
+void RequestManager::deliver(RequestId id, Outcome&& outcome) {
   running_.erase(id);
   try {
     on_service_completion(id, std::move(outcome));

@@ -114,9 +114,9 @@ json error_data(const ServiceDescriptor& d) {
 
 }  // namespace
 
-std::vector<const json*> bind_arguments(const ServiceDescriptor& d, const json& params) {
+BoundArguments bind_arguments(const ServiceDescriptor& d, const json& params) {
   const std::size_t total = d.params.size();
-  std::vector<const json*> args(total, nullptr);
+  BoundArguments args(total);
 
   if (params.is_null()) {
     // no arguments at all

@@ -159,17 +159,17 @@ void Session::close(std::string_view reason) {
 }
 
 std::optional<RequestId> Session::find_pending(std::string_view client_id) const {
-  auto it = pending_.find(std::string(client_id));
+  auto it = pending_.find(client_id);
   if (it == pending_.end()) return std::nullopt;
   return it->second;
 }
 
 void Session::add_pending(std::string_view client_id, RequestId id) {
-  pending_.emplace(std::string(client_id), id);
+  pending_.try_emplace(client_id, id);
 }
 
 void Session::remove_pending(std::string_view client_id) {
-  pending_.erase(std::string(client_id));
+  pending_.erase_key(client_id);
   if (closed_) return;
   read_more();
   maybe_finish();

@@ -26,12 +26,12 @@
 #include <optional>
 #include <string>
 #include <string_view>
-#include <unordered_map>
 #include <utility>  // before Asio: Boost 1.74 needs std::exchange in C++20 mode
 
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
 
+#include "simgate/core/recycling_map.h"
 #include "simgate/core/status.h"
 
 namespace simgate::socket {
@@ -81,7 +81,8 @@ class Session : public std::enable_shared_from_this<Session> {
   void add_pending(std::string_view client_id, RequestId id);
   // Forgets an answered request; resumes reading if it was paused.
   void remove_pending(std::string_view client_id);
-  const std::unordered_map<std::string, RequestId>& pending() const { return pending_; }
+  using PendingTable = RecyclingMap<std::string, RequestId, TransparentStringHash>;
+  const PendingTable& pending() const { return pending_; }
   // A reply the host made itself (an error) but that must follow the replies of earlier
   // requests travels through the core in order: defer_reply() when it leaves,
   // queue_deferred_reply() when it comes back.
@@ -113,7 +114,7 @@ class Session : public std::enable_shared_from_this<Session> {
   std::string outbox_;                    // replies waiting for the next write
   std::string in_flight_;                 // replies being written
   bool writing_ = false;                  // a write is in flight
-  std::unordered_map<std::string, RequestId> pending_;  // client id -> core request id
+  PendingTable pending_;                  // client id -> core request id
   std::size_t deferred_replies_ = 0;      // host error replies travelling behind earlier requests
 };
 

@@ -178,7 +178,7 @@ void SocketRequestManager::run_batch() {
   calls.reserve(batch_.size());
   calls.swap(batch_);
   // outcomes produced here, on the I/O thread, are queued on their connections
-  // (enqueue_reply), then written together
+  // (on_service_completion), then written together
   run_or_submit(std::move(calls));
   flush_touched();
 }
@@ -204,7 +204,13 @@ void SocketRequestManager::fail_in_order(const std::shared_ptr<Session>& session
     Reply r;
     r.session = std::move(weak);
     r.line = std::move(line);
-    enqueue_reply(std::move(r));
+    if (io_.get_executor().running_in_this_thread()) {
+      // run here by run_or_submit: after the replies gathered before it, like an outcome
+      queue_gathered_replies();
+      queue_reply(r);
+    } else {
+      hand_over(std::move(r));
+    }
   });
 }
 
@@ -245,7 +251,7 @@ void SocketRequestManager::on_line(const std::shared_ptr<Session>& session, std:
 
   RequestId id = new_request_id();
   session->add_pending(request.id, id);
-  requests_.emplace(id, Pending{session, std::string(request.id)});
+  requests_.try_emplace(id, session.get(), std::string(request.id));
   // handed to the core with the rest of this read (on_lines_done)
   batch_.emplace_back(id, Call{std::string(request.component), std::string(request.service),
                                std::move(params.value)});
@@ -269,32 +275,37 @@ void SocketRequestManager::on_oversized_line(const std::shared_ptr<Session>& ses
 
 void SocketRequestManager::on_session_closed(const std::shared_ptr<Session>& session) {
   // its outcomes have nowhere to go: forget them (the requests themselves run on)
-  for (const auto& [client_id, id] : session->pending()) requests_.erase(id);
+  for (const auto& [client_id, id] : session->pending()) requests_.erase_key(id);
   sessions_.erase(session);
 }
 
 // ---- outcomes
 
 void SocketRequestManager::on_service_completion(RequestId id, Outcome outcome) {
-  Reply r;
-  r.id = id;
-  r.outcome = std::move(outcome);
-  enqueue_reply(std::move(r));
-}
-
-void SocketRequestManager::enqueue_reply(Reply reply) {
   if (io_.get_executor().running_in_this_thread()) {
     // the I/O thread itself runs process() (run_or_submit): straight to the connection,
     // after the replies the simulation thread produced before (same order as produced)
     queue_gathered_replies();
-    queue_reply(reply);
+    try {
+      deliver(id, outcome);
+    } catch (const std::exception& e) {
+      log::error(name(), ": cannot deliver the outcome of request ", id, ": ", e.what());
+    }
     return;
   }
-  // another thread (the simulation's): hand over to the I/O thread, never block here
+  Reply r;
+  r.id = id;
+  r.outcome = std::move(outcome);
+  hand_over(std::move(r));
+}
+
+void SocketRequestManager::hand_over(Reply reply) {
+  // the simulation thread: hand over to the I/O thread, never block here
   bool post_flush = false;
   {
     std::lock_guard lock(replies_mutex_);
     replies_.push_back(std::move(reply));
+    replies_waiting_.store(true, std::memory_order_release);
     if (!flush_scheduled_) flush_scheduled_ = post_flush = true;
   }
   // one wake of the I/O thread for every reply gathered until the flush takes them
@@ -307,10 +318,13 @@ void SocketRequestManager::flush_replies() {
 }
 
 void SocketRequestManager::queue_gathered_replies() {
+  // the flag spares a mutex per reply on the I/O thread; a reply handed over is seen here at
+  // the latest by the flush hand_over() posts after setting it
+  if (!replies_waiting_.load(std::memory_order_acquire)) return;
   {
     std::lock_guard lock(replies_mutex_);
-    if (replies_.empty()) return;
     flushing_.swap(replies_);
+    replies_waiting_.store(false, std::memory_order_release);
     flush_scheduled_ = false;  // replies added from now on need a new flush
   }
   // each on its connection, in the order the simulation thread produced them
@@ -320,17 +334,19 @@ void SocketRequestManager::queue_gathered_replies() {
 
 void SocketRequestManager::queue_reply(Reply& r) {
   try {
-    std::shared_ptr<Session> session;
     if (r.line.empty()) {
-      session = deliver(r.id, r.outcome);
+      deliver(r.id, r.outcome);
     } else if (auto s = r.session.lock(); s && !s->closed()) {
+      touch(*s);
       s->queue_deferred_reply(r.line);
-      session = std::move(s);
     }
-    if (session && (touched_.empty() || touched_.back() != session)) touched_.push_back(std::move(session));
   } catch (const std::exception& e) {
     log::error(name(), ": cannot deliver the outcome of request ", r.id, ": ", e.what());
   }
+}
+
+void SocketRequestManager::touch(Session& session) {
+  if (touched_.empty() || touched_.back().get() != &session) touched_.push_back(session.shared_from_this());
 }
 
 void SocketRequestManager::flush_touched() {
@@ -339,13 +355,15 @@ void SocketRequestManager::flush_touched() {
   touched_.clear();
 }
 
-std::shared_ptr<Session> SocketRequestManager::deliver(RequestId id, Outcome& outcome) {
+void SocketRequestManager::deliver(RequestId id, Outcome& outcome) {
   auto it = requests_.find(id);
-  if (it == requests_.end()) return nullptr;  // its client is gone
-  std::shared_ptr<Session> session = it->second.session.lock();
+  if (it == requests_.end()) return;  // its client is gone
+  Session& session = *it->second.session;
   std::string client_id = std::move(it->second.client_id);
+  // erased first: queueing the reply may close the connection, which erases its entries
   requests_.erase(it);
-  if (!session || session->closed()) return nullptr;
+  // held in touched_ until its write starts
+  touch(session);
 
   std::string_view status = success_word_;
   if (outcome.status == Status::failed) status = k_failed;
@@ -357,9 +375,8 @@ std::shared_ptr<Session> SocketRequestManager::deliver(RequestId id, Outcome& ou
     message = outcome.message;
     value = &message;
   }
-  reply(*session, client_id, status, value, /*write_now=*/false);
-  session->remove_pending(client_id);
-  return session;
+  reply(session, client_id, status, value, /*write_now=*/false);
+  session.remove_pending(client_id);
 }
 
 }  // namespace simgate::socket

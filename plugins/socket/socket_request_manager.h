@@ -46,6 +46,7 @@
 #include <boost/asio/ip/tcp.hpp>
 
 #include "session.h"
+#include "simgate/core/recycling_map.h"
 #include "simgate/core/request_manager.h"
 
 namespace simgate::socket {
@@ -83,21 +84,24 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   // the replies that ran here; called at the end of a read and before anything that must
   // follow those calls.
   void run_batch();
-  // On the I/O thread inside run_or_submit: queues the reply on its connection at once.
-  // Any other thread: appends to replies_ and posts flush_replies() unless one is due.
-  void enqueue_reply(Reply reply);
+  // Another thread (the simulation's): appends to replies_ and posts flush_replies()
+  // unless one is due. Never blocks for long.
+  void hand_over(Reply reply);
   // I/O thread: delivers every gathered reply, then starts one write per connection.
   void flush_replies();
   // I/O thread: queues the replies gathered in replies_ on their connections.
   void queue_gathered_replies();
-  // I/O thread: queues one reply on its connection and remembers the connection in touched_.
+  // I/O thread: queues one reply on its connection.
   void queue_reply(Reply& reply);
+  // I/O thread: remembers a connection with replies queued (and keeps it alive) until
+  // flush_touched().
+  void touch(Session& session);
   // I/O thread: starts one write on every connection in touched_.
   void flush_touched();
 
   void accept_next();
-  // Queues the reply to `id` on its connection; returns that connection (null if gone).
-  std::shared_ptr<Session> deliver(RequestId id, Outcome& outcome);
+  // Queues the reply to `id` on its connection (nothing if the connection is gone).
+  void deliver(RequestId id, Outcome& outcome);
   void reply(Session& session, std::string_view id, std::string_view status, const json* value,
              bool write_now = true);
   // Answers FAILED `message` after the connection's earlier requests have been answered.
@@ -105,9 +109,11 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   void close_all();
 
   // A request sent to the core and not yet answered.
+  // Entries of a connection are erased when it closes (on_session_closed), so `session`
+  // is alive while its entry is.
   struct Pending {
-    std::weak_ptr<Session> session;  // may be gone when the outcome arrives
-    std::string client_id;           // the client's id, echoed in the reply
+    Session* session = nullptr;  // the connection that asked
+    std::string client_id;       // the client's id, echoed in the reply
   };
 
   boost::asio::io_context io_;  // runs every handler, on thread_
@@ -121,12 +127,13 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   std::size_t max_clients_ = 1024;           // connections beyond this are refused
   std::uint64_t next_session_ = 1;           // numbers sessions in logs
   std::unordered_set<std::shared_ptr<Session>> sessions_;  // open connections (I/O thread)
-  std::unordered_map<RequestId, Pending> requests_;         // unanswered requests (I/O thread)
+  RecyclingMap<RequestId, Pending> requests_;               // unanswered requests (I/O thread)
   std::string scratch_;                      // reply formatting buffer (I/O thread)
   std::vector<std::pair<RequestId, Call>> batch_;  // calls of the current read, not yet submitted (I/O thread)
   std::mutex replies_mutex_;                 // guards replies_ and flush_scheduled_
   std::vector<Reply> replies_;               // replies waiting for the I/O thread
   bool flush_scheduled_ = false;             // a flush_replies() is posted and has not taken replies_
+  std::atomic<bool> replies_waiting_{false};  // replies_ is not empty (read without the mutex)
   std::vector<Reply> flushing_;              // replies being delivered (I/O thread)
   std::vector<std::shared_ptr<Session>> touched_;  // connections with replies queued, not yet written (I/O thread)
   std::thread thread_;                       // runs io_

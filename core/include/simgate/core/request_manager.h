@@ -176,7 +176,7 @@ class RequestManager {
                                      std::span<const json* const> args);
   void interrupt_running(AsyncSlot& slot, Failure reason, std::string message);
   void execute_cancel(RequestId id, const std::function<void(bool)>& done);
-  void deliver(RequestId id, Outcome outcome);
+  void deliver(RequestId id, Outcome&& outcome);
   // process() once the lock is held
   std::size_t process_locked();
   std::shared_ptr<AsyncSlot> slot_for(const std::string& component);

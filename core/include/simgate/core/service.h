@@ -17,6 +17,7 @@
 #ifndef SIMGATE_CORE_SERVICE_H_
 #define SIMGATE_CORE_SERVICE_H_
 
+#include <array>
 #include <atomic>
 #include <functional>
 #include <memory>
@@ -176,10 +177,30 @@ class Service {
   std::shared_ptr<AsyncSlot> slot_;  // shared with the component's other async services
 };
 
+// The arguments of one call: one pointer per parameter, into the request's params or to a
+// default. Up to 8 parameters are held inline (no allocation per call).
+class BoundArguments {
+ public:
+  explicit BoundArguments(std::size_t count) : count_(count) {
+    if (count > inline_.size()) heap_.resize(count);
+  }
+  const json*& operator[](std::size_t i) { return data()[i]; }
+  std::size_t size() const { return count_; }
+  std::span<const json* const> span() const { return {data(), count_}; }
+
+ private:
+  const json** data() { return heap_.empty() ? inline_.data() : heap_.data(); }
+  const json* const* data() const { return heap_.empty() ? inline_.data() : heap_.data(); }
+
+  std::array<const json*, 8> inline_{};  // services with up to 8 parameters
+  std::vector<const json*> heap_;        // the others
+  std::size_t count_;                    // number of parameters
+};
+
 // Matches positional (array), named (object) or absent (null) parameters to the
 // descriptor: one pointer per parameter, into `params` or to a default. Throws
 // WrongArguments ("wrong # of parameters ...", unknown names, non-list params).
-std::vector<const json*> bind_arguments(const ServiceDescriptor& service, const json& params);
+BoundArguments bind_arguments(const ServiceDescriptor& service, const json& params);
 
 // ---------------------------------------------------------------------------------------
 // typed registration machinery

@@ -1,0 +1,104 @@
+// simgate/core/recycling_map.h — an unordered_map that keeps the nodes of erased entries.
+//
+// A transport's request table sees one insert and one erase per request. With a plain
+// std::unordered_map each of them is a malloc and a free; RecyclingMap extracts erased
+// nodes (C++17 node handles) into a bounded free list and reuses them for the next
+// inserts, so a warm table allocates nothing. A node keeps its key's and value's capacity
+// (a std::string key reuses its buffer); the value is reset when its entry is erased.
+//
+//   RecyclingMap<RequestId, Pending> requests;
+//   requests.emplace(id, Pending{...});
+//   auto it = requests.find(id);  ...  requests.erase(it);
+//
+// Not thread-safe (like the map it wraps). Heterogeneous lookup works when Hash and Eq
+// are transparent (see TransparentStringHash).
+#ifndef SIMGATE_CORE_RECYCLING_MAP_H_
+#define SIMGATE_CORE_RECYCLING_MAP_H_
+
+#include <cstddef>
+#include <functional>
+#include <string>
+#include <string_view>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+namespace simgate {
+
+// Lets an unordered_map<std::string, ...> be searched with a std::string_view (no
+// temporary string). Not noexcept on purpose: libstdc++ then stores each node's hash code
+// (as it does for std::hash<std::string>), so erasing a node or walking a bucket never
+// hashes a key again.
+struct TransparentStringHash {
+  using is_transparent = void;
+  std::size_t operator()(std::string_view s) const { return std::hash<std::string_view>{}(s); }
+};
+
+template <class Key, class T, class Hash = std::hash<Key>, class Eq = std::equal_to<>>
+class RecyclingMap {
+  using Map = std::unordered_map<Key, T, Hash, Eq>;
+
+ public:
+  using iterator = typename Map::iterator;
+  using const_iterator = typename Map::const_iterator;
+
+  // At most `max_free` erased nodes are kept (the memory a burst leaves behind is bounded).
+  explicit RecyclingMap(std::size_t max_free = 1024) : max_free_(max_free) {}
+
+  // Inserts key -> T(args...) unless the key is present (like try_emplace).
+  template <class K, class... Args>
+  std::pair<iterator, bool> try_emplace(K&& key, Args&&... args) {
+    if (free_.empty()) return map_.try_emplace(Key(std::forward<K>(key)), std::forward<Args>(args)...);
+    auto node = std::move(free_.back());
+    free_.pop_back();
+    node.key() = std::forward<K>(key);
+    node.mapped() = T(std::forward<Args>(args)...);
+    auto result = map_.insert(std::move(node));
+    if (!result.inserted) keep(std::move(result.node));
+    return {result.position, result.inserted};
+  }
+
+  template <class K>
+  iterator find(const K& key) { return map_.find(key); }
+  template <class K>
+  const_iterator find(const K& key) const { return map_.find(key); }
+
+  void erase(iterator it) {
+    if (free_.size() < max_free_)
+      keep(map_.extract(it));
+    else
+      map_.erase(it);
+  }
+  template <class K>
+  bool erase_key(const K& key) {
+    auto it = map_.find(key);
+    if (it == map_.end()) return false;
+    erase(it);
+    return true;
+  }
+  void clear() { map_.clear(); }
+
+  iterator begin() { return map_.begin(); }
+  iterator end() { return map_.end(); }
+  const_iterator begin() const { return map_.begin(); }
+  const_iterator end() const { return map_.end(); }
+  std::size_t size() const { return map_.size(); }
+  bool empty() const { return map_.empty(); }
+
+ private:
+  // the value is reset (a kept node holds no reference to anything); the key keeps its
+  // capacity
+  void keep(typename Map::node_type node) {
+    if (free_.size() >= max_free_) return;
+    node.mapped() = T{};
+    free_.push_back(std::move(node));
+  }
+
+  Map map_;                                     // the live entries
+  std::vector<typename Map::node_type> free_;   // erased nodes, reused by the next inserts
+  std::size_t max_free_;                        // bound on free_
+};
+
+}  // namespace simgate
+
+#endif  // SIMGATE_CORE_RECYCLING_MAP_H_
