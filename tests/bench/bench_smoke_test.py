@@ -9,15 +9,19 @@ Checks, never timing thresholds:
     measurement, such as zero replies, fails here);
   * every target of the issue has a value, a threshold and a verdict;
   * results.md has the targets table and a table per section;
-  * the load generator counts a wrong reply as an error, never as a measurement.
+  * the load generator counts a wrong reply as an error, never as a measurement;
+  * a server slower than the measurement still gets a rate (never 0 req/s).
 Prints one line per check and "N passed, N failed" at the end.
 """
 import argparse
 import json
 import math
 import os
+import socket
 import subprocess
 import sys
+import threading
+import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
@@ -76,6 +80,49 @@ def check_wrong_replies_counted(build_dir):
         echo.stdout.close()
 
 
+def check_slow_server_still_measured(build_dir):
+    """A server slower than --duration (MORSE's Python loop on a busy host) must still get a
+    rate from at least one full window of replies, never 0 req/s: the loadgen measures on
+    until the window came back (up to 10 s more)."""
+    listener = socket.socket()
+    listener.bind(("127.0.0.1", 0))
+    listener.listen(1)
+    listener.settimeout(30)
+
+    def serve():
+        try:
+            conn, _ = listener.accept()
+        except OSError:
+            return
+        with conn:
+            conn.settimeout(30)
+            try:
+                while True:
+                    data = conn.recv(65536)
+                    if not data:
+                        return
+                    time.sleep(0.3)  # slower than the whole measurement below
+                    conn.sendall(data)
+            except OSError:
+                return
+
+    server = threading.Thread(target=serve, daemon=True)
+    server.start()
+    try:
+        bin_dir = os.path.join(os.path.abspath(build_dir), "bin")
+        done = subprocess.run([os.path.join(bin_dir, "simgate_bench_loadgen"), "--port", str(listener.getsockname()[1]),
+                               "--proto", "socket", "--echo", "--mode", "throughput", "--window", "4",
+                               "--duration", "0.05", "--warmup-seconds", "0.01"],
+                              capture_output=True, text=True, timeout=60)
+        result = json.loads(done.stdout.strip().splitlines()[-1]) if done.returncode == 0 else {}
+        check(result.get("replies", 0) >= 4 and result.get("rps", 0) > 0,
+              f"a server slower than --duration still gets a rate ({result.get('replies')} replies, "
+              f"{result.get('rps')} req/s)")
+    finally:
+        listener.close()
+        server.join(timeout=30)
+
+
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--build-dir", required=True)
@@ -129,6 +176,7 @@ def main():
             check(heading in md, f"results.md has '{heading}'")
 
     check_wrong_replies_counted(args.build_dir)
+    check_slow_server_still_measured(args.build_dir)
     print(f"{passed} passed, {failed} failed")
     return 0 if failed == 0 else 1
 

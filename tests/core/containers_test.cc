@@ -1,0 +1,86 @@
+// The hot-path helpers of the core: RecyclingMap (request tables that reuse their nodes)
+// and BoundArguments (arguments held inline, or on the heap beyond 8 parameters).
+#include <memory>
+#include <string>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "simgate/core/recycling_map.h"
+#include "test_manager.h"
+
+namespace simgate {
+namespace {
+
+TEST(RecyclingMapTest, ErasedNodesAreReusedWithFreshValues) {
+  RecyclingMap<std::string, std::shared_ptr<int>, TransparentStringHash> map;
+  auto held = std::make_shared<int>(7);
+  ASSERT_TRUE(map.try_emplace(std::string_view("a long client id, beyond any small-string buffer"), held).second);
+  EXPECT_EQ(held.use_count(), 2);
+  const std::string* key_storage = &map.find(std::string_view("a long client id, beyond any small-string buffer"))->first;
+
+  map.erase(map.find(std::string_view("a long client id, beyond any small-string buffer")));
+  EXPECT_TRUE(map.empty());
+  // the kept node holds no reference to the erased value
+  EXPECT_EQ(held.use_count(), 1);
+
+  // the next insert takes the kept node: same node, new key and value
+  auto other = std::make_shared<int>(8);
+  ASSERT_TRUE(map.try_emplace(std::string_view("b"), other).second);
+  auto it = map.find(std::string_view("b"));
+  ASSERT_NE(it, map.end());
+  EXPECT_EQ(&it->first, key_storage);
+  EXPECT_EQ(*it->second, 8);
+  EXPECT_EQ(map.find(std::string_view("a long client id, beyond any small-string buffer")), map.end());
+}
+
+TEST(RecyclingMapTest, DuplicateKeysAreRefusedAndTheNodeIsKept) {
+  RecyclingMap<int, std::string> map;
+  map.try_emplace(1, "one");
+  map.try_emplace(2, "two");
+  EXPECT_TRUE(map.erase_key(2));
+  EXPECT_FALSE(map.erase_key(2));
+  auto [it, inserted] = map.try_emplace(1, "uno");  // takes the kept node, then gives it back
+  EXPECT_FALSE(inserted);
+  EXPECT_EQ(it->second, "one");
+  EXPECT_TRUE(map.try_emplace(3, "three").second);
+  EXPECT_EQ(map.size(), 2u);
+  EXPECT_EQ(map.find(3)->second, "three");
+}
+
+TEST(RecyclingMapTest, TheFreeListIsBounded) {
+  RecyclingMap<int, int> map(/*max_free=*/2);
+  for (int i = 0; i < 100; ++i) map.try_emplace(i, i);
+  for (int i = 0; i < 100; ++i) EXPECT_TRUE(map.erase_key(i));
+  EXPECT_TRUE(map.empty());
+  for (int i = 0; i < 100; ++i) map.try_emplace(i, -i);
+  EXPECT_EQ(map.size(), 100u);
+  for (int i = 0; i < 100; ++i) EXPECT_EQ(map.find(i)->second, -i);
+}
+
+int sum9(int a, int b, int c, int d, int e, int f, int g, int h, int i) { return a + b + c + d + e + f + g + h + i; }
+
+TEST(BoundArgumentsTest, MoreParametersThanTheInlineBufferStillBind) {
+  testing::TestManager rm;
+  rm.register_service("c", sum9, "sum9", {"a", "b", "c", "d", "e", "f", "g", "h", {"i", 100}});
+  auto positional = rm.run("c", "sum9", json::array({1, 2, 3, 4, 5, 6, 7, 8, 9}));
+  ASSERT_TRUE(positional);
+  EXPECT_EQ(positional->value, json(45));
+  auto with_default = rm.run("c", "sum9", json::array({1, 2, 3, 4, 5, 6, 7, 8}));
+  ASSERT_TRUE(with_default);
+  EXPECT_EQ(with_default->value, json(136));
+  auto named = rm.run("c", "sum9", json{{"i", 1}, {"h", 1}, {"g", 1}, {"f", 1}, {"e", 1}, {"d", 1}, {"c", 1}, {"b", 1}, {"a", 1}});
+  ASSERT_TRUE(named);
+  EXPECT_EQ(named->value, json(9));
+  auto too_few = rm.run("c", "sum9", json::array({1, 2}));
+  ASSERT_TRUE(too_few);
+  EXPECT_EQ(too_few->failure, Failure::bad_arguments);
+  EXPECT_THAT(too_few->message, ::testing::HasSubstr("expected 8 to 9"));
+  auto missing = rm.run("c", "sum9", json{{"a", 1}, {"b", 2}, {"i", 3}});
+  ASSERT_TRUE(missing);
+  EXPECT_EQ(missing->failure, Failure::bad_arguments);
+  EXPECT_THAT(missing->message, ::testing::HasSubstr("missing 'c', 'd', 'e', 'f', 'g', 'h'"));
+}
+
+}  // namespace
+}  // namespace simgate
