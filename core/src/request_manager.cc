@@ -1,6 +1,7 @@
 #include "simgate/core/request_manager.h"
 
 #include <atomic>
+#include <span>
 #include <variant>
 
 #include "simgate/core/errors.h"
@@ -27,15 +28,14 @@ class Inbox : public CompletionSink {
     }
     gate->signal();
   }
-  // requests moved out of `calls` (left empty); `wake`: see push()
-  void push_requests(std::vector<std::pair<RequestId, Call>>& calls, bool wake) {
+  // requests moved out of `calls`; `wake`: see push()
+  void push_requests(std::span<std::pair<RequestId, Call>> calls, bool wake) {
     std::shared_ptr<SimulationGate> gate;
     {
       std::lock_guard lock(mutex_);
       for (auto& [id, call] : calls) add(Request{id, std::move(call)});
       gate = gate_;
     }
-    calls.clear();
     if (wake) gate->signal();
   }
   void finished(RequestId id, Outcome outcome) override {
@@ -204,6 +204,10 @@ void RequestManager::submit_batch(std::vector<std::pair<RequestId, Call>> calls)
 }
 
 bool RequestManager::run_or_submit(std::vector<std::pair<RequestId, Call>> calls) {
+  return run_or_submit(std::span(calls));
+}
+
+bool RequestManager::run_or_submit(std::span<std::pair<RequestId, Call>> calls) {
   std::unique_lock lock(*gate_, std::try_to_lock);
   if (!lock) {
     // the holder (stepping, or another transport) may be past our queue: queue them and
@@ -226,7 +230,8 @@ bool RequestManager::run_or_submit(std::vector<std::pair<RequestId, Call>> calls
     detail::release_params(call.params);
   }
   // completions these produced at once (preemption of a running request, an async service
-  // that finished in its start method)
+  // that finished in its start method); the calls stay where they are, for the caller to
+  // reuse
   process_locked();
   return true;
 }

@@ -52,14 +52,20 @@ class Parser {
  public:
   explicit Parser(std::string_view text) : text_(text) {}
 
-  json parse_all() {
+  // The whole text into `out`; a top-level list or tuple reuses the array `out` holds.
+  void parse_all(json& out) {
     skip_blanks();
-    if (pos_ == text_.size()) return nullptr;
-    json value = parse_value(0);
+    if (pos_ == text_.size()) {
+      out = nullptr;
+      return;
+    }
+    if (text_[pos_] == '[' || text_[pos_] == '(')
+      parse_sequence(0, text_[pos_] == '[' ? ']' : ')', out);
+    else
+      out = parse_value(0);
     skip_blanks();
     if (pos_ != text_.size())
       fail("unexpected " + describe_here() + " after the end of the parameters");
-    return value;
   }
 
  private:
@@ -99,17 +105,27 @@ class Parser {
   }
 
   json parse_sequence(std::size_t depth, char close) {
+    json out;
+    parse_sequence(depth, close, out);
+    return out;
+  }
+  // into `out`, reusing its array (emptied) when it holds one
+  void parse_sequence(std::size_t depth, char close, json& out) {
     if (depth + 1 > k_max_depth)
       fail("nesting deeper than " + std::to_string(k_max_depth) + " levels");
     const char* kind = close == ']' ? "list" : "tuple";
     ++pos_;  // the opening bracket
-    json out = json::array();
-    out.get_ref<json::array_t&>().reserve(4);  // most calls have a few arguments: one allocation
+    if (out.is_array()) {
+      out.get_ref<json::array_t&>().clear();
+    } else {
+      out = json::array();
+      out.get_ref<json::array_t&>().reserve(4);  // most calls have a few arguments: one allocation
+    }
     for (;;) {
       skip_blanks();
       if (pos_ < text_.size() && text_[pos_] == close) {
         ++pos_;
-        return out;
+        return;
       }
       out.push_back(parse_value(depth + 1));
       skip_blanks();
@@ -119,7 +135,7 @@ class Parser {
       }
       if (pos_ < text_.size() && text_[pos_] == close) {
         ++pos_;
-        return out;
+        return;
       }
       fail(std::string("expected ',' or '") + close + "' in " + kind + " but found " + describe_here());
     }
@@ -330,16 +346,22 @@ class Parser {
 
 }  // namespace
 
-ParamsParse parse_params(std::string_view text, std::size_t first_column) {
-  ParamsParse result;
+bool parse_params_into(std::string_view text, std::size_t first_column, json& value, ParamsParse& error) {
   Parser parser(text);
   try {
-    result.value = parser.parse_all();
-    result.ok = true;
+    parser.parse_all(value);
+    return true;
   } catch (const SyntaxError& e) {
-    result.error = e.message;
-    result.column = first_column + e.offset;
+    error.ok = false;
+    error.error = e.message;
+    error.column = first_column + e.offset;
+    return false;
   }
+}
+
+ParamsParse parse_params(std::string_view text, std::size_t first_column) {
+  ParamsParse result;
+  result.ok = parse_params_into(text, first_column, result.value, result);
   return result;
 }
 

@@ -44,6 +44,12 @@ struct ParamsParse {
 // the column of text[0] in the whole line, so errors point into the line the client sent.
 ParamsParse parse_params(std::string_view text, std::size_t first_column = 1);
 
+// The same into `value`, for a caller that reuses it from request to request: parameters
+// that are a list or a tuple refill the array `value` holds (its capacity is kept: no
+// allocation). On a syntax error returns false and fills `error`'s error and column
+// (`value` is then unspecified).
+bool parse_params_into(std::string_view text, std::size_t first_column, json& value, ParamsParse& error);
+
 }  // namespace simgate::socket
 
 #endif  // SIMGATE_PLUGINS_SOCKET_PARAMS_PARSER_H_

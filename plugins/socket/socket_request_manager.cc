@@ -173,13 +173,13 @@ void SocketRequestManager::reply(Session& session, std::string_view id, std::str
 }
 
 void SocketRequestManager::run_batch() {
-  if (batch_.empty()) return;
-  std::vector<std::pair<RequestId, Call>> calls;
-  calls.reserve(batch_.size());
-  calls.swap(batch_);
+  if (batch_count_ == 0) return;
   // outcomes produced here, on the I/O thread, are queued on their connections
-  // (on_service_completion), then written together
-  run_or_submit(std::move(calls));
+  // (on_service_completion), then written together. The calls stay in batch_ for the next
+  // read (those queued for the simulation thread are moved out).
+  run_or_submit(std::span(batch_.data(), batch_count_));
+  batch_count_ = 0;
+  if (batch_.size() > k_kept_calls) batch_.erase(batch_.begin() + k_kept_calls, batch_.end());
   flush_touched();
 }
 
@@ -241,20 +241,24 @@ void SocketRequestManager::on_line(const std::shared_ptr<Session>& session, std:
     return;
   }
 
-  ParamsParse params = parse_params(request.params, request.params_column);
-  if (!params.ok) {
+  // the next call of this read, in an object an earlier read left (its parameter array is
+  // refilled: no allocation)
+  if (batch_count_ == batch_.size()) batch_.emplace_back();
+  auto& [id, call] = batch_[batch_count_];
+  if (!parse_params_into(request.params, request.params_column, call.params, params_error_)) {
     fail_in_order(session, request.id,
                   "Invalid request syntax: error while parsing the parameters at column " +
-                      std::to_string(params.column) + ": " + params.error);
+                      std::to_string(params_error_.column) + ": " + params_error_.error);
     return;
   }
 
-  RequestId id = new_request_id();
+  id = new_request_id();
   session->add_pending(request.id, id);
   requests_.try_emplace(id, session.get(), std::string(request.id));
+  call.component.assign(request.component);
+  call.service.assign(request.service);
   // handed to the core with the rest of this read (on_lines_done)
-  batch_.emplace_back(id, Call{std::string(request.component), std::string(request.service),
-                               std::move(params.value)});
+  ++batch_count_;
 }
 
 void SocketRequestManager::on_oversized_line(const std::shared_ptr<Session>& session,

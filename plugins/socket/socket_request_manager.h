@@ -45,6 +45,7 @@
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
 
+#include "params_parser.h"
 #include "session.h"
 #include "simgate/core/recycling_map.h"
 #include "simgate/core/request_manager.h"
@@ -129,7 +130,12 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   std::unordered_set<std::shared_ptr<Session>> sessions_;  // open connections (I/O thread)
   RecyclingMap<RequestId, Pending> requests_;               // unanswered requests (I/O thread)
   std::string scratch_;                      // reply formatting buffer (I/O thread)
-  std::vector<std::pair<RequestId, Call>> batch_;  // calls of the current read, not yet submitted (I/O thread)
+  // calls of the current read, not yet handed to the core: the first batch_count_ of batch_;
+  // the objects are reused from read to read, at most k_kept_calls of them kept (I/O thread)
+  static constexpr std::size_t k_kept_calls = 1024;
+  std::vector<std::pair<RequestId, Call>> batch_;
+  std::size_t batch_count_ = 0;
+  ParamsParse params_error_;                 // the last parameters syntax error (I/O thread)
   std::mutex replies_mutex_;                 // guards replies_ and flush_scheduled_
   std::vector<Reply> replies_;               // replies waiting for the I/O thread
   bool flush_scheduled_ = false;             // a flush_replies() is posted and has not taken replies_

@@ -396,6 +396,36 @@ TEST_F(RequestManagerTest, RunOrSubmitQueuesWhileTheSimulationLockIsHeld) {
   EXPECT_EQ(rm.outcome(second)->value, json(4));
 }
 
+TEST_F(RequestManagerTest, RunOrSubmitOnASpanLeavesRunCallsInPlaceAndMovesQueuedOnes) {
+  rm.register_service("test_component", add, "add", {"a", "b"});
+  std::vector<std::pair<RequestId, Call>> calls;
+  calls.emplace_back(rm.new_request_id(), Call{"test_component", "add", json{1, 1}});
+  calls.emplace_back(rm.new_request_id(), Call{"test_component", "add", json{2, 2}});
+  const json::array_t* params = &calls[0].second.params.get_ref<const json::array_t&>();
+
+  // run here: the objects stay for the caller to reuse (the scalar params emptied, the
+  // array itself kept)
+  EXPECT_TRUE(rm.run_or_submit(std::span(calls)));
+  EXPECT_EQ(rm.outcome(calls[0].first)->value, json(2));
+  EXPECT_EQ(rm.outcome(calls[1].first)->value, json(4));
+  EXPECT_EQ(calls[0].second.component, "test_component");
+  ASSERT_TRUE(calls[0].second.params.is_array());
+  EXPECT_EQ(&calls[0].second.params.get_ref<const json::array_t&>(), params);
+
+  // queued while the lock is held: moved into the queue, run by the next process()
+  calls[0].first = rm.new_request_id();
+  calls[0].second.params = json{3, 3};
+  bool ran = true;
+  {
+    std::lock_guard stepping(*rm.gate());
+    std::thread io([&] { ran = rm.run_or_submit(std::span(calls.data(), 1)); });
+    io.join();
+  }
+  EXPECT_FALSE(ran);
+  rm.process();
+  EXPECT_EQ(rm.outcome(calls[0].first)->value, json(6));
+}
+
 TEST_F(RequestManagerTest, RunOrSubmitAfterAbandonPendingIsRefused) {
   rm.register_service("test_component", add, "add", {"a", "b"});
   rm.abandon_pending();

@@ -137,5 +137,36 @@ TEST(SocketParamsParser, NestingIsLimited) {
   EXPECT_THAT(bad(dicts).error, HasSubstr("nesting deeper"));
 }
 
+TEST(SocketParamsParser, ParsingIntoAReusedValueRefillsItsArray) {
+  ParamsParse error;
+  json value;
+  ASSERT_TRUE(parse_params_into("[1, [2, 3], {'k': 'v'}, 4]", 1, value, error));
+  EXPECT_EQ(value, json::parse(R"([1, [2, 3], {"k": "v"}, 4])"));
+  const json::array_t* array = &value.get_ref<const json::array_t&>();
+
+  // a shorter list or a tuple refills the same array: nothing of the old content stays
+  ASSERT_TRUE(parse_params_into("(5,)", 1, value, error));
+  EXPECT_EQ(value, json::array({5}));
+  EXPECT_EQ(&value.get_ref<const json::array_t&>(), array);
+  ASSERT_TRUE(parse_params_into("[]", 1, value, error));
+  EXPECT_EQ(value, json::array());
+
+  // other shapes replace it
+  ASSERT_TRUE(parse_params_into("{'a': 1}", 1, value, error));
+  EXPECT_EQ(value, json({{"a", 1}}));
+  ASSERT_TRUE(parse_params_into("  ", 1, value, error));
+  EXPECT_TRUE(value.is_null());
+  ASSERT_TRUE(parse_params_into("[True, None]", 1, value, error));
+  EXPECT_EQ(value, json::parse("[true, null]"));
+
+  // errors are reported as parse_params() reports them
+  EXPECT_FALSE(parse_params_into("[1, 2", 10, value, error));
+  ParamsParse same = parse_params("[1, 2", 10);
+  EXPECT_EQ(error.error, same.error);
+  EXPECT_EQ(error.column, same.column);
+  ASSERT_TRUE(parse_params_into("[7]", 1, value, error));
+  EXPECT_EQ(value, json::array({7}));
+}
+
 }  // namespace
 }  // namespace simgate::socket

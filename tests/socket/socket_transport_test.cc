@@ -242,8 +242,28 @@ TEST_F(SocketTransport, RepliesKeepTheirOrderWhenTheSimulationIsBusy) {
   EXPECT_THAT(next_line(*c), StartsWith("b2 FAILED \"Malformed request!"));
   EXPECT_THAT(next_line(*c), StartsWith("b3 FAILED \"Invalid request syntax"));
   EXPECT_EQ(next_line(*c), "b4 SUCCESS \"pong\"");
-  // and afterwards requests run at once again
-  EXPECT_EQ(roundtrip(*c, "b5 test_component add (2,2)"), "b5 SUCCESS 4");
+  // and afterwards requests run at once again, in the call objects the queued ones left
+  c->send_raw("b5 test_component add (2,2)\nb6 test echo [[7, 8]]\nb7 test ping\n");
+  EXPECT_EQ(next_line(*c), "b5 SUCCESS 4");
+  EXPECT_EQ(next_line(*c), "b6 SUCCESS [7, 8]");
+  EXPECT_EQ(next_line(*c), "b7 SUCCESS \"pong\"");
+}
+
+TEST_F(SocketTransport, CallObjectsReusedFromReadToReadCarryNothingOver) {
+  // the transport refills the call objects (and parameter arrays) of earlier reads: a
+  // later, shorter or differently shaped request must not see any of the earlier one
+  auto c = connect();
+  c->send_raw("r1 test echo [[[1, 2, 3], 'long string argument that needs the heap', {'k': [4]}]]\n"
+              "r2 test_component add (1, 2)\n"
+              "r3 test echo [5]\n");
+  EXPECT_EQ(next_line(*c), "r1 SUCCESS [[1, 2, 3], \"long string argument that needs the heap\", {\"k\": [4]}]");
+  EXPECT_EQ(next_line(*c), "r2 SUCCESS 3");
+  EXPECT_EQ(next_line(*c), "r3 SUCCESS 5");
+  EXPECT_EQ(roundtrip(*c, "r4 test echo [[]]"), "r4 SUCCESS []");
+  EXPECT_EQ(roundtrip(*c, "r5 test ping"), "r5 SUCCESS \"pong\"");
+  EXPECT_EQ(roundtrip(*c, "r6 test_component add [2, 5]"), "r6 SUCCESS 7");
+  EXPECT_THAT(roundtrip(*c, "r7 test echo [1"), StartsWith("r7 FAILED \"Invalid request syntax"));
+  EXPECT_EQ(roundtrip(*c, "r8 test echo ('x',)"), "r8 SUCCESS \"x\"");
 }
 
 TEST_F(SocketTransport, LastRequestIsAnsweredAfterClientShutsDownSending) {

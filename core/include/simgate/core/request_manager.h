@@ -32,6 +32,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <span>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -147,6 +148,10 @@ class RequestManager {
   // its own on_service_completion() needs.
   bool run_or_submit(std::vector<std::pair<RequestId, Call>> calls);
   bool run_or_submit(RequestId id, Call call);
+  // The same for a transport that reuses its Call objects from read to read (their
+  // strings and parameter arrays keep their capacity): calls that are queued are moved
+  // from; calls that run here are left in place (an array of scalar params is cleared).
+  bool run_or_submit(std::span<std::pair<RequestId, Call>> calls);
   // Cancels a running async request of this manager: it ends PREEMPTED with
   // Failure::cancelled. `done(found)` runs on the simulation thread afterwards.
   void cancel(RequestId id, std::function<void(bool found)> done = {});
