@@ -137,6 +137,7 @@ ServiceBuilder RequestManager::add_service(std::shared_ptr<Service> service) {
   auto& slot = services_[d.component][d.name];
   if (slot) log::debug(name_, ": service ", d.qualified_name(), " registered again, replacing it");
   slot = std::move(service);
+  table_version_.fetch_add(1, std::memory_order_acq_rel);
   return ServiceBuilder(*slot);
 }
 
@@ -325,7 +326,14 @@ Outcome RequestManager::unknown_service(const Call& call) const {
                          json{{"component", call.component}, {"service", call.service}});
 }
 
-std::optional<Outcome> RequestManager::on_incoming_request(RequestId id, const Call& call) {
+std::shared_ptr<Service> RequestManager::find_service(const Call& call) {
+  // a pipelining client calls the same service over and over: the previous lookup answers
+  // while nothing was registered since (two string compares instead of a lock and two
+  // hashed lookups)
+  const std::uint64_t version = table_version_.load(std::memory_order_acquire);
+  if (last_lookup_.service && last_lookup_.version == version && last_lookup_.component == call.component &&
+      last_lookup_.name == call.service)
+    return last_lookup_.service;
   std::shared_ptr<Service> service;
   {
     std::lock_guard lock(table_mutex_);
@@ -335,6 +343,17 @@ std::optional<Outcome> RequestManager::on_incoming_request(RequestId id, const C
       if (s != c->second.end()) service = s->second;
     }
   }
+  if (service) {
+    last_lookup_.component = call.component;
+    last_lookup_.name = call.service;
+    last_lookup_.service = service;
+    last_lookup_.version = version;
+  }
+  return service;
+}
+
+std::optional<Outcome> RequestManager::on_incoming_request(RequestId id, const Call& call) {
+  std::shared_ptr<Service> service = find_service(call);
   if (!service) return unknown_service(call);
   const ServiceDescriptor& d = service->descriptor();
 

@@ -426,6 +426,22 @@ TEST_F(RequestManagerTest, RunOrSubmitOnASpanLeavesRunCallsInPlaceAndMovesQueued
   EXPECT_EQ(rm.outcome(calls[0].first)->value, json(6));
 }
 
+TEST_F(RequestManagerTest, AServiceRegisteredAgainReplacesTheOneCalledBefore) {
+  // the manager remembers the previous lookup; a registration must end that
+  rm.register_service("c", [] { return 1; }, "version");
+  EXPECT_EQ(rm.run("c", "version")->value, json(1));
+  EXPECT_EQ(rm.run("c", "version")->value, json(1));
+  rm.register_service("c", [] { return 2; }, "version");
+  EXPECT_EQ(rm.run("c", "version")->value, json(2));
+  // a name that only shares a prefix, or another component, is not the remembered one
+  rm.register_service("c", [] { return 3; }, "versions");
+  rm.register_service("c2", [] { return 4; }, "version");
+  EXPECT_EQ(rm.run("c", "versions")->value, json(3));
+  EXPECT_EQ(rm.run("c2", "version")->value, json(4));
+  EXPECT_EQ(rm.run("c", "version")->value, json(2));
+  EXPECT_EQ(rm.run("c", "missing")->failure, Failure::unknown_service);
+}
+
 TEST_F(RequestManagerTest, RunOrSubmitAfterAbandonPendingIsRefused) {
   rm.register_service("test_component", add, "add", {"a", "b"});
   rm.abandon_pending();

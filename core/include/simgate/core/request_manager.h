@@ -27,6 +27,7 @@
 #ifndef SIMGATE_CORE_REQUEST_MANAGER_H_
 #define SIMGATE_CORE_REQUEST_MANAGER_H_
 
+#include <atomic>
 #include <chrono>
 #include <functional>
 #include <map>
@@ -185,6 +186,8 @@ class RequestManager {
   // process() once the lock is held
   std::size_t process_locked();
   std::shared_ptr<AsyncSlot> slot_for(const std::string& component);
+  // The service a call names, or null (under the simulation lock).
+  std::shared_ptr<Service> find_service(const Call& call);
   Outcome unknown_service(const Call& call) const;
 
   std::string name_;                       // for error messages
@@ -194,6 +197,15 @@ class RequestManager {
   // component -> service name -> service
   std::unordered_map<std::string, std::unordered_map<std::string, std::shared_ptr<Service>>> services_;
   std::unordered_map<std::string, std::shared_ptr<AsyncSlot>> slots_;  // free-function slots
+  std::atomic<std::uint64_t> table_version_{0};  // bumped by every registration
+  // the previous successful lookup (find_service), valid while table_version_ is unchanged
+  // (under the simulation lock)
+  struct LastLookup {
+    std::string component;             // as the call named it
+    std::string name;                  // the service, as the call named it
+    std::shared_ptr<Service> service;  // what it found
+    std::uint64_t version = 0;         // table_version_ when it was found
+  } last_lookup_;
   // async requests this manager started and has not delivered (under the simulation lock)
   std::unordered_map<RequestId, std::pair<std::shared_ptr<detail::CallState>, std::shared_ptr<AsyncSlot>>> running_;
   GlobalPolicy global_policy_ = GlobalPolicy::reject;  // when the running service has no policy
