@@ -33,6 +33,7 @@
 #include "simgate/gateway/deployment.h"
 #include "simgate/gateway/gateway.h"
 #include "simgate/sim/registry.h"
+#include "simgate/sim/simulation.h"
 
 namespace {
 
@@ -97,7 +98,7 @@ json run_sleep(const std::string& mjcf, double duration_s) {
   if (!m) throw std::runtime_error("MJCF '" + mjcf + "': " + error);
   const double timestep = m->opt.timestep;
   mj_deleteModel(m);
-  // the gateway's pacing: a fixed schedule, resynchronised when 100 ms behind
+  // the gateway's pacing: a fixed schedule, resynchronised when k_max_lag behind
   const auto period = seconds(timestep);
   std::vector<Clock::time_point> stamps;
   std::uint64_t periods = 0, overruns = 0;
@@ -110,7 +111,7 @@ json run_sleep(const std::string& mjcf, double duration_s) {
     stamps.push_back(now);
     ++periods;
     next += period;
-    if (now - next > std::chrono::milliseconds(100)) {
+    if (now - next > simgate::sim::Simulation::k_max_lag) {
       next = now;
       ++overruns;
     }

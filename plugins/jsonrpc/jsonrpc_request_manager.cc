@@ -25,8 +25,6 @@ constexpr std::string_view k_version = "0.1.0";
 constexpr std::size_t k_read_chunk = 64 * 1024;
 // a burst of replies is written early once this much is queued
 constexpr std::size_t k_coalesce_bytes = 256 * 1024;
-// table nodes kept for reuse (per manager, per connection)
-constexpr std::size_t k_spare_nodes = 256;
 
 // "127.0.0.1:4001" or "[::1]:4001"
 std::string to_string(const tcp::endpoint& ep) {
@@ -129,19 +127,8 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
   // ---- pending calls (ids scoped to this connection) ----
   std::size_t in_flight() const { return in_flight_; }
   void add_in_flight() { ++in_flight_; }
-  bool has_id(const std::string& key) const { return calls_.count(key) != 0; }
-  void track(const std::string& key, RequestId id) {
-    if (spare_calls_.empty()) {
-      calls_.emplace(key, id);
-      return;
-    }
-    // a node of an earlier call: no allocation
-    auto node = std::move(spare_calls_.back());
-    spare_calls_.pop_back();
-    node.key() = key;
-    node.mapped() = id;
-    calls_.insert(std::move(node));
-  }
+  bool has_id(const std::string& key) const { return calls_.find(key) != calls_.end(); }
+  void track(const std::string& key, RequestId id) { calls_.try_emplace(key, id); }
   std::optional<RequestId> find(const std::string& key) const {
     auto it = calls_.find(key);
     if (it == calls_.end()) return std::nullopt;
@@ -149,10 +136,7 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
   }
   // A pending call (or cancel) produced its reply.
   void done(const std::string& key) {
-    if (!key.empty()) {
-      auto node = calls_.extract(key);
-      if (!node.empty() && spare_calls_.size() < k_spare_nodes) spare_calls_.push_back(std::move(node));
-    }
+    if (!key.empty()) calls_.erase_key(key);
     if (in_flight_ > 0) --in_flight_;
     maybe_finish();
   }
@@ -340,8 +324,8 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
   std::string writing_;                            // the bytes of the write in flight
   bool write_active_ = false;                      // a write is in flight
   bool dirty_ = false;                             // listed in the manager's dirty_
-  std::unordered_map<std::string, RequestId> calls_;  // dumped JSON-RPC id -> pending request
-  std::vector<decltype(calls_)::node_type> spare_calls_;  // nodes of finished calls, reused by track()
+  // dumped JSON-RPC id -> pending request (nodes of finished calls reused by track())
+  RecyclingMap<std::string, RequestId, TransparentStringHash> calls_{k_spare_nodes};
   std::size_t in_flight_ = 0;                      // pending calls, notifications and cancels
 };
 
@@ -627,7 +611,7 @@ void JsonRpcRequestManager::dispatch(const std::shared_ptr<Session>& session, Re
   if (!key.empty()) session->track(key, id);
   session->add_in_flight();
   to_submit_.emplace_back(id, Call{std::move(component), std::move(service), std::move(request.params)});
-  Pending& pending = new_pending(id);
+  Pending& pending = pending_.try_emplace(id).first->second;  // a recycled node when there is one
   pending.to = std::move(to);
   pending.method.assign(method);
   pending.id_key.assign(key);
@@ -658,7 +642,7 @@ void JsonRpcRequestManager::handle_cancel(const std::shared_ptr<Session>& sessio
   // its place among the replies (before the cancelled call's -32002)
   const RequestId cancel_id = new_request_id();
   session->add_in_flight();
-  Pending& pending = new_pending(cancel_id);
+  Pending& pending = pending_.try_emplace(cancel_id).first->second;
   pending.to = std::move(to);
   pending.method.assign(method);
   pending.id_key.clear();
@@ -715,29 +699,16 @@ void JsonRpcRequestManager::queue_gathered_completions() {
   for (auto& [id, outcome] : completions) finish_call(id, std::move(outcome));
 }
 
-JsonRpcRequestManager::Pending& JsonRpcRequestManager::new_pending(RequestId id) {
-  // a node of an earlier call when there is one: no allocation, strings keep their capacity
-  if (spare_pending_.empty()) return pending_[id];
-  auto node = std::move(spare_pending_.back());
-  spare_pending_.pop_back();
-  node.key() = id;
-  return pending_.insert(std::move(node)).position->second;
-}
-
 void JsonRpcRequestManager::finish_call(RequestId id, Outcome outcome) {
   auto it = pending_.find(id);
   if (it == pending_.end()) return;
-  // taken out of the table; its node is kept for a later call
-  struct Recycle {
-    JsonRpcRequestManager& m;
+  // taken out of the table while it is answered; its node is given back for a later call
+  struct GiveBack {
+    decltype(pending_)& table;
     decltype(pending_)::node_type node;
-    ~Recycle() {
-      Pending& p = node.mapped();
-      p.to = ReplyTo{};
-      if (m.spare_pending_.size() < k_spare_nodes) m.spare_pending_.push_back(std::move(node));
-    }
-  } recycle{*this, pending_.extract(it)};
-  Pending& pending = recycle.node.mapped();
+    ~GiveBack() { table.recycle(std::move(node)); }
+  } entry{pending_, pending_.extract(it)};
+  Pending& pending = entry.node.mapped();
   auto session = pending.to.session.lock();
   // nobody to answer: skip serialising (results can be large)
   if (!session || session->closed()) return;

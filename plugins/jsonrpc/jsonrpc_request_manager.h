@@ -37,7 +37,6 @@
 #include <optional>
 #include <string>
 #include <thread>
-#include <unordered_map>
 #include <unordered_set>
 #include <vector>
 
@@ -47,6 +46,7 @@
 #include <boost/asio/steady_timer.hpp>
 
 #include "protocol.h"
+#include "simgate/core/recycling_map.h"
 #include "simgate/core/request_manager.h"
 
 namespace simgate::jsonrpc {
@@ -105,6 +105,8 @@ class JsonRpcRequestManager : public RequestManager {
     std::string method;  // "component.service", for error data
     std::string id_key;  // the session's key for the id, dump(id) ("" when untracked)
     bool cancel = false;  // an rpc.cancel waiting for the core's answer (outcome value: found)
+    // when its table node is kept for reuse: drop the references, keep the strings' capacity
+    void recycle() { to = ReplyTo{}; }
   };
 
   // I/O thread.
@@ -126,8 +128,6 @@ class JsonRpcRequestManager : public RequestManager {
   void drain_completions();
   // I/O thread: finishes the outcomes gathered in completions_, in the order produced.
   void queue_gathered_completions();
-  // The entry for a new pending call (a recycled node when there is one); fields to fill.
-  Pending& new_pending(RequestId id);
   void finish_call(RequestId id, Outcome outcome);
   void flush_writes();
   void reply(ReplyTo& to, std::optional<json> response);
@@ -146,8 +146,8 @@ class JsonRpcRequestManager : public RequestManager {
   bool stopped_ = false;                             // stop() ran
   bool stopping_ = false;                            // shutdown_io() ran (I/O thread)
   std::unordered_set<std::shared_ptr<Session>> sessions_;  // open connections (I/O thread)
-  std::unordered_map<RequestId, Pending> pending_;   // submitted calls (I/O thread)
-  std::vector<decltype(pending_)::node_type> spare_pending_;  // nodes of finished calls, reused (I/O thread)
+  static constexpr std::size_t k_spare_nodes = 256;  // table nodes kept for reuse (per manager, per connection)
+  RecyclingMap<RequestId, Pending> pending_{k_spare_nodes};  // submitted calls (I/O thread)
   Request request_;                                  // the message being read by the fast path (I/O thread)
   std::vector<std::pair<RequestId, Call>> to_submit_;  // calls parsed, handed over together (I/O thread)
   bool deferring_writes_ = false;                    // replies wait for flush_writes() (I/O thread)

@@ -49,17 +49,6 @@ std::string dump(const json& value) {
   return value.dump(-1, ' ', false, json::error_handler_t::replace);
 }
 
-std::string result_line(const json& id, const json& result) {
-  std::string line;
-  line.reserve(48);
-  line += R"({"jsonrpc":"2.0","id":)";
-  line += dump(id);
-  line += R"(,"result":)";
-  line += dump(result);
-  line += '}';
-  return line;
-}
-
 namespace {
 
 // Appends dump(value) to `out`, without the serializer for the common scalars.

@@ -48,8 +48,6 @@ int code_for(const Outcome& outcome) noexcept;
 // Serialises without throwing: invalid UTF-8 in strings is replaced by U+FFFD.
 std::string dump(const json& value);
 
-// {"jsonrpc":"2.0","id":<id>,"result":<result>} (no newline).
-std::string result_line(const json& id, const json& result);
 // {"jsonrpc":"2.0","id":<id>,"error":{"code","message","data"?}} as a JSON value.
 json error_response(const json& id, int error_code, std::string message, json data = nullptr);
 // The response (result or error) for a finished call.
@@ -81,7 +79,7 @@ std::optional<json> parse_request(json& message, Request& out);
 bool parse_request_fast(std::string_view line, std::size_t max_depth, Request& out);
 
 // Appends {"jsonrpc":"2.0","id":<id_text>,"result":<result>} (no newline) to `out`;
-// `id_text` is the id as dump() writes it. Same bytes as result_line.
+// `id_text` is the id as dump() writes it.
 void append_result_line(std::string& out, std::string_view id_text, const json& result);
 
 // Splits "robot.arm.move" into {"robot.arm", "move"} at the last dot. False when there is

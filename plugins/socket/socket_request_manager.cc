@@ -290,11 +290,7 @@ void SocketRequestManager::on_service_completion(RequestId id, Outcome outcome) 
     // the I/O thread itself runs process() (run_or_submit): straight to the connection,
     // after the replies the simulation thread produced before (same order as produced)
     queue_gathered_replies();
-    try {
-      deliver(id, outcome);
-    } catch (const std::exception& e) {
-      log::error(name(), ": cannot deliver the outcome of request ", id, ": ", e.what());
-    }
+    deliver(id, outcome);
     return;
   }
   Reply r;
@@ -337,15 +333,17 @@ void SocketRequestManager::queue_gathered_replies() {
 }
 
 void SocketRequestManager::queue_reply(Reply& r) {
+  if (r.line.empty()) {
+    deliver(r.id, r.outcome);
+    return;
+  }
   try {
-    if (r.line.empty()) {
-      deliver(r.id, r.outcome);
-    } else if (auto s = r.session.lock(); s && !s->closed()) {
+    if (auto s = r.session.lock(); s && !s->closed()) {
       touch(*s);
       s->queue_deferred_reply(r.line);
     }
   } catch (const std::exception& e) {
-    log::error(name(), ": cannot deliver the outcome of request ", r.id, ": ", e.what());
+    log::error(name(), ": cannot queue an error reply: ", e.what());
   }
 }
 
@@ -359,7 +357,7 @@ void SocketRequestManager::flush_touched() {
   touched_.clear();
 }
 
-void SocketRequestManager::deliver(RequestId id, Outcome& outcome) {
+void SocketRequestManager::deliver(RequestId id, Outcome& outcome) try {
   auto it = requests_.find(id);
   if (it == requests_.end()) return;  // its client is gone
   Session& session = *it->second.session;
@@ -381,6 +379,8 @@ void SocketRequestManager::deliver(RequestId id, Outcome& outcome) {
   }
   reply(session, client_id, status, value, /*write_now=*/false);
   session.remove_pending(client_id);
+} catch (const std::exception& e) {
+  log::error(name(), ": cannot deliver the outcome of request ", id, ": ", e.what());
 }
 
 }  // namespace simgate::socket

@@ -101,7 +101,8 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   void flush_touched();
 
   void accept_next();
-  // Queues the reply to `id` on its connection (nothing if the connection is gone).
+  // Queues the reply to `id` on its connection (nothing if the connection is gone). Never
+  // throws: a failure is logged.
   void deliver(RequestId id, Outcome& outcome);
   void reply(Session& session, std::string_view id, std::string_view status, const json* value,
              bool write_now = true);

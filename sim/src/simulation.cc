@@ -11,8 +11,6 @@ namespace simgate::sim {
 
 namespace {
 using Clock = std::chrono::steady_clock;
-// Behind real time by more than this, the loop stops trying to catch up.
-constexpr std::chrono::milliseconds k_max_lag{100};
 }  // namespace
 
 Simulation::Simulation(Model model, SimulationOptions options)

@@ -58,6 +58,34 @@ TEST(RecyclingMapTest, TheFreeListIsBounded) {
   for (int i = 0; i < 100; ++i) EXPECT_EQ(map.find(i)->second, -i);
 }
 
+struct KeepsCapacity {
+  std::shared_ptr<int> ref;
+  std::string text;
+  void recycle() { ref.reset(); }
+};
+
+TEST(RecyclingMapTest, AValueWithRecycleKeepsWhatItChoosesAndExtractedNodesComeBack) {
+  RecyclingMap<int, KeepsCapacity> map;
+  auto held = std::make_shared<int>(1);
+  auto& first = map.try_emplace(1).first->second;
+  first.ref = held;
+  first.text.assign(100, 'x');
+  const char* buffer = first.text.data();
+
+  // taken out while in use, then given back: recycle() dropped the reference only
+  auto node = map.extract(map.find(1));
+  EXPECT_TRUE(map.empty());
+  EXPECT_EQ(node.mapped().ref, held);
+  map.recycle(std::move(node));
+  EXPECT_EQ(held.use_count(), 1);
+
+  // without value arguments the kept value comes back as recycle() left it, to be filled
+  auto& again = map.try_emplace(2).first->second;
+  EXPECT_EQ(again.ref, nullptr);
+  again.text.assign(50, 'y');
+  EXPECT_EQ(again.text.data(), buffer);
+}
+
 int sum9(int a, int b, int c, int d, int e, int f, int g, int h, int i) { return a + b + c + d + e + f + g + h + i; }
 
 TEST(BoundArgumentsTest, MoreParametersThanTheInlineBufferStillBind) {

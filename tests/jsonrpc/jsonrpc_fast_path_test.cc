@@ -17,6 +17,11 @@ namespace {
 
 constexpr std::size_t k_max_depth = 8;
 
+// The reply line as the full path would write it: dump() of each part, around the envelope.
+std::string result_line(const json& id, const json& result) {
+  return R"({"jsonrpc":"2.0","id":)" + dump(id) + R"(,"result":)" + dump(result) + "}";
+}
+
 // Same value and, recursively, the same JSON types (json's == equates 1u, 1 and 1.0).
 bool identical(const json& a, const json& b) {
   if (a.type() != b.type()) return false;

@@ -4,11 +4,23 @@
 // std::unordered_map each of them is a malloc and a free; RecyclingMap extracts erased
 // nodes (C++17 node handles) into a bounded free list and reuses them for the next
 // inserts, so a warm table allocates nothing. A node keeps its key's and value's capacity
-// (a std::string key reuses its buffer); the value is reset when its entry is erased.
+// (a std::string key reuses its buffer).
 //
 //   RecyclingMap<RequestId, Pending> requests;
 //   requests.emplace(id, Pending{...});
 //   auto it = requests.find(id);  ...  requests.erase(it);
+//
+// An erased value is reset to T{}, so a kept node holds no reference to anything. A T with
+// a member `void recycle()` is reset by it instead, to keep what is worth keeping (a
+// string's capacity) while dropping references; try_emplace(key) without value arguments
+// then hands that value back for the caller to fill:
+//
+//   struct Pending { std::weak_ptr<Session> to; std::string method; void recycle() { to.reset(); } };
+//   Pending& p = table.try_emplace(id).first->second;  p.to = ...;  p.method.assign(...);
+//
+// An entry that must outlive changes to the table while it is used (a reply may close its
+// connection, which erases entries) is taken out with extract() and given back with
+// recycle().
 //
 // Not thread-safe (like the map it wraps). Heterogeneous lookup works when Hash and Eq
 // are transparent (see TransparentStringHash).
@@ -45,14 +57,17 @@ class RecyclingMap {
   // At most `max_free` erased nodes are kept (the memory a burst leaves behind is bounded).
   explicit RecyclingMap(std::size_t max_free = 1024) : max_free_(max_free) {}
 
-  // Inserts key -> T(args...) unless the key is present (like try_emplace).
+  using node_type = typename Map::node_type;
+
+  // Inserts key -> T(args...) unless the key is present (like try_emplace). Without value
+  // arguments a kept node's value is left as its reset made it.
   template <class K, class... Args>
   std::pair<iterator, bool> try_emplace(K&& key, Args&&... args) {
     if (free_.empty()) return map_.try_emplace(Key(std::forward<K>(key)), std::forward<Args>(args)...);
     auto node = std::move(free_.back());
     free_.pop_back();
     node.key() = std::forward<K>(key);
-    node.mapped() = T(std::forward<Args>(args)...);
+    if constexpr (sizeof...(Args) > 0) node.mapped() = T(std::forward<Args>(args)...);
     auto result = map_.insert(std::move(node));
     if (!result.inserted) keep(std::move(result.node));
     return {result.position, result.inserted};
@@ -76,6 +91,9 @@ class RecyclingMap {
     erase(it);
     return true;
   }
+  // Takes an entry out of the table; give its node back with recycle() when done with it.
+  node_type extract(iterator it) { return map_.extract(it); }
+  void recycle(node_type node) { keep(std::move(node)); }
   void clear() { map_.clear(); }
 
   iterator begin() { return map_.begin(); }
@@ -86,16 +104,18 @@ class RecyclingMap {
   bool empty() const { return map_.empty(); }
 
  private:
-  // the value is reset (a kept node holds no reference to anything); the key keeps its
-  // capacity
-  void keep(typename Map::node_type node) {
-    if (free_.size() >= max_free_) return;
-    node.mapped() = T{};
+  // the value is reset (see the top of this file); the key keeps its capacity
+  void keep(node_type node) {
+    if (node.empty() || free_.size() >= max_free_) return;
+    if constexpr (requires(T& value) { value.recycle(); })
+      node.mapped().recycle();
+    else
+      node.mapped() = T{};
     free_.push_back(std::move(node));
   }
 
   Map map_;                                     // the live entries
-  std::vector<typename Map::node_type> free_;   // erased nodes, reused by the next inserts
+  std::vector<node_type> free_;                 // erased nodes, reused by the next inserts
   std::size_t max_free_;                        // bound on free_
 };
 

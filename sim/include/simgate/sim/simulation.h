@@ -80,6 +80,10 @@ class Simulation {
   mjModel* m() const { return model_.model(); }
   mjData* d() const { return model_.data(); }
 
+  // Behind real time by more than this, the paced loop stops catching up: it resumes from
+  // now and counts an overrun.
+  static constexpr std::chrono::milliseconds k_max_lag{100};
+
   double timestep() const { return m()->opt.timestep; }
   double realtime_factor() const { return realtime_factor_; }
   // 0 = as fast as possible. Simulation thread (or before run()).
