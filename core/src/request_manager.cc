@@ -226,10 +226,7 @@ bool RequestManager::run_or_submit(std::span<std::pair<RequestId, Call>> calls) 
   // signal: waking the simulation thread for work done here would only make it compete
   // for the CPU)
   process_locked();
-  for (auto& [id, call] : calls) {
-    if (auto outcome = on_incoming_request(id, call)) deliver(id, std::move(*outcome));
-    detail::release_params(call.params);
-  }
+  for (auto& [id, call] : calls) execute_and_deliver(id, call);
   // completions these produced at once (preemption of a running request, an async service
   // that finished in its start method); the calls stay where they are, for the caller to
   // reuse
@@ -282,8 +279,7 @@ std::size_t RequestManager::process_locked() {
 
   for (auto& event : events) {
     if (auto* r = std::get_if<detail::Inbox::Request>(&event)) {
-      if (auto outcome = on_incoming_request(r->id, r->call)) deliver(r->id, std::move(*outcome));
-      detail::release_params(r->call.params);
+      execute_and_deliver(r->id, r->call);
     } else if (auto* c = std::get_if<detail::Inbox::Cancel>(&event)) {
       execute_cancel(c->id, c->done);
     } else if (auto* t = std::get_if<detail::Inbox::Task>(&event)) {
@@ -353,33 +349,56 @@ std::shared_ptr<Service> RequestManager::find_service(const Call& call) {
 }
 
 std::optional<Outcome> RequestManager::on_incoming_request(RequestId id, const Call& call) {
+  Outcome outcome;
+  if (execute(id, call, outcome)) return outcome;
+  return std::nullopt;
+}
+
+void RequestManager::execute_and_deliver(RequestId id, Call& call) {
+  // one Outcome object for every request: its string and JSON members are reset, not
+  // rebuilt, and the transport reads (or moves) it in place
+  if (execute(id, call, outcome_)) deliver(id, std::move(outcome_));
+  detail::release_params(call.params);
+}
+
+bool RequestManager::execute(RequestId id, const Call& call, Outcome& out) {
   std::shared_ptr<Service> service = find_service(call);
-  if (!service) return unknown_service(call);
+  if (!service) {
+    out = unknown_service(call);
+    return true;
+  }
   const ServiceDescriptor& d = service->descriptor();
 
   try {
     BoundArguments args = bind_arguments(d, call.params);
-    if (d.is_async) return start_async(id, *service, args.span());
-    return Outcome::success(service->invoke(args.span(), Completion()));
+    if (d.is_async) {
+      start_async(id, *service, args.span());
+      return false;
+    }
+    out.status = Status::success;
+    out.failure = Failure::none;
+    out.message.clear();
+    out.data = nullptr;
+    out.value = service->invoke(args.span(), Completion());
+    if (out.value && out.value->is_null()) out.value.reset();  // as Outcome::success
+    return true;
   } catch (const ServiceError& e) {
     json data = e.data();
     data["component"] = d.component;
     data["service"] = d.name;
-    return Outcome::failed(e.failure(), e.what(), std::move(data));
+    out = Outcome::failed(e.failure(), e.what(), std::move(data));
   } catch (const std::exception& e) {
     log::warning(name_, ": ", d.qualified_name(), " threw: ", e.what());
-    return Outcome::failed(Failure::internal,
-                           "Internal error in service " + d.qualified_name() + ": " + e.what(),
-                           json{{"component", d.component}, {"service", d.name}});
+    out = Outcome::failed(Failure::internal, "Internal error in service " + d.qualified_name() + ": " + e.what(),
+                          json{{"component", d.component}, {"service", d.name}});
   } catch (...) {
-    return Outcome::failed(Failure::internal,
-                           "Internal error in service " + d.qualified_name() + ": unknown exception",
-                           json{{"component", d.component}, {"service", d.name}});
+    out = Outcome::failed(Failure::internal, "Internal error in service " + d.qualified_name() + ": unknown exception",
+                          json{{"component", d.component}, {"service", d.name}});
   }
+  return true;
 }
 
-std::optional<Outcome> RequestManager::start_async(RequestId id, const Service& service,
-                                                   std::span<const json* const> args) {
+void RequestManager::start_async(RequestId id, const Service& service, std::span<const json* const> args) {
   const ServiceDescriptor& d = service.descriptor();
   AsyncSlot& slot = *service.slot();
 
@@ -416,11 +435,10 @@ std::optional<Outcome> RequestManager::start_async(RequestId id, const Service& 
     if (state->finished.exchange(true)) {
       // it completed and then threw: the completion stands
       log::warning(name_, ": ", d.qualified_name(), " threw after completing; exception ignored");
-      return std::nullopt;
+      return;
     }
-    throw;  // reported by on_incoming_request
+    throw;  // reported by execute()
   }
-  return std::nullopt;
 }
 
 void RequestManager::interrupt_running(AsyncSlot& slot, Failure reason, std::string message) {
@@ -456,7 +474,7 @@ void RequestManager::execute_cancel(RequestId id, const std::function<void(bool)
 }
 
 void RequestManager::deliver(RequestId id, Outcome&& outcome) {
-  running_.erase(id);
+  if (!running_.empty()) running_.erase(id);  // sync requests never were there
   try {
     on_service_completion(id, std::move(outcome));
   } catch (const std::exception& e) {

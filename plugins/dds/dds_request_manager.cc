@@ -141,7 +141,7 @@ void DdsRequestManager::stop() {
   participant_.reset();
 }
 
-void DdsRequestManager::on_service_completion(RequestId id, Outcome outcome) {
+void DdsRequestManager::on_service_completion(RequestId id, Outcome&& outcome) {
   Outbound out;
   out.id = id;
   out.outcome = std::move(outcome);

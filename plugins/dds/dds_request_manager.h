@@ -84,7 +84,7 @@ class DdsRequestManager : public RequestManager {
   // Under the simulation lock: on the DDS thread (inside run_or_submit) queues the outcome
   // for the write that follows at once; on any other thread queues it and wakes the DDS
   // thread. Never blocks on DDS.
-  void on_service_completion(RequestId id, Outcome outcome) override;
+  void on_service_completion(RequestId id, Outcome&& outcome) override;
 
  private:
   // A reply not yet written (parked, or queued from the simulation thread).

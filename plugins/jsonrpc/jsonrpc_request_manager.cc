@@ -650,7 +650,7 @@ void JsonRpcRequestManager::handle_cancel(const std::shared_ptr<Session>& sessio
   cancel(*id, [this, cancel_id](bool found) { complete(cancel_id, Outcome::success(json(found))); });
 }
 
-void JsonRpcRequestManager::on_service_completion(RequestId id, Outcome outcome) {
+void JsonRpcRequestManager::on_service_completion(RequestId id, Outcome&& outcome) {
   complete(id, std::move(outcome));
 }
 

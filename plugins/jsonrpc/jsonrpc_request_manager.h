@@ -85,7 +85,7 @@ class JsonRpcRequestManager : public RequestManager {
  protected:
   // Under the simulation lock. On the I/O thread (run_or_submit): queues the reply at
   // once. On the simulation thread: hands the outcome to the I/O thread; never blocks.
-  void on_service_completion(RequestId id, Outcome outcome) override;
+  void on_service_completion(RequestId id, Outcome&& outcome) override;
 
  private:
   class Session;

@@ -164,12 +164,17 @@ std::optional<RequestId> Session::find_pending(std::string_view client_id) const
   return it->second;
 }
 
-void Session::add_pending(std::string_view client_id, RequestId id) {
-  pending_.try_emplace(client_id, id);
+const std::string* Session::add_pending(std::string_view client_id, RequestId id) {
+  auto [it, inserted] = pending_.try_emplace(client_id, id);
+  return inserted ? &it->first : nullptr;
 }
 
-void Session::remove_pending(std::string_view client_id) {
+void Session::drop_pending(const std::string& client_id) { pending_.erase_key(client_id); }
+
+void Session::answer(const std::string& client_id, std::string_view reply) {
+  // forgotten first (the id is not used after this), then queued: queueing may close
   pending_.erase_key(client_id);
+  queue(reply);
   if (closed_) return;
   read_more();
   maybe_finish();

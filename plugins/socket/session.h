@@ -78,9 +78,16 @@ class Session : public std::enable_shared_from_this<Session> {
 
   // Pending requests of this connection, by the client's id.
   std::optional<RequestId> find_pending(std::string_view client_id) const;
-  void add_pending(std::string_view client_id, RequestId id);
-  // Forgets an answered request; resumes reading if it was paused.
-  void remove_pending(std::string_view client_id);
+  // Registers request `id` under the client's id: returns the id as stored (it lives until
+  // answer() or drop_pending() of that id, or the close of the session), or null when that
+  // id is already pending here.
+  const std::string* add_pending(std::string_view client_id, RequestId id);
+  // Forgets a request that will get no answer of its own (its line was refused).
+  void drop_pending(const std::string& client_id);
+  // Queues `reply`, the answer to the pending request `client_id` (as add_pending stored
+  // it), and forgets the request; resumes reading if it was paused. The write starts at
+  // the next flush_writes().
+  void answer(const std::string& client_id, std::string_view reply);
   using PendingTable = RecyclingMap<std::string, RequestId, TransparentStringHash>;
   const PendingTable& pending() const { return pending_; }
   // A reply the host made itself (an error) but that must follow the replies of earlier

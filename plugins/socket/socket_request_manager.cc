@@ -162,16 +162,6 @@ void SocketRequestManager::accept_next() {
 
 // ---- requests (I/O thread)
 
-void SocketRequestManager::reply(Session& session, std::string_view id, std::string_view status,
-                                 const json* value, bool write_now) {
-  scratch_.clear();
-  append_reply(scratch_, id, status, value);
-  if (write_now)
-    session.send(scratch_);
-  else
-    session.queue(scratch_);
-}
-
 void SocketRequestManager::run_batch() {
   if (batch_count_ == 0) return;
   // outcomes produced here, on the I/O thread, are queued on their connections
@@ -190,15 +180,15 @@ void SocketRequestManager::fail_in_order(const std::shared_ptr<Session>& session
   json text = std::move(message);
   // earlier requests of this read may run at once, answering them
   if (session->has_unanswered()) run_batch();
+  scratch_.clear();
+  append_reply(scratch_, id, k_failed, &text);
   if (!session->has_unanswered()) {
-    reply(*session, id, k_failed, &text);
+    session->send(scratch_);
     return;
   }
   // earlier requests are still with the core: queue this answer behind them, so that a
   // client reading replies in order (telnet, scripts) sees them in order. Whoever runs
   // process() puts it on the reply list after their outcomes.
-  scratch_.clear();
-  append_reply(scratch_, id, k_failed, &text);
   session->defer_reply();
   post([this, weak = std::weak_ptr<Session>(session), line = scratch_]() mutable {
     Reply r;
@@ -234,29 +224,32 @@ void SocketRequestManager::on_line(const std::shared_ptr<Session>& session, std:
   }
 
   // one pending request per id and connection, or replies could not be told apart
-  if (session->find_pending(request.id)) {
+  const RequestId id = new_request_id();
+  const std::string* client_id = session->add_pending(request.id, id);
+  if (!client_id) {
     fail_in_order(session, request.id,
                   "Request id '" + std::string(request.id) +
                       "' is already pending on this connection: wait for its reply or use another id");
     return;
   }
 
-  // the next call of this read, in an object an earlier read left (its parameter array is
-  // refilled: no allocation)
+  // the next call of this read, in an object an earlier read left (its strings and
+  // parameter array are refilled: no allocation)
   if (batch_count_ == batch_.size()) batch_.emplace_back();
-  auto& [id, call] = batch_[batch_count_];
+  auto& [call_id, call] = batch_[batch_count_];
   if (!parse_params_into(request.params, request.params_column, call.params, params_error_)) {
+    session->drop_pending(*client_id);
     fail_in_order(session, request.id,
                   "Invalid request syntax: error while parsing the parameters at column " +
                       std::to_string(params_error_.column) + ": " + params_error_.error);
     return;
   }
 
-  id = new_request_id();
-  session->add_pending(request.id, id);
-  requests_.try_emplace(id, session.get(), std::string(request.id));
-  call.component.assign(request.component);
-  call.service.assign(request.service);
+  call_id = id;
+  requests_.try_emplace(id, session.get(), client_id);
+  // a pipelining client names the same service line after line
+  if (call.component != request.component) call.component.assign(request.component);
+  if (call.service != request.service) call.service.assign(request.service);
   // handed to the core with the rest of this read (on_lines_done)
   ++batch_count_;
 }
@@ -285,7 +278,7 @@ void SocketRequestManager::on_session_closed(const std::shared_ptr<Session>& ses
 
 // ---- outcomes
 
-void SocketRequestManager::on_service_completion(RequestId id, Outcome outcome) {
+void SocketRequestManager::on_service_completion(RequestId id, Outcome&& outcome) {
   if (io_.get_executor().running_in_this_thread()) {
     // the I/O thread itself runs process() (run_or_submit): straight to the connection,
     // after the replies the simulation thread produced before (same order as produced)
@@ -357,13 +350,12 @@ void SocketRequestManager::flush_touched() {
   touched_.clear();
 }
 
-void SocketRequestManager::deliver(RequestId id, Outcome& outcome) try {
+void SocketRequestManager::deliver(RequestId id, const Outcome& outcome) try {
   auto it = requests_.find(id);
   if (it == requests_.end()) return;  // its client is gone
-  Session& session = *it->second.session;
-  std::string client_id = std::move(it->second.client_id);
-  // erased first: queueing the reply may close the connection, which erases its entries
+  const Pending pending = it->second;
   requests_.erase(it);
+  Session& session = *pending.session;
   // held in touched_ until its write starts
   touch(session);
 
@@ -377,8 +369,9 @@ void SocketRequestManager::deliver(RequestId id, Outcome& outcome) try {
     message = outcome.message;
     value = &message;
   }
-  reply(session, client_id, status, value, /*write_now=*/false);
-  session.remove_pending(client_id);
+  scratch_.clear();
+  append_reply(scratch_, *pending.client_id, status, value);
+  session.answer(*pending.client_id, scratch_);
 } catch (const std::exception& e) {
   log::error(name(), ": cannot deliver the outcome of request ", id, ": ", e.what());
 }

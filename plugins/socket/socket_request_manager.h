@@ -65,7 +65,7 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   std::uint16_t port() const { return port_; }
 
  protected:
-  void on_service_completion(RequestId id, Outcome outcome) override;
+  void on_service_completion(RequestId id, Outcome&& outcome) override;
 
  private:
   // SessionHost (I/O thread)
@@ -103,19 +103,17 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   void accept_next();
   // Queues the reply to `id` on its connection (nothing if the connection is gone). Never
   // throws: a failure is logged.
-  void deliver(RequestId id, Outcome& outcome);
-  void reply(Session& session, std::string_view id, std::string_view status, const json* value,
-             bool write_now = true);
+  void deliver(RequestId id, const Outcome& outcome);
   // Answers FAILED `message` after the connection's earlier requests have been answered.
   void fail_in_order(const std::shared_ptr<Session>& session, std::string_view id, std::string message);
   void close_all();
 
-  // A request sent to the core and not yet answered.
-  // Entries of a connection are erased when it closes (on_session_closed), so `session`
-  // is alive while its entry is.
+  // A request sent to the core and not yet answered. Entries of a connection are erased
+  // when it closes (on_session_closed), and a connection's pending table holds its entries'
+  // ids until they are answered, so both pointers are valid while the entry exists.
   struct Pending {
-    Session* session = nullptr;  // the connection that asked
-    std::string client_id;       // the client's id, echoed in the reply
+    Session* session = nullptr;              // the connection that asked
+    const std::string* client_id = nullptr;  // the client's id, in the session's pending table
   };
 
   boost::asio::io_context io_;  // runs every handler, on thread_

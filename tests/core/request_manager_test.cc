@@ -426,6 +426,58 @@ TEST_F(RequestManagerTest, RunOrSubmitOnASpanLeavesRunCallsInPlaceAndMovesQueued
   EXPECT_EQ(rm.outcome(calls[0].first)->value, json(6));
 }
 
+// A transport that only reads the outcome it is given (as the socket transport does): the
+// core reuses one Outcome object, so nothing of a request may show in the next one.
+class ReadingManager : public RequestManager {
+ public:
+  ReadingManager() : RequestManager("Reading service manager") {}
+  std::vector<std::pair<RequestId, Outcome>> seen;  // copies, in delivery order
+
+ protected:
+  void on_service_completion(RequestId id, Outcome&& outcome) override { seen.emplace_back(id, outcome); }
+};
+
+TEST(RequestManagerOutcomeTest, NothingOfAnOutcomeShowsInTheNextOneOfTheSameRun) {
+  ReadingManager rm;
+  rm.register_service("c", [](int a) { return a; }, "echo", {"a"});
+  rm.register_service("c", [] {}, "nothing");
+  rm.register_service("c", [](const std::string& m) -> int { throw ServiceError(m); }, "fail", {"message"});
+  std::vector<std::pair<RequestId, Call>> calls;
+  auto add = [&](std::string service, json params) {
+    calls.emplace_back(rm.new_request_id(), Call{"c", std::move(service), std::move(params)});
+  };
+  add("fail", json{"no"});  // FAILED, with a message and data
+  add("echo", json{7});     // then a success: no failure, no message, no data
+  add("fly", nullptr);      // unknown service
+  add("nothing", nullptr);  // a success without a value
+  add("echo", json{"x"});   // bad arguments
+  add("echo", json{0});     // a falsy value is still a value
+  ASSERT_TRUE(rm.run_or_submit(std::span(calls)));
+  ASSERT_EQ(rm.seen.size(), calls.size());
+  for (std::size_t i = 0; i < calls.size(); ++i) EXPECT_EQ(rm.seen[i].first, calls[i].first);
+
+  const Outcome& failed = rm.seen[0].second;
+  EXPECT_EQ(failed.status, Status::failed);
+  EXPECT_EQ(failed.failure, Failure::service_error);
+  EXPECT_EQ(failed.message, "no");
+  EXPECT_EQ(failed.data.value("service", ""), "fail");
+
+  for (std::size_t i : {1u, 3u, 5u}) {
+    const Outcome& ok = rm.seen[i].second;
+    SCOPED_TRACE(i);
+    EXPECT_EQ(ok.status, Status::success);
+    EXPECT_EQ(ok.failure, Failure::none);
+    EXPECT_EQ(ok.message, "");
+    EXPECT_TRUE(ok.data.is_null());
+  }
+  EXPECT_EQ(rm.seen[1].second.value, json(7));
+  EXPECT_FALSE(rm.seen[3].second.value.has_value());
+  EXPECT_EQ(rm.seen[5].second.value, json(0));
+  EXPECT_EQ(rm.seen[2].second.failure, Failure::unknown_service);
+  EXPECT_EQ(rm.seen[4].second.failure, Failure::bad_arguments);
+  EXPECT_THAT(rm.seen[4].second.message, HasSubstr("parameter 'a'"));
+}
+
 TEST_F(RequestManagerTest, AServiceRegisteredAgainReplacesTheOneCalledBefore) {
   // the manager remembers the previous lookup; a registration must end that
   rm.register_service("c", [] { return 1; }, "version");

@@ -45,7 +45,7 @@ class TestManager : public RequestManager {
   }
 
  protected:
-  void on_service_completion(RequestId id, Outcome outcome) override {
+  void on_service_completion(RequestId id, Outcome&& outcome) override {
     std::lock_guard lock(mutex_);
     completions_.emplace_back(id, std::move(outcome));
   }

@@ -46,7 +46,7 @@ class RecordingManager : public RequestManager {
   }
 
  protected:
-  void on_service_completion(RequestId id, Outcome outcome) override {
+  void on_service_completion(RequestId id, Outcome&& outcome) override {
     std::lock_guard lock(mutex_);
     outcomes_[id] = std::move(outcome);
     cv_.notify_all();

@@ -152,6 +152,8 @@ TEST_F(SocketTransport, BadParamsSyntaxSaysWhatAndWhere) {
             "p4 FAILED \"Invalid request syntax: error while parsing the parameters at column 15: "
             "unterminated string\"");
   EXPECT_EQ(roundtrip(*c, "p5 test_component add (1,2)"), "p5 SUCCESS 3");
+  // a refused line leaves nothing pending: its id is free at once
+  EXPECT_EQ(roundtrip(*c, "p1 test_component add (1,2)"), "p1 SUCCESS 3");
 }
 
 TEST_F(SocketTransport, ScalarParamsAreRefusedByTheCore) {

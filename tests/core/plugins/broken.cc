@@ -11,7 +11,7 @@ class Throwing : public simgate::RequestManager {
   explicit Throwing(const simgate::json&) : RequestManager("Throwing") {
     throw std::runtime_error("cannot open /dev/imaginary: no such device");
   }
-  void on_service_completion(simgate::RequestId, simgate::Outcome) override {}
+  void on_service_completion(simgate::RequestId, simgate::Outcome&&) override {}
 };
 
 const char* const no_keys[] = {nullptr};

@@ -33,7 +33,7 @@ class MockPlugin : public MockTransport {
   std::vector<std::string> endpoints() const override { return {"mock://" + greeting_}; }
 
  protected:
-  void on_service_completion(RequestId id, Outcome outcome) override {
+  void on_service_completion(RequestId id, Outcome&& outcome) override {
     std::lock_guard lock(mutex_);
     outcomes_[id] = std::move(outcome);
   }

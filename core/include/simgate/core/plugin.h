@@ -29,7 +29,7 @@
 
 #include "simgate/core/request_manager.h"
 
-#define SIMGATE_PLUGIN_ABI_VERSION 1u
+#define SIMGATE_PLUGIN_ABI_VERSION 2u
 
 #define SIMGATE_STRINGIFY_(x) #x
 #define SIMGATE_STRINGIFY(x) SIMGATE_STRINGIFY_(x)

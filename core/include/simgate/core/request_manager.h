@@ -173,13 +173,19 @@ class RequestManager {
   // Delivers the final outcome of request `id`, exactly once per submitted request.
   // Runs under the simulation lock: on the simulation thread, or on a transport thread
   // inside run_or_submit(). Must not block (post the reply to the I/O thread when on
-  // another thread) and must not throw.
-  virtual void on_service_completion(RequestId id, Outcome outcome) = 0;
+  // another thread) and must not throw. The outcome is the transport's to read or to move
+  // from (the core reuses the object for the next request).
+  virtual void on_service_completion(RequestId id, Outcome&& outcome) = 0;
 
  private:
   struct Table;
-  std::optional<Outcome> start_async(RequestId id, const Service& service,
-                                     std::span<const json* const> args);
+  // Runs one request (on_incoming_request without the copies): true when `out` holds its
+  // outcome (sync services and every error), false when an async service started.
+  bool execute(RequestId id, const Call& call, Outcome& out);
+  // execute(), then delivers the outcome if there is one; `call`'s scalar params released.
+  void execute_and_deliver(RequestId id, Call& call);
+  // Starts an async service; throws what its start method throws.
+  void start_async(RequestId id, const Service& service, std::span<const json* const> args);
   void interrupt_running(AsyncSlot& slot, Failure reason, std::string message);
   void execute_cancel(RequestId id, const std::function<void(bool)>& done);
   void deliver(RequestId id, Outcome&& outcome);
@@ -208,6 +214,7 @@ class RequestManager {
   } last_lookup_;
   // async requests this manager started and has not delivered (under the simulation lock)
   std::unordered_map<RequestId, std::pair<std::shared_ptr<detail::CallState>, std::shared_ptr<AsyncSlot>>> running_;
+  Outcome outcome_;  // the outcome of the request being executed, reused (under the simulation lock)
   GlobalPolicy global_policy_ = GlobalPolicy::reject;  // when the running service has no policy
   bool started_ = false;                   // start() called (by process() if nobody did; under the lock)
 };
