@@ -62,7 +62,7 @@ class Parser {
     if (text_[pos_] == '[' || text_[pos_] == '(')
       parse_sequence(0, text_[pos_] == '[' ? ']' : ')', out);
     else
-      out = parse_value(0);
+      parse_value(0, out);
     skip_blanks();
     if (pos_ != text_.size())
       fail("unexpected " + describe_here() + " after the end of the parameters");
@@ -87,27 +87,28 @@ class Parser {
     while (pos_ < text_.size() && is_blank(text_[pos_])) ++pos_;
   }
 
-  json parse_value(std::size_t depth) {
+  // One value into `out` (built in place: no temporary to move and destroy).
+  void parse_value(std::size_t depth, json& out) {
     skip_blanks();
     if (pos_ >= text_.size()) fail("expected a value but found the end of the parameters");
     char c = text_[pos_];
     switch (c) {
-      case '[': return parse_sequence(depth, ']');
-      case '(': return parse_sequence(depth, ')');
-      case '{': return parse_dict(depth);
+      case '[': return parse_sequence(depth, ']', out);
+      case '(': return parse_sequence(depth, ')', out);
+      case '{': return parse_dict(depth, out);
       case '"':
-      case '\'': return parse_string();
+      case '\'': out = parse_string(); return;
       default: break;
     }
-    if (is_digit(c) || c == '-' || c == '+' || c == '.') return parse_number();
-    if (is_ident(c)) return parse_word();
+    if (is_digit(c) || c == '-' || c == '+' || c == '.') {
+      out = parse_number();
+      return;
+    }
+    if (is_ident(c)) {
+      out = parse_word();
+      return;
+    }
     fail("expected a value but found " + describe_here());
-  }
-
-  json parse_sequence(std::size_t depth, char close) {
-    json out;
-    parse_sequence(depth, close, out);
-    return out;
   }
   // into `out`, reusing its array (emptied) when it holds one
   void parse_sequence(std::size_t depth, char close, json& out) {
@@ -127,7 +128,8 @@ class Parser {
         ++pos_;
         return;
       }
-      out.push_back(parse_value(depth + 1));
+      auto& elements = out.get_ref<json::array_t&>();
+      parse_value(depth + 1, elements.emplace_back());
       skip_blanks();
       if (pos_ < text_.size() && text_[pos_] == ',') {
         ++pos_;
@@ -141,16 +143,16 @@ class Parser {
     }
   }
 
-  json parse_dict(std::size_t depth) {
+  void parse_dict(std::size_t depth, json& out) {
     if (depth + 1 > k_max_depth)
       fail("nesting deeper than " + std::to_string(k_max_depth) + " levels");
     ++pos_;  // '{'
-    json out = json::object();
+    out = json::object();
     for (;;) {
       skip_blanks();
       if (pos_ < text_.size() && text_[pos_] == '}') {
         ++pos_;
-        return out;
+        return;
       }
       // key: a string only (JSON objects have string keys)
       if (pos_ >= text_.size() || (text_[pos_] != '"' && text_[pos_] != '\''))
@@ -160,7 +162,7 @@ class Parser {
       if (pos_ >= text_.size() || text_[pos_] != ':')
         fail("expected ':' after dict key but found " + describe_here());
       ++pos_;
-      out[key] = parse_value(depth + 1);
+      parse_value(depth + 1, out[key]);  // a repeated key: the last value wins
       skip_blanks();
       if (pos_ < text_.size() && text_[pos_] == ',') {
         ++pos_;
@@ -168,7 +170,7 @@ class Parser {
       }
       if (pos_ < text_.size() && text_[pos_] == '}') {
         ++pos_;
-        return out;
+        return;
       }
       fail("expected ',' or '}' in dict but found " + describe_here());
     }

@@ -1,5 +1,6 @@
 #include "wire.h"
 
+#include <array>
 #include <charconv>
 #include <cmath>
 #include <cstdint>
@@ -7,16 +8,25 @@
 namespace simgate::socket {
 namespace {
 
-bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v'; }
+// The bytes that separate tokens: ' ', '\t', '\r', '\f', '\v' (a table: one load per byte).
+constexpr std::array<bool, 256> k_blank = [] {
+  std::array<bool, 256> t{};
+  for (unsigned char c : {' ', '\t', '\r', '\f', '\v'}) t[c] = true;
+  return t;
+}();
 
-// The next token of `line` at or after `pos`: [begin, end) offsets, end == begin at the end.
-std::pair<std::size_t, std::size_t> next_token(std::string_view line, std::size_t pos) {
+bool is_blank(char c) { return k_blank[static_cast<unsigned char>(c)]; }
+
+std::size_t skip_blanks(std::string_view line, std::size_t pos) {
   while (pos < line.size() && is_blank(line[pos])) ++pos;
-  std::size_t end = pos;
-  while (end < line.size() && !is_blank(line[end])) ++end;
-  return {pos, end};
+  return pos;
 }
 
+// The end of the token starting at `pos`; ORs its bytes into `bytes` (bit 7 set: not ASCII).
+std::size_t token_end(std::string_view line, std::size_t pos, unsigned& bytes) {
+  while (pos < line.size() && !is_blank(line[pos])) bytes |= static_cast<unsigned char>(line[pos++]);
+  return pos;
+}
 
 const char k_hex[] = "0123456789abcdef";
 
@@ -136,11 +146,15 @@ bool valid_utf8(std::string_view s, std::size_t& bad_offset) {
 
 RequestLine parse_request_line(std::string_view line) {
   RequestLine r;
-  auto [id_begin, id_end] = next_token(line, 0);
+  unsigned id_bytes = 0;    // (ids are echoed verbatim: never checked)
+  unsigned name_bytes = 0;  // the names' bytes ORed: non-ASCII names need a UTF-8 check
+  const std::size_t id_begin = skip_blanks(line, 0);
+  const std::size_t id_end = token_end(line, id_begin, id_bytes);
   if (id_begin == id_end) return r;  // blank
   r.id = line.substr(id_begin, id_end - id_begin);
 
-  auto [c_begin, c_end] = next_token(line, id_end);
+  const std::size_t c_begin = skip_blanks(line, id_end);
+  const std::size_t c_end = token_end(line, c_begin, name_bytes);
   if (c_begin == c_end) {
     r.kind = RequestLine::Kind::malformed;
     r.error = "Malformed request! expected '<id> <component> <service> [params]' or '<id> cancel', "
@@ -149,7 +163,8 @@ RequestLine parse_request_line(std::string_view line) {
   }
   r.component = line.substr(c_begin, c_end - c_begin);
 
-  auto [s_begin, s_end] = next_token(line, c_end);
+  const std::size_t s_begin = skip_blanks(line, c_end);
+  const std::size_t s_end = token_end(line, s_begin, name_bytes);
   if (s_begin == s_end) {
     if (r.component == "cancel") {
       r.kind = RequestLine::Kind::cancel;
@@ -163,8 +178,7 @@ RequestLine parse_request_line(std::string_view line) {
   r.service = line.substr(s_begin, s_end - s_begin);
 
   // the parameters: the rest of the line without surrounding blanks
-  std::size_t p_begin = s_end;
-  while (p_begin < line.size() && is_blank(line[p_begin])) ++p_begin;
+  const std::size_t p_begin = skip_blanks(line, s_end);
   std::size_t p_end = line.size();
   while (p_end > p_begin && is_blank(line[p_end - 1])) --p_end;
   r.params = line.substr(p_begin, p_end - p_begin);
@@ -173,6 +187,7 @@ RequestLine parse_request_line(std::string_view line) {
 
   // names must be text: say where they are not
   std::size_t bad = 0;
+  if (!(name_bytes & 0x80)) return r;
   if (!valid_utf8(r.component, bad)) {
     r.kind = RequestLine::Kind::malformed;
     r.error = "Invalid request syntax: the component name is not valid UTF-8 (column " +

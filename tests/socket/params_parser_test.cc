@@ -98,6 +98,10 @@ TEST(SocketParamsParser, DictsAreNamedArgumentsWithStringKeys) {
   EXPECT_THAT(bad("{'a' 2}").error, HasSubstr("expected ':'"));
   EXPECT_THAT(bad("{'a': 2 'b': 3}").error, HasSubstr("expected ',' or '}'"));
   EXPECT_THAT(bad("{1, 2}").error, HasSubstr("string key"));  // no sets
+  // a repeated key: the last value wins, whatever the first one was (as Python's dict)
+  EXPECT_EQ(ok("{'a': [1, [2]], 'a': 3}"), json::parse(R"({"a":3})"));
+  EXPECT_EQ(ok("{'a': [1, [2]], 'a': [4]}"), json::parse(R"({"a":[4]})"));
+  EXPECT_EQ(ok("{'a': {'b': 1}, 'a': {'c': 2}}"), json::parse(R"({"a":{"c":2}})"));
 }
 
 TEST(SocketParamsParser, NothingIsEvaluated) {
