@@ -3,6 +3,7 @@
 #include <boost/asio/write.hpp>
 
 #include "simgate/core/log.h"
+#include "wire.h"
 
 namespace simgate::socket {
 
@@ -107,6 +108,10 @@ void Session::send(std::string_view bytes) {
 void Session::queue(std::string_view bytes) {
   if (closed_) return;
   outbox_.append(bytes);
+  check_unsent();
+}
+
+void Session::check_unsent() {
   if (outbox_.size() + in_flight_.size() > limits_.max_unsent_bytes) {
     // the client does not read its replies: it may not grow our memory
     log::warning("Socket service manager: ", label_, " disconnected: more than ",
@@ -171,10 +176,13 @@ const std::string* Session::add_pending(std::string_view client_id, RequestId id
 
 void Session::drop_pending(const std::string& client_id) { pending_.erase_key(client_id); }
 
-void Session::answer(const std::string& client_id, std::string_view reply) {
-  // forgotten first (the id is not used after this), then queued: queueing may close
+void Session::answer(const std::string& client_id, std::string_view status, const json* value) {
+  if (closed_) return;
+  // written straight into the outbox, then forgotten (the id is not used after this), then
+  // checked: the limit may close the session
+  append_reply(outbox_, client_id, status, value);
   pending_.erase_key(client_id);
-  queue(reply);
+  check_unsent();
   if (closed_) return;
   read_more();
   maybe_finish();

@@ -84,10 +84,10 @@ class Session : public std::enable_shared_from_this<Session> {
   const std::string* add_pending(std::string_view client_id, RequestId id);
   // Forgets a request that will get no answer of its own (its line was refused).
   void drop_pending(const std::string& client_id);
-  // Queues `reply`, the answer to the pending request `client_id` (as add_pending stored
-  // it), and forgets the request; resumes reading if it was paused. The write starts at
-  // the next flush_writes().
-  void answer(const std::string& client_id, std::string_view reply);
+  // Queues the reply "<client_id> <status>[ <value>]" to the pending request `client_id`
+  // (as add_pending stored it) and forgets the request; resumes reading if it was paused.
+  // The write starts at the next flush_writes().
+  void answer(const std::string& client_id, std::string_view status, const json* value);
   using PendingTable = RecyclingMap<std::string, RequestId, TransparentStringHash>;
   const PendingTable& pending() const { return pending_; }
   // A reply the host made itself (an error) but that must follow the replies of earlier
@@ -107,6 +107,8 @@ class Session : public std::enable_shared_from_this<Session> {
   void consume(std::string_view data);
   void start_write();
   void maybe_finish();
+  // Closes the session when its unsent replies exceed the limit (the client does not read).
+  void check_unsent();
 
   boost::asio::ip::tcp::socket socket_;   // the connection
   SessionHost& host_;                     // the server (outlives every session)

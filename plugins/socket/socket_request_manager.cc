@@ -369,9 +369,7 @@ void SocketRequestManager::deliver(RequestId id, const Outcome& outcome) try {
     message = outcome.message;
     value = &message;
   }
-  scratch_.clear();
-  append_reply(scratch_, *pending.client_id, status, value);
-  session.answer(*pending.client_id, scratch_);
+  session.answer(*pending.client_id, status, value);
 } catch (const std::exception& e) {
   log::error(name(), ": cannot deliver the outcome of request ", id, ": ", e.what());
 }

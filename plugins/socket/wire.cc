@@ -4,6 +4,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 
 namespace simgate::socket {
 namespace {
@@ -239,14 +240,38 @@ void append_json(std::string& out, const json& value) {
 
 void append_reply(std::string& out, std::string_view id, std::string_view status,
                   const json* value) {
-  out.append(id);
-  out += ' ';
-  out.append(status);
-  if (value) {
+  // the usual reply (no value, or an integer) is written in one piece
+  char number[24];
+  std::size_t number_size = 0;
+  if (value && value->is_number_integer()) {
+    auto r = value->is_number_unsigned()
+                 ? std::to_chars(number, number + sizeof number, value->get<std::uint64_t>())
+                 : std::to_chars(number, number + sizeof number, value->get<std::int64_t>());
+    number_size = static_cast<std::size_t>(r.ptr - number);
+  } else if (value) {
+    out.append(id);
+    out += ' ';
+    out.append(status);
     out += ' ';
     append_json(out, *value);
+    out += '\n';
+    return;
   }
-  out += '\n';
+  const std::size_t start = out.size();
+  out.resize(start + id.size() + 1 + status.size() + (value ? 1 + number_size : 0) + 1);
+  char* p = out.data() + start;
+  auto put = [&p](std::string_view bytes) {
+    std::memcpy(p, bytes.data(), bytes.size());
+    p += bytes.size();
+  };
+  put(id);
+  *p++ = ' ';
+  put(status);
+  if (value) {
+    *p++ = ' ';
+    put({number, number_size});
+  }
+  *p = '\n';
 }
 
 }  // namespace simgate::socket

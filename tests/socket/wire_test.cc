@@ -89,6 +89,15 @@ TEST(SocketWire, ReplyLines) {
   json message = "no";
   append_reply(out, "r3", "FAILED", &message);
   EXPECT_EQ(out, "req1 SUCCESS\nreq2 OK 3\nr3 FAILED \"no\"\n");
+
+  // integers are written in one piece: the extremes of both JSON integer kinds
+  out.clear();
+  json values[] = {json(std::int64_t{-9223372036854775807 - 1}), json(std::uint64_t{18446744073709551615u}),
+                   json(0), json(-7), json(2.5), json::array({1, 2})};
+  for (const auto& v : values) append_reply(out, "i", "SUCCESS", &v);
+  EXPECT_EQ(out,
+            "i SUCCESS -9223372036854775808\ni SUCCESS 18446744073709551615\ni SUCCESS 0\n"
+            "i SUCCESS -7\ni SUCCESS 2.5\ni SUCCESS [1, 2]\n");
 }
 
 }  // namespace
