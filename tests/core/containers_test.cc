@@ -1,6 +1,7 @@
-// The hot-path helpers of the core: RecyclingMap (request tables that reuse their nodes)
-// and BoundArguments (arguments held inline, or on the heap beyond 8 parameters).
+// The hot-path helpers of the core: RecyclingMap (request tables that reuse their nodes),
+// TransparentStringHash (their string keys) and BoundArguments (arguments held inline, or on the heap beyond 8 parameters).
 #include <memory>
+#include <set>
 #include <string>
 
 #include <gmock/gmock.h>
@@ -87,6 +88,30 @@ TEST(RecyclingMapTest, AValueWithRecycleKeepsWhatItChoosesAndExtractedNodesComeB
 }
 
 int sum9(int a, int b, int c, int d, int e, int f, int g, int h, int i) { return a + b + c + d + e + f + g + h + i; }
+
+TEST(TransparentStringHashTest, EqualTextEqualHashAndShortIdsSpreadOut) {
+  TransparentStringHash hash;
+  // std::string and string_view of the same text (heterogeneous lookup depends on it)
+  for (std::string text : std::initializer_list<std::string>{"", "a", "ab", "abc", "abcd", "1234567", "12345678", "123456789abcdef0",
+                           "123456789abcdef01", std::string(100, 'x')})
+    EXPECT_EQ(hash(text), hash(std::string_view(text))) << text;
+  // the ids clients use (counters, prefixed counters, uuids' pieces): no two of these
+  // 20 000 collide in 64 bits, and their low bits (which pick buckets) spread
+  std::set<std::size_t> full, low;
+  int count = 0;
+  for (int i = 0; i < 10000; ++i) {
+    for (const std::string& id : {std::to_string(i), "req" + std::to_string(i)}) {
+      full.insert(hash(id));
+      low.insert(hash(id) % 4093);
+      ++count;
+    }
+  }
+  EXPECT_EQ(full.size(), std::size_t(count));
+  EXPECT_GT(low.size(), 4000u);  // 4 093 buckets, 20 000 keys: nearly every bucket used
+  // same bytes, other length; the same 16 bytes at both ends of a longer key
+  EXPECT_NE(hash(std::string_view("a\0", 2)), hash(std::string_view("a", 1)));
+  EXPECT_NE(hash("abcdefghij"), hash("abcdefghijk"));
+}
 
 TEST(BoundArgumentsTest, MoreParametersThanTheInlineBufferStillBind) {
   testing::TestManager rm;

@@ -28,6 +28,8 @@
 #define SIMGATE_CORE_RECYCLING_MAP_H_
 
 #include <cstddef>
+#include <cstdint>
+#include <cstring>
 #include <functional>
 #include <string>
 #include <string_view>
@@ -41,9 +43,36 @@ namespace simgate {
 // temporary string). Not noexcept on purpose: libstdc++ then stores each node's hash code
 // (as it does for std::hash<std::string>), so erasing a node or walking a bucket never
 // hashes a key again.
+//
+// Request ids are short: up to 16 bytes are hashed inline (two overlapping loads and one
+// 64x64->128-bit multiply, about 20 instructions); longer keys use std::hash. Like
+// std::hash, it is not seeded: a client can make its own ids collide, which costs only its
+// own connection's table (bounded by max_pending_requests).
 struct TransparentStringHash {
   using is_transparent = void;
-  std::size_t operator()(std::string_view s) const { return std::hash<std::string_view>{}(s); }
+  std::size_t operator()(std::string_view s) const {
+    const std::size_t n = s.size();
+    if (n > 16) return std::hash<std::string_view>{}(s);
+    const char* p = s.data();
+    std::uint64_t a = 0, b = 0;
+    if (n >= 8) {
+      std::memcpy(&a, p, 8);
+      std::memcpy(&b, p + n - 8, 8);
+    } else if (n >= 4) {
+      std::uint32_t x, y;
+      std::memcpy(&x, p, 4);
+      std::memcpy(&y, p + n - 4, 4);
+      a = x;
+      b = y;
+    } else if (n > 0) {
+      a = std::uint64_t(static_cast<unsigned char>(p[0])) |
+          std::uint64_t(static_cast<unsigned char>(p[n / 2])) << 8 |
+          std::uint64_t(static_cast<unsigned char>(p[n - 1])) << 16;
+    }
+    __extension__ using U128 = unsigned __int128;  // GCC and Clang on 64-bit targets
+    const U128 m = static_cast<U128>(a ^ 0x9E3779B97F4A7C15ull) * (b ^ 0xC2B2AE3D27D4EB4Full ^ n);
+    return static_cast<std::size_t>(static_cast<std::uint64_t>(m) ^ static_cast<std::uint64_t>(m >> 64));
+  }
 };
 
 template <class Key, class T, class Hash = std::hash<Key>, class Eq = std::equal_to<>>
