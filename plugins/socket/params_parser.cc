@@ -101,7 +101,7 @@ class Parser {
       default: break;
     }
     if (is_digit(c) || c == '-' || c == '+' || c == '.') {
-      out = parse_number();
+      if (!parse_plain_integer(out)) out = parse_number();
       return;
     }
     if (is_ident(c)) {
@@ -260,6 +260,27 @@ class Parser {
       out.append(text_.substr(pos_, n));
       pos_ += n;
     }
+  }
+
+  // The usual argument, a plain decimal integer that fits easily ("42", "-7": up to 18
+  // digits, no leading zero, followed by a delimiter), into `out` without the general
+  // number parser. False, with nothing consumed, for anything else (parse_number() decides).
+  bool parse_plain_integer(json& out) {
+    const bool negative = text_[pos_] == '-';
+    const std::size_t first = pos_ + (negative ? 1 : 0);
+    std::size_t end = first;
+    std::int64_t magnitude = 0;
+    while (end < text_.size() && end - first < 18 && is_digit(text_[end]))
+      magnitude = magnitude * 10 + (text_[end++] - '0');
+    const std::size_t digits = end - first;
+    if (digits == 0 || digits == 18 || (digits > 1 && text_[first] == '0')) return false;
+    if (end < text_.size()) {
+      const char next = text_[end];
+      if (!is_blank(next) && next != ',' && next != ']' && next != ')' && next != '}') return false;
+    }
+    pos_ = end;
+    out = negative ? -magnitude : magnitude;
+    return true;
   }
 
   json parse_number() {

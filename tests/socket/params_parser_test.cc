@@ -67,6 +67,19 @@ TEST(SocketParamsParser, Numbers) {
   EXPECT_THAT(bad("(1e,)").error, HasSubstr("exponent"));
   EXPECT_THAT(bad("(0x10,)").error, HasSubstr("malformed number"));
   EXPECT_THAT(bad("(-,)").error, HasSubstr("malformed number"));
+  // around the length where plain integers leave the fast path (18 digits)
+  json m = ok("[12345678901234567, 123456789012345678, -123456789012345678, 1234567890123456789, -0, 7]");
+  EXPECT_EQ(m[0].get<std::int64_t>(), 12345678901234567);
+  EXPECT_EQ(m[1].get<std::int64_t>(), 123456789012345678);
+  EXPECT_EQ(m[2].get<std::int64_t>(), -123456789012345678);
+  EXPECT_EQ(m[3].get<std::int64_t>(), 1234567890123456789);
+  EXPECT_TRUE(m[4].is_number_integer());
+  EXPECT_EQ(m[4].get<std::int64_t>(), 0);
+  EXPECT_EQ(m[5].get<std::int64_t>(), 7);
+  EXPECT_EQ(ok("{'a':1,'b':-2}"), json::parse(R"({"a":1,"b":-2})"));
+  EXPECT_EQ(ok("  42  "), json(42));
+  EXPECT_THAT(bad("(12abc,)").error, HasSubstr("malformed number: unexpected 'a'"));
+  EXPECT_THAT(bad("[1 2]").error, HasSubstr("expected ',' or ']'"));
 }
 
 TEST(SocketParamsParser, StringsWithBothQuotesAndEscapes) {
