@@ -110,15 +110,25 @@ class Inbox : public CompletionSink {
   bool closed_ = false;                                     // abandon_pending() was called
 };
 
-// nlohmann's destructor first moves an array's elements to a heap-allocated stack (to
-// avoid deep recursion). The usual positional arguments, an array of scalars, are cleared
-// here instead once the call has run: one allocation less per request.
-void release_params(json& params) noexcept {
-  if (!params.is_array()) return;
-  auto& elements = params.get_ref<json::array_t&>();
-  for (const auto& e : elements)
-    if (e.is_structured()) return;
-  elements.clear();
+// Once a call has run, what its params hold. nlohmann's destructor first moves an array's
+// elements to a heap-allocated stack (to avoid deep recursion): the usual positional
+// arguments, an array of scalars, are cleared here instead, one allocation less per
+// request. A call object its transport reuses (`reused`) keeps an array of numbers,
+// booleans and nulls as it is (it holds no memory, and the next parse overwrites it in
+// place); anything else it held is released, so that call objects kept from read to read
+// never hold on to a large request.
+void release_params(json& params, bool reused) noexcept {
+  if (params.is_array()) {
+    auto& elements = params.get_ref<json::array_t&>();
+    bool holds_memory = false;
+    for (const auto& e : elements) {
+      if (e.is_structured() && !reused) return;  // destroyed with the call, as a whole
+      holds_memory = holds_memory || e.is_string() || e.is_structured() || e.is_binary();
+    }
+    if (!reused || holds_memory) elements.clear();
+  } else if (reused && !params.is_null()) {
+    params = nullptr;  // named arguments, or a scalar the core refused
+  }
 }
 
 }  // namespace detail
@@ -226,7 +236,7 @@ bool RequestManager::run_or_submit(std::span<std::pair<RequestId, Call>> calls) 
   // signal: waking the simulation thread for work done here would only make it compete
   // for the CPU)
   process_locked();
-  for (auto& [id, call] : calls) execute_and_deliver(id, call);
+  for (auto& [id, call] : calls) execute_and_deliver(id, call, /*reused=*/true);
   // completions these produced at once (preemption of a running request, an async service
   // that finished in its start method); the calls stay where they are, for the caller to
   // reuse
@@ -279,7 +289,7 @@ std::size_t RequestManager::process_locked() {
 
   for (auto& event : events) {
     if (auto* r = std::get_if<detail::Inbox::Request>(&event)) {
-      execute_and_deliver(r->id, r->call);
+      execute_and_deliver(r->id, r->call, /*reused=*/false);
     } else if (auto* c = std::get_if<detail::Inbox::Cancel>(&event)) {
       execute_cancel(c->id, c->done);
     } else if (auto* t = std::get_if<detail::Inbox::Task>(&event)) {
@@ -354,11 +364,11 @@ std::optional<Outcome> RequestManager::on_incoming_request(RequestId id, const C
   return std::nullopt;
 }
 
-void RequestManager::execute_and_deliver(RequestId id, Call& call) {
+void RequestManager::execute_and_deliver(RequestId id, Call& call, bool reused) {
   // one Outcome object for every request: its string and JSON members are reset, not
   // rebuilt, and the transport reads (or moves) it in place
   if (execute(id, call, outcome_)) deliver(id, std::move(outcome_));
-  detail::release_params(call.params);
+  detail::release_params(call.params, reused);
 }
 
 bool RequestManager::execute(RequestId id, const Call& call, Outcome& out) {

@@ -118,6 +118,13 @@ BoundArguments bind_arguments(const ServiceDescriptor& d, const json& params) {
   const std::size_t total = d.params.size();
   BoundArguments args(total);
 
+  // the usual call: every parameter given, in order
+  if (params.is_array() && params.size() == total) {
+    const auto& given = params.get_ref<const json::array_t&>();
+    for (std::size_t i = 0; i < total; ++i) args[i] = &given[i];
+    return args;
+  }
+
   if (params.is_null()) {
     // no arguments at all
   } else if (params.is_array()) {

@@ -116,29 +116,29 @@ class Parser {
       fail("nesting deeper than " + std::to_string(k_max_depth) + " levels");
     const char* kind = close == ']' ? "list" : "tuple";
     ++pos_;  // the opening bracket
-    if (out.is_array()) {
-      out.get_ref<json::array_t&>().clear();
-    } else {
+    if (!out.is_array()) {
       out = json::array();
       out.get_ref<json::array_t&>().reserve(4);  // most calls have a few arguments: one allocation
     }
+    // the elements an array already holds are overwritten in place, the rest dropped at the end
+    std::size_t count = 0;
+    auto finish = [&] {
+      ++pos_;
+      auto& elements = out.get_ref<json::array_t&>();
+      if (elements.size() > count) elements.erase(elements.begin() + std::ptrdiff_t(count), elements.end());
+    };
     for (;;) {
       skip_blanks();
-      if (pos_ < text_.size() && text_[pos_] == close) {
-        ++pos_;
-        return;
-      }
+      if (pos_ < text_.size() && text_[pos_] == close) return finish();
       auto& elements = out.get_ref<json::array_t&>();
-      parse_value(depth + 1, elements.emplace_back());
+      parse_value(depth + 1, count < elements.size() ? elements[count] : elements.emplace_back());
+      ++count;
       skip_blanks();
       if (pos_ < text_.size() && text_[pos_] == ',') {
         ++pos_;
         continue;
       }
-      if (pos_ < text_.size() && text_[pos_] == close) {
-        ++pos_;
-        return;
-      }
+      if (pos_ < text_.size() && text_[pos_] == close) return finish();
       fail(std::string("expected ',' or '") + close + "' in " + kind + " but found " + describe_here());
     }
   }

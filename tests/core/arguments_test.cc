@@ -32,6 +32,14 @@ TEST(ArgumentsTest, IntegersAreRangeChecked) {
   EXPECT_THAT(mismatch<std::int8_t>(json(300)), HasSubstr("in range"));
   EXPECT_THAT(mismatch<unsigned>(json(-1)), HasSubstr("non-negative"));
   EXPECT_EQ(ArgTraits<std::uint64_t>::from_json(json(18446744073709551615ull)), 18446744073709551615ull);
+  // both JSON integer kinds at both ends, into both C++ kinds
+  EXPECT_EQ(ArgTraits<std::int64_t>::from_json(json(std::uint64_t{9223372036854775807u})), INT64_MAX);
+  EXPECT_THAT(mismatch<std::int64_t>(json(std::uint64_t{9223372036854775808u})), HasSubstr("in range"));
+  EXPECT_EQ(ArgTraits<std::int64_t>::from_json(json(std::int64_t{-9223372036854775807 - 1})), INT64_MIN);
+  EXPECT_EQ(ArgTraits<std::uint8_t>::from_json(json(std::uint64_t{255})), 255);
+  EXPECT_THAT(mismatch<std::uint8_t>(json(std::uint64_t{256})), HasSubstr("in range"));
+  EXPECT_DOUBLE_EQ(ArgTraits<double>::from_json(json(std::uint64_t{18446744073709551615u})), 18446744073709551615.0);
+  EXPECT_DOUBLE_EQ(ArgTraits<float>::from_json(json(-3)), -3.0f);
 }
 
 TEST(ArgumentsTest, FloatingPointAcceptsAnyNumber) {

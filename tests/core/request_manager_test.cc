@@ -403,14 +403,28 @@ TEST_F(RequestManagerTest, RunOrSubmitOnASpanLeavesRunCallsInPlaceAndMovesQueued
   calls.emplace_back(rm.new_request_id(), Call{"test_component", "add", json{2, 2}});
   const json::array_t* params = &calls[0].second.params.get_ref<const json::array_t&>();
 
-  // run here: the objects stay for the caller to reuse (the scalar params emptied, the
-  // array itself kept)
+  rm.register_service("test_component", [](const json& x) { return x; }, "echo", {"x"});
+  calls.emplace_back(rm.new_request_id(), Call{"test_component", "echo", json{"a long string, on the heap"}});
+  calls.emplace_back(rm.new_request_id(), Call{"test_component", "echo", json{json{1, 2}}});
+  calls.emplace_back(rm.new_request_id(), Call{"test_component", "add", json{{"a", 3}, {"b", 4}}});
+
+  // run here: the objects stay for the caller to reuse. Numbers are kept, in the same
+  // array, for the next parse to overwrite; what holds memory (strings, nested values,
+  // named arguments) is released
   EXPECT_TRUE(rm.run_or_submit(std::span(calls)));
   EXPECT_EQ(rm.outcome(calls[0].first)->value, json(2));
   EXPECT_EQ(rm.outcome(calls[1].first)->value, json(4));
+  EXPECT_EQ(rm.outcome(calls[2].first)->value, json("a long string, on the heap"));
+  EXPECT_EQ(rm.outcome(calls[3].first)->value, json({1, 2}));
+  EXPECT_EQ(rm.outcome(calls[4].first)->value, json(7));
   EXPECT_EQ(calls[0].second.component, "test_component");
   ASSERT_TRUE(calls[0].second.params.is_array());
   EXPECT_EQ(&calls[0].second.params.get_ref<const json::array_t&>(), params);
+  EXPECT_EQ(calls[0].second.params, json({1, 1}));
+  EXPECT_EQ(calls[2].second.params, json::array());
+  EXPECT_EQ(calls[3].second.params, json::array());
+  EXPECT_TRUE(calls[4].second.params.is_null());
+  calls.resize(2);
 
   // queued while the lock is held: moved into the queue, run by the next process()
   calls[0].first = rm.new_request_id();

@@ -266,6 +266,15 @@ TEST_F(SocketTransport, CallObjectsReusedFromReadToReadCarryNothingOver) {
   EXPECT_EQ(roundtrip(*c, "r6 test_component add [2, 5]"), "r6 SUCCESS 7");
   EXPECT_THAT(roundtrip(*c, "r7 test echo [1"), StartsWith("r7 FAILED \"Invalid request syntax"));
   EXPECT_EQ(roundtrip(*c, "r8 test echo ('x',)"), "r8 SUCCESS \"x\"");
+  // numbers stay in the call object and are overwritten in place by the next parse
+  EXPECT_EQ(roundtrip(*c, "r9 test_component add [1, 2]"), "r9 SUCCESS 3");
+  EXPECT_EQ(roundtrip(*c, "r10 test echo [7]"), "r10 SUCCESS 7");
+  EXPECT_EQ(roundtrip(*c, "r11 test_component add [3, 4]"), "r11 SUCCESS 7");
+  EXPECT_THAT(roundtrip(*c, "r12 test_component add [5, x]"), StartsWith("r12 FAILED \"Invalid request syntax"));
+  EXPECT_EQ(roundtrip(*c, "r13 test echo [[9]]"), "r13 SUCCESS [9]");
+  EXPECT_EQ(roundtrip(*c, "r14 test echo [{'a': 1}]"), "r14 SUCCESS {\"a\": 1}");
+  EXPECT_EQ(roundtrip(*c, "r15 test_component add {'a': 1, 'b': 2}"), "r15 SUCCESS 3");
+  EXPECT_EQ(roundtrip(*c, "r16 test_component add [1, 1]"), "r16 SUCCESS 2");
 }
 
 TEST_F(SocketTransport, LastRequestIsAnsweredAfterClientShutsDownSending) {

@@ -16,6 +16,7 @@
 #include <optional>
 #include <string>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "simgate/core/status.h"
@@ -62,15 +63,15 @@ struct ArgTraits<bool> {
 template <class T>
 struct ArgTraits<T, std::enable_if_t<std::is_integral_v<T> && !std::is_same_v<T, bool>>> {
   static T from_json(const json& j) {
-    // integers, or numbers with an integral value (5.0 from JavaScript clients)
-    if (j.is_number_integer()) {
-      if (j.is_number_unsigned()) {
-        auto v = j.get<std::uint64_t>();
-        if (v <= static_cast<std::uint64_t>(std::numeric_limits<T>::max())) return static_cast<T>(v);
-      } else {
-        auto v = j.get<std::int64_t>();
-        if (std::in_range<T>(v)) return static_cast<T>(v);
-      }
+    // integers, or numbers with an integral value (5.0 from JavaScript clients); read
+    // through get_ptr (one type check) rather than get<> (a conversion switch). Unsigned
+    // first: nlohmann's get_ptr<number_integer_t*> also answers for unsigned values.
+    if (const auto* v = j.get_ptr<const json::number_unsigned_t*>()) {
+      if (std::in_range<T>(*v)) return static_cast<T>(*v);
+      throw TypeMismatch{expected() + " in range", "", describe_json(j)};
+    }
+    if (const auto* v = j.get_ptr<const json::number_integer_t*>()) {
+      if (std::in_range<T>(*v)) return static_cast<T>(*v);
       throw TypeMismatch{expected() + " in range", "", describe_json(j)};
     }
     if (j.is_number_float()) {
@@ -93,8 +94,10 @@ struct ArgTraits<T, std::enable_if_t<std::is_integral_v<T> && !std::is_same_v<T,
 template <class T>
 struct ArgTraits<T, std::enable_if_t<std::is_floating_point_v<T>>> {
   static T from_json(const json& j) {
-    if (!j.is_number()) throw TypeMismatch{"number", "", describe_json(j)};
-    return j.get<T>();
+    if (const auto* v = j.get_ptr<const json::number_float_t*>()) return static_cast<T>(*v);
+    if (const auto* v = j.get_ptr<const json::number_unsigned_t*>()) return static_cast<T>(*v);
+    if (const auto* v = j.get_ptr<const json::number_integer_t*>()) return static_cast<T>(*v);
+    throw TypeMismatch{"number", "", describe_json(j)};
   }
   static json to_json(T v) { return v; }
   static json schema() { return {{"type", "number"}}; }

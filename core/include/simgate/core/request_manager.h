@@ -151,7 +151,8 @@ class RequestManager {
   bool run_or_submit(RequestId id, Call call);
   // The same for a transport that reuses its Call objects from read to read (their
   // strings and parameter arrays keep their capacity): calls that are queued are moved
-  // from; calls that run here are left in place (an array of scalar params is cleared).
+  // from; calls that run here are left in place (params of numbers, booleans and nulls
+  // are kept as they are, for the next parse to overwrite; anything else is released).
   bool run_or_submit(std::span<std::pair<RequestId, Call>> calls);
   // Cancels a running async request of this manager: it ends PREEMPTED with
   // Failure::cancelled. `done(found)` runs on the simulation thread afterwards.
@@ -182,8 +183,9 @@ class RequestManager {
   // Runs one request (on_incoming_request without the copies): true when `out` holds its
   // outcome (sync services and every error), false when an async service started.
   bool execute(RequestId id, const Call& call, Outcome& out);
-  // execute(), then delivers the outcome if there is one; `call`'s scalar params released.
-  void execute_and_deliver(RequestId id, Call& call);
+  // execute(), then delivers the outcome if there is one and releases what `call`'s params
+  // hold (`reused`: the transport keeps the call object for its next request).
+  void execute_and_deliver(RequestId id, Call& call, bool reused);
   // Starts an async service; throws what its start method throws.
   void start_async(RequestId id, const Service& service, std::span<const json* const> args);
   void interrupt_running(AsyncSlot& slot, Failure reason, std::string message);
