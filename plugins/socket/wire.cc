@@ -240,38 +240,34 @@ void append_json(std::string& out, const json& value) {
 
 void append_reply(std::string& out, std::string_view id, std::string_view status,
                   const json* value) {
-  // the usual reply (no value, or an integer) is written in one piece
-  char number[24];
-  std::size_t number_size = 0;
-  if (value && value->is_number_integer()) {
-    auto r = value->is_number_unsigned()
-                 ? std::to_chars(number, number + sizeof number, value->get<std::uint64_t>())
-                 : std::to_chars(number, number + sizeof number, value->get<std::int64_t>());
-    number_size = static_cast<std::size_t>(r.ptr - number);
-  } else if (value) {
-    out.append(id);
-    out += ' ';
-    out.append(status);
-    out += ' ';
-    append_json(out, *value);
-    out += '\n';
+  // the usual reply (a short id, then no value or an integer) is composed on the stack and
+  // appended in one piece
+  char line[96];
+  const bool integer = value && value->is_number_integer();
+  if ((!value || integer) && id.size() + status.size() <= sizeof line - 24) {
+    char* p = line;
+    std::memcpy(p, id.data(), id.size());
+    p += id.size();
+    *p++ = ' ';
+    std::memcpy(p, status.data(), status.size());
+    p += status.size();
+    if (integer) {
+      *p++ = ' ';
+      p = value->is_number_unsigned() ? std::to_chars(p, line + sizeof line, value->get<std::uint64_t>()).ptr
+                                      : std::to_chars(p, line + sizeof line, value->get<std::int64_t>()).ptr;
+    }
+    *p++ = '\n';
+    out.append(line, static_cast<std::size_t>(p - line));
     return;
   }
-  const std::size_t start = out.size();
-  out.resize(start + id.size() + 1 + status.size() + (value ? 1 + number_size : 0) + 1);
-  char* p = out.data() + start;
-  auto put = [&p](std::string_view bytes) {
-    std::memcpy(p, bytes.data(), bytes.size());
-    p += bytes.size();
-  };
-  put(id);
-  *p++ = ' ';
-  put(status);
+  out.append(id);
+  out += ' ';
+  out.append(status);
   if (value) {
-    *p++ = ' ';
-    put({number, number_size});
+    out += ' ';
+    append_json(out, *value);
   }
-  *p = '\n';
+  out += '\n';
 }
 
 }  // namespace simgate::socket
