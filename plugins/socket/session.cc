@@ -169,9 +169,9 @@ std::optional<RequestId> Session::find_pending(std::string_view client_id) const
   return it->second;
 }
 
-const std::string* Session::add_pending(std::string_view client_id, RequestId id) {
-  auto [it, inserted] = pending_.try_emplace(client_id, id);
-  return inserted ? &it->first : nullptr;
+std::pair<const std::string, RequestId>* Session::add_pending(std::string_view client_id) {
+  auto [it, inserted] = pending_.try_emplace(client_id, RequestId{0});
+  return inserted ? &*it : nullptr;
 }
 
 void Session::drop_pending(const std::string& client_id) { pending_.erase_key(client_id); }

@@ -78,10 +78,10 @@ class Session : public std::enable_shared_from_this<Session> {
 
   // Pending requests of this connection, by the client's id.
   std::optional<RequestId> find_pending(std::string_view client_id) const;
-  // Registers request `id` under the client's id: returns the id as stored (it lives until
-  // answer() or drop_pending() of that id, or the close of the session), or null when that
-  // id is already pending here.
-  const std::string* add_pending(std::string_view client_id, RequestId id);
+  // Registers a request under the client's id: returns its entry, where the caller stores
+  // the core's RequestId (the client id in it lives until answer() or drop_pending() of
+  // that id, or the close of the session), or null when that id is already pending here.
+  std::pair<const std::string, RequestId>* add_pending(std::string_view client_id);
   // Forgets a request that will get no answer of its own (its line was refused).
   void drop_pending(const std::string& client_id);
   // Queues the reply "<client_id> <status>[ <value>]" to the pending request `client_id`

@@ -224,9 +224,8 @@ void SocketRequestManager::on_line(const std::shared_ptr<Session>& session, std:
   }
 
   // one pending request per id and connection, or replies could not be told apart
-  const RequestId id = new_request_id();
-  const std::string* client_id = session->add_pending(request.id, id);
-  if (!client_id) {
+  auto* pending = session->add_pending(request.id);
+  if (!pending) {
     fail_in_order(session, request.id,
                   "Request id '" + std::string(request.id) +
                       "' is already pending on this connection: wait for its reply or use another id");
@@ -236,17 +235,23 @@ void SocketRequestManager::on_line(const std::shared_ptr<Session>& session, std:
   // the next call of this read, in an object an earlier read left (its strings and
   // parameter array are refilled: no allocation)
   if (batch_count_ == batch_.size()) batch_.emplace_back();
-  auto& [call_id, call] = batch_[batch_count_];
+  auto& [id, call] = batch_[batch_count_];
   if (!parse_params_into(request.params, request.params_column, call.params, params_error_)) {
-    session->drop_pending(*client_id);
+    session->drop_pending(pending->first);
     fail_in_order(session, request.id,
                   "Invalid request syntax: error while parsing the parameters at column " +
                       std::to_string(params_error_.column) + ": " + params_error_.error);
     return;
   }
+  if (requests_.size() >= decltype(requests_)::k_max_live) {
+    session->drop_pending(pending->first);
+    fail_in_order(session, request.id, "Too many requests are waiting for their outcome in this server: retry later");
+    return;
+  }
 
-  call_id = id;
-  requests_.try_emplace(id, session.get(), client_id);
+  // the request's slot: its id says where the reply goes
+  id = requests_.insert({session.get(), &pending->first});
+  pending->second = id;
   // a pipelining client names the same service line after line
   if (call.component != request.component) call.component.assign(request.component);
   if (call.service != request.service) call.service.assign(request.service);
@@ -272,7 +277,7 @@ void SocketRequestManager::on_oversized_line(const std::shared_ptr<Session>& ses
 
 void SocketRequestManager::on_session_closed(const std::shared_ptr<Session>& session) {
   // its outcomes have nowhere to go: forget them (the requests themselves run on)
-  for (const auto& [client_id, id] : session->pending()) requests_.erase_key(id);
+  for (const auto& [client_id, id] : session->pending()) requests_.erase(id);
   sessions_.erase(session);
 }
 
@@ -351,10 +356,10 @@ void SocketRequestManager::flush_touched() {
 }
 
 void SocketRequestManager::deliver(RequestId id, const Outcome& outcome) try {
-  auto it = requests_.find(id);
-  if (it == requests_.end()) return;  // its client is gone
-  const Pending pending = it->second;
-  requests_.erase(it);
+  const Pending* entry = requests_.find(id);
+  if (!entry) return;  // its client is gone
+  const Pending pending = *entry;
+  requests_.erase(id);
   Session& session = *pending.session;
   // held in touched_ until its write starts
   touch(session);

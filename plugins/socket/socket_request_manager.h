@@ -47,7 +47,7 @@
 
 #include "params_parser.h"
 #include "session.h"
-#include "simgate/core/recycling_map.h"
+#include "simgate/core/request_slots.h"
 #include "simgate/core/request_manager.h"
 
 namespace simgate::socket {
@@ -127,7 +127,7 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   std::size_t max_clients_ = 1024;           // connections beyond this are refused
   std::uint64_t next_session_ = 1;           // numbers sessions in logs
   std::unordered_set<std::shared_ptr<Session>> sessions_;  // open connections (I/O thread)
-  RecyclingMap<RequestId, Pending> requests_;               // unanswered requests (I/O thread)
+  RequestSlots<Pending> requests_;           // unanswered requests, by the ids it gives them (I/O thread)
   std::string scratch_;                      // reply formatting buffer (I/O thread)
   // calls of the current read, not yet handed to the core: the first batch_count_ of batch_;
   // the objects are reused from read to read, at most k_kept_calls of them kept (I/O thread)

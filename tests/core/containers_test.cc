@@ -1,13 +1,16 @@
 // The hot-path helpers of the core: RecyclingMap (request tables that reuse their nodes),
-// TransparentStringHash (their string keys) and BoundArguments (arguments held inline, or on the heap beyond 8 parameters).
+// TransparentStringHash (their string keys), RequestSlots (ids that name their slot) and
+// BoundArguments (arguments held inline, or on the heap beyond 8 parameters).
 #include <memory>
 #include <set>
 #include <string>
+#include <vector>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include "simgate/core/recycling_map.h"
+#include "simgate/core/request_slots.h"
 #include "test_manager.h"
 
 namespace simgate {
@@ -111,6 +114,58 @@ TEST(TransparentStringHashTest, EqualTextEqualHashAndShortIdsSpreadOut) {
   // same bytes, other length; the same 16 bytes at both ends of a longer key
   EXPECT_NE(hash(std::string_view("a\0", 2)), hash(std::string_view("a", 1)));
   EXPECT_NE(hash("abcdefghij"), hash("abcdefghijk"));
+}
+
+TEST(RequestSlotsTest, IdsFindTheirEntryUntilErasedAndNeverTheSlotsNextEntry) {
+  RequestSlots<std::shared_ptr<int>> slots;
+  auto value = std::make_shared<int>(1);
+  const RequestId a = slots.insert(value);
+  const RequestId b = slots.insert(std::make_shared<int>(2));
+  EXPECT_NE(a, b);
+  ASSERT_NE(slots.find(a), nullptr);
+  EXPECT_EQ(**slots.find(a), 1);
+  EXPECT_EQ(**slots.find(b), 2);
+  EXPECT_EQ(slots.size(), 2u);
+
+  // erased: the value is released, the id finds nothing, even once the slot is reused
+  EXPECT_TRUE(slots.erase(a));
+  EXPECT_EQ(value.use_count(), 1);
+  EXPECT_EQ(slots.find(a), nullptr);
+  EXPECT_FALSE(slots.erase(a));
+  const RequestId c = slots.insert(std::make_shared<int>(3));
+  EXPECT_NE(c, a);
+  EXPECT_EQ((c ^ a) & (RequestSlots<int>::k_max_live - 1), 0u);  // a's slot, reused
+  EXPECT_EQ(slots.find(a), nullptr);
+  EXPECT_EQ(**slots.find(c), 3);
+  EXPECT_EQ(slots.size(), 2u);
+
+  // ids from new_request_id() (a counter from 1) are never this table's
+  testing::TestManager rm;
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(slots.find(rm.new_request_id()), nullptr);
+  EXPECT_EQ(slots.find(0), nullptr);
+  EXPECT_EQ(slots.find(RequestSlots<int>::k_mark | 12345), nullptr);  // a slot never used
+  EXPECT_NE(c & RequestSlots<int>::k_mark, 0u);
+
+  slots.clear();
+  EXPECT_TRUE(slots.empty());
+  EXPECT_EQ(slots.find(b), nullptr);
+  EXPECT_EQ(slots.find(c), nullptr);
+}
+
+TEST(RequestSlotsTest, ManyLiveEntriesEachFindTheirOwn) {
+  RequestSlots<int> slots;
+  std::vector<RequestId> ids;
+  for (int round = 0; round < 3; ++round) {
+    ids.clear();
+    for (int i = 0; i < 1000; ++i) ids.push_back(slots.insert(i));
+    std::set<RequestId> distinct(ids.begin(), ids.end());
+    EXPECT_EQ(distinct.size(), ids.size());
+    for (int i = 0; i < 1000; ++i) ASSERT_EQ(*slots.find(ids[std::size_t(i)]), i);
+    // out of order, as async outcomes come back
+    for (std::size_t i = 0; i < ids.size(); i += 2) EXPECT_TRUE(slots.erase(ids[i]));
+    for (std::size_t i = 1; i < ids.size(); i += 2) EXPECT_TRUE(slots.erase(ids[i]));
+    EXPECT_TRUE(slots.empty());
+  }
 }
 
 TEST(BoundArgumentsTest, MoreParametersThanTheInlineBufferStillBind) {

@@ -20,7 +20,9 @@ namespace simgate {
 using json = nlohmann::json;
 
 // Identifies one request inside one request manager; allocated by
-// RequestManager::new_request_id(), never reused, never shown to clients.
+// RequestManager::new_request_id() (a process-wide counter from 1) or by a transport's
+// RequestSlots (bit 63 set, request_slots.h); unique within its manager while the request
+// lives, never shown to clients.
 using RequestId = std::uint64_t;
 
 // MORSE's status values (morse.core.status).
