@@ -34,7 +34,15 @@ void Session::read_more() {
 }
 
 void Session::on_read(const error_code& ec, std::size_t n) {
+  // reading_ stays set until this read's lines are handled: a reply sent meanwhile (an
+  // error answered in order, a batch run early) must not start the next read, whose bytes
+  // would land in read_buffer_ under the lines still being parsed
+  handle_read(ec, n);
   reading_ = false;
+  read_more();
+}
+
+void Session::handle_read(const error_code& ec, std::size_t n) {
   if (closed_) return;
   if (ec == asio::error::eof) {
     // the client finished sending: answer what it asked, then close
@@ -55,7 +63,6 @@ void Session::on_read(const error_code& ec, std::size_t n) {
   }
   consume(std::string_view(read_buffer_.data(), n));
   host_.on_lines_done(shared_from_this());
-  read_more();
 }
 
 void Session::consume(std::string_view data) {

@@ -104,6 +104,8 @@ class Session : public std::enable_shared_from_this<Session> {
  private:
   void read_more();
   void on_read(const boost::system::error_code& ec, std::size_t n);
+  // on_read() without starting the next read: the lines, end of input or error.
+  void handle_read(const boost::system::error_code& ec, std::size_t n);
   void consume(std::string_view data);
   void start_write();
   void maybe_finish();
@@ -117,7 +119,7 @@ class Session : public std::enable_shared_from_this<Session> {
   std::array<char, 16384> read_buffer_;   // one read's bytes
   std::string partial_;                   // the start of an unfinished line
   bool discarding_ = false;               // skipping the rest of an oversized line
-  bool reading_ = false;                  // a read is in flight
+  bool reading_ = false;                  // a read is in flight, or its lines are being handled
   bool eof_ = false;                      // the client will send nothing more
   bool closed_ = false;                   // close() was called
   std::string outbox_;                    // replies waiting for the next write

@@ -229,6 +229,35 @@ TEST_F(SocketTransport, ErrorRepliesKeepTheOrderOfSyncRequests) {
   EXPECT_EQ(next_line(*c), "o4 SUCCESS \"pong\"");
 }
 
+TEST_F(SocketTransport, AnErrorReplyInTheMiddleOfAReadLosesNoLaterLine) {
+  // An error after a valid request makes the transport answer that request at once, in the
+  // middle of the read. Answering must not start the next read while this read's lines are
+  // still being handled: that read would land in the same buffer (a bug that lost lines).
+  auto c = connect();
+  std::string burst = "e1 test_component add (1,2)\ne2\n";
+  constexpr int k_lines = 3000;  // ~100 KB: several reads, more bytes waiting behind each
+  for (int i = 0; i < k_lines; ++i) {
+    burst += "x" + std::to_string(i) + " test_component add (" + std::to_string(i) + ", 1)\n";
+    if (i % 500 == 0) burst += "e" + std::to_string(i) + "\n";  // more errors, later reads
+  }
+  c->send_raw(burst);
+  std::size_t errors = 0;
+  int expected = 0;
+  EXPECT_EQ(next_line(*c), "e1 SUCCESS 3");
+  EXPECT_THAT(next_line(*c), StartsWith("e2 FAILED"));
+  while (expected < k_lines) {
+    std::string line = next_line(*c);
+    ASSERT_FALSE(line.empty()) << "no reply for x" << expected;
+    if (line[0] == 'e') {
+      ++errors;
+      continue;
+    }
+    ASSERT_EQ(line, "x" + std::to_string(expected) + " SUCCESS " + std::to_string(expected + 1));
+    ++expected;
+  }
+  EXPECT_EQ(errors, std::size_t(k_lines / 500));
+}
+
 TEST_F(SocketTransport, RepliesKeepTheirOrderWhenTheSimulationIsBusy) {
   // the simulation lock is held (a long step): requests and the error replies behind them
   // are queued, then answered in order by the simulation thread
