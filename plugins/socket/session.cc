@@ -18,6 +18,7 @@ Session::Session(asio::ip::tcp::socket socket, SessionHost& host, SessionLimits 
   label_ = "client #" + std::to_string(number);
   if (!ec) label_ += " (" + peer.address().to_string() + ":" + std::to_string(peer.port()) + ")";
   socket_.set_option(asio::ip::tcp::no_delay(true), ec);  // replies are small: no Nagle delay
+  socket_.non_blocking(true, ec);  // flush_writes() writes directly while the socket takes it
 }
 
 void Session::start() { read_more(); }
@@ -51,7 +52,7 @@ void Session::handle_read(const error_code& ec, std::size_t n) {
       std::string last = std::move(partial_);
       partial_.clear();
       host_.on_line(shared_from_this(), last);
-      host_.on_lines_done(shared_from_this());
+      host_.on_lines_done(shared_from_this(), /*read_finished=*/true);
     }
     eof_ = true;
     maybe_finish();
@@ -62,12 +63,18 @@ void Session::handle_read(const error_code& ec, std::size_t n) {
     return;
   }
   consume(std::string_view(read_buffer_.data(), n));
-  host_.on_lines_done(shared_from_this());
+  host_.on_lines_done(shared_from_this(), /*read_finished=*/true);
 }
 
 void Session::consume(std::string_view data) {
   auto self = shared_from_this();
+  // a large read is offered to the host in two halves (see SessionHost::on_lines_done)
+  std::size_t half_left = data.size() >= k_split_bytes ? data.size() / 2 : 0;
   while (!data.empty() && !closed_) {
+    if (half_left && data.size() <= half_left) {
+      half_left = 0;
+      host_.on_lines_done(self, /*read_finished=*/false);
+    }
     std::size_t nl = data.find('\n');
     if (discarding_) {
       // the tail of an oversized line: skip to its end
@@ -129,6 +136,24 @@ void Session::check_unsent() {
 
 void Session::flush_writes() {
   if (closed_ || writing_ || outbox_.empty()) return;
+  // straight to the socket while it takes everything (the usual case); the rest, if any,
+  // through an async write
+  error_code ec;
+  std::size_t n = socket_.write_some(asio::buffer(outbox_), ec);
+  if (ec == asio::error::would_block || ec == asio::error::try_again) {
+    n = 0;
+    ec = {};
+  }
+  if (ec) {
+    close(ec.message());
+    return;
+  }
+  if (n == outbox_.size()) {
+    outbox_.clear();
+    maybe_finish();
+    return;
+  }
+  outbox_.erase(0, n);
   start_write();
 }
 

@@ -6,9 +6,11 @@
 //     `max_line_bytes` is answered FAILED by the host (on_oversized_line) and skipped up to
 //     its '\n'; the connection keeps working. Reading pauses while the connection has
 //     `max_pending_requests` unanswered requests (backpressure instead of unbounded queues).
-//   - Writing: one async write in flight; replies queued meanwhile are written together in
-//     the next one (coalesced). The host may queue() several replies and flush_writes() once. If the unsent bytes exceed `max_unsent_bytes` the client is
-//     not reading: the session is closed and forgotten.
+//   - Writing: flush_writes() writes what was queued straight to the socket (non-blocking)
+//     while the socket takes it all; otherwise one async write in flight, and replies
+//     queued meanwhile are written together in the next one (coalesced). The host may
+//     queue() several replies and flush_writes() once. If the unsent bytes exceed
+//     `max_unsent_bytes` the client is not reading: the session is closed and forgotten.
 //   - Pending requests: the client's ids of requests not yet answered, mapped to the core's
 //     RequestId, so ids and cancel are scoped to the connection.
 //   - End of input (client shut down its sending side): the session stays open until every
@@ -44,9 +46,12 @@ class SessionHost {
   virtual ~SessionHost() = default;
   // One complete line, without '\n'.
   virtual void on_line(const std::shared_ptr<Session>& session, std::string_view line) = 0;
-  // Every line of one read has been passed to on_line/on_oversized_line (the host hands
-  // the requests of that read to the core together).
-  virtual void on_lines_done(const std::shared_ptr<Session>& session) = 0;
+  // The lines passed to on_line/on_oversized_line since the last call may go to the core
+  // together: at the end of every read (`read_finished`), and half-way through a read of
+  // at least k_split_bytes, where the host may run the first half and write its replies
+  // before parsing the rest (a pipelining client then sends more while the server works),
+  // or wait for the end of the read.
+  virtual void on_lines_done(const std::shared_ptr<Session>& session, bool read_finished) = 0;
   // A line exceeded the limit; `prefix` is its beginning (to find the client's id).
   virtual void on_oversized_line(const std::shared_ptr<Session>& session, std::string_view prefix) = 0;
   // The session closed (error, peer gone, limit exceeded or server stopping).
@@ -61,6 +66,9 @@ struct SessionLimits {
 
 class Session : public std::enable_shared_from_this<Session> {
  public:
+  // Reads of at least this many bytes (about 16 requests) are offered in two halves.
+  static constexpr std::size_t k_split_bytes = 512;
+
   Session(boost::asio::ip::tcp::socket socket, SessionHost& host, SessionLimits limits,
           std::uint64_t number);
 

@@ -31,6 +31,7 @@
 #define SIMGATE_PLUGINS_SOCKET_SOCKET_REQUEST_MANAGER_H_
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -71,7 +72,7 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   // SessionHost (I/O thread)
   void on_line(const std::shared_ptr<Session>& session, std::string_view line) override;
   void on_oversized_line(const std::shared_ptr<Session>& session, std::string_view prefix) override;
-  void on_lines_done(const std::shared_ptr<Session>& session) override;
+  void on_lines_done(const std::shared_ptr<Session>& session, bool read_finished) override;
   void on_session_closed(const std::shared_ptr<Session>& session) override;
 
   // An outcome or a ready-made reply line on its way from the simulation thread.
@@ -129,6 +130,10 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   std::unordered_set<std::shared_ptr<Session>> sessions_;  // open connections (I/O thread)
   RequestSlots<Pending> requests_;           // unanswered requests, by the ids it gives them (I/O thread)
   std::string scratch_;                      // reply formatting buffer (I/O thread)
+  // the connection of the previous read, and when reads last came from another one: a
+  // read is run in halves only for a lone pipelining client (on_lines_done; I/O thread)
+  const Session* last_reader_ = nullptr;
+  std::chrono::steady_clock::time_point last_reader_change_{};
   // calls of the current read, not yet handed to the core: the first batch_count_ of batch_;
   // the objects are reused from read to read, at most k_kept_calls of them kept (I/O thread)
   static constexpr std::size_t k_kept_calls = 1024;
