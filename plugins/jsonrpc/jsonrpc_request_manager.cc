@@ -198,6 +198,7 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
         } burst{owner_};
         owner_.deferring_writes_ = true;
         split_lines(read_buf_.data(), n);
+        owner_.read_split_.alone(this);  // notes the read (who else is sending)
       }
       reading_ = false;
       read();
@@ -213,7 +214,18 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
   void split_lines(const char* p, std::size_t n) {
     const char* end = p + n;
     const std::size_t max = owner_.options_.max_message_bytes;
+    // a large read from a client pipelining alone: its first half runs and is answered
+    // before the rest is parsed (simgate/core/read_split.h)
+    const char* half = n >= ReadSplit::k_min_bytes ? p + n / 2 : nullptr;
     while (p < end && !closed_) {
+      if (half && p >= half) {
+        half = nullptr;
+        if (owner_.read_split_.alone(this)) {
+          owner_.flush_submissions();
+          owner_.flush_writes();
+          owner_.deferring_writes_ = true;
+        }
+      }
       const char* nl = static_cast<const char*>(std::memchr(p, '\n', static_cast<std::size_t>(end - p)));
       if (!nl) {
         if (!discarding_) {
@@ -534,11 +546,10 @@ void JsonRpcRequestManager::flush_submissions() {
   // same process(); when the simulation lock is free they run here, on this thread, and
   // their replies are queued on their connections before run_or_submit returns
   if (to_submit_.empty()) return;
-  std::vector<std::pair<RequestId, Call>> calls;
-  calls.reserve(to_submit_.size());
-  std::move(to_submit_.begin(), to_submit_.end(), std::back_inserter(calls));
-  to_submit_.clear();  // keeps its capacity for the next read
-  run_or_submit(std::move(calls));
+  // run from submitting_ (to_submit_ may fill again meanwhile); both keep their capacity
+  submitting_.swap(to_submit_);
+  run_or_submit(std::span(submitting_));
+  submitting_.clear();
 }
 
 void JsonRpcRequestManager::flush_writes() {

@@ -46,6 +46,7 @@
 #include <boost/asio/steady_timer.hpp>
 
 #include "protocol.h"
+#include "simgate/core/read_split.h"
 #include "simgate/core/recycling_map.h"
 #include "simgate/core/request_manager.h"
 
@@ -150,6 +151,8 @@ class JsonRpcRequestManager : public RequestManager {
   RecyclingMap<RequestId, Pending> pending_{k_spare_nodes};  // submitted calls (I/O thread)
   Request request_;                                  // the message being read by the fast path (I/O thread)
   std::vector<std::pair<RequestId, Call>> to_submit_;  // calls parsed, handed over together (I/O thread)
+  std::vector<std::pair<RequestId, Call>> submitting_;  // the calls being handed over (I/O thread)
+  ReadSplit read_split_;  // answers half of a lone client's large read early (I/O thread)
   bool deferring_writes_ = false;                    // replies wait for flush_writes() (I/O thread)
   std::vector<std::shared_ptr<Session>> dirty_;      // sessions with replies to flush (I/O thread)
   std::mutex completions_mutex_;                     // guards completions_ and drain_posted_

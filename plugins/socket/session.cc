@@ -69,7 +69,7 @@ void Session::handle_read(const error_code& ec, std::size_t n) {
 void Session::consume(std::string_view data) {
   auto self = shared_from_this();
   // a large read is offered to the host in two halves (see SessionHost::on_lines_done)
-  std::size_t half_left = data.size() >= k_split_bytes ? data.size() / 2 : 0;
+  std::size_t half_left = data.size() >= ReadSplit::k_min_bytes ? data.size() / 2 : 0;
   while (!data.empty() && !closed_) {
     if (half_left && data.size() <= half_left) {
       half_left = 0;

@@ -33,6 +33,7 @@
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
 
+#include "simgate/core/read_split.h"
 #include "simgate/core/recycling_map.h"
 #include "simgate/core/status.h"
 
@@ -48,9 +49,8 @@ class SessionHost {
   virtual void on_line(const std::shared_ptr<Session>& session, std::string_view line) = 0;
   // The lines passed to on_line/on_oversized_line since the last call may go to the core
   // together: at the end of every read (`read_finished`), and half-way through a read of
-  // at least k_split_bytes, where the host may run the first half and write its replies
-  // before parsing the rest (a pipelining client then sends more while the server works),
-  // or wait for the end of the read.
+  // at least ReadSplit::k_min_bytes, where the host may run the first half and write its
+  // replies before parsing the rest (simgate/core/read_split.h), or wait for the end.
   virtual void on_lines_done(const std::shared_ptr<Session>& session, bool read_finished) = 0;
   // A line exceeded the limit; `prefix` is its beginning (to find the client's id).
   virtual void on_oversized_line(const std::shared_ptr<Session>& session, std::string_view prefix) = 0;
@@ -66,8 +66,6 @@ struct SessionLimits {
 
 class Session : public std::enable_shared_from_this<Session> {
  public:
-  // Reads of at least this many bytes (about 16 requests) are offered in two halves.
-  static constexpr std::size_t k_split_bytes = 512;
 
   Session(boost::asio::ip::tcp::socket socket, SessionHost& host, SessionLimits limits,
           std::uint64_t number);

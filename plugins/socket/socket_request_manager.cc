@@ -21,8 +21,6 @@ constexpr std::string_view k_failed = "FAILED";
 constexpr std::string_view k_preempted = "PREEMPTED";
 // Longest client id echoed in the reply to an oversized line (the line itself is dropped).
 constexpr std::size_t k_max_echoed_id = 256;
-// A client is pipelining alone when every read for this long came from its connection.
-constexpr std::chrono::milliseconds k_lone_client_after{2};
 
 // The address to listen on: a literal, or the first result of resolving a name.
 tcp::endpoint resolve_listen_endpoint(const std::string& host, std::uint16_t port) {
@@ -176,17 +174,9 @@ void SocketRequestManager::run_batch() {
 }
 
 void SocketRequestManager::on_lines_done(const std::shared_ptr<Session>& session, bool read_finished) {
-  // Half-way through a large read, the first half runs and its replies are written before
-  // the rest is parsed when one client alone is pipelining: it reads those replies and
-  // sends more requests while this thread works through the second half, instead of both
-  // sides taking turns. With other connections active the server has their reads to work
-  // on, and the extra write would only cost: the read runs whole.
-  const auto now = std::chrono::steady_clock::now();
-  if (session.get() != last_reader_) {
-    last_reader_ = session.get();
-    last_reader_change_ = now;
-  }
-  if (!read_finished && now - last_reader_change_ < k_lone_client_after) return;
+  // half-way through a large read: its first half runs and is answered now only for a
+  // client pipelining alone (read_split.h)
+  if (!read_split_.alone(session.get()) && !read_finished) return;
   run_batch();
 }
 

@@ -31,7 +31,6 @@
 #define SIMGATE_PLUGINS_SOCKET_SOCKET_REQUEST_MANAGER_H_
 
 #include <atomic>
-#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -48,6 +47,7 @@
 
 #include "params_parser.h"
 #include "session.h"
+#include "simgate/core/read_split.h"
 #include "simgate/core/request_slots.h"
 #include "simgate/core/request_manager.h"
 
@@ -130,10 +130,7 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   std::unordered_set<std::shared_ptr<Session>> sessions_;  // open connections (I/O thread)
   RequestSlots<Pending> requests_;           // unanswered requests, by the ids it gives them (I/O thread)
   std::string scratch_;                      // reply formatting buffer (I/O thread)
-  // the connection of the previous read, and when reads last came from another one: a
-  // read is run in halves only for a lone pipelining client (on_lines_done; I/O thread)
-  const Session* last_reader_ = nullptr;
-  std::chrono::steady_clock::time_point last_reader_change_{};
+  ReadSplit read_split_;                     // runs a lone client's large reads in halves (I/O thread)
   // calls of the current read, not yet handed to the core: the first batch_count_ of batch_;
   // the objects are reused from read to read, at most k_kept_calls of them kept (I/O thread)
   static constexpr std::size_t k_kept_calls = 1024;
