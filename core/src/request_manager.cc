@@ -113,20 +113,20 @@ class Inbox : public CompletionSink {
 // Once a call has run, what its params hold. nlohmann's destructor first moves an array's
 // elements to a heap-allocated stack (to avoid deep recursion): the usual positional
 // arguments, an array of scalars, are cleared here instead, one allocation less per
-// request. A call object its transport reuses (`reused`) keeps an array of numbers,
+// request. A call object its transport refills (`refilled`) keeps an array of numbers,
 // booleans and nulls as it is (it holds no memory, and the next parse overwrites it in
 // place); anything else it held is released, so that call objects kept from read to read
 // never hold on to a large request.
-void release_params(json& params, bool reused) noexcept {
+void release_params(json& params, bool refilled) noexcept {
   if (params.is_array()) {
     auto& elements = params.get_ref<json::array_t&>();
     bool holds_memory = false;
     for (const auto& e : elements) {
-      if (e.is_structured() && !reused) return;  // destroyed with the call, as a whole
+      if (e.is_structured() && !refilled) return;  // destroyed with the call, as a whole
       holds_memory = holds_memory || e.is_string() || e.is_structured() || e.is_binary();
     }
-    if (!reused || holds_memory) elements.clear();
-  } else if (reused && !params.is_null()) {
+    if (!refilled || holds_memory) elements.clear();
+  } else if (refilled && !params.is_null()) {
     params = nullptr;  // named arguments, or a scalar the core refused
   }
 }
@@ -215,10 +215,10 @@ void RequestManager::submit_batch(std::vector<std::pair<RequestId, Call>> calls)
 }
 
 bool RequestManager::run_or_submit(std::vector<std::pair<RequestId, Call>> calls) {
-  return run_or_submit(std::span(calls));
+  return run_or_submit(std::span(calls), /*refilled=*/false);
 }
 
-bool RequestManager::run_or_submit(std::span<std::pair<RequestId, Call>> calls) {
+bool RequestManager::run_or_submit(std::span<std::pair<RequestId, Call>> calls, bool refilled) {
   std::unique_lock lock(*gate_, std::try_to_lock);
   if (!lock) {
     // the holder (stepping, or another transport) may be past our queue: queue them and
@@ -236,7 +236,7 @@ bool RequestManager::run_or_submit(std::span<std::pair<RequestId, Call>> calls) 
   // signal: waking the simulation thread for work done here would only make it compete
   // for the CPU)
   process_locked();
-  for (auto& [id, call] : calls) execute_and_deliver(id, call, /*reused=*/true);
+  for (auto& [id, call] : calls) execute_and_deliver(id, call, refilled);
   // completions these produced at once (preemption of a running request, an async service
   // that finished in its start method); the calls stay where they are, for the caller to
   // reuse
@@ -289,7 +289,7 @@ std::size_t RequestManager::process_locked() {
 
   for (auto& event : events) {
     if (auto* r = std::get_if<detail::Inbox::Request>(&event)) {
-      execute_and_deliver(r->id, r->call, /*reused=*/false);
+      execute_and_deliver(r->id, r->call, /*refilled=*/false);
     } else if (auto* c = std::get_if<detail::Inbox::Cancel>(&event)) {
       execute_cancel(c->id, c->done);
     } else if (auto* t = std::get_if<detail::Inbox::Task>(&event)) {
@@ -364,11 +364,11 @@ std::optional<Outcome> RequestManager::on_incoming_request(RequestId id, const C
   return std::nullopt;
 }
 
-void RequestManager::execute_and_deliver(RequestId id, Call& call, bool reused) {
+void RequestManager::execute_and_deliver(RequestId id, Call& call, bool refilled) {
   // one Outcome object for every request: its string and JSON members are reset, not
   // rebuilt, and the transport reads (or moves) it in place
   if (execute(id, call, outcome_)) deliver(id, std::move(outcome_));
-  detail::release_params(call.params, reused);
+  detail::release_params(call.params, refilled);
 }
 
 bool RequestManager::execute(RequestId id, const Call& call, Outcome& out) {

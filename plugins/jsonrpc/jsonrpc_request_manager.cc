@@ -548,7 +548,7 @@ void JsonRpcRequestManager::flush_submissions() {
   if (to_submit_.empty()) return;
   // run from submitting_ (to_submit_ may fill again meanwhile); both keep their capacity
   submitting_.swap(to_submit_);
-  run_or_submit(std::span(submitting_));
+  run_or_submit(std::span(submitting_), /*refilled=*/false);
   submitting_.clear();
 }
 

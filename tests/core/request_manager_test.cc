@@ -424,6 +424,14 @@ TEST_F(RequestManagerTest, RunOrSubmitOnASpanLeavesRunCallsInPlaceAndMovesQueued
   EXPECT_EQ(calls[2].second.params, json::array());
   EXPECT_EQ(calls[3].second.params, json::array());
   EXPECT_TRUE(calls[4].second.params.is_null());
+
+  // a caller that drops its call objects (refilled = false): params emptied, so that
+  // destroying them costs no allocation
+  std::vector<std::pair<RequestId, Call>> dropped;
+  dropped.emplace_back(rm.new_request_id(), Call{"test_component", "add", json{5, 6}});
+  EXPECT_TRUE(rm.run_or_submit(std::span(dropped), /*refilled=*/false));
+  EXPECT_EQ(rm.outcome(dropped[0].first)->value, json(11));
+  EXPECT_EQ(dropped[0].second.params, json::array());
   calls.resize(2);
 
   // queued while the lock is held: moved into the queue, run by the next process()

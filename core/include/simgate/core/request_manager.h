@@ -150,11 +150,13 @@ class RequestManager {
   // its own on_service_completion() needs.
   bool run_or_submit(std::vector<std::pair<RequestId, Call>> calls);
   bool run_or_submit(RequestId id, Call call);
-  // The same for a transport that reuses its Call objects from read to read (their
-  // strings and parameter arrays keep their capacity): calls that are queued are moved
-  // from; calls that run here are left in place (params of numbers, booleans and nulls
-  // are kept as they are, for the next parse to overwrite; anything else is released).
-  bool run_or_submit(std::span<std::pair<RequestId, Call>> calls);
+  // The same without moving the calls: those that are queued are moved from; those that
+  // run here are left in place. `refilled`: the caller refills these objects for its next
+  // requests (their strings and arrays keep their capacity; params of numbers, booleans
+  // and nulls are left for the next parse to overwrite, anything else is released).
+  // Otherwise (false) it drops them: their params are emptied, so that destroying them
+  // costs no allocation.
+  bool run_or_submit(std::span<std::pair<RequestId, Call>> calls, bool refilled = true);
   // Cancels a running async request of this manager: it ends PREEMPTED with
   // Failure::cancelled. `done(found)` runs on the simulation thread afterwards.
   void cancel(RequestId id, std::function<void(bool found)> done = {});
@@ -185,8 +187,8 @@ class RequestManager {
   // outcome (sync services and every error), false when an async service started.
   bool execute(RequestId id, const Call& call, Outcome& out);
   // execute(), then delivers the outcome if there is one and releases what `call`'s params
-  // hold (`reused`: the transport keeps the call object for its next request).
-  void execute_and_deliver(RequestId id, Call& call, bool reused);
+  // hold (`refilled`: the transport refills the call object for its next request).
+  void execute_and_deliver(RequestId id, Call& call, bool refilled);
   // Starts an async service; throws what its start method throws.
   void start_async(RequestId id, const Service& service, std::span<const json* const> args);
   void interrupt_running(AsyncSlot& slot, Failure reason, std::string message);
