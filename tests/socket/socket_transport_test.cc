@@ -304,6 +304,13 @@ TEST_F(SocketTransport, CallObjectsReusedFromReadToReadCarryNothingOver) {
   EXPECT_EQ(roundtrip(*c, "r14 test echo [{'a': 1}]"), "r14 SUCCESS {\"a\": 1}");
   EXPECT_EQ(roundtrip(*c, "r15 test_component add {'a': 1, 'b': 2}"), "r15 SUCCESS 3");
   EXPECT_EQ(roundtrip(*c, "r16 test_component add [1, 1]"), "r16 SUCCESS 2");
+  // an integer overwritten in place only when the kept element is a signed integer
+  EXPECT_EQ(roundtrip(*c, "r17 test echo [18446744073709551615]"), "r17 SUCCESS 18446744073709551615");
+  EXPECT_EQ(roundtrip(*c, "r18 test echo [-5]"), "r18 SUCCESS -5");
+  EXPECT_EQ(roundtrip(*c, "r19 test echo [2.5]"), "r19 SUCCESS 2.5");
+  EXPECT_EQ(roundtrip(*c, "r20 test echo [7]"), "r20 SUCCESS 7");
+  EXPECT_EQ(roundtrip(*c, "r21 test echo [True]"), "r21 SUCCESS true");
+  EXPECT_EQ(roundtrip(*c, "r22 test echo [8]"), "r22 SUCCESS 8");
 }
 
 TEST_F(SocketTransport, LastRequestIsAnsweredAfterClientShutsDownSending) {
