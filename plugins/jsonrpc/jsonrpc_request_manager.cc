@@ -545,11 +545,12 @@ void JsonRpcRequestManager::flush_submissions() {
   // one hand-over per read: a batch's calls always travel together, so they run in the
   // same process(); when the simulation lock is free they run here, on this thread, and
   // their replies are queued on their connections before run_or_submit returns
-  if (to_submit_.empty()) return;
-  // run from submitting_ (to_submit_ may fill again meanwhile); both keep their capacity
-  submitting_.swap(to_submit_);
-  run_or_submit(std::span(submitting_), /*refilled=*/false);
-  submitting_.clear();
+  if (to_submit_count_ == 0) return;
+  // the call objects stay for the next read's requests (their arrays circulate with
+  // request_'s params: no allocation per request), at most k_kept_calls of them
+  run_or_submit(std::span(to_submit_.data(), to_submit_count_), /*refilled=*/true);
+  to_submit_count_ = 0;
+  if (to_submit_.size() > k_kept_calls) to_submit_.erase(to_submit_.begin() + k_kept_calls, to_submit_.end());
 }
 
 void JsonRpcRequestManager::flush_writes() {
@@ -621,7 +622,12 @@ void JsonRpcRequestManager::dispatch(const std::shared_ptr<Session>& session, Re
   const RequestId id = new_request_id();
   if (!key.empty()) session->track(key, id);
   session->add_in_flight();
-  to_submit_.emplace_back(id, Call{std::move(component), std::move(service), std::move(request.params)});
+  if (to_submit_count_ == to_submit_.size()) to_submit_.emplace_back();
+  auto& [call_id, call] = to_submit_[to_submit_count_++];
+  call_id = id;
+  if (call.component != component) call.component.swap(component);
+  if (call.service != service) call.service.swap(service);
+  call.params.swap(request.params);  // request_ takes the call's old array, for the next parse
   Pending& pending = pending_.try_emplace(id).first->second;  // a recycled node when there is one
   pending.to = std::move(to);
   pending.method.assign(method);

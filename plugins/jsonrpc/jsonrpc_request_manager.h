@@ -150,8 +150,11 @@ class JsonRpcRequestManager : public RequestManager {
   static constexpr std::size_t k_spare_nodes = 256;  // table nodes kept for reuse (per manager, per connection)
   RecyclingMap<RequestId, Pending> pending_{k_spare_nodes};  // submitted calls (I/O thread)
   Request request_;                                  // the message being read by the fast path (I/O thread)
-  std::vector<std::pair<RequestId, Call>> to_submit_;  // calls parsed, handed over together (I/O thread)
-  std::vector<std::pair<RequestId, Call>> submitting_;  // the calls being handed over (I/O thread)
+  // calls of the current read, handed over together: the first to_submit_count_ of
+  // to_submit_; the objects are refilled from read to read (I/O thread)
+  static constexpr std::size_t k_kept_calls = 1024;
+  std::vector<std::pair<RequestId, Call>> to_submit_;
+  std::size_t to_submit_count_ = 0;
   ReadSplit read_split_;  // answers half of a lone client's large read early (I/O thread)
   bool deferring_writes_ = false;                    // replies wait for flush_writes() (I/O thread)
   std::vector<std::shared_ptr<Session>> dirty_;      // sessions with replies to flush (I/O thread)

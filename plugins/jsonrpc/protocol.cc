@@ -272,9 +272,13 @@ class FastReader {
 
   bool flat_container(json& value) {
     if (eat('[')) {
-      value = json::array();
+      if (value.is_array()) {
+        value.get_ref<json::array_t&>().clear();  // an array kept from an earlier request
+      } else {
+        value = json::array();
+        value.get_ref<json::array_t&>().reserve(4);  // no regrowth for the usual few arguments
+      }
       if (eat(']')) return true;
-      value.get_ref<json::array_t&>().reserve(4);  // no regrowth for the usual few arguments
       auto& elements = value.get_ref<json::array_t&>();
       do {
         // read in place: no temporary value per element
@@ -344,8 +348,8 @@ bool parse_request_fast(std::string_view line, std::size_t max_depth, Request& o
   bool has_version = false, has_method = false, has_params = false;
   out.has_id = false;
   out.id = nullptr;
-  out.params = nullptr;
   out.id_text.clear();
+  // out.params is refilled in place (its array reused); nulled at the end when absent
   // members, each once; anything else goes to the full parser
   do {
     std::string_view key;
@@ -383,6 +387,7 @@ bool parse_request_fast(std::string_view line, std::size_t max_depth, Request& o
   if (!in.eat('}')) return false;
   in.skip_ws();
   if (!in.at_end() || !has_version || !has_method) return false;
+  if (!has_params) out.params = nullptr;
   if (out.has_id) append_id_text(out.id_text, out.id);
   return true;
 }

@@ -57,9 +57,9 @@ std::optional<Request> full_path(const std::string& line) {
   return request;
 }
 
-// Checks one line; returns whether the fast path took it.
-bool check(const std::string& line) {
-  Request fast;
+// Checks one line, read into `fast` (which may hold an earlier request: the transport
+// reuses one); returns whether the fast path took it.
+bool check(const std::string& line, Request& fast) {
   const bool took = parse_request_fast(line, k_max_depth, fast);
   if (!took) return false;
   auto full = full_path(line);
@@ -74,6 +74,11 @@ bool check(const std::string& line) {
     EXPECT_EQ(fast.id_text, dump(full->id)) << line;
   }
   return true;
+}
+
+bool check(const std::string& line) {
+  Request fast;
+  return check(line, fast);
 }
 
 // Valid requests of the shapes clients send, and near misses of each.
@@ -153,6 +158,25 @@ TEST(JsonRpcFastPath, ReadsValidMessagesExactlyAsTheFullParser) {
     check(line);
     EXPECT_TRUE(full_path(line).has_value()) << "corpus entry should be valid: " << line;
   }
+}
+
+TEST(JsonRpcFastPath, AReusedRequestCarriesNothingOver) {
+  // the transport reads every message into one Request, whose params array it refills:
+  // each message must read exactly as alone, whatever came before (longer arrays, objects,
+  // no params, declined lines)
+  Request fast;
+  const std::vector<std::string> sequence = {
+      R"({"jsonrpc":"2.0","id":1,"method":"a.b","params":[1,2,3,"x",[4]]})",
+      R"({"jsonrpc":"2.0","id":2,"method":"a.b","params":[5]})",
+      R"({"jsonrpc":"2.0","id":3,"method":"a.b","params":{"k":1}})",
+      R"({"jsonrpc":"2.0","id":4,"method":"a.b"})",
+      R"({"jsonrpc":"2.0","id":5,"method":"a.b","params":[]})",
+      R"({"jsonrpc":"2.0","id":6,"method":"a.b","params":[1,2]})",
+      R"([{"jsonrpc":"2.0","id":7,"method":"a.b","params":[9]}])",  // declined: a batch
+      R"({"jsonrpc":"2.0","id":8,"method":"a.b","params":[6,7]})",
+      R"({"jsonrpc":"2.0","method":"a.b"})"};
+  for (const auto& line : sequence) check(line, fast);
+  for (const auto& line : k_common) check(line, fast);
 }
 
 TEST(JsonRpcFastPath, LeavesUnusualValidMessagesAndBatchesToTheFullParser) {
