@@ -671,7 +671,7 @@ void JsonRpcRequestManager::on_service_completion(RequestId id, Outcome&& outcom
   complete(id, std::move(outcome));
 }
 
-void JsonRpcRequestManager::complete(RequestId id, Outcome outcome) {
+void JsonRpcRequestManager::complete(RequestId id, Outcome&& outcome) {
   try {
     if (io_.get_executor().running_in_this_thread()) {
       // run_or_submit runs process() on the I/O thread: straight to the connection, after
@@ -716,7 +716,7 @@ void JsonRpcRequestManager::queue_gathered_completions() {
   for (auto& [id, outcome] : completions) finish_call(id, std::move(outcome));
 }
 
-void JsonRpcRequestManager::finish_call(RequestId id, Outcome outcome) {
+void JsonRpcRequestManager::finish_call(RequestId id, Outcome&& outcome) {
   auto it = pending_.find(id);
   if (it == pending_.end()) return;
   // taken out of the table while it is answered; its node is given back for a later call
@@ -734,12 +734,14 @@ void JsonRpcRequestManager::finish_call(RequestId id, Outcome outcome) {
       // rpc.cancel's own answer: true if the call was still running
       reply(pending.to, result_response(pending.to.id, outcome.value ? std::move(*outcome.value) : json(false)));
     } else if (outcome.status == Status::success) {
-      json result = outcome.value ? std::move(*outcome.value) : json(nullptr);
-      if (pending.to.batch) reply(pending.to, result_response(pending.to.id, std::move(result)));
+      static const json k_no_result;  // null
+      if (pending.to.batch)
+        reply(pending.to, result_response(pending.to.id, outcome.value ? std::move(*outcome.value) : json(nullptr)));
       else if (!pending.to.notification) {
         // the envelope by hand around the result; id_key is dump(id) ("" for a null id)
         line_.clear();
-        append_result_line(line_, pending.id_key.empty() ? std::string_view("null") : pending.id_key, result);
+        append_result_line(line_, pending.id_key.empty() ? std::string_view("null") : pending.id_key,
+                           outcome.value ? *outcome.value : k_no_result);
         session->send(line_);
         if (line_.capacity() > k_coalesce_bytes) std::string().swap(line_);  // keep no large buffer
       }

@@ -124,12 +124,12 @@ class JsonRpcRequestManager : public RequestManager {
   void flush_submissions();
   // Any thread: on the I/O thread, finishes the call at once (after the outcomes gathered
   // before it); elsewhere, appends to completions_ and posts drain_completions().
-  void complete(RequestId id, Outcome outcome);
+  void complete(RequestId id, Outcome&& outcome);
   // I/O thread (posted): finishes the gathered outcomes, then one write per connection.
   void drain_completions();
   // I/O thread: finishes the outcomes gathered in completions_, in the order produced.
   void queue_gathered_completions();
-  void finish_call(RequestId id, Outcome outcome);
+  void finish_call(RequestId id, Outcome&& outcome);
   void flush_writes();
   void reply(ReplyTo& to, std::optional<json> response);
   void session_closed(Session& session);
