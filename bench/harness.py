@@ -92,8 +92,19 @@ class Process:
                     return int(line.split()[1])
         raise BenchError(f"{self.name}: no VmRSS in /proc/{self.proc.pid}/status")
 
+    def pause(self):
+        """SIGSTOP: a peer that busy-polls (MORSE's loop) must not take a CPU while the
+        servers it is compared with are measured."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGSTOP)
+
+    def resume(self):
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGCONT)
+
     def stop(self, timeout=20):
         """SIGTERM, then the exit code (SIGKILL after `timeout`); non-zero codes are errors."""
+        self.resume()  # a paused process would hold SIGTERM until continued
         if self.proc.stdin:
             # programs told to stop by closing stdin finish on their own first
             self.proc.stdin.close()
@@ -372,20 +383,30 @@ class Harness:
         host = None
         echo = None
         runs = []
+        def measure_peer(fn):
+            # the peer runs only for its own measurements: MORSE's standalone loop spins a
+            # CPU even when idle, which would leave simgate and the echo one CPU of two
+            peer.resume()
+            try:
+                return fn()
+            finally:
+                peer.pause()
+
         try:
             peer_port = peer.read_json("port", 60)["port"]
+            peer.pause()
             host = self.host(transport, {"host": "127.0.0.1", "port": 0})
             echo = self.echo()
             port = port_of(host.announcement["endpoints"])
             for rep in range(self.repeats):
-                lp, ls = in_order(rep, lambda: self.latency(peer_port, proto_args),
+                lp, ls = in_order(rep, lambda: measure_peer(lambda: self.latency(peer_port, proto_args)),
                                   lambda: self.latency(port, proto_args))
                 le = self.latency(echo.port, proto_args + ["--echo"])
                 run = {"latency": {"peer": lp, "simgate": ls, "echo": le, "ratio_p50": ratio(ls["p50_us"], lp["p50_us"]),
                                    "echo_ratio_p50": ratio(le["p50_us"], lp["p50_us"])},
                        "throughput": {}}
                 for w in windows:
-                    tp, ts = in_order(rep, lambda: self.throughput(peer_port, proto_args, w, 1),
+                    tp, ts = in_order(rep, lambda: measure_peer(lambda: self.throughput(peer_port, proto_args, w, 1)),
                                       lambda: self.throughput(port, proto_args, w, 1))
                     te = self.throughput(echo.port, proto_args + ["--echo"], w, 1)
                     run["throughput"][f"w{w}_c1"] = {"peer": tp, "simgate": ts, "echo": te,
