@@ -74,7 +74,8 @@ std::optional<json> parse_request(json& message, Request& out);
 // with json::parse of their own text. Returns true only for a valid request, with `out`
 // exactly as json::parse + parse_request would fill it (plus id_text); returns false for
 // anything else (a batch, an error, escapes or non-ASCII in the envelope, other members,
-// deep nesting): the caller then takes the full path, which reports errors. Never throws
+// deep nesting): the caller then takes the full path, which reports errors, and `out` is
+// unspecified. `out` may hold an earlier request: its params array is reused. Never throws
 // for bad input.
 bool parse_request_fast(std::string_view line, std::size_t max_depth, Request& out);
 

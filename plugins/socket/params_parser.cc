@@ -118,7 +118,7 @@ class Parser {
     }
     fail("expected a value but found " + describe_here());
   }
-  // into `out`, reusing its array (emptied) when it holds one
+  // into `out`, reusing the array it holds: its elements are overwritten in place
   void parse_sequence(std::size_t depth, char close, json& out) {
     if (depth + 1 > k_max_depth)
       fail("nesting deeper than " + std::to_string(k_max_depth) + " levels");

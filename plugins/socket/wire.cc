@@ -87,14 +87,17 @@ void append_string(std::string& out, std::string_view s) {
   out += '"';
 }
 
+// Writes an integer value (number_integer or number_unsigned) at `p`, which has room for
+// 20 characters; returns the end.
+char* write_integer(char* p, char* end, const json& value) {
+  return value.is_number_unsigned() ? std::to_chars(p, end, value.get<std::uint64_t>()).ptr
+                                    : std::to_chars(p, end, value.get<std::int64_t>()).ptr;
+}
+
 void append_number(std::string& out, const json& value) {
-  char buf[32];
-  if (value.is_number_unsigned()) {
-    auto r = std::to_chars(buf, buf + sizeof buf, value.get<std::uint64_t>());
-    out.append(buf, r.ptr);
-  } else if (value.is_number_integer()) {
-    auto r = std::to_chars(buf, buf + sizeof buf, value.get<std::int64_t>());
-    out.append(buf, r.ptr);
+  if (value.is_number_integer()) {
+    char buf[24];
+    out.append(buf, write_integer(buf, buf + sizeof buf, value));
   } else {
     double d = value.get<double>();
     if (std::isnan(d)) out += "NaN";
@@ -253,8 +256,7 @@ void append_reply(std::string& out, std::string_view id, std::string_view status
     p += status.size();
     if (integer) {
       *p++ = ' ';
-      p = value->is_number_unsigned() ? std::to_chars(p, line + sizeof line, value->get<std::uint64_t>()).ptr
-                                      : std::to_chars(p, line + sizeof line, value->get<std::int64_t>()).ptr;
+      p = write_integer(p, line + sizeof line, *value);
     }
     *p++ = '\n';
     out.append(line, static_cast<std::size_t>(p - line));

@@ -61,7 +61,6 @@ class RequestSlots {
     Slot& slot = slots_[index];
     slot.live = true;
     slot.value = std::move(value);
-    ++live_;
     return id_of(slot.generation, index);
   }
 
@@ -77,24 +76,18 @@ class RequestSlots {
   // Frees the slot of `id`; false if there was no such entry.
   bool erase(RequestId id) {
     if (!find(id)) return false;
-    const auto index = static_cast<std::uint32_t>(id & (k_max_live - 1));
-    Slot& slot = slots_[index];
-    slot.live = false;
-    slot.value = T{};
-    slot.generation = (slot.generation + 1) & ((std::uint64_t{1} << k_generation_bits) - 1);
-    free_.push_back(index);
-    --live_;
+    free_slot(static_cast<std::uint32_t>(id & (k_max_live - 1)));
     return true;
   }
 
   // Erases every entry (the slots and their generations stay: old ids still find nothing).
   void clear() {
     for (std::size_t i = 0; i < slots_.size(); ++i)
-      if (slots_[i].live) erase(id_of(slots_[i].generation, static_cast<std::uint32_t>(i)));
+      if (slots_[i].live) free_slot(static_cast<std::uint32_t>(i));
   }
 
-  std::size_t size() const { return live_; }
-  bool empty() const { return live_ == 0; }
+  std::size_t size() const { return slots_.size() - free_.size(); }
+  bool empty() const { return size() == 0; }
 
  private:
   struct Slot {
@@ -107,9 +100,17 @@ class RequestSlots {
     return k_mark | (generation << k_index_bits) | index;
   }
 
+  // Resets a live slot's value, moves it to its next generation and lists it as free.
+  void free_slot(std::uint32_t index) {
+    Slot& slot = slots_[index];
+    slot.live = false;
+    slot.value = T{};
+    slot.generation = (slot.generation + 1) & ((std::uint64_t{1} << k_generation_bits) - 1);
+    free_.push_back(index);
+  }
+
   std::vector<Slot> slots_;           // indexed by the low bits of an id
   std::vector<std::uint32_t> free_;   // indexes of free slots, reused last-freed-first
-  std::size_t live_ = 0;              // entries live
 };
 
 }  // namespace simgate
