@@ -195,25 +195,15 @@ void Session::close(std::string_view reason) {
   pending_.clear();
 }
 
-std::optional<RequestId> Session::find_pending(std::string_view client_id) const {
-  auto it = pending_.find(client_id);
-  if (it == pending_.end()) return std::nullopt;
-  return it->second;
-}
-
-std::pair<const std::string, RequestId>* Session::add_pending(std::string_view client_id) {
-  auto [it, inserted] = pending_.try_emplace(client_id, RequestId{0});
-  return inserted ? &*it : nullptr;
-}
-
-void Session::drop_pending(const std::string& client_id) { pending_.erase_key(client_id); }
-
-void Session::answer(const std::string& client_id, std::string_view status, const json* value) {
+void Session::answer(std::size_t client_id_hash, RequestId id, std::string_view status,
+                     const json* value) {
   if (closed_) return;
-  // written straight into the outbox, then forgotten (the id is not used after this), then
-  // checked: the limit may close the session
-  append_reply(outbox_, client_id, status, value);
-  pending_.erase_key(client_id);
+  const IdTable::Entry* entry = pending_.find(client_id_hash, id);
+  if (!entry) return;
+  // written straight into the outbox, then forgotten, then checked: the limit may close
+  // the session
+  append_reply(outbox_, entry->key, status, value);
+  pending_.erase(entry);
   check_unsent();
   if (closed_) return;
   read_more();

@@ -25,7 +25,6 @@
 #include <array>
 #include <cstddef>
 #include <memory>
-#include <optional>
 #include <string>
 #include <string_view>
 #include <utility>  // before Asio: Boost 1.74 needs std::exchange in C++20 mode
@@ -34,7 +33,7 @@
 #include <boost/asio/ip/tcp.hpp>
 
 #include "simgate/core/read_split.h"
-#include "simgate/core/recycling_map.h"
+#include "simgate/core/id_table.h"
 #include "simgate/core/status.h"
 
 namespace simgate::socket {
@@ -83,19 +82,18 @@ class Session : public std::enable_shared_from_this<Session> {
   bool closed() const { return closed_; }
 
   // Pending requests of this connection, by the client's id.
-  std::optional<RequestId> find_pending(std::string_view client_id) const;
-  // Registers a request under the client's id: returns its entry, where the caller stores
-  // the core's RequestId (the client id in it lives until answer() or drop_pending() of
-  // that id, or the close of the session), or null when that id is already pending here.
-  std::pair<const std::string, RequestId>* add_pending(std::string_view client_id);
+  const IdTable::Entry* find_pending(std::string_view client_id) const { return pending_.find(client_id); }
+  // Registers a request under the client's id: returns its entry, whose `id` the caller
+  // sets at once (the pointer is valid until the table next changes), or null when that id
+  // is already pending here.
+  IdTable::Entry* add_pending(std::string_view client_id) { return pending_.insert(client_id); }
   // Forgets a request that will get no answer of its own (its line was refused).
-  void drop_pending(const std::string& client_id);
-  // Queues the reply "<client_id> <status>[ <value>]" to the pending request `client_id`
-  // (as add_pending stored it) and forgets the request; resumes reading if it was paused.
-  // The write starts at the next flush_writes().
-  void answer(const std::string& client_id, std::string_view status, const json* value);
-  using PendingTable = RecyclingMap<std::string, RequestId, TransparentStringHash>;
-  const PendingTable& pending() const { return pending_; }
+  void drop_pending(std::string_view client_id) { pending_.erase(client_id); }
+  // Queues the reply "<client id> <status>[ <value>]" to the pending request `id`, whose
+  // client id hashes to `client_id_hash` (its entry's hash), and forgets the request;
+  // resumes reading if it was paused. The write starts at the next flush_writes().
+  void answer(std::size_t client_id_hash, RequestId id, std::string_view status, const json* value);
+  const IdTable& pending() const { return pending_; }
   // A reply the host made itself (an error) but that must follow the replies of earlier
   // requests travels through the core in order: defer_reply() when it leaves,
   // queue_deferred_reply() when it comes back.
@@ -131,7 +129,7 @@ class Session : public std::enable_shared_from_this<Session> {
   std::string outbox_;                    // replies waiting for the next write
   std::string in_flight_;                 // replies being written
   bool writing_ = false;                  // a write is in flight
-  PendingTable pending_;                  // client id -> core request id
+  IdTable pending_;                       // client id -> core request id
   std::size_t deferred_replies_ = 0;      // host error replies travelling behind earlier requests
 };
 

@@ -219,9 +219,10 @@ void SocketRequestManager::on_line(const std::shared_ptr<Session>& session, std:
       return;
     case RequestLine::Kind::cancel:
       // no reply of its own: the request ends PREEMPTED; unknown ids are ignored (as MORSE)
-      if (auto id = session->find_pending(request.id)) {
-        run_batch();  // the request may be in this read's batch
-        cancel(*id);
+      if (const IdTable::Entry* pending = session->find_pending(request.id)) {
+        const RequestId id = pending->id;  // read before run_batch() changes the table
+        run_batch();                       // the request may be in this read's batch
+        cancel(id);
       }
       return;
     case RequestLine::Kind::call:
@@ -229,7 +230,7 @@ void SocketRequestManager::on_line(const std::shared_ptr<Session>& session, std:
   }
 
   // one pending request per id and connection, or replies could not be told apart
-  auto* pending = session->add_pending(request.id);
+  IdTable::Entry* pending = session->add_pending(request.id);
   if (!pending) {
     fail_in_order(session, request.id,
                   "Request id '" + std::string(request.id) +
@@ -242,21 +243,21 @@ void SocketRequestManager::on_line(const std::shared_ptr<Session>& session, std:
   if (batch_count_ == batch_.size()) batch_.emplace_back();
   auto& [id, call] = batch_[batch_count_];
   if (!parse_params_into(request.params, request.params_column, call.params, params_error_)) {
-    session->drop_pending(pending->first);
+    session->drop_pending(request.id);
     fail_in_order(session, request.id,
                   "Invalid request syntax: error while parsing the parameters at column " +
                       std::to_string(params_error_.column) + ": " + params_error_.error);
     return;
   }
   if (requests_.size() >= decltype(requests_)::k_max_live) {
-    session->drop_pending(pending->first);
+    session->drop_pending(request.id);
     fail_in_order(session, request.id, "Too many requests are waiting for their outcome in this server: retry later");
     return;
   }
 
   // the request's slot: its id says where the reply goes
-  id = requests_.insert({session.get(), &pending->first});
-  pending->second = id;
+  id = requests_.insert({session.get(), pending->hash});
+  pending->id = id;
   // a pipelining client names the same service line after line
   if (call.component != request.component) call.component.assign(request.component);
   if (call.service != request.service) call.service.assign(request.service);
@@ -282,7 +283,7 @@ void SocketRequestManager::on_oversized_line(const std::shared_ptr<Session>& ses
 
 void SocketRequestManager::on_session_closed(const std::shared_ptr<Session>& session) {
   // its outcomes have nowhere to go: forget them (the requests themselves run on)
-  for (const auto& [client_id, id] : session->pending()) requests_.erase(id);
+  session->pending().for_each([this](const IdTable::Entry& e) { requests_.erase(e.id); });
   sessions_.erase(session);
 }
 
@@ -364,7 +365,7 @@ void SocketRequestManager::deliver(RequestId id, const Outcome& outcome) try {
   const Pending* entry = requests_.find(id);
   if (!entry) return;  // its client is gone
   const Pending pending = *entry;
-  requests_.erase(id);
+  requests_.erase(id);  // first: the reply may close the connection, which erases its entries
   Session& session = *pending.session;
   // held in touched_ until its write starts
   touch(session);
@@ -379,7 +380,7 @@ void SocketRequestManager::deliver(RequestId id, const Outcome& outcome) try {
     message = outcome.message;
     value = &message;
   }
-  session.answer(*pending.client_id, status, value);
+  session.answer(pending.client_id_hash, id, status, value);
 } catch (const std::exception& e) {
   log::error(name(), ": cannot deliver the outcome of request ", id, ": ", e.what());
 }

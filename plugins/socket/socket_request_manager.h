@@ -109,11 +109,10 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   void close_all();
 
   // A request sent to the core and not yet answered. Entries of a connection are erased
-  // when it closes (on_session_closed), and a connection's pending table holds its entries'
-  // ids until they are answered, so both pointers are valid while the entry exists.
+  // when it closes (on_session_closed), so the session pointer is valid while its entry is.
   struct Pending {
-    Session* session = nullptr;              // the connection that asked
-    const std::string* client_id = nullptr;  // the client's id, in the session's pending table
+    Session* session = nullptr;      // the connection that asked
+    std::size_t client_id_hash = 0;  // finds the request in the session's pending table
   };
 
   boost::asio::io_context io_;  // runs every handler, on thread_

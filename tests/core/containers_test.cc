@@ -1,7 +1,10 @@
 // The hot-path helpers of the core: RecyclingMap (request tables that reuse their nodes),
+// IdTable (a connection's pending requests by client id),
 // TransparentStringHash (their string keys), RequestSlots (ids that name their slot) and
 // BoundArguments (arguments held inline, or on the heap beyond 8 parameters).
+#include <map>
 #include <memory>
+#include <random>
 #include <set>
 #include <string>
 #include <vector>
@@ -9,6 +12,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "simgate/core/id_table.h"
 #include "simgate/core/recycling_map.h"
 #include "simgate/core/request_slots.h"
 #include "test_manager.h"
@@ -114,6 +118,79 @@ TEST(TransparentStringHashTest, EqualTextEqualHashAndShortIdsSpreadOut) {
   // same bytes, other length; the same 16 bytes at both ends of a longer key
   EXPECT_NE(hash(std::string_view("a\0", 2)), hash(std::string_view("a", 1)));
   EXPECT_NE(hash("abcdefghij"), hash("abcdefghijk"));
+}
+
+TEST(IdTableTest, InsertFindEraseAndDuplicatesAreRefused) {
+  IdTable ids;
+  EXPECT_TRUE(ids.empty());
+  EXPECT_EQ(ids.find("a"), nullptr);
+  EXPECT_FALSE(ids.erase("a"));
+  IdTable::Entry* a = ids.insert("a");
+  ASSERT_NE(a, nullptr);
+  EXPECT_EQ(a->key, "a");
+  EXPECT_EQ(a->id, RequestId{0});
+  a->id = 7;
+  EXPECT_EQ(ids.insert("a"), nullptr);  // already pending
+  ASSERT_NE(ids.find("a"), nullptr);
+  EXPECT_EQ(ids.find("a")->id, RequestId{7});
+  EXPECT_EQ(ids.size(), 1u);
+  const std::string long_id(100, 'x');  // beyond the small-string buffer
+  IdTable::Entry* x = ids.insert(long_id);
+  x->id = 8;
+  const std::size_t x_hash = x->hash;
+  EXPECT_EQ(ids.find(long_id)->id, RequestId{8});
+  EXPECT_EQ(ids.find(std::string(99, 'x')), nullptr);
+  // by the request: its hash and id, no key
+  ASSERT_NE(ids.find(x_hash, 8), nullptr);
+  EXPECT_EQ(ids.find(x_hash, 8)->key, long_id);
+  EXPECT_EQ(ids.find(x_hash, 7), nullptr);
+  EXPECT_TRUE(ids.erase("a"));
+  EXPECT_EQ(ids.find("a"), nullptr);
+  EXPECT_EQ(ids.find(long_id)->id, RequestId{8});
+  ids.erase(ids.find(x_hash, 8));
+  EXPECT_TRUE(ids.empty());
+  ASSERT_NE(ids.insert("a"), nullptr);  // free again
+  ids.clear();
+  EXPECT_TRUE(ids.empty());
+  EXPECT_EQ(ids.find(long_id), nullptr);
+}
+
+TEST(IdTableTest, AgreesWithAMapThroughRandomInsertsAndErases) {
+  // growth and backward-shift deletion, checked against std::map after every operation
+  // batch; few distinct keys, so that runs of colliding slots form and are erased from
+  IdTable ids;
+  std::map<std::string, RequestId> model;
+  std::mt19937 random(12345);
+  for (int step = 0; step < 20000; ++step) {
+    const std::string key = std::to_string(random() % 300);
+    if (random() % 3 != 0) {
+      IdTable::Entry* entry = ids.insert(key);
+      ASSERT_EQ(entry != nullptr, model.count(key) == 0) << key;
+      if (entry) entry->id = model[key] = RequestId(step + 1);
+    } else if (random() % 2 == 0) {
+      ASSERT_EQ(ids.erase(key), model.erase(key) == 1) << key;
+    } else if (auto it = model.find(key); it != model.end()) {
+      // as a reply does: found by its hash and request id, erased by position
+      const IdTable::Entry* entry = ids.find(ids.find(key)->hash, it->second);
+      ASSERT_NE(entry, nullptr) << key;
+      ASSERT_EQ(entry->key, key);
+      ids.erase(entry);
+      model.erase(it);
+    }
+    if (step % 97 != 0) continue;
+    ASSERT_EQ(ids.size(), model.size());
+    for (const auto& [k, id] : model) {
+      const IdTable::Entry* found = ids.find(k);
+      ASSERT_NE(found, nullptr) << k;
+      ASSERT_EQ(found->id, id) << k;
+    }
+    std::size_t seen = 0;
+    ids.for_each([&](const IdTable::Entry& e) {
+      ++seen;
+      EXPECT_EQ(model.at(e.key), e.id);
+    });
+    ASSERT_EQ(seen, model.size());
+  }
 }
 
 TEST(RequestSlotsTest, IdsFindTheirEntryUntilErasedAndNeverTheSlotsNextEntry) {

@@ -358,6 +358,27 @@ TEST_F(SocketTransport, CancelEndsPreemptedAndGetsNoReplyOfItsOwn) {
   EXPECT_EQ(next_lines(*c, 2), (std::multiset<std::string>{"c4 SUCCESS true", "c3 SUCCESS 0"}));
 }
 
+TEST_F(SocketTransport, CancelAfterManyAnsweredRequestsOfTheSameReadFindsItsRequest) {
+  // A cancel first runs the calls its read gathered before it (its request may be among
+  // them); answering them removes their ids from the connection's table, which may move
+  // the entry of the request the cancel names: the cancel still ends that request.
+  auto c = connect();
+  constexpr int k_rounds = 20, k_calls = 64;
+  for (int round = 0; round < k_rounds; ++round) {
+    const std::string hold = "h" + std::to_string(round);
+    std::string burst = hold + " worker hold (1,)\n";
+    std::multiset<std::string> expected{hold + " PREEMPTED"};
+    for (int i = 0; i < k_calls; ++i) {
+      const std::string id = "s" + std::to_string(round) + "_" + std::to_string(i);
+      burst += id + " test ping\n";
+      expected.insert(id + " SUCCESS \"pong\"");
+    }
+    c->send_raw(burst + hold + " cancel\n");
+    ASSERT_EQ(next_lines(*c, k_calls + 1), expected) << "round " << round;
+  }
+  EXPECT_EQ(roundtrip(*c, "end test ping"), "end SUCCESS \"pong\"");
+}
+
 TEST_F(SocketTransport, CancelOfUnknownOrFinishedIdIsIgnored) {
   auto c = connect();
   c->send_line("nobody cancel");
