@@ -39,6 +39,17 @@ void Session::on_read(const error_code& ec, std::size_t n) {
   // error answered in order, a batch run early) must not start the next read, whose bytes
   // would land in read_buffer_ under the lines still being parsed
   handle_read(ec, n);
+  // a large read of a client pipelining alone: if it has sent more already, this read's
+  // replies go out with the next read's (the socket is non-blocking: would_block when
+  // nothing waits); a short read (a client waiting for its answer) is answered at once
+  for (int reads = 1; reads < k_reads_in_a_row && n >= ReadSplit::k_min_bytes; ++reads) {
+    if (closed_ || eof_ || pending_.size() >= limits_.max_pending_requests || !host_.alone(*this)) break;
+    error_code again;
+    n = socket_.read_some(asio::buffer(read_buffer_), again);
+    if (again == asio::error::would_block || again == asio::error::try_again) break;
+    handle_read(again, n);
+  }
+  host_.write_replies(shared_from_this());
   reading_ = false;
   read_more();
 }

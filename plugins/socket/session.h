@@ -47,10 +47,17 @@ class SessionHost {
   // One complete line, without '\n'.
   virtual void on_line(const std::shared_ptr<Session>& session, std::string_view line) = 0;
   // The lines passed to on_line/on_oversized_line since the last call may go to the core
-  // together: at the end of every read (`read_finished`), and half-way through a read of
-  // at least ReadSplit::k_min_bytes, where the host may run the first half and write its
-  // replies before parsing the rest (simgate/core/read_split.h), or wait for the end.
+  // together: half-way through a read of at least ReadSplit::k_min_bytes, where the host
+  // may run the first half and write its replies before parsing the rest
+  // (simgate/core/read_split.h), or wait for the end; and at the end of every read
+  // (`read_finished`), where it runs them and keeps their replies for write_replies().
   virtual void on_lines_done(const std::shared_ptr<Session>& session, bool read_finished) = 0;
+  // The session stops reading for now (nothing more is waiting, or it read enough in a
+  // row): write the replies kept since the last write.
+  virtual void write_replies(const std::shared_ptr<Session>& session) = 0;
+  // Whether `session` is the only connection sending (ReadSplit::alone): then, after a
+  // large read, it reads on while bytes are waiting before the replies are written.
+  virtual bool alone(const Session& session) = 0;
   // A line exceeded the limit; `prefix` is its beginning (to find the client's id).
   virtual void on_oversized_line(const std::shared_ptr<Session>& session, std::string_view prefix) = 0;
   // The session closed (error, peer gone, limit exceeded or server stopping).
@@ -108,6 +115,10 @@ class Session : public std::enable_shared_from_this<Session> {
  private:
   void read_more();
   void on_read(const boost::system::error_code& ec, std::size_t n);
+  // A large read's next read is often waiting already (a client pipelining alone): it is
+  // read at once, without going back to the event loop, and the replies of both are
+  // written together. At most this many reads in a row.
+  static constexpr int k_reads_in_a_row = 4;
   // on_read() without starting the next read: the lines, end of input or error.
   void handle_read(const boost::system::error_code& ec, std::size_t n);
   void consume(std::string_view data);

@@ -162,23 +162,31 @@ void SocketRequestManager::accept_next() {
 
 // ---- requests (I/O thread)
 
-void SocketRequestManager::run_batch() {
+void SocketRequestManager::run_calls() {
   if (batch_count_ == 0) return;
   // outcomes produced here, on the I/O thread, are queued on their connections
-  // (on_service_completion), then written together. The calls stay in batch_ for the next
-  // read (those queued for the simulation thread are moved out).
+  // (on_service_completion). The calls stay in batch_ for the next read (those queued for
+  // the simulation thread are moved out).
   run_or_submit(std::span(batch_.data(), batch_count_));
   batch_count_ = 0;
   if (batch_.size() > k_kept_calls) batch_.erase(batch_.begin() + k_kept_calls, batch_.end());
+}
+
+void SocketRequestManager::run_batch() {
+  run_calls();
   flush_touched();
 }
 
 void SocketRequestManager::on_lines_done(const std::shared_ptr<Session>& session, bool read_finished) {
   // half-way through a large read: its first half runs and is answered now only for a
   // client pipelining alone (read_split.h)
-  if (!read_split_.alone(session.get()) && !read_finished) return;
-  run_batch();
+  if (read_finished)
+    run_calls();  // answered at write_replies(), with the next read's replies if it is waiting
+  else if (read_split_.alone(session.get()))
+    run_batch();
 }
+
+void SocketRequestManager::write_replies(const std::shared_ptr<Session>&) { flush_touched(); }
 
 void SocketRequestManager::fail_in_order(const std::shared_ptr<Session>& session, std::string_view id,
                                          std::string message) {

@@ -72,6 +72,8 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   void on_line(const std::shared_ptr<Session>& session, std::string_view line) override;
   void on_oversized_line(const std::shared_ptr<Session>& session, std::string_view prefix) override;
   void on_lines_done(const std::shared_ptr<Session>& session, bool read_finished) override;
+  void write_replies(const std::shared_ptr<Session>& session) override;
+  bool alone(const Session& session) override { return read_split_.alone(&session); }
   void on_session_closed(const std::shared_ptr<Session>& session) override;
 
   // An outcome or a ready-made reply line on its way from the simulation thread.
@@ -81,9 +83,11 @@ class SocketRequestManager : public RequestManager, private SessionHost {
     std::weak_ptr<Session> session;  // the connection (line replies)
     std::string line;                // a formatted reply; empty for outcome replies
   };
-  // Hands the calls gathered from the current read to the core (run_or_submit) and writes
-  // the replies that ran here; called at the end of a read and before anything that must
-  // follow those calls.
+  // Hands the calls gathered from the current read to the core (run_or_submit); their
+  // replies are queued on their connections (touched_).
+  void run_calls();
+  // run_calls(), then writes the replies (flush_touched); called half-way through a read
+  // and before anything that must follow the read's calls.
   void run_batch();
   // Another thread (the simulation's): appends to replies_ and posts flush_replies()
   // unless one is due. Never blocks for long.

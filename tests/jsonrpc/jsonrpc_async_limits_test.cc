@@ -175,6 +175,25 @@ TEST_F(JsonRpcAsync, LastMessageWithoutNewlineBeforeEndIsAnswered) {
   EXPECT_EQ(next(once)["result"], 2.0);
 }
 
+TEST_F(JsonRpcAsync, LargeBurstThenEndOfInputGetsEveryReply) {
+  // a pipelining client's reads are read on while bytes wait and answered together; the
+  // end of input may come in one of those reads: every call is still answered, in order
+  JsonRpcClient once("127.0.0.1", host_->port());
+  constexpr int k_calls = 2000;  // ~140 KB: many reads
+  std::string burst;
+  for (int i = 0; i < k_calls; ++i)
+    burst += R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[)" + std::to_string(i) +
+             R"(,1],"id":)" + std::to_string(i) + "}\n";
+  once.send_raw(burst);
+  once.shutdown_write();
+  for (int i = 0; i < k_calls; ++i) {
+    json r = next(once);
+    ASSERT_EQ(r["id"], i);
+    ASSERT_EQ(r["result"], double(i + 1));
+  }
+  EXPECT_TRUE(once.wait_closed(k_timeout));
+}
+
 class JsonRpcAsyncLetRun : public JsonRpcFixture {
   json options() override { return {{"on_disconnect", "let_run"}}; }
 };

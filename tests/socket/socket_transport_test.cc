@@ -313,6 +313,21 @@ TEST_F(SocketTransport, CallObjectsReusedFromReadToReadCarryNothingOver) {
   EXPECT_EQ(roundtrip(*c, "r22 test echo [8]"), "r22 SUCCESS 8");
 }
 
+TEST_F(SocketTransport, LargeBurstThenEndOfInputGetsEveryReply) {
+  // a pipelining client's reads are read on while bytes wait and answered together; the
+  // end of input may come in one of those reads: every request is still answered, in order
+  auto c = connect();
+  constexpr int k_lines = 3000;  // ~100 KB: many reads
+  std::string burst;
+  for (int i = 0; i < k_lines; ++i)
+    burst += "b" + std::to_string(i) + " test_component add (" + std::to_string(i) + ", 1)\n";
+  c->send_raw(burst);
+  c->shutdown_send();
+  for (int i = 0; i < k_lines; ++i)
+    ASSERT_EQ(next_line(*c), "b" + std::to_string(i) + " SUCCESS " + std::to_string(i + 1));
+  EXPECT_THROW(c->read_line(10s), client::ClientError);  // then the server closes
+}
+
 TEST_F(SocketTransport, LastRequestIsAnsweredAfterClientShutsDownSending) {
   auto c = connect();
   c->send_raw("eof1 test_component add (1,2)\neof2 test_component add (2,2)");  // no final '\n'
