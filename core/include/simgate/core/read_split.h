@@ -10,6 +10,9 @@
 // With several connections active that overlap is already there (the server has their
 // reads to work on), and the extra write would only cost. ReadSplit tells the two cases
 // apart: a connection is alone when every read for at least k_alone_after came from it.
+// The same test decides whether, after a large read, a transport reads that connection
+// on while bytes are waiting (one write for the reads in a row) before going back to the
+// event loop, which only pays when no other connection is waiting for its turn.
 //
 //   ReadSplit split;  // one per transport, I/O thread only
 //   on each read of connection c:   bytes >= ReadSplit::k_min_bytes: at the first line
