@@ -11,6 +11,7 @@
 #include "protocol.h"
 #include "simgate/core/config.h"
 #include "simgate/core/errors.h"
+#include "simgate/core/idle_spin.h"
 #include "simgate/core/log.h"
 #include "simgate/core/plugin.h"
 
@@ -414,24 +415,11 @@ void JsonRpcRequestManager::start() {
 }
 
 void JsonRpcRequestManager::run_io() {
-  // io_spin_us > 0: after activity the thread polls for a short while before sleeping in
-  // epoll, so a reply the simulation thread posts within microseconds goes out without a
-  // wake-up. 0 (default): plain run().
-  using Clock = std::chrono::steady_clock;
-  auto active_until = Clock::now();
-  const bool spin = options_.io_spin.count() > 0;
+  // io_spin_us: after activity the thread polls for a while before sleeping in epoll, while
+  // events have lately come close together (simgate/core/idle_spin.h)
   while (!io_.stopped()) {
     try {
-      if (!spin) {
-        io_.run();
-        continue;
-      }
-      if (io_.poll() > 0) {
-        active_until = Clock::now() + options_.io_spin;
-        continue;
-      }
-      if (Clock::now() < active_until) continue;
-      if (io_.run_one() > 0) active_until = Clock::now() + options_.io_spin;
+      run_with_idle_spin(io_, options_.io_spin);
     } catch (const std::exception& e) {
       // handlers catch their own exceptions; this is the last line of defence
       log::error("jsonrpc: I/O thread: ", e.what());

@@ -61,7 +61,7 @@ struct Options {
   std::size_t max_in_flight = 1024;             // ("max_in_flight") pending calls per connection
   std::size_t max_unsent_bytes = 16u << 20;     // ("max_unsent_bytes") queued replies per connection
   std::size_t max_connections = 512;            // ("max_connections") simultaneous clients
-  std::chrono::microseconds io_spin{0};         // ("io_spin_us") I/O thread polls this long before sleeping
+  std::chrono::microseconds io_spin{50};        // ("io_spin_us") I/O thread polls this long before sleeping (idle_spin.h)
   bool cancel_on_disconnect = true;             // ("on_disconnect": "cancel" | "let_run")
   GlobalPolicy global_policy = GlobalPolicy::reject;  // ("global_policy": "reject" | "preempt")
 

@@ -5,6 +5,7 @@
 #include "params_parser.h"
 #include "simgate/core/config.h"
 #include "simgate/core/errors.h"
+#include "simgate/core/idle_spin.h"
 #include "simgate/core/log.h"
 #include "simgate/core/plugin.h"
 #include "wire.h"
@@ -52,6 +53,7 @@ SocketRequestManager::SocketRequestManager(const json& options)
   limits_.max_pending_requests =
       static_cast<std::size_t>(config.get_int("max_pending_requests", 1024, 1, 1 << 20));
   max_clients_ = static_cast<std::size_t>(config.get_int("max_clients", 1024, 1, 1 << 20));
+  io_spin_ = std::chrono::microseconds(config.get_int("io_spin_us", io_spin_.count(), 0, 10000));
   std::string policy = config.get_choice("global_policy", "reject", {"reject", "preempt"});
   set_global_policy(policy == "preempt" ? GlobalPolicy::preempt : GlobalPolicy::reject);
   config.finish();
@@ -99,7 +101,7 @@ void SocketRequestManager::start() {
   thread_ = std::thread([this] {
     for (;;) {
       try {
-        io_.run();
+        run_with_idle_spin(io_, io_spin_);
         return;
       } catch (const std::exception& e) {
         // handlers do not throw; this is a last line of defence that keeps the server up
@@ -397,4 +399,4 @@ void SocketRequestManager::deliver(RequestId id, const Outcome& outcome) try {
 
 SIMGATE_TRANSPORT_PLUGIN(socket, simgate::socket::SocketRequestManager, "0.1.0", "host", "port",
                          "success_word", "max_line_bytes", "max_pending_replies_bytes",
-                         "max_pending_requests", "max_clients", "global_policy")
+                         "max_pending_requests", "max_clients", "io_spin_us", "global_policy")

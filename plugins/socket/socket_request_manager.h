@@ -8,15 +8,16 @@
 //
 // Options (plugins/socket/README.md): host, port (0 = ephemeral), success_word
 // ("SUCCESS" | "OK"), max_line_bytes, max_pending_replies_bytes, max_pending_requests,
-// max_clients, global_policy ("reject" | "preempt").
+// max_clients, io_spin_us, global_policy ("reject" | "preempt").
 //
 // Life cycle: the constructor validates the options and binds the listening socket (a
 // port in use fails here, with a clear message); start() launches the I/O thread;
 // stop() closes the acceptor and every connection and joins the thread (idempotent; the
 // destructor calls it, then finishes requests still pending).
 //
-// Threads: one I/O thread runs the io_context; it owns the acceptor, every Session and the
-// request table, so none of them needs a lock.
+// Threads: one I/O thread runs the io_context (polling a little before it sleeps while
+// events come close together: simgate/core/idle_spin.h); it owns the acceptor, every
+// Session and the request table, so none of them needs a lock.
 //
 // The requests found in one read go to the core together (run_or_submit). When the
 // simulation lock is free, the I/O thread runs them itself: their outcomes come back to
@@ -31,6 +32,7 @@
 #define SIMGATE_PLUGINS_SOCKET_SOCKET_REQUEST_MANAGER_H_
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -128,6 +130,7 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   std::string success_word_;                 // "SUCCESS" (MORSE) or "OK" (MORSE's docs)
   SessionLimits limits_;                     // per-connection limits
   std::size_t max_clients_ = 1024;           // connections beyond this are refused
+  std::chrono::microseconds io_spin_{50};    // ("io_spin_us") how long the I/O thread polls before sleeping (idle_spin.h)
   std::uint64_t next_session_ = 1;           // numbers sessions in logs
   std::unordered_set<std::shared_ptr<Session>> sessions_;  // open connections (I/O thread)
   RequestSlots<Pending> requests_;           // unanswered requests, by the ids it gives them (I/O thread)

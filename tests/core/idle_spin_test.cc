@@ -1,0 +1,103 @@
+// run_with_idle_spin: when the I/O thread polls and when it sleeps, with a scripted event
+// loop on a simulated clock (deterministic: no real time passes).
+#include <chrono>
+#include <cstddef>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "simgate/core/idle_spin.h"
+
+namespace simgate {
+namespace {
+
+using std::chrono::microseconds;
+
+// A clock that moves only when the scripted loop says so.
+struct FakeClock {
+  using duration = std::chrono::nanoseconds;
+  using rep = duration::rep;
+  using period = duration::period;
+  using time_point = std::chrono::time_point<FakeClock>;
+  static constexpr bool is_steady = true;
+  static inline time_point current{};
+  static time_point now() { return current; }
+};
+
+// Events at given times (µs from the start). poll() costs 1 µs and runs the events due;
+// run_one() sleeps until the next event and runs it. Out of events: stopped.
+class ScriptedLoop {
+ public:
+  explicit ScriptedLoop(std::vector<long> event_times_us) : events_(std::move(event_times_us)) {
+    FakeClock::current = FakeClock::time_point{};
+  }
+  std::size_t poll() {
+    ++polls;
+    FakeClock::current += microseconds(1);
+    std::size_t ran = 0;
+    while (next_ < events_.size() && due(events_[next_])) ++next_, ++ran;
+    return ran;
+  }
+  std::size_t run_one() {
+    ++sleeps;
+    if (next_ == events_.size()) return 0;
+    if (!due(events_[next_])) FakeClock::current = FakeClock::time_point{microseconds(events_[next_])};
+    ++next_;
+    return 1;
+  }
+  void run() {
+    ran_plainly = true;
+    next_ = events_.size();
+  }
+  bool stopped() const { return next_ == events_.size(); }
+
+  std::size_t polls = 0;   // poll() calls
+  std::size_t sleeps = 0;  // run_one() calls
+  bool ran_plainly = false;
+
+ private:
+  static bool due(long at_us) { return FakeClock::now() >= FakeClock::time_point{microseconds(at_us)}; }
+  std::vector<long> events_;
+  std::size_t next_ = 0;
+};
+
+std::vector<long> every(long first_us, long gap_us, int count) {
+  std::vector<long> t;
+  for (int i = 0; i < count; ++i) t.push_back(first_us + gap_us * i);
+  return t;
+}
+
+TEST(IdleSpinTest, NoSpinRunsTheLoopPlainly) {
+  ScriptedLoop loop(every(0, 10, 5));
+  run_with_idle_spin<ScriptedLoop, FakeClock>(loop, microseconds(0));
+  EXPECT_TRUE(loop.ran_plainly);
+  EXPECT_EQ(loop.polls, 0u);
+}
+
+TEST(IdleSpinTest, EventsCloseTogetherAreTakenWithoutSleeping) {
+  // a client calling back to back: every event arrives within the window
+  ScriptedLoop loop(every(0, 10, 1000));
+  run_with_idle_spin<ScriptedLoop, FakeClock>(loop, microseconds(50));
+  EXPECT_EQ(loop.sleeps, 0u);
+}
+
+TEST(IdleSpinTest, EventsFarApartAreWaitedForAsleepAfterOneWastedWindow) {
+  // a client calling every millisecond: polling would never catch it
+  ScriptedLoop loop(every(1000, 1000, 200));
+  run_with_idle_spin<ScriptedLoop, FakeClock>(loop, microseconds(50));
+  EXPECT_LE(loop.polls, 50u + 1);  // one window at the start, none after
+  EXPECT_EQ(loop.sleeps, 200u);
+}
+
+TEST(IdleSpinTest, PollingResumesWhenEventsComeCloseTogetherAgain) {
+  std::vector<long> t = every(1000, 1000, 20);  // slow: the thread sleeps at once
+  for (long at : every(20'020, 10, 500)) t.push_back(at);  // then back to back
+  ScriptedLoop loop(t);
+  run_with_idle_spin<ScriptedLoop, FakeClock>(loop, microseconds(50));
+  // one sleep per slow event, one that finds the fast ones starting, then polling only
+  EXPECT_LE(loop.sleeps, 20u + 2);
+  EXPECT_GE(loop.polls, 500u * 5);
+}
+
+}  // namespace
+}  // namespace simgate
