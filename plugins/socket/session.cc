@@ -49,7 +49,7 @@ void Session::on_read(const error_code& ec, std::size_t n) {
     if (again == asio::error::would_block || again == asio::error::try_again) break;
     handle_read(again, n);
   }
-  host_.write_replies(shared_from_this());
+  host_.write_replies();
   reading_ = false;
   read_more();
 }
@@ -210,7 +210,10 @@ void Session::answer(std::size_t client_id_hash, RequestId id, std::string_view 
                      const json* value) {
   if (closed_) return;
   const IdTable::Entry* entry = pending_.find(client_id_hash, id);
-  if (!entry) return;
+  if (!entry) {
+    log::error("Socket service manager: ", label_, ": no pending request ", id, " to answer (reply dropped)");
+    return;
+  }
   // written straight into the outbox, then forgotten, then checked: the limit may close
   // the session
   append_reply(outbox_, entry->key, status, value);

@@ -54,7 +54,7 @@ class SessionHost {
   virtual void on_lines_done(const std::shared_ptr<Session>& session, bool read_finished) = 0;
   // The session stops reading for now (nothing more is waiting, or it read enough in a
   // row): write the replies kept since the last write.
-  virtual void write_replies(const std::shared_ptr<Session>& session) = 0;
+  virtual void write_replies() = 0;
   // Whether `session` is the only connection sending (ReadSplit::alone): then, after a
   // large read, it reads on while bytes are waiting before the replies are written.
   virtual bool alone(const Session& session) = 0;

@@ -188,7 +188,7 @@ void SocketRequestManager::on_lines_done(const std::shared_ptr<Session>& session
     run_batch();
 }
 
-void SocketRequestManager::write_replies(const std::shared_ptr<Session>&) { flush_touched(); }
+void SocketRequestManager::write_replies() { flush_touched(); }
 
 void SocketRequestManager::fail_in_order(const std::shared_ptr<Session>& session, std::string_view id,
                                          std::string message) {

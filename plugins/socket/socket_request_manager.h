@@ -74,7 +74,7 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   void on_line(const std::shared_ptr<Session>& session, std::string_view line) override;
   void on_oversized_line(const std::shared_ptr<Session>& session, std::string_view prefix) override;
   void on_lines_done(const std::shared_ptr<Session>& session, bool read_finished) override;
-  void write_replies(const std::shared_ptr<Session>& session) override;
+  void write_replies() override;
   bool alone(const Session& session) override { return read_split_.alone(&session); }
   void on_session_closed(const std::shared_ptr<Session>& session) override;
 
