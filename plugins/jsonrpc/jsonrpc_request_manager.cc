@@ -11,6 +11,7 @@
 #include "protocol.h"
 #include "simgate/core/config.h"
 #include "simgate/core/errors.h"
+#include "simgate/core/id_table.h"
 #include "simgate/core/idle_spin.h"
 #include "simgate/core/log.h"
 #include "simgate/core/plugin.h"
@@ -128,16 +129,18 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
   // ---- pending calls (ids scoped to this connection) ----
   std::size_t in_flight() const { return in_flight_; }
   void add_in_flight() { ++in_flight_; }
-  bool has_id(const std::string& key) const { return calls_.find(key) != calls_.end(); }
-  void track(const std::string& key, RequestId id) { calls_.try_emplace(key, id); }
+  bool has_id(const std::string& key) const { return calls_.find(key) != nullptr; }
+  void track(const std::string& key, RequestId id) {
+    if (IdTable::Entry* entry = calls_.insert(key)) entry->id = id;
+  }
   std::optional<RequestId> find(const std::string& key) const {
-    auto it = calls_.find(key);
-    if (it == calls_.end()) return std::nullopt;
-    return it->second;
+    const IdTable::Entry* entry = calls_.find(key);
+    if (!entry) return std::nullopt;
+    return entry->id;
   }
   // A pending call (or cancel) produced its reply.
   void done(const std::string& key) {
-    if (!key.empty()) calls_.erase_key(key);
+    if (!key.empty()) calls_.erase(key);
     if (in_flight_ > 0) --in_flight_;
     maybe_finish();
   }
@@ -145,7 +148,7 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
   std::vector<RequestId> take_calls() {
     std::vector<RequestId> ids;
     ids.reserve(calls_.size());
-    for (const auto& [key, id] : calls_) ids.push_back(id);
+    calls_.for_each([&](const IdTable::Entry& e) { ids.push_back(e.id); });
     return ids;
   }
 
@@ -361,8 +364,8 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
   std::string writing_;                            // the bytes of the write in flight
   bool write_active_ = false;                      // a write is in flight
   bool dirty_ = false;                             // listed in the manager's dirty_
-  // dumped JSON-RPC id -> pending request (nodes of finished calls reused by track())
-  RecyclingMap<std::string, RequestId, TransparentStringHash> calls_{k_spare_nodes};
+  // dumped JSON-RPC id -> pending request
+  IdTable calls_;
   std::size_t in_flight_ = 0;                      // pending calls, notifications and cancels
 };
 
