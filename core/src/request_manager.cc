@@ -24,6 +24,7 @@ class Inbox : public CompletionSink {
     {
       std::lock_guard lock(mutex_);
       add(std::move(event));
+      note_queued();
       gate = gate_;
     }
     gate->signal();
@@ -34,6 +35,7 @@ class Inbox : public CompletionSink {
     {
       std::lock_guard lock(mutex_);
       for (auto& [id, call] : calls) add(Request{id, std::move(call)});
+      note_queued();
       gate = gate_;
     }
     if (wake) gate->signal();
@@ -43,36 +45,37 @@ class Inbox : public CompletionSink {
     {
       std::lock_guard lock(mutex_);
       finished_.emplace_back(id, std::move(outcome));
+      note_queued();
       gate = gate_;
     }
     gate->signal();
   }
 
   // under the simulation lock; `events` and `finished` come empty and keep their capacity
-  // for the next push (no allocation per process())
+  // for the next push (no allocation per process()). An empty inbox is seen without the
+  // mutex: what is pushed after that look is signalled, and the next process() takes it.
   void take(std::vector<Event>& events, std::vector<std::pair<RequestId, Outcome>>& finished) {
+    if (empty()) return;
     std::lock_guard lock(mutex_);
     events.swap(events_);
     finished.swap(finished_);
+    queued_.store(false, std::memory_order_relaxed);
   }
   void take_finished(std::vector<std::pair<RequestId, Outcome>>& finished) {
+    if (empty()) return;
     std::lock_guard lock(mutex_);
     finished.swap(finished_);
+    queued_.store(!events_.empty(), std::memory_order_relaxed);
   }
-  bool closed() {
-    std::lock_guard lock(mutex_);
-    return closed_;
-  }
-  bool empty() {
-    std::lock_guard lock(mutex_);
-    return events_.empty() && finished_.empty();
-  }
+  bool closed() const { return closed_.load(std::memory_order_acquire); }
+  bool empty() const { return !queued_.load(std::memory_order_acquire); }
   // after close(), requests are answered FAILED (shutdown) at the next process()
   void close() {
     std::lock_guard lock(mutex_);
-    closed_ = true;
+    closed_.store(true, std::memory_order_release);
     for (auto& e : events_) refuse(std::move(e));
     events_.clear();
+    note_queued();
   }
 
   void set_gate(std::shared_ptr<SimulationGate> g) {
@@ -90,8 +93,10 @@ class Inbox : public CompletionSink {
 
  private:
   // caller holds mutex_
+  void note_queued() { queued_.store(!events_.empty() || !finished_.empty(), std::memory_order_release); }
+  // caller holds mutex_
   void add(Event event) {
-    if (closed_)
+    if (closed_.load(std::memory_order_relaxed))
       refuse(std::move(event));
     else
       events_.push_back(std::move(event));
@@ -107,7 +112,8 @@ class Inbox : public CompletionSink {
   std::vector<Event> events_;                               // requests, cancels, tasks in order
   std::vector<std::pair<RequestId, Outcome>> finished_;     // async completions, any thread
   std::shared_ptr<SimulationGate> gate_ = std::make_shared<SimulationGate>();  // signalled on every push
-  bool closed_ = false;                                     // abandon_pending() was called
+  std::atomic<bool> closed_{false};   // abandon_pending() was called (written under mutex_)
+  std::atomic<bool> queued_{false};   // events_ or finished_ holds something (written under mutex_)
 };
 
 // Once a call has run, what its params hold. nlohmann's destructor first moves an array's
