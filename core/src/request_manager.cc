@@ -59,13 +59,13 @@ class Inbox : public CompletionSink {
     std::lock_guard lock(mutex_);
     events.swap(events_);
     finished.swap(finished_);
-    queued_.store(false, std::memory_order_relaxed);
+    note_queued();
   }
   void take_finished(std::vector<std::pair<RequestId, Outcome>>& finished) {
     if (empty()) return;
     std::lock_guard lock(mutex_);
     finished.swap(finished_);
-    queued_.store(!events_.empty(), std::memory_order_relaxed);
+    note_queued();
   }
   bool closed() const { return closed_.load(std::memory_order_acquire); }
   bool empty() const { return !queued_.load(std::memory_order_acquire); }
