@@ -14,6 +14,7 @@
 #include <chrono>
 #include <exception>
 #include <iostream>
+#include <mutex>
 
 #include "example_common.h"
 #include "simgate/core/plugin_loader.h"
@@ -23,7 +24,9 @@ namespace {
 using simgate::Completion;
 using simgate::Status;
 
-// The computation's state (touched only by the thread that calls process()).
+// The computation's state. Services run under the simulation lock, on whichever thread
+// runs them (the transport's I/O thread runs a request itself when the lock is free), so
+// the main loop touches this state under that lock too, as a simulation loop steps under it.
 struct State {
   Completion result_cb;          // finishes the request
   bool run_computation = false;  // a computation is under way
@@ -65,11 +68,16 @@ int main(int argc, char** argv) {
     std::cout << "listening on " << req_manager->endpoints().at(0) << std::endl;
 
     using Clock = std::chrono::steady_clock;
+    simgate::SimulationGate& simulation_lock = *req_manager->gate();
     while (!simgate::examples::g_stop.load()) {
       // serve requests until the next unit is due (at most 100 ms, to notice a stop)
       Clock::duration wait = std::chrono::milliseconds(100);
-      if (g_state.run_computation) wait = std::min(wait, g_state.next_step - Clock::now());
-      req_manager->process(std::max(wait, Clock::duration::zero()));
+      {
+        std::lock_guard lock(simulation_lock);
+        if (g_state.run_computation) wait = std::min(wait, g_state.next_step - Clock::now());
+      }
+      req_manager->process(std::max(wait, Clock::duration::zero()));  // takes the lock itself
+      std::lock_guard lock(simulation_lock);
       if (g_state.run_computation && Clock::now() >= g_state.next_step) {
         g_state.next_step += std::chrono::seconds(1);
         g_state.value = complex_computation(g_state.value);
