@@ -6,6 +6,9 @@
 //     `max_line_bytes` is answered FAILED by the host (on_oversized_line) and skipped up to
 //     its '\n'; the connection keeps working. Reading pauses while the connection has
 //     `max_pending_requests` unanswered requests (backpressure instead of unbounded queues).
+//     After a large read from a client sending alone, the session reads on while bytes
+//     are already waiting (k_reads_in_a_row), and the host writes the replies of those
+//     reads together (SessionHost::write_replies).
 //   - Writing: flush_writes() writes what was queued straight to the socket (non-blocking)
 //     while the socket takes it all; otherwise one async write in flight, and replies
 //     queued meanwhile are written together in the next one (coalesced). The host may
@@ -32,8 +35,8 @@
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
 
-#include "simgate/core/read_split.h"
 #include "simgate/core/id_table.h"
+#include "simgate/core/read_split.h"
 #include "simgate/core/status.h"
 
 namespace simgate::socket {
