@@ -178,14 +178,7 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
     if (closed_ || ec) reading_ = false;
     if (closed_) return;
     try {
-      if (ec == asio::error::eof) {
-        on_eof();
-        return;
-      }
-      if (ec) {
-        close("read failed: " + ec.message());
-        return;
-      }
+      if (ended(ec)) return;
       // every message of this read: calls handed over together, replies written together
       error_code next;  // how the last read on below ended (eof or an error: after the burst)
       {
@@ -215,17 +208,8 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
         }
         owner_.read_split_.alone(this);  // notes the read (who else is sending)
       }
-      if (next == asio::error::eof) {
-        reading_ = false;
-        on_eof();
-        return;
-      }
-      if (next && next != asio::error::would_block && next != asio::error::try_again) {
-        reading_ = false;
-        close("read failed: " + next.message());
-        return;
-      }
       reading_ = false;
+      if (next != asio::error::would_block && next != asio::error::try_again && ended(next)) return;
       read();
     } catch (const std::exception& e) {
       reading_ = false;
@@ -233,6 +217,20 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
       log::error("jsonrpc: connection from ", peer_, ": ", e.what());
       close(std::string("internal error: ") + e.what());
     }
+  }
+
+  // A read that brought the end of input (answer what is left, then close) or an error
+  // (close); false for a read that brought bytes.
+  bool ended(const error_code& ec) {
+    if (ec == asio::error::eof) {
+      on_eof();
+      return true;
+    }
+    if (ec) {
+      close("read failed: " + ec.message());
+      return true;
+    }
+    return false;
   }
 
   // Reads in a row of a client pipelining alone before going back to the event loop.
