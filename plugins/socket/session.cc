@@ -28,10 +28,25 @@ void Session::read_more() {
   // backpressure: a client with too many unanswered requests waits for answers
   if (pending_.size() >= limits_.max_pending_requests) return;
   reading_ = true;
+  if (host_.watch(*this)) return;  // the host's polling thread reads the socket (read_now)
+  read_async();
+}
+
+void Session::read_async() {
+  if (closed_) return;
   socket_.async_read_some(asio::buffer(read_buffer_),
                           [self = shared_from_this()](const error_code& ec, std::size_t n) {
                             self->on_read(ec, n);
                           });
+}
+
+bool Session::read_now() {
+  if (closed_) return false;
+  error_code ec;
+  std::size_t n = socket_.read_some(asio::buffer(read_buffer_), ec);
+  if (ec == asio::error::would_block || ec == asio::error::try_again) return false;
+  on_read(ec, n);
+  return true;
 }
 
 void Session::on_read(const error_code& ec, std::size_t n) {

@@ -61,6 +61,10 @@ class SessionHost {
   // Whether `session` is the only connection sending (ReadSplit::alone): then, after a
   // large read, it reads on while bytes are waiting before the replies are written.
   virtual bool alone(const Session& session) = 0;
+  // The session is about to wait for its next bytes: true when the host's polling thread
+  // will read its socket itself (read_now) instead of an async read, until it parks it
+  // (read_async). For a lone client waiting for each answer (idle_spin.h).
+  virtual bool watch(Session& session) = 0;
   // A line exceeded the limit; `prefix` is its beginning (to find the client's id).
   virtual void on_oversized_line(const std::shared_ptr<Session>& session, std::string_view prefix) = 0;
   // The session closed (error, peer gone, limit exceeded or server stopping).
@@ -81,6 +85,11 @@ class Session : public std::enable_shared_from_this<Session> {
 
   // Starts reading.
   void start();
+  // Watched by the host (SessionHost::watch): reads what is waiting, without waiting, and
+  // handles it as an async read's completion would; false when nothing was waiting.
+  bool read_now();
+  // No longer watched: waits for its next bytes through the event loop (an async read).
+  void read_async();
   // Queues reply bytes (whole lines) and writes them as soon as possible.
   void send(std::string_view bytes);
   // Queues reply bytes without starting a write (several replies, then one flush_writes()).

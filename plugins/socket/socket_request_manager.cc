@@ -87,6 +87,14 @@ SocketRequestManager::SocketRequestManager(const json& options)
   log::info(name(), " now listening on port ", port_, " (", endpoint_, ")");
 }
 
+namespace {
+// The manager whose I/O thread this is, if any: its direct reads run outside io_.run(),
+// where the executor's running_in_this_thread() is false.
+thread_local const SocketRequestManager* t_io_thread_of = nullptr;
+}  // namespace
+
+bool SocketRequestManager::on_io_thread() const { return t_io_thread_of == this; }
+
 SocketRequestManager::~SocketRequestManager() {
   stop();
   // the host stopped calling process(): finish what is left (replies go nowhere)
@@ -99,9 +107,10 @@ void SocketRequestManager::start() {
   started_ = true;
   accept_next();
   thread_ = std::thread([this] {
+    t_io_thread_of = this;
     for (;;) {
       try {
-        run_with_idle_spin(io_, io_spin_);
+        run_with_idle_spin(io_, io_spin_, direct_);
         return;
       } catch (const std::exception& e) {
         // handlers do not throw; this is a last line of defence that keeps the server up
@@ -209,7 +218,7 @@ void SocketRequestManager::fail_in_order(const std::shared_ptr<Session>& session
     Reply r;
     r.session = std::move(weak);
     r.line = std::move(line);
-    if (io_.get_executor().running_in_this_thread()) {
+    if (on_io_thread()) {
       // run here by run_or_submit: after the replies gathered before it, like an outcome
       queue_gathered_replies();
       queue_reply(r);
@@ -292,15 +301,48 @@ void SocketRequestManager::on_oversized_line(const std::shared_ptr<Session>& ses
 }
 
 void SocketRequestManager::on_session_closed(const std::shared_ptr<Session>& session) {
+  direct_.forget(*session);
   // its outcomes have nowhere to go: forget them (the requests themselves run on)
   session->pending().for_each([this](const IdTable::Entry& e) { requests_.erase(e.id); });
   sessions_.erase(session);
 }
 
+// ---- direct reads (I/O thread)
+
+bool SocketRequestManager::watch(Session& session) {
+  // only while the I/O thread polls (it never does with io_spin_us 0), for a client
+  // sending alone: others are served by the event loop between direct reads
+  if (io_spin_.count() <= 0 || !read_split_.alone(&session)) return false;
+  direct_.watch(session.shared_from_this());
+  return true;
+}
+
+void SocketRequestManager::DirectReads::watch(std::shared_ptr<Session> session) {
+  if (session_ && session_ != session) park();
+  session_ = std::move(session);
+}
+
+std::size_t SocketRequestManager::DirectReads::poll() {
+  if (!session_) return 0;
+  // read_now() handles the read, and the session may be watched again when it reads on
+  auto session = std::move(session_);
+  if (session->read_now()) return 1;
+  if (!session->closed()) session_ = std::move(session);
+  return 0;
+}
+
+void SocketRequestManager::DirectReads::park() {
+  if (auto session = std::move(session_)) session->read_async();
+}
+
+void SocketRequestManager::DirectReads::forget(const Session& session) {
+  if (session_.get() == &session) session_.reset();
+}
+
 // ---- outcomes
 
 void SocketRequestManager::on_service_completion(RequestId id, Outcome&& outcome) {
-  if (io_.get_executor().running_in_this_thread()) {
+  if (on_io_thread()) {
     // the I/O thread itself runs process() (run_or_submit): straight to the connection,
     // after the replies the simulation thread produced before (same order as produced)
     queue_gathered_replies();

@@ -76,6 +76,7 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   void on_lines_done(const std::shared_ptr<Session>& session, bool read_finished) override;
   void write_replies() override;
   bool alone(const Session& session) override { return read_split_.alone(&session); }
+  bool watch(Session& session) override;
   void on_session_closed(const std::shared_ptr<Session>& session) override;
 
   // An outcome or a ready-made reply line on its way from the simulation thread.
@@ -113,6 +114,23 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   // Answers FAILED `message` after the connection's earlier requests have been answered.
   void fail_in_order(const std::shared_ptr<Session>& session, std::string_view id, std::string message);
   void close_all();
+  // True on this manager's I/O thread (handlers and direct reads alike).
+  bool on_io_thread() const;
+
+  // The lone connection the I/O thread reads itself while it polls (idle_spin.h's `direct`
+  // argument; I/O thread).
+  class DirectReads {
+   public:
+    std::size_t poll();
+    bool watching() const { return session_ != nullptr; }
+    void park();
+    void watch(std::shared_ptr<Session> session);
+    // Forgets `session` if watched (it closed).
+    void forget(const Session& session);
+
+   private:
+    std::shared_ptr<Session> session_;  // watched: no async read pending on it
+  };
 
   // A request sent to the core and not yet answered. Entries of a connection are erased
   // when it closes (on_session_closed), so the session pointer is valid while its entry is.
@@ -136,6 +154,7 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   RequestSlots<Pending> requests_;           // unanswered requests, by the ids it gives them (I/O thread)
   std::string scratch_;                      // reply formatting buffer (I/O thread)
   ReadSplit read_split_;                     // runs a lone client's large reads in halves (I/O thread)
+  DirectReads direct_;                       // the lone client read without the event loop (I/O thread)
   // calls of the current read, not yet handed to the core: the first batch_count_ of batch_;
   // the objects are reused from read to read, at most k_kept_calls of them kept (I/O thread)
   static constexpr std::size_t k_kept_calls = 1024;

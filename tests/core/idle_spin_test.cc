@@ -40,6 +40,7 @@ class ScriptedLoop {
   }
   std::size_t run_one() {
     ++sleeps;
+    if (watched && *watched) ++sleeps_while_watched;
     if (next_ == events_.size()) return 0;
     if (!due(events_[next_])) FakeClock::current = FakeClock::time_point{microseconds(events_[next_])};
     ++next_;
@@ -54,11 +55,40 @@ class ScriptedLoop {
   std::size_t polls = 0;   // poll() calls
   std::size_t sleeps = 0;  // run_one() calls
   bool ran_plainly = false;
+  const bool* watched = nullptr;        // a direct reader's socket is watched (no async read)
+  std::size_t sleeps_while_watched = 0;  // run_one() calls with *watched: a lost socket
 
  private:
   static bool due(long at_us) { return FakeClock::now() >= FakeClock::time_point{microseconds(at_us)}; }
   std::vector<long> events_;
   std::size_t next_ = 0;
+};
+
+// A socket read directly (idle_spin.h's `direct`): its requests arrive at given times;
+// poll() costs 1 µs and takes those due while the socket is watched. Parked, it waits for
+// the event loop (not modelled: the tests give it nothing more to read).
+struct ScriptedDirectReads {
+  explicit ScriptedDirectReads(std::vector<long> request_times_us) : requests(std::move(request_times_us)) {}
+  std::size_t poll() {
+    if (!watched) return 0;
+    ++polls;
+    FakeClock::current += microseconds(1);
+    std::size_t ran = 0;
+    while (next < requests.size() && FakeClock::now() >= FakeClock::time_point{microseconds(requests[next])})
+      ++next, ++ran;
+    return ran;
+  }
+  bool watching() const { return watched; }
+  void park() {
+    if (watched) ++parks;
+    watched = false;
+  }
+
+  std::vector<long> requests;
+  std::size_t next = 0;    // requests[next] is the next to arrive
+  bool watched = true;     // no async read pending: only poll() reads the socket
+  std::size_t polls = 0;   // poll() calls that read the socket
+  std::size_t parks = 0;   // park() calls that handed the socket back
 };
 
 std::vector<long> every(long first_us, long gap_us, int count) {
@@ -97,6 +127,35 @@ TEST(IdleSpinTest, PollingResumesWhenEventsComeCloseTogetherAgain) {
   // one sleep per slow event, one that finds the fast ones starting, then polling only
   EXPECT_LE(loop.sleeps, 20u + 2);
   EXPECT_GE(loop.polls, 500u * 5);
+}
+
+TEST(IdleSpinTest, AWatchedSocketIsReadDirectlyAndTheEventLoopStillPolled) {
+  // a lone client calling back to back, read directly; another connection's requests
+  // (the event loop's) come every 200 µs and are served between the direct reads
+  ScriptedDirectReads direct(every(0, 10, 990));  // the last at 9 890 µs
+  ScriptedLoop loop(every(100, 200, 50));          // the last at 9 900 µs
+  loop.watched = &direct.watched;
+  run_with_idle_spin<ScriptedLoop, FakeClock>(loop, microseconds(50), direct);
+  EXPECT_EQ(direct.next, 990u);   // every request taken by a direct read
+  EXPECT_EQ(direct.parks, 0u);    // never slept: never handed back
+  EXPECT_EQ(loop.sleeps, 0u);
+  // the event loop is polled once every k_direct_polls_per_poll direct reads that find nothing
+  const std::size_t empty_reads = direct.polls - 990;
+  EXPECT_GE(loop.polls, empty_reads / k_direct_polls_per_poll);
+  EXPECT_LE(loop.polls, empty_reads / k_direct_polls_per_poll + 1);
+}
+
+TEST(IdleSpinTest, TheWatchedSocketIsHandedBackBeforeTheThreadSleeps) {
+  // the client stops calling; other events come far apart: the thread sleeps for each,
+  // never with the socket watched (its next request would go unread)
+  ScriptedDirectReads direct(every(0, 10, 20));
+  ScriptedLoop loop(every(1000, 1000, 5));
+  loop.watched = &direct.watched;
+  run_with_idle_spin<ScriptedLoop, FakeClock>(loop, microseconds(50), direct);
+  EXPECT_EQ(direct.next, 20u);
+  EXPECT_EQ(direct.parks, 1u);
+  EXPECT_GE(loop.sleeps, 1u);
+  EXPECT_EQ(loop.sleeps_while_watched, 0u);
 }
 
 }  // namespace

@@ -19,6 +19,22 @@ using ::testing::AllOf;
 class SocketTransport : public SocketFixture {
  protected:
   void SetUp() override { start_server(); }
+
+  // Sync round trips on `c` for `duration` (at most `max_calls`): long enough for the
+  // client to be alone (ReadSplit::k_alone_after) and its socket read directly by the
+  // polling I/O thread. Returns how many were answered right; stops at the first wrong one.
+  static int call_back_to_back(SocketClient& c, const std::string& prefix, std::chrono::milliseconds duration,
+                               int max_calls = 50'000) {
+    const auto end = std::chrono::steady_clock::now() + duration;
+    int ok = 0;
+    for (int i = 0; i < max_calls && std::chrono::steady_clock::now() < end; ++i, ++ok) {
+      const std::string id = prefix + std::to_string(i);
+      if (roundtrip(c, id + " test_component add (" + std::to_string(i) + ", 1)") !=
+          id + " SUCCESS " + std::to_string(i + 1))
+        break;
+    }
+    return ok;
+  }
 };
 
 // ---- calls and parameters
@@ -336,6 +352,69 @@ TEST_F(SocketTransport, LastRequestIsAnsweredAfterClientShutsDownSending) {
   EXPECT_EQ(next_line(*c), "eof2 SUCCESS 4");
   EXPECT_THROW(c->read_line(10s), client::ClientError);  // then the server closes
   EXPECT_TRUE(c->closed());
+}
+
+// ---- a lone client, read directly by the polling I/O thread (idle_spin.h)
+
+TEST_F(SocketTransport, ALoneClientCallingBackToBackAndPausingIsAlwaysAnswered) {
+  // after each pause, far longer than the polling window, the I/O thread has slept: it
+  // must have handed the socket back to the event loop, or the next request goes unread
+  auto c = connect();
+  for (int round = 0; round < 3; ++round) {
+    const std::string prefix = "r" + std::to_string(round) + "-";
+    EXPECT_GT(call_back_to_back(*c, prefix, 20ms), 0);
+    std::this_thread::sleep_for(5ms);
+    EXPECT_EQ(roundtrip(*c, prefix + "after test ping"), prefix + "after SUCCESS \"pong\"");
+  }
+  // end of input found by a direct read: the last request is answered, then the close
+  EXPECT_GT(call_back_to_back(*c, "last-", 20ms), 0);
+  c->send_raw("end test_component add (2, 2)");
+  c->shutdown_send();
+  EXPECT_EQ(next_line(*c), "end SUCCESS 4");
+  EXPECT_THROW(c->read_line(10s), client::ClientError);
+}
+
+TEST_F(SocketTransport, OthersAreServedWhileALoneClientIsReadDirectly) {
+  std::atomic<bool> done{false};
+  std::atomic<int> answered{0}, wrong{0};
+  std::thread lone([&] {
+    try {
+      SocketClient c("127.0.0.1", port_);
+      for (int round = 0; round < 1000 && !done.load(); ++round) {
+        const int n = call_back_to_back(c, "l" + std::to_string(round) + "-", 5ms);
+        answered += n;
+        if (n == 0) ++wrong;
+      }
+    } catch (const std::exception&) {
+      ++wrong;
+    }
+  });
+  std::this_thread::sleep_for(20ms);  // the lone client's socket is read directly by now
+  auto other = connect();
+  other->send_line("h worker hold (1,)");
+  EXPECT_EQ(roundtrip(*other, "p test ping"), "p SUCCESS \"pong\"");
+  other->send_line("r worker release (5,)");
+  EXPECT_EQ(next_lines(*other, 2), (std::multiset<std::string>{"r SUCCESS true", "h SUCCESS 5"}));
+  auto late = connect();  // a new connection is accepted meanwhile
+  EXPECT_EQ(roundtrip(*late, "q test_component add (3, 4)"), "q SUCCESS 7");
+  done = true;
+  lone.join();
+  EXPECT_GT(answered.load(), 0);
+  EXPECT_EQ(wrong.load(), 0);
+}
+
+TEST_F(SocketTransport, RepliesFromTheSimulationThreadReachALoneClientReadDirectly) {
+  // the simulation lock is held: the request read directly is queued, run by the
+  // process() thread, and its reply handed over to the polling I/O thread
+  auto c = connect();
+  EXPECT_GT(call_back_to_back(*c, "a-", 20ms), 0);
+  {
+    std::lock_guard stepping(*manager_->gate());
+    c->send_line("s1 test_component add (1, 2)");
+    std::this_thread::sleep_for(20ms);
+  }
+  EXPECT_EQ(next_line(*c), "s1 SUCCESS 3");
+  EXPECT_GT(call_back_to_back(*c, "b-", 20ms), 0);
 }
 
 // ---- async services, cancel, policies

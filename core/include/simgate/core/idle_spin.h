@@ -19,10 +19,27 @@
 // `EventLoop` is anything with run(), poll() and run_one() (the last two returning how
 // many handlers ran) and stopped(): boost::asio::io_context. Returns when the loop is
 // stopped or out of work, as run() does; exceptions from handlers propagate, as with run().
+//
+// Reading one connection directly. Through the event loop, a request that arrives while
+// the thread polls costs two system calls: epoll_wait reports the socket ready, then recv
+// reads it. A transport whose one busy client waits for each answer before it sends the
+// next can let the polling thread read that client's socket itself instead: one recv per
+// poll, the request taken by the recv that finds it. While it does, the socket has no read
+// waiting in the event loop (two readers of one socket would race), so before the thread
+// sleeps it hands the socket back. The third argument, `direct`, is anything with
+//   std::size_t poll()   reads the socket it watches, if any, without blocking, and handles
+//                        what it read; returns how many reads it handled (0: nothing
+//                        watched, or nothing waiting)
+//   bool watching() const
+//   void park()          before the thread sleeps: the watched socket (if any) waits
+//                        through the event loop again (an async read)
+// While a socket is watched, the event loop is still polled, every k_direct_polls_per_poll
+// polls, so that other connections and posted work wait a few microseconds at most.
 #ifndef SIMGATE_CORE_IDLE_SPIN_H_
 #define SIMGATE_CORE_IDLE_SPIN_H_
 
 #include <chrono>
+#include <cstddef>
 #include <thread>
 
 namespace simgate {
@@ -32,8 +49,19 @@ namespace simgate {
 // scheduler time slice; rarely enough to cost a polled request next to nothing.
 inline constexpr unsigned k_polls_per_yield = 8;
 
-template <class EventLoop, class Clock = std::chrono::steady_clock>
-void run_with_idle_spin(EventLoop& loop, std::chrono::microseconds spin) {
+// While a socket is read directly, the event loop is polled once every this many direct
+// reads that find nothing (each poll of either is a system call of about the same cost).
+inline constexpr unsigned k_direct_polls_per_poll = 4;
+
+// The `direct` argument of a transport that reads nothing itself.
+struct NoDirectReads {
+  std::size_t poll() { return 0; }
+  bool watching() const { return false; }
+  void park() {}
+};
+
+template <class EventLoop, class Clock = std::chrono::steady_clock, class DirectReads = NoDirectReads>
+void run_with_idle_spin(EventLoop& loop, std::chrono::microseconds spin, DirectReads&& direct = {}) {
   if (spin.count() <= 0) {
     loop.run();
     return;
@@ -41,9 +69,13 @@ void run_with_idle_spin(EventLoop& loop, std::chrono::microseconds spin) {
   bool polling = true;  // waiting has been short lately: poll before sleeping
   auto poll_until = Clock::now() + spin;
   unsigned idle_polls = 0;
+  unsigned direct_polls = 0;
   while (!loop.stopped()) {
     if (polling) {
-      if (loop.poll() > 0) {
+      std::size_t handled = direct.poll();
+      if (handled == 0 && (!direct.watching() || ++direct_polls % k_direct_polls_per_poll == 0))
+        handled = loop.poll();
+      if (handled > 0) {
         poll_until = Clock::now() + spin;  // something happened: keep watching
         continue;
       }
@@ -54,6 +86,7 @@ void run_with_idle_spin(EventLoop& loop, std::chrono::microseconds spin) {
       }
     }
     // sleep until the next event; how long it took decides whether to poll after it
+    direct.park();
     const auto slept_at = Clock::now();
     if (loop.run_one() == 0) return;
     const auto woke_at = Clock::now();
