@@ -8,7 +8,10 @@
 //     `max_pending_requests` unanswered requests (backpressure instead of unbounded queues).
 //     After a large read from a client sending alone, the session reads on while bytes
 //     are already waiting (k_reads_in_a_row), and the host writes the replies of those
-//     reads together (SessionHost::write_replies).
+//     reads together (SessionHost::write_replies). When the host watches the session
+//     (SessionHost::watch: a lone client while the I/O thread polls), no async read is
+//     started: the polling thread calls read_now() until it parks the session
+//     (read_async()).
 //   - Writing: flush_writes() writes what was queued straight to the socket (non-blocking)
 //     while the socket takes it all; otherwise one async write in flight, and replies
 //     queued meanwhile are written together in the next one (coalesced). The host may

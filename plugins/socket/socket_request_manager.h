@@ -16,8 +16,9 @@
 // destructor calls it, then finishes requests still pending).
 //
 // Threads: one I/O thread runs the io_context (polling a little before it sleeps while
-// events come close together: simgate/core/idle_spin.h); it owns the acceptor, every
-// Session and the request table, so none of them needs a lock.
+// events come close together: simgate/core/idle_spin.h, reading a lone client's socket
+// itself while it polls: DirectReads); it owns the acceptor, every Session and the request
+// table, so none of them needs a lock.
 //
 // The requests found in one read go to the core together (run_or_submit). When the
 // simulation lock is free, the I/O thread runs them itself: their outcomes come back to
