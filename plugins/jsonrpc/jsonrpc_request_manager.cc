@@ -152,6 +152,25 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
     return ids;
   }
 
+  // ---- while the manager watches it (DirectReads, simgate/core/idle_spin.h)
+  // Reads what is waiting, without waiting, and handles it; false when nothing was.
+  bool read_now() {
+    if (closed_) return false;
+    error_code ec;
+    const std::size_t n = socket_.read_some(asio::buffer(read_buf_), ec);
+    if (ec == asio::error::would_block || ec == asio::error::try_again) return false;
+    on_read(ec, n);
+    return true;
+  }
+  // No longer watched: waits for the next bytes through the event loop.
+  void read_async() {
+    if (closed_) return;
+    socket_.async_read_some(asio::buffer(read_buf_),
+                            [self = shared_from_this()](const error_code& ec, std::size_t n) {
+                              self->on_read(ec, n);
+                            });
+  }
+
   void close(const std::string& reason) {
     if (closed_) return;
     closed_ = true;
@@ -166,10 +185,8 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
   void read() {
     if (closed_ || reading_ || paused_ || eof_) return;
     reading_ = true;
-    socket_.async_read_some(asio::buffer(read_buf_),
-                            [self = shared_from_this()](const error_code& ec, std::size_t n) {
-                              self->on_read(ec, n);
-                            });
+    if (owner_.watch(*this)) return;  // the polling I/O thread reads the socket itself (read_now)
+    read_async();
   }
 
   void on_read(const error_code& ec, std::size_t n) {
@@ -415,12 +432,22 @@ void JsonRpcRequestManager::start() {
   log::info("jsonrpc: listening on ", endpoints().front());
 }
 
+namespace {
+// The manager whose I/O thread this is, if any: its direct reads run outside io_.run(),
+// where the executor's running_in_this_thread() is false.
+thread_local const JsonRpcRequestManager* t_io_thread_of = nullptr;
+}  // namespace
+
+bool JsonRpcRequestManager::on_io_thread() const { return t_io_thread_of == this; }
+
 void JsonRpcRequestManager::run_io() {
+  t_io_thread_of = this;
   // io_spin_us: after activity the thread polls for a while before sleeping in epoll, while
-  // events have lately come close together (simgate/core/idle_spin.h)
+  // events have lately come close together, reading a lone client's socket itself while
+  // it polls (simgate/core/idle_spin.h)
   while (!io_.stopped()) {
     try {
-      run_with_idle_spin(io_, options_.io_spin);
+      run_with_idle_spin(io_, options_.io_spin, direct_);
     } catch (const std::exception& e) {
       // handlers catch their own exceptions; this is the last line of defence
       log::error("jsonrpc: I/O thread: ", e.what());
@@ -496,7 +523,16 @@ void JsonRpcRequestManager::accept_next() {
   });
 }
 
+bool JsonRpcRequestManager::watch(Session& session) {
+  // only while the I/O thread polls (never with io_spin_us 0), for a client sending alone:
+  // others are served by the event loop between direct reads
+  if (options_.io_spin.count() <= 0 || !read_split_.alone(&session)) return false;
+  direct_.watch(session.shared_from_this());
+  return true;
+}
+
 void JsonRpcRequestManager::session_closed(Session& session) {
+  direct_.forget(session);
   auto self = session.shared_from_this();
   sessions_.erase(self);
   if (stopping_ || !options_.cancel_on_disconnect) return;
@@ -686,7 +722,7 @@ void JsonRpcRequestManager::on_service_completion(RequestId id, Outcome&& outcom
 
 void JsonRpcRequestManager::complete(RequestId id, Outcome&& outcome) {
   try {
-    if (io_.get_executor().running_in_this_thread()) {
+    if (on_io_thread()) {
       // run_or_submit runs process() on the I/O thread: straight to the connection, after
       // the outcomes the simulation thread produced before (same order as produced)
       queue_gathered_completions();

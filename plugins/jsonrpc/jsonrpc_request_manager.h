@@ -18,7 +18,9 @@
 // thread; stop() closes every connection, joins the thread and finishes what is still
 // pending with Failure::shutdown. stop() is idempotent and the destructor calls it.
 //
-// Threads: one I/O thread runs the io_context (accept, read, parse, hand over, write).
+// Threads: one I/O thread runs the io_context (accept, read, parse, hand over, write),
+// polling a little before it sleeps while events come close together and reading a lone
+// client's socket itself meanwhile (simgate/core/idle_spin.h).
 // The calls of one read go to the core together with run_or_submit: if the simulation
 // lock is free, the I/O thread runs them itself and on_service_completion is called on it
 // (the reply is queued at once, after the outcomes gathered from the simulation thread
@@ -46,6 +48,7 @@
 #include <boost/asio/steady_timer.hpp>
 
 #include "protocol.h"
+#include "simgate/core/idle_spin.h"
 #include "simgate/core/read_split.h"
 #include "simgate/core/recycling_map.h"
 #include "simgate/core/request_manager.h"
@@ -134,6 +137,11 @@ class JsonRpcRequestManager : public RequestManager {
   void reply(ReplyTo& to, std::optional<json> response);
   void session_closed(Session& session);
   void shutdown_io();
+  // I/O thread: true when `session`, about to wait for its next bytes, is to be read by the
+  // polling thread itself (a client sending alone) rather than by an async read.
+  bool watch(Session& session);
+  // True on this manager's I/O thread (handlers and direct reads alike).
+  bool on_io_thread() const;
 
   Options options_;                                  // as parsed
   boost::asio::io_context io_;                       // all sockets; declared first, destroyed last
@@ -156,6 +164,7 @@ class JsonRpcRequestManager : public RequestManager {
   std::vector<std::pair<RequestId, Call>> to_submit_;
   std::size_t to_submit_count_ = 0;
   ReadSplit read_split_;  // answers half of a lone client's large read early (I/O thread)
+  DirectReads<Session> direct_;  // the lone client read without the event loop (I/O thread)
   bool deferring_writes_ = false;                    // replies wait for flush_writes() (I/O thread)
   std::vector<std::shared_ptr<Session>> dirty_;      // sessions with replies to flush (I/O thread)
   std::mutex completions_mutex_;                     // guards completions_ and drain_posted_

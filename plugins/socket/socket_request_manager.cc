@@ -317,28 +317,6 @@ bool SocketRequestManager::watch(Session& session) {
   return true;
 }
 
-void SocketRequestManager::DirectReads::watch(std::shared_ptr<Session> session) {
-  if (session_ && session_ != session) park();
-  session_ = std::move(session);
-}
-
-std::size_t SocketRequestManager::DirectReads::poll() {
-  if (!session_) return 0;
-  // read_now() handles the read, and the session may be watched again when it reads on
-  auto session = std::move(session_);
-  if (session->read_now()) return 1;
-  if (!session->closed()) session_ = std::move(session);
-  return 0;
-}
-
-void SocketRequestManager::DirectReads::park() {
-  if (auto session = std::move(session_)) session->read_async();
-}
-
-void SocketRequestManager::DirectReads::forget(const Session& session) {
-  if (session_.get() == &session) session_.reset();
-}
-
 // ---- outcomes
 
 void SocketRequestManager::on_service_completion(RequestId id, Outcome&& outcome) {

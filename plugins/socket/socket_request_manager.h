@@ -17,7 +17,7 @@
 //
 // Threads: one I/O thread runs the io_context (polling a little before it sleeps while
 // events come close together: simgate/core/idle_spin.h, reading a lone client's socket
-// itself while it polls: DirectReads); it owns the acceptor, every Session and the request
+// itself while it polls: direct_); it owns the acceptor, every Session and the request
 // table, so none of them needs a lock.
 //
 // The requests found in one read go to the core together (run_or_submit). When the
@@ -49,6 +49,7 @@
 
 #include "params_parser.h"
 #include "session.h"
+#include "simgate/core/idle_spin.h"
 #include "simgate/core/read_split.h"
 #include "simgate/core/request_slots.h"
 #include "simgate/core/request_manager.h"
@@ -118,21 +119,6 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   // True on this manager's I/O thread (handlers and direct reads alike).
   bool on_io_thread() const;
 
-  // The lone connection the I/O thread reads itself while it polls (idle_spin.h's `direct`
-  // argument; I/O thread).
-  class DirectReads {
-   public:
-    std::size_t poll();
-    bool watching() const { return session_ != nullptr; }
-    void park();
-    void watch(std::shared_ptr<Session> session);
-    // Forgets `session` if watched (it closed).
-    void forget(const Session& session);
-
-   private:
-    std::shared_ptr<Session> session_;  // watched: no async read pending on it
-  };
-
   // A request sent to the core and not yet answered. Entries of a connection are erased
   // when it closes (on_session_closed), so the session pointer is valid while its entry is.
   struct Pending {
@@ -155,7 +141,7 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   RequestSlots<Pending> requests_;           // unanswered requests, by the ids it gives them (I/O thread)
   std::string scratch_;                      // reply formatting buffer (I/O thread)
   ReadSplit read_split_;                     // runs a lone client's large reads in halves (I/O thread)
-  DirectReads direct_;                       // the lone client read without the event loop (I/O thread)
+  DirectReads<Session> direct_;              // the lone client read without the event loop (I/O thread)
   // calls of the current read, not yet handed to the core: the first batch_count_ of batch_;
   // the objects are reused from read to read, at most k_kept_calls of them kept (I/O thread)
   static constexpr std::size_t k_kept_calls = 1024;

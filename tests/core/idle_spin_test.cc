@@ -2,6 +2,7 @@
 // loop on a simulated clock (deterministic: no real time passes).
 #include <chrono>
 #include <cstddef>
+#include <memory>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -156,6 +157,72 @@ TEST(IdleSpinTest, TheWatchedSocketIsHandedBackBeforeTheThreadSleeps) {
   EXPECT_EQ(direct.parks, 1u);
   EXPECT_GE(loop.sleeps, 1u);
   EXPECT_EQ(loop.sleeps_while_watched, 0u);
+}
+
+// ---- DirectReads: the watched connection
+
+// A connection whose reads are scripted: each read_now() takes the next answer.
+struct FakeConnection {
+  std::vector<bool> waiting;  // read_now() answers, in order (then: nothing waiting)
+  std::size_t reads = 0;      // read_now() calls
+  int async_reads = 0;        // read_async() calls
+  bool is_closed = false;
+  DirectReads<FakeConnection>* rewatch = nullptr;  // watched again after a read, as a session is
+  std::shared_ptr<FakeConnection> self;
+
+  bool read_now() {
+    const bool got = reads < waiting.size() && waiting[reads];
+    ++reads;
+    if (got && rewatch) rewatch->watch(self);
+    return got;
+  }
+  void read_async() { ++async_reads; }
+  bool closed() const { return is_closed; }
+};
+
+std::shared_ptr<FakeConnection> fake_connection(std::vector<bool> waiting) {
+  auto c = std::make_shared<FakeConnection>();
+  c->waiting = std::move(waiting);
+  c->self = c;  // the test breaks the cycle
+  return c;
+}
+
+TEST(DirectReadsTest, PollsTheWatchedConnectionUntilParked) {
+  DirectReads<FakeConnection> direct;
+  EXPECT_EQ(direct.poll(), 0u);  // nothing watched
+  auto c = fake_connection({false, true, false});
+  c->rewatch = &direct;
+  direct.watch(c);
+  EXPECT_EQ(direct.poll(), 0u);  // nothing waiting: still watched
+  EXPECT_TRUE(direct.watching());
+  EXPECT_EQ(direct.poll(), 1u);  // a read, handled; the connection watched itself again
+  EXPECT_TRUE(direct.watching());
+  direct.park();
+  EXPECT_FALSE(direct.watching());
+  EXPECT_EQ(c->async_reads, 1);  // waits through the event loop now
+  EXPECT_EQ(direct.poll(), 0u);
+  EXPECT_EQ(c->reads, 2u);
+  direct.park();  // parking twice starts no second async read
+  EXPECT_EQ(c->async_reads, 1);
+  c->self.reset();
+}
+
+TEST(DirectReadsTest, AClosedConnectionIsDroppedAndAnotherParksThePrevious) {
+  DirectReads<FakeConnection> direct;
+  auto first = fake_connection({});
+  auto second = fake_connection({});
+  direct.watch(first);
+  direct.watch(second);  // the first waits through the event loop again
+  EXPECT_EQ(first->async_reads, 1);
+  second->is_closed = true;
+  EXPECT_EQ(direct.poll(), 0u);
+  EXPECT_FALSE(direct.watching());  // dropped, not parked (no async read on a closed socket)
+  EXPECT_EQ(second->async_reads, 0);
+  direct.watch(first);
+  direct.forget(*first);
+  EXPECT_FALSE(direct.watching());
+  first->self.reset();
+  second->self.reset();
 }
 
 }  // namespace

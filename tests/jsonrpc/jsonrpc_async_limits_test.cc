@@ -1,6 +1,7 @@
 // Async completion out of order, cancel, preemption, disconnects, and the transport's
 // limits (message size, nesting, in-flight calls, unsent replies, connections), all over
 // real sockets on 127.0.0.1 against the jsonrpc plugin.
+#include <atomic>
 #include <set>
 #include <thread>
 
@@ -192,6 +193,79 @@ TEST_F(JsonRpcAsync, LargeBurstThenEndOfInputGetsEveryReply) {
     ASSERT_EQ(r["result"], double(i + 1));
   }
   EXPECT_TRUE(once.wait_closed(k_timeout));
+}
+
+// ---- a lone client, read directly by the polling I/O thread (simgate/core/idle_spin.h)
+
+// Sync calls on `c` for `duration` (at most `max_calls`): long enough for the client to be
+// alone (ReadSplit::k_alone_after) and its socket read directly by the polling I/O thread.
+// Returns how many were answered right; stops at the first wrong one.
+int call_back_to_back(JsonRpcClient& c, std::chrono::milliseconds duration, int max_calls = 50'000) {
+  const auto end = std::chrono::steady_clock::now() + duration;
+  int ok = 0;
+  for (int i = 0; i < max_calls && std::chrono::steady_clock::now() < end; ++i, ++ok)
+    if (c.request("robot.arm.add", json::array({i, 1}), k_timeout).value("result", json()) != double(i + 1)) break;
+  return ok;
+}
+
+using JsonRpcLoneClient = JsonRpcFixture;
+
+TEST_F(JsonRpcLoneClient, CallingBackToBackAndPausingIsAlwaysAnswered) {
+  // after each pause, far longer than the polling window, the I/O thread has slept: it
+  // must have handed the socket back to the event loop, or the next call goes unread
+  for (int round = 0; round < 3; ++round) {
+    EXPECT_GT(call_back_to_back(*client_, 20ms), 0);
+    std::this_thread::sleep_for(5ms);
+    EXPECT_EQ(client_->request("robot.arm.add", json::array({round, 1}), k_timeout)["result"], round + 1.0);
+  }
+  // end of input found by a direct read: the last call is answered, then the close
+  EXPECT_GT(call_back_to_back(*client_, 20ms), 0);
+  client_->send_raw(R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[2,2],"id":"end"})");
+  client_->shutdown_write();
+  EXPECT_EQ(next(*client_)["result"], 4.0);
+  EXPECT_TRUE(client_->wait_closed(k_timeout));
+}
+
+TEST_F(JsonRpcLoneClient, OthersAreServedWhileItIsReadDirectly) {
+  std::atomic<bool> done{false};
+  std::atomic<int> answered{0}, wrong{0};
+  std::thread lone([&] {
+    try {
+      for (int round = 0; round < 1000 && !done.load(); ++round) {
+        const int n = call_back_to_back(*client_, 5ms);
+        answered += n;
+        if (n == 0) ++wrong;
+      }
+    } catch (const std::exception&) {
+      ++wrong;
+    }
+  });
+  std::this_thread::sleep_for(20ms);  // the lone client's socket is read directly by now
+  auto other = connect();
+  auto hold = other->send_request("robot.arm.hold", json::array({"lone"}));
+  EXPECT_EQ(other->request("robot.arm.add", json::array({3, 4}), k_timeout)["result"], 7.0);
+  EXPECT_EQ(other->request("ctl.release", json::array({"lone", 5}), k_timeout)["result"], true);
+  EXPECT_EQ(other->wait_for(hold, k_timeout)["result"], 5);
+  auto late = connect();  // a new connection is accepted meanwhile
+  EXPECT_EQ(late->request("robot.arm.add", json::array({1, 1}), k_timeout)["result"], 2.0);
+  done = true;
+  lone.join();
+  EXPECT_GT(answered.load(), 0);
+  EXPECT_EQ(wrong.load(), 0);
+}
+
+TEST_F(JsonRpcLoneClient, RepliesFromTheSimulationThreadReachItWhileItIsReadDirectly) {
+  // the simulation lock is held: the call read directly is queued, run by the process()
+  // thread, and its reply handed over to the polling I/O thread
+  EXPECT_GT(call_back_to_back(*client_, 20ms), 0);
+  json id;
+  {
+    std::lock_guard stepping(*host_->manager().gate());
+    id = client_->send_request("robot.arm.add", json::array({1, 2}));
+    std::this_thread::sleep_for(20ms);
+  }
+  EXPECT_EQ(client_->wait_for(id, k_timeout)["result"], 3.0);
+  EXPECT_GT(call_back_to_back(*client_, 20ms), 0);
 }
 
 class JsonRpcAsyncLetRun : public JsonRpcFixture {

@@ -35,12 +35,18 @@
 //                        through the event loop again (an async read)
 // While a socket is watched, the event loop is still polled, every k_direct_polls_per_poll
 // polls, so that other connections and posted work wait a few microseconds at most.
+// DirectReads<Connection> below is such an argument, for a transport's connection class.
+//
+// Direct reads run outside the event loop's run()/poll(): code that asks "am I on the I/O
+// thread?" must ask by thread (Asio's running_in_this_thread() is false there).
 #ifndef SIMGATE_CORE_IDLE_SPIN_H_
 #define SIMGATE_CORE_IDLE_SPIN_H_
 
 #include <chrono>
 #include <cstddef>
+#include <memory>
 #include <thread>
+#include <utility>
 
 namespace simgate {
 
@@ -58,6 +64,46 @@ struct NoDirectReads {
   std::size_t poll() { return 0; }
   bool watching() const { return false; }
   void park() {}
+};
+
+// The one connection a transport's polling thread reads itself: run_with_idle_spin's
+// `direct` argument. `Connection` has
+//   bool read_now()     reads what is waiting, without waiting, and handles it as its async
+//                       read's completion would (and may be watched again); false when
+//                       nothing was waiting
+//   void read_async()   waits for its next bytes through the event loop (an async read)
+//   bool closed() const
+// A connection about to start an async read is watch()ed instead when the transport
+// decides it should be (a client sending alone, ReadSplit::alone, while the thread polls:
+// never with a spin of 0, where nothing would poll it). One thread (the I/O thread).
+template <class Connection>
+class DirectReads {
+ public:
+  // Watches `connection` instead of an async read; a connection watched before is parked.
+  void watch(std::shared_ptr<Connection> connection) {
+    if (connection_ && connection_ != connection) park();
+    connection_ = std::move(connection);
+  }
+  // Forgets `connection` if watched (it closed).
+  void forget(const Connection& connection) {
+    if (connection_.get() == &connection) connection_.reset();
+  }
+
+  std::size_t poll() {
+    if (!connection_) return 0;
+    // handling the read may watch it again (its next read)
+    auto connection = std::move(connection_);
+    if (connection->read_now()) return 1;
+    if (!connection->closed()) connection_ = std::move(connection);
+    return 0;
+  }
+  bool watching() const { return connection_ != nullptr; }
+  void park() {
+    if (auto connection = std::move(connection_)) connection->read_async();
+  }
+
+ private:
+  std::shared_ptr<Connection> connection_;  // watched: no async read pending on it
 };
 
 template <class EventLoop, class Clock = std::chrono::steady_clock, class DirectReads = NoDirectReads>
