@@ -267,6 +267,9 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
           owner_.flush_submissions();
           owner_.flush_writes();
           owner_.deferring_writes_ = true;
+          // those replies may have closed the connection (the client does not read them):
+          // the rest of the read is dropped, not run for a client that is gone
+          if (closed_) return;
         }
       }
       const char* nl = static_cast<const char*>(std::memchr(p, '\n', static_cast<std::size_t>(end - p)));

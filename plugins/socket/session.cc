@@ -100,6 +100,9 @@ void Session::consume(std::string_view data) {
     if (half_left && data.size() <= half_left) {
       half_left = 0;
       host_.on_lines_done(self, /*read_finished=*/false);
+      // its replies may have closed the connection (the client does not read them): the
+      // rest of the read is dropped, not taken as requests of a closed connection
+      if (closed_) return;
     }
     std::size_t nl = data.find('\n');
     if (discarding_) {

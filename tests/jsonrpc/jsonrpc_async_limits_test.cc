@@ -347,6 +347,40 @@ TEST_F(JsonRpcSlowReader, ClientThatNeverReadsIsDroppedOthersAreServed) {
   EXPECT_TRUE(hog.wait_closed(k_timeout));
 }
 
+class JsonRpcTinyBacklog : public JsonRpcFixture {
+  json options() override { return {{"max_unsent_bytes", 1024}}; }
+};
+
+TEST_F(JsonRpcTinyBacklog, NoMessageIsTakenFromAReadAfterItsFirstHalfClosedTheConnection) {
+  // a lone client's large read is answered half-way (read_split.h); when those replies
+  // exceed the limit the connection closes there, and the rest of the read must not run
+  // for the client that is gone (a call there would escape on_disconnect's cancel)
+  auto call = [](const std::string& method, const std::string& params, const std::string& id) {
+    return R"({"jsonrpc":"2.0","method":")" + method + R"(","params":)" + params + R"(,"id":")" + id + "\"}\n";
+  };
+  // a first large read makes the connection the one sending (ReadSplit notes it), then
+  // it stays alone for longer than ReadSplit::k_alone_after
+  std::string warm;
+  for (int i = 0; i < 10; ++i) warm += call("robot.arm.add", "[1,2]", "w" + std::to_string(i));
+  ASSERT_GE(warm.size(), 512u);
+  client_->send_raw(warm);
+  for (int i = 0; i < 10; ++i) ASSERT_EQ(next(*client_)["result"], 3.0);
+  std::this_thread::sleep_for(10ms);
+  // first half: replies of 2 KB (the second finds the limit passed and closes); the second
+  // half begins with a held call that must never start
+  std::string first_half;
+  for (int i = 0; i < 8; ++i) first_half += call("robot.arm.blob", "[2048]", "b" + std::to_string(i));
+  const std::string hold = call("robot.arm.hold", R"(["after-close"])", "h");
+  const std::string head = R"({"jsonrpc":"2.0","method":"robot.arm.echo","params":[")";
+  const std::string tail = R"("],"id":"z"})" "\n";
+  const std::string padding = head + std::string(first_half.size() - hold.size() - head.size() - tail.size(), 'x') + tail;
+  ASSERT_EQ(hold.size() + padding.size(), first_half.size());  // the half falls just before `hold`
+  client_->send_raw(first_half + hold + padding);
+  EXPECT_TRUE(client_->wait_closed(k_timeout));
+  auto other = connect();
+  EXPECT_EQ(other->request("ctl.pending", json::array({"after-close"}), k_timeout)["result"], false);
+}
+
 TEST_F(JsonRpcLimits, GarbageDoesNotDisturbOtherClients) {
   JsonRpcClient garbage("127.0.0.1", host_->port());
   std::string noise;

@@ -648,6 +648,43 @@ TEST_F(SocketTransportLimits, ClientThatStopsReadingIsDisconnectedOthersAreServe
   EXPECT_EQ(roundtrip(*good, "g2 test ping"), "g2 SUCCESS \"pong\"");
 }
 
+TEST_F(SocketTransportLimits, NoLineIsTakenFromAReadAfterItsFirstHalfClosedTheConnection) {
+  // a lone client's large read is answered half-way (read_split.h); when those replies
+  // exceed the limit the connection closes there, and the rest of the read must not be
+  // taken as requests of the closed connection (they would run, and their outcomes would
+  // be delivered to the freed session: a use after free under the sanitizers)
+  start_server({{"max_pending_replies_bytes", 1024}});
+  auto c = connect();
+  auto burst = [](const std::string& prefix, const std::string& request, int lines) {
+    std::string out;
+    for (int i = 0; i < lines; ++i) out += prefix + std::to_string(i) + " " + request + "\n";
+    return out;
+  };
+  // a first large read makes the connection the one sending (ReadSplit notes it), then
+  // it stays alone for longer than ReadSplit::k_alone_after
+  c->send_raw(burst("p", "test ping", 40));
+  for (int i = 0; i < 40; ++i) ASSERT_EQ(next_line(*c), "p" + std::to_string(i) + " SUCCESS \"pong\"");
+  std::this_thread::sleep_for(10ms);
+  // first half: replies of 2 KB (the first one is over the limit); the second half
+  // begins with a held request that must never start
+  const std::string first_half = burst("b", "test big (2048,)", 20);
+  const std::string hold = "h worker hold (1,)\n";
+  const std::string padding = "z test echo ('" + std::string(first_half.size() - hold.size() - 18, 'x') + "',)\n";
+  ASSERT_EQ(hold.size() + padding.size(), first_half.size());  // the half falls just before `hold`
+  c->send_raw(first_half + hold + padding);
+  bool ended = false;  // the server closes the connection
+  for (int i = 0; i < 100 && !ended; ++i) {
+    try {
+      if (!c->read_line(10s)) break;
+    } catch (const client::ClientError&) {
+      ended = true;
+    }
+  }
+  EXPECT_TRUE(ended);
+  auto other = connect();
+  EXPECT_EQ(roundtrip(*other, "r worker release (5,)"), "r SUCCESS false");
+}
+
 TEST_F(SocketTransportLimits, SuccessWordOkForTheDocumentation) {
   start_server({{"success_word", "OK"}});
   auto c = connect();
