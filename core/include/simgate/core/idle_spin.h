@@ -106,8 +106,8 @@ class DirectReads {
   std::shared_ptr<Connection> connection_;  // watched: no async read pending on it
 };
 
-template <class EventLoop, class Clock = std::chrono::steady_clock, class DirectReads = NoDirectReads>
-void run_with_idle_spin(EventLoop& loop, std::chrono::microseconds spin, DirectReads&& direct = {}) {
+template <class EventLoop, class Clock = std::chrono::steady_clock, class Direct = NoDirectReads>
+void run_with_idle_spin(EventLoop& loop, std::chrono::microseconds spin, Direct&& direct = {}) {
   if (spin.count() <= 0) {
     loop.run();
     return;
