@@ -109,6 +109,7 @@ std::shared_ptr<TransportPlugin> load_transport_plugin(const std::string& name_o
     refuse(std::string("calls itself '") + (d->name ? d->name : "(null)") + "', expected '" + name + "'");
   if (!d->create) refuse("required function create is missing");
   if (!d->destroy) refuse("required function destroy is missing");
+  if (!d->validate) refuse("required function validate is missing");
 
   auto plugin = std::make_shared<TransportPlugin>();
   plugin->library_ = std::move(library);
@@ -125,15 +126,21 @@ std::vector<std::string> TransportPlugin::option_keys() const {
   return keys;
 }
 
-std::shared_ptr<RequestManager> TransportPlugin::create(const json& options, const std::string& config_path) const {
-  // unknown keys are refused before the plugin sees them
+void TransportPlugin::validate(const json& options, const std::string& config_path) const {
   ConfigObject(options, config_path).allow_only(option_keys());
+  char error[1024] = {0};
+  if (!descriptor_->validate(options.dump().c_str(), error, sizeof(error)))
+    throw ConfigError(config_path + ": transport '" + name_ + "' refused its options: " +
+                      (error[0] ? error : "no reason given"));
+}
 
+std::shared_ptr<RequestManager> TransportPlugin::create(const json& options, const std::string& config_path) const {
+  validate(options, config_path);
   char error[1024] = {0};
   RequestManager* manager = descriptor_->create(options.dump().c_str(), error, sizeof(error));
   if (!manager)
-    throw ConfigError(config_path + ": transport '" + name_ + "' refused its options: " +
-                      (error[0] ? error : "no reason given"));
+    throw TransportError(config_path + ": transport '" + name_ + "' could not start: " +
+                         (error[0] ? error : "no reason given"));
   // the deleter keeps the library loaded until the manager is gone
   auto library = library_;
   auto destroy = descriptor_->destroy;

@@ -378,6 +378,8 @@ void RequestManager::execute_and_deliver(RequestId id, Call& call, bool refilled
 }
 
 bool RequestManager::execute(RequestId id, const Call& call, Outcome& out) {
+  // only the lock holder writes it: a plain store, no read-modify-write
+  requests_handled_.store(requests_handled_.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
   std::shared_ptr<Service> service = find_service(call);
   if (!service) {
     out = unknown_service(call);

@@ -204,6 +204,7 @@ void DdsRequestManager::run() {
       if (writers) {
         dds_subscription_matched_status_t status;
         dds_get_subscription_matched_status(request_reader_, &status);
+        client_count_.store(status.current_count, std::memory_order_relaxed);
         sweep_clients();
       }
       if (parked_count_ > 0) expire_parked();

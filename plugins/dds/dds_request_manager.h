@@ -72,6 +72,10 @@ class DdsRequestManager : public RequestManager {
   // Host thread. Throws ConfigError (bad options) or std::runtime_error (DDS failed).
   explicit DdsRequestManager(const json& options);
   ~DdsRequestManager() override;
+  // What the constructor checks of `options`, creating no DDS entity (the plugin's validate).
+  static void validate_options(const json& options) { (void)DdsOptions::parse(options); }
+  // Request writers matched now (one per client program).
+  std::size_t client_count() const override { return client_count_.load(std::memory_order_relaxed); }
 
   void start() override;
   void stop() override;
@@ -165,6 +169,7 @@ class DdsRequestManager : public RequestManager {
   // ---- DDS thread only ----
   std::unordered_map<RequestId, Pending> pending_;  // requests in the core
   std::map<ClientId, ClientState> clients_;         // known clients
+  std::atomic<std::size_t> client_count_{0};        // matched request writers, for any thread
   std::map<dds_instance_handle_t, std::optional<ClientId>> reply_readers_;  // matched readers
   std::map<ClientId, int> matched_ids_;             // client id -> matched reply readers
   std::unordered_map<std::string, bool> async_services_;  // "component.service" -> is_async

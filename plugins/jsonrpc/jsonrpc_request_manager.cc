@@ -412,8 +412,14 @@ JsonRpcRequestManager::JsonRpcRequestManager(const json& options)
     acceptor_.bind(endpoint);
     acceptor_.listen(asio::socket_base::max_listen_connections);
   } catch (const boost::system::system_error& e) {
+    std::string hint;
+    if (e.code() == asio::error::address_in_use)
+      hint = " (another program listens there: `ss -ltnp 'sport = :" + std::to_string(options_.port) +
+             "'` names it; stop it, or choose another 'port', 0 for any free one)";
+    else if (e.code() == asio::error::access_denied)
+      hint = " (ports below 1024 need privileges)";
     throw std::runtime_error("transport 'jsonrpc': cannot listen on " + to_string(endpoint) + ": " +
-                             e.code().message());
+                             e.code().message() + hint);
   }
   port_ = acceptor_.local_endpoint().port();
 }
@@ -483,6 +489,7 @@ void JsonRpcRequestManager::shutdown_io() {
   auto sessions = sessions_;
   for (const auto& s : sessions) s->close("server stopping");
   sessions_.clear();
+  client_count_.store(0, std::memory_order_relaxed);
   // completions posted from now on are dropped with the io_context
   io_.stop();
 }
@@ -516,6 +523,7 @@ void JsonRpcRequestManager::accept_next() {
         socket.set_option(tcp::no_delay(true));
         auto session = std::make_shared<Session>(*this, std::move(socket));
         sessions_.insert(session);
+        client_count_.store(sessions_.size(), std::memory_order_relaxed);
         log::debug("jsonrpc: connection from ", session->peer());
         session->start();
       }
@@ -538,6 +546,7 @@ void JsonRpcRequestManager::session_closed(Session& session) {
   direct_.forget(session);
   auto self = session.shared_from_this();
   sessions_.erase(self);
+  client_count_.store(sessions_.size(), std::memory_order_relaxed);
   if (stopping_ || !options_.cancel_on_disconnect) return;
   // the client is gone: its pending calls end (their replies are dropped)
   for (RequestId id : session.take_calls()) cancel(id);

@@ -77,6 +77,9 @@ class JsonRpcRequestManager : public RequestManager {
   // Parses the options and binds; throws ConfigError or std::runtime_error.
   explicit JsonRpcRequestManager(const json& options);
   ~JsonRpcRequestManager() override;
+  // What the constructor checks of `options`, without binding (the plugin's validate).
+  static void validate_options(const json& options) { (void)Options::parse(options); }
+  std::size_t client_count() const override { return client_count_.load(std::memory_order_relaxed); }
 
   void start() override;
   void stop() override;
@@ -155,6 +158,7 @@ class JsonRpcRequestManager : public RequestManager {
   bool stopped_ = false;                             // stop() ran
   bool stopping_ = false;                            // shutdown_io() ran (I/O thread)
   std::unordered_set<std::shared_ptr<Session>> sessions_;  // open connections (I/O thread)
+  std::atomic<std::size_t> client_count_{0};                // sessions_.size(), for any thread
   static constexpr std::size_t k_spare_nodes = 256;  // table nodes kept for reuse (per manager, per connection)
   RecyclingMap<RequestId, Pending> pending_{k_spare_nodes};  // submitted calls (I/O thread)
   Request request_;                                  // the message being read by the fast path (I/O thread)

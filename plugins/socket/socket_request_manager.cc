@@ -39,31 +39,47 @@ tcp::endpoint resolve_listen_endpoint(const std::string& host, std::uint16_t por
 
 }  // namespace
 
+SocketOptions SocketOptions::parse(const json& options) {
+  // every key read here, unknown keys refused by finish()
+  ConfigObject config(options, "");
+  SocketOptions o;
+  o.host = config.get_string("host", o.host);
+  o.port = static_cast<std::uint16_t>(config.get_int("port", o.port, 0, 65535));
+  o.success_word = config.get_choice("success_word", o.success_word, {"SUCCESS", "OK"});
+  o.limits.max_line_bytes =
+      static_cast<std::size_t>(config.get_int("max_line_bytes", 1 << 20, 64, 1LL << 30));
+  o.limits.max_unsent_bytes = static_cast<std::size_t>(
+      config.get_int("max_pending_replies_bytes", 8 << 20, 1024, 1LL << 34));
+  o.limits.max_pending_requests =
+      static_cast<std::size_t>(config.get_int("max_pending_requests", 1024, 1, 1 << 20));
+  o.max_clients = static_cast<std::size_t>(config.get_int("max_clients", 1024, 1, 1 << 20));
+  o.io_spin = std::chrono::microseconds(config.get_int("io_spin_us", o.io_spin.count(), 0, 10000));
+  o.global_policy = config.get_choice("global_policy", "reject", {"reject", "preempt"}) == "preempt"
+                        ? GlobalPolicy::preempt
+                        : GlobalPolicy::reject;
+  config.finish();
+  (void)resolve_listen_endpoint(o.host, o.port);  // a name that does not resolve is a config error
+  return o;
+}
+
 SocketRequestManager::SocketRequestManager(const json& options)
     : RequestManager("Socket service manager"), work_(asio::make_work_guard(io_)), acceptor_(io_) {
-  // options: every key read here, unknown keys refused by finish()
-  ConfigObject config(options, "");
-  host_ = config.get_string("host", "127.0.0.1");
-  const auto requested_port = static_cast<std::uint16_t>(config.get_int("port", 4000, 0, 65535));
-  success_word_ = config.get_choice("success_word", "SUCCESS", {"SUCCESS", "OK"});
-  limits_.max_line_bytes =
-      static_cast<std::size_t>(config.get_int("max_line_bytes", 1 << 20, 64, 1LL << 30));
-  limits_.max_unsent_bytes = static_cast<std::size_t>(
-      config.get_int("max_pending_replies_bytes", 8 << 20, 1024, 1LL << 34));
-  limits_.max_pending_requests =
-      static_cast<std::size_t>(config.get_int("max_pending_requests", 1024, 1, 1 << 20));
-  max_clients_ = static_cast<std::size_t>(config.get_int("max_clients", 1024, 1, 1 << 20));
-  io_spin_ = std::chrono::microseconds(config.get_int("io_spin_us", io_spin_.count(), 0, 10000));
-  std::string policy = config.get_choice("global_policy", "reject", {"reject", "preempt"});
-  set_global_policy(policy == "preempt" ? GlobalPolicy::preempt : GlobalPolicy::reject);
-  config.finish();
+  SocketOptions o = SocketOptions::parse(options);
+  host_ = o.host;
+  const std::uint16_t requested_port = o.port;
+  success_word_ = o.success_word;
+  limits_ = o.limits;
+  max_clients_ = o.max_clients;
+  io_spin_ = o.io_spin;
+  set_global_policy(o.global_policy);
 
   // bind now, so that a port in use fails the creation of the transport
   tcp::endpoint endpoint = resolve_listen_endpoint(host_, requested_port);
   auto fail = [&](const char* step, const error_code& ec) {
     std::string hint;
     if (ec == asio::error::address_in_use)
-      hint = " (another program listens there: stop it, or choose another 'port', 0 for any free one)";
+      hint = " (another program listens there: `ss -ltnp 'sport = :" + std::to_string(requested_port) +
+             "'` names it; stop it, or choose another 'port', 0 for any free one)";
     else if (ec == asio::error::access_denied)
       hint = " (ports below 1024 need privileges)";
     throw std::runtime_error(name() + ": cannot listen on " + host_ + ":" +
@@ -143,6 +159,7 @@ void SocketRequestManager::close_all() {
   acceptor_.close(ec);
   auto sessions = std::move(sessions_);
   sessions_.clear();
+  client_count_.store(0, std::memory_order_relaxed);
   for (const auto& s : sessions) s->close("server stopping");
   requests_.clear();
 }
@@ -164,6 +181,7 @@ void SocketRequestManager::accept_next() {
       SessionHost& host = *this;
       auto session = std::make_shared<Session>(std::move(socket), host, limits_, next_session_++);
       sessions_.insert(session);
+      client_count_.store(sessions_.size(), std::memory_order_relaxed);
       log::debug(name(), ": ", session->label(), " connected");
       session->start();
     }
@@ -305,6 +323,7 @@ void SocketRequestManager::on_session_closed(const std::shared_ptr<Session>& ses
   // its outcomes have nowhere to go: forget them (the requests themselves run on)
   session->pending().for_each([this](const IdTable::Entry& e) { requests_.erase(e.id); });
   sessions_.erase(session);
+  client_count_.store(sessions_.size(), std::memory_order_relaxed);
 }
 
 // ---- direct reads (I/O thread)

@@ -56,14 +56,31 @@
 
 namespace simgate::socket {
 
+// The transport's options, as parsed (the README lists them).
+struct SocketOptions {
+  std::string host = "127.0.0.1";                          // address or name to listen on
+  std::uint16_t port = 4000;                               // 0: any free port
+  std::string success_word = "SUCCESS";                    // "SUCCESS" (MORSE) or "OK" (MORSE's docs)
+  SessionLimits limits;                                    // per-connection limits
+  std::size_t max_clients = 1024;                          // connections beyond this are refused
+  std::chrono::microseconds io_spin{50};                   // ("io_spin_us")
+  GlobalPolicy global_policy = GlobalPolicy::reject;       // ("global_policy")
+
+  // Every check of the options, resolving the host but binding nothing. Throws ConfigError.
+  static SocketOptions parse(const json& options);
+};
+
 class SocketRequestManager : public RequestManager, private SessionHost {
  public:
   explicit SocketRequestManager(const json& options);
   ~SocketRequestManager() override;
+  // What the constructor checks of `options`, without binding (the plugin's validate).
+  static void validate_options(const json& options) { (void)SocketOptions::parse(options); }
 
   void start() override;
   void stop() override;
   std::vector<std::string> endpoints() const override;
+  std::size_t client_count() const override { return client_count_.load(std::memory_order_relaxed); }
 
   // The bound TCP port (useful with port 0).
   std::uint16_t port() const { return port_; }
@@ -138,6 +155,7 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   std::chrono::microseconds io_spin_{50};    // ("io_spin_us") how long the I/O thread polls before sleeping (idle_spin.h)
   std::uint64_t next_session_ = 1;           // numbers sessions in logs
   std::unordered_set<std::shared_ptr<Session>> sessions_;  // open connections (I/O thread)
+  std::atomic<std::size_t> client_count_{0};  // sessions_.size(), for any thread
   RequestSlots<Pending> requests_;           // unanswered requests, by the ids it gives them (I/O thread)
   std::string scratch_;                      // reply formatting buffer (I/O thread)
   ReadSplit read_split_;                     // runs a lone client's large reads in halves (I/O thread)

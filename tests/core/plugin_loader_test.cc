@@ -105,8 +105,9 @@ TEST(PluginLoaderTest, ThrowingConstructorIsReportedNotPropagated) {
   try {
     plugin->create(json::object(), "transports.throws");
     FAIL() << "created a manager whose constructor throws";
-  } catch (const ConfigError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("transports.throws: transport 'throws' refused its options: "
+  } catch (const TransportError& e) {
+    // its options are valid (it has no validate_options): a failure to start, not a config error
+    EXPECT_THAT(e.what(), HasSubstr("transports.throws: transport 'throws' could not start: "
                                     "cannot open /dev/imaginary: no such device"));
   }
 }

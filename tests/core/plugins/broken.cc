@@ -16,8 +16,9 @@ class Throwing : public simgate::RequestManager {
 
 const char* const no_keys[] = {nullptr};
 
-simgate::RequestManager* create_none(const char*, char*, size_t) { return nullptr; }
-void destroy_none(simgate::RequestManager*) {}
+[[maybe_unused]] simgate::RequestManager* create_none(const char*, char*, size_t) { return nullptr; }
+[[maybe_unused]] void destroy_none(simgate::RequestManager*) {}
+[[maybe_unused]] int validate_none(const char*, char*, size_t) { return 1; }
 
 }  // namespace
 
@@ -28,21 +29,21 @@ SIMGATE_TRANSPORT_PLUGIN(throws, Throwing, "0.0.1")
 #elif defined(BROKEN_ABI)
 EXPORT const simgate_transport_descriptor* simgate_transport_badabi_entry(void) {
   static const simgate_transport_descriptor d = {999, sizeof(simgate_transport_descriptor), "badabi", "0",
-                                                 SIMGATE_BUILD_TAG, no_keys, create_none, destroy_none};
+                                                 SIMGATE_BUILD_TAG, no_keys, create_none, destroy_none, validate_none};
   return &d;
 }
 #elif defined(BROKEN_TAG)
 EXPORT const simgate_transport_descriptor* simgate_transport_badtag_entry(void) {
   static const simgate_transport_descriptor d = {SIMGATE_PLUGIN_ABI_VERSION, sizeof(simgate_transport_descriptor),
                                                  "badtag", "0", "abi1;cxx11abi=0;json=2.0", no_keys,
-                                                 create_none, destroy_none};
+                                                 create_none, destroy_none, validate_none};
   return &d;
 }
 #elif defined(BROKEN_NOCREATE)
 EXPORT const simgate_transport_descriptor* simgate_transport_nocreate_entry(void) {
   static const simgate_transport_descriptor d = {SIMGATE_PLUGIN_ABI_VERSION, sizeof(simgate_transport_descriptor),
                                                  "nocreate", "0", SIMGATE_BUILD_TAG, no_keys, nullptr,
-                                                 destroy_none};
+                                                 destroy_none, validate_none};
   return &d;
 }
 #elif defined(BROKEN_NOSYMBOL)
@@ -52,7 +53,7 @@ EXPORT int simgate_transport_something_else(void) { return 42; }
 EXPORT const simgate_transport_descriptor* simgate_transport_misnamed_entry(void) {
   static const simgate_transport_descriptor d = {SIMGATE_PLUGIN_ABI_VERSION, sizeof(simgate_transport_descriptor),
                                                  "other", "0", SIMGATE_BUILD_TAG, no_keys, create_none,
-                                                 destroy_none};
+                                                 destroy_none, validate_none};
   return &d;
 }
 #elif defined(BROKEN_UNDEFINED)

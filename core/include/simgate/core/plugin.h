@@ -5,10 +5,12 @@
 // The descriptor begins with the ABI version and its own size, so the host can refuse an
 // incompatible library before touching anything else; then the plugin's name, version,
 // build tag (C++ library ABI and JSON library version, which must match the host's), the
-// option keys it accepts (the host rejects other keys before create), and two functions:
+// option keys it accepts (the host rejects other keys before create), and three functions:
 //
 //   create(options_json, error, error_size) -> RequestManager* (nullptr + message on error)
 //   destroy(RequestManager*)
+//   validate(options_json, error, error_size) -> 1, or 0 + message: every check create()
+//       makes of the options, short of opening anything (`simgate check` calls it)
 //
 // No exception crosses this boundary: create catches everything and writes the message.
 // Write a plugin with one line:
@@ -16,7 +18,10 @@
 //   SIMGATE_TRANSPORT_PLUGIN(socket, simgate::socket::SocketRequestManager, "0.1.0",
 //                            "host", "port", "max_line")
 //
-// where the class has a constructor taking (const simgate::json& options). Bump
+// where the class has a constructor taking (const simgate::json& options) and, optionally,
+// a static `validate_options(const simgate::json& options)` that throws what the
+// constructor would throw for bad options without binding or starting anything (without
+// it, validate checks nothing beyond the option keys). Bump
 // SIMGATE_PLUGIN_ABI_VERSION on any change to this struct or to RequestManager.
 #ifndef SIMGATE_CORE_PLUGIN_H_
 #define SIMGATE_CORE_PLUGIN_H_
@@ -29,7 +34,7 @@
 
 #include "simgate/core/request_manager.h"
 
-#define SIMGATE_PLUGIN_ABI_VERSION 2u
+#define SIMGATE_PLUGIN_ABI_VERSION 3u
 
 #define SIMGATE_STRINGIFY_(x) #x
 #define SIMGATE_STRINGIFY(x) SIMGATE_STRINGIFY_(x)
@@ -46,6 +51,7 @@ extern "C" {
 typedef simgate::RequestManager* (*simgate_create_fn)(const char* options_json, char* error,
                                                        size_t error_size);
 typedef void (*simgate_destroy_fn)(simgate::RequestManager* manager);
+typedef int (*simgate_validate_fn)(const char* options_json, char* error, size_t error_size);
 
 struct simgate_transport_descriptor {
   uint32_t abi_version;            // SIMGATE_PLUGIN_ABI_VERSION of the plugin's build
@@ -56,6 +62,7 @@ struct simgate_transport_descriptor {
   const char* const* option_keys;  // accepted option keys, nullptr-terminated
   simgate_create_fn create;        // required
   simgate_destroy_fn destroy;      // required
+  simgate_validate_fn validate;    // required
 };
 
 typedef const struct simgate_transport_descriptor* (*simgate_transport_entry_fn)(void);
@@ -83,6 +90,21 @@ RequestManager* create_manager(const char* options_json, char* error, size_t err
   return nullptr;
 }
 
+// Shared body of every plugin's validate(): the class's validate_options() if it has one.
+template <class Manager>
+int validate_options(const char* options_json, char* error, size_t error_size) noexcept {
+  try {
+    json options = options_json && *options_json ? json::parse(options_json) : json::object();
+    if constexpr (requires { Manager::validate_options(options); }) Manager::validate_options(options);
+    return 1;
+  } catch (const std::exception& e) {
+    copy_error(error, error_size, e.what());
+  } catch (...) {
+    copy_error(error, error_size, "unknown exception in validate()");
+  }
+  return 0;
+}
+
 inline void destroy_manager(RequestManager* manager) noexcept {
   try {
     if (manager) manager->stop();
@@ -105,7 +127,8 @@ inline void destroy_manager(RequestManager* manager) noexcept {
         SIMGATE_BUILD_TAG,                                                                   \
         keys,                                                                                \
         &simgate::detail::create_manager<CLASS>,                                             \
-        &simgate::detail::destroy_manager};                                                  \
+        &simgate::detail::destroy_manager,                                                   \
+        &simgate::detail::validate_options<CLASS>};                                          \
     return &descriptor;                                                                      \
   }
 

@@ -29,6 +29,13 @@ class PluginError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// A transport whose options passed validate() failed to start: a port in use, no DDS
+// domain. A runtime failure of the machine, not of the configuration.
+class TransportError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 // A loaded, checked plugin library.
 class TransportPlugin {
  public:
@@ -37,10 +44,13 @@ class TransportPlugin {
   const std::string& name() const { return name_; }
   std::vector<std::string> option_keys() const;
 
-  // Creates a manager from the plugin. Options with keys the plugin does not declare, or
-  // that its constructor rejects, throw ConfigError prefixed with `config_path`.
-  // The returned manager keeps the library loaded.
+  // Creates a manager from the plugin: validate() first (ConfigError), then the plugin's
+  // create(), whose failure is a TransportError prefixed with `config_path`. The returned
+  // manager keeps the library loaded.
   std::shared_ptr<RequestManager> create(const json& options, const std::string& config_path) const;
+  // Every check create() makes of `options`, opening nothing (no socket bound, no DDS
+  // participant). Throws ConfigError prefixed with `config_path`.
+  void validate(const json& options, const std::string& config_path) const;
 
  private:
   friend std::shared_ptr<TransportPlugin> load_transport_plugin(const std::string&,

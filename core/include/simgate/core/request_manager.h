@@ -166,6 +166,12 @@ class RequestManager {
 
   // Number of async requests started and not yet finished (under the simulation lock).
   std::size_t pending_count() const { return running_.size(); }
+  // Requests executed so far, whatever their outcome (unknown services and bad arguments
+  // included). Any thread.
+  std::uint64_t requests_handled() const { return requests_handled_.load(std::memory_order_relaxed); }
+  // Clients connected now (TCP connections, DDS writers), for status lines. Transports
+  // override it; the default knows of none. Any thread; must not block.
+  virtual std::size_t client_count() const { return 0; }
 
   // Finishes every request not yet answered (queued or running async) FAILED with
   // Failure::shutdown, delivering each through on_service_completion, and refuses later
@@ -220,6 +226,7 @@ class RequestManager {
   // async requests this manager started and has not delivered (under the simulation lock)
   std::unordered_map<RequestId, std::pair<std::shared_ptr<detail::CallState>, std::shared_ptr<AsyncSlot>>> running_;
   Outcome outcome_;  // the outcome of the request being executed, reused (under the simulation lock)
+  std::atomic<std::uint64_t> requests_handled_{0};  // written under the simulation lock, read anywhere
   GlobalPolicy global_policy_ = GlobalPolicy::reject;  // when the running service has no policy
   bool started_ = false;                   // start() called (by process() if nobody did; under the lock)
 };
