@@ -6,7 +6,7 @@ SIMGATE_ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 # Debian 12 packages the build, the tests and the end-to-end clients need.
 SIMGATE_PACKAGES=(
   build-essential cmake ninja-build pkg-config git
-  libboost-dev nlohmann-json3-dev libeigen3-dev libmujoco-dev
+  libboost-dev libcli11-dev nlohmann-json3-dev libeigen3-dev libmujoco-dev
   cyclonedds-dev cyclonedds-tools
   libgtest-dev libgmock-dev libbenchmark-dev
   python3 python3-morse-simulator
