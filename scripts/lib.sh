@@ -3,27 +3,35 @@
 
 SIMGATE_ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 
-# Debian 12 packages the build, the tests and the end-to-end clients need.
-SIMGATE_PACKAGES=(
-  build-essential cmake ninja-build pkg-config git
+# Debian 12 packages: what building and running the simulation needs (scripts/run), and
+# what the test suite and benchmarks need on top (scripts/test).
+SIMGATE_RUNTIME_PACKAGES=(
+  build-essential cmake ninja-build pkg-config
   libboost-dev libcli11-dev nlohmann-json3-dev libeigen3-dev libmujoco-dev
   cyclonedds-dev cyclonedds-tools
-  libgtest-dev libgmock-dev libbenchmark-dev
-  python3 python3-morse-simulator
-  iproute2 procps
+  telnet
 )
-# node and npm run the third-party JSON-RPC clients; any install will do (Debian's or
-# NodeSource's, which bundles npm and conflicts with Debian's npm package)
+SIMGATE_TEST_PACKAGES=(
+  git libgtest-dev libgmock-dev libbenchmark-dev
+  python3 python3-morse-simulator python3-jsonschema
+  iproute2 procps util-linux
+)
+# node and npm run the third-party JSON-RPC clients (tests only); any install will do
+# (Debian's or NodeSource's, which bundles npm and conflicts with Debian's npm package)
 
 log() { printf '\033[1m[simgate]\033[0m %s\n' "$*" >&2; }
 
+# ensure_packages runtime|test: installs what is missing (as root), or prints the command
 ensure_packages() {
-  local missing=() p
-  for p in "${SIMGATE_PACKAGES[@]}"; do
+  local missing=() p wanted=("${SIMGATE_RUNTIME_PACKAGES[@]}")
+  [ "${1:-test}" = test ] && wanted+=("${SIMGATE_TEST_PACKAGES[@]}")
+  for p in "${wanted[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
   done
-  command -v node >/dev/null || missing+=(nodejs)
-  command -v npm >/dev/null || missing+=(npm)
+  if [ "${1:-test}" = test ]; then
+    command -v node >/dev/null || missing+=(nodejs)
+    command -v npm >/dev/null || missing+=(npm)
+  fi
   [ ${#missing[@]} -eq 0 ] && return 0
   if [ "$(id -u)" -eq 0 ]; then
     log "installing: ${missing[*]}"
@@ -49,13 +57,17 @@ ensure_node_modules() {
   done < <(find "$SIMGATE_ROOT/tests" "$SIMGATE_ROOT/bench" -name package.json -not -path '*/node_modules/*' 2>/dev/null)
 }
 
-# configure_and_build BUILD_DIR [cmake args...]
+# configure_and_build BUILD_DIR [cmake args...] [-- targets...]
 configure_and_build() {
-  local build_dir=$1; shift
+  local build_dir=$1 args=() targets=(); shift
+  while [ $# -gt 0 ]; do
+    if [ "$1" = -- ]; then shift; targets=("$@"); break; fi
+    args+=("$1"); shift
+  done
   if [ ! -f "$build_dir/build.ninja" ]; then
-    cmake -S "$SIMGATE_ROOT" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo "$@" >/dev/null
-  else
-    cmake "$build_dir" "$@" >/dev/null
+    cmake -S "$SIMGATE_ROOT" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo "${args[@]}" >/dev/null
+  elif [ ${#args[@]} -gt 0 ]; then
+    cmake "$build_dir" "${args[@]}" >/dev/null
   fi
-  cmake --build "$build_dir"
+  cmake --build "$build_dir" ${targets[@]+--target "${targets[@]}"}
 }

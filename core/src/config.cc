@@ -4,6 +4,8 @@
 #include <cmath>
 #include <sstream>
 
+#include "simgate/core/suggest.h"
+
 namespace simgate {
 
 std::string describe_json(const json& value) {
@@ -97,9 +99,11 @@ std::string ConfigObject::get_choice(const std::string& key, const std::string& 
   for (std::size_t i = 0; i < choices.size(); ++i) expected += (i ? ", \"" : " \"") + choices[i] + "\"";
   const json* v = find(key);
   if (!v) return fallback;
-  if (!v->is_string() ||
-      std::find(choices.begin(), choices.end(), v->get<std::string>()) == choices.end())
-    fail(key, expected);
+  if (!v->is_string()) fail(key, expected);
+  const std::string& text = v->get_ref<const std::string&>();
+  if (std::find(choices.begin(), choices.end(), text) == choices.end())
+    throw ConfigError(path_of(key) + ": expected " + expected + ", found " + describe_json(*v) +
+                      did_you_mean(text, choices));
   return v->get<std::string>();
 }
 
@@ -122,13 +126,17 @@ void ConfigObject::finish() const {
 }
 
 void ConfigObject::allow_only(const std::vector<std::string>& allowed) const {
+  std::vector<std::string> errors;
   for (auto it = value_.begin(); it != value_.end(); ++it) {
     if (std::find(allowed.begin(), allowed.end(), it.key()) != allowed.end()) continue;
     std::string known;
     for (const auto& k : allowed) known += (known.empty() ? "" : ", ") + k;
-    throw ConfigError(path_of(it.key()) + ": unknown key (known keys: " +
-                      (known.empty() ? "none" : known) + ")");
+    auto suggestion = closest_match(it.key(), allowed);
+    errors.push_back(path_of(it.key()) + ": unknown key (" +
+                     (suggestion ? "did you mean '" + *suggestion + "'? " : std::string()) +
+                     "known keys: " + (known.empty() ? "none" : known) + ")");
   }
+  if (!errors.empty()) throw ConfigError(std::move(errors));
 }
 
 }  // namespace simgate

@@ -200,6 +200,16 @@ bool RequestManager::serves_component(const std::string& component) const {
   return services_.count(component) > 0;
 }
 
+std::vector<std::string> RequestManager::components() const {
+  std::vector<std::string> out;
+  {
+    std::lock_guard lock(table_mutex_);
+    for (const auto& [component, table] : services_) out.push_back(component);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
 void RequestManager::set_gate(std::shared_ptr<SimulationGate> gate) {
   gate_ = gate;
   inbox_->set_gate(std::move(gate));

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "simgate/core/log.h"
+#include "simgate/core/suggest.h"
 
 namespace simgate::gateway {
 
@@ -71,6 +72,98 @@ ComponentConfig parse_component(ConfigObject& o, const std::string& full_prefix,
   return c;
 }
 
+
+void parse_scene(ConfigObject& root, const std::string& base_dir, Deployment& d) {
+  auto scene_object = root.get_object("scene");
+  if (!scene_object) root.fail("scene", "an object {\"mjcf\": \"path/to/scene.xml\", ...}");
+  ConfigObject& scene = *scene_object;
+  ConfigErrors errors;
+  errors.check([&] {
+    std::string mjcf = scene.required_string("mjcf");
+    fs::path mjcf_path = fs::path(mjcf).is_absolute() ? fs::path(mjcf) : fs::path(base_dir) / mjcf;
+    std::error_code ec;
+    if (!fs::is_regular_file(mjcf_path, ec))
+      throw ConfigError(scene.path_of("mjcf") + ": expected an MJCF file, found '" + mjcf_path.string() +
+                        "' (no such file)");
+    d.mjcf = mjcf_path.lexically_normal().string();
+  });
+  errors.check([&] {
+    if (scene.has("timestep")) d.timestep = scene.get_number("timestep", 0.002, 1e-6, 1.0);
+  });
+  errors.check([&] {
+    auto factor = scene.get_json("realtime_factor");
+    if (!factor) return;
+    if (factor->is_string() && factor->get<std::string>() == "max") {
+      d.realtime_factor = 0;
+    } else if (factor->is_number() && factor->get<double>() >= 0 && factor->get<double>() <= 1e6) {
+      d.realtime_factor = factor->get<double>();
+    } else {
+      throw ConfigError(scene.path_of("realtime_factor") +
+                        ": expected a number >= 0 (0 = as fast as possible) or \"max\", found " +
+                        describe_json(*factor));
+    }
+  });
+  errors.check([&] { scene.finish(); });
+  errors.throw_if_any();
+}
+
+TransportConfig parse_transport(const std::string& name, const json& value, const std::string& path) {
+  check_name(name, path);
+  ConfigObject t(value, path);
+  TransportConfig tc;
+  tc.name = name;
+  tc.path = path;
+  tc.plugin = t.get_string("plugin", name);
+  auto options = t.get_object("options");
+  tc.options = options ? options->raw() : json::object();
+  t.finish();
+  return tc;
+}
+
+// One robot and its components (names checked for uniqueness against `names`), or nullopt
+// when it has errors, which are recorded in `errors`.
+std::optional<RobotConfig> parse_robot(const json& value, std::size_t index, std::set<std::string>& names,
+                                       ConfigErrors& errors) {
+  const std::size_t errors_before = errors.errors().size();
+  const std::string path = "robots[" + std::to_string(index) + "]";
+  std::optional<ConfigObject> r;
+  RobotConfig rc;
+  bool named = errors.check([&] {
+    r.emplace(value, path);
+    rc.robot = parse_component(*r, "", "", "robot");
+    if (!names.insert(rc.robot.name).second)
+      throw ConfigError(r->path_of("name") + ": expected a unique name, found '" + rc.robot.name +
+                        "' a second time" +
+                        (rc.robot.name == "simulation" || rc.robot.name == "time" ? " (reserved)" : ""));
+  });
+  if (!named) return std::nullopt;
+  errors.check([&] {
+    auto components = r->get_json("components");
+    if (!components) return;
+    if (!components->is_array()) r->fail("components", "an array of components");
+    for (std::size_t j = 0; j < components->size(); ++j)
+      errors.check([&] {
+        ConfigObject c((*components)[j], path + ".components[" + std::to_string(j) + "]");
+        ComponentConfig cc = parse_component(c, rc.robot.name + ".", rc.robot.body, "");
+        c.finish();
+        if (!names.insert(cc.name).second)
+          throw ConfigError(c.path_of("name") + ": expected a unique name, found '" + cc.name + "' a second time");
+        rc.components.push_back(std::move(cc));
+      });
+  });
+  errors.check([&] { r->finish(); });
+  if (errors.errors().size() != errors_before) return std::nullopt;
+  return rc;
+}
+
+void check_transports(const std::vector<std::string>& list, const std::vector<std::string>& transport_names,
+                      const std::string& path) {
+  for (std::size_t i = 0; i < list.size(); ++i)
+    if (std::find(transport_names.begin(), transport_names.end(), list[i]) == transport_names.end())
+      throw ConfigError(path + "[" + std::to_string(i) + "]: expected a transport declared in \"transports\" (" +
+                        join(transport_names) + "), found '" + list[i] + "'" + did_you_mean(list[i], transport_names));
+}
+
 }  // namespace
 
 std::vector<std::string> Deployment::component_names() const {
@@ -106,127 +199,80 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
   Deployment d;
   d.file = file;
   d.base_dir = base_dir;
-  ConfigObject root(document, "");
+  // every independent part is checked even when another failed: all of a file's errors
+  // are reported at once
+  ConfigErrors errors;
+  std::optional<ConfigObject> root_object;
+  errors.check([&] { root_object.emplace(document, ""); });
+  errors.throw_if_any();
+  ConfigObject& root = *root_object;
   root.get_string("description", "");  // free text, ignored
 
   // ---- log level ----
-  if (root.has("log_level")) {
-    std::string level = root.get_choice("log_level", "info", {"trace", "debug", "info", "warning", "error", "off"});
-    d.log_level = level;
-  }
+  errors.check([&] {
+    if (root.has("log_level"))
+      d.log_level = root.get_choice("log_level", "info", {"trace", "debug", "info", "warning", "error", "off"});
+  });
 
   // ---- scene ----
-  auto scene_object = root.get_object("scene");
-  if (!scene_object) root.fail("scene", "an object {\"mjcf\": \"path/to/scene.xml\", ...}");
-  ConfigObject& scene = *scene_object;
-  std::string mjcf = scene.required_string("mjcf");
-  fs::path mjcf_path = fs::path(mjcf).is_absolute() ? fs::path(mjcf) : fs::path(base_dir) / mjcf;
-  std::error_code ec;
-  if (!fs::is_regular_file(mjcf_path, ec))
-    throw ConfigError(scene.path_of("mjcf") + ": expected an MJCF file, found '" + mjcf_path.string() +
-                      "' (no such file)");
-  d.mjcf = mjcf_path.lexically_normal().string();
-  if (scene.has("timestep")) d.timestep = scene.get_number("timestep", 0.002, 1e-6, 1.0);
-  if (auto factor = scene.get_json("realtime_factor")) {
-    if (factor->is_string() && factor->get<std::string>() == "max") {
-      d.realtime_factor = 0;
-    } else if (factor->is_number() && factor->get<double>() >= 0 && factor->get<double>() <= 1e6) {
-      d.realtime_factor = factor->get<double>();
-    } else {
-      throw ConfigError(scene.path_of("realtime_factor") +
-                        ": expected a number >= 0 (0 = as fast as possible) or \"max\", found " +
-                        describe_json(*factor));
-    }
-  }
-  scene.finish();
+  errors.check([&] { parse_scene(root, base_dir, d); });
 
   // ---- transports ----
-  auto transports = root.get_object("transports");
-  if (!transports) root.fail("transports", "an object {\"<name>\": {\"plugin\": ..., \"options\": {...}}}");
-  for (auto it = transports->raw().begin(); it != transports->raw().end(); ++it) {
-    std::string path = transports->path_of(it.key());
-    check_name(it.key(), path);
-    ConfigObject t(it.value(), path);
-    TransportConfig tc;
-    tc.name = it.key();
-    tc.path = path;
-    tc.plugin = t.get_string("plugin", it.key());
-    auto options = t.get_object("options");
-    tc.options = options ? options->raw() : json::object();
-    t.finish();
-    d.transports.push_back(std::move(tc));
-  }
-  transports->allow_only([&] {
-    std::vector<std::string> keys;
-    for (auto it = transports->raw().begin(); it != transports->raw().end(); ++it) keys.push_back(it.key());
-    return keys;
-  }());
-  if (d.transports.empty()) root.fail("transports", "at least one transport");
+  std::vector<std::string> transport_names;
+  errors.check([&] {
+    auto transports = root.get_object("transports");
+    if (!transports) root.fail("transports", "an object {\"<name>\": {\"plugin\": ..., \"options\": {...}}}");
+    for (auto it = transports->raw().begin(); it != transports->raw().end(); ++it) {
+      transport_names.push_back(it.key());
+      errors.check([&] { d.transports.push_back(parse_transport(it.key(), it.value(), transports->path_of(it.key()))); });
+    }
+    if (transport_names.empty()) root.fail("transports", "at least one transport");
+  });
 
   // ---- robots ----
   std::set<std::string> names(k_pseudo_components.begin(), k_pseudo_components.end());
-  if (auto robots = root.get_json("robots")) {
+  const std::size_t errors_before_robots = errors.errors().size();
+  errors.check([&] {
+    auto robots = root.get_json("robots");
+    if (!robots) return;
     if (!robots->is_array()) root.fail("robots", "an array of robots");
-    for (std::size_t i = 0; i < robots->size(); ++i) {
-      std::string path = "robots[" + std::to_string(i) + "]";
-      ConfigObject r((*robots)[i], path);
-      RobotConfig rc;
-      rc.robot = parse_component(r, "", "", "robot");
-      if (!names.insert(rc.robot.name).second)
-        throw ConfigError(r.path_of("name") + ": expected a unique name, found '" + rc.robot.name +
-                          "' a second time" +
-                          (rc.robot.name == "simulation" || rc.robot.name == "time" ? " (reserved)" : ""));
-      if (auto components = r.get_json("components")) {
-        if (!components->is_array()) r.fail("components", "an array of components");
-        for (std::size_t j = 0; j < components->size(); ++j) {
-          ConfigObject c((*components)[j], path + ".components[" + std::to_string(j) + "]");
-          ComponentConfig cc = parse_component(c, rc.robot.name + ".", rc.robot.body, "");
-          c.finish();
-          if (!names.insert(cc.name).second)
-            throw ConfigError(c.path_of("name") + ": expected a unique name, found '" + cc.name + "' a second time");
-          rc.components.push_back(std::move(cc));
-        }
-      }
-      r.finish();
-      d.robots.push_back(std::move(rc));
-    }
-  }
+    for (std::size_t i = 0; i < robots->size(); ++i)
+      if (auto robot = parse_robot((*robots)[i], i, names, errors)) d.robots.push_back(std::move(*robot));
+  });
+  const bool robots_ok = errors.errors().size() == errors_before_robots;
 
   // ---- services (the mapping) ----
-  std::vector<std::string> transport_names;
-  for (const auto& t : d.transports) transport_names.push_back(t.name);
-  auto check_transports = [&](const std::vector<std::string>& list, const std::string& path) {
-    for (std::size_t i = 0; i < list.size(); ++i)
-      if (std::find(transport_names.begin(), transport_names.end(), list[i]) == transport_names.end())
-        throw ConfigError(path + "[" + std::to_string(i) + "]: expected a transport declared in \"transports\" (" +
-                          join(transport_names) + "), found '" + list[i] + "'");
-  };
-  if (auto services = root.get_object("services")) {
+  errors.check([&] {
+    auto services = root.get_object("services");
+    if (!services) return;
     d.has_services = true;
     std::vector<std::string> all = d.component_names();
     std::vector<std::string> keys;
     for (auto it = services->raw().begin(); it != services->raw().end(); ++it) {
       keys.push_back(it.key());
-      std::string path = services->path_of(it.key());
-      auto list = string_list(it.value(), path);
-      check_transports(list, path);
-      if (it.key() == "default") {
-        d.default_transports = std::move(list);
-        continue;
-      }
-      // every rule must match something: a typo must not silently disconnect a component
-      bool matched = std::any_of(all.begin(), all.end(), [&](const std::string& n) {
-        return is_glob(it.key()) ? glob_matches(it.key(), n) : it.key() == n;
+      errors.check([&] {
+        std::string path = services->path_of(it.key());
+        auto list = string_list(it.value(), path);
+        check_transports(list, transport_names, path);
+        if (it.key() == "default") {
+          d.default_transports = std::move(list);
+          return;
+        }
+        // every rule must match something: a typo must not silently disconnect a component
+        // (not checked when a robot was invalid: its components are unknown)
+        bool matched = std::any_of(all.begin(), all.end(), [&](const std::string& n) {
+          return is_glob(it.key()) ? glob_matches(it.key(), n) : it.key() == n;
+        });
+        if (!matched && robots_ok)
+          throw ConfigError(path + ": expected a component name or a glob matching one (" + join(all) +
+                            "), found '" + it.key() + "', which matches none" + did_you_mean(it.key(), all));
+        d.rules.push_back(ServiceRule{it.key(), std::move(list), path});
       });
-      if (!matched)
-        throw ConfigError(path + ": expected a component name or a glob matching one (" + join(all) +
-                          "), found '" + it.key() + "', which matches none");
-      d.rules.push_back(ServiceRule{it.key(), std::move(list), path});
     }
-    services->allow_only(keys);
-  }
+  });
 
-  root.finish();
+  errors.check([&] { root.finish(); });
+  errors.throw_if_any();
 
   // transports nobody uses are probably a mistake, but harmless
   for (const auto& t : d.transports) {
@@ -235,27 +281,27 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
       auto list = d.transports_for(n);
       if (std::find(list.begin(), list.end(), t.name) != list.end()) used = true;
     }
-    if (!used) log::warning(t.path, ": no component is mapped to transport '", t.name, "'");
+    if (!used) d.warnings.push_back(t.path + ": no component is mapped to transport '" + t.name + "'");
   }
   return d;
 }
 
 Deployment load_deployment(const std::string& file) {
   std::ifstream in(file);
-  if (!in) throw ConfigError("config '" + file + "': cannot be read (no such file or no permission)");
+  if (!in) throw ConfigError({"cannot be read (no such file or no permission)"}, file);
   std::stringstream text;
   text << in.rdbuf();
   json document;
   try {
     document = json::parse(text.str());
   } catch (const json::parse_error& e) {
-    throw ConfigError("config '" + file + "': invalid JSON: " + e.what());
+    throw ConfigError({std::string("invalid JSON: ") + e.what()}, file);
   }
   fs::path base = fs::absolute(fs::path(file)).parent_path();
   try {
     return parse_deployment(document, base.string(), file);
   } catch (const ConfigError& e) {
-    throw ConfigError("config '" + file + "': " + e.what());
+    throw ConfigError(e.errors(), file);
   }
 }
 

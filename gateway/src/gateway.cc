@@ -8,16 +8,10 @@
 
 namespace simgate::gateway {
 
-namespace {
-std::string join(const std::vector<std::string>& items) {
-  std::string out;
-  for (const auto& i : items) out += (out.empty() ? "" : ", ") + i;
-  return out;
-}
-}  // namespace
-
 Gateway::Gateway(const Deployment& deployment, const sim::ComponentRegistry& registry, GatewayOptions options)
-    : deployment_(deployment), options_(std::move(options)) {
+    : deployment_(deployment), options_(std::move(options)), warnings_(deployment.warnings) {
+  // every part is checked even when another failed: all errors are reported at once
+  ConfigErrors errors;
   // the scene
   sim::SimulationOptions sim_options;
   sim_options.timestep = deployment_.timestep;
@@ -25,13 +19,20 @@ Gateway::Gateway(const Deployment& deployment, const sim::ComponentRegistry& reg
   try {
     simulation_ = std::make_unique<sim::Simulation>(sim::Model::load_file(deployment_.mjcf), sim_options);
   } catch (const std::exception& e) {
-    throw ConfigError("scene.mjcf: expected a loadable MJCF scene, found an error: " + std::string(e.what()));
+    errors.add("scene.mjcf: expected a loadable MJCF scene, found an error: " + std::string(e.what()));
   }
-  // robots, components, pseudo-components
-  build_components(registry);
-  simulation_->add_supervision_services();
-  // plugins, then (unless checking) the transports with their components
-  load_transports();
+  // robots, components, pseudo-components (they need the scene)
+  if (simulation_) {
+    build_components(registry, errors);
+    simulation_->add_supervision_services();
+  }
+  // plugins and their options
+  load_plugins(errors);
+  errors.throw_if_any();
+  warn_about_mapping();
+  if (options_.check_only) return;
+  // the transports with their components (sockets are bound here)
+  create_transports();
 }
 
 Gateway::~Gateway() {
@@ -42,40 +43,46 @@ Gateway::~Gateway() {
   }
 }
 
-void Gateway::build_components(const sim::ComponentRegistry& registry) {
+void Gateway::build_components(const sim::ComponentRegistry& registry, ConfigErrors& errors) {
   sim::Simulation& sim = *simulation_;
   for (const auto& r : deployment_.robots) {
-    sim::ComponentSpec spec{r.robot.name, r.robot.type, r.robot.body, r.robot.path};
-    auto robot = registry.create(sim::Kind::robot, spec, r.robot.options, sim, nullptr);
-    auto* robot_ptr = static_cast<sim::Robot*>(robot.get());
-    sim.add_component(std::move(robot), r.robot.type, "", true);
-    for (const auto& c : r.components) {
-      sim::ComponentSpec cspec{c.name, c.type, c.body, c.path};
-      auto component = registry.create(sim::Kind::component, cspec, c.options, sim, robot_ptr);
-      sim.add_component(std::move(component), c.type, r.robot.name, false);
-    }
+    sim::Robot* robot_ptr = nullptr;
+    errors.check([&] {
+      sim::ComponentSpec spec{r.robot.name, r.robot.type, r.robot.body, r.robot.path};
+      auto robot = registry.create(sim::Kind::robot, spec, r.robot.options, sim, nullptr);
+      robot_ptr = static_cast<sim::Robot*>(robot.get());
+      sim.add_component(std::move(robot), r.robot.type, "", true);
+    });
+    if (!robot_ptr) continue;  // its components need it
+    for (const auto& c : r.components)
+      errors.check([&] {
+        sim::ComponentSpec cspec{c.name, c.type, c.body, c.path};
+        auto component = registry.create(sim::Kind::component, cspec, c.options, sim, robot_ptr);
+        sim.add_component(std::move(component), c.type, r.robot.name, false);
+      });
   }
 }
 
-void Gateway::load_transports() {
+void Gateway::load_plugins(ConfigErrors& errors) {
   // plugins are searched next to the config file too
   std::vector<std::string> dirs = options_.plugin_dirs;
   if (!deployment_.base_dir.empty()) dirs.push_back(deployment_.base_dir);
   for (const auto& t : deployment_.transports) {
     Transport transport;
     transport.name = t.name;
+    transport.config = &t;
     try {
       transport.plugin = load_transport_plugin(t.plugin, dirs);
     } catch (const std::exception& e) {
-      throw ConfigError(t.path + ".plugin: expected a loadable transport plugin, found an error: " + e.what());
+      errors.add(t.path + ".plugin: expected a loadable transport plugin, found an error: " + e.what());
+      continue;
     }
-    // option keys are checked even when nothing is created
-    std::vector<std::string> known = transport.plugin->option_keys();
-    if (!t.options.is_object())
-      throw ConfigError(t.path + ".options: expected an object, found " + describe_json(t.options));
-    for (auto it = t.options.begin(); it != t.options.end(); ++it)
-      if (std::find(known.begin(), known.end(), it.key()) == known.end())
-        throw ConfigError(t.path + ".options." + it.key() + ": unknown key (known keys: " + join(known) + ")");
+    // every check the plugin makes of its options, short of opening anything
+    errors.check([&] {
+      if (!t.options.is_object())
+        throw ConfigError(t.path + ".options: expected an object, found " + describe_json(t.options));
+      transport.plugin->validate(t.options, t.path + ".options");
+    });
     // which components it serves
     std::vector<std::string>& served = served_[t.name];
     for (const auto& name : deployment_.component_names()) {
@@ -84,12 +91,35 @@ void Gateway::load_transports() {
     }
     transports_.push_back(std::move(transport));
   }
-  if (options_.check_only) return;
+}
 
+void Gateway::warn_about_mapping() {
+  auto serves = [&](const std::string& transport, const std::string& component) {
+    const auto& list = served_[transport];
+    return std::find(list.begin(), list.end(), component) != list.end();
+  };
+  for (const std::string pseudo : {"simulation", "time"}) {
+    bool reachable = std::any_of(transports_.begin(), transports_.end(),
+                                 [&](const Transport& t) { return serves(t.name, pseudo); });
+    if (!reachable)
+      warnings_.push_back("services: no transport serves '" + pseudo + "': clients cannot " +
+                          (pseudo == "simulation" ? "list robots or services, reset or quit"
+                                                  : "read or wait for simulated time") +
+                          " (map it, e.g. \"" + pseudo + "\": [\"" +
+                          (transports_.empty() ? std::string("socket") : transports_.front().name) + "\"])");
+  }
+  // pymorse connects by calling `simulation details` on the socket transport
+  for (const auto& t : transports_)
+    if (t.plugin && t.plugin->name() == "socket" && !serves(t.name, "simulation"))
+      warnings_.push_back(t.config->path + ": the socket transport '" + t.name +
+                          "' does not serve 'simulation': pymorse cannot connect to it (it calls `simulation "
+                          "details` first); map it, e.g. \"simulation\": [\"" + t.name + "\"]");
+}
+
+void Gateway::create_transports() {
   // create every transport (sockets are bound here), then register the components
   for (auto& transport : transports_) {
-    const TransportConfig& t = *std::find_if(deployment_.transports.begin(), deployment_.transports.end(),
-                                             [&](const TransportConfig& c) { return c.name == transport.name; });
+    const TransportConfig& t = *transport.config;
     transport.manager = transport.plugin->create(t.options, t.path + ".options");
     for (const auto& name : served_[t.name]) {
       sim::ComponentEntry* entry = simulation_->find(name);

@@ -235,7 +235,7 @@ void DdsRequestManager::publish_catalog() {
     dds_return_t rc = dds_write(catalog_writer_, &entry);
     if (rc < 0) log::error("DDS transport: catalog entry '", component, "' not written: ", retcode_text(rc));
   }
-  log::info("DDS transport: serving ", order.size(), " component(s) on domain ", options_.domain,
+  log::info("DDS transport: serving ", components().size(), " component(s) on domain ", options_.domain,
             ", partition '", options_.partition, "'");
 }
 

@@ -1,6 +1,7 @@
 #include "simgate/sim/registry.h"
 
 #include "simgate/core/errors.h"
+#include "simgate/core/suggest.h"
 
 namespace simgate::sim {
 
@@ -81,7 +82,7 @@ std::unique_ptr<SimComponent> ComponentRegistry::create(Kind kind, const Compone
   const ComponentType* type = find(spec.type);
   if (!type)
     throw ConfigError(spec.path + ".type: expected a " + kind_name(kind) + " type (" + join(names(kind)) +
-                      "), found '" + spec.type + "' (unknown type)");
+                      "), found '" + spec.type + "' (unknown type)" + did_you_mean(spec.type, names(kind)));
   if (type->kind != kind)
     throw ConfigError(spec.path + ".type: expected a " + kind_name(kind) + " type (" + join(names(kind)) +
                       "), found '" + spec.type + "', which is a " + kind_name(type->kind) + " type");

@@ -9,6 +9,7 @@
 
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "simgate/core/status.h"
 
@@ -53,11 +54,58 @@ class ServiceAlreadyRunning : public ServiceError {
   std::string running_service;  // the service that keeps running
 };
 
-// A configuration (deployment file or transport options) is invalid. The message starts
-// with the JSON path of the offending value.
+// A configuration (deployment file or transport options) is invalid. Each message starts
+// with the JSON path of the offending value; one ConfigError may carry several (a whole
+// file's errors, `simgate check`) and the file they are in. what() reads
+// "config 'demo.json': <message>", or "config 'demo.json': 3 errors:" and one per line.
 class ConfigError : public std::runtime_error {
  public:
-  using std::runtime_error::runtime_error;
+  explicit ConfigError(const std::string& message) : ConfigError(std::vector<std::string>{message}) {}
+  explicit ConfigError(std::vector<std::string> errors, std::string file = "")
+      : std::runtime_error(describe(errors, file)), errors_(std::move(errors)), file_(std::move(file)) {}
+  // Every error, in the order found, without the file.
+  const std::vector<std::string>& errors() const noexcept { return errors_; }
+  // The file they were found in ("" when unknown).
+  const std::string& file() const noexcept { return file_; }
+
+ private:
+  static std::string describe(const std::vector<std::string>& errors, const std::string& file) {
+    std::string out = file.empty() ? "" : "config '" + file + "': ";
+    if (errors.size() == 1) return out + errors.front();
+    out += std::to_string(errors.size()) + " errors:";
+    for (const auto& e : errors) out += "\n  " + e;
+    return out;
+  }
+  std::vector<std::string> errors_;  // one message each
+  std::string file_;                 // where they were found
+};
+
+// Collects the ConfigErrors of independent checks so that all of a file's errors are
+// reported at once: errors.check([&] { ...may throw ConfigError... }); errors.throw_if_any().
+class ConfigErrors {
+ public:
+  // Runs `check`; a ConfigError it throws is recorded (every message of it). Returns
+  // whether it succeeded.
+  template <class F>
+  bool check(F&& check) {
+    try {
+      check();
+      return true;
+    } catch (const ConfigError& e) {
+      errors_.insert(errors_.end(), e.errors().begin(), e.errors().end());
+      return false;
+    }
+  }
+  void add(std::string message) { errors_.push_back(std::move(message)); }
+  bool empty() const { return errors_.empty(); }
+  const std::vector<std::string>& errors() const { return errors_; }
+  // Throws one ConfigError carrying every recorded message, if any.
+  void throw_if_any() const {
+    if (!errors_.empty()) throw ConfigError(errors_);
+  }
+
+ private:
+  std::vector<std::string> errors_;  // in the order found
 };
 
 }  // namespace simgate

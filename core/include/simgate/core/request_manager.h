@@ -103,6 +103,9 @@ class RequestManager {
   // MORSE's services(): component -> service names.
   std::map<std::string, std::vector<std::string>> services() const;
   bool serves_component(const std::string& component) const;
+  // Every component this manager serves, with or without services, sorted (what
+  // "component" counts in logs and banners).
+  std::vector<std::string> components() const;
 
   void set_global_policy(GlobalPolicy policy) { global_policy_ = policy; }
   GlobalPolicy global_policy() const { return global_policy_; }

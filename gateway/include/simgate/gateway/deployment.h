@@ -9,8 +9,9 @@
 // parse_deployment() checks the structure (types, names, unknown keys, the mapping against
 // the declared transports and components); the gateway then checks what needs the scene
 // and the plugins (bodies, component types and options, plugin loading). Every error is a
-// ConfigError whose message starts with the JSON path, says what was expected and what
-// was found.
+// message that starts with the JSON path, says what was expected and what was found (and
+// "did you mean" for a misspelt name); independent parts are all checked, so one
+// ConfigError carries every error of the file.
 //
 // Mapping: a component's transports come from its exact name if listed, else from the most
 // specific matching glob (the one with the most literal characters), else from "default".
@@ -65,8 +66,10 @@ struct Deployment {
   std::vector<ServiceRule> rules;        // exact names and globs
   std::optional<std::vector<std::string>> default_transports;  // "default"
   std::optional<std::string> log_level;  // validated level name
+  std::vector<std::string> warnings;     // likely mistakes that are not errors (printed by check, logged by run)
 
-  // Every component name: robots, their components, then "simulation" and "time".
+  // Every component name: robots, their components, then "simulation" and "time". This is
+  // what "component" counts everywhere (banner, check, transports' logs).
   std::vector<std::string> component_names() const;
   // The transports that serve `component` (see the mapping rules above).
   std::vector<std::string> transports_for(const std::string& component) const;

@@ -2,8 +2,8 @@
 //
 // Building a Gateway validates everything before anything starts: the deployment file
 // (see deployment.h), the MJCF scene, every component (type, bodies, actuators, options)
-// and every transport plugin (found, ABI-compatible, options known). In check mode it stops
-// there; otherwise it creates each transport, shares the simulation's gate with it and
+// and every transport plugin (found, ABI-compatible, options valid: the plugin's own
+// validate()); all errors at once. In check mode it stops there; otherwise it creates each transport, shares the simulation's gate with it and
 // registers the components mapped to it. start() opens the transports; run() is the
 // simulation loop on the calling thread, until stop() or `simulation quit`; the destructor
 // (or shutdown()) answers pending clients, stops the transports, destroys them and then
@@ -35,7 +35,8 @@ struct GatewayOptions {
 
 class Gateway {
  public:
-  // Throws ConfigError (path-precise) for every problem it finds.
+  // Throws one ConfigError carrying every problem it finds (each path-precise), or a
+  // TransportError when a transport with valid options cannot start (a port in use).
   Gateway(const Deployment& deployment, const sim::ComponentRegistry& registry, GatewayOptions options = {});
   ~Gateway();
   Gateway(const Gateway&) = delete;
@@ -47,6 +48,9 @@ class Gateway {
   std::map<std::string, std::vector<std::string>> endpoints() const;
   // transport name -> the components it serves.
   const std::map<std::string, std::vector<std::string>>& served() const { return served_; }
+  // Likely mistakes that are not errors (the deployment's, then the mapping's: a component
+  // no transport serves that clients need). `simgate check` prints them, `run` logs them.
+  const std::vector<std::string>& warnings() const { return warnings_; }
 
   // The simulation loop; returns after stop() or `simulation quit`.
   void run();
@@ -61,18 +65,25 @@ class Gateway {
  private:
   struct Transport {
     std::string name;                          // key in "transports"
+    const TransportConfig* config = nullptr;   // its entry in deployment_
     std::shared_ptr<TransportPlugin> plugin;   // keeps the library loaded
     std::shared_ptr<RequestManager> manager;   // null in check mode
   };
 
-  void build_components(const sim::ComponentRegistry& registry);
-  void load_transports();
+  // Each records its errors and goes on with the next robot, component or transport.
+  void build_components(const sim::ComponentRegistry& registry, ConfigErrors& errors);
+  void load_plugins(ConfigErrors& errors);
+  // Adds warnings for components clients need that no transport serves.
+  void warn_about_mapping();
+  // Creates every transport (binding its sockets) and registers its components.
+  void create_transports();
 
   Deployment deployment_;                             // validated configuration
   GatewayOptions options_;                            // how it was built
   std::unique_ptr<sim::Simulation> simulation_;       // model, components, loop
   std::vector<Transport> transports_;                 // in name order
   std::map<std::string, std::vector<std::string>> served_;  // transport -> components
+  std::vector<std::string> warnings_;                 // see warnings()
 };
 
 }  // namespace simgate::gateway
