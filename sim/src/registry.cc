@@ -8,6 +8,12 @@ namespace simgate::sim {
 namespace {
 std::string kind_name(Kind kind) { return kind == Kind::robot ? "robot" : "component"; }
 
+// "; did you mean 'x'?" or ""
+std::string suggestion(const std::string& word, const std::vector<std::string>& candidates) {
+  auto match = closest_match(word, candidates);
+  return match ? "; did you mean '" + *match + "'?" : "";
+}
+
 std::string join(const std::vector<std::string>& items) {
   std::string out;
   for (const auto& i : items) out += (out.empty() ? "" : ", ") + i;
@@ -82,7 +88,7 @@ std::unique_ptr<SimComponent> ComponentRegistry::create(Kind kind, const Compone
   const ComponentType* type = find(spec.type);
   if (!type)
     throw ConfigError(spec.path + ".type: expected a " + kind_name(kind) + " type (" + join(names(kind)) +
-                      "), found '" + spec.type + "' (unknown type)" + did_you_mean(spec.type, names(kind)));
+                      "), found '" + spec.type + "' (unknown type" + suggestion(spec.type, names(kind)) + ")");
   if (type->kind != kind)
     throw ConfigError(spec.path + ".type: expected a " + kind_name(kind) + " type (" + join(names(kind)) +
                       "), found '" + spec.type + "', which is a " + kind_name(type->kind) + " type");

@@ -4,9 +4,15 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <functional>
 
 #include "simgate/core/errors.h"
+#include "simgate/core/plugin_loader.h"
 #include "simgate/gateway/gateway.h"
 #include "test_support.h"
 
@@ -127,6 +133,172 @@ TEST(GatewayConfigTest, MaxMeansAsFastAsPossible) {
   json c = demo_config();
   c["scene"]["realtime_factor"] = "max";
   EXPECT_EQ(parse_deployment(c, "/").realtime_factor, 0.0);
+}
+
+// ---- every error at once, with suggestions ----
+
+// The errors a check of `config` reports (empty when valid).
+std::vector<std::string> errors_of(const json& config) {
+  try {
+    Deployment d = parse_deployment(config, SIMGATE_SOURCE_DIR "/config");
+    auto registry = sim::builtin_registry();
+    Gateway g(d, registry, GatewayOptions{true, std::nullopt, {}});
+  } catch (const ConfigError& e) {
+    return e.errors();
+  }
+  return {};
+}
+
+TEST(GatewayConfigTest, EveryErrorOfTheFileIsReportedAtOnce) {
+  json c = demo_config();
+  c["robtos"] = json::array();                                        // structure
+  c["scene"]["timestep"] = -1;                                        // scene
+  c["robots"][0]["components"][1]["options"]["max_sped"] = 1;         // a component's options
+  c["robots"][0]["components"][3]["type"] = "poes";                   // a component type
+  c["robots"][1]["body"] = "humn";                                    // a body
+  c["transports"]["socket"]["options"]["port"] = 70000;               // a plugin's option value
+  auto errors = errors_of(c);
+  // the structure is checked first: its errors alone are reported
+  ASSERT_EQ(errors.size(), 2u) << ::testing::PrintToString(errors);
+  EXPECT_THAT(errors[0], HasSubstr("scene.timestep"));
+  EXPECT_THAT(errors[1], HasSubstr("robtos: unknown key"));
+  // then the scene, the components and the plugins, all of them
+  c.erase("robtos");
+  c["scene"].erase("timestep");
+  errors = errors_of(c);
+  ASSERT_EQ(errors.size(), 4u) << ::testing::PrintToString(errors);
+  EXPECT_THAT(errors[0], HasSubstr("robots[0].components[1].options.max_sped"));
+  EXPECT_THAT(errors[1], HasSubstr("robots[0].components[3].type"));
+  EXPECT_THAT(errors[2], HasSubstr("robots[1].body"));
+  EXPECT_THAT(errors[3], HasSubstr("transports.socket.options.port"));
+}
+
+TEST(GatewayConfigTest, AFileWithSeveralErrorsNamesItOnceAndCountsThem) {
+  testing::TempDir dir;
+  json c = demo_config();
+  c["robtos"] = 1;
+  c["scene"]["timestpe"] = 1;
+  std::string file = dir.write("two.json", c.dump());
+  try {
+    load_deployment(file);
+    FAIL() << "accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.errors().size(), 2u);
+    EXPECT_EQ(e.file(), file);
+    EXPECT_THAT(e.what(), HasSubstr("two.json': 2 errors:\n  scene.timestpe: unknown key"));
+  }
+}
+
+TEST(GatewayConfigTest, MisspeltNamesGetASuggestion) {
+  json c = demo_config();
+  c["robtos"] = json::array();
+  c["scene"]["timestpe"] = 0.01;
+  c["log_level"] = "inof";
+  c["robots"][0]["components"][0]["type"] = "motion_wv";
+  c["robots"][0]["components"][1]["options"]["max_angular_sped"] = 1;
+  c["services"]["robot.motino"] = {"socket"};
+  c["services"]["time"] = {"sokcet"};
+  std::string all;
+  for (const auto& e : errors_of(c)) all += e + "\n";
+  EXPECT_THAT(all, HasSubstr("robtos: unknown key (did you mean 'robots'?"));
+  EXPECT_THAT(all, HasSubstr("scene.timestpe: unknown key (did you mean 'timestep'?"));
+  EXPECT_THAT(all, HasSubstr("log_level: expected one of"));
+  EXPECT_THAT(all, HasSubstr("(did you mean 'info'?)"));
+  EXPECT_THAT(all, HasSubstr("services.robot.motino: "));
+  EXPECT_THAT(all, HasSubstr("(did you mean 'robot.motion'?)"));
+  EXPECT_THAT(all, HasSubstr("found 'sokcet' (did you mean 'socket'?)"));
+  // the components are checked once the structure is valid
+  c.erase("robtos");
+  c["scene"].erase("timestpe");
+  c["log_level"] = "info";
+  c["services"].erase("robot.motino");
+  c["services"]["time"] = {"socket"};
+  all.clear();
+  for (const auto& e : errors_of(c)) all += e + "\n";
+  EXPECT_THAT(all, HasSubstr("found 'motion_wv' (unknown type; did you mean 'motion_vw'?)"));
+  EXPECT_THAT(all, HasSubstr("max_angular_sped: unknown key (did you mean 'max_angular_speed'?"));
+}
+
+TEST(GatewayConfigTest, CheckAppliesThePluginsOwnOptionChecks) {
+  // values, not just keys: before, `check` said OK and `run` then failed
+  json c = demo_config();
+  c["transports"]["socket"]["options"]["success_word"] = "YES";
+  c["transports"]["socket"]["options"]["max_clients"] = 0;
+  auto errors = errors_of(c);
+  ASSERT_EQ(errors.size(), 1u) << ::testing::PrintToString(errors);
+  EXPECT_THAT(errors[0], HasSubstr("transports.socket.options: transport 'socket' refused its options"));
+  EXPECT_THAT(errors[0], HasSubstr("success_word"));
+}
+
+TEST(GatewayConfigTest, CheckRefusesAHostThatDoesNotResolve) {
+  json c = demo_config();
+  c["transports"]["socket"]["options"]["host"] = "no-such-host.invalid";
+  auto errors = errors_of(c);
+  ASSERT_EQ(errors.size(), 1u);
+  EXPECT_THAT(errors[0], HasSubstr("cannot resolve 'no-such-host.invalid'"));
+}
+
+TEST(GatewayConfigTest, APortInUseIsARuntimeErrorNotAConfigError) {
+  // another listener on a loopback port
+  int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ASSERT_EQ(::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
+  ASSERT_EQ(::listen(fd, 1), 0);
+  socklen_t len = sizeof addr;
+  ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len);
+  const int port = ntohs(addr.sin_port);
+
+  json c = demo_config();
+  c["transports"]["socket"]["options"]["port"] = port;
+  Deployment d = parse_deployment(c, SIMGATE_SOURCE_DIR "/config");
+  auto registry = sim::builtin_registry();
+  EXPECT_NO_THROW(Gateway(d, registry, GatewayOptions{true, std::nullopt, {}}));  // check: fine
+  try {
+    Gateway g(d, registry);
+    FAIL() << "started on a port in use";
+  } catch (const TransportError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("transports.socket.options: transport 'socket' could not start"));
+    EXPECT_THAT(e.what(), HasSubstr(":" + std::to_string(port)));
+    EXPECT_THAT(e.what(), HasSubstr("ss -ltnp 'sport = :" + std::to_string(port) + "'"));
+  }
+  ::close(fd);
+}
+
+TEST(GatewayConfigTest, AComponentIsEveryNamedObjectTransportsServe) {
+  // robots, their actuators and sensors, simulation and time: 2 + 4 + 2 in the demo
+  Deployment d = parse_deployment(demo_config(), SIMGATE_SOURCE_DIR "/config");
+  EXPECT_EQ(d.component_names().size(), 8u);
+}
+
+// ---- warnings: valid, but clients will not get far ----
+
+std::vector<std::string> warnings_of(const json& config) {
+  Deployment d = parse_deployment(config, SIMGATE_SOURCE_DIR "/config");
+  auto registry = sim::builtin_registry();
+  Gateway g(d, registry, GatewayOptions{true, std::nullopt, {}});
+  return g.warnings();
+}
+
+TEST(GatewayWarningsTest, ASocketTransportWithoutSimulationWarnsThatPymorseCannotConnect) {
+  json c = demo_config();
+  c["services"] = {{"robot.*", {"socket"}}, {"human", {"socket"}}};
+  std::string all;
+  for (const auto& w : warnings_of(c)) all += w + "\n";
+  EXPECT_THAT(all, HasSubstr("no transport serves 'simulation'"));
+  EXPECT_THAT(all, HasSubstr("no transport serves 'time'"));
+  EXPECT_THAT(all, HasSubstr("transports.socket: the socket transport 'socket' does not serve 'simulation': "
+                             "pymorse cannot connect"));
+}
+
+TEST(GatewayWarningsTest, TheShippedConfigsHaveNone) {
+  for (const char* file : {"config/demo.json", "config/all-transports.json"}) {
+    Deployment d = load_deployment(std::string(SIMGATE_SOURCE_DIR) + "/" + file);
+    auto registry = sim::builtin_registry();
+    Gateway g(d, registry, GatewayOptions{true, std::nullopt, {}});
+    EXPECT_TRUE(g.warnings().empty()) << file << ": " << ::testing::PrintToString(g.warnings());
+  }
 }
 
 // ---- mapping ----
