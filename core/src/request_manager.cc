@@ -1,11 +1,13 @@
 #include "simgate/core/request_manager.h"
 
 #include <atomic>
+#include <cstdio>
 #include <span>
 #include <variant>
 
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
+#include "simgate/core/suggest.h"
 
 namespace simgate {
 namespace detail {
@@ -135,6 +137,27 @@ void release_params(json& params, bool refilled) noexcept {
   } else if (refilled && !params.is_null()) {
     params = nullptr;  // named arguments, or a scalar the core refused
   }
+}
+
+// "12 us", "3.40 ms", "1.53 s": how long a request took, for the debug log.
+std::string format_duration(std::chrono::steady_clock::duration d) {
+  const double us = std::chrono::duration<double, std::micro>(d).count();
+  char text[32];
+  if (us < 1000)
+    std::snprintf(text, sizeof text, "%.0f us", us);
+  else if (us < 1e6)
+    std::snprintf(text, sizeof text, "%.2f ms", us / 1e3);
+  else
+    std::snprintf(text, sizeof text, "%.2f s", us / 1e6);
+  return text;
+}
+
+// "a, b or c"
+std::string join_or(const std::vector<std::string>& items) {
+  std::string out;
+  for (std::size_t i = 0; i < items.size(); ++i)
+    out += (i == 0 ? "" : i + 1 == items.size() ? " or " : ", ") + items[i];
+  return out;
 }
 
 }  // namespace detail
@@ -327,24 +350,42 @@ std::size_t RequestManager::process_locked() {
 }
 
 Outcome RequestManager::unknown_service(const Call& call) const {
-  std::string detail;
+  std::string why;
   {
     std::lock_guard lock(table_mutex_);
+    // components below the one named that have this service: `robot get_local_data` is
+    // robot.pose's service
+    std::vector<std::string> owners;
+    const std::string prefix = call.component + ".";
+    for (const auto& [component, table] : services_)
+      if (component.size() > prefix.size() && component.compare(0, prefix.size(), prefix) == 0 &&
+          table.count(call.service))
+        owners.push_back(component);
+    std::sort(owners.begin(), owners.end());
+
     auto it = services_.find(call.component);
     if (it == services_.end()) {
-      detail = "no component '" + call.component + "'";
+      why = "no component '" + call.component + "'";
+      if (owners.empty()) {
+        std::vector<std::string> components;
+        for (const auto& [component, table] : services_) components.push_back(component);
+        std::sort(components.begin(), components.end());
+        why += did_you_mean(call.component, components);
+      }
     } else {
       std::vector<std::string> names;
       for (const auto& [name, s] : it->second) names.push_back(name);
       std::sort(names.begin(), names.end());
       std::string list;
       for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
-      detail = "component '" + call.component + "' has no service '" + call.service + "'" +
-               (list.empty() ? "" : " (services: " + list + ")");
+      why = "component '" + call.component + "' has no service '" + call.service + "'" +
+            (list.empty() ? "" : " (services: " + list + ")");
+      if (owners.empty()) why += did_you_mean(call.service, names);
     }
+    if (!owners.empty()) why += " (did you mean " + detail::join_or(owners) + "?)";
   }
   return Outcome::failed(Failure::unknown_service,
-                         "The request " + call.service + " has not been registered in " + name_ + ": " + detail,
+                         "The request " + call.service + " has not been registered in " + name_ + ": " + why,
                          json{{"component", call.component}, {"service", call.service}});
 }
 
@@ -376,18 +417,39 @@ std::shared_ptr<Service> RequestManager::find_service(const Call& call) {
 
 std::optional<Outcome> RequestManager::on_incoming_request(RequestId id, const Call& call) {
   Outcome outcome;
-  if (execute(id, call, outcome)) return outcome;
+  if (run_request(id, call, outcome)) return outcome;
   return std::nullopt;
 }
 
 void RequestManager::execute_and_deliver(RequestId id, Call& call, bool refilled) {
   // one Outcome object for every request: its string and JSON members are reset, not
   // rebuilt, and the transport reads (or moves) it in place
-  if (execute(id, call, outcome_)) deliver(id, std::move(outcome_));
+  if (run_request(id, call, outcome_)) deliver(id, std::move(outcome_));
   detail::release_params(call.params, refilled);
 }
 
-bool RequestManager::execute(RequestId id, const Call& call, Outcome& out) {
+bool RequestManager::run_request(RequestId id, const Call& call, Outcome& out) {
+  // debug logging is looked at once per request (an atomic load): when it is off, nothing
+  // else is paid
+  if (!log::enabled(log::Level::debug)) [[likely]]
+    return execute(id, call, out, {});
+  const auto started = std::chrono::steady_clock::now();
+  if (!execute(id, call, out, started)) return false;  // async: logged when it ends (deliver)
+  log_outcome(call.component, call.service, out, started, "in");
+  return true;
+}
+
+void RequestManager::log_outcome(std::string_view component, std::string_view service, const Outcome& outcome,
+                                 std::chrono::steady_clock::time_point started, std::string_view took) const {
+  const auto elapsed = std::chrono::steady_clock::now() - started;
+  std::string reason;
+  if (outcome.status != Status::success && !outcome.message.empty()) reason = " (" + outcome.message + ")";
+  log::debug(name_, ": ", component, " ", service, " -> ", to_string(outcome.status), reason, " ", took, " ",
+             detail::format_duration(elapsed));
+}
+
+bool RequestManager::execute(RequestId id, const Call& call, Outcome& out,
+                             std::chrono::steady_clock::time_point started) {
   // only the lock holder writes it: a plain store, no read-modify-write
   requests_handled_.store(requests_handled_.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
   std::shared_ptr<Service> service = find_service(call);
@@ -400,7 +462,7 @@ bool RequestManager::execute(RequestId id, const Call& call, Outcome& out) {
   try {
     BoundArguments args = bind_arguments(d, call.params);
     if (d.is_async) {
-      start_async(id, *service, args.span());
+      start_async(id, *service, args.span(), started);
       return false;
     }
     out.status = Status::success;
@@ -426,9 +488,14 @@ bool RequestManager::execute(RequestId id, const Call& call, Outcome& out) {
   return true;
 }
 
-void RequestManager::start_async(RequestId id, const Service& service, std::span<const json* const> args) {
+void RequestManager::start_async(RequestId id, const Service& service, std::span<const json* const> args,
+                                 std::chrono::steady_clock::time_point started) {
   const ServiceDescriptor& d = service.descriptor();
   AsyncSlot& slot = *service.slot();
+  if (d.concurrent) {
+    start_concurrent(id, service, args, started);
+    return;
+  }
 
   // one async request per component: the running service's local policy decides, then ours
   if (slot.busy()) {
@@ -446,6 +513,7 @@ void RequestManager::start_async(RequestId id, const Service& service, std::span
   state->id = id;
   state->service = d.qualified_name();
   state->sink = inbox_;
+  state->started = started;
   Completion completion(state);
   slot.running = state;
   slot.running_policy = d.policy;
@@ -462,6 +530,34 @@ void RequestManager::start_async(RequestId id, const Service& service, std::span
     }
     if (state->finished.exchange(true)) {
       // it completed and then threw: the completion stands
+      log::warning(name_, ": ", d.qualified_name(), " threw after completing; exception ignored");
+      return;
+    }
+    throw;  // reported by execute()
+  }
+}
+
+void RequestManager::start_concurrent(RequestId id, const Service& service, std::span<const json* const> args,
+                                      std::chrono::steady_clock::time_point started) {
+  const ServiceDescriptor& d = service.descriptor();
+  AsyncSlot& slot = *service.slot();
+  auto state = std::make_shared<detail::CallState>();
+  state->id = id;
+  state->service = d.qualified_name();
+  state->sink = inbox_;
+  state->concurrent = true;
+  state->started = started;
+  // the slot lists its component's concurrent calls (for shutdown); finished ones go now
+  std::erase_if(slot.concurrent, [](const auto& s) { return s->finished.load(); });
+  slot.concurrent.push_back(state);
+  running_[id] = {state, service.slot()};
+
+  try {
+    service.invoke(args, Completion(state));
+  } catch (...) {
+    running_.erase(id);
+    std::erase(slot.concurrent, state);
+    if (state->finished.exchange(true)) {
       log::warning(name_, ": ", d.qualified_name(), " threw after completing; exception ignored");
       return;
     }
@@ -487,7 +583,14 @@ void RequestManager::execute_cancel(RequestId id, const std::function<void(bool)
   auto it = running_.find(id);
   if (it != running_.end()) {
     auto& [state, slot] = it->second;
-    if (!state->finished && slot->running == state) {
+    if (state->concurrent) {
+      // that one call ends, through its completion; the component sees it done()
+      Outcome cancelled;
+      cancelled.status = Status::preempted;
+      cancelled.failure = Failure::cancelled;
+      cancelled.message = "cancelled by its client";
+      found = Completion{state}.finish(std::move(cancelled));
+    } else if (!state->finished && slot->running == state) {
       interrupt_running(*slot, Failure::cancelled, "cancelled by its client");
       found = true;
     }
@@ -502,7 +605,20 @@ void RequestManager::execute_cancel(RequestId id, const std::function<void(bool)
 }
 
 void RequestManager::deliver(RequestId id, Outcome&& outcome) {
-  if (!running_.empty()) running_.erase(id);  // sync requests never were there
+  // sync requests never were there
+  if (!running_.empty()) {
+    auto it = running_.find(id);
+    if (it != running_.end()) {
+      const detail::CallState& state = *it->second.first;
+      if (state.started != std::chrono::steady_clock::time_point{}) [[unlikely]] {
+        // debug logging was on when it started: "component service -> STATUS after 1.53 s"
+        const std::string_view qualified = state.service;
+        const std::size_t dot = qualified.rfind('.');
+        log_outcome(qualified.substr(0, dot), qualified.substr(dot + 1), outcome, state.started, "after");
+      }
+      running_.erase(it);
+    }
+  }
   try {
     on_service_completion(id, std::move(outcome));
   } catch (const std::exception& e) {

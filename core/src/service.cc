@@ -40,7 +40,10 @@ json ServiceDescriptor::to_json() const {
   }
   json out{{"component", component}, {"name", name}, {"async", is_async}, {"params", ps},
            {"doc", doc}, {"result", result_schema}};
-  if (is_async) out["policy"] = std::string(to_string(policy));
+  if (is_async) {
+    out["policy"] = std::string(to_string(policy));
+    out["concurrent"] = concurrent;
+  }
   return out;
 }
 
@@ -67,6 +70,13 @@ bool Completion::finish(Outcome outcome) const {
   return true;
 }
 
+std::vector<Completion> AsyncSlot::running_concurrent() const {
+  std::vector<Completion> out;
+  for (const auto& state : concurrent)
+    if (!state->finished.load()) out.emplace_back(state);
+  return out;
+}
+
 // ---- builder
 
 ServiceBuilder& ServiceBuilder::doc(std::string text) {
@@ -74,19 +84,37 @@ ServiceBuilder& ServiceBuilder::doc(std::string text) {
   return *this;
 }
 
+namespace {
+void set_policy(ServiceDescriptor& d, Policy policy) {
+  if (!d.is_async)
+    detail::throw_registration_error(d.qualified_name() + ": only async services have an interruption policy");
+  if (d.concurrent)
+    detail::throw_registration_error(d.qualified_name() +
+                                     ": a concurrent service has no interruption policy (its calls never meet)");
+  d.policy = policy;
+}
+}  // namespace
+
 ServiceBuilder& ServiceBuilder::interruptible() {
-  if (!service_->descriptor().is_async)
-    detail::throw_registration_error(service_->descriptor().qualified_name() +
-                                     ": only async services have an interruption policy");
-  service_->descriptor().policy = Policy::interruptible;
+  set_policy(service_->descriptor(), Policy::interruptible);
   return *this;
 }
 
 ServiceBuilder& ServiceBuilder::noninterruptible() {
-  if (!service_->descriptor().is_async)
-    detail::throw_registration_error(service_->descriptor().qualified_name() +
-                                     ": only async services have an interruption policy");
-  service_->descriptor().policy = Policy::noninterruptible;
+  set_policy(service_->descriptor(), Policy::noninterruptible);
+  return *this;
+}
+
+ServiceBuilder& ServiceBuilder::concurrent() {
+  ServiceDescriptor& d = service_->descriptor();
+  if (!d.is_async) detail::throw_registration_error(d.qualified_name() + ": only async services can be concurrent");
+  if (!service_->takes_completion())
+    detail::throw_registration_error(d.qualified_name() +
+                                     ": a concurrent service takes its call's Completion as first parameter");
+  if (d.policy != Policy::unspecified)
+    detail::throw_registration_error(d.qualified_name() +
+                                     ": a concurrent service has no interruption policy (its calls never meet)");
+  d.concurrent = true;
   return *this;
 }
 

@@ -10,6 +10,7 @@
 
 #include "simgate/core/component.h"
 #include "simgate/core/eigen.h"
+#include "simgate/core/log.h"
 #include "test_manager.h"
 
 namespace simgate {
@@ -97,6 +98,50 @@ TEST_F(RequestManagerTest, UnknownComponentAndServiceHaveNotBeenRegistered) {
   EXPECT_THAT(s->message, HasSubstr("has not been registered"));
   EXPECT_THAT(s->message, HasSubstr("has no service 'fly' (services: crash, fail, goto, lock, position, wander)"));
   EXPECT_EQ(s->value, json(s->message));
+}
+
+// robot.mover and robot.eye have services; the robot itself has none of them
+class RobotWithParts : public RequestManagerTest {
+ protected:
+  void SetUp() override {
+    RequestManagerTest::SetUp();
+    rm.register_service("robot", [] {}, "stop");
+    rm.register_service("robot.eye", [] { return 1; }, "position");
+    rm.register_service("robot.arm.hand", [] { return 2; }, "position");
+  }
+};
+
+TEST_F(RobotWithParts, AServiceOfTheRobotsComponentsSuggestsThem) {
+  auto o = rm.run("robot", "position");
+  EXPECT_THAT(o->message, ::testing::StartsWith("The request position has not been registered in Test service manager: "));
+  EXPECT_THAT(o->message,
+              HasSubstr("component 'robot' has no service 'position' (services: stop) "
+                        "(did you mean robot.arm.hand, robot.eye or robot.mover?)"));
+  auto one = rm.run("robot", "goto");
+  EXPECT_THAT(one->message, HasSubstr("(did you mean robot.mover?)"));
+}
+
+TEST_F(RobotWithParts, AComponentNotServedHereButWithPartsThatHaveTheServiceSuggestsThem) {
+  auto o = rm.run("robot.arm", "position");
+  EXPECT_THAT(o->message, HasSubstr("no component 'robot.arm' (did you mean robot.arm.hand?)"));
+}
+
+TEST_F(RobotWithParts, AMisspeltServiceSuggestsTheClosest) {
+  auto o = rm.run("robot.mover", "gotoo");
+  EXPECT_EQ(o->failure, Failure::unknown_service);
+  EXPECT_THAT(o->message, HasSubstr("has no service 'gotoo' (services: crash, fail, goto, lock, position, wander) "
+                                    "(did you mean 'goto'?)"));
+}
+
+TEST_F(RobotWithParts, AMisspeltComponentSuggestsTheClosest) {
+  auto o = rm.run("robot.mvoer", "goto");
+  EXPECT_THAT(o->message, HasSubstr("The request goto has not been registered in Test service manager: "
+                                    "no component 'robot.mvoer' (did you mean 'robot.mover'?)"));
+}
+
+TEST_F(RobotWithParts, NothingCloseSuggestsNothing) {
+  EXPECT_THAT(rm.run("robot.mover", "teleport")->message, ::testing::Not(HasSubstr("did you mean")));
+  EXPECT_THAT(rm.run("satellite", "orbit")->message, ::testing::Not(HasSubstr("did you mean")));
 }
 
 TEST_F(RequestManagerTest, WrongArityMentionsWrongNumberOfParameters) {
@@ -578,6 +623,241 @@ TEST_F(RequestManagerTest, ComponentsAreSharedBetweenManagers) {
   other.process();
   EXPECT_EQ(other.outcome(b)->failure, Failure::busy);  // one async request per component
   (void)a;
+}
+
+// ---- concurrent services
+
+// A clock whose `wait` is concurrent: each call keeps its own completion until its tick.
+class Waiter : public Component {
+ public:
+  Waiter() : Component("clock") {
+    add_async_service("wait", &Waiter::wait, {"ticks"}).concurrent().doc("completes after `ticks` ticks");
+    add_async_service("exclusive", [](Completion) {}, {});  // the slot's own, no policy
+  }
+  void wait(Completion done, int ticks) {
+    if (ticks < 0) throw ServiceError("ticks must not be negative");
+    waits.push_back({std::move(done), now + ticks});
+  }
+  // each tick: the calls that are due finish; those done otherwise (cancel, shutdown) go
+  void default_action() override {
+    ++now;
+    std::erase_if(waits, [&](Wait& w) {
+      if (w.done.done()) return true;
+      if (now < w.until) return false;
+      w.done(Status::success, now);
+      return true;
+    });
+  }
+  struct Wait {
+    Completion done;  // its call
+    int until;        // tick at which it completes
+  };
+  std::vector<Wait> waits;  // calls running
+  int now = 0;              // ticks so far
+};
+
+class ConcurrentServiceTest : public RequestManagerTest {
+ protected:
+  void SetUp() override {
+    RequestManagerTest::SetUp();
+    rm.register_component(clock);
+  }
+  void tick() {
+    clock.default_action();
+    rm.process();
+  }
+  Waiter clock;
+};
+
+TEST_F(ConcurrentServiceTest, TwoCallsRunTogetherAndBothSucceed) {
+  auto first = rm.call("clock", "wait", json{2});
+  auto second = rm.call("clock", "wait", json{1});
+  rm.process();
+  EXPECT_FALSE(rm.outcome(first));
+  EXPECT_FALSE(rm.outcome(second));  // not refused: no slot, no policy
+  EXPECT_EQ(rm.pending_count(), 2u);
+  tick();
+  ASSERT_TRUE(rm.outcome(second));
+  EXPECT_EQ(rm.outcome(second)->status, Status::success);
+  EXPECT_EQ(rm.outcome(second)->value, json(1));
+  EXPECT_FALSE(rm.outcome(first));
+  tick();
+  EXPECT_EQ(rm.outcome(first)->value, json(2));
+  EXPECT_EQ(rm.pending_count(), 0u);
+  EXPECT_TRUE(clock.waits.empty());
+}
+
+TEST_F(ConcurrentServiceTest, CallsDoNotTouchTheComponentsSlot) {
+  auto exclusive = rm.call("clock", "exclusive");
+  auto wait = rm.call("clock", "wait", json{1});
+  auto another = rm.call("clock", "exclusive");
+  rm.process();
+  EXPECT_FALSE(rm.outcome(exclusive));
+  EXPECT_FALSE(rm.outcome(wait));
+  EXPECT_EQ(rm.outcome(another)->failure, Failure::busy);  // the slot's rule still holds for the others
+  EXPECT_EQ(clock.running_service(), "clock.exclusive");
+  tick();
+  EXPECT_EQ(rm.outcome(wait)->status, Status::success);
+  EXPECT_TRUE(clock.has_running_request());
+}
+
+TEST_F(ConcurrentServiceTest, CancelEndsThatCallOnlyAndTheComponentSeesItDone) {
+  auto first = rm.call("clock", "wait", json{3});
+  auto second = rm.call("clock", "wait", json{3});
+  rm.process();
+  std::optional<bool> found;
+  rm.cancel(first, [&](bool f) { found = f; });
+  rm.process();
+  EXPECT_TRUE(found.value_or(false));
+  ASSERT_TRUE(rm.outcome(first));
+  EXPECT_EQ(rm.outcome(first)->status, Status::preempted);
+  EXPECT_EQ(rm.outcome(first)->failure, Failure::cancelled);
+  EXPECT_EQ(rm.outcome(first)->message, "cancelled by its client");
+  EXPECT_FALSE(rm.outcome(second));
+  ASSERT_EQ(clock.waits.size(), 2u);
+  EXPECT_TRUE(clock.waits[0].done.done());
+  EXPECT_FALSE(clock.waits[1].done.done());
+  tick();
+  EXPECT_EQ(clock.waits.size(), 1u);  // dropped once done
+  tick();
+  tick();
+  EXPECT_EQ(rm.outcome(second)->status, Status::success);
+  EXPECT_EQ(rm.completion_count(first), 1u);
+  std::optional<bool> again;
+  rm.cancel(first, [&](bool f) { again = f; });
+  rm.process();
+  EXPECT_FALSE(again.value_or(true));
+}
+
+TEST_F(ConcurrentServiceTest, AbandonPendingEndsEveryCallWithShutdown) {
+  auto first = rm.call("clock", "wait", json{5});
+  auto second = rm.call("clock", "wait", json{5});
+  rm.process();
+  rm.abandon_pending();
+  EXPECT_EQ(rm.outcome(first)->failure, Failure::shutdown);
+  EXPECT_EQ(rm.outcome(first)->status, Status::failed);
+  EXPECT_EQ(rm.outcome(second)->failure, Failure::shutdown);
+  EXPECT_TRUE(clock.waits[0].done.done());
+  EXPECT_TRUE(clock.waits[1].done.done());
+  EXPECT_TRUE(clock.async_slot()->running_concurrent().empty());
+}
+
+TEST_F(ConcurrentServiceTest, TheSlotListsTheCallsStillRunning) {
+  auto first = rm.call("clock", "wait", json{1});
+  auto second = rm.call("clock", "wait", json{5});
+  rm.process();
+  EXPECT_EQ(clock.async_slot()->running_concurrent().size(), 2u);
+  tick();
+  ASSERT_EQ(clock.async_slot()->running_concurrent().size(), 1u);
+  EXPECT_EQ(clock.async_slot()->running_concurrent()[0].state()->id, second);
+  (void)first;
+}
+
+TEST_F(ConcurrentServiceTest, AStartThatThrowsFailsThatCallOnly) {
+  auto bad = rm.call("clock", "wait", json{-1});
+  auto good = rm.call("clock", "wait", json{1});
+  rm.process();
+  EXPECT_EQ(rm.outcome(bad)->value, json("ticks must not be negative"));
+  EXPECT_FALSE(rm.outcome(good));
+  EXPECT_EQ(rm.pending_count(), 1u);
+  EXPECT_EQ(clock.async_slot()->running_concurrent().size(), 1u);
+}
+
+TEST_F(ConcurrentServiceTest, FreeFunctionsCanBeConcurrent) {
+  std::vector<Completion> held;
+  rm.register_async_service("tc", [&](Completion c) { held.push_back(c); }, "each").concurrent();
+  auto a = rm.call("tc", "each");
+  auto b = rm.call("tc", "each");
+  rm.process();
+  ASSERT_EQ(held.size(), 2u);
+  held[1](Status::success, "b");
+  held[0](Status::success, "a");
+  rm.process();
+  EXPECT_EQ(rm.outcome(a)->value, json("a"));
+  EXPECT_EQ(rm.outcome(b)->value, json("b"));
+}
+
+TEST_F(ConcurrentServiceTest, TheDescriptorSaysConcurrent) {
+  auto ds = rm.descriptors();
+  auto wait = std::find_if(ds.begin(), ds.end(), [](auto& d) { return d.qualified_name() == "clock.wait"; });
+  auto goto_ = std::find_if(ds.begin(), ds.end(), [](auto& d) { return d.qualified_name() == "robot.mover.goto"; });
+  ASSERT_NE(wait, ds.end());
+  EXPECT_TRUE(wait->concurrent);
+  EXPECT_EQ(wait->to_json()["concurrent"], true);
+  EXPECT_EQ(wait->to_json()["async"], true);
+  EXPECT_EQ(goto_->to_json()["concurrent"], false);
+  auto position = std::find_if(ds.begin(), ds.end(), [](auto& d) { return d.qualified_name() == "robot.mover.position"; });
+  EXPECT_FALSE(position->to_json().contains("concurrent"));  // sync services: not a question
+}
+
+TEST(ConcurrentServiceRegistrationTest, MistakesAreCaughtAtRegistration) {
+  TestManager rm;
+  // sync, no Completion parameter, or with a policy
+  EXPECT_THROW(rm.register_service("c", [] {}, "sync").concurrent(), std::logic_error);
+  EXPECT_THROW(rm.register_async_service("c", [](int) {}, "no_completion", {"x"}).concurrent(), std::logic_error);
+  EXPECT_THROW(rm.register_async_service("c", [](Completion) {}, "a").interruptible().concurrent(), std::logic_error);
+  EXPECT_THROW(rm.register_async_service("c", [](Completion) {}, "b").concurrent().noninterruptible(), std::logic_error);
+}
+
+// ---- debug log of every request
+
+class RequestLogTest : public RequestManagerTest {
+ protected:
+  void SetUp() override {
+    RequestManagerTest::SetUp();
+    saved_level_ = log::level();
+    log::set_sink([this](log::Level level, std::string_view line) {
+      std::lock_guard lock(mutex_);
+      if (level == log::Level::debug) lines_.emplace_back(line);
+    });
+  }
+  void TearDown() override {
+    log::set_sink({});
+    log::set_level(saved_level_);
+  }
+  std::vector<std::string> lines() {
+    std::lock_guard lock(mutex_);
+    return lines_;
+  }
+
+  log::Level saved_level_ = log::Level::info;
+  std::mutex mutex_;                // guards lines_
+  std::vector<std::string> lines_;  // debug lines logged
+};
+
+TEST_F(RequestLogTest, DebugLogsEverySyncRequestWithItsStatusAndTime) {
+  log::set_level(log::Level::debug);
+  rm.run("robot.mover", "position");
+  rm.run("robot.mover", "fail", json{"no way"});
+  auto l = lines();
+  ASSERT_EQ(l.size(), 2u);
+  EXPECT_THAT(l[0], ::testing::MatchesRegex("Test service manager: robot\\.mover position -> SUCCESS in [0-9]+ us"));
+  EXPECT_THAT(l[1], ::testing::MatchesRegex(
+                        "Test service manager: robot\\.mover fail -> FAILED \\(no way\\) in [0-9.]+ (us|ms)"));
+}
+
+TEST_F(RequestLogTest, DebugLogsAnAsyncRequestWhenItEnds) {
+  log::set_level(log::Level::debug);
+  auto id = rm.call("robot.mover", "goto", json{1, 1});
+  rm.process();
+  EXPECT_TRUE(lines().empty());  // started: nothing yet
+  rm.cancel(id);
+  rm.process();
+  auto l = lines();
+  ASSERT_EQ(l.size(), 1u);
+  EXPECT_THAT(l[0], ::testing::MatchesRegex("Test service manager: robot\\.mover goto -> PREEMPTED "
+                                            "\\(cancelled by its client\\) after [0-9.]+ (us|ms|s)"));
+}
+
+TEST_F(RequestLogTest, NothingIsLoggedWithoutDebug) {
+  log::set_level(log::Level::info);
+  auto id = rm.call("robot.mover", "goto", json{1, 1});
+  rm.run("robot.mover", "position");
+  log::set_level(log::Level::debug);  // switched on while the goto runs: it was not timed
+  mover.default_action();
+  rm.process();
+  EXPECT_EQ(rm.outcome(id)->status, Status::success);
+  EXPECT_TRUE(lines().empty());
 }
 
 TEST_F(RequestManagerTest, DescriptorsCarryTypesDefaultsAndPolicy) {

@@ -11,6 +11,11 @@
 // the running service's local policy (interruptible: the running one is interrupted and
 // ends PREEMPTED; non-interruptible: the new one FAILS) or, without one, the receiving
 // manager's global policy.
+//
+// Concurrent services (add_async_service(...).concurrent(), service.h) are the exception:
+// each call takes its own Completion and runs beside the others and beside the slot's
+// request. The component keeps the completions, finishes each one through it, and drops
+// one when it is done() (cancelled by its client, or ended at shutdown).
 #ifndef SIMGATE_CORE_COMPONENT_H_
 #define SIMGATE_CORE_COMPONENT_H_
 

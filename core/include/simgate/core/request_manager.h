@@ -36,6 +36,7 @@
 #include <mutex>
 #include <span>
 #include <string>
+#include <string_view>
 #include <unordered_map>
 #include <vector>
 
@@ -161,7 +162,9 @@ class RequestManager {
   // costs no allocation.
   bool run_or_submit(std::span<std::pair<RequestId, Call>> calls, bool refilled = true);
   // Cancels a running async request of this manager: it ends PREEMPTED with
-  // Failure::cancelled. `done(found)` runs on the simulation thread afterwards.
+  // Failure::cancelled (the component's interrupt() ends it; a call of a concurrent
+  // service is ended through its completion). `done(found)` runs on the simulation thread
+  // afterwards.
   void cancel(RequestId id, std::function<void(bool found)> done = {});
   // Runs `task` on the simulation thread, in order with requests (e.g. introspection that
   // must see a consistent state).
@@ -192,14 +195,26 @@ class RequestManager {
 
  private:
   struct Table;
+  // execute(), and with debug logging on (looked at once per request) the time it takes and
+  // a log line for its outcome: of a sync request here, of an async one when it ends.
+  bool run_request(RequestId id, const Call& call, Outcome& out);
   // Runs one request (on_incoming_request without the copies): true when `out` holds its
   // outcome (sync services and every error), false when an async service started.
-  bool execute(RequestId id, const Call& call, Outcome& out);
+  // `started`: when it started, if debug logging is on (the epoch otherwise).
+  bool execute(RequestId id, const Call& call, Outcome& out, std::chrono::steady_clock::time_point started);
   // execute(), then delivers the outcome if there is one and releases what `call`'s params
   // hold (`refilled`: the transport refills the call object for its next request).
   void execute_and_deliver(RequestId id, Call& call, bool refilled);
   // Starts an async service; throws what its start method throws.
-  void start_async(RequestId id, const Service& service, std::span<const json* const> args);
+  void start_async(RequestId id, const Service& service, std::span<const json* const> args,
+                   std::chrono::steady_clock::time_point started);
+  // Starts one call of a concurrent service, outside its component's slot.
+  void start_concurrent(RequestId id, const Service& service, std::span<const json* const> args,
+                        std::chrono::steady_clock::time_point started);
+  // The debug log line of an outcome: "Socket service manager: robot.motion set_speed ->
+  // SUCCESS in 12 us" (`took`: "in" for sync requests, "after" for async ones).
+  void log_outcome(std::string_view component, std::string_view service, const Outcome& outcome,
+                   std::chrono::steady_clock::time_point started, std::string_view took) const;
   void interrupt_running(AsyncSlot& slot, Failure reason, std::string message);
   void execute_cancel(RequestId id, const std::function<void(bool)>& done);
   void deliver(RequestId id, Outcome&& outcome);

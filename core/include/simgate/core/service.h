@@ -8,6 +8,13 @@
 //    signature and calls the function.
 //  - AsyncSlot: at most one async request runs per component; the slot remembers it and
 //    how to interrupt() the component.
+//  - concurrent service: an async service registered with .concurrent(). Each call runs
+//    on its own, outside the component's slot: no preemption, no reject, any number at
+//    once (every caller of `time sleep` gets its own sleep). Its function takes the
+//    Completion first and finishes each call through it; a cancel ends that one call
+//    PREEMPTED (Failure::cancelled) through the same completion, shutdown ends it FAILED
+//    (Failure::shutdown), and the component sees that a call is over by its
+//    Completion::done() (then drops it).
 //  - Completion: the handle an async request is finished with, exactly once, from any
 //    thread (MORSE's result_setter / completed()).
 //
@@ -19,6 +26,7 @@
 
 #include <array>
 #include <atomic>
+#include <chrono>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -64,7 +72,8 @@ struct ServiceDescriptor {
   std::string name;                    // "goto"
   std::vector<ParamDescriptor> params;  // in positional order
   bool is_async = false;               // completes later through a Completion
-  Policy policy = Policy::unspecified;  // async only
+  bool concurrent = false;             // async only: each call runs on its own, outside the slot
+  Policy policy = Policy::unspecified;  // async only (never for concurrent services)
   std::string doc;                     // one line
   json result_schema = json::object();  // JSON schema of the result ({} = unknown)
 
@@ -72,7 +81,8 @@ struct ServiceDescriptor {
   std::size_t required_count() const;
   // "x, y, z, tolerance=0.5, speed=1.0"
   std::string signature() const;
-  // {"component", "name", "async", "policy", "doc", "params": [{"name","schema","default"}]}
+  // {"component", "name", "async", "policy", "concurrent" (async only), "doc",
+  //  "params": [{"name","schema","default"}]}
   json to_json() const;
 };
 
@@ -94,8 +104,12 @@ struct CallState {
   std::string service;                       // "component.service", for messages
   std::weak_ptr<CompletionSink> sink;        // the manager that started it
   std::atomic<bool> finished{false};         // exactly-once guard
+  bool concurrent = false;                   // a call of a concurrent service (not in the slot)
   Failure interrupt_reason = Failure::preempted;  // set before interrupt(): preempted or cancelled
   std::string interrupt_message;             // who or what interrupted it
+  // when it started, for the debug log line of its outcome; left at the epoch (and never
+  // read) unless debug logging was on when it started
+  std::chrono::steady_clock::time_point started{};
 };
 
 }  // namespace detail
@@ -122,7 +136,7 @@ class Completion {
 };
 
 // One component's async slot, shared by all its async services (and all the request
-// managers that serve it). Touched only on the simulation thread.
+// managers that serve it). Touched only under the simulation lock.
 struct AsyncSlot {
   std::string component;                       // owner's name
   std::shared_ptr<detail::CallState> running;  // the running request, if any (may be finished)
@@ -130,8 +144,14 @@ struct AsyncSlot {
   Completion running_completion;               // handle to finish `running`
   // Ends the running request: Component::interrupt(), or finishing it PREEMPTED.
   std::function<void()> interrupt;
+  // Calls of the component's concurrent services, outside the one-at-a-time rule: those
+  // running, and some that finished since the last call started (pruned then). The
+  // simulation ends those still running at shutdown.
+  std::vector<std::shared_ptr<detail::CallState>> concurrent;
 
   bool busy() const { return running && !running->finished.load(); }
+  // Completions of the concurrent calls still running.
+  std::vector<Completion> running_concurrent() const;
 };
 
 class Service;
@@ -143,6 +163,9 @@ class ServiceBuilder {
   ServiceBuilder& doc(std::string text);
   ServiceBuilder& interruptible();
   ServiceBuilder& noninterruptible();
+  // Each call runs on its own (see `concurrent service` above). Async services whose
+  // function takes a Completion first, with no interruption policy.
+  ServiceBuilder& concurrent();
   ServiceBuilder& result_schema(json schema);
   const ServiceDescriptor& descriptor() const;
 
@@ -170,11 +193,15 @@ class Service {
   const std::shared_ptr<AsyncSlot>& slot() const { return slot_; }
   void set_slot(std::shared_ptr<AsyncSlot> slot) { slot_ = std::move(slot); }
   void set_invoker(Invoker invoker) { invoke_ = std::move(invoker); }
+  // Whether the function takes the call's Completion as its first parameter.
+  bool takes_completion() const { return takes_completion_; }
+  void set_takes_completion(bool takes) { takes_completion_ = takes; }
 
  private:
   ServiceDescriptor descriptor_;     // what transports show
   Invoker invoke_;                   // typed call
   std::shared_ptr<AsyncSlot> slot_;  // shared with the component's other async services
+  bool takes_completion_ = false;    // the function's first parameter is the Completion
 };
 
 // The arguments of one call: one pointer per parameter, into the request's params or to a
@@ -341,6 +368,7 @@ std::shared_ptr<Service> make_service(std::string component, std::string name, F
     d.result_schema = ArgTraits<std::decay_t<typename Traits::result>>::schema();
 
   auto service = std::make_shared<Service>(std::move(d), nullptr);
+  service->set_takes_completion(takes_completion);
   // the invoker reports errors with the final descriptor (docs and policy are set later)
   const Service* self = service.get();
   service->set_invoker([fn = std::move(fn), self](std::span<const json* const> args,
