@@ -1,4 +1,5 @@
 #include <cmath>
+#include <cstdio>
 
 #include "simgate/core/errors.h"
 #include "simgate/sim/components.h"
@@ -9,14 +10,70 @@ namespace {
 void require_finite(const char* what, double value) {
   if (!std::isfinite(value)) throw ServiceError(std::string(what) + " must be a finite number");
 }
+
+std::string number(double x) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", x);
+  return text;
+}
+
+bool same(double a, double b) { return std::abs(a - b) <= 1e-9 * std::max(std::abs(a), std::abs(b)); }
+
+// A velocity servo, the shape MuJoCo's <velocity kv=".."> gives: force = kv * (ctrl - qdot),
+// i.e. a fixed gain kv and an affine bias of -kv times the velocity (and nothing of the
+// position). <general> actuators of that shape qualify too.
+bool is_velocity_actuator(const mjModel* m, int a) {
+  const mjtNum* gain = m->actuator_gainprm + a * mjNGAIN;
+  const mjtNum* bias = m->actuator_biasprm + a * mjNBIAS;
+  return m->actuator_gaintype[a] == mjGAIN_FIXED && m->actuator_biastype[a] == mjBIAS_AFFINE && gain[0] > 0 &&
+         bias[1] == 0 && same(bias[2], -gain[0]);
+}
+
+// What an actuator is, from its gain and bias: "a motor (torque: fixed gain, no bias)".
+std::string describe_actuator(const mjModel* m, int a) {
+  const mjtNum* gain = m->actuator_gainprm + a * mjNGAIN;
+  const mjtNum* bias = m->actuator_biasprm + a * mjNBIAS;
+  const int gain_type = m->actuator_gaintype[a], bias_type = m->actuator_biastype[a];
+  if (gain_type == mjGAIN_MUSCLE || bias_type == mjBIAS_MUSCLE) return "a muscle";
+  if (gain_type == mjGAIN_FIXED && bias_type == mjBIAS_NONE)
+    return "a motor (torque: fixed gain, no bias)";
+  if (gain_type == mjGAIN_FIXED && bias_type == mjBIAS_AFFINE && bias[0] == 0 && same(bias[1], -gain[0]) &&
+      bias[2] == 0)
+    return "a position servo (kp=" + number(gain[0]) + ": fixed gain, bias -kp times the position)";
+  auto type_name = [](int t, bool is_gain) -> std::string {
+    if (t == (is_gain ? int(mjGAIN_FIXED) : int(mjBIAS_NONE))) return is_gain ? "fixed" : "none";
+    if (t == (is_gain ? int(mjGAIN_AFFINE) : int(mjBIAS_AFFINE))) return "affine";
+    if (t == (is_gain ? int(mjGAIN_MUSCLE) : int(mjBIAS_MUSCLE))) return "muscle";
+    return "user";
+  };
+  return "a general actuator (gaintype " + type_name(gain_type, true) + ", gainprm " + number(gain[0]) + " " +
+         number(gain[1]) + " " + number(gain[2]) + "; biastype " + type_name(bias_type, false) + ", biasprm " +
+         number(bias[0]) + " " + number(bias[1]) + " " + number(bias[2]) + ")";
+}
+
+// The actuator named by option `key`, refused unless it is velocity-controlled: a wheel
+// driven by torque with a speed for a command accelerates without bound.
+int velocity_actuator_option(ComponentContext& c, const std::string& key, const std::string& fallback) {
+  const int id = c.actuator_option(key, fallback);
+  const mjModel* m = c.sim().m();
+  if (!is_velocity_actuator(m, id)) {
+    const char* name = mj_id2name(m, mjOBJ_ACTUATOR, id);
+    throw ConfigError(c.options().path_of(key) + ": actuator '" + (name ? name : "?") + "' is " +
+                      describe_actuator(m, id) + "; " + c.spec().type +
+                      " drives its wheels by velocity: expected a <velocity kv=\"...\"> actuator (or a "
+                      "<general> one with gaintype=\"fixed\" gainprm=\"kv\", biastype=\"affine\" and "
+                      "biasprm=\"0 0 -kv\")");
+  }
+  return id;
+}
 }  // namespace
 
 // ---- ground_robot ------------------------------------------------------------------------
 
 GroundRobot::GroundRobot(ComponentContext& c) : Robot(c.name(), c.sim(), c.body()) {
   const std::string& body = c.spec().body;
-  left_ = c.actuator_option("left_actuator", body + "_left_motor");
-  right_ = c.actuator_option("right_actuator", body + "_right_motor");
+  left_ = velocity_actuator_option(c, "left_actuator", body + "_left_motor");
+  right_ = velocity_actuator_option(c, "right_actuator", body + "_right_motor");
   wheel_radius_ = c.options().get_number("wheel_radius", 0.1, 1e-4, 100);
   separation_ = c.options().get_number("wheel_separation", 0.42, 1e-4, 100);
   max_wheel_speed_ = c.options().get_number("max_wheel_speed", 30, 1e-3, 1e6);

@@ -115,9 +115,9 @@ void Simulation::fail_component(ComponentEntry& entry, const std::string& reason
              " (simulation activate \"", name, "\" turns it back on)");
   entry.active = false;
   AsyncSlot& slot = *entry.component->async_slot();
-  if (slot.busy())
-    slot.running_completion.finish(
-        Outcome::failed(Failure::internal, name + ": default_action() failed: " + reason));
+  const Outcome failed = Outcome::failed(Failure::internal, name + ": default_action() failed: " + reason);
+  if (slot.busy()) slot.running_completion.finish(failed);
+  for (const Completion& call : slot.running_concurrent()) call.finish(failed);
 }
 
 void Simulation::run() {
@@ -166,10 +166,13 @@ void Simulation::shutdown() {
     std::unique_lock lock(*gate_);
     for (auto& e : entries_) {
       AsyncSlot& slot = *e->component->async_slot();
-      if (!slot.busy()) continue;
-      std::string service = slot.running ? slot.running->service : e->component->name();
-      slot.running_completion.finish(
-          Outcome::failed(Failure::shutdown, "the simulation stopped before " + service + " completed"));
+      if (slot.busy())
+        slot.running_completion.finish(Outcome::failed(
+            Failure::shutdown, "the simulation stopped before " + slot.running->service + " completed"));
+      // calls of concurrent services (every caller's `time sleep`)
+      for (const Completion& call : slot.running_concurrent())
+        call.finish(Outcome::failed(Failure::shutdown,
+                                    "the simulation stopped before " + call.state()->service + " completed"));
     }
     lock.unlock();
     process_requests();
@@ -188,7 +191,11 @@ void Simulation::shutdown() {
 }
 
 void Simulation::reset() {
+  // poses, velocities and controls go back to the start; simulated time does not: it never
+  // goes backwards (`time now`, running sleeps and sensor timestamps count on it)
+  const double time = d()->time;
   mj_resetData(m(), d());
+  d()->time = time;
   mj_forward(m(), d());
   for (auto& e : entries_)
     if (e->sim_component) e->sim_component->on_reset();

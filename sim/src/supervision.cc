@@ -20,7 +20,7 @@ SupervisionServices::SupervisionServices(Simulation& sim) : Component("simulatio
       .doc("Robots, their components and services (what pymorse reads at connect)");
   add_service("list_services", &SupervisionServices::list_services)
       .doc("Every component's services with their parameters and transports");
-  add_service("reset_objects", &SupervisionServices::reset_objects).doc("Restore every object's initial pose");
+  add_service("reset_objects", &SupervisionServices::reset_objects).doc("Restore every object's initial pose (simulated time goes on)");
   add_service("activate", &SupervisionServices::activate, {"component_name"})
       .doc("Resume a component's default action");
   add_service("deactivate", &SupervisionServices::deactivate, {"component_name"})

@@ -10,8 +10,11 @@ TimeServices::TimeServices(Simulation& sim) : Component("time"), sim_(sim) {
   epoch_ = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count() -
            sim.sim_time();
   add_service("now", &TimeServices::now).doc("Simulated time, seconds since the epoch");
-  // no local policy: a second sleep follows the transport's global policy (MORSE: FAILED)
-  add_async_service("sleep", &TimeServices::sleep, {"time"}).doc("Completes after `time` simulated seconds");
+  // concurrent: every caller gets its own sleep (two pymorse scripts calling simu.sleep()
+  // together, or a client that left with one running, never block anyone)
+  add_async_service("sleep", &TimeServices::sleep, {"time"})
+      .concurrent()
+      .doc("Completes after `time` simulated seconds (each caller sleeps on its own)");
   add_service("statistics", &TimeServices::statistics)
       .doc("Simulated time, wall time, measured and target real-time factor, steps");
   add_service("mode", &TimeServices::mode).doc("The time strategy");
@@ -19,17 +22,23 @@ TimeServices::TimeServices(Simulation& sim) : Component("time"), sim_(sim) {
 
 double TimeServices::now() const { return epoch_ + sim_.sim_time(); }
 
-void TimeServices::sleep(double seconds) {
+void TimeServices::sleep(Completion done, double seconds) {
   if (!std::isfinite(seconds) || seconds < 0)
     throw ServiceError("time sleep: expected a non-negative number of seconds", Failure::bad_arguments,
                        {{"parameter", "time"}});
-  wake_at_ = sim_.sim_time() + seconds;
+  sleeps_.push_back({std::move(done), sim_.sim_time() + seconds});
 }
 
 void TimeServices::default_action() {
+  if (sleeps_.empty()) return;
   // half a step of slack absorbs floating-point accumulation in mjData::time
-  if (has_running_request() && sim_.sim_time() + 0.5 * sim_.timestep() >= wake_at_)
-    completed(Status::success);
+  const double now = sim_.sim_time() + 0.5 * sim_.timestep();
+  std::erase_if(sleeps_, [now](Sleep& s) {
+    if (s.done.done()) return true;  // cancelled by its client, or ended at shutdown
+    if (now < s.wake_at) return false;
+    s.done(Status::success);
+    return true;
+  });
 }
 
 json TimeServices::statistics() const {

@@ -58,6 +58,73 @@ TEST_F(SimRegistryTest, MissingActuatorNamesTheOption) {
   EXPECT_THAT(e, HasSubstr("no_such_motor"));
 }
 
+// A two-wheeled robot whose wheels are driven by the actuators given (MJCF elements).
+std::string wheeled_scene(const std::string& left, const std::string& right) {
+  return R"(<mujoco>
+  <worldbody>
+    <body name="bot" pos="0 0 0.1">
+      <freejoint/>
+      <geom type="box" size="0.2 0.15 0.05" mass="5"/>
+      <body name="bot_left_wheel" pos="0 0.2 0">
+        <joint name="left" type="hinge" axis="0 1 0"/>
+        <geom type="cylinder" size="0.1 0.02" zaxis="0 1 0" mass="0.5"/>
+      </body>
+      <body name="bot_right_wheel" pos="0 -0.2 0">
+        <joint name="right" type="hinge" axis="0 1 0"/>
+        <geom type="cylinder" size="0.1 0.02" zaxis="0 1 0" mass="0.5"/>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>)" + left + right + R"(</actuator>
+</mujoco>)";
+}
+
+// The ConfigError of a ground_robot on `bot` in `scene`, or "".
+std::string ground_robot_error(const std::string& scene) {
+  Simulation sim(Model::load_string(scene), SimulationOptions{std::nullopt, 0.0});
+  try {
+    builtin_registry().create(Kind::robot, {"bot", "ground_robot", "bot", "robots[0]"}, json::object(), sim, nullptr);
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(SimGroundRobotActuators, AMotorIsRefusedNamingItsTypeAndWhatIsExpected) {
+  std::string e = ground_robot_error(wheeled_scene(R"(<motor name="bot_left_motor" joint="left"/>)",
+                                                   R"(<velocity name="bot_right_motor" joint="right" kv="5"/>)"));
+  EXPECT_EQ(e,
+            "robots[0].options.left_actuator: actuator 'bot_left_motor' is a motor (torque: fixed gain, no bias); "
+            "ground_robot drives its wheels by velocity: expected a <velocity kv=\"...\"> actuator (or a <general> "
+            "one with gaintype=\"fixed\" gainprm=\"kv\", biastype=\"affine\" and biasprm=\"0 0 -kv\")");
+}
+
+TEST(SimGroundRobotActuators, APositionServoIsRefused) {
+  std::string e = ground_robot_error(wheeled_scene(R"(<velocity name="bot_left_motor" joint="left" kv="5"/>)",
+                                                   R"(<position name="bot_right_motor" joint="right" kp="20"/>)"));
+  EXPECT_THAT(e, HasSubstr("robots[0].options.right_actuator: actuator 'bot_right_motor' is a position servo (kp=20"));
+  EXPECT_THAT(e, HasSubstr("expected a <velocity kv="));
+}
+
+TEST(SimGroundRobotActuators, AnOtherGeneralActuatorIsDescribedByItsParameters) {
+  std::string e = ground_robot_error(
+      wheeled_scene(R"(<general name="bot_left_motor" joint="left" gainprm="3" biastype="affine" biasprm="0 -1 -2"/>)",
+                    R"(<velocity name="bot_right_motor" joint="right" kv="5"/>)"));
+  EXPECT_THAT(e, HasSubstr("actuator 'bot_left_motor' is a general actuator (gaintype fixed, gainprm 3 0 0; "
+                           "biastype affine, biasprm 0 -1 -2)"));
+}
+
+TEST(SimGroundRobotActuators, VelocityAndGeneralVelocityShapedActuatorsAreAccepted) {
+  EXPECT_EQ(ground_robot_error(wheeled_scene(
+                R"(<velocity name="bot_left_motor" joint="left" kv="5"/>)",
+                R"(<general name="bot_right_motor" joint="right" gainprm="5" biastype="affine" biasprm="0 0 -5"/>)")),
+            "");
+}
+
+TEST_F(SimRegistryTest, TheDemoSceneWheelsAreVelocityActuators) {
+  EXPECT_EQ(error_of(Kind::robot, {"robot", "ground_robot", "robot", "robots[0]"}), "");
+}
+
 TEST_F(SimRegistryTest, UnknownOptionKeyIsAnError) {
   std::string e = error_of(Kind::robot, {"robot", "ground_robot", "robot", "robots[0]"}, {{"wheel_radus", 0.1}});
   EXPECT_THAT(e, HasSubstr("robots[0].options.wheel_radus"));

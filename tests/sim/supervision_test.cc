@@ -114,13 +114,103 @@ TEST_F(SimSupervisionTest, TimeSleepCompletesAfterSimulatedTime) {
   EXPECT_NEAR(sim_->sim_time() - start, 0.5, 2 * sim_->timestep());
 }
 
-TEST_F(SimSupervisionTest, SecondSleepIsRefusedWithoutPolicy) {
-  RequestId first = rm_->call("time", "sleep", {10.0});
+TEST_F(SimSupervisionTest, TwoSleepsTogetherBothSucceedEachAfterItsOwnTime) {
+  double start = sim_->sim_time();
+  RequestId longer = rm_->call("time", "sleep", {0.3});
+  RequestId shorter = rm_->call("time", "sleep", {0.1});
+  auto o = step_until(shorter, 1000);
+  ASSERT_TRUE(o.has_value());
+  EXPECT_EQ(o->status, Status::success);
+  EXPECT_NEAR(sim_->sim_time() - start, 0.1, 2 * sim_->timestep());
+  EXPECT_FALSE(rm_->outcome(longer).has_value());
+  o = step_until(longer, 1000);
+  ASSERT_TRUE(o.has_value());
+  EXPECT_EQ(o->status, Status::success);
+  EXPECT_NEAR(sim_->sim_time() - start, 0.3, 2 * sim_->timestep());
+}
+
+TEST_F(SimSupervisionTest, CancelOfOneSleepLeavesTheOther) {
+  RequestId cancelled = rm_->call("time", "sleep", {0.2});
+  RequestId kept = rm_->call("time", "sleep", {0.2});
   sim_->process_requests();
-  Outcome o = call("time", "sleep", {1.0});
-  EXPECT_EQ(o.status, Status::failed);
-  EXPECT_THAT(o.message, HasSubstr("is already running"));
-  EXPECT_FALSE(rm_->outcome(first).has_value());  // the first keeps running
+  rm_->cancel(cancelled);
+  sim_->process_requests();
+  auto c = rm_->outcome(cancelled);
+  ASSERT_TRUE(c.has_value());
+  EXPECT_EQ(c->status, Status::preempted);
+  EXPECT_EQ(c->failure, Failure::cancelled);
+  auto o = step_until(kept, 1000);
+  ASSERT_TRUE(o.has_value());
+  EXPECT_EQ(o->status, Status::success);
+}
+
+TEST_F(SimSupervisionTest, ASleepLeftRunningByAClientThatLeftDoesNotBlockAnother) {
+  // a client asked for a long sleep and went away without cancelling it (its outcome will
+  // go nowhere): another client's sleep runs beside it
+  RequestId forgotten = rm_->call("time", "sleep", {1000.0});
+  sim_->process_requests();
+  double start = sim_->sim_time();
+  RequestId id = rm_->call("time", "sleep", {0.1});
+  auto o = step_until(id, 1000);
+  ASSERT_TRUE(o.has_value());
+  EXPECT_EQ(o->status, Status::success);
+  EXPECT_NEAR(sim_->sim_time() - start, 0.1, 2 * sim_->timestep());
+  EXPECT_FALSE(rm_->outcome(forgotten).has_value());
+}
+
+TEST_F(SimSupervisionTest, ShutdownEndsEverySleepNamingIt) {
+  RequestId a = rm_->call("time", "sleep", {1000.0});
+  RequestId b = rm_->call("time", "sleep", {1000.0});
+  sim_->process_requests();
+  sim_->shutdown();
+  for (RequestId id : {a, b}) {
+    auto o = rm_->outcome(id);
+    ASSERT_TRUE(o.has_value());
+    EXPECT_EQ(o->status, Status::failed);
+    EXPECT_EQ(o->failure, Failure::shutdown);
+    EXPECT_EQ(o->message, "the simulation stopped before time.sleep completed");
+  }
+}
+
+TEST_F(SimSupervisionTest, ListServicesSaysSleepIsConcurrentAndDetailsIsUnchanged) {
+  json list = call("simulation", "list_services").value.value_or(json());
+  json sleep, go;
+  for (const auto& s : list) {
+    if (s["component"] == "time" && s["name"] == "sleep") sleep = s;
+    if (s["component"] == "robot.waypoint" && s["name"] == "goto") go = s;
+  }
+  EXPECT_EQ(sleep["async"], true);
+  EXPECT_EQ(sleep["concurrent"], true);
+  EXPECT_EQ(go["concurrent"], false);
+  // pymorse reads service names only: nothing new there
+  json details = call("simulation", "details").value.value_or(json());
+  EXPECT_EQ(details.dump().find("concurrent"), std::string::npos);
+  EXPECT_EQ(details["robots"][0]["components"]["robot.waypoint"]["services"],
+            json({"goto", "setdest", "stop", "resume", "get_status"}));
+}
+
+TEST_F(SimSupervisionTest, ResetObjectsNeverTakesTimeBack) {
+  run_for(0.5);
+  double before = call("time", "now").value->get<double>();
+  double sim_before = sim_->sim_time();
+  call("simulation", "reset_objects");
+  EXPECT_GE(sim_->sim_time(), sim_before);
+  EXPECT_GE(call("time", "now").value->get<double>(), before);
+  run_for(0.1);
+  EXPECT_NEAR(call("time", "now").value->get<double>() - before, 0.1, 0.01);
+}
+
+TEST_F(SimSupervisionTest, ASleepRunningAcrossAResetCompletesAfterItsSimulatedDuration) {
+  RequestId id = rm_->call("time", "sleep", {0.5});
+  sim_->process_requests();
+  const std::uint64_t start = sim_->steps();
+  run_for(0.2);
+  call("simulation", "reset_objects");
+  auto o = step_until(id, 2000);
+  ASSERT_TRUE(o.has_value());
+  EXPECT_EQ(o->status, Status::success);
+  // steps never go back: they measure the simulated time the sleep took
+  EXPECT_NEAR(double(sim_->steps() - start) * sim_->timestep(), 0.5, 2 * sim_->timestep());
 }
 
 TEST_F(SimSupervisionTest, NegativeSleepFails) {

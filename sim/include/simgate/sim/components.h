@@ -2,7 +2,8 @@
 //
 // Robots:
 //  - ground_robot: a differential-drive robot; its two wheels are driven through MuJoCo
-//    velocity actuators. Options: left_actuator, right_actuator (default
+//    velocity actuators (<velocity kv>, or a <general> of that shape: fixed gain kv, affine
+//    bias 0 0 -kv; anything else is a ConfigError naming the actuator). Options: left_actuator, right_actuator (default
 //    "<body>_left_motor" / "<body>_right_motor"), wheel_radius (0.1 m),
 //    wheel_separation (0.42 m), max_wheel_speed (30 rad/s).
 //  - human: `move speed rotation` (MORSE's HumanClass example): steps `speed` metres

@@ -118,7 +118,8 @@ class Simulation {
   void step();
   // process() of every request manager; returns the events handled.
   std::size_t process_requests();
-  // Answers what is still queued, stops every transport, destroys the transports, then
+  // Answers what is still queued, ends the async requests still running (those of
+  // concurrent services too) FAILED, stops every transport, destroys the transports, then
   // the components. Idempotent; called by the destructor.
   void shutdown();
 
@@ -130,7 +131,8 @@ class Simulation {
   // ---- supervision (simulation thread) ----
 
   double sim_time() const { return d()->time; }
-  // Restores the initial state of every object; components get on_reset().
+  // Restores the initial state of every object (poses, velocities, controls); simulated
+  // time goes on from where it was. Components get on_reset().
   void reset();
   void set_dynamics_suspended(bool suspended) { dynamics_suspended_ = suspended; }
   bool dynamics_suspended() const { return dynamics_suspended_; }

@@ -7,13 +7,15 @@
 // component_name, suspend_dynamics / restore_dynamics, get_scene_objects, quit (the loop
 // stops after this step; the reply is sent first).
 // time: now (simulated time, seconds since the epoch at start), async sleep t (completes
-// when t simulated seconds have passed; no local policy), statistics, mode.
+// when t simulated seconds have passed; a concurrent service: every caller sleeps on its
+// own), statistics, mode.
 //
 // Threads: simulation thread only.
 #ifndef SIMGATE_SIM_SUPERVISION_H_
 #define SIMGATE_SIM_SUPERVISION_H_
 
 #include <string>
+#include <vector>
 
 #include "simgate/core/component.h"
 #include "simgate/sim/simulation.h"
@@ -47,16 +49,22 @@ class TimeServices : public Component {
   explicit TimeServices(Simulation& sim);
 
   double now() const;
-  void sleep(double seconds);
+  void sleep(Completion done, double seconds);
   json statistics() const;
   std::string mode() const;
 
   void default_action() override;
 
  private:
-  Simulation& sim_;       // whose clock
-  double epoch_;          // wall-clock seconds since the epoch when the simulation started
-  double wake_at_ = 0;    // simulated time at which the running sleep completes
+  // One caller's sleep.
+  struct Sleep {
+    Completion done;  // its call
+    double wake_at;   // simulated time at which it completes
+  };
+
+  Simulation& sim_;             // whose clock
+  double epoch_;                // wall-clock seconds since the epoch when the simulation started
+  std::vector<Sleep> sleeps_;   // the sleeps running, in the order they started
 };
 
 }  // namespace simgate::sim
