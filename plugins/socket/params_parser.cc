@@ -76,6 +76,25 @@ class Parser {
       fail("unexpected " + describe_here() + " after the end of the parameters");
   }
 
+  // The whole text as values separated by blanks or commas (`0.5 0.2`, `0.5, 0.2`): true,
+  // with `out` the array of them, when there are at least two and nothing else.
+  bool parse_bare_sequence(json& out) {
+    pos_ = 0;
+    out = json::array();
+    try {
+      for (;;) {
+        skip_blanks();
+        if (pos_ == text_.size()) break;
+        parse_value(0, out.emplace_back());
+        skip_blanks();
+        if (pos_ < text_.size() && text_[pos_] == ',') ++pos_;
+      }
+    } catch (const SyntaxError&) {
+      return false;
+    }
+    return out.size() >= 2;
+  }
+
  private:
   [[noreturn]] void fail(std::string message) { throw SyntaxError{std::move(message), pos_}; }
   [[noreturn]] void fail_at(std::size_t offset, std::string message) {
@@ -391,8 +410,12 @@ bool parse_params_into(std::string_view text, std::size_t first_column, json& va
     error.ok = false;
     error.error = e.message;
     error.column = first_column + e.offset;
-    return false;
   }
+  // bare values typed without brackets (telnet users): say which list they meant
+  error.example.clear();
+  json values;
+  if (Parser(text).parse_bare_sequence(values)) append_json(error.example, values);
+  return false;
 }
 
 ParamsParse parse_params(std::string_view text, std::size_t first_column) {

@@ -37,10 +37,14 @@ struct ParamsParse {
   json value;          // the parameters (null when the text is empty)
   std::string error;   // what was wrong, e.g. "expected ',' or ')' but found 'x'"
   std::size_t column = 0;  // 1-based column of the error, counted from `first_column`
+  // when the text is a sequence of bare values (`0.5 0.2`, `0.5, 0.2`), the list the user
+  // meant, written as MORSE writes JSON ("[0.5, 0.2]"); empty otherwise
+  std::string example;
 };
 
 // Parses `text` (the parameters of one request line, surrounding blanks allowed). An
-// empty or all-blank text gives a null value (call with no arguments). `first_column` is
+// empty or all-blank text gives a null value (call with no arguments). Several bare values
+// (`set_speed 0.5 0.2`) are a syntax error whose `example` is the list meant. `first_column` is
 // the column of text[0] in the whole line, so errors point into the line the client sent.
 ParamsParse parse_params(std::string_view text, std::size_t first_column = 1);
 

@@ -81,6 +81,7 @@ void Session::handle_read(const error_code& ec, std::size_t n) {
       host_.on_lines_done(shared_from_this(), /*read_finished=*/true);
     }
     eof_ = true;
+    host_.on_input_ended(shared_from_this());
     maybe_finish();
     return;
   }

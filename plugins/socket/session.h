@@ -19,8 +19,10 @@
 //     `max_unsent_bytes` the client is not reading: the session is closed and forgotten.
 //   - Pending requests: the client's ids of requests not yet answered, mapped to the core's
 //     RequestId, so ids and cancel are scoped to the connection.
-//   - End of input (client shut down its sending side): the session stays open until every
-//     pending reply has been written, then closes (so `echo req | nc` gets its answer).
+//   - End of input (client shut down its sending side, or closed): the host is told
+//     (on_input_ended: it may cancel the async requests of a client that left), and the
+//     session stays open until every pending reply has been written, then closes (so
+//     `echo req | nc` gets its answer).
 //
 // Life cycle: created by the acceptor, start()ed, kept alive by its own pending handlers
 // (shared_from_this) and by the host's session set; close() ends it (idempotent).
@@ -70,6 +72,9 @@ class SessionHost {
   virtual bool watch(Session& session) = 0;
   // A line exceeded the limit; `prefix` is its beginning (to find the client's id).
   virtual void on_oversized_line(const std::shared_ptr<Session>& session, std::string_view prefix) = 0;
+  // The client shut down its sending side (or closed): it will send nothing more. The
+  // session stays open until its pending replies are written, then closes.
+  virtual void on_input_ended(const std::shared_ptr<Session>& session) = 0;
   // The session closed (error, peer gone, limit exceeded or server stopping).
   virtual void on_session_closed(const std::shared_ptr<Session>& session) = 0;
 };

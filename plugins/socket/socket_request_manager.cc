@@ -57,6 +57,7 @@ SocketOptions SocketOptions::parse(const json& options) {
   o.global_policy = config.get_choice("global_policy", "reject", {"reject", "preempt"}) == "preempt"
                         ? GlobalPolicy::preempt
                         : GlobalPolicy::reject;
+  o.cancel_on_disconnect = config.get_choice("on_disconnect", "cancel", {"cancel", "let_run"}) == "cancel";
   config.finish();
   (void)resolve_listen_endpoint(o.host, o.port);  // a name that does not resolve is a config error
   return o;
@@ -71,6 +72,7 @@ SocketRequestManager::SocketRequestManager(const json& options)
   limits_ = o.limits;
   max_clients_ = o.max_clients;
   io_spin_ = o.io_spin;
+  cancel_on_disconnect_ = o.cancel_on_disconnect;
   set_global_policy(o.global_policy);
 
   // bind now, so that a port in use fails the creation of the transport
@@ -155,6 +157,7 @@ void SocketRequestManager::stop() {
 std::vector<std::string> SocketRequestManager::endpoints() const { return {endpoint_}; }
 
 void SocketRequestManager::close_all() {
+  stopping_ = true;  // the requests still running end at shutdown (abandon_pending), not as cancels
   error_code ec;
   acceptor_.close(ec);
   auto sessions = std::move(sessions_);
@@ -199,6 +202,11 @@ void SocketRequestManager::run_calls() {
   run_or_submit(std::span(batch_.data(), batch_count_));
   batch_count_ = 0;
   if (batch_.size() > k_kept_calls) batch_.erase(batch_.begin() + k_kept_calls, batch_.end());
+  // a client of this read left while it was read: its requests have started, now they end
+  if (!cancel_after_batch_.empty()) [[unlikely]] {
+    for (RequestId id : cancel_after_batch_) cancel(id);
+    cancel_after_batch_.clear();
+  }
 }
 
 void SocketRequestManager::run_batch() {
@@ -282,8 +290,11 @@ void SocketRequestManager::on_line(const std::shared_ptr<Session>& session, std:
   if (!parse_params_into(request.params, request.params_column, call.params, params_error_)) {
     session->drop_pending(request.id);
     fail_in_order(session, request.id,
-                  "Invalid request syntax: error while parsing the parameters at column " +
-                      std::to_string(params_error_.column) + ": " + params_error_.error);
+                  params_error_.example.empty()
+                      ? "Invalid request syntax: error while parsing the parameters at column " +
+                            std::to_string(params_error_.column) + ": " + params_error_.error
+                      // `set_speed 0.5 0.2`: bare values where a list belongs
+                      : "Invalid request syntax: parameters must be a list, e.g. `" + params_error_.example + "`");
     return;
   }
   if (requests_.size() >= decltype(requests_)::k_max_live) {
@@ -318,12 +329,33 @@ void SocketRequestManager::on_oversized_line(const std::shared_ptr<Session>& ses
                     " bytes (max_line_bytes); it was ignored");
 }
 
+void SocketRequestManager::on_input_ended(const std::shared_ptr<Session>& session) {
+  // the client will send nothing more: under "cancel" it has left, and its async requests
+  // end (PREEMPTED, written if it still reads); sync ones are answered as usual
+  cancel_requests_of(*session);
+}
+
 void SocketRequestManager::on_session_closed(const std::shared_ptr<Session>& session) {
   direct_.forget(*session);
-  // its outcomes have nowhere to go: forget them (the requests themselves run on)
+  cancel_requests_of(*session);
+  // its outcomes have nowhere to go: forget them
   session->pending().for_each([this](const IdTable::Entry& e) { requests_.erase(e.id); });
   sessions_.erase(session);
   client_count_.store(sessions_.size(), std::memory_order_relaxed);
+}
+
+void SocketRequestManager::cancel_requests_of(const Session& session) {
+  if (!cancel_on_disconnect_ || stopping_) return;
+  // every unanswered request: a cancel finds the async ones that run (sync ones are not
+  // cancellable, and end as usual). Calls of the read being handled have not reached the
+  // core yet: they are cancelled after it (run_calls).
+  const bool batch_open = batch_count_ > 0;
+  session.pending().for_each([&](const IdTable::Entry& e) {
+    if (batch_open)
+      cancel_after_batch_.push_back(e.id);
+    else
+      cancel(e.id);
+  });
 }
 
 // ---- direct reads (I/O thread)
@@ -438,4 +470,5 @@ void SocketRequestManager::deliver(RequestId id, const Outcome& outcome) try {
 
 SIMGATE_TRANSPORT_PLUGIN(socket, simgate::socket::SocketRequestManager, "0.1.0", "host", "port",
                          "success_word", "max_line_bytes", "max_pending_replies_bytes",
-                         "max_pending_requests", "max_clients", "io_spin_us", "global_policy")
+                         "max_pending_requests", "max_clients", "io_spin_us", "global_policy",
+                         "on_disconnect")

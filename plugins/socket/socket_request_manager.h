@@ -8,7 +8,9 @@
 //
 // Options (plugins/socket/README.md): host, port (0 = ephemeral), success_word
 // ("SUCCESS" | "OK"), max_line_bytes, max_pending_replies_bytes, max_pending_requests,
-// max_clients, io_spin_us, global_policy ("reject" | "preempt").
+// max_clients, io_spin_us, global_policy ("reject" | "preempt"), on_disconnect ("cancel" |
+// "let_run": what becomes of the async requests of a client that leaves, or ends its
+// sending side).
 //
 // Life cycle: the constructor validates the options and binds the listening socket (a
 // port in use fails here, with a clear message); start() launches the I/O thread;
@@ -65,6 +67,7 @@ struct SocketOptions {
   std::size_t max_clients = 1024;                          // connections beyond this are refused
   std::chrono::microseconds io_spin{50};                   // ("io_spin_us")
   GlobalPolicy global_policy = GlobalPolicy::reject;       // ("global_policy")
+  bool cancel_on_disconnect = true;                        // ("on_disconnect": "cancel" | "let_run")
 
   // Every check of the options, resolving the host but binding nothing. Throws ConfigError.
   static SocketOptions parse(const json& options);
@@ -92,6 +95,7 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   // SessionHost (I/O thread)
   void on_line(const std::shared_ptr<Session>& session, std::string_view line) override;
   void on_oversized_line(const std::shared_ptr<Session>& session, std::string_view prefix) override;
+  void on_input_ended(const std::shared_ptr<Session>& session) override;
   void on_lines_done(const std::shared_ptr<Session>& session, bool read_finished) override;
   void write_replies() override;
   bool alone(const Session& session) override { return read_split_.alone(&session); }
@@ -127,6 +131,9 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   void flush_touched();
 
   void accept_next();
+  // The client left (on_disconnect "cancel"): its async requests are cancelled. Those of
+  // the read being handled are cancelled once they have gone to the core (run_calls).
+  void cancel_requests_of(const Session& session);
   // Queues the reply to `id` on its connection (nothing if the connection is gone). Never
   // throws: a failure is logged.
   void deliver(RequestId id, const Outcome& outcome);
@@ -153,6 +160,8 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   SessionLimits limits_;                     // per-connection limits
   std::size_t max_clients_ = 1024;           // connections beyond this are refused
   std::chrono::microseconds io_spin_{50};    // ("io_spin_us") how long the I/O thread polls before sleeping (idle_spin.h)
+  bool cancel_on_disconnect_ = true;         // ("on_disconnect") a client that leaves cancels its requests
+  bool stopping_ = false;                    // close_all() runs: closed sessions cancel nothing (I/O thread)
   std::uint64_t next_session_ = 1;           // numbers sessions in logs
   std::unordered_set<std::shared_ptr<Session>> sessions_;  // open connections (I/O thread)
   std::atomic<std::size_t> client_count_{0};  // sessions_.size(), for any thread
@@ -165,6 +174,7 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   static constexpr std::size_t k_kept_calls = 1024;
   std::vector<std::pair<RequestId, Call>> batch_;
   std::size_t batch_count_ = 0;
+  std::vector<RequestId> cancel_after_batch_;  // cancels of a client that left, after the batch (I/O thread)
   ParamsParse params_error_;                 // the last parameters syntax error (I/O thread)
   std::mutex replies_mutex_;                 // guards replies_ and flush_scheduled_
   std::vector<Reply> replies_;               // replies waiting for the I/O thread

@@ -124,6 +124,27 @@ TEST(SocketParamsParser, NothingIsEvaluated) {
   EXPECT_THAT(bad("(lambda: 0,)").error, HasSubstr("unknown name 'lambda'"));
 }
 
+TEST(SocketParamsParser, BareValuesAreAnErrorThatShowsTheListMeant) {
+  EXPECT_EQ(bad("0.5 0.2").example, "[0.5, 0.2]");
+  EXPECT_EQ(bad(" 0.5,  0.2 ").example, "[0.5, 0.2]");
+  EXPECT_EQ(bad("1 'a' True None").example, "[1, \"a\", true, null]");
+  EXPECT_EQ(bad("(1, 2) 3").example, "[[1, 2], 3]");
+}
+
+TEST(SocketParamsParser, OtherErrorsShowNoList) {
+  EXPECT_EQ(bad("[1, 2] extra").example, "");
+  EXPECT_EQ(bad("0.5 x").example, "");
+  EXPECT_EQ(bad("(1,2").example, "");
+  // a reused result forgets the previous example
+  ParamsParse reused;
+  json value;
+  EXPECT_FALSE(parse_params_into("1 2", 1, value, reused));
+  EXPECT_EQ(reused.example, "[1, 2]");
+  EXPECT_FALSE(parse_params_into("(1,", 1, value, reused));
+  EXPECT_EQ(reused.example, "");
+  EXPECT_EQ(ok("0.5"), json(0.5));  // one bare value is a value (the core says it is not a list)
+}
+
 TEST(SocketParamsParser, ErrorsSayWhereWithTheLineColumn) {
   ParamsParse p = parse_params("(1, 2", 20);
   EXPECT_EQ(p.error, "expected ',' or ')' in tuple but found the end of the parameters");

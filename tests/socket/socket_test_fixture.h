@@ -63,6 +63,7 @@ class SocketFixture : public ::testing::Test {
     if (!options.contains("port")) options["port"] = 0;
     manager_ = plugin_->create(options, "transports.socket");
     register_services(*manager_);
+    register_more(*manager_);
     manager_->start();
     const std::string endpoint = manager_->endpoints().at(0);
     port_ = static_cast<std::uint16_t>(std::stoi(endpoint.substr(endpoint.rfind(':') + 1)));
@@ -100,6 +101,9 @@ class SocketFixture : public ::testing::Test {
     for (std::size_t i = 0; i < n; ++i) out.insert(next_line(c));
     return out;
   }
+
+  // A fixture's own services, registered after the common ones.
+  virtual void register_more(RequestManager& /*rm*/) {}
 
   static void register_services(RequestManager& rm) {
     rm.register_service("test_component", [](json a, json b) { return python_add(a, b); }, "add", {"a", "b"});

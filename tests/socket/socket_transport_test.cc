@@ -5,7 +5,9 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <condition_variable>
 #include <cstring>
+#include <mutex>
 
 #include "socket_test_fixture.h"
 
@@ -170,6 +172,15 @@ TEST_F(SocketTransport, BadParamsSyntaxSaysWhatAndWhere) {
   EXPECT_EQ(roundtrip(*c, "p5 test_component add (1,2)"), "p5 SUCCESS 3");
   // a refused line leaves nothing pending: its id is free at once
   EXPECT_EQ(roundtrip(*c, "p1 test_component add (1,2)"), "p1 SUCCESS 3");
+}
+
+TEST_F(SocketTransport, BareValuesAreRefusedWithTheListMeant) {
+  auto c = connect();
+  EXPECT_EQ(roundtrip(*c, "b1 test_component add 0.5 0.2"),
+            "b1 FAILED \"Invalid request syntax: parameters must be a list, e.g. `[0.5, 0.2]`\"");
+  EXPECT_EQ(roundtrip(*c, "b2 test_component add 'a', \"b\""),
+            "b2 FAILED \"Invalid request syntax: parameters must be a list, e.g. `[\\\"a\\\", \\\"b\\\"]`\"");
+  EXPECT_EQ(roundtrip(*c, "b3 test_component add [0.5, 0.2]"), "b3 SUCCESS 0.7");
 }
 
 TEST_F(SocketTransport, ScalarParamsAreRefusedByTheCore) {
@@ -542,17 +553,6 @@ TEST_F(SocketTransport, NoLocalPolicyFollowsTheGlobalRejectPolicy) {
 
 // ---- clients that vanish, flood or stop reading
 
-TEST_F(SocketTransport, VanishedClientsResultIsDroppedWithoutDisturbingOthers) {
-  {
-    auto gone = connect();
-    gone->send_line("v1 worker hold (1,)");
-    EXPECT_EQ(roundtrip(*gone, "sync test ping"), "sync SUCCESS \"pong\"");
-  }  // closed with v1 pending
-  auto c = connect();
-  EXPECT_EQ(roundtrip(*c, "r worker release (1,)"), "r SUCCESS true");
-  EXPECT_EQ(roundtrip(*c, "p test ping"), "p SUCCESS \"pong\"");  // v1's result went nowhere
-}
-
 TEST_F(SocketTransport, ManyClientsAtOnce) {
   constexpr int k_clients = 8, k_requests = 25;
   std::vector<std::thread> threads;
@@ -583,6 +583,95 @@ TEST_F(SocketTransport, PipelinedRequestsAreAllAnswered) {
   c->send_raw(batch);
   for (int i = 0; i < k_count; ++i)
     ASSERT_EQ(next_line(*c), std::to_string(i) + " SUCCESS " + std::to_string(i + 1));
+}
+
+// ---- clients that leave with requests running (on_disconnect)
+
+// An async component that tells when it is interrupted (interrupt() runs under the
+// simulation lock, on whichever thread holds it; the test thread waits for it).
+class Rover : public Component {
+ public:
+  Rover() : Component("rover") {
+    add_async_service("go", &Rover::go).interruptible();
+    add_service("running", &Rover::running);
+  }
+  void go() {}
+  bool running() const { return has_running_request(); }
+  void interrupt() override {
+    {
+      std::lock_guard lock(mutex_);
+      ++interrupts_;
+    }
+    interrupted_.notify_all();
+    Component::interrupt();
+  }
+  // Waits (bounded) for the first interrupt().
+  bool wait_interrupted(std::chrono::milliseconds timeout) {
+    std::unique_lock lock(mutex_);
+    return interrupted_.wait_for(lock, timeout, [&] { return interrupts_ > 0; });
+  }
+  int interrupts() {
+    std::lock_guard lock(mutex_);
+    return interrupts_;
+  }
+
+ private:
+  std::mutex mutex_;                       // guards interrupts_
+  std::condition_variable interrupted_;    // interrupt() ran
+  int interrupts_ = 0;                     // interrupt() calls
+};
+
+class SocketDisconnect : public SocketFixture {
+ protected:
+  void register_more(RequestManager& rm) override { rm.register_component(rover_); }
+  Rover rover_;  // outlives the manager (TearDown destroys it first)
+};
+
+TEST_F(SocketDisconnect, AClientThatLeavesHasItsAsyncRequestInterrupted) {
+  start_server();
+  auto gone = connect();
+  gone->send_line("g rover go");
+  EXPECT_EQ(roundtrip(*gone, "p test ping"), "p SUCCESS \"pong\"");  // g has started
+  gone.reset();  // closed with g running
+  EXPECT_TRUE(rover_.wait_interrupted(10s));
+  auto other = connect();
+  EXPECT_EQ(roundtrip(*other, "r rover running"), "r SUCCESS false");
+  EXPECT_EQ(rover_.interrupts(), 1);
+}
+
+TEST_F(SocketDisconnect, AClientThatEndsItsInputHasItsAsyncRequestCancelledAndIsTold) {
+  start_server();
+  auto c = connect();
+  c->send_line("g rover go");
+  EXPECT_EQ(roundtrip(*c, "p test ping"), "p SUCCESS \"pong\"");
+  c->shutdown_send();
+  EXPECT_EQ(next_line(*c), "g PREEMPTED");
+  EXPECT_THROW(c->read_line(10s), client::ClientError);  // then the server closes
+  EXPECT_EQ(rover_.interrupts(), 1);
+}
+
+TEST_F(SocketDisconnect, LetRunLeavesTheRequestsOfAClientThatLeftRunning) {
+  start_server({{"on_disconnect", "let_run"}});
+  auto gone = connect();
+  gone->send_line("g rover go");
+  EXPECT_EQ(roundtrip(*gone, "p test ping"), "p SUCCESS \"pong\"");
+  gone.reset();
+  auto other = connect();
+  // a few round trips after the disconnect: the request is still running
+  for (int i = 0; i < 5; ++i) EXPECT_EQ(roundtrip(*other, "r rover running"), "r SUCCESS true");
+  EXPECT_EQ(rover_.interrupts(), 0);
+}
+
+TEST_F(SocketDisconnect, LetRunDropsTheResultOfAClientThatLeftWithoutDisturbingOthers) {
+  start_server({{"on_disconnect", "let_run"}});
+  {
+    auto gone = connect();
+    gone->send_line("v1 worker hold (1,)");
+    EXPECT_EQ(roundtrip(*gone, "sync test ping"), "sync SUCCESS \"pong\"");
+  }  // closed with v1 pending
+  auto c = connect();
+  EXPECT_EQ(roundtrip(*c, "r worker release (1,)"), "r SUCCESS true");
+  EXPECT_EQ(roundtrip(*c, "p test ping"), "p SUCCESS \"pong\"");  // v1's result went nowhere
 }
 
 class SocketTransportLimits : public SocketFixture {};
@@ -752,6 +841,12 @@ TEST_F(SocketTransportLimits, UnknownOrInvalidOptionsAreRefused) {
   }
   EXPECT_THROW(plugin->create({{"port", 70000}}, "transports.socket"), std::exception);
   EXPECT_THROW(plugin->create({{"port", 0}, {"max_line_bytes", 1}}, "transports.socket"), std::exception);
+  try {
+    plugin->create({{"port", 0}, {"on_disconnect", "forget"}}, "transports.socket");
+    FAIL() << "on_disconnect forget accepted";
+  } catch (const std::exception& e) {
+    EXPECT_THAT(e.what(), HasSubstr("on_disconnect"));
+  }
 }
 
 }  // namespace
