@@ -458,8 +458,10 @@ json openrpc_document(const std::vector<ServiceDescriptor>& services, std::strin
     if (d.is_async) {
       // the policy that applies: the service's own, else the transport's global one
       method["x-policy"] = std::string(to_string(d.policy));
-      method["x-interruptible"] = d.policy == Policy::interruptible ||
-                                  (d.policy == Policy::unspecified && global_policy == "preempt");
+      // concurrent: every call runs on its own, none preempts another
+      method["x-concurrent"] = d.concurrent;
+      method["x-interruptible"] = !d.concurrent && (d.policy == Policy::interruptible ||
+                                                    (d.policy == Policy::unspecified && global_policy == "preempt"));
     }
     methods.push_back(std::move(method));
   }

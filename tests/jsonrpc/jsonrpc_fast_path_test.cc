@@ -233,5 +233,27 @@ TEST(JsonRpcFastPath, ResultLineByHandIsTheSameBytes) {
     }
 }
 
+// (protocol.cc's discovery document, tested here where protocol.cc is compiled in)
+TEST(JsonRpcOpenRpc, AConcurrentServiceSaysSoAndIsNotInterruptible) {
+  ServiceDescriptor sleep;
+  sleep.component = "time";
+  sleep.name = "sleep";
+  sleep.is_async = true;
+  sleep.concurrent = true;
+  ServiceDescriptor go = sleep;
+  go.component = "robot.waypoint";
+  go.name = "goto";
+  go.concurrent = false;
+  const json doc = openrpc_document({sleep, go}, "test", "preempt");
+  ASSERT_EQ(doc["methods"].size(), 2u);
+  const json& g = doc["methods"][0];  // sorted by name
+  const json& s = doc["methods"][1];
+  EXPECT_EQ(s["name"], "time.sleep");
+  EXPECT_EQ(s["x-concurrent"], true);
+  EXPECT_EQ(s["x-interruptible"], false);  // a global preempt policy does not apply to it
+  EXPECT_EQ(g["x-concurrent"], false);
+  EXPECT_EQ(g["x-interruptible"], true);
+}
+
 }  // namespace
 }  // namespace simgate::jsonrpc
