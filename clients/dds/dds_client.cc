@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <condition_variable>
+#include <cstdlib>
 #include <cstring>
 #include <map>
 #include <mutex>
@@ -38,6 +39,25 @@ json parse_or_string(const char* text) {
   return value.is_discarded() ? json(text) : value;
 }
 
+// Why a simulation may be invisible: the network settings both sides must share.
+std::string network_hint(const std::string& config) {
+  std::string mine;
+  if (config.empty()) {
+    mine = "simgate's loopback-only settings (the default)";
+  } else if (config == "env") {
+    const char* uri = std::getenv("CYCLONEDDS_URI");
+    mine = uri && *uri ? "CYCLONEDDS_URI=" + std::string(uri)
+                       : "Cyclone's default network settings (CYCLONEDDS_URI is not set)";
+  } else if (config.find('<') == std::string::npos) {
+    mine = "the settings of " + config;
+  } else {
+    mine = "the Cyclone XML it was given";
+  }
+  return "The simulation and this client must share the domain, the partition and the Cyclone network settings: "
+         "this client uses " + mine + "; a simulation's dds transport uses loopback only unless its \"config\" "
+         "option says otherwise (simgate call --dds-config: XML, a file:// URI, or env for CYCLONEDDS_URI).";
+}
+
 }  // namespace
 
 DdsClientOptions DdsClientOptions::from_json(const json& options) {
@@ -69,10 +89,13 @@ class DdsClient::Impl {
   ~Impl();
 
   bool wait_for_server(std::chrono::milliseconds timeout);
+  // Waits up to `discovery` for a server, then writes the request; returns its seq.
   CallId send(simgate_Op op, const std::string& component, const std::string& service, const json& params,
-              CallId target);
+              CallId target, std::chrono::milliseconds discovery);
   bool wait_accepted(CallId id, std::chrono::milliseconds timeout);
-  Outcome wait(CallId id, std::chrono::milliseconds timeout);
+  // `whole`: the caller's whole timeout when part of it went into finding a server (for
+  // the message); 0 = `timeout`.
+  Outcome wait(CallId id, std::chrono::milliseconds timeout, std::chrono::milliseconds whole = {});
   json list_services(std::chrono::milliseconds timeout);
 
   // Caller's thread, with `lock` (on mutex_) held: returns true once done() holds, false at
@@ -285,11 +308,20 @@ bool DdsClient::Impl::wait_for_server(std::chrono::milliseconds timeout) {
 }
 
 DdsClient::CallId DdsClient::Impl::send(simgate_Op op, const std::string& component, const std::string& service,
-                                        const json& params, CallId target) {
-  if (!wait_for_server(options_.discovery_timeout))
-    throw ClientError("DDS client: no simgate server in partition '" + options_.partition + "' of domain " +
-                      std::to_string(options_.domain) + " after " +
-                      std::to_string(options_.discovery_timeout.count()) + " ms");
+                                        const json& params, CallId target, std::chrono::milliseconds discovery) {
+  if (!wait_for_server(discovery)) {
+    std::string found;
+    {
+      std::lock_guard lock(mutex_);
+      found = server_readers_ > 0 ? "found its request reader only"
+              : server_writers_ > 0 ? "found its reply writer only"
+                                    : "found neither";
+    }
+    throw ClientError("DDS client: no simgate simulation in domain " + std::to_string(options_.domain) +
+                      ", partition '" + options_.partition + "' within " + std::to_string(discovery.count()) +
+                      " ms: waited for a simulation's request reader and reply writer to match this client (" +
+                      found + "). " + network_hint(options_.config));
+  }
   CallId seq = next_seq_++;
   {
     std::lock_guard lock(mutex_);
@@ -325,7 +357,7 @@ bool DdsClient::Impl::wait_accepted(CallId id, std::chrono::milliseconds timeout
   return it != slots_.end() && it->second.accepted;
 }
 
-Outcome DdsClient::Impl::wait(CallId id, std::chrono::milliseconds timeout) {
+Outcome DdsClient::Impl::wait(CallId id, std::chrono::milliseconds timeout, std::chrono::milliseconds whole) {
   std::unique_lock lock(mutex_);
   auto finished = [&] {
     auto it = slots_.find(id);
@@ -340,7 +372,7 @@ Outcome DdsClient::Impl::wait(CallId id, std::chrono::milliseconds timeout) {
   if (slot.outcome) return std::move(*slot.outcome);
   if (!done)
     throw ClientError("DDS client: no reply to call " + std::to_string(id) + " within " +
-                      std::to_string(timeout.count()) + " ms");
+                      std::to_string((whole.count() > 0 ? whole : timeout).count()) + " ms");
   throw ClientError(slot.error);
 }
 
@@ -398,8 +430,9 @@ json DdsClient::Impl::list_services(std::chrono::milliseconds timeout) {
   dds_delete(fresh);
   dds_delete(waitset);
   if (entries.empty())
-    throw ClientError("DDS client: no catalog in partition '" + options_.partition + "' of domain " +
-                      std::to_string(options_.domain) + " within " + std::to_string(timeout.count()) + " ms");
+    throw ClientError("DDS client: no simgate simulation in domain " + std::to_string(options_.domain) +
+                      ", partition '" + options_.partition + "' within " + std::to_string(timeout.count()) +
+                      " ms: waited for a simulation's catalog of services. " + network_hint(options_.config));
   json out = json::array();
   for (auto& [component, entry] : entries)
     for (auto& service : entry.services) out.push_back(std::move(service));
@@ -414,22 +447,37 @@ DdsClient::~DdsClient() = default;
 bool DdsClient::wait_for_server(std::chrono::milliseconds timeout) { return impl_->wait_for_server(timeout); }
 
 DdsClient::CallId DdsClient::start(const std::string& component, const std::string& service, const json& params) {
-  return impl_->send(simgate_OP_CALL, component, service, params, 0);
+  return impl_->send(simgate_OP_CALL, component, service, params, 0, impl_->options_.discovery_timeout);
 }
 
 bool DdsClient::wait_accepted(CallId id, std::chrono::milliseconds timeout) { return impl_->wait_accepted(id, timeout); }
 
 Outcome DdsClient::wait(CallId id, std::chrono::milliseconds timeout) { return impl_->wait(id, timeout); }
 
+namespace {
+
+// What is left of `timeout` since `started` (zero at least).
+std::chrono::milliseconds left_of(std::chrono::milliseconds timeout, std::chrono::steady_clock::time_point started) {
+  auto spent = std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - started);
+  return std::max(timeout - spent, std::chrono::milliseconds(0));
+}
+
+}  // namespace
+
 bool DdsClient::cancel(CallId id, std::chrono::milliseconds timeout) {
-  CallId seq = impl_->send(simgate_OP_CANCEL, "", "", nullptr, id);
-  Outcome answer = impl_->wait(seq, timeout);
+  // the timeout bounds the whole cancel, finding the server included
+  auto started = std::chrono::steady_clock::now();
+  CallId seq = impl_->send(simgate_OP_CANCEL, "", "", nullptr, id, timeout);
+  Outcome answer = impl_->wait(seq, left_of(timeout, started), timeout);
   return answer.value && answer.value->is_boolean() && answer.value->get<bool>();
 }
 
 Outcome DdsClient::call(const std::string& component, const std::string& service, const json& params,
                         std::chrono::milliseconds timeout) {
-  return impl_->wait(start(component, service, params), timeout);
+  // the timeout bounds the whole call, finding the server included (not discovery_timeout)
+  auto started = std::chrono::steady_clock::now();
+  CallId seq = impl_->send(simgate_OP_CALL, component, service, params, 0, timeout);
+  return impl_->wait(seq, left_of(timeout, started), timeout);
 }
 
 json DdsClient::list_services(std::chrono::milliseconds timeout) { return impl_->list_services(timeout); }

@@ -343,19 +343,38 @@ TEST_F(DdsTransportTest, ListWithoutServerFailsClearly) {
     FAIL() << "list_services without a server returned";
   } catch (const ClientError& e) {
     EXPECT_NE(std::string(e.what()).find(test_partition()), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("catalog"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("network settings"), std::string::npos) << e.what();
   }
 }
 
 TEST_F(DdsTransportTest, CallWithoutServerFailsClearly) {
-  json options = client_options(test_partition());
-  options["discovery_timeout_ms"] = 300;
-  DdsClient client(DdsClientOptions::from_json(options));
+  DdsClient client(DdsClientOptions::from_json(client_options(test_partition())));
   try {
-    client.call("calc", "add", {1, 2}, 1s);
+    client.call("calc", "add", {1, 2}, 300ms);
     FAIL() << "call without a server returned";
   } catch (const ClientError& e) {
-    EXPECT_NE(std::string(e.what()).find("no simgate server"), std::string::npos) << e.what();
+    std::string what = e.what();
+    EXPECT_NE(what.find("no simgate simulation in domain " + std::to_string(test_domain()) + ", partition '" +
+                        test_partition() + "'"),
+              std::string::npos)
+        << what;
+    EXPECT_NE(what.find("request reader and reply writer"), std::string::npos) << what;
+    EXPECT_NE(what.find("the settings of " + loopback_uri()), std::string::npos) << what;
   }
+}
+
+TEST_F(DdsTransportTest, CallTimeoutBoundsTheWaitForAServer) {
+  // discovery_timeout (10 s by default) is for start(); call() waits its own timeout
+  DdsClient client(DdsClientOptions::from_json(client_options(test_partition())));
+  auto started = std::chrono::steady_clock::now();
+  try {
+    client.call("calc", "add", {1, 2}, 500ms);
+    FAIL() << "call without a server returned";
+  } catch (const ClientError& e) {
+    EXPECT_NE(std::string(e.what()).find("within 500 ms"), std::string::npos) << e.what();
+  }
+  EXPECT_LT(std::chrono::steady_clock::now() - started, 5s);
 }
 
 // The discovery race: the request reaches the server before the server has matched the

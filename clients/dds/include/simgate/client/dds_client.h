@@ -39,7 +39,8 @@ struct DdsClientOptions {
   std::uint32_t domain = 0;            // DDS domain id of the simulation
   std::string partition = "simgate";   // its partition
   std::string config;                  // Cyclone XML or file:// URI; "" = loopback; "env"
-  std::chrono::milliseconds discovery_timeout{10000};  // how long start() waits for a server
+  std::chrono::milliseconds discovery_timeout{10000};  // how long start() waits for a server (call(),
+                                                       // cancel() and list_services() wait their timeout)
 
   // From {"domain", "partition", "config", "discovery_timeout_ms"}; throws ClientError.
   static DdsClientOptions from_json(const json& options);
@@ -68,10 +69,13 @@ class DdsClient final : public Client {
   // Each call's outcome can be waited for once.
   Outcome wait(CallId id, std::chrono::milliseconds timeout);
   // Cancels a pending call of this client. True if the server found it running (it then
-  // ends PREEMPTED, Failure::cancelled). Throws ClientError on timeout.
+  // ends PREEMPTED, Failure::cancelled). Throws ClientError on timeout (which bounds finding
+  // the server too).
   bool cancel(CallId id, std::chrono::milliseconds timeout);
 
-  // Client interface: start() + wait().
+  // Client interface: start() + wait(), `timeout` bounding both (finding a server included).
+  // A ClientError for no server names the domain, the partition, what was missing and the
+  // network settings in use.
   Outcome call(const std::string& component, const std::string& service, const json& params,
                std::chrono::milliseconds timeout) override;
   // The catalog: a JSON array of ServiceDescriptor::to_json() objects, by component name.
