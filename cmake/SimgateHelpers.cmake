@@ -20,9 +20,54 @@ function(simgate_add_transport_plugin name)
     set_target_properties(${target} PROPERTIES LIBRARY_OUTPUT_DIRECTORY ${SIMGATE_PLUGIN_BUILD_DIR})
   endif()
   if(DEFINED SIMGATE_PLUGIN_INSTALL_DIR AND TARGET simgate_core AND NOT arg_NO_INSTALL)
+    # installed in <libdir>/simgate/plugins, it finds libsimgate_core in <libdir>: $ORIGIN/../..
+    simgate_install_rpath(rpath ${SIMGATE_PLUGIN_INSTALL_DIR})
+    set_target_properties(${target} PROPERTIES INSTALL_RPATH "${rpath}")
     install(TARGETS ${target} LIBRARY DESTINATION ${SIMGATE_PLUGIN_INSTALL_DIR})
   endif()
 endfunction()
+
+# simgate_install_rpath(VAR DIR)
+#   Sets VAR to "$ORIGIN/<path from DIR to CMAKE_INSTALL_LIBDIR>" (both relative to the
+#   install prefix): an installed file in DIR finds simgate's libraries wherever the prefix
+#   is moved. Falls back to the absolute library directory when either is absolute.
+function(simgate_install_rpath var dir)
+  if(IS_ABSOLUTE "${dir}" OR IS_ABSOLUTE "${CMAKE_INSTALL_LIBDIR}")
+    set(${var} "${CMAKE_INSTALL_FULL_LIBDIR}" PARENT_SCOPE)
+    return()
+  endif()
+  file(RELATIVE_PATH rel "/simgate-prefix/${dir}" "/simgate-prefix/${CMAKE_INSTALL_LIBDIR}")
+  string(REGEX REPLACE "/+$" "" rel "${rel}")
+  if(rel STREQUAL "")
+    set(${var} "$ORIGIN" PARENT_SCOPE)
+  else()
+    set(${var} "$ORIGIN/${rel}" PARENT_SCOPE)
+  endif()
+endfunction()
+
+# simgate_find_mujoco()
+#   Defines the imported target simgate::mujoco (MuJoCo's library and headers) unless it
+#   exists; sets SIMGATE_MUJOCO_FOUND. Debian's libmujoco-dev ships a CMake package whose
+#   target names an include directory the package does not install (/usr/include/libqhull_r),
+#   so the library and the header are found directly (MUJOCO_LIBRARY, MUJOCO_INCLUDE_DIR
+#   may be set to point elsewhere). Used by the tree and by the installed simgateConfig.cmake.
+macro(simgate_find_mujoco)
+  if(NOT TARGET simgate::mujoco)
+    find_library(MUJOCO_LIBRARY NAMES mujoco)
+    find_path(MUJOCO_INCLUDE_DIR mujoco/mujoco.h)
+    if(MUJOCO_LIBRARY AND MUJOCO_INCLUDE_DIR)
+      add_library(simgate::mujoco UNKNOWN IMPORTED)
+      set_target_properties(simgate::mujoco PROPERTIES
+        IMPORTED_LOCATION "${MUJOCO_LIBRARY}"
+        INTERFACE_INCLUDE_DIRECTORIES "${MUJOCO_INCLUDE_DIR}")
+    endif()
+  endif()
+  if(TARGET simgate::mujoco)
+    set(SIMGATE_MUJOCO_FOUND TRUE)
+  else()
+    set(SIMGATE_MUJOCO_FOUND FALSE)
+  endif()
+endmacro()
 
 # simgate_add_test(NAME SOURCES... [LIBS libs...] [LABELS labels...] [TIMEOUT s])
 #   A GoogleTest executable registered with CTest, test by test.

@@ -45,8 +45,30 @@ std::vector<std::string> plugin_search_path(const std::vector<std::string>& extr
       if (!dir.empty()) dirs.push_back(dir);
   }
   dirs.insert(dirs.end(), extra_dirs.begin(), extra_dirs.end());
-  dirs.push_back(SIMGATE_BUILD_PLUGIN_DIR);
-  dirs.push_back(SIMGATE_INSTALL_PLUGIN_DIR);
+  // Then the plugins that came with this libsimgate_core, found from where it runs: the
+  // build tree's plugin directory when it is the build tree's library, else
+  // <its directory>/simgate/plugins, an installed prefix's own (still right after the prefix
+  // moved). An installed binary never looks in the build tree.
+  auto resolved = [](const char* path) {
+    std::string out;
+    if (char* real = ::realpath(path, nullptr)) {
+      out = real;
+      std::free(real);
+    }
+    return out;
+  };
+  static const char anchor = 0;  // an object inside this library
+  Dl_info info{};
+  const std::string library = ::dladdr(&anchor, &info) && info.dli_fname ? resolved(info.dli_fname) : std::string();
+  const std::string::size_type slash = library.find_last_of('/');
+  if (slash == std::string::npos) {
+    dirs.push_back(SIMGATE_INSTALL_PLUGIN_DIR);  // where it runs from is unknown: the configured prefix
+  } else {
+    const std::string library_dir = library.substr(0, slash);
+    const bool build_tree = library_dir == resolved(SIMGATE_BUILD_LIB_DIR);
+    dirs.push_back(build_tree ? std::string(SIMGATE_BUILD_PLUGIN_DIR)
+                              : library_dir + "/" + SIMGATE_PLUGIN_DIR_FROM_LIBDIR);
+  }
   return dirs;
 }
 

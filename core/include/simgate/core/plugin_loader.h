@@ -3,8 +3,13 @@
 // load_transport("socket") searches, in order:
 //   1. an explicit path (a name containing '/' or ending in ".so"),
 //   2. each directory of $SIMGATE_PLUGIN_PATH (colon-separated),
-//   3. extra directories given by the caller (e.g. next to the config file),
-//   4. the build tree's plugin directory, then the install prefix's lib/simgate/plugins,
+//   3. extra directories given by the caller (the gateway: --plugin-path, then the config
+//      file's directory),
+//   4. the plugins that came with this libsimgate_core, found from where the library runs
+//      (dladdr): the build tree's plugin directory when it is the build tree's library,
+//      otherwise <the library's directory>/simgate/plugins, i.e. the install prefix's
+//      <libdir>/simgate/plugins, wherever the prefix was installed or moved to (an installed
+//      binary never searches the build tree),
 // for libsimgate_transport_<name>.so, opens it with dlopen(RTLD_NOW | RTLD_LOCAL), finds
 // simgate_transport_<name>_entry, and checks the ABI version, descriptor size, build tag,
 // name and required functions. Every refusal throws PluginError naming the plugin, the

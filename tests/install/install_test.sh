@@ -1,0 +1,212 @@
+#!/usr/bin/env bash
+# The newcomer's path: `cmake --install` this build into a temporary prefix (<tmp>/opt/simgate),
+# then, with the build and source trees hidden (an empty tmpfs mounted over each in a private
+# mount namespace) and from an unrelated directory (/), run the *installed* simgate:
+# --version, `check` of every shipped config, `run` of the installed demo (a copy beside it
+# with port 0) and one `simgate call` to it, then `simulation quit`. Also: RUNPATHs of the
+# installed binaries (relative, never the build tree), a program built with nothing but
+# `pkg-config --cflags --libs simgate`, and the prefix moved elsewhere still working.
+#   install_test.sh BUILD_DIR SOURCE_DIR CXX VERSION BINDIR LIBDIR DATADIR [SANITIZE]
+# Exits 77 (skipped) only when this machine allows no private mount namespace.
+set -euo pipefail
+build_dir=$(realpath "$1") source_dir=$(realpath "$2") cxx=$3 version=$4
+bindir=$5 libdir=$6 datadir=$7 sanitize=${8:-}
+here=$(cd "$(dirname "$0")" && pwd)
+
+fail() { echo "FAILED: $*" >&2; exit 1; }
+
+work=$(realpath "$(mktemp -d)")
+trap 'rm -rf "$work"' EXIT
+case "$work/" in
+  "$build_dir"/* | "$source_dir"/*) fail "the temporary directory $work is inside the trees it must hide" ;;
+esac
+prefix=$work/opt/simgate
+
+# --- install -----------------------------------------------------------------------------
+timeout 300 cmake --install "$build_dir" --prefix "$prefix" >"$work/install.log" ||
+  { cat "$work/install.log"; fail "cmake --install"; }
+for f in "$bindir/simgate" \
+         "$libdir/libsimgate_core.so" "$libdir/libsimgate_sim.so" "$libdir/libsimgate_clients.so" \
+         "$libdir/simgate/plugins/libsimgate_transport_socket.so" \
+         "$libdir/simgate/plugins/libsimgate_transport_jsonrpc.so" \
+         include/simgate/core/plugin.h include/simgate/sim/simulation.h include/simgate/client/client.h \
+         "$libdir/cmake/simgate/simgateConfig.cmake" "$libdir/cmake/simgate/simgateTargets.cmake" \
+         "$libdir/pkgconfig/simgate.pc" "$libdir/pkgconfig/simgate-core.pc" \
+         "$libdir/pkgconfig/simgate-sim.pc" "$libdir/pkgconfig/simgate-clients.pc" \
+         "$datadir/simgate/config/demo.json" "$datadir/simgate/config/all-transports.json" \
+         "$datadir/simgate/config/scenes/demo.xml" "$datadir/simgate/config/dds/loopback.xml" \
+         "$datadir/doc/simgate/LICENSE"; do
+  [ -e "$prefix/$f" ] || fail "not installed: $f"
+done
+echo "installed into $prefix"
+
+# --- RUNPATH: present, relative to the file ($ORIGIN), never the build or source tree ----
+elves=("$prefix/$bindir/simgate")
+while IFS= read -r -d '' f; do elves+=("$f"); done < <(find "$prefix/$libdir" -name '*.so*' -type f -print0)
+for f in "${elves[@]}"; do
+  dynamic=$(readelf -d "$f")
+  runpath=$(sed -n 's/.*(RUNPATH).*\[\(.*\)\]/\1/p' <<<"$dynamic")
+  [ -n "$runpath" ] || fail "$f has no RUNPATH"
+  ! grep -q '(RPATH)' <<<"$dynamic" || fail "$f has an RPATH (searched before LD_LIBRARY_PATH): $dynamic"
+  [[ $runpath == *'$ORIGIN'* ]] || fail "$f: RUNPATH '$runpath' is not relative to the file"
+  case ":$runpath:" in
+    *"$build_dir"* | *"$source_dir"*) fail "$f: RUNPATH '$runpath' names the build or source tree" ;;
+  esac
+  echo "RUNPATH ${f#"$prefix"/}: $runpath"
+done
+
+# --- what runs hidden from the trees -----------------------------------------------------
+config_dir=$prefix/$datadir/simgate/config
+# the demo on a port the kernel picks, beside the installed demo so its scene resolves the same
+sed 's/"port": 4000/"port": 0/' "$config_dir/demo.json" >"$config_dir/install-test-demo.json"
+grep -q '"port": 0' "$config_dir/install-test-demo.json" || fail "demo.json has no \"port\": 4000 to replace"
+
+# sanitizer suppression files live in the source tree, which is about to disappear
+for var in ASAN_OPTIONS LSAN_OPTIONS TSAN_OPTIONS UBSAN_OPTIONS; do
+  value=${!var:-}
+  [[ $value == *suppressions=* ]] || continue
+  file=$(sed -E 's/.*suppressions=([^:]*).*/\1/' <<<"$value")
+  [ -f "$file" ] || continue
+  cp "$file" "$work/$var.supp"
+  export "$var=${value/suppressions=$file/suppressions=$work/$var.supp}"
+done
+cp "$here/pkg_config_probe.cc" "$work/"
+
+# a private mount namespace: as root, or as an unprivileged user through a user namespace
+mkdir "$work/mount-probe"
+hide=()
+for candidate in "unshare --mount --propagation private" \
+                 "unshare --user --map-root-user --mount --propagation private"; do
+  # shellcheck disable=SC2086
+  if timeout 30 $candidate sh -c "mount -t tmpfs simgate-probe '$work/mount-probe'" 2>/dev/null; then
+    read -r -a hide <<<"$candidate"
+    break
+  fi
+done
+if [ ${#hide[@]} -eq 0 ]; then
+  echo "SKIPPED: this machine allows no private mount namespace (unshare --mount, as root or with" \
+       "a user namespace), so the build tree cannot be hidden from the installed simgate"
+  exit 77
+fi
+echo "hiding $build_dir and $source_dir with: ${hide[*]}"
+
+export BUILD_DIR=$build_dir SOURCE_DIR=$source_dir WORK=$work PREFIX=$prefix VERSION=$version
+export BINDIR=$bindir LIBDIR=$libdir DATADIR=$datadir CXX_COMPILER=$cxx SANITIZE=$sanitize
+timeout 420 "${hide[@]}" bash -s <<'INNER'
+set -euo pipefail
+fail() { echo "FAILED: $*" >&2; exit 1; }
+mount -t tmpfs -o size=1m simgate-hidden-build "$BUILD_DIR"
+mount -t tmpfs -o size=1m simgate-hidden-source "$SOURCE_DIR"
+[ ! -e "$BUILD_DIR/CMakeCache.txt" ] && [ ! -e "$SOURCE_DIR/CMakeLists.txt" ] || fail "the trees are not hidden"
+cd /
+unset SIMGATE_PLUGIN_PATH LD_LIBRARY_PATH CYCLONEDDS_URI
+
+# everything the installed simgate does, from a prefix at $1
+exercise() {
+  local prefix=$1 simgate=$1/$BINDIR/simgate config_dir=$1/$DATADIR/simgate/config
+  local out
+  out=$(timeout 30 "$simgate" --version) || fail "simgate --version"
+  [[ $out == *"$VERSION"* ]] || fail "simgate --version printed '$out', expected $VERSION"
+  echo "$prefix: simgate --version: $out"
+  for config in "$config_dir"/*.json; do
+    # a config naming a transport this build did not install (dds without Cyclone) is not checked
+    local missing=""
+    for plugin in $(grep -o '"plugin": *"[a-z]*"' "$config" | sed 's/.*"\([a-z]*\)"$/\1/'); do
+      [ -f "$prefix/$LIBDIR/simgate/plugins/libsimgate_transport_$plugin.so" ] || missing=$plugin
+    done
+    if [ -n "$missing" ]; then
+      echo "$config: not checked, transport '$missing' not installed"
+      continue
+    fi
+    timeout 60 "$simgate" check "$config" || fail "simgate check $config"
+  done
+}
+
+# --- run the installed demo from /opt/simgate-like prefix, one call, quit -----------------
+exercise "$PREFIX"
+simgate=$PREFIX/$BINDIR/simgate
+timeout 120 "$simgate" run "$PREFIX/$DATADIR/simgate/config/install-test-demo.json" \
+  --endpoints-file "$WORK/endpoints.json" >"$WORK/run.log" 2>&1 &
+run=$!
+# bounded wait for the endpoints file (written once every transport listens), or the run's end
+for _ in $(seq 600); do
+  [ -s "$WORK/endpoints.json" ] && break
+  kill -0 "$run" 2>/dev/null || break
+  sleep 0.1
+done
+if [ ! -s "$WORK/endpoints.json" ]; then
+  kill "$run" 2>/dev/null || true
+  wait "$run" || true
+  cat "$WORK/run.log"
+  fail "simgate run wrote no endpoints file"
+fi
+port=$(grep -o 'tcp://127\.0\.0\.1:[0-9]*' "$WORK/endpoints.json" | head -n 1 | sed 's/.*://')
+[ -n "$port" ] || { kill "$run"; cat "$WORK/endpoints.json"; fail "no tcp endpoint"; }
+robots=$(timeout 30 "$simgate" call --port "$port" simulation list_robots) || { kill "$run"; fail "simgate call"; }
+echo "simgate call --port $port simulation list_robots: $robots"
+[ "$robots" = '["robot","human"]' ] || { kill "$run"; fail "expected [\"robot\",\"human\"]"; }
+timeout 30 "$simgate" call --port "$port" simulation quit || { kill "$run"; fail "simulation quit"; }
+status=0
+wait "$run" || status=$?
+sed 's/^/  | /' "$WORK/run.log"
+[ $status -eq 0 ] || fail "simgate run exited $status"
+echo "simgate run of the installed demo: served one call, quit, exit 0"
+
+# --- the prefix moved elsewhere still works (RUNPATH, plugins and pkg-config are relative) ---
+moved=$WORK/moved/simgate
+mkdir -p "$WORK/moved"
+mv "$PREFIX" "$moved"
+exercise "$moved"
+
+# a program built with pkg-config alone, against the moved prefix
+export PKG_CONFIG_PATH=$moved/$LIBDIR/pkgconfig
+flags=$(pkg-config --cflags --libs simgate) || fail "pkg-config --cflags --libs simgate"
+echo "pkg-config --cflags --libs simgate: $flags"
+case "$SANITIZE" in
+  address) sanitize_flags=(-fsanitize=address,undefined) ;;
+  thread) sanitize_flags=(-fsanitize=thread) ;;
+  *) sanitize_flags=() ;;
+esac
+# shellcheck disable=SC2086
+timeout 300 "$CXX_COMPILER" -std=c++20 "${sanitize_flags[@]}" -o "$WORK/pkg_config_probe" \
+  "$WORK/pkg_config_probe.cc" $flags -Wl,-rpath,"$moved/$LIBDIR" || fail "building against pkg-config's flags"
+out=$(timeout 30 "$WORK/pkg_config_probe") || fail "pkg_config_probe"
+echo "$out"
+last_dir=$(grep '^plugin dir: ' <<<"$out" | tail -n 1 | sed 's/^plugin dir: //')
+[ "$last_dir" = "$moved/$LIBDIR/simgate/plugins" ] ||
+  fail "libsimgate_core searches '$last_dir' last, expected its own prefix's $moved/$LIBDIR/simgate/plugins"
+grep -q "client: no client for transport 'carrier-pigeon'" <<<"$out" || fail "clients library"
+
+# the same program through the CMake package: find_package(simgate) gives core, sim, clients
+mkdir "$WORK/cmake-consumer" "$WORK/cmake-core-only"
+cat >"$WORK/cmake-consumer/CMakeLists.txt" <<'EOF'
+cmake_minimum_required(VERSION 3.25)
+project(simgate_consumer LANGUAGES CXX)
+set(CMAKE_CXX_STANDARD 20)
+find_package(simgate 0.1 REQUIRED)
+add_executable(probe ../pkg_config_probe.cc)
+target_link_libraries(probe PRIVATE simgate::core simgate::sim simgate::clients)
+EOF
+timeout 120 cmake -S "$WORK/cmake-consumer" -B "$WORK/cmake-consumer/build" -G Ninja \
+  -DCMAKE_PREFIX_PATH="$moved" -DCMAKE_CXX_COMPILER="$CXX_COMPILER" \
+  -DCMAKE_CXX_FLAGS="${sanitize_flags[*]}" -DCMAKE_EXE_LINKER_FLAGS="${sanitize_flags[*]}" >"$WORK/consumer.log" ||
+  { cat "$WORK/consumer.log"; fail "find_package(simgate)"; }
+timeout 300 cmake --build "$WORK/cmake-consumer/build" >>"$WORK/consumer.log" ||
+  { cat "$WORK/consumer.log"; fail "building against simgate::core, simgate::sim, simgate::clients"; }
+out=$(timeout 30 "$WORK/cmake-consumer/build/probe") || fail "the CMake-built probe"
+grep -qx "plugin dir: $moved/$LIBDIR/simgate/plugins" <<<"$out" || fail "CMake-built probe: $out"
+echo "find_package(simgate): a program linking simgate::core, simgate::sim and simgate::clients builds and runs"
+# a transport plugin's project asks for core alone
+cat >"$WORK/cmake-core-only/CMakeLists.txt" <<'EOF'
+cmake_minimum_required(VERSION 3.25)
+project(simgate_core_only LANGUAGES CXX)
+find_package(simgate 0.1 REQUIRED COMPONENTS core)
+if(NOT TARGET simgate::core OR simgate_sim_FOUND OR NOT COMMAND simgate_add_transport_plugin)
+  message(FATAL_ERROR "COMPONENTS core: simgate::core and simgate_add_transport_plugin, sim not searched")
+endif()
+EOF
+timeout 120 cmake -S "$WORK/cmake-core-only" -B "$WORK/cmake-core-only/build" -G Ninja \
+  -DCMAKE_PREFIX_PATH="$moved" >"$WORK/core-only.log" || { cat "$WORK/core-only.log"; fail "COMPONENTS core"; }
+echo "find_package(simgate COMPONENTS core): OK"
+echo "installed tree: every check passed"
+INNER
