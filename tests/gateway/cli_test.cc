@@ -1,15 +1,93 @@
-// GatewayCli: the `simgate` executable — help, version, check, run (endpoints file,
-// SIGTERM, `simulation quit`), call.
+// GatewayCli: the `simgate` executable — help (top level and per command), version, check,
+// run (endpoints file, SIGTERM, `simulation quit`, --status), call (positional and named
+// ARGS, SUCCESS for no value), list (--json), client options, DDS discovery bounded by
+// --timeout; and call_params() in-process.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <functional>
+#include <regex>
+#include <sstream>
+
+#include "simgate/gateway/cli.h"
 #include "test_support.h"
 
 namespace simgate::gateway {
 namespace {
 
 using ::testing::HasSubstr;
+using ::testing::Not;
 using namespace testing;
+
+// The outcome of a simgate run, stdout and stderr apart.
+struct CliRun {
+  int code = -1;    // exit code (-1: still running at the deadline)
+  std::string out;  // stdout
+  std::string err;  // stderr
+  std::chrono::steady_clock::duration took{};  // from start to exit
+};
+
+CliRun run_split(std::vector<std::string> args, const TempDir& dir, std::chrono::milliseconds timeout = 60s) {
+  args.insert(args.begin(), simgate_binary());
+  auto started = std::chrono::steady_clock::now();
+  Process p(args, dir.file(""));
+  auto code = p.wait(timeout);
+  return {code.value_or(-1), p.out(), p.err(), std::chrono::steady_clock::now() - started};
+}
+
+// The first line of `text` matching `pattern`, or "".
+std::string matching_line(const std::string& text, const std::regex& pattern) {
+  std::istringstream lines(text);
+  for (std::string line; std::getline(lines, line);)
+    if (std::regex_match(line, pattern)) return line;
+  return "";
+}
+
+// Waits (bounded) for a line of the process's stdout matching `pattern`; runs `meanwhile`
+// between two looks (which paces the loop), or polls the output file every 10 ms.
+std::string wait_for_line(const Process& p, const std::regex& pattern, const std::function<void()>& meanwhile = {},
+                          std::chrono::milliseconds timeout = 30s) {
+  auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (std::chrono::steady_clock::now() < deadline) {
+    std::string line = matching_line(p.out(), pattern);
+    if (!line.empty()) return line;
+    if (meanwhile) {
+      meanwhile();
+    } else {
+      std::this_thread::sleep_for(10ms);  // polling a file another process writes; bounded
+    }
+  }
+  return "";
+}
+
+// A gateway running the demo on an ephemeral socket port (stopped with SIGTERM at the end).
+class RunningDemo {
+ public:
+  explicit RunningDemo(const TempDir& dir, std::vector<std::string> extra = {}) {
+    std::string config = dir.write("demo.json", demo_config().dump());
+    std::string endpoints = dir.file("endpoints.json");
+    std::vector<std::string> args = {simgate_binary(), "run", config, "--endpoints-file", endpoints};
+    args.insert(args.end(), extra.begin(), extra.end());
+    process_ = std::make_unique<Process>(args, dir.file(""));
+    json e = json::parse(wait_for_file(endpoints), nullptr, false);
+    if (e.contains("socket")) port_ = port_of(e["socket"][0].get<std::string>());
+  }
+  ~RunningDemo() {
+    process_->signal(SIGTERM);
+    process_->wait();
+  }
+  int port() const { return port_; }
+  Process& process() { return *process_; }
+  // Stops it; returns its exit code.
+  std::optional<int> stop() {
+    process_->signal(SIGTERM);
+    return process_->wait();
+  }
+
+ private:
+  std::unique_ptr<Process> process_;  // simgate run
+  int port_ = 0;                      // its socket transport, 0 if it did not start
+};
 
 TEST(GatewayCliTest, HelpAndVersion) {
   TempDir dir;
@@ -150,13 +228,215 @@ TEST(GatewayCliTest, ClientOptionsAreChecked) {
   TempDir dir;
   auto [dcode, dout] = run_simgate({"call", "--transport", "dds", "--domain", "999", "simulation", "list_robots"}, dir);
   EXPECT_EQ(dcode, 2);
-  EXPECT_THAT(dout, HasSubstr("--domain: expected an integer from 0 to 232, found '999'"));
+  EXPECT_THAT(dout, HasSubstr("--domain: expected an integer from 0 to 230, found '999'"));
   auto [pcode, pout] = run_simgate({"call", "--port", "70000", "simulation", "list_robots"}, dir);
   EXPECT_EQ(pcode, 2);
   EXPECT_THAT(pout, HasSubstr("--port: expected an integer from 1 to 65535, found '70000'"));
   auto [hcode, hout] = run_simgate({"call", "--transport", "dds", "--host", "127.0.0.1", "simulation", "list_robots"}, dir);
   EXPECT_EQ(hcode, 2);
   EXPECT_THAT(hout, HasSubstr("--host"));
+}
+
+TEST(GatewayCliTest, EveryCommandHasItsOwnHelp) {
+  TempDir dir;
+  for (std::string command : {"run", "check", "call", "list"}) {
+    for (std::string flag : {"--help", "-h"}) {
+      CliRun r = run_split({command, flag}, dir);
+      EXPECT_EQ(r.code, 0) << command << " " << flag << ": " << r.err;
+      EXPECT_THAT(r.out, HasSubstr("Usage: simgate " + command)) << command << " " << flag;
+      EXPECT_THAT(r.out, HasSubstr("Exit codes: 0 success")) << command << " " << flag;
+    }
+  }
+  // each help names its own options
+  EXPECT_THAT(run_split({"run", "--help"}, dir).out, HasSubstr("--status [SECONDS]"));
+  EXPECT_THAT(run_split({"call", "--help"}, dir).out, HasSubstr("COMPONENT SERVICE [ARGS...]"));
+  EXPECT_THAT(run_split({"call", "--help"}, dir).out, HasSubstr("name=value"));
+  EXPECT_THAT(run_split({"list", "--help"}, dir).out, HasSubstr("--json"));
+  EXPECT_THAT(run_split({"check", "--help"}, dir).out, Not(HasSubstr("--status")));
+  // `simgate help COMMAND` is the same
+  EXPECT_THAT(run_split({"help", "call"}, dir).out, HasSubstr("Usage: simgate call"));
+}
+
+TEST(GatewayCliTest, HelpOptionIsNotReadAsAConfigFile) {
+  TempDir dir;
+  CliRun r = run_split({"run", "-h"}, dir);
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_THAT(r.err, Not(HasSubstr("-h")));
+  EXPECT_THAT(r.out, HasSubstr("Usage: simgate run [OPTIONS] CONFIG"));
+}
+
+TEST(GatewayCliTest, NoCommandPrintsTheUsageAndFails) {
+  TempDir dir;
+  CliRun r = run_split({}, dir);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_THAT(r.err, HasSubstr("Usage: simgate"));
+  EXPECT_THAT(r.err, HasSubstr("simgate call [CLIENT OPTIONS] COMPONENT SERVICE [ARGS...]"));
+}
+
+TEST(GatewayCliTest, EveryCommandTellsItsVersion) {
+  TempDir dir;
+  for (std::string command : {"run", "check", "call", "list"}) {
+    CliRun r = run_split({command, "--version"}, dir);
+    EXPECT_EQ(r.code, 0) << command;
+    EXPECT_THAT(r.out, HasSubstr("simgate 0.")) << command;
+  }
+}
+
+TEST(GatewayCliTest, MisspeltCommandGetsASuggestion) {
+  TempDir dir;
+  CliRun r = run_split({"cal", "simulation", "list_robots"}, dir);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_THAT(r.err, HasSubstr("unknown command 'cal' (did you mean 'call'?)"));
+}
+
+TEST(GatewayCliTest, MissingOrExtraArgumentsAreUsageErrors) {
+  TempDir dir;
+  CliRun run = run_split({"run"}, dir);
+  EXPECT_EQ(run.code, 2);
+  EXPECT_THAT(run.err, HasSubstr("CONFIG is required"));
+  EXPECT_THAT(run.err, HasSubstr("simgate run --help"));
+  CliRun call = run_split({"call", "simulation"}, dir);
+  EXPECT_EQ(call.code, 2);
+  EXPECT_THAT(call.err, HasSubstr("SERVICE is required"));
+  CliRun list = run_split({"list", "simulation"}, dir);
+  EXPECT_EQ(list.code, 2);
+  EXPECT_THAT(list.err, HasSubstr("simulation"));
+  CliRun option = run_split({"call", "--bogus", "simulation", "list_robots"}, dir);
+  EXPECT_EQ(option.code, 2);
+  EXPECT_THAT(option.err, HasSubstr("--bogus"));
+}
+
+TEST(GatewayCliTest, CallParamsArePositionalOrNamed) {
+  EXPECT_EQ(call_params({}), json::array());
+  EXPECT_EQ(call_params({"1", "-1", "-0.5", "text", "\"quoted\"", "[1,2]", "true", "null"}),
+            json::parse(R"([1, -1, -0.5, "text", "quoted", [1, 2], true, null])"));
+  EXPECT_EQ(call_params({"v=0.5", "w=-0.2", "name=robot", "list=[1,2]", "s=\"a b\"", "empty="}),
+            json::parse(R"({"v": 0.5, "w": -0.2, "name": "robot", "list": [1, 2], "s": "a b", "empty": ""})"));
+  // a string containing '=' is positional once JSON-quoted; so are JSON objects
+  EXPECT_EQ(call_params({"\"a=b\"", R"({"k": "x=y"})"}), json::parse(R"(["a=b", {"k": "x=y"}])"));
+  // a "--" before the ARGS ends nothing more: it is skipped
+  EXPECT_EQ(call_params({"--", "-1", "0"}), json::parse("[-1, 0]"));
+  EXPECT_EQ(call_params({"--", "v=1"}), json::parse(R"({"v": 1})"));
+}
+
+TEST(GatewayCliTest, CallParamsRejectMixedRepeatedAndBadNames) {
+  try {
+    call_params({"v=0.5", "0.2"});
+    ADD_FAILURE() << "mixed ARGS accepted";
+  } catch (const UsageError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("all positional or all named"));
+    EXPECT_THAT(e.what(), HasSubstr("'v=0.5' is named, '0.2' is positional"));
+    EXPECT_THAT(e.what(), HasSubstr("JSON-quoted"));
+  }
+  try {
+    call_params({"v=1", "v=2"});
+    ADD_FAILURE() << "repeated name accepted";
+  } catch (const UsageError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("'v' is given twice"));
+  }
+  try {
+    call_params({"a-b=1"});
+    ADD_FAILURE() << "bad name accepted";
+  } catch (const UsageError& e) {
+    EXPECT_THAT(e.what(), HasSubstr(R"('"a-b=1"')"));
+  }
+}
+
+TEST(GatewayCliTest, CallSendsNamedArgsAndPrintsSuccessForNoValue) {
+  TempDir dir;
+  RunningDemo demo(dir, {"--log-level", "error"});
+  ASSERT_NE(demo.port(), 0) << demo.process().err();
+  const std::string port = std::to_string(demo.port());
+
+  CliRun named = run_split({"call", "--port", port, "robot.motion", "set_speed", "v=0.5", "w=0.2"}, dir);
+  EXPECT_EQ(named.code, 0) << named.err;
+  EXPECT_EQ(named.out, "SUCCESS\n");
+  CliRun bad_name = run_split({"call", "--port", port, "robot.motion", "set_speed", "v=0.5", "speed=0.2"}, dir);
+  EXPECT_EQ(bad_name.code, 1);
+  EXPECT_THAT(bad_name.err, HasSubstr("speed"));
+  CliRun mixed = run_split({"call", "--port", port, "robot.motion", "set_speed", "v=0.5", "0.2"}, dir);
+  EXPECT_EQ(mixed.code, 2);
+  EXPECT_THAT(mixed.err, HasSubstr("all positional or all named"));
+  // everything after COMPONENT is an ARG: "--" is skipped, -1 is a number, not an option
+  CliRun negative = run_split({"call", "--port", port, "human", "move", "--", "-1", "0"}, dir);
+  EXPECT_EQ(negative.code, 1);
+  EXPECT_THAT(negative.err, HasSubstr("Our human cannot walk at negative speed!"));
+  CliRun option_after = run_split({"call", "--port", port, "simulation", "list_robots", "--timeout", "5"}, dir);
+  EXPECT_EQ(option_after.code, 1) << "options after COMPONENT are ARGS";
+  // a value prints as JSON
+  CliRun value = run_split({"call", "--port", port, "simulation", "list_robots"}, dir);
+  EXPECT_EQ(value.code, 0) << value.err;
+  EXPECT_EQ(value.out, "[\"robot\",\"human\"]\n");
+  EXPECT_EQ(demo.stop(), 0);
+}
+
+TEST(GatewayCliTest, ListJsonPrintsOneDocument) {
+  TempDir dir;
+  RunningDemo demo(dir, {"--log-level", "error"});
+  ASSERT_NE(demo.port(), 0) << demo.process().err();
+  CliRun r = run_split({"list", "--port", std::to_string(demo.port()), "--json"}, dir);
+  EXPECT_EQ(r.code, 0) << r.err;
+  json services = json::parse(r.out, nullptr, false);
+  ASSERT_TRUE(services.is_array()) << r.out;
+  bool found = false;
+  for (const auto& s : services)
+    if (s.value("component", "") == "robot.motion" && s.value("name", "") == "set_speed") {
+      found = true;
+      EXPECT_EQ(s["params"][0]["name"], "v");
+    }
+  EXPECT_TRUE(found) << r.out;
+}
+
+TEST(GatewayCliTest, RunStatusPrintsALineEveryInterval) {
+  TempDir dir;
+  RunningDemo demo(dir, {"--status", "0.2", "--log-level", "error"});
+  ASSERT_NE(demo.port(), 0) << demo.process().err();
+  const std::regex any_line(
+      R"(status: sim \d+\.\d{3} s, real-time factor \d+\.\d{2} \(target 1\.00\), \d+ clients?, \d+ requests/s)");
+  EXPECT_NE(wait_for_line(demo.process(), any_line), "") << demo.process().out();
+  // a client calling meanwhile shows up in a later line
+  LineClient client(demo.port());
+  int id = 0;
+  const std::regex busy_line(R"(status: .*, 1 client, [1-9]\d* requests/s)");
+  std::string busy = wait_for_line(demo.process(), busy_line, [&] {
+    std::string n = std::to_string(++id);
+    EXPECT_EQ(client.request(n, "simulation list_robots"), n + " SUCCESS [\"robot\", \"human\"]");
+  });
+  EXPECT_NE(busy, "") << demo.process().out();
+  // the status thread ends with the simulation
+  EXPECT_EQ(demo.stop(), 0) << demo.process().err();
+}
+
+TEST(GatewayCliTest, RunStatusIntervalIsChecked) {
+  TempDir dir;
+  std::string config = dir.write("demo.json", demo_config().dump());
+  CliRun zero = run_split({"run", config, "--status", "0"}, dir);
+  EXPECT_EQ(zero.code, 2);
+  EXPECT_THAT(zero.err, HasSubstr("--status: expected a number of seconds from 0.1 to 86400, found '0'"));
+  CliRun word = run_split({"run", "--status", "other.json", config}, dir);
+  EXPECT_EQ(word.code, 2);
+  EXPECT_THAT(word.err, HasSubstr("write CONFIG before a --status without SECONDS"));
+}
+
+TEST(GatewayCliTest, DdsDiscoveryIsBoundedByTheTimeoutAndExplained) {
+  // nobody serves this partition: the call waits for --timeout (1 s), not 10 s, and says
+  // for what
+  TempDir dir;
+  const std::string partition = "cli-test-nobody-" + std::to_string(::getpid());
+  CliRun call = run_split({"call", "--transport", "dds", "--domain", "42", "--partition", partition, "--timeout", "1",
+                        "simulation", "list_robots"}, dir);
+  EXPECT_EQ(call.code, 1);
+  EXPECT_LT(call.took, 8s);
+  EXPECT_THAT(call.err, HasSubstr("domain 42"));
+  EXPECT_THAT(call.err, HasSubstr("partition '" + partition + "'"));
+  EXPECT_THAT(call.err, HasSubstr("within 1000 ms"));
+  EXPECT_THAT(call.err, HasSubstr("request reader"));
+  EXPECT_THAT(call.err, HasSubstr("loopback"));
+  CliRun list = run_split({"list", "--transport", "dds", "--domain", "42", "--partition", partition, "--timeout", "1"}, dir);
+  EXPECT_EQ(list.code, 1);
+  EXPECT_LT(list.took, 8s);
+  EXPECT_THAT(list.err, HasSubstr("partition '" + partition + "'"));
+  EXPECT_THAT(list.err, HasSubstr("loopback"));
 }
 
 }  // namespace
