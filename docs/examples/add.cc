@@ -37,8 +37,12 @@ json add(json a, json b) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  simgate::json options;  // the socket transport's, from --host, --port, --success-word
+  if (auto code = simgate::examples::parse_socket_options(
+          argc, argv, "simgate_example_add",
+          "MORSE's standalone example: test_component add(a, b), served over the socket transport", options))
+    return *code;  // --help, or a usage error
   try {
-    json options = simgate::examples::socket_options(argc, argv, "simgate_example_add");
     auto req_manager = simgate::load_transport("socket", options);
     req_manager->register_service("test_component", add, "add", {"a", "b"});
     // pymorse asks for `simulation details` when it connects: an empty scene will do

@@ -57,8 +57,12 @@ long complex_computation(long a) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  simgate::json options;  // the socket transport's, from --host, --port, --success-word
+  if (auto code = simgate::examples::parse_socket_options(
+          argc, argv, "simgate_example_compute",
+          "MORSE's standalone async example: test_component compute(start_value), 1 unit/s", options))
+    return *code;  // --help, or a usage error
   try {
-    simgate::json options = simgate::examples::socket_options(argc, argv, "simgate_example_compute");
     auto req_manager = simgate::load_transport("socket", options);
     // the optional service name defines a custom one: test_component.compute
     req_manager->register_async_service("test_component", start_computation, "compute", {"start_value"});

@@ -1,14 +1,15 @@
-// example_common.h — what the standalone examples share: command-line options and a
+// example_common.h — what the standalone examples share: command-line options (CLI11) and a
 // clean stop on SIGINT/SIGTERM. Not part of the library; kept tiny on purpose.
 #ifndef SIMGATE_DOCS_EXAMPLES_EXAMPLE_COMMON_H_
 #define SIMGATE_DOCS_EXAMPLES_EXAMPLE_COMMON_H_
 
 #include <atomic>
 #include <csignal>
-#include <cstdlib>
 #include <iostream>
-#include <stdexcept>
+#include <optional>
 #include <string>
+
+#include <CLI/CLI.hpp>
 
 #include "simgate/core/status.h"
 
@@ -23,32 +24,31 @@ inline void install_stop_handlers() {
   std::signal(SIGTERM, handler);
 }
 
-// --host H, --port N (0 = any free port), --success-word SUCCESS|OK -> the socket
-// transport's options. Throws std::invalid_argument with a usage message.
-inline json socket_options(int argc, char** argv, const char* program) {
-  json options{{"port", 4000}};
-  const std::string usage = std::string("usage: ") + program +
-                            " [--host 127.0.0.1] [--port 4000] [--success-word SUCCESS|OK]";
-  for (int i = 1; i < argc; ++i) {
-    std::string arg = argv[i];
-    if (arg == "--help" || arg == "-h") throw std::invalid_argument(usage);
-    if (i + 1 >= argc) throw std::invalid_argument(arg + ": missing value\n" + usage);
-    std::string value = argv[++i];
-    if (arg == "--port") {
-      char* end = nullptr;
-      long port = std::strtol(value.c_str(), &end, 10);
-      if (value.empty() || *end != '\0' || port < 0 || port > 65535)
-        throw std::invalid_argument("--port: expected 0..65535, got '" + value + "'");
-      options["port"] = port;
-    } else if (arg == "--host") {
-      options["host"] = value;
-    } else if (arg == "--success-word") {
-      options["success_word"] = value;  // the transport validates it
-    } else {
-      throw std::invalid_argument("unknown option '" + arg + "'\n" + usage);
-    }
+// Parses --host H, --port N (0 = any free port) and --success-word SUCCESS|OK into the
+// socket transport's options (`options`). Returns nullopt to go on, or the exit code main
+// returns: 0 after --help, 2 after a usage error (printed on stderr).
+inline std::optional<int> parse_socket_options(int argc, char** argv, const std::string& program,
+                                               const std::string& description, json& options) {
+  CLI::App app{description, program};
+  std::string host = "127.0.0.1";
+  int port = 4000;
+  std::string success_word = "SUCCESS";
+  app.add_option("--host", host, "address to listen on")->capture_default_str();
+  app.add_option("--port", port, "port to listen on (0 = any free port)")
+      ->check(CLI::Range(0, 65535))
+      ->capture_default_str();
+  app.add_option("--success-word", success_word, "the status word of a success: SUCCESS or OK (MORSE's docs)")
+      ->capture_default_str();  // the transport validates it
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::Success& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::cerr << program << ": " << e.what() << " (" << program << " --help shows the options)\n";
+    return 2;
   }
-  return options;
+  options = {{"host", host}, {"port", port}, {"success_word", success_word}};
+  return std::nullopt;
 }
 
 }  // namespace simgate::examples

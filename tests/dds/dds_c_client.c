@@ -23,8 +23,18 @@ int main(int argc, char **argv) { /* DOMAIN PARTITION COMPONENT SERVICE PARAMS_J
   for (int i = 0; i < 16; i++) sprintf(ud + 11 + 2 * i, "%02x", me.v[i]);
   dds_qset_userdata(q, ud, strlen(ud));
   dds_entity_t rd = dds_create_reader(sub, dds_create_topic(pp, &simgate_Reply_desc, "simgate_Reply", NULL, NULL), q, NULL);
-  dds_publication_matched_status_t m = {0}; /* wait (10 s at most) for the server's request reader */
+  const char *uri = getenv("CYCLONEDDS_URI"); /* found only with the same domain, partition and network config */
+  fprintf(stderr, "waiting for simgate in domain %u, partition '%s' (%s%s; the simulation must use the same)...\n",
+          (unsigned)domain, argv[2], argc > 6 ? "network config: the XML argument" : uri ? "CYCLONEDDS_URI=" :
+          "CYCLONEDDS_URI is not set: Cyclone uses its default network config", argc > 6 || !uri ? "" : uri);
+  dds_publication_matched_status_t m = {0}; /* wait (10 s at most) for the simulation's request reader */
   for (int i = 0; i < 1000 && m.current_count == 0; i++, dds_sleepfor(DDS_MSECS(10))) dds_get_publication_matched_status(wr, &m);
+  if (m.current_count == 0) { /* simgate's dds transport is on loopback unless its "config" says otherwise */
+    fprintf(stderr, "no simgate found within 10 s (for a simulation on loopback: config/dds/loopback.xml as XML)\n");
+    dds_delete_qos(q);
+    dds_delete(dom > 0 ? dom : pp);
+    return 3;
+  }
   simgate_Request rq = {.op = simgate_OP_CALL, .component = argv[3], .service = argv[4], .params = argv[5]};
   memcpy(rq.id.client, me.v, 16);
   rq.id.seq = 1;
@@ -42,6 +52,7 @@ int main(int argc, char **argv) { /* DOMAIN PARTITION COMPONENT SERVICE PARAMS_J
       dds_return_loan(rd, s, 1);
     }
   }
+  if (status < 0) fprintf(stderr, "no reply from simgate within 60 s\n");
   dds_delete_qos(q);
   dds_delete(dom > 0 ? dom : pp);
   return status < 0 ? 3 : status;

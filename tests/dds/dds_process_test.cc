@@ -42,15 +42,17 @@ std::string read_file(const std::string& path) {
   return text.str();
 }
 
-// A child process with its stdout on a pipe; killed and reaped on destruction.
+// A child process with its stdout (and its stderr with `with_stderr`) on a pipe; killed
+// and reaped on destruction.
 class Child {
  public:
-  explicit Child(const std::vector<std::string>& argv) {
+  explicit Child(const std::vector<std::string>& argv, bool with_stderr = false) {
     int fds[2];
     if (pipe2(fds, O_CLOEXEC) != 0) return;
     posix_spawn_file_actions_t actions;
     posix_spawn_file_actions_init(&actions);
     posix_spawn_file_actions_adddup2(&actions, fds[1], STDOUT_FILENO);
+    if (with_stderr) posix_spawn_file_actions_adddup2(&actions, fds[1], STDERR_FILENO);
     std::vector<char*> args;
     for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
     args.push_back(nullptr);
@@ -146,6 +148,21 @@ TEST(DdsProcessTest, PlainCClientFromTheDocsCallsAService) {
   Child async_call({k_c_client, std::to_string(test_domain()), test_partition(), "robot", "go", "[]", xml});
   EXPECT_NE(async_call.read_until("\n", 60s).find("SUCCESS \"done\""), std::string::npos);
   EXPECT_EQ(async_call.wait_exit(30s), 0);
+}
+
+TEST(DdsProcessTest, PlainCClientSaysWhatItWaitsForAndGivesUp) {
+  // nobody serves this partition: the client says where it looks, then gives up (exit 3)
+  const std::string partition = test_partition("nobody");
+  Child client({k_c_client, std::to_string(test_domain()), partition, "calc", "add", "[2, 40]",
+                read_file(SIMGATE_LOOPBACK_DDS_XML)},
+               /*with_stderr=*/true);
+  std::string out = client.read_until("within 10 s", 60s);
+  EXPECT_NE(out.find("waiting for simgate in domain " + std::to_string(test_domain()) + ", partition '" + partition +
+                     "' (network config: the XML argument; the simulation must use the same)"),
+            std::string::npos)
+      << out;
+  EXPECT_NE(out.find("no simgate found within 10 s"), std::string::npos) << out;
+  EXPECT_EQ(client.wait_exit(30s), 3);
 }
 
 // Runs a command, returns its exit code.
