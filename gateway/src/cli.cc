@@ -605,7 +605,7 @@ class CommandLine {
         ->required();
     command->add_option("--log-level", args.log_level, "trace, debug, info, warning, error or off (overrides the config)")
         ->type_name("L");
-    command->add_option("--plugin-path", args.plugin_dirs, "search transport plugins in DIR first (repeatable)")
+    command->add_option("--plugin-path", args.plugin_dirs, "search transport plugins in DIR (after SIMGATE_PLUGIN_PATH; repeatable)")
         ->allow_extra_args(false)
         ->option_text("DIR");
   }
