@@ -2,9 +2,9 @@
 //
 // Terms: a *sample* is one measured duration in nanoseconds; Summary reduces a set of
 // samples to the figures the harness reports (count, mean, p50, p90, p99, max, in µs).
-// Args is a minimal "--name value" parser: every program of bench/ prints one JSON object
-// on stdout (its results) and diagnostics on stderr, so the harness (bench/harness.py) can
-// read them without scraping text.
+// parse_command_line() runs a program's CLI11 parser the same way for every program of
+// bench/: each prints one JSON object on stdout (its results) and diagnostics on stderr, so
+// the harness (bench/harness.py) can read them without scraping text.
 //
 // Threads: nothing here is shared between threads.
 #ifndef SIMGATE_BENCH_BENCH_UTIL_H_
@@ -13,12 +13,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdint>
-#include <cstdlib>
-#include <map>
-#include <stdexcept>
-#include <string>
+#include <iostream>
+#include <optional>
 #include <vector>
 
+#include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
 namespace simgate::bench {
@@ -52,47 +51,20 @@ inline json summarize_us(std::vector<std::int64_t> samples) {
           {"max_us", samples.empty() ? 0.0 : static_cast<double>(samples.back()) / 1e3}};
 }
 
-// "--name value" options and bare flags; unknown names are reported by finish().
-class Args {
- public:
-  Args(int argc, char** argv) {
-    for (int i = 1; i < argc; ++i) {
-      std::string a = argv[i];
-      if (a.rfind("--", 0) != 0) throw std::invalid_argument("unexpected argument '" + a + "'");
-      if (i + 1 < argc && std::string(argv[i + 1]).rfind("--", 0) != 0)
-        values_[a.substr(2)] = argv[++i];
-      else
-        values_[a.substr(2)] = "";
-    }
+// Parses argv into `app`'s options. Returns nullopt to go on, or the exit code to return:
+// 0 after --help, 2 after a usage error (printed on stderr; unknown options are errors, so
+// a typo never passes silently).
+inline std::optional<int> parse_command_line(CLI::App& app, int argc, char** argv) {
+  try {
+    app.parse(argc, argv);
+    return std::nullopt;
+  } catch (const CLI::Success& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::cerr << app.get_name() << ": " << e.what() << " (" << app.get_name() << " --help shows the options)\n";
+    return 2;
   }
-  std::string get(const std::string& name, const std::string& fallback) {
-    used_.push_back(name);
-    auto it = values_.find(name);
-    return it == values_.end() ? fallback : it->second;
-  }
-  double number(const std::string& name, double fallback) {
-    std::string text = get(name, "");
-    if (text.empty()) return fallback;
-    char* end = nullptr;
-    double v = std::strtod(text.c_str(), &end);
-    if (!end || *end) throw std::invalid_argument("--" + name + ": expected a number, found '" + text + "'");
-    return v;
-  }
-  bool flag(const std::string& name) {
-    used_.push_back(name);
-    return values_.count(name) != 0;
-  }
-  // Throws for options no getter asked for (typos never pass silently).
-  void finish() const {
-    for (const auto& [k, v] : values_)
-      if (std::find(used_.begin(), used_.end(), k) == used_.end())
-        throw std::invalid_argument("unknown option --" + k);
-  }
-
- private:
-  std::map<std::string, std::string> values_;  // name (without dashes) -> value ("" for flags)
-  std::vector<std::string> used_;              // names asked for
-};
+}
 
 }  // namespace simgate::bench
 

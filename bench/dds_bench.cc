@@ -22,6 +22,7 @@
 #include <csignal>
 #include <cstring>
 #include <iostream>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -201,25 +202,29 @@ json run_client(std::uint32_t domain, const std::string& partition, std::size_t 
 }  // namespace
 
 int main(int argc, char** argv) {
+  CLI::App app{"DDS round trips: a raw Cyclone ping-pong, and simgate's DDS client against a transport host.",
+               "simgate_bench_dds"};
+  std::string mode, partition = "simgate-bench";
+  std::uint32_t domain = 0;
+  std::size_t count = 2000;
+  std::optional<std::size_t> warmup;
+  double timeout = 120;
+  app.add_option("--mode", mode, "pong (raw server), ping (raw client) or client (simgate's DdsClient)")
+      ->required()
+      ->check(CLI::IsMember({"pong", "ping", "client"}));
+  app.add_option("--domain", domain, "DDS domain")->check(CLI::Range(0, 230))->capture_default_str();
+  app.add_option("--partition", partition, "DDS partition")->capture_default_str();
+  app.add_option("--count", count, "ping, client: round trips measured")->capture_default_str();
+  app.add_option("--warmup", warmup, "ping, client: round trips before measuring (default count / 10)");
+  app.add_option("--timeout", timeout, "seconds: pong's lifetime, ping's and client's wait for the server")
+      ->capture_default_str();
+  if (auto code = simgate::bench::parse_command_line(app, argc, argv)) return *code;
   try {
-    simgate::bench::Args args(argc, argv);
-    std::string mode = args.get("mode", "");
-    auto domain = static_cast<std::uint32_t>(args.number("domain", 0));
-    std::string partition = args.get("partition", "simgate-bench");
-    auto count = static_cast<std::size_t>(args.number("count", 2000));
-    auto warmup = static_cast<std::size_t>(args.number("warmup", static_cast<double>(count) / 10));
-    double timeout = args.number("timeout", 120);
-    args.finish();
     std::signal(SIGINT, on_signal);
     std::signal(SIGTERM, on_signal);
     if (mode == "pong") return run_pong(domain, partition, timeout);
-    json out;
-    if (mode == "ping")
-      out = run_ping(domain, partition, count, warmup, timeout);
-    else if (mode == "client")
-      out = run_client(domain, partition, count, warmup, timeout);
-    else
-      throw std::invalid_argument("--mode: expected pong, ping or client, found '" + mode + "'");
+    json out = mode == "ping" ? run_ping(domain, partition, count, warmup.value_or(count / 10), timeout)
+                              : run_client(domain, partition, count, warmup.value_or(count / 10), timeout);
     out["mode"] = mode;
     std::cout << out.dump() << std::endl;
     return 0;

@@ -11,6 +11,7 @@
 // Prints {"port": N} on stdout once listening; exits on SIGTERM/SIGINT or after
 // --max-seconds (a bounded run).
 #include <csignal>
+#include <cstdint>
 #include <iostream>
 #include <memory>
 #include <string>
@@ -82,13 +83,16 @@ void accept_next(tcp::acceptor& acceptor) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  CLI::App app{"The physical limit: a Boost.Asio line-echo server (prints {\"port\": N} once listening).",
+               "simgate_bench_echo"};
+  std::string host = "127.0.0.1";
+  std::uint16_t port = 0;
+  double max_seconds = 600;
+  app.add_option("--host", host, "address to listen on")->capture_default_str();
+  app.add_option("--port", port, "port to listen on (0 = any free port)")->capture_default_str();
+  app.add_option("--max-seconds", max_seconds, "exit after this long (a bounded run)")->capture_default_str();
+  if (auto code = simgate::bench::parse_command_line(app, argc, argv)) return *code;
   try {
-    simgate::bench::Args args(argc, argv);
-    std::string host = args.get("host", "127.0.0.1");
-    auto port = static_cast<unsigned short>(args.number("port", 0));
-    double max_seconds = args.number("max-seconds", 600);
-    args.finish();
-
     asio::io_context io;
     tcp::acceptor acceptor(io, tcp::endpoint(asio::ip::make_address(host), port));
     accept_next(acceptor);

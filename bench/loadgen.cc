@@ -35,6 +35,7 @@
 #include <cerrno>
 #include <cstring>
 #include <deque>
+#include <optional>
 #include <iostream>
 #include <stdexcept>
 #include <string>
@@ -388,43 +389,51 @@ json run_hold(const std::string& host, int port, std::size_t count, double durat
 }  // namespace
 
 int main(int argc, char** argv) {
+  CLI::App app{"The TCP line client every line-protocol server is measured with; one JSON object on stdout.",
+               "simgate_bench_loadgen"};
+  std::string mode = "latency", host = "127.0.0.1";
+  int port = 0;
+  Protocol p;
+  std::size_t count = 2000, max_outstanding = 4096;
+  std::optional<std::size_t> warmup;
+  double timeout = 60, warmup_s = 0.3, duration = 2, rate = 10000;
+  int connections = 1, window = 1;
+  app.add_option("--mode", mode, "latency, throughput, rate or hold (see the source's header)")
+      ->check(CLI::IsMember({"latency", "throughput", "rate", "hold"}))
+      ->capture_default_str();
+  app.add_option("--host", host, "the server's address")->capture_default_str();
+  app.add_option("--port", port, "the server's port")->required()->check(CLI::Range(1, 65535));
+  app.add_option("--proto", p.proto, "socket or jsonrpc")
+      ->check(CLI::IsMember({"socket", "jsonrpc"}))
+      ->capture_default_str();
+  app.add_option("--request", p.request, "socket: the request after the id")->capture_default_str();
+  app.add_option("--method", p.method, "jsonrpc: the method")->capture_default_str();
+  app.add_option("--params", p.params, "jsonrpc: the params (JSON)")->capture_default_str();
+  app.add_flag("--echo", p.echo, "expect every request back unchanged (the echo server)");
+  app.add_option("--count", count, "latency: round trips measured; hold: connections opened")->capture_default_str();
+  app.add_option("--warmup", warmup, "latency: round trips before measuring (default count / 10)");
+  app.add_option("--timeout", timeout, "latency: seconds for the whole run")->capture_default_str();
+  app.add_option("--connections", connections, "throughput: connections")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--window", window, "throughput: requests in flight per connection")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--warmup-seconds", warmup_s, "throughput: seconds before measuring")->capture_default_str();
+  app.add_option("--duration", duration, "throughput, rate, hold: seconds")->capture_default_str();
+  app.add_option("--rate", rate, "rate: requests per second")->capture_default_str();
+  app.add_option("--max-outstanding", max_outstanding, "rate: requests in flight at most")->capture_default_str();
+  if (auto code = simgate::bench::parse_command_line(app, argc, argv)) return *code;
   try {
-    simgate::bench::Args args(argc, argv);
-    std::string mode = args.get("mode", "latency");
-    std::string host = args.get("host", "127.0.0.1");
-    int port = static_cast<int>(args.number("port", 0));
-    Protocol p;
-    p.proto = args.get("proto", "socket");
-    p.request = args.get("request", p.request);
-    p.method = args.get("method", p.method);
-    p.params = args.get("params", p.params);
-    p.echo = args.flag("echo");
-    auto count = static_cast<std::size_t>(args.number("count", 2000));
-    auto warmup = static_cast<std::size_t>(args.number("warmup", static_cast<double>(count) / 10));
-    double timeout = args.number("timeout", 60);
-    int connections = static_cast<int>(args.number("connections", 1));
-    int window = static_cast<int>(args.number("window", 1));
-    double warmup_s = args.number("warmup-seconds", 0.3);
-    double duration = args.number("duration", 2);
-    double rate = args.number("rate", 10000);
-    auto max_outstanding = static_cast<std::size_t>(args.number("max-outstanding", 4096));
-    args.finish();
-    if (port <= 0) throw std::invalid_argument("--port is required");
-    if (p.proto != "socket" && p.proto != "jsonrpc")
-      throw std::invalid_argument("--proto: expected socket or jsonrpc, found '" + p.proto + "'");
-    if (connections < 1 || window < 1) throw std::invalid_argument("--connections and --window must be >= 1");
-
     json out;
     if (mode == "latency")
-      out = run_latency(host, port, p, count, warmup, timeout);
+      out = run_latency(host, port, p, count, warmup.value_or(count / 10), timeout);
     else if (mode == "throughput")
       out = run_throughput(host, port, p, connections, window, warmup_s, duration);
     else if (mode == "rate")
       out = run_rate(host, port, p, rate, duration, max_outstanding);
-    else if (mode == "hold")
-      out = run_hold(host, port, count, duration);
     else
-      throw std::invalid_argument("--mode: expected latency, throughput, rate or hold, found '" + mode + "'");
+      out = run_hold(host, port, count, duration);
     std::cout << out.dump() << std::endl;
     return 0;
   } catch (const std::exception& e) {

@@ -178,27 +178,35 @@ json run_gateway(const std::string& config, double factor, double duration_s, bo
 }  // namespace
 
 int main(int argc, char** argv) {
+  CLI::App app{"Simulation speed: the gateway's step loop against a bare mj_step loop.", "simgate_bench_sim"};
+  std::string mode, mjcf, config;
+  double factor = 0, duration = 2;
+  bool until_stdin = false;
+  app.add_option("--mode", mode, "bare, sleep or gateway (see the source's header)")
+      ->required()
+      ->check(CLI::IsMember({"bare", "sleep", "gateway"}));
+  app.add_option("--mjcf", mjcf, "bare, sleep: the MJCF scene");
+  app.add_option("--config", config, "gateway: the deployment file");
+  app.add_option("--realtime-factor", factor, "gateway: pacing (0 = as fast as possible)")->capture_default_str();
+  app.add_option("--duration", duration, "seconds to run")->capture_default_str();
+  app.add_flag("--until-stdin-closes", until_stdin, "gateway: run until standard input closes instead");
+  if (auto code = simgate::bench::parse_command_line(app, argc, argv)) return *code;
+  if ((mode == "bare" || mode == "sleep") && mjcf.empty()) {
+    std::cerr << "simgate_bench_sim: --mode " << mode << " needs --mjcf PATH\n";
+    return 2;
+  }
+  if (mode == "gateway" && config.empty()) {
+    std::cerr << "simgate_bench_sim: --mode gateway needs --config PATH\n";
+    return 2;
+  }
   try {
-    simgate::bench::Args args(argc, argv);
-    std::string mode = args.get("mode", "");
-    std::string mjcf = args.get("mjcf", "");
-    std::string config = args.get("config", "");
-    double factor = args.number("realtime-factor", 0);
-    double duration = args.number("duration", 2);
-    bool until_stdin = args.flag("until-stdin-closes");
-    args.finish();
     json out;
     if (mode == "bare") {
-      if (mjcf.empty()) throw std::invalid_argument("--mjcf PATH is required");
       out = run_bare(mjcf, duration);
     } else if (mode == "sleep") {
-      if (mjcf.empty()) throw std::invalid_argument("--mjcf PATH is required");
       out = run_sleep(mjcf, duration);
-    } else if (mode == "gateway") {
-      if (config.empty()) throw std::invalid_argument("--config PATH is required");
-      out = run_gateway(config, factor, duration, until_stdin);
     } else {
-      throw std::invalid_argument("--mode: expected bare, sleep or gateway, found '" + mode + "'");
+      out = run_gateway(config, factor, duration, until_stdin);
     }
     std::cout << out.dump() << std::endl;
     return 0;

@@ -30,14 +30,15 @@ extern "C" void on_signal(int) { g_stop.store(true); }
 }  // namespace
 
 int main(int argc, char** argv) {
+  CLI::App app{"A transport plugin serving `test_component add(a, b)` from a process() loop, no simulation.",
+               "simgate_bench_host"};
+  std::string transport, options_text = "{}";
+  double max_seconds = 600;
+  app.add_option("--transport", transport, "the plugin: socket, jsonrpc, dds")->required();
+  app.add_option("--options", options_text, "its options (JSON object)")->capture_default_str();
+  app.add_option("--max-seconds", max_seconds, "exit after this long (a bounded run)")->capture_default_str();
+  if (auto code = simgate::bench::parse_command_line(app, argc, argv)) return *code;
   try {
-    simgate::bench::Args args(argc, argv);
-    std::string transport = args.get("transport", "");
-    std::string options_text = args.get("options", "{}");
-    double max_seconds = args.number("max-seconds", 600);
-    args.finish();
-    if (transport.empty()) throw std::invalid_argument("--transport NAME is required");
-
     std::signal(SIGINT, on_signal);
     std::signal(SIGTERM, on_signal);
 
