@@ -5,7 +5,8 @@ Starts `simgate run` on a test config (the demo scene, socket transport on port 
 the bound port from --endpoints-file, and drives the robot the way MORSE users do:
 connect (`simulation details`), sync calls, `goto` futures that complete when the robot
 really arrives (pose checked), cancel -> preempted and the robot stops, a second goto
-preempts the first, wrong arity -> TypeError, `time.sleep`. Every wait is bounded.
+preempts the first, wrong arity -> TypeError, `time.sleep` (two scripts sleeping together, a
+sleep left by a closed connection). Every wait is bounded.
 """
 import argparse
 import json
@@ -13,6 +14,7 @@ import logging
 import math
 import os
 import signal
+import socket
 import subprocess
 import sys
 import tempfile
@@ -70,6 +72,17 @@ class Gateway:
             code = self.process.wait()
         self.log.close()
         return code
+
+
+def read_line(sock):
+    """One reply line from a raw socket (without its newline), however the bytes arrive."""
+    data = b""
+    while not data.endswith(b"\n"):
+        chunk = sock.recv(1)
+        if not chunk:
+            break
+        data += chunk
+    return data.rstrip(b"\n")
 
 
 class PymorseTest(unittest.TestCase):
@@ -183,6 +196,24 @@ class PymorseTest(unittest.TestCase):
         t1 = self.simu.time()
         self.assertGreaterEqual(t1 - t0, 0.5 - 1e-6)
         self.assertLess(t1 - t0, 5.0)
+
+    def test_two_scripts_sleep_together(self):
+        # each caller of `time sleep` gets its own sleep (it was one for the whole
+        # simulation: the second caller FAILED "already running"). The other script speaks
+        # the wire itself: closing a second pymorse.Morse stops the poll thread all of them
+        # share (pymorse's close()).
+        with socket.create_connection(("127.0.0.1", self.gateway.port), timeout=TIMEOUT) as other:
+            other.sendall(b"s1 time sleep [0.5]\n")
+            self.simu.sleep(0.5)
+            self.assertEqual(read_line(other), b"s1 SUCCESS")
+
+    def test_a_sleep_left_by_a_closed_connection_blocks_nobody(self):
+        with socket.create_connection(("127.0.0.1", self.gateway.port), timeout=TIMEOUT) as gone:
+            gone.sendall(b"1 time sleep [1000]\n")
+            gone.sendall(b"2 time now\n")
+            reply = read_line(gone)
+            self.assertTrue(reply.startswith(b"2 SUCCESS"), reply)  # the sleep has started
+        self.simu.sleep(0.2)
 
 
 def main():
