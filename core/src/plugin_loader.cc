@@ -3,6 +3,7 @@
 #include <dlfcn.h>
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <sstream>
 
@@ -149,11 +150,17 @@ std::vector<std::string> TransportPlugin::option_keys() const {
 }
 
 void TransportPlugin::validate(const json& options, const std::string& config_path) const {
-  ConfigObject(options, config_path).allow_only(option_keys());
+  std::vector<std::string> keys = option_keys();
+  ConfigObject(options, config_path).allow_only(keys);
   char error[1024] = {0};
-  if (!descriptor_->validate(options.dump().c_str(), error, sizeof(error)))
-    throw ConfigError(config_path + ": transport '" + name_ + "' refused its options: " +
-                      (error[0] ? error : "no reason given"));
+  if (descriptor_->validate(options.dump().c_str(), error, sizeof(error))) return;
+  // a plugin reads its options with a ConfigObject at the root: "port: expected ..." is
+  // about one of its keys, and becomes "<config_path>.port: expected ..."
+  const std::string message = error[0] ? error : "no reason given";
+  const std::size_t end = message.find_first_of(".[:");
+  if (end != std::string::npos && std::find(keys.begin(), keys.end(), message.substr(0, end)) != keys.end())
+    throw ConfigError(config_path + "." + message);
+  throw ConfigError(config_path + ": transport '" + name_ + "' refused its options: " + message);
 }
 
 std::shared_ptr<RequestManager> TransportPlugin::create(const json& options, const std::string& config_path) const {

@@ -67,7 +67,7 @@ TEST(PluginLoaderTest, UnknownOptionKeysAreRefusedBeforeCreate) {
     plugin->create(json{{"greting", "hi"}}, "transports.mock.options");
     FAIL() << "accepted an unknown key";
   } catch (const ConfigError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("transports.mock.options.greting: unknown key (known keys: greeting)"));
+    EXPECT_THAT(e.what(), HasSubstr("transports.mock.options.greting: unknown key (did you mean 'greeting'? known keys: greeting)"));
   }
 }
 
