@@ -145,18 +145,23 @@ std::optional<std::pair<std::string, std::string>> tcp_host_port(const std::stri
   return std::make_pair(host, rest.substr(colon + 1));
 }
 
+// "2 robot(s), 8 component(s)": a component is anything a transport serves (robots, their
+// actuators and sensors, simulation, time), counted the same everywhere
+std::string counts(const Deployment& d) {
+  return std::to_string(d.robots.size()) + " robot(s), " + std::to_string(d.component_names().size()) +
+         " component(s)";
+}
+
 void print_banner(Gateway& g) {
   const Deployment& d = g.deployment();
   auto& sim = g.simulation();
-  std::size_t robots = d.robots.size(), components = 0;
-  for (const auto& r : d.robots) components += r.components.size();
   // the scene as the user would type it: relative to the current directory when inside it
   std::string scene = d.mjcf;
   std::error_code ec;
   auto relative = std::filesystem::relative(d.mjcf, std::filesystem::current_path(), ec);
   if (!ec && !relative.empty() && relative.begin()->string() != "..") scene = relative.string();
-  std::cout << "simgate " << SIMGATE_VERSION << ": scene " << scene << ", " << robots << " robot(s), " << components
-            << " component(s), timestep " << sim.timestep() << " s, "
+  std::cout << "simgate " << SIMGATE_VERSION << ": scene " << scene << ", " << counts(d) << ", timestep "
+            << sim.timestep() << " s, "
             << (sim.realtime_factor() == 0 ? std::string("as fast as possible")
                                            : "real time x" + std::to_string(sim.realtime_factor()).substr(0, 4))
             << "\n";
@@ -328,16 +333,16 @@ int cmd_run(const RunArgs& args, bool check_only) {
   try {
     built = std::make_unique<Gateway>(deployment, registry, options);
   } catch (const ConfigError& e) {
-    throw ConfigError("config '" + args.config + "': " + e.what());
+    throw ConfigError(e.errors(), args.config);
   }
   Gateway& gateway = *built;
   if (check_only) {
-    std::size_t components = 0;
-    for (const auto& r : deployment.robots) components += 1 + r.components.size();
-    std::cout << args.config << ": OK (" << deployment.robots.size() << " robot(s), " << components
-              << " component(s), " << deployment.transports.size() << " transport(s))\n";
+    for (const auto& w : gateway.warnings()) std::cout << "warning: " << w << "\n";
+    std::cout << args.config << ": OK (" << counts(deployment) << ", " << deployment.transports.size()
+              << " transport(s)" << (gateway.warnings().empty() ? "" : ", " + std::to_string(gateway.warnings().size()) + " warning(s)") << ")\n";
     return 0;
   }
+  for (const auto& w : gateway.warnings()) log::warning("config '", args.config, "': ", w);
 
   gateway.start();
   if (args.endpoints_file) write_endpoints_file(*args.endpoints_file, gateway.endpoints());

@@ -133,6 +133,44 @@ TEST(GatewayCliTest, CheckRejectsABrokenConfigWithItsPath) {
   EXPECT_THAT(out, HasSubstr("broken.json"));
 }
 
+TEST(GatewayCliTest, CheckReportsEveryErrorOfTheFileAtOnce) {
+  TempDir dir;
+  json c = demo_config();
+  c["robots"][0]["components"][0]["type"] = "motion_wv";
+  c["robots"][0]["components"][1]["options"]["max_angular_sped"] = 1;
+  c["transports"]["socket"]["options"]["port"] = 70000;
+  std::string file = dir.write("three.json", c.dump());
+  auto [code, out] = run_simgate({"check", file}, dir);
+  EXPECT_EQ(code, 2);
+  EXPECT_THAT(out, HasSubstr("simgate: invalid configuration: config '" + file + "': 3 errors:\n"));
+  EXPECT_THAT(out, HasSubstr("\n  robots[0].components[0].type: "));
+  EXPECT_THAT(out, HasSubstr("(unknown type; did you mean 'motion_vw'?)"));
+  EXPECT_THAT(out, HasSubstr("\n  robots[0].components[1].options.max_angular_sped: unknown key (did you mean "
+                             "'max_angular_speed'?"));
+  EXPECT_THAT(out, HasSubstr("\n  transports.socket.options.port: expected an integer from 0 to 65535"));
+}
+
+TEST(GatewayCliTest, CheckWarnsWhenPymorseCannotConnect) {
+  TempDir dir;
+  json c = demo_config();
+  c["services"] = {{"robot.*", {"socket"}}, {"human", {"socket"}}};
+  auto [code, out] = run_simgate({"check", dir.write("cut.json", c.dump())}, dir);
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_THAT(out, HasSubstr("warning: transports.socket: the socket transport 'socket' does not serve "
+                             "'simulation': pymorse cannot connect"));
+  EXPECT_THAT(out, HasSubstr("OK (2 robot(s), 8 component(s), 1 transport(s), 3 warning(s))"));
+}
+
+TEST(GatewayCliTest, RunAndCheckCountComponentsAlike) {
+  TempDir dir;
+  auto [code, out] = run_simgate({"check", source_path("config/demo.json")}, dir);
+  EXPECT_THAT(out, HasSubstr("2 robot(s), 8 component(s)"));
+  RunningDemo demo(dir);
+  ASSERT_NE(demo.port(), 0) << demo.process().err();
+  demo.stop();
+  EXPECT_THAT(demo.process().out(), HasSubstr("2 robot(s), 8 component(s)"));
+}
+
 TEST(GatewayCliTest, RunWritesEndpointsServesAndStopsOnSigterm) {
   TempDir dir;
   std::string config = dir.write("demo.json", demo_config().dump());
@@ -182,9 +220,18 @@ TEST(GatewayCliTest, RunWithAPortInUseFailsClearly) {
   json c = demo_config();
   c["transports"]["socket"]["options"]["port"] = port_of(e["socket"][0].get<std::string>());
   TempDir dir2;
-  auto [code, out] = run_simgate({"run", dir2.write("taken.json", c.dump())}, dir2);
-  EXPECT_NE(code, 0);
-  EXPECT_THAT(out, HasSubstr("transports.socket"));
+  std::string taken = dir2.write("taken.json", c.dump());
+  // check cannot know: it binds nothing
+  auto [ccode, cout] = run_simgate({"check", taken}, dir2);
+  EXPECT_EQ(ccode, 0) << cout;
+  // run: a runtime error (1), not an invalid configuration (2), naming the port and how to
+  // find who holds it
+  auto [code, out] = run_simgate({"run", taken}, dir2);
+  EXPECT_EQ(code, 1) << out;
+  EXPECT_THAT(out, HasSubstr("transports.socket.options: transport 'socket' could not start"));
+  EXPECT_THAT(out, HasSubstr("Address already in use"));
+  EXPECT_THAT(out, HasSubstr("ss -ltnp 'sport = :" + std::to_string(c["transports"]["socket"]["options"]["port"].get<int>())));
+  EXPECT_THAT(out, Not(HasSubstr("invalid configuration")));
   first.signal(SIGINT);
   EXPECT_EQ(first.wait(), 0);
 }
