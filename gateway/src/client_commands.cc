@@ -1,0 +1,140 @@
+// `simgate call` and `simgate list` (see commands.h), and the params of a call (cli.h).
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <iostream>
+
+#include "commands.h"
+#include "simgate/client/client.h"
+#include "simgate/core/suggest.h"
+
+namespace simgate::gateway {
+
+namespace {
+
+const std::vector<std::string> k_transports = {"socket", "jsonrpc", "dds"};
+
+std::unique_ptr<client::Client> connect(const ClientArgs& args, std::chrono::milliseconds& timeout) {
+  const std::string& transport = args.transport;
+  if (std::find(k_transports.begin(), k_transports.end(), transport) == k_transports.end())
+    throw UsageError("--transport: expected socket, jsonrpc or dds, found '" + transport + "'" +
+                     did_you_mean(transport, k_transports));
+  double seconds = 0;
+  try {
+    seconds = std::stod(args.timeout);
+  } catch (const std::exception&) {
+  }
+  if (!(seconds > 0)) throw UsageError("--timeout: expected a positive number of seconds, found '" + args.timeout + "'");
+  timeout = std::chrono::milliseconds(static_cast<long long>(seconds * 1000));
+
+  json options;
+  if (transport == "dds") {
+    // DDS finds the simulation by domain and partition, not by address
+    if (args.host || args.port)
+      throw UsageError(std::string(args.host ? "--host" : "--port") +
+                       " is for --transport socket or jsonrpc; dds finds the simulation by --domain and --partition");
+    options = {{"domain", args.domain ? parse_int("--domain", *args.domain, 0, 230) : 0},
+               {"partition", args.partition.value_or("simgate")}};
+    if (args.dds_config) options["config"] = *args.dds_config;
+  } else {
+    if (args.domain || args.partition || args.dds_config)
+      throw UsageError(std::string(args.domain ? "--domain" : args.partition ? "--partition" : "--dds-config") +
+                       " is for --transport dds");
+    options = {{"host", args.host.value_or("127.0.0.1")},
+               {"port", args.port ? parse_int("--port", *args.port, 1, 65535) : (transport == "jsonrpc" ? 4001 : 4000)}};
+  }
+  return client::make_client(transport, options);
+}
+
+// "name=value" with name an identifier.
+bool is_identifier(const std::string& name) {
+  if (name.empty() || !(std::isalpha(static_cast<unsigned char>(name[0])) || name[0] == '_')) return false;
+  return std::all_of(name.begin(), name.end(),
+                     [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; });
+}
+
+// JSON, or else the text itself as a string (a bare word).
+json json_or_word(const std::string& text) {
+  json value = json::parse(text, nullptr, false);
+  return value.is_discarded() ? json(text) : value;
+}
+
+}  // namespace
+
+int cmd_call(const CallArgs& args) {
+  json params = call_params(args.args);
+  std::chrono::milliseconds timeout{};
+  auto client = connect(args.client, timeout);
+  Outcome outcome = client->call(args.component, args.service, params, timeout);
+  if (outcome.status == Status::success) {
+    // a service that returns nothing answers a bare SUCCESS (JSON-RPC: a null result)
+    if (outcome.value && !outcome.value->is_null()) {
+      std::cout << outcome.value->dump() << "\n";
+    } else {
+      std::cout << "SUCCESS\n";
+    }
+    return 0;
+  }
+  std::cerr << to_string(outcome.status);
+  if (!outcome.message.empty()) {
+    std::cerr << ": " << outcome.message;
+  } else if (outcome.value) {
+    std::cerr << " " << outcome.value->dump();
+  }
+  std::cerr << "\n";
+  return 1;
+}
+
+int cmd_list(const ListArgs& args) {
+  std::chrono::milliseconds timeout{};
+  auto client = connect(args.client, timeout);
+  json services = client->list_services(timeout);
+  if (args.json) {
+    std::cout << services.dump(2) << "\n";
+    return 0;
+  }
+  for (const auto& s : services) {
+    std::string params;
+    for (const auto& p : s.value("params", json::array())) {
+      params += (params.empty() ? "" : ", ") + p.value("name", std::string("?"));
+      if (p.contains("default")) params += "=" + p["default"].dump();
+    }
+    std::cout << s.value("component", std::string("?")) << " " << s.value("name", std::string("?")) << "(" << params
+              << ")" << (s.value("async", false) ? " async" : "");
+    std::string doc = s.value("doc", std::string());
+    if (!doc.empty()) std::cout << " — " << doc;
+    std::cout << "\n";
+  }
+  return 0;
+}
+
+json call_params(const std::vector<std::string>& args) {
+  auto first = args.begin();
+  if (first != args.end() && *first == "--") ++first;
+  json positional = json::array(), named = json::object();
+  std::string a_positional, a_named;  // one of each, for the message
+  for (auto it = first; it != args.end(); ++it) {
+    const std::string& arg = *it;
+    json value = json::parse(arg, nullptr, false);
+    auto eq = arg.find('=');
+    if (!value.is_discarded() || eq == std::string::npos) {
+      positional.push_back(value.is_discarded() ? json(arg) : std::move(value));
+      if (a_positional.empty()) a_positional = arg;
+      continue;
+    }
+    std::string name = arg.substr(0, eq);
+    if (!is_identifier(name))
+      throw UsageError("call: '" + arg + "': a named argument is name=value with name an identifier; a string "
+                       "containing '=' is written JSON-quoted: '" + json(arg).dump() + "'");
+    if (named.contains(name)) throw UsageError("call: parameter '" + name + "' is given twice");
+    named[name] = json_or_word(arg.substr(eq + 1));
+    if (a_named.empty()) a_named = arg;
+  }
+  if (!a_named.empty() && !a_positional.empty())
+    throw UsageError("call: ARGS are either all positional or all named (name=value), not both: '" + a_named +
+                     "' is named, '" + a_positional + "' is positional (a string containing '=' is written "
+                     "JSON-quoted: '\"a=b\"')");
+  return a_named.empty() ? positional : named;
+}
+
+}  // namespace simgate::gateway

@@ -1,0 +1,74 @@
+// commands.h — the `simgate` commands behind the command line (cli.cc parses, these run).
+//
+// run_command.cc: `run` and `check` (the banner, the status line); client_commands.cc:
+// `call` and `list` (a client of any transport). Each returns the process exit code and
+// throws UsageError, ConfigError, client::ClientError or a runtime error, which run_cli()
+// turns into messages and exit codes. Private to the gateway.
+#ifndef SIMGATE_GATEWAY_SRC_COMMANDS_H_
+#define SIMGATE_GATEWAY_SRC_COMMANDS_H_
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "simgate/gateway/cli.h"
+
+namespace simgate::gateway {
+
+// What `run` and `check` were given.
+struct RunArgs {
+  std::string config;                          // CONFIG
+  std::optional<std::string> log_level;        // --log-level
+  std::optional<std::string> realtime_factor;  // --realtime-factor
+  std::optional<std::string> endpoints_file;   // --endpoints-file
+  std::vector<std::string> plugin_dirs;        // --plugin-path, in order
+  std::optional<double> status_interval;       // --status [SECONDS], in seconds
+};
+
+// The client options of `call` and `list`, as written.
+struct ClientArgs {
+  std::string transport = "socket";     // --transport
+  std::optional<std::string> host;      // --host
+  std::optional<std::string> port;      // --port
+  std::optional<std::string> domain;    // --domain
+  std::optional<std::string> partition; // --partition
+  std::optional<std::string> dds_config;  // --dds-config
+  std::string timeout = "30";           // --timeout, seconds
+};
+
+// What `call` was given.
+struct CallArgs {
+  ClientArgs client;              // how to reach the simulation
+  std::string component;          // COMPONENT
+  std::string service;            // SERVICE
+  std::vector<std::string> args;  // ARGS, as written
+};
+
+// What `list` was given.
+struct ListArgs {
+  ClientArgs client;  // how to reach the simulation
+  bool json = false;  // --json: the descriptors as one JSON document
+};
+
+// `run CONFIG` (check_only false) or `check CONFIG`.
+int cmd_run(const RunArgs& args, bool check_only);
+// `call COMPONENT SERVICE ARGS...`: prints the result, SUCCESS, or the failure on stderr.
+int cmd_call(const CallArgs& args);
+// `list`: every service a running simulation offers.
+int cmd_list(const ListArgs& args);
+
+// ---- parsing helpers shared by the commands (cli.cc); each throws UsageError
+
+// Applies --log-level if given.
+void apply_log_level(const std::optional<std::string>& level);
+// --realtime-factor: a number >= 0 or "max" (0).
+std::optional<double> parse_factor(const std::optional<std::string>& text);
+// A number of seconds within [min, max]; `hint` is appended to the error.
+double parse_seconds(const std::string& option, const std::string& text, double min, double max,
+                     const std::string& hint = "");
+// An integer within [min, max].
+int parse_int(const std::string& option, const std::string& text, int min, int max);
+
+}  // namespace simgate::gateway
+
+#endif  // SIMGATE_GATEWAY_SRC_COMMANDS_H_
