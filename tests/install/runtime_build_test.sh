@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# What scripts/run needs is the runtime only: its package list names no test package, and a
+# build directory configured as scripts/run configures a new one (no tests, no benchmarks)
+# configures with GoogleTest, Google Benchmark and Python not to be found, and its
+# simgate_runtime target builds simgate and every transport plugin of the tree, nothing else.
+#   runtime_build_test.sh SOURCE_DIR
+set -euo pipefail
+source_dir=$1
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+
+# the package lists
+# shellcheck source=/dev/null
+source "$source_dir/scripts/lib.sh"
+for p in "${SIMGATE_RUNTIME_PACKAGES[@]}"; do
+  case "$p" in
+    libgtest-dev|libgmock-dev|libbenchmark-dev|python3*|nodejs|npm)
+      echo "scripts/run would install the test package $p"; exit 1 ;;
+  esac
+done
+grep -q '^ensure_packages runtime$' "$source_dir/scripts/run" || { echo "scripts/run does not ask for the runtime packages only"; exit 1; }
+grep -q -- '-- simgate_runtime' "$source_dir/scripts/run" || { echo "scripts/run does not build simgate_runtime"; exit 1; }
+
+# configure as scripts/run does, with the test packages made unfindable
+cmake -S "$source_dir" -B "$work/build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DSIMGATE_BUILD_TESTS=OFF -DSIMGATE_BUILD_BENCH=OFF \
+  -DCMAKE_DISABLE_FIND_PACKAGE_GTest=ON -DCMAKE_DISABLE_FIND_PACKAGE_benchmark=ON \
+  -DCMAKE_DISABLE_FIND_PACKAGE_Python3=ON >"$work/configure.log" 2>&1 ||
+  { cat "$work/configure.log"; echo "the runtime build does not configure without the test packages"; exit 1; }
+
+# nothing even looked for them (CMake lists the switches nobody used)
+for package in GTest benchmark; do
+  grep -q "CMAKE_DISABLE_FIND_PACKAGE_$package" "$work/configure.log" ||
+    { echo "the runtime build looks for $package"; exit 1; }
+done
+
+# what simgate_runtime builds
+plan=$(ninja -C "$work/build" -n simgate_runtime)
+for wanted in bin/simgate plugins/libsimgate_transport_socket.so plugins/libsimgate_transport_jsonrpc.so \
+              plugins/libsimgate_transport_dds.so; do
+  grep -q "Linking .* $wanted\$" <<<"$plan" || { echo "simgate_runtime does not build $wanted"; exit 1; }
+done
+if grep -qiE 'gtest|benchmark|_test|tests/' <<<"$plan"; then
+  grep -iE 'gtest|benchmark|_test|tests/' <<<"$plan" | head -5
+  echo "simgate_runtime builds test code"; exit 1
+fi
+echo "runtime build: no test package, $(grep -c Linking <<<"$plan") links, simgate and 3 plugins"
