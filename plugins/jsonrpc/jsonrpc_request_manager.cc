@@ -27,6 +27,8 @@ constexpr std::string_view k_version = "0.1.0";
 constexpr std::size_t k_read_chunk = 64 * 1024;
 // a burst of replies is written early once this much is queued
 constexpr std::size_t k_coalesce_bytes = 256 * 1024;
+// How long accepting pauses after accept() failed (out of file descriptors, say).
+constexpr std::chrono::milliseconds k_accept_retry{100};
 
 // "127.0.0.1:4001" or "[::1]:4001"
 std::string to_string(const tcp::endpoint& ep) {
@@ -500,26 +502,33 @@ void JsonRpcRequestManager::accept_next() {
     if (stopping_ || ec == asio::error::operation_aborted) return;
     try {
       if (ec) {
-        // e.g. out of file descriptors: back off instead of spinning
-        log::warning("jsonrpc: accept failed: ", ec.message());
-        accept_retry_.expires_after(std::chrono::milliseconds(100));
+        // e.g. out of file descriptors: back off instead of spinning (as the socket transport)
+        log::warning("jsonrpc: accept failed: ", ec.message(), "; accepting again in ", k_accept_retry.count(),
+                     " ms");
+        accept_retry_.expires_after(k_accept_retry);
         accept_retry_.async_wait([this](const error_code& e) {
           if (!e) accept_next();
         });
         return;
       }
       if (sessions_.size() >= options_.max_connections) {
-        // tell the client why, best effort, without blocking
+        // as the socket transport: one warning until a connection is accepted again, then
+        // tell the client why (best effort, without blocking) and close
+        const std::string why = "too many connections (max_connections " + std::to_string(options_.max_connections) + ")";
         error_code ignored;
+        const auto peer = socket.remote_endpoint(ignored);
+        if (!refusing_)
+          log::warning("jsonrpc: refused a connection from ", to_string(peer), ": ", why,
+                       "; further refusals are logged at debug level until one is accepted");
+        else
+          log::debug("jsonrpc: refused a connection from ", to_string(peer), ": ", why);
+        refusing_ = true;
         socket.non_blocking(true, ignored);
-        const std::string line =
-            dump(error_response(nullptr, code::overloaded,
-                                "Overloaded: too many connections (max_connections " +
-                                    std::to_string(options_.max_connections) + ")")) +
-            "\n";
+        const std::string line = dump(error_response(nullptr, code::overloaded, "Overloaded: " + why)) + "\n";
         socket.write_some(asio::buffer(line), ignored);
         socket.close(ignored);
       } else {
+        refusing_ = false;
         socket.set_option(tcp::no_delay(true));
         auto session = std::make_shared<Session>(*this, std::move(socket));
         sessions_.insert(session);

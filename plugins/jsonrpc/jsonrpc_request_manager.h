@@ -151,6 +151,7 @@ class JsonRpcRequestManager : public RequestManager {
   boost::asio::executor_work_guard<boost::asio::io_context::executor_type> work_;  // keeps run() alive
   boost::asio::ip::tcp::acceptor acceptor_;          // the listening socket
   boost::asio::steady_timer accept_retry_;           // backs off after accept errors (EMFILE)
+  bool refusing_ = false;                            // refused a connection since the last one accepted (I/O thread)
   std::uint16_t port_ = 0;                           // bound port
   std::thread thread_;                               // runs io_
   std::mutex life_mutex_;                            // guards started_ / stopped_

@@ -26,7 +26,7 @@ void Session::start() { read_more(); }
 void Session::read_more() {
   if (closed_ || reading_ || eof_) return;
   // backpressure: a client with too many unanswered requests waits for answers
-  if (pending_.size() >= limits_.max_pending_requests) return;
+  if (pending_.size() >= limits_.max_in_flight) return;
   reading_ = true;
   if (host_.watch(*this)) return;  // the host's polling thread reads the socket (read_now)
   read_async();
@@ -58,7 +58,7 @@ void Session::on_read(const error_code& ec, std::size_t n) {
   // replies go out with the next read's (the socket is non-blocking: would_block when
   // nothing waits); a short read (a client waiting for its answer) is answered at once
   for (int reads = 1; reads < k_reads_in_a_row && n >= ReadSplit::k_min_bytes; ++reads) {
-    if (closed_ || eof_ || pending_.size() >= limits_.max_pending_requests || !host_.alone(*this)) break;
+    if (closed_ || eof_ || pending_.size() >= limits_.max_in_flight || !host_.alone(*this)) break;
     error_code again;
     n = socket_.read_some(asio::buffer(read_buffer_), again);
     if (again == asio::error::would_block || again == asio::error::try_again) break;
@@ -115,7 +115,7 @@ void Session::consume(std::string_view data) {
     }
     if (nl == std::string_view::npos) {
       // an unfinished line: keep it, unless it is already too long
-      if (partial_.size() + data.size() > limits_.max_line_bytes) {
+      if (partial_.size() + data.size() > limits_.max_message_bytes) {
         partial_.append(data.substr(0, std::min<std::size_t>(data.size(), 1024)));
         host_.on_oversized_line(self, partial_);
         partial_.clear();
@@ -127,7 +127,7 @@ void Session::consume(std::string_view data) {
     }
     std::string_view piece = data.substr(0, nl);
     data.remove_prefix(nl + 1);
-    if (partial_.size() + piece.size() > limits_.max_line_bytes) {
+    if (partial_.size() + piece.size() > limits_.max_message_bytes) {
       partial_.append(piece.substr(0, std::min<std::size_t>(piece.size(), 1024)));
       host_.on_oversized_line(self, partial_);
       partial_.clear();
@@ -159,7 +159,7 @@ void Session::check_unsent() {
   if (outbox_.size() + in_flight_.size() > limits_.max_unsent_bytes) {
     // the client does not read its replies: it may not grow our memory
     log::warning("Socket service manager: ", label_, " disconnected: more than ",
-                 limits_.max_unsent_bytes, " bytes of replies unread (max_pending_replies_bytes)");
+                 limits_.max_unsent_bytes, " bytes of replies unread (", limits_.unsent_bytes_key, ")");
     close("too many unread replies");
   }
 }

@@ -3,9 +3,9 @@
 // A Session owns its TCP socket, turns the byte stream into lines and writes replies.
 //   - Reading: bytes accumulate until '\n', so a request split over several TCP segments
 //     works and several requests in one segment are all seen. A line longer than
-//     `max_line_bytes` is answered FAILED by the host (on_oversized_line) and skipped up to
+//     `max_message_bytes` is answered FAILED by the host (on_oversized_line) and skipped up to
 //     its '\n'; the connection keeps working. Reading pauses while the connection has
-//     `max_pending_requests` unanswered requests (backpressure instead of unbounded queues).
+//     `max_in_flight` unanswered requests (backpressure instead of unbounded queues).
 //     After a large read from a client sending alone, the session reads on while bytes
 //     are already waiting (k_reads_in_a_row), and the host writes the replies of those
 //     reads together (SessionHost::write_replies). When the host watches the session
@@ -80,9 +80,11 @@ class SessionHost {
 };
 
 struct SessionLimits {
-  std::size_t max_line_bytes = 1 << 20;           // longest request line accepted
+  std::size_t max_message_bytes = 1 << 20;        // longest request line accepted
   std::size_t max_unsent_bytes = 8 << 20;         // unsent replies before disconnecting
-  std::size_t max_pending_requests = 1024;        // unanswered requests before pausing reads
+  std::size_t max_in_flight = 1024;               // unanswered requests before pausing reads
+  const char* message_bytes_key = "max_message_bytes";  // the options' spelling, for messages
+  const char* unsent_bytes_key = "max_unsent_bytes";    // the options' spelling, for messages
 };
 
 class Session : public std::enable_shared_from_this<Session> {

@@ -22,6 +22,8 @@ constexpr std::string_view k_failed = "FAILED";
 constexpr std::string_view k_preempted = "PREEMPTED";
 // Longest client id echoed in the reply to an oversized line (the line itself is dropped).
 constexpr std::size_t k_max_echoed_id = 256;
+// How long accepting pauses after accept() failed (out of file descriptors, say).
+constexpr std::chrono::milliseconds k_accept_retry{100};
 
 // The address to listen on: a literal, or the first result of resolving a name.
 tcp::endpoint resolve_listen_endpoint(const std::string& host, std::uint16_t port) {
@@ -37,6 +39,29 @@ tcp::endpoint resolve_listen_endpoint(const std::string& host, std::uint16_t por
   return results.begin()->endpoint();
 }
 
+// The options the JSON-RPC transport names differently were renamed (one name per knob on
+// both TCP transports, issue #16); the old names stay accepted for one release.
+struct RenamedOption {
+  const char* key;      // the name to use
+  const char* old_key;  // the deprecated name
+};
+constexpr RenamedOption k_max_connections{"max_connections", "max_clients"};
+constexpr RenamedOption k_max_message_bytes{"max_message_bytes", "max_line_bytes"};
+constexpr RenamedOption k_max_unsent_bytes{"max_unsent_bytes", "max_pending_replies_bytes"};
+constexpr RenamedOption k_max_in_flight{"max_in_flight", "max_pending_requests"};
+
+// The key `config` spells the knob with: the old one only if the new one is absent (noted in
+// `deprecations`). Both at once is a ConfigError.
+const char* spelling(const ConfigObject& config, const RenamedOption& option, std::vector<std::string>& deprecations) {
+  if (!config.has(option.old_key)) return option.key;
+  if (config.has(option.key))
+    throw ConfigError(std::string(option.old_key) + ": the deprecated name of '" + option.key +
+                      "', which is set too; keep only '" + option.key + "'");
+  deprecations.push_back(std::string("socket: option '") + option.old_key + "' is deprecated, use '" + option.key +
+                         "' (the old name goes in the next release)");
+  return option.old_key;
+}
+
 }  // namespace
 
 SocketOptions SocketOptions::parse(const json& options) {
@@ -46,13 +71,16 @@ SocketOptions SocketOptions::parse(const json& options) {
   o.host = config.get_string("host", o.host);
   o.port = static_cast<std::uint16_t>(config.get_int("port", o.port, 0, 65535));
   o.success_word = config.get_choice("success_word", o.success_word, {"SUCCESS", "OK"});
-  o.limits.max_line_bytes =
-      static_cast<std::size_t>(config.get_int("max_line_bytes", 1 << 20, 64, 1LL << 30));
-  o.limits.max_unsent_bytes = static_cast<std::size_t>(
-      config.get_int("max_pending_replies_bytes", 8 << 20, 1024, 1LL << 34));
-  o.limits.max_pending_requests =
-      static_cast<std::size_t>(config.get_int("max_pending_requests", 1024, 1, 1 << 20));
-  o.max_clients = static_cast<std::size_t>(config.get_int("max_clients", 1024, 1, 1 << 20));
+  o.limits.message_bytes_key = spelling(config, k_max_message_bytes, o.deprecations);
+  o.limits.max_message_bytes =
+      static_cast<std::size_t>(config.get_int(o.limits.message_bytes_key, 1 << 20, 64, 1LL << 30));
+  o.limits.unsent_bytes_key = spelling(config, k_max_unsent_bytes, o.deprecations);
+  o.limits.max_unsent_bytes =
+      static_cast<std::size_t>(config.get_int(o.limits.unsent_bytes_key, 8 << 20, 1024, 1LL << 34));
+  o.limits.max_in_flight = static_cast<std::size_t>(
+      config.get_int(spelling(config, k_max_in_flight, o.deprecations), 1024, 1, 1 << 20));
+  o.connections_key = spelling(config, k_max_connections, o.deprecations);
+  o.max_connections = static_cast<std::size_t>(config.get_int(o.connections_key, 1024, 1, 1 << 20));
   o.io_spin = std::chrono::microseconds(config.get_int("io_spin_us", o.io_spin.count(), 0, 10000));
   o.global_policy = config.get_choice("global_policy", "reject", {"reject", "preempt"}) == "preempt"
                         ? GlobalPolicy::preempt
@@ -64,16 +92,20 @@ SocketOptions SocketOptions::parse(const json& options) {
 }
 
 SocketRequestManager::SocketRequestManager(const json& options)
-    : RequestManager("Socket service manager"), work_(asio::make_work_guard(io_)), acceptor_(io_) {
+    : RequestManager("Socket service manager"), work_(asio::make_work_guard(io_)), acceptor_(io_),
+      accept_retry_(io_) {
   SocketOptions o = SocketOptions::parse(options);
   host_ = o.host;
   const std::uint16_t requested_port = o.port;
   success_word_ = o.success_word;
   limits_ = o.limits;
-  max_clients_ = o.max_clients;
+  max_connections_ = o.max_connections;
+  connections_key_ = o.connections_key;
   io_spin_ = o.io_spin;
   cancel_on_disconnect_ = o.cancel_on_disconnect;
   set_global_policy(o.global_policy);
+  // once per transport created (validate_options parses too, and says nothing)
+  for (const auto& message : o.deprecations) log::warning(message);
 
   // bind now, so that a port in use fails the creation of the transport
   tcp::endpoint endpoint = resolve_listen_endpoint(host_, requested_port);
@@ -160,6 +192,7 @@ void SocketRequestManager::close_all() {
   stopping_ = true;  // the requests still running end at shutdown (abandon_pending), not as cancels
   error_code ec;
   acceptor_.close(ec);
+  accept_retry_.cancel();
   auto sessions = std::move(sessions_);
   sessions_.clear();
   client_count_.store(0, std::memory_order_relaxed);
@@ -171,16 +204,18 @@ void SocketRequestManager::accept_next() {
   acceptor_.async_accept([this](const error_code& ec, tcp::socket socket) {
     if (ec == asio::error::operation_aborted || !acceptor_.is_open()) return;
     if (ec) {
-      // e.g. out of file descriptors: log, and keep accepting the others
-      log::warning(name(), ": accept failed: ", ec.message());
-      accept_next();
+      // e.g. out of file descriptors: back off instead of spinning (as the JSON-RPC transport)
+      log::warning("socket: accept failed: ", ec.message(), "; accepting again in ", k_accept_retry.count(), " ms");
+      accept_retry_.expires_after(k_accept_retry);
+      accept_retry_.async_wait([this](const error_code& e) {
+        if (!e && acceptor_.is_open()) accept_next();
+      });
       return;
     }
-    if (sessions_.size() >= max_clients_) {
-      log::warning(name(), ": refused a connection: ", max_clients_, " clients already (max_clients)");
-      error_code ignored;
-      socket.close(ignored);
+    if (sessions_.size() >= max_connections_) {
+      refuse(std::move(socket));
     } else {
+      refusing_ = false;
       SessionHost& host = *this;
       auto session = std::make_shared<Session>(std::move(socket), host, limits_, next_session_++);
       sessions_.insert(session);
@@ -190,6 +225,28 @@ void SocketRequestManager::accept_next() {
     }
     accept_next();
   });
+}
+
+void SocketRequestManager::refuse(tcp::socket socket) {
+  // as the JSON-RPC transport: one warning until a connection is accepted again, then tell
+  // the client why in its protocol (one line, best effort, never blocking) and close. The
+  // id "-" matches no request: pymorse ignores the line, telnet shows it.
+  const std::string why = "too many connections (" + std::string(connections_key_) + " " +
+                          std::to_string(max_connections_) + ")";
+  error_code ignored;
+  const auto peer = socket.remote_endpoint(ignored);
+  if (!refusing_)
+    log::warning("socket: refused a connection from ", peer.address().to_string(), ":", peer.port(), ": ", why,
+                 "; further refusals are logged at debug level until one is accepted");
+  else
+    log::debug("socket: refused a connection from ", peer.address().to_string(), ":", peer.port(), ": ", why);
+  refusing_ = true;
+  std::string line;
+  const json text = why;
+  append_reply(line, "-", k_failed, &text);
+  socket.non_blocking(true, ignored);
+  socket.write_some(asio::buffer(line), ignored);
+  socket.close(ignored);
 }
 
 // ---- requests (I/O thread)
@@ -323,10 +380,10 @@ void SocketRequestManager::on_oversized_line(const std::shared_ptr<Session>& ses
   std::string_view id = prefix.substr(begin, end - begin);
   if (id.empty() || id.size() > k_max_echoed_id || end == prefix.size()) id = "-";
   log::warning(name(), ": ", session->label(), ": request line longer than ",
-               limits_.max_line_bytes, " bytes ignored");
+               limits_.max_message_bytes, " bytes ignored");
   fail_in_order(session, id,
-                "Request too long: the line exceeds " + std::to_string(limits_.max_line_bytes) +
-                    " bytes (max_line_bytes); it was ignored");
+                "Request too long: the line exceeds " + std::to_string(limits_.max_message_bytes) + " bytes (" +
+                    limits_.message_bytes_key + "); it was ignored");
 }
 
 void SocketRequestManager::on_input_ended(const std::shared_ptr<Session>& session) {
@@ -469,6 +526,9 @@ void SocketRequestManager::deliver(RequestId id, const Outcome& outcome) try {
 }  // namespace simgate::socket
 
 SIMGATE_TRANSPORT_PLUGIN(socket, simgate::socket::SocketRequestManager, "0.1.0", "host", "port",
-                         "success_word", "max_line_bytes", "max_pending_replies_bytes",
-                         "max_pending_requests", "max_clients", "io_spin_us", "global_policy",
-                         "on_disconnect")
+                         "success_word", "max_connections", "max_message_bytes",
+                         "max_unsent_bytes", "max_in_flight", "io_spin_us", "global_policy",
+                         "on_disconnect",
+                         // deprecated names: accepted with a warning until the next release
+                         "max_clients", "max_line_bytes", "max_pending_replies_bytes",
+                         "max_pending_requests")

@@ -7,10 +7,17 @@
 // client's id. Ids and cancel are scoped to the connection.
 //
 // Options (plugins/socket/README.md): host, port (0 = ephemeral), success_word
-// ("SUCCESS" | "OK"), max_line_bytes, max_pending_replies_bytes, max_pending_requests,
-// max_clients, io_spin_us, global_policy ("reject" | "preempt"), on_disconnect ("cancel" |
+// ("SUCCESS" | "OK"), max_connections, max_message_bytes, max_unsent_bytes, max_in_flight
+// (named as on the JSON-RPC transport; the old names max_clients, max_line_bytes,
+// max_pending_replies_bytes, max_pending_requests are accepted with a warning until the next
+// release), io_spin_us, global_policy ("reject" | "preempt"), on_disconnect ("cancel" |
 // "let_run": what becomes of the async requests of a client that leaves, or ends its
 // sending side).
+//
+// Like the JSON-RPC transport, it backs off 100 ms after accept() fails (out of file
+// descriptors) instead of retrying at once, and answers a connection over max_connections
+// with one line saying why (`- FAILED "too many connections (max_connections 1024)"`) before
+// closing it, with one warning until a connection is accepted again.
 //
 // Life cycle: the constructor validates the options and binds the listening socket (a
 // port in use fails here, with a clear message); start() launches the I/O thread;
@@ -48,6 +55,7 @@
 #include <boost/asio/executor_work_guard.hpp>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/steady_timer.hpp>
 
 #include "params_parser.h"
 #include "session.h"
@@ -64,7 +72,9 @@ struct SocketOptions {
   std::uint16_t port = 4000;                               // 0: any free port
   std::string success_word = "SUCCESS";                    // "SUCCESS" (MORSE) or "OK" (MORSE's docs)
   SessionLimits limits;                                    // per-connection limits
-  std::size_t max_clients = 1024;                          // connections beyond this are refused
+  std::size_t max_connections = 1024;                      // connections beyond this are refused
+  const char* connections_key = "max_connections";         // as spelt in the options, for messages
+  std::vector<std::string> deprecations;                   // a warning per deprecated option name used
   std::chrono::microseconds io_spin{50};                   // ("io_spin_us")
   GlobalPolicy global_policy = GlobalPolicy::reject;       // ("global_policy")
   bool cancel_on_disconnect = true;                        // ("on_disconnect": "cancel" | "let_run")
@@ -131,6 +141,8 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   void flush_touched();
 
   void accept_next();
+  // Tells a connection over max_connections why, best effort, and closes it.
+  void refuse(boost::asio::ip::tcp::socket socket);
   // The client left (on_disconnect "cancel"): its async requests are cancelled. Those of
   // the read being handled are cancelled once they have gone to the core (run_calls).
   void cancel_requests_of(const Session& session);
@@ -158,7 +170,10 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   std::string endpoint_;                     // "tcp://127.0.0.1:4000"
   std::string success_word_;                 // "SUCCESS" (MORSE) or "OK" (MORSE's docs)
   SessionLimits limits_;                     // per-connection limits
-  std::size_t max_clients_ = 1024;           // connections beyond this are refused
+  std::size_t max_connections_ = 1024;       // connections beyond this are refused
+  const char* connections_key_ = "max_connections";  // as spelt in the options, for messages
+  bool refusing_ = false;                    // refused a connection since the last one accepted (I/O thread)
+  boost::asio::steady_timer accept_retry_;   // backs off after accept errors (EMFILE)
   std::chrono::microseconds io_spin_{50};    // ("io_spin_us") how long the I/O thread polls before sleeping (idle_spin.h)
   bool cancel_on_disconnect_ = true;         // ("on_disconnect") a client that leaves cancels its requests
   bool stopping_ = false;                    // close_all() runs: closed sessions cancel nothing (I/O thread)

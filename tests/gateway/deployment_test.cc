@@ -219,7 +219,7 @@ TEST(GatewayConfigTest, CheckAppliesThePluginsOwnOptionChecks) {
   // values, not just keys: before, `check` said OK and `run` then failed
   json c = demo_config();
   c["transports"]["socket"]["options"]["success_word"] = "YES";
-  c["transports"]["socket"]["options"]["max_clients"] = 0;
+  c["transports"]["socket"]["options"]["max_connections"] = 0;
   auto errors = errors_of(c);
   ASSERT_EQ(errors.size(), 1u) << ::testing::PrintToString(errors);
   EXPECT_THAT(errors[0], HasSubstr("transports.socket.options.success_word: expected one of \"SUCCESS\", \"OK\", "

@@ -75,6 +75,8 @@ mistakes = {
     "realtime factor word": lambda c: c["scene"].update(realtime_factor="fast"),
     "socket option typo": lambda c: c["transports"]["socket"]["options"].update(prot=4000),
     "port out of range": lambda c: c["transports"]["socket"]["options"].update(port=70000),
+    "socket option under its old and new name": lambda c: c["transports"]["socket"]["options"].update(
+        max_clients=8, max_connections=8),
     "reserved robot name": lambda c: c["robots"][1].update(name="simulation"),
     "dotted component name": lambda c: c["robots"][0]["components"][0].update(name="mo.tion"),
     "component without type": lambda c: c["robots"][0]["components"][0].pop("type"),

@@ -4,11 +4,13 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <condition_variable>
 #include <cstring>
 #include <mutex>
 
+#include "simgate/core/log.h"
 #include "socket_test_fixture.h"
 
 namespace simgate::socket::test {
@@ -696,7 +698,7 @@ TEST_F(SocketTransportLimits, OversizedLineGetsFailedAndConnectionKeepsWorking) 
 }
 
 TEST_F(SocketTransportLimits, ClientThatStopsReadingIsDisconnectedOthersAreServed) {
-  start_server({{"max_pending_replies_bytes", 65536}});
+  start_server({{"max_unsent_bytes", 65536}});
   // a client with a tiny receive window that never reads its replies
   int fd = ::socket(AF_INET, SOCK_STREAM, 0);
   ASSERT_GE(fd, 0);
@@ -742,7 +744,7 @@ TEST_F(SocketTransportLimits, NoLineIsTakenFromAReadAfterItsFirstHalfClosedTheCo
   // exceed the limit the connection closes there, and the rest of the read must not be
   // taken as requests of the closed connection (they would run, and their outcomes would
   // be delivered to the freed session: a use after free under the sanitizers)
-  start_server({{"max_pending_replies_bytes", 1024}});
+  start_server({{"max_unsent_bytes", 1024}});
   auto c = connect();
   auto burst = [](const std::string& prefix, const std::string& request, int lines) {
     std::string out;
@@ -797,18 +799,23 @@ TEST_F(SocketTransportLimits, GlobalPolicyPreemptAppliesToServicesWithoutLocalPo
   EXPECT_EQ(next_lines(*c, 2), (std::multiset<std::string>{"r2 SUCCESS true", "s1 SUCCESS 1"}));
 }
 
-TEST_F(SocketTransportLimits, MaxClientsRefusesExtraConnections) {
-  start_server({{"max_clients", 1}});
+TEST_F(SocketTransportLimits, MaxConnectionsTellsAnExtraConnectionWhyAndClosesIt) {
+  start_server({{"max_connections", 1}});
   auto first = connect();
   EXPECT_EQ(roundtrip(*first, "a test ping"), "a SUCCESS \"pong\"");
-  auto second = connect();  // accepted by the kernel, closed by the server
-  EXPECT_THROW(
-      {
-        second->send_line("b test ping");
-        second->read_line(10s);
-      },
-      client::ClientError);
+  auto second = connect();  // accepted by the kernel, told why and closed by the server
+  EXPECT_EQ(next_line(*second), "- FAILED \"too many connections (max_connections 1)\"");
+  EXPECT_THROW(second->read_line(10s), client::ClientError);
   EXPECT_EQ(roundtrip(*first, "c test ping"), "c SUCCESS \"pong\"");
+}
+
+TEST_F(SocketTransportLimits, MaxMessageBytesLimitsALine) {
+  start_server({{"max_message_bytes", 1024}});
+  auto c = connect();
+  EXPECT_EQ(roundtrip(*c, "big test echo ('" + std::string(2000, 'a') + "',)"),
+            "big FAILED \"Request too long: the line exceeds 1024 bytes (max_message_bytes); it was ignored\"");
+  std::string prefix = "ok test echo ('";
+  EXPECT_THAT(roundtrip(*c, prefix + std::string(1024 - prefix.size() - 3, 'c') + "',)"), StartsWith("ok SUCCESS"));
 }
 
 TEST_F(SocketTransportLimits, EndpointIsLoopbackWithTheBoundPort) {
@@ -840,7 +847,7 @@ TEST_F(SocketTransportLimits, UnknownOrInvalidOptionsAreRefused) {
     EXPECT_THAT(e.what(), HasSubstr("success_word"));
   }
   EXPECT_THROW(plugin->create({{"port", 70000}}, "transports.socket"), std::exception);
-  EXPECT_THROW(plugin->create({{"port", 0}, {"max_line_bytes", 1}}, "transports.socket"), std::exception);
+  EXPECT_THROW(plugin->create({{"port", 0}, {"max_message_bytes", 1}}, "transports.socket"), std::exception);
   try {
     plugin->create({{"port", 0}, {"on_disconnect", "forget"}}, "transports.socket");
     FAIL() << "on_disconnect forget accepted";
@@ -848,6 +855,164 @@ TEST_F(SocketTransportLimits, UnknownOrInvalidOptionsAreRefused) {
     EXPECT_THAT(e.what(), HasSubstr("on_disconnect"));
   }
 }
+
+// ---- option names shared with the JSON-RPC transport (the old names are deprecated aliases)
+
+// The warnings logged while it lives, from any thread.
+class WarningLog {
+ public:
+  WarningLog() {
+    log::set_sink([this](log::Level level, std::string_view message) {
+      if (level < log::Level::warning) return;
+      std::lock_guard lock(mutex_);
+      lines_.emplace_back(message);
+    });
+  }
+  ~WarningLog() { log::set_sink({}); }
+  // How many warnings contain `text`.
+  std::size_t count(const std::string& text) const {
+    std::lock_guard lock(mutex_);
+    return std::size_t(std::count_if(lines_.begin(), lines_.end(),
+                                     [&](const std::string& l) { return l.find(text) != std::string::npos; }));
+  }
+  std::vector<std::string> lines() const {
+    std::lock_guard lock(mutex_);
+    return lines_;
+  }
+
+ private:
+  mutable std::mutex mutex_;        // guards lines_ (the sink runs on the logging thread)
+  std::vector<std::string> lines_;  // warnings and errors, in order
+};
+
+class SocketTransportOptions : public SocketFixture {};
+
+TEST_F(SocketTransportOptions, TheJsonRpcTransportsNamesAreAcceptedWithoutWarning) {
+  WarningLog warnings;
+  start_server({{"max_connections", 8}, {"max_message_bytes", 4096}, {"max_unsent_bytes", 65536}, {"max_in_flight", 4}});
+  auto c = connect();
+  EXPECT_EQ(roundtrip(*c, "a test ping"), "a SUCCESS \"pong\"");
+  EXPECT_EQ(warnings.count("deprecated"), 0u) << ::testing::PrintToString(warnings.lines());
+}
+
+TEST_F(SocketTransportOptions, AnOldNameWorksAsBeforeAndWarnsOnceWithTheNewName) {
+  WarningLog warnings;
+  start_server({{"max_clients", 1}});
+  EXPECT_EQ(warnings.count("socket: option 'max_clients' is deprecated, use 'max_connections' (the old name goes in "
+                           "the next release)"),
+            1u)
+      << ::testing::PrintToString(warnings.lines());
+  auto first = connect();
+  EXPECT_EQ(roundtrip(*first, "a test ping"), "a SUCCESS \"pong\"");
+  auto second = connect();  // the limit applies, named as the configuration spells it
+  EXPECT_EQ(next_line(*second), "- FAILED \"too many connections (max_clients 1)\"");
+}
+
+TEST_F(SocketTransportOptions, AnOptionUnderItsOldAndNewNameIsAConfigError) {
+  auto plugin = load_transport_plugin(std::string(SIMGATE_TEST_PLUGIN_DIR) + "/libsimgate_transport_socket.so");
+  const std::vector<std::pair<std::string, std::string>> renamed = {{"max_clients", "max_connections"},
+                                                                    {"max_line_bytes", "max_message_bytes"},
+                                                                    {"max_pending_replies_bytes", "max_unsent_bytes"},
+                                                                    {"max_pending_requests", "max_in_flight"}};
+  for (const auto& [old_key, new_key] : renamed) {
+    try {
+      plugin->create({{"port", 0}, {old_key, 1024}, {new_key, 1024}}, "transports.socket");
+      ADD_FAILURE() << old_key << " and " << new_key << " accepted together";
+    } catch (const ConfigError& e) {
+      EXPECT_THAT(e.what(), HasSubstr("transports.socket." + old_key + ": the deprecated name of '" + new_key + "'"));
+      EXPECT_THAT(e.what(), HasSubstr("keep only '" + new_key + "'"));
+    }
+  }
+}
+
+// ---- what both TCP transports do with a connection over max_connections
+
+// Reads until the peer closes (or `timeout` passes): what was received, and whether it ended.
+std::pair<std::string, bool> read_to_end(int fd, std::chrono::seconds timeout) {
+  timeval tv{static_cast<time_t>(timeout.count()), 0};
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  std::string received;
+  char buffer[4096];
+  for (;;) {
+    ssize_t n = ::recv(fd, buffer, sizeof buffer, 0);
+    if (n == 0 || (n < 0 && errno == ECONNRESET)) return {received, true};
+    if (n < 0) return {received, false};  // timeout
+    received.append(buffer, std::size_t(n));
+  }
+}
+
+int connect_raw(std::uint16_t port) {
+  int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(port);
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (fd < 0 || ::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0)
+    throw std::runtime_error(std::string("connect: ") + std::strerror(errno));
+  return fd;
+}
+
+// The transport (plugin name) under test, with max_connections 1 and a `test ping` service.
+class TcpTransportOverTheLimit : public ::testing::TestWithParam<std::string> {
+ protected:
+  void SetUp() override {
+    plugin_ = load_transport_plugin(std::string(SIMGATE_TEST_PLUGIN_DIR) + "/libsimgate_transport_" + GetParam() + ".so");
+    manager_ = plugin_->create({{"port", 0}, {"max_connections", 1}}, "transports." + GetParam());
+    manager_->register_service("test", [] { return std::string("pong"); }, "ping");
+    manager_->start();
+    const std::string endpoint = manager_->endpoints().at(0);
+    port_ = static_cast<std::uint16_t>(std::stoi(endpoint.substr(endpoint.rfind(':') + 1)));
+    loop_ = std::thread([this] {
+      while (!stop_.load()) manager_->process(50ms);
+    });
+  }
+  void TearDown() override {
+    stop_ = true;
+    manager_->gate()->signal();
+    loop_.join();
+    manager_->stop();
+  }
+  // One call in the transport's protocol on `fd`, and the first line of its answer.
+  std::string ping(int fd) {
+    const std::string request = GetParam() == "socket" ? "p test ping\n"
+                                                       : "{\"jsonrpc\":\"2.0\",\"method\":\"test.ping\",\"id\":1}\n";
+    if (::send(fd, request.data(), request.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(request.size()))
+      throw std::runtime_error("send failed");
+    timeval tv{10, 0};
+    ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+    std::string line;
+    char ch = 0;
+    while (::recv(fd, &ch, 1, 0) == 1 && ch != '\n') line += ch;
+    return line;
+  }
+
+  std::shared_ptr<TransportPlugin> plugin_;  // keeps the library loaded
+  std::shared_ptr<RequestManager> manager_;  // the transport under test
+  std::uint16_t port_ = 0;                   // its ephemeral port
+  std::thread loop_;                         // runs process()
+  std::atomic<bool> stop_{false};            // ends loop_
+};
+
+TEST_P(TcpTransportOverTheLimit, IsToldWhyInOneLineThenClosedAndLoggedOnce) {
+  WarningLog warnings;
+  int first = connect_raw(port_);
+  EXPECT_THAT(ping(first), HasSubstr("pong"));  // accepted: the one connection allowed
+  for (int i = 0; i < 2; ++i) {
+    int extra = connect_raw(port_);
+    auto [received, ended] = read_to_end(extra, 10s);
+    ::close(extra);
+    EXPECT_TRUE(ended) << "connection " << i << " over the limit was kept";
+    EXPECT_EQ(std::count(received.begin(), received.end(), '\n'), 1) << received;
+    EXPECT_THAT(received, HasSubstr("too many connections (max_connections 1)"));
+  }
+  // one warning for the two refusals, naming the option
+  EXPECT_EQ(warnings.count("refused a connection"), 1u) << ::testing::PrintToString(warnings.lines());
+  EXPECT_EQ(warnings.count("(max_connections 1)"), 1u);
+  EXPECT_THAT(ping(first), HasSubstr("pong"));  // the connection within the limit is served on
+  ::close(first);
+}
+
+INSTANTIATE_TEST_SUITE_P(SocketAndJsonRpc, TcpTransportOverTheLimit, ::testing::Values("socket", "jsonrpc"));
 
 }  // namespace
 }  // namespace simgate::socket::test

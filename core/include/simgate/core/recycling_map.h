@@ -47,7 +47,7 @@ namespace simgate {
 // Request ids are short: up to 16 bytes are hashed inline (two overlapping loads and one
 // 64x64->128-bit multiply, about 20 instructions); longer keys use std::hash. Like
 // std::hash, it is not seeded: a client can make its own ids collide, which costs only its
-// own connection's table (bounded by max_pending_requests).
+// own connection's table (bounded by max_in_flight).
 struct TransparentStringHash {
   using is_transparent = void;
   std::size_t operator()(std::string_view s) const {
