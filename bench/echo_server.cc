@@ -1,4 +1,4 @@
-// echo_server.cc — the physical limit: a plain Boost.Asio line-echo server.
+// echo_server.cc — the physical limit: a Boost.Asio line-echo server.
 //
 // Every byte a client sends comes back unchanged, one complete line at a time: each read
 // takes what the socket holds, and every complete line in it is written back in a single
@@ -7,9 +7,18 @@
 // so the comparison isolates what simgate adds: parsing, the hand-off to the thread that
 // calls process(), the service and the reply formatting.
 //
-// Usage: simgate_bench_echo [--host 127.0.0.1] [--port 0] [--max-seconds 600]
+// Waiting: with --spin-us 0 (the default) the I/O thread sleeps in epoll_wait between
+// requests, as a plain Asio server does. With --spin-us N it runs the io_context with
+// simgate's idle-spin rule (run_with_idle_spin, simgate/core/idle_spin.h: poll for N µs
+// after each event before sleeping, while events come close together), the rule simgate's
+// TCP transports run with (io_spin_us, default 50): the harness takes this polling echo as
+// the limit, and the sleeping one as the "plain Asio server" peer. It does not read sockets
+// directly (DirectReads): that is the transports' own optimisation, not the waiting rule.
+//
+// Usage: simgate_bench_echo [--host 127.0.0.1] [--port 0] [--spin-us 0] [--max-seconds 600]
 // Prints {"port": N} on stdout once listening; exits on SIGTERM/SIGINT or after
 // --max-seconds (a bounded run).
+#include <chrono>
 #include <csignal>
 #include <cstdint>
 #include <iostream>
@@ -20,6 +29,7 @@
 #include <boost/asio.hpp>
 
 #include "bench_util.h"
+#include "simgate/core/idle_spin.h"
 
 namespace asio = boost::asio;
 using asio::ip::tcp;
@@ -83,13 +93,20 @@ void accept_next(tcp::acceptor& acceptor) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"The physical limit: a Boost.Asio line-echo server (prints {\"port\": N} once listening).",
+  CLI::App app{"A Boost.Asio line-echo server: the limit (--spin-us 50) or a plain Asio server (--spin-us 0); "
+               "prints {\"port\": N} once listening.",
                "simgate_bench_echo"};
   std::string host = "127.0.0.1";
   std::uint16_t port = 0;
   double max_seconds = 600;
+  int spin_us = 0;
   app.add_option("--host", host, "address to listen on")->capture_default_str();
   app.add_option("--port", port, "port to listen on (0 = any free port)")->capture_default_str();
+  app.add_option("--spin-us", spin_us,
+                 "poll this many µs after each event before sleeping (simgate's idle-spin rule, "
+                 "as the transports' io_spin_us); 0 = sleep in epoll_wait (a plain Asio server)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 10000));
   app.add_option("--max-seconds", max_seconds, "exit after this long (a bounded run)")->capture_default_str();
   if (auto code = simgate::bench::parse_command_line(app, argc, argv)) return *code;
   try {
@@ -107,7 +124,8 @@ int main(int argc, char** argv) {
     });
 
     std::cout << simgate::bench::json{{"port", acceptor.local_endpoint().port()}}.dump() << std::endl;
-    io.run();
+    // returns when stopped (signal, --max-seconds), as io.run() does
+    simgate::run_with_idle_spin(io, std::chrono::microseconds(spin_us));
     return 0;
   } catch (const std::exception& e) {
     std::cerr << "simgate_bench_echo: " << e.what() << "\n";

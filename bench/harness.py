@@ -8,8 +8,11 @@ loop is bounded in count and time; every process it starts is stopped before it 
 
 Sections (each ends "ok", "error" with the reason, or "skipped" when a part was not built):
   socket   the socket transport vs the Asio line-echo limit: round-trip latency (1
-           outstanding) and pipelined throughput (windows 1/64/256 x 1/4 connections)
-  jsonrpc  the JSON-RPC transport vs the same echo limit (JSON-RPC-sized lines)
+           outstanding) and pipelined throughput (windows 1/64/256 x 1/4 connections).
+           Two echoes: the limit polls before sleeping with the transports' idle-spin rule
+           (--spin-us 50, as their default io_spin_us); the "plain Asio server" sleeps in
+           epoll_wait. Targets are taken against the limit; ratios to both are reported
+  jsonrpc  the JSON-RPC transport vs the same two echoes (JSON-RPC-sized lines)
   dds      simgate's DDS round trip vs a raw Cyclone ping-pong (same types, QoS, payload)
   peers    MORSE's Python SocketRequestManager vs the socket transport; jayson@5's TCP
            server vs the JSON-RPC transport; all with the same client
@@ -36,6 +39,10 @@ import tempfile
 import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+# The echo limit waits as simgate's TCP transports do: polls this long after each event
+# before sleeping (their default io_spin_us, simgate/core/idle_spin.h). The plain Asio
+# server peer is the same echo with 0 (it sleeps in epoll_wait).
+ECHO_SPIN_US = 50
 PINNING = "none: every server, client and peer runs unpinned (no taskset), on both sides of every comparison"
 
 
@@ -186,6 +193,17 @@ def in_order(repeat, first, second):
     return first(), b
 
 
+def in_rotation(repeat, *measurements):
+    """Runs every measurement of a group, starting with a different one on each repeat (the
+    order rotates), so that none always runs first; returns the results in argument order."""
+    n = len(measurements)
+    results = [None] * n
+    for k in range(n):
+        i = (repeat + k) % n
+        results[i] = measurements[i]()
+    return tuple(results)
+
+
 def ratio(a, b):
     return a / b if a is not None and b not in (None, 0) else None
 
@@ -254,30 +272,44 @@ class Harness:
         p.announcement = p.read_json("endpoints", 60)
         return p
 
-    def echo(self):
-        p = Process("echo", [self.exe("simgate_bench_echo")], self.logs, self.env)
+    def echo(self, spin_us=ECHO_SPIN_US):
+        """The echo limit (polling as the transports do), or with spin_us=0 the plain Asio
+        server (sleeps in epoll_wait)."""
+        p = Process("echo" if spin_us else "echo-plain",
+                    [self.exe("simgate_bench_echo"), "--spin-us", str(spin_us)], self.logs, self.env)
         p.port = p.read_json("port", 30)["port"]
         return p
 
-    def compare_tcp(self, name, server_port, echo_port, proto_args, windows, connections):
-        """Latency and throughput of a server and of the echo limit, interleaved per repeat."""
+    def compare_tcp(self, name, server_port, echo_port, plain_port, proto_args, windows, connections):
+        """Latency and throughput of a server, of the echo limit (polling) and of the plain
+        Asio server (the sleeping echo), the three in rotating order within each repeat."""
         rows = {"latency": [], "throughput": {}}
         for rep in range(self.repeats):
-            echo, server = in_order(rep, lambda: self.latency(echo_port, proto_args + ["--echo"]),
-                                    lambda: self.latency(server_port, proto_args))
-            rows["latency"].append({"echo": echo, name: server, "ratio_p50": ratio(server["p50_us"], echo["p50_us"]),
-                                    "ratio_p99": ratio(server["p99_us"], echo["p99_us"])})
+            echo, plain, server = in_rotation(rep, lambda: self.latency(echo_port, proto_args + ["--echo"]),
+                                              lambda: self.latency(plain_port, proto_args + ["--echo"]),
+                                              lambda: self.latency(server_port, proto_args))
+            rows["latency"].append({"echo": echo, "plain": plain, name: server,
+                                    "ratio_p50": ratio(server["p50_us"], echo["p50_us"]),
+                                    "ratio_p99": ratio(server["p99_us"], echo["p99_us"]),
+                                    "plain_ratio_p50": ratio(server["p50_us"], plain["p50_us"]),
+                                    "plain_ratio_p99": ratio(server["p99_us"], plain["p99_us"])})
             for c in connections:
                 for w in windows:
                     key = f"w{w}_c{c}"
-                    echo_t, server_t = in_order(rep, lambda: self.throughput(echo_port, proto_args + ["--echo"], w, c),
-                                                lambda: self.throughput(server_port, proto_args, w, c))
+                    echo_t, plain_t, server_t = in_rotation(
+                        rep, lambda: self.throughput(echo_port, proto_args + ["--echo"], w, c),
+                        lambda: self.throughput(plain_port, proto_args + ["--echo"], w, c),
+                        lambda: self.throughput(server_port, proto_args, w, c))
                     rows["throughput"].setdefault(key, []).append(
-                        {"echo": echo_t, name: server_t, "ratio": ratio(server_t["rps"], echo_t["rps"])})
+                        {"echo": echo_t, "plain": plain_t, name: server_t,
+                         "ratio": ratio(server_t["rps"], echo_t["rps"]),
+                         "plain_ratio": ratio(server_t["rps"], plain_t["rps"])})
         return rows
 
     @staticmethod
     def summarize_tcp(rows, name):
+        """echo_* and ratio* are against the echo limit (polling); plain_* against the plain
+        Asio server (the sleeping echo)."""
         out = {"latency": {
             "server_p50_us": spread([r[name]["p50_us"] for r in rows["latency"]]),
             "server_p99_us": spread([r[name]["p99_us"] for r in rows["latency"]]),
@@ -285,14 +317,31 @@ class Harness:
             "echo_p99_us": spread([r["echo"]["p99_us"] for r in rows["latency"]]),
             "ratio_p50": spread([r["ratio_p50"] for r in rows["latency"]]),
             "ratio_p99": spread([r["ratio_p99"] for r in rows["latency"]]),
-        }, "throughput": {}}
+            "plain_p50_us": spread([r["plain"]["p50_us"] for r in rows["latency"]]),
+            "plain_p99_us": spread([r["plain"]["p99_us"] for r in rows["latency"]]),
+            "plain_ratio_p50": spread([r["plain_ratio_p50"] for r in rows["latency"]]),
+            "plain_ratio_p99": spread([r["plain_ratio_p99"] for r in rows["latency"]]),
+        }, "throughput": {}, "echo_spin_us": ECHO_SPIN_US}
         for key, runs in rows["throughput"].items():
             out["throughput"][key] = {
                 "server_rps": spread([r[name]["rps"] for r in runs]),
                 "echo_rps": spread([r["echo"]["rps"] for r in runs]),
                 "ratio": spread([r["ratio"] for r in runs]),
+                "plain_rps": spread([r["plain"]["rps"] for r in runs]),
+                "plain_ratio": spread([r["plain_ratio"] for r in runs]),
             }
         return out
+
+    @staticmethod
+    def report_both(label, s):
+        """One stderr line: the sync p50 and window-64 throughput ratios to both echoes."""
+        def m(v):
+            return "–" if not v else f"{v['median']:.2f}"
+        lat, w64 = s["latency"], s["throughput"].get("w64_c1", {})
+        print(f"[bench] {label}: sync round trip p50 / echo limit (polling) {m(lat['ratio_p50'])}, "
+              f"/ plain Asio server (sleeping) {m(lat['plain_ratio_p50'])}; throughput (window 64, 1 conn.) "
+              f"/ echo limit {m(w64.get('ratio'))}, / plain Asio server {m(w64.get('plain_ratio'))}",
+              file=sys.stderr, flush=True)
 
     def target(self, what, value, op, threshold, unit=""):
         """Records a target of the issue and whether this run met it (never asserted)."""
@@ -307,14 +356,21 @@ class Harness:
         if not self.plugin_built("socket"):
             return {"status": "skipped", "reason": "libsimgate_transport_socket.so is not built"}
         echo = self.echo()
-        host = self.host("socket", {"host": "127.0.0.1", "port": 0})
+        plain = host = None
         try:
+            plain = self.echo(spin_us=0)
+            host = self.host("socket", {"host": "127.0.0.1", "port": 0})
             port = port_of(host.announcement["endpoints"])
-            rows = self.compare_tcp("socket", port, echo.port, ["--proto", "socket"], self.windows, self.connections)
+            rows = self.compare_tcp("socket", port, echo.port, plain.port, ["--proto", "socket"], self.windows,
+                                    self.connections)
         finally:
             echo.check_stopped()
-            host.check_stopped()
+            if plain:
+                plain.check_stopped()
+            if host:
+                host.check_stopped()
         s = self.summarize_tcp(rows, "socket")
+        self.report_both("socket", s)
         self.target("socket sync round trip p50 / echo p50", s["latency"]["ratio_p50"], "<=", 1.3, "x")
         self.target("socket pipelined throughput (window 64, 1 connection) / echo", s["throughput"]["w64_c1"]["ratio"],
                     ">=", 0.5, "x")
@@ -324,14 +380,21 @@ class Harness:
         if not self.plugin_built("jsonrpc"):
             return {"status": "skipped", "reason": "libsimgate_transport_jsonrpc.so is not built"}
         echo = self.echo()
-        host = self.host("jsonrpc", {"host": "127.0.0.1", "port": 0})
+        plain = host = None
         try:
+            plain = self.echo(spin_us=0)
+            host = self.host("jsonrpc", {"host": "127.0.0.1", "port": 0})
             port = port_of(host.announcement["endpoints"])
-            rows = self.compare_tcp("jsonrpc", port, echo.port, ["--proto", "jsonrpc"], self.windows, self.connections)
+            rows = self.compare_tcp("jsonrpc", port, echo.port, plain.port, ["--proto", "jsonrpc"], self.windows,
+                                    self.connections)
         finally:
             echo.check_stopped()
-            host.check_stopped()
+            if plain:
+                plain.check_stopped()
+            if host:
+                host.check_stopped()
         s = self.summarize_tcp(rows, "jsonrpc")
+        self.report_both("jsonrpc", s)
         self.target("JSON-RPC sync round trip p50 / echo p50", s["latency"]["ratio_p50"], "<=", 1.3, "x")
         self.target("JSON-RPC pipelined throughput (window 64, 1 connection) / echo",
                     s["throughput"]["w64_c1"]["ratio"], ">=", 0.35, "x")
@@ -684,6 +747,20 @@ def markdown(r):
         lines.append(f"| {t['target']} | {fmt(t['value'], 2)} {t['unit']} | {t['op']} {t['threshold']} {t['unit']} | {met} |")
     lines.append("")
 
+    # the same two targets' ratios against the plain Asio server (the echo sleeping in epoll)
+    both = [(label, s[name]["summary"]) for name, label in (("socket", "socket"), ("jsonrpc", "JSON-RPC"))
+            if s.get(name, {}).get("status") == "ok"]
+    if both:
+        lines += ["Against both echoes: the echo limit polls before sleeping as the transports do "
+                  f"(`--spin-us {ECHO_SPIN_US}`); the plain Asio server is the same echo sleeping in `epoll_wait`.", "",
+                  "| ratio | / echo limit (polling) | / plain Asio server (sleeping) |", "|---|---|---|"]
+        for label, sm in both:
+            lat, w64 = sm["latency"], sm["throughput"].get("w64_c1", {})
+            lines.append(f"| {label} sync round trip p50 | {fmt(lat['ratio_p50'], 2)} | {fmt(lat.get('plain_ratio_p50'), 2)} |")
+            lines.append(f"| {label} pipelined throughput (window 64, 1 connection) | {fmt(w64.get('ratio'), 2)} | "
+                         f"{fmt(w64.get('plain_ratio'), 2)} |")
+        lines.append("")
+
     for name, title in (("socket", "Socket transport (MORSE text protocol) vs Asio line echo"),
                         ("jsonrpc", "JSON-RPC transport vs Asio line echo (JSON-RPC-sized lines)")):
         lines += [f"## {title}", ""]
@@ -693,13 +770,17 @@ def markdown(r):
             continue
         sm = s[name]["summary"]
         lat = sm["latency"]
-        lines += ["| measure | simgate | echo limit | simgate / echo |", "|---|---|---|---|",
-                  f"| sync round trip p50 (µs) | {fmt(lat['server_p50_us'])} | {fmt(lat['echo_p50_us'])} | {fmt(lat['ratio_p50'], 2)} |",
-                  f"| sync round trip p99 (µs) | {fmt(lat['server_p99_us'])} | {fmt(lat['echo_p99_us'])} | {fmt(lat['ratio_p99'], 2)} |"]
+        lines += ["| measure | simgate | echo limit (polling) | plain Asio server (sleeping) | simgate / echo "
+                  "| simgate / plain |", "|---|---|---|---|---|---|",
+                  f"| sync round trip p50 (µs) | {fmt(lat['server_p50_us'])} | {fmt(lat['echo_p50_us'])} | "
+                  f"{fmt(lat.get('plain_p50_us'))} | {fmt(lat['ratio_p50'], 2)} | {fmt(lat.get('plain_ratio_p50'), 2)} |",
+                  f"| sync round trip p99 (µs) | {fmt(lat['server_p99_us'])} | {fmt(lat['echo_p99_us'])} | "
+                  f"{fmt(lat.get('plain_p99_us'))} | {fmt(lat['ratio_p99'], 2)} | {fmt(lat.get('plain_ratio_p99'), 2)} |"]
         for key, t in sm["throughput"].items():
             w, c = key[1:].split("_c")
             lines.append(f"| throughput, window {w}, {c} conn. (req/s) | {fmt(t['server_rps'])} | "
-                         f"{fmt(t['echo_rps'])} | {fmt(t['ratio'], 2)} |")
+                         f"{fmt(t['echo_rps'])} | {fmt(t.get('plain_rps'))} | {fmt(t['ratio'], 2)} | "
+                         f"{fmt(t.get('plain_ratio'), 2)} |")
         lines.append("")
 
     lines += ["## DDS transport vs raw Cyclone ping-pong", ""]
@@ -717,8 +798,8 @@ def markdown(r):
     if st:
         lines += [st, ""]
     else:
-        lines += ["The echo limit runs in the same repeat with the same lines: echo / peer is the best "
-                  "ratio any server could reach against that peer here.", "",
+        lines += ["The echo limit (polling, as the transports do) runs in the same repeat with the same "
+                  "lines: echo / peer is the best ratio any server could reach against that peer here.", "",
                   "| measure | simgate | peer | echo limit | simgate / peer | echo / peer |",
                   "|---|---|---|---|---|---|"]
         for key, label, transport in (("morse", "MORSE Python SocketRequestManager", "socket"),

@@ -10,6 +10,9 @@ Checks, never timing thresholds:
     run: overruns, jitter, a minimum, and the memory a few smoke connections add (the
     allocator may reuse pages it already had);
   * every target of the issue has a value, a threshold and a verdict;
+  * the socket and JSON-RPC sections report simgate against both echoes: the echo limit
+    (polling, ratio_p50 / ratio) and the plain Asio server (sleeping, plain_ratio_p50 /
+    plain_ratio), and results.md shows both; the echo server runs with --spin-us;
   * results.md has the targets table and a table per section;
   * the load generator counts a wrong reply as an error, never as a measurement;
   * a server slower than the measurement still gets a rate (never 0 req/s).
@@ -62,7 +65,7 @@ def check_wrong_replies_counted(build_dir):
     answers a socket request with the request itself, not "<id> SUCCESS ...", so every reply
     of a socket-protocol run against it is an error (and the harness refuses such runs)."""
     bin_dir = os.path.join(os.path.abspath(build_dir), "bin")
-    echo = subprocess.Popen([os.path.join(bin_dir, "simgate_bench_echo"), "--max-seconds", "120"],
+    echo = subprocess.Popen([os.path.join(bin_dir, "simgate_bench_echo"), "--spin-us", "50", "--max-seconds", "120"],
                             stdout=subprocess.PIPE, text=True)
     try:
         port = json.loads(echo.stdout.readline())["port"]
@@ -78,7 +81,7 @@ def check_wrong_replies_counted(build_dir):
         check(result.get("errors") == 0 and result.get("n") == 5, "loadgen --echo accepts echoed requests")
     finally:
         echo.terminate()
-        check(echo.wait(timeout=30) == 0, "echo server exits cleanly on SIGTERM")
+        check(echo.wait(timeout=30) == 0, "echo server (polling, --spin-us 50) exits cleanly on SIGTERM")
         echo.stdout.close()
 
 
@@ -165,6 +168,23 @@ def main():
                                                and not p.endswith("per_connection_kib"))]
             check(summary is not None and not bad, f"section {name}: figures finite and positive {bad[:3]}")
 
+    for name in ("socket", "jsonrpc"):
+        section = results["sections"].get(name) or {}
+        if section.get("status") != "ok":
+            continue
+        sm = section.get("summary", {})
+        lat, w64 = sm.get("latency", {}), sm.get("throughput", {}).get("w64_c1", {})
+        for what, value in (("sync p50 / echo limit", lat.get("ratio_p50")),
+                            ("sync p50 / plain Asio server", lat.get("plain_ratio_p50")),
+                            ("plain Asio server p50", lat.get("plain_p50_us")),
+                            ("window-64 throughput / echo limit", w64.get("ratio")),
+                            ("window-64 throughput / plain Asio server", w64.get("plain_ratio")),
+                            ("plain Asio server window-64 rps", w64.get("plain_rps"))):
+            median = value.get("median") if isinstance(value, dict) else None
+            check(isinstance(median, (int, float)) and median > 0, f"section {name}: {what} reported ({median})")
+        check(sm.get("echo_spin_us", 0) > 0, f"section {name}: the echo limit polls (echo_spin_us "
+                                             f"{sm.get('echo_spin_us')})")
+
     for t in results["targets"]:
         ok = t.get("threshold") is not None and t.get("op") in ("<=", ">=") and t.get("met") in (True, False)
         check(ok, f"target '{t.get('target')}' has a value and a verdict")
@@ -177,6 +197,9 @@ def main():
         for heading in ("## Targets", "## Socket transport", "## JSON-RPC transport", "## DDS transport",
                         "## Peers", "## Simulation", "## Memory"):
             check(heading in md, f"results.md has '{heading}'")
+        if any((results["sections"].get(n) or {}).get("status") == "ok" for n in ("socket", "jsonrpc")):
+            for text in ("/ echo limit (polling)", "/ plain Asio server (sleeping)", "simgate / plain"):
+                check(text in md, f"results.md shows '{text}'")
 
     check_wrong_replies_counted(args.build_dir)
     check_slow_server_still_measured(args.build_dir)
