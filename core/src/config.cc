@@ -8,6 +8,85 @@
 
 namespace simgate {
 
+namespace {
+
+// The preview's size: at most this many characters of the value's text.
+constexpr std::size_t k_preview_chars = 60;
+
+// Shortens `text` to `size` bytes without splitting a UTF-8 sequence.
+void cut_utf8(std::string& text, std::size_t size) {
+  if (text.size() <= size) return;
+  while (size > 0 && (static_cast<unsigned char>(text[size]) & 0xC0) == 0x80) --size;
+  text.resize(size);
+}
+
+// Appends `s` as a JSON string, escaped as dump() does; a long one only in part: its first
+// `limit` bytes or more (enough to fill the preview; the rest could never be shown).
+void append_string_preview(const std::string& s, std::string& out, std::size_t limit) {
+  if (s.size() <= limit + 4) {
+    out += json(s).dump(-1, ' ', false, json::error_handler_t::replace);
+    return;
+  }
+  std::string head = s.substr(0, limit + 5);
+  cut_utf8(head, limit + 4);  // backs off at most 3 bytes: head keeps more than `limit`
+  std::string quoted = json(head).dump(-1, ' ', false, json::error_handler_t::replace);
+  quoted.pop_back();  // the string goes on: no closing quote (the preview is cut before it)
+  out += quoted;
+}
+
+// Appends value's compact dump() to `out` until `out` holds more than `limit` characters,
+// then stops (returns false). Every call writes at least one character before it recurses,
+// so recursion is at most limit + 1 deep and the work is O(limit) whatever the value.
+bool append_preview(const json& value, std::string& out, std::size_t limit) {
+  if (out.size() > limit) return false;
+  switch (value.type()) {
+    case json::value_t::array: {
+      out += '[';
+      bool first = true;
+      for (const auto& element : value) {
+        if (!first) out += ',';
+        first = false;
+        if (!append_preview(element, out, limit)) return false;
+      }
+      out += ']';
+      break;
+    }
+    case json::value_t::object: {
+      out += '{';
+      bool first = true;
+      for (auto it = value.begin(); it != value.end(); ++it) {
+        if (!first) out += ',';
+        first = false;
+        append_string_preview(it.key(), out, limit);
+        out += ':';
+        if (!append_preview(it.value(), out, limit)) return false;
+      }
+      out += '}';
+      break;
+    }
+    case json::value_t::string:
+      append_string_preview(value.get_ref<const std::string&>(), out, limit);
+      break;
+    default:  // a scalar: its text is short
+      out += value.dump(-1, ' ', false, json::error_handler_t::replace);
+      break;
+  }
+  return out.size() <= limit;
+}
+
+}  // namespace
+
+std::string json_preview(const json& value) {
+  std::string text;
+  text.reserve(k_preview_chars + 8);
+  append_preview(value, text, k_preview_chars);
+  if (text.size() > k_preview_chars) {
+    cut_utf8(text, k_preview_chars - 3);
+    text += "...";
+  }
+  return text;
+}
+
 std::string describe_json(const json& value) {
   std::string text;
   switch (value.type()) {
@@ -21,9 +100,35 @@ std::string describe_json(const json& value) {
     case json::value_t::object: text = "object "; break;
     default: return "invalid value";
   }
-  std::string dumped = value.dump(-1, ' ', false, json::error_handler_t::replace);
-  if (dumped.size() > 60) dumped = dumped.substr(0, 57) + "...";
-  return text + dumped;
+  return text + json_preview(value);
+}
+
+bool json_nests_deeper_than(std::string_view text, std::size_t max_depth) noexcept {
+  std::size_t depth = 0;
+  bool in_string = false;
+  bool escaped = false;
+  for (char c : text) {
+    if (in_string) {
+      // inside a string only the closing quote matters
+      if (escaped) escaped = false;
+      else if (c == '\\') escaped = true;
+      else if (c == '"') in_string = false;
+      continue;
+    }
+    switch (c) {
+      case '"': in_string = true; break;
+      case '[':
+      case '{':
+        if (++depth > max_depth) return true;
+        break;
+      case ']':
+      case '}':
+        if (depth > 0) --depth;
+        break;
+      default: break;
+    }
+  }
+  return false;
 }
 
 ConfigObject::ConfigObject(const json& value, std::string path) : value_(value), path_(std::move(path)) {

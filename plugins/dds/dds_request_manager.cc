@@ -48,6 +48,8 @@ DdsOptions DdsOptions::parse(const json& options) {
       config.get_int("park_timeout_ms", out.park_timeout.count(), 0, 3'600'000));
   out.max_params = static_cast<std::size_t>(
       config.get_int("max_params", static_cast<long long>(out.max_params), 2, 64ll << 20));
+  out.max_depth = static_cast<std::size_t>(
+      config.get_int("max_depth", static_cast<long long>(out.max_depth), 2, 10000));
   out.global_policy = config.get_choice("global_policy", "reject", {"reject", "preempt"}) == "preempt"
                           ? GlobalPolicy::preempt
                           : GlobalPolicy::reject;
@@ -331,6 +333,16 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
                                             call.component + "." + call.service + ": params are " +
                                                 std::to_string(params_text.size()) + " bytes, more than max_params (" +
                                                 std::to_string(options_.max_params) + ")"));
+        return;
+      }
+      // before parsing: a deeper value would recurse once per level in dump(), copies and
+      // comparisons (issue #17: 80 000 levels overflowed the stack)
+      if (json_nests_deeper_than(params_text, options_.max_depth)) {
+        run_batch();
+        send_reply(client_id, failure_reply(seq, simgate_FL_BAD_ARGUMENTS,
+                                            call.component + "." + call.service +
+                                                ": params nest deeper than max_depth (" +
+                                                std::to_string(options_.max_depth) + ")"));
         return;
       }
       if (!params_text.empty()) {

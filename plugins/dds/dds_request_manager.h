@@ -61,6 +61,7 @@ struct DdsOptions {
   int32_t max_samples = 1024;          // resource limit: queued requests, parked replies per client
   std::chrono::milliseconds park_timeout{10000};  // how long a reply waits for its reader
   std::size_t max_params = 1 << 20;    // largest accepted params text, in bytes
+  std::size_t max_depth = 128;         // deepest [/{ nesting accepted in params (2..10000)
   GlobalPolicy global_policy = GlobalPolicy::reject;  // async calls without a local policy
 
   // Reads and validates `options` (unknown keys are errors). Throws ConfigError.

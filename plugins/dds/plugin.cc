@@ -3,4 +3,5 @@
 #include "simgate/core/plugin.h"
 
 SIMGATE_TRANSPORT_PLUGIN(dds, simgate::dds::DdsRequestManager, "0.1.0", "domain", "partition", "config",
-                         "max_samples", "park_timeout_ms", "max_params", "global_policy")
+                         "max_samples", "park_timeout_ms", "max_params", "max_depth",
+                         "global_policy")

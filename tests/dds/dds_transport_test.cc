@@ -557,6 +557,63 @@ TEST_F(DdsTransportTest, ParamsLargerThanMaxParamsAreRefused) {
   EXPECT_NE(out.message.find("max_params"), std::string::npos) << out.message;
 }
 
+// Issue #17: params nested 80 000 deep (160 KB, under max_params) once overflowed the stack
+// while the error message described them. They are refused before parsing, naming the limit,
+// and the server keeps serving.
+TEST_F(DdsTransportTest, ParamsNestedDeeperThanMaxDepthAreRefusedAndServerKeepsServing) {
+  auto server = make_server(test_partition());
+  SimThread sim(server);
+  RawClient raw(test_partition());
+  raw.create_reply_reader();
+  ASSERT_TRUE(raw.wait_request_matched());
+  constexpr std::size_t k_deep = 80000;
+  const std::string arrays = std::string(k_deep, '[') + std::string(k_deep, ']');
+  std::string objects = "{\"text\":";
+  for (std::size_t i = 1; i < k_deep; ++i) objects += "{\"a\":";
+  objects += "1" + std::string(k_deep, '}');
+  std::uint64_t seq = 0;
+  for (const std::string& params : {arrays, objects}) {
+    raw.write(++seq, simgate_OP_CALL, "calc", "echo", params.c_str());
+    auto reply = raw.next();
+    ASSERT_TRUE(reply);
+    EXPECT_EQ(reply->seq, seq);
+    EXPECT_EQ(reply->status, simgate_ST_FAILED);
+    EXPECT_EQ(reply->failure, simgate_FL_BAD_ARGUMENTS);
+    EXPECT_NE(reply->message.find("max_depth (128)"), std::string::npos) << reply->message.substr(0, 200);
+    EXPECT_LT(reply->message.size(), 300u);
+  }
+  raw.write(++seq, simgate_OP_CALL, "calc", "add", "[1, 2]");
+  auto reply = raw.next();
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->seq, seq);
+  EXPECT_EQ(reply->status, simgate_ST_SUCCESS);
+  EXPECT_EQ(json::parse(reply->result), json(3.0));
+}
+
+// max_depth counts the brackets of the params text: [[1]] is 2 deep. Within the limit a
+// value reaches the service (here: a type error whose description stays short).
+TEST_F(DdsTransportTest, MaxDepthOptionBoundsParamsNesting) {
+  auto server = make_server(test_partition(), "server", {{"max_depth", 3}});
+  SimThread sim(server);
+  RawClient raw(test_partition());
+  raw.create_reply_reader();
+  ASSERT_TRUE(raw.wait_request_matched());
+  raw.write(1, simgate_OP_CALL, "calc", "echo", "[[[\"[[[[\"]]]");  // brackets inside strings do not count
+  auto reply = raw.next();
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->failure, simgate_FL_BAD_ARGUMENTS);
+  EXPECT_EQ(reply->message.find("max_depth"), std::string::npos) << reply->message;
+  raw.write(2, simgate_OP_CALL, "calc", "echo", "[[[[1]]]]");
+  reply = raw.next();
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->failure, simgate_FL_BAD_ARGUMENTS);
+  EXPECT_NE(reply->message.find("max_depth (3)"), std::string::npos) << reply->message;
+  raw.write(3, simgate_OP_CALL, "calc", "echo", "[\"ok\"]");
+  reply = raw.next();
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->status, simgate_ST_SUCCESS);
+}
+
 // ---- who runs a request and who writes its reply (run_or_submit) ----
 
 // Records the threads a service ran on.
@@ -722,6 +779,8 @@ TEST(DdsTransportConfig, UnknownKeysAndBadValuesAreRejectedWithTheirName) {
   expect_error({{"domain", 999}, {"config", loopback}}, "domain");
   expect_error({{"domain", test_domain()}, {"config", loopback}, {"partition", "sim*"}}, "partition");
   expect_error({{"domain", test_domain()}, {"config", loopback}, {"global_policy", "maybe"}}, "global_policy");
+  expect_error({{"domain", test_domain()}, {"config", loopback}, {"max_depth", 1}}, "max_depth");
+  expect_error({{"domain", test_domain()}, {"config", loopback}, {"max_depth", 10001}}, "max_depth");
   expect_error({{"domain", test_domain()}, {"config", "<CycloneDDS><Domain><General><NoSuchSetting/>"}}, "domain");
 }
 

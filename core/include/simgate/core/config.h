@@ -11,6 +11,7 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "simgate/core/errors.h"
@@ -18,8 +19,20 @@
 
 namespace simgate {
 
-// A short description of a JSON value for error messages: `string "abc"`, `number 3`.
+// A short description of a JSON value for error messages: `string "abc"`, `number 3`,
+// `array [1,2]`. Bounded whatever the value (see json_preview).
 std::string describe_json(const json& value);
+
+// The first 60 characters of value.dump() (compact, invalid UTF-8 replaced), cut to 57 and
+// "..." when longer. Writes only what it shows: O(60) time and stack for a value of any
+// depth or size. Use it (or describe_json) for any client-supplied value in a message.
+std::string json_preview(const json& value);
+
+// True if `[`/`{` nest deeper than `max_depth` anywhere in `text` (brackets inside strings
+// skipped). One linear pass, no recursion: check it before json::parse on untrusted text
+// (nlohmann's dump, comparisons and copies recurse once per level). The JSON-RPC
+// transport's nests_deeper_than, shared.
+bool json_nests_deeper_than(std::string_view text, std::size_t max_depth) noexcept;
 
 class ConfigObject {
  public:
