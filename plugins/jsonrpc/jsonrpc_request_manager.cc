@@ -580,7 +580,7 @@ void JsonRpcRequestManager::handle_message(const std::shared_ptr<Session>& sessi
     dispatch(session, request_, std::move(single));
     return;
   }
-  if (nests_deeper_than(line, options_.max_depth)) {
+  if (json_nests_deeper_than(line, options_.max_depth)) {
     reply(single, error_response(nullptr, code::invalid_request,
                                  "Invalid Request: message nests deeper than max_depth (" +
                                      std::to_string(options_.max_depth) + ")",

@@ -400,34 +400,6 @@ bool split_method(const std::string& method, std::string& component, std::string
   return true;
 }
 
-bool nests_deeper_than(std::string_view text, std::size_t max_depth) noexcept {
-  std::size_t depth = 0;
-  bool in_string = false;
-  bool escaped = false;
-  for (char c : text) {
-    if (in_string) {
-      // inside a string only the closing quote matters
-      if (escaped) escaped = false;
-      else if (c == '\\') escaped = true;
-      else if (c == '"') in_string = false;
-      continue;
-    }
-    switch (c) {
-      case '"': in_string = true; break;
-      case '[':
-      case '{':
-        if (++depth > max_depth) return true;
-        break;
-      case ']':
-      case '}':
-        if (depth > 0) --depth;
-        break;
-      default: break;
-    }
-  }
-  return false;
-}
-
 json openrpc_document(const std::vector<ServiceDescriptor>& services, std::string_view version,
                       std::string_view global_policy) {
   json methods = json::array();

@@ -87,10 +87,6 @@ void append_result_line(std::string& out, std::string_view id_text, const json& 
 // no dot or either side is empty.
 bool split_method(const std::string& method, std::string& component, std::string& service);
 
-// True if brackets nest deeper than `max_depth` anywhere in `text` (strings skipped).
-// Cheap linear pre-scan so that deep inputs are refused before they are parsed or copied.
-bool nests_deeper_than(std::string_view text, std::size_t max_depth) noexcept;
-
 // The OpenRPC 1.2.6 document for `services` (rpc.discover's result).
 json openrpc_document(const std::vector<ServiceDescriptor>& services, std::string_view version,
                       std::string_view global_policy);

@@ -1,7 +1,6 @@
 // Bounded previews of client-supplied JSON values (describe_json, json_preview) and the
 // nesting pre-scan (json_nests_deeper_than), core/include/simgate/core/config.h. Issue #17:
 // an 80 000-deep value once overflowed the stack in the message that described it.
-#include <chrono>
 #include <string>
 
 #include <gmock/gmock.h>
@@ -14,7 +13,6 @@ namespace simgate {
 namespace {
 
 using ::testing::HasSubstr;
-using namespace std::chrono_literals;
 
 json nested_arrays(std::size_t depth) {
   json value = json::array();
@@ -34,14 +32,6 @@ json nested_objects(std::size_t depth) {
     value = std::move(outer);
   }
   return value;
-}
-
-// Times `f`, on a build where 10 ms is far more than any bounded preview takes.
-template <class F>
-std::chrono::steady_clock::duration timed(F&& f) {
-  auto start = std::chrono::steady_clock::now();
-  f();
-  return std::chrono::steady_clock::now() - start;
 }
 
 TEST(JsonPreviewTest, ShortValuesReadAsTheirCompactDump) {
@@ -74,30 +64,26 @@ TEST(JsonPreviewTest, LongValuesAreCutAt57CharactersAndEllipsis) {
   EXPECT_LE(cut.size(), 60u);
 }
 
-TEST(JsonPreviewTest, AnEightyThousandDeepValueIsPreviewedQuicklyAndShort) {
+TEST(JsonPreviewTest, AnEightyThousandDeepValueIsPreviewedShort) {
   for (const json& deep : {nested_arrays(80000), nested_objects(80000)}) {
-    std::string text;
-    auto took = timed([&] { text = describe_json(deep); });
+    // before, the recursive dump behind it overflowed the stack
+    std::string text = describe_json(deep);
     EXPECT_LT(text.size(), 100u) << text;
     EXPECT_THAT(text, HasSubstr("..."));
-    EXPECT_LT(took, 10ms);
   }
   EXPECT_EQ(json_preview(nested_arrays(80000)), std::string(57, '[') + "...");
 }
 
-TEST(JsonPreviewTest, ATenMegabyteStringIsPreviewedQuicklyAndShort) {
+TEST(JsonPreviewTest, ATenMegabyteStringIsPreviewedShort) {
   json big(std::string(10 << 20, 'z'));
-  std::string text;
-  auto took = timed([&] { text = describe_json(big); });
+  std::string text = describe_json(big);
   EXPECT_LT(text.size(), 100u);
   EXPECT_EQ(text, "string \"" + std::string(56, 'z') + "...");
-  EXPECT_LT(took, 10ms);
   // as an object key too
   json keyed = json::object();
   keyed[std::string(10 << 20, 'k')] = 1;
-  took = timed([&] { text = describe_json(keyed); });
+  text = describe_json(keyed);
   EXPECT_LT(text.size(), 100u);
-  EXPECT_LT(took, 10ms);
 }
 
 TEST(JsonPreviewTest, TypeMismatchesOfDeepOrHugeArgumentsStayShort) {

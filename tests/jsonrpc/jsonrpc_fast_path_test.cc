@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include "protocol.h"
+#include "simgate/core/config.h"
 
 namespace simgate::jsonrpc {
 namespace {
@@ -45,7 +46,7 @@ bool identical(const json& a, const json& b) {
 // invalid request, or anything json::parse throws). The depth pre-scan comes first, as in
 // the transport.
 std::optional<Request> full_path(const std::string& line) {
-  if (nests_deeper_than(line, k_max_depth)) return std::nullopt;
+  if (json_nests_deeper_than(line, k_max_depth)) return std::nullopt;
   json message;
   try {
     message = json::parse(line);

@@ -30,8 +30,8 @@ std::string json_preview(const json& value);
 
 // True if `[`/`{` nest deeper than `max_depth` anywhere in `text` (brackets inside strings
 // skipped). One linear pass, no recursion: check it before json::parse on untrusted text
-// (nlohmann's dump, comparisons and copies recurse once per level). The JSON-RPC
-// transport's nests_deeper_than, shared.
+// (nlohmann's dump, comparisons and copies recurse once per level). The JSON-RPC and DDS
+// transports check every message (params text) with it.
 bool json_nests_deeper_than(std::string_view text, std::size_t max_depth) noexcept;
 
 class ConfigObject {
