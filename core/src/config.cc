@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <sstream>
 
 #include "simgate/core/suggest.h"
@@ -129,6 +130,158 @@ bool json_nests_deeper_than(std::string_view text, std::size_t max_depth) noexce
     }
   }
   return false;
+}
+
+namespace {
+
+// Streams a document through nlohmann's (iterative) SAX parser, keeping the JSON path of the
+// value being read, and stops at the first problem: nesting deeper than max_depth, a number
+// beyond a double, a syntax error. Builds nothing.
+class ConfigScanner final : public nlohmann::json_sax<json> {
+ public:
+  ConfigScanner(std::string_view text, std::size_t max_depth) : text_(text), max_depth_(max_depth) {}
+
+  // The problem found (empty when the text is a valid document).
+  const std::string& error() const { return error_; }
+
+  bool null() override { return value(); }
+  bool boolean(bool) override { return value(); }
+  bool number_integer(number_integer_t) override { return value(); }
+  bool number_unsigned(number_unsigned_t) override { return value(); }
+  bool number_float(number_float_t, const string_t&) override { return value(); }
+  bool string(string_t&) override { return value(); }
+  bool binary(binary_t&) override { return value(); }
+  bool start_object(std::size_t) override { return open(false); }
+  bool key(string_t& key) override {
+    frames_.back().key = key;
+    return true;
+  }
+  bool end_object() override { return close(); }
+  bool start_array(std::size_t) override { return open(true); }
+  bool end_array() override { return close(); }
+
+  bool parse_error(std::size_t position, const std::string& last_token,
+                   const nlohmann::detail::exception& ex) override {
+    // the offending token ends at `position`
+    std::size_t start = position >= last_token.size() ? position - last_token.size() : 0;
+    if (ex.id == 406) {  // out_of_range: a number beyond a double
+      error_ = path() + ": expected a number a double can hold (at most about 1.8e308 in magnitude), found " +
+               last_token + " (" + where(start) + ")";
+    } else {
+      // "[json.exception.parse_error.101] parse error at line 1, column 9: syntax error ..."
+      std::string what = ex.what();
+      auto bracket = what.find("] ");
+      if (what.rfind("[json.exception.", 0) == 0 && bracket != std::string::npos) what = what.substr(bracket + 2);
+      error_ = path() + ": invalid JSON: " + what;
+    }
+    return false;
+  }
+
+ private:
+  struct Frame {
+    bool array = false;     // else an object
+    std::size_t index = 0;  // arrays: the element being read
+    std::optional<std::string> key;  // objects: the member being read (none between members)
+  };
+
+  // A value was read: the path goes back to its container until the next key or element.
+  bool value() {
+    if (frames_.empty()) return true;
+    if (frames_.back().array) {
+      ++frames_.back().index;
+    } else {
+      frames_.back().key.reset();
+    }
+    return true;
+  }
+  bool open(bool array) {
+    if (frames_.size() >= max_depth_) {
+      // the bracket just read: the scanner has consumed it
+      error_ = path(4) + ": expected at most " + std::to_string(max_depth_) +
+               " levels of nested arrays and objects, found deeper nesting (" + where(too_deep_bracket()) +
+               ")";
+      return false;
+    }
+    frames_.push_back(Frame{array, 0, std::nullopt});
+    return true;
+  }
+  bool close() {
+    frames_.pop_back();
+    return value();
+  }
+
+  // "scene.timestep", "robots[0].components[1]", "configuration" for the document; after
+  // `max_segments` keys and indices, "..." (the path of a too-deep value is as long as it is deep).
+  std::string path(std::size_t max_segments = SIZE_MAX) const {
+    std::string out;
+    for (std::size_t i = 0; i < frames_.size(); ++i) {
+      const Frame& f = frames_[i];
+      if (i == max_segments) {
+        out += "...";
+        break;
+      }
+      if (f.array) {
+        out += "[" + std::to_string(f.index) + "]";
+      } else if (f.key) {
+        out += (out.empty() ? "" : ".") + *f.key;
+      }
+    }
+    if (out.empty() || out.front() == '[') out = "configuration" + out;
+    return out;
+  }
+
+  // "line 3, column 17" of byte `offset` (both from 1).
+  std::string where(std::size_t offset) const {
+    offset = std::min(offset, text_.size());
+    std::size_t line = 1, column = 1;
+    for (std::size_t i = 0; i < offset; ++i) {
+      if (text_[i] == '\n') {
+        ++line;
+        column = 1;
+      } else {
+        ++column;
+      }
+    }
+    return "line " + std::to_string(line) + ", column " + std::to_string(column);
+  }
+
+  // The offset of the bracket that opens level max_depth + 1 (the SAX interface gives no
+  // positions): counted as json_nests_deeper_than counts, once, on failure.
+  std::size_t too_deep_bracket() const {
+    std::size_t depth = 0;
+    bool in_string = false, escaped = false;
+    for (std::size_t i = 0; i < text_.size(); ++i) {
+      char c = text_[i];
+      if (in_string) {
+        if (escaped) escaped = false;
+        else if (c == '\\') escaped = true;
+        else if (c == '"') in_string = false;
+        continue;
+      }
+      if (c == '"') in_string = true;
+      else if (c == '[' || c == '{') {
+        if (++depth > max_depth_) return i;
+      } else if ((c == ']' || c == '}') && depth > 0) {
+        --depth;
+      }
+    }
+    return text_.size();
+  }
+
+  std::string_view text_;      // the document
+  std::size_t max_depth_;      // deepest nesting accepted
+  std::vector<Frame> frames_;  // the containers open at the current value
+  std::string error_;          // the problem found, if any
+};
+
+}  // namespace
+
+json parse_config_text(std::string_view text, std::size_t max_depth) {
+  ConfigScanner scanner(text, max_depth);
+  if (!json::sax_parse(text.begin(), text.end(), &scanner) || !scanner.error().empty())
+    throw ConfigError(scanner.error().empty() ? std::string("configuration: invalid JSON") : scanner.error());
+  // known to be valid and shallow: building, copying and dumping it recurse little
+  return json::parse(text.begin(), text.end());
 }
 
 ConfigObject::ConfigObject(const json& value, std::string path) : value_(value), path_(std::move(path)) {

@@ -1,6 +1,9 @@
 #include "simgate/core/request_manager.h"
 
 #include <atomic>
+#include <iterator>
+#include <thread>
+#include <utility>
 #include <cstdio>
 #include <span>
 #include <variant>
@@ -118,6 +121,44 @@ class Inbox : public CompletionSink {
   std::atomic<bool> queued_{false};   // events_ or finished_ holds something (written under mutex_)
 };
 
+// Outcomes produced off a transport's delivery thread, on their way to it
+// (RequestManager::deliver_on_this_thread).
+class Handoff {
+ public:
+  using Item = std::pair<RequestId, Outcome>;
+
+  // Any thread (under the simulation lock). Returns true when the delivery thread must be
+  // woken: the first outcome since it last took them (one wake per burst).
+  bool push(RequestId id, Outcome&& outcome) {
+    std::lock_guard lock(mutex_);
+    items_.emplace_back(id, std::move(outcome));
+    waiting_.store(true, std::memory_order_release);
+    return !std::exchange(wake_due_, true);
+  }
+  // Something was pushed and not taken yet (read without the mutex: an outcome pushed under
+  // the simulation lock is seen by a reader holding it, and otherwise by the woken thread).
+  bool waiting() const { return waiting_.load(std::memory_order_acquire); }
+  // Moves everything pushed so far to the end of `out`.
+  void take(std::vector<Item>& out) {
+    std::lock_guard lock(mutex_);
+    waiting_.store(false, std::memory_order_release);
+    wake_due_ = false;  // outcomes pushed from now on wake the thread again
+    if (out.empty())
+      out.swap(items_);
+    else
+      std::move(items_.begin(), items_.end(), std::back_inserter(out)), items_.clear();
+  }
+
+  std::function<void()> wake;  // set once, before the delivery thread is named (see deliver())
+  std::vector<Item> spare;     // a taken vector kept for its capacity (the delivery thread)
+
+ private:
+  std::mutex mutex_;                 // guards items_ and wake_due_
+  std::vector<Item> items_;          // in the order produced
+  bool wake_due_ = false;            // a wake was sent and its thread has not taken yet
+  std::atomic<bool> waiting_{false};  // items_ is not empty
+};
+
 // Once a call has run, what its params hold. nlohmann's destructor first moves an array's
 // elements to a heap-allocated stack (to avoid deep recursion): the usual positional
 // arguments, an array of scalars, are cleared here instead, one allocation less per
@@ -163,7 +204,8 @@ std::string join_or(const std::vector<std::string>& items) {
 }  // namespace detail
 
 RequestManager::RequestManager(std::string name)
-    : name_(std::move(name)), inbox_(std::make_shared<detail::Inbox>()), gate_(inbox_->gate()) {}
+    : name_(std::move(name)), inbox_(std::make_shared<detail::Inbox>()),
+      handoff_(std::make_unique<detail::Handoff>()), gate_(inbox_->gate()) {}
 
 RequestManager::~RequestManager() = default;
 
@@ -294,6 +336,36 @@ void RequestManager::cancel(RequestId id, std::function<void(bool)> done) {
 }
 
 void RequestManager::post(std::function<void()> task) { inbox_->push(detail::Inbox::Task{std::move(task)}); }
+
+void RequestManager::answer_in_order(RequestId id, Outcome outcome) {
+  post([this, id, outcome = std::move(outcome)]() mutable { complete_request(id, std::move(outcome)); });
+}
+
+// ---- the hand-off to the delivery thread
+
+void RequestManager::deliver_on_this_thread(std::function<void()> wake) {
+  handoff_->wake = std::move(wake);
+  // published after `wake`: a thread that sees the id sees the function
+  delivery_thread_.store(std::this_thread::get_id(), std::memory_order_release);
+}
+
+void RequestManager::deliver_on_any_thread() { delivery_thread_.store(std::thread::id{}, std::memory_order_release); }
+
+std::size_t RequestManager::deliver_handed_over() {
+  if (!handoff_->waiting()) return 0;
+  // a local vector (with a kept one's capacity): on_service_completion may, in principle,
+  // lead here again
+  std::vector<detail::Handoff::Item> items;
+  items.swap(handoff_->spare);
+  handoff_->take(items);
+  for (auto& [id, outcome] : items) call_completion(id, std::move(outcome));
+  const std::size_t n = items.size();
+  items.clear();
+  if (items.capacity() <= 4096) handoff_->spare.swap(items);
+  return n;
+}
+
+void RequestManager::complete_request(RequestId id, Outcome&& outcome) { deliver(id, std::move(outcome)); }
 
 // ---- simulation thread
 
@@ -619,6 +691,26 @@ void RequestManager::deliver(RequestId id, Outcome&& outcome) {
       running_.erase(it);
     }
   }
+  const std::thread::id delivery_thread = delivery_thread_.load(std::memory_order_acquire);
+  if (delivery_thread != std::thread::id{}) {
+    if (delivery_thread != std::this_thread::get_id()) {
+      // produced elsewhere (the simulation thread): the transport's thread delivers it
+      if (handoff_->push(id, std::move(outcome))) {
+        try {
+          handoff_->wake();
+        } catch (const std::exception& e) {
+          log::error(name_, ": waking the transport's thread failed: ", e.what());
+        }
+      }
+      return;
+    }
+    // on the delivery thread (run_or_submit): after those produced before it
+    deliver_handed_over();
+  }
+  call_completion(id, std::move(outcome));
+}
+
+void RequestManager::call_completion(RequestId id, Outcome&& outcome) {
   try {
     on_service_completion(id, std::move(outcome));
   } catch (const std::exception& e) {

@@ -21,10 +21,6 @@ constexpr dds_attach_t k_token_request_matched = 4;
 // How many requests one dds_take returns at most.
 constexpr int k_take_batch = 32;
 
-// The manager whose DDS thread this is (null on every other thread): tells
-// on_service_completion whether it runs inside that thread's run_or_submit().
-thread_local const DdsRequestManager* t_dds_thread_of = nullptr;
-
 std::string dump(const json& value) { return value.dump(-1, ' ', false, json::error_handler_t::replace); }
 
 // Throws std::runtime_error when a Cyclone call returned an error.
@@ -130,12 +126,23 @@ void DdsRequestManager::stop() {
   stopping_ = true;
   if (guard_ > 0) dds_set_guardcondition(guard_, true);
   if (thread_.joinable()) thread_.join();
-  // answer what is still pending (FAILED, shutdown), then leave the domain
+  // answer what is still pending (FAILED, shutdown), then leave the domain. From here on
+  // outcomes reach on_service_completion under the simulation lock, on the thread that
+  // produces them: finished_ is guarded by that lock.
+  deliver_on_any_thread();
+  {
+    std::lock_guard lock(*gate());
+    deliver_handed_over();
+  }
   if (!batch_.empty()) submit_batch(std::move(batch_));
   abandon_pending();
   if (participant_) {
     try {
-      drain_outbox(true);
+      {
+        std::lock_guard lock(*gate());
+        draining_.swap(finished_);
+      }
+      write_finished(draining_, true);
     } catch (const std::exception& e) {
       log::error("DDS transport: final replies not sent: ", e.what());
     }
@@ -144,31 +151,19 @@ void DdsRequestManager::stop() {
 }
 
 void DdsRequestManager::on_service_completion(RequestId id, Outcome&& outcome) {
-  Outbound out;
-  out.id = id;
-  out.outcome = std::move(outcome);
-  post_outbound(std::move(out));
-}
-
-void DdsRequestManager::post_outbound(Outbound out) {
-  // the DDS thread itself (inside run_or_submit): it drains the outbox as soon as
-  // run_or_submit returns, after the replies queued before, outside the simulation lock
-  const bool on_dds_thread = t_dds_thread_of == this;
-  bool wake;
-  {
-    std::lock_guard lock(outbox_mutex_);
-    wake = !on_dds_thread && outbox_.empty();
-    outbox_.push_back(std::move(out));
-  }
-  // any other thread: wake the DDS thread (once per burst), never wait on DDS
-  if (wake) dds_set_guardcondition(guard_, true);
+  // the DDS thread (the core hands other threads' outcomes over), inside run_or_submit()
+  // under the simulation lock or in deliver_handed_over(): kept until write_finished(),
+  // which writes them outside the lock
+  finished_.emplace_back(id, std::move(outcome));
 }
 
 // ---------------------------------------------------------------------------------------
 // the DDS thread
 
 void DdsRequestManager::run() {
-  t_dds_thread_of = this;
+  // outcomes produced on other threads: the guard condition wakes this thread (once per
+  // burst), which delivers and writes them
+  deliver_on_this_thread([this] { dds_set_guardcondition(guard_, true); });
   try {
     publish_catalog();
   } catch (const std::exception& e) {
@@ -183,10 +178,10 @@ void DdsRequestManager::run() {
       log::error("DDS transport: waitset failed: ", retcode_text(n));
       break;
     }
-    bool requests = false, outbox = false, readers = false, writers = false;
+    bool requests = false, outcomes = false, readers = false, writers = false;
     for (dds_return_t i = 0; i < std::min<dds_return_t>(n, 8); ++i) {
       requests |= triggered[i] == k_token_requests;
-      outbox |= triggered[i] == k_token_guard;
+      outcomes |= triggered[i] == k_token_guard;
       readers |= triggered[i] == k_token_reply_matched;
       writers |= triggered[i] == k_token_request_matched;
     }
@@ -198,10 +193,11 @@ void DdsRequestManager::run() {
         refresh_reply_readers();
       }
       if (requests) take_requests();
-      if (outbox) {
+      if (outcomes) {
         bool ignored;
         dds_take_guardcondition(guard_, &ignored);
-        drain_outbox(false);
+        deliver_handed_over();
+        write_finished();
       }
       if (writers) {
         dds_subscription_matched_status_t status;
@@ -283,10 +279,10 @@ void DdsRequestManager::run_batch() {
   run_pending_ = false;
   std::vector<std::pair<RequestId, Call>> calls;
   calls.swap(batch_);
-  // outcomes produced here come back to on_service_completion on this thread, queued in
-  // the outbox behind the earlier ones; written now, without the simulation lock
+  // outcomes produced here come back to on_service_completion on this thread, kept behind
+  // the earlier ones; written now, without the simulation lock
   run_or_submit(std::move(calls));
-  drain_outbox(false);
+  write_finished();
 }
 
 void DdsRequestManager::handle_request(const simgate_Request& request, dds_instance_handle_t writer) {
@@ -385,14 +381,10 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
         send_reply(client_id, std::move(answer));
         return;
       }
-      cancel(target->second, [this, client_id, seq](bool found) {
-        // whoever runs process(): the answer goes out like a completion
-        Outbound out;
-        out.client = client_id;
-        out.seq = seq;
-        out.found = found;
-        post_outbound(std::move(out));
-      });
+      // the answer goes out like a completion, in order with them
+      const RequestId answer_id = new_request_id();
+      pending_.emplace(answer_id, Pending{client_id, seq, false, true});
+      cancel(target->second, [this, answer_id](bool found) { complete_request(answer_id, Outcome::success(json(found))); });
       run_pending_ = true;  // the next run_batch() executes it here if it can
       return;
     }
@@ -403,30 +395,30 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
                                           " (expected OP_CALL or OP_CANCEL)"));
 }
 
-void DdsRequestManager::drain_outbox(bool final_flush) {
+void DdsRequestManager::write_finished() {
+  if (finished_.empty()) return;
   // swapped, not moved: both vectors keep their capacity
-  std::vector<Outbound>& batch = draining_;
-  batch.clear();
-  {
-    std::lock_guard lock(outbox_mutex_);
-    if (outbox_.empty()) return;
-    batch.swap(outbox_);
-  }
-  for (Outbound& out : batch) {
-    // the answer to a cancel
-    if (out.id == 0) {
-      ReplyData answer;
-      answer.seq = out.seq;
-      answer.result = out.found ? "true" : "false";
-      if (!out.found) answer.message = "the call had already finished";
-      send_reply(out.client, std::move(answer), final_flush);
-      continue;
-    }
-    // a completed call
-    auto p = pending_.find(out.id);
+  draining_.swap(finished_);
+  write_finished(draining_, false);
+}
+
+void DdsRequestManager::write_finished(std::vector<std::pair<RequestId, Outcome>>& batch, bool final_flush) {
+  for (auto& [id, outcome] : batch) {
+    auto p = pending_.find(id);
     if (p == pending_.end()) continue;
     Pending pending = p->second;
     pending_.erase(p);
+    if (pending.cancel_answer) {
+      // the answer to a cancel: whether the call was still running
+      const bool found = outcome.value && outcome.value->is_boolean() && outcome.value->get<bool>();
+      ReplyData answer;
+      answer.seq = pending.seq;
+      answer.result = found ? "true" : "false";
+      if (!found) answer.message = "the call had already finished";
+      send_reply(pending.client, std::move(answer), final_flush);
+      continue;
+    }
+    // a completed call
     auto c = clients_.find(pending.client);
     if (c != clients_.end()) {
       c->second.calls.erase(pending.seq);
@@ -435,7 +427,7 @@ void DdsRequestManager::drain_outbox(bool final_flush) {
         continue;
       }
     }
-    send_reply(pending.client, to_reply(pending.seq, out.outcome), final_flush);
+    send_reply(pending.client, to_reply(pending.seq, outcome), final_flush);
   }
   batch.clear();
 }

@@ -22,14 +22,15 @@
 // Cyclone's listener threads.
 //  - The requests of one dds_take go to the core together with run_or_submit(): when the
 //    simulation lock is free (the loop waits for its next step), the DDS thread runs them
-//    itself, so on_service_completion() is called on the DDS thread; it queues the outcome
-//    in the outbox behind anything queued before, and the DDS thread writes the replies as
+//    itself, so on_service_completion() is called on the DDS thread; it keeps the outcome
+//    behind anything kept before, and the DDS thread writes the replies as
 //    soon as run_or_submit() returns, outside the simulation lock: no thread hand-off
 //    between a request and its reply. Cancels are run the same way.
 //  - When the lock is busy (the loop is stepping), the requests are queued and the
-//    simulation thread runs them: on_service_completion() then only queues the outcome and
-//    triggers the guard condition (once per burst) — it never waits on DDS; the DDS thread
-//    wakes and writes the reply. Async completions from other threads take this path too.
+//    simulation thread runs them: the core hands their outcomes over to the DDS thread
+//    (deliver_on_this_thread: it triggers the guard condition once per burst, never waiting
+//    on DDS); the DDS thread wakes, takes them (deliver_handed_over) and writes the replies.
+//    Async completions from other threads take this path too.
 //  - Order: the replies of a client leave in the order they were produced; an async call's
 //    ST_ACCEPTED is written before the call runs, so before its terminal reply; replies the
 //    transport writes itself (bad requests, cancel answers) wait for the calls before them.
@@ -86,9 +87,8 @@ class DdsRequestManager : public RequestManager {
   const DdsOptions& options() const { return options_; }
 
  protected:
-  // Under the simulation lock: on the DDS thread (inside run_or_submit) queues the outcome
-  // for the write that follows at once; on any other thread queues it and wakes the DDS
-  // thread. Never blocks on DDS.
+  // On the DDS thread (the core hands other threads' outcomes over): keeps the outcome for
+  // the write that follows (write_finished). Never blocks on DDS.
   void on_service_completion(RequestId id, Outcome&& outcome) override;
 
  private:
@@ -103,19 +103,12 @@ class DdsRequestManager : public RequestManager {
     std::string data;                            // JSON object text or ""
     std::chrono::steady_clock::time_point deadline;  // parked: when to give up waiting
   };
-  // What the simulation thread hands to the DDS thread.
-  struct Outbound {
-    RequestId id = 0;           // completed request (0 for a cancel answer)
-    Outcome outcome;            // its outcome
-    ClientId client{};          // cancel answer: the client
-    std::uint64_t seq = 0;      // cancel answer: the cancel request's seq
-    bool found = false;         // cancel answer: whether the target was running
-  };
-  // A request handed to the core and not yet completed.
+  // A request handed to the core and not yet completed, or a cancel waiting for its answer.
   struct Pending {
     ClientId client;            // who asked
     std::uint64_t seq = 0;      // their sequence number
     bool is_async = false;      // cancelled if the client disappears
+    bool cancel_answer = false;  // the answer to a cancel (outcome value: whether it was running)
   };
   // What the server knows about one client (DDS thread only).
   struct ClientState {
@@ -130,12 +123,13 @@ class DdsRequestManager : public RequestManager {
   void publish_catalog();
   void take_requests();
   void handle_request(const simgate_Request& request, dds_instance_handle_t writer);
-  // Any thread: queues an outcome or cancel answer for the DDS thread (see Threads).
-  void post_outbound(Outbound out);
   // DDS thread: hands batch_ (and pending cancels) to run_or_submit(), then writes the
   // replies it produced. Called after each take, and before any reply that must follow them.
   void run_batch();
-  void drain_outbox(bool final_flush);
+  // DDS thread: writes the replies of the outcomes delivered so far (finished_).
+  void write_finished();
+  // Writes the replies of `batch` (emptied); `final_flush`: at stop(), without parking.
+  void write_finished(std::vector<std::pair<RequestId, Outcome>>& batch, bool final_flush);
   void refresh_reply_readers();
   void sweep_clients();
   void client_gone(const ClientId& id, ClientState& client);
@@ -163,9 +157,10 @@ class DdsRequestManager : public RequestManager {
   std::atomic<bool> stopped_{false};         // stop() ran
   std::atomic<bool> started_{false};         // start() ran
 
-  std::mutex outbox_mutex_;                  // guards outbox_
-  std::vector<Outbound> outbox_;             // sim thread -> DDS thread
-  std::vector<Outbound> draining_;           // the outbox being written (DDS thread; stop() after the join)
+  // outcomes delivered (on_service_completion), not yet written (DDS thread; at stop(),
+  // under the simulation lock)
+  std::vector<std::pair<RequestId, Outcome>> finished_;
+  std::vector<std::pair<RequestId, Outcome>> draining_;  // being written (DDS thread; stop() after the join)
 
   // ---- DDS thread only ----
   std::unordered_map<RequestId, Pending> pending_;  // requests in the core

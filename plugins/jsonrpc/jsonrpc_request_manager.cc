@@ -443,16 +443,10 @@ void JsonRpcRequestManager::start() {
   log::info("jsonrpc: listening on ", endpoints().front());
 }
 
-namespace {
-// The manager whose I/O thread this is, if any: its direct reads run outside io_.run(),
-// where the executor's running_in_this_thread() is false.
-thread_local const JsonRpcRequestManager* t_io_thread_of = nullptr;
-}  // namespace
-
-bool JsonRpcRequestManager::on_io_thread() const { return t_io_thread_of == this; }
-
 void JsonRpcRequestManager::run_io() {
-  t_io_thread_of = this;
+  // outcomes produced on the simulation thread come here: one drain per burst, then one
+  // write per connection
+  deliver_on_this_thread([this] { asio::post(io_, [this] { drain_completions(); }); });
   // io_spin_us: after activity the thread polls for a while before sleeping in epoll, while
   // events have lately come close together, reading a lone client's socket itself while
   // it polls (simgate/core/idle_spin.h)
@@ -476,6 +470,7 @@ void JsonRpcRequestManager::stop() {
     asio::post(io_, [this] { shutdown_io(); });
     work_.reset();
     thread_.join();
+    deliver_on_any_thread();  // the connections are gone: outcomes from now on go nowhere
   } else {
     shutdown_io();
   }
@@ -734,56 +729,19 @@ void JsonRpcRequestManager::handle_cancel(const std::shared_ptr<Session>& sessio
   pending.method.assign(method);
   pending.id_key.clear();
   pending.cancel = true;
-  cancel(*id, [this, cancel_id](bool found) { complete(cancel_id, Outcome::success(json(found))); });
+  cancel(*id, [this, cancel_id](bool found) { complete_request(cancel_id, Outcome::success(json(found))); });
 }
 
 void JsonRpcRequestManager::on_service_completion(RequestId id, Outcome&& outcome) {
-  complete(id, std::move(outcome));
-}
-
-void JsonRpcRequestManager::complete(RequestId id, Outcome&& outcome) {
-  try {
-    if (on_io_thread()) {
-      // run_or_submit runs process() on the I/O thread: straight to the connection, after
-      // the outcomes the simulation thread produced before (same order as produced)
-      queue_gathered_completions();
-      finish_call(id, std::move(outcome));
-      return;
-    }
-    // another thread (the simulation's): queue it; one drain per burst of completions
-    bool post_drain = false;
-    {
-      std::lock_guard lock(completions_mutex_);
-      completions_.emplace_back(id, std::move(outcome));
-      post_drain = !drain_posted_;
-      drain_posted_ = true;
-      gathered_.store(true, std::memory_order_relaxed);
-    }
-    if (post_drain) asio::post(io_, [this] { drain_completions(); });
-  } catch (const std::exception& e) {
-    log::error("jsonrpc: reply to request ", id, " lost: ", e.what());
-  }
+  // the I/O thread (deliver_on_this_thread): inside run_or_submit, or drain_completions()
+  finish_call(id, std::move(outcome));
 }
 
 void JsonRpcRequestManager::drain_completions() {
   // replies of the whole burst go out with one write per connection
   deferring_writes_ = true;
-  queue_gathered_completions();
+  deliver_handed_over();
   flush_writes();
-}
-
-void JsonRpcRequestManager::queue_gathered_completions() {
-  // nothing gathered: no lock (called for every outcome produced on the I/O thread)
-  if (!gathered_.load(std::memory_order_relaxed)) return;
-  std::vector<std::pair<RequestId, Outcome>> completions;
-  {
-    std::lock_guard lock(completions_mutex_);
-    gathered_.store(false, std::memory_order_relaxed);
-    if (completions_.empty()) return;
-    completions.swap(completions_);
-    drain_posted_ = false;  // outcomes added from now on need a new drain
-  }
-  for (auto& [id, outcome] : completions) finish_call(id, std::move(outcome));
 }
 
 void JsonRpcRequestManager::finish_call(RequestId id, Outcome&& outcome) {

@@ -23,10 +23,10 @@
 // client's socket itself meanwhile (simgate/core/idle_spin.h).
 // The calls of one read go to the core together with run_or_submit: if the simulation
 // lock is free, the I/O thread runs them itself and on_service_completion is called on it
-// (the reply is queued at once, after the outcomes gathered from the simulation thread
-// before it: a connection's replies keep the order in which outcomes were produced). If
-// the lock is held, the simulation thread runs them later and its on_service_completion
-// only appends the outcome to completions_ and posts one drain_completions() per burst.
+// (the reply is queued at once). If the lock is held, the simulation thread runs them later
+// and the core hands their outcomes over to the I/O thread (deliver_on_this_thread): one
+// drain_completions() per burst. on_service_completion always runs on the I/O thread, and a
+// connection's replies keep the order in which outcomes were produced.
 // Sessions, pending calls and batches are touched by the I/O thread only.
 #ifndef SIMGATE_PLUGINS_JSONRPC_JSONRPC_REQUEST_MANAGER_H_
 #define SIMGATE_PLUGINS_JSONRPC_JSONRPC_REQUEST_MANAGER_H_
@@ -90,8 +90,7 @@ class JsonRpcRequestManager : public RequestManager {
   std::uint16_t port() const { return port_; }
 
  protected:
-  // Under the simulation lock. On the I/O thread (run_or_submit): queues the reply at
-  // once. On the simulation thread: hands the outcome to the I/O thread; never blocks.
+  // On the I/O thread (the core hands outcomes of other threads over): queues the reply.
   void on_service_completion(RequestId id, Outcome&& outcome) override;
 
  private:
@@ -128,13 +127,9 @@ class JsonRpcRequestManager : public RequestManager {
                      const json& params, ReplyTo to);
   // Hands the calls gathered from the current read to the core (run_or_submit).
   void flush_submissions();
-  // Any thread: on the I/O thread, finishes the call at once (after the outcomes gathered
-  // before it); elsewhere, appends to completions_ and posts drain_completions().
-  void complete(RequestId id, Outcome&& outcome);
-  // I/O thread (posted): finishes the gathered outcomes, then one write per connection.
+  // I/O thread, woken by the core: finishes the outcomes the simulation thread produced,
+  // then one write per connection.
   void drain_completions();
-  // I/O thread: finishes the outcomes gathered in completions_, in the order produced.
-  void queue_gathered_completions();
   void finish_call(RequestId id, Outcome&& outcome);
   void flush_writes();
   void reply(ReplyTo& to, std::optional<json> response);
@@ -143,8 +138,6 @@ class JsonRpcRequestManager : public RequestManager {
   // I/O thread: true when `session`, about to wait for its next bytes, is to be read by the
   // polling thread itself (a client sending alone) rather than by an async read.
   bool watch(Session& session);
-  // True on this manager's I/O thread (handlers and direct reads alike).
-  bool on_io_thread() const;
 
   Options options_;                                  // as parsed
   boost::asio::io_context io_;                       // all sockets; declared first, destroyed last
@@ -172,12 +165,6 @@ class JsonRpcRequestManager : public RequestManager {
   DirectReads<Session> direct_;  // the lone client read without the event loop (I/O thread)
   bool deferring_writes_ = false;                    // replies wait for flush_writes() (I/O thread)
   std::vector<std::shared_ptr<Session>> dirty_;      // sessions with replies to flush (I/O thread)
-  std::mutex completions_mutex_;                     // guards completions_ and drain_posted_
-  std::vector<std::pair<RequestId, Outcome>> completions_;  // outcomes from the simulation thread
-  bool drain_posted_ = false;                        // a drain_completions() is queued
-  // completions_ may be non-empty (a hint read without the mutex: the outcomes that matter
-  // to an inline reply were appended under the simulation lock, which the reader holds)
-  std::atomic<bool> gathered_{false};
   std::string line_;                                 // a response being built (I/O thread; capacity reused)
 };
 

@@ -137,14 +137,6 @@ SocketRequestManager::SocketRequestManager(const json& options)
   log::info(name(), " now listening on port ", port_, " (", endpoint_, ")");
 }
 
-namespace {
-// The manager whose I/O thread this is, if any: its direct reads run outside io_.run(),
-// where the executor's running_in_this_thread() is false.
-thread_local const SocketRequestManager* t_io_thread_of = nullptr;
-}  // namespace
-
-bool SocketRequestManager::on_io_thread() const { return t_io_thread_of == this; }
-
 SocketRequestManager::~SocketRequestManager() {
   stop();
   // the host stopped calling process(): finish what is left (replies go nowhere)
@@ -157,7 +149,9 @@ void SocketRequestManager::start() {
   started_ = true;
   accept_next();
   thread_ = std::thread([this] {
-    t_io_thread_of = this;
+    // outcomes produced on the simulation thread come here: one flush per burst, then one
+    // write per connection
+    deliver_on_this_thread([this] { asio::post(io_, [this] { flush_replies(); }); });
     for (;;) {
       try {
         run_with_idle_spin(io_, io_spin_, direct_);
@@ -179,6 +173,7 @@ void SocketRequestManager::stop() {
     asio::post(io_, [this] { close_all(); });
     work_.reset();
     thread_.join();
+    deliver_on_any_thread();  // the connections are gone: outcomes from now on go nowhere
   } else {
     close_all();
   }
@@ -293,22 +288,12 @@ void SocketRequestManager::fail_in_order(const std::shared_ptr<Session>& session
     session->send(scratch_);
     return;
   }
-  // earlier requests are still with the core: queue this answer behind them, so that a
-  // client reading replies in order (telnet, scripts) sees them in order. Whoever runs
-  // process() puts it on the reply list after their outcomes.
+  // earlier requests are still with the core: the answer follows their outcomes, so that a
+  // client reading replies in order (telnet, scripts) sees them in order
   session->defer_reply();
-  post([this, weak = std::weak_ptr<Session>(session), line = scratch_]() mutable {
-    Reply r;
-    r.session = std::move(weak);
-    r.line = std::move(line);
-    if (on_io_thread()) {
-      // run here by run_or_submit: after the replies gathered before it, like an outcome
-      queue_gathered_replies();
-      queue_reply(r);
-    } else {
-      hand_over(std::move(r));
-    }
-  });
+  const RequestId reply_id = new_request_id();  // never one of requests_'s ids (RequestSlots::k_mark)
+  deferred_replies_.emplace(reply_id, DeferredReply{session, scratch_});
+  answer_in_order(reply_id, Outcome{});
 }
 
 void SocketRequestManager::on_line(const std::shared_ptr<Session>& session, std::string_view line) {
@@ -428,65 +413,29 @@ bool SocketRequestManager::watch(Session& session) {
 // ---- outcomes
 
 void SocketRequestManager::on_service_completion(RequestId id, Outcome&& outcome) {
-  if (on_io_thread()) {
-    // the I/O thread itself runs process() (run_or_submit): straight to the connection,
-    // after the replies the simulation thread produced before (same order as produced)
-    queue_gathered_replies();
+  // the I/O thread (deliver_on_this_thread): inside run_or_submit, or flush_replies()
+  if (id & decltype(requests_)::k_mark) [[likely]] {
     deliver(id, outcome);
     return;
   }
-  Reply r;
-  r.id = id;
-  r.outcome = std::move(outcome);
-  hand_over(std::move(r));
-}
-
-void SocketRequestManager::hand_over(Reply reply) {
-  // the simulation thread: hand over to the I/O thread, never block here
-  bool post_flush = false;
-  {
-    std::lock_guard lock(replies_mutex_);
-    replies_.push_back(std::move(reply));
-    replies_waiting_.store(true, std::memory_order_release);
-    if (!flush_scheduled_) flush_scheduled_ = post_flush = true;
-  }
-  // one wake of the I/O thread for every reply gathered until the flush takes them
-  if (post_flush) asio::post(io_, [this] { flush_replies(); });
-}
-
-void SocketRequestManager::flush_replies() {
-  queue_gathered_replies();
-  flush_touched();
-}
-
-void SocketRequestManager::queue_gathered_replies() {
-  // the flag spares a mutex per reply on the I/O thread; a reply handed over is seen here at
-  // the latest by the flush hand_over() posts after setting it
-  if (!replies_waiting_.load(std::memory_order_acquire)) return;
-  {
-    std::lock_guard lock(replies_mutex_);
-    flushing_.swap(replies_);
-    replies_waiting_.store(false, std::memory_order_release);
-    flush_scheduled_ = false;  // replies added from now on need a new flush
-  }
-  // each on its connection, in the order the simulation thread produced them
-  for (Reply& r : flushing_) queue_reply(r);
-  flushing_.clear();
-}
-
-void SocketRequestManager::queue_reply(Reply& r) {
-  if (r.line.empty()) {
-    deliver(r.id, r.outcome);
-    return;
-  }
+  // an error reply of fail_in_order(), now that the replies before it are queued
+  auto it = deferred_replies_.find(id);
+  if (it == deferred_replies_.end()) return;
+  DeferredReply reply = std::move(it->second);
+  deferred_replies_.erase(it);
   try {
-    if (auto s = r.session.lock(); s && !s->closed()) {
+    if (auto s = reply.session.lock(); s && !s->closed()) {
       touch(*s);
-      s->queue_deferred_reply(r.line);
+      s->queue_deferred_reply(reply.line);
     }
   } catch (const std::exception& e) {
     log::error(name(), ": cannot queue an error reply: ", e.what());
   }
+}
+
+void SocketRequestManager::flush_replies() {
+  deliver_handed_over();
+  flush_touched();
 }
 
 void SocketRequestManager::touch(Session& session) {

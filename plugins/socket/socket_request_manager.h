@@ -33,11 +33,11 @@
 // simulation lock is free, the I/O thread runs them itself: their outcomes come back to
 // on_service_completion on this same thread, are queued on their connections, and one write
 // per connection sends them: no thread hand-off at all. When the simulation is stepping,
-// they are queued and on_service_completion runs on the simulation thread: it only appends
-// the outcome to a short mutex-guarded list and posts one flush for every outcome gathered
-// until the I/O thread takes them (never blocks for long). The transport's own error
-// replies that must wait for earlier requests travel through the core in order (post), so
-// a connection's replies keep the order of its requests.
+// they are queued and run on the simulation thread; the core hands their outcomes over to
+// the I/O thread (deliver_on_this_thread), which flushes every outcome of the burst at once.
+// on_service_completion therefore always runs on the I/O thread. The transport's own error
+// replies that must wait for earlier requests travel through the core in order
+// (answer_in_order), so a connection's replies keep the order of its requests.
 #ifndef SIMGATE_PLUGINS_SOCKET_SOCKET_REQUEST_MANAGER_H_
 #define SIMGATE_PLUGINS_SOCKET_SOCKET_REQUEST_MANAGER_H_
 
@@ -48,6 +48,7 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <unordered_map>
 #include <unordered_set>
 #include <utility>
 #include <vector>
@@ -112,12 +113,10 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   bool watch(Session& session) override;
   void on_session_closed(const std::shared_ptr<Session>& session) override;
 
-  // An outcome or a ready-made reply line on its way from the simulation thread.
-  struct Reply {
-    RequestId id = 0;                // the request (outcome replies)
-    Outcome outcome;                 // its outcome (outcome replies)
-    std::weak_ptr<Session> session;  // the connection (line replies)
-    std::string line;                // a formatted reply; empty for outcome replies
+  // An error reply waiting for the outcomes of the connection's earlier requests.
+  struct DeferredReply {
+    std::weak_ptr<Session> session;  // the connection
+    std::string line;                // the formatted reply
   };
   // Hands the calls gathered from the current read to the core (run_or_submit); their
   // replies are queued on their connections (touched_).
@@ -125,15 +124,9 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   // run_calls(), then writes the replies (flush_touched); called half-way through a read
   // and before anything that must follow the read's calls.
   void run_batch();
-  // Another thread (the simulation's): appends to replies_ and posts flush_replies()
-  // unless one is due. Never blocks for long.
-  void hand_over(Reply reply);
-  // I/O thread: delivers every gathered reply, then starts one write per connection.
+  // I/O thread, woken by the core: delivers the outcomes the simulation thread produced,
+  // then starts one write per connection.
   void flush_replies();
-  // I/O thread: queues the replies gathered in replies_ on their connections.
-  void queue_gathered_replies();
-  // I/O thread: queues one reply on its connection.
-  void queue_reply(Reply& reply);
   // I/O thread: remembers a connection with replies queued (and keeps it alive) until
   // flush_touched().
   void touch(Session& session);
@@ -152,8 +145,6 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   // Answers FAILED `message` after the connection's earlier requests have been answered.
   void fail_in_order(const std::shared_ptr<Session>& session, std::string_view id, std::string message);
   void close_all();
-  // True on this manager's I/O thread (handlers and direct reads alike).
-  bool on_io_thread() const;
 
   // A request sent to the core and not yet answered. Entries of a connection are erased
   // when it closes (on_session_closed), so the session pointer is valid while its entry is.
@@ -191,11 +182,9 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   std::size_t batch_count_ = 0;
   std::vector<RequestId> cancel_after_batch_;  // cancels of a client that left, after the batch (I/O thread)
   ParamsParse params_error_;                 // the last parameters syntax error (I/O thread)
-  std::mutex replies_mutex_;                 // guards replies_ and flush_scheduled_
-  std::vector<Reply> replies_;               // replies waiting for the I/O thread
-  bool flush_scheduled_ = false;             // a flush_replies() is posted and has not taken replies_
-  std::atomic<bool> replies_waiting_{false};  // replies_ is not empty (read without the mutex)
-  std::vector<Reply> flushing_;              // replies being delivered (I/O thread)
+  // error replies travelling through the core behind earlier requests, by the
+  // new_request_id() their answer_in_order() carries (I/O thread)
+  std::unordered_map<RequestId, DeferredReply> deferred_replies_;
   std::vector<std::shared_ptr<Session>> touched_;  // connections with replies queued, not yet written (I/O thread)
   std::thread thread_;                       // runs io_
   std::mutex life_mutex_;                    // serialises start() and stop()

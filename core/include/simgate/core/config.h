@@ -12,6 +12,7 @@
 #include <set>
 #include <string>
 #include <string_view>
+#include <cstddef>
 #include <vector>
 
 #include "simgate/core/errors.h"
@@ -33,6 +34,19 @@ std::string json_preview(const json& value);
 // (nlohmann's dump, comparisons and copies recurse once per level). The JSON-RPC and DDS
 // transports check every message (params text) with it.
 bool json_nests_deeper_than(std::string_view text, std::size_t max_depth) noexcept;
+
+// The deepest `[`/`{` nesting a configuration document may have. Deployment files nest
+// about six levels (transports.<name>.options.<key>); the limit keeps every recursive
+// operation on a document (copies, comparisons, dumps) shallow.
+inline constexpr std::size_t k_max_config_depth = 64;
+
+// Parses the text of a configuration document. Throws one ConfigError naming the JSON path
+// of the offending value ("scene.timestep", "robots[1].options"; "configuration" for the
+// document itself) and its line and column when the text is not JSON, holds a number beyond
+// a double (1e400: nlohmann's out_of_range), or nests `[`/`{` deeper than `max_depth`.
+// Nothing recursive runs before the depth is known: one streaming pass (nlohmann's SAX
+// parser, iterative), then the document is built.
+json parse_config_text(std::string_view text, std::size_t max_depth = k_max_config_depth);
 
 class ConfigObject {
  public:

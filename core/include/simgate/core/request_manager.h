@@ -13,8 +13,10 @@
 //                                      -> async: started; later the component calls
 //                                         completed() -> next process()
 //                                         -> on_service_completion()
-//   transport:   on_service_completion() sends the reply (directly when it runs on the
-//                transport's own thread, posted to it otherwise).
+//   transport:   on_service_completion() sends the reply. A transport with its own I/O
+//                thread names it (deliver_on_this_thread): outcomes produced on other
+//                threads are then handed over by the core, which wakes that thread, so
+//                on_service_completion runs on the transport's thread only.
 //
 // Every submitted request gets exactly one on_service_completion() (even unknown services,
 // bad arguments and requests still running at stop()). Services run only under the
@@ -37,6 +39,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <thread>
 #include <unordered_map>
 #include <vector>
 
@@ -62,6 +65,7 @@ struct Call {
 
 namespace detail {
 class Inbox;
+class Handoff;
 }
 
 class RequestManager {
@@ -170,6 +174,11 @@ class RequestManager {
   // must see a consistent state).
   void post(std::function<void()> task);
 
+  // Delivers `outcome` to request `id` (an id the transport allocated for an answer of its
+  // own: an error, a cancel's answer) after everything submitted, cancelled or posted before
+  // this call has been handled, through the same path as the core's outcomes. Any thread.
+  void answer_in_order(RequestId id, Outcome outcome);
+
   // Number of async requests started and not yet finished (under the simulation lock).
   std::size_t pending_count() const { return running_.size(); }
   // Requests executed so far, whatever their outcome (unknown services and bad arguments
@@ -187,11 +196,36 @@ class RequestManager {
 
  protected:
   // Delivers the final outcome of request `id`, exactly once per submitted request.
-  // Runs under the simulation lock: on the simulation thread, or on a transport thread
-  // inside run_or_submit(). Must not block (post the reply to the I/O thread when on
-  // another thread) and must not throw. The outcome is the transport's to read or to move
-  // from (the core reuses the object for the next request).
+  // Without a delivery thread: runs under the simulation lock, on whichever thread runs
+  // process() (the simulation thread, or a transport thread inside run_or_submit()); must
+  // not block. With one (deliver_on_this_thread): runs on that thread only, in the order the
+  // outcomes were produced. Must not throw. The outcome is the transport's to read or to
+  // move from (the core may reuse the object for the next request).
   virtual void on_service_completion(RequestId id, Outcome&& outcome) = 0;
+
+  // ---- the hand-off of outcomes to a transport's own thread ----
+  //
+  // A transport whose sessions live on one I/O thread calls deliver_on_this_thread() on that
+  // thread before it serves anything. From then on:
+  //   - an outcome produced on that thread (run_or_submit ran process() there) reaches
+  //     on_service_completion at once, after those handed over before it;
+  //   - an outcome produced on any other thread (the simulation's) is kept by the core, and
+  //     `wake` is called (on the producing thread, under the simulation lock: it must only
+  //     post, e.g. asio::post or a DDS guard condition) once per burst: the transport's
+  //     thread then calls deliver_handed_over(), which runs on_service_completion for each.
+  // A client's replies thus keep the order in which the outcomes were produced, and no
+  // transport writes its own cross-thread queue.
+  void deliver_on_this_thread(std::function<void()> wake);
+  // The delivery thread: delivers every outcome handed over so far, in order; returns how
+  // many. Without the simulation lock.
+  std::size_t deliver_handed_over();
+  // Once the delivery thread has ended (stop()): later outcomes are delivered on whatever
+  // thread produces them, as without a delivery thread. Outcomes still handed over stay
+  // until deliver_handed_over() (any thread, then) or the destructor.
+  void deliver_on_any_thread();
+  // Under the simulation lock (a posted task, a cancel's `done`): delivers an outcome the
+  // transport made itself, through the same path as the core's.
+  void complete_request(RequestId id, Outcome&& outcome);
 
  private:
   struct Table;
@@ -217,7 +251,10 @@ class RequestManager {
                    std::chrono::steady_clock::time_point started, std::string_view took) const;
   void interrupt_running(AsyncSlot& slot, Failure reason, std::string message);
   void execute_cancel(RequestId id, const std::function<void(bool)>& done);
+  // Delivers an outcome: on_service_completion here, or handed over to the delivery thread.
   void deliver(RequestId id, Outcome&& outcome);
+  // on_service_completion, with what it throws logged.
+  void call_completion(RequestId id, Outcome&& outcome);
   // process() once the lock is held
   std::size_t process_locked();
   std::shared_ptr<AsyncSlot> slot_for(const std::string& component);
@@ -227,6 +264,10 @@ class RequestManager {
 
   std::string name_;                       // for error messages
   std::shared_ptr<detail::Inbox> inbox_;   // requests, cancels, tasks and completions
+  std::unique_ptr<detail::Handoff> handoff_;  // outcomes on their way to the delivery thread
+  // the transport's delivery thread (deliver_on_this_thread), or none: written by that
+  // thread before it serves anything, read wherever outcomes are produced
+  std::atomic<std::thread::id> delivery_thread_{};
   std::shared_ptr<SimulationGate> gate_;   // wake-up and simulation lock, shared with the loop
   mutable std::mutex table_mutex_;         // guards services_ and slots_
   // component -> service name -> service
