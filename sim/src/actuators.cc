@@ -3,15 +3,12 @@
 
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
+#include "simgate/sim/bounds.h"
 #include "simgate/sim/components.h"
 
 namespace simgate::sim {
 
 namespace {
-void require_finite(const char* what, double value) {
-  if (!std::isfinite(value)) throw ServiceError(std::string(what) + " must be a finite number");
-}
-
 double wrap_angle(double a) { return std::remainder(a, 2 * M_PI); }
 }  // namespace
 
@@ -24,8 +21,9 @@ MotionVW::MotionVW(ComponentContext& c) : SimComponent(c.name(), c.sim()), drive
 }
 
 void MotionVW::set_speed(double v, double w) {
-  require_finite("v", v);
-  require_finite("w", w);
+  // refused, not scaled: the drive's own wheel limit is for sane commands, not for 1e300
+  bounds::require_within("v", v, bounds::linear_speed, "m/s");
+  bounds::require_within("w", w, bounds::angular_speed, "rad/s");
   drive_.set_velocity(v, w);
 }
 
@@ -48,13 +46,13 @@ Waypoint::Waypoint(ComponentContext& c)
 }
 
 void Waypoint::set_target(double x, double y, double z, double tolerance, double speed) {
-  require_finite("x", x);
-  require_finite("y", y);
-  require_finite("z", z);
-  require_finite("tolerance", tolerance);
-  require_finite("speed", speed);
-  if (tolerance < 0) throw ServiceError("tolerance must not be negative");
-  if (speed <= 0) throw ServiceError("speed must be positive");
+  bounds::require_within("x", x, bounds::position, "m");
+  bounds::require_within("y", y, bounds::position, "m");
+  bounds::require_within("z", z, bounds::position, "m");
+  bounds::require_between("tolerance", tolerance, 0, bounds::position, "m");
+  bounds::require_between("speed", speed, 0, bounds::linear_speed, "m/s");
+  if (speed == 0)
+    throw ServiceError("speed must be positive", Failure::bad_arguments, {{"parameter", "speed"}});
   target_ = {x, y, z};
   tolerance_ = tolerance;
   speed_ = speed;
@@ -146,17 +144,22 @@ Teleport::Teleport(ComponentContext& c)
 }
 
 void Teleport::translate(double x, double y, double z) {
-  require_finite("x", x);
-  require_finite("y", y);
-  require_finite("z", z);
-  set_free_body_pose(sim(), free_joint_, body_position(sim(), body_) + Eigen::Vector3d(x, y, z),
-                     body_orientation(sim(), body_));
+  bounds::require_within("x", x, bounds::position, "m");
+  bounds::require_within("y", y, bounds::position, "m");
+  bounds::require_within("z", z, bounds::position, "m");
+  // relative moves add up: each one in bounds may still end beyond the world's edge
+  const Eigen::Vector3d destination = body_position(sim(), body_) + Eigen::Vector3d(x, y, z);
+  const std::string body = "body '" + sim().model().body_name(body_) + "'";
+  bounds::require_inside_world("x", x, body, "x", destination.x());
+  bounds::require_inside_world("y", y, body, "y", destination.y());
+  bounds::require_inside_world("z", z, body, "z", destination.z());
+  set_free_body_pose(sim(), free_joint_, destination, body_orientation(sim(), body_));
 }
 
 void Teleport::rotate(double roll, double pitch, double yaw) {
-  require_finite("roll", roll);
-  require_finite("pitch", pitch);
-  require_finite("yaw", yaw);
+  bounds::require_within("roll", roll, bounds::angle, "rad");
+  bounds::require_within("pitch", pitch, bounds::angle, "rad");
+  bounds::require_within("yaw", yaw, bounds::angle, "rad");
   set_free_body_pose(sim(), free_joint_, body_position(sim(), body_),
                      body_orientation(sim(), body_) * from_roll_pitch_yaw(roll, pitch, yaw));
 }

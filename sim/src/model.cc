@@ -10,8 +10,10 @@ namespace simgate::sim {
 
 namespace {
 
-// MuJoCo calls this instead of exit(1). The engine is built with unwind tables, so the
-// exception propagates through its C frames to the caller of mj_step / mj_forward.
+// MuJoCo calls this instead of exit(1). It must not return: 2.2.2's mju_error returns to
+// the engine code that found the error when the handler does, and that code carries on with
+// the broken state. The engine is built with unwind tables, so the exception propagates
+// through its C frames to the caller of mj_step / mj_forward.
 void on_mujoco_error(const char* message) { throw MujocoError(std::string("MuJoCo error: ") + message); }
 
 void on_mujoco_warning(const char* message) { log::warning("MuJoCo: ", message); }

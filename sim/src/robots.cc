@@ -2,15 +2,12 @@
 #include <cstdio>
 
 #include "simgate/core/errors.h"
+#include "simgate/sim/bounds.h"
 #include "simgate/sim/components.h"
 
 namespace simgate::sim {
 
 namespace {
-void require_finite(const char* what, double value) {
-  if (!std::isfinite(value)) throw ServiceError(std::string(what) + " must be a finite number");
-}
-
 std::string number(double x) {
   char text[32];
   std::snprintf(text, sizeof text, "%g", x);
@@ -104,13 +101,18 @@ Human::Human(ComponentContext& c) : Robot(c.name(), c.sim(), c.body()), free_joi
 }
 
 void Human::move(double speed, double rotation) {
-  require_finite("speed", speed);
-  require_finite("rotation", rotation);
-  if (speed < 0) throw ServiceError("Our human cannot walk at negative speed!");
+  // MORSE's own refusal first, word for word (a finite negative speed)
+  if (speed < 0 && std::isfinite(speed)) throw ServiceError("Our human cannot walk at negative speed!");
+  bounds::require_between("speed", speed, 0, bounds::position, "m");
+  bounds::require_within("rotation", rotation, bounds::angle, "rad");
   // forward along the human's heading (in the ground plane), then turn about the vertical
   Eigen::Quaterniond q = orientation();
   double heading = yaw();
   Eigen::Vector3d p = position() + speed * Eigen::Vector3d(std::cos(heading), std::sin(heading), 0);
+  // steps add up: each one in bounds may still end beyond the world's edge
+  const std::string body = "body '" + sim().model().body_name(this->body()) + "'";
+  bounds::require_inside_world("speed", speed, body, "x", p.x());
+  bounds::require_inside_world("speed", speed, body, "y", p.y());
   q = Eigen::AngleAxisd(rotation, Eigen::Vector3d::UnitZ()) * q;
   // body position == free joint position for a root body with a free joint
   set_free_body_pose(sim(), free_joint_, p, q);

@@ -1,6 +1,8 @@
 #include "simgate/sim/simulation.h"
 
 #include <cmath>
+#include <cstdint>
+#include <cstdio>
 #include <stdexcept>
 
 #include "simgate/core/log.h"
@@ -11,6 +13,74 @@ namespace simgate::sim {
 
 namespace {
 using Clock = std::chrono::steady_clock;
+
+// A flood of warnings (a bad state in every step) must not fill the disk: the first ten
+// occurrences of a kind are logged, then the 100th, the 1000th, ...
+constexpr std::uint64_t k_logged_individually = 10;
+
+// Whether one of the occurrences (before, after] gets a log line.
+bool worth_a_line(std::uint64_t before, std::uint64_t after) {
+  if (before < k_logged_individually) return true;
+  for (std::uint64_t n = 100; n <= after; n *= 10) {
+    if (n > before) return true;
+    if (n > UINT64_MAX / 10) break;
+  }
+  return false;
+}
+
+// What follows a logged occurrence: its number, and how the next ones are reported.
+std::string occurrence(const char* what, std::uint64_t total, const char* counted_in = "") {
+  std::string text = " [" + std::string(what) + " " + std::to_string(total);
+  if (total == k_logged_individually)
+    return text + "; further " + what + "s are counted" + counted_in + " and logged at the 100th, 1000th, ...]";
+  if (total > k_logged_individually) return text + "; logged at powers of ten]";
+  return text + "]";
+}
+
+std::string seconds(double t) {
+  char text[48];
+  std::snprintf(text, sizeof text, "t=%.4f s", t);
+  return text;
+}
+
+std::string name_or_index(const mjModel* m, mjtObj type, int id, const char* kind) {
+  const char* name = mj_id2name(m, type, id);
+  return name && *name ? std::string(kind) + " '" + name + "'" : std::string(kind) + " " + std::to_string(id);
+}
+
+// "joint 'robot_root' of body 'robot'" for a qpos address (qpos) or a dof (qvel, qacc).
+std::string where_in_state(const mjModel* m, int warning, int index) {
+  int joint = -1;
+  if (warning == mjWARN_BADQPOS) {
+    for (int j = 0; j < m->njnt; ++j)
+      if (m->jnt_qposadr[j] <= index) joint = j;  // addresses grow with the joint index
+  } else if (index >= 0 && index < m->nv) {
+    joint = m->dof_jntid[index];
+  }
+  if (joint < 0 || joint >= m->njnt) return "an unknown joint";
+  return name_or_index(m, mjOBJ_JOINT, joint, "joint") + " of " +
+         name_or_index(m, mjOBJ_BODY, m->jnt_bodyid[joint], "body");
+}
+
+// The warnings that do not reset the state, as a user can act on them.
+const char* describe_warning(int warning) {
+  switch (warning) {
+    case mjWARN_INERTIA: return "a (nearly) singular inertia matrix";
+    case mjWARN_CONTACTFULL: return "too many contacts: some were dropped (raise nconmax in the MJCF's <size>)";
+    case mjWARN_CNSTRFULL: return "too many constraints: some were dropped (raise njmax in the MJCF's <size>)";
+    case mjWARN_VGEOMFULL: return "too many visual geoms";
+    default: return "an unknown warning";
+  }
+}
+
+bool resets_the_state(int warning) {
+  return warning == mjWARN_BADQPOS || warning == mjWARN_BADQVEL || warning == mjWARN_BADQACC;
+}
+
+// The mjData array a state warning is about.
+const char* state_array(int warning) {
+  return warning == mjWARN_BADQPOS ? "qpos" : warning == mjWARN_BADQVEL ? "qvel" : "qacc";
+}
 }  // namespace
 
 Simulation::Simulation(Model model, SimulationOptions options)
@@ -92,14 +162,16 @@ void Simulation::step() {
       e->component->default_action();
     } catch (const std::exception& error) {
       // a faulty component is switched off; the simulation and everyone else go on
-      fail_component(*e, error.what());
+      fail_component(*e, "default_action()", error.what());
     }
   }
   // physics (or only the clock while dynamics are suspended)
   if (dynamics_suspended_) {
     d()->time += m()->opt.timestep;
   } else {
+    const double time_before = d()->time;
     mj_step(m(), d());
+    check_mujoco_warnings(time_before);
   }
   steps_.fetch_add(1, std::memory_order_relaxed);
 }
@@ -109,13 +181,13 @@ void Simulation::locked_step() {
   step();
 }
 
-void Simulation::fail_component(ComponentEntry& entry, const std::string& reason) {
+void Simulation::fail_component(ComponentEntry& entry, const std::string& what, const std::string& reason) {
   const std::string& name = entry.component->name();
-  log::error(name, ": default_action() failed: ", reason, "; the component is deactivated",
+  log::error(name, ": ", what, " failed: ", reason, "; the component is deactivated",
              " (simulation activate \"", name, "\" turns it back on)");
   entry.active = false;
   AsyncSlot& slot = *entry.component->async_slot();
-  const Outcome failed = Outcome::failed(Failure::internal, name + ": default_action() failed: " + reason);
+  const Outcome failed = Outcome::failed(Failure::internal, name + ": " + what + " failed: " + reason);
   if (slot.busy()) slot.running_completion.finish(failed);
   for (const Completion& call : slot.running_concurrent()) call.finish(failed);
 }
@@ -192,13 +264,102 @@ void Simulation::shutdown() {
 
 void Simulation::reset() {
   // poses, velocities and controls go back to the start; simulated time does not: it never
-  // goes backwards (`time now`, running sleeps and sensor timestamps count on it)
+  // goes backwards (`time now`, running sleeps and sensor timestamps count on it). Nor do
+  // the warning counters: they are the run's diagnostics, and MuJoCo prints a warning's
+  // message only while its counter is 0.
   const double time = d()->time;
+  std::array<mjWarningStat, mjNWARNING> warnings;
+  std::copy(std::begin(d()->warning), std::end(d()->warning), warnings.begin());
   mj_resetData(m(), d());
   d()->time = time;
+  std::copy(warnings.begin(), warnings.end(), std::begin(d()->warning));
   mj_forward(m(), d());
-  for (auto& e : entries_)
-    if (e->sim_component) e->sim_component->on_reset();
+  for (auto& e : entries_) {
+    if (!e->sim_component) continue;
+    try {
+      e->sim_component->on_reset();
+    } catch (const std::exception& error) {
+      // the others are reset all the same (this also runs inside step(), after a bad state)
+      fail_component(*e, "on_reset()", error.what());
+    }
+  }
+}
+
+void Simulation::check_mujoco_warnings(double time_before) {
+  mjData* data = d();
+  // MuJoCo's reset inside mj_step zeroes every counter, then sets the bad kind's to 1, and
+  // restarts time from 0 (plus the step): a counter that moved or a clock that went back
+  // tells it. The clock is the sure sign once a counter already reads 1.
+  bool engine_reset = data->time < time_before + 0.5 * timestep();
+  for (int k = 0; k < mjNWARNING; ++k)
+    if (resets_the_state(k) && data->warning[k].number != warnings_seen_[k]) engine_reset = true;
+
+  std::array<std::uint64_t, mjNWARNING> fresh{};  // occurrences of each kind in this step
+  bool any = false;
+  for (int k = 0; k < mjNWARNING; ++k) {
+    const int now = data->warning[k].number;
+    // after an engine reset the counters count from it (what came before in the step is lost)
+    fresh[k] = engine_reset || now < warnings_seen_[k] ? now : now - warnings_seen_[k];
+    any = any || fresh[k] > 0;
+  }
+  if (!any && !engine_reset) return;
+
+  const std::string when = "in the step from " + seconds(time_before);
+  for (int k = 0; k < mjNWARNING; ++k) {
+    if (fresh[k] == 0 || resets_the_state(k)) continue;
+    const std::uint64_t before = warning_totals_[k];
+    warning_totals_[k] += fresh[k];
+    if (k == mjWARN_BADCTRL) {
+      // MuJoCo applied no control at all in that step, and would go on so while it stays
+      const std::string dropped = drop_bad_controls();
+      if (worth_a_line(before, warning_totals_[k]))
+        log::warning("simulation: bad control ", when, ": a NaN, an infinity or a magnitude beyond 1e10 in ",
+                     dropped.empty() ? std::string("a control") : dropped,
+                     "; MuJoCo applied no control in that step, the simulation set it to 0",
+                     occurrence("bad control", warning_totals_[k]));
+    } else if (worth_a_line(before, warning_totals_[k])) {
+      log::warning("simulation: MuJoCo warning ", when, ": ", describe_warning(k),
+                   occurrence("warning", warning_totals_[k]));
+    }
+  }
+
+  if (engine_reset) {
+    // no counter moved, yet the clock went back: something else reset MuJoCo's data
+    std::string what = "simulated time went back to " + seconds(data->time);
+    for (int k = 0; k < mjNWARNING; ++k) {
+      if (!resets_the_state(k) || fresh[k] == 0) continue;
+      warning_totals_[k] += fresh[k];
+      const int index = data->warning[k].lastinfo;
+      what = std::string("a NaN, an infinity or a magnitude beyond 1e10 in ") + state_array(k) + "[" +
+             std::to_string(index) + "] (" + where_in_state(m(), k, index) + ")";
+    }
+    ++bad_states_;
+    if (worth_a_line(bad_states_ - 1, bad_states_))
+      log::warning("simulation: bad state ", when, ": ", what,
+                   "; MuJoCo reset its data, the simulation restored the initial state as reset_objects does "
+                   "(components reset, simulated time goes on)",
+                   occurrence("bad state", bad_states_, " (time statistics: bad_states)"));
+    // time goes on from where the step started, as if it had been a step of the reset world
+    data->time = time_before + timestep();
+    reset();
+  }
+
+  // rebase: 1 for a kind ever seen keeps MuJoCo from printing it again (it prints while the
+  // counter is 0) and its int from overflowing
+  for (int k = 0; k < mjNWARNING; ++k) {
+    data->warning[k].number = warning_totals_[k] > 0 ? 1 : 0;
+    warnings_seen_[k] = data->warning[k].number;
+  }
+}
+
+std::string Simulation::drop_bad_controls() {
+  std::string names;
+  for (int i = 0; i < m()->nu; ++i) {
+    if (!mju_isBad(d()->ctrl[i])) continue;
+    d()->ctrl[i] = 0;
+    names += (names.empty() ? "the control of " : ", ") + name_or_index(m(), mjOBJ_ACTUATOR, i, "actuator");
+  }
+  return names;
 }
 
 SimulationStatistics Simulation::statistics() const {
@@ -210,6 +371,7 @@ SimulationStatistics Simulation::statistics() const {
   s.target_factor = realtime_factor_;
   s.timestep = timestep();
   s.overruns = overruns_;
+  s.bad_states = bad_states_;
   return s;
 }
 

@@ -16,7 +16,7 @@ TimeServices::TimeServices(Simulation& sim) : Component("time"), sim_(sim) {
       .concurrent()
       .doc("Completes after `time` simulated seconds (each caller sleeps on its own)");
   add_service("statistics", &TimeServices::statistics)
-      .doc("Simulated time, wall time, measured and target real-time factor, steps");
+      .doc("Simulated time, wall time, measured and target real-time factor, steps, bad states recovered");
   add_service("mode", &TimeServices::mode).doc("The time strategy");
 }
 
@@ -49,7 +49,8 @@ json TimeServices::statistics() const {
           {"target_realtime_factor", s.target_factor},
           {"steps", s.steps},
           {"timestep", s.timestep},
-          {"overruns", s.overruns}};
+          {"overruns", s.overruns},
+          {"bad_states", s.bad_states}};
 }
 
 std::string TimeServices::mode() const {

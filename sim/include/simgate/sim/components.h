@@ -17,6 +17,10 @@
 //  - teleport: `translate x [y z]`, `rotate roll [pitch yaw]` (relative). Needs a free joint.
 //  - pose: `get_local_data` -> {x, y, z, roll, pitch, yaw}.
 //
+// Every number a client gives to move or drive something is checked against bounds.h
+// (finite, within a sane bound, and destinations inside the world): FAILED naming the
+// parameter, its value and the bound, and nothing changes.
+//
 // Threads: simulation thread only.
 #ifndef SIMGATE_SIM_COMPONENTS_H_
 #define SIMGATE_SIM_COMPONENTS_H_

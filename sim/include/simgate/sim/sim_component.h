@@ -25,7 +25,8 @@ class SimComponent : public Component {
  public:
   SimComponent(std::string name, Simulation& sim) : Component(std::move(name)), sim_(sim) {}
 
-  // After `simulation reset_objects` restored the initial state: drop commands.
+  // After `simulation reset_objects` restored the initial state, or the simulation
+  // recovered from a bad state the same way (simulation.h): drop commands.
   virtual void on_reset() {}
 
  protected:

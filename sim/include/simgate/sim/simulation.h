@@ -2,7 +2,8 @@
 // managers that serve them, and the step loop.
 //
 // Terms:
-//  - step: process requests, default_action() of every active component, mj_step.
+//  - step: process requests, default_action() of every active component, mj_step, then a
+//    look at MuJoCo's warning counters (see "bad states").
 //  - pacing: real time times `realtime_factor` (1 = real time, 2 = twice as fast), or as
 //    fast as possible when the factor is 0.
 //  - entry: a component plus what the simulation knows about it (type name, robot, body,
@@ -13,6 +14,17 @@
 // add_request_manager() for every transport (the simulation gives each one its gate);
 // run() until request_stop() (any thread, or the `simulation quit` service); shutdown()
 // answers what is left, stops the transports and destroys them, then the components.
+//
+// Bad states: MuJoCo 2.2.2 resets mjData in the middle of mj_step when qpos, qvel or qacc
+// holds a NaN, an infinity or a magnitude beyond 1e10 (mjMAXVAL): the initial state, time
+// back to 0, and a message the first time only. After every step the simulation compares
+// the warning counters (and the clock) with what it saw last; a bad state is logged at
+// warning level (its kind, the joint, the simulated time; every one of the first ten, then
+// the 100th, 1000th...: a flood cannot fill a disk) and recovered through reset(), the path
+// `simulation reset_objects` takes, so components get on_reset() and simulated time goes
+// on. A bad control (ctrl: MuJoCo applies zero for that step) is logged and set to 0; the
+// other warnings (too many contacts or constraints, singular inertia) are logged alike.
+// `time statistics` counts the bad states. Client input never gets there (bounds.h).
 //
 // Threads: simulation state (MuJoCo data, every component and service) is touched only
 // under the simulation lock of the shared SimulationGate. run() is the simulation thread:
@@ -25,6 +37,7 @@
 #ifndef SIMGATE_SIM_SIMULATION_H_
 #define SIMGATE_SIM_SIMULATION_H_
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <memory>
@@ -66,6 +79,7 @@ struct SimulationStatistics {
   double target_factor = 0;       // configured factor (0 = as fast as possible)
   double timestep = 0;            // physics step, seconds
   std::uint64_t overruns = 0;     // times the loop fell behind real time and resynchronised
+  std::uint64_t bad_states = 0;   // steps in which MuJoCo found a bad state (each recovered by reset())
 };
 
 class Simulation {
@@ -112,9 +126,9 @@ class Simulation {
 
   // Runs until request_stop(). Exceptions from MuJoCo or components propagate.
   void run();
-  // One step without pacing or request processing: default actions, then physics. A
-  // component whose default_action() throws is deactivated (logged, its running request
-  // FAILED); MuJoCo errors propagate.
+  // One step without pacing or request processing: default actions, then physics, then
+  // the bad-state check (see above). A component whose default_action() throws is
+  // deactivated (logged, its running request FAILED); MuJoCo errors propagate.
   void step();
   // process() of every request manager; returns the events handled.
   std::size_t process_requests();
@@ -132,7 +146,8 @@ class Simulation {
 
   double sim_time() const { return d()->time; }
   // Restores the initial state of every object (poses, velocities, controls); simulated
-  // time goes on from where it was. Components get on_reset().
+  // time goes on from where it was, and so do MuJoCo's warning counters. Components get
+  // on_reset(). Also the recovery from a bad state.
   void reset();
   void set_dynamics_suspended(bool suspended) { dynamics_suspended_ = suspended; }
   bool dynamics_suspended() const { return dynamics_suspended_; }
@@ -141,8 +156,15 @@ class Simulation {
  private:
   // step() under the simulation lock
   void locked_step();
-  // Deactivates a component whose default_action() threw; fails its running request.
-  void fail_component(ComponentEntry& entry, const std::string& reason);
+  // Deactivates a component whose `what` ("default_action()", "on_reset()") threw; fails
+  // its running request.
+  void fail_component(ComponentEntry& entry, const std::string& what, const std::string& reason);
+  // After mj_step: reports what MuJoCo warned about since the last look, and recovers from
+  // a bad state (MuJoCo's reset) through reset() with time going on from `time_before` (the
+  // simulated time the step started from).
+  void check_mujoco_warnings(double time_before);
+  // Sets every bad control to 0 and names their actuators.
+  std::string drop_bad_controls();
 
   Model model_;                                              // mjModel + mjData
   double realtime_factor_;                                   // 0 = as fast as possible
@@ -157,6 +179,11 @@ class Simulation {
   bool running_ = false;                                     // run() has started
   std::uint64_t overruns_ = 0;                               // pacing resynchronisations
   bool shut_down_ = false;                                   // shutdown() done
+  // mjData::warning[k].number after the last look (0 or 1: rebased each time, so MuJoCo's
+  // int never overflows and its own message, printed when the counter is 0, comes once)
+  std::array<int, mjNWARNING> warnings_seen_{};
+  std::array<std::uint64_t, mjNWARNING> warning_totals_{};  // occurrences of each warning since start
+  std::uint64_t bad_states_ = 0;                             // recoveries from MuJoCo's resets
 };
 
 }  // namespace simgate::sim

@@ -1,0 +1,192 @@
+// SimBadState: when MuJoCo finds a bad number in qpos, qvel or qacc it resets its data in the
+// middle of mj_step (2.2.2: time back to 0, components never told, only the first time
+// logged). The simulation detects it after every step, logs every occurrence (a flood in
+// bounded form), and recovers through its own reset path — the one `simulation
+// reset_objects` takes: components get on_reset(), running requests go on, simulated time
+// goes on. A bad control is logged and dropped, without a reset.
+#include <cmath>
+#include <limits>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "simgate/core/log.h"
+#include "sim_fixture.h"
+
+namespace simgate::sim {
+namespace {
+
+using testing::DemoSim;
+using ::testing::HasSubstr;
+
+constexpr double k_nan = std::numeric_limits<double>::quiet_NaN();
+
+// Counts the resets it is told about.
+class ResetProbe : public SimComponent {
+ public:
+  explicit ResetProbe(Simulation& sim) : SimComponent("probe", sim) {}
+  void on_reset() override { ++resets; }
+  int resets = 0;
+};
+
+class SimBadStateTest : public DemoSim {
+ protected:
+  void SetUp() override {
+    DemoSim::SetUp();
+    probe_ = static_cast<ResetProbe*>(
+        sim_->add_component(std::make_unique<ResetProbe>(*sim_), "probe").component.get());
+    log::set_sink([this](log::Level level, std::string_view text) {
+      std::lock_guard lock(lines_mutex_);
+      if (level == log::Level::warning) warnings_.emplace_back(text);
+    });
+  }
+  void TearDown() override {
+    log::set_sink({});
+    DemoSim::TearDown();
+  }
+
+  // Warning lines containing `text`.
+  std::vector<std::string> warnings_with(const std::string& text) {
+    std::lock_guard lock(lines_mutex_);
+    std::vector<std::string> out;
+    for (const auto& line : warnings_)
+      if (line.find(text) != std::string::npos) out.push_back(line);
+    return out;
+  }
+  json statistics() { return call("time", "statistics").value.value_or(json::object()); }
+  std::uint64_t bad_states() { return statistics().value("bad_states", std::uint64_t{0}); }
+  // Address of a free joint's first qpos / dof.
+  int qpos_of(const std::string& joint) { return sim_->m()->jnt_qposadr[sim_->model().joint_id(joint)]; }
+  int dof_of(const std::string& joint) { return sim_->m()->jnt_dofadr[sim_->model().joint_id(joint)]; }
+  // Writes into MuJoCo's state as a faulty component (or a bug) would: under the lock.
+  template <class F>
+  void corrupt(F&& write) {
+    std::lock_guard lock(*sim_->gate());
+    write(sim_->d());
+  }
+
+  ResetProbe* probe_ = nullptr;
+  std::mutex lines_mutex_;             // the sink may be called from any thread
+  std::vector<std::string> warnings_;  // every warning logged during the test
+};
+
+TEST_F(SimBadStateTest, AHugeQposIsLoggedAndRecoveredThroughTheResetPathKeepingTime) {
+  call("robot.motion", "set_speed", {1.0, 0.0});
+  run_for(0.5);
+  ASSERT_GT(pose()["x"].get<double>(), 0.2);
+  const double before = sim_->sim_time();
+  corrupt([&](mjData* d) { d->qpos[qpos_of("robot_root")] = 1e11; });  // beyond mjMAXVAL
+  sim_->step();
+  // time went on by one step (MuJoCo alone took it back to 0.002)
+  EXPECT_NEAR(sim_->sim_time(), before + sim_->timestep(), 1e-9);
+  // the reset path ran: components were told, the world is at its initial state
+  EXPECT_EQ(probe_->resets, 1);
+  EXPECT_NEAR(pose()["x"].get<double>(), 0.0, 1e-6);
+  EXPECT_EQ(bad_states(), 1u);
+  auto lines = warnings_with("simulation: bad state");
+  ASSERT_EQ(lines.size(), 1u);
+  EXPECT_THAT(lines[0], HasSubstr("qpos"));
+  EXPECT_THAT(lines[0], HasSubstr("joint 'robot_root' of body 'robot'"));
+  EXPECT_THAT(lines[0], HasSubstr("t=0.5"));
+  // and it keeps stepping: the robot obeys a new command (the old one was dropped by on_reset)
+  run_for(0.5);
+  EXPECT_NEAR(pose()["x"].get<double>(), 0.0, 0.01);
+  EXPECT_NEAR(sim_->sim_time(), before + sim_->timestep() + 0.5, 0.01);
+  call("robot.motion", "set_speed", {1.0, 0.0});
+  run_for(0.5);
+  EXPECT_GT(pose()["x"].get<double>(), 0.2);
+}
+
+TEST_F(SimBadStateTest, ANanQvelIsRecoveredTheSameWay) {
+  run_for(0.2);
+  const double before = sim_->sim_time();
+  corrupt([&](mjData* d) { d->qvel[dof_of("human_root") + 1] = k_nan; });
+  sim_->step();
+  EXPECT_GT(sim_->sim_time(), before);
+  EXPECT_EQ(probe_->resets, 1);
+  auto lines = warnings_with("simulation: bad state");
+  ASSERT_EQ(lines.size(), 1u);
+  EXPECT_THAT(lines[0], HasSubstr("qvel"));
+  EXPECT_THAT(lines[0], HasSubstr("joint 'human_root' of body 'human'"));
+  run_for(0.2);
+  EXPECT_NEAR(sim_->sim_time(), before + sim_->timestep() + 0.2, 0.01);
+}
+
+TEST_F(SimBadStateTest, AHugeAccelerationIsRecoveredTheSameWay) {
+  run_for(0.2);
+  const double before = sim_->sim_time();
+  // a force no body of the scene can take: qacc beyond mjMAXVAL
+  corrupt([&](mjData* d) { d->qfrc_applied[dof_of("human_root")] = 1e20; });
+  sim_->step();
+  EXPECT_GT(sim_->sim_time(), before);
+  EXPECT_EQ(probe_->resets, 1);
+  auto lines = warnings_with("simulation: bad state");
+  ASSERT_EQ(lines.size(), 1u);
+  EXPECT_THAT(lines[0], HasSubstr("qacc"));
+  EXPECT_EQ(sim_->d()->qfrc_applied[dof_of("human_root")], 0.0);  // the force went with the state
+  run_for(0.2);
+  EXPECT_NEAR(pose()["z"].get<double>(), 0.1, 0.01);  // the robot stands where it started
+}
+
+TEST_F(SimBadStateTest, RunningRequestsGoOnAsAcrossReset_objects) {
+  RequestId sleep = rm_->call("time", "sleep", {0.5});
+  RequestId go = rm_->call("robot.waypoint", "goto", {1.0, 0.0, 0.0, 0.2});
+  sim_->process_requests();
+  const std::uint64_t start = sim_->steps();
+  run_for(0.2);
+  corrupt([&](mjData* d) { d->qpos[qpos_of("robot_root")] = k_nan; });
+  sim_->step();
+  EXPECT_EQ(probe_->resets, 1);
+  // neither request ended: the sleep counts simulated time, which never went back
+  EXPECT_FALSE(rm_->outcome(sleep).has_value());
+  EXPECT_FALSE(rm_->outcome(go).has_value());
+  auto o = step_until(sleep, 2000);
+  ASSERT_TRUE(o.has_value());
+  EXPECT_EQ(o->status, Status::success);
+  EXPECT_NEAR(double(sim_->steps() - start) * sim_->timestep(), 0.5, 2 * sim_->timestep());
+  // the goto drives on from the initial pose, as after reset_objects
+  o = step_until(go, 10000);
+  ASSERT_TRUE(o.has_value());
+  EXPECT_EQ(o->value, json("Arrived"));
+}
+
+TEST_F(SimBadStateTest, AFloodIsCountedInFullAndLoggedInBoundedForm) {
+  run_for(0.01);
+  double last = sim_->sim_time();
+  for (int i = 0; i < 120; ++i) {
+    corrupt([&](mjData* d) { d->qpos[qpos_of("human_root")] = 1e12; });
+    sim_->step();
+    ASSERT_GT(sim_->sim_time(), last) << "time went back at bad state " << i + 1;
+    last = sim_->sim_time();
+  }
+  EXPECT_EQ(probe_->resets, 120);
+  EXPECT_EQ(bad_states(), 120u);
+  // the first ten, then the 100th: eleven lines for 120 bad states
+  auto lines = warnings_with("simulation: bad state");
+  ASSERT_EQ(lines.size(), 11u);
+  EXPECT_THAT(lines[9], HasSubstr("further bad states are counted"));
+  EXPECT_THAT(lines[10], HasSubstr("bad state 100"));
+  // MuJoCo's own message appears once: its counter is not zeroed by the recoveries
+  EXPECT_EQ(warnings_with("MuJoCo: Nan, Inf or huge value in QPOS").size(), 1u);
+}
+
+TEST_F(SimBadStateTest, ABadControlIsLoggedAndDroppedWithoutAReset) {
+  run_for(0.1);
+  const double before = sim_->sim_time();
+  const int left = sim_->model().actuator_id("robot_left_motor");
+  corrupt([&](mjData* d) { d->ctrl[left] = k_nan; });
+  sim_->step();
+  EXPECT_NEAR(sim_->sim_time(), before + sim_->timestep(), 1e-9);
+  EXPECT_EQ(probe_->resets, 0);  // the state itself was sound
+  EXPECT_EQ(sim_->d()->ctrl[left], 0.0);
+  auto lines = warnings_with("simulation: bad control");
+  ASSERT_EQ(lines.size(), 1u);
+  EXPECT_THAT(lines[0], HasSubstr("actuator 'robot_left_motor'"));
+  // once dropped, nothing more to say
+  run_for(0.1);
+  EXPECT_EQ(warnings_with("simulation: bad control").size(), 1u);
+  EXPECT_EQ(bad_states(), 0u);
+}
+
+}  // namespace
+}  // namespace simgate::sim
