@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 #include <mutex>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -24,9 +25,16 @@ constexpr double k_nan = std::numeric_limits<double>::quiet_NaN();
 // Counts the resets it is told about.
 class ResetProbe : public SimComponent {
  public:
-  explicit ResetProbe(Simulation& sim) : SimComponent("probe", sim) {}
+  explicit ResetProbe(Simulation& sim, std::string name = "probe") : SimComponent(std::move(name), sim) {}
   void on_reset() override { ++resets; }
   int resets = 0;
+};
+
+// Its on_reset() throws, as a buggy component's may.
+class FaultyReset : public SimComponent {
+ public:
+  explicit FaultyReset(Simulation& sim) : SimComponent("faulty", sim) {}
+  void on_reset() override { throw std::runtime_error("deliberate on_reset failure"); }
 };
 
 class SimBadStateTest : public DemoSim {
@@ -186,6 +194,21 @@ TEST_F(SimBadStateTest, ABadControlIsLoggedAndDroppedWithoutAReset) {
   run_for(0.1);
   EXPECT_EQ(warnings_with("simulation: bad control").size(), 1u);
   EXPECT_EQ(bad_states(), 0u);
+}
+
+TEST_F(SimBadStateTest, AComponentWhoseOnResetThrowsIsSwitchedOffAndTheOthersAreResetAllTheSame) {
+  sim_->add_component(std::make_unique<FaultyReset>(*sim_), "faulty");
+  // reset after the faulty one: a throw used to end the reset there (and reset_objects FAILED)
+  auto& later = static_cast<ResetProbe&>(
+      *sim_->add_component(std::make_unique<ResetProbe>(*sim_, "later"), "probe").component);
+  EXPECT_EQ(call("simulation", "reset_objects").status, Status::success);
+  EXPECT_EQ(later.resets, 1);
+  EXPECT_FALSE(sim_->find("faulty")->active);
+  // the recovery from a bad state takes the same path: the step does not throw
+  run_for(0.1);
+  corrupt([&](mjData* d) { d->qpos[qpos_of("robot_root")] = 1e11; });
+  EXPECT_NO_THROW(sim_->step());
+  EXPECT_EQ(later.resets, 2);
 }
 
 }  // namespace
