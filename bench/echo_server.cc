@@ -9,11 +9,11 @@
 //
 // Waiting: with --spin-us 0 (the default) the I/O thread sleeps in epoll_wait between
 // requests, as a plain Asio server does. With --spin-us N it runs the io_context with
-// simgate's idle-spin rule (run_with_idle_spin, simgate/core/idle_spin.h: poll for N µs
+// simgate's idle-spin rule (kit::run_with_idle_spin, simgate/kit/idle_spin.h: poll for N µs
 // after each event before sleeping, while events come close together), the rule simgate's
 // TCP transports run with (io_spin_us, default 50): the harness takes this polling echo as
 // the limit, and the sleeping one as the "plain Asio server" peer. It does not read sockets
-// directly (DirectReads): that is the transports' own optimisation, not the waiting rule.
+// directly (kit::DirectReads): that is the transports' own optimisation, not the waiting rule.
 //
 // Usage: simgate_bench_echo [--host 127.0.0.1] [--port 0] [--spin-us 0] [--max-seconds 600]
 // Prints {"port": N} on stdout once listening; exits on SIGTERM/SIGINT or after
@@ -29,7 +29,7 @@
 #include <boost/asio.hpp>
 
 #include "bench_util.h"
-#include "simgate/core/idle_spin.h"
+#include "simgate/kit/idle_spin.h"
 
 namespace asio = boost::asio;
 using asio::ip::tcp;
@@ -125,7 +125,7 @@ int main(int argc, char** argv) {
 
     std::cout << simgate::bench::json{{"port", acceptor.local_endpoint().port()}}.dump() << std::endl;
     // returns when stopped (signal, --max-seconds), as io.run() does
-    simgate::run_with_idle_spin(io, std::chrono::microseconds(spin_us));
+    simgate::kit::run_with_idle_spin(io, std::chrono::microseconds(spin_us));
     return 0;
   } catch (const std::exception& e) {
     std::cerr << "simgate_bench_echo: " << e.what() << "\n";

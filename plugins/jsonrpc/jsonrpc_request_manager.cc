@@ -11,8 +11,7 @@
 #include "protocol.h"
 #include "simgate/core/config.h"
 #include "simgate/core/errors.h"
-#include "simgate/core/id_table.h"
-#include "simgate/core/idle_spin.h"
+#include "simgate/kit/id_table.h"
 #include "simgate/core/log.h"
 #include "simgate/core/plugin.h"
 
@@ -27,14 +26,6 @@ constexpr std::string_view k_version = "0.1.0";
 constexpr std::size_t k_read_chunk = 64 * 1024;
 // a burst of replies is written early once this much is queued
 constexpr std::size_t k_coalesce_bytes = 256 * 1024;
-// How long accepting pauses after accept() failed (out of file descriptors, say).
-constexpr std::chrono::milliseconds k_accept_retry{100};
-
-// "127.0.0.1:4001" or "[::1]:4001"
-std::string to_string(const tcp::endpoint& ep) {
-  const auto address = ep.address().to_string();
-  return (ep.address().is_v6() ? "[" + address + "]" : address) + ":" + std::to_string(ep.port());
-}
 
 json result_response(const json& id, json result) {
   return {{"jsonrpc", "2.0"}, {"id", id}, {"result", std::move(result)}};
@@ -46,28 +37,16 @@ json result_response(const json& id, json result) {
 
 Options Options::parse(const json& options) {
   ConfigObject config(options.is_null() ? json::object() : options, "");
+  kit::TcpOptions defaults;
+  defaults.port = 4001;
+  defaults.max_message_bytes = 8u << 20;
+  defaults.max_unsent_bytes = 16u << 20;
+  defaults.max_connections = 512;
+  defaults.max_in_flight = 1024;
   Options o;
-  o.host = config.get_string("host", o.host);
-  o.port = static_cast<std::uint16_t>(config.get_int("port", o.port, 0, 65535));
-  o.max_message_bytes = static_cast<std::size_t>(
-      config.get_int("max_message_bytes", static_cast<long long>(o.max_message_bytes), 64, 1ll << 30));
+  o.tcp = kit::TcpOptions::read(config, defaults, "jsonrpc");
   o.max_depth = static_cast<std::size_t>(config.get_int("max_depth", static_cast<long long>(o.max_depth), 2, 10000));
-  o.max_in_flight = static_cast<std::size_t>(
-      config.get_int("max_in_flight", static_cast<long long>(o.max_in_flight), 1, 1 << 20));
-  o.max_unsent_bytes = static_cast<std::size_t>(
-      config.get_int("max_unsent_bytes", static_cast<long long>(o.max_unsent_bytes), 1024, 1ll << 32));
-  o.max_connections = static_cast<std::size_t>(
-      config.get_int("max_connections", static_cast<long long>(o.max_connections), 1, 1 << 20));
-  o.io_spin = std::chrono::microseconds(config.get_int("io_spin_us", o.io_spin.count(), 0, 10000));
-  o.cancel_on_disconnect = config.get_choice("on_disconnect", "cancel", {"cancel", "let_run"}) == "cancel";
-  o.global_policy = config.get_choice("global_policy", "reject", {"reject", "preempt"}) == "preempt"
-                        ? GlobalPolicy::preempt
-                        : GlobalPolicy::reject;
-  config.finish();
-  // the address must parse here, so the error names the option
-  error_code ec;
-  (void)asio::ip::make_address(o.host == "localhost" ? "127.0.0.1" : o.host, ec);
-  if (ec) config.fail("host", "an IP address such as \"127.0.0.1\" or \"::1\"");
+  o.tcp.finish(config);
   return o;
 }
 
@@ -80,7 +59,7 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
       : owner_(owner), socket_(std::move(socket)), read_buf_(k_read_chunk) {
     error_code ec;
     auto ep = socket_.remote_endpoint(ec);
-    peer_ = ec ? std::string("unknown peer") : to_string(ep);
+    peer_ = ec ? std::string("unknown peer") : kit::to_string(ep);
   }
 
   const std::string& peer() const { return peer_; }
@@ -99,9 +78,9 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
   void send(std::string_view line) {
     if (closed_) return;
     const std::size_t waiting = out_.size() + writing_.size();
-    if (waiting > owner_.options_.max_unsent_bytes) {
+    if (waiting > owner_.options_.tcp.max_unsent_bytes) {
       close("it does not read its replies (" + std::to_string(waiting) + " bytes unsent, max_unsent_bytes " +
-            std::to_string(owner_.options_.max_unsent_bytes) + ")");
+            std::to_string(owner_.options_.tcp.max_unsent_bytes) + ")");
       return;
     }
     out_.append(line);
@@ -117,7 +96,7 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
         write_now();
       }
     }
-    if (out_.size() + writing_.size() > owner_.options_.max_unsent_bytes / 2) paused_ = true;
+    if (out_.size() + writing_.size() > owner_.options_.tcp.max_unsent_bytes / 2) paused_ = true;
   }
 
   // Writes what send() deferred (end of a burst).
@@ -133,10 +112,10 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
   void add_in_flight() { ++in_flight_; }
   bool has_id(const std::string& key) const { return calls_.find(key) != nullptr; }
   void track(const std::string& key, RequestId id) {
-    if (IdTable::Entry* entry = calls_.insert(key)) entry->id = id;
+    if (kit::IdTable::Entry* entry = calls_.insert(key)) entry->id = id;
   }
   std::optional<RequestId> find(const std::string& key) const {
-    const IdTable::Entry* entry = calls_.find(key);
+    const kit::IdTable::Entry* entry = calls_.find(key);
     if (!entry) return std::nullopt;
     return entry->id;
   }
@@ -150,11 +129,11 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
   std::vector<RequestId> take_calls() {
     std::vector<RequestId> ids;
     ids.reserve(calls_.size());
-    calls_.for_each([&](const IdTable::Entry& e) { ids.push_back(e.id); });
+    calls_.for_each([&](const kit::IdTable::Entry& e) { ids.push_back(e.id); });
     return ids;
   }
 
-  // ---- while the manager watches it (DirectReads, simgate/core/idle_spin.h)
+  // ---- while the manager watches it (kit::DirectReads, simgate/kit/idle_spin.h)
   // Reads what is waiting, without waiting, and handles it; false when nothing was.
   bool read_now() {
     if (closed_) return false;
@@ -218,7 +197,7 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
         // a large read of a client pipelining alone (read_split.h): while it has sent more
         // already, read on (the socket is non-blocking) and write the replies of these reads
         // together, one write per read fewer; a short read is answered at once
-        for (int reads = 1; reads < k_reads_in_a_row && n >= ReadSplit::k_min_bytes; ++reads) {
+        for (int reads = 1; reads < k_reads_in_a_row && n >= kit::ReadSplit::k_min_bytes; ++reads) {
           if (closed_ || paused_ || !owner_.read_split_.alone(this)) break;
           owner_.flush_submissions();  // this read's calls run before the next read's
           n = socket_.read_some(asio::buffer(read_buf_), next);
@@ -258,10 +237,10 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
   // Splits received bytes into lines; keeps a partial line for the next read.
   void split_lines(const char* p, std::size_t n) {
     const char* end = p + n;
-    const std::size_t max = owner_.options_.max_message_bytes;
+    const std::size_t max = owner_.options_.tcp.max_message_bytes;
     // a large read from a client pipelining alone: its first half runs and is answered
-    // before the rest is parsed (simgate/core/read_split.h)
-    const char* half = n >= ReadSplit::k_min_bytes ? p + n / 2 : nullptr;
+    // before the rest is parsed (simgate/kit/read_split.h)
+    const char* half = n >= kit::ReadSplit::k_min_bytes ? p + n / 2 : nullptr;
     while (p < end && !closed_) {
       if (half && p >= half) {
         half = nullptr;
@@ -301,7 +280,7 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
     partial_.clear();
     partial_.shrink_to_fit();
     discarding_ = true;
-    const auto max = owner_.options_.max_message_bytes;
+    const auto max = owner_.options_.tcp.max_message_bytes;
     send(dump(error_response(nullptr, code::invalid_request,
                              "Invalid Request: message exceeds max_message_bytes (" + std::to_string(max) + ")",
                              json{{"reason", "message too large"}, {"bytes_so_far", size}, {"max_message_bytes", max}})));
@@ -317,7 +296,7 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
       owner_.handle_message(shared_from_this(), line);
       owner_.flush_submissions();
     }
-    if (owner_.options_.cancel_on_disconnect)
+    if (owner_.options_.tcp.cancel_on_disconnect)
       for (RequestId id : take_calls()) owner_.cancel(id);
     maybe_finish();
   }
@@ -385,7 +364,7 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
   bool write_active_ = false;                      // a write is in flight
   bool dirty_ = false;                             // listed in the manager's dirty_
   // dumped JSON-RPC id -> pending request
-  IdTable calls_;
+  kit::IdTable calls_;
   std::size_t in_flight_ = 0;                      // pending calls, notifications and cancels
 };
 
@@ -402,146 +381,60 @@ struct JsonRpcRequestManager::Batch {
 JsonRpcRequestManager::JsonRpcRequestManager(const json& options)
     : RequestManager("JSON-RPC service manager"),
       options_(Options::parse(options)),
-      work_(asio::make_work_guard(io_)),
-      acceptor_(io_),
-      accept_retry_(io_) {
-  set_global_policy(options_.global_policy);
-  const std::string host = options_.host == "localhost" ? "127.0.0.1" : options_.host;
-  tcp::endpoint endpoint(asio::ip::make_address(host), options_.port);
-  try {
-    acceptor_.open(endpoint.protocol());
-    acceptor_.set_option(asio::socket_base::reuse_address(true));
-    acceptor_.bind(endpoint);
-    acceptor_.listen(asio::socket_base::max_listen_connections);
-  } catch (const boost::system::system_error& e) {
-    std::string hint;
-    if (e.code() == asio::error::address_in_use)
-      hint = " (another program listens there: `ss -ltnp 'sport = :" + std::to_string(options_.port) +
-             "'` names it; stop it, or choose another 'port', 0 for any free one)";
-    else if (e.code() == asio::error::access_denied)
-      hint = " (ports below 1024 need privileges)";
-    throw std::runtime_error("transport 'jsonrpc': cannot listen on " + to_string(endpoint) + ": " +
-                             e.code().message() + hint);
-  }
-  port_ = acceptor_.local_endpoint().port();
+      // bound now, so that a port in use fails the creation of the transport
+      listener_(io_, name(), options_.tcp.host, options_.tcp.port),
+      io_thread_(io_, name(), options_.tcp.io_spin) {
+  set_global_policy(options_.tcp.global_policy);
 }
 
 JsonRpcRequestManager::~JsonRpcRequestManager() { stop(); }
 
-std::vector<std::string> JsonRpcRequestManager::endpoints() const {
-  const std::string host = options_.host == "localhost" ? "127.0.0.1" : options_.host;
-  tcp::endpoint ep(asio::ip::make_address(host), port_);
-  return {"tcp://" + to_string(ep)};
-}
+std::vector<std::string> JsonRpcRequestManager::endpoints() const { return {listener_.endpoint()}; }
 
 void JsonRpcRequestManager::start() {
-  std::lock_guard lock(life_mutex_);
-  if (started_ || stopped_) return;
-  started_ = true;
-  asio::post(io_, [this] { accept_next(); });
-  thread_ = std::thread([this] { run_io(); });
-  log::info("jsonrpc: listening on ", endpoints().front());
-}
-
-void JsonRpcRequestManager::run_io() {
+  const std::string why = "too many connections (max_connections " + std::to_string(options_.tcp.max_connections) + ")";
+  kit::TcpListener::Handlers handlers{[this](tcp::socket socket) { accept(std::move(socket)); },
+                                      [this] { return sessions_.size() >= options_.tcp.max_connections; }, why,
+                                      dump(error_response(nullptr, code::overloaded, "Overloaded: " + why)) + "\n"};
   // outcomes produced on the simulation thread come here: one drain per burst, then one
   // write per connection
-  deliver_on_this_thread([this] { asio::post(io_, [this] { drain_completions(); }); });
-  // io_spin_us: after activity the thread polls for a while before sleeping in epoll, while
-  // events have lately come close together, reading a lone client's socket itself while
-  // it polls (simgate/core/idle_spin.h)
-  while (!io_.stopped()) {
-    try {
-      run_with_idle_spin(io_, options_.io_spin, direct_);
-    } catch (const std::exception& e) {
-      // handlers catch their own exceptions; this is the last line of defence
-      log::error("jsonrpc: I/O thread: ", e.what());
-    }
-  }
+  if (io_thread_.start(
+          [this, handlers = std::move(handlers)]() mutable {
+            deliver_on_this_thread([this] { asio::post(io_, [this] { drain_completions(); }); });
+            listener_.start(std::move(handlers));
+          },
+          direct_))
+    log::info("jsonrpc: listening on ", endpoints().front());
 }
 
 void JsonRpcRequestManager::stop() {
-  {
-    std::lock_guard lock(life_mutex_);
-    if (stopped_) return;
-    stopped_ = true;
-  }
-  if (thread_.joinable()) {
-    asio::post(io_, [this] { shutdown_io(); });
-    work_.reset();
-    thread_.join();
-    deliver_on_any_thread();  // the connections are gone: outcomes from now on go nowhere
-  } else {
-    shutdown_io();
-  }
+  if (!io_thread_.stop([this] { shutdown_io(); })) return;
+  deliver_on_any_thread();  // the connections are gone: outcomes from now on go nowhere
   // finish what the core still holds (replies can no longer be sent)
   abandon_pending();
 }
 
 void JsonRpcRequestManager::shutdown_io() {
   stopping_ = true;
-  error_code ec;
-  acceptor_.close(ec);
-  accept_retry_.cancel();
+  listener_.close();
   auto sessions = sessions_;
   for (const auto& s : sessions) s->close("server stopping");
   sessions_.clear();
   client_count_.store(0, std::memory_order_relaxed);
-  // completions posted from now on are dropped with the io_context
-  io_.stop();
 }
 
-void JsonRpcRequestManager::accept_next() {
-  if (stopping_) return;
-  acceptor_.async_accept([this](const error_code& ec, tcp::socket socket) {
-    if (stopping_ || ec == asio::error::operation_aborted) return;
-    try {
-      if (ec) {
-        // e.g. out of file descriptors: back off instead of spinning (as the socket transport)
-        log::warning("jsonrpc: accept failed: ", ec.message(), "; accepting again in ", k_accept_retry.count(),
-                     " ms");
-        accept_retry_.expires_after(k_accept_retry);
-        accept_retry_.async_wait([this](const error_code& e) {
-          if (!e) accept_next();
-        });
-        return;
-      }
-      if (sessions_.size() >= options_.max_connections) {
-        // as the socket transport: one warning until a connection is accepted again, then
-        // tell the client why (best effort, without blocking) and close
-        const std::string why = "too many connections (max_connections " + std::to_string(options_.max_connections) + ")";
-        error_code ignored;
-        const auto peer = socket.remote_endpoint(ignored);
-        if (!refusing_)
-          log::warning("jsonrpc: refused a connection from ", to_string(peer), ": ", why,
-                       "; further refusals are logged at debug level until one is accepted");
-        else
-          log::debug("jsonrpc: refused a connection from ", to_string(peer), ": ", why);
-        refusing_ = true;
-        socket.non_blocking(true, ignored);
-        const std::string line = dump(error_response(nullptr, code::overloaded, "Overloaded: " + why)) + "\n";
-        socket.write_some(asio::buffer(line), ignored);
-        socket.close(ignored);
-      } else {
-        refusing_ = false;
-        socket.set_option(tcp::no_delay(true));
-        auto session = std::make_shared<Session>(*this, std::move(socket));
-        sessions_.insert(session);
-        client_count_.store(sessions_.size(), std::memory_order_relaxed);
-        log::debug("jsonrpc: connection from ", session->peer());
-        session->start();
-      }
-    } catch (const std::exception& e) {
-      log::error("jsonrpc: accepting a connection: ", e.what());
-    }
-    accept_next();
-  });
+void JsonRpcRequestManager::accept(tcp::socket socket) {
+  auto session = std::make_shared<Session>(*this, std::move(socket));
+  sessions_.insert(session);
+  client_count_.store(sessions_.size(), std::memory_order_relaxed);
+  log::debug("jsonrpc: connection from ", session->peer());
+  session->start();
 }
 
 bool JsonRpcRequestManager::watch(Session& session) {
   // only while the I/O thread polls (never with io_spin_us 0), for a client sending alone:
   // others are served by the event loop between direct reads
-  if (options_.io_spin.count() <= 0 || !read_split_.alone(&session)) return false;
+  if (options_.tcp.io_spin.count() <= 0 || !read_split_.alone(&session)) return false;
   direct_.watch(session.shared_from_this());
   return true;
 }
@@ -551,7 +444,7 @@ void JsonRpcRequestManager::session_closed(Session& session) {
   auto self = session.shared_from_this();
   sessions_.erase(self);
   client_count_.store(sessions_.size(), std::memory_order_relaxed);
-  if (stopping_ || !options_.cancel_on_disconnect) return;
+  if (stopping_ || !options_.tcp.cancel_on_disconnect) return;
   // the client is gone: its pending calls end (their replies are dropped)
   for (RequestId id : session.take_calls()) cancel(id);
 }
@@ -562,10 +455,10 @@ void JsonRpcRequestManager::handle_message(const std::shared_ptr<Session>& sessi
   if (line.find_first_not_of(" \t\r") == std::string_view::npos) return;
 
   ReplyTo single{session, nullptr, false, nullptr, 0};
-  if (line.size() > options_.max_message_bytes) {
+  if (line.size() > options_.tcp.max_message_bytes) {
     reply(single, error_response(nullptr, code::invalid_request,
                                  "Invalid Request: message exceeds max_message_bytes (" +
-                                     std::to_string(options_.max_message_bytes) + ")",
+                                     std::to_string(options_.tcp.max_message_bytes) + ")",
                                  json{{"reason", "message too large"}, {"bytes", line.size()}}));
     return;
   }
@@ -663,13 +556,13 @@ void JsonRpcRequestManager::dispatch(const std::shared_ptr<Session>& session, Re
   }
 
   // limits: calls in flight on this connection, ids unique among them
-  if (session->in_flight() >= options_.max_in_flight) {
+  if (session->in_flight() >= options_.tcp.max_in_flight) {
     if (to.notification) log::debug("jsonrpc: ", session->peer(), ": notification ", method, " dropped: overloaded");
     reply(to, error_response(to.id, code::overloaded,
                              "Overloaded: " + std::to_string(session->in_flight()) +
                                  " calls in flight on this connection (max_in_flight " +
-                                 std::to_string(options_.max_in_flight) + ")",
-                             json{{"method", method}, {"max_in_flight", options_.max_in_flight}}));
+                                 std::to_string(options_.tcp.max_in_flight) + ")",
+                             json{{"method", method}, {"max_in_flight", options_.tcp.max_in_flight}}));
     return;
   }
   std::string key;

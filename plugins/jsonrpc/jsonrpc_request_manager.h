@@ -20,7 +20,7 @@
 //
 // Threads: one I/O thread runs the io_context (accept, read, parse, hand over, write),
 // polling a little before it sleeps while events come close together and reading a lone
-// client's socket itself meanwhile (simgate/core/idle_spin.h).
+// client's socket itself meanwhile (simgate/kit/idle_spin.h).
 // The calls of one read go to the core together with run_or_submit: if the simulation
 // lock is free, the I/O thread runs them itself and on_service_completion is called on it
 // (the reply is queued at once). If the lock is held, the simulation thread runs them later
@@ -42,31 +42,24 @@
 #include <unordered_set>
 #include <vector>
 
-#include <boost/asio/executor_work_guard.hpp>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
-#include <boost/asio/steady_timer.hpp>
 
 #include "protocol.h"
-#include "simgate/core/idle_spin.h"
-#include "simgate/core/read_split.h"
-#include "simgate/core/recycling_map.h"
+#include "simgate/kit/idle_spin.h"
+#include "simgate/kit/tcp_server.h"
+#include "simgate/kit/read_split.h"
+#include "simgate/kit/recycling_map.h"
 #include "simgate/core/request_manager.h"
 
 namespace simgate::jsonrpc {
 
 // The transport's options (plugin option keys in parentheses).
 struct Options {
-  std::string host = "127.0.0.1";               // ("host") IP address to bind
-  std::uint16_t port = 4001;                    // ("port") 0 = any free port
-  std::size_t max_message_bytes = 8u << 20;     // ("max_message_bytes") one line, batch included
-  std::size_t max_depth = 128;                  // ("max_depth") bracket nesting of one message
-  std::size_t max_in_flight = 1024;             // ("max_in_flight") pending calls per connection
-  std::size_t max_unsent_bytes = 16u << 20;     // ("max_unsent_bytes") queued replies per connection
-  std::size_t max_connections = 512;            // ("max_connections") simultaneous clients
-  std::chrono::microseconds io_spin{50};        // ("io_spin_us") I/O thread polls this long before sleeping (idle_spin.h)
-  bool cancel_on_disconnect = true;             // ("on_disconnect": "cancel" | "let_run")
-  GlobalPolicy global_policy = GlobalPolicy::reject;  // ("global_policy": "reject" | "preempt")
+  // the keys every TCP transport has; here: port 4001, max_message_bytes 8 MiB (one line,
+  // batch included), max_unsent_bytes 16 MiB, max_connections 512, max_in_flight 1024
+  kit::TcpOptions tcp;
+  std::size_t max_depth = 128;  // ("max_depth") bracket nesting of one message
 
   // Reads and checks `options`; unknown keys are errors (ConfigError naming the key).
   static Options parse(const json& options);
@@ -87,7 +80,7 @@ class JsonRpcRequestManager : public RequestManager {
   std::vector<std::string> endpoints() const override;
 
   const Options& options() const { return options_; }
-  std::uint16_t port() const { return port_; }
+  std::uint16_t port() const { return listener_.port(); }
 
  protected:
   // On the I/O thread (the core hands outcomes of other threads over): queues the reply.
@@ -116,8 +109,8 @@ class JsonRpcRequestManager : public RequestManager {
   };
 
   // I/O thread.
-  void run_io();
-  void accept_next();
+  // A new connection (the listener keeps the count under max_connections).
+  void accept(boost::asio::ip::tcp::socket socket);
   void handle_message(const std::shared_ptr<Session>& session, std::string_view line);
   // Handles one request object: answers at once (into `to`), or queues a call in to_submit_.
   void handle_request(const std::shared_ptr<Session>& session, json& message, ReplyTo to);
@@ -141,28 +134,21 @@ class JsonRpcRequestManager : public RequestManager {
 
   Options options_;                                  // as parsed
   boost::asio::io_context io_;                       // all sockets; declared first, destroyed last
-  boost::asio::executor_work_guard<boost::asio::io_context::executor_type> work_;  // keeps run() alive
-  boost::asio::ip::tcp::acceptor acceptor_;          // the listening socket
-  boost::asio::steady_timer accept_retry_;           // backs off after accept errors (EMFILE)
-  bool refusing_ = false;                            // refused a connection since the last one accepted (I/O thread)
-  std::uint16_t port_ = 0;                           // bound port
-  std::thread thread_;                               // runs io_
-  std::mutex life_mutex_;                            // guards started_ / stopped_
-  bool started_ = false;                             // start() ran
-  bool stopped_ = false;                             // stop() ran
+  kit::TcpListener listener_;                        // the listening socket, bound in the constructor
+  kit::IoThread io_thread_;                          // runs io_
   bool stopping_ = false;                            // shutdown_io() ran (I/O thread)
   std::unordered_set<std::shared_ptr<Session>> sessions_;  // open connections (I/O thread)
   std::atomic<std::size_t> client_count_{0};                // sessions_.size(), for any thread
   static constexpr std::size_t k_spare_nodes = 256;  // table nodes kept for reuse (per manager, per connection)
-  RecyclingMap<RequestId, Pending> pending_{k_spare_nodes};  // submitted calls (I/O thread)
+  kit::RecyclingMap<RequestId, Pending> pending_{k_spare_nodes};  // submitted calls (I/O thread)
   Request request_;                                  // the message being read by the fast path (I/O thread)
   // calls of the current read, handed over together: the first to_submit_count_ of
   // to_submit_; the objects are refilled from read to read (I/O thread)
   static constexpr std::size_t k_kept_calls = 1024;
   std::vector<std::pair<RequestId, Call>> to_submit_;
   std::size_t to_submit_count_ = 0;
-  ReadSplit read_split_;  // answers half of a lone client's large read early (I/O thread)
-  DirectReads<Session> direct_;  // the lone client read without the event loop (I/O thread)
+  kit::ReadSplit read_split_;  // answers half of a lone client's large read early (I/O thread)
+  kit::DirectReads<Session> direct_;  // the lone client read without the event loop (I/O thread)
   bool deferring_writes_ = false;                    // replies wait for flush_writes() (I/O thread)
   std::vector<std::shared_ptr<Session>> dirty_;      // sessions with replies to flush (I/O thread)
   std::string line_;                                 // a response being built (I/O thread; capacity reused)

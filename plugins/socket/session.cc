@@ -57,7 +57,7 @@ void Session::on_read(const error_code& ec, std::size_t n) {
   // a large read of a client pipelining alone: if it has sent more already, this read's
   // replies go out with the next read's (the socket is non-blocking: would_block when
   // nothing waits); a short read (a client waiting for its answer) is answered at once
-  for (int reads = 1; reads < k_reads_in_a_row && n >= ReadSplit::k_min_bytes; ++reads) {
+  for (int reads = 1; reads < k_reads_in_a_row && n >= kit::ReadSplit::k_min_bytes; ++reads) {
     if (closed_ || eof_ || pending_.size() >= limits_.max_in_flight || !host_.alone(*this)) break;
     error_code again;
     n = socket_.read_some(asio::buffer(read_buffer_), again);
@@ -96,7 +96,7 @@ void Session::handle_read(const error_code& ec, std::size_t n) {
 void Session::consume(std::string_view data) {
   auto self = shared_from_this();
   // a large read is offered to the host in two halves (see SessionHost::on_lines_done)
-  std::size_t half_left = data.size() >= ReadSplit::k_min_bytes ? data.size() / 2 : 0;
+  std::size_t half_left = data.size() >= kit::ReadSplit::k_min_bytes ? data.size() / 2 : 0;
   while (!data.empty() && !closed_) {
     if (half_left && data.size() <= half_left) {
       half_left = 0;
@@ -228,7 +228,7 @@ void Session::close(std::string_view reason) {
 void Session::answer(std::size_t client_id_hash, RequestId id, std::string_view status,
                      const json* value) {
   if (closed_) return;
-  const IdTable::Entry* entry = pending_.find(client_id_hash, id);
+  const kit::IdTable::Entry* entry = pending_.find(client_id_hash, id);
   if (!entry) {
     log::error("Socket service manager: ", label_, ": no pending request ", id, " to answer (reply dropped)");
     return;

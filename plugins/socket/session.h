@@ -40,8 +40,8 @@
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
 
-#include "simgate/core/id_table.h"
-#include "simgate/core/read_split.h"
+#include "simgate/kit/id_table.h"
+#include "simgate/kit/read_split.h"
 #include "simgate/core/status.h"
 
 namespace simgate::socket {
@@ -55,15 +55,15 @@ class SessionHost {
   // One complete line, without '\n'.
   virtual void on_line(const std::shared_ptr<Session>& session, std::string_view line) = 0;
   // The lines passed to on_line/on_oversized_line since the last call may go to the core
-  // together: half-way through a read of at least ReadSplit::k_min_bytes, where the host
+  // together: half-way through a read of at least kit::ReadSplit::k_min_bytes, where the host
   // may run the first half and write its replies before parsing the rest
-  // (simgate/core/read_split.h), or wait for the end; and at the end of every read
+  // (simgate/kit/read_split.h), or wait for the end; and at the end of every read
   // (`read_finished`), where it runs them and keeps their replies for write_replies().
   virtual void on_lines_done(const std::shared_ptr<Session>& session, bool read_finished) = 0;
   // The session stops reading for now (nothing more is waiting, or it read enough in a
   // row): write the replies kept since the last write.
   virtual void write_replies() = 0;
-  // Whether `session` is the only connection sending (ReadSplit::alone): then, after a
+  // Whether `session` is the only connection sending (kit::ReadSplit::alone): then, after a
   // large read, it reads on while bytes are waiting before the replies are written.
   virtual bool alone(const Session& session) = 0;
   // The session is about to wait for its next bytes: true when the host's polling thread
@@ -111,18 +111,18 @@ class Session : public std::enable_shared_from_this<Session> {
   bool closed() const { return closed_; }
 
   // Pending requests of this connection, by the client's id.
-  const IdTable::Entry* find_pending(std::string_view client_id) const { return pending_.find(client_id); }
+  const kit::IdTable::Entry* find_pending(std::string_view client_id) const { return pending_.find(client_id); }
   // Registers a request under the client's id: returns its entry, whose `id` the caller
   // sets at once (the pointer is valid until the table next changes), or null when that id
   // is already pending here.
-  IdTable::Entry* add_pending(std::string_view client_id) { return pending_.insert(client_id); }
+  kit::IdTable::Entry* add_pending(std::string_view client_id) { return pending_.insert(client_id); }
   // Forgets a request that will get no answer of its own (its line was refused).
   void drop_pending(std::string_view client_id) { pending_.erase(client_id); }
   // Queues the reply "<client id> <status>[ <value>]" to the pending request `id`, whose
   // client id hashes to `client_id_hash` (its entry's hash), and forgets the request;
   // resumes reading if it was paused. The write starts at the next flush_writes().
   void answer(std::size_t client_id_hash, RequestId id, std::string_view status, const json* value);
-  const IdTable& pending() const { return pending_; }
+  const kit::IdTable& pending() const { return pending_; }
   // A reply the host made itself (an error) but that must follow the replies of earlier
   // requests travels through the core in order: defer_reply() when it leaves,
   // queue_deferred_reply() when it comes back.
@@ -162,7 +162,7 @@ class Session : public std::enable_shared_from_this<Session> {
   std::string outbox_;                    // replies waiting for the next write
   std::string in_flight_;                 // replies being written
   bool writing_ = false;                  // a write is in flight
-  IdTable pending_;                       // client id -> core request id
+  kit::IdTable pending_;                       // client id -> core request id
   std::size_t deferred_replies_ = 0;      // host error replies travelling behind earlier requests
 };
 

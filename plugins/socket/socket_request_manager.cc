@@ -5,7 +5,6 @@
 #include "params_parser.h"
 #include "simgate/core/config.h"
 #include "simgate/core/errors.h"
-#include "simgate/core/idle_spin.h"
 #include "simgate/core/log.h"
 #include "simgate/core/plugin.h"
 #include "wire.h"
@@ -22,44 +21,22 @@ constexpr std::string_view k_failed = "FAILED";
 constexpr std::string_view k_preempted = "PREEMPTED";
 // Longest client id echoed in the reply to an oversized line (the line itself is dropped).
 constexpr std::size_t k_max_echoed_id = 256;
-// How long accepting pauses after accept() failed (out of file descriptors, say).
-constexpr std::chrono::milliseconds k_accept_retry{100};
-
-// The address to listen on: a literal, or the first result of resolving a name.
-tcp::endpoint resolve_listen_endpoint(const std::string& host, std::uint16_t port) {
-  error_code ec;
-  auto address = asio::ip::make_address(host, ec);
-  if (!ec) return tcp::endpoint(address, port);
-  asio::io_context io;
-  tcp::resolver resolver(io);
-  auto results = resolver.resolve(host, std::to_string(port), ec);
-  if (ec || results.empty())
-    throw ConfigError("host: cannot resolve '" + host + "': " +
-                      (ec ? ec.message() : std::string("no address")));
-  return results.begin()->endpoint();
-}
 
 // The options the JSON-RPC transport names differently were renamed (one name per knob on
 // both TCP transports, issue #16); the old names stay accepted for one release.
-struct RenamedOption {
-  const char* key;      // the name to use
-  const char* old_key;  // the deprecated name
-};
-constexpr RenamedOption k_max_connections{"max_connections", "max_clients"};
-constexpr RenamedOption k_max_message_bytes{"max_message_bytes", "max_line_bytes"};
-constexpr RenamedOption k_max_unsent_bytes{"max_unsent_bytes", "max_pending_replies_bytes"};
-constexpr RenamedOption k_max_in_flight{"max_in_flight", "max_pending_requests"};
+constexpr kit::TcpOptions::Alias k_renamed[] = {{"max_connections", "max_clients"},
+                                                {"max_message_bytes", "max_line_bytes"},
+                                                {"max_unsent_bytes", "max_pending_replies_bytes"},
+                                                {"max_in_flight", "max_pending_requests"}};
 
-// The key `config` spells the knob with: the old one only if the new one is absent (noted in
-// `deprecations`). Both at once is a ConfigError.
-const char* spelling(const ConfigObject& config, const RenamedOption& option, std::vector<std::string>& deprecations) {
-  if (!config.has(option.old_key)) return option.key;
-  if (config.has(option.key))
-    throw ConfigError(std::string(option.old_key) + ": the deprecated name of '" + option.key +
-                      "', which is set too; keep only '" + option.key + "'");
-  deprecations.push_back(std::string("socket: option '") + option.old_key + "' is deprecated, use '" + option.key +
-                         "' (the old name goes in the next release)");
-  return option.old_key;
+kit::TcpOptions tcp_defaults() {
+  kit::TcpOptions o;
+  o.port = 4000;
+  o.max_connections = 1024;
+  o.max_message_bytes = 1 << 20;
+  o.max_unsent_bytes = 8 << 20;
+  o.max_in_flight = 1024;
+  return o;
 }
 
 }  // namespace
@@ -68,73 +45,30 @@ SocketOptions SocketOptions::parse(const json& options) {
   // every key read here, unknown keys refused by finish()
   ConfigObject config(options, "");
   SocketOptions o;
-  o.host = config.get_string("host", o.host);
-  o.port = static_cast<std::uint16_t>(config.get_int("port", o.port, 0, 65535));
   o.success_word = config.get_choice("success_word", o.success_word, {"SUCCESS", "OK"});
-  o.limits.message_bytes_key = spelling(config, k_max_message_bytes, o.deprecations);
-  o.limits.max_message_bytes =
-      static_cast<std::size_t>(config.get_int(o.limits.message_bytes_key, 1 << 20, 64, 1LL << 30));
-  o.limits.unsent_bytes_key = spelling(config, k_max_unsent_bytes, o.deprecations);
-  o.limits.max_unsent_bytes =
-      static_cast<std::size_t>(config.get_int(o.limits.unsent_bytes_key, 8 << 20, 1024, 1LL << 34));
-  o.limits.max_in_flight = static_cast<std::size_t>(
-      config.get_int(spelling(config, k_max_in_flight, o.deprecations), 1024, 1, 1 << 20));
-  o.connections_key = spelling(config, k_max_connections, o.deprecations);
-  o.max_connections = static_cast<std::size_t>(config.get_int(o.connections_key, 1024, 1, 1 << 20));
-  o.io_spin = std::chrono::microseconds(config.get_int("io_spin_us", o.io_spin.count(), 0, 10000));
-  o.global_policy = config.get_choice("global_policy", "reject", {"reject", "preempt"}) == "preempt"
-                        ? GlobalPolicy::preempt
-                        : GlobalPolicy::reject;
-  o.cancel_on_disconnect = config.get_choice("on_disconnect", "cancel", {"cancel", "let_run"}) == "cancel";
-  config.finish();
-  (void)resolve_listen_endpoint(o.host, o.port);  // a name that does not resolve is a config error
+  o.tcp = kit::TcpOptions::read(config, tcp_defaults(), "socket", k_renamed);
+  o.tcp.finish(config);
   return o;
 }
 
 SocketRequestManager::SocketRequestManager(const json& options)
-    : RequestManager("Socket service manager"), work_(asio::make_work_guard(io_)), acceptor_(io_),
-      accept_retry_(io_) {
-  SocketOptions o = SocketOptions::parse(options);
-  host_ = o.host;
-  const std::uint16_t requested_port = o.port;
-  success_word_ = o.success_word;
-  limits_ = o.limits;
-  max_connections_ = o.max_connections;
-  connections_key_ = o.connections_key;
-  io_spin_ = o.io_spin;
-  cancel_on_disconnect_ = o.cancel_on_disconnect;
-  set_global_policy(o.global_policy);
-  // once per transport created (validate_options parses too, and says nothing)
-  for (const auto& message : o.deprecations) log::warning(message);
+    : SocketRequestManager(SocketOptions::parse(options)) {}
 
-  // bind now, so that a port in use fails the creation of the transport
-  tcp::endpoint endpoint = resolve_listen_endpoint(host_, requested_port);
-  auto fail = [&](const char* step, const error_code& ec) {
-    std::string hint;
-    if (ec == asio::error::address_in_use)
-      hint = " (another program listens there: `ss -ltnp 'sport = :" + std::to_string(requested_port) +
-             "'` names it; stop it, or choose another 'port', 0 for any free one)";
-    else if (ec == asio::error::access_denied)
-      hint = " (ports below 1024 need privileges)";
-    throw std::runtime_error(name() + ": cannot listen on " + host_ + ":" +
-                             std::to_string(requested_port) + ": " + step + " failed: " +
-                             ec.message() + hint);
-  };
-  error_code ec;
-  acceptor_.open(endpoint.protocol(), ec);
-  if (ec) fail("open", ec);
-  acceptor_.set_option(tcp::acceptor::reuse_address(true), ec);  // TIME_WAIT only, not a live listener
-  acceptor_.bind(endpoint, ec);
-  if (ec) fail("bind", ec);
-  acceptor_.listen(asio::socket_base::max_listen_connections, ec);
-  if (ec) fail("listen", ec);
-  auto bound = acceptor_.local_endpoint(ec);
-  if (ec) fail("getsockname", ec);
-  port_ = bound.port();
-  endpoint_ = bound.address().is_v6()
-                  ? "tcp://[" + bound.address().to_string() + "]:" + std::to_string(port_)
-                  : "tcp://" + bound.address().to_string() + ":" + std::to_string(port_);
-  log::info(name(), " now listening on port ", port_, " (", endpoint_, ")");
+SocketRequestManager::SocketRequestManager(SocketOptions o)
+    : RequestManager("Socket service manager"),
+      options_(std::move(o)),
+      // bound now, so that a port in use fails the creation of the transport
+      listener_(io_, name(), options_.tcp.host, options_.tcp.port),
+      io_thread_(io_, name(), options_.tcp.io_spin) {
+  limits_.max_message_bytes = options_.tcp.max_message_bytes;
+  limits_.max_unsent_bytes = options_.tcp.max_unsent_bytes;
+  limits_.max_in_flight = options_.tcp.max_in_flight;
+  limits_.message_bytes_key = options_.tcp.message_bytes_key;
+  limits_.unsent_bytes_key = options_.tcp.unsent_bytes_key;
+  set_global_policy(options_.tcp.global_policy);
+  // once per transport created (validate_options parses too, and says nothing)
+  for (const auto& message : options_.tcp.deprecations) log::warning(message);
+  log::info(name(), " now listening on port ", listener_.port(), " (", listener_.endpoint(), ")");
 }
 
 SocketRequestManager::~SocketRequestManager() {
@@ -144,50 +78,35 @@ SocketRequestManager::~SocketRequestManager() {
 }
 
 void SocketRequestManager::start() {
-  std::lock_guard lock(life_mutex_);
-  if (started_ || stopped_) return;
-  started_ = true;
-  accept_next();
-  thread_ = std::thread([this] {
-    // outcomes produced on the simulation thread come here: one flush per burst, then one
-    // write per connection
-    deliver_on_this_thread([this] { asio::post(io_, [this] { flush_replies(); }); });
-    for (;;) {
-      try {
-        run_with_idle_spin(io_, io_spin_, direct_);
-        return;
-      } catch (const std::exception& e) {
-        // handlers do not throw; this is a last line of defence that keeps the server up
-        log::error(name(), ": I/O handler threw: ", e.what());
-      }
-    }
-  });
+  // the id "-" of the refusal matches no request: pymorse ignores the line, telnet shows it
+  const std::string why = "too many connections (" + std::string(options_.tcp.connections_key) + " " +
+                          std::to_string(options_.tcp.max_connections) + ")";
+  std::string refusal;
+  const json text = why;
+  append_reply(refusal, "-", k_failed, &text);
+  kit::TcpListener::Handlers handlers{[this](tcp::socket socket) { accept(std::move(socket)); },
+                                      [this] { return sessions_.size() >= options_.tcp.max_connections; }, why,
+                                      std::move(refusal)};
+  // outcomes produced on the simulation thread come here: one flush per burst, then one
+  // write per connection
+  io_thread_.start(
+      [this, handlers = std::move(handlers)]() mutable {
+        deliver_on_this_thread([this] { asio::post(io_, [this] { flush_replies(); }); });
+        listener_.start(std::move(handlers));
+      },
+      direct_);
 }
 
 void SocketRequestManager::stop() {
-  std::lock_guard lock(life_mutex_);
-  if (stopped_) return;
-  stopped_ = true;
-  if (thread_.joinable()) {
-    // close everything on the I/O thread, then let run() return
-    asio::post(io_, [this] { close_all(); });
-    work_.reset();
-    thread_.join();
+  if (io_thread_.stop([this] { close_all(); }))
     deliver_on_any_thread();  // the connections are gone: outcomes from now on go nowhere
-  } else {
-    close_all();
-  }
-  // handlers that never ran (outcomes posted after the close) are dropped here
-  io_.stop();
 }
 
-std::vector<std::string> SocketRequestManager::endpoints() const { return {endpoint_}; }
+std::vector<std::string> SocketRequestManager::endpoints() const { return {listener_.endpoint()}; }
 
 void SocketRequestManager::close_all() {
   stopping_ = true;  // the requests still running end at shutdown (abandon_pending), not as cancels
-  error_code ec;
-  acceptor_.close(ec);
-  accept_retry_.cancel();
+  listener_.close();
   auto sessions = std::move(sessions_);
   sessions_.clear();
   client_count_.store(0, std::memory_order_relaxed);
@@ -195,53 +114,13 @@ void SocketRequestManager::close_all() {
   requests_.clear();
 }
 
-void SocketRequestManager::accept_next() {
-  acceptor_.async_accept([this](const error_code& ec, tcp::socket socket) {
-    if (ec == asio::error::operation_aborted || !acceptor_.is_open()) return;
-    if (ec) {
-      // e.g. out of file descriptors: back off instead of spinning (as the JSON-RPC transport)
-      log::warning("socket: accept failed: ", ec.message(), "; accepting again in ", k_accept_retry.count(), " ms");
-      accept_retry_.expires_after(k_accept_retry);
-      accept_retry_.async_wait([this](const error_code& e) {
-        if (!e && acceptor_.is_open()) accept_next();
-      });
-      return;
-    }
-    if (sessions_.size() >= max_connections_) {
-      refuse(std::move(socket));
-    } else {
-      refusing_ = false;
-      SessionHost& host = *this;
-      auto session = std::make_shared<Session>(std::move(socket), host, limits_, next_session_++);
-      sessions_.insert(session);
-      client_count_.store(sessions_.size(), std::memory_order_relaxed);
-      log::debug(name(), ": ", session->label(), " connected");
-      session->start();
-    }
-    accept_next();
-  });
-}
-
-void SocketRequestManager::refuse(tcp::socket socket) {
-  // as the JSON-RPC transport: one warning until a connection is accepted again, then tell
-  // the client why in its protocol (one line, best effort, never blocking) and close. The
-  // id "-" matches no request: pymorse ignores the line, telnet shows it.
-  const std::string why = "too many connections (" + std::string(connections_key_) + " " +
-                          std::to_string(max_connections_) + ")";
-  error_code ignored;
-  const auto peer = socket.remote_endpoint(ignored);
-  if (!refusing_)
-    log::warning("socket: refused a connection from ", peer.address().to_string(), ":", peer.port(), ": ", why,
-                 "; further refusals are logged at debug level until one is accepted");
-  else
-    log::debug("socket: refused a connection from ", peer.address().to_string(), ":", peer.port(), ": ", why);
-  refusing_ = true;
-  std::string line;
-  const json text = why;
-  append_reply(line, "-", k_failed, &text);
-  socket.non_blocking(true, ignored);
-  socket.write_some(asio::buffer(line), ignored);
-  socket.close(ignored);
+void SocketRequestManager::accept(tcp::socket socket) {
+  SessionHost& host = *this;
+  auto session = std::make_shared<Session>(std::move(socket), host, limits_, next_session_++);
+  sessions_.insert(session);
+  client_count_.store(sessions_.size(), std::memory_order_relaxed);
+  log::debug(name(), ": ", session->label(), " connected");
+  session->start();
 }
 
 // ---- requests (I/O thread)
@@ -291,7 +170,7 @@ void SocketRequestManager::fail_in_order(const std::shared_ptr<Session>& session
   // earlier requests are still with the core: the answer follows their outcomes, so that a
   // client reading replies in order (telnet, scripts) sees them in order
   session->defer_reply();
-  const RequestId reply_id = new_request_id();  // never one of requests_'s ids (RequestSlots::k_mark)
+  const RequestId reply_id = new_request_id();  // never one of requests_'s ids (kit::RequestSlots::k_mark)
   deferred_replies_.emplace(reply_id, DeferredReply{session, scratch_});
   answer_in_order(reply_id, Outcome{});
 }
@@ -306,7 +185,7 @@ void SocketRequestManager::on_line(const std::shared_ptr<Session>& session, std:
       return;
     case RequestLine::Kind::cancel:
       // no reply of its own: the request ends PREEMPTED; unknown ids are ignored (as MORSE)
-      if (const IdTable::Entry* pending = session->find_pending(request.id)) {
+      if (const kit::IdTable::Entry* pending = session->find_pending(request.id)) {
         const RequestId id = pending->id;  // read before run_batch() changes the table
         run_batch();                       // the request may be in this read's batch
         cancel(id);
@@ -317,7 +196,7 @@ void SocketRequestManager::on_line(const std::shared_ptr<Session>& session, std:
   }
 
   // one pending request per id and connection, or replies could not be told apart
-  IdTable::Entry* pending = session->add_pending(request.id);
+  kit::IdTable::Entry* pending = session->add_pending(request.id);
   if (!pending) {
     fail_in_order(session, request.id,
                   "Request id '" + std::string(request.id) +
@@ -381,18 +260,18 @@ void SocketRequestManager::on_session_closed(const std::shared_ptr<Session>& ses
   direct_.forget(*session);
   cancel_requests_of(*session);
   // its outcomes have nowhere to go: forget them
-  session->pending().for_each([this](const IdTable::Entry& e) { requests_.erase(e.id); });
+  session->pending().for_each([this](const kit::IdTable::Entry& e) { requests_.erase(e.id); });
   sessions_.erase(session);
   client_count_.store(sessions_.size(), std::memory_order_relaxed);
 }
 
 void SocketRequestManager::cancel_requests_of(const Session& session) {
-  if (!cancel_on_disconnect_ || stopping_) return;
+  if (!options_.tcp.cancel_on_disconnect || stopping_) return;
   // every unanswered request: a cancel finds the async ones that run (sync ones are not
   // cancellable, and end as usual). Calls of the read being handled have not reached the
   // core yet: they are cancelled after it (run_calls).
   const bool batch_open = batch_count_ > 0;
-  session.pending().for_each([&](const IdTable::Entry& e) {
+  session.pending().for_each([&](const kit::IdTable::Entry& e) {
     if (batch_open)
       cancel_after_batch_.push_back(e.id);
     else
@@ -405,7 +284,7 @@ void SocketRequestManager::cancel_requests_of(const Session& session) {
 bool SocketRequestManager::watch(Session& session) {
   // only while the I/O thread polls (it never does with io_spin_us 0), for a client
   // sending alone: others are served by the event loop between direct reads
-  if (io_spin_.count() <= 0 || !read_split_.alone(&session)) return false;
+  if (options_.tcp.io_spin.count() <= 0 || !read_split_.alone(&session)) return false;
   direct_.watch(session.shared_from_this());
   return true;
 }
@@ -457,7 +336,7 @@ void SocketRequestManager::deliver(RequestId id, const Outcome& outcome) try {
   // held in touched_ until its write starts
   touch(session);
 
-  std::string_view status = success_word_;
+  std::string_view status = options_.success_word;
   if (outcome.status == Status::failed) status = k_failed;
   if (outcome.status == Status::preempted) status = k_preempted;
   // the value is sent even when falsy (0, false, "", []); FAILED without one carries the message

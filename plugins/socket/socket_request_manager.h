@@ -14,10 +14,10 @@
 // "let_run": what becomes of the async requests of a client that leaves, or ends its
 // sending side).
 //
-// Like the JSON-RPC transport, it backs off 100 ms after accept() fails (out of file
-// descriptors) instead of retrying at once, and answers a connection over max_connections
-// with one line saying why (`- FAILED "too many connections (max_connections 1024)"`) before
-// closing it, with one warning until a connection is accepted again.
+// Built on the transport kit (simgate/kit/tcp_server.h): the shared options, the listener
+// (100 ms back-off after accept() fails; a connection over max_connections is told why in
+// one line, `- FAILED "too many connections (max_connections 1024)"`, then closed) and the
+// I/O thread.
 //
 // Life cycle: the constructor validates the options and binds the listening socket (a
 // port in use fails here, with a clear message); start() launches the I/O thread;
@@ -25,7 +25,7 @@
 // destructor calls it, then finishes requests still pending).
 //
 // Threads: one I/O thread runs the io_context (polling a little before it sleeps while
-// events come close together: simgate/core/idle_spin.h, reading a lone client's socket
+// events come close together: simgate/kit/idle_spin.h, reading a lone client's socket
 // itself while it polls: direct_); it owns the acceptor, every Session and the request
 // table, so none of them needs a lock.
 //
@@ -53,32 +53,23 @@
 #include <utility>
 #include <vector>
 
-#include <boost/asio/executor_work_guard.hpp>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
-#include <boost/asio/steady_timer.hpp>
 
 #include "params_parser.h"
 #include "session.h"
-#include "simgate/core/idle_spin.h"
-#include "simgate/core/read_split.h"
-#include "simgate/core/request_slots.h"
+#include "simgate/kit/idle_spin.h"
+#include "simgate/kit/tcp_server.h"
+#include "simgate/kit/read_split.h"
+#include "simgate/kit/request_slots.h"
 #include "simgate/core/request_manager.h"
 
 namespace simgate::socket {
 
 // The transport's options, as parsed (the README lists them).
 struct SocketOptions {
-  std::string host = "127.0.0.1";                          // address or name to listen on
-  std::uint16_t port = 4000;                               // 0: any free port
-  std::string success_word = "SUCCESS";                    // "SUCCESS" (MORSE) or "OK" (MORSE's docs)
-  SessionLimits limits;                                    // per-connection limits
-  std::size_t max_connections = 1024;                      // connections beyond this are refused
-  const char* connections_key = "max_connections";         // as spelt in the options, for messages
-  std::vector<std::string> deprecations;                   // a warning per deprecated option name used
-  std::chrono::microseconds io_spin{50};                   // ("io_spin_us")
-  GlobalPolicy global_policy = GlobalPolicy::reject;       // ("global_policy")
-  bool cancel_on_disconnect = true;                        // ("on_disconnect": "cancel" | "let_run")
+  kit::TcpOptions tcp;                   // the keys every TCP transport has (port 4000 by default)
+  std::string success_word = "SUCCESS";  // "SUCCESS" (MORSE) or "OK" (MORSE's docs)
 
   // Every check of the options, resolving the host but binding nothing. Throws ConfigError.
   static SocketOptions parse(const json& options);
@@ -97,7 +88,7 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   std::size_t client_count() const override { return client_count_.load(std::memory_order_relaxed); }
 
   // The bound TCP port (useful with port 0).
-  std::uint16_t port() const { return port_; }
+  std::uint16_t port() const { return listener_.port(); }
 
  protected:
   void on_service_completion(RequestId id, Outcome&& outcome) override;
@@ -133,9 +124,9 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   // I/O thread: starts one write on every connection in touched_.
   void flush_touched();
 
-  void accept_next();
-  // Tells a connection over max_connections why, best effort, and closes it.
-  void refuse(boost::asio::ip::tcp::socket socket);
+  explicit SocketRequestManager(SocketOptions options);
+  // A new connection (the listener keeps the count under max_connections).
+  void accept(boost::asio::ip::tcp::socket socket);
   // The client left (on_disconnect "cancel"): its async requests are cancelled. Those of
   // the read being handled are cancelled once they have gone to the core (run_calls).
   void cancel_requests_of(const Session& session);
@@ -153,28 +144,19 @@ class SocketRequestManager : public RequestManager, private SessionHost {
     std::size_t client_id_hash = 0;  // finds the request in the session's pending table
   };
 
-  boost::asio::io_context io_;  // runs every handler, on thread_
-  boost::asio::executor_work_guard<boost::asio::io_context::executor_type> work_;  // keeps run() going
-  boost::asio::ip::tcp::acceptor acceptor_;  // the listening socket, bound in the constructor
-  std::string host_;                         // as configured, for messages
-  std::uint16_t port_ = 0;                   // the bound port
-  std::string endpoint_;                     // "tcp://127.0.0.1:4000"
-  std::string success_word_;                 // "SUCCESS" (MORSE) or "OK" (MORSE's docs)
-  SessionLimits limits_;                     // per-connection limits
-  std::size_t max_connections_ = 1024;       // connections beyond this are refused
-  const char* connections_key_ = "max_connections";  // as spelt in the options, for messages
-  bool refusing_ = false;                    // refused a connection since the last one accepted (I/O thread)
-  boost::asio::steady_timer accept_retry_;   // backs off after accept errors (EMFILE)
-  std::chrono::microseconds io_spin_{50};    // ("io_spin_us") how long the I/O thread polls before sleeping (idle_spin.h)
-  bool cancel_on_disconnect_ = true;         // ("on_disconnect") a client that leaves cancels its requests
+  SocketOptions options_;        // as parsed
+  boost::asio::io_context io_;   // runs every handler, on the I/O thread
+  kit::TcpListener listener_;    // the listening socket, bound in the constructor
+  kit::IoThread io_thread_;      // runs io_
+  SessionLimits limits_;         // per-connection limits, from options_
   bool stopping_ = false;                    // close_all() runs: closed sessions cancel nothing (I/O thread)
   std::uint64_t next_session_ = 1;           // numbers sessions in logs
   std::unordered_set<std::shared_ptr<Session>> sessions_;  // open connections (I/O thread)
   std::atomic<std::size_t> client_count_{0};  // sessions_.size(), for any thread
-  RequestSlots<Pending> requests_;           // unanswered requests, by the ids it gives them (I/O thread)
+  kit::RequestSlots<Pending> requests_;           // unanswered requests, by the ids it gives them (I/O thread)
   std::string scratch_;                      // reply formatting buffer (I/O thread)
-  ReadSplit read_split_;                     // runs a lone client's large reads in halves (I/O thread)
-  DirectReads<Session> direct_;              // the lone client read without the event loop (I/O thread)
+  kit::ReadSplit read_split_;                     // runs a lone client's large reads in halves (I/O thread)
+  kit::DirectReads<Session> direct_;              // the lone client read without the event loop (I/O thread)
   // calls of the current read, not yet handed to the core: the first batch_count_ of batch_;
   // the objects are reused from read to read, at most k_kept_calls of them kept (I/O thread)
   static constexpr std::size_t k_kept_calls = 1024;
@@ -186,10 +168,6 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   // new_request_id() their answer_in_order() carries (I/O thread)
   std::unordered_map<RequestId, DeferredReply> deferred_replies_;
   std::vector<std::shared_ptr<Session>> touched_;  // connections with replies queued, not yet written (I/O thread)
-  std::thread thread_;                       // runs io_
-  std::mutex life_mutex_;                    // serialises start() and stop()
-  bool started_ = false;                     // start() ran
-  bool stopped_ = false;                     // stop() ran
 };
 
 }  // namespace simgate::socket

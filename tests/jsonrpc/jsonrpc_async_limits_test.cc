@@ -195,10 +195,10 @@ TEST_F(JsonRpcAsync, LargeBurstThenEndOfInputGetsEveryReply) {
   EXPECT_TRUE(once.wait_closed(k_timeout));
 }
 
-// ---- a lone client, read directly by the polling I/O thread (simgate/core/idle_spin.h)
+// ---- a lone client, read directly by the polling I/O thread (simgate/kit/idle_spin.h)
 
 // Sync calls on `c` for `duration` (at most `max_calls`): long enough for the client to be
-// alone (ReadSplit::k_alone_after) and its socket read directly by the polling I/O thread.
+// alone (kit::ReadSplit::k_alone_after) and its socket read directly by the polling I/O thread.
 // Returns how many were answered right; stops at the first wrong one.
 int call_back_to_back(JsonRpcClient& c, std::chrono::milliseconds duration, int max_calls = 50'000) {
   const auto end = std::chrono::steady_clock::now() + duration;
@@ -358,8 +358,8 @@ TEST_F(JsonRpcTinyBacklog, NoMessageIsTakenFromAReadAfterItsFirstHalfClosedTheCo
   auto call = [](const std::string& method, const std::string& params, const std::string& id) {
     return R"({"jsonrpc":"2.0","method":")" + method + R"(","params":)" + params + R"(,"id":")" + id + "\"}\n";
   };
-  // a first large read makes the connection the one sending (ReadSplit notes it), then
-  // it stays alone for longer than ReadSplit::k_alone_after
+  // a first large read makes the connection the one sending (kit::ReadSplit notes it), then
+  // it stays alone for longer than kit::ReadSplit::k_alone_after
   std::string warm;
   for (int i = 0; i < 10; ++i) warm += call("robot.arm.add", "[1,2]", "w" + std::to_string(i));
   ASSERT_GE(warm.size(), 512u);

@@ -25,7 +25,7 @@ class SocketTransport : public SocketFixture {
   void SetUp() override { start_server(); }
 
   // Sync round trips on `c` for `duration` (at most `max_calls`): long enough for the
-  // client to be alone (ReadSplit::k_alone_after) and its socket read directly by the
+  // client to be alone (kit::ReadSplit::k_alone_after) and its socket read directly by the
   // polling I/O thread. Returns how many were answered right; stops at the first wrong one.
   static int call_back_to_back(SocketClient& c, const std::string& prefix, std::chrono::milliseconds duration,
                                int max_calls = 50'000) {
@@ -751,8 +751,8 @@ TEST_F(SocketTransportLimits, NoLineIsTakenFromAReadAfterItsFirstHalfClosedTheCo
     for (int i = 0; i < lines; ++i) out += prefix + std::to_string(i) + " " + request + "\n";
     return out;
   };
-  // a first large read makes the connection the one sending (ReadSplit notes it), then
-  // it stays alone for longer than ReadSplit::k_alone_after
+  // a first large read makes the connection the one sending (kit::ReadSplit notes it), then
+  // it stays alone for longer than kit::ReadSplit::k_alone_after
   c->send_raw(burst("p", "test ping", 40));
   for (int i = 0; i < 40; ++i) ASSERT_EQ(next_line(*c), "p" + std::to_string(i) + " SUCCESS \"pong\"");
   std::this_thread::sleep_for(10ms);

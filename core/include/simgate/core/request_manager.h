@@ -3,7 +3,7 @@
 // A request manager owns a table of services (registered by hand, or a component's), a
 // queue of requests handed over by its transport, and the life cycle of each request:
 //
-//   I/O thread:  id = new_request_id() (or RequestSlots::insert(client)); remember
+//   I/O thread:  id = new_request_id() (or kit::RequestSlots::insert(client)); remember
 //                (client, id); run_or_submit(id, call)
 //   either:      the simulation lock is free (the loop waits for its next step): the I/O
 //                thread takes it and runs process() itself, at once

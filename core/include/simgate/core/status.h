@@ -21,7 +21,7 @@ using json = nlohmann::json;
 
 // Identifies one request inside one request manager; allocated by
 // RequestManager::new_request_id() (a process-wide counter from 1) or by a transport's
-// RequestSlots (bit 63 set, request_slots.h); unique within its manager while the request
+// kit::RequestSlots (bit 63 set, request_slots.h); unique within its manager while the request
 // lives, never shown to clients.
 using RequestId = std::uint64_t;
 

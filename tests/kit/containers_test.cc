@@ -12,12 +12,11 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include "simgate/core/id_table.h"
-#include "simgate/core/recycling_map.h"
-#include "simgate/core/request_slots.h"
-#include "test_manager.h"
+#include "simgate/kit/id_table.h"
+#include "simgate/kit/recycling_map.h"
+#include "simgate/kit/request_slots.h"
 
-namespace simgate {
+namespace simgate::kit {
 namespace {
 
 TEST(RecyclingMapTest, ErasedNodesAreReusedWithFreshValues) {
@@ -93,8 +92,6 @@ TEST(RecyclingMapTest, AValueWithRecycleKeepsWhatItChoosesAndExtractedNodesComeB
   again.text.assign(50, 'y');
   EXPECT_EQ(again.text.data(), buffer);
 }
-
-int sum9(int a, int b, int c, int d, int e, int f, int g, int h, int i) { return a + b + c + d + e + f + g + h + i; }
 
 TEST(TransparentStringHashTest, EqualTextEqualHashAndShortIdsSpreadOut) {
   TransparentStringHash hash;
@@ -217,8 +214,7 @@ TEST(RequestSlotsTest, IdsFindTheirEntryUntilErasedAndNeverTheSlotsNextEntry) {
   EXPECT_EQ(slots.size(), 2u);
 
   // ids from new_request_id() (a counter from 1) are never this table's
-  testing::TestManager rm;
-  for (int i = 0; i < 3; ++i) EXPECT_EQ(slots.find(rm.new_request_id()), nullptr);
+  for (RequestId id : {RequestId{1}, RequestId{2}, RequestId{1000}}) EXPECT_EQ(slots.find(id), nullptr);
   EXPECT_EQ(slots.find(0), nullptr);
   EXPECT_EQ(slots.find(RequestSlots<int>::k_mark | 12345), nullptr);  // a slot never used
   EXPECT_NE(c & RequestSlots<int>::k_mark, 0u);
@@ -245,27 +241,5 @@ TEST(RequestSlotsTest, ManyLiveEntriesEachFindTheirOwn) {
   }
 }
 
-TEST(BoundArgumentsTest, MoreParametersThanTheInlineBufferStillBind) {
-  testing::TestManager rm;
-  rm.register_service("c", sum9, "sum9", {"a", "b", "c", "d", "e", "f", "g", "h", {"i", 100}});
-  auto positional = rm.run("c", "sum9", json::array({1, 2, 3, 4, 5, 6, 7, 8, 9}));
-  ASSERT_TRUE(positional);
-  EXPECT_EQ(positional->value, json(45));
-  auto with_default = rm.run("c", "sum9", json::array({1, 2, 3, 4, 5, 6, 7, 8}));
-  ASSERT_TRUE(with_default);
-  EXPECT_EQ(with_default->value, json(136));
-  auto named = rm.run("c", "sum9", json{{"i", 1}, {"h", 1}, {"g", 1}, {"f", 1}, {"e", 1}, {"d", 1}, {"c", 1}, {"b", 1}, {"a", 1}});
-  ASSERT_TRUE(named);
-  EXPECT_EQ(named->value, json(9));
-  auto too_few = rm.run("c", "sum9", json::array({1, 2}));
-  ASSERT_TRUE(too_few);
-  EXPECT_EQ(too_few->failure, Failure::bad_arguments);
-  EXPECT_THAT(too_few->message, ::testing::HasSubstr("expected 8 to 9"));
-  auto missing = rm.run("c", "sum9", json{{"a", 1}, {"b", 2}, {"i", 3}});
-  ASSERT_TRUE(missing);
-  EXPECT_EQ(missing->failure, Failure::bad_arguments);
-  EXPECT_THAT(missing->message, ::testing::HasSubstr("missing 'c', 'd', 'e', 'f', 'g', 'h'"));
-}
-
 }  // namespace
-}  // namespace simgate
+}  // namespace simgate::kit

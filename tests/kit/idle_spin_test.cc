@@ -7,9 +7,9 @@
 
 #include <gtest/gtest.h>
 
-#include "simgate/core/idle_spin.h"
+#include "simgate/kit/idle_spin.h"
 
-namespace simgate {
+namespace simgate::kit {
 namespace {
 
 using std::chrono::microseconds;
@@ -226,4 +226,4 @@ TEST(DirectReadsTest, AClosedConnectionIsDroppedAndAnotherParksThePrevious) {
 }
 
 }  // namespace
-}  // namespace simgate
+}  // namespace simgate::kit

@@ -1,4 +1,4 @@
-// simgate/core/request_slots.h — a transport's table of the requests it sent to the core,
+// simgate/kit/request_slots.h — a transport's table of the requests it sent to the core,
 // addressed by RequestIds that name their own slot.
 //
 // A transport remembers, for each request it submits, where the reply goes. With ids from
@@ -24,8 +24,8 @@
 // Freed slots are reused last-freed-first; the vector keeps the size of the largest number
 // of entries live at once. An erased value is reset to T{} (so a kept slot holds no
 // reference to anything). Not thread-safe.
-#ifndef SIMGATE_CORE_REQUEST_SLOTS_H_
-#define SIMGATE_CORE_REQUEST_SLOTS_H_
+#ifndef SIMGATE_KIT_REQUEST_SLOTS_H_
+#define SIMGATE_KIT_REQUEST_SLOTS_H_
 
 #include <cstddef>
 #include <cstdint>
@@ -35,7 +35,7 @@
 
 #include "simgate/core/status.h"
 
-namespace simgate {
+namespace simgate::kit {
 
 template <class T>
 class RequestSlots {
@@ -113,6 +113,6 @@ class RequestSlots {
   std::vector<std::uint32_t> free_;   // indexes of free slots, reused last-freed-first
 };
 
-}  // namespace simgate
+}  // namespace simgate::kit
 
-#endif  // SIMGATE_CORE_REQUEST_SLOTS_H_
+#endif  // SIMGATE_KIT_REQUEST_SLOTS_H_

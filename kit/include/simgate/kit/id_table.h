@@ -1,4 +1,4 @@
-// simgate/core/id_table.h — a connection's pending requests, by the id its client gave them.
+// simgate/kit/id_table.h — a connection's pending requests, by the id its client gave them.
 //
 // Ids are scoped to the connection (design.md, section 4): a transport keeps, for each of
 // its clients, the ids of the requests not yet answered, to refuse a second request under
@@ -16,8 +16,8 @@
 //
 // An entry pointer is valid until the table next changes (an insert may grow it, an erase
 // may move entries): use it at once. Not thread-safe.
-#ifndef SIMGATE_CORE_ID_TABLE_H_
-#define SIMGATE_CORE_ID_TABLE_H_
+#ifndef SIMGATE_KIT_ID_TABLE_H_
+#define SIMGATE_KIT_ID_TABLE_H_
 
 #include <cstddef>
 #include <string>
@@ -25,10 +25,10 @@
 #include <utility>
 #include <vector>
 
-#include "simgate/core/recycling_map.h"  // TransparentStringHash
+#include "simgate/kit/recycling_map.h"  // TransparentStringHash
 #include "simgate/core/status.h"
 
-namespace simgate {
+namespace simgate::kit {
 
 class IdTable {
  public:
@@ -143,6 +143,6 @@ class IdTable {
   TransparentStringHash hash_;
 };
 
-}  // namespace simgate
+}  // namespace simgate::kit
 
-#endif  // SIMGATE_CORE_ID_TABLE_H_
+#endif  // SIMGATE_KIT_ID_TABLE_H_

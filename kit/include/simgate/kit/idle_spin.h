@@ -1,4 +1,4 @@
-// simgate/core/idle_spin.h — how a transport's I/O thread waits for its next event.
+// simgate/kit/idle_spin.h — how a transport's I/O thread waits for its next event.
 //
 // A thread that sleeps in epoll between requests pays a scheduler wake-up when the next one
 // arrives: on a virtual machine that is often more than the request itself, and a client
@@ -39,8 +39,8 @@
 //
 // Direct reads run outside the event loop's run()/poll(): code that asks "am I on the I/O
 // thread?" must ask by thread (Asio's running_in_this_thread() is false there).
-#ifndef SIMGATE_CORE_IDLE_SPIN_H_
-#define SIMGATE_CORE_IDLE_SPIN_H_
+#ifndef SIMGATE_KIT_IDLE_SPIN_H_
+#define SIMGATE_KIT_IDLE_SPIN_H_
 
 #include <chrono>
 #include <cstddef>
@@ -48,7 +48,7 @@
 #include <thread>
 #include <utility>
 
-namespace simgate {
+namespace simgate::kit {
 
 // While it polls, the thread yields the CPU every this many empty polls (about every
 // 5 µs): often enough that a thread waking on this CPU waits microseconds, not a
@@ -141,6 +141,6 @@ void run_with_idle_spin(EventLoop& loop, std::chrono::microseconds spin, Direct&
   }
 }
 
-}  // namespace simgate
+}  // namespace simgate::kit
 
-#endif  // SIMGATE_CORE_IDLE_SPIN_H_
+#endif  // SIMGATE_KIT_IDLE_SPIN_H_

@@ -1,4 +1,4 @@
-// simgate/core/recycling_map.h — an unordered_map that keeps the nodes of erased entries.
+// simgate/kit/recycling_map.h — an unordered_map that keeps the nodes of erased entries.
 //
 // A transport's request table sees one insert and one erase per request. With a plain
 // std::unordered_map each of them is a malloc and a free; RecyclingMap extracts erased
@@ -24,8 +24,8 @@
 //
 // Not thread-safe (like the map it wraps). Heterogeneous lookup works when Hash and Eq
 // are transparent (see TransparentStringHash).
-#ifndef SIMGATE_CORE_RECYCLING_MAP_H_
-#define SIMGATE_CORE_RECYCLING_MAP_H_
+#ifndef SIMGATE_KIT_RECYCLING_MAP_H_
+#define SIMGATE_KIT_RECYCLING_MAP_H_
 
 #include <cstddef>
 #include <cstdint>
@@ -37,7 +37,7 @@
 #include <utility>
 #include <vector>
 
-namespace simgate {
+namespace simgate::kit {
 
 // Lets an unordered_map<std::string, ...> be searched with a std::string_view (no
 // temporary string). Not noexcept on purpose: libstdc++ then stores each node's hash code
@@ -148,6 +148,6 @@ class RecyclingMap {
   std::size_t max_free_;                        // bound on free_
 };
 
-}  // namespace simgate
+}  // namespace simgate::kit
 
-#endif  // SIMGATE_CORE_RECYCLING_MAP_H_
+#endif  // SIMGATE_KIT_RECYCLING_MAP_H_

@@ -1,4 +1,4 @@
-// simgate/core/read_split.h — when a transport answers half a read before parsing the rest.
+// simgate/kit/read_split.h — when a transport answers half a read before parsing the rest.
 //
 // A client that pipelines (keeps many requests in flight on one connection) sends them in
 // large reads. A transport that parses a whole read, runs it and only then writes the
@@ -21,13 +21,13 @@
 //                                   at the end: split.alone(c); run the rest; write
 //
 // Not thread-safe (a transport's single I/O thread).
-#ifndef SIMGATE_CORE_READ_SPLIT_H_
-#define SIMGATE_CORE_READ_SPLIT_H_
+#ifndef SIMGATE_KIT_READ_SPLIT_H_
+#define SIMGATE_KIT_READ_SPLIT_H_
 
 #include <chrono>
 #include <cstddef>
 
-namespace simgate {
+namespace simgate::kit {
 
 class ReadSplit {
  public:
@@ -52,6 +52,6 @@ class ReadSplit {
   Clock::time_point since_{};   // when reads began to come from last_ only
 };
 
-}  // namespace simgate
+}  // namespace simgate::kit
 
-#endif  // SIMGATE_CORE_READ_SPLIT_H_
+#endif  // SIMGATE_KIT_READ_SPLIT_H_
