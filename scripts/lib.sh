@@ -15,7 +15,10 @@ SIMGATE_TEST_PACKAGES=(
   git libgtest-dev libgmock-dev libbenchmark-dev
   python3 python3-morse-simulator python3-jsonschema
   iproute2 procps util-linux
+  clang-14 libclang-rt-14-dev llvm-14
 )
+# clang-14 and its runtime libraries build the fuzz targets (libFuzzer, tests/fuzz), llvm-14's
+# llvm-symbolizer puts file and line in their crash reports (scripts/fuzz, docs/fuzzing.md)
 # node and npm run the third-party JSON-RPC clients (tests only); any install will do
 # (Debian's or NodeSource's, which bundles npm and conflicts with Debian's npm package)
 

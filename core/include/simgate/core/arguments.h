@@ -11,6 +11,7 @@
 
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <map>
 #include <optional>
@@ -75,9 +76,12 @@ struct ArgTraits<T, std::enable_if_t<std::is_integral_v<T> && !std::is_same_v<T,
       throw TypeMismatch{expected() + " in range", "", describe_json(j)};
     }
     if (j.is_number_float()) {
+      // in range: min <= d < 2^digits. Both bounds are exact doubles; max itself is not for
+      // 64-bit types (double(UINT64_MAX) rounds up to 2^64, which does not fit: converting
+      // it is undefined behaviour)
+      constexpr double upper = double(std::uint64_t{1} << (std::numeric_limits<T>::digits - 1)) * 2.0;
       double d = j.get<double>();
-      if (std::isfinite(d) && std::trunc(d) == d && d >= double(std::numeric_limits<T>::min()) &&
-          d <= double(std::numeric_limits<T>::max()))
+      if (std::isfinite(d) && std::trunc(d) == d && d >= double(std::numeric_limits<T>::min()) && d < upper)
         return static_cast<T>(d);
     }
     throw TypeMismatch{expected(), "", describe_json(j)};
