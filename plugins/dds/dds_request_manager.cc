@@ -5,6 +5,7 @@
 #include <set>
 #include <stdexcept>
 
+#include "cyclone_config.h"
 #include "simgate/core/config.h"
 #include "simgate/core/log.h"
 
@@ -51,6 +52,11 @@ DdsOptions DdsOptions::parse(const json& options) {
                           : GlobalPolicy::reject;
   config.finish();
   return out;
+}
+
+void DdsRequestManager::validate_options(const json& options) {
+  DdsOptions parsed = DdsOptions::parse(options);
+  check_cyclone_config(parsed.domain, parsed.config);
 }
 
 DdsRequestManager::DdsRequestManager(const json& options)

@@ -74,8 +74,10 @@ class DdsRequestManager : public RequestManager {
   // Host thread. Throws ConfigError (bad options) or std::runtime_error (DDS failed).
   explicit DdsRequestManager(const json& options);
   ~DdsRequestManager() override;
-  // What the constructor checks of `options`, creating no DDS entity (the plugin's validate).
-  static void validate_options(const json& options) { (void)DdsOptions::parse(options); }
+  // What the constructor checks of `options`, and the Cyclone settings as far as that is
+  // free of side effects (cyclone_config.h): no participant, no traffic (the plugin's
+  // validate, `simgate check`).
+  static void validate_options(const json& options);
   // Request writers matched now (one per client program).
   std::size_t client_count() const override { return client_count_.load(std::memory_order_relaxed); }
 

@@ -1,8 +1,10 @@
 #include "dds_support.h"
 
+#include <cstdlib>
 #include <cstring>
 #include <mutex>
 #include <stdexcept>
+#include <vector>
 
 namespace simgate::dds {
 
@@ -65,8 +67,36 @@ std::string retcode_text(dds_return_t rc) {
 
 const char* resolve_config(const std::string& config) {
   if (config.empty()) return k_loopback_xml;
-  if (config == "env") return nullptr;
+  if (config == "env") {
+    const char* uri = std::getenv("CYCLONEDDS_URI");
+    return uri ? uri : "";
+  }
   return config.c_str();
+}
+
+namespace {
+// The error lines Cyclone logs while a trial domain is created (see trial_domain).
+void capture_errors(void* arg, const dds_log_data_t* data) {
+  if (!(data->priority & (DDS_LC_ERROR | DDS_LC_FATAL))) return;
+  auto& lines = *static_cast<std::vector<std::string>*>(arg);
+  std::string line(data->message, data->size);
+  while (!line.empty() && (line.back() == '\n' || line.back() == ' ')) line.pop_back();
+  if (!line.empty()) lines.push_back(std::move(line));
+}
+void drop_trace(void*, const dds_log_data_t*) {}
+}  // namespace
+
+DomainTrial trial_domain(uint32_t domain, const char* config) {
+  std::lock_guard lock(domain_mutex());
+  DomainTrial trial;
+  // the sinks are Cyclone's, for the whole process: ours only while the domain is created
+  dds_set_log_sink(&capture_errors, &trial.errors);
+  dds_set_trace_sink(&drop_trace, nullptr);
+  trial.result = dds_create_domain(domain, config);
+  dds_set_trace_sink(nullptr, nullptr);
+  dds_set_log_sink(nullptr, nullptr);
+  if (trial.result > 0) dds_delete(trial.result);
+  return trial;
 }
 
 QosPtr make_qos(bool transient_local, int32_t keep_last, dds_duration_t max_blocking) {

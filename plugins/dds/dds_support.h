@@ -20,6 +20,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include <dds/dds.h>
 
@@ -50,9 +51,23 @@ std::optional<ClientId> client_id_from_userdata(const dds_qos_t* qos);
 // "DDS_RETCODE_TIMEOUT (-10)".
 std::string retcode_text(dds_return_t rc);
 
-// Resolves the "config" option: "" -> the loopback XML; "env" -> CYCLONEDDS_URI / Cyclone
-// defaults (nullptr); anything else (XML text or file:// URI) is passed through.
+// Resolves the "config" option: "" -> the loopback XML; "env" -> the value of CYCLONEDDS_URI,
+// or "" (Cyclone's defaults) when it is not set; anything else (XML text or file:// URI) is
+// passed through. (dds_create_domain() itself never reads CYCLONEDDS_URI: given nothing, it
+// applies Cyclone's defaults.)
 const char* resolve_config(const std::string& config);
+
+// What Cyclone did with a domain created only to see whether it accepts settings.
+struct DomainTrial {
+  dds_entity_t result = 0;          // > 0: created (and already deleted); else Cyclone's error
+  std::vector<std::string> errors;  // the error (and fatal) lines Cyclone logged meanwhile
+};
+// Creates domain `domain` from the Cyclone settings `config`, with no participant, and
+// deletes it at once; Cyclone's log and trace go nowhere meanwhile (its errors are
+// returned). DDS_RETCODE_PRECONDITION_NOT_MET: this process already has the domain. Use
+// settings that cannot get as far as opening sockets (check_cyclone_config's are made to
+// fail at the interface lookup). Serialised with Participant's domain creation.
+DomainTrial trial_domain(uint32_t domain, const char* config);
 
 struct QosDeleter {
   void operator()(dds_qos_t* q) const { dds_delete_qos(q); }

@@ -1,7 +1,11 @@
 // Integration tests of the DDS transport over real Cyclone DDS (loopback only): the plugin
 // loaded with dlopen serves test services; DdsClient and a raw Cyclone client call them.
 #include <atomic>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
+#include <fstream>
+#include <sstream>
 #include <memory>
 #include <optional>
 #include <string>
@@ -9,8 +13,10 @@
 #include <thread>
 #include <vector>
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "cyclone_config.h"
 #include "dds_support.h"
 #include "dds_test_support.h"
 #include "simgate/client/dds_client.h"
@@ -782,6 +788,120 @@ TEST(DdsTransportConfig, UnknownKeysAndBadValuesAreRejectedWithTheirName) {
   expect_error({{"domain", test_domain()}, {"config", loopback}, {"max_depth", 1}}, "max_depth");
   expect_error({{"domain", test_domain()}, {"config", loopback}, {"max_depth", 10001}}, "max_depth");
   expect_error({{"domain", test_domain()}, {"config", "<CycloneDDS><Domain><General><NoSuchSetting/>"}}, "domain");
+}
+
+// ---- the Cyclone settings are checked before the transport starts (simgate check) ----
+
+// The loopback settings, as XML text (config/dds/loopback.xml).
+std::string loopback_xml() {
+  std::ifstream in(SIMGATE_LOOPBACK_DDS_XML);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// Loopback settings with `extra` inside their <Domain> element.
+std::string loopback_with(const std::string& extra) {
+  std::string xml = loopback_xml();
+  xml.insert(xml.find("</Domain>"), extra);
+  return xml;
+}
+
+// What check_cyclone_config() says of `config` on this process's test domain ("" = nothing).
+std::string settings_error(const std::string& config) {
+  try {
+    check_cyclone_config(test_domain(), config);
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(DdsSettingsCheck, SettingsCycloneAcceptsPass) {
+  EXPECT_EQ(settings_error(""), "");             // the compiled-in loopback settings
+  EXPECT_EQ(settings_error(loopback_uri()), "");  // a file:// URI
+  EXPECT_EQ(settings_error(SIMGATE_LOOPBACK_DDS_XML), "");  // a plain file name
+  EXPECT_EQ(settings_error(loopback_xml()), "");  // XML text
+  // two fragments; an element Cyclone closes at the end of the text itself
+  EXPECT_EQ(settings_error(loopback_xml() + ",<CycloneDDS><Domain><Discovery><ParticipantIndex>auto"), "");
+}
+
+TEST(DdsSettingsCheck, SettingsCycloneRefusesAreAConfigErrorWithCyclonesReason) {
+  const std::string expected = "config: expected Cyclone DDS settings (XML, file names or file:// URIs) that Cyclone "
+                               "accepts for domain " + std::to_string(test_domain()) + ", found settings it refuses: ";
+  // XML its parser cannot read
+  EXPECT_THAT(settings_error("<CycloneDDS><Domain></General></Domain></CycloneDDS>"),
+              ::testing::StartsWith(expected + "//CycloneDDS/Domain: parser error open/close tag mismatch (General)"));
+  // an element that does not exist, in a later fragment too
+  EXPECT_THAT(settings_error(loopback_with("<Bogus/>")),
+              ::testing::StartsWith(expected + "//CycloneDDS/Domain: Bogus: unknown element"));
+  EXPECT_THAT(settings_error(loopback_xml() + ",<CycloneDDS><Domain><Discovery><Bogus/>"),
+              ::testing::HasSubstr("//CycloneDDS/Domain/Discovery: Bogus: unknown element"));
+  // a misspelt one, with the name meant (Cyclone's setting names, from its installed header)
+  EXPECT_THAT(settings_error(loopback_with("<Discovery><ParticipantIndx>auto</ParticipantIndx></Discovery>")),
+              ::testing::HasSubstr("ParticipantIndx: unknown element (did you mean 'ParticipantIndex'?)"));
+  // a value out of its set
+  EXPECT_THAT(settings_error(loopback_with("<Discovery><ParticipantIndex>some</ParticipantIndex></Discovery>")),
+              ::testing::HasSubstr("ParticipantIndex"));
+  // a file that does not open
+  EXPECT_EQ(settings_error("file:///nonexistent/cyclone.xml"),
+            expected + "can't open configuration file file:///nonexistent/cyclone.xml");
+  // an interface this machine does not have
+  std::string absent = loopback_xml();
+  absent.replace(absent.find("name=\"lo\""), 9, "name=\"nosuchif0\"");
+  EXPECT_EQ(settings_error(absent), expected + "nosuchif0: does not match an available interface.");
+}
+
+TEST(DdsSettingsCheck, CheckingWritesNoTraceFile) {
+  // Cyclone opens a trace file before its interface lookup: the check sends tracing to stderr
+  // (and drops it) instead
+  std::string trace = ::testing::TempDir() + "simgate-settings-check-" + std::to_string(getpid()) + ".log";
+  std::remove(trace.c_str());
+  std::string settings =
+      loopback_with("<Tracing><Verbosity>finest</Verbosity><OutputFile>" + trace + "</OutputFile></Tracing>");
+  EXPECT_EQ(settings_error(settings), "");
+  EXPECT_FALSE(std::ifstream(trace).good()) << trace << " was written";
+  EXPECT_THAT(settings_error(settings + ",<CycloneDDS><Domain><Bogus/>"), ::testing::HasSubstr("Bogus"));
+  EXPECT_FALSE(std::ifstream(trace).good()) << trace << " was written";
+}
+
+TEST(DdsSettingsCheck, EnvMeansTheSettingsOfCycloneddsUri) {
+  // ctest sets CYCLONEDDS_URI to the loopback file for every test
+  const char* uri = std::getenv("CYCLONEDDS_URI");
+  ASSERT_NE(uri, nullptr);
+  EXPECT_STREQ(resolve_config("env"), uri);  // was nullptr, which dds_create_domain() reads as Cyclone's defaults
+  EXPECT_EQ(settings_error("env"), "");
+  std::string saved = uri;
+  ::setenv("CYCLONEDDS_URI", "<CycloneDDS><Domain><Bogus/></Domain></CycloneDDS>", 1);
+  EXPECT_THAT(settings_error("env"), ::testing::HasSubstr("Bogus: unknown element"));
+  ::setenv("CYCLONEDDS_URI", saved.c_str(), 1);
+}
+
+TEST(DdsSettingsCheck, TheTransportStartsOnTheDomainItsSettingsWereCheckedOn) {
+  // the check creates and deletes the domain: nothing of it is left to the transport
+  auto plugin = load_transport_plugin(k_plugin, {});
+  json options = server_options(test_partition());
+  options["config"] = loopback_xml();
+  EXPECT_NO_THROW(plugin->validate(options, "transports.dds.options"));
+  auto rm = plugin->create(options, "transports.dds.options");
+  ASSERT_NE(rm, nullptr);
+  // once the process has the domain, its settings prevail: others are not checked (and
+  // would not apply)
+  EXPECT_EQ(settings_error(loopback_with("<Bogus/>")), "");
+}
+
+TEST(DdsSettingsCheck, ThePluginsValidateNamesTheOptionsPath) {
+  auto plugin = load_transport_plugin(k_plugin, {});
+  json options = {{"domain", test_domain()}, {"config", loopback_with("<Bogus/>")}};
+  try {
+    plugin->validate(options, "transports.dds.options");
+    FAIL() << "accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("transports.dds.options.config: expected Cyclone DDS settings"));
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("Bogus: unknown element"));
+  }
+  options = {{"domain", 300}};
+  EXPECT_THROW(plugin->validate(options, "transports.dds.options"), ConfigError);
 }
 
 TEST(DdsTransportConfig, EndpointsNameDomainAndPartition) {
