@@ -1,5 +1,6 @@
 #include "jsonrpc_request_manager.h"
 
+#include <algorithm>
 #include <cstring>
 #include <exception>
 #include <iterator>
@@ -368,11 +369,17 @@ class JsonRpcRequestManager::Session : public std::enable_shared_from_this<Sessi
   std::size_t in_flight_ = 0;                      // pending calls, notifications and cancels
 };
 
-// A batch: the responses collected in entry order, sent as one array when all are in.
+// A batch: the responses collected in entry order, sent as one array when all are in. Its
+// reply is bounded: once the responses stored reach max_unsent_bytes, each later entry
+// answers a short -32006 instead of its result (issue #17: a batch of rpc.discover built a
+// 222 MB reply).
 struct JsonRpcRequestManager::Batch {
-  explicit Batch(std::size_t n) : responses(n), remaining(n) {}
-  std::vector<json> responses;  // null = no response (notification)
-  std::size_t remaining;        // entries not yet finished
+  Batch(std::size_t n, std::size_t max_bytes) : responses(n), remaining(n), max_bytes(max_bytes) {}
+  std::vector<std::string> responses;  // serialised; empty = no response (notification)
+  std::size_t remaining;               // entries not yet finished
+  std::size_t bytes = 0;               // of the responses stored so far
+  std::size_t max_bytes;               // the connection's max_unsent_bytes
+  bool full() const { return bytes >= max_bytes; }
 };
 
 // ---------------------------------------------------------------------------------------
@@ -490,8 +497,20 @@ void JsonRpcRequestManager::handle_message(const std::shared_ptr<Session>& sessi
                                    json{{"reason", "a batch must contain at least one request"}}));
       return;
     }
+    // every entry counts against max_in_flight, whatever it is (rpc.*, invalid entries):
+    // a batch larger than the room left is refused whole, with one error (issue #17: a
+    // 2 MB batch of `1`s built a million error objects on the I/O thread)
+    const std::size_t room = options_.tcp.max_in_flight - std::min(session->in_flight(), options_.tcp.max_in_flight);
+    if (message.size() > room) {
+      reply(single, error_response(nullptr, code::overloaded,
+                                   "Overloaded: a batch of " + std::to_string(message.size()) + " entries, " +
+                                       std::to_string(room) + " more calls allowed in flight on this connection (max_in_flight " +
+                                       std::to_string(options_.tcp.max_in_flight) + ")",
+                                   json{{"batch_entries", message.size()}, {"max_in_flight", options_.tcp.max_in_flight}}));
+      return;
+    }
     // every entry answers into the batch; the array goes out when the last one is in
-    auto batch = std::make_shared<Batch>(message.size());
+    auto batch = std::make_shared<Batch>(message.size(), options_.tcp.max_unsent_bytes);
     for (std::size_t i = 0; i < message.size(); ++i)
       handle_request(session, message[i], ReplyTo{session, nullptr, false, batch, i});
     return;
@@ -541,6 +560,10 @@ void JsonRpcRequestManager::dispatch(const std::shared_ptr<Session>& session, Re
     return;
   }
   if (method == "rpc.discover") {
+    if (to.batch && to.batch->full()) {
+      reply(to, std::nullopt);  // answered -32006 by reply(): the document is not even built
+      return;
+    }
     reply(to, result_response(to.id, openrpc_document(descriptors(), k_version,
                                                       global_policy() == GlobalPolicy::preempt ? "preempt" : "reject")));
     return;
@@ -678,14 +701,31 @@ void JsonRpcRequestManager::finish_call(RequestId id, Outcome&& outcome) {
 void JsonRpcRequestManager::reply(ReplyTo& to, std::optional<json> response) {
   if (to.batch) {
     auto& batch = *to.batch;
-    if (response && !to.notification) batch.responses[to.index] = std::move(*response);
+    if (!to.notification) {
+      std::string text;
+      if (response && !batch.full()) text = dump(*response);
+      if (!response || batch.bytes + text.size() > batch.max_bytes) {
+        // past the batch's byte budget: a short error instead (counted, so the reply stays
+        // within max_unsent_bytes plus one such line per entry)
+        batch.bytes = std::max(batch.bytes, batch.max_bytes);
+        text = dump(error_response(to.id, code::overloaded,
+                                   "Overloaded: the batch's reply exceeds max_unsent_bytes (" +
+                                       std::to_string(batch.max_bytes) + "); this entry's response was dropped",
+                                   json{{"max_unsent_bytes", batch.max_bytes}}));
+      }
+      batch.bytes += text.size();
+      batch.responses[to.index] = std::move(text);
+    }
     if (--batch.remaining > 0) return;
     // the last entry: send what the batch answers, nothing if it held only notifications
-    json array = json::array();
-    for (auto& r : batch.responses)
-      if (!r.is_null()) array.push_back(std::move(r));
+    std::string array;
+    for (auto& r : batch.responses) {
+      if (r.empty()) continue;
+      array += array.empty() ? '[' : ',';
+      array += r;
+    }
     auto session = to.session.lock();
-    if (session && !array.empty()) session->send(dump(array));
+    if (session && !array.empty()) session->send(array + "]");
     return;
   }
   if (to.notification || !response) return;

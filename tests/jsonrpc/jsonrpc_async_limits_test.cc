@@ -315,6 +315,47 @@ TEST_F(JsonRpcLimits, DeepNestingIsRefused) {
   EXPECT_EQ(ok["result"], std::string(40, '['));
 }
 
+TEST_F(JsonRpcLimits, ABatchLargerThanMaxInFlightIsRefusedWhole) {
+  // issue #17: every entry counts, rpc.* and invalid ones included; one error, not one per entry
+  auto r = round_trip(*client_, "[1,1,1]");
+  ASSERT_TRUE(r.is_object()) << r.dump();
+  EXPECT_EQ(error_code(r), -32006) << r.dump();
+  EXPECT_EQ(r["error"]["data"]["batch_entries"], 3);
+  r = round_trip(*client_, R"([{"jsonrpc":"2.0","method":"rpc.discover","id":1},{"jsonrpc":"2.0","method":"rpc.discover","id":2},)"
+                           R"({"jsonrpc":"2.0","method":"rpc.discover","id":3}])");
+  EXPECT_EQ(error_code(r), -32006) << r.dump().substr(0, 200);
+  // within the limit, a batch is served as before
+  r = round_trip(*client_, "[1,1]");
+  ASSERT_TRUE(r.is_array()) << r.dump();
+  EXPECT_EQ(r.size(), 2u);
+  EXPECT_EQ(client_->request("robot.arm.add", json::array({1, 2}), k_timeout)["result"], 3.0);
+}
+
+class JsonRpcBatchBytes : public JsonRpcFixture {
+  json options() override { return {{"max_unsent_bytes", 4096}, {"max_in_flight", 64}}; }
+};
+
+TEST_F(JsonRpcBatchBytes, ABatchReplyStaysWithinMaxUnsentBytes) {
+  // issue #17: a batch of rpc.discover built a 222 MB reply; now each entry past the budget
+  // answers a short -32006 with its id
+  std::string batch = "[";
+  for (int i = 0; i < 40; ++i)
+    batch += (i ? "," : "") + std::string(R"({"jsonrpc":"2.0","method":"rpc.discover","id":)") + std::to_string(i) + "}";
+  batch += "]";
+  client_->send_line(batch);
+  const auto line = client_->read_line(k_timeout);
+  ASSERT_TRUE(line);
+  EXPECT_LT(line->size(), 4096u + 40 * 200) << line->size();
+  const json r = json::parse(*line);
+  ASSERT_TRUE(r.is_array());
+  ASSERT_EQ(r.size(), 40u);
+  for (int i = 0; i < 40; ++i) EXPECT_EQ(r[std::size_t(i)]["id"], i);
+  EXPECT_EQ(error_code(r[39]), -32006) << r[39].dump();
+  EXPECT_EQ(r[39]["error"]["data"]["max_unsent_bytes"], 4096);
+  // the connection lives on
+  EXPECT_EQ(client_->request("robot.arm.add", json::array({1, 2}), k_timeout)["result"], 3.0);
+}
+
 TEST_F(JsonRpcLimits, TooManyCallsInFlightAreOverloaded) {
   auto a = client_->send_request("robot.base.hold", json::array({"i1"}));
   auto b = client_->send_request("robot.cam.hold", json::array({"i2"}));
