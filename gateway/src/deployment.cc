@@ -293,9 +293,11 @@ Deployment load_deployment(const std::string& file) {
   text << in.rdbuf();
   json document;
   try {
-    document = json::parse(text.str());
-  } catch (const json::parse_error& e) {
-    throw ConfigError({std::string("invalid JSON: ") + e.what()}, file);
+    // syntax, numbers beyond a double and nesting deeper than k_max_config_depth are refused
+    // with their JSON path before anything recursive touches the document
+    document = parse_config_text(text.str());
+  } catch (const ConfigError& e) {
+    throw ConfigError(e.errors(), file);
   }
   fs::path base = fs::absolute(fs::path(file)).parent_path();
   try {

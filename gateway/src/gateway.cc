@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <filesystem>
 
+#include "listeners.h"
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
 
@@ -67,6 +68,7 @@ void Gateway::load_plugins(ConfigErrors& errors) {
   // plugins are searched next to the config file too
   std::vector<std::string> dirs = options_.plugin_dirs;
   if (!deployment_.base_dir.empty()) dirs.push_back(deployment_.base_dir);
+  std::vector<Listener> listeners;  // the TCP transports with valid options
   for (const auto& t : deployment_.transports) {
     Transport transport;
     transport.name = t.name;
@@ -78,11 +80,13 @@ void Gateway::load_plugins(ConfigErrors& errors) {
       continue;
     }
     // every check the plugin makes of its options, short of opening anything
-    errors.check([&] {
+    bool options_valid = errors.check([&] {
       if (!t.options.is_object())
         throw ConfigError(t.path + ".options: expected an object, found " + describe_json(t.options));
       transport.plugin->validate(t.options, t.path + ".options");
     });
+    if (options_valid)
+      if (auto listener = listener_of(transport.plugin->name(), t)) listeners.push_back(std::move(*listener));
     // which components it serves
     std::vector<std::string>& served = served_[t.name];
     for (const auto& name : deployment_.component_names()) {
@@ -91,6 +95,8 @@ void Gateway::load_plugins(ConfigErrors& errors) {
     }
     transports_.push_back(std::move(transport));
   }
+  // what needs every transport (two on one port), or a socket (an address of this machine)
+  check_listeners(listeners, errors);
 }
 
 void Gateway::warn_about_mapping() {

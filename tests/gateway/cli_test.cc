@@ -150,6 +150,76 @@ TEST(GatewayCliTest, CheckReportsEveryErrorOfTheFileAtOnce) {
   EXPECT_THAT(out, HasSubstr("\n  transports.socket.options.port: expected an integer from 0 to 65535"));
 }
 
+// What `run` refuses because of the file, `check` refuses alike: exit 2, the JSON path and
+// the same message, and `run` refuses it before starting anything (issue #17, item 8:
+// check said OK, or crashed, or left the error format, for each of these).
+TEST(GatewayCliTest, CheckRefusesWhatRunRefusesWithTheSameMessage) {
+  struct Case {
+    std::string name;      // what is wrong
+    std::string text;      // the file
+    std::string expected;  // in the error, after "config '<file>': "
+  };
+  auto with = [](const std::function<void(json&)>& change) {
+    json c = demo_config();
+    change(c);
+    return c.dump();
+  };
+  auto replacing = [](std::string text, const std::string& what, const std::string& by) {
+    return text.replace(text.find(what), what.size(), by);
+  };
+  const std::string demo = demo_config().dump();
+  std::vector<Case> cases = {
+      {"port a string", with([](json& c) { c["transports"]["socket"]["options"]["port"] = "4000"; }),
+       "transports.socket.options.port: expected an integer from 0 to 65535, found string \"4000\""},
+      {"port -1", with([](json& c) { c["transports"]["socket"]["options"]["port"] = -1; }),
+       "transports.socket.options.port: expected an integer from 0 to 65535, found number -1"},
+      {"port 70000", with([](json& c) { c["transports"]["socket"]["options"]["port"] = 70000; }),
+       "transports.socket.options.port: expected an integer from 0 to 65535, found number 70000"},
+      {"two transports on one port",
+       with([](json& c) {
+         c["transports"]["socket"]["options"]["port"] = 4321;
+         c["transports"]["other"] = {{"plugin", "socket"}, {"options", {{"port", 4321}}}};
+       }),
+       "transports.socket.options.port: expected a port no other transport listens on, found 4321, which "
+       "transports.other listens on too (127.0.0.1:4321)"},
+      {"a host of no interface of this machine",
+       with([](json& c) { c["transports"]["socket"]["options"]["host"] = "203.0.113.7"; }),
+       "transports.socket.options.host: expected an address of this machine"},
+      {"a number beyond a double", replacing(demo, "\"timestep\":0.002", "\"timestep\":1e400"),
+       "scene.timestep: expected a number a double can hold (at most about 1.8e308 in magnitude), found 1e400 "
+       "(line 1, column "},
+      {"nesting 100000 deep",
+       replacing(demo, "\"log_level\"", "\"description\":" + std::string(100000, '[') + std::string(100000, ']') +
+                                              ",\"log_level\""),
+       "description[0][0][0]...: expected at most 64 levels of nested arrays and objects, found deeper nesting"},
+#ifdef SIMGATE_TEST_WITH_DDS
+      {"DDS domain 300",
+       with([](json& c) { c["transports"]["dds"] = {{"plugin", "dds"}, {"options", {{"domain", 300}}}}; }),
+       "transports.dds.options.domain: expected an integer from 0 to 230, found number 300"},
+      {"malformed Cyclone XML",
+       with([](json& c) {
+         c["transports"]["dds"] = {
+             {"plugin", "dds"},
+             {"options", {{"domain", 43}, {"config", "<CycloneDDS><Domain><General></Domain></CycloneDDS>"}}}};
+       }),
+       "transports.dds.options.config: expected Cyclone DDS settings (XML, file names or file:// URIs) that "
+       "Cyclone accepts for domain 43, found settings it refuses: "},
+#endif
+  };
+  TempDir dir;
+  for (const auto& c : cases) {
+    std::string file = dir.write("case.json", c.text);
+    auto check = run_split({"check", file}, dir);
+    EXPECT_EQ(check.code, 2) << c.name << ": " << check.out << check.err;
+    EXPECT_THAT(check.err, HasSubstr("simgate: invalid configuration: config '" + file + "': " + c.expected)) << c.name;
+    if (check.code == 0) continue;  // run would start a simulation
+    auto run = run_split({"run", file}, dir, 20s);
+    EXPECT_EQ(run.code, 2) << c.name << ": " << run.out << run.err;
+    EXPECT_EQ(run.err, check.err) << c.name;
+    EXPECT_EQ(run.out, "") << c.name;
+  }
+}
+
 TEST(GatewayCliTest, CheckWarnsWhenPymorseCannotConnect) {
   TempDir dir;
   json c = demo_config();

@@ -110,6 +110,86 @@ const BrokenCase k_cases[] = {
     {"component key typo", [](json& c) { c["robots"][0]["components"][2]["bdy"] = "robot"; },
      {"robots[0].components[2].bdy", "unknown key"}},
     {"log level word", [](json& c) { c["log_level"] = "loud"; }, {"log_level", "loud"}},
+    // ---- what `run` refused and `check` let through (issue #17, item 8) ----
+    {"port a string", [](json& c) { c["transports"]["socket"]["options"]["port"] = "4000"; },
+     {"transports.socket.options.port: expected an integer from 0 to 65535, found string \"4000\""}},
+    {"port negative", [](json& c) { c["transports"]["socket"]["options"]["port"] = -1; },
+     {"transports.socket.options.port: expected an integer from 0 to 65535, found number -1"}},
+    {"port too large", [](json& c) { c["transports"]["socket"]["options"]["port"] = 70000; },
+     {"transports.socket.options.port: expected an integer from 0 to 65535, found number 70000"}},
+    {"two transports on one port",
+     [](json& c) {
+       c["transports"]["socket"]["options"]["port"] = 4000;
+       c["transports"]["other"] = {{"plugin", "socket"}};  // the socket transport's default port: 4000
+     },
+     {"transports.socket.options.port: expected a port no other transport listens on, found 4000, which "
+      "transports.other listens on too (127.0.0.1:4000): choose another port, or 0 for any free one"}},
+    {"a wildcard address over another transport's port",
+     [](json& c) {
+       c["transports"]["socket"]["options"]["port"] = 4321;
+       c["transports"]["other"] = {{"plugin", "socket"}, {"options", {{"host", "0.0.0.0"}, {"port", 4321}}}};
+     },
+     {"transports.socket.options.port: expected a port no other transport listens on, found 4321, which "
+      "transports.other listens on too (0.0.0.0:4321 and 127.0.0.1:4321 overlap)"}},
+    {"a dual-stack wildcard over an IPv4 address",
+     [](json& c) {
+       c["transports"]["socket"]["options"]["port"] = 4321;
+       c["transports"]["other"] = {{"plugin", "socket"}, {"options", {{"host", "::"}, {"port", 4321}}}};
+     },
+     {"transports.socket.options.port", "([::]:4321 and 127.0.0.1:4321 overlap)"}},
+    {"a host that is not this machine's",
+     [](json& c) { c["transports"]["socket"]["options"]["host"] = "203.0.113.7"; },  // TEST-NET-3: nobody's
+     {"transports.socket.options.host: expected an address of this machine", "found '203.0.113.7'",
+      "Cannot assign requested address"}},
+#ifdef SIMGATE_TEST_WITH_JSONRPC
+    {"a JSON-RPC transport on the socket transport's port",
+     [](json& c) {
+       c["transports"]["socket"]["options"]["port"] = 4001;
+       c["transports"]["jsonrpc"] = {{"plugin", "jsonrpc"}, {"options", {{"host", "localhost"}}}};  // 4001
+     },
+     {"transports.socket.options.port: expected a port no other transport listens on, found 4001, which "
+      "transports.jsonrpc listens on too (127.0.0.1:4001)"}},
+    {"a JSON-RPC host that is not this machine's",
+     [](json& c) { c["transports"]["jsonrpc"] = {{"plugin", "jsonrpc"}, {"options", {{"host", "203.0.113.7"}, {"port", 0}}}}; },
+     {"transports.jsonrpc.options.host: expected an address of this machine", "found '203.0.113.7'"}},
+#endif
+#ifdef SIMGATE_TEST_WITH_DDS
+    {"DDS domain out of range", [](json& c) { c["transports"]["dds"] = {{"plugin", "dds"}, {"options", {{"domain", 300}}}}; },
+     {"transports.dds.options.domain: expected an integer from 0 to 230, found number 300"}},
+    {"Cyclone XML Cyclone cannot parse",
+     [](json& c) {
+       c["transports"]["dds"] = {{"plugin", "dds"},
+                                 {"options", {{"domain", 17}, {"config", "<CycloneDDS><Domain></General></Domain></CycloneDDS>"}}}};
+     },
+     {"transports.dds.options.config: expected Cyclone DDS settings", "that Cyclone accepts for domain 17",
+      "parser error open/close tag mismatch"}},
+    {"a Cyclone element that does not exist",
+     [](json& c) {
+       c["transports"]["dds"] = {
+           {"plugin", "dds"},
+           {"options", {{"config", "<CycloneDDS><Domain><General><AllowMulticst>false</AllowMulticst></General></Domain></CycloneDDS>"}}}};
+     },
+     {"transports.dds.options.config: expected Cyclone DDS settings",
+      "AllowMulticst: unknown element (did you mean 'AllowMulticast'?)"}},
+    {"a Cyclone value out of its range",
+     [](json& c) {
+       c["transports"]["dds"] = {
+           {"plugin", "dds"},
+           {"options", {{"config", "<CycloneDDS><Domain><General><AllowMulticast>maybe</AllowMulticast></General></Domain></CycloneDDS>"}}}};
+     },
+     {"transports.dds.options.config", "AllowMulticast", "'maybe'"}},
+    {"a Cyclone file that does not exist",
+     [](json& c) { c["transports"]["dds"] = {{"plugin", "dds"}, {"options", {{"config", "file:///nonexistent/cyclone.xml"}}}}; },
+     {"transports.dds.options.config", "can't open configuration file file:///nonexistent/cyclone.xml"}},
+    {"a Cyclone network interface that does not exist",
+     [](json& c) {
+       c["transports"]["dds"] = {
+           {"plugin", "dds"},
+           {"options", {{"config", "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"nosuchif0\"/>"
+                                   "</Interfaces><AllowMulticast>false</AllowMulticast></General></Domain></CycloneDDS>"}}}};
+     },
+     {"transports.dds.options.config", "nosuchif0: does not match an available interface"}},
+#endif
 };
 
 INSTANTIATE_TEST_SUITE_P(GatewayBrokenConfig, GatewayConfigCatalogueTest, ::testing::ValuesIn(k_cases),
@@ -130,6 +210,69 @@ TEST(GatewayConfigTest, InvalidJsonSyntaxNamesTheFile) {
     EXPECT_THAT(e.what(), HasSubstr("broken.json"));
     EXPECT_THAT(e.what(), HasSubstr("invalid JSON"));
   }
+}
+
+TEST(GatewayConfigTest, InvalidJsonSyntaxNamesThePathLineAndColumn) {
+  testing::TempDir dir;
+  std::string file = dir.write("broken.json", "{\"scene\": {\"mjcf\": \"x.xml\",}\n");
+  try {
+    load_deployment(file);
+    FAIL() << "accepted";
+  } catch (const ConfigError& e) {
+    ASSERT_EQ(e.errors().size(), 1u);
+    EXPECT_THAT(e.errors()[0], HasSubstr("scene: invalid JSON: parse error at line 1, column 28"));
+  }
+}
+
+// ---- what nlohmann's parser cannot take: the loader refuses it as a ConfigError ----
+
+// The one error load_deployment() reports for `text` ("" if it loads).
+std::string load_error(const std::string& text) {
+  testing::TempDir dir;
+  try {
+    load_deployment(dir.write("config.json", text));
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.errors().size(), 1u) << e.what();
+    EXPECT_THAT(e.what(), HasSubstr("config.json"));
+    return e.errors().front();
+  }
+  return "";
+}
+
+TEST(GatewayConfigTest, ANumberBeyondADoubleIsAConfigErrorWithItsPathAndPosition) {
+  // was json::out_of_range (406) escaping the loader: exit 1, no path
+  json c = demo_config();
+  c["scene"]["timestep"] = 0.123456;
+  std::string text = c.dump(2);
+  text.replace(text.find("0.123456"), 8, "1e400");
+  std::size_t offset = text.find("1e400");
+  std::size_t line = 1 + std::count(text.begin(), text.begin() + offset, '\n');
+  std::size_t column = offset - text.rfind('\n', offset);
+  EXPECT_EQ(load_error(text), "scene.timestep: expected a number a double can hold (at most about 1.8e308 in "
+                              "magnitude), found 1e400 (line " + std::to_string(line) + ", column " +
+                              std::to_string(column) + ")");
+  // in a list, negative, in a component's options
+  text = demo_config().dump();
+  text.replace(text.find("\"wheel_radius\":0.1"), 18, "\"wheel_radius\":-2e999");
+  EXPECT_THAT(load_error(text), HasSubstr("robots[0].options.wheel_radius: expected a number a double can hold"));
+  EXPECT_THAT(load_error(text), HasSubstr("found -2e999"));
+}
+
+TEST(GatewayConfigTest, ADocumentNestedTooDeeplyIsRefusedBeforeItIsBuilt) {
+  // was a stack overflow (SIGSEGV) in check and run: the document was built, then copied
+  // recursively; now nothing recursive sees it
+  json c = demo_config();
+  c["description"] = "@";
+  std::string text = c.dump();
+  const std::size_t depth = 100000;
+  text.replace(text.find("\"@\""), 3, std::string(depth, '[') + std::string(depth, ']'));
+  std::string error = load_error(text);
+  EXPECT_THAT(error, HasSubstr("description[0][0][0]...: expected at most 64 levels of nested arrays and objects, "
+                               "found deeper nesting (line 1, column "));
+  // within the limit it loads (and fails on the value's type, not its depth)
+  text = c.dump();
+  text.replace(text.find("\"@\""), 3, std::string(60, '[') + std::string(60, ']'));
+  EXPECT_THAT(load_error(text), HasSubstr("description: expected a string"));
 }
 
 TEST(GatewayConfigTest, RelativeSceneIsResolvedNextToTheConfig) {
@@ -232,6 +375,29 @@ TEST(GatewayConfigTest, CheckRefusesAHostThatDoesNotResolve) {
   auto errors = errors_of(c);
   ASSERT_EQ(errors.size(), 1u);
   EXPECT_THAT(errors[0], HasSubstr("cannot resolve 'no-such-host.invalid'"));
+}
+
+TEST(GatewayConfigTest, TransportsShareAPortNumberOnlyOnAddressesThatDoNotOverlap) {
+  // 127.0.0.1 and 127.0.0.2 are two loopback addresses: both can listen on one port
+  json c = demo_config();
+  c["transports"]["socket"]["options"]["port"] = 4321;
+  c["transports"]["other"] = {{"plugin", "socket"}, {"options", {{"host", "127.0.0.2"}, {"port", 4321}}}};
+  EXPECT_EQ(error_of(c), "");
+  // any number of transports on port 0: each gets a free port of its own
+  c["transports"]["other"]["options"] = {{"port", 0}};
+  c["transports"]["socket"]["options"]["port"] = 0;
+  c["transports"]["third"] = {{"plugin", "socket"}, {"options", {{"port", 0}}}};
+  EXPECT_EQ(error_of(c), "");
+  // every transport sharing a port is named, each against the first that has it
+  c["transports"]["other"]["options"]["port"] = 4321;
+  c["transports"]["socket"]["options"]["port"] = 4321;
+  c["transports"]["third"]["options"]["port"] = 4321;
+  auto errors = errors_of(c);
+  ASSERT_EQ(errors.size(), 2u) << ::testing::PrintToString(errors);
+  EXPECT_THAT(errors[0], HasSubstr("transports.socket.options.port: expected a port no other transport listens on, "
+                                   "found 4321, which transports.other listens on too"));
+  EXPECT_THAT(errors[1], HasSubstr("transports.third.options.port: expected a port no other transport listens on, "
+                                   "found 4321, which transports.other listens on too"));
 }
 
 TEST(GatewayConfigTest, APortInUseIsARuntimeErrorNotAConfigError) {

@@ -77,7 +77,8 @@ struct Deployment {
 
 // Validates and converts a parsed document. `base_dir` resolves relative paths.
 Deployment parse_deployment(const json& document, const std::string& base_dir, const std::string& file = "");
-// Reads and parses a file (JSON syntax errors name the file, line and column).
+// Reads and parses a file (parse_config_text: a syntax error, a number beyond a double or
+// nesting deeper than k_max_config_depth names the file, the JSON path, line and column).
 Deployment load_deployment(const std::string& file);
 
 }  // namespace simgate::gateway

@@ -3,7 +3,8 @@
 // Building a Gateway validates everything before anything starts: the deployment file
 // (see deployment.h), the MJCF scene, every component (type, bodies, actuators, options)
 // and every transport plugin (found, ABI-compatible, options valid: the plugin's own
-// validate()); all errors at once. In check mode it stops there; otherwise it creates each transport, shares the simulation's gate with it and
+// validate()), then the TCP transports together (no two on one port, addresses of this
+// machine: src/listeners.h); all errors at once. In check mode it stops there; otherwise it creates each transport, shares the simulation's gate with it and
 // registers the components mapped to it. start() opens the transports; run() is the
 // simulation loop on the calling thread, until stop() or `simulation quit`; the destructor
 // (or shutdown()) answers pending clients, stops the transports, destroys them and then
