@@ -1,14 +1,16 @@
 // Fuzz target config: the deployment loader (gateway/include/simgate/gateway/deployment.h)
 // as `simgate check` and `simgate run` use it before anything starts: the file's text
-// parsed as load_deployment() parses it, then parse_deployment() (structure, names, the
+// parsed as load_deployment() parses it (core's parse_config_text: syntax, numbers beyond a
+// double and nesting refused with a ConfigError), then parse_deployment() (structure, names, the
 // services mapping against the transports and components), then the mapping queried for
 // every component; each transport's options read through core's ConfigObject as a plugin
 // reads them (config.h). Relative scene paths resolve in the repository's config/ (the
 // scene file is only stat()ed).
 //
-// Properties: errors are ConfigErrors (nothing else escapes) with a non-empty message; an
-// accepted deployment has unique component names, and its mapping names declared
-// transports only.
+// Properties: errors are ConfigErrors (nothing else escapes) with a non-empty message;
+// parse_config_text refuses no JSON text that json::parse reads within the depth limit, and
+// what it accepts is within it; an accepted deployment has unique component names, and its
+// mapping names declared transports only.
 #include <cstddef>
 #include <cstdint>
 #include <set>
@@ -52,16 +54,22 @@ extern "C" int LLVMFuzzerInitialize(int*, char***) {
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using namespace simgate;
+  const std::string_view text(reinterpret_cast<const char*>(data), size);
   json document;
   try {
-    document = json::parse(data, data + size);  // as load_deployment
-  } catch (const json::parse_error&) {
-    return 0;  // "invalid JSON: <file>: line, column"
-  } catch (const json::out_of_range&) {
-    // a number beyond a double (1e400): load_deployment catches parse_error only, this
-    // reaches the CLI's catch-all as a plain error (docs/fuzzing.md, findings)
+    document = parse_config_text(text);  // as load_deployment
+  } catch (const ConfigError& e) {
+    FUZZ_CHECK(!e.errors().empty() && !e.errors()[0].empty(), "a refused text says why");
+    // refused: not JSON, a number beyond a double, or too deep; never JSON that nlohmann
+    // reads, no deeper than the limit
+    if (!json_nests_deeper_than(text, k_max_config_depth)) {
+      const json reference = json::parse(text, nullptr, /*allow_exceptions=*/false);
+      FUZZ_CHECK(reference.is_discarded(), "parse_config_text refuses only what json::parse refuses: " + e.errors()[0]);
+    }
     return 0;
   }
+  FUZZ_CHECK(fuzz::depth_of(document) <= k_max_config_depth, "parse_config_text bounds the depth");
+
   gateway::Deployment d;
   try {
     d = gateway::parse_deployment(document, SIMGATE_FUZZ_CONFIG_DIR, "fuzz.json");

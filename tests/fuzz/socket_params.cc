@@ -82,8 +82,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     FUZZ_CHECK(shifted.column == p.column + 999 && shifted.error == p.error && shifted.example == p.example,
                "the error moves with first_column");
     if (!p.example.empty()) {
+      // (wrapping bare values in a list adds a level: values k_max_depth deep make a hint
+      // one level too deep)
       const socket::ParamsParse hint = socket::parse_params(p.example);
-      FUZZ_CHECK(hint.ok && hint.value.is_array() && hint.value.size() >= 2,
+      const bool one_too_deep = !hint.ok && hint.error.rfind("nesting deeper than", 0) == 0;
+      FUZZ_CHECK((hint.ok && hint.value.is_array() && hint.value.size() >= 2) || one_too_deep,
                  "the bare-values hint is a list of two values or more: " + p.example);
     }
   } else {
