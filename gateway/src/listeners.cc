@@ -1,12 +1,14 @@
 #include "listeners.h"
 
 #include <arpa/inet.h>
-#include <netdb.h>
 #include <netinet/in.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstring>
+
+#include "simgate/core/errors.h"
+#include "simgate/kit/tcp_server.h"
 
 namespace simgate::gateway {
 
@@ -113,20 +115,16 @@ std::optional<Listener> listener_of(const std::string& plugin_name, const Transp
     l.port_configured = true;
   }
 
-  // as the transports resolve it: "localhost" is 127.0.0.1, else a literal or the first
-  // address the name resolves to (Asio's resolver: getaddrinfo, no flags)
-  const std::string host = l.host == "localhost" ? "127.0.0.1" : l.host;
-  addrinfo hints{};
-  hints.ai_family = AF_UNSPEC;
-  hints.ai_socktype = SOCK_STREAM;
-  hints.ai_protocol = IPPROTO_TCP;
-  addrinfo* results = nullptr;
-  const std::string service = std::to_string(l.port);
-  if (::getaddrinfo(host.empty() ? nullptr : host.c_str(), service.c_str(), &hints, &results) != 0 || !results)
+  // resolved by the transports' own rule (the kit's), so that both see the same address; a
+  // host that does not resolve is the plugin's own error, reported by its validate
+  boost::asio::ip::tcp::endpoint endpoint;
+  try {
+    endpoint = kit::listen_endpoint(l.host, static_cast<std::uint16_t>(l.port));
+  } catch (const ConfigError&) {
     return std::nullopt;
-  std::memcpy(&l.address, results->ai_addr, results->ai_addrlen);
-  l.address_size = results->ai_addrlen;
-  ::freeaddrinfo(results);
+  }
+  std::memcpy(&l.address, endpoint.data(), endpoint.size());
+  l.address_size = static_cast<socklen_t>(endpoint.size());
   return l;
 }
 

@@ -80,10 +80,6 @@ struct TcpOptions {
   // config.finish() (unknown keys), then: the host must be an address or a name that
   // resolves. Throws ConfigError.
   void finish(const ConfigObject& config) const;
-  // The keys read() knows (without aliases), for a plugin's option list.
-  static constexpr const char* k_keys[] = {"host",          "port",          "max_connections",
-                                           "max_message_bytes", "max_unsent_bytes", "max_in_flight",
-                                           "io_spin_us",    "on_disconnect", "global_policy"};
 };
 
 // The address to listen on for `host` ("localhost" is 127.0.0.1): a literal, or the first
