@@ -16,6 +16,11 @@ function(simgate_add_transport_plugin name)
   set_target_properties(${target} PROPERTIES
     CXX_VISIBILITY_PRESET hidden
     VISIBILITY_INLINES_HIDDEN ON)
+  # the module's thread-local variables (Asio's call stack, read on every handler it
+  # allocates) go in the static TLS block glibc keeps for dlopen: a plain %fs access instead
+  # of a __tls_get_addr call, and no heap-allocated TLS block per thread (GCC 12's
+  # LeakSanitizer misreads such a block at exit and crashes). Needs a few bytes of TLS only.
+  target_compile_options(${target} PRIVATE -ftls-model=initial-exec)
   if(DEFINED SIMGATE_PLUGIN_BUILD_DIR)
     set_target_properties(${target} PROPERTIES LIBRARY_OUTPUT_DIRECTORY ${SIMGATE_PLUGIN_BUILD_DIR})
   endif()
