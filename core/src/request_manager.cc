@@ -8,6 +8,7 @@
 #include <span>
 #include <variant>
 
+#include "simgate/core/call_context.h"
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
 #include "simgate/core/suggest.h"
@@ -532,6 +533,9 @@ bool RequestManager::execute(RequestId id, const Call& call, Outcome& out,
   const ServiceDescriptor& d = service->descriptor();
 
   try {
+    // the service may ask who calls (call_context.h): what this transport serves bounds
+    // what it may see and act on
+    const CallContext context(*this, id);
     BoundArguments args = bind_arguments(d, call.params);
     if (d.is_async) {
       start_async(id, *service, args.span(), started);

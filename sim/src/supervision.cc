@@ -1,5 +1,6 @@
 #include "simgate/sim/supervision.h"
 
+#include "simgate/core/call_context.h"
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
 #include "simgate/sim/sim_component.h"
@@ -12,6 +13,9 @@ json service_names(const Component& c) {
   for (const auto& s : c.services()) names.push_back(s->descriptor().name);
   return names;
 }
+
+// The caller's side of the mapping (call_context.h): a component its transport serves.
+bool visible(const ComponentEntry& e) { return caller_serves(e.component->name()); }
 }  // namespace
 
 SupervisionServices::SupervisionServices(Simulation& sim) : Component("simulation"), sim_(sim) {
@@ -32,21 +36,36 @@ SupervisionServices::SupervisionServices(Simulation& sim) : Component("simulatio
   add_service("quit", &SupervisionServices::quit).doc("Stop the simulation cleanly (replies are sent first)");
 }
 
-std::vector<std::string> SupervisionServices::list_robots() const { return sim_.robot_names(); }
+bool SupervisionServices::robot_visible(const ComponentEntry& robot) const {
+  if (visible(robot)) return true;
+  // a robot the caller does not serve still holds the components it does (pymorse builds
+  // robot.component proxies from `details`)
+  const std::string& name = robot.component->name();
+  for (const auto& c : sim_.components())
+    if (c->robot == name && visible(*c)) return true;
+  return false;
+}
+
+std::vector<std::string> SupervisionServices::list_robots() const {
+  std::vector<std::string> names;
+  for (const auto& r : sim_.components())
+    if (r->is_robot && robot_visible(*r)) names.push_back(r->component->name());
+  return names;
+}
 
 json SupervisionServices::details() const {
   json robots = json::array();
   for (const auto& r : sim_.components()) {
-    if (!r->is_robot) continue;
+    if (!r->is_robot || !robot_visible(*r)) continue;
     const std::string& name = r->component->name();
     json robot{{"name", name}, {"type", r->type}, {"components", json::object()}};
     // robot-level services (note MORSE's spelling: services_interfaces)
-    if (!r->interfaces.empty() && !r->component->services().empty()) {
+    if (visible(*r) && !r->interfaces.empty() && !r->component->services().empty()) {
       robot["services"] = service_names(*r->component);
       robot["services_interfaces"] = r->interfaces;
     }
     for (const auto& c : sim_.components()) {
-      if (c->robot != name) continue;
+      if (c->robot != name || !visible(*c)) continue;
       json component{{"type", c->type}};
       // services only where a transport serves them; no stream_interfaces (no datastreams)
       if (!c->interfaces.empty() && !c->component->services().empty()) {
@@ -62,12 +81,14 @@ json SupervisionServices::details() const {
 
 json SupervisionServices::list_services() const {
   json out = json::array();
-  for (const auto& c : sim_.components())
+  for (const auto& c : sim_.components()) {
+    if (!visible(*c)) continue;
     for (const auto& s : c->component->services()) {
       json d = s->descriptor().to_json();
       d["transports"] = c->interfaces;
       out.push_back(std::move(d));
     }
+  }
   return out;
 }
 
@@ -77,8 +98,10 @@ std::string SupervisionServices::reset_objects() {
 }
 
 void SupervisionServices::set_active(const std::string& component_name, bool active) {
+  // a component the calling transport does not serve gets the answer a missing one gets:
+  // the mapping is a boundary, and its other side does not show through
   ComponentEntry* e = sim_.find(component_name);
-  if (!e)
+  if (!e || !visible(*e))
     throw ServiceError("Component '" + component_name + "' not found. Can't " + (active ? "activate" : "deactivate"),
                        Failure::bad_arguments, {{"parameter", "component_name"}});
   e->active = active;
@@ -107,6 +130,8 @@ json SupervisionServices::body_tree(int body) const {
   return json::array({std::move(children), {p.x(), p.y(), p.z()}, {q.x(), q.y(), q.z(), q.w()}});
 }
 
+// Every body of the scene, whoever serves the components driving them: bodies are the
+// world any client sees (as a camera would), not components, and nothing here acts on them.
 json SupervisionServices::get_scene_objects() const {
   json out = json::object();
   const mjModel* m = sim_.m();

@@ -1,5 +1,8 @@
 // SimSupervision: the `simulation` and `time` pseudo-components.
+#include <set>
+
 #include "sim_fixture.h"
+#include "simgate/sim/supervision.h"
 
 namespace simgate::sim {
 namespace {
@@ -231,6 +234,90 @@ TEST_F(SimSupervisionTest, StatisticsCountSteps) {
   EXPECT_EQ(s["steps"], 50);
   EXPECT_NEAR(s["sim_time"].get<double>(), 0.1, 1e-9);
   EXPECT_EQ(s["timestep"], 0.002);
+}
+
+
+// ---- the mapping is a boundary (issue #17, item 6) ----
+
+// A second transport, "partial", that serves `simulation` and `robot.pose` only, beside the
+// fixture's "test" that serves everything.
+class SimSupervisionBoundaryTest : public DemoSim {
+ protected:
+  void SetUp() override {
+    DemoSim::SetUp();
+    partial_ = std::make_shared<testing::RecordingManager>();
+    for (const char* name : {"simulation", "robot.pose"}) {
+      ComponentEntry* e = sim_->find(name);
+      partial_->register_component(*e->component);
+      e->interfaces.push_back("partial");
+    }
+    sim_->add_request_manager(partial_, "partial");
+  }
+  void TearDown() override {
+    partial_.reset();
+    DemoSim::TearDown();
+  }
+  Outcome call_partial(const std::string& component, const std::string& service, json params = json::array()) {
+    RequestId id = partial_->call(component, service, std::move(params));
+    sim_->process_requests();
+    auto o = partial_->outcome(id);
+    EXPECT_TRUE(o.has_value()) << component << " " << service << " not answered";
+    return o.value_or(Outcome::failed(Failure::internal, "no answer"));
+  }
+
+  std::shared_ptr<testing::RecordingManager> partial_;
+};
+
+TEST_F(SimSupervisionBoundaryTest, DeactivateRefusesAComponentTheCallerDoesNotServeAsIfItDidNotExist) {
+  Outcome unserved = call_partial("simulation", "deactivate", {"robot.waypoint"});
+  Outcome missing = call_partial("simulation", "deactivate", {"robot.nowhere"});
+  EXPECT_EQ(unserved.status, Status::failed);
+  EXPECT_EQ(unserved.message, "Component 'robot.waypoint' not found. Can't deactivate");
+  EXPECT_EQ(unserved.failure, missing.failure);
+  EXPECT_EQ(unserved.data, missing.data);
+  EXPECT_TRUE(sim_->find("robot.waypoint")->active);
+  EXPECT_EQ(call_partial("simulation", "activate", {"human"}).message, "Component 'human' not found. Can't activate");
+  // what it serves it may still suspend, and the transport that serves the other may too
+  EXPECT_EQ(call_partial("simulation", "deactivate", {"robot.pose"}).status, Status::success);
+  EXPECT_FALSE(sim_->find("robot.pose")->active);
+  EXPECT_EQ(call("simulation", "deactivate", {"robot.waypoint"}).status, Status::success);
+  EXPECT_FALSE(sim_->find("robot.waypoint")->active);
+}
+
+TEST_F(SimSupervisionBoundaryTest, DetailsShowsOnlyWhatTheCallerServes) {
+  json d = call_partial("simulation", "details").value.value_or(json());
+  ASSERT_EQ(d["robots"].size(), 1u);  // not the human
+  json robot = d["robots"][0];
+  EXPECT_EQ(robot["name"], "robot");  // it holds robot.pose
+  EXPECT_EQ(robot["components"].size(), 1u);
+  EXPECT_EQ(robot["components"]["robot.pose"]["services"], json({"get_local_data"}));
+  EXPECT_EQ(robot["components"]["robot.pose"]["service_interfaces"], json({"test", "partial"}));
+  // the transport that serves everything still sees everything
+  json all = call("simulation", "details").value.value_or(json());
+  EXPECT_EQ(all["robots"].size(), 2u);
+  EXPECT_EQ(all["robots"][0]["components"].size(), 4u);
+}
+
+TEST_F(SimSupervisionBoundaryTest, ListRobotsAndListServicesShowOnlyWhatTheCallerServes) {
+  EXPECT_EQ(call_partial("simulation", "list_robots").value, json({"robot"}));
+  json list = call_partial("simulation", "list_services").value.value_or(json());
+  std::set<std::string> components;
+  for (const auto& s : list) components.insert(s["component"].get<std::string>());
+  EXPECT_EQ(components, (std::set<std::string>{"robot.pose", "simulation"}));
+  EXPECT_EQ(call("simulation", "list_robots").value, json({"robot", "human"}));
+}
+
+TEST_F(SimSupervisionBoundaryTest, GetSceneObjectsIsTheWholeSceneForEveryCaller) {
+  // bodies, not components: the world every client sees
+  EXPECT_EQ(call_partial("simulation", "get_scene_objects").value, call("simulation", "get_scene_objects").value);
+}
+
+TEST_F(SimSupervisionBoundaryTest, CalledDirectlyTheServicesSeeEverything) {
+  // the host (no request running) is not bounded by any transport
+  auto* supervision = static_cast<SupervisionServices*>(sim_->find("simulation")->component.get());
+  EXPECT_EQ(supervision->list_robots(), (std::vector<std::string>{"robot", "human"}));
+  supervision->deactivate("human");
+  EXPECT_FALSE(sim_->find("human")->active);
 }
 
 }  // namespace

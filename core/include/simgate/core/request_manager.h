@@ -20,7 +20,9 @@
 //
 // Every submitted request gets exactly one on_service_completion() (even unknown services,
 // bad arguments and requests still running at stop()). Services run only under the
-// simulation lock (SimulationGate), on whichever thread runs process(). submit() and
+// simulation lock (SimulationGate), on whichever thread runs process(); while one runs,
+// CallContext::current() names the manager and the request (call_context.h), so a service
+// keeps to the components its caller's transport serves. submit() and
 // cancel() are thread-safe and never block for long; a queued request wakes process() at
 // once.
 //

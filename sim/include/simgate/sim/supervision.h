@@ -6,6 +6,14 @@
 // component's services with parameters), reset_objects, activate / deactivate
 // component_name, suspend_dynamics / restore_dynamics, get_scene_objects, quit (the loop
 // stops after this step; the reply is sent first).
+//
+// The mapping is a boundary (CallContext, core/call_context.h): called through a transport,
+// list_robots, details and list_services describe only the components that transport
+// serves (a robot appears when it or one of its components is served), and activate /
+// deactivate refuse any other component exactly as they refuse one that does not exist.
+// get_scene_objects lists bodies, not components: the whole scene. reset_objects and
+// suspend/restore_dynamics act on the world as a whole. Called directly (no request: the
+// host, tests), everything is visible.
 // time: now (simulated time, seconds since the epoch at start), async sleep t (completes
 // when t simulated seconds have passed; a concurrent service: every caller sleeps on its
 // own), statistics, mode.
@@ -39,6 +47,8 @@ class SupervisionServices : public Component {
 
  private:
   void set_active(const std::string& component_name, bool active);
+  // Whether the caller sees the robot: it serves the robot or one of its components.
+  bool robot_visible(const ComponentEntry& robot) const;
   json body_tree(int body) const;
 
   Simulation& sim_;  // supervised

@@ -1,0 +1,63 @@
+// simgate/core/call_context.h — who is calling: the request manager (transport) a running
+// service was called through, and so which components that caller may see and act on.
+//
+// The configuration's mapping (component -> transports) is a boundary: a transport serves
+// only the components registered with it. A service whose argument names another component
+// (`simulation deactivate robot.motion`) or that describes components (`simulation
+// details`) must keep to the caller's side of it, so it needs to know its caller. The core
+// tells it without changing any service's signature: while it runs a service for a request
+// (a sync call, or an async service's start method), CallContext::current() on that thread
+// names the request and its manager; the served set is the manager's own table
+// (RequestManager::serves_component), the only source of truth for what a transport serves.
+//
+// Life cycle: the core creates one on the stack around each invocation; it is current until
+// it is destroyed (nested contexts restore the outer one). Outside a request (a component's
+// default_action(), a completion, a host or test calling a service's function directly)
+// there is none: current() is null and caller_serves() says yes, the host being trusted
+// with everything it built.
+//
+// Threads: whichever thread runs the service, under the simulation lock; each thread has its
+// own current context. A context must not be kept past the call (it lives on the stack).
+#ifndef SIMGATE_CORE_CALL_CONTEXT_H_
+#define SIMGATE_CORE_CALL_CONTEXT_H_
+
+#include <string>
+
+#include "simgate/core/status.h"
+
+namespace simgate {
+
+class RequestManager;
+
+class CallContext {
+ public:
+  // Makes this the current context of the calling thread until destruction. The core does
+  // this around every service it runs; a host may do it to act as a given transport.
+  CallContext(const RequestManager& manager, RequestId id) noexcept;
+  ~CallContext();
+  CallContext(const CallContext&) = delete;
+  CallContext& operator=(const CallContext&) = delete;
+
+  // The context of the request this thread is running a service for, or null.
+  static const CallContext* current() noexcept;
+
+  // The manager (transport) the request came through.
+  const RequestManager& manager() const noexcept { return manager_; }
+  // Its id, as the manager allocated it.
+  RequestId request() const noexcept { return id_; }
+  // Whether the calling transport serves `component` (it was registered with the manager).
+  bool serves(const std::string& component) const;
+
+ private:
+  const RequestManager& manager_;  // the caller's transport (outlives the call)
+  RequestId id_;                   // the request being run
+  const CallContext* previous_;    // the context this one hides, restored at destruction
+};
+
+// Whether the caller of the running service may see and act on `component`: the calling
+// transport serves it, or no request is running on this thread (the host itself).
+bool caller_serves(const std::string& component);
+
+}  // namespace simgate
+
+#endif  // SIMGATE_CORE_CALL_CONTEXT_H_

@@ -1,0 +1,28 @@
+#include "simgate/core/call_context.h"
+
+#include "simgate/core/request_manager.h"
+
+namespace simgate {
+
+namespace {
+// The innermost context of this thread (see call_context.h); null outside a request.
+thread_local const CallContext* t_current = nullptr;
+}  // namespace
+
+CallContext::CallContext(const RequestManager& manager, RequestId id) noexcept
+    : manager_(manager), id_(id), previous_(t_current) {
+  t_current = this;
+}
+
+CallContext::~CallContext() { t_current = previous_; }
+
+const CallContext* CallContext::current() noexcept { return t_current; }
+
+bool CallContext::serves(const std::string& component) const { return manager_.serves_component(component); }
+
+bool caller_serves(const std::string& component) {
+  const CallContext* context = CallContext::current();
+  return !context || context->serves(component);
+}
+
+}  // namespace simgate
