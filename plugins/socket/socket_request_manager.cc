@@ -56,13 +56,15 @@ SocketRequestManager::SocketRequestManager(const json& options)
 
 SocketRequestManager::SocketRequestManager(SocketOptions o)
     : RequestManager("Socket service manager"),
+      LineServer(name(), o.tcp.io_spin),
       options_(std::move(o)),
       // bound now, so that a port in use fails the creation of the transport
       listener_(io_, name(), options_.tcp.host, options_.tcp.port),
       io_thread_(io_, name(), options_.tcp.io_spin) {
   limits_.max_message_bytes = options_.tcp.max_message_bytes;
   limits_.max_unsent_bytes = options_.tcp.max_unsent_bytes;
-  limits_.max_in_flight = options_.tcp.max_in_flight;
+  // a client with max_in_flight requests unanswered waits for answers before more is read
+  limits_.pause_at_unanswered = options_.tcp.max_in_flight;
   limits_.message_bytes_key = options_.tcp.message_bytes_key;
   limits_.unsent_bytes_key = options_.tcp.unsent_bytes_key;
   set_global_policy(options_.tcp.global_policy);
@@ -85,7 +87,7 @@ void SocketRequestManager::start() {
   const json text = why;
   append_reply(refusal, "-", k_failed, &text);
   kit::TcpListener::Handlers handlers{[this](tcp::socket socket) { accept(std::move(socket)); },
-                                      [this] { return sessions_.size() >= options_.tcp.max_connections; }, why,
+                                      [this] { return connection_count() >= options_.tcp.max_connections; }, why,
                                       std::move(refusal)};
   // outcomes produced on the simulation thread come here: one flush per burst, then one
   // write per connection
@@ -94,7 +96,7 @@ void SocketRequestManager::start() {
         deliver_on_this_thread([this] { asio::post(io_, [this] { flush_replies(); }); });
         listener_.start(std::move(handlers));
       },
-      direct_);
+      direct_reads());
 }
 
 void SocketRequestManager::stop() {
@@ -107,20 +109,13 @@ std::vector<std::string> SocketRequestManager::endpoints() const { return {liste
 void SocketRequestManager::close_all() {
   stopping_ = true;  // the requests still running end at shutdown (abandon_pending), not as cancels
   listener_.close();
-  auto sessions = std::move(sessions_);
-  sessions_.clear();
-  client_count_.store(0, std::memory_order_relaxed);
-  for (const auto& s : sessions) s->close("server stopping");
+  LineServer::close_all();
   requests_.clear();
 }
 
 void SocketRequestManager::accept(tcp::socket socket) {
-  SessionHost& host = *this;
-  auto session = std::make_shared<Session>(std::move(socket), host, limits_, next_session_++);
-  sessions_.insert(session);
-  client_count_.store(sessions_.size(), std::memory_order_relaxed);
-  log::debug(name(), ": ", session->label(), " connected");
-  session->start();
+  kit::LineHost& host = *this;
+  add(std::make_shared<Session>(std::move(socket), host, limits_, name(), next_session_++));
 }
 
 // ---- requests (I/O thread)
@@ -145,37 +140,35 @@ void SocketRequestManager::run_batch() {
   flush_touched();
 }
 
-void SocketRequestManager::on_lines_done(const std::shared_ptr<Session>& session, bool read_finished) {
+void SocketRequestManager::on_lines_done(kit::LineConnection& connection, bool read_finished) {
   // half-way through a large read: its first half runs and is answered now only for a
   // client pipelining alone (read_split.h)
   if (read_finished)
     run_calls();  // answered at write_replies(), with the next read's replies if it is waiting
-  else if (read_split_.alone(session.get()))
+  else if (alone(connection))
     run_batch();
 }
 
-void SocketRequestManager::write_replies() { flush_touched(); }
-
-void SocketRequestManager::fail_in_order(const std::shared_ptr<Session>& session, std::string_view id,
-                                         std::string message) {
+void SocketRequestManager::fail_in_order(Session& session, std::string_view id, std::string message) {
   json text = std::move(message);
   // earlier requests of this read may run at once, answering them
-  if (session->has_unanswered()) run_batch();
+  if (session.has_unanswered()) run_batch();
   scratch_.clear();
   append_reply(scratch_, id, k_failed, &text);
-  if (!session->has_unanswered()) {
-    session->send(scratch_);
+  if (!session.has_unanswered()) {
+    session.send(scratch_);
     return;
   }
   // earlier requests are still with the core: the answer follows their outcomes, so that a
   // client reading replies in order (telnet, scripts) sees them in order
-  session->defer_reply();
+  session.defer_reply();
   const RequestId reply_id = new_request_id();  // never one of requests_'s ids (kit::RequestSlots::k_mark)
-  deferred_replies_.emplace(reply_id, DeferredReply{session, scratch_});
+  deferred_replies_.emplace(reply_id, DeferredReply{session.shared(), scratch_});
   answer_in_order(reply_id, Outcome{});
 }
 
-void SocketRequestManager::on_line(const std::shared_ptr<Session>& session, std::string_view line) {
+void SocketRequestManager::on_line(kit::LineConnection& connection, std::string_view line) {
+  auto& session = static_cast<Session&>(connection);
   RequestLine request = parse_request_line(line);
   switch (request.kind) {
     case RequestLine::Kind::blank:
@@ -185,7 +178,7 @@ void SocketRequestManager::on_line(const std::shared_ptr<Session>& session, std:
       return;
     case RequestLine::Kind::cancel:
       // no reply of its own: the request ends PREEMPTED; unknown ids are ignored (as MORSE)
-      if (const kit::IdTable::Entry* pending = session->find_pending(request.id)) {
+      if (const kit::IdTable::Entry* pending = session.find_pending(request.id)) {
         const RequestId id = pending->id;  // read before run_batch() changes the table
         run_batch();                       // the request may be in this read's batch
         cancel(id);
@@ -196,7 +189,7 @@ void SocketRequestManager::on_line(const std::shared_ptr<Session>& session, std:
   }
 
   // one pending request per id and connection, or replies could not be told apart
-  kit::IdTable::Entry* pending = session->add_pending(request.id);
+  kit::IdTable::Entry* pending = session.add_pending(request.id);
   if (!pending) {
     fail_in_order(session, request.id,
                   "Request id '" + std::string(request.id) +
@@ -209,7 +202,7 @@ void SocketRequestManager::on_line(const std::shared_ptr<Session>& session, std:
   if (batch_count_ == batch_.size()) batch_.emplace_back();
   auto& [id, call] = batch_[batch_count_];
   if (!parse_params_into(request.params, request.params_column, call.params, params_error_)) {
-    session->drop_pending(request.id);
+    session.drop_pending(request.id);
     fail_in_order(session, request.id,
                   params_error_.example.empty()
                       ? "Invalid request syntax: error while parsing the parameters at column " +
@@ -219,13 +212,13 @@ void SocketRequestManager::on_line(const std::shared_ptr<Session>& session, std:
     return;
   }
   if (requests_.size() >= decltype(requests_)::k_max_live) {
-    session->drop_pending(request.id);
+    session.drop_pending(request.id);
     fail_in_order(session, request.id, "Too many requests are waiting for their outcome in this server: retry later");
     return;
   }
 
   // the request's slot: its id says where the reply goes
-  id = requests_.insert({session.get(), pending->hash});
+  id = requests_.insert({&session, pending->hash});
   pending->id = id;
   // a pipelining client names the same service line after line
   if (call.component != request.component) call.component.assign(request.component);
@@ -234,8 +227,9 @@ void SocketRequestManager::on_line(const std::shared_ptr<Session>& session, std:
   ++batch_count_;
 }
 
-void SocketRequestManager::on_oversized_line(const std::shared_ptr<Session>& session,
-                                             std::string_view prefix) {
+void SocketRequestManager::on_oversized_line(kit::LineConnection& connection, std::string_view prefix,
+                                             std::size_t /*bytes*/) {
+  auto& session = static_cast<Session&>(connection);
   // answer with the line's id when it has a usable one, "-" otherwise
   std::size_t begin = 0;
   while (begin < prefix.size() && (prefix[begin] == ' ' || prefix[begin] == '\t')) ++begin;
@@ -243,26 +237,26 @@ void SocketRequestManager::on_oversized_line(const std::shared_ptr<Session>& ses
   while (end < prefix.size() && prefix[end] != ' ' && prefix[end] != '\t' && prefix[end] != '\r') ++end;
   std::string_view id = prefix.substr(begin, end - begin);
   if (id.empty() || id.size() > k_max_echoed_id || end == prefix.size()) id = "-";
-  log::warning(name(), ": ", session->label(), ": request line longer than ",
+  log::warning(name(), ": ", session.label(), ": request line longer than ",
                limits_.max_message_bytes, " bytes ignored");
   fail_in_order(session, id,
                 "Request too long: the line exceeds " + std::to_string(limits_.max_message_bytes) + " bytes (" +
                     limits_.message_bytes_key + "); it was ignored");
 }
 
-void SocketRequestManager::on_input_ended(const std::shared_ptr<Session>& session) {
+void SocketRequestManager::on_input_ended(kit::LineConnection& connection) {
   // the client will send nothing more: under "cancel" it has left, and its async requests
   // end (PREEMPTED, written if it still reads); sync ones are answered as usual
-  cancel_requests_of(*session);
+  cancel_requests_of(static_cast<Session&>(connection));
 }
 
-void SocketRequestManager::on_session_closed(const std::shared_ptr<Session>& session) {
-  direct_.forget(*session);
-  cancel_requests_of(*session);
+void SocketRequestManager::on_closed(kit::LineConnection& connection) {
+  auto& session = static_cast<Session&>(connection);
+  cancel_requests_of(session);
   // its outcomes have nowhere to go: forget them
-  session->pending().for_each([this](const kit::IdTable::Entry& e) { requests_.erase(e.id); });
-  sessions_.erase(session);
-  client_count_.store(sessions_.size(), std::memory_order_relaxed);
+  session.pending().for_each([this](const kit::IdTable::Entry& e) { requests_.erase(e.id); });
+  session.clear_pending();
+  forget(session);
 }
 
 void SocketRequestManager::cancel_requests_of(const Session& session) {
@@ -279,16 +273,6 @@ void SocketRequestManager::cancel_requests_of(const Session& session) {
   });
 }
 
-// ---- direct reads (I/O thread)
-
-bool SocketRequestManager::watch(Session& session) {
-  // only while the I/O thread polls (it never does with io_spin_us 0), for a client
-  // sending alone: others are served by the event loop between direct reads
-  if (options_.tcp.io_spin.count() <= 0 || !read_split_.alone(&session)) return false;
-  direct_.watch(session.shared_from_this());
-  return true;
-}
-
 // ---- outcomes
 
 void SocketRequestManager::on_service_completion(RequestId id, Outcome&& outcome) {
@@ -303,10 +287,7 @@ void SocketRequestManager::on_service_completion(RequestId id, Outcome&& outcome
   DeferredReply reply = std::move(it->second);
   deferred_replies_.erase(it);
   try {
-    if (auto s = reply.session.lock(); s && !s->closed()) {
-      touch(*s);
-      s->queue_deferred_reply(reply.line);
-    }
+    if (auto s = reply.session.lock(); s && !s->closed()) s->queue_deferred_reply(reply.line);
   } catch (const std::exception& e) {
     log::error(name(), ": cannot queue an error reply: ", e.what());
   }
@@ -317,24 +298,12 @@ void SocketRequestManager::flush_replies() {
   flush_touched();
 }
 
-void SocketRequestManager::touch(Session& session) {
-  if (touched_.empty() || touched_.back().get() != &session) touched_.push_back(session.shared_from_this());
-}
-
-void SocketRequestManager::flush_touched() {
-  // one write per connection
-  for (const auto& s : touched_) s->flush_writes();
-  touched_.clear();
-}
-
 void SocketRequestManager::deliver(RequestId id, const Outcome& outcome) try {
   const Pending* entry = requests_.find(id);
   if (!entry) return;  // its client is gone
   const Pending pending = *entry;
   requests_.erase(id);  // first: the reply may close the connection, which erases its entries
   Session& session = *pending.session;
-  // held in touched_ until its write starts
-  touch(session);
 
   std::string_view status = options_.success_word;
   if (outcome.status == Status::failed) status = k_failed;

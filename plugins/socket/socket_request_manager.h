@@ -14,10 +14,11 @@
 // "let_run": what becomes of the async requests of a client that leaves, or ends its
 // sending side).
 //
-// Built on the transport kit (simgate/kit/tcp_server.h): the shared options, the listener
-// (100 ms back-off after accept() fails; a connection over max_connections is told why in
-// one line, `- FAILED "too many connections (max_connections 1024)"`, then closed) and the
-// I/O thread.
+// Built on the transport kit: the shared options, the listener (100 ms back-off after
+// accept() fails; a connection over max_connections is told why in one line,
+// `- FAILED "too many connections (max_connections 1024)"`, then closed) and the I/O thread
+// (simgate/kit/tcp_server.h); the connections (simgate/kit/line_connection.h: framing,
+// limits, coalesced writes, direct reads). This file is the protocol.
 //
 // Life cycle: the constructor validates the options and binds the listening socket (a
 // port in use fails here, with a clear message); start() launches the I/O thread;
@@ -26,8 +27,8 @@
 //
 // Threads: one I/O thread runs the io_context (polling a little before it sleeps while
 // events come close together: simgate/kit/idle_spin.h, reading a lone client's socket
-// itself while it polls: direct_); it owns the acceptor, every Session and the request
-// table, so none of them needs a lock.
+// itself while it polls: kit::LineServer); it owns the acceptor, every Session and the
+// request table, so none of them needs a lock.
 //
 // The requests found in one read go to the core together (run_or_submit). When the
 // simulation lock is free, the I/O thread runs them itself: their outcomes come back to
@@ -41,15 +42,10 @@
 #ifndef SIMGATE_PLUGINS_SOCKET_SOCKET_REQUEST_MANAGER_H_
 #define SIMGATE_PLUGINS_SOCKET_SOCKET_REQUEST_MANAGER_H_
 
-#include <atomic>
-#include <chrono>
 #include <cstdint>
 #include <memory>
-#include <mutex>
 #include <string>
-#include <thread>
 #include <unordered_map>
-#include <unordered_set>
 #include <utility>
 #include <vector>
 
@@ -58,11 +54,10 @@
 
 #include "params_parser.h"
 #include "session.h"
-#include "simgate/kit/idle_spin.h"
-#include "simgate/kit/tcp_server.h"
-#include "simgate/kit/read_split.h"
-#include "simgate/kit/request_slots.h"
 #include "simgate/core/request_manager.h"
+#include "simgate/kit/line_connection.h"
+#include "simgate/kit/request_slots.h"
+#include "simgate/kit/tcp_server.h"
 
 namespace simgate::socket {
 
@@ -75,7 +70,7 @@ struct SocketOptions {
   static SocketOptions parse(const json& options);
 };
 
-class SocketRequestManager : public RequestManager, private SessionHost {
+class SocketRequestManager : public RequestManager, private kit::LineServer {
  public:
   explicit SocketRequestManager(const json& options);
   ~SocketRequestManager() override;
@@ -85,7 +80,7 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   void start() override;
   void stop() override;
   std::vector<std::string> endpoints() const override;
-  std::size_t client_count() const override { return client_count_.load(std::memory_order_relaxed); }
+  std::size_t client_count() const override { return connection_count(); }
 
   // The bound TCP port (useful with port 0).
   std::uint16_t port() const { return listener_.port(); }
@@ -94,15 +89,12 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   void on_service_completion(RequestId id, Outcome&& outcome) override;
 
  private:
-  // SessionHost (I/O thread)
-  void on_line(const std::shared_ptr<Session>& session, std::string_view line) override;
-  void on_oversized_line(const std::shared_ptr<Session>& session, std::string_view prefix) override;
-  void on_input_ended(const std::shared_ptr<Session>& session) override;
-  void on_lines_done(const std::shared_ptr<Session>& session, bool read_finished) override;
-  void write_replies() override;
-  bool alone(const Session& session) override { return read_split_.alone(&session); }
-  bool watch(Session& session) override;
-  void on_session_closed(const std::shared_ptr<Session>& session) override;
+  // kit::LineHost: the protocol (I/O thread)
+  void on_line(kit::LineConnection& connection, std::string_view line) override;
+  void on_oversized_line(kit::LineConnection& connection, std::string_view prefix, std::size_t bytes) override;
+  void on_lines_done(kit::LineConnection& connection, bool read_finished) override;
+  void on_input_ended(kit::LineConnection& connection) override;
+  void on_closed(kit::LineConnection& connection) override;
 
   // An error reply waiting for the outcomes of the connection's earlier requests.
   struct DeferredReply {
@@ -110,7 +102,7 @@ class SocketRequestManager : public RequestManager, private SessionHost {
     std::string line;                // the formatted reply
   };
   // Hands the calls gathered from the current read to the core (run_or_submit); their
-  // replies are queued on their connections (touched_).
+  // replies are queued on their connections.
   void run_calls();
   // run_calls(), then writes the replies (flush_touched); called half-way through a read
   // and before anything that must follow the read's calls.
@@ -118,11 +110,6 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   // I/O thread, woken by the core: delivers the outcomes the simulation thread produced,
   // then starts one write per connection.
   void flush_replies();
-  // I/O thread: remembers a connection with replies queued (and keeps it alive) until
-  // flush_touched().
-  void touch(Session& session);
-  // I/O thread: starts one write on every connection in touched_.
-  void flush_touched();
 
   explicit SocketRequestManager(SocketOptions options);
   // A new connection (the listener keeps the count under max_connections).
@@ -134,11 +121,11 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   // throws: a failure is logged.
   void deliver(RequestId id, const Outcome& outcome);
   // Answers FAILED `message` after the connection's earlier requests have been answered.
-  void fail_in_order(const std::shared_ptr<Session>& session, std::string_view id, std::string message);
+  void fail_in_order(Session& session, std::string_view id, std::string message);
   void close_all();
 
   // A request sent to the core and not yet answered. Entries of a connection are erased
-  // when it closes (on_session_closed), so the session pointer is valid while its entry is.
+  // when it closes (on_closed), so the session pointer is valid while its entry is.
   struct Pending {
     Session* session = nullptr;      // the connection that asked
     std::size_t client_id_hash = 0;  // finds the request in the session's pending table
@@ -148,15 +135,11 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   boost::asio::io_context io_;   // runs every handler, on the I/O thread
   kit::TcpListener listener_;    // the listening socket, bound in the constructor
   kit::IoThread io_thread_;      // runs io_
-  SessionLimits limits_;         // per-connection limits, from options_
+  kit::LineLimits limits_;       // per-connection limits, from options_
   bool stopping_ = false;                    // close_all() runs: closed sessions cancel nothing (I/O thread)
   std::uint64_t next_session_ = 1;           // numbers sessions in logs
-  std::unordered_set<std::shared_ptr<Session>> sessions_;  // open connections (I/O thread)
-  std::atomic<std::size_t> client_count_{0};  // sessions_.size(), for any thread
   kit::RequestSlots<Pending> requests_;           // unanswered requests, by the ids it gives them (I/O thread)
   std::string scratch_;                      // reply formatting buffer (I/O thread)
-  kit::ReadSplit read_split_;                     // runs a lone client's large reads in halves (I/O thread)
-  kit::DirectReads<Session> direct_;              // the lone client read without the event loop (I/O thread)
   // calls of the current read, not yet handed to the core: the first batch_count_ of batch_;
   // the objects are reused from read to read, at most k_kept_calls of them kept (I/O thread)
   static constexpr std::size_t k_kept_calls = 1024;
@@ -167,7 +150,6 @@ class SocketRequestManager : public RequestManager, private SessionHost {
   // error replies travelling through the core behind earlier requests, by the
   // new_request_id() their answer_in_order() carries (I/O thread)
   std::unordered_map<RequestId, DeferredReply> deferred_replies_;
-  std::vector<std::shared_ptr<Session>> touched_;  // connections with replies queued, not yet written (I/O thread)
 };
 
 }  // namespace simgate::socket

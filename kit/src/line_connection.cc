@@ -1,0 +1,316 @@
+#include "simgate/kit/line_connection.h"
+
+#include <algorithm>
+#include <exception>
+
+#include <boost/asio/write.hpp>
+
+#include "simgate/core/log.h"
+#include "simgate/kit/tcp_server.h"
+
+namespace simgate::kit {
+
+namespace asio = boost::asio;
+using boost::system::error_code;
+
+namespace {
+// How much of an oversized line the host sees (enough for the client's id).
+constexpr std::size_t k_oversized_prefix = 1024;
+
+bool would_block(const error_code& ec) { return ec == asio::error::would_block || ec == asio::error::try_again; }
+}  // namespace
+
+// ---- LineConnection
+
+LineConnection::LineConnection(asio::ip::tcp::socket socket, LineHost& host, LineLimits limits, std::string_view who,
+                               std::uint64_t number)
+    : socket_(std::move(socket)), host_(host), limits_(limits), who_(who) {
+  error_code ec;
+  const auto peer = socket_.remote_endpoint(ec);
+  label_ = "client #" + std::to_string(number);
+  if (!ec) label_ += " (" + to_string(peer) + ")";
+  socket_.set_option(asio::ip::tcp::no_delay(true), ec);  // replies are small: no Nagle delay
+  socket_.non_blocking(true, ec);  // reads on and writes go straight to the socket while it takes them
+}
+
+void LineConnection::start() { read_more(); }
+
+bool LineConnection::paused() const {
+  return (limits_.pause_at_unanswered > 0 && unanswered_ >= limits_.pause_at_unanswered) ||
+         (limits_.pause_at_unsent_bytes > 0 && outbox_.size() + in_flight_.size() > limits_.pause_at_unsent_bytes);
+}
+
+void LineConnection::read_more() {
+  if (closed_ || reading_ || eof_ || paused()) return;  // paused: backpressure instead of queues
+  reading_ = true;
+  if (host_.watch(*this)) return;  // the host's polling thread reads the socket (read_now)
+  read_async();
+}
+
+void LineConnection::read_async() {
+  if (closed_) return;
+  socket_.async_read_some(asio::buffer(read_buffer_), [self = shared_from_this()](const error_code& ec, std::size_t n) {
+    self->on_read(ec, n);
+  });
+}
+
+bool LineConnection::read_now() {
+  if (closed_) return false;
+  error_code ec;
+  const std::size_t n = socket_.read_some(asio::buffer(read_buffer_), ec);
+  if (would_block(ec)) return false;
+  on_read(ec, n);
+  return true;
+}
+
+void LineConnection::on_read(const error_code& ec, std::size_t n) {
+  // reading_ stays set until this read's lines are handled: a reply sent meanwhile (an
+  // error answered in order, a half read run early) must not start the next read, whose
+  // bytes would land in read_buffer_ under the lines still being parsed
+  try {
+    handle_read(ec, n);
+    // a large read of a client pipelining alone: if it has sent more already, this read's
+    // replies go out with the next read's (would_block when nothing waits); a short read (a
+    // client waiting for its answer) is answered at once
+    for (int reads = 1; reads < k_reads_in_a_row && n >= ReadSplit::k_min_bytes; ++reads) {
+      if (closed_ || eof_ || paused() || !host_.alone(*this)) break;
+      error_code again;
+      n = socket_.read_some(asio::buffer(read_buffer_), again);
+      if (would_block(again)) break;
+      handle_read(again, n);
+    }
+    host_.write_replies();
+  } catch (const std::exception& e) {
+    // nothing escapes a handler; the server keeps serving everyone else
+    log::error(who_, ": ", label_, ": ", e.what());
+    reading_ = false;
+    close(std::string("internal error: ") + e.what());
+    return;
+  }
+  reading_ = false;
+  read_more();
+}
+
+void LineConnection::handle_read(const error_code& ec, std::size_t n) {
+  if (closed_) return;
+  if (ec == asio::error::eof) {
+    // the client finished sending: answer what it asked, then close
+    if (!partial_.empty() && !discarding_) {
+      std::string last = std::move(partial_);
+      partial_.clear();
+      host_.on_line(*this, last);
+      host_.on_lines_done(*this, /*read_finished=*/true);
+    }
+    eof_ = true;
+    host_.on_input_ended(*this);
+    maybe_finish();
+    return;
+  }
+  if (ec) {
+    close(ec.message());
+    return;
+  }
+  consume(std::string_view(read_buffer_.data(), n));
+  if (!closed_) host_.on_lines_done(*this, /*read_finished=*/true);
+}
+
+void LineConnection::consume(std::string_view data) {
+  // a large read is offered to the host in two halves (LineHost::on_lines_done)
+  std::size_t half_left = data.size() >= ReadSplit::k_min_bytes ? data.size() / 2 : 0;
+  while (!data.empty() && !closed_) {
+    if (half_left && data.size() <= half_left) {
+      half_left = 0;
+      host_.on_lines_done(*this, /*read_finished=*/false);
+      // its replies may have closed the connection (the client does not read them): the
+      // rest of the read is dropped, not taken as requests of a closed connection
+      if (closed_) return;
+    }
+    const std::size_t nl = data.find('\n');
+    if (discarding_) {
+      // the tail of an oversized line: skip to its end
+      if (nl == std::string_view::npos) return;
+      discarding_ = false;
+      data.remove_prefix(nl + 1);
+      continue;
+    }
+    if (nl == std::string_view::npos) {
+      // an unfinished line: keep it, unless it is already too long
+      if (partial_.size() + data.size() > limits_.max_message_bytes) {
+        oversized(data, partial_.size() + data.size());
+        discarding_ = true;
+      } else {
+        partial_.append(data);
+      }
+      return;
+    }
+    const std::string_view piece = data.substr(0, nl);
+    data.remove_prefix(nl + 1);
+    if (partial_.size() + piece.size() > limits_.max_message_bytes) {
+      oversized(piece, partial_.size() + piece.size());
+    } else if (partial_.empty()) {
+      host_.on_line(*this, piece);  // fast path: the whole line is in this read
+    } else {
+      partial_.append(piece);
+      std::string line = std::move(partial_);
+      partial_.clear();
+      host_.on_line(*this, line);
+    }
+  }
+}
+
+void LineConnection::oversized(std::string_view start, std::size_t bytes) {
+  // the host sees the line's first KiB; what was kept of it goes back to the allocator
+  std::string prefix = std::move(partial_);
+  partial_ = std::string();
+  if (prefix.size() < k_oversized_prefix)
+    prefix.append(start.substr(0, std::min(start.size(), k_oversized_prefix - prefix.size())));
+  else
+    prefix.resize(k_oversized_prefix);
+  host_.on_oversized_line(*this, prefix, bytes);
+}
+
+bool LineConnection::room_for_reply() {
+  if (closed_) return false;
+  if (outbox_.size() + in_flight_.size() <= limits_.max_unsent_bytes) return true;
+  // the client does not read its replies: it may not grow our memory
+  log::warning(who_, ": ", label_, " disconnected: more than ", limits_.max_unsent_bytes,
+               " bytes of replies unread (", limits_.unsent_bytes_key, ")");
+  close("too many unread replies");
+  return false;
+}
+
+void LineConnection::queued() {
+  if (outbox_.size() >= k_coalesce_bytes)
+    flush_writes();  // a large burst goes out as it grows
+  else
+    host_.touch(*this);
+}
+
+void LineConnection::flush_writes() {
+  if (closed_ || writing_) return;
+  if (outbox_.empty()) {
+    maybe_finish();
+    return;
+  }
+  // straight to the socket while it takes everything (the usual case); the rest, if any,
+  // through an async write
+  error_code ec;
+  std::size_t n = socket_.write_some(asio::buffer(outbox_), ec);
+  if (would_block(ec)) {
+    n = 0;
+    ec = {};
+  }
+  if (ec) {
+    close(ec.message());
+    return;
+  }
+  if (n == outbox_.size()) {
+    outbox_.clear();
+    after_write();
+    return;
+  }
+  outbox_.erase(0, n);
+  start_write();
+}
+
+void LineConnection::start_write() {
+  // everything queued goes out in one write
+  in_flight_.swap(outbox_);
+  outbox_.clear();
+  writing_ = true;
+  asio::async_write(socket_, asio::buffer(in_flight_), [self = shared_from_this()](const error_code& ec, std::size_t) {
+    self->writing_ = false;
+    self->in_flight_.clear();
+    if (self->closed_) return;
+    if (ec) {
+      self->close(ec.message());
+      return;
+    }
+    if (!self->outbox_.empty())
+      self->start_write();
+    else
+      self->after_write();
+  });
+}
+
+void LineConnection::after_write() {
+  maybe_finish();
+  read_more();  // reading paused on unsent bytes resumes
+}
+
+void LineConnection::replied() {
+  if (unanswered_ > 0) --unanswered_;
+  read_more();  // reading paused on unanswered requests resumes
+  maybe_finish();
+}
+
+void LineConnection::maybe_finish() {
+  if (eof_ && !closed_ && unanswered_ == 0 && !writing_ && outbox_.empty()) close("end of input");
+}
+
+void LineConnection::close(std::string_view reason) {
+  if (closed_) return;
+  closed_ = true;
+  log::debug(who_, ": ", label_, " closed: ", reason);
+  error_code ec;
+  socket_.shutdown(asio::ip::tcp::socket::shutdown_both, ec);
+  socket_.close(ec);
+  outbox_.clear();
+  partial_.clear();
+  host_.on_closed(*this);
+}
+
+// ---- LineServer
+
+void LineServer::add(const std::shared_ptr<LineConnection>& connection) {
+  connections_.insert(connection);
+  count_.store(connections_.size(), std::memory_order_relaxed);
+  log::debug(who_, ": ", connection->label(), " connected");
+  connection->start();
+}
+
+void LineServer::forget(LineConnection& connection) {
+  direct_.forget(connection);
+  connections_.erase(connection.shared_from_this());
+  count_.store(connections_.size(), std::memory_order_relaxed);
+}
+
+void LineServer::close_all() {
+  auto connections = std::move(connections_);
+  connections_.clear();
+  count_.store(0, std::memory_order_relaxed);
+  for (const auto& c : connections) c->close("server stopping");
+  // nothing of a connection outlives this: the transport's io_context goes next
+  touched_.clear();
+  direct_ = DirectReads<LineConnection>{};
+}
+
+bool LineServer::watch(LineConnection& connection) {
+  // only while the I/O thread polls (it never does with io_spin_us 0), for a client
+  // sending alone: others are served by the event loop between direct reads
+  if (spin_.count() <= 0 || !read_split_.alone(&connection)) return false;
+  direct_.watch(connection.shared_from_this());
+  return true;
+}
+
+void LineServer::touch(LineConnection& connection) {
+  if (connection.touched_) return;
+  connection.touched_ = true;
+  touched_.push_back(connection.shared_from_this());  // kept alive until written
+}
+
+void LineServer::flush_touched() {
+  // one write per connection; a write may touch or close others: take the list first
+  auto touched = std::move(touched_);
+  touched_.clear();
+  for (const auto& c : touched) {
+    c->touched_ = false;
+    c->flush_writes();
+  }
+  if (touched_.empty()) {
+    touched.clear();
+    touched_.swap(touched);  // keep the capacity
+  }
+}
+
+}  // namespace simgate::kit
