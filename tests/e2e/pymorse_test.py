@@ -6,7 +6,9 @@ the bound port from --endpoints-file, and drives the robot the way MORSE users d
 connect (`simulation details`), sync calls, `goto` futures that complete when the robot
 really arrives (pose checked), cancel -> preempted and the robot stops, a second goto
 preempts the first, wrong arity -> TypeError, `time.sleep` (two scripts sleeping together, a
-sleep left by a closed connection). Every wait is bounded.
+sleep left by a closed connection). A second gateway splits the components between two
+socket transports: pymorse sees and acts on only those its transport serves (issue #17,
+item 6). Every wait is bounded.
 """
 import argparse
 import json
@@ -33,13 +35,15 @@ TIMEOUT = 60  # seconds, for any single wait
 class Gateway:
     """A `simgate run` child process on an ephemeral port."""
 
-    def __init__(self, simgate, source_dir, workdir):
+    def __init__(self, simgate, source_dir, workdir, adapt=None):
         with open(os.path.join(source_dir, "config", "demo.json")) as f:
             config = json.load(f)
         config["scene"]["mjcf"] = os.path.join(source_dir, "config", "scenes", "demo.xml")
         config["scene"]["realtime_factor"] = 2.0
         config["transports"]["socket"]["options"]["port"] = 0
         config["log_level"] = "warning"
+        if adapt:
+            adapt(config)
         self.config_path = os.path.join(workdir, "e2e.json")
         with open(self.config_path, "w") as f:
             json.dump(config, f)
@@ -54,8 +58,9 @@ class Gateway:
                 raise RuntimeError("gateway did not start:\n" + self.output())
             time.sleep(0.01)  # polling for a file the child writes; bounded by the deadline
         with open(self.endpoints_path) as f:
-            endpoint = json.load(f)["socket"][0]  # tcp://127.0.0.1:PORT
-        self.port = int(endpoint.rsplit(":", 1)[1])
+            endpoints = json.load(f)  # {"socket": ["tcp://127.0.0.1:PORT"], ...}
+        self.ports = {name: int(e[0].rsplit(":", 1)[1]) for name, e in endpoints.items()}
+        self.port = self.ports["socket"]
 
     def output(self):
         self.log.flush()
@@ -214,6 +219,63 @@ class PymorseTest(unittest.TestCase):
             reply = read_line(gone)
             self.assertTrue(reply.startswith(b"2 SUCCESS"), reply)  # the sleep has started
         self.simu.sleep(0.2)
+
+
+def split_services(config):
+    """The demo with a second socket transport, `private`, that alone serves robot.waypoint
+    and robot.teleport: pymorse connects to `socket`, which serves the rest."""
+    config["transports"]["private"] = {"plugin": "socket", "options": {"port": 0}}
+    config["services"] = {"default": ["socket"], "robot.waypoint": ["private"],
+                          "robot.teleport": ["private"], "simulation": ["socket", "private"]}
+
+
+class PymorseMappingBoundaryTest(unittest.TestCase):
+    """Issue #17, item 6: the mapping is a boundary. pymorse still connects, sees only what
+    its transport serves, and cannot act on the rest, which the other transport's clients
+    still can."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.workdir = tempfile.TemporaryDirectory(prefix="simgate-e2e-")
+        cls.gateway = Gateway(ARGS.simgate, ARGS.source_dir, cls.workdir.name, split_services)
+        cls.simu = pymorse.Morse(host="127.0.0.1", port=cls.gateway.port)
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.simu.close(wait_publishers=False)
+        code = cls.gateway.stop()
+        cls.workdir.cleanup()
+        if code != 0:
+            raise RuntimeError("gateway exited with %d" % code)
+
+    def test_connect_builds_proxies_of_served_components_only(self):
+        # a pymorse Robot is a dict of its components and attributes (its __getattr__ raises
+        # KeyError, not AttributeError)
+        self.assertIn("motion", self.simu.robot)
+        self.assertIn("pose", self.simu.robot)
+        self.assertNotIn("waypoint", self.simu.robot)
+        self.assertNotIn("teleport", self.simu.robot)
+        self.assertTrue(hasattr(self.simu.human, "move"))
+        self.simu.robot.motion.set_speed(0.0, 0.0).result(timeout=TIMEOUT)
+
+    def test_an_unserved_component_cannot_be_deactivated_and_looks_missing(self):
+        with self.assertRaises(MorseServiceFailed) as unserved:
+            self.simu.rpc("simulation", "deactivate", "robot.waypoint")
+        self.assertIn("Component 'robot.waypoint' not found. Can't deactivate", str(unserved.exception))
+        with self.assertRaises(MorseServiceFailed) as missing:
+            self.simu.rpc("simulation", "deactivate", "robot.nowhere")
+        self.assertEqual(str(unserved.exception).replace("robot.waypoint", "X"),
+                         str(missing.exception).replace("robot.nowhere", "X"))
+        # the transport that serves it still can
+        with socket.create_connection(("127.0.0.1", self.gateway.ports["private"]), timeout=TIMEOUT) as private:
+            private.sendall(b'1 simulation deactivate ["robot.waypoint"]\n')
+            self.assertEqual(read_line(private), b"1 SUCCESS")
+            private.sendall(b'2 simulation activate ["robot.waypoint"]\n')
+            self.assertEqual(read_line(private), b"2 SUCCESS")
+
+    def test_list_services_shows_served_components_only(self):
+        components = {s["component"] for s in self.simu.rpc("simulation", "list_services")}
+        self.assertEqual(components, {"robot.motion", "robot.pose", "human", "simulation", "time"})
 
 
 def main():
