@@ -3,6 +3,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <set>
 #include <thread>
 
 #include "simgate/core/log.h"
@@ -13,6 +14,7 @@ namespace simgate::gateway {
 namespace {
 
 using ::testing::HasSubstr;
+using ::testing::Not;
 using ::testing::StartsWith;
 using testing::LineClient;
 using testing::payload;
@@ -94,10 +96,120 @@ TEST_F(GatewayIntegrationTest, ComponentNotMappedToATransportIsUnreachableThroug
   EXPECT_THAT(pub.request("2", "robot.teleport translate [1.0]"), HasSubstr("has not been registered"));
   EXPECT_EQ(priv.request("3", "robot.teleport translate [1.0]"), "3 SUCCESS");
   EXPECT_THAT(priv.request("4", "simulation list_robots"), StartsWith("4 FAILED"));
-  // details says which transport serves it
+  // details describes only what the transport serves (issue #17, item 6): not even that
+  // robot.teleport exists elsewhere
   json details = payload(pub.request("5", "simulation details"));
-  EXPECT_EQ(details["robots"][0]["components"]["robot.teleport"]["service_interfaces"], json({"private"}));
+  EXPECT_FALSE(details["robots"][0]["components"].contains("robot.teleport"));
+  EXPECT_EQ(details["robots"][0]["components"]["robot.motion"]["service_interfaces"], json({"socket"}));
 }
+
+// ---- the mapping is a boundary (issue #17, item 6) ----
+#ifdef SIMGATE_TEST_WITH_JSONRPC
+
+// The demo on a socket and a JSON-RPC transport, split: the socket transport serves the
+// ground robot and its components; JSON-RPC serves the human; both serve robot.pose,
+// `simulation` and `time`.
+json split_config() {
+  json config = testing::demo_config(4.0);
+  config["transports"]["jsonrpc"] = {{"plugin", "jsonrpc"}, {"options", {{"port", 0}}}};
+  config["services"] = {{"default", json::array({"socket"})},
+                        {"human", json::array({"jsonrpc"})},
+                        {"robot.pose", json::array({"socket", "jsonrpc"})},
+                        {"simulation", json::array({"socket", "jsonrpc"})},
+                        {"time", json::array({"socket", "jsonrpc"})}};
+  return config;
+}
+
+// One JSON-RPC call on `c` (one at a time: the next line is its response); null on timeout.
+json rpc(LineClient& c, int id, const std::string& method, json params = nullptr) {
+  json request{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}};
+  if (!params.is_null()) request["params"] = std::move(params);
+  c.send(request.dump() + "\n");
+  auto line = c.read_line();
+  return line ? json::parse(*line, nullptr, false) : json();
+}
+
+// The names of the components a list of service descriptors covers.
+std::set<std::string> components_of(const json& descriptors, const char* key = "component") {
+  std::set<std::string> out;
+  for (const auto& d : descriptors) out.insert(d.value(key, std::string()));
+  return out;
+}
+
+// `error` with every occurrence of `name` replaced by "NAME" (to compare two refusals).
+json with_name_hidden(json error, const std::string& name) {
+  std::string text = error.dump();
+  for (auto at = text.find(name); at != std::string::npos; at = text.find(name, at + 4)) text.replace(at, name.size(), "NAME");
+  return json::parse(text);
+}
+
+TEST_F(GatewayIntegrationTest, AJsonRpcClientCannotDeactivateASocketOnlyComponentNorFreezeItsGoto) {
+  start(split_config());
+  LineClient socket(port("socket")), jsonrpc(port("jsonrpc"));
+  socket.send("g robot.waypoint goto [1.5, 0.0, 0.0, 0.3]\n");
+  EXPECT_EQ(socket.request("s", "robot.waypoint get_status"), "s SUCCESS \"Transit\"");
+  // refused exactly as a component that does not exist: nothing shows through
+  json unserved = rpc(jsonrpc, 1, "simulation.deactivate", {"robot.waypoint"});
+  json missing = rpc(jsonrpc, 2, "simulation.deactivate", {"robot.nowhere"});
+  ASSERT_TRUE(unserved.contains("error")) << unserved;
+  EXPECT_EQ(unserved["error"]["message"], "Component 'robot.waypoint' not found. Can't deactivate");
+  EXPECT_EQ(with_name_hidden(unserved["error"], "robot.waypoint"), with_name_hidden(missing["error"], "robot.nowhere"));
+  // the socket client's goto goes on and arrives
+  EXPECT_EQ(socket.wait_for("g", std::chrono::seconds(60)), "g SUCCESS \"Arrived\"");
+  // what JSON-RPC serves it may act on; the socket client still acts on its own
+  EXPECT_EQ(rpc(jsonrpc, 3, "simulation.deactivate", {"human"})["result"], nullptr);
+  EXPECT_EQ(rpc(jsonrpc, 4, "simulation.activate", {"human"})["result"], nullptr);
+  EXPECT_EQ(socket.request("d", "simulation deactivate [\"robot.waypoint\"]"), "d SUCCESS");
+  EXPECT_EQ(socket.request("a", "simulation activate [\"robot.waypoint\"]"), "a SUCCESS");
+  // and the other way round: the socket client cannot touch the JSON-RPC-only human
+  EXPECT_EQ(socket.request("h", "simulation deactivate [\"human\"]"),
+            "h FAILED \"Component 'human' not found. Can't deactivate\"");
+}
+
+TEST_F(GatewayIntegrationTest, IntrospectionShowsEachTransportOnlyWhatItServes) {
+  start(split_config());
+  LineClient socket(port("socket")), jsonrpc(port("jsonrpc"));
+  const std::set<std::string> on_socket{"robot", "robot.motion", "robot.pose", "robot.teleport", "robot.waypoint",
+                                        "simulation", "time"};
+  const std::set<std::string> on_jsonrpc{"human", "robot.pose", "simulation", "time"};
+
+  // list_robots: a robot is there when it or one of its components is served
+  EXPECT_EQ(socket.request("1", "simulation list_robots"), "1 SUCCESS [\"robot\"]");
+  EXPECT_EQ(rpc(jsonrpc, 1, "simulation.list_robots")["result"], json({"robot", "human"}));
+
+  // list_services and the transport's own introspection agree
+  std::set<std::string> socket_listed = components_of(payload(socket.request("2", "simulation list_services")));
+  socket_listed.insert("robot");  // a ground_robot has no services of its own
+  EXPECT_EQ(socket_listed, on_socket);
+  std::set<std::string> jsonrpc_listed = components_of(rpc(jsonrpc, 2, "simulation.list_services")["result"]);
+  EXPECT_EQ(jsonrpc_listed, on_jsonrpc);
+  EXPECT_EQ(components_of(rpc(jsonrpc, 3, "rpc.discover")["result"]["methods"], "x-component"), on_jsonrpc);
+
+  // details: robots with the served components only
+  json socket_details = payload(socket.request("3", "simulation details"));
+  ASSERT_EQ(socket_details["robots"].size(), 1u);
+  EXPECT_EQ(socket_details["robots"][0]["components"].size(), 4u);
+  json jsonrpc_details = rpc(jsonrpc, 4, "simulation.details")["result"];
+  ASSERT_EQ(jsonrpc_details["robots"].size(), 2u);
+  json robot = jsonrpc_details["robots"][0];
+  EXPECT_EQ(robot["name"], "robot");
+  EXPECT_FALSE(robot.contains("services"));
+  EXPECT_EQ(robot["components"].size(), 1u);
+  EXPECT_EQ(robot["components"]["robot.pose"]["service_interfaces"], json({"jsonrpc", "socket"}));  // in name order
+  EXPECT_EQ(jsonrpc_details["robots"][1]["services"], json({"move"}));
+
+  // `simgate list` through each transport
+  testing::TempDir dir;
+  auto [scode, sout] = testing::run_simgate({"list", "--port", std::to_string(port("socket"))}, dir);
+  EXPECT_EQ(scode, 0) << sout;
+  EXPECT_THAT(sout, HasSubstr("robot.waypoint goto("));
+  EXPECT_THAT(sout, Not(HasSubstr("human move")));
+  auto [jcode, jout] = testing::run_simgate({"list", "--transport", "jsonrpc", "--port", std::to_string(port("jsonrpc"))}, dir);
+  EXPECT_EQ(jcode, 0) << jout;
+  EXPECT_THAT(jout, HasSubstr("human move("));
+  EXPECT_THAT(jout, Not(HasSubstr("robot.waypoint")));
+}
+#endif
 
 TEST_F(GatewayIntegrationTest, BadInputGetsAnErrorAndEveryoneKeepsBeingServed) {
   start(testing::demo_config());
