@@ -77,11 +77,15 @@ void print_banner(Gateway& g) {
                                            : "real time x" + std::to_string(sim.realtime_factor()).substr(0, 4))
             << "\n";
   std::optional<std::pair<std::string, std::string>> socket_address;
+  std::string socket_name;  // the transport socket_address belongs to
   for (const auto& [name, endpoints] : g.endpoints()) {
     for (const auto& e : endpoints) {
       std::cout << name << ": " << e << "\n";
       auto t = std::find_if(d.transports.begin(), d.transports.end(), [&](const auto& c) { return c.name == name; });
-      if (!socket_address && t != d.transports.end() && t->plugin == "socket") socket_address = tcp_host_port(e);
+      if (!socket_address && t != d.transports.end() && t->plugin == "socket") {
+        socket_address = tcp_host_port(e);
+        socket_name = name;
+      }
     }
     const auto& served = g.served().at(name);
     std::string list;
@@ -89,14 +93,13 @@ void print_banner(Gateway& g) {
     std::cout << "  serves: " << (list.empty() ? "(nothing)" : list) << "\n";
   }
   if (socket_address) {
-    // a first command: drive the robot if a motion_vw is reachable, else ask for the robots
+    // a first command: drive the robot if a motion_vw is reachable through that socket
+    // transport (another transport's component is not), else ask for the robots
     std::string first = "1 simulation list_robots";
+    const auto& served = g.served().at(socket_name);
     for (const auto& r : d.robots)
       for (const auto& c : r.components) {
-        auto& served = g.served();
-        bool on_socket = false;
-        for (const auto& [name, list] : served)
-          if (std::find(list.begin(), list.end(), c.name) != list.end()) on_socket = true;
+        bool on_socket = std::find(served.begin(), served.end(), c.name) != served.end();
         if (c.type == "motion_vw" && on_socket && first.rfind("1 simulation", 0) == 0)
           first = "1 " + c.name + " set_speed [0.5, 0.2]";
       }

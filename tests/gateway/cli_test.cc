@@ -267,6 +267,26 @@ TEST(GatewayCliTest, RunWritesEndpointsServesAndStopsOnSigterm) {
   EXPECT_FALSE(std::filesystem::exists(endpoints));
 }
 
+TEST(GatewayCliTest, RunSuggestsOnlyACommandTheAdvertisedSocketTransportServes) {
+  // the banner's telnet line names the first socket transport: its first command must be
+  // one that transport serves (the mapping is a boundary, issue #17 item 6), not robot.motion
+  // served by another socket transport only
+  TempDir dir;
+  json c = demo_config();
+  c["transports"]["teleop"] = {{"plugin", "socket"}, {"options", {{"port", 0}}}};
+  c["services"] = {{"default", {"socket"}}, {"robot.motion", {"teleop"}}};
+  std::string config = dir.write("split.json", c.dump());
+  std::string endpoints = dir.file("endpoints.json");
+  Process p({simgate_binary(), "run", config, "--endpoints-file", endpoints}, dir.file(""));
+  json e = json::parse(wait_for_file(endpoints), nullptr, false);
+  ASSERT_TRUE(e.contains("socket") && e.contains("teleop")) << p.err();
+  p.signal(SIGTERM);
+  EXPECT_EQ(p.wait(), 0) << p.err();
+  const std::string socket_port = std::to_string(port_of(e["socket"][0].get<std::string>()));
+  EXPECT_THAT(p.out(), HasSubstr("try: telnet 127.0.0.1 " + socket_port + "   then type: 1 simulation list_robots"));
+  EXPECT_THAT(p.out(), Not(HasSubstr("set_speed")));
+}
+
 TEST(GatewayCliTest, SimulationQuitEndsTheProcessCleanly) {
   TempDir dir;
   std::string config = dir.write("demo.json", demo_config().dump());
