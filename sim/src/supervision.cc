@@ -19,16 +19,17 @@ bool visible(const ComponentEntry& e) { return caller_serves(e.component->name()
 }  // namespace
 
 SupervisionServices::SupervisionServices(Simulation& sim) : Component("simulation"), sim_(sim) {
-  add_service("list_robots", &SupervisionServices::list_robots).doc("Names of the robots");
+  add_service("list_robots", &SupervisionServices::list_robots)
+      .doc("Names of the robots this transport serves (or serves a component of)");
   add_service("details", &SupervisionServices::details)
-      .doc("Robots, their components and services (what pymorse reads at connect)");
+      .doc("Robots with the components this transport serves and their services (what pymorse reads at connect)");
   add_service("list_services", &SupervisionServices::list_services)
-      .doc("Every component's services with their parameters and transports");
+      .doc("The services of every component this transport serves, with their parameters and transports");
   add_service("reset_objects", &SupervisionServices::reset_objects).doc("Restore every object's initial pose (simulated time goes on)");
   add_service("activate", &SupervisionServices::activate, {"component_name"})
-      .doc("Resume a component's default action");
+      .doc("Resume the default action of a component this transport serves");
   add_service("deactivate", &SupervisionServices::deactivate, {"component_name"})
-      .doc("Suspend a component's default action");
+      .doc("Suspend the default action of a component this transport serves");
   add_service("suspend_dynamics", &SupervisionServices::suspend_dynamics).doc("Freeze physics (time goes on)");
   add_service("restore_dynamics", &SupervisionServices::restore_dynamics).doc("Resume physics");
   add_service("get_scene_objects", &SupervisionServices::get_scene_objects)
