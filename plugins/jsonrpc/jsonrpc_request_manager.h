@@ -46,11 +46,11 @@
 #include <boost/asio/ip/tcp.hpp>
 
 #include "protocol.h"
-#include "simgate/kit/idle_spin.h"
-#include "simgate/kit/tcp_server.h"
-#include "simgate/kit/read_split.h"
-#include "simgate/kit/recycling_map.h"
+#include "session.h"
 #include "simgate/core/request_manager.h"
+#include "simgate/kit/line_connection.h"
+#include "simgate/kit/recycling_map.h"
+#include "simgate/kit/tcp_server.h"
 
 namespace simgate::jsonrpc {
 
@@ -65,14 +65,14 @@ struct Options {
   static Options parse(const json& options);
 };
 
-class JsonRpcRequestManager : public RequestManager {
+class JsonRpcRequestManager : public RequestManager, private kit::LineServer {
  public:
   // Parses the options and binds; throws ConfigError or std::runtime_error.
   explicit JsonRpcRequestManager(const json& options);
   ~JsonRpcRequestManager() override;
   // What the constructor checks of `options`, without binding (the plugin's validate).
   static void validate_options(const json& options) { (void)Options::parse(options); }
-  std::size_t client_count() const override { return client_count_.load(std::memory_order_relaxed); }
+  std::size_t client_count() const override { return connection_count(); }
 
   void start() override;
   void stop() override;
@@ -87,8 +87,16 @@ class JsonRpcRequestManager : public RequestManager {
   void on_service_completion(RequestId id, Outcome&& outcome) override;
 
  private:
-  class Session;
   struct Batch;
+
+  explicit JsonRpcRequestManager(Options options);
+
+  // kit::LineHost: the protocol (I/O thread)
+  void on_line(kit::LineConnection& connection, std::string_view line) override;
+  void on_oversized_line(kit::LineConnection& connection, std::string_view prefix, std::size_t bytes) override;
+  void on_lines_done(kit::LineConnection& connection, bool read_finished) override;
+  void on_input_ended(kit::LineConnection& connection) override;
+  void on_closed(kit::LineConnection& connection) override;
 
   // Where the response of one call goes.
   struct ReplyTo {
@@ -124,21 +132,17 @@ class JsonRpcRequestManager : public RequestManager {
   // then one write per connection.
   void drain_completions();
   void finish_call(RequestId id, Outcome&& outcome);
-  void flush_writes();
+  // Queues `response` where `to` says (into its batch, or on its connection); written at the
+  // end of the burst (flush_touched).
   void reply(ReplyTo& to, std::optional<json> response);
-  void session_closed(Session& session);
   void shutdown_io();
-  // I/O thread: true when `session`, about to wait for its next bytes, is to be read by the
-  // polling thread itself (a client sending alone) rather than by an async read.
-  bool watch(Session& session);
 
   Options options_;                                  // as parsed
   boost::asio::io_context io_;                       // all sockets; declared first, destroyed last
   kit::TcpListener listener_;                        // the listening socket, bound in the constructor
   kit::IoThread io_thread_;                          // runs io_
   bool stopping_ = false;                            // shutdown_io() ran (I/O thread)
-  std::unordered_set<std::shared_ptr<Session>> sessions_;  // open connections (I/O thread)
-  std::atomic<std::size_t> client_count_{0};                // sessions_.size(), for any thread
+  std::uint64_t next_session_ = 1;                   // numbers connections in logs (I/O thread)
   static constexpr std::size_t k_spare_nodes = 256;  // table nodes kept for reuse (per manager, per connection)
   kit::RecyclingMap<RequestId, Pending> pending_{k_spare_nodes};  // submitted calls (I/O thread)
   Request request_;                                  // the message being read by the fast path (I/O thread)
@@ -147,10 +151,6 @@ class JsonRpcRequestManager : public RequestManager {
   static constexpr std::size_t k_kept_calls = 1024;
   std::vector<std::pair<RequestId, Call>> to_submit_;
   std::size_t to_submit_count_ = 0;
-  kit::ReadSplit read_split_;  // answers half of a lone client's large read early (I/O thread)
-  kit::DirectReads<Session> direct_;  // the lone client read without the event loop (I/O thread)
-  bool deferring_writes_ = false;                    // replies wait for flush_writes() (I/O thread)
-  std::vector<std::shared_ptr<Session>> dirty_;      // sessions with replies to flush (I/O thread)
   std::string line_;                                 // a response being built (I/O thread; capacity reused)
 };
 

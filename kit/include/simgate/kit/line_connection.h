@@ -41,7 +41,6 @@
 #ifndef SIMGATE_KIT_LINE_CONNECTION_H_
 #define SIMGATE_KIT_LINE_CONNECTION_H_
 
-#include <array>
 #include <atomic>
 #include <chrono>
 #include <cstddef>
@@ -98,6 +97,7 @@ struct LineLimits {
   std::size_t max_unsent_bytes = 8 << 20;     // unsent replies a reply may find before disconnecting
   std::size_t pause_at_unanswered = 0;        // replies owed that pause reading (0: never)
   std::size_t pause_at_unsent_bytes = 0;      // unsent bytes that pause reading (0: never)
+  std::size_t read_bytes = 16384;             // the most one read takes
   const char* message_bytes_key = "max_message_bytes";  // the options' spelling, for messages
   const char* unsent_bytes_key = "max_unsent_bytes";    // the options' spelling, for messages
 };
@@ -184,7 +184,7 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
   LineLimits limits_;                    // from the transport options
   std::string who_;                      // the transport, for logs
   std::string label_;                    // the client, for logs
-  std::array<char, 16384> read_buffer_;  // one read's bytes
+  std::vector<char> read_buffer_;        // one read's bytes (LineLimits::read_bytes)
   std::string partial_;                  // the start of an unfinished line
   bool discarding_ = false;              // skipping the rest of an oversized line
   bool reading_ = false;                 // a read is in flight, or its lines are being handled
