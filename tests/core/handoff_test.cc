@@ -8,6 +8,7 @@
 #include <condition_variable>
 #include <deque>
 #include <functional>
+#include <future>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -68,6 +69,10 @@ class ThreadedManager : public RequestManager {
     });
     std::unique_lock lock(m);
     cv.wait(lock, [&] { return done; });
+  }
+  // Keeps the I/O thread busy until `released` is ready (nothing is delivered meanwhile).
+  void hold_io(std::shared_future<void> released) {
+    post_io([released] { released.wait_for(std::chrono::seconds(10)); });
   }
   // Waits (bounded) until `n` outcomes have been delivered.
   bool wait_for_deliveries(std::size_t n) {
@@ -131,7 +136,12 @@ TEST(HandoffTest, OutcomesOfTheSimulationThreadAreDeliveredOnTheTransportsThread
     ids.push_back(rm.new_request_id());
     rm.submit(ids.back(), rm.echo(i));
   }
-  rm.process();  // this thread plays the simulation thread: one burst of three outcomes
+  // the I/O thread is busy while this thread, playing the simulation thread, produces one
+  // burst of three outcomes: however the threads are scheduled, the burst is one wake
+  std::promise<void> burst_done;
+  rm.hold_io(burst_done.get_future().share());
+  rm.process();
+  burst_done.set_value();
   ASSERT_TRUE(rm.wait_for_deliveries(3));
   const auto delivered = rm.delivered();
   EXPECT_EQ(ids_of(delivered), ids);
