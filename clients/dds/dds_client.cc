@@ -110,6 +110,7 @@ class DdsClient::Impl {
   ClientId client_id_{};                           // our request writer's GUID
   std::string id_hex_;                             // the same, hex
   dds_entity_t publisher_ = 0, subscriber_ = 0;    // in the partition
+  dds_entity_t reply_subscriber_ = 0;              // in "<partition>/<id_hex_>"
   dds_entity_t request_writer_ = 0;                // simgate_Request
   dds_entity_t reply_reader_ = 0;                  // simgate_Reply, filtered on client_id_
   dds_entity_t waitset_ = 0, guard_ = 0;           // the status thread's waitset and its stop guard
@@ -158,7 +159,12 @@ DdsClient::Impl::Impl(DdsClientOptions options) : options_(std::move(options)) {
   client_id_ = dds::to_client_id(guid);
   id_hex_ = dds::to_hex(client_id_);
 
-  // the reply reader: only our instance, and announced so the server knows when it matched
+  // the reply reader: in our own partition, where the server writes our replies with a writer
+  // of ours alone; only our instance; announced so the server knows when it matched
+  dds::QosPtr reply_partition_qos(dds_create_qos());
+  const std::string reply_partition = options_.partition + "/" + id_hex_;
+  dds_qset_partition1(reply_partition_qos.get(), reply_partition.c_str());
+  reply_subscriber_ = check(dds_create_subscriber(pp, reply_partition_qos.get(), nullptr), "reply subscriber");
   dds_entity_t reply_topic =
       check(dds_create_topic(pp, &simgate_Reply_desc, dds::k_reply_topic, nullptr, nullptr), "topic simgate_Reply");
   dds_topic_filter filter{};
@@ -167,9 +173,9 @@ DdsClient::Impl::Impl(DdsClientOptions options) : options_(std::move(options)) {
   filter.arg = client_id_.data();
   check(dds_set_topic_filter_extended(reply_topic, &filter), "reply filter");
   dds::QosPtr reply_qos = dds::make_qos(false, 0, DDS_SECS(1));
-  std::string userdata = "simgate.role=client;simgate.v=1;simgate.id=" + id_hex_;
+  std::string userdata = "simgate.role=client;simgate.v=2;simgate.id=" + id_hex_;
   dds_qset_userdata(reply_qos.get(), userdata.data(), userdata.size());
-  reply_reader_ = check(dds_create_reader(subscriber_, reply_topic, reply_qos.get(), nullptr), "reply reader");
+  reply_reader_ = check(dds_create_reader(reply_subscriber_, reply_topic, reply_qos.get(), nullptr), "reply reader");
 
   // callers wait for replies themselves (one at a time is the reader: see await)
   reader_waitset_ = check(dds_create_waitset(pp), "reply waitset");
@@ -251,6 +257,8 @@ void DdsClient::Impl::take_replies() {
       for (dds_return_t i = 0; i < n; ++i) {
         if (!infos[i].valid_data) continue;
         const auto& reply = *static_cast<const simgate_Reply*>(samples[i]);
+        // a refused duplicate of a seq: not about our call of that seq (we never send one)
+        if (reply.status == simgate_ST_REFUSED) continue;
         auto it = slots_.find(reply.seq);
         if (it == slots_.end()) continue;  // nobody waits any more
         Slot& slot = it->second;

@@ -1,6 +1,7 @@
 #include "dds_request_manager.h"
 
 #include <algorithm>
+#include <array>
 #include <cstring>
 #include <set>
 #include <stdexcept>
@@ -13,14 +14,34 @@ namespace simgate::dds {
 
 namespace {
 
-// Waitset attachment tokens: which entity woke the DDS thread.
-constexpr dds_attach_t k_token_requests = 1;
-constexpr dds_attach_t k_token_guard = 2;
-constexpr dds_attach_t k_token_reply_matched = 3;
-constexpr dds_attach_t k_token_request_matched = 4;
+// Waitset attachment tokens: which entity woke the DDS thread. A client's reply writer is
+// attached with its own (positive) entity handle as token.
+constexpr dds_attach_t k_token_requests = -1;
+constexpr dds_attach_t k_token_guard = -2;
+constexpr dds_attach_t k_token_request_matched = -3;
 
 // How many requests one dds_take returns at most.
 constexpr int k_take_batch = 32;
+
+// A client whose reply writer is full is retried after 5 ms, then 10, 20... up to this.
+constexpr std::chrono::milliseconds k_max_retry_delay{320};
+// At most one "dropped" log line per client per interval (with the count meanwhile).
+constexpr std::chrono::seconds k_drop_log_interval{10};
+// Unknown "component.service" names remembered (as sync) before the cache is trimmed.
+constexpr std::size_t k_max_cached_names = 4096;
+
+// The longest prefix of `text` of at most `max` bytes that does not cut a UTF-8 character.
+std::string_view utf8_prefix(std::string_view text, std::size_t max) {
+  if (text.size() <= max) return text;
+  std::size_t end = max;
+  // back off the continuation bytes (10xxxxxx) of a character that straddles the cut
+  while (end > 0 && (static_cast<unsigned char>(text[end]) & 0xc0) == 0x80) --end;
+  return text.substr(0, end);
+}
+
+bool is_zero(const ClientId& id) {
+  return std::all_of(id.begin(), id.end(), [](std::uint8_t b) { return b == 0; });
+}
 
 std::string dump(const json& value) { return value.dump(-1, ' ', false, json::error_handler_t::replace); }
 
@@ -83,8 +104,6 @@ void DdsRequestManager::create_entities() {
 
   dds_entity_t request_topic =
       check(dds_create_topic(pp, &simgate_Request_desc, k_request_topic, nullptr, nullptr), "topic simgate_Request");
-  dds_entity_t reply_topic =
-      check(dds_create_topic(pp, &simgate_Reply_desc, k_reply_topic, nullptr, nullptr), "topic simgate_Reply");
   dds_entity_t catalog_topic = check(
       dds_create_topic(pp, &simgate_CatalogEntry_desc, k_catalog_topic, nullptr, nullptr), "topic simgate_Catalog");
 
@@ -93,13 +112,16 @@ void DdsRequestManager::create_entities() {
   dds_qset_resource_limits(request_qos.get(), options_.max_samples, DDS_LENGTH_UNLIMITED, DDS_LENGTH_UNLIMITED);
   request_reader_ = check(dds_create_reader(subscriber_, request_topic, request_qos.get(), nullptr), "request reader");
 
-  // replies: reliable, keep-all, volatile; a slow reader may hold the DDS thread 200 ms at most
-  QosPtr reply_qos = make_qos(false, 0, DDS_MSECS(200));
-  dds_qset_resource_limits(reply_qos.get(), options_.max_samples * 4, DDS_LENGTH_UNLIMITED, DDS_LENGTH_UNLIMITED);
-  dds_qset_writer_data_lifecycle(reply_qos.get(), false);
-  std::string userdata = "simgate.role=server;simgate.v=1;simgate.id=" + server_id_;
-  dds_qset_userdata(reply_qos.get(), userdata.data(), userdata.size());
-  reply_writer_ = check(dds_create_writer(publisher_, reply_topic, reply_qos.get(), nullptr), "reply writer");
+  // replies, one writer per client (add_client): reliable, keep-all, volatile, and never
+  // blocking: a reader that stops acknowledging fills its own writer's history (up to
+  // Cyclone's WHC high-water mark), after which writes to it fail at once (TIMEOUT) instead of
+  // holding the DDS thread, and its replies are parked, retried, then dropped
+  reply_topic_ = check(dds_create_topic(pp, &simgate_Reply_desc, k_reply_topic, nullptr, nullptr), "topic simgate_Reply");
+  reply_qos_ = make_qos(false, 0, 0);
+  dds_qset_resource_limits(reply_qos_.get(), options_.max_samples * 4, DDS_LENGTH_UNLIMITED, DDS_LENGTH_UNLIMITED);
+  dds_qset_writer_data_lifecycle(reply_qos_.get(), false);
+  std::string userdata = "simgate.role=server;simgate.v=2;simgate.id=" + server_id_;
+  dds_qset_userdata(reply_qos_.get(), userdata.data(), userdata.size());
 
   // catalog: the last sample of each component, kept for late joiners
   QosPtr catalog_qos = make_qos(true, 1, DDS_SECS(1));
@@ -109,11 +131,9 @@ void DdsRequestManager::create_entities() {
   waitset_ = check(dds_create_waitset(pp), "waitset");
   guard_ = check(dds_create_guardcondition(pp), "guard condition");
   read_condition_ = check(dds_create_readcondition(request_reader_, DDS_ANY_STATE), "read condition");
-  dds_set_status_mask(reply_writer_, DDS_PUBLICATION_MATCHED_STATUS);
   dds_set_status_mask(request_reader_, DDS_SUBSCRIPTION_MATCHED_STATUS);
   check(dds_waitset_attach(waitset_, read_condition_, k_token_requests), "waitset attachment");
   check(dds_waitset_attach(waitset_, guard_, k_token_guard), "waitset attachment");
-  check(dds_waitset_attach(waitset_, reply_writer_, k_token_reply_matched), "waitset attachment");
   check(dds_waitset_attach(waitset_, request_reader_, k_token_request_matched), "waitset attachment");
 }
 
@@ -175,28 +195,43 @@ void DdsRequestManager::run() {
   } catch (const std::exception& e) {
     log::error("DDS transport: catalog not published: ", e.what());
   }
-  dds_attach_t triggered[8];
+  // clients that were matched before the thread started
+  sweep_clients();
+  constexpr dds_return_t k_slots = 8;
+  dds_attach_t triggered[k_slots];
+  auto next_parked = std::chrono::steady_clock::time_point::max();
   while (!stopping_) {
-    // wait for work; wake now and then while replies are parked
-    dds_duration_t timeout = parked_count_ > 0 ? DDS_MSECS(50) : DDS_SECS(1);
-    dds_return_t n = dds_waitset_wait(waitset_, triggered, 8, timeout);
+    // wait for work, or until a parked reply needs attention
+    dds_duration_t timeout = DDS_SECS(1);
+    if (parked_count_ > 0) {
+      auto left = next_parked - std::chrono::steady_clock::now();
+      timeout = std::clamp<dds_duration_t>(std::chrono::duration_cast<std::chrono::nanoseconds>(left).count(),
+                                           DDS_MSECS(1), DDS_SECS(1));
+    }
+    dds_return_t n = dds_waitset_wait(waitset_, triggered, k_slots, timeout);
     if (n < 0) {
       log::error("DDS transport: waitset failed: ", retcode_text(n));
       break;
     }
-    bool requests = false, outcomes = false, readers = false, writers = false;
-    for (dds_return_t i = 0; i < std::min<dds_return_t>(n, 8); ++i) {
+    bool requests = false, outcomes = false, writers = false;
+    std::array<dds_entity_t, k_slots> readers;  // reply writers whose match changed
+    std::size_t reader_count = 0;
+    for (dds_return_t i = 0; i < std::min(n, k_slots); ++i) {
       requests |= triggered[i] == k_token_requests;
       outcomes |= triggered[i] == k_token_guard;
-      readers |= triggered[i] == k_token_reply_matched;
       writers |= triggered[i] == k_token_request_matched;
+      if (triggered[i] > 0) readers[reader_count++] = static_cast<dds_entity_t>(triggered[i]);
     }
     try {
-      // matches first, so that replies find their readers
-      if (readers) {
-        dds_publication_matched_status_t status;
-        dds_get_publication_matched_status(reply_writer_, &status);
-        refresh_reply_readers();
+      // new clients first, so that their requests find them; then the readers that matched,
+      // so that replies find them
+      if (writers || n > k_slots) sweep_clients();
+      if (n > k_slots) {
+        for (auto& [id, client] : clients_) refresh_reader_match(id, client);
+      } else {
+        for (std::size_t i = 0; i < reader_count; ++i)
+          if (auto it = reply_writers_.find(readers[i]); it != reply_writers_.end())
+            refresh_reader_match(it->second, clients_.at(it->second));
       }
       if (requests) take_requests();
       if (outcomes) {
@@ -205,13 +240,7 @@ void DdsRequestManager::run() {
         deliver_handed_over();
         write_finished();
       }
-      if (writers) {
-        dds_subscription_matched_status_t status;
-        dds_get_subscription_matched_status(request_reader_, &status);
-        client_count_.store(status.current_count, std::memory_order_relaxed);
-        sweep_clients();
-      }
-      if (parked_count_ > 0) expire_parked();
+      if (parked_count_ > 0) next_parked = flush_all_parked();
     } catch (const std::exception& e) {
       // keep serving everyone else
       log::error("DDS transport: ", e.what());
@@ -251,7 +280,7 @@ bool DdsRequestManager::lookup_async(const std::string& component, const std::st
   // registered after start(), or unknown: look again (unknown names are remembered as sync)
   for (const ServiceDescriptor& d : descriptors()) async_services_[d.qualified_name()] = d.is_async;
   auto [again, inserted] = async_services_.try_emplace(key, false);
-  if (inserted && async_services_.size() > 100'000) async_services_.erase(again);  // bounded
+  if (inserted && async_services_.size() > k_max_cached_names) async_services_.erase(again);  // bounded
   return inserted ? false : again->second;
 }
 
@@ -292,37 +321,62 @@ void DdsRequestManager::run_batch() {
 }
 
 void DdsRequestManager::handle_request(const simgate_Request& request, dds_instance_handle_t writer) {
-  ClientId client_id;
-  std::memcpy(client_id.data(), request.id.client, client_id.size());
   const std::uint64_t seq = request.id.seq;
-
-  // one client id belongs to one request writer
-  auto [it, inserted] = clients_.try_emplace(client_id);
-  ClientState& client = it->second;
-  if (inserted) {
-    // a writer that already left (its samples outlive it) would never be swept
-    dds_builtintopic_endpoint_t* ep = dds_get_matched_publication_data(request_reader_, writer);
-    if (!ep) {
-      clients_.erase(it);
-      log::debug("DDS transport: request ", seq, " of client ", to_hex(client_id), " ignored: its writer left");
-      return;
-    }
-    dds_builtintopic_free_endpoint(ep);
-    client.writer = writer;
-  } else if (client.writer != writer) {
-    log::warning("DDS transport: request ", seq, " ignored: client id ", to_hex(client_id),
-                 " already belongs to another request writer");
+  // the client is its request writer, known since that writer matched
+  auto w = writers_.find(writer);
+  if (w == writers_.end()) {
+    sweep_clients();  // the match status may not have been read yet
+    w = writers_.find(writer);
+  }
+  if (w == writers_.end()) {
+    // a writer that already left (its samples outlive it)
+    log::debug("DDS transport: request ", seq, " ignored: its writer left");
     return;
   }
+  const ClientId client_id = w->second;
+  ClientState& client = clients_.at(client_id);
   if (client.gone) return;
+
+  // its id is its writer's GUID: another one would act for someone else (issue #17: an id
+  // was bound to whichever writer used it first). Refused to the writer's true id.
+  ClientId claimed;
+  std::memcpy(claimed.data(), request.id.client, claimed.size());
+  if (claimed != client_id) {
+    run_batch();
+    std::string why = is_zero(claimed) ? "the client id is zero"
+                                       : "the client id " + to_hex(claimed) + " is not the GUID of the writer that sent it";
+    send_reply(client_id, failure_reply(seq, simgate_FL_BAD_REQUEST,
+                                        "DDS transport: request " + std::to_string(seq) + " refused: " + why +
+                                            "; a client's id is the GUID of its request writer, here " +
+                                            to_hex(client_id)));
+    return;
+  }
 
   switch (request.op) {
     case simgate_OP_CALL: {
       if (client.calls.count(seq)) {
+        // keyed like the running call's replies: ST_REFUSED and not last, so that nobody
+        // takes it for that call's end (issue #17)
+        run_batch();
+        ReplyData refused = failure_reply(seq, simgate_FL_BAD_REQUEST,
+                                          "DDS transport: call " + std::to_string(seq) + " of client " +
+                                              to_hex(client_id) + " is already pending (duplicate seq); "
+                                              "this request was refused, the pending call goes on");
+        refused.status = simgate_ST_REFUSED;
+        refused.last = false;
+        send_reply(client_id, std::move(refused));
+        return;
+      }
+      // names are bounded before they are looked up, remembered or quoted (issue #17: 10 MB
+      // names were all three)
+      for (auto [what, name] : {std::pair{"component", request.component}, std::pair{"service", request.service}}) {
+        const std::size_t size = name ? std::strlen(name) : 0;
+        if (size <= k_max_name_bytes) continue;
         run_batch();
         send_reply(client_id, failure_reply(seq, simgate_FL_BAD_REQUEST,
-                                            "DDS transport: call " + std::to_string(seq) + " of client " +
-                                                to_hex(client_id) + " is already pending (duplicate seq)"));
+                                            "DDS transport: request " + std::to_string(seq) + " refused: its " +
+                                                what + " name is " + std::to_string(size) + " bytes, more than " +
+                                                std::to_string(k_max_name_bytes)));
         return;
       }
       Call call;
@@ -354,7 +408,7 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
           send_reply(client_id, failure_reply(seq, simgate_FL_BAD_ARGUMENTS,
                                               call.component + "." + call.service +
                                                   ": params must be a JSON array, object or \"\", not '" +
-                                                  std::string(params_text.substr(0, 60)) + "'"));
+                                                  std::string(utf8_prefix(params_text, 60)) + "'"));
           return;
         }
       }
@@ -439,29 +493,42 @@ void DdsRequestManager::write_finished(std::vector<std::pair<RequestId, Outcome>
 }
 
 void DdsRequestManager::send_reply(const ClientId& client_id, ReplyData reply, bool final_flush) {
-  // written at once when the client's reply reader is matched
   auto c = clients_.find(client_id);
-  if (final_flush || matched_ids_.count(client_id) || c == clients_.end()) {
-    write_reply(client_id, reply);
+  if (c == clients_.end() || c->second.gone) {
+    log::debug("DDS transport: reply ", reply.seq, " to client ", to_hex(client_id), " dropped: the client left");
     return;
   }
   ClientState& client = c->second;
-  if (client.gone) return;
-  // otherwise parked until it matches (bounded in count and time)
-  if (client.parked.size() >= static_cast<std::size_t>(options_.max_samples)) {
-    log::warning("DDS transport: client ", to_hex(client_id), " has ", client.parked.size(),
-                 " replies waiting for its reader; writing reply ", reply.seq, " unmatched");
-    write_reply(client_id, reply);
+  // at stop(): one attempt, nothing parked
+  if (final_flush) {
+    write_reply(client_id, client, reply);
     return;
   }
-  log::debug("DDS transport: reply ", reply.seq, " to client ", to_hex(client_id),
-             " parked until its reply reader matches");
+  // written at once when its reader is matched and nothing waits before it
+  if (client.parked.empty() && client.reader_matched) {
+    if (write_reply(client_id, client, reply) != DDS_RETCODE_TIMEOUT) return;
+    // its writer is full: the reader acknowledges nothing; retried with backoff
+    client.stalled = true;
+    client.retry_delay = std::chrono::milliseconds(5);
+    client.retry_at = std::chrono::steady_clock::now() + client.retry_delay;
+    log::debug("DDS transport: the reply writer of client ", to_hex(client_id), " is full; reply ", reply.seq,
+               " parked");
+  } else if (!client.reader_matched) {
+    log::debug("DDS transport: reply ", reply.seq, " to client ", to_hex(client_id),
+               " parked until its reply reader matches");
+  }
+  // otherwise parked behind the others (bounded in count and time)
+  if (client.parked.size() >= static_cast<std::size_t>(options_.max_samples)) {
+    drop_reply(client_id, client, reply);
+    return;
+  }
   reply.deadline = std::chrono::steady_clock::now() + options_.park_timeout;
   client.parked.push_back(std::move(reply));
   ++parked_count_;
 }
 
-void DdsRequestManager::write_reply(const ClientId& client_id, const ReplyData& reply) {
+dds_return_t DdsRequestManager::write_reply(const ClientId& client_id, const ClientState& client,
+                                            const ReplyData& reply) {
   simgate_Reply sample{};
   std::memcpy(sample.client, client_id.data(), client_id.size());
   sample.seq = reply.seq;
@@ -471,54 +538,101 @@ void DdsRequestManager::write_reply(const ClientId& client_id, const ReplyData& 
   sample.result = const_cast<char*>(reply.result.c_str());
   sample.message = const_cast<char*>(reply.message.c_str());
   sample.data = const_cast<char*>(reply.data.c_str());
-  dds_return_t rc = dds_write(reply_writer_, &sample);
-  if (rc < 0)
+  dds_return_t rc = dds_write(client.reply_writer, &sample);
+  if (rc < 0 && rc != DDS_RETCODE_TIMEOUT)
     log::warning("DDS transport: reply ", reply.seq, " to client ", to_hex(client_id),
                  " not written: ", retcode_text(rc));
+  return rc;
 }
 
-void DdsRequestManager::refresh_reply_readers() {
-  // the matched reply readers, and the client ids their USER_DATA announce
-  std::vector<dds_instance_handle_t> handles(reply_readers_.size() + 16);
-  dds_return_t n;
-  while ((n = dds_get_matched_subscriptions(reply_writer_, handles.data(), handles.size())) >
-         static_cast<dds_return_t>(handles.size()))
-    handles.resize(static_cast<std::size_t>(n) + 16);
-  if (n < 0) {
-    log::error("DDS transport: matched reply readers unknown: ", retcode_text(n));
+void DdsRequestManager::drop_reply(const ClientId& client_id, ClientState& client, const ReplyData& reply) {
+  // one line at once, then at most one per interval with the count: a client that never
+  // reads must not flood the log either
+  ++client.dropped;
+  auto now = std::chrono::steady_clock::now();
+  if (client.logged_at != std::chrono::steady_clock::time_point{} && now - client.logged_at < k_drop_log_interval)
     return;
-  }
-  std::map<dds_instance_handle_t, std::optional<ClientId>> readers;
-  for (dds_return_t i = 0; i < n; ++i) {
-    auto old = reply_readers_.find(handles[i]);
-    if (old != reply_readers_.end()) {
-      readers.emplace(*old);
-      continue;
-    }
-    std::optional<ClientId> id;
-    if (dds_builtintopic_endpoint_t* ep = dds_get_matched_subscription_data(reply_writer_, handles[i])) {
-      id = client_id_from_userdata(ep->qos);
-      dds_builtintopic_free_endpoint(ep);
-    }
-    readers.emplace(handles[i], id);
-  }
-  reply_readers_ = std::move(readers);
-  matched_ids_.clear();
-  for (const auto& [handle, id] : reply_readers_)
-    if (id) ++matched_ids_[*id];
+  if (client.stalled)
+    log::warning("DDS transport: client ", to_hex(client_id),
+                 " does not take its replies (its reply reader acknowledges nothing): ", client.dropped,
+                 " reply(ies) dropped, the latest to request ", reply.seq, "; other clients are not held up");
+  else
+    log::warning("DDS transport: client ", to_hex(client_id), " has no reply reader matched: ", client.dropped,
+                 " reply(ies) dropped, the latest to request ", reply.seq);
+  client.logged_at = now;
+  client.dropped = 0;
+}
 
-  // flush what was parked for readers that just matched
-  for (auto& [id, client] : clients_) {
-    if (client.parked.empty() || !matched_ids_.count(id)) continue;
-    for (const ReplyData& reply : client.parked) write_reply(id, reply);
-    parked_count_ -= client.parked.size();
-    client.parked.clear();
+void DdsRequestManager::flush_parked(const ClientId& id, ClientState& client,
+                                     std::chrono::steady_clock::time_point now) {
+  while (!client.parked.empty()) {
+    const ReplyData& reply = client.parked.front();
+    const bool expired = reply.deadline <= now;
+    // waiting for its reader (after park_timeout_ms it is written anyway, for readers that
+    // do not announce simgate.id), or for its writer to have room again
+    bool attempt = (client.reader_matched || expired) && !(client.stalled && now < client.retry_at);
+    if (attempt) {
+      dds_return_t rc = write_reply(id, client, reply);
+      if (rc != DDS_RETCODE_TIMEOUT) {
+        if (client.stalled) {
+          log::info("DDS transport: client ", to_hex(id), " takes its replies again");
+          client.stalled = false;
+        }
+      } else {
+        client.stalled = true;
+        client.retry_delay = std::min(std::max(client.retry_delay * 2, std::chrono::milliseconds(5)), k_max_retry_delay);
+        client.retry_at = now + client.retry_delay;
+        attempt = false;
+      }
+    }
+    if (!attempt) {
+      if (!expired) return;
+      drop_reply(id, client, reply);  // waited park_timeout_ms for room (or a reader) in vain
+    }
+    client.parked.pop_front();
+    --parked_count_;
   }
+}
+
+std::chrono::steady_clock::time_point DdsRequestManager::flush_all_parked() {
+  auto now = std::chrono::steady_clock::now();
+  auto next = std::chrono::steady_clock::time_point::max();
+  for (auto& [id, client] : clients_) {
+    if (client.parked.empty()) continue;
+    flush_parked(id, client, now);
+    if (client.parked.empty()) continue;
+    // what it waits for: its writer's next attempt, or its oldest reply's deadline
+    next = std::min(next, client.parked.front().deadline);
+    if (client.stalled && client.reader_matched) next = std::min(next, client.retry_at);
+  }
+  return next;
+}
+
+void DdsRequestManager::refresh_reader_match(const ClientId& id, ClientState& client) {
+  // reading the status resets it (the waitset trigger)
+  dds_publication_matched_status_t status{};
+  dds_get_publication_matched_status(client.reply_writer, &status);
+  // a reader in the client's partition that announces its id: one that does not (or an
+  // eavesdropper's, see docs) does not count
+  bool matched = false;
+  if (status.current_count > 0) {
+    std::vector<dds_instance_handle_t> handles(status.current_count + 4);
+    dds_return_t n = dds_get_matched_subscriptions(client.reply_writer, handles.data(), handles.size());
+    for (dds_return_t i = 0; i < std::min<dds_return_t>(n, static_cast<dds_return_t>(handles.size())) && !matched; ++i) {
+      if (dds_builtintopic_endpoint_t* ep = dds_get_matched_subscription_data(client.reply_writer, handles[i])) {
+        matched = client_id_from_userdata(ep->qos) == id;
+        dds_builtintopic_free_endpoint(ep);
+      }
+    }
+  }
+  client.reader_matched = matched;
+  // what was parked for it goes now
+  if (matched && !client.parked.empty()) flush_parked(id, client, std::chrono::steady_clock::now());
 }
 
 void DdsRequestManager::sweep_clients() {
-  // the request writers still matched
-  std::vector<dds_instance_handle_t> handles(clients_.size() + 16);
+  // the request writers matched now
+  std::vector<dds_instance_handle_t> handles(writers_.size() + 16);
   dds_return_t n;
   while ((n = dds_get_matched_publications(request_reader_, handles.data(), handles.size())) >
          static_cast<dds_return_t>(handles.size()))
@@ -527,7 +641,13 @@ void DdsRequestManager::sweep_clients() {
     log::error("DDS transport: matched request writers unknown: ", retcode_text(n));
     return;
   }
+  dds_subscription_matched_status_t status;
+  dds_get_subscription_matched_status(request_reader_, &status);  // resets the trigger
+  client_count_.store(static_cast<std::size_t>(n), std::memory_order_relaxed);
   std::set<dds_instance_handle_t> live(handles.begin(), handles.begin() + n);
+  // new writers are new clients
+  for (dds_instance_handle_t writer : live)
+    if (!writers_.count(writer)) add_client(writer);
   // every client whose writer left is gone
   std::vector<ClientId> gone;
   for (const auto& [id, client] : clients_)
@@ -535,6 +655,36 @@ void DdsRequestManager::sweep_clients() {
   for (const ClientId& id : gone) client_gone(id, clients_.at(id));
   // their cancels, here if the simulation lock is free
   run_batch();
+}
+
+void DdsRequestManager::add_client(dds_instance_handle_t writer) {
+  // its id: its request writer's GUID
+  dds_builtintopic_endpoint_t* ep = dds_get_matched_publication_data(request_reader_, writer);
+  if (!ep) return;  // already left
+  const ClientId id = to_client_id(ep->key);
+  dds_builtintopic_free_endpoint(ep);
+  if (clients_.count(id)) return;
+  // its reply writer, alone in its partition
+  const std::string partition = options_.partition + "/" + to_hex(id);
+  QosPtr qos(dds_create_qos());
+  dds_qset_partition1(qos.get(), partition.c_str());
+  dds_entity_t publisher = dds_create_publisher(participant_->handle(), qos.get(), nullptr);
+  dds_entity_t reply_writer = publisher < 0 ? publisher : dds_create_writer(publisher, reply_topic_, reply_qos_.get(), nullptr);
+  if (reply_writer < 0 || dds_set_status_mask(reply_writer, DDS_PUBLICATION_MATCHED_STATUS) < 0 ||
+      dds_waitset_attach(waitset_, reply_writer, static_cast<dds_attach_t>(reply_writer)) < 0) {
+    log::error("DDS transport: client ", to_hex(id), " cannot be served: no reply writer in partition '", partition,
+               "': ", retcode_text(reply_writer < 0 ? reply_writer : DDS_RETCODE_ERROR));
+    if (publisher > 0) dds_delete(publisher);
+    return;
+  }
+  ClientState& client = clients_[id];
+  client.writer = writer;
+  client.reply_publisher = publisher;
+  client.reply_writer = reply_writer;
+  writers_[writer] = id;
+  reply_writers_[reply_writer] = id;
+  log::debug("DDS transport: client ", to_hex(id), " appeared (", clients_.size(), " known)");
+  refresh_reader_match(id, client);
 }
 
 void DdsRequestManager::client_gone(const ClientId& id, ClientState& client) {
@@ -556,26 +706,14 @@ void DdsRequestManager::client_gone(const ClientId& id, ClientState& client) {
 }
 
 void DdsRequestManager::forget_client(const ClientId& id) {
-  simgate_Reply key{};
-  std::memcpy(key.client, id.data(), id.size());
-  dds_unregister_instance(reply_writer_, &key);  // fails harmlessly if never written
-  clients_.erase(id);
-}
-
-void DdsRequestManager::expire_parked() {
-  // replies whose reader never matched are written anyway (a reader without simgate.id
-  // USER_DATA still gets them), oldest first
-  auto now = std::chrono::steady_clock::now();
-  for (auto& [id, client] : clients_) {
-    auto end = std::find_if(client.parked.begin(), client.parked.end(),
-                            [&](const ReplyData& r) { return r.deadline > now; });
-    if (end == client.parked.begin()) continue;
-    log::warning("DDS transport: no reply reader of client ", to_hex(id), " matched within ",
-                 options_.park_timeout.count(), " ms; writing ", end - client.parked.begin(), " reply(ies) anyway");
-    for (auto r = client.parked.begin(); r != end; ++r) write_reply(id, *r);
-    parked_count_ -= static_cast<std::size_t>(end - client.parked.begin());
-    client.parked.erase(client.parked.begin(), end);
-  }
+  auto c = clients_.find(id);
+  if (c == clients_.end()) return;
+  // its publisher and reply writer go with it (and leave the waitset)
+  if (c->second.reply_publisher > 0) dds_delete(c->second.reply_publisher);
+  writers_.erase(c->second.writer);
+  reply_writers_.erase(c->second.reply_writer);
+  clients_.erase(c);
+  log::debug("DDS transport: client ", to_hex(id), " forgotten (", clients_.size(), " known)");
 }
 
 DdsRequestManager::ReplyData DdsRequestManager::to_reply(std::uint64_t seq, const Outcome& outcome) {

@@ -4,13 +4,22 @@
 //  - Request / Reply topics: a client writes Request{id = (client, seq), component,
 //    service, params JSON}; the server answers on the Reply topic, keyed by client. Async
 //    calls get ST_ACCEPTED first, then one terminal reply.
+//  - Client: one request writer; its id is that writer's GUID (a request that claims another
+//    id is refused). The server learns of it when the writer matches its request reader and
+//    forgets it when the writer leaves (and its calls are over).
+//  - Reply writer: one per client, in the partition "<partition>/<client id hex>" where only
+//    that client's reply reader listens. A reader that stops acknowledging (never takes,
+//    frozen process) can only fill its own writer's history: the server's writes to it fail
+//    at once (max_blocking_time 0) and that client alone loses replies.
 //  - Catalog topic (TRANSIENT_LOCAL): one CatalogEntry per served component, so a client
 //    that joins late still sees what it can call.
-//  - Partition: every endpoint lives in the partition named by the "partition" option, so
-//    several simulations share a domain without crosstalk.
-//  - Parked reply: a reply for a client whose reply reader the server has not matched yet
-//    (discovery is asymmetric); it is written as soon as that reader matches, or after
-//    park_timeout_ms at the latest.
+//  - Partition: every endpoint lives in the partition named by the "partition" option (the
+//    reply writers in their sub-partitions), so several simulations share a domain without
+//    crosstalk.
+//  - Parked reply: a reply not written yet, in order behind the client's earlier ones:
+//    its reply reader has not matched (discovery is asymmetric: written as soon as it
+//    matches, or anyway after park_timeout_ms), or its writer is full (retried with backoff,
+//    dropped after park_timeout_ms, logged at most every 10 s per client).
 //
 // Life cycle: the constructor validates the options and creates every DDS entity (so a bad
 // Cyclone XML fails at load time); start() writes the catalog and starts the DDS thread;
@@ -41,6 +50,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <deque>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -54,13 +64,16 @@
 
 namespace simgate::dds {
 
+// Longest component or service name a request may carry, in bytes (longer: FL_BAD_REQUEST).
+inline constexpr std::size_t k_max_name_bytes = 256;
+
 // The transport's options ("transports.<name>" in a deployment file).
 struct DdsOptions {
   uint32_t domain = 0;                 // DDS domain id (0..230)
   std::string partition = "simgate";   // one per simulation
   std::string config;                  // Cyclone XML or file:// URI; "" = loopback; "env"
   int32_t max_samples = 1024;          // resource limit: queued requests, parked replies per client
-  std::chrono::milliseconds park_timeout{10000};  // how long a reply waits for its reader
+  std::chrono::milliseconds park_timeout{10000};  // how long a reply waits for its reader (or writer)
   std::size_t max_params = 1 << 20;    // largest accepted params text, in bytes
   std::size_t max_depth = 128;         // deepest [/{ nesting accepted in params (2..10000)
   GlobalPolicy global_policy = GlobalPolicy::reject;  // async calls without a local policy
@@ -112,11 +125,20 @@ class DdsRequestManager : public RequestManager {
     bool is_async = false;      // cancelled if the client disappears
     bool cancel_answer = false;  // the answer to a cancel (outcome value: whether it was running)
   };
-  // What the server knows about one client (DDS thread only).
+  // What the server knows about one client (DDS thread only), from the match of its request
+  // writer until that writer left and its calls are over.
   struct ClientState {
-    dds_instance_handle_t writer = 0;                   // its request writer
+    dds_instance_handle_t writer = 0;                   // its request writer (GUID = its id)
+    dds_entity_t reply_publisher = 0;                   // in "<partition>/<id>"; owns reply_writer
+    dds_entity_t reply_writer = 0;                      // its replies, to its reader alone
+    bool reader_matched = false;                        // a reader announcing its id is matched
     std::unordered_map<std::uint64_t, RequestId> calls;  // seq -> request in the core
-    std::vector<ReplyData> parked;                      // replies waiting for its reader
+    std::deque<ReplyData> parked;                       // replies not written yet, in order
+    bool stalled = false;                               // its writer was full at the last write
+    std::chrono::steady_clock::time_point retry_at;     // stalled: next write attempt
+    std::chrono::milliseconds retry_delay{0};           // stalled: backoff, doubling
+    std::size_t dropped = 0;                            // replies dropped, not yet logged
+    std::chrono::steady_clock::time_point logged_at;    // the last "dropped" log line
     bool gone = false;                                  // its request writer disappeared
   };
 
@@ -132,13 +154,22 @@ class DdsRequestManager : public RequestManager {
   void write_finished();
   // Writes the replies of `batch` (emptied); `final_flush`: at stop(), without parking.
   void write_finished(std::vector<std::pair<RequestId, Outcome>>& batch, bool final_flush);
-  void refresh_reply_readers();
+  // The request writers matched now: new ones become clients, missing ones are gone.
   void sweep_clients();
+  void add_client(dds_instance_handle_t writer);
   void client_gone(const ClientId& id, ClientState& client);
-  void expire_parked();
-  void send_reply(const ClientId& client, ReplyData reply, bool final_flush = false);
-  void write_reply(const ClientId& client, const ReplyData& reply);
   void forget_client(const ClientId& id);
+  // Whether a reader announcing the client's id matches its reply writer (reads the status).
+  void refresh_reader_match(const ClientId& id, ClientState& client);
+  void send_reply(const ClientId& client, ReplyData reply, bool final_flush = false);
+  // Writes what the client's writer takes of its parked replies; drops the expired ones
+  // it does not take.
+  void flush_parked(const ClientId& id, ClientState& client, std::chrono::steady_clock::time_point now);
+  // Every client's flush_parked; returns when the next parked reply needs attention.
+  std::chrono::steady_clock::time_point flush_all_parked();
+  // DDS_RETCODE_TIMEOUT: the writer is full (its reader does not acknowledge); never blocks.
+  dds_return_t write_reply(const ClientId& id, const ClientState& client, const ReplyData& reply);
+  void drop_reply(const ClientId& id, ClientState& client, const ReplyData& reply);
   bool lookup_async(const std::string& component, const std::string& service);
   static ReplyData to_reply(std::uint64_t seq, const Outcome& outcome);
   static ReplyData failure_reply(std::uint64_t seq, simgate_Failure failure, std::string message);
@@ -148,7 +179,8 @@ class DdsRequestManager : public RequestManager {
   dds_entity_t publisher_ = 0;               // in our partition
   dds_entity_t subscriber_ = 0;              // in our partition
   dds_entity_t request_reader_ = 0;          // simgate_Request
-  dds_entity_t reply_writer_ = 0;            // simgate_Reply
+  dds_entity_t reply_topic_ = 0;             // simgate_Reply (a writer per client)
+  QosPtr reply_qos_;                         // of every reply writer
   dds_entity_t catalog_writer_ = 0;          // simgate_Catalog (transient-local)
   dds_entity_t waitset_ = 0;                 // what the DDS thread waits on
   dds_entity_t guard_ = 0;                   // raised by the sim thread and by stop()
@@ -167,9 +199,9 @@ class DdsRequestManager : public RequestManager {
   // ---- DDS thread only ----
   std::unordered_map<RequestId, Pending> pending_;  // requests in the core
   std::map<ClientId, ClientState> clients_;         // known clients
+  std::map<dds_instance_handle_t, ClientId> writers_;  // request writer -> its client
+  std::map<dds_entity_t, ClientId> reply_writers_;  // reply writer -> its client
   std::atomic<std::size_t> client_count_{0};        // matched request writers, for any thread
-  std::map<dds_instance_handle_t, std::optional<ClientId>> reply_readers_;  // matched readers
-  std::map<ClientId, int> matched_ids_;             // client id -> matched reply readers
   std::unordered_map<std::string, bool> async_services_;  // "component.service" -> is_async
   std::string lookup_key_;                          // lookup_async's key buffer
   std::vector<std::pair<RequestId, Call>> batch_;   // calls taken, not yet given to the core

@@ -7,6 +7,9 @@
 //   dds_probe_client DOMAIN PARTITION CONFIG hang COMPONENT SERVICE PARAMS_JSON
 //       starts an async call, prints "accepted" once acknowledged, then waits (at most 60 s)
 //       to be killed.
+//   dds_probe_client DOMAIN PARTITION CONFIG echo N BYTES
+//       calls calc.echo(text of BYTES bytes) N times, one after the other (5 s each at most);
+//       prints {"answered": ..., "failed": ..., "ms": ...} and exits 0.
 //
 // CONFIG is Cyclone XML text or a file:// URI. Every wait is bounded.
 #include <chrono>
@@ -33,7 +36,8 @@ json outcome_json(const simgate::Outcome& o) {
 
 int main(int argc, char** argv) {
   if (argc < 5) {
-    std::cerr << "usage: dds_probe_client DOMAIN PARTITION CONFIG (waypoint X Y | hang COMPONENT SERVICE PARAMS)\n";
+    std::cerr << "usage: dds_probe_client DOMAIN PARTITION CONFIG (waypoint X Y | hang COMPONENT SERVICE PARAMS | "
+                 "echo N BYTES)\n";
     return 2;
   }
   try {
@@ -69,6 +73,23 @@ int main(int argc, char** argv) {
       std::cout << "accepted" << std::endl;
       std::this_thread::sleep_for(60s);  // until killed
       return 1;
+    }
+    if (mode == "echo" && argc == 7) {
+      const int count = std::stoi(argv[5]);
+      const std::string text(std::stoul(argv[6]), 'x');
+      int answered = 0, failed = 0;
+      const auto started = std::chrono::steady_clock::now();
+      for (int i = 0; i < count; ++i) {
+        try {
+          simgate::Outcome out = client.call("calc", "echo", {text}, 5s);
+          ++(out.value == json(text) ? answered : failed);
+        } catch (const std::exception& e) {
+          ++failed;
+        }
+      }
+      auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - started);
+      std::cout << json{{"answered", answered}, {"failed", failed}, {"ms", ms.count()}}.dump() << std::endl;
+      return 0;
     }
     std::cerr << "dds_probe_client: unknown mode or wrong arguments\n";
     return 2;

@@ -11,6 +11,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -99,6 +100,11 @@ class Child {
     pid_ = -1;
   }
 
+  // Freezes it (SIGSTOP): it keeps its sockets and its DDS lease but does nothing.
+  void stop() {
+    if (pid_ > 0) ::kill(pid_, SIGSTOP);
+  }
+
   // Asks politely (SIGTERM), then insists.
   void terminate() {
     if (pid_ <= 0) return;
@@ -132,6 +138,45 @@ TEST(DdsProcessTest, KilledClientHasItsAsyncCallsCancelled) {
 
   client.kill_now(SIGKILL);  // no goodbye on the wire
   EXPECT_TRUE(eventually([&] { return running.done(); }, 30s)) << "the killed client's call is still running";
+}
+
+// Issue #17, item 3: a client process that stops (SIGSTOP: its reader acknowledges nothing
+// any more, and its lease keeps it matched) held up every other client once the replies it
+// did not acknowledge filled the shared reply writer: 200 ms per write, then lost replies.
+// Its replies now go through a writer of its own; another client's calls all complete.
+TEST(DdsProcessTest, AFrozenClientHoldsUpNobodyElse) {
+  auto server = load_transport(k_plugin, server_options(test_partition()));
+  AsyncProbe probe;
+  server->register_async_service("robot", [&](Completion c, double) { probe.on_start(c); }, "goto", {"x"});
+  server->register_service("calc", [](std::string text) { return text; }, "echo", {"text"});
+  SimThread sim(server);
+
+  // the frozen client: a 60 s lease, so that it stays matched while stopped
+  std::string xml = read_file(SIMGATE_LOOPBACK_DDS_XML);
+  auto at = xml.find("<Discovery>");
+  ASSERT_NE(at, std::string::npos);
+  xml.insert(at + std::string("<Discovery>").size(), "<LeaseDuration>60s</LeaseDuration>");
+  Child frozen({k_probe, std::to_string(test_domain()), test_partition(), xml, "hang", "robot", "goto", "[1.0]"});
+  ASSERT_TRUE(frozen.running());
+  ASSERT_NE(frozen.read_until("accepted", 30s).find("accepted"), std::string::npos);
+  ASSERT_TRUE(probe.wait_started(1));
+  frozen.stop();
+
+  // 400 calls of 2 kB each way: far beyond what a reply writer holds unacknowledged
+  Child good({k_probe, std::to_string(test_domain()), test_partition(), loopback_uri(), "echo", "400", "2048"});
+  ASSERT_TRUE(good.running());
+  std::string out = good.read_until("}", 120s);
+  ASSERT_EQ(good.wait_exit(10s), 0) << out;
+  ASSERT_NE(out.find('{'), std::string::npos) << out;
+  json result = json::parse(out.substr(out.find('{')), nullptr, false);
+  ASSERT_TRUE(result.is_object()) << out;
+  EXPECT_EQ(result["answered"], 400) << out;
+  EXPECT_EQ(result["failed"], 0) << out;
+  std::printf("400 echo calls of 2 kB beside a frozen client: %s\n", result.dump().c_str());
+
+  // the frozen client's own reply waits in its writer; it goes away with the process
+  probe.completion()(Status::success, "arrived");
+  frozen.kill_now();
 }
 
 // The C client of docs/transports/dds.md, written against the IDL alone.

@@ -36,12 +36,12 @@ const char* const k_plugin = SIMGATE_TEST_PLUGIN_DIR "/libsimgate_transport_dds.
 class RawClient {
  public:
   explicit RawClient(const std::string& partition)
-      : participant_(test_domain(), ("file://" + std::string(SIMGATE_LOOPBACK_DDS_XML)).c_str(), "raw client") {
+      : participant_(test_domain(), ("file://" + std::string(SIMGATE_LOOPBACK_DDS_XML)).c_str(), "raw client"),
+        partition_(partition) {
     dds_entity_t pp = participant_.handle();
     QosPtr partition_qos(dds_create_qos());
     dds_qset_partition1(partition_qos.get(), partition.c_str());
     publisher_ = dds_create_publisher(pp, partition_qos.get(), nullptr);
-    subscriber_ = dds_create_subscriber(pp, partition_qos.get(), nullptr);
     dds_entity_t topic = dds_create_topic(pp, &simgate_Request_desc, k_request_topic, nullptr, nullptr);
     QosPtr qos = make_qos(false, 0, DDS_SECS(1));
     writer_ = dds_create_writer(publisher_, topic, qos.get(), nullptr);
@@ -58,14 +58,21 @@ class RawClient {
     }, timeout);
   }
 
-  // announce: put "simgate.id=<our id>" in the reader's USER_DATA, as clients should
-  void create_reply_reader(bool announce = true) {
+  // announce: put "simgate.id=<our id>" in the reader's USER_DATA, as clients should;
+  // max_samples: how many replies the reader holds (a reader that never takes stops
+  // accepting, hence acknowledging, beyond that)
+  void create_reply_reader(bool announce = true, int32_t max_samples = DDS_LENGTH_UNLIMITED) {
     dds_entity_t pp = participant_.handle();
+    // in the client's own partition, "<partition>/<id>", where the server writes its replies
+    QosPtr partition_qos(dds_create_qos());
+    dds_qset_partition1(partition_qos.get(), (partition_ + "/" + to_hex(id_)).c_str());
+    dds_entity_t subscriber = dds_create_subscriber(pp, partition_qos.get(), nullptr);
     dds_entity_t topic = dds_create_topic(pp, &simgate_Reply_desc, k_reply_topic, nullptr, nullptr);
     QosPtr qos = make_qos(false, 0, DDS_SECS(1));
+    dds_qset_resource_limits(qos.get(), max_samples, DDS_LENGTH_UNLIMITED, DDS_LENGTH_UNLIMITED);
     std::string userdata = "simgate.id=" + to_hex(id_);
     if (announce) dds_qset_userdata(qos.get(), userdata.data(), userdata.size());
-    reader_ = dds_create_reader(subscriber_, topic, qos.get(), nullptr);
+    reader_ = dds_create_reader(subscriber, topic, qos.get(), nullptr);
     ASSERT_GT(reader_, 0);
   }
 
@@ -114,8 +121,8 @@ class RawClient {
 
  private:
   Participant participant_;      // own participant
+  std::string partition_;        // the server's
   dds_entity_t publisher_ = 0;   // in the partition
-  dds_entity_t subscriber_ = 0;  // in the partition
   dds_entity_t writer_ = 0;      // requests
   dds_entity_t reader_ = 0;      // replies (created on demand)
   ClientId id_{};                // our request writer's GUID
@@ -231,8 +238,14 @@ TEST_F(DdsTransportTest, DuplicateSeqOfAPendingCallIsABadRequest) {
   raw.write(2, simgate_OP_CALL, "calc", "add", "[1, 2]");
   reply = raw.next();
   ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->seq, 2u);
   EXPECT_EQ(reply->failure, simgate_FL_BAD_REQUEST);
   EXPECT_NE(reply->message.find("duplicate"), std::string::npos) << reply->message;
+  // issue #17, item 9: the refusal shares the running call's key (client, seq), so it must
+  // not look final: it was ST_FAILED with last = true, which a client took for the end of
+  // the running call
+  EXPECT_EQ(reply->status, simgate_ST_REFUSED);
+  EXPECT_FALSE(reply->last);
   goto_.completion()(Status::success, "arrived");
   reply = raw.next();
   ASSERT_TRUE(reply);
@@ -431,8 +444,8 @@ TEST_F(DdsTransportTest, ParkedReplyIsWrittenAnywayAfterParkTimeout) {
   EXPECT_EQ(json::parse(reply->result), json(2.0));
 }
 
-// A client id belongs to the writer that used it first: another writer cannot cancel
-// (or otherwise act for) that client.
+// A client id is its request writer's GUID: another writer cannot cancel (or otherwise act
+// for) that client.
 TEST_F(DdsTransportTest, AnotherWriterCannotCancelForAClient) {
   auto server = make_server(test_partition());
   SimThread sim(server);
@@ -450,6 +463,10 @@ TEST_F(DdsTransportTest, AnotherWriterCannotCancelForAClient) {
   // cancel (same writer, earlier) has been handled
   spoofer.write(7, simgate_OP_CANCEL, "", "", "", 1, &owner.id());
   spoofer.write(1, simgate_OP_CALL, "calc", "add", "[1, 1]");
+  reply = spoofer.next();
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->seq, 7u);  // refused: not its id
+  EXPECT_EQ(reply->failure, simgate_FL_BAD_REQUEST);
   reply = spoofer.next();
   ASSERT_TRUE(reply);
   EXPECT_EQ(reply->seq, 1u);
@@ -769,6 +786,172 @@ TEST_F(DdsTransportTest, WaitTimesOutOnItsOwnDeadlineWhileAnotherCallerReads) {
   ASSERT_TRUE(first_outcome);
   EXPECT_EQ(first_outcome->value, json(1));
   grasp_.completion()(Status::success);
+}
+
+// ---- issue #17: hardening ----
+
+// Collects the log lines that contain `needle` while it lives (any thread).
+class LogWatch {
+ public:
+  explicit LogWatch(std::string needle) : needle_(std::move(needle)) {
+    log::set_sink([this](log::Level, std::string_view message) {
+      if (message.find(needle_) == std::string_view::npos) return;
+      std::lock_guard lock(mutex_);
+      lines_.emplace_back(message);
+    });
+  }
+  ~LogWatch() { log::set_sink({}); }
+  std::vector<std::string> lines() {
+    std::lock_guard lock(mutex_);
+    return lines_;
+  }
+
+ private:
+  const std::string needle_;        // what a line must contain
+  std::mutex mutex_;                // guards lines_
+  std::vector<std::string> lines_;  // the lines seen
+};
+
+bool valid_utf8(const std::string& text) {
+  for (std::size_t i = 0; i < text.size();) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    std::size_t n = c < 0x80 ? 1 : (c >> 5) == 0x6 ? 2 : (c >> 4) == 0xe ? 3 : (c >> 3) == 0x1e ? 4 : 0;
+    if (n == 0 || i + n > text.size()) return false;
+    for (std::size_t k = 1; k < n; ++k)
+      if ((static_cast<unsigned char>(text[i + k]) & 0xc0) != 0x80) return false;
+    i += n;
+  }
+  return true;
+}
+
+// Item 3: a client whose reply reader never takes (and so, once full, never acknowledges)
+// made every reply write block 200 ms, for everyone, and other readers lost replies. Now it
+// loses only its own replies, said in a few log lines, while the others are served.
+TEST_F(DdsTransportTest, AClientThatNeverTakesItsRepliesLosesOnlyItsOwn) {
+  LogWatch watch("does not take its replies");
+  auto server = make_server(test_partition(), "server", {{"park_timeout_ms", 300}});
+  SimThread sim(server);
+  RawClient stuck(test_partition());
+  stuck.create_reply_reader(true, 1);  // holds one reply, never takes
+  ASSERT_TRUE(stuck.wait_request_matched());
+  auto good = make_client(test_partition());
+  constexpr int k_stuck_calls = 40, k_calls = 20;
+  for (int i = 1; i <= k_stuck_calls; ++i) stuck.write(i, simgate_OP_CALL, "calc", "add", "[1, 1]");
+  // the good client's calls all complete (they took 8 s and more before, or were lost)
+  int answered = 0;
+  const auto started = std::chrono::steady_clock::now();
+  for (int i = 0; i < k_calls; ++i) {
+    try {
+      if (good->call("calc", "add", {i, 1}, 5s).value == json(double(i + 1))) ++answered;
+    } catch (const ClientError& e) {
+      ADD_FAILURE() << "call " << i << ": " << e.what();
+    }
+  }
+  EXPECT_EQ(answered, k_calls);
+  EXPECT_LT(std::chrono::steady_clock::now() - started, 10s);
+  // the stuck client's losses are logged, in a few lines rather than one per reply
+  EXPECT_TRUE(eventually([&] { return !watch.lines().empty(); }));
+  EXPECT_LE(watch.lines().size(), 3u);
+  if (!watch.lines().empty()) {
+    EXPECT_THAT(watch.lines().front(), ::testing::HasSubstr(to_hex(stuck.id())));
+  }
+  // and it is still served once it reads again: not part of this test (its reader is full)
+}
+
+// Item 5: an id was bound to whichever writer used it first, so a spoofer that wrote first
+// took a client's id over. The id must be the GUID of the request writer that sends it.
+TEST_F(DdsTransportTest, AClientIdIsTheGuidOfItsRequestWriter) {
+  auto server = make_server(test_partition());
+  SimThread sim(server);
+  RawClient owner(test_partition()), spoofer(test_partition());
+  owner.create_reply_reader();
+  spoofer.create_reply_reader();
+  ASSERT_TRUE(owner.wait_request_matched());
+  ASSERT_TRUE(spoofer.wait_request_matched());
+  // the spoofer uses the owner's id before the owner did: refused, and told so (keyed with
+  // the spoofer's own GUID, the only id its writer may use)
+  spoofer.write(1, simgate_OP_CALL, "calc", "add", "[1, 1]", 0, &owner.id());
+  auto refused = spoofer.next();
+  ASSERT_TRUE(refused);
+  EXPECT_EQ(refused->seq, 1u);
+  EXPECT_EQ(refused->status, simgate_ST_FAILED);
+  EXPECT_EQ(refused->failure, simgate_FL_BAD_REQUEST);
+  EXPECT_TRUE(refused->last);
+  EXPECT_THAT(refused->message, ::testing::HasSubstr(to_hex(spoofer.id())));
+  // the owner is served under its id
+  owner.write(1, simgate_OP_CALL, "calc", "add", "[2, 2]");
+  auto reply = owner.next();
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->seq, 1u);
+  EXPECT_EQ(reply->status, simgate_ST_SUCCESS);
+  EXPECT_EQ(json::parse(reply->result), json(4.0));
+}
+
+TEST_F(DdsTransportTest, AZeroClientIdIsRefused) {
+  auto server = make_server(test_partition());
+  SimThread sim(server);
+  RawClient raw(test_partition());
+  raw.create_reply_reader();
+  ASSERT_TRUE(raw.wait_request_matched());
+  const ClientId zero{};
+  raw.write(1, simgate_OP_CALL, "calc", "add", "[1, 1]", 0, &zero);
+  auto reply = raw.next();
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->status, simgate_ST_FAILED);
+  EXPECT_EQ(reply->failure, simgate_FL_BAD_REQUEST);
+  EXPECT_THAT(reply->message, ::testing::HasSubstr("zero"));
+  EXPECT_THAT(reply->message, ::testing::HasSubstr(to_hex(raw.id())));
+}
+
+// Item 9: component and service names had no bound (10 MB each were looked up, remembered
+// and echoed in the error). Beyond 256 bytes they are refused before any lookup.
+TEST_F(DdsTransportTest, NamesLongerThan256BytesAreRefused) {
+  auto server = make_server(test_partition());
+  SimThread sim(server);
+  RawClient raw(test_partition());
+  raw.create_reply_reader();
+  ASSERT_TRUE(raw.wait_request_matched());
+  const std::string huge(1 << 20, 'c'), long_service(257, 's'), at_limit(256, 'c');
+  raw.write(1, simgate_OP_CALL, huge.c_str(), "add", "[1, 1]");
+  auto reply = raw.next();
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->failure, simgate_FL_BAD_REQUEST);
+  EXPECT_NE(reply->message.find("component name is 1048576 bytes, more than 256"), std::string::npos)
+      << reply->message.substr(0, 200);
+  EXPECT_LT(reply->message.size(), 300u);
+  raw.write(2, simgate_OP_CALL, "calc", long_service.c_str(), "[]");
+  reply = raw.next();
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->failure, simgate_FL_BAD_REQUEST);
+  EXPECT_THAT(reply->message, ::testing::HasSubstr("service name is 257 bytes, more than 256"));
+  EXPECT_LT(reply->message.size(), 300u);
+  // at the limit a name is looked up as usual
+  raw.write(3, simgate_OP_CALL, at_limit.c_str(), "add", "[]");
+  reply = raw.next();
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->failure, simgate_FL_UNKNOWN_SERVICE);
+  raw.write(4, simgate_OP_CALL, "calc", "add", "[1, 2]");
+  reply = raw.next();
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->status, simgate_ST_SUCCESS);
+}
+
+// Item 9: the quoted params of a FL_BAD_ARGUMENTS message were cut at byte 60, in the middle
+// of a character; the message is UTF-8 again.
+TEST_F(DdsTransportTest, QuotedParamsAreCutAtACharacterBoundary) {
+  auto server = make_server(test_partition());
+  SimThread sim(server);
+  RawClient raw(test_partition());
+  raw.create_reply_reader();
+  ASSERT_TRUE(raw.wait_request_matched());
+  std::string params = "a";
+  for (int i = 0; i < 40; ++i) params += "\xc3\xa9";  // e acute: byte 60 is inside the 30th
+  raw.write(1, simgate_OP_CALL, "calc", "echo", params.c_str());
+  auto reply = raw.next();
+  ASSERT_TRUE(reply);
+  EXPECT_EQ(reply->failure, simgate_FL_BAD_ARGUMENTS);
+  EXPECT_TRUE(valid_utf8(reply->message)) << reply->message;
+  EXPECT_THAT(reply->message, ::testing::HasSubstr("'a\xc3\xa9\xc3\xa9"));
 }
 
 TEST(DdsTransportConfig, UnknownKeysAndBadValuesAreRejectedWithTheirName) {
