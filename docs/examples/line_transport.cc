@@ -35,7 +35,7 @@ class LineTransport : public simgate::RequestManager, private kit::LineServer {
 
   void start() override {
     kit::TcpListener::Handlers handlers{[this](asio::ip::tcp::socket socket) { accept(std::move(socket)); },
-                                        [this] { return connection_count() >= options_.max_connections; },
+                                        [this] { return full(); },
                                         "too many connections", "- FAILED \"too many connections\"\n"};
     io_thread_.start(
         [this, handlers = std::move(handlers)]() mutable {
@@ -76,7 +76,7 @@ class LineTransport : public simgate::RequestManager, private kit::LineServer {
 
   explicit LineTransport(kit::TcpOptions options)
       : RequestManager("Line service manager"),
-        LineServer(name(), options.io_spin),
+        LineServer(name(), options),
         options_(std::move(options)),
         listener_(io_, name(), options_.host, options_.port),  // bound now: a port in use fails here
         io_thread_(io_, name(), options_.io_spin) {
@@ -165,4 +165,5 @@ class LineTransport : public simgate::RequestManager, private kit::LineServer {
 
 SIMGATE_TRANSPORT_PLUGIN(line, line::LineTransport, "0.1.0", "host", "port", "max_connections",
                          "max_message_bytes", "max_unsent_bytes", "max_in_flight", "io_spin_us",
-                         "on_disconnect", "global_policy")
+                         "on_disconnect", "global_policy", "idle_timeout_s", "idle_evict_s",
+                         "line_timeout_s", "max_buffered_bytes")

@@ -1,5 +1,7 @@
 #include "simgate/kit/line_connection.h"
 
+#include <malloc.h>
+
 #include <algorithm>
 #include <exception>
 
@@ -16,6 +18,10 @@ using boost::system::error_code;
 namespace {
 // How much of an oversized line the host sees (enough for the client's id).
 constexpr std::size_t k_oversized_prefix = 1024;
+// A buffer with more capacity than this is given back once a burst has emptied it.
+constexpr std::size_t k_kept_buffer_bytes = 256 * 1024;
+// Given back since the last sweep past which the sweep returns free memory to the system.
+constexpr std::size_t k_trim_after_bytes = 8 << 20;
 
 bool would_block(const error_code& ec) { return ec == asio::error::would_block || ec == asio::error::try_again; }
 }  // namespace
@@ -33,7 +39,39 @@ LineConnection::LineConnection(asio::ip::tcp::socket socket, LineHost& host, Lin
   socket_.non_blocking(true, ec);  // reads on and writes go straight to the socket while it takes them
 }
 
-void LineConnection::start() { read_more(); }
+void LineConnection::start() {
+  active();
+  read_more();
+}
+
+std::uint32_t LineConnection::idle_ticks() const {
+  if (unanswered_ > 0 || writing_ || !outbox_.empty()) return 0;
+  return host_.shared_.tick - active_tick_;
+}
+
+std::uint32_t LineConnection::line_ticks() const {
+  if (partial_.empty() && !discarding_) return 0;
+  return host_.shared_.tick - line_tick_;
+}
+
+bool LineConnection::grow_line(std::string_view data) {
+  if (host_.shared_.buffered + data.size() > host_.shared_.max_buffered) {
+    log::warning(who_, ": ", label_, " disconnected: its unfinished line would take the transport past ",
+                 host_.shared_.max_buffered, " bytes held for all connections (max_buffered_bytes)");
+    close("max_buffered_bytes reached");
+    return false;
+  }
+  if (partial_.empty()) line_tick_ = host_.shared_.tick;
+  partial_.append(data);
+  account(static_cast<std::ptrdiff_t>(data.size()));
+  return true;
+}
+
+void LineConnection::release_if_large(std::string& buffer) {
+  if (buffer.capacity() <= k_kept_buffer_bytes) return;
+  host_.shared_.freed += buffer.capacity();
+  std::string().swap(buffer);
+}
 
 bool LineConnection::paused() const {
   return (limits_.pause_at_unanswered > 0 && unanswered_ >= limits_.pause_at_unanswered) ||
@@ -93,9 +131,11 @@ void LineConnection::on_read(const error_code& ec, std::size_t n) {
 
 void LineConnection::handle_read(const error_code& ec, std::size_t n) {
   if (closed_) return;
+  active();
   if (ec == asio::error::eof) {
     // the client finished sending: answer what it asked, then close
     if (!partial_.empty() && !discarding_) {
+      account(-static_cast<std::ptrdiff_t>(partial_.size()));
       std::string last = std::move(partial_);
       partial_.clear();
       host_.on_line(*this, last);
@@ -138,8 +178,9 @@ void LineConnection::consume(std::string_view data) {
       if (partial_.size() + data.size() > limits_.max_message_bytes) {
         oversized(data, partial_.size() + data.size());
         discarding_ = true;
+        line_tick_ = host_.shared_.tick;  // its rest must come within line_timeout_s too
       } else {
-        partial_.append(data);
+        grow_line(data);
       }
       return;
     }
@@ -150,16 +191,20 @@ void LineConnection::consume(std::string_view data) {
     } else if (partial_.empty()) {
       host_.on_line(*this, piece);  // fast path: the whole line is in this read
     } else {
+      account(-static_cast<std::ptrdiff_t>(partial_.size()));
       partial_.append(piece);
       std::string line = std::move(partial_);
       partial_.clear();
       host_.on_line(*this, line);
+      if (line.capacity() > k_kept_buffer_bytes) host_.shared_.freed += line.capacity();
     }
   }
 }
 
 void LineConnection::oversized(std::string_view start, std::size_t bytes) {
   // the host sees the line's first KiB; what was kept of it goes back to the allocator
+  account(-static_cast<std::ptrdiff_t>(partial_.size()));
+  if (partial_.capacity() > k_kept_buffer_bytes) host_.shared_.freed += partial_.capacity();
   std::string prefix = std::move(partial_);
   partial_ = std::string();
   if (prefix.size() < k_oversized_prefix)
@@ -171,10 +216,16 @@ void LineConnection::oversized(std::string_view start, std::size_t bytes) {
 
 bool LineConnection::room_for_reply() {
   if (closed_) return false;
-  if (outbox_.size() + in_flight_.size() <= limits_.max_unsent_bytes) return true;
+  const std::size_t waiting = outbox_.size() + in_flight_.size();
+  if (waiting <= limits_.max_unsent_bytes && (waiting == 0 || host_.shared_.buffered <= host_.shared_.max_buffered))
+    return true;
   // the client does not read its replies: it may not grow our memory
-  log::warning(who_, ": ", label_, " disconnected: more than ", limits_.max_unsent_bytes,
-               " bytes of replies unread (", limits_.unsent_bytes_key, ")");
+  if (waiting > limits_.max_unsent_bytes)
+    log::warning(who_, ": ", label_, " disconnected: more than ", limits_.max_unsent_bytes,
+                 " bytes of replies unread (", limits_.unsent_bytes_key, ")");
+  else
+    log::warning(who_, ": ", label_, " disconnected: ", waiting, " bytes of its replies unread while the transport holds more than ",
+                 host_.shared_.max_buffered, " for all connections (max_buffered_bytes)");
   close("too many unread replies");
   return false;
 }
@@ -204,8 +255,10 @@ void LineConnection::flush_writes() {
     close(ec.message());
     return;
   }
+  account(-static_cast<std::ptrdiff_t>(n));
   if (n == outbox_.size()) {
     outbox_.clear();
+    release_if_large(outbox_);
     after_write();
     return;
   }
@@ -220,7 +273,9 @@ void LineConnection::start_write() {
   writing_ = true;
   asio::async_write(socket_, asio::buffer(in_flight_), [self = shared_from_this()](const error_code& ec, std::size_t) {
     self->writing_ = false;
+    if (!self->closed_) self->account(-static_cast<std::ptrdiff_t>(self->in_flight_.size()));  // close() took it
     self->in_flight_.clear();
+    self->release_if_large(self->in_flight_);
     if (self->closed_) return;
     if (ec) {
       self->close(ec.message());
@@ -234,6 +289,7 @@ void LineConnection::start_write() {
 }
 
 void LineConnection::after_write() {
+  active();
   maybe_finish();
   read_more();  // reading paused on unsent bytes resumes
 }
@@ -255,17 +311,31 @@ void LineConnection::close(std::string_view reason) {
   error_code ec;
   socket_.shutdown(asio::ip::tcp::socket::shutdown_both, ec);
   socket_.close(ec);
-  outbox_.clear();
-  partial_.clear();
+  // what it held is no longer the host's (a write in flight keeps in_flight_ until it ends)
+  account(-static_cast<std::ptrdiff_t>(partial_.size() + outbox_.size() + in_flight_.size()));
+  host_.shared_.freed += partial_.capacity() + outbox_.capacity();
+  std::string().swap(outbox_);
+  std::string().swap(partial_);
   host_.on_closed(*this);
 }
 
 // ---- LineServer
 
+LineServer::LineServer(std::string who, const TcpOptions& options)
+    : who_(std::move(who)),
+      spin_(options.io_spin),
+      max_connections_(options.max_connections),
+      idle_timeout_(options.idle_timeout),
+      idle_evict_(options.idle_evict),
+      line_timeout_(options.line_timeout) {
+  shared_.max_buffered = options.max_buffered_bytes;
+}
+
 void LineServer::add(const std::shared_ptr<LineConnection>& connection) {
   connections_.insert(connection);
   count_.store(connections_.size(), std::memory_order_relaxed);
   log::debug(who_, ": ", connection->label(), " connected");
+  schedule_sweep(connection);
   connection->start();
 }
 
@@ -283,6 +353,68 @@ void LineServer::close_all() {
   // nothing of a connection outlives this: the transport's io_context goes next
   touched_.clear();
   direct_ = DirectReads<LineConnection>{};
+  sweep_timer_.reset();
+}
+
+std::uint32_t LineServer::ticks(std::chrono::milliseconds duration) const {
+  // at least one whole sweep: a timeout shorter than a sweep still waits for the next one
+  return static_cast<std::uint32_t>(std::max<std::int64_t>(1, (duration + k_sweep - std::chrono::milliseconds(1)) / k_sweep));
+}
+
+bool LineServer::full() {
+  if (connections_.size() < max_connections_) return false;
+  if (idle_evict_.count() <= 0) return true;
+  // the connection idle longest makes room, once idle long enough
+  std::shared_ptr<LineConnection> idlest;
+  for (const auto& c : connections_)
+    if (!idlest || c->idle_ticks() > idlest->idle_ticks()) idlest = c;
+  if (!idlest || idlest->idle_ticks() < ticks(idle_evict_)) return true;
+  log::warning(who_, ": ", idlest->label(), " closed to make room for a new connection: idle for ",
+               idlest->idle_ticks() * k_sweep.count() / 1000.0, " s while ", max_connections_,
+               " connections were open (idle_evict_s)");
+  idlest->close("idle while the server was full");
+  return false;
+}
+
+void LineServer::schedule_sweep(const std::shared_ptr<LineConnection>& any) {
+  if (sweeping_) return;
+  if (!sweep_timer_) sweep_timer_.emplace(any->executor());
+  sweeping_ = true;
+  sweep_timer_->expires_after(k_sweep);
+  sweep_timer_->async_wait([this](const error_code& ec) {
+    sweeping_ = false;
+    if (ec) return;  // close_all(): the server stops
+    sweep();
+  });
+}
+
+void LineServer::sweep() {
+  ++shared_.tick;
+  // closed after the walk: a close changes connections_
+  std::vector<std::shared_ptr<LineConnection>> line_late, idle;
+  const std::uint32_t line_limit = line_timeout_.count() > 0 ? ticks(line_timeout_) : 0;
+  const std::uint32_t idle_limit = idle_timeout_.count() > 0 ? ticks(idle_timeout_) : 0;
+  for (const auto& c : connections_) {
+    if (line_limit && c->line_ticks() >= line_limit)
+      line_late.push_back(c);
+    else if (idle_limit && c->idle_ticks() >= idle_limit)
+      idle.push_back(c);
+  }
+  // one warning per sweep and rule, each connection at debug level (a flood logs little)
+  auto close = [&](std::vector<std::shared_ptr<LineConnection>>& which, const std::string& why) {
+    if (which.empty()) return;
+    log::warning(who_, ": closed ", which.size(), which.size() == 1 ? " connection: " : " connections: ", why,
+                 which.size() == 1 ? " (" + which.front()->label() + ")" : std::string());
+    for (const auto& c : which) c->close(why);
+  };
+  close(line_late, "a line not finished within " + std::to_string(line_timeout_.count() / 1000.0) + " s (line_timeout_s)");
+  close(idle, "idle for " + std::to_string(idle_timeout_.count() / 1000.0) + " s (idle_timeout_s)");
+  // the memory a burst used goes back to the system, not only to the allocator
+  if (shared_.freed >= k_trim_after_bytes) {
+    ::malloc_trim(0);
+    shared_.freed = 0;
+  }
+  if (!connections_.empty()) schedule_sweep(*connections_.begin());
 }
 
 bool LineServer::watch(LineConnection& connection) {

@@ -63,6 +63,14 @@ TcpOptions TcpOptions::read(ConfigObject& config, const TcpOptions& defaults, st
                                       {"reject", "preempt"}) == "preempt"
                         ? GlobalPolicy::preempt
                         : GlobalPolicy::reject;
+  auto seconds = [&](const char* name, std::chrono::milliseconds fallback) {
+    const double s = config.get_number(name, static_cast<double>(fallback.count()) / 1000.0, 0.0, 86400.0 * 7);
+    return std::chrono::milliseconds(static_cast<std::int64_t>(s * 1000.0 + 0.5));
+  };
+  o.idle_timeout = seconds("idle_timeout_s", o.idle_timeout);
+  o.idle_evict = seconds("idle_evict_s", o.idle_evict);
+  o.line_timeout = seconds("line_timeout_s", o.line_timeout);
+  o.max_buffered_bytes = get_size(config, "max_buffered_bytes", o.max_buffered_bytes, 1 << 16, 1LL << 40);
   return o;
 }
 

@@ -71,7 +71,7 @@ JsonRpcRequestManager::JsonRpcRequestManager(const json& options) : JsonRpcReque
 
 JsonRpcRequestManager::JsonRpcRequestManager(Options o)
     : RequestManager("JSON-RPC service manager"),
-      LineServer(name(), o.tcp.io_spin),
+      LineServer(name(), o.tcp),
       options_(std::move(o)),
       // bound now, so that a port in use fails the creation of the transport
       listener_(io_, name(), options_.tcp.host, options_.tcp.port),
@@ -86,7 +86,7 @@ std::vector<std::string> JsonRpcRequestManager::endpoints() const { return {list
 void JsonRpcRequestManager::start() {
   const std::string why = "too many connections (max_connections " + std::to_string(options_.tcp.max_connections) + ")";
   kit::TcpListener::Handlers handlers{[this](tcp::socket socket) { accept(std::move(socket)); },
-                                      [this] { return connection_count() >= options_.tcp.max_connections; }, why,
+                                      [this] { return full(); }, why,
                                       dump(error_response(nullptr, code::overloaded, "Overloaded: " + why)) + "\n"};
   // outcomes produced on the simulation thread come here: one drain per burst, then one
   // write per connection
@@ -429,4 +429,5 @@ void JsonRpcRequestManager::reply(ReplyTo& to, std::optional<json> response) {
 
 SIMGATE_TRANSPORT_PLUGIN(jsonrpc, simgate::jsonrpc::JsonRpcRequestManager, "0.1.0", "host", "port",
                          "max_message_bytes", "max_depth", "max_in_flight", "max_unsent_bytes",
-                         "max_connections", "io_spin_us", "on_disconnect", "global_policy")
+                         "max_connections", "io_spin_us", "on_disconnect", "global_policy",
+                         "idle_timeout_s", "idle_evict_s", "line_timeout_s", "max_buffered_bytes")

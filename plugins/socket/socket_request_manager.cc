@@ -56,7 +56,7 @@ SocketRequestManager::SocketRequestManager(const json& options)
 
 SocketRequestManager::SocketRequestManager(SocketOptions o)
     : RequestManager("Socket service manager"),
-      LineServer(name(), o.tcp.io_spin),
+      LineServer(name(), o.tcp),
       options_(std::move(o)),
       // bound now, so that a port in use fails the creation of the transport
       listener_(io_, name(), options_.tcp.host, options_.tcp.port),
@@ -87,7 +87,7 @@ void SocketRequestManager::start() {
   const json text = why;
   append_reply(refusal, "-", k_failed, &text);
   kit::TcpListener::Handlers handlers{[this](tcp::socket socket) { accept(std::move(socket)); },
-                                      [this] { return connection_count() >= options_.tcp.max_connections; }, why,
+                                      [this] { return full(); }, why,
                                       std::move(refusal)};
   // outcomes produced on the simulation thread come here: one flush per burst, then one
   // write per connection
@@ -325,7 +325,8 @@ void SocketRequestManager::deliver(RequestId id, const Outcome& outcome) try {
 SIMGATE_TRANSPORT_PLUGIN(socket, simgate::socket::SocketRequestManager, "0.1.0", "host", "port",
                          "success_word", "max_connections", "max_message_bytes",
                          "max_unsent_bytes", "max_in_flight", "io_spin_us", "global_policy",
-                         "on_disconnect",
+                         "on_disconnect", "idle_timeout_s", "idle_evict_s", "line_timeout_s",
+                         "max_buffered_bytes",
                          // deprecated names: accepted with a warning until the next release
                          "max_clients", "max_line_bytes", "max_pending_replies_bytes",
                          "max_pending_requests")

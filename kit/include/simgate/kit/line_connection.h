@@ -30,6 +30,12 @@
 //     (so `echo req | nc` gets its answer).
 //   - A handler that throws closes its connection with the error logged; the server keeps
 //     serving everyone else.
+//   - Resources held without use (LineServer, the transport's options): a line begun must
+//     end within line_timeout_s; a connection idle (nothing owed, nothing unsent, nothing
+//     read) for idle_timeout_s is closed; at max_connections the connection idle longest
+//     makes room for a new one once idle for idle_evict_s; the unfinished lines and unsent
+//     replies of all connections together stay under max_buffered_bytes (the connection
+//     that would pass it is closed); buffers grown by a burst are given back after it.
 //
 // A transport derives its session from LineConnection (adding its per-connection state:
 // pending ids) and its manager from LineServer (implementing the LineHost calls that are
@@ -45,6 +51,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -53,9 +60,11 @@
 #include <vector>
 
 #include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/steady_timer.hpp>
 
 #include "simgate/kit/idle_spin.h"
 #include "simgate/kit/read_split.h"
+#include "simgate/kit/tcp_server.h"
 
 namespace simgate::kit {
 
@@ -90,6 +99,17 @@ class LineHost {
   virtual bool watch(LineConnection& connection) = 0;
   // The connection has replies queued: write them at the end of the burst.
   virtual void touch(LineConnection& connection) = 0;
+
+ protected:
+  friend class LineConnection;
+  // What every connection of the host shares, kept by LineServer (the I/O thread).
+  struct Shared {
+    std::uint32_t tick = 0;                  // sweeps so far: the connections' clock
+    std::size_t buffered = 0;                // unfinished lines and unsent replies, all connections
+    std::size_t max_buffered = SIZE_MAX;     // max_buffered_bytes
+    std::size_t freed = 0;                   // large buffers given back since the last sweep
+  };
+  Shared shared_;
 };
 
 struct LineLimits {
@@ -121,7 +141,8 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
   void read_async();
 
   // Queues reply bytes (whole lines, '\n' included) for the next flush_writes(); a reply
-  // that finds more than max_unsent_bytes already waiting closes the connection instead.
+  // that finds more than max_unsent_bytes already waiting (or the host's connections holding
+  // more than max_buffered_bytes, this one some of them) closes the connection instead.
   void queue(std::string_view bytes) {
     queue_with([bytes](std::string& out) { out.append(bytes); });
   }
@@ -130,7 +151,9 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
   template <class Format>
   void queue_with(Format&& format) {
     if (!room_for_reply()) return;
+    const std::size_t before = outbox_.size();
     format(outbox_);
+    account(static_cast<std::ptrdiff_t>(outbox_.size() - before));
     queued();
   }
   // Writes what queue() gathered, unless a write is in flight (it takes them next).
@@ -151,6 +174,12 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
   void close(std::string_view reason);
   bool closed() const { return closed_; }
   bool input_ended() const { return eof_; }
+  // Sweeps (of LineServer) since it last read, wrote or was owed a reply; 0 while it owes
+  // one or has replies unsent (it is not idle then).
+  std::uint32_t idle_ticks() const;
+  // Sweeps since its unfinished line began; 0 when there is none.
+  std::uint32_t line_ticks() const;
+  boost::asio::ip::tcp::socket::executor_type executor() { return socket_.get_executor(); }
 
   // "client #3 (127.0.0.1:51234)", for log messages.
   const std::string& label() const { return label_; }
@@ -178,6 +207,13 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
   void after_write();
   void maybe_finish();
   bool paused() const;
+  // Adds to (or takes from) the bytes the host's connections hold; the partial line grows
+  // only within max_buffered_bytes (false: the connection was closed instead).
+  void account(std::ptrdiff_t bytes) { host_.shared_.buffered += static_cast<std::size_t>(bytes); }
+  bool grow_line(std::string_view data);
+  // A buffer a burst grew large is given back once empty.
+  void release_if_large(std::string& buffer);
+  void active() { active_tick_ = host_.shared_.tick; }
 
   boost::asio::ip::tcp::socket socket_;  // the connection
   LineHost& host_;                       // the transport (outlives every connection)
@@ -195,31 +231,44 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
   bool writing_ = false;                 // a write is in flight
   std::size_t unanswered_ = 0;           // replies the protocol owes
   bool touched_ = false;                 // in its LineServer's touched list
+  std::uint32_t active_tick_ = 0;        // the sweep of its last read, write or reply owed
+  std::uint32_t line_tick_ = 0;          // the sweep its unfinished line began in
 };
 
 // The connections of one transport and what it does with all of them, on its I/O thread:
 // the set (and its size for other threads), the connections touched by a burst of replies,
-// the lone-client rules (ReadSplit, DirectReads). A transport's manager derives from it and
-// implements the protocol's LineHost calls.
+// the lone-client rules (ReadSplit, DirectReads), and the resource rules (a sweep every
+// k_sweep while connections are open: line and idle timeouts, the buffers given back).
+// A transport's manager derives from it and implements the protocol's LineHost calls.
 class LineServer : public LineHost {
  public:
-  // `who` names the transport in logs; `spin`: its io_spin_us (0: the I/O thread never
-  // polls, nothing is watched).
-  LineServer(std::string who, std::chrono::microseconds spin) : who_(std::move(who)), spin_(spin) {}
+  // How often the connections are checked: timeouts are this precise.
+  static constexpr std::chrono::milliseconds k_sweep{250};
+
+  // `who` names the transport in logs; `options`: its io_spin_us (0: the I/O thread never
+  // polls, nothing is watched), max_connections, the timeouts and max_buffered_bytes.
+  LineServer(std::string who, const TcpOptions& options);
 
   // Adds an accepted connection and starts it.
   void add(const std::shared_ptr<LineConnection>& connection);
   // Closes every connection ("server stopping"; on_closed() runs for each) and lets go of
-  // them all. A transport calls it on its I/O thread when it stops, before its io_context
-  // is destroyed (a base class outlives the members, the io_context among them).
+  // them all and of the sweep's timer. A transport calls it on its I/O thread when it
+  // stops, before its io_context is destroyed (a base class outlives the members, the
+  // io_context among them).
   void close_all();
   std::size_t connection_count() const { return count_.load(std::memory_order_relaxed); }
+  // For the listener (TcpListener::Handlers::full): true while max_connections are open
+  // and none of them has been idle for idle_evict_s (the one idle longest is closed to make
+  // room when one has).
+  bool full();
   // The thread that polls reads the watched connection through this (IoThread::start).
   DirectReads<LineConnection>& direct_reads() { return direct_; }
   // Writes the replies of every touched connection (the end of a burst).
   void flush_touched();
   // Whether `connection` is the only one sending: a large read's first half runs early.
   bool alone(const LineConnection& connection) override { return read_split_.alone(&connection); }
+  // The bytes all connections hold (unfinished lines, unsent replies).
+  std::size_t buffered_bytes() const { return shared_.buffered; }
 
   void write_replies() override { flush_touched(); }
   bool watch(LineConnection& connection) override;
@@ -230,13 +279,21 @@ class LineServer : public LineHost {
   void forget(LineConnection& connection);
 
  private:
+  void schedule_sweep(const std::shared_ptr<LineConnection>& any);
+  void sweep();
+  std::uint32_t ticks(std::chrono::milliseconds duration) const;
+
   std::string who_;                                             // for logs
   std::chrono::microseconds spin_;                              // io_spin_us
+  std::size_t max_connections_;                                 // max_connections
+  std::chrono::milliseconds idle_timeout_, idle_evict_, line_timeout_;  // 0: never
   std::unordered_set<std::shared_ptr<LineConnection>> connections_;  // open connections
   std::atomic<std::size_t> count_{0};                           // connections_.size(), for any thread
   std::vector<std::shared_ptr<LineConnection>> touched_;        // replies queued, not yet written
   ReadSplit read_split_;                                        // the lone client's large reads
   DirectReads<LineConnection> direct_;                          // the lone client read without the event loop
+  std::optional<boost::asio::steady_timer> sweep_timer_;        // while connections are open
+  bool sweeping_ = false;                                       // a sweep is scheduled
 };
 
 }  // namespace simgate::kit

@@ -3,7 +3,8 @@
 //
 //   TcpOptions  the knobs every TCP transport has, under one name each (host, port,
 //               max_connections, max_message_bytes, max_unsent_bytes, max_in_flight,
-//               io_spin_us, on_disconnect, global_policy); renamed keys stay accepted for a
+//               io_spin_us, on_disconnect, global_policy, idle_timeout_s, idle_evict_s,
+//               line_timeout_s, max_buffered_bytes); renamed keys stay accepted for a
 //               release with a warning.
 //   TcpListener binds at construction (a port in use fails there, with a hint naming the
 //               tool that finds who holds it); accepts on the I/O thread, backs off 100 ms
@@ -55,6 +56,13 @@ struct TcpOptions {
   std::chrono::microseconds io_spin{50};             // ("io_spin_us") idle_spin.h
   bool cancel_on_disconnect = true;                  // ("on_disconnect": "cancel" | "let_run")
   GlobalPolicy global_policy = GlobalPolicy::reject;  // ("global_policy": "reject" | "preempt")
+  // Connections that hold resources without using them (line_connection.h, LineServer):
+  std::chrono::milliseconds idle_timeout{0};       // ("idle_timeout_s") close a connection idle this long; 0: never
+  std::chrono::milliseconds idle_evict{60000};     // ("idle_evict_s") at max_connections, the connection idle
+                                                   //   longest makes room if idle this long; 0: never
+  std::chrono::milliseconds line_timeout{60000};   // ("line_timeout_s") a line begun must end within this; 0: never
+  std::size_t max_buffered_bytes = std::size_t{256} << 20;  // ("max_buffered_bytes") unfinished lines and unsent
+                                                             //   replies of all connections together
 
   // Each knob's key as the options spell it (a deprecated alias when that was used): for
   // messages that name the option to change.
