@@ -5,9 +5,10 @@
 //    settings (by default: loopback only, multicast off) apply to every participant of it
 //    in this process. Several simgate objects of one process may share a domain; the last
 //    one to leave deletes it.
-//  - ClientId: the 16 bytes that name a client on the wire (Reply key, Request id.client),
-//    shown as 32 lowercase hex digits, and announced in the USER_DATA of the client's reply
-//    reader as "simgate.id=<hex>" so the server can tell when that reader is matched.
+//  - ClientId: the 16 bytes that name a client on the wire (Reply key, Request id.client):
+//    the GUID of its request writer (the server refuses any other), shown as 32 lowercase
+//    hex digits; the partition of its replies is "<partition>/<hex>", and its reply reader
+//    announces "simgate.id=<hex>" in its USER_DATA so the server can tell when it matched.
 //  - Topics: simgate_Request, simgate_Reply, simgate_Catalog (see simgate_dds.idl).
 //
 // Everything here is thread-safe except where noted; nothing blocks for long.

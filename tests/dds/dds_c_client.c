@@ -22,10 +22,8 @@ int main(int argc, char **argv) { /* DOMAIN PARTITION COMPONENT SERVICE PARAMS_J
   char ud[64] = "simgate.id=", part[400]; /* announced in the reply reader's USER_DATA */
   for (int i = 0; i < 16; i++) sprintf(ud + 11 + 2 * i, "%02x", me.v[i]);
   dds_qset_userdata(q, ud, strlen(ud));
-  snprintf(part, sizeof part, "%s/%s", argv[2], ud + 11); /* replies come in "<partition>/<id>" */
-  dds_qset_partition1(rq_part, part);
-  dds_entity_t rd = dds_create_reader(dds_create_subscriber(pp, rq_part, NULL),
-                                      dds_create_topic(pp, &simgate_Reply_desc, "simgate_Reply", NULL, NULL), q, NULL);
+  snprintf(part, sizeof part, "%s/%s", argv[2], ud + 11), dds_qset_partition1(rq_part, part); /* our replies' partition */
+  dds_entity_t rd = dds_create_reader(dds_create_subscriber(pp, rq_part, NULL), dds_create_topic(pp, &simgate_Reply_desc, "simgate_Reply", NULL, NULL), q, NULL);
   const char *uri = getenv("CYCLONEDDS_URI"); /* found only with the same domain, partition and network config */
   fprintf(stderr, "waiting for simgate in domain %u, partition '%s' (%s%s; the simulation must use the same)...\n",
           (unsigned)domain, argv[2], argc > 6 ? "network config: the XML argument" : uri ? "CYCLONEDDS_URI=" :

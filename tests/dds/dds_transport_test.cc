@@ -1,9 +1,11 @@
 // Integration tests of the DDS transport over real Cyclone DDS (loopback only): the plugin
 // loaded with dlopen serves test services; DdsClient and a raw Cyclone client call them.
+#include <algorithm>
 #include <atomic>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <memory>
@@ -793,14 +795,19 @@ TEST_F(DdsTransportTest, WaitTimesOutOnItsOwnDeadlineWhileAnotherCallerReads) {
 // Collects the log lines that contain `needle` while it lives (any thread).
 class LogWatch {
  public:
-  explicit LogWatch(std::string needle) : needle_(std::move(needle)) {
+  // level: the least level logged meanwhile (info again afterwards)
+  explicit LogWatch(std::string needle, log::Level level = log::Level::info) : needle_(std::move(needle)) {
+    log::set_level(level);
     log::set_sink([this](log::Level, std::string_view message) {
       if (message.find(needle_) == std::string_view::npos) return;
       std::lock_guard lock(mutex_);
       lines_.emplace_back(message);
     });
   }
-  ~LogWatch() { log::set_sink({}); }
+  ~LogWatch() {
+    log::set_sink({});
+    log::set_level(log::Level::info);
+  }
   std::vector<std::string> lines() {
     std::lock_guard lock(mutex_);
     return lines_;
@@ -856,6 +863,40 @@ TEST_F(DdsTransportTest, AClientThatNeverTakesItsRepliesLosesOnlyItsOwn) {
     EXPECT_THAT(watch.lines().front(), ::testing::HasSubstr(to_hex(stuck.id())));
   }
   // and it is still served once it reads again: not part of this test (its reader is full)
+}
+
+// Item 9: what the server keeps of a client lives from the match of its request writer until
+// that writer left and its calls are over, so clients that come and go leave nothing behind.
+// (What Cyclone 0.10 itself keeps per endpoint it saw is another matter: docs/transports/dds.md.)
+TEST_F(DdsTransportTest, ClientsThatLeftAreForgotten) {
+  LogWatch watch(" known)", log::Level::debug);
+  {
+    auto server = make_server(test_partition());
+    SimThread sim(server);
+    constexpr int k_sessions = 40;
+    for (int i = 0; i < k_sessions; ++i) {
+      RawClient raw(test_partition());
+      raw.create_reply_reader();
+      ASSERT_TRUE(raw.wait_request_matched());
+      raw.write(1, simgate_OP_CALL, "calc", "add", "[1, 2]");
+      auto reply = raw.next();
+      ASSERT_TRUE(reply);
+      EXPECT_EQ(reply->status, simgate_ST_SUCCESS);
+    }
+    // the last one is forgotten too
+    EXPECT_TRUE(eventually([&] {
+      auto lines = watch.lines();
+      return !lines.empty() && lines.back().find("forgotten (0 known)") != std::string::npos;
+    })) << (watch.lines().empty() ? "" : watch.lines().back());
+    std::size_t appeared = 0, most = 0;
+    for (const std::string& line : watch.lines()) {
+      appeared += line.find("appeared") != std::string::npos;
+      auto open = line.rfind('(');
+      most = std::max<std::size_t>(most, std::stoul(line.substr(open + 1)));
+    }
+    EXPECT_EQ(appeared, static_cast<std::size_t>(k_sessions));
+    EXPECT_LE(most, 2u);  // one client at a time (and the one leaving)
+  }
 }
 
 // Item 5: an id was bound to whichever writer used it first, so a spoofer that wrote first
@@ -952,6 +993,75 @@ TEST_F(DdsTransportTest, QuotedParamsAreCutAtACharacterBoundary) {
   EXPECT_EQ(reply->failure, simgate_FL_BAD_ARGUMENTS);
   EXPECT_TRUE(valid_utf8(reply->message)) << reply->message;
   EXPECT_THAT(reply->message, ::testing::HasSubstr("'a\xc3\xa9\xc3\xa9"));
+}
+
+// The inodes of this process's sockets.
+std::set<std::string> socket_inodes() {
+  std::set<std::string> out;
+  for (const auto& entry : std::filesystem::directory_iterator("/proc/self/fd")) {
+    std::error_code ec;
+    std::string target = std::filesystem::read_symlink(entry.path(), ec).string();
+    if (!ec && target.rfind("socket:[", 0) == 0) out.insert(target.substr(8, target.size() - 9));
+  }
+  return out;
+}
+
+// "address:port" of the sockets of /proc/net/<table> whose inode is in `inodes`.
+std::vector<std::string> bound(const std::string& table, const std::set<std::string>& inodes) {
+  std::vector<std::string> out;
+  std::ifstream in("/proc/net/" + table);
+  std::string line;
+  std::getline(in, line);  // header
+  while (std::getline(in, line)) {
+    std::istringstream fields(line);
+    std::string slot, local, remote, state, queues, timer, retransmits, uid, timeout, inode;
+    fields >> slot >> local >> remote >> state >> queues >> timer >> retransmits >> uid >> timeout >> inode;
+    if (!inodes.count(inode)) continue;
+    // IPv4 "0100007F:1F90": the address in host byte order (little-endian here), the port
+    auto colon = local.find(':');
+    std::string address = local.substr(0, colon);
+    if (address.size() == 8) {
+      unsigned long a = std::stoul(address, nullptr, 16);
+      address = std::to_string(a & 0xff) + "." + std::to_string(a >> 8 & 0xff) + "." + std::to_string(a >> 16 & 0xff) +
+                "." + std::to_string(a >> 24);
+    }
+    out.push_back(address + ":" + std::to_string(std::stoul(local.substr(colon + 1), nullptr, 16)));
+  }
+  return out;
+}
+
+// Item 9: Cyclone 0.10 binds its receive sockets to the wildcard address whatever interface it
+// is given (ddsi_udp.c: unicast and multicast receive sockets bind INADDR_ANY; no setting
+// changes it), so the loopback settings cannot keep them off other interfaces.
+// docs/transports/dds.md says exactly what that exposes; this checks it is all there is: per
+// participant, two UDP ports on 0.0.0.0 (discovery 7410 + 250 d + 2 i, data one above), one
+// transmit socket on 127.0.0.1; no multicast port (7400 + 250 d), no TCP, no IPv6.
+TEST(DdsExposure, LoopbackSettingsOpenTwoWildcardUdpPortsAndALoopbackOne) {
+  const std::set<std::string> before = socket_inodes();
+  auto rm = load_transport(k_plugin, server_options(test_partition()));
+  std::set<std::string> ours;
+  for (const std::string& inode : socket_inodes())
+    if (!before.count(inode)) ours.insert(inode);
+  std::vector<std::string> udp = bound("udp", ours);
+  EXPECT_EQ(bound("tcp", ours), std::vector<std::string>{});
+  EXPECT_EQ(bound("udp6", ours), std::vector<std::string>{});
+  EXPECT_EQ(bound("tcp6", ours), std::vector<std::string>{});
+  ASSERT_EQ(udp.size(), 3u) << ::testing::PrintToString(udp);
+  std::vector<unsigned> wildcard;
+  for (const std::string& socket : udp) {
+    std::string address = socket.substr(0, socket.find(':'));
+    unsigned port = static_cast<unsigned>(std::stoul(socket.substr(socket.find(':') + 1)));
+    if (address == "0.0.0.0")
+      wildcard.push_back(port);
+    else
+      EXPECT_EQ(address, "127.0.0.1") << socket;
+  }
+  ASSERT_EQ(wildcard.size(), 2u) << ::testing::PrintToString(udp);
+  std::sort(wildcard.begin(), wildcard.end());
+  const unsigned base = 7400 + 250 * test_domain();
+  EXPECT_EQ((wildcard[0] - (base + 10)) % 2, 0u) << wildcard[0];  // discovery: 7410 + 250 d + 2 i
+  EXPECT_LE(wildcard[0], base + 10 + 2 * 60);                       // i <= MaxAutoParticipantIndex
+  EXPECT_EQ(wildcard[1], wildcard[0] + 1);                          // data
 }
 
 TEST(DdsTransportConfig, UnknownKeysAndBadValuesAreRejectedWithTheirName) {
