@@ -230,13 +230,6 @@ bool LineConnection::room_for_reply() {
   return false;
 }
 
-void LineConnection::queued() {
-  if (outbox_.size() >= k_coalesce_bytes)
-    flush_writes();  // a large burst goes out as it grows
-  else
-    host_.touch(*this);
-}
-
 void LineConnection::flush_writes() {
   if (closed_ || writing_) return;
   if (outbox_.empty()) {
@@ -292,12 +285,6 @@ void LineConnection::after_write() {
   active();
   maybe_finish();
   read_more();  // reading paused on unsent bytes resumes
-}
-
-void LineConnection::replied() {
-  if (unanswered_ > 0) --unanswered_;
-  read_more();  // reading paused on unanswered requests resumes
-  maybe_finish();
 }
 
 void LineConnection::maybe_finish() {

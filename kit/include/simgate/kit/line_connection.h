@@ -150,11 +150,19 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
   // into the connection's outbox, without a copy.
   template <class Format>
   void queue_with(Format&& format) {
-    if (!room_for_reply()) return;
+    const std::size_t waiting = outbox_.size() + in_flight_.size();
+    // the usual case inline: open, within both budgets (room_for_reply() says the rest)
+    if (closed_ || waiting > limits_.max_unsent_bytes ||
+        (waiting > 0 && host_.shared_.buffered > host_.shared_.max_buffered)) [[unlikely]] {
+      if (!room_for_reply()) return;
+    }
     const std::size_t before = outbox_.size();
     format(outbox_);
     account(static_cast<std::ptrdiff_t>(outbox_.size() - before));
-    queued();
+    if (outbox_.size() >= k_coalesce_bytes) [[unlikely]]
+      flush_writes();  // a large burst goes out as it grows
+    else if (!touched_)
+      host_.touch(*this);
   }
   // Writes what queue() gathered, unless a write is in flight (it takes them next).
   void flush_writes();
@@ -167,7 +175,12 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
   // The protocol owes the client a reply (a request read), or one fewer (answered or
   // dropped). Reading pauses at pause_at_unanswered; end of input closes once none is owed.
   void expect_reply() { ++unanswered_; }
-  void replied();
+  void replied() {
+    if (unanswered_ > 0) --unanswered_;
+    active();
+    if (!reading_) read_more();  // reading paused on unanswered requests resumes
+    if (eof_) maybe_finish();
+  }
   std::size_t unanswered() const { return unanswered_; }
 
   // Closes the socket and tells the host; idempotent.
@@ -201,8 +214,6 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
   // Whether a reply may be queued: false when closed, or closes it when the client does not
   // read its replies.
   bool room_for_reply();
-  // A reply was appended to outbox_: touched, or written at once past k_coalesce_bytes.
-  void queued();
   void start_write();
   void after_write();
   void maybe_finish();
