@@ -29,7 +29,8 @@ dds_entity_t check(dds_entity_t rc, const std::string& what) {
   return rc;
 }
 
-// Replies keyed with another client's id never reach our reader.
+// Replies for another client's id (only a writer that is not the server's would put one in
+// our partition) never reach our reader.
 bool is_ours(const void* sample, void* arg) {
   return std::memcmp(static_cast<const simgate_Reply*>(sample)->client, arg, 16) == 0;
 }

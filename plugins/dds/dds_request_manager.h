@@ -2,8 +2,8 @@
 //
 // Terms (wire types in simgate_dds.idl, design in docs/transports/dds.md):
 //  - Request / Reply topics: a client writes Request{id = (client, seq), component,
-//    service, params JSON}; the server answers on the Reply topic, keyed by client. Async
-//    calls get ST_ACCEPTED first, then one terminal reply.
+//    service, params JSON}; the server answers on the Reply topic (Reply.client = the
+//    client's id). Async calls get ST_ACCEPTED first, then one terminal reply.
 //  - Client: one request writer; its id is that writer's GUID (a request that claims another
 //    id is refused). The server learns of it when the writer matches its request reader and
 //    forgets it when the writer leaves (and its calls are over).

@@ -5,7 +5,7 @@
 //    settings (by default: loopback only, multicast off) apply to every participant of it
 //    in this process. Several simgate objects of one process may share a domain; the last
 //    one to leave deletes it.
-//  - ClientId: the 16 bytes that name a client on the wire (Reply key, Request id.client):
+//  - ClientId: the 16 bytes that name a client on the wire (Reply.client, Request id.client):
 //    the GUID of its request writer (the server refuses any other), shown as 32 lowercase
 //    hex digits; the partition of its replies is "<partition>/<hex>", and its reply reader
 //    announces "simgate.id=<hex>" in its USER_DATA so the server can tell when it matched.
