@@ -865,6 +865,38 @@ TEST_F(DdsTransportTest, AClientThatNeverTakesItsRepliesLosesOnlyItsOwn) {
   // and it is still served once it reads again: not part of this test (its reader is full)
 }
 
+// Item 3: the replies that waited for room in a client's reply writer (its reader was full
+// for a while) reach it, in order, once it takes again within park_timeout_ms.
+TEST_F(DdsTransportTest, AClientThatTakesAgainGetsTheRepliesThatWaited) {
+  auto server = make_server(test_partition());  // park_timeout_ms: 10 s
+  SimThread sim(server);
+  RawClient slow(test_partition());
+  LogWatch watch(to_hex(slow.id()), log::Level::debug);
+  slow.create_reply_reader(true, 2);  // holds two replies until it takes
+  ASSERT_TRUE(slow.wait_request_matched());
+  constexpr int k_calls = 6;
+  for (int i = 1; i <= k_calls; ++i) {
+    const std::string params = "[" + std::to_string(i) + ", 0]";
+    slow.write(i, simgate_OP_CALL, "calc", "add", params.c_str());
+  }
+  auto logged = [&](const std::string& what) {
+    for (const std::string& line : watch.lines())
+      if (line.find(what) != std::string::npos) return true;
+    return false;
+  };
+  // the third reply found the writer full
+  ASSERT_TRUE(eventually([&] { return logged("is full"); }));
+  // now it takes: every reply, in order
+  for (int i = 1; i <= k_calls; ++i) {
+    auto reply = slow.next();
+    ASSERT_TRUE(reply) << "reply " << i;
+    EXPECT_EQ(reply->seq, static_cast<std::uint64_t>(i));
+    EXPECT_EQ(json::parse(reply->result), json(double(i)));
+  }
+  EXPECT_TRUE(logged("takes its replies again"));
+  EXPECT_FALSE(logged("dropped"));
+}
+
 // Item 9: what the server keeps of a client lives from the match of its request writer until
 // that writer left and its calls are over, so clients that come and go leave nothing behind.
 // (What Cyclone 0.10 itself keeps per endpoint it saw is another matter: docs/transports/dds.md.)

@@ -3,8 +3,10 @@
 // Terms (see docs/transports/dds.md and plugins/dds/simgate_dds.idl):
 //  - A DdsClient joins a DDS domain and partition (those of the simulation it talks to) with
 //    its own participant, a request writer and a reply reader. Its id is the GUID of its
-//    request writer; its reply reader announces it in USER_DATA ("simgate.id=<hex>") and
-//    only receives replies keyed with it.
+//    request writer (the server refuses any other); its reply reader lives in the partition
+//    "<partition>/<hex id>", where the server writes this client's replies with a writer of
+//    its own, announces the id in USER_DATA ("simgate.id=<hex>") and only takes replies
+//    that carry it.
 //  - A call is numbered (CallId = the request's seq). start() sends it; wait() returns its
 //    final Outcome; async services are acknowledged first (wait_accepted()); cancel()
 //    cancels the client's own pending call.
