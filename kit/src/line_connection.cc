@@ -67,6 +67,16 @@ bool LineConnection::grow_line(std::string_view data) {
   return true;
 }
 
+std::string LineConnection::take_line(std::string_view end) {
+  account(-static_cast<std::ptrdiff_t>(partial_.size()));
+  partial_.append(end);
+  // freed by the caller once handled: counted now for the sweep's trim
+  if (partial_.capacity() > k_kept_buffer_bytes) host_.shared_.freed += partial_.capacity();
+  std::string line = std::move(partial_);
+  partial_ = std::string();
+  return line;
+}
+
 void LineConnection::release_if_large(std::string& buffer) {
   if (buffer.capacity() <= k_kept_buffer_bytes) return;
   host_.shared_.freed += buffer.capacity();
@@ -135,9 +145,7 @@ void LineConnection::handle_read(const error_code& ec, std::size_t n) {
   if (ec == asio::error::eof) {
     // the client finished sending: answer what it asked, then close
     if (!partial_.empty() && !discarding_) {
-      account(-static_cast<std::ptrdiff_t>(partial_.size()));
-      std::string last = std::move(partial_);
-      partial_.clear();
+      const std::string last = take_line();
       host_.on_line(*this, last);
       host_.on_lines_done(*this, /*read_finished=*/true);
     }
@@ -191,22 +199,15 @@ void LineConnection::consume(std::string_view data) {
     } else if (partial_.empty()) {
       host_.on_line(*this, piece);  // fast path: the whole line is in this read
     } else {
-      account(-static_cast<std::ptrdiff_t>(partial_.size()));
-      partial_.append(piece);
-      std::string line = std::move(partial_);
-      partial_.clear();
+      const std::string line = take_line(piece);
       host_.on_line(*this, line);
-      if (line.capacity() > k_kept_buffer_bytes) host_.shared_.freed += line.capacity();
     }
   }
 }
 
 void LineConnection::oversized(std::string_view start, std::size_t bytes) {
   // the host sees the line's first KiB; what was kept of it goes back to the allocator
-  account(-static_cast<std::ptrdiff_t>(partial_.size()));
-  if (partial_.capacity() > k_kept_buffer_bytes) host_.shared_.freed += partial_.capacity();
-  std::string prefix = std::move(partial_);
-  partial_ = std::string();
+  std::string prefix = take_line();
   if (prefix.size() < k_oversized_prefix)
     prefix.append(start.substr(0, std::min(start.size(), k_oversized_prefix - prefix.size())));
   else
@@ -399,6 +400,7 @@ void LineServer::sweep() {
   // the memory a burst used goes back to the system, not only to the allocator
   if (shared_.freed >= k_trim_after_bytes) {
     ::malloc_trim(0);
+    log::debug(who_, ": buffers of ", shared_.freed, " bytes freed since the last sweep; free memory returned to the system");
     shared_.freed = 0;
   }
   if (!connections_.empty()) schedule_sweep(*connections_.begin());

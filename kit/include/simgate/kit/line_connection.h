@@ -222,6 +222,8 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
   // only within max_buffered_bytes (false: the connection was closed instead).
   void account(std::ptrdiff_t bytes) { host_.shared_.buffered += static_cast<std::size_t>(bytes); }
   bool grow_line(std::string_view data);
+  // The unfinished line with `end` appended, taken out of the connection.
+  std::string take_line(std::string_view end = {});
   // A buffer a burst grew large is given back once empty.
   void release_if_large(std::string& buffer);
   void active() { active_tick_ = host_.shared_.tick; }
