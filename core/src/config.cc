@@ -277,6 +277,15 @@ class ConfigScanner final : public nlohmann::json_sax<json> {
 }  // namespace
 
 json parse_config_text(std::string_view text, std::size_t max_depth) {
+  // nlohmann's parser ends the document at a NUL byte: what follows would be ignored
+  // (issue #17, item 9). A text file has none.
+  if (const std::size_t nul = text.find('\0'); nul != std::string_view::npos) {
+    const std::string_view before = text.substr(0, nul);
+    const std::size_t line = 1 + static_cast<std::size_t>(std::count(before.begin(), before.end(), '\n'));
+    const std::size_t line_start = before.rfind('\n') == std::string_view::npos ? 0 : before.rfind('\n') + 1;
+    throw ConfigError("configuration: invalid JSON: a NUL byte at line " + std::to_string(line) + ", column " +
+                      std::to_string(nul - line_start + 1) + " (not a text file?)");
+  }
   ConfigScanner scanner(text, max_depth);
   if (!json::sax_parse(text.begin(), text.end(), &scanner) || !scanner.error().empty())
     throw ConfigError(scanner.error().empty() ? std::string("configuration: invalid JSON") : scanner.error());

@@ -552,7 +552,7 @@ bool RequestManager::execute(RequestId id, const Call& call, Outcome& out,
     json data = e.data();
     data["component"] = d.component;
     data["service"] = d.name;
-    out = Outcome::failed(e.failure(), e.what(), std::move(data));
+    out = Outcome::failed(e.failure(), e.message(), std::move(data));
   } catch (const std::exception& e) {
     log::warning(name_, ": ", d.qualified_name(), " threw: ", e.what());
     out = Outcome::failed(Failure::internal, "Internal error in service " + d.qualified_name() + ": " + e.what(),

@@ -183,6 +183,14 @@ void JsonRpcRequestManager::handle_message(const std::shared_ptr<Session>& sessi
                                  json{{"reason", "nesting too deep"}}));
     return;
   }
+  // nlohmann's parser ends the text at a NUL byte: `<request>\0<anything>` would run the
+  // request and ignore the rest (issue #17, item 9). JSON has no raw NUL, not even in strings.
+  if (const std::size_t nul = line.find('\0'); nul != std::string_view::npos) {
+    reply(single, error_response(nullptr, code::parse_error, "Parse error",
+                                 json{{"reason", "a NUL byte at column " + std::to_string(nul + 1) +
+                                                     " (JSON text has none; write \\u0000 in a string)"}}));
+    return;
+  }
   json message;
   try {
     message = json::parse(line.begin(), line.end());

@@ -6,6 +6,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <limits>
 
 namespace simgate::socket {
@@ -377,7 +378,14 @@ class Parser {
     }
     double value = 0;
     auto [end, ec] = std::from_chars(body.data(), body.data() + body.size(), value);
-    if (ec == std::errc::result_out_of_range) fail_at(start, "number out of range");
+    if (ec == std::errc::result_out_of_range && end == body.data() + body.size()) {
+      // beyond a double: too large is an error; too small is 0.0 (or a subnormal), as
+      // Python's float() and json.loads read it (`[1e-400]`). strtod tells them apart (the
+      // body is well formed, and simgate keeps the C locale)
+      value = std::strtod(std::string(body).c_str(), nullptr);
+      if (std::isinf(value)) fail_at(start, "number out of range");
+      return negative ? -value : value;
+    }
     if (ec != std::errc() || end != body.data() + body.size()) fail_at(start, "malformed number");
     return negative ? -value : value;
   }

@@ -188,6 +188,20 @@ TEST_F(RequestManagerTest, ServiceErrorBecomesFailedWithItsMessage) {
   EXPECT_EQ(o->value, json("Our human cannot walk at negative speed!"));
 }
 
+// A message is text of any bytes: a NUL in it (a client's text quoted by the core) used to
+// cut it there (issue #17, item 9: ServiceError kept it as what(), a C string).
+TEST_F(RequestManagerTest, AServiceErrorMessageKeepsWhatFollowsANul) {
+  const std::string message("before\0after", 12);
+  auto o = rm.run("robot.mover", "fail", json{message});
+  EXPECT_EQ(o->status, Status::failed);
+  EXPECT_EQ(o->message, message);
+  // the core's own messages quote the client: a parameter name with a NUL in it
+  auto named = rm.run("robot.mover", "fail", json{{std::string("mess\0age", 8), "x"}});
+  EXPECT_EQ(named->failure, Failure::bad_arguments);
+  EXPECT_THAT(named->message, HasSubstr(std::string("mess\0age", 8)));
+  EXPECT_THAT(named->message, HasSubstr("message"));  // the parameter list, after the NUL
+}
+
 TEST_F(RequestManagerTest, OtherExceptionsFailClearlyAndTheManagerLivesOn) {
   auto o = rm.run("robot.mover", "crash");
   EXPECT_EQ(o->failure, Failure::internal);

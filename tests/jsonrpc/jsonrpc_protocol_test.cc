@@ -82,6 +82,18 @@ TEST_F(JsonRpcConformance, InvalidJsonIsParseError) {
   EXPECT_EQ(error_code(r), -32700) << r.dump();
 }
 
+TEST_F(JsonRpcConformance, ANulByteIsAParseErrorNotTheEndOfTheMessage) {
+  // nlohmann's parser stopped at the NUL: the request ran and the rest was ignored (issue
+  // #17, item 9, a fuzz finding)
+  const std::string line = std::string(R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[1,2],"id":1})") +
+                           std::string(1, '\0') + "garbage";
+  auto r = round_trip(*client_, line);
+  EXPECT_EQ(error_code(r), -32700) << r.dump();
+  EXPECT_TRUE(r["id"].is_null());
+  EXPECT_NE(r["error"]["data"]["reason"].get<std::string>().find("a NUL byte at column 65"), std::string::npos) << r.dump();
+  EXPECT_EQ(client_->request("robot.arm.add", json::array({1, 2}), k_timeout)["result"], 3.0);
+}
+
 TEST_F(JsonRpcConformance, NumberBeyondADoubleIsParseErrorAndTheConnectionLivesOn) {
   // json::parse throws out_of_range (not parse_error) for it: it used to close the connection
   auto r = round_trip(*client_, R"({"jsonrpc":"2.0","method":"robot.arm.echo","params":[1e400],"id":1})");

@@ -63,6 +63,14 @@ TEST(SocketParamsParser, Numbers) {
   EXPECT_EQ(n[10].get<std::int64_t>(), INT64_MIN);
   EXPECT_THAT(bad("(18446744073709551616,)").error, HasSubstr("integer out of range"));
   EXPECT_THAT(bad("(1e999,)").error, HasSubstr("out of range"));
+  EXPECT_THAT(bad("(-1e999,)").error, HasSubstr("out of range"));
+  // too small for a double is 0.0, as Python reads it (issue #17, item 9: was an error)
+  const json tiny = ok("[1e-400, -1e-400, 5e-324, 1e-310]");
+  EXPECT_EQ(tiny[0].get<double>(), 0.0);
+  EXPECT_TRUE(tiny[0].is_number_float());
+  EXPECT_TRUE(std::signbit(tiny[1].get<double>()));
+  EXPECT_EQ(tiny[2].get<double>(), 5e-324);
+  EXPECT_EQ(tiny[3].get<double>(), 1e-310);
   EXPECT_THAT(bad("(01,)").error, HasSubstr("leading zeros"));
   EXPECT_THAT(bad("(1e,)").error, HasSubstr("exponent"));
   EXPECT_THAT(bad("(0x10,)").error, HasSubstr("malformed number"));

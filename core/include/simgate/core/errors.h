@@ -20,13 +20,16 @@ class ServiceError : public std::runtime_error {
  public:
   explicit ServiceError(const std::string& message, Failure failure = Failure::service_error,
                         json data = json::object())
-      : std::runtime_error(message), failure_(failure), data_(std::move(data)) {}
+      : std::runtime_error(message), message_(message), failure_(failure), data_(std::move(data)) {}
+  // The whole message: what() is a C string, cut at the first NUL of a client's text quoted in it.
+  const std::string& message() const noexcept { return message_; }
   Failure failure() const noexcept { return failure_; }
   const json& data() const noexcept { return data_; }
 
  private:
-  Failure failure_;  // how transports classify it
-  json data_;        // structured detail (component, service, parameter...)
+  std::string message_;  // as given
+  Failure failure_;      // how transports classify it
+  json data_;            // structured detail (component, service, parameter...)
 };
 
 // The component or service is not registered with the request manager.
