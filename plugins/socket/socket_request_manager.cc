@@ -236,7 +236,7 @@ void SocketRequestManager::on_oversized_line(kit::LineConnection& connection, st
   std::size_t end = begin;
   while (end < prefix.size() && prefix[end] != ' ' && prefix[end] != '\t' && prefix[end] != '\r') ++end;
   std::string_view id = prefix.substr(begin, end - begin);
-  if (id.empty() || id.size() > k_max_echoed_id || end == prefix.size()) id = "-";
+  if (id.empty() || id.size() > k_max_echoed_id || end == prefix.size() || !echoable_id(id)) id = "-";
   log::warning(name(), ": ", session.label(), ": request line longer than ",
                limits_.max_message_bytes, " bytes ignored");
   fail_in_order(session, id,

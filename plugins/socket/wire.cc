@@ -148,14 +148,30 @@ bool valid_utf8(std::string_view s, std::size_t& bad_offset) {
   return true;
 }
 
+bool echoable_id(std::string_view id) {
+  for (char c : id)
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) return false;
+  return true;
+}
+
 RequestLine parse_request_line(std::string_view line) {
   RequestLine r;
-  unsigned id_bytes = 0;    // (ids are echoed verbatim: never checked)
+  unsigned id_bytes = 0;    // (ids are echoed verbatim: only control characters are refused)
   unsigned name_bytes = 0;  // the names' bytes ORed: non-ASCII names need a UTF-8 check
   const std::size_t id_begin = skip_blanks(line, 0);
   const std::size_t id_end = token_end(line, id_begin, id_bytes);
   if (id_begin == id_end) return r;  // blank
   r.id = line.substr(id_begin, id_end - id_begin);
+  if (!echoable_id(r.id)) [[unlikely]] {
+    std::size_t at = 0;  // the first control character
+    while (echoable_id(r.id.substr(at, 1))) ++at;
+    r.kind = RequestLine::Kind::malformed;
+    r.error = "Malformed request! the id contains a control character (byte " +
+              std::to_string(static_cast<unsigned char>(r.id[at])) + " at column " + std::to_string(id_begin + at + 1) +
+              "); ids are echoed in replies, use printable ones";
+    r.id = "-";
+    return r;
+  }
 
   const std::size_t c_begin = skip_blanks(line, id_end);
   const std::size_t c_end = token_end(line, c_begin, name_bytes);

@@ -47,7 +47,12 @@ struct RequestLine {
 };
 
 // Splits one line (without its '\n'; a trailing '\r' and surrounding blanks are ignored).
+// An id with a control character is malformed, answered under the id "-": ids are echoed
+// verbatim, and a terminal (telnet) would act on an escape sequence.
 RequestLine parse_request_line(std::string_view line);
+
+// Whether `id` can be echoed: no control character (below 0x20, or 0x7f).
+bool echoable_id(std::string_view id);
 
 // Decodes one UTF-8 sequence at s[i]: its length (0 if invalid: truncated, overlong,
 // surrogate, past U+10FFFF) and, through `cp`, the code point.

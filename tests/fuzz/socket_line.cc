@@ -50,7 +50,9 @@ void one_line(std::string_view line, json& reused, socket::ParamsParse& error, S
       for (char c : line) FUZZ_CHECK(is_blank(c), "a blank line holds blanks only");
       return;
     case socket::RequestLine::Kind::malformed: {
-      FUZZ_CHECK(!r.id.empty() && !has_blank(r.id) && inside(r.id, line), "a malformed line has an id");
+      // its own id, or "-" for one that cannot be echoed (a control character in it)
+      FUZZ_CHECK(r.id == "-" || (!r.id.empty() && !has_blank(r.id) && inside(r.id, line)), "a malformed line has an id");
+      FUZZ_CHECK(socket::echoable_id(r.id), "an id echoed holds no control character");
       FUZZ_CHECK(!r.error.empty(), "a malformed line says why");
       const json message = r.error;
       reply(out, r.id, "FAILED", &message);
@@ -58,12 +60,14 @@ void one_line(std::string_view line, json& reused, socket::ParamsParse& error, S
     }
     case socket::RequestLine::Kind::cancel:
       FUZZ_CHECK(!r.id.empty() && !has_blank(r.id) && inside(r.id, line), "a cancel has an id");
+      FUZZ_CHECK(socket::echoable_id(r.id), "an id echoed holds no control character");
       host.cancel_started(r.id.size());
       return;
     case socket::RequestLine::Kind::call:
       break;
   }
   FUZZ_CHECK(!r.id.empty() && !has_blank(r.id) && inside(r.id, line), "a call has an id");
+  FUZZ_CHECK(socket::echoable_id(r.id), "an id echoed holds no control character");
   FUZZ_CHECK(!r.component.empty() && !has_blank(r.component) && inside(r.component, line), "a call has a component");
   FUZZ_CHECK(!r.service.empty() && !has_blank(r.service) && inside(r.service, line), "a call has a service");
   FUZZ_CHECK(inside(r.params, line), "the parameters are part of the line");

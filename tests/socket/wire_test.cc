@@ -59,6 +59,20 @@ TEST(SocketWire, CancelBlankAndMalformed) {
   EXPECT_THAT(utf.error, HasSubstr("service name is not valid UTF-8 (column 11)"));
 }
 
+// Ids are echoed verbatim: one with an escape sequence made a telnet user's terminal act on
+// it (issue #17, item 9). Refused, answered under "-".
+TEST(SocketWire, AnIdWithAControlCharacterIsMalformedAndNotEchoed) {
+  RequestLine esc = parse_request_line(" a\x1b[2J robot.pose get_local_data");
+  EXPECT_EQ(esc.kind, Kind::malformed);
+  EXPECT_EQ(esc.id, "-");
+  EXPECT_EQ(esc.error, "Malformed request! the id contains a control character (byte 27 at column 3); ids are "
+                       "echoed in replies, use printable ones");
+  EXPECT_EQ(parse_request_line(std::string("x\x7f comp sv")).id, "-");
+  EXPECT_EQ(parse_request_line("\xc3\xa9t\xc3\xa9 comp sv").kind, Kind::call);  // UTF-8 ids are fine
+  EXPECT_TRUE(echoable_id("req-42"));
+  EXPECT_FALSE(echoable_id(std::string("a\0b", 3)));
+}
+
 TEST(SocketWire, JsonLikePythonDumps) {
   EXPECT_EQ(dumps(json::parse(R"([1, "a", {"k": [true, false, null]}, 2.5, -3])")),
             R"([1, "a", {"k": [true, false, null]}, 2.5, -3])");
