@@ -241,6 +241,7 @@ void DdsRequestManager::run() {
         write_finished();
       }
       if (parked_count_ > 0) next_parked = flush_all_parked();
+      if (!retiring_.empty()) retire_pending();  // at least once a second (the wait's timeout)
     } catch (const std::exception& e) {
       // keep serving everyone else
       log::error("DDS transport: ", e.what());
@@ -708,12 +709,32 @@ void DdsRequestManager::client_gone(const ClientId& id, ClientState& client) {
 void DdsRequestManager::forget_client(const ClientId& id) {
   auto c = clients_.find(id);
   if (c == clients_.end()) return;
-  // its publisher and reply writer go with it (and leave the waitset)
-  if (c->second.reply_publisher > 0) dds_delete(c->second.reply_publisher);
+  // its publisher and reply writer go with it
+  if (c->second.reply_publisher > 0) retire(c->second.reply_publisher, c->second.reply_writer);
   writers_.erase(c->second.writer);
   reply_writers_.erase(c->second.reply_writer);
   clients_.erase(c);
   log::debug("DDS transport: client ", to_hex(id), " forgotten (", clients_.size(), " known)");
+}
+
+void DdsRequestManager::retire(dds_entity_t publisher, dds_entity_t writer) {
+  dds_waitset_detach(waitset_, writer);
+  // all acknowledged (or no reader left): deleted at once, without lingering
+  if (dds_wait_for_acks(writer, 0) == DDS_RETCODE_OK) {
+    dds_delete(publisher);
+    return;
+  }
+  log::debug("DDS transport: a reply writer with unacknowledged replies is deleted once they are acknowledged "
+             "or their reader left");
+  retiring_.emplace_back(publisher, writer);
+}
+
+void DdsRequestManager::retire_pending() {
+  std::erase_if(retiring_, [](const std::pair<dds_entity_t, dds_entity_t>& entry) {
+    if (dds_wait_for_acks(entry.second, 0) != DDS_RETCODE_OK) return false;
+    dds_delete(entry.first);
+    return true;
+  });
 }
 
 DdsRequestManager::ReplyData DdsRequestManager::to_reply(std::uint64_t seq, const Outcome& outcome) {

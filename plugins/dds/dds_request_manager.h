@@ -159,6 +159,15 @@ class DdsRequestManager : public RequestManager {
   void add_client(dds_instance_handle_t writer);
   void client_gone(const ClientId& id, ClientState& client);
   void forget_client(const ClientId& id);
+  // Deletes a forgotten client's reply publisher once its writer holds nothing unacknowledged:
+  // now if it can, else at a later pass (retire_pending). Cyclone's dds_delete of a writer
+  // that still holds samples waits for their acknowledgements, up to WriterLingerDuration
+  // (1 s by default): a peer that withdraws its request writer while its reply reader stays
+  // matched and silent would hold the DDS thread that long, once per such client. (A Cyclone
+  // peer whose reader is full cannot get that far: its receive thread is stuck, and so is
+  // its own deletion; a crafted peer can.)
+  void retire(dds_entity_t publisher, dds_entity_t writer);
+  void retire_pending();
   // Whether a reader announcing the client's id matches its reply writer (reads the status).
   void refresh_reader_match(const ClientId& id, ClientState& client);
   void send_reply(const ClientId& client, ReplyData reply, bool final_flush = false);
@@ -201,6 +210,7 @@ class DdsRequestManager : public RequestManager {
   std::map<ClientId, ClientState> clients_;         // known clients
   std::map<dds_instance_handle_t, ClientId> writers_;  // request writer -> its client
   std::map<dds_entity_t, ClientId> reply_writers_;  // reply writer -> its client
+  std::vector<std::pair<dds_entity_t, dds_entity_t>> retiring_;  // (publisher, writer) to delete
   std::atomic<std::size_t> client_count_{0};        // matched request writers, for any thread
   std::unordered_map<std::string, bool> async_services_;  // "component.service" -> is_async
   std::string lookup_key_;                          // lookup_async's key buffer
