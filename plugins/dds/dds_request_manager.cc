@@ -576,8 +576,11 @@ void DdsRequestManager::flush_parked(const ClientId& id, ClientState& client,
       dds_return_t rc = write_reply(id, client, reply);
       if (rc != DDS_RETCODE_TIMEOUT) {
         if (client.stalled) {
-          log::info("DDS transport: client ", to_hex(id), " takes its replies again");
+          // (with the drops not reported yet)
+          log::info("DDS transport: client ", to_hex(id), " takes its replies again",
+                    client.dropped > 0 ? "; reply(ies) dropped meanwhile: " + std::to_string(client.dropped) : "");
           client.stalled = false;
+          client.dropped = 0;
         }
       } else {
         client.stalled = true;
