@@ -20,9 +20,18 @@ const CallContext* CallContext::current() noexcept { return t_current; }
 
 bool CallContext::serves(const std::string& component) const { return manager_.serves_component(component); }
 
+bool CallContext::may_call(const std::string& component, const std::string& service) const {
+  return manager_.may_call(component, service);
+}
+
 bool caller_serves(const std::string& component) {
   const CallContext* context = CallContext::current();
   return !context || context->serves(component);
+}
+
+bool caller_may_call(const std::string& component, const std::string& service) {
+  const CallContext* context = CallContext::current();
+  return !context || context->may_call(component, service);
 }
 
 }  // namespace simgate

@@ -244,11 +244,24 @@ std::shared_ptr<AsyncSlot> RequestManager::slot_for(const std::string& component
   return slot;
 }
 
+void RequestManager::set_access(ServiceAccess access) {
+  std::lock_guard lock(table_mutex_);
+  access_ = std::move(access);
+  // the previous lookup (find_service) may be a service the new lists deny
+  table_version_.fetch_add(1, std::memory_order_acq_rel);
+}
+
+ServiceAccess RequestManager::access() const {
+  std::lock_guard lock(table_mutex_);
+  return access_;
+}
+
 std::vector<ServiceDescriptor> RequestManager::descriptors() const {
   std::lock_guard lock(table_mutex_);
   std::vector<ServiceDescriptor> out;
   for (const auto& [component, table] : services_)
-    for (const auto& [name, service] : table) out.push_back(service->descriptor());
+    for (const auto& [name, service] : table)
+      if (access_.allows(component, name)) out.push_back(service->descriptor());
   std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) {
     return std::tie(a.component, a.name) < std::tie(b.component, b.name);
   });
@@ -264,6 +277,12 @@ std::map<std::string, std::vector<std::string>> RequestManager::services() const
 bool RequestManager::serves_component(const std::string& component) const {
   std::lock_guard lock(table_mutex_);
   return services_.count(component) > 0;
+}
+
+bool RequestManager::may_call(const std::string& component, const std::string& service) const {
+  std::lock_guard lock(table_mutex_);
+  auto c = services_.find(component);
+  return c != services_.end() && c->second.count(service) > 0 && access_.allows(component, service);
 }
 
 std::vector<std::string> RequestManager::components() const {
@@ -426,13 +445,15 @@ Outcome RequestManager::unknown_service(const Call& call) const {
   std::string why;
   {
     std::lock_guard lock(table_mutex_);
+    // only what clients may call is named: a service the access lists deny is not one of
+    // the component's services, nor a suggestion (the lists must not show through)
     // components below the one named that have this service: `robot get_local_data` is
     // robot.pose's service
     std::vector<std::string> owners;
     const std::string prefix = call.component + ".";
     for (const auto& [component, table] : services_)
       if (component.size() > prefix.size() && component.compare(0, prefix.size(), prefix) == 0 &&
-          table.count(call.service))
+          table.count(call.service) && access_.allows(component, call.service))
         owners.push_back(component);
     std::sort(owners.begin(), owners.end());
 
@@ -447,7 +468,8 @@ Outcome RequestManager::unknown_service(const Call& call) const {
       }
     } else {
       std::vector<std::string> names;
-      for (const auto& [name, s] : it->second) names.push_back(name);
+      for (const auto& [name, s] : it->second)
+        if (access_.allows(call.component, name)) names.push_back(name);
       std::sort(names.begin(), names.end());
       std::string list;
       for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
@@ -476,7 +498,16 @@ std::shared_ptr<Service> RequestManager::find_service(const Call& call) {
     auto c = services_.find(call.component);
     if (c != services_.end()) {
       auto s = c->second.find(call.service);
-      if (s != c->second.end()) service = s->second;
+      // a service the access lists deny is not found: refused as unknown, before anything
+      // runs (only found services are remembered above, so this costs nothing per request
+      // of a pipelining client)
+      if (s != c->second.end()) {
+        if (access_.allows(call.component, call.service))
+          service = s->second;
+        else
+          log::debug(name_, ": ", call.component, " ", call.service,
+                     " refused: this transport's allow/deny lists do not let clients call it");
+      }
     }
   }
   if (service) {

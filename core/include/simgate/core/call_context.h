@@ -9,6 +9,9 @@
 // (a sync call, or an async service's start method), CallContext::current() on that thread
 // names the request and its manager; the served set is the manager's own table
 // (RequestManager::serves_component), the only source of truth for what a transport serves.
+// Within those components, the transport's allow and deny lists (service_access.h) say which
+// services its clients may call (RequestManager::may_call): a service that lists services
+// (`simulation list_services`, `details`) shows only those.
 //
 // Life cycle: the core creates one on the stack around each invocation; it is current until
 // it is destroyed (nested contexts restore the outer one). Outside a request (a component's
@@ -47,6 +50,9 @@ class CallContext {
   RequestId request() const noexcept { return id_; }
   // Whether the calling transport serves `component` (it was registered with the manager).
   bool serves(const std::string& component) const;
+  // Whether the calling transport lets its clients call `component`.`service` (served and
+  // allowed by its lists).
+  bool may_call(const std::string& component, const std::string& service) const;
 
  private:
   const RequestManager& manager_;  // the caller's transport (outlives the call)
@@ -57,6 +63,9 @@ class CallContext {
 // Whether the caller of the running service may see and act on `component`: the calling
 // transport serves it, or no request is running on this thread (the host itself).
 bool caller_serves(const std::string& component);
+// Whether the caller of the running service may call `component`.`service` through its
+// transport (what introspection shows it), or no request is running on this thread.
+bool caller_may_call(const std::string& component, const std::string& service);
 
 }  // namespace simgate
 

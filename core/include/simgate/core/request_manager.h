@@ -22,7 +22,10 @@
 // bad arguments and requests still running at stop()). Services run only under the
 // simulation lock (SimulationGate), on whichever thread runs process(); while one runs,
 // CallContext::current() names the manager and the request (call_context.h), so a service
-// keeps to the components its caller's transport serves. submit() and
+// keeps to the components its caller's transport serves. A manager's ServiceAccess (its
+// transport's allow and deny lists, service_access.h) narrows what its clients may call:
+// a denied service is answered as an unknown one before anything runs, and descriptors()
+// leave it out. submit() and
 // cancel() are thread-safe and never block for long; a queued request wakes process() at
 // once.
 //
@@ -47,6 +50,7 @@
 
 #include "simgate/core/component.h"
 #include "simgate/core/service.h"
+#include "simgate/core/service_access.h"
 #include "simgate/core/status.h"
 #include "simgate/core/simulation_gate.h"
 
@@ -105,11 +109,26 @@ class RequestManager {
   // Async services without a slot get this manager's slot for their component.
   ServiceBuilder add_service(std::shared_ptr<Service> service);
 
-  // Descriptors of everything this manager serves (thread-safe snapshot).
+  // Which registered services clients may call through this manager (its transport's allow
+  // and deny lists; by default everything). A denied service is refused as an unknown one
+  // (Failure::unknown_service, the same message a missing service gets, so the lists do not
+  // show through) before its arguments are even read, and is left out of descriptors(),
+  // services() and unknown-service messages. Services registered before or after alike.
+  // Before start() (the gateway sets it before registering the components).
+  void set_access(ServiceAccess access);
+  ServiceAccess access() const;
+
+  // Descriptors of every service a client may call through this manager: registered and
+  // allowed by access() (thread-safe snapshot). What every transport's introspection shows.
   std::vector<ServiceDescriptor> descriptors() const;
-  // MORSE's services(): component -> service names.
+  // MORSE's services(): component -> service names (the callable ones, as descriptors()).
   std::map<std::string, std::vector<std::string>> services() const;
+  // Whether `component` is registered here (the mapping: the components this transport
+  // serves, whether or not access() lets any of their services through).
   bool serves_component(const std::string& component) const;
+  // Whether a client may call `component`.`service` through this manager: registered here
+  // and allowed by access(). Any thread.
+  bool may_call(const std::string& component, const std::string& service) const;
   // Every component this manager serves, with or without services, sorted (what
   // "component" counts in logs and banners).
   std::vector<std::string> components() const;
@@ -271,11 +290,12 @@ class RequestManager {
   // thread before it serves anything, read wherever outcomes are produced
   std::atomic<std::thread::id> delivery_thread_{};
   std::shared_ptr<SimulationGate> gate_;   // wake-up and simulation lock, shared with the loop
-  mutable std::mutex table_mutex_;         // guards services_ and slots_
+  mutable std::mutex table_mutex_;         // guards services_, slots_ and access_
   // component -> service name -> service
   std::unordered_map<std::string, std::unordered_map<std::string, std::shared_ptr<Service>>> services_;
   std::unordered_map<std::string, std::shared_ptr<AsyncSlot>> slots_;  // free-function slots
-  std::atomic<std::uint64_t> table_version_{0};  // bumped by every registration
+  ServiceAccess access_;                   // which of services_ clients may call (set_access)
+  std::atomic<std::uint64_t> table_version_{0};  // bumped by every registration and set_access
   // the previous successful lookup (find_service), valid while table_version_ is unchanged
   // (under the simulation lock)
   struct LastLookup {
