@@ -148,6 +148,12 @@ void Simulation::add_request_manager(std::shared_ptr<RequestManager> manager, st
   manager_names_.push_back(std::move(transport));
 }
 
+const RequestManager* Simulation::request_manager(const std::string& transport) const {
+  for (std::size_t i = 0; i < managers_.size(); ++i)
+    if (manager_names_[i] == transport) return managers_[i].get();
+  return nullptr;
+}
+
 std::size_t Simulation::process_requests() {
   std::size_t handled = 0;
   for (auto& manager : managers_) handled += manager->process();

@@ -8,9 +8,12 @@
 namespace simgate::sim {
 
 namespace {
+// The services of `c` the caller may call: its transport's allow and deny lists hide the
+// others (call_context.h).
 json service_names(const Component& c) {
   json names = json::array();
-  for (const auto& s : c.services()) names.push_back(s->descriptor().name);
+  for (const auto& s : c.services())
+    if (caller_may_call(c.name(), s->descriptor().name)) names.push_back(s->descriptor().name);
   return names;
 }
 
@@ -61,17 +64,22 @@ json SupervisionServices::details() const {
     const std::string& name = r->component->name();
     json robot{{"name", name}, {"type", r->type}, {"components", json::object()}};
     // robot-level services (note MORSE's spelling: services_interfaces)
-    if (visible(*r) && !r->interfaces.empty() && !r->component->services().empty()) {
-      robot["services"] = service_names(*r->component);
-      robot["services_interfaces"] = r->interfaces;
+    if (visible(*r) && !r->interfaces.empty()) {
+      if (json services = service_names(*r->component); !services.empty()) {
+        robot["services"] = std::move(services);
+        robot["services_interfaces"] = r->interfaces;
+      }
     }
     for (const auto& c : sim_.components()) {
       if (c->robot != name || !visible(*c)) continue;
       json component{{"type", c->type}};
-      // services only where a transport serves them; no stream_interfaces (no datastreams)
-      if (!c->interfaces.empty() && !c->component->services().empty()) {
-        component["services"] = service_names(*c->component);
-        component["service_interfaces"] = c->interfaces;
+      // services only where a transport serves them and the caller may call some; no
+      // stream_interfaces (no datastreams)
+      if (!c->interfaces.empty()) {
+        if (json services = service_names(*c->component); !services.empty()) {
+          component["services"] = std::move(services);
+          component["service_interfaces"] = c->interfaces;
+        }
       }
       robot["components"][c->component->name()] = std::move(component);
     }
@@ -84,9 +92,19 @@ json SupervisionServices::list_services() const {
   json out = json::array();
   for (const auto& c : sim_.components()) {
     if (!visible(*c)) continue;
+    const std::string& component = c->component->name();
     for (const auto& s : c->component->services()) {
+      const std::string& name = s->descriptor().name;
+      if (!caller_may_call(component, name)) continue;  // the caller's allow/deny lists
       json d = s->descriptor().to_json();
-      d["transports"] = c->interfaces;
+      // the transports through which it can be called: those serving the component whose
+      // lists let it through
+      json transports = json::array();
+      for (const auto& t : c->interfaces) {
+        const RequestManager* manager = sim_.request_manager(t);
+        if (!manager || manager->may_call(component, name)) transports.push_back(t);
+      }
+      d["transports"] = std::move(transports);
       out.push_back(std::move(d));
     }
   }

@@ -1,4 +1,5 @@
 // SimSupervision: the `simulation` and `time` pseudo-components.
+#include <map>
 #include <set>
 
 #include "sim_fixture.h"
@@ -318,6 +319,58 @@ TEST_F(SimSupervisionBoundaryTest, CalledDirectlyTheServicesSeeEverything) {
   EXPECT_EQ(supervision->list_robots(), (std::vector<std::string>{"robot", "human"}));
   supervision->deactivate("human");
   EXPECT_FALSE(sim_->find("human")->active);
+}
+
+// ---- the transports' allow and deny lists (issue #17, access control) ----
+
+// "partial" may call the `simulation` services but quit, and nothing of robot.pose.
+class SimSupervisionAccessTest : public SimSupervisionBoundaryTest {
+ protected:
+  void SetUp() override {
+    SimSupervisionBoundaryTest::SetUp();
+    partial_->set_access(ServiceAccess({{"simulation.*"}}, {"simulation.quit"}));
+  }
+};
+
+// "component.service" -> the transports list_services gives it.
+std::map<std::string, json> by_name(const json& list) {
+  std::map<std::string, json> out;
+  for (const auto& s : list) out[s["component"].get<std::string>() + "." + s["name"].get<std::string>()] = s["transports"];
+  return out;
+}
+
+TEST_F(SimSupervisionAccessTest, ListServicesShowsOnlyWhatTheCallersListsLetItCall) {
+  auto partial = by_name(call_partial("simulation", "list_services").value.value_or(json()));
+  EXPECT_FALSE(partial.count("simulation.quit"));
+  EXPECT_FALSE(partial.count("robot.pose.get_local_data"));
+  ASSERT_TRUE(partial.count("simulation.details"));
+  EXPECT_EQ(partial["simulation.details"], json({"test", "partial"}));
+  // the transport without lists sees them all, each with the transports that let it through
+  auto all = by_name(call("simulation", "list_services").value.value_or(json()));
+  EXPECT_EQ(all["simulation.quit"], json({"test"}));
+  EXPECT_EQ(all["robot.pose.get_local_data"], json({"test"}));
+  EXPECT_EQ(all["simulation.details"], json({"test", "partial"}));
+  // partial: the simulation services but quit, nothing else
+  std::size_t simulation_services = 0;
+  for (const auto& [name, transports] : all) simulation_services += name.rfind("simulation.", 0) == 0;
+  EXPECT_EQ(partial.size(), simulation_services - 1);
+}
+
+TEST_F(SimSupervisionAccessTest, DetailsListsAServedComponentWithoutTheServicesItMayNotCall) {
+  json d = call_partial("simulation", "details").value.value_or(json());
+  ASSERT_EQ(d["robots"].size(), 1u);
+  // robot.pose is served (the mapping) but none of its services is callable
+  ASSERT_TRUE(d["robots"][0]["components"].contains("robot.pose")) << d;
+  EXPECT_FALSE(d["robots"][0]["components"]["robot.pose"].contains("services")) << d;
+  EXPECT_FALSE(d["robots"][0]["components"]["robot.pose"].contains("service_interfaces")) << d;
+  json all = call("simulation", "details").value.value_or(json());
+  EXPECT_EQ(all["robots"][0]["components"]["robot.pose"]["services"], json({"get_local_data"}));
+}
+
+TEST_F(SimSupervisionAccessTest, ADeniedSupervisionServiceDoesNotRun) {
+  EXPECT_EQ(call_partial("simulation", "quit").failure, Failure::unknown_service);
+  EXPECT_FALSE(sim_->stop_requested());
+  EXPECT_EQ(call_partial("simulation", "list_robots").value, json({"robot"}));
 }
 
 }  // namespace

@@ -121,6 +121,8 @@ class Simulation {
   void add_request_manager(std::shared_ptr<RequestManager> manager, std::string transport);
   const std::shared_ptr<SimulationGate>& gate() const { return gate_; }
   const std::vector<std::shared_ptr<RequestManager>>& request_managers() const { return managers_; }
+  // The manager added as `transport`, or null.
+  const RequestManager* request_manager(const std::string& transport) const;
 
   // ---- the loop (simulation thread) ----
 

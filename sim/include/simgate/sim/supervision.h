@@ -11,6 +11,9 @@
 // list_robots, details and list_services describe only the components that transport
 // serves (a robot appears when it or one of its components is served), and activate /
 // deactivate refuse any other component exactly as they refuse one that does not exist.
+// Of those components' services, details and list_services show only the ones the
+// transport's allow and deny lists let its clients call (service_access.h); list_services
+// gives each the transports through which it can be called.
 // get_scene_objects lists bodies, not components: the whole scene. reset_objects and
 // suspend/restore_dynamics act on the world as a whole. Called directly (no request: the
 // host, tests), everything is visible.
