@@ -58,6 +58,40 @@ std::vector<std::string> string_list(const json& value, const std::string& path)
   return out;
 }
 
+// 'simulation.quit' as the user wrote it, or, when it is long or not printable ASCII, its
+// bounded JSON preview (an error message must not carry a whole 10 MB value nor control
+// characters).
+std::string quoted_pattern(const std::string& pattern) {
+  bool plain = pattern.size() <= 60 && std::all_of(pattern.begin(), pattern.end(), [](char c) {
+                 return c >= 0x20 && c < 0x7f && c != '\'';
+               });
+  return plain ? "'" + pattern + "'" : json_preview(json(pattern));
+}
+
+// A transport's "allow" or "deny": an array of service patterns (service_access.h), each
+// checked; every malformed one is reported.
+std::vector<std::string> pattern_list(const json& value, const std::string& path) {
+  const std::string expected = "expected a service pattern \"component.service\" ('*': any characters), found ";
+  if (!value.is_array())
+    throw ConfigError(path + ": expected an array of service patterns (\"simulation.quit\", \"robot.*\"), found " +
+                      describe_json(value));
+  ConfigErrors errors;
+  std::vector<std::string> out;
+  for (std::size_t i = 0; i < value.size(); ++i) {
+    const std::string at = path + "[" + std::to_string(i) + "]";
+    if (!value[i].is_string()) {
+      errors.add(at + ": " + expected + describe_json(value[i]));
+      continue;
+    }
+    std::string pattern = value[i].get<std::string>();
+    if (std::string why = ServiceAccess::pattern_error(pattern); !why.empty())
+      errors.add(at + ": " + expected + quoted_pattern(pattern) + ", which " + why);
+    out.push_back(std::move(pattern));
+  }
+  errors.throw_if_any();
+  return out;
+}
+
 ComponentConfig parse_component(ConfigObject& o, const std::string& full_prefix, const std::string& default_body,
                                 const std::string& default_type) {
   ComponentConfig c;
@@ -116,7 +150,19 @@ TransportConfig parse_transport(const std::string& name, const json& value, cons
   tc.plugin = t.get_string("plugin", name);
   auto options = t.get_object("options");
   tc.options = options ? options->raw() : json::object();
-  t.finish();
+  // both lists are checked, and every key, before the first error is thrown
+  ConfigErrors errors;
+  std::optional<std::vector<std::string>> allow;
+  std::vector<std::string> deny;
+  errors.check([&] {
+    if (auto value = t.get_json("allow")) allow = pattern_list(*value, t.path_of("allow"));
+  });
+  errors.check([&] {
+    if (auto value = t.get_json("deny")) deny = pattern_list(*value, t.path_of("deny"));
+  });
+  errors.check([&] { t.finish(); });
+  errors.throw_if_any();
+  tc.access = ServiceAccess(std::move(allow), std::move(deny));
   return tc;
 }
 

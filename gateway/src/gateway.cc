@@ -6,6 +6,7 @@
 #include "listeners.h"
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
+#include "simgate/core/suggest.h"
 
 namespace simgate::gateway {
 
@@ -115,11 +116,53 @@ void Gateway::warn_about_mapping() {
                           (transports_.empty() ? std::string("socket") : transports_.front().name) + "\"])");
   }
   // pymorse connects by calling `simulation details` on the socket transport
-  for (const auto& t : transports_)
-    if (t.plugin && t.plugin->name() == "socket" && !serves(t.name, "simulation"))
+  for (const auto& t : transports_) {
+    if (!t.plugin || t.plugin->name() != "socket") continue;
+    if (!serves(t.name, "simulation"))
       warnings_.push_back(t.config->path + ": the socket transport '" + t.name +
                           "' does not serve 'simulation': pymorse cannot connect to it (it calls `simulation "
                           "details` first); map it, e.g. \"simulation\": [\"" + t.name + "\"]");
+    else if (!t.config->access.allows("simulation", "details"))
+      warnings_.push_back(t.config->path + ": the socket transport '" + t.name +
+                          "' does not let clients call 'simulation.details': pymorse cannot connect to it (it "
+                          "calls `simulation details` first); let it through its allow and deny lists");
+  }
+  warn_about_access_lists();
+}
+
+void Gateway::warn_about_access_lists() {
+  for (const auto& t : transports_) {
+    const ServiceAccess& access = t.config->access;
+    if (access.allows_everything()) continue;
+    // the services this transport serves, as "component.service", and its components
+    std::vector<std::pair<std::string, std::string>> services;
+    std::vector<std::string> qualified;
+    for (const auto& name : served_[t.name])
+      if (const sim::ComponentEntry* entry = simulation_->find(name))
+        for (const auto& service : entry->component->services()) {
+          services.emplace_back(name, service->descriptor().name);
+          qualified.push_back(name + "." + service->descriptor().name);
+        }
+    const std::vector<std::string>& components = served_[t.name];
+    // a pattern that matches nothing is most likely a typo: in a deny list it leaves the
+    // service it meant callable
+    auto check = [&](const std::vector<std::string>& patterns, const std::string& list, const char* effect) {
+      for (std::size_t i = 0; i < patterns.size(); ++i) {
+        const std::string& p = patterns[i];
+        bool matched = std::any_of(services.begin(), services.end(),
+                                   [&](const auto& s) { return ServiceAccess::matches(p, s.first, s.second); });
+        if (matched) continue;
+        // "robot.motion" names a component, not its services
+        std::string hint = std::find(components.begin(), components.end(), p) != components.end()
+                               ? " (a pattern names services: '" + p + ".*' for every service of '" + p + "')"
+                               : did_you_mean(p, qualified);
+        warnings_.push_back(t.config->path + "." + list + "[" + std::to_string(i) + "]: '" + p +
+                            "' matches no service transport '" + t.name + "' serves: it " + effect + " nothing" + hint);
+      }
+    };
+    if (access.allow()) check(*access.allow(), "allow", "allows");
+    check(access.deny(), "deny", "denies");
+  }
 }
 
 void Gateway::create_transports() {
@@ -127,6 +170,8 @@ void Gateway::create_transports() {
   for (auto& transport : transports_) {
     const TransportConfig& t = *transport.config;
     transport.manager = transport.plugin->create(t.options, t.path + ".options");
+    // the allow and deny lists first: no service is ever callable that they deny
+    transport.manager->set_access(t.access);
     for (const auto& name : served_[t.name]) {
       sim::ComponentEntry* entry = simulation_->find(name);
       transport.manager->register_component(*entry->component);

@@ -91,15 +91,22 @@ void print_banner(Gateway& g) {
     std::string list;
     for (const auto& c : served) list += (list.empty() ? "" : ", ") + c;
     std::cout << "  serves: " << (list.empty() ? "(nothing)" : list) << "\n";
+    // its allow and deny lists, when it has any: what its clients may call is narrower
+    auto t = std::find_if(d.transports.begin(), d.transports.end(), [&](const auto& c) { return c.name == name; });
+    if (t != d.transports.end() && !t->access.allows_everything())
+      std::cout << "  services: " << t->access.describe() << "\n";
   }
   if (socket_address) {
     // a first command: drive the robot if a motion_vw is reachable through that socket
     // transport (another transport's component is not), else ask for the robots
     std::string first = "1 simulation list_robots";
     const auto& served = g.served().at(socket_name);
+    const auto socket_config =
+        std::find_if(d.transports.begin(), d.transports.end(), [&](const auto& c) { return c.name == socket_name; });
     for (const auto& r : d.robots)
       for (const auto& c : r.components) {
-        bool on_socket = std::find(served.begin(), served.end(), c.name) != served.end();
+        bool on_socket = std::find(served.begin(), served.end(), c.name) != served.end() &&
+                         socket_config->access.allows(c.name, "set_speed");
         if (c.type == "motion_vw" && on_socket && first.rfind("1 simulation", 0) == 0)
           first = "1 " + c.name + " set_speed [0.5, 0.2]";
       }

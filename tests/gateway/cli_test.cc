@@ -231,6 +231,21 @@ TEST(GatewayCliTest, CheckWarnsWhenPymorseCannotConnect) {
   EXPECT_THAT(out, HasSubstr("OK (2 robot(s), 8 component(s), 1 transport(s), 3 warning(s))"));
 }
 
+TEST(GatewayCliTest, CheckRefusesAMalformedServicePatternAndWarnsOfOneThatMatchesNothing) {
+  TempDir dir;
+  json c = demo_config();
+  c["transports"]["socket"]["deny"] = {"quit"};
+  auto [code, out] = run_simgate({"check", dir.write("bad.json", c.dump())}, dir);
+  EXPECT_EQ(code, 2) << out;
+  EXPECT_THAT(out, HasSubstr("transports.socket.deny[0]: expected a service pattern \"component.service\" ('*': "
+                             "any characters), found 'quit', which has no '.' between a component and a service"));
+  c["transports"]["socket"]["deny"] = {"simulation.qiut"};
+  auto [wcode, wout] = run_simgate({"check", dir.write("typo.json", c.dump())}, dir);
+  EXPECT_EQ(wcode, 0) << wout;
+  EXPECT_THAT(wout, HasSubstr("warning: transports.socket.deny[0]: 'simulation.qiut' matches no service transport "
+                              "'socket' serves: it denies nothing (did you mean 'simulation.quit'?)"));
+}
+
 TEST(GatewayCliTest, RunAndCheckCountComponentsAlike) {
   TempDir dir;
   auto [code, out] = run_simgate({"check", source_path("config/demo.json")}, dir);
@@ -285,6 +300,22 @@ TEST(GatewayCliTest, RunSuggestsOnlyACommandTheAdvertisedSocketTransportServes) 
   const std::string socket_port = std::to_string(port_of(e["socket"][0].get<std::string>()));
   EXPECT_THAT(p.out(), HasSubstr("try: telnet 127.0.0.1 " + socket_port + "   then type: 1 simulation list_robots"));
   EXPECT_THAT(p.out(), Not(HasSubstr("set_speed")));
+}
+
+TEST(GatewayCliTest, RunShowsATransportsListsAndSuggestsNoCommandTheyDeny) {
+  // issue #17, access control: the banner says what each transport's clients may call
+  TempDir dir;
+  json c = demo_config();
+  c["transports"]["socket"]["deny"] = {"robot.motion.set_speed", "simulation.quit"};
+  std::string config = dir.write("denied.json", c.dump());
+  std::string endpoints = dir.file("endpoints.json");
+  Process p({simgate_binary(), "run", config, "--endpoints-file", endpoints}, dir.file(""));
+  json e = json::parse(wait_for_file(endpoints), nullptr, false);
+  ASSERT_TRUE(e.contains("socket")) << p.err();
+  p.signal(SIGTERM);
+  EXPECT_EQ(p.wait(), 0) << p.err();
+  EXPECT_THAT(p.out(), HasSubstr("  services: deny robot.motion.set_speed, simulation.quit\n"));
+  EXPECT_THAT(p.out(), HasSubstr("   then type: 1 simulation list_robots"));
 }
 
 TEST(GatewayCliTest, SimulationQuitEndsTheProcessCleanly) {

@@ -20,6 +20,7 @@ namespace simgate::gateway {
 namespace {
 
 using ::testing::HasSubstr;
+using ::testing::Not;
 using testing::demo_config;
 
 // The errors a check of `config` reports, as `simgate check` does: structure, then scene,
@@ -141,6 +142,25 @@ const BrokenCase k_cases[] = {
      [](json& c) { c["transports"]["socket"]["options"]["host"] = "203.0.113.7"; },  // TEST-NET-3: nobody's
      {"transports.socket.options.host: expected an address of this machine", "found '203.0.113.7'",
       "Cannot assign requested address"}},
+    // ---- allow / deny lists (issue #17, access control) ----
+    {"deny not a list", [](json& c) { c["transports"]["socket"]["deny"] = "simulation.quit"; },
+     {"transports.socket.deny: expected an array of service patterns"}},
+    {"deny pattern not a string", [](json& c) { c["transports"]["socket"]["deny"] = {"simulation.quit", 3}; },
+     {"transports.socket.deny[1]: expected a service pattern \"component.service\" ('*': any characters), found number 3"}},
+    {"deny pattern without a service",
+     [](json& c) { c["transports"]["socket"]["deny"] = {"simulation"}; },
+     {"transports.socket.deny[0]: expected a service pattern \"component.service\" ('*': any characters), found "
+      "'simulation', which has no '.' between a component and a service (\"component.service\", e.g. "
+      "\"simulation.*\" for every service of 'simulation')"}},
+    {"allow pattern with a character no name has",
+     [](json& c) { c["transports"]["socket"]["allow"] = {"robot.*", "simulation.qu?t"}; },
+     {"transports.socket.allow[1]: expected a service pattern", "found 'simulation.qu?t', which has a character "
+      "other than letters, digits, '_', '-', '.' and '*'"}},
+    {"allow pattern with an empty name",
+     [](json& c) { c["transports"]["socket"]["allow"] = {"robot..motion.*"}; },
+     {"transports.socket.allow[0]", "found 'robot..motion.*', which has an empty name between dots"}},
+    {"allow pattern empty", [](json& c) { c["transports"]["socket"]["allow"] = {""}; },
+     {"transports.socket.allow[0]", "found '', which is empty"}},
 #ifdef SIMGATE_TEST_WITH_JSONRPC
     {"a JSON-RPC transport on the socket transport's port",
      [](json& c) {
@@ -461,6 +481,95 @@ TEST(GatewayWarningsTest, TheShippedConfigsHaveNone) {
     Gateway g(d, registry, GatewayOptions{true, std::nullopt, {}});
     EXPECT_TRUE(g.warnings().empty()) << file << ": " << ::testing::PrintToString(g.warnings());
   }
+}
+
+// ---- allow / deny lists (issue #17, access control) ----
+
+std::string all_warnings(const json& config) {
+  std::string all;
+  for (const auto& w : warnings_of(config)) all += w + "\n";
+  return all;
+}
+
+TEST(GatewayAccessListsTest, AllowAndDenyListsOfWellFormedPatternsAreValid) {
+  json c = demo_config();
+  c["transports"]["socket"]["allow"] = {"robot.*", "simulation.*", "*.now", "human.move"};
+  c["transports"]["socket"]["deny"] = {"simulation.quit", "robot.teleport.*", "*"};
+  EXPECT_EQ(error_of(c), "");
+  c["transports"]["socket"]["allow"] = json::array();  // nothing callable: valid, if odd
+  c["transports"]["socket"].erase("deny");
+  EXPECT_EQ(error_of(c), "");
+}
+
+TEST(GatewayAccessListsTest, TheListsBecomeTheTransportsAccess) {
+  json c = demo_config();
+  c["transports"]["socket"]["allow"] = {"robot.*", "simulation.*"};
+  c["transports"]["socket"]["deny"] = {"simulation.quit"};
+  c["transports"]["other"] = {{"plugin", "socket"}, {"options", {{"port", 0}}}, {"deny", {"*.quit"}}};
+  Deployment d = parse_deployment(c, SIMGATE_SOURCE_DIR "/config");
+  ASSERT_EQ(d.transports.size(), 2u);
+  const ServiceAccess& other = d.transports[0].access;  // sorted by name
+  const ServiceAccess& socket = d.transports[1].access;
+  EXPECT_EQ(socket.allow(), std::optional<std::vector<std::string>>({"robot.*", "simulation.*"}));
+  EXPECT_EQ(socket.deny(), std::vector<std::string>({"simulation.quit"}));
+  EXPECT_TRUE(socket.allows("robot.motion", "set_speed"));
+  EXPECT_FALSE(socket.allows("simulation", "quit"));
+  EXPECT_FALSE(socket.allows("human", "move"));
+  EXPECT_FALSE(other.allow().has_value());
+  EXPECT_TRUE(other.allows("human", "move"));
+  EXPECT_FALSE(other.allows("simulation", "quit"));
+  // without lists: everything
+  EXPECT_TRUE(parse_deployment(demo_config(), SIMGATE_SOURCE_DIR "/config").transports[0].access.allows_everything());
+}
+
+TEST(GatewayAccessListsTest, EveryMalformedPatternOfBothListsIsReportedAtOnce) {
+  json c = demo_config();
+  c["transports"]["socket"]["allow"] = {"robot", "robot.*"};
+  c["transports"]["socket"]["deny"] = {"a..b", "simulation.quit", ""};
+  c["transports"]["socket"]["denny"] = json::array();
+  auto errors = errors_of(c);
+  ASSERT_EQ(errors.size(), 4u) << error_of(c);
+  EXPECT_THAT(errors[0], ::testing::StartsWith("transports.socket.allow[0]: "));
+  EXPECT_THAT(errors[1], ::testing::StartsWith("transports.socket.deny[0]: "));
+  EXPECT_THAT(errors[2], ::testing::StartsWith("transports.socket.deny[2]: "));
+  EXPECT_THAT(errors[3], ::testing::StartsWith("transports.socket.denny: unknown key (did you mean 'deny'?"));
+}
+
+TEST(GatewayAccessListsTest, TheAllTransportsExampleDeniesQuitOnJsonRpcOnly) {
+  Deployment d = load_deployment(SIMGATE_SOURCE_DIR "/config/all-transports.json");
+  for (const auto& t : d.transports)
+    EXPECT_EQ(t.access.allows("simulation", "quit"), t.name == "socket") << t.name;
+}
+
+TEST(GatewayAccessListsTest, APatternMatchingNoServiceOfItsTransportIsAWarning) {
+  json c = demo_config();
+  c["transports"]["socket"]["deny"] = {"simulation.qiut", "robot.motion.*"};
+  c["transports"]["socket"]["allow"] = {"*", "robot.motion"};  // a component, not a service
+  std::string all = all_warnings(c);
+  EXPECT_THAT(all, HasSubstr("transports.socket.deny[0]: 'simulation.qiut' matches no service transport 'socket' "
+                             "serves: it denies nothing (did you mean 'simulation.quit'?)"));
+  EXPECT_THAT(all, HasSubstr("transports.socket.allow[1]: 'robot.motion' matches no service transport 'socket' "
+                             "serves: it allows nothing (a pattern names services: 'robot.motion.*' for every "
+                             "service of 'robot.motion')"));
+  EXPECT_THAT(all, Not(HasSubstr("deny[1]")));
+  EXPECT_THAT(all, Not(HasSubstr("allow[0]")));
+}
+
+TEST(GatewayAccessListsTest, APatternForAComponentTheTransportDoesNotServeIsAWarning) {
+  json c = demo_config();
+  c["services"] = {{"default", {"socket"}}, {"human", json::array()}};
+  c["transports"]["socket"]["deny"] = {"human.move"};
+  EXPECT_THAT(all_warnings(c), HasSubstr("transports.socket.deny[0]: 'human.move' matches no service transport "
+                                         "'socket' serves"));
+}
+
+TEST(GatewayAccessListsTest, ASocketTransportThatDeniesDetailsWarnsThatPymorseCannotConnect) {
+  json c = demo_config();
+  c["transports"]["socket"]["deny"] = {"simulation.*"};
+  EXPECT_THAT(all_warnings(c), HasSubstr("transports.socket: the socket transport 'socket' does not let clients "
+                                         "call 'simulation.details': pymorse cannot connect to it"));
+  c["transports"]["socket"]["deny"] = {"simulation.quit"};
+  EXPECT_EQ(all_warnings(c), "");
 }
 
 // ---- mapping ----

@@ -209,7 +209,120 @@ TEST_F(GatewayIntegrationTest, IntrospectionShowsEachTransportOnlyWhatItServes) 
   EXPECT_THAT(jout, HasSubstr("human move("));
   EXPECT_THAT(jout, Not(HasSubstr("robot.waypoint")));
 }
+
+// ---- allow / deny lists (issue #17, access control) ----
+
+// The demo on a socket and a JSON-RPC transport that both serve every component, JSON-RPC
+// narrowed by its lists: the robot, `simulation` and `time now`, but never
+// `simulation quit` nor the teleport.
+json access_config() {
+  json config = testing::demo_config(4.0);
+  config["transports"]["jsonrpc"] = {{"plugin", "jsonrpc"},
+                                     {"options", {{"port", 0}}},
+                                     {"allow", {"robot.*", "simulation.*", "time.now"}},
+                                     {"deny", {"simulation.quit", "robot.teleport.*"}}};
+  config["services"] = {{"default", json::array({"socket", "jsonrpc"})}};
+  return config;
+}
+
+// What access_config() lets a JSON-RPC client call.
+bool callable_through_jsonrpc(const std::string& qualified) {
+  auto starts = [&](const std::string& prefix) { return qualified.rfind(prefix, 0) == 0; };
+  return (starts("robot.") && !starts("robot.teleport.")) || (starts("simulation.") && qualified != "simulation.quit") ||
+         qualified == "time.now";
+}
+
+// "component.service" of each descriptor of a list_services answer.
+std::set<std::string> qualified_names(const json& descriptors) {
+  std::set<std::string> out;
+  for (const auto& d : descriptors) out.insert(d.at("component").get<std::string>() + "." + d.at("name").get<std::string>());
+  return out;
+}
+
+TEST_F(GatewayIntegrationTest, ADeniedServiceIsRefusedThroughJsonRpcAsAnUnknownOneAndDoesNotRun) {
+  start(access_config());
+  LineClient socket(port("socket")), jsonrpc(port("jsonrpc"));
+  // refused exactly as a service that does not exist: -32601, the same message and data
+  json quit = rpc(jsonrpc, 1, "simulation.quit");
+  json missing = rpc(jsonrpc, 2, "simulation.quiet");
+  ASSERT_TRUE(quit.contains("error")) << quit;
+  EXPECT_EQ(quit["error"]["code"], -32601);
+  EXPECT_EQ(with_name_hidden(quit["error"], "quit"), with_name_hidden(missing["error"], "quiet"));
+  EXPECT_THAT(quit["error"]["message"].get<std::string>(), Not(HasSubstr("quit,")));  // not among "services: ..."
+  // the teleport did not move the robot; human is not on the allow list
+  EXPECT_EQ(rpc(jsonrpc, 3, "robot.teleport.translate", {5.0})["error"]["code"], -32601);
+  EXPECT_EQ(rpc(jsonrpc, 4, "human.move", {0.5, 0.0})["error"]["code"], -32601);
+  EXPECT_EQ(rpc(jsonrpc, 5, "time.sleep", {0.1})["error"]["code"], -32601);
+  json pose = rpc(jsonrpc, 6, "robot.pose.get_local_data")["result"];
+  EXPECT_LT(pose["x"].get<double>(), 1.0) << pose;
+  // what the lists allow runs, and the simulation did not quit
+  EXPECT_TRUE(rpc(jsonrpc, 7, "time.now")["result"].is_number());
+  EXPECT_EQ(rpc(jsonrpc, 8, "robot.motion.set_speed", {0.0, 0.0})["result"], nullptr);
+  // the same services run through the socket transport, which has no lists
+  EXPECT_EQ(socket.request("t", "robot.teleport translate [0.5]"), "t SUCCESS");
+  EXPECT_EQ(socket.request("h", "human move [0.0, 0.0]"), "h SUCCESS");
+  EXPECT_EQ(socket.request("q", "simulation quit"), "q SUCCESS");
+  thread_.join();  // the loop ends: quit ran, through the socket transport only
+}
+
+TEST_F(GatewayIntegrationTest, IntrospectionOnEachTransportListsExactlyTheCallableServices) {
+  start(access_config());
+  LineClient socket(port("socket")), jsonrpc(port("jsonrpc"));
+  // the socket transport: everything
+  std::set<std::string> all = qualified_names(payload(socket.request("1", "simulation list_services")));
+  ASSERT_TRUE(all.count("simulation.quit") && all.count("human.move") && all.count("robot.teleport.translate"));
+  std::set<std::string> expected;
+  for (const auto& name : all)
+    if (callable_through_jsonrpc(name)) expected.insert(name);
+  ASSERT_TRUE(expected.count("robot.motion.set_speed") && expected.count("time.now"));
+
+  // JSON-RPC: list_services, rpc.discover and `simgate list` show exactly what it may call
+  json listed = rpc(jsonrpc, 1, "simulation.list_services")["result"];
+  EXPECT_EQ(qualified_names(listed), expected);
+  for (const auto& d : listed) {  // each service's transports: where it is callable
+    if (d["component"] == "robot.motion") EXPECT_EQ(d["transports"], json({"jsonrpc", "socket"})) << d;
+  }
+  std::set<std::string> discovered;
+  const json discovery = rpc(jsonrpc, 2, "rpc.discover");
+  for (const auto& m : discovery["result"]["methods"]) discovered.insert(m["name"].get<std::string>());
+  EXPECT_EQ(discovered, expected);
+  json from_socket = payload(socket.request("2", "simulation list_services"));
+  for (const auto& d : from_socket) {
+    if (d["component"] == "robot.teleport") EXPECT_EQ(d["transports"], json({"socket"})) << d;
+  }
+
+  // details: the components it serves, with only their callable services
+  json details = rpc(jsonrpc, 3, "simulation.details")["result"];
+  ASSERT_EQ(details["robots"].size(), 2u) << details;  // human is served (mapped), with nothing to call
+  json robot = details["robots"][0];
+  EXPECT_EQ(robot["components"]["robot.motion"]["services"], json({"set_speed", "stop"}));
+  EXPECT_FALSE(robot["components"]["robot.teleport"].contains("services")) << robot;
+  EXPECT_FALSE(details["robots"][1].contains("services")) << details["robots"][1];
+  json socket_details = payload(socket.request("3", "simulation details"));
+  EXPECT_TRUE(socket_details["robots"][0]["components"]["robot.teleport"].contains("services"));
+
+  testing::TempDir dir;
+  auto [code, out] = testing::run_simgate({"list", "--transport", "jsonrpc", "--port", std::to_string(port("jsonrpc"))}, dir);
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_THAT(out, HasSubstr("robot.motion set_speed("));
+  EXPECT_THAT(out, Not(HasSubstr("quit")));
+  EXPECT_THAT(out, Not(HasSubstr("teleport")));
+  EXPECT_THAT(out, Not(HasSubstr("human")));
+}
 #endif
+
+TEST_F(GatewayIntegrationTest, ASocketTransportRefusesADeniedServiceWithMorsesUnknownServiceAnswer) {
+  json config = testing::demo_config();
+  config["transports"]["socket"]["deny"] = {"robot.teleport.translate"};
+  start(config);
+  LineClient c(port());
+  EXPECT_EQ(c.request("1", "robot.teleport translate [1.0]"),
+            "1 FAILED \"The request translate has not been registered in Socket service manager: component "
+            "'robot.teleport' has no service 'translate' (services: rotate)\"");
+  json pose = payload(c.request("2", "robot.pose get_local_data"));
+  EXPECT_LT(pose["x"].get<double>(), 0.5);
+  EXPECT_EQ(c.request("3", "robot.teleport rotate [0.0]"), "3 SUCCESS");
+}
 
 TEST_F(GatewayIntegrationTest, BadInputGetsAnErrorAndEveryoneKeepsBeingServed) {
   start(testing::demo_config());

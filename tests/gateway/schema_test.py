@@ -84,6 +84,10 @@ mistakes = {
     "ground_robot option typo": lambda c: c["robots"][0]["options"].update(wheel_raidus=0.1),
     "log level word": lambda c: c.update(log_level="loud"),
     "services value not a list": lambda c: c["services"].update(default="socket"),
+    "deny not a list": lambda c: c["transports"]["socket"].update(deny="simulation.quit"),
+    "deny pattern without a service": lambda c: c["transports"]["socket"].update(deny=["simulation"]),
+    "allow pattern with an empty name": lambda c: c["transports"]["socket"].update(allow=["robot..motion.*"]),
+    "allow pattern with a character no name has": lambda c: c["transports"]["socket"].update(allow=["robot.mo?ion"]),
 }
 for name, mistake in mistakes.items():
     document = json.loads(json.dumps(demo))

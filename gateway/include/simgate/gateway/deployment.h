@@ -2,7 +2,7 @@
 //
 // One JSON file per deployment (docs/configuration.md):
 //   scene       {mjcf, timestep?, realtime_factor? (number >= 0, or "max")}
-//   transports  {name: {plugin?, options?}}
+//   transports  {name: {plugin?, options?, allow?, deny?}}
 //   robots      [{name, type?, body?, options?, components?: [{name, type, body?, options?}]}]
 //   services    {"default": [transports], "<component or glob>": [transports]}
 //   log_level   "trace" | "debug" | "info" | "warning" | "error" | "off"
@@ -17,6 +17,12 @@
 // specific matching glob (the one with the most literal characters), else from "default".
 // A component that nothing maps is unreachable. Without a "services" section every
 // component is served by every transport.
+//
+// Access lists: a transport's "allow" and "deny" (arrays of service patterns,
+// "simulation.quit", "robot.*": core/service_access.h) narrow the services of the
+// components it serves to those its clients may call; a malformed pattern is an error, one
+// that matches no service the transport serves a warning (the gateway's: it knows the
+// services).
 #ifndef SIMGATE_GATEWAY_DEPLOYMENT_H_
 #define SIMGATE_GATEWAY_DEPLOYMENT_H_
 
@@ -25,6 +31,7 @@
 #include <vector>
 
 #include "simgate/core/config.h"
+#include "simgate/core/service_access.h"
 
 namespace simgate::gateway {
 
@@ -32,6 +39,7 @@ struct TransportConfig {
   std::string name;    // key in "transports"
   std::string plugin;  // plugin name or path (default: the name)
   json options;        // passed to the plugin's create()
+  ServiceAccess access;  // "allow" and "deny": which served services clients may call
   std::string path;    // "transports.socket"
 };
 

@@ -4,8 +4,9 @@
 // (see deployment.h), the MJCF scene, every component (type, bodies, actuators, options)
 // and every transport plugin (found, ABI-compatible, options valid: the plugin's own
 // validate()), then the TCP transports together (no two on one port, addresses of this
-// machine: src/listeners.h); all errors at once. In check mode it stops there; otherwise it creates each transport, shares the simulation's gate with it and
-// registers the components mapped to it. start() opens the transports; run() is the
+// machine: src/listeners.h); all errors at once. In check mode it stops there; otherwise it creates each transport, gives it its allow and deny lists
+// (RequestManager::set_access), shares the simulation's gate with it and registers the
+// components mapped to it. start() opens the transports; run() is the
 // simulation loop on the calling thread, until stop() or `simulation quit`; the destructor
 // (or shutdown()) answers pending clients, stops the transports, destroys them and then
 // the components.
@@ -74,8 +75,12 @@ class Gateway {
   // Each records its errors and goes on with the next robot, component or transport.
   void build_components(const sim::ComponentRegistry& registry, ConfigErrors& errors);
   void load_plugins(ConfigErrors& errors);
-  // Adds warnings for components clients need that no transport serves.
+  // Adds warnings for components clients need that no transport serves, and those of
+  // warn_about_access_lists().
   void warn_about_mapping();
+  // Adds a warning for every allow or deny pattern that matches no service its transport
+  // serves (a typo in a deny list would leave the service it meant callable).
+  void warn_about_access_lists();
   // Creates every transport (binding its sockets) and registers its components.
   void create_transports();
 
