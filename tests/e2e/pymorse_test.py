@@ -8,7 +8,9 @@ really arrives (pose checked), cancel -> preempted and the robot stops, a second
 preempts the first, wrong arity -> TypeError, `time.sleep` (two scripts sleeping together, a
 sleep left by a closed connection). A second gateway splits the components between two
 socket transports: pymorse sees and acts on only those its transport serves (issue #17,
-item 6). Every wait is bounded.
+item 6). A third denies services on its socket transport (issue #17, access control):
+pymorse connects, has no method for them, and calling them fails as for an unknown service.
+Every wait is bounded.
 """
 import argparse
 import json
@@ -276,6 +278,68 @@ class PymorseMappingBoundaryTest(unittest.TestCase):
     def test_list_services_shows_served_components_only(self):
         components = {s["component"] for s in self.simu.rpc("simulation", "list_services")}
         self.assertEqual(components, {"robot.motion", "robot.pose", "human", "simulation", "time"})
+
+
+def has_method(proxy, name):
+    """Whether a pymorse proxy has a method `name` (a Robot's __getattr__ raises KeyError)."""
+    try:
+        return callable(getattr(proxy, name))
+    except (AttributeError, KeyError):
+        return False
+
+
+def deny_on_socket(config):
+    """The demo whose socket transport denies the teleport, the human's move and
+    `simulation quit` (issue #17, access control: allow/deny lists)."""
+    config["transports"]["socket"]["deny"] = ["robot.teleport.*", "human.move", "simulation.quit"]
+
+
+class PymorseAccessListsTest(unittest.TestCase):
+    """Issue #17, access control: a socket transport's deny list. pymorse still connects,
+    gets no proxy method for a denied service, and a denied call fails as an unknown service
+    would, without running."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.workdir = tempfile.TemporaryDirectory(prefix="simgate-e2e-")
+        cls.gateway = Gateway(ARGS.simgate, ARGS.source_dir, cls.workdir.name, deny_on_socket)
+        cls.simu = pymorse.Morse(host="127.0.0.1", port=cls.gateway.port)
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.simu.close(wait_publishers=False)
+        code = cls.gateway.stop()
+        cls.workdir.cleanup()
+        if code != 0:
+            raise RuntimeError("gateway exited with %d" % code)
+
+    def test_connect_builds_no_method_for_a_denied_service(self):
+        self.assertIn("teleport", self.simu.robot)  # served, with nothing to call
+        self.assertFalse(has_method(self.simu.robot.teleport, "translate"))
+        self.assertFalse(has_method(self.simu.human, "move"))
+        self.assertTrue(has_method(self.simu.robot.motion, "set_speed"))
+        self.simu.robot.motion.set_speed(0.0, 0.0).result(timeout=TIMEOUT)
+
+    def test_a_denied_call_fails_as_an_unknown_service_and_does_not_run(self):
+        with self.assertRaises(MorseServiceFailed) as denied:
+            self.simu.rpc("simulation", "quit")
+        self.assertIn("has not been registered", str(denied.exception))
+        with self.assertRaises(MorseServiceFailed) as missing:
+            self.simu.rpc("simulation", "quiz")
+        self.assertEqual(str(denied.exception).replace("quit", "X"), str(missing.exception).replace("quiz", "X"))
+        x = self.simu.robot.pose.get_local_data().result(timeout=TIMEOUT)["x"]
+        with self.assertRaises(MorseServiceFailed):
+            self.simu.rpc("robot.teleport", "translate", 5.0)
+        self.assertLess(abs(self.simu.robot.pose.get_local_data().result(timeout=TIMEOUT)["x"] - x), 0.5)
+        # the simulation did not quit
+        self.assertGreater(self.simu.time(), 0)
+
+    def test_list_services_shows_only_what_may_be_called(self):
+        names = {s["component"] + "." + s["name"] for s in self.simu.rpc("simulation", "list_services")}
+        self.assertIn("simulation.details", names)
+        self.assertIn("robot.motion.set_speed", names)
+        for denied in ("simulation.quit", "human.move", "robot.teleport.translate", "robot.teleport.rotate"):
+            self.assertNotIn(denied, names)
 
 
 def main():
