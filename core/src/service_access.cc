@@ -37,8 +37,9 @@ std::string ServiceAccess::pattern_error(std::string_view pattern) {
     if (!pattern_char(c)) return "has a character other than letters, digits, '_', '-', '.' and '*'";
   if (pattern == "*") return "";
   if (pattern.find('.') == std::string_view::npos)
-    return "has no '.' between a component and a service (\"component.service\", e.g. \"" + std::string(pattern) +
-           ".*\" for every service of '" + std::string(pattern) + "')";
+    return "has no '.' between a component and a service (\"" + std::string(pattern) +
+           ".*\": every service of a component '" + std::string(pattern) + "'; \"*." + std::string(pattern) +
+           "\": a service '" + std::string(pattern) + "' of any component)";
   if (pattern.front() == '.' || pattern.back() == '.' || pattern.find("..") != std::string_view::npos)
     return "has an empty name between dots";
   return "";

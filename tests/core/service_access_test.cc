@@ -59,8 +59,8 @@ TEST(ServiceAccessTest, MalformedPatternsAreRefusedWithTheReason) {
   EXPECT_EQ(ServiceAccess::pattern_error("robot-1.*"), "");
   EXPECT_EQ(ServiceAccess::pattern_error(""), "is empty");
   EXPECT_THAT(ServiceAccess::pattern_error("simulation"),
-              HasSubstr("has no '.' between a component and a service (\"component.service\", e.g. "
-                        "\"simulation.*\" for every service of 'simulation')"));
+              HasSubstr("has no '.' between a component and a service (\"simulation.*\": every service of a "
+                        "component 'simulation'; \"*.simulation\": a service 'simulation' of any component)"));
   EXPECT_THAT(ServiceAccess::pattern_error("simulation.qu?t"), HasSubstr("has a character other than"));
   EXPECT_THAT(ServiceAccess::pattern_error("robot.[a-z]*"), HasSubstr("has a character other than"));
   EXPECT_THAT(ServiceAccess::pattern_error("simulation. quit"), HasSubstr("has a character other than"));

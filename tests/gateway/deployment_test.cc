@@ -150,8 +150,8 @@ const BrokenCase k_cases[] = {
     {"deny pattern without a service",
      [](json& c) { c["transports"]["socket"]["deny"] = {"simulation"}; },
      {"transports.socket.deny[0]: expected a service pattern \"component.service\" ('*': any characters), found "
-      "'simulation', which has no '.' between a component and a service (\"component.service\", e.g. "
-      "\"simulation.*\" for every service of 'simulation')"}},
+      "'simulation', which has no '.' between a component and a service (\"simulation.*\": every service of a "
+      "component 'simulation'; \"*.simulation\": a service 'simulation' of any component)"}},
     {"allow pattern with a character no name has",
      [](json& c) { c["transports"]["socket"]["allow"] = {"robot.*", "simulation.qu?t"}; },
      {"transports.socket.allow[1]: expected a service pattern", "found 'simulation.qu?t', which has a character "
