@@ -392,6 +392,49 @@ TEST(GatewayCliTest, CallAndListReachEveryTransport) {
   EXPECT_EQ(p.wait(), 0) << p.err();
 }
 
+#ifdef SIMGATE_TEST_WITH_DDS
+TEST(GatewayCliTest, ADdsTransportsDenyListRefusesAndHidesTheService) {
+  // issue #17, access control: the DDS transport gets the core's refusal and catalog like the
+  // others (see CallAndListReachEveryTransport for the leak-check setting)
+  ::setenv("ASAN_OPTIONS", "detect_leaks=0:abort_on_error=1", 1);
+  TempDir dir;
+  json c = demo_config();
+  const std::string partition = "cli-access-" + std::to_string(::getpid());
+  c["transports"]["dds"] = {{"plugin", "dds"},
+                            {"options", {{"domain", 42}, {"partition", partition}}},
+                            {"deny", {"simulation.quit", "human.*"}}};
+  for (auto& [pattern, transports] : c["services"].items()) transports = {"socket", "dds"};
+  std::string config = dir.write("dds.json", c.dump());
+  std::string endpoints = dir.file("endpoints.json");
+  Process p({simgate_binary(), "run", config, "--endpoints-file", endpoints}, dir.file(""));
+  json e = json::parse(wait_for_file(endpoints), nullptr, false);
+  ASSERT_TRUE(e.contains("dds")) << p.err();
+  const std::vector<std::string> dds = {"--transport", "dds", "--domain", "42", "--partition", partition};
+  auto with = [&](std::vector<std::string> args) {
+    args.insert(args.begin() + 1, dds.begin(), dds.end());
+    return run_simgate(args, dir);
+  };
+  auto [qcode, qout] = with({"call", "simulation", "quit"});
+  EXPECT_EQ(qcode, 1) << qout;
+  EXPECT_THAT(qout, HasSubstr("The request quit has not been registered in DDS"));
+  auto [mcode, mout] = with({"call", "simulation", "quiz"});
+  EXPECT_EQ(mcode, 1) << mout;
+  std::string quit = qout, quiz = mout;
+  for (auto at = quit.find("quit"); at != std::string::npos; at = quit.find("quit", at)) quit.replace(at, 4, "NAME");
+  for (auto at = quiz.find("quiz"); at != std::string::npos; at = quiz.find("quiz", at)) quiz.replace(at, 4, "NAME");
+  EXPECT_EQ(quit, quiz);  // as a service that does not exist
+  auto [lcode, lout] = with({"list"});
+  EXPECT_EQ(lcode, 0) << lout;
+  EXPECT_THAT(lout, HasSubstr("simulation details("));
+  EXPECT_THAT(lout, Not(HasSubstr("simulation quit(")));
+  EXPECT_THAT(lout, Not(HasSubstr("human")));
+  // the socket transport still quits the simulation
+  LineClient socket(port_of(e["socket"][0].get<std::string>()));
+  EXPECT_EQ(socket.request("q", "simulation quit"), "q SUCCESS");
+  EXPECT_EQ(p.wait(), 0) << p.err();
+}
+#endif
+
 TEST(GatewayCliTest, ClientOptionsAreChecked) {
   TempDir dir;
   auto [dcode, dout] = run_simgate({"call", "--transport", "dds", "--domain", "999", "simulation", "list_robots"}, dir);
