@@ -200,6 +200,21 @@ void JsonRpcRequestManager::handle_message(const std::shared_ptr<Session>& sessi
     return;
   }
 
+  // a number id json::parse read as a double is echoed as sent, not rounded (two such ids
+  // would otherwise collide): its exact text, read again from the line (issue #17, item 9)
+  auto float_id = [](const json& m) {
+    auto it = m.is_object() ? m.find("id") : m.end();
+    return it != m.end() && it->is_number_float();
+  };
+  std::vector<std::pair<std::size_t, std::string>> id_texts;
+  if (message.is_array() ? std::any_of(message.begin(), message.end(), float_id) : float_id(message))
+    id_texts = float_id_texts(line);
+  auto id_text = [&id_texts](std::size_t index) {
+    for (auto& [i, text] : id_texts)
+      if (i == index) return std::move(text);
+    return std::string();
+  };
+
   if (message.is_array()) {
     if (message.empty()) {
       reply(single, error_response(nullptr, code::invalid_request, "Invalid Request: empty batch",
@@ -221,9 +236,10 @@ void JsonRpcRequestManager::handle_message(const std::shared_ptr<Session>& sessi
     // every entry answers into the batch; the array goes out when the last one is in
     auto batch = std::make_shared<Batch>(message.size(), options_.tcp.max_unsent_bytes);
     for (std::size_t i = 0; i < message.size(); ++i)
-      handle_request(session, message[i], ReplyTo{session, nullptr, false, batch, i});
+      handle_request(session, message[i], ReplyTo{session, nullptr, false, batch, i, id_text(i)});
     return;
   }
+  single.id_text = id_text(0);
   handle_request(session, message, single);
 }
 
@@ -248,6 +264,7 @@ void JsonRpcRequestManager::handle_request(const std::shared_ptr<Session>& sessi
     reply(to, std::move(*error));
     return;
   }
+  request.id_text = to.id_text;  // its key among the connection's ids: exact, as echoed
   dispatch(session, request, std::move(to));
 }
 
@@ -404,7 +421,7 @@ void JsonRpcRequestManager::reply(ReplyTo& to, std::optional<json> response) {
     auto& batch = *to.batch;
     if (!to.notification) {
       std::string text;
-      if (response && !batch.full()) text = dump(*response);
+      if (response && !batch.full()) text = to.id_text.empty() ? dump(*response) : response_with_id_text(*response, to.id_text);
       if (!response || batch.bytes + text.size() > batch.max_bytes) {
         // past the batch's byte budget: a short error instead (counted, so the reply stays
         // within max_unsent_bytes plus one such line per entry)
@@ -430,7 +447,8 @@ void JsonRpcRequestManager::reply(ReplyTo& to, std::optional<json> response) {
     return;
   }
   if (to.notification || !response) return;
-  if (auto session = to.session.lock()) session->queue_line(dump(*response));
+  if (auto session = to.session.lock())
+    session->queue_line(to.id_text.empty() ? dump(*response) : response_with_id_text(*response, to.id_text));
 }
 
 }  // namespace simgate::jsonrpc

@@ -105,6 +105,7 @@ class JsonRpcRequestManager : public RequestManager, private kit::LineServer {
     bool notification = false;       // no response at all
     std::shared_ptr<Batch> batch;    // set for batch entries
     std::size_t index = 0;           // entry index inside the batch
+    std::string id_text;             // the id's exact text when dump() would round it (float_id_texts)
   };
   // A call submitted to the core and not yet finished (or an rpc.cancel waiting for its answer).
   struct Pending {

@@ -392,6 +392,81 @@ bool parse_request_fast(std::string_view line, std::size_t max_depth, Request& o
   return true;
 }
 
+std::string response_with_id_text(const json& response, std::string_view id_text) {
+  std::string out = R"({"jsonrpc":"2.0","id":)";
+  out += id_text;
+  for (const char* member : {"error", "result"})
+    if (auto it = response.find(member); it != response.end()) {
+      out += ",\"";
+      out += member;
+      out += "\":";
+      out += dump(*it);
+    }
+  out += '}';
+  return out;
+}
+
+namespace {
+
+// Reads the raw text of the "id" numbers of a request object or of a batch's entries.
+class FloatIdScanner final : public nlohmann::json_sax<json> {
+ public:
+  std::vector<std::pair<std::size_t, std::string>> found;
+
+  bool null() override { return value(); }
+  bool boolean(bool) override { return value(); }
+  bool number_integer(number_integer_t) override { return value(); }
+  bool number_unsigned(number_unsigned_t) override { return value(); }
+  bool number_float(number_float_t, const string_t& text) override {
+    // a request's own member: depth 1 (a lone request) or 2 (an entry of the batch)
+    const bool request_level = (open_.size() == 1 && !open_[0].array) ||
+                               (open_.size() == 2 && open_[0].array && !open_[1].array);
+    if (request_level && open_.back().key == "id") found.emplace_back(open_.size() == 1 ? 0 : open_[0].index, text);
+    return value();
+  }
+  bool string(string_t&) override { return value(); }
+  bool binary(binary_t&) override { return value(); }
+  bool start_object(std::size_t) override {
+    open_.push_back({false, 0, {}});
+    return true;
+  }
+  bool key(string_t& key) override {
+    open_.back().key = key;
+    return true;
+  }
+  bool end_object() override { return close(); }
+  bool start_array(std::size_t) override {
+    open_.push_back({true, 0, {}});
+    return true;
+  }
+  bool end_array() override { return close(); }
+  bool parse_error(std::size_t, const std::string&, const nlohmann::detail::exception&) override { return false; }
+
+ private:
+  struct Open {
+    bool array;         // else an object
+    std::size_t index;  // arrays: the element being read
+    std::string key;    // objects: the member being read
+  };
+  bool value() {
+    if (!open_.empty() && open_.back().array) ++open_.back().index;
+    return true;
+  }
+  bool close() {
+    open_.pop_back();
+    return value();
+  }
+  std::vector<Open> open_;  // the containers around the value being read
+};
+
+}  // namespace
+
+std::vector<std::pair<std::size_t, std::string>> float_id_texts(std::string_view line) {
+  FloatIdScanner scanner;
+  if (!json::sax_parse(line.begin(), line.end(), &scanner)) return {};
+  return std::move(scanner.found);
+}
+
 bool split_method(const std::string& method, std::string& component, std::string& service) {
   const auto dot = method.rfind('.');
   if (dot == std::string::npos || dot == 0 || dot + 1 == method.size()) return false;

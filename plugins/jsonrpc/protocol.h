@@ -14,6 +14,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "simgate/core/service.h"
@@ -82,6 +83,17 @@ bool parse_request_fast(std::string_view line, std::size_t max_depth, Request& o
 // Appends {"jsonrpc":"2.0","id":<id_text>,"result":<result>} (no newline) to `out`;
 // `id_text` is the id as dump() writes it.
 void append_result_line(std::string& out, std::string_view id_text, const json& result);
+
+// The text of a response (error_response, outcome_response or a result) whose id is
+// written as `id_text`, exactly: {"jsonrpc":"2.0","id":<id_text>,"error"|"result":...}.
+std::string response_with_id_text(const json& response, std::string_view id_text);
+
+// The exact text of the number ids of `line` that json::parse reads as a double (an integer
+// beyond 64 bits, a fraction, an exponent), which dump() would echo rounded: by request,
+// index 0 for a lone request object, the entry's index in a batch. A client's id must come
+// back as it sent it (two ids rounding alike would collide). Parses `line` again: call it
+// only when the DOM holds such an id. Empty for text json::parse refuses.
+std::vector<std::pair<std::size_t, std::string>> float_id_texts(std::string_view line);
 
 // Splits "robot.arm.move" into {"robot.arm", "move"} at the last dot. False when there is
 // no dot or either side is empty.

@@ -94,6 +94,26 @@ TEST_F(JsonRpcConformance, ANulByteIsAParseErrorNotTheEndOfTheMessage) {
   EXPECT_EQ(client_->request("robot.arm.add", json::array({1, 2}), k_timeout)["result"], 3.0);
 }
 
+// A number id nlohmann reads as a double (beyond 64 bits, a fraction, an exponent) was
+// echoed rounded: 123456789012345678901234567890 came back 1.2345678901234568e+29, and two
+// such ids collided as "already pending" (issue #17, item 9). Echoed as sent now.
+TEST_F(JsonRpcConformance, ANumberIdIsEchoedExactlyAsSent) {
+  auto raw = [&](const std::string& line) {
+    client_->send_line(line);
+    return client_->read_line(k_timeout).value_or("(no reply)");
+  };
+  EXPECT_EQ(raw(R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[1,2],"id":123456789012345678901234567890})"),
+            R"({"jsonrpc":"2.0","id":123456789012345678901234567890,"result":3.0})");
+  EXPECT_EQ(raw(R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[1,2],"id":1.50})"),
+            R"({"jsonrpc":"2.0","id":1.50,"result":3.0})");
+  // errors too, and batch entries
+  EXPECT_EQ(raw(R"({"jsonrpc":"2.0","method":"robot.arm.nothing","id":2e3})").rfind(R"({"jsonrpc":"2.0","id":2e3,"error":{"code":-32601,)", 0), 0u);
+  EXPECT_EQ(raw(R"([{"jsonrpc":"2.0","method":"robot.arm.add","params":[1,2],"id":18446744073709551616},)"
+                R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[2,2],"id":18446744073709551617}])"),
+            R"([{"jsonrpc":"2.0","id":18446744073709551616,"result":3.0},)"
+            R"({"jsonrpc":"2.0","id":18446744073709551617,"result":4.0}])");
+}
+
 TEST_F(JsonRpcConformance, NumberBeyondADoubleIsParseErrorAndTheConnectionLivesOn) {
   // json::parse throws out_of_range (not parse_error) for it: it used to close the connection
   auto r = round_trip(*client_, R"({"jsonrpc":"2.0","method":"robot.arm.echo","params":[1e400],"id":1})");
