@@ -8,7 +8,8 @@
 // scene file is only stat()ed).
 //
 // Properties: errors are ConfigErrors (nothing else escapes) with a non-empty message;
-// parse_config_text refuses no JSON text that json::parse reads within the depth limit, and
+// parse_config_text refuses no JSON text that json::parse reads within the depth limit
+// (a NUL byte aside: refused, where json::parse ends the text), and
 // what it accepts is within it; an accepted deployment has unique component names, and its
 // mapping names declared transports only.
 #include <cstddef>
@@ -60,9 +61,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     document = parse_config_text(text);  // as load_deployment
   } catch (const ConfigError& e) {
     FUZZ_CHECK(!e.errors().empty() && !e.errors()[0].empty(), "a refused text says why");
-    // refused: not JSON, a number beyond a double, or too deep; never JSON that nlohmann
-    // reads, no deeper than the limit
-    if (!json_nests_deeper_than(text, k_max_config_depth)) {
+    // refused: not JSON, a number beyond a double, too deep, or a NUL byte (where nlohmann
+    // ends the text); never JSON that nlohmann reads, no deeper than the limit
+    if (text.find('\0') != std::string_view::npos) {
+      FUZZ_CHECK(e.errors()[0].find("a NUL byte at line") != std::string::npos, "a NUL byte is named");
+    } else if (!json_nests_deeper_than(text, k_max_config_depth)) {
       const json reference = json::parse(text, nullptr, /*allow_exceptions=*/false);
       FUZZ_CHECK(reference.is_discarded(), "parse_config_text refuses only what json::parse refuses: " + e.errors()[0]);
     }
