@@ -5,6 +5,7 @@
 #ifndef SIMGATE_CORE_LOG_H_
 #define SIMGATE_CORE_LOG_H_
 
+#include <cstddef>
 #include <functional>
 #include <sstream>
 #include <string>
@@ -24,6 +25,13 @@ inline bool enabled(Level l) { return l >= level() && l != Level::off; }
 
 // Replaces the sink (default: one line per message on stderr). Empty restores the default.
 void set_sink(std::function<void(Level, std::string_view)> sink);
+
+// Lines at info level and above pass at most `burst` at once and `per_second` on average
+// (a token bucket; defaults 200 and 50): a flood (20 000 refused connections, a client
+// sending garbage as fast as it can) cannot fill a disk. What is dropped is counted and
+// said, as a warning, before the next line that passes: "log: 1234 lines suppressed (more
+// than 50 a second)". Debug and trace lines, asked for, are never dropped. burst 0: no limit.
+void set_rate_limit(std::size_t burst, double per_second);
 
 void write(Level level, std::string_view message);
 
