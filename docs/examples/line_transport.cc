@@ -93,9 +93,7 @@ class LineTransport : public simgate::RequestManager, private kit::LineServer {
   }
 
   void accept(asio::ip::tcp::socket socket) {
-    kit::LineLimits limits;
-    limits.max_message_bytes = options_.max_message_bytes;
-    limits.max_unsent_bytes = options_.max_unsent_bytes;
+    kit::LineLimits limits = kit::LineLimits::from(options_);
     limits.pause_at_unanswered = options_.max_in_flight;  // backpressure: reading waits for answers
     kit::LineHost& host = *this;
     add(std::make_shared<kit::LineConnection>(std::move(socket), host, limits, name(), ++connections_));

@@ -113,9 +113,7 @@ void JsonRpcRequestManager::shutdown_io() {
 }
 
 void JsonRpcRequestManager::accept(tcp::socket socket) {
-  kit::LineLimits limits;
-  limits.max_message_bytes = options_.tcp.max_message_bytes;
-  limits.max_unsent_bytes = options_.tcp.max_unsent_bytes;
+  kit::LineLimits limits = kit::LineLimits::from(options_.tcp);
   // a call over max_in_flight is answered -32006 (dispatch), never left unread; a client
   // that lets its replies pile up stops being read at half the unsent budget
   limits.pause_at_unsent_bytes = options_.tcp.max_unsent_bytes / 2;

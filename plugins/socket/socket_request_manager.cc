@@ -61,12 +61,9 @@ SocketRequestManager::SocketRequestManager(SocketOptions o)
       // bound now, so that a port in use fails the creation of the transport
       listener_(io_, name(), options_.tcp.host, options_.tcp.port),
       io_thread_(io_, name(), options_.tcp.io_spin) {
-  limits_.max_message_bytes = options_.tcp.max_message_bytes;
-  limits_.max_unsent_bytes = options_.tcp.max_unsent_bytes;
+  limits_ = kit::LineLimits::from(options_.tcp);
   // a client with max_in_flight requests unanswered waits for answers before more is read
   limits_.pause_at_unanswered = options_.tcp.max_in_flight;
-  limits_.message_bytes_key = options_.tcp.message_bytes_key;
-  limits_.unsent_bytes_key = options_.tcp.unsent_bytes_key;
   set_global_policy(options_.tcp.global_policy);
   // once per transport created (validate_options parses too, and says nothing)
   for (const auto& message : options_.tcp.deprecations) log::warning(message);

@@ -120,6 +120,17 @@ struct LineLimits {
   std::size_t read_bytes = 16384;             // the most one read takes
   const char* message_bytes_key = "max_message_bytes";  // the options' spelling, for messages
   const char* unsent_bytes_key = "max_unsent_bytes";    // the options' spelling, for messages
+
+  // The byte limits of `options` (max_message_bytes, max_unsent_bytes, under their keys'
+  // spelling); what pauses reading is the transport's choice.
+  static LineLimits from(const TcpOptions& options) {
+    LineLimits limits;
+    limits.max_message_bytes = options.max_message_bytes;
+    limits.max_unsent_bytes = options.max_unsent_bytes;
+    limits.message_bytes_key = options.message_bytes_key;
+    limits.unsent_bytes_key = options.unsent_bytes_key;
+    return limits;
+  }
 };
 
 class LineConnection : public std::enable_shared_from_this<LineConnection> {
@@ -186,7 +197,6 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
   // Closes the socket and tells the host; idempotent.
   void close(std::string_view reason);
   bool closed() const { return closed_; }
-  bool input_ended() const { return eof_; }
   // Sweeps (of LineServer) since it last read, wrote or was owed a reply; 0 while it owes
   // one or has replies unsent (it is not idle then).
   std::uint32_t idle_ticks() const;
@@ -196,7 +206,6 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
 
   // "client #3 (127.0.0.1:51234)", for log messages.
   const std::string& label() const { return label_; }
-  const LineLimits& limits() const { return limits_; }
 
   // Reads in a row of a client sending alone before going back to the event loop.
   static constexpr int k_reads_in_a_row = 4;
@@ -280,8 +289,6 @@ class LineServer : public LineHost {
   void flush_touched();
   // Whether `connection` is the only one sending: a large read's first half runs early.
   bool alone(const LineConnection& connection) override { return read_split_.alone(&connection); }
-  // The bytes all connections hold (unfinished lines, unsent replies).
-  std::size_t buffered_bytes() const { return shared_.buffered; }
 
   void write_replies() override { flush_touched(); }
   bool watch(LineConnection& connection) override;
