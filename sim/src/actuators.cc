@@ -35,6 +35,11 @@ Waypoint::Waypoint(ComponentContext& c)
     : SimComponent(c.name(), c.sim()), robot_(c.robot()), drive_(c.drive()) {
   max_angular_speed_ = c.options().get_number("max_angular_speed", 1.5, 1e-3, 100);
   heading_gain_ = c.options().get_number("heading_gain", 2.0, 1e-3, 100);
+  add_number_property("max_angular_speed", max_angular_speed_, 1e-3, 100, "rad/s");
+  add_number_property("heading_gain", heading_gain_, 1e-3, 100, "rad/s per rad");
+  add_property("target", [this] { return json{target_.x(), target_.y(), target_.z()}; });
+  add_property("tolerance", [this] { return json(tolerance_); });
+  add_property("speed", [this] { return json(speed_); });
   add_async_service("goto", &Waypoint::go_to, {"x", "y", "z", {"tolerance", 0.5}, {"speed", 1.0}})
       .interruptible()
       .doc("Drive to (x, y, z); completes SUCCESS \"Arrived\" within tolerance (metres, ground plane)");

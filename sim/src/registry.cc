@@ -96,6 +96,10 @@ std::unique_ptr<SimComponent> ComponentRegistry::create(Kind kind, const Compone
   ComponentContext context(sim, spec, object, robot);
   auto component = type->factory(context);
   object.finish();
+  json configuration = {{"type", spec.type}, {"options", object.raw()}};
+  if (!spec.body.empty()) configuration["body"] = spec.body;
+  int body = spec.body.empty() ? -1 : sim.model().body_id(spec.body);
+  component->add_object_services(std::move(configuration), body, robot ? robot->body() : body);
   return component;
 }
 

@@ -75,6 +75,9 @@ GroundRobot::GroundRobot(ComponentContext& c) : Robot(c.name(), c.sim(), c.body(
   separation_ = c.options().get_number("wheel_separation", 0.42, 1e-4, 100);
   max_wheel_speed_ = c.options().get_number("max_wheel_speed", 30, 1e-3, 1e6);
   if (left_ == right_) c.fail("options.right_actuator", "expected an actuator other than the left one");
+  add_number_property("wheel_radius", wheel_radius_, 1e-4, 100, "m");
+  add_number_property("wheel_separation", separation_, 1e-4, 100, "m");
+  add_number_property("max_wheel_speed", max_wheel_speed_, 1e-3, 1e6, "rad/s");
 }
 
 void GroundRobot::set_velocity(double v, double w) {

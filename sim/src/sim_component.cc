@@ -2,7 +2,85 @@
 
 #include <cmath>
 
+#include "simgate/core/errors.h"
+#include "simgate/sim/bounds.h"
+
 namespace simgate::sim {
+
+// ---- MORSE's object services ------------------------------------------------------------------
+
+void SimComponent::add_property(std::string name, std::function<json()> get) {
+  properties_.push_back({std::move(name), std::move(get), {}});
+}
+
+void SimComponent::add_property(std::string name, std::function<json()> get, std::function<void(const json&)> set) {
+  properties_.push_back({std::move(name), std::move(get), std::move(set)});
+}
+
+void SimComponent::add_number_property(std::string name, double& value, double low, double high, std::string unit) {
+  std::string parameter = name;
+  add_property(
+      std::move(name), [&value] { return json(value); },
+      [&value, low, high, parameter, unit](const json& v) {
+        if (!v.is_number())
+          throw ServiceError("property '" + parameter + "' is a number, found " + describe_json(v),
+                             Failure::bad_arguments, {{"parameter", "prop_val"}});
+        double d = v.get<double>();
+        bounds::require_between(parameter, d, low, high, unit);
+        value = d;
+      });
+}
+
+void SimComponent::add_object_services(json configuration, int body, int robot_body) {
+  configuration_ = std::move(configuration);
+  body_ = body;
+  robot_body_ = robot_body;
+  add_service("get_properties", &SimComponent::get_properties)
+      .doc("MORSE's properties of this component: {\"properties\": {name: value}}");
+  add_service("set_property", &SimComponent::set_property, {"prop_name", "prop_val"})
+      .doc("Sets a property get_properties lists (FAILED for unknown or read-only ones)");
+  add_service("get_configurations", &SimComponent::get_configurations)
+      .doc("How the component was configured, and its pose on the robot (object_to_robot)");
+}
+
+json SimComponent::get_properties() const {
+  json out = json::object();
+  for (const auto& p : properties_) out[p.name] = p.get();
+  return {{"properties", std::move(out)}};
+}
+
+void SimComponent::set_property(const std::string& name, const json& value) {
+  std::string settable;
+  for (const auto& p : properties_)
+    if (p.set) settable += (settable.empty() ? "" : ", ") + p.name;
+  for (const auto& p : properties_) {
+    if (p.name != name) continue;
+    if (!p.set)
+      throw ServiceError("property '" + name + "' of " + this->name() + " is read-only" +
+                             (settable.empty() ? " (none can be set)" : " (settable: " + settable + ")"),
+                         Failure::bad_arguments, {{"parameter", "prop_name"}});
+    p.set(value);
+    return;
+  }
+  std::string all;
+  for (const auto& p : properties_) all += (all.empty() ? "" : ", ") + p.name;
+  throw ServiceError("no property '" + name + "' in " + this->name() +
+                         (all.empty() ? " (it has none)" : " (properties: " + all + ")"),
+                     Failure::bad_arguments, {{"parameter", "prop_name"}});
+}
+
+json SimComponent::get_configurations() const {
+  json c = configuration_.is_object() ? configuration_ : json::object();
+  Eigen::Vector3d t = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond r = Eigen::Quaterniond::Identity();
+  if (body_ >= 0 && robot_body_ >= 0) {
+    Eigen::Quaterniond root = body_orientation(sim_, robot_body_).normalized();
+    t = root.conjugate() * (body_position(sim_, body_) - body_position(sim_, robot_body_));
+    r = root.conjugate() * body_orientation(sim_, body_);
+  }
+  c["object_to_robot"] = {{"translation", {t.x(), t.y(), t.z()}}, {"rotation", {r.w(), r.x(), r.y(), r.z()}}};
+  return {{"configurations", std::move(c)}};
+}
 
 Eigen::Vector3d body_position(const Simulation& sim, int body) {
   const mjtNum* p = sim.d()->xpos + 3 * body;

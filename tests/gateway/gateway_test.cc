@@ -196,7 +196,7 @@ TEST_F(GatewayIntegrationTest, IntrospectionShowsEachTransportOnlyWhatItServes) 
   EXPECT_FALSE(robot.contains("services"));
   EXPECT_EQ(robot["components"].size(), 1u);
   EXPECT_EQ(robot["components"]["robot.pose"]["service_interfaces"], json({"jsonrpc", "socket"}));  // in name order
-  EXPECT_EQ(jsonrpc_details["robots"][1]["services"], json({"move"}));
+  EXPECT_EQ(jsonrpc_details["robots"][1]["services"], json({"move", "get_properties", "set_property", "get_configurations"}));
 
   // `simgate list` through each transport
   testing::TempDir dir;
@@ -295,7 +295,7 @@ TEST_F(GatewayIntegrationTest, IntrospectionOnEachTransportListsExactlyTheCallab
   json details = rpc(jsonrpc, 3, "simulation.details")["result"];
   ASSERT_EQ(details["robots"].size(), 2u) << details;  // human is served (mapped), with nothing to call
   json robot = details["robots"][0];
-  EXPECT_EQ(robot["components"]["robot.motion"]["services"], json({"set_speed", "stop"}));
+  EXPECT_EQ(robot["components"]["robot.motion"]["services"], json({"set_speed", "stop", "get_properties", "set_property", "get_configurations"}));
   EXPECT_FALSE(robot["components"]["robot.teleport"].contains("services")) << robot;
   EXPECT_FALSE(details["robots"][1].contains("services")) << details["robots"][1];
   json socket_details = payload(socket.request("3", "simulation details"));
@@ -318,7 +318,8 @@ TEST_F(GatewayIntegrationTest, ASocketTransportRefusesADeniedServiceWithMorsesUn
   LineClient c(port());
   EXPECT_EQ(c.request("1", "robot.teleport translate [1.0]"),
             "1 FAILED \"The request translate has not been registered in Socket service manager: component "
-            "'robot.teleport' has no service 'translate' (services: rotate)\"");
+            "'robot.teleport' has no service 'translate' (services: get_configurations, get_properties, rotate, "
+            "set_property)\"");
   json pose = payload(c.request("2", "robot.pose get_local_data"));
   EXPECT_LT(pose["x"].get<double>(), 0.5);
   EXPECT_EQ(c.request("3", "robot.teleport rotate [0.0]"), "3 SUCCESS");

@@ -31,7 +31,7 @@ TEST_F(SimSupervisionTest, DetailsHasTheShapePymorseReads) {
             waypoint["services"].end());
   EXPECT_FALSE(waypoint.contains("stream_interfaces"));  // pymorse would ask for stream ports
   json human = d["robots"][1];
-  EXPECT_EQ(human["services"], json({"move"}));
+  EXPECT_EQ(human["services"], json({"move", "get_properties", "set_property", "get_configurations"}));
   EXPECT_EQ(human["services_interfaces"], json({"test"}));  // MORSE's robot-level spelling
 }
 
@@ -190,7 +190,7 @@ TEST_F(SimSupervisionTest, ListServicesSaysSleepIsConcurrentAndDetailsIsUnchange
   json details = call("simulation", "details").value.value_or(json());
   EXPECT_EQ(details.dump().find("concurrent"), std::string::npos);
   EXPECT_EQ(details["robots"][0]["components"]["robot.waypoint"]["services"],
-            json({"goto", "setdest", "stop", "resume", "get_status"}));
+            json({"goto", "setdest", "stop", "resume", "get_status", "get_properties", "set_property", "get_configurations"}));
 }
 
 TEST_F(SimSupervisionTest, ResetObjectsNeverTakesTimeBack) {
@@ -291,7 +291,7 @@ TEST_F(SimSupervisionBoundaryTest, DetailsShowsOnlyWhatTheCallerServes) {
   json robot = d["robots"][0];
   EXPECT_EQ(robot["name"], "robot");  // it holds robot.pose
   EXPECT_EQ(robot["components"].size(), 1u);
-  EXPECT_EQ(robot["components"]["robot.pose"]["services"], json({"get_local_data"}));
+  EXPECT_EQ(robot["components"]["robot.pose"]["services"], json({"get_local_data", "get_properties", "set_property", "get_configurations"}));
   EXPECT_EQ(robot["components"]["robot.pose"]["service_interfaces"], json({"test", "partial"}));
   // the transport that serves everything still sees everything
   json all = call("simulation", "details").value.value_or(json());
@@ -364,7 +364,8 @@ TEST_F(SimSupervisionAccessTest, DetailsListsAServedComponentWithoutTheServicesI
   EXPECT_FALSE(d["robots"][0]["components"]["robot.pose"].contains("services")) << d;
   EXPECT_FALSE(d["robots"][0]["components"]["robot.pose"].contains("service_interfaces")) << d;
   json all = call("simulation", "details").value.value_or(json());
-  EXPECT_EQ(all["robots"][0]["components"]["robot.pose"]["services"], json({"get_local_data"}));
+  EXPECT_EQ(all["robots"][0]["components"]["robot.pose"]["services"],
+            json({"get_local_data", "get_properties", "set_property", "get_configurations"}));
 }
 
 TEST_F(SimSupervisionAccessTest, ADeniedSupervisionServiceDoesNotRun) {

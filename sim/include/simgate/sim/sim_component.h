@@ -6,12 +6,23 @@
 // DifferentialDrive (linear and angular velocity commands), which motion_vw and waypoint
 // use; the drive turns them into MuJoCo actuator controls.
 //
+// MORSE's object services (core/object.py): every component the registry creates also
+// answers `get_properties` -> {"properties": {name: value}}, `set_property name value`
+// (FAILED naming the valid names when there is no such property, or it is read-only, or
+// the value is refused) and `get_configurations` -> {"configurations": {the type, body and
+// options it was created with, "object_to_robot": {"translation": [x, y, z], "rotation":
+// [w, x, y, z]}}} (its body's pose in its robot's root frame). A component declares its
+// properties in its constructor with add_property / add_number_property; the registry
+// adds the three services after the component's own (add_object_services).
+//
 // Threads: everything here runs on the simulation thread (services, default_action(),
 // interrupt(), on_reset()).
 #ifndef SIMGATE_SIM_SIM_COMPONENT_H_
 #define SIMGATE_SIM_SIM_COMPONENT_H_
 
+#include <functional>
 #include <string>
+#include <vector>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -21,6 +32,13 @@
 
 namespace simgate::sim {
 
+// A MORSE property: a named value of a component, read by get_properties.
+struct Property {
+  std::string name;                      // as get_properties and set_property spell it
+  std::function<json()> get;             // its current value
+  std::function<void(const json&)> set;  // empty: read-only; throws ServiceError to refuse
+};
+
 class SimComponent : public Component {
  public:
   SimComponent(std::string name, Simulation& sim) : Component(std::move(name)), sim_(sim) {}
@@ -29,13 +47,36 @@ class SimComponent : public Component {
   // recovered from a bad state the same way (simulation.h): drop commands.
   virtual void on_reset() {}
 
+  // Adds get_properties, set_property and get_configurations. `configuration`: what the
+  // component was created with; `body` and `robot_body`: MuJoCo body ids (-1: none) for
+  // object_to_robot. Called once, by ComponentRegistry::create.
+  void add_object_services(json configuration, int body, int robot_body);
+
+  json get_properties() const;
+  void set_property(const std::string& name, const json& value);
+  json get_configurations() const;
+  const std::vector<Property>& properties() const { return properties_; }
+
  protected:
   Simulation& sim() const { return sim_; }
   const mjModel* model() const { return sim_.m(); }
   mjData* data() const { return sim_.d(); }
 
+  // A read-only property.
+  void add_property(std::string name, std::function<json()> get);
+  // A settable property; `set` receives the client's value and throws ServiceError
+  // (Failure::bad_arguments) to refuse it.
+  void add_property(std::string name, std::function<json()> get, std::function<void(const json&)> set);
+  // A number kept in `value`, settable to a finite number within [low, high] (`unit` for
+  // the refusal's text). `value` must outlive the component (a member).
+  void add_number_property(std::string name, double& value, double low, double high, std::string unit);
+
  private:
-  Simulation& sim_;  // owns this component
+  Simulation& sim_;                  // owns this component
+  std::vector<Property> properties_; // in declaration order
+  json configuration_;               // as created (type, body, options)
+  int body_ = -1;                    // for object_to_robot (-1: none)
+  int robot_body_ = -1;              // the robot's root body (-1: none)
 };
 
 // A body's pose in the world frame (valid after the last mj_step / mj_forward).
