@@ -106,6 +106,15 @@ Eigen::Quaterniond from_roll_pitch_yaw(double roll, double pitch, double yaw) {
          Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX());
 }
 
+bool in_subtree(const mjModel* m, int body, int root) {
+  if (body < 0 || body >= m->nbody) return false;
+  // body_parentid[0] == 0: the world body ends every walk
+  for (int b = body;; b = m->body_parentid[b]) {
+    if (b == root) return true;
+    if (b == 0) return false;
+  }
+}
+
 void set_free_body_pose(Simulation& sim, int free_joint, const Eigen::Vector3d& position,
                         const Eigen::Quaterniond& orientation) {
   const mjModel* m = sim.m();

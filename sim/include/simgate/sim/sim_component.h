@@ -86,6 +86,10 @@ Eigen::Quaterniond body_orientation(const Simulation& sim, int body);
 Eigen::Vector3d to_roll_pitch_yaw(const Eigen::Quaterniond& q);
 Eigen::Quaterniond from_roll_pitch_yaw(double roll, double pitch, double yaw);
 
+// True when `body` is `root` or one of its descendants (a robot's parts: its joints,
+// actuators and sensors are those attached to bodies of its subtree).
+bool in_subtree(const mjModel* m, int body, int root);
+
 // Moves a free-joint body: sets position and orientation, zeroes its velocity, mj_forward.
 void set_free_body_pose(Simulation& sim, int free_joint, const Eigen::Vector3d& position,
                         const Eigen::Quaterniond& orientation);
