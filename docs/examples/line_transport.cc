@@ -35,8 +35,8 @@ class LineTransport : public simgate::RequestManager, private kit::LineServer {
 
   void start() override {
     kit::TcpListener::Handlers handlers{[this](asio::ip::tcp::socket socket) { accept(std::move(socket)); },
-                                        [this] { return full(); },
-                                        "too many connections", "- FAILED \"too many connections\"\n"};
+                                        [this](const asio::ip::tcp::endpoint& peer) { return refusal_reason(peer); },
+                                        [](const std::string& why) { return "- FAILED \"" + why + "\"\n"; }};
     io_thread_.start(
         [this, handlers = std::move(handlers)]() mutable {
           // outcomes produced on other threads are handed to this one, the I/O thread

@@ -34,7 +34,10 @@ LineConnection::LineConnection(asio::ip::tcp::socket socket, LineHost& host, Lin
   error_code ec;
   const auto peer = socket_.remote_endpoint(ec);
   label_ = "client #" + std::to_string(number);
-  if (!ec) label_ += " (" + to_string(peer) + ")";
+  if (!ec) {
+    label_ += " (" + to_string(peer) + ")";
+    peer_ = peer.address();
+  }
   socket_.set_option(asio::ip::tcp::no_delay(true), ec);  // replies are small: no Nagle delay
   socket_.non_blocking(true, ec);  // reads on and writes go straight to the socket while it takes them
 }
@@ -313,6 +316,9 @@ LineServer::LineServer(std::string who, const TcpOptions& options)
     : who_(std::move(who)),
       spin_(options.io_spin),
       max_connections_(options.max_connections),
+      connections_key_(options.connections_key),
+      max_per_peer_(options.max_connections_per_peer),
+      auth_(options.auth),
       idle_timeout_(options.idle_timeout),
       idle_evict_(options.idle_evict),
       line_timeout_(options.line_timeout) {
@@ -320,6 +326,8 @@ LineServer::LineServer(std::string who, const TcpOptions& options)
 }
 
 void LineServer::add(const std::shared_ptr<LineConnection>& connection) {
+  connection->authenticated_ = !auth_.required_for(connection->peer());
+  if (max_per_peer_ > 0 && !TokenAuth::is_loopback(connection->peer())) ++per_peer_[connection->peer()];
   connections_.insert(connection);
   count_.store(connections_.size(), std::memory_order_relaxed);
   log::debug(who_, ": ", connection->label(), " connected");
@@ -329,13 +337,14 @@ void LineServer::add(const std::shared_ptr<LineConnection>& connection) {
 
 void LineServer::forget(LineConnection& connection) {
   direct_.forget(connection);
-  connections_.erase(connection.shared_from_this());
+  if (connections_.erase(connection.shared_from_this()) > 0) uncount(connection.peer());
   count_.store(connections_.size(), std::memory_order_relaxed);
 }
 
 void LineServer::close_all() {
   auto connections = std::move(connections_);
   connections_.clear();
+  per_peer_.clear();
   count_.store(0, std::memory_order_relaxed);
   for (const auto& c : connections) c->close("server stopping");
   // nothing of a connection outlives this: the transport's io_context goes next
@@ -347,6 +356,23 @@ void LineServer::close_all() {
 std::uint32_t LineServer::ticks(std::chrono::milliseconds duration) const {
   // at least one whole sweep: a timeout shorter than a sweep still waits for the next one
   return static_cast<std::uint32_t>(std::max<std::int64_t>(1, (duration + k_sweep - std::chrono::milliseconds(1)) / k_sweep));
+}
+
+void LineServer::uncount(const boost::asio::ip::address& peer) {
+  auto it = per_peer_.find(peer);
+  if (it != per_peer_.end() && --it->second == 0) per_peer_.erase(it);
+}
+
+std::string LineServer::refusal_reason(const boost::asio::ip::tcp::endpoint& peer) {
+  if (full())
+    return "too many connections (" + connections_key_ + " " + std::to_string(max_connections_) + ")";
+  if (max_per_peer_ > 0 && !TokenAuth::is_loopback(peer.address())) {
+    auto it = per_peer_.find(peer.address());
+    if (it != per_peer_.end() && it->second >= max_per_peer_)
+      return "too many connections from " + peer.address().to_string() + " (max_connections_per_peer " +
+             std::to_string(max_per_peer_) + ")";
+  }
+  return "";
 }
 
 bool LineServer::full() {

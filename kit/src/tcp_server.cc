@@ -17,15 +17,15 @@ namespace {
 constexpr std::chrono::milliseconds k_accept_retry{100};
 
 // The key `config` spells a knob with: the old one only if the new one is absent (noted in
-// `deprecations`). Both at once is a ConfigError.
+// `warnings`). Both at once is a ConfigError.
 const char* spelling(const ConfigObject& config, const char* key, std::span<const TcpOptions::Alias> aliases,
-                     std::string_view transport, std::vector<std::string>& deprecations) {
+                     std::string_view transport, std::vector<std::string>& warnings) {
   for (const auto& alias : aliases) {
     if (std::string_view(alias.key) != key || !config.has(alias.old_key)) continue;
     if (config.has(alias.key))
       throw ConfigError(std::string(alias.old_key) + ": the deprecated name of '" + alias.key +
                         "', which is set too; keep only '" + alias.key + "'");
-    deprecations.push_back(std::string(transport) + ": option '" + alias.old_key + "' is deprecated, use '" +
+    warnings.push_back(std::string(transport) + ": option '" + alias.old_key + "' is deprecated, use '" +
                            alias.key + "' (the old name goes in the next release)");
     return alias.old_key;
   }
@@ -43,8 +43,8 @@ std::size_t get_size(ConfigObject& config, const char* key, std::size_t fallback
 TcpOptions TcpOptions::read(ConfigObject& config, const TcpOptions& defaults, std::string_view transport,
                             std::span<const Alias> aliases) {
   TcpOptions o = defaults;
-  o.deprecations.clear();
-  auto key = [&](const char* name) { return spelling(config, name, aliases, transport, o.deprecations); };
+  o.warnings.clear();
+  auto key = [&](const char* name) { return spelling(config, name, aliases, transport, o.warnings); };
   o.host = config.get_string("host", o.host);
   o.port = static_cast<std::uint16_t>(config.get_int("port", o.port, 0, 65535));
   o.connections_key = key("max_connections");
@@ -71,6 +71,8 @@ TcpOptions TcpOptions::read(ConfigObject& config, const TcpOptions& defaults, st
   o.idle_evict = seconds("idle_evict_s", o.idle_evict);
   o.line_timeout = seconds("line_timeout_s", o.line_timeout);
   o.max_buffered_bytes = get_size(config, "max_buffered_bytes", o.max_buffered_bytes, 1 << 16, 1LL << 40);
+  o.max_connections_per_peer = get_size(config, "max_connections_per_peer", o.max_connections_per_peer, 0, 1 << 20);
+  o.auth = TokenAuth::read(config, o.warnings);
   return o;
 }
 
@@ -150,8 +152,14 @@ void TcpListener::accept_next() {
       return;
     }
     try {
-      if (handlers_.full()) {
-        refuse(std::move(socket));
+      error_code peer_error;
+      const tcp::endpoint peer = socket.remote_endpoint(peer_error);
+      std::string why = peer_error ? std::string() : handlers_.refuse(peer);
+      if (peer_error) {
+        // gone before it was accepted: nothing to serve
+        log::debug(who_, ": a connection left before it was accepted: ", peer_error.message());
+      } else if (!why.empty()) {
+        refuse(std::move(socket), peer, why);
       } else {
         refusing_ = false;
         error_code ignored;
@@ -165,19 +173,19 @@ void TcpListener::accept_next() {
   });
 }
 
-void TcpListener::refuse(tcp::socket socket) {
+void TcpListener::refuse(tcp::socket socket, const tcp::endpoint& peer, const std::string& why) {
   // one warning until a connection is accepted again; the client is told why in its
   // protocol (one line, best effort, never blocking)
   error_code ignored;
-  const auto peer = socket.remote_endpoint(ignored);
   if (!refusing_)
-    log::warning(who_, ": refused a connection from ", to_string(peer), ": ", handlers_.why_full,
+    log::warning(who_, ": refused a connection from ", to_string(peer), ": ", why,
                  "; further refusals are logged at debug level until one is accepted");
   else
-    log::debug(who_, ": refused a connection from ", to_string(peer), ": ", handlers_.why_full);
+    log::debug(who_, ": refused a connection from ", to_string(peer), ": ", why);
   refusing_ = true;
   socket.non_blocking(true, ignored);
-  socket.write_some(asio::buffer(handlers_.refusal), ignored);
+  const std::string line = handlers_.refusal(why);
+  socket.write_some(asio::buffer(line), ignored);
   socket.close(ignored);
 }
 

@@ -77,6 +77,7 @@ JsonRpcRequestManager::JsonRpcRequestManager(Options o)
       listener_(io_, name(), options_.tcp.host, options_.tcp.port),
       io_thread_(io_, name(), options_.tcp.io_spin) {
   set_global_policy(options_.tcp.global_policy);
+  for (const auto& message : options_.tcp.warnings) log::warning(message);
 }
 
 JsonRpcRequestManager::~JsonRpcRequestManager() { stop(); }
@@ -84,10 +85,11 @@ JsonRpcRequestManager::~JsonRpcRequestManager() { stop(); }
 std::vector<std::string> JsonRpcRequestManager::endpoints() const { return {listener_.endpoint()}; }
 
 void JsonRpcRequestManager::start() {
-  const std::string why = "too many connections (max_connections " + std::to_string(options_.tcp.max_connections) + ")";
   kit::TcpListener::Handlers handlers{[this](tcp::socket socket) { accept(std::move(socket)); },
-                                      [this] { return full(); }, why,
-                                      dump(error_response(nullptr, code::overloaded, "Overloaded: " + why)) + "\n"};
+                                      [this](const tcp::endpoint& peer) { return refusal_reason(peer); },
+                                      [](const std::string& why) {
+                                        return dump(error_response(nullptr, code::overloaded, "Overloaded: " + why)) + "\n";
+                                      }};
   // outcomes produced on the simulation thread come here: one drain per burst, then one
   // write per connection
   if (io_thread_.start(
@@ -272,6 +274,17 @@ void JsonRpcRequestManager::dispatch(const std::shared_ptr<Session>& session, Re
 
   // reserved methods run here, on the I/O thread
   const std::string& method = request.method;
+  if (method == "rpc.login") {
+    handle_login(session, request.params, std::move(to));
+    return;
+  }
+  if (!session->authenticated()) [[unlikely]] {
+    reply(to, error_response(to.id, code::unauthorized,
+                             "Unauthorized: call rpc.login with the token first (the transport's \"auth\" option; "
+                             "docs/transports/jsonrpc.md#authentication)",
+                             json{{"method", method}}));
+    return;
+  }
   if (method == "rpc.cancel" || method == "$/cancelRequest") {
     handle_cancel(session, method, request.params, std::move(to));
     return;
@@ -331,6 +344,34 @@ void JsonRpcRequestManager::dispatch(const std::shared_ptr<Session>& session, Re
   pending.method.assign(method);
   pending.id_key.assign(key);
   pending.cancel = false;
+}
+
+void JsonRpcRequestManager::handle_login(const std::shared_ptr<Session>& session, const json& params, ReplyTo to) {
+  // {"token": "..."} or ["..."]
+  const json* token = nullptr;
+  if (params.is_object() && params.size() == 1 && params.contains("token")) token = &params["token"];
+  if (params.is_array() && params.size() == 1) token = &params[0];
+  if (!token || !token->is_string()) {
+    reply(to, error_response(to.id, code::invalid_params,
+                             "Invalid params: rpc.login takes the token, as {\"token\": \"...\"} or [\"...\"]",
+                             json{{"method", "rpc.login"}}));
+    return;
+  }
+  // no authentication configured: any login succeeds (a client may always log in)
+  if (!options_.tcp.auth.enabled || options_.tcp.auth.accepts(token->get_ref<const std::string&>())) {
+    if (options_.tcp.auth.enabled) log::info(name(), ": ", session->label(), " authenticated");
+    session->set_authenticated();
+    reply(to, result_response(to.id, true));
+    return;
+  }
+  // one guess per connection: the error goes out with this read's replies, then it closes
+  log::warning(name(), ": ", session->label(), " presented a wrong token; connection closed");
+  reply(to, error_response(to.id, code::unauthorized, "Unauthorized: wrong token; connection closed",
+                           json{{"method", "rpc.login"}}));
+  asio::post(io_, [session] {
+    session->flush_writes();
+    session->close("wrong token");
+  });
 }
 
 void JsonRpcRequestManager::handle_cancel(const std::shared_ptr<Session>& session, const std::string& method,
@@ -454,4 +495,5 @@ void JsonRpcRequestManager::reply(ReplyTo& to, std::optional<json> response) {
 SIMGATE_TRANSPORT_PLUGIN(jsonrpc, simgate::jsonrpc::JsonRpcRequestManager, "0.1.0", "host", "port",
                          "max_message_bytes", "max_depth", "max_in_flight", "max_unsent_bytes",
                          "max_connections", "io_spin_us", "on_disconnect", "global_policy",
-                         "idle_timeout_s", "idle_evict_s", "line_timeout_s", "max_buffered_bytes")
+                         "idle_timeout_s", "idle_evict_s", "line_timeout_s", "max_buffered_bytes",
+                         "max_connections_per_peer", "auth")

@@ -5,7 +5,8 @@
 // last dot); params positional (array) or named (object). Sync calls answer after they
 // ran; async calls answer when they complete, out of order, matched by id. Reserved
 // methods: rpc.discover (OpenRPC document of the services served here), rpc.cancel
-// {"id": X} (cancels the caller's own pending call). Wire details and the error table:
+// {"id": X} (cancels the caller's own pending call), rpc.login {"token"} (with the "auth"
+// option, clients that must authenticate (kit/auth.h) get -32005 for anything else first). Wire details and the error table:
 // docs/transports/jsonrpc.md.
 //
 // Terms:
@@ -125,6 +126,9 @@ class JsonRpcRequestManager : public RequestManager, private kit::LineServer {
   void handle_request(const std::shared_ptr<Session>& session, json& message, ReplyTo to);
   // Handles one valid request (its params and id_text are moved from).
   void dispatch(const std::shared_ptr<Session>& session, Request& request, ReplyTo to);
+  // rpc.login {"token"}: the connection may call services (kit/auth.h); a wrong token is
+  // answered -32005 and closes the connection.
+  void handle_login(const std::shared_ptr<Session>& session, const json& params, ReplyTo to);
   void handle_cancel(const std::shared_ptr<Session>& session, const std::string& method,
                      const json& params, ReplyTo to);
   // Hands the calls gathered from the current read to the core (run_or_submit).

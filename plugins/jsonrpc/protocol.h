@@ -35,7 +35,7 @@ inline constexpr int preempted = -32001;         // interrupted by a newer call
 inline constexpr int cancelled = -32002;         // rpc.cancel, or the client went away
 inline constexpr int timeout = -32003;           // reserved (no server-side timeouts yet)
 inline constexpr int busy = -32004;              // a non-interruptible async call is running
-inline constexpr int unauthorized = -32005;      // reserved (no auth yet)
+inline constexpr int unauthorized = -32005;      // rpc.login first, or a wrong token
 inline constexpr int overloaded = -32006;        // too many calls in flight on the connection
 inline constexpr int shutting_down = -32007;     // the server stopped before the call ended
 }  // namespace code

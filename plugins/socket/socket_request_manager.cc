@@ -66,7 +66,7 @@ SocketRequestManager::SocketRequestManager(SocketOptions o)
   limits_.pause_at_unanswered = options_.tcp.max_in_flight;
   set_global_policy(options_.tcp.global_policy);
   // once per transport created (validate_options parses too, and says nothing)
-  for (const auto& message : options_.tcp.deprecations) log::warning(message);
+  for (const auto& message : options_.tcp.warnings) log::warning(message);
   log::info(name(), " now listening on port ", listener_.port(), " (", listener_.endpoint(), ")");
 }
 
@@ -78,14 +78,14 @@ SocketRequestManager::~SocketRequestManager() {
 
 void SocketRequestManager::start() {
   // the id "-" of the refusal matches no request: pymorse ignores the line, telnet shows it
-  const std::string why = "too many connections (" + std::string(options_.tcp.connections_key) + " " +
-                          std::to_string(options_.tcp.max_connections) + ")";
-  std::string refusal;
-  const json text = why;
-  append_reply(refusal, "-", k_failed, &text);
   kit::TcpListener::Handlers handlers{[this](tcp::socket socket) { accept(std::move(socket)); },
-                                      [this] { return full(); }, why,
-                                      std::move(refusal)};
+                                      [this](const tcp::endpoint& peer) { return refusal_reason(peer); },
+                                      [](const std::string& why) {
+                                        std::string line;
+                                        const json text = why;
+                                        append_reply(line, "-", k_failed, &text);
+                                        return line;
+                                      }};
   // outcomes produced on the simulation thread come here: one flush per burst, then one
   // write per connection
   io_thread_.start(
@@ -164,8 +164,46 @@ void SocketRequestManager::fail_in_order(Session& session, std::string_view id, 
   answer_in_order(reply_id, Outcome{});
 }
 
+void SocketRequestManager::authenticate(Session& session, std::string_view line) {
+  RequestLine request = parse_request_line(line);
+  if (request.kind == RequestLine::Kind::blank) return;
+  // `auth <token>`: the token is the rest of the line, blanks around it ignored
+  constexpr std::string_view k_auth = "auth";
+  const std::size_t start = line.find_first_not_of(" \t");
+  std::string_view rest = start == std::string_view::npos ? std::string_view() : line.substr(start);
+  const bool is_auth = rest.substr(0, k_auth.size()) == k_auth && rest.size() > k_auth.size() &&
+                       (rest[k_auth.size()] == ' ' || rest[k_auth.size()] == '\t');
+  if (!is_auth) {
+    fail_in_order(session, request.id,
+                  "Authentication required: send the line 'auth <token>' before any request "
+                  "(the transport's \"auth\" option; docs/transports/socket.md#authentication)");
+    return;
+  }
+  std::string_view token = rest.substr(k_auth.size());
+  token.remove_prefix(std::min(token.size(), token.find_first_not_of(" \t")));
+  token = token.substr(0, token.find_last_not_of(" \t\r") + 1);
+  scratch_.clear();
+  if (options_.tcp.auth.accepts(token)) {
+    session.set_authenticated();
+    log::info(name(), ": ", session.label(), " authenticated");
+    append_reply(scratch_, "auth", options_.success_word, nullptr);
+    session.send(scratch_);
+    return;
+  }
+  // one guess per connection
+  log::warning(name(), ": ", session.label(), " presented a wrong token; connection closed");
+  const json text = "wrong token: connection closed";
+  append_reply(scratch_, "auth", k_failed, &text);
+  session.send(scratch_);
+  session.close("wrong token");
+}
+
 void SocketRequestManager::on_line(kit::LineConnection& connection, std::string_view line) {
   auto& session = static_cast<Session&>(connection);
+  if (!session.authenticated()) [[unlikely]] {
+    authenticate(session, line);
+    return;
+  }
   RequestLine request = parse_request_line(line);
   switch (request.kind) {
     case RequestLine::Kind::blank:
@@ -323,7 +361,7 @@ SIMGATE_TRANSPORT_PLUGIN(socket, simgate::socket::SocketRequestManager, "0.1.0",
                          "success_word", "max_connections", "max_message_bytes",
                          "max_unsent_bytes", "max_in_flight", "io_spin_us", "global_policy",
                          "on_disconnect", "idle_timeout_s", "idle_evict_s", "line_timeout_s",
-                         "max_buffered_bytes",
+                         "max_buffered_bytes", "max_connections_per_peer", "auth",
                          // deprecated names: accepted with a warning until the next release
                          "max_clients", "max_line_bytes", "max_pending_replies_bytes",
                          "max_pending_requests")

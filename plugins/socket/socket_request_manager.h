@@ -120,6 +120,10 @@ class SocketRequestManager : public RequestManager, private kit::LineServer {
   // Queues the reply to `id` on its connection (nothing if the connection is gone). Never
   // throws: a failure is logged.
   void deliver(RequestId id, const Outcome& outcome);
+  // A line from a client that must present the token first (kit/auth.h): `auth <token>`
+  // answers "auth SUCCESS" (or closes the connection on a wrong token); any other line is
+  // answered FAILED, naming what to send.
+  void authenticate(Session& session, std::string_view line);
   // Answers FAILED `message` after the connection's earlier requests have been answered.
   void fail_in_order(Session& session, std::string_view id, std::string message);
   void close_all();

@@ -187,6 +187,20 @@ class PymorseTest(unittest.TestCase):
         self.assertEqual(self.simu.robot.waypoint.resume().result(timeout=TIMEOUT), "Transit")
         self.assertEqual(future.result(timeout=TIMEOUT), "Arrived")
 
+    def test_object_services_through_pymorse(self):
+        # MORSE's get_properties / set_property / get_configurations on every component
+        waypoint = self.simu.robot.waypoint
+        self.assertEqual(waypoint.get_properties().result(timeout=TIMEOUT)["properties"]["heading_gain"], 2.0)
+        waypoint.set_property("heading_gain", 2.5).result(timeout=TIMEOUT)
+        self.assertEqual(waypoint.get_properties().result(timeout=TIMEOUT)["properties"]["heading_gain"], 2.5)
+        waypoint.set_property("heading_gain", 2.0).result(timeout=TIMEOUT)
+        with self.assertRaises(MorseServiceFailed) as unknown:
+            waypoint.set_property("no_such", 1.0).result(timeout=TIMEOUT)
+        self.assertIn("no property 'no_such' in robot.waypoint", str(unknown.exception))
+        configurations = self.simu.robot.pose.get_configurations().result(timeout=TIMEOUT)["configurations"]
+        self.assertEqual(configurations["type"], "pose")
+        self.assertEqual(configurations["object_to_robot"]["rotation"], [1.0, 0.0, 0.0, 0.0])
+
     def test_wrong_arity_is_a_type_error(self):
         too_few = self.simu.robot.waypoint.goto(1.0)
         self.assertIsInstance(too_few.exception(timeout=TIMEOUT), TypeError)
@@ -277,7 +291,8 @@ class PymorseMappingBoundaryTest(unittest.TestCase):
 
     def test_list_services_shows_served_components_only(self):
         components = {s["component"] for s in self.simu.rpc("simulation", "list_services")}
-        self.assertEqual(components, {"robot.motion", "robot.pose", "human", "simulation", "time"})
+        # the robot itself is served too: its object services (get_properties, ...)
+        self.assertEqual(components, {"robot", "robot.motion", "robot.pose", "human", "simulation", "time"})
 
 
 def has_method(proxy, name):

@@ -77,8 +77,8 @@ TEST(TcpOptionsTest, ADeprecatedNameWorksWithAWarningAndBothNamesAreRefused) {
   const TcpOptions o = read_options({{"max_clients", 7}}, k_aliases);
   EXPECT_EQ(o.max_connections, 7u);
   EXPECT_STREQ(o.connections_key, "max_clients");
-  ASSERT_EQ(o.deprecations.size(), 1u);
-  EXPECT_THAT(o.deprecations[0], HasSubstr("'max_clients' is deprecated, use 'max_connections'"));
+  ASSERT_EQ(o.warnings.size(), 1u);
+  EXPECT_THAT(o.warnings[0], HasSubstr("'max_clients' is deprecated, use 'max_connections'"));
   EXPECT_THAT(config_error({{"max_clients", 7}, {"max_connections", 8}}, k_aliases), HasSubstr("keep only"));
 }
 
@@ -105,8 +105,10 @@ struct OneConnectionServer {
 
   OneConnectionServer() {
     listener.start({[this](tcp::socket s) { accepted.push_back(std::move(s)); },
-                    [this] { return accepted.size() >= 1; }, "too many connections (max_connections 1)",
-                    "refused: too many connections\n"});
+                    [this](const tcp::endpoint&) {
+                      return accepted.size() >= 1 ? std::string("too many connections (max_connections 1)") : std::string();
+                    },
+                    [](const std::string& why) { return "refused: " + why + "\n"; }});
     thread = std::thread([this] { io.run(); });
   }
   ~OneConnectionServer() {
@@ -134,7 +136,7 @@ TEST(TcpListenerTest, AConnectionOverTheLimitIsToldWhyAndClosed) {
     asio::read_until(first, buffer, '\n', ec);
     line.assign(asio::buffers_begin(buffer.data()), asio::buffers_end(buffer.data()));
   }
-  EXPECT_EQ(line, "refused: too many connections\n");
+  EXPECT_EQ(line, "refused: too many connections (max_connections 1)\n");
 }
 
 TEST(IoThreadTest, RunsOnStartOnItsThreadKeepsServingWhenAHandlerThrowsAndStopsOnce) {

@@ -51,6 +51,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <memory>
 #include <string>
@@ -206,6 +207,14 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
 
   // "client #3 (127.0.0.1:51234)", for log messages.
   const std::string& label() const { return label_; }
+  // The client's address (unspecified when the socket had none).
+  const boost::asio::ip::address& peer() const { return peer_; }
+
+  // Whether the client may call services: true from the start unless the transport's
+  // "auth" requires a token from this peer (auth.h); the protocol sets it when the client
+  // presents the right one. `auth_required()`: it had to.
+  bool authenticated() const { return authenticated_; }
+  void set_authenticated() { authenticated_ = true; }
 
   // Reads in a row of a client sending alone before going back to the event loop.
   static constexpr int k_reads_in_a_row = 4;
@@ -242,6 +251,8 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
   LineLimits limits_;                    // from the transport options
   std::string who_;                      // the transport, for logs
   std::string label_;                    // the client, for logs
+  boost::asio::ip::address peer_;        // the client's address
+  bool authenticated_ = true;            // may call services (LineServer::add decides)
   std::vector<char> read_buffer_;        // one read's bytes (LineLimits::read_bytes)
   std::string partial_;                  // the start of an unfinished line
   bool discarding_ = false;              // skipping the rest of an oversized line
@@ -268,10 +279,12 @@ class LineServer : public LineHost {
   static constexpr std::chrono::milliseconds k_sweep{250};
 
   // `who` names the transport in logs; `options`: its io_spin_us (0: the I/O thread never
-  // polls, nothing is watched), max_connections, the timeouts and max_buffered_bytes.
+  // polls, nothing is watched), max_connections, max_connections_per_peer, the timeouts,
+  // max_buffered_bytes and auth.
   LineServer(std::string who, const TcpOptions& options);
 
-  // Adds an accepted connection and starts it.
+  // Adds an accepted connection (unauthenticated when auth requires a token from its peer)
+  // and starts it.
   void add(const std::shared_ptr<LineConnection>& connection);
   // Closes every connection ("server stopping"; on_closed() runs for each) and lets go of
   // them all and of the sweep's timer. A transport calls it on its I/O thread when it
@@ -279,9 +292,12 @@ class LineServer : public LineHost {
   // io_context among them).
   void close_all();
   std::size_t connection_count() const { return count_.load(std::memory_order_relaxed); }
-  // For the listener (TcpListener::Handlers::full): true while max_connections are open
-  // and none of them has been idle for idle_evict_s (the one idle longest is closed to make
-  // room when one has).
+  // For the listener (TcpListener::Handlers::refuse): why a connection from `peer` is
+  // refused, or "": max_connections are open and none of them has been idle for idle_evict_s
+  // (the one idle longest is closed to make room when one has), or its non-loopback address
+  // holds max_connections_per_peer.
+  std::string refusal_reason(const boost::asio::ip::tcp::endpoint& peer);
+  // True while max_connections are open (after idle eviction, as above).
   bool full();
   // The thread that polls reads the watched connection through this (IoThread::start).
   DirectReads<LineConnection>& direct_reads() { return direct_; }
@@ -300,12 +316,18 @@ class LineServer : public LineHost {
 
  private:
   void schedule_sweep(const std::shared_ptr<LineConnection>& any);
+  // One connection fewer from `peer`.
+  void uncount(const boost::asio::ip::address& peer);
   void sweep();
   std::uint32_t ticks(std::chrono::milliseconds duration) const;
 
   std::string who_;                                             // for logs
   std::chrono::microseconds spin_;                              // io_spin_us
   std::size_t max_connections_;                                 // max_connections
+  std::string connections_key_;                                 // its key as the options spell it
+  std::size_t max_per_peer_;                                    // max_connections_per_peer (0: none)
+  TokenAuth auth_;                                              // who must present a token
+  std::map<boost::asio::ip::address, std::size_t> per_peer_;    // open connections by non-loopback address
   std::chrono::milliseconds idle_timeout_, idle_evict_, line_timeout_;  // 0: never
   std::unordered_set<std::shared_ptr<LineConnection>> connections_;  // open connections
   std::atomic<std::size_t> count_{0};                           // connections_.size(), for any thread

@@ -4,14 +4,14 @@
 //   TcpOptions  the knobs every TCP transport has, under one name each (host, port,
 //               max_connections, max_message_bytes, max_unsent_bytes, max_in_flight,
 //               io_spin_us, on_disconnect, global_policy, idle_timeout_s, idle_evict_s,
-//               line_timeout_s, max_buffered_bytes); renamed keys stay accepted for a
-//               release with a warning.
+//               line_timeout_s, max_buffered_bytes, max_connections_per_peer, auth);
+//               renamed keys stay accepted for a release with a warning.
 //   TcpListener binds at construction (a port in use fails there, with a hint naming the
 //               tool that finds who holds it); accepts on the I/O thread, backs off 100 ms
 //               after accept() fails (out of file descriptors) instead of spinning, and tells
-//               a connection over max_connections why in one line of the transport's
-//               protocol before closing it (logged once until a connection is accepted
-//               again).
+//               a connection it refuses (over max_connections or max_connections_per_peer)
+//               why in one line of the transport's protocol before closing it (logged once
+//               until a connection is accepted again).
 //   IoThread    the transport's one I/O thread: names itself to the core as the thread
 //               outcomes are delivered on (RequestManager::deliver_on_this_thread), runs the
 //               io_context with the idle-spin rule (idle_spin.h), keeps serving when a handler
@@ -41,6 +41,7 @@
 
 #include "simgate/core/config.h"
 #include "simgate/core/request_manager.h"
+#include "simgate/kit/auth.h"
 
 namespace simgate::kit {
 
@@ -63,6 +64,10 @@ struct TcpOptions {
   std::chrono::milliseconds line_timeout{60000};   // ("line_timeout_s") a line begun must end within this; 0: never
   std::size_t max_buffered_bytes = std::size_t{256} << 20;  // ("max_buffered_bytes") unfinished lines and unsent
                                                              //   replies of all connections together
+  // ("max_connections_per_peer") open connections from one non-loopback address; 0: no
+  // limit. Loopback peers are the machine's own programs (all one address): not counted.
+  std::size_t max_connections_per_peer = 64;
+  TokenAuth auth;  // ("auth") off unless given (auth.h)
 
   // Each knob's key as the options spell it (a deprecated alias when that was used): for
   // messages that name the option to change.
@@ -70,9 +75,9 @@ struct TcpOptions {
   const char* message_bytes_key = "max_message_bytes";
   const char* unsent_bytes_key = "max_unsent_bytes";
   const char* in_flight_key = "max_in_flight";
-  // One warning per deprecated key used; the transport logs them when it is created (not
-  // when its options are only validated).
-  std::vector<std::string> deprecations;
+  // One warning per deprecated key used, or token file others may read; the transport logs
+  // them when it is created (not when its options are only validated).
+  std::vector<std::string> warnings;
 
   // A knob renamed: `old_key` is still accepted, with a warning, for one release.
   struct Alias {
@@ -113,12 +118,11 @@ class TcpListener {
   struct Handlers {
     // A new connection (TCP_NODELAY set) to serve.
     std::function<void(boost::asio::ip::tcp::socket)> accepted;
-    // True while the server holds max_connections: new connections are then refused.
-    std::function<bool()> full;
-    // Why, for the log: "too many connections (max_connections 1024)".
-    std::string why_full;
+    // Why a connection from `peer` is refused ("" to accept it), for the log and the client:
+    // "too many connections (max_connections 1024)" (LineServer::refusal_reason).
+    std::function<std::string(const boost::asio::ip::tcp::endpoint& peer)> refuse;
     // The one line (with its '\n') a refused connection is sent before it is closed.
-    std::string refusal;
+    std::function<std::string(const std::string& why)> refusal;
   };
   // Accepts until close(). Post it to the I/O thread, or call it before that thread runs.
   void start(Handlers handlers);
@@ -127,7 +131,7 @@ class TcpListener {
 
  private:
   void accept_next();
-  void refuse(boost::asio::ip::tcp::socket socket);
+  void refuse(boost::asio::ip::tcp::socket socket, const boost::asio::ip::tcp::endpoint& peer, const std::string& why);
 
   std::string who_;                          // the transport, for messages
   boost::asio::ip::tcp::acceptor acceptor_;  // bound in the constructor
