@@ -46,6 +46,9 @@ TcpOptions TcpOptions::read(ConfigObject& config, const TcpOptions& defaults, st
   o.warnings.clear();
   auto key = [&](const char* name) { return spelling(config, name, aliases, transport, o.warnings); };
   o.host = config.get_string("host", o.host);
+  // a resolver reads "" as "this machine" and picks an address of its choosing
+  if (o.host.empty())
+    config.fail("host", "an address or a name (\"127.0.0.1\": this machine only, \"0.0.0.0\": every interface), not \"\"");
   o.port = static_cast<std::uint16_t>(config.get_int("port", o.port, 0, 65535));
   o.connections_key = key("max_connections");
   o.max_connections = get_size(config, o.connections_key, o.max_connections, 1, 1 << 20);

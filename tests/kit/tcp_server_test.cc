@@ -69,6 +69,17 @@ TEST(TcpOptionsTest, BadValuesNameTheirKey) {
   EXPECT_THAT(config_error({{"on_disconnect", "explode"}}), HasSubstr("on_disconnect"));
   EXPECT_THAT(config_error({{"host", "not an address"}}), HasSubstr("host"));
   EXPECT_THAT(config_error({{"prot", 1}}), HasSubstr("prot"));  // finish(): unknown keys
+  // a resolver would read "" as some address of this machine (::1 here): refused
+  EXPECT_THAT(config_error({{"host", ""}}), HasSubstr("host: expected an address or a name"));
+  EXPECT_THAT(config_error({{"max_connections_per_peer", -1}}), HasSubstr("max_connections_per_peer"));
+}
+
+TEST(TcpOptionsTest, ThePerPeerLimitAndAuthAreShared) {
+  const TcpOptions defaults = read_options(json::object());
+  EXPECT_EQ(defaults.max_connections_per_peer, 64u);
+  EXPECT_FALSE(defaults.auth.enabled);
+  EXPECT_EQ(read_options({{"max_connections_per_peer", 0}}).max_connections_per_peer, 0u);
+  EXPECT_THAT(config_error({{"auth", {{"token", "0123456789abcdef"}}}}), HasSubstr("auth.token: a token is never"));
 }
 
 constexpr TcpOptions::Alias k_aliases[] = {{"max_connections", "max_clients"}};
