@@ -13,10 +13,12 @@ SIMGATE_RUNTIME_PACKAGES=(
 )
 SIMGATE_TEST_PACKAGES=(
   git libgtest-dev libgmock-dev libbenchmark-dev
+  libmujoco-samples
   python3 python3-morse-simulator python3-jsonschema
   iproute2 procps util-linux
   clang-14 libclang-rt-14-dev llvm-14
 )
+# libmujoco-samples: Debian's sample models (/usr/share/mujoco/model) the sim tests run on
 # clang-14 and its runtime libraries build the fuzz targets (libFuzzer, tests/fuzz), llvm-14's
 # llvm-symbolizer puts file and line in their crash reports (scripts/fuzz, docs/fuzzing.md)
 # node and npm run the third-party JSON-RPC clients (tests only); any install will do

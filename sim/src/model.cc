@@ -2,6 +2,7 @@
 
 #include <cstring>
 #include <mutex>
+#include <string>
 #include <vector>
 
 #include "simgate/core/log.h"
@@ -68,6 +69,18 @@ Model Model::load_string(const std::string& xml, const std::string& name) {
   mj_deleteVFS(vfs.get());
   if (!m) throw MujocoError("scene '" + name + "': " + (error[0] ? error : "MuJoCo could not load it"));
   return Model(m, name);
+}
+
+int Model::body_id(const std::string& name) const {
+  const int id = mj_name2id(model(), mjOBJ_BODY, name.c_str());
+  if (id >= 0 || name.size() <= 4 || name.compare(0, 4, "body") != 0) return id;
+  // "body<id>": only for an unnamed body, and only in body_name()'s spelling ("body03" is not)
+  const std::string digits = name.substr(4);
+  if (digits.size() > 9 || digits.find_first_not_of("0123456789") != std::string::npos) return -1;
+  const int n = std::stoi(digits);
+  if (n < 0 || n >= model()->nbody || std::to_string(n) != digits) return -1;
+  const char* own = mj_id2name(model(), mjOBJ_BODY, n);
+  return own && *own ? -1 : n;
 }
 
 std::string Model::body_name(int id) const {

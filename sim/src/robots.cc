@@ -2,6 +2,7 @@
 #include <cstdio>
 
 #include "simgate/core/errors.h"
+#include "simgate/sim/armature.h"
 #include "simgate/sim/bounds.h"
 #include "simgate/sim/components.h"
 #include "simgate/sim/native_sensors.h"
@@ -136,6 +137,8 @@ void register_builtin_components(ComponentRegistry& r) {
   r.add<Waypoint>("waypoint", Kind::component, "drives to a destination: goto, setdest, stop, resume, get_status");
   r.add<Teleport>("teleport", Kind::component, "moves the robot instantly: translate, rotate");
   r.add<Pose>("pose", Kind::component, "pose sensor: get_local_data");
+  r.add<Armature>("armature", Kind::component, "moves hinge and slide joints: set_rotations, rotate_joints, trajectory...");
+  r.add<ArmaturePose>("armature_pose", Kind::component, "joint state: get_joints, get_state, get_joint, get_local_data");
   r.add<Imu>("imu", Kind::component, "inertial measurement unit: get_local_data (angular_velocity, linear_acceleration)");
   r.add<Odometry>("odometry", Kind::component, "odometry (level raw, differential or integrated): get_local_data");
   r.add<LaserScanner>("laser_scanner", Kind::component, "fan of mj_ray rays: get_local_data (range_list, point_list)");

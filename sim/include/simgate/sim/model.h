@@ -38,8 +38,9 @@ class Model {
   mjData* data() const { return data_.get(); }
   const std::string& source() const { return source_; }
 
-  // Name -> id lookups; -1 when missing.
-  int body_id(const std::string& name) const { return mj_name2id(model(), mjOBJ_BODY, name.c_str()); }
+  // Name -> id lookups; -1 when missing. body_id also finds an unnamed body by the name
+  // body_name() gives it ("body3"), so that a config can bind to it.
+  int body_id(const std::string& name) const;
   int joint_id(const std::string& name) const { return mj_name2id(model(), mjOBJ_JOINT, name.c_str()); }
   int actuator_id(const std::string& name) const {
     return mj_name2id(model(), mjOBJ_ACTUATOR, name.c_str());
