@@ -2,6 +2,8 @@
 #include <cstdio>
 
 #include "simgate/core/errors.h"
+#include "simgate/sim/actuator_kind.h"
+#include "simgate/sim/actuators_sensors.h"
 #include "simgate/sim/armature.h"
 #include "simgate/sim/bounds.h"
 #include "simgate/sim/components.h"
@@ -10,46 +12,6 @@
 namespace simgate::sim {
 
 namespace {
-std::string number(double x) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%g", x);
-  return text;
-}
-
-bool same(double a, double b) { return std::abs(a - b) <= 1e-9 * std::max(std::abs(a), std::abs(b)); }
-
-// A velocity servo, the shape MuJoCo's <velocity kv=".."> gives: force = kv * (ctrl - qdot),
-// i.e. a fixed gain kv and an affine bias of -kv times the velocity (and nothing of the
-// position). <general> actuators of that shape qualify too.
-bool is_velocity_actuator(const mjModel* m, int a) {
-  const mjtNum* gain = m->actuator_gainprm + a * mjNGAIN;
-  const mjtNum* bias = m->actuator_biasprm + a * mjNBIAS;
-  return m->actuator_gaintype[a] == mjGAIN_FIXED && m->actuator_biastype[a] == mjBIAS_AFFINE && gain[0] > 0 &&
-         bias[1] == 0 && same(bias[2], -gain[0]);
-}
-
-// What an actuator is, from its gain and bias: "a motor (torque: fixed gain, no bias)".
-std::string describe_actuator(const mjModel* m, int a) {
-  const mjtNum* gain = m->actuator_gainprm + a * mjNGAIN;
-  const mjtNum* bias = m->actuator_biasprm + a * mjNBIAS;
-  const int gain_type = m->actuator_gaintype[a], bias_type = m->actuator_biastype[a];
-  if (gain_type == mjGAIN_MUSCLE || bias_type == mjBIAS_MUSCLE) return "a muscle";
-  if (gain_type == mjGAIN_FIXED && bias_type == mjBIAS_NONE)
-    return "a motor (torque: fixed gain, no bias)";
-  if (gain_type == mjGAIN_FIXED && bias_type == mjBIAS_AFFINE && bias[0] == 0 && same(bias[1], -gain[0]) &&
-      bias[2] == 0)
-    return "a position servo (kp=" + number(gain[0]) + ": fixed gain, bias -kp times the position)";
-  auto type_name = [](int t, bool is_gain) -> std::string {
-    if (t == (is_gain ? int(mjGAIN_FIXED) : int(mjBIAS_NONE))) return is_gain ? "fixed" : "none";
-    if (t == (is_gain ? int(mjGAIN_AFFINE) : int(mjBIAS_AFFINE))) return "affine";
-    if (t == (is_gain ? int(mjGAIN_MUSCLE) : int(mjBIAS_MUSCLE))) return "muscle";
-    return "user";
-  };
-  return "a general actuator (gaintype " + type_name(gain_type, true) + ", gainprm " + number(gain[0]) + " " +
-         number(gain[1]) + " " + number(gain[2]) + "; biastype " + type_name(bias_type, false) + ", biasprm " +
-         number(bias[0]) + " " + number(bias[1]) + " " + number(bias[2]) + ")";
-}
-
 // The actuator named by option `key`, refused unless it is velocity-controlled: a wheel
 // driven by torque with a speed for a command accelerates without bound.
 int velocity_actuator_option(ComponentContext& c, const std::string& key, const std::string& fallback) {
@@ -137,6 +99,9 @@ void register_builtin_components(ComponentRegistry& r) {
   r.add<Waypoint>("waypoint", Kind::component, "drives to a destination: goto, setdest, stop, resume, get_status");
   r.add<Teleport>("teleport", Kind::component, "moves the robot instantly: translate, rotate");
   r.add<Pose>("pose", Kind::component, "pose sensor: get_local_data");
+  r.add<ActuatorSet>("actuators", Kind::component,
+                     "the robot's MJCF actuators: set_controls, set_control, get_controls, list_actuators");
+  r.add<MjcfSensors>("sensors", Kind::component, "the robot's MJCF <sensor>s: get_local_data {name: value}");
   r.add<Armature>("armature", Kind::component, "moves hinge and slide joints: set_rotations, rotate_joints, trajectory...");
   r.add<ArmaturePose>("armature_pose", Kind::component, "joint state: get_joints, get_state, get_joint, get_local_data");
   r.add<Imu>("imu", Kind::component, "inertial measurement unit: get_local_data (angular_velocity, linear_acceleration)");

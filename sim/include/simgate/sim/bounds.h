@@ -31,6 +31,10 @@ inline constexpr double angular_speed = 1e3;
 // Radians: angles of a rotation (about 160 turns: more is a mistake, and far beyond it the
 // sine and cosine of a double lose the precision a pose needs).
 inline constexpr double angle = 1e3;
+// The control of an actuator without a ctrlrange (ctrllimited false), in the actuator's own
+// unit (N or N·m through its gear for a motor, m or rad for a position servo): within
+// ±control. An actuator with a ctrlrange takes exactly that range.
+inline constexpr double control = 1e6;
 
 // Refuses `value` unless it is finite and within ±bound:
 // "x = 1e+300 is out of bounds: expected a finite number within ±1e+06 m".

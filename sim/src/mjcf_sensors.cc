@@ -1,0 +1,124 @@
+// The `sensors` component (MjcfSensors): a robot's MJCF <sensor> elements, read by name.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "simgate/core/errors.h"
+#include "simgate/sim/actuator_kind.h"
+#include "simgate/sim/actuators_sensors.h"
+
+namespace simgate::sim {
+
+namespace {
+// MJCF element names by mjtSensor value (MuJoCo 2.2.2's order)
+constexpr const char* k_sensor_types[] = {
+    "touch",         "accelerometer",  "velocimeter",    "gyro",           "force",       "torque",
+    "magnetometer",  "rangefinder",    "jointpos",       "jointvel",       "tendonpos",   "tendonvel",
+    "actuatorpos",   "actuatorvel",    "actuatorfrc",    "ballquat",       "ballangvel",  "jointlimitpos",
+    "jointlimitvel", "jointlimitfrc",  "tendonlimitpos", "tendonlimitvel", "tendonlimitfrc", "framepos",
+    "framequat",     "framexaxis",     "frameyaxis",     "framezaxis",     "framelinvel", "frameangvel",
+    "framelinacc",   "frameangacc",    "subtreecom",     "subtreelinvel",  "subtreeangmom", "clock",
+    "user"};
+static_assert(std::size(k_sensor_types) == mjSENS_USER + 1, "one name per mjtSensor value");
+static_assert(mjSENS_CLOCK == 35 && mjSENS_FRAMEPOS == 23, "mjtSensor as in MuJoCo 2.2.2");
+
+// The sensorised object's MJCF kind as the <sensor objtype> attribute spells it ("site",
+// "joint", "body", "xbody", "geom", "camera", "tendon", "actuator").
+std::string object_kind(int type) { return mju_type2Str(type); }
+
+// True when sensor `s`'s object is attached to `root`'s subtree.
+bool sensor_in_subtree(const mjModel* m, int s, int root) {
+  const int type = m->sensor_objtype[s], id = m->sensor_objid[s];
+  if (type == mjOBJ_TENDON) return tendon_in_subtree(m, id, root);
+  if (type == mjOBJ_ACTUATOR) return actuator_in_subtree(m, id, root);
+  return in_subtree(m, object_body(m, type, id), root);
+}
+
+// "is attached to site 'imu' of body 'torso'", for refusals.
+std::string sensor_place(const mjModel* m, int s) {
+  const int type = m->sensor_objtype[s], id = m->sensor_objid[s];
+  std::string out = "is attached to " + object_kind(type) + " '" + mujoco_name(m, type, id) + "'";
+  const int body = object_body(m, type, id);
+  if (body >= 0 && type != mjOBJ_BODY && type != mjOBJ_XBODY)
+    out += " of body '" + mujoco_name(m, mjOBJ_BODY, body) + "'";
+  return out;
+}
+}  // namespace
+
+const char* sensor_type_name(int type) {
+  return type >= 0 && type <= mjSENS_USER ? k_sensor_types[type] : "user";
+}
+
+MjcfSensors::MjcfSensors(ComponentContext& c)
+    : SimComponent(c.name(), c.sim()),
+      // the model's loading ran mj_forward: until the first step the values are current
+      evaluated_at_(c.sim().steps() == 0 ? c.sim().d()->time : std::numeric_limits<double>::quiet_NaN()) {
+  const mjModel* m = c.sim().m();
+  const int root = c.robot().body();
+  detail::Selection selection;
+  selection.option = "sensors";
+  selection.what = "sensor";
+  selection.acting = "attached to";
+  selection.names =
+      detail::mjcf_names(m, mjOBJ_SENSOR, m->nsensor, [m](int s) { return sensor_type_name(m->sensor_type[s]); });
+  for (int s = 0; s < m->nsensor; ++s) {
+    selection.owned.push_back(sensor_in_subtree(m, s, root));
+    // <clock>, and user sensors given no object: the scene's, not a robot's
+    selection.unattached.push_back(m->sensor_objtype[s] == mjOBJ_UNKNOWN || m->sensor_objid[s] < 0);
+  }
+  selection.where = [m](int s) { return sensor_place(m, s); };
+
+  description_ = json::object();
+  for (int id : detail::select_objects(c, selection)) {
+    const std::string& name = selection.names[id];
+    if (name == "timestamp")
+      c.fail("", "sensor " + std::to_string(id) + " is called 'timestamp', the key get_local_data gives the "
+                     "simulated time: rename it in the MJCF");
+    sensors_.push_back({name, m->sensor_adr[id], m->sensor_dim[id]});
+    names_.push_back(name);
+
+    json entry = {{"type", sensor_type_name(m->sensor_type[id])}, {"dim", m->sensor_dim[id]}};
+    const int type = m->sensor_objtype[id], object = m->sensor_objid[id];
+    if (type != mjOBJ_UNKNOWN && object >= 0) entry[object_kind(type)] = mujoco_name(m, type, object);
+    const int ref_type = m->sensor_reftype[id], ref = m->sensor_refid[id];
+    if (ref_type != mjOBJ_UNKNOWN && ref >= 0)
+      entry["reference"] = {{object_kind(ref_type), mujoco_name(m, ref_type, ref)}};
+    if (m->sensor_cutoff[id] > 0) entry["cutoff"] = m->sensor_cutoff[id];
+    description_[name] = std::move(entry);
+  }
+  // get_local_data inserts in name order: each insertion at the end of the map, no search
+  std::sort(sensors_.begin(), sensors_.end(), [](const Sensor& a, const Sensor& b) { return a.name < b.name; });
+
+  add_property("sensors", [this] { return description_; });
+  add_property("count", [this] { return json(sensors_.size()); });
+  add_service("get_local_data", &MjcfSensors::get_local_data)
+      .doc("Every sensor's value {name: number or array} and the simulated time they describe (timestamp)");
+}
+
+double MjcfSensors::data_time() const {
+  const double now = data()->time;
+  // mj_step evaluated them on the state it started from, one timestep ago
+  return now == evaluated_at_ ? now : now - model()->opt.timestep;
+}
+
+void MjcfSensors::on_reset() {
+  // reset() ran mj_forward on the restored state, at the current time
+  evaluated_at_ = data()->time;
+}
+
+json MjcfSensors::get_local_data() const {
+  json out = json::object();
+  auto& values = out.get_ref<json::object_t&>();
+  const mjtNum* sensordata = data()->sensordata;
+  for (const Sensor& s : sensors_) {
+    const mjtNum* v = sensordata + s.address;
+    if (s.dim == 1)
+      values.emplace_hint(values.end(), s.name, v[0]);
+    else
+      values.emplace_hint(values.end(), s.name, json::array_t(v, v + s.dim));
+  }
+  values.emplace("timestamp", data_time());
+  return out;
+}
+
+}  // namespace simgate::sim
