@@ -1,0 +1,459 @@
+// dds_attack.cc — the DDS side of bench/attacks (issue #17's attack list, re-run).
+//
+// A raw Cyclone client speaking simgate's wire types (plugins/dds/simgate_dds.idl) with no
+// DdsClient in between, so that it can send what a well-behaved client never sends: params
+// nested 80 000 deep, another client's id or a zero id, a duplicate seq, names of 10 MB, and
+// a reply reader that never takes. One mode per run; each prints one JSON object on stdout.
+//
+//   deep      params 80 000 deep (arrays, then objects) to `human move`, then a normal call
+//   hijack    a spoofer calls with the owner's id, cancels the owner's `time sleep` with the
+//             owner's id, and calls with id zero; the owner's call then ends on its own
+//   stuck     a reply reader that never takes (it holds --max-samples replies, 0 = any
+//             number): writes --count calls, prints {"ready": true}, then stays (until
+//             SIGTERM or --hold seconds); stopped with SIGSTOP, it is a frozen client process.
+//             The calls: --component --service (default robot.pose get_local_data)
+//   good      simgate's DdsClient: --count calls of `simulation list_robots`, one after the
+//             other; answered, failed, total and slowest call
+//   names     a component name, then a service name, of 10 MiB each
+//   dupseq    a second call under the seq of a running async call (`time sleep`)
+//   utf8      params whose error preview would cut a UTF-8 character
+//   sessions  --count client sessions one after another (participant, writer, reader, one
+//             call, gone), as `simgate call` in a loop makes them
+//   call      one call: --component --service --params
+//
+// Usage: simgate_bench_dds_attack --mode MODE --domain D --partition P [--count N]
+//        [--max-samples N] [--hold S] [--timeout S] [--component C --service S --params JSON]
+// Cyclone stays on loopback (the compiled-in config/dds/loopback.xml). Every wait is bounded
+// by --timeout (default 20 s).
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstring>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "bench_util.h"
+#include "dds_support.h"
+#include "simgate/client/dds_client.h"
+
+namespace {
+
+using simgate::bench::Clock;
+using simgate::bench::json;
+namespace sd = simgate::dds;
+
+std::atomic<bool> g_stop{false};
+extern "C" void on_signal(int) { g_stop.store(true); }
+
+std::chrono::milliseconds g_timeout{20000};
+
+double ms_since(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+const char* status_name(simgate_ReplyStatus s) {
+  switch (s) {
+    case simgate_ST_ACCEPTED: return "ACCEPTED";
+    case simgate_ST_SUCCESS: return "SUCCESS";
+    case simgate_ST_FAILED: return "FAILED";
+    case simgate_ST_PREEMPTED: return "PREEMPTED";
+    case simgate_ST_REFUSED: return "REFUSED";
+  }
+  return "?";
+}
+
+const char* failure_name(simgate_Failure f) {
+  switch (f) {
+    case simgate_FL_NONE: return "none";
+    case simgate_FL_UNKNOWN_SERVICE: return "unknown_service";
+    case simgate_FL_BAD_ARGUMENTS: return "bad_arguments";
+    case simgate_FL_BUSY: return "busy";
+    case simgate_FL_SERVICE_ERROR: return "service_error";
+    case simgate_FL_INTERNAL: return "internal";
+    case simgate_FL_PREEMPTED: return "preempted";
+    case simgate_FL_CANCELLED: return "cancelled";
+    case simgate_FL_SHUTDOWN: return "shutdown";
+    case simgate_FL_BAD_REQUEST: return "bad_request";
+  }
+  return "?";
+}
+
+bool valid_utf8(const std::string& s) {
+  std::size_t i = 0;
+  while (i < s.size()) {
+    auto c = static_cast<unsigned char>(s[i]);
+    std::size_t n = c < 0x80 ? 1 : (c >> 5) == 6 ? 2 : (c >> 4) == 14 ? 3 : (c >> 3) == 30 ? 4 : 0;
+    if (n == 0 || i + n > s.size()) return false;
+    for (std::size_t k = 1; k < n; ++k)
+      if ((static_cast<unsigned char>(s[i + k]) >> 6) != 2) return false;
+    i += n;
+  }
+  return true;
+}
+
+// At most `n` bytes of a message, for the report (never a 10 MB echo on stdout).
+std::string preview(const std::string& s, std::size_t n = 400) {
+  if (s.size() <= n) return s;
+  while (n > 0 && (static_cast<unsigned char>(s[n]) >> 6) == 2) --n;
+  return s.substr(0, n) + "...";
+}
+
+struct Reply {
+  std::uint64_t seq = 0;
+  simgate_ReplyStatus status = simgate_ST_SUCCESS;
+  simgate_Failure failure = simgate_FL_NONE;
+  bool last = false;
+  std::string result, message;
+  double ms = 0;  // since the request was written
+
+  json to_json() const {
+    return {{"seq", seq},
+            {"status", status_name(status)},
+            {"failure", failure_name(failure)},
+            {"last", last},
+            {"result", preview(result)},
+            {"message", preview(message)},
+            {"message_bytes", message.size()},
+            {"message_utf8", valid_utf8(message)},
+            {"ms", ms}};
+  }
+};
+
+// A client on the wire types: its own participant, a request writer in the partition and,
+// when asked, a reply reader in "<partition>/<its id>" announcing the id in USER_DATA.
+class RawClient {
+ public:
+  RawClient(std::uint32_t domain, const std::string& partition)
+      : participant_(domain, sd::k_loopback_xml, "attack client"), partition_(partition) {
+    dds_entity_t pp = participant_.handle();
+    sd::QosPtr partition_qos(dds_create_qos());
+    dds_qset_partition1(partition_qos.get(), partition.c_str());
+    dds_entity_t publisher = dds_create_publisher(pp, partition_qos.get(), nullptr);
+    dds_entity_t topic = dds_create_topic(pp, &simgate_Request_desc, sd::k_request_topic, nullptr, nullptr);
+    sd::QosPtr qos = sd::make_qos(false, 0, DDS_SECS(1));
+    writer_ = dds_create_writer(publisher, topic, qos.get(), nullptr);
+    if (writer_ < 0) throw std::runtime_error("request writer: " + sd::retcode_text(writer_));
+    dds_guid_t guid;
+    dds_get_guid(writer_, &guid);
+    id_ = sd::to_client_id(guid);
+  }
+
+  // max_samples: how many replies the reader holds (one that never takes then stops
+  // acknowledging)
+  void create_reply_reader(int32_t max_samples = DDS_LENGTH_UNLIMITED) {
+    dds_entity_t pp = participant_.handle();
+    sd::QosPtr partition_qos(dds_create_qos());
+    dds_qset_partition1(partition_qos.get(), (partition_ + "/" + sd::to_hex(id_)).c_str());
+    dds_entity_t subscriber = dds_create_subscriber(pp, partition_qos.get(), nullptr);
+    dds_entity_t topic = dds_create_topic(pp, &simgate_Reply_desc, sd::k_reply_topic, nullptr, nullptr);
+    sd::QosPtr qos = sd::make_qos(false, 0, DDS_SECS(1));
+    dds_qset_resource_limits(qos.get(), max_samples, DDS_LENGTH_UNLIMITED, DDS_LENGTH_UNLIMITED);
+    std::string userdata = std::string(sd::k_userdata_id_prefix) + sd::to_hex(id_);
+    dds_qset_userdata(qos.get(), userdata.data(), userdata.size());
+    reader_ = dds_create_reader(subscriber, topic, qos.get(), nullptr);
+    if (reader_ < 0) throw std::runtime_error("reply reader: " + sd::retcode_text(reader_));
+  }
+
+  // The server's request reader matched our writer (and, with a reply reader, its reply
+  // writer for us matched the reader).
+  bool wait_matched() {
+    const auto deadline = Clock::now() + g_timeout;
+    while (Clock::now() < deadline) {
+      dds_publication_matched_status_t pub;
+      dds_get_publication_matched_status(writer_, &pub);
+      bool ok = pub.current_count > 0;
+      if (ok && reader_ > 0) {
+        dds_subscription_matched_status_t sub;
+        dds_get_subscription_matched_status(reader_, &sub);
+        ok = sub.current_count > 0;
+      }
+      if (ok) return true;
+      dds_sleepfor(DDS_MSECS(2));
+    }
+    return false;
+  }
+
+  // as: write with that id instead of ours (a spoofer)
+  void write(std::uint64_t seq, simgate_Op op, const std::string& component, const std::string& service,
+             const std::string& params, std::uint64_t target = 0, const sd::ClientId* as = nullptr) {
+    simgate_Request rq{};
+    std::memcpy(rq.id.client, (as ? *as : id_).data(), 16);
+    rq.id.seq = seq;
+    rq.op = op;
+    rq.component = const_cast<char*>(component.c_str());
+    rq.service = const_cast<char*>(service.c_str());
+    rq.params = const_cast<char*>(params.c_str());
+    rq.target = target;
+    written_ = Clock::now();
+    dds_return_t rc = dds_write(writer_, &rq);
+    if (rc < 0) throw std::runtime_error("dds_write: " + sd::retcode_text(rc));
+  }
+
+  // The next reply for us, or nullopt after `timeout`.
+  std::optional<Reply> next(std::chrono::milliseconds timeout = g_timeout) {
+    const auto deadline = Clock::now() + timeout;
+    while (Clock::now() < deadline) {
+      void* samples[1] = {nullptr};
+      dds_sample_info_t info;
+      while (dds_take(reader_, samples, &info, 1, 1) == 1) {
+        const auto& r = *static_cast<const simgate_Reply*>(samples[0]);
+        std::optional<Reply> out;
+        if (info.valid_data && std::memcmp(r.client, id_.data(), 16) == 0)
+          out = Reply{r.seq, r.status, r.failure, r.last, r.result ? r.result : "", r.message ? r.message : "",
+                      ms_since(written_)};
+        dds_return_loan(reader_, samples, 1);
+        if (out) return out;
+        samples[0] = nullptr;
+      }
+      dds_sleepfor(DDS_MSECS(1));
+    }
+    return std::nullopt;
+  }
+
+  // The final reply (last = true) for `seq`, skipping others; nullopt after `timeout`.
+  std::optional<Reply> final_reply(std::uint64_t seq, std::chrono::milliseconds timeout = g_timeout) {
+    const auto deadline = Clock::now() + timeout;
+    while (Clock::now() < deadline) {
+      auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
+      auto r = next(left);
+      if (!r) return std::nullopt;
+      if (r->seq == seq && r->last) return r;
+    }
+    return std::nullopt;
+  }
+
+  // Takes and drops every reply until none came for 200 ms (at most `timeout`). A reader at
+  // its resource limit keeps Cyclone's receive thread retrying the delivery, and deleting
+  // the participant then waits for it: a stuck client drains before it leaves.
+  void drain(std::chrono::milliseconds timeout) {
+    const auto deadline = Clock::now() + timeout;
+    auto quiet_since = Clock::now();
+    while (Clock::now() < deadline && Clock::now() - quiet_since < std::chrono::milliseconds(200)) {
+      void* samples[16] = {};
+      dds_sample_info_t infos[16];
+      dds_return_t n = dds_take(reader_, samples, infos, 16, 16);
+      if (n > 0) {
+        dds_return_loan(reader_, samples, n);
+        quiet_since = Clock::now();
+      } else {
+        dds_sleepfor(DDS_MSECS(5));
+      }
+    }
+  }
+
+  const sd::ClientId& id() const { return id_; }
+
+ private:
+  sd::Participant participant_;
+  std::string partition_;
+  dds_entity_t writer_ = 0, reader_ = 0;
+  sd::ClientId id_{};
+  Clock::time_point written_ = Clock::now();
+};
+
+json reply_json(const std::optional<Reply>& r) { return r ? r->to_json() : json(nullptr); }
+
+// A client with a reply reader, matched; throws if no server matched in time.
+std::unique_ptr<RawClient> ready_client(std::uint32_t domain, const std::string& partition) {
+  auto c = std::make_unique<RawClient>(domain, partition);
+  c->create_reply_reader();
+  if (!c->wait_matched()) throw std::runtime_error("no simgate DDS server matched in partition '" + partition + "'");
+  return c;
+}
+
+json mode_deep(std::uint32_t domain, const std::string& partition) {
+  auto c = ready_client(domain, partition);
+  constexpr std::size_t k_deep = 80000;
+  const std::string arrays = std::string(k_deep, '[') + std::string(k_deep, ']');
+  std::string objects = "{\"speed\":";
+  for (std::size_t i = 1; i < k_deep; ++i) objects += "{\"a\":";
+  objects += "1" + std::string(k_deep, '}');
+  json out;
+  out["params_bytes"] = {arrays.size(), objects.size()};
+  c->write(1, simgate_OP_CALL, "human", "move", arrays);
+  out["arrays"] = reply_json(c->final_reply(1));
+  c->write(2, simgate_OP_CALL, "human", "move", objects);
+  out["objects"] = reply_json(c->final_reply(2));
+  c->write(3, simgate_OP_CALL, "simulation", "list_robots", "");
+  out["after"] = reply_json(c->final_reply(3));
+  return out;
+}
+
+json mode_hijack(std::uint32_t domain, const std::string& partition) {
+  auto owner = ready_client(domain, partition);
+  auto spoofer = ready_client(domain, partition);
+  json out;
+  out["owner_id"] = sd::to_hex(owner->id());
+  out["spoofer_id"] = sd::to_hex(spoofer->id());
+  // the spoofer calls as the owner before the owner ever did
+  spoofer->write(1, simgate_OP_CALL, "simulation", "list_robots", "", 0, &owner->id());
+  out["spoofed_call"] = reply_json(spoofer->final_reply(1));
+  // the owner starts an async call; the spoofer tries to cancel it under the owner's id
+  owner->write(1, simgate_OP_CALL, "time", "sleep", "[1.0]");
+  out["owner_accepted"] = reply_json(owner->next());
+  spoofer->write(2, simgate_OP_CANCEL, "", "", "", 1, &owner->id());
+  out["spoofed_cancel"] = reply_json(spoofer->final_reply(2));
+  // a zero id
+  const sd::ClientId zero{};
+  spoofer->write(3, simgate_OP_CALL, "simulation", "list_robots", "", 0, &zero);
+  out["zero_id"] = reply_json(spoofer->final_reply(3));
+  // the owner's sleep ends on its own (not PREEMPTED by the spoofer)
+  out["owner_final"] = reply_json(owner->final_reply(1));
+  return out;
+}
+
+json mode_stuck(std::uint32_t domain, const std::string& partition, int count, int max_samples, double hold_s,
+                const std::string& component, const std::string& service) {
+  RawClient c(domain, partition);
+  c.create_reply_reader(max_samples > 0 ? max_samples : DDS_LENGTH_UNLIMITED);  // never takes
+  if (!c.wait_matched()) throw std::runtime_error("no simgate DDS server matched in partition '" + partition + "'");
+  for (int i = 1; i <= count; ++i) c.write(i, simgate_OP_CALL, component, service, "");
+  std::cout << json{{"ready", true}, {"id", sd::to_hex(c.id())}, {"written", count}}.dump() << std::endl;
+  const auto until = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(hold_s));
+  while (!g_stop.load() && Clock::now() < until) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  c.drain(std::chrono::seconds(5));
+  return {{"held_s", hold_s}};
+}
+
+json mode_good(std::uint32_t domain, const std::string& partition, int count) {
+  simgate::client::DdsClientOptions options;
+  options.domain = domain;
+  options.partition = partition;
+  options.discovery_timeout = g_timeout;
+  simgate::client::DdsClient client(options);
+  if (!client.wait_for_server(g_timeout)) throw std::runtime_error("DdsClient: no server");
+  int answered = 0, failed = 0;
+  double slowest = 0;
+  json first;
+  const auto t0 = Clock::now();
+  for (int i = 0; i < count; ++i) {
+    const auto t = Clock::now();
+    try {
+      auto o = client.call("simulation", "list_robots", nullptr, std::chrono::seconds(5));
+      if (o.status == simgate::Status::success) ++answered; else ++failed;
+      if (i == 0) first = o.value ? *o.value : json(o.message);
+    } catch (const std::exception& e) {
+      ++failed;
+      if (i == 0) first = e.what();
+    }
+    slowest = std::max(slowest, ms_since(t));
+  }
+  return {{"calls", count}, {"answered", answered}, {"failed", failed}, {"total_ms", ms_since(t0)},
+          {"slowest_ms", slowest}, {"first", first}};
+}
+
+json mode_names(std::uint32_t domain, const std::string& partition) {
+  auto c = ready_client(domain, partition);
+  const std::string huge(10u << 20, 'c');
+  json out;
+  c->write(1, simgate_OP_CALL, huge, "move", "[1, 0]");
+  out["component"] = reply_json(c->final_reply(1));
+  c->write(2, simgate_OP_CALL, "human", huge, "[1, 0]");
+  out["service"] = reply_json(c->final_reply(2));
+  c->write(3, simgate_OP_CALL, "simulation", "list_robots", "");
+  out["after"] = reply_json(c->final_reply(3));
+  return out;
+}
+
+json mode_dupseq(std::uint32_t domain, const std::string& partition) {
+  auto c = ready_client(domain, partition);
+  json out, replies = json::array();
+  c->write(5, simgate_OP_CALL, "time", "sleep", "[0.5]");
+  out["accepted"] = reply_json(c->next());
+  c->write(5, simgate_OP_CALL, "simulation", "list_robots", "");
+  // every reply for seq 5 until the final one (or the timeout)
+  for (int i = 0; i < 4; ++i) {
+    auto r = c->next();
+    if (!r) break;
+    replies.push_back(r->to_json());
+    if (r->last) break;
+  }
+  out["replies_after_duplicate"] = replies;
+  return out;
+}
+
+json mode_utf8(std::uint32_t domain, const std::string& partition) {
+  auto c = ready_client(domain, partition);
+  std::string params = "a";
+  for (int i = 0; i < 40; ++i) params += "\xc3\xa9";  // e acute: byte 60 falls inside one
+  c->write(1, simgate_OP_CALL, "human", "move", params);
+  return {{"reply", reply_json(c->final_reply(1))}};
+}
+
+json mode_sessions(std::uint32_t domain, const std::string& partition, int count) {
+  int answered = 0;
+  const auto t0 = Clock::now();
+  for (int i = 0; i < count && !g_stop.load(); ++i) {
+    RawClient c(domain, partition);
+    c.create_reply_reader();
+    if (!c.wait_matched()) continue;
+    c.write(1, simgate_OP_CALL, "simulation", "list_robots", "");
+    auto r = c.final_reply(1, std::chrono::seconds(5));
+    if (r && r->status == simgate_ST_SUCCESS) ++answered;
+  }
+  return {{"sessions", count}, {"answered", answered}, {"total_ms", ms_since(t0)}};
+}
+
+json mode_call(std::uint32_t domain, const std::string& partition, const std::string& component,
+               const std::string& service, const std::string& params) {
+  auto c = ready_client(domain, partition);
+  c->write(1, simgate_OP_CALL, component, service, params);
+  return {{"reply", reply_json(c->final_reply(1))}};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"The DDS attacks of bench/attacks (issue #17), as a raw Cyclone client of simgate's wire types.",
+               "simgate_bench_dds_attack"};
+  std::string mode, partition = "simgate", component, service, params;
+  std::uint32_t domain = 0;
+  int count = 20, max_samples = 1;
+  double hold = 30, timeout = 20;
+  app.add_option("--mode", mode, "deep, hijack, stuck, good, names, dupseq, utf8, sessions or call")
+      ->required()
+      ->check(CLI::IsMember({"deep", "hijack", "stuck", "good", "names", "dupseq", "utf8", "sessions", "call"}));
+  app.add_option("--domain", domain, "DDS domain")->check(CLI::Range(0, 230))->capture_default_str();
+  app.add_option("--partition", partition, "DDS partition")->capture_default_str();
+  app.add_option("--count", count, "stuck: calls written; good: calls made; sessions: sessions")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
+  app.add_option("--max-samples", max_samples, "stuck: replies its reader holds (0: no limit)")
+      ->check(CLI::Range(0, 100000))
+      ->capture_default_str();
+  app.add_option("--hold", hold, "stuck: seconds to stay (SIGTERM ends it sooner)")->capture_default_str();
+  app.add_option("--timeout", timeout, "seconds: every wait (a server, a reply)")->capture_default_str();
+  app.add_option("--component", component, "call, stuck: component");
+  app.add_option("--service", service, "call, stuck: service");
+  app.add_option("--params", params, "call: params (JSON text)");
+  if (auto code = simgate::bench::parse_command_line(app, argc, argv)) return *code;
+  g_timeout = std::chrono::milliseconds(static_cast<long long>(timeout * 1000));
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+  try {
+    json out;
+    if (mode == "deep") out = mode_deep(domain, partition);
+    else if (mode == "hijack") out = mode_hijack(domain, partition);
+    else if (mode == "stuck")
+      out = mode_stuck(domain, partition, count, max_samples, hold, component.empty() ? "robot.pose" : component,
+                       service.empty() ? "get_local_data" : service);
+    else if (mode == "good") out = mode_good(domain, partition, count);
+    else if (mode == "names") out = mode_names(domain, partition);
+    else if (mode == "dupseq") out = mode_dupseq(domain, partition);
+    else if (mode == "utf8") out = mode_utf8(domain, partition);
+    else if (mode == "sessions") out = mode_sessions(domain, partition, count);
+    else out = mode_call(domain, partition, component, service, params);
+    out["mode"] = mode;
+    std::cout << out.dump(-1, ' ', false, json::error_handler_t::replace) << std::endl;
+    return 0;
+  } catch (const std::exception& e) {
+    std::cout << json{{"mode", mode}, {"error", e.what()}}.dump(-1, ' ', false, json::error_handler_t::replace)
+              << std::endl;
+    std::cerr << "simgate_bench_dds_attack: " << e.what() << "\n";
+    return 1;
+  }
+}
