@@ -187,6 +187,32 @@ TEST_F(MjcfSensorsConfigTest, GeneratedNameCollisionsAndTimestampAreRefused) {
   EXPECT_THAT(config_error(other, "sensors"), HasSubstr("is called 'timestamp'"));
 }
 
+TEST_F(MjcfSensorsConfigTest, AClockBelongsToNoRobotButCanBeListedAndAgreesWithTheTimestamp) {
+  sim_.reset();
+  load_string(R"(<mujoco><worldbody><body name="b"><joint name="j"/><geom size="0.1"/><site name="s"/></body>
+    </worldbody><sensor><clock name="clock"/><framepos name="f" objtype="site" objname="s" reftype="body" refname="b"/>
+    <jointvel joint="j" cutoff="2"/></sensor></mujoco>)");
+  Robot& robot = add_robot("r", "b");
+  add_component(robot, "sensors", "sensors");
+  add_component(robot, "timed", "sensors", {{"sensors", {"clock", "f", "jointvel_0"}}});
+  serve();
+  EXPECT_EQ(value("r.sensors", "get_properties")["properties"]["count"], 2);  // no clock
+  json p = value("r.timed", "get_properties")["properties"]["sensors"];
+  EXPECT_EQ(p["clock"], json({{"type", "clock"}, {"dim", 1}}));
+  EXPECT_EQ(p["f"]["reference"], json({{"body", "b"}}));
+  EXPECT_EQ(p["jointvel_0"]["cutoff"], 2.0);
+  // MuJoCo's own clock sensor reads the time of the state it evaluated: the timestamp
+  for (int i = 0; i < 3; ++i) {
+    run_for(0.01);
+    json data = value("r.timed", "get_local_data");
+    EXPECT_DOUBLE_EQ(data["clock"].get<double>(), data["timestamp"].get<double>());
+  }
+  ASSERT_EQ(call("simulation", "reset_objects").status, Status::success);
+  json data = value("r.timed", "get_local_data");
+  EXPECT_DOUBLE_EQ(data["clock"].get<double>(), data["timestamp"].get<double>());
+  EXPECT_DOUBLE_EQ(data["timestamp"].get<double>(), sim_->sim_time());
+}
+
 TEST_F(MjcfSensorsConfigTest, TypeNamesFollowMuJoCosElements) {
   EXPECT_STREQ(sensor_type_name(mjSENS_TOUCH), "touch");
   EXPECT_STREQ(sensor_type_name(mjSENS_RANGEFINDER), "rangefinder");
