@@ -27,6 +27,8 @@
 // starts from, then integrates. After a step the sensor values therefore describe the state
 // one timestep before mjData::time, and "timestamp" says so; after a reset (which runs
 // mj_forward) they describe the current state. Reading them changes nothing (no mj_forward).
+// One approximation: a service that re-evaluates the state between two steps (teleport's
+// mj_forward) makes the values current while the timestamp still says one timestep earlier.
 //
 // Everything a query needs (names, addresses, the JSON of list_actuators and the
 // properties) is computed at construction: the model does not change while it runs.
