@@ -10,12 +10,18 @@ namespace {
 
 // The length of the segment a joint moves (MORSE: its bone's length, head to tail): from
 // the joint's anchor to the anchor of the next joint down the chain (the first joint of a
-// body below its own), or, at a tip, to the far side of the farthest geom of its body.
-// From the current poses (world frame), metres.
+// body below its own: where that joint is attached), or, at a tip, to the far side of the
+// farthest geom of its body. From the current poses (world frame), metres; a rigid segment
+// has the same length in every pose.
 double segment_length(const mjModel* m, const mjData* d, int joint) {
   const int body = m->jnt_bodyid[joint];
-  const mjtNum* anchor = d->xanchor + 3 * joint;
-  auto distance = [anchor](const mjtNum* p) {
+  // MuJoCo places a slide joint's anchor before its own displacement: the segment starts
+  // where the displacement takes it
+  mjtNum anchor[3];
+  const int q = m->jnt_qposadr[joint];
+  const mjtNum shift = m->jnt_type[joint] == mjJNT_SLIDE ? d->qpos[q] - m->qpos0[q] : 0;
+  for (int k = 0; k < 3; ++k) anchor[k] = d->xanchor[3 * joint + k] + shift * d->xaxis[3 * joint + k];
+  auto distance = [&anchor](const mjtNum* p) {
     return std::sqrt((p[0] - anchor[0]) * (p[0] - anchor[0]) + (p[1] - anchor[1]) * (p[1] - anchor[1]) +
                      (p[2] - anchor[2]) * (p[2] - anchor[2]));
   };

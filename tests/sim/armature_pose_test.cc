@@ -56,7 +56,11 @@ TEST_F(ArmaturePoseTest, GetJointsLengthIsTheDistanceToTheNextJoint) {
   EXPECT_NEAR(lengths["slider"].get<double>(), 0.02 * std::sqrt(3.0), 1e-9);
   // a rigid segment keeps its length whatever the pose
   ASSERT_EQ(arm("set_rotations", {json{0.5, -1.0}}).status, Status::success);
-  EXPECT_NEAR(pose("get_joints_length").value->at("shoulder").get<double>(), 0.4, 1e-9);
+  ASSERT_EQ(arm("set_translation", {"slider", 0.06}).status, Status::success);
+  lengths = *pose("get_joints_length").value;
+  EXPECT_NEAR(lengths["shoulder"].get<double>(), 0.4, 1e-9);
+  EXPECT_NEAR(lengths["elbow"].get<double>(), 0.3, 1e-9);
+  EXPECT_NEAR(lengths["slider"].get<double>(), 0.02 * std::sqrt(3.0), 1e-9);
 }
 
 TEST_F(ArmaturePoseTest, GetLocalDataIsMorsesJointDictionaryWithATimestamp) {
