@@ -94,6 +94,23 @@ TEST_F(ArmatureTest, RotateDrivesTheServoAlongTheRampThenWaitsForArrival) {
   EXPECT_NEAR(qpos("shoulder"), 1.0, 0.01);
 }
 
+TEST_F(ArmatureTest, AServoJointThatHasNotArrivedBySettleTimeoutFailsNamingIt) {
+  // the servo lags its ramp by about damping * speed / kp = 0.03 rad: with no time to
+  // settle, the motion's end finds the shoulder short of its target
+  ASSERT_EQ(arm("set_property", {"settle_timeout", 0.0}).status, Status::success);
+  const double t0 = sim_->sim_time();
+  RequestId id = start("rotate", {"shoulder", 1.0, 0.5});
+  auto o = run_until_answered(id, 2.1);
+  ASSERT_TRUE(o.has_value());
+  EXPECT_EQ(o->status, Status::failed);
+  EXPECT_GE(sim_->sim_time(), t0 + 2.0 - 1e-9);
+  EXPECT_THAT(message(*o), HasSubstr("joint 'shoulder' is at 0.9"));
+  EXPECT_THAT(message(*o), HasSubstr("rad, target 1 (0 s after the motion's end"));
+  // it stays commanded to its target, and gets there
+  run_for(1.0);
+  EXPECT_NEAR(qpos("shoulder"), 1.0, 0.01);
+}
+
 TEST_F(ArmatureTest, RotateJointsMovesEachJointAtTheSpeedAndEndsWithTheLast) {
   const double t0 = sim_->sim_time();
   RequestId id = start("rotate_joints", {json{{"shoulder", 0.6}, {"elbow", -0.3}}, 0.3});
@@ -340,6 +357,10 @@ TEST_F(ArmatureBadInputTest, NanAndInfinityAreRefusedForEveryNumber) {
         {"trajectory", {point("effort")}, "points[0].effort[1]: "},
         {"trajectory", {json{{"starttime", bad}, {"points", point("positions")["points"]}}}, "starttime"},
         {"set_property", {"radial_speed", bad}, "radial_speed = "},
+        {"set_property", {"linear_speed", bad}, "linear_speed = "},
+        {"set_property", {"angle_tolerance", bad}, "angle_tolerance = "},
+        {"set_property", {"distance_tolerance", bad}, "distance_tolerance = "},
+        {"set_property", {"settle_timeout", bad}, "settle_timeout = "},
     });
   }
 }
