@@ -52,6 +52,11 @@ std::uint32_t LineConnection::idle_ticks() const {
   return host_.shared_.tick - active_tick_;
 }
 
+std::uint32_t LineConnection::silent_ticks() const {
+  if (writing_ || !outbox_.empty()) return 0;
+  return host_.shared_.tick - active_tick_;
+}
+
 std::uint32_t LineConnection::line_ticks() const {
   if (partial_.empty() && !discarding_) return 0;
   return host_.shared_.tick - line_tick_;
@@ -378,16 +383,30 @@ std::string LineServer::refusal_reason(const boost::asio::ip::tcp::endpoint& pee
 bool LineServer::full() {
   if (connections_.size() < max_connections_) return false;
   if (idle_evict_.count() <= 0) return true;
-  // the connection idle longest makes room, once idle long enough
-  std::shared_ptr<LineConnection> idlest;
-  for (const auto& c : connections_)
+  // the connection idle longest makes room, once idle long enough; failing one, the one
+  // silent longest though it waits for replies (a client holding every slot with calls that
+  // never end, `time sleep [1e9]`, must not lock everyone out: issue #17)
+  const std::uint32_t limit = ticks(idle_evict_);
+  std::shared_ptr<LineConnection> idlest, silentest;
+  for (const auto& c : connections_) {
     if (!idlest || c->idle_ticks() > idlest->idle_ticks()) idlest = c;
-  if (!idlest || idlest->idle_ticks() < ticks(idle_evict_)) return true;
-  log::warning(who_, ": ", idlest->label(), " closed to make room for a new connection: idle for ",
-               idlest->idle_ticks() * k_sweep.count() / 1000.0, " s while ", max_connections_,
-               " connections were open (idle_evict_s)");
-  idlest->close("idle while the server was full");
-  return false;
+    if (!silentest || c->silent_ticks() > silentest->silent_ticks()) silentest = c;
+  }
+  if (idlest && idlest->idle_ticks() >= limit) {
+    log::warning(who_, ": ", idlest->label(), " closed to make room for a new connection: idle for ",
+                 idlest->idle_ticks() * k_sweep.count() / 1000.0, " s while ", max_connections_,
+                 " connections were open (idle_evict_s)");
+    idlest->close("idle while the server was full");
+    return false;
+  }
+  if (silentest && silentest->silent_ticks() >= limit) {
+    log::warning(who_, ": ", silentest->label(), " closed to make room for a new connection: silent for ",
+                 silentest->silent_ticks() * k_sweep.count() / 1000.0, " s with ", silentest->unanswered(),
+                 " replies owed while ", max_connections_, " connections were open (idle_evict_s)");
+    silentest->close("silent while the server was full");
+    return false;
+  }
+  return true;
 }
 
 void LineServer::schedule_sweep(const std::shared_ptr<LineConnection>& any) {

@@ -1097,6 +1097,33 @@ TEST_P(TcpTransportResources, AtTheLimitTheConnectionIdleLongestMakesRoom) {
   ::close(busy);
 }
 
+// issue #17 (bench/attacks 7a'): a client whose every connection waits for a call that never
+// ends (`time sleep [1e9]`) owes nothing idle; at the limit the one silent longest makes room
+TEST_P(TcpTransportResources, AtTheLimitAConnectionSilentWhileItWaitsMakesRoomToo) {
+  WarningLog warnings;
+  start({{"max_connections", 2}, {"idle_evict_s", 0.5}});
+  int waiting = connect_raw(port_);
+  const std::string hold = request("hold");
+  ASSERT_EQ(::send(waiting, hold.data(), hold.size(), MSG_NOSIGNAL), static_cast<ssize_t>(hold.size()));
+  int busy = connect_raw(port_);
+  EXPECT_THAT(ping(busy), HasSubstr("pong"));
+  std::string answer;
+  for (int i = 0; i < 30 && answer.find("pong") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(100ms);
+    EXPECT_THAT(ping(busy), HasSubstr("pong"));
+    int newcomer = connect_raw(port_);
+    answer = ping(newcomer);
+    ::close(newcomer);
+  }
+  EXPECT_THAT(answer, HasSubstr("pong")) << "the newcomer was never let in";
+  EXPECT_EQ(warnings.count("replies owed"), 1u) << ::testing::PrintToString(warnings.lines());
+  auto [received, ended] = read_to_end(waiting, 10s);
+  EXPECT_TRUE(ended) << "the silent connection was kept";
+  EXPECT_THAT(ping(busy), HasSubstr("pong"));  // the busy one was never chosen
+  ::close(waiting);
+  ::close(busy);
+}
+
 TEST_P(TcpTransportResources, UnfinishedLinesOfAllConnectionsStayUnderMaxBufferedBytes) {
   WarningLog warnings;
   start({{"max_buffered_bytes", 65536}});

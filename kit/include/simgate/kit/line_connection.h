@@ -201,6 +201,9 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
   // Sweeps (of LineServer) since it last read, wrote or was owed a reply; 0 while it owes
   // one or has replies unsent (it is not idle then).
   std::uint32_t idle_ticks() const;
+  // Sweeps since it last read, wrote or was answered, even while it owes replies (a client
+  // waiting for calls that do not end); 0 while it has replies unsent.
+  std::uint32_t silent_ticks() const;
   // Sweeps since its unfinished line began; 0 when there is none.
   std::uint32_t line_ticks() const;
   boost::asio::ip::tcp::socket::executor_type executor() { return socket_.get_executor(); }
@@ -294,10 +297,11 @@ class LineServer : public LineHost {
   std::size_t connection_count() const { return count_.load(std::memory_order_relaxed); }
   // For the listener (TcpListener::Handlers::refuse): why a connection from `peer` is
   // refused, or "": max_connections are open and none of them has been idle for idle_evict_s
-  // (the one idle longest is closed to make room when one has), or its non-loopback address
-  // holds max_connections_per_peer.
+  // (the one idle longest is closed to make room when one has; failing one, the one silent
+  // longest while it waits for replies, whose calls end as its client's leaving ends them),
+  // or its non-loopback address holds max_connections_per_peer.
   std::string refusal_reason(const boost::asio::ip::tcp::endpoint& peer);
-  // True while max_connections are open (after idle eviction, as above).
+  // True while max_connections are open (after eviction, as above).
   bool full();
   // The thread that polls reads the watched connection through this (IoThread::start).
   DirectReads<LineConnection>& direct_reads() { return direct_; }
