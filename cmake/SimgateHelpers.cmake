@@ -32,6 +32,35 @@ function(simgate_add_transport_plugin name)
   endif()
 endfunction()
 
+# simgate_add_component_library(NAME [NO_INSTALL] SOURCES...)
+#   Builds libsimgate_components_<NAME>.so, a component library a config names in
+#   "component_libraries" and the gateway loads with dlopen (sim/component_library.h). The
+#   sources must use SIMGATE_COMPONENT_LIBRARY(<NAME>, ...) once. Installed beside the
+#   transport plugins, where the installed gateway finds it by name. NO_INSTALL: test only.
+function(simgate_add_component_library name)
+  cmake_parse_arguments(arg "NO_INSTALL" "" "" ${ARGN})
+  set(target simgate_components_${name})
+  add_library(${target} MODULE ${arg_UNPARSED_ARGUMENTS})
+  if(TARGET simgate_sim)
+    target_link_libraries(${target} PRIVATE simgate_sim)
+  else()
+    target_link_libraries(${target} PRIVATE simgate::sim)
+  endif()
+  set_target_properties(${target} PROPERTIES
+    CXX_VISIBILITY_PRESET hidden
+    VISIBILITY_INLINES_HIDDEN ON)
+  # as for transport plugins: thread-locals in the static TLS block of a dlopen'ed module
+  target_compile_options(${target} PRIVATE -ftls-model=initial-exec)
+  if(DEFINED SIMGATE_PLUGIN_BUILD_DIR)
+    set_target_properties(${target} PROPERTIES LIBRARY_OUTPUT_DIRECTORY ${SIMGATE_PLUGIN_BUILD_DIR})
+  endif()
+  if(DEFINED SIMGATE_PLUGIN_INSTALL_DIR AND TARGET simgate_sim AND NOT arg_NO_INSTALL)
+    simgate_install_rpath(rpath ${SIMGATE_PLUGIN_INSTALL_DIR})
+    set_target_properties(${target} PROPERTIES INSTALL_RPATH "${rpath}")
+    install(TARGETS ${target} LIBRARY DESTINATION ${SIMGATE_PLUGIN_INSTALL_DIR})
+  endif()
+endfunction()
+
 # simgate_install_rpath(VAR DIR)
 #   Sets VAR to "$ORIGIN/<path from DIR to CMAKE_INSTALL_LIBDIR>" (both relative to the
 #   install prefix): an installed file in DIR finds simgate's libraries wherever the prefix

@@ -18,12 +18,14 @@ bool is_regular_file(const std::string& path) {
   return ::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode);
 }
 
-std::string file_name_for(const std::string& name) { return "libsimgate_transport_" + name + ".so"; }
+std::string file_name_for(std::string_view kind, const std::string& name) {
+  return "libsimgate_" + std::string(kind) + "_" + name + ".so";
+}
 
-// "plugins/libsimgate_transport_x.so" -> "x"
-std::string name_from_path(const std::string& path) {
+// "plugins/libsimgate_<kind>_x.so" -> "x"
+std::string name_from_path(std::string_view kind, const std::string& path) {
   std::string file = path.substr(path.find_last_of('/') + 1);
-  const std::string prefix = "libsimgate_transport_", suffix = ".so";
+  const std::string prefix = "libsimgate_" + std::string(kind) + "_", suffix = ".so";
   if (file.rfind(prefix, 0) == 0) file = file.substr(prefix.size());
   if (file.size() > suffix.size() && file.compare(file.size() - suffix.size(), suffix.size(), suffix) == 0)
     file.resize(file.size() - suffix.size());
@@ -73,52 +75,62 @@ std::vector<std::string> plugin_search_path(const std::vector<std::string>& extr
   return dirs;
 }
 
-std::shared_ptr<TransportPlugin> load_transport_plugin(const std::string& name_or_path,
-                                                       const std::vector<std::string>& extra_dirs) {
-  // candidates: an explicit path, or <dir>/libsimgate_transport_<name>.so for each dir
+PluginLibrary open_plugin_library(std::string_view kind, std::string_view what_kind, const std::string& name_or_path,
+                                  const std::vector<std::string>& extra_dirs) {
+  // candidates: an explicit path, or <dir>/libsimgate_<kind>_<name>.so for each dir
   const bool explicit_path = name_or_path.find('/') != std::string::npos ||
                              (name_or_path.size() > 3 && name_or_path.ends_with(".so"));
   std::vector<std::string> candidates;
   if (explicit_path) {
     candidates.push_back(name_or_path);
   } else {
-    for (const auto& dir : plugin_search_path(extra_dirs)) candidates.push_back(dir + "/" + file_name_for(name_or_path));
+    for (const auto& dir : plugin_search_path(extra_dirs))
+      candidates.push_back(dir + "/" + file_name_for(kind, name_or_path));
   }
-  const std::string name = explicit_path ? name_from_path(name_or_path) : name_or_path;
-  const std::string what = "transport plugin '" + name + "'";
+  PluginLibrary found;
+  found.name = explicit_path ? name_from_path(kind, name_or_path) : name_or_path;
+  found.what = std::string(what_kind) + " '" + found.name + "'";
 
-  std::string path;
   for (const auto& c : candidates)
     if (is_regular_file(c)) {
-      path = c;
+      found.path = c;
       break;
     }
-  if (path.empty())
-    throw PluginError(what + ": no " + (explicit_path ? "file " + name_or_path : file_name_for(name)) +
+  if (found.path.empty())
+    throw PluginError(found.what + ": no " + (explicit_path ? "file " + name_or_path : file_name_for(kind, found.name)) +
                       " found; paths tried:" + list(candidates) +
                       "\n(set SIMGATE_PLUGIN_PATH or give the library's path)");
 
   // open it: RTLD_LOCAL keeps each plugin's symbols to itself
-  void* handle = ::dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+  void* handle = ::dlopen(found.path.c_str(), RTLD_NOW | RTLD_LOCAL);
   if (!handle) {
     const char* err = ::dlerror();
-    throw PluginError(what + " (" + path + "): dlopen failed: " + (err ? err : "unknown error") +
+    throw PluginError(found.what + " (" + found.path + "): dlopen failed: " + (err ? err : "unknown error") +
                       "\npaths tried:" + list(candidates));
   }
-  std::shared_ptr<void> library(handle, [](void* h) { ::dlclose(h); });
+  found.library = std::shared_ptr<void>(handle, [](void* h) { ::dlclose(h); });
 
-  const std::string entry_name = "simgate_transport_" + name + "_entry";
+  found.entry_name = "simgate_" + std::string(kind) + "_" + found.name + "_entry";
   ::dlerror();
-  void* symbol = ::dlsym(handle, entry_name.c_str());
-  if (!symbol)
-    throw PluginError(what + " (" + path + "): entry function " + entry_name +
-                      " not found; is it built with SIMGATE_TRANSPORT_PLUGIN(" + name + ", ...)?");
-  auto entry = reinterpret_cast<simgate_transport_entry_fn>(symbol);
-  const simgate_transport_descriptor* d = entry();
+  found.entry = ::dlsym(handle, found.entry_name.c_str());
+  if (!found.entry)
+    throw PluginError(found.what + " (" + found.path + "): entry function " + found.entry_name + " not found; is it built with " +
+                      (kind == "transport" ? "SIMGATE_TRANSPORT_PLUGIN(" : "SIMGATE_COMPONENT_LIBRARY(") + found.name +
+                      ", ...)?");
+  return found;
+}
+
+std::shared_ptr<TransportPlugin> load_transport_plugin(const std::string& name_or_path,
+                                                       const std::vector<std::string>& extra_dirs) {
+  PluginLibrary found = open_plugin_library("transport", "transport plugin", name_or_path, extra_dirs);
+  const std::string& name = found.name;
+  const std::string& what = found.what;
+  const std::string& path = found.path;
+  const simgate_transport_descriptor* d = reinterpret_cast<simgate_transport_entry_fn>(found.entry)();
 
   // check before trusting anything beyond the first two fields
   auto refuse = [&](const std::string& why) { throw PluginError(what + " (" + path + "): " + why); };
-  if (!d) refuse(entry_name + "() returned no descriptor");
+  if (!d) refuse(found.entry_name + "() returned no descriptor");
   if (d->abi_version != SIMGATE_PLUGIN_ABI_VERSION)
     refuse("ABI version " + std::to_string(d->abi_version) + ", expected " +
            std::to_string(SIMGATE_PLUGIN_ABI_VERSION) + " (rebuild the plugin against this simgate)");
@@ -135,7 +147,7 @@ std::shared_ptr<TransportPlugin> load_transport_plugin(const std::string& name_o
   if (!d->validate) refuse("required function validate is missing");
 
   auto plugin = std::make_shared<TransportPlugin>();
-  plugin->library_ = std::move(library);
+  plugin->library_ = std::move(found.library);
   plugin->descriptor_ = d;
   plugin->path_ = path;
   plugin->name_ = name;

@@ -263,6 +263,12 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
   // ---- scene ----
   errors.check([&] { parse_scene(root, base_dir, d); });
 
+  // ---- component libraries (loaded by the gateway, which knows where to look) ----
+  errors.check([&] {
+    if (auto libraries = root.get_json("component_libraries"))
+      d.component_libraries = string_list(*libraries, "component_libraries");
+  });
+
   // ---- transports ----
   std::vector<std::string> transport_names;
   errors.check([&] {

@@ -5,13 +5,14 @@
 
 #include "listeners.h"
 #include "simgate/core/errors.h"
+#include "simgate/sim/component_library.h"
 #include "simgate/core/log.h"
 #include "simgate/core/suggest.h"
 
 namespace simgate::gateway {
 
 Gateway::Gateway(const Deployment& deployment, const sim::ComponentRegistry& registry, GatewayOptions options)
-    : deployment_(deployment), options_(std::move(options)), warnings_(deployment.warnings) {
+    : deployment_(deployment), options_(std::move(options)), registry_(registry), warnings_(deployment.warnings) {
   // every part is checked even when another failed: all errors are reported at once
   ConfigErrors errors;
   // the scene
@@ -23,9 +24,11 @@ Gateway::Gateway(const Deployment& deployment, const sim::ComponentRegistry& reg
   } catch (const std::exception& e) {
     errors.add("scene.mjcf: expected a loadable MJCF scene, found an error: " + std::string(e.what()));
   }
+  // the component types the config's libraries add
+  load_component_libraries(errors);
   // robots, components, pseudo-components (they need the scene)
   if (simulation_) {
-    build_components(registry, errors);
+    build_components(errors);
     simulation_->add_supervision_services();
   }
   // plugins and their options
@@ -45,7 +48,29 @@ Gateway::~Gateway() {
   }
 }
 
-void Gateway::build_components(const sim::ComponentRegistry& registry, ConfigErrors& errors) {
+std::vector<std::string> Gateway::plugin_dirs() const {
+  std::vector<std::string> dirs = options_.plugin_dirs;
+  if (!deployment_.base_dir.empty()) dirs.push_back(deployment_.base_dir);
+  return dirs;
+}
+
+void Gateway::load_component_libraries(ConfigErrors& errors) {
+  for (std::size_t i = 0; i < deployment_.component_libraries.size(); ++i) {
+    const std::string& library = deployment_.component_libraries[i];
+    try {
+      auto types = sim::load_component_library(registry_, library, plugin_dirs());
+      std::string list;
+      for (const auto& t : types) list += (list.empty() ? "" : ", ") + t;
+      log::info("component library '", library, "': ", list);
+    } catch (const std::exception& e) {
+      errors.add("component_libraries[" + std::to_string(i) +
+                 "]: expected a loadable component library, found an error: " + e.what());
+    }
+  }
+}
+
+void Gateway::build_components(ConfigErrors& errors) {
+  const sim::ComponentRegistry& registry = registry_;
   sim::Simulation& sim = *simulation_;
   for (const auto& r : deployment_.robots) {
     sim::Robot* robot_ptr = nullptr;
@@ -67,8 +92,7 @@ void Gateway::build_components(const sim::ComponentRegistry& registry, ConfigErr
 
 void Gateway::load_plugins(ConfigErrors& errors) {
   // plugins are searched next to the config file too
-  std::vector<std::string> dirs = options_.plugin_dirs;
-  if (!deployment_.base_dir.empty()) dirs.push_back(deployment_.base_dir);
+  const std::vector<std::string> dirs = plugin_dirs();
   std::vector<Listener> listeners;  // the TCP transports with valid options
   for (const auto& t : deployment_.transports) {
     Transport transport;

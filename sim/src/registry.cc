@@ -67,8 +67,12 @@ int ComponentContext::actuator_option(const std::string& key, const std::string&
 }
 
 void ComponentRegistry::add(std::string name, Kind kind, std::string doc, ComponentFactory factory) {
-  ComponentType t{name, kind, std::move(doc), std::move(factory)};
-  types_[name] = std::move(t);
+  add(ComponentType{nullptr, name, kind, std::move(doc), std::move(factory), ""});
+}
+
+void ComponentRegistry::add(ComponentType type) {
+  std::string name = type.name;
+  types_[name] = std::move(type);
 }
 
 const ComponentType* ComponentRegistry::find(const std::string& name) const {
@@ -103,10 +107,6 @@ std::unique_ptr<SimComponent> ComponentRegistry::create(Kind kind, const Compone
   return component;
 }
 
-ComponentRegistry builtin_registry() {
-  ComponentRegistry r;
-  register_builtin_components(r);
-  return r;
-}
+
 
 }  // namespace simgate::sim

@@ -21,9 +21,9 @@ using testing::payload;
 
 class GatewayIntegrationTest : public ::testing::Test {
  protected:
-  void start(const json& config) {
+  void start(const json& config, GatewayOptions options = {}) {
     Deployment d = parse_deployment(config, SIMGATE_SOURCE_DIR "/config");
-    gateway_ = std::make_unique<Gateway>(d, registry_);
+    gateway_ = std::make_unique<Gateway>(d, registry_, std::move(options));
     gateway_->start();
     thread_ = std::thread([this] { gateway_->run(); });
   }
@@ -48,6 +48,45 @@ TEST_F(GatewayIntegrationTest, ServesTheSupervisionServices) {
   EXPECT_EQ(line, "1 SUCCESS [\"robot\", \"human\"]");
   json details = payload(c.request("0", "simulation details []"));
   EXPECT_EQ(details["robots"][0]["components"]["robot.motion"]["service_interfaces"], json({"socket"}));
+}
+
+// issue #18: component types as plugins. The docs' odometer library, named in the config,
+// found in a --plugin-path directory, served like a built-in.
+TEST_F(GatewayIntegrationTest, AComponentLibraryNamedInTheConfigServesItsTypes) {
+  json config = testing::demo_config(4.0);
+  config["component_libraries"] = {"odometer"};
+  config["robots"][0]["components"].push_back({{"name", "odometer"}, {"type", "odometer"}});
+  GatewayOptions options;
+  options.plugin_dirs = {SIMGATE_BINARY_DIR "/example-plugins"};
+  start(config, options);
+  LineClient c(port());
+  EXPECT_EQ(c.request("1", "robot.motion set_speed [1.0, 0.0]"), "1 SUCCESS");
+  std::string reply = c.request("2", "robot.odometer wait_distance [0.3]");
+  ASSERT_THAT(reply, StartsWith("2 SUCCESS "));
+  EXPECT_GE(std::stod(reply.substr(10)), 0.3);
+  json services = payload(c.request("3", "simulation list_services"));
+  EXPECT_THAT(services.dump(), HasSubstr("\"component\":\"robot.odometer\""));
+  EXPECT_THAT(services.dump(), HasSubstr("wait_distance"));
+}
+
+TEST(GatewayComponentLibraryTest, AMissingOrBrokenLibraryIsAConfigErrorNamingItsPlace) {
+  json config = testing::demo_config();
+  config["component_libraries"] = {"no_such_library", SIMGATE_TEST_PLUGIN_DIR "/libsimgate_transport_socket.so"};
+  GatewayOptions options;
+  options.check_only = true;
+  sim::ComponentRegistry registry = sim::builtin_registry();
+  try {
+    Gateway g(parse_deployment(config, SIMGATE_SOURCE_DIR "/config"), registry, options);
+    FAIL() << "accepted";
+  } catch (const ConfigError& e) {
+    const std::string text = e.what();
+    EXPECT_THAT(text, HasSubstr("component_libraries[0]: expected a loadable component library, found an error: "
+                                "component library 'no_such_library': no libsimgate_components_no_such_library.so "
+                                "found; paths tried:"));
+    EXPECT_THAT(text, HasSubstr("component_libraries[1]: expected a loadable component library"));
+  }
+  config["component_libraries"] = {42};
+  EXPECT_THROW(parse_deployment(config, SIMGATE_SOURCE_DIR "/config"), ConfigError);
 }
 
 TEST_F(GatewayIntegrationTest, DrivesTheRobotThroughItsWheels) {

@@ -5,7 +5,8 @@
 # --version, `check` of every shipped config, `run` of the installed demo (a copy beside it
 # with port 0) and one `simgate call` to it, then `simulation quit`. Also: RUNPATHs of the
 # installed binaries (relative, never the build tree), a program built with nothing but
-# `pkg-config --cflags --libs simgate`, and the prefix moved elsewhere still working.
+# `pkg-config --cflags --libs simgate`, the prefix moved elsewhere still working, and a
+# component library built out of tree against it, loaded by a config and called.
 #   install_test.sh BUILD_DIR SOURCE_DIR CXX VERSION BINDIR LIBDIR DATADIR [SANITIZE]
 # Exits 77 (skipped) only when this machine allows no private mount namespace.
 set -euo pipefail
@@ -71,6 +72,7 @@ for var in ASAN_OPTIONS LSAN_OPTIONS TSAN_OPTIONS UBSAN_OPTIONS; do
   export "$var=${value/suppressions=$file/suppressions=$work/$var.supp}"
 done
 cp "$here/pkg_config_probe.cc" "$work/"
+cp "$source_dir/docs/examples/odometer_library.cc" "$work/"
 
 # a private mount namespace: as root, or as an unprivileged user through a user namespace
 mkdir "$work/mount-probe"
@@ -208,5 +210,48 @@ EOF
 timeout 120 cmake -S "$WORK/cmake-core-only" -B "$WORK/cmake-core-only/build" -G Ninja \
   -DCMAKE_PREFIX_PATH="$moved" >"$WORK/core-only.log" || { cat "$WORK/core-only.log"; fail "COMPONENTS core"; }
 echo "find_package(simgate COMPONENTS core): OK"
+
+# a component library built out of tree (docs/writing-a-component.md), loaded by a config of
+# the moved prefix's installed simgate, its component called (issue #18)
+mkdir "$WORK/odometer"
+cp "$WORK/odometer_library.cc" "$WORK/odometer/"
+cat >"$WORK/odometer/CMakeLists.txt" <<'EOF'
+cmake_minimum_required(VERSION 3.25)
+project(odometer LANGUAGES CXX)
+set(CMAKE_CXX_STANDARD 20)
+find_package(simgate 0.1 REQUIRED COMPONENTS core sim)
+simgate_add_component_library(odometer odometer_library.cc)
+EOF
+timeout 120 cmake -S "$WORK/odometer" -B "$WORK/odometer/build" -G Ninja \
+  -DCMAKE_PREFIX_PATH="$moved" -DCMAKE_CXX_COMPILER="$CXX_COMPILER" \
+  -DCMAKE_CXX_FLAGS="${sanitize_flags[*]}" -DCMAKE_MODULE_LINKER_FLAGS="${sanitize_flags[*]}" >"$WORK/odometer.log" ||
+  { cat "$WORK/odometer.log"; fail "find_package(simgate COMPONENTS core sim) for a component library"; }
+timeout 300 cmake --build "$WORK/odometer/build" >>"$WORK/odometer.log" ||
+  { cat "$WORK/odometer.log"; fail "building the component library out of tree"; }
+library=$WORK/odometer/build/libsimgate_components_odometer.so
+[ -f "$library" ] || fail "no $library"
+config_dir=$moved/$DATADIR/simgate/config
+sed -e "s|\"scene\"|\"component_libraries\": [\"$library\"], \"scene\"|" \
+    -e 's|{"name": "pose", "type": "pose"}|{"name": "pose", "type": "pose"}, {"name": "odometer", "type": "odometer"}|' \
+    "$config_dir/install-test-demo.json" >"$config_dir/install-test-odometer.json"
+grep -q '"type": "odometer"' "$config_dir/install-test-odometer.json" || fail "the demo config has no pose component to follow"
+simgate=$moved/$BINDIR/simgate
+timeout 60 "$simgate" check "$config_dir/install-test-odometer.json" || fail "simgate check with the component library"
+rm -f "$WORK/endpoints.json"
+timeout 120 "$simgate" run "$config_dir/install-test-odometer.json" --endpoints-file "$WORK/endpoints.json" \
+  >"$WORK/odometer-run.log" 2>&1 &
+run=$!
+for _ in $(seq 600); do
+  [ -s "$WORK/endpoints.json" ] && break
+  kill -0 "$run" 2>/dev/null || break
+  sleep 0.1
+done
+[ -s "$WORK/endpoints.json" ] || { kill "$run" 2>/dev/null; cat "$WORK/odometer-run.log"; fail "run with the component library"; }
+port=$(grep -o 'tcp://127\.0\.0\.1:[0-9]*' "$WORK/endpoints.json" | head -n 1 | sed 's/.*://')
+distance=$(timeout 30 "$simgate" call --port "$port" robot.odometer get_distance) ||
+  { kill "$run"; cat "$WORK/odometer-run.log"; fail "calling the library's component"; }
+echo "out-of-tree component library: robot.odometer get_distance = $distance"
+timeout 30 "$simgate" call --port "$port" simulation quit || { kill "$run"; fail "simulation quit"; }
+wait "$run" || { cat "$WORK/odometer-run.log"; fail "simgate run with the component library exited non-zero"; }
 echo "installed tree: every check passed"
 INNER

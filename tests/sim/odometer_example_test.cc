@@ -1,76 +1,47 @@
-// SimExample: the component from docs/writing-a-component.md, compiled and tested so the
-// documentation cannot rot. An odometer measures the distance its robot travelled:
-// sync `get_distance`, async `wait_distance d` (completes once the robot has travelled d
-// more metres; interruptible).
+// SimExample: the component library of docs/writing-a-component.md
+// (docs/examples/odometer_library.cc, built as libsimgate_components_odometer.so), loaded
+// with dlopen as a config's "component_libraries" is, so the documentation cannot rot. An
+// odometer measures the distance its robot travelled: sync `get_distance`, async
+// `wait_distance d` (completes once the robot has travelled d more metres; interruptible).
+// Also: what loading a component library checks (ComponentLibraryTest).
+#include <fstream>
+#include <sstream>
+
 #include "sim_fixture.h"
-
-// ---- the example, as in the doc ----------------------------------------------------------
-namespace example {
-
-using namespace simgate;
-using namespace simgate::sim;
-
-class Odometer : public SimComponent {
- public:
-  explicit Odometer(ComponentContext& c) : SimComponent(c.name(), c.sim()), robot_(c.robot()) {
-    // options are read (and checked) here; unknown keys are reported by the registry
-    min_step_ = c.options().get_number("min_step", 1e-4, 0.0, 1.0);
-    last_ = robot_.position();
-    add_service("get_distance", &Odometer::get_distance).doc("Metres travelled since start or reset");
-    add_async_service("wait_distance", &Odometer::wait_distance, {"distance"})
-        .interruptible()
-        .doc("Completes once the robot has travelled `distance` more metres");
-  }
-
-  double get_distance() const { return total_; }
-
-  void wait_distance(double distance) {
-    if (!(distance > 0)) throw ServiceError("distance must be positive");
-    goal_ = total_ + distance;
-  }
-
-  // every step, on the simulation thread
-  void default_action() override {
-    Eigen::Vector3d p = robot_.position();
-    double step = (p - last_).head<2>().norm();
-    if (step >= min_step_) {  // ignore contact jitter
-      total_ += step;
-      last_ = p;
-    }
-    if (has_running_request() && total_ >= goal_) completed(Status::success, total_);
-  }
-
-  void on_reset() override {
-    total_ = 0;
-    last_ = robot_.position();
-  }
-
- private:
-  Robot& robot_;            // whose distance is measured
-  double min_step_;         // metres; smaller moves are ignored
-  Eigen::Vector3d last_;    // position at the last counted move
-  double total_ = 0;        // metres travelled
-  double goal_ = 0;         // total_ at which wait_distance completes
-};
-
-}  // namespace example
+#include "simgate/core/plugin_loader.h"
+#include "simgate/sim/component_library.h"
 
 // ---- its tests ---------------------------------------------------------------------------
 namespace simgate::sim {
 namespace {
 
+const std::string k_example_dir = SIMGATE_EXAMPLE_PLUGIN_DIR;
+
+std::string read_file(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
 class SimExampleTest : public testing::DemoSim {
  protected:
   void SetUp() override {
     DemoSim::SetUp();
-    ComponentRegistry registry;
-    registry.add<example::Odometer>("odometer", Kind::component, "distance travelled");
+    registry_ = builtin_registry();
+    EXPECT_EQ(load_component_library(registry_, "odometer", {k_example_dir}), std::vector<std::string>{"odometer"});
     auto* robot = static_cast<Robot*>(sim_->find("robot")->component.get());
-    auto odometer = registry.create(Kind::component, {"robot.odometer", "odometer", "robot", "test"}, json::object(),
-                                    *sim_, robot);
+    auto odometer = registry_.create(Kind::component, {"robot.odometer", "odometer", "robot", "test"},
+                                     json{{"min_step", 0.001}}, *sim_, robot);
     rm_->register_component(*odometer);
     sim_->add_component(std::move(odometer), "odometer", "robot");
   }
+  void TearDown() override {
+    DemoSim::TearDown();  // the components go before the library their code is in
+    registry_ = ComponentRegistry{};
+  }
+
+  ComponentRegistry registry_;  // holds the loaded library
 };
 
 TEST_F(SimExampleTest, SyncServiceReportsTheDistance) {
@@ -99,7 +70,71 @@ TEST_F(SimExampleTest, AsyncServiceIsInterruptible) {
 }
 
 TEST_F(SimExampleTest, BadArgumentFails) {
-  EXPECT_EQ(call("robot.odometer", "wait_distance", {-1.0}).value, json("distance must be positive"));
+  for (json bad : {json(-1.0), json(std::nan("")), json(1e300)})
+    EXPECT_EQ(call("robot.odometer", "wait_distance", {bad}).value, json("distance must be positive and at most 1e6 m"));
+}
+
+TEST_F(SimExampleTest, ItsPropertyIsSettable) {
+  EXPECT_EQ(call("robot.odometer", "get_properties").value, json({{"properties", {{"min_step", 0.001}}}}));
+  EXPECT_EQ(call("robot.odometer", "set_property", {"min_step", 0.01}).status, Status::success);
+  EXPECT_EQ(call("robot.odometer", "get_configurations").value->at("configurations")["type"], "odometer");
+}
+
+TEST(ComponentLibraryTest, TheDocShowsTheLibraryVerbatim) {
+  const std::string code = read_file(std::string(SIMGATE_SOURCE_DIR) + "/docs/examples/odometer_library.cc");
+  const std::string page = read_file(std::string(SIMGATE_SOURCE_DIR) + "/docs/writing-a-component.md");
+  ASSERT_FALSE(code.empty());
+  EXPECT_NE(page.find("```cpp\n" + code + "```"), std::string::npos)
+      << "docs/writing-a-component.md must show docs/examples/odometer_library.cc verbatim";
+}
+
+TEST(ComponentLibraryTest, TheBuiltInsComeThroughTheSameDescriptor) {
+  ComponentRegistry registry = builtin_registry();
+  ASSERT_NE(registry.find("pose"), nullptr);
+  EXPECT_EQ(registry.find("pose")->origin, "built in");
+  // a second registration of the built-ins is refused: no library replaces a type
+  try {
+    add_component_library(registry, builtin_component_library(), "the built-in component types", "built in");
+    FAIL() << "registered twice";
+  } catch (const PluginError& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("which built in already provides"));
+  }
+}
+
+TEST(ComponentLibraryTest, ALibraryMayNotReplaceAType) {
+  ComponentRegistry registry = builtin_registry();
+  registry.add<PlainRobot>("odometer", Kind::component, "someone else's odometer");
+  try {
+    load_component_library(registry, "odometer", {k_example_dir});
+    FAIL() << "loaded";
+  } catch (const PluginError& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("component library 'odometer' ("));
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("it registers type 'odometer', which"));
+  }
+  EXPECT_EQ(registry.find("odometer")->doc, "someone else's odometer");  // nothing was added
+}
+
+TEST(ComponentLibraryTest, AMissingLibraryListsThePathsTried) {
+  ComponentRegistry registry;
+  try {
+    load_component_library(registry, "no_such_library", {"/nonexistent/dir"});
+    FAIL() << "loaded";
+  } catch (const PluginError& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("component library 'no_such_library': no "
+                                               "libsimgate_components_no_such_library.so found; paths tried:"));
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("/nonexistent/dir/libsimgate_components_no_such_library.so"));
+  }
+}
+
+TEST(ComponentLibraryTest, ATransportPluginIsNotAComponentLibrary) {
+  // the socket transport, given by path: no simgate_components_..._entry in it
+  ComponentRegistry registry;
+  try {
+    load_component_library(registry, std::string(SIMGATE_TEST_PLUGIN_DIR) + "/libsimgate_transport_socket.so");
+    FAIL() << "loaded";
+  } catch (const PluginError& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("entry function simgate_components_libsimgate_transport_socket_entry"));
+  }
 }
 
 }  // namespace

@@ -1,4 +1,5 @@
-// simgate/core/plugin_loader.h — finding, checking and instantiating transport plugins.
+// simgate/core/plugin_loader.h — finding, checking and instantiating transport plugins (and
+// finding and opening any kind of simgate plugin library).
 //
 // load_transport("socket") searches, in order:
 //   1. an explicit path (a name containing '/' or ending in ".so"),
@@ -22,6 +23,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "simgate/core/plugin.h"
@@ -65,6 +67,24 @@ class TransportPlugin {
   std::string path_;                                  // where it was found
   std::string name_;                                  // requested name
 };
+
+// A plugin library found, opened and its entry function resolved, not yet checked: what
+// every kind of plugin (transports here, component libraries in sim/component_library.h)
+// does alike.
+struct PluginLibrary {
+  std::shared_ptr<void> library;  // dlclose on last reference
+  std::string path;               // where it was found
+  std::string name;               // "socket"
+  std::string what;               // "transport plugin 'socket'", for messages
+  std::string entry_name;         // "simgate_transport_socket_entry"
+  void* entry = nullptr;          // that function
+};
+
+// Searches (as above) for libsimgate_<kind>_<name>.so, opens it and resolves
+// simgate_<kind>_<name>_entry. `what_kind` names the kind in messages ("transport
+// plugin"). Throws PluginError naming the paths tried.
+PluginLibrary open_plugin_library(std::string_view kind, std::string_view what_kind, const std::string& name_or_path,
+                                  const std::vector<std::string>& extra_dirs = {});
 
 // The directories searched for `name` (after an explicit path), in order.
 std::vector<std::string> plugin_search_path(const std::vector<std::string>& extra_dirs = {});

@@ -2,6 +2,7 @@
 //
 // One JSON file per deployment (docs/configuration.md):
 //   scene       {mjcf, timestep?, realtime_factor? (number >= 0, or "max")}
+//   component_libraries  [name or path of a component library (sim/component_library.h)]
 //   transports  {name: {plugin?, options?, allow?, deny?}}
 //   robots      [{name, type?, body?, options?, components?: [{name, type, body?, options?}]}]
 //   services    {"default": [transports], "<component or glob>": [transports]}
@@ -69,6 +70,7 @@ struct Deployment {
   std::optional<double> timestep;        // overrides the MJCF's
   double realtime_factor = 1.0;          // 0 = as fast as possible
   std::vector<TransportConfig> transports;  // sorted by name
+  std::vector<std::string> component_libraries;  // names or paths, in file order
   std::vector<RobotConfig> robots;       // in file order
   bool has_services = false;             // a "services" section exists
   std::vector<ServiceRule> rules;        // exact names and globs

@@ -39,6 +39,8 @@ class Gateway {
  public:
   // Throws one ConfigError carrying every problem it finds (each path-precise), or a
   // TransportError when a transport with valid options cannot start (a port in use).
+  // `registry`: the component types (the built-ins); the deployment's component libraries
+  // are added to the gateway's own copy of it.
   Gateway(const Deployment& deployment, const sim::ComponentRegistry& registry, GatewayOptions options = {});
   ~Gateway();
   Gateway(const Gateway&) = delete;
@@ -72,8 +74,13 @@ class Gateway {
     std::shared_ptr<RequestManager> manager;   // null in check mode
   };
 
+  // Loads the deployment's component libraries into registry_ (recording errors).
+  void load_component_libraries(ConfigErrors& errors);
+  // The directories plugins and component libraries are searched in (after
+  // SIMGATE_PLUGIN_PATH): --plugin-path, then the config's directory.
+  std::vector<std::string> plugin_dirs() const;
   // Each records its errors and goes on with the next robot, component or transport.
-  void build_components(const sim::ComponentRegistry& registry, ConfigErrors& errors);
+  void build_components(ConfigErrors& errors);
   void load_plugins(ConfigErrors& errors);
   // Adds warnings for components clients need that no transport serves, and those of
   // warn_about_access_lists().
@@ -86,6 +93,9 @@ class Gateway {
 
   Deployment deployment_;                             // validated configuration
   GatewayOptions options_;                            // how it was built
+  // the types components are created from, and the libraries whose code they run: it must
+  // outlive simulation_ (declared first, destroyed last)
+  sim::ComponentRegistry registry_;
   std::unique_ptr<sim::Simulation> simulation_;       // model, components, loop
   std::vector<Transport> transports_;                 // in name order
   std::map<std::string, std::vector<std::string>> served_;  // transport -> components

@@ -2,8 +2,9 @@
 //
 // A ComponentRegistry maps a type name ("motion_vw", "ground_robot") to a factory. A robot
 // type creates a Robot; a component type creates a SimComponent that belongs to a robot.
-// New types join by calling add() — in register_builtin_components() for the built-ins, or
-// in any program that owns a registry — without touching the gateway.
+// New types join by calling add() — in register_builtin_components() for the built-ins, in
+// a component library a config names (component_library.h), or in any program that owns a
+// registry — without touching the gateway.
 //
 // A factory receives a ComponentContext: the component's name, its JSON path in the
 // config, its options (a ConfigObject: read them with the typed getters; keys nobody reads
@@ -69,16 +70,21 @@ class ComponentContext {
 using ComponentFactory = std::function<std::unique_ptr<SimComponent>(ComponentContext&)>;
 
 struct ComponentType {
+  // the component library its code is in (null for types linked in): first, so that it is
+  // released only after the factory below, whose code it holds, is destroyed
+  std::shared_ptr<void> library;
   std::string name;          // "motion_vw"
   Kind kind;                 // robot or component
   std::string doc;           // one line
   ComponentFactory factory;  // creates it
+  std::string origin;        // where it comes from: "built in", "component library 'x' (path)"
 };
 
 class ComponentRegistry {
  public:
   // Adds or replaces a type.
   void add(std::string name, Kind kind, std::string doc, ComponentFactory factory);
+  void add(ComponentType type);
   // Shorthand for a class constructible from (ComponentContext&).
   template <class T>
   void add(std::string name, Kind kind, std::string doc) {
@@ -88,6 +94,8 @@ class ComponentRegistry {
 
   const ComponentType* find(const std::string& name) const;
   std::vector<std::string> names(Kind kind) const;
+  // Every type, by name.
+  const std::map<std::string, ComponentType>& types() const { return types_; }
 
   // Creates one component: checks the type exists and is of `kind`, runs the factory,
   // then rejects unread option keys. Throws ConfigError.
@@ -100,7 +108,7 @@ class ComponentRegistry {
 
 // ground_robot, human, robot (robots); motion_vw, waypoint, teleport, pose (components).
 void register_builtin_components(ComponentRegistry& registry);
-// A registry holding the built-ins.
+// A registry holding the built-ins, added as a component library is (component_library.h).
 ComponentRegistry builtin_registry();
 
 }  // namespace simgate::sim
