@@ -159,7 +159,7 @@ void Armature::apply_now(const std::vector<Target>& targets) {
     hold_[t.joint] = t.value;
   }
   // what the client reads next (poses, sensors) reflects the new configuration
-  mj_forward(model(), d);
+  sim().forward();
 }
 
 void Armature::set_rotation(const std::string& joint, double rotation) {

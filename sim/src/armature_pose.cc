@@ -78,7 +78,9 @@ json ArmaturePose::get_joints_length() const {
 json ArmaturePose::get_local_data() const {
   json out = json::object();
   for (std::size_t i = 0; i < joints_.size(); ++i) out[joints_[i].name] = joints_.position(data(), i);
-  out["timestamp"] = data()->time;
+  // qpos is the integrated state, of the current time, not one of the quantities mj_step
+  // evaluated before integrating (Simulation::state_time(), the other sensors' timestamp)
+  out["timestamp"] = sim().sim_time();
   return out;
 }
 

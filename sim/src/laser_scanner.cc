@@ -146,7 +146,7 @@ json LaserScanner::get_local_data() {
   json points = json::array();
   points.get_ref<json::array_t&>().reserve(n);
   for (std::size_t i = 0; i < n; ++i) points.push_back({points_[3 * i], points_[3 * i + 1], points_[3 * i + 2]});
-  return {{"range_list", ranges_}, {"point_list", std::move(points)}, {"timestamp", data()->time}};
+  return {{"range_list", ranges_}, {"point_list", std::move(points)}, {"timestamp", sim().state_time()}};
 }
 
 }  // namespace simgate::sim

@@ -1,7 +1,6 @@
 // The `sensors` component (MjcfSensors): a robot's MJCF <sensor> elements, read by name.
 #include <algorithm>
 #include <cmath>
-#include <limits>
 
 #include "simgate/core/errors.h"
 #include "simgate/sim/actuator_kind.h"
@@ -49,10 +48,7 @@ const char* sensor_type_name(int type) {
   return type >= 0 && type <= mjSENS_USER ? k_sensor_types[type] : "user";
 }
 
-MjcfSensors::MjcfSensors(ComponentContext& c)
-    : SimComponent(c.name(), c.sim()),
-      // the model's loading ran mj_forward: until the first step the values are current
-      evaluated_at_(c.sim().steps() == 0 ? c.sim().d()->time : std::numeric_limits<double>::quiet_NaN()) {
+MjcfSensors::MjcfSensors(ComponentContext& c) : SimComponent(c.name(), c.sim()) {
   const mjModel* m = c.sim().m();
   const int root = c.robot().body();
   detail::Selection selection;
@@ -95,17 +91,6 @@ MjcfSensors::MjcfSensors(ComponentContext& c)
       .doc("Every sensor's value {name: number or array} and the simulated time they describe (timestamp)");
 }
 
-double MjcfSensors::data_time() const {
-  const double now = data()->time;
-  // mj_step evaluated them on the state it started from, one timestep ago
-  return now == evaluated_at_ ? now : now - model()->opt.timestep;
-}
-
-void MjcfSensors::on_reset() {
-  // reset() ran mj_forward on the restored state, at the current time
-  evaluated_at_ = data()->time;
-}
-
 json MjcfSensors::get_local_data() const {
   json out = json::object();
   auto& values = out.get_ref<json::object_t&>();
@@ -117,7 +102,8 @@ json MjcfSensors::get_local_data() const {
     else
       values.emplace_hint(values.end(), s.name, json::array_t(v, v + s.dim));
   }
-  values.emplace("timestamp", data_time());
+  // mj_step evaluated them on the state it started from (Simulation::state_time())
+  values.emplace("timestamp", sim().state_time());
   return out;
 }
 

@@ -105,7 +105,7 @@ json Imu::get_local_data() const {
   return {{"angular_velocity", {velocity[0], velocity[1], velocity[2]}},
           {"linear_acceleration", {acceleration[3], acceleration[4], acceleration[5]}},
           {"magnetic_field", {field.x(), field.y(), field.z()}},
-          {"timestamp", d->time}};
+          {"timestamp", sim().state_time()}};
 }
 
 // ---- odometry ---------------------------------------------------------------------------------
@@ -153,7 +153,7 @@ void Odometry::update() {
 
 json Odometry::get_local_data() {
   update();
-  const double time = data()->time;
+  const double time = sim().state_time();
   json out;
   switch (level_) {
     case Level::raw:
@@ -264,7 +264,7 @@ json Proximity::get_local_data() const {
     for (int b : tracked_) consider(sim().model().body_name(b), b);
   }
   // near_robots: MORSE's deprecated name of the same dictionary, kept for its old clients
-  return {{"near_objects", near}, {"near_robots", near}, {"timestamp", d->time}};
+  return {{"near_objects", near}, {"near_robots", near}, {"timestamp", sim().state_time()}};
 }
 
 }  // namespace simgate::sim

@@ -12,7 +12,7 @@ json Pose::get_local_data() const {
   Eigen::Vector3d rpy = to_roll_pitch_yaw(body_orientation(sim(), body_));
   return {{"x", p.x()},       {"y", p.y()},         {"z", p.z()},
           {"roll", rpy.x()},  {"pitch", rpy.y()},   {"yaw", rpy.z()},
-          {"timestamp", data()->time}};
+          {"timestamp", sim().state_time()}};
 }
 
 }  // namespace simgate::sim

@@ -131,7 +131,8 @@ void set_free_body_pose(Simulation& sim, int free_joint, const Eigen::Vector3d& 
   // a teleported body starts at rest
   mjtNum* v = d->qvel + m->jnt_dofadr[free_joint];
   for (int i = 0; i < 6; ++i) v[i] = 0;
-  mj_forward(m, d);
+  // what clients read next (poses, sensors) is of the moved body, now
+  sim.forward();
 }
 
 }  // namespace simgate::sim

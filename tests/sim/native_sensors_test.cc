@@ -207,7 +207,9 @@ TEST_F(NativeSensorsTest, LaserRangesAreTheWallDistancesAndMaxRangeWhereThereIsN
   EXPECT_GT(misses, 20); // the open side
   EXPECT_NEAR(ranges[90].get<double>(), 3.0, 1e-4);   // straight ahead: the east wall
   EXPECT_NEAR(ranges[180].get<double>(), 2.0, 1e-4);  // to the left: the north wall
-  EXPECT_GE(scan["timestamp"].get<double>(), 0.5 - 1e-9);
+  // the poses it cast from: those the last step started from (timestamps_test.cc)
+  EXPECT_EQ(scan["timestamp"].get<double>(), sim_->state_time());
+  EXPECT_NEAR(scan["timestamp"].get<double>(), 0.5 - sim_->timestep(), 1e-9);
 }
 
 TEST_F(NativeSensorsTest, LaserDoesNotSeeAnyPartOfItsRobot) {

@@ -25,10 +25,10 @@
 //
 // When the values are from: MuJoCo evaluates sensors inside mj_step, on the state the step
 // starts from, then integrates. After a step the sensor values therefore describe the state
-// one timestep before mjData::time, and "timestamp" says so; after a reset (which runs
-// mj_forward) they describe the current state. Reading them changes nothing (no mj_forward).
-// One approximation: a service that re-evaluates the state between two steps (teleport's
-// mj_forward) makes the values current while the timestamp still says one timestep earlier.
+// one timestep before mjData::time; after a reset, a teleport or a joint set at once (which
+// evaluate the current state) they describe the current state. "timestamp" is
+// Simulation::state_time(), which follows both, as every sensor's timestamp does. Reading
+// them changes nothing (no mj_forward).
 //
 // Everything a query needs (names, addresses, the JSON of list_actuators and the
 // properties) is computed at construction: the model does not change while it runs.
@@ -85,9 +85,6 @@ class MjcfSensors : public SimComponent {
 
   // {name: value, ..., "timestamp": seconds}; one pass over precomputed addresses.
   json get_local_data() const;
-  // The simulated time of the state the values describe (see "When the values are from").
-  double data_time() const;
-  void on_reset() override;
 
   const std::vector<std::string>& names() const { return names_; }
 
@@ -101,9 +98,6 @@ class MjcfSensors : public SimComponent {
   std::vector<Sensor> sensors_;     // in MuJoCo's order
   std::vector<std::string> names_;  // the names, in MuJoCo's order
   json description_;                // the "sensors" property
-  // mjData::time at the last evaluation of the current state (model loaded, reset); NaN
-  // when unknown. While mjData::time equals it, the values are of that very time.
-  double evaluated_at_;
 };
 
 namespace detail {

@@ -5,7 +5,9 @@
 // `site`; it must be on the robot's body or one of its descendants) or else the frame of
 // the component's body (its "body" in the config, default the robot's root body; MuJoCo's
 // regular body frame, not the inertial one). Every value is expressed in that frame, in SI
-// units (m, rad, s), as MORSE does; `get_local_data` adds `timestamp` (simulated seconds).
+// units (m, rad, s), as MORSE does; `get_local_data` adds `timestamp`: the simulated time of
+// the state the values describe, Simulation::state_time() (one timestep before mjData::time
+// after a step).
 //
 //  - imu: angular_velocity [3] (rad/s), linear_acceleration [3] (m/s², the specific force:
 //    gravity included, +9.81 on z when level at rest, 0 in free fall) and magnetic_field

@@ -79,7 +79,7 @@ class SimComponent : public Component {
   int robot_body_ = -1;              // the robot's root body (-1: none)
 };
 
-// A body's pose in the world frame (valid after the last mj_step / mj_forward).
+// A body's pose in the world frame, at Simulation::state_time().
 Eigen::Vector3d body_position(const Simulation& sim, int body);
 Eigen::Quaterniond body_orientation(const Simulation& sim, int body);
 // Roll, pitch, yaw (ZYX convention: yaw about z, then pitch about y, then roll about x).
@@ -90,7 +90,8 @@ Eigen::Quaterniond from_roll_pitch_yaw(double roll, double pitch, double yaw);
 // actuators and sensors are those attached to bodies of its subtree).
 bool in_subtree(const mjModel* m, int body, int root);
 
-// Moves a free-joint body: sets position and orientation, zeroes its velocity, mj_forward.
+// Moves a free-joint body: sets position and orientation, zeroes its velocity, then
+// Simulation::forward() (what sensors read next is of the moved body, at the current time).
 void set_free_body_pose(Simulation& sim, int free_joint, const Eigen::Vector3d& position,
                         const Eigen::Quaterniond& orientation);
 

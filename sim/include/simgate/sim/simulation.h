@@ -147,10 +147,30 @@ class Simulation {
   // ---- supervision (simulation thread) ----
 
   double sim_time() const { return d()->time; }
+  // The simulated time of the state that mjData's computed quantities describe: body and
+  // site poses (xpos, xquat, site_xpos...), velocities (cvel), accelerations (cacc),
+  // actuator forces and the MJCF sensors' values (sensordata): what every sensor reads, so
+  // what its `timestamp` says. mj_step computes them for the state it starts from, then
+  // integrates qpos, qvel, act and time: after a step they describe the state one timestep
+  // before sim_time() (this returns the time the step started from, exactly, so that a
+  // <clock> sensor reads the same number). After construction, reset(), forward(), each
+  // step while dynamics are suspended (which evaluates the frozen state at the new time)
+  // and each step of the RK4 integrator (whose last intermediate stage leaves poses that
+  // are of neither time: step() evaluates the state it ended in) they describe the current
+  // state: state_time() == sim_time(). qpos, qvel, act and ctrl themselves are always of
+  // sim_time().
+  double state_time() const { return state_time_; }
+  // mj_forward on the current state, which becomes the state the computed quantities
+  // describe (state_time() = sim_time()). For a component that changed qpos or qvel
+  // between two steps (a teleport, a joint set at once) so that what clients read next
+  // reflects the change. Never call mj_forward directly: state_time() would not know.
+  void forward();
   // Restores the initial state of every object (poses, velocities, controls); simulated
   // time goes on from where it was, and so do MuJoCo's warning counters. Components get
   // on_reset(). Also the recovery from a bad state.
   void reset();
+  // While suspended, step() advances the clock and evaluates the state (mj_forward)
+  // without integrating it: nothing moves unless a component moves it.
   void set_dynamics_suspended(bool suspended) { dynamics_suspended_ = suspended; }
   bool dynamics_suspended() const { return dynamics_suspended_; }
   SimulationStatistics statistics() const;
@@ -177,6 +197,7 @@ class Simulation {
   std::atomic<bool> stop_{false};                            // run() returns when set
   std::atomic<std::uint64_t> steps_{0};                      // physics steps taken
   bool dynamics_suspended_ = false;                          // step() skips mj_step
+  double state_time_ = 0;                                    // see state_time()
   std::chrono::steady_clock::time_point run_started_{};      // wall start of run()
   bool running_ = false;                                     // run() has started
   std::uint64_t overruns_ = 0;                               // pacing resynchronisations

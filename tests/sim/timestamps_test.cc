@@ -1,0 +1,191 @@
+// SimTimestamps: every sensor's `timestamp` is Simulation::state_time(), the simulated time
+// of the state its values describe. mj_step evaluates poses, velocities and MJCF sensors on
+// the state it starts from, then integrates: after a step they are one timestep older than
+// mjData::time, and pose, the native sensors and `sensors` all say so, to the bit, as a
+// <clock> sensor does. A teleport, a joint set at once, a reset, a bad state's recovery and
+// suspended dynamics evaluate the current state: then every timestamp is the current time.
+// armature_pose reads qpos, the integrated state: its timestamp is always the current time.
+#include <cmath>
+#include <limits>
+#include <map>
+
+#include "mjcf_fixture.h"
+
+namespace simgate::sim {
+namespace {
+
+using testing::MjcfSim;
+
+// A rover (free body, a mast on a kinematic hinge, an imu site) dropped from 0.3 m, so its
+// pose changes every step; a ball for its proximity sensor; a wall for its laser.
+const char* k_scene = R"(
+<mujoco model="timestamps">
+  <option timestep="0.002"/>
+  <worldbody>
+    <geom name="floor" type="plane" size="5 5 0.1"/>
+    <geom name="wall" type="box" pos="2 0 0.5" size="0.1 2 0.5"/>
+    <body name="rover" pos="0 0 0.3">
+      <freejoint name="rover_free"/>
+      <geom type="box" size="0.2 0.1 0.05" mass="2"/>
+      <site name="rover_imu" pos="0 0 0.05"/>
+      <body name="mast" pos="0 0 0.1">
+        <joint name="mast_hinge" type="hinge" axis="0 0 1"/>
+        <geom type="cylinder" size="0.02 0.05" mass="0.1"/>
+      </body>
+    </body>
+    <body name="ball" pos="1 1 0.1">
+      <freejoint/>
+      <geom type="sphere" size="0.1" mass="1"/>
+    </body>
+  </worldbody>
+  <sensor>
+    <clock name="clock"/>
+    <framepos name="rover_pos" objtype="xbody" objname="rover"/>
+    <jointpos name="mast_angle" joint="mast_hinge"/>
+  </sensor>
+</mujoco>)";
+
+// The components whose get_local_data describes the evaluated state.
+const char* const k_sensors[] = {"rover.pose",     "rover.sensors", "rover.imu",      "rover.odometry",
+                                 "rover.laser",    "rover.proximity"};
+
+class SimTimestampsTest : public MjcfSim {
+ protected:
+  void SetUp() override {
+    load_string(k_scene);
+    add_robot("rover", "rover");
+    add_robot("ball", "ball");
+    add("pose", "pose");
+    add("sensors", "sensors", {{"sensors", {"clock", "rover_pos", "mast_angle"}}});
+    add("imu", "imu", {{"site", "rover_imu"}});
+    add("odometry", "odometry");
+    add("laser", "laser_scanner", {{"scan_window", 10}, {"resolution", 5}});
+    add("proximity", "proximity");
+    add("teleport", "teleport");
+    add("arm", "armature");
+    add("arm_pose", "armature_pose");
+    serve();
+  }
+  // A component of the rover, on its root body (as the gateway binds it by default).
+  void add(const std::string& short_name, const std::string& type, json options = json::object()) {
+    Robot& rover = static_cast<Robot&>(*sim_->find("rover")->component);
+    sim_->add_component(registry_.create(Kind::component, {"rover." + short_name, type, "rover", "robots[0].components[0]"},
+                                         options, *sim_, &rover),
+                        type, "rover");
+  }
+
+  // component -> its get_local_data's timestamp
+  std::map<std::string, double> timestamps() {
+    std::map<std::string, double> out;
+    for (const char* c : k_sensors) out[c] = value(c, "get_local_data")["timestamp"].get<double>();
+    return out;
+  }
+  // Every sensor's timestamp, and the <clock> sensor, read exactly `expected`.
+  void expect_all_stamped(double expected, const std::string& when) {
+    for (const auto& [component, t] : timestamps()) EXPECT_EQ(t, expected) << component << " " << when;
+    EXPECT_EQ(value("rover.sensors", "get_local_data")["clock"].get<double>(), expected) << when;
+    EXPECT_EQ(sim_->state_time(), expected) << when;
+  }
+};
+
+TEST_F(SimTimestampsTest, BeforeTheFirstStepEverythingIsOfTheLoadedState) {
+  expect_all_stamped(0.0, "at load");
+  EXPECT_EQ(value("rover.arm_pose", "get_local_data")["timestamp"], 0.0);
+}
+
+TEST_F(SimTimestampsTest, AfterAStepEverySensorStampsTheStateTheStepStartedFrom) {
+  run_for(0.05);  // falling
+  for (int i = 0; i < 3; ++i) {
+    const double started = sim_->sim_time();
+    sim_->step();
+    ASSERT_GT(sim_->sim_time(), started);
+    expect_all_stamped(started, "after a step from t=" + std::to_string(started));
+    // pose and the framepos sensor are one evaluation: the same z, to the bit
+    json pose = value("rover.pose", "get_local_data");
+    json sensors = value("rover.sensors", "get_local_data");
+    EXPECT_EQ(pose["z"].get<double>(), sensors["rover_pos"][2].get<double>());
+    // while qpos, integrated since, is one step lower: the timestamps are not a formality
+    const int z = sim_->m()->jnt_qposadr[sim_->model().joint_id("rover_free")] + 2;
+    EXPECT_LT(sim_->d()->qpos[z], pose["z"].get<double>());
+    // armature_pose reads qpos: the current time
+    EXPECT_EQ(value("rover.arm_pose", "get_local_data")["timestamp"].get<double>(), sim_->sim_time());
+  }
+}
+
+TEST_F(SimTimestampsTest, AfterATeleportEveryTimestampIsTheCurrentTime) {
+  run_for(0.05);
+  ASSERT_EQ(call("rover.teleport", "translate", {0.0, 0.0, 0.5}).status, Status::success);
+  expect_all_stamped(sim_->sim_time(), "after a teleport");
+  const int z = sim_->m()->jnt_qposadr[sim_->model().joint_id("rover_free")] + 2;
+  EXPECT_EQ(value("rover.pose", "get_local_data")["z"].get<double>(), sim_->d()->qpos[z]);
+  // and the next step is again one step behind
+  const double started = sim_->sim_time();
+  sim_->step();
+  expect_all_stamped(started, "after the step that followed");
+}
+
+TEST_F(SimTimestampsTest, AfterAJointIsSetAtOnceEveryTimestampIsTheCurrentTime) {
+  run_for(0.02);
+  ASSERT_EQ(call("rover.arm", "set_rotation", {"mast_hinge", 0.5}).status, Status::success);
+  expect_all_stamped(sim_->sim_time(), "after set_rotation");
+  EXPECT_EQ(value("rover.sensors", "get_local_data")["mast_angle"].get<double>(), 0.5);
+}
+
+TEST_F(SimTimestampsTest, AfterAResetEveryTimestampIsTheCurrentTime) {
+  run_for(0.05);
+  ASSERT_EQ(call("simulation", "reset_objects").status, Status::success);
+  EXPECT_GT(sim_->sim_time(), 0.04);
+  expect_all_stamped(sim_->sim_time(), "after reset_objects");
+}
+
+TEST_F(SimTimestampsTest, AfterABadStateIsRecoveredEveryTimestampIsTheCurrentTime) {
+  run_for(0.02);
+  // what a careless component could do: MuJoCo resets its data, the simulation recovers
+  sim_->d()->qvel[0] = std::numeric_limits<double>::quiet_NaN();
+  sim_->step();
+  ASSERT_EQ(sim_->statistics().bad_states, 1u);
+  expect_all_stamped(sim_->sim_time(), "after a bad state's recovery");
+}
+
+TEST_F(SimTimestampsTest, WhileDynamicsAreSuspendedTheFrozenStateIsOfTheCurrentTime) {
+  run_for(0.05);
+  ASSERT_EQ(call("simulation", "suspend_dynamics").status, Status::success);
+  sim_->step();
+  const double z = value("rover.pose", "get_local_data")["z"].get<double>();
+  for (int i = 0; i < 3; ++i) {
+    sim_->step();
+    expect_all_stamped(sim_->sim_time(), "suspended");
+    EXPECT_EQ(value("rover.pose", "get_local_data")["z"].get<double>(), z);  // nothing moves
+  }
+  ASSERT_EQ(call("simulation", "restore_dynamics").status, Status::success);
+  const double started = sim_->sim_time();
+  sim_->step();
+  expect_all_stamped(started, "restored");
+}
+
+TEST_F(MjcfSim, WithTheRk4IntegratorEachStepIsEvaluatedWhereItEnded) {
+  // RK4's last intermediate stage would leave xpos of no particular time, the sensors of the
+  // step's start: the simulation evaluates the end state, and every sensor says so
+  load_string(R"(<mujoco><option integrator="RK4" timestep="0.01"/><worldbody>
+    <body name="ball" pos="0 0 1"><freejoint name="ball_free"/><geom type="sphere" size="0.1"/></body></worldbody>
+    <sensor><framepos name="z" objtype="xbody" objname="ball"/><clock name="clock"/></sensor></mujoco>)");
+  Robot& ball = add_robot("ball", "ball");
+  sim_->add_component(
+      registry_.create(Kind::component, {"ball.pose", "pose", "ball", "robots[0].components[0]"}, json::object(), *sim_,
+                       &ball),
+      "pose", "ball");
+  add_component(ball, "sensors", "sensors", {{"sensors", {"z", "clock"}}});
+  serve();
+  run_for(0.2);
+  json pose = value("ball.pose", "get_local_data");
+  json sensors = value("ball.sensors", "get_local_data");
+  EXPECT_EQ(pose["timestamp"].get<double>(), sim_->sim_time());
+  EXPECT_EQ(sensors["timestamp"].get<double>(), sim_->sim_time());
+  EXPECT_EQ(sensors["clock"].get<double>(), sim_->sim_time());
+  EXPECT_EQ(pose["z"].get<double>(), sensors["z"][2].get<double>());
+  EXPECT_EQ(pose["z"].get<double>(), sim_->d()->qpos[2]);  // the free joint's z: where it is now
+  EXPECT_LT(pose["z"].get<double>(), 0.9);  // it fell
+}
+
+}  // namespace
+}  // namespace simgate::sim
