@@ -25,7 +25,8 @@ constexpr const char* k_description = "simgate: a MuJoCo simulation whose compon
 constexpr const char* k_footer = R"(Synopsis:
   simgate run CONFIG [--status [SECONDS]] [--log-level L] [--realtime-factor F|max]
                      [--endpoints-file PATH] [--plugin-path DIR]...
-  simgate check CONFIG [--log-level L] [--plugin-path DIR]...
+  simgate run --model FILE.xml [CONFIG] [options as above]
+  simgate check CONFIG | --model FILE.xml [CONFIG] [--log-level L] [--plugin-path DIR]...
   simgate call [CLIENT OPTIONS] COMPONENT SERVICE [ARGS...]
   simgate list [CLIENT OPTIONS] [--json]
   simgate help [COMMAND]
@@ -173,8 +174,8 @@ class CommandLine {
   // Parses argv and runs the command; CLI11's errors propagate.
   int run(int argc, char** argv) {
     app_.parse(argc, argv);
-    if (run_->parsed()) return cmd_run(finish_run(run_args_), false);
-    if (check_->parsed()) return cmd_run(check_args_, true);
+    if (run_->parsed()) return cmd_run(with_scene(finish_run(run_args_)), false);
+    if (check_->parsed()) return cmd_run(with_scene(check_args_), true);
     if (call_->parsed()) return cmd_call(call_args_);
     if (list_->parsed()) return cmd_list(list_args_);
     // `simgate` alone
@@ -199,8 +200,12 @@ class CommandLine {
   }
 
   static void add_config_options(CLI::App* command, RunArgs& args) {
-    command->add_option("CONFIG", args.config, "the deployment file (JSON, docs/configuration.md)")
-        ->required();
+    command->add_option("CONFIG", args.config,
+                        "the deployment file (JSON, docs/configuration.md); with --model: its transports and options");
+    command->add_option("--model", args.model,
+                        "serve every robot of this MJCF model with its generic components (armature, armature_pose, "
+                        "actuators, sensors); the transports are CONFIG's, or socket 4000 and jsonrpc 4001 on 127.0.0.1")
+        ->type_name("FILE.xml");
     command->add_option("--log-level", args.log_level, "trace, debug, info, warning, error or off (overrides the config)")
         ->type_name("L");
     command->add_option("--plugin-path", args.plugin_dirs, "search transport plugins in DIR (after SIMGATE_PLUGIN_PATH; repeatable)")
@@ -221,6 +226,13 @@ class CommandLine {
         ->type_name("XML");
     command->add_option("--timeout", args.timeout, "seconds to wait for the simulation and its answer (default 30)")
         ->type_name("S");
+  }
+
+  // CONFIG or --model (or both): something to simulate
+  static RunArgs& with_scene(RunArgs& args) {
+    if (args.config.empty() && !args.model)
+      throw UsageError("expected CONFIG (a deployment file), or --model FILE.xml (any MJCF model)");
+    return args;
   }
 
   // --status: no value = every k_default_status_interval seconds

@@ -17,7 +17,8 @@ namespace simgate::gateway {
 
 // What `run` and `check` were given.
 struct RunArgs {
-  std::string config;                          // CONFIG
+  std::string config;                          // CONFIG ("" when --model alone)
+  std::optional<std::string> model;            // --model FILE.xml
   std::optional<std::string> log_level;        // --log-level
   std::optional<std::string> realtime_factor;  // --realtime-factor
   std::optional<std::string> endpoints_file;   // --endpoints-file

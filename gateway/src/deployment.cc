@@ -299,6 +299,10 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
     if (!services) return;
     d.has_services = true;
     std::vector<std::string> all = d.component_names();
+    // a robot of type mjcf gets its generic components once the scene is loaded (gateway)
+    for (const auto& r : d.robots)
+      if (r.robot.type == "mjcf")
+        for (const char* type : {"armature", "armature_pose", "actuators", "sensors"}) all.push_back(r.robot.name + "." + type);
     std::vector<std::string> keys;
     for (auto it = services->raw().begin(); it != services->raw().end(); ++it) {
       keys.push_back(it.key());
@@ -338,19 +342,22 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
   return d;
 }
 
-Deployment load_deployment(const std::string& file) {
+json load_config_document(const std::string& file) {
   std::ifstream in(file);
   if (!in) throw ConfigError({"cannot be read (no such file or no permission)"}, file);
   std::stringstream text;
   text << in.rdbuf();
-  json document;
   try {
     // syntax, numbers beyond a double and nesting deeper than k_max_config_depth are refused
     // with their JSON path before anything recursive touches the document
-    document = parse_config_text(text.str());
+    return parse_config_text(text.str());
   } catch (const ConfigError& e) {
     throw ConfigError(e.errors(), file);
   }
+}
+
+Deployment load_deployment(const std::string& file) {
+  json document = load_config_document(file);
   fs::path base = fs::absolute(fs::path(file)).parent_path();
   try {
     return parse_deployment(document, base.string(), file);

@@ -6,6 +6,7 @@
 #include "listeners.h"
 #include "simgate/core/errors.h"
 #include "simgate/sim/component_library.h"
+#include "simgate/sim/model_robots.h"
 #include "simgate/core/log.h"
 #include "simgate/core/suggest.h"
 
@@ -69,9 +70,25 @@ void Gateway::load_component_libraries(ConfigErrors& errors) {
   }
 }
 
+void Gateway::add_generic_components(RobotConfig& r) {
+  const int body = simulation_->model().body_id(r.robot.body);
+  if (body <= 0) return;  // the robot's own creation reports it
+  for (const std::string& type : sim::generic_components(simulation_->m(), body)) {
+    const std::string name = r.robot.name + "." + type;
+    // a component of that name in the config wins (other options, or another type)
+    if (std::any_of(r.components.begin(), r.components.end(), [&](const auto& c) { return c.name == name; })) continue;
+    r.components.push_back(ComponentConfig{name, type, r.robot.body, json::object(), r.robot.path + ".generated." + type});
+  }
+  if (r.components.empty())
+    warnings_.push_back(r.robot.path + ": robot '" + r.robot.name + "' of type mjcf has no hinge or slide joint, " +
+                        "actuator or sensor under body '" + r.robot.body + "': it offers only its object services");
+}
+
 void Gateway::build_components(ConfigErrors& errors) {
   const sim::ComponentRegistry& registry = registry_;
   sim::Simulation& sim = *simulation_;
+  for (auto& r : deployment_.robots)
+    if (r.robot.type == "mjcf") add_generic_components(r);
   for (const auto& r : deployment_.robots) {
     sim::Robot* robot_ptr = nullptr;
     errors.check([&] {

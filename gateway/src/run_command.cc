@@ -17,14 +17,55 @@
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
 #include "simgate/gateway/gateway.h"
+#include "simgate/sim/model_robots.h"
 
 namespace simgate::gateway {
 
 namespace {
 
-// Loads the deployment and applies its log level unless the command line set one.
-Deployment load(const std::string& file, const std::optional<std::string>& cli_level) {
-  Deployment d = load_deployment(file);
+// The transports of `--model` without CONFIG: MORSE's socket protocol and JSON-RPC on
+// loopback, at their usual ports.
+json default_model_document() {
+  return {{"transports",
+           {{"socket", {{"plugin", "socket"}, {"options", {{"host", "127.0.0.1"}, {"port", 4000}}}}},
+            {"jsonrpc", {{"plugin", "jsonrpc"}, {"options", {{"host", "127.0.0.1"}, {"port", 4001}}}}}}}};
+}
+
+// The deployment of `--model FILE.xml [CONFIG]`: the model's robots (model_robots.h), each
+// of type mjcf; the scene is the model (CONFIG's timestep and realtime_factor kept); the
+// rest (transports, access lists, component libraries, log level) is CONFIG's, whose own
+// robots and mapping are replaced (every transport serves every component).
+Deployment model_deployment(const RunArgs& args) {
+  const std::string model_file = std::filesystem::absolute(*args.model).lexically_normal().string();
+  std::vector<sim::ModelRobot> robots;
+  try {
+    robots = sim::find_model_robots(sim::Model::load_file(model_file));
+  } catch (const std::exception& e) {
+    throw ConfigError("--model: expected a loadable MJCF model, found an error: " + std::string(e.what()));
+  }
+  json document = args.config.empty() ? default_model_document() : load_config_document(args.config);
+  if (!document.is_object()) return parse_deployment(document, ".", args.config);  // its own error
+  json scene = document.contains("scene") && document["scene"].is_object() ? document["scene"] : json::object();
+  scene["mjcf"] = model_file;
+  document["scene"] = scene;
+  document["robots"] = json::array();
+  for (const auto& r : robots) document["robots"].push_back({{"name", r.name}, {"type", "mjcf"}, {"body", r.body}});
+  document.erase("services");
+  const std::string base =
+      args.config.empty() ? std::filesystem::current_path().string()
+                          : std::filesystem::absolute(args.config).parent_path().string();
+  try {
+    return parse_deployment(document, base, args.config);
+  } catch (const ConfigError& e) {
+    throw ConfigError(e.errors(), args.config.empty() ? *args.model : args.config);
+  }
+}
+
+// Loads the deployment (CONFIG, or --model's) and applies its log level unless the command
+// line set one.
+Deployment load(const RunArgs& args) {
+  Deployment d = args.model ? model_deployment(args) : load_deployment(args.config);
+  const std::optional<std::string>& cli_level = args.log_level;
   if (cli_level) {
     apply_log_level(cli_level);
   } else if (d.log_level) {
@@ -76,6 +117,13 @@ void print_banner(Gateway& g) {
             << (sim.realtime_factor() == 0 ? std::string("as fast as possible")
                                            : "real time x" + std::to_string(sim.realtime_factor()).substr(0, 4))
             << "\n";
+  // what each robot is made of (a robot of type mjcf: what the model gave it)
+  for (const auto& r : d.robots) {
+    std::string parts;
+    for (const auto& c : r.components) parts += (parts.empty() ? "" : ", ") + c.name.substr(r.robot.name.size() + 1);
+    std::cout << "robot " << r.robot.name << " (" << r.robot.type << ", body " << r.robot.body
+              << "): " << (parts.empty() ? "no components" : parts) << "\n";
+  }
   std::optional<std::pair<std::string, std::string>> socket_address;
   std::string socket_name;  // the transport socket_address belongs to
   for (const auto& [name, endpoints] : g.endpoints()) {
@@ -238,22 +286,23 @@ int cmd_run(const RunArgs& args, bool check_only) {
     signal(SIGPIPE, SIG_IGN);
   }
 
-  Deployment deployment = load(args.config, args.log_level);
+  Deployment deployment = load(args);
+  const std::string source = args.config.empty() ? *args.model : args.config;  // names it in messages
   auto registry = sim::builtin_registry();
   std::unique_ptr<Gateway> built;
   try {
     built = std::make_unique<Gateway>(deployment, registry, options);
   } catch (const ConfigError& e) {
-    throw ConfigError(e.errors(), args.config);
+    throw ConfigError(e.errors(), source);
   }
   Gateway& gateway = *built;
   if (check_only) {
     for (const auto& w : gateway.warnings()) std::cout << "warning: " << w << "\n";
-    std::cout << args.config << ": OK (" << counts(deployment) << ", " << deployment.transports.size()
+    std::cout << source << ": OK (" << counts(gateway.deployment()) << ", " << deployment.transports.size()
               << " transport(s)" << (gateway.warnings().empty() ? "" : ", " + std::to_string(gateway.warnings().size()) + " warning(s)") << ")\n";
     return 0;
   }
-  for (const auto& w : gateway.warnings()) log::warning("config '", args.config, "': ", w);
+  for (const auto& w : gateway.warnings()) log::warning("config '", source, "': ", w);
 
   gateway.start();
   if (args.endpoints_file) write_endpoints_file(*args.endpoints_file, gateway.endpoints());

@@ -136,4 +136,11 @@ std::string mujoco_name(const mjModel* m, int type, int id) {
   return mju_type2Str(type) + std::to_string(id);
 }
 
+bool sensor_in_subtree(const mjModel* m, int s, int root) {
+  const int type = m->sensor_objtype[s], id = m->sensor_objid[s];
+  if (type == mjOBJ_TENDON) return tendon_in_subtree(m, id, root);
+  if (type == mjOBJ_ACTUATOR) return actuator_in_subtree(m, id, root);
+  return in_subtree(m, object_body(m, type, id), root);
+}
+
 }  // namespace simgate::sim

@@ -25,14 +25,6 @@ static_assert(mjSENS_CLOCK == 35 && mjSENS_FRAMEPOS == 23, "mjtSensor as in MuJo
 // "joint", "body", "xbody", "geom", "camera", "tendon", "actuator").
 std::string object_kind(int type) { return mju_type2Str(type); }
 
-// True when sensor `s`'s object is attached to `root`'s subtree.
-bool sensor_in_subtree(const mjModel* m, int s, int root) {
-  const int type = m->sensor_objtype[s], id = m->sensor_objid[s];
-  if (type == mjOBJ_TENDON) return tendon_in_subtree(m, id, root);
-  if (type == mjOBJ_ACTUATOR) return actuator_in_subtree(m, id, root);
-  return in_subtree(m, object_body(m, type, id), root);
-}
-
 // "is attached to site 'imu' of body 'torso'", for refusals.
 std::string sensor_place(const mjModel* m, int s) {
   const int type = m->sensor_objtype[s], id = m->sensor_objid[s];

@@ -95,6 +95,9 @@ void register_builtin_components(ComponentRegistry& r) {
   r.add<GroundRobot>("ground_robot", Kind::robot, "differential-drive robot with two actuated wheels");
   r.add<Human>("human", Kind::robot, "a human that steps with `move speed rotation`");
   r.add<PlainRobot>("robot", Kind::robot, "a robot body with no services of its own");
+  // the gateway adds the generic components (model_robots.h); the robot itself is plain
+  r.add<PlainRobot>("mjcf", Kind::robot,
+                    "any MJCF robot: armature, armature_pose, actuators and sensors for what its subtree has");
   r.add<MotionVW>("motion_vw", Kind::component, "linear/angular velocity actuator: set_speed v w, stop");
   r.add<Waypoint>("waypoint", Kind::component, "drives to a destination: goto, setdest, stop, resume, get_status");
   r.add<Teleport>("teleport", Kind::component, "moves the robot instantly: translate, rotate");

@@ -473,7 +473,8 @@ TEST(GatewayCliTest, HelpOptionIsNotReadAsAConfigFile) {
   CliRun r = run_split({"run", "-h"}, dir);
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_THAT(r.err, Not(HasSubstr("-h")));
-  EXPECT_THAT(r.out, HasSubstr("Usage: simgate run [OPTIONS] CONFIG"));
+  EXPECT_THAT(r.out, HasSubstr("Usage: simgate run [OPTIONS] [CONFIG]"));
+  EXPECT_THAT(r.out, HasSubstr("--model FILE.xml"));
 }
 
 TEST(GatewayCliTest, NoCommandPrintsTheUsageAndFails) {
@@ -504,7 +505,7 @@ TEST(GatewayCliTest, MissingOrExtraArgumentsAreUsageErrors) {
   TempDir dir;
   CliRun run = run_split({"run"}, dir);
   EXPECT_EQ(run.code, 2);
-  EXPECT_THAT(run.err, HasSubstr("CONFIG is required"));
+  EXPECT_THAT(run.err, HasSubstr("expected CONFIG (a deployment file), or --model FILE.xml (any MJCF model)"));
   EXPECT_THAT(run.err, HasSubstr("simgate run --help"));
   CliRun call = run_split({"call", "simulation"}, dir);
   EXPECT_EQ(call.code, 2);

@@ -69,6 +69,31 @@ TEST_F(GatewayIntegrationTest, AComponentLibraryNamedInTheConfigServesItsTypes) 
   EXPECT_THAT(services.dump(), HasSubstr("wait_distance"));
 }
 
+// issue #18: a robot of type mjcf gets the generic components of what its subtree has; a
+// component the config names so wins; the mapping may name the generated components.
+TEST_F(GatewayIntegrationTest, AnMjcfRobotGetsTheGenericComponentsOfItsSubtree) {
+  json config = testing::demo_config(4.0);
+  config["robots"][0] = {{"name", "robot"}, {"type", "mjcf"},
+                         {"components", {{{"name", "actuators"}, {"type", "actuators"},
+                                          {"options", {{"actuators", {"robot_left_motor"}}}}}}}};
+  config["services"] = {{"default", {"socket"}}, {"robot.armature_pose", json::array()}};
+  start(config);
+  const Deployment& d = gateway_->deployment();
+  std::vector<std::string> names;
+  for (const auto& c : d.robots[0].components) names.push_back(c.name);
+  EXPECT_EQ(names, (std::vector<std::string>{"robot.actuators", "robot.armature", "robot.armature_pose"}));
+  LineClient c(port());
+  // the config's own actuators component: one of the two wheel motors
+  json actuators = payload(c.request("1", "robot.actuators list_actuators"));
+  EXPECT_EQ(actuators.size(), 1u) << actuators;
+  EXPECT_TRUE(actuators.contains("robot_left_motor")) << actuators;
+  // the generated armature: the wheels' hinge joints
+  json joints = payload(c.request("2", "robot.armature get_joints"));
+  EXPECT_EQ(joints, json({"robot_left_wheel_joint", "robot_right_wheel_joint"}));
+  // mapped to no transport: not reachable
+  EXPECT_THAT(c.request("3", "robot.armature_pose get_state"), HasSubstr("FAILED"));
+}
+
 TEST(GatewayComponentLibraryTest, AMissingOrBrokenLibraryIsAConfigErrorNamingItsPlace) {
   json config = testing::demo_config();
   config["component_libraries"] = {"no_such_library", SIMGATE_TEST_PLUGIN_DIR "/libsimgate_transport_socket.so"};

@@ -90,6 +90,9 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
 // Reads and parses a file (parse_config_text: a syntax error, a number beyond a double or
 // nesting deeper than k_max_config_depth names the file, the JSON path, line and column).
 Deployment load_deployment(const std::string& file);
+// The document of a deployment file, read and parsed as load_deployment does, not yet
+// validated (ConfigError naming the file).
+json load_config_document(const std::string& file);
 
 }  // namespace simgate::gateway
 

@@ -79,6 +79,9 @@ class Gateway {
   // The directories plugins and component libraries are searched in (after
   // SIMGATE_PLUGIN_PATH): --plugin-path, then the config's directory.
   std::vector<std::string> plugin_dirs() const;
+  // A robot of type "mjcf" gets the generic components its subtree has (model_robots.h),
+  // unless the config names a component so already.
+  void add_generic_components(RobotConfig& r);
   // Each records its errors and goes on with the next robot, component or transport.
   void build_components(ConfigErrors& errors);
   void load_plugins(ConfigErrors& errors);

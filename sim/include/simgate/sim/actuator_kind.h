@@ -42,6 +42,10 @@ std::string describe_actuator(const mjModel* m, int a);
 bool tendon_in_subtree(const mjModel* m, int tendon, int root);
 // True when what actuator `a` moves is attached to a body of `root`'s subtree (see above).
 bool actuator_in_subtree(const mjModel* m, int a, int root);
+// True when MJCF sensor `s` is the robot's: its object (site, joint, body, geom, camera) is
+// attached to a body of `root`'s subtree; a tendon or actuator sensor follows its tendon or
+// actuator (above). A sensor on no object (<clock>) is nobody's.
+bool sensor_in_subtree(const mjModel* m, int s, int root);
 
 // The body an object is attached to (`type`: mjOBJ_BODY, mjOBJ_XBODY, mjOBJ_JOINT, mjOBJ_GEOM,
 // mjOBJ_SITE or mjOBJ_CAMERA), or -1 for other types and ids < 0.

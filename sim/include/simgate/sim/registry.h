@@ -106,7 +106,10 @@ class ComponentRegistry {
   std::map<std::string, ComponentType> types_;  // by name
 };
 
-// ground_robot, human, robot (robots); motion_vw, waypoint, teleport, pose (components).
+// The built-in types: robots ground_robot, human, robot, mjcf; components motion_vw,
+// waypoint, teleport, pose (components.h), actuators, sensors (actuators_sensors.h),
+// armature, armature_pose (armature.h), imu, odometry, laser_scanner, proximity
+// (native_sensors.h).
 void register_builtin_components(ComponentRegistry& registry);
 // A registry holding the built-ins, added as a component library is (component_library.h).
 ComponentRegistry builtin_registry();
