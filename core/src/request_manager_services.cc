@@ -1,0 +1,191 @@
+// RequestManager's service table: registration (services, components, async slots), the
+// allow/deny lists (set_access), what clients may see of it (descriptors, services,
+// components, may_call), and the lookup of a request's service with the refusal that names
+// what there is instead (find_service, unknown_service). The table is guarded by
+// table_mutex_; find_service's memory of the last lookup is the simulation lock holder's.
+#include <algorithm>
+#include <tuple>
+
+#include "simgate/core/log.h"
+#include "simgate/core/request_manager.h"
+#include "simgate/core/suggest.h"
+
+namespace simgate {
+namespace {
+
+// "a, b or c"
+std::string join_or(const std::vector<std::string>& items) {
+  std::string out;
+  for (std::size_t i = 0; i < items.size(); ++i)
+    out += (i == 0 ? "" : i + 1 == items.size() ? " or " : ", ") + items[i];
+  return out;
+}
+
+}  // namespace
+
+// ---- registration
+
+ServiceBuilder RequestManager::add_service(std::shared_ptr<Service> service) {
+  const auto& d = service->descriptor();
+  if (d.is_async && !service->slot()) service->set_slot(slot_for(d.component));
+  std::lock_guard lock(table_mutex_);
+  auto& slot = services_[d.component][d.name];
+  if (slot) log::debug(name_, ": service ", d.qualified_name(), " registered again, replacing it");
+  slot = std::move(service);
+  table_version_.fetch_add(1, std::memory_order_acq_rel);
+  return ServiceBuilder(*slot);
+}
+
+void RequestManager::register_component(Component& component) {
+  for (const auto& service : component.services()) add_service(service);
+  // a component without services is still known (so errors say "no service", not "no component")
+  std::lock_guard lock(table_mutex_);
+  services_.try_emplace(component.name());
+}
+
+std::shared_ptr<AsyncSlot> RequestManager::slot_for(const std::string& component) {
+  std::lock_guard lock(table_mutex_);
+  auto& slot = slots_[component];
+  if (!slot) {
+    slot = std::make_shared<AsyncSlot>();
+    slot->component = component;
+    // free functions have no interrupt(): the running request simply ends PREEMPTED
+    slot->interrupt = [raw = slot.get()] {
+      if (raw->busy()) raw->running_completion(Status::preempted);
+    };
+  }
+  return slot;
+}
+
+void RequestManager::set_access(ServiceAccess access) {
+  std::lock_guard lock(table_mutex_);
+  access_ = std::move(access);
+  // the previous lookup (find_service) may be a service the new lists deny
+  table_version_.fetch_add(1, std::memory_order_acq_rel);
+}
+
+ServiceAccess RequestManager::access() const {
+  std::lock_guard lock(table_mutex_);
+  return access_;
+}
+
+std::vector<ServiceDescriptor> RequestManager::descriptors() const {
+  std::lock_guard lock(table_mutex_);
+  std::vector<ServiceDescriptor> out;
+  for (const auto& [component, table] : services_)
+    for (const auto& [name, service] : table)
+      if (access_.allows(component, name)) out.push_back(service->descriptor());
+  std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) {
+    return std::tie(a.component, a.name) < std::tie(b.component, b.name);
+  });
+  return out;
+}
+
+std::map<std::string, std::vector<std::string>> RequestManager::services() const {
+  std::map<std::string, std::vector<std::string>> out;
+  for (const auto& d : descriptors()) out[d.component].push_back(d.name);
+  return out;
+}
+
+bool RequestManager::serves_component(const std::string& component) const {
+  std::lock_guard lock(table_mutex_);
+  return services_.count(component) > 0;
+}
+
+bool RequestManager::may_call(const std::string& component, const std::string& service) const {
+  std::lock_guard lock(table_mutex_);
+  auto c = services_.find(component);
+  return c != services_.end() && c->second.count(service) > 0 && access_.allows(component, service);
+}
+
+std::vector<std::string> RequestManager::components() const {
+  std::vector<std::string> out;
+  {
+    std::lock_guard lock(table_mutex_);
+    for (const auto& [component, table] : services_) out.push_back(component);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+// ---- lookup
+
+Outcome RequestManager::unknown_service(const Call& call) const {
+  std::string why;
+  {
+    std::lock_guard lock(table_mutex_);
+    // only what clients may call is named: a service the access lists deny is not one of
+    // the component's services, nor a suggestion (the lists must not show through)
+    // components below the one named that have this service: `robot get_local_data` is
+    // robot.pose's service
+    std::vector<std::string> owners;
+    const std::string prefix = call.component + ".";
+    for (const auto& [component, table] : services_)
+      if (component.size() > prefix.size() && component.compare(0, prefix.size(), prefix) == 0 &&
+          table.count(call.service) && access_.allows(component, call.service))
+        owners.push_back(component);
+    std::sort(owners.begin(), owners.end());
+
+    auto it = services_.find(call.component);
+    if (it == services_.end()) {
+      why = "no component '" + call.component + "'";
+      if (owners.empty()) {
+        std::vector<std::string> components;
+        for (const auto& [component, table] : services_) components.push_back(component);
+        std::sort(components.begin(), components.end());
+        why += did_you_mean(call.component, components);
+      }
+    } else {
+      std::vector<std::string> names;
+      for (const auto& [name, s] : it->second)
+        if (access_.allows(call.component, name)) names.push_back(name);
+      std::sort(names.begin(), names.end());
+      std::string list;
+      for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
+      why = "component '" + call.component + "' has no service '" + call.service + "'" +
+            (list.empty() ? "" : " (services: " + list + ")");
+      if (owners.empty()) why += did_you_mean(call.service, names);
+    }
+    if (!owners.empty()) why += " (did you mean " + join_or(owners) + "?)";
+  }
+  return Outcome::failed(Failure::unknown_service,
+                         "The request " + call.service + " has not been registered in " + name_ + ": " + why,
+                         json{{"component", call.component}, {"service", call.service}});
+}
+
+std::shared_ptr<Service> RequestManager::find_service(const Call& call) {
+  // a pipelining client calls the same service over and over: the previous lookup answers
+  // while nothing was registered since (two string compares instead of a lock and two
+  // hashed lookups)
+  const std::uint64_t version = table_version_.load(std::memory_order_acquire);
+  if (last_lookup_.service && last_lookup_.version == version && last_lookup_.component == call.component &&
+      last_lookup_.name == call.service)
+    return last_lookup_.service;
+  std::shared_ptr<Service> service;
+  {
+    std::lock_guard lock(table_mutex_);
+    auto c = services_.find(call.component);
+    if (c != services_.end()) {
+      auto s = c->second.find(call.service);
+      // a service the access lists deny is not found: refused as unknown, before anything
+      // runs (only found services are remembered above, so this costs nothing per request
+      // of a pipelining client)
+      if (s != c->second.end()) {
+        if (access_.allows(call.component, call.service))
+          service = s->second;
+        else
+          log::debug(name_, ": ", call.component, " ", call.service,
+                     " refused: this transport's allow/deny lists do not let clients call it");
+      }
+    }
+  }
+  if (service) {
+    last_lookup_.component = call.component;
+    last_lookup_.name = call.service;
+    last_lookup_.service = service;
+    last_lookup_.version = version;
+  }
+  return service;
+}
+
+}  // namespace simgate

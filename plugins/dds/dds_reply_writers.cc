@@ -1,0 +1,310 @@
+// The per-client reply writers of the DDS transport (DDS thread only): clients appear with
+// their request writers and get a reply writer of their own, in "<partition>/<id>", counted
+// as reachable once a reader announcing their id matches it; outcomes become replies
+// (write_finished) written at once, or parked while the reader is missing or the writer is
+// full, retried with backoff, dropped after park_timeout_ms (logged, rate-limited); a client
+// that leaves has its async calls cancelled, and its writer is retired once its replies are
+// acknowledged. Options, entities, the DDS thread and requests: dds_request_manager.cc.
+#include <algorithm>
+#include <cstring>
+#include <set>
+
+#include "dds_request_manager.h"
+#include "simgate/core/log.h"
+
+namespace simgate::dds {
+
+namespace {
+
+// A client whose reply writer is full is retried after 5 ms, then 10, 20... up to this.
+constexpr std::chrono::milliseconds k_max_retry_delay{320};
+// At most one "dropped" log line per client per interval (with the count meanwhile).
+constexpr std::chrono::seconds k_drop_log_interval{10};
+
+}  // namespace
+
+void DdsRequestManager::write_finished() {
+  if (finished_.empty()) return;
+  // swapped, not moved: both vectors keep their capacity
+  draining_.swap(finished_);
+  write_finished(draining_, false);
+}
+
+void DdsRequestManager::write_finished(std::vector<std::pair<RequestId, Outcome>>& batch, bool final_flush) {
+  for (auto& [id, outcome] : batch) {
+    auto p = pending_.find(id);
+    if (p == pending_.end()) continue;
+    Pending pending = p->second;
+    pending_.erase(p);
+    if (pending.cancel_answer) {
+      // the answer to a cancel: whether the call was still running
+      const bool found = outcome.value && outcome.value->is_boolean() && outcome.value->get<bool>();
+      ReplyData answer;
+      answer.seq = pending.seq;
+      answer.result = found ? "true" : "false";
+      if (!found) answer.message = "the call had already finished";
+      send_reply(pending.client, std::move(answer), final_flush);
+      continue;
+    }
+    // a completed call
+    auto c = clients_.find(pending.client);
+    if (c != clients_.end()) {
+      c->second.calls.erase(pending.seq);
+      if (c->second.gone) {
+        if (c->second.calls.empty()) forget_client(pending.client);
+        continue;
+      }
+    }
+    send_reply(pending.client, to_reply(pending.seq, outcome), final_flush);
+  }
+  batch.clear();
+}
+
+void DdsRequestManager::send_reply(const ClientId& client_id, ReplyData reply, bool final_flush) {
+  auto c = clients_.find(client_id);
+  if (c == clients_.end() || c->second.gone) {
+    log::debug("DDS transport: reply ", reply.seq, " to client ", to_hex(client_id), " dropped: the client left");
+    return;
+  }
+  ClientState& client = c->second;
+  // at stop(): one attempt, nothing parked
+  if (final_flush) {
+    write_reply(client_id, client, reply);
+    return;
+  }
+  // written at once when its reader is matched and nothing waits before it
+  if (client.parked.empty() && client.reader_matched) {
+    if (write_reply(client_id, client, reply) != DDS_RETCODE_TIMEOUT) return;
+    // its writer is full: the reader acknowledges nothing; retried with backoff
+    client.stalled = true;
+    client.retry_delay = std::chrono::milliseconds(5);
+    client.retry_at = std::chrono::steady_clock::now() + client.retry_delay;
+    log::debug("DDS transport: the reply writer of client ", to_hex(client_id), " is full; reply ", reply.seq,
+               " parked");
+  } else if (!client.reader_matched) {
+    log::debug("DDS transport: reply ", reply.seq, " to client ", to_hex(client_id),
+               " parked until its reply reader matches");
+  }
+  // otherwise parked behind the others (bounded in count and time)
+  if (client.parked.size() >= static_cast<std::size_t>(options_.max_samples)) {
+    drop_reply(client_id, client, reply);
+    return;
+  }
+  reply.deadline = std::chrono::steady_clock::now() + options_.park_timeout;
+  client.parked.push_back(std::move(reply));
+  ++parked_count_;
+}
+
+dds_return_t DdsRequestManager::write_reply(const ClientId& client_id, const ClientState& client,
+                                            const ReplyData& reply) {
+  simgate_Reply sample{};
+  std::memcpy(sample.client, client_id.data(), client_id.size());
+  sample.seq = reply.seq;
+  sample.status = reply.status;
+  sample.failure = reply.failure;
+  sample.last = reply.last;
+  sample.result = const_cast<char*>(reply.result.c_str());
+  sample.message = const_cast<char*>(reply.message.c_str());
+  sample.data = const_cast<char*>(reply.data.c_str());
+  dds_return_t rc = dds_write(client.reply_writer, &sample);
+  if (rc < 0 && rc != DDS_RETCODE_TIMEOUT)
+    log::warning("DDS transport: reply ", reply.seq, " to client ", to_hex(client_id),
+                 " not written: ", retcode_text(rc));
+  return rc;
+}
+
+void DdsRequestManager::drop_reply(const ClientId& client_id, ClientState& client, const ReplyData& reply) {
+  // one line at once, then at most one per interval with the count: a client that never
+  // reads must not flood the log either
+  ++client.dropped;
+  auto now = std::chrono::steady_clock::now();
+  if (client.logged_at != std::chrono::steady_clock::time_point{} && now - client.logged_at < k_drop_log_interval)
+    return;
+  if (client.stalled)
+    log::warning("DDS transport: client ", to_hex(client_id),
+                 " does not take its replies (its reply reader acknowledges nothing): ", client.dropped,
+                 " reply(ies) dropped, the latest to request ", reply.seq, "; other clients are not held up");
+  else
+    log::warning("DDS transport: client ", to_hex(client_id), " has no reply reader matched: ", client.dropped,
+                 " reply(ies) dropped, the latest to request ", reply.seq);
+  client.logged_at = now;
+  client.dropped = 0;
+}
+
+void DdsRequestManager::flush_parked(const ClientId& id, ClientState& client,
+                                     std::chrono::steady_clock::time_point now) {
+  while (!client.parked.empty()) {
+    const ReplyData& reply = client.parked.front();
+    const bool expired = reply.deadline <= now;
+    // waiting for its reader (after park_timeout_ms it is written anyway, for readers that
+    // do not announce simgate.id), or for its writer to have room again
+    bool attempt = (client.reader_matched || expired) && !(client.stalled && now < client.retry_at);
+    if (attempt) {
+      dds_return_t rc = write_reply(id, client, reply);
+      if (rc != DDS_RETCODE_TIMEOUT) {
+        if (client.stalled) {
+          // (with the drops not reported yet)
+          log::info("DDS transport: client ", to_hex(id), " takes its replies again",
+                    client.dropped > 0 ? "; reply(ies) dropped meanwhile: " + std::to_string(client.dropped) : "");
+          client.stalled = false;
+          client.dropped = 0;
+        }
+      } else {
+        client.stalled = true;
+        client.retry_delay = std::min(std::max(client.retry_delay * 2, std::chrono::milliseconds(5)), k_max_retry_delay);
+        client.retry_at = now + client.retry_delay;
+        attempt = false;
+      }
+    }
+    if (!attempt) {
+      if (!expired) return;
+      drop_reply(id, client, reply);  // waited park_timeout_ms for room (or a reader) in vain
+    }
+    client.parked.pop_front();
+    --parked_count_;
+  }
+}
+
+std::chrono::steady_clock::time_point DdsRequestManager::flush_all_parked() {
+  auto now = std::chrono::steady_clock::now();
+  auto next = std::chrono::steady_clock::time_point::max();
+  for (auto& [id, client] : clients_) {
+    if (client.parked.empty()) continue;
+    flush_parked(id, client, now);
+    if (client.parked.empty()) continue;
+    // what it waits for: its writer's next attempt, or its oldest reply's deadline
+    next = std::min(next, client.parked.front().deadline);
+    if (client.stalled && client.reader_matched) next = std::min(next, client.retry_at);
+  }
+  return next;
+}
+
+void DdsRequestManager::refresh_reader_match(const ClientId& id, ClientState& client) {
+  // reading the status resets it (the waitset trigger)
+  dds_publication_matched_status_t status{};
+  dds_get_publication_matched_status(client.reply_writer, &status);
+  // a reader in the client's partition that announces its id: one that does not (or an
+  // eavesdropper's, see docs) does not count
+  bool matched = false;
+  if (status.current_count > 0) {
+    std::vector<dds_instance_handle_t> handles(status.current_count + 4);
+    dds_return_t n = dds_get_matched_subscriptions(client.reply_writer, handles.data(), handles.size());
+    for (dds_return_t i = 0; i < std::min<dds_return_t>(n, static_cast<dds_return_t>(handles.size())) && !matched; ++i) {
+      if (dds_builtintopic_endpoint_t* ep = dds_get_matched_subscription_data(client.reply_writer, handles[i])) {
+        matched = client_id_from_userdata(ep->qos) == id;
+        dds_builtintopic_free_endpoint(ep);
+      }
+    }
+  }
+  client.reader_matched = matched;
+  // what was parked for it goes now
+  if (matched && !client.parked.empty()) flush_parked(id, client, std::chrono::steady_clock::now());
+}
+
+void DdsRequestManager::sweep_clients() {
+  // the request writers matched now
+  std::vector<dds_instance_handle_t> handles(writers_.size() + 16);
+  dds_return_t n;
+  while ((n = dds_get_matched_publications(request_reader_, handles.data(), handles.size())) >
+         static_cast<dds_return_t>(handles.size()))
+    handles.resize(static_cast<std::size_t>(n) + 16);
+  if (n < 0) {
+    log::error("DDS transport: matched request writers unknown: ", retcode_text(n));
+    return;
+  }
+  dds_subscription_matched_status_t status;
+  dds_get_subscription_matched_status(request_reader_, &status);  // resets the trigger
+  client_count_.store(static_cast<std::size_t>(n), std::memory_order_relaxed);
+  std::set<dds_instance_handle_t> live(handles.begin(), handles.begin() + n);
+  // new writers are new clients
+  for (dds_instance_handle_t writer : live)
+    if (!writers_.count(writer)) add_client(writer);
+  // every client whose writer left is gone
+  std::vector<ClientId> gone;
+  for (const auto& [id, client] : clients_)
+    if (!client.gone && !live.count(client.writer)) gone.push_back(id);
+  for (const ClientId& id : gone) client_gone(id, clients_.at(id));
+  // their cancels, here if the simulation lock is free
+  run_batch();
+}
+
+void DdsRequestManager::add_client(dds_instance_handle_t writer) {
+  // its id: its request writer's GUID
+  dds_builtintopic_endpoint_t* ep = dds_get_matched_publication_data(request_reader_, writer);
+  if (!ep) return;  // already left
+  const ClientId id = to_client_id(ep->key);
+  dds_builtintopic_free_endpoint(ep);
+  if (clients_.count(id)) return;
+  // its reply writer, alone in its partition
+  const std::string partition = options_.partition + "/" + to_hex(id);
+  QosPtr qos(dds_create_qos());
+  dds_qset_partition1(qos.get(), partition.c_str());
+  dds_entity_t publisher = dds_create_publisher(participant_->handle(), qos.get(), nullptr);
+  dds_entity_t reply_writer = publisher < 0 ? publisher : dds_create_writer(publisher, reply_topic_, reply_qos_.get(), nullptr);
+  if (reply_writer < 0 || dds_set_status_mask(reply_writer, DDS_PUBLICATION_MATCHED_STATUS) < 0 ||
+      dds_waitset_attach(waitset_, reply_writer, static_cast<dds_attach_t>(reply_writer)) < 0) {
+    log::error("DDS transport: client ", to_hex(id), " cannot be served: no reply writer in partition '", partition,
+               "': ", retcode_text(reply_writer < 0 ? reply_writer : DDS_RETCODE_ERROR));
+    if (publisher > 0) dds_delete(publisher);
+    return;
+  }
+  ClientState& client = clients_[id];
+  client.writer = writer;
+  client.reply_publisher = publisher;
+  client.reply_writer = reply_writer;
+  writers_[writer] = id;
+  reply_writers_[reply_writer] = id;
+  log::debug("DDS transport: client ", to_hex(id), " appeared (", clients_.size(), " known)");
+  refresh_reader_match(id, client);
+}
+
+void DdsRequestManager::client_gone(const ClientId& id, ClientState& client) {
+  client.gone = true;
+  parked_count_ -= client.parked.size();
+  client.parked.clear();
+  // its async calls are cancelled; sync ones finish and their replies are dropped
+  std::size_t cancelled = 0;
+  for (const auto& [seq, request] : client.calls) {
+    auto p = pending_.find(request);
+    if (p != pending_.end() && p->second.is_async) {
+      cancel(request);
+      ++cancelled;
+    }
+  }
+  if (cancelled > 0) run_pending_ = true;
+  log::info("DDS transport: client ", to_hex(id), " disappeared; ", cancelled, " async call(s) cancelled");
+  if (client.calls.empty()) forget_client(id);
+}
+
+void DdsRequestManager::forget_client(const ClientId& id) {
+  auto c = clients_.find(id);
+  if (c == clients_.end()) return;
+  // its publisher and reply writer go with it
+  if (c->second.reply_publisher > 0) retire(c->second.reply_publisher, c->second.reply_writer);
+  writers_.erase(c->second.writer);
+  reply_writers_.erase(c->second.reply_writer);
+  clients_.erase(c);
+  log::debug("DDS transport: client ", to_hex(id), " forgotten (", clients_.size(), " known)");
+}
+
+void DdsRequestManager::retire(dds_entity_t publisher, dds_entity_t writer) {
+  dds_waitset_detach(waitset_, writer);
+  // all acknowledged (or no reader left): deleted at once, without lingering
+  if (dds_wait_for_acks(writer, 0) == DDS_RETCODE_OK) {
+    dds_delete(publisher);
+    return;
+  }
+  log::debug("DDS transport: a reply writer with unacknowledged replies is deleted once they are acknowledged "
+             "or their reader left");
+  retiring_.emplace_back(publisher, writer);
+}
+
+void DdsRequestManager::retire_pending() {
+  std::erase_if(retiring_, [](const std::pair<dds_entity_t, dds_entity_t>& entry) {
+    if (dds_wait_for_acks(entry.second, 0) != DDS_RETCODE_OK) return false;
+    dds_delete(entry.first);
+    return true;
+  });
+}
+
+}  // namespace simgate::dds
