@@ -168,6 +168,9 @@ class SimNanSweepTest : public ::testing::Test {
     add_robot("human", "human", "human");
     Robot& arm = add_robot("arm", "robot", "arm");
     for (auto type : {"armature", "armature_pose", "actuators", "sensors"}) add_component(arm, type, type);
+    // a robot of type mjcf on a plain body (the gateway gives it generic components; here it
+    // offers its object services, which the sweep covers)
+    add_robot("crate", "mjcf", "crate");
   }
   std::vector<std::string> sweep(ValidCallTable extra = {}) {
     ValidValues values(*sim_, *rm_);
