@@ -283,7 +283,11 @@ std::decay_t<T> convert_argument(const ServiceDescriptor& d, std::size_t index, 
 
 template <class R>
 std::optional<json> result_to_json(R&& r) {
-  json j = ArgTraits<std::decay_t<R>>::to_json(r);
+  json j;
+  if constexpr (std::is_same_v<std::decay_t<R>, json> && !std::is_lvalue_reference_v<R>)
+    j = std::move(r);  // a service's own JSON answer is taken, not copied node by node
+  else
+    j = ArgTraits<std::decay_t<R>>::to_json(r);
   if (j.is_null()) return std::nullopt;
   return j;
 }
