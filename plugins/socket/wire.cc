@@ -102,7 +102,12 @@ void append_number(std::string& out, const json& value) {
     double d = value.get<double>();
     if (std::isnan(d)) out += "NaN";
     else if (std::isinf(d)) out += d > 0 ? "Infinity" : "-Infinity";
-    else out += value.dump();  // shortest round trip, Python repr's layout ("1.0", "1e-05")
+    else {
+      // shortest round trip, Python repr's layout ("1.0", "1e-05"): what dump() writes, by
+      // the same routine, without the serializer and string dump() makes for each number
+      char buf[64];
+      out.append(buf, nlohmann::detail::to_chars(buf, buf + sizeof buf, d));
+    }
   }
 }
 
