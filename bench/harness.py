@@ -20,6 +20,10 @@ Sections (each ends "ok", "error" with the reason, or "skipped" when a part was 
            real-time factor and step jitter at real-time pacing, idle and under
            10 000 requests/s
   memory   resident memory of an idle gateway (demo config) and with 1 000 idle connections
+  byor     issue #18, bring your own robot: the gateway stepping Debian's humanoid with its
+           generic components vs bare mj_step (same model, same steps); the sync round trip
+           of a 40-value `sensors` component's get_local_data vs `time now` (same gateway,
+           real time); a 360-ray laser_scanner update vs the same bare mj_ray loop
 
 Usage: bench/harness.py --build-dir DIR [--out DIR] [--smoke] [--repeats N]
 Normally run through bench/run, which builds first. Writes DIR/results.json and
@@ -639,6 +643,103 @@ class Harness:
         self.target(f"memory added by {n} idle connections", s["added_mib"], "<=", 64 * n / 1000, "MiB")
         return {"status": "ok", "summary": s}
 
+    # ---- issue #18: bring your own robot
+
+    def sensors40_config(self):
+        """A deployment serving bench/sensors40.xml's arm and its 40-value `sensors` component
+        on the socket transport (ephemeral loopback port), in real time."""
+        cfg = {"scene": {"mjcf": os.path.join(ROOT, "bench", "sensors40.xml"), "realtime_factor": 1.0},
+               "transports": {"socket": {"plugin": "socket", "options": {"host": "127.0.0.1", "port": 0}}},
+               "robots": [{"name": "arm", "type": "robot", "body": "arm",
+                           "components": [{"name": "sensors", "type": "sensors"}]}],
+               "services": {"default": ["socket"]},
+               "log_level": "warning"}
+        path = os.path.join(self.out, "sensors40-bench.json")
+        with open(path, "w") as f:
+            json.dump(cfg, f, indent=1)
+        return path
+
+    @staticmethod
+    def sensor_values(port):
+        """The number of values `arm.sensors get_local_data` answers (timestamp aside)."""
+        import socket
+        with socket.create_connection(("127.0.0.1", port), timeout=10) as c:
+            c.sendall(b"1 arm.sensors get_local_data\n")
+            reply = b""
+            while not reply.endswith(b"\n"):
+                chunk = c.recv(65536)
+                if not chunk:
+                    break
+                reply += chunk
+        head, _, body = reply.decode().strip().partition(" SUCCESS ")
+        if head != "1" or not body:
+            raise BenchError(f"arm.sensors get_local_data: unexpected reply {reply[:200]!r}")
+        data = json.loads(body)
+        return sum(len(v) if isinstance(v, list) else 1 for k, v in data.items() if k != "timestamp")
+
+    def section_byor(self):
+        sim = os.path.join(self.bin, "simgate_bench_sim")
+        if not os.access(sim, os.X_OK) or not self.plugin_built("socket"):
+            return {"status": "skipped", "reason": "simgate_bench_sim or the socket transport is not built"}
+        out = {"status": "ok"}
+
+        # a. the humanoid: every round pairs N gateway steps with N bare steps (sim_bench.cc)
+        duration = 1.0 if self.smoke else 12.0
+        h = run_json([sim, "--mode", "humanoid", "--duration", str(duration)], self.timeout, self.env)
+        out["humanoid"] = h
+        full, stock = h["variants"]["with_sensors"], h["variants"]["stock"]
+        self.target("humanoid: gateway steps/s with armature, armature_pose, actuators, sensors / bare mj_step",
+                    full["ratio"], ">=", 0.95, "x")
+        self.target("humanoid as shipped (no <sensor>): with armature, armature_pose, actuators / bare mj_step",
+                    stock["ratio"], ">=", 0.95, "x")
+
+        # b. a 40-value sensors component against `time now`, same gateway, same connection kind
+        p = Process("byor-sensors40", [sim, "--mode", "gateway", "--config", self.sensors40_config(),
+                                       "--realtime-factor", "1", "--duration", "3600", "--until-stdin-closes"],
+                    self.logs, self.env, stdin=subprocess.PIPE)
+        try:
+            port = port_of(p.read_json("endpoints", 60)["endpoints"]["socket"])
+            values = self.sensor_values(port)
+            if values != 40:
+                raise BenchError(f"arm.sensors answers {values} values, not 40 (bench/sensors40.xml)")
+            # many short pairs, each two runs side by side: on a shared host a quiet or busy
+            # moment then hits both sides of some pairs, and the median ratio is not its
+            runs = []
+            for rep in range(1 if self.smoke else 15):
+                now, sensors = in_rotation(
+                    rep, lambda: self.latency(port, ["--proto", "socket", "--request", "time now"]),
+                    lambda: self.latency(port, ["--proto", "socket", "--request", "arm.sensors get_local_data"]))
+                runs.append({"time_now": now, "sensors": sensors, "ratio_p50": ratio(sensors["p50_us"], now["p50_us"]),
+                             "ratio_p99": ratio(sensors["p99_us"], now["p99_us"])})
+            p.proc.stdin.close()
+            p.read_json("steps_per_s", 120)
+        finally:
+            p.check_stopped()
+        out["sensors"] = {"values": values, "runs": runs,
+                          "time_now_p50_us": spread([r["time_now"]["p50_us"] for r in runs]),
+                          "sensors_p50_us": spread([r["sensors"]["p50_us"] for r in runs]),
+                          "time_now_p99_us": spread([r["time_now"]["p99_us"] for r in runs]),
+                          "sensors_p99_us": spread([r["sensors"]["p99_us"] for r in runs]),
+                          "ratio_p50": spread([r["ratio_p50"] for r in runs]),
+                          "ratio_p99": spread([r["ratio_p99"] for r in runs])}
+        self.target("40-value sensors get_local_data sync round trip p50 / time now p50 (socket)",
+                    out["sensors"]["ratio_p50"], "<=", 1.3, "x")
+
+        # c. the laser: the component's 360-ray update against the same bare mj_ray loop
+        laser = run_json([sim, "--mode", "laser", "--duration", "0.5" if self.smoke else "5"], self.timeout, self.env)
+        out["laser"] = laser
+        self.target("360-ray laser_scanner update speed / bare mj_ray loop", laser["update_speed_ratio"], ">=", 0.9, "x")
+        out["summary"] = {"humanoid_ratio": full["ratio"], "humanoid_stock_ratio": stock["ratio"],
+                          "humanoid_gateway_steps_per_s": full["gateway_steps_per_s"],
+                          "humanoid_bare_steps_per_s": full["bare_steps_per_s"],
+                          "sensors_ratio_p50": out["sensors"]["ratio_p50"],
+                          "sensors_p50_us": out["sensors"]["sensors_p50_us"],
+                          "time_now_p50_us": out["sensors"]["time_now_p50_us"],
+                          "laser_update_speed_ratio": laser["update_speed_ratio"],
+                          "laser_update_us_per_scan": laser["update_us_per_scan"],
+                          "laser_bare_us_per_scan": laser["bare_us_per_scan"]}
+        return out
+
     # ---- driver
 
     def machine(self):
@@ -681,7 +782,7 @@ class Harness:
         self.results["repeats"] = self.repeats
         self.results["machine"] = self.machine()
         only = set(self.args.only.split(",")) if self.args.only else None
-        for name in ("socket", "jsonrpc", "dds", "peers", "sim", "memory"):
+        for name in ("socket", "jsonrpc", "dds", "peers", "sim", "memory", "byor"):
             if only and name not in only:
                 continue
             t0 = time.monotonic()
@@ -853,6 +954,33 @@ def markdown(r):
                   f"| idle gateway resident (MiB) | {fmt(mm['idle_mib'])} |",
                   f"| with {mm['connections']} idle connections (MiB) | {fmt(mm['with_connections_mib'])} |",
                   f"| added (MiB) / per connection (KiB) | {fmt(mm['added_mib'])} / {fmt(mm['per_connection_kib'])} |", ""]
+
+    lines += ["## Bring your own robot (issue #18)", ""]
+    st = status_line("byor")
+    if st:
+        lines += [st, ""]
+    else:
+        b = s["byor"]
+        h, se, la = b["humanoid"], b["sensors"], b["laser"]
+        lines += [f"Debian's humanoid ({h['model']}), {h['steps_per_round']} steps per round from the initial state, "
+                  f"{h['rounds']} rounds; gateway / bare is the median of the rounds' ratios (min–max).", "",
+                  "| measure | bare | simgate | simgate / bare |", "|---|---|---|---|"]
+        for key, label in (("stock", "humanoid as shipped: armature, armature_pose, actuators"),
+                           ("with_sensors", "humanoid + 40 sensor values: the same and sensors")):
+            v = h["variants"][key]
+            lines.append(f"| {label} (steps/s) | {fmt(v['bare_steps_per_s'])} | {fmt(v['gateway_steps_per_s'])} | "
+                         f"{fmt(v['ratio'], 3)} ({fmt(v['ratio_min'], 3)}–{fmt(v['ratio_max'], 3)}) |")
+        lines += ["", f"| measure | time now | arm.sensors get_local_data ({se['values']} values) | sensors / time now |",
+                  "|---|---|---|---|",
+                  f"| socket sync round trip p50 (µs) | {fmt(se['time_now_p50_us'])} | {fmt(se['sensors_p50_us'])} | "
+                  f"{fmt(se['ratio_p50'], 2)} |",
+                  f"| socket sync round trip p99 (µs) | {fmt(se['time_now_p99_us'])} | {fmt(se['sensors_p99_us'])} | "
+                  f"{fmt(se['ratio_p99'], 2)} |", "",
+                  "| measure | bare mj_ray loop | laser_scanner | speed ratio |", "|---|---|---|---|",
+                  f"| {la['rays']}-ray scan, {la['geoms']} geoms (µs per scan) | {fmt(la['bare_us_per_scan'])} | "
+                  f"{fmt(la['update_us_per_scan'])} | {fmt(la['update_speed_ratio'], 3)} |",
+                  f"| get_local_data with its JSON (µs per scan, {la['get_local_data_bytes']} bytes) | | "
+                  f"{fmt(la['get_local_data_us_per_scan'])} | |", ""]
 
     lines += ["## Sections", "", "| section | status | seconds |", "|---|---|---|"]
     for name, sec in s.items():

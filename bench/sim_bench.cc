@@ -1,5 +1,6 @@
-// sim_bench.cc — simulation speed: the gateway's step loop against a bare mj_step loop, and
-// the laser_scanner's update against bare mj_ray calls.
+// sim_bench.cc — simulation speed: the gateway's step loop against a bare mj_step loop (the
+// demo scene, Debian's humanoid with the generic components), and the laser_scanner's update
+// against bare mj_ray calls.
 //
 // Modes (--mode):
 //   bare     mj_loadXML(--mjcf) and mj_step in a tight loop for --duration seconds: the
@@ -21,6 +22,18 @@
 //            calls (same origin, directions, geom groups and excluded body), in alternating
 //            batches for --duration seconds; also the whole get_local_data with its JSON.
 //            Prints µs per scan (medians of the batches) and update speed / bare speed.
+//   humanoid issue #18's stepping target: Debian's humanoid (--mjcf, default
+//            /usr/share/mujoco/model/humanoid/humanoid.xml) with a robot on its torso and
+//            the generic components, built from an in-memory deployment by the Gateway as
+//            `simgate run` builds it (registry, an idle socket transport on an ephemeral
+//            loopback port), run as fast as possible for exactly N steps, against N bare
+//            mj_step calls on the same model, from the same initial state (the same physics,
+//            step for step: no component acts unless asked), in alternating rounds for
+//            --duration seconds. Two variants: the model as shipped (armature,
+//            armature_pose, actuators: it has no <sensor>) and a copy with 40 sensor values
+//            added (every joint's jointpos, the torso's frame and subtree), which adds the
+//            `sensors` component; the bare loop steps the same copy. Prints steps/s (medians)
+//            and gateway / bare (median of the rounds' ratios) per variant.
 //
 // The probe costs one clock read per step; both modes run on the main thread, unpinned.
 #include <poll.h>
@@ -29,7 +42,11 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <iostream>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -38,6 +55,7 @@
 
 #include "bench_util.h"
 #include "simgate/core/component.h"
+#include "simgate/core/log.h"
 #include "simgate/gateway/deployment.h"
 #include "simgate/gateway/gateway.h"
 #include "simgate/sim/native_sensors.h"
@@ -286,6 +304,155 @@ json run_laser(double duration_s) {
               {"get_local_data_bytes", json_bytes}};
 }
 
+// ---- humanoid ------------------------------------------------------------------------------
+
+constexpr const char* k_debian_humanoid = "/usr/share/mujoco/model/humanoid/humanoid.xml";
+
+// Ends the gateway's loop after exactly `limit` steps: the loop checks for a stop before
+// each step, and the last step's default_action asks for it (simulation thread).
+class StepLimit : public simgate::Component {
+ public:
+  StepLimit(simgate::gateway::Gateway& gateway, std::uint64_t limit)
+      : Component("bench_step_limit"), gateway_(gateway), limit_(limit) {}
+  void default_action() override {
+    if (++steps_ == limit_) gateway_.stop();
+  }
+  std::uint64_t steps() const { return steps_; }
+
+ private:
+  simgate::gateway::Gateway& gateway_;
+  std::uint64_t limit_;
+  std::uint64_t steps_ = 0;
+};
+
+// A copy of `mjcf` (in `dir`) with 40 sensor values before </mujoco>: each hinge's jointpos
+// (21 in the humanoid) and the torso's position, orientation, velocities, and its subtree's
+// centre of mass and velocity.
+std::string with_sensors(const std::string& mjcf, const std::filesystem::path& dir) {
+  std::ifstream in(mjcf);
+  if (!in) throw std::runtime_error("cannot read '" + mjcf + "'");
+  std::stringstream text;
+  text << in.rdbuf();
+  std::string xml = text.str();
+  char error[1000] = "";
+  mjModel* m = mj_loadXML(mjcf.c_str(), nullptr, error, sizeof error);
+  if (!m) throw std::runtime_error("MJCF '" + mjcf + "': " + error);
+  std::string sensors = "  <sensor>\n";
+  int values = 0;
+  for (int j = 0; j < m->njnt; ++j) {
+    const char* name = mj_id2name(m, mjOBJ_JOINT, j);
+    if (m->jnt_type[j] != mjJNT_HINGE || !name) continue;
+    sensors += std::string("    <jointpos joint=\"") + name + "\"/>\n";
+    ++values;
+  }
+  mj_deleteModel(m);
+  for (const char* s : {"framepos", "framequat", "framelinvel", "frameangvel"})
+    sensors += std::string("    <") + s + " objtype=\"xbody\" objname=\"torso\"/>\n";
+  sensors += "    <subtreecom body=\"torso\"/>\n    <subtreelinvel body=\"torso\"/>\n  </sensor>\n";
+  values += 3 + 4 + 3 + 3 + 3 + 3;
+  if (values != 40) std::cerr << "simgate_bench_sim: the sensor block has " << values << " values, not 40\n";
+  const auto end = xml.rfind("</mujoco>");
+  if (end == std::string::npos) throw std::runtime_error("'" + mjcf + "' has no </mujoco>");
+  xml.insert(end, sensors);
+  const std::filesystem::path out = dir / "humanoid-with-sensors.xml";
+  std::ofstream(out) << xml;
+  return out.string();
+}
+
+// Seconds for `steps` bare mj_step calls from the model's initial state.
+double time_bare(const std::string& mjcf, std::uint64_t steps) {
+  char error[1000] = "";
+  mjModel* m = mj_loadXML(mjcf.c_str(), nullptr, error, sizeof error);
+  if (!m) throw std::runtime_error("MJCF '" + mjcf + "': " + error);
+  mjData* d = mj_makeData(m);
+  mj_forward(m, d);  // as the simulation's Model does at load
+  const auto start = Clock::now();
+  for (std::uint64_t i = 0; i < steps; ++i) mj_step(m, d);
+  const double wall = std::chrono::duration<double>(Clock::now() - start).count();
+  mj_deleteData(d);
+  mj_deleteModel(m);
+  return wall;
+}
+
+// Seconds for the gateway's loop, as fast as possible, to take `steps` steps from the
+// initial state: a robot on the torso with `components` and an idle socket transport.
+double time_gateway(const std::string& mjcf, const std::vector<std::string>& components, std::uint64_t steps) {
+  namespace gw = simgate::gateway;
+  json robot = {{"name", "humanoid"}, {"type", "robot"}, {"body", "torso"}, {"components", json::array()}};
+  for (const auto& c : components) robot["components"].push_back({{"name", c}, {"type", c}});
+  const json document = {
+      {"scene", {{"mjcf", mjcf}, {"realtime_factor", 0}}},
+      {"transports", {{"socket", {{"plugin", "socket"}, {"options", {{"host", "127.0.0.1"}, {"port", 0}}}}}}},
+      {"robots", json::array({robot})},
+      {"services", {{"default", {"socket"}}}},
+      {"log_level", "warning"}};
+  const gw::Deployment deployment = gw::parse_deployment(document, ".");
+  const auto registry = simgate::sim::builtin_registry();
+  gw::Gateway gateway(deployment, registry, {});
+  auto limit_owned = std::make_unique<StepLimit>(gateway, steps);
+  StepLimit* limit = limit_owned.get();
+  gateway.simulation().add_component(std::move(limit_owned), "bench_step_limit");
+  gateway.start();
+  const auto start = Clock::now();
+  gateway.run();
+  const double wall = std::chrono::duration<double>(Clock::now() - start).count();
+  if (limit->steps() != steps)
+    throw std::runtime_error("the gateway took " + std::to_string(limit->steps()) + " steps, not " +
+                             std::to_string(steps));
+  gateway.shutdown();
+  return wall;
+}
+
+json run_humanoid(const std::string& mjcf_arg, double duration_s) {
+  // each round's gateway says where it listens: not worth a line
+  simgate::log::set_level(simgate::log::Level::warning);
+  const std::string stock = mjcf_arg.empty() ? k_debian_humanoid : mjcf_arg;
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                    ("simgate-bench-humanoid-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  struct Variant {
+    std::string name, mjcf;
+    std::vector<std::string> components;
+  };
+  std::vector<Variant> variants = {{"stock", stock, {"armature", "armature_pose", "actuators"}},
+                                   {"with_sensors", with_sensors(stock, dir),
+                                    {"armature", "armature_pose", "actuators", "sensors"}}};
+  // steps per round: about a tenth of the budget per variant and side
+  const double rate = 2000 / time_bare(stock, 2000);
+  constexpr int k_rounds = 7;
+  const auto steps = static_cast<std::uint64_t>(std::max(1000.0, rate * duration_s / (4.0 * k_rounds)));
+  json out = {{"mode", "humanoid"}, {"model", stock}, {"steps_per_round", steps}, {"rounds", k_rounds}};
+  auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  };
+  for (const Variant& v : variants) {
+    std::vector<double> bare, gateway, ratios;
+    for (int round = 0; round < k_rounds; ++round) {
+      // alternate which goes first: neither always gets a warm cache or a quieter moment
+      double b = 0, g = 0;
+      if (round % 2 == 0) {
+        b = time_bare(v.mjcf, steps);
+        g = time_gateway(v.mjcf, v.components, steps);
+      } else {
+        g = time_gateway(v.mjcf, v.components, steps);
+        b = time_bare(v.mjcf, steps);
+      }
+      bare.push_back(static_cast<double>(steps) / b);
+      gateway.push_back(static_cast<double>(steps) / g);
+      ratios.push_back(b / g);
+    }
+    out["variants"][v.name] = {{"components", v.components},
+                               {"bare_steps_per_s", median(bare)},
+                               {"gateway_steps_per_s", median(gateway)},
+                               {"ratio", median(ratios)},
+                               {"ratio_min", *std::min_element(ratios.begin(), ratios.end())},
+                               {"ratio_max", *std::max_element(ratios.begin(), ratios.end())}};
+  }
+  std::filesystem::remove_all(dir);
+  return out;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -293,10 +460,10 @@ int main(int argc, char** argv) {
   std::string mode, mjcf, config;
   double factor = 0, duration = 2;
   bool until_stdin = false;
-  app.add_option("--mode", mode, "bare, sleep, gateway or laser (see the source's header)")
+  app.add_option("--mode", mode, "bare, sleep, gateway, laser or humanoid (see the source's header)")
       ->required()
-      ->check(CLI::IsMember({"bare", "sleep", "gateway", "laser"}));
-  app.add_option("--mjcf", mjcf, "bare, sleep: the MJCF scene");
+      ->check(CLI::IsMember({"bare", "sleep", "gateway", "laser", "humanoid"}));
+  app.add_option("--mjcf", mjcf, "bare, sleep: the MJCF scene; humanoid: another humanoid.xml");
   app.add_option("--config", config, "gateway: the deployment file");
   app.add_option("--realtime-factor", factor, "gateway: pacing (0 = as fast as possible)")->capture_default_str();
   app.add_option("--duration", duration, "seconds to run")->capture_default_str();
@@ -318,6 +485,8 @@ int main(int argc, char** argv) {
       out = run_sleep(mjcf, duration);
     } else if (mode == "laser") {
       out = run_laser(duration);
+    } else if (mode == "humanoid") {
+      out = run_humanoid(mjcf, duration);
     } else {
       out = run_gateway(config, factor, duration, until_stdin);
     }
