@@ -51,11 +51,12 @@ TEST_F(MjcfSensorsTest, OneValueIsANumberSeveralAreAnArray) {
 
 TEST_F(MjcfSensorsTest, AnAccelerometerAtRestReadsGravityUpwards) {
   settle();
-  json acc = arm_data()["imu_acc"];
+  const json data = arm_data();  // held: a range-for over a member of a temporary reads freed memory
+  const json& acc = data["imu_acc"];
   EXPECT_NEAR(acc[0].get<double>(), 0.0, 0.05);
   EXPECT_NEAR(acc[1].get<double>(), 0.0, 0.05);
   EXPECT_NEAR(acc[2].get<double>(), 9.81, 0.05);
-  for (const json& w : arm_data()["imu_gyro"]) EXPECT_NEAR(w.get<double>(), 0.0, 1e-3);
+  for (const json& w : data["imu_gyro"]) EXPECT_NEAR(w.get<double>(), 0.0, 1e-3);
 }
 
 TEST_F(MjcfSensorsTest, ATouchSensorUnderABlockWeighsIt) {
