@@ -73,7 +73,9 @@ json SimComponent::get_configurations() const {
   json c = configuration_.is_object() ? configuration_ : json::object();
   Eigen::Vector3d t = Eigen::Vector3d::Zero();
   Eigen::Quaterniond r = Eigen::Quaterniond::Identity();
-  if (body_ >= 0 && robot_body_ >= 0) {
+  // the robot itself, or a component on the robot's own body: exactly the identity (the
+  // product of a rotation and its conjugate is 1 only to rounding)
+  if (body_ >= 0 && robot_body_ >= 0 && body_ != robot_body_) {
     Eigen::Quaterniond root = body_orientation(sim_, robot_body_).normalized();
     t = root.conjugate() * (body_position(sim_, body_) - body_position(sim_, robot_body_));
     r = root.conjugate() * body_orientation(sim_, body_);

@@ -199,7 +199,8 @@ class PymorseTest(unittest.TestCase):
         self.assertIn("no property 'no_such' in robot.waypoint", str(unknown.exception))
         configurations = self.simu.robot.pose.get_configurations().result(timeout=TIMEOUT)["configurations"]
         self.assertEqual(configurations["type"], "pose")
-        self.assertEqual(configurations["object_to_robot"]["rotation"], [1.0, 0.0, 0.0, 0.0])
+        for got, expected in zip(configurations["object_to_robot"]["rotation"], [1.0, 0.0, 0.0, 0.0]):
+            self.assertAlmostEqual(got, expected, places=9)
 
     def test_wrong_arity_is_a_type_error(self):
         too_few = self.simu.robot.waypoint.goto(1.0)
