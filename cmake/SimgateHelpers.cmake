@@ -6,12 +6,30 @@
 #   test-only plugin, never installed.
 function(simgate_add_transport_plugin name)
   cmake_parse_arguments(arg "NO_INSTALL" "" "" ${ARGN})
-  set(target simgate_transport_${name})
-  add_library(${target} MODULE ${arg_UNPARSED_ARGUMENTS})
-  if(TARGET simgate_core)
-    target_link_libraries(${target} PRIVATE simgate_core)
+  _simgate_add_plugin_module(simgate_transport_${name} core "${arg_NO_INSTALL}" ${arg_UNPARSED_ARGUMENTS})
+endfunction()
+
+# simgate_add_component_library(NAME [NO_INSTALL] SOURCES...)
+#   Builds libsimgate_components_<NAME>.so, a component library a config names in
+#   "component_libraries" and the gateway loads with dlopen (sim/component_library.h). The
+#   sources must use SIMGATE_COMPONENT_LIBRARY(<NAME>, ...) once. Installed beside the
+#   transport plugins, where the installed gateway finds it by name. NO_INSTALL: test only.
+function(simgate_add_component_library name)
+  cmake_parse_arguments(arg "NO_INSTALL" "" "" ${ARGN})
+  _simgate_add_plugin_module(simgate_components_${name} sim "${arg_NO_INSTALL}" ${arg_UNPARSED_ARGUMENTS})
+endfunction()
+
+# _simgate_add_plugin_module(TARGET LAYER NO_INSTALL SOURCES...)
+#   What both kinds of plugin share: a MODULE linked to simgate's LAYER library (core or
+#   sim: the tree's target, or the installed package's simgate::LAYER), hidden symbols, its
+#   thread-locals in the static TLS block, built into the tree's plugin directory and
+#   installed beside the gateway's plugins unless NO_INSTALL.
+function(_simgate_add_plugin_module target layer no_install)
+  add_library(${target} MODULE ${ARGN})
+  if(TARGET simgate_${layer})
+    target_link_libraries(${target} PRIVATE simgate_${layer})
   else()
-    target_link_libraries(${target} PRIVATE simgate::core)
+    target_link_libraries(${target} PRIVATE simgate::${layer})
   endif()
   set_target_properties(${target} PROPERTIES
     CXX_VISIBILITY_PRESET hidden
@@ -24,37 +42,8 @@ function(simgate_add_transport_plugin name)
   if(DEFINED SIMGATE_PLUGIN_BUILD_DIR)
     set_target_properties(${target} PROPERTIES LIBRARY_OUTPUT_DIRECTORY ${SIMGATE_PLUGIN_BUILD_DIR})
   endif()
-  if(DEFINED SIMGATE_PLUGIN_INSTALL_DIR AND TARGET simgate_core AND NOT arg_NO_INSTALL)
-    # installed in <libdir>/simgate/plugins, it finds libsimgate_core in <libdir>: $ORIGIN/../..
-    simgate_install_rpath(rpath ${SIMGATE_PLUGIN_INSTALL_DIR})
-    set_target_properties(${target} PROPERTIES INSTALL_RPATH "${rpath}")
-    install(TARGETS ${target} LIBRARY DESTINATION ${SIMGATE_PLUGIN_INSTALL_DIR})
-  endif()
-endfunction()
-
-# simgate_add_component_library(NAME [NO_INSTALL] SOURCES...)
-#   Builds libsimgate_components_<NAME>.so, a component library a config names in
-#   "component_libraries" and the gateway loads with dlopen (sim/component_library.h). The
-#   sources must use SIMGATE_COMPONENT_LIBRARY(<NAME>, ...) once. Installed beside the
-#   transport plugins, where the installed gateway finds it by name. NO_INSTALL: test only.
-function(simgate_add_component_library name)
-  cmake_parse_arguments(arg "NO_INSTALL" "" "" ${ARGN})
-  set(target simgate_components_${name})
-  add_library(${target} MODULE ${arg_UNPARSED_ARGUMENTS})
-  if(TARGET simgate_sim)
-    target_link_libraries(${target} PRIVATE simgate_sim)
-  else()
-    target_link_libraries(${target} PRIVATE simgate::sim)
-  endif()
-  set_target_properties(${target} PROPERTIES
-    CXX_VISIBILITY_PRESET hidden
-    VISIBILITY_INLINES_HIDDEN ON)
-  # as for transport plugins: thread-locals in the static TLS block of a dlopen'ed module
-  target_compile_options(${target} PRIVATE -ftls-model=initial-exec)
-  if(DEFINED SIMGATE_PLUGIN_BUILD_DIR)
-    set_target_properties(${target} PROPERTIES LIBRARY_OUTPUT_DIRECTORY ${SIMGATE_PLUGIN_BUILD_DIR})
-  endif()
-  if(DEFINED SIMGATE_PLUGIN_INSTALL_DIR AND TARGET simgate_sim AND NOT arg_NO_INSTALL)
+  if(DEFINED SIMGATE_PLUGIN_INSTALL_DIR AND TARGET simgate_${layer} AND NOT no_install)
+    # installed in <libdir>/simgate/plugins, it finds simgate's libraries in <libdir>: $ORIGIN/../..
     simgate_install_rpath(rpath ${SIMGATE_PLUGIN_INSTALL_DIR})
     set_target_properties(${target} PROPERTIES INSTALL_RPATH "${rpath}")
     install(TARGETS ${target} LIBRARY DESTINATION ${SIMGATE_PLUGIN_INSTALL_DIR})

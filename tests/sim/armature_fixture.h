@@ -138,17 +138,7 @@ class ArmatureSim : public ::testing::Test {
   }
   double ctrl(const std::string& actuator) { return sim_->d()->ctrl[sim_->model().actuator_id(actuator)]; }
   // Every qpos, qvel and ctrl of the model is a finite number.
-  bool state_is_finite() {
-    const mjModel* m = sim_->m();
-    const mjData* d = sim_->d();
-    for (int i = 0; i < m->nq; ++i)
-      if (!std::isfinite(d->qpos[i])) return false;
-    for (int i = 0; i < m->nv; ++i)
-      if (!std::isfinite(d->qvel[i])) return false;
-    for (int i = 0; i < m->nu; ++i)
-      if (!std::isfinite(d->ctrl[i])) return false;
-    return true;
-  }
+  bool state_is_finite() { return testing::state_is_finite(*sim_); }
 
   std::unique_ptr<Simulation> sim_;
   std::shared_ptr<RecordingManager> rm_;

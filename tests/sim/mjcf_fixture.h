@@ -90,17 +90,7 @@ class MjcfSim : public ::testing::Test {
     return id < 0 ? std::nan("") : sim_->d()->ctrl[id];
   }
   // Every qpos, qvel and ctrl is finite.
-  bool state_is_finite() const {
-    const mjModel* m = sim_->m();
-    const mjData* d = sim_->d();
-    for (int i = 0; i < m->nq; ++i)
-      if (!std::isfinite(d->qpos[i])) return false;
-    for (int i = 0; i < m->nv; ++i)
-      if (!std::isfinite(d->qvel[i])) return false;
-    for (int i = 0; i < m->nu; ++i)
-      if (!std::isfinite(d->ctrl[i])) return false;
-    return true;
-  }
+  bool state_is_finite() const { return testing::state_is_finite(*sim_); }
 
   std::unique_ptr<Simulation> sim_;
   std::shared_ptr<RecordingManager> rm_;

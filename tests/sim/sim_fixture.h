@@ -6,6 +6,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <condition_variable>
 #include <map>
 #include <mutex>
@@ -57,6 +58,19 @@ class RecordingManager : public RequestManager {
   std::condition_variable cv_;           // outcome arrived
   std::map<RequestId, Outcome> outcomes_;  // delivered outcomes
 };
+
+// Every qpos, qvel and ctrl of `sim` is a finite number.
+inline bool state_is_finite(const Simulation& sim) {
+  const mjModel* m = sim.m();
+  const mjData* d = sim.d();
+  for (int i = 0; i < m->nq; ++i)
+    if (!std::isfinite(d->qpos[i])) return false;
+  for (int i = 0; i < m->nv; ++i)
+    if (!std::isfinite(d->qvel[i])) return false;
+  for (int i = 0; i < m->nu; ++i)
+    if (!std::isfinite(d->ctrl[i])) return false;
+  return true;
+}
 
 inline std::string demo_scene() { return std::string(SIMGATE_SOURCE_DIR) + "/config/scenes/demo.xml"; }
 
