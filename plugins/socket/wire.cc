@@ -94,6 +94,52 @@ char* write_integer(char* p, char* end, const json& value) {
                                     : std::to_chars(p, end, value.get<std::int64_t>()).ptr;
 }
 
+// Writes finite `d` at `p` as Python's repr(float) does, and returns the end: the shortest
+// digits that read back as `d` (std::to_chars), laid out in fixed notation when
+// 1e-4 <= |d| < 1e16 ("0.0001", "12.5", "1.0") and in scientific notation otherwise
+// ("1e-05", "1.5e+16"), with at least two exponent digits. `p` has room for 32 characters.
+char* write_repr_double(char* p, double d) {
+  char sci[32];  // [-]D[.DDD]e±XX[X]: shortest, the exponent with two digits at least
+  const char* const sci_end = std::to_chars(sci, sci + sizeof sci, d, std::chars_format::scientific).ptr;
+  const char* s = sci;
+  if (*s == '-') *p++ = *s++;
+  const char* e = sci_end - 4;  // the exponent has two or three digits
+  if (*e != 'e') --e;
+  int exponent = 0;
+  for (const char* q = e + 2; q < sci_end; ++q) exponent = exponent * 10 + (*q - '0');
+  if (e[1] == '-') exponent = -exponent;
+  if (exponent < -4 || exponent >= 16) {  // Python's scientific layout is to_chars'
+    std::memcpy(p, s, static_cast<std::size_t>(sci_end - s));
+    return p + (sci_end - s);
+  }
+  // the significant digits: s[0], then what follows the point
+  char digits[20];
+  std::size_t n = 0;
+  digits[n++] = s[0];
+  for (const char* q = s + 2; q < e; ++q) digits[n++] = *q;
+  if (exponent < 0) {  // 0.000ddd
+    *p++ = '0';
+    *p++ = '.';
+    for (int k = -1; k > exponent; --k) *p++ = '0';
+    std::memcpy(p, digits, n);
+    return p + n;
+  }
+  const std::size_t integer_digits = static_cast<std::size_t>(exponent) + 1;
+  if (n <= integer_digits) {  // ddd000.0
+    std::memcpy(p, digits, n);
+    p += n;
+    for (std::size_t k = n; k < integer_digits; ++k) *p++ = '0';
+    *p++ = '.';
+    *p++ = '0';
+    return p;
+  }
+  std::memcpy(p, digits, integer_digits);  // ddd.ddd
+  p += integer_digits;
+  *p++ = '.';
+  std::memcpy(p, digits + integer_digits, n - integer_digits);
+  return p + (n - integer_digits);
+}
+
 void append_number(std::string& out, const json& value) {
   if (value.is_number_integer()) {
     char buf[24];
@@ -103,10 +149,8 @@ void append_number(std::string& out, const json& value) {
     if (std::isnan(d)) out += "NaN";
     else if (std::isinf(d)) out += d > 0 ? "Infinity" : "-Infinity";
     else {
-      // shortest round trip, Python repr's layout ("1.0", "1e-05"): what dump() writes, by
-      // the same routine, without the serializer and string dump() makes for each number
-      char buf[64];
-      out.append(buf, nlohmann::detail::to_chars(buf, buf + sizeof buf, d));
+      char buf[32];
+      out.append(buf, write_repr_double(buf, d));
     }
   }
 }
@@ -233,10 +277,10 @@ void append_json(std::string& out, const json& value) {
     case json::value_t::number_integer:
     case json::value_t::number_unsigned:
     case json::value_t::number_float: append_number(out, value); return;
-    case json::value_t::array: {
+    case json::value_t::array: {  // (the containers themselves: json's iterators cost more)
       out += '[';
       bool first = true;
-      for (const auto& e : value) {
+      for (const json& e : value.get_ref<const json::array_t&>()) {
         if (!first) out += ", ";
         first = false;
         append_json(out, e);
@@ -247,12 +291,12 @@ void append_json(std::string& out, const json& value) {
     case json::value_t::object: {
       out += '{';
       bool first = true;
-      for (auto it = value.begin(); it != value.end(); ++it) {
+      for (const auto& [key, member] : value.get_ref<const json::object_t&>()) {
         if (!first) out += ", ";
         first = false;
-        append_string(out, it.key());
+        append_string(out, key);
         out += ": ";
-        append_json(out, it.value());
+        append_json(out, member);
       }
       out += '}';
       return;

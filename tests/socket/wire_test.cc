@@ -5,6 +5,16 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
 
 namespace simgate::socket {
 namespace {
@@ -84,6 +94,55 @@ TEST(SocketWire, JsonLikePythonDumps) {
   EXPECT_EQ(dumps(std::uint64_t(18446744073709551615ull)), "18446744073709551615");
   EXPECT_EQ(dumps(NAN), "NaN");
   EXPECT_EQ(dumps(-INFINITY), "-Infinity");
+}
+
+// Every float is written as Python's repr writes it, digit for digit: checked against
+// /usr/bin/python3 itself on random bit patterns, on values around the switches between
+// fixed and scientific notation (1e-4, 1e16), and on the edges of the double range.
+TEST(SocketWire, FloatsAreWrittenExactlyAsPythonReprWritesThem) {
+  std::vector<double> values = {0.0, -0.0, 1.0, -1.0, 0.1, 0.2 + 0.1, 1.0 / 3, 2.5, 100.0, 123456.789,
+                                1e-4, 9.999999999999999e-5, 1e-5, 0.00012, 1.5e-4, 1e15, 1e16,
+                                9999999999999998.0, 1.2345678901234567e16, 1e22, 1e23, 5e-324,
+                                2.2250738585072014e-308, 1.7976931348623157e308, 4.35, 0.3};
+  std::mt19937_64 random(18);
+  for (int i = 0; i < 4000; ++i) {  // any finite bit pattern
+    std::uint64_t bits = random();
+    double d;
+    std::memcpy(&d, &bits, sizeof d);
+    if (std::isfinite(d)) values.push_back(d);
+  }
+  std::uniform_real_distribution<double> unit(-1, 1);
+  for (int exponent = -8; exponent <= 20; ++exponent)  // sensor-like values at every scale
+    for (int i = 0; i < 100; ++i) values.push_back(unit(random) * std::pow(10.0, exponent));
+  for (int i = 0; i < 200; ++i) values.push_back(std::round(unit(random) * 1e6) / 64);  // few digits
+
+  const auto dir = std::filesystem::temp_directory_path();
+  const auto in_path = dir / ("simgate_repr_in_" + std::to_string(::getpid()));
+  {
+    std::ofstream in(in_path);
+    char hex[64];
+    for (double d : values) {
+      std::snprintf(hex, sizeof hex, "%a\n", d);
+      in << hex;
+    }
+  }
+  const std::string command = "/usr/bin/python3 -c 'import sys\nfor l in sys.stdin: print(repr(float.fromhex(l)))' < " +
+                              in_path.string();
+  FILE* python = ::popen(command.c_str(), "r");
+  ASSERT_NE(python, nullptr);
+  std::vector<std::string> expected;
+  char line[128];
+  while (std::fgets(line, sizeof line, python)) expected.emplace_back(line, std::strcspn(line, "\n"));
+  const int status = ::pclose(python);
+  std::filesystem::remove(in_path);
+  ASSERT_EQ(status, 0) << command;
+  ASSERT_EQ(expected.size(), values.size());
+  int mismatches = 0;
+  for (std::size_t i = 0; i < values.size() && mismatches < 10; ++i) {
+    const std::string ours = dumps(values[i]);
+    if (ours != expected[i]) ++mismatches;
+    EXPECT_EQ(ours, expected[i]) << "value " << i;
+  }
 }
 
 TEST(SocketWire, StringsAreAsciiEscapedLikePython) {
