@@ -4,6 +4,7 @@
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
 #include "simgate/sim/sim_component.h"
+#include "simgate/sim/world_services.h"
 
 namespace simgate::sim {
 
@@ -38,6 +39,24 @@ SupervisionServices::SupervisionServices(Simulation& sim) : Component("simulatio
   add_service("get_scene_objects", &SupervisionServices::get_scene_objects)
       .doc("{name: [children, [x, y, z], [qx, qy, qz, qw]]} for every body");
   add_service("quit", &SupervisionServices::quit).doc("Stop the simulation cleanly (replies are sent first)");
+  add_world_services(*this, sim);
+}
+
+void SupervisionServices::on_step(std::function<void()> fn) { step_hooks_.push_back(std::move(fn)); }
+
+void SupervisionServices::on_interrupt(const std::string& service, std::function<void()> fn) {
+  interrupt_hooks_[service] = std::move(fn);
+}
+
+void SupervisionServices::default_action() {
+  for (auto& hook : step_hooks_) hook();
+}
+
+void SupervisionServices::interrupt() {
+  const std::string running = running_service();  // "simulation.<service>"
+  const auto hook = interrupt_hooks_.find(running.substr(running.find('.') + 1));
+  if (hook != interrupt_hooks_.end()) hook->second();
+  Component::interrupt();
 }
 
 bool SupervisionServices::robot_visible(const ComponentEntry& robot) const {

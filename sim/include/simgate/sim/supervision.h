@@ -25,6 +25,8 @@
 #ifndef SIMGATE_SIM_SUPERVISION_H_
 #define SIMGATE_SIM_SUPERVISION_H_
 
+#include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -48,13 +50,35 @@ class SupervisionServices : public Component {
   json get_scene_objects() const;
   void quit();
 
+  // ---- the world-control groups (world_services.h) ----
+  // Services of `simulation` defined outside this class register through these, exactly
+  // as the class's own do (same arguments as Component::add_service / add_async_service).
+  template <class F>
+  ServiceBuilder offer_service(std::string name, F fn, std::vector<Param> params = {}) {
+    return add_service(std::move(name), std::move(fn), std::move(params));
+  }
+  template <class F>
+  ServiceBuilder offer_async_service(std::string name, F fn, std::vector<Param> params = {}) {
+    return add_async_service(std::move(name), std::move(fn), std::move(params));
+  }
+  // `fn` runs in default_action() (every step, before physics), after those added before.
+  void on_step(std::function<void()> fn);
+  // `fn` stops what the async service `service` started when its request is interrupted
+  // (cancel, preemption, shutdown); the request then ends PREEMPTED (Component::interrupt).
+  void on_interrupt(const std::string& service, std::function<void()> fn);
+
+  void default_action() override;
+  void interrupt() override;
+
  private:
   void set_active(const std::string& component_name, bool active);
   // Whether the caller sees the robot: it serves the robot or one of its components.
   bool robot_visible(const ComponentEntry& robot) const;
   json body_tree(int body) const;
 
-  Simulation& sim_;  // supervised
+  Simulation& sim_;                                               // supervised
+  std::vector<std::function<void()>> step_hooks_;                 // on_step, in order
+  std::map<std::string, std::function<void()>> interrupt_hooks_;  // on_interrupt, by service
 };
 
 class TimeServices : public Component {

@@ -1,0 +1,23 @@
+// simgate/sim/world_services.h — the world-control services of the `simulation`
+// component (issue #19), one group per source file, each registered on the component by
+// its add_*_services function through SupervisionServices::offer_service,
+// offer_async_service, on_step and on_interrupt.
+//
+// Groups and their files (docs/world/*.md describes each on the wire):
+//   (the groups register here as they land)
+//
+// Threads: simulation thread only, as every service.
+#ifndef SIMGATE_SIM_WORLD_SERVICES_H_
+#define SIMGATE_SIM_WORLD_SERVICES_H_
+
+#include "simgate/sim/simulation.h"
+#include "simgate/sim/supervision.h"
+
+namespace simgate::sim {
+
+// Registers every group below on `simulation` (SupervisionServices' constructor).
+void add_world_services(SupervisionServices& simulation, Simulation& sim);
+
+}  // namespace simgate::sim
+
+#endif  // SIMGATE_SIM_WORLD_SERVICES_H_
