@@ -3,8 +3,8 @@
 namespace simgate::sim {
 
 void add_world_services(SupervisionServices& simulation, Simulation& sim) {
-  (void)simulation;
-  (void)sim;
+  // (get_capabilities reads the registered services when it is called)
+  add_capability_services(simulation, sim);
 }
 
 }  // namespace simgate::sim

@@ -4,7 +4,8 @@
 // offer_async_service, on_step and on_interrupt.
 //
 // Groups and their files (docs/world/*.md describes each on the wire):
-//   (the groups register here as they land)
+//   capabilities.cc  get_capabilities: the features the groups below offer, in ROS 2
+//                    simulation_interfaces' numbering (read off the registered services)
 //
 // Threads: simulation thread only, as every service.
 #ifndef SIMGATE_SIM_WORLD_SERVICES_H_
@@ -17,6 +18,8 @@ namespace simgate::sim {
 
 // Registers every group below on `simulation` (SupervisionServices' constructor).
 void add_world_services(SupervisionServices& simulation, Simulation& sim);
+
+void add_capability_services(SupervisionServices& simulation, Simulation& sim);
 
 }  // namespace simgate::sim
 
