@@ -18,6 +18,10 @@ CallContext::~CallContext() { t_current = previous_; }
 
 const CallContext* CallContext::current() noexcept { return t_current; }
 
+OutsideRequest::OutsideRequest() noexcept : hidden_(t_current) { t_current = nullptr; }
+
+OutsideRequest::~OutsideRequest() { t_current = hidden_; }
+
 bool CallContext::serves(const std::string& component) const { return manager_.serves_component(component); }
 
 bool CallContext::may_call(const std::string& component, const std::string& service) const {

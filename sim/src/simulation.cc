@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "simgate/core/call_context.h"
 #include "simgate/core/log.h"
 #include "simgate/sim/sim_component.h"
 #include "simgate/sim/supervision.h"
@@ -83,6 +84,16 @@ const char* state_array(int warning) {
 }
 }  // namespace
 
+const char* to_string(RunState state) {
+  switch (state) {
+    case RunState::playing: return "playing";
+    case RunState::paused: return "paused";
+    case RunState::stepping: return "stepping";
+    case RunState::quitting: return "quitting";
+  }
+  return "unknown";
+}
+
 Simulation::Simulation(Model model, SimulationOptions options)
     : model_(std::move(model)), gate_(std::make_shared<SimulationGate>()) {
   if (options.timestep) {
@@ -92,6 +103,7 @@ Simulation::Simulation(Model model, SimulationOptions options)
     m()->opt.timestep = *options.timestep;
   }
   set_realtime_factor(options.realtime_factor);
+  paused_ = options.start_paused;
   // Model's constructor ran mj_forward on the initial state
   state_time_ = d()->time;
 }
@@ -109,6 +121,9 @@ void Simulation::set_realtime_factor(double factor) {
     throw std::invalid_argument("simulation: realtime_factor must be >= 0 (0 = as fast as possible), not " +
                                 std::to_string(factor));
   realtime_factor_ = factor;
+  // the loop may be asleep until a step scheduled at the old pace
+  reschedule_ = true;
+  gate_->signal();
 }
 
 ComponentEntry& Simulation::add_component(std::unique_ptr<Component> component, std::string type,
@@ -163,6 +178,9 @@ std::size_t Simulation::process_requests() {
 }
 
 void Simulation::step() {
+  // a step is no part of whatever request made it happen (`simulation step` steps on its
+  // caller's thread): default actions see the whole simulation, as on the simulation thread
+  const OutsideRequest outside;
   // components act on the state the requests left
   for (auto& e : entries_) {
     if (!e->active) continue;
@@ -193,11 +211,6 @@ void Simulation::step() {
   steps_.fetch_add(1, std::memory_order_relaxed);
 }
 
-void Simulation::locked_step() {
-  std::lock_guard lock(*gate_);
-  step();
-}
-
 void Simulation::fail_component(ComponentEntry& entry, const std::string& what, const std::string& reason) {
   const std::string& name = entry.component->name();
   log::error(name, ": ", what, " failed: ", reason, "; the component is deactivated",
@@ -212,31 +225,114 @@ void Simulation::fail_component(ComponentEntry& entry, const std::string& what, 
 void Simulation::run() {
   running_ = true;
   run_started_ = Clock::now();
-  auto next_step = run_started_;
+  {
+    std::lock_guard lock(*gate_);
+    restart_pace(run_started_);
+    reschedule_ = false;
+  }
   while (!stop_requested()) {
     // requests first, whenever the loop wakes
     process_requests();
     if (stop_requested()) break;
+    // what to do next depends on what the requests just changed (pause, play, step, pace)
+    std::unique_lock lock(*gate_);
+    if (reschedule_) {
+      reschedule_ = false;
+      restart_pace(Clock::now());
+    }
+    if (paused_) {
+      if (owed_steps_ > 0) {
+        // one at a time, as fast as possible: requests (a cancel) are served between two
+        take_owed_steps(Clock::time_point{});
+        continue;
+      }
+      lock.unlock();
+      // a request, a step or play wakes it at once
+      gate_->wait_for(k_paused_wait);
+      continue;
+    }
     if (realtime_factor_ == 0) {
-      locked_step();
+      step();
+      measure_rate(Clock::now());
       continue;
     }
     auto now = Clock::now();
-    if (now >= next_step) {
-      locked_step();
-      next_step += std::chrono::duration_cast<Clock::duration>(
+    if (now >= next_step_) {
+      step();
+      measure_rate(now);
+      next_step_ += std::chrono::duration_cast<Clock::duration>(
           std::chrono::duration<double>(timestep() / realtime_factor_));
       // fell behind (slow machine, long service): resynchronise instead of racing
-      if (now - next_step > k_max_lag) {
-        next_step = now;
+      if (now - next_step_ > k_max_lag) {
+        next_step_ = now;
         ++overruns_;
       }
       continue;
     }
+    const auto next = next_step_;
+    lock.unlock();
     // sleep until the next step, or until queued work arrives; meanwhile transports run
     // their requests themselves under the simulation lock
-    gate_->wait_until(next_step);
+    gate_->wait_until(next);
   }
+}
+
+void Simulation::restart_pace(Clock::time_point now) {
+  next_step_ = now;
+  window_start_ = now;
+  window_steps_ = steps();
+}
+
+void Simulation::measure_rate(Clock::time_point now) {
+  const auto elapsed = now - window_start_;
+  if (elapsed < k_rate_window) return;
+  // steps, not mjData::time: a reset or a restored state moves the clock, not the pace
+  const double wall = std::chrono::duration<double>(elapsed).count();
+  recent_factor_.store(static_cast<double>(steps() - window_steps_) * timestep() / wall, std::memory_order_relaxed);
+  window_start_ = now;
+  window_steps_ = steps();
+}
+
+RunState Simulation::run_state() const {
+  if (stop_requested()) return RunState::quitting;
+  if (!paused_) return RunState::playing;
+  return owed_steps_ > 0 ? RunState::stepping : RunState::paused;
+}
+
+void Simulation::set_paused(bool paused) {
+  if (paused == paused_) return;
+  paused_ = paused;
+  // time stood still: the pace (and the measured rate) start again from the moment it runs
+  if (paused) recent_factor_.store(0, std::memory_order_relaxed);
+  reschedule_ = true;
+  gate_->signal();
+}
+
+void Simulation::owe_steps(std::uint64_t n, std::function<void()> done) {
+  owed_steps_ = n;
+  owed_done_ = std::move(done);
+}
+
+std::uint64_t Simulation::forgive_owed_steps() {
+  owed_done_ = nullptr;
+  return std::exchange(owed_steps_, 0);
+}
+
+std::uint64_t Simulation::take_owed_steps(Clock::time_point until) {
+  std::uint64_t taken = 0;
+  while (owed_steps_ > 0) {
+    step();
+    --owed_steps_;
+    ++taken;
+    if (owed_steps_ > 0 && Clock::now() >= until) break;
+  }
+  if (owed_steps_ > 0) {
+    // the rest is the loop's (it may be asleep, paused)
+    gate_->signal();
+  } else if (owed_done_) {
+    std::exchange(owed_done_, nullptr)();
+  }
+  return taken;
 }
 
 void Simulation::request_stop() {
@@ -300,6 +396,12 @@ void Simulation::reset() {
       fail_component(*e, "on_reset()", error.what());
     }
   }
+}
+
+void Simulation::reset_all() {
+  // reset() keeps the clock where it is: here, at the start
+  d()->time = 0;
+  reset();
 }
 
 void Simulation::forward() {
@@ -394,6 +496,7 @@ SimulationStatistics Simulation::statistics() const {
   s.timestep = timestep();
   s.overruns = overruns_;
   s.bad_states = bad_states_;
+  s.recent_factor = recent_factor_.load(std::memory_order_relaxed);
   return s;
 }
 

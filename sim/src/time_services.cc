@@ -2,9 +2,15 @@
 #include <cmath>
 
 #include "simgate/core/errors.h"
+#include "simgate/sim/bounds.h"
 #include "simgate/sim/supervision.h"
 
 namespace simgate::sim {
+
+namespace {
+// A faster pace than this is a mistake (a unit error): 0 already means "as fast as possible".
+constexpr double k_max_time_scale = 1e6;
+}  // namespace
 
 TimeServices::TimeServices(Simulation& sim) : Component("time"), sim_(sim) {
   epoch_ = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count() -
@@ -18,6 +24,8 @@ TimeServices::TimeServices(Simulation& sim) : Component("time"), sim_(sim) {
   add_service("statistics", &TimeServices::statistics)
       .doc("Simulated time, wall time, measured and target real-time factor, steps, bad states recovered");
   add_service("mode", &TimeServices::mode).doc("The time strategy");
+  add_service("set_time_scale", &TimeServices::set_time_scale, {"value"})
+      .doc("Simulated seconds per wall second from now on (0 = as fast as possible); returns true");
 }
 
 double TimeServices::now() const { return epoch_ + sim_.sim_time(); }
@@ -50,11 +58,20 @@ json TimeServices::statistics() const {
           {"steps", s.steps},
           {"timestep", s.timestep},
           {"overruns", s.overruns},
-          {"bad_states", s.bad_states}};
+          {"bad_states", s.bad_states},
+          {"recent_realtime_factor", s.recent_factor},
+          {"state", to_string(sim_.run_state())}};
 }
 
 std::string TimeServices::mode() const {
   return sim_.realtime_factor() == 0 ? "FixedSimulationStep (as fast as possible)" : "FixedSimulationStep";
+}
+
+bool TimeServices::set_time_scale(double value) {
+  // 0 is "as fast as possible"
+  bounds::require_between("value", value, 0, k_max_time_scale, "(simulated seconds per wall second)");
+  sim_.set_realtime_factor(value);
+  return true;
 }
 
 }  // namespace simgate::sim

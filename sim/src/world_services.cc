@@ -5,6 +5,8 @@ namespace simgate::sim {
 void add_world_services(SupervisionServices& simulation, Simulation& sim) {
   // (get_capabilities reads the registered services when it is called)
   add_capability_services(simulation, sim);
+  add_stepping_services(simulation, sim);
+  add_state_services(simulation, sim);
 }
 
 }  // namespace simgate::sim

@@ -352,6 +352,14 @@ inline ValidCallTable builtin_valid_calls(ValidValues& values) {
       return ValidCalls{args};
     };
   };
+  // issue #19's integers: step takes them while paused (the sweep steps the simulation
+  // itself, paused or not); a state's handle comes from save_state
+  t["simulation.step"] = [v](const std::string& c) {
+    v->value(c, "pause");
+    return ValidCalls{{1}};
+  };
+  t["simulation.restore_state"] = [v](const std::string& c) { return ValidCalls{{v->value(c, "save_state")}}; };
+  t["simulation.drop_state"] = t["simulation.restore_state"];
   t["armature.set_rotation"] = per_joint(mjJNT_HINGE, false);
   t["armature.set_translation"] = per_joint(mjJNT_SLIDE, false);
   t["armature.rotate"] = per_joint(mjJNT_HINGE, true);

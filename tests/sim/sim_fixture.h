@@ -31,6 +31,13 @@ class RecordingManager : public RequestManager {
     submit(id, Call{component, service, std::move(params)});
     return id;
   }
+  // As a TCP transport calls: runs the request on this thread when the simulation lock is
+  // free (run_or_submit), otherwise queues it.
+  RequestId call_here(const std::string& component, const std::string& service, json params = json::array()) {
+    RequestId id = new_request_id();
+    run_or_submit(id, Call{component, service, std::move(params)});
+    return id;
+  }
   std::optional<Outcome> outcome(RequestId id) {
     std::lock_guard lock(mutex_);
     auto it = outcomes_.find(id);
@@ -77,7 +84,7 @@ inline std::string demo_scene() { return std::string(SIMGATE_SOURCE_DIR) + "/con
 class DemoSim : public ::testing::Test {
  protected:
   void SetUp() override {
-    sim_ = std::make_unique<Simulation>(Model::load_file(demo_scene()), SimulationOptions{std::nullopt, 0.0});
+    sim_ = std::make_unique<Simulation>(Model::load_file(demo_scene()), options_);
     auto registry = builtin_registry();
     auto robot = registry.create(Kind::robot, {"robot", "ground_robot", "robot", "robots[0]"}, json::object(), *sim_,
                                  nullptr);
@@ -137,6 +144,7 @@ class DemoSim : public ::testing::Test {
     return o.value.value_or(json());
   }
 
+  SimulationOptions options_{std::nullopt, 0.0};  // what SetUp() builds the simulation with
   std::unique_ptr<Simulation> sim_;
   std::shared_ptr<RecordingManager> rm_;
 };

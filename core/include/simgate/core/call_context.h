@@ -60,6 +60,21 @@ class CallContext {
   const CallContext* previous_;    // the context this one hides, restored at destruction
 };
 
+// Hides the calling thread's context until destruction: what runs in its scope runs as
+// outside any request. For a service that runs the simulation itself (`simulation step`
+// steps the world on the caller's thread): the components' default actions it runs are no
+// part of the caller's request, and must see everything as they do on the simulation thread.
+class OutsideRequest {
+ public:
+  OutsideRequest() noexcept;
+  ~OutsideRequest();
+  OutsideRequest(const OutsideRequest&) = delete;
+  OutsideRequest& operator=(const OutsideRequest&) = delete;
+
+ private:
+  const CallContext* hidden_;  // the context restored at destruction
+};
+
 // Whether the caller of the running service may see and act on `component`: the calling
 // transport serves it, or no request is running on this thread (the host itself).
 bool caller_serves(const std::string& component);

@@ -5,7 +5,20 @@
 //  - step: process requests, default_action() of every active component, mj_step, then a
 //    look at MuJoCo's warning counters (see "bad states").
 //  - pacing: real time times `realtime_factor` (1 = real time, 2 = twice as fast), or as
-//    fast as possible when the factor is 0.
+//    fast as possible when the factor is 0. Changeable at run time (time set_time_scale):
+//    the next step is scheduled anew from the change.
+//  - run state: playing (the loop steps on its own, paced), paused (it takes no step of its
+//    own: neither time nor physics move, and every request is still served), stepping
+//    (paused, taking the steps a client asked for with `simulation step`, as fast as
+//    possible), quitting. Unlike dynamics suspended (MORSE's suspend_dynamics: time goes
+//    on, physics frozen), a pause stops the clock too. docs/world/stepping.md.
+//  - owed steps: the steps `simulation step n` asked for. The thread that runs the request
+//    takes them at once (take_owed_steps, no hand-off to the simulation thread for a client
+//    that drives the simulation step by step); what is left after a short budget the loop
+//    takes, one per iteration, with requests processed between two, so that a long run of
+//    steps can be cancelled and never holds a transport's thread.
+//  - model generation: a counter bumped whenever the model is replaced (a spawn recompiles
+//    it); what was saved of another generation (a snapshot) cannot be restored into it.
 //  - entry: a component plus what the simulation knows about it (type name, robot, body,
 //    active flag, the transports that serve it).
 //
@@ -40,6 +53,7 @@
 #include <array>
 #include <atomic>
 #include <chrono>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -57,7 +71,18 @@ class SimComponent;
 struct SimulationOptions {
   std::optional<double> timestep;  // seconds; overrides the MJCF's <option timestep>
   double realtime_factor = 1.0;    // sim seconds per wall second; 0 = as fast as possible
+  bool start_paused = false;       // lockstep: clients drive the simulation with `simulation step`
 };
+
+// What the loop is doing (simulation get_simulation_state).
+enum class RunState : std::uint8_t {
+  playing,   // it steps on its own, paced by the real-time factor
+  paused,    // no step of its own: time and physics stand still; requests are served
+  stepping,  // paused, taking the steps a client asked for (simulation step)
+  quitting,  // request_stop() was called
+};
+// "playing", "paused", "stepping", "quitting": the words on the wire.
+const char* to_string(RunState state);
 
 // What the simulation knows about one component.
 struct ComponentEntry {
@@ -80,6 +105,7 @@ struct SimulationStatistics {
   double timestep = 0;            // physics step, seconds
   std::uint64_t overruns = 0;     // times the loop fell behind real time and resynchronised
   std::uint64_t bad_states = 0;   // steps in which MuJoCo found a bad state (each recovered by reset())
+  double recent_factor = 0;       // measured over the last second of playing (0 while paused)
 };
 
 class Simulation {
@@ -98,9 +124,19 @@ class Simulation {
   // now and counts an overrun.
   static constexpr std::chrono::milliseconds k_max_lag{100};
 
+  // The measured real-time factor is taken over windows of this much wall time.
+  static constexpr std::chrono::seconds k_rate_window{1};
+  // While paused with nothing to do, the loop still looks up this often (a request or a
+  // step wakes it at once: this only bounds a wait nobody signals).
+  static constexpr std::chrono::seconds k_paused_wait{1};
+  // How long the thread that runs `simulation step` steps before it leaves the rest to the
+  // loop (take_owed_steps): a transport's thread is not held longer than this.
+  static constexpr std::chrono::milliseconds k_inline_step_budget{2};
+
   double timestep() const { return m()->opt.timestep; }
   double realtime_factor() const { return realtime_factor_; }
-  // 0 = as fast as possible. Simulation thread (or before run()).
+  // 0 = as fast as possible. Under the simulation lock (or before run()); the loop schedules
+  // its next step from now, at the new pace.
   void set_realtime_factor(double factor);
 
   // ---- components (before run(), or on the simulation thread) ----
@@ -173,11 +209,41 @@ class Simulation {
   // without integrating it: nothing moves unless a component moves it.
   void set_dynamics_suspended(bool suspended) { dynamics_suspended_ = suspended; }
   bool dynamics_suspended() const { return dynamics_suspended_; }
+  // reset() with simulated time back to 0 as well (the world as it started).
+  void reset_all();
   SimulationStatistics statistics() const;
 
+  // ---- playing, pausing and stepping (under the simulation lock) ----
+
+  RunState run_state() const;
+  bool paused() const { return paused_; }
+  // Paused, the loop takes no step of its own (owed steps aside) and sleeps until a request
+  // or a step arrives. Playing again resumes the pace from now: the paused time is not
+  // caught up. Owed steps are not touched (the stepping service settles them).
+  void set_paused(bool paused);
+  // `simulation step n`: the simulation owes n more steps, taken while paused (by
+  // take_owed_steps on the thread that asks, then by the loop); `done` runs under the lock
+  // once the last is taken. Replaces what was owed before (forgive_owed_steps first).
+  void owe_steps(std::uint64_t n, std::function<void()> done);
+  std::uint64_t owed_steps() const { return owed_steps_; }
+  // Forgets the steps still owed (their `done` never runs); returns how many there were.
+  std::uint64_t forgive_owed_steps();
+  // Takes owed steps on the calling thread until none is left or `until` has passed (one at
+  // least, if any is owed); returns how many it took. Steps left wake the loop.
+  std::uint64_t take_owed_steps(std::chrono::steady_clock::time_point until);
+
+  // ---- model identity ----
+
+  // Bumped whenever the model is replaced (spawn, delete): state saved under another
+  // generation does not fit this model.
+  std::uint64_t model_generation() const { return model_generation_; }
+  void bump_model_generation() { ++model_generation_; }
+
  private:
-  // step() under the simulation lock
-  void locked_step();
+  // After a step taken while playing: the measured real-time factor, window by window.
+  void measure_rate(std::chrono::steady_clock::time_point now);
+  // Restarts the pace and the rate window from now (play, a new factor).
+  void restart_pace(std::chrono::steady_clock::time_point now);
   // Deactivates a component whose `what` ("default_action()", "on_reset()") threw; fails
   // its running request.
   void fail_component(ComponentEntry& entry, const std::string& what, const std::string& reason);
@@ -190,6 +256,15 @@ class Simulation {
 
   Model model_;                                              // mjModel + mjData
   double realtime_factor_;                                   // 0 = as fast as possible
+  bool paused_ = false;                                      // no step of the loop's own
+  std::uint64_t owed_steps_ = 0;                             // `simulation step` steps left
+  std::function<void()> owed_done_;                          // runs after the last owed step
+  std::uint64_t model_generation_ = 0;                       // bumped when the model is replaced
+  bool reschedule_ = false;                                  // the loop restarts its pace from now
+  std::chrono::steady_clock::time_point next_step_{};        // when the paced loop steps next
+  std::chrono::steady_clock::time_point window_start_{};     // wall start of the rate window
+  std::uint64_t window_steps_ = 0;                           // steps_ at the window's start
+  std::atomic<double> recent_factor_{0};                     // measured over the last window
   std::shared_ptr<SimulationGate> gate_;                     // shared with every manager
   std::vector<std::unique_ptr<ComponentEntry>> entries_;     // every component, in order
   std::vector<std::shared_ptr<RequestManager>> managers_;    // every transport

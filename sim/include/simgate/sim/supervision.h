@@ -19,7 +19,7 @@
 // host, tests), everything is visible.
 // time: now (simulated time, seconds since the epoch at start), async sleep t (completes
 // when t simulated seconds have passed; a concurrent service: every caller sleeps on its
-// own), statistics, mode.
+// own), statistics, mode, set_time_scale value (the real-time factor, changed at run time).
 //
 // Threads: simulation thread only.
 #ifndef SIMGATE_SIM_SUPERVISION_H_
@@ -89,6 +89,8 @@ class TimeServices : public Component {
   void sleep(Completion done, double seconds);
   json statistics() const;
   std::string mode() const;
+  // MORSE's time scale: the real-time factor from now on (0 = as fast as possible).
+  bool set_time_scale(double value);
 
   void default_action() override;
 

@@ -6,6 +6,9 @@
 // Groups and their files (docs/world/*.md describes each on the wire):
 //   capabilities.cc  get_capabilities: the features the groups below offer, in ROS 2
 //                    simulation_interfaces' numbering (read off the registered services)
+//   stepping.cc      get_simulation_state, pause, play, step n (docs/world/stepping.md)
+//   world_state.cc   reset scope robot, save_state, restore_state, list_states, drop_state
+//                    (docs/world/state.md)
 //
 // Threads: simulation thread only, as every service.
 #ifndef SIMGATE_SIM_WORLD_SERVICES_H_
@@ -20,6 +23,8 @@ namespace simgate::sim {
 void add_world_services(SupervisionServices& simulation, Simulation& sim);
 
 void add_capability_services(SupervisionServices& simulation, Simulation& sim);
+void add_stepping_services(SupervisionServices& simulation, Simulation& sim);
+void add_state_services(SupervisionServices& simulation, Simulation& sim);
 
 }  // namespace simgate::sim
 

@@ -1,0 +1,125 @@
+// The stepping group of `simulation` (world_services.h, docs/world/stepping.md):
+// get_simulation_state, pause, play and the async step n.
+//
+// `step n` is a request for n steps of a paused simulation (Simulation::owe_steps). The
+// thread that runs the request takes them at once, for up to Simulation::k_inline_step_budget
+// (a client driving the simulation step by step pays no hand-off to the simulation thread
+// and back); the loop takes what is left, one step per iteration with requests served
+// between two, so a cancel, a pause or a new step can stop it. The request ends SUCCESS
+// with the new simulated time after the last step, or PREEMPTED with the steps done.
+#include <cstdint>
+#include <memory>
+
+#include "simgate/core/errors.h"
+#include "simgate/sim/world_services.h"
+
+namespace simgate::sim {
+
+namespace {
+
+// More than this in one request is a mistake (a typo, a unit error): 1e6 steps are half an
+// hour of simulated time at the demo's 2 ms, and about a minute of stepping.
+constexpr std::int64_t k_max_steps = 1'000'000;
+
+// The one step request running: `simulation`'s async slot holds at most one.
+class Stepping {
+ public:
+  explicit Stepping(Simulation& sim) : sim_(sim) {}
+
+  json state() const {
+    const SimulationStatistics s = sim_.statistics();
+    return {{"state", to_string(sim_.run_state())},
+            {"sim_time", s.sim_time},
+            {"steps", s.steps},
+            {"timestep", s.timestep},
+            {"realtime_factor", s.recent_factor},
+            {"target_realtime_factor", s.target_factor},
+            {"dynamics_suspended", sim_.dynamics_suspended()},
+            {"owed_steps", sim_.owed_steps()}};
+  }
+
+  std::string pause() {
+    stop_stepping("simulation pause stopped the steps");
+    sim_.set_paused(true);
+    return "Simulation is paused";
+  }
+
+  std::string play() {
+    stop_stepping("simulation play resumed the simulation");
+    sim_.set_paused(false);
+    return "Simulation is playing";
+  }
+
+  void step(Completion done, std::int64_t n) {
+    if (n < 1 || n > k_max_steps)
+      throw ServiceError("simulation step: n = " + std::to_string(n) + " is out of range: expected an integer from 1 to " +
+                             std::to_string(k_max_steps),
+                         Failure::bad_arguments, {{"parameter", "n"}});
+    if (!sim_.paused())
+      throw ServiceError("simulation step: the simulation is playing; pause it first (simulation pause)",
+                         Failure::service_error, {{"state", to_string(sim_.run_state())}});
+    // a step request preempted by this one was settled by the slot (interrupt) already
+    requested_ = static_cast<std::uint64_t>(n);
+    done_ = done;
+    sim_.owe_steps(requested_, [this] {
+      done_(Status::success, json{{"sim_time", sim_.sim_time()}, {"steps_done", requested_}});
+      done_ = Completion();
+    });
+    sim_.take_owed_steps(std::chrono::steady_clock::now() + Simulation::k_inline_step_budget);
+  }
+
+  // The running step request is interrupted (cancel, a new step, another async request of
+  // `simulation`, shutdown): it ends PREEMPTED with the steps done, its reason kept.
+  void interrupted() { end_early(nullptr); }
+
+ private:
+  // pause and play while steps run: the request ends PREEMPTED, saying why
+  void stop_stepping(const char* why) {
+    if (done_ && !done_.done()) end_early(why);
+  }
+
+  void end_early(const char* why) {
+    const std::uint64_t left = sim_.forgive_owed_steps();
+    if (!done_ || done_.done()) return;
+    json value{{"sim_time", sim_.sim_time()}, {"steps_done", requested_ - left}, {"steps_requested", requested_}};
+    if (why) {
+      Outcome o;
+      o.status = Status::preempted;
+      o.failure = Failure::preempted;
+      o.message = why;
+      o.value = std::move(value);
+      done_.finish(std::move(o));
+    } else {
+      // the reason the core gave the interruption (cancelled by its client, preempted by...)
+      done_(Status::preempted, std::move(value));
+    }
+    done_ = Completion();
+  }
+
+  Simulation& sim_;
+  std::uint64_t requested_ = 0;  // n of the running request
+  Completion done_;              // the running request (empty when none)
+};
+
+}  // namespace
+
+void add_stepping_services(SupervisionServices& simulation, Simulation& sim) {
+  auto stepping = std::make_shared<Stepping>(sim);
+  simulation
+      .offer_service("get_simulation_state", [stepping] { return stepping->state(); })
+      .doc("{state: playing|paused|stepping|quitting, sim_time, steps, timestep, realtime_factor (measured), "
+           "target_realtime_factor, dynamics_suspended, owed_steps}");
+  simulation.offer_service("pause", [stepping] { return stepping->pause(); })
+      .doc("Stop time and physics (requests are still served); ends a running step PREEMPTED");
+  simulation.offer_service("play", [stepping] { return stepping->play(); })
+      .doc("Resume time and physics at the real-time factor; ends a running step PREEMPTED");
+  simulation
+      .offer_async_service("step", [stepping](Completion done, std::int64_t n) { stepping->step(std::move(done), n); },
+                           {{"n", 1}})
+      .interruptible()
+      .doc("Paused only: take n steps as fast as possible; SUCCESS {sim_time, steps_done}, or PREEMPTED with the "
+           "steps done");
+  simulation.on_interrupt("step", [stepping] { stepping->interrupted(); });
+}
+
+}  // namespace simgate::sim

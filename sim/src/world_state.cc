@@ -1,0 +1,290 @@
+// The state group of `simulation` (world_services.h, docs/world/state.md): reset with a
+// scope, and in-memory snapshots (save_state, restore_state, list_states, drop_state).
+//
+// A snapshot is every part of mjData that the next step reads: time, qpos, qvel, act, ctrl,
+// the solver's warm start, the applied forces, the mocap poses and userdata. Restoring it
+// and stepping gives, bit for bit, what stepping from the moment it was saved gave (the
+// components' own commands aside: see restore below). A snapshot belongs to the model it
+// was saved from (Simulation::model_generation() and the sizes): a model replaced since
+// (spawn, delete) refuses it.
+//
+// Whatever puts the world somewhere else (a reset, a restore) ends the async requests of
+// the components it moves PREEMPTED, saying why: a goto or a trajectory started in the old
+// state means nothing in the new one. When simulated time jumps (reset everything, restore),
+// the running `time sleep` calls end the same way: their wake-up time was of the old clock.
+#include <cstdint>
+#include <cstring>
+#include <map>
+#include <memory>
+
+#include "simgate/core/call_context.h"
+#include "simgate/core/errors.h"
+#include "simgate/sim/sim_component.h"
+#include "simgate/sim/world_services.h"
+
+namespace simgate::sim {
+
+namespace {
+
+// Snapshots kept at once: each holds a copy of the state (a few KiB for the demo, a few
+// hundred for a large model); a client that saves in a loop without dropping meets this.
+constexpr std::size_t k_max_states = 64;
+
+// One mjData array a snapshot copies, and its length in the model.
+struct StateArray {
+  mjtNum* mjData::*field;
+  int (*size)(const mjModel*);
+};
+
+// What the next step reads, besides time (the list is MuJoCo 2.2.2's mj_step inputs).
+const StateArray k_state_arrays[] = {
+    {&mjData::qpos, [](const mjModel* m) { return m->nq; }},
+    {&mjData::qvel, [](const mjModel* m) { return m->nv; }},
+    {&mjData::act, [](const mjModel* m) { return m->na; }},
+    {&mjData::ctrl, [](const mjModel* m) { return m->nu; }},
+    {&mjData::qacc_warmstart, [](const mjModel* m) { return m->nv; }},
+    {&mjData::qfrc_applied, [](const mjModel* m) { return m->nv; }},
+    {&mjData::xfrc_applied, [](const mjModel* m) { return 6 * m->nbody; }},
+    {&mjData::mocap_pos, [](const mjModel* m) { return 3 * m->nmocap; }},
+    {&mjData::mocap_quat, [](const mjModel* m) { return 4 * m->nmocap; }},
+    {&mjData::userdata, [](const mjModel* m) { return m->nuserdata; }},
+};
+
+// The numbers of the model a snapshot fits.
+std::size_t state_size(const mjModel* m) {
+  std::size_t n = 0;
+  for (const auto& a : k_state_arrays) n += static_cast<std::size_t>(a.size(m));
+  return n;
+}
+
+struct Snapshot {
+  std::uint64_t generation = 0;  // Simulation::model_generation() when saved
+  std::size_t size = 0;          // state_size() of that model
+  double time = 0;               // simulated time
+  std::vector<mjtNum> values;    // k_state_arrays, one after the other
+};
+
+// Ends what `e` is running PREEMPTED with `reason`: its slot's request (through
+// interrupt(), which stops what it moves) and the calls of its concurrent services.
+void end_requests(ComponentEntry& e, const std::string& reason) {
+  AsyncSlot& slot = *e.component->async_slot();
+  if (slot.busy()) {
+    const auto state = slot.running;
+    state->interrupt_reason = Failure::preempted;
+    state->interrupt_message = reason;
+    if (slot.interrupt) slot.interrupt();
+    Completion{state}(Status::preempted);  // ignored if interrupt() ended it
+  }
+  for (const Completion& call : slot.running_concurrent()) {
+    Outcome o;
+    o.status = Status::preempted;
+    o.failure = Failure::preempted;
+    o.message = reason;
+    call.finish(std::move(o));
+  }
+}
+
+class WorldState {
+ public:
+  explicit WorldState(Simulation& sim) : sim_(sim) {}
+
+  std::string reset(const std::string& scope, const std::string& robot) {
+    if (scope == "all") {
+      if (!robot.empty()) refuse_robot_with(scope);
+      end_robots_requests("simulation reset (all): every object went back to its initial state");
+      sim_.reset_all();
+      end_sleeps("simulation reset (all): simulated time went back to 0");
+      return "Simulation reset: objects and time restored to their initial state";
+    }
+    if (scope == "state") {
+      if (!robot.empty()) refuse_robot_with(scope);
+      end_robots_requests("simulation reset (state): every object went back to its initial state");
+      sim_.reset();
+      return "Objects restored to initial position";
+    }
+    if (scope == "robot") {
+      reset_robot(robot);
+      return "Robot '" + robot + "' restored to its initial state";
+    }
+    throw ServiceError("simulation reset: scope = \"" + scope + "\": expected \"all\" (objects and time), "
+                       "\"state\" (objects; time goes on) or \"robot\" (one robot, named by `robot`)",
+                       Failure::bad_arguments, {{"parameter", "scope"}});
+  }
+
+  std::uint64_t save_state() {
+    if (snapshots_.size() >= k_max_states)
+      throw ServiceError("simulation save_state: " + std::to_string(k_max_states) +
+                             " states are saved already (the limit): drop one first (simulation drop_state handle)",
+                         Failure::service_error, {{"limit", k_max_states}});
+    const mjModel* m = sim_.m();
+    const mjData* d = sim_.d();
+    Snapshot s;
+    s.generation = sim_.model_generation();
+    s.size = state_size(m);
+    s.time = d->time;
+    s.values.resize(s.size);
+    mjtNum* out = s.values.data();
+    for (const auto& a : k_state_arrays) {
+      const int n = a.size(m);
+      std::memcpy(out, d->*a.field, sizeof(mjtNum) * static_cast<std::size_t>(n));
+      out += n;
+    }
+    const std::uint64_t handle = next_handle_++;
+    snapshots_.emplace(handle, std::move(s));
+    return handle;
+  }
+
+  json restore_state(std::int64_t handle) {
+    const Snapshot& s = find(handle, "restore_state");
+    const mjModel* m = sim_.m();
+    if (s.generation != sim_.model_generation() || s.size != state_size(m))
+      throw ServiceError("simulation restore_state: state " + std::to_string(handle) +
+                             " was saved from another model (generation " + std::to_string(s.generation) +
+                             "; the model is now generation " + std::to_string(sim_.model_generation()) +
+                             ", replaced by a spawn or a delete since): it cannot be restored",
+                         Failure::service_error, {{"parameter", "handle"}});
+    // what moves stops first, in the world it was started in
+    end_robots_requests("simulation restore_state: the simulation went back to state " + std::to_string(handle));
+    const bool clock_moves = s.time != sim_.sim_time();
+    mjData* d = sim_.d();
+    d->time = s.time;
+    const mjtNum* in = s.values.data();
+    for (const auto& a : k_state_arrays) {
+      const int n = a.size(m);
+      std::memcpy(d->*a.field, in, sizeof(mjtNum) * static_cast<std::size_t>(n));
+      in += n;
+    }
+    // what sensors read is of the restored state; the warm start is the saved one whatever
+    // mj_forward did with it, so the next step is the one the saved state took
+    sim_.forward();
+    std::memcpy(d->qacc_warmstart, s.values.data() + warmstart_offset(m), sizeof(mjtNum) * static_cast<std::size_t>(m->nv));
+    // what components held of the state they were in (a held joint, a motion's start) is gone
+    for (auto& e : sim_.components())
+      if (e->sim_component) e->sim_component->on_reset();
+    if (clock_moves)
+      end_sleeps("simulation restore_state: simulated time went to that of state " + std::to_string(handle));
+    return {{"sim_time", s.time}};
+  }
+
+  json list_states() const {
+    json out = json::array();
+    for (const auto& [handle, s] : snapshots_)
+      out.push_back({{"handle", handle},
+                     {"sim_time", s.time},
+                     {"model_generation", s.generation},
+                     {"restorable", s.generation == sim_.model_generation() && s.size == state_size(sim_.m())}});
+    return out;
+  }
+
+  bool drop_state(std::int64_t handle) {
+    find(handle, "drop_state");
+    snapshots_.erase(static_cast<std::uint64_t>(handle));
+    return true;
+  }
+
+ private:
+  const Snapshot& find(std::int64_t handle, const char* service) const {
+    const auto it = handle > 0 ? snapshots_.find(static_cast<std::uint64_t>(handle)) : snapshots_.end();
+    if (it == snapshots_.end())
+      throw ServiceError(std::string("simulation ") + service + ": no saved state " + std::to_string(handle) +
+                             ": expected a handle from simulation save_state (simulation list_states)",
+                         Failure::bad_arguments, {{"parameter", "handle"}});
+    return it->second;
+  }
+
+  static std::size_t warmstart_offset(const mjModel* m) {
+    std::size_t offset = 0;
+    for (const auto& a : k_state_arrays) {
+      if (a.field == &mjData::qacc_warmstart) break;
+      offset += static_cast<std::size_t>(a.size(m));
+    }
+    return offset;
+  }
+
+  [[noreturn]] static void refuse_robot_with(const std::string& scope) {
+    throw ServiceError("simulation reset: scope \"" + scope + "\" resets every robot: `robot` names one only with "
+                       "scope \"robot\"",
+                       Failure::bad_arguments, {{"parameter", "robot"}});
+  }
+
+  void end_robots_requests(const std::string& reason) {
+    for (auto& e : sim_.components())
+      if (e->is_robot || !e->robot.empty()) end_requests(*e, reason);
+  }
+
+  void end_sleeps(const std::string& reason) {
+    if (ComponentEntry* time = sim_.find("time")) end_requests(*time, reason);
+  }
+
+  void reset_robot(const std::string& name) {
+    // a robot the caller's transport does not serve is answered as one that does not exist
+    ComponentEntry* entry = sim_.find(name);
+    auto* robot = entry && entry->is_robot && caller_serves(name) ? dynamic_cast<Robot*>(entry->component.get())
+                                                                   : nullptr;
+    if (!robot)
+      throw ServiceError("simulation reset: robot = \"" + name + "\": expected the name of a robot (simulation "
+                         "list_robots)",
+                         Failure::bad_arguments, {{"parameter", "robot"}});
+    const std::string reason = "simulation reset (robot): robot '" + name + "' went back to its initial state";
+    end_requests(*entry, reason);
+    for (auto& e : sim_.components())
+      if (e->robot == name) end_requests(*e, reason);
+
+    // its joints to their initial values, its velocities, activations and controls to 0
+    const mjModel* m = sim_.m();
+    mjData* d = sim_.d();
+    for (int j = 0; j < m->njnt; ++j) {
+      if (!in_subtree(m, m->jnt_bodyid[j], robot->body())) continue;
+      const int qpos = m->jnt_qposadr[j];
+      const int dof = m->jnt_dofadr[j];
+      const int nq = m->jnt_type[j] == mjJNT_FREE ? 7 : m->jnt_type[j] == mjJNT_BALL ? 4 : 1;
+      const int nv = m->jnt_type[j] == mjJNT_FREE ? 6 : m->jnt_type[j] == mjJNT_BALL ? 3 : 1;
+      mju_copy(d->qpos + qpos, m->qpos0 + qpos, nq);
+      mju_zero(d->qvel + dof, nv);
+      mju_zero(d->qacc_warmstart + dof, nv);
+      mju_zero(d->qfrc_applied + dof, nv);
+      for (int u = 0; u < m->nu; ++u) {
+        if (m->actuator_trntype[u] != mjTRN_JOINT || m->actuator_trnid[2 * u] != j) continue;
+        d->ctrl[u] = 0;
+        if (m->actuator_dyntype[u] != mjDYN_NONE) d->act[u - (m->nu - m->na)] = 0;
+      }
+    }
+    for (int b = 0; b < m->nbody; ++b)
+      if (in_subtree(m, b, robot->body())) mju_zero(d->xfrc_applied + 6 * b, 6);
+    sim_.forward();
+    // its components let go of what they held, the robot first
+    robot->on_reset();
+    for (auto& e : sim_.components())
+      if (e->robot == name && e->sim_component) e->sim_component->on_reset();
+  }
+
+  Simulation& sim_;
+  std::map<std::uint64_t, Snapshot> snapshots_;  // by handle, oldest first
+  std::uint64_t next_handle_ = 1;                // handles are never reused
+};
+
+}  // namespace
+
+void add_state_services(SupervisionServices& simulation, Simulation& sim) {
+  auto state = std::make_shared<WorldState>(sim);
+  simulation
+      .offer_service(
+          "reset",
+          [state](const std::string& scope, const std::string& robot) { return state->reset(scope, robot); },
+          {{"scope", "all"}, {"robot", ""}})
+      .doc("scope \"all\": objects and time to their initial state; \"state\": objects only (time goes on); "
+           "\"robot\": the robot named `robot`. Running requests of what is reset end PREEMPTED");
+  simulation.offer_service("save_state", [state] { return state->save_state(); })
+      .doc("Keep the whole simulation state in memory; returns its handle (an integer)");
+  simulation
+      .offer_service("restore_state", [state](std::int64_t handle) { return state->restore_state(handle); },
+                     {"handle"})
+      .doc("Go back to a saved state (same model only); components are reset; returns {sim_time}");
+  simulation.offer_service("list_states", [state] { return state->list_states(); })
+      .doc("[{handle, sim_time, model_generation, restorable}] of the saved states");
+  simulation
+      .offer_service("drop_state", [state](std::int64_t handle) { return state->drop_state(handle); }, {"handle"})
+      .doc("Forget a saved state");
+}
+
+}  // namespace simgate::sim
