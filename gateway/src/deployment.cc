@@ -137,6 +137,7 @@ void parse_scene(ConfigObject& root, const std::string& base_dir, Deployment& d)
                         describe_json(*factor));
     }
   });
+  errors.check([&] { d.start_paused = scene.get_bool("start_paused", false); });
   errors.check([&] { scene.finish(); });
   errors.throw_if_any();
 }

@@ -79,6 +79,7 @@ const BrokenCase k_cases[] = {
     {"timestep negative", [](json& c) { c["scene"]["timestep"] = -1; }, {"scene.timestep", "expected", "-1"}},
     {"realtime factor word", [](json& c) { c["scene"]["realtime_factor"] = "fast"; },
      {"scene.realtime_factor", "\"max\"", "fast"}},
+    {"start_paused a word", [](json& c) { c["scene"]["start_paused"] = "yes"; }, {"scene.start_paused", "yes"}},
     {"transports missing", [](json& c) { c.erase("transports"); }, {"transports", "expected"}},
     {"transport key typo", [](json& c) { c["transports"]["socket"]["option"] = json::object(); },
      {"transports.socket.option", "unknown key"}},
@@ -304,6 +305,13 @@ TEST(GatewayConfigTest, MaxMeansAsFastAsPossible) {
   json c = demo_config();
   c["scene"]["realtime_factor"] = "max";
   EXPECT_EQ(parse_deployment(c, "/").realtime_factor, 0.0);
+}
+
+TEST(GatewayConfigTest, StartPausedIsReadAndOffByDefault) {
+  json c = demo_config();
+  EXPECT_FALSE(parse_deployment(c, "/").start_paused);
+  c["scene"]["start_paused"] = true;
+  EXPECT_TRUE(parse_deployment(c, "/").start_paused);
 }
 
 // ---- every error at once, with suggestions ----

@@ -73,6 +73,7 @@ mistakes = {
     "scene missing": lambda c: c.pop("scene"),
     "timestep negative": lambda c: c["scene"].update(timestep=-1),
     "realtime factor word": lambda c: c["scene"].update(realtime_factor="fast"),
+    "start_paused as a word": lambda c: c["scene"].update(start_paused="yes"),
     "socket option typo": lambda c: c["transports"]["socket"]["options"].update(prot=4000),
     "port out of range": lambda c: c["transports"]["socket"]["options"].update(port=70000),
     "socket option under its old and new name": lambda c: c["transports"]["socket"]["options"].update(

@@ -1,7 +1,7 @@
 // simgate/gateway/deployment.h — the deployment file: what to simulate and how to serve it.
 //
 // One JSON file per deployment (docs/configuration.md):
-//   scene       {mjcf, timestep?, realtime_factor? (number >= 0, or "max")}
+//   scene       {mjcf, timestep?, realtime_factor? (number >= 0, or "max"), start_paused? (bool)}
 //   component_libraries  [name or path of a component library (sim/component_library.h)]
 //   transports  {name: {plugin?, options?, allow?, deny?}}
 //   robots      [{name, type?, body?, options?, components?: [{name, type, body?, options?}]}]
@@ -69,6 +69,7 @@ struct Deployment {
   std::string mjcf;                      // absolute or base_dir-relative, resolved
   std::optional<double> timestep;        // overrides the MJCF's
   double realtime_factor = 1.0;          // 0 = as fast as possible
+  bool start_paused = false;             // lockstep: clients drive it with `simulation step`
   std::vector<TransportConfig> transports;  // sorted by name
   std::vector<std::string> component_libraries;  // names or paths, in file order
   std::vector<RobotConfig> robots;       // in file order
