@@ -5,6 +5,7 @@
 
 #include <atomic>
 #include <iterator>
+#include <optional>
 #include <thread>
 #include <utility>
 #include <cstdio>
@@ -17,6 +18,24 @@
 
 namespace simgate {
 namespace detail {
+
+class Inbox;
+
+// The inbox whose requests this thread is executing, if any (Executing): what finishes
+// there is taken by the process_locked() that follows on this thread.
+thread_local const Inbox* t_executing = nullptr;
+
+// Marks the calling thread as executing `inbox`'s requests for its lifetime.
+class Executing {
+ public:
+  explicit Executing(const Inbox* inbox) : previous_(std::exchange(t_executing, inbox)) {}
+  ~Executing() { t_executing = previous_; }
+  Executing(const Executing&) = delete;
+  Executing& operator=(const Executing&) = delete;
+
+ private:
+  const Inbox* previous_;  // restored at destruction
+};
 
 // The hand-over point between transport threads and the simulation thread.
 class Inbox : public CompletionSink {
@@ -56,7 +75,11 @@ class Inbox : public CompletionSink {
       note_queued();
       gate = gate_;
     }
-    gate->signal();
+    // finished by a request this inbox's process_locked() is running on this thread (an
+    // async service done in its start method: `simulation step 1` on a paused simulation):
+    // that process_locked() delivers it before it returns, and waking the simulation thread
+    // would only make it compete for the CPU and the lock
+    if (t_executing != this) gate->signal();
   }
 
   // under the simulation lock; `events` and `finished` come empty and keep their capacity
@@ -246,7 +269,10 @@ bool RequestManager::run_or_submit(std::span<std::pair<RequestId, Call>> calls, 
   // signal: waking the simulation thread for work done here would only make it compete
   // for the CPU)
   process_locked();
-  for (auto& [id, call] : calls) execute_and_deliver(id, call, refilled);
+  {
+    const detail::Executing executing(inbox_.get());
+    for (auto& [id, call] : calls) execute_and_deliver(id, call, refilled);
+  }
   // completions these produced at once (preemption of a running request, an async service
   // that finished in its start method); the calls stay where they are, for the caller to
   // reuse
@@ -327,6 +353,8 @@ std::size_t RequestManager::process_locked() {
   // completions that arrived before these requests go out first
   for (auto& [id, outcome] : finished) deliver(id, std::move(outcome));
 
+  // what the requests below finish on this thread is taken after them (Inbox::finished)
+  std::optional<detail::Executing> executing(std::in_place, inbox_.get());
   for (auto& event : events) {
     if (auto* r = std::get_if<detail::Inbox::Request>(&event)) {
       execute_and_deliver(r->id, r->call, /*refilled=*/false);
@@ -341,6 +369,7 @@ std::size_t RequestManager::process_locked() {
     }
   }
 
+  executing.reset();
   // completions produced while executing (immediate completion, preemption, cancel); requests
   // that arrived meanwhile wait for the next process(), which the gate makes immediate
   events.clear();

@@ -433,6 +433,38 @@ TEST_F(RequestManagerTest, RunOrSubmitRunsOnTheCallingThreadWhenTheLockIsFree) {
   EXPECT_FALSE(rm.gate()->consume());
 }
 
+// `simulation step 1` on a paused simulation: an async service done in its start method,
+// run on the calling thread, is answered there, and the simulation thread is not woken for it
+// (it would only compete for the CPU and the lock: a client stepping back to back measured
+// p99 4 ms with the wake, 87 us without)
+TEST_F(RequestManagerTest, AnAsyncServiceDoneInItsStartOnTheCallingThreadWakesNobody) {
+  rm.register_async_service("test_component", [](Completion done, int n) { done(Status::success, n); }, "now",
+                            {"n"});
+  RequestId id = rm.new_request_id();
+  EXPECT_TRUE(rm.run_or_submit(id, Call{"test_component", "now", json{7}}));
+  ASSERT_TRUE(rm.outcome(id).has_value());
+  EXPECT_EQ(rm.outcome(id)->value, json(7));
+  EXPECT_FALSE(rm.gate()->consume());
+  // the same from the simulation thread's process(): answered in that process()
+  RequestId queued = rm.call("test_component", "now", json{8});
+  rm.gate()->consume();  // submit() signalled
+  rm.process();
+  EXPECT_EQ(rm.outcome(queued)->value, json(8));
+  EXPECT_FALSE(rm.gate()->consume());
+}
+
+TEST_F(RequestManagerTest, AnAsyncServiceDoneOnAnotherThreadStillWakesTheLoop) {
+  Completion kept;
+  rm.register_async_service("test_component", [&](Completion done) { kept = done; }, "later");
+  RequestId id = rm.new_request_id();
+  EXPECT_TRUE(rm.run_or_submit(id, Call{"test_component", "later", nullptr}));
+  EXPECT_FALSE(rm.outcome(id).has_value());
+  std::thread([&] { kept(Status::success); }).join();
+  EXPECT_TRUE(rm.gate()->consume());  // the loop's next process() delivers it
+  rm.process();
+  EXPECT_TRUE(rm.outcome(id).has_value());
+}
+
 TEST_F(RequestManagerTest, RunOrSubmitQueuesWhileTheSimulationLockIsHeld) {
   rm.register_service("test_component", add, "add", {"a", "b"});
   std::vector<std::pair<RequestId, Call>> calls;
