@@ -24,6 +24,9 @@ Sections (each ends "ok", "error" with the reason, or "skipped" when a part was 
            generic components vs bare mj_step (same model, same steps); the sync round trip
            of a 40-value `sensors` component's get_local_data vs `time now` (same gateway,
            real time); a 360-ray laser_scanner update vs the same bare mj_ray loop
+  world    issue #19: `simulation step [1]` calls/s back to back on a gateway started
+           paused (socket) vs 1 / (`time now` round trip p50 + one bare mj_step), the same
+           gateway and connection kind; save_state / restore_state vs mj_copyData
 
 Usage: bench/harness.py --build-dir DIR [--out DIR] [--smoke] [--repeats N]
 Normally run through bench/run, which builds first. Writes DIR/results.json and
@@ -740,6 +743,58 @@ class Harness:
                           "laser_bare_us_per_scan": laser["bare_us_per_scan"]}
         return out
 
+    def section_world(self):
+        """Issue #19: client-driven stepping (`simulation step [1]` back to back on the socket
+        transport of a gateway started paused) against its physical limit, one `time now`
+        round trip plus one bare mj_step; and save_state / restore_state against
+        mj_copyData of the same model."""
+        sim = os.path.join(self.bin, "simgate_bench_sim")
+        if not os.access(sim, os.X_OK) or not self.plugin_built("socket"):
+            return {"status": "skipped", "reason": "simgate_bench_sim or the socket transport is not built"}
+        demo, mjcf = self.demo_config()
+        with open(demo) as f:
+            cfg = json.load(f)
+        cfg["scene"]["start_paused"] = True
+        config = os.path.join(self.out, "demo-paused-bench.json")
+        with open(config, "w") as f:
+            json.dump(cfg, f, indent=1)
+        duration = 0.5 if self.smoke else 2.0
+        p = Process("world-paused", [sim, "--mode", "gateway", "--config", config, "--realtime-factor", "1",
+                                     "--duration", "3600", "--until-stdin-closes"],
+                    self.logs, self.env, stdin=subprocess.PIPE)
+        runs = []
+        try:
+            port = port_of(p.read_json("endpoints", 60)["endpoints"]["socket"])
+            for rep in range(self.repeats):
+                # the three side by side in rotating order: a quiet or busy moment of the host
+                # hits each of them in some repeat
+                now, step, bare = in_rotation(
+                    rep, lambda: self.latency(port, ["--proto", "socket", "--request", "time now"]),
+                    lambda: self.throughput(port, ["--proto", "socket", "--request", "simulation step [1]"], 1, 1),
+                    lambda: run_json([sim, "--mode", "bare", "--mjcf", mjcf, "--duration", str(duration)],
+                                     self.timeout, self.env))
+                step_us = 1e6 / bare["steps_per_s"]
+                limit = 1e6 / (now["p50_us"] + step_us)
+                runs.append({"time_now": now, "step": step, "bare": bare, "bare_step_us": step_us,
+                             "limit_steps_per_s": limit, "ratio": ratio(step["rps"], limit)})
+            step_latency = self.latency(port, ["--proto", "socket", "--request", "simulation step [1]"])
+            p.proc.stdin.close()
+            p.read_json("steps_per_s", 120)
+        finally:
+            p.check_stopped()
+        snapshot = run_json([sim, "--mode", "snapshot", "--mjcf", mjcf, "--duration", str(duration)],
+                            self.timeout, self.env)
+        s = {"step_calls_per_s": spread([r["step"]["rps"] for r in runs]),
+             "time_now_p50_us": spread([r["time_now"]["p50_us"] for r in runs]),
+             "bare_step_us": spread([r["bare_step_us"] for r in runs]),
+             "limit_steps_per_s": spread([r["limit_steps_per_s"] for r in runs]),
+             "ratio": spread([r["ratio"] for r in runs]),
+             "step_p50_us": step_latency["p50_us"], "step_p99_us": step_latency["p99_us"],
+             "save_state_us": snapshot["save_state_us"], "restore_state_us": snapshot["restore_state_us"],
+             "mj_copyData_us": snapshot["mj_copyData_us"]}
+        self.target("simulation step [1] calls/s / (1 / (time now p50 + bare mj_step))", s["ratio"], ">=", 0.8, "x")
+        return {"status": "ok", "summary": s, "runs": runs, "step_latency": step_latency, "snapshot": snapshot}
+
     # ---- driver
 
     def machine(self):
@@ -782,7 +837,7 @@ class Harness:
         self.results["repeats"] = self.repeats
         self.results["machine"] = self.machine()
         only = set(self.args.only.split(",")) if self.args.only else None
-        for name in ("socket", "jsonrpc", "dds", "peers", "sim", "memory", "byor"):
+        for name in ("socket", "jsonrpc", "dds", "peers", "sim", "memory", "byor", "world"):
             if only and name not in only:
                 continue
             t0 = time.monotonic()
@@ -981,6 +1036,26 @@ def markdown(r):
                   f"{fmt(la['update_us_per_scan'])} | {fmt(la['update_speed_ratio'], 3)} |",
                   f"| get_local_data with its JSON (µs per scan, {la['get_local_data_bytes']} bytes) | | "
                   f"{fmt(la['get_local_data_us_per_scan'])} | |", ""]
+
+    lines += ["## Controlling the world (issue #19)", ""]
+    st = status_line("world")
+    if st:
+        lines += [st, ""]
+    else:
+        w = s["world"]["summary"]
+        lines += ["Client-driven stepping on the demo scene, started paused, socket transport: `simulation step [1]` "
+                  "back to back (one outstanding) against its limit, one `time now` round trip plus one bare "
+                  "`mj_step`, measured side by side in each repeat.", "",
+                  "| measure | value |", "|---|---|",
+                  f"| `simulation step [1]` calls/s | {fmt(w['step_calls_per_s'])} |",
+                  f"| `time now` round trip p50 (µs) | {fmt(w['time_now_p50_us'])} |",
+                  f"| bare mj_step (µs) | {fmt(w['bare_step_us'])} |",
+                  f"| limit: 1 / (time now p50 + mj_step) (calls/s) | {fmt(w['limit_steps_per_s'])} |",
+                  f"| step calls/s / limit | {fmt(w['ratio'], 2)} |",
+                  f"| `simulation step [1]` round trip p50 / p99 (µs) | {fmt(w['step_p50_us'])} / "
+                  f"{fmt(w['step_p99_us'])} |",
+                  f"| save_state / restore_state / mj_copyData (µs) | {fmt(w['save_state_us'], 2)} / "
+                  f"{fmt(w['restore_state_us'], 2)} / {fmt(w['mj_copyData_us'], 2)} |", ""]
 
     lines += ["## Sections", "", "| section | status | seconds |", "|---|---|---|"]
     for name, sec in s.items():

@@ -34,6 +34,10 @@
 //            added (every joint's jointpos, the torso's frame and subtree), which adds the
 //            `sensors` component; the bare loop steps the same copy. Prints steps/s (medians)
 //            and gateway / bare (median of the rounds' ratios) per variant.
+//   snapshot issue #19's snapshots: `simulation save_state` and `restore_state` on --mjcf
+//            (run as a transport runs them: RequestManager::on_incoming_request, arguments
+//            bound from JSON), against mj_copyData of the same model, in alternating batches
+//            for --duration seconds. Prints µs per call (medians of the batches).
 //
 // The probe costs one clock read per step; both modes run on the main thread, unpinned.
 #include <poll.h>
@@ -61,6 +65,7 @@
 #include "simgate/sim/native_sensors.h"
 #include "simgate/sim/registry.h"
 #include "simgate/sim/simulation.h"
+#include "simgate/sim/supervision.h"
 
 namespace {
 
@@ -82,6 +87,72 @@ class StepProbe : public simgate::Component {
 
 Clock::duration seconds(double s) {
   return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s));
+}
+
+// Runs services in the calling thread (snapshot mode); outcomes are only counted.
+class DirectManager : public simgate::RequestManager {
+ public:
+  DirectManager() : RequestManager("Bench service manager") {}
+  // One sync call; throws unless it succeeded.
+  simgate::json call(const std::string& service, simgate::json params = simgate::json::array()) {
+    auto outcome = on_incoming_request(new_request_id(), {"simulation", service, std::move(params)});
+    if (!outcome || outcome->status != simgate::Status::success)
+      throw std::runtime_error("simulation " + service + " failed: " + (outcome ? outcome->message : "async"));
+    return outcome->value.value_or(simgate::json());
+  }
+
+ protected:
+  void on_service_completion(simgate::RequestId, simgate::Outcome&&) override {}
+};
+
+json run_snapshot(const std::string& mjcf, double duration_s) {
+  simgate::sim::Simulation sim(simgate::sim::Model::load_file(mjcf), {std::nullopt, 0.0});
+  sim.add_supervision_services();
+  auto rm = std::make_shared<DirectManager>();
+  rm->register_component(*sim.find("simulation")->component);
+  sim.add_request_manager(rm, "bench");
+  std::lock_guard lock(*sim.gate());
+  // a state worth saving: a second of motion
+  for (int i = 0; i < 500; ++i) sim.step();
+  mjData* copy = mj_makeData(sim.m());
+  const std::int64_t handle = rm->call("save_state").get<std::int64_t>();
+
+  constexpr int batch = 50;  // saves per batch: below the 64 states kept at once
+  std::vector<double> save_us, restore_us, copy_us;
+  auto per_call = [](Clock::time_point t0, Clock::time_point t1) {
+    return std::chrono::duration<double, std::micro>(t1 - t0).count() / batch;
+  };
+  const auto end = Clock::now() + seconds(duration_s);
+  while (Clock::now() < end || save_us.empty()) {
+    std::vector<std::int64_t> handles;
+    auto t0 = Clock::now();
+    for (int i = 0; i < batch; ++i) handles.push_back(rm->call("save_state").get<std::int64_t>());
+    auto t1 = Clock::now();
+    save_us.push_back(per_call(t0, t1));
+    for (auto h : handles) rm->call("drop_state", {h});
+
+    t0 = Clock::now();
+    for (int i = 0; i < batch; ++i) rm->call("restore_state", {handle});
+    t1 = Clock::now();
+    restore_us.push_back(per_call(t0, t1));
+
+    t0 = Clock::now();
+    for (int i = 0; i < batch; ++i) mj_copyData(copy, sim.m(), sim.d());
+    t1 = Clock::now();
+    copy_us.push_back(per_call(t0, t1));
+  }
+  mj_deleteData(copy);
+  auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  };
+  return {{"mode", "snapshot"},
+          {"batches", save_us.size()},
+          {"save_state_us", median(save_us)},
+          {"restore_state_us", median(restore_us)},
+          {"mj_copyData_us", median(copy_us)},
+          {"nq", sim.m()->nq},
+          {"nv", sim.m()->nv}};
 }
 
 json run_bare(const std::string& mjcf, double duration_s) {
@@ -460,16 +531,16 @@ int main(int argc, char** argv) {
   std::string mode, mjcf, config;
   double factor = 0, duration = 2;
   bool until_stdin = false;
-  app.add_option("--mode", mode, "bare, sleep, gateway, laser or humanoid (see the source's header)")
+  app.add_option("--mode", mode, "bare, sleep, gateway, laser, humanoid or snapshot (see the source's header)")
       ->required()
-      ->check(CLI::IsMember({"bare", "sleep", "gateway", "laser", "humanoid"}));
+      ->check(CLI::IsMember({"bare", "sleep", "gateway", "laser", "humanoid", "snapshot"}));
   app.add_option("--mjcf", mjcf, "bare, sleep: the MJCF scene; humanoid: another humanoid.xml");
   app.add_option("--config", config, "gateway: the deployment file");
   app.add_option("--realtime-factor", factor, "gateway: pacing (0 = as fast as possible)")->capture_default_str();
   app.add_option("--duration", duration, "seconds to run")->capture_default_str();
   app.add_flag("--until-stdin-closes", until_stdin, "gateway: run until standard input closes instead");
   if (auto code = simgate::bench::parse_command_line(app, argc, argv)) return *code;
-  if ((mode == "bare" || mode == "sleep") && mjcf.empty()) {
+  if ((mode == "bare" || mode == "sleep" || mode == "snapshot") && mjcf.empty()) {
     std::cerr << "simgate_bench_sim: --mode " << mode << " needs --mjcf PATH\n";
     return 2;
   }
@@ -487,6 +558,8 @@ int main(int argc, char** argv) {
       out = run_laser(duration);
     } else if (mode == "humanoid") {
       out = run_humanoid(mjcf, duration);
+    } else if (mode == "snapshot") {
+      out = run_snapshot(mjcf, duration);
     } else {
       out = run_gateway(config, factor, duration, until_stdin);
     }

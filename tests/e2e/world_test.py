@@ -1,0 +1,233 @@
+#!/usr/bin/python3
+"""E2E: issue #19's stepping and state services on every transport, in a real gateway.
+
+`simgate run` serves the demo on the socket, JSON-RPC and DDS transports (ports 0, a
+partition of its own, Cyclone on loopback with multicast off: the plugin's default), with
+"scene": {"start_paused": true}. Through the MORSE socket protocol: the simulation starts
+paused and stays so while served; step n answers the new time; bad counts are refused
+naming n; save_state / restore_state / list_states / drop_state / reset / set_time_scale
+answer as docs/world/*.md shows. Through JSON-RPC: the same services by name, with named
+parameters, and rpc.discover lists them. Through DDS: `simgate call --transport dds` steps
+it. Both the socket's list_services and JSON-RPC's rpc.discover list every new service.
+Every wait is bounded.
+"""
+import argparse
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+import unittest
+
+ARGS = None
+TIMEOUT = 60
+NEW_SERVICES = ["get_simulation_state", "pause", "play", "step", "reset", "save_state", "restore_state",
+                "list_states", "drop_state"]
+
+
+class Gateway:
+    """`simgate run CONFIG` on ephemeral ports, with its endpoints read from --endpoints-file."""
+
+    def __init__(self, workdir):
+        with open(os.path.join(ARGS.source_dir, "config/all-transports.json")) as f:
+            config = json.load(f)
+        config["scene"]["mjcf"] = os.path.join(ARGS.source_dir, "config/scenes/demo.xml")
+        config["scene"]["start_paused"] = True
+        config["transports"]["socket"]["options"]["port"] = 0
+        config["transports"]["jsonrpc"]["options"]["port"] = 0
+        self.partition = "simgate-world-test-%d" % os.getpid()
+        config["transports"]["dds"]["options"]["partition"] = self.partition
+        config["log_level"] = "warning"
+        path = os.path.join(workdir, "world.json")
+        with open(path, "w") as f:
+            json.dump(config, f)
+        endpoints = os.path.join(workdir, "endpoints.json")
+        self.log = open(os.path.join(workdir, "run.log"), "w+")
+        self.process = subprocess.Popen([ARGS.simgate, "run", path, "--endpoints-file", endpoints],
+                                        stdout=self.log, stderr=subprocess.STDOUT)
+        deadline = time.monotonic() + TIMEOUT
+        while not os.path.exists(endpoints):
+            if self.process.poll() is not None or time.monotonic() > deadline:
+                raise RuntimeError("simgate run did not start:\n" + self.output())
+            time.sleep(0.01)  # polling for a file the child writes; bounded by the deadline
+        with open(endpoints) as f:
+            ports = json.load(f)
+        self.socket_port = int(ports["socket"][0].rsplit(":", 1)[1])
+        self.jsonrpc_port = int(ports["jsonrpc"][0].rsplit(":", 1)[1])
+
+    def output(self):
+        self.log.flush()
+        self.log.seek(0)
+        return self.log.read()
+
+    def stop(self):
+        self.process.send_signal(signal.SIGTERM)
+        try:
+            code = self.process.wait(timeout=TIMEOUT)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            code = self.process.wait()
+        self.log.close()
+        return code
+
+
+class Lines:
+    """One TCP connection speaking lines, every read with a deadline."""
+
+    def __init__(self, port):
+        self.sock = socket.create_connection(("127.0.0.1", port), timeout=TIMEOUT)
+        self.reader = self.sock.makefile("rb")
+
+    def ask(self, line):
+        self.sock.sendall((line + "\n").encode())
+        return self.reader.readline().decode().rstrip("\n")
+
+    def close(self):
+        self.sock.close()
+
+
+class WorldTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.workdir = tempfile.TemporaryDirectory()
+        cls.gateway = Gateway(cls.workdir.name)
+        cls.socket = Lines(cls.gateway.socket_port)
+        cls.jsonrpc = Lines(cls.gateway.jsonrpc_port)
+        cls.rpc_id = 0
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.socket.close()
+        cls.jsonrpc.close()
+        code = cls.gateway.stop()
+        cls.workdir.cleanup()
+        assert code == 0, "simgate run exited with %s" % code
+
+    def morse(self, rid, request):
+        """A socket request; returns (status, value)."""
+        reply = self.socket.ask("%s %s" % (rid, request))
+        got_id, status, *rest = reply.split(" ", 2)
+        self.assertEqual(got_id, rid, reply)
+        return status, json.loads(rest[0]) if rest else None
+
+    def rpc(self, method, params=None):
+        WorldTest.rpc_id += 1
+        request = {"jsonrpc": "2.0", "id": WorldTest.rpc_id, "method": method}
+        if params is not None:
+            request["params"] = params
+        response = json.loads(self.jsonrpc.ask(json.dumps(request)))
+        self.assertEqual(response["id"], WorldTest.rpc_id, response)
+        return response
+
+    def state(self):
+        status, value = self.morse("s", "simulation get_simulation_state")
+        self.assertEqual(status, "SUCCESS")
+        return value
+
+    def test_1_starts_paused_and_steps_on_request_over_the_socket(self):
+        first = self.state()
+        self.assertEqual(first["state"], "paused")
+        self.assertEqual(first["steps"], 0)
+        for _ in range(20):  # served, and nothing moves
+            self.assertEqual(self.state()["steps"], 0)
+        status, value = self.morse("1", "simulation step [5]")
+        self.assertEqual(status, "SUCCESS")
+        self.assertEqual(value["steps_done"], 5)
+        self.assertAlmostEqual(value["sim_time"], 0.01, places=12)
+        self.assertEqual(self.state()["steps"], 5)
+        # the MORSE reply shape, byte for byte
+        reply = self.socket.ask("2 simulation step [1]")
+        self.assertRegex(reply, r'^2 SUCCESS \{"sim_time": 0\.012[0-9]*, "steps_done": 1\}$')
+
+    def test_2_bad_counts_are_refused_naming_n(self):
+        for bad in ["[0]", "[-4]", "[1.5]", "[\"x\"]", "[NaN]", "[1e12]"]:
+            status, value = self.morse("b", "simulation step " + bad)
+            self.assertEqual(status, "FAILED", bad)
+            self.assertRegex(value, r"\bn\b", bad)
+        self.assertEqual(self.state()["state"], "paused")
+
+    def test_3_json_rpc_steps_with_named_parameters_and_discovers_the_services(self):
+        before = self.state()["steps"]
+        response = self.rpc("simulation.step", {"n": 3})
+        self.assertEqual(response["result"]["steps_done"], 3, response)
+        self.assertEqual(self.state()["steps"], before + 3)
+        refused = self.rpc("simulation.step", {"n": 0})
+        self.assertEqual(refused["error"]["data"]["parameter"], "n", refused)
+        state = self.rpc("simulation.get_simulation_state")["result"]
+        self.assertEqual(state["state"], "paused")
+        methods = {m["name"] for m in self.rpc("rpc.discover")["result"]["methods"]}
+        for service in NEW_SERVICES:
+            self.assertIn("simulation." + service, methods)
+        self.assertIn("time.set_time_scale", methods)
+        status, services = self.morse("l", "simulation list_services")
+        listed = {(d["component"], d["name"]) for d in services}
+        for service in NEW_SERVICES:
+            self.assertIn(("simulation", service), listed)
+
+    def test_4_dds_steps_too(self):
+        before = self.state()["steps"]
+        done = subprocess.run([ARGS.simgate, "call", "--transport", "dds", "--partition", self.gateway.partition,
+                               "--timeout", "20", "simulation", "step", "4"],
+                              capture_output=True, text=True, timeout=TIMEOUT)
+        self.assertEqual(done.returncode, 0, done.stdout + done.stderr)
+        self.assertIn("steps_done", done.stdout)
+        self.assertEqual(self.state()["steps"], before + 4)
+
+    def test_5_snapshots_and_resets(self):
+        status, handle = self.morse("a", "simulation save_state")
+        self.assertEqual(status, "SUCCESS")
+        saved = self.state()["sim_time"]
+        self.morse("b", "robot.motion set_speed [1.0, 0.5]")
+        self.morse("c", "simulation step [100]")
+        status, value = self.morse("d", "simulation restore_state [%d]" % handle)
+        self.assertEqual((status, value), ("SUCCESS", {"sim_time": saved}))
+        self.assertEqual(self.state()["sim_time"], saved)
+        status, states = self.morse("e", "simulation list_states")
+        self.assertIn(handle, [s["handle"] for s in states])
+        self.assertEqual(self.socket.ask("f simulation drop_state [%d]" % handle), "f SUCCESS true")
+        status, value = self.morse("g", "simulation restore_state [%d]" % handle)
+        self.assertEqual(status, "FAILED")
+        self.assertIn("no saved state", value)
+        # reset robot: time goes on; reset all: time back to 0
+        self.morse("h", "simulation step [10]")
+        t = self.state()["sim_time"]
+        self.assertEqual(self.morse("i", 'simulation reset ["robot", "robot"]')[0], "SUCCESS")
+        self.assertEqual(self.state()["sim_time"], t)
+        response = self.rpc("simulation.reset", {"scope": "all"})
+        self.assertIn("result", response)
+        self.assertEqual(self.state()["sim_time"], 0)
+
+    def test_6_time_scale_play_and_pause(self):
+        self.assertEqual(self.socket.ask("t time set_time_scale [2.0]"), "t SUCCESS true")
+        self.assertEqual(self.state()["target_realtime_factor"], 2.0)
+        status, value = self.morse("u", "time set_time_scale [-1]")
+        self.assertEqual(status, "FAILED")
+        self.assertIn("value", value)
+        self.assertEqual(self.morse("v", "simulation play")[0], "SUCCESS")
+        self.assertEqual(self.state()["state"], "playing")
+        status, value = self.morse("w", "simulation step [1]")
+        self.assertEqual(status, "FAILED")
+        self.assertIn("pause it first", value)
+        moved = False
+        before = self.state()["steps"]
+        for _ in range(100000):  # bounded: answers, not time
+            if self.state()["steps"] > before:
+                moved = True
+                break
+        self.assertTrue(moved)
+        self.assertEqual(self.morse("x", "simulation pause")[0], "SUCCESS")
+        paused = self.state()
+        self.assertEqual(paused["state"], "paused")
+        self.assertEqual(self.state()["steps"], paused["steps"])
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--simgate", required=True)
+    parser.add_argument("--source-dir", required=True)
+    ARGS, rest = parser.parse_known_args()
+    ARGS.source_dir = os.path.abspath(ARGS.source_dir)
+    unittest.main(argv=[sys.argv[0]] + rest, verbosity=2)
