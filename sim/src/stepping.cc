@@ -107,7 +107,7 @@ void add_stepping_services(SupervisionServices& simulation, Simulation& sim) {
   auto stepping = std::make_shared<Stepping>(sim);
   simulation
       .offer_service("get_simulation_state", [stepping] { return stepping->state(); })
-      .doc("{state: playing|paused|stepping|quitting, sim_time, steps, timestep, realtime_factor (measured), "
+      .doc("{state, sim_time, steps, timestep, realtime_factor (measured over the last second of playing), "
            "target_realtime_factor, dynamics_suspended, owed_steps}");
   simulation.offer_service("pause", [stepping] { return stepping->pause(); })
       .doc("Stop time and physics (requests are still served); ends a running step PREEMPTED");
