@@ -200,6 +200,36 @@ class WorldTest(unittest.TestCase):
         self.assertIn("result", response)
         self.assertEqual(self.state()["sim_time"], 0)
 
+    def test_5b_cancel_ends_a_step_preempted_with_the_steps_done(self):
+        # socket: MORSE's cancel line, no reply of its own; the step answers PREEMPTED
+        self.socket.sock.sendall(b"c1 simulation step [1000000]\n")
+        self.state()  # queued after the step: it has started
+        self.socket.sock.sendall(b"c1 cancel\n")
+        reply = self.socket.reader.readline().decode().rstrip("\n")
+        got_id, status, value = reply.split(" ", 2)
+        self.assertEqual((got_id, status), ("c1", "PREEMPTED"), reply)
+        value = json.loads(value)
+        self.assertGreater(value["steps_done"], 0)
+        self.assertLess(value["steps_done"], 1000000)
+        self.assertEqual(value["steps_requested"], 1000000)
+        self.assertEqual(self.state()["owed_steps"], 0)
+        # JSON-RPC: rpc.cancel; the value rides in the error's data
+        WorldTest.rpc_id += 2
+        step_id, cancel_id = WorldTest.rpc_id - 1, WorldTest.rpc_id
+        self.jsonrpc.sock.sendall((json.dumps({"jsonrpc": "2.0", "id": step_id, "method": "simulation.step",
+                                               "params": [1000000]}) + "\n").encode())
+        self.jsonrpc.sock.sendall((json.dumps({"jsonrpc": "2.0", "id": cancel_id, "method": "rpc.cancel",
+                                               "params": {"id": step_id}}) + "\n").encode())
+        replies = {}
+        for _ in range(2):
+            r = json.loads(self.jsonrpc.reader.readline())
+            replies[r["id"]] = r
+        self.assertEqual(replies[cancel_id]["result"], True, replies)
+        error = replies[step_id]["error"]
+        self.assertEqual(error["data"]["status"], "PREEMPTED", error)
+        self.assertEqual(error["data"]["value"]["steps_requested"], 1000000, error)
+        self.assertEqual(self.state()["state"], "paused")
+
     def test_6_time_scale_play_and_pause(self):
         self.assertEqual(self.socket.ask("t time set_time_scale [2.0]"), "t SUCCESS true")
         self.assertEqual(self.state()["target_realtime_factor"], 2.0)
