@@ -46,7 +46,7 @@ std::vector<std::string> generic_components(const mjModel* m, int body) {
 std::vector<ModelRobot> find_model_robots(const Model& model) {
   const mjModel* m = model.model();
   std::vector<ModelRobot> robots;
-  std::set<std::string> taken{"simulation", "time"};
+  std::set<std::string> taken{"simulation", "time", "communication"};
   for (int b = 1; b < m->nbody; ++b) {
     if (m->body_parentid[b] != 0) continue;  // top-level bodies only
     std::vector<std::string> components = generic_components(m, b);

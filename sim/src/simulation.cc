@@ -7,6 +7,7 @@
 
 #include "simgate/core/call_context.h"
 #include "simgate/core/log.h"
+#include "simgate/sim/communication.h"
 #include "simgate/sim/sim_component.h"
 #include "simgate/sim/supervision.h"
 
@@ -144,6 +145,7 @@ ComponentEntry& Simulation::add_component(std::unique_ptr<Component> component, 
 void Simulation::add_supervision_services() {
   add_component(std::make_unique<SupervisionServices>(*this), "simulation");
   add_component(std::make_unique<TimeServices>(*this), "time");
+  add_component(std::make_unique<CommunicationServices>(*this), "communication");
 }
 
 ComponentEntry* Simulation::find(const std::string& name) {

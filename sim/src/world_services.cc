@@ -7,6 +7,8 @@ void add_world_services(SupervisionServices& simulation, Simulation& sim) {
   add_capability_services(simulation, sim);
   add_stepping_services(simulation, sim);
   add_state_services(simulation, sim);
+  add_entity_services(simulation, sim);
+  add_process_services(simulation, sim);
 }
 
 }  // namespace simgate::sim

@@ -320,6 +320,13 @@ class ValidValues {
     for (auto it = listed.begin(); it != listed.end(); ++it) out.push_back(it.key());
     return out;
   }
+  // The last body with a free joint (one `simulation set_object_position` can place): a
+  // prop rather than the robot listed first, whose wheel servos a push could upset.
+  std::string free_body() const {
+    for (int b = sim_.m()->nbody - 1; b > 0; --b)
+      if (sim_.model().free_joint_of(b) >= 0) return sim_.model().body_name(b);
+    return "";
+  }
 
  private:
   Simulation& sim_;
@@ -406,6 +413,20 @@ inline ValidCallTable builtin_valid_calls(ValidValues& values) {
     json controls = json::object();
     for (const auto& a : v->actuators(c)) controls[a] = 0.0;
     return ValidCalls{json::array({controls})};
+  };
+  // the entities of `simulation` (sim/src/entities.cc): a free body where it starts
+  t["simulation.set_object_position"] = [v](const std::string&) {
+    const std::string body = v->free_body();
+    if (body.empty()) return ValidCalls{};
+    json pose = v->value("simulation", "get_object_pose", {body});
+    return ValidCalls{{body, pose[0], {0.0, 0.0, 0.3}}};
+  };
+  t["simulation.set_entity_state"] = [v](const std::string&) {
+    const std::string body = v->free_body();
+    if (body.empty()) return ValidCalls{};
+    json state = v->value("simulation", "get_entity_state", {body});
+    state["twist"] = {{"linear", {0.0, 0.0, 0.1}}, {"angular", {0.0, 0.0, 0.2}}};
+    return ValidCalls{{body, state}};
   };
   return t;
 }

@@ -229,7 +229,8 @@ TEST_F(SimNanSweepTest, EveryNumberOfEveryServiceAndPropertyRefusesNaNAndInfinit
                        "arm.actuators.set_control", "arm.actuators.set_controls", "time.sleep",
                        "robot.laser.set_property(laser_range)", "arm.armature.set_property(settle_timeout)",
                        "robot.set_property(wheel_radius)", "simulation.step", "simulation.restore_state",
-                       "simulation.drop_state", "time.set_time_scale"})
+                       "simulation.drop_state", "time.set_time_scale", "simulation.set_object_position",
+                       "simulation.set_entity_state"})
     EXPECT_TRUE(swept_.count(service)) << service << " was not swept";
   EXPECT_GT(bad_calls_, 400u);
   EXPECT_EQ(sim_->statistics().bad_states, 0u);
@@ -246,6 +247,7 @@ TEST_F(SimNanSweepTest, DebiansHumanoidWithEveryGenericComponentRefusesThemToo) 
   EXPECT_THAT(findings, IsEmpty()) << lines(findings);
   EXPECT_TRUE(swept_.count("humanoid.armature.trajectory"));
   EXPECT_TRUE(swept_.count("humanoid.actuators.set_controls"));
+  EXPECT_TRUE(swept_.count("simulation.set_entity_state"));
 }
 
 // ---- the sweep can fail ----------------------------------------------------------------------

@@ -23,7 +23,8 @@
 //    active flag, the transports that serve it).
 //
 // Life cycle: construct from a Model; add_component() for every robot and component (the
-// `simulation` and `time` pseudo-components are added by add_supervision_services());
+// `simulation`, `time` and `communication` pseudo-components are added by
+// add_supervision_services());
 // add_request_manager() for every transport (the simulation gives each one its gate);
 // run() until request_stop() (any thread, or the `simulation quit` service); shutdown()
 // answers what is left, stops the transports and destroys them, then the components.
@@ -144,7 +145,7 @@ class Simulation {
   // Takes ownership; names must be unique (throws std::invalid_argument otherwise).
   ComponentEntry& add_component(std::unique_ptr<Component> component, std::string type,
                                 std::string robot = "", bool is_robot = false);
-  // Adds the `simulation` and `time` pseudo-components.
+  // Adds the `simulation`, `time` and `communication` pseudo-components.
   void add_supervision_services();
   ComponentEntry* find(const std::string& name);
   const std::vector<std::unique_ptr<ComponentEntry>>& components() const { return entries_; }

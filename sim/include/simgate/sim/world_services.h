@@ -9,6 +9,10 @@
 //   stepping.cc      get_simulation_state, pause, play, step n (docs/world/stepping.md)
 //   world_state.cc   reset scope robot, save_state, restore_state, list_states, drop_state
 //                    (docs/world/state.md)
+//   entities.cc      set_object_position, get_object_pose, get_object_bbox,
+//                    get_object_global_bbox, set_object_dynamics, get_entity_state,
+//                    set_entity_state, list_entities (docs/world/entities.md)
+//   process_services.cc  terminate, set_log_level (docs/world/entities.md)
 //
 // Threads: simulation thread only, as every service.
 #ifndef SIMGATE_SIM_WORLD_SERVICES_H_
@@ -25,6 +29,8 @@ void add_world_services(SupervisionServices& simulation, Simulation& sim);
 void add_capability_services(SupervisionServices& simulation, Simulation& sim);
 void add_stepping_services(SupervisionServices& simulation, Simulation& sim);
 void add_state_services(SupervisionServices& simulation, Simulation& sim);
+void add_entity_services(SupervisionServices& simulation, Simulation& sim);
+void add_process_services(SupervisionServices& simulation, Simulation& sim);
 
 }  // namespace simgate::sim
 
