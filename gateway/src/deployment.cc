@@ -17,7 +17,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const std::vector<std::string> k_pseudo_components = {"simulation", "time"};
+const std::vector<std::string> k_pseudo_components = {"simulation", "time", "communication"};
 
 std::string join(const std::vector<std::string>& items, const std::string& sep = ", ") {
   std::string out;
@@ -181,7 +181,7 @@ std::optional<RobotConfig> parse_robot(const json& value, std::size_t index, std
     if (!names.insert(rc.robot.name).second)
       throw ConfigError(r->path_of("name") + ": expected a unique name, found '" + rc.robot.name +
                         "' a second time" +
-                        (rc.robot.name == "simulation" || rc.robot.name == "time" ? " (reserved)" : ""));
+                        (std::count(k_pseudo_components.begin(), k_pseudo_components.end(), rc.robot.name) ? " (reserved)" : ""));
   });
   if (!named) return std::nullopt;
   errors.check([&] {
@@ -232,6 +232,8 @@ std::vector<std::string> Deployment::transports_for(const std::string& component
   // exact name first
   for (const auto& r : rules)
     if (!is_glob(r.pattern) && r.pattern == component) return r.transports;
+  // communication goes with simulation unless named (MORSE serves both on every socket)
+  if (component == "communication") return transports_for("simulation");
   // then the most specific glob (most literal characters; ties: first in key order)
   const ServiceRule* best = nullptr;
   for (const auto& r : rules)

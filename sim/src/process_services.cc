@@ -34,7 +34,7 @@ void add_process_services(SupervisionServices& simulation, Simulation& sim) {
                        std::fflush(nullptr);
                        std::_Exit(0);
                      })
-      .doc("End the process at once, without finalization and without a reply (quit is the clean way)");
+      .doc("End the process at once: no finalization, no reply, pending requests left unanswered");
   simulation
       .offer_service(
           "set_log_level",

@@ -202,6 +202,22 @@ class PymorseTest(unittest.TestCase):
         for got, expected in zip(configurations["object_to_robot"]["rotation"], [1.0, 0.0, 0.0, 0.0]):
             self.assertAlmostEqual(got, expected, places=9)
 
+    def test_entity_and_communication_services_through_pymorse(self):
+        # MORSE's set_object_position returns None; the pose reads back as get_scene_objects'
+        self.assertIsNone(self.simu.rpc("simulation", "set_object_position", "crate1", [-1.0, 1.0, 0.2]))
+        position, orientation = self.simu.rpc("simulation", "get_object_pose", "crate1")
+        self.assertAlmostEqual(position[0], -1.0, places=2)
+        self.assertEqual(len(orientation), 4)
+        # MORSE's communication service: the crate stands between the robot and the human
+        distance, visible = self.simu.rpc("communication", "distance_and_view", "robot", "human")
+        self.assertAlmostEqual(distance, 8 ** 0.5, places=1)
+        self.assertFalse(visible)
+        with self.assertRaises(MorseServiceFailed) as unknown:
+            self.simu.rpc("communication", "distance_and_view", "robot", "nobody")
+        self.assertEqual(str(unknown.exception), "nobody does not exist in the simulation ")
+        self.assertFalse(self.simu.rpc("simulation", "set_object_dynamics", "crate1", False))
+        self.assertTrue(self.simu.rpc("simulation", "set_object_dynamics", "crate1", True))
+
     def test_wrong_arity_is_a_type_error(self):
         too_few = self.simu.robot.waypoint.goto(1.0)
         self.assertIsInstance(too_few.exception(timeout=TIMEOUT), TypeError)
@@ -293,7 +309,9 @@ class PymorseMappingBoundaryTest(unittest.TestCase):
     def test_list_services_shows_served_components_only(self):
         components = {s["component"] for s in self.simu.rpc("simulation", "list_services")}
         # the robot itself is served too: its object services (get_properties, ...)
-        self.assertEqual(components, {"robot", "robot.motion", "robot.pose", "human", "simulation", "time"})
+        # communication goes with simulation
+        self.assertEqual(components,
+                         {"robot", "robot.motion", "robot.pose", "human", "simulation", "time", "communication"})
 
 
 def has_method(proxy, name):

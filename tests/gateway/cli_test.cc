@@ -228,7 +228,7 @@ TEST(GatewayCliTest, CheckWarnsWhenPymorseCannotConnect) {
   EXPECT_EQ(code, 0) << out;
   EXPECT_THAT(out, HasSubstr("warning: transports.socket: the socket transport 'socket' does not serve "
                              "'simulation': pymorse cannot connect"));
-  EXPECT_THAT(out, HasSubstr("OK (2 robot(s), 8 component(s), 1 transport(s), 3 warning(s))"));
+  EXPECT_THAT(out, HasSubstr("OK (2 robot(s), 9 component(s), 1 transport(s), 3 warning(s))"));
 }
 
 TEST(GatewayCliTest, CheckRefusesAMalformedServicePatternAndWarnsOfOneThatMatchesNothing) {
@@ -249,11 +249,11 @@ TEST(GatewayCliTest, CheckRefusesAMalformedServicePatternAndWarnsOfOneThatMatche
 TEST(GatewayCliTest, RunAndCheckCountComponentsAlike) {
   TempDir dir;
   auto [code, out] = run_simgate({"check", source_path("config/demo.json")}, dir);
-  EXPECT_THAT(out, HasSubstr("2 robot(s), 8 component(s)"));
+  EXPECT_THAT(out, HasSubstr("2 robot(s), 9 component(s)"));
   RunningDemo demo(dir);
   ASSERT_NE(demo.port(), 0) << demo.process().err();
   demo.stop();
-  EXPECT_THAT(demo.process().out(), HasSubstr("2 robot(s), 8 component(s)"));
+  EXPECT_THAT(demo.process().out(), HasSubstr("2 robot(s), 9 component(s)"));
 }
 
 TEST(GatewayCliTest, RunWritesEndpointsServesAndStopsOnSigterm) {

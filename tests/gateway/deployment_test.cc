@@ -457,9 +457,9 @@ TEST(GatewayConfigTest, APortInUseIsARuntimeErrorNotAConfigError) {
 }
 
 TEST(GatewayConfigTest, AComponentIsEveryNamedObjectTransportsServe) {
-  // robots, their actuators and sensors, simulation and time: 2 + 4 + 2 in the demo
+  // robots, their actuators and sensors, simulation, time and communication: 2 + 4 + 3 in the demo
   Deployment d = parse_deployment(demo_config(), SIMGATE_SOURCE_DIR "/config");
-  EXPECT_EQ(d.component_names().size(), 8u);
+  EXPECT_EQ(d.component_names().size(), 9u);
 }
 
 // ---- warnings: valid, but clients will not get far ----

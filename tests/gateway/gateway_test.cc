@@ -234,8 +234,9 @@ TEST_F(GatewayIntegrationTest, IntrospectionShowsEachTransportOnlyWhatItServes) 
   start(split_config());
   LineClient socket(port("socket")), jsonrpc(port("jsonrpc"));
   const std::set<std::string> on_socket{"robot", "robot.motion", "robot.pose", "robot.teleport", "robot.waypoint",
-                                        "simulation", "time"};
-  const std::set<std::string> on_jsonrpc{"human", "robot.pose", "simulation", "time"};
+                                        "simulation", "time", "communication"};
+  // communication goes with simulation
+  const std::set<std::string> on_jsonrpc{"human", "robot.pose", "simulation", "time", "communication"};
 
   // list_robots: a robot is there when it or one of its components is served
   EXPECT_EQ(socket.request("1", "simulation list_robots"), "1 SUCCESS [\"robot\"]");

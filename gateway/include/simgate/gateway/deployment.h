@@ -17,7 +17,8 @@
 // Mapping: a component's transports come from its exact name if listed, else from the most
 // specific matching glob (the one with the most literal characters), else from "default".
 // A component that nothing maps is unreachable. Without a "services" section every
-// component is served by every transport.
+// component is served by every transport. `communication` that no rule names exactly is
+// served by `simulation`'s transports (MORSE serves both wherever it serves supervision).
 //
 // Access lists: a transport's "allow" and "deny" (arrays of service patterns,
 // "simulation.quit", "robot.*": core/service_access.h) narrow the services of the
@@ -79,7 +80,8 @@ struct Deployment {
   std::optional<std::string> log_level;  // validated level name
   std::vector<std::string> warnings;     // likely mistakes that are not errors (printed by check, logged by run)
 
-  // Every component name: robots, their components, then "simulation" and "time". This is
+  // Every component name: robots, their components, then "simulation", "time" and
+  // "communication". This is
   // what "component" counts everywhere (banner, check, transports' logs).
   std::vector<std::string> component_names() const;
   // The transports that serve `component` (see the mapping rules above).
