@@ -545,8 +545,10 @@ TEST(GatewayAccessListsTest, EveryMalformedPatternOfBothListsIsReportedAtOnce) {
 
 TEST(GatewayAccessListsTest, TheAllTransportsExampleDeniesQuitOnJsonRpcOnly) {
   Deployment d = load_deployment(SIMGATE_SOURCE_DIR "/config/all-transports.json");
-  for (const auto& t : d.transports)
+  for (const auto& t : d.transports) {
     EXPECT_EQ(t.access.allows("simulation", "quit"), t.name == "socket") << t.name;
+    EXPECT_EQ(t.access.allows("simulation", "terminate"), t.name == "socket") << t.name;
+  }
 }
 
 TEST(GatewayAccessListsTest, APatternMatchingNoServiceOfItsTransportIsAWarning) {
