@@ -149,7 +149,8 @@ std::optional<double> geom_support(const mjModel* m, int g, const Eigen::Vector3
       const int mesh = m->geom_dataid[g];
       const float* v = m->mesh_vert + 3 * m->mesh_vertadr[mesh];
       double best = -std::numeric_limits<double>::infinity();
-      for (int i = 0; i < m->mesh_vertnum[mesh]; ++i, v += 3) best = std::max(best, u.x() * v[0] + u.y() * v[1] + u.z() * v[2]);
+      for (int i = 0; i < m->mesh_vertnum[mesh]; ++i, v += 3)
+        best = std::max(best, u.x() * v[0] + u.y() * v[1] + u.z() * v[2]);
       return best;
     }
     default:
@@ -263,7 +264,8 @@ class EntityServices {
     const bool moving = (linear && !linear->isZero()) || (angular && !angular->isZero());
     const bool mocap = sim_.m()->body_mocapid[body] >= 0;
     if (moving && mocap)
-      refuse("state.twist", "state.twist: body '" + name + "' is a mocap body: it has no velocity (expected none, or zeros)",
+      refuse("state.twist",
+             "state.twist: body '" + name + "' is a mocap body: it has no velocity (expected none, or zeros)",
              "no twist, or zeros");
     if (moving && frozen_.count(sim_.model().body_name(body)))
       refuse("state.twist",
@@ -459,7 +461,9 @@ void add_entity_services(SupervisionServices& simulation, Simulation& sim) {
       .doc("[[min x, y, z], [max x, y, z]] of a body and the bodies attached to it, in the world frame");
   simulation
       .offer_service("set_object_dynamics",
-                     [e](const std::string& object_name, bool state) { return e->set_object_dynamics(object_name, state); },
+                     [e](const std::string& object_name, bool state) {
+                       return e->set_object_dynamics(object_name, state);
+                     },
                      {"object_name", "state"})
       .doc("false: hold a free body where it is (physics no longer moves it); true: release it with its velocity");
   simulation

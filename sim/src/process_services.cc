@@ -59,7 +59,8 @@ void add_process_services(SupervisionServices& simulation, Simulation& sim) {
             log::info("simulation: log level set to ", log::to_string(parsed), " (asked for '", component, "')");
           },
           {"component", "level"})
-      .doc("Set the log level (process-wide: DEBUG, INFO, WARNING, ERROR, CRITICAL); component: one this transport serves");
+      .doc("Set the log level, process-wide (DEBUG, INFO, WARNING, ERROR, CRITICAL); component: one this transport "
+           "serves");
 }
 
 }  // namespace simgate::sim
