@@ -22,6 +22,10 @@ void Component::completed(Status status, json result) {
   slot_->running_completion(status, std::move(result));
 }
 
+bool Component::progress(json value) {
+  return slot_->busy() && slot_->running_completion.progress(std::move(value));
+}
+
 std::string Component::running_service() const {
   return slot_->busy() ? slot_->running->service : std::string();
 }

@@ -81,21 +81,36 @@ class Inbox : public CompletionSink {
     // would only make it compete for the CPU and the lock
     if (t_executing != this) gate->signal();
   }
+  void progressed(RequestId id, json value) override {
+    std::shared_ptr<SimulationGate> gate;
+    {
+      std::lock_guard lock(mutex_);
+      progress_.emplace_back(id, std::move(value));
+      note_queued();
+      gate = gate_;
+    }
+    gate->signal();
+  }
 
   // under the simulation lock; `events` and `finished` come empty and keep their capacity
   // for the next push (no allocation per process()). An empty inbox is seen without the
   // mutex: what is pushed after that look is signalled, and the next process() takes it.
-  void take(std::vector<Event>& events, std::vector<std::pair<RequestId, Outcome>>& finished) {
+  void take(std::vector<Event>& events, std::vector<std::pair<RequestId, Outcome>>& finished,
+            std::vector<std::pair<RequestId, json>>& progress) {
     if (empty()) return;
     std::lock_guard lock(mutex_);
     events.swap(events_);
     finished.swap(finished_);
+    progress.swap(progress_);
     note_queued();
   }
-  void take_finished(std::vector<std::pair<RequestId, Outcome>>& finished) {
+  // the completions and progress reports only (what `progress` holds came before them)
+  void take_finished(std::vector<std::pair<RequestId, Outcome>>& finished,
+                     std::vector<std::pair<RequestId, json>>& progress) {
     if (empty()) return;
     std::lock_guard lock(mutex_);
     finished.swap(finished_);
+    progress.swap(progress_);
     note_queued();
   }
   bool closed() const { return closed_.load(std::memory_order_acquire); }
@@ -121,10 +136,13 @@ class Inbox : public CompletionSink {
   // what process() is working on (under the simulation lock, not mutex_)
   std::vector<Event> work_events;
   std::vector<std::pair<RequestId, Outcome>> work_finished;
+  std::vector<std::pair<RequestId, json>> work_progress;
 
  private:
   // caller holds mutex_
-  void note_queued() { queued_.store(!events_.empty() || !finished_.empty(), std::memory_order_release); }
+  void note_queued() {
+    queued_.store(!events_.empty() || !finished_.empty() || !progress_.empty(), std::memory_order_release);
+  }
   // caller holds mutex_
   void add(Event event) {
     if (closed_.load(std::memory_order_relaxed))
@@ -142,22 +160,27 @@ class Inbox : public CompletionSink {
   std::mutex mutex_;                                        // guards everything below
   std::vector<Event> events_;                               // requests, cancels, tasks in order
   std::vector<std::pair<RequestId, Outcome>> finished_;     // async completions, any thread
+  std::vector<std::pair<RequestId, json>> progress_;        // progress reports, any thread
   std::shared_ptr<SimulationGate> gate_ = std::make_shared<SimulationGate>();  // signalled on every push
   std::atomic<bool> closed_{false};   // abandon_pending() was called (written under mutex_)
-  std::atomic<bool> queued_{false};   // events_ or finished_ holds something (written under mutex_)
+  std::atomic<bool> queued_{false};   // events_, finished_ or progress_ holds something (written under mutex_)
 };
 
-// Outcomes produced off a transport's delivery thread, on their way to it
-// (RequestManager::deliver_on_this_thread).
+// Outcomes (and progress reports) produced off a transport's delivery thread, on their way
+// to it (RequestManager::deliver_on_this_thread).
 class Handoff {
  public:
-  using Item = std::pair<RequestId, Outcome>;
+  struct Item {
+    RequestId id;
+    Outcome outcome;        // a progress report's value is outcome.value
+    bool progress = false;  // a progress report, not the final outcome
+  };
 
   // Any thread (under the simulation lock). Returns true when the delivery thread must be
   // woken: the first outcome since it last took them (one wake per burst).
-  bool push(RequestId id, Outcome&& outcome) {
+  bool push(RequestId id, Outcome&& outcome, bool progress = false) {
     std::lock_guard lock(mutex_);
-    items_.emplace_back(id, std::move(outcome));
+    items_.push_back(Item{id, std::move(outcome), progress});
     waiting_.store(true, std::memory_order_release);
     return !std::exchange(wake_due_, true);
   }
@@ -313,7 +336,12 @@ std::size_t RequestManager::deliver_handed_over() {
   std::vector<detail::Handoff::Item> items;
   items.swap(handoff_->spare);
   handoff_->take(items);
-  for (auto& [id, outcome] : items) call_completion(id, std::move(outcome));
+  for (auto& [id, outcome, progress] : items) {
+    if (progress)
+      call_progress(id, std::move(*outcome.value));
+    else
+      call_completion(id, std::move(outcome));
+  }
   const std::size_t n = items.size();
   items.clear();
   if (items.capacity() <= 4096) handoff_->spare.swap(items);
@@ -340,17 +368,21 @@ std::size_t RequestManager::process_locked() {
   // nothing handled here can be swapped back into the queue
   auto& events = inbox_->work_events;
   auto& finished = inbox_->work_finished;
+  auto& progress = inbox_->work_progress;
   struct Clear {
     detail::Inbox& inbox;
     ~Clear() {
       inbox.work_events.clear();
       inbox.work_finished.clear();
+      inbox.work_progress.clear();
     }
   } clear_on_exit{*inbox_};
-  inbox_->take(events, finished);
-  std::size_t handled = events.size() + finished.size();
+  inbox_->take(events, finished, progress);
+  std::size_t handled = events.size() + finished.size() + progress.size();
 
-  // completions that arrived before these requests go out first
+  // completions that arrived before these requests go out first, each call's progress
+  // reports before its outcome
+  for (auto& [id, value] : progress) deliver_progress(id, std::move(value));
   for (auto& [id, outcome] : finished) deliver(id, std::move(outcome));
 
   // what the requests below finish on this thread is taken after them (Inbox::finished)
@@ -374,9 +406,11 @@ std::size_t RequestManager::process_locked() {
   // that arrived meanwhile wait for the next process(), which the gate makes immediate
   events.clear();
   finished.clear();
-  inbox_->take_finished(finished);
+  progress.clear();
+  inbox_->take_finished(finished, progress);
+  for (auto& [id, value] : progress) deliver_progress(id, std::move(value));
   for (auto& [id, outcome] : finished) deliver(id, std::move(outcome));
-  return handled + finished.size();
+  return handled + finished.size() + progress.size();
 }
 
 std::optional<Outcome> RequestManager::on_incoming_request(RequestId id, const Call& call) {
@@ -429,7 +463,7 @@ bool RequestManager::execute(RequestId id, const Call& call, Outcome& out,
     const CallContext context(*this, id);
     BoundArguments args = bind_arguments(d, call.params);
     if (d.is_async) {
-      start_async(id, *service, args.span(), started);
+      start_async(id, *service, args.span(), call.progress, started);
       return false;
     }
     out.status = Status::success;
@@ -456,11 +490,12 @@ bool RequestManager::execute(RequestId id, const Call& call, Outcome& out,
 }
 
 void RequestManager::start_async(RequestId id, const Service& service, std::span<const json* const> args,
+                                 bool wants_progress,
                                  std::chrono::steady_clock::time_point started) {
   const ServiceDescriptor& d = service.descriptor();
   AsyncSlot& slot = *service.slot();
   if (d.concurrent) {
-    start_concurrent(id, service, args, started);
+    start_concurrent(id, service, args, wants_progress, started);
     return;
   }
 
@@ -481,6 +516,7 @@ void RequestManager::start_async(RequestId id, const Service& service, std::span
   state->service = d.qualified_name();
   state->sink = inbox_;
   state->started = started;
+  if (wants_progress) state->progress_interval = progress_interval_;
   Completion completion(state);
   slot.running = state;
   slot.running_policy = d.policy;
@@ -505,6 +541,7 @@ void RequestManager::start_async(RequestId id, const Service& service, std::span
 }
 
 void RequestManager::start_concurrent(RequestId id, const Service& service, std::span<const json* const> args,
+                                      bool wants_progress,
                                       std::chrono::steady_clock::time_point started) {
   const ServiceDescriptor& d = service.descriptor();
   AsyncSlot& slot = *service.slot();
@@ -514,6 +551,7 @@ void RequestManager::start_concurrent(RequestId id, const Service& service, std:
   state->sink = inbox_;
   state->concurrent = true;
   state->started = started;
+  if (wants_progress) state->progress_interval = progress_interval_;
   // the slot lists its component's concurrent calls (for shutdown); finished ones go now
   std::erase_if(slot.concurrent, [](const auto& s) { return s->finished.load(); });
   slot.concurrent.push_back(state);
@@ -568,6 +606,39 @@ void RequestManager::execute_cancel(RequestId id, const std::function<void(bool)
     } catch (const std::exception& e) {
       log::error(name_, ": cancel callback threw: ", e.what());
     }
+  }
+}
+
+void RequestManager::deliver_progress(RequestId id, json&& value) {
+  // a call still running here (a report that raced its call's end has no one to go to)
+  if (!running_.contains(id)) return;
+  const std::thread::id delivery_thread = delivery_thread_.load(std::memory_order_acquire);
+  if (delivery_thread != std::thread::id{} && delivery_thread != std::this_thread::get_id()) {
+    Outcome carrier;
+    carrier.value = std::move(value);
+    if (handoff_->push(id, std::move(carrier), /*progress=*/true)) {
+      try {
+        handoff_->wake();
+      } catch (const std::exception& e) {
+        log::error(name_, ": waking the transport's thread failed: ", e.what());
+      }
+    }
+    return;
+  }
+  // on the delivery thread, after what was handed over before it; or without one
+  if (delivery_thread != std::thread::id{}) deliver_handed_over();
+  call_progress(id, std::move(value));
+}
+
+void RequestManager::on_service_progress(RequestId, json&&) {}
+
+void RequestManager::call_progress(RequestId id, json&& value) {
+  try {
+    on_service_progress(id, std::move(value));
+  } catch (const std::exception& e) {
+    log::error(name_, ": on_service_progress threw: ", e.what());
+  } catch (...) {
+    log::error(name_, ": on_service_progress threw");
   }
 }
 
@@ -630,9 +701,11 @@ void RequestManager::abandon_pending(const std::string& reason) {
     }
     Completion{state}.finish(Outcome::failed(Failure::shutdown, reason));
   }
-  // deliver everything queued: refused requests and these shutdowns
+  // deliver everything queued: refused requests and these shutdowns (progress reports
+  // still queued are of calls that end now: dropped)
   std::vector<std::pair<RequestId, Outcome>> finished;
-  inbox_->take_finished(finished);
+  std::vector<std::pair<RequestId, json>> progress;
+  inbox_->take_finished(finished, progress);
   for (auto& [id, outcome] : finished) deliver(id, std::move(outcome));
 }
 

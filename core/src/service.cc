@@ -70,6 +70,20 @@ bool Completion::finish(Outcome outcome) const {
   return true;
 }
 
+bool Completion::progress(json value) const {
+  if (!state_ || state_->progress_interval.count() < 0 || state_->finished.load()) return false;
+  const std::int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                               std::chrono::steady_clock::now().time_since_epoch())
+                               .count();
+  std::int64_t last = state_->last_progress_ns.load(std::memory_order_relaxed);
+  const std::int64_t interval = state_->progress_interval.count();
+  // one report per interval, whichever thread reports
+  if (last != std::numeric_limits<std::int64_t>::min() && now - last < interval) return false;
+  if (!state_->last_progress_ns.compare_exchange_strong(last, now, std::memory_order_relaxed)) return false;
+  if (auto sink = state_->sink.lock()) sink->progressed(state_->id, std::move(value));
+  return true;
+}
+
 std::vector<Completion> AsyncSlot::running_concurrent() const {
   std::vector<Completion> out;
   for (const auto& state : concurrent)

@@ -24,6 +24,7 @@ class ThreadedManager : public RequestManager {
  public:
   ThreadedManager() : RequestManager("Threaded service manager") {
     register_service("c", [](int x) { return x; }, "echo", {"x"});
+    register_async_service("c", [this](Completion done) { started_ = std::move(done); }, "start");
     thread_ = std::thread([this] {
       deliver_on_this_thread([this] {
         wakes_.fetch_add(1);
@@ -84,12 +85,15 @@ class ThreadedManager : public RequestManager {
     RequestId id;
     Outcome outcome;
     bool on_io_thread;
+    bool progress = false;  // a progress report (its value in outcome.value)
   };
   std::vector<Delivery> delivered() {
     std::lock_guard lock(mutex_);
     return delivered_;
   }
   Call echo(int x) { return Call{"c", "echo", json::array({x})}; }
+  // the call `c start` started last (the simulation thread's, as a component's)
+  Completion started_;
   using RequestManager::answer_in_order;
   using RequestManager::complete_request;
   using RequestManager::deliver_handed_over;
@@ -101,6 +105,11 @@ class ThreadedManager : public RequestManager {
   void on_service_completion(RequestId id, Outcome&& outcome) override {
     std::lock_guard lock(mutex_);
     delivered_.push_back({id, std::move(outcome), std::this_thread::get_id() == io_thread_});
+    cv_.notify_all();
+  }
+  void on_service_progress(RequestId id, json&& value) override {
+    std::lock_guard lock(mutex_);
+    delivered_.push_back({id, Outcome::success(std::move(value)), std::this_thread::get_id() == io_thread_, true});
     cv_.notify_all();
   }
 
@@ -148,6 +157,29 @@ TEST(HandoffTest, OutcomesOfTheSimulationThreadAreDeliveredOnTheTransportsThread
   for (const auto& d : delivered) EXPECT_TRUE(d.on_io_thread);
   EXPECT_EQ(delivered[2].outcome.value, json(2));
   EXPECT_EQ(rm.wakes_.load(), 1);  // one wake for the burst
+}
+
+TEST(HandoffTest, ProgressReportsTravelLikeOutcomesAndArriveBeforeTheirCallsOutcome) {
+  ThreadedManager rm;
+  const RequestId id = rm.new_request_id();
+  Call call{"c", "start", nullptr};
+  call.progress = true;
+  rm.submit(id, std::move(call));
+  rm.set_progress_interval(std::chrono::nanoseconds(0));
+  rm.process();  // this thread plays the simulation's: it starts the call, then reports
+  ASSERT_TRUE(rm.started_.progress(1));
+  ASSERT_TRUE(rm.started_.progress(2));
+  rm.started_(Status::success, 3);
+  rm.process();
+  ASSERT_TRUE(rm.wait_for_deliveries(3));
+  const auto delivered = rm.delivered();
+  ASSERT_EQ(delivered.size(), 3u);
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(delivered[i].id, id);
+    EXPECT_TRUE(delivered[i].on_io_thread);
+    EXPECT_EQ(delivered[i].progress, i < 2);
+    EXPECT_EQ(delivered[i].outcome.value, json(static_cast<int>(i) + 1));
+  }
 }
 
 TEST(HandoffTest, AnOutcomeProducedOnTheTransportsThreadFollowsThoseHandedOverBefore) {

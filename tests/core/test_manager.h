@@ -4,7 +4,9 @@
 #define SIMGATE_TESTS_CORE_TEST_MANAGER_H_
 
 #include <mutex>
+#include <string>
 #include <utility>
+#include <tuple>
 #include <vector>
 
 #include "simgate/core/request_manager.h"
@@ -19,6 +21,14 @@ class TestManager : public RequestManager {
   RequestId call(std::string component, std::string service, json params = nullptr) {
     RequestId id = new_request_id();
     submit(id, Call{std::move(component), std::move(service), std::move(params)});
+    return id;
+  }
+  // Submits a call whose client asked for progress reports (Call::progress).
+  RequestId call_with_progress(std::string component, std::string service, json params = nullptr) {
+    RequestId id = new_request_id();
+    Call c{std::move(component), std::move(service), std::move(params)};
+    c.progress = true;
+    submit(id, std::move(c));
     return id;
   }
   // Submits, processes once, returns the outcome if it finished.
@@ -43,16 +53,31 @@ class TestManager : public RequestManager {
     std::lock_guard lock(mutex_);
     return completions_;
   }
+  // What reached the transport, in order: progress reports ("progress", value) and final
+  // outcomes ("outcome", status) of request `id`.
+  std::vector<std::pair<std::string, json>> events(RequestId id) {
+    std::lock_guard lock(mutex_);
+    std::vector<std::pair<std::string, json>> out;
+    for (auto& [i, kind, value] : events_)
+      if (i == id) out.emplace_back(kind, value);
+    return out;
+  }
 
  protected:
   void on_service_completion(RequestId id, Outcome&& outcome) override {
     std::lock_guard lock(mutex_);
+    events_.emplace_back(id, "outcome", std::string(to_string(outcome.status)));
     completions_.emplace_back(id, std::move(outcome));
+  }
+  void on_service_progress(RequestId id, json&& value) override {
+    std::lock_guard lock(mutex_);
+    events_.emplace_back(id, "progress", std::move(value));
   }
 
  private:
   std::mutex mutex_;
   std::vector<std::pair<RequestId, Outcome>> completions_;
+  std::vector<std::tuple<RequestId, std::string, json>> events_;  // progress and outcomes, in order
 };
 
 }  // namespace simgate::testing

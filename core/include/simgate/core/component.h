@@ -48,6 +48,9 @@ class Component {
   // Finishes the running async request (MORSE's completed). Ignored, with a warning,
   // when none is running.
   void completed(Status status, json result = nullptr);
+  // Reports progress of the running async request (Completion::progress: reaches its client
+  // only if it asked, rate-limited). False, and nothing sent, when none is running.
+  bool progress(json value);
 
   // True while an async request of this component is running.
   bool has_running_request() const { return slot_->busy(); }

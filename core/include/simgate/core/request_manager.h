@@ -67,6 +67,7 @@ struct Call {
   std::string component;  // "robot.waypoint"
   std::string service;    // "goto"
   json params;            // array (positional), object (named) or null (no arguments)
+  bool progress = false;  // the client asked for progress reports (on_service_progress)
 };
 
 namespace detail {
@@ -132,6 +133,12 @@ class RequestManager {
   // Every component this manager serves, with or without services, sorted (what
   // "component" counts in logs and banners).
   std::vector<std::string> components() const;
+
+  // The shortest time between two progress reports of one call that reach its client
+  // (Completion::progress); sooner ones are dropped. Before start().
+  void set_progress_interval(std::chrono::nanoseconds interval) { progress_interval_ = interval; }
+  std::chrono::nanoseconds progress_interval() const { return progress_interval_; }
+  static constexpr std::chrono::milliseconds k_default_progress_interval{50};
 
   void set_global_policy(GlobalPolicy policy) { global_policy_ = policy; }
   GlobalPolicy global_policy() const { return global_policy_; }
@@ -223,6 +230,10 @@ class RequestManager {
   // outcomes were produced. Must not throw. The outcome is the transport's to read or to
   // move from (the core may reuse the object for the next request).
   virtual void on_service_completion(RequestId id, Outcome&& outcome) = 0;
+  // Delivers a progress report of request `id`, a call submitted with Call::progress, on
+  // the thread and in the order on_service_completion would run (so never after the
+  // request's final outcome). Must not throw. The default ignores it.
+  virtual void on_service_progress(RequestId id, json&& value);
 
   // ---- the hand-off of outcomes to a transport's own thread ----
   //
@@ -261,10 +272,11 @@ class RequestManager {
   // hold (`refilled`: the transport refills the call object for its next request).
   void execute_and_deliver(RequestId id, Call& call, bool refilled);
   // Starts an async service; throws what its start method throws.
-  void start_async(RequestId id, const Service& service, std::span<const json* const> args,
+  // `wants_progress`: the client asked for progress reports (Call::progress).
+  void start_async(RequestId id, const Service& service, std::span<const json* const> args, bool wants_progress,
                    std::chrono::steady_clock::time_point started);
   // Starts one call of a concurrent service, outside its component's slot.
-  void start_concurrent(RequestId id, const Service& service, std::span<const json* const> args,
+  void start_concurrent(RequestId id, const Service& service, std::span<const json* const> args, bool wants_progress,
                         std::chrono::steady_clock::time_point started);
   // The debug log line of an outcome: "Socket service manager: robot.motion set_speed ->
   // SUCCESS in 12 us" (`took`: "in" for sync requests, "after" for async ones).
@@ -276,6 +288,11 @@ class RequestManager {
   void deliver(RequestId id, Outcome&& outcome);
   // on_service_completion, with what it throws logged.
   void call_completion(RequestId id, Outcome&& outcome);
+  // A progress report of a running call: to on_service_progress here, or handed over to
+  // the delivery thread, as deliver() does with outcomes; dropped when the call is over.
+  void deliver_progress(RequestId id, json&& value);
+  // on_service_progress, with what it throws logged.
+  void call_progress(RequestId id, json&& value);
   // process() once the lock is held
   std::size_t process_locked();
   std::shared_ptr<AsyncSlot> slot_for(const std::string& component);
@@ -309,6 +326,7 @@ class RequestManager {
   Outcome outcome_;  // the outcome of the request being executed, reused (under the simulation lock)
   std::atomic<std::uint64_t> requests_handled_{0};  // written under the simulation lock, read anywhere
   GlobalPolicy global_policy_ = GlobalPolicy::reject;  // when the running service has no policy
+  std::chrono::nanoseconds progress_interval_ = k_default_progress_interval;  // set_progress_interval
   bool started_ = false;                   // start() called (by process() if nobody did; under the lock)
 };
 

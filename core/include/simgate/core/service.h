@@ -28,6 +28,7 @@
 #include <atomic>
 #include <chrono>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <span>
@@ -97,6 +98,8 @@ class CompletionSink {
  public:
   virtual ~CompletionSink() = default;
   virtual void finished(RequestId id, Outcome outcome) = 0;  // any thread
+  // A progress report of a call whose client asked for them (Completion::progress).
+  virtual void progressed(RequestId id, json value) = 0;  // any thread
 };
 
 struct CallState {
@@ -110,6 +113,11 @@ struct CallState {
   // when it started, for the debug log line of its outcome; left at the epoch (and never
   // read) unless debug logging was on when it started
   std::chrono::steady_clock::time_point started{};
+  // Progress reports (Completion::progress): the shortest time between two that reach the
+  // client, or negative when its client asked for none (a report then costs one load).
+  std::chrono::nanoseconds progress_interval{-1};
+  // steady_clock time (ns since its epoch) of the last report passed on
+  std::atomic<std::int64_t> last_progress_ns{std::numeric_limits<std::int64_t>::min()};
 };
 
 }  // namespace detail
@@ -126,6 +134,12 @@ class Completion {
   bool operator()(Status status, json result = nullptr) const;
   // Finishes with a fully formed outcome (transport-facing; keeps Failure and message).
   bool finish(Outcome outcome) const;
+  // Reports progress of the call (a JSON value: distance left, steps done...), any number
+  // of times before it finishes. Passed on to the client only if it asked for progress
+  // (Call::progress), at most once per its manager's progress interval (a report sooner
+  // than that after the last one passed on is dropped), never after the call finished.
+  // Returns true when it was passed on. Costs one load when nobody asked.
+  bool progress(json value) const;
 
   bool done() const { return !state_ || state_->finished.load(); }
   explicit operator bool() const { return state_ != nullptr; }
