@@ -26,6 +26,8 @@ bool Component::progress(json value) {
   return slot_->busy() && slot_->running_completion.progress(std::move(value));
 }
 
+bool Component::progress_due() const { return slot_->busy() && slot_->running_completion.progress_due(); }
+
 std::string Component::running_service() const {
   return slot_->busy() ? slot_->running->service : std::string();
 }

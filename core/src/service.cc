@@ -70,15 +70,28 @@ bool Completion::finish(Outcome outcome) const {
   return true;
 }
 
+namespace {
+std::int64_t steady_now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+bool interval_passed(std::int64_t last, std::int64_t now, std::chrono::nanoseconds interval) {
+  return last == std::numeric_limits<std::int64_t>::min() || now - last >= interval.count();
+}
+}  // namespace
+
+bool Completion::progress_due() const {
+  return state_ && state_->progress_interval.count() >= 0 && !state_->finished.load() &&
+         interval_passed(state_->last_progress_ns.load(std::memory_order_relaxed), steady_now_ns(),
+                         state_->progress_interval);
+}
+
 bool Completion::progress(json value) const {
   if (!state_ || state_->progress_interval.count() < 0 || state_->finished.load()) return false;
-  const std::int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                               std::chrono::steady_clock::now().time_since_epoch())
-                               .count();
+  const std::int64_t now = steady_now_ns();
   std::int64_t last = state_->last_progress_ns.load(std::memory_order_relaxed);
-  const std::int64_t interval = state_->progress_interval.count();
   // one report per interval, whichever thread reports
-  if (last != std::numeric_limits<std::int64_t>::min() && now - last < interval) return false;
+  if (!interval_passed(last, now, state_->progress_interval)) return false;
   if (!state_->last_progress_ns.compare_exchange_strong(last, now, std::memory_order_relaxed)) return false;
   if (auto sink = state_->sink.lock()) sink->progressed(state_->id, std::move(value));
   return true;

@@ -117,6 +117,8 @@ void Waypoint::default_action() {
     if (has_running_request()) completed(Status::success, "Arrived");
     return;
   }
+  // a client that asked for progress learns how far it still is (issue #20)
+  if (progress_due()) progress(json{{"distance_left", dist}});
   // steer towards the target; drive forward only when roughly facing it, slower near it
   double error = wrap_angle(std::atan2(dy, dx) - robot_.yaw());
   double w = std::clamp(heading_gain_ * error, -max_angular_speed_, max_angular_speed_);

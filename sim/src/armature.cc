@@ -291,6 +291,7 @@ void Armature::default_action() {
       drive(i, *hold_[i], *hold_[i]);
     }
   }
+  if (motion_ && progress_due()) report_progress(t);
   if (!motion_ || t < motion_->end_time()) return;
 
   // past the last knot: done once every servo joint has arrived, FAILED if one never does
@@ -313,6 +314,19 @@ void Armature::default_action() {
     completed(Status::failed, failure + " (" + number(settle_timeout_) +
                                   " s after the motion's end: its position servo cannot get there; blocked, or too "
                                   "weak against the load?)");
+}
+
+void Armature::report_progress(double t) {
+  // every path has as many knots: its start, then one per trajectory point (or its target);
+  // a point is reached once every joint's knot of it is past (moves of several joints at
+  // one speed arrive one by one)
+  const std::size_t points = motion_->paths.front().knots.size() - 1;
+  std::size_t reached = 0;
+  while (reached < points && std::all_of(motion_->paths.begin(), motion_->paths.end(), [&](const JointPath& p) {
+           return p.knots[reached + 1].time <= t;
+         }))
+    ++reached;
+  progress({{"points_reached", reached}, {"points", points}, {"time_left", std::max(0.0, motion_->end_time() - t)}});
 }
 
 void Armature::interrupt() {

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <condition_variable>
 #include <map>
+#include <vector>
 #include <mutex>
 
 #include "simgate/core/request_manager.h"
@@ -38,6 +39,20 @@ class RecordingManager : public RequestManager {
     run_or_submit(id, Call{component, service, std::move(params)});
     return id;
   }
+  // A call whose client asked for progress reports (Call::progress).
+  RequestId call_with_progress(const std::string& component, const std::string& service, json params = json::array()) {
+    RequestId id = new_request_id();
+    Call c{component, service, std::move(params)};
+    c.progress = true;
+    submit(id, std::move(c));
+    return id;
+  }
+  // The progress reports request `id` got so far, in order.
+  std::vector<json> progress(RequestId id) {
+    std::lock_guard lock(mutex_);
+    auto it = progress_.find(id);
+    return it == progress_.end() ? std::vector<json>{} : it->second;
+  }
   std::optional<Outcome> outcome(RequestId id) {
     std::lock_guard lock(mutex_);
     auto it = outcomes_.find(id);
@@ -59,11 +74,16 @@ class RecordingManager : public RequestManager {
     outcomes_[id] = std::move(outcome);
     cv_.notify_all();
   }
+  void on_service_progress(RequestId id, json&& value) override {
+    std::lock_guard lock(mutex_);
+    progress_[id].push_back(std::move(value));
+  }
 
  private:
   std::mutex mutex_;                     // guards outcomes_
   std::condition_variable cv_;           // outcome arrived
   std::map<RequestId, Outcome> outcomes_;  // delivered outcomes
+  std::map<RequestId, std::vector<json>> progress_;  // delivered progress reports
 };
 
 // Every qpos, qvel and ctrl of `sim` is a finite number.

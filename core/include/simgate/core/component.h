@@ -51,6 +51,9 @@ class Component {
   // Reports progress of the running async request (Completion::progress: reaches its client
   // only if it asked, rate-limited). False, and nothing sent, when none is running.
   bool progress(json value);
+  // Whether a report of the running request now would reach its client
+  // (Completion::progress_due): check it before building one.
+  bool progress_due() const;
 
   // True while an async request of this component is running.
   bool has_running_request() const { return slot_->busy(); }

@@ -140,6 +140,10 @@ class Completion {
   // than that after the last one passed on is dropped), never after the call finished.
   // Returns true when it was passed on. Costs one load when nobody asked.
   bool progress(json value) const;
+  // Whether a report now would be passed on (the client asked, the interval has passed, the
+  // call runs): a component checks this before it builds a report, so that calls whose
+  // clients did not ask cost nothing more.
+  bool progress_due() const;
 
   bool done() const { return !state_ || state_->finished.load(); }
   explicit operator bool() const { return state_ != nullptr; }

@@ -129,6 +129,9 @@ class Armature : public SimComponent {
   const JointSet& joints() const { return joints_; }
 
  private:
+  // The running motion's progress at simulated time t, to a client that asked (issue #20):
+  // {"points_reached", "points", "time_left"}.
+  void report_progress(double t);
   // One requested target: joint index, value, and the parameter that named it.
   struct Target {
     std::size_t joint;
