@@ -76,6 +76,8 @@ TcpOptions TcpOptions::read(ConfigObject& config, const TcpOptions& defaults, st
   o.max_buffered_bytes = get_size(config, "max_buffered_bytes", o.max_buffered_bytes, 1 << 16, 1LL << 40);
   o.max_connections_per_peer = get_size(config, "max_connections_per_peer", o.max_connections_per_peer, 0, 1 << 20);
   o.auth = TokenAuth::read(config, o.warnings);
+  o.progress_interval = std::chrono::milliseconds(
+      config.get_int("progress_interval_ms", o.progress_interval.count(), 0, 3600 * 1000));
   return o;
 }
 

@@ -77,6 +77,7 @@ JsonRpcRequestManager::JsonRpcRequestManager(Options o)
       listener_(io_, name(), options_.tcp.host, options_.tcp.port),
       io_thread_(io_, name(), options_.tcp.io_spin) {
   set_global_policy(options_.tcp.global_policy);
+  set_progress_interval(options_.tcp.progress_interval);
   for (const auto& message : options_.tcp.warnings) log::warning(message);
 }
 
@@ -329,6 +330,23 @@ void JsonRpcRequestManager::dispatch(const std::shared_ptr<Session>& session, Re
     }
   }
 
+  // call options: "_meta" in named params (MCP's convention), never an argument
+  bool wants_progress = false;
+  if (request.params.is_object()) {
+    if (auto meta = request.params.find("_meta"); meta != request.params.end()) {
+      std::string why;
+      wants_progress = read_meta(*meta, why);
+      if (!why.empty()) {
+        reply(to, error_response(to.id, code::invalid_params, "Invalid params: _meta: " + why,
+                                 json{{"method", method}, {"parameter", "_meta"}}));
+        return;
+      }
+      request.params.erase(meta);
+    }
+  }
+  // progress goes to the call's id: a notification (no id) or a null id has none
+  wants_progress = wants_progress && !key.empty() && !to.notification;
+
   // gathered; flush_submissions() hands the calls of this read to the core together
   const RequestId id = new_request_id();
   if (!key.empty()) session->track(key, id);
@@ -339,6 +357,7 @@ void JsonRpcRequestManager::dispatch(const std::shared_ptr<Session>& session, Re
   if (call.component != component) call.component.swap(component);
   if (call.service != service) call.service.swap(service);
   call.params.swap(request.params);  // request_ takes the call's old array, for the next parse
+  call.progress = wants_progress;
   Pending& pending = pending_.try_emplace(id).first->second;  // a recycled node when there is one
   pending.to = std::move(to);
   pending.method.assign(method);
@@ -409,6 +428,22 @@ void JsonRpcRequestManager::handle_cancel(const std::shared_ptr<Session>& sessio
 void JsonRpcRequestManager::on_service_completion(RequestId id, Outcome&& outcome) {
   // the I/O thread (deliver_on_this_thread): inside run_or_submit, or drain_completions()
   finish_call(id, std::move(outcome));
+}
+
+void JsonRpcRequestManager::on_service_progress(RequestId id, json&& value) {
+  // the I/O thread, before the call's response
+  auto it = pending_.find(id);
+  if (it == pending_.end()) return;
+  auto session = it->second.to.session.lock();
+  if (!session || session->closed()) return;
+  const std::string& id_key = it->second.id_key;
+  session->queue_droppable_with([&](std::string& out) {
+    out += R"({"jsonrpc":"2.0","method":"rpc.progress","params":{"id":)";
+    out += id_key;
+    out += R"(,"status":"RUNNING","data":)";
+    out += dump(value);
+    out += "}}\n";
+  });
 }
 
 void JsonRpcRequestManager::drain_completions() {
@@ -496,4 +531,4 @@ SIMGATE_TRANSPORT_PLUGIN(jsonrpc, simgate::jsonrpc::JsonRpcRequestManager, "0.1.
                          "max_message_bytes", "max_depth", "max_in_flight", "max_unsent_bytes",
                          "max_connections", "io_spin_us", "on_disconnect", "global_policy",
                          "idle_timeout_s", "idle_evict_s", "line_timeout_s", "max_buffered_bytes",
-                         "max_connections_per_peer", "auth")
+                         "max_connections_per_peer", "auth", "progress_interval_ms")

@@ -86,6 +86,9 @@ class JsonRpcRequestManager : public RequestManager, private kit::LineServer {
  protected:
   // On the I/O thread (the core hands outcomes of other threads over): queues the reply.
   void on_service_completion(RequestId id, Outcome&& outcome) override;
+  // rpc.progress {id, status: "RUNNING", data} to a call that asked (_meta.progress); lost,
+  // not queued, when the client lets replies pile up unread (LineConnection::queue_droppable_with).
+  void on_service_progress(RequestId id, json&& value) override;
 
  private:
   struct Batch;

@@ -81,6 +81,26 @@ void append_result_line(std::string& out, std::string_view id_text, const json& 
   out += '}';
 }
 
+bool read_meta(const json& meta, std::string& why) {
+  if (!meta.is_object()) {
+    why = "expected an object of call options ({\"progress\": true}), found " + dump(meta);
+    return false;
+  }
+  bool progress = false;
+  for (const auto& [key, value] : meta.items()) {
+    if (key != "progress") {
+      why = "unknown call option '" + key + "' (known: progress)";
+      return false;
+    }
+    if (!value.is_boolean()) {
+      why = "progress: expected true or false, found " + dump(value);
+      return false;
+    }
+    progress = value.get<bool>();
+  }
+  return progress;
+}
+
 json error_response(const json& id, int error_code, std::string message, json data) {
   json error = {{"code", error_code}, {"message", std::move(message)}};
   if (!data.is_null()) error["data"] = std::move(data);

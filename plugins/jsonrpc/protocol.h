@@ -99,6 +99,11 @@ std::vector<std::pair<std::size_t, std::string>> float_id_texts(std::string_view
 // no dot or either side is empty.
 bool split_method(const std::string& method, std::string& component, std::string& service);
 
+// The call options of "_meta" in named params: {"progress": true|false} (rpc.progress
+// notifications for this call). Returns whether progress was asked for; `why` says what is
+// wrong with `meta` when it is not an object of known options (empty otherwise).
+bool read_meta(const json& meta, std::string& why);
+
 // The OpenRPC 1.2.6 document for `services` (rpc.discover's result).
 json openrpc_document(const std::vector<ServiceDescriptor>& services, std::string_view version,
                       std::string_view global_policy);

@@ -9,7 +9,9 @@
 //   robot.arm.hold, robot.base.hold, robot.cam.hold: async, finished by ctl.release;
 //                interruptible, non-interruptible and without local policy respectively
 //   ctl.*        release(key, value), release_fail(key, message), pending(key) (true while
-//                the held call runs), mark(key)/marked(key), iteration() (process() count)
+//                the held call runs), progress(key, value) (a progress report of the held
+//                call: true when passed on), mark(key)/marked(key), iteration() (process()
+//                count)
 //
 // Threads: every service runs under the simulation lock (SimulationGate): on the host's
 // simulation thread (the one calling process()) or on the transport's I/O thread when it
@@ -94,6 +96,13 @@ inline void register_test_services(RequestManager& rm, const std::shared_ptr<Ser
         return it != state->held.end() && !it->second.done();
       },
       "pending", {"key"});
+  rm.register_service(
+      "ctl",
+      [state](std::string key, json value) {
+        auto it = state->held.find(key);
+        return it != state->held.end() && it->second.progress(value);
+      },
+      "progress", {"key", "value"});
   rm.register_service("ctl", [state](std::string key) { state->marks.insert(key); }, "mark", {"key"});
   rm.register_service("ctl", [state](std::string key) { return state->marks.count(key) > 0; }, "marked",
                       {"key"});

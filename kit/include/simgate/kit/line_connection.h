@@ -176,6 +176,16 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
     else if (!touched_)
       host_.touch(*this);
   }
+  // queue() of a line the client may miss (a progress report): dropped instead when more
+  // than k_droppable_unsent_bytes already wait unsent, so that a client that does not read
+  // loses old reports, never a reply, and is not disconnected for them. True if queued.
+  static constexpr std::size_t k_droppable_unsent_bytes = 64 << 10;
+  template <class Format>
+  bool queue_droppable_with(Format&& format) {
+    if (closed_ || outbox_.size() + in_flight_.size() > k_droppable_unsent_bytes) return false;
+    queue_with(std::forward<Format>(format));
+    return true;
+  }
   // Writes what queue() gathered, unless a write is in flight (it takes them next).
   void flush_writes();
   // queue() and flush_writes().

@@ -4,7 +4,8 @@
 //   TcpOptions  the knobs every TCP transport has, under one name each (host, port,
 //               max_connections, max_message_bytes, max_unsent_bytes, max_in_flight,
 //               io_spin_us, on_disconnect, global_policy, idle_timeout_s, idle_evict_s,
-//               line_timeout_s, max_buffered_bytes, max_connections_per_peer, auth);
+//               line_timeout_s, max_buffered_bytes, max_connections_per_peer, auth,
+//               progress_interval_ms);
 //               renamed keys stay accepted for a release with a warning.
 //   TcpListener binds at construction (a port in use fails there, with a hint naming the
 //               tool that finds who holds it); accepts on the I/O thread, backs off 100 ms
@@ -68,6 +69,9 @@ struct TcpOptions {
   // limit. Loopback peers are the machine's own programs (all one address): not counted.
   std::size_t max_connections_per_peer = 64;
   TokenAuth auth;  // ("auth") off unless given (auth.h)
+  // ("progress_interval_ms") the shortest time between two progress reports of one call
+  // (RequestManager::set_progress_interval), for the transports that carry them
+  std::chrono::milliseconds progress_interval{50};
 
   // Each knob's key as the options spell it (a deprecated alias when that was used): for
   // messages that name the option to change.
