@@ -68,6 +68,12 @@ class Stepping {
     sim_.take_owed_steps(std::chrono::steady_clock::now() + Simulation::k_inline_step_budget);
   }
 
+  // Every step: the steps done so far, to a client that asked for progress (issue #20).
+  void report_progress() {
+    if (!done_.progress_due()) return;
+    done_.progress(json{{"steps_done", requested_ - sim_.owed_steps()}, {"steps_requested", requested_}});
+  }
+
   // The running step request is interrupted (cancel, a new step, another async request of
   // `simulation`, shutdown): it ends PREEMPTED with the steps done, its reason kept.
   void interrupted() { end_early(nullptr); }
@@ -120,6 +126,7 @@ void add_stepping_services(SupervisionServices& simulation, Simulation& sim) {
       .doc("Paused only: take n steps as fast as possible; SUCCESS {sim_time, steps_done}, or PREEMPTED with the "
            "steps done");
   simulation.on_interrupt("step", [stepping] { stepping->interrupted(); });
+  simulation.on_step([stepping] { stepping->report_progress(); });
 }
 
 }  // namespace simgate::sim

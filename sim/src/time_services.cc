@@ -41,9 +41,13 @@ void TimeServices::default_action() {
   if (sleeps_.empty()) return;
   // half a step of slack absorbs floating-point accumulation in mjData::time
   const double now = sim_.sim_time() + 0.5 * sim_.timestep();
-  std::erase_if(sleeps_, [now](Sleep& s) {
+  std::erase_if(sleeps_, [&](Sleep& s) {
     if (s.done.done()) return true;  // cancelled by its client, or ended at shutdown
-    if (now < s.wake_at) return false;
+    if (now < s.wake_at) {
+      // a client that asked for progress learns how long it still sleeps (issue #20)
+      if (s.done.progress_due()) s.done.progress(json{{"time_left", s.wake_at - sim_.sim_time()}});
+      return false;
+    }
     s.done(Status::success);
     return true;
   });

@@ -1,6 +1,7 @@
 // Progress reports of the built-in async services (issue #20), for calls that asked for
 // them (Call::progress): waypoint goto reports the distance left, armature motions the
-// points reached and the time left. A call that did not ask gets none.
+// points reached and the time left, simulation step the steps done, time sleep the time
+// left. A call that did not ask gets none.
 #include "armature_fixture.h"
 #include "sim_fixture.h"
 
@@ -33,6 +34,33 @@ TEST_F(WaypointProgressTest, AGotoWhoseClientDidNotAskReportsNothing) {
   RequestId id = rm_->call("robot.waypoint", "goto", json::array({1.0, 0.0, 0.0, 0.2, 1.0}));
   ASSERT_TRUE(step_until(id, 20000).has_value());
   EXPECT_TRUE(rm_->progress(id).empty());
+}
+
+TEST_F(WaypointProgressTest, StepReportsTheStepsDoneThenEnds) {
+  ASSERT_EQ(call("simulation", "pause").status, Status::success);
+  RequestId id = rm_->call_with_progress("simulation", "step", {5});
+  sim_->process_requests();  // the caller's thread takes the steps itself
+  auto done = step_until(id, 10);
+  ASSERT_TRUE(done.has_value());
+  EXPECT_EQ(done->status, Status::success);
+  std::vector<json> reports = rm_->progress(id);
+  ASSERT_EQ(reports.size(), 5u);
+  for (std::size_t i = 0; i < reports.size(); ++i) {
+    EXPECT_EQ(reports[i]["steps_done"], i);  // reported as each step begins
+    EXPECT_EQ(reports[i]["steps_requested"], 5);
+  }
+}
+
+TEST_F(WaypointProgressTest, SleepReportsTheTimeLeft) {
+  RequestId id = rm_->call_with_progress("time", "sleep", {0.1});
+  auto done = step_until(id, 200);
+  ASSERT_TRUE(done.has_value());
+  EXPECT_EQ(done->status, Status::success);
+  std::vector<json> reports = rm_->progress(id);
+  ASSERT_GT(reports.size(), 10u);
+  EXPECT_NEAR(reports.front()["time_left"].get<double>(), 0.1, 2 * sim_->timestep());
+  EXPECT_LT(reports.back()["time_left"].get<double>(), reports.front()["time_left"].get<double>());
+  EXPECT_GT(reports.back()["time_left"].get<double>(), 0.0);
 }
 
 class ArmatureProgressTest : public testing::ArmatureSim {};
