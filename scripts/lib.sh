@@ -7,7 +7,7 @@ SIMGATE_ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 # what the test suite and benchmarks need on top (scripts/test).
 SIMGATE_RUNTIME_PACKAGES=(
   build-essential cmake ninja-build pkg-config
-  libboost-dev libcli11-dev nlohmann-json3-dev libeigen3-dev libmujoco-dev
+  libboost-dev libcli11-dev nlohmann-json3-dev libeigen3-dev libmujoco-dev libtinyxml2-dev
   cyclonedds-dev cyclonedds-tools
   telnet
 )

@@ -1,7 +1,10 @@
 #include "simgate/sim/model.h"
 
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <mutex>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -18,6 +21,18 @@ namespace {
 void on_mujoco_error(const char* message) { throw MujocoError(std::string("MuJoCo error: ") + message); }
 
 void on_mujoco_warning(const char* message) { log::warning("MuJoCo: ", message); }
+
+// The scene as loaded: `m` compiled from `xml`, found as `file_name` in `directory`.
+std::shared_ptr<const SceneSource> scene_of(const mjModel* m, std::string xml, std::string file_name,
+                                            std::string directory) {
+  auto scene = std::make_shared<SceneSource>();
+  scene->xml = std::move(xml);
+  scene->file_name = std::move(file_name);
+  scene->directory = std::move(directory);
+  scene->model_name = m->names;  // the model's name comes first in names
+  scene->counts = ModelCounts::of(m);
+  return scene;
+}
 
 }  // namespace
 
@@ -46,7 +61,14 @@ Model Model::load_file(const std::string& path) {
   }
   if (!m) throw MujocoError("scene '" + path + "': " + (error[0] ? error : "MuJoCo could not load it"));
   if (error[0]) log::warning("scene '", path, "': ", error);
-  return Model(m, path);
+  Model model(m, path);
+  // the text a recompilation (spawned entities) starts from
+  std::ifstream file(path, std::ios::binary);
+  std::stringstream text;
+  text << file.rdbuf();
+  const std::filesystem::path absolute = std::filesystem::absolute(path);
+  model.scene_ = scene_of(m, text.str(), absolute.filename().string(), absolute.parent_path().string());
+  return model;
 }
 
 Model Model::load_string(const std::string& xml, const std::string& name) {
@@ -68,7 +90,46 @@ Model Model::load_string(const std::string& xml, const std::string& name) {
   }
   mj_deleteVFS(vfs.get());
   if (!m) throw MujocoError("scene '" + name + "': " + (error[0] ? error : "MuJoCo could not load it"));
-  return Model(m, name);
+  Model model(m, name);
+  model.scene_ = scene_of(m, xml, name, "");
+  return model;
+}
+
+Model Model::adopt(mjModel* m, std::string source, std::shared_ptr<const SceneSource> scene,
+                   std::vector<SpawnedEntity> entities) {
+  Model model(m, std::move(source));
+  model.scene_ = std::move(scene);
+  model.entities_ = std::move(entities);
+  return model;
+}
+
+const SpawnedEntity* Model::entity(const std::string& name) const {
+  for (const auto& e : entities_)
+    if (e.name == name) return &e;
+  return nullptr;
+}
+
+ModelCounts ModelCounts::of(const mjModel* m) {
+  ModelCounts c;
+  c.nbody = m->nbody, c.njnt = m->njnt, c.ngeom = m->ngeom, c.nsite = m->nsite, c.ncam = m->ncam;
+  c.nlight = m->nlight, c.nmocap = m->nmocap, c.nq = m->nq, c.nv = m->nv, c.na = m->na, c.nu = m->nu;
+  c.nsensor = m->nsensor, c.ntendon = m->ntendon, c.neq = m->neq;
+  return c;
+}
+
+ModelCounts& ModelCounts::operator+=(const ModelCounts& o) {
+  nbody += o.nbody, njnt += o.njnt, ngeom += o.ngeom, nsite += o.nsite, ncam += o.ncam, nlight += o.nlight;
+  nmocap += o.nmocap, nq += o.nq, nv += o.nv, na += o.na, nu += o.nu, nsensor += o.nsensor;
+  ntendon += o.ntendon, neq += o.neq;
+  return *this;
+}
+
+ModelCounts ModelCounts::operator-(const ModelCounts& o) const {
+  ModelCounts c = *this;
+  c.nbody -= o.nbody, c.njnt -= o.njnt, c.ngeom -= o.ngeom, c.nsite -= o.nsite, c.ncam -= o.ncam;
+  c.nlight -= o.nlight, c.nmocap -= o.nmocap, c.nq -= o.nq, c.nv -= o.nv, c.na -= o.na, c.nu -= o.nu;
+  c.nsensor -= o.nsensor, c.ntendon -= o.ntendon, c.neq -= o.neq;
+  return c;
 }
 
 int Model::body_id(const std::string& name) const {

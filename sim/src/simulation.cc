@@ -8,6 +8,7 @@
 #include "simgate/core/call_context.h"
 #include "simgate/core/log.h"
 #include "simgate/sim/communication.h"
+#include "simgate/sim/model_edit.h"
 #include "simgate/sim/sim_component.h"
 #include "simgate/sim/supervision.h"
 
@@ -486,6 +487,14 @@ std::string Simulation::drop_bad_controls() {
     names += (names.empty() ? "the control of " : ", ") + name_or_index(m(), mjOBJ_ACTUATOR, i, "actuator");
   }
   return names;
+}
+
+void Simulation::replace_model(Model next) {
+  next.model()->opt = m()->opt;
+  carry_state(model_, next);
+  model_ = std::move(next);
+  ++model_generation_;
+  forward();
 }
 
 SimulationStatistics Simulation::statistics() const {

@@ -100,7 +100,7 @@ TEST_F(SimWorldStateTest, SavingBeyondTheLimitFails) {
 
 TEST_F(SimWorldStateTest, AStateOfAnotherModelGenerationIsRefused) {
   const std::uint64_t handle = save();
-  sim_->bump_model_generation();  // what a spawn does when it replaces the model
+  sim_->replace_model(Model::load_file(testing::demo_scene()));  // as a spawn does
   Outcome o = call("simulation", "restore_state", {handle});
   EXPECT_EQ(o.status, Status::failed);
   EXPECT_THAT(o.message, HasSubstr("another model"));

@@ -6,6 +6,13 @@
 // exception (never a process exit), a warning becomes a log line. Load errors name the
 // file and MuJoCo's message.
 //
+// A Model remembers what it was compiled from: the scene (its text as first read, so that
+// a recompilation starts from the same scene even if the file changed since) and the
+// entities spawned into it at run time (model_edit.h), in order. Each entity's objects
+// come after the scene's and after those of the entities before it, in every MuJoCo array
+// (bodies, joints, geoms, sites, actuators, sensors, qpos...): an entity is a block, whose
+// size is its ModelCounts.
+//
 // Threads: a Model is used by one thread at a time (the simulation thread once running).
 #ifndef SIMGATE_SIM_MODEL_H_
 #define SIMGATE_SIM_MODEL_H_
@@ -13,6 +20,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <mujoco/mujoco.h>
 
@@ -27,6 +35,33 @@ class MujocoError : public std::runtime_error {
 // Installs the error/warning handlers (idempotent, thread-safe). Called by Model.
 void install_mujoco_handlers();
 
+// How many objects of each kind a model, or one block of it, holds.
+struct ModelCounts {
+  int nbody = 0, njnt = 0, ngeom = 0, nsite = 0, ncam = 0, nlight = 0, nmocap = 0;
+  int nq = 0, nv = 0, na = 0, nu = 0, nsensor = 0, ntendon = 0, neq = 0;
+
+  static ModelCounts of(const mjModel* m);
+  ModelCounts& operator+=(const ModelCounts& other);
+  ModelCounts operator-(const ModelCounts& other) const;
+};
+
+// The scene a model was loaded from, as first read.
+struct SceneSource {
+  std::string xml;         // the scene file's text (or the inline text)
+  std::string file_name;   // its base name: what its <include> in a recompiled model names
+  std::string directory;   // absolute directory of the file, where its relative includes,
+                           // meshes and textures resolve ("" for an inline scene)
+  std::string model_name;  // <mujoco model="...">, kept by recompiled models
+  ModelCounts counts;      // the scene's own objects: the block every model starts with
+};
+
+// An entity spawned at run time (model_edit.h).
+struct SpawnedEntity {
+  std::string name;      // its top body's name
+  std::string sections;  // the MJCF sections it adds (<worldbody> with its body, <asset>...)
+  ModelCounts counts;    // its block
+};
+
 class Model {
  public:
   // Throws MujocoError("scene '<path>': <MuJoCo's message>").
@@ -37,6 +72,15 @@ class Model {
   mjModel* model() const { return model_.get(); }
   mjData* data() const { return data_.get(); }
   const std::string& source() const { return source_; }
+  // What it was compiled from (see above).
+  const std::shared_ptr<const SceneSource>& scene() const { return scene_; }
+  const std::vector<SpawnedEntity>& entities() const { return entities_; }
+  // The spawned entity called `name`, or null.
+  const SpawnedEntity* entity(const std::string& name) const;
+
+  // A model compiled from `scene` plus `entities` (model_edit.cc): takes `m`, makes its data.
+  static Model adopt(mjModel* m, std::string source, std::shared_ptr<const SceneSource> scene,
+                     std::vector<SpawnedEntity> entities);
 
   // Name -> id lookups; -1 when missing. body_id also finds an unnamed body by the name
   // body_name() gives it ("body3"), so that a config can bind to it.
@@ -58,6 +102,8 @@ class Model {
   std::unique_ptr<mjModel, ModelDeleter> model_;  // immutable description
   std::unique_ptr<mjData, DataDeleter> data_;     // mutable state
   std::string source_;                            // file path or inline name, for messages
+  std::shared_ptr<const SceneSource> scene_;      // the scene it was compiled from
+  std::vector<SpawnedEntity> entities_;           // spawned into it, in order
 };
 
 }  // namespace simgate::sim

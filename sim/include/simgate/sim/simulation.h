@@ -233,12 +233,18 @@ class Simulation {
   // least, if any is owed); returns how many it took. Steps left wake the loop.
   std::uint64_t take_owed_steps(std::chrono::steady_clock::time_point until);
 
-  // ---- model identity ----
+  // ---- the model itself (simulation thread) ----
 
-  // Bumped whenever the model is replaced (spawn, delete): state saved under another
-  // generation does not fit this model.
+  // Counts the changes of the model (spawned or deleted entities): 0 for the model the
+  // simulation started with. What was saved of one model (a snapshot's state arrays) does
+  // not fit another.
   std::uint64_t model_generation() const { return model_generation_; }
-  void bump_model_generation() { ++model_generation_; }
+  // Makes `next`, the current model recompiled with entities added or removed
+  // (model_edit.h), the simulation's model: the state of every object both hold is carried
+  // across (carry_state), and so are the clock and the physics options (a timestep set by
+  // the config or at run time); bumps model_generation(), then forward(). Components keep
+  // working unchanged: the scene's objects keep their ids (entities come after them).
+  void replace_model(Model next);
 
  private:
   // After a step taken while playing: the measured real-time factor, window by window.
@@ -260,7 +266,7 @@ class Simulation {
   bool paused_ = false;                                      // no step of the loop's own
   std::uint64_t owed_steps_ = 0;                             // `simulation step` steps left
   std::function<void()> owed_done_;                          // runs after the last owed step
-  std::uint64_t model_generation_ = 0;                       // bumped when the model is replaced
+  std::uint64_t model_generation_ = 0;                       // see model_generation()
   bool reschedule_ = false;                                  // the loop restarts its pace from now
   std::chrono::steady_clock::time_point next_step_{};        // when the paced loop steps next
   std::chrono::steady_clock::time_point window_start_{};     // wall start of the rate window

@@ -13,6 +13,7 @@
 //                    get_object_global_bbox, set_object_dynamics, get_entity_state,
 //                    set_entity_state, list_entities (docs/world/entities.md)
 //   process_services.cc  terminate, set_log_level (docs/world/entities.md)
+//   spawn.cc         spawn_entity, delete_entity (docs/world/spawn.md)
 //
 // Threads: simulation thread only, as every service.
 #ifndef SIMGATE_SIM_WORLD_SERVICES_H_
@@ -31,6 +32,7 @@ void add_stepping_services(SupervisionServices& simulation, Simulation& sim);
 void add_state_services(SupervisionServices& simulation, Simulation& sim);
 void add_entity_services(SupervisionServices& simulation, Simulation& sim);
 void add_process_services(SupervisionServices& simulation, Simulation& sim);
+void add_spawn_services(SupervisionServices& simulation, Simulation& sim);
 
 }  // namespace simgate::sim
 

@@ -1,0 +1,204 @@
+// The spawn group of the `simulation` component (docs/world/spawn.md): spawn_entity and
+// delete_entity change the world's model at run time.
+//
+// MuJoCo 2.2.2 cannot edit a compiled model, so each change recompiles the scene with the
+// entities it now holds (model_edit.h). Compiling takes milliseconds to seconds, far more
+// than a step: it happens on a worker thread, off the simulation lock, from copies made
+// under it; the step hook swaps the new model in on the simulation thread once the worker
+// is done (Simulation::replace_model carries the state across) and only then completes the
+// request. Both services are concurrent async services: neither takes the component's one
+// async slot from the other world-control services, and they keep their own rule of one
+// change at a time (a second one while one compiles FAILS, naming the one compiling).
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <future>
+#include <optional>
+
+#include "simgate/core/errors.h"
+#include "simgate/core/log.h"
+#include "simgate/sim/bounds.h"
+#include "simgate/sim/model_edit.h"
+#include "simgate/sim/world_services.h"
+
+namespace simgate::sim {
+
+namespace {
+
+[[noreturn]] void refuse(const std::string& parameter, const std::string& message) {
+  throw ServiceError(message, Failure::bad_arguments, {{"parameter", parameter}});
+}
+
+// A name MuJoCo and every transport carry as is, and that no unnamed body answers to
+// (Model::body_name calls the unnamed body 3 "body3").
+void check_entity_name(const std::string& name) {
+  const bool valid_characters = std::all_of(name.begin(), name.end(), [](unsigned char c) {
+    return std::isalnum(c) || c == '_' || c == '-' || c == '.';
+  });
+  if (name.empty() || name.size() > 64 || !valid_characters)
+    refuse("name", "name '" + name + "': expected 1 to 64 letters, digits, '_', '-' or '.'");
+  if (name.size() > 4 && name.starts_with("body") &&
+      name.find_first_not_of("0123456789", 4) == std::string::npos)
+    refuse("name", "name '" + name + "': 'body<number>' is how unnamed bodies are called; choose another name");
+}
+
+// [x, y, z] or [x, y, z, qx, qy, qz, qw] (get_scene_objects' order) -> MuJoCo's pose.
+EntityPose entity_pose(const std::vector<double>& pose) {
+  if (pose.size() != 3 && pose.size() != 7)
+    refuse("pose", "pose: expected [x, y, z] or [x, y, z, qx, qy, qz, qw], found " + std::to_string(pose.size()) +
+                       " numbers");
+  EntityPose out;
+  const char* axes[] = {"pose[0] (x)", "pose[1] (y)", "pose[2] (z)"};
+  for (int i = 0; i < 3; ++i) {
+    bounds::require_within(axes[i], pose[i], bounds::position, "m");
+    out.position[i] = pose[i];
+  }
+  if (pose.size() == 3) return out;
+  for (int i = 3; i < 7; ++i) bounds::require_within("pose[" + std::to_string(i) + "]", pose[i], 1e3, "");
+  const double norm = std::sqrt(pose[3] * pose[3] + pose[4] * pose[4] + pose[5] * pose[5] + pose[6] * pose[6]);
+  if (!(norm > 1e-9)) refuse("pose", "pose: the orientation quaternion [qx, qy, qz, qw] must not be zero");
+  out.orientation = std::array<double, 4>{pose[6] / norm, pose[3] / norm, pose[4] / norm, pose[5] / norm};
+  return out;
+}
+
+// The state of the spawn group: the change being compiled, if any.
+class Spawner {
+ public:
+  explicit Spawner(Simulation& sim) : sim_(sim) {}
+
+  void spawn_entity(Completion done, const std::string& name, const std::string& mjcf,
+                    const std::vector<double>& pose) {
+    check_entity_name(name);
+    refuse_if_busy(name);
+    const Model& model = sim_.model();
+    if (model.body_id(name) >= 0)
+      refuse("name", "name '" + name + "' is taken: the scene already has a body called so");
+    const EntityPose where = entity_pose(pose);
+    if (mjcf.find_first_not_of(" \t\r\n") == std::string::npos || mjcf[mjcf.find_first_not_of(" \t\r\n")] != '<')
+      refuse("mjcf", "mjcf: expected MJCF text (a <body>, or a <mujoco> with a <worldbody> holding one <body>)");
+    std::vector<SpawnedEntity> entities = model.entities();
+    entities.push_back({name, entity_sections(mjcf, name, where), {}});
+    start(std::move(done), "spawn_entity", name, std::move(entities), true);
+  }
+
+  void delete_entity(Completion done, const std::string& name) {
+    refuse_if_busy(name);
+    const Model& model = sim_.model();
+    if (!model.entity(name)) {
+      if (model.body_id(name) >= 0)
+        refuse("name", "body '" + name + "' is part of the scene: delete_entity removes entities spawned at run time");
+      refuse("name", "no entity named '" + name + "'" + spawned_list());
+    }
+    std::vector<SpawnedEntity> entities = model.entities();
+    std::erase_if(entities, [&](const SpawnedEntity& e) { return e.name == name; });
+    start(std::move(done), "delete_entity", name, std::move(entities), false);
+  }
+
+  // Every step: once the worker is done, swap its model in and complete the request.
+  void on_step() {
+    std::erase_if(abandoned_, [](const std::future<Model>& f) { return ready(f); });
+    if (!change_ || !ready(change_->compiled)) return;
+    Change change = std::move(*change_);
+    change_.reset();
+    try {
+      Model next = change.compiled.get();
+      if (change.done.done()) {
+        // cancelled by its client, or ended at shutdown: the world stays as it is
+        log::info("simulation: ", change.service, " '", change.name, "' ended before its model was ready; dropped");
+        return;
+      }
+      if (sim_.model_generation() != change.generation) {
+        change.done.finish(Outcome::failed(Failure::service_error,
+                                           change.service + " '" + change.name +
+                                               "': the model changed while it compiled; nothing was changed"));
+        return;
+      }
+      sim_.replace_model(std::move(next));
+      log::info("simulation: ", change.service, " '", change.name, "': model generation ", sim_.model_generation(),
+                " (", sim_.m()->nbody, " bodies)");
+      change.done(Status::success, json{{"name", change.name}, {"model_generation", sim_.model_generation()}});
+    } catch (const std::exception& e) {
+      // MuJoCo's message: the fragment does not compile with the scene (a taken joint or
+      // geom name, a missing mesh...), and the running model is untouched
+      const bool spawning = change.service == "spawn_entity";
+      change.done.finish(Outcome::failed(spawning ? Failure::bad_arguments : Failure::service_error,
+                                         change.service + " '" + change.name + "': the model does not compile: " +
+                                             e.what(),
+                                         spawning ? json{{"parameter", "mjcf"}} : json::object()));
+    }
+  }
+
+ private:
+  static bool ready(const std::future<Model>& f) {
+    return f.wait_for(std::chrono::seconds(0)) == std::future_status::ready;
+  }
+
+  // One change at a time: the next one starts from the model this one makes. A change
+  // whose request already ended (cancelled by its client) makes nothing: its worker is left
+  // to finish on its own.
+  void refuse_if_busy(const std::string& name) {
+    if (change_ && change_->done.done()) {
+      abandoned_.push_back(std::move(change_->compiled));
+      change_.reset();
+    }
+    if (change_)
+      throw ServiceError("cannot change entity '" + name + "' now: " + change_->service + " '" + change_->name +
+                             "' is compiling; try again when it completes",
+                         Failure::busy, {{"running", "simulation." + change_->service}});
+  }
+
+  std::string spawned_list() const {
+    std::string names;
+    for (const auto& e : sim_.model().entities()) names += (names.empty() ? "" : ", ") + ("'" + e.name + "'");
+    return names.empty() ? " (no entity has been spawned)" : " (spawned: " + names + ")";
+  }
+
+  // Compiles the scene with `entities` on a worker thread (copies only: nothing shared
+  // with the running simulation).
+  void start(Completion done, std::string service, std::string name, std::vector<SpawnedEntity> entities,
+             bool last_is_new) {
+    auto scene = sim_.model().scene();
+    change_.emplace(Change{std::move(done), std::move(service), std::move(name), sim_.model_generation(),
+                           std::async(std::launch::async, [scene, entities = std::move(entities), last_is_new] {
+                             return compile_scene(scene, entities, last_is_new);
+                           })});
+  }
+
+  // A model being compiled, and the request waiting for it.
+  struct Change {
+    Completion done;               // the request, completed after the swap
+    std::string service;           // "spawn_entity" or "delete_entity"
+    std::string name;              // the entity
+    std::uint64_t generation;      // the model generation it was made from
+    std::future<Model> compiled;   // the worker's result (or MuJoCo's error)
+  };
+
+  Simulation& sim_;                        // whose model changes
+  std::optional<Change> change_;           // the one being compiled
+  std::vector<std::future<Model>> abandoned_;  // compilations of cancelled changes, until they end
+};
+
+}  // namespace
+
+void add_spawn_services(SupervisionServices& simulation, Simulation& sim) {
+  auto spawner = std::make_shared<Spawner>(sim);
+  simulation
+      .offer_async_service(
+          "spawn_entity",
+          [spawner](Completion done, const std::string& name, const std::string& mjcf, const std::vector<double>& pose) {
+            spawner->spawn_entity(std::move(done), name, mjcf, pose);
+          },
+          {"name", "mjcf", "pose"})
+      .concurrent()
+      .doc("Add the MJCF body `mjcf` to the world as `name` at `pose` [x, y, z] or [x, y, z, qx, qy, qz, qw]");
+  simulation
+      .offer_async_service(
+          "delete_entity",
+          [spawner](Completion done, const std::string& name) { spawner->delete_entity(std::move(done), name); },
+          {"name"})
+      .concurrent()
+      .doc("Remove the entity `name` spawned at run time from the world");
+  simulation.on_step([spawner] { spawner->on_step(); });
+}
+
+}  // namespace simgate::sim

@@ -1,0 +1,165 @@
+// ModelEdit: a scene recompiled with entities spawned into it (model_edit.h): fragments
+// checked and placed, ids of the scene kept, state carried across by entity.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "simgate/core/errors.h"
+#include "simgate/sim/model_edit.h"
+#include "sim_fixture.h"
+
+namespace simgate::sim {
+namespace {
+
+constexpr const char* k_ball = R"(<body name="ignored" euler="0 0 90"><freejoint/>
+  <geom type="sphere" size="0.1" mass="1"/></body>)";
+
+// One spawned entity of `model`'s scene: `fragment` as `name` at `pose`.
+SpawnedEntity entity(const std::string& name, const std::string& fragment, EntityPose pose = {}) {
+  return {name, entity_sections(fragment, name, pose), {}};
+}
+
+// `fragment` refused, the message naming the parameter and containing `why`.
+void expect_refused(const std::string& fragment, const std::string& why) {
+  try {
+    entity_sections(fragment, "e", {});
+    ADD_FAILURE() << "accepted: " << fragment;
+  } catch (const ServiceError& e) {
+    EXPECT_EQ(e.failure(), Failure::bad_arguments);
+    EXPECT_EQ(e.data().value("parameter", ""), "mjcf");
+    EXPECT_NE(e.message().find(why), std::string::npos) << e.message();
+  }
+}
+
+TEST(ModelEditTest, BodyFragmentIsNamedAndPlaced) {
+  EntityPose pose;
+  pose.position = {1, 2, 0.5};
+  pose.orientation = std::array<double, 4>{0, 0, 0, 1};
+  const std::string sections = entity_sections(k_ball, "ball", pose);
+  EXPECT_NE(sections.find("<worldbody><body name=\"ball\""), std::string::npos) << sections;
+  EXPECT_NE(sections.find("pos=\"1 2 0.5\""), std::string::npos) << sections;
+  EXPECT_NE(sections.find("quat=\"0 0 0 1\""), std::string::npos) << sections;
+  // one orientation only: the fragment's euler gave way to the pose's quaternion
+  EXPECT_EQ(sections.find("euler"), std::string::npos) << sections;
+}
+
+TEST(ModelEditTest, WithoutOrientationTheFragmentKeepsItsOwn) {
+  const std::string sections = entity_sections(k_ball, "ball", {});
+  EXPECT_NE(sections.find("euler=\"0 0 90\""), std::string::npos) << sections;
+}
+
+TEST(ModelEditTest, MujocoFragmentKeepsItsSections) {
+  const std::string sections = entity_sections(R"(<mujoco>
+      <asset><material name="red" rgba="1 0 0 1"/></asset>
+      <worldbody><body><joint name="spin" type="hinge"/><geom type="box" size=".1 .1 .1" material="red"/></body></worldbody>
+      <actuator><motor name="spin_motor" joint="spin"/></actuator>
+    </mujoco>)",
+                                               "spinner", {});
+  EXPECT_NE(sections.find("<asset>"), std::string::npos);
+  EXPECT_NE(sections.find("<body name=\"spinner\""), std::string::npos);
+  EXPECT_NE(sections.find("<actuator><motor name=\"spin_motor\""), std::string::npos) << sections;
+}
+
+TEST(ModelEditTest, BadFragmentsAreRefusedNamingTheReason) {
+  expect_refused("<body><geom", "not well-formed XML");
+  expect_refused("<geom type='sphere' size='1'/>", "found <geom>");
+  expect_refused("<body/><body/>", "one root element");
+  expect_refused("<mujoco><option timestep='1'/><worldbody><body/></worldbody></mujoco>", "<option> cannot be spawned");
+  expect_refused("<mujoco><keyframe/><worldbody><body/></worldbody></mujoco>", "<keyframe> cannot be spawned");
+  expect_refused("<mujoco><worldbody><body/><body/></worldbody></mujoco>", "exactly one <body>");
+  expect_refused("<mujoco><worldbody><geom size='1'/></worldbody></mujoco>", "exactly one <body>");
+  expect_refused("<mujoco><asset/></mujoco>", "needs a <worldbody>");
+  expect_refused("<body><include file='other.xml'/></body>", "<include> is not allowed");
+  expect_refused("<mujoco><asset><mesh file='/etc/passwd'/></asset><worldbody><body/></worldbody></mujoco>",
+                 "without '..'");
+  expect_refused("<mujoco><asset><texture fileup='../../up.png'/></asset><worldbody><body/></worldbody></mujoco>",
+                 "without '..'");
+}
+
+TEST(ModelEditTest, SpawnedEntityComesAfterTheSceneWhoseIdsStay) {
+  Model scene = Model::load_file(testing::demo_scene());
+  Model spawned = compile_scene(scene.scene(), {entity("ball", k_ball)}, true);
+  const mjModel* before = scene.model();
+  const mjModel* after = spawned.model();
+  // every object of the scene keeps its id and name
+  for (auto [type, n] : {std::pair{mjOBJ_BODY, before->nbody}, {mjOBJ_JOINT, before->njnt}, {mjOBJ_GEOM, before->ngeom},
+                         {mjOBJ_ACTUATOR, before->nu}, {mjOBJ_SENSOR, before->nsensor}}) {
+    for (int id = 0; id < n; ++id) {
+      const char* was = mj_id2name(before, type, id);
+      const char* is = mj_id2name(after, type, id);
+      EXPECT_EQ(was ? std::string(was) : "", is ? std::string(is) : "") << "object type " << type << " id " << id;
+    }
+  }
+  EXPECT_EQ(spawned.body_id("ball"), before->nbody);
+  ASSERT_EQ(spawned.entities().size(), 1u);
+  EXPECT_EQ(spawned.entities()[0].counts.nbody, 1);
+  EXPECT_EQ(spawned.entities()[0].counts.nq, 7);
+  EXPECT_EQ(spawned.entities()[0].counts.nv, 6);
+  // the recompiled model keeps the scene's name and options
+  EXPECT_STREQ(after->names, "simgate-demo");
+  EXPECT_EQ(after->opt.integrator, before->opt.integrator);
+}
+
+TEST(ModelEditTest, DoesNotCompileGivesMujocosMessage) {
+  Model scene = Model::load_file(testing::demo_scene());
+  try {
+    compile_scene(scene.scene(), {entity("ball", "<body><geom type='sphere' size='0.1' material='nope'/></body>")},
+                  true);
+    FAIL() << "compiled";
+  } catch (const MujocoError& e) {
+    EXPECT_NE(std::string(e.what()).find("material"), std::string::npos) << e.what();
+  }
+}
+
+TEST(ModelEditTest, StateOfTheSceneAndOfSurvivingEntitiesIsCarriedAcross) {
+  Model scene = Model::load_file(testing::demo_scene());
+  EntityPose at_a, at_b;
+  at_a.position = {1, 0, 1};
+  at_b.position = {0, 1, 1};
+  Model two = compile_scene(scene.scene(), {entity("a", k_ball, at_a)}, true);
+  std::vector<SpawnedEntity> with_b = two.entities();
+  with_b.push_back(entity("b", k_ball, at_b));
+  two = compile_scene(scene.scene(), with_b, true);
+  // a moved state: the robot, and b
+  mjData* d = two.data();
+  const mjModel* m = two.model();
+  d->time = 12.5;
+  d->qpos[m->jnt_qposadr[two.joint_id("robot_root")]] = 4.0;
+  const int b_root = m->jnt_qposadr[m->body_jntadr[two.body_id("b")]];
+  d->qpos[b_root + 2] = 3.0;
+  d->qvel[m->jnt_dofadr[m->body_jntadr[two.body_id("b")]]] = 0.25;
+  d->ctrl[two.actuator_id("robot_left_motor")] = 7.0;
+
+  // delete a: b moves forward in every array, and keeps its state
+  Model only_b = compile_scene(scene.scene(), {two.entities()[1]}, false);
+  carry_state(two, only_b);
+  const mjModel* m2 = only_b.model();
+  const mjData* d2 = only_b.data();
+  EXPECT_EQ(d2->time, 12.5);
+  EXPECT_EQ(d2->qpos[m2->jnt_qposadr[only_b.joint_id("robot_root")]], 4.0);
+  EXPECT_EQ(d2->ctrl[only_b.actuator_id("robot_left_motor")], 7.0);
+  const int b_root2 = m2->jnt_qposadr[m2->body_jntadr[only_b.body_id("b")]];
+  EXPECT_LT(b_root2, b_root);
+  EXPECT_EQ(d2->qpos[b_root2 + 2], 3.0);
+  EXPECT_EQ(d2->qvel[m2->jnt_dofadr[m2->body_jntadr[only_b.body_id("b")]]], 0.25);
+  EXPECT_EQ(only_b.body_id("a"), -1);
+}
+
+TEST(ModelEditTest, SceneRelativeIncludesResolveAndTheSceneDirectoryIsNotWritten) {
+  const auto dir = std::filesystem::temp_directory_path() / ("simgate_model_edit_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "parts.xml") << "<mujoco><body name='part'><geom type='sphere' size='.1'/></body></mujoco>";
+  std::ofstream(dir / "scene.xml") << "<mujoco model='parts'><worldbody><include file='parts.xml'/></worldbody></mujoco>";
+  Model scene = Model::load_file((dir / "scene.xml").string());
+  // the file changes after loading: recompilations start from the text first read
+  std::ofstream(dir / "scene.xml") << "<mujoco/>";
+  Model spawned = compile_scene(scene.scene(), {entity("ball", k_ball)}, true);
+  EXPECT_GE(spawned.body_id("part"), 0);
+  EXPECT_GE(spawned.body_id("ball"), 0);
+  EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir), std::filesystem::directory_iterator()), 2);
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace simgate::sim

@@ -1,0 +1,231 @@
+// SimSpawn: `simulation spawn_entity` / `delete_entity` on the demo scene (spawn.cc): the
+// model is recompiled off the simulation thread and swapped in between two steps, state and
+// requests in flight carried across; every bad input is refused and changes nothing.
+#include <gtest/gtest.h>
+
+#include <chrono>
+
+#include "sim_fixture.h"
+
+namespace simgate::sim {
+namespace {
+
+constexpr const char* k_ball = R"(<body><freejoint/><geom type="sphere" size="0.1" mass="1"/></body>)";
+
+class SimSpawnTest : public testing::DemoSim {
+ protected:
+  // Steps (as the loop would, requests first) until `id` is answered; the model compiles on
+  // a worker meanwhile. Bounded by a deadline.
+  Outcome finish(RequestId id) {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+    while (std::chrono::steady_clock::now() < deadline) {
+      sim_->process_requests();
+      if (auto o = rm_->outcome(id)) return *o;
+      sim_->step();
+    }
+    ADD_FAILURE() << "request " << id << " not answered within 30 s";
+    return Outcome::failed(Failure::internal, "no answer");
+  }
+  Outcome spawn(const std::string& name, json pose = {1.0, 1.0, 0.5}, const std::string& mjcf = k_ball) {
+    return finish(rm_->call("simulation", "spawn_entity", {name, mjcf, std::move(pose)}));
+  }
+  Outcome remove(const std::string& name) { return finish(rm_->call("simulation", "delete_entity", {name})); }
+
+  // A refused request: FAILED, bad arguments, naming `parameter`, and the world unchanged.
+  void expect_refused(const Outcome& o, const std::string& parameter, const std::string& why) {
+    EXPECT_EQ(o.status, Status::failed);
+    EXPECT_EQ(o.failure, Failure::bad_arguments) << o.message;
+    EXPECT_EQ(o.data.is_object() ? o.data.value("parameter", "") : "", parameter) << o.message;
+    EXPECT_NE(o.message.find(why), std::string::npos) << o.message;
+    EXPECT_EQ(sim_->model_generation(), generation_);
+    EXPECT_EQ(sim_->m()->nbody, nbody_);
+    EXPECT_TRUE(testing::state_is_finite(*sim_));
+  }
+  void remember_world() {
+    generation_ = sim_->model_generation();
+    nbody_ = sim_->m()->nbody;
+  }
+
+  std::uint64_t generation_ = 0;  // model generation before a refused request
+  int nbody_ = 0;                 // bodies before a refused request
+};
+
+TEST_F(SimSpawnTest, SpawnedBodyAppearsInSceneObjectsAtItsPose) {
+  Outcome o = spawn("ball", {1.0, 2.0, 0.5, 0.0, 0.0, 0.7071067811865476, 0.7071067811865476});
+  ASSERT_EQ(o.status, Status::success) << o.message;
+  EXPECT_EQ(o.value->at("name"), "ball");
+  EXPECT_EQ(o.value->at("model_generation"), 1);
+  EXPECT_EQ(sim_->model_generation(), 1u);
+  json objects = call("simulation", "get_scene_objects").value.value();
+  ASSERT_TRUE(objects.contains("ball")) << objects.dump();
+  EXPECT_NEAR(objects["ball"][1][0].get<double>(), 1.0, 1e-6);
+  EXPECT_NEAR(objects["ball"][1][1].get<double>(), 2.0, 1e-6);
+  // [qx, qy, qz, qw]: a quarter turn about z, as given
+  EXPECT_NEAR(objects["ball"][2][2].get<double>(), 0.7071067811865476, 1e-6);
+  EXPECT_NEAR(objects["ball"][2][3].get<double>(), 0.7071067811865476, 1e-6);
+  // it is a physical body: it falls to the floor
+  run_for(1.0);
+  objects = call("simulation", "get_scene_objects").value.value();
+  EXPECT_NEAR(objects["ball"][1][2].get<double>(), 0.1, 0.01);
+}
+
+TEST_F(SimSpawnTest, StateAndTimeAreCarriedAcross) {
+  call("robot.motion", "set_speed", {0.5, 0.2});
+  run_for(0.5);
+  const json before = pose();
+  const double time = sim_->sim_time();
+  const double left = sim_->d()->ctrl[sim_->model().actuator_id("robot_left_motor")];
+  ASSERT_EQ(spawn("ball").status, Status::success);
+  // the robot is where it was (the steps taken while compiling moved it on, so compare
+  // with a tolerance the worker's time allows) and its wheels still turn
+  EXPECT_GE(sim_->sim_time(), time);
+  EXPECT_EQ(sim_->d()->ctrl[sim_->model().actuator_id("robot_left_motor")], left);
+  const json after = pose();
+  EXPECT_GT(after["x"].get<double>(), before["x"].get<double>() - 1e-9);
+  run_for(0.5);
+  EXPECT_GT(pose()["x"].get<double>(), after["x"].get<double>());
+}
+
+TEST_F(SimSpawnTest, RequestInFlightCompletesAcrossSpawnAndDelete) {
+  RequestId go = rm_->call("robot.waypoint", "goto", {1.5, 0.0, 0.0, 0.2, 1.0});
+  sim_->process_requests();
+  ASSERT_EQ(spawn("ball", {-1.0, -1.0, 0.5}).status, Status::success);
+  ASSERT_EQ(remove("ball").status, Status::success);
+  auto o = step_until(go, 20000);
+  ASSERT_TRUE(o.has_value());
+  EXPECT_EQ(o->status, Status::success) << o->message;
+  EXPECT_EQ(o->value, "Arrived");
+}
+
+TEST_F(SimSpawnTest, DeleteRemovesTheEntityAndKeepsTheOthersState) {
+  ASSERT_EQ(spawn("a", {2.0, 0.0, 0.5}).status, Status::success);
+  ASSERT_EQ(spawn("b", {0.0, 2.0, 3.0}).status, Status::success);
+  run_for(0.2);
+  json objects = call("simulation", "get_scene_objects").value.value();
+  const double b_height = objects["b"][1][2].get<double>();
+  ASSERT_LT(b_height, 2.9);  // falling
+  Outcome o = remove("a");
+  ASSERT_EQ(o.status, Status::success) << o.message;
+  EXPECT_EQ(o.value->at("model_generation"), 3);
+  objects = call("simulation", "get_scene_objects").value.value();
+  EXPECT_FALSE(objects.contains("a"));
+  ASSERT_TRUE(objects.contains("b"));
+  // b moved in MuJoCo's arrays, not in the world: still falling from where it was
+  EXPECT_LT(objects["b"][1][2].get<double>(), b_height + 1e-9);
+  EXPECT_GT(objects["b"][1][2].get<double>(), 0.2);
+  EXPECT_EQ(sim_->model().entities().size(), 1u);
+}
+
+TEST_F(SimSpawnTest, RespawnAfterDeleteReusesTheName) {
+  ASSERT_EQ(spawn("ball").status, Status::success);
+  ASSERT_EQ(remove("ball").status, Status::success);
+  EXPECT_EQ(spawn("ball").status, Status::success);
+}
+
+TEST_F(SimSpawnTest, SecondChangeWhileOneCompilesFails) {
+  RequestId first = rm_->call("simulation", "spawn_entity", {"a", k_ball, {1.0, 0.0, 0.5}});
+  RequestId second = rm_->call("simulation", "spawn_entity", {"b", k_ball, {2.0, 0.0, 0.5}});
+  RequestId third = rm_->call("simulation", "delete_entity", {"a"});
+  sim_->process_requests();
+  for (RequestId id : {second, third}) {
+    auto o = rm_->outcome(id);
+    ASSERT_TRUE(o.has_value());
+    EXPECT_EQ(o->status, Status::failed);
+    EXPECT_EQ(o->failure, Failure::busy);
+    EXPECT_NE(o->message.find("spawn_entity 'a' is compiling"), std::string::npos) << o->message;
+  }
+  EXPECT_EQ(finish(first).status, Status::success);
+  EXPECT_EQ(sim_->model_generation(), 1u);
+}
+
+TEST_F(SimSpawnTest, CancelledSpawnLeavesTheWorldUnchanged) {
+  remember_world();
+  RequestId id = rm_->call("simulation", "spawn_entity", {"ball", k_ball, {1.0, 0.0, 0.5}});
+  sim_->process_requests();
+  rm_->cancel(id);
+  Outcome o = finish(id);
+  EXPECT_EQ(o.status, Status::preempted);
+  // the worker finishes; its model is dropped, and the next change may start
+  Outcome next = spawn("other");
+  EXPECT_EQ(next.status, Status::success) << next.message;
+  EXPECT_EQ(sim_->model().body_id("ball"), -1);
+  EXPECT_EQ(sim_->model_generation(), generation_ + 1);
+}
+
+TEST_F(SimSpawnTest, TakenNameIsRefused) {
+  remember_world();
+  expect_refused(spawn("crate1"), "name", "is taken");
+  ASSERT_EQ(spawn("ball").status, Status::success);
+  remember_world();
+  expect_refused(spawn("ball"), "name", "is taken");
+}
+
+TEST_F(SimSpawnTest, BadNamesArePoseAndMjcfAreRefused) {
+  remember_world();
+  expect_refused(spawn(""), "name", "expected 1 to 64");
+  expect_refused(spawn("a b"), "name", "expected 1 to 64");
+  expect_refused(spawn("body3"), "name", "unnamed bodies");
+  expect_refused(spawn("ball", {1.0, 2.0}), "pose", "expected [x, y, z]");
+  expect_refused(spawn("ball", {1.0, 2.0, 1e9}), "pose[2] (z)", "out of bounds");
+  expect_refused(spawn("ball", {1.0, 2.0, 0.5, 0.0, 0.0, 0.0, 0.0}), "pose", "must not be zero");
+  expect_refused(spawn("ball", {1.0, 2.0, "up"}), "pose", "");
+  expect_refused(spawn("ball", {1.0, 2.0, 0.5}, "just text"), "mjcf", "expected MJCF text");
+  expect_refused(spawn("ball", {1.0, 2.0, 0.5}, "<body><geom"), "mjcf", "not well-formed");
+  expect_refused(spawn("ball", {1.0, 2.0, 0.5}, "<mujoco><option/><worldbody><body/></worldbody></mujoco>"), "mjcf",
+                 "<option> cannot be spawned");
+}
+
+TEST_F(SimSpawnTest, NonFiniteNumbersAreRefused) {
+  remember_world();
+  for (double bad : {std::nan(""), HUGE_VAL, -HUGE_VAL})
+    expect_refused(spawn("ball", {1.0, bad, 0.5}), "pose[1] (y)", "out of bounds");
+  expect_refused(spawn("ball", {1.0, 1.0, 0.5, std::nan(""), 0.0, 0.0, 1.0}), "pose[3]", "out of bounds");
+}
+
+TEST_F(SimSpawnTest, FragmentThatDoesNotCompileGivesMujocosMessage) {
+  remember_world();
+  // a joint name the scene already uses: MuJoCo's "repeated name"
+  expect_refused(spawn("ball", {1.0, 2.0, 0.5}, "<body><joint name='robot_root' type='free'/><geom size='.1'/></body>"),
+                 "mjcf", "repeated name");
+  expect_refused(spawn("ball", {1.0, 2.0, 0.5}, "<body><geom type='mesh' mesh='nope'/></body>"), "mjcf",
+                 "does not compile");
+  // and the simulation runs on
+  run_for(0.1);
+  EXPECT_TRUE(testing::state_is_finite(*sim_));
+}
+
+TEST_F(SimSpawnTest, DeleteOfUnknownOrSceneBodyIsRefused) {
+  remember_world();
+  expect_refused(remove("ghost"), "name", "no entity named 'ghost' (no entity has been spawned)");
+  expect_refused(remove("crate1"), "name", "part of the scene");
+  ASSERT_EQ(spawn("ball").status, Status::success);
+  remember_world();
+  expect_refused(remove("ghost"), "name", "(spawned: 'ball')");
+}
+
+TEST_F(SimSpawnTest, MujocoFragmentWithAnActuatorCanBeDriven) {
+  Outcome o = spawn("spinner", {0.0, -2.0, 0.5}, R"(<mujoco>
+      <worldbody><body><joint name="spinner_hinge" type="hinge" axis="0 0 1"/>
+        <geom type="box" size=".3 .05 .05" mass="1"/></body></worldbody>
+      <actuator><velocity name="spinner_motor" joint="spinner_hinge" kv="5"/></actuator>
+    </mujoco>)");
+  ASSERT_EQ(o.status, Status::success) << o.message;
+  // the scene's actuators keep their ids; the entity's comes after them
+  EXPECT_EQ(sim_->model().actuator_id("robot_left_motor"), 0);
+  const int motor = sim_->model().actuator_id("spinner_motor");
+  EXPECT_EQ(motor, sim_->m()->nu - 1);
+  sim_->d()->ctrl[motor] = 2.0;
+  run_for(0.5);
+  EXPECT_NEAR(sim_->d()->qvel[sim_->m()->jnt_dofadr[sim_->model().joint_id("spinner_hinge")]], 2.0, 0.1);
+}
+
+TEST_F(SimSpawnTest, ServicesAreListed) {
+  json services = call("simulation", "list_services").value.value();
+  int found = 0;
+  for (const auto& s : services)
+    if (s["component"] == "simulation" && (s["name"] == "spawn_entity" || s["name"] == "delete_entity")) ++found;
+  EXPECT_EQ(found, 2);
+}
+
+}  // namespace
+}  // namespace simgate::sim
