@@ -68,16 +68,19 @@ class Spawner {
 
   void spawn_entity(Completion done, const std::string& name, const std::string& mjcf,
                     const std::vector<double>& pose) {
+    // the arguments themselves first, then what they mean for the world as it is
     check_entity_name(name);
-    refuse_if_busy(name);
-    const Model& model = sim_.model();
-    if (model.body_id(name) >= 0)
-      refuse("name", "name '" + name + "' is taken: the scene already has a body called so");
     const EntityPose where = entity_pose(pose);
     if (mjcf.find_first_not_of(" \t\r\n") == std::string::npos || mjcf[mjcf.find_first_not_of(" \t\r\n")] != '<')
       refuse("mjcf", "mjcf: expected MJCF text (a <body>, or a <mujoco> with a <worldbody> holding one <body>)");
+    std::string sections = entity_sections(mjcf, name, where);
+    refuse_if_busy(name);
+    const Model& model = sim_.model();
+    if (model.body_id(name) >= 0)
+      refuse("name", "name '" + name + "' is taken: the world already has a body called so" +
+                         (model.entity(name) ? " (a spawned entity)" : ""));
     std::vector<SpawnedEntity> entities = model.entities();
-    entities.push_back({name, entity_sections(mjcf, name, where), {}});
+    entities.push_back({name, std::move(sections), {}});
     start(std::move(done), "spawn_entity", name, std::move(entities), true);
   }
 

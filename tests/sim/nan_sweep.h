@@ -428,6 +428,12 @@ inline ValidCallTable builtin_valid_calls(ValidValues& values) {
     state["twist"] = {{"linear", {0.0, 0.0, 0.1}}, {"angular", {0.0, 0.0, 0.2}}};
     return ValidCalls{{body, state}};
   };
+  // a ball at a name no sweep used before (each valid call spawns one)
+  t["simulation.spawn_entity"] = [](const std::string&) {
+    static int spawned = 0;
+    return ValidCalls{{"swept_ball_" + std::to_string(spawned++),
+                       "<body><freejoint/><geom type='sphere' size='0.1' mass='1'/></body>", {1.0, 1.0, 0.5}}};
+  };
   return t;
 }
 
