@@ -142,6 +142,35 @@ void parse_scene(ConfigObject& root, const std::string& base_dir, Deployment& d)
   errors.throw_if_any();
 }
 
+// "spawn": {"allowed_dirs": [...]}: the directories `simulation spawn_entity` may read
+// fragment files from, each an existing directory (relative to the config file).
+void parse_spawn(ConfigObject& root, const std::string& base_dir, Deployment& d) {
+  auto spawn_object = root.get_object("spawn");
+  if (!spawn_object) return;
+  ConfigObject& spawn = *spawn_object;
+  ConfigErrors errors;
+  errors.check([&] {
+    auto dirs = spawn.get_json("allowed_dirs");
+    if (!dirs) return;
+    const std::string path = spawn.path_of("allowed_dirs");
+    if (!dirs->is_array()) throw ConfigError(path + ": expected an array of directories, found " + describe_json(*dirs));
+    for (std::size_t i = 0; i < dirs->size(); ++i) {
+      const json& dir = (*dirs)[i];
+      const std::string at = path + "[" + std::to_string(i) + "]";
+      if (!dir.is_string() || dir.get<std::string>().empty())
+        throw ConfigError(at + ": expected a directory, found " + describe_json(dir));
+      fs::path resolved = fs::path(dir.get<std::string>()).is_absolute() ? fs::path(dir.get<std::string>())
+                                                                           : fs::path(base_dir) / dir.get<std::string>();
+      std::error_code ec;
+      if (!fs::is_directory(resolved, ec))
+        throw ConfigError(at + ": expected a directory, found '" + resolved.string() + "' (no such directory)");
+      d.spawn_allowed_dirs.push_back(fs::canonical(resolved).string());
+    }
+  });
+  errors.check([&] { spawn.finish(); });
+  errors.throw_if_any();
+}
+
 TransportConfig parse_transport(const std::string& name, const json& value, const std::string& path) {
   check_name(name, path);
   ConfigObject t(value, path);
@@ -265,6 +294,9 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
 
   // ---- scene ----
   errors.check([&] { parse_scene(root, base_dir, d); });
+
+  // ---- run-time entities ----
+  errors.check([&] { parse_spawn(root, base_dir, d); });
 
   // ---- component libraries (loaded by the gateway, which knows where to look) ----
   errors.check([&] {

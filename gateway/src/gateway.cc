@@ -21,6 +21,7 @@ Gateway::Gateway(const Deployment& deployment, const sim::ComponentRegistry& reg
   sim_options.timestep = deployment_.timestep;
   sim_options.realtime_factor = options_.realtime_factor.value_or(deployment_.realtime_factor);
   sim_options.start_paused = deployment_.start_paused;
+  sim_options.spawn_allowed_dirs = deployment_.spawn_allowed_dirs;
   try {
     simulation_ = std::make_unique<sim::Simulation>(sim::Model::load_file(deployment_.mjcf), sim_options);
   } catch (const std::exception& e) {

@@ -97,7 +97,9 @@ const char* to_string(RunState state) {
 }
 
 Simulation::Simulation(Model model, SimulationOptions options)
-    : model_(std::move(model)), gate_(std::make_shared<SimulationGate>()) {
+    : model_(std::move(model)),
+      gate_(std::make_shared<SimulationGate>()),
+      spawn_allowed_dirs_(std::move(options.spawn_allowed_dirs)) {
   if (options.timestep) {
     if (!(*options.timestep > 0) || !std::isfinite(*options.timestep))
       throw std::invalid_argument("simulation: timestep must be a positive number, not " +

@@ -12,8 +12,11 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <future>
 #include <optional>
+#include <sstream>
 
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
@@ -24,6 +27,11 @@
 namespace simgate::sim {
 
 namespace {
+
+namespace fs = std::filesystem;
+
+// A fragment file larger than this is refused unread (an MJCF body is kilobytes).
+constexpr std::uintmax_t k_max_fragment_bytes = 1 << 20;
 
 [[noreturn]] void refuse(const std::string& parameter, const std::string& message) {
   throw ServiceError(message, Failure::bad_arguments, {{"parameter", parameter}});
@@ -71,9 +79,9 @@ class Spawner {
     // the arguments themselves first, then what they mean for the world as it is
     check_entity_name(name);
     const EntityPose where = entity_pose(pose);
-    if (mjcf.find_first_not_of(" \t\r\n") == std::string::npos || mjcf[mjcf.find_first_not_of(" \t\r\n")] != '<')
-      refuse("mjcf", "mjcf: expected MJCF text (a <body>, or a <mujoco> with a <worldbody> holding one <body>)");
-    std::string sections = entity_sections(mjcf, name, where);
+    const std::size_t first = mjcf.find_first_not_of(" \t\r\n");
+    const bool inline_text = first != std::string::npos && mjcf[first] == '<';
+    std::string sections = entity_sections(inline_text ? mjcf : fragment_file(mjcf), name, where);
     refuse_if_busy(name);
     const Model& model = sim_.model();
     if (model.body_id(name) >= 0)
@@ -148,6 +156,42 @@ class Spawner {
       throw ServiceError("cannot change entity '" + name + "' now: " + change_->service + " '" + change_->name +
                              "' is compiling; try again when it completes",
                          Failure::busy, {{"running", "simulation." + change_->service}});
+  }
+
+  // The text of the fragment file `path`: absolute, or relative to one of the directories
+  // the config allows (the first that has it), and inside one of them once links are
+  // resolved. A file elsewhere gets the answer of a missing one.
+  std::string fragment_file(const std::string& path) const {
+    const std::vector<std::string>& allowed = sim_.spawn_allowed_dirs();
+    if (allowed.empty())
+      refuse("mjcf", "mjcf: expected MJCF text (a <body>, or a <mujoco> with a <worldbody> holding one <body>); "
+                     "fragment files need directories allowed in the config (spawn.allowed_dirs), and it allows none");
+    std::string dirs;
+    for (const auto& dir : allowed) dirs += (dirs.empty() ? "" : ", ") + dir;
+    const std::string refusal = "mjcf: '" + path + "' is neither MJCF text nor a fragment file under the " +
+                                "directories the config allows (spawn.allowed_dirs: " + dirs + ")";
+    if (path.empty() || path.size() > 4096 || path.find('\0') != std::string::npos) refuse("mjcf", refusal);
+    std::vector<fs::path> candidates;
+    if (fs::path(path).is_absolute()) candidates.push_back(path);
+    else
+      for (const auto& dir : allowed) candidates.push_back(fs::path(dir) / path);
+    for (const fs::path& candidate : candidates) {
+      std::error_code ec;
+      const fs::path file = fs::canonical(candidate, ec);
+      if (ec || !fs::is_regular_file(file, ec)) continue;
+      const bool inside = std::any_of(allowed.begin(), allowed.end(), [&](const std::string& dir) {
+        const std::string f = file.string();
+        return f.size() > dir.size() && f.compare(0, dir.size(), dir) == 0 && f[dir.size()] == '/';
+      });
+      if (!inside) continue;
+      if (fs::file_size(file, ec) > k_max_fragment_bytes)
+        refuse("mjcf", "mjcf: '" + path + "' is larger than " + std::to_string(k_max_fragment_bytes) + " bytes");
+      std::ifstream in(file, std::ios::binary);
+      std::stringstream text;
+      text << in.rdbuf();
+      return text.str();
+    }
+    refuse("mjcf", refusal);
   }
 
   std::string spawned_list() const {

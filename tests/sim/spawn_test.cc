@@ -3,7 +3,11 @@
 // requests in flight carried across; every bad input is refused and changes nothing.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <chrono>
+#include <filesystem>
+#include <fstream>
 
 #include "sim_fixture.h"
 
@@ -225,6 +229,71 @@ TEST_F(SimSpawnTest, ServicesAreListed) {
   for (const auto& s : services)
     if (s["component"] == "simulation" && (s["name"] == "spawn_entity" || s["name"] == "delete_entity")) ++found;
   EXPECT_EQ(found, 2);
+}
+
+
+// Fragment files: only under the directories SimulationOptions::spawn_allowed_dirs names
+// (the config's spawn.allowed_dirs).
+class SimSpawnFileTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    root_ = std::filesystem::temp_directory_path() / ("simgate_spawn_files_" + std::to_string(::getpid()));
+    std::filesystem::create_directories(root_ / "allowed");
+    std::ofstream(root_ / "allowed" / "ball.xml") << k_ball;
+    std::ofstream(root_ / "outside.xml") << k_ball;
+    std::filesystem::create_symlink(root_ / "outside.xml", root_ / "allowed" / "link.xml");
+    SimulationOptions options{std::nullopt, 0.0, {std::filesystem::canonical(root_ / "allowed").string()}};
+    sim_ = std::make_unique<Simulation>(Model::load_file(testing::demo_scene()), options);
+    sim_->add_supervision_services();
+    rm_ = std::make_shared<testing::RecordingManager>();
+    rm_->register_component(*sim_->find("simulation")->component);
+    sim_->add_request_manager(rm_, "test");
+  }
+  void TearDown() override {
+    rm_.reset();
+    sim_.reset();
+    std::filesystem::remove_all(root_);
+  }
+  Outcome spawn(const std::string& name, const std::string& file) {
+    RequestId id = rm_->call("simulation", "spawn_entity", {name, file, {1.0, 1.0, 0.5}});
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+    while (std::chrono::steady_clock::now() < deadline) {
+      sim_->process_requests();
+      if (auto o = rm_->outcome(id)) return *o;
+      sim_->step();
+    }
+    return Outcome::failed(Failure::internal, "no answer");
+  }
+
+  std::filesystem::path root_;
+  std::unique_ptr<Simulation> sim_;
+  std::shared_ptr<testing::RecordingManager> rm_;
+};
+
+TEST_F(SimSpawnFileTest, AFileUnderAnAllowedDirectorySpawns) {
+  Outcome relative = spawn("a", "ball.xml");
+  EXPECT_EQ(relative.status, Status::success) << relative.message;
+  Outcome absolute = spawn("b", (root_ / "allowed" / "ball.xml").string());
+  EXPECT_EQ(absolute.status, Status::success) << absolute.message;
+  EXPECT_EQ(sim_->model().entities().size(), 2u);
+}
+
+TEST_F(SimSpawnFileTest, AnythingElseIsRefusedAsIfMissing) {
+  for (const std::string& path : {std::string("../outside.xml"), (root_ / "outside.xml").string(),
+                                  std::string("link.xml"), std::string("missing.xml"), std::string("/etc/hostname")}) {
+    Outcome o = spawn("a", path);
+    EXPECT_EQ(o.status, Status::failed) << path;
+    EXPECT_EQ(o.failure, Failure::bad_arguments) << path;
+    EXPECT_NE(o.message.find("is neither MJCF text nor a fragment file under the directories the config allows"),
+              std::string::npos)
+        << o.message;
+  }
+  EXPECT_EQ(sim_->model_generation(), 0u);
+}
+
+TEST_F(SimSpawnTest, WithoutAllowedDirectoriesOnlyInlineMjcfIsAccepted) {
+  remember_world();
+  expect_refused(spawn("ball", {1.0, 1.0, 0.5}, "ball.xml"), "mjcf", "it allows none");
 }
 
 }  // namespace

@@ -71,6 +71,7 @@ struct Deployment {
   std::optional<double> timestep;        // overrides the MJCF's
   double realtime_factor = 1.0;          // 0 = as fast as possible
   bool start_paused = false;             // lockstep: clients drive it with `simulation step`
+  std::vector<std::string> spawn_allowed_dirs;  // "spawn.allowed_dirs", canonical: fragment files of spawn_entity
   std::vector<TransportConfig> transports;  // sorted by name
   std::vector<std::string> component_libraries;  // names or paths, in file order
   std::vector<RobotConfig> robots;       // in file order

@@ -73,6 +73,8 @@ struct SimulationOptions {
   std::optional<double> timestep;  // seconds; overrides the MJCF's <option timestep>
   double realtime_factor = 1.0;    // sim seconds per wall second; 0 = as fast as possible
   bool start_paused = false;       // lockstep: clients drive the simulation with `simulation step`
+  // Directories `simulation spawn_entity` may read fragment files from (absolute; none: inline MJCF only).
+  std::vector<std::string> spawn_allowed_dirs = {};
 };
 
 // What the loop is doing (simulation get_simulation_state).
@@ -245,6 +247,8 @@ class Simulation {
   // the config or at run time); bumps model_generation(), then forward(). Components keep
   // working unchanged: the scene's objects keep their ids (entities come after them).
   void replace_model(Model next);
+  // SimulationOptions::spawn_allowed_dirs.
+  const std::vector<std::string>& spawn_allowed_dirs() const { return spawn_allowed_dirs_; }
 
  private:
   // After a step taken while playing: the measured real-time factor, window by window.
@@ -289,6 +293,7 @@ class Simulation {
   std::array<int, mjNWARNING> warnings_seen_{};
   std::array<std::uint64_t, mjNWARNING> warning_totals_{};  // occurrences of each warning since start
   std::uint64_t bad_states_ = 0;                             // recoveries from MuJoCo's resets
+  std::vector<std::string> spawn_allowed_dirs_;              // see SimulationOptions
 };
 
 }  // namespace simgate::sim
