@@ -595,6 +595,11 @@ class Harness:
                                "overruns": loaded["overruns"], "target_rps": rate,
                                "achieved_rps": loaded["load"]["achieved_rps"],
                                "request_p50_us": loaded["load"]["p50_us"], "request_p99_us": loaded["load"]["p99_us"]}}
+        # issue #19: spawn_entity of one free body (recompiling the scene) beside a bare mj_loadXML of it
+        spawn = run_json([self.exe("simgate_bench_sim"), "--mode", "spawn", "--mjcf", mjcf,
+                          "--duration", str(0.5 if self.smoke else 5.0)], self.timeout, self.env)
+        s["spawn"] = {"rounds": spawn["rounds"], "spawn_entity": spawn["spawn_entity"],
+                      "delete_entity": spawn["delete_entity"], "mj_loadXML": spawn["mj_loadXML"]}
         self.target("gateway steps/s (as fast as possible) / bare mj_step", s["ratio"], ">=", 0.95, "x")
         self.target(f"real-time factor under {rate} req/s", loaded["realtime_factor"], ">=", 0.99)
         return {"status": "ok", "summary": s, "runs": runs, "sleep_baseline": sleep, "realtime_idle": idle,
@@ -997,7 +1002,16 @@ def markdown(r):
                   f"real-time factor / step jitter p50, p99 (µs) / overruns | {fmt(load['realtime_factor'], 4)} / "
                   f"{fmt(load['jitter_p50_us'])}, {fmt(load['jitter_p99_us'])} / {load['overruns']} |",
                   f"| request latency under that load p50 / p99 (µs) | {fmt(load['request_p50_us'])} / "
-                  f"{fmt(load['request_p99_us'])} |", ""]
+                  f"{fmt(load['request_p99_us'])} |"]
+        if "spawn" in sm:
+            sp = sm["spawn"]
+            lines += [f"| spawn_entity of one free body, request to SUCCESS p50 / p99 (ms), {sp['rounds']} rounds | "
+                      f"{fmt(sp['spawn_entity']['p50_ms'], 2)} / {fmt(sp['spawn_entity']['p99_ms'], 2)} |",
+                      f"| delete_entity of it p50 / p99 (ms) | {fmt(sp['delete_entity']['p50_ms'], 2)} / "
+                      f"{fmt(sp['delete_entity']['p99_ms'], 2)} |",
+                      f"| beside: a bare mj_loadXML of the scene p50 / p99 (ms) | {fmt(sp['mj_loadXML']['p50_ms'], 2)} / "
+                      f"{fmt(sp['mj_loadXML']['p99_ms'], 2)} |"]
+        lines.append("")
 
     lines += ["## Memory (simgate run, demo config)", ""]
     st = status_line("memory")

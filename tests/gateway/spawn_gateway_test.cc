@@ -1,0 +1,130 @@
+// GatewaySpawn: `simulation spawn_entity` / `delete_entity` end to end (docs/world/spawn.md):
+// a gateway from the demo config with the socket, JSON-RPC and DDS transports on loopback,
+// fragments inline and from the config's spawn.allowed_dirs, the change seen through every
+// transport.
+#include <gtest/gtest.h>
+
+#include <thread>
+
+#include "simgate/gateway/gateway.h"
+#include "test_support.h"
+
+namespace simgate::gateway {
+namespace {
+
+using testing::LineClient;
+using testing::payload;
+
+constexpr const char* k_ball = "<body><freejoint/><geom type='sphere' size='0.1' mass='1'/></body>";
+
+class GatewaySpawnTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::filesystem::create_directories(dir_.file("fragments"));
+    dir_.write("fragments/crate.xml",
+               "<mujoco><worldbody><body><freejoint/><geom type='box' size='.2 .2 .2' mass='2'/></body></worldbody>"
+               "</mujoco>");
+    json config = testing::demo_config(4.0);
+    config["transports"]["jsonrpc"] = {{"plugin", "jsonrpc"}, {"options", {{"port", 0}}}};
+    config["services"] = {{"default", json::array({"socket", "jsonrpc"})}};
+#ifdef SIMGATE_TEST_WITH_DDS
+    config["transports"]["dds"] = {{"plugin", "dds"}, {"options", {{"partition", partition_}}}};
+    config["services"]["default"].push_back("dds");
+#endif
+    config["spawn"] = {{"allowed_dirs", json::array({dir_.file("fragments")})}};
+    Deployment d = parse_deployment(config, SIMGATE_SOURCE_DIR "/config");
+    gateway_ = std::make_unique<Gateway>(d, registry_);
+    gateway_->start();
+    thread_ = std::thread([this] { gateway_->run(); });
+  }
+  void TearDown() override {
+    if (gateway_) gateway_->stop();
+    if (thread_.joinable()) thread_.join();
+    gateway_.reset();
+  }
+  int port(const std::string& transport) { return testing::port_of(gateway_->endpoints().at(transport).at(0)); }
+
+  // One JSON-RPC call (the next line is its response).
+  json rpc(LineClient& c, int id, const std::string& method, json params = nullptr) {
+    json request{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}};
+    if (!params.is_null()) request["params"] = std::move(params);
+    c.send(request.dump() + "\n");
+    auto line = c.read_line();
+    return line ? json::parse(*line, nullptr, false) : json();
+  }
+
+  testing::TempDir dir_;
+  std::string partition_ = "simgate-spawn-test-" + std::to_string(::getpid());
+  sim::ComponentRegistry registry_ = sim::builtin_registry();
+  std::unique_ptr<Gateway> gateway_;
+  std::thread thread_;
+};
+
+TEST_F(GatewaySpawnTest, SpawnThroughTheSocketDeleteThroughJsonRpc) {
+  LineClient socket(port("socket")), jsonrpc(port("jsonrpc"));
+  // MORSE's text protocol: id component service [params]
+  const std::string spawned =
+      socket.request("1", "simulation spawn_entity " + json::array({"ball", k_ball, {1.0, 2.0, 0.5}}).dump());
+  EXPECT_EQ(spawned, "1 SUCCESS {\"model_generation\": 1, \"name\": \"ball\"}");
+  // every transport sees the new world
+  json objects = rpc(jsonrpc, 1, "simulation.get_scene_objects")["result"];
+  ASSERT_TRUE(objects.contains("ball")) << objects.dump();
+  EXPECT_NEAR(objects["ball"][1][1].get<double>(), 2.0, 1e-3);
+  // named params, a fragment file from the allowed directory
+  json crate = rpc(jsonrpc, 2, "simulation.spawn_entity",
+                   {{"name", "crate9"}, {"mjcf", "crate.xml"}, {"pose", {-1.0, -1.0, 0.3, 0.0, 0.0, 0.0, 1.0}}});
+  EXPECT_EQ(crate["result"], json({{"name", "crate9"}, {"model_generation", 2}})) << crate.dump();
+  json deleted = rpc(jsonrpc, 3, "simulation.delete_entity", {"ball"});
+  EXPECT_EQ(deleted["result"], json({{"name", "ball"}, {"model_generation", 3}})) << deleted.dump();
+  json after = payload(socket.request("2", "simulation get_scene_objects"));
+  EXPECT_FALSE(after.contains("ball"));
+  EXPECT_TRUE(after.contains("crate9"));
+  // the robot still answers through both
+  EXPECT_EQ(socket.request("3", "robot.motion set_speed [0.5, 0]"), "3 SUCCESS");
+}
+
+TEST_F(GatewaySpawnTest, BadInputIsFailedNamingTheParameterOnEveryTransport) {
+  LineClient socket(port("socket")), jsonrpc(port("jsonrpc"));
+  EXPECT_EQ(socket.request("1", "simulation spawn_entity [\"crate1\", \"<body/>\", [0, 0, 1]]"),
+            "1 FAILED \"name 'crate1' is taken: the world already has a body called so\"");
+  json outside = rpc(jsonrpc, 1, "simulation.spawn_entity", {"x", "/etc/hostname", {0, 0, 1}});
+  EXPECT_EQ(outside["error"]["code"], -32602) << outside.dump();
+  EXPECT_EQ(outside["error"]["data"]["parameter"], "mjcf") << outside.dump();
+  json broken = rpc(jsonrpc, 2, "simulation.spawn_entity", {"x", "<body><geom type='mesh' mesh='no'/></body>", {0, 0, 1}});
+  EXPECT_EQ(broken["error"]["code"], -32602) << broken.dump();
+  EXPECT_NE(broken["error"]["message"].get<std::string>().find("does not compile"), std::string::npos);
+  json scene_body = rpc(jsonrpc, 3, "simulation.delete_entity", {"robot"});
+  EXPECT_NE(scene_body["error"]["message"].get<std::string>().find("part of the scene"), std::string::npos);
+  // nothing changed
+  EXPECT_EQ(payload(socket.request("2", "simulation get_scene_objects")).size(), 4u);
+}
+
+TEST_F(GatewaySpawnTest, IntrospectionListsTheServices) {
+  LineClient socket(port("socket")), jsonrpc(port("jsonrpc"));
+  int found = 0;
+  for (const auto& s : payload(socket.request("1", "simulation list_services")))
+    if (s["component"] == "simulation" && (s["name"] == "spawn_entity" || s["name"] == "delete_entity")) ++found;
+  EXPECT_EQ(found, 2);
+  int discovered = 0;
+  const json discover = rpc(jsonrpc, 1, "rpc.discover");
+  for (const auto& m : discover["result"]["methods"])
+    if (m["name"] == "simulation.spawn_entity" || m["name"] == "simulation.delete_entity") ++discovered;
+  EXPECT_EQ(discovered, 2) << discover.dump().substr(0, 2000);
+}
+
+#ifdef SIMGATE_TEST_WITH_DDS
+TEST_F(GatewaySpawnTest, SpawnThroughDds) {
+  auto [code, out] = testing::run_simgate({"call", "--transport", "dds", "--partition", partition_, "simulation",
+                                           "spawn_entity", "dds_ball", json(k_ball).dump(),
+                                           // a leading space: CLI11 splits a bracketed argument "[a, b]" at its commas
+                                           " [0.5, -0.5, 1]"},
+                                          dir_);
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_NE(out.find("\"dds_ball\""), std::string::npos) << out;
+  LineClient socket(port("socket"));
+  EXPECT_TRUE(payload(socket.request("1", "simulation get_scene_objects")).contains("dds_ball"));
+}
+#endif
+
+}  // namespace
+}  // namespace simgate::gateway
