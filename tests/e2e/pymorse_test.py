@@ -226,6 +226,20 @@ class PymorseTest(unittest.TestCase):
         with self.assertRaises(TypeError):
             self.simu.rpc("robot.motion", "set_speed", 1.0)
 
+    # ---- the world (issue #19, docs/world/spawn.md) ----
+
+    def test_spawn_and_delete_an_entity(self):
+        ball = "<body><freejoint/><geom type='sphere' size='0.1' mass='1'/></body>"
+        spawned = self.simu.rpc("simulation", "spawn_entity", "pyball", ball, [1.0, -1.0, 0.5])
+        self.assertEqual(spawned["name"], "pyball")
+        self.assertIn("pyball", self.simu.rpc("simulation", "get_scene_objects"))
+        with self.assertRaises(MorseServiceFailed):
+            self.simu.rpc("simulation", "spawn_entity", "pyball", ball, [1.0, -1.0, 0.5])
+        self.simu.rpc("simulation", "delete_entity", "pyball")
+        self.assertNotIn("pyball", self.simu.rpc("simulation", "get_scene_objects"))
+        # the proxies pymorse built at connect still work
+        self.assertIn("x", self.pose())
+
     # ---- time ----
 
     def test_sleep_waits_for_simulated_time(self):
