@@ -42,8 +42,9 @@
 //            scene --mjcf (the demo's), from the request to its SUCCESS (validation, the
 //            recompilation on the worker, the swap at the next step: the simulation steps as
 //            fast as possible meanwhile), then `delete_entity` of it, in rounds for
-//            --duration seconds (at least 20), each beside a bare mj_loadXML of the same
-//            scene. Prints ms p50 and p99 of the three.
+//            --duration seconds (at least 20), each beside the recompilation alone
+//            (compile_scene, the worker's share, on the main thread) and a bare mj_loadXML
+//            of the same scene. Prints ms p50 and p99 of the four.
 //
 // The probe costs one clock read per step; both modes run on the main thread, unpinned.
 #include <poll.h>
@@ -70,6 +71,7 @@
 #include "simgate/core/log.h"
 #include "simgate/gateway/deployment.h"
 #include "simgate/gateway/gateway.h"
+#include "simgate/sim/model_edit.h"
 #include "simgate/sim/simulation.h"
 #include "simgate/sim/native_sensors.h"
 #include "simgate/sim/registry.h"
@@ -585,13 +587,18 @@ json run_spawn(const std::string& mjcf, double duration) {
     }
   };
   const std::string ball = "<body><freejoint/><geom type='sphere' size='0.1' mass='1'/></body>";
-  std::vector<std::int64_t> spawn, remove, load;
+  std::vector<std::int64_t> spawn, remove, compile, load;
   const auto end = Clock::now() + std::chrono::duration<double>(duration);
   while (Clock::now() < end || spawn.size() < 20) {
     spawn.push_back(timed("spawn_entity", json::array({"bench_ball", ball, {1.0, 1.0, 0.5}})));
     remove.push_back(timed("delete_entity", json::array({"bench_ball"})));
+    // the worker's share alone: the same recompilation, on this thread
+    auto start = Clock::now();
+    sim::compile_scene(simulation.model().scene(),
+                       {{"bench_ball", sim::entity_sections(ball, "bench_ball", {}), {}}}, true);
+    compile.push_back(ns_between(start, Clock::now()));
     char error[1024] = "";
-    const auto start = Clock::now();
+    start = Clock::now();
     mjModel* m = mj_loadXML(mjcf.c_str(), nullptr, error, sizeof error);
     load.push_back(ns_between(start, Clock::now()));
     if (!m) throw std::runtime_error(std::string("mj_loadXML: ") + error);
@@ -603,7 +610,8 @@ json run_spawn(const std::string& mjcf, double duration) {
                 {"p99_ms", simgate::bench::quantile(samples, 0.99) / 1e6}};
   };
   return json{{"mode", "spawn"},         {"model", mjcf},       {"rounds", spawn.size()},
-              {"spawn_entity", ms(spawn)}, {"delete_entity", ms(remove)}, {"mj_loadXML", ms(load)},
+              {"spawn_entity", ms(spawn)}, {"delete_entity", ms(remove)},
+              {"compile_scene", ms(compile)}, {"mj_loadXML", ms(load)},
               {"model_generation", simulation.model_generation()}};
 }
 
