@@ -111,23 +111,9 @@ class Spawner {
     if (!change_ || !ready(change_->compiled)) return;
     Change change = std::move(*change_);
     change_.reset();
+    std::optional<Model> next;
     try {
-      Model next = change.compiled.get();
-      if (change.done.done()) {
-        // cancelled by its client, or ended at shutdown: the world stays as it is
-        log::info("simulation: ", change.service, " '", change.name, "' ended before its model was ready; dropped");
-        return;
-      }
-      if (sim_.model_generation() != change.generation) {
-        change.done.finish(Outcome::failed(Failure::service_error,
-                                           change.service + " '" + change.name +
-                                               "': the model changed while it compiled; nothing was changed"));
-        return;
-      }
-      sim_.replace_model(std::move(next));
-      log::info("simulation: ", change.service, " '", change.name, "': model generation ", sim_.model_generation(),
-                " (", sim_.m()->nbody, " bodies)");
-      change.done(Status::success, json{{"name", change.name}, {"model_generation", sim_.model_generation()}});
+      next.emplace(change.compiled.get());
     } catch (const std::exception& e) {
       // MuJoCo's message: the fragment does not compile with the scene (a taken joint or
       // geom name, a missing mesh...), and the running model is untouched
@@ -136,7 +122,23 @@ class Spawner {
                                          change.service + " '" + change.name + "': the model does not compile: " +
                                              e.what(),
                                          spawning ? json{{"parameter", "mjcf"}} : json::object()));
+      return;
     }
+    if (change.done.done()) {
+      // cancelled by its client, or ended at shutdown: the world stays as it is
+      log::info("simulation: ", change.service, " '", change.name, "' ended before its model was ready; dropped");
+      return;
+    }
+    if (sim_.model_generation() != change.generation) {
+      change.done.finish(Outcome::failed(
+          Failure::service_error,
+          change.service + " '" + change.name + "': the model changed while it compiled; nothing was changed"));
+      return;
+    }
+    sim_.replace_model(std::move(*next));
+    log::info("simulation: ", change.service, " '", change.name, "': model generation ", sim_.model_generation(),
+              " (", sim_.m()->nbody, " bodies)");
+    change.done(Status::success, json{{"name", change.name}, {"model_generation", sim_.model_generation()}});
   }
 
  private:
