@@ -176,8 +176,25 @@ const RequestManager* Simulation::request_manager(const std::string& transport) 
   return nullptr;
 }
 
+void Simulation::run_soon(std::function<void()> task) {
+  {
+    std::lock_guard lock(soon_mutex_);
+    soon_.push_back(std::move(task));
+  }
+  gate_->signal();
+}
+
 std::size_t Simulation::process_requests() {
-  std::size_t handled = 0;
+  std::vector<std::function<void()>> tasks;
+  {
+    std::lock_guard lock(soon_mutex_);
+    tasks.swap(soon_);
+  }
+  if (!tasks.empty()) {
+    std::lock_guard lock(*gate_);
+    for (auto& task : tasks) task();
+  }
+  std::size_t handled = tasks.size();
   for (auto& manager : managers_) handled += manager->process();
   return handled;
 }

@@ -4,8 +4,9 @@
 // MuJoCo 2.2.2 cannot edit a compiled model, so each change recompiles the scene with the
 // entities it now holds (model_edit.h). Compiling takes milliseconds to seconds, far more
 // than a step: it happens on a worker thread, off the simulation lock, from copies made
-// under it; the step hook swaps the new model in on the simulation thread once the worker
-// is done (Simulation::replace_model carries the state across) and only then completes the
+// under it; once the worker is done it asks the simulation for its next turn
+// (Simulation::run_soon: between two steps, or at once while paused), which swaps the new
+// model in (Simulation::replace_model carries the state across) and only then completes the
 // request. Both services are concurrent async services: neither takes the component's one
 // async slot from the other world-control services, and they keep their own rule of one
 // change at a time (a second one while one compiles FAILS, naming the one compiling).
@@ -70,7 +71,7 @@ EntityPose entity_pose(const std::vector<double>& pose) {
 }
 
 // The state of the spawn group: the change being compiled, if any.
-class Spawner {
+class Spawner : public std::enable_shared_from_this<Spawner> {
  public:
   explicit Spawner(Simulation& sim) : sim_(sim) {}
 
@@ -105,9 +106,9 @@ class Spawner {
     start(std::move(done), "delete_entity", name, std::move(entities), false);
   }
 
-  // Every step: once the worker is done, swap its model in and complete the request.
-  void on_step() {
-    std::erase_if(abandoned_, [](const std::future<Model>& f) { return ready(f); });
+  // The simulation's turn after a worker ended: swap its model in and complete the request.
+  void apply() {
+    std::erase_if(abandoned_, [](const std::future<void>& f) { return ready(f); });
     if (!change_ || !ready(change_->compiled)) return;
     Change change = std::move(*change_);
     change_.reset();
@@ -142,7 +143,8 @@ class Spawner {
   }
 
  private:
-  static bool ready(const std::future<Model>& f) {
+  template <class T>
+  static bool ready(const std::future<T>& f) {
     return f.wait_for(std::chrono::seconds(0)) == std::future_status::ready;
   }
 
@@ -151,7 +153,7 @@ class Spawner {
   // to finish on its own.
   void refuse_if_busy(const std::string& name) {
     if (change_ && change_->done.done()) {
-      abandoned_.push_back(std::move(change_->compiled));
+      abandoned_.push_back(std::move(change_->worker));
       change_.reset();
     }
     if (change_)
@@ -207,10 +209,25 @@ class Spawner {
   void start(Completion done, std::string service, std::string name, std::vector<SpawnedEntity> entities,
              bool last_is_new) {
     auto scene = sim_.model().scene();
+    auto result = std::make_shared<std::promise<Model>>();
+    std::future<Model> compiled = result->get_future();
+    // the worker: the model (or MuJoCo's error), then a turn of the simulation thread for
+    // apply() (the simulation outlives the worker: a Spawner waits for its workers when it
+    // goes, through their futures)
+    std::future<void> worker = std::async(
+        std::launch::async, [&sim = sim_, self = weak_from_this(), result, scene, entities = std::move(entities),
+                             last_is_new] {
+          try {
+            result->set_value(compile_scene(scene, entities, last_is_new));
+          } catch (...) {
+            result->set_exception(std::current_exception());
+          }
+          sim.run_soon([self] {
+            if (auto spawner = self.lock()) spawner->apply();
+          });
+        });
     change_.emplace(Change{std::move(done), std::move(service), std::move(name), sim_.model_generation(),
-                           std::async(std::launch::async, [scene, entities = std::move(entities), last_is_new] {
-                             return compile_scene(scene, entities, last_is_new);
-                           })});
+                           std::move(compiled), std::move(worker)});
   }
 
   // A model being compiled, and the request waiting for it.
@@ -220,11 +237,12 @@ class Spawner {
     std::string name;              // the entity
     std::uint64_t generation;      // the model generation it was made from
     std::future<Model> compiled;   // the worker's result (or MuJoCo's error)
+    std::future<void> worker;      // the worker itself (ready once it has asked for apply())
   };
 
   Simulation& sim_;                        // whose model changes
   std::optional<Change> change_;           // the one being compiled
-  std::vector<std::future<Model>> abandoned_;  // compilations of cancelled changes, until they end
+  std::vector<std::future<void>> abandoned_;  // workers of cancelled changes, until they end
 };
 
 }  // namespace
@@ -247,7 +265,6 @@ void add_spawn_services(SupervisionServices& simulation, Simulation& sim) {
           {"name"})
       .concurrent()
       .doc("Remove the entity `name` spawned at run time from the world");
-  simulation.on_step([spawner] { spawner->on_step(); });
 }
 
 }  // namespace simgate::sim

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <thread>
 
 #include "sim_fixture.h"
 
@@ -71,6 +72,27 @@ TEST_F(SimSpawnTest, SpawnedBodyAppearsInSceneObjectsAtItsPose) {
   run_for(1.0);
   objects = call("simulation", "get_scene_objects").value.value();
   EXPECT_NEAR(objects["ball"][1][2].get<double>(), 0.1, 0.01);
+}
+
+// A paused simulation takes no step: the change is swapped in on the simulation's next turn
+// (Simulation::run_soon), not at a step. Before, it waited for `play` or `step` for ever.
+TEST_F(SimSpawnTest, ASpawnWhilePausedCompletesWithoutAStep) {
+  ASSERT_EQ(call("simulation", "pause").status, Status::success);
+  const std::uint64_t steps = sim_->steps();
+  const double time = sim_->sim_time();
+  RequestId id = rm_->call("simulation", "spawn_entity", {"ball", k_ball, {1.0, 1.0, 0.5}});
+  std::optional<Outcome> o;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (!o && std::chrono::steady_clock::now() < deadline) {
+    sim_->process_requests();  // the loop's turns while paused: requests, no step
+    o = rm_->outcome(id);
+    if (!o) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  ASSERT_TRUE(o.has_value()) << "spawn_entity not answered while paused";
+  EXPECT_EQ(o->status, Status::success) << o->message;
+  EXPECT_EQ(sim_->steps(), steps);
+  EXPECT_EQ(sim_->sim_time(), time);
+  EXPECT_TRUE(call("simulation", "get_scene_objects").value->contains("ball"));
 }
 
 TEST_F(SimSpawnTest, StateAndTimeAreCarriedAcross) {

@@ -55,6 +55,7 @@
 #include <atomic>
 #include <chrono>
 #include <functional>
+#include <mutex>
 #include <memory>
 #include <optional>
 #include <string>
@@ -173,6 +174,12 @@ class Simulation {
   void step();
   // process() of every request manager; returns the events handled.
   std::size_t process_requests();
+  // Any thread: `task` runs under the simulation lock on the simulation's next turn (the
+  // start of the next process_requests(), which the loop calls at once when woken, playing
+  // or paused), and the loop is woken for it. For work finished off the lock (a model
+  // compiled on a worker thread) that must then touch the simulation: it does not wait for
+  // a step, which a paused simulation does not take.
+  void run_soon(std::function<void()> task);
   // Answers what is still queued, ends the async requests still running (those of
   // concurrent services too) FAILED, stops every transport, destroys the transports, then
   // the components. Idempotent; called by the destructor.
@@ -277,6 +284,8 @@ class Simulation {
   std::uint64_t window_steps_ = 0;                           // steps_ at the window's start
   std::atomic<double> recent_factor_{0};                     // measured over the last window
   std::shared_ptr<SimulationGate> gate_;                     // shared with every manager
+  std::mutex soon_mutex_;                                    // guards soon_
+  std::vector<std::function<void()>> soon_;                  // run_soon tasks, in order
   std::vector<std::unique_ptr<ComponentEntry>> entries_;     // every component, in order
   std::vector<std::shared_ptr<RequestManager>> managers_;    // every transport
   std::vector<std::string> manager_names_;                   // transport name of each manager
