@@ -264,7 +264,8 @@ class SimSpawnFileTest : public ::testing::Test {
     std::ofstream(root_ / "allowed" / "ball.xml") << k_ball;
     std::ofstream(root_ / "outside.xml") << k_ball;
     std::filesystem::create_symlink(root_ / "outside.xml", root_ / "allowed" / "link.xml");
-    SimulationOptions options{std::nullopt, 0.0, {std::filesystem::canonical(root_ / "allowed").string()}};
+    SimulationOptions options{std::nullopt, 0.0};
+    options.spawn_allowed_dirs = {std::filesystem::canonical(root_ / "allowed").string()};
     sim_ = std::make_unique<Simulation>(Model::load_file(testing::demo_scene()), options);
     sim_->add_supervision_services();
     rm_ = std::make_shared<testing::RecordingManager>();
