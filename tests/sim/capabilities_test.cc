@@ -37,5 +37,13 @@ TEST_F(SimCapabilitiesTest, EveryListedFeatureHasItsServicesAndEveryFeatureWhose
   EXPECT_EQ(caps["spawn_formats"], offered.count("spawn_entity") ? json({"mjcf"}) : json::array());
 }
 
+TEST_F(SimCapabilitiesTest, TheWorldControlGroupsOfferEveryFeatureSimgateHas) {
+  json caps = *call("simulation", "get_capabilities").value;
+  std::set<int> ids;
+  for (const json& f : caps["features"]) ids.insert(f["id"].get<int>());
+  EXPECT_EQ(ids, (std::set<int>{0, 1, 5, 9, 10, 11, 12, 20, 21, 22, 24, 25, 26, 31, 32, 33}));
+  EXPECT_EQ(caps["spawn_formats"], json({"mjcf"}));
+}
+
 }  // namespace
 }  // namespace simgate::sim
