@@ -27,7 +27,7 @@ struct Feature {
 const std::vector<Feature>& features() {
   static const std::vector<Feature> all = {
       {0, "SPAWNING", {"spawn_entity"}, "spawn_entity: MJCF added to the running scene"},
-      {1, "DELETING", {"delete_entity"}, "delete_entity: a top-level body removed from the running scene"},
+      {1, "DELETING", {"delete_entity"}, "delete_entity: an entity spawned at run time removed"},
       {5, "ENTITY_BOUNDS", {"get_object_bbox", "get_object_global_bbox"}, "axis-aligned bounding boxes of any body"},
       {9, "SPAWNING_RESOURCE_STRING", {"spawn_entity"}, "spawn_entity takes MJCF text inline"},
       {10, "ENTITY_STATE_GETTING", {"get_entity_state"}, "pose and twist of any body in the world frame"},
@@ -35,7 +35,7 @@ const std::vector<Feature>& features() {
       {12, "ENTITY_INFO_GETTING", {"list_entities"}, "list_entities with a name filter"},
       {20, "SIMULATION_RESET", {"reset"}, "reset with a scope"},
       {21, "SIMULATION_RESET_TIME", {"reset"}, "reset's scope 'all' sets simulated time back to 0"},
-      {22, "SIMULATION_RESET_STATE", {"reset"}, "reset's scopes 'robots' and one robot restore state, time going on"},
+      {22, "SIMULATION_RESET_STATE", {"reset"}, "reset's scopes 'state' and 'robot' restore state, time going on"},
       {24, "SIMULATION_STATE_GETTING", {"get_simulation_state"}, "playing, paused, stepping or quitting, time, steps"},
       {25, "SIMULATION_STATE_SETTING", {"pause", "play", "quit"}, "pause, play, quit"},
       {26, "SIMULATION_STATE_PAUSE", {"pause"}, "pause stops physics and time; requests are still served"},
