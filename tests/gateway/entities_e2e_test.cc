@@ -20,6 +20,7 @@ namespace {
 using ::testing::HasSubstr;
 using ::testing::StartsWith;
 using testing::LineClient;
+using testing::rpc;
 using testing::payload;
 
 const char* k_entity_services[] = {"set_object_position", "get_object_pose", "get_object_bbox",
@@ -109,13 +110,6 @@ TEST_F(GatewayEntitiesTest, TheSocketSpeaksMorsesWire) {
 }
 
 #ifdef SIMGATE_TEST_WITH_JSONRPC
-json rpc(LineClient& c, int id, const std::string& method, json params = nullptr) {
-  json request{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}};
-  if (!params.is_null()) request["params"] = std::move(params);
-  c.send(request.dump() + "\n");
-  auto line = c.read_line();
-  return line ? json::parse(*line, nullptr, false) : json();
-}
 
 TEST_F(GatewayEntitiesTest, JsonRpcTakesNamedParametersAndReportsTheBadOne) {
   LineClient c(port("jsonrpc"));

@@ -17,6 +17,7 @@ using ::testing::HasSubstr;
 using ::testing::Not;
 using ::testing::StartsWith;
 using testing::LineClient;
+using testing::rpc;
 using testing::payload;
 
 class GatewayIntegrationTest : public ::testing::Test {
@@ -184,14 +185,6 @@ json split_config() {
   return config;
 }
 
-// One JSON-RPC call on `c` (one at a time: the next line is its response); null on timeout.
-json rpc(LineClient& c, int id, const std::string& method, json params = nullptr) {
-  json request{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}};
-  if (!params.is_null()) request["params"] = std::move(params);
-  c.send(request.dump() + "\n");
-  auto line = c.read_line();
-  return line ? json::parse(*line, nullptr, false) : json();
-}
 
 // The names of the components a list of service descriptors covers.
 std::set<std::string> components_of(const json& descriptors, const char* key = "component") {

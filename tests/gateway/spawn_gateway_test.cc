@@ -13,6 +13,7 @@ namespace simgate::gateway {
 namespace {
 
 using testing::LineClient;
+using testing::rpc;
 using testing::payload;
 
 constexpr const char* k_ball = "<body><freejoint/><geom type='sphere' size='0.1' mass='1'/></body>";
@@ -44,14 +45,6 @@ class GatewaySpawnTest : public ::testing::Test {
   }
   int port(const std::string& transport) { return testing::port_of(gateway_->endpoints().at(transport).at(0)); }
 
-  // One JSON-RPC call (the next line is its response).
-  json rpc(LineClient& c, int id, const std::string& method, json params = nullptr) {
-    json request{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}};
-    if (!params.is_null()) request["params"] = std::move(params);
-    c.send(request.dump() + "\n");
-    auto line = c.read_line();
-    return line ? json::parse(*line, nullptr, false) : json();
-  }
 
   testing::TempDir dir_;
   std::string partition_ = "simgate-spawn-test-" + std::to_string(::getpid());

@@ -159,6 +159,15 @@ class LineClient {
   bool closed_ = false;              // end of stream seen
 };
 
+// One JSON-RPC call on `c`, one at a time (the next line is its response); null on timeout.
+inline json rpc(LineClient& c, int id, const std::string& method, json params = nullptr) {
+  json request{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}};
+  if (!params.is_null()) request["params"] = std::move(params);
+  c.send(request.dump() + "\n");
+  auto line = c.read_line();
+  return line ? json::parse(*line, nullptr, false) : json();
+}
+
 // The JSON payload of "<id> STATUS <json>".
 inline json payload(const std::string& line) {
   auto first = line.find(' ');
