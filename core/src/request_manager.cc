@@ -47,49 +47,21 @@ class Inbox : public CompletionSink {
 
   // any thread; signals the gate
   void push(Event event) {
-    std::shared_ptr<SimulationGate> gate;
-    {
-      std::lock_guard lock(mutex_);
-      add(std::move(event));
-      note_queued();
-      gate = gate_;
-    }
-    gate->signal();
+    queue([&] { add(std::move(event)); }, true);
   }
   // requests moved out of `calls`; `wake`: see push()
   void push_requests(std::span<std::pair<RequestId, Call>> calls, bool wake) {
-    std::shared_ptr<SimulationGate> gate;
-    {
-      std::lock_guard lock(mutex_);
-      for (auto& [id, call] : calls) add(Request{id, std::move(call)});
-      note_queued();
-      gate = gate_;
-    }
-    if (wake) gate->signal();
+    queue([&] { for (auto& [id, call] : calls) add(Request{id, std::move(call)}); }, wake);
   }
+  // A completion, or a progress report, produced by a request this inbox's process_locked()
+  // is running on this thread (an async service done in its start method: `simulation step
+  // 1` on a paused simulation) is delivered by that process_locked() before it returns:
+  // waking the simulation thread would only make it compete for the CPU and the lock.
   void finished(RequestId id, Outcome outcome) override {
-    std::shared_ptr<SimulationGate> gate;
-    {
-      std::lock_guard lock(mutex_);
-      finished_.emplace_back(id, std::move(outcome));
-      note_queued();
-      gate = gate_;
-    }
-    // finished by a request this inbox's process_locked() is running on this thread (an
-    // async service done in its start method: `simulation step 1` on a paused simulation):
-    // that process_locked() delivers it before it returns, and waking the simulation thread
-    // would only make it compete for the CPU and the lock
-    if (t_executing != this) gate->signal();
+    queue([&] { finished_.emplace_back(id, std::move(outcome)); }, t_executing != this);
   }
   void progressed(RequestId id, json value) override {
-    std::shared_ptr<SimulationGate> gate;
-    {
-      std::lock_guard lock(mutex_);
-      progress_.emplace_back(id, std::move(value));
-      note_queued();
-      gate = gate_;
-    }
-    gate->signal();
+    queue([&] { progress_.emplace_back(id, std::move(value)); }, t_executing != this);
   }
 
   // under the simulation lock; `events` and `finished` come empty and keep their capacity
@@ -139,6 +111,18 @@ class Inbox : public CompletionSink {
   std::vector<std::pair<RequestId, json>> work_progress;
 
  private:
+  // Runs `add` under the mutex, then signals the gate (outside it) when `wake`.
+  template <class Add>
+  void queue(Add&& add, bool wake) {
+    std::shared_ptr<SimulationGate> gate;
+    {
+      std::lock_guard lock(mutex_);
+      add();
+      note_queued();
+      gate = gate_;
+    }
+    if (wake) gate->signal();
+  }
   // caller holds mutex_
   void note_queued() {
     queued_.store(!events_.empty() || !finished_.empty() || !progress_.empty(), std::memory_order_release);
