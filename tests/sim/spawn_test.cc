@@ -31,6 +31,18 @@ class SimSpawnTest : public testing::DemoSim {
     ADD_FAILURE() << "request " << id << " not answered within 30 s";
     return Outcome::failed(Failure::internal, "no answer");
   }
+  // Waits for `id` taking no step (the loop's turns while paused: requests and run_soon
+  // tasks only), so that nothing moves however long the worker compiles. Bounded.
+  std::optional<Outcome> answer_without_stepping(RequestId id) {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+    std::optional<Outcome> o;
+    while (!o && std::chrono::steady_clock::now() < deadline) {
+      sim_->process_requests();
+      o = rm_->outcome(id);
+      if (!o) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    return o;
+  }
   Outcome spawn(const std::string& name, json pose = {1.0, 1.0, 0.5}, const std::string& mjcf = k_ball) {
     return finish(rm_->call("simulation", "spawn_entity", {name, mjcf, std::move(pose)}));
   }
@@ -80,14 +92,7 @@ TEST_F(SimSpawnTest, ASpawnWhilePausedCompletesWithoutAStep) {
   ASSERT_EQ(call("simulation", "pause").status, Status::success);
   const std::uint64_t steps = sim_->steps();
   const double time = sim_->sim_time();
-  RequestId id = rm_->call("simulation", "spawn_entity", {"ball", k_ball, {1.0, 1.0, 0.5}});
-  std::optional<Outcome> o;
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-  while (!o && std::chrono::steady_clock::now() < deadline) {
-    sim_->process_requests();  // the loop's turns while paused: requests, no step
-    o = rm_->outcome(id);
-    if (!o) std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  }
+  auto o = answer_without_stepping(rm_->call("simulation", "spawn_entity", {"ball", k_ball, {1.0, 1.0, 0.5}}));
   ASSERT_TRUE(o.has_value()) << "spawn_entity not answered while paused";
   EXPECT_EQ(o->status, Status::success) << o->message;
   EXPECT_EQ(sim_->steps(), steps);
@@ -130,7 +135,11 @@ TEST_F(SimSpawnTest, DeleteRemovesTheEntityAndKeepsTheOthersState) {
   json objects = call("simulation", "get_scene_objects").value.value();
   const double b_height = objects["b"][1][2].get<double>();
   ASSERT_LT(b_height, 2.9);  // falling
-  Outcome o = remove("a");
+  // no step while it compiles: however slow the worker (a sanitizer build), b is where it
+  // was when the change was asked for
+  auto answered = answer_without_stepping(rm_->call("simulation", "delete_entity", {"a"}));
+  ASSERT_TRUE(answered.has_value());
+  Outcome o = *answered;
   ASSERT_EQ(o.status, Status::success) << o.message;
   EXPECT_EQ(o.value->at("model_generation"), 3);
   objects = call("simulation", "get_scene_objects").value.value();
