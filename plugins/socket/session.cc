@@ -20,4 +20,10 @@ void Session::answer(std::size_t client_id_hash, RequestId id, std::string_view 
   replied();
 }
 
+bool Session::report_progress(std::size_t client_id_hash, RequestId id, const json& value) {
+  const kit::IdTable::Entry* entry = pending_.find(client_id_hash, id);
+  if (!entry) return false;
+  return queue_droppable_with([&](std::string& out) { append_reply(out, entry->key, k_progress_status, &value); });
+}
+
 }  // namespace simgate::socket

@@ -8,6 +8,8 @@
 //     max_in_flight replies are owed (LineLimits::pause_at_unanswered).
 //   - Deferred replies: an error reply the manager made itself, travelling through the
 //     core behind the connection's earlier requests so the replies keep their order.
+//   - Progress: whether the client opted in (`<id> simgate progress [true]`) to progress
+//     lines `<id> PROGRESS <json>` for its async requests sent from then on.
 //
 // Threads: the transport's I/O thread only.
 #ifndef SIMGATE_PLUGINS_SOCKET_SESSION_H_
@@ -47,6 +49,14 @@ class Session : public kit::LineConnection {
   // client id hashes to `client_id_hash` (its entry's hash), and forgets the request.
   void answer(std::size_t client_id_hash, RequestId id, std::string_view status, const json* value);
   const kit::IdTable& pending() const { return pending_; }
+  // Queues the progress line "<client id> PROGRESS <json>" of the pending request `id`
+  // (hash as for answer()), unless more than LineConnection::k_droppable_unsent_bytes wait
+  // unsent: a client that does not read loses reports, never a reply. True if queued.
+  bool report_progress(std::size_t client_id_hash, RequestId id, const json& value);
+  // The connection opted in to progress lines (`<id> simgate progress [true|false]`):
+  // requests read from now on are submitted with Call::progress.
+  bool wants_progress() const { return wants_progress_; }
+  void set_wants_progress(bool on) { wants_progress_ = on; }
   // Forgets every pending request (the connection closed).
   void clear_pending() { pending_.clear(); }
   // A reply the manager made itself (an error) but that must follow the replies of earlier
@@ -62,6 +72,7 @@ class Session : public kit::LineConnection {
 
  private:
   kit::IdTable pending_;  // client id -> core request id
+  bool wants_progress_ = false;  // opted in to progress lines
 };
 
 }  // namespace simgate::socket

@@ -19,6 +19,9 @@ namespace {
 
 constexpr std::string_view k_failed = "FAILED";
 constexpr std::string_view k_preempted = "PREEMPTED";
+// `<id> simgate progress [on]`: the one request the transport answers itself
+constexpr std::string_view k_simgate = "simgate";
+constexpr std::string_view k_progress = "progress";
 // Longest client id echoed in the reply to an oversized line (the line itself is dropped).
 constexpr std::size_t k_max_echoed_id = 256;
 
@@ -65,6 +68,7 @@ SocketRequestManager::SocketRequestManager(SocketOptions o)
   // a client with max_in_flight requests unanswered waits for answers before more is read
   limits_.pause_at_unanswered = options_.tcp.max_in_flight;
   set_global_policy(options_.tcp.global_policy);
+  set_progress_interval(options_.tcp.progress_interval);
   // once per transport created (validate_options parses too, and says nothing)
   for (const auto& message : options_.tcp.warnings) log::warning(message);
   log::info(name(), " now listening on port ", listener_.port(), " (", listener_.endpoint(), ")");
@@ -147,11 +151,16 @@ void SocketRequestManager::on_lines_done(kit::LineConnection& connection, bool r
 }
 
 void SocketRequestManager::fail_in_order(Session& session, std::string_view id, std::string message) {
-  json text = std::move(message);
+  const json text = std::move(message);
+  reply_in_order(session, id, k_failed, &text);
+}
+
+void SocketRequestManager::reply_in_order(Session& session, std::string_view id, std::string_view status,
+                                          const json* value) {
   // earlier requests of this read may run at once, answering them
   if (session.has_unanswered()) run_batch();
   scratch_.clear();
-  append_reply(scratch_, id, k_failed, &text);
+  append_reply(scratch_, id, status, value);
   if (!session.has_unanswered()) {
     session.send(scratch_);
     return;
@@ -162,6 +171,37 @@ void SocketRequestManager::fail_in_order(Session& session, std::string_view id, 
   const RequestId reply_id = new_request_id();  // never one of requests_'s ids (kit::RequestSlots::k_mark)
   deferred_replies_.emplace(reply_id, DeferredReply{session.shared(), scratch_});
   answer_in_order(reply_id, Outcome{});
+}
+
+void SocketRequestManager::set_progress(Session& session, const RequestLine& request) {
+  // `<id> simgate progress [true|false]`: no params means true
+  json& params = progress_params_;
+  if (!parse_params_into(request.params, request.params_column, params, params_error_)) {
+    fail_in_order(session, request.id,
+                  "Invalid request syntax: error while parsing the parameters at column " +
+                      std::to_string(params_error_.column) + ": " + params_error_.error);
+    return;
+  }
+  const json* on = nullptr;
+  if (params.is_array() && params.size() == 1) on = &params[0];
+  if (params.is_object() && params.size() == 1 && params.contains("on")) on = &params["on"];
+  const bool none = params.is_null() || (params.is_array() && params.empty());
+  if (!none && !on) {
+    fail_in_order(session, request.id,
+                  "wrong # of parameters for service simgate.progress: expected at most 1 (on), got " +
+                      std::to_string(params.is_array() || params.is_object() ? params.size() : 1));
+    return;
+  }
+  if (on && !on->is_boolean()) {
+    fail_in_order(session, request.id,
+                  "wrong parameter type for service simgate.progress: parameter 'on' expects boolean, got " +
+                      describe_json(*on));
+    return;
+  }
+  const bool enable = on ? on->get<bool>() : true;
+  // the requests read after this line (earlier ones of this read kept their choice)
+  session.set_wants_progress(enable);
+  reply_in_order(session, request.id, options_.success_word, nullptr);
 }
 
 void SocketRequestManager::authenticate(Session& session, std::string_view line) {
@@ -222,6 +262,11 @@ void SocketRequestManager::on_line(kit::LineConnection& connection, std::string_
     case RequestLine::Kind::call:
       break;
   }
+  // the transport's own request: progress lines for this connection (opt-in)
+  if (request.component == k_simgate && request.service == k_progress) [[unlikely]] {
+    set_progress(session, request);
+    return;
+  }
 
   // one pending request per id and connection, or replies could not be told apart
   kit::IdTable::Entry* pending = session.add_pending(request.id);
@@ -258,6 +303,7 @@ void SocketRequestManager::on_line(kit::LineConnection& connection, std::string_
   // a pipelining client names the same service line after line
   if (call.component != request.component) call.component.assign(request.component);
   if (call.service != request.service) call.service.assign(request.service);
+  call.progress = session.wants_progress();
   // handed to the core with the rest of this read (on_lines_done)
   ++batch_count_;
 }
@@ -328,6 +374,14 @@ void SocketRequestManager::on_service_completion(RequestId id, Outcome&& outcome
   }
 }
 
+void SocketRequestManager::on_service_progress(RequestId id, json&& value) {
+  // the I/O thread, like outcomes: before the request's reply, never after it
+  if (!(id & decltype(requests_)::k_mark)) return;
+  const Pending* entry = requests_.find(id);
+  if (!entry || entry->session->closed()) return;
+  entry->session->report_progress(entry->client_id_hash, id, value);
+}
+
 void SocketRequestManager::flush_replies() {
   deliver_handed_over();
   flush_touched();
@@ -361,7 +415,7 @@ SIMGATE_TRANSPORT_PLUGIN(socket, simgate::socket::SocketRequestManager, "0.1.0",
                          "success_word", "max_connections", "max_message_bytes",
                          "max_unsent_bytes", "max_in_flight", "io_spin_us", "global_policy",
                          "on_disconnect", "idle_timeout_s", "idle_evict_s", "line_timeout_s",
-                         "max_buffered_bytes", "max_connections_per_peer", "auth",
+                         "max_buffered_bytes", "max_connections_per_peer", "auth", "progress_interval_ms",
                          // deprecated names: accepted with a warning until the next release
                          "max_clients", "max_line_bytes", "max_pending_replies_bytes",
                          "max_pending_requests")

@@ -12,7 +12,12 @@
 // max_pending_replies_bytes, max_pending_requests are accepted with a warning until the next
 // release), io_spin_us, global_policy ("reject" | "preempt"), on_disconnect ("cancel" |
 // "let_run": what becomes of the async requests of a client that leaves, or ends its
-// sending side).
+// sending side), progress_interval_ms (the shortest time between two progress lines of one
+// request, as on the JSON-RPC transport).
+//
+// Progress (issue #20): nothing changes for a MORSE client. A connection that sends
+// `<id> simgate progress` (answered `<id> SUCCESS`) gets `<id> PROGRESS <json>` lines for the
+// reports of its async requests sent from then on, before their final reply.
 //
 // Built on the transport kit: the shared options, the listener (100 ms back-off after
 // accept() fails; a connection over max_connections is told why in one line,
@@ -58,6 +63,7 @@
 #include "simgate/kit/line_connection.h"
 #include "simgate/kit/request_slots.h"
 #include "simgate/kit/tcp_server.h"
+#include "wire.h"
 
 namespace simgate::socket {
 
@@ -87,6 +93,10 @@ class SocketRequestManager : public RequestManager, private kit::LineServer {
 
  protected:
   void on_service_completion(RequestId id, Outcome&& outcome) override;
+  // `<id> PROGRESS <json>` to a request whose connection opted in (`<id> simgate progress`);
+  // lost, not queued, when the client lets replies pile up unread
+  // (LineConnection::queue_droppable_with).
+  void on_service_progress(RequestId id, json&& value) override;
 
  private:
   // kit::LineHost: the protocol (I/O thread)
@@ -126,6 +136,11 @@ class SocketRequestManager : public RequestManager, private kit::LineServer {
   void authenticate(Session& session, std::string_view line);
   // Answers FAILED `message` after the connection's earlier requests have been answered.
   void fail_in_order(Session& session, std::string_view id, std::string message);
+  // Answers "<id> <status>[ <value>]" after the connection's earlier requests.
+  void reply_in_order(Session& session, std::string_view id, std::string_view status, const json* value);
+  // `<id> simgate progress [true|false]`: opts the connection in to (or out of) progress
+  // lines for the requests it sends from now on; answered SUCCESS, or FAILED for bad params.
+  void set_progress(Session& session, const RequestLine& request);
   void close_all();
 
   // A request sent to the core and not yet answered. Entries of a connection are erased
@@ -151,6 +166,7 @@ class SocketRequestManager : public RequestManager, private kit::LineServer {
   std::size_t batch_count_ = 0;
   std::vector<RequestId> cancel_after_batch_;  // cancels of a client that left, after the batch (I/O thread)
   ParamsParse params_error_;                 // the last parameters syntax error (I/O thread)
+  json progress_params_;                     // set_progress's parameters (I/O thread)
   // error replies travelling through the core behind earlier requests, by the
   // new_request_id() their answer_in_order() carries (I/O thread)
   std::unordered_map<RequestId, DeferredReply> deferred_replies_;

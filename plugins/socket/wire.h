@@ -4,11 +4,16 @@
 //
 //   <id> <component> <service> [<params>]      a call (params: see params_parser.h)
 //   <id> cancel                                cancels this connection's pending <id>
+//   <id> simgate progress [<on>]               a call the transport answers itself: opts the
+//                                              connection in to progress lines (on: true,
+//                                              the default) or out (false)
 //
 // Replies, one per line, LF-terminated, single spaces:
 //
 //   <id> <STATUS>                              service returned nothing / PREEMPTED
 //   <id> <STATUS> <json>                       result (SUCCESS) or message (FAILED)
+//   <id> PROGRESS <json>                       a report of the running request <id>, only
+//                                              to a connection that opted in; never final
 //
 // JSON is written the way MORSE's Python `json.dumps` writes it (separators ", " and
 // ": ", non-ASCII escaped as \uXXXX, NaN/Infinity bare), so clients that compare bytes
@@ -45,6 +50,9 @@ struct RequestLine {
   std::size_t params_column = 0;  // 1-based column of params[0] in the line
   std::string error;              // malformed only
 };
+
+// The status word of a progress line, never a final reply's.
+inline constexpr std::string_view k_progress_status = "PROGRESS";
 
 // Splits one line (without its '\n'; a trailing '\r' and surrounding blanks are ignored).
 // An id with a control character is malformed, answered under the id "-": ids are echoed
