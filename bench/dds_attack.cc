@@ -62,6 +62,7 @@ const char* status_name(simgate_ReplyStatus s) {
     case simgate_ST_FAILED: return "FAILED";
     case simgate_ST_PREEMPTED: return "PREEMPTED";
     case simgate_ST_REFUSED: return "REFUSED";
+    case simgate_ST_RUNNING: return "RUNNING";
   }
   return "?";
 }

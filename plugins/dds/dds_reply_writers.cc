@@ -4,7 +4,9 @@
 // (write_finished) written at once, or parked while the reader is missing or the writer is
 // full, retried with backoff, dropped after park_timeout_ms (logged, rate-limited); a client
 // that leaves has its async calls cancelled, and its writer is retired once its replies are
-// acknowledged. Options, entities, the DDS thread and requests: dds_request_manager.cc.
+// acknowledged. A client's first call asking for progress gives it a progress writer (best
+// effort, beside its reply writer), which carries its calls' reports, written before the
+// replies delivered with them. Options, entities, the DDS thread and requests: dds_request_manager.cc.
 #include <algorithm>
 #include <cstring>
 #include <set>
@@ -24,6 +26,8 @@ constexpr std::chrono::seconds k_drop_log_interval{10};
 }  // namespace
 
 void DdsRequestManager::write_finished() {
+  // a call's reports were delivered before its outcome: written first
+  if (!progress_.empty()) write_progress();
   if (finished_.empty()) return;
   // swapped, not moved: both vectors keep their capacity
   draining_.swap(finished_);
@@ -58,6 +62,42 @@ void DdsRequestManager::write_finished(std::vector<std::pair<RequestId, Outcome>
     send_reply(pending.client, to_reply(pending.seq, outcome), final_flush);
   }
   batch.clear();
+}
+
+void DdsRequestManager::write_progress() {
+  for (auto& [id, value] : progress_) {
+    auto p = pending_.find(id);
+    if (p == pending_.end() || p->second.cancel_answer) continue;
+    auto c = clients_.find(p->second.client);
+    if (c == clients_.end() || c->second.gone || c->second.progress_writer <= 0) continue;
+    progress_text_ = value.dump(-1, ' ', false, json::error_handler_t::replace);
+    simgate_Reply sample{};
+    std::memcpy(sample.client, p->second.client.data(), p->second.client.size());
+    sample.seq = p->second.seq;
+    sample.status = simgate_ST_RUNNING;
+    sample.failure = simgate_FL_NONE;
+    sample.last = false;
+    sample.result = progress_text_.data();
+    sample.message = const_cast<char*>("");
+    sample.data = const_cast<char*>("");
+    // best effort: a report that cannot go now is lost, as the client may lose any
+    if (dds_return_t rc = dds_write(c->second.progress_writer, &sample); rc < 0)
+      log::debug("DDS transport: a progress report of request ", sample.seq, " to client ",
+                 to_hex(p->second.client), " not written: ", retcode_text(rc));
+  }
+  progress_.clear();
+}
+
+bool DdsRequestManager::ensure_progress_writer(const ClientId& id, ClientState& client) {
+  if (client.progress_writer > 0) return true;
+  if (client.progress_writer < 0) return false;  // failed before: not tried for every call
+  client.progress_writer = dds_create_writer(client.reply_publisher, progress_topic_, progress_qos_.get(), nullptr);
+  if (client.progress_writer < 0) {
+    log::error("DDS transport: client ", to_hex(id), " gets no progress reports: no progress writer: ",
+               retcode_text(client.progress_writer));
+    return false;
+  }
+  return true;
 }
 
 void DdsRequestManager::send_reply(const ClientId& client_id, ReplyData reply, bool final_flush) {

@@ -69,6 +69,8 @@ DdsOptions DdsOptions::parse(const json& options) {
   out.global_policy = config.get_choice("global_policy", "reject", {"reject", "preempt"}) == "preempt"
                           ? GlobalPolicy::preempt
                           : GlobalPolicy::reject;
+  out.progress_interval = std::chrono::milliseconds(
+      config.get_int("progress_interval_ms", out.progress_interval.count(), 0, 3'600'000));
   config.finish();
   return out;
 }
@@ -81,6 +83,7 @@ void DdsRequestManager::validate_options(const json& options) {
 DdsRequestManager::DdsRequestManager(const json& options)
     : RequestManager("DDS service manager"), options_(DdsOptions::parse(options)) {
   set_global_policy(options_.global_policy);
+  set_progress_interval(options_.progress_interval);
   create_entities();
 }
 
@@ -120,6 +123,16 @@ void DdsRequestManager::create_entities() {
   dds_qset_writer_data_lifecycle(reply_qos_.get(), false);
   std::string userdata = "simgate.role=server;simgate.v=2;simgate.id=" + server_id_;
   dds_qset_userdata(reply_qos_.get(), userdata.data(), userdata.size());
+
+  // progress reports, one writer per client that asks (ensure_progress_writer): best effort,
+  // the last report only: never blocking, never lingering when deleted, and a reader that
+  // takes nothing loses old reports and holds up no reply
+  progress_topic_ = check(dds_create_topic(pp, &simgate_Reply_desc, k_progress_topic, nullptr, nullptr),
+                          "topic simgate_Progress");
+  progress_qos_ = make_qos(false, 1, 0);
+  dds_qset_reliability(progress_qos_.get(), DDS_RELIABILITY_BEST_EFFORT, 0);
+  dds_qset_writer_data_lifecycle(progress_qos_.get(), false);
+  dds_qset_userdata(progress_qos_.get(), userdata.data(), userdata.size());
 
   // catalog: the last sample of each component, kept for late joiners
   QosPtr catalog_qos = make_qos(true, 1, DDS_SECS(1));
@@ -179,6 +192,13 @@ void DdsRequestManager::on_service_completion(RequestId id, Outcome&& outcome) {
   // under the simulation lock or in deliver_handed_over(): kept until write_finished(),
   // which writes them outside the lock
   finished_.emplace_back(id, std::move(outcome));
+}
+
+void DdsRequestManager::on_service_progress(RequestId id, json&& value) {
+  // where outcomes go (DDS thread), before the call's outcome; none once stopping (the
+  // simulation thread may deliver from then on, and nobody writes them)
+  if (stopping_.load(std::memory_order_relaxed)) return;
+  progress_.emplace_back(id, std::move(value));
 }
 
 // ---------------------------------------------------------------------------------------
@@ -414,6 +434,8 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
       // into the batch for the core; async calls are acknowledged at once, after the
       // replies of the calls before them
       bool is_async = lookup_async(call.component, call.service);
+      // progress asked of an async service: the client's progress writer exists from now on
+      call.progress = request.progress && is_async && ensure_progress_writer(client_id, client);
       RequestId id = new_request_id();
       pending_.emplace(id, Pending{client_id, seq, is_async});
       client.calls.emplace(seq, id);

@@ -11,6 +11,10 @@
 //    that client's reply reader listens. A reader that stops acknowledging (never takes,
 //    frozen process) can only fill its own writer's history: the server's writes to it fail
 //    at once (max_blocking_time 0) and that client alone loses replies.
+//  - Progress topic: the reports of a call that asked (Request.progress), as Reply samples
+//    with ST_RUNNING, written by a second writer of the client's (created at its first such
+//    call), best effort and keep-last 1: a client that does not take them loses old ones
+//    and holds up nothing, its replies least of all.
 //  - Catalog topic (TRANSIENT_LOCAL): one CatalogEntry per served component, so a client
 //    that joins late still sees what it can call.
 //  - Partition: every endpoint lives in the partition named by the "partition" option (the
@@ -77,6 +81,7 @@ struct DdsOptions {
   std::size_t max_params = 1 << 20;    // largest accepted params text, in bytes
   std::size_t max_depth = 128;         // deepest [/{ nesting accepted in params (2..10000)
   GlobalPolicy global_policy = GlobalPolicy::reject;  // async calls without a local policy
+  std::chrono::milliseconds progress_interval{50};     // shortest time between two reports of a call
 
   // Reads and validates `options` (unknown keys are errors). Throws ConfigError.
   static DdsOptions parse(const json& options);
@@ -105,6 +110,9 @@ class DdsRequestManager : public RequestManager {
   // On the DDS thread (the core hands other threads' outcomes over): keeps the outcome for
   // the write that follows (write_finished). Never blocks on DDS.
   void on_service_completion(RequestId id, Outcome&& outcome) override;
+  // On the DDS thread, like outcomes: keeps the report of a call that asked for progress
+  // for the write that follows (write_finished, on the progress topic). Never blocks on DDS.
+  void on_service_progress(RequestId id, json&& value) override;
 
  private:
   // A reply not yet written (parked, or queued from the simulation thread).
@@ -131,6 +139,7 @@ class DdsRequestManager : public RequestManager {
     dds_instance_handle_t writer = 0;                   // its request writer (GUID = its id)
     dds_entity_t reply_publisher = 0;                   // in "<partition>/<id>"; owns reply_writer
     dds_entity_t reply_writer = 0;                      // its replies, to its reader alone
+    dds_entity_t progress_writer = 0;                   // its progress reports (at its first call asking)
     bool reader_matched = false;                        // a reader announcing its id is matched
     std::unordered_map<std::uint64_t, RequestId> calls;  // seq -> request in the core
     std::deque<ReplyData> parked;                       // replies not written yet, in order
@@ -150,8 +159,14 @@ class DdsRequestManager : public RequestManager {
   // DDS thread: hands batch_ (and pending cancels) to run_or_submit(), then writes the
   // replies it produced. Called after each take, and before any reply that must follow them.
   void run_batch();
-  // DDS thread: writes the replies of the outcomes delivered so far (finished_).
+  // DDS thread: writes the progress reports (progress_), then the replies of the outcomes
+  // delivered so far (finished_).
   void write_finished();
+  // DDS thread: writes progress_ on the callers' progress writers (a failed write drops it).
+  void write_progress();
+  // The client's progress writer, created in its reply partition at its first call asking
+  // for progress; false (logged) if it cannot be created.
+  bool ensure_progress_writer(const ClientId& id, ClientState& client);
   // Writes the replies of `batch` (emptied); `final_flush`: at stop(), without parking.
   void write_finished(std::vector<std::pair<RequestId, Outcome>>& batch, bool final_flush);
   // The request writers matched now: new ones become clients, missing ones are gone.
@@ -190,6 +205,8 @@ class DdsRequestManager : public RequestManager {
   dds_entity_t request_reader_ = 0;          // simgate_Request
   dds_entity_t reply_topic_ = 0;             // simgate_Reply (a writer per client)
   QosPtr reply_qos_;                         // of every reply writer
+  dds_entity_t progress_topic_ = 0;          // simgate_Progress (a writer per client asking)
+  QosPtr progress_qos_;                      // of every progress writer
   dds_entity_t catalog_writer_ = 0;          // simgate_Catalog (transient-local)
   dds_entity_t waitset_ = 0;                 // what the DDS thread waits on
   dds_entity_t guard_ = 0;                   // raised by the sim thread and by stop()
@@ -204,6 +221,10 @@ class DdsRequestManager : public RequestManager {
   // under the simulation lock)
   std::vector<std::pair<RequestId, Outcome>> finished_;
   std::vector<std::pair<RequestId, Outcome>> draining_;  // being written (DDS thread; stop() after the join)
+  // progress reports delivered (on_service_progress), not yet written (DDS thread; ignored
+  // once stopping)
+  std::vector<std::pair<RequestId, json>> progress_;
+  std::string progress_text_;                      // write_progress's JSON buffer (DDS thread)
 
   // ---- DDS thread only ----
   std::unordered_map<RequestId, Pending> pending_;  // requests in the core

@@ -9,7 +9,8 @@
 //    the GUID of its request writer (the server refuses any other), shown as 32 lowercase
 //    hex digits; the partition of its replies is "<partition>/<hex>", and its reply reader
 //    announces "simgate.id=<hex>" in its USER_DATA so the server can tell when it matched.
-//  - Topics: simgate_Request, simgate_Reply, simgate_Catalog (see simgate_dds.idl).
+//  - Topics: simgate_Request, simgate_Reply, simgate_Catalog, simgate_Progress (see
+//    simgate_dds.idl).
 //
 // Everything here is thread-safe except where noted; nothing blocks for long.
 #ifndef SIMGATE_PLUGINS_DDS_DDS_SUPPORT_H_
@@ -33,6 +34,7 @@ namespace simgate::dds {
 inline constexpr const char* k_request_topic = "simgate_Request";
 inline constexpr const char* k_reply_topic = "simgate_Reply";
 inline constexpr const char* k_catalog_topic = "simgate_Catalog";
+inline constexpr const char* k_progress_topic = "simgate_Progress";
 // USER_DATA prefix of a client's reply reader.
 inline constexpr std::string_view k_userdata_id_prefix = "simgate.id=";
 

@@ -12,6 +12,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -73,10 +74,26 @@ class RawClient {
     ASSERT_GT(reader_, 0);
   }
 
-  // as_client: write with another client's id (what a spoofer would do)
+  // A reader of the client's progress reports (simgate_Progress, in its own partition):
+  // best effort, as the server's writer; keeps the last `depth` reports.
+  void create_progress_reader(int32_t depth = 64) {
+    dds_entity_t pp = participant_.handle();
+    QosPtr partition_qos(dds_create_qos());
+    dds_qset_partition1(partition_qos.get(), (partition_ + "/" + to_hex(id_)).c_str());
+    dds_entity_t subscriber = dds_create_subscriber(pp, partition_qos.get(), nullptr);
+    dds_entity_t topic = dds_create_topic(pp, &simgate_Reply_desc, k_progress_topic, nullptr, nullptr);
+    QosPtr qos = make_qos(false, depth, 0);
+    dds_qset_reliability(qos.get(), DDS_RELIABILITY_BEST_EFFORT, 0);
+    progress_reader_ = dds_create_reader(subscriber, topic, qos.get(), nullptr);
+    ASSERT_GT(progress_reader_, 0);
+  }
+
+  // as_client: write with another client's id (what a spoofer would do); progress: the
+  // call asks for progress reports
   void write(std::uint64_t seq, simgate_Op op, const char* component, const char* service, const char* params,
-             std::uint64_t target = 0, const ClientId* as_client = nullptr) {
+             std::uint64_t target = 0, const ClientId* as_client = nullptr, bool progress = false) {
     simgate_Request rq{};
+    rq.progress = progress;
     std::memcpy(rq.id.client, (as_client ? *as_client : id_).data(), 16);
     rq.id.seq = seq;
     rq.op = op;
@@ -114,6 +131,21 @@ class RawClient {
     return out;
   }
 
+  // The progress reports received so far (create_progress_reader), taken.
+  std::vector<Reply> take_progress() {
+    std::vector<Reply> out;
+    void* samples[1] = {nullptr};
+    dds_sample_info_t info;
+    while (dds_take(progress_reader_, samples, &info, 1, 1) == 1) {
+      const auto& r = *static_cast<const simgate_Reply*>(samples[0]);
+      if (info.valid_data && std::memcmp(r.client, id_.data(), 16) == 0)
+        out.push_back(Reply{r.seq, r.status, r.failure, r.last, r.result, r.message});
+      dds_return_loan(progress_reader_, samples, 1);
+      samples[0] = nullptr;
+    }
+    return out;
+  }
+
   const ClientId& id() const { return id_; }
 
  private:
@@ -122,6 +154,7 @@ class RawClient {
   dds_entity_t publisher_ = 0;   // in the partition
   dds_entity_t writer_ = 0;      // requests
   dds_entity_t reader_ = 0;      // replies (created on demand)
+  dds_entity_t progress_reader_ = 0;  // progress reports (created on demand)
   ClientId id_{};                // our request writer's GUID
 };
 
