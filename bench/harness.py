@@ -27,6 +27,9 @@ Sections (each ends "ok", "error" with the reason, or "skipped" when a part was 
   world    issue #19: `simulation step [1]` calls/s back to back on a gateway started
            paused (socket) vs 1 / (`time now` round trip p50 + one bare mj_step), the same
            gateway and connection kind; save_state / restore_state vs mj_copyData
+  progress issue #20: the real-time factor while 100 concurrent JSON-RPC calls get progress
+           reports at 1 kHz each vs the same calls without progress, alternating rounds in
+           one gateway (simgate_bench_sim --mode progress)
 
 Usage: bench/harness.py --build-dir DIR [--out DIR] [--smoke] [--repeats N]
 Normally run through bench/run, which builds first. Writes DIR/results.json and
@@ -801,6 +804,26 @@ class Harness:
         self.target("simulation step [1] calls/s / (1 / (time now p50 + bare mj_step))", s["ratio"], ">=", 0.8, "x")
         return {"status": "ok", "summary": s, "runs": runs, "step_latency": step_latency, "snapshot": snapshot}
 
+    def section_progress(self):
+        """Issue #20: 100 concurrent JSON-RPC calls getting progress reports at 1 kHz each
+        (progress_interval_ms 1, 0.25 ms steps, real time) vs the same calls without progress:
+        the real-time factor of each kind of round, alternating in one gateway."""
+        sim = os.path.join(self.bin, "simgate_bench_sim")
+        if not os.access(sim, os.X_OK) or not self.plugin_built("jsonrpc"):
+            return {"status": "skipped", "reason": "simgate_bench_sim or the JSON-RPC transport is not built"}
+        _, mjcf = self.demo_config()
+        duration, round_s = (0.6, 0.25) if self.smoke else (12.0, 1.0)
+        runs = [run_json([sim, "--mode", "progress", "--mjcf", mjcf, "--duration", str(duration), "--round",
+                          str(round_s), "--calls", "100"], self.timeout, self.env) for _ in range(self.repeats)]
+        s = {"realtime_factor_plain": spread([r["realtime_factor"]["plain"] for r in runs]),
+             "realtime_factor_progress": spread([r["realtime_factor"]["progress"] for r in runs]),
+             "ratio": spread([r["ratio"] for r in runs]),
+             "progress_hz_per_call": spread([r["progress_hz_per_call"] for r in runs]),
+             "calls": runs[0]["calls"], "timestep": runs[0]["timestep"], "round_s": round_s}
+        self.target("real-time factor with progress at 1 kHz to 100 calls", s["realtime_factor_progress"], ">=",
+                    0.99, "x")
+        return {"status": "ok", "summary": s, "runs": runs}
+
     # ---- driver
 
     def machine(self):
@@ -843,7 +866,7 @@ class Harness:
         self.results["repeats"] = self.repeats
         self.results["machine"] = self.machine()
         only = set(self.args.only.split(",")) if self.args.only else None
-        for name in ("socket", "jsonrpc", "dds", "peers", "sim", "memory", "byor", "world"):
+        for name in ("socket", "jsonrpc", "dds", "peers", "sim", "memory", "byor", "world", "progress"):
             if only and name not in only:
                 continue
             t0 = time.monotonic()
@@ -1073,6 +1096,21 @@ def markdown(r):
                   f"{fmt(w['step_p99_us'])} |",
                   f"| save_state / restore_state / mj_copyData (µs) | {fmt(w['save_state_us'], 2)} / "
                   f"{fmt(w['restore_state_us'], 2)} / {fmt(w['mj_copyData_us'], 2)} |", ""]
+
+    lines += ["## Progress reports (issue #20)", ""]
+    st = status_line("progress")
+    if st:
+        lines += [st, ""]
+    else:
+        g = s["progress"]["summary"]
+        lines += [f"{g['calls']} concurrent JSON-RPC calls (one connection each) on the demo scene at real time "
+                  f"({g['timestep'] * 1000:g} ms steps), each running {g['round_s']} s, in alternating rounds "
+                  "of one gateway: with `_meta: {\"progress\": true}` (progress_interval_ms 1) and without.", "",
+                  "| measure | value |", "|---|---|",
+                  f"| real-time factor, calls without progress | {fmt(g['realtime_factor_plain'], 4)} |",
+                  f"| real-time factor, calls with progress | {fmt(g['realtime_factor_progress'], 4)} |",
+                  f"| with / without | {fmt(g['ratio'], 4)} |",
+                  f"| rpc.progress received per call per second | {fmt(g['progress_hz_per_call'])} |", ""]
 
     lines += ["## Sections", "", "| section | status | seconds |", "|---|---|---|"]
     for name, sec in s.items():

@@ -45,6 +45,9 @@
 //            --duration seconds (at least 20), each beside the recompilation alone
 //            (compile_scene, the worker's share, on the main thread) and a bare mj_loadXML
 //            of the same scene. Prints ms p50 and p99 of the four.
+//   progress issue #20's progress target: 100 concurrent JSON-RPC calls getting progress
+//            reports at 1 kHz each, the real-time factor against the same calls without
+//            progress, in alternating rounds for --duration seconds (progress_bench.cc).
 //
 // The probe costs one clock read per step; both modes run on the main thread, unpinned.
 #include <poll.h>
@@ -67,6 +70,7 @@
 #include <mujoco/mujoco.h>
 
 #include "bench_util.h"
+#include "progress_bench.h"
 #include "simgate/core/component.h"
 #include "simgate/core/log.h"
 #include "simgate/gateway/deployment.h"
@@ -622,16 +626,21 @@ int main(int argc, char** argv) {
   std::string mode, mjcf, config;
   double factor = 0, duration = 2;
   bool until_stdin = false;
-  app.add_option("--mode", mode, "bare, sleep, gateway, laser, humanoid, snapshot or spawn (see the source's header)")
+  double round_s = 1;
+  int calls = 100;
+  app.add_option("--mode", mode, "bare, sleep, gateway, laser, humanoid, snapshot, spawn or progress (see the source's header)")
       ->required()
-      ->check(CLI::IsMember({"bare", "sleep", "gateway", "laser", "humanoid", "snapshot", "spawn"}));
-  app.add_option("--mjcf", mjcf, "bare, sleep, snapshot, spawn: the MJCF scene; humanoid: another humanoid.xml");
+      ->check(CLI::IsMember({"bare", "sleep", "gateway", "laser", "humanoid", "snapshot", "spawn", "progress"}));
+  app.add_option("--round", round_s, "progress: simulated seconds each call runs")->capture_default_str();
+  app.add_option("--calls", calls, "progress: concurrent calls, one connection each")->capture_default_str();
+  app.add_option("--mjcf", mjcf, "bare, sleep, snapshot, spawn, progress: the MJCF scene; humanoid: another humanoid.xml");
   app.add_option("--config", config, "gateway: the deployment file");
   app.add_option("--realtime-factor", factor, "gateway: pacing (0 = as fast as possible)")->capture_default_str();
   app.add_option("--duration", duration, "seconds to run")->capture_default_str();
   app.add_flag("--until-stdin-closes", until_stdin, "gateway: run until standard input closes instead");
   if (auto code = simgate::bench::parse_command_line(app, argc, argv)) return *code;
-  if ((mode == "bare" || mode == "sleep" || mode == "snapshot" || mode == "spawn") && mjcf.empty()) {
+  if ((mode == "bare" || mode == "sleep" || mode == "snapshot" || mode == "spawn" || mode == "progress") &&
+      mjcf.empty()) {
     std::cerr << "simgate_bench_sim: --mode " << mode << " needs --mjcf PATH\n";
     return 2;
   }
@@ -653,6 +662,8 @@ int main(int argc, char** argv) {
       out = run_snapshot(mjcf, duration);
     } else if (mode == "spawn") {
       out = run_spawn(mjcf, duration);
+    } else if (mode == "progress") {
+      out = simgate::bench::run_progress(mjcf, duration, round_s, calls);
     } else {
       out = run_gateway(config, factor, duration, until_stdin);
     }
