@@ -173,7 +173,9 @@ class CommandLine {
 
   // Parses argv and runs the command; CLI11's errors propagate.
   int run(int argc, char** argv) {
-    app_.parse(argc, argv);
+    const int parsed = argc >= 2 && std::string_view(argv[1]) == "call" ? call_args_end(argc, argv) : argc;
+    app_.parse(parsed, argv);
+    if (call_->parsed()) call_args_.args.assign(argv + parsed, argv + argc);
     if (run_->parsed()) return cmd_run(with_scene(finish_run(run_args_)), false);
     if (check_->parsed()) return cmd_run(with_scene(check_args_), true);
     if (call_->parsed()) return cmd_call(call_args_);
@@ -191,6 +193,25 @@ class CommandLine {
   int exit(const CLI::ParseError& e) { return app_.exit(e, std::cout, std::cerr); }
 
  private:
+  // Where `simgate call`'s ARGS begin: after its options and COMPONENT SERVICE. They are
+  // taken as typed, past CLI11: it reads an option value written [a,b] as the two values a
+  // and b, which would turn the JSON array ARG [1,2] into the two ARGS 1 and 2. Returns argc
+  // when SERVICE is missing: CLI11 then parses it all, and reports what is wrong.
+  int call_args_end(int argc, char** argv) const {
+    int i = 2;
+    while (i < argc && argv[i][0] == '-' && argv[i][1] != '\0') {
+      const std::string token = argv[i];
+      if (token == "--") {
+        ++i;
+        break;
+      }
+      const CLI::Option* option = call_->get_option_no_throw(token.substr(0, token.find('=')));
+      const bool takes_value = option && option->get_expected_min() > 0 && token.find('=') == std::string::npos;
+      i += takes_value ? 2 : 1;
+    }
+    return i + 2 <= argc ? i + 2 : argc;  // COMPONENT SERVICE
+  }
+
   CLI::App* add_command(const std::string& name, const std::string& description) {
     names_.push_back(name);
     CLI::App* sub = app_.add_subcommand(name, description);

@@ -575,6 +575,15 @@ TEST(GatewayCliTest, CallSendsNamedArgsAndPrintsSuccessForNoValue) {
   EXPECT_THAT(negative.err, HasSubstr("Our human cannot walk at negative speed!"));
   CliRun option_after = run_split({"call", "--port", port, "simulation", "list_robots", "--timeout", "5"}, dir);
   EXPECT_EQ(option_after.code, 1) << "options after COMPONENT are ARGS";
+  // a JSON array is one ARG (CLI11 alone would split [1,2,0.5] into three)
+  CliRun moved = run_split({"call", "--port", port, "simulation", "set_object_position", "robot", "[1,2,0.5]"}, dir);
+  EXPECT_EQ(moved.code, 0) << moved.err;
+  CliRun pose = run_split({"call", "--port=" + port, "--", "simulation", "get_object_pose", "robot"}, dir);
+  EXPECT_EQ(pose.code, 0) << pose.err;
+  const json position = json::parse(pose.out, nullptr, false)[0];  // [[x, y, z], [qx, qy, qz, qw]]
+  ASSERT_TRUE(position.is_array() && position.size() == 3) << pose.out;
+  EXPECT_NEAR(position[0].get<double>(), 1.0, 0.05) << pose.out;  // the simulation runs on: it may roll a little
+  EXPECT_NEAR(position[1].get<double>(), 2.0, 0.05) << pose.out;
   // a value prints as JSON
   CliRun value = run_split({"call", "--port", port, "simulation", "list_robots"}, dir);
   EXPECT_EQ(value.code, 0) << value.err;
