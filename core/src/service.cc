@@ -167,6 +167,17 @@ json error_data(const ServiceDescriptor& d) {
   return json{{"component", d.component}, {"service", d.name}, {"expected", d.signature()}};
 }
 
+// Too few or too many parameters, in MORSE's words (core/request_manager.py): "parameters
+// expected for service ...!" when none came at all, which pymorse raises as
+// MorseServiceFailed; "wrong # of parameters for service ..." otherwise, which it raises as
+// TypeError. `missing`: the required parameters not given ("'a', 'b'"), or empty.
+[[noreturn]] void throw_arity(const ServiceDescriptor& d, std::size_t given, const std::string& missing) {
+  const std::string expected = "expected " + expected_count(d) + ", got " + std::to_string(given) +
+                               (missing.empty() ? "" : " (missing " + missing + ")");
+  if (given == 0) throw WrongArguments("parameters expected for service " + d.qualified_name() + "! " + expected, error_data(d));
+  throw WrongArguments("wrong # of parameters for service " + d.qualified_name() + ": " + expected, error_data(d));
+}
+
 }  // namespace
 
 BoundArguments bind_arguments(const ServiceDescriptor& d, const json& params) {
@@ -183,11 +194,7 @@ BoundArguments bind_arguments(const ServiceDescriptor& d, const json& params) {
   if (params.is_null()) {
     // no arguments at all
   } else if (params.is_array()) {
-    if (params.size() > total || params.size() < d.required_count())
-      throw WrongArguments("wrong # of parameters for service " + d.qualified_name() +
-                               ": expected " + expected_count(d) + ", got " +
-                               std::to_string(params.size()),
-                           error_data(d));
+    if (params.size() > total || params.size() < d.required_count()) throw_arity(d, params.size(), "");
     for (std::size_t i = 0; i < params.size(); ++i) args[i] = &params[i];
   } else if (params.is_object()) {
     for (auto it = params.begin(); it != params.end(); ++it) {
@@ -219,13 +226,7 @@ BoundArguments bind_arguments(const ServiceDescriptor& d, const json& params) {
     else
       missing += (missing.empty() ? "'" : ", '") + d.params[i].name + "'";
   }
-  if (!missing.empty()) {
-    std::size_t given = params.is_null() ? 0 : params.size();
-    throw WrongArguments("wrong # of parameters for service " + d.qualified_name() + ": expected " +
-                             expected_count(d) + ", got " + std::to_string(given) + " (missing " +
-                             missing + ")",
-                         error_data(d));
-  }
+  if (!missing.empty()) throw_arity(d, params.is_null() ? 0 : params.size(), missing);
   return args;
 }
 

@@ -150,7 +150,11 @@ TEST_F(RequestManagerTest, WrongArityMentionsWrongNumberOfParameters) {
   EXPECT_EQ(o->failure, Failure::bad_arguments);
   EXPECT_THAT(o->message, HasSubstr("wrong # of parameters for service test_component.add: expected 2 (a, b), got 1"));
   EXPECT_THAT(rm.run("test_component", "add", json{1, 2, 3})->message, HasSubstr("wrong # of parameters"));
-  EXPECT_THAT(rm.run("test_component", "add")->message, HasSubstr("wrong # of parameters"));
+  // none at all: MORSE's other phrase (pymorse raises MorseServiceFailed, not TypeError)
+  EXPECT_THAT(rm.run("test_component", "add")->message,
+              HasSubstr("parameters expected for service test_component.add! expected 2 (a, b), got 0"));
+  EXPECT_THAT(rm.run("test_component", "add", json::array())->message, HasSubstr("parameters expected"));
+  EXPECT_EQ(rm.run("test_component", "add", json::array())->failure, Failure::bad_arguments);
 }
 
 TEST_F(RequestManagerTest, WrongTypeNamesTheParameterAndWhatCame) {

@@ -215,6 +215,10 @@ class PymorseTest(unittest.TestCase):
         with self.assertRaises(MorseServiceFailed) as unknown:
             self.simu.rpc("communication", "distance_and_view", "robot", "nobody")
         self.assertEqual(str(unknown.exception), "nobody does not exist in the simulation ")
+        # MORSE's communication_service_testing.py: no arguments -> MorseServiceFailed (MORSE
+        # says "parameters expected", not "wrong # of parameters", which pymorse makes TypeError)
+        with self.assertRaises(MorseServiceFailed):
+            self.simu.rpc("communication", "distance_and_view")
         self.assertFalse(self.simu.rpc("simulation", "set_object_dynamics", "crate1", False))
         self.assertTrue(self.simu.rpc("simulation", "set_object_dynamics", "crate1", True))
 

@@ -96,7 +96,7 @@ TEST_F(GatewayEntitiesTest, TheSocketSpeaksMorsesWire) {
   EXPECT_EQ(view[1], true);
   EXPECT_EQ(c.request("9", "communication distance_and_view [\"robot\", \"nobody\"]"),
             "9 FAILED \"nobody does not exist in the simulation \"");
-  EXPECT_THAT(c.request("10", "communication distance_and_view"), HasSubstr("wrong # of parameters"));
+  EXPECT_THAT(c.request("10", "communication distance_and_view"), HasSubstr("10 FAILED \"parameters expected for service"));
   EXPECT_THAT(c.request("11", "simulation set_log_level [\"robot\", \"LOUD\"]"),
               StartsWith("11 FAILED \"Unknown level: 'LOUD'"));
   // introspection lists them

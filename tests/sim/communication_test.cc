@@ -74,7 +74,7 @@ TEST_F(SimCommunicationTest, UnknownRobotsAndMissingArgumentsAreRefused) {
   EXPECT_EQ(call("communication", "distance_and_view", {"robot.motion", "robot"}).status, Status::failed);
   Outcome none = call("communication", "distance_and_view", json::array());
   EXPECT_EQ(none.status, Status::failed);
-  EXPECT_THAT(none.message, HasSubstr("wrong # of parameters"));
+  EXPECT_THAT(none.message, HasSubstr("parameters expected for service communication.distance_and_view!"));
 }
 
 }  // namespace

@@ -244,7 +244,8 @@ class BoundArguments {
 
 // Matches positional (array), named (object) or absent (null) parameters to the
 // descriptor: one pointer per parameter, into `params` or to a default. Throws
-// WrongArguments ("wrong # of parameters ...", unknown names, non-list params).
+// WrongArguments ("wrong # of parameters ...", or "parameters expected ...!" when none came,
+// as MORSE words them; unknown names, non-list params).
 BoundArguments bind_arguments(const ServiceDescriptor& service, const json& params);
 
 // ---------------------------------------------------------------------------------------
