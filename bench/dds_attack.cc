@@ -79,6 +79,7 @@ const char* failure_name(simgate_Failure f) {
     case simgate_FL_CANCELLED: return "cancelled";
     case simgate_FL_SHUTDOWN: return "shutdown";
     case simgate_FL_BAD_REQUEST: return "bad_request";
+    case simgate_FL_TIMEOUT: return "timeout";
   }
   return "?";
 }

@@ -162,6 +162,7 @@ Outcome JsonRpcClient::to_outcome(const json& response) {
     case k_cancelled: failure = Failure::cancelled; break;
     case k_busy: failure = Failure::busy; break;
     case k_shutting_down: failure = Failure::shutdown; break;
+    case k_timeout: failure = Failure::timeout; break;
     default: failure = Failure::internal; break;
   }
   std::string message = error->value("message", "");

@@ -1,6 +1,7 @@
 // RequestManager: the hand-over of requests and outcomes between transport threads and the
-// simulation thread (Inbox, Handoff), execution of sync and async services, cancels and
-// delivery. Its service table (registration, access lists, lookup): request_manager_services.cc.
+// simulation thread (through the Inbox and the Handoff, request_inbox.h), execution of sync
+// and async services, cancels and delivery. Its service table (registration, access lists,
+// lookup): request_manager_services.cc; deadlines: request_deadlines.cc.
 #include "simgate/core/request_manager.h"
 
 #include <atomic>
@@ -15,182 +16,10 @@
 #include "simgate/core/call_context.h"
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
+#include "request_inbox.h"
 
 namespace simgate {
 namespace detail {
-
-class Inbox;
-
-// The inbox whose requests this thread is executing, if any (Executing): what finishes
-// there is taken by the process_locked() that follows on this thread.
-thread_local const Inbox* t_executing = nullptr;
-
-// Marks the calling thread as executing `inbox`'s requests for its lifetime.
-class Executing {
- public:
-  explicit Executing(const Inbox* inbox) : previous_(std::exchange(t_executing, inbox)) {}
-  ~Executing() { t_executing = previous_; }
-  Executing(const Executing&) = delete;
-  Executing& operator=(const Executing&) = delete;
-
- private:
-  const Inbox* previous_;  // restored at destruction
-};
-
-// The hand-over point between transport threads and the simulation thread.
-class Inbox : public CompletionSink {
- public:
-  struct Request { RequestId id; Call call; };
-  struct Cancel { RequestId id; std::function<void(bool)> done; };
-  struct Task { std::function<void()> run; };
-  using Event = std::variant<Request, Cancel, Task>;
-
-  // any thread; signals the gate
-  void push(Event event) {
-    queue([&] { add(std::move(event)); }, true);
-  }
-  // requests moved out of `calls`; `wake`: see push()
-  void push_requests(std::span<std::pair<RequestId, Call>> calls, bool wake) {
-    queue([&] { for (auto& [id, call] : calls) add(Request{id, std::move(call)}); }, wake);
-  }
-  // A completion, or a progress report, produced by a request this inbox's process_locked()
-  // is running on this thread (an async service done in its start method: `simulation step
-  // 1` on a paused simulation) is delivered by that process_locked() before it returns:
-  // waking the simulation thread would only make it compete for the CPU and the lock.
-  void finished(RequestId id, Outcome outcome) override {
-    queue([&] { finished_.emplace_back(id, std::move(outcome)); }, t_executing != this);
-  }
-  void progressed(RequestId id, json value) override {
-    queue([&] { progress_.emplace_back(id, std::move(value)); }, t_executing != this);
-  }
-
-  // under the simulation lock; `events` and `finished` come empty and keep their capacity
-  // for the next push (no allocation per process()). An empty inbox is seen without the
-  // mutex: what is pushed after that look is signalled, and the next process() takes it.
-  void take(std::vector<Event>& events, std::vector<std::pair<RequestId, Outcome>>& finished,
-            std::vector<std::pair<RequestId, json>>& progress) {
-    if (empty()) return;
-    std::lock_guard lock(mutex_);
-    events.swap(events_);
-    finished.swap(finished_);
-    progress.swap(progress_);
-    note_queued();
-  }
-  // the completions and progress reports only (what `progress` holds came before them)
-  void take_finished(std::vector<std::pair<RequestId, Outcome>>& finished,
-                     std::vector<std::pair<RequestId, json>>& progress) {
-    if (empty()) return;
-    std::lock_guard lock(mutex_);
-    finished.swap(finished_);
-    progress.swap(progress_);
-    note_queued();
-  }
-  bool closed() const { return closed_.load(std::memory_order_acquire); }
-  bool empty() const { return !queued_.load(std::memory_order_acquire); }
-  // after close(), requests are answered FAILED (shutdown) at the next process()
-  void close() {
-    std::lock_guard lock(mutex_);
-    closed_.store(true, std::memory_order_release);
-    for (auto& e : events_) refuse(std::move(e));
-    events_.clear();
-    note_queued();
-  }
-
-  void set_gate(std::shared_ptr<SimulationGate> g) {
-    std::lock_guard lock(mutex_);
-    gate_ = std::move(g);
-  }
-  std::shared_ptr<SimulationGate> gate() {
-    std::lock_guard lock(mutex_);
-    return gate_;
-  }
-
-  // what process() is working on (under the simulation lock, not mutex_)
-  std::vector<Event> work_events;
-  std::vector<std::pair<RequestId, Outcome>> work_finished;
-  std::vector<std::pair<RequestId, json>> work_progress;
-
- private:
-  // Runs `add` under the mutex, then signals the gate (outside it) when `wake`.
-  template <class Add>
-  void queue(Add&& add, bool wake) {
-    std::shared_ptr<SimulationGate> gate;
-    {
-      std::lock_guard lock(mutex_);
-      add();
-      note_queued();
-      gate = gate_;
-    }
-    if (wake) gate->signal();
-  }
-  // caller holds mutex_
-  void note_queued() {
-    queued_.store(!events_.empty() || !finished_.empty() || !progress_.empty(), std::memory_order_release);
-  }
-  // caller holds mutex_
-  void add(Event event) {
-    if (closed_.load(std::memory_order_relaxed))
-      refuse(std::move(event));
-    else
-      events_.push_back(std::move(event));
-  }
-  // caller holds mutex_
-  void refuse(Event event) {
-    if (auto* r = std::get_if<Request>(&event))
-      finished_.emplace_back(r->id, Outcome::failed(Failure::shutdown, "the request manager has stopped"));
-    // cancels and tasks after close have nothing left to act on: dropped
-  }
-
-  std::mutex mutex_;                                        // guards everything below
-  std::vector<Event> events_;                               // requests, cancels, tasks in order
-  std::vector<std::pair<RequestId, Outcome>> finished_;     // async completions, any thread
-  std::vector<std::pair<RequestId, json>> progress_;        // progress reports, any thread
-  std::shared_ptr<SimulationGate> gate_ = std::make_shared<SimulationGate>();  // signalled on every push
-  std::atomic<bool> closed_{false};   // abandon_pending() was called (written under mutex_)
-  std::atomic<bool> queued_{false};   // events_, finished_ or progress_ holds something (written under mutex_)
-};
-
-// Outcomes (and progress reports) produced off a transport's delivery thread, on their way
-// to it (RequestManager::deliver_on_this_thread).
-class Handoff {
- public:
-  struct Item {
-    RequestId id;
-    Outcome outcome;        // a progress report's value is outcome.value
-    bool progress = false;  // a progress report, not the final outcome
-  };
-
-  // Any thread (under the simulation lock). Returns true when the delivery thread must be
-  // woken: the first outcome since it last took them (one wake per burst).
-  bool push(RequestId id, Outcome&& outcome, bool progress = false) {
-    std::lock_guard lock(mutex_);
-    items_.push_back(Item{id, std::move(outcome), progress});
-    waiting_.store(true, std::memory_order_release);
-    return !std::exchange(wake_due_, true);
-  }
-  // Something was pushed and not taken yet (read without the mutex: an outcome pushed under
-  // the simulation lock is seen by a reader holding it, and otherwise by the woken thread).
-  bool waiting() const { return waiting_.load(std::memory_order_acquire); }
-  // Moves everything pushed so far to the end of `out`.
-  void take(std::vector<Item>& out) {
-    std::lock_guard lock(mutex_);
-    waiting_.store(false, std::memory_order_release);
-    wake_due_ = false;  // outcomes pushed from now on wake the thread again
-    if (out.empty())
-      out.swap(items_);
-    else
-      std::move(items_.begin(), items_.end(), std::back_inserter(out)), items_.clear();
-  }
-
-  std::function<void()> wake;  // set once, before the delivery thread is named (see deliver())
-  std::vector<Item> spare;     // a taken vector kept for its capacity (the delivery thread)
-
- private:
-  std::mutex mutex_;                 // guards items_ and wake_due_
-  std::vector<Item> items_;          // in the order produced
-  bool wake_due_ = false;            // a wake was sent and its thread has not taken yet
-  std::atomic<bool> waiting_{false};  // items_ is not empty
-};
 
 // Once a call has run, what its params hold. nlohmann's destructor first moves an array's
 // elements to a heap-allocated stack (to avoid deep recursion): the usual positional
@@ -247,11 +76,12 @@ RequestId RequestManager::new_request_id() {
 }
 
 void RequestManager::submit(RequestId id, Call call) {
-  inbox_->push(detail::Inbox::Request{id, std::move(call)});
+  const auto deadline = detail::deadline_for(call, max_wait_);
+  inbox_->push(detail::Inbox::Request{id, std::move(call), deadline});
 }
 
 void RequestManager::submit_batch(std::vector<std::pair<RequestId, Call>> calls) {
-  inbox_->push_requests(calls, /*wake=*/true);
+  inbox_->push_requests(calls, max_wait_, /*wake=*/true);
 }
 
 bool RequestManager::run_or_submit(std::vector<std::pair<RequestId, Call>> calls) {
@@ -263,12 +93,12 @@ bool RequestManager::run_or_submit(std::span<std::pair<RequestId, Call>> calls, 
   if (!lock) {
     // the holder (stepping, or another transport) may be past our queue: queue them and
     // make sure its next process() comes
-    inbox_->push_requests(calls, /*wake=*/true);
+    inbox_->push_requests(calls, max_wait_, /*wake=*/true);
     return false;
   }
   if (inbox_->closed()) {
     // abandon_pending() ran: the inbox refuses them (shutdown), delivered here
-    inbox_->push_requests(calls, /*wake=*/false);
+    inbox_->push_requests(calls, max_wait_, /*wake=*/false);
     process_locked();
     return true;
   }
@@ -278,7 +108,7 @@ bool RequestManager::run_or_submit(std::span<std::pair<RequestId, Call>> calls, 
   process_locked();
   {
     const detail::Executing executing(inbox_.get());
-    for (auto& [id, call] : calls) execute_and_deliver(id, call, refilled);
+    for (auto& [id, call] : calls) execute_and_deliver(id, call, refilled, detail::deadline_for(call, max_wait_));
   }
   // completions these produced at once (preemption of a running request, an async service
   // that finished in its start method); the calls stay where they are, for the caller to
@@ -373,7 +203,7 @@ std::size_t RequestManager::process_locked() {
   std::optional<detail::Executing> executing(std::in_place, inbox_.get());
   for (auto& event : events) {
     if (auto* r = std::get_if<detail::Inbox::Request>(&event)) {
-      execute_and_deliver(r->id, r->call, /*refilled=*/false);
+      execute_and_deliver(r->id, r->call, /*refilled=*/false, r->deadline);
     } else if (auto* c = std::get_if<detail::Inbox::Cancel>(&event)) {
       execute_cancel(c->id, c->done);
     } else if (auto* t = std::get_if<detail::Inbox::Task>(&event)) {
@@ -385,9 +215,11 @@ std::size_t RequestManager::process_locked() {
     }
   }
 
+  // requests past their deadline are interrupted here, their timeouts delivered below
+  if (!deadlines_.empty()) [[unlikely]] expire_deadlines();
   executing.reset();
-  // completions produced while executing (immediate completion, preemption, cancel); requests
-  // that arrived meanwhile wait for the next process(), which the gate makes immediate
+  // completions produced while executing (immediate completion, preemption, cancel, timeout);
+  // requests that arrived meanwhile wait for the next process(), which the gate makes immediate
   events.clear();
   finished.clear();
   progress.clear();
@@ -400,13 +232,27 @@ std::size_t RequestManager::process_locked() {
 std::optional<Outcome> RequestManager::on_incoming_request(RequestId id, const Call& call) {
   Outcome outcome;
   if (run_request(id, call, outcome)) return outcome;
+  if (const auto deadline = detail::deadline_for(call, max_wait_); deadline != detail::Clock::time_point{})
+    watch_deadline(id, call, deadline);
   return std::nullopt;
 }
 
-void RequestManager::execute_and_deliver(RequestId id, Call& call, bool refilled) {
+void RequestManager::execute_and_deliver(RequestId id, Call& call, bool refilled,
+                                         std::chrono::steady_clock::time_point deadline) {
+  if (deadline != detail::Clock::time_point{} && detail::Clock::now() >= deadline) [[unlikely]] {
+    // it waited for the lock past its deadline: its client has given up, nothing runs
+    requests_handled_.store(requests_handled_.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
+    deliver(id, timeout_outcome(call.component + "." + call.service, detail::wait_limit(call, max_wait_),
+                                detail::limit_from_call(call, max_wait_), "not run (it waited for the simulation lock)"));
+    detail::release_params(call.params, refilled);
+    return;
+  }
   // one Outcome object for every request: its string and JSON members are reset, not
   // rebuilt, and the transport reads (or moves) it in place
-  if (run_request(id, call, outcome_)) deliver(id, std::move(outcome_));
+  if (run_request(id, call, outcome_))
+    deliver(id, std::move(outcome_));
+  else if (deadline != detail::Clock::time_point{}) [[unlikely]]
+    watch_deadline(id, call, deadline);  // an async service started
   detail::release_params(call.params, refilled);
 }
 
@@ -558,6 +404,8 @@ void RequestManager::interrupt_running(AsyncSlot& slot, Failure reason, std::str
   auto state = slot.running;
   state->interrupt_reason = reason;
   state->interrupt_message = std::move(message);
+  // its deadline passed: the outcome is the timeout however it ends (Completion::finish)
+  if (reason == Failure::timeout) state->timed_out.store(true, std::memory_order_release);
   try {
     if (slot.interrupt) slot.interrupt();
   } catch (const std::exception& e) {
@@ -677,6 +525,7 @@ void RequestManager::abandon_pending(const std::string& reason) {
   // its later completed() is then ignored)
   auto running = std::move(running_);
   running_.clear();
+  deadlines_.clear();
   for (auto& [id, entry] : running) {
     auto& [state, slot] = entry;
     if (slot->running == state) {

@@ -66,6 +66,9 @@ bool Completion::operator()(Status status, json result) const {
 
 bool Completion::finish(Outcome outcome) const {
   if (!state_ || state_->finished.exchange(true)) return false;
+  if (state_->timed_out.load(std::memory_order_acquire)) [[unlikely]]
+    // its deadline passed: the reply is the timeout, whatever the component says now
+    outcome = Outcome::failed(Failure::timeout, state_->interrupt_message, state_->timeout_data);
   if (auto sink = state_->sink.lock()) sink->finished(state_->id, std::move(outcome));
   return true;
 }

@@ -22,6 +22,7 @@ std::string_view to_string(Failure failure) noexcept {
     case Failure::preempted: return "preempted";
     case Failure::cancelled: return "cancelled";
     case Failure::shutdown: return "shutdown";
+    case Failure::timeout: return "timeout";
   }
   return "internal";
 }

@@ -147,6 +147,7 @@ simgate_Failure to_wire(Failure failure) {
     case Failure::preempted: return simgate_FL_PREEMPTED;
     case Failure::cancelled: return simgate_FL_CANCELLED;
     case Failure::shutdown: return simgate_FL_SHUTDOWN;
+    case Failure::timeout: return simgate_FL_TIMEOUT;
   }
   return simgate_FL_INTERNAL;
 }
@@ -163,6 +164,7 @@ Failure from_wire(simgate_Failure failure) {
     case simgate_FL_CANCELLED: return Failure::cancelled;
     case simgate_FL_SHUTDOWN: return Failure::shutdown;
     case simgate_FL_BAD_REQUEST: return Failure::bad_arguments;
+    case simgate_FL_TIMEOUT: return Failure::timeout;
   }
   return Failure::internal;
 }

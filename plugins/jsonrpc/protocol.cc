@@ -39,6 +39,7 @@ int code_for(const Outcome& outcome) noexcept {
     case Failure::preempted: return code::preempted;
     case Failure::cancelled: return code::cancelled;
     case Failure::shutdown: return code::shutting_down;
+    case Failure::timeout: return code::timeout;
     case Failure::none: break;
   }
   // a component finished its request with a bare status

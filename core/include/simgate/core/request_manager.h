@@ -19,7 +19,18 @@
 //                on_service_completion runs on the transport's thread only.
 //
 // Every submitted request gets exactly one on_service_completion() (even unknown services,
-// bad arguments and requests still running at stop()). Services run only under the
+// bad arguments, requests still running at stop() and requests past their deadline).
+//
+// Deadlines: a call may carry a timeout (Call::timeout), and a manager a maximum wait
+// (set_max_wait); the shorter one, counted from submission, bounds the wait for the reply.
+// When it passes, the request ends FAILED with Failure::timeout: an async request is
+// interrupted as a cancel interrupts it (the component's interrupt(), on the thread that
+// holds the simulation lock), and whatever the component completes afterwards is dropped; a
+// request still queued when it passes (it waited for the lock) is answered without running.
+// A sync service that has started runs to completion (nothing interrupts it under the lock)
+// and its outcome is the reply. The deadlines are kept in a heap checked by process(),
+// which the gate wakes when the earliest is due (SimulationGate::wake_at): no thread or
+// timer per request, and a call without a deadline reads no clock. Services run only under the
 // simulation lock (SimulationGate), on whichever thread runs process(); while one runs,
 // CallContext::current() names the manager and the request (call_context.h), so a service
 // keeps to the components its caller's transport serves. A manager's ServiceAccess (its
@@ -68,6 +79,13 @@ struct Call {
   std::string service;    // "goto"
   json params;            // array (positional), object (named) or null (no arguments)
   bool progress = false;  // the client asked for progress reports (on_service_progress)
+  // The longest the client waits for the reply, counted from when the core receives the
+  // call (submit, run_or_submit); zero (or negative) = no limit of its own, the manager's
+  // max wait may still apply. A duration rather than a time point: it is what clients send
+  // (JSON-RPC's _meta.timeout_ms, DDS's timeout_ms), transports need no clock, and a call
+  // without one costs no clock read anywhere; the core stamps the deadline once, at
+  // submission, so that time spent queued for the lock counts.
+  std::chrono::milliseconds timeout{0};
 };
 
 namespace detail {
@@ -140,6 +158,12 @@ class RequestManager {
   std::chrono::nanoseconds progress_interval() const { return progress_interval_; }
   static constexpr std::chrono::milliseconds k_default_progress_interval{50};
 
+  // The longest any request of this manager waits for its reply (the server-wide
+  // requests.max_wait_ms of the config); zero = no limit. A call's own shorter timeout
+  // wins. Before start().
+  void set_max_wait(std::chrono::milliseconds max_wait) { max_wait_ = max_wait; }
+  std::chrono::milliseconds max_wait() const { return max_wait_; }
+
   void set_global_policy(GlobalPolicy policy) { global_policy_ = policy; }
   GlobalPolicy global_policy() const { return global_policy_; }
 
@@ -160,8 +184,9 @@ class RequestManager {
 
   // ---- the simulation thread ----
 
-  // Executes queued requests and cancels, then delivers finished async requests.
-  // Waits up to `wait` for work when there is none (without the simulation lock), then
+  // Executes queued requests and cancels, then delivers finished async requests, and ends
+  // those past their deadline. Waits up to `wait` for work when there is none (without the
+  // simulation lock; the earliest deadline of any manager of the gate shortens it), then
   // takes the lock for the work. Returns the number of events handled. Calls start() first
   // if nobody has. Must not be called with the simulation lock held.
   std::size_t process(std::chrono::nanoseconds wait = std::chrono::nanoseconds::zero());
@@ -270,7 +295,19 @@ class RequestManager {
   bool execute(RequestId id, const Call& call, Outcome& out, std::chrono::steady_clock::time_point started);
   // execute(), then delivers the outcome if there is one and releases what `call`'s params
   // hold (`refilled`: the transport refills the call object for its next request).
-  void execute_and_deliver(RequestId id, Call& call, bool refilled);
+  // `deadline`: when its wait ends (the epoch: never); past it, the call is answered with
+  // the timeout without running; an async one started is watched (watch_deadline).
+  void execute_and_deliver(RequestId id, Call& call, bool refilled, std::chrono::steady_clock::time_point deadline);
+  // ---- deadlines (request_deadlines.cc)
+  // Remembers the deadline of async request `id`, just started.
+  void watch_deadline(RequestId id, const Call& call, std::chrono::steady_clock::time_point deadline);
+  // Ends the async requests whose deadline has passed (under the simulation lock), then
+  // asks the gate to wake process() at the next one.
+  void expire_deadlines();
+  // The timeout outcome of a call of `qualified` ("robot.waypoint.goto") limited to `limit`
+  // (`from_call`: its own timeout, else the max wait); `what` ends the message.
+  static Outcome timeout_outcome(std::string_view qualified, std::chrono::milliseconds limit, bool from_call,
+                                 std::string_view what);
   // Starts an async service; throws what its start method throws.
   // `wants_progress`: the client asked for progress reports (Call::progress).
   void start_async(RequestId id, const Service& service, std::span<const json* const> args, bool wants_progress,
@@ -327,6 +364,18 @@ class RequestManager {
   std::atomic<std::uint64_t> requests_handled_{0};  // written under the simulation lock, read anywhere
   GlobalPolicy global_policy_ = GlobalPolicy::reject;  // when the running service has no policy
   std::chrono::nanoseconds progress_interval_ = k_default_progress_interval;  // set_progress_interval
+  std::chrono::milliseconds max_wait_{0};  // set_max_wait (zero: none)
+  // an async request with a deadline, watched until it passes (under the simulation lock)
+  struct Deadline {
+    std::chrono::steady_clock::time_point at;   // when it passes
+    RequestId id;                               // the request
+    std::weak_ptr<detail::CallState> state;     // which request of that id (ids are reused)
+    std::chrono::milliseconds limit;            // the limit, for the message
+    bool from_call;                             // the call's own timeout, or the max wait
+  };
+  // a min-heap on `at` (std::push_heap with a greater-than); entries of requests that ended
+  // stay until their time, or until a purge when there are many more than running requests
+  std::vector<Deadline> deadlines_;
   bool started_ = false;                   // start() called (by process() if nobody did; under the lock)
 };
 

@@ -13,8 +13,8 @@
 //    once (every caller of `time sleep` gets its own sleep). Its function takes the
 //    Completion first and finishes each call through it; a cancel ends that one call
 //    PREEMPTED (Failure::cancelled) through the same completion, shutdown ends it FAILED
-//    (Failure::shutdown), and the component sees that a call is over by its
-//    Completion::done() (then drops it).
+//    (Failure::shutdown), a deadline FAILED (Failure::timeout), and the component sees that
+//    a call is over by its Completion::done() (then drops it).
 //  - Completion: the handle an async request is finished with, exactly once, from any
 //    thread (MORSE's result_setter / completed()).
 //
@@ -108,8 +108,14 @@ struct CallState {
   std::weak_ptr<CompletionSink> sink;        // the manager that started it
   std::atomic<bool> finished{false};         // exactly-once guard
   bool concurrent = false;                   // a call of a concurrent service (not in the slot)
-  Failure interrupt_reason = Failure::preempted;  // set before interrupt(): preempted or cancelled
+  Failure interrupt_reason = Failure::preempted;  // set before interrupt(): preempted, cancelled or timeout
   std::string interrupt_message;             // who or what interrupted it
+  // Its deadline passed (set under the simulation lock, after interrupt_message and
+  // timeout_data, before interrupt()): whatever finishes it from then on, the outcome is
+  // FAILED, Failure::timeout, interrupt_message (Completion::finish), so the client's one
+  // reply is the timeout and the component's own completion afterwards is dropped.
+  std::atomic<bool> timed_out{false};
+  json timeout_data;                         // the timeout outcome's data (null until then)
   // when it started, for the debug log line of its outcome; left at the epoch (and never
   // read) unless debug logging was on when it started
   std::chrono::steady_clock::time_point started{};

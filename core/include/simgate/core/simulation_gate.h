@@ -22,6 +22,7 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <limits>
 #include <mutex>
 
 namespace simgate {
@@ -40,6 +41,10 @@ class SimulationGate {
   bool wait_for(std::chrono::nanoseconds timeout) { return wait_until(Clock::now() + timeout); }
   // Consumes a pending signal without waiting.
   bool consume();
+  // Any thread. The next wait ends no later than `when` (the earliest of those asked for
+  // wins; a wait under way is shortened). Once a wait has ended on it, it is forgotten: the
+  // asker asks again for its next time (RequestManager does after every process()).
+  void wake_at(Clock::time_point when);
 
   // ---- the simulation lock ----
 
@@ -50,6 +55,8 @@ class SimulationGate {
  private:
   std::atomic<bool> pending_{false};   // a signal not yet consumed
   std::atomic<bool> sleeping_{false};  // the waiter is (about to be) blocked on cv_
+  // wake_at()'s earliest time (Clock ticks since its epoch); the maximum when there is none
+  std::atomic<Clock::rep> wake_at_{std::numeric_limits<Clock::rep>::max()};
   std::mutex wait_mutex_;              // guards the cv_ hand-off
   std::condition_variable cv_;         // where the waiter blocks
   std::mutex state_mutex_;             // the simulation lock
