@@ -331,11 +331,12 @@ void JsonRpcRequestManager::dispatch(const std::shared_ptr<Session>& session, Re
   }
 
   // call options: "_meta" in named params (MCP's convention), never an argument
-  bool wants_progress = false;
+  // (positional params have no place for them: an array's elements are all arguments)
+  CallOptions call_options;
   if (request.params.is_object()) {
     if (auto meta = request.params.find("_meta"); meta != request.params.end()) {
       std::string why;
-      wants_progress = read_meta(*meta, why);
+      call_options = read_meta(*meta, why);
       if (!why.empty()) {
         reply(to, error_response(to.id, code::invalid_params, "Invalid params: _meta: " + why,
                                  json{{"method", method}, {"parameter", "_meta"}}));
@@ -345,7 +346,7 @@ void JsonRpcRequestManager::dispatch(const std::shared_ptr<Session>& session, Re
     }
   }
   // progress goes to the call's id: a notification (no id) or a null id has none
-  wants_progress = wants_progress && !key.empty() && !to.notification;
+  const bool wants_progress = call_options.progress && !key.empty() && !to.notification;
 
   // gathered; flush_submissions() hands the calls of this read to the core together
   const RequestId id = new_request_id();
@@ -358,6 +359,7 @@ void JsonRpcRequestManager::dispatch(const std::shared_ptr<Session>& session, Re
   if (call.service != service) call.service.swap(service);
   call.params.swap(request.params);  // request_ takes the call's old array, for the next parse
   call.progress = wants_progress;
+  call.timeout = call_options.timeout;  // a notification's too: its service stops in time
   Pending& pending = pending_.try_emplace(id).first->second;  // a recycled node when there is one
   pending.to = std::move(to);
   pending.method.assign(method);

@@ -82,24 +82,43 @@ void append_result_line(std::string& out, std::string_view id_text, const json& 
   out += '}';
 }
 
-bool read_meta(const json& meta, std::string& why) {
+CallOptions read_meta(const json& meta, std::string& why) {
+  CallOptions options;
   if (!meta.is_object()) {
-    why = "expected an object of call options ({\"progress\": true}), found " + dump(meta);
-    return false;
+    why = "expected an object of call options ({\"progress\": true, \"timeout_ms\": 5000}), found " + dump(meta);
+    return options;
   }
-  bool progress = false;
   for (const auto& [key, value] : meta.items()) {
-    if (key != "progress") {
-      why = "unknown call option '" + key + "' (known: progress)";
-      return false;
+    if (key == "progress") {
+      if (!value.is_boolean()) {
+        why = "progress: expected true or false, found " + dump(value);
+        return options;
+      }
+      options.progress = value.get<bool>();
+    } else if (key == "timeout_ms") {
+      // an integer number of ms (5000, or 5000.0 from clients whose numbers are all doubles)
+      const bool integral = value.is_number_integer() ||
+                            (value.is_number_float() && std::isfinite(value.get<double>()) &&
+                             std::trunc(value.get<double>()) == value.get<double>());
+      if (!integral) {
+        why = "timeout_ms: expected an integer number of milliseconds (0 = no timeout), found " + dump(value);
+        return options;
+      }
+      const double ms = value.is_number_float() ? value.get<double>()
+                        : value.is_number_unsigned() ? static_cast<double>(value.get<std::uint64_t>())
+                                                     : static_cast<double>(value.get<std::int64_t>());
+      if (ms < 0 || ms > static_cast<double>(k_max_timeout_ms)) {
+        why = "timeout_ms: expected 0 (no timeout) to " + std::to_string(k_max_timeout_ms) + " ms, found " +
+              dump(value);
+        return options;
+      }
+      options.timeout = std::chrono::milliseconds(static_cast<long long>(ms));
+    } else {
+      why = "unknown call option '" + key + "' (known: progress, timeout_ms)";
+      return options;
     }
-    if (!value.is_boolean()) {
-      why = "progress: expected true or false, found " + dump(value);
-      return false;
-    }
-    progress = value.get<bool>();
   }
-  return progress;
+  return options;
 }
 
 json error_response(const json& id, int error_code, std::string message, json data) {

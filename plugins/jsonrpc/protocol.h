@@ -11,6 +11,7 @@
 #ifndef SIMGATE_PLUGINS_JSONRPC_PROTOCOL_H_
 #define SIMGATE_PLUGINS_JSONRPC_PROTOCOL_H_
 
+#include <chrono>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -100,9 +101,15 @@ std::vector<std::pair<std::size_t, std::string>> float_id_texts(std::string_view
 bool split_method(const std::string& method, std::string& component, std::string& service);
 
 // The call options of "_meta" in named params: {"progress": true|false} (rpc.progress
-// notifications for this call). Returns whether progress was asked for; `why` says what is
-// wrong with `meta` when it is not an object of known options (empty otherwise).
-bool read_meta(const json& meta, std::string& why);
+// notifications for this call), {"timeout_ms": N} (the call's deadline: an integer from 1 to
+// k_max_timeout_ms, or 0 for none). Returns them; `why` says what is wrong with `meta` when
+// it is not an object of known options with valid values (empty otherwise).
+struct CallOptions {
+  bool progress = false;
+  std::chrono::milliseconds timeout{0};  // zero: none of its own
+};
+inline constexpr long long k_max_timeout_ms = 2'147'483'647;  // about 24.8 days
+CallOptions read_meta(const json& meta, std::string& why);
 
 // The OpenRPC 1.2.6 document for `services` (rpc.discover's result).
 json openrpc_document(const std::vector<ServiceDescriptor>& services, std::string_view version,
