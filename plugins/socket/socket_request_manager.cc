@@ -49,6 +49,21 @@ SocketOptions SocketOptions::parse(const json& options) {
   ConfigObject config(options, "");
   SocketOptions o;
   o.success_word = config.get_choice("success_word", o.success_word, {"SUCCESS", "OK"});
+  if (auto timeouts = config.get_object("timeouts")) {
+    constexpr long long k_max_ms = 2'147'483'647;
+    o.default_timeout = std::chrono::milliseconds(timeouts->get_int("default_ms", 0, 0, k_max_ms));
+    if (auto services = timeouts->get_object("services")) {
+      for (const auto& [name, value] : services->raw().items()) {
+        const std::size_t dot = name.rfind('.');
+        if (dot == std::string::npos || dot == 0 || dot + 1 == name.size())
+          throw ConfigError(services->path_of(name) + ": expected a service as \"component.service\" "
+                            "(\"robot.waypoint.goto\"), found '" + name + "'");
+        o.service_timeouts.emplace(name, std::chrono::milliseconds(services->get_int(name, 0, 0, k_max_ms)));
+      }
+      services->finish();
+    }
+    timeouts->finish();
+  }
   o.tcp = kit::TcpOptions::read(config, tcp_defaults(), "socket", k_renamed);
   o.tcp.finish(config);
   return o;
@@ -81,6 +96,13 @@ SocketRequestManager::~SocketRequestManager() {
 }
 
 void SocketRequestManager::start() {
+  // a deadline for a service nobody can call here is likely a misspelt name
+  for (const auto& [service, ms] : options_.service_timeouts) {
+    const std::size_t dot = service.rfind('.');
+    if (!may_call(service.substr(0, dot), service.substr(dot + 1)))
+      log::warning(name(), ": timeouts.services: '", service,
+                   "' is not a service clients may call here: its deadline applies to nothing");
+  }
   // the id "-" of the refusal matches no request: pymorse ignores the line, telnet shows it
   kit::TcpListener::Handlers handlers{[this](tcp::socket socket) { accept(std::move(socket)); },
                                       [this](const tcp::endpoint& peer) { return refusal_reason(peer); },
@@ -304,8 +326,16 @@ void SocketRequestManager::on_line(kit::LineConnection& connection, std::string_
   if (call.component != request.component) call.component.assign(request.component);
   if (call.service != request.service) call.service.assign(request.service);
   call.progress = session.wants_progress();
+  call.timeout = timeout_for(call.component, call.service);
   // handed to the core with the rest of this read (on_lines_done)
   ++batch_count_;
+}
+
+std::chrono::milliseconds SocketRequestManager::timeout_for(const std::string& component, const std::string& service) {
+  if (options_.service_timeouts.empty()) return options_.default_timeout;
+  timeout_key_.assign(component).append(1, '.').append(service);  // no allocation once grown
+  auto it = options_.service_timeouts.find(timeout_key_);
+  return it == options_.service_timeouts.end() ? options_.default_timeout : it->second;
 }
 
 void SocketRequestManager::on_oversized_line(kit::LineConnection& connection, std::string_view prefix,
@@ -416,6 +446,7 @@ SIMGATE_TRANSPORT_PLUGIN(socket, simgate::socket::SocketRequestManager, "0.1.0",
                          "max_unsent_bytes", "max_in_flight", "io_spin_us", "global_policy",
                          "on_disconnect", "idle_timeout_s", "idle_evict_s", "line_timeout_s",
                          "max_buffered_bytes", "max_connections_per_peer", "auth", "progress_interval_ms",
+                         "timeouts",
                          // deprecated names: accepted with a warning until the next release
                          "max_clients", "max_line_bytes", "max_pending_replies_bytes",
                          "max_pending_requests")

@@ -13,7 +13,10 @@
 // release), io_spin_us, global_policy ("reject" | "preempt"), on_disconnect ("cancel" |
 // "let_run": what becomes of the async requests of a client that leaves, or ends its
 // sending side), progress_interval_ms (the shortest time between two progress lines of one
-// request, as on the JSON-RPC transport).
+// request, as on the JSON-RPC transport), timeouts ({"default_ms": N, "services":
+// {"robot.waypoint.goto": N}}: the calls' deadlines, Call::timeout, since MORSE's lines have
+// no place for one; past it the reply is FAILED with the core's message and the async
+// service is interrupted).
 //
 // Progress (issue #20): nothing changes for a MORSE client. A connection that sends
 // `<id> simgate progress` (answered `<id> SUCCESS`) gets `<id> PROGRESS <json>` lines for the
@@ -47,7 +50,10 @@
 #ifndef SIMGATE_PLUGINS_SOCKET_SOCKET_REQUEST_MANAGER_H_
 #define SIMGATE_PLUGINS_SOCKET_SOCKET_REQUEST_MANAGER_H_
 
+#include <chrono>
 #include <cstdint>
+#include <functional>
+#include <map>
 #include <memory>
 #include <string>
 #include <unordered_map>
@@ -71,6 +77,9 @@ namespace simgate::socket {
 struct SocketOptions {
   kit::TcpOptions tcp;                   // the keys every TCP transport has (port 4000 by default)
   std::string success_word = "SUCCESS";  // "SUCCESS" (MORSE) or "OK" (MORSE's docs)
+  // "timeouts": every call's deadline (zero: none), and per service ("component.service")
+  std::chrono::milliseconds default_timeout{0};
+  std::map<std::string, std::chrono::milliseconds, std::less<>> service_timeouts;
 
   // Every check of the options, resolving the host but binding nothing. Throws ConfigError.
   static SocketOptions parse(const json& options);
@@ -142,6 +151,8 @@ class SocketRequestManager : public RequestManager, private kit::LineServer {
   // lines for the requests it sends from now on; answered SUCCESS, or FAILED for bad params.
   void set_progress(Session& session, const RequestLine& request);
   void close_all();
+  // The deadline of a call of `component`.`service` (options_.timeouts).
+  std::chrono::milliseconds timeout_for(const std::string& component, const std::string& service);
 
   // A request sent to the core and not yet answered. Entries of a connection are erased
   // when it closes (on_closed), so the session pointer is valid while its entry is.
@@ -159,6 +170,7 @@ class SocketRequestManager : public RequestManager, private kit::LineServer {
   std::uint64_t next_session_ = 1;           // numbers sessions in logs
   kit::RequestSlots<Pending> requests_;           // unanswered requests, by the ids it gives them (I/O thread)
   std::string scratch_;                      // reply formatting buffer (I/O thread)
+  std::string timeout_key_;                  // "component.service", looked up in service_timeouts (I/O thread)
   // calls of the current read, not yet handed to the core: the first batch_count_ of batch_;
   // the objects are reused from read to read, at most k_kept_calls of them kept (I/O thread)
   static constexpr std::size_t k_kept_calls = 1024;
