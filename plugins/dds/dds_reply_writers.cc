@@ -302,17 +302,19 @@ void DdsRequestManager::client_gone(const ClientId& id, ClientState& client) {
   client.gone = true;
   parked_count_ -= client.parked.size();
   client.parked.clear();
-  // its async calls are cancelled; sync ones finish and their replies are dropped
+  // its async calls are cancelled (on_disconnect "cancel", or run on: "let_run"); sync ones
+  // finish; the replies of all are dropped
   std::size_t cancelled = 0;
   for (const auto& [seq, request] : client.calls) {
     auto p = pending_.find(request);
-    if (p != pending_.end() && p->second.is_async) {
+    if (options_.cancel_on_disconnect && p != pending_.end() && p->second.is_async) {
       cancel(request);
       ++cancelled;
     }
   }
   if (cancelled > 0) run_pending_ = true;
-  log::info("DDS transport: client ", to_hex(id), " disappeared; ", cancelled, " async call(s) cancelled");
+  log::info("DDS transport: client ", to_hex(id), " disappeared; ", cancelled, " async call(s) cancelled",
+            options_.cancel_on_disconnect ? "" : " (on_disconnect: let_run)");
   if (client.calls.empty()) forget_client(id);
 }
 

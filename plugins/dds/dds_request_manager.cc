@@ -71,6 +71,7 @@ DdsOptions DdsOptions::parse(const json& options) {
                           : GlobalPolicy::reject;
   out.progress_interval = std::chrono::milliseconds(
       config.get_int("progress_interval_ms", out.progress_interval.count(), 0, 3'600'000));
+  out.cancel_on_disconnect = config.get_choice("on_disconnect", "cancel", {"cancel", "let_run"}) == "cancel";
   config.finish();
   return out;
 }
@@ -431,6 +432,17 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
           return;
         }
       }
+      // its deadline: 0 = none; beyond a signed 32-bit count of ms (about 24.8 days) it is
+      // more likely garbage than a wait anyone means
+      if (request.timeout_ms > k_max_timeout_ms) {
+        run_batch();
+        send_reply(client_id, failure_reply(seq, simgate_FL_BAD_ARGUMENTS,
+                                            call.component + "." + call.service + ": timeout_ms " +
+                                                std::to_string(request.timeout_ms) + " is more than " +
+                                                std::to_string(k_max_timeout_ms) + " (0 = no timeout)"));
+        return;
+      }
+      call.timeout = std::chrono::milliseconds(request.timeout_ms);
       // into the batch for the core; async calls are acknowledged at once, after the
       // replies of the calls before them
       bool is_async = lookup_async(call.component, call.service);

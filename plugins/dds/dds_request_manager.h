@@ -2,8 +2,9 @@
 //
 // Terms (wire types in simgate_dds.idl, design in docs/transports/dds.md):
 //  - Request / Reply topics: a client writes Request{id = (client, seq), component,
-//    service, params JSON}; the server answers on the Reply topic (Reply.client = the
-//    client's id). Async calls get ST_ACCEPTED first, then one terminal reply.
+//    service, params JSON, timeout_ms}; the server answers on the Reply topic (Reply.client
+//    = the client's id). Async calls get ST_ACCEPTED first, then one terminal reply; a call
+//    past its timeout_ms (Call::timeout) ends ST_FAILED, FL_TIMEOUT, its service interrupted.
 //  - Client: one request writer; its id is that writer's GUID (a request that claims another
 //    id is refused). The server learns of it when the writer matches its request reader and
 //    forgets it when the writer leaves (and its calls are over).
@@ -70,6 +71,9 @@ namespace simgate::dds {
 
 // Longest component or service name a request may carry, in bytes (longer: FL_BAD_REQUEST).
 inline constexpr std::size_t k_max_name_bytes = 256;
+// Longest Request.timeout_ms accepted (a signed 32-bit count of ms, about 24.8 days; more:
+// FL_BAD_ARGUMENTS), as on the other transports.
+inline constexpr std::uint32_t k_max_timeout_ms = 2'147'483'647;
 
 // The transport's options ("transports.<name>" in a deployment file).
 struct DdsOptions {
@@ -82,6 +86,8 @@ struct DdsOptions {
   std::size_t max_depth = 128;         // deepest [/{ nesting accepted in params (2..10000)
   GlobalPolicy global_policy = GlobalPolicy::reject;  // async calls without a local policy
   std::chrono::milliseconds progress_interval{50};     // shortest time between two reports of a call
+  bool cancel_on_disconnect = true;    // "on_disconnect": a client that leaves has its async calls
+                                       // cancelled ("cancel") or left to run, replies dropped ("let_run")
 
   // Reads and validates `options` (unknown keys are errors). Throws ConfigError.
   static DdsOptions parse(const json& options);

@@ -4,4 +4,5 @@
 
 SIMGATE_TRANSPORT_PLUGIN(dds, simgate::dds::DdsRequestManager, "0.1.0", "domain", "partition", "config",
                          "max_samples", "park_timeout_ms", "max_params", "max_depth",
-                         "global_policy", "progress_interval_ms")
+                         "global_policy", "progress_interval_ms",
+                         "on_disconnect")

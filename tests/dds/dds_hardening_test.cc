@@ -1,6 +1,7 @@
 // The DDS transport over real Cyclone DDS, hardened against hostile or broken clients
-// (issue #17): clients that never take their replies (or take them again), that leave, that
-// claim an id not theirs; names over 256 bytes; quoted params cut at a character boundary.
+// (issue #17): clients that never take their replies (or take them again), that leave (and,
+// under on_disconnect "let_run", whose calls run on), that claim an id not theirs; names over
+// 256 bytes; quoted params cut at a character boundary.
 #include <algorithm>
 #include <mutex>
 #include <string>
@@ -251,6 +252,26 @@ TEST_F(DdsTransportTest, QuotedParamsAreCutAtACharacterBoundary) {
   EXPECT_EQ(reply->failure, simgate_FL_BAD_ARGUMENTS);
   EXPECT_TRUE(valid_utf8(reply->message)) << reply->message;
   EXPECT_THAT(reply->message, ::testing::HasSubstr("'a\xc3\xa9\xc3\xa9"));
+}
+
+// on_disconnect "let_run": the async calls of a client that leaves run on (MORSE's way);
+// their replies go nowhere. (The default, "cancel": ClientThatDisappearsHasItsAsyncCallsCancelled.)
+TEST_F(DdsTransportTest, UnderLetRunTheCallsOfAClientThatLeftRunOn) {
+  LogWatch watch("disappeared");
+  auto server = make_server(test_partition(), "server", {{"on_disconnect", "let_run"}});
+  SimThread sim(server);
+  auto client = make_client(test_partition());
+  auto id = client->start("robot", "goto", {3.0});
+  ASSERT_TRUE(client->wait_accepted(id, 10s));
+  ASSERT_TRUE(goto_.wait_started(1));
+  Completion running = goto_.completion();
+  client.reset();  // leaves the domain with its call pending
+  ASSERT_TRUE(eventually([&] { return !watch.lines().empty(); }));
+  EXPECT_THAT(watch.lines().front(), ::testing::HasSubstr("0 async call(s) cancelled (on_disconnect: let_run)"));
+  EXPECT_FALSE(running.done());
+  EXPECT_TRUE(running(Status::success, "arrived"));  // it ends when it ends; nobody to tell
+  auto other = make_client(test_partition());
+  EXPECT_EQ(other->call("calc", "add", {1, 2}, 10s).value, json(3.0));
 }
 
 }  // namespace

@@ -89,9 +89,10 @@ class RawClient {
   }
 
   // as_client: write with another client's id (what a spoofer would do); progress: the
-  // call asks for progress reports
+  // call asks for progress reports; timeout_ms: the call's deadline (0: none)
   void write(std::uint64_t seq, simgate_Op op, const char* component, const char* service, const char* params,
-             std::uint64_t target = 0, const ClientId* as_client = nullptr, bool progress = false) {
+             std::uint64_t target = 0, const ClientId* as_client = nullptr, bool progress = false,
+             std::uint32_t timeout_ms = 0) {
     simgate_Request rq{};
     rq.progress = progress;
     std::memcpy(rq.id.client, (as_client ? *as_client : id_).data(), 16);
@@ -101,6 +102,7 @@ class RawClient {
     rq.service = const_cast<char*>(service);
     rq.params = const_cast<char*>(params);
     rq.target = target;
+    rq.timeout_ms = timeout_ms;
     ASSERT_EQ(dds_write(writer_, &rq), DDS_RETCODE_OK);
   }
 
