@@ -292,6 +292,14 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
       d.log_level = root.get_choice("log_level", "info", {"trace", "debug", "info", "warning", "error", "off"});
   });
 
+  // ---- requests: limits every transport applies ----
+  errors.check([&] {
+    auto requests = root.get_object("requests");
+    if (!requests) return;
+    d.max_wait = std::chrono::milliseconds(requests->get_int("max_wait_ms", 0, 0, 2'147'483'647));
+    requests->finish();
+  });
+
   // ---- scene ----
   errors.check([&] { parse_scene(root, base_dir, d); });
 

@@ -215,6 +215,7 @@ void Gateway::create_transports() {
     transport.manager = transport.plugin->create(t.options, t.path + ".options");
     // the allow and deny lists first: no service is ever callable that they deny
     transport.manager->set_access(t.access);
+    transport.manager->set_max_wait(deployment_.max_wait);  // requests.max_wait_ms
     for (const auto& name : served_[t.name]) {
       sim::ComponentEntry* entry = simulation_->find(name);
       transport.manager->register_component(*entry->component);

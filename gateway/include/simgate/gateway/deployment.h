@@ -7,6 +7,7 @@
 //   robots      [{name, type?, body?, options?, components?: [{name, type, body?, options?}]}]
 //   services    {"default": [transports], "<component or glob>": [transports]}
 //   log_level   "trace" | "debug" | "info" | "warning" | "error" | "off"
+//   requests    {max_wait_ms?: the longest any request waits for its reply, 0 = no limit}
 // parse_deployment() checks the structure (types, names, unknown keys, the mapping against
 // the declared transports and components); the gateway then checks what needs the scene
 // and the plugins (bodies, component types and options, plugin loading). Every error is a
@@ -28,6 +29,7 @@
 #ifndef SIMGATE_GATEWAY_DEPLOYMENT_H_
 #define SIMGATE_GATEWAY_DEPLOYMENT_H_
 
+#include <chrono>
 #include <optional>
 #include <string>
 #include <vector>
@@ -79,6 +81,9 @@ struct Deployment {
   std::vector<ServiceRule> rules;        // exact names and globs
   std::optional<std::vector<std::string>> default_transports;  // "default"
   std::optional<std::string> log_level;  // validated level name
+  // "requests": {"max_wait_ms": N}: the longest any request of any transport waits for its
+  // reply (RequestManager::set_max_wait); zero = no limit
+  std::chrono::milliseconds max_wait{0};
   std::vector<std::string> warnings;     // likely mistakes that are not errors (printed by check, logged by run)
 
   // Every component name: robots, their components, then "simulation", "time" and
