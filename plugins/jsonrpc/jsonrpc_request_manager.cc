@@ -275,7 +275,9 @@ void JsonRpcRequestManager::dispatch(const std::shared_ptr<Session>& session, Re
 
   // reserved methods run here, on the I/O thread
   const std::string& method = request.method;
-  if (method == "rpc.login") {
+  // one look at the prefix, so that a service call pays no comparison with each reserved name
+  const bool reserved = method.starts_with("rpc.") || method.starts_with("$/");
+  if (reserved && method == "rpc.login") {
     handle_login(session, request.params, std::move(to));
     return;
   }
@@ -286,11 +288,11 @@ void JsonRpcRequestManager::dispatch(const std::shared_ptr<Session>& session, Re
                              json{{"method", method}}));
     return;
   }
-  if (method == "rpc.cancel" || method == "$/cancelRequest") {
+  if (reserved && (method == "rpc.cancel" || method == "$/cancelRequest")) {
     handle_cancel(session, method, request.params, std::move(to));
     return;
   }
-  if (method == "rpc.discover") {
+  if (reserved && method == "rpc.discover") {
     if (to.batch && to.batch->full()) {
       reply(to, std::nullopt);  // answered -32006 by reply(): the document is not even built
       return;
@@ -300,7 +302,7 @@ void JsonRpcRequestManager::dispatch(const std::shared_ptr<Session>& session, Re
     return;
   }
   std::string component, service;
-  if (method.rfind("rpc.", 0) == 0 || !split_method(method, component, service)) {
+  if ((reserved && method.starts_with("rpc.")) || !split_method(method, component, service)) {
     const std::string reason = method.rfind("rpc.", 0) == 0
                                    ? "'" + method + "' is not a method of this server (rpc.* is reserved)"
                                    : "'" + method + "' is not of the form 'component.service'";

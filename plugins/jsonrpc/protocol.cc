@@ -510,8 +510,9 @@ std::vector<std::pair<std::size_t, std::string>> float_id_texts(std::string_view
 bool split_method(const std::string& method, std::string& component, std::string& service) {
   const auto dot = method.rfind('.');
   if (dot == std::string::npos || dot == 0 || dot + 1 == method.size()) return false;
-  component = method.substr(0, dot);
-  service = method.substr(dot + 1);
+  // in place: the caller's strings keep their capacity, no temporaries
+  component.assign(method, 0, dot);
+  service.assign(method, dot + 1);
   return true;
 }
 
