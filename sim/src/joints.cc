@@ -84,6 +84,15 @@ bool is_position_servo(const mjModel* m, int a) {
          bias[2] <= 0 && m->actuator_gear[k_gear_size * a] != 0;
 }
 
+void JointSet::remap(const mjModel* m, const ModelRemap& remap) {
+  for (ArmatureJoint& j : joints_) {
+    j.id = remap.joint_of(j.id);
+    j.qpos = m->jnt_qposadr[j.id];
+    j.dof = m->jnt_dofadr[j.id];
+    j.servo = remap.actuator_of(j.servo);
+  }
+}
+
 JointSet JointSet::of_subtree(const mjModel* m, int root) {
   JointSet set;
   for (int j = 0; j < m->njnt; ++j)

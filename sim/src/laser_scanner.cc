@@ -10,6 +10,7 @@
 // it still meets a geom of the robot (any body of the robot's subtree), it is cast again
 // from just past that surface, leaving out that geom's body, and the distances add up. A
 // ray that meets nothing of the robot, the usual case, costs exactly one mj_ray.
+#include <algorithm>
 #include <cmath>
 
 #include "simgate/core/errors.h"
@@ -138,6 +139,16 @@ void LaserScanner::scan() {
       for (int k = 0; k < 3; ++k) point[k] = t * local[k];
     }
   }
+}
+
+void LaserScanner::on_model_changed(const ModelRemap& remap) {
+  frame_.remap(remap);
+  // the robot's geoms where they are now; geoms spawned since are not the robot's
+  std::vector<char> own(static_cast<std::size_t>(model()->ngeom), 0);
+  for (int g = 0; g < static_cast<int>(own_geom_.size()); ++g)
+    if (const int now = remap.geom_of(g); now >= 0) own[static_cast<std::size_t>(now)] = own_geom_[static_cast<std::size_t>(g)];
+  own_geom_ = std::move(own);
+  own_geom_count_ = static_cast<int>(std::count(own_geom_.begin(), own_geom_.end(), 1));
 }
 
 json LaserScanner::get_local_data() {

@@ -62,7 +62,7 @@ MjcfSensors::MjcfSensors(ComponentContext& c) : SimComponent(c.name(), c.sim()) 
     if (name == "timestamp")
       c.fail("", "sensor " + std::to_string(id) + " is called 'timestamp', the key get_local_data gives the "
                      "simulated time: rename it in the MJCF");
-    sensors_.push_back({name, m->sensor_adr[id], m->sensor_dim[id]});
+    sensors_.push_back({name, id, m->sensor_adr[id], m->sensor_dim[id]});
     names_.push_back(name);
 
     json entry = {{"type", sensor_type_name(m->sensor_type[id])}, {"dim", m->sensor_dim[id]}};
@@ -81,6 +81,13 @@ MjcfSensors::MjcfSensors(ComponentContext& c) : SimComponent(c.name(), c.sim()) 
   add_property("count", [this] { return json(sensors_.size()); });
   add_service("get_local_data", &MjcfSensors::get_local_data)
       .doc("Every sensor's value {name: number or array} and the simulated time they describe (timestamp)");
+}
+
+void MjcfSensors::on_model_changed(const ModelRemap& remap) {
+  for (auto& s : sensors_) {
+    s.id = remap.sensor_of(s.id);
+    s.address = model()->sensor_adr[s.id];
+  }
 }
 
 json MjcfSensors::get_local_data() const {

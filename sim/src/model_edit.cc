@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
+#include <map>
 #include <set>
+#include <string_view>
 
 #include <tinyxml2.h>
 
@@ -81,39 +83,64 @@ std::string escaped(const std::string& text) {
   return out;
 }
 
-template <class T>
-void copy_block(const T* from, int from_start, T* to, int to_start, int count, int width) {
-  std::copy_n(from + from_start * width, count * width, to + to_start * width);
-}
-
-// Copies one block (the scene's, or one entity's) between two models, starting at
-// `from_at` in the first and `to_at` in the second.
-void copy_state_block(const mjData* from, const ModelCounts& from_at, mjData* to, const ModelCounts& to_at,
-                      const ModelCounts& size) {
-  copy_block(from->qpos, from_at.nq, to->qpos, to_at.nq, size.nq, 1);
-  copy_block(from->qvel, from_at.nv, to->qvel, to_at.nv, size.nv, 1);
-  copy_block(from->qacc_warmstart, from_at.nv, to->qacc_warmstart, to_at.nv, size.nv, 1);
-  copy_block(from->qfrc_applied, from_at.nv, to->qfrc_applied, to_at.nv, size.nv, 1);
-  copy_block(from->act, from_at.na, to->act, to_at.na, size.na, 1);
-  copy_block(from->ctrl, from_at.nu, to->ctrl, to_at.nu, size.nu, 1);
-  copy_block(from->mocap_pos, from_at.nmocap, to->mocap_pos, to_at.nmocap, size.nmocap, 3);
-  copy_block(from->mocap_quat, from_at.nmocap, to->mocap_quat, to_at.nmocap, size.nmocap, 4);
-  copy_block(from->xfrc_applied, from_at.nbody, to->xfrc_applied, to_at.nbody, size.nbody, 6);
-}
-
-bool same_state_size(const ModelCounts& a, const ModelCounts& b) {
-  return a.nq == b.nq && a.nv == b.nv && a.na == b.na && a.nu == b.nu && a.nmocap == b.nmocap && a.nbody == b.nbody;
-}
-
-// Where each entity's block starts in a model compiled from `scene` and `entities`.
-std::vector<ModelCounts> block_starts(const SceneSource& scene, const std::vector<SpawnedEntity>& entities) {
-  std::vector<ModelCounts> starts;
-  ModelCounts at = scene.counts;
-  for (const auto& e : entities) {
-    starts.push_back(at);
-    at += e.counts;
+// The kind of object an MJCF attribute names (references from actuators, sensors,
+// tendons, equalities, contact pairs and excludes), or null.
+const char* kind_named_by(const tinyxml2::XMLElement& element, const char* attribute) {
+  static const std::map<std::string, const char*, std::less<>> kinds = {
+      {"joint", "joint"},    {"jointinparent", "joint"}, {"joint1", "joint"},     {"joint2", "joint"},
+      {"tendon", "tendon"},  {"tendon1", "tendon"},      {"tendon2", "tendon"},   {"site", "site"},
+      {"cranksite", "site"}, {"slidersite", "site"},     {"refsite", "site"},     {"body", "body"},
+      {"body1", "body"},     {"body2", "body"},          {"geom", "geom"},        {"geom1", "geom"},
+      {"geom2", "geom"},     {"actuator", "actuator"}};
+  const std::string_view name = attribute;
+  if (name == "objname" || name == "refname") {
+    const char* type = element.Attribute(name == "objname" ? "objtype" : "reftype");
+    const std::string t = type ? type : "";
+    if (t == "body" || t == "xbody") return "body";
+    for (const char* k : {"joint", "geom", "site", "camera", "tendon", "actuator"})
+      if (t == k) return k;
+    return "any";
   }
-  return starts;
+  auto it = kinds.find(name);
+  return it == kinds.end() ? nullptr : it->second;
+}
+
+// Names removed, by kind ("body", "joint"...).
+using RemovedNames = std::map<std::string, std::set<std::string>, std::less<>>;
+
+bool refers_to(const tinyxml2::XMLElement& element, const RemovedNames& removed) {
+  for (const tinyxml2::XMLAttribute* a = element.FirstAttribute(); a; a = a->Next()) {
+    const char* kind = kind_named_by(element, a->Name());
+    if (!kind) continue;
+    for (const auto& [k, names] : removed)
+      if ((std::string_view(kind) == "any" || k == kind) && names.contains(a->Value())) return true;
+  }
+  for (const auto* child = element.FirstChildElement(); child; child = child->NextSiblingElement())
+    if (refers_to(*child, removed)) return true;
+  return false;
+}
+
+// Adds the names of `element`'s subtree (bodies, joints, geoms, sites, cameras, lights).
+void collect_names(const tinyxml2::XMLElement& element, RemovedNames& removed) {
+  std::string kind = element.Name();
+  if (kind == "freejoint") kind = "joint";
+  if (const char* name = element.Attribute("name"))
+    if (std::set<std::string>{"body", "joint", "geom", "site", "camera", "light"}.contains(kind))
+      removed[kind].insert(name);
+  for (const auto* child = element.FirstChildElement(); child; child = child->NextSiblingElement())
+    collect_names(*child, removed);
+}
+
+[[noreturn]] void refuse_body(const std::string& body, const std::string& why) {
+  throw ServiceError("body '" + body + "' " + why, Failure::bad_arguments, {{"parameter", "name"}});
+}
+
+tinyxml2::XMLElement* find_body(tinyxml2::XMLElement& parent, const std::string& name) {
+  for (auto* child = parent.FirstChildElement(); child; child = child->NextSiblingElement()) {
+    if (std::strcmp(child->Name(), "body") == 0 && child->Attribute("name", name.c_str())) return child;
+    if (auto* found = find_body(*child, name)) return found;
+  }
+  return nullptr;
 }
 
 }  // namespace
@@ -159,8 +186,56 @@ std::string entity_sections(const std::string& fragment, const std::string& name
   return sections;
 }
 
+std::shared_ptr<SceneSource> scene_without(const SceneSource& scene, const std::string& body) {
+  tinyxml2::XMLDocument doc;
+  if (doc.Parse(scene.xml.data(), scene.xml.size()) != tinyxml2::XML_SUCCESS)
+    refuse_body(body, std::string("cannot be deleted: the scene's text does not parse: ") + doc.ErrorStr());
+  tinyxml2::XMLElement* root = doc.RootElement();
+  tinyxml2::XMLElement* element = nullptr;
+  for (auto* section = root ? root->FirstChildElement("worldbody") : nullptr; section && !element;
+       section = section->NextSiblingElement("worldbody"))
+    element = find_body(*section, body);
+  if (!element)
+    refuse_body(body, "cannot be deleted: it is not written in the scene file '" + scene.file_name +
+                "' itself (a body of an included file, or an unnamed body, stays)");
+  for (auto* keys = root->FirstChildElement("keyframe"); keys; keys = keys->NextSiblingElement("keyframe"))
+    if (keys->FirstChildElement())
+      refuse_body(body, "cannot be deleted: the scene has keyframes, whose sizes are the whole model's");
+
+  RemovedNames removed;
+  collect_names(*element, removed);
+  element->Parent()->DeleteChild(element);
+  // what refers to the removed objects goes too, and what refers to that (a tendon, then its actuator)
+  static const std::map<std::string, std::string, std::less<>> named_kind = {{"tendon", "tendon"},
+                                                                              {"actuator", "actuator"}};
+  for (bool changed = true; changed;) {
+    changed = false;
+    for (auto* section = root->FirstChildElement(); section; section = section->NextSiblingElement()) {
+      const std::string section_name = section->Name();
+      if (!std::set<std::string>{"actuator", "sensor", "tendon", "equality", "contact"}.contains(section_name))
+        continue;
+      for (auto* item = section->FirstChildElement(); item;) {
+        auto* next = item->NextSiblingElement();
+        if (refers_to(*item, removed)) {
+          auto kind = named_kind.find(section_name);
+          if (const char* name = item->Attribute("name"); name && kind != named_kind.end())
+            removed[kind->second].insert(name);
+          section->DeleteChild(item);
+          changed = true;
+        }
+        item = next;
+      }
+    }
+  }
+  tinyxml2::XMLPrinter printer;
+  doc.Print(&printer);
+  auto edited = std::make_shared<SceneSource>(scene);
+  edited->xml = printer.CStr();
+  return edited;
+}
+
 Model compile_scene(const std::shared_ptr<const SceneSource>& scene, std::vector<SpawnedEntity> entities,
-                    bool last_is_new) {
+                    bool last_is_new, SceneSource* measure_scene) {
   install_mujoco_handlers();
   std::string wrapper = "<mujoco model=\"" + escaped(scene->model_name) + "\"><include file=\"" +
                         escaped(scene->file_name) + "\"/>";
@@ -188,6 +263,11 @@ Model compile_scene(const std::shared_ptr<const SceneSource>& scene, std::vector
   mjModel* m = mj_loadXML(path.c_str(), vfs.get(), error, sizeof error);
   if (!m) throw MujocoError(error[0] ? error : "MuJoCo could not compile it");
 
+  if (measure_scene) {
+    ModelCounts entities_counts;
+    for (const auto& e : entities) entities_counts += e.counts;
+    measure_scene->counts = ModelCounts::of(m) - entities_counts;
+  }
   if (last_is_new && !entities.empty()) {
     ModelCounts before = scene->counts;
     for (std::size_t i = 0; i + 1 < entities.size(); ++i) before += entities[i].counts;
@@ -196,22 +276,39 @@ Model compile_scene(const std::shared_ptr<const SceneSource>& scene, std::vector
   return Model::adopt(m, source, scene, std::move(entities));
 }
 
-void carry_state(const Model& from, Model& to) {
+void carry_state(const Model& from, Model& to, const ModelRemap& remap) {
+  const mjModel* m0 = from.model();
+  const mjModel* m1 = to.model();
   const mjData* old = from.data();
   mjData* data = to.data();
-  const SceneSource& scene = *to.scene();
-  // the scene's block starts every model
-  copy_state_block(old, ModelCounts{}, data, ModelCounts{}, scene.counts);
-  // each entity both hold, wherever it sits in each
-  const std::vector<ModelCounts> from_starts = block_starts(*from.scene(), from.entities());
-  const std::vector<ModelCounts> to_starts = block_starts(scene, to.entities());
-  for (std::size_t i = 0; i < to.entities().size(); ++i) {
-    const SpawnedEntity& entity = to.entities()[i];
-    for (std::size_t j = 0; j < from.entities().size(); ++j) {
-      const SpawnedEntity& was = from.entities()[j];
-      if (was.name != entity.name || !same_state_size(was.counts, entity.counts)) continue;
-      copy_state_block(old, from_starts[j], data, to_starts[i], entity.counts);
-    }
+  for (int j = 0; j < m0->njnt; ++j) {
+    const int k = remap.joint_of(j);
+    if (k < 0) continue;
+    const int type = m0->jnt_type[j];
+    const int nq = type == mjJNT_FREE ? 7 : type == mjJNT_BALL ? 4 : 1;
+    const int nv = type == mjJNT_FREE ? 6 : type == mjJNT_BALL ? 3 : 1;
+    std::copy_n(old->qpos + m0->jnt_qposadr[j], nq, data->qpos + m1->jnt_qposadr[k]);
+    const int from_dof = m0->jnt_dofadr[j], to_dof = m1->jnt_dofadr[k];
+    std::copy_n(old->qvel + from_dof, nv, data->qvel + to_dof);
+    std::copy_n(old->qacc_warmstart + from_dof, nv, data->qacc_warmstart + to_dof);
+    std::copy_n(old->qfrc_applied + from_dof, nv, data->qfrc_applied + to_dof);
+  }
+  // MuJoCo 2.2.2 keeps the actuators with an activation last: act[i] is actuator nu - na + i's
+  const int stateful_from = m0->nu - m0->na, stateful_to = m1->nu - m1->na;
+  for (int a = 0; a < m0->nu; ++a) {
+    const int k = remap.actuator_of(a);
+    if (k < 0) continue;
+    data->ctrl[k] = old->ctrl[a];
+    if (a >= stateful_from && k >= stateful_to) data->act[k - stateful_to] = old->act[a - stateful_from];
+  }
+  for (int b = 0; b < m0->nbody; ++b) {
+    const int k = remap.body_of(b);
+    if (k < 0) continue;
+    std::copy_n(old->xfrc_applied + 6 * b, 6, data->xfrc_applied + 6 * k);
+    const int mocap = m0->body_mocapid[b], to_mocap = m1->body_mocapid[k];
+    if (mocap < 0 || to_mocap < 0) continue;
+    std::copy_n(old->mocap_pos + 3 * mocap, 3, data->mocap_pos + 3 * to_mocap);
+    std::copy_n(old->mocap_quat + 4 * mocap, 4, data->mocap_quat + 4 * to_mocap);
   }
   data->time = old->time;
   std::copy(std::begin(old->warning), std::end(old->warning), std::begin(data->warning));

@@ -86,6 +86,11 @@ Imu::Imu(ComponentContext& c)
            "sensor frame");
 }
 
+void Imu::on_model_changed(const ModelRemap& remap) {
+  frame_.remap(remap);
+  step_computes_cacc_ = step_computes_cacc(model());
+}
+
 json Imu::get_local_data() const {
   const mjModel* m = model();
   mjData* d = data();
@@ -242,6 +247,13 @@ void Proximity::set_tracked_tag(const std::string& tag) {
   }
   tracked_ = std::move(bodies);
   tag_ = tag;
+}
+
+void Proximity::on_model_changed(const ModelRemap& remap) {
+  frame_.remap(remap);
+  robot_body_ = remap.body_of(robot_body_);
+  // the top-level bodies of the tag as they are now: a deleted one goes, a spawned one joins
+  if (tag_ != k_robot_tag) tracked_ = bodies_tagged(tag_);
 }
 
 json Proximity::get_local_data() const {

@@ -31,6 +31,12 @@ void SimComponent::add_number_property(std::string name, double& value, double l
       });
 }
 
+void SimComponent::model_changed(const ModelRemap& remap) {
+  body_ = remap.body_of(body_);
+  robot_body_ = remap.body_of(robot_body_);
+  on_model_changed(remap);
+}
+
 void SimComponent::add_object_services(json configuration, int body, int robot_body) {
   configuration_ = std::move(configuration);
   body_ = body;

@@ -509,11 +509,18 @@ std::string Simulation::drop_bad_controls() {
 }
 
 void Simulation::replace_model(Model next) {
+  const ModelRemap remap = ModelRemap::between(m(), next.model(), -1, true);
+  replace_model(std::move(next), remap);
+}
+
+void Simulation::replace_model(Model next, const ModelRemap& remap) {
   next.model()->opt = m()->opt;
-  carry_state(model_, next);
+  carry_state(model_, next, remap);
   model_ = std::move(next);
   ++model_generation_;
   forward();
+  for (auto& entry : entries_)
+    if (entry->sim_component) entry->sim_component->model_changed(remap);
 }
 
 SimulationStatistics Simulation::statistics() const {

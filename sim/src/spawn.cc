@@ -1,5 +1,8 @@
 // The spawn group of the `simulation` component (docs/world/spawn.md): spawn_entity and
-// delete_entity change the world's model at run time.
+// delete_entity change the world's model at run time. delete_entity removes an entity
+// spawned at run time, or a body of the scene no component is bound to or part of (the
+// scene's text edited, model_edit.h scene_without); the swap then remaps every
+// component's MuJoCo ids (model_remap.h).
 //
 // MuJoCo 2.2.2 cannot edit a compiled model, so each change recompiles the scene with the
 // entities it now holds (model_edit.h). Compiling takes milliseconds to seconds, far more
@@ -23,6 +26,8 @@
 #include "simgate/core/log.h"
 #include "simgate/sim/bounds.h"
 #include "simgate/sim/model_edit.h"
+#include "simgate/sim/model_remap.h"
+#include "simgate/sim/sim_component.h"
 #include "simgate/sim/world_services.h"
 
 namespace simgate::sim {
@@ -96,14 +101,29 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
   void delete_entity(Completion done, const std::string& name) {
     refuse_if_busy(name);
     const Model& model = sim_.model();
-    if (!model.entity(name)) {
-      if (model.body_id(name) >= 0)
-        refuse("name", "body '" + name + "' is part of the scene: delete_entity removes entities spawned at run time");
-      refuse("name", "no entity named '" + name + "'" + spawned_list());
-    }
+    const int body = model.body_id(name);
+    if (body == 0) refuse("name", "'" + name + "' is the world body: it cannot be deleted");
+    if (body < 0) refuse("name", "no body or entity named '" + name + "'" + spawned_list());
     std::vector<SpawnedEntity> entities = model.entities();
-    std::erase_if(entities, [&](const SpawnedEntity& e) { return e.name == name; });
-    start(std::move(done), "delete_entity", name, std::move(entities), false);
+    if (model.entity(name)) {
+      std::erase_if(entities, [&](const SpawnedEntity& e) { return e.name == name; });
+      start(std::move(done), "delete_entity", name, std::move(entities), false, body);
+      return;
+    }
+    // a body of the scene: no component may be bound to its subtree, nor it be part of one's body
+    for (const auto& entry : sim_.components()) {
+      const SimComponent* c = entry->sim_component;
+      const int bound = c ? c->bound_body() : -1;
+      if (bound <= 0) continue;
+      const std::string who = (entry->is_robot ? "robot '" : "component '") + entry->component->name() + "'";
+      if (in_subtree(sim_.m(), bound, body))
+        refuse("name", "body '" + name + "' holds " + who + ": delete_entity removes bodies that no component uses");
+      if (in_subtree(sim_.m(), body, bound))
+        refuse("name", "body '" + name + "' is part of " + who + "'s body '" + model.body_name(bound) +
+                           "': delete_entity removes bodies that no component uses");
+    }
+    std::shared_ptr<SceneSource> scene = scene_without(*model.scene(), name);
+    start(std::move(done), "delete_entity", name, std::move(entities), false, body, std::move(scene));
   }
 
   // The simulation's turn after a worker ended: swap its model in and complete the request.
@@ -136,7 +156,18 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
           change.service + " '" + change.name + "': the model changed while it compiled; nothing was changed"));
       return;
     }
-    sim_.replace_model(std::move(*next));
+    try {
+      // where every object went (a body of the scene removed moves what came after it)
+      const ModelRemap remap = ModelRemap::between(sim_.m(), next->model(), change.removed_body,
+                                                   change.service == "spawn_entity");
+      sim_.replace_model(std::move(*next), remap);
+    } catch (const MujocoError& e) {
+      change.done.finish(Outcome::failed(Failure::service_error, change.service + " '" + change.name +
+                                                                     "': the recompiled model does not match the "
+                                                                     "running one: " + e.what() +
+                                                                     "; nothing was changed"));
+      return;
+    }
     log::info("simulation: ", change.service, " '", change.name, "': model generation ", sim_.model_generation(),
               " (", sim_.m()->nbody, " bodies)");
     change.done(Status::success, json{{"name", change.name}, {"model_generation", sim_.model_generation()}});
@@ -206,19 +237,21 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
 
   // Compiles the scene with `entities` on a worker thread (copies only: nothing shared
   // with the running simulation).
+  // `removed_body`: the body the change deletes (-1: none), in the running model; `edited`:
+  // the scene without it when it is one of the scene's (its counts measured by the worker).
   void start(Completion done, std::string service, std::string name, std::vector<SpawnedEntity> entities,
-             bool last_is_new) {
-    auto scene = sim_.model().scene();
+             bool last_is_new, int removed_body = -1, std::shared_ptr<SceneSource> edited = nullptr) {
+    std::shared_ptr<const SceneSource> scene = edited ? edited : sim_.model().scene();
     auto result = std::make_shared<std::promise<Model>>();
     std::future<Model> compiled = result->get_future();
     // the worker: the model (or MuJoCo's error), then a turn of the simulation thread for
     // apply() (the simulation outlives the worker: a Spawner waits for its workers when it
     // goes, through their futures)
     std::future<void> worker = std::async(
-        std::launch::async, [&sim = sim_, self = weak_from_this(), result, scene, entities = std::move(entities),
+        std::launch::async, [&sim = sim_, self = weak_from_this(), result, scene, edited, entities = std::move(entities),
                              last_is_new] {
           try {
-            result->set_value(compile_scene(scene, entities, last_is_new));
+            result->set_value(compile_scene(scene, entities, last_is_new, edited.get()));
           } catch (...) {
             result->set_exception(std::current_exception());
           }
@@ -227,7 +260,7 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
           });
         });
     change_.emplace(Change{std::move(done), std::move(service), std::move(name), sim_.model_generation(),
-                           std::move(compiled), std::move(worker)});
+                           removed_body, std::move(compiled), std::move(worker)});
   }
 
   // A model being compiled, and the request waiting for it.
@@ -236,6 +269,7 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
     std::string service;           // "spawn_entity" or "delete_entity"
     std::string name;              // the entity
     std::uint64_t generation;      // the model generation it was made from
+    int removed_body;              // the body it deletes in that model (-1: none)
     std::future<Model> compiled;   // the worker's result (or MuJoCo's error)
     std::future<void> worker;      // the worker itself (ready once it has asked for apply())
   };
@@ -264,7 +298,8 @@ void add_spawn_services(SupervisionServices& simulation, Simulation& sim) {
           [spawner](Completion done, const std::string& name) { spawner->delete_entity(std::move(done), name); },
           {"name"})
       .concurrent()
-      .doc("Remove the entity `name` spawned at run time from the world");
+      .doc("Remove the body `name` (an entity spawned at run time, or a body of the scene no component uses) "
+           "from the world");
 }
 
 }  // namespace simgate::sim

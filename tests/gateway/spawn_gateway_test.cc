@@ -87,7 +87,7 @@ TEST_F(GatewaySpawnTest, BadInputIsFailedNamingTheParameterOnEveryTransport) {
   EXPECT_EQ(broken["error"]["code"], -32602) << broken.dump();
   EXPECT_NE(broken["error"]["message"].get<std::string>().find("does not compile"), std::string::npos);
   json scene_body = rpc(jsonrpc, 3, "simulation.delete_entity", {"robot"});
-  EXPECT_NE(scene_body["error"]["message"].get<std::string>().find("part of the scene"), std::string::npos);
+  EXPECT_NE(scene_body["error"]["message"].get<std::string>().find("holds robot 'robot'"), std::string::npos);
   // nothing changed
   EXPECT_EQ(payload(socket.request("2", "simulation get_scene_objects")).size(), 4u);
 }

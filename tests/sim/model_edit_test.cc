@@ -133,7 +133,7 @@ TEST(ModelEditTest, StateOfTheSceneAndOfSurvivingEntitiesIsCarriedAcross) {
 
   // delete a: b moves forward in every array, and keeps its state
   Model only_b = compile_scene(scene.scene(), {two.entities()[1]}, false);
-  carry_state(two, only_b);
+  carry_state(two, only_b, ModelRemap::between(two.model(), only_b.model(), two.body_id("a"), false));
   const mjModel* m2 = only_b.model();
   const mjData* d2 = only_b.data();
   EXPECT_EQ(d2->time, 12.5);

@@ -229,10 +229,10 @@ TEST_F(SimSpawnTest, FragmentThatDoesNotCompileGivesMujocosMessage) {
   EXPECT_TRUE(testing::state_is_finite(*sim_));
 }
 
-TEST_F(SimSpawnTest, DeleteOfUnknownOrSceneBodyIsRefused) {
+TEST_F(SimSpawnTest, DeleteOfUnknownOrUsedBodyIsRefused) {
   remember_world();
-  expect_refused(remove("ghost"), "name", "no entity named 'ghost' (no entity has been spawned)");
-  expect_refused(remove("crate1"), "name", "part of the scene");
+  expect_refused(remove("ghost"), "name", "no body or entity named 'ghost' (no entity has been spawned)");
+  expect_refused(remove("robot"), "name", "holds robot 'robot'");
   ASSERT_EQ(spawn("ball").status, Status::success);
   remember_world();
   expect_refused(remove("ghost"), "name", "(spawned: 'ball')");

@@ -56,6 +56,9 @@ class ActuatorSet : public SimComponent {
   void set_control(const std::string& name, double value);
   json get_controls() const;
   const json& list_actuators() const { return description_; }
+  void on_model_changed(const ModelRemap& remap) override {
+    for (auto& a : actuators_) a.id = remap.actuator_of(a.id);
+  }
 
   // The actuators' names, in MuJoCo's order.
   const std::vector<std::string>& names() const { return names_; }
@@ -85,12 +88,14 @@ class MjcfSensors : public SimComponent {
 
   // {name: value, ..., "timestamp": seconds}; one pass over precomputed addresses.
   json get_local_data() const;
+  void on_model_changed(const ModelRemap& remap) override;
 
   const std::vector<std::string>& names() const { return names_; }
 
  private:
   struct Sensor {
     std::string name;  // MJCF name or generated "<type>_<n>"
+    int id;            // MuJoCo sensor id
     int address;       // into mjData::sensordata
     int dim;           // number of values
   };

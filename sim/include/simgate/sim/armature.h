@@ -125,6 +125,7 @@ class Armature : public SimComponent {
   void default_action() override;
   void interrupt() override;
   void on_reset() override;
+  void on_model_changed(const ModelRemap& remap) override { joints_.remap(model(), remap); }
 
   const JointSet& joints() const { return joints_; }
 
@@ -180,6 +181,7 @@ class ArmaturePose : public SimComponent {
   json get_joints_length() const;
   // {joint: position, ..., "timestamp": simulated seconds}.
   json get_local_data() const;
+  void on_model_changed(const ModelRemap& remap) override { joints_.remap(model(), remap); }
 
  private:
   JointSet joints_;  // what it reads, in order

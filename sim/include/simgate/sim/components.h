@@ -41,6 +41,10 @@ class GroundRobot : public Robot, public DifferentialDrive {
   double linear_velocity() const override { return v_; }
   double angular_velocity() const override { return w_; }
   void on_reset() override { set_velocity(0, 0); }
+  void on_model_changed(const ModelRemap& remap) override {
+    Robot::on_model_changed(remap);
+    left_ = remap.actuator_of(left_), right_ = remap.actuator_of(right_);
+  }
 
  private:
   int left_;                // left wheel actuator id
@@ -55,6 +59,10 @@ class Human : public Robot {
  public:
   explicit Human(ComponentContext& context);
   void move(double speed, double rotation);
+  void on_model_changed(const ModelRemap& remap) override {
+    Robot::on_model_changed(remap);
+    free_joint_ = remap.joint_of(free_joint_);
+  }
 
  private:
   int free_joint_;  // the human's free joint
@@ -109,6 +117,9 @@ class Teleport : public SimComponent {
   explicit Teleport(ComponentContext& context);
   void translate(double x, double y, double z);
   void rotate(double roll, double pitch, double yaw);
+  void on_model_changed(const ModelRemap& remap) override {
+    body_ = remap.body_of(body_), free_joint_ = remap.joint_of(free_joint_);
+  }
 
  private:
   int body_;        // moved body
@@ -119,6 +130,7 @@ class Pose : public SimComponent {
  public:
   explicit Pose(ComponentContext& context);
   json get_local_data() const;
+  void on_model_changed(const ModelRemap& remap) override { body_ = remap.body_of(body_); }
 
  private:
   int body_;  // measured body

@@ -24,7 +24,8 @@
 //    slider_crank.xml names none), stable for a given model.
 //
 // Life cycle: a JointSet is built once, when its component is created (it reads the
-// `joints` option), and only reads the model afterwards.
+// `joints` option), and only reads the model afterwards; when the model is replaced, its
+// component remaps it (remap()).
 //
 // Threads: simulation thread (or the thread building the simulation).
 #ifndef SIMGATE_SIM_JOINTS_H_
@@ -36,6 +37,7 @@
 
 #include <mujoco/mujoco.h>
 
+#include "simgate/sim/model_remap.h"
 #include "simgate/sim/registry.h"
 
 namespace simgate::sim {
@@ -80,6 +82,9 @@ class JointSet {
   static JointSet from_config(ComponentContext& context);
   // Every armature joint of `root`'s subtree (tests, tools).
   static JointSet of_subtree(const mjModel* m, int root);
+
+  // After the model changed: ids through `remap`, addresses re-read from `m` (the new model).
+  void remap(const mjModel* m, const ModelRemap& remap);
 
   const std::vector<ArmatureJoint>& joints() const { return joints_; }
   std::size_t size() const { return joints_.size(); }

@@ -61,6 +61,8 @@ class SensorFrame {
   const mjtNum* rotation(const mjData* d) const;
   Eigen::Vector3d world_position(const mjData* d) const;
   Eigen::Matrix3d world_rotation(const mjData* d) const;
+  // After the model changed (SimComponent::on_model_changed).
+  void remap(const ModelRemap& remap) { body_ = remap.body_of(body_), site_ = remap.site_of(site_); }
 
  private:
   SensorFrame(int body, int site) : body_(body), site_(site) {}
@@ -72,6 +74,7 @@ class Imu : public SimComponent {
  public:
   explicit Imu(ComponentContext& context);
   json get_local_data() const;
+  void on_model_changed(const ModelRemap& remap) override;
 
  private:
   SensorFrame frame_;
@@ -87,6 +90,7 @@ class Odometry : public SimComponent {
 
   void default_action() override { update(); }
   void on_reset() override { restart(); }
+  void on_model_changed(const ModelRemap& remap) override { frame_.remap(remap); }
 
  private:
   enum class Level { raw, differential, integrated };
@@ -117,6 +121,7 @@ class LaserScanner : public SimComponent {
   // does before it converts them to JSON; public for the benchmark.
   void scan();
   json get_local_data();
+  void on_model_changed(const ModelRemap& remap) override;
 
   const std::vector<double>& ranges() const { return ranges_; }
   // x, y, z of each ray's hit point in the sensor frame, flattened.
@@ -154,6 +159,7 @@ class Proximity : public SimComponent {
   void set_range(double range);
   void set_tracked_tag(const std::string& tag);
   json get_local_data() const;
+  void on_model_changed(const ModelRemap& remap) override;
 
  private:
   // Top-level bodies outside the robot whose name starts with `tag`.

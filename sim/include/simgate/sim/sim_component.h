@@ -15,8 +15,12 @@
 // properties in its constructor with add_property / add_number_property; the registry
 // adds the three services after the component's own (add_object_services).
 //
+// When the model is replaced (a spawn, a delete), every SimComponent gets
+// on_model_changed() with the remap of MuJoCo ids: what it keeps of the model it re-resolves
+// there (docs/writing-a-component.md).
+//
 // Threads: everything here runs on the simulation thread (services, default_action(),
-// interrupt(), on_reset()).
+// interrupt(), on_reset(), on_model_changed()).
 #ifndef SIMGATE_SIM_SIM_COMPONENT_H_
 #define SIMGATE_SIM_SIM_COMPONENT_H_
 
@@ -28,6 +32,7 @@
 #include <Eigen/Geometry>
 
 #include "simgate/core/component.h"
+#include "simgate/sim/model_remap.h"
 #include "simgate/sim/simulation.h"
 
 namespace simgate::sim {
@@ -46,6 +51,21 @@ class SimComponent : public Component {
   // After `simulation reset_objects` restored the initial state, or the simulation
   // recovered from a bad state the same way (simulation.h): drop commands.
   virtual void on_reset() {}
+
+  // After the model was replaced (Simulation::replace_model: an entity spawned, a body
+  // deleted): model() is the new one, and `remap` says where each object of the old one
+  // went (model_remap.h). A component that keeps MuJoCo ids (bodies, joints, geoms,
+  // sites, actuators, sensors) maps each through `remap`, and re-reads what it derived
+  // from them in the new model (qpos and qvel addresses, sensordata addresses, per-object
+  // tables sized by the model's counts). Its objects are never removed while it lives (the
+  // simulation refuses, or removes the component first). An override of a class that
+  // overrides it calls the base's. The ids of add_object_services() follow on their own.
+  virtual void on_model_changed(const ModelRemap& remap) { (void)remap; }
+  // Simulation::replace_model: remaps the ids of add_object_services(), then
+  // on_model_changed(remap).
+  void model_changed(const ModelRemap& remap);
+  // The body given to add_object_services() (-1: none): the body it is bound to.
+  int bound_body() const { return body_; }
 
   // Adds get_properties, set_property and get_configurations. `configuration`: what the
   // component was created with; `body` and `robot_body`: MuJoCo body ids (-1: none) for
@@ -110,6 +130,7 @@ class Robot : public SimComponent {
 
   // The root body.
   int body() const { return body_; }
+  void on_model_changed(const ModelRemap& remap) override { body_ = remap.body_of(body_); }
   // The drive, or nullptr for robots that cannot drive.
   virtual DifferentialDrive* drive() { return nullptr; }
 

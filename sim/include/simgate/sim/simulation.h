@@ -65,6 +65,7 @@
 #include "simgate/core/request_manager.h"
 #include "simgate/core/simulation_gate.h"
 #include "simgate/sim/model.h"
+#include "simgate/sim/model_remap.h"
 
 namespace simgate::sim {
 
@@ -248,11 +249,17 @@ class Simulation {
   // simulation started with. What was saved of one model (a snapshot's state arrays) does
   // not fit another.
   std::uint64_t model_generation() const { return model_generation_; }
-  // Makes `next`, the current model recompiled with entities added or removed
-  // (model_edit.h), the simulation's model: the state of every object both hold is carried
-  // across (carry_state), and so are the clock and the physics options (a timestep set by
-  // the config or at run time); bumps model_generation(), then forward(). Components keep
-  // working unchanged: the scene's objects keep their ids (entities come after them).
+  // Makes `next`, the current model recompiled with entities added or removed, or a body
+  // of the scene removed (model_edit.h), the simulation's model: the state of every object
+  // both hold is carried across through `remap` (carry_state), and so are the clock and the
+  // physics options (a timestep set by the config or at run time); bumps
+  // model_generation(), then forward(), then tells every SimComponent where its objects
+  // went (SimComponent::on_model_changed): a body removed from the middle moves the ids of
+  // everything after it. The caller has removed the components whose objects go.
+  void replace_model(Model next, const ModelRemap& remap);
+  // The same for a model that only adds objects after the current ones (a spawn): the
+  // remap is computed here (ModelRemap::between; throws MujocoError when `next` does not
+  // start with the current model's objects).
   void replace_model(Model next);
   // SimulationOptions::spawn_allowed_dirs.
   const std::vector<std::string>& spawn_allowed_dirs() const { return spawn_allowed_dirs_; }
