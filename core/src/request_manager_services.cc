@@ -1,4 +1,5 @@
-// RequestManager's service table: registration (services, components, async slots), the
+// RequestManager's service table: registration (services, components, async slots) and
+// unregistration (a component removed at run time, its running requests ended), the
 // allow/deny lists (set_access), what clients may see of it (descriptors, services,
 // components, may_call), and the lookup of a request's service with the refusal that names
 // what there is instead (find_service, unknown_service). The table is guarded by
@@ -41,6 +42,41 @@ void RequestManager::register_component(Component& component) {
   // a component without services is still known (so errors say "no service", not "no component")
   std::lock_guard lock(table_mutex_);
   services_.try_emplace(component.name());
+}
+
+bool RequestManager::unregister_component(const std::string& component, const std::string& reason) {
+  // its requests running here end first, each through its completion (delivered by process())
+  std::vector<std::shared_ptr<detail::CallState>> ending;
+  for (auto it = running_.begin(); it != running_.end();) {
+    auto& [state, slot] = it->second;
+    if (slot->component != component) {
+      ++it;
+      continue;
+    }
+    if (slot->running == state) {
+      slot->running.reset();
+      slot->running_completion = Completion();
+    }
+    std::erase(slot->concurrent, state);
+    ending.push_back(state);
+    it = running_.erase(it);
+  }
+  for (auto& state : ending) Completion{state}.finish(Outcome::failed(Failure::service_error, reason));
+  bool served = false;
+  {
+    std::lock_guard lock(table_mutex_);
+    served = services_.erase(component) > 0;
+    slots_.erase(component);
+    table_version_.fetch_add(1, std::memory_order_acq_rel);
+  }
+  last_lookup_ = LastLookup{};  // it may hold one of the services
+  if (!served) return false;
+  try {
+    on_services_changed();
+  } catch (const std::exception& e) {
+    log::error(name_, ": on_services_changed threw: ", e.what());
+  }
+  return true;
 }
 
 std::shared_ptr<AsyncSlot> RequestManager::slot_for(const std::string& component) {

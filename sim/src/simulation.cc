@@ -1,5 +1,6 @@
 #include "simgate/sim/simulation.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -149,6 +150,21 @@ void Simulation::add_supervision_services() {
   add_component(std::make_unique<SupervisionServices>(*this), "simulation");
   add_component(std::make_unique<TimeServices>(*this), "time");
   add_component(std::make_unique<CommunicationServices>(*this), "communication");
+}
+
+bool Simulation::remove_component(const std::string& name, const std::string& reason) {
+  auto it = std::find_if(entries_.begin(), entries_.end(), [&](const auto& e) { return e->component->name() == name; });
+  if (it == entries_.end()) return false;
+  for (const auto& manager : managers_) manager->unregister_component(name, reason);
+  // what still runs on the component without a manager knowing (none in practice)
+  AsyncSlot& slot = *(*it)->component->async_slot();
+  const Outcome failed = Outcome::failed(Failure::service_error, reason);
+  if (slot.busy()) slot.running_completion.finish(failed);
+  for (const Completion& call : slot.running_concurrent()) call.finish(failed);
+  slot.interrupt = nullptr;  // it calls the component, which goes now
+  log::info("simulation: component '", name, "' removed: ", reason);
+  entries_.erase(it);
+  return true;
 }
 
 ComponentEntry* Simulation::find(const std::string& name) {

@@ -20,8 +20,10 @@
 #include <fstream>
 #include <future>
 #include <optional>
+#include <set>
 #include <sstream>
 
+#include "simgate/core/call_context.h"
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
 #include "simgate/sim/bounds.h"
@@ -75,6 +77,12 @@ EntityPose entity_pose(const std::vector<double>& pose) {
   return out;
 }
 
+// A component that goes with a deleted body, and the robot it belongs to.
+struct RemovedComponent {
+  std::string name;   // "robot.motion"
+  std::string robot;  // "robot"
+};
+
 // The state of the spawn group: the change being compiled, if any.
 class Spawner : public std::enable_shared_from_this<Spawner> {
  public:
@@ -110,20 +118,38 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
       start(std::move(done), "delete_entity", name, std::move(entities), false, body);
       return;
     }
-    // a body of the scene: no component may be bound to its subtree, nor it be part of one's body
+    // a body of the scene: the robots whose root body is in its subtree go, with their
+    // components; no other component may be bound to the subtree, nor the body be part of
+    // a component's body
+    std::set<std::string> robots;
+    for (const auto& entry : sim_.components())
+      if (const auto* robot = dynamic_cast<const Robot*>(entry->component.get());
+          robot && entry->is_robot && in_subtree(sim_.m(), robot->body(), body))
+        robots.insert(robot->name());
+    std::vector<RemovedComponent> removed;
     for (const auto& entry : sim_.components()) {
+      const std::string& component = entry->component->name();
+      if (robots.contains(component) || robots.contains(entry->robot)) {
+        if (!caller_serves(component))
+          refuse("name", "body '" + name + "' holds components this transport does not serve: delete_entity "
+                         "cannot remove them");
+        removed.push_back({component, robots.contains(component) ? component : entry->robot});
+        continue;
+      }
       const SimComponent* c = entry->sim_component;
       const int bound = c ? c->bound_body() : -1;
       if (bound <= 0) continue;
-      const std::string who = (entry->is_robot ? "robot '" : "component '") + entry->component->name() + "'";
+      const std::string who = (entry->is_robot ? "robot '" : "component '") + component + "'";
       if (in_subtree(sim_.m(), bound, body))
-        refuse("name", "body '" + name + "' holds " + who + ": delete_entity removes bodies that no component uses");
+        refuse("name", "body '" + name + "' holds " + who + (entry->robot.empty() ? "" : " of robot '" + entry->robot + "'") +
+                           ", whose robot stays: delete the robot's own body instead");
       if (in_subtree(sim_.m(), body, bound))
         refuse("name", "body '" + name + "' is part of " + who + "'s body '" + model.body_name(bound) +
-                           "': delete_entity removes bodies that no component uses");
+                           "': delete_entity removes a robot's root body, not a part of it");
     }
     std::shared_ptr<SceneSource> scene = scene_without(*model.scene(), name);
-    start(std::move(done), "delete_entity", name, std::move(entities), false, body, std::move(scene));
+    start(std::move(done), "delete_entity", name, std::move(entities), false, body, std::move(scene),
+          std::move(removed));
   }
 
   // The simulation's turn after a worker ended: swap its model in and complete the request.
@@ -160,6 +186,9 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
       // where every object went (a body of the scene removed moves what came after it)
       const ModelRemap remap = ModelRemap::between(sim_.m(), next->model(), change.removed_body,
                                                    change.service == "spawn_entity");
+      // the deleted robots' components first: their requests end, their services go
+      for (const RemovedComponent& c : change.removed_components)
+        sim_.remove_component(c.name, "robot '" + c.robot + "' was deleted by simulation.delete_entity");
       sim_.replace_model(std::move(*next), remap);
     } catch (const MujocoError& e) {
       change.done.finish(Outcome::failed(Failure::service_error, change.service + " '" + change.name +
@@ -239,8 +268,10 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
   // with the running simulation).
   // `removed_body`: the body the change deletes (-1: none), in the running model; `edited`:
   // the scene without it when it is one of the scene's (its counts measured by the worker).
+  // `removed`: the components that go with it (a robot's), removed at the swap.
   void start(Completion done, std::string service, std::string name, std::vector<SpawnedEntity> entities,
-             bool last_is_new, int removed_body = -1, std::shared_ptr<SceneSource> edited = nullptr) {
+             bool last_is_new, int removed_body = -1, std::shared_ptr<SceneSource> edited = nullptr,
+             std::vector<RemovedComponent> removed = {}) {
     std::shared_ptr<const SceneSource> scene = edited ? edited : sim_.model().scene();
     auto result = std::make_shared<std::promise<Model>>();
     std::future<Model> compiled = result->get_future();
@@ -260,7 +291,7 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
           });
         });
     change_.emplace(Change{std::move(done), std::move(service), std::move(name), sim_.model_generation(),
-                           removed_body, std::move(compiled), std::move(worker)});
+                           removed_body, std::move(removed), std::move(compiled), std::move(worker)});
   }
 
   // A model being compiled, and the request waiting for it.
@@ -270,6 +301,7 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
     std::string name;              // the entity
     std::uint64_t generation;      // the model generation it was made from
     int removed_body;              // the body it deletes in that model (-1: none)
+    std::vector<RemovedComponent> removed_components;  // a deleted robot's, removed at the swap
     std::future<Model> compiled;   // the worker's result (or MuJoCo's error)
     std::future<void> worker;      // the worker itself (ready once it has asked for apply())
   };

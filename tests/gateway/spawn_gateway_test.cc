@@ -86,8 +86,9 @@ TEST_F(GatewaySpawnTest, BadInputIsFailedNamingTheParameterOnEveryTransport) {
   json broken = rpc(jsonrpc, 2, "simulation.spawn_entity", {"x", "<body><geom type='mesh' mesh='no'/></body>", {0, 0, 1}});
   EXPECT_EQ(broken["error"]["code"], -32602) << broken.dump();
   EXPECT_NE(broken["error"]["message"].get<std::string>().find("does not compile"), std::string::npos);
-  json scene_body = rpc(jsonrpc, 3, "simulation.delete_entity", {"robot"});
-  EXPECT_NE(scene_body["error"]["message"].get<std::string>().find("holds robot 'robot'"), std::string::npos);
+  json scene_body = rpc(jsonrpc, 3, "simulation.delete_entity", {"robot_left_wheel"});
+  EXPECT_NE(scene_body["error"]["message"].get<std::string>().find("is part of robot 'robot'"), std::string::npos)
+      << scene_body.dump();
   // nothing changed
   EXPECT_EQ(payload(socket.request("2", "simulation get_scene_objects")).size(), 4u);
 }

@@ -92,13 +92,17 @@ class SimDeleteBodyTest : public ::testing::Test {
     auto* r = static_cast<Robot*>(robot.get());
     sim_->add_component(std::move(robot), "ground_robot", "", true);
     int i = 0;
-    for (auto type : {"motion_vw", "pose", "sensors", "armature_pose"}) {
+    for (auto type : {"motion_vw", "pose", "sensors", "armature_pose", "waypoint"}) {
       std::string short_name = type == std::string("motion_vw") ? "motion" : type;
       auto c = registry.create(Kind::component,
                                {"robot." + short_name, type, "robot", "robots[0].components[" + std::to_string(i++) + "]"},
                                json::object(), *sim_, r);
       sim_->add_component(std::move(c), type, "robot");
     }
+    // a component of the robot bound to a body of the scene outside the robot
+    sim_->add_component(registry.create(Kind::component, {"robot.ball_pose", "pose", "ball", "robots[0].components[5]"},
+                                        json::object(), *sim_, r),
+                        "pose", "robot");
     sim_->add_supervision_services();
     rm_ = std::make_shared<testing::RecordingManager>();
     for (auto& e : sim_->components()) rm_->register_component(*e->component);
@@ -193,6 +197,10 @@ TEST_F(SimDeleteBodyTest, TheRobotAfterTheDeletedBodyStillReadsAndDrivesItsObjec
     EXPECT_NEAR(pose["z"].get<double>(), d->xpos[3 * robot + 2], 1e-9);
   };
   expect_pose_matches();
+  // the robot's pose of the ball (bound outside the robot, after the table too)
+  const json ball = call("robot.ball_pose", "get_local_data").value.value();
+  EXPECT_NEAR(ball["x"].get<double>(), d->xpos[3 * body("ball")], 1e-9);
+  EXPECT_NEAR(ball["y"].get<double>(), d->xpos[3 * body("ball") + 1], 1e-9);
 
   // drive: the wheels' actuators, found by name, get the commands
   ASSERT_EQ(call("robot.motion", "set_speed", {0.5, 0.0}).status, Status::success);
@@ -222,10 +230,10 @@ TEST_F(SimDeleteBodyTest, ASpawnedEntityAfterTheSceneMovesToo) {
   ASSERT_EQ(spawned.status, Status::success) << spawned.message;
   const int crate_joint_before = sim_->model().free_joint_of(body("crate"));
   const double before = sim_->d()->qpos[sim_->m()->jnt_qposadr[crate_joint_before]];
-  ASSERT_EQ(remove("ball").status, Status::success);
+  ASSERT_EQ(remove("table").status, Status::success);
   const int crate_joint = sim_->model().free_joint_of(body("crate"));
   ASSERT_GE(crate_joint, 0);
-  EXPECT_EQ(crate_joint, crate_joint_before - 1);
+  EXPECT_EQ(crate_joint, crate_joint_before - 2);  // the table's slide and the lamp's hinge went
   EXPECT_EQ(sim_->d()->qpos[sim_->m()->jnt_qposadr[crate_joint]], before);
   // and the entity can still be deleted by its name
   ASSERT_EQ(remove("crate").status, Status::success);
@@ -234,8 +242,8 @@ TEST_F(SimDeleteBodyTest, ASpawnedEntityAfterTheSceneMovesToo) {
 }
 
 TEST_F(SimDeleteBodyTest, WhatAComponentUsesIsRefused) {
-  expect_refused("robot", "holds robot 'robot'");
-  expect_refused("robot_left_wheel", "is part of robot 'robot'");
+  expect_refused("ball", "holds component 'robot.ball_pose' of robot 'robot', whose robot stays");
+  expect_refused("robot_left_wheel", "is part of robot 'robot''s body 'robot'");
   expect_refused("world", "is the world body");
   expect_refused("ghost", "no body or entity named 'ghost'");
   expect_refused("floor", "no body or entity named 'floor'");  // a geom
@@ -248,7 +256,7 @@ TEST_F(SimDeleteBodyTest, KeyframesAndIncludedBodiesAreRefused) {
   std::string keyed = k_scene;
   keyed.replace(keyed.rfind("</mujoco>"), 9, "<keyframe><key name='start' time='0'/></keyframe></mujoco>");
   build(keyed);
-  expect_refused("ball", "keyframes");
+  expect_refused("table", "keyframes");
 
   const auto dir = std::filesystem::temp_directory_path() / ("simgate_delete_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
@@ -260,8 +268,66 @@ TEST_F(SimDeleteBodyTest, KeyframesAndIncludedBodiesAreRefused) {
   build("", (dir / "scene.xml").string());
   expect_refused("box", "not written in the scene file 'scene.xml'");
   // a body of the scene file itself is deleted as usual
-  EXPECT_EQ(remove("ball").status, Status::success);
+  EXPECT_EQ(remove("table").status, Status::success);
   std::filesystem::remove_all(dir);
+}
+
+
+// Deleting a robot's root body deletes the robot: its components leave the simulation and
+// every request manager, their requests in flight end FAILED with the reason, and the rest
+// of the world runs on.
+TEST_F(SimDeleteBodyTest, DeletingARobotRemovesItsComponentsAndEndsTheirRequests) {
+  const RequestId going = rm_->call("robot.waypoint", "goto", {8.0, 0.0, 0.0, 0.1, 1.0});
+  sim_->process_requests();
+  ASSERT_FALSE(rm_->outcome(going).has_value()) << "goto should still be running";
+  const double ball_x = qpos_of("ball_root")[0];
+
+  const Outcome o = remove("robot");
+  ASSERT_EQ(o.status, Status::success) << o.message;
+  sim_->process_requests();
+  // the request in flight got its one answer
+  const auto ended = rm_->outcome(going);
+  ASSERT_TRUE(ended.has_value()) << "goto never answered";
+  EXPECT_EQ(ended->status, Status::failed);
+  EXPECT_NE(ended->message.find("robot 'robot' was deleted by simulation.delete_entity"), std::string::npos)
+      << ended->message;
+
+  // gone from the simulation, the request manager and the model
+  for (auto name : {"robot", "robot.motion", "robot.pose", "robot.sensors", "robot.armature_pose", "robot.waypoint",
+                    "robot.ball_pose"}) {
+    EXPECT_EQ(sim_->find(name), nullptr) << name;
+    EXPECT_FALSE(rm_->serves_component(name)) << name;
+  }
+  for (const auto& d : rm_->descriptors()) EXPECT_FALSE(d.component.starts_with("robot")) << d.qualified_name();
+  EXPECT_TRUE(sim_->robot_names().empty());
+  const Outcome late = call("robot.pose", "get_local_data");
+  EXPECT_EQ(late.status, Status::failed);
+  EXPECT_EQ(late.failure, Failure::unknown_service) << late.message;
+  const json details = call("simulation", "details").value.value();
+  EXPECT_TRUE(details.at("robots").empty()) << details.dump();
+  const json services = call("simulation", "list_services").value.value();
+  EXPECT_EQ(services.dump().find("robot."), std::string::npos) << services.dump();
+  EXPECT_EQ(body("robot"), -1);
+  EXPECT_EQ(sim_->model().actuator_id("robot_left_motor"), -1);
+  EXPECT_EQ(mj_name2id(sim_->m(), mjOBJ_SENSOR, "left_wheel_speed"), -1);
+  EXPECT_EQ(mj_name2id(sim_->m(), mjOBJ_PAIR, nullptr), -1);
+  EXPECT_EQ(sim_->m()->npair, 0);  // the caster's pair went with it
+
+  // the rest carried across, and the world runs on
+  EXPECT_EQ(qpos_of("ball_root")[0], ball_x);
+  run_for(0.2);
+  EXPECT_TRUE(testing::state_is_finite(*sim_));
+  // and a table still deletes (a scene body deleted after a robot)
+  EXPECT_EQ(remove("table").status, Status::success);
+}
+
+TEST_F(SimDeleteBodyTest, ABodyHoldingAnotherRobotsComponentIsRefused) {
+  // the robot's ball_pose makes 'ball' the robot's: deleting the ball alone is refused, and
+  // deleting the robot takes ball_pose with it while the ball stays
+  expect_refused("ball", "robot.ball_pose");
+  ASSERT_EQ(remove("robot").status, Status::success);
+  EXPECT_GE(body("ball"), 0);
+  EXPECT_EQ(remove("ball").status, Status::success);
 }
 
 }  // namespace

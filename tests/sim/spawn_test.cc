@@ -232,7 +232,7 @@ TEST_F(SimSpawnTest, FragmentThatDoesNotCompileGivesMujocosMessage) {
 TEST_F(SimSpawnTest, DeleteOfUnknownOrUsedBodyIsRefused) {
   remember_world();
   expect_refused(remove("ghost"), "name", "no body or entity named 'ghost' (no entity has been spawned)");
-  expect_refused(remove("robot"), "name", "holds robot 'robot'");
+  expect_refused(remove("robot_left_wheel"), "name", "is part of robot 'robot''s body 'robot'");
   ASSERT_EQ(spawn("ball").status, Status::success);
   remember_world();
   expect_refused(remove("ghost"), "name", "(spawned: 'ball')");

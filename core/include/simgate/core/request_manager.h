@@ -124,6 +124,14 @@ class RequestManager {
   // Serves every service of `component` (shared, not copied: the component must outlive
   // this manager's use of it).
   void register_component(Component& component);
+  // Stops serving `component` (a robot deleted at run time): its async requests running
+  // here end FAILED (Failure::service_error) with `reason`, each delivered as any outcome
+  // (on the next process()); its services leave the table, so later calls of them are
+  // refused as unknown ones, and descriptors() leaves them out; then
+  // on_services_changed(). Under the simulation lock (or before start()); the component
+  // may be destroyed once every manager serving it has been told. Returns whether it was
+  // served here.
+  bool unregister_component(const std::string& component, const std::string& reason);
   // Low level: adds one service (replacing one with the same component and name).
   // Async services without a slot get this manager's slot for their component.
   ServiceBuilder add_service(std::shared_ptr<Service> service);
@@ -255,6 +263,12 @@ class RequestManager {
   // outcomes were produced. Must not throw. The outcome is the transport's to read or to
   // move from (the core may reuse the object for the next request).
   virtual void on_service_completion(RequestId id, Outcome&& outcome) = 0;
+  // After the table of services changed while running (unregister_component): a transport
+  // that publishes it (the DDS catalog) publishes it anew. Runs under the simulation lock,
+  // on whichever thread removed the component: it must only post to the transport's own
+  // thread, not block. Must not throw. The default does nothing (introspection that reads
+  // descriptors() at each call is always current).
+  virtual void on_services_changed() {}
   // Delivers a progress report of request `id`, a call submitted with Call::progress, on
   // the thread and in the order on_service_completion would run (so never after the
   // request's final outcome). Must not throw. The default ignores it.

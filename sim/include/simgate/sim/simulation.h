@@ -152,6 +152,14 @@ class Simulation {
   // Adds the `simulation`, `time` and `communication` pseudo-components.
   void add_supervision_services();
   ComponentEntry* find(const std::string& name);
+  // Removes the component `name` at run time (a robot deleted with its body,
+  // simulation delete_entity): every request manager stops serving it
+  // (RequestManager::unregister_component: its requests running there end FAILED with
+  // `reason`, later calls are unknown services, the transports' catalogs are published
+  // anew), then it is destroyed. Under the simulation lock, on the simulation's turn (a
+  // run_soon task), never from a service or default_action() of the component itself.
+  // Returns false when there is no such component.
+  bool remove_component(const std::string& name, const std::string& reason);
   const std::vector<std::unique_ptr<ComponentEntry>>& components() const { return entries_; }
   // Names of the robots, in order.
   std::vector<std::string> robot_names() const;
