@@ -252,6 +252,7 @@ void DdsRequestManager::run() {
           if (auto it = reply_writers_.find(readers[i]); it != reply_writers_.end())
             refresh_reader_match(it->second, clients_.at(it->second));
       }
+      if (catalog_changed_.exchange(false)) publish_catalog();
       if (requests) take_requests();
       if (outcomes) {
         bool ignored;
@@ -268,10 +269,17 @@ void DdsRequestManager::run() {
   }
 }
 
+void DdsRequestManager::on_services_changed() {
+  catalog_changed_ = true;
+  // before start() the DDS thread's first publication sees the change; after stop(), nobody
+  if (started_ && !stopping_ && guard_ > 0) dds_set_guardcondition(guard_, true);
+}
+
 void DdsRequestManager::publish_catalog() {
   // one entry per component, services in registration order
   std::vector<std::string> order;
   std::map<std::string, json> services;
+  async_services_.clear();
   for (const ServiceDescriptor& d : descriptors()) {
     async_services_[d.qualified_name()] = d.is_async;
     auto [it, inserted] = services.try_emplace(d.component, json::array());
@@ -288,6 +296,17 @@ void DdsRequestManager::publish_catalog() {
     dds_return_t rc = dds_write(catalog_writer_, &entry);
     if (rc < 0) log::error("DDS transport: catalog entry '", component, "' not written: ", retcode_text(rc));
   }
+  // components served no more: their entries are disposed (a reader sees them not alive)
+  for (const std::string& component : published_) {
+    if (services.contains(component)) continue;
+    simgate_CatalogEntry key{};
+    key.component = const_cast<char*>(component.c_str());
+    key.server = const_cast<char*>(server_id_.c_str());
+    key.services = const_cast<char*>("");
+    dds_return_t rc = dds_dispose(catalog_writer_, &key);
+    if (rc < 0) log::error("DDS transport: catalog entry '", component, "' not disposed: ", retcode_text(rc));
+  }
+  published_ = std::set<std::string>(order.begin(), order.end());
   log::info("DDS transport: serving ", components().size(), " component(s) on domain ", options_.domain,
             ", partition '", options_.partition, "'");
 }

@@ -17,7 +17,8 @@
 //    call), best effort and keep-last 1: a client that does not take them loses old ones
 //    and holds up nothing, its replies least of all.
 //  - Catalog topic (TRANSIENT_LOCAL): one CatalogEntry per served component, so a client
-//    that joins late still sees what it can call.
+//    that joins late still sees what it can call. Published anew when a component stops
+//    being served (on_services_changed: a robot deleted at run time), its entry disposed.
 //  - Partition: every endpoint lives in the partition named by the "partition" option (the
 //    reply writers in their sub-partitions), so several simulations share a domain without
 //    crosstalk.
@@ -59,6 +60,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <string>
 #include <thread>
 #include <unordered_map>
@@ -159,7 +161,12 @@ class DdsRequestManager : public RequestManager {
 
   void create_entities();
   void run();
+  // DDS thread: writes one entry per component served now, and disposes the entries of
+  // components no longer served (so that late joiners do not see them).
   void publish_catalog();
+  // A component was unregistered (a robot deleted at run time): the DDS thread publishes
+  // the catalog anew (catalog_changed_, the guard condition). Under the simulation lock.
+  void on_services_changed() override;
   void take_requests();
   void handle_request(const simgate_Request& request, dds_instance_handle_t writer);
   // DDS thread: hands batch_ (and pending cancels) to run_or_submit(), then writes the
@@ -240,6 +247,8 @@ class DdsRequestManager : public RequestManager {
   std::vector<std::pair<dds_entity_t, dds_entity_t>> retiring_;  // (publisher, writer) to delete
   std::atomic<std::size_t> client_count_{0};        // matched request writers, for any thread
   std::unordered_map<std::string, bool> async_services_;  // "component.service" -> is_async
+  std::set<std::string> published_;                 // components with a catalog entry written
+  std::atomic<bool> catalog_changed_{false};        // publish the catalog anew (any thread)
   std::string lookup_key_;                          // lookup_async's key buffer
   std::vector<std::pair<RequestId, Call>> batch_;   // calls taken, not yet given to the core
   bool run_pending_ = false;                        // a cancel was queued: run_batch() runs it

@@ -214,6 +214,44 @@ TEST_F(DdsTransportTest, CatalogListsEveryServiceForLateJoiners) {
   EXPECT_EQ(client->list_services(10s).size(), services.size());
 }
 
+// A component unregistered while running (simulation delete_entity of a robot): its call in
+// flight ends FAILED with the reason, and the catalog is published anew without it, for the
+// clients there and for those that join later.
+TEST_F(DdsTransportTest, AnUnregisteredComponentLeavesTheCatalogAndItsCallFails) {
+  auto server = make_server(test_partition());
+  SimThread sim(server);
+  auto client = make_client(test_partition());
+  ASSERT_EQ(client->list_services(10s).size(), 8u);
+  auto call = client->start("robot", "goto", {4.0});
+  ASSERT_TRUE(goto_.wait_started(1));
+  {
+    std::lock_guard lock(*server->gate());  // as the simulation removes a component
+    EXPECT_TRUE(server->unregister_component("robot", "robot 'robot' was deleted by simulation.delete_entity"));
+  }
+  const Outcome out = client->wait(call, 10s);
+  EXPECT_EQ(out.status, Status::failed);
+  EXPECT_NE(out.message.find("robot 'robot' was deleted"), std::string::npos) << out.message;
+  // the catalog changes on the DDS thread: look until it has (bounded)
+  auto listed = [](const json& services) {
+    std::set<std::string> names;
+    for (const json& s : services) names.insert(s.at("component").get<std::string>() + "." + s.at("name").get<std::string>());
+    return names;
+  };
+  std::set<std::string> names = listed(client->list_services(10s));
+  for (int i = 0; i < 200 && names.contains("robot.goto"); ++i) {
+    std::this_thread::sleep_for(50ms);
+    names = listed(client->list_services(10s));
+  }
+  const std::set<std::string> expected{"calc.add", "calc.echo", "calc.fail", "calc.count", "calc.whoami",
+                                       "arm.grasp", "tool.use"};
+  EXPECT_EQ(names, expected);
+  // a client that joins now sees the same
+  auto late = make_client(test_partition());
+  EXPECT_EQ(listed(late->list_services(10s)), expected);
+  // and calling it is refused as an unknown service
+  EXPECT_EQ(client->wait(client->start("robot", "goto", {1.0}), 10s).status, Status::failed);
+}
+
 TEST_F(DdsTransportTest, ListWithoutServerFailsClearly) {
   DdsClient client(DdsClientOptions::from_json(client_options(test_partition())));
   try {

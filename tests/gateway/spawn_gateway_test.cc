@@ -106,6 +106,37 @@ TEST_F(GatewaySpawnTest, IntrospectionListsTheServices) {
   EXPECT_EQ(discovered, 2) << discover.dump().substr(0, 2000);
 }
 
+// Deleting a robot's body deletes the robot: its request in flight gets its one answer,
+// FAILED with the reason, and no transport lists its components any more.
+TEST_F(GatewaySpawnTest, DeletingARobotEndsItsRequestsAndEveryTransportForgetsIt) {
+  LineClient socket(port("socket")), jsonrpc(port("jsonrpc"));
+  socket.send("1 robot.waypoint goto [20.0, 0.0, 0.0, 0.1, 0.5]\n");
+  // the goto runs (a sync call behind it on the same connection is answered first)
+  EXPECT_EQ(socket.request("2", "robot.waypoint get_status"), "2 SUCCESS \"Transit\"");
+  json deleted = rpc(jsonrpc, 1, "simulation.delete_entity", {"robot"});
+  EXPECT_EQ(deleted["result"], json({{"name", "robot"}, {"model_generation", 1}})) << deleted.dump();
+  EXPECT_EQ(socket.read_line(), "1 FAILED \"robot 'robot' was deleted by simulation.delete_entity\"");
+  for (const auto& s : payload(socket.request("3", "simulation list_services")))
+    EXPECT_FALSE(s["component"].get<std::string>().starts_with("robot")) << s;
+  const json robots = payload(socket.request("4", "simulation details"))["robots"];
+  ASSERT_EQ(robots.size(), 1u) << robots;
+  EXPECT_EQ(robots[0]["name"], "human");
+  const json discover = rpc(jsonrpc, 2, "rpc.discover");
+  for (const auto& m : discover["result"]["methods"])
+    EXPECT_FALSE(m["name"].get<std::string>().starts_with("robot.")) << m["name"];
+  EXPECT_EQ(socket.request("5", "robot.pose get_local_data").substr(0, 8), "5 FAILED");
+  // the human, now first among the robots, still walks
+  EXPECT_EQ(socket.request("6", "human move [1.0, 0.0]"), "6 SUCCESS");
+  EXPECT_FALSE(payload(socket.request("7", "simulation get_scene_objects")).contains("robot"));
+#ifdef SIMGATE_TEST_WITH_DDS
+  // a DDS client that joins now lists no robot service either
+  auto [code, out] = testing::run_simgate({"list", "--transport", "dds", "--partition", partition_}, dir_);
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_EQ(out.find("robot."), std::string::npos) << out;
+  EXPECT_NE(out.find("human"), std::string::npos) << out;
+#endif
+}
+
 #ifdef SIMGATE_TEST_WITH_DDS
 TEST_F(GatewaySpawnTest, SpawnThroughDds) {
   auto [code, out] = testing::run_simgate({"call", "--transport", "dds", "--partition", partition_, "simulation",
