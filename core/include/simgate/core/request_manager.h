@@ -40,6 +40,10 @@
 // cancel() are thread-safe and never block for long; a queued request wakes process() at
 // once.
 //
+// A component can leave while the manager runs (unregister_component: a robot deleted at run
+// time): its running requests end FAILED with the reason, its services leave the table,
+// and on_services_changed() tells the transport.
+//
 // A transport plugin subclasses RequestManager, does its I/O on its own threads between
 // start() and stop(), and overrides on_service_completion(). See
 // docs/writing-a-transport.md.

@@ -17,8 +17,9 @@
 //    that drives the simulation step by step); what is left after a short budget the loop
 //    takes, one per iteration, with requests processed between two, so that a long run of
 //    steps can be cancelled and never holds a transport's thread.
-//  - model generation: a counter bumped whenever the model is replaced (a spawn recompiles
-//    it); what was saved of another generation (a snapshot) cannot be restored into it.
+//  - model generation: a counter bumped whenever the model is replaced (a spawn or a delete
+//    recompiles it); what was saved of another generation (a snapshot) cannot be restored
+//    into it.
 //  - entry: a component plus what the simulation knows about it (type name, robot, body,
 //    active flag, the transports that serve it).
 //
@@ -26,8 +27,10 @@
 // `simulation`, `time` and `communication` pseudo-components are added by
 // add_supervision_services());
 // add_request_manager() for every transport (the simulation gives each one its gate);
-// run() until request_stop() (any thread, or the `simulation quit` service); shutdown()
-// answers what is left, stops the transports and destroys them, then the components.
+// run() until request_stop() (any thread, or the `simulation quit` service); while it runs,
+// replace_model() swaps a recompiled model in (the components re-resolve their ids) and
+// remove_component() takes a deleted robot's components out; shutdown() answers what is
+// left, stops the transports and destroys them, then the components.
 //
 // Bad states: MuJoCo 2.2.2 resets mjData in the middle of mj_step when qpos, qvel or qacc
 // holds a NaN, an infinity or a magnitude beyond 1e10 (mjMAXVAL): the initial state, time
