@@ -321,6 +321,33 @@ TEST_F(SimDeleteBodyTest, DeletingARobotRemovesItsComponentsAndEndsTheirRequests
   EXPECT_EQ(remove("table").status, Status::success);
 }
 
+// The laser scanner keeps a table per geom (the robot's own): it follows spawned geoms
+// (appended past its table's end) and deleted ones.
+TEST_F(SimDeleteBodyTest, ALaserScannerSeesASpawnedBodyThenNotOnceDeleted) {
+  auto registry = builtin_registry();
+  auto* robot = static_cast<Robot*>(sim_->find("robot")->component.get());
+  ComponentEntry& laser = sim_->add_component(
+      registry.create(Kind::component, {"robot.laser", "laser_scanner", "robot", "robots[0].components[6]"},
+                      json{{"scan_window", 10.0}, {"resolution", 5.0}, {"laser_range", 10.0}}, *sim_, robot),
+      "laser_scanner", "robot");
+  rm_->register_component(*laser.component);
+  auto nearest = [&] {
+    const json scan = call("robot.laser", "get_local_data").value.value();
+    double nearest = 1e9;
+    for (const json& r : scan.at("range_list")) nearest = std::min(nearest, r.get<double>());
+    return nearest;
+  };
+  EXPECT_NEAR(nearest(), 10.0, 1e-9);  // nothing ahead
+  const Outcome spawned = answer_without_stepping(
+      rm_->call("simulation", "spawn_entity", {"wall", "<body><geom type='box' size='0.1 1 0.5'/></body>", {2.0, 0.0, 0.5}}));
+  ASSERT_EQ(spawned.status, Status::success) << spawned.message;
+  EXPECT_LT(nearest(), 2.0);
+  ASSERT_EQ(remove("table").status, Status::success);  // moves every geom of the robot and the wall
+  EXPECT_LT(nearest(), 2.0);
+  ASSERT_EQ(remove("wall").status, Status::success);
+  EXPECT_NEAR(nearest(), 10.0, 1e-9);
+}
+
 TEST_F(SimDeleteBodyTest, ABodyHoldingAnotherRobotsComponentIsRefused) {
   // the robot's ball_pose makes 'ball' the robot's: deleting the ball alone is refused, and
   // deleting the robot takes ball_pose with it while the ball stays
