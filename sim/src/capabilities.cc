@@ -27,7 +27,8 @@ struct Feature {
 const std::vector<Feature>& features() {
   static const std::vector<Feature> all = {
       {0, "SPAWNING", {"spawn_entity"}, "spawn_entity: MJCF added to the running scene"},
-      {1, "DELETING", {"delete_entity"}, "delete_entity: an entity spawned at run time, a body of the scene or a robot removed"},
+      {1, "DELETING", {"delete_entity"},
+       "delete_entity: an entity spawned at run time, a body of the scene or a robot removed"},
       {5, "ENTITY_BOUNDS", {"get_object_bbox", "get_object_global_bbox"}, "axis-aligned bounding boxes of any body"},
       {9, "SPAWNING_RESOURCE_STRING", {"spawn_entity"}, "spawn_entity takes MJCF text inline"},
       {10, "ENTITY_STATE_GETTING", {"get_entity_state"}, "pose and twist of any body in the world frame"},

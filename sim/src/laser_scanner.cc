@@ -146,7 +146,8 @@ void LaserScanner::on_model_changed(const ModelRemap& remap) {
   // the robot's geoms where they are now; geoms spawned since are not the robot's
   std::vector<char> own(static_cast<std::size_t>(model()->ngeom), 0);
   for (int g = 0; g < static_cast<int>(own_geom_.size()); ++g)
-    if (const int now = remap.geom_of(g); now >= 0) own[static_cast<std::size_t>(now)] = own_geom_[static_cast<std::size_t>(g)];
+    if (const int now = remap.geom_of(g); now >= 0)
+      own[static_cast<std::size_t>(now)] = own_geom_[static_cast<std::size_t>(g)];
   own_geom_ = std::move(own);
   own_geom_count_ = static_cast<int>(std::count(own_geom_.begin(), own_geom_.end(), 1));
 }

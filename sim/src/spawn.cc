@@ -141,7 +141,8 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
       if (bound <= 0) continue;
       const std::string who = (entry->is_robot ? "robot '" : "component '") + component + "'";
       if (in_subtree(sim_.m(), bound, body))
-        refuse("name", "body '" + name + "' holds " + who + (entry->robot.empty() ? "" : " of robot '" + entry->robot + "'") +
+        refuse("name", "body '" + name + "' holds " + who +
+                           (entry->robot.empty() ? "" : " of robot '" + entry->robot + "'") +
                            ", whose robot stays: delete the robot's own body instead");
       if (in_subtree(sim_.m(), body, bound))
         refuse("name", "body '" + name + "' is part of " + who + "'s body '" + model.body_name(bound) +
@@ -182,14 +183,10 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
           change.service + " '" + change.name + "': the model changed while it compiled; nothing was changed"));
       return;
     }
+    // where every object went (a body of the scene removed moves what came after it)
+    ModelRemap remap;
     try {
-      // where every object went (a body of the scene removed moves what came after it)
-      const ModelRemap remap = ModelRemap::between(sim_.m(), next->model(), change.removed_body,
-                                                   change.service == "spawn_entity");
-      // the deleted robots' components first: their requests end, their services go
-      for (const RemovedComponent& c : change.removed_components)
-        sim_.remove_component(c.name, "robot '" + c.robot + "' was deleted by simulation.delete_entity");
-      sim_.replace_model(std::move(*next), remap);
+      remap = ModelRemap::between(sim_.m(), next->model(), change.removed_body, change.service == "spawn_entity");
     } catch (const MujocoError& e) {
       change.done.finish(Outcome::failed(Failure::service_error, change.service + " '" + change.name +
                                                                      "': the recompiled model does not match the "
@@ -197,6 +194,10 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
                                                                      "; nothing was changed"));
       return;
     }
+    // the deleted robots' components first: their requests end, their services go
+    for (const RemovedComponent& c : change.removed_components)
+      sim_.remove_component(c.name, "robot '" + c.robot + "' was deleted by simulation.delete_entity");
+    sim_.replace_model(std::move(*next), remap);
     log::info("simulation: ", change.service, " '", change.name, "': model generation ", sim_.model_generation(),
               " (", sim_.m()->nbody, " bodies)");
     change.done(Status::success, json{{"name", change.name}, {"model_generation", sim_.model_generation()}});

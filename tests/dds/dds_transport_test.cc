@@ -234,7 +234,8 @@ TEST_F(DdsTransportTest, AnUnregisteredComponentLeavesTheCatalogAndItsCallFails)
   // the catalog changes on the DDS thread: look until it has (bounded)
   auto listed = [](const json& services) {
     std::set<std::string> names;
-    for (const json& s : services) names.insert(s.at("component").get<std::string>() + "." + s.at("name").get<std::string>());
+    for (const json& s : services)
+      names.insert(s.at("component").get<std::string>() + "." + s.at("name").get<std::string>());
     return names;
   };
   std::set<std::string> names = listed(client->list_services(10s));

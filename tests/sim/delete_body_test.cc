@@ -84,8 +84,8 @@ class SimDeleteBodyTest : public ::testing::Test {
 
   void build(const std::string& xml, const std::string& path = "") {
     rm_.reset();
-    sim_ = std::make_unique<Simulation>(path.empty() ? Model::load_string(xml, "delete_test.xml") : Model::load_file(path),
-                                        SimulationOptions{std::nullopt, 0.0});
+    Model model = path.empty() ? Model::load_string(xml, "delete_test.xml") : Model::load_file(path);
+    sim_ = std::make_unique<Simulation>(std::move(model), SimulationOptions{std::nullopt, 0.0});
     auto registry = builtin_registry();
     auto robot = registry.create(Kind::robot, {"robot", "ground_robot", "robot", "robots[0]"}, json::object(), *sim_,
                                  nullptr);
@@ -94,9 +94,8 @@ class SimDeleteBodyTest : public ::testing::Test {
     int i = 0;
     for (auto type : {"motion_vw", "pose", "sensors", "armature_pose", "waypoint"}) {
       std::string short_name = type == std::string("motion_vw") ? "motion" : type;
-      auto c = registry.create(Kind::component,
-                               {"robot." + short_name, type, "robot", "robots[0].components[" + std::to_string(i++) + "]"},
-                               json::object(), *sim_, r);
+      const std::string path = "robots[0].components[" + std::to_string(i++) + "]";
+      auto c = registry.create(Kind::component, {"robot." + short_name, type, "robot", path}, json::object(), *sim_, r);
       sim_->add_component(std::move(c), type, "robot");
     }
     // a component of the robot bound to a body of the scene outside the robot
@@ -338,8 +337,8 @@ TEST_F(SimDeleteBodyTest, ALaserScannerSeesASpawnedBodyThenNotOnceDeleted) {
     return nearest;
   };
   EXPECT_NEAR(nearest(), 10.0, 1e-9);  // nothing ahead
-  const Outcome spawned = answer_without_stepping(
-      rm_->call("simulation", "spawn_entity", {"wall", "<body><geom type='box' size='0.1 1 0.5'/></body>", {2.0, 0.0, 0.5}}));
+  const Outcome spawned = answer_without_stepping(rm_->call(
+      "simulation", "spawn_entity", {"wall", "<body><geom type='box' size='0.1 1 0.5'/></body>", {2.0, 0.0, 0.5}}));
   ASSERT_EQ(spawned.status, Status::success) << spawned.message;
   EXPECT_LT(nearest(), 2.0);
   ASSERT_EQ(remove("table").status, Status::success);  // moves every geom of the robot and the wall
