@@ -1,5 +1,6 @@
 // ModelEdit: a scene recompiled with entities spawned into it (model_edit.h): fragments
-// checked and placed, ids of the scene kept, state carried across by entity.
+// checked and placed, ids of the scene kept, state carried across through the remap
+// (model_remap.h), which refuses models that do not line up.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -159,6 +160,30 @@ TEST(ModelEditTest, SceneRelativeIncludesResolveAndTheSceneDirectoryIsNotWritten
   EXPECT_GE(spawned.body_id("ball"), 0);
   EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir), std::filesystem::directory_iterator()), 2);
   std::filesystem::remove_all(dir);
+}
+
+// ModelRemap checks what it maps: survivors keep their names, the counts add up.
+TEST(ModelEditTest, ARemapBetweenModelsThatDoNotLineUpIsRefused) {
+  Model scene = Model::load_file(testing::demo_scene());
+  Model other = Model::load_string(
+      "<mujoco><worldbody><body name='a'><freejoint/><geom size='.1'/></body></worldbody></mujoco>");
+  // nothing removed, nothing appended: the same model maps onto itself
+  const ModelRemap same = ModelRemap::between(scene.model(), scene.model(), -1, false);
+  EXPECT_FALSE(same.moves_ids());
+  // a body of another name where the robot should be
+  try {
+    ModelRemap::between(scene.model(), other.model(), -1, true);
+    FAIL() << "unrelated models were remapped";
+  } catch (const MujocoError& e) {
+    EXPECT_NE(std::string(e.what()).find("'robot' is not where expected"), std::string::npos) << e.what();
+  }
+  // the crates removed, but the new model still holds them: the counts do not add up
+  try {
+    ModelRemap::between(scene.model(), scene.model(), scene.body_id("crate1"), false);
+    FAIL() << "a removal the new model does not show was remapped";
+  } catch (const MujocoError& e) {
+    EXPECT_NE(std::string(e.what()).find("expected"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace
