@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "simgate/gateway/gateway.h"
+#include "in_process_gateway.h"
 #include "test_support.h"
 
 namespace simgate::gateway {
@@ -19,22 +20,10 @@ using testing::LineClient;
 
 class GatewayDeadlineTest : public ::testing::Test {
  protected:
-  void start(const json& config) {
-    Deployment d = parse_deployment(config, SIMGATE_SOURCE_DIR "/config");
-    gateway_ = std::make_unique<Gateway>(d, registry_);
-    gateway_->start();
-    thread_ = std::thread([this] { gateway_->run(); });
-  }
-  int port() { return testing::port_of(gateway_->endpoints().at("socket").at(0)); }
-  void TearDown() override {
-    if (gateway_) gateway_->stop();
-    if (thread_.joinable()) thread_.join();
-    gateway_.reset();
-  }
+  void start(const json& config) { gateway_ = std::make_unique<testing::InProcessGateway>(config); }
+  int port() { return gateway_->port(); }
 
-  sim::ComponentRegistry registry_ = sim::builtin_registry();
-  std::unique_ptr<Gateway> gateway_;
-  std::thread thread_;
+  std::unique_ptr<testing::InProcessGateway> gateway_;
 };
 
 TEST_F(GatewayDeadlineTest, TheServersMaxWaitEndsAFarGotoFailedAndTheRobotStops) {

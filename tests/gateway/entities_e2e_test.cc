@@ -12,6 +12,7 @@
 
 #include "simgate/client/client.h"
 #include "simgate/gateway/gateway.h"
+#include "in_process_gateway.h"
 #include "test_support.h"
 
 namespace simgate::gateway {
@@ -57,22 +58,9 @@ json every_transport_config() {
 
 class GatewayEntitiesTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    Deployment d = parse_deployment(every_transport_config(), SIMGATE_SOURCE_DIR "/config");
-    gateway_ = std::make_unique<Gateway>(d, registry_, GatewayOptions{});
-    gateway_->start();
-    thread_ = std::thread([this] { gateway_->run(); });
-  }
-  void TearDown() override {
-    gateway_->stop();
-    thread_.join();
-    gateway_.reset();
-  }
-  int port(const std::string& transport) { return testing::port_of(gateway_->endpoints().at(transport).at(0)); }
+  int port(const std::string& transport) { return gateway_.port(transport); }
 
-  sim::ComponentRegistry registry_ = sim::builtin_registry();
-  std::unique_ptr<Gateway> gateway_;
-  std::thread thread_;
+  testing::InProcessGateway gateway_{every_transport_config()};
 };
 
 TEST_F(GatewayEntitiesTest, TheSocketSpeaksMorsesWire) {

@@ -8,6 +8,7 @@
 
 #include "simgate/core/log.h"
 #include "simgate/gateway/gateway.h"
+#include "in_process_gateway.h"
 #include "test_support.h"
 
 namespace simgate::gateway {
@@ -23,23 +24,11 @@ using testing::payload;
 class GatewayIntegrationTest : public ::testing::Test {
  protected:
   void start(const json& config, GatewayOptions options = {}) {
-    Deployment d = parse_deployment(config, SIMGATE_SOURCE_DIR "/config");
-    gateway_ = std::make_unique<Gateway>(d, registry_, std::move(options));
-    gateway_->start();
-    thread_ = std::thread([this] { gateway_->run(); });
+    gateway_ = std::make_unique<testing::InProcessGateway>(config, std::move(options));
   }
-  int port(const std::string& transport = "socket") {
-    return testing::port_of(gateway_->endpoints().at(transport).at(0));
-  }
-  void TearDown() override {
-    if (gateway_) gateway_->stop();
-    if (thread_.joinable()) thread_.join();
-    gateway_.reset();
-  }
+  int port(const std::string& transport = "socket") { return gateway_->port(transport); }
 
-  sim::ComponentRegistry registry_ = sim::builtin_registry();
-  std::unique_ptr<Gateway> gateway_;
-  std::thread thread_;
+  std::unique_ptr<testing::InProcessGateway> gateway_;
 };
 
 TEST_F(GatewayIntegrationTest, ServesTheSupervisionServices) {
@@ -79,7 +68,7 @@ TEST_F(GatewayIntegrationTest, AnMjcfRobotGetsTheGenericComponentsOfItsSubtree) 
                                           {"options", {{"actuators", {"robot_left_motor"}}}}}}}};
   config["services"] = {{"default", {"socket"}}, {"robot.armature_pose", json::array()}};
   start(config);
-  const Deployment& d = gateway_->deployment();
+  const Deployment& d = gateway_->gateway().deployment();
   std::vector<std::string> names;
   for (const auto& c : d.robots[0].components) names.push_back(c.name);
   EXPECT_EQ(names, (std::vector<std::string>{"robot.actuators", "robot.armature", "robot.armature_pose"}));
@@ -320,7 +309,7 @@ TEST_F(GatewayIntegrationTest, ADeniedServiceIsRefusedThroughJsonRpcAsAnUnknownO
   EXPECT_EQ(socket.request("t", "robot.teleport translate [0.5]"), "t SUCCESS");
   EXPECT_EQ(socket.request("h", "human move [0.0, 0.0]"), "h SUCCESS");
   EXPECT_EQ(socket.request("q", "simulation quit"), "q SUCCESS");
-  thread_.join();  // the loop ends: quit ran, through the socket transport only
+  gateway_->join();  // the loop ends: quit ran, through the socket transport only
 }
 
 TEST_F(GatewayIntegrationTest, IntrospectionOnEachTransportListsExactlyTheCallableServices) {
@@ -401,8 +390,8 @@ TEST_F(GatewayIntegrationTest, QuitAnswersTheCallerAndPendingClientsThenStops) {
   waiting.send("g robot.waypoint goto [20.0, 0.0, 0.0]\n");
   EXPECT_EQ(waiting.request("s", "robot.waypoint get_status"), "s SUCCESS \"Transit\"");
   EXPECT_EQ(quitter.request("q", "simulation quit"), "q SUCCESS");
-  thread_.join();  // the loop ends by itself
-  gateway_->shutdown();
+  gateway_->join();  // the loop ends by itself
+  gateway_->gateway().shutdown();
   // the pending goto got a final answer before its connection closed
   EXPECT_THAT(waiting.wait_for("g", std::chrono::seconds(10)), StartsWith("g "));
   EXPECT_TRUE(quitter.closed_by_server());

@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "simgate/gateway/gateway.h"
+#include "in_process_gateway.h"
 #include "test_support.h"
 
 namespace simgate::gateway {
@@ -33,24 +34,13 @@ class GatewaySpawnTest : public ::testing::Test {
     config["services"]["default"].push_back("dds");
 #endif
     config["spawn"] = {{"allowed_dirs", json::array({dir_.file("fragments")})}};
-    Deployment d = parse_deployment(config, SIMGATE_SOURCE_DIR "/config");
-    gateway_ = std::make_unique<Gateway>(d, registry_);
-    gateway_->start();
-    thread_ = std::thread([this] { gateway_->run(); });
+    gateway_ = std::make_unique<testing::InProcessGateway>(config);
   }
-  void TearDown() override {
-    if (gateway_) gateway_->stop();
-    if (thread_.joinable()) thread_.join();
-    gateway_.reset();
-  }
-  int port(const std::string& transport) { return testing::port_of(gateway_->endpoints().at(transport).at(0)); }
-
+  int port(const std::string& transport) { return gateway_->port(transport); }
 
   testing::TempDir dir_;
   std::string partition_ = "simgate-spawn-test-" + std::to_string(::getpid());
-  sim::ComponentRegistry registry_ = sim::builtin_registry();
-  std::unique_ptr<Gateway> gateway_;
-  std::thread thread_;
+  std::unique_ptr<testing::InProcessGateway> gateway_;
 };
 
 TEST_F(GatewaySpawnTest, SpawnThroughTheSocketDeleteThroughJsonRpc) {
