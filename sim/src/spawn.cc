@@ -7,7 +7,7 @@
 // MuJoCo 2.2.2 cannot edit a compiled model, so each change recompiles the scene with the
 // entities it now holds (model_edit.h). Compiling takes milliseconds to seconds, far more
 // than a step: it happens on a worker thread, off the simulation lock, from copies made
-// under it; once the worker is done it asks the simulation for its next turn
+// under it (a fragment file too is read there: under the lock it is only found); once the worker is done it asks the simulation for its next turn
 // (Simulation::run_soon: between two steps, or at once while paused), which swaps the new
 // model in (Simulation::replace_model carries the state across) and only then completes the
 // request. Both services are concurrent async services: neither takes the component's one
@@ -77,6 +77,23 @@ EntityPose entity_pose(const std::vector<double>& pose) {
   return out;
 }
 
+// A fragment file to spawn from, found under the allowed directories; read by the worker.
+struct FragmentFile {
+  fs::path file;      // canonical, inside an allowed directory
+  std::string given;  // the path as the client wrote it, for messages
+  EntityPose where;
+
+  // The entity's MJCF sections (entity_sections); throws ServiceError as it does, or when
+  // the file cannot be read.
+  std::string sections(const std::string& name) const {
+    std::ifstream in(file, std::ios::binary);
+    std::stringstream text;
+    text << in.rdbuf();
+    if (!in && !in.eof()) refuse("mjcf", "mjcf: '" + given + "' could not be read");
+    return entity_sections(text.str(), name, where);
+  }
+};
+
 // A component that goes with a deleted body, and the robot it belongs to.
 struct RemovedComponent {
   std::string name;   // "robot.motion"
@@ -95,7 +112,12 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
     const EntityPose where = entity_pose(pose);
     const std::size_t first = mjcf.find_first_not_of(" \t\r\n");
     const bool inline_text = first != std::string::npos && mjcf[first] == '<';
-    std::string sections = entity_sections(inline_text ? mjcf : fragment_file(mjcf), name, where);
+    // inline text is checked now; a file is found now and read by the worker (disk I/O has
+    // no place under the simulation lock)
+    std::optional<FragmentFile> file;
+    std::string sections;
+    if (inline_text) sections = entity_sections(mjcf, name, where);
+    else file = FragmentFile{fragment_file(mjcf), mjcf, where};
     refuse_if_busy(name);
     const Model& model = sim_.model();
     if (model.body_id(name) >= 0)
@@ -103,7 +125,7 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
                          (model.entity(name) ? " (a spawned entity)" : ""));
     std::vector<SpawnedEntity> entities = model.entities();
     entities.push_back({name, std::move(sections), {}});
-    start(std::move(done), "spawn_entity", name, std::move(entities), true);
+    start(std::move(done), "spawn_entity", name, std::move(entities), true, -1, nullptr, {}, std::move(file));
   }
 
   void delete_entity(Completion done, const std::string& name) {
@@ -162,6 +184,10 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
     std::optional<Model> next;
     try {
       next.emplace(change.compiled.get());
+    } catch (const ServiceError& e) {
+      // the fragment file the worker read is no entity (entity_sections' refusal)
+      change.done.finish(Outcome::failed(e.failure(), e.message(), e.data()));
+      return;
     } catch (const std::exception& e) {
       // MuJoCo's message: the fragment does not compile with the scene (a taken joint or
       // geom name, a missing mesh...), and the running model is untouched
@@ -223,10 +249,10 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
                          Failure::busy, {{"running", "simulation." + change_->service}});
   }
 
-  // The text of the fragment file `path`: absolute, or relative to one of the directories
-  // the config allows (the first that has it), and inside one of them once links are
-  // resolved. A file elsewhere gets the answer of a missing one.
-  std::string fragment_file(const std::string& path) const {
+  // The fragment file `path` names: absolute, or relative to one of the directories the
+  // config allows (the first that has it), and inside one of them once links are resolved.
+  // A file elsewhere gets the answer of a missing one. Only looks (no read).
+  fs::path fragment_file(const std::string& path) const {
     const std::vector<std::string>& allowed = sim_.spawn_allowed_dirs();
     if (allowed.empty())
       refuse("mjcf", "mjcf: expected MJCF text (a <body>, or a <mujoco> with a <worldbody> holding one <body>); "
@@ -251,10 +277,7 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
       if (!inside) continue;
       if (fs::file_size(file, ec) > k_max_fragment_bytes)
         refuse("mjcf", "mjcf: '" + path + "' is larger than " + std::to_string(k_max_fragment_bytes) + " bytes");
-      std::ifstream in(file, std::ios::binary);
-      std::stringstream text;
-      text << in.rdbuf();
-      return text.str();
+      return file;
     }
     refuse("mjcf", refusal);
   }
@@ -266,13 +289,14 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
   }
 
   // Compiles the scene with `entities` on a worker thread (copies only: nothing shared
-  // with the running simulation).
+  // with the running simulation). `file`: the last entity's fragment file, which the worker
+  // reads and turns into its sections first.
   // `removed_body`: the body the change deletes (-1: none), in the running model; `edited`:
   // the scene without it when it is one of the scene's (its counts measured by the worker).
   // `removed`: the components that go with it (a robot's), removed at the swap.
   void start(Completion done, std::string service, std::string name, std::vector<SpawnedEntity> entities,
              bool last_is_new, int removed_body = -1, std::shared_ptr<SceneSource> edited = nullptr,
-             std::vector<RemovedComponent> removed = {}) {
+             std::vector<RemovedComponent> removed = {}, std::optional<FragmentFile> file = std::nullopt) {
     std::shared_ptr<const SceneSource> scene = edited ? edited : sim_.model().scene();
     auto result = std::make_shared<std::promise<Model>>();
     std::future<Model> compiled = result->get_future();
@@ -281,8 +305,9 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
     // goes, through their futures)
     std::future<void> worker = std::async(
         std::launch::async, [&sim = sim_, self = weak_from_this(), result, scene, edited, entities = std::move(entities),
-                             last_is_new] {
+                             last_is_new, file = std::move(file)]() mutable {
           try {
+            if (file) entities.back().sections = file->sections(entities.back().name);
             result->set_value(compile_scene(scene, entities, last_is_new, edited.get()));
           } catch (...) {
             result->set_exception(std::current_exception());

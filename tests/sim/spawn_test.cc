@@ -271,6 +271,7 @@ class SimSpawnFileTest : public ::testing::Test {
     root_ = std::filesystem::temp_directory_path() / ("simgate_spawn_files_" + std::to_string(::getpid()));
     std::filesystem::create_directories(root_ / "allowed");
     std::ofstream(root_ / "allowed" / "ball.xml") << k_ball;
+    std::ofstream(root_ / "allowed" / "broken.xml") << "<body><geom type='sphere' size='0.1'></body";
     std::ofstream(root_ / "outside.xml") << k_ball;
     std::filesystem::create_symlink(root_ / "outside.xml", root_ / "allowed" / "link.xml");
     SimulationOptions options{std::nullopt, 0.0};
@@ -308,6 +309,18 @@ TEST_F(SimSpawnFileTest, AFileUnderAnAllowedDirectorySpawns) {
   Outcome absolute = spawn("b", (root_ / "allowed" / "ball.xml").string());
   EXPECT_EQ(absolute.status, Status::success) << absolute.message;
   EXPECT_EQ(sim_->model().entities().size(), 2u);
+}
+
+// the worker reads the file: what is wrong in it comes back as the request's refusal, and
+// the world is unchanged
+TEST_F(SimSpawnFileTest, AFileThatHoldsNoEntityIsRefusedNamingMjcf) {
+  Outcome o = spawn("a", "broken.xml");
+  EXPECT_EQ(o.status, Status::failed);
+  EXPECT_EQ(o.failure, Failure::bad_arguments) << o.message;
+  EXPECT_EQ(o.data.value("parameter", ""), "mjcf") << o.message;
+  EXPECT_EQ(o.message.rfind("mjcf: ", 0), 0u) << o.message;
+  EXPECT_EQ(sim_->model_generation(), 0u);
+  EXPECT_EQ(spawn("b", "ball.xml").status, Status::success) << "the next change starts";
 }
 
 TEST_F(SimSpawnFileTest, AnythingElseIsRefusedAsIfMissing) {
