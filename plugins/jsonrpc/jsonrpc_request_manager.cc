@@ -170,7 +170,7 @@ void JsonRpcRequestManager::handle_message(const std::shared_ptr<Session>& sessi
   if (line.find_first_not_of(" \t\r") == std::string_view::npos) return;
 
   // (a line over max_message_bytes never comes here: on_oversized_line)
-  ReplyTo single{session, nullptr, false, nullptr, 0};
+  ReplyTo single{session, nullptr, false, nullptr, 0, {}};
   // the common shape (one plain request object) without a DOM; anything else, errors
   // included, takes the full path below
   if (parse_request_fast(line, options_.max_depth, request_)) {

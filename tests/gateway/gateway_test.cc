@@ -327,7 +327,9 @@ TEST_F(GatewayIntegrationTest, IntrospectionOnEachTransportListsExactlyTheCallab
   json listed = rpc(jsonrpc, 1, "simulation.list_services")["result"];
   EXPECT_EQ(qualified_names(listed), expected);
   for (const auto& d : listed) {  // each service's transports: where it is callable
-    if (d["component"] == "robot.motion") EXPECT_EQ(d["transports"], json({"jsonrpc", "socket"})) << d;
+    if (d["component"] == "robot.motion") {
+      EXPECT_EQ(d["transports"], json({"jsonrpc", "socket"})) << d;
+    }
   }
   std::set<std::string> discovered;
   const json discovery = rpc(jsonrpc, 2, "rpc.discover");
@@ -335,7 +337,9 @@ TEST_F(GatewayIntegrationTest, IntrospectionOnEachTransportListsExactlyTheCallab
   EXPECT_EQ(discovered, expected);
   json from_socket = payload(socket.request("2", "simulation list_services"));
   for (const auto& d : from_socket) {
-    if (d["component"] == "robot.teleport") EXPECT_EQ(d["transports"], json({"socket"})) << d;
+    if (d["component"] == "robot.teleport") {
+      EXPECT_EQ(d["transports"], json({"socket"})) << d;
+    }
   }
 
   // details: the components it serves, with only their callable services
