@@ -32,6 +32,17 @@ std::string Component::running_service() const {
   return slot_->busy() ? slot_->running->service : std::string();
 }
 
+const char* to_string(StreamDirection direction) { return direction == StreamDirection::in ? "IN" : "OUT"; }
+
+void Component::declare_output_stream(std::string kind, std::function<json()> produce) {
+  stream_ = StreamDeclaration{StreamDirection::out, std::move(kind), std::move(produce), {}, {}};
+}
+
+void Component::declare_input_stream(std::string kind, std::vector<std::string> fields,
+                                     std::function<void(const json&)> apply) {
+  stream_ = StreamDeclaration{StreamDirection::in, std::move(kind), {}, std::move(apply), std::move(fields)};
+}
+
 ServiceBuilder Component::adopt(std::shared_ptr<Service> service) {
   if (service->descriptor().is_async) service->set_slot(slot_);
   for (auto& existing : services_)

@@ -68,6 +68,15 @@ void RequestManager::set_gate(std::shared_ptr<SimulationGate> gate) {
   inbox_->set_gate(std::move(gate));
 }
 
+std::string RequestManager::datastream_class(StreamDirection direction) const {
+  return "simgate." + transport_name_ + (direction == StreamDirection::out ? ".publisher" : ".reader");
+}
+
+void RequestManager::set_streams(std::shared_ptr<StreamHub> hub, std::string transport) {
+  stream_hub_ = std::move(hub);
+  transport_name_ = std::move(transport);
+}
+
 // ---- transport side
 
 RequestId RequestManager::new_request_id() {

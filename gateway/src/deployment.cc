@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "simgate/core/log.h"
+#include "simgate/core/streams.h"
 #include "simgate/core/suggest.h"
 
 namespace simgate::gateway {
@@ -103,6 +104,7 @@ ComponentConfig parse_component(ConfigObject& o, const std::string& full_prefix,
   c.body = o.get_string("body", default_body.empty() ? name : default_body);
   auto options = o.get_object("options");
   c.options = options ? options->raw() : json::object();
+  if (o.has("frequency")) c.frequency = o.get_number("frequency", StreamHub::k_default_frequency, 1e-3, 1e6);
   return c;
 }
 
@@ -252,25 +254,41 @@ std::vector<std::string> Deployment::component_names() const {
   return names;
 }
 
-std::vector<std::string> Deployment::transports_for(const std::string& component) const {
-  if (!has_services) {
-    std::vector<std::string> all;
-    for (const auto& t : transports) all.push_back(t.name);
-    return all;
-  }
-  // exact name first
+namespace {
+
+// The transports `rules` give `component`: its exact name, else the most specific matching
+// glob (most literal characters; ties: first in key order), else `fallback`.
+std::vector<std::string> match_rules(const std::vector<ServiceRule>& rules,
+                                     const std::optional<std::vector<std::string>>& fallback,
+                                     const std::string& component) {
   for (const auto& r : rules)
     if (!is_glob(r.pattern) && r.pattern == component) return r.transports;
-  // communication goes with simulation unless named (MORSE serves both on every socket)
-  if (component == "communication") return transports_for("simulation");
-  // then the most specific glob (most literal characters; ties: first in key order)
   const ServiceRule* best = nullptr;
   for (const auto& r : rules)
     if (is_glob(r.pattern) && glob_matches(r.pattern, component) &&
         (!best || literal_chars(r.pattern) > literal_chars(best->pattern)))
       best = &r;
   if (best) return best->transports;
-  return default_transports.value_or(std::vector<std::string>{});
+  return fallback.value_or(std::vector<std::string>{});
+}
+
+}  // namespace
+
+std::vector<std::string> Deployment::transports_for(const std::string& component) const {
+  if (!has_services) {
+    std::vector<std::string> all;
+    for (const auto& t : transports) all.push_back(t.name);
+    return all;
+  }
+  // communication goes with simulation unless named (MORSE serves both on every socket)
+  if (component == "communication" &&
+      std::none_of(rules.begin(), rules.end(), [](const ServiceRule& r) { return r.pattern == "communication"; }))
+    return transports_for("simulation");
+  return match_rules(rules, default_transports, component);
+}
+
+std::vector<std::string> Deployment::streams_for(const std::string& component) const {
+  return match_rules(stream_rules, default_stream_transports, component);
 }
 
 Deployment parse_deployment(const json& document, const std::string& base_dir, const std::string& file) {
@@ -336,25 +354,23 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
   });
   const bool robots_ok = errors.errors().size() == errors_before_robots;
 
-  // ---- services (the mapping) ----
-  errors.check([&] {
-    auto services = root.get_object("services");
-    if (!services) return;
-    d.has_services = true;
-    std::vector<std::string> all = d.component_names();
-    // a robot of type mjcf gets its generic components once the scene is loaded (gateway)
-    for (const auto& r : d.robots)
-      if (r.robot.type == "mjcf")
-        for (const char* type : {"armature", "armature_pose", "actuators", "sensors"}) all.push_back(r.robot.name + "." + type);
-    std::vector<std::string> keys;
-    for (auto it = services->raw().begin(); it != services->raw().end(); ++it) {
-      keys.push_back(it.key());
+  // ---- services (the mapping) and streams: component name or glob -> transports ----
+  std::vector<std::string> all = d.component_names();
+  // a robot of type mjcf gets its generic components once the scene is loaded (gateway)
+  for (const auto& r : d.robots)
+    if (r.robot.type == "mjcf")
+      for (const char* type : {"armature", "armature_pose", "actuators", "sensors"}) all.push_back(r.robot.name + "." + type);
+  auto parse_rules = [&](const char* key, std::vector<ServiceRule>& rules,
+                         std::optional<std::vector<std::string>>& fallback) {
+    auto section = root.get_object(key);
+    if (!section) return false;
+    for (auto it = section->raw().begin(); it != section->raw().end(); ++it) {
       errors.check([&] {
-        std::string path = services->path_of(it.key());
+        std::string path = section->path_of(it.key());
         auto list = string_list(it.value(), path);
         check_transports(list, transport_names, path);
         if (it.key() == "default") {
-          d.default_transports = std::move(list);
+          fallback = std::move(list);
           return;
         }
         // every rule must match something: a typo must not silently disconnect a component
@@ -365,10 +381,13 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
         if (!matched && robots_ok)
           throw ConfigError(path + ": expected a component name or a glob matching one (" + join(all) +
                             "), found '" + it.key() + "', which matches none" + did_you_mean(it.key(), all));
-        d.rules.push_back(ServiceRule{it.key(), std::move(list), path});
+        rules.push_back(ServiceRule{it.key(), std::move(list), path});
       });
     }
-  });
+    return true;
+  };
+  errors.check([&] { d.has_services = parse_rules("services", d.rules, d.default_transports); });
+  errors.check([&] { parse_rules("streams", d.stream_rules, d.default_stream_transports); });
 
   errors.check([&] { root.finish(); });
   errors.throw_if_any();

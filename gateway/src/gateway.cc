@@ -33,6 +33,7 @@ Gateway::Gateway(const Deployment& deployment, const sim::ComponentRegistry& reg
   if (simulation_) {
     build_components(errors);
     simulation_->add_supervision_services();
+    add_streams(errors);
   }
   // plugins and their options
   load_plugins(errors);
@@ -106,6 +107,34 @@ void Gateway::build_components(ConfigErrors& errors) {
         auto component = registry.create(sim::Kind::component, cspec, c.options, sim, robot_ptr);
         sim.add_component(std::move(component), c.type, r.robot.name, false);
       });
+  }
+}
+
+void Gateway::add_streams(ConfigErrors& errors) {
+  auto check_component = [&](const ComponentConfig& c) {
+    const sim::ComponentEntry* entry = simulation_->find(c.name);
+    if (!entry) return;  // not created: its own error is reported
+    const StreamDeclaration* stream = entry->component->stream();
+    const std::vector<std::string> transports = deployment_.streams_for(c.name);
+    if (c.frequency && (!stream || stream->direction != StreamDirection::out))
+      warnings_.push_back(c.path + ".frequency: component '" + c.name + "' (type " + c.type +
+                          ") has no output stream: the frequency is not used");
+    if (transports.empty()) return;
+    if (!stream) {
+      // an exact name must mean a stream; a glob may match components without one
+      for (const auto& rule : deployment_.stream_rules)
+        if (rule.pattern == c.name)
+          errors.add(rule.path + ": component '" + c.name + "' (type " + c.type +
+                     ") has no data stream (streaming types: sensors such as pose, imu, odometry, laser_scanner; "
+                     "actuators such as motion_vw, waypoint, teleport, armature, actuators)");
+      return;
+    }
+    simulation_->streams().add(*entry->component, c.type, transports,
+                               c.frequency.value_or(StreamHub::k_default_frequency));
+  };
+  for (const auto& r : deployment_.robots) {
+    check_component(r.robot);
+    for (const auto& c : r.components) check_component(c);
   }
 }
 

@@ -176,6 +176,13 @@ ActuatorSet::ActuatorSet(ComponentContext& c) : SimComponent(c.name(), c.sim()) 
   add_service("get_controls", &ActuatorSet::get_controls).doc("The current controls {actuator: value}");
   add_service("list_actuators", &ActuatorSet::list_actuators)
       .doc("Each actuator: type, what it drives (joint, tendon, site, body), ctrlrange, forcerange, gear");
+  // {actuator: control}, as set_controls
+  declare_input_stream("controls", names_, [this](const json& command) {
+    std::map<std::string, double> controls;
+    for (auto it = command.begin(); it != command.end(); ++it)
+      if (it.key() != "timestamp") controls[it.key()] = command_number(command, it.key());
+    set_controls(controls);
+  });
 }
 
 const ActuatorSet::Actuator& ActuatorSet::find(const std::string& name, const std::string& parameter) const {

@@ -18,6 +18,11 @@ MotionVW::MotionVW(ComponentContext& c) : SimComponent(c.name(), c.sim()), drive
   add_service("set_speed", &MotionVW::set_speed, {"v", "w"})
       .doc("Linear speed v (m/s) and angular speed w (rad/s, counter-clockwise)");
   add_service("stop", &MotionVW::stop).doc("Stop the robot");
+  // MORSE's motion_vw datastream: {"v": m/s, "w": rad/s}
+  declare_input_stream("velocity", {"v", "w"}, [this](const json& command) {
+    require_command_keys(command, {"v", "w"});
+    set_speed(command_number(command, "v"), command_number(command, "w"));
+  });
 }
 
 void MotionVW::set_speed(double v, double w) {
@@ -48,6 +53,12 @@ Waypoint::Waypoint(ComponentContext& c)
   add_service("stop", &Waypoint::stop).doc("Halt; a running goto stays pending (status Stop)");
   add_service("resume", &Waypoint::resume).doc("Continue towards the destination (status Transit)");
   add_service("get_status", &Waypoint::get_status).doc("Transit, Arrived or Stop");
+  // MORSE's waypoint datastream: a new destination, as setdest
+  declare_input_stream("waypoint", {"x", "y", "z", "tolerance", "speed"}, [this](const json& command) {
+    require_command_keys(command, {"x", "y", "z", "tolerance", "speed"});
+    setdest(command_number(command, "x"), command_number(command, "y"), command_number(command, "z", 0.0),
+            command_number(command, "tolerance", 0.5), command_number(command, "speed", 1.0));
+  });
 }
 
 void Waypoint::set_target(double x, double y, double z, double tolerance, double speed) {
@@ -148,6 +159,25 @@ Teleport::Teleport(ComponentContext& c)
       .doc("Move by (x, y, z) metres in the world frame, instantly");
   add_service("rotate", &Teleport::rotate, {"roll", {"pitch", 0.0}, {"yaw", 0.0}})
       .doc("Turn by roll, pitch, yaw radians (body frame), instantly");
+  // MORSE's teleport datastream: an absolute pose in the world frame
+  declare_input_stream("teleport", {"x", "y", "z", "roll", "pitch", "yaw"},
+                       [this](const json& command) { place(command); });
+}
+
+void Teleport::place(const json& command) {
+  require_command_keys(command, {"x", "y", "z", "roll", "pitch", "yaw"});
+  const Eigen::Vector3d now = body_position(sim(), body_);
+  Eigen::Vector3d position(command_number(command, "x", now.x()), command_number(command, "y", now.y()),
+                           command_number(command, "z", now.z()));
+  const char* axes[] = {"x", "y", "z"};
+  for (int k = 0; k < 3; ++k) bounds::require_within(axes[k], position[k], bounds::position, "m");
+  double rpy[3];
+  const char* angles[] = {"roll", "pitch", "yaw"};
+  for (int k = 0; k < 3; ++k) {
+    rpy[k] = command_number(command, angles[k], 0.0);
+    bounds::require_within(angles[k], rpy[k], bounds::angle, "rad");
+  }
+  set_free_body_pose(sim(), free_joint_, position, from_roll_pitch_yaw(rpy[0], rpy[1], rpy[2]));
 }
 
 void Teleport::translate(double x, double y, double z) {

@@ -69,6 +69,20 @@ Armature::Armature(ComponentContext& c) : SimComponent(c.name(), c.sim()), joint
       .doc("Slide prismatic joints {joint: m}, each at `speed` m/s (default linear_speed)");
   add_async_service("trajectory", &Armature::trajectory, {"trajectory"})
       .doc("Follow {starttime?, points: [{positions, velocities?, time_from_start}]} in simulated time");
+  // MORSE's armature datastream: {joint: position}, radians or metres by the joint's kind
+  declare_input_stream("joint_positions", joints_.names(), [this](const json& command) { set_positions(command); });
+}
+
+void Armature::set_positions(const json& positions) {
+  std::vector<Target> targets;
+  for (auto it = positions.begin(); it != positions.end(); ++it) {
+    if (it.key() == "timestamp") continue;  // an armature_pose sample written back
+    const std::size_t i = joints_.index_of(it.key(), it.key());
+    const double value = command_number(positions, it.key());
+    require_reachable(joints_[i], value, it.key());
+    targets.push_back({i, value, it.key()});
+  }
+  apply_now(targets);
 }
 
 // ---- sync services -------------------------------------------------------------------------

@@ -52,6 +52,7 @@ ArmaturePose::ArmaturePose(ComponentContext& c) : SimComponent(c.name(), c.sim()
       .doc("{joint: length of the segment it moves (m)}");
   add_service("get_local_data", &ArmaturePose::get_local_data)
       .doc("{joint: position, ..., timestamp: simulated seconds}");
+  declare_output_stream("joint_state", [this] { return get_local_data(); });
 }
 
 std::vector<std::string> ArmaturePose::get_joints() const { return joints_.names(); }

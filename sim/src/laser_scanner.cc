@@ -60,6 +60,7 @@ LaserScanner::LaserScanner(ComponentContext& c) : SimComponent(c.name(), c.sim()
   add_service("get_local_data", &LaserScanner::get_local_data)
       .doc("range_list (m, laser_range when nothing is hit) and point_list ([x, y, z] in the sensor frame, "
            "[0, 0, 0] when nothing is hit), one per ray");
+  declare_output_stream("laser_scan", [this] { return get_local_data(); });
   // a settable number, checked as add_number_property does, then the rays rebuilt
   auto number = [this](const std::string& name, double& value, double low, double high, const std::string& unit) {
     add_property(

@@ -81,6 +81,7 @@ MjcfSensors::MjcfSensors(ComponentContext& c) : SimComponent(c.name(), c.sim()) 
   add_property("count", [this] { return json(sensors_.size()); });
   add_service("get_local_data", &MjcfSensors::get_local_data)
       .doc("Every sensor's value {name: number or array} and the simulated time they describe (timestamp)");
+  declare_output_stream("sensors", [this] { return get_local_data(); });
 }
 
 void MjcfSensors::on_model_changed(const ModelRemap& remap) {

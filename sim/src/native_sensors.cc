@@ -84,6 +84,7 @@ Imu::Imu(ComponentContext& c)
   add_service("get_local_data", &Imu::get_local_data)
       .doc("angular_velocity (rad/s), linear_acceleration (m/s², gravity included) and magnetic_field in the "
            "sensor frame");
+  declare_output_stream("imu", [this] { return get_local_data(); });
 }
 
 void Imu::on_model_changed(const ModelRemap& remap) {
@@ -125,6 +126,7 @@ Odometry::Odometry(ComponentContext& c) : SimComponent(c.name(), c.sim()), frame
                                            : "x, y, z, yaw, pitch, roll since start; vx, vy, vz, wz, wy, wx in the "
                                              "sensor frame");
   add_property("level", [this] { return json(level_name_); });
+  declare_output_stream("odometry", [this] { return get_local_data(); });
 }
 
 void Odometry::relative_pose(Eigen::Vector3d& position, Eigen::Vector3d& rpy) const {
@@ -200,6 +202,7 @@ Proximity::Proximity(ComponentContext& c)
   }
   add_service("get_local_data", &Proximity::get_local_data)
       .doc("near_objects: {name: distance (m)} of the tracked objects within range of the sensor");
+  declare_output_stream("proximity", [this] { return get_local_data(); });
   add_service("set_range", &Proximity::set_range, {"range"}).doc("The detection range, metres");
   add_service("set_tracked_tag", &Proximity::set_tracked_tag, {"tag"})
       .doc("What is tracked: 'Robot_Tag' (the other robots) or the start of top-level body names");

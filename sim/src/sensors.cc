@@ -5,6 +5,7 @@ namespace simgate::sim {
 Pose::Pose(ComponentContext& c) : SimComponent(c.name(), c.sim()), body_(c.body()) {
   add_service("get_local_data", &Pose::get_local_data)
       .doc("Position (x, y, z metres) and orientation (roll, pitch, yaw radians) in the world frame");
+  declare_output_stream("pose", [this] { return get_local_data(); });
 }
 
 json Pose::get_local_data() const {

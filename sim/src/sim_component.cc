@@ -1,5 +1,6 @@
 #include "simgate/sim/sim_component.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "simgate/core/errors.h"
@@ -120,6 +121,28 @@ bool in_subtree(const mjModel* m, int body, int root) {
   for (int b = body;; b = m->body_parentid[b]) {
     if (b == root) return true;
     if (b == 0) return false;
+  }
+}
+
+double command_number(const json& command, const std::string& key, std::optional<double> fallback) {
+  auto it = command.find(key);
+  if (it == command.end()) {
+    if (fallback) return *fallback;
+    throw ServiceError("the command has no '" + key + "'", Failure::bad_arguments, {{"parameter", key}});
+  }
+  if (!it->is_number())
+    throw ServiceError(key + ": expected a number, found " + describe_json(*it), Failure::bad_arguments,
+                       {{"parameter", key}});
+  return it->get<double>();
+}
+
+void require_command_keys(const json& command, const std::vector<std::string>& keys) {
+  for (auto it = command.begin(); it != command.end(); ++it) {
+    if (it.key() == "timestamp" || std::find(keys.begin(), keys.end(), it.key()) != keys.end()) continue;
+    std::string expected;
+    for (const auto& k : keys) expected += (expected.empty() ? "" : ", ") + k;
+    throw ServiceError("the command has an unknown key '" + it.key() + "' (expected " + expected + ")",
+                       Failure::bad_arguments, {{"parameter", it.key()}});
   }
 }
 

@@ -100,6 +100,7 @@ const char* to_string(RunState state) {
 Simulation::Simulation(Model model, SimulationOptions options)
     : model_(std::move(model)),
       gate_(std::make_shared<SimulationGate>()),
+      streams_(std::make_shared<StreamHub>(gate_)),
       spawn_allowed_dirs_(std::move(options.spawn_allowed_dirs)) {
   if (options.timestep) {
     if (!(*options.timestep > 0) || !std::isfinite(*options.timestep))
@@ -156,6 +157,7 @@ bool Simulation::remove_component(const std::string& name, const std::string& re
   auto it = std::find_if(entries_.begin(), entries_.end(), [&](const auto& e) { return e->component->name() == name; });
   if (it == entries_.end()) return false;
   for (const auto& manager : managers_) manager->unregister_component(name, reason);
+  streams_->remove(name);
   // what still runs on the component without a manager knowing (none in practice)
   AsyncSlot& slot = *(*it)->component->async_slot();
   const Outcome failed = Outcome::failed(Failure::service_error, reason);
@@ -182,6 +184,7 @@ std::vector<std::string> Simulation::robot_names() const {
 
 void Simulation::add_request_manager(std::shared_ptr<RequestManager> manager, std::string transport) {
   manager->set_gate(gate_);
+  manager->set_streams(streams_, transport);
   managers_.push_back(std::move(manager));
   manager_names_.push_back(std::move(transport));
 }
@@ -211,6 +214,13 @@ std::size_t Simulation::process_requests() {
     for (auto& task : tasks) task();
   }
   std::size_t handled = tasks.size();
+  if (streams_->turn_wanted()) {
+    // commands that waited for the lock, and first samples for new subscribers (a paused
+    // simulation takes no step that would give them)
+    std::lock_guard lock(*gate_);
+    handled += streams_->apply_commands();
+    streams_->publish_due(state_time_);
+  }
   for (auto& manager : managers_) handled += manager->process();
   return handled;
 }
@@ -247,6 +257,8 @@ void Simulation::step() {
     if (m()->opt.integrator == mjINT_RK4 && state_time_ != d()->time) forward();
   }
   steps_.fetch_add(1, std::memory_order_relaxed);
+  // the streams due: samples of the state this step leaves
+  streams_->publish_due(state_time_);
 }
 
 void Simulation::fail_component(ComponentEntry& entry, const std::string& what, const std::string& reason) {

@@ -1,5 +1,7 @@
 #include "simgate/sim/supervision.h"
 
+#include <algorithm>
+
 #include "simgate/core/call_context.h"
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
@@ -18,8 +20,19 @@ json service_names(const Component& c) {
   return names;
 }
 
-// The caller's side of the mapping (call_context.h): a component its transport serves.
-bool visible(const ComponentEntry& e) { return caller_serves(e.component->name()); }
+// The caller's transport: the name the configuration gives it, or "" outside a request.
+std::string caller_transport() {
+  const CallContext* context = CallContext::current();
+  return context ? context->manager().transport_name() : std::string();
+}
+
+// Whether the caller sees the stream `info`: outside a request everything, else the streams
+// its own transport carries.
+bool stream_visible(const StreamInfo& info) {
+  if (!CallContext::current()) return true;
+  const std::string transport = caller_transport();
+  return std::find(info.transports.begin(), info.transports.end(), transport) != info.transports.end();
+}
 }  // namespace
 
 SupervisionServices::SupervisionServices(Simulation& sim) : Component("simulation"), sim_(sim) {
@@ -29,6 +42,9 @@ SupervisionServices::SupervisionServices(Simulation& sim) : Component("simulatio
       .doc("Robots with the components this transport serves and their services (what pymorse reads at connect)");
   add_service("list_services", &SupervisionServices::list_services)
       .doc("The services of every component this transport serves, with their parameters and transports");
+  add_service("get_stream_statistics", &SupervisionServices::get_stream_statistics)
+      .doc("Each data stream this transport carries: direction, frequency, samples, subscribers, samples dropped "
+           "for slow subscribers, commands applied, replaced and refused");
   add_service("reset_objects", &SupervisionServices::reset_objects).doc("Restore every object's initial pose (simulated time goes on)");
   add_service("activate", &SupervisionServices::activate, {"component_name"})
       .doc("Resume the default action of a component this transport serves");
@@ -57,6 +73,15 @@ void SupervisionServices::interrupt() {
   const auto hook = interrupt_hooks_.find(running.substr(running.find('.') + 1));
   if (hook != interrupt_hooks_.end()) hook->second();
   Component::interrupt();
+}
+
+bool SupervisionServices::visible(const ComponentEntry& e) const {
+  // the caller's side of the mapping (call_context.h): a component its transport serves, or
+  // one whose data stream it carries
+  if (caller_serves(e.component->name())) return true;
+  if (!e.component->stream()) return false;
+  const auto info = sim_.streams().find(e.component->name(), caller_transport());
+  return info.has_value();
 }
 
 bool SupervisionServices::robot_visible(const ComponentEntry& robot) const {
@@ -92,19 +117,60 @@ json SupervisionServices::details() const {
     for (const auto& c : sim_.components()) {
       if (c->robot != name || !visible(*c)) continue;
       json component{{"type", c->type}};
-      // services only where a transport serves them and the caller may call some; no
-      // stream_interfaces (no datastreams)
-      if (!c->interfaces.empty()) {
+      // services only where a transport serves them and the caller may call some
+      if (!c->interfaces.empty() && caller_serves(c->component->name())) {
         if (json services = service_names(*c->component); !services.empty()) {
           component["services"] = std::move(services);
           component["service_interfaces"] = c->interfaces;
         }
       }
+      // MORSE's [[datastream class, "IN" | "OUT"]], one per transport that carries the stream
+      if (json streams = stream_interfaces(c->component->name()); !streams.empty())
+        component["stream_interfaces"] = std::move(streams);
       robot["components"][c->component->name()] = std::move(component);
     }
     robots.push_back(std::move(robot));
   }
   return {{"robots", std::move(robots)}, {"environment", sim_.model().source()}};
+}
+
+json SupervisionServices::stream_interfaces(const std::string& component) const {
+  json out = json::array();
+  if (!sim_.find(component) || !sim_.find(component)->component->stream()) return out;
+  for (const auto& info : sim_.streams().statistics()) {
+    if (info.info.component != component || !stream_visible(info.info)) continue;
+    for (const auto& t : info.info.transports) {
+      const RequestManager* manager = sim_.request_manager(t);
+      out.push_back({manager ? manager->datastream_class(info.info.direction) : "simgate." + t,
+                     to_string(info.info.direction)});
+    }
+  }
+  return out;
+}
+
+json SupervisionServices::get_stream_statistics() const {
+  json out = json::array();
+  for (const auto& s : sim_.streams().statistics()) {
+    if (!stream_visible(s.info)) continue;
+    json entry{{"component", s.info.component},
+               {"direction", to_string(s.info.direction)},
+               {"kind", s.info.kind},
+               {"transports", s.info.transports}};
+    if (s.info.direction == StreamDirection::out) {
+      entry["frequency"] = s.info.frequency;
+      entry["samples"] = s.samples;
+      entry["subscribers"] = s.subscribers;
+      entry["dropped"] = s.dropped;
+    } else {
+      entry["fields"] = s.info.fields;
+      entry["commands"] = s.commands;
+      entry["replaced"] = s.replaced;
+      entry["refused"] = s.refused;
+      if (!s.last_refusal.empty()) entry["last_refusal"] = s.last_refusal;
+    }
+    out.push_back(std::move(entry));
+  }
+  return out;
 }
 
 json SupervisionServices::list_services() const {

@@ -64,6 +64,8 @@ json TimeServices::statistics() const {
           {"overruns", s.overruns},
           {"bad_states", s.bad_states},
           {"recent_realtime_factor", s.recent_factor},
+          {"stream_samples", sim_.streams().total_samples()},
+          {"stream_samples_dropped", sim_.streams().total_dropped()},
           {"state", to_string(sim_.run_state())}};
 }
 

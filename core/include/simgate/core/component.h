@@ -16,16 +16,45 @@
 // each call takes its own Completion and runs beside the others and beside the slot's
 // request. The component keeps the completions, finishes each one through it, and drops
 // one when it is done() (cancelled by its client, or ended at shutdown).
+//
+// Data streams (MORSE's datastreams): a sensor declares an output stream (declare_output_stream:
+// a function that reads one sample, its get_local_data), an actuator an input stream
+// (declare_input_stream: a function that applies one command, MORSE's local_data a client
+// writes). The configuration says which transports carry a component's stream and how often
+// (its `frequency`); StreamHub (streams.h) runs them. One stream per component, as in MORSE.
 #ifndef SIMGATE_CORE_COMPONENT_H_
 #define SIMGATE_CORE_COMPONENT_H_
 
+#include <cstdint>
+#include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "simgate/core/service.h"
 
 namespace simgate {
+
+// Which way a stream's data flows: out of the simulation (a sensor's samples) or in (an
+// actuator's commands). MORSE's words on the wire: "OUT", "IN".
+enum class StreamDirection : std::uint8_t { out, in };
+const char* to_string(StreamDirection direction);
+
+// A component's stream, as it declares it.
+struct StreamDeclaration {
+  StreamDirection direction = StreamDirection::out;
+  // What the data is: "pose", "odometry", "imu", "joint_state", "laser_scan", "velocity"...
+  // A transport with typed messages (DDS) picks its type by it; any other is carried as JSON.
+  std::string kind;
+  // out: reads one sample (the component's get_local_data), under the simulation lock.
+  std::function<json()> produce;
+  // in: applies one command (a JSON object, MORSE's local_data), under the simulation lock;
+  // throws ServiceError to refuse it (the message says what was wrong).
+  std::function<void(const json&)> apply;
+  // in: the keys a command takes, for introspection and docs ({"v", "w"}).
+  std::vector<std::string> fields;
+};
 
 class Component {
  public:
@@ -64,6 +93,8 @@ class Component {
   const std::vector<std::shared_ptr<Service>>& services() const { return services_; }
   // The slot shared by this component's async services.
   const std::shared_ptr<AsyncSlot>& async_slot() const { return slot_; }
+  // Its stream, or null when it declared none.
+  const StreamDeclaration* stream() const { return stream_ ? &*stream_ : nullptr; }
 
  protected:
   // add_service("set_speed", &MotionVW::set_speed, {"v", "w"}).doc("...");
@@ -78,6 +109,13 @@ class Component {
   ServiceBuilder add_async_service(std::string name, F fn, std::vector<Param> params = {}) {
     return add(std::move(name), std::move(fn), std::move(params), true);
   }
+  // A sensor's stream: `produce` reads one sample (usually get_local_data).
+  //   declare_output_stream("pose", [this] { return get_local_data(); });
+  void declare_output_stream(std::string kind, std::function<json()> produce);
+  // An actuator's stream: `apply` takes one command object with the keys `fields`.
+  //   declare_input_stream("velocity", {"v", "w"}, [this](const json& c) { ... });
+  void declare_input_stream(std::string kind, std::vector<std::string> fields,
+                            std::function<void(const json&)> apply);
 
  private:
   template <class F>
@@ -97,6 +135,7 @@ class Component {
   std::string name_;                                // full component name
   std::shared_ptr<AsyncSlot> slot_;                 // the one running async request
   std::vector<std::shared_ptr<Service>> services_;  // registration order
+  std::optional<StreamDeclaration> stream_;         // its stream, if it has one
 };
 
 }  // namespace simgate

@@ -34,7 +34,7 @@
 
 #include "simgate/core/request_manager.h"
 
-#define SIMGATE_PLUGIN_ABI_VERSION 6u
+#define SIMGATE_PLUGIN_ABI_VERSION 7u
 
 #define SIMGATE_STRINGIFY_(x) #x
 #define SIMGATE_STRINGIFY(x) SIMGATE_STRINGIFY_(x)

@@ -67,6 +67,7 @@
 #include "simgate/core/service.h"
 #include "simgate/core/service_access.h"
 #include "simgate/core/status.h"
+#include "simgate/core/streams.h"
 #include "simgate/core/simulation_gate.h"
 
 namespace simgate {
@@ -183,6 +184,17 @@ class RequestManager {
   // own). Before start().
   void set_gate(std::shared_ptr<SimulationGate> gate);
   const std::shared_ptr<SimulationGate>& gate() const { return gate_; }
+
+  // The simulation's data streams and the name this manager's transport has in the
+  // configuration (what StreamHub::streams(transport) and subscribe() take). Before start();
+  // without it the transport carries no stream.
+  void set_streams(std::shared_ptr<StreamHub> hub, std::string transport);
+  const std::shared_ptr<StreamHub>& stream_hub() const { return stream_hub_; }
+  const std::string& transport_name() const { return transport_name_; }
+  // What `simulation details` names this transport's datastreams by (MORSE's
+  // stream_interfaces: the datastream class). Default: "simgate.<transport>.publisher" for
+  // output streams, ".reader" for input ones; the socket transport answers MORSE's classes.
+  virtual std::string datastream_class(StreamDirection direction) const;
 
   // ---- life cycle (host thread) ----
 
@@ -362,6 +374,8 @@ class RequestManager {
   // thread before it serves anything, read wherever outcomes are produced
   std::atomic<std::thread::id> delivery_thread_{};
   std::shared_ptr<SimulationGate> gate_;   // wake-up and simulation lock, shared with the loop
+  std::shared_ptr<StreamHub> stream_hub_;  // the simulation's streams (null: none)
+  std::string transport_name_;             // the configuration's name of this transport
   mutable std::mutex table_mutex_;         // guards services_, slots_ and access_
   // component -> service name -> service
   std::unordered_map<std::string, std::unordered_map<std::string, std::shared_ptr<Service>>> services_;

@@ -6,6 +6,9 @@
 //   transports  {name: {plugin?, options?, allow?, deny?}}
 //   robots      [{name, type?, body?, options?, components?: [{name, type, body?, options?}]}]
 //   services    {"default": [transports], "<component or glob>": [transports]}
+//   streams     {"default": [transports], "<component or glob>": [transports]}: which
+//               transports carry a component's data stream (none without it); a component's
+//               "frequency" (Hz) sets its output stream's rate
 //   log_level   "trace" | "debug" | "info" | "warning" | "error" | "off"
 //   requests    {max_wait_ms?: the longest any request waits for its reply, 0 = no limit}
 // parse_deployment() checks the structure (types, names, unknown keys, the mapping against
@@ -53,6 +56,7 @@ struct ComponentConfig {
   std::string body;       // MuJoCo body
   json options;           // type-specific options (object)
   std::string path;       // "robots[0].components[1]"
+  std::optional<double> frequency;  // its output stream's samples per simulated second (MORSE's frequency)
 };
 
 struct RobotConfig {
@@ -80,6 +84,8 @@ struct Deployment {
   bool has_services = false;             // a "services" section exists
   std::vector<ServiceRule> rules;        // exact names and globs
   std::optional<std::vector<std::string>> default_transports;  // "default"
+  std::vector<ServiceRule> stream_rules;  // "streams": exact names and globs
+  std::optional<std::vector<std::string>> default_stream_transports;  // "streams"."default"
   std::optional<std::string> log_level;  // validated level name
   // "requests": {"max_wait_ms": N}: the longest any request of any transport waits for its
   // reply (RequestManager::set_max_wait); zero = no limit
@@ -92,6 +98,9 @@ struct Deployment {
   std::vector<std::string> component_names() const;
   // The transports that serve `component` (see the mapping rules above).
   std::vector<std::string> transports_for(const std::string& component) const;
+  // The transports that carry `component`'s stream: the "streams" section, matched as
+  // "services" is; without one, none.
+  std::vector<std::string> streams_for(const std::string& component) const;
 };
 
 // Validates and converts a parsed document. `base_dir` resolves relative paths.

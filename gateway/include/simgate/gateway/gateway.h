@@ -84,6 +84,9 @@ class Gateway {
   void add_generic_components(RobotConfig& r);
   // Each records its errors and goes on with the next robot, component or transport.
   void build_components(ConfigErrors& errors);
+  // The components' data streams the "streams" section asks for (a component named there
+  // that has none is an error; a frequency on one without an output stream a warning).
+  void add_streams(ConfigErrors& errors);
   void load_plugins(ConfigErrors& errors);
   // Adds warnings for components clients need that no transport serves, and those of
   // warn_about_access_lists().

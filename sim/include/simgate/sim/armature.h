@@ -114,6 +114,8 @@ class Armature : public SimComponent {
   // joints) or an object {joint: value}.
   void set_rotations(const json& rotations);
   void set_translations(const json& translations);
+  // The input stream's command: {joint: position}, each in its joint's unit.
+  void set_positions(const json& positions);
 
   // ---- async services (completed from default_action) ----
   void rotate(const std::string& joint, double rotation, std::optional<double> speed);

@@ -117,6 +117,9 @@ class Teleport : public SimComponent {
   explicit Teleport(ComponentContext& context);
   void translate(double x, double y, double z);
   void rotate(double roll, double pitch, double yaw);
+  // The input stream's command: an absolute pose {x, y, z, roll, pitch, yaw} (a position
+  // missing keeps the current one, an angle missing is 0).
+  void place(const json& command);
   void on_model_changed(const ModelRemap& remap) override {
     body_ = remap.body_of(body_), free_joint_ = remap.joint_of(free_joint_);
   }

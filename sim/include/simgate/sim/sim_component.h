@@ -25,6 +25,7 @@
 #define SIMGATE_SIM_SIM_COMPONENT_H_
 
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -114,6 +115,15 @@ bool in_subtree(const mjModel* m, int body, int root);
 // Simulation::forward() (what sensors read next is of the moved body, at the current time).
 void set_free_body_pose(Simulation& sim, int free_joint, const Eigen::Vector3d& position,
                         const Eigen::Quaterniond& orientation);
+
+// Reading a command of an input stream (Component::declare_input_stream): the number under
+// `key`, or `fallback` when it is absent; absent without a fallback, or not a number, is a
+// ServiceError (bad_arguments) naming the key.
+double command_number(const json& command, const std::string& key, std::optional<double> fallback = std::nullopt);
+// Refuses a command with a key other than `keys` (and "timestamp", which samples carry, so
+// that a sample read from one stream can be written to another): a misspelt key must not
+// be ignored.
+void require_command_keys(const json& command, const std::vector<std::string>& keys);
 
 // Linear (m/s) and angular (rad/s, counter-clockwise) velocity commands for a ground robot.
 class DifferentialDrive {

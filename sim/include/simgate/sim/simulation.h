@@ -67,6 +67,7 @@
 #include "simgate/core/component.h"
 #include "simgate/core/request_manager.h"
 #include "simgate/core/simulation_gate.h"
+#include "simgate/core/streams.h"
 #include "simgate/sim/model.h"
 #include "simgate/sim/model_remap.h"
 
@@ -172,6 +173,11 @@ class Simulation {
   // The simulation processes `manager` every step and shares its gate with it.
   void add_request_manager(std::shared_ptr<RequestManager> manager, std::string transport);
   const std::shared_ptr<SimulationGate>& gate() const { return gate_; }
+  // The data streams (streams.h): the components' streams are added by whoever builds the
+  // simulation (the gateway, from the configuration); each step publishes what is due, each
+  // turn applies the commands that waited. Every request manager gets it.
+  StreamHub& streams() { return *streams_; }
+  const StreamHub& streams() const { return *streams_; }
   const std::vector<std::shared_ptr<RequestManager>>& request_managers() const { return managers_; }
   // The manager added as `transport`, or null.
   const RequestManager* request_manager(const std::string& transport) const;
@@ -302,6 +308,7 @@ class Simulation {
   std::uint64_t window_steps_ = 0;                           // steps_ at the window's start
   std::atomic<double> recent_factor_{0};                     // measured over the last window
   std::shared_ptr<SimulationGate> gate_;                     // shared with every manager
+  std::shared_ptr<StreamHub> streams_;                       // the data streams, shared with every manager
   std::mutex soon_mutex_;                                    // guards soon_
   std::vector<std::function<void()>> soon_;                  // run_soon tasks, in order
   std::vector<std::unique_ptr<ComponentEntry>> entries_;     // every component, in order

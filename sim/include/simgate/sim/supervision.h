@@ -42,6 +42,8 @@ class SupervisionServices : public Component {
   std::vector<std::string> list_robots() const;
   json details() const;
   json list_services() const;
+  // Each data stream the caller's transport carries, with its counters (streams.h).
+  json get_stream_statistics() const;
   std::string reset_objects();
   void activate(const std::string& component_name);
   void deactivate(const std::string& component_name);
@@ -74,6 +76,12 @@ class SupervisionServices : public Component {
   void set_active(const std::string& component_name, bool active);
   // Whether the caller sees the robot: it serves the robot or one of its components.
   bool robot_visible(const ComponentEntry& robot) const;
+  // A component the caller's transport serves, or whose stream it carries (outside a
+  // request: every component).
+  bool visible(const ComponentEntry& e) const;
+  // `details`' stream_interfaces of `component`: [[datastream class, "IN" | "OUT"], ...]
+  // for the transports that carry its stream and the caller sees.
+  json stream_interfaces(const std::string& component) const;
   json body_tree(int body) const;
 
   Simulation& sim_;                                               // supervised

@@ -1,0 +1,225 @@
+// simgate/core/streams.h — data streams: sensors' samples out, actuators' commands in,
+// carried by any transport (MORSE's datastreams).
+//
+// Terms:
+//  - stream: a component's StreamDeclaration (component.h) as the configuration set it up:
+//    the transports that carry it and, for an output stream, its frequency in samples per
+//    simulated second (MORSE's `frequency`).
+//  - sample: what an output stream's component gives at one moment (its get_local_data),
+//    stamped with a sequence number and the simulated time. Produced once, shared by every
+//    subscriber; its JSON text is written once, by the first transport that needs it.
+//  - subscription: one subscriber's queue of samples (a socket connection to a stream port,
+//    a JSON-RPC client's subscribe, a DDS writer). It keeps the latest `capacity` samples:
+//    a subscriber that falls behind loses its oldest ones, counted (dropped()), and logged
+//    once; the simulation and the other subscribers never wait for it.
+//  - command: what a client writes to an input stream (a JSON object). The latest wins: a
+//    command not yet applied when a newer one comes is replaced (counted).
+//
+// The StreamHub runs every stream of one simulation. The simulation calls publish_due()
+// after each step (a sample for each output stream that has subscribers and is due by its
+// frequency, plus a first one for each new subscriber, so that a client of a paused
+// simulation is not left waiting) and apply_commands() on each of its turns. Transports
+// find their streams with streams(transport), subscribe to output streams and publish to
+// input streams; they never touch a component.
+//
+// Threads: add(), remove(), publish_due() and apply_commands() under the simulation lock
+// (or before the transports start). Everything else is thread-safe: transports call it from
+// their own threads. A subscription's `wake` is called on the thread that holds the
+// simulation lock, once each time its queue goes from empty to not empty: it must only post
+// to the transport's thread (asio::post, a DDS guard condition).
+#ifndef SIMGATE_CORE_STREAMS_H_
+#define SIMGATE_CORE_STREAMS_H_
+
+#include <atomic>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "simgate/core/component.h"
+#include "simgate/core/simulation_gate.h"
+
+namespace simgate {
+
+// What a transport knows of a stream.
+struct StreamInfo {
+  std::string component;                // "robot.pose"
+  StreamDirection direction = StreamDirection::out;
+  std::string kind;                     // StreamDeclaration::kind: "pose", "velocity"...
+  std::string type;                     // the component's type name ("pose", "motion_vw")
+  double frequency = 0;                 // out: samples per simulated second; in: 0
+  std::vector<std::string> fields;      // in: the keys a command takes
+  std::vector<std::string> transports;  // the transports that carry it
+};
+
+// One sample of an output stream. Immutable once published; shared by every subscriber.
+class StreamSample {
+ public:
+  StreamSample(std::uint64_t seq, double time, json data) : seq_(seq), time_(time), data_(std::move(data)) {}
+  std::uint64_t seq() const { return seq_; }   // 1, 2, ... per stream
+  double time() const { return time_; }         // simulated seconds the data is of
+  const json& data() const { return data_; }    // the component's sample
+  // data() as compact JSON text, written once (by whichever thread asks first).
+  const std::string& text() const;
+
+ private:
+  std::uint64_t seq_;
+  double time_;
+  json data_;
+  mutable std::once_flag text_once_;
+  mutable std::string text_;
+};
+using SamplePtr = std::shared_ptr<const StreamSample>;
+
+// How a transport subscribes.
+struct SubscriberOptions {
+  std::size_t capacity = 16;     // samples kept; older ones are dropped (at least 1)
+  std::string label;             // who it is, for the log: "socket client #3 (127.0.0.1:5123)"
+  std::function<void()> wake;    // the queue went from empty to not empty (see above)
+};
+
+// One subscriber's queue.
+class StreamSubscription {
+ public:
+  StreamSubscription(std::string component, SubscriberOptions options)
+      : component_(std::move(component)), options_(std::move(options)) {}
+
+  const std::string& component() const { return component_; }
+  const std::string& label() const { return options_.label; }
+  // Appends every queued sample to `out`, oldest first; returns how many. The next sample
+  // wakes the subscriber again.
+  std::size_t take(std::vector<SamplePtr>& out);
+  // The transport lost `n` samples itself (a client whose socket is full): counted with the
+  // queue's own drops.
+  void note_dropped(std::uint64_t n);
+  std::uint64_t dropped() const;
+  std::uint64_t delivered() const;  // samples queued for it so far (dropped ones included)
+  // The stream is gone (its component deleted) or the hub unsubscribed it: nothing more
+  // comes. The transport ends the subscription on its side (closes a stream connection).
+  bool closed() const;
+
+ private:
+  friend class StreamHub;
+  // Hub side (under the simulation lock): queues `sample`; returns true when the
+  // subscriber must be woken.
+  bool push(const SamplePtr& sample);
+  void close();
+  void wake() const {
+    if (options_.wake) options_.wake();
+  }
+  // Logs the first drop (once per subscriber).
+  void log_first_drop();
+
+  const std::string component_;
+  const SubscriberOptions options_;
+  mutable std::mutex mutex_;     // guards what follows
+  std::deque<SamplePtr> queue_;  // oldest first
+  bool wake_armed_ = true;       // the next push wakes
+  bool closed_ = false;
+  bool drop_logged_ = false;
+  bool wants_first_ = true;      // gets a sample at the hub's next turn, due or not
+  std::uint64_t dropped_ = 0;
+  std::uint64_t delivered_ = 0;
+};
+
+// Counters of one stream (simulation get_stream_statistics).
+struct StreamStatistics {
+  StreamInfo info;
+  std::uint64_t samples = 0;       // out: samples produced
+  std::size_t subscribers = 0;     // out: subscriptions now
+  std::uint64_t dropped = 0;       // out: samples subscribers lost, now and before
+  std::uint64_t commands = 0;      // in: commands applied
+  std::uint64_t replaced = 0;      // in: commands replaced by a newer one before being applied
+  std::uint64_t refused = 0;       // in: commands the component refused
+  std::string last_refusal;        // in: why the last refused one was
+};
+
+// What publish() did with a command.
+struct PublishResult {
+  bool ok = false;     // applied, or queued for the simulation's next turn
+  bool applied = false;  // applied at once (the simulation lock was free)
+  std::string error;   // why not (no such input stream here, not an object, the component refused it)
+};
+
+class StreamHub {
+ public:
+  // `gate`: the simulation's (signalled when a command or a subscriber waits for its turn).
+  explicit StreamHub(std::shared_ptr<SimulationGate> gate);
+  ~StreamHub();
+  StreamHub(const StreamHub&) = delete;
+  StreamHub& operator=(const StreamHub&) = delete;
+
+  // Default frequency of an output stream (MORSE's: the game engine's 60 Hz).
+  static constexpr double k_default_frequency = 60;
+
+  // ---- setting up (before the transports start, or under the simulation lock) ----
+
+  // The stream `component` declared (Component::stream(); throws std::invalid_argument when
+  // it declared none, or it is added already), carried by `transports`, at `frequency`
+  // (out; > 0). `type`: the component's type name. The component must outlive it (remove()).
+  void add(const Component& component, std::string type, std::vector<std::string> transports,
+           double frequency = k_default_frequency);
+  // The component leaves (deleted at run time): its subscriptions close (their subscribers
+  // are woken to see it) and its pending command is dropped. False when it had no stream.
+  bool remove(const std::string& component);
+
+  // ---- the simulation (under the lock) ----
+
+  // After a step, `time` being the simulated time the components' data is of: one sample
+  // for each output stream that is due and has subscribers, to all of them; one for each
+  // new subscriber of a stream that is not due, to it alone. Also on a turn without a step
+  // (new subscribers of a paused simulation get theirs).
+  void publish_due(double time);
+  // Applies the commands waiting; returns how many. The loop's turn: apply_commands(), then
+  // publish_due() (in that order: this clears turn_wanted()).
+  std::size_t apply_commands();
+  // Whether a turn without a step has anything to do: a command waits, or a new subscriber
+  // its first sample (a cheap look, for the loop's every turn).
+  bool turn_wanted() const { return turn_wanted_.load(std::memory_order_acquire); }
+
+  // ---- transports (any thread) ----
+
+  // The streams `transport` carries, in the order they were added.
+  std::vector<StreamInfo> streams(std::string_view transport) const;
+  // One stream, if `transport` carries it.
+  std::optional<StreamInfo> find(std::string_view component, std::string_view transport) const;
+  // Subscribes to the output stream of `component` carried by `transport`; null when there
+  // is none. The first sample comes at the simulation's next turn.
+  std::shared_ptr<StreamSubscription> subscribe(std::string_view component, std::string_view transport,
+                                                SubscriberOptions options);
+  // Ends a subscription (idempotent; null is ignored).
+  void unsubscribe(const std::shared_ptr<StreamSubscription>& subscription);
+  // A command for the input stream of `component` carried by `transport`: applied at once
+  // when the simulation lock is free (so that `error` says whether the component took it),
+  // else kept for the simulation's next turn (replacing one not yet applied).
+  PublishResult publish(std::string_view component, std::string_view transport, json command);
+
+  // Every stream's counters (those `transport` carries; empty: all).
+  std::vector<StreamStatistics> statistics(std::string_view transport = {}) const;
+  // Totals over every stream: samples produced, samples dropped.
+  std::uint64_t total_samples() const;
+  std::uint64_t total_dropped() const;
+
+ private:
+  struct Stream;
+  Stream* find_locked(std::string_view component);
+  const Stream* find_locked(std::string_view component) const;
+  // Applies `command` to `stream` (under the simulation lock); the refusal, if any.
+  std::string apply(Stream& stream, const json& command);
+
+  std::shared_ptr<SimulationGate> gate_;
+  mutable std::mutex mutex_;                      // guards streams_ and their subscribers, commands
+  std::vector<std::unique_ptr<Stream>> streams_;  // in the order added
+  std::uint64_t dropped_by_removed_ = 0;          // drops of subscriptions that ended
+  std::atomic<std::size_t> subscribers_{0};       // subscriptions now, all streams (publish_due's fast path)
+  std::atomic<bool> turn_wanted_{false};          // see turn_wanted()
+};
+
+}  // namespace simgate
+
+#endif  // SIMGATE_CORE_STREAMS_H_

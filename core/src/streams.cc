@@ -1,0 +1,376 @@
+#include "simgate/core/streams.h"
+
+#include <algorithm>
+#include <stdexcept>
+
+#include "simgate/core/errors.h"
+#include "simgate/core/log.h"
+
+namespace simgate {
+
+// ---------------------------------------------------------------------------------------
+// StreamSample
+
+const std::string& StreamSample::text() const {
+  std::call_once(text_once_, [this] { text_ = data_.dump(-1, ' ', false, json::error_handler_t::replace); });
+  return text_;
+}
+
+// ---------------------------------------------------------------------------------------
+// StreamSubscription
+
+std::size_t StreamSubscription::take(std::vector<SamplePtr>& out) {
+  std::lock_guard lock(mutex_);
+  const std::size_t n = queue_.size();
+  for (auto& sample : queue_) out.push_back(std::move(sample));
+  queue_.clear();
+  wake_armed_ = true;
+  return n;
+}
+
+void StreamSubscription::note_dropped(std::uint64_t n) {
+  if (n == 0) return;
+  {
+    std::lock_guard lock(mutex_);
+    dropped_ += n;
+  }
+  log_first_drop();
+}
+
+std::uint64_t StreamSubscription::dropped() const {
+  std::lock_guard lock(mutex_);
+  return dropped_;
+}
+
+std::uint64_t StreamSubscription::delivered() const {
+  std::lock_guard lock(mutex_);
+  return delivered_;
+}
+
+bool StreamSubscription::closed() const {
+  std::lock_guard lock(mutex_);
+  return closed_;
+}
+
+bool StreamSubscription::push(const SamplePtr& sample) {
+  bool dropped_one = false;
+  bool wake = false;
+  {
+    std::lock_guard lock(mutex_);
+    if (closed_) return false;
+    if (queue_.size() >= std::max<std::size_t>(1, options_.capacity)) {
+      queue_.pop_front();
+      ++dropped_;
+      dropped_one = true;
+    }
+    queue_.push_back(sample);
+    ++delivered_;
+    wake = wake_armed_;
+    wake_armed_ = false;
+  }
+  if (dropped_one) log_first_drop();
+  return wake;
+}
+
+void StreamSubscription::close() {
+  std::lock_guard lock(mutex_);
+  closed_ = true;
+  wake_armed_ = false;
+}
+
+void StreamSubscription::log_first_drop() {
+  {
+    std::lock_guard lock(mutex_);
+    if (drop_logged_) return;
+    drop_logged_ = true;
+  }
+  log::warning(component_, " stream: ", options_.label.empty() ? std::string("a subscriber") : options_.label,
+               " reads slower than samples come; its oldest samples are dropped (this is logged once; "
+               "simulation get_stream_statistics counts them)");
+}
+
+// ---------------------------------------------------------------------------------------
+// StreamHub
+
+struct StreamHub::Stream {
+  StreamInfo info;
+  std::function<json()> produce;            // out
+  std::function<void(const json&)> apply;   // in
+  double period = 0;                        // out: simulated seconds between samples
+  double next_due = 0;                      // out: when the next sample is due
+  double last_time = 0;                     // out: time of the last sample
+  std::uint64_t seq = 0;                    // out: samples produced
+  std::vector<std::shared_ptr<StreamSubscription>> subscribers;
+  bool first_wanted = false;                // a subscriber waits for its first sample
+  std::uint64_t dropped_before = 0;         // drops of subscriptions that ended
+  std::optional<json> pending;              // in: the command waiting for the lock
+  std::uint64_t commands = 0;
+  std::uint64_t replaced = 0;
+  std::uint64_t refused = 0;
+  std::string last_refusal;
+  bool refusal_logged = false;
+  bool failure_logged = false;              // out: produce() threw once
+};
+
+StreamHub::StreamHub(std::shared_ptr<SimulationGate> gate) : gate_(std::move(gate)) {}
+StreamHub::~StreamHub() = default;
+
+StreamHub::Stream* StreamHub::find_locked(std::string_view component) {
+  for (auto& s : streams_)
+    if (s->info.component == component) return s.get();
+  return nullptr;
+}
+
+const StreamHub::Stream* StreamHub::find_locked(std::string_view component) const {
+  for (const auto& s : streams_)
+    if (s->info.component == component) return s.get();
+  return nullptr;
+}
+
+namespace {
+bool carries(const StreamInfo& info, std::string_view transport) {
+  return std::find(info.transports.begin(), info.transports.end(), transport) != info.transports.end();
+}
+}  // namespace
+
+void StreamHub::add(const Component& component, std::string type, std::vector<std::string> transports,
+                    double frequency) {
+  const StreamDeclaration* declaration = component.stream();
+  if (!declaration) throw std::invalid_argument(component.name() + " has no stream");
+  if (declaration->direction == StreamDirection::out && !(frequency > 0))
+    throw std::invalid_argument(component.name() + ": a stream's frequency must be > 0");
+  auto stream = std::make_unique<Stream>();
+  stream->info.component = component.name();
+  stream->info.direction = declaration->direction;
+  stream->info.kind = declaration->kind;
+  stream->info.type = std::move(type);
+  stream->info.fields = declaration->fields;
+  stream->info.transports = std::move(transports);
+  if (declaration->direction == StreamDirection::out) {
+    stream->info.frequency = frequency;
+    stream->period = 1.0 / frequency;
+    stream->produce = declaration->produce;
+  } else {
+    stream->apply = declaration->apply;
+  }
+  std::lock_guard lock(mutex_);
+  if (find_locked(component.name())) throw std::invalid_argument(component.name() + " has a stream already");
+  streams_.push_back(std::move(stream));
+}
+
+bool StreamHub::remove(const std::string& component) {
+  std::vector<std::shared_ptr<StreamSubscription>> closed;
+  {
+    std::lock_guard lock(mutex_);
+    auto it = std::find_if(streams_.begin(), streams_.end(),
+                           [&](const auto& s) { return s->info.component == component; });
+    if (it == streams_.end()) return false;
+    closed = std::move((*it)->subscribers);
+    subscribers_.fetch_sub(closed.size(), std::memory_order_release);
+    for (const auto& s : closed) dropped_by_removed_ += s->dropped();
+    dropped_by_removed_ += (*it)->dropped_before;
+    streams_.erase(it);
+  }
+  for (const auto& s : closed) {
+    s->close();
+    s->wake();
+  }
+  return true;
+}
+
+void StreamHub::publish_due(double time) {
+  if (subscribers_.load(std::memory_order_acquire) == 0) return;
+  std::vector<std::shared_ptr<StreamSubscription>> to_wake;
+  {
+    std::lock_guard lock(mutex_);
+    for (auto& stream_ptr : streams_) {
+      Stream& s = *stream_ptr;
+      if (s.subscribers.empty() || !s.produce) continue;
+      if (time < s.last_time) s.next_due = time;  // the clock went back (reset): start again from now
+      const bool due = time + 1e-9 >= s.next_due;
+      if (!due && !s.first_wanted) continue;
+      json data;
+      try {
+        data = s.produce();
+      } catch (const std::exception& e) {
+        // no sample this time; the next try is at the next due time
+        if (!s.failure_logged) {
+          s.failure_logged = true;
+          log::warning(s.info.component, " stream: reading a sample failed (logged once): ", e.what());
+        }
+        s.first_wanted = false;
+        s.next_due = time + s.period;
+        continue;
+      }
+      auto sample = std::make_shared<const StreamSample>(++s.seq, time, std::move(data));
+      s.last_time = time;
+      for (auto& sub : s.subscribers) {
+        bool first = false;
+        {
+          std::lock_guard sub_lock(sub->mutex_);
+          first = sub->wants_first_;
+          sub->wants_first_ = false;
+        }
+        if ((due || first) && sub->push(sample)) to_wake.push_back(sub);
+      }
+      s.first_wanted = false;
+      if (due) {
+        s.next_due += s.period;
+        if (s.next_due <= time) s.next_due = time + s.period;
+      }
+    }
+  }
+  for (const auto& sub : to_wake) sub->wake();
+}
+
+std::string StreamHub::apply(Stream& stream, const json& command) {
+  try {
+    stream.apply(command);
+    ++stream.commands;
+    return {};
+  } catch (const std::exception& e) {
+    ++stream.refused;
+    stream.last_refusal = e.what();
+    if (!stream.refusal_logged) {
+      stream.refusal_logged = true;
+      log::warning(stream.info.component, " stream: a command was refused (logged once; simulation "
+                   "get_stream_statistics counts them): ", e.what());
+    }
+    return e.what();
+  }
+}
+
+std::size_t StreamHub::apply_commands() {
+  std::lock_guard lock(mutex_);
+  turn_wanted_.store(false, std::memory_order_relaxed);
+  std::size_t n = 0;
+  for (auto& s : streams_) {
+    if (!s->pending) continue;
+    json command = std::move(*s->pending);
+    s->pending.reset();
+    apply(*s, command);
+    ++n;
+  }
+  return n;
+}
+
+std::vector<StreamInfo> StreamHub::streams(std::string_view transport) const {
+  std::lock_guard lock(mutex_);
+  std::vector<StreamInfo> out;
+  for (const auto& s : streams_)
+    if (carries(s->info, transport)) out.push_back(s->info);
+  return out;
+}
+
+std::optional<StreamInfo> StreamHub::find(std::string_view component, std::string_view transport) const {
+  std::lock_guard lock(mutex_);
+  const Stream* s = find_locked(component);
+  if (!s || !carries(s->info, transport)) return std::nullopt;
+  return s->info;
+}
+
+std::shared_ptr<StreamSubscription> StreamHub::subscribe(std::string_view component, std::string_view transport,
+                                                         SubscriberOptions options) {
+  std::shared_ptr<StreamSubscription> subscription;
+  {
+    std::lock_guard lock(mutex_);
+    Stream* s = find_locked(component);
+    if (!s || s->info.direction != StreamDirection::out || !carries(s->info, transport)) return nullptr;
+    subscription = std::make_shared<StreamSubscription>(std::string(component), std::move(options));
+    s->subscribers.push_back(subscription);
+    s->first_wanted = true;
+    subscribers_.fetch_add(1, std::memory_order_release);
+    turn_wanted_.store(true, std::memory_order_release);
+  }
+  gate_->signal();  // the simulation's next turn gives it its first sample
+  return subscription;
+}
+
+void StreamHub::unsubscribe(const std::shared_ptr<StreamSubscription>& subscription) {
+  if (!subscription) return;
+  {
+    std::lock_guard lock(mutex_);
+    if (Stream* s = find_locked(subscription->component())) {
+      auto it = std::find(s->subscribers.begin(), s->subscribers.end(), subscription);
+      if (it != s->subscribers.end()) {
+        s->dropped_before += subscription->dropped();
+        s->subscribers.erase(it);
+        subscribers_.fetch_sub(1, std::memory_order_release);
+      }
+    }
+  }
+  subscription->close();
+}
+
+PublishResult StreamHub::publish(std::string_view component, std::string_view transport, json command) {
+  PublishResult result;
+  if (!command.is_object()) {
+    result.error = "a command of " + std::string(component) + " is a JSON object, found " +
+                   std::string(command.type_name());
+    return result;
+  }
+  std::unique_lock gate(*gate_, std::try_to_lock);
+  std::lock_guard lock(mutex_);
+  Stream* s = find_locked(component);
+  if (!s || s->info.direction != StreamDirection::in || !carries(s->info, transport)) {
+    result.error = "no input stream '" + std::string(component) + "' here";
+    return result;
+  }
+  if (gate.owns_lock()) {
+    // the lock is ours: what waited goes first, then this one, and the component says at once
+    if (s->pending) {
+      json older = std::move(*s->pending);
+      s->pending.reset();
+      apply(*s, older);
+    }
+    result.error = apply(*s, command);
+    result.ok = result.error.empty();
+    result.applied = result.ok;
+    return result;
+  }
+  if (s->pending) ++s->replaced;
+  s->pending = std::move(command);
+  turn_wanted_.store(true, std::memory_order_release);
+  result.ok = true;
+  gate_->signal();
+  return result;
+}
+
+std::vector<StreamStatistics> StreamHub::statistics(std::string_view transport) const {
+  std::lock_guard lock(mutex_);
+  std::vector<StreamStatistics> out;
+  for (const auto& s : streams_) {
+    if (!transport.empty() && !carries(s->info, transport)) continue;
+    StreamStatistics st;
+    st.info = s->info;
+    st.samples = s->seq;
+    st.subscribers = s->subscribers.size();
+    st.dropped = s->dropped_before;
+    for (const auto& sub : s->subscribers) st.dropped += sub->dropped();
+    st.commands = s->commands;
+    st.replaced = s->replaced;
+    st.refused = s->refused;
+    st.last_refusal = s->last_refusal;
+    out.push_back(std::move(st));
+  }
+  return out;
+}
+
+std::uint64_t StreamHub::total_samples() const {
+  std::lock_guard lock(mutex_);
+  std::uint64_t n = 0;
+  for (const auto& s : streams_) n += s->seq;
+  return n;
+}
+
+std::uint64_t StreamHub::total_dropped() const {
+  std::lock_guard lock(mutex_);
+  std::uint64_t n = dropped_by_removed_;
+  for (const auto& s : streams_) {
+    n += s->dropped_before;
+    for (const auto& sub : s->subscribers) n += sub->dropped();
+  }
+  return n;
+}
+
+}  // namespace simgate
