@@ -80,7 +80,7 @@ void Gateway::add_generic_components(RobotConfig& r) {
     const std::string name = r.robot.name + "." + type;
     // a component of that name in the config wins (other options, or another type)
     if (std::any_of(r.components.begin(), r.components.end(), [&](const auto& c) { return c.name == name; })) continue;
-    r.components.push_back(ComponentConfig{name, type, r.robot.body, json::object(), r.robot.path + ".generated." + type});
+    r.components.push_back(ComponentConfig{name, type, r.robot.body, json::object(), r.robot.path + ".generated." + type, std::nullopt});
   }
   if (r.components.empty())
     warnings_.push_back(r.robot.path + ": robot '" + r.robot.name + "' of type mjcf has no hinge or slide joint, " +

@@ -28,9 +28,6 @@ constexpr std::size_t k_read_bytes = 64 * 1024;
 // a reply buffer larger than this is not kept for the next reply
 constexpr std::size_t k_kept_line_bytes = 256 * 1024;
 
-json result_response(const json& id, json result) {
-  return {{"jsonrpc", "2.0"}, {"id", id}, {"result", std::move(result)}};
-}
 }  // namespace
 
 // ---------------------------------------------------------------------------------------
@@ -47,6 +44,8 @@ Options Options::parse(const json& options) {
   Options o;
   o.tcp = kit::TcpOptions::read(config, defaults, "jsonrpc");
   o.max_depth = static_cast<std::size_t>(config.get_int("max_depth", static_cast<long long>(o.max_depth), 2, 10000));
+  o.stream_queue = static_cast<std::size_t>(
+      config.get_int("stream_queue", static_cast<long long>(o.stream_queue), 1, 100000));
   o.tcp.finish(config);
   return o;
 }
@@ -113,6 +112,7 @@ void JsonRpcRequestManager::shutdown_io() {
   stopping_ = true;
   listener_.close();
   close_all();
+  end_subscriptions(nullptr);
 }
 
 void JsonRpcRequestManager::accept(tcp::socket socket) {
@@ -159,6 +159,7 @@ void JsonRpcRequestManager::on_input_ended(kit::LineConnection& connection) {
 
 void JsonRpcRequestManager::on_closed(kit::LineConnection& connection) {
   forget(connection);
+  end_subscriptions(&static_cast<Session&>(connection));
   if (stopping_ || !options_.tcp.cancel_on_disconnect) return;
   // the client is gone: its pending calls end (their replies are dropped)
   for (RequestId id : static_cast<Session&>(connection).pending_calls()) cancel(id);
@@ -297,10 +298,14 @@ void JsonRpcRequestManager::dispatch(const std::shared_ptr<Session>& session, Re
       reply(to, std::nullopt);  // answered -32006 by reply(): the document is not even built
       return;
     }
-    reply(to, result_response(to.id, openrpc_document(descriptors(), k_version,
-                                                      global_policy() == GlobalPolicy::preempt ? "preempt" : "reject")));
+    json document = openrpc_document(descriptors(), k_version,
+                                     global_policy() == GlobalPolicy::preempt ? "preempt" : "reject");
+    // the data streams of this transport (rpc.subscribe, rpc.publish): an OpenRPC extension
+    document["x-simgate-streams"] = stream_list();
+    reply(to, result_response(to.id, std::move(document)));
     return;
   }
+  if (reserved && method.starts_with("rpc.") && handle_stream_method(session, method, request.params, to)) return;
   std::string component, service;
   if ((reserved && method.starts_with("rpc.")) || !split_method(method, component, service)) {
     const std::string reason = method.rfind("rpc.", 0) == 0
@@ -535,4 +540,4 @@ SIMGATE_TRANSPORT_PLUGIN(jsonrpc, simgate::jsonrpc::JsonRpcRequestManager, "0.1.
                          "max_message_bytes", "max_depth", "max_in_flight", "max_unsent_bytes",
                          "max_connections", "io_spin_us", "on_disconnect", "global_policy",
                          "idle_timeout_s", "idle_evict_s", "line_timeout_s", "max_buffered_bytes",
-                         "max_connections_per_peer", "auth", "progress_interval_ms")
+                         "max_connections_per_peer", "auth", "progress_interval_ms", "stream_queue")

@@ -6,7 +6,9 @@
 // ran; async calls answer when they complete, out of order, matched by id. Reserved
 // methods: rpc.discover (OpenRPC document of the services served here), rpc.cancel
 // {"id": X} (cancels the caller's own pending call), rpc.login {"token"} (with the "auth"
-// option, clients that must authenticate (kit/auth.h) get -32005 for anything else first). Wire details and the error table:
+// option, clients that must authenticate (kit/auth.h) get -32005 for anything else first),
+// and the data streams' rpc.streams, rpc.subscribe, rpc.unsubscribe, rpc.publish
+// (jsonrpc_streams.cc; samples come as rpc.sample notifications). Wire details and the error table:
 // docs/transports/jsonrpc.md.
 //
 // Terms:
@@ -61,6 +63,7 @@ struct Options {
   // batch included), max_unsent_bytes 16 MiB, max_connections 512, max_in_flight 1024
   kit::TcpOptions tcp;
   std::size_t max_depth = 128;  // ("max_depth") bracket nesting of one message
+  std::size_t stream_queue = 16;  // ("stream_queue") samples a subscription keeps for a slow client
 
   // Reads and checks `options`; unknown keys are errors (ConfigError naming the key).
   static Options parse(const json& options);
@@ -145,6 +148,29 @@ class JsonRpcRequestManager : public RequestManager, private kit::LineServer {
   void reply(ReplyTo& to, std::optional<json> response);
   void shutdown_io();
 
+  // ---- data streams (jsonrpc_streams.cc)
+  // One subscription of a connection to an output stream.
+  struct StreamSub {
+    std::uint64_t id = 0;                               // what rpc.subscribe answered
+    std::weak_ptr<Session> session;                     // its connection
+    std::shared_ptr<StreamSubscription> subscription;  // the core's queue
+  };
+  // The streams this transport carries, as rpc.streams lists them.
+  json stream_list() const;
+  // rpc.streams, rpc.subscribe, rpc.unsubscribe, rpc.publish; false for any other method.
+  bool handle_stream_method(const std::shared_ptr<Session>& session, const std::string& method, const json& params,
+                            ReplyTo& to);
+  void subscribe(const std::shared_ptr<Session>& session, const json& params, ReplyTo& to);
+  bool unsubscribe(Session& session, std::uint64_t id);
+  void publish(const json& params, ReplyTo& to);
+  // A subscription has samples (the thread that holds the simulation lock): one post per burst.
+  void wake_streams();
+  // Sends every subscription's samples as rpc.sample notifications; ends those whose
+  // component was deleted (rpc.unsubscribed) or whose connection is gone.
+  void drain_streams();
+  // Ends the subscriptions of `session` (and those of connections gone); null: all.
+  void end_subscriptions(const Session* session);
+
   Options options_;                                  // as parsed
   boost::asio::io_context io_;                       // all sockets; declared first, destroyed last
   kit::TcpListener listener_;                        // the listening socket, bound in the constructor
@@ -160,6 +186,10 @@ class JsonRpcRequestManager : public RequestManager, private kit::LineServer {
   std::vector<std::pair<RequestId, Call>> to_submit_;
   std::size_t to_submit_count_ = 0;
   std::string line_;                                 // a response being built (I/O thread; capacity reused)
+  std::vector<StreamSub> stream_subs_;               // every connection's subscriptions (I/O thread)
+  std::uint64_t next_subscription_ = 1;              // rpc.subscribe's numbers (I/O thread)
+  std::vector<SamplePtr> samples_;                   // drain_streams' scratch (I/O thread)
+  std::atomic<bool> streams_woken_{false};           // a drain_streams is posted
 };
 
 }  // namespace simgate::jsonrpc

@@ -121,6 +121,10 @@ CallOptions read_meta(const json& meta, std::string& why) {
   return options;
 }
 
+json result_response(const json& id, json result) {
+  return {{"jsonrpc", "2.0"}, {"id", id}, {"result", std::move(result)}};
+}
+
 json error_response(const json& id, int error_code, std::string message, json data) {
   json error = {{"code", error_code}, {"message", std::move(message)}};
   if (!data.is_null()) error["data"] = std::move(data);

@@ -52,6 +52,8 @@ std::string dump(const json& value);
 
 // {"jsonrpc":"2.0","id":<id>,"error":{"code","message","data"?}} as a JSON value.
 json error_response(const json& id, int error_code, std::string message, json data = nullptr);
+// A success response: {"jsonrpc": "2.0", "id": id, "result": result}.
+json result_response(const json& id, json result);
 // The response (result or error) for a finished call.
 json outcome_response(const json& id, const Outcome& outcome, const std::string& method);
 

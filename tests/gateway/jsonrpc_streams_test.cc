@@ -1,0 +1,192 @@
+// JSON-RPC data streams, end to end: a gateway with the demo robot whose pose and motion
+// stream on the jsonrpc transport; clients list, subscribe, read rpc.sample notifications,
+// unsubscribe and publish commands over a real socket.
+#include <gtest/gtest.h>
+
+#include <chrono>
+
+#include "in_process_gateway.h"
+
+namespace simgate::gateway::testing {
+namespace {
+
+using namespace std::chrono_literals;
+
+json streams_config(bool paused = false) {
+  json c = demo_config();
+  c["transports"]["jsonrpc"] = {{"plugin", "jsonrpc"}, {"options", {{"port", 0}}}};
+  c["services"]["simulation"] = {"socket", "jsonrpc"};
+  c["streams"] = {{"robot.pose", {"jsonrpc"}}, {"robot.motion", {"jsonrpc"}}};
+  c["robots"][0]["components"][3]["frequency"] = 50;  // robot.pose
+  c["scene"]["start_paused"] = paused;
+  return c;
+}
+
+// The entry of `component` in simulation.get_stream_statistics' answer.
+json stream_of(const json& stats, const std::string& component) {
+  for (const auto& s : stats)
+    if (s["component"] == component) return s;
+  return nullptr;
+}
+
+// A JSON-RPC client that keeps the notifications it reads while it waits for a response.
+class StreamClient {
+ public:
+  explicit StreamClient(int port) : line_(port) {}
+  // Sends one call; returns its response (null on timeout), keeping notifications.
+  json call(int id, const std::string& method, json params = nullptr) {
+    json request{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}};
+    if (!params.is_null()) request["params"] = std::move(params);
+    line_.send(request.dump() + "\n");
+    for (int lines = 0; lines < 10000; ++lines) {
+      auto line = line_.read_line();
+      if (!line) return nullptr;
+      json message = json::parse(*line);
+      if (message.contains("id") && message["id"] == id) return message;
+      notifications.push_back(std::move(message));
+    }
+    return nullptr;
+  }
+  // The next rpc.sample (from those kept, then from the socket); null on timeout.
+  json next_sample(std::chrono::milliseconds timeout = 20s) {
+    for (int lines = 0; lines < 10000; ++lines) {
+      json message;
+      if (!notifications.empty()) {
+        message = std::move(notifications.front());
+        notifications.erase(notifications.begin());
+      } else {
+        auto line = line_.read_line(timeout);
+        if (!line) return nullptr;
+        message = json::parse(*line);
+      }
+      if (message.value("method", "") == "rpc.sample") return message["params"];
+    }
+    return nullptr;
+  }
+  LineClient& line() { return line_; }
+  std::vector<json> notifications;
+
+ private:
+  LineClient line_;
+};
+
+TEST(JsonRpcStreamsTest, ListsItsStreamsInRpcStreamsAndDiscover) {
+  InProcessGateway g(streams_config());
+  StreamClient c(g.port("jsonrpc"));
+  json streams = c.call(1, "rpc.streams")["result"];
+  ASSERT_EQ(streams.size(), 2u) << streams.dump();
+  EXPECT_EQ(streams[0]["component"], "robot.motion");
+  EXPECT_EQ(streams[0]["direction"], "IN");
+  EXPECT_EQ(streams[0]["fields"], json({"v", "w"}));
+  EXPECT_EQ(streams[1]["component"], "robot.pose");
+  EXPECT_EQ(streams[1]["direction"], "OUT");
+  EXPECT_EQ(streams[1]["kind"], "pose");
+  EXPECT_EQ(streams[1]["frequency"], 50);
+  json discover = c.call(2, "rpc.discover")["result"];
+  EXPECT_EQ(discover["x-simgate-streams"], streams);
+}
+
+TEST(JsonRpcStreamsTest, SamplesComeAsNotificationsUntilUnsubscribed) {
+  InProcessGateway g(streams_config());
+  StreamClient c(g.port("jsonrpc"));
+  json subscribed = c.call(1, "rpc.subscribe", {{"component", "robot.pose"}});
+  ASSERT_TRUE(subscribed.contains("result")) << subscribed.dump();
+  const json id = subscribed["result"]["subscription"];
+  EXPECT_EQ(subscribed["result"]["stream"]["frequency"], 50);
+  // the same stream again on this connection is the same subscription
+  EXPECT_EQ(c.call(2, "rpc.subscribe", json::array({"robot.pose"}))["result"]["subscription"], id);
+  double last_time = -1;
+  std::uint64_t last_seq = 0;
+  for (int i = 0; i < 5; ++i) {
+    json sample = c.next_sample();
+    ASSERT_FALSE(sample.is_null());
+    EXPECT_EQ(sample["subscription"], id);
+    EXPECT_EQ(sample["component"], "robot.pose");
+    EXPECT_GT(sample["time"].get<double>(), last_time);
+    EXPECT_GT(sample["seq"].get<std::uint64_t>(), last_seq);
+    EXPECT_TRUE(sample["data"].contains("x") && sample["data"].contains("yaw")) << sample.dump();
+    EXPECT_EQ(sample["data"]["timestamp"], sample["time"]);
+    last_time = sample["time"];
+    last_seq = sample["seq"];
+  }
+  // 50 Hz in simulated time: 0.02 s apart once they flow
+  json a = c.next_sample(), b = c.next_sample();
+  EXPECT_NEAR(b["time"].get<double>() - a["time"].get<double>(), 0.02, 0.0021);
+  EXPECT_EQ(c.call(3, "rpc.unsubscribe", {{"subscription", id}})["result"], true);
+  EXPECT_EQ(c.call(4, "rpc.unsubscribe", json::array({id}))["result"], false);
+  // nothing after the answer (what came before it was sent before it)
+  c.notifications.clear();
+  EXPECT_TRUE(c.next_sample(300ms).is_null());
+}
+
+TEST(JsonRpcStreamsTest, APausedSimulationGivesANewSubscriberOneSample) {
+  InProcessGateway g(streams_config(/*paused=*/true));
+  StreamClient c(g.port("jsonrpc"));
+  ASSERT_TRUE(c.call(1, "rpc.subscribe", {{"component", "robot.pose"}}).contains("result"));
+  json sample = c.next_sample();
+  ASSERT_FALSE(sample.is_null());
+  EXPECT_EQ(sample["time"], 0);
+  EXPECT_TRUE(c.next_sample(300ms).is_null());  // time stands still: no more
+}
+
+TEST(JsonRpcStreamsTest, PublishedCommandsDriveTheRobot) {
+  InProcessGateway g(streams_config());
+  StreamClient c(g.port("jsonrpc"));
+  json published = c.call(1, "rpc.publish", {{"component", "robot.motion"}, {"data", {{"v", 1.0}, {"w", 0.0}}}});
+  ASSERT_TRUE(published.contains("result")) << published.dump();
+  EXPECT_TRUE(published["result"].contains("applied"));
+  ASSERT_TRUE(c.call(2, "rpc.subscribe", {{"component", "robot.pose"}}).contains("result"));
+  const double x0 = c.next_sample()["data"]["x"];
+  double x = x0;
+  for (int i = 0; i < 200 && x < x0 + 0.05; ++i) x = c.next_sample()["data"]["x"];
+  EXPECT_GT(x, x0 + 0.05);
+  // a command the component refuses, and one of a stream that is not there
+  json refused = c.call(3, "rpc.publish", json::array({"robot.motion", {{"v", 1.0}, {"speed", 2}}}));
+  EXPECT_EQ(refused["error"]["code"], -32602);
+  EXPECT_NE(refused["error"]["message"].get<std::string>().find("unknown key 'speed'"), std::string::npos)
+      << refused.dump();
+  json missing = c.call(4, "rpc.publish", {{"component", "robot.pose"}, {"data", {{"x", 1}}}});
+  EXPECT_EQ(missing["error"]["code"], -32602);
+  EXPECT_EQ(c.call(5, "rpc.publish", {{"component", "robot.motion"}})["error"]["code"], -32602);
+  // the counters say what happened
+  json stats = c.call(6, "simulation.get_stream_statistics")["result"];
+  ASSERT_EQ(stats.size(), 2u) << stats.dump();
+  json pose = stream_of(stats, "robot.pose"), motion = stream_of(stats, "robot.motion");
+  EXPECT_GT(pose["samples"].get<int>(), 0);
+  EXPECT_EQ(pose["subscribers"], 1);
+  EXPECT_EQ(motion["commands"], 1);
+  EXPECT_EQ(motion["refused"], 1);
+}
+
+TEST(JsonRpcStreamsTest, SubscribingToWhatIsNotThereSaysWhatIs) {
+  InProcessGateway g(streams_config());
+  StreamClient c(g.port("jsonrpc"));
+  json r = c.call(1, "rpc.subscribe", {{"component", "robot.motion"}});  // an input stream
+  EXPECT_EQ(r["error"]["code"], -32602);
+  EXPECT_EQ(r["error"]["data"]["streams"], json({"robot.pose"}));
+  EXPECT_EQ(c.call(2, "rpc.subscribe", json::object())["error"]["code"], -32602);
+  EXPECT_EQ(c.call(3, "rpc.unsubscribe", {{"subscription", "x"}})["error"]["code"], -32602);
+  // another transport's clients see none of it
+  LineClient socket(g.port("socket"));
+  EXPECT_EQ(payload(socket.request("1", "simulation get_stream_statistics")), json::array());
+}
+
+TEST(JsonRpcStreamsTest, AClientThatLeavesEndsItsSubscriptions) {
+  InProcessGateway g(streams_config());
+  {
+    StreamClient c(g.port("jsonrpc"));
+    ASSERT_TRUE(c.call(1, "rpc.subscribe", {{"component", "robot.pose"}}).contains("result"));
+    ASSERT_FALSE(c.next_sample().is_null());
+  }
+  StreamClient other(g.port("jsonrpc"));
+  json stats;
+  for (int i = 0; i < 200; ++i) {
+    stats = other.call(i, "simulation.get_stream_statistics")["result"];
+    if (stream_of(stats, "robot.pose")["subscribers"] == 0) break;
+    std::this_thread::sleep_for(10ms);
+  }
+  EXPECT_EQ(stream_of(stats, "robot.pose")["subscribers"], 0) << stats.dump();
+}
+
+}  // namespace
+}  // namespace simgate::gateway::testing
