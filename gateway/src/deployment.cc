@@ -104,7 +104,8 @@ ComponentConfig parse_component(ConfigObject& o, const std::string& full_prefix,
   c.body = o.get_string("body", default_body.empty() ? name : default_body);
   auto options = o.get_object("options");
   c.options = options ? options->raw() : json::object();
-  if (o.has("frequency")) c.frequency = o.get_number("frequency", StreamHub::k_default_frequency, 1e-3, 1e6);
+  // a component's stream rate (robots have no stream: the key is theirs to refuse)
+  if (!full_prefix.empty() && o.has("frequency")) c.frequency = o.get_number("frequency", StreamHub::k_default_frequency, 1e-3, 1e6);
   return c;
 }
 
