@@ -85,6 +85,34 @@ int cmd_call(const CallArgs& args) {
   return 1;
 }
 
+namespace {
+
+// The data streams this transport carries (`simulation get_stream_statistics`, where the
+// client may call it), one line each, with its port where the transport has one per stream
+// (the socket transport's `simulation get_all_stream_ports`).
+void print_streams(client::Client& client, std::chrono::milliseconds timeout) {
+  Outcome streams = client.call("simulation", "get_stream_statistics", json::array(), timeout);
+  if (streams.status != Status::success || !streams.value || !streams.value->is_array() || streams.value->empty())
+    return;
+  Outcome ports = client.call("simulation", "get_all_stream_ports", json::array(), timeout);
+  for (const auto& s : *streams.value) {
+    const std::string component = s.value("component", std::string("?"));
+    std::cout << component << " stream " << s.value("direction", std::string("?")) << " "
+              << s.value("kind", std::string("?"));
+    if (s.contains("frequency")) std::cout << ", " << s["frequency"].dump() << " Hz";
+    if (s.contains("fields")) {
+      std::string fields;
+      for (const auto& f : s["fields"]) fields += (fields.empty() ? "" : ", ") + f.get<std::string>();
+      std::cout << " {" << fields << "}";
+    }
+    if (ports.status == Status::success && ports.value && ports.value->contains(component))
+      std::cout << ", port " << (*ports.value)[component].dump();
+    std::cout << "\n";
+  }
+}
+
+}  // namespace
+
 int cmd_list(const ListArgs& args) {
   std::chrono::milliseconds timeout{};
   auto client = connect(args.client, timeout);
@@ -105,6 +133,7 @@ int cmd_list(const ListArgs& args) {
     if (!doc.empty()) std::cout << " — " << doc;
     std::cout << "\n";
   }
+  print_streams(*client, timeout);
   return 0;
 }
 
