@@ -48,6 +48,11 @@
 //   progress issue #20's progress target: 100 concurrent JSON-RPC calls getting progress
 //            reports at 1 kHz each, the real-time factor against the same calls without
 //            progress, in alternating rounds for --duration seconds (progress_bench.cc).
+//   streams  issue #21's stream targets: --calls components (50) streaming at 100 Hz on the
+//            socket, JSON-RPC and (--dds) DDS transports at once, every stream read by a
+//            client: the real-time factor and CPU against the same gateway without streams,
+//            the latency from a step's end to a socket subscriber's read and the sync round
+//            trip of the same run (stream_bench.cc).
 //
 // The probe costs one clock read per step; both modes run on the main thread, unpinned.
 #include <poll.h>
@@ -71,6 +76,7 @@
 
 #include "bench_util.h"
 #include "progress_bench.h"
+#include "stream_bench.h"
 #include "simgate/core/component.h"
 #include "simgate/core/log.h"
 #include "simgate/gateway/deployment.h"
@@ -628,18 +634,23 @@ int main(int argc, char** argv) {
   bool until_stdin = false;
   double round_s = 1;
   int calls = 100;
-  app.add_option("--mode", mode, "bare, sleep, gateway, laser, humanoid, snapshot, spawn or progress (see the source's header)")
+  bool dds = false;
+  app.add_option("--mode", mode,
+                 "bare, sleep, gateway, laser, humanoid, snapshot, spawn, progress or streams (see the source's header)")
       ->required()
-      ->check(CLI::IsMember({"bare", "sleep", "gateway", "laser", "humanoid", "snapshot", "spawn", "progress"}));
+      ->check(CLI::IsMember({"bare", "sleep", "gateway", "laser", "humanoid", "snapshot", "spawn", "progress", "streams"}));
+  app.add_flag("--dds", dds, "streams: the DDS transport streams too");
   app.add_option("--round", round_s, "progress: simulated seconds each call runs")->capture_default_str();
-  app.add_option("--calls", calls, "progress: concurrent calls, one connection each")->capture_default_str();
+  app.add_option("--calls", calls, "progress: concurrent calls, one connection each; streams: components")
+      ->capture_default_str();
   app.add_option("--mjcf", mjcf, "bare, sleep, snapshot, spawn, progress: the MJCF scene; humanoid: another humanoid.xml");
   app.add_option("--config", config, "gateway: the deployment file");
   app.add_option("--realtime-factor", factor, "gateway: pacing (0 = as fast as possible)")->capture_default_str();
   app.add_option("--duration", duration, "seconds to run")->capture_default_str();
   app.add_flag("--until-stdin-closes", until_stdin, "gateway: run until standard input closes instead");
   if (auto code = simgate::bench::parse_command_line(app, argc, argv)) return *code;
-  if ((mode == "bare" || mode == "sleep" || mode == "snapshot" || mode == "spawn" || mode == "progress") &&
+  if ((mode == "bare" || mode == "sleep" || mode == "snapshot" || mode == "spawn" || mode == "progress" ||
+       mode == "streams") &&
       mjcf.empty()) {
     std::cerr << "simgate_bench_sim: --mode " << mode << " needs --mjcf PATH\n";
     return 2;
@@ -664,6 +675,8 @@ int main(int argc, char** argv) {
       out = run_spawn(mjcf, duration);
     } else if (mode == "progress") {
       out = simgate::bench::run_progress(mjcf, duration, round_s, calls);
+    } else if (mode == "streams") {
+      out = simgate::bench::run_streams(mjcf, duration, calls, 2000, dds);
     } else {
       out = run_gateway(config, factor, duration, until_stdin);
     }
