@@ -126,7 +126,10 @@ Odometry::Odometry(ComponentContext& c) : SimComponent(c.name(), c.sim()), frame
                                            : "x, y, z, yaw, pitch, roll since start; vx, vy, vz, wz, wy, wx in the "
                                              "sensor frame");
   add_property("level", [this] { return json(level_name_); });
-  declare_output_stream("odometry", [this] { return get_local_data(); });
+  // its samples' shape depends on the level: "odometry" is the integrated pose and twist
+  // (typed topics carry it), the other levels' differences are kinds of their own
+  declare_output_stream(level_ == Level::integrated ? "odometry" : "odometry_" + level_name_,
+                        [this] { return get_local_data(); });
 }
 
 void Odometry::relative_pose(Eigen::Vector3d& position, Eigen::Vector3d& rpy) const {
