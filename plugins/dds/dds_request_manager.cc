@@ -155,6 +155,10 @@ std::vector<std::string> DdsRequestManager::endpoints() const {
 
 void DdsRequestManager::start() {
   if (stopped_ || started_.exchange(true)) return;
+  // the data streams (issue #21), when the simulation has any for this transport
+  if (stream_hub() && !stream_hub()->streams(transport_name()).empty())
+    streams_ = std::make_unique<DdsStreams>(stream_hub(), transport_name(), participant_->handle(), publisher_,
+                                            subscriber_, waitset_, server_id_);
   thread_ = std::thread([this] { run(); });
 }
 
@@ -185,6 +189,7 @@ void DdsRequestManager::stop() {
       log::error("DDS transport: final replies not sent: ", e.what());
     }
   }
+  streams_.reset();  // unsubscribes; its entities go with the participant
   participant_.reset();
 }
 
@@ -211,6 +216,7 @@ void DdsRequestManager::run() {
   deliver_on_this_thread([this] { dds_set_guardcondition(guard_, true); });
   try {
     publish_catalog();
+    if (streams_) streams_->sync();
   } catch (const std::exception& e) {
     log::error("DDS transport: catalog not published: ", e.what());
   }
@@ -232,13 +238,15 @@ void DdsRequestManager::run() {
       log::error("DDS transport: waitset failed: ", retcode_text(n));
       break;
     }
-    bool requests = false, outcomes = false, writers = false;
+    bool requests = false, outcomes = false, writers = false, samples = n > k_slots, commands = n > k_slots;
     std::array<dds_entity_t, k_slots> readers;  // reply writers whose match changed
     std::size_t reader_count = 0;
     for (dds_return_t i = 0; i < std::min(n, k_slots); ++i) {
       requests |= triggered[i] == k_token_requests;
       outcomes |= triggered[i] == k_token_guard;
       writers |= triggered[i] == k_token_request_matched;
+      samples |= triggered[i] == DdsStreams::k_token_samples;
+      commands |= triggered[i] == DdsStreams::k_token_commands;
       if (triggered[i] > 0) readers[reader_count++] = static_cast<dds_entity_t>(triggered[i]);
     }
     try {
@@ -252,7 +260,12 @@ void DdsRequestManager::run() {
           if (auto it = reply_writers_.find(readers[i]); it != reply_writers_.end())
             refresh_reader_match(it->second, clients_.at(it->second));
       }
-      if (catalog_changed_.exchange(false)) publish_catalog();
+      if (catalog_changed_.exchange(false)) {
+        publish_catalog();
+        if (streams_) streams_->sync();  // a component deleted (or spawned) may take its stream along
+      }
+      if (streams_ && samples) streams_->write_samples();
+      if (streams_ && commands) streams_->take_commands();
       if (requests) take_requests();
       if (outcomes) {
         bool ignored;

@@ -16,6 +16,8 @@
 //    with ST_RUNNING, written by a second writer of the client's (created at its first such
 //    call), best effort and keep-last 1: a client that does not take them loses old ones
 //    and holds up nothing, its replies least of all.
+//  - Data streams (issue #21): sensors' samples and actuators' commands on topics of their
+//    own, and their catalog simgate_Streams: dds_streams.h.
 //  - Catalog topic (TRANSIENT_LOCAL): one CatalogEntry per served component, so a client
 //    that joins late still sees what it can call. Published anew when a component stops
 //    being served (on_services_changed: a robot deleted at run time), its entry disposed.
@@ -66,6 +68,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "dds_streams.h"
 #include "dds_support.h"
 #include "simgate/core/request_manager.h"
 
@@ -225,6 +228,7 @@ class DdsRequestManager : public RequestManager {
   dds_entity_t guard_ = 0;                   // raised by the sim thread and by stop()
   dds_entity_t read_condition_ = 0;          // requests available
   std::string server_id_;                    // our participant GUID, hex
+  std::unique_ptr<DdsStreams> streams_;      // the data streams (null: none carried)
   std::thread thread_;                       // the DDS thread
   std::atomic<bool> stopping_{false};        // asks the DDS thread to leave
   std::atomic<bool> stopped_{false};         // stop() ran

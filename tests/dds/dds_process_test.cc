@@ -1,6 +1,7 @@
 // DDS tests with more than one process:
 //  - a client process killed mid-call (no clean DDS goodbye): the server notices when its
 //    lease expires and cancels the client's async call;
+//  - data streams: the rover deployment on DDS, read and driven by the plain C stream client;
 //  - "two machines on one machine": the gateway in one network namespace, a client in
 //    another, joined by a veth pair; Cyclone bound to the veth interfaces, no multicast,
 //    nothing sent anywhere else. Needs root (skipped with a message otherwise).
@@ -11,6 +12,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -35,6 +37,7 @@ const char* const k_plugin = SIMGATE_TEST_PLUGIN_DIR "/libsimgate_transport_dds.
 const char* const k_probe = SIMGATE_BINARY_DIR "/bin/dds_probe_client";
 const char* const k_gateway = SIMGATE_BINARY_DIR "/bin/simgate";
 const char* const k_c_client = SIMGATE_BINARY_DIR "/bin/dds_c_client";
+const char* const k_stream_client = SIMGATE_BINARY_DIR "/bin/dds_stream_client";
 
 std::string read_file(const std::string& path) {
   std::ifstream in(path);
@@ -208,6 +211,122 @@ TEST(DdsProcessTest, PlainCClientSaysWhatItWaitsForAndGivesUp) {
       << out;
   EXPECT_NE(out.find("no simgate found within 10 s"), std::string::npos) << out;
   EXPECT_EQ(client.wait_exit(30s), 3);
+}
+
+// The rover deployment (config/rover.json) served over DDS alone, on loopback, its pose,
+// motion, odometry and proximity streamed on DDS; killed with the object.
+class RoverOnDds {
+ public:
+  RoverOnDds() {
+    json config = json::parse(read_file(SIMGATE_SOURCE_DIR "/config/rover.json"));
+    config["scene"]["mjcf"] = SIMGATE_SOURCE_DIR "/config/scenes/rover_room.xml";
+    config["transports"] = {{"dds", {{"plugin", "dds"}, {"options", server_options(test_partition())}}}};
+    config["services"] = {{"default", {"dds"}}};
+    config["streams"] = {{"rover.pose", {"dds"}}, {"rover.motion", {"dds"}}, {"rover.odometry", {"dds"}},
+                         {"rover.proximity", {"dds"}}};
+    dir_ = fs::path(SIMGATE_BINARY_DIR) / "tests" / "dds" / ("streams-" + std::to_string(getpid()));
+    fs::create_directories(dir_);
+    const std::string path = (dir_ / "deployment.json").string();
+    std::ofstream(path) << config.dump(2);
+    gateway_ = std::make_unique<Child>(std::vector<std::string>{k_gateway, "run", path, "--plugin-path", SIMGATE_TEST_PLUGIN_DIR});
+  }
+  ~RoverOnDds() {
+    gateway_->terminate();
+    fs::remove_all(dir_);
+  }
+  bool running() const { return gateway_->running(); }
+
+  // Runs the C stream client with `args` (after domain, partition, XML); its output, or
+  // "exit <code>" appended when it failed.
+  static std::string client(const std::vector<std::string>& args) {
+    std::vector<std::string> argv{k_stream_client, std::to_string(test_domain()), test_partition(),
+                                  read_file(SIMGATE_LOOPBACK_DDS_XML)};
+    argv.insert(argv.end(), args.begin(), args.end());
+    Child child(argv);
+    std::string out = child.read_until("\x04", 90s);  // to EOF
+    int code = child.wait_exit(30s);
+    return code == 0 ? out : out + "exit " + std::to_string(code);
+  }
+
+ private:
+  fs::path dir_;                    // its deployment file
+  std::unique_ptr<Child> gateway_;  // simgate run
+};
+
+// "seq time x y z yaw" lines -> rows of numbers.
+std::vector<std::vector<double>> rows(const std::string& text) {
+  std::vector<std::vector<double>> out;
+  std::istringstream lines(text);
+  for (std::string line; std::getline(lines, line);) {
+    std::istringstream fields(line);
+    std::vector<double> row;
+    for (double v; fields >> v;) row.push_back(v);
+    if (row.size() == 6) out.push_back(row);
+  }
+  return out;
+}
+
+TEST(DdsStreamsTest, PlainCClientReadsTypedPoseAndDrivesTheRoverWithVelocity) {
+  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  RoverOnDds rover;
+  ASSERT_TRUE(rover.running());
+
+  // the catalog names every topic with its type
+  std::string catalog = RoverOnDds::client({"catalog", "5"});
+  EXPECT_NE(catalog.find("simgate/rover/pose simgate::stream::Pose rover.pose"), std::string::npos) << catalog;
+  EXPECT_NE(catalog.find("simgate/rover/odometry simgate::stream::Odometry rover.odometry"), std::string::npos) << catalog;
+  EXPECT_NE(catalog.find("simgate/rover/proximity simgate::stream::JsonSample rover.proximity"), std::string::npos)
+      << catalog;
+  EXPECT_NE(catalog.find("simgate/rover/motion/cmd simgate::stream::Velocity rover.motion"), std::string::npos) << catalog;
+  EXPECT_NE(catalog.find("simgate/rover/motion/json simgate::stream::JsonCommand rover.motion"), std::string::npos)
+      << catalog;
+
+  // typed poses: seq and time increase, values plausible (the rover stands in its room)
+  std::string text = RoverOnDds::client({"pose", "simgate/rover/pose", "10"});
+  auto before = rows(text);
+  ASSERT_EQ(before.size(), 10u) << text;
+  for (std::size_t i = 1; i < before.size(); ++i) {
+    EXPECT_GT(before[i][0], before[i - 1][0]) << text;
+    EXPECT_GT(before[i][1], before[i - 1][1]) << text;
+  }
+  for (const auto& row : before) {
+    EXPECT_LT(std::abs(row[2]) + std::abs(row[3]) + std::abs(row[4]), 20.0) << text;
+    EXPECT_LE(std::abs(row[5]), 3.1416) << text;
+  }
+
+  // a Velocity command: the rover moves
+  ASSERT_EQ(RoverOnDds::client({"velocity", "simgate/rover/motion/cmd", "0.5", "0"}), "");
+  double moved = 0;
+  for (int attempt = 0; attempt < 20 && moved < 0.1; ++attempt) {
+    auto after = rows(RoverOnDds::client({"pose", "simgate/rover/pose", "5"}));
+    ASSERT_FALSE(after.empty());
+    EXPECT_GT(after.back()[0], before.back()[0]);
+    moved = std::hypot(after.back()[2] - before.front()[2], after.back()[3] - before.front()[3]);
+  }
+  EXPECT_GE(moved, 0.1);
+}
+
+TEST(DdsStreamsTest, AStreamOfAnotherKindArrivesAsJsonSample) {
+  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  RoverOnDds rover;
+  ASSERT_TRUE(rover.running());
+  std::string text = RoverOnDds::client({"json", "simgate/rover/proximity", "3"});
+  std::istringstream lines(text);
+  int count = 0;
+  for (std::string line; std::getline(lines, line); ++count) {
+    std::istringstream fields(line);
+    std::uint64_t seq = 0;
+    double time = -1;
+    std::string kind, rest;
+    fields >> seq >> time >> kind;
+    std::getline(fields, rest);
+    EXPECT_GT(seq, 0u) << line;
+    EXPECT_GE(time, 0) << line;
+    EXPECT_EQ(kind, "proximity") << line;
+    json sample = json::parse(rest, nullptr, false);
+    EXPECT_TRUE(sample.is_object()) << line;
+  }
+  EXPECT_EQ(count, 3) << text;
 }
 
 // Runs a command, returns its exit code.

@@ -1,0 +1,376 @@
+// The data streams over DDS: topic names, the typed samples (one writer function per kind),
+// the commands, the simgate_Streams catalog. Design: dds_streams.h, docs/transports/dds.md.
+#include "dds_streams.h"
+
+#include <stdexcept>
+
+#include "dds_support.h"
+#include "simgate/core/log.h"
+#include "simgate_streams.h"
+
+namespace simgate::dds {
+
+namespace {
+
+// Samples a subscription keeps: the DDS thread writes them as soon as it wakes, so a few
+// cover its scheduling hiccups; older ones are dropped (counted by the hub), never waited for.
+constexpr std::size_t k_subscription_capacity = 8;
+// Commands one dds_take returns at most.
+constexpr int k_take_batch = 16;
+
+dds_entity_t check(dds_entity_t rc, const std::string& what) {
+  if (rc < 0) throw std::runtime_error("DDS transport: cannot create " + what + ": " + retcode_text(rc));
+  return rc;
+}
+
+double number(const json& data, const char* key) { return data.at(key).get<double>(); }
+
+void triple(const json& data, const char* key, double (&out)[3]) {
+  const json& values = data.at(key);
+  for (int i = 0; i < 3; ++i) out[i] = values.at(i).get<double>();
+}
+
+// A writer function per typed kind: fills the struct from the sample (throws json::exception
+// when the sample is not of that shape) and writes it.
+using WriteFn = dds_return_t (*)(dds_entity_t writer, const std::string& component, const StreamSample& sample);
+
+dds_return_t write_pose(dds_entity_t writer, const std::string& component, const StreamSample& sample) {
+  const json& d = sample.data();
+  simgate_stream_Pose pose{};
+  pose.component = const_cast<char*>(component.c_str());
+  pose.seq = sample.seq();
+  pose.time = sample.time();
+  pose.x = number(d, "x"), pose.y = number(d, "y"), pose.z = number(d, "z");
+  pose.roll = number(d, "roll"), pose.pitch = number(d, "pitch"), pose.yaw = number(d, "yaw");
+  return dds_write(writer, &pose);
+}
+
+dds_return_t write_odometry(dds_entity_t writer, const std::string& component, const StreamSample& sample) {
+  const json& d = sample.data();
+  simgate_stream_Odometry odometry{};
+  odometry.component = const_cast<char*>(component.c_str());
+  odometry.seq = sample.seq();
+  odometry.time = sample.time();
+  odometry.x = number(d, "x"), odometry.y = number(d, "y"), odometry.z = number(d, "z");
+  odometry.roll = number(d, "roll"), odometry.pitch = number(d, "pitch"), odometry.yaw = number(d, "yaw");
+  odometry.vx = number(d, "vx"), odometry.vy = number(d, "vy"), odometry.vz = number(d, "vz");
+  odometry.wx = number(d, "wx"), odometry.wy = number(d, "wy"), odometry.wz = number(d, "wz");
+  return dds_write(writer, &odometry);
+}
+
+dds_return_t write_imu(dds_entity_t writer, const std::string& component, const StreamSample& sample) {
+  const json& d = sample.data();
+  simgate_stream_Imu imu{};
+  imu.component = const_cast<char*>(component.c_str());
+  imu.seq = sample.seq();
+  imu.time = sample.time();
+  triple(d, "angular_velocity", imu.angular_velocity);
+  triple(d, "linear_acceleration", imu.linear_acceleration);
+  triple(d, "magnetic_field", imu.magnetic_field);
+  return dds_write(writer, &imu);
+}
+
+dds_return_t write_joint_state(dds_entity_t writer, const std::string& component, const StreamSample& sample) {
+  // armature_pose: {joint: position, ..., "timestamp": t}
+  std::vector<char*> names;
+  std::vector<double> positions;
+  for (const auto& [key, value] : sample.data().items()) {
+    if (key == "timestamp") continue;
+    names.push_back(const_cast<char*>(key.c_str()));
+    positions.push_back(value.get<double>());
+  }
+  simgate_stream_JointState state{};
+  state.component = const_cast<char*>(component.c_str());
+  state.seq = sample.seq();
+  state.time = sample.time();
+  state.names = {static_cast<uint32_t>(names.size()), static_cast<uint32_t>(names.size()), names.data(), false};
+  state.positions = {static_cast<uint32_t>(positions.size()), static_cast<uint32_t>(positions.size()),
+                     positions.data(), false};
+  return dds_write(writer, &state);
+}
+
+dds_return_t write_laser_scan(dds_entity_t writer, const std::string& component, const StreamSample& sample) {
+  const json& d = sample.data();
+  std::vector<double> ranges;
+  for (const json& range : d.at("range_list")) ranges.push_back(range.get<double>());
+  std::vector<simgate_stream_Point> points;
+  for (const json& p : d.at("point_list"))
+    points.push_back({p.at(0).get<double>(), p.at(1).get<double>(), p.at(2).get<double>()});
+  simgate_stream_LaserScan scan{};
+  scan.component = const_cast<char*>(component.c_str());
+  scan.seq = sample.seq();
+  scan.time = sample.time();
+  scan.ranges = {static_cast<uint32_t>(ranges.size()), static_cast<uint32_t>(ranges.size()), ranges.data(), false};
+  scan.points = {static_cast<uint32_t>(points.size()), static_cast<uint32_t>(points.size()), points.data(), false};
+  return dds_write(writer, &scan);
+}
+
+// The type of an output stream's topic, by its kind.
+struct OutputType {
+  const char* kind;                          // StreamDeclaration::kind
+  const dds_topic_descriptor_t* descriptor;  // the IDL type
+  WriteFn write;                             // null: JsonSample
+};
+constexpr OutputType k_output_types[] = {
+    {"pose", &simgate_stream_Pose_desc, write_pose},
+    {"odometry", &simgate_stream_Odometry_desc, write_odometry},
+    {"imu", &simgate_stream_Imu_desc, write_imu},
+    {"joint_state", &simgate_stream_JointState_desc, write_joint_state},
+    {"laser_scan", &simgate_stream_LaserScan_desc, write_laser_scan},
+};
+constexpr OutputType k_json_output{"", &simgate_stream_JsonSample_desc, nullptr};
+
+const OutputType& output_type(const std::string& kind) {
+  for (const OutputType& type : k_output_types)
+    if (kind == type.kind) return type;
+  return k_json_output;
+}
+
+}  // namespace
+
+std::string topic_path(std::string_view component) {
+  std::string path = "simgate/";
+  for (char c : component) {
+    const bool plain = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_';
+    path += c == '.' ? '/' : plain ? c : '_';
+  }
+  return path;
+}
+
+struct DdsStreams::Output {
+  StreamInfo info;
+  std::string topic;                                 // its name
+  const OutputType* type = nullptr;                  // what it writes
+  dds_entity_t writer = 0;
+  std::shared_ptr<StreamSubscription> subscription;  // to the hub
+  bool shape_logged = false;                         // a sample not of the type's shape was logged
+};
+
+struct DdsStreams::Input {
+  StreamInfo info;
+  std::string json_topic;      // JsonCommand
+  std::string typed_topic;     // Velocity ("" when its kind has no typed command)
+  dds_entity_t json_reader = 0;
+  dds_entity_t typed_reader = 0;
+  bool bad_logged = false;     // a command that is not a JSON object was logged
+};
+
+DdsStreams::DdsStreams(std::shared_ptr<StreamHub> hub, std::string transport, dds_entity_t participant,
+                       dds_entity_t publisher, dds_entity_t subscriber, dds_entity_t waitset, std::string server_id)
+    : hub_(std::move(hub)), transport_(std::move(transport)), participant_(participant), publisher_(publisher),
+      subscriber_(subscriber), waitset_(waitset), server_id_(std::move(server_id)) {
+  guard_ = check(dds_create_guardcondition(participant_), "guard condition (streams)");
+  check(dds_waitset_attach(waitset_, guard_, k_token_samples), "waitset attachment (streams)");
+  // the catalog: the last entry of each topic, kept for late joiners
+  QosPtr catalog_qos = make_qos(true, 1, DDS_SECS(1));
+  catalog_writer_ = check(dds_create_writer(publisher_, topic(k_streams_topic, &simgate_stream_StreamEntry_desc),
+                                            catalog_qos.get(), nullptr),
+                          "writer simgate_Streams");
+}
+
+DdsStreams::~DdsStreams() {
+  for (auto& [component, output] : outputs_) hub_->unsubscribe(output->subscription);
+}
+
+dds_entity_t DdsStreams::topic(const std::string& name, const dds_topic_descriptor_t* descriptor) {
+  auto it = topics_.find(name);
+  if (it != topics_.end()) return it->second;
+  dds_entity_t created = check(dds_create_topic(participant_, descriptor, name.c_str(), nullptr, nullptr), "topic " + name);
+  topics_.emplace(name, created);
+  return created;
+}
+
+void DdsStreams::sync() {
+  std::set<std::string> listed;
+  for (const StreamInfo& info : hub_->streams(transport_)) {
+    listed.insert(info.component);
+    if (outputs_.count(info.component) || inputs_.count(info.component)) continue;
+    try {
+      if (info.direction == StreamDirection::out)
+        add_output(info);
+      else
+        add_input(info);
+    } catch (const std::exception& e) {
+      log::error("DDS transport: stream of '", info.component, "' not carried: ", e.what());
+    }
+  }
+  for (auto it = outputs_.begin(); it != outputs_.end();) {
+    if (listed.count(it->first) && !it->second->subscription->closed()) {
+      ++it;
+      continue;
+    }
+    remove_output(*it->second);
+    it = outputs_.erase(it);
+  }
+  for (auto it = inputs_.begin(); it != inputs_.end();) {
+    if (listed.count(it->first)) {
+      ++it;
+      continue;
+    }
+    remove_input(*it->second);
+    it = inputs_.erase(it);
+  }
+}
+
+void DdsStreams::add_output(const StreamInfo& info) {
+  auto output = std::make_unique<Output>();
+  output->info = info;
+  output->topic = topic_path(info.component);
+  output->type = &output_type(info.kind);
+  // sensors: best effort, the latest sample only, volatile (no history for late joiners)
+  QosPtr qos = make_qos(false, 1, 0);
+  dds_qset_reliability(qos.get(), DDS_RELIABILITY_BEST_EFFORT, 0);
+  output->writer = check(dds_create_writer(publisher_, topic(output->topic, output->type->descriptor), qos.get(), nullptr),
+                         "writer " + output->topic);
+  const dds_entity_t guard = guard_;
+  output->subscription = hub_->subscribe(
+      info.component, transport_,
+      {k_subscription_capacity, "DDS topic " + output->topic, [guard] { dds_set_guardcondition(guard, true); }});
+  if (!output->subscription) {
+    dds_delete(output->writer);
+    return;  // gone meanwhile
+  }
+  write_entry(info, output->topic, output->type->descriptor->m_typename);
+  outputs_.emplace(info.component, std::move(output));
+}
+
+dds_entity_t DdsStreams::add_reader(const std::string& name, const dds_topic_descriptor_t* descriptor) {
+  // commands: reliable, the latest only (the hub keeps only the latest anyway), volatile
+  QosPtr qos = make_qos(false, 1, 0);
+  dds_entity_t reader = check(dds_create_reader(subscriber_, topic(name, descriptor), qos.get(), nullptr), "reader " + name);
+  dds_entity_t condition = check(dds_create_readcondition(reader, DDS_ANY_STATE), "read condition " + name);
+  check(dds_waitset_attach(waitset_, condition, k_token_commands), "waitset attachment " + name);
+  return reader;
+}
+
+void DdsStreams::add_input(const StreamInfo& info) {
+  auto input = std::make_unique<Input>();
+  input->info = info;
+  const std::string path = topic_path(info.component);
+  input->json_topic = path + "/json";
+  input->json_reader = add_reader(input->json_topic, &simgate_stream_JsonCommand_desc);
+  write_entry(info, input->json_topic, simgate_stream_JsonCommand_desc.m_typename);
+  if (info.kind == "velocity") {
+    input->typed_topic = path + "/cmd";
+    input->typed_reader = add_reader(input->typed_topic, &simgate_stream_Velocity_desc);
+    write_entry(info, input->typed_topic, simgate_stream_Velocity_desc.m_typename);
+  }
+  inputs_.emplace(info.component, std::move(input));
+}
+
+void DdsStreams::remove_output(Output& output) {
+  hub_->unsubscribe(output.subscription);
+  dds_delete(output.writer);
+  dispose_entry(output.topic);
+  log::info("DDS transport: stream topic ", output.topic, " ended (", output.info.component, " is gone)");
+}
+
+void DdsStreams::remove_input(Input& input) {
+  // the read conditions go with their readers (and leave the waitset)
+  for (dds_entity_t reader : {input.json_reader, input.typed_reader}) {
+    if (reader <= 0) continue;
+    dds_entity_t conditions[4];
+    dds_return_t n = dds_get_children(reader, conditions, 4);
+    for (dds_return_t i = 0; i < std::min<dds_return_t>(n, 4); ++i) dds_waitset_detach(waitset_, conditions[i]);
+    dds_delete(reader);
+  }
+  dispose_entry(input.json_topic);
+  if (!input.typed_topic.empty()) dispose_entry(input.typed_topic);
+  log::info("DDS transport: command topics of ", input.info.component, " ended (it is gone)");
+}
+
+void DdsStreams::write_entry(const StreamInfo& info, const std::string& topic, const char* type_name) {
+  const std::string fields = info.direction == StreamDirection::in ? json(info.fields).dump() : std::string();
+  simgate_stream_StreamEntry entry{};
+  entry.topic = const_cast<char*>(topic.c_str());
+  entry.component = const_cast<char*>(info.component.c_str());
+  entry.server = const_cast<char*>(server_id_.c_str());
+  entry.direction = info.direction == StreamDirection::out ? simgate_stream_DIR_OUT : simgate_stream_DIR_IN;
+  entry.kind = const_cast<char*>(info.kind.c_str());
+  entry.type_name = const_cast<char*>(type_name);
+  entry.frequency = info.frequency;
+  entry.fields = const_cast<char*>(fields.c_str());
+  dds_return_t rc = dds_write(catalog_writer_, &entry);
+  if (rc < 0) log::error("DDS transport: stream catalog entry '", topic, "' not written: ", retcode_text(rc));
+}
+
+void DdsStreams::dispose_entry(const std::string& topic) {
+  simgate_stream_StreamEntry key{};
+  key.topic = const_cast<char*>(topic.c_str());
+  key.component = key.server = key.kind = key.type_name = key.fields = const_cast<char*>("");
+  dds_return_t rc = dds_dispose(catalog_writer_, &key);
+  if (rc < 0) log::error("DDS transport: stream catalog entry '", topic, "' not disposed: ", retcode_text(rc));
+}
+
+void DdsStreams::write_samples() {
+  bool ignored;
+  dds_take_guardcondition(guard_, &ignored);
+  bool closed = false;
+  for (auto& [component, output] : outputs_) {
+    taken_.clear();
+    output->subscription->take(taken_);
+    closed |= output->subscription->closed();
+    for (const SamplePtr& sample : taken_) {
+      dds_return_t rc;
+      try {
+        if (output->type->write) {
+          rc = output->type->write(output->writer, component, *sample);
+        } else {
+          simgate_stream_JsonSample json_sample{};
+          json_sample.component = const_cast<char*>(component.c_str());
+          json_sample.seq = sample->seq();
+          json_sample.time = sample->time();
+          json_sample.kind = const_cast<char*>(output->info.kind.c_str());
+          json_sample.json = const_cast<char*>(sample->text().c_str());
+          rc = dds_write(output->writer, &json_sample);
+        }
+      } catch (const json::exception& e) {
+        // e.g. odometry at another level than "integrated": not what the typed topic holds
+        if (!output->shape_logged)
+          log::warning("DDS transport: a sample of ", component, " does not fit ", output->type->descriptor->m_typename,
+                       " (", e.what(), "); such samples are dropped (logged once)");
+        output->shape_logged = true;
+        output->subscription->note_dropped(1);
+        continue;
+      }
+      if (rc < 0) output->subscription->note_dropped(1);
+    }
+  }
+  taken_.clear();
+  if (closed) sync();
+}
+
+void DdsStreams::take_commands() {
+  for (auto& [component, input] : inputs_) {
+    take(*input, input->json_reader, false);
+    if (input->typed_reader > 0) take(*input, input->typed_reader, true);
+  }
+}
+
+void DdsStreams::take(Input& input, dds_entity_t reader, bool typed) {
+  void* samples[k_take_batch] = {};
+  dds_sample_info_t infos[k_take_batch];
+  dds_return_t n = dds_take(reader, samples, infos, k_take_batch, k_take_batch);
+  for (dds_return_t i = 0; i < n; ++i) {
+    if (!infos[i].valid_data) continue;
+    json command;
+    if (typed) {
+      const auto* velocity = static_cast<const simgate_stream_Velocity*>(samples[i]);
+      command = {{"v", velocity->v}, {"w", velocity->w}};
+    } else {
+      command = json::parse(static_cast<const simgate_stream_JsonCommand*>(samples[i])->json, nullptr, false);
+      if (!command.is_object()) {
+        if (!input.bad_logged)
+          log::warning("DDS transport: a command on ", input.json_topic,
+                       " is not a JSON object; such commands are ignored (logged once)");
+        input.bad_logged = true;
+        continue;
+      }
+    }
+    // a refusal is counted and logged by the hub (get_stream_statistics)
+    hub_->publish(input.info.component, transport_, std::move(command));
+  }
+  if (n > 0) dds_return_loan(reader, samples, n);
+}
+
+}  // namespace simgate::dds
