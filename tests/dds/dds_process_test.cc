@@ -306,6 +306,24 @@ TEST(DdsStreamsTest, PlainCClientReadsTypedPoseAndDrivesTheRoverWithVelocity) {
   EXPECT_GE(moved, 0.1);
 }
 
+TEST(DdsStreamsTest, AJsonCommandDrivesTheRoverAndOneThatIsNoObjectIsIgnored) {
+  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  RoverOnDds rover;
+  ASSERT_TRUE(rover.running());
+  std::string text = RoverOnDds::client({"pose", "simgate/rover/pose", "1"});
+  auto before = rows(text);
+  ASSERT_EQ(before.size(), 1u) << text;
+  ASSERT_EQ(RoverOnDds::client({"command", "simgate/rover/motion/json", "[1, 2]"}), "");  // logged, ignored
+  ASSERT_EQ(RoverOnDds::client({"command", "simgate/rover/motion/json", R"({"v": -0.5, "w": 0})"}), "");
+  double moved = 0;
+  for (int attempt = 0; attempt < 20 && moved < 0.1; ++attempt) {
+    auto after = rows(RoverOnDds::client({"pose", "simgate/rover/pose", "5"}));
+    ASSERT_FALSE(after.empty());
+    moved = std::hypot(after.back()[2] - before[0][2], after.back()[3] - before[0][3]);
+  }
+  EXPECT_GE(moved, 0.1);
+}
+
 TEST(DdsStreamsTest, AStreamOfAnotherKindArrivesAsJsonSample) {
   if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
   RoverOnDds rover;

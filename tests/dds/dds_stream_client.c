@@ -3,6 +3,7 @@
    usage: dds_stream_client DOMAIN PARTITION XML pose TOPIC COUNT      prints "seq time x y z yaw" per sample
           dds_stream_client DOMAIN PARTITION XML json TOPIC COUNT      prints "seq time kind json" per sample
           dds_stream_client DOMAIN PARTITION XML velocity TOPIC V W    writes one Velocity command
+          dds_stream_client DOMAIN PARTITION XML command TOPIC JSON    writes one JsonCommand
           dds_stream_client DOMAIN PARTITION XML catalog COUNT         prints "topic type component" per entry
    Exit 0 when done, 3 when nothing came within 60 s. */
 #include <stdio.h>
@@ -19,10 +20,10 @@ static int read_samples(dds_entity_t rd, const char *mode, int count) {
     while (got < count && dds_take(rd, s, &si, 1, 1) == 1) {
       if (si.valid_data && strcmp(mode, "pose") == 0) {
         const simgate_stream_Pose *p = s[0];
-        printf("%llu %.6f %.6f %.6f %.6f %.6f\n", p->seq, p->time, p->x, p->y, p->z, p->yaw), got++;
+        printf("%llu %.6f %.6f %.6f %.6f %.6f\n", (unsigned long long)p->seq, p->time, p->x, p->y, p->z, p->yaw), got++;
       } else if (si.valid_data && strcmp(mode, "json") == 0) {
         const simgate_stream_JsonSample *j = s[0];
-        printf("%llu %.6f %s %s\n", j->seq, j->time, j->kind, j->json), got++;
+        printf("%llu %.6f %s %s\n", (unsigned long long)j->seq, j->time, j->kind, j->json), got++;
       } else if (si.valid_data) {
         const simgate_stream_StreamEntry *e = s[0];
         printf("%s %s %s\n", e->topic, e->type_name, e->component), got++;
@@ -56,13 +57,16 @@ int main(int argc, char **argv) {
     dds_qset_durability(q, DDS_DURABILITY_TRANSIENT_LOCAL);
     dds_entity_t rd = dds_create_reader(sub, dds_create_topic(pp, &simgate_stream_StreamEntry_desc, "simgate_Streams", NULL, NULL), q, NULL);
     rc = read_samples(rd, mode, atoi(argv[5]));
-  } else if (strcmp(mode, "velocity") == 0 && argc > 7) { /* a command: reliable */
+  } else if ((strcmp(mode, "velocity") == 0 && argc > 7) || (strcmp(mode, "command") == 0 && argc > 6)) {
+    int typed = strcmp(mode, "velocity") == 0; /* a command: reliable */
     dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
-    dds_entity_t wr = dds_create_writer(pub, dds_create_topic(pp, &simgate_stream_Velocity_desc, argv[5], NULL, NULL), q, NULL);
+    const dds_topic_descriptor_t *type = typed ? &simgate_stream_Velocity_desc : &simgate_stream_JsonCommand_desc;
+    dds_entity_t wr = dds_create_writer(pub, dds_create_topic(pp, type, argv[5], NULL, NULL), q, NULL);
     dds_publication_matched_status_t m = {0}; /* wait (60 s at most) for the simulation's reader */
     for (int i = 0; i < 6000 && m.current_count == 0; i++, dds_sleepfor(DDS_MSECS(10))) dds_get_publication_matched_status(wr, &m);
-    simgate_stream_Velocity v = {.v = atof(argv[6]), .w = atof(argv[7])};
-    rc = m.current_count == 0 ? 3 : dds_write(wr, &v) < 0 || dds_wait_for_acks(wr, DDS_SECS(30)) < 0 ? 1 : 0;
+    simgate_stream_Velocity v = {.v = atof(argv[6]), .w = typed ? atof(argv[7]) : 0};
+    simgate_stream_JsonCommand c = {.json = argv[6]};
+    rc = m.current_count == 0 ? 3 : dds_write(wr, typed ? (void *)&v : (void *)&c) < 0 || dds_wait_for_acks(wr, DDS_SECS(30)) < 0 ? 1 : 0;
   }
   dds_delete_qos(q);
   dds_delete(dom > 0 ? dom : pp);
