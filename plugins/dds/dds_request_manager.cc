@@ -155,8 +155,8 @@ std::vector<std::string> DdsRequestManager::endpoints() const {
 
 void DdsRequestManager::start() {
   if (stopped_ || started_.exchange(true)) return;
-  // the data streams (issue #21), when the simulation has any for this transport
-  if (stream_hub() && !stream_hub()->streams(transport_name()).empty())
+  // the data streams (issue #21): also with none yet, for those of robots spawned later
+  if (stream_hub())
     streams_ = std::make_unique<DdsStreams>(stream_hub(), transport_name(), participant_->handle(), publisher_,
                                             subscriber_, waitset_, server_id_);
   thread_ = std::thread([this] { run(); });

@@ -228,13 +228,16 @@ class RoverOnDds {
     fs::create_directories(dir_);
     const std::string path = (dir_ / "deployment.json").string();
     std::ofstream(path) << config.dump(2);
-    gateway_ = std::make_unique<Child>(std::vector<std::string>{k_gateway, "run", path, "--plugin-path", SIMGATE_TEST_PLUGIN_DIR});
+    gateway_ = std::make_unique<Child>(std::vector<std::string>{k_gateway, "run", path, "--plugin-path", SIMGATE_TEST_PLUGIN_DIR},
+                                       /*with_stderr=*/true);
   }
   ~RoverOnDds() {
     gateway_->terminate();
     fs::remove_all(dir_);
   }
   bool running() const { return gateway_->running(); }
+  // What the gateway printed (its log included) up to `needle`.
+  std::string log_until(const std::string& needle) { return gateway_->read_until(needle, 60s); }
 
   // Runs the C stream client with `args` (after domain, partition, XML); its output, or
   // "exit <code>" appended when it failed.
@@ -322,6 +325,24 @@ TEST(DdsStreamsTest, AJsonCommandDrivesTheRoverAndOneThatIsNoObjectIsIgnored) {
     moved = std::hypot(after.back()[2] - before[0][2], after.back()[3] - before[0][3]);
   }
   EXPECT_GE(moved, 0.1);
+}
+
+TEST(DdsStreamsTest, TheTopicsOfADeletedRobotEndAndLeaveTheCatalog) {
+  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  RoverOnDds rover;
+  ASSERT_TRUE(rover.running());
+  std::string catalog = RoverOnDds::client({"catalog", "5"});
+  ASSERT_NE(catalog.find("simgate/rover/pose "), std::string::npos) << catalog;
+  Child call({k_c_client, std::to_string(test_domain()), test_partition(), "simulation", "delete_entity", R"(["rover"])",
+              read_file(SIMGATE_LOOPBACK_DDS_XML)});
+  EXPECT_NE(call.read_until("\n", 60s).find("SUCCESS"), std::string::npos);
+  EXPECT_EQ(call.wait_exit(30s), 0);
+  std::string log = rover.log_until("command topics of rover.motion ended");
+  EXPECT_NE(log.find("stream topic simgate/rover/pose ended (rover.pose is gone)"), std::string::npos) << log;
+  EXPECT_NE(log.find("command topics of rover.motion ended"), std::string::npos) << log;
+  // a reader that joins now finds no alive entry (it waits 3 s for one in vain: exit 3)
+  std::string after = RoverOnDds::client({"catalog", "1", "3"});
+  EXPECT_NE(after.find("exit 3"), std::string::npos) << after;
 }
 
 TEST(DdsStreamsTest, AStreamOfAnotherKindArrivesAsJsonSample) {

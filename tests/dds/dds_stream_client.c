@@ -4,17 +4,17 @@
           dds_stream_client DOMAIN PARTITION XML json TOPIC COUNT      prints "seq time kind json" per sample
           dds_stream_client DOMAIN PARTITION XML velocity TOPIC V W    writes one Velocity command
           dds_stream_client DOMAIN PARTITION XML command TOPIC JSON    writes one JsonCommand
-          dds_stream_client DOMAIN PARTITION XML catalog COUNT         prints "topic type component" per entry
-   Exit 0 when done, 3 when nothing came within 60 s. */
+          dds_stream_client DOMAIN PARTITION XML catalog COUNT [S]     prints "topic type component" per alive entry
+   Exit 0 when done, 3 when not all came within 60 s (catalog: S s). */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <dds/dds.h>
 #include "simgate_streams.h" /* idlc simgate_streams.idl */
 
-static int read_samples(dds_entity_t rd, const char *mode, int count) {
-  int got = 0; /* take and print until `count` samples, 60 s at most */
-  for (int i = 0; i < 6000 && got < count; i++) {
+static int read_samples(dds_entity_t rd, const char *mode, int count, int seconds) {
+  int got = 0; /* take and print until `count` samples, `seconds` at most */
+  for (int i = 0; i < seconds * 100 && got < count; i++) {
     void *s[1] = {NULL};
     dds_sample_info_t si;
     while (got < count && dds_take(rd, s, &si, 1, 1) == 1) {
@@ -51,12 +51,12 @@ int main(int argc, char **argv) {
     dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 1);
     const dds_topic_descriptor_t *type = strcmp(mode, "pose") == 0 ? &simgate_stream_Pose_desc : &simgate_stream_JsonSample_desc;
     dds_entity_t rd = dds_create_reader(sub, dds_create_topic(pp, type, argv[5], NULL, NULL), q, NULL);
-    rc = argc > 6 ? read_samples(rd, mode, atoi(argv[6])) : 2;
+    rc = argc > 6 ? read_samples(rd, mode, atoi(argv[6]), 60) : 2;
   } else if (strcmp(mode, "catalog") == 0) { /* the catalog: reliable, transient-local */
     dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
     dds_qset_durability(q, DDS_DURABILITY_TRANSIENT_LOCAL);
     dds_entity_t rd = dds_create_reader(sub, dds_create_topic(pp, &simgate_stream_StreamEntry_desc, "simgate_Streams", NULL, NULL), q, NULL);
-    rc = read_samples(rd, mode, atoi(argv[5]));
+    rc = read_samples(rd, mode, atoi(argv[5]), argc > 6 ? atoi(argv[6]) : 60);
   } else if ((strcmp(mode, "velocity") == 0 && argc > 7) || (strcmp(mode, "command") == 0 && argc > 6)) {
     int typed = strcmp(mode, "velocity") == 0; /* a command: reliable */
     dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
