@@ -325,7 +325,7 @@ void DdsStreams::write_samples() {
           rc = dds_write(output->writer, &json_sample);
         }
       } catch (const json::exception& e) {
-        // e.g. odometry at another level than "integrated": not what the typed topic holds
+        // a component whose samples do not have its kind's shape (a component library's)
         if (!output->shape_logged)
           log::warning("DDS transport: a sample of ", component, " does not fit ", output->type->descriptor->m_typename,
                        " (", e.what(), "); such samples are dropped (logged once)");
