@@ -824,6 +824,45 @@ class Harness:
                     0.99, "x")
         return {"status": "ok", "summary": s, "runs": runs}
 
+    def section_streams(self):
+        """Issue #21: 50 pose sensors streaming at 100 Hz on the socket, JSON-RPC and DDS
+        transports at once, every stream read (the real-time factor and the CPU against the
+        same gateway without streams; the step-end to socket-read latency beside the sync round
+        trip of the same run), and a pose stream through the DDS transport against a raw Cyclone
+        writer of the same type."""
+        sim = os.path.join(self.bin, "simgate_bench_sim")
+        if not os.access(sim, os.X_OK) or not self.plugin_built("socket") or not self.plugin_built("jsonrpc"):
+            return {"status": "skipped", "reason": "simgate_bench_sim or a TCP transport is not built"}
+        _, mjcf = self.demo_config()
+        duration = 0.6 if self.smoke else 5.0
+        argv = [sim, "--mode", "streams", "--mjcf", mjcf, "--duration", str(duration), "--calls", "50"]
+        if self.plugin_built("dds"):
+            argv.append("--dds")
+        runs = [run_json(argv, self.timeout, self.env) for _ in range(self.repeats)]
+        s = {"realtime_factor_baseline": spread([r["realtime_factor"]["baseline"] for r in runs]),
+             "realtime_factor_streams": spread([r["realtime_factor"]["streams"] for r in runs]),
+             "cpu_ms_per_1000_produced": spread([r["cpu_ms_per_1000_samples_produced"] for r in runs]),
+             "cpu_ms_per_1000_delivered": spread([r["cpu_ms_per_1000_samples_delivered"] for r in runs]),
+             "produced_per_s": spread([r["samples"]["produced_per_s"] for r in runs]),
+             "latency_p50_us": spread([r["socket_latency_step_to_read"]["p50_us"] for r in runs]),
+             "latency_p99_us": spread([r["socket_latency_step_to_read"]["p99_us"] for r in runs]),
+             "round_trip_p50_us": spread([r["socket_sync_round_trip"]["p50_us"] for r in runs]),
+             "round_trip_p99_us": spread([r["socket_sync_round_trip"]["p99_us"] for r in runs]),
+             "components": runs[0]["components"], "transports": runs[0]["transports"]}
+        self.target("real-time factor, 50 components streaming at 100 Hz on every transport",
+                    s["realtime_factor_streams"], ">=", 0.99, "x")
+        out = {"status": "ok", "summary": s, "runs": runs}
+        dds = os.path.join(self.bin, "simgate_bench_dds_streams")
+        if os.access(dds, os.X_OK) and self.plugin_built("dds"):
+            dds_runs = [run_json([dds, "--duration", "0.5" if self.smoke else "3"], self.timeout, self.env)
+                        for _ in range(self.repeats)]
+            s["dds_ratio"] = spread([r["ratio"] for r in dds_runs])
+            s["dds_simgate_per_s"] = spread([r["simgate_samples_per_s"] for r in dds_runs])
+            s["dds_raw_per_s"] = spread([r["raw_samples_per_s"] for r in dds_runs])
+            self.target("DDS pose stream samples/s over a raw Cyclone writer's", s["dds_ratio"], ">=", 0.8, "x")
+            out["dds_runs"] = dds_runs
+        return out
+
     # ---- driver
 
     def machine(self):
@@ -866,7 +905,7 @@ class Harness:
         self.results["repeats"] = self.repeats
         self.results["machine"] = self.machine()
         only = set(self.args.only.split(",")) if self.args.only else None
-        for name in ("socket", "jsonrpc", "dds", "peers", "sim", "memory", "byor", "world", "progress"):
+        for name in ("socket", "jsonrpc", "dds", "peers", "sim", "memory", "byor", "world", "progress", "streams"):
             if only and name not in only:
                 continue
             t0 = time.monotonic()
@@ -1111,6 +1150,29 @@ def markdown(r):
                   f"| real-time factor, calls with progress | {fmt(g['realtime_factor_progress'], 4)} |",
                   f"| with / without | {fmt(g['ratio'], 4)} |",
                   f"| rpc.progress received per call per second | {fmt(g['progress_hz_per_call'])} |", ""]
+
+    lines += ["## Data streams (issue #21)", ""]
+    st = status_line("streams")
+    if st:
+        lines += [st, ""]
+    else:
+        g = s["streams"]["summary"]
+        lines += [f"{g['components']} pose sensors at 100 Hz of simulated time, streamed on "
+                  f"{', '.join(g['transports'])} at once, every stream read (one socket connection per stream "
+                  "port, one JSON-RPC connection subscribed to all), against the same gateway without streams.", "",
+                  "| measure | value |", "|---|---|",
+                  f"| real-time factor without streams | {fmt(g['realtime_factor_baseline'], 4)} |",
+                  f"| real-time factor with streams | {fmt(g['realtime_factor_streams'], 4)} |",
+                  f"| samples produced per second | {fmt(g['produced_per_s'])} |",
+                  f"| gateway CPU per 1 000 samples produced (ms) | {fmt(g['cpu_ms_per_1000_produced'], 2)} |",
+                  f"| gateway CPU per 1 000 samples delivered (ms) | {fmt(g['cpu_ms_per_1000_delivered'], 2)} |",
+                  f"| step end to socket read p50 / p99 (µs) | {fmt(g['latency_p50_us'])} / {fmt(g['latency_p99_us'])} |",
+                  f"| sync round trip (`time now`) p50 / p99 (µs) | {fmt(g['round_trip_p50_us'])} / "
+                  f"{fmt(g['round_trip_p99_us'])} |"]
+        if "dds_ratio" in g:
+            lines += [f"| DDS pose stream samples/s: simgate / raw Cyclone writer | {fmt(g['dds_simgate_per_s'], 0)} / "
+                      f"{fmt(g['dds_raw_per_s'], 0)} = {fmt(g['dds_ratio'], 3)} |"]
+        lines += [""]
 
     lines += ["## Sections", "", "| section | status | seconds |", "|---|---|---|"]
     for name, sec in s.items():
