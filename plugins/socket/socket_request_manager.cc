@@ -64,6 +64,9 @@ SocketOptions SocketOptions::parse(const json& options) {
     }
     timeouts->finish();
   }
+  o.stream_port = static_cast<std::uint16_t>(config.get_int("stream_port", o.stream_port, 0, 65535));
+  o.stream_queue = static_cast<std::size_t>(
+      config.get_int("stream_queue", static_cast<long long>(o.stream_queue), 1, 100000));
   o.tcp = kit::TcpOptions::read(config, tcp_defaults(), "socket", k_renamed);
   o.tcp.finish(config);
   return o;
@@ -78,7 +81,8 @@ SocketRequestManager::SocketRequestManager(SocketOptions o)
       options_(std::move(o)),
       // bound now, so that a port in use fails the creation of the transport
       listener_(io_, name(), options_.tcp.host, options_.tcp.port),
-      io_thread_(io_, name(), options_.tcp.io_spin) {
+      io_thread_(io_, name(), options_.tcp.io_spin),
+      datastreams_(io_, name(), options_.tcp, options_.stream_port, options_.stream_queue) {
   limits_ = kit::LineLimits::from(options_.tcp);
   // a client with max_in_flight requests unanswered waits for answers before more is read
   limits_.pause_at_unanswered = options_.tcp.max_in_flight;
@@ -103,6 +107,9 @@ void SocketRequestManager::start() {
       log::warning(name(), ": timeouts.services: '", service,
                    "' is not a service clients may call here: its deadline applies to nothing");
   }
+  // MORSE's socket datastreams: a port for each stream this transport carries, and the
+  // services that say which (registered only when there is one, as MORSE does)
+  if (datastreams_.open(stream_hub(), transport_name())) datastreams_.register_services(*this);
   // the id "-" of the refusal matches no request: pymorse ignores the line, telnet shows it
   kit::TcpListener::Handlers handlers{[this](tcp::socket socket) { accept(std::move(socket)); },
                                       [this](const tcp::endpoint& peer) { return refusal_reason(peer); },
@@ -118,6 +125,7 @@ void SocketRequestManager::start() {
       [this, handlers = std::move(handlers)]() mutable {
         deliver_on_this_thread([this] { asio::post(io_, [this] { flush_replies(); }); });
         listener_.start(std::move(handlers));
+        datastreams_.start();
       },
       direct_reads());
 }
@@ -127,11 +135,19 @@ void SocketRequestManager::stop() {
     deliver_on_any_thread();  // the connections are gone: outcomes from now on go nowhere
 }
 
+// The service port only: clients (and tests, and the banner) connect to the first endpoint;
+// the stream ports are found through `simulation get_stream_port` and logged at start.
 std::vector<std::string> SocketRequestManager::endpoints() const { return {listener_.endpoint()}; }
+
+std::string SocketRequestManager::datastream_class(StreamDirection direction) const {
+  return direction == StreamDirection::out ? "morse.middleware.socket_datastream.SocketPublisher"
+                                           : "morse.middleware.socket_datastream.SocketReader";
+}
 
 void SocketRequestManager::close_all() {
   stopping_ = true;  // the requests still running end at shutdown (abandon_pending), not as cancels
   listener_.close();
+  datastreams_.close_all();
   LineServer::close_all();
   requests_.clear();
 }
@@ -229,23 +245,15 @@ void SocketRequestManager::set_progress(Session& session, const RequestLine& req
 void SocketRequestManager::authenticate(Session& session, std::string_view line) {
   RequestLine request = parse_request_line(line);
   if (request.kind == RequestLine::Kind::blank) return;
-  // `auth <token>`: the token is the rest of the line, blanks around it ignored
-  constexpr std::string_view k_auth = "auth";
-  const std::size_t start = line.find_first_not_of(" \t");
-  std::string_view rest = start == std::string_view::npos ? std::string_view() : line.substr(start);
-  const bool is_auth = rest.substr(0, k_auth.size()) == k_auth && rest.size() > k_auth.size() &&
-                       (rest[k_auth.size()] == ' ' || rest[k_auth.size()] == '\t');
-  if (!is_auth) {
+  const std::optional<std::string_view> token = parse_auth_line(line);
+  if (!token) {
     fail_in_order(session, request.id,
                   "Authentication required: send the line 'auth <token>' before any request "
                   "(the transport's \"auth\" option; docs/transports/socket.md#authentication)");
     return;
   }
-  std::string_view token = rest.substr(k_auth.size());
-  token.remove_prefix(std::min(token.size(), token.find_first_not_of(" \t")));
-  token = token.substr(0, token.find_last_not_of(" \t\r") + 1);
   scratch_.clear();
-  if (options_.tcp.auth.accepts(token)) {
+  if (options_.tcp.auth.accepts(*token)) {
     session.set_authenticated();
     log::info(name(), ": ", session.label(), " authenticated");
     append_reply(scratch_, "auth", options_.success_word, nullptr);
@@ -446,7 +454,7 @@ SIMGATE_TRANSPORT_PLUGIN(socket, simgate::socket::SocketRequestManager, "0.1.0",
                          "max_unsent_bytes", "max_in_flight", "io_spin_us", "global_policy",
                          "on_disconnect", "idle_timeout_s", "idle_evict_s", "line_timeout_s",
                          "max_buffered_bytes", "max_connections_per_peer", "auth", "progress_interval_ms",
-                         "timeouts",
+                         "timeouts", "stream_port", "stream_queue",
                          // deprecated names: accepted with a warning until the next release
                          "max_clients", "max_line_bytes", "max_pending_replies_bytes",
                          "max_pending_requests")

@@ -16,7 +16,12 @@
 // request, as on the JSON-RPC transport), timeouts ({"default_ms": N, "services":
 // {"robot.waypoint.goto": N}}: the calls' deadlines, Call::timeout, since MORSE's lines have
 // no place for one; past it the reply is FAILED with the core's message and the async
-// service is interrupted).
+// service is interrupted), stream_port and stream_queue (the datastreams, below).
+//
+// Datastreams (issue #21, datastreams.h): the streams the configuration gives this transport
+// get a TCP port each, MORSE's socket datastreams (from stream_port, 60000 by default; a
+// reader keeps stream_queue samples), and `simulation list_streams`, `get_stream_port`,
+// `get_all_stream_ports` say where; `simulation details` names them by MORSE's classes.
 //
 // Progress (issue #20): nothing changes for a MORSE client. A connection that sends
 // `<id> simgate progress` (answered `<id> SUCCESS`) gets `<id> PROGRESS <json>` lines for the
@@ -63,6 +68,7 @@
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
 
+#include "datastreams.h"
 #include "params_parser.h"
 #include "session.h"
 #include "simgate/core/request_manager.h"
@@ -80,6 +86,8 @@ struct SocketOptions {
   // "timeouts": every call's deadline (zero: none), and per service ("component.service")
   std::chrono::milliseconds default_timeout{0};
   std::map<std::string, std::chrono::milliseconds, std::less<>> service_timeouts;
+  std::uint16_t stream_port = 60000;  // ("stream_port") the first datastream's port; 0: any free port each
+  std::size_t stream_queue = 16;      // ("stream_queue") samples a datastream reader keeps (core/streams.h)
 
   // Every check of the options, resolving the host but binding nothing. Throws ConfigError.
   static SocketOptions parse(const json& options);
@@ -96,6 +104,9 @@ class SocketRequestManager : public RequestManager, private kit::LineServer {
   void stop() override;
   std::vector<std::string> endpoints() const override;
   std::size_t client_count() const override { return connection_count(); }
+  // MORSE's classes, what `simulation details` shows in stream_interfaces (pymorse then
+  // asks get_stream_port).
+  std::string datastream_class(StreamDirection direction) const override;
 
   // The bound TCP port (useful with port 0).
   std::uint16_t port() const { return listener_.port(); }
@@ -165,6 +176,7 @@ class SocketRequestManager : public RequestManager, private kit::LineServer {
   boost::asio::io_context io_;   // runs every handler, on the I/O thread
   kit::TcpListener listener_;    // the listening socket, bound in the constructor
   kit::IoThread io_thread_;      // runs io_
+  Datastreams datastreams_;      // the stream ports, opened by start()
   kit::LineLimits limits_;       // per-connection limits, from options_
   bool stopping_ = false;                    // close_all() runs: closed sessions cancel nothing (I/O thread)
   std::uint64_t next_session_ = 1;           // numbers sessions in logs

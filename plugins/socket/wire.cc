@@ -203,6 +203,17 @@ bool echoable_id(std::string_view id) {
   return true;
 }
 
+std::optional<std::string_view> parse_auth_line(std::string_view line) {
+  constexpr std::string_view k_auth = "auth";
+  const std::size_t start = skip_blanks(line, 0);
+  std::string_view rest = line.substr(start);
+  if (rest.substr(0, k_auth.size()) != k_auth || rest.size() <= k_auth.size() || !is_blank(rest[k_auth.size()]))
+    return std::nullopt;
+  std::string_view token = rest.substr(skip_blanks(rest, k_auth.size()));
+  while (!token.empty() && is_blank(token.back())) token.remove_suffix(1);
+  return token;
+}
+
 RequestLine parse_request_line(std::string_view line) {
   RequestLine r;
   unsigned id_bytes = 0;    // (ids are echoed verbatim: only control characters are refused)

@@ -62,6 +62,11 @@ RequestLine parse_request_line(std::string_view line);
 // Whether `id` can be echoed: no control character (below 0x20, or 0x7f).
 bool echoable_id(std::string_view id);
 
+// The token of an authentication line, `auth <token>` (blanks around the token ignored;
+// empty if there is none), or nullopt when the line is something else. The first line of
+// a client that must authenticate (kit/auth.h), on the service port and the stream ports.
+std::optional<std::string_view> parse_auth_line(std::string_view line);
+
 // Decodes one UTF-8 sequence at s[i]: its length (0 if invalid: truncated, overlong,
 // surrogate, past U+10FFFF) and, through `cp`, the code point.
 std::size_t decode_utf8(std::string_view s, std::size_t i, std::uint32_t& cp);

@@ -193,6 +193,22 @@ json SupervisionServices::list_services() const {
       out.push_back(std::move(d));
     }
   }
+  // the caller's transport's own services, which no component holds (the socket transport's
+  // `simulation get_stream_port`, MORSE's datastream services): callable through it alone
+  if (const CallContext* context = CallContext::current()) {
+    auto held_by_a_component = [&](const ServiceDescriptor& d) {
+      const auto* owner = sim_.find(d.component);
+      if (!owner) return false;
+      const auto& services = owner->component->services();
+      return std::any_of(services.begin(), services.end(), [&](const auto& s) { return s->descriptor().name == d.name; });
+    };
+    for (const auto& d : context->manager().descriptors()) {
+      if (held_by_a_component(d)) continue;
+      json entry = d.to_json();
+      entry["transports"] = json::array({context->manager().transport_name()});
+      out.push_back(std::move(entry));
+    }
+  }
   return out;
 }
 

@@ -1,8 +1,9 @@
 #!/usr/bin/python3
 """E2E: pymorse (Debian's python3-morse-simulator) against a running simgate gateway.
 
-Starts `simgate run` on a test config (the demo scene, socket transport on port 0), reads
-the bound port from --endpoints-file, and drives the robot the way MORSE users do:
+Starts `simgate run` on a test config (the demo scene, socket transport and its datastreams
+on ephemeral ports), reads the bound port from --endpoints-file, and drives the robot the
+way MORSE users do:
 connect (`simulation details`), sync calls, `goto` futures that complete when the robot
 really arrives (pose checked), cancel -> preempted and the robot stops, a second goto
 preempts the first, wrong arity -> TypeError, `time.sleep` (two scripts sleeping together, a
@@ -35,7 +36,7 @@ TIMEOUT = 60  # seconds, for any single wait
 
 
 class Gateway:
-    """A `simgate run` child process on an ephemeral port."""
+    """A `simgate run` child process on ephemeral ports."""
 
     def __init__(self, simgate, source_dir, workdir, adapt=None):
         with open(os.path.join(source_dir, "config", "demo.json")) as f:
@@ -43,6 +44,7 @@ class Gateway:
         config["scene"]["mjcf"] = os.path.join(source_dir, "config", "scenes", "demo.xml")
         config["scene"]["realtime_factor"] = 2.0
         config["transports"]["socket"]["options"]["port"] = 0
+        config["transports"]["socket"]["options"]["stream_port"] = 0  # its datastreams too
         config["log_level"] = "warning"
         if adapt:
             adapt(config)

@@ -61,12 +61,13 @@ class TempDir {
   std::string path_;  // the directory
 };
 
-// The demo deployment on an ephemeral port, with an absolute scene path.
+// The demo deployment on ephemeral ports, with an absolute scene path.
 inline json demo_config(double factor = 1.0) {
   json c = json::parse(std::ifstream(source_path("config/demo.json")));
   c["scene"]["mjcf"] = source_path("config/scenes/demo.xml");
   c["scene"]["realtime_factor"] = factor;
   c["transports"]["socket"]["options"]["port"] = 0;
+  c["transports"]["socket"]["options"]["stream_port"] = 0;  // its datastreams too
   c["log_level"] = "warning";
   return c;
 }

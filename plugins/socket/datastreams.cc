@@ -1,0 +1,325 @@
+// datastreams.cc — MORSE's socket datastreams (datastreams.h): the stream ports, their
+// connections, the samples written out, the commands read in, and the three `simulation`
+// services that say where the streams are.
+#include "datastreams.h"
+
+#include <algorithm>
+
+#include <boost/asio/post.hpp>
+
+#include "simgate/core/errors.h"
+#include "simgate/core/log.h"
+#include "wire.h"
+
+namespace simgate::socket {
+
+namespace asio = boost::asio;
+using asio::ip::tcp;
+
+namespace {
+
+// MORSE's datastream port range starts at 60000 and ends with the ports; a port in use is
+// skipped for the next one, at most this many times per stream (a range that busy means
+// something else is wrong: the error names the last port tried).
+constexpr int k_port_attempts = 100;
+
+// Longest part of a malformed line quoted in the log.
+constexpr std::size_t k_quoted_bytes = 80;
+
+std::string quoted(std::string_view line) {
+  std::string out(line.substr(0, k_quoted_bytes));
+  for (char& c : out)
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';  // the log is a terminal too
+  return "'" + out + (line.size() > k_quoted_bytes ? "...'" : "'");
+}
+
+// What a command of `info` looks like, for messages: {"v": ..., "w": ...}.
+std::string command_example(const StreamInfo& info) {
+  std::string keys;
+  for (const auto& f : info.fields) keys += (keys.empty() ? "\"" : ", \"") + f + "\": ...";
+  return "{" + keys + "}";
+}
+
+}  // namespace
+
+// One client of a stream port.
+class Datastreams::Connection : public kit::LineConnection {
+ public:
+  Connection(tcp::socket socket, kit::LineHost& host, const kit::LineLimits& limits, Port& port, std::uint64_t number)
+      : LineConnection(std::move(socket), host, limits, port.who, number), port(port) {}
+
+  Port& port;                                         // its stream
+  std::shared_ptr<StreamSubscription> subscription;  // output stream: its queue of samples
+  bool writing = false;                               // input stream: counted in port.writers
+  bool warned_malformed = false;                      // a line it sent was not a command (logged once)
+};
+
+Datastreams::Datastreams(asio::io_context& io, std::string who, const kit::TcpOptions& tcp, std::uint16_t base_port,
+                         std::size_t queue)
+    : LineServer(who + " datastreams",
+                 [&] {
+                   kit::TcpOptions o = tcp;
+                   o.idle_timeout = o.idle_evict = std::chrono::milliseconds(0);  // readers may wait for long
+                   o.io_spin = std::chrono::microseconds(0);  // the I/O thread reads the service port directly only
+                   return o;
+                 }()),
+      io_(io),
+      who_(std::move(who)),
+      tcp_(tcp),
+      limits_(kit::LineLimits::from(tcp)),
+      base_port_(base_port),
+      queue_(queue) {}
+
+Datastreams::~Datastreams() = default;
+
+// ---- ports (host thread, before the I/O thread runs)
+
+bool Datastreams::open(std::shared_ptr<StreamHub> hub, std::string transport) {
+  if (opened_) return false;  // the transport's start() may be called again
+  opened_ = true;
+  hub_ = std::move(hub);
+  transport_ = std::move(transport);
+  if (!hub_) return false;
+  std::uint16_t next = base_port_;
+  for (const StreamInfo& info : hub_->streams(transport_)) {
+    auto port = bind(info, next);
+    if (!port) continue;
+    // MORSE's numbering: the next stream takes the port after this one
+    if (base_port_ != 0) next = port->number == 65535 ? 0 : static_cast<std::uint16_t>(port->number + 1);
+    log::info(who_, ": ", info.component, " stream (", to_string(info.direction), " ", info.kind, ") on ",
+              port->listener->endpoint());
+    ports_.push_back(std::move(port));
+  }
+  return !ports_.empty();
+}
+
+std::unique_ptr<Datastreams::Port> Datastreams::bind(const StreamInfo& info, std::uint16_t next) {
+  auto port = std::make_unique<Port>();
+  port->info = info;
+  port->who = who_ + ", " + info.component + " stream";
+  std::string error;
+  for (int attempt = 0; attempt < k_port_attempts; ++attempt) {
+    try {
+      port->listener = std::make_unique<kit::TcpListener>(io_, port->who, tcp_.host, next);
+      port->number = port->listener->port();
+      return port;
+    } catch (const std::exception& e) {
+      error = e.what();
+      if (next == 0 || next == 65535) break;  // the system's choice failed, or no port is left above
+      ++next;                                 // MORSE's rule: in use, try the next one
+    }
+  }
+  log::error(who_, ": ", info.component, " stream has no port, pymorse and other clients cannot reach it: ", error);
+  return nullptr;
+}
+
+// ---- the services (any thread)
+
+const Datastreams::Port* Datastreams::find(std::string_view component) const {
+  // a component removed at run time has no stream any more (the hub forgot it)
+  for (const auto& p : ports_)
+    if (p->info.component == component) return hub_->find(component, transport_) ? p.get() : nullptr;
+  return nullptr;
+}
+
+std::vector<std::string> Datastreams::list() const {
+  std::vector<std::string> names;
+  for (const auto& p : ports_)
+    if (find(p->info.component)) names.push_back(p->info.component);
+  return names;
+}
+
+int Datastreams::port_of(const std::string& component) const {
+  if (const Port* p = find(component)) return p->number;
+  throw ServiceError("Stream unavailable for component " + component);  // MORSE's words, which pymorse logs
+}
+
+json Datastreams::all_ports() const {
+  json out = json::object();
+  for (const auto& p : ports_)
+    if (find(p->info.component)) out[p->info.component] = p->number;
+  return out;
+}
+
+void Datastreams::register_services(RequestManager& manager) {
+  manager.register_service("simulation", [this] { return list(); }, "list_streams")
+      .doc("Components with a datastream port on this socket transport (MORSE's socket datastreams)");
+  manager.register_service("simulation", [this](const std::string& name) { return port_of(name); }, "get_stream_port",
+                           {"name"})
+      .doc("The TCP port of a component's datastream: one JSON object per line (what pymorse connects to)");
+  manager.register_service("simulation", [this] { return all_ports(); }, "get_all_stream_ports")
+      .doc("{component: port} of every datastream on this socket transport");
+}
+
+// ---- connections (I/O thread)
+
+void Datastreams::start() {
+  for (const auto& p : ports_) {
+    Port& port = *p;
+    port.listener->start({[this, &port](tcp::socket socket) { accept(port, std::move(socket)); },
+                          [this](const tcp::endpoint& peer) { return refusal_reason(peer); },
+                          // a stream carries only its samples: a refused client is just closed
+                          [](const std::string&) { return std::string(); }});
+  }
+}
+
+void Datastreams::close_all() {
+  for (const auto& p : ports_) {
+    p->closed = true;
+    p->listener->close();
+  }
+  LineServer::close_all();  // on_closed() ends each subscription
+}
+
+void Datastreams::accept(Port& port, tcp::socket socket) {
+  if (port.closed) return;  // its component went; the socket closes here
+  kit::LineHost& host = *this;
+  auto connection = std::make_shared<Connection>(std::move(socket), host, limits_, port, next_connection_++);
+  port.connections.push_back(connection);
+  add(connection);  // decides whether it must authenticate, starts reading
+  if (connection->authenticated() && !connection->closed()) begin(*connection);
+}
+
+void Datastreams::begin(Connection& connection) {
+  Port& port = connection.port;
+  if (port.info.direction == StreamDirection::in) {
+    connection.writing = true;
+    // MORSE warns too: two writers interleave their commands, the latest wins
+    if (++port.writers == 2 && !port.warned_writers) {
+      port.warned_writers = true;
+      log::warning(port.who, ": ", connection.label(), " is a second client writing commands to this stream: "
+                   "the latest command wins (logged once)");
+    }
+    return;
+  }
+  connection.subscription = hub_->subscribe(
+      port.info.component, transport_,
+      SubscriberOptions{queue_, "socket " + connection.label() + " on port " + std::to_string(port.number),
+                        [this] { wake(); }});
+  if (!connection.subscription) retire(port);  // its component was removed meanwhile
+}
+
+void Datastreams::authenticate(Connection& connection, std::string_view line) {
+  const std::optional<std::string_view> token = parse_auth_line(line);
+  if (token && tcp_.auth.accepts(*token)) {
+    connection.set_authenticated();
+    log::info(connection.port.who, ": ", connection.label(), " authenticated");
+    begin(connection);
+    return;
+  }
+  // one guess per connection, as on the service port; nothing is written on a stream port
+  log::warning(connection.port.who, ": ", connection.label(),
+               token ? " presented a wrong token" : " sent something else than 'auth <token>' first",
+               "; connection closed (the transport's \"auth\" option)");
+  connection.close("not authenticated");
+}
+
+void Datastreams::on_line(kit::LineConnection& c, std::string_view line) {
+  auto& connection = static_cast<Connection&>(c);
+  if (!connection.authenticated()) [[unlikely]] {
+    authenticate(connection, line);
+    return;
+  }
+  // a reader's lines mean nothing: read (so that its socket never fills) and ignored
+  if (connection.port.info.direction == StreamDirection::in) publish(connection, line);
+}
+
+void Datastreams::publish(Connection& connection, std::string_view line) {
+  Port& port = connection.port;
+  const auto first = std::find_if(line.begin(), line.end(), [](char ch) { return ch != ' ' && ch != '\t' && ch != '\r'; });
+  if (first == line.end()) return;  // a blank line
+  json command = json::parse(line, nullptr, /*allow_exceptions=*/false);
+  if (!command.is_object()) {
+    if (!connection.warned_malformed) {
+      connection.warned_malformed = true;
+      log::warning(port.who, ": ", connection.label(), " sent ", quoted(line),
+                   command.is_discarded() ? ", which is not JSON" : ", which is not a JSON object",
+                   ": ignored; the stream takes one JSON object per line, ", command_example(port.info),
+                   " (logged once per connection)");
+    }
+    return;
+  }
+  const PublishResult result = hub_->publish(port.info.component, transport_, std::move(command));
+  if (result.ok) return;
+  if (!hub_->find(port.info.component, transport_)) {
+    retire(port);  // its component was removed
+    return;
+  }
+  // refused by the component: the hub counted it and logged the first one of the stream
+  log::debug(port.who, ": ", connection.label(), ": command refused: ", result.error);
+}
+
+void Datastreams::on_oversized_line(kit::LineConnection& c, std::string_view /*prefix*/, std::size_t /*bytes*/) {
+  auto& connection = static_cast<Connection&>(c);
+  if (connection.port.info.direction == StreamDirection::out || connection.warned_malformed) return;
+  connection.warned_malformed = true;
+  log::warning(connection.port.who, ": ", connection.label(), " sent a line longer than ", limits_.max_message_bytes,
+               " bytes (", limits_.message_bytes_key, "): ignored (logged once per connection)");
+}
+
+void Datastreams::on_lines_done(kit::LineConnection& /*connection*/, bool /*read_finished*/) {
+  // each command went to the hub as it was read: nothing waits for the end of the read
+}
+
+void Datastreams::on_input_ended(kit::LineConnection& /*connection*/) {
+  // the client is gone (or will send nothing more): the kit closes the connection once its
+  // unsent samples are written
+}
+
+void Datastreams::on_closed(kit::LineConnection& c) {
+  auto& connection = static_cast<Connection&>(c);
+  Port& port = connection.port;
+  if (connection.subscription) hub_->unsubscribe(connection.subscription);
+  if (connection.writing) --port.writers;
+  std::erase_if(port.connections, [&](const auto& p) { return p.get() == &connection; });
+  forget(connection);
+}
+
+void Datastreams::retire(Port& port) {
+  if (port.closed) return;
+  port.closed = true;
+  port.listener->close();
+  log::info(port.who, ": the component was removed from the simulation; port ", port.number, " and its ",
+            port.connections.size(), " connection(s) closed");
+  const auto connections = port.connections;  // each close changes the list
+  for (const auto& c : connections) c->close("its component was removed");
+}
+
+// ---- samples
+
+void Datastreams::wake() {
+  if (woken_.exchange(true, std::memory_order_acq_rel)) return;
+  asio::post(io_, [this] { drain(); });
+}
+
+void Datastreams::drain() {
+  woken_.store(false, std::memory_order_release);
+  for (const auto& p : ports_) {
+    Port& port = *p;
+    if (port.info.direction != StreamDirection::out || port.closed) continue;
+    draining_ = port.connections;  // a write may close a connection, which leaves the list
+    bool removed = false;
+    for (const auto& connection : draining_) {
+      // not authenticated yet, or closed by an earlier write of this drain
+      if (!connection->subscription || connection->closed()) continue;
+      samples_.clear();
+      connection->subscription->take(samples_);
+      std::uint64_t lost = 0;
+      for (const SamplePtr& sample : samples_) {
+        const bool queued = connection->queue_droppable_with([&](std::string& out) {
+          out += sample->text();
+          out += '\n';
+        });
+        if (!queued) ++lost;
+      }
+      if (lost > 0) connection->subscription->note_dropped(lost);
+      removed = removed || connection->subscription->closed();
+    }
+    draining_.clear();
+    if (removed) retire(port);
+  }
+  samples_.clear();
+  flush_touched();
+}
+
+}  // namespace simgate::socket

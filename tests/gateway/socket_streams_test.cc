@@ -1,0 +1,242 @@
+// MORSE's socket datastreams, end to end (plugins/socket/datastreams.h): a gateway running
+// the demo deployment, whose robot.pose and robot.motion stream on the socket transport (on
+// ephemeral ports here); clients find the ports through the `simulation` services, read
+// JSON lines from the pose port and write commands to the motion port over real sockets.
+#include <gtest/gtest.h>
+#include <sys/socket.h>
+
+#include <chrono>
+
+#include "in_process_gateway.h"
+
+namespace simgate::gateway::testing {
+namespace {
+
+using namespace std::chrono_literals;
+
+constexpr const char* k_publisher = "morse.middleware.socket_datastream.SocketPublisher";
+constexpr const char* k_reader = "morse.middleware.socket_datastream.SocketReader";
+
+// The demo (its "streams": robot.pose and robot.motion on socket), pose at 50 Hz.
+json streams_config(bool paused = false) {
+  json c = demo_config();
+  c["robots"][0]["components"][3]["frequency"] = 50;  // robot.pose
+  c["scene"]["start_paused"] = paused;
+  return c;
+}
+
+// The entry of `component` in simulation.get_stream_statistics' answer.
+json stream_of(const json& stats, const std::string& component) {
+  for (const auto& s : stats)
+    if (s["component"] == component) return s;
+  return nullptr;
+}
+
+// The port `simulation get_stream_port` gives `component`.
+int stream_port(LineClient& service, const std::string& component) {
+  const std::string answer = service.request("p", "simulation get_stream_port [\"" + component + "\"]");
+  EXPECT_EQ(answer.rfind("p SUCCESS ", 0), 0u) << answer;
+  const json port = payload(answer);
+  return port.is_number_integer() ? port.get<int>() : 0;
+}
+
+// The next sample of an output stream port, parsed; null on timeout or end of stream.
+json next_sample(LineClient& reader) {
+  auto line = reader.read_line();
+  return line ? json::parse(*line, nullptr, false) : json();
+}
+
+// A connection to 127.0.0.1:`port` that never reads, with a small receive buffer so that
+// what it leaves unread piles up at the server soon.
+class SilentClient {
+ public:
+  explicit SilentClient(int port) {
+    fd_ = ::socket(AF_INET, SOCK_STREAM, 0);
+    const int small = 4096;
+    ::setsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);  // before connect: the window it offers
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_port = htons(static_cast<uint16_t>(port));
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (::connect(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
+      ::close(fd_);
+      throw std::runtime_error("connect to 127.0.0.1:" + std::to_string(port) + " failed");
+    }
+  }
+  ~SilentClient() { ::close(fd_); }
+  SilentClient(const SilentClient&) = delete;
+  SilentClient& operator=(const SilentClient&) = delete;
+
+ private:
+  int fd_ = -1;
+};
+
+TEST(SocketStreamsTest, TheSimulationServicesSayWhereEachStreamIs) {
+  InProcessGateway g(streams_config());
+  LineClient service(g.port());
+  // the hub's order: the configuration's (motion comes before pose in the demo robot)
+  EXPECT_EQ(payload(service.request("1", "simulation list_streams")), json({"robot.motion", "robot.pose"}));
+  const int pose = stream_port(service, "robot.pose"), motion = stream_port(service, "robot.motion");
+  EXPECT_GT(pose, 0);
+  EXPECT_GT(motion, 0);
+  EXPECT_NE(pose, motion);
+  EXPECT_EQ(payload(service.request("2", "simulation get_all_stream_ports")),
+            json({{"robot.pose", pose}, {"robot.motion", motion}}));
+  // MORSE's words for a component without a stream here (pymorse logs them)
+  EXPECT_EQ(service.request("3", "simulation get_stream_port [\"robot.waypoint\"]"),
+            "3 FAILED \"Stream unavailable for component robot.waypoint\"");
+  EXPECT_EQ(service.request("4", "simulation get_stream_port [\"nobody\"]"),
+            "4 FAILED \"Stream unavailable for component nobody\"");
+  // introspection lists them as services of this transport
+  int found = 0;
+  for (const auto& s : payload(service.request("5", "simulation list_services")))
+    if (s["component"] == "simulation" &&
+        (s["name"] == "list_streams" || s["name"] == "get_stream_port" || s["name"] == "get_all_stream_ports")) {
+      ++found;
+      EXPECT_EQ(s["transports"], json({"socket"})) << s;
+    }
+  EXPECT_EQ(found, 3);
+  // details names the streams by MORSE's datastream classes (what pymorse looks for)
+  const json components = payload(service.request("6", "simulation details"))["robots"][0]["components"];
+  EXPECT_EQ(components["robot.pose"]["stream_interfaces"], json::array({json::array({k_publisher, "OUT"})})) << components;
+  EXPECT_EQ(components["robot.motion"]["stream_interfaces"], json::array({json::array({k_reader, "IN"})})) << components;
+  EXPECT_FALSE(components["robot.waypoint"].contains("stream_interfaces")) << components;
+}
+
+TEST(SocketStreamsTest, AnOutputPortSendsOneJsonSamplePerLineInOrder) {
+  InProcessGateway g(streams_config());
+  LineClient service(g.port());
+  LineClient reader(stream_port(service, "robot.pose"));
+  double last = -1;
+  for (int i = 0; i < 5; ++i) {
+    const json sample = next_sample(reader);
+    ASSERT_TRUE(sample.is_object()) << sample;
+    for (const char* key : {"x", "y", "z", "roll", "pitch", "yaw", "timestamp"}) EXPECT_TRUE(sample.contains(key)) << sample;
+    EXPECT_GT(sample["timestamp"].get<double>(), last);
+    last = sample["timestamp"];
+  }
+  // what a reader sends is read and ignored: the samples go on
+  reader.send("hello\n{\"x\": 1}\n");
+  for (int i = 0; i < 3; ++i) {
+    const json sample = next_sample(reader);
+    ASSERT_TRUE(sample.is_object()) << sample;
+    EXPECT_GT(sample["timestamp"].get<double>(), last);
+    last = sample["timestamp"];
+  }
+  const json pose = stream_of(payload(service.request("1", "simulation get_stream_statistics")), "robot.pose");
+  EXPECT_EQ(pose["subscribers"], 1) << pose;
+}
+
+TEST(SocketStreamsTest, APausedSimulationGivesANewReaderOneSample) {
+  InProcessGateway g(streams_config(/*paused=*/true));
+  LineClient service(g.port());
+  LineClient reader(stream_port(service, "robot.pose"));
+  const json sample = next_sample(reader);
+  ASSERT_TRUE(sample.is_object()) << sample;
+  EXPECT_EQ(sample["timestamp"], 0);
+}
+
+TEST(SocketStreamsTest, CommandLinesDriveTheRobotAndBadOnesAreCountedWithoutClosingAnything) {
+  InProcessGateway g(streams_config());
+  LineClient service(g.port());
+  LineClient motion(stream_port(service, "robot.motion"));
+  LineClient reader(stream_port(service, "robot.pose"));
+  const double x0 = next_sample(reader)["x"];
+  motion.send("{\"v\": 1, \"w\": 0}\n");
+  double x = x0;
+  for (int i = 0; i < 500 && x < x0 + 0.05; ++i) {
+    const json sample = next_sample(reader);
+    ASSERT_TRUE(sample.is_object()) << sample;
+    x = sample["x"];
+  }
+  EXPECT_GT(x, x0 + 0.05);
+  // the statistics, once they show `want` of `key` for robot.motion (bounded polling)
+  auto motion_stats = [&](const char* key, int want) {
+    json stream;
+    for (int i = 0; i < 500; ++i) {
+      stream = stream_of(payload(service.request("s" + std::to_string(i), "simulation get_stream_statistics")),
+                         "robot.motion");
+      if (stream[key].get<int>() >= want) break;
+      std::this_thread::sleep_for(10ms);
+    }
+    return stream;
+  };
+  EXPECT_EQ(motion_stats("commands", 1)["commands"], 1);
+  // a line that is not JSON (logged), then a command the component refuses (counted): the
+  // connection stays, and the next command is applied
+  motion.send("faster please\n");
+  motion.send("{\"v\": 1, \"speed\": 2}\n");
+  const json refused = motion_stats("refused", 1);
+  EXPECT_EQ(refused["refused"], 1) << refused;
+  EXPECT_NE(refused.value("last_refusal", "").find("unknown key 'speed'"), std::string::npos) << refused;
+  motion.send("{\"v\": 0, \"w\": 0}\n");
+  EXPECT_EQ(motion_stats("commands", 2)["commands"], 2);
+  // nothing is ever written back on an input stream: the next thing this connection sees is
+  // its end, when the gateway stops
+}
+
+TEST(SocketStreamsTest, AReaderThatDoesNotReadHoldsUpNobodyAndItsLossesAreCounted) {
+  json c = streams_config();
+  c["scene"]["realtime_factor"] = 0;                   // as fast as possible: samples pile up fast
+  c["robots"][0]["components"][3]["frequency"] = 500;  // one per step
+  c["transports"]["socket"]["options"]["stream_queue"] = 4;
+  InProcessGateway g(c);
+  LineClient service(g.port());
+  const int port = stream_port(service, "robot.pose");
+  SilentClient silent(port);
+  LineClient reader(port);
+  // the reader gets every sample in order while the silent one falls behind, until the
+  // silent one's losses show in the counters
+  double last = -1;
+  json pose;
+  const auto give_up = std::chrono::steady_clock::now() + 120s;  // a bound, not a measurement
+  for (int i = 0; i < 2'000'000 && std::chrono::steady_clock::now() < give_up; ++i) {
+    const json sample = next_sample(reader);
+    ASSERT_TRUE(sample.is_object()) << "sample " << i << ": " << sample;
+    ASSERT_GT(sample["timestamp"].get<double>(), last);
+    last = sample["timestamp"];
+    if (i % 2000 != 0) continue;
+    pose = stream_of(payload(service.request("s" + std::to_string(i), "simulation get_stream_statistics")), "robot.pose");
+    if (pose["dropped"].get<int>() > 0) break;
+  }
+  EXPECT_GT(pose["dropped"].get<int>(), 0) << pose;
+  EXPECT_EQ(pose["subscribers"], 2) << pose;
+  // and the reader still gets samples
+  for (int i = 0; i < 10; ++i) {
+    const json sample = next_sample(reader);
+    ASSERT_TRUE(sample.is_object()) << sample;
+    EXPECT_GT(sample["timestamp"].get<double>(), last);
+    last = sample["timestamp"];
+  }
+  EXPECT_GT(payload(service.request("t", "time statistics"))["stream_samples_dropped"].get<int>(), 0);
+}
+
+TEST(SocketStreamsTest, ADeletedRobotClosesItsStreamPorts) {
+  InProcessGateway g(streams_config());
+  LineClient service(g.port());
+  const int pose = stream_port(service, "robot.pose");
+  LineClient reader(pose);
+  ASSERT_TRUE(next_sample(reader).is_object());
+  EXPECT_EQ(payload(service.request("1", "simulation delete_entity [\"robot\"]"))["name"], "robot");
+  EXPECT_TRUE(reader.closed_by_server());
+  EXPECT_EQ(service.request("2", "simulation get_stream_port [\"robot.pose\"]"),
+            "2 FAILED \"Stream unavailable for component robot.pose\"");
+  EXPECT_EQ(payload(service.request("3", "simulation list_streams")), json::array());
+  EXPECT_EQ(payload(service.request("4", "simulation get_all_stream_ports")), json::object());
+}
+
+TEST(SocketStreamsTest, WithoutStreamsTheStreamServicesDoNotExist) {
+  json c = streams_config();
+  c.erase("streams");
+  InProcessGateway g(c);
+  LineClient service(g.port());
+  const std::string answer = service.request("1", "simulation get_stream_port [\"robot.pose\"]");
+  EXPECT_NE(answer.find("1 FAILED \"The request get_stream_port has not been registered"), std::string::npos) << answer;
+  for (const auto& s : payload(service.request("2", "simulation list_services")))
+    EXPECT_EQ(s["name"].get<std::string>().find("stream_port"), std::string::npos) << s;
+  const json components = payload(service.request("3", "simulation details"))["robots"][0]["components"];
+  EXPECT_FALSE(components["robot.pose"].contains("stream_interfaces")) << components;
+}
+
+}  // namespace
+}  // namespace simgate::gateway::testing
