@@ -36,7 +36,9 @@
 // Life cycle: the constructor validates the options and binds the listening socket (a
 // port in use fails here, with a clear message); start() launches the I/O thread;
 // stop() closes the acceptor and every connection and joins the thread (idempotent; the
-// destructor calls it, then finishes requests still pending).
+// destructor calls it, then finishes requests still pending). start() also opens the
+// datastream ports (the streams are known then) and registers their services; stop() closes
+// them with the rest.
 //
 // Threads: one I/O thread runs the io_context (polling a little before it sleeps while
 // events come close together: simgate/kit/idle_spin.h, reading a lone client's socket
