@@ -438,6 +438,7 @@ TEST(DdsNetnsTest, ClientOnAnotherHostDiscoversListsAndDrivesRobotToWaypoint) {
                                                 {"partition", test_partition()},
                                                 {"config", hosts.cyclone_xml(hosts.if_a)}}}}}};
   config["services"] = {{"default", {"dds"}}};
+  config.erase("streams");  // the demo's datastreams are on the socket transport, replaced here
   fs::path dir = fs::path(SIMGATE_BINARY_DIR) / "tests" / "dds" / ("netns-" + std::to_string(getpid()));
   fs::create_directories(dir);
   std::string config_path = (dir / "deployment.json").string();
