@@ -848,6 +848,9 @@ class Harness:
              "latency_p99_us": spread([r["socket_latency_step_to_read"]["p99_us"] for r in runs]),
              "round_trip_p50_us": spread([r["socket_sync_round_trip"]["p50_us"] for r in runs]),
              "round_trip_p99_us": spread([r["socket_sync_round_trip"]["p99_us"] for r in runs]),
+             "one_latency_p50_us": spread([r["one_stream"]["socket_latency_step_to_read"]["p50_us"] for r in runs]),
+             "one_latency_p99_us": spread([r["one_stream"]["socket_latency_step_to_read"]["p99_us"] for r in runs]),
+             "one_round_trip_p50_us": spread([r["one_stream"]["socket_sync_round_trip"]["p50_us"] for r in runs]),
              "components": runs[0]["components"], "transports": runs[0]["transports"]}
         self.target("real-time factor, 50 components streaming at 100 Hz on every transport",
                     s["realtime_factor_streams"], ">=", 0.99, "x")
@@ -1168,7 +1171,9 @@ def markdown(r):
                   f"| gateway CPU per 1 000 samples delivered (ms) | {fmt(g['cpu_ms_per_1000_delivered'], 2)} |",
                   f"| step end to socket read p50 / p99 (µs) | {fmt(g['latency_p50_us'])} / {fmt(g['latency_p99_us'])} |",
                   f"| sync round trip (`time now`) p50 / p99 (µs) | {fmt(g['round_trip_p50_us'])} / "
-                  f"{fmt(g['round_trip_p99_us'])} |"]
+                  f"{fmt(g['round_trip_p99_us'])} |",
+                  f"| one stream alone: step end to socket read p50 / p99 (µs), sync round trip p50 | "
+                  f"{fmt(g['one_latency_p50_us'])} / {fmt(g['one_latency_p99_us'])}, {fmt(g['one_round_trip_p50_us'])} |"]
         if "dds_ratio" in g:
             lines += [f"| DDS pose stream samples/s: simgate / raw Cyclone writer | {fmt(g['dds_simgate_per_s'], 0)} / "
                       f"{fmt(g['dds_raw_per_s'], 0)} = {fmt(g['dds_ratio'], 3)} |"]

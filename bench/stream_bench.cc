@@ -15,7 +15,10 @@
 //      one socket connection per stream port and one JSON-RPC connection subscribed to every
 //      stream (DDS publishes to its topics with or without readers), and reads everything.
 //      Then the same thread times --calls sync calls (`time now`) on the socket transport,
-//      while the streams go on.
+//      while the streams go on;
+//   3. one stream: phase 2 with a single component on the socket and JSON-RPC transports,
+//      for the latency of a stream alone (with 50, one I/O thread writes 50 connections in
+//      turn after each step: the later ones wait for the earlier).
 // The real-time factor of a phase is the steps the loop took times the step, over the wall
 // time. The CPU of a phase is the process's (getrusage) minus the client thread's own
 // (CLOCK_THREAD_CPUTIME_ID): the gateway's threads only. CPU per 1 000 samples is the
@@ -265,6 +268,9 @@ json run_streams(const std::string& mjcf, double duration_s, int components, int
   log::set_level(log::Level::warning);
   const Phase baseline = run_phase(mjcf, components, false, dds, duration_s, 0);
   const Phase streams = run_phase(mjcf, components, true, dds, duration_s, calls);
+  // the latency of one stream alone: in the run above the socket transport's one I/O thread
+  // writes 50 connections in turn after each step, and the later ones wait for the earlier
+  const Phase single = run_phase(mjcf, 1, true, false, duration_s, calls);
   const double extra_cpu = streams.cpu_s - baseline.cpu_s;
   const std::uint64_t delivered = streams.socket_lines + streams.jsonrpc_samples;
   std::vector<std::string> transports = {"socket", "jsonrpc"};
@@ -286,6 +292,8 @@ json run_streams(const std::string& mjcf, double duration_s, int components, int
               {"cpu_ms_per_1000_samples_delivered", delivered ? extra_cpu * 1e6 / delivered : 0.0},
               {"socket_latency_step_to_read", summarize_us(streams.latency)},
               {"socket_sync_round_trip", summarize_us(streams.round_trip)},
+              {"one_stream", {{"socket_latency_step_to_read", summarize_us(single.latency)},
+                              {"socket_sync_round_trip", summarize_us(single.round_trip)}}},
               {"target", {{"realtime_factor_min", 0.99}, {"met", streams.realtime_factor >= 0.99}}}};
 }
 
