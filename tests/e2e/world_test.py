@@ -37,6 +37,7 @@ class Gateway:
         config["scene"]["mjcf"] = os.path.join(ARGS.source_dir, "config/scenes/demo.xml")
         config["scene"]["start_paused"] = True
         config["transports"]["socket"]["options"]["port"] = 0
+        config["transports"]["socket"]["options"]["stream_port"] = 0
         config["transports"]["jsonrpc"]["options"]["port"] = 0
         self.partition = "simgate-world-test-%d" % os.getpid()
         config["transports"]["dds"]["options"]["partition"] = self.partition
