@@ -10,11 +10,19 @@
 #ifndef SIMGATE_BENCH_BENCH_UTIL_H_
 #define SIMGATE_BENCH_BENCH_UTIL_H_
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cstdint>
 #include <iostream>
 #include <optional>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include <CLI/CLI.hpp>
@@ -49,6 +57,23 @@ inline json summarize_us(std::vector<std::int64_t> samples) {
           {"p90_us", quantile(samples, 0.90) / 1e3},
           {"p99_us", quantile(samples, 0.99) / 1e3},
           {"max_us", samples.empty() ? 0.0 : static_cast<double>(samples.back()) / 1e3}};
+}
+
+// A TCP connection to 127.0.0.1:`port`, TCP_NODELAY (its descriptor). Throws on failure.
+inline int connect_loopback(std::uint16_t port) {
+  int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  if (fd < 0) throw std::runtime_error("socket() failed");
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(port);
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
+    ::close(fd);
+    throw std::runtime_error("cannot connect to 127.0.0.1:" + std::to_string(port));
+  }
+  int one = 1;
+  ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+  return fd;
 }
 
 // Parses argv into `app`'s options. Returns nullopt to go on, or the exit code to return:

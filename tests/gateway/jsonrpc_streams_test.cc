@@ -22,13 +22,6 @@ json streams_config(bool paused = false) {
   return c;
 }
 
-// The entry of `component` in simulation.get_stream_statistics' answer.
-json stream_of(const json& stats, const std::string& component) {
-  for (const auto& s : stats)
-    if (s["component"] == component) return s;
-  return nullptr;
-}
-
 // A JSON-RPC client that keeps the notifications it reads while it waits for a response.
 class StreamClient {
  public:

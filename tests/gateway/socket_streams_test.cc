@@ -25,13 +25,6 @@ json streams_config(bool paused = false) {
   return c;
 }
 
-// The entry of `component` in simulation.get_stream_statistics' answer.
-json stream_of(const json& stats, const std::string& component) {
-  for (const auto& s : stats)
-    if (s["component"] == component) return s;
-  return nullptr;
-}
-
 // The port `simulation get_stream_port` gives `component`.
 int stream_port(LineClient& service, const std::string& component) {
   const std::string answer = service.request("p", "simulation get_stream_port [\"" + component + "\"]");
@@ -50,19 +43,7 @@ json next_sample(LineClient& reader) {
 // what it leaves unread piles up at the server soon.
 class SilentClient {
  public:
-  explicit SilentClient(int port) {
-    fd_ = ::socket(AF_INET, SOCK_STREAM, 0);
-    const int small = 4096;
-    ::setsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);  // before connect: the window it offers
-    sockaddr_in addr{};
-    addr.sin_family = AF_INET;
-    addr.sin_port = htons(static_cast<uint16_t>(port));
-    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    if (::connect(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
-      ::close(fd_);
-      throw std::runtime_error("connect to 127.0.0.1:" + std::to_string(port) + " failed");
-    }
-  }
+  explicit SilentClient(int port) : fd_(connect_loopback(port, 4096)) {}
   ~SilentClient() { ::close(fd_); }
   SilentClient(const SilentClient&) = delete;
   SilentClient& operator=(const SilentClient&) = delete;

@@ -72,20 +72,33 @@ inline json demo_config(double factor = 1.0) {
   return c;
 }
 
+// A TCP connection to 127.0.0.1:`port` (its descriptor); `receive_buffer` (bytes, 0: the
+// system's) is set before connecting, so that it is the window the client offers.
+inline int connect_loopback(int port, int receive_buffer = 0) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  if (receive_buffer > 0) ::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &receive_buffer, sizeof receive_buffer);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
+    ::close(fd);
+    throw std::runtime_error("connect to 127.0.0.1:" + std::to_string(port) + " failed");
+  }
+  return fd;
+}
+
+// The entry of `component` in `simulation get_stream_statistics`' answer (null: none).
+inline json stream_of(const json& stats, const std::string& component) {
+  for (const auto& s : stats)
+    if (s["component"] == component) return s;
+  return nullptr;
+}
+
 // One TCP connection speaking lines.
 class LineClient {
  public:
-  explicit LineClient(int port) {
-    fd_ = ::socket(AF_INET, SOCK_STREAM, 0);
-    sockaddr_in addr{};
-    addr.sin_family = AF_INET;
-    addr.sin_port = htons(static_cast<uint16_t>(port));
-    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    if (::connect(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
-      ::close(fd_);
-      throw std::runtime_error("connect to 127.0.0.1:" + std::to_string(port) + " failed");
-    }
-  }
+  explicit LineClient(int port) : fd_(connect_loopback(port)) {}
   ~LineClient() { ::close(fd_); }
   LineClient(const LineClient&) = delete;
   LineClient& operator=(const LineClient&) = delete;
