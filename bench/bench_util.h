@@ -59,6 +59,11 @@ inline json summarize_us(std::vector<std::int64_t> samples) {
           {"max_us", samples.empty() ? 0.0 : static_cast<double>(samples.back()) / 1e3}};
 }
 
+// The port of an endpoint as the transports print them: "tcp://127.0.0.1:4000" -> 4000.
+inline std::uint16_t endpoint_port(const std::string& endpoint) {
+  return static_cast<std::uint16_t>(std::stoi(endpoint.substr(endpoint.rfind(':') + 1)));
+}
+
 // A TCP connection to 127.0.0.1:`port`, TCP_NODELAY (its descriptor). Throws on failure.
 inline int connect_loopback(std::uint16_t port) {
   int fd = ::socket(AF_INET, SOCK_STREAM, 0);

@@ -21,9 +21,6 @@
 // simulation thread (its service and default_action run under the simulation lock).
 #include "progress_bench.h"
 
-#include <arpa/inet.h>
-#include <netinet/in.h>
-#include <netinet/tcp.h>
 #include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -163,8 +160,7 @@ json run_progress(const std::string& mjcf, double duration_s, double round_s, in
   registry.add<ProgressWorker>("bench_progress", sim::Kind::component, "issue #20's progress benchmark");
   gw::Gateway gateway(deployment, registry, {});
   gateway.start();
-  const std::string endpoint = gateway.endpoints().at("jsonrpc").at(0);
-  const auto port = static_cast<std::uint16_t>(std::stoi(endpoint.substr(endpoint.rfind(':') + 1)));
+  const std::uint16_t port = endpoint_port(gateway.endpoints().at("jsonrpc").at(0));
 
   const int steps = std::max(1, static_cast<int>(round_s / k_timestep));
   std::vector<double> plain, with_progress;

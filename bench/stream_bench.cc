@@ -30,9 +30,6 @@
 // simulation lock.
 #include "stream_bench.h"
 
-#include <arpa/inet.h>
-#include <netinet/in.h>
-#include <netinet/tcp.h>
 #include <poll.h>
 #include <sys/resource.h>
 #include <sys/socket.h>
@@ -103,8 +100,7 @@ std::string read_line(int fd, std::string& rest, Clock::time_point deadline) {
 }
 
 std::uint16_t port_of(gateway::Gateway& g, const std::string& transport) {
-  const std::string endpoint = g.endpoints().at(transport).at(0);
-  return static_cast<std::uint16_t>(std::stoi(endpoint.substr(endpoint.rfind(':') + 1)));
+  return endpoint_port(g.endpoints().at(transport).at(0));
 }
 
 json deployment(const std::string& mjcf, int components, bool streams, bool dds) {

@@ -180,7 +180,14 @@ bool StreamHub::remove(const std::string& component) {
 
 void StreamHub::publish_due(double time) {
   if (subscribers_.load(std::memory_order_acquire) == 0) return;
-  std::vector<std::shared_ptr<StreamSubscription>> to_wake;
+  // which streams give a sample now, under the hub mutex (subscribers come and go on the
+  // transports' threads)
+  struct Due {
+    Stream* stream;
+    bool due;                  // by its frequency (else only its new subscribers get it)
+    std::optional<json> data;  // its sample, once produced
+  };
+  std::vector<Due> now;
   {
     std::lock_guard lock(mutex_);
     for (auto& stream_ptr : streams_) {
@@ -188,21 +195,34 @@ void StreamHub::publish_due(double time) {
       if (s.subscribers.empty() || !s.produce) continue;
       if (time < s.last_time) s.next_due = time;  // the clock went back (reset): start again from now
       const bool due = time + 1e-9 >= s.next_due;
-      if (!due && !s.first_wanted) continue;
-      json data;
-      try {
-        data = s.produce();
-      } catch (const std::exception& e) {
-        // no sample this time; the next try is at the next due time
-        if (!s.failure_logged) {
-          s.failure_logged = true;
-          log::warning(s.info.component, " stream: reading a sample failed (logged once): ", e.what());
-        }
-        s.first_wanted = false;
+      if (due || s.first_wanted) now.push_back({&s, due, std::nullopt});
+    }
+  }
+  if (now.empty()) return;
+  // the samples, without the hub mutex (the simulation lock keeps the streams): a transport
+  // that subscribes or publishes meanwhile never waits for a component
+  for (Due& d : now) {
+    try {
+      d.data = d.stream->produce();
+    } catch (const std::exception& e) {
+      // no sample this time; the next try is at the next due time
+      if (!d.stream->failure_logged) {
+        d.stream->failure_logged = true;
+        log::warning(d.stream->info.component, " stream: reading a sample failed (logged once): ", e.what());
+      }
+    }
+  }
+  std::vector<std::shared_ptr<StreamSubscription>> to_wake;
+  {
+    std::lock_guard lock(mutex_);
+    for (Due& d : now) {
+      Stream& s = *d.stream;
+      s.first_wanted = false;
+      if (!d.data) {
         s.next_due = time + s.period;
         continue;
       }
-      auto sample = std::make_shared<const StreamSample>(++s.seq, time, std::move(data));
+      auto sample = std::make_shared<const StreamSample>(++s.seq, time, std::move(*d.data));
       s.last_time = time;
       for (auto& sub : s.subscribers) {
         bool first = false;
@@ -211,10 +231,9 @@ void StreamHub::publish_due(double time) {
           first = sub->wants_first_;
           sub->wants_first_ = false;
         }
-        if ((due || first) && sub->push(sample)) to_wake.push_back(sub);
+        if ((d.due || first) && sub->push(sample)) to_wake.push_back(sub);
       }
-      s.first_wanted = false;
-      if (due) {
+      if (d.due) {
         s.next_due += s.period;
         if (s.next_due <= time) s.next_due = time + s.period;
       }
@@ -224,34 +243,42 @@ void StreamHub::publish_due(double time) {
 }
 
 std::string StreamHub::apply(Stream& stream, const json& command) {
+  // the component, without the hub mutex (the caller holds the simulation lock, which keeps
+  // the stream); then the counters, with it
+  std::string refusal;
   try {
     stream.apply(command);
-    ++stream.commands;
-    return {};
   } catch (const std::exception& e) {
-    ++stream.refused;
-    stream.last_refusal = e.what();
-    if (!stream.refusal_logged) {
-      stream.refusal_logged = true;
-      log::warning(stream.info.component, " stream: a command was refused (logged once; simulation "
-                   "get_stream_statistics counts them): ", e.what());
-    }
-    return e.what();
+    refusal = e.what();
   }
+  std::lock_guard lock(mutex_);
+  if (refusal.empty()) {
+    ++stream.commands;
+    return refusal;
+  }
+  ++stream.refused;
+  stream.last_refusal = refusal;
+  if (!stream.refusal_logged) {
+    stream.refusal_logged = true;
+    log::warning(stream.info.component, " stream: a command was refused (logged once; simulation "
+                 "get_stream_statistics counts them): ", refusal);
+  }
+  return refusal;
 }
 
 std::size_t StreamHub::apply_commands() {
-  std::lock_guard lock(mutex_);
-  turn_wanted_.store(false, std::memory_order_relaxed);
-  std::size_t n = 0;
-  for (auto& s : streams_) {
-    if (!s->pending) continue;
-    json command = std::move(*s->pending);
-    s->pending.reset();
-    apply(*s, command);
-    ++n;
+  std::vector<std::pair<Stream*, json>> waiting;
+  {
+    std::lock_guard lock(mutex_);
+    turn_wanted_.store(false, std::memory_order_relaxed);
+    for (auto& s : streams_) {
+      if (!s->pending) continue;
+      waiting.emplace_back(s.get(), std::move(*s->pending));
+      s->pending.reset();
+    }
   }
-  return n;
+  for (auto& [stream, command] : waiting) apply(*stream, command);
+  return waiting.size();
 }
 
 std::vector<StreamInfo> StreamHub::streams(std::string_view transport) const {
@@ -310,29 +337,31 @@ PublishResult StreamHub::publish(std::string_view component, std::string_view tr
     return result;
   }
   std::unique_lock gate(*gate_, std::try_to_lock);
-  std::lock_guard lock(mutex_);
-  Stream* s = find_locked(component);
-  if (!s || s->info.direction != StreamDirection::in || !carries(s->info, transport)) {
-    result.error = "no input stream '" + std::string(component) + "' here";
-    return result;
-  }
-  if (gate.owns_lock()) {
-    // the lock is ours: what waited goes first, then this one, and the component says at once
-    if (s->pending) {
-      json older = std::move(*s->pending);
-      s->pending.reset();
-      apply(*s, older);
+  Stream* s = nullptr;
+  std::optional<json> older;  // a command that waited, applied first
+  {
+    std::lock_guard lock(mutex_);
+    s = find_locked(component);
+    if (!s || s->info.direction != StreamDirection::in || !carries(s->info, transport)) {
+      result.error = "no input stream '" + std::string(component) + "' here";
+      return result;
     }
-    result.error = apply(*s, command);
-    result.ok = result.error.empty();
-    result.applied = result.ok;
-    return result;
+    if (!gate.owns_lock()) {
+      if (s->pending) ++s->replaced;
+      s->pending = std::move(command);
+      turn_wanted_.store(true, std::memory_order_release);
+      result.ok = true;
+      gate_->signal();
+      return result;
+    }
+    older.swap(s->pending);
   }
-  if (s->pending) ++s->replaced;
-  s->pending = std::move(command);
-  turn_wanted_.store(true, std::memory_order_release);
-  result.ok = true;
-  gate_->signal();
+  // the simulation lock is ours: what waited goes first, then this one, and the component
+  // says at once
+  if (older) apply(*s, *older);
+  result.error = apply(*s, command);
+  result.ok = result.error.empty();
+  result.applied = result.ok;
   return result;
 }
 

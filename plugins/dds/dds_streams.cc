@@ -30,16 +30,23 @@ void triple(const json& data, const char* key, double (&out)[3]) {
   for (int i = 0; i < 3; ++i) out[i] = values.at(i).get<double>();
 }
 
+// A sample struct with what every one carries: the component, seq and simulated time.
+template <class T>
+T stamped(const std::string& component, const StreamSample& sample) {
+  T out{};
+  out.component = const_cast<char*>(component.c_str());
+  out.seq = sample.seq();
+  out.time = sample.time();
+  return out;
+}
+
 // A writer function per typed kind: fills the struct from the sample (throws json::exception
 // when the sample is not of that shape) and writes it.
 using WriteFn = dds_return_t (*)(dds_entity_t writer, const std::string& component, const StreamSample& sample);
 
 dds_return_t write_pose(dds_entity_t writer, const std::string& component, const StreamSample& sample) {
   const json& d = sample.data();
-  simgate_stream_Pose pose{};
-  pose.component = const_cast<char*>(component.c_str());
-  pose.seq = sample.seq();
-  pose.time = sample.time();
+  auto pose = stamped<simgate_stream_Pose>(component, sample);
   pose.x = number(d, "x"), pose.y = number(d, "y"), pose.z = number(d, "z");
   pose.roll = number(d, "roll"), pose.pitch = number(d, "pitch"), pose.yaw = number(d, "yaw");
   return dds_write(writer, &pose);
@@ -47,10 +54,7 @@ dds_return_t write_pose(dds_entity_t writer, const std::string& component, const
 
 dds_return_t write_odometry(dds_entity_t writer, const std::string& component, const StreamSample& sample) {
   const json& d = sample.data();
-  simgate_stream_Odometry odometry{};
-  odometry.component = const_cast<char*>(component.c_str());
-  odometry.seq = sample.seq();
-  odometry.time = sample.time();
+  auto odometry = stamped<simgate_stream_Odometry>(component, sample);
   odometry.x = number(d, "x"), odometry.y = number(d, "y"), odometry.z = number(d, "z");
   odometry.roll = number(d, "roll"), odometry.pitch = number(d, "pitch"), odometry.yaw = number(d, "yaw");
   odometry.vx = number(d, "vx"), odometry.vy = number(d, "vy"), odometry.vz = number(d, "vz");
@@ -60,10 +64,7 @@ dds_return_t write_odometry(dds_entity_t writer, const std::string& component, c
 
 dds_return_t write_imu(dds_entity_t writer, const std::string& component, const StreamSample& sample) {
   const json& d = sample.data();
-  simgate_stream_Imu imu{};
-  imu.component = const_cast<char*>(component.c_str());
-  imu.seq = sample.seq();
-  imu.time = sample.time();
+  auto imu = stamped<simgate_stream_Imu>(component, sample);
   triple(d, "angular_velocity", imu.angular_velocity);
   triple(d, "linear_acceleration", imu.linear_acceleration);
   triple(d, "magnetic_field", imu.magnetic_field);
@@ -79,10 +80,7 @@ dds_return_t write_joint_state(dds_entity_t writer, const std::string& component
     names.push_back(const_cast<char*>(key.c_str()));
     positions.push_back(value.get<double>());
   }
-  simgate_stream_JointState state{};
-  state.component = const_cast<char*>(component.c_str());
-  state.seq = sample.seq();
-  state.time = sample.time();
+  auto state = stamped<simgate_stream_JointState>(component, sample);
   state.names = {static_cast<uint32_t>(names.size()), static_cast<uint32_t>(names.size()), names.data(), false};
   state.positions = {static_cast<uint32_t>(positions.size()), static_cast<uint32_t>(positions.size()),
                      positions.data(), false};
@@ -96,10 +94,7 @@ dds_return_t write_laser_scan(dds_entity_t writer, const std::string& component,
   std::vector<simgate_stream_Point> points;
   for (const json& p : d.at("point_list"))
     points.push_back({p.at(0).get<double>(), p.at(1).get<double>(), p.at(2).get<double>()});
-  simgate_stream_LaserScan scan{};
-  scan.component = const_cast<char*>(component.c_str());
-  scan.seq = sample.seq();
-  scan.time = sample.time();
+  auto scan = stamped<simgate_stream_LaserScan>(component, sample);
   scan.ranges = {static_cast<uint32_t>(ranges.size()), static_cast<uint32_t>(ranges.size()), ranges.data(), false};
   scan.points = {static_cast<uint32_t>(points.size()), static_cast<uint32_t>(points.size()), points.data(), false};
   return dds_write(writer, &scan);
@@ -316,10 +311,7 @@ void DdsStreams::write_samples() {
         if (output->type->write) {
           rc = output->type->write(output->writer, component, *sample);
         } else {
-          simgate_stream_JsonSample json_sample{};
-          json_sample.component = const_cast<char*>(component.c_str());
-          json_sample.seq = sample->seq();
-          json_sample.time = sample->time();
+          auto json_sample = stamped<simgate_stream_JsonSample>(component, *sample);
           json_sample.kind = const_cast<char*>(output->info.kind.c_str());
           json_sample.json = const_cast<char*>(sample->text().c_str());
           rc = dds_write(output->writer, &json_sample);

@@ -1,6 +1,7 @@
 #include "simgate/sim/supervision.h"
 
 #include <algorithm>
+#include <optional>
 
 #include "simgate/core/call_context.h"
 #include "simgate/core/errors.h"
@@ -32,6 +33,14 @@ bool stream_visible(const StreamInfo& info) {
   if (!CallContext::current()) return true;
   const std::string transport = caller_transport();
   return std::find(info.transports.begin(), info.transports.end(), transport) != info.transports.end();
+}
+
+// The stream of `component` the caller sees (stream_visible), if any.
+std::optional<StreamInfo> visible_stream(const StreamHub& hub, const std::string& component) {
+  if (CallContext::current()) return hub.find(component, caller_transport());
+  for (const auto& s : hub.statistics())
+    if (s.info.component == component) return s.info;
+  return std::nullopt;
 }
 }  // namespace
 
@@ -78,10 +87,8 @@ void SupervisionServices::interrupt() {
 bool SupervisionServices::visible(const ComponentEntry& e) const {
   // the caller's side of the mapping (call_context.h): a component its transport serves, or
   // one whose data stream it carries
-  if (caller_serves(e.component->name())) return true;
-  if (!e.component->stream()) return false;
-  const auto info = sim_.streams().find(e.component->name(), caller_transport());
-  return info.has_value();
+  return caller_serves(e.component->name()) ||
+         (e.component->stream() && visible_stream(sim_.streams(), e.component->name()));
 }
 
 bool SupervisionServices::robot_visible(const ComponentEntry& robot) const {
@@ -136,14 +143,11 @@ json SupervisionServices::details() const {
 
 json SupervisionServices::stream_interfaces(const std::string& component) const {
   json out = json::array();
-  if (!sim_.find(component) || !sim_.find(component)->component->stream()) return out;
-  for (const auto& info : sim_.streams().statistics()) {
-    if (info.info.component != component || !stream_visible(info.info)) continue;
-    for (const auto& t : info.info.transports) {
-      const RequestManager* manager = sim_.request_manager(t);
-      out.push_back({manager ? manager->datastream_class(info.info.direction) : "simgate." + t,
-                     to_string(info.info.direction)});
-    }
+  const std::optional<StreamInfo> info = visible_stream(sim_.streams(), component);
+  if (!info) return out;
+  for (const auto& t : info->transports) {
+    const RequestManager* manager = sim_.request_manager(t);
+    out.push_back({manager ? manager->datastream_class(info->direction) : "simgate." + t, to_string(info->direction)});
   }
   return out;
 }

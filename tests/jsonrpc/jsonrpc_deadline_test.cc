@@ -94,8 +94,12 @@ TEST_F(JsonRpcDeadline, EachCallOfABatchHasItsOwnDeadline) {
   ASSERT_TRUE(r.is_array()) << r.dump();
   ASSERT_EQ(r.size(), 2u);
   for (const json& response : r) {
-    if (response["id"] == 1) EXPECT_EQ(error_code(response), -32003) << response.dump();
-    if (response["id"] == 2) EXPECT_EQ(response["result"], 5.0);
+    if (response["id"] == 1) {
+      EXPECT_EQ(error_code(response), -32003) << response.dump();
+    }
+    if (response["id"] == 2) {
+      EXPECT_EQ(response["result"], 5.0);
+    }
   }
 }
 

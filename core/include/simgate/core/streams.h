@@ -209,11 +209,15 @@ class StreamHub {
   struct Stream;
   Stream* find_locked(std::string_view component);
   const Stream* find_locked(std::string_view component) const;
-  // Applies `command` to `stream` (under the simulation lock); the refusal, if any.
+  // Applies `command` to `stream` (under the simulation lock, without the hub mutex: the
+  // component runs with no transport waiting on it); counts it; the refusal, if any.
   std::string apply(Stream& stream, const json& command);
 
   std::shared_ptr<SimulationGate> gate_;
-  mutable std::mutex mutex_;                      // guards streams_ and their subscribers, commands
+  // guards streams_, their subscribers, pending commands and counters; never held while a
+  // component's produce() or apply() runs (those hold the simulation lock, which add() and
+  // remove() need too), so a transport thread never waits on a component
+  mutable std::mutex mutex_;
   std::vector<std::unique_ptr<Stream>> streams_;  // in the order added
   std::uint64_t dropped_by_removed_ = 0;          // drops of subscriptions that ended
   std::atomic<std::size_t> subscribers_{0};       // subscriptions now, all streams (publish_due's fast path)
