@@ -402,9 +402,10 @@ json DdsClient::Impl::list_services(std::chrono::milliseconds timeout) {
   dds_entity_t fresh = check(dds_create_readcondition(catalog_reader_, DDS_NOT_READ_SAMPLE_STATE), "catalog condition");
   dds_waitset_attach(waitset, fresh, 0);
   struct Entry {
-    std::string server;   // who publishes it
-    std::uint32_t count;  // how many entries that server publishes
-    json services;        // its descriptors
+    std::string server;      // who publishes it
+    std::uint32_t count;     // how many entries that server publishes
+    std::uint32_t revision;  // of that server's catalog
+    json services;           // its descriptors
   };
   std::map<std::string, Entry> entries;
   for (;;) {
@@ -414,14 +415,20 @@ json DdsClient::Impl::list_services(std::chrono::milliseconds timeout) {
     samples[0] = nullptr;
     dds_return_t n = dds_read_mask(catalog_reader_, samples, infos, 64, 64, DDS_ANY_SAMPLE_STATE | DDS_ANY_VIEW_STATE | DDS_ALIVE_INSTANCE_STATE);
     entries.clear();
+    std::map<std::string, std::uint32_t> latest;  // each server's highest revision
     for (dds_return_t i = 0; i < n; ++i) {
       if (!infos[i].valid_data) continue;
       const auto& e = *static_cast<const simgate_CatalogEntry*>(samples[i]);
       json services = json::parse(e.services ? e.services : "", nullptr, false);
       if (!services.is_array()) continue;
-      entries[e.component ? e.component : ""] = Entry{e.server ? e.server : "", e.count, std::move(services)};
+      Entry entry{e.server ? e.server : "", e.count, e.revision, std::move(services)};
+      latest[entry.server] = std::max(latest[entry.server], entry.revision);
+      entries[e.component ? e.component : ""] = std::move(entry);
     }
     if (n > 0) dds_return_loan(catalog_reader_, samples, n);
+    // an entry of an older revision is a component its server serves no more, whose dispose
+    // has not arrived yet
+    std::erase_if(entries, [&](const auto& e) { return e.second.revision < latest[e.second.server]; });
     // complete when every server's entries are all there
     std::map<std::string, std::uint32_t> present, expected;
     for (const auto& [component, entry] : entries) {

@@ -305,6 +305,7 @@ void DdsRequestManager::publish_catalog() {
     entry.component = const_cast<char*>(component.c_str());
     entry.server = const_cast<char*>(server_id_.c_str());
     entry.count = static_cast<uint32_t>(order.size());
+    entry.revision = catalog_revision_ + 1;
     entry.services = const_cast<char*>(text.c_str());
     dds_return_t rc = dds_write(catalog_writer_, &entry);
     if (rc < 0) log::error("DDS transport: catalog entry '", component, "' not written: ", retcode_text(rc));
@@ -319,6 +320,7 @@ void DdsRequestManager::publish_catalog() {
     dds_return_t rc = dds_dispose(catalog_writer_, &key);
     if (rc < 0) log::error("DDS transport: catalog entry '", component, "' not disposed: ", retcode_text(rc));
   }
+  ++catalog_revision_;
   published_ = std::set<std::string>(order.begin(), order.end());
   log::info("DDS transport: serving ", components().size(), " component(s) on domain ", options_.domain,
             ", partition '", options_.partition, "'");

@@ -58,6 +58,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cstdint>
 #include <deque>
 #include <map>
 #include <memory>
@@ -252,6 +253,7 @@ class DdsRequestManager : public RequestManager {
   std::atomic<std::size_t> client_count_{0};        // matched request writers, for any thread
   std::unordered_map<std::string, bool> async_services_;  // "component.service" -> is_async
   std::set<std::string> published_;                 // components with a catalog entry written
+  std::uint32_t catalog_revision_ = 0;              // of the last catalog published (CatalogEntry.revision)
   std::atomic<bool> catalog_changed_{false};        // publish the catalog anew (any thread)
   std::string lookup_key_;                          // lookup_async's key buffer
   std::vector<std::pair<RequestId, Call>> batch_;   // calls taken, not yet given to the core

@@ -253,6 +253,41 @@ TEST_F(DdsTransportTest, AnUnregisteredComponentLeavesTheCatalogAndItsCallFails)
   EXPECT_EQ(client->wait(client->start("robot", "goto", {1.0}), 10s).status, Status::failed);
 }
 
+// A reader may receive a gone component's last catalog entry alive before its dispose (a
+// client joining while the catalog changes does). The client keeps only the entries of each
+// server's highest revision. A raw writer plays the server: revision 1 with three components,
+// then revision 2 with one, and the dispose of the other two never sent.
+TEST_F(DdsTransportTest, CatalogEntriesOfAnOlderRevisionAreNotListed) {
+  const std::string partition = test_partition();
+  Participant server(test_domain(), ("file://" + std::string(SIMGATE_LOOPBACK_DDS_XML)).c_str(), "fake server");
+  QosPtr partition_qos(dds_create_qos());
+  dds_qset_partition1(partition_qos.get(), partition.c_str());
+  dds_entity_t publisher = dds_create_publisher(server.handle(), partition_qos.get(), nullptr);
+  dds_entity_t topic = dds_create_topic(server.handle(), &simgate_CatalogEntry_desc, k_catalog_topic, nullptr, nullptr);
+  QosPtr qos = make_qos(true, 1, DDS_SECS(1));
+  dds_entity_t writer = dds_create_writer(publisher, topic, qos.get(), nullptr);
+  ASSERT_GT(writer, 0);
+  auto write = [&](const char* component, std::uint32_t count, std::uint32_t revision) {
+    const std::string services =
+        json::array({{{"component", component}, {"name", "ping"}, {"async", false}, {"params", json::array()}}}).dump();
+    simgate_CatalogEntry entry{};
+    entry.component = const_cast<char*>(component);
+    entry.server = const_cast<char*>("0123456789abcdef0123456789abcdef");
+    entry.count = count;
+    entry.revision = revision;
+    entry.services = const_cast<char*>(services.c_str());
+    ASSERT_GE(dds_write(writer, &entry), 0);
+  };
+  write("kept", 3, 1);
+  write("gone1", 3, 1);
+  write("gone2", 3, 1);
+  write("kept", 1, 2);
+  DdsClient client(DdsClientOptions::from_json(client_options(partition)));
+  const json services = client.list_services(10s);
+  ASSERT_EQ(services.size(), 1u) << services.dump();
+  EXPECT_EQ(services[0]["component"], "kept");
+}
+
 TEST_F(DdsTransportTest, ListWithoutServerFailsClearly) {
   DdsClient client(DdsClientOptions::from_json(client_options(test_partition())));
   try {
