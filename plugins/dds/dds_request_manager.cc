@@ -260,6 +260,13 @@ void DdsRequestManager::run() {
           if (auto it = reply_writers_.find(readers[i]); it != reply_writers_.end())
             refresh_reader_match(it->second, clients_.at(it->second));
       }
+      // the guard before what raised it is looked at: whatever is handed over, or changes
+      // the catalog, from now on raises it again (a robot's components leave one by one, and
+      // the catalog written at the first must be written anew at the last)
+      if (outcomes) {
+        bool ignored;
+        dds_take_guardcondition(guard_, &ignored);
+      }
       if (catalog_changed_.exchange(false)) {
         publish_catalog();
         if (streams_) streams_->sync();  // a component deleted (or spawned) may take its stream along
@@ -268,8 +275,6 @@ void DdsRequestManager::run() {
       if (streams_ && commands) streams_->take_commands();
       if (requests) take_requests();
       if (outcomes) {
-        bool ignored;
-        dds_take_guardcondition(guard_, &ignored);
         deliver_handed_over();
         write_finished();
       }
