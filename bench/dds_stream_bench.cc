@@ -11,7 +11,7 @@
 //   - simgate: the DDS transport plugin (loaded with dlopen, as the gateway loads it) carries
 //     the stream of a pose component through a StreamHub; a "simulation" thread produces a
 //     sample per turn as fast as it can (under the gate, as after a step: the component
-//     builds its JSON sample, the hub queues it, the DDS thread converts it and writes);
+//     writes its record, the hub queues it, the DDS thread converts it and writes);
 //     written = produced - dropped (the hub counts both: a sample the DDS thread did not get
 //     to before newer ones came, or that DDS refused);
 //   - raw: a plain Cyclone writer of the same topic and QoS (best effort, keep-last 1) writes
@@ -23,6 +23,7 @@
 #include <chrono>
 #include <cstdint>
 #include <iostream>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -48,14 +49,15 @@ dds_entity_t check(dds_entity_t e, const char* what) {
   return e;
 }
 
-// A pose sensor whose sample is built as the real one's is: a JSON object of seven numbers.
+// A pose sensor whose sample is built as the real one's is (sim::Pose): a record of seven
+// numbers.
 class SyntheticPose : public simgate::Component {
  public:
   SyntheticPose() : Component("bench.pose") {
-    declare_output_stream("pose", [this] {
+    declare_output_stream("pose", {"x", "y", "z", "roll", "pitch", "yaw", "timestamp"}, [this](std::span<double> v) {
       ++n_;
       const double a = static_cast<double>(n_) * 1e-6;
-      return json{{"x", a}, {"y", 2 * a}, {"z", 0.1}, {"roll", 0.0}, {"pitch", 0.0}, {"yaw", a}, {"timestamp", a}};
+      v[0] = a, v[1] = 2 * a, v[2] = 0.1, v[3] = 0, v[4] = 0, v[5] = a, v[6] = a;
     });
   }
 

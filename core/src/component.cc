@@ -1,5 +1,7 @@
 #include "simgate/core/component.h"
 
+#include <stdexcept>
+
 #include "simgate/core/log.h"
 
 namespace simgate {
@@ -35,12 +37,32 @@ std::string Component::running_service() const {
 const char* to_string(StreamDirection direction) { return direction == StreamDirection::in ? "IN" : "OUT"; }
 
 void Component::declare_output_stream(std::string kind, std::function<json()> produce) {
-  stream_ = StreamDeclaration{StreamDirection::out, std::move(kind), std::move(produce), {}, {}};
+  stream_ = StreamDeclaration{StreamDirection::out, std::move(kind), std::move(produce), {}, {}, {}};
+}
+
+json record_json(const std::vector<std::string>& fields, std::span<const double> values) {
+  json out = json::object();
+  for (std::size_t i = 0; i < fields.size() && i < values.size(); ++i) out[fields[i]] = values[i];
+  return out;
+}
+
+void Component::declare_output_stream(std::string kind, std::vector<std::string> fields,
+                                      std::function<void(std::span<double>)> produce) {
+  if (fields.empty() || fields.size() > k_max_record_fields)
+    throw std::invalid_argument(name_ + ": a record stream has 1 to " + std::to_string(k_max_record_fields) +
+                                " numbers, not " + std::to_string(fields.size()));
+  auto as_json = [fields, produce] {
+    double values[k_max_record_fields];
+    produce(std::span<double>(values, fields.size()));
+    return record_json(fields, std::span<const double>(values, fields.size()));
+  };
+  stream_ = StreamDeclaration{StreamDirection::out, std::move(kind), std::move(as_json), {}, std::move(fields),
+                              std::move(produce)};
 }
 
 void Component::declare_input_stream(std::string kind, std::vector<std::string> fields,
                                      std::function<void(const json&)> apply) {
-  stream_ = StreamDeclaration{StreamDirection::in, std::move(kind), {}, std::move(apply), std::move(fields)};
+  stream_ = StreamDeclaration{StreamDirection::in, std::move(kind), {}, std::move(apply), std::move(fields), {}};
 }
 
 ServiceBuilder Component::adopt(std::shared_ptr<Service> service) {

@@ -11,9 +11,25 @@ namespace simgate {
 // ---------------------------------------------------------------------------------------
 // StreamSample
 
+const json& StreamSample::data() const {
+  if (!fields_) return data_;
+  std::call_once(data_once_, [this] { data_ = record_json(*fields_, {values_.data(), fields_->size()}); });
+  return data_;
+}
+
 const std::string& StreamSample::text() const {
-  std::call_once(text_once_, [this] { text_ = data_.dump(-1, ' ', false, json::error_handler_t::replace); });
+  std::call_once(text_once_, [this] { text_ = data().dump(-1, ' ', false, json::error_handler_t::replace); });
   return text_;
+}
+
+double StreamSample::number(std::string_view key) const {
+  if (fields_) {
+    for (std::size_t i = 0; i < fields_->size(); ++i)
+      if ((*fields_)[i] == key) return values_[i];
+  } else if (auto it = data_.find(key); it != data_.end() && it->is_number()) {
+    return it->get<double>();
+  }
+  throw std::out_of_range("the sample has no number '" + std::string(key) + "'");
 }
 
 // ---------------------------------------------------------------------------------------
@@ -52,12 +68,15 @@ bool StreamSubscription::closed() const {
   return closed_;
 }
 
-bool StreamSubscription::push(const SamplePtr& sample) {
+bool StreamSubscription::push(const SamplePtr& sample, bool due) {
   bool dropped_one = false;
   bool wake = false;
   {
     std::lock_guard lock(mutex_);
     if (closed_) return false;
+    const bool first = wants_first_;
+    wants_first_ = false;
+    if (!due && !first) return false;
     if (queue_.size() >= std::max<std::size_t>(1, options_.capacity)) {
       queue_.pop_front();
       ++dropped_;
@@ -92,9 +111,17 @@ void StreamSubscription::log_first_drop() {
 // ---------------------------------------------------------------------------------------
 // StreamHub
 
+struct StreamHub::Due {
+  Stream* stream;
+  bool due;                             // by its frequency (else only its new subscribers get it)
+  std::shared_ptr<StreamSample> sample;  // once produced
+};
+
 struct StreamHub::Stream {
   StreamInfo info;
   std::function<json()> produce;            // out
+  std::function<void(std::span<double>)> produce_record;       // out, a record (StreamDeclaration)
+  std::shared_ptr<const std::vector<std::string>> record_fields;  // its numbers' names, shared by its samples
   std::function<void(const json&)> apply;   // in
   double period = 0;                        // out: simulated seconds between samples
   double next_due = 0;                      // out: when the next sample is due
@@ -150,6 +177,10 @@ void StreamHub::add(const Component& component, std::string type, std::vector<st
     stream->info.frequency = frequency;
     stream->period = 1.0 / frequency;
     stream->produce = declaration->produce;
+    if (declaration->produce_record) {
+      stream->produce_record = declaration->produce_record;
+      stream->record_fields = std::make_shared<const std::vector<std::string>>(declaration->fields);
+    }
   } else {
     stream->apply = declaration->apply;
   }
@@ -182,12 +213,7 @@ void StreamHub::publish_due(double time) {
   if (subscribers_.load(std::memory_order_acquire) == 0) return;
   // which streams give a sample now, under the hub mutex (subscribers come and go on the
   // transports' threads)
-  struct Due {
-    Stream* stream;
-    bool due;                  // by its frequency (else only its new subscribers get it)
-    std::optional<json> data;  // its sample, once produced
-  };
-  std::vector<Due> now;
+  due_.clear();
   {
     std::lock_guard lock(mutex_);
     for (auto& stream_ptr : streams_) {
@@ -195,51 +221,52 @@ void StreamHub::publish_due(double time) {
       if (s.subscribers.empty() || !s.produce) continue;
       if (time < s.last_time) s.next_due = time;  // the clock went back (reset): start again from now
       const bool due = time + 1e-9 >= s.next_due;
-      if (due || s.first_wanted) now.push_back({&s, due, std::nullopt});
+      if (due || s.first_wanted) due_.push_back({&s, due, nullptr});
     }
   }
-  if (now.empty()) return;
+  if (due_.empty()) return;
   // the samples, without the hub mutex (the simulation lock keeps the streams): a transport
   // that subscribes or publishes meanwhile never waits for a component
-  for (Due& d : now) {
+  for (Due& d : due_) {
+    Stream& s = *d.stream;
     try {
-      d.data = d.stream->produce();
+      if (s.produce_record) {
+        auto sample = std::make_shared<StreamSample>(0, time, s.record_fields);
+        s.produce_record(sample->record_values());
+        d.sample = std::move(sample);
+      } else {
+        d.sample = std::make_shared<StreamSample>(0, time, s.produce());
+      }
     } catch (const std::exception& e) {
       // no sample this time; the next try is at the next due time
-      if (!d.stream->failure_logged) {
-        d.stream->failure_logged = true;
-        log::warning(d.stream->info.component, " stream: reading a sample failed (logged once): ", e.what());
+      if (!s.failure_logged) {
+        s.failure_logged = true;
+        log::warning(s.info.component, " stream: reading a sample failed (logged once): ", e.what());
       }
     }
   }
-  std::vector<std::shared_ptr<StreamSubscription>> to_wake;
   {
     std::lock_guard lock(mutex_);
-    for (Due& d : now) {
+    for (Due& d : due_) {
       Stream& s = *d.stream;
       s.first_wanted = false;
-      if (!d.data) {
+      if (!d.sample) {
         s.next_due = time + s.period;
         continue;
       }
-      auto sample = std::make_shared<const StreamSample>(++s.seq, time, std::move(*d.data));
+      d.sample->seq_ = ++s.seq;
+      const SamplePtr sample = std::move(d.sample);
       s.last_time = time;
-      for (auto& sub : s.subscribers) {
-        bool first = false;
-        {
-          std::lock_guard sub_lock(sub->mutex_);
-          first = sub->wants_first_;
-          sub->wants_first_ = false;
-        }
-        if ((d.due || first) && sub->push(sample)) to_wake.push_back(sub);
-      }
+      for (auto& sub : s.subscribers)
+        if (sub->push(sample, d.due)) to_wake_.push_back(sub);
       if (d.due) {
         s.next_due += s.period;
         if (s.next_due <= time) s.next_due = time + s.period;
       }
     }
   }
-  for (const auto& sub : to_wake) sub->wake();
+  for (const auto& sub : to_wake_) sub->wake();
+  to_wake_.clear();
 }
 
 std::string StreamHub::apply(Stream& stream, const json& command) {

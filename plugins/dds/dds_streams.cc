@@ -23,8 +23,6 @@ dds_entity_t check(dds_entity_t rc, const std::string& what) {
   return rc;
 }
 
-double number(const json& data, const char* key) { return data.at(key).get<double>(); }
-
 void triple(const json& data, const char* key, double (&out)[3]) {
   const json& values = data.at(key);
   for (int i = 0; i < 3; ++i) out[i] = values.at(i).get<double>();
@@ -40,25 +38,23 @@ T stamped(const std::string& component, const StreamSample& sample) {
   return out;
 }
 
-// A writer function per typed kind: fills the struct from the sample (throws json::exception
-// when the sample is not of that shape) and writes it.
+// A writer function per typed kind: fills the struct from the sample (throws when the sample
+// is not of that shape) and writes it. A record sample (a pose's) is read as it is, no JSON.
 using WriteFn = dds_return_t (*)(dds_entity_t writer, const std::string& component, const StreamSample& sample);
 
 dds_return_t write_pose(dds_entity_t writer, const std::string& component, const StreamSample& sample) {
-  const json& d = sample.data();
   auto pose = stamped<simgate_stream_Pose>(component, sample);
-  pose.x = number(d, "x"), pose.y = number(d, "y"), pose.z = number(d, "z");
-  pose.roll = number(d, "roll"), pose.pitch = number(d, "pitch"), pose.yaw = number(d, "yaw");
+  pose.x = sample.number("x"), pose.y = sample.number("y"), pose.z = sample.number("z");
+  pose.roll = sample.number("roll"), pose.pitch = sample.number("pitch"), pose.yaw = sample.number("yaw");
   return dds_write(writer, &pose);
 }
 
 dds_return_t write_odometry(dds_entity_t writer, const std::string& component, const StreamSample& sample) {
-  const json& d = sample.data();
   auto odometry = stamped<simgate_stream_Odometry>(component, sample);
-  odometry.x = number(d, "x"), odometry.y = number(d, "y"), odometry.z = number(d, "z");
-  odometry.roll = number(d, "roll"), odometry.pitch = number(d, "pitch"), odometry.yaw = number(d, "yaw");
-  odometry.vx = number(d, "vx"), odometry.vy = number(d, "vy"), odometry.vz = number(d, "vz");
-  odometry.wx = number(d, "wx"), odometry.wy = number(d, "wy"), odometry.wz = number(d, "wz");
+  odometry.x = sample.number("x"), odometry.y = sample.number("y"), odometry.z = sample.number("z");
+  odometry.roll = sample.number("roll"), odometry.pitch = sample.number("pitch"), odometry.yaw = sample.number("yaw");
+  odometry.vx = sample.number("vx"), odometry.vy = sample.number("vy"), odometry.vz = sample.number("vz");
+  odometry.wx = sample.number("wx"), odometry.wy = sample.number("wy"), odometry.wz = sample.number("wz");
   return dds_write(writer, &odometry);
 }
 
@@ -316,7 +312,7 @@ void DdsStreams::write_samples() {
           json_sample.json = const_cast<char*>(sample->text().c_str());
           rc = dds_write(output->writer, &json_sample);
         }
-      } catch (const json::exception& e) {
+      } catch (const std::exception& e) {
         // a component whose samples do not have its kind's shape (a component library's)
         if (!output->shape_logged)
           log::warning("DDS transport: a sample of ", component, " does not fit ", output->type->descriptor->m_typename,

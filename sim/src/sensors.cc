@@ -1,19 +1,33 @@
+#include <algorithm>
+#include <array>
+
 #include "simgate/sim/components.h"
 
 namespace simgate::sim {
 
+namespace {
+// a pose sample's numbers (MORSE's pose sensor), in the order Pose::read writes them
+const std::vector<std::string> k_pose_fields{"x", "y", "z", "roll", "pitch", "yaw", "timestamp"};
+}  // namespace
+
 Pose::Pose(ComponentContext& c) : SimComponent(c.name(), c.sim()), body_(c.body()) {
   add_service("get_local_data", &Pose::get_local_data)
       .doc("Position (x, y, z metres) and orientation (roll, pitch, yaw radians) in the world frame");
-  declare_output_stream("pose", [this] { return get_local_data(); });
+  // a record: streamed without building JSON (a DDS Pose is written from it as it is)
+  declare_output_stream("pose", k_pose_fields, [this](std::span<double> values) { read(values); });
+}
+
+void Pose::read(std::span<double> values) const {
+  const Eigen::Vector3d p = body_position(sim(), body_);
+  const Eigen::Vector3d rpy = to_roll_pitch_yaw(body_orientation(sim(), body_));
+  const std::array<double, 7> numbers{p.x(), p.y(), p.z(), rpy.x(), rpy.y(), rpy.z(), sim().state_time()};
+  std::copy(numbers.begin(), numbers.end(), values.begin());
 }
 
 json Pose::get_local_data() const {
-  Eigen::Vector3d p = body_position(sim(), body_);
-  Eigen::Vector3d rpy = to_roll_pitch_yaw(body_orientation(sim(), body_));
-  return {{"x", p.x()},       {"y", p.y()},         {"z", p.z()},
-          {"roll", rpy.x()},  {"pitch", rpy.y()},   {"yaw", rpy.z()},
-          {"timestamp", sim().state_time()}};
+  std::array<double, 7> values;
+  read(values);
+  return record_json(k_pose_fields, values);
 }
 
 }  // namespace simgate::sim

@@ -211,5 +211,55 @@ TEST_F(StreamHubTest, ASensorThatThrowsSkipsItsSample) {
   EXPECT_FALSE(sub->closed());
 }
 
+// A record stream (a pose's): its samples carry numbers, read by name without JSON; the JSON
+// object, made when a transport asks, is the one the component's get_local_data gives.
+TEST_F(StreamHubTest, ARecordSampleIsReadByNameAndIsTheSameJsonOnAsking) {
+  class Position : public Component {
+   public:
+    Position() : Component("robot.position") {
+      declare_output_stream("position", {"x", "y", "timestamp"}, [this](std::span<double> v) {
+        v[0] = 1.5, v[1] = -2, v[2] = ++reads;
+      });
+    }
+    int reads = 0;
+  } position;
+  hub.add(position, "position", {"socket"});
+  auto sub = hub.subscribe("robot.position", "socket", {});
+  hub.publish_due(0);
+  const auto samples = take(*sub);
+  ASSERT_EQ(samples.size(), 1u);
+  const StreamSample& sample = *samples[0];
+  EXPECT_TRUE(sample.is_record());
+  EXPECT_EQ(sample.seq(), 1u);
+  EXPECT_EQ(sample.number("x"), 1.5);
+  EXPECT_EQ(sample.number("timestamp"), 1);
+  EXPECT_THROW(sample.number("z"), std::out_of_range);
+  EXPECT_EQ(sample.data(), (json{{"x", 1.5}, {"y", -2.0}, {"timestamp", 1.0}}));
+  EXPECT_EQ(sample.text(), R"({"timestamp":1.0,"x":1.5,"y":-2.0})");
+  // produce() (get_local_data's JSON, for a component library that reads it) is the same
+  EXPECT_EQ(position.stream()->produce(), (json{{"x", 1.5}, {"y", -2.0}, {"timestamp", 2.0}}));
+  // a JSON sample's numbers are read by name too
+  auto counted = hub.subscribe("robot.counter", "socket", {});
+  hub.publish_due(0.5);
+  const auto counts = take(*counted);
+  ASSERT_EQ(counts.size(), 1u);
+  EXPECT_FALSE(counts[0]->is_record());
+  EXPECT_EQ(counts[0]->number("n"), 1);
+  EXPECT_THROW(counts[0]->number("m"), std::out_of_range);
+}
+
+TEST(RecordStream, HasOneToSixteenNumbers) {
+  class Empty : public Component {
+   public:
+    Empty() : Component("robot.empty") {}
+    void declare(std::size_t n) {
+      declare_output_stream("x", std::vector<std::string>(n, "f"), [](std::span<double>) {});
+    }
+  } component;
+  EXPECT_THROW(component.declare(0), std::invalid_argument);
+  EXPECT_THROW(component.declare(k_max_record_fields + 1), std::invalid_argument);
+  EXPECT_NO_THROW(component.declare(k_max_record_fields));
+}
+
 }  // namespace
 }  // namespace simgate

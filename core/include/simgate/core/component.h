@@ -29,6 +29,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -53,8 +54,20 @@ struct StreamDeclaration {
   // throws ServiceError to refuse it (the message says what was wrong).
   std::function<void(const json&)> apply;
   // in: the keys a command takes, for introspection and docs ({"v", "w"}).
+  // out, with produce_record: the names of the record's numbers, in its order.
   std::vector<std::string> fields;
+  // out, for a sample that is a flat object of numbers (a pose, an odometry): writes the
+  // numbers `fields` names into its argument (as many), without building JSON. A transport
+  // with typed messages reads them as they are (StreamSample::number); the JSON object is
+  // made from them only when a transport needs it. Empty for any other sample; produce()
+  // is then the record as JSON.
+  std::function<void(std::span<double>)> produce_record;
 };
+
+// The most numbers a record sample has.
+inline constexpr std::size_t k_max_record_fields = 16;
+// A record as the JSON object a client sees: {fields[i]: values[i]}.
+json record_json(const std::vector<std::string>& fields, std::span<const double> values);
 
 class Component {
  public:
@@ -112,6 +125,11 @@ class Component {
   // A sensor's stream: `produce` reads one sample (usually get_local_data).
   //   declare_output_stream("pose", [this] { return get_local_data(); });
   void declare_output_stream(std::string kind, std::function<json()> produce);
+  // A sensor whose sample is a flat object of numbers: `fields` names them (at most
+  // k_max_record_fields), `produce` writes them in that order. Cheaper to stream than JSON.
+  //   declare_output_stream("pose", {"x", "y", "z"}, [this](std::span<double> v) { ... });
+  void declare_output_stream(std::string kind, std::vector<std::string> fields,
+                             std::function<void(std::span<double>)> produce);
   // An actuator's stream: `apply` takes one command object with the keys `fields`.
   //   declare_input_stream("velocity", {"v", "w"}, [this](const json& c) { ... });
   void declare_input_stream(std::string kind, std::vector<std::string> fields,

@@ -30,6 +30,7 @@
 #ifndef SIMGATE_CORE_STREAMS_H_
 #define SIMGATE_CORE_STREAMS_H_
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <deque>
@@ -37,6 +38,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -58,19 +60,38 @@ struct StreamInfo {
 };
 
 // One sample of an output stream. Immutable once published; shared by every subscriber.
+// Either JSON (the component's get_local_data) or a record: numbers named by the stream's
+// fields (StreamDeclaration::produce_record), whose JSON object is made only when a
+// transport asks for data() or text().
 class StreamSample {
  public:
   StreamSample(std::uint64_t seq, double time, json data) : seq_(seq), time_(time), data_(std::move(data)) {}
+  // A record: `fields` names the numbers (their values are written by the hub, before the
+  // sample is shared).
+  StreamSample(std::uint64_t seq, double time, std::shared_ptr<const std::vector<std::string>> fields)
+      : seq_(seq), time_(time), fields_(std::move(fields)) {}
+
   std::uint64_t seq() const { return seq_; }   // 1, 2, ... per stream
   double time() const { return time_; }         // simulated seconds the data is of
-  const json& data() const { return data_; }    // the component's sample
+  // The component's sample as JSON (a record's made once, by whichever thread asks first).
+  const json& data() const;
   // data() as compact JSON text, written once (by whichever thread asks first).
   const std::string& text() const;
+  bool is_record() const { return fields_ != nullptr; }
+  // The number named `key`: from the record without JSON, else from the JSON object. Throws
+  // std::out_of_range when the sample has no such number.
+  double number(std::string_view key) const;
 
  private:
+  friend class StreamHub;
+  std::span<double> record_values() { return {values_.data(), fields_ ? fields_->size() : 0}; }
+
   std::uint64_t seq_;
   double time_;
-  json data_;
+  std::shared_ptr<const std::vector<std::string>> fields_;  // a record's (null: JSON)
+  std::array<double, k_max_record_fields> values_{};        // a record's, fields_->size() of them
+  mutable std::once_flag data_once_;                        // a record's JSON made
+  mutable json data_;
   mutable std::once_flag text_once_;
   mutable std::string text_;
 };
@@ -105,9 +126,9 @@ class StreamSubscription {
 
  private:
   friend class StreamHub;
-  // Hub side (under the simulation lock): queues `sample`; returns true when the
-  // subscriber must be woken.
-  bool push(const SamplePtr& sample);
+  // Hub side (under the simulation lock): queues `sample` when it is `due` or the first
+  // this subscriber waits for; returns true when the subscriber must be woken.
+  bool push(const SamplePtr& sample, bool due);
   void close();
   void wake() const {
     if (options_.wake) options_.wake();
@@ -207,6 +228,7 @@ class StreamHub {
 
  private:
   struct Stream;
+  struct Due;
   Stream* find_locked(std::string_view component);
   const Stream* find_locked(std::string_view component) const;
   // Applies `command` to `stream` (under the simulation lock, without the hub mutex: the
@@ -222,6 +244,9 @@ class StreamHub {
   std::uint64_t dropped_by_removed_ = 0;          // drops of subscriptions that ended
   std::atomic<std::size_t> subscribers_{0};       // subscriptions now, all streams (publish_due's fast path)
   std::atomic<bool> turn_wanted_{false};          // see turn_wanted()
+  // publish_due's buffers, kept between calls (it runs under the simulation lock only)
+  std::vector<Due> due_;
+  std::vector<std::shared_ptr<StreamSubscription>> to_wake_;
 };
 
 }  // namespace simgate

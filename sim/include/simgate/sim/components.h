@@ -136,6 +136,8 @@ class Pose : public SimComponent {
   void on_model_changed(const ModelRemap& remap) override { body_ = remap.body_of(body_); }
 
  private:
+  // x, y, z, roll, pitch, yaw, timestamp: the stream's record, get_local_data's object
+  void read(std::span<double> values) const;
   int body_;  // measured body
 };
 
