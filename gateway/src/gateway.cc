@@ -103,7 +103,7 @@ void Gateway::build_components(ConfigErrors& errors) {
     if (!robot_ptr) continue;  // its components need it
     for (const auto& c : r.components)
       errors.check([&] {
-        sim::ComponentSpec cspec{c.name, c.type, c.body, c.path};
+        sim::ComponentSpec cspec{c.name, c.type, c.body, c.path, c.frequency};
         auto component = registry.create(sim::Kind::component, cspec, c.options, sim, robot_ptr);
         sim.add_component(std::move(component), c.type, r.robot.name, false);
       });
@@ -116,7 +116,9 @@ void Gateway::add_streams(ConfigErrors& errors) {
     if (!entry) return;  // not created: its own error is reported
     const StreamDeclaration* stream = entry->component->stream();
     const std::vector<std::string> transports = deployment_.streams_for(c.name);
-    if (c.frequency && (!stream || stream->direction != StreamDirection::out))
+    const auto* sim_component = dynamic_cast<const sim::SimComponent*>(entry->component.get());
+    if (c.frequency && (!stream || stream->direction != StreamDirection::out) &&
+        !(sim_component && sim_component->uses_frequency()))
       warnings_.push_back(c.path + ".frequency: component '" + c.name + "' (type " + c.type +
                           ") has no output stream: the frequency is not used");
     if (transports.empty()) return;

@@ -5,6 +5,7 @@
 #include "simgate/sim/actuator_kind.h"
 #include "simgate/sim/actuators_sensors.h"
 #include "simgate/sim/armature.h"
+#include "simgate/sim/cameras.h"
 #include "simgate/sim/bounds.h"
 #include "simgate/sim/components.h"
 #include "simgate/sim/native_sensors.h"
@@ -109,6 +110,7 @@ void register_builtin_components(ComponentRegistry& r) {
   r.add<ArmaturePose>("armature_pose", Kind::component, "joint state: get_joints, get_state, get_joint, get_local_data");
   r.add<Imu>("imu", Kind::component, "inertial measurement unit: get_local_data (angular_velocity, linear_acceleration)");
   r.add<Odometry>("odometry", Kind::component, "odometry (level raw, differential or integrated): get_local_data");
+  register_cameras(r);
   r.add<LaserScanner>("laser_scanner", Kind::component, "fan of mj_ray rays: get_local_data (range_list, point_list)");
   r.add<Proximity>("proximity", Kind::component, "objects within range: get_local_data, set_range, set_tracked_tag");
 }

@@ -18,6 +18,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -34,6 +35,7 @@ struct ComponentSpec {
   std::string type;  // registry type name
   std::string body;  // MuJoCo body it binds to (components default to their robot's)
   std::string path;  // JSON path of its config object, "robots[0].components[1]"
+  std::optional<double> frequency = std::nullopt;  // its `frequency` (Hz) when the config gives one
 };
 
 class ComponentContext {

@@ -53,6 +53,10 @@ class SimComponent : public Component {
   // recovered from a bad state the same way (simulation.h): drop commands.
   virtual void on_reset() {}
 
+  // Whether the component reads the `frequency` of its configuration itself (a camera's
+  // frame rate), rather than only as its output stream's rate.
+  virtual bool uses_frequency() const { return false; }
+
   // After the model was replaced (Simulation::replace_model: an entity spawned, a body
   // deleted): model() is the new one, and `remap` says where each object of the old one
   // went (model_remap.h). A component that keeps MuJoCo ids (bodies, joints, geoms,

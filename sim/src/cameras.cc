@@ -1,0 +1,328 @@
+// video_camera and depth_camera (cameras.h): options, the view, image records, capture.
+#include "simgate/sim/cameras.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <deque>
+#include <condition_variable>
+#include <limits>
+#include <mutex>
+
+#include <Eigen/Geometry>
+
+#include "simgate/core/errors.h"
+#include "simgate/sim/image_codec.h"
+
+namespace simgate::sim {
+
+namespace {
+
+constexpr long long k_max_size = 8192;                 // pixels, either side
+constexpr double k_min_fovy = 0.1, k_max_fovy = 179;   // degrees
+constexpr double k_default_frequency = 20;             // images per simulated second
+// MORSE's cam_focal is a Blender lens: millimetres, on a 32 mm wide sensor (its larger side)
+constexpr double k_blender_sensor = 32;                // mm
+// how long get_local_data waits for its first image (under the lock, once)
+constexpr auto k_first_image_timeout = std::chrono::seconds(30);
+
+std::string camera_names(const mjModel* m) {
+  std::string out;
+  for (int i = 0; i < m->ncam; ++i) out += (out.empty() ? "" : ", ") + std::string(mj_id2name(m, mjOBJ_CAMERA, i) ? mj_id2name(m, mjOBJ_CAMERA, i) : "(unnamed)");
+  return out.empty() ? "none" : out;
+}
+
+// The JSON record of one image: MORSE's VideoCamera local_data fields (image, height,
+// width, intrinsic_matrix) and how the image is encoded. Render thread.
+json image_record(const RenderResult& r, Camera::Type type) {
+  json record = {{"width", r.width}, {"height", r.height}, {"format", "png"},
+                 {"intrinsic_matrix", intrinsic_matrix(r.view)}, {"timestamp", r.timestamp}};
+  if (type == Camera::Type::video) {
+    record["encoding"] = "rgb8";
+    record["image"] = base64_encode(encode_png_rgb8(r.rgb, r.width, r.height));
+    return record;
+  }
+  // depth in millimetres, 0 where nothing is hit; the nearest and farthest hit in metres
+  std::vector<std::uint16_t> mm(r.depth.size());
+  double lowest = std::numeric_limits<double>::infinity(), highest = 0;
+  for (std::size_t i = 0; i < r.depth.size(); ++i) {
+    const double z = r.depth[i];
+    if (z <= 0) continue;
+    lowest = std::min(lowest, z);
+    highest = std::max(highest, z);
+    mm[i] = static_cast<std::uint16_t>(std::clamp(std::lround(z * 1000), 1L, 65535L));
+  }
+  record["encoding"] = "mono16";
+  record["depth_unit"] = "mm";
+  record["min_depth"] = highest > 0 ? json(lowest) : json(nullptr);
+  record["max_depth"] = highest > 0 ? json(highest) : json(nullptr);
+  record["image"] = base64_encode(encode_png_gray16(mm, r.width, r.height));
+  return record;
+}
+
+}  // namespace
+
+// Images coming back from the render thread, and the spare scene for the next one.
+struct Camera::Mailbox {
+  struct Delivery {
+    std::uint64_t capture_id;  // the capture it is for (0: none)
+    json record;               // the image record, or null on error
+    std::string error;         // why it failed
+  };
+  std::mutex mutex;
+  std::deque<Delivery> deliveries;   // for captures, read by default_action()
+  json last;                         // the last image record (null: none yet)
+  std::string last_error;            // why the last render failed
+  std::uint64_t renders = 0;         // renders come back
+  std::condition_variable arrived;   // a render came back
+  std::unique_ptr<SceneCopy> spare;  // a scene given back, for reuse
+};
+
+Camera::Camera(ComponentContext& c, Type type)
+    : SimComponent(c.name(), c.sim()), type_(type), mailbox_(std::make_shared<Mailbox>()) {
+  const mjModel* m = c.sim().m();
+  ConfigObject& o = c.options();
+  // where it sees from: an MJCF camera, or a frame of the robot
+  const std::string camera = o.get_string("camera", "");
+  if (!camera.empty()) {
+    if (o.has("site")) o.fail("site", "no `site` with `camera` (the MJCF camera is where it sees from)");
+    camera_ = mj_name2id(m, mjOBJ_CAMERA, camera.c_str());
+    camera_name_ = camera;
+    if (camera_ < 0) o.fail("camera", "the name of an MJCF <camera> (the scene has: " + camera_names(m) + ")");
+  } else {
+    frame_ = SensorFrame::from(c);
+  }
+  width_ = static_cast<int>(o.get_int("cam_width", 256, 1, k_max_size));
+  height_ = static_cast<int>(o.get_int("cam_height", 256, 1, k_max_size));
+  // field of view: cam_fovy (degrees), or MORSE's cam_focal; default the MJCF camera's
+  if (o.has("cam_fovy") && o.has("cam_focal")) o.fail("cam_focal", "either cam_fovy or cam_focal, not both");
+  fovy_ = o.get_number("cam_fovy", camera_ >= 0 ? m->cam_fovy[camera_] : 45.0, k_min_fovy, k_max_fovy);
+  if (o.has("cam_focal")) {
+    const double focal = o.get_number("cam_focal", 25, 0.1, 1e4);
+    const double half_large = k_blender_sensor / 2 / focal;  // tan of the half angle of the larger side
+    const double half_y = width_ >= height_ ? half_large * height_ / width_ : half_large;
+    fovy_ = std::atan(half_y) * 360 / M_PI;
+  }
+  // clipping planes: MuJoCo's own for the scene by default
+  near_ = o.get_number("cam_near", m->vis.map.znear * m->stat.extent, 1e-6, 1e6);
+  far_ = o.get_number("cam_far", m->vis.map.zfar * m->stat.extent, 1e-6, 1e7);
+  if (far_ <= near_) o.fail("cam_far", "a distance beyond cam_near (" + std::to_string(near_) + " m)");
+  frequency_ = c.spec().frequency.value_or(k_default_frequency);
+
+  const char* kind = type_ == Type::video ? "RGB" : "depth (mm, 16-bit PNG)";
+  add_async_service("capture", &Camera::capture, {"n"})
+      .interruptible()
+      .doc(std::string("Completes after the next n ") + kind +
+           " images (one per 1/frequency of simulated time) with the list of their records");
+  add_async_service("get_image", &Camera::get_image)
+      .concurrent()
+      .doc(std::string("An ") + kind + " image of the current state: its record (image: base64 PNG)");
+  add_service("get_local_data", &Camera::get_local_data)
+      .doc("The last image record: image (base64 PNG), width, height, intrinsic_matrix, timestamp");
+  add_property("cam_width", [this] { return json(width_); });
+  add_property("cam_height", [this] { return json(height_); });
+  add_property("cam_fovy", [this] { return json(fovy_); });
+  add_property("cam_near", [this] { return json(near_); });
+  add_property("cam_far", [this] { return json(far_); });
+  add_property("frequency", [this] { return json(frequency_); });
+  add_property("focal_length", [this] { return json(intrinsic_matrix(view())[1][1]); });
+  add_property("principal_point", [this] {
+    auto k = intrinsic_matrix(view());
+    return json{k[0][2], k[1][2]};
+  });
+  add_property("intrinsic_matrix", [this] { return json(intrinsic_matrix(view())); });
+  add_property("pose", [this] { return pose(); });
+}
+
+Camera::~Camera() = default;
+
+CameraView Camera::view() const {
+  const mjData* d = data();
+  CameraView v;
+  v.width = width_;
+  v.height = height_;
+  v.fovy = fovy_;
+  v.near_clip = near_;
+  v.far_clip = far_;
+  const mjtNum* p = camera_ >= 0 ? d->cam_xpos + 3 * camera_ : frame_->position(d);
+  const mjtNum* r = camera_ >= 0 ? d->cam_xmat + 9 * camera_ : frame_->rotation(d);  // row-major
+  for (int i = 0; i < 3; ++i) {
+    v.position[i] = p[i];
+    // MJCF camera: looks along -z, y up; sensor frame: looks along +x, z up
+    v.forward[i] = camera_ >= 0 ? -r[3 * i + 2] : r[3 * i];
+    v.up[i] = camera_ >= 0 ? r[3 * i + 1] : r[3 * i + 2];
+  }
+  return v;
+}
+
+json Camera::pose() const {
+  // the optical frame (x right, y down, z forward: the intrinsic matrix's) in the world
+  const CameraView v = view();
+  const Eigen::Vector3d forward(v.forward), up(v.up);
+  Eigen::Matrix3d r;
+  r.col(0) = forward.cross(up);
+  r.col(1) = -up;
+  r.col(2) = forward;
+  const Eigen::Quaterniond q(r);
+  return {{"position", {v.position[0], v.position[1], v.position[2]}},
+          {"orientation", {q.w(), q.x(), q.y(), q.z()}},
+          {"frame", "optical: x right, y down, z forward (world frame)"}};
+}
+
+Renderer& Camera::renderer() {
+  if (!renderer_) renderer_ = Renderer::shared();
+  if (const std::string why = renderer_->unavailable(); !why.empty())
+    throw ServiceError(name() + ": cannot render: " + why);
+  return *renderer_;
+}
+
+std::unique_ptr<SceneCopy> Camera::scene_now() {
+  Renderer& r = renderer();
+  const mjModel* m = model();
+  if (!model_copy_ || model_generation_ != sim().model_generation()) {
+    model_copy_ = r.model_copy(m);
+    model_generation_ = sim().model_generation();
+  }
+  std::unique_ptr<SceneCopy> scene;
+  {
+    std::lock_guard lock(mailbox_->mutex);
+    scene = std::move(mailbox_->spare);
+  }
+  if (!scene || scene->model() != model_copy_) scene = std::make_unique<SceneCopy>(model_copy_);
+  scene->update(m, data(), view(), sim().state_time());
+  return scene;
+}
+
+void Camera::render_now(std::uint64_t capture_id, Completion done) {
+  std::unique_ptr<SceneCopy> scene = scene_now();
+  const bool depth = type_ == Type::depth;
+  renderer_->render(std::move(scene), !depth, depth,
+                    [mailbox = mailbox_, type = type_, capture_id, done, who = name()](RenderResult result) {
+                      json record;
+                      std::string error = result.error.empty() ? "" : who + ": " + result.error;
+                      if (error.empty()) {
+                        try {
+                          record = image_record(result, type);
+                        } catch (const std::exception& e) {
+                          error = who + ": could not encode the image: " + e.what();
+                        }
+                      }
+                      {
+                        std::lock_guard lock(mailbox->mutex);
+                        mailbox->spare = std::move(result.scene);
+                        if (error.empty()) mailbox->last = record;
+                        mailbox->last_error = error;
+                        ++mailbox->renders;
+                        if (capture_id != 0) mailbox->deliveries.push_back({capture_id, record, error});
+                      }
+                      mailbox->arrived.notify_all();
+                      if (done) done(error.empty() ? Status::success : Status::failed, error.empty() ? record : json(error));
+                    });
+}
+
+void Camera::capture(long long n) {
+  if (n < 1 || n > k_max_capture)
+    throw ServiceError(name() + " capture: n is the number of images, from 1 to " + std::to_string(k_max_capture) +
+                           ", found " + std::to_string(n),
+                       Failure::bad_arguments, {{"parameter", "n"}});
+  renderer();  // FAILED now when nothing can be rendered
+  end_capture();
+  to_render_ = expected_ = n;
+  // the first image is of the state the next step starts from
+  next_frame_time_ = sim().sim_time();
+}
+
+void Camera::get_image(Completion done) {
+  try {
+    render_now(0, done);
+  } catch (const ServiceError& e) {
+    done(Status::failed, e.what());
+  }
+}
+
+json Camera::get_local_data() {
+  std::unique_lock lock(mailbox_->mutex);
+  if (!mailbox_->last.is_null()) return mailbox_->last;
+  // none yet: render one now and wait for it (once; the render thread takes no lock of ours
+  // but the mailbox's)
+  const std::uint64_t before = mailbox_->renders;
+  lock.unlock();
+  render_now(0, Completion());
+  lock.lock();
+  if (!mailbox_->arrived.wait_for(lock, k_first_image_timeout, [&] { return mailbox_->renders != before; }))
+    throw ServiceError(name() + ": no image within " + std::to_string(k_first_image_timeout.count()) + " s");
+  if (mailbox_->last.is_null()) throw ServiceError(mailbox_->last_error);
+  return mailbox_->last;
+}
+
+void Camera::default_action() {
+  // images of the running capture that came back
+  std::deque<Mailbox::Delivery> arrived;
+  {
+    std::lock_guard lock(mailbox_->mutex);
+    arrived.swap(mailbox_->deliveries);
+  }
+  for (Mailbox::Delivery& delivery : arrived) {
+    if (delivery.capture_id != capture_id_ || !has_running_request()) continue;  // of an ended capture
+    if (!delivery.error.empty()) {
+      end_capture();
+      completed(Status::failed, delivery.error);
+      return;
+    }
+    images_.push_back(std::move(delivery.record));
+    if (static_cast<long long>(images_.size()) == expected_) {
+      json images = std::move(images_);
+      end_capture();
+      completed(Status::success, std::move(images));
+      return;
+    }
+  }
+  // the next image of the running capture, when its time has come
+  if (to_render_ <= 0 || !has_running_request()) return;
+  const double now = sim().sim_time();
+  if (now + 0.5 * sim().timestep() < next_frame_time_) return;
+  try {
+    render_now(capture_id_, Completion());
+  } catch (const ServiceError& e) {
+    end_capture();
+    completed(Status::failed, e.what());
+    return;
+  }
+  --to_render_;
+  next_frame_time_ += 1.0 / frequency_;
+}
+
+void Camera::end_capture() {
+  ++capture_id_;
+  to_render_ = expected_ = 0;
+  images_ = json::array();
+}
+
+void Camera::interrupt() {
+  end_capture();
+  Component::interrupt();
+}
+
+void Camera::on_model_changed(const ModelRemap& remap) {
+  // MuJoCo's remap has no cameras: the camera by its name
+  if (camera_ >= 0) {
+    camera_ = mj_name2id(model(), mjOBJ_CAMERA, camera_name_.c_str());
+    if (camera_ < 0) throw std::logic_error(name() + ": MJCF camera '" + camera_name_ + "' is gone");
+  }
+  if (frame_) frame_->remap(remap);
+}
+
+void register_cameras(ComponentRegistry& r) {
+  r.add("video_camera", Kind::component,
+        "RGB camera rendered headless (MJCF camera or robot frame): capture n, get_image, get_local_data (base64 PNG)",
+        [](ComponentContext& c) -> std::unique_ptr<SimComponent> {
+          return std::make_unique<Camera>(c, Camera::Type::video);
+        });
+  r.add("depth_camera", Kind::component,
+        "depth camera (mm, 16-bit PNG) rendered headless: capture n, get_image, get_local_data",
+        [](ComponentContext& c) -> std::unique_ptr<SimComponent> {
+          return std::make_unique<Camera>(c, Camera::Type::depth);
+        });
+}
+
+}  // namespace simgate::sim
