@@ -100,7 +100,7 @@ void SceneCopy::update(const mjModel* m, mjData* d, const CameraView& view, doub
   }
   // lights after the camera: the headlight sits at it
   mjv_makeLights(m, d, &scene_);
-  mjv_updateSkin(m, d, &scene_);
+  if (m->nskin > 0) mjv_updateSkin(m, d, &scene_);
 }
 
 // ---- the GL side: render thread only --------------------------------------------------

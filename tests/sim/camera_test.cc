@@ -1,0 +1,280 @@
+// video_camera and depth_camera rendered for real (EGL, Mesa's llvmpipe), checked by their
+// pixels: a red box in front of the camera is red in the middle of the image, the depth of
+// a face at a known distance is that distance; capture n returns n images after enough
+// steps; bad options are refused naming the option; without GL the services answer FAILED
+// with the reason. The images are decoded from the PNG the services return
+// (camera_png.h), so the encoder is checked on the way.
+#include <chrono>
+#include <cstdlib>
+#include <thread>
+
+#include "camera_png.h"
+#include "mjcf_fixture.h"
+#include "simgate/sim/renderer.h"
+
+namespace simgate::sim {
+namespace {
+
+using ::testing::HasSubstr;
+using testing::DecodedPng;
+using testing::decode_png;
+using testing::decode_base64;
+
+// A rig 0.5 m above a grey floor, looking along +x (MJCF camera "front", and site "eye"
+// for a frame camera); a red box whose near face is at x = 1.7 m, centred on the axis.
+constexpr const char* k_scene = R"(
+<mujoco model="camera-test">
+  <option timestep="0.01"/>
+  <visual><headlight ambient="0.4 0.4 0.4" diffuse="0.6 0.6 0.6"/></visual>
+  <worldbody>
+    <light pos="0 0 5" dir="0 0 -1"/>
+    <geom name="floor" type="plane" size="10 10 0.1" rgba="0.5 0.5 0.5 1"/>
+    <body name="rig" pos="0 0 0.5">
+      <geom type="sphere" size="0.01" contype="0" conaffinity="0" rgba="0 0 1 0"/>
+      <camera name="front" xyaxes="0 -1 0 0 0 1" fovy="60"/>
+      <site name="eye"/>
+    </body>
+    <body name="target" pos="2 0 0.5">
+      <geom name="red_box" type="box" size="0.3 0.3 0.3" rgba="1 0 0 1"/>
+    </body>
+  </worldbody>
+</mujoco>
+)";
+
+constexpr double k_face = 1.7;  // m from the rig to the box's near face
+// bounds every wait on the render thread
+constexpr auto k_deadline = std::chrono::seconds(60);
+
+class CameraTest : public testing::MjcfSim {
+ protected:
+  void SetUp() override {
+    load_string(k_scene);
+    robot_ = &add_robot("rig", "rig");
+  }
+
+  // Steps (and serves) until `id` has its outcome, at most k_deadline of wall time.
+  Outcome wait_for(RequestId id) {
+    const auto deadline = std::chrono::steady_clock::now() + k_deadline;
+    while (std::chrono::steady_clock::now() < deadline) {
+      sim_->process_requests();
+      if (auto o = rm_->outcome(id)) return *o;
+      sim_->step();
+      if (auto o = rm_->outcome(id)) return *o;
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    ADD_FAILURE() << "no outcome within the deadline";
+    return Outcome::failed(Failure::internal, "no answer");
+  }
+  json image_of(const std::string& component) {
+    Outcome o = wait_for(rm_->call(component, "get_image"));
+    EXPECT_EQ(o.status, Status::success) << o.message;
+    return o.value.value_or(json());
+  }
+
+  Robot* robot_ = nullptr;
+};
+
+// The RGB pixel at (x, y) of a decoded 8-bit RGB image.
+std::array<int, 3> rgb_at(const DecodedPng& png, int x, int y) {
+  const std::size_t i = (static_cast<std::size_t>(y) * png.width + x) * 3;
+  return {png.pixels[i], png.pixels[i + 1], png.pixels[i + 2]};
+}
+// The 16-bit sample at (x, y) of a decoded grayscale image.
+int gray16_at(const DecodedPng& png, int x, int y) {
+  const std::size_t i = (static_cast<std::size_t>(y) * png.width + x) * 2;
+  return (png.pixels[i] << 8) | png.pixels[i + 1];
+}
+
+bool is_red(const std::array<int, 3>& p) { return p[0] > 100 && p[0] > 3 * p[1] && p[0] > 3 * p[2]; }
+
+TEST_F(CameraTest, RedBoxInFrontIsRedInTheMiddle) {
+  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 320}, {"cam_height", 240}});
+  serve();
+  const json record = image_of("rig.camera");
+  ASSERT_TRUE(record.is_object()) << record.dump();
+  EXPECT_EQ(record["width"], 320);
+  EXPECT_EQ(record["height"], 240);
+  EXPECT_EQ(record["format"], "png");
+  const DecodedPng png = decode_png(decode_base64(record["image"].get<std::string>()));
+  ASSERT_TRUE(png.error.empty()) << png.error;
+  EXPECT_EQ(png.width, 320);
+  EXPECT_EQ(png.height, 240);
+  EXPECT_EQ(png.bit_depth, 8);
+  EXPECT_EQ(png.colour_type, 2);
+  EXPECT_TRUE(is_red(rgb_at(png, 160, 120))) << rgb_at(png, 160, 120)[0] << " " << rgb_at(png, 160, 120)[1];
+  // the box spans atan(0.3 / 1.7) = 10° each side of the axis: the image's corners are not red
+  EXPECT_FALSE(is_red(rgb_at(png, 5, 5)));
+  EXPECT_FALSE(is_red(rgb_at(png, 314, 234)));
+  // the floor fills the bottom rows: grey, not black (the image is not upside down)
+  const auto floor = rgb_at(png, 160, 235);
+  EXPECT_GT(floor[0], 20);
+  EXPECT_NEAR(floor[0], floor[1], 10);
+  // the sky (top rows) is not the floor
+  EXPECT_FALSE(is_red(rgb_at(png, 160, 3)));
+}
+
+TEST_F(CameraTest, IntrinsicsFollowTheFieldOfView) {
+  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 320}, {"cam_height", 240}});
+  serve();
+  const json props = value("rig.camera", "get_properties")["properties"];
+  // MJCF fovy 60°: fy = 120 / tan(30°)
+  const double f = 120 / std::tan(M_PI / 6);
+  EXPECT_NEAR(props["focal_length"].get<double>(), f, 1e-9);
+  EXPECT_EQ(props["principal_point"], json({160.0, 120.0}));
+  EXPECT_NEAR(props["intrinsic_matrix"][0][0].get<double>(), f, 1e-9);
+  // the optical frame at the rig, z along the world's +x
+  EXPECT_NEAR(props["pose"]["position"][2].get<double>(), 0.5, 1e-9);
+  const json q = props["pose"]["orientation"];
+  const Eigen::Quaterniond rot(q[0], q[1], q[2], q[3]);
+  EXPECT_TRUE((rot * Eigen::Vector3d::UnitZ()).isApprox(Eigen::Vector3d::UnitX(), 1e-9));
+  EXPECT_TRUE((rot * Eigen::Vector3d::UnitY()).isApprox(-Eigen::Vector3d::UnitZ(), 1e-9));
+}
+
+TEST_F(CameraTest, FrameCameraOnASiteLooksAlongItsX) {
+  add_component(*robot_, "eye", "video_camera", {{"site", "eye"}, {"cam_width", 64}, {"cam_height", 48}});
+  serve();
+  const json record = image_of("rig.eye");
+  const DecodedPng png = decode_png(decode_base64(record["image"].get<std::string>()));
+  ASSERT_TRUE(png.error.empty()) << png.error;
+  EXPECT_TRUE(is_red(rgb_at(png, 32, 24)));
+}
+
+TEST_F(CameraTest, DepthOfTheBoxFaceIsItsDistance) {
+  add_component(*robot_, "depth", "depth_camera",
+                {{"site", "eye"}, {"cam_width", 160}, {"cam_height", 120}, {"cam_near", 0.05}, {"cam_far", 20}});
+  serve();
+  const json record = image_of("rig.depth");
+  ASSERT_TRUE(record.is_object()) << record.dump();
+  EXPECT_EQ(record["depth_unit"], "mm");
+  const DecodedPng png = decode_png(decode_base64(record["image"].get<std::string>()));
+  ASSERT_TRUE(png.error.empty()) << png.error;
+  EXPECT_EQ(png.bit_depth, 16);
+  EXPECT_EQ(png.colour_type, 0);
+  EXPECT_NEAR(gray16_at(png, 80, 60), k_face * 1000, 5);
+  // the nearest hit is the floor at the bottom row: 0.5 m below, 22.5° down (fovy 45°) at
+  // the image's edge; within the bottom row's pixel (MuJoCo's multisampling resolves a
+  // pixel's depth to one of its samples)
+  const double edge = 0.5 / std::tan(22.5 * M_PI / 180);
+  EXPECT_NEAR(record["min_depth"].get<double>(), edge + 0.008, 0.009);
+  EXPECT_NEAR(gray16_at(png, 80, 119), record["min_depth"].get<double>() * 1000, 1);
+  // the sky: nothing within cam_far reads 0
+  EXPECT_EQ(gray16_at(png, 80, 0), 0);
+}
+
+TEST_F(CameraTest, CaptureCompletesWithNImagesAfterEnoughSteps) {
+  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 32}, {"cam_height", 24}});
+  serve();
+  const RequestId id = rm_->call("rig.camera", "capture", {3});
+  const Outcome o = wait_for(id);
+  ASSERT_EQ(o.status, Status::success) << o.message;
+  ASSERT_TRUE(o.value && o.value->is_array()) << o.value.value_or(json()).dump();
+  ASSERT_EQ(o.value->size(), 3u);
+  // one per 1/frequency (20 Hz by default) of simulated time
+  const double t0 = (*o.value)[0]["timestamp"], t1 = (*o.value)[1]["timestamp"], t2 = (*o.value)[2]["timestamp"];
+  EXPECT_NEAR(t1 - t0, 0.05, 0.011);
+  EXPECT_NEAR(t2 - t1, 0.05, 0.011);
+  for (const json& image : *o.value) {
+    const DecodedPng png = decode_png(decode_base64(image["image"].get<std::string>()));
+    EXPECT_TRUE(png.error.empty()) << png.error;
+    EXPECT_EQ(png.width, 32);
+  }
+  // get_local_data: the last image
+  EXPECT_EQ(value("rig.camera", "get_local_data")["timestamp"], (*o.value)[2]["timestamp"]);
+}
+
+TEST_F(CameraTest, SecondCapturePreemptsTheFirst) {
+  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 16}, {"cam_height", 16}});
+  serve();
+  const RequestId first = rm_->call("rig.camera", "capture", {50});
+  sim_->process_requests();
+  const RequestId second = rm_->call("rig.camera", "capture", {1});
+  const Outcome o = wait_for(second);
+  EXPECT_EQ(o.status, Status::success) << o.message;
+  EXPECT_EQ(o.value->size(), 1u);
+  ASSERT_TRUE(rm_->outcome(first));
+  EXPECT_EQ(rm_->outcome(first)->status, Status::preempted);
+}
+
+TEST_F(CameraTest, GetLocalDataRendersTheFirstImage) {
+  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 16}, {"cam_height", 16}});
+  serve();
+  const json record = value("rig.camera", "get_local_data");
+  ASSERT_TRUE(record.is_object()) << record.dump();
+  EXPECT_EQ(record["width"], 16);
+  EXPECT_TRUE(record["image"].is_string());
+  EXPECT_EQ(record["intrinsic_matrix"].size(), 3u);
+}
+
+TEST_F(CameraTest, CaptureRefusesABadCount) {
+  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}});
+  serve();
+  const Outcome o = call("rig.camera", "capture", {0});
+  EXPECT_EQ(o.status, Status::failed);
+  EXPECT_THAT(o.message, HasSubstr("n is the number of images"));
+}
+
+TEST_F(CameraTest, BadOptionsAreRefusedNamingTheOption) {
+  EXPECT_THAT(config_error(*robot_, "video_camera", {{"cam_width", 0}, {"camera", "front"}}), HasSubstr("options.cam_width"));
+  EXPECT_THAT(config_error(*robot_, "depth_camera", {{"cam_height", -3}, {"camera", "front"}}), HasSubstr("options.cam_height"));
+  const std::string unknown = config_error(*robot_, "video_camera", {{"camera", "back"}});
+  EXPECT_THAT(unknown, HasSubstr("options.camera"));
+  EXPECT_THAT(unknown, HasSubstr("front"));  // the cameras the scene has
+  EXPECT_THAT(config_error(*robot_, "video_camera", {{"cam_fovy", 180}, {"camera", "front"}}), HasSubstr("options.cam_fovy"));
+  EXPECT_THAT(config_error(*robot_, "video_camera", {{"cam_near", 2}, {"cam_far", 1}, {"camera", "front"}}), HasSubstr("options.cam_far"));
+  EXPECT_THAT(config_error(*robot_, "video_camera", {{"cam_fovy", 40}, {"cam_focal", 25}, {"camera", "front"}}),
+              HasSubstr("options.cam_focal"));
+  EXPECT_THAT(config_error(*robot_, "video_camera", {{"site", "nowhere"}}), HasSubstr("site"));
+}
+
+TEST_F(CameraTest, WithoutGlTheServicesFailWithTheReason) {
+  setenv("SIMGATE_RENDERER_UNAVAILABLE", "no GL in this test", 1);
+  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}});
+  serve();
+  const Outcome image = wait_for(rm_->call("rig.camera", "get_image"));
+  const Outcome capture = call("rig.camera", "capture", {1});
+  const Outcome data = call("rig.camera", "get_local_data");
+  unsetenv("SIMGATE_RENDERER_UNAVAILABLE");
+  for (const Outcome* o : {&image, &capture, &data}) {
+    EXPECT_EQ(o->status, Status::failed);
+    EXPECT_THAT(o->message, HasSubstr("rig.camera: cannot render"));
+    EXPECT_THAT(o->message, HasSubstr("no GL in this test"));
+  }
+  // everything else runs
+  EXPECT_TRUE(value("rig.camera", "get_properties")["properties"].contains("intrinsic_matrix"));
+  const double before = sim_->sim_time();
+  run_for(0.1);
+  EXPECT_GT(sim_->sim_time(), before);
+}
+
+// A measurement printed for the docs, never asserted: 320x240 render + readPixels.
+TEST_F(CameraTest, PrintsTheTimeOfA320x240Render) {
+  auto renderer = Renderer::shared();
+  if (!renderer->unavailable().empty()) GTEST_SKIP() << renderer->unavailable();
+  auto model = renderer->model_copy(sim_->m());
+  CameraView view;
+  view.width = 320;
+  view.height = 240;
+  constexpr int k_frames = 20;
+  std::mutex mutex;
+  std::condition_variable cv;
+  int done = 0;
+  const auto start = std::chrono::steady_clock::now();
+  for (int i = 0; i < k_frames; ++i) {
+    auto scene = std::make_unique<SceneCopy>(model);
+    scene->update(sim_->m(), sim_->d(), view, 0);
+    renderer->render(std::move(scene), true, false, [&](RenderResult r) {
+      EXPECT_TRUE(r.error.empty()) << r.error;
+      std::lock_guard lock(mutex);
+      ++done;
+      cv.notify_all();
+    });
+  }
+  std::unique_lock lock(mutex);
+  ASSERT_TRUE(cv.wait_for(lock, k_deadline, [&] { return done == k_frames; }));
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  std::printf("[ measure  ] 320x240 render + readPixels (llvmpipe): %.2f ms per frame over %d frames\n",
+              ms / k_frames, k_frames);
+}
+
+}  // namespace
+}  // namespace simgate::sim
