@@ -9,6 +9,7 @@ SIMGATE_RUNTIME_PACKAGES=(
   build-essential cmake ninja-build pkg-config
   libboost-dev libcli11-dev nlohmann-json3-dev libeigen3-dev libmujoco-dev libtinyxml2-dev
   cyclonedds-dev cyclonedds-tools
+  libegl-dev libegl1 libgl1-mesa-dri zlib1g-dev
   telnet
 )
 SIMGATE_TEST_PACKAGES=(
@@ -18,6 +19,12 @@ SIMGATE_TEST_PACKAGES=(
   iproute2 procps util-linux
   clang-14 libclang-rt-14-dev llvm-14
 )
+# cameras (sim/src/renderer.cc, image_codec.cc): libegl-dev to build against EGL (headers,
+# libEGL.so; MuJoCo's own GL loader finds the GL functions through the EGL the process has
+# loaded), libegl1 and libgl1-mesa-dri for Mesa's EGL and its llvmpipe renderer (no
+# display, no GPU needed),
+# zlib1g-dev for the PNG images' deflate. Without them at run time the cameras answer
+# FAILED and the rest runs.
 # libmujoco-samples: Debian's sample models (/usr/share/mujoco/model) the sim tests run on
 # clang-14 and its runtime libraries build the fuzz targets (libFuzzer, tests/fuzz), llvm-14's
 # llvm-symbolizer puts file and line in their crash reports (scripts/fuzz, docs/fuzzing.md)
