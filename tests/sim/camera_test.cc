@@ -246,6 +246,30 @@ TEST_F(CameraTest, WithoutGlTheServicesFailWithTheReason) {
   EXPECT_GT(sim_->sim_time(), before);
 }
 
+TEST_F(CameraTest, ASpawnedBodyIsSeenAndADeletedOneIsGone) {
+  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 64}, {"cam_height", 48}});
+  serve();
+  auto centre = [&] {
+    const DecodedPng png = decode_png(decode_base64(image_of("rig.camera")["image"].get<std::string>()));
+    EXPECT_TRUE(png.error.empty()) << png.error;
+    return png.error.empty() ? rgb_at(png, 32, 24) : std::array<int, 3>{};
+  };
+  ASSERT_TRUE(is_red(centre()));  // the context is made from the first model
+  // a green box between the camera and the red one: the model is replaced
+  const std::uint64_t generation = sim_->model_generation();
+  const Outcome spawned = wait_for(rm_->call(
+      "simulation", "spawn_entity",
+      {"green", R"(<body><geom type="box" size="0.1 0.1 0.1" rgba="0 1 0 1"/></body>)", {1.0, 0.0, 0.5}}));
+  ASSERT_EQ(spawned.status, Status::success) << spawned.message;
+  ASSERT_GT(sim_->model_generation(), generation);
+  const auto green = centre();
+  EXPECT_TRUE(green[1] > 100 && green[1] > 3 * green[0]) << green[0] << " " << green[1] << " " << green[2];
+  // deleted: red again
+  const Outcome deleted = wait_for(rm_->call("simulation", "delete_entity", {"green"}));
+  ASSERT_EQ(deleted.status, Status::success) << deleted.message;
+  EXPECT_TRUE(is_red(centre()));
+}
+
 // A measurement printed for the docs, never asserted: 320x240 render + readPixels.
 TEST_F(CameraTest, PrintsTheTimeOfA320x240Render) {
   auto renderer = Renderer::shared();
