@@ -9,6 +9,7 @@
 #define SIMGATE_TESTS_SIM_NAN_SWEEP_H_
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -18,6 +19,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <tuple>
 #include <vector>
 
@@ -203,7 +205,9 @@ class NanSweep {
           findings_.push_back(what + ": ended " + std::string(to_string(o.status)));
         else if (o.message.find(property.name) == std::string::npos)
           findings_.push_back(what + ": FAILED without naming the property: " + o.message);
-        if (property.get() != before)
+        // a read-only property cannot be set, and may follow the state the sweep steps (a
+        // camera's pose): only a settable one must keep its value
+        if (property.set && property.get() != before)
           findings_.push_back(what + ": the property changed from " + before.dump() + " to " + property.get().dump());
         check_state(what);
       }
@@ -222,6 +226,8 @@ class NanSweep {
       sim_.step();
       sim_.process_requests();
       if (auto o = rm_.outcome(id)) return *o;
+      // work of another thread (a camera's render) needs wall time, not steps
+      if (i >= k_async_steps / 5 && i % 50 == 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));
     }
     rm_.cancel(id);
     sim_.process_requests();
@@ -365,6 +371,9 @@ inline ValidCallTable builtin_valid_calls(ValidValues& values) {
     v->value(c, "pause");
     return ValidCalls{{1}};
   };
+  // a camera captures at least one image
+  t["video_camera.capture"] = [](const std::string&) { return ValidCalls{{1}}; };
+  t["depth_camera.capture"] = t["video_camera.capture"];
   t["simulation.restore_state"] = [v](const std::string& c) { return ValidCalls{{v->value(c, "save_state")}}; };
   t["simulation.drop_state"] = t["simulation.restore_state"];
   t["armature.set_rotation"] = per_joint(mjJNT_HINGE, false);
