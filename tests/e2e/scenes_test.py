@@ -14,23 +14,27 @@ way its README section shows, with MORSE's socket protocol on a raw socket, Debi
   refused;
 - the rover in its room: the laser's 271 rays see the walls where the room puts them (and
   nothing through the door), also after a teleport; the IMU reads gravity at rest; a goto
-  arrives; the integrated odometry matches the pose; proximity finds the crates.
+  arrives; the integrated odometry matches the pose; proximity finds the crates; the depth
+  camera sees the east wall where the laser does, and the camera's capture returns PNGs.
 
 The physics is predicted from the scenes' geometry (positions, masses), not recorded. Every
 wait is bounded; no assertion is on wall-clock time.
 """
 import argparse
+import base64
 import json
 import logging
 import math
 import os
 import signal
 import socket
+import struct
 import subprocess
 import sys
 import tempfile
 import time
 import unittest
+import zlib
 import warnings
 
 warnings.simplefilter("ignore", DeprecationWarning)  # asyncore/asynchat on Python 3.11
@@ -161,6 +165,31 @@ def object_position(wire, name):
     """[x, y, z] of a top-level body, from `simulation get_scene_objects`
     ({name: [children, position, orientation]})."""
     return wire.call("simulation", "get_scene_objects")[name][1]
+
+
+def decode_png(text):
+    """(width, height, bit depth, colour type, rows): a camera's base64 PNG, every chunk's
+    CRC checked, IDAT inflated; rows without their filter byte (the cameras write None)."""
+    data = base64.b64decode(text)
+    assert data[:8] == b"\x89PNG\r\n\x1a\n", "no PNG signature"
+    at, packed, header = 8, b"", None
+    while at < len(data):
+        length, kind = struct.unpack(">I4s", data[at:at + 8])
+        body = data[at + 8:at + 8 + length]
+        (crc,) = struct.unpack(">I", data[at + 8 + length:at + 12 + length])
+        assert zlib.crc32(kind + body) == crc, "bad CRC in %s" % kind
+        if kind == b"IHDR":
+            header = struct.unpack(">IIBB", body[:10])
+        elif kind == b"IDAT":
+            packed += body
+        at += 12 + length
+    width, height, depth, colour = header
+    row = width * (3 if colour == 2 else 1) * depth // 8
+    raw = zlib.decompress(packed)
+    assert len(raw) == (row + 1) * height
+    rows = [raw[y * (row + 1) + 1:(y + 1) * (row + 1)] for y in range(height)]
+    assert all(raw[y * (row + 1)] == 0 for y in range(height))
+    return width, height, depth, colour, rows
 
 
 class ShippedConfigsTest(unittest.TestCase):
@@ -327,6 +356,27 @@ class RoverSceneTest(unittest.TestCase):
         self.wire.call("rover.teleport", "translate", [1.0, 0.0, 0.0])
         self.wire.call("time", "sleep", [0.2])
         self.assertAlmostEqual(self.scan()["range_list"][ahead], EAST_WALL - LASER_AHEAD - 1.0, delta=0.01)
+
+    def test_the_depth_camera_sees_the_east_wall_where_the_laser_does(self):
+        record = self.wire.call("rover.depth", "get_image")
+        self.assertEqual(record["depth_unit"], "mm")
+        width, height, depth, colour, rows = decode_png(record["image"])
+        self.assertEqual((width, height, depth, colour), (160, 120, 16, 0))
+        # the centre pixel looks along the laser's 0° ray, at the laser's height
+        centre = rows[height // 2]
+        millimetres = (centre[width] << 8) | centre[width + 1]
+        self.assertAlmostEqual(millimetres / 1000.0, EAST_WALL - LASER_AHEAD, delta=0.01)
+        self.assertAlmostEqual(millimetres / 1000.0, self.scan()["range_list"][RAYS // 2], delta=0.01)
+
+    def test_a_capture_returns_its_images_as_pngs(self):
+        images = self.wire.call("rover.camera", "capture", [2])
+        self.assertEqual(len(images), 2)
+        # 10 images per simulated second
+        self.assertAlmostEqual(images[1]["timestamp"] - images[0]["timestamp"], 0.1, delta=0.003)
+        for image in images:
+            width, height, depth, colour, rows = decode_png(image["image"])
+            self.assertEqual((width, height, depth, colour), (320, 240, 8, 2))
+            self.assertEqual(image["intrinsic_matrix"][0][2], 160.0)
 
     def test_the_imu_reads_gravity_at_rest(self):
         imu = self.wire.call("rover.imu", "get_local_data")
