@@ -109,5 +109,20 @@ TEST(GatewayStreamsConfigTest, AFrequencyWithoutAnOutputStreamIsAWarning) {
                                        "has no output stream"));
 }
 
+TEST(GatewayStreamsConfigTest, ACameraTakesTheFrequencyAsItsFrameRateWithoutAWarning) {
+  json c = demo_config();
+  c["robots"][0]["components"].push_back(
+      {{"name", "camera"}, {"type", "video_camera"}, {"frequency", 5}, {"options", {{"cam_width", 32}}}});
+  Deployment d = parse_deployment(c, SIMGATE_SOURCE_DIR "/config");
+  auto registry = sim::builtin_registry();
+  Gateway g(d, registry, GatewayOptions{true, std::nullopt, {}});
+  EXPECT_TRUE(g.warnings().empty()) << ::testing::PrintToString(g.warnings());
+  const sim::ComponentEntry* camera = g.simulation().find("robot.camera");
+  ASSERT_NE(camera, nullptr);
+  const json properties = static_cast<const sim::SimComponent&>(*camera->component).get_properties()["properties"];
+  EXPECT_EQ(properties["frequency"], 5.0);
+  EXPECT_EQ(properties["cam_width"], 32);
+}
+
 }  // namespace
 }  // namespace simgate::gateway

@@ -195,6 +195,20 @@ TEST_F(CameraTest, SecondCapturePreemptsTheFirst) {
   EXPECT_EQ(rm_->outcome(first)->status, Status::preempted);
 }
 
+TEST_F(CameraTest, ACancelledCaptureEndsPreemptedAndTheNextOneWorks) {
+  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 16}, {"cam_height", 16}});
+  serve();
+  const RequestId first = rm_->call("rig.camera", "capture", {50});
+  sim_->process_requests();
+  sim_->step();
+  rm_->cancel(first);
+  const Outcome cancelled = wait_for(first);
+  EXPECT_EQ(cancelled.status, Status::preempted) << cancelled.message;
+  const Outcome next = wait_for(rm_->call("rig.camera", "capture", {2}));
+  ASSERT_EQ(next.status, Status::success) << next.message;
+  EXPECT_EQ(next.value->size(), 2u);
+}
+
 TEST_F(CameraTest, GetLocalDataRendersTheFirstImage) {
   add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 16}, {"cam_height", 16}});
   serve();
