@@ -238,6 +238,9 @@ TEST_F(CameraTest, BadOptionsAreRefusedNamingTheOption) {
   EXPECT_THAT(config_error(*robot_, "video_camera", {{"cam_fovy", 40}, {"cam_focal", 25}, {"camera", "front"}}),
               HasSubstr("options.cam_focal"));
   EXPECT_THAT(config_error(*robot_, "video_camera", {{"site", "nowhere"}}), HasSubstr("site"));
+  EXPECT_THAT(config_error(*robot_, "video_camera", {{"camera", "front"}, {"site", "eye"}}), HasSubstr("options.site"));
+  // a misspelt option is not ignored
+  EXPECT_THAT(config_error(*robot_, "video_camera", {{"camera", "front"}, {"cam_widht", 10}}), HasSubstr("cam_widht"));
 }
 
 TEST_F(CameraTest, WithoutGlTheServicesFailWithTheReason) {
@@ -292,6 +295,15 @@ TEST_F(CameraTest, PrintsTheTimeOfA320x240Render) {
   CameraView view;
   view.width = 320;
   view.height = 240;
+  // what a camera does under the simulation lock: copy the scene
+  {
+    SceneCopy scene(model);
+    constexpr int k_copies = 200;
+    const auto start = std::chrono::steady_clock::now();
+    for (int i = 0; i < k_copies; ++i) scene.update(sim_->m(), sim_->d(), view, 0);
+    const double us = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();
+    std::printf("[ measure  ] scene copy under the lock (%d geoms): %.1f us\n", scene.scene()->ngeom, us / k_copies);
+  }
   constexpr int k_frames = 20;
   std::mutex mutex;
   std::condition_variable cv;
