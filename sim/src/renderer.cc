@@ -164,7 +164,8 @@ void Renderer::Gl::close() {
   eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
   if (context != EGL_NO_CONTEXT) eglDestroyContext(display, context);
   context = EGL_NO_CONTEXT;
-  eglTerminate(display);
+  // the display stays initialised (one per process, reused by the next renderer): its
+  // driver stays loaded, as does every library the process loads
   display = EGL_NO_DISPLAY;
   eglReleaseThread();
 }
