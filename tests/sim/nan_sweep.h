@@ -371,8 +371,12 @@ inline ValidCallTable builtin_valid_calls(ValidValues& values) {
     v->value(c, "pause");
     return ValidCalls{{1}};
   };
-  // a camera captures at least one image
-  t["video_camera.capture"] = [](const std::string&) { return ValidCalls{{1}}; };
+  // a camera captures at least one image; its first image (get_local_data waits for it)
+  // makes the render context first, so that the capture takes milliseconds
+  t["video_camera.capture"] = [v](const std::string& c) {
+    v->value(c, "get_local_data");
+    return ValidCalls{{1}};
+  };
   t["depth_camera.capture"] = t["video_camera.capture"];
   t["simulation.restore_state"] = [v](const std::string& c) { return ValidCalls{{v->value(c, "save_state")}}; };
   t["simulation.drop_state"] = t["simulation.restore_state"];
