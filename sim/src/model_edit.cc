@@ -4,7 +4,9 @@
 #include <cstdio>
 #include <cstring>
 #include <map>
+#include <functional>
 #include <set>
+#include <sstream>
 #include <string_view>
 
 #include <tinyxml2.h>
@@ -143,6 +145,70 @@ tinyxml2::XMLElement* find_body(tinyxml2::XMLElement& parent, const std::string&
   return nullptr;
 }
 
+// Whether the text holds a <key> in a <keyframe> section (parsed: a comment or an attribute
+// value that mentions one does not count).
+bool has_keyframes(const tinyxml2::XMLDocument& doc) {
+  const tinyxml2::XMLElement* root = doc.RootElement();
+  for (auto* keys = root ? root->FirstChildElement("keyframe") : nullptr; keys;
+       keys = keys->NextSiblingElement("keyframe"))
+    if (keys->FirstChildElement("key")) return true;
+  return false;
+}
+
+std::string printed(const tinyxml2::XMLDocument& doc) {
+  tinyxml2::XMLPrinter printer;
+  doc.Print(&printer);
+  return printer.CStr();
+}
+
+// The numbers of a keyframe attribute ("0 0 1.2 1 0 0 0").
+std::vector<double> parse_numbers(const char* text) {
+  std::vector<double> out;
+  std::istringstream in(text ? text : "");
+  for (double v; in >> v;) out.push_back(v);
+  return out;
+}
+
+// MuJoCo 2.2.2 wants each of a keyframe's arrays to be the whole model's size, so a scene's
+// keys no longer fit once entities are added. Each array a key gives is padded with the
+// added objects' initial state, read off `bare` (the same model compiled without keyframes):
+// qpos with qpos0, qvel, act and ctrl with zeros, mpos and mquat with the mocap bodies'
+// poses. What a key leaves out, MuJoCo fills itself.
+void pad_keyframes(tinyxml2::XMLDocument& doc, const mjModel* bare) {
+  std::vector<const double*> mocap_pos, mocap_quat;  // by mocap id
+  mocap_pos.resize(bare->nmocap);
+  mocap_quat.resize(bare->nmocap);
+  for (int b = 0; b < bare->nbody; ++b)
+    if (const int id = bare->body_mocapid[b]; id >= 0) {
+      mocap_pos[id] = bare->body_pos + 3 * b;
+      mocap_quat[id] = bare->body_quat + 4 * b;
+    }
+  // an array's size in the whole model, and the value of its i-th number when added
+  struct Array {
+    const char* attribute;
+    int size;
+    std::function<double(int)> initial;
+  };
+  const std::vector<Array> arrays = {
+      {"qpos", bare->nq, [&](int i) { return bare->qpos0[i]; }},
+      {"qvel", bare->nv, [](int) { return 0.0; }},
+      {"act", bare->na, [](int) { return 0.0; }},
+      {"ctrl", bare->nu, [](int) { return 0.0; }},
+      {"mpos", 3 * bare->nmocap, [&](int i) { return mocap_pos[i / 3][i % 3]; }},
+      {"mquat", 4 * bare->nmocap, [&](int i) { return mocap_quat[i / 4][i % 4]; }},
+  };
+  for (auto* keys = doc.RootElement()->FirstChildElement("keyframe"); keys; keys = keys->NextSiblingElement("keyframe"))
+    for (auto* key = keys->FirstChildElement("key"); key; key = key->NextSiblingElement("key"))
+      for (const Array& a : arrays) {
+        const char* given = key->Attribute(a.attribute);
+        if (!given) continue;
+        std::vector<double> values = parse_numbers(given);
+        if (values.size() >= static_cast<std::size_t>(a.size)) continue;  // MuJoCo says what is wrong
+        for (int i = static_cast<int>(values.size()); i < a.size; ++i) values.push_back(a.initial(i));
+        key->SetAttribute(a.attribute, numbers(values.data(), static_cast<int>(values.size())).c_str());
+      }
+}
+
 }  // namespace
 
 std::string entity_sections(const std::string& fragment, const std::string& name, const EntityPose& pose) {
@@ -254,14 +320,44 @@ Model compile_scene(const std::shared_ptr<const SceneSource>& scene, std::vector
       throw MujocoError("scene '" + scene->file_name + "': could not create the virtual file '" + file + "'");
     std::memcpy(vfs->filedata[mj_findFileVFS(vfs.get(), file)], text.data(), text.size());
   };
-  add(scene->file_name.c_str(), scene->xml);
   add(k_wrapper_name, wrapper);
   // as if beside the scene file: relative names resolve in its directory
   const std::string path = scene->directory.empty() ? k_wrapper_name : scene->directory + "/" + k_wrapper_name;
   const std::string source = scene->directory.empty() ? scene->file_name : scene->directory + "/" + scene->file_name;
-  char error[1024] = "";
-  mjModel* m = mj_loadXML(path.c_str(), vfs.get(), error, sizeof error);
-  if (!m) throw MujocoError(error[0] ? error : "MuJoCo could not compile it");
+  // compiles the wrapper with `scene_text` as the scene's file
+  auto load = [&](const std::string& scene_text) {
+    if (mj_findFileVFS(vfs.get(), scene->file_name.c_str()) >= 0) mj_deleteFileVFS(vfs.get(), scene->file_name.c_str());
+    add(scene->file_name.c_str(), scene_text);
+    char error[1024] = "";
+    mjModel* m = mj_loadXML(path.c_str(), vfs.get(), error, sizeof error);
+    if (!m) throw MujocoError(error[0] ? error : "MuJoCo could not compile it");
+    return m;
+  };
+  // a scene with keyframes: compiled once without them, to learn the whole model's sizes,
+  // then with its keys padded to them (pad_keyframes)
+  std::string scene_text = scene->xml;
+  if (!entities.empty()) {
+    tinyxml2::XMLDocument doc;
+    if (doc.Parse(scene->xml.data(), scene->xml.size()) == tinyxml2::XML_SUCCESS && has_keyframes(doc)) {
+      tinyxml2::XMLDocument bare_doc;
+      doc.DeepCopy(&bare_doc);
+      for (auto* keys = bare_doc.RootElement()->FirstChildElement("keyframe"); keys;) {
+        auto* next = keys->NextSiblingElement("keyframe");
+        bare_doc.RootElement()->DeleteChild(keys);
+        keys = next;
+      }
+      mjModel* bare = load(printed(bare_doc));
+      try {
+        pad_keyframes(doc, bare);
+      } catch (...) {
+        mj_deleteModel(bare);
+        throw;
+      }
+      mj_deleteModel(bare);
+      scene_text = printed(doc);
+    }
+  }
+  mjModel* m = load(scene_text);
 
   if (measure_scene) {
     ModelCounts entities_counts;

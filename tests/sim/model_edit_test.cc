@@ -102,6 +102,49 @@ TEST(ModelEditTest, SpawnedEntityComesAfterTheSceneWhoseIdsStay) {
   EXPECT_EQ(after->opt.integrator, before->opt.integrator);
 }
 
+// MuJoCo 2.2.2 wants every keyframe array sized to the whole model: a scene's keys are
+// padded with the spawned entity's initial state (it did not compile before).
+TEST(ModelEditTest, AKeyframeSceneTakesAnEntityItsKeysPaddedWithTheEntitysInitialState) {
+  Model scene = Model::load_string(R"(<mujoco model="keyed">
+    <worldbody>
+      <body name="arm"><joint name="hinge" type="hinge"/><geom type="capsule" size=".05" fromto="0 0 0 .3 0 0"/></body>
+      <body name="target" mocap="true" pos="1 2 3"><geom type="sphere" size=".05" contype="0" conaffinity="0"/></body>
+    </worldbody>
+    <actuator><motor joint="hinge"/></actuator>
+    <keyframe>
+      <key name="bent" qpos="0.5" qvel="0.25" ctrl="0.125" mpos="4 5 6"/>
+      <key name="bare" time="1"/>
+    </keyframe>
+  </mujoco>)");
+  EntityPose pose;
+  pose.position = {7, 8, 9};
+  Model spawned = compile_scene(scene.scene(), {entity("ball", k_ball, pose)}, true);
+  const mjModel* m = spawned.model();
+  ASSERT_EQ(m->nkey, 2);
+  ASSERT_EQ(m->nq, 1 + 7);
+  // the scene's part as written, the ball's at its initial state (its pose, no velocity)
+  EXPECT_EQ(m->key_qpos[0], 0.5);
+  EXPECT_EQ(m->key_qpos[1], 7);
+  EXPECT_EQ(m->key_qpos[2], 8);
+  EXPECT_EQ(m->key_qpos[3], 9);
+  for (int i = 1; i < m->nq; ++i) EXPECT_EQ(m->key_qpos[i], m->qpos0[i]) << "qpos " << i;
+  EXPECT_EQ(m->key_qvel[0], 0.25);
+  for (int i = 1; i < m->nv; ++i) EXPECT_EQ(m->key_qvel[i], 0) << "qvel " << i;
+  EXPECT_EQ(m->key_ctrl[0], 0.125);
+  EXPECT_EQ(m->key_mpos[0], 4);
+  // the key that gave nothing is MuJoCo's default: the model's initial state
+  EXPECT_EQ(m->key_time[1], 1);
+  for (int i = 0; i < m->nq; ++i) EXPECT_EQ(m->key_qpos[m->nq + i], m->qpos0[i]) << "qpos " << i;
+
+  // a second entity after the first, and back to the scene alone
+  Model two = compile_scene(scene.scene(), {spawned.entities()[0], entity("other", k_ball)}, true);
+  EXPECT_EQ(two.model()->nq, 1 + 7 + 7);
+  EXPECT_EQ(two.model()->key_qpos[0], 0.5);
+  Model alone = compile_scene(scene.scene(), {}, false);
+  EXPECT_EQ(alone.model()->nq, 1);
+  EXPECT_EQ(alone.model()->key_qpos[0], 0.5);
+}
+
 TEST(ModelEditTest, DoesNotCompileGivesMujocosMessage) {
   Model scene = Model::load_file(testing::demo_scene());
   try {

@@ -76,7 +76,10 @@ std::string entity_sections(const std::string& fragment, const std::string& name
 // thread.
 std::shared_ptr<SceneSource> scene_without(const SceneSource& scene, const std::string& body);
 
-// Compiles `scene` with `entities`, in order. When `last_is_new`, the last entity's counts
+// Compiles `scene` with `entities`, in order. A scene whose keyframes give arrays (MuJoCo
+// 2.2.2 wants them sized to the whole model) is compiled once without them, then with each
+// key padded with the entities' initial state (qpos0, zero velocities, activations and
+// controls, the mocap bodies' poses). When `last_is_new`, the last entity's counts
 // are measured (the compiled model's minus everything before it); the others' are kept.
 // `measure_scene` (the same object as `scene`, freshly edited and not yet shared): its
 // counts are measured too (the compiled model's minus the entities'). Throws MujocoError
