@@ -12,60 +12,46 @@
 #define SIMGATE_PLUGINS_JSONRPC_SESSION_H_
 
 #include <memory>
-#include <optional>
 #include <string>
 #include <string_view>
-#include <vector>
 
-#include "simgate/core/request_manager.h"
-#include "simgate/kit/id_table.h"
+#include "jsonrpc_engine.h"
 #include "simgate/kit/line_connection.h"
 
 namespace simgate::jsonrpc {
 
-class Session : public kit::LineConnection {
+class Session : public kit::LineConnection, public SessionCalls {
  public:
   using LineConnection::LineConnection;
 
   std::shared_ptr<Session> shared() { return std::static_pointer_cast<Session>(shared_from_this()); }
 
   // Queues one message (the newline is added); written at the end of the burst.
-  void queue_line(std::string_view line) {
+  void queue_message(std::string_view line) {
     queue_with([line](std::string& out) {
       out.append(line);
       out.push_back('\n');
     });
   }
+  // Queues the message `format(out)` appends, unless the client lets replies pile up
+  // unread (LineConnection::queue_droppable_with); true if queued.
+  template <class Format>
+  bool queue_droppable_message(Format&& format) {
+    return queue_droppable_with([&format](std::string& out) {
+      format(out);
+      out.push_back('\n');
+    });
+  }
 
-  // ---- calls in flight (ids scoped to this connection)
+  // ---- calls in flight (ids scoped to this connection: SessionCalls)
   std::size_t in_flight() const { return unanswered(); }
   // A call, notification or cancel is in flight until done().
   void add_in_flight() { expect_reply(); }
-  bool has_id(const std::string& key) const { return calls_.find(key) != nullptr; }
-  // Remembers the call `id` under the client's id (its dumped JSON).
-  void track(const std::string& key, RequestId id) {
-    if (kit::IdTable::Entry* entry = calls_.insert(key)) entry->id = id;
-  }
-  std::optional<RequestId> find(const std::string& key) const {
-    const kit::IdTable::Entry* entry = calls_.find(key);
-    if (!entry) return std::nullopt;
-    return entry->id;
-  }
   // A call (or cancel) in flight produced its reply; `key` is its id's ("" when untracked).
   void done(const std::string& key) {
-    if (!key.empty()) calls_.erase(key);
+    forget_id(key);
     replied();
   }
-  // The calls to cancel when the client leaves.
-  std::vector<RequestId> pending_calls() const {
-    std::vector<RequestId> ids;
-    ids.reserve(calls_.size());
-    calls_.for_each([&](const kit::IdTable::Entry& e) { ids.push_back(e.id); });
-    return ids;
-  }
-
- private:
-  kit::IdTable calls_;  // dumped JSON-RPC id -> the core's request id
 };
 
 }  // namespace simgate::jsonrpc

@@ -1,4 +1,4 @@
-// jsonrpc_streams.cc — the JSON-RPC transport's data streams (core/streams.h): the reserved
+// jsonrpc_engine_streams.h — the JSON-RPC engine's data streams (core/streams.h): the reserved
 // methods rpc.streams, rpc.subscribe, rpc.unsubscribe and rpc.publish, and the rpc.sample
 // notifications a subscription brings. Wire: docs/transports/jsonrpc.md#data-streams.
 //
@@ -6,25 +6,26 @@
 // leaves, or when its component is deleted (rpc.unsubscribed {subscription, reason} tells
 // the client). Samples are notifications the client may miss: each subscription keeps the
 // latest `stream_queue` samples in the core, and a connection that lets more than
-// LineConnection::k_droppable_unsent_bytes pile up unread loses samples rather than its
+// the session's droppable budget (kit::LineConnection::k_droppable_unsent_bytes) pile up unread loses samples rather than its
 // replies; both losses are counted (simulation get_stream_statistics) and logged once.
 //
 // Threads: the I/O thread, except wake_streams() (the thread that holds the simulation
 // lock, when a subscription's queue stops being empty: one post per burst).
+#ifndef SIMGATE_PLUGINS_JSONRPC_JSONRPC_ENGINE_STREAMS_H_
+#define SIMGATE_PLUGINS_JSONRPC_JSONRPC_ENGINE_STREAMS_H_
+
 #include <algorithm>
 
 #include <boost/asio/post.hpp>
 
-#include "jsonrpc_request_manager.h"
+#include "jsonrpc_engine.h"
 #include "simgate/core/log.h"
 
 namespace simgate::jsonrpc {
 
-namespace asio = boost::asio;
+namespace streams_detail {
 
-namespace {
-
-json stream_json(const StreamInfo& info) {
+inline json stream_json(const StreamInfo& info) {
   json out{{"component", info.component},
            {"direction", to_string(info.direction)},
            {"kind", info.kind},
@@ -37,29 +38,31 @@ json stream_json(const StreamInfo& info) {
 }
 
 // The one argument `name` of `params`: {"<name>": X} or [X]; null when absent.
-const json* single_param(const json& params, const char* name) {
+inline const json* single_param(const json& params, const char* name) {
   if (params.is_object() && params.size() == 1 && params.contains(name)) return &params[name];
   if (params.is_array() && params.size() == 1) return &params[0];
   return nullptr;
 }
 
-}  // namespace
+}  // namespace streams_detail
 
-json JsonRpcRequestManager::stream_list() const {
+template <class Session>
+json JsonRpcEngine<Session>::stream_list() const {
   json out = json::array();
   if (stream_hub())
-    for (const auto& info : stream_hub()->streams(transport_name())) out.push_back(stream_json(info));
+    for (const auto& info : stream_hub()->streams(transport_name())) out.push_back(streams_detail::stream_json(info));
   return out;
 }
 
-bool JsonRpcRequestManager::handle_stream_method(const std::shared_ptr<Session>& session, const std::string& method,
+template <class Session>
+bool JsonRpcEngine<Session>::handle_stream_method(const std::shared_ptr<Session>& session, const std::string& method,
                                                  const json& params, ReplyTo& to) {
   if (method == "rpc.streams") {
     reply(to, result_response(to.id, stream_list()));
   } else if (method == "rpc.subscribe") {
     subscribe(session, params, to);
   } else if (method == "rpc.unsubscribe") {
-    const json* id = single_param(params, "subscription");
+    const json* id = streams_detail::single_param(params, "subscription");
     if (!id || !id->is_number_unsigned()) {
       reply(to, error_response(to.id, code::invalid_params,
                                "Invalid params: rpc.unsubscribe takes {\"subscription\": <the number rpc.subscribe "
@@ -76,8 +79,9 @@ bool JsonRpcRequestManager::handle_stream_method(const std::shared_ptr<Session>&
   return true;
 }
 
-void JsonRpcRequestManager::subscribe(const std::shared_ptr<Session>& session, const json& params, ReplyTo& to) {
-  const json* component = single_param(params, "component");
+template <class Session>
+void JsonRpcEngine<Session>::subscribe(const std::shared_ptr<Session>& session, const json& params, ReplyTo& to) {
+  const json* component = streams_detail::single_param(params, "component");
   if (!component || !component->is_string()) {
     reply(to, error_response(to.id, code::invalid_params,
                              "Invalid params: rpc.subscribe takes {\"component\": \"<a component with an output "
@@ -103,7 +107,7 @@ void JsonRpcRequestManager::subscribe(const std::shared_ptr<Session>& session, c
   // a second subscribe of the same stream on a connection is the first one
   for (const auto& s : stream_subs_)
     if (s.session.lock() == session && s.subscription->component() == name) {
-      reply(to, result_response(to.id, json{{"subscription", s.id}, {"stream", stream_json(*info)}}));
+      reply(to, result_response(to.id, json{{"subscription", s.id}, {"stream", streams_detail::stream_json(*info)}}));
       return;
     }
   StreamSub sub;
@@ -111,18 +115,19 @@ void JsonRpcRequestManager::subscribe(const std::shared_ptr<Session>& session, c
   sub.session = session;
   sub.subscription = stream_hub()->subscribe(
       name, transport_name(),
-      SubscriberOptions{options_.stream_queue, "jsonrpc " + session->label(), [this] { wake_streams(); }});
+      SubscriberOptions{options_.stream_queue, tag_ + " " + session->label(), [this] { wake_streams(); }});
   if (!sub.subscription) {  // deleted meanwhile
     reply(to, error_response(to.id, code::invalid_params, "Invalid params: no output stream '" + name + "'",
                              json{{"method", "rpc.subscribe"}, {"parameter", "component"}}));
     return;
   }
   // the answer goes before the first sample (which the next simulation turn brings)
-  reply(to, result_response(to.id, json{{"subscription", sub.id}, {"stream", stream_json(*info)}}));
+  reply(to, result_response(to.id, json{{"subscription", sub.id}, {"stream", streams_detail::stream_json(*info)}}));
   stream_subs_.push_back(std::move(sub));
 }
 
-bool JsonRpcRequestManager::unsubscribe(Session& session, std::uint64_t id) {
+template <class Session>
+bool JsonRpcEngine<Session>::unsubscribe(Session& session, std::uint64_t id) {
   auto it = std::find_if(stream_subs_.begin(), stream_subs_.end(), [&](const StreamSub& s) {
     return s.id == id && s.session.lock().get() == &session;
   });
@@ -132,7 +137,8 @@ bool JsonRpcRequestManager::unsubscribe(Session& session, std::uint64_t id) {
   return true;
 }
 
-void JsonRpcRequestManager::publish(const json& params, ReplyTo& to) {
+template <class Session>
+void JsonRpcEngine<Session>::publish(const json& params, ReplyTo& to) {
   // {"component": "robot.motion", "data": {...}} or ["robot.motion", {...}]
   const json* component = nullptr;
   const json* data = nullptr;
@@ -164,12 +170,14 @@ void JsonRpcRequestManager::publish(const json& params, ReplyTo& to) {
   reply(to, result_response(to.id, json{{"applied", result.applied}}));
 }
 
-void JsonRpcRequestManager::wake_streams() {
+template <class Session>
+void JsonRpcEngine<Session>::wake_streams() {
   if (streams_woken_.exchange(true, std::memory_order_acq_rel)) return;
-  asio::post(io_, [this] { drain_streams(); });
+  boost::asio::post(io_, [this] { drain_streams(); });
 }
 
-void JsonRpcRequestManager::drain_streams() {
+template <class Session>
+void JsonRpcEngine<Session>::drain_streams() {
   streams_woken_.store(false, std::memory_order_release);
   for (auto it = stream_subs_.begin(); it != stream_subs_.end();) {
     StreamSub& s = *it;
@@ -183,7 +191,7 @@ void JsonRpcRequestManager::drain_streams() {
     s.subscription->take(samples_);
     std::uint64_t lost = 0;
     for (const SamplePtr& sample : samples_) {
-      const bool queued = session->queue_droppable_with([&](std::string& out) {
+      const bool queued = session->queue_droppable_message([&](std::string& out) {
         out += R"({"jsonrpc":"2.0","method":"rpc.sample","params":{"subscription":)";
         out += std::to_string(s.id);
         out += R"(,"component":)";
@@ -194,14 +202,14 @@ void JsonRpcRequestManager::drain_streams() {
         out += dump(json(sample->time()));
         out += R"(,"data":)";
         out += sample->text();
-        out += "}}\n";
+        out += "}}";
       });
       if (!queued) ++lost;
     }
     s.subscription->note_dropped(lost);
     if (s.subscription->closed()) {
       // its component was deleted: the client learns why its samples stop
-      session->queue_line(dump(json{{"jsonrpc", "2.0"},
+      session->queue_message(dump(json{{"jsonrpc", "2.0"},
                                     {"method", "rpc.unsubscribed"},
                                     {"params", {{"subscription", s.id},
                                                 {"component", s.subscription->component()},
@@ -212,10 +220,11 @@ void JsonRpcRequestManager::drain_streams() {
     ++it;
   }
   samples_.clear();
-  flush_touched();
+  flush_replies();
 }
 
-void JsonRpcRequestManager::end_subscriptions(const Session* session) {
+template <class Session>
+void JsonRpcEngine<Session>::end_subscriptions(const Session* session) {
   for (auto it = stream_subs_.begin(); it != stream_subs_.end();) {
     auto owner = it->session.lock();
     if (session && owner && owner.get() != session) {
@@ -228,3 +237,5 @@ void JsonRpcRequestManager::end_subscriptions(const Session* session) {
 }
 
 }  // namespace simgate::jsonrpc
+
+#endif  // SIMGATE_PLUGINS_JSONRPC_JSONRPC_ENGINE_STREAMS_H_
