@@ -1,0 +1,171 @@
+#include "websocket_request_manager.h"
+
+#include <sstream>
+
+#include <boost/beast/http/status.hpp>
+#include <boost/beast/http/write.hpp>
+
+#include "jsonrpc_engine_impl.h"
+#include "jsonrpc_engine_streams.h"
+#include "protocol.h"
+#include "simgate/core/log.h"
+#include "simgate/core/plugin.h"
+
+namespace simgate::jsonrpc {
+template class JsonRpcEngine<websocket::WsSession>;
+}  // namespace simgate::jsonrpc
+
+namespace simgate::websocket {
+
+namespace asio = boost::asio;
+namespace http = boost::beast::http;
+using asio::ip::tcp;
+using jsonrpc::code::invalid_request;
+using jsonrpc::code::overloaded;
+using jsonrpc::dump;
+using jsonrpc::error_response;
+
+WebSocketRequestManager::WebSocketRequestManager(const json& options)
+    : WebSocketRequestManager(jsonrpc::Options::parse(options, "websocket", k_default_port)) {}
+
+WebSocketRequestManager::WebSocketRequestManager(jsonrpc::Options o)
+    : JsonRpcEngine("WebSocket service manager", "websocket", std::move(o)),
+      // bound now, so that a port in use fails the creation of the transport
+      listener_(io_, name(), options_.tcp.host, options_.tcp.port),
+      io_thread_(io_, name(), options_.tcp.io_spin) {}
+
+WebSocketRequestManager::~WebSocketRequestManager() { stop(); }
+
+std::vector<std::string> WebSocketRequestManager::endpoints() const {
+  // "tcp://host:port" -> "ws://host:port/"
+  std::string endpoint = listener_.endpoint();
+  if (endpoint.starts_with("tcp://")) endpoint.replace(0, 3, "ws");
+  return {endpoint + "/"};
+}
+
+void WebSocketRequestManager::start() {
+  kit::TcpListener::Handlers handlers{
+      [this](tcp::socket socket) { accept(std::move(socket)); },
+      [this](const tcp::endpoint&) { return refusal_reason(); },
+      [](const std::string& why) {
+        // the client is still sending its HTTP request: an HTTP answer, the JSON-RPC error as its body
+        const std::string body = dump(error_response(nullptr, overloaded, "Overloaded: " + why)) + "\n";
+        return "HTTP/1.1 503 Service Unavailable\r\nContent-Type: application/json\r\nContent-Length: " +
+               std::to_string(body.size()) + "\r\nConnection: close\r\n\r\n" + body;
+      }};
+  if (io_thread_.start(
+          [this, handlers = std::move(handlers)]() mutable {
+            deliver_here();
+            listener_.start(std::move(handlers));
+          },
+          no_direct_reads_))
+    log::info("websocket: listening on ", endpoints().front());
+}
+
+void WebSocketRequestManager::stop() {
+  if (!io_thread_.stop([this] { shutdown_io(); })) return;
+  finish_stop();
+}
+
+void WebSocketRequestManager::shutdown_io() {
+  stop_io();
+  listener_.close();
+  auto sessions = std::move(sessions_);
+  sessions_.clear();
+  count_.store(0, std::memory_order_relaxed);
+  for (const auto& s : sessions) s->abort("server stopping");
+  touched_.clear();
+}
+
+std::string WebSocketRequestManager::refusal_reason() const {
+  if (sessions_.size() < options_.tcp.max_connections) return {};
+  return "too many connections (" + std::string(options_.tcp.connections_key) + " " +
+         std::to_string(options_.tcp.max_connections) + ")";
+}
+
+void WebSocketRequestManager::accept(tcp::socket socket) {
+  WsLimits limits;
+  limits.max_message_bytes = options_.tcp.max_message_bytes;
+  limits.max_unsent_bytes = options_.tcp.max_unsent_bytes;
+  // a client that lets its replies pile up stops being read at half the unsent budget
+  limits.pause_at_unsent_bytes = options_.tcp.max_unsent_bytes / 2;
+  WsHost& host = *this;
+  auto session = std::make_shared<WsSession>(std::move(socket), host, limits, name(), next_session_++);
+  // a peer that must present the token (the "auth" option) calls rpc.login first
+  if (options_.tcp.auth.required_for(session->peer())) session->require_login();
+  sessions_.insert(session);
+  count_.store(sessions_.size(), std::memory_order_relaxed);
+  log::debug(name(), ": ", session->label(), " connected");
+  session->start();
+}
+
+void WebSocketRequestManager::flush_replies() {
+  // swapped out first: a write that fails closes its session, which may touch the list
+  auto touched = std::move(touched_);
+  touched_.clear();
+  for (const auto& s : touched) {
+    s->touched = false;
+    s->flush_writes();
+  }
+  if (touched_.empty()) {
+    touched.clear();
+    touched_.swap(touched);  // keeps the capacity
+  }
+}
+
+// ---- WsHost: the framing (I/O thread)
+
+void WebSocketRequestManager::on_message(WsSession& session, std::string_view text) {
+  handle_message(session.shared(), text);
+}
+
+void WebSocketRequestManager::on_refused_message(WsSession& session, std::size_t bytes, bool binary) {
+  if (binary) {
+    session.queue_message(dump(error_response(
+        nullptr, invalid_request, "Invalid Request: a binary message (send JSON-RPC as text messages)",
+        json{{"reason", "binary message"}, {"bytes", bytes}})));
+    return;
+  }
+  const auto max = options_.tcp.max_message_bytes;
+  session.queue_message(dump(error_response(
+      nullptr, invalid_request, "Invalid Request: message exceeds max_message_bytes (" + std::to_string(max) + ")",
+      json{{"reason", "message too large"}, {"bytes", bytes}, {"max_message_bytes", max}})));
+}
+
+void WebSocketRequestManager::on_read_done(WsSession& /*session*/) {
+  flush_submissions();
+  flush_replies();
+}
+
+std::string WebSocketRequestManager::on_http_request(const http::request<http::string_body>& request) {
+  // no web pages yet: a short text says what this port is
+  const std::string body =
+      "simgate websocket transport: JSON-RPC 2.0 over WebSocket; connect with a WebSocket client to " +
+      endpoints().front() + " (docs/transports/websocket.md)\n";
+  http::response<http::string_body> response{http::status::not_found, request.version()};
+  response.set(http::field::server, "simgate websocket transport");
+  response.set(http::field::content_type, "text/plain; charset=utf-8");
+  response.keep_alive(false);
+  response.body() = body;
+  response.prepare_payload();
+  std::ostringstream out;
+  out << response;
+  return out.str();
+}
+
+void WebSocketRequestManager::on_closed(WsSession& session) {
+  if (sessions_.erase(session.shared()) > 0) count_.store(sessions_.size(), std::memory_order_relaxed);
+  session_closed(session);
+}
+
+void WebSocketRequestManager::touch(WsSession& session) {
+  session.touched = true;
+  touched_.push_back(session.shared());
+}
+
+}  // namespace simgate::websocket
+
+SIMGATE_TRANSPORT_PLUGIN(websocket, simgate::websocket::WebSocketRequestManager, "0.1.0", "host", "port",
+                         "max_message_bytes", "max_depth", "max_in_flight", "max_unsent_bytes",
+                         "max_connections", "io_spin_us", "on_disconnect", "global_policy", "auth",
+                         "progress_interval_ms", "stream_queue")

@@ -1,0 +1,91 @@
+// plugins/websocket/websocket_request_manager.h — JSON-RPC 2.0 over WebSocket.
+//
+// What: the JSON-RPC engine (plugins/jsonrpc/jsonrpc_engine.h: the very protocol of the
+// jsonrpc transport, shared, not copied) framed as one message (request or batch) per
+// WebSocket text message, in both directions, over Boost.Beast (websocket_session.h). Only
+// the framing differs from the TCP transport: discover, named params, async out of order,
+// cancel, batches, login, deadlines, progress and stream subscriptions are the same code.
+// A binary message, or a text message over max_message_bytes, is answered -32600 and the
+// connection keeps working. A plain HTTP GET on the port (no upgrade) is answered 404 with
+// a short text (the port stays open for a web app). Wire: docs/transports/websocket.md.
+//
+// Life cycle: the constructor reads the options (ConfigError on bad ones) and binds the
+// listening socket (std::runtime_error if the port is taken); start() launches the I/O
+// thread; stop() closes every connection, joins the thread and finishes what is still
+// pending with Failure::shutdown. stop() is idempotent and the destructor calls it.
+//
+// Threads: one I/O thread runs the io_context (accept, handshake, read, parse, hand over,
+// write), polling a little before it sleeps while events come close together (io_spin_us,
+// simgate/kit/idle_spin.h). The calls of one message go to the core together, run on this
+// thread when the simulation lock is free; sessions and pending calls are touched by the
+// I/O thread only.
+#ifndef SIMGATE_PLUGINS_WEBSOCKET_WEBSOCKET_REQUEST_MANAGER_H_
+#define SIMGATE_PLUGINS_WEBSOCKET_WEBSOCKET_REQUEST_MANAGER_H_
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <unordered_set>
+#include <vector>
+
+#include <boost/asio/ip/tcp.hpp>
+
+#include "jsonrpc_engine.h"
+#include "simgate/kit/tcp_server.h"
+#include "websocket_session.h"
+
+namespace simgate::websocket {
+
+// The default port (jsonrpc has 4001, the socket transport 4000).
+inline constexpr std::uint16_t k_default_port = 8090;
+
+class WebSocketRequestManager : public jsonrpc::JsonRpcEngine<WsSession>, private WsHost {
+ public:
+  // Parses the options and binds; throws ConfigError or std::runtime_error.
+  explicit WebSocketRequestManager(const json& options);
+  ~WebSocketRequestManager() override;
+  // What the constructor checks of `options`, without binding (the plugin's validate).
+  static void validate_options(const json& options) {
+    (void)jsonrpc::Options::parse(options, "websocket", k_default_port);
+  }
+  std::size_t client_count() const override { return count_.load(std::memory_order_relaxed); }
+
+  void start() override;
+  void stop() override;
+  // {"ws://127.0.0.1:<port>/"} with the bound port.
+  std::vector<std::string> endpoints() const override;
+
+  std::uint16_t port() const { return listener_.port(); }
+
+ private:
+  explicit WebSocketRequestManager(jsonrpc::Options options);
+
+  // JsonRpcEngine: the end of a burst
+  void flush_replies() override;
+
+  // WsHost: the framing (I/O thread)
+  void on_message(WsSession& session, std::string_view text) override;
+  void on_refused_message(WsSession& session, std::size_t bytes, bool binary) override;
+  void on_read_done(WsSession& session) override;
+  std::string on_http_request(const boost::beast::http::request<boost::beast::http::string_body>& request) override;
+  void on_closed(WsSession& session) override;
+  void touch(WsSession& session) override;
+
+  // A new connection (refusal_reason keeps the count under max_connections).
+  void accept(boost::asio::ip::tcp::socket socket);
+  std::string refusal_reason() const;
+  void shutdown_io();
+
+  kit::TcpListener listener_;                             // the listening socket, bound in the constructor
+  kit::IoThread io_thread_;                               // runs io_
+  kit::NoDirectReads no_direct_reads_;                    // the I/O thread reads through the event loop only
+  std::uint64_t next_session_ = 1;                        // numbers connections in logs (I/O thread)
+  std::unordered_set<std::shared_ptr<WsSession>> sessions_;  // open connections (I/O thread)
+  std::atomic<std::size_t> count_{0};                     // sessions_.size(), for any thread
+  std::vector<std::shared_ptr<WsSession>> touched_;       // messages queued, not yet written (I/O thread)
+};
+
+}  // namespace simgate::websocket
+
+#endif  // SIMGATE_PLUGINS_WEBSOCKET_WEBSOCKET_REQUEST_MANAGER_H_

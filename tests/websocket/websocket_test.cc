@@ -1,0 +1,288 @@
+// The websocket transport (plugins/websocket): JSON-RPC 2.0 over WebSocket, driven by a
+// Beast client (ws_test_client.h) against the test services of the JSON-RPC tests
+// (tests/jsonrpc/test_services.h) served through libsimgate_transport_websocket.so. The
+// protocol is the jsonrpc transport's engine: these tests check that each feature arrives
+// through the WebSocket framing, and what is the framing's own (binary and oversized
+// messages, plain HTTP, max_connections, a client that vanishes).
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <thread>
+#include <memory>
+#include <set>
+#include <string>
+
+#include <boost/asio/read.hpp>
+#include <boost/asio/write.hpp>
+
+#include "simgate/core/plugin_loader.h"
+#include "test_services.h"
+#include "ws_test_client.h"
+
+namespace simgate::websocket_test {
+namespace {
+
+using jsonrpc_test::TestHost;
+namespace ws = boost::beast::websocket;
+
+std::string plugin_path() { return std::string(SIMGATE_TEST_PLUGIN_DIR) + "/libsimgate_transport_websocket.so"; }
+
+json request(const json& id, const std::string& method, json params = nullptr) {
+  json r{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}};
+  if (!params.is_null()) r["params"] = std::move(params);
+  return r;
+}
+
+int error_code(const json& response) {
+  if (!response.is_object() || !response.contains("error")) return 0;
+  return response["error"].value("code", 0);
+}
+
+class WebSocketTest : public ::testing::Test {
+ protected:
+  virtual json options() { return json::object(); }
+  void SetUp() override {
+    host_ = std::make_unique<TestHost>(options(), plugin_path());
+    client_ = std::make_unique<WsClient>(host_->port());
+  }
+  void TearDown() override {
+    client_.reset();
+    host_.reset();
+  }
+  std::unique_ptr<TestHost> host_;
+  std::unique_ptr<WsClient> client_;
+};
+
+TEST(WebSocketPlugin, LoadsAndReportsItsEndpoint) {
+  auto rm = load_transport(plugin_path(), json{{"port", 0}});
+  rm->start();
+  const auto endpoints = rm->endpoints();
+  ASSERT_EQ(endpoints.size(), 1u);
+  EXPECT_TRUE(endpoints[0].starts_with("ws://127.0.0.1:")) << endpoints[0];
+  EXPECT_TRUE(endpoints[0].ends_with("/")) << endpoints[0];
+  rm->stop();
+}
+
+TEST(WebSocketPlugin, RefusesAnUnknownOption) {
+  EXPECT_ANY_THROW(load_transport(plugin_path(), json{{"port", 0}, {"max_line", 10}}));
+}
+
+TEST_F(WebSocketTest, SyncCallWithPositionalParams) {
+  json r = client_->call(request(1, "spec.subtract", json::array({42, 23})));
+  EXPECT_EQ(r, json({{"jsonrpc", "2.0"}, {"id", 1}, {"result", 19}})) << r.dump();
+}
+
+TEST_F(WebSocketTest, NamedParams) {
+  json r = client_->call(request("a", "spec.subtract", {{"subtrahend", 23}, {"minuend", 42}}));
+  EXPECT_EQ(r["result"], 19) << r.dump();
+  EXPECT_EQ(r["id"], "a");
+  r = client_->call(request(2, "robot.arm.greet", {{"name", "ws"}}));
+  EXPECT_EQ(r["result"], "hello, ws") << r.dump();
+}
+
+TEST_F(WebSocketTest, AsyncCallsCompleteOutOfOrder) {
+  client_->send(request(1, "robot.arm.hold", json::array({"first"})));
+  client_->send(request(2, "robot.cam.hold", json::array({"second"})));
+  // both started (a sync call after them answers once they ran)
+  ASSERT_EQ(client_->call(request(3, "ctl.iteration"))["id"], 3);
+  ASSERT_EQ(client_->call(request(4, "ctl.release", json::array({"second", "b"})))["result"], true);
+  json second = client_->receive();
+  EXPECT_EQ(second["id"], 2) << second.dump();
+  EXPECT_EQ(second["result"], "b");
+  ASSERT_EQ(client_->call(request(5, "ctl.release", json::array({"first", "a"})))["result"], true);
+  json first = client_->receive();
+  EXPECT_EQ(first["id"], 1) << first.dump();
+  EXPECT_EQ(first["result"], "a");
+}
+
+TEST_F(WebSocketTest, RpcCancelEndsThePendingCall) {
+  client_->send(request(7, "robot.arm.hold", json::array({"c"})));
+  ASSERT_EQ(client_->call(request(8, "ctl.iteration"))["id"], 8);
+  // the cancel's answer, then the cancelled call's -32002
+  json cancelled = client_->call(request(9, "rpc.cancel", {{"id", 7}}));
+  EXPECT_EQ(cancelled["id"], 9) << cancelled.dump();
+  EXPECT_EQ(cancelled["result"], true);
+  json call = client_->receive();
+  EXPECT_EQ(call["id"], 7) << call.dump();
+  EXPECT_EQ(error_code(call), -32002);
+  // an id nobody uses
+  EXPECT_EQ(client_->call(request(10, "rpc.cancel", {{"id", 12345}}))["result"], false);
+}
+
+TEST_F(WebSocketTest, BatchIsOneMessageAnsweredByOneArray) {
+  json batch = json::array({request(1, "spec.sum", json::array({1, 2, 4})),
+                            json{{"jsonrpc", "2.0"}, {"method", "spec.notify_hello"}, {"params", json::array({7})}},
+                            request(2, "spec.subtract", json::array({42, 23})), json{{"foo", "boo"}},
+                            request(5, "foo.get"), request(9, "spec.get_data")});
+  json r = client_->call(batch);
+  ASSERT_TRUE(r.is_array()) << r.dump();
+  ASSERT_EQ(r.size(), 5u) << r.dump();  // the notification gets nothing
+  EXPECT_EQ(r[0]["result"], 7);
+  EXPECT_EQ(r[1]["result"], 19);
+  EXPECT_EQ(error_code(r[2]), -32600);
+  EXPECT_EQ(error_code(r[3]), -32601);
+  EXPECT_EQ(r[4]["result"], json::array({"hello", 5}));
+}
+
+TEST_F(WebSocketTest, DiscoverListsTheServedServices) {
+  json r = client_->call(request(1, "rpc.discover"));
+  ASSERT_TRUE(r.contains("result")) << r.dump();
+  EXPECT_EQ(r["result"]["openrpc"].get<std::string>().substr(0, 2), "1.");
+  std::set<std::string> methods;
+  for (const auto& m : r["result"]["methods"]) methods.insert(m["name"].get<std::string>());
+  EXPECT_TRUE(methods.count("spec.subtract")) << r.dump();
+  EXPECT_TRUE(methods.count("robot.arm.hold"));
+  EXPECT_TRUE(r["result"].contains("x-simgate-streams"));
+}
+
+TEST_F(WebSocketTest, UnknownMethodAndMalformedJsonAreAnsweredAndTheConnectionLivesOn) {
+  json r = client_->call(request(1, "robot.arm.nothing"));
+  EXPECT_EQ(error_code(r), -32601) << r.dump();
+  EXPECT_EQ(r["id"], 1);
+  client_->send(std::string(R"({"jsonrpc": "2.0", "method": "foobar, "params": "bar", "baz])"));
+  r = client_->receive();
+  EXPECT_EQ(error_code(r), -32700) << r.dump();
+  EXPECT_TRUE(r["id"].is_null());
+  EXPECT_EQ(client_->call(request(2, "spec.subtract", json::array({3, 1})))["result"], 2);
+}
+
+TEST_F(WebSocketTest, ABinaryMessageIsAnInvalidRequestAndTheConnectionLivesOn) {
+  client_->send_binary(R"({"jsonrpc":"2.0","id":1,"method":"spec.get_data"})");
+  json r = client_->receive();
+  EXPECT_EQ(error_code(r), -32600) << r.dump();
+  EXPECT_EQ(r["error"]["data"]["reason"], "binary message");
+  EXPECT_EQ(client_->call(request(2, "spec.subtract", json::array({3, 1})))["result"], 2);
+}
+
+class WebSocketLimitsTest : public WebSocketTest {
+ protected:
+  json options() override { return json{{"max_message_bytes", 4096}, {"max_connections", 3}}; }
+};
+
+TEST_F(WebSocketLimitsTest, AnOversizedMessageIsRefusedAndTheConnectionLivesOn) {
+  // a message of 100 KiB, in one frame, then one of several fragments
+  json big = request(1, "robot.arm.echo", json::array({std::string(100 * 1024, 'x')}));
+  json r = client_->call(big);
+  EXPECT_EQ(error_code(r), -32600) << r.dump().substr(0, 300);
+  EXPECT_EQ(r["error"]["data"]["reason"], "message too large");
+  EXPECT_EQ(r["error"]["data"]["max_message_bytes"], 4096);
+  EXPECT_GE(r["error"]["data"]["bytes"].get<std::size_t>(), 4096u);
+  // just under the limit passes
+  json fits = client_->call(request(2, "robot.arm.echo", json::array({std::string(3000, 'y')})));
+  EXPECT_EQ(fits["result"], std::string(3000, 'y'));
+  EXPECT_EQ(client_->call(request(3, "spec.subtract", json::array({3, 1})))["result"], 2);
+}
+
+TEST_F(WebSocketLimitsTest, ConnectionsPastMaxConnectionsAreRefusedWithAReason) {
+  // the fixture's client and two more reach max_connections 3
+  WsClient second(host_->port()), third(host_->port());
+  ASSERT_EQ(second.call(request(1, "ctl.iteration"))["id"], 1);
+  ASSERT_EQ(third.call(request(1, "ctl.iteration"))["id"], 1);
+  try {
+    WsClient fourth(host_->port());
+    ADD_FAILURE() << "a fourth connection was upgraded";
+  } catch (const boost::system::system_error& e) {
+    // the upgrade is answered 503 (the JSON-RPC -32006 error in its body)
+    SUCCEED() << e.what();
+  }
+  // the others keep working; one leaving makes room
+  EXPECT_EQ(client_->call(request(2, "spec.subtract", json::array({3, 1})))["result"], 2);
+  third.vanish();
+  for (int attempt = 0; attempt < 200; ++attempt) {
+    try {
+      WsClient again(host_->port());
+      EXPECT_EQ(again.call(request(1, "spec.subtract", json::array({5, 1})))["result"], 4);
+      return;
+    } catch (const boost::system::system_error&) {
+      // the server has not yet seen the third leave
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  }
+  ADD_FAILURE() << "no room after a client left";
+}
+
+TEST_F(WebSocketTest, AClientVanishingMidCallLeavesTheOthersServedAndItsCallCancelled) {
+  auto other = std::make_unique<WsClient>(host_->port());
+  other->send(request(1, "robot.arm.hold", json::array({"gone"})));
+  ASSERT_EQ(other->call(request(2, "ctl.iteration"))["id"], 2);
+  EXPECT_EQ(client_->call(request(1, "ctl.pending", json::array({"gone"})))["result"], true);
+  other->vanish();
+  other.reset();
+  // its call is cancelled once the server sees it leave ("on_disconnect": "cancel")
+  bool pending = true;
+  for (int attempt = 0; attempt < 500 && pending; ++attempt) {
+    json r = client_->call(request(10 + attempt, "ctl.pending", json::array({"gone"})));
+    ASSERT_TRUE(r.contains("result")) << r.dump();
+    pending = r["result"].get<bool>();
+  }
+  EXPECT_FALSE(pending);
+  EXPECT_EQ(client_->call(request(3, "spec.subtract", json::array({3, 1})))["result"], 2);
+}
+
+TEST_F(WebSocketTest, ProgressReportsArriveBeforeTheResult) {
+  client_->send(request(1, "robot.arm.hold", {{"key", "p"}, {"_meta", {{"progress", true}}}}));
+  ASSERT_EQ(client_->call(request(2, "ctl.iteration"))["id"], 2);
+  ASSERT_EQ(client_->call(request(3, "ctl.progress", json::array({"p", 0.5})))["result"], true);
+  // the report (sent before the answer to ctl.progress, or after it)
+  json a = client_->receive();
+  json report = a.value("method", "") == "rpc.progress" ? a : json();
+  if (report.is_null()) {
+    EXPECT_EQ(a["id"], 3);
+  }
+  ASSERT_EQ(client_->call(request(4, "ctl.release", json::array({"p", "done"})))["result"], true);
+  json r = client_->receive();
+  EXPECT_EQ(r["id"], 1) << r.dump();
+  EXPECT_EQ(r["result"], "done");
+}
+
+TEST_F(WebSocketTest, DeadlineInMetaEndsTheCallWithTimeout) {
+  json r = client_->call(request(1, "robot.arm.hold", {{"key", "t"}, {"_meta", {{"timeout_ms", 50}}}}));
+  EXPECT_EQ(r["id"], 1) << r.dump();
+  EXPECT_EQ(error_code(r), -32003) << r.dump();
+}
+
+TEST_F(WebSocketTest, APlainHttpGetIsAnsweredNotFound) {
+  boost::asio::io_context io;
+  boost::asio::ip::tcp::socket socket(io);
+  socket.connect({boost::asio::ip::make_address("127.0.0.1"), host_->port()});
+  const std::string get = "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n";
+  boost::asio::write(socket, boost::asio::buffer(get));
+  std::string response;
+  boost::system::error_code ec;
+  char buffer[4096];
+  for (int reads = 0; reads < 100; ++reads) {
+    const std::size_t n = socket.read_some(boost::asio::buffer(buffer), ec);
+    response.append(buffer, n);
+    if (ec) break;  // the server closes after its answer
+  }
+  EXPECT_TRUE(response.starts_with("HTTP/1.1 404")) << response;
+  EXPECT_NE(response.find("JSON-RPC 2.0 over WebSocket"), std::string::npos) << response;
+}
+
+class WebSocketAuthTest : public WebSocketTest {
+ protected:
+  json options() override {
+    ::setenv("SIMGATE_WEBSOCKET_TEST_TOKEN", k_token, 1);
+    return json{{"auth", {{"token_env", "SIMGATE_WEBSOCKET_TEST_TOKEN"}, {"loopback", true}}}};
+  }
+  static constexpr const char* k_token = "b5f0c6d2a9e84f7a1c3e5d7b9a0f2e4c";
+};
+
+TEST_F(WebSocketAuthTest, CallsNeedRpcLoginFirst) {
+  EXPECT_EQ(error_code(client_->call(request(1, "spec.subtract", json::array({3, 1})))), -32005);
+  EXPECT_EQ(client_->call(request(2, "rpc.login", {{"token", k_token}}))["result"], true);
+  EXPECT_EQ(client_->call(request(3, "spec.subtract", json::array({3, 1})))["result"], 2);
+}
+
+TEST_F(WebSocketAuthTest, AWrongTokenIsAnsweredThenClosedWithAReason) {
+  json r = client_->call(request(1, "rpc.login", {{"token", "wrong"}}));
+  EXPECT_EQ(error_code(r), -32005) << r.dump();
+  EXPECT_FALSE(client_->receive_text().has_value());
+  EXPECT_EQ(client_->error, ws::error::closed) << client_->error.message();
+  EXPECT_EQ(client_->close_reason().code, ws::close_code::policy_error);
+  EXPECT_EQ(client_->close_reason().reason, "wrong token");
+}
+
+}  // namespace
+}  // namespace simgate::websocket_test
