@@ -99,7 +99,8 @@ for name, mistake in mistakes.items():
 # the built-in transports' option keys: the schema's and the plugin's declared ones agree
 for plugin, source_file in [("socket", "plugins/socket/socket_request_manager.cc"),
                             ("jsonrpc", "plugins/jsonrpc/jsonrpc_request_manager.cc"),
-                            ("dds", "plugins/dds/plugin.cc")]:
+                            ("dds", "plugins/dds/plugin.cc"),
+                            ("websocket", "plugins/websocket/websocket_request_manager.cc")]:
     with open(os.path.join(source, source_file)) as f:
         text = f.read()
     match = re.search(r"SIMGATE_TRANSPORT_PLUGIN\(" + plugin + r",\s*[\w:]+,\s*\"[^\"]*\",(.*?)\)\s*$", text, re.S | re.M)
@@ -114,4 +115,4 @@ for plugin, source_file in [("socket", "plugins/socket/socket_request_manager.cc
 if failures:
     print("\n".join(failures))
     sys.exit(1)
-print(f"{checked} deployments valid, {len(mistakes)} mistakes refused, option keys of 3 transports agree")
+print(f"{checked} deployments valid, {len(mistakes)} mistakes refused, option keys of 4 transports agree")
