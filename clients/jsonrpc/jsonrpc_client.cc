@@ -110,10 +110,12 @@ json JsonRpcClient::discover(std::chrono::milliseconds timeout) {
   return response["result"];
 }
 
-json JsonRpcClient::list_services(std::chrono::milliseconds timeout) {
+json JsonRpcClient::list_services(std::chrono::milliseconds timeout) { return services_of(discover(timeout)); }
+
+json JsonRpcClient::services_of(const json& openrpc) {
   // OpenRPC methods back to ServiceDescriptor::to_json() objects
   json out = json::array();
-  for (const auto& m : discover(timeout).value("methods", json::array())) {
+  for (const auto& m : openrpc.value("methods", json::array())) {
     json params = json::array();
     for (const auto& p : m.value("params", json::array())) {
       json schema = p.value("schema", json::object());

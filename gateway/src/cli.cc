@@ -235,7 +235,7 @@ class CommandLine {
   }
 
   static void add_client_options(CLI::App* command, ClientArgs& args) {
-    command->add_option("--transport", args.transport, "socket (default), jsonrpc or dds")->type_name("T");
+    command->add_option("--transport", args.transport, "socket (default), jsonrpc, websocket or dds")->type_name("T");
     command->add_option("--host", args.host, "socket/jsonrpc: the server's address (default 127.0.0.1)")
         ->type_name("H");
     command->add_option("--port", args.port, "socket/jsonrpc: its port (default 4000 socket, 4001 jsonrpc)")

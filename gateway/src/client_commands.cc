@@ -12,12 +12,12 @@ namespace simgate::gateway {
 
 namespace {
 
-const std::vector<std::string> k_transports = {"socket", "jsonrpc", "dds"};
+const std::vector<std::string> k_transports = {"socket", "jsonrpc", "websocket", "dds"};
 
 std::unique_ptr<client::Client> connect(const ClientArgs& args, std::chrono::milliseconds& timeout) {
   const std::string& transport = args.transport;
   if (std::find(k_transports.begin(), k_transports.end(), transport) == k_transports.end())
-    throw UsageError("--transport: expected socket, jsonrpc or dds, found '" + transport + "'" +
+    throw UsageError("--transport: expected socket, jsonrpc, websocket or dds, found '" + transport + "'" +
                      did_you_mean(transport, k_transports));
   double seconds = 0;
   try {
@@ -32,7 +32,7 @@ std::unique_ptr<client::Client> connect(const ClientArgs& args, std::chrono::mil
     // DDS finds the simulation by domain and partition, not by address
     if (args.host || args.port)
       throw UsageError(std::string(args.host ? "--host" : "--port") +
-                       " is for --transport socket or jsonrpc; dds finds the simulation by --domain and --partition");
+                       " is for --transport socket, jsonrpc or websocket; dds finds the simulation by --domain and --partition");
     options = {{"domain", args.domain ? parse_int("--domain", *args.domain, 0, 230) : 0},
                {"partition", args.partition.value_or("simgate")}};
     if (args.dds_config) options["config"] = *args.dds_config;
@@ -41,7 +41,7 @@ std::unique_ptr<client::Client> connect(const ClientArgs& args, std::chrono::mil
       throw UsageError(std::string(args.domain ? "--domain" : args.partition ? "--partition" : "--dds-config") +
                        " is for --transport dds");
     options = {{"host", args.host.value_or("127.0.0.1")},
-               {"port", args.port ? parse_int("--port", *args.port, 1, 65535) : (transport == "jsonrpc" ? 4001 : 4000)}};
+               {"port", args.port ? parse_int("--port", *args.port, 1, 65535) : (transport == "jsonrpc" ? 4001 : transport == "websocket" ? 8090 : 4000)}};
   }
   return client::make_client(transport, options);
 }

@@ -34,13 +34,14 @@ class Client {
   virtual json list_services(std::chrono::milliseconds timeout) = 0;
 };
 
-// transport: "socket", "jsonrpc" or "dds". options: {"host", "port"} for TCP transports,
+// transport: "socket", "jsonrpc", "websocket" or "dds". options: {"host", "port"} for TCP transports,
 // {"domain", "partition", "config"} for DDS. Throws ClientError for unknown transports.
 std::unique_ptr<Client> make_client(const std::string& transport, const json& options);
 
 // Implemented in clients/<name>/ (present when SIMGATE_CLIENT_<NAME> is defined).
 std::unique_ptr<Client> make_socket_client(const json& options);
 std::unique_ptr<Client> make_jsonrpc_client(const json& options);
+std::unique_ptr<Client> make_websocket_client(const json& options);
 std::unique_ptr<Client> make_dds_client(const json& options);
 
 }  // namespace simgate::client

@@ -93,6 +93,9 @@ class JsonRpcClient : public Client {
 
   // An Outcome from a response object (result -> success; error code -> Failure).
   static Outcome to_outcome(const json& response);
+  // The services of an rpc.discover result (OpenRPC) as ServiceDescriptor::to_json()
+  // objects (also the websocket client's: the same protocol).
+  static json services_of(const json& openrpc);
 
  private:
   LineConnection connection_;   // the TCP connection and its line buffer
