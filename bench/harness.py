@@ -13,6 +13,9 @@ Sections (each ends "ok", "error" with the reason, or "skipped" when a part was 
            (--spin-us 50, as their default io_spin_us); the "plain Asio server" sleeps in
            epoll_wait. Targets are taken against the limit; ratios to both are reported
   jsonrpc  the JSON-RPC transport vs the same two echoes (JSON-RPC-sized lines)
+  websocket  issue #23: the websocket transport's sync round trip (JSON-RPC over WebSocket,
+           a Beast client) vs the JSON-RPC transport's (TCP lines), the same request, both
+           servers up at once, alternating runs in each repeat
   dds      simgate's DDS round trip vs a raw Cyclone ping-pong (same types, QoS, payload)
   peers    MORSE's Python SocketRequestManager vs the socket transport; jayson@5's TCP
            server vs the JSON-RPC transport; all with the same client
@@ -175,11 +178,11 @@ def run_json(argv, timeout, env=None):
 
 
 def port_of(endpoints):
-    """The port of the first tcp:// endpoint."""
+    """The port of the first tcp:// (or ws://host:port/) endpoint."""
     for e in endpoints:
-        if e.startswith("tcp://"):
-            return int(e.rsplit(":", 1)[1])
-    raise BenchError(f"no tcp:// endpoint in {endpoints}")
+        if e.startswith("tcp://") or e.startswith("ws://"):
+            return int(e.rstrip("/").rsplit(":", 1)[1])
+    raise BenchError(f"no tcp:// or ws:// endpoint in {endpoints}")
 
 
 # ---------------------------------------------------------------------------------------
@@ -408,6 +411,36 @@ class Harness:
         self.target("JSON-RPC sync round trip p50 / echo p50", s["latency"]["ratio_p50"], "<=", 1.3, "x")
         self.target("JSON-RPC pipelined throughput (window 64, 1 connection) / echo",
                     s["throughput"]["w64_c1"]["ratio"], ">=", 0.35, "x")
+        return {"status": "ok", "summary": s, "runs": rows}
+
+    def section_websocket(self):
+        if not self.plugin_built("websocket") or not self.plugin_built("jsonrpc"):
+            return {"status": "skipped", "reason": "libsimgate_transport_websocket.so or _jsonrpc.so is not built"}
+        tcp = ws = None
+        rows = []
+        try:
+            tcp = self.host("jsonrpc", {"host": "127.0.0.1", "port": 0})
+            ws = self.host("websocket", {"host": "127.0.0.1", "port": 0})
+            tcp_port, ws_port = port_of(tcp.announcement["endpoints"]), port_of(ws.announcement["endpoints"])
+            for rep in range(self.repeats):
+                t, w = in_rotation(rep, lambda: self.latency(tcp_port, ["--proto", "jsonrpc"]),
+                                   lambda: self.latency(ws_port, ["--proto", "ws-jsonrpc"]))
+                rows.append({"jsonrpc": t, "websocket": w, "ratio_p50": ratio(w["p50_us"], t["p50_us"]),
+                             "ratio_p99": ratio(w["p99_us"], t["p99_us"])})
+        finally:
+            for h in (tcp, ws):
+                if h:
+                    h.check_stopped()
+        s = {"websocket_p50_us": spread([r["websocket"]["p50_us"] for r in rows]),
+             "jsonrpc_p50_us": spread([r["jsonrpc"]["p50_us"] for r in rows]),
+             "websocket_p99_us": spread([r["websocket"]["p99_us"] for r in rows]),
+             "jsonrpc_p99_us": spread([r["jsonrpc"]["p99_us"] for r in rows]),
+             "ratio_p50": spread([r["ratio_p50"] for r in rows]),
+             "ratio_p99": spread([r["ratio_p99"] for r in rows])}
+        print(f"[bench] websocket: sync round trip p50 {s['websocket_p50_us']['median']:.1f} us, "
+              f"JSON-RPC over TCP {s['jsonrpc_p50_us']['median']:.1f} us, ratio {s['ratio_p50']['median']:.2f}",
+              file=sys.stderr, flush=True)
+        self.target("WebSocket sync round trip p50 / JSON-RPC (TCP) p50", s["ratio_p50"], "<=", 1.3, "x")
         return {"status": "ok", "summary": s, "runs": rows}
 
     def section_dds(self):
@@ -908,7 +941,7 @@ class Harness:
         self.results["repeats"] = self.repeats
         self.results["machine"] = self.machine()
         only = set(self.args.only.split(",")) if self.args.only else None
-        for name in ("socket", "jsonrpc", "dds", "peers", "sim", "memory", "byor", "world", "progress", "streams"):
+        for name in ("socket", "jsonrpc", "websocket", "dds", "peers", "sim", "memory", "byor", "world", "progress", "streams"):
             if only and name not in only:
                 continue
             t0 = time.monotonic()

@@ -17,7 +17,9 @@
 //   hold         opens --count idle connections, prints {"connected": N}, keeps them until
 //                its standard input closes or --duration passes (memory per connection).
 //
-// Request lines (--proto): `socket` sends "<id> <--request>" (default
+// Request lines (--proto): `ws-jsonrpc` is `jsonrpc` over a WebSocket (one request per
+// text message, no '\n'; Boost.Beast's client; --mode latency only), for the websocket
+// transport measured against the TCP one in the same run. `socket` sends "<id> <--request>" (default
 // "test_component add [1, 2]") and expects "<id> SUCCESS|OK ..."; `jsonrpc` sends
 // {"jsonrpc":"2.0","id":<id>,"method":<--method>,"params":<--params>} and expects a
 // "result". --echo expects the request back unchanged (the echo server). A reply that does
@@ -30,6 +32,7 @@
 #include <netinet/tcp.h>
 #include <poll.h>
 #include <sys/socket.h>
+#include <sys/time.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -41,6 +44,10 @@
 #include <string>
 #include <vector>
 
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/beast/core/flat_buffer.hpp>
+#include <boost/beast/websocket.hpp>
+
 #include "bench_util.h"
 
 namespace {
@@ -50,7 +57,7 @@ using simgate::bench::json;
 
 // How requests are written and replies recognised.
 struct Protocol {
-  std::string proto = "socket";  // "socket" or "jsonrpc"
+  std::string proto = "socket";  // "socket", "jsonrpc" or "ws-jsonrpc"
   std::string request = "test_component add [1, 2]";  // socket: everything after the id
   std::string method = "test_component.add";          // jsonrpc method
   std::string params = "[1,2]";                       // jsonrpc params (JSON text)
@@ -58,14 +65,14 @@ struct Protocol {
 
   // Appends request `id` (with its '\n') to `out`.
   void append_request(std::uint64_t id, std::string& out) const {
-    if (proto == "jsonrpc") {
+    if (proto == "jsonrpc" || proto == "ws-jsonrpc") {
       out += R"({"jsonrpc":"2.0","id":)";
       out += std::to_string(id);
       out += R"(,"method":")";
       out += method;
       out += R"(","params":)";
       out += params;
-      out += "}\n";
+      out += proto == "jsonrpc" ? "}\n" : "}";
     } else {
       out += std::to_string(id);
       out += ' ';
@@ -77,7 +84,7 @@ struct Protocol {
   // True when `line` (without '\n') is a successful reply.
   bool reply_ok(std::string_view line) const {
     if (echo) return !line.empty();
-    if (proto == "jsonrpc") return line.find("\"result\"") != std::string_view::npos;
+    if (proto != "socket") return line.find("\"result\"") != std::string_view::npos;
     auto space = line.find(' ');
     if (space == std::string_view::npos) return false;
     auto status = line.substr(space + 1);
@@ -222,6 +229,49 @@ json run_latency(const std::string& host, int port, const Protocol& p, std::size
     if (!p.reply_ok(line) || (p.echo && line + "\n" != request)) ++errors;
     if (i >= warmup) samples.push_back(simgate::bench::ns_between(t0, t1));
   }
+  json out = simgate::bench::summarize_us(std::move(samples));
+  out["mode"] = "latency";
+  out["errors"] = errors;
+  out["first_reply"] = first_reply;
+  return out;
+}
+
+// run_latency over a WebSocket (--proto ws-jsonrpc): a blocking Beast client, one text
+// message per request; the run's deadline bounds every read (SO_RCVTIMEO).
+json run_ws_latency(const std::string& host, int port, const Protocol& p, std::size_t count, std::size_t warmup,
+                    double timeout_s) {
+  namespace ws = boost::beast::websocket;
+  boost::asio::io_context io;
+  ws::stream<boost::asio::ip::tcp::socket> stream(io);
+  stream.next_layer().connect({boost::asio::ip::make_address(host), static_cast<std::uint16_t>(port)});
+  stream.next_layer().set_option(boost::asio::ip::tcp::no_delay(true));
+  timeval tv{};
+  tv.tv_sec = static_cast<time_t>(timeout_s);
+  ::setsockopt(stream.next_layer().native_handle(), SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  stream.handshake(host + ":" + std::to_string(port), "/");
+  stream.text(true);
+  std::vector<std::int64_t> samples;
+  samples.reserve(count);
+  std::size_t errors = 0;
+  std::string first_reply, request;
+  boost::beast::flat_buffer buffer;
+  const auto deadline = Clock::now() + seconds(timeout_s);
+  for (std::size_t i = 0; i < warmup + count; ++i) {
+    if (Clock::now() > deadline) throw std::runtime_error("timed out waiting for the server");
+    request.clear();
+    p.append_request(i + 1, request);
+    buffer.clear();
+    auto t0 = Clock::now();
+    stream.write(boost::asio::buffer(request));
+    stream.read(buffer);
+    auto t1 = Clock::now();
+    std::string_view reply(static_cast<const char*>(buffer.cdata().data()), buffer.size());
+    if (i == 0) first_reply = reply;
+    if (!p.reply_ok(reply)) ++errors;
+    if (i >= warmup) samples.push_back(simgate::bench::ns_between(t0, t1));
+  }
+  boost::system::error_code ignored;
+  stream.close(ws::close_code::normal, ignored);
   json out = simgate::bench::summarize_us(std::move(samples));
   out["mode"] = "latency";
   out["errors"] = errors;
@@ -403,8 +453,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--host", host, "the server's address")->capture_default_str();
   app.add_option("--port", port, "the server's port")->required()->check(CLI::Range(1, 65535));
-  app.add_option("--proto", p.proto, "socket or jsonrpc")
-      ->check(CLI::IsMember({"socket", "jsonrpc"}))
+  app.add_option("--proto", p.proto, "socket, jsonrpc or ws-jsonrpc (latency only)")
+      ->check(CLI::IsMember({"socket", "jsonrpc", "ws-jsonrpc"}))
       ->capture_default_str();
   app.add_option("--request", p.request, "socket: the request after the id")->capture_default_str();
   app.add_option("--method", p.method, "jsonrpc: the method")->capture_default_str();
@@ -426,7 +476,10 @@ int main(int argc, char** argv) {
   if (auto code = simgate::bench::parse_command_line(app, argc, argv)) return *code;
   try {
     json out;
-    if (mode == "latency")
+    if (p.proto == "ws-jsonrpc" && mode != "latency") throw std::runtime_error("--proto ws-jsonrpc: --mode latency only");
+    if (mode == "latency" && p.proto == "ws-jsonrpc")
+      out = run_ws_latency(host, port, p, count, warmup.value_or(count / 10), timeout);
+    else if (mode == "latency")
       out = run_latency(host, port, p, count, warmup.value_or(count / 10), timeout);
     else if (mode == "throughput")
       out = run_throughput(host, port, p, connections, window, warmup_s, duration);
