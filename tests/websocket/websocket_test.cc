@@ -12,6 +12,7 @@
 #include <memory>
 #include <set>
 #include <string>
+#include <vector>
 
 #include <boost/asio/read.hpp>
 #include <boost/asio/write.hpp>
@@ -258,6 +259,41 @@ TEST_F(WebSocketTest, APlainHttpGetIsAnsweredNotFound) {
   }
   EXPECT_TRUE(response.starts_with("HTTP/1.1 404")) << response;
   EXPECT_NE(response.find("JSON-RPC 2.0 over WebSocket"), std::string::npos) << response;
+}
+
+class WebSocketSlowReaderTest : public WebSocketTest {
+ protected:
+  json options() override { return json{{"max_unsent_bytes", 65536}}; }
+};
+
+TEST_F(WebSocketSlowReaderTest, AClientThatNeverReadsIsDroppedPastMaxUnsentBytesAndOthersAreServed) {
+  // three async calls (three components: they run side by side) of a client that then reads
+  // nothing (a 16 KiB receive window); another client releases them with 3 MB results each,
+  // more than the kernel's buffers and max_unsent_bytes together
+  const std::vector<std::string> methods = {"robot.arm.hold", "robot.base.hold", "robot.cam.hold"};
+  WsClient slow(host_->port(), std::chrono::milliseconds(10000), 16 * 1024);
+  for (std::size_t k = 0; k < methods.size(); ++k)
+    slow.send(request(k, methods[k], json::array({"slow" + std::to_string(k)})));
+  for (std::size_t k = 0; k < methods.size(); ++k) {
+    bool started = false;
+    for (int attempt = 0; attempt < 500 && !started; ++attempt)
+      started = client_->call(request(1000 + attempt, "ctl.pending", json::array({"slow" + std::to_string(k)})))
+                    .value("result", false);
+    ASSERT_TRUE(started) << methods[k];
+  }
+  const std::string big(3 << 20, 'x');
+  for (std::size_t k = 0; k < methods.size(); ++k) {
+    json r = client_->call(request(k, "ctl.release", json::array({"slow" + std::to_string(k), big})));
+    EXPECT_EQ(r["result"], true) << r.dump().substr(0, 300);  // the releasing client is served throughout
+  }
+  // the slow client finds fewer than its three replies, then the end of the connection
+  std::size_t replies = 0;
+  for (; replies < methods.size(); ++replies)
+    if (!slow.receive_text()) break;
+  EXPECT_LT(replies, methods.size());
+  EXPECT_NE(slow.error, boost::asio::error::would_block) << "no end of connection, a timeout";
+  EXPECT_NE(slow.error, boost::asio::error::try_again);
+  EXPECT_EQ(client_->call(request(99, "spec.subtract", json::array({3, 1})))["result"], 2);
 }
 
 class WebSocketAuthTest : public WebSocketTest {

@@ -28,9 +28,15 @@ namespace simgate::websocket_test {
 class WsClient {
  public:
   // Connects to 127.0.0.1:`port` and upgrades; throws boost::system::system_error.
-  explicit WsClient(std::uint16_t port, std::chrono::milliseconds timeout = std::chrono::milliseconds(10000))
+  // `receive_buffer` (bytes, 0: the system's) is set before connecting: the window it offers.
+  explicit WsClient(std::uint16_t port, std::chrono::milliseconds timeout = std::chrono::milliseconds(10000),
+                    int receive_buffer = 0)
       : ws_(io_) {
     boost::asio::ip::tcp::endpoint endpoint(boost::asio::ip::make_address("127.0.0.1"), port);
+    if (receive_buffer > 0) {
+      ws_.next_layer().open(boost::asio::ip::tcp::v4());
+      ws_.next_layer().set_option(boost::asio::socket_base::receive_buffer_size(receive_buffer));
+    }
     ws_.next_layer().connect(endpoint);
     ws_.next_layer().set_option(boost::asio::ip::tcp::no_delay(true));
     timeval tv{};
