@@ -18,10 +18,10 @@ using asio::ip::tcp;
 using boost::system::error_code;
 
 WsSession::WsSession(tcp::socket socket, WsHost& host, WsLimits limits, std::string_view who, std::uint64_t number)
-    : ws_(std::move(socket)), host_(host), limits_(limits), who_(who) {
+    : ws_(std::move(socket)), host_(host), limits_(limits), who_(who), handshake_timer_(ws_.get_executor()) {
   label_ = "client #" + std::to_string(number);
   error_code ec;
-  const tcp::endpoint peer = beast::get_lowest_layer(ws_).socket().remote_endpoint(ec);
+  const tcp::endpoint peer = ws_.next_layer().remote_endpoint(ec);
   if (!ec) {
     label_ += " (" + kit::to_string(peer) + ")";
     peer_ = peer.address();
@@ -33,27 +33,29 @@ void WsSession::start() {
   parser_.emplace();
   parser_->header_limit(k_max_request_bytes);
   parser_->body_limit(k_max_request_bytes);
-  beast::get_lowest_layer(ws_).expires_after(k_handshake_timeout);
-  http::async_read(beast::get_lowest_layer(ws_), buffer_, *parser_,
+  handshake_timer_.expires_after(k_handshake_timeout);
+  handshake_timer_.async_wait([self = shared()](const error_code& ec) {
+    if (!ec && !self->upgraded_) self->abort("no WebSocket handshake within the handshake timeout");
+  });
+  http::async_read(ws_.next_layer(), buffer_, *parser_,
                    [self = shared()](const error_code& ec, std::size_t) { self->on_request(ec); });
 }
 
 void WsSession::on_request(const error_code& ec) {
   if (closed_) return;
   if (ec) {
-    abort(ec == beast::error::timeout ? "no HTTP request within the handshake timeout" : "bad HTTP request: " + ec.message());
+    abort("bad HTTP request: " + ec.message());
     return;
   }
   if (!ws::is_upgrade(parser_->get())) {
     // plain HTTP: the host's answer, then the connection closes
     http_response_ = host_.on_http_request(parser_->get());
     parser_.reset();
-    asio::async_write(beast::get_lowest_layer(ws_), asio::buffer(http_response_),
+    asio::async_write(ws_.next_layer(), asio::buffer(http_response_),
                       [self = shared()](const error_code&, std::size_t) { self->abort("HTTP request answered"); });
     return;
   }
-  // the WebSocket: Beast's timeouts (handshake, idle pings) replace the stream's
-  beast::get_lowest_layer(ws_).expires_never();
+  // the WebSocket: Beast's timeouts (handshake, idle pings) from now on
   ws_.set_option(ws::stream_base::timeout::suggested(beast::role_type::server));
   ws_.set_option(ws::stream_base::decorator([](ws::response_type& response) {
     response.set(http::field::server, "simgate websocket transport");
@@ -70,6 +72,7 @@ void WsSession::on_request(const error_code& ec) {
       return;
     }
     self->upgraded_ = true;
+    self->handshake_timer_.cancel();
     self->buffer_.clear();
     self->read_more();
     self->flush_writes();
@@ -133,7 +136,7 @@ void WsSession::queue_owned(std::string text) {
 }
 
 void WsSession::flush_writes() {
-  if (writing_ || outbox_.empty() || !upgraded_ || beast::get_lowest_layer(ws_).socket().is_open() == false) return;
+  if (writing_ || outbox_.empty() || !upgraded_ || ws_.next_layer().is_open() == false) return;
   start_write();
 }
 
@@ -147,7 +150,7 @@ void WsSession::start_write() {
 
 void WsSession::on_write(const error_code& ec) {
   writing_ = false;
-  if (ec || !beast::get_lowest_layer(ws_).socket().is_open()) {
+  if (ec || !ws_.next_layer().is_open()) {
     // the buffer written is let go only now that no operation reads it
     outbox_.clear();
     unsent_ = 0;
@@ -194,8 +197,9 @@ void WsSession::abort(std::string_view reason) {
     closed_ = true;
     host_.on_closed(*this);
   }
+  handshake_timer_.cancel();
   error_code ignored;
-  auto& socket = beast::get_lowest_layer(ws_).socket();
+  auto& socket = ws_.next_layer();
   if (socket.is_open()) {
     socket.shutdown(tcp::socket::shutdown_both, ignored);
     socket.close(ignored);

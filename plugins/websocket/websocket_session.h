@@ -37,7 +37,7 @@
 
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/beast/core/flat_buffer.hpp>
-#include <boost/beast/core/tcp_stream.hpp>
+#include <boost/asio/steady_timer.hpp>
 #include <boost/beast/http/message.hpp>
 #include <boost/beast/http/parser.hpp>
 #include <boost/beast/http/string_body.hpp>
@@ -144,7 +144,9 @@ class WsSession : public std::enable_shared_from_this<WsSession>, public jsonrpc
   void start_write();
   void on_write(const boost::system::error_code& ec);
 
-  using Stream = boost::beast::websocket::stream<boost::beast::tcp_stream>;
+  // on the plain socket: no per-operation timer bookkeeping on the hot path (the HTTP
+  // request's deadline is handshake_timer_, the WebSocket's Beast's own timeouts)
+  using Stream = boost::beast::websocket::stream<boost::asio::ip::tcp::socket>;
   Stream ws_;                                   // the connection
   WsHost& host_;                                // the transport (outlives every session)
   WsLimits limits_;                             // from the transport options
@@ -164,6 +166,7 @@ class WsSession : public std::enable_shared_from_this<WsSession>, public jsonrpc
   bool closed_ = false;                         // close() or abort() was called
   std::optional<std::pair<boost::beast::websocket::close_code, std::string>> close_after_writes_;  // close() waiting
   std::string http_response_;                   // a plain HTTP request's answer, being written
+  boost::asio::steady_timer handshake_timer_;   // closes a connection whose HTTP request does not come
 };
 
 }  // namespace simgate::websocket
