@@ -68,7 +68,8 @@ class WebSocketClient : public Client {
       stream_.write(asio::buffer(message.dump(-1, ' ', false, json::error_handler_t::replace)));
       for (;;) {
         const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
-        if (left.count() <= 0) throw ClientError("websocket client: " + peer_ + ": no response to " + method + " in time");
+        if (left.count() <= 0)
+          throw ClientError("websocket client: " + peer_ + ": no response to " + method + " in time");
         set_timeout(left);
         boost::beast::flat_buffer buffer;
         boost::system::error_code ec;

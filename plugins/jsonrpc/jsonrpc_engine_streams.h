@@ -5,9 +5,10 @@
 // A subscription belongs to its connection: it ends with rpc.unsubscribe, when the client
 // leaves, or when its component is deleted (rpc.unsubscribed {subscription, reason} tells
 // the client). Samples are notifications the client may miss: each subscription keeps the
-// latest `stream_queue` samples in the core, and a connection that lets more than
-// the session's droppable budget (kit::LineConnection::k_droppable_unsent_bytes) pile up unread loses samples rather than its
-// replies; both losses are counted (simulation get_stream_statistics) and logged once.
+// latest `stream_queue` samples in the core, and a connection that lets more than the
+// session's droppable budget (kit::LineConnection::k_droppable_unsent_bytes, both transports)
+// pile up unread loses samples rather than its replies; both losses are counted (simulation
+// get_stream_statistics) and logged once.
 //
 // Threads: the I/O thread, except wake_streams() (the thread that holds the simulation
 // lock, when a subscription's queue stops being empty: one post per burst).
