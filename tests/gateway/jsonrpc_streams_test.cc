@@ -135,7 +135,10 @@ TEST(JsonRpcStreamsTest, PublishedCommandsDriveTheRobot) {
   EXPECT_GT(x, x0 + 0.05);
   // a command the component refuses, and one of a stream that is not there. The component
   // says at once when the simulation lock is free; when it is not the command waits for the
-  // simulation's turn and is refused then (counted), so try until one is refused at once.
+  // simulation's turn and is refused then (counted). Paused, the simulation holds the lock
+  // only for its turns (a loaded host's stepping loop may hold it nearly always), and the
+  // command is published until one is refused at once.
+  ASSERT_TRUE(c.call(7, "simulation.pause").contains("result"));
   json refused;
   int attempts = 0;
   do {
