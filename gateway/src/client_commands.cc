@@ -14,7 +14,9 @@ namespace {
 
 const std::vector<std::string> k_transports = {"socket", "jsonrpc", "websocket", "dds"};
 
-std::unique_ptr<client::Client> connect(const ClientArgs& args, std::chrono::milliseconds& timeout) {
+}  // namespace
+
+std::unique_ptr<client::Client> connect_client(const ClientArgs& args, std::chrono::milliseconds& timeout) {
   const std::string& transport = args.transport;
   if (std::find(k_transports.begin(), k_transports.end(), transport) == k_transports.end())
     throw UsageError("--transport: expected socket, jsonrpc, websocket or dds, found '" + transport + "'" +
@@ -46,6 +48,8 @@ std::unique_ptr<client::Client> connect(const ClientArgs& args, std::chrono::mil
   return client::make_client(transport, options);
 }
 
+namespace {
+
 // "name=value" with name an identifier.
 bool is_identifier(const std::string& name) {
   if (name.empty() || !(std::isalpha(static_cast<unsigned char>(name[0])) || name[0] == '_')) return false;
@@ -64,7 +68,7 @@ json json_or_word(const std::string& text) {
 int cmd_call(const CallArgs& args) {
   json params = call_params(args.args);
   std::chrono::milliseconds timeout{};
-  auto client = connect(args.client, timeout);
+  auto client = connect_client(args.client, timeout);
   Outcome outcome = client->call(args.component, args.service, params, timeout);
   if (outcome.status == Status::success) {
     // a service that returns nothing answers a bare SUCCESS (JSON-RPC: a null result)
@@ -115,7 +119,7 @@ void print_streams(client::Client& client, std::chrono::milliseconds timeout) {
 
 int cmd_list(const ListArgs& args) {
   std::chrono::milliseconds timeout{};
-  auto client = connect(args.client, timeout);
+  auto client = connect_client(args.client, timeout);
   json services = client->list_services(timeout);
   if (args.json) {
     std::cout << services.dump(2) << "\n";

@@ -1,17 +1,22 @@
 // commands.h — the `simgate` commands behind the command line (cli.cc parses, these run).
 //
 // run_command.cc: `run` and `check` (the banner, the status line); client_commands.cc:
-// `call` and `list` (a client of any transport). Each returns the process exit code and
+// `call` and `list` (a client of any transport); snapshot_command.cc: `snapshot` (a client,
+// or the scene of a config rendered in-process). Each returns the process exit code and
 // throws UsageError, ConfigError, client::ClientError or a runtime error, which run_cli()
 // turns into messages and exit codes. Private to the gateway.
 #ifndef SIMGATE_GATEWAY_SRC_COMMANDS_H_
 #define SIMGATE_GATEWAY_SRC_COMMANDS_H_
 
+#include <chrono>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "simgate/client/client.h"
 #include "simgate/gateway/cli.h"
+#include "simgate/gateway/deployment.h"
 
 namespace simgate::gateway {
 
@@ -51,12 +56,30 @@ struct ListArgs {
   bool json = false;  // --json: the descriptors as one JSON document
 };
 
+// What `snapshot` was given.
+struct SnapshotArgs {
+  ClientArgs client;                   // how to reach a running simulation
+  RunArgs scene;                       // --config / --model: render it here, no gateway
+  std::optional<std::string> camera;   // --camera NAME (an MJCF camera; none: the free view)
+  std::string size = "640x480";        // --size WxH
+  std::string out;                     // OUT.png
+};
+
 // `run CONFIG` (check_only false) or `check CONFIG`.
 int cmd_run(const RunArgs& args, bool check_only);
 // `call COMPONENT SERVICE ARGS...`: prints the result, SUCCESS, or the failure on stderr.
 int cmd_call(const CallArgs& args);
 // `list`: every service a running simulation offers.
 int cmd_list(const ListArgs& args);
+// `snapshot OUT.png`: a picture of the scene (simulation get_snapshot), written as a PNG.
+int cmd_snapshot(const SnapshotArgs& args);
+
+// A client of the transport the options name (UsageError when they are wrong); `timeout`
+// gets --timeout.
+std::unique_ptr<client::Client> connect_client(const ClientArgs& args, std::chrono::milliseconds& timeout);
+// The deployment of `run` / `check` (CONFIG, or --model's), its log level applied unless
+// the command line set one.
+Deployment load_deployment_args(const RunArgs& args);
 
 // ---- parsing helpers shared by the commands (cli.cc); each throws UsageError
 

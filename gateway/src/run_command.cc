@@ -61,19 +61,6 @@ Deployment model_deployment(const RunArgs& args) {
   }
 }
 
-// Loads the deployment (CONFIG, or --model's) and applies its log level unless the command
-// line set one.
-Deployment load(const RunArgs& args) {
-  Deployment d = args.model ? model_deployment(args) : load_deployment(args.config);
-  const std::optional<std::string>& cli_level = args.log_level;
-  if (cli_level) {
-    apply_log_level(cli_level);
-  } else if (d.log_level) {
-    apply_log_level(d.log_level);
-  }
-  return d;
-}
-
 void write_endpoints_file(const std::string& path, const std::map<std::string, std::vector<std::string>>& endpoints) {
   // written whole, then renamed: a reader never sees half a file
   std::string tmp = path + ".tmp" + std::to_string(getpid());
@@ -268,6 +255,19 @@ class StatusReporter {
 
 }  // namespace
 
+// Loads the deployment (CONFIG, or --model's) and applies its log level unless the command
+// line set one.
+Deployment load_deployment_args(const RunArgs& args) {
+  Deployment d = args.model ? model_deployment(args) : load_deployment(args.config);
+  const std::optional<std::string>& cli_level = args.log_level;
+  if (cli_level) {
+    apply_log_level(cli_level);
+  } else if (d.log_level) {
+    apply_log_level(d.log_level);
+  }
+  return d;
+}
+
 int cmd_run(const RunArgs& args, bool check_only) {
   GatewayOptions options;
   options.check_only = check_only;
@@ -286,7 +286,7 @@ int cmd_run(const RunArgs& args, bool check_only) {
     signal(SIGPIPE, SIG_IGN);
   }
 
-  Deployment deployment = load(args);
+  Deployment deployment = load_deployment_args(args);
   const std::string source = args.config.empty() ? *args.model : args.config;  // names it in messages
   auto registry = sim::builtin_registry();
   std::unique_ptr<Gateway> built;

@@ -12,7 +12,7 @@
 #include <Eigen/Geometry>
 
 #include "simgate/core/errors.h"
-#include "simgate/sim/image_codec.h"
+#include "simgate/sim/render_support.h"
 
 namespace simgate::sim {
 
@@ -26,38 +26,9 @@ constexpr double k_blender_sensor = 32;                // mm
 // how long get_local_data waits for its first image (under the lock, once)
 constexpr auto k_first_image_timeout = std::chrono::seconds(30);
 
-std::string camera_names(const mjModel* m) {
-  std::string out;
-  for (int i = 0; i < m->ncam; ++i) out += (out.empty() ? "" : ", ") + std::string(mj_id2name(m, mjOBJ_CAMERA, i) ? mj_id2name(m, mjOBJ_CAMERA, i) : "(unnamed)");
-  return out.empty() ? "none" : out;
-}
-
-// The JSON record of one image: MORSE's VideoCamera local_data fields (image, height,
-// width, intrinsic_matrix) and how the image is encoded. Render thread.
+// The JSON record of one image (render_support.h). Render thread.
 json image_record(const RenderResult& r, Camera::Type type) {
-  json record = {{"width", r.width}, {"height", r.height}, {"format", "png"},
-                 {"intrinsic_matrix", intrinsic_matrix(r.view)}, {"timestamp", r.timestamp}};
-  if (type == Camera::Type::video) {
-    record["encoding"] = "rgb8";
-    record["image"] = base64_encode(encode_png_rgb8(r.rgb, r.width, r.height));
-    return record;
-  }
-  // depth in millimetres, 0 where nothing is hit; the nearest and farthest hit in metres
-  std::vector<std::uint16_t> mm(r.depth.size());
-  double lowest = std::numeric_limits<double>::infinity(), highest = 0;
-  for (std::size_t i = 0; i < r.depth.size(); ++i) {
-    const double z = r.depth[i];
-    if (z <= 0) continue;
-    lowest = std::min(lowest, z);
-    highest = std::max(highest, z);
-    mm[i] = static_cast<std::uint16_t>(std::clamp(std::lround(z * 1000), 1L, 65535L));
-  }
-  record["encoding"] = "mono16";
-  record["depth_unit"] = "mm";
-  record["min_depth"] = highest > 0 ? json(lowest) : json(nullptr);
-  record["max_depth"] = highest > 0 ? json(highest) : json(nullptr);
-  record["image"] = base64_encode(encode_png_gray16(mm, r.width, r.height));
-  return record;
+  return type == Camera::Type::video ? rgb_image_record(r) : depth_image_record(r);
 }
 
 }  // namespace
@@ -144,13 +115,10 @@ CameraView Camera::view() const {
   v.fovy = fovy_;
   v.near_clip = near_;
   v.far_clip = far_;
-  const mjtNum* p = camera_ >= 0 ? d->cam_xpos + 3 * camera_ : frame_->position(d);
-  const mjtNum* r = camera_ >= 0 ? d->cam_xmat + 9 * camera_ : frame_->rotation(d);  // row-major
-  for (int i = 0; i < 3; ++i) {
-    v.position[i] = p[i];
-    // MJCF camera: looks along -z, y up; sensor frame: looks along +x, z up
-    v.forward[i] = camera_ >= 0 ? -r[3 * i + 2] : r[3 * i];
-    v.up[i] = camera_ >= 0 ? r[3 * i + 1] : r[3 * i + 2];
+  if (camera_ >= 0) {
+    mjcf_camera_pose(v, d, camera_);
+  } else {
+    frame_pose(v, frame_->position(d), frame_->rotation(d));
   }
   return v;
 }
@@ -179,16 +147,13 @@ Renderer& Camera::renderer() {
 std::unique_ptr<SceneCopy> Camera::scene_now() {
   Renderer& r = renderer();
   const mjModel* m = model();
-  if (!model_copy_ || model_generation_ != sim().model_generation()) {
-    model_copy_ = r.model_copy(m);
-    model_generation_ = sim().model_generation();
-  }
+  const std::shared_ptr<const mjModel>& model_copy = model_copy_.get(r, sim());
   std::unique_ptr<SceneCopy> scene;
   {
     std::lock_guard lock(mailbox_->mutex);
     scene = std::move(mailbox_->spare);
   }
-  if (!scene || scene->model() != model_copy_) scene = std::make_unique<SceneCopy>(model_copy_);
+  if (!scene || scene->model() != model_copy) scene = std::make_unique<SceneCopy>(model_copy);
   scene->update(m, data(), view(), sim().state_time());
   return scene;
 }

@@ -122,4 +122,32 @@ std::string base64_encode(std::span<const std::uint8_t> bytes) {
   return out;
 }
 
+std::vector<std::uint8_t> base64_decode(std::string_view text) {
+  // padding ends the text: only '=' may follow it, and the length is a multiple of 4
+  std::size_t end = text.size();
+  while (end > 0 && text[end - 1] == '=' && text.size() - end < 2) --end;
+  if (text.size() % 4 != 0) throw std::invalid_argument("base64: the length " + std::to_string(text.size()) + " is not a multiple of 4");
+  std::vector<std::uint8_t> out;
+  out.reserve(end / 4 * 3 + 2);
+  std::uint32_t bits = 0;
+  int count = 0;
+  for (std::size_t i = 0; i < end; ++i) {
+    const char c = text[i];
+    int v;
+    if (c >= 'A' && c <= 'Z') v = c - 'A';
+    else if (c >= 'a' && c <= 'z') v = c - 'a' + 26;
+    else if (c >= '0' && c <= '9') v = c - '0' + 52;
+    else if (c == '+') v = 62;
+    else if (c == '/') v = 63;
+    else throw std::invalid_argument("base64: character " + std::to_string(i) + " is not of the alphabet");
+    bits = (bits << 6) | static_cast<std::uint32_t>(v);
+    count += 6;
+    if (count >= 8) {
+      count -= 8;
+      out.push_back(static_cast<std::uint8_t>((bits >> count) & 0xff));
+    }
+  }
+  return out;
+}
+
 }  // namespace simgate::sim

@@ -10,6 +10,7 @@ void add_world_services(SupervisionServices& simulation, Simulation& sim) {
   add_entity_services(simulation, sim);
   add_process_services(simulation, sim);
   add_spawn_services(simulation, sim);
+  add_snapshot_services(simulation, sim);
 }
 
 }  // namespace simgate::sim

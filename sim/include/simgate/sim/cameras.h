@@ -32,6 +32,7 @@
 
 #include "simgate/sim/native_sensors.h"
 #include "simgate/sim/registry.h"
+#include "simgate/sim/render_support.h"
 #include "simgate/sim/renderer.h"
 #include "simgate/sim/sim_component.h"
 
@@ -82,8 +83,7 @@ class Camera : public SimComponent {
   double near_, far_;                 // clipping planes, m
   double frequency_;                  // images per simulated second while capturing
   std::shared_ptr<Renderer> renderer_;          // null until the first image
-  std::shared_ptr<const mjModel> model_copy_;   // the renderer's copy of the current model
-  std::uint64_t model_generation_ = 0;          // of model_copy_
+  RenderModelCopy model_copy_;                  // the renderer's copy of the current model
   std::shared_ptr<Mailbox> mailbox_;            // images coming back
   // the running capture
   std::uint64_t capture_id_ = 0;      // bumped by each capture (and each end)

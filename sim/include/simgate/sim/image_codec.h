@@ -3,7 +3,7 @@
 // encode_png writes a PNG file (W3C PNG, 2nd edition) of one image: 8-bit RGB (colour
 // type 2) or 16-bit grayscale (colour type 0), no interlace, deflate-compressed by zlib
 // with filter type None on every row. Rows are given top row first, as PNG stores them.
-// base64_encode is RFC 4648's base64 (standard alphabet, '=' padding, no line breaks),
+// base64_encode (and base64_decode, for clients) is RFC 4648's base64 (standard alphabet, '=' padding, no line breaks),
 // how MORSE's cameras put their images into JSON.
 //
 // Pure functions, no MuJoCo: callable from any thread (the render thread encodes).
@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace simgate::sim {
@@ -26,6 +27,10 @@ std::vector<std::uint8_t> encode_png_gray16(std::span<const std::uint16_t> gray,
 
 // RFC 4648 base64 of `bytes`.
 std::string base64_encode(std::span<const std::uint8_t> bytes);
+// The bytes of RFC 4648 base64 text (standard alphabet, '=' padding, no line breaks).
+// Throws std::invalid_argument on a character outside the alphabet or a length that is
+// not a multiple of 4.
+std::vector<std::uint8_t> base64_decode(std::string_view text);
 
 }  // namespace simgate::sim
 

@@ -14,6 +14,7 @@
 //                    set_entity_state, list_entities (docs/world/entities.md)
 //   process_services.cc  terminate, set_log_level (docs/world/entities.md)
 //   spawn.cc         spawn_entity, delete_entity (docs/world/spawn.md)
+//   snapshot.cc      get_snapshot: a picture of the scene (docs/world/snapshot.md)
 //
 // Threads: simulation thread only, as every service.
 #ifndef SIMGATE_SIM_WORLD_SERVICES_H_
@@ -33,6 +34,7 @@ void add_state_services(SupervisionServices& simulation, Simulation& sim);
 void add_entity_services(SupervisionServices& simulation, Simulation& sim);
 void add_process_services(SupervisionServices& simulation, Simulation& sim);
 void add_spawn_services(SupervisionServices& simulation, Simulation& sim);
+void add_snapshot_services(SupervisionServices& simulation, Simulation& sim);
 
 }  // namespace simgate::sim
 

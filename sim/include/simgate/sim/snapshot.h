@@ -1,0 +1,71 @@
+// simgate/sim/snapshot.h — a picture of the whole scene (issue #22): the async service
+// `simulation get_snapshot camera width height` (docs/world/snapshot.md) and the offline
+// `simgate snapshot --config` share the Snapshotter.
+//
+// The view: an MJCF <camera> of the scene by name (its pose and field of view), or, by
+// default, a free view framing the whole scene as MuJoCo's free camera does: it looks at
+// the model's statistic center (MJCF <statistic center>, else computed by MuJoCo) from
+// k_free_distance times its extent, at azimuth k_free_azimuth and elevation
+// k_free_elevation, with the model's <visual><global fovy>.
+//
+// Threads: start() and take() on the simulation thread under the simulation lock (the
+// scene is copied there, never rendered there); the render thread renders and encodes and
+// calls `done`.
+#ifndef SIMGATE_SIM_SNAPSHOT_H_
+#define SIMGATE_SIM_SNAPSHOT_H_
+
+#include <chrono>
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "simgate/sim/render_support.h"
+#include "simgate/sim/renderer.h"
+#include "simgate/sim/simulation.h"
+#include "simgate/sim/supervision.h"
+
+namespace simgate::sim {
+
+struct SnapshotOptions {
+  static constexpr long long k_default_width = 640, k_default_height = 480;  // pixels
+  static constexpr long long k_max_size = 8192;                              // pixels, either side
+  std::string camera;  // an MJCF camera's name; "" (or "free" when no camera has that name): the free view
+  long long width = k_default_width;
+  long long height = k_default_height;
+};
+
+// The free view's angles (degrees) and distance (times the model's extent).
+constexpr double k_free_azimuth = 135, k_free_elevation = -25, k_free_distance = 1.6;
+
+// The free view of `m`: the whole scene, `width` x `height` pixels.
+CameraView free_view(const mjModel* m, int width, int height);
+
+class Snapshotter {
+ public:
+  using Done = std::function<void(Status, json)>;  // the image record, or the reason it failed
+
+  explicit Snapshotter(Simulation& sim) : sim_(sim) {}
+
+  // Checks the options (ServiceError naming the parameter: bad_arguments), copies the
+  // scene of the current state and queues its render; `done` runs on the render thread
+  // with the record: rgb_image_record's fields plus `camera` (the name, or "free") and
+  // `view` {position, forward, up, fovy}. ServiceError when nothing can be rendered.
+  void start(const SnapshotOptions& options, Done done);
+  // start() and wait (bounded) for the record; ServiceError when it failed. For a caller
+  // that is the only thread of its simulation (the offline `simgate snapshot`).
+  json take(const SnapshotOptions& options, std::chrono::milliseconds timeout);
+
+ private:
+  // The view the options ask for (checked), and the camera's name for the record.
+  CameraView view(const SnapshotOptions& options, std::string& camera) const;
+  Renderer& renderer();
+  std::unique_ptr<SceneCopy> scene(const CameraView& view);
+
+  Simulation& sim_;
+  std::shared_ptr<Renderer> renderer_;  // null until the first snapshot
+  RenderModelCopy model_copy_;          // the renderer's copy of the current model
+};
+
+}  // namespace simgate::sim
+
+#endif  // SIMGATE_SIM_SNAPSHOT_H_

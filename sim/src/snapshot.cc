@@ -1,0 +1,147 @@
+// `simulation get_snapshot` and the Snapshotter behind it (snapshot.h,
+// docs/world/snapshot.md): a picture of the scene from an MJCF camera or from a free view
+// that frames it all.
+#include "simgate/sim/snapshot.h"
+
+#include <cmath>
+#include <future>
+
+#include "simgate/core/errors.h"
+#include "simgate/sim/world_services.h"
+
+namespace simgate::sim {
+
+namespace {
+
+constexpr const char* k_who = "simulation get_snapshot";
+
+void check_size(const char* parameter, long long value) {
+  if (value >= 1 && value <= SnapshotOptions::k_max_size) return;
+  throw ServiceError(std::string(k_who) + ": " + parameter + " is the image's " + parameter +
+                         " in pixels, an integer from 1 to " + std::to_string(SnapshotOptions::k_max_size) +
+                         ", found " + std::to_string(value),
+                     Failure::bad_arguments, {{"parameter", parameter}});
+}
+
+json view_json(const CameraView& v) {
+  return {{"position", {v.position[0], v.position[1], v.position[2]}},
+          {"forward", {v.forward[0], v.forward[1], v.forward[2]}},
+          {"up", {v.up[0], v.up[1], v.up[2]}},
+          {"fovy", v.fovy}};
+}
+
+}  // namespace
+
+CameraView free_view(const mjModel* m, int width, int height) {
+  CameraView v;
+  v.width = width;
+  v.height = height;
+  v.fovy = m->vis.global.fovy;
+  const double extent = m->stat.extent > 0 ? m->stat.extent : 1.0;
+  v.near_clip = m->vis.map.znear * extent;
+  v.far_clip = m->vis.map.zfar * extent;
+  const double az = k_free_azimuth * M_PI / 180, el = k_free_elevation * M_PI / 180;
+  const double forward[3] = {std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el)};
+  const double up[3] = {-std::sin(el) * std::cos(az), -std::sin(el) * std::sin(az), std::cos(el)};
+  const double distance = k_free_distance * extent;
+  for (int i = 0; i < 3; ++i) {
+    v.forward[i] = forward[i];
+    v.up[i] = up[i];
+    v.position[i] = m->stat.center[i] - distance * forward[i];
+  }
+  return v;
+}
+
+CameraView Snapshotter::view(const SnapshotOptions& o, std::string& camera) const {
+  check_size("width", o.width);
+  check_size("height", o.height);
+  const mjModel* m = sim_.m();
+  const int id = o.camera.empty() ? -1 : mj_name2id(m, mjOBJ_CAMERA, o.camera.c_str());
+  if (id < 0 && !o.camera.empty() && o.camera != "free")
+    throw ServiceError(std::string(k_who) + ": camera '" + o.camera + "' is not an MJCF camera of the scene (its cameras: " +
+                           camera_names(m) + "; \"\" or \"free\": a view of the whole scene)",
+                       Failure::bad_arguments, {{"parameter", "camera"}});
+  const int width = static_cast<int>(o.width), height = static_cast<int>(o.height);
+  if (id < 0) {
+    camera = "free";
+    return free_view(m, width, height);
+  }
+  camera = o.camera;
+  CameraView v;
+  v.width = width;
+  v.height = height;
+  v.fovy = m->cam_fovy[id];
+  const double extent = m->stat.extent > 0 ? m->stat.extent : 1.0;
+  v.near_clip = m->vis.map.znear * extent;
+  v.far_clip = m->vis.map.zfar * extent;
+  mjcf_camera_pose(v, sim_.d(), id);
+  return v;
+}
+
+Renderer& Snapshotter::renderer() {
+  if (!renderer_) renderer_ = Renderer::shared();
+  if (const std::string why = renderer_->unavailable(); !why.empty())
+    throw ServiceError(std::string(k_who) + ": cannot render: " + why);
+  return *renderer_;
+}
+
+std::unique_ptr<SceneCopy> Snapshotter::scene(const CameraView& view) {
+  auto scene = std::make_unique<SceneCopy>(model_copy_.get(*renderer_, sim_));
+  scene->update(sim_.m(), sim_.d(), view, sim_.state_time());
+  return scene;
+}
+
+void Snapshotter::start(const SnapshotOptions& options, Done done) {
+  std::string camera;
+  const CameraView v = view(options, camera);
+  Renderer& r = renderer();
+  r.render(scene(v), true, false, [done = std::move(done), camera](RenderResult result) {
+    std::string error = result.error;
+    json record;
+    if (error.empty()) {
+      try {
+        record = rgb_image_record(result);
+      } catch (const std::exception& e) {
+        error = std::string("could not encode the image: ") + e.what();
+      }
+    }
+    if (!error.empty()) {
+      done(Status::failed, json(std::string(k_who) + ": " + error));
+      return;
+    }
+    record["camera"] = camera;
+    record["view"] = view_json(result.view);
+    done(Status::success, std::move(record));
+  });
+}
+
+json Snapshotter::take(const SnapshotOptions& options, std::chrono::milliseconds timeout) {
+  // shared with the callback, which may run after a timeout
+  auto promise = std::make_shared<std::promise<std::pair<Status, json>>>();
+  auto future = promise->get_future();
+  start(options, [promise](Status status, json value) { promise->set_value({status, std::move(value)}); });
+  if (future.wait_for(timeout) != std::future_status::ready)
+    throw ServiceError(std::string(k_who) + ": no image within " + std::to_string(timeout.count() / 1000) + " s");
+  auto [status, value] = future.get();
+  if (status != Status::success) throw ServiceError(value.is_string() ? value.get<std::string>() : value.dump());
+  return value;
+}
+
+void add_snapshot_services(SupervisionServices& simulation, Simulation& sim) {
+  auto snapshots = std::make_shared<Snapshotter>(sim);
+  simulation
+      .offer_async_service(
+          "get_snapshot",
+          [snapshots](Completion done, std::string camera, std::int64_t width, std::int64_t height) {
+            snapshots->start({std::move(camera), width, height},
+                             [done](Status status, json value) { done(status, std::move(value)); });
+          },
+          {{"camera", ""},
+           {"width", SnapshotOptions::k_default_width},
+           {"height", SnapshotOptions::k_default_height}})
+      .concurrent()
+      .doc("A picture of the scene (rendered off the lock): from MJCF camera `camera`, or \"\" for a free view of the "
+           "whole scene; {image (base64 PNG), width, height, format, encoding, timestamp, camera, view}");
+}
+
+}  // namespace simgate::sim

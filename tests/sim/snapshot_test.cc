@@ -1,0 +1,190 @@
+// `simulation get_snapshot` (snapshot.h) rendered for real (EGL, Mesa's llvmpipe), checked
+// by the pixels of the PNG it returns (camera_png.h): the free view is of the asked size and
+// not one flat colour; an MJCF camera looking at a red box sees it red in the middle; bad
+// parameters and unknown cameras are FAILED naming what is wrong; without GL it is FAILED
+// with the renderer's reason; the service is listed with its parameters.
+#include <chrono>
+#include <cstdlib>
+#include <set>
+#include <thread>
+
+#include "camera_png.h"
+#include "mjcf_fixture.h"
+#include "simgate/sim/snapshot.h"
+
+namespace simgate::sim {
+namespace {
+
+using ::testing::HasSubstr;
+using testing::DecodedPng;
+using testing::decode_base64;
+using testing::decode_png;
+
+// A red box 1.7 m in front of MJCF camera "front", on a grey floor.
+constexpr const char* k_scene = R"(
+<mujoco model="snapshot-test">
+  <option timestep="0.01"/>
+  <visual><headlight ambient="0.4 0.4 0.4" diffuse="0.6 0.6 0.6"/></visual>
+  <worldbody>
+    <light pos="0 0 5" dir="0 0 -1"/>
+    <geom name="floor" type="plane" size="3 3 0.1" rgba="0.5 0.5 0.5 1"/>
+    <body name="rig" pos="0 0 0.5">
+      <geom type="sphere" size="0.01" contype="0" conaffinity="0" rgba="0 0 1 0"/>
+      <camera name="front" xyaxes="0 -1 0 0 0 1" fovy="60"/>
+    </body>
+    <body name="target" pos="2 0 0.5">
+      <geom name="red_box" type="box" size="0.3 0.3 0.3" rgba="1 0 0 1"/>
+    </body>
+  </worldbody>
+</mujoco>
+)";
+
+constexpr auto k_deadline = std::chrono::seconds(60);  // bounds every wait on the render thread
+
+class SnapshotTest : public testing::MjcfSim {
+ protected:
+  void SetUp() override {
+    load_string(k_scene);
+    add_robot("rig", "rig");
+    serve();
+  }
+
+  // Calls get_snapshot and serves (stepping) until it is answered, at most k_deadline.
+  Outcome snapshot(json params) {
+    const RequestId id = rm_->call("simulation", "get_snapshot", std::move(params));
+    const auto deadline = std::chrono::steady_clock::now() + k_deadline;
+    while (std::chrono::steady_clock::now() < deadline) {
+      sim_->process_requests();
+      if (auto o = rm_->outcome(id)) return *o;
+      sim_->step();
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    ADD_FAILURE() << "no outcome within the deadline";
+    return Outcome::failed(Failure::internal, "no answer");
+  }
+  DecodedPng png_of(const Outcome& o) {
+    EXPECT_EQ(o.status, Status::success) << o.message;
+    const json record = o.value.value_or(json::object());
+    if (!record.contains("image")) {
+      DecodedPng none;
+      none.error = "no image in " + record.dump();
+      return none;
+    }
+    return decode_png(decode_base64(record["image"].get<std::string>()));
+  }
+};
+
+std::array<int, 3> rgb_at(const DecodedPng& png, int x, int y) {
+  const std::size_t i = (static_cast<std::size_t>(y) * png.width + x) * 3;
+  return {png.pixels[i], png.pixels[i + 1], png.pixels[i + 2]};
+}
+bool is_red(const std::array<int, 3>& p) { return p[0] > 100 && p[0] > 3 * p[1] && p[0] > 3 * p[2]; }
+
+TEST_F(SnapshotTest, FreeViewHasTheAskedSizeAndShowsTheScene) {
+  const auto started = std::chrono::steady_clock::now();
+  const Outcome o = snapshot(json::object());
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count();
+  const DecodedPng png = png_of(o);
+  ASSERT_TRUE(png.error.empty()) << png.error;
+  EXPECT_EQ(png.width, 640);
+  EXPECT_EQ(png.height, 480);
+  EXPECT_EQ(png.colour_type, 2);
+  const json& record = *o.value;
+  EXPECT_EQ(record["width"], 640);
+  EXPECT_EQ(record["height"], 480);
+  EXPECT_EQ(record["format"], "png");
+  EXPECT_EQ(record["encoding"], "rgb8");
+  EXPECT_EQ(record["camera"], "free");
+  EXPECT_TRUE(record.contains("timestamp"));
+  EXPECT_TRUE(record["view"].contains("position"));
+  // not one flat colour: the floor, the sky and the red box
+  std::set<std::array<int, 3>> colours;
+  bool red = false;
+  for (int y = 0; y < png.height; y += 8)
+    for (int x = 0; x < png.width; x += 8) {
+      colours.insert(rgb_at(png, x, y));
+      red = red || is_red(rgb_at(png, x, y));
+    }
+  EXPECT_GT(colours.size(), 10u);
+  EXPECT_TRUE(red) << "the free view frames the whole scene: the red box is in it";
+  std::printf("[ measure ] get_snapshot 640x480 free view, first (renderer start included): %.1f ms, PNG %zu bytes\n",
+              ms, decode_base64(record["image"].get<std::string>()).size());
+  // a second one: the renderer is warm
+  const auto again = std::chrono::steady_clock::now();
+  const Outcome second = snapshot({{"width", 640}, {"height", 480}});
+  std::printf("[ measure ] get_snapshot 640x480 free view, warm: %.1f ms\n",
+              std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - again).count());
+  EXPECT_EQ(second.status, Status::success) << second.message;
+}
+
+TEST_F(SnapshotTest, NamedCameraSeesTheRedBoxAndSizeIsAsAsked) {
+  const Outcome o = snapshot({{"camera", "front"}, {"width", 160}, {"height", 100}});
+  const DecodedPng png = png_of(o);
+  ASSERT_TRUE(png.error.empty()) << png.error;
+  EXPECT_EQ(png.width, 160);
+  EXPECT_EQ(png.height, 100);
+  EXPECT_EQ((*o.value)["camera"], "front");
+  EXPECT_TRUE(is_red(rgb_at(png, 80, 50)));
+  EXPECT_FALSE(is_red(rgb_at(png, 2, 2)));
+  // positional params work too (socket clients write them so)
+  const Outcome positional = snapshot({"front", 32, 24});
+  EXPECT_EQ(png_of(positional).width, 32);
+}
+
+TEST_F(SnapshotTest, BadParametersAreFailedNamingThem) {
+  const Outcome unknown = snapshot({{"camera", "back"}});
+  EXPECT_EQ(unknown.status, Status::failed);
+  EXPECT_THAT(unknown.message, HasSubstr("camera 'back' is not an MJCF camera"));
+  EXPECT_THAT(unknown.message, HasSubstr("front"));  // the scene's cameras are listed
+  for (const json& params : {json{{"width", 0}}, json{{"width", 8193}}, json{{"height", -1}}}) {
+    const Outcome o = snapshot(params);
+    EXPECT_EQ(o.status, Status::failed) << params.dump();
+    EXPECT_EQ(o.failure, Failure::bad_arguments) << params.dump();
+    EXPECT_THAT(o.message, HasSubstr(params.begin().key())) << o.message;
+    EXPECT_THAT(o.message, HasSubstr("from 1 to 8192")) << o.message;
+  }
+  for (const json& params : {json{{"width", "wide"}}, json{{"width", 1.5}}, json{{"camera", 3}}}) {
+    const Outcome o = snapshot(params);
+    EXPECT_EQ(o.status, Status::failed) << params.dump();
+    EXPECT_FALSE(o.message.empty());
+  }
+}
+
+TEST_F(SnapshotTest, IsListedWithItsParameters) {
+  const std::string services = value("simulation", "list_services").dump();
+  EXPECT_THAT(services, HasSubstr("\"get_snapshot\""));
+}
+
+TEST(SnapshotFreeView, LooksAtTheCentreFromTheChosenAngle) {
+  const Model model = Model::load_string(k_scene, "test.xml");
+  const mjModel* m = model.model();
+  const CameraView v = free_view(m, 640, 480);
+  // from the centre, back along the view direction by k_free_distance extents
+  double d2 = 0;
+  for (int i = 0; i < 3; ++i) {
+    const double back = m->stat.center[i] - v.position[i];
+    d2 += back * back;
+  }
+  EXPECT_NEAR(std::sqrt(d2), k_free_distance * m->stat.extent, 1e-9);
+  EXPECT_LT(v.forward[2], 0);  // looking down
+  EXPECT_GT(v.up[2], 0);       // upright
+  EXPECT_NEAR(v.forward[0] * v.up[0] + v.forward[1] * v.up[1] + v.forward[2] * v.up[2], 0, 1e-12);
+}
+
+// Without GL (its own fixture: the renderer is started per test, after setenv).
+TEST_F(SnapshotTest, WithoutGlItFailsWithTheReason) {
+  // the renderer of this test's simulation has not started yet: no snapshot was asked
+  setenv("SIMGATE_RENDERER_UNAVAILABLE", "no GL in this test", 1);
+  const Outcome o = snapshot(json::object());
+  unsetenv("SIMGATE_RENDERER_UNAVAILABLE");
+  EXPECT_EQ(o.status, Status::failed);
+  EXPECT_THAT(o.message, HasSubstr("simulation get_snapshot: cannot render"));
+  EXPECT_THAT(o.message, HasSubstr("no GL in this test"));
+  // the simulation goes on
+  const double before = sim_->sim_time();
+  run_for(0.1);
+  EXPECT_GT(sim_->sim_time(), before);
+}
+
+}  // namespace
+}  // namespace simgate::sim
