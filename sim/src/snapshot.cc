@@ -3,8 +3,10 @@
 // that frames it all.
 #include "simgate/sim/snapshot.h"
 
+#include <algorithm>
 #include <cmath>
 #include <future>
+#include <limits>
 
 #include "simgate/core/errors.h"
 #include "simgate/sim/world_services.h"
@@ -30,24 +32,92 @@ json view_json(const CameraView& v) {
           {"fovy", v.fovy}};
 }
 
+// Half the size of geom g along its own axes (its bounding sphere's radius on each axis
+// for the shapes whose size says less: meshes, height fields).
+void local_half_size(const mjModel* m, int g, double half[3]) {
+  const mjtNum* size = m->geom_size + 3 * g;
+  switch (m->geom_type[g]) {
+    case mjGEOM_SPHERE: half[0] = half[1] = half[2] = size[0]; return;
+    case mjGEOM_CAPSULE: half[0] = half[1] = size[0]; half[2] = size[1] + size[0]; return;
+    case mjGEOM_CYLINDER: half[0] = half[1] = size[0]; half[2] = size[1]; return;
+    case mjGEOM_ELLIPSOID:
+    case mjGEOM_BOX: half[0] = size[0]; half[1] = size[1]; half[2] = size[2]; return;
+    default: half[0] = half[1] = half[2] = m->geom_rbound[g]; return;
+  }
+}
+
 }  // namespace
 
-CameraView free_view(const mjModel* m, int width, int height) {
+Framing frame_scene(const mjModel* m, const mjData* d) {
+  // the box around every visible geom of finite size, at its current place
+  double low[3], high[3];
+  bool any = false;
+  for (int g = 0; g < m->ngeom; ++g) {
+    if (m->geom_type[g] == mjGEOM_PLANE || m->geom_rgba[4 * g + 3] == 0 || m->geom_group[g] > 2) continue;
+    if (!(m->geom_rbound[g] > 0) || !std::isfinite(m->geom_rbound[g])) continue;
+    double half[3];
+    local_half_size(m, g, half);
+    const mjtNum* r = d->geom_xmat + 9 * g;  // row-major: world axis i = sum_j r[3i + j] * local axis j
+    for (int i = 0; i < 3; ++i) {
+      const double reach = std::abs(r[3 * i]) * half[0] + std::abs(r[3 * i + 1]) * half[1] + std::abs(r[3 * i + 2]) * half[2];
+      const double c = d->geom_xpos[3 * g + i];
+      low[i] = any ? std::min(low[i], c - reach) : c - reach;
+      high[i] = any ? std::max(high[i], c + reach) : c + reach;
+    }
+    any = true;
+  }
+  Framing f;
+  if (!any) {  // only planes: MuJoCo's own statistics
+    const double half = m->stat.extent > 0 ? m->stat.extent / 2 : 1.0;
+    for (int i = 0; i < 3; ++i) {
+      f.low[i] = m->stat.center[i] - half;
+      f.high[i] = m->stat.center[i] + half;
+    }
+    return f;
+  }
+  for (int i = 0; i < 3; ++i) {
+    f.low[i] = low[i];
+    f.high[i] = high[i];
+  }
+  return f;
+}
+
+CameraView free_view(const mjModel* m, const mjData* d, int width, int height) {
   CameraView v;
   v.width = width;
   v.height = height;
   v.fovy = m->vis.global.fovy;
-  const double extent = m->stat.extent > 0 ? m->stat.extent : 1.0;
-  v.near_clip = m->vis.map.znear * extent;
-  v.far_clip = m->vis.map.zfar * extent;
+  const Framing f = frame_scene(m, d);
   const double az = k_free_azimuth * M_PI / 180, el = k_free_elevation * M_PI / 180;
   const double forward[3] = {std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el)};
   const double up[3] = {-std::sin(el) * std::cos(az), -std::sin(el) * std::sin(az), std::cos(el)};
-  const double distance = k_free_distance * extent;
+  const double right[3] = {forward[1] * up[2] - forward[2] * up[1], forward[2] * up[0] - forward[0] * up[2],
+                           forward[0] * up[1] - forward[1] * up[0]};
+  double center[3];
+  for (int i = 0; i < 3; ++i) center[i] = (f.low[i] + f.high[i]) / 2;
+  // the nearest distance from which every corner of the box is inside both fields of view
+  const double tan_y = std::tan(v.fovy * M_PI / 360), tan_x = tan_y * width / height;
+  double distance = 0, nearest = std::numeric_limits<double>::infinity(), farthest = 0;
+  double depth[8];
+  for (int corner = 0; corner < 8; ++corner) {
+    double q[3];
+    for (int i = 0; i < 3; ++i) q[i] = ((corner >> i) & 1 ? f.high[i] : f.low[i]) - center[i];
+    const double x = q[0] * right[0] + q[1] * right[1] + q[2] * right[2];
+    const double y = q[0] * up[0] + q[1] * up[1] + q[2] * up[2];
+    depth[corner] = q[0] * forward[0] + q[1] * forward[1] + q[2] * forward[2];
+    distance = std::max({distance, std::abs(x) / tan_x - depth[corner], std::abs(y) / tan_y - depth[corner]});
+  }
+  distance = std::max(k_free_margin * distance, 1e-2);
+  for (double z : depth) {
+    nearest = std::min(nearest, distance + z);
+    farthest = std::max(farthest, distance + z);
+  }
+  v.near_clip = std::max(1e-3, std::min(nearest / 2, m->vis.map.znear * m->stat.extent));
+  v.far_clip = std::max(m->vis.map.zfar * m->stat.extent, 2 * farthest);
   for (int i = 0; i < 3; ++i) {
     v.forward[i] = forward[i];
     v.up[i] = up[i];
-    v.position[i] = m->stat.center[i] - distance * forward[i];
+    v.position[i] = center[i] - distance * forward[i];
   }
   return v;
 }
@@ -64,7 +134,7 @@ CameraView Snapshotter::view(const SnapshotOptions& o, std::string& camera) cons
   const int width = static_cast<int>(o.width), height = static_cast<int>(o.height);
   if (id < 0) {
     camera = "free";
-    return free_view(m, width, height);
+    return free_view(m, sim_.d(), width, height);
   }
   camera = o.camera;
   CameraView v;

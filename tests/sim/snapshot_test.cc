@@ -155,20 +155,31 @@ TEST_F(SnapshotTest, IsListedWithItsParameters) {
   EXPECT_THAT(services, HasSubstr("\"get_snapshot\""));
 }
 
-TEST(SnapshotFreeView, LooksAtTheCentreFromTheChosenAngle) {
+TEST(SnapshotFreeView, LooksAtTheSceneFromTheChosenAngleAndFramesIt) {
   const Model model = Model::load_string(k_scene, "test.xml");
   const mjModel* m = model.model();
-  const CameraView v = free_view(m, 640, 480);
-  // from the centre, back along the view direction by k_free_distance extents
-  double d2 = 0;
+  const Framing f = frame_scene(m, model.data());
+  // the floor plane and the invisible rig are left out: the box is the red cube's (at x = 2 m)
+  EXPECT_NEAR((f.low[0] + f.high[0]) / 2, 2, 1e-9);
+  EXPECT_NEAR((f.low[2] + f.high[2]) / 2, 0.5, 1e-9);
+  EXPECT_NEAR(f.high[0] - f.low[0], 0.6, 1e-9);  // the box's own size: 0.6 m
+  EXPECT_NEAR(f.high[2] - f.low[2], 0.6, 1e-9);
+  const CameraView v = free_view(m, model.data(), 640, 480);
+  double to_centre[3], d2 = 0;
   for (int i = 0; i < 3; ++i) {
-    const double back = m->stat.center[i] - v.position[i];
-    d2 += back * back;
+    to_centre[i] = (f.low[i] + f.high[i]) / 2 - v.position[i];
+    d2 += to_centre[i] * to_centre[i];
   }
-  EXPECT_NEAR(std::sqrt(d2), k_free_distance * m->stat.extent, 1e-9);
-  EXPECT_LT(v.forward[2], 0);  // looking down
-  EXPECT_GT(v.up[2], 0);       // upright
+  const double distance = std::sqrt(d2);
+  // it looks at the centre from outside the box, downwards, upright
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(to_centre[i] / distance, v.forward[i], 1e-9);
+  EXPECT_GT(distance, (f.high[0] - f.low[0]) / 2);
+  EXPECT_LT(v.forward[2], 0);
+  EXPECT_GT(v.up[2], 0);
   EXPECT_NEAR(v.forward[0] * v.up[0] + v.forward[1] * v.up[1] + v.forward[2] * v.up[2], 0, 1e-12);
+  EXPECT_GT(v.near_clip, 0);
+  EXPECT_LT(v.near_clip, distance / 2);
+  EXPECT_GT(v.far_clip, 1.5 * distance);
 }
 
 // Without GL (its own fixture: the renderer is started per test, after setenv).

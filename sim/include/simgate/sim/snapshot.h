@@ -3,10 +3,14 @@
 // `simgate snapshot --config` share the Snapshotter.
 //
 // The view: an MJCF <camera> of the scene by name (its pose and field of view), or, by
-// default, a free view framing the whole scene as MuJoCo's free camera does: it looks at
-// the model's statistic center (MJCF <statistic center>, else computed by MuJoCo) from
-// k_free_distance times its extent, at azimuth k_free_azimuth and elevation
-// k_free_elevation, with the model's <visual><global fovy>.
+// default, a free view framing the whole scene: it looks at the centre of the box around
+// every visible geom but planes (each geom's own box, at its current place;
+// MuJoCo's <statistic> center and extent when there are only planes) from the azimuth
+// k_free_azimuth and the elevation k_free_elevation, as MuJoCo's free camera looks, and
+// from the nearest distance at which every corner of that box is in the image (times
+// k_free_margin), with the model's <visual><global fovy>.
+// MuJoCo's own free camera stands 1.5 extents away; the extent counts floor planes, which
+// would make a small robot on a large floor a few pixels.
 //
 // Threads: start() and take() on the simulation thread under the simulation lock (the
 // scene is copied there, never rendered there); the render thread renders and encodes and
@@ -34,11 +38,18 @@ struct SnapshotOptions {
   long long height = k_default_height;
 };
 
-// The free view's angles (degrees) and distance (times the model's extent).
-constexpr double k_free_azimuth = 135, k_free_elevation = -25, k_free_distance = 1.6;
+// The free view's angles (degrees) and the margin around the scene's sphere.
+constexpr double k_free_azimuth = 135, k_free_elevation = -25, k_free_margin = 1.08;
 
-// The free view of `m`: the whole scene, `width` x `height` pixels.
-CameraView free_view(const mjModel* m, int width, int height);
+// Where the scene is: the box (world axes, m) the free view frames.
+struct Framing {
+  double low[3] = {-1, -1, -1};
+  double high[3] = {1, 1, 1};
+};
+Framing frame_scene(const mjModel* m, const mjData* d);
+
+// The free view of (m, d): the whole scene, `width` x `height` pixels.
+CameraView free_view(const mjModel* m, const mjData* d, int width, int height);
 
 class Snapshotter {
  public:
