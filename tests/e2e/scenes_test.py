@@ -15,7 +15,8 @@ way its README section shows, with MORSE's socket protocol on a raw socket, Debi
 - the rover in its room: the laser's 271 rays see the walls where the room puts them (and
   nothing through the door), also after a teleport; the IMU reads gravity at rest; a goto
   arrives; the integrated odometry matches the pose; proximity finds the crates; the depth
-  camera sees the east wall where the laser does, and the camera's capture returns PNGs.
+  camera sees the east wall where the laser does, and the camera's capture returns PNGs;
+  `simulation get_snapshot` pictures the room.
 
 The physics is predicted from the scenes' geometry (positions, masses), not recorded. Every
 wait is bounded; no assertion is on wall-clock time.
@@ -377,6 +378,20 @@ class RoverSceneTest(unittest.TestCase):
             width, height, depth, colour, rows = decode_png(image["image"])
             self.assertEqual((width, height, depth, colour), (320, 240, 8, 2))
             self.assertEqual(image["intrinsic_matrix"][0][2], 160.0)
+
+    def test_a_snapshot_pictures_the_room_as_the_readme_shows_it(self):
+        # simulation get_snapshot (docs/world/snapshot.md): the free view, the asked size
+        record = self.wire.call("simulation", "get_snapshot", {"width": 320, "height": 240})
+        self.assertEqual(record["camera"], "free")
+        width, height, depth, colour, rows = decode_png(record["image"])
+        self.assertEqual((width, height, depth, colour), (320, 240, 8, 2))
+        # the room's walls, floor, crates and rover: many colours, not one
+        pixels = {bytes(row[x:x + 3]) for row in rows[::8] for x in range(0, 3 * width, 24)}
+        self.assertGreater(len(pixels), 10)
+        # an unknown camera is refused, listing the scene's cameras
+        status, message = self.wire.request("simulation", "get_snapshot", {"camera": "nope"})
+        self.assertEqual(status, "FAILED")
+        self.assertIn("camera 'nope' is not an MJCF camera", message)
 
     def test_the_imu_reads_gravity_at_rest(self):
         imu = self.wire.call("rover.imu", "get_local_data")
