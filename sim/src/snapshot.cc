@@ -125,6 +125,11 @@ CameraView free_view(const mjModel* m, const mjData* d, int width, int height) {
 CameraView Snapshotter::view(const SnapshotOptions& o, std::string& camera) const {
   check_size("width", o.width);
   check_size("height", o.height);
+  if (o.width * o.height > SnapshotOptions::k_max_pixels)
+    throw ServiceError(std::string(k_who) + ": width x height = " + std::to_string(o.width) + " x " +
+                           std::to_string(o.height) + " is more than " +
+                           std::to_string(SnapshotOptions::k_max_pixels) + " pixels (4096 x 4096)",
+                       Failure::bad_arguments, {{"parameter", "width"}});
   const mjModel* m = sim_.m();
   const int id = o.camera.empty() ? -1 : mj_name2id(m, mjOBJ_CAMERA, o.camera.c_str());
   if (id < 0 && !o.camera.empty() && o.camera != "free")

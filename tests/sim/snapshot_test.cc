@@ -143,6 +143,9 @@ TEST_F(SnapshotTest, BadParametersAreFailedNamingThem) {
     EXPECT_THAT(o.message, HasSubstr(params.begin().key())) << o.message;
     EXPECT_THAT(o.message, HasSubstr("from 1 to 8192")) << o.message;
   }
+  const Outcome huge = snapshot({{"width", 8192}, {"height", 8192}});
+  EXPECT_EQ(huge.failure, Failure::bad_arguments);
+  EXPECT_THAT(huge.message, HasSubstr("8192 x 8192 is more than 16777216 pixels"));
   for (const json& params : {json{{"width", "wide"}}, json{{"width", 1.5}}, json{{"camera", 3}}}) {
     const Outcome o = snapshot(params);
     EXPECT_EQ(o.status, Status::failed) << params.dump();

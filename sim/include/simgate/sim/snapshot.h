@@ -33,6 +33,9 @@ namespace simgate::sim {
 struct SnapshotOptions {
   static constexpr long long k_default_width = 640, k_default_height = 480;  // pixels
   static constexpr long long k_max_size = 8192;                              // pixels, either side
+  // pixels in all: an image is rendered (4x multisampled) and read back whole; 4096 x 4096
+  // takes about 1 GB while it is made (llvmpipe), and the renderer keeps its largest buffer
+  static constexpr long long k_max_pixels = 4096LL * 4096;
   std::string camera;  // an MJCF camera's name; "" (or "free" when no camera has that name): the free view
   long long width = k_default_width;
   long long height = k_default_height;
