@@ -299,6 +299,19 @@ class ValidValues {
     auto o = rm_.outcome(id);
     return o && o->status == Status::success ? o->value.value_or(json()) : json();
   }
+  // An async service's SUCCESS value, served (no steps) until it answers, at most
+  // `timeout` of wall time: for work of another thread (a first render makes the context).
+  json await(const std::string& component, const std::string& service, json args,
+             std::chrono::seconds timeout = std::chrono::seconds(60)) {
+    RequestId id = rm_.call(component, service, std::move(args));
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < deadline) {
+      sim_.process_requests();
+      if (auto o = rm_.outcome(id)) return o->status == Status::success ? o->value.value_or(json()) : json();
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));  // the render thread works
+    }
+    return json();
+  }
   // An armature's joints of a kind (mjJNT_HINGE, mjJNT_SLIDE), in get_joints' order.
   std::vector<std::string> joints(const std::string& armature, int type) {
     std::vector<std::string> out;
@@ -378,6 +391,12 @@ inline ValidCallTable builtin_valid_calls(ValidValues& values) {
     return ValidCalls{{1}};
   };
   t["depth_camera.capture"] = t["video_camera.capture"];
+  // a small picture of the whole scene (the sweep spoils its width and height); a first one,
+  // awaited, makes the render context, so that the sweep's take milliseconds
+  t["simulation.get_snapshot"] = [v](const std::string& c) {
+    v->await(c, "get_snapshot", {"", 32, 24});
+    return ValidCalls{{"", 32, 24}};
+  };
   t["simulation.restore_state"] = [v](const std::string& c) { return ValidCalls{{v->value(c, "save_state")}}; };
   t["simulation.drop_state"] = t["simulation.restore_state"];
   t["armature.set_rotation"] = per_joint(mjJNT_HINGE, false);
