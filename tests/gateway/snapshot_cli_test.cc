@@ -1,5 +1,5 @@
 // GatewaySnapshot: `simgate snapshot` (issue #22) — the executable writes a valid PNG of the
-// asked size from a gateway running in the test's process (socket and JSON-RPC), and offline
+// asked size from a gateway running in the test's process (socket, JSON-RPC, DDS), and offline
 // from a config or a model; its errors (bad --size, unknown camera, unwritable path, no
 // gateway, no GL, client options with --config) are clear, with their exit codes.
 #include <gmock/gmock.h>
@@ -80,6 +80,7 @@ TEST(GatewaySnapshot, WritesThePngOfARunningGatewayThroughSocketAndJsonRpc) {
   EXPECT_TRUE(has_a_picture(b));
 }
 
+// (`simgate list --transport jsonrpc` reads rpc.discover)
 TEST(GatewaySnapshot, ListedThroughSocketAndJsonRpc) {
   const TempDir dir;
   InProcessGateway gateway(demo_on_two_transports());
@@ -90,6 +91,27 @@ TEST(GatewaySnapshot, ListedThroughSocketAndJsonRpc) {
   ASSERT_EQ(list_rpc.code, 0) << list_rpc.err;
   EXPECT_THAT(list_rpc.out, HasSubstr("simulation get_snapshot("));
 }
+
+#ifdef SIMGATE_TEST_WITH_DDS
+TEST(GatewaySnapshot, WritesThePngThroughDds) {
+  ::setenv("ASAN_OPTIONS", "detect_leaks=0:abort_on_error=1", 1);  // as cli_test's DDS clients
+  const TempDir dir;
+  json c = demo_config(0.0);
+  const std::string partition = "snapshot-" + std::to_string(::getpid());
+  c["transports"]["dds"] = {{"plugin", "dds"}, {"options", {{"domain", 0}, {"partition", partition}}}};
+  c["services"]["simulation"] = json::array({"socket", "dds"});
+  InProcessGateway gateway(c);
+  const CliRun r = simgate({"snapshot", "--transport", "dds", "--partition", partition, "--timeout", "60", "--size",
+                            "320x240", dir.file("dds.png")},
+                           dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const DecodedPng png = png_file(dir.file("dds.png"));
+  ASSERT_TRUE(png.error.empty()) << png.error;
+  EXPECT_EQ(png.width, 320);
+  EXPECT_EQ(png.height, 240);
+  EXPECT_TRUE(has_a_picture(png));
+}
+#endif
 
 TEST(GatewaySnapshot, UnknownCameraOfARunningGatewayIsFailedListingTheCameras) {
   const TempDir dir;
