@@ -32,8 +32,8 @@ constexpr const char* k_footer = R"(Synopsis:
   simgate snapshot [CLIENT OPTIONS] [--camera NAME] [--size WxH] OUT.png
   simgate snapshot --config CONFIG | --model FILE.xml [--camera NAME] [--size WxH] OUT.png
   simgate help [COMMAND]
-  CLIENT OPTIONS: --transport socket|jsonrpc|dds, --timeout S, then --host H --port P
-                  (socket, jsonrpc) or --domain N --partition P --dds-config XML (dds)
+  CLIENT OPTIONS: --transport socket|jsonrpc|websocket|dds, --timeout S, then --host H --port P
+                  (socket, jsonrpc, websocket) or --domain N --partition P --dds-config XML (dds)
 
 `simgate COMMAND --help` shows a command's options (docs/cli.md: the reference).)";
 
@@ -261,9 +261,9 @@ class CommandLine {
 
   static void add_client_options(CLI::App* command, ClientArgs& args) {
     command->add_option("--transport", args.transport, "socket (default), jsonrpc, websocket or dds")->type_name("T");
-    command->add_option("--host", args.host, "socket/jsonrpc: the server's address (default 127.0.0.1)")
+    command->add_option("--host", args.host, "socket/jsonrpc/websocket: the server's address (default 127.0.0.1)")
         ->type_name("H");
-    command->add_option("--port", args.port, "socket/jsonrpc: its port (default 4000 socket, 4001 jsonrpc)")
+    command->add_option("--port", args.port, "socket/jsonrpc/websocket: its port (default 4000 socket, 4001 jsonrpc, 8090 websocket)")
         ->type_name("P");
     command->add_option("--domain", args.domain, "dds: the simulation's DDS domain (default 0)")->type_name("N");
     command->add_option("--partition", args.partition, "dds: its partition (default simgate)")->type_name("P");

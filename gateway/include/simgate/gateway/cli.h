@@ -6,7 +6,7 @@
 //   simgate call [CLIENT OPTIONS] COMPONENT SERVICE [ARGS...]
 //   simgate list [CLIENT OPTIONS] [--json]
 //   simgate help [COMMAND] | --help | --version       (every command has --help and --version)
-//   CLIENT OPTIONS: --transport socket|jsonrpc|dds, --host H, --port P, --domain N,
+//   CLIENT OPTIONS: --transport socket|jsonrpc|websocket|dds, --host H, --port P, --domain N,
 //                   --partition P, --dds-config XML, --timeout S
 //
 // Parsed with CLI11; docs/cli.md is the reference. Options of `call` come before COMPONENT:
