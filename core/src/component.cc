@@ -1,4 +1,5 @@
 #include "simgate/core/component.h"
+#include "simgate/core/streams.h"
 
 #include <stdexcept>
 
@@ -37,7 +38,7 @@ std::string Component::running_service() const {
 const char* to_string(StreamDirection direction) { return direction == StreamDirection::in ? "IN" : "OUT"; }
 
 void Component::declare_output_stream(std::string kind, std::function<json()> produce) {
-  stream_ = StreamDeclaration{StreamDirection::out, std::move(kind), std::move(produce), {}, {}, {}};
+  stream_ = StreamDeclaration{StreamDirection::out, std::move(kind), std::move(produce), {}, {}, {}, nullptr, 0};
 }
 
 json record_json(const std::vector<std::string>& fields, std::span<const double> values) {
@@ -57,12 +58,30 @@ void Component::declare_output_stream(std::string kind, std::vector<std::string>
     return record_json(fields, std::span<const double>(values, fields.size()));
   };
   stream_ = StreamDeclaration{StreamDirection::out, std::move(kind), std::move(as_json), {}, std::move(fields),
-                              std::move(produce)};
+                              std::move(produce), nullptr, 0};
+}
+
+void Component::declare_pushed_stream(std::string kind, double frequency) {
+  if (!(frequency > 0)) throw std::invalid_argument(name_ + ": a pushed stream's frequency must be > 0");
+  stream_ = StreamDeclaration{StreamDirection::out, std::move(kind), {}, {}, {}, {},
+                              std::make_shared<StreamOutlet>(name_), frequency};
+}
+
+bool Component::stream_wanted() const { return stream_ && stream_->outlet && stream_->outlet->wanted(); }
+
+bool Component::push_sample(double time, json data) {
+  if (!stream_ || !stream_->outlet) return false;
+  return stream_->outlet->push(time, std::move(data), nullptr);
+}
+
+bool Component::push_sample(double time, std::shared_ptr<const StreamPayload> payload) {
+  if (!stream_ || !stream_->outlet || !payload) return false;
+  return stream_->outlet->push(time, nullptr, std::move(payload));
 }
 
 void Component::declare_input_stream(std::string kind, std::vector<std::string> fields,
                                      std::function<void(const json&)> apply) {
-  stream_ = StreamDeclaration{StreamDirection::in, std::move(kind), {}, std::move(apply), std::move(fields), {}};
+  stream_ = StreamDeclaration{StreamDirection::in, std::move(kind), {}, std::move(apply), std::move(fields), {}, nullptr, 0};
 }
 
 ServiceBuilder Component::adopt(std::shared_ptr<Service> service) {

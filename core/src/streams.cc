@@ -12,8 +12,15 @@ namespace simgate {
 // StreamSample
 
 const json& StreamSample::data() const {
-  if (!fields_) return data_;
-  std::call_once(data_once_, [this] { data_ = record_json(*fields_, {values_.data(), fields_->size()}); });
+  if (fields_) {
+    std::call_once(data_once_, [this] { data_ = record_json(*fields_, {values_.data(), fields_->size()}); });
+  } else if (payload_) {
+    std::call_once(data_once_, [this] {
+      data_ = payload_->to_json ? payload_->to_json(*payload_)
+                                : json{{"content", payload_->content}, {"description", payload_->description},
+                                       {"bytes", payload_->bytes.size()}};
+    });
+  }
   return data_;
 }
 
@@ -26,7 +33,7 @@ double StreamSample::number(std::string_view key) const {
   if (fields_) {
     for (std::size_t i = 0; i < fields_->size(); ++i)
       if ((*fields_)[i] == key) return values_[i];
-  } else if (auto it = data_.find(key); it != data_.end() && it->is_number()) {
+  } else if (auto it = data().find(key); it != data().end() && it->is_number()) {
     return it->get<double>();
   }
   throw std::out_of_range("the sample has no number '" + std::string(key) + "'");
@@ -109,6 +116,14 @@ void StreamSubscription::log_first_drop() {
 }
 
 // ---------------------------------------------------------------------------------------
+// StreamOutlet
+
+bool StreamOutlet::push(double time, json data, std::shared_ptr<const StreamPayload> payload) {
+  if (!hub_ || !wanted()) return false;
+  return hub_->push(component_, time, std::move(data), std::move(payload));
+}
+
+// ---------------------------------------------------------------------------------------
 // StreamHub
 
 struct StreamHub::Due {
@@ -123,6 +138,7 @@ struct StreamHub::Stream {
   std::function<void(std::span<double>)> produce_record;       // out, a record (StreamDeclaration)
   std::shared_ptr<const std::vector<std::string>> record_fields;  // its numbers' names, shared by its samples
   std::function<void(const json&)> apply;   // in
+  std::shared_ptr<StreamOutlet> outlet;     // out, pushed (its produce is empty)
   double period = 0;                        // out: simulated seconds between samples
   double next_due = 0;                      // out: when the next sample is due
   double last_time = 0;                     // out: time of the last sample
@@ -140,7 +156,13 @@ struct StreamHub::Stream {
 };
 
 StreamHub::StreamHub(std::shared_ptr<SimulationGate> gate) : gate_(std::move(gate)) {}
-StreamHub::~StreamHub() = default;
+StreamHub::~StreamHub() {
+  for (auto& s : streams_)
+    if (s->outlet) {
+      s->outlet->hub_ = nullptr;
+      s->outlet->wanted_.store(false, std::memory_order_release);
+    }
+}
 
 StreamHub::Stream* StreamHub::find_locked(std::string_view component) {
   for (auto& s : streams_)
@@ -177,6 +199,15 @@ void StreamHub::add(const Component& component, std::string type, std::vector<st
     stream->info.frequency = frequency;
     stream->period = 1.0 / frequency;
     stream->produce = declaration->produce;
+    if (declaration->outlet) {
+      // pushed: the component's rate is the stream's; the hub only fans out
+      if (declaration->outlet->hub_ && declaration->outlet->hub_ != this)
+        throw std::invalid_argument(component.name() + ": its pushed stream is run by another hub already");
+      stream->outlet = declaration->outlet;
+      stream->info.pushed = true;
+      if (declaration->pushed_frequency > 0) stream->info.frequency = declaration->pushed_frequency;
+      stream->produce = nullptr;
+    }
     if (declaration->produce_record) {
       stream->produce_record = declaration->produce_record;
       stream->record_fields = std::make_shared<const std::vector<std::string>>(declaration->fields);
@@ -186,6 +217,7 @@ void StreamHub::add(const Component& component, std::string type, std::vector<st
   }
   std::lock_guard lock(mutex_);
   if (find_locked(component.name())) throw std::invalid_argument(component.name() + " has a stream already");
+  if (stream->outlet) stream->outlet->hub_ = this;
   streams_.push_back(std::move(stream));
 }
 
@@ -200,6 +232,10 @@ bool StreamHub::remove(const std::string& component) {
     subscribers_.fetch_sub(closed.size(), std::memory_order_release);
     for (const auto& s : closed) dropped_by_removed_ += s->dropped();
     dropped_by_removed_ += (*it)->dropped_before;
+    if (const auto& outlet = (*it)->outlet) {
+      outlet->wanted_.store(false, std::memory_order_release);
+      outlet->hub_ = nullptr;
+    }
     streams_.erase(it);
   }
   for (const auto& s : closed) {
@@ -269,6 +305,27 @@ void StreamHub::publish_due(double time) {
   to_wake_.clear();
 }
 
+bool StreamHub::push(const std::string& component, double time, json data,
+                     std::shared_ptr<const StreamPayload> payload) {
+  // made before the hub mutex is taken (a transport subscribing never waits on an allocation)
+  auto sample = payload ? std::make_shared<StreamSample>(0, time, std::move(payload))
+                        : std::make_shared<StreamSample>(0, time, std::move(data));
+  {
+    std::lock_guard lock(mutex_);
+    Stream* s = find_locked(component);
+    if (!s || !s->outlet || s->subscribers.empty()) return false;
+    sample->seq_ = ++s->seq;
+    s->last_time = time;
+    s->first_wanted = false;
+    const SamplePtr shared = std::move(sample);
+    for (auto& sub : s->subscribers)
+      if (sub->push(shared, true)) to_wake_.push_back(sub);
+  }
+  for (const auto& sub : to_wake_) sub->wake();
+  to_wake_.clear();
+  return true;
+}
+
 std::string StreamHub::apply(Stream& stream, const json& command) {
   // the component, without the hub mutex (the caller holds the simulation lock, which keeps
   // the stream); then the counters, with it
@@ -333,6 +390,7 @@ std::shared_ptr<StreamSubscription> StreamHub::subscribe(std::string_view compon
     subscription = std::make_shared<StreamSubscription>(std::string(component), std::move(options));
     s->subscribers.push_back(subscription);
     s->first_wanted = true;
+    if (s->outlet) s->outlet->wanted_.store(true, std::memory_order_release);
     subscribers_.fetch_add(1, std::memory_order_release);
     turn_wanted_.store(true, std::memory_order_release);
   }
@@ -350,6 +408,7 @@ void StreamHub::unsubscribe(const std::shared_ptr<StreamSubscription>& subscript
         s->dropped_before += subscription->dropped();
         s->subscribers.erase(it);
         subscribers_.fetch_sub(1, std::memory_order_release);
+        if (s->outlet && s->subscribers.empty()) s->outlet->wanted_.store(false, std::memory_order_release);
       }
     }
   }

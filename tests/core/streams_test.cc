@@ -261,5 +261,177 @@ TEST(RecordStream, HasOneToSixteenNumbers) {
   EXPECT_NO_THROW(component.declare(k_max_record_fields));
 }
 
+// A component that pushes its samples (a camera's images, made on another thread): bytes
+// whose JSON is made by to_json, counted.
+class Pusher : public Component {
+ public:
+  Pusher() : Component("robot.camera") { declare_pushed_stream("image", 10); }
+  using Component::push_sample;
+  // A payload of `n` bytes valued `value`; its JSON counts how often it is made.
+  std::shared_ptr<const StreamPayload> payload(std::size_t n, std::uint8_t value) {
+    auto p = std::make_shared<StreamPayload>();
+    p->content = "image";
+    p->description = {{"width", n}, {"height", 1}, {"encoding", "mono8"}};
+    p->bytes.assign(n, value);
+    p->to_json = [this](const StreamPayload& q) {
+      ++jsons_made;
+      return json{{"first", q.bytes.at(0)}, {"n", q.bytes.size()}};
+    };
+    return p;
+  }
+  std::atomic<int> jsons_made{0};
+};
+
+struct PushedStreamTest : ::testing::Test {
+  std::shared_ptr<SimulationGate> gate = std::make_shared<SimulationGate>();
+  StreamHub hub{gate};
+  Counter counter;
+  Pusher pusher;
+  void SetUp() override {
+    hub.add(counter, "counter", {"socket"}, 100);
+    hub.add(pusher, "video_camera", {"socket", "dds"}, 60);  // the component's own rate is listed
+  }
+  static std::vector<SamplePtr> take(StreamSubscription& s) {
+    std::vector<SamplePtr> out;
+    s.take(out);
+    return out;
+  }
+};
+
+TEST_F(PushedStreamTest, IsListedPushedAtTheComponentsFrequency) {
+  auto info = hub.find("robot.camera", "dds");
+  ASSERT_TRUE(info);
+  EXPECT_TRUE(info->pushed);
+  EXPECT_EQ(info->frequency, 10);
+  EXPECT_EQ(info->kind, "image");
+  EXPECT_FALSE(hub.find("robot.counter", "socket")->pushed);
+}
+
+TEST_F(PushedStreamTest, WantedFollowsSubscribersAndNothingIsTakenWithoutThem) {
+  EXPECT_FALSE(pusher.stream_wanted());
+  EXPECT_FALSE(pusher.push_sample(0.0, json{{"a", 1}}));
+  auto a = hub.subscribe("robot.camera", "socket", {});
+  EXPECT_TRUE(pusher.stream_wanted());
+  auto b = hub.subscribe("robot.camera", "dds", {});
+  hub.unsubscribe(a);
+  EXPECT_TRUE(pusher.stream_wanted());  // b still subscribes
+  hub.unsubscribe(b);
+  EXPECT_FALSE(pusher.stream_wanted());
+  EXPECT_FALSE(pusher.push_sample(1.0, pusher.payload(4, 7)));
+  EXPECT_EQ(hub.total_samples(), 0u);
+}
+
+TEST_F(PushedStreamTest, APushedSampleGoesToEverySubscriberAndTheHubNeverProducesOne) {
+  int wakes = 0;
+  auto a = hub.subscribe("robot.camera", "socket", {4, "a", [&] { ++wakes; }});
+  auto b = hub.subscribe("robot.camera", "dds", {4, "b", {}});
+  // steps: the hub has nothing to produce for it (no first sample made by the hub)
+  hub.publish_due(0.0);
+  hub.publish_due(0.5);
+  EXPECT_TRUE(take(*a).empty());
+  EXPECT_EQ(wakes, 0);
+  ASSERT_TRUE(pusher.push_sample(0.1, pusher.payload(6, 42)));
+  ASSERT_TRUE(pusher.push_sample(0.2, json{{"n", 2}}));
+  EXPECT_EQ(wakes, 1);  // once, empty to not empty
+  auto from_a = take(*a), from_b = take(*b);
+  ASSERT_EQ(from_a.size(), 2u);
+  ASSERT_EQ(from_b.size(), 2u);
+  EXPECT_EQ(from_a[0], from_b[0]);  // shared, not copied
+  EXPECT_EQ(from_a[0]->seq(), 1u);
+  EXPECT_EQ(from_a[1]->seq(), 2u);
+  EXPECT_DOUBLE_EQ(from_a[0]->time(), 0.1);
+  ASSERT_NE(from_a[0]->payload(), nullptr);
+  EXPECT_EQ(from_a[0]->payload()->bytes, std::vector<std::uint8_t>(6, 42));
+  EXPECT_EQ(from_a[0]->payload()->description["encoding"], "mono8");
+  EXPECT_EQ(from_a[1]->payload(), nullptr);
+  EXPECT_EQ(from_a[1]->number("n"), 2);
+  EXPECT_EQ(hub.total_samples(), 2u);
+  auto stats = hub.statistics("dds");
+  ASSERT_EQ(stats.size(), 1u);
+  EXPECT_EQ(stats[0].samples, 2u);
+  EXPECT_EQ(stats[0].subscribers, 2u);
+}
+
+TEST_F(PushedStreamTest, ThePayloadsJsonIsMadeOnceOnFirstAskAndNotBefore) {
+  auto a = hub.subscribe("robot.camera", "socket", {});
+  auto b = hub.subscribe("robot.camera", "dds", {});
+  ASSERT_TRUE(pusher.push_sample(0.1, pusher.payload(3, 9)));
+  const SamplePtr sample = take(*a).at(0);
+  EXPECT_EQ(pusher.jsons_made, 0);  // a typed transport reads the bytes: no JSON
+  EXPECT_EQ(sample->payload()->bytes.size(), 3u);
+  // two transport threads ask at once: made once, the same for both
+  std::string t1, t2;
+  std::thread one([&] { t1 = sample->text(); });
+  std::thread two([&] { t2 = take(*b).at(0)->data().dump(); });
+  one.join();
+  two.join();
+  EXPECT_EQ(pusher.jsons_made, 1);
+  EXPECT_EQ(t1, R"({"first":9,"n":3})");
+  EXPECT_EQ(t2, t1);
+  EXPECT_EQ(sample->number("n"), 3);
+  EXPECT_EQ(pusher.jsons_made, 1);
+}
+
+TEST_F(PushedStreamTest, ASlowSubscriberLosesItsOldestPushedSamplesCounted) {
+  auto slow = hub.subscribe("robot.camera", "socket", {2, "slow", {}});
+  for (int i = 1; i <= 5; ++i) ASSERT_TRUE(pusher.push_sample(0.1 * i, json{{"n", i}}));
+  auto got = take(*slow);
+  ASSERT_EQ(got.size(), 2u);
+  EXPECT_EQ(got[0]->number("n"), 4);
+  EXPECT_EQ(got[1]->number("n"), 5);
+  EXPECT_EQ(slow->dropped(), 3u);
+  EXPECT_EQ(hub.total_dropped(), 3u);
+}
+
+TEST_F(PushedStreamTest, ANewSubscribersFirstSampleIsTheNextPushed) {
+  auto early = hub.subscribe("robot.camera", "socket", {});
+  ASSERT_TRUE(pusher.push_sample(0.1, json{{"n", 1}}));
+  auto late = hub.subscribe("robot.camera", "dds", {});
+  hub.publish_due(0.15);  // the hub's turn gives it nothing (it has nothing to give)
+  EXPECT_TRUE(take(*late).empty());
+  ASSERT_TRUE(pusher.push_sample(0.2, json{{"n", 2}}));
+  auto first = take(*late);
+  ASSERT_EQ(first.size(), 1u);
+  EXPECT_EQ(first[0]->number("n"), 2);
+  EXPECT_EQ(take(*early).size(), 2u);
+}
+
+TEST_F(PushedStreamTest, RemovedTheComponentIsNoLongerWantedAndPushesNothing) {
+  auto sub = hub.subscribe("robot.camera", "socket", {});
+  ASSERT_TRUE(pusher.stream_wanted());
+  ASSERT_TRUE(hub.remove("robot.camera"));
+  EXPECT_TRUE(sub->closed());
+  EXPECT_FALSE(pusher.stream_wanted());
+  EXPECT_FALSE(pusher.push_sample(1.0, json{{"n", 1}}));
+  // added again, it works again
+  hub.add(pusher, "video_camera", {"socket"});
+  auto again = hub.subscribe("robot.camera", "socket", {});
+  EXPECT_TRUE(pusher.push_sample(1.0, json{{"n", 1}}));
+  EXPECT_EQ(take(*again).size(), 1u);
+}
+
+TEST(PushedStream, TheHubsEndDisconnectsItsComponents) {
+  Pusher pusher;
+  {
+    StreamHub hub(std::make_shared<SimulationGate>());
+    hub.add(pusher, "video_camera", {"socket"});
+    auto sub = hub.subscribe("robot.camera", "socket", {});
+    ASSERT_TRUE(pusher.stream_wanted());
+  }
+  EXPECT_FALSE(pusher.stream_wanted());
+  EXPECT_FALSE(pusher.push_sample(0.0, json{{"n", 1}}));
+}
+
+TEST(PushedStream, NeedsAPositiveFrequency) {
+  class Bad : public Component {
+   public:
+    Bad() : Component("robot.bad") {}
+    void declare(double f) { declare_pushed_stream("image", f); }
+  } component;
+  EXPECT_THROW(component.declare(0), std::invalid_argument);
+  EXPECT_NO_THROW(component.declare(5));
+  EXPECT_FALSE(component.stream()->produce);
+}
+
 }  // namespace
 }  // namespace simgate

@@ -22,6 +22,9 @@
 // (declare_input_stream: a function that applies one command, MORSE's local_data a client
 // writes). The configuration says which transports carry a component's stream and how often
 // (its `frequency`); StreamHub (streams.h) runs them. One stream per component, as in MORSE.
+// A component whose samples are ready only later (a camera's images, rendered on another
+// thread) declares a pushed stream instead (declare_pushed_stream): it asks whether anyone
+// wants samples (stream_wanted) and pushes each one when it has it (push_sample).
 #ifndef SIMGATE_CORE_COMPONENT_H_
 #define SIMGATE_CORE_COMPONENT_H_
 
@@ -36,6 +39,9 @@
 #include "simgate/core/service.h"
 
 namespace simgate {
+
+class StreamOutlet;    // streams.h
+struct StreamPayload;  // streams.h
 
 // Which way a stream's data flows: out of the simulation (a sensor's samples) or in (an
 // actuator's commands). MORSE's words on the wire: "OUT", "IN".
@@ -62,6 +68,12 @@ struct StreamDeclaration {
   // made from them only when a transport needs it. Empty for any other sample; produce()
   // is then the record as JSON.
   std::function<void(std::span<double>)> produce_record;
+  // out, pushed (declare_pushed_stream): the component's link to the hub that runs the
+  // stream; produce is empty (the hub never asks, the component pushes). Null otherwise.
+  std::shared_ptr<StreamOutlet> outlet;
+  // out, pushed: the samples per simulated second the component pushes while the stream is
+  // wanted (listed as the stream's frequency).
+  double pushed_frequency = 0;
 };
 
 // The most numbers a record sample has.
@@ -108,6 +120,10 @@ class Component {
   const std::shared_ptr<AsyncSlot>& async_slot() const { return slot_; }
   // Its stream, or null when it declared none.
   const StreamDeclaration* stream() const { return stream_ ? &*stream_ : nullptr; }
+  // Whether the pushed stream has subscribers now (an atomic read, cheap enough for every
+  // step): make samples only while it does. False without a pushed stream.
+  bool stream_wanted() const;
+
 
  protected:
   // add_service("set_speed", &MotionVW::set_speed, {"v", "w"}).doc("...");
@@ -130,6 +146,18 @@ class Component {
   //   declare_output_stream("pose", {"x", "y", "z"}, [this](std::span<double> v) { ... });
   void declare_output_stream(std::string kind, std::vector<std::string> fields,
                              std::function<void(std::span<double>)> produce);
+  // A stream whose samples the component pushes when they are ready (push_sample), rather
+  // than the hub reading one when it is due: for samples made off the simulation thread
+  // (a camera's images). `frequency`: how many per simulated second it pushes while
+  // stream_wanted() (> 0; the component keeps that rate itself).
+  //   declare_pushed_stream("image", frequency_);
+  void declare_pushed_stream(std::string kind, double frequency);
+  // Pushes one sample of the pushed stream, of the simulated time `time`: JSON, or a binary
+  // payload (bytes JSON transports see through its to_json, streams.h). Under the
+  // simulation lock (a service, default_action()); fanned out to the subscribers as a
+  // produced sample is. False when nobody took it (no subscriber, no hub, no pushed stream).
+  bool push_sample(double time, json data);
+  bool push_sample(double time, std::shared_ptr<const StreamPayload> payload);
   // An actuator's stream: `apply` takes one command object with the keys `fields`.
   //   declare_input_stream("velocity", {"v", "w"}, [this](const json& c) { ... });
   void declare_input_stream(std::string kind, std::vector<std::string> fields,

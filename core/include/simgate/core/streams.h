@@ -12,6 +12,18 @@
 //    a JSON-RPC client's subscribe, a DDS writer). It keeps the latest `capacity` samples:
 //    a subscriber that falls behind loses its oldest ones, counted (dropped()), and logged
 //    once; the simulation and the other subscribers never wait for it.
+//  - pushed stream: an output stream whose component pushes its samples when it has them
+//    (Component::push_sample, under the simulation lock), instead of the hub reading one
+//    when it is due: a camera's images, which exist only once the render thread has
+//    rendered them. The hub never asks it for a sample; the component asks whether the
+//    stream is wanted (StreamOutlet::wanted: it has subscribers) and keeps its own rate.
+//    A pushed sample goes to every subscriber (it is due by definition, and is a new
+//    subscriber's first), through the same queues, drops, counters and wakes.
+//  - payload: a sample may carry bytes instead of JSON (an image's pixels, raw), with a
+//    small JSON description of them. Typed transports (DDS) read the bytes as they are;
+//    JSON transports read data(), made from the payload by its to_json once, on the first
+//    transport thread that asks (an image's PNG, base64, is encoded there, never under the
+//    simulation lock).
 //  - command: what a client writes to an input stream (a JSON object). The latest wins: a
 //    command not yet applied when a newer one comes is replaced (counted).
 //
@@ -48,6 +60,42 @@
 
 namespace simgate {
 
+// Bytes a sample carries as they are (see payload above). Core knows nothing of what they
+// are: `content` and `description` say it, and the transports that know that content read
+// them (DDS writes an "image" as its Image type); every other transport sees to_json's.
+struct StreamPayload {
+  std::string content;              // what the bytes are: "image"
+  json description;                 // their shape, a few keys (an image: width, height,
+                                    // encoding, step, is_bigendian, intrinsic_matrix)
+  std::vector<std::uint8_t> bytes;  // the data
+  // The sample as JSON transports send it (an image: its record, PNG in base64). Called at
+  // most once per sample, by StreamSample::data(), on the first thread that asks.
+  std::function<json(const StreamPayload&)> to_json;
+};
+
+class StreamHub;
+
+// A pushed stream's link between its component (StreamDeclaration::outlet) and the hub that
+// runs it: StreamHub::add() connects it, remove() (or the hub's end) disconnects it.
+class StreamOutlet {
+ public:
+  explicit StreamOutlet(std::string component) : component_(std::move(component)) {}
+  StreamOutlet(const StreamOutlet&) = delete;
+  StreamOutlet& operator=(const StreamOutlet&) = delete;
+
+  // Whether the stream has subscribers now. Any thread; one atomic read.
+  bool wanted() const { return wanted_.load(std::memory_order_acquire); }
+  // Gives the hub one sample (JSON, or `payload` when not null) of simulated time `time`.
+  // Under the simulation lock. False when no hub runs the stream or nobody subscribes.
+  bool push(double time, json data, std::shared_ptr<const StreamPayload> payload);
+
+ private:
+  friend class StreamHub;
+  const std::string component_;
+  std::atomic<bool> wanted_{false};  // written by the hub under its mutex
+  StreamHub* hub_ = nullptr;         // written by add(), remove(), ~StreamHub: under the simulation lock
+};
+
 // What a transport knows of a stream.
 struct StreamInfo {
   std::string component;                // "robot.pose"
@@ -55,14 +103,15 @@ struct StreamInfo {
   std::string kind;                     // StreamDeclaration::kind: "pose", "velocity"...
   std::string type;                     // the component's type name ("pose", "motion_vw")
   double frequency = 0;                 // out: samples per simulated second; in: 0
+  bool pushed = false;                  // out: its component pushes its samples (see above)
   std::vector<std::string> fields;      // in: the keys a command takes
   std::vector<std::string> transports;  // the transports that carry it
 };
 
 // One sample of an output stream. Immutable once published; shared by every subscriber.
-// Either JSON (the component's get_local_data) or a record: numbers named by the stream's
-// fields (StreamDeclaration::produce_record), whose JSON object is made only when a
-// transport asks for data() or text().
+// Either JSON (the component's get_local_data), or a record: numbers named by the stream's
+// fields (StreamDeclaration::produce_record), or a payload: bytes (StreamPayload). A
+// record's or a payload's JSON is made only when a transport asks for data() or text().
 class StreamSample {
  public:
   StreamSample(std::uint64_t seq, double time, json data) : seq_(seq), time_(time), data_(std::move(data)) {}
@@ -70,6 +119,9 @@ class StreamSample {
   // sample is shared).
   StreamSample(std::uint64_t seq, double time, std::shared_ptr<const std::vector<std::string>> fields)
       : seq_(seq), time_(time), fields_(std::move(fields)) {}
+  // A payload (not null).
+  StreamSample(std::uint64_t seq, double time, std::shared_ptr<const StreamPayload> payload)
+      : seq_(seq), time_(time), payload_(std::move(payload)) {}
 
   std::uint64_t seq() const { return seq_; }   // 1, 2, ... per stream
   double time() const { return time_; }         // simulated seconds the data is of
@@ -78,6 +130,8 @@ class StreamSample {
   // data() as compact JSON text, written once (by whichever thread asks first).
   const std::string& text() const;
   bool is_record() const { return fields_ != nullptr; }
+  // The bytes it carries, or null (a JSON or record sample).
+  const StreamPayload* payload() const { return payload_.get(); }
   // The number named `key`: from the record without JSON, else from the JSON object. Throws
   // std::out_of_range when the sample has no such number.
   double number(std::string_view key) const;
@@ -89,8 +143,9 @@ class StreamSample {
   std::uint64_t seq_;
   double time_;
   std::shared_ptr<const std::vector<std::string>> fields_;  // a record's (null: JSON)
+  std::shared_ptr<const StreamPayload> payload_;            // a payload's (null: JSON)
   std::array<double, k_max_record_fields> values_{};        // a record's, fields_->size() of them
-  mutable std::once_flag data_once_;                        // a record's JSON made
+  mutable std::once_flag data_once_;                        // a record's or payload's JSON made
   mutable json data_;
   mutable std::once_flag text_once_;
   mutable std::string text_;
@@ -202,6 +257,10 @@ class StreamHub {
   // Whether a turn without a step has anything to do: a command waits, or a new subscriber
   // its first sample (a cheap look, for the loop's every turn).
   bool turn_wanted() const { return turn_wanted_.load(std::memory_order_acquire); }
+
+  // A sample of the pushed stream of `component` (StreamOutlet::push, under the simulation
+  // lock): to every subscriber. False when it has none.
+  bool push(const std::string& component, double time, json data, std::shared_ptr<const StreamPayload> payload);
 
   // ---- transports (any thread) ----
 
