@@ -2,7 +2,9 @@
 #include "simgate/sim/cameras.h"
 
 #include <algorithm>
+#include <bit>
 #include <chrono>
+#include <cstring>
 #include <cmath>
 #include <deque>
 #include <condition_variable>
@@ -12,6 +14,8 @@
 #include <Eigen/Geometry>
 
 #include "simgate/core/errors.h"
+#include "simgate/core/log.h"
+#include "simgate/core/streams.h"
 #include "simgate/sim/render_support.h"
 
 namespace simgate::sim {
@@ -31,6 +35,40 @@ json image_record(const RenderResult& r, Camera::Type type) {
   return type == Camera::Type::video ? rgb_image_record(r) : depth_image_record(r);
 }
 
+// A stream sample of one image: its pixels raw (video: "rgb8", 3 bytes a pixel; depth:
+// "32FC1", a float in metres a pixel, 0 where nothing is hit; host byte order, rows top
+// first), described for typed transports; its record (the same as get_local_data's, PNG in
+// base64) made only when a JSON transport asks. Render thread.
+std::shared_ptr<const StreamPayload> image_payload(RenderResult& r, Camera::Type type) {
+  auto payload = std::make_shared<StreamPayload>();
+  payload->content = "image";
+  const bool video = type == Camera::Type::video;
+  const int pixel = video ? 3 : static_cast<int>(sizeof(float));
+  payload->description = {{"width", r.width},
+                          {"height", r.height},
+                          {"encoding", video ? "rgb8" : "32FC1"},
+                          {"step", r.width * pixel},
+                          {"is_bigendian", std::endian::native == std::endian::big},
+                          {"intrinsic_matrix", intrinsic_matrix(r.view)},
+                          {"timestamp", r.timestamp}};
+  if (video) {
+    payload->bytes = std::move(r.rgb);
+  } else {
+    payload->bytes.resize(r.depth.size() * sizeof(float));
+    std::memcpy(payload->bytes.data(), r.depth.data(), payload->bytes.size());
+  }
+  payload->to_json = [type](const StreamPayload& p) {
+    const json& d = p.description;
+    const int width = d.at("width"), height = d.at("height");
+    if (type == Camera::Type::video)
+      return rgb_image_record(width, height, p.bytes, d.at("intrinsic_matrix"), d.at("timestamp"));
+    std::vector<float> depth(p.bytes.size() / sizeof(float));
+    std::memcpy(depth.data(), p.bytes.data(), depth.size() * sizeof(float));
+    return depth_image_record(width, height, depth, d.at("intrinsic_matrix"), d.at("timestamp"));
+  };
+  return payload;
+}
+
 }  // namespace
 
 // Images coming back from the render thread, and the spare scene for the next one.
@@ -42,6 +80,9 @@ struct Camera::Mailbox {
   };
   std::mutex mutex;
   std::deque<Delivery> deliveries;   // for captures, read by default_action()
+  std::deque<std::shared_ptr<const StreamPayload>> stream_images;  // for the stream, ditto
+  std::string stream_error;          // why the last stream render failed ("" when it did not)
+  int stream_in_flight = 0;          // stream renders asked for and not come back
   json last;                         // the last image record (null: none yet)
   std::string last_error;            // why the last render failed
   std::uint64_t renders = 0;         // renders come back
@@ -79,6 +120,9 @@ Camera::Camera(ComponentContext& c, Type type)
   far_ = o.get_number("cam_far", m->vis.map.zfar * m->stat.extent, 1e-6, 1e7);
   if (far_ <= near_) o.fail("cam_far", "a distance beyond cam_near (" + std::to_string(near_) + " m)");
   frequency_ = c.spec().frequency.value_or(k_default_frequency);
+  if (!(frequency_ > 0)) o.fail("frequency", "images per simulated second, > 0");
+  // the image stream: rendered only while someone subscribes, pushed when it comes back
+  declare_pushed_stream(type_ == Type::video ? "image" : "depth_image", frequency_);
 
   const char* kind = type_ == Type::video ? "RGB" : "depth (mm, 16-bit PNG)";
   add_async_service("capture", &Camera::capture, {"n"})
@@ -158,6 +202,25 @@ std::unique_ptr<SceneCopy> Camera::scene_now() {
   return scene;
 }
 
+void Camera::render_for_stream() {
+  std::unique_ptr<SceneCopy> scene = scene_now();
+  const bool depth = type_ == Type::depth;
+  {
+    std::lock_guard lock(mailbox_->mutex);
+    ++mailbox_->stream_in_flight;
+  }
+  renderer_->render(std::move(scene), !depth, depth, [mailbox = mailbox_, type = type_, who = name()](RenderResult result) {
+    std::shared_ptr<const StreamPayload> payload;
+    std::string error = result.error.empty() ? "" : who + ": " + result.error;
+    if (error.empty()) payload = image_payload(result, type);
+    std::lock_guard lock(mailbox->mutex);
+    mailbox->spare = std::move(result.scene);
+    --mailbox->stream_in_flight;
+    mailbox->stream_error = error;
+    if (payload) mailbox->stream_images.push_back(std::move(payload));
+  });
+}
+
 void Camera::render_now(std::uint64_t capture_id, Completion done) {
   std::unique_ptr<SceneCopy> scene = scene_now();
   const bool depth = type_ == Type::depth;
@@ -221,12 +284,18 @@ json Camera::get_local_data() {
 }
 
 void Camera::default_action() {
-  // images of the running capture that came back
+  // images of the running capture and of the stream that came back
   std::deque<Mailbox::Delivery> arrived;
+  std::string stream_error;
+  int stream_in_flight = 0;
   {
     std::lock_guard lock(mailbox_->mutex);
     arrived.swap(mailbox_->deliveries);
+    stream_images_.swap(mailbox_->stream_images);
+    stream_error = mailbox_->stream_error;
+    stream_in_flight = mailbox_->stream_in_flight;
   }
+  stream_step(stream_error, stream_in_flight);
   for (Mailbox::Delivery& delivery : arrived) {
     if (delivery.capture_id != capture_id_ || !has_running_request()) continue;  // of an ended capture
     if (!delivery.error.empty()) {
@@ -255,6 +324,49 @@ void Camera::default_action() {
   }
   --to_render_;
   next_frame_time_ += 1.0 / frequency_;
+}
+
+void Camera::stream_step(const std::string& error, int in_flight) {
+  // the images that came back, in the order rendered (nobody may want them any more: then
+  // push_sample takes none)
+  for (auto& image : stream_images_) {
+    const double time = image->description.at("timestamp").get<double>();
+    push_sample(time, std::move(image));
+  }
+  stream_images_.clear();
+  if (!error.empty() && !stream_error_logged_) {
+    stream_error_logged_ = true;
+    log::warning(error, " (the image stream gives no image while rendering fails; logged once)");
+  }
+  // the schedule in the time of the state an image shows (its timestamp): images exactly
+  // 1/frequency apart (the first step's state is of the step's start, the next ones' of
+  // one timestep before sim_time)
+  const double now = sim().state_time();
+  if (!stream_wanted()) {
+    stream_idle_ = true;
+    return;
+  }
+  // the first image as soon as someone subscribes; after a reset of the clock, from the new time
+  if (stream_idle_ || now < stream_clock_) next_stream_time_ = now;
+  stream_idle_ = false;
+  stream_clock_ = now;
+  if (now + 0.5 * sim().timestep() < next_stream_time_) return;
+  next_stream_time_ += 1.0 / frequency_;
+  if (next_stream_time_ <= now) next_stream_time_ = now + 1.0 / frequency_;  // a reset, or a long pause
+  // the render thread behind: this image is skipped rather than queued (physics never waits)
+  if (in_flight >= k_max_stream_in_flight) {
+    ++stream_skipped_;
+    return;
+  }
+  try {
+    render_for_stream();
+  } catch (const ServiceError& e) {
+    // no GL: the stream gives nothing; logged once
+    if (!stream_error_logged_) {
+      stream_error_logged_ = true;
+      log::warning(e.what(), " (the image stream gives no image; logged once)");
+    }
+  }
 }
 
 void Camera::end_capture() {

@@ -40,27 +40,27 @@ void frame_pose(CameraView& v, const mjtNum* p, const mjtNum* r) {
 
 namespace {
 
-json record_base(const RenderResult& r) {
-  return {{"width", r.width}, {"height", r.height}, {"format", "png"},
-          {"intrinsic_matrix", intrinsic_matrix(r.view)}, {"timestamp", r.timestamp}};
+json record_base(int width, int height, json intrinsic, double timestamp) {
+  return {{"width", width}, {"height", height}, {"format", "png"},
+          {"intrinsic_matrix", std::move(intrinsic)}, {"timestamp", timestamp}};
 }
 
 }  // namespace
 
-json rgb_image_record(const RenderResult& r) {
-  json record = record_base(r);
+json rgb_image_record(int width, int height, std::span<const std::uint8_t> rgb, json intrinsic, double timestamp) {
+  json record = record_base(width, height, std::move(intrinsic), timestamp);
   record["encoding"] = "rgb8";
-  record["image"] = base64_encode(encode_png_rgb8(r.rgb, r.width, r.height));
+  record["image"] = base64_encode(encode_png_rgb8(rgb, width, height));
   return record;
 }
 
-json depth_image_record(const RenderResult& r) {
+json depth_image_record(int width, int height, std::span<const float> depth, json intrinsic, double timestamp) {
   // depth in millimetres, 0 where nothing is hit; the nearest and farthest hit in metres
-  json record = record_base(r);
-  std::vector<std::uint16_t> mm(r.depth.size());
+  json record = record_base(width, height, std::move(intrinsic), timestamp);
+  std::vector<std::uint16_t> mm(depth.size());
   double lowest = std::numeric_limits<double>::infinity(), highest = 0;
-  for (std::size_t i = 0; i < r.depth.size(); ++i) {
-    const double z = r.depth[i];
+  for (std::size_t i = 0; i < depth.size(); ++i) {
+    const double z = depth[i];
     if (z <= 0) continue;
     lowest = std::min(lowest, z);
     highest = std::max(highest, z);
@@ -70,8 +70,16 @@ json depth_image_record(const RenderResult& r) {
   record["depth_unit"] = "mm";
   record["min_depth"] = highest > 0 ? json(lowest) : json(nullptr);
   record["max_depth"] = highest > 0 ? json(highest) : json(nullptr);
-  record["image"] = base64_encode(encode_png_gray16(mm, r.width, r.height));
+  record["image"] = base64_encode(encode_png_gray16(mm, width, height));
   return record;
+}
+
+json rgb_image_record(const RenderResult& r) {
+  return rgb_image_record(r.width, r.height, r.rgb, intrinsic_matrix(r.view), r.timestamp);
+}
+
+json depth_image_record(const RenderResult& r) {
+  return depth_image_record(r.width, r.height, r.depth, intrinsic_matrix(r.view), r.timestamp);
 }
 
 const std::shared_ptr<const mjModel>& RenderModelCopy::get(Renderer& renderer, const Simulation& sim) {

@@ -6,10 +6,14 @@
 // (camera_png.h), so the encoder is checked on the way.
 #include <chrono>
 #include <cstdlib>
+#include <cstring>
+#include <iostream>
 #include <thread>
 
 #include "camera_png.h"
 #include "mjcf_fixture.h"
+#include "simgate/core/streams.h"
+#include "simgate/sim/cameras.h"
 #include "simgate/sim/renderer.h"
 
 namespace simgate::sim {
@@ -69,6 +73,39 @@ class CameraTest : public testing::MjcfSim {
     Outcome o = wait_for(rm_->call(component, "get_image"));
     EXPECT_EQ(o.status, Status::success) << o.message;
     return o.value.value_or(json());
+  }
+
+  // Streams the camera "rig.camera" on the test transport.
+  void stream_camera() {
+    const ComponentEntry* entry = sim_->find("rig.camera");
+    ASSERT_NE(entry, nullptr);
+    sim_->streams().add(*entry->component, entry->type, {"test"});
+  }
+  Camera& camera() { return dynamic_cast<Camera&>(*sim_->find("rig.camera")->component); }
+  // Steps (sleeping a little, so that the render thread keeps up) until `sub` has `n`
+  // samples, or k_deadline; returns those it got.
+  std::vector<SamplePtr> samples_of(StreamSubscription& sub, std::size_t n) {
+    std::vector<SamplePtr> out;
+    const auto deadline = std::chrono::steady_clock::now() + k_deadline;
+    while (out.size() < n && std::chrono::steady_clock::now() < deadline) {
+      sim_->process_requests();
+      sim_->step();
+      sub.take(out);
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    return out;
+  }
+  // Steps until every stream render asked for has come back (bounded).
+  void drain_renders() {
+    auto renderer = Renderer::shared();
+    std::uint64_t last = renderer->renders();
+    for (int quiet = 0, i = 0; quiet < 20 && i < 2000; ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+      sim_->step();
+      const std::uint64_t now = renderer->renders();
+      quiet = now == last ? quiet + 1 : 0;
+      last = now;
+    }
   }
 
   Robot* robot_ = nullptr;
@@ -285,6 +322,121 @@ TEST_F(CameraTest, ASpawnedBodyIsSeenAndADeletedOneIsGone) {
   const Outcome deleted = wait_for(rm_->call("simulation", "delete_entity", {"green"}));
   ASSERT_EQ(deleted.status, Status::success) << deleted.message;
   EXPECT_TRUE(is_red(centre()));
+}
+
+// ---- the image stream ----
+
+TEST_F(CameraTest, TheImageStreamGivesRawPixelsAndPngRecordsOfTheRedBoxAtItsFrequency) {
+  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 64}, {"cam_height", 48}});
+  serve();
+  stream_camera();
+  if (!Renderer::shared()->unavailable().empty()) GTEST_SKIP() << Renderer::shared()->unavailable();
+  const auto info = sim_->streams().find("rig.camera", "test");
+  ASSERT_TRUE(info);
+  EXPECT_TRUE(info->pushed);
+  EXPECT_EQ(info->kind, "image");
+  EXPECT_EQ(info->frequency, 20);  // the camera's (its default), not the hub's default
+  auto sub = sim_->streams().subscribe("rig.camera", "test", {16, "test", {}});
+  const auto samples = samples_of(*sub, 4);
+  ASSERT_EQ(samples.size(), 4u);
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    const StreamSample& s = *samples[i];
+    EXPECT_EQ(s.seq(), i + 1);
+    // raw pixels, described
+    ASSERT_NE(s.payload(), nullptr);
+    const StreamPayload& p = *s.payload();
+    EXPECT_EQ(p.content, "image");
+    EXPECT_EQ(p.description["encoding"], "rgb8");
+    EXPECT_EQ(p.description["width"], 64);
+    EXPECT_EQ(p.description["height"], 48);
+    EXPECT_EQ(p.description["step"], 64 * 3);
+    ASSERT_EQ(p.bytes.size(), 64u * 48 * 3);
+    const std::size_t middle = (24 * 64 + 32) * 3;
+    EXPECT_TRUE(is_red({p.bytes[middle], p.bytes[middle + 1], p.bytes[middle + 2]}));
+    // the JSON record (get_local_data's): a PNG of the same pixels
+    const json& record = s.data();
+    EXPECT_EQ(record["timestamp"], s.time());
+    EXPECT_EQ(record["encoding"], "rgb8");
+    EXPECT_EQ(record["intrinsic_matrix"], p.description["intrinsic_matrix"]);
+    const DecodedPng png = decode_png(decode_base64(record["image"].get<std::string>()));
+    ASSERT_TRUE(png.error.empty()) << png.error;
+    EXPECT_EQ(png.pixels, p.bytes);
+    EXPECT_TRUE(is_red(rgb_at(png, 32, 24)));
+  }
+  // 20 Hz in simulated time: 0.05 s apart, unless the render thread fell behind (an image
+  // skipped, counted): then a multiple of it
+  for (std::size_t i = 1; i < samples.size(); ++i) {
+    const double gap = samples[i]->time() - samples[i - 1]->time();
+    const double periods = std::round(gap / 0.05);
+    EXPECT_GE(periods, 1);
+    EXPECT_NEAR(gap, periods * 0.05, 1e-9);
+    if (camera().stream_skipped() == 0) {
+      EXPECT_NEAR(gap, 0.05, 1e-9);
+    }
+  }
+  std::cout << "[ info     ] stream images skipped (render thread behind): " << camera().stream_skipped() << "\n";
+}
+
+TEST_F(CameraTest, TheDepthStreamGivesMetresAsFloatsAndTheMillimetrePngOnAsking) {
+  add_component(*robot_, "depth", "depth_camera", {{"camera", "front"}, {"cam_width", 40}, {"cam_height", 30}});
+  serve();
+  const ComponentEntry* entry = sim_->find("rig.depth");
+  sim_->streams().add(*entry->component, entry->type, {"test"});
+  if (!Renderer::shared()->unavailable().empty()) GTEST_SKIP() << Renderer::shared()->unavailable();
+  EXPECT_EQ(sim_->streams().find("rig.depth", "test")->kind, "depth_image");
+  auto sub = sim_->streams().subscribe("rig.depth", "test", {16, "test", {}});
+  const auto samples = samples_of(*sub, 1);
+  ASSERT_EQ(samples.size(), 1u);
+  const StreamPayload& p = *samples[0]->payload();
+  EXPECT_EQ(p.description["encoding"], "32FC1");
+  EXPECT_EQ(p.description["step"], 40 * 4);
+  ASSERT_EQ(p.bytes.size(), 40u * 30 * 4);
+  float middle = 0;
+  std::memcpy(&middle, p.bytes.data() + (15 * 40 + 20) * 4, sizeof middle);
+  EXPECT_NEAR(middle, k_face, 0.01);
+  const json& record = samples[0]->data();
+  EXPECT_EQ(record["encoding"], "mono16");
+  const DecodedPng png = decode_png(decode_base64(record["image"].get<std::string>()));
+  ASSERT_TRUE(png.error.empty()) << png.error;
+  EXPECT_NEAR(gray16_at(png, 20, 15), k_face * 1000, 10);
+}
+
+TEST_F(CameraTest, WithoutASubscriberTheStreamRendersNothing) {
+  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 32}, {"cam_height", 24}});
+  serve();
+  stream_camera();
+  auto renderer = Renderer::shared();
+  if (!renderer->unavailable().empty()) GTEST_SKIP() << renderer->unavailable();
+  const std::uint64_t before = renderer->renders();
+  run_for(0.5);  // 10 images' worth at 20 Hz
+  EXPECT_EQ(renderer->renders(), before);
+  // subscribed: it renders; unsubscribed: it stops (once those asked for came back)
+  auto sub = sim_->streams().subscribe("rig.camera", "test", {16, "test", {}});
+  ASSERT_EQ(samples_of(*sub, 2).size(), 2u);
+  EXPECT_GE(renderer->renders(), before + 2);
+  sim_->streams().unsubscribe(sub);
+  drain_renders();
+  const std::uint64_t after = renderer->renders();
+  run_for(0.5);
+  EXPECT_EQ(renderer->renders(), after);
+  EXPECT_EQ(sim_->streams().statistics("test").at(0).subscribers, 0u);
+}
+
+TEST_F(CameraTest, WithoutGlTheStreamGivesNothingAndTheSimulationRuns) {
+  setenv("SIMGATE_RENDERER_UNAVAILABLE", "no GL in this test", 1);
+  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}});
+  serve();
+  stream_camera();
+  auto sub = sim_->streams().subscribe("rig.camera", "test", {16, "test", {}});
+  const double before = sim_->sim_time();
+  run_for(0.5);
+  unsetenv("SIMGATE_RENDERER_UNAVAILABLE");
+  EXPECT_GT(sim_->sim_time(), before + 0.4);
+  std::vector<SamplePtr> samples;
+  sub->take(samples);
+  EXPECT_TRUE(samples.empty());
+  EXPECT_FALSE(sub->closed());  // the subscription stays: a client sees no sample, no error
+  EXPECT_EQ(sim_->streams().statistics("test").at(0).samples, 0u);
 }
 
 // A measurement printed for the docs, never asserted: 320x240 render + readPixels.

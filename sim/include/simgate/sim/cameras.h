@@ -17,6 +17,16 @@
 // renders); `get_local_data`: the last image record (or, when none was rendered yet, one
 // rendered now). docs/components/cameras.md has the options, the record and wire examples.
 //
+// Stream (docs/components/cameras.md 'Streams'): a pushed output stream of kind "image"
+// (video) or "depth_image" (depth), at `frequency` images per simulated second. Only while
+// it has subscribers the camera renders, on the path capture uses (the scene copied under
+// the lock, rendered on the render thread), and pushes each image from default_action()
+// when it comes back: raw pixels (rgb8, or 32FC1 metres) described for typed transports
+// (DDS Image), the record get_local_data returns (PNG, base64) made only when a JSON
+// transport asks. When the render thread is behind (k_max_stream_in_flight renders
+// waiting), an image is skipped, never waited for. Stream images do not change
+// get_local_data's last image.
+//
 // No GL: when the renderer cannot make a context, capture, get_image and get_local_data
 // answer FAILED with its reason; the component is created and everything else runs.
 //
@@ -25,6 +35,7 @@
 #ifndef SIMGATE_SIM_CAMERAS_H_
 #define SIMGATE_SIM_CAMERAS_H_
 
+#include <deque>
 #include <memory>
 #include <optional>
 #include <string>
@@ -43,6 +54,8 @@ class Camera : public SimComponent {
   enum class Type { video, depth };
   // The most images one capture returns (each is carried in its one reply).
   static constexpr long long k_max_capture = 100;
+  // Stream renders waiting on the render thread beyond which the next image is skipped.
+  static constexpr int k_max_stream_in_flight = 2;
 
   Camera(ComponentContext& context, Type type);
   ~Camera() override;
@@ -59,6 +72,8 @@ class Camera : public SimComponent {
   // Where the camera is now and what it sees (from the last computed state).
   CameraView view() const;
   Type type() const { return type_; }
+  // Stream images skipped because the render thread was behind.
+  std::uint64_t stream_skipped() const { return stream_skipped_; }
 
  private:
   struct Mailbox;  // shared with the render thread's callbacks
@@ -70,6 +85,11 @@ class Camera : public SimComponent {
   // Renders the current state; the image record (or error) goes to the mailbox under
   // `capture_id` (0: not for a capture) and to `done` when it is given.
   void render_now(std::uint64_t capture_id, Completion done);
+  // Renders the current state for the stream: the image goes to the mailbox's stream_images.
+  void render_for_stream();
+  // default_action's stream part: pushes the images come back (`error`: the last render's
+  // failure), renders the next one when the stream is wanted and its time has come.
+  void stream_step(const std::string& error, int in_flight);
   // Ends the running capture (its images still coming are dropped).
   void end_capture();
   json pose() const;
@@ -91,6 +111,13 @@ class Camera : public SimComponent {
   long long expected_ = 0;            // images it returns
   double next_frame_time_ = 0;        // simulated time of the next image
   json images_ = json::array();       // its images so far
+  // the stream
+  double next_stream_time_ = 0;       // simulated time of its next image
+  double stream_clock_ = 0;           // simulated time at its last look (a reset goes back)
+  bool stream_idle_ = true;           // nobody wanted it at the last look
+  std::uint64_t stream_skipped_ = 0;  // images skipped (render thread behind)
+  bool stream_error_logged_ = false;
+  std::deque<std::shared_ptr<const StreamPayload>> stream_images_;  // default_action's, reused
 };
 
 // Registers video_camera and depth_camera.

@@ -16,6 +16,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string>
 
 #include <mujoco/mujoco.h>
@@ -37,6 +38,10 @@ void frame_pose(CameraView& view, const mjtNum* p, const mjtNum* r);
 
 json rgb_image_record(const RenderResult& r);
 json depth_image_record(const RenderResult& r);
+// The same from the pieces (an image kept raw and encoded later: a stream's payload).
+// `rgb`: 3 bytes a pixel; `depth`: metres, 0 where nothing is hit; rows top first.
+json rgb_image_record(int width, int height, std::span<const std::uint8_t> rgb, json intrinsic, double timestamp);
+json depth_image_record(int width, int height, std::span<const float> depth, json intrinsic, double timestamp);
 
 class RenderModelCopy {
  public:
