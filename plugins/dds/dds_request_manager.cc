@@ -238,7 +238,8 @@ void DdsRequestManager::run() {
       log::error("DDS transport: waitset failed: ", retcode_text(n));
       break;
     }
-    bool requests = false, outcomes = false, writers = false, samples = n > k_slots, commands = n > k_slots;
+    bool requests = false, outcomes = false, writers = false, samples = n > k_slots, commands = n > k_slots,
+         matched = n > k_slots;
     std::array<dds_entity_t, k_slots> readers;  // reply writers whose match changed
     std::size_t reader_count = 0;
     for (dds_return_t i = 0; i < std::min(n, k_slots); ++i) {
@@ -247,6 +248,7 @@ void DdsRequestManager::run() {
       writers |= triggered[i] == k_token_request_matched;
       samples |= triggered[i] == DdsStreams::k_token_samples;
       commands |= triggered[i] == DdsStreams::k_token_commands;
+      matched |= triggered[i] == DdsStreams::k_token_matched;
       if (triggered[i] > 0) readers[reader_count++] = static_cast<dds_entity_t>(triggered[i]);
     }
     try {
@@ -271,6 +273,7 @@ void DdsRequestManager::run() {
         publish_catalog();
         if (streams_) streams_->sync();  // a component deleted (or spawned) may take its stream along
       }
+      if (streams_ && matched) streams_->update_matches();
       if (streams_ && samples) streams_->write_samples();
       if (streams_ && commands) streams_->take_commands();
       if (requests) take_requests();

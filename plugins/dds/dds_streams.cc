@@ -96,6 +96,27 @@ dds_return_t write_laser_scan(dds_entity_t writer, const std::string& component,
   return dds_write(writer, &scan);
 }
 
+// A camera's image: the payload's bytes as they are (no PNG, no base64, no JSON).
+dds_return_t write_image(dds_entity_t writer, const std::string& component, const StreamSample& sample) {
+  const StreamPayload* payload = sample.payload();
+  if (!payload || payload->content != "image") throw std::invalid_argument("the sample carries no image");
+  const json& d = payload->description;
+  const std::string encoding = d.at("encoding").get<std::string>();
+  auto image = stamped<simgate_stream_Image>(component, sample);
+  image.height = d.at("height").get<std::uint32_t>();
+  image.width = d.at("width").get<std::uint32_t>();
+  image.encoding = const_cast<char*>(encoding.c_str());
+  image.is_bigendian = d.at("is_bigendian").get<bool>();
+  image.step = d.at("step").get<std::uint32_t>();
+  if (static_cast<std::uint64_t>(image.step) * image.height != payload->bytes.size())
+    throw std::invalid_argument("the image has " + std::to_string(payload->bytes.size()) + " bytes, not step x height");
+  const json& k = d.at("intrinsic_matrix");
+  for (int i = 0; i < 9; ++i) image.K[i] = k.at(i / 3).at(i % 3).get<double>();
+  image.data = {static_cast<uint32_t>(payload->bytes.size()), static_cast<uint32_t>(payload->bytes.size()),
+                const_cast<std::uint8_t*>(payload->bytes.data()), false};
+  return dds_write(writer, &image);
+}
+
 // The type of an output stream's topic, by its kind.
 struct OutputType {
   const char* kind;                          // StreamDeclaration::kind
@@ -108,6 +129,8 @@ constexpr OutputType k_output_types[] = {
     {"imu", &simgate_stream_Imu_desc, write_imu},
     {"joint_state", &simgate_stream_JointState_desc, write_joint_state},
     {"laser_scan", &simgate_stream_LaserScan_desc, write_laser_scan},
+    {"image", &simgate_stream_Image_desc, write_image},
+    {"depth_image", &simgate_stream_Image_desc, write_image},
 };
 constexpr OutputType k_json_output{"", &simgate_stream_JsonSample_desc, nullptr};
 
@@ -186,7 +209,7 @@ void DdsStreams::sync() {
     }
   }
   for (auto it = outputs_.begin(); it != outputs_.end();) {
-    if (listed.count(it->first) && !it->second->subscription->closed()) {
+    if (listed.count(it->first) && !(it->second->subscription && it->second->subscription->closed())) {
       ++it;
       continue;
     }
@@ -213,16 +236,46 @@ void DdsStreams::add_output(const StreamInfo& info) {
   dds_qset_reliability(qos.get(), DDS_RELIABILITY_BEST_EFFORT, 0);
   output->writer = check(dds_create_writer(publisher_, topic(output->topic, output->type->descriptor), qos.get(), nullptr),
                          "writer " + output->topic);
-  const dds_entity_t guard = guard_;
-  output->subscription = hub_->subscribe(
-      info.component, transport_,
-      {k_subscription_capacity, "DDS topic " + output->topic, [guard] { dds_set_guardcondition(guard, true); }});
+  if (info.pushed) {
+    // a pushed stream (a camera's) costs its component work while subscribed: subscribed to
+    // only while the writer has a matched reader (update_matches)
+    check(dds_set_status_mask(output->writer, DDS_PUBLICATION_MATCHED_STATUS), "status mask " + output->topic);
+    check(dds_waitset_attach(waitset_, output->writer, k_token_matched), "waitset attachment " + output->topic);
+    write_entry(info, output->topic, output->type->descriptor->m_typename);
+    Output& added = *outputs_.emplace(info.component, std::move(output)).first->second;
+    dds_publication_matched_status_t status;
+    if (dds_get_publication_matched_status(added.writer, &status) == 0 && status.current_count > 0)
+      subscribe_output(added);
+    return;
+  }
+  subscribe_output(*output);
   if (!output->subscription) {
     dds_delete(output->writer);
     return;  // gone meanwhile
   }
   write_entry(info, output->topic, output->type->descriptor->m_typename);
   outputs_.emplace(info.component, std::move(output));
+}
+
+void DdsStreams::subscribe_output(Output& output) {
+  const dds_entity_t guard = guard_;
+  output.subscription = hub_->subscribe(
+      output.info.component, transport_,
+      {k_subscription_capacity, "DDS topic " + output.topic, [guard] { dds_set_guardcondition(guard, true); }});
+}
+
+void DdsStreams::update_matches() {
+  for (auto& [component, output] : outputs_) {
+    if (!output->info.pushed) continue;
+    dds_publication_matched_status_t status;
+    if (dds_get_publication_matched_status(output->writer, &status) != 0) continue;  // also resets the trigger
+    if (status.current_count > 0 && !output->subscription) {
+      subscribe_output(*output);
+    } else if (status.current_count == 0 && output->subscription) {
+      hub_->unsubscribe(output->subscription);
+      output->subscription.reset();
+    }
+  }
 }
 
 dds_entity_t DdsStreams::add_reader(const std::string& name, const dds_topic_descriptor_t* descriptor) {
@@ -251,6 +304,7 @@ void DdsStreams::add_input(const StreamInfo& info) {
 
 void DdsStreams::remove_output(Output& output) {
   hub_->unsubscribe(output.subscription);
+  if (output.info.pushed) dds_waitset_detach(waitset_, output.writer);
   dds_delete(output.writer);
   dispose_entry(output.topic);
   log::info("DDS transport: stream topic ", output.topic, " ended (", output.info.component, " is gone)");
@@ -298,6 +352,7 @@ void DdsStreams::write_samples() {
   dds_take_guardcondition(guard_, &ignored);
   bool closed = false;
   for (auto& [component, output] : outputs_) {
+    if (!output->subscription) continue;  // a pushed stream nobody reads
     taken_.clear();
     output->subscription->take(taken_);
     closed |= output->subscription->closed();

@@ -49,6 +49,8 @@ class DdsStreams {
   // Waitset tokens (see DdsRequestManager::run): samples are waiting; commands are waiting.
   static constexpr dds_attach_t k_token_samples = -4;
   static constexpr dds_attach_t k_token_commands = -5;
+  // the match of a pushed stream's writer changed (a reader came or went)
+  static constexpr dds_attach_t k_token_matched = -6;
 
   // Host thread, before the DDS thread starts: creates the catalog writer and the guard
   // condition, attached to `waitset`. Throws std::runtime_error when DDS fails.
@@ -65,6 +67,9 @@ class DdsStreams {
   void write_samples();
   // Takes the commands of every input reader and publishes them to the hub.
   void take_commands();
+  // Pushed streams (a camera's: it renders only while subscribed): subscribes to those whose
+  // writer has a matched reader now, unsubscribes from those whose writer has none.
+  void update_matches();
 
  private:
   struct Output;
@@ -74,6 +79,7 @@ class DdsStreams {
   void add_output(const StreamInfo& info);
   void add_input(const StreamInfo& info);
   void remove_output(Output& output);
+  void subscribe_output(Output& output);
   void remove_input(Input& input);
   dds_entity_t add_reader(const std::string& name, const dds_topic_descriptor_t* descriptor);
   void write_entry(const StreamInfo& info, const std::string& topic, const char* type_name);

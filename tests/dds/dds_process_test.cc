@@ -368,6 +368,90 @@ TEST(DdsStreamsTest, AStreamOfAnotherKindArrivesAsJsonSample) {
   EXPECT_EQ(count, 3) << text;
 }
 
+// A gateway on DDS whose camera (640 x 480, 10 Hz) looks at a red box and streams on DDS.
+class CameraOnDds {
+ public:
+  CameraOnDds() {
+    dir_ = fs::path(SIMGATE_BINARY_DIR) / "tests" / "dds" / ("camera-" + std::to_string(getpid()));
+    fs::create_directories(dir_);
+    const std::string scene = (dir_ / "scene.xml").string();
+    std::ofstream(scene) << R"(<mujoco model="camera-stream">
+  <option timestep="0.005"/>
+  <visual><headlight ambient="0.4 0.4 0.4" diffuse="0.6 0.6 0.6"/></visual>
+  <worldbody>
+    <light pos="0 0 5" dir="0 0 -1"/>
+    <geom name="floor" type="plane" size="10 10 0.1" rgba="0.5 0.5 0.5 1"/>
+    <body name="rig" pos="0 0 0.5">
+      <geom type="sphere" size="0.01" contype="0" conaffinity="0" rgba="0 0 1 0"/>
+      <camera name="front" xyaxes="0 -1 0 0 0 1" fovy="60"/>
+    </body>
+    <body name="target" pos="2 0 0.5">
+      <geom name="red_box" type="box" size="0.3 0.3 0.3" rgba="1 0 0 1"/>
+    </body>
+  </worldbody>
+</mujoco>)";
+    json config = {
+        {"scene", {{"mjcf", scene}, {"timestep", 0.005}, {"realtime_factor", 1.0}}},
+        {"transports", {{"dds", {{"plugin", "dds"}, {"options", server_options(test_partition())}}}}},
+        {"services", {{"default", {"dds"}}}},
+        {"robots", json::array({{{"name", "rig"},
+                                 {"type", "robot"},
+                                 {"body", "rig"},
+                                 {"components", json::array({{{"name", "camera"},
+                                                              {"type", "video_camera"},
+                                                              {"frequency", 10},
+                                                              {"options", {{"camera", "front"},
+                                                                           {"cam_width", 640},
+                                                                           {"cam_height", 480}}}}})}}})},
+        {"streams", {{"rig.camera", {"dds"}}}},
+    };
+    const std::string path = (dir_ / "deployment.json").string();
+    std::ofstream(path) << config.dump(2);
+    gateway_ = std::make_unique<Child>(std::vector<std::string>{k_gateway, "run", path, "--plugin-path", SIMGATE_TEST_PLUGIN_DIR},
+                                       /*with_stderr=*/true);
+  }
+  ~CameraOnDds() {
+    gateway_->terminate();
+    fs::remove_all(dir_);
+  }
+  bool running() const { return gateway_->running(); }
+
+ private:
+  fs::path dir_;
+  std::unique_ptr<Child> gateway_;
+};
+
+TEST(DdsStreamsTest, ACamerasStreamIsATypedImageOfRawPixels) {
+  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  CameraOnDds camera;
+  ASSERT_TRUE(camera.running());
+  std::string catalog = RoverOnDds::client({"catalog", "1"});
+  EXPECT_NE(catalog.find("simgate/rig/camera simgate::stream::Image rig.camera"), std::string::npos) << catalog;
+  // "seq time width height encoding step bytes R G B" (the middle pixel)
+  const std::string text = RoverOnDds::client({"image", "simgate/rig/camera", "3"});
+  std::istringstream lines(text);
+  int count = 0;
+  double last_time = -1;
+  for (std::string line; std::getline(lines, line);) {
+    std::istringstream fields(line);
+    std::uint64_t seq = 0;
+    double time = -1;
+    unsigned width = 0, height = 0, step = 0, bytes = 0, r = 0, g = 0, b = 0;
+    std::string encoding;
+    if (!(fields >> seq >> time >> width >> height >> encoding >> step >> bytes >> r >> g >> b)) continue;
+    ++count;
+    EXPECT_EQ(width, 640u) << line;
+    EXPECT_EQ(height, 480u) << line;
+    EXPECT_EQ(encoding, "rgb8") << line;
+    EXPECT_EQ(step, 640u * 3) << line;
+    EXPECT_EQ(bytes, 640u * 480 * 3) << line;
+    EXPECT_TRUE(r > 100 && r > 3 * g && r > 3 * b) << line;
+    EXPECT_GT(time, last_time) << line;
+    last_time = time;
+  }
+  EXPECT_EQ(count, 3) << text;
+}
+
 // Runs a command, returns its exit code.
 int run(const std::string& command) { return std::system((command + " >/dev/null 2>&1").c_str()); }
 

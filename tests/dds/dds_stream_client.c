@@ -2,6 +2,8 @@
    "Data streams"; run by DdsStreamsTest). Built from simgate_streams.idl alone.
    usage: dds_stream_client DOMAIN PARTITION XML pose TOPIC COUNT      prints "seq time x y z yaw" per sample
           dds_stream_client DOMAIN PARTITION XML json TOPIC COUNT      prints "seq time kind json" per sample
+          dds_stream_client DOMAIN PARTITION XML image TOPIC COUNT     prints "seq time width height encoding step bytes
+                                                                       R G B" (rgb8: the middle pixel) per Image
           dds_stream_client DOMAIN PARTITION XML velocity TOPIC V W    writes one Velocity command
           dds_stream_client DOMAIN PARTITION XML command TOPIC JSON    writes one JsonCommand
           dds_stream_client DOMAIN PARTITION XML catalog COUNT [S]     prints "topic type component" per alive entry
@@ -24,6 +26,15 @@ static int read_samples(dds_entity_t rd, const char *mode, int count, int second
       } else if (si.valid_data && strcmp(mode, "json") == 0) {
         const simgate_stream_JsonSample *j = s[0];
         printf("%llu %.6f %s %s\n", (unsigned long long)j->seq, j->time, j->kind, j->json), got++;
+      } else if (si.valid_data && strcmp(mode, "image") == 0) {
+        const simgate_stream_Image *m = s[0];
+        unsigned r = 0, g = 0, b = 0;
+        if (strcmp(m->encoding, "rgb8") == 0 && m->data._length >= m->step * m->height && m->height > 0) {
+          const unsigned char *px = m->data._buffer + (m->height / 2) * m->step + (m->width / 2) * 3;
+          r = px[0], g = px[1], b = px[2];
+        }
+        printf("%llu %.6f %u %u %s %u %u %u %u %u\n", (unsigned long long)m->seq, m->time, m->width, m->height,
+               m->encoding, m->step, m->data._length, r, g, b), got++;
       } else if (si.valid_data) {
         const simgate_stream_StreamEntry *e = s[0];
         printf("%s %s %s\n", e->topic, e->type_name, e->component), got++;
@@ -46,10 +57,12 @@ int main(int argc, char **argv) {
   dds_qset_partition1(q, argv[2]); /* the simulation's partition */
   dds_entity_t sub = dds_create_subscriber(pp, q, NULL), pub = dds_create_publisher(pp, q, NULL);
   int rc = 2;
-  if (strcmp(mode, "pose") == 0 || strcmp(mode, "json") == 0) { /* sensors: best effort, latest sample */
+  if (strcmp(mode, "pose") == 0 || strcmp(mode, "json") == 0 || strcmp(mode, "image") == 0) { /* sensors: best effort, latest sample */
     dds_qset_reliability(q, DDS_RELIABILITY_BEST_EFFORT, 0);
     dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 1);
-    const dds_topic_descriptor_t *type = strcmp(mode, "pose") == 0 ? &simgate_stream_Pose_desc : &simgate_stream_JsonSample_desc;
+    const dds_topic_descriptor_t *type = strcmp(mode, "pose") == 0    ? &simgate_stream_Pose_desc
+                                         : strcmp(mode, "image") == 0 ? &simgate_stream_Image_desc
+                                                                      : &simgate_stream_JsonSample_desc;
     dds_entity_t rd = dds_create_reader(sub, dds_create_topic(pp, type, argv[5], NULL, NULL), q, NULL);
     rc = argc > 6 ? read_samples(rd, mode, atoi(argv[6]), 60) : 2;
   } else if (strcmp(mode, "catalog") == 0) { /* the catalog: reliable, transient-local */

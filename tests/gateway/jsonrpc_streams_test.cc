@@ -3,9 +3,16 @@
 // unsubscribe and publish commands over a real socket.
 #include <gtest/gtest.h>
 
-#include <chrono>
+#include <unistd.h>
 
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "../sim/camera_png.h"
 #include "in_process_gateway.h"
+#include "simgate/sim/renderer.h"
 
 namespace simgate::gateway::testing {
 namespace {
@@ -196,6 +203,85 @@ TEST(JsonRpcStreamsTest, AClientThatLeavesEndsItsSubscriptions) {
     std::this_thread::sleep_for(10ms);
   }
   EXPECT_EQ(stream_of(stats, "robot.pose")["subscribers"], 0) << stats.dump();
+}
+
+// A camera's image stream (issue #22): a video_camera looking at a red box streams at its
+// frequency, in simulated time, each sample the record get_local_data returns (PNG, base64).
+class CameraScene {
+ public:
+  CameraScene() {
+    path_ = std::filesystem::temp_directory_path() / ("simgate-camera-stream-" + std::to_string(getpid()) + ".xml");
+    std::ofstream(path_) << R"(<mujoco model="camera-stream">
+  <option timestep="0.005"/>
+  <visual><headlight ambient="0.4 0.4 0.4" diffuse="0.6 0.6 0.6"/></visual>
+  <worldbody>
+    <light pos="0 0 5" dir="0 0 -1"/>
+    <geom name="floor" type="plane" size="10 10 0.1" rgba="0.5 0.5 0.5 1"/>
+    <body name="rig" pos="0 0 0.5">
+      <geom type="sphere" size="0.01" contype="0" conaffinity="0" rgba="0 0 1 0"/>
+      <camera name="front" xyaxes="0 -1 0 0 0 1" fovy="60"/>
+    </body>
+    <body name="target" pos="2 0 0.5">
+      <geom name="red_box" type="box" size="0.3 0.3 0.3" rgba="1 0 0 1"/>
+    </body>
+  </worldbody>
+</mujoco>)";
+  }
+  ~CameraScene() { std::filesystem::remove(path_); }
+  json config() const {
+    json c = demo_config();
+    c["scene"] = {{"mjcf", path_.string()}, {"timestep", 0.005}, {"realtime_factor", 1.0}};
+    c["transports"]["jsonrpc"] = {{"plugin", "jsonrpc"}, {"options", {{"port", 0}}}};
+    c["services"] = {{"default", {"socket", "jsonrpc"}}};
+    c["robots"] = json::array({{{"name", "rig"},
+                                {"type", "robot"},
+                                {"body", "rig"},
+                                {"components",
+                                 json::array({{{"name", "camera"},
+                                               {"type", "video_camera"},
+                                               {"frequency", 10},
+                                               {"options", {{"camera", "front"}, {"cam_width", 64}, {"cam_height", 48}}}}})}}});
+    c["streams"] = {{"rig.camera", {"jsonrpc"}}};
+    return c;
+  }
+
+ private:
+  std::filesystem::path path_;
+};
+
+TEST(JsonRpcStreamsTest, ACamerasStreamGivesPngRecordsOfWhatItSeesAtItsFrequency) {
+  auto renderer = sim::Renderer::shared();
+  if (!renderer->unavailable().empty()) GTEST_SKIP() << "no GL: " << renderer->unavailable();
+  CameraScene scene;
+  InProcessGateway g(scene.config());
+  StreamClient c(g.port("jsonrpc"));
+  json subscribed = c.call(1, "rpc.subscribe", {{"component", "rig.camera"}});
+  ASSERT_TRUE(subscribed.contains("result")) << subscribed.dump();
+  EXPECT_EQ(subscribed["result"]["stream"]["kind"], "image");
+  EXPECT_EQ(subscribed["result"]["stream"]["frequency"], 10);
+  std::vector<json> samples;
+  for (int i = 0; i < 3; ++i) {
+    json sample = c.next_sample(60s);
+    ASSERT_FALSE(sample.is_null());
+    samples.push_back(std::move(sample));
+  }
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    const json& data = samples[i]["data"];
+    EXPECT_EQ(samples[i]["component"], "rig.camera");
+    EXPECT_EQ(data["timestamp"], samples[i]["time"]);
+    EXPECT_EQ(data["width"], 64);
+    EXPECT_EQ(data["format"], "png");
+    const auto png = sim::testing::decode_png(sim::testing::decode_base64(data["image"].get<std::string>()));
+    ASSERT_TRUE(png.error.empty()) << png.error;
+    const std::size_t middle = (24 * 64 + 32) * 3;
+    const int r = png.pixels[middle], green = png.pixels[middle + 1], b = png.pixels[middle + 2];
+    EXPECT_TRUE(r > 100 && r > 3 * green && r > 3 * b) << r << " " << green << " " << b;
+    if (i == 0) continue;
+    // 10 Hz in simulated time: 0.1 s apart (a multiple, if the render thread fell behind)
+    const double gap = samples[i]["time"].get<double>() - samples[i - 1]["time"].get<double>();
+    EXPECT_GE(std::round(gap / 0.1), 1);
+    EXPECT_NEAR(gap, std::round(gap / 0.1) * 0.1, 1e-6);
+  }
 }
 
 }  // namespace
