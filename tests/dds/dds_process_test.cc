@@ -427,6 +427,18 @@ TEST(DdsStreamsTest, ACamerasStreamIsATypedImageOfRawPixels) {
   ASSERT_TRUE(camera.running());
   std::string catalog = RoverOnDds::client({"catalog", "1"});
   EXPECT_NE(catalog.find("simgate/rig/camera simgate::stream::Image rig.camera"), std::string::npos) << catalog;
+  // no reader yet: the transport does not subscribe, the camera renders nothing
+  auto statistics = [] {
+    Child call({k_c_client, std::to_string(test_domain()), test_partition(), "simulation", "get_stream_statistics", "[]",
+                read_file(SIMGATE_LOOPBACK_DDS_XML)});
+    std::string out = call.read_until("\n", 60s);
+    call.wait_exit(30s);
+    return out;
+  };
+  const std::string before = statistics();
+  EXPECT_NE(before.find("SUCCESS"), std::string::npos) << before;
+  EXPECT_EQ(before.find("\"samples\": 0") == std::string::npos && before.find("\"samples\":0") == std::string::npos, false)
+      << before;
   // "seq time width height encoding step bytes R G B" (the middle pixel)
   const std::string text = RoverOnDds::client({"image", "simgate/rig/camera", "3"});
   std::istringstream lines(text);
@@ -450,6 +462,13 @@ TEST(DdsStreamsTest, ACamerasStreamIsATypedImageOfRawPixels) {
     last_time = time;
   }
   EXPECT_EQ(count, 3) << text;
+  // the reader gone: unsubscribed again (eventually: its leaving is discovered)
+  std::string after;
+  const bool unsubscribed = eventually([&] {
+    after = statistics();
+    return after.find("\"subscribers\": 0") != std::string::npos || after.find("\"subscribers\":0") != std::string::npos;
+  }, 30s);
+  EXPECT_TRUE(unsubscribed) << after;
 }
 
 // Runs a command, returns its exit code.
