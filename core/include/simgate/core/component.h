@@ -124,7 +124,6 @@ class Component {
   // step): make samples only while it does. False without a pushed stream.
   bool stream_wanted() const;
 
-
  protected:
   // add_service("set_speed", &MotionVW::set_speed, {"v", "w"}).doc("...");
   // fn: a member function of the derived class, or any callable.
