@@ -24,6 +24,7 @@
 
 #include <gtest/gtest.h>
 
+#include "../sim/camera_scene.h"
 #include "dds_test_support.h"
 
 extern char** environ;
@@ -375,21 +376,7 @@ class CameraOnDds {
     dir_ = fs::path(SIMGATE_BINARY_DIR) / "tests" / "dds" / ("camera-" + std::to_string(getpid()));
     fs::create_directories(dir_);
     const std::string scene = (dir_ / "scene.xml").string();
-    std::ofstream(scene) << R"(<mujoco model="camera-stream">
-  <option timestep="0.005"/>
-  <visual><headlight ambient="0.4 0.4 0.4" diffuse="0.6 0.6 0.6"/></visual>
-  <worldbody>
-    <light pos="0 0 5" dir="0 0 -1"/>
-    <geom name="floor" type="plane" size="10 10 0.1" rgba="0.5 0.5 0.5 1"/>
-    <body name="rig" pos="0 0 0.5">
-      <geom type="sphere" size="0.01" contype="0" conaffinity="0" rgba="0 0 1 0"/>
-      <camera name="front" xyaxes="0 -1 0 0 0 1" fovy="60"/>
-    </body>
-    <body name="target" pos="2 0 0.5">
-      <geom name="red_box" type="box" size="0.3 0.3 0.3" rgba="1 0 0 1"/>
-    </body>
-  </worldbody>
-</mujoco>)";
+    std::ofstream(scene) << simgate::testing::red_box_scene("camera-stream", "0.005", "10", /*eye_site=*/false);
     json config = {
         {"scene", {{"mjcf", scene}, {"timestep", 0.005}, {"realtime_factor", 1.0}}},
         {"transports", {{"dds", {{"plugin", "dds"}, {"options", server_options(test_partition())}}}}},

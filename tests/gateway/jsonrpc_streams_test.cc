@@ -11,6 +11,7 @@
 #include <fstream>
 
 #include "../sim/camera_png.h"
+#include "../sim/camera_scene.h"
 #include "in_process_gateway.h"
 #include "simgate/sim/renderer.h"
 
@@ -211,21 +212,7 @@ class CameraScene {
  public:
   CameraScene() {
     path_ = std::filesystem::temp_directory_path() / ("simgate-camera-stream-" + std::to_string(getpid()) + ".xml");
-    std::ofstream(path_) << R"(<mujoco model="camera-stream">
-  <option timestep="0.005"/>
-  <visual><headlight ambient="0.4 0.4 0.4" diffuse="0.6 0.6 0.6"/></visual>
-  <worldbody>
-    <light pos="0 0 5" dir="0 0 -1"/>
-    <geom name="floor" type="plane" size="10 10 0.1" rgba="0.5 0.5 0.5 1"/>
-    <body name="rig" pos="0 0 0.5">
-      <geom type="sphere" size="0.01" contype="0" conaffinity="0" rgba="0 0 1 0"/>
-      <camera name="front" xyaxes="0 -1 0 0 0 1" fovy="60"/>
-    </body>
-    <body name="target" pos="2 0 0.5">
-      <geom name="red_box" type="box" size="0.3 0.3 0.3" rgba="1 0 0 1"/>
-    </body>
-  </worldbody>
-</mujoco>)";
+    std::ofstream(path_) << simgate::testing::red_box_scene("camera-stream", "0.005", "10", /*eye_site=*/false);
   }
   ~CameraScene() { std::filesystem::remove(path_); }
   json config() const {

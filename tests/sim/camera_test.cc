@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "camera_png.h"
+#include "camera_scene.h"
 #include "mjcf_fixture.h"
 #include "simgate/core/streams.h"
 #include "simgate/sim/cameras.h"
@@ -26,24 +27,7 @@ using testing::decode_base64;
 
 // A rig 0.5 m above a grey floor, looking along +x (MJCF camera "front", and site "eye"
 // for a frame camera); a red box whose near face is at x = 1.7 m, centred on the axis.
-constexpr const char* k_scene = R"(
-<mujoco model="camera-test">
-  <option timestep="0.01"/>
-  <visual><headlight ambient="0.4 0.4 0.4" diffuse="0.6 0.6 0.6"/></visual>
-  <worldbody>
-    <light pos="0 0 5" dir="0 0 -1"/>
-    <geom name="floor" type="plane" size="10 10 0.1" rgba="0.5 0.5 0.5 1"/>
-    <body name="rig" pos="0 0 0.5">
-      <geom type="sphere" size="0.01" contype="0" conaffinity="0" rgba="0 0 1 0"/>
-      <camera name="front" xyaxes="0 -1 0 0 0 1" fovy="60"/>
-      <site name="eye"/>
-    </body>
-    <body name="target" pos="2 0 0.5">
-      <geom name="red_box" type="box" size="0.3 0.3 0.3" rgba="1 0 0 1"/>
-    </body>
-  </worldbody>
-</mujoco>
-)";
+const std::string k_scene = simgate::testing::red_box_scene("camera-test", "0.01", "10", /*eye_site=*/true);
 
 constexpr double k_face = 1.7;  // m from the rig to the box's near face
 // bounds every wait on the render thread

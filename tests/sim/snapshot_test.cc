@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "camera_png.h"
+#include "camera_scene.h"
 #include "mjcf_fixture.h"
 #include "simgate/sim/snapshot.h"
 
@@ -21,23 +22,7 @@ using testing::decode_base64;
 using testing::decode_png;
 
 // A red box 1.7 m in front of MJCF camera "front", on a grey floor.
-constexpr const char* k_scene = R"(
-<mujoco model="snapshot-test">
-  <option timestep="0.01"/>
-  <visual><headlight ambient="0.4 0.4 0.4" diffuse="0.6 0.6 0.6"/></visual>
-  <worldbody>
-    <light pos="0 0 5" dir="0 0 -1"/>
-    <geom name="floor" type="plane" size="3 3 0.1" rgba="0.5 0.5 0.5 1"/>
-    <body name="rig" pos="0 0 0.5">
-      <geom type="sphere" size="0.01" contype="0" conaffinity="0" rgba="0 0 1 0"/>
-      <camera name="front" xyaxes="0 -1 0 0 0 1" fovy="60"/>
-    </body>
-    <body name="target" pos="2 0 0.5">
-      <geom name="red_box" type="box" size="0.3 0.3 0.3" rgba="1 0 0 1"/>
-    </body>
-  </worldbody>
-</mujoco>
-)";
+const std::string k_scene = simgate::testing::red_box_scene("snapshot-test", "0.01", "3", /*eye_site=*/false);
 
 constexpr auto k_deadline = std::chrono::seconds(60);  // bounds every wait on the render thread
 
