@@ -65,6 +65,8 @@ SupervisionServices::SupervisionServices(Simulation& sim) : Component("simulatio
       .doc("{name: [children, [x, y, z], [qx, qy, qz, qw]]} for every body");
   add_service("quit", &SupervisionServices::quit).doc("Stop the simulation cleanly (replies are sent first)");
   add_world_services(*this, sim);
+  // every body's pose, for a client that draws the scene (scene_geometry.cc)
+  declare_output_stream("body_poses", [this] { return body_poses(sim_); });
 }
 
 void SupervisionServices::on_step(std::function<void()> fn) { step_hooks_.push_back(std::move(fn)); }

@@ -11,6 +11,7 @@ void add_world_services(SupervisionServices& simulation, Simulation& sim) {
   add_process_services(simulation, sim);
   add_spawn_services(simulation, sim);
   add_snapshot_services(simulation, sim);
+  add_scene_geometry_services(simulation, sim);
 }
 
 }  // namespace simgate::sim

@@ -17,6 +17,10 @@
 // get_scene_objects lists bodies, not components: the whole scene. reset_objects and
 // suspend/restore_dynamics act on the world as a whole. Called directly (no request: the
 // host, tests), everything is visible.
+// simulation's output stream, kind "body_poses" (carried when the configuration's "streams"
+// section names `simulation`, at k_body_poses_frequency unless it says otherwise): every
+// body's world pose, {timestamp, generation, poses: [[x, y, z, qw, qx, qy, qz], ...]}, for a
+// client that draws the scene from get_scene_geometry (docs/world/scene_geometry.md).
 // time: now (simulated time, seconds since the epoch at start), async sleep t (completes
 // when t simulated seconds have passed; a concurrent service: every caller sleeps on its
 // own), statistics, mode, set_time_scale value (the real-time factor, changed at run time).
@@ -38,6 +42,10 @@ namespace simgate::sim {
 class SupervisionServices : public Component {
  public:
   explicit SupervisionServices(Simulation& sim);
+
+  // The body_poses stream's samples per simulated second when the configuration gives none
+  // (a browser redraws at 60 Hz at most; half of that is smooth and half the traffic).
+  static constexpr double k_body_poses_frequency = 30;
 
   std::vector<std::string> list_robots() const;
   json details() const;

@@ -15,6 +15,9 @@
 //   process_services.cc  terminate, set_log_level (docs/world/entities.md)
 //   spawn.cc         spawn_entity, delete_entity (docs/world/spawn.md)
 //   snapshot.cc      get_snapshot: a picture of the scene (docs/world/snapshot.md)
+//   scene_geometry.cc  get_scene_geometry: bodies, geoms and meshes for a client that draws
+//                    the scene itself; the body_poses samples of the `simulation` component's
+//                    stream (docs/world/scene_geometry.md)
 //
 // Threads: simulation thread only, as every service.
 #ifndef SIMGATE_SIM_WORLD_SERVICES_H_
@@ -35,6 +38,14 @@ void add_entity_services(SupervisionServices& simulation, Simulation& sim);
 void add_process_services(SupervisionServices& simulation, Simulation& sim);
 void add_spawn_services(SupervisionServices& simulation, Simulation& sim);
 void add_snapshot_services(SupervisionServices& simulation, Simulation& sim);
+void add_scene_geometry_services(SupervisionServices& simulation, Simulation& sim);
+
+// get_scene_geometry's answer: {timestamp, generation, bodies, geoms, meshes} (meshes []
+// unless `include_meshes`). Poses are of state_time(), the time every sensor stamps.
+json scene_geometry(const Simulation& sim, bool include_meshes);
+// One sample of the `simulation` component's body_poses stream: {timestamp, generation,
+// poses: [[x, y, z, qw, qx, qy, qz] per body, in id order]} (world frame).
+json body_poses(const Simulation& sim);
 
 }  // namespace simgate::sim
 
