@@ -59,6 +59,18 @@ std::vector<std::string> string_list(const json& value, const std::string& path)
   return out;
 }
 
+// A "streams" rule written as an object: {"transports": [names], "frequency": Hz (optional)}.
+std::vector<std::string> stream_rule(const json& value, const std::string& path, std::optional<double>& frequency) {
+  ConfigObject rule(value, path);
+  auto transports = rule.get_json("transports");
+  if (!transports)
+    rule.fail("transports", "an array of the transport names that carry the stream");
+  std::vector<std::string> list = string_list(*transports, rule.path_of("transports"));
+  if (rule.has("frequency")) frequency = rule.get_number("frequency", StreamHub::k_default_frequency, 1e-3, 1e6);
+  rule.allow_only({"transports", "frequency"});
+  return list;
+}
+
 // 'simulation.quit' as the user wrote it, or, when it is long or not printable ASCII, its
 // bounded JSON preview (an error message must not carry a whole 10 MB value nor control
 // characters).
@@ -257,20 +269,30 @@ std::vector<std::string> Deployment::component_names() const {
 
 namespace {
 
-// The transports `rules` give `component`: its exact name, else the most specific matching
-// glob (most literal characters; ties: first in key order), else `fallback`.
-std::vector<std::string> match_rules(const std::vector<ServiceRule>& rules,
-                                     const std::optional<std::vector<std::string>>& fallback,
-                                     const std::string& component) {
+// The rule of `rules` that gives `component` its transports: its exact name, else the most
+// specific matching glob (most literal characters; ties: first in key order); null when none
+// does (the caller's fallback, "default", applies).
+const ServiceRule* best_rule(const std::vector<ServiceRule>& rules, const std::string& component) {
   for (const auto& r : rules)
-    if (!is_glob(r.pattern) && r.pattern == component) return r.transports;
+    if (!is_glob(r.pattern) && r.pattern == component) return &r;
   const ServiceRule* best = nullptr;
   for (const auto& r : rules)
     if (is_glob(r.pattern) && glob_matches(r.pattern, component) &&
         (!best || literal_chars(r.pattern) > literal_chars(best->pattern)))
       best = &r;
-  if (best) return best->transports;
+  return best;
+}
+
+// The transports `rules` give `component` (best_rule), else `fallback`.
+std::vector<std::string> match_rules(const std::vector<ServiceRule>& rules,
+                                     const std::optional<std::vector<std::string>>& fallback,
+                                     const std::string& component) {
+  if (const ServiceRule* r = best_rule(rules, component)) return r->transports;
   return fallback.value_or(std::vector<std::string>{});
+}
+
+bool is_pseudo_component(const std::string& name) {
+  return std::find(k_pseudo_components.begin(), k_pseudo_components.end(), name) != k_pseudo_components.end();
 }
 
 }  // namespace
@@ -289,7 +311,27 @@ std::vector<std::string> Deployment::transports_for(const std::string& component
 }
 
 std::vector<std::string> Deployment::streams_for(const std::string& component) const {
+  // a pseudo-component streams only when named (see the header)
+  if (is_pseudo_component(component)) {
+    const ServiceRule* r = stream_rule_named(component);
+    return r ? r->transports : std::vector<std::string>{};
+  }
   return match_rules(stream_rules, default_stream_transports, component);
+}
+
+std::optional<double> Deployment::stream_frequency_for(const std::string& component) const {
+  if (is_pseudo_component(component)) {
+    const ServiceRule* r = stream_rule_named(component);
+    return r ? r->frequency : std::nullopt;
+  }
+  if (const ServiceRule* r = best_rule(stream_rules, component)) return r->frequency;
+  return default_stream_transports ? default_stream_frequency : std::nullopt;
+}
+
+const ServiceRule* Deployment::stream_rule_named(const std::string& component) const {
+  for (const auto& r : stream_rules)
+    if (r.pattern == component) return &r;
+  return nullptr;
 }
 
 Deployment parse_deployment(const json& document, const std::string& base_dir, const std::string& file) {
@@ -361,17 +403,31 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
   for (const auto& r : d.robots)
     if (r.robot.type == "mjcf")
       for (const char* type : {"armature", "armature_pose", "actuators", "sensors"}) all.push_back(r.robot.name + "." + type);
+  // `frequency`: the section is "streams", whose rules may be {"transports": [...],
+  // "frequency": Hz} as well as a list; the default rule's frequency goes there
   auto parse_rules = [&](const char* key, std::vector<ServiceRule>& rules,
-                         std::optional<std::vector<std::string>>& fallback) {
+                         std::optional<std::vector<std::string>>& fallback, std::optional<double>* frequency) {
     auto section = root.get_object(key);
     if (!section) return false;
     for (auto it = section->raw().begin(); it != section->raw().end(); ++it) {
       errors.check([&] {
-        std::string path = section->path_of(it.key());
-        auto list = string_list(it.value(), path);
-        check_transports(list, transport_names, path);
+        const std::string path = section->path_of(it.key());
+        std::optional<double> rate;
+        std::vector<std::string> list;
+        std::string list_path = path;  // where a transport's error points
+        if (frequency && it.value().is_object()) {
+          list = stream_rule(it.value(), path, rate);
+          list_path += ".transports";
+        } else if (frequency && !it.value().is_array()) {
+          throw ConfigError(path + ": expected an array of transport names or an object {\"transports\": [...], " +
+                            "\"frequency\": Hz}, found " + describe_json(it.value()));
+        } else {
+          list = string_list(it.value(), path);
+        }
+        check_transports(list, transport_names, list_path);
         if (it.key() == "default") {
           fallback = std::move(list);
+          if (frequency) *frequency = rate;
           return;
         }
         // every rule must match something: a typo must not silently disconnect a component
@@ -382,13 +438,15 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
         if (!matched && robots_ok)
           throw ConfigError(path + ": expected a component name or a glob matching one (" + join(all) +
                             "), found '" + it.key() + "', which matches none" + did_you_mean(it.key(), all));
-        rules.push_back(ServiceRule{it.key(), std::move(list), path});
+        rules.push_back(ServiceRule{it.key(), std::move(list), path, rate});
       });
     }
     return true;
   };
-  errors.check([&] { d.has_services = parse_rules("services", d.rules, d.default_transports); });
-  errors.check([&] { parse_rules("streams", d.stream_rules, d.default_stream_transports); });
+  errors.check([&] { d.has_services = parse_rules("services", d.rules, d.default_transports, nullptr); });
+  errors.check([&] {
+    parse_rules("streams", d.stream_rules, d.default_stream_transports, &d.default_stream_frequency);
+  });
 
   errors.check([&] { root.finish(); });
   errors.throw_if_any();

@@ -7,6 +7,7 @@
 #include "simgate/core/errors.h"
 #include "simgate/sim/component_library.h"
 #include "simgate/sim/model_robots.h"
+#include "simgate/sim/supervision.h"
 #include "simgate/core/log.h"
 #include "simgate/core/suggest.h"
 
@@ -103,41 +104,62 @@ void Gateway::build_components(ConfigErrors& errors) {
     if (!robot_ptr) continue;  // its components need it
     for (const auto& c : r.components)
       errors.check([&] {
-        sim::ComponentSpec cspec{c.name, c.type, c.body, c.path, c.frequency};
+        sim::ComponentSpec cspec{c.name, c.type, c.body, c.path, stream_frequency(c)};
         auto component = registry.create(sim::Kind::component, cspec, c.options, sim, robot_ptr);
         sim.add_component(std::move(component), c.type, r.robot.name, false);
       });
   }
 }
 
+std::optional<double> Gateway::stream_frequency(const ComponentConfig& c) const {
+  if (auto rule = deployment_.stream_frequency_for(c.name)) return rule;
+  return c.frequency;
+}
+
 void Gateway::add_streams(ConfigErrors& errors) {
+  // the stream of `component`, if the "streams" section maps it; `frequency`: the rate the
+  // configuration gives (the rule's, else the component's own), `fallback` without one
+  auto add = [&](const Component& component, const std::string& type, std::optional<double> frequency,
+                 double fallback) {
+    const StreamDeclaration* stream = component.stream();
+    const std::vector<std::string> transports = deployment_.streams_for(component.name());
+    const ServiceRule* named = deployment_.stream_rule_named(component.name());
+    if (named && named->frequency && (!stream || stream->direction != StreamDirection::out))
+      warnings_.push_back(named->path + ".frequency: component '" + component.name() + "' (type " + type +
+                          ") has no output stream: the frequency is not used");
+    if (transports.empty()) return;
+    if (!stream) {
+      // an exact name must mean a stream; a glob may match components without one
+      if (named)
+        errors.add(named->path + ": component '" + component.name() + "' (type " + type +
+                   ") has no data stream (streaming types: sensors such as pose, imu, odometry, laser_scanner; "
+                   "actuators such as motion_vw, waypoint, teleport, armature, actuators; the simulation's "
+                   "body_poses)");
+      return;
+    }
+    simulation_->streams().add(component, type, transports, frequency.value_or(fallback));
+  };
   auto check_component = [&](const ComponentConfig& c) {
     const sim::ComponentEntry* entry = simulation_->find(c.name);
     if (!entry) return;  // not created: its own error is reported
     const StreamDeclaration* stream = entry->component->stream();
-    const std::vector<std::string> transports = deployment_.streams_for(c.name);
     const auto* sim_component = dynamic_cast<const sim::SimComponent*>(entry->component.get());
     if (c.frequency && (!stream || stream->direction != StreamDirection::out) &&
         !(sim_component && sim_component->uses_frequency()))
       warnings_.push_back(c.path + ".frequency: component '" + c.name + "' (type " + c.type +
                           ") has no output stream: the frequency is not used");
-    if (transports.empty()) return;
-    if (!stream) {
-      // an exact name must mean a stream; a glob may match components without one
-      for (const auto& rule : deployment_.stream_rules)
-        if (rule.pattern == c.name)
-          errors.add(rule.path + ": component '" + c.name + "' (type " + c.type +
-                     ") has no data stream (streaming types: sensors such as pose, imu, odometry, laser_scanner; "
-                     "actuators such as motion_vw, waypoint, teleport, armature, actuators)");
-      return;
-    }
-    simulation_->streams().add(*entry->component, c.type, transports,
-                               c.frequency.value_or(StreamHub::k_default_frequency));
+    add(*entry->component, c.type, stream_frequency(c), StreamHub::k_default_frequency);
   };
   for (const auto& r : deployment_.robots) {
     check_component(r.robot);
     for (const auto& c : r.components) check_component(c);
   }
+  // the pseudo-components, after the robots' (the socket transport numbers its stream ports
+  // in this order): `simulation` streams its bodies' poses
+  for (const char* pseudo : {"simulation", "time", "communication"})
+    if (const sim::ComponentEntry* entry = simulation_->find(pseudo))
+      add(*entry->component, entry->type, deployment_.stream_frequency_for(pseudo),
+          sim::SupervisionServices::k_body_poses_frequency);
 }
 
 void Gateway::load_plugins(ConfigErrors& errors) {

@@ -6,9 +6,13 @@
 //   transports  {name: {plugin?, options?, allow?, deny?}}
 //   robots      [{name, type?, body?, options?, components?: [{name, type, body?, options?}]}]
 //   services    {"default": [transports], "<component or glob>": [transports]}
-//   streams     {"default": [transports], "<component or glob>": [transports]}: which
-//               transports carry a component's data stream (none without it); a component's
-//               "frequency" (Hz) sets its output stream's rate
+//   streams     {"default": rule, "<component or glob>": rule}, a rule being [transports] or
+//               {"transports": [transports], "frequency"?: Hz}: which transports carry a
+//               component's data stream (none without it); the rule's "frequency", else the
+//               component's own "frequency" (Hz), sets its output stream's rate. The
+//               pseudo-components (`simulation`: body_poses) stream only when a rule names
+//               them exactly: neither "default" nor a glob maps them, so that a file written
+//               before they could stream keeps its streams (and the socket's stream ports)
 //   log_level   "trace" | "debug" | "info" | "warning" | "error" | "off"
 //   requests    {max_wait_ms?: the longest any request waits for its reply, 0 = no limit}
 // parse_deployment() checks the structure (types, names, unknown keys, the mapping against
@@ -68,6 +72,7 @@ struct ServiceRule {
   std::string pattern;                  // exact name or glob
   std::vector<std::string> transports;  // transport names
   std::string path;                     // "services.robot.*"
+  std::optional<double> frequency;      // "streams" rules only: {"frequency": Hz}, overrides the component's
 };
 
 struct Deployment {
@@ -86,6 +91,7 @@ struct Deployment {
   std::optional<std::vector<std::string>> default_transports;  // "default"
   std::vector<ServiceRule> stream_rules;  // "streams": exact names and globs
   std::optional<std::vector<std::string>> default_stream_transports;  // "streams"."default"
+  std::optional<double> default_stream_frequency;  // "streams"."default"."frequency"
   std::optional<std::string> log_level;  // validated level name
   // "requests": {"max_wait_ms": N}: the longest any request of any transport waits for its
   // reply (RequestManager::set_max_wait); zero = no limit
@@ -101,6 +107,11 @@ struct Deployment {
   // The transports that carry `component`'s stream: the "streams" section, matched as
   // "services" is; without one, none.
   std::vector<std::string> streams_for(const std::string& component) const;
+  // The frequency of the rule that gives `component` its stream transports (streams_for), if
+  // that rule has one: it overrides the component's own "frequency".
+  std::optional<double> stream_frequency_for(const std::string& component) const;
+  // The "streams" rule whose key is exactly `component`, or null.
+  const ServiceRule* stream_rule_named(const std::string& component) const;
 };
 
 // Validates and converts a parsed document. `base_dir` resolves relative paths.

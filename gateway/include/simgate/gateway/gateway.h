@@ -87,6 +87,9 @@ class Gateway {
   // The components' data streams the "streams" section asks for (a component named there
   // that has none is an error; a frequency on one without an output stream a warning).
   void add_streams(ConfigErrors& errors);
+  // The stream rate the configuration gives component `c`: its "streams" rule's frequency,
+  // else its own "frequency"; none when neither says.
+  std::optional<double> stream_frequency(const ComponentConfig& c) const;
   void load_plugins(ConfigErrors& errors);
   // Adds warnings for components clients need that no transport serves, and those of
   // warn_about_access_lists().
