@@ -206,6 +206,77 @@ TEST(JsonRpcStreamsTest, AClientThatLeavesEndsItsSubscriptions) {
   EXPECT_EQ(stream_of(stats, "robot.pose")["subscribers"], 0) << stats.dump();
 }
 
+// The `simulation` component's body_poses (issue #23): what a browser needs to move the
+// bodies it drew from simulation.get_scene_geometry, at 30 Hz of simulated time by default.
+TEST(JsonRpcStreamsTest, TheSimulationsBodyPosesMatchItsSceneGeometry) {
+  json config = streams_config();
+  config["streams"]["simulation"] = {"jsonrpc"};
+  InProcessGateway g(config);
+  StreamClient c(g.port("jsonrpc"));
+  const json streams = c.call(1, "rpc.streams")["result"];
+  json listed;
+  for (const auto& s : streams)
+    if (s["component"] == "simulation") listed = s;
+  ASSERT_TRUE(listed.is_object()) << "simulation not in rpc.streams: " << streams.dump();
+  EXPECT_EQ(listed["kind"], "body_poses");
+  EXPECT_EQ(listed["direction"], "OUT");
+  EXPECT_EQ(listed["frequency"], 30);
+
+  const json geometry = c.call(2, "simulation.get_scene_geometry", {{"include_meshes", false}});
+  ASSERT_TRUE(geometry.contains("result")) << geometry.dump();
+  const json& scene = geometry["result"];
+  EXPECT_EQ(scene["meshes"], json::array());
+  const std::size_t bodies = scene["bodies"].size();
+  ASSERT_GT(bodies, 2u);  // the world, the robot and its wheels, the human...
+  EXPECT_EQ(scene["bodies"][0]["name"], "world");
+  EXPECT_FALSE(scene["geoms"].empty());
+
+  json subscribed = c.call(3, "rpc.subscribe", {{"component", "simulation"}});
+  ASSERT_TRUE(subscribed.contains("result")) << subscribed.dump();
+  EXPECT_EQ(subscribed["result"]["stream"]["kind"], "body_poses");
+  const json id = subscribed["result"]["subscription"];
+  json previous;
+  for (int i = 0; i < 4; ++i) {
+    json sample = c.next_sample();
+    ASSERT_FALSE(sample.is_null());
+    EXPECT_EQ(sample["subscription"], id);
+    EXPECT_EQ(sample["component"], "simulation");
+    const json& data = sample["data"];
+    EXPECT_EQ(data["timestamp"], sample["time"]);
+    EXPECT_EQ(data["generation"], scene["generation"]);
+    ASSERT_EQ(data["poses"].size(), bodies) << data.dump();
+    for (const auto& pose : data["poses"]) ASSERT_EQ(pose.size(), 7u) << pose.dump();
+    // the world stays at the origin, unrotated: [x, y, z, qw, qx, qy, qz]
+    EXPECT_EQ(data["poses"][0], json({0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0}));
+    // 30 per simulated second once they flow (on 2 ms steps)
+    if (i >= 2) {
+      EXPECT_NEAR(sample["time"].get<double>() - previous["time"].get<double>(), 1.0 / 30, 0.0021);
+    }
+    previous = sample;
+  }
+  EXPECT_EQ(c.call(4, "rpc.unsubscribe", {{"subscription", id}})["result"], true);
+  const json stats = c.call(5, "simulation.get_stream_statistics")["result"];
+  const json simulation = stream_of(stats, "simulation");
+  ASSERT_TRUE(simulation.is_object()) << stats.dump();
+  EXPECT_EQ(simulation["kind"], "body_poses");
+  EXPECT_GT(simulation["samples"].get<int>(), 0);
+}
+
+TEST(JsonRpcStreamsTest, AStreamsRuleSetsTheSimulationsFrequency) {
+  json config = streams_config();
+  config["streams"]["simulation"] = {{"transports", {"jsonrpc"}}, {"frequency", 10}};
+  InProcessGateway g(config);
+  StreamClient c(g.port("jsonrpc"));
+  json subscribed = c.call(1, "rpc.subscribe", json::array({"simulation"}));
+  ASSERT_TRUE(subscribed.contains("result")) << subscribed.dump();
+  EXPECT_EQ(subscribed["result"]["stream"]["frequency"], 10);
+  c.next_sample();  // the first, at once
+  json a = c.next_sample(), b = c.next_sample();
+  ASSERT_FALSE(a.is_null());
+  ASSERT_FALSE(b.is_null());
+  EXPECT_NEAR(b["time"].get<double>() - a["time"].get<double>(), 0.1, 0.0021);
+}
+
 // A camera's image stream (issue #22): a video_camera looking at a red box streams at its
 // frequency, in simulated time, each sample the record get_local_data returns (PNG, base64).
 class CameraScene {

@@ -84,6 +84,26 @@ TEST(SocketStreamsTest, TheSimulationServicesSayWhereEachStreamIs) {
   EXPECT_FALSE(components["robot.waypoint"].contains("stream_interfaces")) << components;
 }
 
+// The `simulation` component's body_poses get a port of their own, after the robots'
+// (whose ports do not move).
+TEST(SocketStreamsTest, TheSimulationsBodyPosesHaveAPortAfterTheRobots) {
+  json config = streams_config();
+  config["streams"]["simulation"] = {"socket"};
+  InProcessGateway g(config);
+  LineClient service(g.port());
+  EXPECT_EQ(payload(service.request("1", "simulation list_streams")), json({"robot.motion", "robot.pose", "simulation"}));
+  const int poses = stream_port(service, "simulation");
+  EXPECT_GT(poses, 0);
+  EXPECT_NE(poses, stream_port(service, "robot.pose"));
+  LineClient reader(poses);
+  const json sample = next_sample(reader);
+  ASSERT_TRUE(sample.is_object()) << sample;
+  EXPECT_TRUE(sample.contains("timestamp") && sample.contains("generation")) << sample;
+  ASSERT_TRUE(sample["poses"].is_array()) << sample;
+  EXPECT_GT(sample["poses"].size(), 2u);
+  EXPECT_EQ(sample["poses"][0].size(), 7u);
+}
+
 TEST(SocketStreamsTest, AnOutputPortSendsOneJsonSamplePerLineInOrder) {
   InProcessGateway g(streams_config());
   LineClient service(g.port());
