@@ -100,6 +100,8 @@ class Rpc {
 }
 
 const errorText = (e) => e?.data?.message ?? e?.message ?? String(e);
+// A service the server does not have, or does not let this transport call.
+const isUnknownMethod = (e) => e?.code === -32601;
 
 // ---------------------------------------------------------------- the state header
 
@@ -481,7 +483,8 @@ function setupScene(rpc) {
         $('view-info').textContent = `${exposed.meshes} geoms; poses streamed`;
       } catch (e) {
         // no `simulation` stream on this transport: poll the poses
-        $('view-info').textContent = `${exposed.meshes} geoms; poses polled (no simulation stream: ${errorText(e)})`;
+        $('view-info').textContent = `${exposed.meshes} geoms; poses polled (the transport carries no simulation stream)`;
+        console.info(`rpc.subscribe simulation: ${errorText(e)}`);
         poll(async () => {
           const g = await fetchGeometry(false);
           await onPoses({ generation: g.generation, poses: g.bodies.map((b) => [...b.pos, ...b.quat]) });
@@ -489,7 +492,9 @@ function setupScene(rpc) {
       }
     } catch (e) {
       // no get_scene_geometry: the root bodies of get_scene_objects, as markers
-      $('view-info').textContent = `simulation.get_scene_geometry: ${errorText(e)}; showing body markers`;
+      $('view-info').textContent = isUnknownMethod(e)
+        ? 'simulation.get_scene_geometry is not served here: each root body is drawn as a box'
+        : `simulation.get_scene_geometry: ${errorText(e)}; each root body is drawn as a box`;
       exposed.view = view ? 'markers' : exposed.view;
       const refresh = async () => {
         const objects = await rpc.call('simulation.get_scene_objects');

@@ -45,6 +45,7 @@ class Gateway:
         config["scene"]["realtime_factor"] = 2.0
         config["transports"]["socket"]["options"]["port"] = 0
         config["transports"]["socket"]["options"]["stream_port"] = 0  # its datastreams too
+        config["transports"]["websocket"]["options"]["port"] = 0  # the web app's
         config["log_level"] = "warning"
         if adapt:
             adapt(config)

@@ -68,6 +68,7 @@ inline json demo_config(double factor = 1.0) {
   c["scene"]["realtime_factor"] = factor;
   c["transports"]["socket"]["options"]["port"] = 0;
   c["transports"]["socket"]["options"]["stream_port"] = 0;  // its datastreams too
+  c["transports"]["websocket"]["options"]["port"] = 0;      // the web app's
   c["log_level"] = "warning";
   return c;
 }
