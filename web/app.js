@@ -337,6 +337,11 @@ class SceneView {
     const sun = new THREE.DirectionalLight(0xffffff, 1.5);
     sun.position.set(3, -4, 8);
     this.scene.add(sun);
+    // a 1 m grid on the ground (three.js's lies in x-z, MuJoCo's ground in x-y)
+    const grid = new THREE.GridHelper(20, 20, 0x3c463c, 0x5f6b5f);
+    grid.rotateX(Math.PI / 2);
+    grid.position.z = 0.002;
+    this.scene.add(grid);
     this.root = new THREE.Group();  // what the server's scene is drawn in
     this.scene.add(this.root);
     this.bodies = [];               // body index -> Group, placed in the world
@@ -398,14 +403,8 @@ class SceneView {
     poses.forEach((p, i) => { if (this.bodies[i]) setPose(this.bodies[i], p, p.slice(3)); });
   }
 
-  // Without get_scene_geometry: a marker per root body of get_scene_objects, on a grid.
+  // Without get_scene_geometry: a marker per root body of get_scene_objects.
   markers(objects) {
-    if (!this.root.getObjectByName('grid')) {
-      const grid = new THREE.GridHelper(20, 20, 0x667766, 0x99a499);
-      grid.rotateX(Math.PI / 2);  // three.js's grid lies in x-z, MuJoCo's floor in x-y
-      grid.name = 'grid';
-      this.root.add(grid);
-    }
     for (const [name, [, pos, q]] of Object.entries(objects)) {
       let marker = this.root.getObjectByName(name);
       if (!marker) {

@@ -209,6 +209,8 @@ async function main() {
     return { other, total: data.length / 4, meshes: window.simgate.meshes, view: window.simgate.view,
              poses: window.simgate.poseSource };
   });
+  if (services.includes('simulation.get_scene_geometry'))
+    check(drawn.view === 'geometry', `the 3D view draws the model's geoms (get_scene_geometry), not markers`);
   check(drawn.other > drawn.total / 100,
     `the 3D view has drawn the scene (${drawn.meshes} meshes, view '${drawn.view}', poses '${drawn.poses}', ` +
     `${drawn.other} of ${drawn.total} pixels not background)`);
