@@ -73,6 +73,20 @@ inline json demo_config(double factor = 1.0) {
   return c;
 }
 
+// The demo with its socket transport only (no websocket, no web app): for tests that
+// count transports or read which transports serve a component.
+inline json socket_demo_config(double factor = 1.0) {
+  json c = demo_config(factor);
+  c["transports"].erase("websocket");
+  for (auto& [pattern, transports] : c["services"].items()) {
+    json kept = json::array();
+    for (const auto& t : transports)
+      if (t != "websocket") kept.push_back(t);
+    transports = std::move(kept);
+  }
+  return c;
+}
+
 // A TCP connection to 127.0.0.1:`port` (its descriptor); `receive_buffer` (bytes, 0: the
 // system's) is set before connecting, so that it is the window the client offers.
 inline int connect_loopback(int port, int receive_buffer = 0) {
