@@ -64,7 +64,7 @@ class Gateway:
             time.sleep(0.01)  # polling for a file the child writes; bounded by the deadline
         with open(self.endpoints_path) as f:
             endpoints = json.load(f)  # {"socket": ["tcp://127.0.0.1:PORT"], ...}
-        self.ports = {name: int(e[0].rsplit(":", 1)[1]) for name, e in endpoints.items()}
+        self.ports = {name: int(e[0].rstrip("/").rsplit(":", 1)[1]) for name, e in endpoints.items()}  # ws://...:PORT/ too
         self.port = self.ports["socket"]
 
     def output(self):
