@@ -23,6 +23,9 @@ const el = (tag, props = {}, ...children) => {
   return e;
 };
 const fmt = (v, digits = 3) => (typeof v === 'number' ? v.toFixed(digits) : String(v ?? '–'));
+const errorText = (e) => e?.data?.message ?? e?.message ?? String(e);
+// A service the server does not have, or does not let this transport call.
+const isUnknownMethod = (e) => e?.code === -32601;
 
 // What the browser test (and a curious developer) can read.
 const exposed = window.simgate = {
@@ -99,9 +102,6 @@ class Rpc {
   cancel(id) { return this.call('rpc.cancel', { id }); }
 }
 
-const errorText = (e) => e?.data?.message ?? e?.message ?? String(e);
-// A service the server does not have, or does not let this transport call.
-const isUnknownMethod = (e) => e?.code === -32601;
 
 // ---------------------------------------------------------------- the state header
 
@@ -116,9 +116,10 @@ function setupState(rpc) {
       const target = s.target_realtime_factor === 0 ? 'max' : fmt(s.target_realtime_factor, 2);
       $('state-rtf').textContent = `${fmt(s.realtime_factor ?? s.recent_realtime_factor, 2)} (target ${target})`;
       $('state-clients').textContent = s.clients ?? '–';
-      $('state-error').textContent = '';
+      if ($('state-error').textContent.startsWith('state:')) $('state-error').textContent = '';
     } catch (e) {
-      if (source !== 'time.statistics') source = 'time.statistics';  // get_simulation_state not served
+      // get_simulation_state not served here: time statistics says much the same
+      if (isUnknownMethod(e) && source !== 'time.statistics') source = 'time.statistics';
       else $('state-error').textContent = `state: ${errorText(e)}`;
     }
   }
