@@ -78,12 +78,24 @@ inline json demo_config(double factor = 1.0) {
 inline json socket_demo_config(double factor = 1.0) {
   json c = demo_config(factor);
   c["transports"].erase("websocket");
-  for (auto& [pattern, transports] : c["services"].items()) {
+  const auto without_websocket = [](const json& transports) {
     json kept = json::array();
     for (const auto& t : transports)
       if (t != "websocket") kept.push_back(t);
-    transports = std::move(kept);
+    return kept;
+  };
+  for (auto& [pattern, transports] : c["services"].items()) transports = without_websocket(transports);
+  // a stream rule is a list of transports or {"transports": [...], "frequency": Hz}; one
+  // left with no transport goes
+  json streams = json::object();
+  const json rules = c.value("streams", json::object());
+  for (const auto& [component, rule] : rules.items()) {
+    json kept = rule.is_object() ? rule : json{{"transports", rule}};
+    kept["transports"] = without_websocket(kept["transports"]);
+    if (kept["transports"].empty()) continue;
+    streams[component] = rule.is_object() ? kept : kept["transports"];
   }
+  if (c.contains("streams")) c["streams"] = std::move(streams);
   return c;
 }
 
