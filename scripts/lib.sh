@@ -18,6 +18,7 @@ SIMGATE_TEST_PACKAGES=(
   python3 python3-morse-simulator python3-jsonschema
   iproute2 procps util-linux
   clang-14 libclang-rt-14-dev llvm-14
+  chromium
 )
 # cameras (sim/src/renderer.cc, image_codec.cc): libegl-dev to build against EGL (headers,
 # libEGL.so; MuJoCo's own GL loader finds the GL functions through the EGL the process has
@@ -28,8 +29,12 @@ SIMGATE_TEST_PACKAGES=(
 # libmujoco-samples: Debian's sample models (/usr/share/mujoco/model) the sim tests run on
 # clang-14 and its runtime libraries build the fuzz targets (libFuzzer, tests/fuzz), llvm-14's
 # llvm-symbolizer puts file and line in their crash reports (scripts/fuzz, docs/fuzzing.md)
-# node and npm run the third-party JSON-RPC clients (tests only); any install will do
-# (Debian's or NodeSource's, which bundles npm and conflicts with Debian's npm package)
+# chromium: the web app's browser test (tests/web) drives Debian's headless Chromium
+# (/usr/bin/chromium) with npm's playwright-core; skipped (77) without it
+# node and npm build the web app (web/: three.js from npm, pinned by its lock) and run the
+# third-party JSON-RPC clients and the browser test; any install will do (Debian's or
+# NodeSource's, which bundles npm and conflicts with Debian's npm package), so they are
+# checked as commands, not as packages, for the runtime build too
 
 log() { printf '\033[1m[simgate]\033[0m %s\n' "$*" >&2; }
 
@@ -40,10 +45,8 @@ ensure_packages() {
   for p in "${wanted[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
   done
-  if [ "${1:-test}" = test ]; then
-    command -v node >/dev/null || missing+=(nodejs)
-    command -v npm >/dev/null || missing+=(npm)
-  fi
+  command -v node >/dev/null || missing+=(nodejs)
+  command -v npm >/dev/null || missing+=(npm)
   [ ${#missing[@]} -eq 0 ] && return 0
   if [ "$(id -u)" -eq 0 ]; then
     log "installing: ${missing[*]}"

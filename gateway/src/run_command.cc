@@ -130,6 +130,11 @@ void print_banner(Gateway& g) {
     auto t = std::find_if(d.transports.begin(), d.transports.end(), [&](const auto& c) { return c.name == name; });
     if (t != d.transports.end() && !t->access.allows_everything())
       std::cout << "  services: " << t->access.describe() << "\n";
+    // the web app a websocket transport serves on its port (docs/web.md), unless turned off
+    if (t != d.transports.end() && t->plugin == "websocket" && !endpoints.empty() &&
+        endpoints.front().starts_with("ws://") &&
+        !(t->options.is_object() && t->options.value("web", true) == false))
+      std::cout << "  web app: http" << endpoints.front().substr(2) << "\n";
   }
   if (socket_address) {
     // a first command: drive the robot if a motion_vw is reachable through that socket

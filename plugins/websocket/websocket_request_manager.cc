@@ -25,14 +25,25 @@ using jsonrpc::code::overloaded;
 using jsonrpc::dump;
 using jsonrpc::error_response;
 
-WebSocketRequestManager::WebSocketRequestManager(const json& options)
-    : WebSocketRequestManager(jsonrpc::Options::parse(options, "websocket", k_default_port)) {}
+WebSocketRequestManager::Settings WebSocketRequestManager::Settings::parse(const json& options) {
+  // the web app's keys first, so that JSON-RPC's parser sees only its own
+  json rest = options.is_null() ? json::object() : options;
+  Settings s;
+  s.web = WebOptions::take(rest);
+  s.rpc = jsonrpc::Options::parse(rest, "websocket", k_default_port);
+  return s;
+}
 
-WebSocketRequestManager::WebSocketRequestManager(jsonrpc::Options o)
-    : JsonRpcEngine("WebSocket service manager", "websocket", std::move(o)),
+WebSocketRequestManager::WebSocketRequestManager(const json& options)
+    : WebSocketRequestManager(Settings::parse(options)) {}
+
+WebSocketRequestManager::WebSocketRequestManager(Settings s)
+    : JsonRpcEngine("WebSocket service manager", "websocket", std::move(s.rpc)),
       // bound now, so that a port in use fails the creation of the transport
       listener_(io_, name(), options_.tcp.host, options_.tcp.port),
-      io_thread_(io_, name(), options_.tcp.io_spin) {}
+      io_thread_(io_, name(), options_.tcp.io_spin) {
+  if (s.web.enabled) web_.emplace(s.web.root, "simgate websocket transport", port_text());
+}
 
 WebSocketRequestManager::~WebSocketRequestManager() { stop(); }
 
@@ -58,8 +69,19 @@ void WebSocketRequestManager::start() {
             deliver_here();
             listener_.start(std::move(handlers));
           },
-          no_direct_reads_))
+          no_direct_reads_)) {
     log::info("websocket: listening on ", endpoints().front());
+    if (web_) {
+      std::string page = endpoints().front();
+      page.replace(0, 2, "http");  // "ws://" -> "http://"
+      std::error_code ec;
+      if (std::filesystem::is_directory(web_->root(), ec))
+        log::info("websocket: web app on ", page, " (files from ", web_->root().string(), ")");
+      else
+        log::warning("websocket: no web app: ", web_->root().string(),
+                     " is not a directory (build the tree, or set web_root; docs/web.md)");
+    }
+  }
 }
 
 void WebSocketRequestManager::stop() {
@@ -137,11 +159,16 @@ void WebSocketRequestManager::on_read_done(WsSession& /*session*/) {
   flush_replies();
 }
 
+std::string WebSocketRequestManager::port_text() const {
+  return "simgate websocket transport: JSON-RPC 2.0 over WebSocket; connect with a WebSocket client to " +
+         endpoints().front() + " (docs/transports/websocket.md)\n";
+}
+
 std::string WebSocketRequestManager::on_http_request(const http::request<http::string_body>& request) {
-  // no web pages yet: a short text says what this port is
-  const std::string body =
-      "simgate websocket transport: JSON-RPC 2.0 over WebSocket; connect with a WebSocket client to " +
-      endpoints().front() + " (docs/transports/websocket.md)\n";
+  // the web app's files
+  if (web_) return web_->answer(request);
+  // no web app (`web` false): a short text says what this port is
+  const std::string body = port_text();
   http::response<http::string_body> response{http::status::not_found, request.version()};
   response.set(http::field::server, "simgate websocket transport");
   response.set(http::field::content_type, "text/plain; charset=utf-8");
@@ -168,4 +195,4 @@ void WebSocketRequestManager::touch(WsSession& session) {
 SIMGATE_TRANSPORT_PLUGIN(websocket, simgate::websocket::WebSocketRequestManager, "0.1.0", "host", "port",
                          "max_message_bytes", "max_depth", "max_in_flight", "max_unsent_bytes",
                          "max_connections", "io_spin_us", "on_disconnect", "global_policy", "auth",
-                         "progress_interval_ms", "stream_queue")
+                         "progress_interval_ms", "stream_queue", "web", "web_root")

@@ -6,8 +6,9 @@
 // the framing differs from the TCP transport: discover, named params, async out of order,
 // cancel, batches, login, deadlines, progress and stream subscriptions are the same code.
 // A binary message, or a text message over max_message_bytes, is answered -32600 and the
-// connection keeps working. A plain HTTP GET on the port (no upgrade) is answered 404 with
-// a short text (the port stays open for a web app). Wire: docs/transports/websocket.md.
+// connection keeps working. A plain HTTP request on the port (no upgrade) gets a file of the
+// web app (static_files.h, docs/web.md), or 404 with a short text when `web` is false.
+// Wire: docs/transports/websocket.md.
 //
 // Life cycle: the constructor reads the options (ConfigError on bad ones) and binds the
 // listening socket (std::runtime_error if the port is taken); start() launches the I/O
@@ -25,6 +26,7 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <unordered_set>
 #include <vector>
@@ -33,6 +35,7 @@
 
 #include "jsonrpc_engine.h"
 #include "simgate/kit/tcp_server.h"
+#include "static_files.h"
 #include "websocket_session.h"
 
 namespace simgate::websocket {
@@ -46,9 +49,7 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine<WsSession>, privat
   explicit WebSocketRequestManager(const json& options);
   ~WebSocketRequestManager() override;
   // What the constructor checks of `options`, without binding (the plugin's validate).
-  static void validate_options(const json& options) {
-    (void)jsonrpc::Options::parse(options, "websocket", k_default_port);
-  }
+  static void validate_options(const json& options) { (void)Settings::parse(options); }
   std::size_t client_count() const override { return count_.load(std::memory_order_relaxed); }
 
   void start() override;
@@ -59,7 +60,15 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine<WsSession>, privat
   std::uint16_t port() const { return listener_.port(); }
 
  private:
-  explicit WebSocketRequestManager(jsonrpc::Options options);
+  // The options: JSON-RPC's (jsonrpc::Options) and the web app's (WebOptions).
+  struct Settings {
+    jsonrpc::Options rpc;
+    WebOptions web;
+    static Settings parse(const json& options);
+  };
+  explicit WebSocketRequestManager(Settings settings);
+  // The 404 body that says what this port is.
+  std::string port_text() const;
 
   // JsonRpcEngine: the end of a burst
   void flush_replies() override;
@@ -84,6 +93,7 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine<WsSession>, privat
   std::unordered_set<std::shared_ptr<WsSession>> sessions_;  // open connections (I/O thread)
   std::atomic<std::size_t> count_{0};                     // sessions_.size(), for any thread
   std::vector<std::shared_ptr<WsSession>> touched_;       // messages queued, not yet written (I/O thread)
+  std::optional<StaticFiles> web_;                        // the web app's files (none: `web` false)
 };
 
 }  // namespace simgate::websocket

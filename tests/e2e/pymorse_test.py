@@ -45,6 +45,7 @@ class Gateway:
         config["scene"]["realtime_factor"] = 2.0
         config["transports"]["socket"]["options"]["port"] = 0
         config["transports"]["socket"]["options"]["stream_port"] = 0  # its datastreams too
+        config["transports"]["websocket"]["options"]["port"] = 0  # the web app's
         config["log_level"] = "warning"
         if adapt:
             adapt(config)
@@ -63,7 +64,7 @@ class Gateway:
             time.sleep(0.01)  # polling for a file the child writes; bounded by the deadline
         with open(self.endpoints_path) as f:
             endpoints = json.load(f)  # {"socket": ["tcp://127.0.0.1:PORT"], ...}
-        self.ports = {name: int(e[0].rsplit(":", 1)[1]) for name, e in endpoints.items()}
+        self.ports = {name: int(e[0].rstrip("/").rsplit(":", 1)[1]) for name, e in endpoints.items()}  # ws://...:PORT/ too
         self.port = self.ports["socket"]
 
     def output(self):

@@ -222,7 +222,7 @@ TEST(GatewayCliTest, CheckRefusesWhatRunRefusesWithTheSameMessage) {
 
 TEST(GatewayCliTest, CheckWarnsWhenPymorseCannotConnect) {
   TempDir dir;
-  json c = demo_config();
+  json c = socket_demo_config();
   c["services"] = {{"robot.*", {"socket"}}, {"human", {"socket"}}};
   auto [code, out] = run_simgate({"check", dir.write("cut.json", c.dump())}, dir);
   EXPECT_EQ(code, 0) << out;

@@ -515,7 +515,7 @@ TEST(GatewayAccessListsTest, AllowAndDenyListsOfWellFormedPatternsAreValid) {
 }
 
 TEST(GatewayAccessListsTest, TheListsBecomeTheTransportsAccess) {
-  json c = demo_config();
+  json c = testing::socket_demo_config();
   c["transports"]["socket"]["allow"] = {"robot.*", "simulation.*"};
   c["transports"]["socket"]["deny"] = {"simulation.quit"};
   c["transports"]["other"] = {{"plugin", "socket"}, {"options", {{"port", 0}}}, {"deny", {"*.quit"}}};
@@ -590,7 +590,7 @@ TEST(GatewayAccessListsTest, ASocketTransportThatDeniesDetailsWarnsThatPymorseCa
 // ---- mapping ----
 
 json mapping_config(json services) {
-  json c = demo_config();
+  json c = testing::socket_demo_config();
   c["transports"]["other"] = {{"plugin", "socket"}, {"options", {{"port", 0}}}};
   c["services"] = std::move(services);
   return c;

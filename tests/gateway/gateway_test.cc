@@ -32,7 +32,7 @@ class GatewayIntegrationTest : public ::testing::Test {
 };
 
 TEST_F(GatewayIntegrationTest, ServesTheSupervisionServices) {
-  start(testing::demo_config());
+  start(testing::socket_demo_config());
   LineClient c(port());
   std::string line = c.request("1", "simulation list_robots");
   EXPECT_EQ(line, "1 SUCCESS [\"robot\", \"human\"]");

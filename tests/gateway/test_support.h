@@ -68,7 +68,34 @@ inline json demo_config(double factor = 1.0) {
   c["scene"]["realtime_factor"] = factor;
   c["transports"]["socket"]["options"]["port"] = 0;
   c["transports"]["socket"]["options"]["stream_port"] = 0;  // its datastreams too
+  c["transports"]["websocket"]["options"]["port"] = 0;      // the web app's
   c["log_level"] = "warning";
+  return c;
+}
+
+// The demo with its socket transport only (no websocket, no web app): for tests that
+// count transports or read which transports serve a component.
+inline json socket_demo_config(double factor = 1.0) {
+  json c = demo_config(factor);
+  c["transports"].erase("websocket");
+  const auto without_websocket = [](const json& transports) {
+    json kept = json::array();
+    for (const auto& t : transports)
+      if (t != "websocket") kept.push_back(t);
+    return kept;
+  };
+  for (auto& [pattern, transports] : c["services"].items()) transports = without_websocket(transports);
+  // a stream rule is a list of transports or {"transports": [...], "frequency": Hz}; one
+  // left with no transport goes
+  json streams = json::object();
+  const json rules = c.value("streams", json::object());
+  for (const auto& [component, rule] : rules.items()) {
+    json kept = rule.is_object() ? rule : json{{"transports", rule}};
+    kept["transports"] = without_websocket(kept["transports"]);
+    if (kept["transports"].empty()) continue;
+    streams[component] = rule.is_object() ? kept : kept["transports"];
+  }
+  if (c.contains("streams")) c["streams"] = std::move(streams);
   return c;
 }
 

@@ -36,7 +36,10 @@ for f in "$bindir/simgate" \
          "$libdir/pkgconfig/simgate-sim.pc" "$libdir/pkgconfig/simgate-clients.pc" \
          "$datadir/simgate/config/demo.json" "$datadir/simgate/config/all-transports.json" \
          "$datadir/simgate/config/scenes/demo.xml" "$datadir/simgate/config/dds/loopback.xml" \
-         "$datadir/doc/simgate/LICENSE"; do
+         "$datadir/doc/simgate/LICENSE" \
+         "$libdir/simgate/plugins/libsimgate_transport_websocket.so" \
+         "$datadir/simgate/web/index.html" "$datadir/simgate/web/app.js" \
+         "$datadir/simgate/web/vendor/three.module.js" "$datadir/simgate/web/vendor/OrbitControls.js"; do
   [ -e "$prefix/$f" ] || fail "not installed: $f"
 done
 echo "installed into $prefix"
@@ -59,8 +62,9 @@ done
 # --- what runs hidden from the trees -----------------------------------------------------
 config_dir=$prefix/$datadir/simgate/config
 # the demo on a port the kernel picks, beside the installed demo so its scene resolves the same
-sed 's/"port": 4000/"port": 0/' "$config_dir/demo.json" >"$config_dir/install-test-demo.json"
+sed -E 's/"port": (4000|8090)/"port": 0/' "$config_dir/demo.json" >"$config_dir/install-test-demo.json"
 grep -q '"port": 0' "$config_dir/install-test-demo.json" || fail "demo.json has no \"port\": 4000 to replace"
+! grep -qE '"port": (4000|8090)' "$config_dir/install-test-demo.json" || fail "demo.json's ports were not all replaced"
 
 # sanitizer suppression files live in the source tree, which is about to disappear
 for var in ASAN_OPTIONS LSAN_OPTIONS TSAN_OPTIONS UBSAN_OPTIONS; do
@@ -147,6 +151,14 @@ port=$(grep -o 'tcp://127\.0\.0\.1:[0-9]*' "$WORK/endpoints.json" | head -n 1 | 
 robots=$(timeout 30 "$simgate" call --port "$port" simulation list_robots) || { kill "$run"; fail "simgate call"; }
 echo "simgate call --port $port simulation list_robots: $robots"
 [ "$robots" = '["robot","human"]' ] || { kill "$run"; fail "expected [\"robot\",\"human\"]"; }
+# the web app, from the installed share/simgate/web (the build tree's is hidden)
+web_port=$(grep -o 'ws://127\.0\.0\.1:[0-9]*' "$WORK/endpoints.json" | head -n 1 | sed 's/.*://')
+[ -n "$web_port" ] || { kill "$run"; cat "$WORK/endpoints.json"; fail "no ws endpoint"; }
+page=$(timeout 30 bash -c 'exec 3<>/dev/tcp/127.0.0.1/$0; printf "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n" >&3; cat <&3' "$web_port") ||
+  { kill "$run"; fail "GET / on the websocket transport"; }
+grep -q '^HTTP/1.1 200' <<<"$page" && grep -q '<title>simgate</title>' <<<"$page" ||
+  { kill "$run"; echo "$page" | head -n 20; fail "GET / did not answer the installed index.html"; }
+echo "GET http://127.0.0.1:$web_port/: the installed web app's index.html"
 timeout 30 "$simgate" call --port "$port" simulation quit || { kill "$run"; fail "simulation quit"; }
 status=0
 wait "$run" || status=$?
@@ -251,6 +263,14 @@ port=$(grep -o 'tcp://127\.0\.0\.1:[0-9]*' "$WORK/endpoints.json" | head -n 1 | 
 distance=$(timeout 30 "$simgate" call --port "$port" robot.odometer get_distance) ||
   { kill "$run"; cat "$WORK/odometer-run.log"; fail "calling the library's component"; }
 echo "out-of-tree component library: robot.odometer get_distance = $distance"
+# the web app, from the installed share/simgate/web (the build tree's is hidden)
+web_port=$(grep -o 'ws://127\.0\.0\.1:[0-9]*' "$WORK/endpoints.json" | head -n 1 | sed 's/.*://')
+[ -n "$web_port" ] || { kill "$run"; cat "$WORK/endpoints.json"; fail "no ws endpoint"; }
+page=$(timeout 30 bash -c 'exec 3<>/dev/tcp/127.0.0.1/$0; printf "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n" >&3; cat <&3' "$web_port") ||
+  { kill "$run"; fail "GET / on the websocket transport"; }
+grep -q '^HTTP/1.1 200' <<<"$page" && grep -q '<title>simgate</title>' <<<"$page" ||
+  { kill "$run"; echo "$page" | head -n 20; fail "GET / did not answer the installed index.html"; }
+echo "GET http://127.0.0.1:$web_port/: the installed web app's index.html"
 timeout 30 "$simgate" call --port "$port" simulation quit || { kill "$run"; fail "simulation quit"; }
 wait "$run" || { cat "$WORK/odometer-run.log"; fail "simgate run with the component library exited non-zero"; }
 echo "installed tree: every check passed"

@@ -37,11 +37,13 @@ done
 # what simgate_runtime builds
 plan=$(ninja -C "$work/build" -n simgate_runtime)
 for wanted in bin/simgate plugins/libsimgate_transport_socket.so plugins/libsimgate_transport_jsonrpc.so \
-              plugins/libsimgate_transport_dds.so; do
+              plugins/libsimgate_transport_websocket.so plugins/libsimgate_transport_dds.so; do
   grep -q "Linking .* $wanted\$" <<<"$plan" || { echo "simgate_runtime does not build $wanted"; exit 1; }
 done
+# and the web app the demo's websocket transport serves (web/CMakeLists.txt)
+grep -q "web/index.html" <<<"$plan" || { echo "simgate_runtime does not build the web app"; exit 1; }
 if grep -qiE 'gtest|benchmark|_test|tests/' <<<"$plan"; then
   grep -iE 'gtest|benchmark|_test|tests/' <<<"$plan" | head -5
   echo "simgate_runtime builds test code"; exit 1
 fi
-echo "runtime build: no test package, $(grep -c Linking <<<"$plan") links, simgate and 3 plugins"
+echo "runtime build: no test package, $(grep -c Linking <<<"$plan") links, simgate, 4 plugins and the web app"

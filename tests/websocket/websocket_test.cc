@@ -3,7 +3,7 @@
 // (tests/jsonrpc/test_services.h) served through libsimgate_transport_websocket.so. The
 // protocol is the jsonrpc transport's engine: these tests check that each feature arrives
 // through the WebSocket framing, and what is the framing's own (binary and oversized
-// messages, plain HTTP, max_connections, a client that vanishes).
+// messages, plain HTTP without the web app, max_connections, a client that vanishes).
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -243,7 +243,13 @@ TEST_F(WebSocketTest, DeadlineInMetaEndsTheCallWithTimeout) {
   EXPECT_EQ(error_code(r), -32003) << r.dump();
 }
 
-TEST_F(WebSocketTest, APlainHttpGetIsAnsweredNotFound) {
+// without the web app (static_files_test.cc tests it), the port says what it is
+class WebSocketNoWebTest : public WebSocketTest {
+ protected:
+  json options() override { return json{{"web", false}}; }
+};
+
+TEST_F(WebSocketNoWebTest, APlainHttpGetIsAnsweredNotFound) {
   boost::asio::io_context io;
   boost::asio::ip::tcp::socket socket(io);
   socket.connect({boost::asio::ip::make_address("127.0.0.1"), host_->port()});

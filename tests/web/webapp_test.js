@@ -1,0 +1,242 @@
+#!/usr/bin/env node
+// The web app in a real browser (docs/web.md): Debian's headless Chromium (/usr/bin/chromium)
+// driven by npm's playwright-core, against `simgate run` on the demo deployment (its websocket
+// transport on an ephemeral port of 127.0.0.1, serving the build tree's web app).
+// Checks: the page loads without errors and lists the services; `robot.waypoint goto`
+// called from its form moves the robot (the position the page shows changes) and
+// succeeds; a second goto cancelled from the page ends PREEMPTED; pause, step and play
+// drive the simulation; the 3D view has drawn the scene. Keeps a screenshot:
+//   node webapp_test.js SIMGATE SOURCE_DIR ARTIFACTS_DIR
+// Exit 77 (skipped) without Chromium or without node_modules (scripts/test installs them).
+'use strict';
+
+const fs = require('fs');
+const os = require('os');
+const path = require('path');
+const { spawn } = require('child_process');
+
+const CHROMIUM = process.env.SIMGATE_CHROMIUM || '/usr/bin/chromium';
+const WAIT_MS = 60000;          // the longest single wait
+const TEST_DEADLINE_MS = 170000; // the whole test (ctest's TIMEOUT is 180 s)
+
+const [simgate, sourceDir, artifactsDir] = process.argv.slice(2);
+if (!simgate || !sourceDir || !artifactsDir) {
+  console.error('usage: webapp_test.js SIMGATE SOURCE_DIR ARTIFACTS_DIR');
+  process.exit(2);
+}
+if (!fs.existsSync(CHROMIUM)) {
+  console.log(`SKIP: no Chromium at ${CHROMIUM} (Debian: apt-get install chromium)`);
+  process.exit(77);
+}
+let chromium;
+try {
+  ({ chromium } = require('playwright-core'));
+} catch (e) {
+  console.log('SKIP: playwright-core is not installed in tests/web (scripts/test installs it: npm install)');
+  process.exit(77);
+}
+
+const deadline = setTimeout(() => {
+  console.error(`FAIL: the test did not finish within ${TEST_DEADLINE_MS / 1000} s`);
+  cleanup().finally(() => process.exit(1));
+}, TEST_DEADLINE_MS);
+
+let gateway = null;
+let browser = null;
+const workdir = fs.mkdtempSync(path.join(os.tmpdir(), 'simgate-web-'));
+
+async function cleanup() {
+  if (browser) await browser.close().catch(() => {});
+  browser = null;
+  let code = null;
+  if (gateway && gateway.exitCode === null) {
+    const exited = new Promise((resolve) => gateway.once('exit', (c) => resolve(c)));
+    gateway.kill('SIGTERM');
+    const timer = new Promise((resolve) => setTimeout(() => resolve('timeout'), 20000));
+    code = await Promise.race([exited, timer]);
+    if (code === 'timeout') gateway.kill('SIGKILL');
+  } else if (gateway) {
+    code = gateway.exitCode;
+  }
+  gateway = null;
+  return code;
+}
+
+function check(condition, message) {
+  if (!condition) throw new Error(message);
+  console.log(`ok: ${message}`);
+}
+
+const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
+
+// `simgate run` on the demo deployment, every transport on port 0; its websocket's port.
+async function startGateway() {
+  const config = JSON.parse(fs.readFileSync(path.join(sourceDir, 'config', 'demo.json'), 'utf8'));
+  config.scene.mjcf = path.join(sourceDir, 'config', 'scenes', 'demo.xml');
+  config.log_level = 'warning';
+  for (const t of Object.values(config.transports)) {
+    t.options = t.options || {};
+    t.options.port = 0;
+    if ('stream_port' in t.options) t.options.stream_port = 0;
+  }
+  if (!config.transports.websocket) throw new Error('config/demo.json has no websocket transport');
+  const configPath = path.join(workdir, 'web-test.json');
+  fs.writeFileSync(configPath, JSON.stringify(config, null, 2));
+  const endpointsPath = path.join(workdir, 'endpoints.json');
+  const log = fs.openSync(path.join(workdir, 'gateway.log'), 'w');
+  gateway = spawn(simgate, ['run', configPath, '--endpoints-file', endpointsPath], { stdio: ['ignore', log, log] });
+  const start = Date.now();
+  while (!fs.existsSync(endpointsPath)) {
+    if (gateway.exitCode !== null || Date.now() - start > WAIT_MS)
+      throw new Error('simgate did not start:\n' + fs.readFileSync(path.join(workdir, 'gateway.log'), 'utf8'));
+    await sleep(20);  // polling for a file the child writes; bounded by WAIT_MS
+  }
+  // written whole, then renamed into place: {"websocket": ["ws://127.0.0.1:PORT/"], ...}
+  const endpoints = JSON.parse(fs.readFileSync(endpointsPath, 'utf8'));
+  const url = endpoints.websocket && endpoints.websocket[0];
+  if (!url) throw new Error(`no websocket endpoint in ${JSON.stringify(endpoints)}`);
+  return Number(url.split(':')[2].replace('/', ''));
+}
+
+async function main() {
+  const port = await startGateway();
+  const pageUrl = `http://127.0.0.1:${port}/`;
+  console.log(`simgate serves ${pageUrl}`);
+
+  browser = await chromium.launch({
+    executablePath: CHROMIUM,
+    headless: true,
+    args: [
+      '--no-sandbox',                        // as root in a container
+      '--use-angle=swiftshader',             // WebGL without a GPU (software rendering)
+      '--enable-unsafe-swiftshader',
+      '--disable-background-networking',     // no traffic but the page's, to 127.0.0.1
+      '--disable-component-update',
+      '--no-first-run',
+      '--disable-sync',
+      '--disable-default-apps',
+    ],
+  });
+  const page = await browser.newPage({ viewport: { width: 1400, height: 900 } });
+  const problems = [];
+  page.on('pageerror', (e) => problems.push(`page error: ${e.message}`));
+  page.on('console', (m) => { if (m.type() === 'error') problems.push(`console error: ${m.text()}`); });
+  page.on('requestfailed', (r) => problems.push(`request failed: ${r.url()} ${r.failure()?.errorText}`));
+  // the page talks to its own server only
+  await page.route('**/*', (route) => {
+    const u = new URL(route.request().url());
+    if (u.hostname === '127.0.0.1' && Number(u.port) === port) return route.continue();
+    problems.push(`request off the server: ${u.href}`);
+    return route.abort();
+  });
+
+  const response = await page.goto(pageUrl, { timeout: WAIT_MS });
+  check(response.status() === 200 && (await page.title()) === 'simgate', `the page loads from ${pageUrl}`);
+
+  // the services, from rpc.discover
+  await page.waitForFunction(() => window.simgate?.connected && window.simgate.services.length > 0, null,
+    { timeout: WAIT_MS });
+  const services = await page.evaluate(() => window.simgate.services);
+  check(services.includes('robot.waypoint.goto'), `the page lists the services (${services.length}, robot.waypoint.goto among them)`);
+  check(!services.includes('simulation.quit'), 'simulation.quit is denied, so not listed');
+  const goto = page.locator('form[data-method="robot.waypoint.goto"]');
+  check(await goto.isVisible(), 'robot.waypoint.goto has a form');
+
+  // the state header
+  await page.waitForFunction(() => /\d/.test(document.getElementById('state-time').textContent), null, { timeout: WAIT_MS });
+  check(true, `the header shows the sim time: ${await page.textContent('#state-time')}`);
+
+  // the robot's position as the page shows it
+  const robotX = async () => Number(await page.textContent('#bodies tr[data-body="robot"] td.x'));
+  await page.waitForSelector('#bodies tr[data-body="robot"]', { timeout: WAIT_MS });
+  const x0 = await robotX();
+  console.log(`robot at x = ${x0}`);
+
+  // goto (2, 0, 0): the robot moves, the call succeeds
+  await goto.locator('input[data-param="x"]').fill('2');
+  await goto.locator('input[data-param="y"]').fill('0');
+  await goto.locator('input[data-param="z"]').fill('0');
+  await goto.locator('button.call-button').click();
+  const first = page.locator('#calls li.call').first();
+  await page.waitForFunction((x) => {
+    const cell = document.querySelector('#bodies tr[data-body="robot"] td.x');
+    return cell && Math.abs(Number(cell.textContent) - x) > 0.1;
+  }, x0, { timeout: WAIT_MS });
+  check(true, `the robot's position shown changes (x ${x0} -> ${await robotX()})`);
+  await page.waitForFunction(() => document.querySelector('#calls li.call')?.dataset.status !== 'RUNNING', null,
+    { timeout: WAIT_MS });
+  const firstStatus = await first.getAttribute('data-status');
+  check(firstStatus === 'SUCCESS', `goto (2, 0, 0) ends ${firstStatus}: ${await first.locator('.reply').textContent()}`);
+  check((await first.locator('.progress').textContent()).includes('distance_left'), 'progress reports were shown');
+
+  // a second goto, cancelled from the page: PREEMPTED
+  await goto.locator('input[data-param="x"]').fill('-4');
+  await goto.locator('input[data-param="y"]').fill('3');
+  await goto.locator('button.call-button').click();
+  const second = page.locator('#calls li.call').first();
+  await second.locator('button.cancel').click({ timeout: WAIT_MS });
+  await page.waitForFunction(() => document.querySelector('#calls li.call')?.dataset.status !== 'RUNNING', null,
+    { timeout: WAIT_MS });
+  const secondStatus = await second.getAttribute('data-status');
+  check(secondStatus === 'PREEMPTED', `the cancelled goto ends ${secondStatus}: ${await second.locator('.reply').textContent()}`);
+
+  // pause, step, play
+  const state = () => page.textContent('#state-run');
+  await page.click('#btn-pause');
+  await page.waitForFunction(() => document.getElementById('state-run').textContent === 'paused', null, { timeout: WAIT_MS });
+  const pausedAt = await page.textContent('#state-time');
+  await page.fill('#step-n', '100');
+  await page.click('#btn-step');
+  await page.waitForFunction((t) => document.getElementById('state-time').textContent !== t, pausedAt, { timeout: WAIT_MS });
+  check(true, `pause then step 100: sim time ${pausedAt} -> ${await page.textContent('#state-time')}`);
+  await page.click('#btn-play');
+  await page.waitForFunction(() => document.getElementById('state-run').textContent === 'playing', null, { timeout: WAIT_MS });
+  check((await state()) === 'playing', 'play resumes');
+
+  // the 3D view: meshes in the scene, frames rendered, and pixels that are not the background
+  await page.waitForFunction(() => window.simgate.meshes > 0 && window.simgate.frames > 2, null, { timeout: WAIT_MS });
+  const drawn = await page.evaluate(() => {
+    const canvas = document.querySelector('#view canvas');
+    const copy = document.createElement('canvas');
+    copy.width = canvas.width;
+    copy.height = canvas.height;
+    const ctx = copy.getContext('2d');
+    ctx.drawImage(canvas, 0, 0);
+    const data = ctx.getImageData(0, 0, copy.width, copy.height).data;
+    let other = 0;
+    for (let i = 0; i < data.length; i += 4)
+      if (Math.abs(data[i] - 0xdd) + Math.abs(data[i + 1] - 0xe3) + Math.abs(data[i + 2] - 0xea) > 30) ++other;
+    return { other, total: data.length / 4, meshes: window.simgate.meshes, view: window.simgate.view,
+             poses: window.simgate.poseSource };
+  });
+  if (services.includes('simulation.get_scene_geometry'))
+    check(drawn.view === 'geometry', `the 3D view draws the model's geoms (get_scene_geometry), not markers`);
+  check(drawn.other > drawn.total / 100,
+    `the 3D view has drawn the scene (${drawn.meshes} meshes, view '${drawn.view}', poses '${drawn.poses}', ` +
+    `${drawn.other} of ${drawn.total} pixels not background)`);
+
+  fs.mkdirSync(artifactsDir, { recursive: true });
+  const shot = path.join(artifactsDir, 'webapp.png');
+  await page.screenshot({ path: shot });
+  console.log(`screenshot: ${shot}`);
+
+  check(problems.length === 0, `no page error, console error or failed request${problems.length ? ':\n  ' + problems.join('\n  ') : ''}`);
+}
+
+main().then(async () => {
+  const code = await cleanup();
+  clearTimeout(deadline);
+  if (code !== 0) {
+    console.error(`FAIL: simgate exited ${code}:\n` + fs.readFileSync(path.join(workdir, 'gateway.log'), 'utf8'));
+    process.exit(1);
+  }
+  fs.rmSync(workdir, { recursive: true, force: true });
+  console.log('PASS');
+  process.exit(0);
+}, async (e) => {
+  console.error(`FAIL: ${e.stack || e}`);
+  await cleanup();
+  clearTimeout(deadline);
+  console.error('simgate log:\n' + fs.readFileSync(path.join(workdir, 'gateway.log'), 'utf8'));
+  process.exit(1);
+});

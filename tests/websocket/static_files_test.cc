@@ -1,0 +1,212 @@
+// The web app's files on the websocket transport's port (plugins/websocket/static_files.h):
+// plain HTTP requests from a raw socket against libsimgate_transport_websocket.so serving a
+// web root the test writes (index.html, a vendor script, a secret beside the root, a
+// symbolic link out of it), the refusals (traversal, methods, long targets), the options,
+// and the build tree's own web app as the default web_root.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <string>
+
+#include <boost/asio/connect.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/read.hpp>
+#include <boost/asio/write.hpp>
+
+#include "simgate/core/plugin_loader.h"
+#include "test_services.h"
+#include "ws_test_client.h"
+
+namespace simgate::websocket_test {
+namespace {
+
+namespace fs = std::filesystem;
+using jsonrpc_test::TestHost;
+
+std::string plugin_path() { return std::string(SIMGATE_TEST_PLUGIN_DIR) + "/libsimgate_transport_websocket.so"; }
+
+// One HTTP exchange: `request` written whole, the answer read until the server closes.
+std::string http_exchange(std::uint16_t port, const std::string& request) {
+  boost::asio::io_context io;
+  boost::asio::ip::tcp::socket socket(io);
+  socket.connect({boost::asio::ip::make_address("127.0.0.1"), port});
+  boost::asio::write(socket, boost::asio::buffer(request));
+  std::string response;
+  boost::system::error_code ec;
+  char buffer[65536];
+  for (int reads = 0; reads < 100000 && !ec; ++reads) {  // bounded; the server closes after its answer
+    const std::size_t n = socket.read_some(boost::asio::buffer(buffer), ec);
+    response.append(buffer, n);
+  }
+  return response;
+}
+
+std::string get(std::uint16_t port, const std::string& target, const std::string& method = "GET") {
+  return http_exchange(port, method + " " + target + " HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+}
+
+int status_of(const std::string& response) {
+  if (!response.starts_with("HTTP/1.1 ") || response.size() < 12) return 0;
+  return std::atoi(response.substr(9, 3).c_str());
+}
+
+std::string header(const std::string& response, const std::string& name) {
+  const std::string key = "\r\n" + name + ": ";
+  const auto at = response.find(key);
+  if (at == std::string::npos) return {};
+  const auto start = at + key.size();
+  return response.substr(start, response.find("\r\n", start) - start);
+}
+
+std::string body_of(const std::string& response) {
+  const auto at = response.find("\r\n\r\n");
+  return at == std::string::npos ? std::string() : response.substr(at + 4);
+}
+
+// A web root under a temporary directory, with a secret beside it.
+class WebRoot {
+ public:
+  WebRoot() {
+    std::string pattern = (fs::temp_directory_path() / "simgate-web-test-XXXXXX").string();
+    if (!::mkdtemp(pattern.data())) throw std::runtime_error("mkdtemp failed");
+    dir_ = pattern;
+    fs::create_directories(root() / "vendor");
+    write(root() / "index.html", index_html);
+    write(root() / "vendor" / "three.module.js", script);
+    write(root() / "style.css", "body { margin: 0; }\n");
+    write(dir_ / "secret.txt", secret);
+    fs::create_symlink(dir_ / "secret.txt", root() / "escape.txt");
+  }
+  ~WebRoot() {
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
+  }
+  fs::path root() const { return dir_ / "web"; }
+
+  static constexpr const char* index_html = "<!doctype html><title>simgate</title>\n";
+  static constexpr const char* script = "export const REVISION = 'test';\n";
+  static constexpr const char* secret = "the secret beside the web root\n";
+
+ private:
+  static void write(const fs::path& file, const std::string& text) { std::ofstream(file) << text; }
+  fs::path dir_;
+};
+
+class WebSocketWebTest : public ::testing::Test {
+ protected:
+  void SetUp() override { host_ = std::make_unique<TestHost>(json{{"web_root", web_.root().string()}}, plugin_path()); }
+  std::uint16_t port() const { return host_->port(); }
+  WebRoot web_;
+  std::unique_ptr<TestHost> host_;
+};
+
+TEST_F(WebSocketWebTest, GetSlashServesIndexHtml) {
+  const std::string r = get(port(), "/");
+  EXPECT_EQ(status_of(r), 200) << r;
+  EXPECT_EQ(header(r, "Content-Type"), "text/html; charset=utf-8") << r;
+  EXPECT_EQ(header(r, "Cache-Control"), "no-cache") << r;
+  EXPECT_EQ(header(r, "Content-Length"), std::to_string(std::string(WebRoot::index_html).size())) << r;
+  EXPECT_EQ(body_of(r), WebRoot::index_html);
+}
+
+TEST_F(WebSocketWebTest, GetServesAScriptAsJavaScriptAndIgnoresTheQuery) {
+  const std::string r = get(port(), "/vendor/three.module.js?v=1");
+  EXPECT_EQ(status_of(r), 200) << r;
+  EXPECT_EQ(header(r, "Content-Type"), "text/javascript; charset=utf-8") << r;
+  EXPECT_EQ(body_of(r), WebRoot::script);
+  EXPECT_EQ(header(get(port(), "/style.css"), "Content-Type"), "text/css; charset=utf-8");
+}
+
+TEST_F(WebSocketWebTest, HeadAnswersTheHeadersWithoutTheBody) {
+  const std::string r = get(port(), "/index.html", "HEAD");
+  EXPECT_EQ(status_of(r), 200) << r;
+  EXPECT_EQ(header(r, "Content-Length"), std::to_string(std::string(WebRoot::index_html).size())) << r;
+  EXPECT_EQ(body_of(r), "");
+}
+
+TEST_F(WebSocketWebTest, TraversalOutOfTheRootIsRefused) {
+  for (const char* target : {"/../secret.txt", "/%2e%2e/secret.txt", "/%2E%2E%2Fsecret.txt", "/vendor/../../secret.txt",
+                             "/vendor/..%2f..%2fsecret.txt", "/..%5csecret.txt", "/.%2e/secret.txt", "//etc/passwd",
+                             "/index.html%00.png", "/./index.html", "/../etc/passwd"}) {
+    const std::string r = get(port(), target);
+    EXPECT_EQ(status_of(r), 404) << target << ": " << r;
+    EXPECT_EQ(r.find("secret beside"), std::string::npos) << target << ": " << r;
+  }
+  // malformed escapes and a target that is no path
+  for (const char* target : {"/%zz", "/%2", "*"}) EXPECT_EQ(status_of(get(port(), target)), 400) << target;
+}
+
+TEST_F(WebSocketWebTest, ASymbolicLinkOutOfTheRootIsNotFollowed) {
+  const std::string r = get(port(), "/escape.txt");
+  EXPECT_EQ(status_of(r), 404) << r;
+  EXPECT_EQ(r.find("secret beside"), std::string::npos) << r;
+}
+
+TEST_F(WebSocketWebTest, OnlyRegularFilesAreServed) {
+  EXPECT_EQ(status_of(get(port(), "/no-such-file.js")), 404);
+  EXPECT_EQ(status_of(get(port(), "/vendor")), 404);   // a directory
+  EXPECT_EQ(status_of(get(port(), "/vendor/")), 404);  // a directory without index.html
+}
+
+TEST_F(WebSocketWebTest, MethodsOtherThanGetAndHeadAreNotAllowed) {
+  const std::string r =
+      http_exchange(port(), "POST /index.html HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 2\r\n\r\n{}");
+  EXPECT_EQ(status_of(r), 405) << r;
+  EXPECT_EQ(header(r, "Allow"), "GET, HEAD") << r;
+  EXPECT_EQ(status_of(get(port(), "/", "DELETE")), 405);
+}
+
+TEST_F(WebSocketWebTest, ATooLongTargetIsRefused) {
+  const std::string r = get(port(), "/" + std::string(3000, 'a'));
+  EXPECT_EQ(status_of(r), 414) << r.substr(0, 200);
+}
+
+TEST_F(WebSocketWebTest, TheWebSocketUpgradeStillWorksBesideTheFiles) {
+  WsClient client(port());
+  const json r = client.call(json{{"jsonrpc", "2.0"}, {"id", 1}, {"method", "spec.subtract"}, {"params", {42, 23}}});
+  EXPECT_EQ(r["result"], 19) << r.dump();
+}
+
+TEST(WebSocketWebOptions, WebFalseAnswersEveryPlainRequestNotFound) {
+  WebRoot web;
+  TestHost host(json{{"web", false}, {"web_root", web.root().string()}}, plugin_path());
+  const std::string r = get(host.port(), "/");
+  EXPECT_EQ(status_of(r), 404) << r;
+  EXPECT_NE(r.find("JSON-RPC 2.0 over WebSocket"), std::string::npos) << r;
+}
+
+TEST(WebSocketWebOptions, BadOptionsAreRefusedNamingTheKey) {
+  try {
+    load_transport(plugin_path(), json{{"port", 0}, {"web_root", "/no/such/simgate/web"}});
+    FAIL() << "a web_root that is no directory was accepted";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("web_root"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("/no/such/simgate/web"), std::string::npos) << e.what();
+  }
+  try {
+    load_transport(plugin_path(), json{{"port", 0}, {"web", "yes"}});
+    FAIL() << "web: \"yes\" was accepted";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("web"), std::string::npos) << e.what();
+  }
+}
+
+TEST(WebSocketWebOptions, TheDefaultWebRootIsTheBuildTreesWebApp) {
+  if (!fs::exists(SIMGATE_BINARY_DIR "/web/index.html"))
+    GTEST_SKIP() << "the web app is not built (" SIMGATE_BINARY_DIR "/web, -DSIMGATE_WITH_WEB=OFF?)";
+  TestHost host(json::object(), plugin_path());
+  const std::string page = get(host.port(), "/");
+  EXPECT_EQ(status_of(page), 200) << page.substr(0, 300);
+  EXPECT_NE(page.find("<title>simgate</title>"), std::string::npos) << page.substr(0, 300);
+  const std::string three = get(host.port(), "/vendor/three.module.js", "HEAD");
+  EXPECT_EQ(status_of(three), 200) << three;
+  EXPECT_EQ(header(three, "Content-Type"), "text/javascript; charset=utf-8") << three;
+}
+
+}  // namespace
+}  // namespace simgate::websocket_test

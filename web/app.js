@@ -1,0 +1,533 @@
+// simgate's web app (docs/web.md): one WebSocket to the server that served this page,
+// JSON-RPC 2.0 over it (docs/transports/jsonrpc.md). Four parts:
+//   - Rpc: calls matched to their replies by id, progress reports, notifications;
+//   - the state header: simulation get_simulation_state (else time statistics) at 2 Hz,
+//     pause / play / step;
+//   - the service console: a form per method of rpc.discover, a log of the calls with their
+//     progress, status and reply, and a Cancel button (rpc.cancel) while one runs;
+//   - the scene: simulation get_scene_geometry drawn with three.js, bodies moved by the
+//     `simulation` stream (rpc.subscribe), or by polling when the server has no such stream;
+//     without get_scene_geometry, each root body of simulation get_scene_objects as a marker.
+// What the browser test reads is on window.simgate (tests/web/webapp_test.js).
+import * as THREE from 'three';
+import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+
+const STATE_PERIOD_MS = 500;        // the state header's refresh
+const POSE_POLL_PERIOD_MS = 250;    // body poses when there is no stream
+const RECONNECT_MS = 2000;          // after the connection is lost
+
+const $ = (id) => document.getElementById(id);
+const el = (tag, props = {}, ...children) => {
+  const e = Object.assign(document.createElement(tag), props);
+  for (const c of children) e.append(c);
+  return e;
+};
+const fmt = (v, digits = 3) => (typeof v === 'number' ? v.toFixed(digits) : String(v ?? '–'));
+const errorText = (e) => e?.data?.message ?? e?.message ?? String(e);
+// A service the server does not have, or does not let this transport call.
+const isUnknownMethod = (e) => e?.code === -32601;
+
+// What the browser test (and a curious developer) can read.
+const exposed = window.simgate = {
+  connected: false,
+  services: [],          // method names of rpc.discover
+  bodies: {},            // body name -> [x, y, z]
+  meshes: 0,             // three.js meshes in the scene
+  frames: 0,             // frames rendered
+  poseSource: 'none',    // 'stream', 'poll' or 'none'
+  view: 'none',          // 'geometry', 'markers', 'none' or 'no-webgl'
+};
+
+// ---------------------------------------------------------------- JSON-RPC over WebSocket
+
+class Rpc {
+  constructor(url) {
+    this.url = url;
+    this.nextId = 1;
+    this.pending = new Map();      // id -> {resolve, reject, onProgress}
+    this.listeners = new Map();    // notification method -> [fn]
+    this.onopen = () => {};
+    this.onclose = () => {};
+  }
+
+  connect() {
+    this.ws = new WebSocket(this.url);
+    this.ws.onopen = () => this.onopen();
+    this.ws.onclose = () => {
+      for (const p of this.pending.values()) p.reject({ code: 0, message: 'connection lost' });
+      this.pending.clear();
+      this.onclose();
+    };
+    this.ws.onmessage = (event) => {
+      let message;
+      try { message = JSON.parse(event.data); } catch { return; }
+      for (const m of Array.isArray(message) ? message : [message]) this.dispatch(m);
+    };
+  }
+
+  dispatch(m) {
+    if (m.method) {  // a notification
+      if (m.method === 'rpc.progress') this.pending.get(m.params?.id)?.onProgress?.(m.params);
+      for (const fn of this.listeners.get(m.method) ?? []) fn(m.params);
+      return;
+    }
+    const p = this.pending.get(m.id);
+    if (!p) return;
+    this.pending.delete(m.id);
+    if ('error' in m) p.reject(m.error); else p.resolve(m.result);
+  }
+
+  on(method, fn) {
+    if (!this.listeners.has(method)) this.listeners.set(method, []);
+    this.listeners.get(method).push(fn);
+  }
+
+  // {id, done}: done resolves with the result or rejects with the JSON-RPC error object.
+  start(method, params, onProgress) {
+    const id = this.nextId++;
+    const done = new Promise((resolve, reject) => {
+      if (this.ws?.readyState !== WebSocket.OPEN) {
+        reject({ code: 0, message: 'not connected' });
+        return;
+      }
+      this.pending.set(id, { resolve, reject, onProgress });
+      const request = { jsonrpc: '2.0', method, id };
+      if (params !== undefined) request.params = params;
+      this.ws.send(JSON.stringify(request));
+    });
+    return { id, done };
+  }
+
+  call(method, params) { return this.start(method, params).done; }
+  cancel(id) { return this.call('rpc.cancel', { id }); }
+}
+
+
+// ---------------------------------------------------------------- the state header
+
+function setupState(rpc) {
+  let source = 'simulation.get_simulation_state';
+  async function refresh() {
+    if (!exposed.connected) return;
+    try {
+      const s = await rpc.call(source);
+      $('state-run').textContent = s.state ?? '–';
+      $('state-time').textContent = `${fmt(s.sim_time)} s`;
+      const target = s.target_realtime_factor === 0 ? 'max' : fmt(s.target_realtime_factor, 2);
+      $('state-rtf').textContent = `${fmt(s.realtime_factor ?? s.recent_realtime_factor, 2)} (target ${target})`;
+      $('state-clients').textContent = s.clients ?? '–';
+      if ($('state-error').textContent.startsWith('state:')) $('state-error').textContent = '';
+    } catch (e) {
+      // get_simulation_state not served here: time statistics says much the same
+      if (isUnknownMethod(e) && source !== 'time.statistics') source = 'time.statistics';
+      else $('state-error').textContent = `state: ${errorText(e)}`;
+    }
+  }
+  setInterval(refresh, STATE_PERIOD_MS);
+
+  const control = (method, params) => async () => {
+    try {
+      await rpc.call(method, params);
+      $('state-error').textContent = '';
+    } catch (e) {
+      $('state-error').textContent = `${method}: ${errorText(e)}`;
+    }
+    refresh();
+  };
+  $('btn-pause').onclick = control('simulation.pause');
+  $('btn-play').onclick = control('simulation.play');
+  $('btn-step').onclick = () => control('simulation.step', { n: Number($('step-n').value) || 1 })();
+  return refresh;
+}
+
+// ---------------------------------------------------------------- the service console
+
+// A form field's text as a JSON value: a string parameter takes it as it is; anything else
+// is parsed as JSON, and taken as a string when it is not JSON.
+function parseValue(text, schema) {
+  if (schema?.type === 'string') return text;
+  try { return JSON.parse(text); } catch { return text; }
+}
+
+function setupConsole(rpc) {
+  const calls = $('calls');
+
+  function logCall(method, params) {
+    const status = el('span', { className: 'status', textContent: 'RUNNING' });
+    const progress = el('code', { className: 'progress' });
+    const reply = el('pre', { className: 'reply' });
+    const cancel = el('button', { type: 'button', className: 'cancel', textContent: 'Cancel' });
+    const entry = el('li', { className: 'call' },
+      el('div', {}, status, ' ', el('code', { className: 'method', textContent: method }), ' ',
+        el('code', { className: 'params', textContent: JSON.stringify(params) }), ' ', cancel),
+      progress, reply);
+    entry.dataset.method = method;
+    entry.dataset.status = 'RUNNING';
+    calls.prepend(entry);
+    const set = (text) => { status.textContent = text; entry.dataset.status = text; };
+    return { entry, set, progress, reply, cancel };
+  }
+
+  async function callService(method, params, isAsync) {
+    const sent = { ...params };
+    if (isAsync) sent._meta = { progress: true };  // rpc.progress reports while it runs
+    const log = logCall(method, params);
+    const { id, done } = rpc.start(method, sent, (p) => {
+      log.progress.textContent = `progress: ${JSON.stringify(p.data)}`;
+    });
+    log.entry.dataset.callId = id;
+    log.cancel.onclick = async () => {
+      log.cancel.disabled = true;
+      try {
+        const found = await rpc.cancel(id);
+        if (!found) log.progress.textContent = 'cancel: the call was no longer running';
+      } catch (e) {
+        log.progress.textContent = `cancel: ${errorText(e)}`;
+      }
+    };
+    try {
+      const result = await done;
+      log.set('SUCCESS');
+      log.reply.textContent = JSON.stringify(result, null, 2);
+    } catch (e) {
+      // the service's status (FAILED, PREEMPTED) when it ran, else the protocol's error
+      log.set(e?.data?.status ?? 'ERROR');
+      log.reply.textContent = `${e.code ?? ''} ${errorText(e)}` + (e.data ? `\n${JSON.stringify(e.data, null, 2)}` : '');
+    }
+    log.cancel.remove();
+  }
+
+  function methodForm(m) {
+    const isAsync = Boolean(m['x-async']);
+    const inputs = [];
+    const fields = (m.params ?? []).map((p) => {
+      const def = p.schema?.default;
+      const input = el('input', {
+        name: p.name,
+        placeholder: def !== undefined ? JSON.stringify(def) : (p.schema?.type ?? 'value'),
+        title: `${p.name}${p.required ? ' (required)' : ''}: ${p.schema?.type ?? 'any'}`,
+      });
+      input.dataset.param = p.name;
+      inputs.push({ input, param: p });
+      return el('label', {}, `${p.name}${p.required ? '*' : ''} `, input);
+    });
+    const button = el('button', { type: 'submit', className: 'call-button', textContent: 'Call' });
+    const form = el('form', { className: 'method' },
+      el('div', { className: 'method-head' },
+        el('code', { textContent: m.name }), isAsync ? el('span', { className: 'tag', textContent: 'async' }) : '',
+        el('span', { className: 'doc', textContent: m.summary ?? m.description ?? '' })),
+      el('div', { className: 'fields' }, ...fields, button));
+    form.dataset.method = m.name;
+    form.onsubmit = (event) => {
+      event.preventDefault();
+      const params = {};
+      for (const { input, param } of inputs)
+        if (input.value !== '') params[param.name] = parseValue(input.value, param.schema);
+      callService(m.name, params, isAsync);
+    };
+    return form;
+  }
+
+  async function load() {
+    const box = $('services');
+    try {
+      const doc = await rpc.call('rpc.discover');
+      const methods = (doc.methods ?? []).slice().sort((a, b) => a.name.localeCompare(b.name));
+      exposed.services = methods.map((m) => m.name);
+      // one group per component, its methods' forms inside
+      const groups = new Map();
+      for (const m of methods) {
+        const component = m['x-component'] ?? m.name.slice(0, m.name.lastIndexOf('.'));
+        if (!groups.has(component)) groups.set(component, []);
+        groups.get(component).push(m);
+      }
+      box.replaceChildren(...[...groups].map(([component, ms]) => {
+        const group = el('details', { className: 'component', open: component.startsWith('robot') },
+          el('summary', { textContent: `${component} (${ms.length})` }), ...ms.map(methodForm));
+        group.dataset.component = component;
+        return group;
+      }));
+      if (methods.length === 0) box.replaceChildren(el('p', { className: 'note', textContent: 'no service is served here' }));
+    } catch (e) {
+      box.replaceChildren(el('p', { className: 'error', textContent: `rpc.discover: ${errorText(e)}` }));
+    }
+  }
+
+  $('service-filter').oninput = () => {
+    const words = $('service-filter').value.toLowerCase().split(/\s+/).filter(Boolean);
+    for (const form of document.querySelectorAll('form.method')) {
+      const name = form.dataset.method.toLowerCase();
+      form.hidden = !words.every((w) => name.includes(w));
+    }
+    for (const group of document.querySelectorAll('details.component')) {
+      group.hidden = [...group.querySelectorAll('form.method')].every((f) => f.hidden);
+      if (words.length) group.open = true;
+    }
+  };
+  return load;
+}
+
+// ---------------------------------------------------------------- the bodies table
+
+function showBodies(positions) {
+  exposed.bodies = positions;
+  const tbody = $('bodies').tBodies[0];
+  for (const [name, [x, y, z]] of Object.entries(positions)) {
+    let row = tbody.querySelector(`tr[data-body="${CSS.escape(name)}"]`);
+    if (!row) {
+      row = el('tr', {}, el('th', { textContent: name }), el('td', { className: 'x' }),
+        el('td', { className: 'y' }), el('td', { className: 'z' }));
+      row.dataset.body = name;
+      tbody.append(row);
+    }
+    row.cells[1].textContent = fmt(x);
+    row.cells[2].textContent = fmt(y);
+    row.cells[3].textContent = fmt(z);
+  }
+}
+
+// ---------------------------------------------------------------- the 3D view
+
+// A three.js geometry for a MuJoCo geom (size: MuJoCo's geom_size), or null (hfield).
+function geomGeometry(g, meshes) {
+  const [a, b, c] = g.size ?? [0, 0, 0];
+  switch (g.type) {
+    case 'plane': {
+      // a half-size of 0 is an infinite plane: drawn large
+      const plane = new THREE.PlaneGeometry(2 * (a || 50), 2 * (b || 50));
+      return plane;
+    }
+    case 'sphere': return new THREE.SphereGeometry(a, 24, 16);
+    case 'ellipsoid': return new THREE.SphereGeometry(1, 24, 16).scale(a, b, c);
+    // three.js's capsule and cylinder stand along y, MuJoCo's along z
+    case 'capsule': return new THREE.CapsuleGeometry(a, 2 * b, 8, 16).rotateX(Math.PI / 2);
+    case 'cylinder': return new THREE.CylinderGeometry(a, a, 2 * b, 24).rotateX(Math.PI / 2);
+    case 'box': return new THREE.BoxGeometry(2 * a, 2 * b, 2 * c);
+    case 'mesh': {
+      const mesh = meshes?.[g.mesh];
+      if (!mesh) return null;
+      const geometry = new THREE.BufferGeometry();
+      geometry.setAttribute('position', new THREE.Float32BufferAttribute(mesh.vertices, 3));
+      geometry.setIndex(mesh.faces);
+      geometry.computeVertexNormals();
+      return geometry;
+    }
+    default: return null;  // hfield: its heights are not sent
+  }
+}
+
+const setPose = (object, pos, quat) => {
+  if (pos) object.position.set(pos[0], pos[1], pos[2]);
+  if (quat) object.quaternion.set(quat[1], quat[2], quat[3], quat[0]);  // MuJoCo: w, x, y, z
+};
+
+class SceneView {
+  constructor(container) {
+    this.renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+    this.renderer.setPixelRatio(window.devicePixelRatio);
+    container.append(this.renderer.domElement);
+    this.scene = new THREE.Scene();
+    this.scene.background = new THREE.Color(0xdde3ea);
+    this.camera = new THREE.PerspectiveCamera(50, 1, 0.05, 500);
+    this.camera.up.set(0, 0, 1);  // MuJoCo is z-up
+    this.camera.position.set(5, -6, 4);
+    this.controls = new OrbitControls(this.camera, this.renderer.domElement);
+    this.controls.target.set(0, 0, 0.3);
+    this.controls.update();
+    this.scene.add(new THREE.HemisphereLight(0xffffff, 0x445544, 1.2));
+    const sun = new THREE.DirectionalLight(0xffffff, 1.5);
+    sun.position.set(3, -4, 8);
+    this.scene.add(sun);
+    // a 1 m grid on the ground (three.js's lies in x-z, MuJoCo's ground in x-y)
+    const grid = new THREE.GridHelper(20, 20, 0x3c463c, 0x5f6b5f);
+    grid.rotateX(Math.PI / 2);
+    grid.position.z = 0.002;
+    this.scene.add(grid);
+    this.root = new THREE.Group();  // what the server's scene is drawn in
+    this.scene.add(this.root);
+    this.bodies = [];               // body index -> Group, placed in the world
+    new ResizeObserver(() => this.resize(container)).observe(container);
+    this.resize(container);
+    this.renderer.setAnimationLoop(() => {
+      this.controls.update();
+      this.renderer.render(this.scene, this.camera);
+      exposed.frames++;
+    });
+  }
+
+  resize(container) {
+    const w = container.clientWidth || 640, h = container.clientHeight || 400;
+    this.renderer.setSize(w, h);
+    this.camera.aspect = w / h;
+    this.camera.updateProjectionMatrix();
+  }
+
+  clear() {
+    this.root.traverse((o) => { o.geometry?.dispose(); o.material?.dispose(); });
+    this.root.clear();
+    this.bodies = [];
+    exposed.meshes = 0;
+  }
+
+  // get_scene_geometry's answer: a group per body, its geoms inside.
+  build(geometry) {
+    this.clear();
+    for (const b of geometry.bodies) {
+      const group = new THREE.Group();
+      group.name = b.name;
+      setPose(group, b.pos, b.quat);
+      this.root.add(group);
+      this.bodies.push(group);
+    }
+    const byId = new Map(geometry.bodies.map((b, i) => [b.id ?? i, this.bodies[i]]));
+    for (const g of geometry.geoms) {
+      if ((g.group ?? 0) >= 3) continue;      // MuJoCo hides groups 3-5 by default
+      const rgba = g.rgba ?? [0.7, 0.7, 0.7, 1];
+      if (rgba[3] === 0) continue;            // invisible
+      const shape = geomGeometry(g, geometry.meshes);
+      if (!shape) continue;
+      const material = new THREE.MeshStandardMaterial({
+        color: new THREE.Color(rgba[0], rgba[1], rgba[2]),
+        transparent: rgba[3] < 1, opacity: rgba[3], roughness: 0.8,
+        side: g.type === 'plane' ? THREE.DoubleSide : THREE.FrontSide,
+      });
+      const mesh = new THREE.Mesh(shape, material);
+      mesh.name = g.name ?? '';
+      setPose(mesh, g.pos, g.quat);
+      (byId.get(g.body) ?? this.root).add(mesh);
+      exposed.meshes++;
+    }
+  }
+
+  // poses: [[x, y, z, qw, qx, qy, qz], ...] one per body, in body order.
+  move(poses) {
+    poses.forEach((p, i) => { if (this.bodies[i]) setPose(this.bodies[i], p, p.slice(3)); });
+  }
+
+  // Without get_scene_geometry: a marker per root body of get_scene_objects.
+  markers(objects) {
+    for (const [name, [, pos, q]] of Object.entries(objects)) {
+      let marker = this.root.getObjectByName(name);
+      if (!marker) {
+        marker = new THREE.Mesh(new THREE.BoxGeometry(0.3, 0.3, 0.3),
+          new THREE.MeshStandardMaterial({ color: name.startsWith('robot') ? 0x3355cc : 0x998866 }));
+        marker.name = name;
+        this.root.add(marker);
+        exposed.meshes++;
+      }
+      marker.position.set(pos[0], pos[1], pos[2]);
+      marker.quaternion.set(q[0], q[1], q[2], q[3]);  // get_scene_objects: x, y, z, w
+    }
+  }
+}
+
+function setupScene(rpc) {
+  let view = null;
+  try {
+    view = new SceneView($('view'));
+  } catch (e) {
+    exposed.view = 'no-webgl';
+    $('view-info').textContent = `no 3D view: ${e.message} (the rest of the page works)`;
+  }
+  let geometry = null;       // the last get_scene_geometry answer
+  let pollTimer = null;
+
+  const positionsOf = (bodies, poses) => {
+    const out = {};
+    bodies.forEach((b, i) => { if (b.name && b.id !== 0 && poses[i]) out[b.name] = poses[i].slice(0, 3); });
+    return out;
+  };
+
+  async function fetchGeometry(includeMeshes) {
+    return rpc.call('simulation.get_scene_geometry', { include_meshes: includeMeshes });
+  }
+
+  async function onPoses(sample) {
+    if (!geometry) return;
+    if (sample.generation !== undefined && sample.generation !== geometry.generation) {
+      await loadGeometry();  // the model changed (an entity spawned or deleted)
+      return;
+    }
+    // poses one per body in id order: by index when the lists match, else by id
+    const poses = sample.poses.length === geometry.bodies.length
+      ? sample.poses : geometry.bodies.map((b) => sample.poses[b.id]);
+    view?.move(poses);
+    showBodies(positionsOf(geometry.bodies, poses));
+  }
+
+  async function loadGeometry() {
+    geometry = await fetchGeometry(true);
+    view?.build(geometry);
+    exposed.view = view ? 'geometry' : exposed.view;
+    showBodies(positionsOf(geometry.bodies, geometry.bodies.map((b) => [...b.pos, ...b.quat])));
+  }
+
+  function poll(fn) {
+    clearInterval(pollTimer);
+    exposed.poseSource = 'poll';
+    pollTimer = setInterval(async () => {
+      if (!exposed.connected) return;
+      try { await fn(); } catch (e) { $('view-info').textContent = `poses: ${errorText(e)}`; }
+    }, POSE_POLL_PERIOD_MS);
+  }
+
+  rpc.on('rpc.sample', (p) => { if (p.component === 'simulation') onPoses(p.data); });
+
+  return async function start() {
+    clearInterval(pollTimer);
+    try {
+      await loadGeometry();
+      try {
+        await rpc.call('rpc.subscribe', { component: 'simulation' });
+        exposed.poseSource = 'stream';
+        $('view-info').textContent = `${exposed.meshes} geoms; poses streamed`;
+      } catch (e) {
+        // no `simulation` stream on this transport: poll the poses
+        $('view-info').textContent = `${exposed.meshes} geoms; poses polled (the transport carries no simulation stream)`;
+        console.info(`rpc.subscribe simulation: ${errorText(e)}`);
+        poll(async () => {
+          const g = await fetchGeometry(false);
+          await onPoses({ generation: g.generation, poses: g.bodies.map((b) => [...b.pos, ...b.quat]) });
+        });
+      }
+    } catch (e) {
+      // no get_scene_geometry: the root bodies of get_scene_objects, as markers
+      $('view-info').textContent = isUnknownMethod(e)
+        ? 'simulation.get_scene_geometry is not served here: each root body is drawn as a box'
+        : `simulation.get_scene_geometry: ${errorText(e)}; each root body is drawn as a box`;
+      exposed.view = view ? 'markers' : exposed.view;
+      const refresh = async () => {
+        const objects = await rpc.call('simulation.get_scene_objects');
+        view?.markers(objects);
+        showBodies(Object.fromEntries(Object.entries(objects).map(([name, [, pos]]) => [name, pos])));
+      };
+      try { await refresh(); poll(refresh); } catch (e2) {
+        $('view-info').textContent += ` (simulation.get_scene_objects: ${errorText(e2)})`;
+      }
+    }
+  };
+}
+
+// ---------------------------------------------------------------- start
+
+const rpc = new Rpc(`${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/`);
+const refreshState = setupState(rpc);
+const loadServices = setupConsole(rpc);
+const startScene = setupScene(rpc);
+
+rpc.onopen = () => {
+  exposed.connected = true;
+  $('connection').textContent = `connected to ${location.host}`;
+  $('connection').dataset.state = 'connected';
+  refreshState();
+  loadServices();
+  startScene();
+};
+rpc.onclose = () => {
+  const was = exposed.connected;
+  exposed.connected = false;
+  $('connection').textContent = was ? 'connection lost; reconnecting…' : 'cannot connect; retrying…';
+  $('connection').dataset.state = 'disconnected';
+  setTimeout(() => rpc.connect(), RECONNECT_MS);
+};
+rpc.connect();
