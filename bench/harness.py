@@ -913,8 +913,8 @@ class Harness:
         real-time factor with a camera streaming at 10 Hz to a JSON-RPC subscriber against
         none (--mode camera_rtf)."""
         sim = os.path.join(self.bin, "simgate_bench_sim")
-        if not os.access(sim, os.X_OK) or not self.plugin_built("jsonrpc"):
-            return {"status": "skipped", "reason": "simgate_bench_sim or the JSON-RPC transport is not built"}
+        if not os.access(sim, os.X_OK) or not self.plugin_built("jsonrpc") or not self.plugin_built("socket"):
+            return {"status": "skipped", "reason": "simgate_bench_sim or the rover's transports are not built"}
         mjcf = os.path.join(ROOT, "config", "scenes", "rover_room.xml")
         config = os.path.join(ROOT, "config", "rover.json")
         # per side, size and kind: at most `frames` frames or `seconds` s, in batches
