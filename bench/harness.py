@@ -33,6 +33,14 @@ Sections (each ends "ok", "error" with the reason, or "skipped" when a part was 
   progress issue #20: the real-time factor while 100 concurrent JSON-RPC calls get progress
            reports at 1 kHz each vs the same calls without progress, alternating rounds in
            one gateway (simgate_bench_sim --mode progress)
+  streams  issue #21: 50 pose sensors streaming at 100 Hz on every transport (real-time
+           factor, CPU, latency); a DDS pose stream vs a raw Cyclone writer
+  cameras  issue #22: camera frames/s (320x240, 640x480; RGB and depth) through simgate's
+           Renderer (scene copy, render thread, pixels back; with and without the PNG record)
+           vs a bare mjv_updateScene + mjr_render + mjr_readPixels loop on the same kind of
+           EGL context; the real-time factor of config/rover.json with a JSON-RPC client
+           subscribed to its 10 Hz camera stream vs none. "skipped" when no EGL context can
+           be made (no GPU is needed: Mesa's llvmpipe renders surfaceless)
 
 Usage: bench/harness.py --build-dir DIR [--out DIR] [--smoke] [--repeats N]
 Normally run through bench/run, which builds first. Writes DIR/results.json and
@@ -899,6 +907,72 @@ class Harness:
             out["dds_runs"] = dds_runs
         return out
 
+    def section_cameras(self):
+        """Issue #22: frames/s of the camera path against a bare mjr_render + mjr_readPixels
+        loop on the same kind of EGL context (simgate_bench_sim --mode camera_fps), and the
+        real-time factor with a camera streaming at 10 Hz to a JSON-RPC subscriber against
+        none (--mode camera_rtf)."""
+        sim = os.path.join(self.bin, "simgate_bench_sim")
+        if not os.access(sim, os.X_OK) or not self.plugin_built("jsonrpc") or not self.plugin_built("socket"):
+            return {"status": "skipped", "reason": "simgate_bench_sim or the rover's transports are not built"}
+        mjcf = os.path.join(ROOT, "config", "scenes", "rover_room.xml")
+        config = os.path.join(ROOT, "config", "rover.json")
+        # per side, size and kind: at most `frames` frames or `seconds` s, in batches
+        frames, seconds, batch = (6, 0.5, 3) if self.smoke else (200, 5.0, 10)
+        rtf_seconds = 2.0 if self.smoke else 10.0
+        fps_runs, rtf_runs = [], []
+        for _ in range(self.repeats):
+            r = run_json([sim, "--mode", "camera_fps", "--mjcf", mjcf, "--site", "laser", "--frames", str(frames),
+                          "--duration", str(seconds), "--batch", str(batch)], self.timeout, self.env)
+            if "skipped" in r:
+                return {"status": "skipped", "reason": r["skipped"]}
+            fps_runs.append(r)
+            r = run_json([sim, "--mode", "camera_rtf", "--config", config, "--camera", "rover.camera",
+                          "--duration", str(rtf_seconds)], self.timeout, self.env)
+            if "skipped" in r:
+                return {"status": "skipped", "reason": r["skipped"]}
+            rtf_runs.append(r)
+
+        def over_runs(values, within=None):
+            # one run: the spread of its rounds; several: of the runs' medians
+            if len(values) == 1 and within is not None:
+                return within
+            return spread(values)
+
+        rows = []
+        for i, row in enumerate(fps_runs[0]["rows"]):
+            mine = [run["rows"][i] for run in fps_runs]
+            rows.append({"size": f"{row['width']}x{row['height']}", "kind": row["kind"],
+                         "bare_fps": spread([x["bare_fps"] for x in mine]),
+                         "raw_fps": spread([x["raw_fps"] for x in mine]),
+                         "png_fps": spread([x["png_fps"] for x in mine]),
+                         "raw_ratio": over_runs([x["raw_ratio"]["median"] for x in mine], row["raw_ratio"]),
+                         "png_ratio": over_runs([x["png_ratio"]["median"] for x in mine], row["png_ratio"]),
+                         "scene_copy_p50_us": spread([x["scene_copy"]["p50_us"] for x in mine]),
+                         "png_kib": row["png_base64_bytes"] / 1024,
+                         "frames_per_side": row["frames_per_side"]})
+        s = {"rows": rows, "gl_renderer": fps_runs[0]["gl_renderer"], "gl_platform": fps_runs[0]["gl_platform"],
+             "batch": batch,
+             "rtf_without": spread([r["without"]["realtime_factor"] for r in rtf_runs]),
+             "rtf_with": spread([r["with"]["realtime_factor"] for r in rtf_runs]),
+             "rtf_ratio": spread([r["ratio"] for r in rtf_runs]),
+             "samples_per_s": spread([r["with"]["samples_per_s"] for r in rtf_runs]),
+             "cpu_per_s_without": spread([r["without"]["gateway_cpu_per_s"] for r in rtf_runs]),
+             "cpu_per_s_with": spread([r["with"]["gateway_cpu_per_s"] for r in rtf_runs]),
+             "sample_kib": spread([r["with"]["mean_sample_bytes"] / 1024 for r in rtf_runs]),
+             "rtf_seconds": rtf_seconds, "frequency_hz": rtf_runs[0]["frequency_hz"],
+             "image": rtf_runs[0]["image"]}
+        for row in rows:
+            if row["kind"] != "rgb":
+                continue
+            self.target(f"camera frames/s {row['size']} RGB, Renderer (raw pixels) / bare mjr_render loop",
+                        row["raw_ratio"], ">=", 0.9, "x")
+            self.target(f"camera frames/s {row['size']} RGB, Renderer + PNG record / bare mjr_render loop",
+                        row["png_ratio"], ">=", 0.9, "x")
+        self.target(f"real-time factor, camera streaming {s['image']['width']}x{s['image']['height']} at "
+                    f"{s['frequency_hz']:g} Hz to a JSON-RPC subscriber", s["rtf_with"], ">=", 0.99)
+        return {"status": "ok", "summary": s, "fps_runs": fps_runs, "rtf_runs": rtf_runs}
+
     # ---- driver
 
     def machine(self):
@@ -941,7 +1015,8 @@ class Harness:
         self.results["repeats"] = self.repeats
         self.results["machine"] = self.machine()
         only = set(self.args.only.split(",")) if self.args.only else None
-        for name in ("socket", "jsonrpc", "websocket", "dds", "peers", "sim", "memory", "byor", "world", "progress", "streams"):
+        for name in ("socket", "jsonrpc", "websocket", "dds", "peers", "sim", "memory", "byor", "world", "progress", "streams",
+                     "cameras"):
             if only and name not in only:
                 continue
             t0 = time.monotonic()
@@ -1211,6 +1286,45 @@ def markdown(r):
             lines += [f"| DDS pose stream samples/s: simgate / raw Cyclone writer | {fmt(g['dds_simgate_per_s'], 0)} / "
                       f"{fmt(g['dds_raw_per_s'], 0)} = {fmt(g['dds_ratio'], 3)} |"]
         lines += [""]
+
+    lines += ["## Cameras (issue #22)", ""]
+    st = status_line("cameras")
+    if st:
+        lines += [st, ""]
+    else:
+        sec = s["cameras"]
+        g = sec["summary"]
+        diff = {f"{x['width']}x{x['height']} {x['kind']}": x["mean_abs_difference"] for x in sec["fps_runs"][0]["rows"]}
+        lines += [f"The rover's room (config/scenes/rover_room.xml) seen from the rover cameras' site, on "
+                  f"{g['gl_renderer'] or 'an unnamed GL renderer'} (EGL, {g['gl_platform']} display). Bare: "
+                  "mjv_updateScene + mjr_render + mjr_readPixels on a GlContext, one frame after the other. "
+                  "Renderer: the scene copied (SceneCopy::update, what a camera does under the simulation lock), "
+                  "rendered and read back on the render thread, rows flipped (depth linearised), the caller "
+                  "waiting for each frame; + PNG: with the image record get_image and capture return (PNG, "
+                  f"base64), made on the render thread. Sides alternate in batches of {g['batch']} frames; "
+                  "ratios are medians of the rounds' ratios.", "",
+                  "| size, kind | bare frames/s | Renderer frames/s | Renderer / bare | + PNG frames/s | "
+                  "+ PNG / bare | scene copy p50 (µs) | PNG base64 (KiB) | mean abs. difference |",
+                  "|---|---|---|---|---|---|---|---|---|"]
+        for row in g["rows"]:
+            key = f"{row['size']} {row['kind']}"
+            unit = "levels" if row["kind"] == "rgb" else "m"
+            lines.append(f"| {row['size']} {row['kind']} | {fmt(row['bare_fps'])} | {fmt(row['raw_fps'])} | "
+                         f"{fmt(row['raw_ratio'], 3)} | {fmt(row['png_fps'])} | {fmt(row['png_ratio'], 3)} | "
+                         f"{fmt(row['scene_copy_p50_us'], 2)} | {fmt(row['png_kib'])} | "
+                         f"{diff.get(key, 0):.3g} {unit} |")
+        lines += ["", f"config/rover.json at real time, {g['rtf_seconds']:g} s without a subscriber, then "
+                  f"{g['rtf_seconds']:g} s with a JSON-RPC client subscribed to rover.camera "
+                  f"({g['image']['width']}x{g['image']['height']} {g['image']['encoding']}, "
+                  f"{g['frequency_hz']:g} Hz of simulated time; the PNG made on the transport's thread).", "",
+                  "| measure | value |", "|---|---|",
+                  f"| real-time factor, no subscriber | {fmt(g['rtf_without'], 4)} |",
+                  f"| real-time factor, camera streaming | {fmt(g['rtf_with'], 4)} |",
+                  f"| with / without | {fmt(g['rtf_ratio'], 4)} |",
+                  f"| images received per second | {fmt(g['samples_per_s'], 2)} |",
+                  f"| mean sample (KiB) | {fmt(g['sample_kib'])} |",
+                  f"| gateway CPU (s per s), without / with | {fmt(g['cpu_per_s_without'], 3)} / "
+                  f"{fmt(g['cpu_per_s_with'], 3)} |", ""]
 
     lines += ["## Sections", "", "| section | status | seconds |", "|---|---|---|"]
     for name, sec in s.items():

@@ -53,6 +53,14 @@
 //            client: the real-time factor and CPU against the same gateway without streams,
 //            the latency from a step's end to a socket subscriber's read and the sync round
 //            trip of the same run (stream_bench.cc).
+//   camera_fps  issue #22's frame-rate target: frames/s of simgate's camera path (scene copy,
+//            the Renderer's render thread, pixels read back; with and without the PNG record)
+//            against a bare mjv_updateScene + mjr_render + mjr_readPixels loop on the same
+//            kind of EGL context, 320x240 and 640x480, RGB and depth, on --mjcf seen from
+//            --site (camera_bench.cc).
+//   camera_rtf  issue #22's real-time-factor target: --config (config/rover.json) at real
+//            time, --duration seconds without and then with a JSON-RPC subscriber to
+//            --camera's image stream (camera_bench.cc).
 //
 // The probe costs one clock read per step; both modes run on the main thread, unpinned.
 #include <poll.h>
@@ -75,6 +83,7 @@
 #include <mujoco/mujoco.h>
 
 #include "bench_util.h"
+#include "camera_bench.h"
 #include "progress_bench.h"
 #include "stream_bench.h"
 #include "simgate/core/component.h"
@@ -635,28 +644,41 @@ int main(int argc, char** argv) {
   double round_s = 1;
   int calls = 100;
   bool dds = false;
+  simgate::bench::CameraFpsOptions camera_fps;
+  std::string camera = "rover.camera";
   app.add_option("--mode", mode,
-                 "bare, sleep, gateway, laser, humanoid, snapshot, spawn, progress or streams (see the source's header)")
+                 "bare, sleep, gateway, laser, humanoid, snapshot, spawn, progress, streams, camera_fps or camera_rtf "
+                 "(see the source's header)")
       ->required()
-      ->check(CLI::IsMember({"bare", "sleep", "gateway", "laser", "humanoid", "snapshot", "spawn", "progress", "streams"}));
+      ->check(CLI::IsMember({"bare", "sleep", "gateway", "laser", "humanoid", "snapshot", "spawn", "progress",
+                             "streams", "camera_fps", "camera_rtf"}));
+  app.add_option("--site", camera_fps.site, "camera_fps: the site the view is from")->capture_default_str();
+  app.add_option("--frames", camera_fps.frames, "camera_fps: frames per side, size and kind, at most")
+      ->capture_default_str();
+  app.add_option("--batch", camera_fps.batch, "camera_fps: frames of one side in a row")->capture_default_str();
+  app.add_option("--camera", camera, "camera_rtf: the camera component whose stream is subscribed")
+      ->capture_default_str();
   app.add_flag("--dds", dds, "streams: the DDS transport streams too");
   app.add_option("--round", round_s, "progress: simulated seconds each call runs")->capture_default_str();
   app.add_option("--calls", calls, "progress: concurrent calls, one connection each; streams: components")
       ->capture_default_str();
-  app.add_option("--mjcf", mjcf, "bare, sleep, snapshot, spawn, progress: the MJCF scene; humanoid: another humanoid.xml");
-  app.add_option("--config", config, "gateway: the deployment file");
+  app.add_option("--mjcf", mjcf,
+                 "bare, sleep, snapshot, spawn, progress, streams, camera_fps: the MJCF scene; humanoid: another "
+                 "humanoid.xml");
+  app.add_option("--config", config, "gateway, camera_rtf: the deployment file");
   app.add_option("--realtime-factor", factor, "gateway: pacing (0 = as fast as possible)")->capture_default_str();
-  app.add_option("--duration", duration, "seconds to run")->capture_default_str();
+  app.add_option("--duration", duration, "seconds to run (camera_fps: per side, size and kind, at most)")
+      ->capture_default_str();
   app.add_flag("--until-stdin-closes", until_stdin, "gateway: run until standard input closes instead");
   if (auto code = simgate::bench::parse_command_line(app, argc, argv)) return *code;
   if ((mode == "bare" || mode == "sleep" || mode == "snapshot" || mode == "spawn" || mode == "progress" ||
-       mode == "streams") &&
+       mode == "streams" || mode == "camera_fps") &&
       mjcf.empty()) {
     std::cerr << "simgate_bench_sim: --mode " << mode << " needs --mjcf PATH\n";
     return 2;
   }
-  if (mode == "gateway" && config.empty()) {
-    std::cerr << "simgate_bench_sim: --mode gateway needs --config PATH\n";
+  if ((mode == "gateway" || mode == "camera_rtf") && config.empty()) {
+    std::cerr << "simgate_bench_sim: --mode " << mode << " needs --config PATH\n";
     return 2;
   }
   try {
@@ -677,6 +699,12 @@ int main(int argc, char** argv) {
       out = simgate::bench::run_progress(mjcf, duration, round_s, calls);
     } else if (mode == "streams") {
       out = simgate::bench::run_streams(mjcf, duration, calls, 2000, dds);
+    } else if (mode == "camera_fps") {
+      camera_fps.mjcf = mjcf;
+      camera_fps.seconds = duration;
+      out = simgate::bench::run_camera_fps(camera_fps);
+    } else if (mode == "camera_rtf") {
+      out = simgate::bench::run_camera_rtf(config, camera, duration);
     } else {
       out = run_gateway(config, factor, duration, until_stdin);
     }

@@ -2,19 +2,15 @@
 // offscreen framebuffer, scenes copied under the simulation lock and rendered off it.
 #include "simgate/sim/renderer.h"
 
-#include <EGL/egl.h>
-#include <EGL/eglext.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstddef>
-#include <cstdlib>
 #include <cstring>
-#include <sstream>
 #include <stdexcept>
 
 #include "simgate/core/log.h"
+#include "simgate/sim/gl_context.h"
 
 namespace simgate::sim {
 
@@ -23,35 +19,6 @@ namespace {
 // How long unavailable() waits for the render thread to try EGL (Mesa's llvmpipe starts in
 // well under a second; a driver that hangs must not hang a service).
 constexpr auto k_start_timeout = std::chrono::seconds(20);
-// Where an install that lacks EGL finds it.
-constexpr const char* k_install_hint = "install libegl1 and libgl1-mesa-dri";
-
-bool has_extension(const char* list, const char* name) {
-  if (!list) return false;
-  const std::size_t n = std::strlen(name);
-  for (const char* p = list; (p = std::strstr(p, name)) != nullptr; p += n)
-    if ((p == list || p[-1] == ' ') && (p[n] == ' ' || p[n] == '\0')) return true;
-  return false;
-}
-
-std::string egl_error() {
-  const EGLint code = eglGetError();
-  std::ostringstream out;
-  out << "EGL error 0x" << std::hex << code;
-  switch (code) {
-    case EGL_NOT_INITIALIZED: out << " EGL_NOT_INITIALIZED"; break;
-    case EGL_BAD_ACCESS: out << " EGL_BAD_ACCESS"; break;
-    case EGL_BAD_ALLOC: out << " EGL_BAD_ALLOC"; break;
-    case EGL_BAD_ATTRIBUTE: out << " EGL_BAD_ATTRIBUTE"; break;
-    case EGL_BAD_CONFIG: out << " EGL_BAD_CONFIG"; break;
-    case EGL_BAD_CONTEXT: out << " EGL_BAD_CONTEXT"; break;
-    case EGL_BAD_DISPLAY: out << " EGL_BAD_DISPLAY"; break;
-    case EGL_BAD_MATCH: out << " EGL_BAD_MATCH"; break;
-    case EGL_BAD_PARAMETER: out << " EGL_BAD_PARAMETER"; break;
-    default: break;
-  }
-  return out.str();
-}
 
 // Equal models give equal contexts: sizes, the arrays' buffer, visual and statistics.
 bool same_model(const mjModel* a, const mjModel* b) {
@@ -106,8 +73,7 @@ void SceneCopy::update(const mjModel* m, mjData* d, const CameraView& view, doub
 // ---- the GL side: render thread only --------------------------------------------------
 
 struct Renderer::Gl {
-  EGLDisplay display = EGL_NO_DISPLAY;
-  EGLContext context = EGL_NO_CONTEXT;
+  std::unique_ptr<GlContext> context;         // current on the render thread
   mjrContext con;                             // MuJoCo's GL resources
   bool con_made = false;                      // con holds resources
   std::shared_ptr<const mjModel> con_model;   // the model con was made from
@@ -119,55 +85,16 @@ struct Renderer::Gl {
 };
 
 std::string Renderer::Gl::open() {
-  if (const char* off = std::getenv("SIMGATE_RENDERER_UNAVAILABLE"))
-    return std::string("rendering is switched off (SIMGATE_RENDERER_UNAVAILABLE=") + off + ")";
-  // Mesa's surfaceless platform needs neither a display server nor a GPU
-  const char* client = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
-  auto get_platform_display =
-      reinterpret_cast<PFNEGLGETPLATFORMDISPLAYEXTPROC>(eglGetProcAddress("eglGetPlatformDisplayEXT"));
-  if (get_platform_display && has_extension(client, "EGL_MESA_platform_surfaceless"))
-    display = get_platform_display(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr);
-  if (display == EGL_NO_DISPLAY) display = eglGetDisplay(EGL_DEFAULT_DISPLAY);
-  if (display == EGL_NO_DISPLAY)
-    return "no EGL display (" + egl_error() + ", no Mesa surfaceless platform): " + k_install_hint;
-  EGLint major = 0, minor = 0;
-  if (!eglInitialize(display, &major, &minor)) {
-    const std::string why = egl_error();
-    display = EGL_NO_DISPLAY;
-    return "EGL display could not be initialised (" + why + "): " + k_install_hint;
-  }
-  const char* extensions = eglQueryString(display, EGL_EXTENSIONS);
-  if (!has_extension(extensions, "EGL_KHR_surfaceless_context"))
-    return "EGL display has no EGL_KHR_surfaceless_context (Mesa's has): " + std::string(k_install_hint);
-  if (!eglBindAPI(EGL_OPENGL_API)) return "EGL has no desktop OpenGL (" + egl_error() + "): " + k_install_hint;
-  // a config for desktop OpenGL, or none at all (MuJoCo draws into its own framebuffer)
-  const EGLint attributes[] = {EGL_RENDERABLE_TYPE, EGL_OPENGL_BIT, EGL_NONE};
-  EGLConfig config = nullptr;
-  EGLint count = 0;
-  if (!eglChooseConfig(display, attributes, &config, 1, &count) || count < 1) {
-    if (!has_extension(extensions, "EGL_KHR_no_config_context"))
-      return "EGL has no configuration for desktop OpenGL: " + std::string(k_install_hint);
-    config = EGL_NO_CONFIG_KHR;
-  }
-  context = eglCreateContext(display, config, EGL_NO_CONTEXT, nullptr);
-  if (context == EGL_NO_CONTEXT) return "EGL could not create an OpenGL context (" + egl_error() + ")";
-  if (!eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, context))
-    return "EGL could not make its OpenGL context current (" + egl_error() + ")";
-  return "";
+  std::string why;
+  context = GlContext::make(why);
+  return why;
 }
 
 void Renderer::Gl::close() {
   if (con_made) mjr_freeContext(&con);
   con_made = false;
   con_model.reset();
-  if (display == EGL_NO_DISPLAY) return;
-  eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
-  if (context != EGL_NO_CONTEXT) eglDestroyContext(display, context);
-  context = EGL_NO_CONTEXT;
-  // the display stays initialised (one per process, reused by the next renderer): its
-  // driver stays loaded, as does every library the process loads
-  display = EGL_NO_DISPLAY;
-  eglReleaseThread();
+  context.reset();
 }
 
 // ---- Renderer -------------------------------------------------------------------------

@@ -1,9 +1,9 @@
 // simgate/sim/renderer.h — MuJoCo's renderer, headless: offscreen images of the simulation.
 //
 // Terms:
-//  - Renderer: one OpenGL context, made with EGL (Mesa's surfaceless platform when there,
-//    else the default display; desktop OpenGL, no surface: EGL_KHR_surfaceless_context),
-//    and the one render thread that owns it. Every GL call (mjr_*) runs on that thread.
+//  - Renderer: one OpenGL context (a GlContext, gl_context.h: EGL, Mesa's surfaceless
+//    platform when there, else the default display; desktop OpenGL, no surface), and the
+//    one render thread that owns it. Every GL call (mjr_*) runs on that thread.
 //    One per process (Renderer::shared()), started on first use, stopped when the last
 //    holder lets it go.
 //  - CameraView: where a camera is and what it sees (pose, vertical field of view, clipping
@@ -125,7 +125,7 @@ class Renderer {
     bool want_depth = false;
     Callback done;
   };
-  struct Gl;  // EGL display and context, mjrContext: render thread only
+  struct Gl;  // the GlContext and the mjrContext: render thread only
 
   Renderer();
   void run();                          // the render thread
