@@ -11,11 +11,14 @@
 //   - simgate: the DDS transport plugin (loaded with dlopen, as the gateway loads it) carries
 //     the stream of a pose component through a StreamHub; a "simulation" thread produces a
 //     sample per turn as fast as it can (under the gate, as after a step: the component
-//     writes its record, the hub queues it, the DDS thread converts it and writes);
-//     written = produced - dropped (the hub counts both: a sample the DDS thread did not get
-//     to before newer ones came, or that DDS refused);
+//     writes its record, the hub hands it on). Twice: with the plugin's default
+//     stream_writes "direct" (the simulation thread writes it, the ratio the target is on),
+//     then "thread" (the hub queues it, the DDS thread converts and writes it, printed
+//     beside); written = produced - dropped (the hub counts both: a sample the DDS thread did
+//     not get to before newer ones came, or that DDS refused);
 //   - raw: a plain Cyclone writer of the same topic and QoS (best effort, keep-last 1) writes
-//     ready-made Pose samples in a loop: what a hand-written C publisher does.
+//     ready-made Pose samples in a loop: what a hand-written C publisher does. Run before and
+//     after the simgate phases (its rate is over both), so the order favours neither side.
 // Prints one JSON object: both rates, their ratio, the samples the simulation side produced
 // and the target.
 //
@@ -97,6 +100,8 @@ int main(int argc, char** argv) {
   std::uint32_t domain = 0;
   app.add_option("--duration", duration, "seconds per phase")->capture_default_str();
   app.add_option("--domain", domain, "DDS domain id")->capture_default_str();
+  bool no_thread_phase = false;
+  app.add_flag("--no-thread-phase", no_thread_phase, "skip the stream_writes \"thread\" phase (to profile the others)");
   if (auto code = simgate::bench::parse_command_line(app, argc, argv)) return *code;
   simgate::log::set_level(simgate::log::Level::warning);
   try {
@@ -116,15 +121,20 @@ int main(int argc, char** argv) {
     const dds_entity_t reader = check(dds_create_reader(subscriber, topic, reader_qos.get(), nullptr), "reader");
     const auto phase = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(duration));
 
-    // ---- simgate: the plugin carries a hub's pose stream
-    auto gate = std::make_shared<simgate::SimulationGate>();
-    auto hub = std::make_shared<simgate::StreamHub>(gate);
-    SyntheticPose pose;
-    hub->add(pose, "pose", {"dds"}, 1e9);  // due at every turn
-    std::uint64_t simgate_count = 0, produced = 0, received = 0;
-    double simgate_wall = 0;
-    {
-      auto manager = simgate::load_transport("dds", {{"domain", domain}, {"partition", partition}});
+    // ---- simgate: the plugin carries a hub's pose stream; `stream_writes` says who writes
+    struct Phase {
+      std::uint64_t written = 0, produced = 0;
+      double wall = 0;
+    };
+    std::uint64_t received = 0;
+    auto run_simgate = [&](const char* stream_writes) {
+      auto gate = std::make_shared<simgate::SimulationGate>();
+      auto hub = std::make_shared<simgate::StreamHub>(gate);
+      SyntheticPose pose;
+      hub->add(pose, "pose", {"dds"}, 1e9);  // due at every turn
+      Phase out;
+      auto manager = simgate::load_transport(
+          "dds", {{"domain", domain}, {"partition", partition}, {"stream_writes", stream_writes}});
       manager->set_gate(gate);
       manager->set_streams(hub, "dds");
       manager->start();
@@ -134,20 +144,18 @@ int main(int argc, char** argv) {
       while (Clock::now() - start < phase) {
         std::lock_guard lock(*gate);
         hub->publish_due(t += 1e-6);
-        ++produced;
+        ++out.produced;
       }
-      simgate_wall = seconds(Clock::now() - start);
+      out.wall = seconds(Clock::now() - start);
       std::this_thread::sleep_for(std::chrono::milliseconds(100));  // the DDS thread writes what is queued
       manager->stop();
       const simgate::StreamStatistics stats = hub->statistics().at(0);
-      simgate_count = stats.samples - stats.dropped;  // written: neither dropped by the queue nor refused by DDS
-      received = take_all(reader);
-    }
-
+      out.written = stats.samples - stats.dropped;  // neither dropped by the queue nor refused by DDS
+      received += take_all(reader);
+      return out;
+    };
     // ---- raw: a Cyclone writer of ready-made samples, same topic and QoS
-    std::uint64_t raw_count = 0;
-    double raw_wall = 0;
-    {
+    auto run_raw = [&] {
       simgate::dds::QosPtr writer_qos(dds_create_qos());
       dds_qset_reliability(writer_qos.get(), DDS_RELIABILITY_BEST_EFFORT, 0);
       dds_qset_history(writer_qos.get(), DDS_HISTORY_KEEP_LAST, 1);
@@ -155,25 +163,39 @@ int main(int argc, char** argv) {
       wait_matched(reader, 1, Clock::now() + std::chrono::seconds(10));
       simgate_stream_Pose sample{};
       sample.component = const_cast<char*>("bench.pose");
+      Phase out;
       const auto start = Clock::now();
       while (Clock::now() - start < phase) {
         ++sample.seq;
         sample.time = static_cast<double>(sample.seq) * 1e-6;
         sample.x = sample.time;
-        if (dds_write(writer, &sample) >= 0) ++raw_count;
+        if (dds_write(writer, &sample) >= 0) ++out.written;
       }
-      raw_wall = seconds(Clock::now() - start);
+      out.wall = seconds(Clock::now() - start);
       received += take_all(reader);
       dds_delete(writer);
-    }
+      return out;
+    };
 
-    const double raw_rate = raw_count / raw_wall, simgate_rate = simgate_count / simgate_wall;
-    const double ratio = raw_rate > 0 ? simgate_rate / raw_rate : 0;
+    // raw before and after simgate, so that neither side is favoured by what ran first
+    const Phase raw_before = run_raw();
+    const Phase direct = run_simgate("direct");
+    const Phase queued = no_thread_phase ? Phase{0, 0, 1} : run_simgate("thread");
+    const Phase raw_after = run_raw();
+    const std::uint64_t raw_count = raw_before.written + raw_after.written;
+    const double raw_wall = raw_before.wall + raw_after.wall;
+
+    const double raw_rate = raw_count / raw_wall;
+    const double direct_rate = direct.written / direct.wall, queued_rate = queued.written / queued.wall;
+    const double ratio = raw_rate > 0 ? direct_rate / raw_rate : 0;
     std::cout << json{{"mode", "dds_streams"},
                       {"duration_s", duration},
                       {"raw_samples_per_s", raw_rate},
-                      {"simgate_samples_per_s", simgate_rate},
-                      {"simgate_produced_per_s", produced / simgate_wall},
+                      {"simgate_samples_per_s", direct_rate},
+                      {"simgate_produced_per_s", direct.produced / direct.wall},
+                      {"simgate_thread_samples_per_s", queued_rate},
+                      {"simgate_thread_produced_per_s", queued.produced / queued.wall},
+                      {"thread_ratio", raw_rate > 0 ? queued_rate / raw_rate : 0},
                       {"reader_got_samples", received > 0},
                       {"ratio", ratio},
                       {"target", {{"ratio_min", 0.8}, {"met", ratio >= 0.8}}}}

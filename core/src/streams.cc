@@ -39,6 +39,25 @@ double StreamSample::number(std::string_view key) const {
   throw std::out_of_range("the sample has no number '" + std::string(key) + "'");
 }
 
+void StreamSample::numbers(std::span<const std::string_view> keys, std::span<double> out) const {
+  if (!fields_) {
+    for (std::size_t k = 0; k < keys.size() && k < out.size(); ++k) out[k] = number(keys[k]);
+    return;
+  }
+  const std::vector<std::string>& fields = *fields_;
+  std::size_t at = 0;  // where the next key is looked for first
+  for (std::size_t k = 0; k < keys.size() && k < out.size(); ++k) {
+    std::size_t tried = 0;
+    while (tried < fields.size() && fields[at] != keys[k]) {
+      at = at + 1 == fields.size() ? 0 : at + 1;
+      ++tried;
+    }
+    if (tried == fields.size()) throw std::out_of_range("the sample has no number '" + std::string(keys[k]) + "'");
+    out[k] = values_[at];
+    at = at + 1 == fields.size() ? 0 : at + 1;
+  }
+}
+
 // ---------------------------------------------------------------------------------------
 // StreamSubscription
 
@@ -75,15 +94,17 @@ bool StreamSubscription::closed() const {
   return closed_;
 }
 
-bool StreamSubscription::push(const SamplePtr& sample, bool due) {
+StreamSubscription::Pushed StreamSubscription::push(const SamplePtr& sample, bool due) {
+  // a direct subscriber's flags are read by deliver(), under its mutex taken once there
+  if (options_.deliver) return Pushed::deliver;
   bool dropped_one = false;
   bool wake = false;
   {
     std::lock_guard lock(mutex_);
-    if (closed_) return false;
+    if (closed_) return Pushed::no;
     const bool first = wants_first_;
     wants_first_ = false;
-    if (!due && !first) return false;
+    if (!due && !first) return Pushed::no;
     if (queue_.size() >= std::max<std::size_t>(1, options_.capacity)) {
       queue_.pop_front();
       ++dropped_;
@@ -95,7 +116,34 @@ bool StreamSubscription::push(const SamplePtr& sample, bool due) {
     wake_armed_ = false;
   }
   if (dropped_one) log_first_drop();
-  return wake;
+  return wake ? Pushed::wake : Pushed::queued;
+}
+
+void StreamSubscription::deliver(const StreamSample& sample, bool due) {
+  bool sent = false;
+  std::string failure;  // the first time the transport threw (logged once)
+  {
+    // held while the transport writes: once close() has returned, nothing is being delivered
+    std::lock_guard lock(mutex_);
+    if (closed_) return;
+    const bool first = wants_first_;
+    wants_first_ = false;
+    if (!due && !first) return;
+    try {
+      sent = options_.deliver(sample);
+    } catch (const std::exception& e) {
+      if (!failure_logged_) failure = e.what();
+      failure_logged_ = true;
+    }
+    ++delivered_;
+    if (!sent) ++dropped_;
+  }
+  if (!failure.empty())
+    log::warning(component_, " stream: ", options_.label.empty() ? std::string("a subscriber") : options_.label,
+                 " could not send a sample (logged once; simulation get_stream_statistics counts them as "
+                 "dropped): ", failure);
+  else if (!sent)
+    log_first_drop();
 }
 
 void StreamSubscription::close() {
@@ -144,7 +192,9 @@ struct StreamHub::Stream {
   double last_time = 0;                     // out: time of the last sample
   std::uint64_t seq = 0;                    // out: samples produced
   std::vector<std::shared_ptr<StreamSubscription>> subscribers;
-  bool first_wanted = false;                // a subscriber waits for its first sample
+  // what publish_due looks at before it takes the hub mutex (written under it)
+  std::atomic<std::size_t> subscriber_count{0};  // subscribers.size()
+  std::atomic<bool> first_wanted{false};         // a subscriber waits for its first sample
   std::uint64_t dropped_before = 0;         // drops of subscriptions that ended
   std::optional<json> pending;              // in: the command waiting for the lock
   std::uint64_t commands = 0;
@@ -247,18 +297,16 @@ bool StreamHub::remove(const std::string& component) {
 
 void StreamHub::publish_due(double time) {
   if (subscribers_.load(std::memory_order_acquire) == 0) return;
-  // which streams give a sample now, under the hub mutex (subscribers come and go on the
-  // transports' threads)
+  // which streams give a sample now, without the hub mutex: streams_ and the schedules
+  // change only under the simulation lock, which the caller holds; what the transports
+  // change (subscribers, first samples wanted) is read from atomics
   due_.clear();
-  {
-    std::lock_guard lock(mutex_);
-    for (auto& stream_ptr : streams_) {
-      Stream& s = *stream_ptr;
-      if (s.subscribers.empty() || !s.produce) continue;
-      if (time < s.last_time) s.next_due = time;  // the clock went back (reset): start again from now
-      const bool due = time + 1e-9 >= s.next_due;
-      if (due || s.first_wanted) due_.push_back({&s, due, nullptr});
-    }
+  for (auto& stream_ptr : streams_) {
+    Stream& s = *stream_ptr;
+    if (!s.produce || s.subscriber_count.load(std::memory_order_acquire) == 0) continue;
+    if (time < s.last_time) s.next_due = time;  // the clock went back (reset): start again from now
+    const bool due = time + 1e-9 >= s.next_due;
+    if (due || s.first_wanted.load(std::memory_order_acquire)) due_.push_back({&s, due, nullptr});
   }
   if (due_.empty()) return;
   // the samples, without the hub mutex (the simulation lock keeps the streams): a transport
@@ -285,24 +333,38 @@ void StreamHub::publish_due(double time) {
     std::lock_guard lock(mutex_);
     for (Due& d : due_) {
       Stream& s = *d.stream;
-      s.first_wanted = false;
+      s.first_wanted.store(false, std::memory_order_relaxed);
       if (!d.sample) {
         s.next_due = time + s.period;
         continue;
       }
       d.sample->seq_ = ++s.seq;
-      const SamplePtr sample = std::move(d.sample);
       s.last_time = time;
-      for (auto& sub : s.subscribers)
-        if (sub->push(sample, d.due)) to_wake_.push_back(sub);
+      fan_out(s, d.sample, d.due);
       if (d.due) {
         s.next_due += s.period;
         if (s.next_due <= time) s.next_due = time + s.period;
       }
     }
   }
+  after_fan_out();
+  due_.clear();  // the samples no subscriber holds go now
+}
+
+void StreamHub::fan_out(Stream& stream, const SamplePtr& sample, bool due) {
+  for (auto& sub : stream.subscribers) switch (sub->push(sample, due)) {
+      case StreamSubscription::Pushed::wake: to_wake_.push_back(sub); break;
+      case StreamSubscription::Pushed::deliver: to_deliver_.push_back({sub, sample.get(), due}); break;
+      case StreamSubscription::Pushed::no:
+      case StreamSubscription::Pushed::queued: break;
+    }
+}
+
+void StreamHub::after_fan_out() {
   for (const auto& sub : to_wake_) sub->wake();
   to_wake_.clear();
+  for (const auto& d : to_deliver_) d.subscriber->deliver(*d.sample, d.due);
+  to_deliver_.clear();
 }
 
 bool StreamHub::push(const std::string& component, double time, json data,
@@ -316,13 +378,10 @@ bool StreamHub::push(const std::string& component, double time, json data,
     if (!s || !s->outlet || s->subscribers.empty()) return false;
     sample->seq_ = ++s->seq;
     s->last_time = time;
-    s->first_wanted = false;
-    const SamplePtr shared = std::move(sample);
-    for (auto& sub : s->subscribers)
-      if (sub->push(shared, true)) to_wake_.push_back(sub);
+    s->first_wanted.store(false, std::memory_order_relaxed);
+    fan_out(*s, sample, true);
   }
-  for (const auto& sub : to_wake_) sub->wake();
-  to_wake_.clear();
+  after_fan_out();  // (`sample` lives until the direct subscribers have had it)
   return true;
 }
 
@@ -389,7 +448,8 @@ std::shared_ptr<StreamSubscription> StreamHub::subscribe(std::string_view compon
     if (!s || s->info.direction != StreamDirection::out || !carries(s->info, transport)) return nullptr;
     subscription = std::make_shared<StreamSubscription>(std::string(component), std::move(options));
     s->subscribers.push_back(subscription);
-    s->first_wanted = true;
+    s->subscriber_count.store(s->subscribers.size(), std::memory_order_release);
+    s->first_wanted.store(true, std::memory_order_release);
     if (s->outlet) s->outlet->wanted_.store(true, std::memory_order_release);
     subscribers_.fetch_add(1, std::memory_order_release);
     turn_wanted_.store(true, std::memory_order_release);
@@ -407,6 +467,7 @@ void StreamHub::unsubscribe(const std::shared_ptr<StreamSubscription>& subscript
       if (it != s->subscribers.end()) {
         s->dropped_before += subscription->dropped();
         s->subscribers.erase(it);
+        s->subscriber_count.store(s->subscribers.size(), std::memory_order_release);
         subscribers_.fetch_sub(1, std::memory_order_release);
         if (s->outlet && s->subscribers.empty()) s->outlet->wanted_.store(false, std::memory_order_release);
       }

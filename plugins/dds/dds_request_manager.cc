@@ -72,6 +72,7 @@ DdsOptions DdsOptions::parse(const json& options) {
   out.progress_interval = std::chrono::milliseconds(
       config.get_int("progress_interval_ms", out.progress_interval.count(), 0, 3'600'000));
   out.cancel_on_disconnect = config.get_choice("on_disconnect", "cancel", {"cancel", "let_run"}) == "cancel";
+  out.direct_stream_writes = config.get_choice("stream_writes", "direct", {"direct", "thread"}) == "direct";
   config.finish();
   return out;
 }
@@ -158,7 +159,7 @@ void DdsRequestManager::start() {
   // the data streams (issue #21): also with none yet, for those of robots spawned later
   if (stream_hub())
     streams_ = std::make_unique<DdsStreams>(stream_hub(), transport_name(), participant_->handle(), publisher_,
-                                            subscriber_, waitset_, server_id_);
+                                            subscriber_, waitset_, server_id_, options_.direct_stream_writes);
   thread_ = std::thread([this] { run(); });
 }
 

@@ -94,6 +94,9 @@ struct DdsOptions {
   std::chrono::milliseconds progress_interval{50};     // shortest time between two reports of a call
   bool cancel_on_disconnect = true;    // "on_disconnect": a client that leaves has its async calls
                                        // cancelled ("cancel") or left to run, replies dropped ("let_run")
+  bool direct_stream_writes = true;    // "stream_writes": small typed samples (pose, odometry, imu)
+                                       // written by the simulation thread as they are made ("direct")
+                                       // or handed to the DDS thread like the others ("thread")
 
   // Reads and validates `options` (unknown keys are errors). Throws ConfigError.
   static DdsOptions parse(const json& options);

@@ -2,7 +2,9 @@
 // the commands, the simgate_Streams catalog. Design: dds_streams.h, docs/transports/dds.md.
 #include "dds_streams.h"
 
+#include <iterator>
 #include <stdexcept>
+#include <string_view>
 
 #include "dds_support.h"
 #include "simgate/core/log.h"
@@ -43,18 +45,23 @@ T stamped(const std::string& component, const StreamSample& sample) {
 using WriteFn = dds_return_t (*)(dds_entity_t writer, const std::string& component, const StreamSample& sample);
 
 dds_return_t write_pose(dds_entity_t writer, const std::string& component, const StreamSample& sample) {
+  static constexpr std::string_view k_keys[] = {"x", "y", "z", "roll", "pitch", "yaw"};
+  double v[std::size(k_keys)];
+  sample.numbers(k_keys, v);
   auto pose = stamped<simgate_stream_Pose>(component, sample);
-  pose.x = sample.number("x"), pose.y = sample.number("y"), pose.z = sample.number("z");
-  pose.roll = sample.number("roll"), pose.pitch = sample.number("pitch"), pose.yaw = sample.number("yaw");
+  pose.x = v[0], pose.y = v[1], pose.z = v[2], pose.roll = v[3], pose.pitch = v[4], pose.yaw = v[5];
   return dds_write(writer, &pose);
 }
 
 dds_return_t write_odometry(dds_entity_t writer, const std::string& component, const StreamSample& sample) {
+  static constexpr std::string_view k_keys[] = {"x", "y", "z", "roll", "pitch", "yaw",
+                                                "vx", "vy", "vz", "wx", "wy", "wz"};
+  double v[std::size(k_keys)];
+  sample.numbers(k_keys, v);
   auto odometry = stamped<simgate_stream_Odometry>(component, sample);
-  odometry.x = sample.number("x"), odometry.y = sample.number("y"), odometry.z = sample.number("z");
-  odometry.roll = sample.number("roll"), odometry.pitch = sample.number("pitch"), odometry.yaw = sample.number("yaw");
-  odometry.vx = sample.number("vx"), odometry.vy = sample.number("vy"), odometry.vz = sample.number("vz");
-  odometry.wx = sample.number("wx"), odometry.wy = sample.number("wy"), odometry.wz = sample.number("wz");
+  odometry.x = v[0], odometry.y = v[1], odometry.z = v[2], odometry.roll = v[3], odometry.pitch = v[4];
+  odometry.yaw = v[5], odometry.vx = v[6], odometry.vy = v[7], odometry.vz = v[8], odometry.wx = v[9];
+  odometry.wy = v[10], odometry.wz = v[11];
   return dds_write(writer, &odometry);
 }
 
@@ -122,11 +129,12 @@ struct OutputType {
   const char* kind;                          // StreamDeclaration::kind
   const dds_topic_descriptor_t* descriptor;  // the IDL type
   WriteFn write;                             // null: JsonSample
+  bool small = false;                        // fixed-size and small: may be written directly
 };
 constexpr OutputType k_output_types[] = {
-    {"pose", &simgate_stream_Pose_desc, write_pose},
-    {"odometry", &simgate_stream_Odometry_desc, write_odometry},
-    {"imu", &simgate_stream_Imu_desc, write_imu},
+    {"pose", &simgate_stream_Pose_desc, write_pose, true},
+    {"odometry", &simgate_stream_Odometry_desc, write_odometry, true},
+    {"imu", &simgate_stream_Imu_desc, write_imu, true},
     {"joint_state", &simgate_stream_JointState_desc, write_joint_state},
     {"laser_scan", &simgate_stream_LaserScan_desc, write_laser_scan},
     {"image", &simgate_stream_Image_desc, write_image},
@@ -170,9 +178,10 @@ struct DdsStreams::Input {
 };
 
 DdsStreams::DdsStreams(std::shared_ptr<StreamHub> hub, std::string transport, dds_entity_t participant,
-                       dds_entity_t publisher, dds_entity_t subscriber, dds_entity_t waitset, std::string server_id)
+                       dds_entity_t publisher, dds_entity_t subscriber, dds_entity_t waitset, std::string server_id,
+                       bool direct_writes)
     : hub_(std::move(hub)), transport_(std::move(transport)), participant_(participant), publisher_(publisher),
-      subscriber_(subscriber), waitset_(waitset), server_id_(std::move(server_id)) {
+      subscriber_(subscriber), waitset_(waitset), server_id_(std::move(server_id)), direct_writes_(direct_writes) {
   guard_ = check(dds_create_guardcondition(participant_), "guard condition (streams)");
   check(dds_waitset_attach(waitset_, guard_, k_token_samples), "waitset attachment (streams)");
   // the catalog: the last entry of each topic, kept for late joiners
@@ -258,10 +267,19 @@ void DdsStreams::add_output(const StreamInfo& info) {
 }
 
 void DdsStreams::subscribe_output(Output& output) {
-  const dds_entity_t guard = guard_;
-  output.subscription = hub_->subscribe(
-      output.info.component, transport_,
-      {k_subscription_capacity, "DDS topic " + output.topic, [guard] { dds_set_guardcondition(guard, true); }});
+  SubscriberOptions options{k_subscription_capacity, "DDS topic " + output.topic, {}, {}};
+  if (direct_writes_ && output.type->small && !output.info.pushed) {
+    // written by the simulation thread as it is made (see the header); a sample not of the
+    // type's shape throws: not sent, counted as dropped, the first logged by the hub
+    options.deliver = [writer = output.writer, write = output.type->write,
+                       component = output.info.component](const StreamSample& sample) {
+      return write(writer, component, sample) >= 0;
+    };
+  } else {
+    const dds_entity_t guard = guard_;
+    options.wake = [guard] { dds_set_guardcondition(guard, true); };
+  }
+  output.subscription = hub_->subscribe(output.info.component, transport_, std::move(options));
 }
 
 void DdsStreams::update_matches() {

@@ -11,6 +11,11 @@
 //    effort, keep-last 1, volatile: a reader that falls behind loses samples and slows down
 //    nobody; the subscription's queue is latest-N too, so the DDS thread never slows the
 //    simulation either.
+//  - direct output: a small fixed-size typed sample (pose, odometry, imu) is written by the
+//    simulation thread the moment it is made (a direct subscriber, SubscriberOptions::deliver):
+//    a best-effort write of a few dozen bytes never waits for a reader, and skipping the
+//    queue and the DDS thread's wake-up is what lets a stream keep up with a raw Cyclone
+//    writer (docs/performance.md, "Data streams"). Option "stream_writes": "thread" turns it off.
 //  - input: readers reliable, keep-last 1, volatile; a command goes to StreamHub::publish
 //    (applied at once when the simulation lock is free, else the latest waits for the next
 //    turn; refusals are counted and logged by the hub).
@@ -55,7 +60,8 @@ class DdsStreams {
   // Host thread, before the DDS thread starts: creates the catalog writer and the guard
   // condition, attached to `waitset`. Throws std::runtime_error when DDS fails.
   DdsStreams(std::shared_ptr<StreamHub> hub, std::string transport, dds_entity_t participant,
-             dds_entity_t publisher, dds_entity_t subscriber, dds_entity_t waitset, std::string server_id);
+             dds_entity_t publisher, dds_entity_t subscriber, dds_entity_t waitset, std::string server_id,
+             bool direct_writes);
   ~DdsStreams();
   DdsStreams(const DdsStreams&) = delete;
   DdsStreams& operator=(const DdsStreams&) = delete;
@@ -94,6 +100,7 @@ class DdsStreams {
   const dds_entity_t subscriber_;        // in our partition
   const dds_entity_t waitset_;           // the DDS thread's
   const std::string server_id_;          // our participant GUID, hex (catalog entries)
+  const bool direct_writes_;             // small typed samples written by the simulation thread
   dds_entity_t guard_ = 0;               // samples are waiting (raised by the wake)
   dds_entity_t catalog_writer_ = 0;      // simgate_Streams
   std::map<std::string, dds_entity_t> topics_;                   // by name: created once

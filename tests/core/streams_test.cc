@@ -211,6 +211,61 @@ TEST_F(StreamHubTest, ASensorThatThrowsSkipsItsSample) {
   EXPECT_FALSE(sub->closed());
 }
 
+// A direct subscriber (SubscriberOptions::deliver) is handed each sample as it is made, on
+// the publishing thread: same schedule and first sample as a queue, nothing queued, no wake.
+TEST_F(StreamHubTest, ADirectSubscriberGetsEachSampleAsItIsMadeAndNothingIsQueued) {
+  std::vector<std::pair<std::uint64_t, double>> got;
+  int wakes = 0;
+  SubscriberOptions options{1, "direct", [&] { ++wakes; }, {}};
+  options.deliver = [&](const StreamSample& sample) {
+    got.emplace_back(sample.seq(), sample.time());
+    return true;
+  };
+  auto direct = hub.subscribe("robot.counter", "dds", std::move(options));
+  ASSERT_TRUE(direct);
+  for (int step = 0; step <= 10; ++step) hub.publish_due(step * 0.002);  // due at 0 (first), 0.01, 0.02
+  ASSERT_EQ(got.size(), 3u);
+  EXPECT_EQ(got[0], (std::pair<std::uint64_t, double>{1, 0}));
+  EXPECT_EQ(got[2].first, 3u);
+  EXPECT_NEAR(got[2].second, 0.02, 1e-9);
+  EXPECT_EQ(take(*direct).size(), 0u);
+  EXPECT_EQ(wakes, 0);
+  EXPECT_EQ(direct->delivered(), 3u);
+  EXPECT_EQ(direct->dropped(), 0u);
+  // a queued subscriber beside it gets the same samples
+  auto queued = hub.subscribe("robot.counter", "socket", {});
+  hub.publish_due(0.03);
+  EXPECT_EQ(got.size(), 4u);
+  EXPECT_EQ(take(*queued).size(), 1u);
+  // unsubscribed: never called again
+  hub.unsubscribe(direct);
+  hub.publish_due(0.04);
+  EXPECT_EQ(got.size(), 4u);
+  EXPECT_EQ(take(*queued).size(), 1u);
+}
+
+TEST_F(StreamHubTest, ADirectSubscribersUnsentAndFailedSamplesAreCountedAsDropped) {
+  int calls = 0;
+  SubscriberOptions options;
+  options.deliver = [&](const StreamSample&) -> bool {
+    ++calls;
+    if (calls == 2) throw std::invalid_argument("not of the topic's shape");
+    return calls != 3;  // the third is refused, the others sent
+  };
+  auto direct = hub.subscribe("robot.counter", "dds", std::move(options));
+  for (int i = 0; i < 4; ++i) hub.publish_due(i * 0.01);
+  EXPECT_EQ(calls, 4);
+  EXPECT_EQ(direct->delivered(), 4u);
+  EXPECT_EQ(direct->dropped(), 2u);
+  EXPECT_EQ(hub.statistics("dds")[0].dropped, 2u);
+  EXPECT_FALSE(direct->closed());
+  // the component removed: closed, no more deliveries
+  EXPECT_TRUE(hub.remove("robot.counter"));
+  EXPECT_TRUE(direct->closed());
+  hub.publish_due(1);
+  EXPECT_EQ(calls, 4);
+}
+
 // A record stream (a pose's): its samples carry numbers, read by name without JSON; the JSON
 // object, made when a transport asks, is the one the component's get_local_data gives.
 TEST_F(StreamHubTest, ARecordSampleIsReadByNameAndIsTheSameJsonOnAsking) {
@@ -297,6 +352,22 @@ struct PushedStreamTest : ::testing::Test {
     return out;
   }
 };
+
+TEST_F(PushedStreamTest, ADirectSubscriberIsHandedEachPushedSample) {
+  std::vector<double> times;
+  SubscriberOptions options;
+  options.deliver = [&](const StreamSample& sample) {
+    times.push_back(sample.time());
+    return true;
+  };
+  auto direct = hub.subscribe("robot.camera", "dds", std::move(options));
+  ASSERT_TRUE(direct);
+  EXPECT_TRUE(pusher.stream_wanted());
+  EXPECT_TRUE(pusher.push_sample(0.5, json{{"frame", 1}}));
+  EXPECT_TRUE(pusher.push_sample(0.6, json{{"frame", 2}}));
+  EXPECT_EQ(times, (std::vector<double>{0.5, 0.6}));
+  EXPECT_EQ(take(*direct).size(), 0u);
+}
 
 TEST_F(PushedStreamTest, IsListedPushedAtTheComponentsFrequency) {
   auto info = hub.find("robot.camera", "dds");

@@ -103,6 +103,7 @@ TEST(DdsTransportConfig, UnknownKeysAndBadValuesAreRejectedWithTheirName) {
   expect_error({{"domain", 999}, {"config", loopback}}, "domain");
   expect_error({{"domain", test_domain()}, {"config", loopback}, {"partition", "sim*"}}, "partition");
   expect_error({{"domain", test_domain()}, {"config", loopback}, {"global_policy", "maybe"}}, "global_policy");
+  expect_error({{"domain", test_domain()}, {"config", loopback}, {"stream_writes", "sometimes"}}, "stream_writes");
   expect_error({{"domain", test_domain()}, {"config", loopback}, {"max_depth", 1}}, "max_depth");
   expect_error({{"domain", test_domain()}, {"config", loopback}, {"max_depth", 10001}}, "max_depth");
   expect_error({{"domain", test_domain()}, {"config", "<CycloneDDS><Domain><General><NoSuchSetting/>"}}, "domain");

@@ -215,13 +215,16 @@ TEST(DdsProcessTest, PlainCClientSaysWhatItWaitsForAndGivesUp) {
 }
 
 // The rover deployment (config/rover.json) served over DDS alone, on loopback, its pose,
-// motion, odometry and proximity streamed on DDS; killed with the object.
+// motion, odometry and proximity streamed on DDS; killed with the object. `options`: more
+// options of the DDS transport.
 class RoverOnDds {
  public:
-  RoverOnDds() {
+  explicit RoverOnDds(const json& options = json::object()) {
     json config = json::parse(read_file(SIMGATE_SOURCE_DIR "/config/rover.json"));
     config["scene"]["mjcf"] = SIMGATE_SOURCE_DIR "/config/scenes/rover_room.xml";
-    config["transports"] = {{"dds", {{"plugin", "dds"}, {"options", server_options(test_partition())}}}};
+    json dds_options = server_options(test_partition());
+    dds_options.update(options);
+    config["transports"] = {{"dds", {{"plugin", "dds"}, {"options", dds_options}}}};
     config["services"] = {{"default", {"dds"}}};
     config["streams"] = {{"rover.pose", {"dds"}}, {"rover.motion", {"dds"}}, {"rover.odometry", {"dds"}},
                          {"rover.proximity", {"dds"}}};
@@ -308,6 +311,19 @@ TEST(DdsStreamsTest, PlainCClientReadsTypedPoseAndDrivesTheRoverWithVelocity) {
     moved = std::hypot(after.back()[2] - before.front()[2], after.back()[3] - before.front()[3]);
   }
   EXPECT_GE(moved, 0.1);
+}
+
+// The poses are written by the simulation thread by default (stream_writes "direct"); by the
+// DDS thread with "thread": the same topic, the same samples.
+TEST(DdsStreamsTest, WrittenByTheDdsThreadThePoseTopicIsTheSame) {
+  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  RoverOnDds rover(json{{"stream_writes", "thread"}});
+  ASSERT_TRUE(rover.running());
+  std::string text = RoverOnDds::client({"pose", "simgate/rover/pose", "5"});
+  auto poses = rows(text);
+  ASSERT_EQ(poses.size(), 5u) << text;
+  for (std::size_t i = 1; i < poses.size(); ++i) EXPECT_GT(poses[i][0], poses[i - 1][0]) << text;
+  EXPECT_LT(std::abs(poses.back()[2]) + std::abs(poses.back()[3]), 20.0) << text;
 }
 
 TEST(DdsStreamsTest, AJsonCommandDrivesTheRoverAndOneThatIsNoObjectIsIgnored) {

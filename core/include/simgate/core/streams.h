@@ -135,6 +135,10 @@ class StreamSample {
   // The number named `key`: from the record without JSON, else from the JSON object. Throws
   // std::out_of_range when the sample has no such number.
   double number(std::string_view key) const;
+  // The numbers named by `keys` into `out` (as many), as number() would read each; a record's
+  // are looked for from where the previous key was found, so keys in the record's own order
+  // cost one comparison each (a typed transport filling its struct).
+  void numbers(std::span<const std::string_view> keys, std::span<double> out) const;
 
  private:
   friend class StreamHub;
@@ -157,6 +161,13 @@ struct SubscriberOptions {
   std::size_t capacity = 16;     // samples kept; older ones are dropped (at least 1)
   std::string label;             // who it is, for the log: "socket client #3 (127.0.0.1:5123)"
   std::function<void()> wake;    // the queue went from empty to not empty (see above)
+  // Set: a direct subscriber. Each sample it gets is handed to `deliver` right after it is
+  // made, on the thread that holds the simulation lock, instead of being queued: no queue,
+  // no wake, no hand-off to the transport's thread. Only for a write that is short and never
+  // waits (DDS's best-effort writer of a small typed sample). Returns false when the sample
+  // was not sent (counted as dropped, like a queue's drop). Never called again once
+  // unsubscribe() (or the stream's removal) has returned. `capacity` and `wake` are unused.
+  std::function<bool(const StreamSample&)> deliver;
 };
 
 // One subscriber's queue.
@@ -181,9 +192,14 @@ class StreamSubscription {
 
  private:
   friend class StreamHub;
-  // Hub side (under the simulation lock): queues `sample` when it is `due` or the first
-  // this subscriber waits for; returns true when the subscriber must be woken.
-  bool push(const SamplePtr& sample, bool due);
+  // Hub side (under the simulation lock): a queue takes `sample` when it is `due` or the
+  // first this subscriber waits for (wake: the subscriber must be woken); a direct
+  // subscriber is to be given it by deliver(), once the hub mutex is released.
+  enum class Pushed : std::uint8_t { no, queued, wake, deliver };
+  Pushed push(const SamplePtr& sample, bool due);
+  // A direct subscriber's delivery, when `due` or its first (under the simulation lock, not
+  // the hub's mutex).
+  void deliver(const StreamSample& sample, bool due);
   void close();
   void wake() const {
     if (options_.wake) options_.wake();
@@ -198,6 +214,7 @@ class StreamSubscription {
   bool wake_armed_ = true;       // the next push wakes
   bool closed_ = false;
   bool drop_logged_ = false;
+  bool failure_logged_ = false;  // a direct delivery threw (logged once)
   bool wants_first_ = true;      // gets a sample at the hub's next turn, due or not
   std::uint64_t dropped_ = 0;
   std::uint64_t delivered_ = 0;
@@ -293,11 +310,19 @@ class StreamHub {
   // Applies `command` to `stream` (under the simulation lock, without the hub mutex: the
   // component runs with no transport waiting on it); counts it; the refusal, if any.
   std::string apply(Stream& stream, const json& command);
+  // Gives `sample` to the subscribers of `stream` (under the hub mutex): queued ones now,
+  // those to wake and the direct ones noted for after_fan_out() (the caller keeps `sample`
+  // until then).
+  void fan_out(Stream& stream, const SamplePtr& sample, bool due);
+  // Without the hub mutex: wakes and direct deliveries noted by fan_out.
+  void after_fan_out();
 
   std::shared_ptr<SimulationGate> gate_;
   // guards streams_, their subscribers, pending commands and counters; never held while a
   // component's produce() or apply() runs (those hold the simulation lock, which add() and
-  // remove() need too), so a transport thread never waits on a component
+  // remove() need too), so a transport thread never waits on a component. streams_ and the
+  // streams' schedules change only under the simulation lock as well: publish_due, which
+  // holds it, picks the due streams without this mutex
   mutable std::mutex mutex_;
   std::vector<std::unique_ptr<Stream>> streams_;  // in the order added
   std::uint64_t dropped_by_removed_ = 0;          // drops of subscriptions that ended
@@ -306,6 +331,12 @@ class StreamHub {
   // publish_due's buffers, kept between calls (it runs under the simulation lock only)
   std::vector<Due> due_;
   std::vector<std::shared_ptr<StreamSubscription>> to_wake_;
+  struct Delivery {
+    std::shared_ptr<StreamSubscription> subscriber;
+    const StreamSample* sample;  // held by the caller of fan_out until after_fan_out
+    bool due;
+  };
+  std::vector<Delivery> to_deliver_;
 };
 
 }  // namespace simgate
