@@ -28,6 +28,13 @@ class Stepping {
 
   json state() const {
     const SimulationStatistics s = sim_.statistics();
+    // the clients connected now: each transport counts its own (connections; DDS: request writers)
+    std::size_t clients = 0;
+    json by_transport = json::object();
+    for (const auto& manager : sim_.request_managers()) {
+      clients += manager->client_count();
+      by_transport[manager->transport_name()] = manager->client_count();
+    }
     return {{"state", to_string(sim_.run_state())},
             {"sim_time", s.sim_time},
             {"steps", s.steps},
@@ -35,7 +42,9 @@ class Stepping {
             {"realtime_factor", s.recent_factor},
             {"target_realtime_factor", s.target_factor},
             {"dynamics_suspended", sim_.dynamics_suspended()},
-            {"owed_steps", sim_.owed_steps()}};
+            {"owed_steps", sim_.owed_steps()},
+            {"clients", clients},
+            {"clients_by_transport", by_transport}};
   }
 
   std::string pause() {

@@ -132,6 +132,10 @@ class WorldTest(unittest.TestCase):
         first = self.state()
         self.assertEqual(first["state"], "paused")
         self.assertEqual(first["steps"], 0)
+        # this test's two connections, each counted by its transport
+        self.assertEqual(first["clients_by_transport"]["socket"], 1, first)
+        self.assertEqual(first["clients_by_transport"]["jsonrpc"], 1, first)
+        self.assertEqual(first["clients"], sum(first["clients_by_transport"].values()), first)
         for _ in range(20):  # served, and nothing moves
             self.assertEqual(self.state()["steps"], 0)
         status, value = self.morse("1", "simulation step [5]")

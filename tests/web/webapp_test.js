@@ -145,6 +145,10 @@ async function main() {
   // the state header
   await page.waitForFunction(() => /\d/.test(document.getElementById('state-time').textContent), null, { timeout: WAIT_MS });
   check(true, `the header shows the sim time: ${await page.textContent('#state-time')}`);
+  // the page's own WebSocket is one of the clients get_simulation_state counts
+  await page.waitForFunction(() => Number(document.getElementById('state-clients').textContent) >= 1, null,
+                             { timeout: WAIT_MS });
+  check(true, `the header counts the clients: ${await page.textContent('#state-clients')}`);
 
   // the robot's position as the page shows it
   const robotX = async () => Number(await page.textContent('#bodies tr[data-body="robot"] td.x'));
