@@ -13,11 +13,13 @@
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
+#include <sys/resource.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
+#include <ctime>
 #include <cstdint>
 #include <iostream>
 #include <optional>
@@ -57,6 +59,19 @@ inline json summarize_us(std::vector<std::int64_t> samples) {
           {"p90_us", quantile(samples, 0.90) / 1e3},
           {"p99_us", quantile(samples, 0.99) / 1e3},
           {"max_us", samples.empty() ? 0.0 : static_cast<double>(samples.back()) / 1e3}};
+}
+
+// CPU seconds this process has used (user + system), and the calling thread alone.
+inline double process_cpu_s() {
+  rusage usage{};
+  ::getrusage(RUSAGE_SELF, &usage);
+  return static_cast<double>(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
+         static_cast<double>(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec) / 1e6;
+}
+inline double thread_cpu_s() {
+  timespec t{};
+  ::clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + static_cast<double>(t.tv_nsec) / 1e9;
 }
 
 // The port of an endpoint as the transports print them: "tcp://127.0.0.1:4000" -> 4000.

@@ -127,6 +127,18 @@ exercise() {
     timeout 60 "$simgate" check "$config" || fail "simgate check $config"
   done
 }
+# The web app answers GET / from the installed share/simgate/web (the build tree's is hidden):
+# the ws:// endpoint of the running `simgate run` ($run) in $WORK/endpoints.json.
+check_web_app() {
+  local web_port page
+  web_port=$(grep -o 'ws://127\.0\.0\.1:[0-9]*' "$WORK/endpoints.json" | head -n 1 | sed 's/.*://')
+  [ -n "$web_port" ] || { kill "$run"; cat "$WORK/endpoints.json"; fail "no ws endpoint"; }
+  page=$(timeout 30 bash -c 'exec 3<>/dev/tcp/127.0.0.1/$0; printf "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n" >&3; cat <&3' "$web_port") ||
+    { kill "$run"; fail "GET / on the websocket transport"; }
+  grep -q '^HTTP/1.1 200' <<<"$page" && grep -q '<title>simgate</title>' <<<"$page" ||
+    { kill "$run"; echo "$page" | head -n 20; fail "GET / did not answer the installed index.html"; }
+  echo "GET http://127.0.0.1:$web_port/: the installed web app's index.html"
+}
 
 # --- run the installed demo from /opt/simgate-like prefix, one call, quit -----------------
 exercise "$PREFIX"
@@ -151,14 +163,7 @@ port=$(grep -o 'tcp://127\.0\.0\.1:[0-9]*' "$WORK/endpoints.json" | head -n 1 | 
 robots=$(timeout 30 "$simgate" call --port "$port" simulation list_robots) || { kill "$run"; fail "simgate call"; }
 echo "simgate call --port $port simulation list_robots: $robots"
 [ "$robots" = '["robot","human"]' ] || { kill "$run"; fail "expected [\"robot\",\"human\"]"; }
-# the web app, from the installed share/simgate/web (the build tree's is hidden)
-web_port=$(grep -o 'ws://127\.0\.0\.1:[0-9]*' "$WORK/endpoints.json" | head -n 1 | sed 's/.*://')
-[ -n "$web_port" ] || { kill "$run"; cat "$WORK/endpoints.json"; fail "no ws endpoint"; }
-page=$(timeout 30 bash -c 'exec 3<>/dev/tcp/127.0.0.1/$0; printf "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n" >&3; cat <&3' "$web_port") ||
-  { kill "$run"; fail "GET / on the websocket transport"; }
-grep -q '^HTTP/1.1 200' <<<"$page" && grep -q '<title>simgate</title>' <<<"$page" ||
-  { kill "$run"; echo "$page" | head -n 20; fail "GET / did not answer the installed index.html"; }
-echo "GET http://127.0.0.1:$web_port/: the installed web app's index.html"
+check_web_app
 timeout 30 "$simgate" call --port "$port" simulation quit || { kill "$run"; fail "simulation quit"; }
 status=0
 wait "$run" || status=$?
@@ -263,14 +268,7 @@ port=$(grep -o 'tcp://127\.0\.0\.1:[0-9]*' "$WORK/endpoints.json" | head -n 1 | 
 distance=$(timeout 30 "$simgate" call --port "$port" robot.odometer get_distance) ||
   { kill "$run"; cat "$WORK/odometer-run.log"; fail "calling the library's component"; }
 echo "out-of-tree component library: robot.odometer get_distance = $distance"
-# the web app, from the installed share/simgate/web (the build tree's is hidden)
-web_port=$(grep -o 'ws://127\.0\.0\.1:[0-9]*' "$WORK/endpoints.json" | head -n 1 | sed 's/.*://')
-[ -n "$web_port" ] || { kill "$run"; cat "$WORK/endpoints.json"; fail "no ws endpoint"; }
-page=$(timeout 30 bash -c 'exec 3<>/dev/tcp/127.0.0.1/$0; printf "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n" >&3; cat <&3' "$web_port") ||
-  { kill "$run"; fail "GET / on the websocket transport"; }
-grep -q '^HTTP/1.1 200' <<<"$page" && grep -q '<title>simgate</title>' <<<"$page" ||
-  { kill "$run"; echo "$page" | head -n 20; fail "GET / did not answer the installed index.html"; }
-echo "GET http://127.0.0.1:$web_port/: the installed web app's index.html"
+check_web_app
 timeout 30 "$simgate" call --port "$port" simulation quit || { kill "$run"; fail "simulation quit"; }
 wait "$run" || { cat "$WORK/odometer-run.log"; fail "simgate run with the component library exited non-zero"; }
 echo "installed tree: every check passed"

@@ -258,19 +258,7 @@ TEST_F(SimSceneGeometryTest, BodyPosesSamplesAreEveryBodysWorldPose) {
 
 // A spawn replaces the model: the generation changes (in the answer and in the stream), the
 // new body and geom are there, and what was there keeps its ids.
-class SimSceneGeometrySpawnTest : public testing::DemoSim {
- protected:
-  Outcome finish(RequestId id) {
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-    while (std::chrono::steady_clock::now() < deadline) {
-      sim_->process_requests();
-      if (auto o = rm_->outcome(id)) return *o;
-      sim_->step();
-    }
-    ADD_FAILURE() << "request " << id << " not answered within 30 s";
-    return Outcome::failed(Failure::internal, "no answer");
-  }
-};
+using SimSceneGeometrySpawnTest = testing::DemoSim;
 
 TEST_F(SimSceneGeometrySpawnTest, ASpawnChangesTheGenerationAndAddsItsGeoms) {
   ComponentEntry* simulation = sim_->find("simulation");

@@ -6,6 +6,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <condition_variable>
 #include <map>
@@ -141,6 +142,18 @@ class DemoSim : public ::testing::Test {
     auto o = rm_->outcome(id);
     EXPECT_TRUE(o.has_value()) << component << " " << service << " not answered";
     return o.value_or(Outcome::failed(Failure::internal, "no answer"));
+  }
+  // Steps (as the loop would, requests first) until `id` is answered, for a request whose
+  // work runs on a worker meanwhile (a model compiling). Bounded by a 30 s deadline.
+  Outcome finish(RequestId id) {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+    while (std::chrono::steady_clock::now() < deadline) {
+      sim_->process_requests();
+      if (auto o = rm_->outcome(id)) return *o;
+      sim_->step();
+    }
+    ADD_FAILURE() << "request " << id << " not answered within 30 s";
+    return Outcome::failed(Failure::internal, "no answer");
   }
   // Steps (processing requests each step) until `id` is answered or `max_steps` pass.
   std::optional<Outcome> step_until(RequestId id, int max_steps) {

@@ -19,18 +19,6 @@ constexpr const char* k_ball = R"(<body><freejoint/><geom type="sphere" size="0.
 
 class SimSpawnTest : public testing::DemoSim {
  protected:
-  // Steps (as the loop would, requests first) until `id` is answered; the model compiles on
-  // a worker meanwhile. Bounded by a deadline.
-  Outcome finish(RequestId id) {
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-    while (std::chrono::steady_clock::now() < deadline) {
-      sim_->process_requests();
-      if (auto o = rm_->outcome(id)) return *o;
-      sim_->step();
-    }
-    ADD_FAILURE() << "request " << id << " not answered within 30 s";
-    return Outcome::failed(Failure::internal, "no answer");
-  }
   // Waits for `id` taking no step (the loop's turns while paused: requests and run_soon
   // tasks only), so that nothing moves however long the worker compiles. Bounded.
   std::optional<Outcome> answer_without_stepping(RequestId id) {
