@@ -16,9 +16,9 @@ namespace simgate::gateway {
 
 namespace fs = std::filesystem;
 
-namespace {
-
 const std::vector<std::string> k_pseudo_components = {"simulation", "time", "communication"};
+
+namespace {
 
 std::string join(const std::vector<std::string>& items, const std::string& sep = ", ") {
   std::string out;

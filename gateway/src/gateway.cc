@@ -156,7 +156,7 @@ void Gateway::add_streams(ConfigErrors& errors) {
   }
   // the pseudo-components, after the robots' (the socket transport numbers its stream ports
   // in this order): `simulation` streams its bodies' poses
-  for (const char* pseudo : {"simulation", "time", "communication"})
+  for (const std::string& pseudo : k_pseudo_components)
     if (const sim::ComponentEntry* entry = simulation_->find(pseudo))
       add(*entry->component, entry->type, deployment_.stream_frequency_for(pseudo),
           sim::SupervisionServices::k_body_poses_frequency);

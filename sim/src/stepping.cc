@@ -32,8 +32,9 @@ class Stepping {
     std::size_t clients = 0;
     json by_transport = json::object();
     for (const auto& manager : sim_.request_managers()) {
-      clients += manager->client_count();
-      by_transport[manager->transport_name()] = manager->client_count();
+      const std::size_t n = manager->client_count();  // read once: the total is the parts' sum
+      clients += n;
+      by_transport[manager->transport_name()] = n;
     }
     return {{"state", to_string(sim_.run_state())},
             {"sim_time", s.sim_time},

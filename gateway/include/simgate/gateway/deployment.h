@@ -75,6 +75,11 @@ struct ServiceRule {
   std::optional<double> frequency;      // "streams" rules only: {"frequency": Hz}, overrides the component's
 };
 
+// The components every simulation has besides the robots' (its supervision services), in
+// the order they are created: never robot names; they stream only when a "streams" rule
+// names them exactly.
+extern const std::vector<std::string> k_pseudo_components;
+
 struct Deployment {
   std::string file;                      // the config file ("" for in-memory documents)
   std::string base_dir;                  // relative paths resolve here
