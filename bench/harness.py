@@ -41,6 +41,9 @@ Sections (each ends "ok", "error" with the reason, or "skipped" when a part was 
            EGL context; the real-time factor of config/rover.json with a JSON-RPC client
            subscribed to its 10 Hz camera stream vs none. "skipped" when no EGL context can
            be made (no GPU is needed: Mesa's llvmpipe renders surfaceless)
+  web      issue #23: the real-time factor of config/demo.json (the web app's deployment)
+           while 20 WebSocket clients (browser pages) receive the body poses at 60 Hz vs none
+           (simgate_bench_sim --mode web_poses)
 
 Usage: bench/harness.py --build-dir DIR [--out DIR] [--smoke] [--repeats N]
 Normally run through bench/run, which builds first. Writes DIR/results.json and
@@ -974,6 +977,31 @@ class Harness:
                     f"{s['frequency_hz']:g} Hz to a JSON-RPC subscriber", s["rtf_with"], ">=", 0.99)
         return {"status": "ok", "summary": s, "fps_runs": fps_runs, "rtf_runs": rtf_runs}
 
+    def section_web(self):
+        """Issue #23: the real-time factor while 20 WebSocket clients, as many browser pages,
+        receive the simulation's body poses at 60 Hz, against no client (simgate_bench_sim
+        --mode web_poses on config/demo.json)."""
+        sim = os.path.join(self.bin, "simgate_bench_sim")
+        if not os.access(sim, os.X_OK) or not self.plugin_built("websocket") or not self.plugin_built("socket"):
+            return {"status": "skipped", "reason": "simgate_bench_sim or the demo's transports are not built"}
+        config = os.path.join(ROOT, "config", "demo.json")
+        seconds = 2.0 if self.smoke else 10.0
+        runs = [run_json([sim, "--mode", "web_poses", "--config", config, "--calls", "20", "--frequency", "60",
+                          "--duration", str(seconds)], self.timeout, self.env) for _ in range(self.repeats)]
+        s = {"rtf_without": spread([r["without"]["realtime_factor"] for r in runs]),
+             "rtf_with": spread([r["with"]["realtime_factor"] for r in runs]),
+             "rtf_ratio": spread([r["ratio"] for r in runs]),
+             "samples_per_s_per_client": spread([r["samples_per_s_per_client"]["mean"] for r in runs]),
+             "fewest_per_s": spread([r["samples_per_s_per_client"]["min"] for r in runs]),
+             "sample_bytes": spread([r["mean_sample_bytes"] for r in runs]),
+             "cpu_per_s_without": spread([r["without"]["gateway_cpu_per_s"] for r in runs]),
+             "cpu_per_s_with": spread([r["with"]["gateway_cpu_per_s"] for r in runs]),
+             "clients": runs[0]["clients"], "frequency_hz": runs[0]["frequency_hz"], "bodies": runs[0]["bodies"],
+             "seconds": seconds}
+        self.target(f"real-time factor, body poses at {s['frequency_hz']:g} Hz to {s['clients']} WebSocket clients",
+                    s["rtf_with"], ">=", 0.99)
+        return {"status": "ok", "summary": s, "runs": runs}
+
     # ---- driver
 
     def machine(self):
@@ -1017,7 +1045,7 @@ class Harness:
         self.results["machine"] = self.machine()
         only = set(self.args.only.split(",")) if self.args.only else None
         for name in ("socket", "jsonrpc", "websocket", "dds", "peers", "sim", "memory", "byor", "world", "progress", "streams",
-                     "cameras"):
+                     "cameras", "web"):
             if only and name not in only:
                 continue
             t0 = time.monotonic()
@@ -1326,6 +1354,25 @@ def markdown(r):
                   f"| with / without | {fmt(g['rtf_ratio'], 4)} |",
                   f"| images received per second | {fmt(g['samples_per_s'], 2)} |",
                   f"| mean sample (KiB) | {fmt(g['sample_kib'])} |",
+                  f"| gateway CPU (s per s), without / with | {fmt(g['cpu_per_s_without'], 3)} / "
+                  f"{fmt(g['cpu_per_s_with'], 3)} |", ""]
+
+    lines += ["## Browsers (issue #23)", ""]
+    st = status_line("web")
+    if st:
+        lines += [st, ""]
+    else:
+        g = s["web"]["summary"]
+        lines += [f"config/demo.json at real time, {g['seconds']:g} s with no client, then {g['seconds']:g} s with "
+                  f"{g['clients']} WebSocket clients each subscribed to the simulation's body poses ({g['bodies']} "
+                  f"bodies) at {g['frequency_hz']:g} Hz, as the web app's pages are.", "",
+                  "| measure | value |", "|---|---|",
+                  f"| real-time factor, no client | {fmt(g['rtf_without'], 4)} |",
+                  f"| real-time factor, {g['clients']} clients | {fmt(g['rtf_with'], 4)} |",
+                  f"| with / without | {fmt(g['rtf_ratio'], 4)} |",
+                  f"| samples per second per client (mean; fewest) | {fmt(g['samples_per_s_per_client'])}; "
+                  f"{fmt(g['fewest_per_s'])} |",
+                  f"| mean sample (bytes) | {fmt(g['sample_bytes'], 0)} |",
                   f"| gateway CPU (s per s), without / with | {fmt(g['cpu_per_s_without'], 3)} / "
                   f"{fmt(g['cpu_per_s_with'], 3)} |", ""]
 

@@ -61,6 +61,9 @@
 //   camera_rtf  issue #22's real-time-factor target: --config (config/rover.json) at real
 //            time, --duration seconds without and then with a JSON-RPC subscriber to
 //            --camera's image stream (camera_bench.cc).
+//   web_poses  issue #23's browser target: --config (config/demo.json, the web app's) at
+//            real time, --duration seconds without and then with --calls WebSocket clients
+//            (20 browser pages) receiving the body poses at --frequency (60 Hz) (web_bench.cc).
 //
 // The probe costs one clock read per step; both modes run on the main thread, unpinned.
 #include <poll.h>
@@ -84,6 +87,7 @@
 
 #include "bench_util.h"
 #include "camera_bench.h"
+#include "web_bench.h"
 #include "progress_bench.h"
 #include "stream_bench.h"
 #include "simgate/core/component.h"
@@ -646,26 +650,31 @@ int main(int argc, char** argv) {
   bool dds = false;
   simgate::bench::CameraFpsOptions camera_fps;
   std::string camera = "rover.camera";
+  double frequency = 60;
   app.add_option("--mode", mode,
-                 "bare, sleep, gateway, laser, humanoid, snapshot, spawn, progress, streams, camera_fps or camera_rtf "
+                 "bare, sleep, gateway, laser, humanoid, snapshot, spawn, progress, streams, camera_fps, camera_rtf or "
+                 "web_poses "
                  "(see the source's header)")
       ->required()
       ->check(CLI::IsMember({"bare", "sleep", "gateway", "laser", "humanoid", "snapshot", "spawn", "progress",
-                             "streams", "camera_fps", "camera_rtf"}));
+                             "streams", "camera_fps", "camera_rtf", "web_poses"}));
   app.add_option("--site", camera_fps.site, "camera_fps: the site the view is from")->capture_default_str();
   app.add_option("--frames", camera_fps.frames, "camera_fps: frames per side, size and kind, at most")
       ->capture_default_str();
   app.add_option("--batch", camera_fps.batch, "camera_fps: frames of one side in a row")->capture_default_str();
   app.add_option("--camera", camera, "camera_rtf: the camera component whose stream is subscribed")
       ->capture_default_str();
+  app.add_option("--frequency", frequency, "web_poses: the body poses' samples per simulated second")
+      ->capture_default_str();
   app.add_flag("--dds", dds, "streams: the DDS transport streams too");
   app.add_option("--round", round_s, "progress: simulated seconds each call runs")->capture_default_str();
-  app.add_option("--calls", calls, "progress: concurrent calls, one connection each; streams: components")
+  app.add_option("--calls", calls,
+                 "progress: concurrent calls, one connection each; streams: components; web_poses: WebSocket clients")
       ->capture_default_str();
   app.add_option("--mjcf", mjcf,
                  "bare, sleep, snapshot, spawn, progress, streams, camera_fps: the MJCF scene; humanoid: another "
                  "humanoid.xml");
-  app.add_option("--config", config, "gateway, camera_rtf: the deployment file");
+  app.add_option("--config", config, "gateway, camera_rtf, web_poses: the deployment file");
   app.add_option("--realtime-factor", factor, "gateway: pacing (0 = as fast as possible)")->capture_default_str();
   app.add_option("--duration", duration, "seconds to run (camera_fps: per side, size and kind, at most)")
       ->capture_default_str();
@@ -677,7 +686,7 @@ int main(int argc, char** argv) {
     std::cerr << "simgate_bench_sim: --mode " << mode << " needs --mjcf PATH\n";
     return 2;
   }
-  if ((mode == "gateway" || mode == "camera_rtf") && config.empty()) {
+  if ((mode == "gateway" || mode == "camera_rtf" || mode == "web_poses") && config.empty()) {
     std::cerr << "simgate_bench_sim: --mode " << mode << " needs --config PATH\n";
     return 2;
   }
@@ -705,6 +714,8 @@ int main(int argc, char** argv) {
       out = simgate::bench::run_camera_fps(camera_fps);
     } else if (mode == "camera_rtf") {
       out = simgate::bench::run_camera_rtf(config, camera, duration);
+    } else if (mode == "web_poses") {
+      out = simgate::bench::run_web_poses(config, calls, frequency, duration);
     } else {
       out = run_gateway(config, factor, duration, until_stdin);
     }

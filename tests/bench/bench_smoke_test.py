@@ -3,7 +3,7 @@
 
 Checks, never timing thresholds:
   * the harness exits 0 and writes results.json and results.md;
-  * every section (socket, jsonrpc, dds, peers, sim, memory, byor, world, progress, streams, cameras) is present and "ok", or
+  * every section (socket, jsonrpc, dds, peers, sim, memory, byor, world, progress, streams, cameras, web) is present and "ok", or
     "skipped" with a reason (a part this build does not have, e.g. DDS switched off);
   * every figure an ok section reports is a finite, positive number (a silently empty
     measurement, such as zero replies, fails here), except those that may be 0 on a good
@@ -30,7 +30,7 @@ import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
-SECTIONS = ("socket", "jsonrpc", "dds", "peers", "sim", "memory", "byor", "world", "progress", "streams", "cameras")
+SECTIONS = ("socket", "jsonrpc", "dds", "peers", "sim", "memory", "byor", "world", "progress", "streams", "cameras", "web")
 
 passed, failed = 0, 0
 
@@ -196,7 +196,8 @@ def main():
             md = f.read()
         for heading in ("## Targets", "## Socket transport", "## JSON-RPC transport", "## DDS transport",
                         "## Peers", "## Simulation", "## Memory", "## Bring your own robot",
-                        "## Controlling the world", "## Progress reports", "## Data streams", "## Cameras"):
+                        "## Controlling the world", "## Progress reports", "## Data streams", "## Cameras",
+                        "## Browsers"):
             check(heading in md, f"results.md has '{heading}'")
         if any((results["sections"].get(n) or {}).get("status") == "ok" for n in ("socket", "jsonrpc")):
             for text in ("/ echo limit (polling)", "/ plain Asio server (sleeping)", "simgate / plain"):
