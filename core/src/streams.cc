@@ -12,21 +12,43 @@ namespace simgate {
 // StreamSample
 
 const json& StreamSample::data() const {
-  if (fields_) {
-    std::call_once(data_once_, [this] { data_ = record_json(*fields_, {values_.data(), fields_->size()}); });
-  } else if (payload_) {
-    std::call_once(data_once_, [this] {
+  if ((!fields_ && !payload_) || data_made_.load(std::memory_order_acquire)) return data_;
+  std::lock_guard lock(made_mutex_);
+  if (!data_made_.load(std::memory_order_relaxed)) {
+    if (fields_) {
+      data_ = record_json(*fields_, {values_.data(), fields_->size()});
+    } else {
       data_ = payload_->to_json ? payload_->to_json(*payload_)
                                 : json{{"content", payload_->content}, {"description", payload_->description},
                                        {"bytes", payload_->bytes.size()}};
-    });
+    }
+    data_made_.store(true, std::memory_order_release);
   }
   return data_;
 }
 
 const std::string& StreamSample::text() const {
-  std::call_once(text_once_, [this] { text_ = data().dump(-1, ' ', false, json::error_handler_t::replace); });
+  if (text_made_.load(std::memory_order_acquire)) return text_;
+  const json& data = this->data();  // (before the mutex: data() takes it too)
+  std::lock_guard lock(made_mutex_);
+  if (!text_made_.load(std::memory_order_relaxed)) {
+    text_ = data.dump(-1, ' ', false, json::error_handler_t::replace);
+    text_made_.store(true, std::memory_order_release);
+  }
   return text_;
+}
+
+void StreamSample::reuse(double time) {
+  // it never left the simulation thread (the hub's condition): nobody else reads it
+  time_ = time;
+  if (data_made_.load(std::memory_order_relaxed)) {
+    data_ = json();
+    data_made_.store(false, std::memory_order_relaxed);
+  }
+  if (text_made_.load(std::memory_order_relaxed)) {
+    text_.clear();
+    text_made_.store(false, std::memory_order_relaxed);
+  }
 }
 
 double StreamSample::number(std::string_view key) const {
@@ -72,22 +94,13 @@ std::size_t StreamSubscription::take(std::vector<SamplePtr>& out) {
 
 void StreamSubscription::note_dropped(std::uint64_t n) {
   if (n == 0) return;
-  {
-    std::lock_guard lock(mutex_);
-    dropped_ += n;
-  }
+  dropped_.fetch_add(n, std::memory_order_relaxed);
   log_first_drop();
 }
 
-std::uint64_t StreamSubscription::dropped() const {
-  std::lock_guard lock(mutex_);
-  return dropped_;
-}
+std::uint64_t StreamSubscription::dropped() const { return dropped_.load(std::memory_order_relaxed); }
 
-std::uint64_t StreamSubscription::delivered() const {
-  std::lock_guard lock(mutex_);
-  return delivered_;
-}
+std::uint64_t StreamSubscription::delivered() const { return delivered_.load(std::memory_order_relaxed); }
 
 bool StreamSubscription::closed() const {
   std::lock_guard lock(mutex_);
@@ -95,7 +108,7 @@ bool StreamSubscription::closed() const {
 }
 
 StreamSubscription::Pushed StreamSubscription::push(const SamplePtr& sample, bool due) {
-  // a direct subscriber's flags are read by deliver(), under its mutex taken once there
+  // a direct subscriber's flags are read by deliver(), under the hub mutex as this is
   if (options_.deliver) return Pushed::deliver;
   bool dropped_one = false;
   bool wake = false;
@@ -107,11 +120,11 @@ StreamSubscription::Pushed StreamSubscription::push(const SamplePtr& sample, boo
     if (!due && !first) return Pushed::no;
     if (queue_.size() >= std::max<std::size_t>(1, options_.capacity)) {
       queue_.pop_front();
-      ++dropped_;
+      dropped_.fetch_add(1, std::memory_order_relaxed);
       dropped_one = true;
     }
     queue_.push_back(sample);
-    ++delivered_;
+    delivered_.fetch_add(1, std::memory_order_relaxed);
     wake = wake_armed_;
     wake_armed_ = false;
   }
@@ -120,24 +133,21 @@ StreamSubscription::Pushed StreamSubscription::push(const SamplePtr& sample, boo
 }
 
 void StreamSubscription::deliver(const StreamSample& sample, bool due) {
+  // under the hub mutex, which unsubscribe() and the stream's removal take to take this
+  // subscription off its stream: once they have returned, nothing is being delivered
+  const bool first = wants_first_;
+  wants_first_ = false;
+  if (!due && !first) return;
   bool sent = false;
   std::string failure;  // the first time the transport threw (logged once)
-  {
-    // held while the transport writes: once close() has returned, nothing is being delivered
-    std::lock_guard lock(mutex_);
-    if (closed_) return;
-    const bool first = wants_first_;
-    wants_first_ = false;
-    if (!due && !first) return;
-    try {
-      sent = options_.deliver(sample);
-    } catch (const std::exception& e) {
-      if (!failure_logged_) failure = e.what();
-      failure_logged_ = true;
-    }
-    ++delivered_;
-    if (!sent) ++dropped_;
+  try {
+    sent = options_.deliver(sample);
+  } catch (const std::exception& e) {
+    if (!failure_logged_) failure = e.what();
+    failure_logged_ = true;
   }
+  delivered_.fetch_add(1, std::memory_order_relaxed);
+  if (!sent) dropped_.fetch_add(1, std::memory_order_relaxed);
   if (!failure.empty())
     log::warning(component_, " stream: ", options_.label.empty() ? std::string("a subscriber") : options_.label,
                  " could not send a sample (logged once; simulation get_stream_statistics counts them as "
@@ -178,6 +188,7 @@ struct StreamHub::Due {
   Stream* stream;
   bool due;                             // by its frequency (else only its new subscribers get it)
   std::shared_ptr<StreamSample> sample;  // once produced
+  bool queued = false;                   // a subscriber's queue took the sample
 };
 
 struct StreamHub::Stream {
@@ -191,6 +202,7 @@ struct StreamHub::Stream {
   double next_due = 0;                      // out: when the next sample is due
   double last_time = 0;                     // out: time of the last sample
   std::uint64_t seq = 0;                    // out: samples produced
+  std::shared_ptr<StreamSample> spare;      // out, a record: the last sample, if no queue took it
   std::vector<std::shared_ptr<StreamSubscription>> subscribers;
   // what publish_due looks at before it takes the hub mutex (written under it)
   std::atomic<std::size_t> subscriber_count{0};  // subscribers.size()
@@ -315,7 +327,11 @@ void StreamHub::publish_due(double time) {
     Stream& s = *d.stream;
     try {
       if (s.produce_record) {
-        auto sample = std::make_shared<StreamSample>(0, time, s.record_fields);
+        std::shared_ptr<StreamSample> sample = std::move(s.spare);
+        if (sample)
+          sample->reuse(time);
+        else
+          sample = std::make_shared<StreamSample>(0, time, s.record_fields);
         s.produce_record(sample->record_values());
         d.sample = std::move(sample);
       } else {
@@ -340,7 +356,7 @@ void StreamHub::publish_due(double time) {
       }
       d.sample->seq_ = ++s.seq;
       s.last_time = time;
-      fan_out(s, d.sample, d.due);
+      d.queued = fan_out(s, d.sample, d.due);
       if (d.due) {
         s.next_due += s.period;
         if (s.next_due <= time) s.next_due = time + s.period;
@@ -348,23 +364,30 @@ void StreamHub::publish_due(double time) {
     }
   }
   after_fan_out();
-  due_.clear();  // the samples no subscriber holds go now
+  // a record sample that never left this thread (only direct subscribers had it, and they
+  // wrote it at once) is the stream's next one; the others go when nobody holds them
+  for (Due& d : due_)
+    if (d.sample && !d.queued && d.stream->produce_record) d.stream->spare = std::move(d.sample);
+  due_.clear();
 }
 
-void StreamHub::fan_out(Stream& stream, const SamplePtr& sample, bool due) {
+bool StreamHub::fan_out(Stream& stream, const SamplePtr& sample, bool due) {
+  bool queued = false;
   for (auto& sub : stream.subscribers) switch (sub->push(sample, due)) {
-      case StreamSubscription::Pushed::wake: to_wake_.push_back(sub); break;
-      case StreamSubscription::Pushed::deliver: to_deliver_.push_back({sub, sample.get(), due}); break;
-      case StreamSubscription::Pushed::no:
-      case StreamSubscription::Pushed::queued: break;
+      case StreamSubscription::Pushed::wake:
+        to_wake_.push_back(sub);
+        queued = true;
+        break;
+      case StreamSubscription::Pushed::queued: queued = true; break;
+      case StreamSubscription::Pushed::deliver: sub->deliver(*sample, due); break;
+      case StreamSubscription::Pushed::no: break;
     }
+  return queued;
 }
 
 void StreamHub::after_fan_out() {
   for (const auto& sub : to_wake_) sub->wake();
   to_wake_.clear();
-  for (const auto& d : to_deliver_) d.subscriber->deliver(*d.sample, d.due);
-  to_deliver_.clear();
 }
 
 bool StreamHub::push(const std::string& component, double time, json data,
@@ -381,7 +404,7 @@ bool StreamHub::push(const std::string& component, double time, json data,
     s->first_wanted.store(false, std::memory_order_relaxed);
     fan_out(*s, sample, true);
   }
-  after_fan_out();  // (`sample` lives until the direct subscribers have had it)
+  after_fan_out();
   return true;
 }
 

@@ -303,6 +303,49 @@ TEST_F(StreamHubTest, ARecordSampleIsReadByNameAndIsTheSameJsonOnAsking) {
   EXPECT_THROW(counts[0]->number("m"), std::out_of_range);
 }
 
+// The hub reuses a record sample nobody holds for the stream's next one (no allocation per
+// sample): a direct subscriber sees each sample's own numbers, JSON and text, and a sample a
+// queue still holds is never overwritten.
+TEST_F(StreamHubTest, ARecordSampleIsReusedOnlyWhenNobodyHoldsIt) {
+  class Position : public Component {
+   public:
+    Position() : Component("robot.position") {
+      declare_output_stream("position", {"x", "timestamp"}, [this](std::span<double> v) { v[0] = ++reads, v[1] = 0; });
+    }
+    int reads = 0;
+  } position;
+  hub.add(position, "position", {"dds", "socket"}, 100);
+  std::vector<std::string> texts;
+  std::vector<const StreamSample*> addresses;
+  SubscriberOptions options;
+  options.deliver = [&](const StreamSample& sample) {
+    texts.push_back(sample.text());  // its JSON made (and kept by the sample) each time
+    addresses.push_back(&sample);
+    return true;
+  };
+  auto direct = hub.subscribe("robot.position", "dds", std::move(options));
+  for (int i = 0; i < 3; ++i) hub.publish_due(i * 0.01);
+  ASSERT_EQ(texts.size(), 3u);
+  EXPECT_EQ(texts[0], R"({"timestamp":0.0,"x":1.0})");
+  EXPECT_EQ(texts[1], R"({"timestamp":0.0,"x":2.0})");
+  EXPECT_EQ(texts[2], R"({"timestamp":0.0,"x":3.0})");
+  EXPECT_EQ(addresses[1], addresses[0]);  // nobody kept the first: the second is the same object
+  EXPECT_EQ(addresses[2], addresses[0]);
+  // a queue keeps its samples: each one stays as it was made
+  auto queued = hub.subscribe("robot.position", "socket", {4, "queue", {}, {}});
+  for (int i = 3; i < 6; ++i) hub.publish_due(i * 0.01);
+  const auto kept = take(*queued);
+  ASSERT_EQ(kept.size(), 3u);
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(kept[i]->seq(), static_cast<std::uint64_t>(i + 4));
+    EXPECT_EQ(kept[i]->number("x"), i + 4);
+    EXPECT_EQ(kept[i]->data().at("x"), i + 4);
+    EXPECT_NEAR(kept[i]->time(), (i + 3) * 0.01, 1e-12);
+  }
+  EXPECT_NE(kept[0].get(), kept[1].get());
+  EXPECT_EQ(texts.back(), R"({"timestamp":0.0,"x":6.0})");
+}
+
 TEST(RecordStream, HasOneToSixteenNumbers) {
   class Empty : public Component {
    public:

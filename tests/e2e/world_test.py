@@ -129,6 +129,9 @@ class WorldTest(unittest.TestCase):
         return value
 
     def test_1_starts_paused_and_steps_on_request_over_the_socket(self):
+        # a connection is counted once the server has accepted it, which a client's connect()
+        # does not wait for: one answered call on each proves both accepted
+        self.rpc("simulation.list_robots")
         first = self.state()
         self.assertEqual(first["state"], "paused")
         self.assertEqual(first["steps"], 0)

@@ -112,6 +112,8 @@ struct StreamInfo {
 // Either JSON (the component's get_local_data), or a record: numbers named by the stream's
 // fields (StreamDeclaration::produce_record), or a payload: bytes (StreamPayload). A
 // record's or a payload's JSON is made only when a transport asks for data() or text().
+// The hub reuses a record sample that only direct subscribers had (it never left the
+// simulation thread) for its stream's next one: no allocation per sample there.
 class StreamSample {
  public:
   StreamSample(std::uint64_t seq, double time, json data) : seq_(seq), time_(time), data_(std::move(data)) {}
@@ -143,15 +145,21 @@ class StreamSample {
  private:
   friend class StreamHub;
   std::span<double> record_values() { return {values_.data(), fields_ ? fields_->size() : 0}; }
+  // Makes a record sample that no other thread ever had the next one, of `time` (its JSON
+  // and text are made again when asked).
+  void reuse(double time);
 
   std::uint64_t seq_;
   double time_;
   std::shared_ptr<const std::vector<std::string>> fields_;  // a record's (null: JSON)
   std::shared_ptr<const StreamPayload> payload_;            // a payload's (null: JSON)
   std::array<double, k_max_record_fields> values_{};        // a record's, fields_->size() of them
-  mutable std::once_flag data_once_;                        // a record's or payload's JSON made
+  // the JSON and text, made once by whichever thread asks first (not std::once_flag: a
+  // reused sample makes them again)
+  mutable std::mutex made_mutex_;                           // guards making them
+  mutable std::atomic<bool> data_made_{false};              // a record's or payload's data_ is made
+  mutable std::atomic<bool> text_made_{false};              // text_ is made
   mutable json data_;
-  mutable std::once_flag text_once_;
   mutable std::string text_;
 };
 using SamplePtr = std::shared_ptr<const StreamSample>;
@@ -164,9 +172,10 @@ struct SubscriberOptions {
   // Set: a direct subscriber. Each sample it gets is handed to `deliver` right after it is
   // made, on the thread that holds the simulation lock, instead of being queued: no queue,
   // no wake, no hand-off to the transport's thread. Only for a write that is short and never
-  // waits (DDS's best-effort writer of a small typed sample). Returns false when the sample
-  // was not sent (counted as dropped, like a queue's drop). Never called again once
-  // unsubscribe() (or the stream's removal) has returned. `capacity` and `wake` are unused.
+  // waits (DDS's best-effort writer of a small typed sample): it is called under the hub's
+  // mutex, so it must not call the hub. Returns false when the sample was not sent (counted
+  // as dropped, like a queue's drop). Never called again once unsubscribe() (or the
+  // stream's removal) has returned. `capacity` and `wake` are unused.
   std::function<bool(const StreamSample&)> deliver;
 };
 
@@ -192,13 +201,13 @@ class StreamSubscription {
 
  private:
   friend class StreamHub;
-  // Hub side (under the simulation lock): a queue takes `sample` when it is `due` or the
-  // first this subscriber waits for (wake: the subscriber must be woken); a direct
-  // subscriber is to be given it by deliver(), once the hub mutex is released.
+  // Hub side (under the simulation lock and the hub mutex): a queue takes `sample` when it
+  // is `due` or the first this subscriber waits for (wake: the subscriber must be woken); a
+  // direct subscriber is to be given it by deliver() at once.
   enum class Pushed : std::uint8_t { no, queued, wake, deliver };
   Pushed push(const SamplePtr& sample, bool due);
-  // A direct subscriber's delivery, when `due` or its first (under the simulation lock, not
-  // the hub's mutex).
+  // A direct subscriber's delivery, when `due` or its first (under the simulation lock and
+  // the hub mutex: one lock for the fan-out and the write; its own mutex is not taken).
   void deliver(const StreamSample& sample, bool due);
   void close();
   void wake() const {
@@ -209,15 +218,16 @@ class StreamSubscription {
 
   const std::string component_;
   const SubscriberOptions options_;
-  mutable std::mutex mutex_;     // guards what follows
+  mutable std::mutex mutex_;     // guards what follows, up to the counters
   std::deque<SamplePtr> queue_;  // oldest first
   bool wake_armed_ = true;       // the next push wakes
   bool closed_ = false;
   bool drop_logged_ = false;
-  bool failure_logged_ = false;  // a direct delivery threw (logged once)
-  bool wants_first_ = true;      // gets a sample at the hub's next turn, due or not
-  std::uint64_t dropped_ = 0;
-  std::uint64_t delivered_ = 0;
+  bool failure_logged_ = false;  // a direct delivery threw (logged once; under the hub mutex)
+  bool wants_first_ = true;      // gets a sample at the hub's next turn, due or not (also
+                                 // under the hub mutex: push() and deliver() are)
+  std::atomic<std::uint64_t> dropped_{0};
+  std::atomic<std::uint64_t> delivered_{0};
 };
 
 // Counters of one stream (simulation get_stream_statistics).
@@ -310,11 +320,11 @@ class StreamHub {
   // Applies `command` to `stream` (under the simulation lock, without the hub mutex: the
   // component runs with no transport waiting on it); counts it; the refusal, if any.
   std::string apply(Stream& stream, const json& command);
-  // Gives `sample` to the subscribers of `stream` (under the hub mutex): queued ones now,
-  // those to wake and the direct ones noted for after_fan_out() (the caller keeps `sample`
-  // until then).
-  void fan_out(Stream& stream, const SamplePtr& sample, bool due);
-  // Without the hub mutex: wakes and direct deliveries noted by fan_out.
+  // Gives `sample` to the subscribers of `stream` (under the hub mutex): queued ones and
+  // direct ones now, those to wake noted for after_fan_out(). True when a queue took it
+  // (another thread may read it from then on).
+  bool fan_out(Stream& stream, const SamplePtr& sample, bool due);
+  // Without the hub mutex: wakes the subscribers noted by fan_out.
   void after_fan_out();
 
   std::shared_ptr<SimulationGate> gate_;
@@ -331,12 +341,6 @@ class StreamHub {
   // publish_due's buffers, kept between calls (it runs under the simulation lock only)
   std::vector<Due> due_;
   std::vector<std::shared_ptr<StreamSubscription>> to_wake_;
-  struct Delivery {
-    std::shared_ptr<StreamSubscription> subscriber;
-    const StreamSample* sample;  // held by the caller of fan_out until after_fan_out
-    bool due;
-  };
-  std::vector<Delivery> to_deliver_;
 };
 
 }  // namespace simgate
