@@ -6,7 +6,8 @@
 // called from its form moves the robot (the position the page shows changes) and
 // succeeds; a second goto cancelled from the page ends PREEMPTED; pause, step and play
 // drive the simulation, and the real-time factor shown is never "0.00" (a number once
-// measured, else "–"); the 3D view has drawn the scene. Then, against a second `simgate run`
+// measured, else "–"); the 3D view has drawn the scene, and draws a height field spawned
+// from the page's console. Then, against a second `simgate run`
 // whose websocket transport wants a token (`auth`), the page asks for it before anything,
 // asks again after a wrong one, and works once given the right one. Keeps a screenshot:
 //   node webapp_test.js SIMGATE SOURCE_DIR ARTIFACTS_DIR
@@ -250,6 +251,26 @@ async function main() {
   const shot = path.join(artifactsDir, 'webapp.png');
   await page.screenshot({ path: shot });
   console.log(`screenshot: ${shot}`);
+
+  // a height field spawned from the page's console: the page reloads the geometry (a new
+  // generation) and draws it (its elevations are MuJoCo's zeros without a file)
+  const spawn = page.locator('form[data-method="simulation.spawn_entity"]');
+  if (await spawn.count()) {
+    await page.fill('#service-filter', 'spawn_entity');
+    await spawn.locator('input[data-param="name"]').fill('terrain');
+    await spawn.locator('input[data-param="mjcf"]').fill(
+      '<mujoco><asset><hfield name="bumps" nrow="5" ncol="6" size="1.5 1 0.3 0.05"/></asset>' +
+      '<worldbody><body><geom type="hfield" hfield="bumps" rgba="0.4 0.6 0.3 1"/></body></worldbody></mujoco>');
+    await spawn.locator('input[data-param="pose"]').fill('[3, 3, 0]');
+    await spawn.locator('button.call-button').click();
+    await page.waitForFunction(() => document.querySelector('#calls li.call')?.dataset.status !== 'RUNNING', null,
+      { timeout: WAIT_MS });
+    const spawned = page.locator('#calls li.call').first();
+    check((await spawned.getAttribute('data-status')) === 'SUCCESS',
+      `spawn_entity of a height field from the page: ${await spawned.locator('.reply').textContent()}`);
+    await page.waitForFunction(() => window.simgate.hfields === 1, null, { timeout: WAIT_MS });
+    check(true, `the page draws the spawned height field (${await page.evaluate(() => window.simgate.meshes)} meshes)`);
+  }
 
   check(problems.length === 0, `no page error, console error or failed request${problems.length ? ':\n  ' + problems.join('\n  ') : ''}`);
   await page.close();
