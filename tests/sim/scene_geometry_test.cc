@@ -1,8 +1,8 @@
 // SimSceneGeometry: `simulation get_scene_geometry` and the `simulation` component's
 // body_poses stream (scene_geometry.cc, docs/world/scene_geometry.md) on real models: an
 // inline scene with one geom of each kind a client draws (plane, box, sphere, capsule, an
-// inline mesh), colours from the geom and from its material; Debian's sample models; a
-// spawned entity.
+// inline mesh), colours from the geom and from its material; a height field; Debian's
+// sample models; a spawned entity; the meshes written once per model (SceneGeometryCache).
 #include <gtest/gtest.h>
 
 #include <algorithm>

@@ -2,7 +2,9 @@
 // plain HTTP requests from a raw socket against libsimgate_transport_websocket.so serving a
 // web root the test writes (index.html, a vendor script, a secret beside the root, a
 // symbolic link out of it), the refusals (traversal, methods, long targets), the options,
-// and the build tree's own web app as the default web_root.
+// and the build tree's own web app as the default web_root; the in-memory cache (an edited
+// file served fresh, a cached answer identical) and the validators (ETag, Last-Modified,
+// 304); StaticFiles itself, compiled in: what its cache holds within its bound.
 #include <gtest/gtest.h>
 
 #include <unistd.h>
