@@ -1,6 +1,8 @@
 // simgate's web app (docs/web.md): one WebSocket to the server that served this page,
-// JSON-RPC 2.0 over it (docs/transports/jsonrpc.md). Four parts:
+// JSON-RPC 2.0 over it (docs/transports/jsonrpc.md). Five parts:
 //   - Rpc: calls matched to their replies by id, progress reports, notifications;
+//   - the login: when the transport wants a token (its `auth` option), the page asks for it
+//     and calls rpc.login before anything else;
 //   - the state header: simulation get_simulation_state (else time statistics) at 2 Hz,
 //     pause / play / step;
 //   - the service console: a form per method of rpc.discover, a log of the calls with their
@@ -26,13 +28,21 @@ const fmt = (v, digits = 3) => (typeof v === 'number' ? v.toFixed(digits) : Stri
 const errorText = (e) => e?.data?.message ?? e?.message ?? String(e);
 // A service the server does not have, or does not let this transport call.
 const isUnknownMethod = (e) => e?.code === -32601;
+// The transport wants rpc.login first (its `auth` option), or the token was wrong.
+const isUnauthorized = (e) => e?.code === -32005;
+// A measured real-time factor, or '–' when none is known (0: paused, or playing for less
+// than the server's measuring window since play).
+const fmtFactor = (f) => (typeof f === 'number' && f > 0 ? f.toFixed(2) : '–');
 
 // What the browser test (and a curious developer) can read.
 const exposed = window.simgate = {
   connected: false,
+  ready: false,          // connected, and logged in when the transport wants a token
+  login: 'none',         // 'none' (no token needed), 'asking', 'wrong' (asking again) or 'done'
   services: [],          // method names of rpc.discover
   bodies: {},            // body name -> [x, y, z]
   meshes: 0,             // three.js meshes in the scene
+  hfields: 0,            // of which heightfields
   frames: 0,             // frames rendered
   poseSource: 'none',    // 'stream', 'poll' or 'none'
   view: 'none',          // 'geometry', 'markers', 'none' or 'no-webgl'
@@ -103,18 +113,70 @@ class Rpc {
 }
 
 
+// ---------------------------------------------------------------- the login
+
+const TOKEN_KEY = 'simgate-token';  // sessionStorage: the token of this tab, not kept after it
+
+// Resolves with the token the user types in the login form.
+function askToken(message) {
+  const form = $('login');
+  form.hidden = false;
+  $('login-message').textContent = message;
+  $('login-token').focus();
+  return new Promise((resolve) => {
+    form.onsubmit = (event) => {
+      event.preventDefault();
+      const token = $('login-token').value.trim();
+      if (!token) return;
+      form.hidden = true;
+      resolve(token);
+    };
+  });
+}
+
+// Before anything else on a new connection: true once the connection may call services
+// (no token needed, or rpc.login accepted), false when the token was wrong (the server then
+// closes the connection; the next one asks again).
+async function login(rpc) {
+  let token = sessionStorage.getItem(TOKEN_KEY);
+  if (!token) {
+    // rpc.cancel of no call: false when no token is needed, -32005 when one is
+    try {
+      await rpc.call('rpc.cancel', { id: null });
+      return true;
+    } catch (e) {
+      if (!isUnauthorized(e)) return true;
+    }
+    token = await askToken(exposed.login === 'wrong'
+      ? 'Wrong token. Token of this server (its "auth" option):'
+      : 'This server wants a token (its "auth" option):');
+    exposed.login = 'asking';
+  }
+  try {
+    await rpc.call('rpc.login', { token });
+    sessionStorage.setItem(TOKEN_KEY, token);
+    exposed.login = 'done';
+    return true;
+  } catch (e) {
+    sessionStorage.removeItem(TOKEN_KEY);
+    exposed.login = 'wrong';
+    $('connection').textContent = `rpc.login: ${errorText(e)}`;
+    return false;
+  }
+}
+
 // ---------------------------------------------------------------- the state header
 
 function setupState(rpc) {
   let source = 'simulation.get_simulation_state';
   async function refresh() {
-    if (!exposed.connected) return;
+    if (!exposed.connected || !exposed.ready) return;
     try {
       const s = await rpc.call(source);
       $('state-run').textContent = s.state ?? '–';
       $('state-time').textContent = `${fmt(s.sim_time)} s`;
       const target = s.target_realtime_factor === 0 ? 'max' : fmt(s.target_realtime_factor, 2);
-      $('state-rtf').textContent = `${fmt(s.realtime_factor ?? s.recent_realtime_factor, 2)} (target ${target})`;
+      $('state-rtf').textContent = `${fmtFactor(s.realtime_factor ?? s.recent_realtime_factor)} (target ${target})`;
       $('state-clients').textContent = s.clients ?? '–';
       if ($('state-error').textContent.startsWith('state:')) $('state-error').textContent = '';
     } catch (e) {
@@ -288,8 +350,35 @@ function showBodies(positions) {
 
 // ---------------------------------------------------------------- the 3D view
 
-// A three.js geometry for a MuJoCo geom (size: MuJoCo's geom_size), or null (hfield).
-function geomGeometry(g, meshes) {
+// A heightfield's top surface: ncol x nrow points over [-size[0], size[0]] x [-size[1],
+// size[1]], each at its elevation (0..1) times size[2]; data row by row along y (MuJoCo's).
+function hfieldGeometry(h) {
+  const { nrow, ncol, data } = h;
+  const [sx, sy, sz] = h.size;
+  if (!(nrow >= 2 && ncol >= 2) || data?.length !== nrow * ncol) return null;
+  const positions = new Float32Array(3 * nrow * ncol);
+  for (let r = 0; r < nrow; ++r)
+    for (let c = 0; c < ncol; ++c) {
+      const i = r * ncol + c;
+      positions[3 * i] = -sx + (2 * sx * c) / (ncol - 1);
+      positions[3 * i + 1] = -sy + (2 * sy * r) / (nrow - 1);
+      positions[3 * i + 2] = data[i] * sz;
+    }
+  const index = [];
+  for (let r = 0; r + 1 < nrow; ++r)
+    for (let c = 0; c + 1 < ncol; ++c) {
+      const a = r * ncol + c, b = a + 1, d = a + ncol, e = d + 1;
+      index.push(a, b, e, a, e, d);  // counter-clockwise seen from above (+z)
+    }
+  const geometry = new THREE.BufferGeometry();
+  geometry.setAttribute('position', new THREE.BufferAttribute(positions, 3));
+  geometry.setIndex(index);
+  geometry.computeVertexNormals();
+  return geometry;
+}
+
+// A three.js geometry for a MuJoCo geom (size: MuJoCo's geom_size), or null.
+function geomGeometry(g, meshes, hfields) {
   const [a, b, c] = g.size ?? [0, 0, 0];
   switch (g.type) {
     case 'plane': {
@@ -312,7 +401,11 @@ function geomGeometry(g, meshes) {
       geometry.computeVertexNormals();
       return geometry;
     }
-    default: return null;  // hfield: its heights are not sent
+    case 'hfield': {
+      const hfield = hfields?.[g.hfield];
+      return hfield ? hfieldGeometry(hfield) : null;
+    }
+    default: return null;
   }
 }
 
@@ -367,6 +460,7 @@ class SceneView {
     this.root.clear();
     this.bodies = [];
     exposed.meshes = 0;
+    exposed.hfields = 0;
   }
 
   // get_scene_geometry's answer: a group per body, its geoms inside.
@@ -384,18 +478,19 @@ class SceneView {
       if ((g.group ?? 0) >= 3) continue;      // MuJoCo hides groups 3-5 by default
       const rgba = g.rgba ?? [0.7, 0.7, 0.7, 1];
       if (rgba[3] === 0) continue;            // invisible
-      const shape = geomGeometry(g, geometry.meshes);
+      const shape = geomGeometry(g, geometry.meshes, geometry.hfields);
       if (!shape) continue;
       const material = new THREE.MeshStandardMaterial({
         color: new THREE.Color(rgba[0], rgba[1], rgba[2]),
         transparent: rgba[3] < 1, opacity: rgba[3], roughness: 0.8,
-        side: g.type === 'plane' ? THREE.DoubleSide : THREE.FrontSide,
+        side: g.type === 'plane' || g.type === 'hfield' ? THREE.DoubleSide : THREE.FrontSide,
       });
       const mesh = new THREE.Mesh(shape, material);
       mesh.name = g.name ?? '';
       setPose(mesh, g.pos, g.quat);
       (byId.get(g.body) ?? this.root).add(mesh);
       exposed.meshes++;
+      if (g.type === 'hfield') exposed.hfields++;
     }
   }
 
@@ -466,7 +561,7 @@ function setupScene(rpc) {
     clearInterval(pollTimer);
     exposed.poseSource = 'poll';
     pollTimer = setInterval(async () => {
-      if (!exposed.connected) return;
+      if (!exposed.connected || !exposed.ready) return;
       try { await fn(); } catch (e) { $('view-info').textContent = `poses: ${errorText(e)}`; }
     }, POSE_POLL_PERIOD_MS);
   }
@@ -515,10 +610,14 @@ const refreshState = setupState(rpc);
 const loadServices = setupConsole(rpc);
 const startScene = setupScene(rpc);
 
-rpc.onopen = () => {
+rpc.onopen = async () => {
   exposed.connected = true;
   $('connection').textContent = `connected to ${location.host}`;
   $('connection').dataset.state = 'connected';
+  if (!(await login(rpc))) return;  // a wrong token: the server closes, the next connection asks again
+  if (!exposed.connected) return;   // lost while asking
+  if (exposed.login === 'done') $('connection').textContent = `connected to ${location.host} (logged in)`;
+  exposed.ready = true;
   refreshState();
   loadServices();
   startScene();
@@ -526,6 +625,8 @@ rpc.onopen = () => {
 rpc.onclose = () => {
   const was = exposed.connected;
   exposed.connected = false;
+  exposed.ready = false;
+  $('login').hidden = true;
   $('connection').textContent = was ? 'connection lost; reconnecting…' : 'cannot connect; retrying…';
   $('connection').dataset.state = 'disconnected';
   setTimeout(() => rpc.connect(), RECONNECT_MS);

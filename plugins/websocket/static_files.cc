@@ -3,6 +3,9 @@
 #include <dlfcn.h>
 
 #include <array>
+#include <chrono>
+#include <cstdio>
+#include <ctime>
 #include <fstream>
 #include <system_error>
 #include <utility>
@@ -60,8 +63,12 @@ std::string default_web_root() {
 
 // ---- requests
 
-StaticFiles::StaticFiles(const std::string& root, std::string server_name, std::string not_found_text)
-    : root_(root), server_name_(std::move(server_name)), not_found_text_(std::move(not_found_text)) {}
+StaticFiles::StaticFiles(const std::string& root, std::string server_name, std::string not_found_text,
+                         std::size_t cache_bytes)
+    : root_(root),
+      server_name_(std::move(server_name)),
+      not_found_text_(std::move(not_found_text)),
+      cache_limit_(cache_bytes) {}
 
 namespace {
 
@@ -138,6 +145,134 @@ std::string_view StaticFiles::content_type(std::string_view file_name) {
   return "application/octet-stream";
 }
 
+namespace {
+
+constexpr std::array<const char*, 7> k_days{"Sun", "Mon", "Tue", "Wed", "Thu", "Fri", "Sat"};
+constexpr std::array<const char*, 12> k_months{"Jan", "Feb", "Mar", "Apr", "May", "Jun",
+                                               "Jul", "Aug", "Sep", "Oct", "Nov", "Dec"};
+
+// A file time as nanoseconds and as whole seconds since the Unix epoch.
+std::int64_t epoch_ns(fs::file_time_type t) {
+  using namespace std::chrono;
+  return duration_cast<nanoseconds>(file_clock::to_sys(t).time_since_epoch()).count();
+}
+std::int64_t epoch_s(fs::file_time_type t) {
+  using namespace std::chrono;
+  return floor<seconds>(file_clock::to_sys(t)).time_since_epoch().count();
+}
+
+std::string etag_of(std::uintmax_t size, fs::file_time_type mtime) {
+  char text[64];
+  std::snprintf(text, sizeof text, "\"%jx-%llx\"", size, static_cast<unsigned long long>(epoch_ns(mtime)));
+  return text;
+}
+
+std::string_view trim(std::string_view s) {
+  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\t')) s.remove_suffix(1);
+  return s;
+}
+
+// If-None-Match names `etag` (weak comparison, as RFC 9110 wants for it) or is "*".
+bool none_match_names(std::string_view header, std::string_view etag) {
+  for (std::size_t start = 0; start <= header.size();) {
+    const std::size_t end = std::min(header.find(',', start), header.size());
+    std::string_view tag = trim(header.substr(start, end - start));
+    if (tag == "*") return true;
+    if (tag.starts_with("W/")) tag.remove_prefix(2);
+    if (tag == etag) return true;
+    start = end + 1;
+  }
+  return false;
+}
+
+}  // namespace
+
+std::string StaticFiles::http_date(std::int64_t seconds) {
+  const std::time_t t = static_cast<std::time_t>(seconds);
+  std::tm tm{};
+  ::gmtime_r(&t, &tm);
+  char text[40];
+  std::snprintf(text, sizeof text, "%s, %02d %s %04d %02d:%02d:%02d GMT", k_days[tm.tm_wday % 7], tm.tm_mday,
+                k_months[tm.tm_mon % 12], tm.tm_year + 1900, tm.tm_hour, tm.tm_min, tm.tm_sec);
+  return text;
+}
+
+std::optional<std::int64_t> StaticFiles::parse_http_date(std::string_view text) {
+  // "Sun, 06 Nov 1994 08:49:37 GMT": 29 characters, fixed places
+  if (text.size() != 29 || text.substr(3, 2) != ", " || text.substr(25) != " GMT") return std::nullopt;
+  const auto number = [&](std::size_t at, std::size_t digits) -> int {
+    int n = 0;
+    for (std::size_t i = at; i < at + digits; ++i) {
+      if (text[i] < '0' || text[i] > '9') return -1;
+      n = n * 10 + (text[i] - '0');
+    }
+    return n;
+  };
+  std::tm tm{};
+  tm.tm_mday = number(5, 2);
+  tm.tm_mon = -1;
+  for (int i = 0; i < 12; ++i)
+    if (text.substr(8, 3) == k_months[i]) tm.tm_mon = i;
+  tm.tm_year = number(12, 4) - 1900;
+  tm.tm_hour = number(17, 2);
+  tm.tm_min = number(20, 2);
+  tm.tm_sec = number(23, 2);
+  if (tm.tm_mday < 1 || tm.tm_mday > 31 || tm.tm_mon < 0 || tm.tm_year < 70 - 1900 || tm.tm_hour < 0 ||
+      tm.tm_hour > 23 || tm.tm_min < 0 || tm.tm_min > 59 || tm.tm_sec < 0 || tm.tm_sec > 60 || text[7] != ' ' ||
+      text[11] != ' ' || text[16] != ' ' || text[19] != ':' || text[22] != ':')
+    return std::nullopt;
+  return static_cast<std::int64_t>(::timegm(&tm));
+}
+
+std::size_t StaticFiles::cached_files() const {
+  std::lock_guard lock(cache_mutex_);
+  return cache_.size();
+}
+
+std::size_t StaticFiles::cached_bytes() const {
+  std::lock_guard lock(cache_mutex_);
+  return cache_bytes_;
+}
+
+std::shared_ptr<const std::string> StaticFiles::contents(const fs::path& file, fs::file_time_type mtime,
+                                                         std::uintmax_t size) const {
+  const std::string key = file.string();
+  {
+    std::lock_guard lock(cache_mutex_);
+    if (auto it = cache_.find(key); it != cache_.end()) {
+      if (it->second.mtime == mtime && it->second.size == size) {
+        lru_.splice(lru_.begin(), lru_, it->second.use);
+        return it->second.body;
+      }
+      // changed since it was read: drop it, read it again below
+      cache_bytes_ -= it->second.size;
+      lru_.erase(it->second.use);
+      cache_.erase(it);
+    }
+  }
+  // read whole, outside the cache's lock
+  std::ifstream in(file, std::ios::binary);
+  if (!in) return nullptr;
+  auto body = std::make_shared<std::string>(size, '\0');
+  if (size > 0 && !in.read(body->data(), static_cast<std::streamsize>(size))) return nullptr;
+  // a file that grew while it was read is read again on the next request (its size differs)
+  if (in.peek() != std::char_traits<char>::eof()) return body;
+  if (size > cache_limit_) return body;
+  std::lock_guard lock(cache_mutex_);
+  if (cache_.contains(key)) return body;  // another thread read it meanwhile
+  while (!lru_.empty() && cache_bytes_ + size > cache_limit_) {
+    const auto victim = cache_.find(lru_.back());
+    cache_bytes_ -= victim->second.size;
+    cache_.erase(victim);
+    lru_.pop_back();
+  }
+  lru_.push_front(key);
+  cache_.emplace(key, Cached{mtime, size, body, lru_.begin()});
+  cache_bytes_ += size;
+  return body;
+}
+
 std::string StaticFiles::response(unsigned status, std::string_view reason, std::string_view type,
                                   std::string_view body, bool head, std::string_view extra_headers) const {
   std::string out;
@@ -191,13 +326,32 @@ std::string StaticFiles::answer(const http::request<http::string_body>& request)
                     "403 file larger than the web server's limit (" + std::to_string(k_max_file_bytes) + " bytes)\n",
                     head);
 
-  // read whole (the files are small); a file that cannot be read is missing
-  std::string body;
-  std::ifstream in(file, std::ios::binary);
-  if (!in) return not_found();
-  body.resize(size);
-  if (size > 0 && !in.read(body.data(), static_cast<std::streamsize>(size))) return not_found();
-  return response(200, "OK", content_type(file.filename().string()), body, head);
+  const auto mtime = fs::last_write_time(file, ec);
+  if (ec) return not_found();
+
+  // validators: 304 when the client has this version
+  const std::string etag = etag_of(size, mtime);
+  const std::string last_modified = http_date(epoch_s(mtime));
+  const std::string validators = "ETag: " + etag + "\r\nLast-Modified: " + last_modified + "\r\n";
+  if (const auto inm = request.find(http::field::if_none_match); inm != request.end()) {
+    if (none_match_names(std::string_view(inm->value().data(), inm->value().size()), etag)) return not_modified(validators);
+  } else if (const auto ims = request.find(http::field::if_modified_since); ims != request.end()) {
+    const auto since = parse_http_date(std::string_view(ims->value().data(), ims->value().size()));
+    if (since && epoch_s(mtime) <= *since) return not_modified(validators);
+  }
+
+  // the contents, from memory when unchanged since they were read; unreadable = missing
+  const std::shared_ptr<const std::string> body = contents(file, mtime, size);
+  if (!body) return not_found();
+  return response(200, "OK", content_type(file.filename().string()), *body, head, validators);
+}
+
+std::string StaticFiles::not_modified(std::string_view validators) const {
+  std::string out = "HTTP/1.1 304 Not Modified\r\nServer: " + server_name_;
+  out += "\r\nCache-Control: no-cache\r\nConnection: close\r\n";
+  out += validators;
+  out += "\r\n";
+  return out;
 }
 
 }  // namespace simgate::websocket

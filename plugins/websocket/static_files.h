@@ -3,24 +3,42 @@
 //
 // What: answers one plain HTTP request (not a WebSocket upgrade) with a file of the web
 // root: GET and HEAD only (405 otherwise), "/" and ".../" mean index.html, the
-// Content-Type from the extension, "Cache-Control: no-cache", "Connection: close". The
+// Content-Type from the extension, "Cache-Control: no-cache" (the browser asks again each
+// time, and gets 304 while the file is unchanged), "Connection: close". The
 // path is percent-decoded and refused (400) when malformed; a path with a ".." or "."
 // segment, a backslash or a NUL, or one that leaves the root once symbolic links are
 // resolved, is answered 404 as a missing file; so is anything but a regular file. Files
 // larger than k_max_file_bytes are refused (403), targets longer than k_max_target_bytes
 // too (414). Every error has a short text body.
 //
-// Life cycle: built by the transport from its options (`web_root`, `web`), immutable after.
-// Threads: answer() runs on the transport's I/O thread; it reads the file there (a few
-// small files, once per page load), holding no lock.
+// Validators: a file is answered with an `ETag` ("<size>-<mtime ns>", both hex) and a
+// `Last-Modified`; a GET or HEAD whose `If-None-Match` names its ETag (or "*"), or, without
+// If-None-Match, whose `If-Modified-Since` is not older than its mtime, gets 304 Not
+// Modified with no body.
+//
+// Cache: the files' contents are kept in memory, keyed by their resolved path, up to
+// the constructor's `cache_bytes` in all (least recently used out first; a larger file is read each time).
+// Each request still looks at the file (stat): a file whose mtime or size changed is read
+// again, so an edited file is served fresh; one that disappeared is 404.
+//
+// Life cycle: built by the transport from its options (`web_root`, `web`); only the cache
+// changes after.
+// Threads: answer() runs on the transport's I/O thread and does not touch the simulation;
+// it reads a file there when it is not cached. The cache has its own mutex, so answer() may
+// be called from any thread.
 #ifndef SIMGATE_PLUGINS_WEBSOCKET_STATIC_FILES_H_
 #define SIMGATE_PLUGINS_WEBSOCKET_STATIC_FILES_H_
 
 #include <cstddef>
+#include <cstdint>
 #include <filesystem>
+#include <list>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <string_view>
+#include <unordered_map>
 
 #include <boost/beast/http/message.hpp>
 #include <boost/beast/http/string_body.hpp>
@@ -49,7 +67,9 @@ class StaticFiles {
  public:
   // `root` need not exist: every request is then answered 404 saying so.
   // `not_found_text`: the body of a 404 for "/" when there is no web app.
-  StaticFiles(const std::string& root, std::string server_name, std::string not_found_text);
+  // `cache_bytes`: the most bytes of file contents kept in memory (k_max_cache_bytes).
+  StaticFiles(const std::string& root, std::string server_name, std::string not_found_text,
+              std::size_t cache_bytes = k_max_cache_bytes);
 
   // The whole HTTP response (status line, headers and body) to `request`.
   std::string answer(const boost::beast::http::request<boost::beast::http::string_body>& request) const;
@@ -60,6 +80,8 @@ class StaticFiles {
   static constexpr std::size_t k_max_file_bytes = 32u << 20;
   // The longest request target accepted.
   static constexpr std::size_t k_max_target_bytes = 2048;
+  // The most bytes of file contents kept in memory, by default.
+  static constexpr std::size_t k_max_cache_bytes = 64u << 20;
 
   // The path under the root that `target` names ("/a/b.js?x" -> "a/b.js", "/" ->
   // "index.html"), or nullopt when it is malformed or names something outside it
@@ -67,15 +89,42 @@ class StaticFiles {
   static std::optional<std::string> relative_path(std::string_view target, bool& bad_request);
   // "text/html; charset=utf-8" for "index.html", ... "application/octet-stream" if unknown.
   static std::string_view content_type(std::string_view file_name);
+  // An HTTP date ("Sun, 06 Nov 1994 08:49:37 GMT", IMF-fixdate) of `seconds` since the
+  // epoch, and back (nullopt unless `text` is an IMF-fixdate). Public for the tests.
+  static std::string http_date(std::int64_t seconds);
+  static std::optional<std::int64_t> parse_http_date(std::string_view text);
+
+  // What the cache holds now (files, bytes), for the tests.
+  std::size_t cached_files() const;
+  std::size_t cached_bytes() const;
 
  private:
   std::string response(unsigned status, std::string_view reason, std::string_view content_type, std::string_view body,
                        bool head, std::string_view extra_headers = {}) const;
+  // A 304 with `validators` (the ETag and Last-Modified header lines) and no body.
+  std::string not_modified(std::string_view validators) const;
+
+  // A file's contents as last read, and what says whether they are still current.
+  struct Cached {
+    std::filesystem::file_time_type mtime;  // the file's mtime when read
+    std::uintmax_t size = 0;                // its size when read (== body->size())
+    std::shared_ptr<const std::string> body;  // its contents
+    std::list<std::string>::iterator use;   // its place in lru_
+  };
+  // The contents of `file` (mtime and size as just seen), from the cache or read now;
+  // nullptr when it cannot be read.
+  std::shared_ptr<const std::string> contents(const std::filesystem::path& file,
+                                              std::filesystem::file_time_type mtime, std::uintmax_t size) const;
 
   std::filesystem::path root_;          // the web root, canonical when it exists
   bool root_exists_ = false;            // it existed (as a directory) at construction
   std::string server_name_;             // the Server header
   std::string not_found_text_;          // the body of a 404 for "/" without a web app
+  std::size_t cache_limit_;             // the most bytes cache_ holds
+  mutable std::mutex cache_mutex_;      // guards the three members below
+  mutable std::unordered_map<std::string, Cached> cache_;  // resolved path -> contents
+  mutable std::list<std::string> lru_;  // the cached paths, most recently used first
+  mutable std::size_t cache_bytes_ = 0;  // the sum of the cached sizes
 };
 
 }  // namespace simgate::websocket

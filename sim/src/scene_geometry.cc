@@ -5,6 +5,7 @@
 // only the bodies' poses.
 #include <charconv>
 #include <cstdlib>
+#include <memory>
 
 #include "simgate/sim/world_services.h"
 
@@ -70,9 +71,43 @@ json mesh_json(const mjModel* m, int mesh) {
   return {{"name", raw_name(m, mjOBJ_MESH, mesh)}, {"vertices", std::move(vertices)}, {"faces", std::move(faces)}};
 }
 
+// A heightfield: MuJoCo's hfield_size (x and y half sizes, the top's height, the base's
+// depth), its grid and its elevations (0 to 1, times size[2]), row by row along y.
+json hfield_json(const mjModel* m, int hfield) {
+  const int nrow = m->hfield_nrow[hfield], ncol = m->hfield_ncol[hfield];
+  const std::size_t count = static_cast<std::size_t>(nrow) * static_cast<std::size_t>(ncol);
+  const float* first = m->hfield_data + m->hfield_adr[hfield];
+  json data = json::array();
+  data.get_ref<json::array_t&>().reserve(count);
+  for (std::size_t i = 0; i < count; ++i) data.push_back(short_double(first[i]));
+  return {{"name", raw_name(m, mjOBJ_HFIELD, hfield)},
+          {"size", quad(m->hfield_size + 4 * hfield)},
+          {"nrow", nrow},
+          {"ncol", ncol},
+          {"data", std::move(data)}};
+}
+
+json model_data_json(const mjModel* m) {
+  json meshes = json::array();
+  for (int mesh = 0; mesh < m->nmesh; ++mesh) meshes.push_back(mesh_json(m, mesh));
+  json hfields = json::array();
+  for (int hfield = 0; hfield < m->nhfield; ++hfield) hfields.push_back(hfield_json(m, hfield));
+  return {{"meshes", std::move(meshes)}, {"hfields", std::move(hfields)}};
+}
+
 }  // namespace
 
-json scene_geometry(const Simulation& sim, bool include_meshes) {
+const json& SceneGeometryCache::model_data(const Simulation& sim) {
+  if (model_ != sim.m() || generation_ != sim.model_generation() || data_.is_null()) {
+    data_ = model_data_json(sim.m());
+    model_ = sim.m();
+    generation_ = sim.model_generation();
+    ++builds_;
+  }
+  return data_;
+}
+
+json scene_geometry(const Simulation& sim, bool include_meshes, SceneGeometryCache* cache) {
   const mjModel* m = sim.m();
   const mjData* d = sim.d();
   json bodies = json::array();
@@ -94,16 +129,27 @@ json scene_geometry(const Simulation& sim, bool include_meshes) {
               {"quat", quad(m->geom_quat + 4 * g)},
               {"group", m->geom_group[g]}};
     if (m->geom_type[g] == mjGEOM_MESH) geom["mesh"] = m->geom_dataid[g];
+    if (m->geom_type[g] == mjGEOM_HFIELD) geom["hfield"] = m->geom_dataid[g];
     geoms.push_back(std::move(geom));
   }
-  json meshes = json::array();
-  if (include_meshes)
-    for (int mesh = 0; mesh < m->nmesh; ++mesh) meshes.push_back(mesh_json(m, mesh));
-  return {{"timestamp", sim.state_time()},
-          {"generation", sim.model_generation()},
-          {"bodies", std::move(bodies)},
-          {"geoms", std::move(geoms)},
-          {"meshes", std::move(meshes)}};
+  json answer{{"timestamp", sim.state_time()},
+              {"generation", sim.model_generation()},
+              {"bodies", std::move(bodies)},
+              {"geoms", std::move(geoms)},
+              {"meshes", json::array()},
+              {"hfields", json::array()}};
+  if (include_meshes) {
+    if (cache) {
+      const json& data = cache->model_data(sim);
+      answer["meshes"] = data["meshes"];
+      answer["hfields"] = data["hfields"];
+    } else {
+      json data = model_data_json(m);
+      answer["meshes"] = std::move(data["meshes"]);
+      answer["hfields"] = std::move(data["hfields"]);
+    }
+  }
+  return answer;
 }
 
 json body_poses(const Simulation& sim) {
@@ -120,13 +166,18 @@ json body_poses(const Simulation& sim) {
 }
 
 void add_scene_geometry_services(SupervisionServices& simulation, Simulation& sim) {
+  // the meshes and heightfields, written once per model (services run under the lock, one
+  // at a time: the cache needs no lock of its own)
+  auto cache = std::make_shared<SceneGeometryCache>();
   simulation
       .offer_service(
-          "get_scene_geometry", [&sim](bool include_meshes) { return scene_geometry(sim, include_meshes); },
+          "get_scene_geometry",
+          [&sim, cache](bool include_meshes) { return scene_geometry(sim, include_meshes, cache.get()); },
           {{"include_meshes", true}})
       .doc("What a client needs to draw the scene: {timestamp, generation (changes when the model is replaced), "
            "bodies [{id, name, parent, pos, quat}] (current world poses), geoms [{id, name, body, type, size, rgba, "
-           "pos, quat, group, mesh?}] (on their body), meshes [{name, vertices, faces}] ([] unless include_meshes)}");
+           "pos, quat, group, mesh?, hfield?}] (on their body), meshes [{name, vertices, faces}], hfields [{name, "
+           "size, nrow, ncol, data}] (both [] unless include_meshes)}");
 }
 
 }  // namespace simgate::sim

@@ -1,16 +1,20 @@
 // SimSceneGeometry: `simulation get_scene_geometry` and the `simulation` component's
 // body_poses stream (scene_geometry.cc, docs/world/scene_geometry.md) on real models: an
 // inline scene with one geom of each kind a client draws (plane, box, sphere, capsule, an
-// inline mesh), colours from the geom and from its material; Debian's sample models; a
-// spawned entity.
+// inline mesh), colours from the geom and from its material; a height field; Debian's
+// sample models; a spawned entity; the meshes written once per model (SceneGeometryCache).
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
+#include <fstream>
 #include <set>
+
+#include <unistd.h>
 
 #include "mjcf_fixture.h"
 #include "simgate/sim/supervision.h"
@@ -256,6 +260,79 @@ TEST_F(SimSceneGeometryTest, BodyPosesSamplesAreEveryBodysWorldPose) {
   sim_->streams().unsubscribe(subscription);
 }
 
+// The meshes and heightfields are written once per model (SceneGeometryCache): repeated
+// answers are equal, and equal to the answer written without the cache.
+TEST_F(SimSceneGeometryTest, RepeatedCallsGiveEqualMeshesWrittenOnce) {
+  start(k_scene);
+  SceneGeometryCache cache;
+  const json uncached = scene_geometry(*sim_, true);
+  const json first = scene_geometry(*sim_, true, &cache);
+  const json second = scene_geometry(*sim_, true, &cache);
+  EXPECT_EQ(cache.builds(), 1u);
+  EXPECT_EQ(first, uncached);
+  EXPECT_EQ(second, first);
+  EXPECT_EQ(first.dump(), uncached.dump());
+  ASSERT_EQ(first["meshes"].size(), 1u);
+  // without the meshes, the cache is not even looked at
+  SceneGeometryCache unused;
+  EXPECT_EQ(scene_geometry(*sim_, false, &unused)["meshes"], json::array());
+  EXPECT_EQ(unused.builds(), 0u);
+  // through the service: the same meshes every time, the poses of now
+  const json a = geometry();
+  run_for(0.1);
+  const json b = geometry();
+  EXPECT_EQ(a["meshes"], uncached["meshes"]);
+  EXPECT_EQ(b["meshes"], a["meshes"]);
+  EXPECT_NE(b["bodies"], a["bodies"]);  // the ball fell
+}
+
+// A heightfield geom: its `hfield` index and the hfield's grid and elevations (from a file
+// in MuJoCo's binary format: int32 nrow, int32 ncol, then the float elevations row by row;
+// MuJoCo 2.2 has no inline `elevation`).
+TEST_F(SimSceneGeometryTest, HeightfieldsAreDescribedWithTheirElevations) {
+  const std::filesystem::path file =
+      std::filesystem::temp_directory_path() / ("simgate-hfield-" + std::to_string(::getpid()) + ".bin");
+  {
+    std::ofstream out(file, std::ios::binary);
+    const std::int32_t nrow = 3, ncol = 4;
+    const std::array<float, 12> elevations{0, 1, 2, 3, 1, 2, 3, 4, 0, 0, 4, 2};
+    out.write(reinterpret_cast<const char*>(&nrow), sizeof nrow);
+    out.write(reinterpret_cast<const char*>(&ncol), sizeof ncol);
+    out.write(reinterpret_cast<const char*>(elevations.data()), sizeof elevations);
+  }
+  struct Remove {
+    std::filesystem::path path;
+    ~Remove() { std::filesystem::remove(path); }
+  } remove{file};
+  start(R"(<mujoco model="terrain">
+  <asset>
+    <hfield name="bumps" size="2 1.5 0.4 0.1" file=")" + file.string() + R"("/>
+  </asset>
+  <worldbody>
+    <geom name="ground" type="hfield" hfield="bumps" pos="1 2 0" rgba="0.3 0.6 0.3 1"/>
+    <body name="ball" pos="0 0 1"><freejoint/><geom type="sphere" size="0.1"/></body>
+  </worldbody>
+</mujoco>)");
+  const json g = geometry();
+  const json ground = geom(g, "ground");
+  EXPECT_EQ(ground["type"], "hfield");
+  EXPECT_EQ(ground["hfield"], 0);
+  EXPECT_FALSE(geom(g, "").contains("hfield"));  // the sphere
+  ASSERT_EQ(g["hfields"].size(), 1u) << g.dump();
+  const json& hfield = g["hfields"][0];
+  EXPECT_EQ(hfield["name"], "bumps");
+  EXPECT_EQ(hfield["nrow"], 3);
+  EXPECT_EQ(hfield["ncol"], 4);
+  expect_numbers(hfield["size"], {2, 1.5, 0.4, 0.1});
+  // MuJoCo scales the elevations to 0..1 (divided by the highest): row by row
+  std::vector<double> expected;
+  for (double e : {0, 1, 2, 3, 1, 2, 3, 4, 0, 0, 4, 2}) expected.push_back(e / 4);
+  expect_numbers(hfield["data"], expected);
+  for (int i = 0; i < 12; ++i) EXPECT_EQ(hfield["data"][i].get<double>(), sim_->m()->hfield_data[i]);
+  // without the meshes, no heightfield data either
+  EXPECT_EQ(geometry({{"include_meshes", false}})["hfields"], json::array());
+}
+
 // A spawn replaces the model: the generation changes (in the answer and in the stream), the
 // new body and geom are there, and what was there keeps its ids.
 using SimSceneGeometrySpawnTest = testing::DemoSim;
@@ -300,6 +377,28 @@ TEST_F(SimSceneGeometrySpawnTest, ASpawnChangesTheGenerationAndAddsItsGeoms) {
   EXPECT_EQ(samples.back()->data()["generation"], sim_->model_generation());
   EXPECT_EQ(samples.back()->data()["poses"].size(), after["bodies"].size());
   sim_->streams().unsubscribe(subscription);
+}
+
+// The meshes written once per model: a spawned entity's mesh is in the next answer.
+TEST_F(SimSceneGeometrySpawnTest, TheAnswerAfterASpawnHasTheSpawnedMesh) {
+  const json before = call("simulation", "get_scene_geometry", {true}).value.value();
+  EXPECT_EQ(call("simulation", "get_scene_geometry", {true}).value.value()["meshes"], before["meshes"]);
+  SceneGeometryCache cache;
+  EXPECT_EQ(scene_geometry(*sim_, true, &cache)["meshes"], before["meshes"]);
+  const Outcome spawned = finish(rm_->call(
+      "simulation", "spawn_entity",
+      {"wedge",
+       R"(<mujoco><asset><mesh name="wedge_mesh" vertex="0 0 0  1 0 0  0 1 0  0 0 1  1 1 1"/></asset>)"
+       R"(<worldbody><body><freejoint/><geom type="mesh" mesh="wedge_mesh"/></body></worldbody></mujoco>)",
+       {2.0, 2.0, 0.5}}));
+  ASSERT_EQ(spawned.status, Status::success) << spawned.message;
+  const json after = call("simulation", "get_scene_geometry", {true}).value.value();
+  ASSERT_EQ(after["meshes"].size(), before["meshes"].size() + 1) << after["meshes"].dump();
+  EXPECT_EQ(after["meshes"].back()["name"], "wedge_mesh");
+  EXPECT_EQ(after["meshes"].back()["vertices"].size(), 15u);
+  EXPECT_EQ(after, scene_geometry(*sim_, true));  // the same as written afresh
+  EXPECT_EQ(scene_geometry(*sim_, true, &cache)["meshes"], after["meshes"]);
+  EXPECT_EQ(cache.builds(), 2u);
 }
 
 }  // namespace

@@ -5,7 +5,11 @@
 // Checks: the page loads without errors and lists the services; `robot.waypoint goto`
 // called from its form moves the robot (the position the page shows changes) and
 // succeeds; a second goto cancelled from the page ends PREEMPTED; pause, step and play
-// drive the simulation; the 3D view has drawn the scene. Keeps a screenshot:
+// drive the simulation, and the real-time factor shown is never "0.00" (a number once
+// measured, else "–"); the 3D view has drawn the scene, and draws a height field spawned
+// from the page's console. Then, against a second `simgate run`
+// whose websocket transport wants a token (`auth`), the page asks for it before anything,
+// asks again after a wrong one, and works once given the right one. Keeps a screenshot:
 //   node webapp_test.js SIMGATE SOURCE_DIR ARTIFACTS_DIR
 // Exit 77 (skipped) without Chromium or without node_modules (scripts/test installs them).
 'use strict';
@@ -69,8 +73,9 @@ function check(condition, message) {
 
 const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
 
-// `simgate run` on the demo deployment, every transport on port 0; its websocket's port.
-async function startGateway() {
+// `simgate run` on the demo deployment, every transport on port 0, `edit` applied to the
+// config and `env` added to the environment; its websocket's port.
+async function startGateway(edit = () => {}, env = {}) {
   const config = JSON.parse(fs.readFileSync(path.join(sourceDir, 'config', 'demo.json'), 'utf8'));
   config.scene.mjcf = path.join(sourceDir, 'config', 'scenes', 'demo.xml');
   config.log_level = 'warning';
@@ -80,11 +85,14 @@ async function startGateway() {
     if ('stream_port' in t.options) t.options.stream_port = 0;
   }
   if (!config.transports.websocket) throw new Error('config/demo.json has no websocket transport');
+  edit(config);
   const configPath = path.join(workdir, 'web-test.json');
   fs.writeFileSync(configPath, JSON.stringify(config, null, 2));
   const endpointsPath = path.join(workdir, 'endpoints.json');
   const log = fs.openSync(path.join(workdir, 'gateway.log'), 'w');
-  gateway = spawn(simgate, ['run', configPath, '--endpoints-file', endpointsPath], { stdio: ['ignore', log, log] });
+  fs.rmSync(endpointsPath, { force: true });
+  gateway = spawn(simgate, ['run', configPath, '--endpoints-file', endpointsPath],
+                  { stdio: ['ignore', log, log], env: { ...process.env, ...env } });
   const start = Date.now();
   while (!fs.existsSync(endpointsPath)) {
     if (gateway.exitCode !== null || Date.now() - start > WAIT_MS)
@@ -96,6 +104,23 @@ async function startGateway() {
   const url = endpoints.websocket && endpoints.websocket[0];
   if (!url) throw new Error(`no websocket endpoint in ${JSON.stringify(endpoints)}`);
   return Number(url.split(':')[2].replace('/', ''));
+}
+
+// A new page of the browser, every problem it reports collected in `problems`, talking to
+// the server on `port` only.
+async function openPage(port, problems) {
+  const page = await browser.newPage({ viewport: { width: 1400, height: 900 } });
+  page.on('pageerror', (e) => problems.push(`page error: ${e.message}`));
+  page.on('console', (m) => { if (m.type() === 'error') problems.push(`console error: ${m.text()}`); });
+  page.on('requestfailed', (r) => problems.push(`request failed: ${r.url()} ${r.failure()?.errorText}`));
+  // the page talks to its own server only
+  await page.route('**/*', (route) => {
+    const u = new URL(route.request().url());
+    if (u.hostname === '127.0.0.1' && Number(u.port) === port) return route.continue();
+    problems.push(`request off the server: ${u.href}`);
+    return route.abort();
+  });
+  return page;
 }
 
 async function main() {
@@ -117,21 +142,12 @@ async function main() {
       '--disable-default-apps',
     ],
   });
-  const page = await browser.newPage({ viewport: { width: 1400, height: 900 } });
   const problems = [];
-  page.on('pageerror', (e) => problems.push(`page error: ${e.message}`));
-  page.on('console', (m) => { if (m.type() === 'error') problems.push(`console error: ${m.text()}`); });
-  page.on('requestfailed', (r) => problems.push(`request failed: ${r.url()} ${r.failure()?.errorText}`));
-  // the page talks to its own server only
-  await page.route('**/*', (route) => {
-    const u = new URL(route.request().url());
-    if (u.hostname === '127.0.0.1' && Number(u.port) === port) return route.continue();
-    problems.push(`request off the server: ${u.href}`);
-    return route.abort();
-  });
+  const page = await openPage(port, problems);
 
   const response = await page.goto(pageUrl, { timeout: WAIT_MS });
   check(response.status() === 200 && (await page.title()) === 'simgate', `the page loads from ${pageUrl}`);
+  check(await page.locator('#login').isHidden(), 'no token asked for (the transport has no auth)');
 
   // the services, from rpc.discover
   await page.waitForFunction(() => window.simgate?.connected && window.simgate.services.length > 0, null,
@@ -184,7 +200,13 @@ async function main() {
   const secondStatus = await second.getAttribute('data-status');
   check(secondStatus === 'PREEMPTED', `the cancelled goto ends ${secondStatus}: ${await second.locator('.reply').textContent()}`);
 
-  // pause, step, play
+  // pause, step, play; every text the real-time factor shows from now on is recorded
+  await page.evaluate(() => {
+    const rtf = document.getElementById('state-rtf');
+    window.rtfTexts = [rtf.textContent];
+    new MutationObserver(() => window.rtfTexts.push(rtf.textContent))
+      .observe(rtf, { childList: true, characterData: true, subtree: true });
+  });
   const state = () => page.textContent('#state-run');
   await page.click('#btn-pause');
   await page.waitForFunction(() => document.getElementById('state-run').textContent === 'paused', null, { timeout: WAIT_MS });
@@ -196,6 +218,12 @@ async function main() {
   await page.click('#btn-play');
   await page.waitForFunction(() => document.getElementById('state-run').textContent === 'playing', null, { timeout: WAIT_MS });
   check((await state()) === 'playing', 'play resumes');
+  // the factor measured after play (the server's window: about a second of playing)
+  await page.waitForFunction(() => /^\d/.test(document.getElementById('state-rtf').textContent), null,
+                             { timeout: WAIT_MS });
+  const rtfTexts = await page.evaluate(() => window.rtfTexts);
+  check(rtfTexts.some((t) => t.startsWith('–')), `the real-time factor shows "–" while none is known: ${rtfTexts.join(' | ')}`);
+  check(!rtfTexts.some((t) => /^0\.00\b/.test(t)), 'the real-time factor never shows 0.00');
 
   // the 3D view: meshes in the scene, frames rendered, and pixels that are not the background
   await page.waitForFunction(() => window.simgate.meshes > 0 && window.simgate.frames > 2, null, { timeout: WAIT_MS });
@@ -224,6 +252,70 @@ async function main() {
   await page.screenshot({ path: shot });
   console.log(`screenshot: ${shot}`);
 
+  // a height field spawned from the page's console: the page reloads the geometry (a new
+  // generation) and draws it (its elevations are MuJoCo's zeros without a file)
+  const spawn = page.locator('form[data-method="simulation.spawn_entity"]');
+  if (await spawn.count()) {
+    await page.fill('#service-filter', 'spawn_entity');
+    await spawn.locator('input[data-param="name"]').fill('terrain');
+    await spawn.locator('input[data-param="mjcf"]').fill(
+      '<mujoco><asset><hfield name="bumps" nrow="5" ncol="6" size="1.5 1 0.3 0.05"/></asset>' +
+      '<worldbody><body><geom type="hfield" hfield="bumps" rgba="0.4 0.6 0.3 1"/></body></worldbody></mujoco>');
+    await spawn.locator('input[data-param="pose"]').fill('[3, 3, 0]');
+    await spawn.locator('button.call-button').click();
+    await page.waitForFunction(() => document.querySelector('#calls li.call')?.dataset.status !== 'RUNNING', null,
+      { timeout: WAIT_MS });
+    const spawned = page.locator('#calls li.call').first();
+    check((await spawned.getAttribute('data-status')) === 'SUCCESS',
+      `spawn_entity of a height field from the page: ${await spawned.locator('.reply').textContent()}`);
+    await page.waitForFunction(() => window.simgate.hfields === 1, null, { timeout: WAIT_MS });
+    check(true, `the page draws the spawned height field (${await page.evaluate(() => window.simgate.meshes)} meshes)`);
+  }
+
+  check(problems.length === 0, `no page error, console error or failed request${problems.length ? ':\n  ' + problems.join('\n  ') : ''}`);
+  await page.close();
+
+  // a transport that wants a token: the page asks for it before anything else
+  const stopped = await stopGateway();
+  check(stopped === 0, `the first simgate exits 0 (${stopped})`);
+  await loginTest();
+}
+
+async function stopGateway() {
+  if (!gateway) return null;
+  const exited = gateway.exitCode !== null ? Promise.resolve(gateway.exitCode)
+    : new Promise((resolve) => gateway.once('exit', (c) => resolve(c)));
+  if (gateway.exitCode === null) gateway.kill('SIGTERM');
+  const code = await Promise.race([exited, sleep(20000).then(() => 'timeout')]);
+  if (code === 'timeout') gateway.kill('SIGKILL');
+  gateway = null;
+  return code;
+}
+
+async function loginTest() {
+  const token = require('crypto').randomBytes(16).toString('hex');
+  const port = await startGateway((config) => {
+    config.transports.websocket.options.auth = { token_env: 'SIMGATE_WEB_TEST_TOKEN', loopback: true };
+  }, { SIMGATE_WEB_TEST_TOKEN: token });
+  const problems = [];
+  const page = await openPage(port, problems);
+  await page.goto(`http://127.0.0.1:${port}/`, { timeout: WAIT_MS });
+  await page.waitForSelector('#login', { state: 'visible', timeout: WAIT_MS });
+  const before = await page.evaluate(() => ({ ...window.simgate }));
+  check(before.services.length === 0 && !before.ready && (await page.textContent('#state-time')) === '–',
+    `with auth, the page asks for the token before anything else: "${await page.textContent('#login-message')}"`);
+  // a wrong token: the server closes the connection, the next one asks again
+  await page.fill('#login-token', 'not-the-token-0123456789');
+  await page.click('#login-submit');
+  await page.waitForFunction(() => window.simgate.login === 'wrong' &&
+                             !document.getElementById('login').hidden, null, { timeout: WAIT_MS });
+  check((await page.textContent('#login-message')).includes('Wrong token'), 'a wrong token: asked again, saying so');
+  await page.fill('#login-token', token);
+  await page.click('#login-submit');
+  await page.waitForFunction(() => window.simgate.ready && window.simgate.services.length > 0, null, { timeout: WAIT_MS });
+  check(await page.evaluate(() => window.simgate.login === 'done'), 'the right token: logged in, the services listed');
+  await page.waitForFunction(() => /\d/.test(document.getElementById('state-time').textContent), null, { timeout: WAIT_MS });
+  check(await page.locator('#login').isHidden(), `the header works (${await page.textContent('#state-time')}), the login form is gone`);
   check(problems.length === 0, `no page error, console error or failed request${problems.length ? ':\n  ' + problems.join('\n  ') : ''}`);
 }
 

@@ -2,11 +2,14 @@
 // plain HTTP requests from a raw socket against libsimgate_transport_websocket.so serving a
 // web root the test writes (index.html, a vendor script, a secret beside the root, a
 // symbolic link out of it), the refusals (traversal, methods, long targets), the options,
-// and the build tree's own web app as the default web_root.
+// and the build tree's own web app as the default web_root; the in-memory cache (an edited
+// file served fresh, a cached answer identical) and the validators (ETag, Last-Modified,
+// 304); StaticFiles itself, compiled in: what its cache holds within its bound.
 #include <gtest/gtest.h>
 
 #include <unistd.h>
 
+#include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -19,6 +22,7 @@
 #include <boost/asio/write.hpp>
 
 #include "simgate/core/plugin_loader.h"
+#include "static_files.h"
 #include "test_services.h"
 #include "ws_test_client.h"
 
@@ -87,13 +91,19 @@ class WebRoot {
     fs::remove_all(dir_, ec);
   }
   fs::path root() const { return dir_ / "web"; }
+  fs::path dir() const { return dir_; }
+  // Replaces `file`'s contents and moves its mtime `seconds` on (a file edited later).
+  static void rewrite(const fs::path& file, const std::string& text, int seconds = 2) {
+    const auto before = fs::last_write_time(file);
+    write(file, text);
+    fs::last_write_time(file, before + std::chrono::seconds(seconds));
+  }
 
   static constexpr const char* index_html = "<!doctype html><title>simgate</title>\n";
   static constexpr const char* script = "export const REVISION = 'test';\n";
   static constexpr const char* secret = "the secret beside the web root\n";
 
- private:
-  static void write(const fs::path& file, const std::string& text) { std::ofstream(file) << text; }
+ static void write(const fs::path& file, const std::string& text) { std::ofstream(file) << text; }
   fs::path dir_;
 };
 
@@ -170,6 +180,122 @@ TEST_F(WebSocketWebTest, TheWebSocketUpgradeStillWorksBesideTheFiles) {
   WsClient client(port());
   const json r = client.call(json{{"jsonrpc", "2.0"}, {"id", 1}, {"method", "spec.subtract"}, {"params", {42, 23}}});
   EXPECT_EQ(r["result"], 19) << r.dump();
+}
+
+// ---- the cache and the validators (static_files.h: Validators, Cache)
+
+std::string get_with(std::uint16_t port, const std::string& target, const std::string& headers) {
+  return http_exchange(port, "GET " + target + " HTTP/1.1\r\nHost: 127.0.0.1\r\n" + headers + "\r\n");
+}
+
+TEST_F(WebSocketWebTest, ACachedAnswerIsTheFirstOneByteForByte) {
+  const std::string first = get(port(), "/vendor/three.module.js");
+  ASSERT_EQ(status_of(first), 200) << first;
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(get(port(), "/vendor/three.module.js"), first);
+  EXPECT_EQ(body_of(first), WebRoot::script);
+  EXPECT_FALSE(header(first, "ETag").empty()) << first;
+  EXPECT_FALSE(header(first, "Last-Modified").empty()) << first;
+}
+
+TEST_F(WebSocketWebTest, AChangedFileIsServedFresh) {
+  const fs::path file = web_.root() / "vendor" / "three.module.js";
+  const std::string first = get(port(), "/vendor/three.module.js");
+  ASSERT_EQ(body_of(first), WebRoot::script);
+  // same size, later mtime
+  std::string same_size(WebRoot::script);
+  same_size[same_size.size() - 3] = 'X';
+  WebRoot::rewrite(file, same_size);
+  const std::string second = get(port(), "/vendor/three.module.js");
+  EXPECT_EQ(body_of(second), same_size);
+  EXPECT_NE(header(second, "ETag"), header(first, "ETag"));
+  // another size, the same mtime as before the edit
+  WebRoot::rewrite(file, "export const REVISION = 'longer than before';\n", -2);
+  EXPECT_EQ(body_of(get(port(), "/vendor/three.module.js")), "export const REVISION = 'longer than before';\n");
+  // gone
+  fs::remove(file);
+  EXPECT_EQ(status_of(get(port(), "/vendor/three.module.js")), 404);
+}
+
+TEST_F(WebSocketWebTest, IfNoneMatchWithTheETagGets304WithoutABody) {
+  const std::string first = get(port(), "/index.html");
+  const std::string etag = header(first, "ETag");
+  ASSERT_FALSE(etag.empty()) << first;
+  const std::string r = get_with(port(), "/index.html", "If-None-Match: " + etag + "\r\n");
+  EXPECT_EQ(status_of(r), 304) << r;
+  EXPECT_EQ(body_of(r), "") << r;
+  EXPECT_EQ(header(r, "ETag"), etag) << r;
+  EXPECT_EQ(header(r, "Content-Length"), "") << r;
+  EXPECT_EQ(status_of(get_with(port(), "/index.html", "If-None-Match: \"other\", W/" + etag + "\r\n")), 304);
+  EXPECT_EQ(status_of(get_with(port(), "/index.html", "If-None-Match: *\r\n")), 304);
+  EXPECT_EQ(status_of(http_exchange(port(), "HEAD /index.html HTTP/1.1\r\nHost: 127.0.0.1\r\nIf-None-Match: " + etag +
+                                                "\r\n\r\n")),
+            304);
+  // another ETag, or the file changed since: the whole file
+  EXPECT_EQ(status_of(get_with(port(), "/index.html", "If-None-Match: \"other\"\r\n")), 200);
+  WebRoot::rewrite(web_.root() / "index.html", "<!doctype html><title>edited</title>\n");
+  const std::string edited = get_with(port(), "/index.html", "If-None-Match: " + etag + "\r\n");
+  EXPECT_EQ(status_of(edited), 200) << edited;
+  EXPECT_EQ(body_of(edited), "<!doctype html><title>edited</title>\n");
+}
+
+TEST_F(WebSocketWebTest, IfModifiedSinceTheLastModificationGets304) {
+  const std::string first = get(port(), "/style.css");
+  const std::string last_modified = header(first, "Last-Modified");
+  ASSERT_FALSE(last_modified.empty()) << first;
+  const std::string r = get_with(port(), "/style.css", "If-Modified-Since: " + last_modified + "\r\n");
+  EXPECT_EQ(status_of(r), 304) << r;
+  EXPECT_EQ(body_of(r), "");
+  // older, malformed, or overridden by a non-matching If-None-Match: the whole file
+  EXPECT_EQ(status_of(get_with(port(), "/style.css", "If-Modified-Since: Thu, 01 Jan 1970 00:00:00 GMT\r\n")), 200);
+  EXPECT_EQ(status_of(get_with(port(), "/style.css", "If-Modified-Since: yesterday\r\n")), 200);
+  EXPECT_EQ(status_of(get_with(port(), "/style.css",
+                               "If-None-Match: \"other\"\r\nIf-Modified-Since: " + last_modified + "\r\n")),
+            200);
+  WebRoot::rewrite(web_.root() / "style.css", "body { margin: 1px; }\n");
+  EXPECT_EQ(status_of(get_with(port(), "/style.css", "If-Modified-Since: " + last_modified + "\r\n")), 200);
+}
+
+// StaticFiles alone (compiled into this test): what its cache holds
+boost::beast::http::request<boost::beast::http::string_body> request_for(const std::string& target) {
+  return {boost::beast::http::verb::get, target, 11};
+}
+
+TEST(StaticFilesCache, HoldsTheFilesServedWithinItsBoundLeastRecentlyUsedOut) {
+  WebRoot web;
+  const std::string big(600, 'b');
+  WebRoot::write(web.root() / "a.txt", big);
+  WebRoot::write(web.root() / "b.txt", big);
+  WebRoot::write(web.root() / "huge.txt", std::string(1500, 'h'));
+  websocket::StaticFiles files(web.root().string(), "test", "", 1000);
+  EXPECT_EQ(files.cached_files(), 0u);
+  EXPECT_EQ(body_of(files.answer(request_for("/a.txt"))), big);
+  EXPECT_EQ(files.cached_files(), 1u);
+  EXPECT_EQ(files.cached_bytes(), 600u);
+  // b pushes a out (1200 > 1000)
+  EXPECT_EQ(body_of(files.answer(request_for("/b.txt"))), big);
+  EXPECT_EQ(files.cached_files(), 1u);
+  EXPECT_EQ(files.cached_bytes(), 600u);
+  // larger than the bound: served, never cached
+  EXPECT_EQ(body_of(files.answer(request_for("/huge.txt"))), std::string(1500, 'h'));
+  EXPECT_EQ(files.cached_bytes(), 600u);
+  // a changed file replaces its old contents
+  WebRoot::rewrite(web.root() / "b.txt", "short");
+  EXPECT_EQ(body_of(files.answer(request_for("/b.txt"))), "short");
+  EXPECT_EQ(files.cached_files(), 1u);
+  EXPECT_EQ(files.cached_bytes(), 5u);
+  EXPECT_EQ(body_of(files.answer(request_for("/index.html"))), WebRoot::index_html);
+  EXPECT_EQ(files.cached_files(), 2u);
+  // refusals and 304s cache nothing
+  EXPECT_EQ(status_of(files.answer(request_for("/../secret.txt"))), 404);
+  EXPECT_EQ(files.cached_files(), 2u);
+}
+
+TEST(StaticFilesCache, HttpDatesRoundTrip) {
+  EXPECT_EQ(websocket::StaticFiles::http_date(784111777), "Sun, 06 Nov 1994 08:49:37 GMT");
+  EXPECT_EQ(websocket::StaticFiles::parse_http_date("Sun, 06 Nov 1994 08:49:37 GMT"), 784111777);
+  EXPECT_EQ(websocket::StaticFiles::parse_http_date("Sunday, 06-Nov-94 08:49:37 GMT"), std::nullopt);
+  EXPECT_EQ(websocket::StaticFiles::parse_http_date("Sun, 06 Nov 1994 08:49:37 UTC"), std::nullopt);
+  EXPECT_EQ(websocket::StaticFiles::parse_http_date("Sun, 06 Foo 1994 08:49:37 GMT"), std::nullopt);
 }
 
 TEST(WebSocketWebOptions, WebFalseAnswersEveryPlainRequestNotFound) {

@@ -40,9 +40,30 @@ void add_spawn_services(SupervisionServices& simulation, Simulation& sim);
 void add_snapshot_services(SupervisionServices& simulation, Simulation& sim);
 void add_scene_geometry_services(SupervisionServices& simulation, Simulation& sim);
 
-// get_scene_geometry's answer: {timestamp, generation, bodies, geoms, meshes} (meshes []
-// unless `include_meshes`). Poses are of state_time(), the time every sensor stamps.
-json scene_geometry(const Simulation& sim, bool include_meshes);
+// The part of get_scene_geometry's answer that only changes with the model: the meshes'
+// vertices and faces and the heightfields' elevations, which are most of it and slow to
+// write. Built once per model (model_generation()) and copied into each answer after; the
+// service owns one, so that a repeated call only writes the bodies and geoms under the
+// simulation lock. Threads: as the service (simulation lock held).
+class SceneGeometryCache {
+ public:
+  // {meshes: [...], hfields: [...]} of `sim`'s current model: the cached one while the model
+  // is the one it was built from, else built now.
+  const json& model_data(const Simulation& sim);
+  // How many times model_data() has built it (for the tests).
+  std::uint64_t builds() const { return builds_; }
+
+ private:
+  std::uint64_t generation_ = 0;     // the model_generation() it was built for
+  const mjModel* model_ = nullptr;   // and the model (nullptr: nothing built yet)
+  json data_;                        // {meshes, hfields}
+  std::uint64_t builds_ = 0;         // see builds()
+};
+
+// get_scene_geometry's answer: {timestamp, generation, bodies, geoms, meshes, hfields}
+// (meshes and hfields [] unless `include_meshes`). Poses are of state_time(), the time every
+// sensor stamps. With a `cache`, the meshes and hfields come from it (the same answer).
+json scene_geometry(const Simulation& sim, bool include_meshes, SceneGeometryCache* cache = nullptr);
 // One sample of the `simulation` component's body_poses stream: {timestamp, generation,
 // poses: [[x, y, z, qw, qx, qy, qz] per body, in id order]} (world frame).
 json body_poses(const Simulation& sim);
