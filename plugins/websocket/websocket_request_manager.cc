@@ -30,6 +30,7 @@ WebSocketRequestManager::Settings WebSocketRequestManager::Settings::parse(const
   json rest = options.is_null() ? json::object() : options;
   Settings s;
   s.web = WebOptions::take(rest);
+  s.origins = OriginPolicy::take(rest);
   s.rpc = jsonrpc::Options::parse(rest, "websocket", k_default_port);
   return s;
 }
@@ -41,7 +42,9 @@ WebSocketRequestManager::WebSocketRequestManager(Settings s)
     : JsonRpcEngine("WebSocket service manager", "websocket", std::move(s.rpc)),
       // bound now, so that a port in use fails the creation of the transport
       listener_(io_, name(), options_.tcp.host, options_.tcp.port),
-      io_thread_(io_, name(), options_.tcp.io_spin) {
+      io_thread_(io_, name(), options_.tcp.io_spin),
+      origins_(std::move(s.origins)) {
+  origins_.bind(options_.tcp.host, listener_.port());
   if (s.web.enabled) web_.emplace(s.web.root, "simgate websocket transport", port_text());
 }
 
@@ -180,6 +183,27 @@ std::string WebSocketRequestManager::on_http_request(const http::request<http::s
   return out.str();
 }
 
+std::string WebSocketRequestManager::refuse_upgrade(const http::request<http::string_body>& request) {
+  std::optional<std::string_view> origin;
+  if (auto it = request.find(http::field::origin); it != request.end()) origin = std::string_view(it->value().data(), it->value().size());
+  if (origins_.allows(origin)) return {};
+  // a page of another site must not drive the simulation (cross-site WebSocket hijacking)
+  const std::string shown = std::string(origin->substr(0, 200));
+  log::warning(name(), ": WebSocket upgrade from a page of origin '", shown, "' refused (allowed_origins: ",
+               origins_.describe(), ")");
+  http::response<http::string_body> response{http::status::forbidden, request.version()};
+  response.set(http::field::server, "simgate websocket transport");
+  response.set(http::field::content_type, "text/plain; charset=utf-8");
+  response.keep_alive(false);
+  response.body() = "simgate websocket transport: WebSocket connections from pages of origin '" + shown +
+                    "' are not allowed (allowed: " + origins_.describe() +
+                    "; the transport's option allowed_origins, docs/security.md)\n";
+  response.prepare_payload();
+  std::ostringstream out;
+  out << response;
+  return out.str();
+}
+
 void WebSocketRequestManager::on_closed(WsSession& session) {
   if (sessions_.erase(session.shared()) > 0) count_.store(sessions_.size(), std::memory_order_relaxed);
   session_closed(session);
@@ -195,4 +219,4 @@ void WebSocketRequestManager::touch(WsSession& session) {
 SIMGATE_TRANSPORT_PLUGIN(websocket, simgate::websocket::WebSocketRequestManager, "0.1.0", "host", "port",
                          "max_message_bytes", "max_depth", "max_in_flight", "max_unsent_bytes",
                          "max_connections", "io_spin_us", "on_disconnect", "global_policy", "auth",
-                         "progress_interval_ms", "stream_queue", "web", "web_root")
+                         "progress_interval_ms", "stream_queue", "web", "web_root", "allowed_origins")

@@ -34,6 +34,7 @@
 #include <boost/asio/ip/tcp.hpp>
 
 #include "jsonrpc_engine.h"
+#include "origin_policy.h"
 #include "simgate/kit/tcp_server.h"
 #include "static_files.h"
 #include "websocket_session.h"
@@ -60,10 +61,12 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine<WsSession>, privat
   std::uint16_t port() const { return listener_.port(); }
 
  private:
-  // The options: JSON-RPC's (jsonrpc::Options) and the web app's (WebOptions).
+  // The options: JSON-RPC's (jsonrpc::Options), the web app's (WebOptions) and the pages
+  // allowed to connect (OriginPolicy).
   struct Settings {
     jsonrpc::Options rpc;
     WebOptions web;
+    OriginPolicy origins;
     static Settings parse(const json& options);
   };
   explicit WebSocketRequestManager(Settings settings);
@@ -78,6 +81,7 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine<WsSession>, privat
   void on_refused_message(WsSession& session, std::size_t bytes, bool binary) override;
   void on_read_done(WsSession& session) override;
   std::string on_http_request(const boost::beast::http::request<boost::beast::http::string_body>& request) override;
+  std::string refuse_upgrade(const boost::beast::http::request<boost::beast::http::string_body>& request) override;
   void on_closed(WsSession& session) override;
   void touch(WsSession& session) override;
 
@@ -94,6 +98,7 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine<WsSession>, privat
   std::atomic<std::size_t> count_{0};                     // sessions_.size(), for any thread
   std::vector<std::shared_ptr<WsSession>> touched_;       // messages queued, not yet written (I/O thread)
   std::optional<StaticFiles> web_;                        // the web app's files (none: `web` false)
+  OriginPolicy origins_;                                  // allowed_origins, bound to the port
 };
 
 }  // namespace simgate::websocket

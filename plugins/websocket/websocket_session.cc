@@ -47,9 +47,11 @@ void WsSession::on_request(const error_code& ec) {
     abort("bad HTTP request: " + ec.message());
     return;
   }
-  if (!ws::is_upgrade(parser_->get())) {
-    // plain HTTP: the host's answer, then the connection closes
-    http_response_ = host_.on_http_request(parser_->get());
+  const bool upgrade = ws::is_upgrade(parser_->get());
+  if (upgrade) http_response_ = host_.refuse_upgrade(parser_->get());
+  if (!upgrade || !http_response_.empty()) {
+    // plain HTTP, or a refused upgrade: the host's answer, then the connection closes
+    if (!upgrade) http_response_ = host_.on_http_request(parser_->get());
     parser_.reset();
     asio::async_write(ws_.next_layer(), asio::buffer(http_response_),
                       [self = shared()](const error_code&, std::size_t) { self->abort("HTTP request answered"); });

@@ -5,7 +5,8 @@
 // session as over TCP:
 //   - Handshake: reads one HTTP request (header and body within k_max_request_bytes, within
 //     k_handshake_timeout); a WebSocket upgrade is accepted, anything else answered by the
-//     host (WsHost::on_http_request: 404 for now, a web app later) and closed.
+//     host (WsHost::on_http_request: the web app's files, or 404) and closed; an upgrade the
+//     host refuses (WsHost::refuse_upgrade: an Origin not allowed) is answered and closed.
 //   - Reading: one async read at a time, a message assembled from its pieces; a message
 //     longer than max_message_bytes is skipped to its end (the host answers it) and the
 //     connection keeps working; binary messages are handed to the host as such. Reading
@@ -64,6 +65,9 @@ class WsHost {
   virtual void on_read_done(WsSession& session) = 0;
   // A plain HTTP request (not an upgrade): the response to send before closing.
   virtual std::string on_http_request(const boost::beast::http::request<boost::beast::http::string_body>& request) = 0;
+  // An upgrade request: "" to accept it, else the HTTP response refusing it (403: a page of
+  // another origin, origin_policy.h), sent before closing.
+  virtual std::string refuse_upgrade(const boost::beast::http::request<boost::beast::http::string_body>& request) = 0;
   // The connection closed (error, peer gone, limit, server stopping): forget it.
   virtual void on_closed(WsSession& session) = 0;
   // The session has messages queued: call its flush_writes() at the end of the burst.

@@ -6,6 +6,9 @@
 // messages, plain HTTP without the web app, max_connections, a client that vanishes).
 #include <gtest/gtest.h>
 
+#include <sys/socket.h>
+#include <sys/time.h>
+
 #include <chrono>
 #include <cstdlib>
 #include <thread>
@@ -324,6 +327,93 @@ TEST_F(WebSocketAuthTest, AWrongTokenIsAnsweredThenClosedWithAReason) {
   EXPECT_EQ(client_->error, ws::error::closed) << client_->error.message();
   EXPECT_EQ(client_->close_reason().code, ws::close_code::policy_error);
   EXPECT_EQ(client_->close_reason().reason, "wrong token");
+}
+
+// ---- allowed_origins (cross-site WebSocket hijacking)
+
+// The raw HTTP response to an upgrade request carrying `origin` (none when empty).
+std::string upgrade_response(std::uint16_t port, const std::string& origin) {
+  boost::asio::io_context io;
+  boost::asio::ip::tcp::socket socket(io);
+  socket.connect({boost::asio::ip::make_address("127.0.0.1"), port});
+  timeval tv{10, 0};
+  ::setsockopt(socket.native_handle(), SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  std::string upgrade = "GET / HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(port) +
+                        "\r\nConnection: Upgrade\r\nUpgrade: websocket\r\nSec-WebSocket-Version: 13\r\n"
+                        "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n";
+  if (!origin.empty()) upgrade += "Origin: " + origin + "\r\n";
+  upgrade += "\r\n";
+  boost::asio::write(socket, boost::asio::buffer(upgrade));
+  std::string response;
+  boost::system::error_code ec;
+  char buffer[4096];
+  for (int reads = 0; reads < 100; ++reads) {
+    const std::size_t n = socket.read_some(boost::asio::buffer(buffer), ec);
+    response.append(buffer, n);
+    if (ec || (response.starts_with("HTTP/1.1 101") && response.find("\r\n\r\n") != std::string::npos)) break;
+  }
+  return response;
+}
+
+TEST_F(WebSocketTest, AnUpgradeFromAPageOfAnotherSiteIsRefusedWith403) {
+  const std::string response = upgrade_response(host_->port(), "https://evil.example");
+  EXPECT_TRUE(response.starts_with("HTTP/1.1 403")) << response;
+  EXPECT_NE(response.find("origin 'https://evil.example' are not allowed"), std::string::npos) << response;
+  EXPECT_NE(response.find("allowed_origins"), std::string::npos) << response;
+  EXPECT_THROW(WsClient(host_->port(), std::chrono::milliseconds(10000), 0, "http://evil.example:8090"),
+               boost::system::system_error);
+  // the same host on another port is another origin; "null" (a sandboxed page) is none of ours
+  EXPECT_TRUE(upgrade_response(host_->port(), "http://127.0.0.1:1").starts_with("HTTP/1.1 403"));
+  EXPECT_TRUE(upgrade_response(host_->port(), "null").starts_with("HTTP/1.1 403"));
+  // the others are served on
+  EXPECT_EQ(client_->call(request(1, "spec.subtract", json::array({3, 1})))["result"], 2);
+}
+
+TEST_F(WebSocketTest, ItsOwnOriginsAndClientsWithoutOriginAreAccepted) {
+  const std::string port = std::to_string(host_->port());
+  EXPECT_TRUE(upgrade_response(host_->port(), "").starts_with("HTTP/1.1 101"));
+  for (const std::string& origin : {"http://127.0.0.1:" + port, "http://localhost:" + port, "HTTP://LocalHost:" + port,
+                                    "http://[::1]:" + port}) {
+    EXPECT_TRUE(upgrade_response(host_->port(), origin).starts_with("HTTP/1.1 101")) << origin;
+    WsClient page(host_->port(), std::chrono::milliseconds(10000), 0, origin);
+    EXPECT_EQ(page.call(request(1, "spec.subtract", json::array({3, 1})))["result"], 2) << origin;
+  }
+}
+
+class WebSocketOriginsTest : public WebSocketTest {
+ protected:
+  json options() override { return json{{"allowed_origins", {"https://app.example", "http://lab.example:8000"}}}; }
+};
+
+TEST_F(WebSocketOriginsTest, AllowedOriginsReplacesTheDefaultList) {
+  WsClient app(host_->port(), std::chrono::milliseconds(10000), 0, "https://app.example");
+  EXPECT_EQ(app.call(request(1, "spec.subtract", json::array({3, 1})))["result"], 2);
+  // the scheme's default port is implied
+  EXPECT_TRUE(upgrade_response(host_->port(), "https://app.example:443").starts_with("HTTP/1.1 101"));
+  EXPECT_TRUE(upgrade_response(host_->port(), "http://lab.example:8000").starts_with("HTTP/1.1 101"));
+  EXPECT_TRUE(upgrade_response(host_->port(), "http://lab.example").starts_with("HTTP/1.1 403"));
+  EXPECT_TRUE(upgrade_response(host_->port(), "http://app.example").starts_with("HTTP/1.1 403"));
+  const std::string own = "http://127.0.0.1:" + std::to_string(host_->port());
+  EXPECT_TRUE(upgrade_response(host_->port(), own).starts_with("HTTP/1.1 403"));
+  EXPECT_TRUE(upgrade_response(host_->port(), "").starts_with("HTTP/1.1 101"));
+}
+
+TEST(WebSocketPlugin, AllowedOriginsStarAcceptsAnyPage) {
+  TestHost host(json{{"allowed_origins", {"*"}}}, plugin_path());
+  WsClient page(host.port(), std::chrono::milliseconds(10000), 0, "https://anywhere.example");
+  EXPECT_EQ(page.call(request(1, "spec.subtract", json::array({3, 1})))["result"], 2);
+}
+
+TEST(WebSocketPlugin, RefusesMalformedAllowedOrigins) {
+  for (const json& bad : {json("http://a.example"), json::array({"http://a.example/path"}), json::array({"a.example"}),
+                          json::array({42}), json::array({"http://a.example:99999"})}) {
+    try {
+      load_transport(plugin_path(), json{{"port", 0}, {"allowed_origins", bad}});
+      ADD_FAILURE() << "accepted " << bad.dump();
+    } catch (const std::exception& e) {
+      EXPECT_NE(std::string(e.what()).find("allowed_origins"), std::string::npos) << e.what();
+    }
+  }
 }
 
 }  // namespace
