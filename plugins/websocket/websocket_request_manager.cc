@@ -43,6 +43,7 @@ WebSocketRequestManager::WebSocketRequestManager(Settings s)
       // bound now, so that a port in use fails the creation of the transport
       listener_(io_, name(), options_.tcp.host, options_.tcp.port),
       io_thread_(io_, name(), options_.tcp.io_spin),
+      per_peer_(options_.tcp.max_connections_per_peer),
       origins_(std::move(s.origins)) {
   origins_.bind(options_.tcp.host, listener_.port());
   if (s.web.enabled) web_.emplace(s.web.root, "simgate websocket transport", port_text());
@@ -60,7 +61,7 @@ std::vector<std::string> WebSocketRequestManager::endpoints() const {
 void WebSocketRequestManager::start() {
   kit::TcpListener::Handlers handlers{
       [this](tcp::socket socket) { accept(std::move(socket)); },
-      [this](const tcp::endpoint&) { return refusal_reason(); },
+      [this](const tcp::endpoint& peer) { return refusal_reason(peer); },
       [](const std::string& why) {
         // the client is still sending its HTTP request: an HTTP answer, the JSON-RPC error as its body
         const std::string body = dump(error_response(nullptr, overloaded, "Overloaded: " + why)) + "\n";
@@ -98,14 +99,52 @@ void WebSocketRequestManager::shutdown_io() {
   auto sessions = std::move(sessions_);
   sessions_.clear();
   count_.store(0, std::memory_order_relaxed);
+  per_peer_.clear();
   for (const auto& s : sessions) s->abort("server stopping");
   touched_.clear();
+  sweep_timer_.reset();
 }
 
-std::string WebSocketRequestManager::refusal_reason() const {
-  if (sessions_.size() < options_.tcp.max_connections) return {};
-  return "too many connections (" + std::string(options_.tcp.connections_key) + " " +
-         std::to_string(options_.tcp.max_connections) + ")";
+std::string WebSocketRequestManager::refusal_reason(const tcp::endpoint& peer) {
+  const auto& tcp = options_.tcp;
+  if (sessions_.size() >= tcp.max_connections &&
+      (tcp.idle_evict.count() <= 0 ||
+       !kit::make_room(sessions_, kit::sweep_ticks(tcp.idle_evict), name(), tcp.max_connections)))
+    return "too many connections (" + std::string(tcp.connections_key) + " " + std::to_string(tcp.max_connections) +
+           ")";
+  return per_peer_.refusal_reason(peer.address());
+}
+
+void WebSocketRequestManager::schedule_sweep() {
+  if (sweeping_) return;
+  if (!sweep_timer_) sweep_timer_.emplace(io_);
+  sweeping_ = true;
+  sweep_timer_->expires_after(kit::k_connection_sweep);
+  sweep_timer_->async_wait([this](const boost::system::error_code& ec) {
+    sweeping_ = false;
+    if (ec) return;  // the server stops
+    sweep();
+  });
+}
+
+void WebSocketRequestManager::sweep() {
+  ++tick_;
+  const auto timeout = options_.tcp.idle_timeout;
+  if (timeout.count() > 0) {
+    // closed after the walk: a close changes sessions_
+    const std::uint32_t limit = kit::sweep_ticks(timeout);
+    std::vector<std::shared_ptr<WsSession>> idle;
+    for (const auto& s : sessions_)
+      if (s->idle_ticks() >= limit) idle.push_back(s);
+    if (!idle.empty()) {
+      const std::string why = "idle for " + std::to_string(timeout.count() / 1000.0) + " s (idle_timeout_s)";
+      // one warning per sweep, each connection at debug level (a flood logs little)
+      log::warning(name(), ": closed ", idle.size(), idle.size() == 1 ? " connection: " : " connections: ", why,
+                   idle.size() == 1 ? " (" + idle.front()->label() + ")" : std::string());
+      for (const auto& s : idle) s->close_with(boost::beast::websocket::close_code::going_away, why);
+    }
+  }
+  if (!sessions_.empty()) schedule_sweep();
 }
 
 void WebSocketRequestManager::accept(tcp::socket socket) {
@@ -119,7 +158,9 @@ void WebSocketRequestManager::accept(tcp::socket socket) {
   // a peer that must present the token (the "auth" option) calls rpc.login first
   if (options_.tcp.auth.required_for(session->peer())) session->require_login();
   sessions_.insert(session);
+  per_peer_.add(session->peer());
   count_.store(sessions_.size(), std::memory_order_relaxed);
+  schedule_sweep();
   log::debug(name(), ": ", session->label(), " connected");
   session->start();
 }
@@ -205,7 +246,10 @@ std::string WebSocketRequestManager::refuse_upgrade(const http::request<http::st
 }
 
 void WebSocketRequestManager::on_closed(WsSession& session) {
-  if (sessions_.erase(session.shared()) > 0) count_.store(sessions_.size(), std::memory_order_relaxed);
+  if (sessions_.erase(session.shared()) > 0) {
+    per_peer_.remove(session.peer());
+    count_.store(sessions_.size(), std::memory_order_relaxed);
+  }
   session_closed(session);
 }
 
@@ -218,5 +262,6 @@ void WebSocketRequestManager::touch(WsSession& session) {
 
 SIMGATE_TRANSPORT_PLUGIN(websocket, simgate::websocket::WebSocketRequestManager, "0.1.0", "host", "port",
                          "max_message_bytes", "max_depth", "max_in_flight", "max_unsent_bytes",
-                         "max_connections", "io_spin_us", "on_disconnect", "global_policy", "auth",
-                         "progress_interval_ms", "stream_queue", "web", "web_root", "allowed_origins")
+                         "max_connections", "max_connections_per_peer", "idle_timeout_s", "idle_evict_s",
+                         "io_spin_us", "on_disconnect", "global_policy", "auth", "progress_interval_ms",
+                         "stream_queue", "web", "web_root", "allowed_origins")

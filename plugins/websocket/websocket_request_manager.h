@@ -15,6 +15,11 @@
 // thread; stop() closes every connection, joins the thread and finishes what is still
 // pending with Failure::shutdown. stop() is idempotent and the destructor calls it.
 //
+// Connections held without use are treated as by the TCP transports
+// (kit/connection_rules.h): idle_timeout_s closes one idle that long, idle_evict_s lets a
+// newcomer take the place of the one idle longest at max_connections, and
+// max_connections_per_peer bounds the connections of one non-loopback address.
+//
 // Threads: one I/O thread runs the io_context (accept, handshake, read, parse, hand over,
 // write), polling a little before it sleeps while events come close together (io_spin_us,
 // simgate/kit/idle_spin.h). The calls of one message go to the core together, run on this
@@ -35,6 +40,7 @@
 
 #include "jsonrpc_engine.h"
 #include "origin_policy.h"
+#include "simgate/kit/connection_rules.h"
 #include "simgate/kit/tcp_server.h"
 #include "static_files.h"
 #include "websocket_session.h"
@@ -84,10 +90,18 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine<WsSession>, privat
   std::string refuse_upgrade(const boost::beast::http::request<boost::beast::http::string_body>& request) override;
   void on_closed(WsSession& session) override;
   void touch(WsSession& session) override;
+  std::uint32_t tick() const override { return tick_; }
 
-  // A new connection (refusal_reason keeps the count under max_connections).
+  // A new connection (refusal_reason keeps the count under max_connections and
+  // max_connections_per_peer).
   void accept(boost::asio::ip::tcp::socket socket);
-  std::string refusal_reason() const;
+  // Why a connection from `peer` is refused, or "": at max_connections, after the session
+  // idle (or silent) longest was closed to make room when idle_evict_s allows it
+  // (kit/connection_rules.h, as the TCP transports); or its address at its per-peer limit.
+  std::string refusal_reason(const boost::asio::ip::tcp::endpoint& peer);
+  // Every k_connection_sweep while sessions are open: the clock of idle_ticks, idle_timeout_s.
+  void schedule_sweep();
+  void sweep();
   void shutdown_io();
 
   kit::TcpListener listener_;                             // the listening socket, bound in the constructor
@@ -97,6 +111,10 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine<WsSession>, privat
   std::unordered_set<std::shared_ptr<WsSession>> sessions_;  // open connections (I/O thread)
   std::atomic<std::size_t> count_{0};                     // sessions_.size(), for any thread
   std::vector<std::shared_ptr<WsSession>> touched_;       // messages queued, not yet written (I/O thread)
+  kit::PeerCounts per_peer_;                              // max_connections_per_peer (I/O thread)
+  std::uint32_t tick_ = 0;                                // sweeps so far (I/O thread)
+  std::optional<boost::asio::steady_timer> sweep_timer_;  // while sessions are open
+  bool sweeping_ = false;                                 // a sweep is scheduled
   std::optional<StaticFiles> web_;                        // the web app's files (none: `web` false)
   OriginPolicy origins_;                                  // allowed_origins, bound to the port
 };

@@ -19,6 +19,7 @@ using boost::system::error_code;
 
 WsSession::WsSession(tcp::socket socket, WsHost& host, WsLimits limits, std::string_view who, std::uint64_t number)
     : ws_(std::move(socket)), host_(host), limits_(limits), who_(who), handshake_timer_(ws_.get_executor()) {
+  active();
   label_ = "client #" + std::to_string(number);
   error_code ec;
   const tcp::endpoint peer = ws_.next_layer().remote_endpoint(ec);
@@ -65,6 +66,8 @@ void WsSession::on_request(const error_code& ec) {
   // the limit is ours (the rest of an oversized message is skipped, the connection stays)
   ws_.read_message_max(0);
   ws_.auto_fragment(false);
+  // a ping or a pong is activity too (a client keeping its connection alive is not idle)
+  ws_.control_callback([this](ws::frame_type, beast::string_view) { active(); });
   auto request = parser_->release();
   parser_.reset();
   ws_.async_accept(request, [self = shared()](const error_code& ec) {
@@ -91,6 +94,7 @@ void WsSession::read_more() {
 void WsSession::on_read(const error_code& ec, std::size_t /*n*/) {
   reading_ = false;
   if (closed_) return;
+  active();
   if (ec) {
     // the close handshake (Beast answered it), the peer gone, or a protocol error
     abort(ec == ws::error::closed ? "client closed the WebSocket" : "read failed: " + ec.message());
@@ -161,6 +165,7 @@ void WsSession::on_write(const error_code& ec) {
   }
   unsent_ -= outbox_.front().size();
   outbox_.pop_front();
+  active();
   if (!outbox_.empty()) {
     start_write();
     return;

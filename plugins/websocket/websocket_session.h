@@ -72,6 +72,8 @@ class WsHost {
   virtual void on_closed(WsSession& session) = 0;
   // The session has messages queued: call its flush_writes() at the end of the burst.
   virtual void touch(WsSession& session) = 0;
+  // Sweeps of the connections so far (kit/connection_rules.h): the sessions' clock.
+  virtual std::uint32_t tick() const = 0;
 };
 
 struct WsLimits {
@@ -110,10 +112,14 @@ class WsSession : public std::enable_shared_from_this<WsSession>, public jsonrpc
   // Writes what was queued, unless a write is in flight (it takes them next).
   void flush_writes();
   std::size_t in_flight() const { return in_flight_; }
-  void add_in_flight() { ++in_flight_; }
+  void add_in_flight() {
+    ++in_flight_;
+    active();
+  }
   void done(const std::string& key) {
     forget_id(key);
     if (in_flight_ > 0) --in_flight_;
+    active();
   }
   bool authenticated() const { return authenticated_; }
   void set_authenticated() { authenticated_ = true; }
@@ -133,6 +139,20 @@ class WsSession : public std::enable_shared_from_this<WsSession>, public jsonrpc
   // For the host's touch list.
   bool touched = false;
 
+  // ---- resources held without use (kit/connection_rules.h, the host's sweep)
+  // Sweeps since it last read (a message, a ping, a pong), wrote or was owed a reply; 0
+  // while it owes one or has messages unsent (it is not idle then).
+  std::uint32_t idle_ticks() const {
+    if (in_flight_ > 0 || writing_ || !outbox_.empty()) return 0;
+    return host_.tick() - active_tick_;
+  }
+  // The same even while it owes replies (a client waiting for calls that never end).
+  std::uint32_t silent_ticks() const {
+    if (writing_ || !outbox_.empty()) return 0;
+    return host_.tick() - active_tick_;
+  }
+  std::size_t unanswered() const { return in_flight_; }
+
   // How long the HTTP request may take to arrive.
   static constexpr std::chrono::seconds k_handshake_timeout{30};
   // The largest HTTP request (header and body) accepted before the upgrade.
@@ -147,6 +167,7 @@ class WsSession : public std::enable_shared_from_this<WsSession>, public jsonrpc
   void on_read(const boost::system::error_code& ec, std::size_t n);
   void start_write();
   void on_write(const boost::system::error_code& ec);
+  void active() { active_tick_ = host_.tick(); }
 
   // on the plain socket: no per-operation timer bookkeeping on the hot path (the HTTP
   // request's deadline is handshake_timer_, the WebSocket's Beast's own timeouts)
@@ -171,6 +192,7 @@ class WsSession : public std::enable_shared_from_this<WsSession>, public jsonrpc
   std::optional<std::pair<boost::beast::websocket::close_code, std::string>> close_after_writes_;  // close() waiting
   std::string http_response_;                   // a plain HTTP request's answer, being written
   boost::asio::steady_timer handshake_timer_;   // closes a connection whose HTTP request does not come
+  std::uint32_t active_tick_ = 0;               // the sweep of its last read, write or reply owed
 };
 
 }  // namespace simgate::websocket

@@ -329,6 +329,82 @@ TEST_F(WebSocketAuthTest, AWrongTokenIsAnsweredThenClosedWithAReason) {
   EXPECT_EQ(client_->close_reason().reason, "wrong token");
 }
 
+// ---- connections held without use (the TCP transports' options, kit/connection_rules.h)
+
+TEST(WebSocketPlugin, TakesTheTcpTransportsConnectionLimits) {
+  auto rm = load_transport(plugin_path(), json{{"port", 0}, {"max_connections_per_peer", 4}, {"idle_timeout_s", 30},
+                                               {"idle_evict_s", 0}});
+  rm->start();
+  rm->stop();
+  for (const char* key : {"max_connections_per_peer", "idle_timeout_s", "idle_evict_s"}) {
+    try {
+      load_transport(plugin_path(), json{{"port", 0}, {key, -1}});
+      ADD_FAILURE() << key << " -1 accepted";
+    } catch (const std::exception& e) {
+      EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(WebSocketPlugin, LoopbackClientsAreNotCountedPerPeer) {
+  // the machine's own programs all come from one address: max_connections_per_peer ignores them
+  TestHost host(json{{"max_connections_per_peer", 1}}, plugin_path());
+  WsClient a(host.port()), b(host.port()), c(host.port());
+  for (WsClient* client : {&a, &b, &c})
+    EXPECT_EQ(client->call(request(1, "spec.subtract", json::array({3, 1})))["result"], 2);
+}
+
+class WebSocketIdleTest : public WebSocketTest {
+ protected:
+  json options() override { return json{{"idle_timeout_s", 0.5}}; }
+};
+
+TEST_F(WebSocketIdleTest, AnIdleConnectionIsClosedButNotOneWaitingForAnAnswer) {
+  // client_ calls then stays silent; `waiting` is owed the answer of a call that holds
+  EXPECT_EQ(client_->call(request(1, "spec.subtract", json::array({3, 1})))["result"], 2);
+  WsClient waiting(host_->port());
+  waiting.send(request(7, "robot.arm.hold", json::array({"w"})));
+  ASSERT_EQ(waiting.call(request(8, "ctl.iteration"))["id"], 8);
+  // the idle one ends with a close frame that says why (the receive timeout is 10 s)
+  EXPECT_FALSE(client_->receive_text().has_value());
+  EXPECT_EQ(client_->error, ws::error::closed) << client_->error.message();
+  EXPECT_EQ(client_->close_reason().code, ws::close_code::going_away);
+  EXPECT_NE(std::string(client_->close_reason().reason.data(), client_->close_reason().reason.size()).find("idle_timeout_s"), std::string::npos);
+  // the one owed an answer was kept: it gets it once another client releases the call
+  WsClient other(host_->port());
+  EXPECT_EQ(other.call(request(1, "ctl.release", json::array({"w", "released"})))["result"], true);
+  json r = waiting.receive();
+  EXPECT_EQ(r["id"], 7) << r.dump();
+  EXPECT_EQ(r["result"], "released");
+}
+
+class WebSocketEvictTest : public WebSocketTest {
+ protected:
+  json options() override { return json{{"max_connections", 2}, {"idle_evict_s", 0.5}}; }
+};
+
+TEST_F(WebSocketEvictTest, AtTheLimitTheConnectionIdleLongestMakesRoom) {
+  // client_ is the oldest and stays idle; `busy` keeps calling; a newcomer gets client_'s place
+  WsClient busy(host_->port());
+  EXPECT_EQ(client_->call(request(1, "spec.subtract", json::array({3, 1})))["result"], 2);
+  std::unique_ptr<WsClient> newcomer;
+  for (int attempt = 0; attempt < 30 && !newcomer; ++attempt) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    EXPECT_EQ(busy.call(request(attempt, "spec.subtract", json::array({3, 1})))["result"], 2);
+    try {
+      newcomer = std::make_unique<WsClient>(host_->port());
+    } catch (const boost::system::system_error&) {
+      // refused (503): nobody idle long enough yet
+    }
+  }
+  ASSERT_TRUE(newcomer) << "no room was made";
+  EXPECT_EQ(newcomer->call(request(1, "spec.subtract", json::array({5, 1})))["result"], 4);
+  EXPECT_FALSE(client_->receive_text().has_value());
+  EXPECT_EQ(client_->error, ws::error::closed) << client_->error.message();
+  EXPECT_EQ(client_->close_reason().reason, "idle while the server was full");
+  EXPECT_EQ(busy.call(request(99, "spec.subtract", json::array({3, 1})))["result"], 2);  // never chosen
+}
+
 // ---- allowed_origins (cross-site WebSocket hijacking)
 
 // The raw HTTP response to an upgrade request carrying `origin` (none when empty).
