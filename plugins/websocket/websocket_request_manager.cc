@@ -73,7 +73,7 @@ void WebSocketRequestManager::start() {
             deliver_here();
             listener_.start(std::move(handlers));
           },
-          no_direct_reads_)) {
+          direct_)) {
     log::info("websocket: listening on ", endpoints().front());
     if (web_) {
       std::string page = endpoints().front();
@@ -102,6 +102,7 @@ void WebSocketRequestManager::shutdown_io() {
   per_peer_.clear();
   for (const auto& s : sessions) s->abort("server stopping");
   touched_.clear();
+  direct_ = kit::DirectReads<WsSession>{};
   sweep_timer_.reset();
 }
 
@@ -144,7 +145,18 @@ void WebSocketRequestManager::sweep() {
       for (const auto& s : idle) s->close_with(boost::beast::websocket::close_code::going_away, why);
     }
   }
+  // keep-alive pings, and the end of clients silent too long
+  std::vector<std::shared_ptr<WsSession>> all(sessions_.begin(), sessions_.end());
+  for (const auto& s : all) s->keep_alive(tick_);
   if (!sessions_.empty()) schedule_sweep();
+}
+
+bool WebSocketRequestManager::watch(WsSession& session) {
+  // only while the I/O thread polls (never with io_spin_us 0), for a client sending alone:
+  // others are served by the event loop between direct reads
+  if (options_.tcp.io_spin.count() <= 0 || !read_split_.alone(&session)) return false;
+  direct_.watch(session.shared());
+  return true;
 }
 
 void WebSocketRequestManager::accept(tcp::socket socket) {
@@ -246,6 +258,7 @@ std::string WebSocketRequestManager::refuse_upgrade(const http::request<http::st
 }
 
 void WebSocketRequestManager::on_closed(WsSession& session) {
+  direct_.forget(session);
   if (sessions_.erase(session.shared()) > 0) {
     per_peer_.remove(session.peer());
     count_.store(sessions_.size(), std::memory_order_relaxed);

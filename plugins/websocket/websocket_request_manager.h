@@ -22,7 +22,8 @@
 //
 // Threads: one I/O thread runs the io_context (accept, handshake, read, parse, hand over,
 // write), polling a little before it sleeps while events come close together (io_spin_us,
-// simgate/kit/idle_spin.h). The calls of one message go to the core together, run on this
+// simgate/kit/idle_spin.h); while it polls, it reads the socket of a client sending alone
+// itself (DirectReads), as the TCP transport does. The calls of one message go to the core together, run on this
 // thread when the simulation lock is free; sessions and pending calls are touched by the
 // I/O thread only.
 #ifndef SIMGATE_PLUGINS_WEBSOCKET_WEBSOCKET_REQUEST_MANAGER_H_
@@ -41,6 +42,8 @@
 #include "jsonrpc_engine.h"
 #include "origin_policy.h"
 #include "simgate/kit/connection_rules.h"
+#include "simgate/kit/idle_spin.h"
+#include "simgate/kit/read_split.h"
 #include "simgate/kit/tcp_server.h"
 #include "static_files.h"
 #include "websocket_session.h"
@@ -91,6 +94,7 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine<WsSession>, privat
   void on_closed(WsSession& session) override;
   void touch(WsSession& session) override;
   std::uint32_t tick() const override { return tick_; }
+  bool watch(WsSession& session) override;
 
   // A new connection (refusal_reason keeps the count under max_connections and
   // max_connections_per_peer).
@@ -106,7 +110,8 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine<WsSession>, privat
 
   kit::TcpListener listener_;                             // the listening socket, bound in the constructor
   kit::IoThread io_thread_;                               // runs io_
-  kit::NoDirectReads no_direct_reads_;                    // the I/O thread reads through the event loop only
+  kit::ReadSplit read_split_;                             // tells a lone client (I/O thread)
+  kit::DirectReads<WsSession> direct_;                    // the lone client read without the event loop (I/O thread)
   std::uint64_t next_session_ = 1;                        // numbers connections in logs (I/O thread)
   std::unordered_set<std::shared_ptr<WsSession>> sessions_;  // open connections (I/O thread)
   std::atomic<std::size_t> count_{0};                     // sessions_.size(), for any thread
