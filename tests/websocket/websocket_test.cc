@@ -491,6 +491,18 @@ TEST_F(WebSocketTest, ProtocolErrorsAreClosedWith1002AndOthersServed) {
   EXPECT_EQ(client_->call(request(1, "spec.subtract", json::array({3, 1})))["result"], 2);
 }
 
+TEST_F(WebSocketTest, ATextMessageThatIsNotUtf8IsAParseErrorAndTheConnectionLivesOn) {
+  RawWs raw(host_->port());
+  raw.send_raw(RawWs::frame(k_text, "{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"a\xff\xfe\"}"));
+  RawWs::Frame reply = raw.read_frame();
+  ASSERT_EQ(reply.opcode, k_text);
+  EXPECT_EQ(error_code(json::parse(reply.payload)), -32700) << reply.payload;
+  raw.send_raw(RawWs::frame(k_text, request(2, "spec.subtract", json::array({3, 1})).dump()));
+  reply = raw.read_frame();
+  ASSERT_EQ(reply.opcode, k_text);
+  EXPECT_EQ(json::parse(reply.payload)["result"], 2);
+}
+
 TEST_F(WebSocketTest, ABinaryMessageInFragmentsIsRefusedWhole) {
   RawWs raw(host_->port());
   raw.send_raw(RawWs::frame(k_binary, "abc", false) + RawWs::frame(0x0, "defg", true));
