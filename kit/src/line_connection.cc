@@ -322,7 +322,7 @@ LineServer::LineServer(std::string who, const TcpOptions& options)
       spin_(options.io_spin),
       max_connections_(options.max_connections),
       connections_key_(options.connections_key),
-      max_per_peer_(options.max_connections_per_peer),
+      per_peer_(options.max_connections_per_peer),
       auth_(options.auth),
       idle_timeout_(options.idle_timeout),
       idle_evict_(options.idle_evict),
@@ -332,7 +332,7 @@ LineServer::LineServer(std::string who, const TcpOptions& options)
 
 void LineServer::add(const std::shared_ptr<LineConnection>& connection) {
   connection->authenticated_ = !auth_.required_for(connection->peer());
-  if (max_per_peer_ > 0 && !TokenAuth::is_loopback(connection->peer())) ++per_peer_[connection->peer()];
+  per_peer_.add(connection->peer());
   connections_.insert(connection);
   count_.store(connections_.size(), std::memory_order_relaxed);
   log::debug(who_, ": ", connection->label(), " connected");
@@ -342,7 +342,7 @@ void LineServer::add(const std::shared_ptr<LineConnection>& connection) {
 
 void LineServer::forget(LineConnection& connection) {
   direct_.forget(connection);
-  if (connections_.erase(connection.shared_from_this()) > 0) uncount(connection.peer());
+  if (connections_.erase(connection.shared_from_this()) > 0) per_peer_.remove(connection.peer());
   count_.store(connections_.size(), std::memory_order_relaxed);
 }
 
@@ -358,55 +358,18 @@ void LineServer::close_all() {
   sweep_timer_.reset();
 }
 
-std::uint32_t LineServer::ticks(std::chrono::milliseconds duration) const {
-  // at least one whole sweep: a timeout shorter than a sweep still waits for the next one
-  return static_cast<std::uint32_t>(std::max<std::int64_t>(1, (duration + k_sweep - std::chrono::milliseconds(1)) / k_sweep));
-}
-
-void LineServer::uncount(const boost::asio::ip::address& peer) {
-  auto it = per_peer_.find(peer);
-  if (it != per_peer_.end() && --it->second == 0) per_peer_.erase(it);
-}
-
 std::string LineServer::refusal_reason(const boost::asio::ip::tcp::endpoint& peer) {
   if (full())
     return "too many connections (" + connections_key_ + " " + std::to_string(max_connections_) + ")";
-  if (max_per_peer_ > 0 && !TokenAuth::is_loopback(peer.address())) {
-    auto it = per_peer_.find(peer.address());
-    if (it != per_peer_.end() && it->second >= max_per_peer_)
-      return "too many connections from " + peer.address().to_string() + " (max_connections_per_peer " +
-             std::to_string(max_per_peer_) + ")";
-  }
-  return "";
+  return per_peer_.refusal_reason(peer.address());
 }
 
 bool LineServer::full() {
   if (connections_.size() < max_connections_) return false;
   if (idle_evict_.count() <= 0) return true;
   // the connection idle longest makes room, once idle long enough; failing one, the one
-  // silent longest though it waits for replies (a client holding every slot with calls that
-  // never end, `time sleep [1e9]`, must not lock everyone out: issue #17)
-  const std::uint32_t limit = ticks(idle_evict_);
-  std::shared_ptr<LineConnection> idlest, silentest;
-  for (const auto& c : connections_) {
-    if (!idlest || c->idle_ticks() > idlest->idle_ticks()) idlest = c;
-    if (!silentest || c->silent_ticks() > silentest->silent_ticks()) silentest = c;
-  }
-  if (idlest && idlest->idle_ticks() >= limit) {
-    log::warning(who_, ": ", idlest->label(), " closed to make room for a new connection: idle for ",
-                 idlest->idle_ticks() * k_sweep.count() / 1000.0, " s while ", max_connections_,
-                 " connections were open (idle_evict_s)");
-    idlest->close("idle while the server was full");
-    return false;
-  }
-  if (silentest && silentest->silent_ticks() >= limit) {
-    log::warning(who_, ": ", silentest->label(), " closed to make room for a new connection: silent for ",
-                 silentest->silent_ticks() * k_sweep.count() / 1000.0, " s with ", silentest->unanswered(),
-                 " replies owed while ", max_connections_, " connections were open (idle_evict_s)");
-    silentest->close("silent while the server was full");
-    return false;
-  }
-  return true;
+  // silent longest though it waits for replies (connection_rules.h)
+  return !make_room(connections_, ticks(idle_evict_), who_, max_connections_);
 }
 
 void LineServer::schedule_sweep(const std::shared_ptr<LineConnection>& any) {

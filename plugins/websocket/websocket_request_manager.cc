@@ -30,6 +30,7 @@ WebSocketRequestManager::Settings WebSocketRequestManager::Settings::parse(const
   json rest = options.is_null() ? json::object() : options;
   Settings s;
   s.web = WebOptions::take(rest);
+  s.origins = OriginPolicy::take(rest);
   s.rpc = jsonrpc::Options::parse(rest, "websocket", k_default_port);
   return s;
 }
@@ -41,7 +42,10 @@ WebSocketRequestManager::WebSocketRequestManager(Settings s)
     : JsonRpcEngine("WebSocket service manager", "websocket", std::move(s.rpc)),
       // bound now, so that a port in use fails the creation of the transport
       listener_(io_, name(), options_.tcp.host, options_.tcp.port),
-      io_thread_(io_, name(), options_.tcp.io_spin) {
+      io_thread_(io_, name(), options_.tcp.io_spin),
+      per_peer_(options_.tcp.max_connections_per_peer),
+      origins_(std::move(s.origins)) {
+  origins_.bind(options_.tcp.host, listener_.port());
   if (s.web.enabled) web_.emplace(s.web.root, "simgate websocket transport", port_text());
 }
 
@@ -57,7 +61,7 @@ std::vector<std::string> WebSocketRequestManager::endpoints() const {
 void WebSocketRequestManager::start() {
   kit::TcpListener::Handlers handlers{
       [this](tcp::socket socket) { accept(std::move(socket)); },
-      [this](const tcp::endpoint&) { return refusal_reason(); },
+      [this](const tcp::endpoint& peer) { return refusal_reason(peer); },
       [](const std::string& why) {
         // the client is still sending its HTTP request: an HTTP answer, the JSON-RPC error as its body
         const std::string body = dump(error_response(nullptr, overloaded, "Overloaded: " + why)) + "\n";
@@ -69,7 +73,7 @@ void WebSocketRequestManager::start() {
             deliver_here();
             listener_.start(std::move(handlers));
           },
-          no_direct_reads_)) {
+          direct_)) {
     log::info("websocket: listening on ", endpoints().front());
     if (web_) {
       std::string page = endpoints().front();
@@ -95,14 +99,64 @@ void WebSocketRequestManager::shutdown_io() {
   auto sessions = std::move(sessions_);
   sessions_.clear();
   count_.store(0, std::memory_order_relaxed);
+  per_peer_.clear();
   for (const auto& s : sessions) s->abort("server stopping");
   touched_.clear();
+  direct_ = kit::DirectReads<WsSession>{};
+  sweep_timer_.reset();
 }
 
-std::string WebSocketRequestManager::refusal_reason() const {
-  if (sessions_.size() < options_.tcp.max_connections) return {};
-  return "too many connections (" + std::string(options_.tcp.connections_key) + " " +
-         std::to_string(options_.tcp.max_connections) + ")";
+std::string WebSocketRequestManager::refusal_reason(const tcp::endpoint& peer) {
+  const auto& tcp = options_.tcp;
+  if (sessions_.size() >= tcp.max_connections &&
+      (tcp.idle_evict.count() <= 0 ||
+       !kit::make_room(sessions_, kit::sweep_ticks(tcp.idle_evict), name(), tcp.max_connections)))
+    return "too many connections (" + std::string(tcp.connections_key) + " " + std::to_string(tcp.max_connections) +
+           ")";
+  return per_peer_.refusal_reason(peer.address());
+}
+
+void WebSocketRequestManager::schedule_sweep() {
+  if (sweeping_) return;
+  if (!sweep_timer_) sweep_timer_.emplace(io_);
+  sweeping_ = true;
+  sweep_timer_->expires_after(kit::k_connection_sweep);
+  sweep_timer_->async_wait([this](const boost::system::error_code& ec) {
+    sweeping_ = false;
+    if (ec) return;  // the server stops
+    sweep();
+  });
+}
+
+void WebSocketRequestManager::sweep() {
+  ++tick_;
+  const auto timeout = options_.tcp.idle_timeout;
+  if (timeout.count() > 0) {
+    // closed after the walk: a close changes sessions_
+    const std::uint32_t limit = kit::sweep_ticks(timeout);
+    std::vector<std::shared_ptr<WsSession>> idle;
+    for (const auto& s : sessions_)
+      if (s->idle_ticks() >= limit) idle.push_back(s);
+    if (!idle.empty()) {
+      const std::string why = "idle for " + std::to_string(timeout.count() / 1000.0) + " s (idle_timeout_s)";
+      // one warning per sweep, each connection at debug level (a flood logs little)
+      log::warning(name(), ": closed ", idle.size(), idle.size() == 1 ? " connection: " : " connections: ", why,
+                   idle.size() == 1 ? " (" + idle.front()->label() + ")" : std::string());
+      for (const auto& s : idle) s->close_with(boost::beast::websocket::close_code::going_away, why);
+    }
+  }
+  // keep-alive pings, and the end of clients silent too long
+  std::vector<std::shared_ptr<WsSession>> all(sessions_.begin(), sessions_.end());
+  for (const auto& s : all) s->keep_alive(tick_);
+  if (!sessions_.empty()) schedule_sweep();
+}
+
+bool WebSocketRequestManager::watch(WsSession& session) {
+  // only while the I/O thread polls (never with io_spin_us 0), for a client sending alone:
+  // others are served by the event loop between direct reads
+  if (options_.tcp.io_spin.count() <= 0 || !read_split_.alone(&session)) return false;
+  direct_.watch(session.shared());
+  return true;
 }
 
 void WebSocketRequestManager::accept(tcp::socket socket) {
@@ -116,7 +170,9 @@ void WebSocketRequestManager::accept(tcp::socket socket) {
   // a peer that must present the token (the "auth" option) calls rpc.login first
   if (options_.tcp.auth.required_for(session->peer())) session->require_login();
   sessions_.insert(session);
+  per_peer_.add(session->peer());
   count_.store(sessions_.size(), std::memory_order_relaxed);
+  schedule_sweep();
   log::debug(name(), ": ", session->label(), " connected");
   session->start();
 }
@@ -180,8 +236,33 @@ std::string WebSocketRequestManager::on_http_request(const http::request<http::s
   return out.str();
 }
 
+std::string WebSocketRequestManager::refuse_upgrade(const http::request<http::string_body>& request) {
+  std::optional<std::string_view> origin;
+  if (auto it = request.find(http::field::origin); it != request.end()) origin = std::string_view(it->value().data(), it->value().size());
+  if (origins_.allows(origin)) return {};
+  // a page of another site must not drive the simulation (cross-site WebSocket hijacking)
+  const std::string shown = std::string(origin->substr(0, 200));
+  log::warning(name(), ": WebSocket upgrade from a page of origin '", shown, "' refused (allowed_origins: ",
+               origins_.describe(), ")");
+  http::response<http::string_body> response{http::status::forbidden, request.version()};
+  response.set(http::field::server, "simgate websocket transport");
+  response.set(http::field::content_type, "text/plain; charset=utf-8");
+  response.keep_alive(false);
+  response.body() = "simgate websocket transport: WebSocket connections from pages of origin '" + shown +
+                    "' are not allowed (allowed: " + origins_.describe() +
+                    "; the transport's option allowed_origins, docs/security.md)\n";
+  response.prepare_payload();
+  std::ostringstream out;
+  out << response;
+  return out.str();
+}
+
 void WebSocketRequestManager::on_closed(WsSession& session) {
-  if (sessions_.erase(session.shared()) > 0) count_.store(sessions_.size(), std::memory_order_relaxed);
+  direct_.forget(session);
+  if (sessions_.erase(session.shared()) > 0) {
+    per_peer_.remove(session.peer());
+    count_.store(sessions_.size(), std::memory_order_relaxed);
+  }
   session_closed(session);
 }
 
@@ -194,5 +275,6 @@ void WebSocketRequestManager::touch(WsSession& session) {
 
 SIMGATE_TRANSPORT_PLUGIN(websocket, simgate::websocket::WebSocketRequestManager, "0.1.0", "host", "port",
                          "max_message_bytes", "max_depth", "max_in_flight", "max_unsent_bytes",
-                         "max_connections", "io_spin_us", "on_disconnect", "global_policy", "auth",
-                         "progress_interval_ms", "stream_queue", "web", "web_root")
+                         "max_connections", "max_connections_per_peer", "idle_timeout_s", "idle_evict_s",
+                         "io_spin_us", "on_disconnect", "global_policy", "auth", "progress_interval_ms",
+                         "stream_queue", "web", "web_root", "allowed_origins")

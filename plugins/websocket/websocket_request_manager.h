@@ -15,9 +15,15 @@
 // thread; stop() closes every connection, joins the thread and finishes what is still
 // pending with Failure::shutdown. stop() is idempotent and the destructor calls it.
 //
+// Connections held without use are treated as by the TCP transports
+// (kit/connection_rules.h): idle_timeout_s closes one idle that long, idle_evict_s lets a
+// newcomer take the place of the one idle longest at max_connections, and
+// max_connections_per_peer bounds the connections of one non-loopback address.
+//
 // Threads: one I/O thread runs the io_context (accept, handshake, read, parse, hand over,
 // write), polling a little before it sleeps while events come close together (io_spin_us,
-// simgate/kit/idle_spin.h). The calls of one message go to the core together, run on this
+// simgate/kit/idle_spin.h); while it polls, it reads the socket of a client sending alone
+// itself (DirectReads), as the TCP transport does. The calls of one message go to the core together, run on this
 // thread when the simulation lock is free; sessions and pending calls are touched by the
 // I/O thread only.
 #ifndef SIMGATE_PLUGINS_WEBSOCKET_WEBSOCKET_REQUEST_MANAGER_H_
@@ -34,6 +40,10 @@
 #include <boost/asio/ip/tcp.hpp>
 
 #include "jsonrpc_engine.h"
+#include "origin_policy.h"
+#include "simgate/kit/connection_rules.h"
+#include "simgate/kit/idle_spin.h"
+#include "simgate/kit/read_split.h"
 #include "simgate/kit/tcp_server.h"
 #include "static_files.h"
 #include "websocket_session.h"
@@ -60,10 +70,12 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine<WsSession>, privat
   std::uint16_t port() const { return listener_.port(); }
 
  private:
-  // The options: JSON-RPC's (jsonrpc::Options) and the web app's (WebOptions).
+  // The options: JSON-RPC's (jsonrpc::Options), the web app's (WebOptions) and the pages
+  // allowed to connect (OriginPolicy).
   struct Settings {
     jsonrpc::Options rpc;
     WebOptions web;
+    OriginPolicy origins;
     static Settings parse(const json& options);
   };
   explicit WebSocketRequestManager(Settings settings);
@@ -78,22 +90,38 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine<WsSession>, privat
   void on_refused_message(WsSession& session, std::size_t bytes, bool binary) override;
   void on_read_done(WsSession& session) override;
   std::string on_http_request(const boost::beast::http::request<boost::beast::http::string_body>& request) override;
+  std::string refuse_upgrade(const boost::beast::http::request<boost::beast::http::string_body>& request) override;
   void on_closed(WsSession& session) override;
   void touch(WsSession& session) override;
+  std::uint32_t tick() const override { return tick_; }
+  bool watch(WsSession& session) override;
 
-  // A new connection (refusal_reason keeps the count under max_connections).
+  // A new connection (refusal_reason keeps the count under max_connections and
+  // max_connections_per_peer).
   void accept(boost::asio::ip::tcp::socket socket);
-  std::string refusal_reason() const;
+  // Why a connection from `peer` is refused, or "": at max_connections, after the session
+  // idle (or silent) longest was closed to make room when idle_evict_s allows it
+  // (kit/connection_rules.h, as the TCP transports); or its address at its per-peer limit.
+  std::string refusal_reason(const boost::asio::ip::tcp::endpoint& peer);
+  // Every k_connection_sweep while sessions are open: the clock of idle_ticks, idle_timeout_s.
+  void schedule_sweep();
+  void sweep();
   void shutdown_io();
 
   kit::TcpListener listener_;                             // the listening socket, bound in the constructor
   kit::IoThread io_thread_;                               // runs io_
-  kit::NoDirectReads no_direct_reads_;                    // the I/O thread reads through the event loop only
+  kit::ReadSplit read_split_;                             // tells a lone client (I/O thread)
+  kit::DirectReads<WsSession> direct_;                    // the lone client read without the event loop (I/O thread)
   std::uint64_t next_session_ = 1;                        // numbers connections in logs (I/O thread)
   std::unordered_set<std::shared_ptr<WsSession>> sessions_;  // open connections (I/O thread)
   std::atomic<std::size_t> count_{0};                     // sessions_.size(), for any thread
   std::vector<std::shared_ptr<WsSession>> touched_;       // messages queued, not yet written (I/O thread)
+  kit::PeerCounts per_peer_;                              // max_connections_per_peer (I/O thread)
+  std::uint32_t tick_ = 0;                                // sweeps so far (I/O thread)
+  std::optional<boost::asio::steady_timer> sweep_timer_;  // while sessions are open
+  bool sweeping_ = false;                                 // a sweep is scheduled
   std::optional<StaticFiles> web_;                        // the web app's files (none: `web` false)
+  OriginPolicy origins_;                                  // allowed_origins, bound to the port
 };
 
 }  // namespace simgate::websocket

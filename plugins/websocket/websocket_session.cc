@@ -1,11 +1,15 @@
 #include "websocket_session.h"
 
-#include <boost/beast/core/buffers_to_string.hpp>
+#include <algorithm>
+#include <cstring>
+
+#include <boost/asio/write.hpp>
 #include <boost/beast/http/read.hpp>
 #include <boost/beast/http/write.hpp>
 #include <boost/beast/websocket/rfc6455.hpp>
 
 #include "simgate/core/log.h"
+#include "simgate/kit/connection_rules.h"
 #include "simgate/kit/tcp_server.h"
 
 namespace simgate::websocket {
@@ -18,26 +22,30 @@ using asio::ip::tcp;
 using boost::system::error_code;
 
 WsSession::WsSession(tcp::socket socket, WsHost& host, WsLimits limits, std::string_view who, std::uint64_t number)
-    : ws_(std::move(socket)), host_(host), limits_(limits), who_(who), handshake_timer_(ws_.get_executor()) {
+    : socket_(std::move(socket)), host_(host), limits_(limits), who_(who), timer_(socket_.get_executor()) {
+  active();
+  heard_tick_ = active_tick_;
   label_ = "client #" + std::to_string(number);
   error_code ec;
-  const tcp::endpoint peer = ws_.next_layer().remote_endpoint(ec);
+  const tcp::endpoint peer = socket_.remote_endpoint(ec);
   if (!ec) {
     label_ += " (" + kit::to_string(peer) + ")";
     peer_ = peer.address();
   }
 }
 
+// ---- the HTTP request and the upgrade (Beast)
+
 void WsSession::start() {
   // the HTTP request first: an upgrade becomes the WebSocket, anything else gets the host's answer
   parser_.emplace();
   parser_->header_limit(k_max_request_bytes);
   parser_->body_limit(k_max_request_bytes);
-  handshake_timer_.expires_after(k_handshake_timeout);
-  handshake_timer_.async_wait([self = shared()](const error_code& ec) {
+  timer_.expires_after(k_handshake_timeout);
+  timer_.async_wait([self = shared()](const error_code& ec) {
     if (!ec && !self->upgraded_) self->abort("no WebSocket handshake within the handshake timeout");
   });
-  http::async_read(ws_.next_layer(), buffer_, *parser_,
+  http::async_read(socket_, http_buffer_, *parser_,
                    [self = shared()](const error_code& ec, std::size_t) { self->on_request(ec); });
 }
 
@@ -47,129 +55,372 @@ void WsSession::on_request(const error_code& ec) {
     abort("bad HTTP request: " + ec.message());
     return;
   }
-  if (!ws::is_upgrade(parser_->get())) {
-    // plain HTTP: the host's answer, then the connection closes
-    http_response_ = host_.on_http_request(parser_->get());
+  const bool upgrade = ws::is_upgrade(parser_->get());
+  if (upgrade) http_response_ = host_.refuse_upgrade(parser_->get());
+  if (!upgrade || !http_response_.empty()) {
+    // plain HTTP, or a refused upgrade: the host's answer, then the connection closes
+    if (!upgrade) http_response_ = host_.on_http_request(parser_->get());
     parser_.reset();
-    asio::async_write(ws_.next_layer(), asio::buffer(http_response_),
+    asio::async_write(socket_, asio::buffer(http_response_),
                       [self = shared()](const error_code&, std::size_t) { self->abort("HTTP request answered"); });
     return;
   }
-  // the WebSocket: Beast's timeouts (handshake, idle pings) from now on
-  ws_.set_option(ws::stream_base::timeout::suggested(beast::role_type::server));
-  ws_.set_option(ws::stream_base::decorator([](ws::response_type& response) {
+  // Beast checks the upgrade and answers it (101, or 400 with the reason); the frames are ours
+  upgrade_.emplace(std::move(socket_));
+  upgrade_->set_option(ws::stream_base::decorator([](ws::response_type& response) {
     response.set(http::field::server, "simgate websocket transport");
   }));
-  // the limit is ours (the rest of an oversized message is skipped, the connection stays)
-  ws_.read_message_max(0);
-  ws_.auto_fragment(false);
   auto request = parser_->release();
   parser_.reset();
-  ws_.async_accept(request, [self = shared()](const error_code& ec) {
-    if (self->closed_) return;
-    if (ec) {
-      self->abort("WebSocket handshake failed: " + ec.message());
-      return;
-    }
-    self->upgraded_ = true;
-    self->handshake_timer_.cancel();
-    self->buffer_.clear();
-    self->read_more();
-    self->flush_writes();
-  });
+  // bytes the client sent after its request (its first frames) are the first to parse
+  in_.resize(k_read_bytes);
+  const auto early = http_buffer_.cdata();
+  if (early.size() > 0) {
+    in_end_ = std::min(early.size(), in_.size());
+    std::memcpy(in_.data(), early.data(), in_end_);
+  }
+  http_buffer_ = beast::flat_buffer();
+  upgrade_->async_accept(request, [self = shared()](const error_code& ec) { self->on_upgraded(ec); });
 }
+
+void WsSession::on_upgraded(const error_code& ec) {
+  socket_ = std::move(upgrade_->next_layer());
+  upgrade_.reset();
+  if (closed_) {
+    abort("closed");
+    return;
+  }
+  if (ec) {
+    abort("WebSocket handshake failed: " + ec.message());
+    return;
+  }
+  upgraded_ = true;
+  timer_.cancel();
+  error_code ignored;
+  socket_.non_blocking(true, ignored);  // direct reads and writes (read_now, start_write)
+  active();
+  heard_tick_ = active_tick_;
+  if (in_end_ > 0) handle_read({}, 0);  // frames that came with the request
+  read_more();
+  flush_writes();
+}
+
+// ---- reading
 
 void WsSession::read_more() {
-  if (reading_ || closed_ || !upgraded_ || unsent_ > limits_.pause_at_unsent_bytes) return;
-  reading_ = true;
-  ws_.async_read_some(buffer_, k_read_bytes,
-                      [self = shared()](const error_code& ec, std::size_t n) { self->on_read(ec, n); });
+  if (reading_ || handling_ || aborted_ || !upgraded_ || paused()) return;
+  if (!closed_ && host_.watch(*this)) return;  // the polling thread reads it (read_now)
+  read_async();
 }
 
-void WsSession::on_read(const error_code& ec, std::size_t /*n*/) {
+void WsSession::read_async() {
+  if (reading_ || handling_ || aborted_ || !upgraded_ || paused()) return;
+  if (in_begin_ > 0) {  // what is left unparsed (a header's start) goes to the front
+    std::memmove(in_.data(), in_.data() + in_begin_, in_end_ - in_begin_);
+    in_end_ -= in_begin_;
+    in_begin_ = 0;
+  }
+  reading_ = true;
+  socket_.async_read_some(asio::buffer(in_.data() + in_end_, in_.size() - in_end_),
+                          [self = shared()](const error_code& ec, std::size_t n) { self->on_read(ec, n); });
+}
+
+bool WsSession::read_now() {
+  if (reading_ || handling_ || aborted_ || !upgraded_ || paused()) return false;
+  if (in_begin_ > 0) {
+    std::memmove(in_.data(), in_.data() + in_begin_, in_end_ - in_begin_);
+    in_end_ -= in_begin_;
+    in_begin_ = 0;
+  }
+  error_code ec;
+  const std::size_t n = socket_.read_some(asio::buffer(in_.data() + in_end_, in_.size() - in_end_), ec);
+  if (ec == asio::error::would_block || ec == asio::error::try_again) return false;
+  on_read(ec, n);
+  return true;
+}
+
+void WsSession::on_read(const error_code& ec, std::size_t n) {
   reading_ = false;
-  if (closed_) return;
-  if (ec) {
-    // the close handshake (Beast answered it), the peer gone, or a protocol error
-    abort(ec == ws::error::closed ? "client closed the WebSocket" : "read failed: " + ec.message());
-    return;
-  }
-  try {
-    if (skipped_ > 0 || buffer_.size() > limits_.max_message_bytes) {
-      // an oversized message: skipped to its end, answered once
-      skipped_ += buffer_.size();
-      buffer_.clear();
-    }
-    if (ws_.is_message_done()) {
-      if (skipped_ > 0) {
-        host_.on_refused_message(*this, skipped_, false);
-      } else if (ws_.got_binary()) {
-        host_.on_refused_message(*this, buffer_.size(), true);
-      } else {
-        const auto data = buffer_.cdata();
-        host_.on_message(*this, std::string_view(static_cast<const char*>(data.data()), data.size()));
-      }
-      skipped_ = 0;
-      buffer_.clear();
-      if (buffer_.capacity() > k_read_bytes * 4) buffer_ = beast::flat_buffer();  // keep no large buffer
-      host_.on_read_done(*this);
-    }
-  } catch (const std::exception& e) {
-    log::error(who_, ": ", label_, ": ", e.what(), "; connection closed");
-    abort("handler failed");
-    return;
-  }
+  handle_read(ec, n);
   read_more();
 }
 
-void WsSession::queue_owned(std::string text) {
+void WsSession::handle_read(const error_code& ec, std::size_t n) {
+  if (aborted_) return;
+  if (ec) {
+    abort(ec == asio::error::eof ? "client left" : "read failed: " + ec.message());
+    return;
+  }
+  in_end_ += n;
+  heard_tick_ = host_.tick();
+  pinged_ = false;
+  active();
+  delivered_ = false;
+  handling_ = true;  // no read starts before these frames are parsed (they are in in_)
+  try {
+    if (consume() && delivered_) host_.on_read_done(*this);
+  } catch (const std::exception& e) {
+    log::error(who_, ": ", label_, ": ", e.what(), "; connection closed");
+    abort("handler failed");
+  }
+  handling_ = false;
+}
+
+bool WsSession::consume() {
+  while (!aborted_) {
+    const std::size_t avail = in_end_ - in_begin_;
+    if (!in_frame_) {
+      // a frame's header: 2 bytes, the extended length (0, 2 or 8), the masking key (4)
+      if (avail < 2) break;
+      const auto* h = reinterpret_cast<const unsigned char*>(in_.data() + in_begin_);
+      const bool fin = h[0] & 0x80;
+      const std::uint8_t opcode = h[0] & 0x0F;
+      const std::uint8_t length7 = h[1] & 0x7F;
+      if (h[0] & 0x70) return protocol_error("reserved bits set (no extension was agreed)"), false;
+      if (!(h[1] & 0x80)) return protocol_error("an unmasked frame (a client masks every frame)"), false;
+      const std::size_t header = 2 + (length7 == 126 ? 2 : length7 == 127 ? 8 : 0) + 4;
+      if (avail < header) break;
+      std::uint64_t length = length7;
+      if (length7 == 126) {
+        length = (std::uint64_t{h[2]} << 8) | h[3];
+      } else if (length7 == 127) {
+        length = 0;
+        for (int i = 0; i < 8; ++i) length = (length << 8) | h[2 + i];
+        if (length >> 63) return protocol_error("a frame length over 2^63"), false;
+      }
+      const unsigned char* key = h + header - 4;
+      if (opcode >= 0x8) {
+        // a control frame: whole, at most 125 bytes, handled as soon as it is all here
+        if (!fin || length > 125) return protocol_error("a fragmented or long control frame"), false;
+        if (opcode != k_close && opcode != k_ping && opcode != k_pong)
+          return protocol_error("a reserved opcode"), false;
+        if (avail < header + length) break;
+        char payload[125];
+        const char* data = in_.data() + in_begin_ + header;
+        for (std::size_t i = 0; i < length; ++i) payload[i] = static_cast<char>(data[i] ^ key[i & 3]);
+        in_begin_ += header + length;
+        on_control(opcode, std::string_view(payload, length));
+        continue;
+      }
+      if (opcode > k_binary) return protocol_error("a reserved opcode"), false;
+      if (opcode == k_continuation && !in_message_) return protocol_error("a continuation frame with no message"), false;
+      if (opcode != k_continuation && in_message_) return protocol_error("a new message inside a fragmented one"), false;
+      if (opcode != k_continuation) {
+        in_message_ = true;
+        message_binary_ = opcode == k_binary;
+        message_bytes_ = 0;
+        skipping_ = false;
+        message_.clear();
+      }
+      std::memcpy(mask_, key, 4);
+      mask_at_ = 0;
+      frame_fin_ = fin;
+      frame_left_ = length;
+      in_frame_ = true;
+      in_begin_ += header;
+    }
+    // a data frame's payload, as much as is here
+    const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(frame_left_, in_end_ - in_begin_));
+    message_bytes_ += n;
+    if (!skipping_ && message_bytes_ > limits_.max_message_bytes) {
+      // too long: skipped to its end (answered then), never buffered
+      skipping_ = true;
+      message_.clear();
+      if (message_.capacity() > k_read_bytes * 4) std::string().swap(message_);
+    }
+    if (!skipping_ && !message_binary_ && !closed_) {
+      const std::size_t at = message_.size();
+      message_.resize(at + n);
+      const char* data = in_.data() + in_begin_;
+      char* out = message_.data() + at;
+      for (std::size_t i = 0; i < n; ++i) out[i] = static_cast<char>(data[i] ^ mask_[(mask_at_ + i) & 3]);
+    }
+    mask_at_ += n;
+    in_begin_ += n;
+    frame_left_ -= n;
+    if (frame_left_ > 0) break;  // the rest comes with the next read
+    in_frame_ = false;
+    if (frame_fin_) end_message();
+  }
+  if (in_begin_ == in_end_) in_begin_ = in_end_ = 0;
+  return !aborted_;
+}
+
+void WsSession::end_message() {
+  in_message_ = false;
+  if (closed_) return;  // closing: the client's last messages are not served
+  delivered_ = true;
+  if (skipping_)
+    host_.on_refused_message(*this, message_bytes_, false);
+  else if (message_binary_)
+    host_.on_refused_message(*this, message_bytes_, true);
+  else
+    host_.on_message(*this, message_);
+  skipping_ = false;
+  message_.clear();
+  if (message_.capacity() > k_read_bytes * 4) std::string().swap(message_);  // keep no large buffer
+}
+
+void WsSession::on_control(std::uint8_t opcode, std::string_view payload) {
+  if (opcode == k_ping) {
+    if (!close_queued_) {
+      append_frame(k_pong, payload);
+      if (!touched) host_.touch(*this);
+    }
+    return;
+  }
+  if (opcode == k_pong) return;  // the answer to a keep-alive ping (heard_tick_ is set)
+  // a close frame: the handshake's end when we began it, else answered with its code
+  if (payload.size() == 1) {
+    protocol_error("a close frame of one byte");
+    return;
+  }
+  client_closed_ = true;
+  if (close_sent_) {
+    abort("closed");
+    return;
+  }
+  if (!closed_) {
+    log::debug(who_, ": ", label_, " closed: client closed the WebSocket");
+    closed_ = true;
+    host_.on_closed(*this);
+  }
+  if (!close_queued_) {
+    close_queued_ = true;
+    append_frame(k_close, payload.substr(0, std::min<std::size_t>(payload.size(), 2)));
+  }
+  flush_writes();
+}
+
+void WsSession::protocol_error(std::string_view reason) {
+  log::debug(who_, ": ", label_, ": WebSocket protocol error: ", reason);
+  if (close_queued_) {
+    abort(reason);
+    return;
+  }
+  close_with(ws::close_code::protocol_error, reason);
+}
+
+void WsSession::keep_alive(std::uint32_t tick) {
+  if (!upgraded_ || aborted_) return;
+  const std::uint32_t silent = tick - heard_tick_;
+  if (silent >= kit::sweep_ticks(k_silence_limit)) {
+    log::debug(who_, ": ", label_, " sent nothing for ", k_silence_limit.count(), " s and answered no ping");
+    abort("the client went silent");
+    return;
+  }
+  if (!pinged_ && !close_queued_ && silent >= kit::sweep_ticks(k_ping_after)) {
+    pinged_ = true;
+    append_frame(k_ping, {});
+    flush_writes();
+  }
+}
+
+// ---- writing
+
+void WsSession::append_frame(std::uint8_t opcode, std::string_view payload) {
+  char header[10];
+  std::size_t size = 2;
+  header[0] = static_cast<char>(0x80 | opcode);
+  const std::uint64_t n = payload.size();
+  if (n < 126) {
+    header[1] = static_cast<char>(n);
+  } else if (n <= 0xFFFF) {
+    header[1] = 126;
+    header[2] = static_cast<char>(n >> 8);
+    header[3] = static_cast<char>(n);
+    size = 4;
+  } else {
+    header[1] = 127;
+    for (int i = 0; i < 8; ++i) header[2 + i] = static_cast<char>(n >> (56 - 8 * i));
+    size = 10;
+  }
+  outbox_.append(header, size);
+  outbox_.append(payload);
+}
+
+void WsSession::queue_message(std::string_view text) {
   if (closed_) return;
-  if (unsent_ > limits_.max_unsent_bytes) {
-    log::warning(who_, ": ", label_, " does not read its replies (", unsent_, " bytes unsent, max_unsent_bytes ",
+  if (unsent() > limits_.max_unsent_bytes) {
+    log::warning(who_, ": ", label_, " does not read its replies (", unsent(), " bytes unsent, max_unsent_bytes ",
                  limits_.max_unsent_bytes, "); connection closed");
     abort("client does not read");
     return;
   }
-  unsent_ += text.size();
-  outbox_.push_back(std::move(text));
-  if (!touched) host_.touch(*this);
+  append_frame(k_text, text);
+  if (outbox_.size() >= k_coalesce_bytes)
+    flush_writes();  // a large burst goes out as it grows
+  else if (!touched)
+    host_.touch(*this);
 }
 
 void WsSession::flush_writes() {
-  if (writing_ || outbox_.empty() || !upgraded_ || ws_.next_layer().is_open() == false) return;
+  if (writing_ || outbox_.empty() || !upgraded_ || aborted_) return;
   start_write();
 }
 
 void WsSession::start_write() {
-  writing_ = true;
-  ws_.text(true);
-  ws_.async_write(asio::buffer(outbox_.front()), [self = shared()](const error_code& ec, std::size_t) {
-    self->on_write(ec);
-  });
-}
-
-void WsSession::on_write(const error_code& ec) {
-  writing_ = false;
-  if (ec || !ws_.next_layer().is_open()) {
-    // the buffer written is let go only now that no operation reads it
-    outbox_.clear();
-    unsent_ = 0;
-    if (ec) abort("write failed: " + ec.message());
+  sending_.swap(outbox_);
+  outbox_.clear();
+  sent_ = 0;
+  // straight to the socket while it takes everything (the usual case: a reply)
+  error_code ec;
+  while (sent_ < sending_.size()) {
+    const std::size_t n = socket_.write_some(asio::buffer(sending_.data() + sent_, sending_.size() - sent_), ec);
+    if (ec) break;
+    sent_ += n;
+  }
+  if (ec == asio::error::would_block || ec == asio::error::try_again) {
+    // the rest when the client reads
+    writing_ = true;
+    asio::async_write(socket_, asio::buffer(sending_.data() + sent_, sending_.size() - sent_),
+                      [self = shared()](const error_code& ec, std::size_t n) {
+                        self->writing_ = false;
+                        self->sent_ += n;
+                        if (ec) {
+                          self->abort("write failed: " + ec.message());
+                          return;
+                        }
+                        self->after_write();
+                      });
     return;
   }
-  unsent_ -= outbox_.front().size();
-  outbox_.pop_front();
+  if (ec) {
+    abort("write failed: " + ec.message());
+    return;
+  }
+  after_write();
+}
+
+void WsSession::after_write() {
+  if (aborted_) return;
+  active();
+  if (sending_.capacity() > k_coalesce_bytes * 4) std::string().swap(sending_);  // keep no large buffer
+  sending_.clear();
+  sent_ = 0;
   if (!outbox_.empty()) {
     start_write();
     return;
   }
-  if (close_after_writes_) {
-    auto [code, reason] = std::move(*close_after_writes_);
-    close_after_writes_.reset();
-    ws_.async_close(ws::close_reason(code, reason), [self = shared()](const error_code&) { self->abort("closed"); });
+  if (close_queued_ && !close_sent_) {
+    after_close_sent();
     return;
   }
   read_more();  // reading paused on unsent replies resumes
+}
+
+void WsSession::after_close_sent() {
+  close_sent_ = true;
+  if (client_closed_) {
+    abort("closed");
+    return;
+  }
+  // the client answers with its close frame (read_more ignores its messages meanwhile)
+  timer_.expires_after(k_close_timeout);
+  timer_.async_wait([self = shared()](const error_code& ec) {
+    if (!ec) self->abort("no close frame from the client within the close timeout");
+  });
+  read_more();
 }
 
 void WsSession::close_with(ws::close_code code, std::string_view reason) {
@@ -181,14 +432,15 @@ void WsSession::close_with(ws::close_code code, std::string_view reason) {
     abort(reason);
     return;
   }
-  // a close frame's reason holds at most 123 bytes
-  std::string text(reason.substr(0, 123));
-  if (writing_ || !outbox_.empty()) {
-    close_after_writes_.emplace(code, std::move(text));
-    if (!writing_) start_write();
-    return;
-  }
-  ws_.async_close(ws::close_reason(code, text), [self = shared()](const error_code&) { self->abort("closed"); });
+  // after the messages queued: the close frame, its code and (at most 123 bytes of) reason
+  std::string payload;
+  const auto value = static_cast<std::uint16_t>(code);
+  payload.push_back(static_cast<char>(value >> 8));
+  payload.push_back(static_cast<char>(value & 0xFF));
+  payload.append(reason.substr(0, 123));
+  close_queued_ = true;
+  append_frame(k_close, payload);
+  flush_writes();
 }
 
 void WsSession::abort(std::string_view reason) {
@@ -197,17 +449,20 @@ void WsSession::abort(std::string_view reason) {
     closed_ = true;
     host_.on_closed(*this);
   }
-  handshake_timer_.cancel();
+  aborted_ = true;
+  timer_.cancel();
   error_code ignored;
-  auto& socket = ws_.next_layer();
-  if (socket.is_open()) {
-    socket.shutdown(tcp::socket::shutdown_both, ignored);
-    socket.close(ignored);
+  if (upgrade_) {
+    upgrade_->next_layer().close(ignored);
+  } else if (socket_.is_open()) {
+    socket_.shutdown(tcp::socket::shutdown_both, ignored);
+    socket_.close(ignored);
   }
-  // a write in flight still reads the front message: on_write lets it go
+  // a write in flight still reads sending_: its completion lets it go
+  outbox_.clear();
   if (!writing_) {
-    outbox_.clear();
-    unsent_ = 0;
+    std::string().swap(sending_);
+    sent_ = 0;
   }
 }
 

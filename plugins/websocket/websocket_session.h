@@ -1,22 +1,37 @@
 // websocket_session.h — one client connection of the websocket transport: an HTTP request,
-// upgraded to a WebSocket (Boost.Beast), that carries one JSON-RPC message per text message.
+// upgraded to a WebSocket, that carries one JSON-RPC message per text message.
 //
-// What it does, so that the JSON-RPC engine (plugins/jsonrpc/jsonrpc_engine.h) sees the same
-// session as over TCP:
+// Boost.Beast reads the HTTP request and answers the upgrade (or the host answers a plain
+// request); from then on the session frames RFC 6455 itself on the plain socket, so that
+// the transport's I/O thread can read a lone client's socket directly while it polls, as
+// the TCP transport does (simgate/kit/idle_spin.h), and write straight to it:
 //   - Handshake: reads one HTTP request (header and body within k_max_request_bytes, within
-//     k_handshake_timeout); a WebSocket upgrade is accepted, anything else answered by the
-//     host (WsHost::on_http_request: 404 for now, a web app later) and closed.
-//   - Reading: one async read at a time, a message assembled from its pieces; a message
-//     longer than max_message_bytes is skipped to its end (the host answers it) and the
-//     connection keeps working; binary messages are handed to the host as such. Reading
-//     pauses while more than pause_at_unsent_bytes of replies wait unsent.
-//   - Writing: queue_message() appends a text message to the outbox; flush_writes() (the
-//     host calls it once per burst) writes them, one write in flight, the rest behind it.
+//     k_handshake_timeout); an upgrade the host accepts (WsHost::refuse_upgrade: the Origin)
+//     is answered 101 by Beast; anything else is answered by the host
+//     (WsHost::on_http_request: the web app's files, or 404) and closed.
+//   - Reading: client frames must be masked (else close 1002); text and binary messages,
+//     fragmented or not, with pings, pongs and close frames between fragments. A message
+//     longer than max_message_bytes is skipped to its end as it arrives (never buffered;
+//     the host answers it) and the connection keeps working; binary messages are handed to
+//     the host as such. Reserved bits, opcodes, a continuation out of place, a control frame
+//     fragmented or over 125 bytes: close 1002. Reading pauses while more than
+//     pause_at_unsent_bytes of replies wait unsent. Text is not checked for UTF-8 here: the
+//     JSON parser refuses what is not (-32700).
+//   - Direct reads (idle_spin.h): when the host watches the session (a lone client while
+//     the I/O thread polls) no async read is started; the polling thread calls read_now()
+//     until it parks the session (read_async()).
+//   - Writing: queue_message() frames a text message into the outbox; flush_writes() (the
+//     host calls it once per burst) writes the outbox straight to the non-blocking socket
+//     while it takes it, through one async write otherwise; messages queued meanwhile go in
+//     the next write (coalesced). A ping is answered by a pong with its payload.
 //   - A client that does not read: a reply that finds more than max_unsent_bytes waiting
 //     closes the connection; droppable messages (progress, samples) are dropped once more
 //     than kit::LineConnection::k_droppable_unsent_bytes wait (the TCP transports' limits).
-//   - Ping/pong and the close handshake: Beast (stream_base::timeout::suggested(server):
-//     a silent peer that answers no ping for 300 s is dropped).
+//   - Keep-alive (keep_alive(), from the host's sweep): a client silent for k_ping_after is
+//     sent a ping; silent for k_silence_limit, it is dropped (Beast's server defaults).
+//   - Close handshake: the client's close frame is answered with its code, then the socket
+//     closes; close() sends one (after the messages queued), reads on (ignoring messages)
+//     until the client's close frame or end of input, within k_close_timeout.
 //
 // Life cycle: created on accept, start()ed, kept alive by its pending handlers
 // (shared_from_this) and by the host's set; close() (a close frame with a reason) or
@@ -28,12 +43,12 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
-#include <deque>
 #include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
 #include <utility>  // before Asio: Boost 1.74 needs std::exchange in C++20 mode
+#include <vector>
 
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/beast/core/flat_buffer.hpp>
@@ -64,10 +79,18 @@ class WsHost {
   virtual void on_read_done(WsSession& session) = 0;
   // A plain HTTP request (not an upgrade): the response to send before closing.
   virtual std::string on_http_request(const boost::beast::http::request<boost::beast::http::string_body>& request) = 0;
+  // An upgrade request: "" to accept it, else the HTTP response refusing it (403: a page of
+  // another origin, origin_policy.h), sent before closing.
+  virtual std::string refuse_upgrade(const boost::beast::http::request<boost::beast::http::string_body>& request) = 0;
   // The connection closed (error, peer gone, limit, server stopping): forget it.
   virtual void on_closed(WsSession& session) = 0;
   // The session has messages queued: call its flush_writes() at the end of the burst.
   virtual void touch(WsSession& session) = 0;
+  // The session is about to wait for its next bytes: true when the host's polling thread
+  // will read its socket itself (read_now) until it parks it (read_async).
+  virtual bool watch(WsSession& session) = 0;
+  // Sweeps of the connections so far (kit/connection_rules.h): the sessions' clock.
+  virtual std::uint32_t tick() const = 0;
 };
 
 struct WsLimits {
@@ -88,28 +111,40 @@ class WsSession : public std::enable_shared_from_this<WsSession>, public jsonrpc
 
   // Reads the HTTP request, then messages.
   void start();
+  // Watched by the host: reads what is waiting, without waiting, and handles it as an async
+  // read's completion would; false when nothing was waiting.
+  bool read_now();
+  // No longer watched: waits for its next bytes through the event loop (an async read).
+  void read_async();
+  // The host's sweep, every k_connection_sweep (`tick` its clock): pings a silent client,
+  // drops one silent too long.
+  void keep_alive(std::uint32_t tick);
 
   // ---- the engine's session (jsonrpc_engine.h)
   // Queues one text message; a message that finds more than max_unsent_bytes waiting
   // closes the connection instead.
-  void queue_message(std::string_view text) { queue_owned(std::string(text)); }
+  void queue_message(std::string_view text);
   // Queues the message `format(std::string&)` builds, unless more than
   // k_droppable_unsent_bytes wait unsent (false: dropped).
   template <class Format>
   bool queue_droppable_message(Format&& format) {
-    if (closed_ || unsent_ > kit::LineConnection::k_droppable_unsent_bytes) return false;
+    if (closed_ || unsent() > kit::LineConnection::k_droppable_unsent_bytes) return false;
     std::string text;
     format(text);
-    queue_owned(std::move(text));
+    queue_message(text);
     return true;
   }
   // Writes what was queued, unless a write is in flight (it takes them next).
   void flush_writes();
   std::size_t in_flight() const { return in_flight_; }
-  void add_in_flight() { ++in_flight_; }
+  void add_in_flight() {
+    ++in_flight_;
+    active();
+  }
   void done(const std::string& key) {
     forget_id(key);
     if (in_flight_ > 0) --in_flight_;
+    active();
   }
   bool authenticated() const { return authenticated_; }
   void set_authenticated() { authenticated_ = true; }
@@ -125,9 +160,24 @@ class WsSession : public std::enable_shared_from_this<WsSession>, public jsonrpc
   void close_with(boost::beast::websocket::close_code code, std::string_view reason);
   // Closes the socket at once (the peer left, the server stops); idempotent.
   void abort(std::string_view reason);
+  bool aborted() const { return aborted_; }
 
   // For the host's touch list.
   bool touched = false;
+
+  // ---- resources held without use (kit/connection_rules.h, the host's sweep)
+  // Sweeps since it last read (a message, a ping, a pong), wrote or was owed a reply; 0
+  // while it owes one or has messages unsent (it is not idle then).
+  std::uint32_t idle_ticks() const {
+    if (in_flight_ > 0 || unsent() > 0) return 0;
+    return host_.tick() - active_tick_;
+  }
+  // The same even while it owes replies (a client waiting for calls that never end).
+  std::uint32_t silent_ticks() const {
+    if (unsent() > 0) return 0;
+    return host_.tick() - active_tick_;
+  }
+  std::size_t unanswered() const { return in_flight_; }
 
   // How long the HTTP request may take to arrive.
   static constexpr std::chrono::seconds k_handshake_timeout{30};
@@ -135,38 +185,87 @@ class WsSession : public std::enable_shared_from_this<WsSession>, public jsonrpc
   static constexpr std::uint32_t k_max_request_bytes = 16 * 1024;
   // The most one read takes.
   static constexpr std::size_t k_read_bytes = 64 * 1024;
+  // Messages queued in one burst past which they are written without waiting for its end.
+  static constexpr std::size_t k_coalesce_bytes = 256 * 1024;
+  // How long the client has to answer a close frame with its own.
+  static constexpr std::chrono::seconds k_close_timeout{5};
+  // A client that sent nothing (no message, ping or pong) for this long is pinged...
+  static constexpr std::chrono::seconds k_ping_after{150};
+  // ...and dropped after this long (Beast's suggested server timeouts).
+  static constexpr std::chrono::seconds k_silence_limit{300};
 
  private:
-  void queue_owned(std::string text);
+  // RFC 6455 opcodes
+  static constexpr std::uint8_t k_continuation = 0x0, k_text = 0x1, k_binary = 0x2, k_close = 0x8, k_ping = 0x9,
+                                k_pong = 0xA;
+
   void on_request(const boost::system::error_code& ec);
+  void on_upgraded(const boost::system::error_code& ec);
   void read_more();
   void on_read(const boost::system::error_code& ec, std::size_t n);
+  // on_read() without starting the next read: the frames, end of input or error.
+  void handle_read(const boost::system::error_code& ec, std::size_t n);
+  // Parses the frames in in_; false when the connection was closed for a protocol error.
+  bool consume();
+  void on_control(std::uint8_t opcode, std::string_view payload);
+  void end_message();
+  void protocol_error(std::string_view reason);
+  // Appends one unfragmented frame (unmasked: the server's) to the outbox.
+  void append_frame(std::uint8_t opcode, std::string_view payload);
   void start_write();
-  void on_write(const boost::system::error_code& ec);
+  void after_write();
+  // The close frame is out: waits for the client's, or closes at once when it sent it first.
+  void after_close_sent();
+  bool paused() const { return unsent() > limits_.pause_at_unsent_bytes && !close_sent_; }
+  std::size_t unsent() const { return outbox_.size() + sending_.size() - sent_; }
+  void active() { active_tick_ = host_.tick(); }
 
-  // on the plain socket: no per-operation timer bookkeeping on the hot path (the HTTP
-  // request's deadline is handshake_timer_, the WebSocket's Beast's own timeouts)
-  using Stream = boost::beast::websocket::stream<boost::asio::ip::tcp::socket>;
-  Stream ws_;                                   // the connection
+  boost::asio::ip::tcp::socket socket_;         // the connection (non-blocking once upgraded)
+  std::optional<boost::beast::websocket::stream<boost::asio::ip::tcp::socket>> upgrade_;  // Beast, for the upgrade only
   WsHost& host_;                                // the transport (outlives every session)
   WsLimits limits_;                             // from the transport options
   std::string who_;                             // the transport, for logs
   std::string label_;                           // the client, for logs
   boost::asio::ip::address peer_;               // the client's address
   bool authenticated_ = true;                   // may call services (the host decides at accept)
-  boost::beast::flat_buffer buffer_;            // the HTTP request, then the message being read
+  boost::beast::flat_buffer http_buffer_;       // the HTTP request
   std::optional<boost::beast::http::request_parser<boost::beast::http::string_body>> parser_;  // until the upgrade
   bool upgraded_ = false;                       // the WebSocket handshake is done
-  bool reading_ = false;                        // a read is in flight
-  std::size_t skipped_ = 0;                     // bytes of an oversized message skipped so far (0: none)
-  std::deque<std::string> outbox_;              // messages queued, the front one being written while writing_
-  std::size_t unsent_ = 0;                      // bytes of outbox_
-  bool writing_ = false;                        // a write is in flight
+
+  // reading
+  std::vector<char> in_;                        // bytes read (k_read_bytes)
+  std::size_t in_begin_ = 0, in_end_ = 0;       // the part of in_ not parsed yet
+  bool reading_ = false;                        // an async read is in flight
+  bool handling_ = false;                       // a read's frames are being handled (no new read)
+  bool in_frame_ = false;                       // a data frame's header was parsed, its payload comes
+  bool frame_fin_ = false;                      // that frame ends its message
+  std::uint64_t frame_left_ = 0;                // payload bytes of that frame still to come
+  std::uint8_t mask_[4] = {};                   // that frame's masking key
+  std::size_t mask_at_ = 0;                     // payload bytes of that frame unmasked so far
+  bool in_message_ = false;                     // a message began (its first frame was read)
+  bool message_binary_ = false;                 // that message is binary
+  std::string message_;                         // that message so far (text within max_message_bytes)
+  std::size_t message_bytes_ = 0;               // its length so far, skipped or binary included
+  bool skipping_ = false;                       // it is over max_message_bytes: skipped to its end
+  bool delivered_ = false;                      // a message was handed over during this read
+  std::uint32_t heard_tick_ = 0;                // the sweep of the client's last frame
+  bool pinged_ = false;                         // a keep-alive ping is unanswered
+
+  // writing
+  std::string outbox_;                          // frames waiting for the next write
+  std::string sending_;                         // frames being written...
+  std::size_t sent_ = 0;                        // ...of which this many are written
+  bool writing_ = false;                        // an async write is in flight
+
   std::size_t in_flight_ = 0;                   // calls, notifications and cancels not finished
-  bool closed_ = false;                         // close() or abort() was called
-  std::optional<std::pair<boost::beast::websocket::close_code, std::string>> close_after_writes_;  // close() waiting
+  bool closed_ = false;                         // close() or abort() was called (the host was told)
+  bool close_queued_ = false;                   // our close frame is in the outbox
+  bool close_sent_ = false;                     // ...and written
+  bool client_closed_ = false;                  // the client's close frame arrived
+  bool aborted_ = false;                        // the socket is closed
   std::string http_response_;                   // a plain HTTP request's answer, being written
-  boost::asio::steady_timer handshake_timer_;   // closes a connection whose HTTP request does not come
+  boost::asio::steady_timer timer_;             // the handshake's deadline, then the close's
+  std::uint32_t active_tick_ = 0;               // the sweep of its last read, write or reply owed
 };
 
 }  // namespace simgate::websocket

@@ -6,6 +6,9 @@
 // messages, plain HTTP without the web app, max_connections, a client that vanishes).
 #include <gtest/gtest.h>
 
+#include <sys/socket.h>
+#include <sys/time.h>
+
 #include <chrono>
 #include <cstdlib>
 #include <thread>
@@ -324,6 +327,353 @@ TEST_F(WebSocketAuthTest, AWrongTokenIsAnsweredThenClosedWithAReason) {
   EXPECT_EQ(client_->error, ws::error::closed) << client_->error.message();
   EXPECT_EQ(client_->close_reason().code, ws::close_code::policy_error);
   EXPECT_EQ(client_->close_reason().reason, "wrong token");
+}
+
+// ---- the framing (RFC 6455), frame by frame, with a raw socket
+
+// A client that writes frames as given (masked or not, fragmented, interleaved) and reads the
+// server's frames one by one.
+class RawWs {
+ public:
+  // Connects and upgrades; `first` (frames) is sent in the same write as the request.
+  explicit RawWs(std::uint16_t port, const std::string& first = "") : socket_(io_) {
+    socket_.connect({boost::asio::ip::make_address("127.0.0.1"), port});
+    timeval tv{10, 0};
+    ::setsockopt(socket_.native_handle(), SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+    const std::string upgrade = "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: Upgrade\r\nUpgrade: websocket\r\n"
+                                "Sec-WebSocket-Version: 13\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\r\n";
+    send_raw(upgrade + first);
+    while (in_.find("\r\n\r\n") == std::string::npos && fill()) {
+    }
+    const auto end = in_.find("\r\n\r\n");
+    if (end == std::string::npos || !in_.starts_with("HTTP/1.1 101")) throw std::runtime_error("no upgrade: " + in_);
+    in_.erase(0, end + 4);
+  }
+  // One frame as a client writes it (masked unless told otherwise).
+  static std::string frame(std::uint8_t opcode, const std::string& payload, bool fin = true, bool masked = true) {
+    std::string f;
+    f.push_back(static_cast<char>((fin ? 0x80 : 0) | opcode));
+    const std::uint8_t mask_bit = masked ? 0x80 : 0;
+    if (payload.size() < 126) {
+      f.push_back(static_cast<char>(mask_bit | payload.size()));
+    } else if (payload.size() <= 0xFFFF) {
+      f.push_back(static_cast<char>(mask_bit | 126));
+      f.push_back(static_cast<char>(payload.size() >> 8));
+      f.push_back(static_cast<char>(payload.size() & 0xFF));
+    } else {
+      f.push_back(static_cast<char>(mask_bit | 127));
+      for (int i = 7; i >= 0; --i) f.push_back(static_cast<char>((static_cast<std::uint64_t>(payload.size()) >> (8 * i)) & 0xFF));
+    }
+    const char key[4] = {0x12, 0x34, 0x56, 0x78};
+    if (masked) f.append(key, 4);
+    for (std::size_t i = 0; i < payload.size(); ++i) f.push_back(masked ? static_cast<char>(payload[i] ^ key[i & 3]) : payload[i]);
+    return f;
+  }
+  void send_raw(const std::string& bytes) { boost::asio::write(socket_, boost::asio::buffer(bytes)); }
+  struct Frame {
+    int opcode = -1;  // -1: the connection ended (or the read timed out)
+    bool fin = false;
+    std::string payload;
+  };
+  Frame read_frame() {
+    Frame f;
+    while (in_.size() < 2)
+      if (!fill()) return f;
+    std::size_t length = static_cast<unsigned char>(in_[1]) & 0x7F, header = 2;
+    if (length >= 126) {
+      header += length == 126 ? 2 : 8;
+      while (in_.size() < header)
+        if (!fill()) return f;
+      length = 0;
+      for (std::size_t i = 2; i < header; ++i) length = (length << 8) | static_cast<unsigned char>(in_[i]);
+    }
+    while (in_.size() < header + length)
+      if (!fill()) return f;
+    f.opcode = in_[0] & 0x0F;
+    f.fin = in_[0] & 0x80;
+    f.payload = in_.substr(header, length);
+    in_.erase(0, header + length);
+    return f;
+  }
+  // Whether the server closed the TCP connection (end of input) within the timeout.
+  bool ended() {
+    for (int reads = 0; reads < 1000; ++reads)
+      if (!fill()) return ec_ == boost::asio::error::eof || ec_ == boost::asio::error::connection_reset;
+    return false;
+  }
+
+ private:
+  bool fill() {
+    char buffer[65536];
+    const std::size_t n = socket_.read_some(boost::asio::buffer(buffer), ec_);
+    in_.append(buffer, n);
+    return !ec_;
+  }
+  boost::asio::io_context io_;
+  boost::asio::ip::tcp::socket socket_;
+  std::string in_;
+  boost::system::error_code ec_;
+};
+
+constexpr std::uint8_t k_text = 0x1, k_binary = 0x2, k_close = 0x8, k_ping = 0x9, k_pong = 0xA;
+
+int close_code_of(const RawWs::Frame& f) {
+  return f.payload.size() >= 2 ? (static_cast<unsigned char>(f.payload[0]) << 8) | static_cast<unsigned char>(f.payload[1])
+                               : 0;
+}
+
+TEST_F(WebSocketTest, AFragmentedMessageWithAPingBetweenItsFragmentsIsAnsweredAfterThePong) {
+  RawWs raw(host_->port());
+  const std::string text = request(1, "spec.subtract", json::array({42, 23})).dump();
+  // three fragments (text, continuation, continuation), a ping between the first two
+  raw.send_raw(RawWs::frame(k_text, text.substr(0, 10), false) + RawWs::frame(k_ping, "are you there") +
+               RawWs::frame(0x0, text.substr(10, 10), false) + RawWs::frame(0x0, text.substr(20), true));
+  RawWs::Frame pong = raw.read_frame();
+  EXPECT_EQ(pong.opcode, k_pong);
+  EXPECT_EQ(pong.payload, "are you there");
+  RawWs::Frame reply = raw.read_frame();
+  ASSERT_EQ(reply.opcode, k_text);
+  EXPECT_TRUE(reply.fin);
+  EXPECT_EQ(json::parse(reply.payload)["result"], 19) << reply.payload;
+}
+
+TEST_F(WebSocketTest, MessagesInOneWriteAndFramesSentWithTheUpgradeAreAllAnsweredInOrder) {
+  // the first message travels with the HTTP request itself
+  RawWs raw(host_->port(), RawWs::frame(k_text, request(0, "spec.subtract", json::array({0, 1})).dump()));
+  std::string burst;
+  for (int i = 1; i <= 20; ++i) burst += RawWs::frame(k_text, request(i, "spec.subtract", json::array({i, 1})).dump());
+  raw.send_raw(burst);
+  for (int i = 0; i <= 20; ++i) {
+    RawWs::Frame reply = raw.read_frame();
+    ASSERT_EQ(reply.opcode, k_text) << i;
+    json r = json::parse(reply.payload);
+    EXPECT_EQ(r["id"], i);
+    EXPECT_EQ(r["result"], i - 1);
+  }
+}
+
+TEST_F(WebSocketTest, LongMessagesUseTheExtendedLengthsBothWays) {
+  RawWs raw(host_->port());
+  for (std::size_t size : {std::size_t{200}, std::size_t{70000}}) {
+    raw.send_raw(RawWs::frame(k_text, request(1, "robot.arm.echo", json::array({std::string(size, 'z')})).dump()));
+    RawWs::Frame reply = raw.read_frame();
+    ASSERT_EQ(reply.opcode, k_text) << size;
+    EXPECT_EQ(json::parse(reply.payload)["result"], std::string(size, 'z'));
+  }
+}
+
+TEST_F(WebSocketTest, TheClientsCloseFrameIsAnsweredWithItsCodeThenTheConnectionEnds) {
+  RawWs raw(host_->port());
+  raw.send_raw(RawWs::frame(k_close, std::string("\x03\xe8", 2) + "bye"));
+  RawWs::Frame close = raw.read_frame();
+  EXPECT_EQ(close.opcode, k_close);
+  EXPECT_EQ(close_code_of(close), 1000);
+  EXPECT_TRUE(raw.ended());
+  EXPECT_EQ(client_->call(request(1, "spec.subtract", json::array({3, 1})))["result"], 2);
+}
+
+TEST_F(WebSocketTest, ProtocolErrorsAreClosedWith1002AndOthersServed) {
+  const std::string text = request(1, "spec.subtract", json::array({3, 1})).dump();
+  for (const std::string& bad :
+       {RawWs::frame(k_text, text, true, /*masked=*/false),   // a client frame must be masked
+        RawWs::frame(0x0, text),                               // a continuation of nothing
+        RawWs::frame(0x3, text),                               // a reserved opcode
+        RawWs::frame(k_ping, std::string(126, 'p')),           // a control frame over 125 bytes
+        RawWs::frame(k_ping, "p", /*fin=*/false),              // a fragmented control frame
+        RawWs::frame(k_text, "{", false) + RawWs::frame(k_text, "}"),  // a message inside another
+        std::string(1, '\xC1') + RawWs::frame(k_text, text).substr(1)}) {  // RSV1 without an extension
+    RawWs raw(host_->port());
+    raw.send_raw(bad);
+    RawWs::Frame close = raw.read_frame();
+    EXPECT_EQ(close.opcode, k_close);
+    EXPECT_EQ(close_code_of(close), 1002);
+  }
+  EXPECT_EQ(client_->call(request(1, "spec.subtract", json::array({3, 1})))["result"], 2);
+}
+
+TEST_F(WebSocketTest, ATextMessageThatIsNotUtf8IsAParseErrorAndTheConnectionLivesOn) {
+  RawWs raw(host_->port());
+  raw.send_raw(RawWs::frame(k_text, "{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"a\xff\xfe\"}"));
+  RawWs::Frame reply = raw.read_frame();
+  ASSERT_EQ(reply.opcode, k_text);
+  EXPECT_EQ(error_code(json::parse(reply.payload)), -32700) << reply.payload;
+  raw.send_raw(RawWs::frame(k_text, request(2, "spec.subtract", json::array({3, 1})).dump()));
+  reply = raw.read_frame();
+  ASSERT_EQ(reply.opcode, k_text);
+  EXPECT_EQ(json::parse(reply.payload)["result"], 2);
+}
+
+TEST_F(WebSocketTest, ABinaryMessageInFragmentsIsRefusedWhole) {
+  RawWs raw(host_->port());
+  raw.send_raw(RawWs::frame(k_binary, "abc", false) + RawWs::frame(0x0, "defg", true));
+  RawWs::Frame reply = raw.read_frame();
+  ASSERT_EQ(reply.opcode, k_text);
+  json r = json::parse(reply.payload);
+  EXPECT_EQ(r["error"]["data"]["reason"], "binary message");
+  EXPECT_EQ(r["error"]["data"]["bytes"], 7);
+}
+
+// ---- connections held without use (the TCP transports' options, kit/connection_rules.h)
+
+TEST(WebSocketPlugin, TakesTheTcpTransportsConnectionLimits) {
+  auto rm = load_transport(plugin_path(), json{{"port", 0}, {"max_connections_per_peer", 4}, {"idle_timeout_s", 30},
+                                               {"idle_evict_s", 0}});
+  rm->start();
+  rm->stop();
+  for (const char* key : {"max_connections_per_peer", "idle_timeout_s", "idle_evict_s"}) {
+    try {
+      load_transport(plugin_path(), json{{"port", 0}, {key, -1}});
+      ADD_FAILURE() << key << " -1 accepted";
+    } catch (const std::exception& e) {
+      EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(WebSocketPlugin, LoopbackClientsAreNotCountedPerPeer) {
+  // the machine's own programs all come from one address: max_connections_per_peer ignores them
+  TestHost host(json{{"max_connections_per_peer", 1}}, plugin_path());
+  WsClient a(host.port()), b(host.port()), c(host.port());
+  for (WsClient* client : {&a, &b, &c})
+    EXPECT_EQ(client->call(request(1, "spec.subtract", json::array({3, 1})))["result"], 2);
+}
+
+class WebSocketIdleTest : public WebSocketTest {
+ protected:
+  json options() override { return json{{"idle_timeout_s", 0.5}}; }
+};
+
+TEST_F(WebSocketIdleTest, AnIdleConnectionIsClosedButNotOneWaitingForAnAnswer) {
+  // client_ calls then stays silent; `waiting` is owed the answer of a call that holds
+  EXPECT_EQ(client_->call(request(1, "spec.subtract", json::array({3, 1})))["result"], 2);
+  WsClient waiting(host_->port());
+  waiting.send(request(7, "robot.arm.hold", json::array({"w"})));
+  ASSERT_EQ(waiting.call(request(8, "ctl.iteration"))["id"], 8);
+  // the idle one ends with a close frame that says why (the receive timeout is 10 s)
+  EXPECT_FALSE(client_->receive_text().has_value());
+  EXPECT_EQ(client_->error, ws::error::closed) << client_->error.message();
+  EXPECT_EQ(client_->close_reason().code, ws::close_code::going_away);
+  EXPECT_NE(std::string(client_->close_reason().reason.data(), client_->close_reason().reason.size()).find("idle_timeout_s"), std::string::npos);
+  // the one owed an answer was kept: it gets it once another client releases the call
+  WsClient other(host_->port());
+  EXPECT_EQ(other.call(request(1, "ctl.release", json::array({"w", "released"})))["result"], true);
+  json r = waiting.receive();
+  EXPECT_EQ(r["id"], 7) << r.dump();
+  EXPECT_EQ(r["result"], "released");
+}
+
+class WebSocketEvictTest : public WebSocketTest {
+ protected:
+  json options() override { return json{{"max_connections", 2}, {"idle_evict_s", 0.5}}; }
+};
+
+TEST_F(WebSocketEvictTest, AtTheLimitTheConnectionIdleLongestMakesRoom) {
+  // client_ is the oldest and stays idle; `busy` keeps calling; a newcomer gets client_'s place
+  WsClient busy(host_->port());
+  EXPECT_EQ(client_->call(request(1, "spec.subtract", json::array({3, 1})))["result"], 2);
+  std::unique_ptr<WsClient> newcomer;
+  for (int attempt = 0; attempt < 30 && !newcomer; ++attempt) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    EXPECT_EQ(busy.call(request(attempt, "spec.subtract", json::array({3, 1})))["result"], 2);
+    try {
+      newcomer = std::make_unique<WsClient>(host_->port());
+    } catch (const boost::system::system_error&) {
+      // refused (503): nobody idle long enough yet
+    }
+  }
+  ASSERT_TRUE(newcomer) << "no room was made";
+  EXPECT_EQ(newcomer->call(request(1, "spec.subtract", json::array({5, 1})))["result"], 4);
+  EXPECT_FALSE(client_->receive_text().has_value());
+  EXPECT_EQ(client_->error, ws::error::closed) << client_->error.message();
+  EXPECT_EQ(client_->close_reason().reason, "idle while the server was full");
+  EXPECT_EQ(busy.call(request(99, "spec.subtract", json::array({3, 1})))["result"], 2);  // never chosen
+}
+
+// ---- allowed_origins (cross-site WebSocket hijacking)
+
+// The raw HTTP response to an upgrade request carrying `origin` (none when empty).
+std::string upgrade_response(std::uint16_t port, const std::string& origin) {
+  boost::asio::io_context io;
+  boost::asio::ip::tcp::socket socket(io);
+  socket.connect({boost::asio::ip::make_address("127.0.0.1"), port});
+  timeval tv{10, 0};
+  ::setsockopt(socket.native_handle(), SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  std::string upgrade = "GET / HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(port) +
+                        "\r\nConnection: Upgrade\r\nUpgrade: websocket\r\nSec-WebSocket-Version: 13\r\n"
+                        "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n";
+  if (!origin.empty()) upgrade += "Origin: " + origin + "\r\n";
+  upgrade += "\r\n";
+  boost::asio::write(socket, boost::asio::buffer(upgrade));
+  std::string response;
+  boost::system::error_code ec;
+  char buffer[4096];
+  for (int reads = 0; reads < 100; ++reads) {
+    const std::size_t n = socket.read_some(boost::asio::buffer(buffer), ec);
+    response.append(buffer, n);
+    if (ec || (response.starts_with("HTTP/1.1 101") && response.find("\r\n\r\n") != std::string::npos)) break;
+  }
+  return response;
+}
+
+TEST_F(WebSocketTest, AnUpgradeFromAPageOfAnotherSiteIsRefusedWith403) {
+  const std::string response = upgrade_response(host_->port(), "https://evil.example");
+  EXPECT_TRUE(response.starts_with("HTTP/1.1 403")) << response;
+  EXPECT_NE(response.find("origin 'https://evil.example' are not allowed"), std::string::npos) << response;
+  EXPECT_NE(response.find("allowed_origins"), std::string::npos) << response;
+  EXPECT_THROW(WsClient(host_->port(), std::chrono::milliseconds(10000), 0, "http://evil.example:8090"),
+               boost::system::system_error);
+  // the same host on another port is another origin; "null" (a sandboxed page) is none of ours
+  EXPECT_TRUE(upgrade_response(host_->port(), "http://127.0.0.1:1").starts_with("HTTP/1.1 403"));
+  EXPECT_TRUE(upgrade_response(host_->port(), "null").starts_with("HTTP/1.1 403"));
+  // the others are served on
+  EXPECT_EQ(client_->call(request(1, "spec.subtract", json::array({3, 1})))["result"], 2);
+}
+
+TEST_F(WebSocketTest, ItsOwnOriginsAndClientsWithoutOriginAreAccepted) {
+  const std::string port = std::to_string(host_->port());
+  EXPECT_TRUE(upgrade_response(host_->port(), "").starts_with("HTTP/1.1 101"));
+  for (const std::string& origin : {"http://127.0.0.1:" + port, "http://localhost:" + port, "HTTP://LocalHost:" + port,
+                                    "http://[::1]:" + port}) {
+    EXPECT_TRUE(upgrade_response(host_->port(), origin).starts_with("HTTP/1.1 101")) << origin;
+    WsClient page(host_->port(), std::chrono::milliseconds(10000), 0, origin);
+    EXPECT_EQ(page.call(request(1, "spec.subtract", json::array({3, 1})))["result"], 2) << origin;
+  }
+}
+
+class WebSocketOriginsTest : public WebSocketTest {
+ protected:
+  json options() override { return json{{"allowed_origins", {"https://app.example", "http://lab.example:8000"}}}; }
+};
+
+TEST_F(WebSocketOriginsTest, AllowedOriginsReplacesTheDefaultList) {
+  WsClient app(host_->port(), std::chrono::milliseconds(10000), 0, "https://app.example");
+  EXPECT_EQ(app.call(request(1, "spec.subtract", json::array({3, 1})))["result"], 2);
+  // the scheme's default port is implied
+  EXPECT_TRUE(upgrade_response(host_->port(), "https://app.example:443").starts_with("HTTP/1.1 101"));
+  EXPECT_TRUE(upgrade_response(host_->port(), "http://lab.example:8000").starts_with("HTTP/1.1 101"));
+  EXPECT_TRUE(upgrade_response(host_->port(), "http://lab.example").starts_with("HTTP/1.1 403"));
+  EXPECT_TRUE(upgrade_response(host_->port(), "http://app.example").starts_with("HTTP/1.1 403"));
+  const std::string own = "http://127.0.0.1:" + std::to_string(host_->port());
+  EXPECT_TRUE(upgrade_response(host_->port(), own).starts_with("HTTP/1.1 403"));
+  EXPECT_TRUE(upgrade_response(host_->port(), "").starts_with("HTTP/1.1 101"));
+}
+
+TEST(WebSocketPlugin, AllowedOriginsStarAcceptsAnyPage) {
+  TestHost host(json{{"allowed_origins", {"*"}}}, plugin_path());
+  WsClient page(host.port(), std::chrono::milliseconds(10000), 0, "https://anywhere.example");
+  EXPECT_EQ(page.call(request(1, "spec.subtract", json::array({3, 1})))["result"], 2);
+}
+
+TEST(WebSocketPlugin, RefusesMalformedAllowedOrigins) {
+  for (const json& bad : {json("http://a.example"), json::array({"http://a.example/path"}), json::array({"a.example"}),
+                          json::array({42}), json::array({"http://a.example:99999"})}) {
+    try {
+      load_transport(plugin_path(), json{{"port", 0}, {"allowed_origins", bad}});
+      ADD_FAILURE() << "accepted " << bad.dump();
+    } catch (const std::exception& e) {
+      EXPECT_NE(std::string(e.what()).find("allowed_origins"), std::string::npos) << e.what();
+    }
+  }
 }
 
 }  // namespace

@@ -29,8 +29,9 @@ class WsClient {
  public:
   // Connects to 127.0.0.1:`port` and upgrades; throws boost::system::system_error.
   // `receive_buffer` (bytes, 0: the system's) is set before connecting: the window it offers.
+  // `origin` (non-empty): the Origin header a browser would send with the upgrade.
   explicit WsClient(std::uint16_t port, std::chrono::milliseconds timeout = std::chrono::milliseconds(10000),
-                    int receive_buffer = 0)
+                    int receive_buffer = 0, const std::string& origin = "")
       : ws_(io_) {
     boost::asio::ip::tcp::endpoint endpoint(boost::asio::ip::make_address("127.0.0.1"), port);
     if (receive_buffer > 0) {
@@ -44,6 +45,9 @@ class WsClient {
     tv.tv_usec = static_cast<suseconds_t>((timeout.count() % 1000) * 1000);
     ::setsockopt(ws_.next_layer().native_handle(), SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
     ws_.read_message_max(0);
+    if (!origin.empty())
+      ws_.set_option(boost::beast::websocket::stream_base::decorator(
+          [origin](boost::beast::websocket::request_type& request) { request.set("Origin", origin); }));
     ws_.handshake("127.0.0.1:" + std::to_string(port), "/");
   }
 

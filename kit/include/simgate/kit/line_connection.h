@@ -63,6 +63,7 @@
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/steady_timer.hpp>
 
+#include "simgate/kit/connection_rules.h"
 #include "simgate/kit/idle_spin.h"
 #include "simgate/kit/read_split.h"
 #include "simgate/kit/tcp_server.h"
@@ -289,7 +290,7 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
 class LineServer : public LineHost {
  public:
   // How often the connections are checked: timeouts are this precise.
-  static constexpr std::chrono::milliseconds k_sweep{250};
+  static constexpr std::chrono::milliseconds k_sweep = k_connection_sweep;
 
   // `who` names the transport in logs; `options`: its io_spin_us (0: the I/O thread never
   // polls, nothing is watched), max_connections, max_connections_per_peer, the timeouts,
@@ -330,18 +331,15 @@ class LineServer : public LineHost {
 
  private:
   void schedule_sweep(const std::shared_ptr<LineConnection>& any);
-  // One connection fewer from `peer`.
-  void uncount(const boost::asio::ip::address& peer);
   void sweep();
-  std::uint32_t ticks(std::chrono::milliseconds duration) const;
+  std::uint32_t ticks(std::chrono::milliseconds duration) const { return sweep_ticks(duration); }
 
   std::string who_;                                             // for logs
   std::chrono::microseconds spin_;                              // io_spin_us
   std::size_t max_connections_;                                 // max_connections
   std::string connections_key_;                                 // its key as the options spell it
-  std::size_t max_per_peer_;                                    // max_connections_per_peer (0: none)
+  PeerCounts per_peer_;                                         // max_connections_per_peer (connection_rules.h)
   TokenAuth auth_;                                              // who must present a token
-  std::map<boost::asio::ip::address, std::size_t> per_peer_;    // open connections by non-loopback address
   std::chrono::milliseconds idle_timeout_, idle_evict_, line_timeout_;  // 0: never
   std::unordered_set<std::shared_ptr<LineConnection>> connections_;  // open connections
   std::atomic<std::size_t> count_{0};                           // connections_.size(), for any thread
