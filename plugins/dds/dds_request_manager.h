@@ -140,6 +140,9 @@ class DdsRequestManager : public RequestManager {
     std::string message;                         // human-readable reason
     std::string data;                            // JSON object text or ""
     std::chrono::steady_clock::time_point deadline;  // parked: when to give up waiting
+    // A result with images (Outcome::attachments): `result` is written from it when the reply
+    // goes (prepare_images), so that whether the client reads its images raw is known then.
+    std::shared_ptr<Outcome> images;
   };
   // A request handed to the core and not yet completed, or a cancel waiting for its answer.
   struct Pending {
@@ -155,6 +158,7 @@ class DdsRequestManager : public RequestManager {
     dds_entity_t reply_publisher = 0;                   // in "<partition>/<id>"; owns reply_writer
     dds_entity_t reply_writer = 0;                      // its replies, to its reader alone
     dds_entity_t progress_writer = 0;                   // its progress reports (at its first call asking)
+    dds_entity_t image_writer = 0;                      // its replies' images, raw (simgate_ReplyImage)
     bool reader_matched = false;                        // a reader announcing its id is matched
     std::unordered_map<std::uint64_t, RequestId> calls;  // seq -> request in the core
     std::deque<ReplyData> parked;                       // replies not written yet, in order
@@ -187,6 +191,15 @@ class DdsRequestManager : public RequestManager {
   // The client's progress writer, created in its reply partition at its first call asking
   // for progress; false (logged) if it cannot be created.
   bool ensure_progress_writer(const ClientId& id, ClientState& client);
+  // When the client has an image reader (announcing its id) matched: writes the images of
+  // `outcome` (its attachments) on its image writer, each as a simgate::stream::Image with
+  // the call's seq, and leaves their PNG out of its records (format "raw"). An image not
+  // written (its writer full) keeps its PNG. Never blocks.
+  void send_images(const ClientId& id, ClientState& client, std::uint64_t seq, Outcome& outcome);
+  // Just before `reply` is first written: its images (send_images) and its result's text.
+  void prepare_images(const ClientId& id, ClientState& client, ReplyData& reply);
+  // Whether a reader announcing the client's id is matched to `writer` (one of its own).
+  static bool announced_reader_matched(dds_entity_t writer, const ClientId& id);
   // Writes the replies of `batch` (emptied); `final_flush`: at stop(), without parking.
   void write_finished(std::vector<std::pair<RequestId, Outcome>>& batch, bool final_flush);
   // The request writers matched now: new ones become clients, missing ones are gone.
@@ -227,6 +240,8 @@ class DdsRequestManager : public RequestManager {
   QosPtr reply_qos_;                         // of every reply writer
   dds_entity_t progress_topic_ = 0;          // simgate_Progress (a writer per client asking)
   QosPtr progress_qos_;                      // of every progress writer
+  dds_entity_t image_topic_ = 0;             // simgate_ReplyImage (a writer per client)
+  QosPtr image_qos_;                         // of every image writer
   dds_entity_t catalog_writer_ = 0;          // simgate_Catalog (transient-local)
   dds_entity_t waitset_ = 0;                 // what the DDS thread waits on
   dds_entity_t guard_ = 0;                   // raised by the sim thread and by stop()
