@@ -379,6 +379,20 @@ class RoverSceneTest(unittest.TestCase):
             self.assertEqual((width, height, depth, colour), (320, 240, 8, 2))
             self.assertEqual(image["intrinsic_matrix"][0][2], 160.0)
 
+    def test_the_overhead_camera_sees_the_rover_in_the_middle_of_the_room(self):
+        # rover.overhead: a video_camera on the scene's MJCF camera "overhead", 6 m above the
+        # room's centre looking down; the rover's chassis (0.8 0.35 0.1) fills the middle
+        record = self.wire.call("rover.overhead", "get_image")
+        width, height, depth, colour, rows = decode_png(record["image"])
+        self.assertEqual((width, height, depth, colour), (320, 240, 8, 2))
+        r, g, b = rows[120][3 * 160:3 * 160 + 3]
+        self.assertTrue(r > 120 and 2 * r > 3 * g and g > b, (r, g, b))
+        # a metre south-west of it, the floor (grey-green)
+        r, g, b = rows[170][3 * 110:3 * 110 + 3]
+        self.assertGreaterEqual(g, r, (r, g, b))
+        properties = self.wire.call("rover.overhead", "get_properties")["properties"]
+        self.assertEqual(properties["cam_fovy"], 50.0)
+
     def test_a_snapshot_pictures_the_room_as_the_readme_shows_it(self):
         # simulation get_snapshot (docs/world/snapshot.md): the free view, the asked size
         record = self.wire.call("simulation", "get_snapshot", {"width": 320, "height": 240})

@@ -5,6 +5,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cstdlib>
 #include <filesystem>
 
@@ -141,6 +142,34 @@ TEST(GatewaySnapshot, OfflineFromAConfigAndFromAModel) {
               dir);
   ASSERT_EQ(model.code, 0) << model.err;
   EXPECT_EQ(png_file(dir.file("arm.png")).width, 64);
+}
+
+// The RGB pixel at (x, y) of a decoded 8-bit RGB image.
+std::array<int, 3> rgb_at(const DecodedPng& png, int x, int y) {
+  const std::size_t i = (static_cast<std::size_t>(y) * png.width + x) * 3;
+  return {png.pixels[i], png.pixels[i + 1], png.pixels[i + 2]};
+}
+// The rover's chassis (rgba 0.8 0.35 0.1), lit: orange, not the floor's grey-green.
+bool is_orange(const std::array<int, 3>& p) { return p[0] > 120 && p[0] > 3 * p[1] / 2 && p[1] > p[2]; }
+
+TEST(GatewaySnapshot, TheRoverScenesOverheadCameraSeesTheRoverInTheMiddleOfTheRoom) {
+  const TempDir dir;
+  // the shipped config as it is: its scene next to it, its MJCF camera "overhead"
+  const CliRun r = simgate({"snapshot", "--config", source_path("config/rover.json"), "--camera", "overhead", "--size",
+                            "320x240", dir.file("overhead.png")},
+                           dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const DecodedPng png = png_file(dir.file("overhead.png"));
+  ASSERT_TRUE(png.error.empty()) << png.error;
+  ASSERT_EQ(png.width, 320);
+  ASSERT_EQ(png.height, 240);
+  // straight down on the room's centre: the rover's chassis in the middle of the image
+  const auto middle = rgb_at(png, 160, 120);
+  EXPECT_TRUE(is_orange(middle)) << middle[0] << " " << middle[1] << " " << middle[2];
+  // the floor a metre south and west of it (43 px a metre on the floor, 6 m below)
+  const auto floor = rgb_at(png, 110, 170);
+  EXPECT_FALSE(is_orange(floor)) << floor[0] << " " << floor[1] << " " << floor[2];
+  EXPECT_GE(floor[1], floor[0]) << floor[0] << " " << floor[1] << " " << floor[2];
 }
 
 TEST(GatewaySnapshot, ErrorsAreClear) {
