@@ -3,17 +3,14 @@
 
 #include <algorithm>
 #include <bit>
-#include <chrono>
 #include <cstring>
 #include <cmath>
 #include <deque>
-#include <condition_variable>
 #include <limits>
 #include <mutex>
 
 #include <Eigen/Geometry>
 
-#include "simgate/core/call_context.h"
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
 #include "simgate/core/streams.h"
@@ -28,8 +25,6 @@ constexpr double k_min_fovy = 0.1, k_max_fovy = 179;   // degrees
 constexpr double k_default_frequency = 20;             // images per simulated second
 // MORSE's cam_focal is a Blender lens: millimetres, on a 32 mm wide sensor (its larger side)
 constexpr double k_blender_sensor = 32;                // mm
-// how long get_local_data waits for its first image (under the lock, once)
-constexpr auto k_first_image_timeout = std::chrono::seconds(30);
 
 // The JSON record of one image (render_support.h). Render thread.
 json image_record(const RenderResult& r, Camera::Type type) {
@@ -90,8 +85,6 @@ struct Camera::Mailbox {
   json last;                         // the last image record (null: none yet)
   std::shared_ptr<const StreamPayload> last_pixels;  // its pixels raw
   std::string last_error;            // why the last render failed
-  std::uint64_t renders = 0;         // renders come back
-  std::condition_variable arrived;   // a render came back
   std::unique_ptr<SceneCopy> spare;  // a scene given back, for reuse
 };
 
@@ -137,8 +130,10 @@ Camera::Camera(ComponentContext& c, Type type)
   add_async_service("get_image", &Camera::get_image)
       .concurrent()
       .doc(std::string("An ") + kind + " image of the current state: its record (image: base64 PNG)");
-  add_service("get_local_data", &Camera::get_local_data)
-      .doc("The last image record: image (base64 PNG), width, height, intrinsic_matrix, timestamp");
+  add_async_service("get_local_data", &Camera::get_local_data)
+      .concurrent()
+      .doc("The last image record: image (base64 PNG), width, height, intrinsic_matrix, timestamp; the first one "
+           "rendered now, physics stepping meanwhile");
   add_property("cam_width", [this] { return json(width_); });
   add_property("cam_height", [this] { return json(height_); });
   add_property("cam_fovy", [this] { return json(fovy_); });
@@ -251,10 +246,8 @@ void Camera::render_now(std::uint64_t capture_id, Completion done) {
                           mailbox->last_pixels = pixels;
                         }
                         mailbox->last_error = error;
-                        ++mailbox->renders;
                         if (capture_id != 0) mailbox->deliveries.push_back({capture_id, record, pixels, error});
                       }
-                      mailbox->arrived.notify_all();
                       if (!done) return;
                       if (!error.empty()) {
                         done(Status::failed, json(error));
@@ -287,23 +280,20 @@ void Camera::get_image(Completion done) {
   }
 }
 
-json Camera::get_local_data() {
-  std::unique_lock lock(mailbox_->mutex);
-  if (!mailbox_->last.is_null()) {
-    CallContext::attach(mailbox_->last_pixels);  // its pixels raw, for typed transports
-    return mailbox_->last;
+void Camera::get_local_data(Completion done) {
+  Outcome outcome;
+  {
+    std::lock_guard lock(mailbox_->mutex);
+    outcome.value = mailbox_->last;
+    outcome.attachments.push_back(mailbox_->last_pixels);  // its pixels raw, for typed transports
   }
-  // none yet: render one now and wait for it (once; the render thread takes no lock of ours
-  // but the mailbox's)
-  const std::uint64_t before = mailbox_->renders;
-  lock.unlock();
-  render_now(0, Completion());
-  lock.lock();
-  if (!mailbox_->arrived.wait_for(lock, k_first_image_timeout, [&] { return mailbox_->renders != before; }))
-    throw ServiceError(name() + ": no image within " + std::to_string(k_first_image_timeout.count()) + " s");
-  if (mailbox_->last.is_null()) throw ServiceError(mailbox_->last_error);
-  CallContext::attach(mailbox_->last_pixels);
-  return mailbox_->last;
+  if (!outcome.value->is_null()) {
+    done.finish(std::move(outcome));
+    return;
+  }
+  // none yet: one rendered now, answered from the render thread as get_image is; physics
+  // keeps stepping meanwhile (nothing waits under the lock)
+  get_image(std::move(done));
 }
 
 void Camera::default_action() {

@@ -201,7 +201,8 @@ TEST_F(CameraTest, CaptureCompletesWithNImagesAfterEnoughSteps) {
     EXPECT_EQ(png.width, 32);
   }
   // get_local_data: the last image
-  EXPECT_EQ(value("rig.camera", "get_local_data")["timestamp"], (*o.value)[2]["timestamp"]);
+  EXPECT_EQ(wait_for(rm_->call("rig.camera", "get_local_data")).value.value_or(json())["timestamp"],
+            (*o.value)[2]["timestamp"]);
 }
 
 TEST_F(CameraTest, SecondCapturePreemptsTheFirst) {
@@ -234,7 +235,9 @@ TEST_F(CameraTest, ACancelledCaptureEndsPreemptedAndTheNextOneWorks) {
 TEST_F(CameraTest, GetLocalDataRendersTheFirstImage) {
   add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 16}, {"cam_height", 16}});
   serve();
-  const json record = value("rig.camera", "get_local_data");
+  const Outcome o = wait_for(rm_->call("rig.camera", "get_local_data"));
+  ASSERT_EQ(o.status, Status::success) << o.message;
+  const json record = o.value.value_or(json());
   ASSERT_TRUE(record.is_object()) << record.dump();
   EXPECT_EQ(record["width"], 16);
   EXPECT_TRUE(record["image"].is_string());
@@ -265,7 +268,7 @@ TEST_F(CameraTest, RepliesCarryTheRawPixelsOfTheirImagesAsAttachments) {
   add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 64}, {"cam_height", 48}});
   serve();
   // get_local_data's first image (rendered now), get_image's, and a capture's two
-  const Outcome first = call("rig.camera", "get_local_data");
+  const Outcome first = wait_for(rm_->call("rig.camera", "get_local_data"));
   ASSERT_EQ(first.status, Status::success) << first.message;
   ASSERT_EQ(first.attachments.size(), 1u);
   expect_red_attachment(first, 0, *first.value);
@@ -279,11 +282,44 @@ TEST_F(CameraTest, RepliesCarryTheRawPixelsOfTheirImagesAsAttachments) {
   expect_red_attachment(capture, 0, (*capture.value)[0]);
   expect_red_attachment(capture, 1, (*capture.value)[1]);
   // get_local_data: the last image, its pixels with it
-  const Outcome last = call("rig.camera", "get_local_data");
+  const Outcome last = wait_for(rm_->call("rig.camera", "get_local_data"));
   ASSERT_EQ(last.attachments.size(), 1u);
   expect_red_attachment(last, 0, (*capture.value)[1]);
   // a service with no image attaches nothing
   EXPECT_TRUE(call("rig.camera", "get_properties").attachments.empty());
+}
+
+TEST_F(CameraTest, GetLocalDatasFirstImageRendersWhilePhysicsKeepsStepping) {
+  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 16}, {"cam_height", 16}});
+  serve();
+  auto renderer = Renderer::shared();
+  if (!renderer->unavailable().empty()) GTEST_SKIP() << renderer->unavailable();
+  // the render thread held by a render of ours until the test lets it go
+  std::promise<void> release;
+  std::shared_future<void> released = release.get_future().share();
+  std::promise<void> holding;
+  auto scene = std::make_unique<SceneCopy>(renderer->model_copy(sim_->m()));
+  scene->update(sim_->m(), sim_->d(), camera().view(), sim_->state_time());
+  renderer->render(std::move(scene), true, false, [&holding, released](RenderResult) {
+    holding.set_value();
+    released.wait();
+  });
+  holding.get_future().wait();
+  // no image yet: the call does not wait for one under the lock (it used to, up to 30 s)
+  const RequestId id = rm_->call("rig.camera", "get_local_data");
+  sim_->process_requests();
+  const bool answered_at_once = rm_->outcome(id).has_value();
+  const double before = sim_->sim_time();
+  run_for(0.1);
+  const double after = sim_->sim_time();
+  release.set_value();
+  EXPECT_FALSE(answered_at_once);
+  EXPECT_GT(after, before);  // physics stepped meanwhile
+  // the image comes once the render thread is free
+  const Outcome o = wait_for(id);
+  ASSERT_EQ(o.status, Status::success) << o.message;
+  EXPECT_EQ((*o.value)["width"], 16);
+  EXPECT_EQ(o.attachments.size(), 1u);
 }
 
 TEST_F(CameraTest, CaptureRefusesABadCount) {
@@ -316,7 +352,7 @@ TEST_F(CameraTest, WithoutGlTheServicesFailWithTheReason) {
   serve();
   const Outcome image = wait_for(rm_->call("rig.camera", "get_image"));
   const Outcome capture = call("rig.camera", "capture", {1});
-  const Outcome data = call("rig.camera", "get_local_data");
+  const Outcome data = wait_for(rm_->call("rig.camera", "get_local_data"));
   unsetenv("SIMGATE_RENDERER_UNAVAILABLE");
   for (const Outcome* o : {&image, &capture, &data}) {
     EXPECT_EQ(o->status, Status::failed);

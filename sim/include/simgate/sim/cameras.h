@@ -62,7 +62,7 @@ class Camera : public SimComponent {
 
   void capture(long long n);
   void get_image(Completion done);
-  json get_local_data();
+  void get_local_data(Completion done);
 
   void default_action() override;
   void interrupt() override;
