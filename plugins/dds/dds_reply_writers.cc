@@ -389,29 +389,36 @@ void DdsRequestManager::forget_client(const ClientId& id) {
   auto c = clients_.find(id);
   if (c == clients_.end()) return;
   // its publisher and reply writer go with it
-  if (c->second.reply_publisher > 0) retire(c->second.reply_publisher, c->second.reply_writer);
+  if (c->second.reply_publisher > 0)
+    retire(c->second.reply_publisher, c->second.reply_writer, std::max<dds_entity_t>(c->second.image_writer, 0));
   writers_.erase(c->second.writer);
   reply_writers_.erase(c->second.reply_writer);
   clients_.erase(c);
   log::debug("DDS transport: client ", to_hex(id), " forgotten (", clients_.size(), " known)");
 }
 
-void DdsRequestManager::retire(dds_entity_t publisher, dds_entity_t writer) {
+void DdsRequestManager::retire(dds_entity_t publisher, dds_entity_t writer, dds_entity_t image_writer) {
   dds_waitset_detach(waitset_, writer);
-  // all acknowledged (or no reader left): deleted at once, without lingering
-  if (dds_wait_for_acks(writer, 0) == DDS_RETCODE_OK) {
+  // all acknowledged (or no reader left), replies and images: deleted at once, without lingering
+  const Retiring entry{publisher, writer, image_writer};
+  auto acknowledged = [](const Retiring& e) {
+    return dds_wait_for_acks(e.writer, 0) == DDS_RETCODE_OK &&
+           (e.image_writer <= 0 || dds_wait_for_acks(e.image_writer, 0) == DDS_RETCODE_OK);
+  };
+  if (acknowledged(entry)) {
     dds_delete(publisher);
     return;
   }
-  log::debug("DDS transport: a reply writer with unacknowledged replies is deleted once they are acknowledged "
-             "or their reader left");
-  retiring_.emplace_back(publisher, writer);
+  log::debug("DDS transport: a reply writer with unacknowledged replies (or images) is deleted once they are "
+             "acknowledged or their reader left");
+  retiring_.push_back(entry);
 }
 
 void DdsRequestManager::retire_pending() {
-  std::erase_if(retiring_, [](const std::pair<dds_entity_t, dds_entity_t>& entry) {
-    if (dds_wait_for_acks(entry.second, 0) != DDS_RETCODE_OK) return false;
-    dds_delete(entry.first);
+  std::erase_if(retiring_, [](const Retiring& e) {
+    if (dds_wait_for_acks(e.writer, 0) != DDS_RETCODE_OK) return false;
+    if (e.image_writer > 0 && dds_wait_for_acks(e.image_writer, 0) != DDS_RETCODE_OK) return false;
+    dds_delete(e.publisher);
     return true;
   });
 }

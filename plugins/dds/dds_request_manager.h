@@ -214,7 +214,9 @@ class DdsRequestManager : public RequestManager {
   // matched and silent would hold the DDS thread that long, once per such client. (A Cyclone
   // peer whose reader is full cannot get that far: its receive thread is stuck, and so is
   // its own deletion; a crafted peer can.)
-  void retire(dds_entity_t publisher, dds_entity_t writer);
+  // `writer` and `image_writer` (0: none): the reliable writers under `publisher` whose
+  // acknowledgements are awaited (its reply writer, and its image writer).
+  void retire(dds_entity_t publisher, dds_entity_t writer, dds_entity_t image_writer);
   void retire_pending();
   // Whether a reader announcing the client's id matches its reply writer (reads the status).
   void refresh_reader_match(const ClientId& id, ClientState& client);
@@ -267,7 +269,13 @@ class DdsRequestManager : public RequestManager {
   std::map<ClientId, ClientState> clients_;         // known clients
   std::map<dds_instance_handle_t, ClientId> writers_;  // request writer -> its client
   std::map<dds_entity_t, ClientId> reply_writers_;  // reply writer -> its client
-  std::vector<std::pair<dds_entity_t, dds_entity_t>> retiring_;  // (publisher, writer) to delete
+  // a forgotten client's publisher to delete once its reliable writers hold nothing unacknowledged
+  struct Retiring {
+    dds_entity_t publisher;     // deleted with its writers
+    dds_entity_t writer;        // its reply writer
+    dds_entity_t image_writer;  // its image writer (0: none)
+  };
+  std::vector<Retiring> retiring_;
   std::atomic<std::size_t> client_count_{0};        // matched request writers, for any thread
   std::unordered_map<std::string, bool> async_services_;  // "component.service" -> is_async
   std::set<std::string> published_;                 // components with a catalog entry written
