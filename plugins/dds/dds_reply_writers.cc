@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cstring>
 #include <set>
+#include <utility>
 
 #include "dds_request_manager.h"
 #include "simgate/core/log.h"
@@ -101,8 +102,9 @@ void DdsRequestManager::write_progress() {
   progress_.clear();
 }
 
-void DdsRequestManager::send_images(const ClientId& id, ClientState& client, std::uint64_t seq, Outcome& outcome) {
-  if (client.image_writer <= 0 || !announced_reader_matched(client.image_writer, id)) return;
+bool DdsRequestManager::send_images(const ClientId& id, ClientState& client, ReplyData& reply) {
+  if (client.image_writer <= 0 || !announced_reader_matched(client.image_writer, id)) return true;
+  Outcome& outcome = *reply.images;
   // the records the attachments are the pixels of: the result, or the items of its list
   std::vector<json*> records;
   json& value = *outcome.value;
@@ -111,37 +113,40 @@ void DdsRequestManager::send_images(const ClientId& id, ClientState& client, std
   } else if (value.is_array()) {
     for (json& record : value) records.push_back(&record);
   }
-  if (records.size() != outcome.attachments.size()) return;
-  for (std::size_t i = 0; i < records.size(); ++i) {
-    const StreamPayload* pixels = outcome.attachments[i].get();
-    json& record = *records[i];
+  if (records.size() != outcome.attachments.size()) return true;
+  for (; reply.images_done < records.size(); ++reply.images_done) {
+    const StreamPayload* pixels = outcome.attachments[reply.images_done].get();
+    json& record = *records[reply.images_done];
     if (!pixels || pixels->content != "image" || !record.is_object()) continue;
     const json& d = pixels->description;
     dds_return_t rc;
     try {
-      rc = write_image_payload(client.image_writer, d.value("component", std::string()), seq,
+      rc = write_image_payload(client.image_writer, d.value("component", std::string()), reply.seq,
                                d.value("timestamp", 0.0), *pixels);
     } catch (const std::exception& e) {
-      log::warning("DDS transport: an image of reply ", seq, " to client ", to_hex(id), " not written: ", e.what());
+      log::warning("DDS transport: an image of reply ", reply.seq, " to client ", to_hex(id), " not written: ", e.what());
       continue;
     }
-    // not written (its writer full: the earlier images not acknowledged yet): the PNG stays
+    // its writer full (the images before it not acknowledged yet): this one and the rest later
+    if (rc == DDS_RETCODE_TIMEOUT) return false;
     if (rc < 0) {
-      log::debug("DDS transport: an image of reply ", seq, " to client ", to_hex(id), " stays a PNG: ",
-                 retcode_text(rc));
+      log::warning("DDS transport: an image of reply ", reply.seq, " to client ", to_hex(id), " stays a PNG: ",
+                   retcode_text(rc));
       continue;
     }
     record.erase("image");
     record["format"] = "raw";
   }
+  return true;
 }
 
-void DdsRequestManager::prepare_images(const ClientId& id, ClientState& client, ReplyData& reply) {
-  if (!reply.images) return;
-  // images raw on the client's image topic, when it reads it; else the PNGs stay
-  send_images(id, client, reply.seq, *reply.images);
+bool DdsRequestManager::prepare_images(const ClientId& id, ClientState& client, ReplyData& reply, bool give_up) {
+  if (!reply.images) return true;
+  // images raw on the client's image topic, when it reads it; else (or given up) the PNGs stay
+  if (!give_up && !send_images(id, client, reply)) return false;
   reply.result = reply.images->value->dump(-1, ' ', false, json::error_handler_t::replace);
   reply.images.reset();
+  return true;
 }
 
 bool DdsRequestManager::announced_reader_matched(dds_entity_t writer, const ClientId& id) {
@@ -188,10 +193,12 @@ void DdsRequestManager::send_reply(const ClientId& client_id, ReplyData reply, b
   }
   // written at once when its reader is matched and nothing waits before it
   if (client.parked.empty() && client.reader_matched) {
-    prepare_images(client_id, client, reply);
-    if (write_reply(client_id, client, reply) != DDS_RETCODE_TIMEOUT) return;
-    // its writer is full: the reader acknowledges nothing; retried with backoff
+    const bool images_ready = prepare_images(client_id, client, reply, false);
+    if (images_ready && write_reply(client_id, client, reply) != DDS_RETCODE_TIMEOUT) return;
+    // its writer (or its image writer) is full: the reader has not acknowledged what came
+    // before; retried with backoff
     client.stalled = true;
+    client.images_stalled = !images_ready;
     client.retry_delay = std::chrono::milliseconds(5);
     client.retry_at = std::chrono::steady_clock::now() + client.retry_delay;
     log::debug("DDS transport: the reply writer of client ", to_hex(client_id), " is full; reply ", reply.seq,
@@ -255,10 +262,15 @@ void DdsRequestManager::flush_parked(const ClientId& id, ClientState& client,
     // do not announce simgate.id), or for its writer to have room again
     bool attempt = (client.reader_matched || expired) && !(client.stalled && now < client.retry_at);
     if (attempt) {
-      prepare_images(id, client, reply);
-      dds_return_t rc = write_reply(id, client, reply);
+      // (past its deadline, the images left go as PNGs in the reply)
+      const bool images_ready = prepare_images(id, client, reply, expired);
+      const dds_return_t rc = images_ready ? write_reply(id, client, reply) : DDS_RETCODE_TIMEOUT;
+      const bool was_images = std::exchange(client.images_stalled, !images_ready);
       if (rc != DDS_RETCODE_TIMEOUT) {
-        if (client.stalled) {
+        if (client.stalled && (was_images && client.dropped == 0)) {
+          // only its image writer was full a moment: nothing to report
+          client.stalled = false;
+        } else if (client.stalled) {
           // (with the drops not reported yet)
           log::info("DDS transport: client ", to_hex(id), " takes its replies again",
                     client.dropped > 0 ? "; reply(ies) dropped meanwhile: " + std::to_string(client.dropped) : "");

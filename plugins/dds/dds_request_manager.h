@@ -143,6 +143,7 @@ class DdsRequestManager : public RequestManager {
     // A result with images (Outcome::attachments): `result` is written from it when the reply
     // goes (prepare_images), so that whether the client reads its images raw is known then.
     std::shared_ptr<Outcome> images;
+    std::size_t images_done = 0;  // its records whose image was written (or stays a PNG)
   };
   // A request handed to the core and not yet completed, or a cancel waiting for its answer.
   struct Pending {
@@ -163,6 +164,7 @@ class DdsRequestManager : public RequestManager {
     std::unordered_map<std::uint64_t, RequestId> calls;  // seq -> request in the core
     std::deque<ReplyData> parked;                       // replies not written yet, in order
     bool stalled = false;                               // its writer was full at the last write
+    bool images_stalled = false;                        // ... its image writer (not worth a log line)
     std::chrono::steady_clock::time_point retry_at;     // stalled: next write attempt
     std::chrono::milliseconds retry_delay{0};           // stalled: backoff, doubling
     std::size_t dropped = 0;                            // replies dropped, not yet logged
@@ -192,12 +194,14 @@ class DdsRequestManager : public RequestManager {
   // for progress; false (logged) if it cannot be created.
   bool ensure_progress_writer(const ClientId& id, ClientState& client);
   // When the client has an image reader (announcing its id) matched: writes the images of
-  // `outcome` (its attachments) on its image writer, each as a simgate::stream::Image with
-  // the call's seq, and leaves their PNG out of its records (format "raw"). An image not
-  // written (its writer full) keeps its PNG. Never blocks.
-  void send_images(const ClientId& id, ClientState& client, std::uint64_t seq, Outcome& outcome);
-  // Just before `reply` is first written: its images (send_images) and its result's text.
-  void prepare_images(const ClientId& id, ClientState& client, ReplyData& reply);
+  // `reply` (its attachments) not written yet on its image writer, in order, each as a
+  // simgate::stream::Image with the call's seq, and leaves their PNG out of their records
+  // (format "raw"). False when the image writer is full (the images before not yet
+  // acknowledged: Cyclone's WhcHigh): the rest wait for a retry. Never blocks.
+  bool send_images(const ClientId& id, ClientState& client, ReplyData& reply);
+  // Before `reply` is written: its images (send_images) and its result's text. False while
+  // its images wait for room; `give_up`: the images left keep their PNGs.
+  bool prepare_images(const ClientId& id, ClientState& client, ReplyData& reply, bool give_up);
   // Whether a reader announcing the client's id is matched to `writer` (one of its own).
   static bool announced_reader_matched(dds_entity_t writer, const ClientId& id);
   // Writes the replies of `batch` (emptied); `final_flush`: at stop(), without parking.
