@@ -18,6 +18,10 @@ CallContext::~CallContext() { t_current = previous_; }
 
 const CallContext* CallContext::current() noexcept { return t_current; }
 
+void CallContext::attach(std::shared_ptr<const StreamPayload> payload) {
+  if (t_current && payload) t_current->attachments_.push_back(std::move(payload));
+}
+
 OutsideRequest::OutsideRequest() noexcept : hidden_(t_current) { t_current = nullptr; }
 
 OutsideRequest::~OutsideRequest() { t_current = hidden_; }

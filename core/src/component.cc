@@ -69,6 +69,10 @@ void Component::declare_pushed_stream(std::string kind, double frequency) {
 
 bool Component::stream_wanted() const { return stream_ && stream_->outlet && stream_->outlet->wanted(); }
 
+void Component::note_skipped_sample() {
+  if (stream_ && stream_->outlet) stream_->outlet->note_skipped();
+}
+
 bool Component::push_sample(double time, json data) {
   if (!stream_ || !stream_->outlet) return false;
   return stream_->outlet->push(time, std::move(data), nullptr);

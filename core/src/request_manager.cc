@@ -299,7 +299,7 @@ bool RequestManager::execute(RequestId id, const Call& call, Outcome& out,
   try {
     // the service may ask who calls (call_context.h): what this transport serves bounds
     // what it may see and act on
-    const CallContext context(*this, id);
+    CallContext context(*this, id);
     BoundArguments args = bind_arguments(d, call.params);
     if (d.is_async) {
       start_async(id, *service, args.span(), call.progress, started);
@@ -309,8 +309,10 @@ bool RequestManager::execute(RequestId id, const Call& call, Outcome& out,
     out.failure = Failure::none;
     out.message.clear();
     out.data = nullptr;
+    out.attachments.clear();
     out.value = service->invoke(args.span(), Completion());
     if (out.value && out.value->is_null()) out.value.reset();  // as Outcome::success
+    out.attachments = context.take_attachments();
     return true;
   } catch (const ServiceError& e) {
     json data = e.data();

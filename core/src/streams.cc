@@ -181,6 +181,10 @@ bool StreamOutlet::push(double time, json data, std::shared_ptr<const StreamPayl
   return hub_->push(component_, time, std::move(data), std::move(payload));
 }
 
+void StreamOutlet::note_skipped() {
+  if (hub_) hub_->note_skipped(component_);
+}
+
 // ---------------------------------------------------------------------------------------
 // StreamHub
 
@@ -208,6 +212,8 @@ struct StreamHub::Stream {
   std::atomic<std::size_t> subscriber_count{0};  // subscribers.size()
   std::atomic<bool> first_wanted{false};         // a subscriber waits for its first sample
   std::uint64_t dropped_before = 0;         // drops of subscriptions that ended
+  std::uint64_t skipped = 0;                // out, pushed: samples due that never came (note_skipped)
+  bool skip_logged = false;                 // the first skip was logged
   std::optional<json> pending;              // in: the command waiting for the lock
   std::uint64_t commands = 0;
   std::uint64_t replaced = 0;
@@ -293,7 +299,7 @@ bool StreamHub::remove(const std::string& component) {
     closed = std::move((*it)->subscribers);
     subscribers_.fetch_sub(closed.size(), std::memory_order_release);
     for (const auto& s : closed) dropped_by_removed_ += s->dropped();
-    dropped_by_removed_ += (*it)->dropped_before;
+    dropped_by_removed_ += (*it)->dropped_before + (*it)->skipped;
     if (const auto& outlet = (*it)->outlet) {
       outlet->wanted_.store(false, std::memory_order_release);
       outlet->hub_ = nullptr;
@@ -406,6 +412,21 @@ bool StreamHub::push(const std::string& component, double time, json data,
   }
   after_fan_out();
   return true;
+}
+
+void StreamHub::note_skipped(const std::string& component) {
+  bool first = false;
+  {
+    std::lock_guard lock(mutex_);
+    Stream* s = find_locked(component);
+    if (!s) return;
+    ++s->skipped;
+    first = !s->skip_logged;
+    s->skip_logged = true;
+  }
+  if (first)
+    log::warning(component, " stream: a sample due was skipped (its component could not make it in time: a camera's "
+                 "render thread behind); this is logged once; simulation get_stream_statistics counts them");
 }
 
 std::string StreamHub::apply(Stream& stream, const json& command) {
@@ -544,7 +565,8 @@ std::vector<StreamStatistics> StreamHub::statistics(std::string_view transport) 
     st.info = s->info;
     st.samples = s->seq;
     st.subscribers = s->subscribers.size();
-    st.dropped = s->dropped_before;
+    st.skipped = s->skipped;
+    st.dropped = s->dropped_before + s->skipped;
     for (const auto& sub : s->subscribers) st.dropped += sub->dropped();
     st.commands = s->commands;
     st.replaced = s->replaced;
@@ -566,7 +588,7 @@ std::uint64_t StreamHub::total_dropped() const {
   std::lock_guard lock(mutex_);
   std::uint64_t n = dropped_by_removed_;
   for (const auto& s : streams_) {
-    n += s->dropped_before;
+    n += s->dropped_before + s->skipped;
     for (const auto& sub : s->subscribers) n += sub->dropped();
   }
   return n;

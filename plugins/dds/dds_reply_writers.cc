@@ -6,13 +6,17 @@
 // that leaves has its async calls cancelled, and its writer is retired once its replies are
 // acknowledged. A client's first call asking for progress gives it a progress writer (best
 // effort, beside its reply writer), which carries its calls' reports, written before the
-// replies delivered with them. Options, entities, the DDS thread and requests: dds_request_manager.cc.
+// replies delivered with them. A client with a reader on simgate_ReplyImage gets the images of
+// its replies there, raw, beside them (send_images). Options, entities, the DDS thread and
+// requests: dds_request_manager.cc.
 #include <algorithm>
 #include <cstring>
 #include <set>
+#include <utility>
 
 #include "dds_request_manager.h"
 #include "simgate/core/log.h"
+#include "simgate/core/streams.h"
 
 namespace simgate::dds {
 
@@ -59,7 +63,17 @@ void DdsRequestManager::write_finished(std::vector<std::pair<RequestId, Outcome>
         continue;
       }
     }
-    send_reply(pending.client, to_reply(pending.seq, outcome), final_flush);
+    // a result with images: its text is written when it goes (prepare_images)
+    std::shared_ptr<Outcome> images;
+    if (!outcome.attachments.empty() && outcome.status == Status::success && outcome.value) {
+      images = std::make_shared<Outcome>();
+      images->value = std::move(outcome.value);
+      images->attachments = std::move(outcome.attachments);
+      outcome.value.reset();
+    }
+    ReplyData reply = to_reply(pending.seq, outcome);
+    reply.images = std::move(images);
+    send_reply(pending.client, std::move(reply), final_flush);
   }
   batch.clear();
 }
@@ -88,6 +102,70 @@ void DdsRequestManager::write_progress() {
   progress_.clear();
 }
 
+bool DdsRequestManager::send_images(const ClientId& id, ClientState& client, ReplyData& reply) {
+  if (client.image_writer <= 0 || !announced_reader_matched(client.image_writer, id)) return true;
+  Outcome& outcome = *reply.images;
+  // the records the attachments are the pixels of: the result, or the items of its list
+  std::vector<json*> records;
+  json& value = *outcome.value;
+  if (value.is_object()) {
+    records.push_back(&value);
+  } else if (value.is_array()) {
+    for (json& record : value) records.push_back(&record);
+  }
+  if (records.size() != outcome.attachments.size()) return true;
+  for (; reply.images_done < records.size(); ++reply.images_done) {
+    const StreamPayload* pixels = outcome.attachments[reply.images_done].get();
+    json& record = *records[reply.images_done];
+    if (!pixels || pixels->content != "image" || !record.is_object()) continue;
+    const json& d = pixels->description;
+    dds_return_t rc;
+    try {
+      rc = write_image_payload(client.image_writer, d.value("component", std::string()), reply.seq,
+                               d.value("timestamp", 0.0), *pixels);
+    } catch (const std::exception& e) {
+      log::warning("DDS transport: an image of reply ", reply.seq, " to client ", to_hex(id), " not written: ", e.what());
+      continue;
+    }
+    // its writer full (the images before it not acknowledged yet): this one and the rest later
+    if (rc == DDS_RETCODE_TIMEOUT) return false;
+    if (rc < 0) {
+      log::warning("DDS transport: an image of reply ", reply.seq, " to client ", to_hex(id), " stays a PNG: ",
+                   retcode_text(rc));
+      continue;
+    }
+    record.erase("image");
+    record["format"] = "raw";
+  }
+  return true;
+}
+
+bool DdsRequestManager::prepare_images(const ClientId& id, ClientState& client, ReplyData& reply, bool give_up) {
+  if (!reply.images) return true;
+  // images raw on the client's image topic, when it reads it; else (or given up) the PNGs stay
+  if (!give_up && !send_images(id, client, reply)) return false;
+  reply.result = reply.images->value->dump(-1, ' ', false, json::error_handler_t::replace);
+  reply.images.reset();
+  return true;
+}
+
+bool DdsRequestManager::announced_reader_matched(dds_entity_t writer, const ClientId& id) {
+  dds_publication_matched_status_t status{};
+  if (dds_get_publication_matched_status(writer, &status) < 0 || status.current_count == 0) return false;
+  // a reader in the client's partition that announces its id: one that does not (or an
+  // eavesdropper's, see docs) does not count
+  std::vector<dds_instance_handle_t> handles(status.current_count + 4);
+  dds_return_t n = dds_get_matched_subscriptions(writer, handles.data(), handles.size());
+  for (dds_return_t i = 0; i < std::min<dds_return_t>(n, static_cast<dds_return_t>(handles.size())); ++i) {
+    if (dds_builtintopic_endpoint_t* ep = dds_get_matched_subscription_data(writer, handles[i])) {
+      const bool announced = client_id_from_userdata(ep->qos) == id;
+      dds_builtintopic_free_endpoint(ep);
+      if (announced) return true;
+    }
+  }
+  return false;
+}
+
 bool DdsRequestManager::ensure_progress_writer(const ClientId& id, ClientState& client) {
   if (client.progress_writer > 0) return true;
   if (client.progress_writer < 0) return false;  // failed before: not tried for every call
@@ -107,16 +185,20 @@ void DdsRequestManager::send_reply(const ClientId& client_id, ReplyData reply, b
     return;
   }
   ClientState& client = c->second;
-  // at stop(): one attempt, nothing parked
+  // at stop(): one attempt, nothing parked (the PNGs stay)
   if (final_flush) {
+    if (reply.images) reply.result = reply.images->value->dump(-1, ' ', false, json::error_handler_t::replace);
     write_reply(client_id, client, reply);
     return;
   }
   // written at once when its reader is matched and nothing waits before it
   if (client.parked.empty() && client.reader_matched) {
-    if (write_reply(client_id, client, reply) != DDS_RETCODE_TIMEOUT) return;
-    // its writer is full: the reader acknowledges nothing; retried with backoff
+    const bool images_ready = prepare_images(client_id, client, reply, false);
+    if (images_ready && write_reply(client_id, client, reply) != DDS_RETCODE_TIMEOUT) return;
+    // its writer (or its image writer) is full: the reader has not acknowledged what came
+    // before; retried with backoff
     client.stalled = true;
+    client.images_stalled = !images_ready;
     client.retry_delay = std::chrono::milliseconds(5);
     client.retry_at = std::chrono::steady_clock::now() + client.retry_delay;
     log::debug("DDS transport: the reply writer of client ", to_hex(client_id), " is full; reply ", reply.seq,
@@ -174,15 +256,21 @@ void DdsRequestManager::drop_reply(const ClientId& client_id, ClientState& clien
 void DdsRequestManager::flush_parked(const ClientId& id, ClientState& client,
                                      std::chrono::steady_clock::time_point now) {
   while (!client.parked.empty()) {
-    const ReplyData& reply = client.parked.front();
+    ReplyData& reply = client.parked.front();
     const bool expired = reply.deadline <= now;
     // waiting for its reader (after park_timeout_ms it is written anyway, for readers that
     // do not announce simgate.id), or for its writer to have room again
     bool attempt = (client.reader_matched || expired) && !(client.stalled && now < client.retry_at);
     if (attempt) {
-      dds_return_t rc = write_reply(id, client, reply);
+      // (past its deadline, the images left go as PNGs in the reply)
+      const bool images_ready = prepare_images(id, client, reply, expired);
+      const dds_return_t rc = images_ready ? write_reply(id, client, reply) : DDS_RETCODE_TIMEOUT;
+      const bool was_images = std::exchange(client.images_stalled, !images_ready);
       if (rc != DDS_RETCODE_TIMEOUT) {
-        if (client.stalled) {
+        if (client.stalled && (was_images && client.dropped == 0)) {
+          // only its image writer was full a moment: nothing to report
+          client.stalled = false;
+        } else if (client.stalled) {
           // (with the drops not reported yet)
           log::info("DDS transport: client ", to_hex(id), " takes its replies again",
                     client.dropped > 0 ? "; reply(ies) dropped meanwhile: " + std::to_string(client.dropped) : "");
@@ -221,21 +309,7 @@ std::chrono::steady_clock::time_point DdsRequestManager::flush_all_parked() {
 
 void DdsRequestManager::refresh_reader_match(const ClientId& id, ClientState& client) {
   // reading the status resets it (the waitset trigger)
-  dds_publication_matched_status_t status{};
-  dds_get_publication_matched_status(client.reply_writer, &status);
-  // a reader in the client's partition that announces its id: one that does not (or an
-  // eavesdropper's, see docs) does not count
-  bool matched = false;
-  if (status.current_count > 0) {
-    std::vector<dds_instance_handle_t> handles(status.current_count + 4);
-    dds_return_t n = dds_get_matched_subscriptions(client.reply_writer, handles.data(), handles.size());
-    for (dds_return_t i = 0; i < std::min<dds_return_t>(n, static_cast<dds_return_t>(handles.size())) && !matched; ++i) {
-      if (dds_builtintopic_endpoint_t* ep = dds_get_matched_subscription_data(client.reply_writer, handles[i])) {
-        matched = client_id_from_userdata(ep->qos) == id;
-        dds_builtintopic_free_endpoint(ep);
-      }
-    }
-  }
+  const bool matched = announced_reader_matched(client.reply_writer, id);
   client.reader_matched = matched;
   // what was parked for it goes now
   if (matched && !client.parked.empty()) flush_parked(id, client, std::chrono::steady_clock::now());
@@ -292,6 +366,11 @@ void DdsRequestManager::add_client(dds_instance_handle_t writer) {
   client.writer = writer;
   client.reply_publisher = publisher;
   client.reply_writer = reply_writer;
+  // its images' writer (deleted with the publisher); without it its replies keep their PNGs
+  client.image_writer = dds_create_writer(publisher, image_topic_, image_qos_.get(), nullptr);
+  if (client.image_writer < 0)
+    log::warning("DDS transport: client ", to_hex(id), " gets its images as PNGs only: no image writer: ",
+                 retcode_text(client.image_writer));
   writers_[writer] = id;
   reply_writers_[reply_writer] = id;
   log::debug("DDS transport: client ", to_hex(id), " appeared (", clients_.size(), " known)");
@@ -322,29 +401,36 @@ void DdsRequestManager::forget_client(const ClientId& id) {
   auto c = clients_.find(id);
   if (c == clients_.end()) return;
   // its publisher and reply writer go with it
-  if (c->second.reply_publisher > 0) retire(c->second.reply_publisher, c->second.reply_writer);
+  if (c->second.reply_publisher > 0)
+    retire(c->second.reply_publisher, c->second.reply_writer, std::max<dds_entity_t>(c->second.image_writer, 0));
   writers_.erase(c->second.writer);
   reply_writers_.erase(c->second.reply_writer);
   clients_.erase(c);
   log::debug("DDS transport: client ", to_hex(id), " forgotten (", clients_.size(), " known)");
 }
 
-void DdsRequestManager::retire(dds_entity_t publisher, dds_entity_t writer) {
+void DdsRequestManager::retire(dds_entity_t publisher, dds_entity_t writer, dds_entity_t image_writer) {
   dds_waitset_detach(waitset_, writer);
-  // all acknowledged (or no reader left): deleted at once, without lingering
-  if (dds_wait_for_acks(writer, 0) == DDS_RETCODE_OK) {
+  // all acknowledged (or no reader left), replies and images: deleted at once, without lingering
+  const Retiring entry{publisher, writer, image_writer};
+  auto acknowledged = [](const Retiring& e) {
+    return dds_wait_for_acks(e.writer, 0) == DDS_RETCODE_OK &&
+           (e.image_writer <= 0 || dds_wait_for_acks(e.image_writer, 0) == DDS_RETCODE_OK);
+  };
+  if (acknowledged(entry)) {
     dds_delete(publisher);
     return;
   }
-  log::debug("DDS transport: a reply writer with unacknowledged replies is deleted once they are acknowledged "
-             "or their reader left");
-  retiring_.emplace_back(publisher, writer);
+  log::debug("DDS transport: a reply writer with unacknowledged replies (or images) is deleted once they are "
+             "acknowledged or their reader left");
+  retiring_.push_back(entry);
 }
 
 void DdsRequestManager::retire_pending() {
-  std::erase_if(retiring_, [](const std::pair<dds_entity_t, dds_entity_t>& entry) {
-    if (dds_wait_for_acks(entry.second, 0) != DDS_RETCODE_OK) return false;
-    dds_delete(entry.first);
+  std::erase_if(retiring_, [](const Retiring& e) {
+    if (dds_wait_for_acks(e.writer, 0) != DDS_RETCODE_OK) return false;
+    if (e.image_writer > 0 && dds_wait_for_acks(e.image_writer, 0) != DDS_RETCODE_OK) return false;
+    dds_delete(e.publisher);
     return true;
   });
 }

@@ -11,6 +11,7 @@
 #include "cyclone_config.h"
 #include "simgate/core/config.h"
 #include "simgate/core/log.h"
+#include "simgate_streams.h"
 
 namespace simgate::dds {
 
@@ -135,6 +136,16 @@ void DdsRequestManager::create_entities() {
   dds_qset_reliability(progress_qos_.get(), DDS_RELIABILITY_BEST_EFFORT, 0);
   dds_qset_writer_data_lifecycle(progress_qos_.get(), false);
   dds_qset_userdata(progress_qos_.get(), userdata.data(), userdata.size());
+
+  // replies' images, raw (send_images), one writer per client beside its reply writer:
+  // reliable, keep-all, never blocking (a write the writer cannot take leaves the image's PNG
+  // in the reply), in the client's partition; only a client with a reader on it gets them
+  image_topic_ = check(dds_create_topic(pp, &simgate_stream_Image_desc, k_reply_image_topic, nullptr, nullptr),
+                       "topic simgate_ReplyImage");
+  image_qos_ = make_qos(false, 0, 0);
+  dds_qset_resource_limits(image_qos_.get(), options_.max_samples, DDS_LENGTH_UNLIMITED, DDS_LENGTH_UNLIMITED);
+  dds_qset_writer_data_lifecycle(image_qos_.get(), false);
+  dds_qset_userdata(image_qos_.get(), userdata.data(), userdata.size());
 
   // catalog: the last sample of each component, kept for late joiners
   QosPtr catalog_qos = make_qos(true, 1, DDS_SECS(1));

@@ -140,6 +140,10 @@ class DdsRequestManager : public RequestManager {
     std::string message;                         // human-readable reason
     std::string data;                            // JSON object text or ""
     std::chrono::steady_clock::time_point deadline;  // parked: when to give up waiting
+    // A result with images (Outcome::attachments): `result` is written from it when the reply
+    // goes (prepare_images), so that whether the client reads its images raw is known then.
+    std::shared_ptr<Outcome> images;
+    std::size_t images_done = 0;  // its records whose image was written (or stays a PNG)
   };
   // A request handed to the core and not yet completed, or a cancel waiting for its answer.
   struct Pending {
@@ -155,10 +159,12 @@ class DdsRequestManager : public RequestManager {
     dds_entity_t reply_publisher = 0;                   // in "<partition>/<id>"; owns reply_writer
     dds_entity_t reply_writer = 0;                      // its replies, to its reader alone
     dds_entity_t progress_writer = 0;                   // its progress reports (at its first call asking)
+    dds_entity_t image_writer = 0;                      // its replies' images, raw (simgate_ReplyImage)
     bool reader_matched = false;                        // a reader announcing its id is matched
     std::unordered_map<std::uint64_t, RequestId> calls;  // seq -> request in the core
     std::deque<ReplyData> parked;                       // replies not written yet, in order
     bool stalled = false;                               // its writer was full at the last write
+    bool images_stalled = false;                        // ... its image writer (not worth a log line)
     std::chrono::steady_clock::time_point retry_at;     // stalled: next write attempt
     std::chrono::milliseconds retry_delay{0};           // stalled: backoff, doubling
     std::size_t dropped = 0;                            // replies dropped, not yet logged
@@ -187,6 +193,17 @@ class DdsRequestManager : public RequestManager {
   // The client's progress writer, created in its reply partition at its first call asking
   // for progress; false (logged) if it cannot be created.
   bool ensure_progress_writer(const ClientId& id, ClientState& client);
+  // When the client has an image reader (announcing its id) matched: writes the images of
+  // `reply` (its attachments) not written yet on its image writer, in order, each as a
+  // simgate::stream::Image with the call's seq, and leaves their PNG out of their records
+  // (format "raw"). False when the image writer is full (the images before not yet
+  // acknowledged: Cyclone's WhcHigh): the rest wait for a retry. Never blocks.
+  bool send_images(const ClientId& id, ClientState& client, ReplyData& reply);
+  // Before `reply` is written: its images (send_images) and its result's text. False while
+  // its images wait for room; `give_up`: the images left keep their PNGs.
+  bool prepare_images(const ClientId& id, ClientState& client, ReplyData& reply, bool give_up);
+  // Whether a reader announcing the client's id is matched to `writer` (one of its own).
+  static bool announced_reader_matched(dds_entity_t writer, const ClientId& id);
   // Writes the replies of `batch` (emptied); `final_flush`: at stop(), without parking.
   void write_finished(std::vector<std::pair<RequestId, Outcome>>& batch, bool final_flush);
   // The request writers matched now: new ones become clients, missing ones are gone.
@@ -201,7 +218,9 @@ class DdsRequestManager : public RequestManager {
   // matched and silent would hold the DDS thread that long, once per such client. (A Cyclone
   // peer whose reader is full cannot get that far: its receive thread is stuck, and so is
   // its own deletion; a crafted peer can.)
-  void retire(dds_entity_t publisher, dds_entity_t writer);
+  // `writer` and `image_writer` (0: none): the reliable writers under `publisher` whose
+  // acknowledgements are awaited (its reply writer, and its image writer).
+  void retire(dds_entity_t publisher, dds_entity_t writer, dds_entity_t image_writer);
   void retire_pending();
   // Whether a reader announcing the client's id matches its reply writer (reads the status).
   void refresh_reader_match(const ClientId& id, ClientState& client);
@@ -227,6 +246,8 @@ class DdsRequestManager : public RequestManager {
   QosPtr reply_qos_;                         // of every reply writer
   dds_entity_t progress_topic_ = 0;          // simgate_Progress (a writer per client asking)
   QosPtr progress_qos_;                      // of every progress writer
+  dds_entity_t image_topic_ = 0;             // simgate_ReplyImage (a writer per client)
+  QosPtr image_qos_;                         // of every image writer
   dds_entity_t catalog_writer_ = 0;          // simgate_Catalog (transient-local)
   dds_entity_t waitset_ = 0;                 // what the DDS thread waits on
   dds_entity_t guard_ = 0;                   // raised by the sim thread and by stop()
@@ -252,7 +273,13 @@ class DdsRequestManager : public RequestManager {
   std::map<ClientId, ClientState> clients_;         // known clients
   std::map<dds_instance_handle_t, ClientId> writers_;  // request writer -> its client
   std::map<dds_entity_t, ClientId> reply_writers_;  // reply writer -> its client
-  std::vector<std::pair<dds_entity_t, dds_entity_t>> retiring_;  // (publisher, writer) to delete
+  // a forgotten client's publisher to delete once its reliable writers hold nothing unacknowledged
+  struct Retiring {
+    dds_entity_t publisher;     // deleted with its writers
+    dds_entity_t writer;        // its reply writer
+    dds_entity_t image_writer;  // its image writer (0: none)
+  };
+  std::vector<Retiring> retiring_;
   std::atomic<std::size_t> client_count_{0};        // matched request writers, for any thread
   std::unordered_map<std::string, bool> async_services_;  // "component.service" -> is_async
   std::set<std::string> published_;                 // components with a catalog entry written

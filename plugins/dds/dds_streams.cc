@@ -106,10 +106,22 @@ dds_return_t write_laser_scan(dds_entity_t writer, const std::string& component,
 // A camera's image: the payload's bytes as they are (no PNG, no base64, no JSON).
 dds_return_t write_image(dds_entity_t writer, const std::string& component, const StreamSample& sample) {
   const StreamPayload* payload = sample.payload();
-  if (!payload || payload->content != "image") throw std::invalid_argument("the sample carries no image");
+  if (!payload) throw std::invalid_argument("the sample carries no image");
+  return write_image_payload(writer, component, sample.seq(), sample.time(), *payload);
+}
+
+}  // namespace
+
+dds_return_t write_image_payload(dds_entity_t writer, const std::string& component, std::uint64_t seq, double time,
+                                 const StreamPayload& source) {
+  const StreamPayload* payload = &source;
+  if (payload->content != "image") throw std::invalid_argument("the payload is no image");
   const json& d = payload->description;
   const std::string encoding = d.at("encoding").get<std::string>();
-  auto image = stamped<simgate_stream_Image>(component, sample);
+  simgate_stream_Image image{};
+  image.component = const_cast<char*>(component.c_str());
+  image.seq = seq;
+  image.time = time;
   image.height = d.at("height").get<std::uint32_t>();
   image.width = d.at("width").get<std::uint32_t>();
   image.encoding = const_cast<char*>(encoding.c_str());
@@ -123,6 +135,8 @@ dds_return_t write_image(dds_entity_t writer, const std::string& component, cons
                 const_cast<std::uint8_t*>(payload->bytes.data()), false};
   return dds_write(writer, &image);
 }
+
+namespace {
 
 // The type of an output stream's topic, by its kind.
 struct OutputType {

@@ -49,6 +49,13 @@ inline constexpr const char* k_streams_topic = "simgate_Streams";
 // "rover.pose" -> "simgate/rover/pose" (DDS topic names take letters, digits, '_' and '/').
 std::string topic_path(std::string_view component);
 
+// Writes an image payload (StreamPayload content "image": its pixels raw and their
+// description) as a simgate::stream::Image with `component`, `seq` and `time`, on `writer`
+// (of that type): a stream sample, or a reply's image (simgate_ReplyImage). Throws
+// std::invalid_argument when the payload is no image of that shape; else dds_write's code.
+dds_return_t write_image_payload(dds_entity_t writer, const std::string& component, std::uint64_t seq, double time,
+                                 const StreamPayload& payload);
+
 class DdsStreams {
  public:
   // Waitset tokens (see DdsRequestManager::run): samples are waiting; commands are waiting.

@@ -35,6 +35,8 @@ inline constexpr const char* k_request_topic = "simgate_Request";
 inline constexpr const char* k_reply_topic = "simgate_Reply";
 inline constexpr const char* k_catalog_topic = "simgate_Catalog";
 inline constexpr const char* k_progress_topic = "simgate_Progress";
+// The raw pixels of replies' images (simgate::stream::Image, in a client's reply partition).
+inline constexpr const char* k_reply_image_topic = "simgate_ReplyImage";
 // USER_DATA prefix of a client's reply reader.
 inline constexpr std::string_view k_userdata_id_prefix = "simgate.id=";
 

@@ -3,11 +3,9 @@
 
 #include <algorithm>
 #include <bit>
-#include <chrono>
 #include <cstring>
 #include <cmath>
 #include <deque>
-#include <condition_variable>
 #include <limits>
 #include <mutex>
 
@@ -27,8 +25,6 @@ constexpr double k_min_fovy = 0.1, k_max_fovy = 179;   // degrees
 constexpr double k_default_frequency = 20;             // images per simulated second
 // MORSE's cam_focal is a Blender lens: millimetres, on a 32 mm wide sensor (its larger side)
 constexpr double k_blender_sensor = 32;                // mm
-// how long get_local_data waits for its first image (under the lock, once)
-constexpr auto k_first_image_timeout = std::chrono::seconds(30);
 
 // The JSON record of one image (render_support.h). Render thread.
 json image_record(const RenderResult& r, Camera::Type type) {
@@ -38,13 +34,15 @@ json image_record(const RenderResult& r, Camera::Type type) {
 // A stream sample of one image: its pixels raw (video: "rgb8", 3 bytes a pixel; depth:
 // "32FC1", a float in metres a pixel, 0 where nothing is hit; host byte order, rows top
 // first), described for typed transports; its record (the same as get_local_data's, PNG in
-// base64) made only when a JSON transport asks. Render thread.
-std::shared_ptr<const StreamPayload> image_payload(RenderResult& r, Camera::Type type) {
+// base64) made only when a JSON transport asks. Also a reply's attachment (Outcome::
+// attachments): the same pixels beside the record. Render thread; takes r's pixels.
+std::shared_ptr<const StreamPayload> image_payload(RenderResult& r, Camera::Type type, const std::string& component) {
   auto payload = std::make_shared<StreamPayload>();
   payload->content = "image";
   const bool video = type == Camera::Type::video;
   const int pixel = video ? 3 : static_cast<int>(sizeof(float));
-  payload->description = {{"width", r.width},
+  payload->description = {{"component", component},
+                          {"width", r.width},
                           {"height", r.height},
                           {"encoding", video ? "rgb8" : "32FC1"},
                           {"step", r.width * pixel},
@@ -76,6 +74,7 @@ struct Camera::Mailbox {
   struct Delivery {
     std::uint64_t capture_id;  // the capture it is for (0: none)
     json record;               // the image record, or null on error
+    std::shared_ptr<const StreamPayload> pixels;  // its pixels raw (the reply's attachment)
     std::string error;         // why it failed
   };
   std::mutex mutex;
@@ -84,9 +83,8 @@ struct Camera::Mailbox {
   std::string stream_error;          // why the last stream render failed ("" when it did not)
   int stream_in_flight = 0;          // stream renders asked for and not come back
   json last;                         // the last image record (null: none yet)
+  std::shared_ptr<const StreamPayload> last_pixels;  // its pixels raw
   std::string last_error;            // why the last render failed
-  std::uint64_t renders = 0;         // renders come back
-  std::condition_variable arrived;   // a render came back
   std::unique_ptr<SceneCopy> spare;  // a scene given back, for reuse
 };
 
@@ -132,8 +130,10 @@ Camera::Camera(ComponentContext& c, Type type)
   add_async_service("get_image", &Camera::get_image)
       .concurrent()
       .doc(std::string("An ") + kind + " image of the current state: its record (image: base64 PNG)");
-  add_service("get_local_data", &Camera::get_local_data)
-      .doc("The last image record: image (base64 PNG), width, height, intrinsic_matrix, timestamp");
+  add_async_service("get_local_data", &Camera::get_local_data)
+      .concurrent()
+      .doc("The last image record: image (base64 PNG), width, height, intrinsic_matrix, timestamp; the first one "
+           "rendered now, physics stepping meanwhile");
   add_property("cam_width", [this] { return json(width_); });
   add_property("cam_height", [this] { return json(height_); });
   add_property("cam_fovy", [this] { return json(fovy_); });
@@ -212,7 +212,7 @@ void Camera::render_for_stream() {
   renderer_->render(std::move(scene), !depth, depth, [mailbox = mailbox_, type = type_, who = name()](RenderResult result) {
     std::shared_ptr<const StreamPayload> payload;
     std::string error = result.error.empty() ? "" : who + ": " + result.error;
-    if (error.empty()) payload = image_payload(result, type);
+    if (error.empty()) payload = image_payload(result, type, who);
     std::lock_guard lock(mailbox->mutex);
     mailbox->spare = std::move(result.scene);
     --mailbox->stream_in_flight;
@@ -227,10 +227,13 @@ void Camera::render_now(std::uint64_t capture_id, Completion done) {
   renderer_->render(std::move(scene), !depth, depth,
                     [mailbox = mailbox_, type = type_, capture_id, done, who = name()](RenderResult result) {
                       json record;
+                      std::shared_ptr<const StreamPayload> pixels;
                       std::string error = result.error.empty() ? "" : who + ": " + result.error;
                       if (error.empty()) {
                         try {
                           record = image_record(result, type);
+                          // (after the record: takes the pixels)
+                          pixels = image_payload(result, type, who);
                         } catch (const std::exception& e) {
                           error = who + ": could not encode the image: " + e.what();
                         }
@@ -238,13 +241,22 @@ void Camera::render_now(std::uint64_t capture_id, Completion done) {
                       {
                         std::lock_guard lock(mailbox->mutex);
                         mailbox->spare = std::move(result.scene);
-                        if (error.empty()) mailbox->last = record;
+                        if (error.empty()) {
+                          mailbox->last = record;
+                          mailbox->last_pixels = pixels;
+                        }
                         mailbox->last_error = error;
-                        ++mailbox->renders;
-                        if (capture_id != 0) mailbox->deliveries.push_back({capture_id, record, error});
+                        if (capture_id != 0) mailbox->deliveries.push_back({capture_id, record, pixels, error});
                       }
-                      mailbox->arrived.notify_all();
-                      if (done) done(error.empty() ? Status::success : Status::failed, error.empty() ? record : json(error));
+                      if (!done) return;
+                      if (!error.empty()) {
+                        done(Status::failed, json(error));
+                        return;
+                      }
+                      // the record, and its pixels raw for the transports that send them typed
+                      Outcome outcome = Outcome::success(std::move(record));
+                      outcome.attachments.push_back(std::move(pixels));
+                      done.finish(std::move(outcome));
                     });
 }
 
@@ -268,19 +280,20 @@ void Camera::get_image(Completion done) {
   }
 }
 
-json Camera::get_local_data() {
-  std::unique_lock lock(mailbox_->mutex);
-  if (!mailbox_->last.is_null()) return mailbox_->last;
-  // none yet: render one now and wait for it (once; the render thread takes no lock of ours
-  // but the mailbox's)
-  const std::uint64_t before = mailbox_->renders;
-  lock.unlock();
-  render_now(0, Completion());
-  lock.lock();
-  if (!mailbox_->arrived.wait_for(lock, k_first_image_timeout, [&] { return mailbox_->renders != before; }))
-    throw ServiceError(name() + ": no image within " + std::to_string(k_first_image_timeout.count()) + " s");
-  if (mailbox_->last.is_null()) throw ServiceError(mailbox_->last_error);
-  return mailbox_->last;
+void Camera::get_local_data(Completion done) {
+  Outcome outcome;
+  {
+    std::lock_guard lock(mailbox_->mutex);
+    outcome.value = mailbox_->last;
+    outcome.attachments.push_back(mailbox_->last_pixels);  // its pixels raw, for typed transports
+  }
+  if (!outcome.value->is_null()) {
+    done.finish(std::move(outcome));
+    return;
+  }
+  // none yet: one rendered now, answered from the render thread as get_image is; physics
+  // keeps stepping meanwhile (nothing waits under the lock)
+  get_image(std::move(done));
 }
 
 void Camera::default_action() {
@@ -304,10 +317,14 @@ void Camera::default_action() {
       return;
     }
     images_.push_back(std::move(delivery.record));
+    image_pixels_.push_back(std::move(delivery.pixels));
     if (static_cast<long long>(images_.size()) == expected_) {
-      json images = std::move(images_);
+      // the records, and their pixels raw for the transports that send them typed
+      Outcome outcome = Outcome::success(std::move(images_));
+      outcome.attachments = std::move(image_pixels_);
+      Completion done = async_slot()->running_completion;
       end_capture();
-      completed(Status::success, std::move(images));
+      done.finish(std::move(outcome));
       return;
     }
   }
@@ -356,6 +373,7 @@ void Camera::stream_step(const std::string& error, int in_flight) {
   // the render thread behind: this image is skipped rather than queued (physics never waits)
   if (in_flight >= k_max_stream_in_flight) {
     ++stream_skipped_;
+    note_skipped_sample();  // counted in the stream's statistics (skipped, dropped)
     return;
   }
   try {
@@ -373,6 +391,7 @@ void Camera::end_capture() {
   ++capture_id_;
   to_render_ = expected_ = 0;
   images_ = json::array();
+  image_pixels_.clear();
 }
 
 void Camera::interrupt() {

@@ -167,6 +167,7 @@ json SupervisionServices::get_stream_statistics() const {
       entry["samples"] = s.samples;
       entry["subscribers"] = s.subscribers;
       entry["dropped"] = s.dropped;
+      if (s.info.pushed) entry["skipped"] = s.skipped;
     } else {
       entry["fields"] = s.info.fields;
       entry["commands"] = s.commands;

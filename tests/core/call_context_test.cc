@@ -8,6 +8,7 @@
 
 #include "simgate/core/call_context.h"
 #include "simgate/core/component.h"
+#include "simgate/core/streams.h"
 #include "test_manager.h"
 
 namespace simgate {
@@ -38,6 +39,14 @@ class Shared : public Component {
   Shared() : Component("shared") {
     add_service("look", [this] { seen = look(); });
     add_async_service("start", [this] { seen = look(); });
+    // a result with its bytes raw beside it (a camera's get_local_data)
+    add_service("attached", [] {
+      auto payload = std::make_shared<StreamPayload>();
+      payload->content = "image";
+      payload->bytes = {1, 2, 3};
+      CallContext::attach(payload);
+      return json{{"image", "AQID"}};
+    });
     add_service("fail", [this] {
       seen = look();
       throw std::runtime_error("boom");
@@ -117,6 +126,29 @@ TEST_F(CallContextTest, NestedContextsRestoreTheOuterOne) {
   EXPECT_EQ(CallContext::current(), &outer);
   EXPECT_TRUE(caller_serves("private"));
   EXPECT_FALSE(caller_serves("nobody serves this"));
+}
+
+}  // namespace
+}  // namespace simgate
+
+namespace simgate {
+namespace {
+
+TEST_F(CallContextTest, ASyncServiceAttachesBytesToItsOutcomeAndOnlyToIt) {
+  std::optional<Outcome> o = a_.run("shared", "attached");
+  ASSERT_TRUE(o);
+  ASSERT_EQ(o->status, Status::success);
+  EXPECT_EQ(o->value, (json{{"image", "AQID"}}));
+  ASSERT_EQ(o->attachments.size(), 1u);
+  EXPECT_EQ(o->attachments[0]->content, "image");
+  EXPECT_EQ(o->attachments[0]->bytes, (std::vector<std::uint8_t>{1, 2, 3}));
+  // the next call's outcome has none (the manager reuses its outcome)
+  o = a_.run("shared", "look");
+  ASSERT_TRUE(o);
+  EXPECT_TRUE(o->attachments.empty());
+  // outside a request an attachment goes nowhere
+  CallContext::attach(std::make_shared<StreamPayload>());
+  EXPECT_EQ(CallContext::current(), nullptr);
 }
 
 }  // namespace

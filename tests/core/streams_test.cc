@@ -2,6 +2,7 @@
 // (applied at once when the simulation lock is free, kept otherwise), removal.
 #include "simgate/core/streams.h"
 
+#include <algorithm>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -365,6 +366,7 @@ class Pusher : public Component {
  public:
   Pusher() : Component("robot.camera") { declare_pushed_stream("image", 10); }
   using Component::push_sample;
+  using Component::note_skipped_sample;
   // A payload of `n` bytes valued `value`; its JSON counts how often it is made.
   std::shared_ptr<const StreamPayload> payload(std::size_t n, std::uint8_t value) {
     auto p = std::make_shared<StreamPayload>();
@@ -495,6 +497,27 @@ TEST_F(PushedStreamTest, ASlowSubscriberLosesItsOldestPushedSamplesCounted) {
   EXPECT_EQ(got[1]->number("n"), 5);
   EXPECT_EQ(slow->dropped(), 3u);
   EXPECT_EQ(hub.total_dropped(), 3u);
+}
+
+TEST_F(PushedStreamTest, ASkippedSampleIsCountedAsSkippedAndDropped) {
+  auto sub = hub.subscribe("robot.camera", "socket", {16, "client", {}});
+  ASSERT_TRUE(pusher.push_sample(0.1, json{{"n", 1}}));
+  // the next one due never comes (the render thread was behind)
+  pusher.note_skipped_sample();
+  ASSERT_TRUE(pusher.push_sample(0.3, json{{"n", 3}}));
+  pusher.note_skipped_sample();
+  EXPECT_EQ(take(*sub).size(), 2u);
+  EXPECT_EQ(sub->dropped(), 0u);  // the subscriber's own queue lost nothing
+  const auto stats = hub.statistics("socket");
+  auto camera = std::find_if(stats.begin(), stats.end(), [](const auto& s) { return s.info.component == "robot.camera"; });
+  ASSERT_NE(camera, stats.end());
+  EXPECT_EQ(camera->samples, 2u);
+  EXPECT_EQ(camera->skipped, 2u);
+  EXPECT_EQ(camera->dropped, 2u);
+  EXPECT_EQ(hub.total_dropped(), 2u);
+  // and still after the component leaves
+  hub.remove("robot.camera");
+  EXPECT_EQ(hub.total_dropped(), 2u);
 }
 
 TEST_F(PushedStreamTest, ANewSubscribersFirstSampleIsTheNextPushed) {

@@ -39,6 +39,7 @@ const char* const k_probe = SIMGATE_BINARY_DIR "/bin/dds_probe_client";
 const char* const k_gateway = SIMGATE_BINARY_DIR "/bin/simgate";
 const char* const k_c_client = SIMGATE_BINARY_DIR "/bin/dds_c_client";
 const char* const k_stream_client = SIMGATE_BINARY_DIR "/bin/dds_stream_client";
+const char* const k_image_client = SIMGATE_BINARY_DIR "/bin/dds_image_client";
 
 std::string read_file(const std::string& path) {
   std::ifstream in(path);
@@ -472,6 +473,95 @@ TEST(DdsStreamsTest, ACamerasStreamIsATypedImageOfRawPixels) {
     return after.find("\"subscribers\": 0") != std::string::npos || after.find("\"subscribers\":0") != std::string::npos;
   }, 30s);
   EXPECT_TRUE(unsubscribed) << after;
+}
+
+// What the C image client printed for one call: its reply's result and its images' lines.
+struct ImageCall {
+  std::string output;               // all of it (for messages)
+  json result;                      // the reply's result (null: no SUCCESS reply)
+  std::vector<std::string> images;  // "seq time width height encoding step bytes R G B"
+};
+ImageCall image_call(const std::string& client, const std::string& service, const std::string& params) {
+  std::vector<std::string> argv{client, std::to_string(test_domain()), test_partition(), read_file(SIMGATE_LOOPBACK_DDS_XML)};
+  if (client == k_c_client) argv = {client, std::to_string(test_domain()), test_partition(), "rig.camera", service, params,
+                                    read_file(SIMGATE_LOOPBACK_DDS_XML)};
+  else argv.insert(argv.end(), {"rig.camera", service, params});
+  Child child(argv);
+  ImageCall call;
+  call.output = child.read_until("\x04", 90s);  // to EOF
+  const int code = child.wait_exit(30s);
+  if (code != 0) call.output += "exit " + std::to_string(code);
+  std::istringstream lines(call.output);
+  for (std::string line; std::getline(lines, line);) {
+    for (const std::string prefix : {"REPLY SUCCESS ", "SUCCESS "})
+      if (line.rfind(prefix, 0) == 0) call.result = json::parse(line.substr(prefix.size()), nullptr, false);
+    if (line.rfind("IMAGE ", 0) == 0) call.images.push_back(line.substr(6));
+  }
+  return call;
+}
+
+// "seq time width height encoding step bytes R G B" of an image line, with its checks: the
+// camera's 640 x 480 rgb8 image of seq 1 whose middle pixel is the red box's.
+double expect_red_640x480(const std::string& line) {
+  std::istringstream fields(line);
+  std::uint64_t seq = 0;
+  double time = -1;
+  unsigned width = 0, height = 0, step = 0, bytes = 0, r = 0, g = 0, b = 0;
+  std::string encoding;
+  EXPECT_TRUE(fields >> seq >> time >> width >> height >> encoding >> step >> bytes >> r >> g >> b) << line;
+  EXPECT_EQ(seq, 1u) << line;
+  EXPECT_EQ(width, 640u) << line;
+  EXPECT_EQ(height, 480u) << line;
+  EXPECT_EQ(encoding, "rgb8") << line;
+  EXPECT_EQ(step, 640u * 3) << line;
+  EXPECT_EQ(bytes, 640u * 480 * 3) << line;
+  EXPECT_TRUE(r > 100 && r > 3 * g && r > 3 * b) << line;
+  return time;
+}
+
+TEST(DdsStreamsTest, AClientWithAnImageReaderGetsItsRepliesImagesRawAndTheRecordsWithoutPng) {
+  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  CameraOnDds camera;
+  ASSERT_TRUE(camera.running());
+  // get_image: the record without its PNG, the pixels on simgate_ReplyImage
+  ImageCall image = image_call(k_image_client, "get_image", "[]");
+  ASSERT_TRUE(image.result.is_object()) << image.output;
+  EXPECT_FALSE(image.result.contains("image")) << image.output;
+  EXPECT_EQ(image.result["format"], "raw") << image.output;
+  EXPECT_EQ(image.result["encoding"], "rgb8") << image.output;
+  EXPECT_EQ(image.result["width"], 640) << image.output;
+  ASSERT_EQ(image.images.size(), 1u) << image.output;
+  EXPECT_EQ(expect_red_640x480(image.images[0]), image.result["timestamp"].get<double>()) << image.output;
+  // get_local_data: the last image, the same way
+  ImageCall last = image_call(k_image_client, "get_local_data", "[]");
+  ASSERT_TRUE(last.result.is_object()) << last.output;
+  EXPECT_EQ(last.result["format"], "raw") << last.output;
+  ASSERT_EQ(last.images.size(), 1u) << last.output;
+  EXPECT_EQ(expect_red_640x480(last.images[0]), image.result["timestamp"].get<double>()) << last.output;
+  // capture 3: every image raw, in the order of the records (900 kB each: past Cyclone's
+  // WhcHigh, the second waits for the first to be acknowledged, the reply behind them)
+  ImageCall capture = image_call(k_image_client, "capture", "[3]");
+  ASSERT_TRUE(capture.result.is_array()) << capture.output;
+  ASSERT_EQ(capture.result.size(), 3u) << capture.output;
+  ASSERT_EQ(capture.images.size(), 3u) << capture.output;
+  for (std::size_t i = 0; i < 3; ++i) {
+    const json& record = capture.result[i];
+    EXPECT_EQ(record["format"], "raw") << capture.output;
+    EXPECT_FALSE(record.contains("image")) << capture.output;
+    EXPECT_EQ(expect_red_640x480(capture.images[i]), record["timestamp"].get<double>()) << capture.output;
+  }
+}
+
+TEST(DdsStreamsTest, AClientWithoutAnImageReaderStillGetsThePngInTheReply) {
+  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  CameraOnDds camera;
+  ASSERT_TRUE(camera.running());
+  // the plain C client of the docs, built with the IDL before simgate_ReplyImage
+  ImageCall image = image_call(k_c_client, "get_image", "[]");
+  ASSERT_TRUE(image.result.is_object()) << image.output;
+  EXPECT_EQ(image.result["format"], "png") << image.output;
+  ASSERT_TRUE(image.result["image"].is_string()) << image.output;
+  EXPECT_EQ(image.result["image"].get<std::string>().rfind("iVBORw0KGgo", 0), 0u) << image.output;  // a PNG file
 }
 
 // Runs a command, returns its exit code.

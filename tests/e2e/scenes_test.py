@@ -379,6 +379,21 @@ class RoverSceneTest(unittest.TestCase):
             self.assertEqual((width, height, depth, colour), (320, 240, 8, 2))
             self.assertEqual(image["intrinsic_matrix"][0][2], 160.0)
 
+    def test_the_overhead_camera_sees_the_room_from_above(self):
+        # rover.overhead: a video_camera on the scene's MJCF camera "overhead", 6 m above the
+        # room's centre looking down, east right, north up (f = 257 px): crate_2 (0.6 0.4 0.1,
+        # at (-1.6, 1.4), which the other tests do not push) orange up left
+        record = self.wire.call("rover.overhead", "get_image")
+        width, height, depth, colour, rows = decode_png(record["image"])
+        self.assertEqual((width, height, depth, colour), (320, 240, 8, 2))
+        r, g, b = rows[56][3 * 86:3 * 86 + 3]
+        self.assertTrue(r > 120 and r > g + 30 and g > b + 50, (r, g, b))
+        # the floor at (-0.9, 0.7): grey-green, its blue about its red
+        r, g, b = rows[90][3 * 120:3 * 120 + 3]
+        self.assertLess(abs(r - b), 40, (r, g, b))
+        properties = self.wire.call("rover.overhead", "get_properties")["properties"]
+        self.assertEqual(properties["cam_fovy"], 50.0)
+
     def test_a_snapshot_pictures_the_room_as_the_readme_shows_it(self):
         # simulation get_snapshot (docs/world/snapshot.md): the free view, the asked size
         record = self.wire.call("simulation", "get_snapshot", {"width": 320, "height": 240})

@@ -5,8 +5,10 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cstdlib>
 #include <filesystem>
+#include <utility>
 
 #include "../sim/camera_png.h"
 #include "in_process_gateway.h"
@@ -141,6 +143,44 @@ TEST(GatewaySnapshot, OfflineFromAConfigAndFromAModel) {
               dir);
   ASSERT_EQ(model.code, 0) << model.err;
   EXPECT_EQ(png_file(dir.file("arm.png")).width, 64);
+}
+
+// The RGB pixel at (x, y) of a decoded 8-bit RGB image.
+std::array<int, 3> rgb_at(const DecodedPng& png, int x, int y) {
+  const std::size_t i = (static_cast<std::size_t>(y) * png.width + x) * 3;
+  return {png.pixels[i], png.pixels[i + 1], png.pixels[i + 2]};
+}
+// The crates (rgba 0.6 0.4 0.1), lit: orange-brown, not the floor's grey-green.
+bool is_orange(const std::array<int, 3>& p) { return p[0] > 120 && p[0] > p[1] + 30 && p[1] > p[2] + 50; }
+// Not the floor (whose blue is about its red): the rover's orange chassis (0.8 0.35 0.1),
+// however washed out by the lamp right above it.
+bool is_chassis(const std::array<int, 3>& p) { return p[0] > 120 && p[2] + 40 < p[0]; }
+
+TEST(GatewaySnapshot, TheRoverScenesOverheadCameraSeesTheRoverInTheMiddleOfTheRoom) {
+  const TempDir dir;
+  // the shipped config as it is: its scene next to it, its MJCF camera "overhead"
+  const CliRun r = simgate({"snapshot", "--config", source_path("config/rover.json"), "--camera", "overhead", "--size",
+                            "320x240", dir.file("overhead.png")},
+                           dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const DecodedPng png = png_file(dir.file("overhead.png"));
+  ASSERT_TRUE(png.error.empty()) << png.error;
+  ASSERT_EQ(png.width, 320);
+  ASSERT_EQ(png.height, 240);
+  // straight down on the room's centre, east to the right, north up (f = 120 / tan 25° =
+  // 257 px): the rover's chassis in the middle of the image
+  const auto middle = rgb_at(png, 160, 120);
+  EXPECT_TRUE(is_chassis(middle)) << middle[0] << " " << middle[1] << " " << middle[2];
+  // the crates' tops (0.4 m high, 5.6 m below): crate_2 at (-1.6, 1.4) up left, crate_1 at
+  // (1.5, -1.3) down right
+  for (const auto& [x, y] : {std::pair{86, 56}, std::pair{229, 180}}) {
+    const auto crate = rgb_at(png, x, y);
+    EXPECT_TRUE(is_orange(crate)) << x << "," << y << ": " << crate[0] << " " << crate[1] << " " << crate[2];
+  }
+  // the floor between them and the rover (at (-0.9, 0.7))
+  const auto floor = rgb_at(png, 120, 90);
+  EXPECT_FALSE(is_orange(floor)) << floor[0] << " " << floor[1] << " " << floor[2];
+  EXPECT_FALSE(is_chassis(floor)) << floor[0] << " " << floor[1] << " " << floor[2];
 }
 
 TEST(GatewaySnapshot, ErrorsAreClear) {

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
+#include <future>
 #include <iostream>
 #include <thread>
 
@@ -200,7 +201,8 @@ TEST_F(CameraTest, CaptureCompletesWithNImagesAfterEnoughSteps) {
     EXPECT_EQ(png.width, 32);
   }
   // get_local_data: the last image
-  EXPECT_EQ(value("rig.camera", "get_local_data")["timestamp"], (*o.value)[2]["timestamp"]);
+  EXPECT_EQ(wait_for(rm_->call("rig.camera", "get_local_data")).value.value_or(json())["timestamp"],
+            (*o.value)[2]["timestamp"]);
 }
 
 TEST_F(CameraTest, SecondCapturePreemptsTheFirst) {
@@ -233,11 +235,91 @@ TEST_F(CameraTest, ACancelledCaptureEndsPreemptedAndTheNextOneWorks) {
 TEST_F(CameraTest, GetLocalDataRendersTheFirstImage) {
   add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 16}, {"cam_height", 16}});
   serve();
-  const json record = value("rig.camera", "get_local_data");
+  const Outcome o = wait_for(rm_->call("rig.camera", "get_local_data"));
+  ASSERT_EQ(o.status, Status::success) << o.message;
+  const json record = o.value.value_or(json());
   ASSERT_TRUE(record.is_object()) << record.dump();
   EXPECT_EQ(record["width"], 16);
   EXPECT_TRUE(record["image"].is_string());
   EXPECT_EQ(record["intrinsic_matrix"].size(), 3u);
+}
+
+// The red middle pixel of an attachment (an "rgb8" image's raw pixels), with its shape checked.
+void expect_red_attachment(const Outcome& o, std::size_t i, const json& record) {
+  ASSERT_GT(o.attachments.size(), i);
+  const StreamPayload& pixels = *o.attachments[i];
+  EXPECT_EQ(pixels.content, "image");
+  EXPECT_EQ(pixels.description["component"], "rig.camera");
+  EXPECT_EQ(pixels.description["encoding"], "rgb8");
+  EXPECT_EQ(pixels.description["width"], 64);
+  EXPECT_EQ(pixels.description["height"], 48);
+  EXPECT_EQ(pixels.description["step"], 64 * 3);
+  EXPECT_EQ(pixels.description["timestamp"], record["timestamp"]);
+  ASSERT_EQ(pixels.bytes.size(), 64u * 48 * 3);
+  const std::size_t middle = (24 * 64 + 32) * 3;
+  EXPECT_TRUE(is_red({pixels.bytes[middle], pixels.bytes[middle + 1], pixels.bytes[middle + 2]}));
+  // the same image as the record's PNG
+  const DecodedPng png = decode_png(decode_base64(record["image"].get<std::string>()));
+  ASSERT_TRUE(png.error.empty()) << png.error;
+  EXPECT_TRUE(std::equal(png.pixels.begin(), png.pixels.end(), pixels.bytes.begin(), pixels.bytes.end()));
+}
+
+TEST_F(CameraTest, RepliesCarryTheRawPixelsOfTheirImagesAsAttachments) {
+  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 64}, {"cam_height", 48}});
+  serve();
+  // get_local_data's first image (rendered now), get_image's, and a capture's two
+  const Outcome first = wait_for(rm_->call("rig.camera", "get_local_data"));
+  ASSERT_EQ(first.status, Status::success) << first.message;
+  ASSERT_EQ(first.attachments.size(), 1u);
+  expect_red_attachment(first, 0, *first.value);
+  const Outcome image = wait_for(rm_->call("rig.camera", "get_image"));
+  ASSERT_EQ(image.status, Status::success) << image.message;
+  ASSERT_EQ(image.attachments.size(), 1u);
+  expect_red_attachment(image, 0, *image.value);
+  const Outcome capture = wait_for(rm_->call("rig.camera", "capture", {2}));
+  ASSERT_EQ(capture.status, Status::success) << capture.message;
+  ASSERT_EQ(capture.attachments.size(), 2u);
+  expect_red_attachment(capture, 0, (*capture.value)[0]);
+  expect_red_attachment(capture, 1, (*capture.value)[1]);
+  // get_local_data: the last image, its pixels with it
+  const Outcome last = wait_for(rm_->call("rig.camera", "get_local_data"));
+  ASSERT_EQ(last.attachments.size(), 1u);
+  expect_red_attachment(last, 0, (*capture.value)[1]);
+  // a service with no image attaches nothing
+  EXPECT_TRUE(call("rig.camera", "get_properties").attachments.empty());
+}
+
+TEST_F(CameraTest, GetLocalDatasFirstImageRendersWhilePhysicsKeepsStepping) {
+  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 16}, {"cam_height", 16}});
+  serve();
+  auto renderer = Renderer::shared();
+  if (!renderer->unavailable().empty()) GTEST_SKIP() << renderer->unavailable();
+  // the render thread held by a render of ours until the test lets it go
+  std::promise<void> release;
+  std::shared_future<void> released = release.get_future().share();
+  std::promise<void> holding;
+  auto scene = std::make_unique<SceneCopy>(renderer->model_copy(sim_->m()));
+  scene->update(sim_->m(), sim_->d(), camera().view(), sim_->state_time());
+  renderer->render(std::move(scene), true, false, [&holding, released](RenderResult) {
+    holding.set_value();
+    released.wait();
+  });
+  holding.get_future().wait();
+  // no image yet: the call does not wait for one under the lock (it used to, up to 30 s)
+  const RequestId id = rm_->call("rig.camera", "get_local_data");
+  sim_->process_requests();
+  const bool answered_at_once = rm_->outcome(id).has_value();
+  const double before = sim_->sim_time();
+  run_for(0.1);
+  const double after = sim_->sim_time();
+  release.set_value();
+  EXPECT_FALSE(answered_at_once);
+  EXPECT_GT(after, before);  // physics stepped meanwhile
+  // the image comes once the render thread is free
+  const Outcome o = wait_for(id);
+  ASSERT_EQ(o.status, Status::success) << o.message;
+  EXPECT_EQ((*o.value)["width"], 16);
+  EXPECT_EQ(o.attachments.size(), 1u);
 }
 
 TEST_F(CameraTest, CaptureRefusesABadCount) {
@@ -270,7 +352,7 @@ TEST_F(CameraTest, WithoutGlTheServicesFailWithTheReason) {
   serve();
   const Outcome image = wait_for(rm_->call("rig.camera", "get_image"));
   const Outcome capture = call("rig.camera", "capture", {1});
-  const Outcome data = call("rig.camera", "get_local_data");
+  const Outcome data = wait_for(rm_->call("rig.camera", "get_local_data"));
   unsetenv("SIMGATE_RENDERER_UNAVAILABLE");
   for (const Outcome* o : {&image, &capture, &data}) {
     EXPECT_EQ(o->status, Status::failed);
@@ -359,6 +441,46 @@ TEST_F(CameraTest, TheImageStreamGivesRawPixelsAndPngRecordsOfTheRedBoxAtItsFreq
     }
   }
   std::cout << "[ info     ] stream images skipped (render thread behind): " << camera().stream_skipped() << "\n";
+}
+
+TEST_F(CameraTest, StreamImagesSkippedWhileTheRenderThreadIsBusyAreCountedInTheStatistics) {
+  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 16}, {"cam_height", 16}});
+  serve();
+  stream_camera();
+  auto renderer = Renderer::shared();
+  if (!renderer->unavailable().empty()) GTEST_SKIP() << renderer->unavailable();
+  // the render thread held by a render of ours until the test lets it go
+  std::promise<void> release;
+  std::shared_future<void> released = release.get_future().share();
+  std::promise<void> holding;
+  CameraView view = camera().view();
+  auto scene = std::make_unique<SceneCopy>(renderer->model_copy(sim_->m()));
+  scene->update(sim_->m(), sim_->d(), view, sim_->state_time());
+  renderer->render(std::move(scene), true, false, [&holding, released](RenderResult) {
+    holding.set_value();
+    released.wait();
+  });
+  holding.get_future().wait();
+  // 20 Hz, 0.01 s steps: an image due every 5 steps; 2 are asked for, the next ones skipped
+  auto sub = sim_->streams().subscribe("rig.camera", "test", {16, "test", {}});
+  for (int i = 0; i < 40; ++i) sim_->step();
+  const std::uint64_t skipped = camera().stream_skipped();
+  const auto statistics = sim_->streams().statistics("test");
+  release.set_value();
+  ASSERT_EQ(statistics.size(), 1u);
+  EXPECT_GE(skipped, 5u);  // 8 due, 2 rendering
+  EXPECT_EQ(statistics[0].skipped, skipped);
+  EXPECT_EQ(statistics[0].dropped, skipped);  // every subscriber lost them
+  EXPECT_EQ(sim_->streams().total_dropped(), skipped);
+  // simulation get_stream_statistics says so
+  const json listed = value("simulation", "get_stream_statistics");
+  ASSERT_TRUE(listed.is_array()) << listed.dump();
+  ASSERT_EQ(listed.size(), 1u) << listed.dump();
+  EXPECT_EQ(listed[0]["skipped"], skipped) << listed.dump();
+  EXPECT_EQ(listed[0]["dropped"], skipped) << listed.dump();
+  // the two held back come once the render thread is free again
+  EXPECT_EQ(samples_of(*sub, 2).size(), 2u);
+  sim_->streams().unsubscribe(sub);
 }
 
 TEST_F(CameraTest, TheDepthStreamGivesMetresAsFloatsAndTheMillimetrePngOnAsking) {

@@ -384,10 +384,10 @@ inline ValidCallTable builtin_valid_calls(ValidValues& values) {
     v->value(c, "pause");
     return ValidCalls{{1}};
   };
-  // a camera captures at least one image; its first image (get_local_data waits for it)
+  // a camera captures at least one image; its first image (get_local_data, awaited)
   // makes the render context first, so that the capture takes milliseconds
   t["video_camera.capture"] = [v](const std::string& c) {
-    v->value(c, "get_local_data");
+    v->await(c, "get_local_data", json::array());
     return ValidCalls{{1}};
   };
   t["depth_camera.capture"] = t["video_camera.capture"];

@@ -24,7 +24,9 @@
 #ifndef SIMGATE_CORE_CALL_CONTEXT_H_
 #define SIMGATE_CORE_CALL_CONTEXT_H_
 
+#include <memory>
 #include <string>
+#include <vector>
 
 #include "simgate/core/status.h"
 
@@ -54,10 +56,19 @@ class CallContext {
   // allowed by its lists).
   bool may_call(const std::string& component, const std::string& service) const;
 
+  // Attaches raw bytes to the result of the sync call running on this thread
+  // (Outcome::attachments): the core moves them into its outcome when the service returns.
+  // Without a current context (a host calling the function directly) they are dropped.
+  static void attach(std::shared_ptr<const StreamPayload> payload);
+  // What attach() gave, moved out (the core, after the service returned).
+  std::vector<std::shared_ptr<const StreamPayload>> take_attachments() noexcept { return std::move(attachments_); }
+
  private:
   const RequestManager& manager_;  // the caller's transport (outlives the call)
   RequestId id_;                   // the request being run
   const CallContext* previous_;    // the context this one hides, restored at destruction
+  // attach()'s payloads (written through current(), on this thread only)
+  mutable std::vector<std::shared_ptr<const StreamPayload>> attachments_;
 };
 
 // Hides the calling thread's context until destruction: what runs in its scope runs as

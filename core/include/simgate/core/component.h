@@ -157,6 +157,10 @@ class Component {
   // produced sample is. False when nobody took it (no subscriber, no hub, no pushed stream).
   bool push_sample(double time, json data);
   bool push_sample(double time, std::shared_ptr<const StreamPayload> payload);
+  // A pushed stream's sample that was due and will never come (a camera's image skipped
+  // because its render thread is behind): counted in the stream's statistics, as `skipped`
+  // and among its `dropped`. Under the simulation lock; ignored without a pushed stream.
+  void note_skipped_sample();
   // An actuator's stream: `apply` takes one command object with the keys `fields`.
   //   declare_input_stream("velocity", {"v", "w"}, [this](const json& c) { ... });
   void declare_input_stream(std::string kind, std::vector<std::string> fields,

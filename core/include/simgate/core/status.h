@@ -9,15 +9,19 @@
 #define SIMGATE_CORE_STATUS_H_
 
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
 namespace simgate {
 
 using json = nlohmann::json;
+
+struct StreamPayload;  // streams.h: raw bytes with a description (an image's pixels)
 
 // Identifies one request inside one request manager; allocated by
 // RequestManager::new_request_id() (a process-wide counter from 1) or by a transport's
@@ -60,6 +64,12 @@ struct Outcome {
   // Structured detail for richer transports: {"component", "service", "parameter", "by", ...};
   // null when there is none (successes: no allocation per reply).
   json data;
+  // SUCCESS: raw bytes of what `value` shows encoded (an image's pixels, whose record holds
+  // them as a base64 PNG), one per such record, in the order of the records (a capture's
+  // list). Optional and additive: `value` is complete without them, and a transport that
+  // knows the content may send them typed beside it (DDS: simgate_ReplyImage); every other
+  // transport ignores them. Empty for nearly every call (no allocation).
+  std::vector<std::shared_ptr<const StreamPayload>> attachments;
 
   static Outcome success(std::optional<json> value);
   static Outcome failed(Failure failure, std::string message, json data = json::object());

@@ -88,6 +88,10 @@ class StreamOutlet {
   // Gives the hub one sample (JSON, or `payload` when not null) of simulated time `time`.
   // Under the simulation lock. False when no hub runs the stream or nobody subscribes.
   bool push(double time, json data, std::shared_ptr<const StreamPayload> payload);
+  // A sample that was due and will never be pushed (the component could not make it in
+  // time): counted (StreamStatistics::skipped, and among the dropped). Under the simulation
+  // lock; ignored when no hub runs the stream.
+  void note_skipped();
 
  private:
   friend class StreamHub;
@@ -235,7 +239,9 @@ struct StreamStatistics {
   StreamInfo info;
   std::uint64_t samples = 0;       // out: samples produced
   std::size_t subscribers = 0;     // out: subscriptions now
-  std::uint64_t dropped = 0;       // out: samples subscribers lost, now and before
+  std::uint64_t dropped = 0;       // out: samples subscribers lost, now and before (skipped ones included)
+  std::uint64_t skipped = 0;       // out, pushed: samples due that the component never made
+                                   // (a camera's render thread behind); every subscriber lost them
   std::uint64_t commands = 0;      // in: commands applied
   std::uint64_t replaced = 0;      // in: commands replaced by a newer one before being applied
   std::uint64_t refused = 0;       // in: commands the component refused
@@ -288,6 +294,9 @@ class StreamHub {
   // A sample of the pushed stream of `component` (StreamOutlet::push, under the simulation
   // lock): to every subscriber. False when it has none.
   bool push(const std::string& component, double time, json data, std::shared_ptr<const StreamPayload> payload);
+  // A sample of the pushed stream of `component` that was due and never comes
+  // (StreamOutlet::note_skipped, under the simulation lock): counted, logged once per stream.
+  void note_skipped(const std::string& component);
 
   // ---- transports (any thread) ----
 

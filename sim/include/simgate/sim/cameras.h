@@ -62,7 +62,7 @@ class Camera : public SimComponent {
 
   void capture(long long n);
   void get_image(Completion done);
-  json get_local_data();
+  void get_local_data(Completion done);
 
   void default_action() override;
   void interrupt() override;
@@ -111,6 +111,7 @@ class Camera : public SimComponent {
   long long expected_ = 0;            // images it returns
   double next_frame_time_ = 0;        // simulated time of the next image
   json images_ = json::array();       // its images so far
+  std::vector<std::shared_ptr<const StreamPayload>> image_pixels_;  // their pixels raw (attachments)
   // the stream
   double next_stream_time_ = 0;       // simulated time of its next image
   double stream_clock_ = 0;           // simulated time at its last look (a reset goes back)
