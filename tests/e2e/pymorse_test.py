@@ -60,7 +60,9 @@ class Gateway:
         deadline = time.monotonic() + TIMEOUT
         while not os.path.exists(self.endpoints_path):
             if self.process.poll() is not None or time.monotonic() > deadline:
-                raise RuntimeError("gateway did not start:\n" + self.output())
+                output = self.output()
+                self.stop()  # (one that hangs is not left running)
+                raise RuntimeError("gateway did not start:\n" + output)
             time.sleep(0.01)  # polling for a file the child writes; bounded by the deadline
         with open(self.endpoints_path) as f:
             endpoints = json.load(f)  # {"socket": ["tcp://127.0.0.1:PORT"], ...}
@@ -95,21 +97,31 @@ def read_line(sock):
     return data.rstrip(b"\n")
 
 
-class PymorseTest(unittest.TestCase):
+class GatewayTestCase(unittest.TestCase):
+    """A gateway of config/demo.json (changed by `adapt`) and pymorse connected to it, for
+    the class's tests. Both are ended by class cleanups, which run even when setUpClass fails
+    half-way (tearDownClass would not): a failed run leaves no gateway behind."""
+
+    adapt = None  # staticmethod(config -> None) in a subclass
+
     @classmethod
     def setUpClass(cls):
         cls.workdir = tempfile.TemporaryDirectory(prefix="simgate-e2e-")
-        cls.gateway = Gateway(ARGS.simgate, ARGS.source_dir, cls.workdir.name)
+        cls.addClassCleanup(cls.workdir.cleanup)
+        cls.gateway = Gateway(ARGS.simgate, ARGS.source_dir, cls.workdir.name, cls.adapt)
+        cls.addClassCleanup(cls.stop_gateway)
         cls.simu = pymorse.Morse(host="127.0.0.1", port=cls.gateway.port)  # sends `simulation details`
+        # pymorse's close() with wait_publishers=True trips over its own proxies (known bug)
+        cls.addClassCleanup(cls.simu.close, wait_publishers=False)  # (cleanups run last first)
 
     @classmethod
-    def tearDownClass(cls):
-        # pymorse's close() with wait_publishers=True trips over its own proxies (known bug)
-        cls.simu.close(wait_publishers=False)
+    def stop_gateway(cls):
         code = cls.gateway.stop()
-        cls.workdir.cleanup()
         if code != 0:
             raise RuntimeError("gateway exited with %d" % code)
+
+
+class PymorseTest(GatewayTestCase):
 
     def setUp(self):
         self.assertEqual(self.simu.reset(), "Objects restored to initial position")
@@ -283,24 +295,12 @@ def split_services(config):
                           "robot.teleport": ["private"], "simulation": ["socket", "private"]}
 
 
-class PymorseMappingBoundaryTest(unittest.TestCase):
+class PymorseMappingBoundaryTest(GatewayTestCase):
     """Issue #17, item 6: the mapping is a boundary. pymorse still connects, sees only what
     its transport serves, and cannot act on the rest, which the other transport's clients
     still can."""
 
-    @classmethod
-    def setUpClass(cls):
-        cls.workdir = tempfile.TemporaryDirectory(prefix="simgate-e2e-")
-        cls.gateway = Gateway(ARGS.simgate, ARGS.source_dir, cls.workdir.name, split_services)
-        cls.simu = pymorse.Morse(host="127.0.0.1", port=cls.gateway.port)
-
-    @classmethod
-    def tearDownClass(cls):
-        cls.simu.close(wait_publishers=False)
-        code = cls.gateway.stop()
-        cls.workdir.cleanup()
-        if code != 0:
-            raise RuntimeError("gateway exited with %d" % code)
+    adapt = staticmethod(split_services)
 
     def test_connect_builds_proxies_of_served_components_only(self):
         # a pymorse Robot is a dict of its components and attributes (its __getattr__ raises
@@ -349,24 +349,12 @@ def deny_on_socket(config):
     config["transports"]["socket"]["deny"] = ["robot.teleport.*", "human.move", "simulation.quit"]
 
 
-class PymorseAccessListsTest(unittest.TestCase):
+class PymorseAccessListsTest(GatewayTestCase):
     """Issue #17, access control: a socket transport's deny list. pymorse still connects,
     gets no proxy method for a denied service, and a denied call fails as an unknown service
     would, without running."""
 
-    @classmethod
-    def setUpClass(cls):
-        cls.workdir = tempfile.TemporaryDirectory(prefix="simgate-e2e-")
-        cls.gateway = Gateway(ARGS.simgate, ARGS.source_dir, cls.workdir.name, deny_on_socket)
-        cls.simu = pymorse.Morse(host="127.0.0.1", port=cls.gateway.port)
-
-    @classmethod
-    def tearDownClass(cls):
-        cls.simu.close(wait_publishers=False)
-        code = cls.gateway.stop()
-        cls.workdir.cleanup()
-        if code != 0:
-            raise RuntimeError("gateway exited with %d" % code)
+    adapt = staticmethod(deny_on_socket)
 
     def test_connect_builds_no_method_for_a_denied_service(self):
         self.assertIn("teleport", self.simu.robot)  # served, with nothing to call
