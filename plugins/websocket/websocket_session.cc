@@ -176,8 +176,8 @@ bool WsSession::consume() {
       const bool fin = h[0] & 0x80;
       const std::uint8_t opcode = h[0] & 0x0F;
       const std::uint8_t length7 = h[1] & 0x7F;
-      if (h[0] & 0x70) return protocol_error("reserved bits set (no extension was agreed)"), false;
-      if (!(h[1] & 0x80)) return protocol_error("an unmasked frame (a client masks every frame)"), false;
+      if (h[0] & 0x70) return protocol_error("reserved bits set (no extension was agreed)");
+      if (!(h[1] & 0x80)) return protocol_error("an unmasked frame (a client masks every frame)");
       const std::size_t header = 2 + (length7 == 126 ? 2 : length7 == 127 ? 8 : 0) + 4;
       if (avail < header) break;
       std::uint64_t length = length7;
@@ -186,14 +186,14 @@ bool WsSession::consume() {
       } else if (length7 == 127) {
         length = 0;
         for (int i = 0; i < 8; ++i) length = (length << 8) | h[2 + i];
-        if (length >> 63) return protocol_error("a frame length over 2^63"), false;
+        if (length >> 63) return protocol_error("a frame length over 2^63");
       }
       const unsigned char* key = h + header - 4;
       if (opcode >= 0x8) {
         // a control frame: whole, at most 125 bytes, handled as soon as it is all here
-        if (!fin || length > 125) return protocol_error("a fragmented or long control frame"), false;
+        if (!fin || length > 125) return protocol_error("a fragmented or long control frame");
         if (opcode != k_close && opcode != k_ping && opcode != k_pong)
-          return protocol_error("a reserved opcode"), false;
+          return protocol_error("a reserved opcode");
         if (avail < header + length) break;
         char payload[125];
         const char* data = in_.data() + in_begin_ + header;
@@ -202,9 +202,9 @@ bool WsSession::consume() {
         on_control(opcode, std::string_view(payload, length));
         continue;
       }
-      if (opcode > k_binary) return protocol_error("a reserved opcode"), false;
-      if (opcode == k_continuation && !in_message_) return protocol_error("a continuation frame with no message"), false;
-      if (opcode != k_continuation && in_message_) return protocol_error("a new message inside a fragmented one"), false;
+      if (opcode > k_binary) return protocol_error("a reserved opcode");
+      if (opcode == k_continuation && !in_message_) return protocol_error("a continuation frame with no message");
+      if (opcode != k_continuation && in_message_) return protocol_error("a new message inside a fragmented one");
       if (opcode != k_continuation) {
         in_message_ = true;
         message_binary_ = opcode == k_binary;
@@ -292,13 +292,13 @@ void WsSession::on_control(std::uint8_t opcode, std::string_view payload) {
   flush_writes();
 }
 
-void WsSession::protocol_error(std::string_view reason) {
+bool WsSession::protocol_error(std::string_view reason) {
   log::debug(who_, ": ", label_, ": WebSocket protocol error: ", reason);
-  if (close_queued_) {
+  if (close_queued_)
     abort(reason);
-    return;
-  }
-  close_with(ws::close_code::protocol_error, reason);
+  else
+    close_with(ws::close_code::protocol_error, reason);
+  return false;
 }
 
 void WsSession::keep_alive(std::uint32_t tick) {

@@ -209,7 +209,8 @@ class WsSession : public std::enable_shared_from_this<WsSession>, public jsonrpc
   bool consume();
   void on_control(std::uint8_t opcode, std::string_view payload);
   void end_message();
-  void protocol_error(std::string_view reason);
+  // Closes the connection with 1002 (protocol error) naming `reason`; false, for consume().
+  bool protocol_error(std::string_view reason);
   // Appends one unfragmented frame (unmasked: the server's) to the outbox.
   void append_frame(std::uint8_t opcode, std::string_view payload);
   void start_write();
