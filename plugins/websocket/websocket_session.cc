@@ -22,7 +22,12 @@ using asio::ip::tcp;
 using boost::system::error_code;
 
 WsSession::WsSession(tcp::socket socket, WsHost& host, WsLimits limits, std::string_view who, std::uint64_t number)
-    : socket_(std::move(socket)), host_(host), limits_(limits), who_(who), timer_(socket_.get_executor()) {
+    : socket_(std::move(socket)),
+      host_(host),
+      limits_(limits),
+      who_(who),
+      frames_(limits.max_message_bytes),
+      timer_(socket_.get_executor()) {
   active();
   heard_tick_ = active_tick_;
   label_ = "client #" + std::to_string(number);
@@ -115,25 +120,15 @@ void WsSession::read_more() {
 
 void WsSession::read_async() {
   if (reading_ || handling_ || aborted_ || !upgraded_ || paused()) return;
-  if (in_begin_ > 0) {  // what is left unparsed (a header's start) goes to the front
-    std::memmove(in_.data(), in_.data() + in_begin_, in_end_ - in_begin_);
-    in_end_ -= in_begin_;
-    in_begin_ = 0;
-  }
-  reading_ = true;
-  socket_.async_read_some(asio::buffer(in_.data() + in_end_, in_.size() - in_end_),
+  reading_ = true;  // into the whole of in_: the parser took every byte of the last read
+  socket_.async_read_some(asio::buffer(in_.data(), in_.size()),
                           [self = shared()](const error_code& ec, std::size_t n) { self->on_read(ec, n); });
 }
 
 bool WsSession::read_now() {
   if (reading_ || handling_ || aborted_ || !upgraded_ || paused()) return false;
-  if (in_begin_ > 0) {
-    std::memmove(in_.data(), in_.data() + in_begin_, in_end_ - in_begin_);
-    in_end_ -= in_begin_;
-    in_begin_ = 0;
-  }
   error_code ec;
-  const std::size_t n = socket_.read_some(asio::buffer(in_.data() + in_end_, in_.size() - in_end_), ec);
+  const std::size_t n = socket_.read_some(asio::buffer(in_.data(), in_.size()), ec);
   if (ec == asio::error::would_block || ec == asio::error::try_again) return false;
   on_read(ec, n);
   return true;
@@ -167,109 +162,32 @@ void WsSession::handle_read(const error_code& ec, std::size_t n) {
 }
 
 bool WsSession::consume() {
-  while (!aborted_) {
-    const std::size_t avail = in_end_ - in_begin_;
-    if (!in_frame_) {
-      // a frame's header: 2 bytes, the extended length (0, 2 or 8), the masking key (4)
-      if (avail < 2) break;
-      const auto* h = reinterpret_cast<const unsigned char*>(in_.data() + in_begin_);
-      const bool fin = h[0] & 0x80;
-      const std::uint8_t opcode = h[0] & 0x0F;
-      const std::uint8_t length7 = h[1] & 0x7F;
-      if (h[0] & 0x70) return protocol_error("reserved bits set (no extension was agreed)");
-      if (!(h[1] & 0x80)) return protocol_error("an unmasked frame (a client masks every frame)");
-      const std::size_t header = 2 + (length7 == 126 ? 2 : length7 == 127 ? 8 : 0) + 4;
-      if (avail < header) break;
-      std::uint64_t length = length7;
-      if (length7 == 126) {
-        length = (std::uint64_t{h[2]} << 8) | h[3];
-      } else if (length7 == 127) {
-        length = 0;
-        for (int i = 0; i < 8; ++i) length = (length << 8) | h[2 + i];
-        if (length >> 63) return protocol_error("a frame length over 2^63");
-      }
-      const unsigned char* key = h + header - 4;
-      if (opcode >= 0x8) {
-        // a control frame: whole, at most 125 bytes, handled as soon as it is all here
-        if (!fin || length > 125) return protocol_error("a fragmented or long control frame");
-        if (opcode != k_close && opcode != k_ping && opcode != k_pong)
-          return protocol_error("a reserved opcode");
-        if (avail < header + length) break;
-        char payload[125];
-        const char* data = in_.data() + in_begin_ + header;
-        for (std::size_t i = 0; i < length; ++i) payload[i] = static_cast<char>(data[i] ^ key[i & 3]);
-        in_begin_ += header + length;
-        on_control(opcode, std::string_view(payload, length));
-        continue;
-      }
-      if (opcode > k_binary) return protocol_error("a reserved opcode");
-      if (opcode == k_continuation && !in_message_) return protocol_error("a continuation frame with no message");
-      if (opcode != k_continuation && in_message_) return protocol_error("a new message inside a fragmented one");
-      if (opcode != k_continuation) {
-        in_message_ = true;
-        message_binary_ = opcode == k_binary;
-        message_bytes_ = 0;
-        skipping_ = false;
-        message_.clear();
-      }
-      std::memcpy(mask_, key, 4);
-      mask_at_ = 0;
-      frame_fin_ = fin;
-      frame_left_ = length;
-      in_frame_ = true;
-      in_begin_ += header;
-    }
-    // a data frame's payload, as much as is here
-    const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(frame_left_, in_end_ - in_begin_));
-    message_bytes_ += n;
-    if (!skipping_ && message_bytes_ > limits_.max_message_bytes) {
-      // too long: skipped to its end (answered then), never buffered
-      skipping_ = true;
-      message_.clear();
-      if (message_.capacity() > k_read_bytes * 4) std::string().swap(message_);
-    }
-    if (!skipping_ && !message_binary_ && !closed_) {
-      const std::size_t at = message_.size();
-      message_.resize(at + n);
-      const char* data = in_.data() + in_begin_;
-      char* out = message_.data() + at;
-      for (std::size_t i = 0; i < n; ++i) out[i] = static_cast<char>(data[i] ^ mask_[(mask_at_ + i) & 3]);
-    }
-    mask_at_ += n;
-    in_begin_ += n;
-    frame_left_ -= n;
-    if (frame_left_ > 0) break;  // the rest comes with the next read
-    in_frame_ = false;
-    if (frame_fin_) end_message();
-  }
-  if (in_begin_ == in_end_) in_begin_ = in_end_ = 0;
-  return !aborted_;
+  const std::string_view bytes(in_.data(), in_end_);
+  in_end_ = 0;
+  // after a protocol error (1002 queued) the client's next bytes end the connection
+  if (frames_.failed()) return protocol_error(frames_.error());
+  return frames_.feed(bytes, *this);
 }
 
-void WsSession::end_message() {
-  in_message_ = false;
-  if (closed_) return;  // closing: the client's last messages are not served
+void WsSession::on_text(std::string_view text) {
   delivered_ = true;
-  if (skipping_)
-    host_.on_refused_message(*this, message_bytes_, false);
-  else if (message_binary_)
-    host_.on_refused_message(*this, message_bytes_, true);
-  else
-    host_.on_message(*this, message_);
-  skipping_ = false;
-  message_.clear();
-  if (message_.capacity() > k_read_bytes * 4) std::string().swap(message_);  // keep no large buffer
+  host_.on_message(*this, text);
+}
+
+void WsSession::on_refused(std::size_t bytes, bool binary) {
+  delivered_ = true;
+  host_.on_refused_message(*this, bytes, binary);
 }
 
 void WsSession::on_control(std::uint8_t opcode, std::string_view payload) {
-  if (opcode == k_ping) {
+  if (opcode == FrameParser::k_ping) {
     if (!close_queued_) {
-      append_frame(k_pong, payload);
+      append_frame(FrameParser::k_pong, payload);
       if (!touched) host_.touch(*this);
     }
     return;
   }
-  if (opcode == k_pong) return;  // the answer to a keep-alive ping (heard_tick_ is set)
+  if (opcode == FrameParser::k_pong) return;  // the answer to a keep-alive ping (heard_tick_ is set)
   // a close frame: the handshake's end when we began it, else answered with its code
   if (payload.size() == 1) {
     protocol_error("a close frame of one byte");
@@ -282,12 +200,12 @@ void WsSession::on_control(std::uint8_t opcode, std::string_view payload) {
   }
   if (!closed_) {
     log::debug(who_, ": ", label_, " closed: client closed the WebSocket");
-    closed_ = true;
+    closing();
     host_.on_closed(*this);
   }
   if (!close_queued_) {
     close_queued_ = true;
-    append_frame(k_close, payload.substr(0, std::min<std::size_t>(payload.size(), 2)));
+    append_frame(FrameParser::k_close, payload.substr(0, std::min<std::size_t>(payload.size(), 2)));
   }
   flush_writes();
 }
@@ -311,7 +229,7 @@ void WsSession::keep_alive(std::uint32_t tick) {
   }
   if (!pinged_ && !close_queued_ && silent >= kit::sweep_ticks(k_ping_after)) {
     pinged_ = true;
-    append_frame(k_ping, {});
+    append_frame(FrameParser::k_ping, {});
     flush_writes();
   }
 }
@@ -347,7 +265,7 @@ void WsSession::queue_message(std::string_view text) {
     abort("client does not read");
     return;
   }
-  append_frame(k_text, text);
+  append_frame(FrameParser::k_text, text);
   if (outbox_.size() >= k_coalesce_bytes)
     flush_writes();  // a large burst goes out as it grows
   else if (!touched)
@@ -426,7 +344,7 @@ void WsSession::after_close_sent() {
 void WsSession::close_with(ws::close_code code, std::string_view reason) {
   if (closed_) return;
   log::debug(who_, ": ", label_, " closed: ", reason);
-  closed_ = true;
+  closing();
   host_.on_closed(*this);
   if (!upgraded_) {
     abort(reason);
@@ -439,17 +357,18 @@ void WsSession::close_with(ws::close_code code, std::string_view reason) {
   payload.push_back(static_cast<char>(value & 0xFF));
   payload.append(reason.substr(0, 123));
   close_queued_ = true;
-  append_frame(k_close, payload);
+  append_frame(FrameParser::k_close, payload);
   flush_writes();
 }
 
 void WsSession::abort(std::string_view reason) {
   if (!closed_) {
     log::debug(who_, ": ", label_, " closed: ", reason);
-    closed_ = true;
+    closing();
     host_.on_closed(*this);
   }
   aborted_ = true;
+  frames_.stop();  // nothing more is parsed, not even the rest of this read
   timer_.cancel();
   error_code ignored;
   if (upgrade_) {

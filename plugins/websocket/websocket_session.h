@@ -9,7 +9,9 @@
 //     k_handshake_timeout); an upgrade the host accepts (WsHost::refuse_upgrade: the Origin)
 //     is answered 101 by Beast; anything else is answered by the host
 //     (WsHost::on_http_request: the web app's files, or 404) and closed.
-//   - Reading: client frames must be masked (else close 1002); text and binary messages,
+//   - Reading: each read's bytes go to a FrameParser (ws_frames.h: the frames, without a
+//     socket; fuzzed), whose events the session handles. Client frames must be masked (else
+//     close 1002); text and binary messages,
 //     fragmented or not, with pings, pongs and close frames between fragments. A message
 //     longer than max_message_bytes is skipped to its end as it arrives (never buffered;
 //     the host answers it) and the connection keeps working; binary messages are handed to
@@ -61,6 +63,7 @@
 
 #include "jsonrpc_engine.h"
 #include "simgate/kit/line_connection.h"
+#include "ws_frames.h"
 
 namespace simgate::websocket {
 
@@ -99,7 +102,9 @@ struct WsLimits {
   std::size_t pause_at_unsent_bytes = 8 << 20;  // unsent bytes that pause reading
 };
 
-class WsSession : public std::enable_shared_from_this<WsSession>, public jsonrpc::SessionCalls {
+class WsSession : public std::enable_shared_from_this<WsSession>,
+                  public jsonrpc::SessionCalls,
+                  private FrameSink {
  public:
   // `who` names the transport in logs; `number` the connection ("client #3 (127.0.0.1:5123)").
   WsSession(boost::asio::ip::tcp::socket socket, WsHost& host, WsLimits limits, std::string_view who,
@@ -195,22 +200,28 @@ class WsSession : public std::enable_shared_from_this<WsSession>, public jsonrpc
   static constexpr std::chrono::seconds k_silence_limit{300};
 
  private:
-  // RFC 6455 opcodes
-  static constexpr std::uint8_t k_continuation = 0x0, k_text = 0x1, k_binary = 0x2, k_close = 0x8, k_ping = 0x9,
-                                k_pong = 0xA;
-
   void on_request(const boost::system::error_code& ec);
   void on_upgraded(const boost::system::error_code& ec);
   void read_more();
   void on_read(const boost::system::error_code& ec, std::size_t n);
   // on_read() without starting the next read: the frames, end of input or error.
   void handle_read(const boost::system::error_code& ec, std::size_t n);
-  // Parses the frames in in_; false when the connection was closed for a protocol error.
+  // Parses the in_end_ bytes in in_ (frames_); false when the connection was aborted or
+  // closed for a protocol error.
   bool consume();
-  void on_control(std::uint8_t opcode, std::string_view payload);
-  void end_message();
-  // Closes the connection with 1002 (protocol error) naming `reason`; false, for consume().
+  // ---- the parser's events (FrameSink)
+  void on_text(std::string_view text) override;
+  void on_refused(std::size_t bytes, bool binary) override;
+  void on_control(std::uint8_t opcode, std::string_view payload) override;
+  void on_protocol_error(std::string_view reason) override { protocol_error(reason); }
+  // Closes the connection with 1002 (protocol error) naming `reason` (at once when our
+  // close frame is already queued); false, for consume().
   bool protocol_error(std::string_view reason);
+  // closed_ is set: the client's messages are no longer read (its control frames are).
+  void closing() {
+    closed_ = true;
+    frames_.discard_messages();
+  }
   // Appends one unfragmented frame (unmasked: the server's) to the outbox.
   void append_frame(std::uint8_t opcode, std::string_view payload);
   void start_write();
@@ -234,20 +245,11 @@ class WsSession : public std::enable_shared_from_this<WsSession>, public jsonrpc
   bool upgraded_ = false;                       // the WebSocket handshake is done
 
   // reading
-  std::vector<char> in_;                        // bytes read (k_read_bytes)
-  std::size_t in_begin_ = 0, in_end_ = 0;       // the part of in_ not parsed yet
+  std::vector<char> in_;                        // bytes read (k_read_bytes)...
+  std::size_t in_end_ = 0;                      // ...not parsed yet (the ones that came with the upgrade)
+  FrameParser frames_;                          // the frames (ws_frames.h): the message being read
   bool reading_ = false;                        // an async read is in flight
   bool handling_ = false;                       // a read's frames are being handled (no new read)
-  bool in_frame_ = false;                       // a data frame's header was parsed, its payload comes
-  bool frame_fin_ = false;                      // that frame ends its message
-  std::uint64_t frame_left_ = 0;                // payload bytes of that frame still to come
-  std::uint8_t mask_[4] = {};                   // that frame's masking key
-  std::size_t mask_at_ = 0;                     // payload bytes of that frame unmasked so far
-  bool in_message_ = false;                     // a message began (its first frame was read)
-  bool message_binary_ = false;                 // that message is binary
-  std::string message_;                         // that message so far (text within max_message_bytes)
-  std::size_t message_bytes_ = 0;               // its length so far, skipped or binary included
-  bool skipping_ = false;                       // it is over max_message_bytes: skipped to its end
   bool delivered_ = false;                      // a message was handed over during this read
   std::uint32_t heard_tick_ = 0;                // the sweep of the client's last frame
   bool pinged_ = false;                         // a keep-alive ping is unanswered
