@@ -15,7 +15,8 @@
 //                     call); at most max_message_bytes long. UTF-8 is not checked here.
 //       on_refused    a message that is not delivered: longer than max_message_bytes
 //                     (skipped to its end as it arrives, never buffered; `bytes` arrived in
-//                     all) or binary (`binary`, never buffered either).
+//                     all; a binary one too, reported as too long) or else binary
+//                     (`binary`, never buffered either).
 //       on_control    a close, ping or pong frame, unmasked, at most 125 bytes, as soon as
 //                     it is whole. What a close payload means (a one-byte one is an error) is
 //                     the caller's.
@@ -46,7 +47,8 @@ class FrameSink {
   virtual ~FrameSink() = default;
   // One whole text message (`text` lives until the call returns).
   virtual void on_text(std::string_view text) = 0;
-  // A message longer than max_message_bytes (`bytes` of it arrived) or a binary one.
+  // A message longer than max_message_bytes (`bytes` in all; `binary` false even for a
+  // binary one), or else a binary one (`binary`).
   virtual void on_refused(std::size_t bytes, bool binary) = 0;
   // A control frame: FrameParser::k_close, k_ping or k_pong, and its unmasked payload.
   virtual void on_control(std::uint8_t opcode, std::string_view payload) = 0;

@@ -7,8 +7,9 @@
 // which the sink calls discard_messages() (0: never; what a closing session does); the rest
 // is the stream.
 //
-// Properties: the events do not depend on the split (the same stream fed at once gives the
-// same events, reasons included); a text message is at most max_message_bytes; a message
+// Properties: the events are those of a reference reader written as simply as possible
+// (the whole stream at once, frame by frame), reasons included; they do not depend on the
+// split (seeded splits, byte by byte: the same events as one feed); a text message is at most max_message_bytes; a message
 // refused as too long is longer than that; a control frame is a close, ping or pong of at
 // most 125 bytes; the payloads delivered never exceed the stream; after a protocol error
 // (or once stopped) there is no event and feed() returns false; no data message is reported
@@ -16,6 +17,7 @@
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
+#include <cstdio>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -81,6 +83,22 @@ struct Recorder : FrameSink {
   }
 };
 
+// The events, one a line, for a failed property's report.
+void print(const char* title, const std::vector<Event>& events) {
+  std::fprintf(stderr, "%s:\n", title);
+  for (const Event& e : events)
+    std::fprintf(stderr, "  %c opcode %u bytes %zu payload %zu\n", e.kind, unsigned{e.opcode}, e.bytes,
+                 e.payload.size());
+}
+
+// Checks that `got` are the `expected` events, printing both if not.
+void expect_events(const std::vector<Event>& got, const std::vector<Event>& expected, const char* what) {
+  if (got == expected) return;
+  print("expected", expected);
+  print("got", got);
+  FUZZ_CHECK(false, what);
+}
+
 // A small deterministic generator for the split sizes (xorshift32).
 struct Splits {
   std::uint32_t state;
@@ -92,6 +110,102 @@ struct Splits {
     return state % (2 * spread + 1);
   }
 };
+
+// The reference: RFC 6455 read straight from the whole stream, frame by frame, as simply as
+// it can be written (no state across feeds). The events FrameParser must report for the
+// stream; what an incomplete last frame would need is simply not reached.
+std::vector<Event> reference(std::string_view stream, std::size_t max, std::size_t discard_after) {
+  std::vector<Event> events;
+  bool discard = false;
+  const auto emit = [&](Event e) {
+    events.push_back(std::move(e));
+    if (discard_after != 0 && events.size() == discard_after) discard = true;
+  };
+  const auto byte = [&](std::size_t i) { return static_cast<unsigned char>(stream[i]); };
+  bool in_message = false, binary = false;
+  std::string text;
+  std::size_t total = 0;
+  std::size_t at = 0;
+  for (;;) {
+    const std::size_t left = stream.size() - at;
+    if (left < 2) break;
+    const unsigned char b0 = byte(at), b1 = byte(at + 1);
+    const bool fin = b0 & 0x80;
+    const unsigned op = b0 & 0x0F;
+    if (b0 & 0x70) {
+      emit({'e', 0, 0, "reserved bits set (no extension was agreed)"});
+      break;
+    }
+    if (!(b1 & 0x80)) {
+      emit({'e', 0, 0, "an unmasked frame (a client masks every frame)"});
+      break;
+    }
+    const unsigned len7 = b1 & 0x7F;
+    const std::size_t ext = len7 == 126 ? 2 : len7 == 127 ? 8 : 0;
+    if (left < 2 + ext + 4) break;
+    std::uint64_t length = len7;
+    if (ext > 0) {
+      length = 0;
+      for (std::size_t i = 0; i < ext; ++i) length = length * 256 + byte(at + 2 + i);
+    }
+    if (length >= (std::uint64_t{1} << 63)) {
+      emit({'e', 0, 0, "a frame length over 2^63"});
+      break;
+    }
+    const std::size_t key_at = at + 2 + ext, payload_at = key_at + 4;
+    const std::size_t here = stream.size() - payload_at;  // payload bytes present
+    const auto unmask = [&](std::size_t i) { return static_cast<char>(byte(payload_at + i) ^ byte(key_at + i % 4)); };
+    if (op >= 8) {
+      if (!fin || length > 125) {
+        emit({'e', 0, 0, "a fragmented or long control frame"});
+        break;
+      }
+      if (op != 8 && op != 9 && op != 10) {
+        emit({'e', 0, 0, "a reserved opcode"});
+        break;
+      }
+      if (here < length) break;
+      std::string payload;
+      for (std::size_t i = 0; i < length; ++i) payload.push_back(unmask(i));
+      emit({'c', static_cast<std::uint8_t>(op), payload.size(), payload});
+      at = payload_at + length;
+      continue;
+    }
+    if (op > 2) {
+      emit({'e', 0, 0, "a reserved opcode"});
+      break;
+    }
+    if (op == 0 && !in_message) {
+      emit({'e', 0, 0, "a continuation frame with no message"});
+      break;
+    }
+    if (op != 0 && in_message) {
+      emit({'e', 0, 0, "a new message inside a fragmented one"});
+      break;
+    }
+    if (op != 0) {
+      in_message = true;
+      binary = op == 2;
+      text.clear();
+      total = 0;
+    }
+    const std::size_t take = static_cast<std::size_t>(std::min<std::uint64_t>(length, here));
+    for (std::size_t i = 0; i < take; ++i) text.push_back(unmask(i));
+    total += take;
+    if (take < length) break;  // the stream ends inside this frame
+    at = payload_at + take;
+    if (!fin) continue;
+    in_message = false;
+    if (discard) continue;
+    if (total > max)  // too long first, binary or not (the session's answer since before the parser)
+      emit({'r', 0, total, {}});
+    else if (binary)
+      emit({'b', 0, total, {}});
+    else
+      emit({'t', 0, total, text});
+  }
+  return events;
+}
 
 // Feeds `stream` to a fresh parser, in one feed or in splits; checks what does not depend on
 // the split and returns the events.
@@ -144,10 +258,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const std::string_view stream(reinterpret_cast<const char*>(data + 4), size - 4);
 
   const std::vector<Event> whole = run(stream, max, discard_after, nullptr);
+  expect_events(whole, reference(stream, max, discard_after), "the events are the reference reader's");
   if (data[1] != 255) {
     Splits splits{(std::uint32_t{data[0]} << 8 | data[1]) * 2654435761u | 1u, 1u + data[1] % 64u};
     const std::vector<Event> split = run(stream, max, discard_after, &splits);
-    FUZZ_CHECK(split == whole, "the events do not depend on how the stream is split");
+    expect_events(split, whole, "the events do not depend on how the stream is split");
   }
   // one byte at a time, the finest split
   if (stream.size() <= 4096) {
@@ -158,7 +273,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     r.discard_after = discard_after;
     for (char c : stream)
       if (!parser.feed(std::string_view(&c, 1), r)) break;
-    FUZZ_CHECK(r.events == whole, "the events do not depend on how the stream is split (byte by byte)");
+    expect_events(r.events, whole, "the events do not depend on how the stream is split (byte by byte)");
   }
   return 0;
 }

@@ -221,6 +221,14 @@ TEST(WebSocketFrames, AnOversizedMessageIsSkippedAndTheNextOneRead) {
   EXPECT_EQ(r.events, (Events{"refused:10000000", "text:after"}));
 }
 
+// Found by the fuzz target's reference reader, which said "binary" first: the session has
+// always answered a binary message over the limit as too large (kept, unchanged).
+TEST(WebSocketFrames, ABinaryMessageOverTheLimitIsRefusedAsTooLong) {
+  EXPECT_EQ(parse(frame(P::k_binary, "ab"), 1), (Events{"refused:2"}));
+  EXPECT_EQ(parse(frame(P::k_binary, "a", false) + frame(P::k_continuation, "b"), 1), (Events{"refused:2"}));
+  EXPECT_EQ(parse(frame(P::k_binary, "a"), 1), (Events{"binary:1"}));
+}
+
 TEST(WebSocketFrames, ALargeMessageBufferIsNotKept) {
   P parser(8 << 20);
   Recorder r;
