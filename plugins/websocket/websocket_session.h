@@ -10,13 +10,14 @@
 //     is answered 101 by Beast; anything else is answered by the host
 //     (WsHost::on_http_request: the web app's files, or 404) and closed.
 //   - Reading: each read's bytes go to a FrameParser (ws_frames.h: the frames, without a
-//     socket; fuzzed), whose events the session handles. Client frames must be masked (else
-//     close 1002); text and binary messages,
-//     fragmented or not, with pings, pongs and close frames between fragments. A message
-//     longer than max_message_bytes is skipped to its end as it arrives (never buffered;
-//     the host answers it) and the connection keeps working; binary messages are handed to
-//     the host as such. Reserved bits, opcodes, a continuation out of place, a control frame
-//     fragmented or over 125 bytes: close 1002. Reading pauses while more than
+//     socket; fuzzed), whose events the session handles. Client frames must be masked
+//     (else close 1002); text and binary messages, fragmented or not, with pings, pongs
+//     and close frames between fragments. A message longer than max_message_bytes (binary
+//     or not) is skipped to its end as it arrives (never buffered; the host answers it) and
+//     the connection keeps working; other binary messages are handed to the host as such
+//     (never buffered either). Reserved bits, opcodes, a continuation out of place, a
+//     control frame fragmented or over 125 bytes (the parser's protocol errors), a close
+//     frame of one byte (the session's): close 1002. Reading pauses while more than
 //     pause_at_unsent_bytes of replies wait unsent. Text is not checked for UTF-8 here: the
 //     JSON parser refuses what is not (-32700).
 //   - Direct reads (idle_spin.h): when the host watches the session (a lone client while
