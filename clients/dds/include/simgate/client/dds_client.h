@@ -11,6 +11,21 @@
 //    final Outcome; async services are acknowledged first (wait_accepted()); cancel()
 //    cancels the client's own pending call.
 //  - list_services() reads the transient-local catalog: every component's descriptors.
+//  - Raw images (opt-in, DdsClientOptions::raw_images): the client also reads
+//    simgate_ReplyImage in its reply partition, with a reader created before its reply
+//    reader and announcing the same id, so the server sends the images of its camera replies
+//    (get_image, capture, get_local_data) there as simgate::stream::Image, raw, and their
+//    records in the reply say "format": "raw" instead of carrying a base64 PNG. The result is
+//    the JSON as the server sent it; Outcome::attachments holds one entry per record (the
+//    result, or each item of a capture's list), in record order: the image (content "image",
+//    description {component, width, height, encoding, step, is_bigendian, intrinsic_matrix,
+//    timestamp}, the bytes; no to_json) for a record that says "format": "raw", null for one
+//    that kept its PNG (the server could not send it in time). Empty when no record is raw.
+//    Images are matched to their call by seq (Image.seq = the call's seq). A call's images
+//    are written before its reply, but the two topics are not ordered at the reader: wait()
+//    returns once the final reply is in and as many images of its seq as its records say
+//    are raw, within the same timeout; a reply whose images do not all come within it is an
+//    error (ClientError naming how many came), as is a server that leaves meanwhile.
 //
 // Life cycle: the constructor creates the DDS entities and a status thread; the destructor
 // stops the thread and leaves the domain (the server then cancels this client's pending
@@ -43,8 +58,13 @@ struct DdsClientOptions {
   std::string config;                  // Cyclone XML or file:// URI; "" = loopback; "env"
   std::chrono::milliseconds discovery_timeout{10000};  // how long start() waits for a server (call(),
                                                        // cancel() and list_services() wait their timeout)
+  // Read camera replies' images raw (Outcome::attachments, records "format": "raw") instead
+  // of as PNGs in the records. Off by default: the reply is then the same JSON as on every
+  // other transport (what `simgate call` prints).
+  bool raw_images = false;
 
-  // From {"domain", "partition", "config", "discovery_timeout_ms"}; throws ClientError.
+  // From {"domain", "partition", "config", "discovery_timeout_ms", "raw_images"}; throws
+  // ClientError.
   static DdsClientOptions from_json(const json& options);
 };
 
@@ -67,8 +87,9 @@ class DdsClient final : public Client {
   // True once the server acknowledged the call (ST_ACCEPTED, async services) or finished it.
   // False on timeout.
   bool wait_accepted(CallId id, std::chrono::milliseconds timeout);
-  // The call's final outcome. Throws ClientError on timeout or when the server goes away.
-  // Each call's outcome can be waited for once.
+  // The call's final outcome (with raw_images: and the images its reply announces, as
+  // attachments). Throws ClientError on timeout or when the server goes away. Each call's
+  // outcome can be waited for once.
   Outcome wait(CallId id, std::chrono::milliseconds timeout);
   // Cancels a pending call of this client. True if the server found it running (it then
   // ends PREEMPTED, Failure::cancelled). Throws ClientError on timeout (which bounds finding
