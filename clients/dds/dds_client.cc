@@ -175,6 +175,8 @@ class DdsClient::Impl {
   dds_entity_t reader_guard_ = 0;                  // wakes the reading caller (match change, stop)
   std::atomic<CallId> next_seq_{1};                // call numbering
 
+  std::mutex take_images_mutex_;                   // one take_images() at a time (taken before
+                                                   // mutex_): a call's images stay in order
   std::mutex mutex_;                               // guards everything below
   std::condition_variable changed_;                // a reply, a match, or stop
   std::unordered_map<CallId, Slot> slots_;         // calls not yet consumed
@@ -361,6 +363,9 @@ void DdsClient::Impl::take_replies() {
 
 void DdsClient::Impl::take_images() {
   if (image_reader_ <= 0) return;
+  // the status thread and the reading caller both take: one at a time, or a later batch could
+  // be filed before an earlier one
+  std::lock_guard take_lock(take_images_mutex_);
   constexpr int batch = 4;
   void* samples[batch];
   dds_sample_info_t infos[batch];

@@ -35,8 +35,9 @@
 // calling thread up to their timeout. A caller waiting for a reply takes it from the reply
 // reader itself (no receive thread between Cyclone and the caller): the first waiting
 // caller becomes the reader, waits on the reader's read condition, and takes every reply
-// that arrived — its own and those of other callers, which it files in their slots and
-// wakes them; when it has its reply it leaves the role to another waiting caller. Replies
+// that arrived (with raw_images: and every image, one taker at a time so that a call's
+// images keep their order) — its own and those of other callers, which it files in their
+// slots and wakes them; when it has its reply it leaves the role to another waiting caller. Replies
 // that arrive while nobody waits stay in the reader until someone does. The client's own
 // status thread only watches matches (a server appearing or going away) and wakes the
 // waiters; nothing runs on Cyclone's threads.
