@@ -10,9 +10,12 @@
 #include <optional>
 #include <thread>
 #include <unordered_map>
+#include <vector>
 
 #include "dds_support.h"
 #include "simgate/core/config.h"
+#include "simgate/core/streams.h"
+#include "simgate_streams.h"
 
 namespace simgate::client {
 
@@ -23,6 +26,49 @@ namespace {
 
 constexpr dds_attach_t k_token_guard = 2;
 constexpr dds_attach_t k_token_status = 3;
+
+// The records of a result that images may belong to: the result, or the items of its list.
+std::vector<const json*> image_records(const std::optional<json>& value) {
+  std::vector<const json*> records;
+  if (!value) return records;
+  if (value->is_object()) {
+    records.push_back(&*value);
+  } else if (value->is_array()) {
+    for (const json& record : *value) records.push_back(&record);
+  }
+  return records;
+}
+
+bool is_raw(const json& record) {
+  auto format = record.find("format");
+  return record.is_object() && format != record.end() && *format == "raw";
+}
+
+// How many of a final result's records say their pixels come raw on simgate_ReplyImage.
+std::size_t raw_count(const std::optional<json>& value) {
+  std::size_t n = 0;
+  for (const json* record : image_records(value)) n += is_raw(*record) ? 1 : 0;
+  return n;
+}
+
+// An image of simgate_ReplyImage as a payload: the bytes copied, described as the camera
+// describes its own (sim/src/cameras.cc), `timestamp` being Image.time.
+std::shared_ptr<const StreamPayload> to_payload(const simgate_stream_Image& image) {
+  auto payload = std::make_shared<StreamPayload>();
+  payload->content = "image";
+  json k = json::array();
+  for (int row = 0; row < 3; ++row) k.push_back({image.K[row * 3], image.K[row * 3 + 1], image.K[row * 3 + 2]});
+  payload->description = {{"component", image.component ? image.component : ""},
+                          {"width", image.width},
+                          {"height", image.height},
+                          {"encoding", image.encoding ? image.encoding : ""},
+                          {"step", image.step},
+                          {"is_bigendian", image.is_bigendian},
+                          {"intrinsic_matrix", std::move(k)},
+                          {"timestamp", image.time}};
+  if (image.data._length > 0) payload->bytes.assign(image.data._buffer, image.data._buffer + image.data._length);
+  return payload;
+}
 
 dds_entity_t check(dds_entity_t rc, const std::string& what) {
   if (rc < 0) throw ClientError("DDS client: cannot create " + what + ": " + retcode_text(rc));
@@ -70,6 +116,7 @@ DdsClientOptions DdsClientOptions::from_json(const json& options) {
     out.config = config.get_string("config", "");
     out.discovery_timeout =
         std::chrono::milliseconds(config.get_int("discovery_timeout_ms", out.discovery_timeout.count(), 0, 3'600'000));
+    out.raw_images = config.get_bool("raw_images", out.raw_images);
     config.finish();
     return out;
   } catch (const ConfigError& e) {
@@ -83,7 +130,13 @@ class DdsClient::Impl {
   struct Slot {
     bool accepted = false;           // ST_ACCEPTED seen (or final reply)
     std::optional<Outcome> outcome;  // the final reply
+    std::size_t raw = 0;             // how many of its records say "format": "raw"
+    std::vector<std::shared_ptr<const StreamPayload>> images;  // simgate_ReplyImage of its
+                                                               // seq, in arrival (= record) order
     std::string error;               // the server went away
+
+    // The final reply and every image it announces are here.
+    bool complete() const { return outcome && images.size() >= raw; }
   };
 
   explicit Impl(DdsClientOptions options);
@@ -114,12 +167,16 @@ class DdsClient::Impl {
   dds_entity_t reply_subscriber_ = 0;              // in "<partition>/<id_hex_>"
   dds_entity_t request_writer_ = 0;                // simgate_Request
   dds_entity_t reply_reader_ = 0;                  // simgate_Reply, filtered on client_id_
+  dds_entity_t image_reader_ = 0;                  // simgate_ReplyImage (raw_images only)
   dds_entity_t waitset_ = 0, guard_ = 0;           // the status thread's waitset and its stop guard
   dds_entity_t reader_waitset_ = 0;                // the reading caller's waitset
   dds_entity_t read_condition_ = 0;                // replies available (on reader_waitset_)
+  dds_entity_t image_condition_ = 0;               // images available (on reader_waitset_)
   dds_entity_t reader_guard_ = 0;                  // wakes the reading caller (match change, stop)
   std::atomic<CallId> next_seq_{1};                // call numbering
 
+  std::mutex take_images_mutex_;                   // one take_images() at a time (taken before
+                                                   // mutex_): a call's images stay in order
   std::mutex mutex_;                               // guards everything below
   std::condition_variable changed_;                // a reply, a match, or stop
   std::unordered_map<CallId, Slot> slots_;         // calls not yet consumed
@@ -134,6 +191,7 @@ class DdsClient::Impl {
  private:
   void run();
   void take_replies();
+  void take_images();
   void update_matches();
 };
 
@@ -176,6 +234,15 @@ DdsClient::Impl::Impl(DdsClientOptions options) : options_(std::move(options)) {
   dds::QosPtr reply_qos = dds::make_qos(false, 0, DDS_SECS(1));
   std::string userdata = "simgate.role=client;simgate.v=2;simgate.id=" + id_hex_;
   dds_qset_userdata(reply_qos.get(), userdata.data(), userdata.size());
+  // raw images: their reader first, announced as the reply reader is (the server discovers a
+  // participant's endpoints in the order they were created: when it has matched our reply
+  // reader, it knows this one, and the images of our first call already come raw)
+  if (options_.raw_images) {
+    dds_entity_t image_topic = check(
+        dds_create_topic(pp, &simgate_stream_Image_desc, dds::k_reply_image_topic, nullptr, nullptr),
+        "topic simgate_ReplyImage");
+    image_reader_ = check(dds_create_reader(reply_subscriber_, image_topic, reply_qos.get(), nullptr), "image reader");
+  }
   reply_reader_ = check(dds_create_reader(reply_subscriber_, reply_topic, reply_qos.get(), nullptr), "reply reader");
 
   // callers wait for replies themselves (one at a time is the reader: see await)
@@ -184,6 +251,10 @@ DdsClient::Impl::Impl(DdsClientOptions options) : options_(std::move(options)) {
   reader_guard_ = check(dds_create_guardcondition(pp), "reply guard condition");
   check(dds_waitset_attach(reader_waitset_, read_condition_, 0), "waitset attachment");
   check(dds_waitset_attach(reader_waitset_, reader_guard_, 0), "waitset attachment");
+  if (image_reader_ > 0) {
+    image_condition_ = check(dds_create_readcondition(image_reader_, DDS_ANY_STATE), "image read condition");
+    check(dds_waitset_attach(reader_waitset_, image_condition_, 0), "waitset attachment");
+  }
 
   // the status thread waits for match changes and stop
   waitset_ = check(dds_create_waitset(pp), "waitset");
@@ -228,7 +299,8 @@ void DdsClient::Impl::update_matches() {
   dds_subscription_matched_status_t sub{};
   dds_get_publication_matched_status(request_writer_, &pub);
   dds_get_subscription_matched_status(reply_reader_, &sub);
-  // replies already received are outcomes, not losses
+  // replies (and images) already received are outcomes, not losses
+  take_images();
   take_replies();
   std::lock_guard lock(mutex_);
   server_readers_ = static_cast<int>(pub.current_count);
@@ -236,9 +308,12 @@ void DdsClient::Impl::update_matches() {
   // no server left: nobody will answer the calls in flight
   if (server_writers_ == 0 || server_readers_ == 0) {
     for (auto& [id, slot] : slots_)
-      if (!slot.outcome && slot.error.empty())
+      if (!slot.complete() && slot.error.empty())
         slot.error = "DDS client: the server of partition '" + options_.partition + "' (domain " +
-                     std::to_string(options_.domain) + ") went away before answering call " + std::to_string(id);
+                     std::to_string(options_.domain) + ") went away before answering call " + std::to_string(id) +
+                     (slot.outcome ? " (its reply came, " + std::to_string(slot.images.size()) + " of its " +
+                                         std::to_string(slot.raw) + " raw images did not)"
+                                   : std::string());
   }
   changed_.notify_all();
   // the reading caller waits on DDS, not on changed_
@@ -275,11 +350,46 @@ void DdsClient::Impl::take_replies() {
         if (reply.result && *reply.result) outcome.value = parse_or_string(reply.result);
         if (reply.message) outcome.message = reply.message;
         if (reply.data && *reply.data) outcome.data = parse_or_string(reply.data);
+        // its images, written before it, may still be on their way (another topic)
+        if (image_reader_ > 0 && outcome.status == Status::success) slot.raw = raw_count(outcome.value);
         slot.outcome = std::move(outcome);
       }
       changed_.notify_all();
     }
     dds_return_loan(reply_reader_, samples, n);
+    if (n < batch) return;
+  }
+}
+
+void DdsClient::Impl::take_images() {
+  if (image_reader_ <= 0) return;
+  // the status thread and the reading caller both take: one at a time, or a later batch could
+  // be filed before an earlier one
+  std::lock_guard take_lock(take_images_mutex_);
+  constexpr int batch = 4;
+  void* samples[batch];
+  dds_sample_info_t infos[batch];
+  for (;;) {
+    samples[0] = nullptr;
+    dds_return_t n = dds_take(image_reader_, samples, infos, batch, batch);
+    if (n <= 0) return;
+    // copied out of Cyclone's samples before taking the lock
+    std::vector<std::pair<CallId, std::shared_ptr<const StreamPayload>>> images;
+    for (dds_return_t i = 0; i < n; ++i) {
+      if (!infos[i].valid_data) continue;
+      const auto& image = *static_cast<const simgate_stream_Image*>(samples[i]);
+      images.emplace_back(image.seq, to_payload(image));
+    }
+    dds_return_loan(image_reader_, samples, n);
+    {
+      std::lock_guard lock(mutex_);
+      for (auto& [seq, payload] : images) {
+        auto it = slots_.find(seq);
+        if (it == slots_.end()) continue;  // nobody waits any more
+        it->second.images.push_back(std::move(payload));
+      }
+      changed_.notify_all();
+    }
     if (n < batch) return;
   }
 }
@@ -303,6 +413,7 @@ bool DdsClient::Impl::await(std::unique_lock<std::mutex>& lock, std::chrono::ste
     dds_waitset_wait(reader_waitset_, nullptr, 0, static_cast<dds_duration_t>(left));
     bool ignored;
     dds_take_guardcondition(reader_guard_, &ignored);
+    take_images();
     take_replies();
     lock.lock();
     reading_ = false;
@@ -368,21 +479,37 @@ bool DdsClient::Impl::wait_accepted(CallId id, std::chrono::milliseconds timeout
 
 Outcome DdsClient::Impl::wait(CallId id, std::chrono::milliseconds timeout, std::chrono::milliseconds whole) {
   std::unique_lock lock(mutex_);
+  // the final reply and the images it announces (both topics: either may come first)
   auto finished = [&] {
     auto it = slots_.find(id);
-    return it == slots_.end() || it->second.outcome || !it->second.error.empty();
+    return it == slots_.end() || it->second.complete() || !it->second.error.empty();
   };
   if (slots_.find(id) == slots_.end()) throw ClientError("DDS client: no call " + std::to_string(id) + " to wait for");
-  bool done = await(lock, std::chrono::steady_clock::now() + timeout, finished);
+  await(lock, std::chrono::steady_clock::now() + timeout, finished);
   auto it = slots_.find(id);
   if (it == slots_.end()) throw ClientError("DDS client: call " + std::to_string(id) + " was consumed by another wait()");
   Slot slot = std::move(it->second);
   slots_.erase(it);
-  if (slot.outcome) return std::move(*slot.outcome);
-  if (!done)
-    throw ClientError("DDS client: no reply to call " + std::to_string(id) + " within " +
-                      std::to_string((whole.count() > 0 ? whole : timeout).count()) + " ms");
-  throw ClientError(slot.error);
+  lock.unlock();
+  if (slot.complete()) {
+    // the images, one per record, beside the records that say "format": "raw"
+    Outcome outcome = std::move(*slot.outcome);
+    if (slot.raw > 0) {
+      const std::vector<const json*> records = image_records(outcome.value);
+      outcome.attachments.resize(records.size());
+      std::size_t next = 0;
+      for (std::size_t i = 0; i < records.size(); ++i)
+        if (is_raw(*records[i])) outcome.attachments[i] = std::move(slot.images[next++]);
+    }
+    return outcome;
+  }
+  const std::string within = std::to_string((whole.count() > 0 ? whole : timeout).count()) + " ms";
+  if (!slot.error.empty()) throw ClientError(slot.error);
+  if (slot.outcome)
+    throw ClientError("DDS client: call " + std::to_string(id) + " replied, but only " +
+                      std::to_string(slot.images.size()) + " of the " + std::to_string(slot.raw) +
+                      " raw images its reply announces came within " + within);
+  throw ClientError("DDS client: no reply to call " + std::to_string(id) + " within " + within);
 }
 
 json DdsClient::Impl::list_services(std::chrono::milliseconds timeout) {

@@ -26,6 +26,8 @@
 
 #include "../sim/camera_scene.h"
 #include "dds_test_support.h"
+#include "simgate/client/dds_client.h"
+#include "simgate/core/streams.h"
 
 extern char** environ;
 
@@ -562,6 +564,87 @@ TEST(DdsStreamsTest, AClientWithoutAnImageReaderStillGetsThePngInTheReply) {
   EXPECT_EQ(image.result["format"], "png") << image.output;
   ASSERT_TRUE(image.result["image"].is_string()) << image.output;
   EXPECT_EQ(image.result["image"].get<std::string>().rfind("iVBORw0KGgo", 0), 0u) << image.output;  // a PNG file
+}
+
+// A DdsClient of the camera's partition (raw_images as given), its server found.
+std::unique_ptr<client::DdsClient> camera_client(bool raw_images) {
+  json options = client_options(test_partition());
+  options["raw_images"] = raw_images;
+  auto c = std::make_unique<client::DdsClient>(client::DdsClientOptions::from_json(options));
+  EXPECT_TRUE(c->wait_for_server(60s));
+  return c;
+}
+
+// The checks of a 640 x 480 rgb8 attachment whose middle pixel is the red box's, and of its
+// record (raw, no PNG, the same timestamp).
+void expect_red_attachment(const std::shared_ptr<const StreamPayload>& image, const json& record) {
+  ASSERT_TRUE(image) << record.dump();
+  EXPECT_EQ(record["format"], "raw") << record.dump();
+  EXPECT_FALSE(record.contains("image")) << record.dump();
+  const json& d = image->description;
+  EXPECT_EQ(image->content, "image");
+  EXPECT_EQ(d["component"], "rig.camera") << d.dump();
+  EXPECT_EQ(d["width"], 640) << d.dump();
+  EXPECT_EQ(d["height"], 480) << d.dump();
+  EXPECT_EQ(d["encoding"], "rgb8") << d.dump();
+  EXPECT_EQ(d["step"], 640 * 3) << d.dump();
+  EXPECT_EQ(d["timestamp"], record["timestamp"]) << d.dump();
+  ASSERT_EQ(image->bytes.size(), 640u * 480 * 3);
+  const std::size_t mid = 240u * 640 * 3 + 320u * 3;
+  const unsigned r = image->bytes[mid], g = image->bytes[mid + 1], b = image->bytes[mid + 2];
+  EXPECT_TRUE(r > 100 && r > 3 * g && r > 3 * b) << r << " " << g << " " << b;
+}
+
+TEST(DdsStreamsTest, ADdsClientWithRawImagesGetsTheImageAsAnAttachmentAndTheRecordWithoutPng) {
+  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  CameraOnDds camera;
+  ASSERT_TRUE(camera.running());
+  auto c = camera_client(true);
+  const Outcome image = c->call("rig.camera", "get_image", json::array(), 60s);
+  ASSERT_EQ(image.status, Status::success) << image.message;
+  ASSERT_TRUE(image.value && image.value->is_object()) << (image.value ? image.value->dump() : "");
+  EXPECT_EQ((*image.value)["encoding"], "rgb8");
+  ASSERT_EQ(image.attachments.size(), 1u) << image.value->dump();
+  expect_red_attachment(image.attachments[0], *image.value);
+  // get_local_data: the last image, the same way
+  const Outcome last = c->call("rig.camera", "get_local_data", json::array(), 60s);
+  ASSERT_TRUE(last.value && last.value->is_object());
+  ASSERT_EQ(last.attachments.size(), 1u) << last.value->dump();
+  expect_red_attachment(last.attachments[0], *last.value);
+}
+
+TEST(DdsStreamsTest, ADdsClientWithRawImagesGetsACapturesImagesInRecordOrder) {
+  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  CameraOnDds camera;
+  ASSERT_TRUE(camera.running());
+  auto c = camera_client(true);
+  // 900 kB each: the second waits for the first to be acknowledged, the reply behind them
+  const Outcome capture = c->call("rig.camera", "capture", json::array({3}), 60s);
+  ASSERT_EQ(capture.status, Status::success) << capture.message;
+  ASSERT_TRUE(capture.value && capture.value->is_array() && capture.value->size() == 3)
+      << (capture.value ? capture.value->dump() : "");
+  ASSERT_EQ(capture.attachments.size(), 3u);
+  double last_time = -1;
+  for (std::size_t i = 0; i < 3; ++i) {
+    expect_red_attachment(capture.attachments[i], (*capture.value)[i]);
+    const double time = capture.attachments[i]->description["timestamp"].get<double>();
+    EXPECT_GT(time, last_time) << i;
+    last_time = time;
+  }
+}
+
+TEST(DdsStreamsTest, ADdsClientWithoutRawImagesGetsThePngInTheRecord) {
+  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  CameraOnDds camera;
+  ASSERT_TRUE(camera.running());
+  auto c = camera_client(false);
+  const Outcome image = c->call("rig.camera", "get_image", json::array(), 60s);
+  ASSERT_EQ(image.status, Status::success) << image.message;
+  ASSERT_TRUE(image.value && image.value->is_object());
+  EXPECT_EQ((*image.value)["format"], "png");
+  ASSERT_TRUE((*image.value)["image"].is_string());
+  EXPECT_EQ((*image.value)["image"].get<std::string>().rfind("iVBORw0KGgo", 0), 0u);  // a PNG file
+  EXPECT_TRUE(image.attachments.empty());
 }
 
 // Runs a command, returns its exit code.

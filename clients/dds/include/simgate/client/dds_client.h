@@ -11,6 +11,21 @@
 //    final Outcome; async services are acknowledged first (wait_accepted()); cancel()
 //    cancels the client's own pending call.
 //  - list_services() reads the transient-local catalog: every component's descriptors.
+//  - Raw images (opt-in, DdsClientOptions::raw_images): the client also reads
+//    simgate_ReplyImage in its reply partition, with a reader created before its reply
+//    reader and announcing the same id, so the server sends the images of its camera replies
+//    (get_image, capture, get_local_data) there as simgate::stream::Image, raw, and their
+//    records in the reply say "format": "raw" instead of carrying a base64 PNG. The result is
+//    the JSON as the server sent it; Outcome::attachments holds one entry per record (the
+//    result, or each item of a capture's list), in record order: the image (content "image",
+//    description {component, width, height, encoding, step, is_bigendian, intrinsic_matrix,
+//    timestamp}, the bytes; no to_json) for a record that says "format": "raw", null for one
+//    that kept its PNG (the server could not send it in time). Empty when no record is raw.
+//    Images are matched to their call by seq (Image.seq = the call's seq). A call's images
+//    are written before its reply, but the two topics are not ordered at the reader: wait()
+//    returns once the final reply is in and as many images of its seq as its records say
+//    are raw, within the same timeout; a reply whose images do not all come within it is an
+//    error (ClientError naming how many came), as is a server that leaves meanwhile.
 //
 // Life cycle: the constructor creates the DDS entities and a status thread; the destructor
 // stops the thread and leaves the domain (the server then cancels this client's pending
@@ -20,8 +35,9 @@
 // calling thread up to their timeout. A caller waiting for a reply takes it from the reply
 // reader itself (no receive thread between Cyclone and the caller): the first waiting
 // caller becomes the reader, waits on the reader's read condition, and takes every reply
-// that arrived — its own and those of other callers, which it files in their slots and
-// wakes them; when it has its reply it leaves the role to another waiting caller. Replies
+// that arrived (with raw_images: and every image, one taker at a time so that a call's
+// images keep their order) — its own and those of other callers, which it files in their
+// slots and wakes them; when it has its reply it leaves the role to another waiting caller. Replies
 // that arrive while nobody waits stay in the reader until someone does. The client's own
 // status thread only watches matches (a server appearing or going away) and wakes the
 // waiters; nothing runs on Cyclone's threads.
@@ -43,8 +59,13 @@ struct DdsClientOptions {
   std::string config;                  // Cyclone XML or file:// URI; "" = loopback; "env"
   std::chrono::milliseconds discovery_timeout{10000};  // how long start() waits for a server (call(),
                                                        // cancel() and list_services() wait their timeout)
+  // Read camera replies' images raw (Outcome::attachments, records "format": "raw") instead
+  // of as PNGs in the records. Off by default: the reply is then the same JSON as on every
+  // other transport (what `simgate call` prints).
+  bool raw_images = false;
 
-  // From {"domain", "partition", "config", "discovery_timeout_ms"}; throws ClientError.
+  // From {"domain", "partition", "config", "discovery_timeout_ms", "raw_images"}; throws
+  // ClientError.
   static DdsClientOptions from_json(const json& options);
 };
 
@@ -67,8 +88,9 @@ class DdsClient final : public Client {
   // True once the server acknowledged the call (ST_ACCEPTED, async services) or finished it.
   // False on timeout.
   bool wait_accepted(CallId id, std::chrono::milliseconds timeout);
-  // The call's final outcome. Throws ClientError on timeout or when the server goes away.
-  // Each call's outcome can be waited for once.
+  // The call's final outcome (with raw_images: and the images its reply announces, as
+  // attachments). Throws ClientError on timeout or when the server goes away. Each call's
+  // outcome can be waited for once.
   Outcome wait(CallId id, std::chrono::milliseconds timeout);
   // Cancels a pending call of this client. True if the server found it running (it then
   // ends PREEMPTED, Failure::cancelled). Throws ClientError on timeout (which bounds finding
