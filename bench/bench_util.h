@@ -74,6 +74,28 @@ inline double thread_cpu_s() {
   return static_cast<double>(t.tv_sec) + static_cast<double>(t.tv_nsec) / 1e9;
 }
 
+// One phase of a simulation running at real time beside a benchmark's client thread (the
+// camera and web benches' "without" and "with"): `during(end)` runs on the client thread
+// until `end` (`seconds` from now); `steps()` reads the simulation's step count. The
+// real-time factor is the simulated time its steps covered over the wall time; the CPU is
+// the process's minus the client thread's (what the simulation and its transports used).
+struct RealtimePhase {
+  double wall_s = 0;
+  double realtime_factor = 0;
+  double cpu_s = 0;
+};
+template <class Steps, class During>
+void measure_realtime_phase(RealtimePhase& phase, double seconds, double timestep, Steps&& steps, During&& during) {
+  const auto start = Clock::now();
+  const std::uint64_t steps0 = steps();
+  const double cpu0 = process_cpu_s(), client0 = thread_cpu_s();
+  during(start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds)));
+  const std::uint64_t steps1 = steps();
+  phase.wall_s = std::chrono::duration<double>(Clock::now() - start).count();
+  phase.cpu_s = process_cpu_s() - cpu0 - (thread_cpu_s() - client0);
+  phase.realtime_factor = static_cast<double>(steps1 - steps0) * timestep / phase.wall_s;
+}
+
 // The port of an endpoint as the transports print them: "tcp://127.0.0.1:4000" -> 4000.
 inline std::uint16_t endpoint_port(const std::string& endpoint) {
   return static_cast<std::uint16_t>(std::stoi(endpoint.substr(endpoint.rfind(':') + 1)));

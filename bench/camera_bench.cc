@@ -305,10 +305,7 @@ json run_camera_fps(const CameraFpsOptions& o) {
 
 namespace {
 
-struct RtfPhase {
-  double wall_s = 0;
-  double realtime_factor = 0;
-  double cpu_s = 0;            // the gateway's threads (the process's minus the client's)
+struct RtfPhase : RealtimePhase {  // cpu_s: the gateway's threads
   std::uint64_t samples = 0;   // rpc.sample notifications read
   std::uint64_t bytes = 0;     // their lines' bytes
 };
@@ -345,15 +342,8 @@ json run_camera_rtf(const std::string& config, const std::string& camera, double
   std::thread client([&] {
     int fd = -1;
     try {
-      auto measure = [&](RtfPhase& phase, auto&& during) {
-        const auto start = Clock::now();
-        const std::uint64_t steps0 = gateway.simulation().steps();
-        const double cpu0 = process_cpu_s(), client0 = thread_cpu_s();
-        during(start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds)));
-        const std::uint64_t steps1 = gateway.simulation().steps();
-        phase.wall_s = std::chrono::duration<double>(Clock::now() - start).count();
-        phase.cpu_s = process_cpu_s() - cpu0 - (thread_cpu_s() - client0);
-        phase.realtime_factor = static_cast<double>(steps1 - steps0) * timestep / phase.wall_s;
+      auto measure = [&](RealtimePhase& phase, auto&& during) {
+        measure_realtime_phase(phase, seconds, timestep, [&] { return gateway.simulation().steps(); }, during);
       };
       // phase 1: nobody subscribed
       measure(without, [](Clock::time_point end) { std::this_thread::sleep_until(end); });

@@ -132,10 +132,7 @@ class WebSocketClient {
   std::string buffer_;  // received, not yet handed out
 };
 
-struct Phase {
-  double wall_s = 0;
-  double realtime_factor = 0;
-  double cpu_s = 0;                      // the gateway's threads (the process's minus the client's)
+struct Phase : RealtimePhase {
   std::vector<std::uint64_t> samples;    // rpc.sample messages read, per client
   std::uint64_t bytes = 0;               // their payloads' bytes
 };
@@ -174,15 +171,8 @@ json run_web_poses(const std::string& config, int clients, double frequency, dou
   std::string error;
   std::thread client([&] {
     try {
-      auto measure = [&](Phase& phase, auto&& during) {
-        const auto start = Clock::now();
-        const std::uint64_t steps0 = gateway.simulation().steps();
-        const double cpu0 = process_cpu_s(), client0 = thread_cpu_s();
-        during(start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds)));
-        const std::uint64_t steps1 = gateway.simulation().steps();
-        phase.wall_s = std::chrono::duration<double>(Clock::now() - start).count();
-        phase.cpu_s = process_cpu_s() - cpu0 - (thread_cpu_s() - client0);
-        phase.realtime_factor = static_cast<double>(steps1 - steps0) * timestep / phase.wall_s;
+      auto measure = [&](RealtimePhase& phase, auto&& during) {
+        measure_realtime_phase(phase, seconds, timestep, [&] { return gateway.simulation().steps(); }, during);
       };
       // phase 1: nobody connected
       measure(without, [](Clock::time_point end) { std::this_thread::sleep_until(end); });
