@@ -86,3 +86,23 @@ configure_and_build() {
   fi
   cmake --build "$build_dir" ${targets[@]+--target "${targets[@]}"}
 }
+
+# After a failed ctest run in the build directory: when every failed test failed without a
+# sanitizer report, runs them once more, one at a time, and succeeds if they all pass then.
+retry_failed_tests_once() {
+  local failed=Testing/Temporary/LastTestsFailed.log output=Testing/Temporary/LastTest.log name names=()
+  [ -s "$failed" ] || return 1
+  while IFS=: read -r _ name; do names+=("$name"); done < "$failed"
+  for name in "${names[@]}"; do
+    # the test's section of ctest's log: from its "Testing:" line to its "end time" line
+    if awk -v n="$name" 'index($0, "Testing: ") && substr($0, index($0, "Testing: ") + 9) == n {on = 1}
+                         on {print} on && index($0, "\"" n "\" end time") == 1 {exit}' "$output" |
+      grep -qE 'ERROR: (AddressSanitizer|LeakSanitizer)|WARNING: ThreadSanitizer|runtime error:|UndefinedBehaviorSanitizer'; then
+      log "$name failed with a sanitizer report: not retried"
+      return 1
+    fi
+  done
+  log "retrying once, alone, what failed without a sanitizer report: ${names[*]}"
+  ctest --output-on-failure -j 1 --timeout 300 --rerun-failed || return $?
+  log "passed when retried alone (a failure under load, to look into): ${names[*]}"
+}
