@@ -16,7 +16,7 @@ const std::vector<std::string> k_transports = {"socket", "jsonrpc", "websocket",
 
 }  // namespace
 
-std::unique_ptr<client::Client> connect_client(const ClientArgs& args, std::chrono::milliseconds& timeout) {
+ClientTarget client_target(const ClientArgs& args) {
   const std::string& transport = args.transport;
   if (std::find(k_transports.begin(), k_transports.end(), transport) == k_transports.end())
     throw UsageError("--transport: expected socket, jsonrpc, websocket or dds, found '" + transport + "'" +
@@ -27,25 +27,30 @@ std::unique_ptr<client::Client> connect_client(const ClientArgs& args, std::chro
   } catch (const std::exception&) {
   }
   if (!(seconds > 0)) throw UsageError("--timeout: expected a positive number of seconds, found '" + args.timeout + "'");
-  timeout = std::chrono::milliseconds(static_cast<long long>(seconds * 1000));
+  ClientTarget target{transport, json::object(), std::chrono::milliseconds(static_cast<long long>(seconds * 1000))};
 
-  json options;
   if (transport == "dds") {
     // DDS finds the simulation by domain and partition, not by address
     if (args.host || args.port)
       throw UsageError(std::string(args.host ? "--host" : "--port") +
                        " is for --transport socket, jsonrpc or websocket; dds finds the simulation by --domain and --partition");
-    options = {{"domain", args.domain ? parse_int("--domain", *args.domain, 0, 230) : 0},
-               {"partition", args.partition.value_or("simgate")}};
-    if (args.dds_config) options["config"] = *args.dds_config;
+    target.options = {{"domain", args.domain ? parse_int("--domain", *args.domain, 0, 230) : 0},
+                      {"partition", args.partition.value_or("simgate")}};
+    if (args.dds_config) target.options["config"] = *args.dds_config;
   } else {
     if (args.domain || args.partition || args.dds_config)
       throw UsageError(std::string(args.domain ? "--domain" : args.partition ? "--partition" : "--dds-config") +
                        " is for --transport dds");
-    options = {{"host", args.host.value_or("127.0.0.1")},
-               {"port", args.port ? parse_int("--port", *args.port, 1, 65535) : (transport == "jsonrpc" ? 4001 : transport == "websocket" ? 8090 : 4000)}};
+    target.options = {{"host", args.host.value_or("127.0.0.1")},
+                      {"port", args.port ? parse_int("--port", *args.port, 1, 65535) : (transport == "jsonrpc" ? 4001 : transport == "websocket" ? 8090 : 4000)}};
   }
-  return client::make_client(transport, options);
+  return target;
+}
+
+std::unique_ptr<client::Client> connect_client(const ClientArgs& args, std::chrono::milliseconds& timeout) {
+  ClientTarget target = client_target(args);
+  timeout = target.timeout;
+  return client::make_client(target.transport, target.options);
 }
 
 namespace {
