@@ -29,6 +29,8 @@ constexpr const char* k_footer = R"(Synopsis:
   simgate check CONFIG | --model FILE.xml [CONFIG] [--log-level L] [--plugin-path DIR]...
   simgate call [CLIENT OPTIONS] COMPONENT SERVICE [ARGS...]
   simgate list [CLIENT OPTIONS] [--json]
+  simgate watch [CLIENT OPTIONS] COMPONENT [--count N] [--duration SECONDS]
+  simgate publish [CLIENT OPTIONS] COMPONENT JSON_OBJECT [--count N] [--rate HZ]
   simgate snapshot [CLIENT OPTIONS] [--camera NAME] [--size WxH] OUT.png
   simgate snapshot --config CONFIG | --model FILE.xml [--camera NAME] [--size WxH] OUT.png
   simgate help [COMMAND]
@@ -52,6 +54,19 @@ Named and positional ARGS cannot be mixed; a string containing '=' is written JS
 (a "--" right after SERVICE is skipped).
 Prints the result as JSON, or SUCCESS for a service that returns nothing (exit 0); a
 FAILED or PREEMPTED call prints its reason on stderr (exit 1).)";
+
+constexpr const char* k_watch_footer = R"(Prints each sample of COMPONENT's output stream (a sensor: robot.pose) as one JSON line,
+flushed at once (`| head -3`, `| jq` work), until --count samples, --duration seconds, Ctrl-C
+or a closed stdout; exit 0. socket: reads the stream port `simulation get_stream_port`
+names, on --host; jsonrpc, websocket: rpc.subscribe. --timeout bounds connecting and the
+answers, not the wait for samples (a paused simulation sends its first sample only).
+`simgate list` shows the streams of a transport; dds: not here (its streams are topics).)";
+
+constexpr const char* k_publish_footer = R"(Sends JSON_OBJECT as a command to COMPONENT's input stream (an actuator): once, or --count
+times at --rate (default 10 per second). `simgate publish robot.motion '{"v": 0.5, "w": 0}'`
+jsonrpc, websocket: rpc.publish, a refused command is an error (exit 1); socket: lines on
+the stream port, MORSE's way: nothing is answered, a refusal is only counted by the server
+(`simgate call simulation get_stream_statistics`: refused, last_refusal).)";
 
 constexpr const char* k_snapshot_footer = R"(Without --config or --model it asks the running simulation the client options reach
 (`simulation get_snapshot`); with either, it builds that deployment here (nothing listens)
@@ -170,6 +185,23 @@ class CommandLine {
     list_->add_flag("--json", list_args_.json, "print the service descriptors as one JSON array");
     list_->footer(k_exit_codes);
 
+    watch_ = add_command("watch", "print a component's stream samples (a sensor), one JSON line each");
+    add_client_options(watch_, watch_args_.client);
+    watch_->add_option("COMPONENT", watch_args_.component, "the component with an output stream: robot.pose, ...")
+        ->required();
+    watch_->add_option("--count", watch_args_.count, "stop after N samples")->type_name("N");
+    watch_->add_option("--duration", watch_args_.duration, "stop after SECONDS (wall clock)")->type_name("SECONDS");
+    watch_->footer(std::string(k_watch_footer) + "\n" + k_exit_codes);
+
+    publish_ = add_command("publish", "send a command (a JSON object) to a component's input stream (an actuator)");
+    add_client_options(publish_, publish_args_.client);
+    publish_->add_option("COMPONENT", publish_args_.component, "the component with an input stream: robot.motion, ...")
+        ->required();
+    publish_->add_option("JSON_OBJECT", publish_args_.data, "the command: {\"v\": 0.5, \"w\": 0}")->required();
+    publish_->add_option("--count", publish_args_.count, "send it N times (default 1)")->type_name("N");
+    publish_->add_option("--rate", publish_args_.rate, "commands per second with --count (default 10)")->type_name("HZ");
+    publish_->footer(std::string(k_publish_footer) + "\n" + k_exit_codes);
+
     snapshot_ = add_command("snapshot", "write a picture of the scene (PNG), from a running simulation or a config");
     add_client_options(snapshot_, snapshot_args_.client);
     snapshot_->add_option("--camera", snapshot_args_.camera, "an MJCF camera of the scene (default: a free view of it all)")
@@ -204,6 +236,8 @@ class CommandLine {
     if (check_->parsed()) return cmd_run(with_scene(check_args_), true);
     if (call_->parsed()) return cmd_call(call_args_);
     if (list_->parsed()) return cmd_list(list_args_);
+    if (watch_->parsed()) return cmd_watch(watch_args_);
+    if (publish_->parsed()) return cmd_publish(publish_args_);
     if (snapshot_->parsed()) return cmd_snapshot(snapshot_args_);
     // `simgate` alone
     std::cerr << app_.help();
@@ -299,12 +333,14 @@ class CommandLine {
 
   CLI::App app_;                          // `simgate`
   std::vector<std::string> names_;        // the commands, in order
-  CLI::App *run_, *check_, *call_, *list_, *snapshot_;  // its commands
+  CLI::App *run_, *check_, *call_, *list_, *watch_, *publish_, *snapshot_;  // its commands
   CLI::Option* status_;                   // run --status
   std::vector<std::string> status_text_;  // its value, if any
   RunArgs run_args_, check_args_;         // parsed values of each command
   CallArgs call_args_;
   ListArgs list_args_;
+  WatchArgs watch_args_;
+  PublishArgs publish_args_;
   SnapshotArgs snapshot_args_;
 };
 

@@ -1,7 +1,8 @@
 // commands.h — the `simgate` commands behind the command line (cli.cc parses, these run).
 //
 // run_command.cc: `run` and `check` (the banner, the status line); client_commands.cc:
-// `call` and `list` (a client of any transport); snapshot_command.cc: `snapshot` (a client,
+// `call` and `list` (a client of any transport); stream_commands.cc: `watch` and `publish`
+// (data streams); snapshot_command.cc: `snapshot` (a client,
 // or the scene of a config rendered in-process). Each returns the process exit code and
 // throws UsageError, ConfigError, client::ClientError or a runtime error, which run_cli()
 // turns into messages and exit codes. Private to the gateway.
@@ -56,6 +57,23 @@ struct ListArgs {
   bool json = false;  // --json: the descriptors as one JSON document
 };
 
+// What `watch` was given.
+struct WatchArgs {
+  ClientArgs client;                    // how to reach the simulation
+  std::string component;                // COMPONENT, an output stream
+  std::optional<std::string> count;     // --count N: stop after N samples
+  std::optional<std::string> duration;  // --duration SECONDS: stop after that (wall clock)
+};
+
+// What `publish` was given.
+struct PublishArgs {
+  ClientArgs client;                 // how to reach the simulation
+  std::string component;             // COMPONENT, an input stream
+  std::string data;                  // JSON_OBJECT, as written
+  std::optional<std::string> count;  // --count N commands (default 1)
+  std::optional<std::string> rate;   // --rate HZ between them (default 10)
+};
+
 // What `snapshot` was given.
 struct SnapshotArgs {
   ClientArgs client;                   // how to reach a running simulation
@@ -71,9 +89,21 @@ int cmd_run(const RunArgs& args, bool check_only);
 int cmd_call(const CallArgs& args);
 // `list`: every service a running simulation offers.
 int cmd_list(const ListArgs& args);
+// `watch COMPONENT`: its stream's samples, one JSON line each (stream_commands.cc).
+int cmd_watch(const WatchArgs& args);
+// `publish COMPONENT JSON_OBJECT`: commands to its input stream (stream_commands.cc).
+int cmd_publish(const PublishArgs& args);
 // `snapshot OUT.png`: a picture of the scene (simulation get_snapshot), written as a PNG.
 int cmd_snapshot(const SnapshotArgs& args);
 
+// Where the client options point: the transport, make_client()'s options ({host, port} or
+// {domain, partition, config}) and --timeout. UsageError when they are wrong.
+struct ClientTarget {
+  std::string transport;               // socket, jsonrpc, websocket or dds
+  json options;                        // for client::make_client()
+  std::chrono::milliseconds timeout;   // --timeout
+};
+ClientTarget client_target(const ClientArgs& args);
 // A client of the transport the options name (UsageError when they are wrong); `timeout`
 // gets --timeout.
 std::unique_ptr<client::Client> connect_client(const ClientArgs& args, std::chrono::milliseconds& timeout);
