@@ -2,10 +2,10 @@
 //
 // run_command.cc: `run` and `check` (the banner, the status line); client_commands.cc:
 // `call` and `list` (a client of any transport); stream_commands.cc: `watch` and `publish`
-// (data streams); snapshot_command.cc: `snapshot` (a client,
-// or the scene of a config rendered in-process). Each returns the process exit code and
-// throws UsageError, ConfigError, client::ClientError or a runtime error, which run_cli()
-// turns into messages and exit codes. Private to the gateway.
+// (data streams); snapshot_command.cc: `snapshot` (a client, or the scene of a config
+// rendered in-process). Each returns the process exit code and throws UsageError,
+// ConfigError, client::ClientError or a runtime error, which run_cli() turns into messages
+// and exit codes. Private to the gateway.
 #ifndef SIMGATE_GATEWAY_SRC_COMMANDS_H_
 #define SIMGATE_GATEWAY_SRC_COMMANDS_H_
 
@@ -32,7 +32,7 @@ struct RunArgs {
   std::optional<double> status_interval;       // --status [SECONDS], in seconds
 };
 
-// The client options of `call` and `list`, as written.
+// The client options of `call`, `list`, `watch`, `publish` and `snapshot`, as written.
 struct ClientArgs {
   std::string transport = "socket";     // --transport
   std::optional<std::string> host;      // --host

@@ -271,7 +271,7 @@ class RpcStreamLink : public StreamLink {
   }
 
   void unsubscribe() override {
-    if (subscription_.is_null() || rpc_.closed() || StopSignals::stop_requested()) return;
+    if (subscription_.is_null() || rpc_.closed()) return;
     try {
       rpc_.request("rpc.unsubscribe", {{"subscription", subscription_}}, timeout_);
     } catch (const client::ClientError&) {
@@ -345,21 +345,20 @@ int cmd_watch(const WatchArgs& args) {
   StopSignals signals;
   auto link = connect_stream_link(target, "watch");
   if (auto streams = link->streams()) require_stream(*streams, args.component, "OUT", target.transport, "watch");
-  // the duration counts from the subscription: the samples it covers
-  link->subscribe(args.component);
-  const auto until = duration ? Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(*duration))
-                              : Clock::time_point::max();
-  for (int printed = 0; printed < count; ++printed) {
-    std::optional<std::string> sample;
-    try {
-      sample = link->next_sample(until);
-    } catch (const client::ClientError&) {
-      if (StopSignals::stop_requested()) break;  // Ctrl-C shut the connection down
-      throw;
+  try {
+    // the duration counts from the subscription: the samples it covers
+    link->subscribe(args.component);
+    const auto until = duration ? Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(*duration))
+                                : Clock::time_point::max();
+    for (int printed = 0; printed < count; ++printed) {
+      std::optional<std::string> sample = link->next_sample(until);
+      if (!sample) break;
+      std::cout << *sample << std::endl;  // a line at a time: `| head -3`, `| jq` see it now
+      if (!std::cout) break;              // stdout closed: nobody reads any more
     }
-    if (!sample) break;
-    std::cout << *sample << std::endl;  // a line at a time: `| head -3`, `| jq` see it now
-    if (!std::cout) break;              // stdout closed: nobody reads any more
+  } catch (const client::ClientError&) {
+    if (!StopSignals::stop_requested()) throw;
+    // Ctrl-C shut the WebSocket down under a read: a clean end
   }
   link->unsubscribe();
   return 0;
