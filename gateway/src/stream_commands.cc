@@ -8,11 +8,13 @@
 // line of JSON would not do justice to: those commands refuse it and say where to look.
 #include <sys/socket.h>
 
+#include <algorithm>
 #include <atomic>
 #include <climits>
 #include <csignal>
 #include <iostream>
 #include <thread>
+#include <type_traits>
 
 #include "commands.h"
 #include "simgate/client/client.h"
