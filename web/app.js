@@ -1,5 +1,5 @@
 // simgate's web app (docs/web.md): one WebSocket to the server that served this page,
-// JSON-RPC 2.0 over it (docs/transports/jsonrpc.md). Five parts:
+// JSON-RPC 2.0 over it (docs/transports/jsonrpc.md). Six parts:
 //   - Rpc: calls matched to their replies by id, progress reports, notifications;
 //   - the login: when the transport wants a token (its `auth` option), the page asks for it
 //     and calls rpc.login before anything else;
@@ -9,7 +9,9 @@
 //     progress, status and reply, and a Cancel button (rpc.cancel) while one runs;
 //   - the scene: simulation get_scene_geometry drawn with three.js, bodies moved by the
 //     `simulation` stream (rpc.subscribe), or by polling when the server has no such stream;
-//     without get_scene_geometry, each root body of simulation get_scene_objects as a marker.
+//     without get_scene_geometry, each root body of simulation get_scene_objects as a marker;
+//   - the cameras: every component with a get_image service, its image on asking, and live
+//     from its data stream (rpc.subscribe) when this transport carries one.
 // What the browser test reads is on window.simgate (tests/web/webapp_test.js).
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
@@ -46,6 +48,7 @@ const exposed = window.simgate = {
   frames: 0,             // frames rendered
   poseSource: 'none',    // 'stream', 'poll' or 'none'
   view: 'none',          // 'geometry', 'markers', 'none' or 'no-webgl'
+  cameras: {},           // camera component -> {images, width, height, live, error}
 };
 
 // ---------------------------------------------------------------- JSON-RPC over WebSocket
@@ -310,8 +313,10 @@ function setupConsole(rpc) {
         return group;
       }));
       if (methods.length === 0) box.replaceChildren(el('p', { className: 'note', textContent: 'no service is served here' }));
+      return methods;
     } catch (e) {
       box.replaceChildren(el('p', { className: 'error', textContent: `rpc.discover: ${errorText(e)}` }));
+      return [];
     }
   }
 
@@ -603,12 +608,104 @@ function setupScene(rpc) {
   };
 }
 
+// ---------------------------------------------------------------- the cameras
+
+// The image kinds of the data streams (docs/components/cameras.md, Streams).
+const IMAGE_KINDS = new Set(['image', 'depth_image']);
+
+function setupCameras(rpc) {
+  const figures = new Map();      // component -> {img, caption, live checkbox, status}
+  const subscriptions = new Map(); // component -> subscription number, while live
+
+  // An image record (get_image's reply, a stream sample): PNG in base64 (MORSE's way).
+  function show(component, record) {
+    const figure = figures.get(component);
+    const state = exposed.cameras[component];
+    if (!figure || !record?.image || record.format !== 'png') return;
+    figure.img.src = `data:image/png;base64,${record.image}`;
+    state.images += 1;
+    state.width = record.width;
+    state.height = record.height;
+    figure.status.textContent = `${record.width}×${record.height} ${record.encoding ?? ''}, t = ${fmt(record.timestamp, 2)} s`;
+  }
+
+  function fail(component, what, e) {
+    exposed.cameras[component].error = `${what}: ${errorText(e)}`;
+    figures.get(component).status.textContent = exposed.cameras[component].error;
+  }
+
+  async function snapshot(component) {
+    try {
+      show(component, await rpc.call(`${component}.get_image`));
+    } catch (e) {
+      fail(component, 'get_image', e);
+    }
+  }
+
+  async function setLive(component, on) {
+    const state = exposed.cameras[component];
+    try {
+      if (on) {
+        const answer = await rpc.call('rpc.subscribe', { component });
+        subscriptions.set(component, answer.subscription);
+      } else if (subscriptions.has(component)) {
+        await rpc.call('rpc.unsubscribe', { subscription: subscriptions.get(component) });
+        subscriptions.delete(component);
+      }
+      state.live = on;
+    } catch (e) {
+      figures.get(component).live.checked = state.live;
+      fail(component, on ? 'rpc.subscribe' : 'rpc.unsubscribe', e);
+    }
+  }
+
+  rpc.on('rpc.sample', (p) => { if (subscriptions.has(p.component)) show(p.component, p.data); });
+
+  function figureFor(component, stream) {
+    const img = el('img', { alt: `what ${component} sees` });
+    const status = el('span', { className: 'note', textContent: 'no image yet' });
+    const live = el('input', { type: 'checkbox', disabled: !stream,
+      title: stream ? `rpc.subscribe ${component}: every image of its stream (${stream.frequency} Hz)`
+        : 'this transport carries no stream of this camera (the deployment\'s "streams")' });
+    live.onchange = () => setLive(component, live.checked);
+    const button = el('button', { type: 'button', textContent: 'Image', title: `${component}.get_image` });
+    button.onclick = () => snapshot(component);
+    const figure = el('figure', { className: 'camera' }, img,
+      el('figcaption', {}, el('strong', { textContent: component }), ' ', button, ' ',
+        el('label', {}, live, ' live'), ' ', status));
+    figure.dataset.component = component;
+    figures.set(component, { img, status, live });
+    return figure;
+  }
+
+  // `methods`: a promise of rpc.discover's methods (the console's load()).
+  return async function start(methods) {
+    const names = (await methods).map((m) => m.name);
+    let streams = [];
+    try { streams = await rpc.call('rpc.streams'); } catch { /* no streams here */ }
+    const streamOf = new Map(streams.filter((s) => s.direction === 'OUT' && IMAGE_KINDS.has(s.kind))
+      .map((s) => [s.component, s]));
+    const cameras = [...new Set([...names.filter((n) => n.endsWith('.get_image')).map((n) => n.slice(0, -'.get_image'.length)),
+      ...streamOf.keys()])].sort();
+    // a reconnection starts over: the server forgot the subscriptions with the connection
+    subscriptions.clear();
+    figures.clear();
+    exposed.cameras = Object.fromEntries(cameras.map((c) => [c, { images: 0, width: 0, height: 0, live: false, error: '' }]));
+    const box = $('cameras');
+    box.replaceChildren(...cameras.map((c) => figureFor(c, streamOf.get(c))));
+    if (cameras.length === 0) box.replaceChildren(el('p', { className: 'note', textContent: 'no camera is served here' }));
+    // one image each to begin with (a camera renders only when asked or subscribed)
+    await Promise.all(cameras.filter((c) => names.includes(`${c}.get_image`)).map(snapshot));
+  };
+}
+
 // ---------------------------------------------------------------- start
 
 const rpc = new Rpc(`${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/`);
 const refreshState = setupState(rpc);
 const loadServices = setupConsole(rpc);
 const startScene = setupScene(rpc);
+const startCameras = setupCameras(rpc);
 
 rpc.onopen = async () => {
   exposed.connected = true;
@@ -619,8 +716,9 @@ rpc.onopen = async () => {
   if (exposed.login === 'done') $('connection').textContent = `connected to ${location.host} (logged in)`;
   exposed.ready = true;
   refreshState();
-  loadServices();
+  const methods = loadServices();
   startScene();
+  startCameras(methods);
 };
 rpc.onclose = () => {
   const was = exposed.connected;
