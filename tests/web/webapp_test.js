@@ -7,7 +7,8 @@
 // succeeds; a second goto cancelled from the page ends PREEMPTED; pause, step and play
 // drive the simulation, and the real-time factor shown is never "0.00" (a number once
 // measured, else "–"); the 3D view has drawn the scene, and draws a height field spawned
-// from the page's console; a camera on the robot shows its image, then live from its stream. Then, against a second `simgate run`
+// from the page's console; a camera on the robot shows its image, then live from its stream;
+// the arrow keys on the drive pad move the robot (rpc.publish to robot.motion). Then, against a second `simgate run`
 // whose websocket transport wants a token (`auth`), the page asks for it before anything,
 // asks again after a wrong one, and works once given the right one. Keeps a screenshot:
 //   node webapp_test.js SIMGATE SOURCE_DIR ARTIFACTS_DIR
@@ -280,6 +281,24 @@ async function main() {
   await live.uncheck();
   await page.waitForFunction(() => !window.simgate.cameras['robot.camera'].live, null, { timeout: WAIT_MS });
   check((await camera()).error === '', 'unsubscribed without an error');
+
+  // the drive pad of robot.motion (the demo carries it on the websocket): ArrowUp held on
+  // the pad drives the robot forward through rpc.publish, released it sends a stop
+  const pad = page.locator('div.input[data-component="robot.motion"] .drive');
+  check(await pad.count() === 1, 'robot.motion (velocity {v, w}) has a drive pad');
+  const xBefore = await robotX();
+  await pad.focus();
+  await page.keyboard.down('ArrowUp');
+  await page.waitForFunction((x) => {
+    const cell = document.querySelector('#bodies tr[data-body="robot"] td.x');
+    return cell && Math.abs(Number(cell.textContent) - x) > 0.1;
+  }, xBefore, { timeout: WAIT_MS });
+  await page.keyboard.up('ArrowUp');
+  await page.waitForFunction(() => window.simgate.inputs['robot.motion'].last?.v === 0, null, { timeout: WAIT_MS });
+  const motion = await page.evaluate(() => window.simgate.inputs['robot.motion']);
+  check(motion.refused === 0 && motion.published >= 2 && motion.last.w === 0,
+    `ArrowUp held on the pad drove the robot (x ${xBefore} -> ${await robotX()}) with ${motion.published} ` +
+    `commands, then a stop ${JSON.stringify(motion.last)}`);
 
   fs.mkdirSync(artifactsDir, { recursive: true });
   const shot = path.join(artifactsDir, 'webapp.png');
