@@ -709,6 +709,8 @@ const DRIVE_PERIOD_MS = 100;  // a held drive key publishes this often (the comm
 const DRIVE_KEYS = { ArrowUp: [1, 0], ArrowDown: [-1, 0], ArrowLeft: [0, 1], ArrowRight: [0, -1] };
 
 function setupInputs(rpc) {
+  const timers = new Set();  // the drive pads' repeat timers (cleared when the pads are rebuilt)
+
   async function publish(component, data, status) {
     const state = exposed.inputs[component];
     try {
@@ -718,7 +720,7 @@ function setupInputs(rpc) {
       state.error = '';
       status.textContent = `sent ${JSON.stringify(data)}`;
     } catch (e) {
-      state.refused += 1;
+      if (e?.code === -32602) state.refused += 1;  // the component's refusal, not a lost connection
       state.error = errorText(e);
       status.className = 'error';
       status.textContent = state.error;
@@ -741,7 +743,9 @@ function setupInputs(rpc) {
     const update = () => {
       publish(component, command(), status);
       clearInterval(timer);
+      timers.delete(timer);
       timer = held.size ? setInterval(() => publish(component, command(), status), DRIVE_PERIOD_MS) : null;
+      if (timer) timers.add(timer);
     };
     const press = (key) => { if (!held.has(key)) { held.add(key); update(); } };
     const release = (key) => { if (held.delete(key)) update(); };
@@ -783,6 +787,9 @@ function setupInputs(rpc) {
   }
 
   return async function start() {
+    // a reconnection: the old pads' keys are forgotten, nothing repeats an old command
+    for (const t of timers) clearInterval(t);
+    timers.clear();
     let streams = [];
     try { streams = await rpc.call('rpc.streams'); } catch { /* no streams here */ }
     const inputs = streams.filter((s) => s.direction === 'IN').sort((a, b) => a.component.localeCompare(b.component));
