@@ -1,5 +1,5 @@
 // simgate's web app (docs/web.md): one WebSocket to the server that served this page,
-// JSON-RPC 2.0 over it (docs/transports/jsonrpc.md). Five parts:
+// JSON-RPC 2.0 over it (docs/transports/jsonrpc.md). Seven parts:
 //   - Rpc: calls matched to their replies by id, progress reports, notifications;
 //   - the login: when the transport wants a token (its `auth` option), the page asks for it
 //     and calls rpc.login before anything else;
@@ -9,7 +9,11 @@
 //     progress, status and reply, and a Cancel button (rpc.cancel) while one runs;
 //   - the scene: simulation get_scene_geometry drawn with three.js, bodies moved by the
 //     `simulation` stream (rpc.subscribe), or by polling when the server has no such stream;
-//     without get_scene_geometry, each root body of simulation get_scene_objects as a marker.
+//     without get_scene_geometry, each root body of simulation get_scene_objects as a marker;
+//   - the cameras: every component with a get_image service, its image on asking, and live
+//     from its data stream (rpc.subscribe) when this transport carries one;
+//   - the input streams (rpc.streams, direction IN): a command box for each (rpc.publish),
+//     and a drive pad for a velocity stream {v, w} (arrow keys or buttons, held to drive).
 // What the browser test reads is on window.simgate (tests/web/webapp_test.js).
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
@@ -46,6 +50,8 @@ const exposed = window.simgate = {
   frames: 0,             // frames rendered
   poseSource: 'none',    // 'stream', 'poll' or 'none'
   view: 'none',          // 'geometry', 'markers', 'none' or 'no-webgl'
+  cameras: {},           // camera component -> {images, width, height, live, error}
+  inputs: {},            // input stream -> {published, refused, last, error}
 };
 
 // ---------------------------------------------------------------- JSON-RPC over WebSocket
@@ -310,8 +316,10 @@ function setupConsole(rpc) {
         return group;
       }));
       if (methods.length === 0) box.replaceChildren(el('p', { className: 'note', textContent: 'no service is served here' }));
+      return methods;
     } catch (e) {
       box.replaceChildren(el('p', { className: 'error', textContent: `rpc.discover: ${errorText(e)}` }));
+      return [];
     }
   }
 
@@ -603,12 +611,212 @@ function setupScene(rpc) {
   };
 }
 
+// ---------------------------------------------------------------- the cameras
+
+// The image kinds of the data streams (docs/components/cameras.md, Streams).
+const IMAGE_KINDS = new Set(['image', 'depth_image']);
+
+function setupCameras(rpc) {
+  const figures = new Map();      // component -> {img, caption, live checkbox, status}
+  const subscriptions = new Map(); // component -> subscription number, while live
+
+  // An image record (get_image's reply, a stream sample): PNG in base64 (MORSE's way).
+  function show(component, record) {
+    const figure = figures.get(component);
+    const state = exposed.cameras[component];
+    if (!figure || !record?.image || record.format !== 'png') return;
+    figure.img.src = `data:image/png;base64,${record.image}`;
+    state.images += 1;
+    state.width = record.width;
+    state.height = record.height;
+    figure.status.textContent = `${record.width}×${record.height} ${record.encoding ?? ''}, t = ${fmt(record.timestamp, 2)} s`;
+  }
+
+  function fail(component, what, e) {
+    exposed.cameras[component].error = `${what}: ${errorText(e)}`;
+    figures.get(component).status.textContent = exposed.cameras[component].error;
+  }
+
+  async function snapshot(component) {
+    try {
+      show(component, await rpc.call(`${component}.get_image`));
+    } catch (e) {
+      fail(component, 'get_image', e);
+    }
+  }
+
+  async function setLive(component, on) {
+    const state = exposed.cameras[component];
+    try {
+      if (on) {
+        const answer = await rpc.call('rpc.subscribe', { component });
+        subscriptions.set(component, answer.subscription);
+      } else if (subscriptions.has(component)) {
+        await rpc.call('rpc.unsubscribe', { subscription: subscriptions.get(component) });
+        subscriptions.delete(component);
+      }
+      state.live = on;
+    } catch (e) {
+      figures.get(component).live.checked = state.live;
+      fail(component, on ? 'rpc.subscribe' : 'rpc.unsubscribe', e);
+    }
+  }
+
+  rpc.on('rpc.sample', (p) => { if (subscriptions.has(p.component)) show(p.component, p.data); });
+
+  function figureFor(component, stream) {
+    const img = el('img', { alt: `what ${component} sees` });
+    const status = el('span', { className: 'note', textContent: 'no image yet' });
+    const live = el('input', { type: 'checkbox', disabled: !stream,
+      title: stream ? `rpc.subscribe ${component}: every image of its stream (${stream.frequency} Hz)`
+        : 'this transport carries no stream of this camera (the deployment\'s "streams")' });
+    live.onchange = () => setLive(component, live.checked);
+    const button = el('button', { type: 'button', textContent: 'Image', title: `${component}.get_image` });
+    button.onclick = () => snapshot(component);
+    const figure = el('figure', { className: 'camera' }, img,
+      el('figcaption', {}, el('strong', { textContent: component }), ' ', button, ' ',
+        el('label', {}, live, ' live'), ' ', status));
+    figure.dataset.component = component;
+    figures.set(component, { img, status, live });
+    return figure;
+  }
+
+  // `methods`: a promise of rpc.discover's methods (the console's load()).
+  return async function start(methods) {
+    const names = (await methods).map((m) => m.name);
+    let streams = [];
+    try { streams = await rpc.call('rpc.streams'); } catch { /* no streams here */ }
+    const streamOf = new Map(streams.filter((s) => s.direction === 'OUT' && IMAGE_KINDS.has(s.kind))
+      .map((s) => [s.component, s]));
+    const cameras = [...new Set([...names.filter((n) => n.endsWith('.get_image')).map((n) => n.slice(0, -'.get_image'.length)),
+      ...streamOf.keys()])].sort();
+    // a reconnection starts over: the server forgot the subscriptions with the connection
+    subscriptions.clear();
+    figures.clear();
+    exposed.cameras = Object.fromEntries(cameras.map((c) => [c, { images: 0, width: 0, height: 0, live: false, error: '' }]));
+    const box = $('cameras');
+    box.replaceChildren(...cameras.map((c) => figureFor(c, streamOf.get(c))));
+    if (cameras.length === 0) box.replaceChildren(el('p', { className: 'note', textContent: 'no camera is served here' }));
+    // one image each to begin with (a camera renders only when asked or subscribed)
+    await Promise.all(cameras.filter((c) => names.includes(`${c}.get_image`)).map(snapshot));
+  };
+}
+
+// ---------------------------------------------------------------- the input streams
+
+const DRIVE_PERIOD_MS = 100;  // a held drive key publishes this often (the command holds meanwhile)
+// arrow key -> [forward, turn left] factors of the pad's speeds
+const DRIVE_KEYS = { ArrowUp: [1, 0], ArrowDown: [-1, 0], ArrowLeft: [0, 1], ArrowRight: [0, -1] };
+
+function setupInputs(rpc) {
+  const timers = new Set();  // the drive pads' repeat timers (cleared when the pads are rebuilt)
+
+  async function publish(component, data, status) {
+    const state = exposed.inputs[component];
+    try {
+      await rpc.call('rpc.publish', { component, data });
+      state.published += 1;
+      state.last = data;
+      state.error = '';
+      status.textContent = `sent ${JSON.stringify(data)}`;
+    } catch (e) {
+      if (e?.code === -32602) state.refused += 1;  // the component's refusal, not a lost connection
+      state.error = errorText(e);
+      status.className = 'error';
+      status.textContent = state.error;
+      return;
+    }
+    status.className = 'note';
+  }
+
+  // A velocity stream {v, w}: the command of the keys held, sent while any is held, then a stop.
+  function drivePad(component, status) {
+    const speed = el('input', { type: 'number', value: '0.5', min: '0', step: '0.1', title: 'v, m/s' });
+    const turn = el('input', { type: 'number', value: '1', min: '0', step: '0.1', title: 'w, rad/s' });
+    const held = new Set();
+    let timer = null;
+    const command = () => {
+      let forward = 0, left = 0;
+      for (const key of held) { forward += DRIVE_KEYS[key][0]; left += DRIVE_KEYS[key][1]; }
+      return { v: forward * Number(speed.value), w: left * Number(turn.value) };
+    };
+    const update = () => {
+      publish(component, command(), status);
+      clearInterval(timer);
+      timers.delete(timer);
+      timer = held.size ? setInterval(() => publish(component, command(), status), DRIVE_PERIOD_MS) : null;
+      if (timer) timers.add(timer);
+    };
+    const press = (key) => { if (!held.has(key)) { held.add(key); update(); } };
+    const release = (key) => { if (held.delete(key)) update(); };
+    const button = (key, label) => {
+      const b = el('button', { type: 'button', textContent: label, title: `${key} (held)` });
+      b.onpointerdown = () => press(key);
+      b.onpointerup = b.onpointerleave = () => release(key);
+      return b;
+    };
+    const pad = el('div', { className: 'drive', tabIndex: 0,
+      title: 'click here, then hold the arrow keys to drive' },
+    el('div', { className: 'keys' }, el('span'), button('ArrowUp', '▲'), el('span'),
+      button('ArrowLeft', '◀'), button('ArrowDown', '▼'), button('ArrowRight', '▶')),
+    el('label', {}, 'v ', speed, ' m/s'), el('label', {}, 'w ', turn, ' rad/s'));
+    pad.onkeydown = (e) => { if (e.key in DRIVE_KEYS && e.target === pad) { e.preventDefault(); press(e.key); } };
+    pad.onkeyup = (e) => { if (e.key in DRIVE_KEYS) release(e.key); };
+    // focus gone, keys released unseen: stop rather than drive on
+    pad.onblur = () => { if (held.size) { held.clear(); update(); } };
+    return pad;
+  }
+
+  // Any input stream: a JSON object typed and sent.
+  function commandBox(stream, status) {
+    const example = Object.fromEntries((stream.fields ?? []).map((f) => [f, 0]));
+    const text = el('input', { type: 'text', className: 'command', value: JSON.stringify(example),
+      title: `a JSON object with ${(stream.fields ?? []).join(', ') || 'the stream\'s fields'}` });
+    const send = el('button', { type: 'button', textContent: 'Publish', title: `rpc.publish ${stream.component}` });
+    send.onclick = () => {
+      let data;
+      try { data = JSON.parse(text.value); } catch (e) { data = undefined; }
+      if (data === null || typeof data !== 'object' || Array.isArray(data)) {
+        status.className = 'error';
+        status.textContent = 'a command is a JSON object, e.g. ' + JSON.stringify(example);
+        return;
+      }
+      publish(stream.component, data, status);
+    };
+    return el('div', { className: 'fields' }, text, send);
+  }
+
+  return async function start() {
+    // a reconnection: the old pads' keys are forgotten, nothing repeats an old command
+    for (const t of timers) clearInterval(t);
+    timers.clear();
+    let streams = [];
+    try { streams = await rpc.call('rpc.streams'); } catch { /* no streams here */ }
+    const inputs = streams.filter((s) => s.direction === 'IN').sort((a, b) => a.component.localeCompare(b.component));
+    exposed.inputs = Object.fromEntries(inputs.map((s) => [s.component, { published: 0, refused: 0, last: null, error: '' }]));
+    const box = $('inputs');
+    box.replaceChildren(...inputs.map((s) => {
+      const status = el('span', { className: 'note' });
+      const velocity = s.kind === 'velocity' && ['v', 'w'].every((f) => s.fields?.includes(f));
+      const section = el('div', { className: 'input' },
+        el('strong', { textContent: s.component }), el('span', { className: 'note', textContent: ` ${s.kind} {${(s.fields ?? []).join(', ')}}` }),
+        velocity ? drivePad(s.component, status) : commandBox(s, status), status);
+      section.dataset.component = s.component;
+      return section;
+    }));
+    if (inputs.length === 0)
+      box.replaceChildren(el('p', { className: 'note', textContent: 'no input stream is carried here (the deployment\'s "streams")' }));
+  };
+}
+
 // ---------------------------------------------------------------- start
 
 const rpc = new Rpc(`${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/`);
 const refreshState = setupState(rpc);
 const loadServices = setupConsole(rpc);
 const startScene = setupScene(rpc);
+const startCameras = setupCameras(rpc);
+const startInputs = setupInputs(rpc);
 
 rpc.onopen = async () => {
   exposed.connected = true;
@@ -619,8 +827,10 @@ rpc.onopen = async () => {
   if (exposed.login === 'done') $('connection').textContent = `connected to ${location.host} (logged in)`;
   exposed.ready = true;
   refreshState();
-  loadServices();
+  const methods = loadServices();
   startScene();
+  startCameras(methods);
+  startInputs();
 };
 rpc.onclose = () => {
   const was = exposed.connected;

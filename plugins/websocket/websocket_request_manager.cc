@@ -1,5 +1,6 @@
 #include "websocket_request_manager.h"
 
+#include <cmath>
 #include <sstream>
 
 #include <boost/beast/http/status.hpp>
@@ -31,6 +32,17 @@ WebSocketRequestManager::Settings WebSocketRequestManager::Settings::parse(const
   Settings s;
   s.web = WebOptions::take(rest);
   s.origins = OriginPolicy::take(rest);
+  if (rest.is_object()) {
+    if (auto it = rest.find("keepalive_s"); it != rest.end()) {
+      json mine = {{"keepalive_s", *it}};
+      rest.erase(it);
+      ConfigObject config(mine, "");
+      // up to a day: a longer silence is a client gone, not one thinking
+      s.keepalive = std::chrono::milliseconds(
+          std::llround(config.get_number("keepalive_s", 150, 0, 86'400) * 1000));
+      config.finish();
+    }
+  }
   s.rpc = jsonrpc::Options::parse(rest, "websocket", k_default_port);
   return s;
 }
@@ -44,7 +56,8 @@ WebSocketRequestManager::WebSocketRequestManager(Settings s)
       listener_(io_, name(), options_.tcp.host, options_.tcp.port),
       io_thread_(io_, name(), options_.tcp.io_spin),
       per_peer_(options_.tcp.max_connections_per_peer),
-      origins_(std::move(s.origins)) {
+      origins_(std::move(s.origins)),
+      keepalive_(s.keepalive) {
   origins_.bind(options_.tcp.host, listener_.port());
   if (s.web.enabled) web_.emplace(s.web.root, "simgate websocket transport", port_text());
 }
@@ -165,6 +178,7 @@ void WebSocketRequestManager::accept(tcp::socket socket) {
   limits.max_unsent_bytes = options_.tcp.max_unsent_bytes;
   // a client that lets its replies pile up stops being read at half the unsent budget
   limits.pause_at_unsent_bytes = options_.tcp.max_unsent_bytes / 2;
+  limits.keepalive = keepalive_;
   WsHost& host = *this;
   auto session = std::make_shared<WsSession>(std::move(socket), host, limits, name(), next_session_++);
   // a peer that must present the token (the "auth" option) calls rpc.login first
@@ -277,4 +291,4 @@ SIMGATE_TRANSPORT_PLUGIN(websocket, simgate::websocket::WebSocketRequestManager,
                          "max_message_bytes", "max_depth", "max_in_flight", "max_unsent_bytes",
                          "max_connections", "max_connections_per_peer", "idle_timeout_s", "idle_evict_s",
                          "io_spin_us", "on_disconnect", "global_policy", "auth", "progress_interval_ms",
-                         "stream_queue", "web", "web_root", "allowed_origins")
+                         "stream_queue", "web", "web_root", "allowed_origins", "keepalive_s")

@@ -70,12 +70,13 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine<WsSession>, privat
   std::uint16_t port() const { return listener_.port(); }
 
  private:
-  // The options: JSON-RPC's (jsonrpc::Options), the web app's (WebOptions) and the pages
-  // allowed to connect (OriginPolicy).
+  // The options: JSON-RPC's (jsonrpc::Options), the web app's (WebOptions), the pages
+  // allowed to connect (OriginPolicy) and the keep-alive (`keepalive_s`, WsLimits).
   struct Settings {
     jsonrpc::Options rpc;
     WebOptions web;
     OriginPolicy origins;
+    std::chrono::milliseconds keepalive = WsLimits{}.keepalive;
     static Settings parse(const json& options);
   };
   explicit WebSocketRequestManager(Settings settings);
@@ -122,6 +123,7 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine<WsSession>, privat
   bool sweeping_ = false;                                 // a sweep is scheduled
   std::optional<StaticFiles> web_;                        // the web app's files (none: `web` false)
   OriginPolicy origins_;                                  // allowed_origins, bound to the port
+  std::chrono::milliseconds keepalive_;                   // keepalive_s (WsLimits::keepalive)
 };
 
 }  // namespace simgate::websocket

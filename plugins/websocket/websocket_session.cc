@@ -220,14 +220,15 @@ bool WsSession::protocol_error(std::string_view reason) {
 }
 
 void WsSession::keep_alive(std::uint32_t tick) {
-  if (!upgraded_ || aborted_) return;
+  if (!upgraded_ || aborted_ || limits_.keepalive.count() <= 0) return;
   const std::uint32_t silent = tick - heard_tick_;
-  if (silent >= kit::sweep_ticks(k_silence_limit)) {
-    log::debug(who_, ": ", label_, " sent nothing for ", k_silence_limit.count(), " s and answered no ping");
+  if (silent >= kit::sweep_ticks(2 * limits_.keepalive)) {
+    log::debug(who_, ": ", label_, " sent nothing for ", 2 * limits_.keepalive.count() / 1000.0,
+               " s and answered no ping (keepalive_s)");
     abort("the client went silent");
     return;
   }
-  if (!pinged_ && !close_queued_ && silent >= kit::sweep_ticks(k_ping_after)) {
+  if (!pinged_ && !close_queued_ && silent >= kit::sweep_ticks(limits_.keepalive)) {
     pinged_ = true;
     append_frame(FrameParser::k_ping, {});
     flush_writes();

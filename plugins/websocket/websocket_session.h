@@ -30,8 +30,9 @@
 //   - A client that does not read: a reply that finds more than max_unsent_bytes waiting
 //     closes the connection; droppable messages (progress, samples) are dropped once more
 //     than kit::LineConnection::k_droppable_unsent_bytes wait (the TCP transports' limits).
-//   - Keep-alive (keep_alive(), from the host's sweep): a client silent for k_ping_after is
-//     sent a ping; silent for k_silence_limit, it is dropped (Beast's server defaults).
+//   - Keep-alive (keep_alive(), from the host's sweep): a client silent for
+//     WsLimits::keepalive (the `keepalive_s` option, 150 s by default) is sent a ping; silent
+//     for twice that (it answered no ping either), it is dropped. 0: neither.
 //   - Close handshake: the client's close frame is answered with its code, then the socket
 //     closes; close() sends one (after the messages queued), reads on (ignoring messages)
 //     until the client's close frame or end of input, within k_close_timeout.
@@ -101,6 +102,9 @@ struct WsLimits {
   std::size_t max_message_bytes = 8 << 20;   // longest text message accepted
   std::size_t max_unsent_bytes = 16 << 20;   // unsent messages a reply may find before disconnecting
   std::size_t pause_at_unsent_bytes = 8 << 20;  // unsent bytes that pause reading
+  // silence (no message, ping or pong) after which the client is pinged, and after twice
+  // which it is dropped; 0: never (Beast's suggested server timeouts: 150 s and 300 s)
+  std::chrono::milliseconds keepalive{150'000};
 };
 
 class WsSession : public std::enable_shared_from_this<WsSession>,
@@ -195,10 +199,6 @@ class WsSession : public std::enable_shared_from_this<WsSession>,
   static constexpr std::size_t k_coalesce_bytes = 256 * 1024;
   // How long the client has to answer a close frame with its own.
   static constexpr std::chrono::seconds k_close_timeout{5};
-  // A client that sent nothing (no message, ping or pong) for this long is pinged...
-  static constexpr std::chrono::seconds k_ping_after{150};
-  // ...and dropped after this long (Beast's suggested server timeouts).
-  static constexpr std::chrono::seconds k_silence_limit{300};
 
  private:
   void on_request(const boost::system::error_code& ec);

@@ -7,7 +7,8 @@
 // succeeds; a second goto cancelled from the page ends PREEMPTED; pause, step and play
 // drive the simulation, and the real-time factor shown is never "0.00" (a number once
 // measured, else "–"); the 3D view has drawn the scene, and draws a height field spawned
-// from the page's console. Then, against a second `simgate run`
+// from the page's console; a camera on the robot shows its image, then live from its stream;
+// the arrow keys on the drive pad move the robot (rpc.publish to robot.motion). Then, against a second `simgate run`
 // whose websocket transport wants a token (`auth`), the page asks for it before anything,
 // asks again after a wrong one, and works once given the right one. Keeps a screenshot:
 //   node webapp_test.js SIMGATE SOURCE_DIR ARTIFACTS_DIR
@@ -123,8 +124,15 @@ async function openPage(port, problems) {
   return page;
 }
 
+// The demo robot with a camera on its body (looking forward), streamed to the page's transport.
+function withCamera(config) {
+  config.robots.find((r) => r.name === 'robot').components.push(
+    { name: 'camera', type: 'video_camera', frequency: 5, options: { cam_width: 160, cam_height: 120 } });
+  config.streams['robot.camera'] = { transports: ['websocket'] };
+}
+
 async function main() {
-  const port = await startGateway();
+  const port = await startGateway(withCamera);
   const pageUrl = `http://127.0.0.1:${port}/`;
   console.log(`simgate serves ${pageUrl}`);
 
@@ -246,6 +254,51 @@ async function main() {
   check(drawn.other > drawn.total / 100,
     `the 3D view has drawn the scene (${drawn.meshes} meshes, view '${drawn.view}', poses '${drawn.poses}', ` +
     `${drawn.other} of ${drawn.total} pixels not background)`);
+
+  // the camera: an image on loading (get_image), then live from its stream, then stopped
+  const camera = () => page.evaluate(() => window.simgate.cameras['robot.camera']);
+  await page.waitForFunction(() => window.simgate.cameras['robot.camera']?.images >= 1, null, { timeout: WAIT_MS });
+  const shown = await page.evaluate(() => {
+    const img = document.querySelector('figure.camera[data-component="robot.camera"] img');
+    const copy = document.createElement('canvas');
+    copy.width = img.naturalWidth;
+    copy.height = img.naturalHeight;
+    const ctx = copy.getContext('2d');
+    ctx.drawImage(img, 0, 0);
+    const data = ctx.getImageData(0, 0, copy.width, copy.height).data;
+    const colours = new Set();
+    for (let i = 0; i < data.length; i += 4) colours.add((data[i] << 16) | (data[i + 1] << 8) | data[i + 2]);
+    return { width: img.naturalWidth, height: img.naturalHeight, colours: colours.size };
+  });
+  check(shown.width === 160 && shown.height === 120 && shown.colours > 1,
+    `the page shows robot.camera's image (${shown.width}x${shown.height}, ${shown.colours} colours)`);
+  const live = page.locator('figure.camera[data-component="robot.camera"] input[type="checkbox"]');
+  check(await live.isEnabled(), 'robot.camera can go live (its stream is on this transport)');
+  const before = (await camera()).images;
+  await live.check();
+  await page.waitForFunction((n) => window.simgate.cameras['robot.camera'].images >= n + 3, before, { timeout: WAIT_MS });
+  check((await camera()).live, `live: the stream's images replace each other (${(await camera()).images - before} came)`);
+  await live.uncheck();
+  await page.waitForFunction(() => !window.simgate.cameras['robot.camera'].live, null, { timeout: WAIT_MS });
+  check((await camera()).error === '', 'unsubscribed without an error');
+
+  // the drive pad of robot.motion (the demo carries it on the websocket): ArrowUp held on
+  // the pad drives the robot forward through rpc.publish, released it sends a stop
+  const pad = page.locator('div.input[data-component="robot.motion"] .drive');
+  check(await pad.count() === 1, 'robot.motion (velocity {v, w}) has a drive pad');
+  const xBefore = await robotX();
+  await pad.focus();
+  await page.keyboard.down('ArrowUp');
+  await page.waitForFunction((x) => {
+    const cell = document.querySelector('#bodies tr[data-body="robot"] td.x');
+    return cell && Math.abs(Number(cell.textContent) - x) > 0.1;
+  }, xBefore, { timeout: WAIT_MS });
+  await page.keyboard.up('ArrowUp');
+  await page.waitForFunction(() => window.simgate.inputs['robot.motion'].last?.v === 0, null, { timeout: WAIT_MS });
+  const motion = await page.evaluate(() => window.simgate.inputs['robot.motion']);
+  check(motion.refused === 0 && motion.published >= 2 && motion.last.w === 0,
+    `ArrowUp held on the pad drove the robot (x ${xBefore} -> ${await robotX()}) with ${motion.published} ` +
+    `commands, then a stop ${JSON.stringify(motion.last)}`);
 
   fs.mkdirSync(artifactsDir, { recursive: true });
   const shot = path.join(artifactsDir, 'webapp.png');
