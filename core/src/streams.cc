@@ -250,6 +250,11 @@ bool carries(const StreamInfo& info, std::string_view transport) {
 }
 }  // namespace
 
+StreamHub::Stream* StreamHub::find_input_locked(std::string_view component, std::string_view transport) {
+  Stream* s = find_locked(component);
+  return s && s->info.direction == StreamDirection::in && carries(s->info, transport) ? s : nullptr;
+}
+
 void StreamHub::add(const Component& component, std::string type, std::vector<std::string> transports,
                     double frequency) {
   const StreamDeclaration* declaration = component.stream();
@@ -439,18 +444,27 @@ std::string StreamHub::apply(Stream& stream, const json& command) {
     refusal = e.what();
   }
   std::lock_guard lock(mutex_);
-  if (refusal.empty()) {
+  if (refusal.empty())
     ++stream.commands;
-    return refusal;
-  }
-  ++stream.refused;
-  stream.last_refusal = refusal;
-  if (!stream.refusal_logged) {
-    stream.refusal_logged = true;
-    log::warning(stream.info.component, " stream: a command was refused (logged once; simulation "
-                 "get_stream_statistics counts them): ", refusal);
-  }
+  else
+    count_refusal_locked(stream, refusal, /*log=*/true);
   return refusal;
+}
+
+void StreamHub::count_refusal_locked(Stream& stream, std::string reason, bool log) {
+  ++stream.refused;
+  stream.last_refusal = std::move(reason);
+  if (!log || stream.refusal_logged) return;
+  stream.refusal_logged = true;
+  log::warning(stream.info.component, " stream: a command was refused (logged once; simulation "
+               "get_stream_statistics counts them): ", stream.last_refusal);
+}
+
+bool StreamHub::note_refused(std::string_view component, std::string_view transport, std::string reason) {
+  std::lock_guard lock(mutex_);
+  Stream* s = find_input_locked(component, transport);
+  if (s) count_refusal_locked(*s, std::move(reason), /*log=*/false);
+  return s != nullptr;
 }
 
 std::size_t StreamHub::apply_commands() {
@@ -523,8 +537,12 @@ void StreamHub::unsubscribe(const std::shared_ptr<StreamSubscription>& subscript
 PublishResult StreamHub::publish(std::string_view component, std::string_view transport, json command) {
   PublishResult result;
   if (!command.is_object()) {
+    // refused before any component sees it, but a refusal of the stream all the same (a
+    // client whose commands all go nowhere shows in get_stream_statistics)
     result.error = "a command of " + std::string(component) + " is a JSON object, found " +
                    std::string(command.type_name());
+    std::lock_guard lock(mutex_);
+    if (Stream* s = find_input_locked(component, transport)) count_refusal_locked(*s, result.error, /*log=*/true);
     return result;
   }
   std::unique_lock gate(*gate_, std::try_to_lock);
@@ -532,8 +550,8 @@ PublishResult StreamHub::publish(std::string_view component, std::string_view tr
   std::optional<json> older;  // a command that waited, applied first
   {
     std::lock_guard lock(mutex_);
-    s = find_locked(component);
-    if (!s || s->info.direction != StreamDirection::in || !carries(s->info, transport)) {
+    s = find_input_locked(component, transport);
+    if (!s) {
       result.error = "no input stream '" + std::string(component) + "' here";
       return result;
     }

@@ -20,6 +20,16 @@ constexpr std::size_t k_subscription_capacity = 8;
 // Commands one dds_take returns at most.
 constexpr int k_take_batch = 16;
 
+// Longest part of a malformed command quoted in its refusal (get_stream_statistics).
+constexpr std::size_t k_quoted_bytes = 80;
+
+std::string quoted(std::string_view text) {
+  std::string out(text.substr(0, k_quoted_bytes));
+  for (char& c : out)
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';  // read on terminals too
+  return "'" + out + (text.size() > k_quoted_bytes ? "...'" : "'");
+}
+
 dds_entity_t check(dds_entity_t rc, const std::string& what) {
   if (rc < 0) throw std::runtime_error("DDS transport: cannot create " + what + ": " + retcode_text(rc));
   return rc;
@@ -433,11 +443,16 @@ void DdsStreams::take(Input& input, dds_entity_t reader, bool typed) {
       const auto* velocity = static_cast<const simgate_stream_Velocity*>(samples[i]);
       command = {{"v", velocity->v}, {"w", velocity->w}};
     } else {
-      command = json::parse(static_cast<const simgate_stream_JsonCommand*>(samples[i])->json, nullptr, false);
+      const char* raw = static_cast<const simgate_stream_JsonCommand*>(samples[i])->json;
+      const std::string_view text = raw ? raw : "";
+      command = json::parse(text, nullptr, false);
       if (!command.is_object()) {
+        // never reaches the component, but is a refused command of the stream all the same
+        const std::string reason = (command.is_discarded() ? "not JSON: " : "not a JSON object: ") + quoted(text);
+        hub_->note_refused(input.info.component, transport_, reason);
         if (!input.bad_logged)
-          log::warning("DDS transport: a command on ", input.json_topic,
-                       " is not a JSON object; such commands are ignored (logged once)");
+          log::warning("DDS transport: a command on ", input.json_topic, " is ", reason,
+                       "; such commands are ignored (logged once; simulation get_stream_statistics counts them)");
         input.bad_logged = true;
         continue;
       }

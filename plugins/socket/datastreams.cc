@@ -110,6 +110,10 @@ std::unique_ptr<Datastreams::Port> Datastreams::bind(const StreamInfo& info, std
     }
   }
   log::error(who_, ": ", info.component, " stream has no port, pymorse and other clients cannot reach it: ", error);
+  // get_stream_port says why too: the listener's message, without its who (the answer names the component)
+  const std::string prefix = port->who + ": ";
+  if (error.starts_with(prefix)) error.erase(0, prefix.size());
+  unbound_.push_back({info.component, std::move(error)});
   return nullptr;
 }
 
@@ -131,7 +135,11 @@ std::vector<std::string> Datastreams::list() const {
 
 int Datastreams::port_of(const std::string& component) const {
   if (const Port* p = find(component)) return p->number;
-  throw ServiceError("Stream unavailable for component " + component);  // MORSE's words, which pymorse logs
+  std::string message = "Stream unavailable for component " + component;  // MORSE's words, which pymorse logs
+  // then why, for a stream that is there but has no port (pymorse logs the whole message)
+  for (const auto& u : unbound_)
+    if (u.component == component && hub_->find(component, transport_)) message += ": " + u.reason;
+  throw ServiceError(message);
 }
 
 json Datastreams::all_ports() const {
@@ -230,12 +238,16 @@ void Datastreams::publish(Connection& connection, std::string_view line) {
   if (first == line.end()) return;  // a blank line
   json command = json::parse(line, nullptr, /*allow_exceptions=*/false);
   if (!command.is_object()) {
+    // a command all the same, refused: counted with the component's refusals (nothing is
+    // written back on a stream port, get_stream_statistics is where a client sees it)
+    hub_->note_refused(port.info.component, transport_,
+                       (command.is_discarded() ? "not JSON: " : "not a JSON object: ") + quoted(line));
     if (!connection.warned_malformed) {
       connection.warned_malformed = true;
       log::warning(port.who, ": ", connection.label(), " sent ", quoted(line),
                    command.is_discarded() ? ", which is not JSON" : ", which is not a JSON object",
                    ": ignored; the stream takes one JSON object per line, ", command_example(port.info),
-                   " (logged once per connection)");
+                   " (logged once per connection; simulation get_stream_statistics counts them)");
     }
     return;
   }
@@ -251,10 +263,15 @@ void Datastreams::publish(Connection& connection, std::string_view line) {
 
 void Datastreams::on_oversized_line(kit::LineConnection& c, std::string_view /*prefix*/, std::size_t /*bytes*/) {
   auto& connection = static_cast<Connection&>(c);
-  if (connection.port.info.direction == StreamDirection::out || connection.warned_malformed) return;
+  if (connection.port.info.direction == StreamDirection::out) return;  // a reader's lines mean nothing
+  const std::string too_long = "a line longer than " + std::to_string(limits_.max_message_bytes) + " bytes (" +
+                               std::string(limits_.message_bytes_key) + ")";
+  // counted as a refused command, unless the peer has yet to authenticate (no commands then)
+  if (connection.authenticated()) hub_->note_refused(connection.port.info.component, transport_, too_long);
+  if (connection.warned_malformed) return;
   connection.warned_malformed = true;
-  log::warning(connection.port.who, ": ", connection.label(), " sent a line longer than ", limits_.max_message_bytes,
-               " bytes (", limits_.message_bytes_key, "): ignored (logged once per connection)");
+  log::warning(connection.port.who, ": ", connection.label(), " sent ", too_long,
+               ": ignored (logged once per connection; simulation get_stream_statistics counts them)");
 }
 
 void Datastreams::on_lines_done(kit::LineConnection& /*connection*/, bool /*read_finished*/) {

@@ -10,7 +10,8 @@
 //   - Ports: one listener per stream on the transport's host, opened when the transport
 //     starts (the streams are known then): from `stream_port` up, a port in use skipped for
 //     the next one, as MORSE does; `stream_port` 0 gives each stream a free port of the
-//     system's choosing. A stream whose port cannot be opened is logged and left out.
+//     system's choosing. A stream whose port cannot be opened is logged and left out
+//     (get_stream_port answers why).
 //   - Output stream (sensor): each connection subscribes (StreamHub::subscribe, keeping the
 //     latest `stream_queue` samples) and gets every sample as `<json>\n`, in order. A client
 //     that does not read loses samples, never slows anyone: past
@@ -19,12 +20,14 @@
 //   - Input stream (actuator): each line is one JSON object, a command published to the
 //     hub (applied at once when the simulation lock is free, else the latest wins at the
 //     next turn). Nothing is ever written back (MORSE's protocol has no reply there): a line
-//     that is not a JSON object is logged once per connection; a command the component
+//     that is not a JSON object, or is too long, is counted as a refused command
+//     (StreamHub::note_refused) and logged once per connection; a command the component
 //     refuses is counted and logged by the hub.
 //   - Services (only when at least one stream has a port, as MORSE registers them only
 //     then): `simulation list_streams`, `get_stream_port [name]` (FAILED "Stream
-//     unavailable for component <name>", MORSE's text), `get_all_stream_ports`, in the
-//     socket manager's own table.
+//     unavailable for component <name>", MORSE's text, followed by ": <why>" for a stream
+//     whose port could not be bound), `get_all_stream_ports`, in the socket manager's own
+//     table. A stream without a port is in neither list.
 //   - A component removed at run time: its port and connections are closed.
 //
 // Connections are the kit's line connections (framing, limits, coalesced writes), served
@@ -144,6 +147,12 @@ class Datastreams : private kit::LineServer {
   std::string transport_;            // the configuration's name of this transport
   bool opened_ = false;                       // open() ran
   std::vector<std::unique_ptr<Port>> ports_;  // in the hub's order; fixed by open()
+  // A stream whose port could not be bound, and why (get_stream_port says it). Fixed by open().
+  struct Unbound {
+    std::string component;
+    std::string reason;  // "cannot listen on 127.0.0.1:60000: bind failed: Address already in use ..."
+  };
+  std::vector<Unbound> unbound_;
   std::uint64_t next_connection_ = 1;         // numbers connections in logs (I/O thread)
   std::vector<SamplePtr> samples_;            // drain's scratch (I/O thread)
   std::vector<std::shared_ptr<Connection>> draining_;  // drain's copy of a port's readers (I/O thread)

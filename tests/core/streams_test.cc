@@ -154,14 +154,43 @@ TEST_F(StreamHubTest, ACommandIsAppliedAtOnceWhenTheLockIsFree) {
   r = hub.publish("robot.motion", "socket", {{"w", 0}});
   EXPECT_FALSE(r.ok);
   EXPECT_EQ(r.error, "the command has no 'v'");
-  r = hub.publish("robot.motion", "socket", json::array({1, 0}));
-  EXPECT_FALSE(r.ok);
-  EXPECT_NE(r.error.find("JSON object"), std::string::npos);
   EXPECT_FALSE(hub.publish("robot.motion", "dds", {{"v", 1}}).ok);
   EXPECT_FALSE(hub.publish("robot.counter", "socket", {{"n", 1}}).ok);
   auto stats = hub.statistics("socket");
   EXPECT_EQ(stats[1].commands, 1u);
   EXPECT_EQ(stats[1].refused, 1u);
+  EXPECT_EQ(stats[1].last_refusal, "the command has no 'v'");
+}
+
+TEST_F(StreamHubTest, ACommandThatIsNotAnObjectIsRefusedAndCounted) {
+  PublishResult r = hub.publish("robot.motion", "socket", json::array({1, 0}));
+  EXPECT_FALSE(r.ok);
+  EXPECT_EQ(r.error, "a command of robot.motion is a JSON object, found array");
+  // not counted where the stream is not: another transport's, an output stream, nobody's
+  EXPECT_FALSE(hub.publish("robot.motion", "dds", "fast").ok);
+  EXPECT_FALSE(hub.publish("robot.counter", "socket", 1).ok);
+  EXPECT_FALSE(hub.publish("robot.nothing", "socket", 1).ok);
+  const auto stats = hub.statistics("socket");
+  EXPECT_EQ(stats[1].refused, 1u);
+  EXPECT_EQ(stats[1].commands, 0u);
+  EXPECT_EQ(stats[1].last_refusal, r.error);
+  EXPECT_TRUE(speed.last.is_null());
+}
+
+TEST_F(StreamHubTest, ACommandTheTransportCouldNotReadIsCountedAsRefused) {
+  EXPECT_TRUE(hub.note_refused("robot.motion", "socket", "not JSON: 'hello'"));
+  EXPECT_TRUE(hub.note_refused("robot.motion", "socket", "a line longer than 10 bytes"));
+  EXPECT_FALSE(hub.note_refused("robot.motion", "dds", "not JSON"));      // not carried there
+  EXPECT_FALSE(hub.note_refused("robot.counter", "socket", "not JSON"));  // an output stream
+  EXPECT_FALSE(hub.note_refused("robot.nothing", "socket", "not JSON"));
+  auto stats = hub.statistics("socket");
+  EXPECT_EQ(stats[0].refused, 0u);
+  EXPECT_EQ(stats[1].refused, 2u);
+  EXPECT_EQ(stats[1].last_refusal, "a line longer than 10 bytes");
+  // the component's own refusals add to them, and the latest reason is kept
+  EXPECT_FALSE(hub.publish("robot.motion", "socket", {{"w", 0}}).ok);
+  stats = hub.statistics("socket");
+  EXPECT_EQ(stats[1].refused, 3u);
   EXPECT_EQ(stats[1].last_refusal, "the command has no 'v'");
 }
 

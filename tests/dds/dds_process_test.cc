@@ -329,7 +329,7 @@ TEST(DdsStreamsTest, WrittenByTheDdsThreadThePoseTopicIsTheSame) {
   EXPECT_LT(std::abs(poses.back()[2]) + std::abs(poses.back()[3]), 20.0) << text;
 }
 
-TEST(DdsStreamsTest, AJsonCommandDrivesTheRoverAndOneThatIsNoObjectIsIgnored) {
+TEST(DdsStreamsTest, AJsonCommandDrivesTheRoverAndOneThatIsNoObjectIsRefusedAndCounted) {
   if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
   RoverOnDds rover;
   ASSERT_TRUE(rover.running());
@@ -337,6 +337,21 @@ TEST(DdsStreamsTest, AJsonCommandDrivesTheRoverAndOneThatIsNoObjectIsIgnored) {
   auto before = rows(text);
   ASSERT_EQ(before.size(), 1u) << text;
   ASSERT_EQ(RoverOnDds::client({"command", "simgate/rover/motion/json", "[1, 2]"}), "");  // logged, ignored
+  const std::string log = rover.log_until("such commands are ignored");
+  EXPECT_NE(log.find("is not a JSON object: '[1, 2]'"), std::string::npos) << log;
+  // counted before it was logged: a refused command of the stream, with what was wrong
+  Child call({k_c_client, std::to_string(test_domain()), test_partition(), "simulation", "get_stream_statistics", "[]",
+              read_file(SIMGATE_LOOPBACK_DDS_XML)});
+  const std::string statistics = call.read_until("\n", 60s);
+  EXPECT_EQ(call.wait_exit(30s), 0);
+  ASSERT_EQ(statistics.rfind("SUCCESS ", 0), 0u) << statistics;
+  const json streams = json::parse(statistics.substr(8), nullptr, false);
+  ASSERT_TRUE(streams.is_array()) << statistics;
+  json motion;
+  for (const json& s : streams)
+    if (s.value("component", "") == "rover.motion") motion = s;
+  EXPECT_EQ(motion["refused"], 1) << statistics;
+  EXPECT_EQ(motion["last_refusal"], "not a JSON object: '[1, 2]'") << statistics;
   ASSERT_EQ(RoverOnDds::client({"command", "simgate/rover/motion/json", R"({"v": -0.5, "w": 0})"}), "");
   double moved = 0;
   for (int attempt = 0; attempt < 20 && moved < 0.1; ++attempt) {

@@ -176,6 +176,23 @@ TEST(JsonRpcStreamsTest, PublishedCommandsDriveTheRobot) {
   EXPECT_NE(motion["last_refusal"].get<std::string>().find("unknown key 'speed'"), std::string::npos);
 }
 
+// Data that is no object never reaches the component, but is a refused command of the stream
+// all the same (a client whose commands all go nowhere shows in the statistics).
+TEST(JsonRpcStreamsTest, PublishedDataThatIsNoObjectIsRefusedAndCounted) {
+  InProcessGateway g(streams_config());
+  StreamClient c(g.port("jsonrpc"));
+  json r = c.call(1, "rpc.publish", {{"component", "robot.motion"}, {"data", json::array({1, 0})}});
+  EXPECT_EQ(r["error"]["code"], -32602) << r.dump();
+  EXPECT_EQ(r["error"]["message"], "Invalid params: a command of robot.motion is a JSON object, found array") << r.dump();
+  r = c.call(2, "rpc.publish", json::array({"robot.motion", "faster"}));
+  EXPECT_EQ(r["error"]["code"], -32602) << r.dump();
+  // counted at once (nothing waits for the simulation's turn), for the stream's transport only
+  const json motion = stream_of(c.call(3, "simulation.get_stream_statistics")["result"], "robot.motion");
+  EXPECT_EQ(motion["refused"], 2) << motion.dump();
+  EXPECT_EQ(motion["commands"], 0) << motion.dump();
+  EXPECT_EQ(motion["last_refusal"], "a command of robot.motion is a JSON object, found string") << motion.dump();
+}
+
 TEST(JsonRpcStreamsTest, SubscribingToWhatIsNotThereSaysWhatIs) {
   InProcessGateway g(streams_config());
   StreamClient c(g.port("jsonrpc"));

@@ -39,6 +39,19 @@ json next_sample(LineClient& reader) {
   return line ? json::parse(*line, nullptr, false) : json();
 }
 
+// The statistics of `component`'s stream, once they show at least `want` of `key` (bounded
+// polling: commands may be applied at the simulation's next turn).
+json stream_stats(LineClient& service, const std::string& component, const char* key, int want) {
+  json stream;
+  for (int i = 0; i < 500; ++i) {
+    stream = stream_of(payload(service.request("s" + std::to_string(i), "simulation get_stream_statistics")),
+                       component);
+    if (stream.value(key, 0) >= want) break;
+    std::this_thread::sleep_for(10ms);
+  }
+  return stream;
+}
+
 // A connection to 127.0.0.1:`port` that never reads, with a small receive buffer so that
 // what it leaves unread piles up at the server soon.
 class SilentClient {
@@ -47,6 +60,24 @@ class SilentClient {
   ~SilentClient() { ::close(fd_); }
   SilentClient(const SilentClient&) = delete;
   SilentClient& operator=(const SilentClient&) = delete;
+
+ private:
+  int fd_ = -1;
+};
+
+// A listening socket on 127.0.0.1:`port`, held for the test (a port made busy on purpose).
+class Listener {
+ public:
+  explicit Listener(int port) : fd_(::socket(AF_INET, SOCK_STREAM, 0)) {
+    sockaddr_in address{};
+    address.sin_family = AF_INET;
+    address.sin_port = htons(static_cast<std::uint16_t>(port));
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (::bind(fd_, reinterpret_cast<const sockaddr*>(&address), sizeof address) == 0) ::listen(fd_, 1);
+  }
+  ~Listener() { ::close(fd_); }
+  Listener(const Listener&) = delete;
+  Listener& operator=(const Listener&) = delete;
 
  private:
   int fd_ = -1;
@@ -151,29 +182,71 @@ TEST(SocketStreamsTest, CommandLinesDriveTheRobotAndBadOnesAreCountedWithoutClos
     x = sample["x"];
   }
   EXPECT_GT(x, x0 + 0.05);
-  // the statistics, once they show `want` of `key` for robot.motion (bounded polling)
-  auto motion_stats = [&](const char* key, int want) {
-    json stream;
-    for (int i = 0; i < 500; ++i) {
-      stream = stream_of(payload(service.request("s" + std::to_string(i), "simulation get_stream_statistics")),
-                         "robot.motion");
-      if (stream[key].get<int>() >= want) break;
-      std::this_thread::sleep_for(10ms);
-    }
-    return stream;
-  };
+  auto motion_stats = [&](const char* key, int want) { return stream_stats(service, "robot.motion", key, want); };
   EXPECT_EQ(motion_stats("commands", 1)["commands"], 1);
-  // a line that is not JSON (logged), then a command the component refuses (counted): the
-  // connection stays, and the next command is applied
+  // a line that is not JSON, then a command the component refuses: both counted, in that
+  // order (one connection's lines are read in order); the connection stays, and the next
+  // command is applied
   motion.send("faster please\n");
   motion.send("{\"v\": 1, \"speed\": 2}\n");
-  const json refused = motion_stats("refused", 1);
-  EXPECT_EQ(refused["refused"], 1) << refused;
+  const json refused = motion_stats("refused", 2);
+  EXPECT_EQ(refused["refused"], 2) << refused;
   EXPECT_NE(refused.value("last_refusal", "").find("unknown key 'speed'"), std::string::npos) << refused;
   motion.send("{\"v\": 0, \"w\": 0}\n");
   EXPECT_EQ(motion_stats("commands", 2)["commands"], 2);
   // nothing is ever written back on an input stream: the next thing this connection sees is
   // its end, when the gateway stops
+}
+
+// MORSE's protocol writes nothing back on a stream port: a malformed line is a refused
+// command in the statistics, its reason naming what was wrong.
+TEST(SocketStreamsTest, MalformedCommandLinesAreCountedAsRefusedWithWhatWasWrong) {
+  json c = streams_config();
+  c["transports"]["socket"]["options"]["max_message_bytes"] = 256;
+  InProcessGateway g(c);
+  LineClient service(g.port());
+  LineClient motion(stream_port(service, "robot.motion"));
+  motion.send("hello\n");
+  json stats = stream_stats(service, "robot.motion", "refused", 1);
+  EXPECT_EQ(stats["refused"], 1) << stats;
+  EXPECT_EQ(stats["last_refusal"], "not JSON: 'hello'") << stats;
+  // each one is counted, though logged once per connection; a long one is quoted in part
+  motion.send("[1, 0]\n");
+  stats = stream_stats(service, "robot.motion", "refused", 2);
+  EXPECT_EQ(stats["refused"], 2) << stats;
+  EXPECT_EQ(stats["last_refusal"], "not a JSON object: '[1, 0]'") << stats;
+  motion.send(std::string(100, 'x') + "\n");
+  stats = stream_stats(service, "robot.motion", "refused", 3);
+  EXPECT_EQ(stats["last_refusal"], "not JSON: '" + std::string(80, 'x') + "...'") << stats;
+  motion.send(std::string(1000, 'x') + "\n");
+  stats = stream_stats(service, "robot.motion", "refused", 4);
+  EXPECT_EQ(stats["refused"], 4) << stats;
+  EXPECT_EQ(stats["last_refusal"], "a line longer than 256 bytes (max_message_bytes)") << stats;
+  // blank lines are nothing; the connection still takes commands
+  motion.send("\n  \n{\"v\": 0, \"w\": 0}\n");
+  stats = stream_stats(service, "robot.motion", "commands", 1);
+  EXPECT_EQ(stats["commands"], 1) << stats;
+  EXPECT_EQ(stats["refused"], 4) << stats;
+}
+
+// MORSE skips a port in use for the next one; past 65535 there is none: the last stream
+// (robot.pose, after robot.motion on 65534) cannot have 65535 while this test holds it.
+TEST(SocketStreamsTest, AStreamWhosePortCouldNotBeBoundSaysWhyAfterMorsesWords) {
+  Listener held(65535);  // may fail if another program holds it: then it is in use all the same
+  json c = streams_config();
+  c["transports"]["socket"]["options"]["stream_port"] = 65534;
+  InProcessGateway g(c);
+  LineClient service(g.port());
+  ASSERT_EQ(stream_port(service, "robot.motion"), 65534) << "port 65534 is in use by another program";
+  const std::string answer = service.request("1", "simulation get_stream_port [\"robot.pose\"]");
+  EXPECT_EQ(answer.rfind("1 FAILED \"Stream unavailable for component robot.pose: cannot listen on 127.0.0.1:65535: "
+                         "bind failed: ", 0), 0u) << answer;
+  EXPECT_NE(answer.find("Address already in use"), std::string::npos) << answer;
+  // the lists leave it out; a component without a stream keeps MORSE's words alone
+  EXPECT_EQ(payload(service.request("2", "simulation list_streams")), json({"robot.motion"}));
+  EXPECT_EQ(payload(service.request("3", "simulation get_all_stream_ports")), json({{"robot.motion", 65534}}));
+  EXPECT_EQ(service.request("4", "simulation get_stream_port [\"robot.waypoint\"]"),
+            "4 FAILED \"Stream unavailable for component robot.waypoint\"");
 }
 
 TEST(SocketStreamsTest, AReaderThatDoesNotReadHoldsUpNobodyAndItsLossesAreCounted) {

@@ -313,7 +313,14 @@ class StreamHub {
   // A command for the input stream of `component` carried by `transport`: applied at once
   // when the simulation lock is free (so that `error` says whether the component took it),
   // else kept for the simulation's next turn (replacing one not yet applied).
+  // A command that is not a JSON object is refused and counted too, when the stream is there.
   PublishResult publish(std::string_view component, std::string_view transport, json command);
+  // A command for the input stream of `component` carried by `transport` that the transport
+  // could not even read (a socket line that is not JSON, too long; a DDS sample that is not
+  // a JSON object): counted as refused, `reason` kept as its last_refusal, as if the
+  // component had refused it. Not logged: the transport logs it in its own terms (once per
+  // connection, per reader). False when there is no such input stream.
+  bool note_refused(std::string_view component, std::string_view transport, std::string reason);
 
   // Every stream's counters (those `transport` carries; empty: all).
   std::vector<StreamStatistics> statistics(std::string_view transport = {}) const;
@@ -326,9 +333,13 @@ class StreamHub {
   struct Due;
   Stream* find_locked(std::string_view component);
   const Stream* find_locked(std::string_view component) const;
+  // The input stream of `component`, if `transport` carries it (under the hub mutex).
+  Stream* find_input_locked(std::string_view component, std::string_view transport);
   // Applies `command` to `stream` (under the simulation lock, without the hub mutex: the
   // component runs with no transport waiting on it); counts it; the refusal, if any.
   std::string apply(Stream& stream, const json& command);
+  // Counts a refusal of `stream` (under the hub mutex); logs the stream's first when `log`.
+  static void count_refusal_locked(Stream& stream, std::string reason, bool log);
   // Gives `sample` to the subscribers of `stream` (under the hub mutex): queued ones and
   // direct ones now, those to wake noted for after_fan_out(). True when a queue took it
   // (another thread may read it from then on).
