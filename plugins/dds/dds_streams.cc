@@ -20,16 +20,6 @@ constexpr std::size_t k_subscription_capacity = 8;
 // Commands one dds_take returns at most.
 constexpr int k_take_batch = 16;
 
-// Longest part of a malformed command quoted in its refusal (get_stream_statistics).
-constexpr std::size_t k_quoted_bytes = 80;
-
-std::string quoted(std::string_view text) {
-  std::string out(text.substr(0, k_quoted_bytes));
-  for (char& c : out)
-    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';  // read on terminals too
-  return "'" + out + (text.size() > k_quoted_bytes ? "...'" : "'");
-}
-
 dds_entity_t check(dds_entity_t rc, const std::string& what) {
   if (rc < 0) throw std::runtime_error("DDS transport: cannot create " + what + ": " + retcode_text(rc));
   return rc;
@@ -448,7 +438,7 @@ void DdsStreams::take(Input& input, dds_entity_t reader, bool typed) {
       command = json::parse(text, nullptr, false);
       if (!command.is_object()) {
         // never reaches the component, but is a refused command of the stream all the same
-        const std::string reason = (command.is_discarded() ? "not JSON: " : "not a JSON object: ") + quoted(text);
+        const std::string reason = (command.is_discarded() ? "not JSON: " : "not a JSON object: ") + log::quoted_prefix(text);
         hub_->note_refused(input.info.component, transport_, reason);
         if (!input.bad_logged)
           log::warning("DDS transport: a command on ", input.json_topic, " is ", reason,

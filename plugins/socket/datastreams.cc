@@ -23,16 +23,6 @@ namespace {
 // something else is wrong: the error names the last port tried).
 constexpr int k_port_attempts = 100;
 
-// Longest part of a malformed line quoted in the log.
-constexpr std::size_t k_quoted_bytes = 80;
-
-std::string quoted(std::string_view line) {
-  std::string out(line.substr(0, k_quoted_bytes));
-  for (char& c : out)
-    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';  // the log is a terminal too
-  return "'" + out + (line.size() > k_quoted_bytes ? "...'" : "'");
-}
-
 // What a command of `info` looks like, for messages: {"v": ..., "w": ...}.
 std::string command_example(const StreamInfo& info) {
   std::string keys;
@@ -241,10 +231,10 @@ void Datastreams::publish(Connection& connection, std::string_view line) {
     // a command all the same, refused: counted with the component's refusals (nothing is
     // written back on a stream port, get_stream_statistics is where a client sees it)
     hub_->note_refused(port.info.component, transport_,
-                       (command.is_discarded() ? "not JSON: " : "not a JSON object: ") + quoted(line));
+                       (command.is_discarded() ? "not JSON: " : "not a JSON object: ") + log::quoted_prefix(line));
     if (!connection.warned_malformed) {
       connection.warned_malformed = true;
-      log::warning(port.who, ": ", connection.label(), " sent ", quoted(line),
+      log::warning(port.who, ": ", connection.label(), " sent ", log::quoted_prefix(line),
                    command.is_discarded() ? ", which is not JSON" : ", which is not a JSON object",
                    ": ignored; the stream takes one JSON object per line, ", command_example(port.info),
                    " (logged once per connection; simulation get_stream_statistics counts them)");

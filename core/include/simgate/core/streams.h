@@ -171,8 +171,10 @@ using SamplePtr = std::shared_ptr<const StreamSample>;
 // How a transport subscribes.
 struct SubscriberOptions {
   std::size_t capacity = 16;     // samples kept; older ones are dropped (at least 1)
-  std::string label;             // who it is, for the log: "socket client #3 (127.0.0.1:5123)"
-  std::function<void()> wake;    // the queue went from empty to not empty (see above)
+  // (every member has a default initializer, so that {capacity, label, wake} leaves the
+  // rest default without -Wmissing-field-initializers)
+  std::string label{};           // who it is, for the log: "socket client #3 (127.0.0.1:5123)"
+  std::function<void()> wake{};  // the queue went from empty to not empty (see above)
   // Set: a direct subscriber. Each sample it gets is handed to `deliver` right after it is
   // made, on the thread that holds the simulation lock, instead of being queued: no queue,
   // no wake, no hand-off to the transport's thread. Only for a write that is short and never
@@ -180,7 +182,7 @@ struct SubscriberOptions {
   // mutex, so it must not call the hub. Returns false when the sample was not sent (counted
   // as dropped, like a queue's drop). Never called again once unsubscribe() (or the
   // stream's removal) has returned. `capacity` and `wake` are unused.
-  std::function<bool(const StreamSample&)> deliver;
+  std::function<bool(const StreamSample&)> deliver{};
 };
 
 // One subscriber's queue.
