@@ -17,9 +17,12 @@ using namespace std::chrono_literals;
 constexpr const char* k_publisher = "morse.middleware.socket_datastream.SocketPublisher";
 constexpr const char* k_reader = "morse.middleware.socket_datastream.SocketReader";
 
-// The demo (its "streams": robot.pose and robot.motion on socket), pose at 50 Hz.
+// The demo with robot.pose and robot.motion streamed on the socket transport only (the demo
+// itself carries robot.motion on its websocket too), pose at 50 Hz.
 json streams_config(bool paused = false) {
   json c = demo_config();
+  c["streams"]["robot.pose"] = {"socket"};
+  c["streams"]["robot.motion"] = {"socket"};
   c["robots"][0]["components"][3]["frequency"] = 50;  // robot.pose
   c["scene"]["start_paused"] = paused;
   return c;
