@@ -6,6 +6,10 @@
 //   ping     the raw client: writes a Request, waits for its Reply, --count times.
 //   client   simgate's DdsClient calling `test_component add [1, 2]` on a transport host
 //            (simgate_bench_host --transport dds) --count times.
+//   camera   simgate's DdsClient calling `<--camera> get_image` on a gateway (simgate run,
+//            its camera served by DDS) --count times, one after the other, with raw_images
+//            (--raw) or not: frames/s, and the bytes of the reply's text. The render thread's
+//            work per frame is what the rate shows (the camera renders each get_image).
 // ping and pong use simgate's own wire types (plugins/dds/simgate_dds.idl), the same topics,
 // the same payload ("test_component", "add", "[1,2]") and the same QoS as the transport
 // (RELIABLE, KEEP_ALL, VOLATILE, partition), so the ratio is what simgate adds on top of
@@ -14,8 +18,8 @@
 // client's call table (DdsClient's caller takes its own reply, as ping does).
 // Cyclone is restricted to loopback with multicast off (the compiled-in loopback XML).
 //
-// Usage: simgate_bench_dds --mode pong|ping|client [--domain D] [--partition P]
-//        [--count N] [--warmup W] [--timeout S]
+// Usage: simgate_bench_dds --mode pong|ping|client|camera [--domain D] [--partition P]
+//        [--count N] [--warmup W] [--timeout S] [--camera C] [--raw]
 // pong prints {"ready": true} once its entities exist and runs until SIGTERM/SIGINT or
 // --timeout; ping and client print latency percentiles (µs) as JSON.
 #include <atomic>
@@ -199,6 +203,39 @@ json run_client(std::uint32_t domain, const std::string& partition, std::size_t 
   return out;
 }
 
+json run_camera(std::uint32_t domain, const std::string& partition, const std::string& camera, bool raw,
+                std::size_t count, std::size_t warmup, double timeout_s) {
+  simgate::client::DdsClientOptions options;
+  options.domain = domain;
+  options.partition = partition;
+  options.raw_images = raw;
+  options.discovery_timeout = std::chrono::milliseconds(static_cast<long long>(timeout_s * 1000));
+  simgate::client::DdsClient client(options);
+  if (!client.wait_for_server(options.discovery_timeout))
+    throw std::runtime_error("simgate DDS client: no server in partition '" + partition + "'");
+  std::vector<std::int64_t> samples;
+  std::size_t errors = 0, result_bytes = 0;
+  Clock::time_point started;
+  for (std::size_t i = 0; i < warmup + count; ++i) {
+    if (i == warmup) started = Clock::now();
+    auto t0 = Clock::now();
+    auto outcome = client.call(camera, "get_image", simgate::json::array(), std::chrono::seconds(60));
+    auto t1 = Clock::now();
+    const bool ok = outcome.status == simgate::Status::success && outcome.value && outcome.value->is_object() &&
+                    outcome.value->contains(raw ? "width" : "image");
+    if (!ok) ++errors;
+    if (i >= warmup) samples.push_back(simgate::bench::ns_between(t0, t1));
+    if (ok && i == warmup) result_bytes = outcome.value->dump().size();
+  }
+  const double seconds = simgate::bench::ns_between(started, Clock::now()) / 1e9;
+  json out = simgate::bench::summarize_us(std::move(samples));
+  out["frames_per_s"] = seconds > 0 ? static_cast<double>(count) / seconds : 0.0;
+  out["raw"] = raw;
+  out["result_bytes"] = result_bytes;
+  out["errors"] = errors;
+  return out;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -209,9 +246,14 @@ int main(int argc, char** argv) {
   std::size_t count = 2000;
   std::optional<std::size_t> warmup;
   double timeout = 120;
-  app.add_option("--mode", mode, "pong (raw server), ping (raw client) or client (simgate's DdsClient)")
+  std::string camera = "rig.camera";
+  bool raw = false;
+  app.add_option("--mode", mode,
+                 "pong (raw server), ping (raw client), client (simgate's DdsClient) or camera (its get_image)")
       ->required()
-      ->check(CLI::IsMember({"pong", "ping", "client"}));
+      ->check(CLI::IsMember({"pong", "ping", "client", "camera"}));
+  app.add_option("--camera", camera, "camera: the camera component")->capture_default_str();
+  app.add_flag("--raw", raw, "camera: the client reads its images raw (DdsClientOptions::raw_images)");
   app.add_option("--domain", domain, "DDS domain")->check(CLI::Range(0, 230))->capture_default_str();
   app.add_option("--partition", partition, "DDS partition")->capture_default_str();
   app.add_option("--count", count, "ping, client: round trips measured")->capture_default_str();
@@ -223,8 +265,10 @@ int main(int argc, char** argv) {
     std::signal(SIGINT, on_signal);
     std::signal(SIGTERM, on_signal);
     if (mode == "pong") return run_pong(domain, partition, timeout);
-    json out = mode == "ping" ? run_ping(domain, partition, count, warmup.value_or(count / 10), timeout)
-                              : run_client(domain, partition, count, warmup.value_or(count / 10), timeout);
+    json out = mode == "ping"     ? run_ping(domain, partition, count, warmup.value_or(count / 10), timeout)
+               : mode == "camera" ? run_camera(domain, partition, camera, raw, count, warmup.value_or(count / 10),
+                                               timeout)
+                                  : run_client(domain, partition, count, warmup.value_or(count / 10), timeout);
     out["mode"] = mode;
     std::cout << out.dump() << std::endl;
     return 0;

@@ -9,8 +9,8 @@ namespace {
 thread_local const CallContext* t_current = nullptr;
 }  // namespace
 
-CallContext::CallContext(const RequestManager& manager, RequestId id) noexcept
-    : manager_(manager), id_(id), previous_(t_current) {
+CallContext::CallContext(const RequestManager& manager, RequestId id, bool raw_attachments) noexcept
+    : manager_(manager), id_(id), raw_attachments_(raw_attachments), previous_(t_current) {
   t_current = this;
 }
 
@@ -40,6 +40,11 @@ bool caller_serves(const std::string& component) {
 bool caller_may_call(const std::string& component, const std::string& service) {
   const CallContext* context = CallContext::current();
   return !context || context->may_call(component, service);
+}
+
+bool caller_takes_raw_attachments() {
+  const CallContext* context = CallContext::current();
+  return context && context->takes_raw_attachments();
 }
 
 }  // namespace simgate

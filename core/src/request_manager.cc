@@ -299,7 +299,7 @@ bool RequestManager::execute(RequestId id, const Call& call, Outcome& out,
   try {
     // the service may ask who calls (call_context.h): what this transport serves bounds
     // what it may see and act on
-    CallContext context(*this, id);
+    CallContext context(*this, id, call.raw_attachments);
     BoundArguments args = bind_arguments(d, call.params);
     if (d.is_async) {
       start_async(id, *service, args.span(), call.progress, started);

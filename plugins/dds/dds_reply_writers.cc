@@ -7,12 +7,15 @@
 // acknowledged. A client's first call asking for progress gives it a progress writer (best
 // effort, beside its reply writer), which carries its calls' reports, written before the
 // replies delivered with them. A client with a reader on simgate_ReplyImage gets the images of
-// its replies there, raw, beside them (send_images). Options, entities, the DDS thread and
-// requests: dds_request_manager.cc.
+// its replies there, raw, beside them (send_images); its calls are made raw (Call::
+// raw_attachments: the camera makes no PNG), and an image that cannot go raw after all gets
+// its PNG from its pixels (with_png). Options, entities, the DDS thread and requests:
+// dds_request_manager.cc.
 #include <algorithm>
 #include <cstring>
 #include <set>
 #include <utility>
+#include <vector>
 
 #include "dds_request_manager.h"
 #include "simgate/core/log.h"
@@ -26,6 +29,31 @@ namespace {
 constexpr std::chrono::milliseconds k_max_retry_delay{320};
 // At most one "dropped" log line per client per interval (with the count meanwhile).
 constexpr std::chrono::seconds k_drop_log_interval{10};
+
+// The records a result's attachments are the pixels of: the result, or the items of its list.
+std::vector<json*> image_records(json& value) {
+  std::vector<json*> records;
+  if (value.is_object()) {
+    records.push_back(&value);
+  } else if (value.is_array()) {
+    for (json& record : value) records.push_back(&record);
+  }
+  return records;
+}
+
+// A record that does not go raw keeps (or gets) its PNG: one the service left out, its caller
+// having been expected to take the pixels raw (Call::raw_attachments), is made now from the
+// pixels (the payload's to_json: the plugin knows no codec). DDS thread; only in this fallback.
+void with_png(json& record, const StreamPayload* pixels, std::uint64_t seq) {
+  if (!pixels || !pixels->to_json || !record.is_object() || record.contains("image")) return;
+  const auto format = record.find("format");
+  if (format == record.end() || *format != "raw") return;
+  try {
+    record = pixels->to_json(*pixels);
+  } catch (const std::exception& e) {
+    log::warning("DDS transport: an image of reply ", seq, " could not be encoded as a PNG: ", e.what());
+  }
+}
 
 }  // namespace
 
@@ -105,14 +133,7 @@ void DdsRequestManager::write_progress() {
 bool DdsRequestManager::send_images(const ClientId& id, ClientState& client, ReplyData& reply) {
   if (client.image_writer <= 0 || !announced_reader_matched(client.image_writer, id)) return true;
   Outcome& outcome = *reply.images;
-  // the records the attachments are the pixels of: the result, or the items of its list
-  std::vector<json*> records;
-  json& value = *outcome.value;
-  if (value.is_object()) {
-    records.push_back(&value);
-  } else if (value.is_array()) {
-    for (json& record : value) records.push_back(&record);
-  }
+  std::vector<json*> records = image_records(*outcome.value);
   if (records.size() != outcome.attachments.size()) return true;
   for (; reply.images_done < records.size(); ++reply.images_done) {
     const StreamPayload* pixels = outcome.attachments[reply.images_done].get();
@@ -125,6 +146,7 @@ bool DdsRequestManager::send_images(const ClientId& id, ClientState& client, Rep
                                d.value("timestamp", 0.0), *pixels);
     } catch (const std::exception& e) {
       log::warning("DDS transport: an image of reply ", reply.seq, " to client ", to_hex(id), " not written: ", e.what());
+      with_png(record, pixels, reply.seq);
       continue;
     }
     // its writer full (the images before it not acknowledged yet): this one and the rest later
@@ -132,6 +154,7 @@ bool DdsRequestManager::send_images(const ClientId& id, ClientState& client, Rep
     if (rc < 0) {
       log::warning("DDS transport: an image of reply ", reply.seq, " to client ", to_hex(id), " stays a PNG: ",
                    retcode_text(rc));
+      with_png(record, pixels, reply.seq);
       continue;
     }
     record.erase("image");
@@ -144,9 +167,29 @@ bool DdsRequestManager::prepare_images(const ClientId& id, ClientState& client, 
   if (!reply.images) return true;
   // images raw on the client's image topic, when it reads it; else (or given up) the PNGs stay
   if (!give_up && !send_images(id, client, reply)) return false;
+  // the images not written raw: PNGs in their records (made now where the service left them out)
+  Outcome& outcome = *reply.images;
+  std::vector<json*> records = image_records(*outcome.value);
+  if (records.size() == outcome.attachments.size())
+    for (std::size_t i = reply.images_done; i < records.size(); ++i)
+      with_png(*records[i], outcome.attachments[i].get(), reply.seq);
   reply.result = reply.images->value->dump(-1, ' ', false, json::error_handler_t::replace);
   reply.images.reset();
   return true;
+}
+
+bool DdsRequestManager::takes_images_raw(const ClientId& id, ClientState& client) {
+  if (client.image_writer <= 0) return false;
+  // asked at every call: the matched readers' QoS are read again only when the set of
+  // matches changed (a match moves the total, an unmatch the current count)
+  dds_publication_matched_status_t status{};
+  if (dds_get_publication_matched_status(client.image_writer, &status) < 0) return false;
+  if (status.total_count != client.image_matches_total || status.current_count != client.image_matches_current) {
+    client.image_matches_total = status.total_count;
+    client.image_matches_current = status.current_count;
+    client.images_raw = status.current_count > 0 && announced_reader_matched(client.image_writer, id);
+  }
+  return client.images_raw;
 }
 
 bool DdsRequestManager::announced_reader_matched(dds_entity_t writer, const ClientId& id) {
@@ -185,9 +228,9 @@ void DdsRequestManager::send_reply(const ClientId& client_id, ReplyData reply, b
     return;
   }
   ClientState& client = c->second;
-  // at stop(): one attempt, nothing parked (the PNGs stay)
+  // at stop(): one attempt, nothing parked (the PNGs stay, or are made)
   if (final_flush) {
-    if (reply.images) reply.result = reply.images->value->dump(-1, ' ', false, json::error_handler_t::replace);
+    prepare_images(client_id, client, reply, true);
     write_reply(client_id, client, reply);
     return;
   }
@@ -259,8 +302,11 @@ void DdsRequestManager::flush_parked(const ClientId& id, ClientState& client,
     ReplyData& reply = client.parked.front();
     const bool expired = reply.deadline <= now;
     // waiting for its reader (after park_timeout_ms it is written anyway, for readers that
-    // do not announce simgate.id), or for its writer to have room again
-    bool attempt = (client.reader_matched || expired) && !(client.stalled && now < client.retry_at);
+    // do not announce simgate.id), or for its writer to have room again; one whose images
+    // waited in vain goes with their PNGs at its deadline, not at the next retry of a backoff
+    // that may end after it (it was dropped then)
+    const bool images_given_up = expired && client.images_stalled;
+    bool attempt = (client.reader_matched || expired) && (images_given_up || !(client.stalled && now < client.retry_at));
     if (attempt) {
       // (past its deadline, the images left go as PNGs in the reply)
       const bool images_ready = prepare_images(id, client, reply, expired);

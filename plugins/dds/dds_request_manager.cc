@@ -502,6 +502,8 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
       bool is_async = lookup_async(call.component, call.service);
       // progress asked of an async service: the client's progress writer exists from now on
       call.progress = request.progress && is_async && ensure_progress_writer(client_id, client);
+      // a client that reads its images raw: the service need not encode them (no PNG made)
+      call.raw_attachments = takes_images_raw(client_id, client);
       RequestId id = new_request_id();
       pending_.emplace(id, Pending{client_id, seq, is_async});
       client.calls.emplace(seq, id);

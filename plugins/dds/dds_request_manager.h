@@ -161,6 +161,10 @@ class DdsRequestManager : public RequestManager {
     dds_entity_t progress_writer = 0;                   // its progress reports (at its first call asking)
     dds_entity_t image_writer = 0;                      // its replies' images, raw (simgate_ReplyImage)
     bool reader_matched = false;                        // a reader announcing its id is matched
+    // whether an image reader announcing its id is matched (takes_images_raw), as of the
+    // image writer's match counts below (the set of matches changed when either moved)
+    bool images_raw = false;
+    std::uint32_t image_matches_total = 0, image_matches_current = 0;
     std::unordered_map<std::uint64_t, RequestId> calls;  // seq -> request in the core
     std::deque<ReplyData> parked;                       // replies not written yet, in order
     bool stalled = false;                               // its writer was full at the last write
@@ -200,8 +204,12 @@ class DdsRequestManager : public RequestManager {
   // acknowledged: Cyclone's WhcHigh): the rest wait for a retry. Never blocks.
   bool send_images(const ClientId& id, ClientState& client, ReplyData& reply);
   // Before `reply` is written: its images (send_images) and its result's text. False while
-  // its images wait for room; `give_up`: the images left keep their PNGs.
+  // its images wait for room; `give_up`: the images left keep their PNGs (with_png).
   bool prepare_images(const ClientId& id, ClientState& client, ReplyData& reply, bool give_up);
+  // Whether the client reads its replies' images raw (an image reader announcing its id is
+  // matched, as send_images asks): its calls are made with Call::raw_attachments, so that
+  // the camera leaves the PNG out. Cached until the image writer's matches change.
+  bool takes_images_raw(const ClientId& id, ClientState& client);
   // Whether a reader announcing the client's id is matched to `writer` (one of its own).
   static bool announced_reader_matched(dds_entity_t writer, const ClientId& id);
   // Writes the replies of `batch` (emptied); `final_flush`: at stop(), without parking.

@@ -11,6 +11,7 @@
 
 #include <Eigen/Geometry>
 
+#include "simgate/core/call_context.h"
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
 #include "simgate/core/streams.h"
@@ -26,16 +27,29 @@ constexpr double k_default_frequency = 20;             // images per simulated s
 // MORSE's cam_focal is a Blender lens: millimetres, on a 32 mm wide sensor (its larger side)
 constexpr double k_blender_sensor = 32;                // mm
 
-// The JSON record of one image (render_support.h). Render thread.
-json image_record(const RenderResult& r, Camera::Type type) {
-  return type == Camera::Type::video ? rgb_image_record(r) : depth_image_record(r);
+// The JSON record of one image (render_support.h), with its PNG or raw. Render thread.
+json image_record(const RenderResult& r, Camera::Type type, bool png) {
+  return type == Camera::Type::video ? rgb_image_record(r, png) : depth_image_record(r, png);
+}
+
+// `record` as a caller that takes the pixels raw gets it: no image, "format": "raw" (the
+// PNG's base64 not copied).
+json raw_record(const json& record) {
+  if (!record.contains("image")) return record;
+  json raw = json::object();
+  for (auto it = record.begin(); it != record.end(); ++it)
+    if (it.key() != "image") raw[it.key()] = it.value();
+  raw["format"] = "raw";
+  return raw;
 }
 
 // A stream sample of one image: its pixels raw (video: "rgb8", 3 bytes a pixel; depth:
 // "32FC1", a float in metres a pixel, 0 where nothing is hit; host byte order, rows top
 // first), described for typed transports; its record (the same as get_local_data's, PNG in
 // base64) made only when a JSON transport asks. Also a reply's attachment (Outcome::
-// attachments): the same pixels beside the record. Render thread; takes r's pixels.
+// attachments): the same pixels beside the record, to_json making the PNG record when a
+// transport has to send a raw record's image as a PNG after all. Render thread; takes r's
+// pixels.
 std::shared_ptr<const StreamPayload> image_payload(RenderResult& r, Camera::Type type, const std::string& component) {
   auto payload = std::make_shared<StreamPayload>();
   payload->content = "image";
@@ -221,17 +235,17 @@ void Camera::render_for_stream() {
   });
 }
 
-void Camera::render_now(std::uint64_t capture_id, Completion done) {
+void Camera::render_now(std::uint64_t capture_id, Completion done, bool png) {
   std::unique_ptr<SceneCopy> scene = scene_now();
   const bool depth = type_ == Type::depth;
   renderer_->render(std::move(scene), !depth, depth,
-                    [mailbox = mailbox_, type = type_, capture_id, done, who = name()](RenderResult result) {
+                    [mailbox = mailbox_, type = type_, capture_id, done, png, who = name()](RenderResult result) {
                       json record;
                       std::shared_ptr<const StreamPayload> pixels;
                       std::string error = result.error.empty() ? "" : who + ": " + result.error;
                       if (error.empty()) {
                         try {
-                          record = image_record(result, type);
+                          record = image_record(result, type, png);
                           // (after the record: takes the pixels)
                           pixels = image_payload(result, type, who);
                         } catch (const std::exception& e) {
@@ -268,31 +282,42 @@ void Camera::capture(long long n) {
   renderer();  // FAILED now when nothing can be rendered
   end_capture();
   to_render_ = expected_ = n;
+  capture_png_ = !caller_takes_raw_attachments();
   // the first image is of the state the next step starts from
   next_frame_time_ = sim().sim_time();
 }
 
 void Camera::get_image(Completion done) {
   try {
-    render_now(0, done);
+    render_now(0, done, !caller_takes_raw_attachments());
   } catch (const ServiceError& e) {
     done(Status::failed, e.what());
   }
 }
 
 void Camera::get_local_data(Completion done) {
+  const bool raw = caller_takes_raw_attachments();
   Outcome outcome;
   {
     std::lock_guard lock(mailbox_->mutex);
-    outcome.value = mailbox_->last;
+    const json& last = mailbox_->last;
+    // the last record as this caller takes it; a raw one (made for a caller that took it
+    // raw) has no PNG for one that does not: as if there were none
+    if (raw)
+      outcome.value = raw_record(last);
+    else if (last.contains("image"))
+      outcome.value = last;
+    else
+      outcome.value = json(nullptr);
     outcome.attachments.push_back(mailbox_->last_pixels);  // its pixels raw, for typed transports
   }
   if (!outcome.value->is_null()) {
     done.finish(std::move(outcome));
     return;
   }
-  // none yet: one rendered now, answered from the render thread as get_image is; physics
-  // keeps stepping meanwhile (nothing waits under the lock)
+  // none yet (or none with its PNG): one rendered now, answered from the render thread as
+  // get_image is; physics keeps stepping meanwhile (nothing waits under the lock, no PNG is
+  // encoded under it)
   get_image(std::move(done));
 }
 
@@ -333,7 +358,7 @@ void Camera::default_action() {
   const double now = sim().sim_time();
   if (now + 0.5 * sim().timestep() < next_frame_time_) return;
   try {
-    render_now(capture_id_, Completion());
+    render_now(capture_id_, Completion(), capture_png_);
   } catch (const ServiceError& e) {
     end_capture();
     completed(Status::failed, e.what());
@@ -390,6 +415,7 @@ void Camera::stream_step(const std::string& error, int in_flight) {
 void Camera::end_capture() {
   ++capture_id_;
   to_render_ = expected_ = 0;
+  capture_png_ = true;
   images_ = json::array();
   image_pixels_.clear();
 }

@@ -40,46 +40,49 @@ void frame_pose(CameraView& v, const mjtNum* p, const mjtNum* r) {
 
 namespace {
 
-json record_base(int width, int height, json intrinsic, double timestamp) {
-  return {{"width", width}, {"height", height}, {"format", "png"},
+json record_base(int width, int height, json intrinsic, double timestamp, bool png) {
+  return {{"width", width}, {"height", height}, {"format", png ? "png" : "raw"},
           {"intrinsic_matrix", std::move(intrinsic)}, {"timestamp", timestamp}};
 }
 
 }  // namespace
 
-json rgb_image_record(int width, int height, std::span<const std::uint8_t> rgb, json intrinsic, double timestamp) {
-  json record = record_base(width, height, std::move(intrinsic), timestamp);
+json rgb_image_record(int width, int height, std::span<const std::uint8_t> rgb, json intrinsic, double timestamp,
+                      bool png) {
+  json record = record_base(width, height, std::move(intrinsic), timestamp, png);
   record["encoding"] = "rgb8";
-  record["image"] = base64_encode(encode_png_rgb8(rgb, width, height));
+  if (png) record["image"] = base64_encode(encode_png_rgb8(rgb, width, height));
   return record;
 }
 
-json depth_image_record(int width, int height, std::span<const float> depth, json intrinsic, double timestamp) {
+json depth_image_record(int width, int height, std::span<const float> depth, json intrinsic, double timestamp,
+                        bool png) {
   // depth in millimetres, 0 where nothing is hit; the nearest and farthest hit in metres
-  json record = record_base(width, height, std::move(intrinsic), timestamp);
-  std::vector<std::uint16_t> mm(depth.size());
+  // (given raw too: the record says them either way)
+  json record = record_base(width, height, std::move(intrinsic), timestamp, png);
+  std::vector<std::uint16_t> mm(png ? depth.size() : 0);
   double lowest = std::numeric_limits<double>::infinity(), highest = 0;
   for (std::size_t i = 0; i < depth.size(); ++i) {
     const double z = depth[i];
     if (z <= 0) continue;
     lowest = std::min(lowest, z);
     highest = std::max(highest, z);
-    mm[i] = static_cast<std::uint16_t>(std::clamp(std::lround(z * 1000), 1L, 65535L));
+    if (png) mm[i] = static_cast<std::uint16_t>(std::clamp(std::lround(z * 1000), 1L, 65535L));
   }
   record["encoding"] = "mono16";
   record["depth_unit"] = "mm";
   record["min_depth"] = highest > 0 ? json(lowest) : json(nullptr);
   record["max_depth"] = highest > 0 ? json(highest) : json(nullptr);
-  record["image"] = base64_encode(encode_png_gray16(mm, width, height));
+  if (png) record["image"] = base64_encode(encode_png_gray16(mm, width, height));
   return record;
 }
 
-json rgb_image_record(const RenderResult& r) {
-  return rgb_image_record(r.width, r.height, r.rgb, intrinsic_matrix(r.view), r.timestamp);
+json rgb_image_record(const RenderResult& r, bool png) {
+  return rgb_image_record(r.width, r.height, r.rgb, intrinsic_matrix(r.view), r.timestamp, png);
 }
 
-json depth_image_record(const RenderResult& r) {
-  return depth_image_record(r.width, r.height, r.depth, intrinsic_matrix(r.view), r.timestamp);
+json depth_image_record(const RenderResult& r, bool png) {
+  return depth_image_record(r.width, r.height, r.depth, intrinsic_matrix(r.view), r.timestamp, png);
 }
 
 const std::shared_ptr<const mjModel>& RenderModelCopy::get(Renderer& renderer, const Simulation& sim) {

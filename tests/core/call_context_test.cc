@@ -21,6 +21,7 @@ struct Seen {
   const RequestManager* manager = nullptr;  // CallContext::current()->manager(), or null
   RequestId request = 0;                    // its request id
   bool serves_private = false;              // caller_serves("private")
+  bool raw = false;                         // caller_takes_raw_attachments()
 };
 
 Seen look() {
@@ -30,6 +31,7 @@ Seen look() {
     seen.request = context->request();
   }
   seen.serves_private = caller_serves("private");
+  seen.raw = caller_takes_raw_attachments();
   return seen;
 }
 
@@ -149,6 +151,37 @@ TEST_F(CallContextTest, ASyncServiceAttachesBytesToItsOutcomeAndOnlyToIt) {
   // outside a request an attachment goes nowhere
   CallContext::attach(std::make_shared<StreamPayload>());
   EXPECT_EQ(CallContext::current(), nullptr);
+}
+
+}  // namespace
+}  // namespace simgate
+
+namespace simgate {
+namespace {
+
+// Call::raw_attachments reaches the service as CallContext::takes_raw_attachments(), for that
+// call only: a camera leaves the PNG out of its records for a DDS client that reads them raw.
+TEST_F(CallContextTest, TheServiceKnowsWhetherItsCallerTakesAttachmentsRaw) {
+  auto run_with = [this](const char* service, bool raw) {
+    RequestId id = a_.new_request_id();
+    Call call{"shared", service, nullptr};
+    call.raw_attachments = raw;
+    a_.submit(id, std::move(call));
+    a_.process();
+  };
+  run_with("look", true);
+  EXPECT_TRUE(shared_.seen.raw);
+  run_with("look", false);
+  EXPECT_FALSE(shared_.seen.raw);
+  // an async service's start method too
+  run_with("start", true);
+  EXPECT_TRUE(shared_.seen.raw);
+  // by default, and outside a request, no
+  a_.run("shared", "look");
+  EXPECT_FALSE(shared_.seen.raw);
+  EXPECT_FALSE(caller_takes_raw_attachments());
+  const CallContext host(a_, 9, true);
+  EXPECT_TRUE(caller_takes_raw_attachments());
 }
 
 }  // namespace

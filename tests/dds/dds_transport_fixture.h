@@ -19,6 +19,7 @@
 #include "dds_support.h"
 #include "dds_test_support.h"
 #include "simgate/client/dds_client.h"
+#include "simgate_streams.h"
 
 namespace simgate::dds::test {
 
@@ -72,6 +73,23 @@ class RawClient {
     if (announce) dds_qset_userdata(qos.get(), userdata.data(), userdata.size());
     reader_ = dds_create_reader(subscriber, topic, qos.get(), nullptr);
     ASSERT_GT(reader_, 0);
+  }
+
+  // A reader of its replies' images (simgate_ReplyImage, in its own partition), announcing
+  // its id: the server then sends its replies' images raw. Create it before the reply reader
+  // (as clients must); max_samples as create_reply_reader's. Never read by the tests.
+  void create_image_reader(int32_t max_samples = DDS_LENGTH_UNLIMITED) {
+    dds_entity_t pp = participant_.handle();
+    QosPtr partition_qos(dds_create_qos());
+    dds_qset_partition1(partition_qos.get(), (partition_ + "/" + to_hex(id_)).c_str());
+    dds_entity_t subscriber = dds_create_subscriber(pp, partition_qos.get(), nullptr);
+    dds_entity_t topic = dds_create_topic(pp, &simgate_stream_Image_desc, k_reply_image_topic, nullptr, nullptr);
+    QosPtr qos = make_qos(false, 0, DDS_SECS(1));
+    dds_qset_resource_limits(qos.get(), max_samples, DDS_LENGTH_UNLIMITED, DDS_LENGTH_UNLIMITED);
+    const std::string userdata = "simgate.id=" + to_hex(id_);
+    dds_qset_userdata(qos.get(), userdata.data(), userdata.size());
+    image_reader_ = dds_create_reader(subscriber, topic, qos.get(), nullptr);
+    ASSERT_GT(image_reader_, 0);
   }
 
   // A reader of the client's progress reports (simgate_Progress, in its own partition):
@@ -157,6 +175,7 @@ class RawClient {
   dds_entity_t writer_ = 0;      // requests
   dds_entity_t reader_ = 0;      // replies (created on demand)
   dds_entity_t progress_reader_ = 0;  // progress reports (created on demand)
+  dds_entity_t image_reader_ = 0;     // its replies' images (created on demand)
   ClientId id_{};                // our request writer's GUID
 };
 

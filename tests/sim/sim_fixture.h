@@ -40,6 +40,15 @@ class RecordingManager : public RequestManager {
     run_or_submit(id, Call{component, service, std::move(params)});
     return id;
   }
+  // A call whose transport sends it the attachments raw (Call::raw_attachments: DDS to a
+  // client reading its replies' images).
+  RequestId call_raw(const std::string& component, const std::string& service, json params = json::array()) {
+    RequestId id = new_request_id();
+    Call c{component, service, std::move(params)};
+    c.raw_attachments = true;
+    submit(id, std::move(c));
+    return id;
+  }
   // A call whose client asked for progress reports (Call::progress).
   RequestId call_with_progress(const std::string& component, const std::string& service, json params = json::array()) {
     RequestId id = new_request_id();

@@ -38,7 +38,7 @@ class CallContext {
  public:
   // Makes this the current context of the calling thread until destruction. The core does
   // this around every service it runs; a host may do it to act as a given transport.
-  CallContext(const RequestManager& manager, RequestId id) noexcept;
+  CallContext(const RequestManager& manager, RequestId id, bool raw_attachments = false) noexcept;
   ~CallContext();
   CallContext(const CallContext&) = delete;
   CallContext& operator=(const CallContext&) = delete;
@@ -56,6 +56,13 @@ class CallContext {
   // allowed by its lists).
   bool may_call(const std::string& component, const std::string& service) const;
 
+  // Whether the caller's transport sends it the attachments raw (Call::raw_attachments):
+  // the records may then leave out their encoded copy of them (a camera's PNG), which the
+  // transport would drop anyway. A service that does so must attach a payload with a
+  // to_json that makes the full record (the transport's fallback when the raw bytes cannot
+  // go after all: streams.h).
+  bool takes_raw_attachments() const noexcept { return raw_attachments_; }
+
   // Attaches raw bytes to the result of the sync call running on this thread
   // (Outcome::attachments): the core moves them into its outcome when the service returns.
   // Without a current context (a host calling the function directly) they are dropped.
@@ -66,6 +73,7 @@ class CallContext {
  private:
   const RequestManager& manager_;  // the caller's transport (outlives the call)
   RequestId id_;                   // the request being run
+  bool raw_attachments_;           // Call::raw_attachments of the request
   const CallContext* previous_;    // the context this one hides, restored at destruction
   // attach()'s payloads (written through current(), on this thread only)
   mutable std::vector<std::shared_ptr<const StreamPayload>> attachments_;
@@ -92,6 +100,8 @@ bool caller_serves(const std::string& component);
 // Whether the caller of the running service may call `component`.`service` through its
 // transport (what introspection shows it), or no request is running on this thread.
 bool caller_may_call(const std::string& component, const std::string& service);
+// Whether the caller of the running service takes its attachments raw (false outside a request).
+bool caller_takes_raw_attachments();
 
 }  // namespace simgate
 

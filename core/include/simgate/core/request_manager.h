@@ -91,6 +91,11 @@ struct Call {
   // without one costs no clock read anywhere; the core stamps the deadline once, at
   // submission, so that time spent queued for the lock counts.
   std::chrono::milliseconds timeout{0};
+  // The transport sends this caller the result's attachments (Outcome::attachments) raw
+  // instead of what the records encode (DDS, to a client that reads its replies' images
+  // raw): a service may then leave the encoded copy out of its records (a camera: no PNG),
+  // and must still attach the raw bytes. CallContext::takes_raw_attachments() while it runs.
+  bool raw_attachments = false;
 };
 
 namespace detail {

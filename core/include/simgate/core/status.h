@@ -68,7 +68,10 @@ struct Outcome {
   // them as a base64 PNG), one per such record, in the order of the records (a capture's
   // list). Optional and additive: `value` is complete without them, and a transport that
   // knows the content may send them typed beside it (DDS: simgate_ReplyImage); every other
-  // transport ignores them. Empty for nearly every call (no allocation).
+  // transport ignores them. Empty for nearly every call (no allocation). For a caller that
+  // takes them raw (Call::raw_attachments) a record may leave its encoded copy out ("format":
+  // "raw", no "image"); its payload's to_json then makes the full record, should the
+  // transport have to send it encoded after all.
   std::vector<std::shared_ptr<const StreamPayload>> attachments;
 
   static Outcome success(std::optional<json> value);

@@ -16,6 +16,12 @@
 // an image of the current state (a concurrent async service: physics steps on while it
 // renders); `get_local_data`: the last image record (or, when none was rendered yet, one
 // rendered now). docs/components/cameras.md has the options, the record and wire examples.
+// Each reply carries the images' pixels raw beside their records (Outcome::attachments);
+// for a caller that takes them raw (CallContext::takes_raw_attachments: a DDS client reading
+// its replies' images) the records have no PNG ("format": "raw") and none is encoded, the
+// attachments making it (to_json) should the transport need it after all. A get_local_data
+// that wants the PNG of a last image made raw gets an image rendered now, as its first one:
+// no PNG is ever encoded under the simulation lock.
 //
 // Stream (docs/components/cameras.md 'Streams'): a pushed output stream of kind "image"
 // (video) or "depth_image" (depth), at `frequency` images per simulated second. Only while
@@ -83,8 +89,9 @@ class Camera : public SimComponent {
   // A scene of the current state, ready for the render thread.
   std::unique_ptr<SceneCopy> scene_now();
   // Renders the current state; the image record (or error) goes to the mailbox under
-  // `capture_id` (0: not for a capture) and to `done` when it is given.
-  void render_now(std::uint64_t capture_id, Completion done);
+  // `capture_id` (0: not for a capture) and to `done` when it is given. `png`: the record
+  // holds the PNG; else it is raw (its caller takes the pixels raw) and none is encoded.
+  void render_now(std::uint64_t capture_id, Completion done, bool png);
   // Renders the current state for the stream: the image goes to the mailbox's stream_images.
   void render_for_stream();
   // default_action's stream part: pushes the images come back (`error`: the last render's
@@ -109,6 +116,7 @@ class Camera : public SimComponent {
   std::uint64_t capture_id_ = 0;      // bumped by each capture (and each end)
   long long to_render_ = 0;           // images still to ask for
   long long expected_ = 0;            // images it returns
+  bool capture_png_ = true;           // its records hold PNGs (its caller does not take them raw)
   double next_frame_time_ = 0;        // simulated time of the next image
   json images_ = json::array();       // its images so far
   std::vector<std::shared_ptr<const StreamPayload>> image_pixels_;  // their pixels raw (attachments)

@@ -8,7 +8,9 @@
 //    as the sensors measure).
 //  - rgb_image_record / depth_image_record: the JSON record of one rendered image (MORSE's
 //    VideoCamera local_data fields: image as base64 PNG, width, height, intrinsic_matrix;
-//    and format, encoding, timestamp). Render thread (they encode).
+//    and format, encoding, timestamp). Render thread (they encode). Without `png` the
+//    record has no image and says "format": "raw": for a caller that gets the pixels raw
+//    beside it (CallContext::takes_raw_attachments), nothing is encoded.
 //  - RenderModelCopy: the renderer's copy of the simulation's current model, remade when
 //    the model changes (a spawn, a delete). Under the simulation lock.
 #ifndef SIMGATE_SIM_RENDER_SUPPORT_H_
@@ -36,12 +38,14 @@ void mjcf_camera_pose(CameraView& view, const mjData* d, int camera);
 // Sets them from a frame: position `p`, rotation `r` (row-major 3x3, MuJoCo's xmat).
 void frame_pose(CameraView& view, const mjtNum* p, const mjtNum* r);
 
-json rgb_image_record(const RenderResult& r);
-json depth_image_record(const RenderResult& r);
+json rgb_image_record(const RenderResult& r, bool png = true);
+json depth_image_record(const RenderResult& r, bool png = true);
 // The same from the pieces (an image kept raw and encoded later: a stream's payload).
 // `rgb`: 3 bytes a pixel; `depth`: metres, 0 where nothing is hit; rows top first.
-json rgb_image_record(int width, int height, std::span<const std::uint8_t> rgb, json intrinsic, double timestamp);
-json depth_image_record(int width, int height, std::span<const float> depth, json intrinsic, double timestamp);
+json rgb_image_record(int width, int height, std::span<const std::uint8_t> rgb, json intrinsic, double timestamp,
+                      bool png = true);
+json depth_image_record(int width, int height, std::span<const float> depth, json intrinsic, double timestamp,
+                        bool png = true);
 
 class RenderModelCopy {
  public:
