@@ -20,17 +20,8 @@ namespace {
 using ::testing::HasSubstr;
 using namespace testing;
 
-struct CliRun {
-  int code = -1;    // exit code (-1: still running at the deadline)
-  std::string out;  // stdout
-  std::string err;  // stderr
-};
-
 CliRun simgate(std::vector<std::string> args, const TempDir& dir) {
-  args.insert(args.begin(), simgate_binary());
-  Process p(args, dir.file(""));
-  const auto code = p.wait(60s);
-  return {code.value_or(-1), p.out(), p.err()};
+  return run_cli(std::move(args), dir, 60s);
 }
 
 // The demo with a jsonrpc transport too, every transport serving everything and carrying

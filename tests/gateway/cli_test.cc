@@ -19,20 +19,8 @@ using ::testing::HasSubstr;
 using ::testing::Not;
 using namespace testing;
 
-// The outcome of a simgate run, stdout and stderr apart.
-struct CliRun {
-  int code = -1;    // exit code (-1: still running at the deadline)
-  std::string out;  // stdout
-  std::string err;  // stderr
-  std::chrono::steady_clock::duration took{};  // from start to exit
-};
-
 CliRun run_split(std::vector<std::string> args, const TempDir& dir, std::chrono::milliseconds timeout = 60s) {
-  args.insert(args.begin(), simgate_binary());
-  auto started = std::chrono::steady_clock::now();
-  Process p(args, dir.file(""));
-  auto code = p.wait(timeout);
-  return {code.value_or(-1), p.out(), p.err(), std::chrono::steady_clock::now() - started};
+  return run_cli(std::move(args), dir, timeout);
 }
 
 // The first line of `text` matching `pattern`, or "".

@@ -22,17 +22,8 @@ using namespace testing;
 using sim::testing::DecodedPng;
 using sim::testing::decode_png;
 
-struct CliRun {
-  int code = -1;    // exit code (-1: still running at the deadline)
-  std::string out;  // stdout
-  std::string err;  // stderr
-};
-
 CliRun simgate(std::vector<std::string> args, const TempDir& dir) {
-  args.insert(args.begin(), simgate_binary());
-  Process p(args, dir.file(""));
-  const auto code = p.wait(120s);
-  return {code.value_or(-1), p.out(), p.err()};
+  return run_cli(std::move(args), dir, 120s);
 }
 
 DecodedPng png_file(const std::string& path) {

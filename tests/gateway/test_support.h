@@ -295,6 +295,23 @@ inline std::string wait_for_file(const std::string& path, std::chrono::milliseco
 
 inline int port_of(const std::string& endpoint) { return std::stoi(endpoint.substr(endpoint.rfind(':') + 1)); }
 
+// The outcome of a `simgate` run, stdout and stderr apart.
+struct CliRun {
+  int code = -1;    // exit code (-1: still running at the deadline)
+  std::string out;  // stdout
+  std::string err;  // stderr
+  std::chrono::steady_clock::duration took{};  // from start to exit
+};
+
+// Runs the simgate executable with `args` in `dir`, for at most `timeout`.
+inline CliRun run_cli(std::vector<std::string> args, const TempDir& dir, std::chrono::milliseconds timeout = 60s) {
+  args.insert(args.begin(), simgate_binary());
+  const auto started = std::chrono::steady_clock::now();
+  Process p(args, dir.file(""));
+  const auto code = p.wait(timeout);
+  return {code.value_or(-1), p.out(), p.err(), std::chrono::steady_clock::now() - started};
+}
+
 }  // namespace simgate::gateway::testing
 
 #endif  // SIMGATE_TESTS_GATEWAY_TEST_SUPPORT_H_

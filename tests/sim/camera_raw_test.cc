@@ -33,18 +33,7 @@ class CameraRawTest : public testing::MjcfSim {
   }
 
   // Steps (and serves) until `id` has its outcome, at most k_deadline of wall time.
-  Outcome wait_for(RequestId id) {
-    const auto deadline = std::chrono::steady_clock::now() + k_deadline;
-    while (std::chrono::steady_clock::now() < deadline) {
-      sim_->process_requests();
-      if (auto o = rm_->outcome(id)) return *o;
-      sim_->step();
-      if (auto o = rm_->outcome(id)) return *o;
-      std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    }
-    ADD_FAILURE() << "no outcome within the deadline";
-    return Outcome::failed(Failure::internal, "no answer");
-  }
+  Outcome wait_for(RequestId id) { return step_until_outcome(id, k_deadline); }
   Outcome raw(const std::string& service, json params = json::array()) {
     return wait_for(rm_->call_raw("rig.camera", service, std::move(params)));
   }

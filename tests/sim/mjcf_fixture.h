@@ -4,8 +4,10 @@
 #ifndef SIMGATE_TESTS_SIM_MJCF_FIXTURE_H_
 #define SIMGATE_TESTS_SIM_MJCF_FIXTURE_H_
 
+#include <chrono>
 #include <cmath>
 #include <string>
+#include <thread>
 
 #include "sim_fixture.h"
 
@@ -71,6 +73,20 @@ class MjcfSim : public ::testing::Test {
     Outcome o = call(component, service, std::move(params));
     EXPECT_EQ(o.status, Status::success) << component << " " << service << ": " << o.message;
     return o.value.value_or(json());
+  }
+  // Steps and serves until request `id` has its outcome (an async service: a camera's render
+  // thread, a capture over several steps), at most `limit` of wall time.
+  Outcome step_until_outcome(RequestId id, std::chrono::seconds limit = std::chrono::seconds(60)) {
+    const auto deadline = std::chrono::steady_clock::now() + limit;
+    while (std::chrono::steady_clock::now() < deadline) {
+      sim_->process_requests();
+      if (auto o = rm_->outcome(id)) return *o;
+      sim_->step();
+      if (auto o = rm_->outcome(id)) return *o;
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    ADD_FAILURE() << "no outcome within " << limit.count() << " s";
+    return Outcome::failed(Failure::internal, "no answer");
   }
   void run_for(double seconds) {
     const int n = static_cast<int>(std::lround(seconds / sim_->timestep()));

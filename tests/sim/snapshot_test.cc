@@ -36,16 +36,7 @@ class SnapshotTest : public testing::MjcfSim {
 
   // Calls get_snapshot and serves (stepping) until it is answered, at most k_deadline.
   Outcome snapshot(json params) {
-    const RequestId id = rm_->call("simulation", "get_snapshot", std::move(params));
-    const auto deadline = std::chrono::steady_clock::now() + k_deadline;
-    while (std::chrono::steady_clock::now() < deadline) {
-      sim_->process_requests();
-      if (auto o = rm_->outcome(id)) return *o;
-      sim_->step();
-      std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    }
-    ADD_FAILURE() << "no outcome within the deadline";
-    return Outcome::failed(Failure::internal, "no answer");
+    return step_until_outcome(rm_->call("simulation", "get_snapshot", std::move(params)), k_deadline);
   }
   DecodedPng png_of(const Outcome& o) {
     EXPECT_EQ(o.status, Status::success) << o.message;
