@@ -26,6 +26,7 @@
 #include <csignal>
 #include <cstring>
 #include <iostream>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -175,15 +176,24 @@ json run_ping(std::uint32_t domain, const std::string& partition, std::size_t co
   return out;
 }
 
-json run_client(std::uint32_t domain, const std::string& partition, std::size_t count, std::size_t warmup,
-                double timeout_s) {
+// A DdsClient of the server in `partition`, once it has found it (within `timeout_s`).
+std::unique_ptr<simgate::client::DdsClient> connect(std::uint32_t domain, const std::string& partition,
+                                                    double timeout_s, bool raw_images = false) {
   simgate::client::DdsClientOptions options;
   options.domain = domain;
   options.partition = partition;
+  options.raw_images = raw_images;
   options.discovery_timeout = std::chrono::milliseconds(static_cast<long long>(timeout_s * 1000));
-  simgate::client::DdsClient client(options);
-  if (!client.wait_for_server(options.discovery_timeout))
+  auto client = std::make_unique<simgate::client::DdsClient>(options);
+  if (!client->wait_for_server(options.discovery_timeout))
     throw std::runtime_error("simgate DDS client: no server in partition '" + partition + "'");
+  return client;
+}
+
+json run_client(std::uint32_t domain, const std::string& partition, std::size_t count, std::size_t warmup,
+                double timeout_s) {
+  auto connection = connect(domain, partition, timeout_s);
+  simgate::client::DdsClient& client = *connection;
   std::vector<std::int64_t> samples;
   std::size_t errors = 0;
   const simgate::json params = simgate::json::array({1, 2});
@@ -205,14 +215,8 @@ json run_client(std::uint32_t domain, const std::string& partition, std::size_t 
 
 json run_camera(std::uint32_t domain, const std::string& partition, const std::string& camera, bool raw,
                 std::size_t count, std::size_t warmup, double timeout_s) {
-  simgate::client::DdsClientOptions options;
-  options.domain = domain;
-  options.partition = partition;
-  options.raw_images = raw;
-  options.discovery_timeout = std::chrono::milliseconds(static_cast<long long>(timeout_s * 1000));
-  simgate::client::DdsClient client(options);
-  if (!client.wait_for_server(options.discovery_timeout))
-    throw std::runtime_error("simgate DDS client: no server in partition '" + partition + "'");
+  auto connection = connect(domain, partition, timeout_s, raw);
+  simgate::client::DdsClient& client = *connection;
   std::vector<std::int64_t> samples;
   std::size_t errors = 0, result_bytes = 0;
   Clock::time_point started;

@@ -681,11 +681,11 @@ function setupCameras(rpc) {
     return figure;
   }
 
-  // `methods`: a promise of rpc.discover's methods (the console's load()).
-  return async function start(methods) {
+  // `methods`: a promise of rpc.discover's methods (the console's load()); `streamList` one
+  // of rpc.streams' answer ([] where there is none).
+  return async function start(methods, streamList) {
     const names = (await methods).map((m) => m.name);
-    let streams = [];
-    try { streams = await rpc.call('rpc.streams'); } catch { /* no streams here */ }
+    const streams = await streamList;
     const streamOf = new Map(streams.filter((s) => s.direction === 'OUT' && IMAGE_KINDS.has(s.kind))
       .map((s) => [s.component, s]));
     const cameras = [...new Set([...names.filter((n) => n.endsWith('.get_image')).map((n) => n.slice(0, -'.get_image'.length)),
@@ -786,12 +786,12 @@ function setupInputs(rpc) {
     return el('div', { className: 'fields' }, text, send);
   }
 
-  return async function start() {
+  // `streamList`: a promise of rpc.streams' answer ([] where there is none).
+  return async function start(streamList) {
     // a reconnection: the old pads' keys are forgotten, nothing repeats an old command
     for (const t of timers) clearInterval(t);
     timers.clear();
-    let streams = [];
-    try { streams = await rpc.call('rpc.streams'); } catch { /* no streams here */ }
+    const streams = await streamList;
     const inputs = streams.filter((s) => s.direction === 'IN').sort((a, b) => a.component.localeCompare(b.component));
     exposed.inputs = Object.fromEntries(inputs.map((s) => [s.component, { published: 0, refused: 0, last: null, error: '' }]));
     const box = $('inputs');
@@ -829,8 +829,10 @@ rpc.onopen = async () => {
   refreshState();
   const methods = loadServices();
   startScene();
-  startCameras(methods);
-  startInputs();
+  // one rpc.streams for the cameras and the commands (a transport without streams: none)
+  const streams = rpc.call('rpc.streams').catch(() => []);
+  startCameras(methods, streams);
+  startInputs(streams);
 };
 rpc.onclose = () => {
   const was = exposed.connected;

@@ -61,17 +61,7 @@ class RawClient {
   // max_samples: how many replies the reader holds (a reader that never takes stops
   // accepting, hence acknowledging, beyond that)
   void create_reply_reader(bool announce = true, int32_t max_samples = DDS_LENGTH_UNLIMITED) {
-    dds_entity_t pp = participant_.handle();
-    // in the client's own partition, "<partition>/<id>", where the server writes its replies
-    QosPtr partition_qos(dds_create_qos());
-    dds_qset_partition1(partition_qos.get(), (partition_ + "/" + to_hex(id_)).c_str());
-    dds_entity_t subscriber = dds_create_subscriber(pp, partition_qos.get(), nullptr);
-    dds_entity_t topic = dds_create_topic(pp, &simgate_Reply_desc, k_reply_topic, nullptr, nullptr);
-    QosPtr qos = make_qos(false, 0, DDS_SECS(1));
-    dds_qset_resource_limits(qos.get(), max_samples, DDS_LENGTH_UNLIMITED, DDS_LENGTH_UNLIMITED);
-    std::string userdata = "simgate.id=" + to_hex(id_);
-    if (announce) dds_qset_userdata(qos.get(), userdata.data(), userdata.size());
-    reader_ = dds_create_reader(subscriber, topic, qos.get(), nullptr);
+    reader_ = own_partition_reader(&simgate_Reply_desc, k_reply_topic, announce, max_samples);
     ASSERT_GT(reader_, 0);
   }
 
@@ -79,16 +69,7 @@ class RawClient {
   // its id: the server then sends its replies' images raw. Create it before the reply reader
   // (as clients must); max_samples as create_reply_reader's. Never read by the tests.
   void create_image_reader(int32_t max_samples = DDS_LENGTH_UNLIMITED) {
-    dds_entity_t pp = participant_.handle();
-    QosPtr partition_qos(dds_create_qos());
-    dds_qset_partition1(partition_qos.get(), (partition_ + "/" + to_hex(id_)).c_str());
-    dds_entity_t subscriber = dds_create_subscriber(pp, partition_qos.get(), nullptr);
-    dds_entity_t topic = dds_create_topic(pp, &simgate_stream_Image_desc, k_reply_image_topic, nullptr, nullptr);
-    QosPtr qos = make_qos(false, 0, DDS_SECS(1));
-    dds_qset_resource_limits(qos.get(), max_samples, DDS_LENGTH_UNLIMITED, DDS_LENGTH_UNLIMITED);
-    const std::string userdata = "simgate.id=" + to_hex(id_);
-    dds_qset_userdata(qos.get(), userdata.data(), userdata.size());
-    image_reader_ = dds_create_reader(subscriber, topic, qos.get(), nullptr);
+    image_reader_ = own_partition_reader(&simgate_stream_Image_desc, k_reply_image_topic, true, max_samples);
     ASSERT_GT(image_reader_, 0);
   }
 
@@ -169,6 +150,23 @@ class RawClient {
   const ClientId& id() const { return id_; }
 
  private:
+  // A reliable reader of `topic` in the client's own partition, "<partition>/<id>", where the
+  // server writes to it alone; `announce`: "simgate.id=<our id>" in its USER_DATA, as clients
+  // should; `max_samples` bounds what it holds.
+  dds_entity_t own_partition_reader(const dds_topic_descriptor_t* type, const char* topic_name, bool announce,
+                                    int32_t max_samples) {
+    dds_entity_t pp = participant_.handle();
+    QosPtr partition_qos(dds_create_qos());
+    dds_qset_partition1(partition_qos.get(), (partition_ + "/" + to_hex(id_)).c_str());
+    dds_entity_t subscriber = dds_create_subscriber(pp, partition_qos.get(), nullptr);
+    dds_entity_t topic = dds_create_topic(pp, type, topic_name, nullptr, nullptr);
+    QosPtr qos = make_qos(false, 0, DDS_SECS(1));
+    dds_qset_resource_limits(qos.get(), max_samples, DDS_LENGTH_UNLIMITED, DDS_LENGTH_UNLIMITED);
+    const std::string userdata = "simgate.id=" + to_hex(id_);
+    if (announce) dds_qset_userdata(qos.get(), userdata.data(), userdata.size());
+    return dds_create_reader(subscriber, topic, qos.get(), nullptr);
+  }
+
   Participant participant_;      // own participant
   std::string partition_;        // the server's
   dds_entity_t publisher_ = 0;   // in the partition
