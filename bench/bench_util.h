@@ -48,6 +48,12 @@ inline double quantile(const std::vector<std::int64_t>& sorted, double q) {
 }
 
 // Count, mean and percentiles of nanosecond samples, reported in microseconds.
+// The median of v (the mean of the middle two for an even count), 0 when v is empty.
+inline double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0 : v.size() % 2 ? v[v.size() / 2] : (v[v.size() / 2 - 1] + v[v.size() / 2]) / 2;
+}
+
 inline json summarize_us(std::vector<std::int64_t> samples) {
   std::sort(samples.begin(), samples.end());
   double sum = 0;

@@ -61,12 +61,6 @@ namespace {
 
 namespace sim = simgate::sim;
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
-
 json spread(const std::vector<double>& v) {
   if (v.empty()) return nullptr;
   return {{"median", median(v)},

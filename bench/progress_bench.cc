@@ -130,11 +130,6 @@ RoundResult run_round(sim::Simulation& simulation, const std::vector<int>& fds, 
   return result;
 }
 
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v.empty() ? 0 : v.size() % 2 ? v[v.size() / 2] : (v[v.size() / 2 - 1] + v[v.size() / 2]) / 2;
-}
-
 }  // namespace
 
 json run_progress(const std::string& mjcf, double duration_s, double round_s, int calls) {

@@ -110,7 +110,7 @@ json deployment(const std::string& mjcf, int components, bool streams, bool dds)
   return d;
 }
 
-struct Phase {
+struct StreamPhase {
   double realtime_factor = 0;
   double cpu_s = 0;        // the gateway's threads
   double wall_s = 0;
@@ -124,7 +124,7 @@ struct Phase {
 
 // One gateway for `duration_s`; with streams, the client reads them all, then times `calls`
 // sync calls.
-Phase run_phase(const std::string& mjcf, int components, bool streams, bool dds, double duration_s, int calls) {
+StreamPhase run_phase(const std::string& mjcf, int components, bool streams, bool dds, double duration_s, int calls) {
   namespace gw = simgate::gateway;
   const gw::Deployment d = gw::parse_deployment(deployment(mjcf, components, streams, dds), ".");
   auto registry = sim::builtin_registry();
@@ -133,7 +133,7 @@ Phase run_phase(const std::string& mjcf, int components, bool streams, bool dds,
   gateway.start();
   const std::uint16_t socket_port = port_of(gateway, "socket"), jsonrpc_port = port_of(gateway, "jsonrpc");
 
-  Phase phase;
+  StreamPhase phase;
   std::string error;
   double client_cpu = 0;
   double cpu0 = 0, cpu1 = 0;
@@ -233,11 +233,11 @@ Phase run_phase(const std::string& mjcf, int components, bool streams, bool dds,
 
 json run_streams(const std::string& mjcf, double duration_s, int components, int calls, bool dds) {
   log::set_level(log::Level::warning);
-  const Phase baseline = run_phase(mjcf, components, false, dds, duration_s, 0);
-  const Phase streams = run_phase(mjcf, components, true, dds, duration_s, calls);
+  const StreamPhase baseline = run_phase(mjcf, components, false, dds, duration_s, 0);
+  const StreamPhase streams = run_phase(mjcf, components, true, dds, duration_s, calls);
   // the latency of one stream alone: in the run above the socket transport's one I/O thread
   // writes 50 connections in turn after each step, and the later ones wait for the earlier
-  const Phase single = run_phase(mjcf, 1, true, false, duration_s, calls);
+  const StreamPhase single = run_phase(mjcf, 1, true, false, duration_s, calls);
   const double extra_cpu = streams.cpu_s - baseline.cpu_s;
   const std::uint64_t delivered = streams.socket_lines + streams.jsonrpc_samples;
   std::vector<std::string> transports = {"socket", "jsonrpc"};

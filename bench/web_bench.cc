@@ -132,7 +132,7 @@ class WebSocketClient {
   std::string buffer_;  // received, not yet handed out
 };
 
-struct Phase : RealtimePhase {
+struct WebPhase : RealtimePhase {
   std::vector<std::uint64_t> samples;    // rpc.sample messages read, per client
   std::uint64_t bytes = 0;               // their payloads' bytes
 };
@@ -166,7 +166,7 @@ json run_web_poses(const std::string& config, int clients, double frequency, dou
   const std::uint16_t port = endpoint_port(gateway.endpoints().at(websocket).at(0));
   const double timestep = gateway.simulation().timestep();
 
-  Phase without, with;
+  WebPhase without, with;
   std::uint64_t bodies = 0;
   std::string error;
   std::thread client([&] {
@@ -222,7 +222,7 @@ json run_web_poses(const std::string& config, int clients, double frequency, dou
   if (!error.empty()) throw std::runtime_error(error);
   std::uint64_t total = 0, fewest = with.samples.empty() ? 0 : with.samples[0], most = 0;
   for (std::uint64_t n : with.samples) total += n, fewest = std::min(fewest, n), most = std::max(most, n);
-  auto phase_json = [](const Phase& p) {
+  auto phase_json = [](const WebPhase& p) {
     return json{{"wall_s", p.wall_s}, {"realtime_factor", p.realtime_factor}, {"gateway_cpu_per_s", p.cpu_s / p.wall_s}};
   };
   return {{"mode", "web_poses"},

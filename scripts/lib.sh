@@ -6,7 +6,7 @@ SIMGATE_ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 # Debian 12 packages: what building and running the simulation needs (scripts/run), and
 # what the test suite and benchmarks need on top (scripts/test).
 SIMGATE_RUNTIME_PACKAGES=(
-  build-essential cmake ninja-build pkg-config
+  build-essential cmake ninja-build pkg-config ccache
   libboost-dev libcli11-dev nlohmann-json3-dev libeigen3-dev libmujoco-dev libtinyxml2-dev
   cyclonedds-dev cyclonedds-tools
   libegl-dev libegl1 libgl1-mesa-dri zlib1g-dev
@@ -20,6 +20,8 @@ SIMGATE_TEST_PACKAGES=(
   clang-14 libclang-rt-14-dev llvm-14
   chromium
 )
+# ccache: the compiler launcher when present (cmake/SimgateBuildSpeed.cmake, docs/building.md):
+# a rebuild of the same sources, in this clone or another, takes its objects from the cache
 # cameras (sim/src/renderer.cc, image_codec.cc): libegl-dev to build against EGL (headers,
 # libEGL.so; MuJoCo's own GL loader finds the GL functions through the EGL the process has
 # loaded), libegl1 and libgl1-mesa-dri for Mesa's EGL and its llvmpipe renderer (no
@@ -72,7 +74,49 @@ ensure_node_modules() {
   done < <(find "$SIMGATE_ROOT/tests" "$SIMGATE_ROOT/bench" -name package.json -not -path '*/node_modules/*' 2>/dev/null)
 }
 
-# configure_and_build BUILD_DIR [cmake args...] [-- targets...]
+# ---- timings: every stage of a run timed (scripts/test prints them; docs/building.md)
+SIMGATE_STAGES=()        # "name seconds", in order
+# timed NAME COMMAND...: runs COMMAND, records how long it took under NAME (also when it
+# fails), returns its status
+timed() {
+  local name=$1 start status=0; shift
+  start=$(date +%s.%N)
+  "$@" || status=$?
+  SIMGATE_STAGES+=("$name $(awk -v s="$start" -v e="$(date +%s.%N)" 'BEGIN {printf "%.1f", e - s}')")
+  return $status
+}
+# print_timings LABEL: one line with every stage and the total; appended to
+# $SIMGATE_TIMINGS_FILE too when it is set (.ci/run sums its stages from it)
+print_timings() {
+  local line="$1:" total=0 stage name seconds
+  for stage in "${SIMGATE_STAGES[@]}"; do
+    name=${stage% *} seconds=${stage##* }
+    line+=" $name ${seconds} s,"
+    total=$(awk -v t="$total" -v s="$seconds" 'BEGIN {printf "%.1f", t + s}')
+  done
+  line+=" total ${total} s"
+  log "timings $line"
+  [ -z "${SIMGATE_TIMINGS_FILE:-}" ] || echo "$line" >>"$SIMGATE_TIMINGS_FILE"
+}
+# slowest_build_steps BUILD_DIR [N]: the N slowest steps (compiles, links) of the last
+# configure_and_build of BUILD_DIR, from ninja's log (outputs written since it started)
+slowest_build_steps() {
+  local log=$1/.ninja_log
+  [ -f "$log" ] || return 0
+  awk -F'\t' -v since="${SIMGATE_BUILD_STARTED_NS:-0}" '!/^#/ && $3 >= since {printf "%8.1f s  %s\n", ($2 - $1) / 1000, $4}' "$log" |
+    sort -rn | head -n "${2:-15}"
+}
+
+# slowest_tests [N]: in a build directory after ctest, the N tests that took longest (ctest's
+# cost data: each test's mean time over its runs in this build directory)
+slowest_tests() {
+  local costs=Testing/Temporary/CTestCostData.txt
+  [ -f "$costs" ] || return 0
+  awk '/^---/ {exit} NF == 3 {printf "%8.1f s  %s\n", $3, $1}' "$costs" | sort -rn | head -n "${1:-15}"
+}
+
+# configure_and_build BUILD_DIR [cmake args...] [-- targets...]: the stages "configure"
+# (only when the build directory is new or arguments are given) and "build"
 configure_and_build() {
   local build_dir=$1 args=() targets=(); shift
   while [ $# -gt 0 ]; do
@@ -80,11 +124,12 @@ configure_and_build() {
     args+=("$1"); shift
   done
   if [ ! -f "$build_dir/build.ninja" ]; then
-    cmake -S "$SIMGATE_ROOT" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo "${args[@]}" >/dev/null
+    timed configure cmake -S "$SIMGATE_ROOT" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo "${args[@]}" >/dev/null
   elif [ ${#args[@]} -gt 0 ]; then
-    cmake "$build_dir" "${args[@]}" >/dev/null
+    timed configure cmake "$build_dir" "${args[@]}" >/dev/null
   fi
-  cmake --build "$build_dir" ${targets[@]+--target "${targets[@]}"}
+  SIMGATE_BUILD_STARTED_NS=$(date +%s%N)
+  timed build cmake --build "$build_dir" ${targets[@]+--target "${targets[@]}"}
 }
 
 # After a failed ctest run in the build directory: when every failed test failed without a

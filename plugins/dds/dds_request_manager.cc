@@ -24,7 +24,7 @@ constexpr dds_attach_t k_token_guard = -2;
 constexpr dds_attach_t k_token_request_matched = -3;
 
 // How many requests one dds_take returns at most.
-constexpr int k_take_batch = 32;
+constexpr int k_request_take_batch = 32;
 
 // Unknown "component.service" names remembered (as sync) before the cache is trimmed.
 constexpr std::size_t k_max_cached_names = 4096;
@@ -43,12 +43,6 @@ bool is_zero(const ClientId& id) {
 }
 
 std::string dump(const json& value) { return value.dump(-1, ' ', false, json::error_handler_t::replace); }
-
-// Throws std::runtime_error when a Cyclone call returned an error.
-dds_entity_t check(dds_entity_t rc, const std::string& what) {
-  if (rc < 0) throw std::runtime_error("DDS transport: cannot create " + what + ": " + retcode_text(rc));
-  return rc;
-}
 
 }  // namespace
 
@@ -103,24 +97,24 @@ void DdsRequestManager::create_entities() {
   // publisher and subscriber in our partition
   QosPtr partition_qos(dds_create_qos());
   dds_qset_partition1(partition_qos.get(), options_.partition.c_str());
-  publisher_ = check(dds_create_publisher(pp, partition_qos.get(), nullptr), "publisher");
-  subscriber_ = check(dds_create_subscriber(pp, partition_qos.get(), nullptr), "subscriber");
+  publisher_ = check_created(dds_create_publisher(pp, partition_qos.get(), nullptr), "publisher");
+  subscriber_ = check_created(dds_create_subscriber(pp, partition_qos.get(), nullptr), "subscriber");
 
   dds_entity_t request_topic =
-      check(dds_create_topic(pp, &simgate_Request_desc, k_request_topic, nullptr, nullptr), "topic simgate_Request");
-  dds_entity_t catalog_topic = check(
+      check_created(dds_create_topic(pp, &simgate_Request_desc, k_request_topic, nullptr, nullptr), "topic simgate_Request");
+  dds_entity_t catalog_topic = check_created(
       dds_create_topic(pp, &simgate_CatalogEntry_desc, k_catalog_topic, nullptr, nullptr), "topic simgate_Catalog");
 
   // requests: reliable, keep-all, volatile, bounded (writers block when we fall behind)
   QosPtr request_qos = make_qos(false, 0, DDS_SECS(1));
   dds_qset_resource_limits(request_qos.get(), options_.max_samples, DDS_LENGTH_UNLIMITED, DDS_LENGTH_UNLIMITED);
-  request_reader_ = check(dds_create_reader(subscriber_, request_topic, request_qos.get(), nullptr), "request reader");
+  request_reader_ = check_created(dds_create_reader(subscriber_, request_topic, request_qos.get(), nullptr), "request reader");
 
   // replies, one writer per client (add_client): reliable, keep-all, volatile, and never
   // blocking: a reader that stops acknowledging fills its own writer's history (up to
   // Cyclone's WHC high-water mark), after which writes to it fail at once (TIMEOUT) instead of
   // holding the DDS thread, and its replies are parked, retried, then dropped
-  reply_topic_ = check(dds_create_topic(pp, &simgate_Reply_desc, k_reply_topic, nullptr, nullptr), "topic simgate_Reply");
+  reply_topic_ = check_created(dds_create_topic(pp, &simgate_Reply_desc, k_reply_topic, nullptr, nullptr), "topic simgate_Reply");
   reply_qos_ = make_qos(false, 0, 0);
   dds_qset_resource_limits(reply_qos_.get(), options_.max_samples * 4, DDS_LENGTH_UNLIMITED, DDS_LENGTH_UNLIMITED);
   dds_qset_writer_data_lifecycle(reply_qos_.get(), false);
@@ -130,7 +124,7 @@ void DdsRequestManager::create_entities() {
   // progress reports, one writer per client that asks (ensure_progress_writer): best effort,
   // the last report only: never blocking, never lingering when deleted, and a reader that
   // takes nothing loses old reports and holds up no reply
-  progress_topic_ = check(dds_create_topic(pp, &simgate_Reply_desc, k_progress_topic, nullptr, nullptr),
+  progress_topic_ = check_created(dds_create_topic(pp, &simgate_Reply_desc, k_progress_topic, nullptr, nullptr),
                           "topic simgate_Progress");
   progress_qos_ = make_qos(false, 1, 0);
   dds_qset_reliability(progress_qos_.get(), DDS_RELIABILITY_BEST_EFFORT, 0);
@@ -140,7 +134,7 @@ void DdsRequestManager::create_entities() {
   // replies' images, raw (send_images), one writer per client beside its reply writer:
   // reliable, keep-all, never blocking (a write the writer cannot take leaves the image's PNG
   // in the reply), in the client's partition; only a client with a reader on it gets them
-  image_topic_ = check(dds_create_topic(pp, &simgate_stream_Image_desc, k_reply_image_topic, nullptr, nullptr),
+  image_topic_ = check_created(dds_create_topic(pp, &simgate_stream_Image_desc, k_reply_image_topic, nullptr, nullptr),
                        "topic simgate_ReplyImage");
   image_qos_ = make_qos(false, 0, 0);
   dds_qset_resource_limits(image_qos_.get(), options_.max_samples, DDS_LENGTH_UNLIMITED, DDS_LENGTH_UNLIMITED);
@@ -149,16 +143,16 @@ void DdsRequestManager::create_entities() {
 
   // catalog: the last sample of each component, kept for late joiners
   QosPtr catalog_qos = make_qos(true, 1, DDS_SECS(1));
-  catalog_writer_ = check(dds_create_writer(publisher_, catalog_topic, catalog_qos.get(), nullptr), "catalog writer");
+  catalog_writer_ = check_created(dds_create_writer(publisher_, catalog_topic, catalog_qos.get(), nullptr), "catalog writer");
 
   // the waitset of the DDS thread
-  waitset_ = check(dds_create_waitset(pp), "waitset");
-  guard_ = check(dds_create_guardcondition(pp), "guard condition");
-  read_condition_ = check(dds_create_readcondition(request_reader_, DDS_ANY_STATE), "read condition");
+  waitset_ = check_created(dds_create_waitset(pp), "waitset");
+  guard_ = check_created(dds_create_guardcondition(pp), "guard condition");
+  read_condition_ = check_created(dds_create_readcondition(request_reader_, DDS_ANY_STATE), "read condition");
   dds_set_status_mask(request_reader_, DDS_SUBSCRIPTION_MATCHED_STATUS);
-  check(dds_waitset_attach(waitset_, read_condition_, k_token_requests), "waitset attachment");
-  check(dds_waitset_attach(waitset_, guard_, k_token_guard), "waitset attachment");
-  check(dds_waitset_attach(waitset_, request_reader_, k_token_request_matched), "waitset attachment");
+  check_created(dds_waitset_attach(waitset_, read_condition_, k_token_requests), "waitset attachment");
+  check_created(dds_waitset_attach(waitset_, guard_, k_token_guard), "waitset attachment");
+  check_created(dds_waitset_attach(waitset_, request_reader_, k_token_request_matched), "waitset attachment");
 }
 
 std::vector<std::string> DdsRequestManager::endpoints() const {
@@ -359,11 +353,11 @@ bool DdsRequestManager::lookup_async(const std::string& component, const std::st
 }
 
 void DdsRequestManager::take_requests() {
-  void* samples[k_take_batch];
-  dds_sample_info_t infos[k_take_batch];
+  void* samples[k_request_take_batch];
+  dds_sample_info_t infos[k_request_take_batch];
   for (;;) {
     samples[0] = nullptr;
-    dds_return_t n = dds_take(request_reader_, samples, infos, k_take_batch, k_take_batch);
+    dds_return_t n = dds_take(request_reader_, samples, infos, k_request_take_batch, k_request_take_batch);
     if (n <= 0) {
       if (n < 0) log::error("DDS transport: taking requests failed: ", retcode_text(n));
       return;
@@ -379,7 +373,7 @@ void DdsRequestManager::take_requests() {
     dds_return_loan(request_reader_, samples, n);
     // the calls of this take, run here when the simulation lock is free
     run_batch();
-    if (n < k_take_batch) return;
+    if (n < k_request_take_batch) return;
   }
 }
 

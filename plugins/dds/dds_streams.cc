@@ -18,12 +18,7 @@ namespace {
 // cover its scheduling hiccups; older ones are dropped (counted by the hub), never waited for.
 constexpr std::size_t k_subscription_capacity = 8;
 // Commands one dds_take returns at most.
-constexpr int k_take_batch = 16;
-
-dds_entity_t check(dds_entity_t rc, const std::string& what) {
-  if (rc < 0) throw std::runtime_error("DDS transport: cannot create " + what + ": " + retcode_text(rc));
-  return rc;
-}
+constexpr int k_command_take_batch = 16;
 
 void triple(const json& data, const char* key, double (&out)[3]) {
   const json& values = data.at(key);
@@ -136,15 +131,17 @@ dds_return_t write_image_payload(dds_entity_t writer, const std::string& compone
   return dds_write(writer, &image);
 }
 
-namespace {
-
-// The type of an output stream's topic, by its kind.
+// The type of an output stream's topic, by its kind. (Not in the anonymous namespace: the
+// type of a member of DdsStreams::Output.)
 struct OutputType {
   const char* kind;                          // StreamDeclaration::kind
   const dds_topic_descriptor_t* descriptor;  // the IDL type
   WriteFn write;                             // null: JsonSample
   bool small = false;                        // fixed-size and small: may be written directly
 };
+
+namespace {
+
 constexpr OutputType k_output_types[] = {
     {"pose", &simgate_stream_Pose_desc, write_pose, true},
     {"odometry", &simgate_stream_Odometry_desc, write_odometry, true},
@@ -196,11 +193,11 @@ DdsStreams::DdsStreams(std::shared_ptr<StreamHub> hub, std::string transport, dd
                        bool direct_writes)
     : hub_(std::move(hub)), transport_(std::move(transport)), participant_(participant), publisher_(publisher),
       subscriber_(subscriber), waitset_(waitset), server_id_(std::move(server_id)), direct_writes_(direct_writes) {
-  guard_ = check(dds_create_guardcondition(participant_), "guard condition (streams)");
-  check(dds_waitset_attach(waitset_, guard_, k_token_samples), "waitset attachment (streams)");
+  guard_ = check_created(dds_create_guardcondition(participant_), "guard condition (streams)");
+  check_created(dds_waitset_attach(waitset_, guard_, k_token_samples), "waitset attachment (streams)");
   // the catalog: the last entry of each topic, kept for late joiners
   QosPtr catalog_qos = make_qos(true, 1, DDS_SECS(1));
-  catalog_writer_ = check(dds_create_writer(publisher_, topic(k_streams_topic, &simgate_stream_StreamEntry_desc),
+  catalog_writer_ = check_created(dds_create_writer(publisher_, topic(k_streams_topic, &simgate_stream_StreamEntry_desc),
                                             catalog_qos.get(), nullptr),
                           "writer simgate_Streams");
 }
@@ -212,7 +209,7 @@ DdsStreams::~DdsStreams() {
 dds_entity_t DdsStreams::topic(const std::string& name, const dds_topic_descriptor_t* descriptor) {
   auto it = topics_.find(name);
   if (it != topics_.end()) return it->second;
-  dds_entity_t created = check(dds_create_topic(participant_, descriptor, name.c_str(), nullptr, nullptr), "topic " + name);
+  dds_entity_t created = check_created(dds_create_topic(participant_, descriptor, name.c_str(), nullptr, nullptr), "topic " + name);
   topics_.emplace(name, created);
   return created;
 }
@@ -257,13 +254,13 @@ void DdsStreams::add_output(const StreamInfo& info) {
   // sensors: best effort, the latest sample only, volatile (no history for late joiners)
   QosPtr qos = make_qos(false, 1, 0);
   dds_qset_reliability(qos.get(), DDS_RELIABILITY_BEST_EFFORT, 0);
-  output->writer = check(dds_create_writer(publisher_, topic(output->topic, output->type->descriptor), qos.get(), nullptr),
+  output->writer = check_created(dds_create_writer(publisher_, topic(output->topic, output->type->descriptor), qos.get(), nullptr),
                          "writer " + output->topic);
   if (info.pushed) {
     // a pushed stream (a camera's) costs its component work while subscribed: subscribed to
     // only while the writer has a matched reader (update_matches)
-    check(dds_set_status_mask(output->writer, DDS_PUBLICATION_MATCHED_STATUS), "status mask " + output->topic);
-    check(dds_waitset_attach(waitset_, output->writer, k_token_matched), "waitset attachment " + output->topic);
+    check_created(dds_set_status_mask(output->writer, DDS_PUBLICATION_MATCHED_STATUS), "status mask " + output->topic);
+    check_created(dds_waitset_attach(waitset_, output->writer, k_token_matched), "waitset attachment " + output->topic);
     write_entry(info, output->topic, output->type->descriptor->m_typename);
     Output& added = *outputs_.emplace(info.component, std::move(output)).first->second;
     dds_publication_matched_status_t status;
@@ -313,9 +310,9 @@ void DdsStreams::update_matches() {
 dds_entity_t DdsStreams::add_reader(const std::string& name, const dds_topic_descriptor_t* descriptor) {
   // commands: reliable, the latest only (the hub keeps only the latest anyway), volatile
   QosPtr qos = make_qos(false, 1, 0);
-  dds_entity_t reader = check(dds_create_reader(subscriber_, topic(name, descriptor), qos.get(), nullptr), "reader " + name);
-  dds_entity_t condition = check(dds_create_readcondition(reader, DDS_ANY_STATE), "read condition " + name);
-  check(dds_waitset_attach(waitset_, condition, k_token_commands), "waitset attachment " + name);
+  dds_entity_t reader = check_created(dds_create_reader(subscriber_, topic(name, descriptor), qos.get(), nullptr), "reader " + name);
+  dds_entity_t condition = check_created(dds_create_readcondition(reader, DDS_ANY_STATE), "read condition " + name);
+  check_created(dds_waitset_attach(waitset_, condition, k_token_commands), "waitset attachment " + name);
   return reader;
 }
 
@@ -423,9 +420,9 @@ void DdsStreams::take_commands() {
 }
 
 void DdsStreams::take(Input& input, dds_entity_t reader, bool typed) {
-  void* samples[k_take_batch] = {};
-  dds_sample_info_t infos[k_take_batch];
-  dds_return_t n = dds_take(reader, samples, infos, k_take_batch, k_take_batch);
+  void* samples[k_command_take_batch] = {};
+  dds_sample_info_t infos[k_command_take_batch];
+  dds_return_t n = dds_take(reader, samples, infos, k_command_take_batch, k_command_take_batch);
   for (dds_return_t i = 0; i < n; ++i) {
     if (!infos[i].valid_data) continue;
     json command;

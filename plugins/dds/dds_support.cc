@@ -65,6 +65,11 @@ std::string retcode_text(dds_return_t rc) {
   return std::string(dds_strretcode(rc)) + " (" + std::to_string(rc) + ")";
 }
 
+dds_entity_t check_created(dds_entity_t rc, const std::string& what) {
+  if (rc < 0) throw std::runtime_error("DDS transport: cannot create " + what + ": " + retcode_text(rc));
+  return rc;
+}
+
 const char* resolve_config(const std::string& config) {
   if (config.empty()) return k_loopback_xml;
   if (config == "env") {

@@ -56,6 +56,10 @@ std::optional<ClientId> client_id_from_userdata(const dds_qos_t* qos);
 // "DDS_RETCODE_TIMEOUT (-10)".
 std::string retcode_text(dds_return_t rc);
 
+// `rc`, an entity Cyclone created; throws std::runtime_error ("DDS transport: cannot create
+// <what>: <retcode>") when it is an error instead.
+dds_entity_t check_created(dds_entity_t rc, const std::string& what);
+
 // Resolves the "config" option: "" -> the loopback XML; "env" -> the value of CYCLONEDDS_URI,
 // or "" (Cyclone's defaults) when it is not set; anything else (XML text or file:// URI) is
 // passed through. (dds_create_domain() itself never reads CYCLONEDDS_URI: given nothing, it

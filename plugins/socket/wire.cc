@@ -10,22 +10,22 @@ namespace simgate::socket {
 namespace {
 
 // The bytes that separate tokens: ' ', '\t', '\r', '\f', '\v' (a table: one load per byte).
-constexpr std::array<bool, 256> k_blank = [] {
+constexpr std::array<bool, 256> k_blank_in_line = [] {
   std::array<bool, 256> t{};
   for (unsigned char c : {' ', '\t', '\r', '\f', '\v'}) t[c] = true;
   return t;
 }();
 
-bool is_blank(char c) { return k_blank[static_cast<unsigned char>(c)]; }
+bool is_blank_in_line(char c) { return k_blank_in_line[static_cast<unsigned char>(c)]; }
 
 std::size_t skip_blanks(std::string_view line, std::size_t pos) {
-  while (pos < line.size() && is_blank(line[pos])) ++pos;
+  while (pos < line.size() && is_blank_in_line(line[pos])) ++pos;
   return pos;
 }
 
 // The end of the token starting at `pos`; ORs its bytes into `bytes` (bit 7 set: not ASCII).
 std::size_t token_end(std::string_view line, std::size_t pos, unsigned& bytes) {
-  while (pos < line.size() && !is_blank(line[pos])) bytes |= static_cast<unsigned char>(line[pos++]);
+  while (pos < line.size() && !is_blank_in_line(line[pos])) bytes |= static_cast<unsigned char>(line[pos++]);
   return pos;
 }
 
@@ -207,10 +207,10 @@ std::optional<std::string_view> parse_auth_line(std::string_view line) {
   constexpr std::string_view k_auth = "auth";
   const std::size_t start = skip_blanks(line, 0);
   std::string_view rest = line.substr(start);
-  if (rest.substr(0, k_auth.size()) != k_auth || rest.size() <= k_auth.size() || !is_blank(rest[k_auth.size()]))
+  if (rest.substr(0, k_auth.size()) != k_auth || rest.size() <= k_auth.size() || !is_blank_in_line(rest[k_auth.size()]))
     return std::nullopt;
   std::string_view token = rest.substr(skip_blanks(rest, k_auth.size()));
-  while (!token.empty() && is_blank(token.back())) token.remove_suffix(1);
+  while (!token.empty() && is_blank_in_line(token.back())) token.remove_suffix(1);
   return token;
 }
 
@@ -260,7 +260,7 @@ RequestLine parse_request_line(std::string_view line) {
   // the parameters: the rest of the line without surrounding blanks
   const std::size_t p_begin = skip_blanks(line, s_end);
   std::size_t p_end = line.size();
-  while (p_end > p_begin && is_blank(line[p_end - 1])) --p_end;
+  while (p_end > p_begin && is_blank_in_line(line[p_end - 1])) --p_end;
   r.params = line.substr(p_begin, p_end - p_begin);
   r.params_column = p_begin + 1;
   r.kind = RequestLine::Kind::call;

@@ -5,18 +5,11 @@
 #include <cstdio>
 
 #include "simgate/sim/sim_component.h"
+#include "helpers.h"
 
 namespace simgate::sim {
 
 namespace {
-std::string number(double x) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%g", x);
-  return text;
-}
-
-bool same(double a, double b) { return std::abs(a - b) <= 1e-9 * std::max(std::abs(a), std::abs(b)); }
-
 const mjtNum* gain_of(const mjModel* m, int a) { return m->actuator_gainprm + a * mjNGAIN; }
 const mjtNum* bias_of(const mjModel* m, int a) { return m->actuator_biasprm + a * mjNBIAS; }
 

@@ -7,16 +7,11 @@
 #include "simgate/sim/actuator_kind.h"
 #include "simgate/sim/actuators_sensors.h"
 #include "simgate/sim/bounds.h"
+#include "helpers.h"
 
 namespace simgate::sim {
 
 namespace {
-std::string join(const std::vector<std::string>& items) {
-  std::string out;
-  for (const auto& i : items) out += (out.empty() ? "" : ", ") + i;
-  return out;
-}
-
 std::string quoted(const std::string& s) { return "'" + s + "'"; }
 
 // "an actuator", "a sensor"

@@ -5,12 +5,9 @@
 #include "simgate/core/log.h"
 #include "simgate/sim/bounds.h"
 #include "simgate/sim/components.h"
+#include "helpers.h"
 
 namespace simgate::sim {
-
-namespace {
-double wrap_angle(double a) { return std::remainder(a, 2 * M_PI); }
-}  // namespace
 
 // ---- motion_vw -------------------------------------------------------------------------------
 

@@ -9,16 +9,11 @@
 #include "simgate/core/errors.h"
 #include "simgate/sim/bounds.h"
 #include "simgate/sim/supervision.h"
+#include "helpers.h"
 
 namespace simgate::sim {
 
 namespace {
-
-std::string number(double x) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%g", x);
-  return text;
-}
 
 // "rotation" or "translation", as MORSE's services name the two kinds of motion
 std::string motion_word(JointKind kind) { return kind == JointKind::prismatic ? "translation" : "rotation"; }

@@ -12,6 +12,7 @@
 #include "simgate/core/errors.h"
 #include "simgate/sim/armature.h"
 #include "simgate/sim/bounds.h"
+#include "helpers.h"
 
 namespace simgate::sim {
 
@@ -20,21 +21,9 @@ namespace {
 // Longest trajectory, and farthest start ahead of now: simulated seconds (11.6 days).
 constexpr double k_max_duration = 1e6;
 
-std::string number(double x) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%g", x);
-  return text;
-}
-
 [[noreturn]] void refuse(const std::string& where, const std::string& message) {
   throw ServiceError(where + ": " + message, Failure::bad_arguments,
                      {{"parameter", "trajectory"}, {"where", where}});
-}
-
-std::string join(const std::vector<std::string>& items) {
-  std::string out;
-  for (const auto& i : items) out += (out.empty() ? "" : ", ") + i;
-  return out;
 }
 
 // The array at `key` of `object` (points[i].positions...): `expected_size` finite numbers;

@@ -5,17 +5,12 @@
 #include <string>
 
 #include "simgate/core/errors.h"
+#include "helpers.h"
 
 namespace simgate::sim::bounds {
 
 namespace {
 // %g: "1e+300", "0.5", "nan", "inf" — the value as the client sent it, whatever it is
-std::string number(double x) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%g", x);
-  return text;
-}
-
 std::string with_unit(const std::string& text, std::string_view unit) {
   return unit.empty() ? text : text + " " + std::string(unit);
 }

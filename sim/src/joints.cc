@@ -6,24 +6,13 @@
 
 #include "simgate/core/errors.h"
 #include "simgate/core/suggest.h"
+#include "helpers.h"
 
 namespace simgate::sim {
 
 namespace {
 
-// "; did you mean 'x'?" or ""
-std::string suggestion(const std::string& word, const std::vector<std::string>& candidates) {
-  auto match = closest_match(word, candidates);
-  return match ? "; did you mean '" + *match + "'?" : "";
-}
-
 bool is_armature_joint_type(int type) { return type == mjJNT_HINGE || type == mjJNT_SLIDE; }
-
-std::string join(const std::vector<std::string>& items) {
-  std::string out;
-  for (const auto& i : items) out += (out.empty() ? "" : ", ") + i;
-  return out;
-}
 
 std::string_view type_name(int type) {
   switch (type) {
@@ -36,8 +25,6 @@ std::string_view type_name(int type) {
 
 // numbers per actuator in mjModel::actuator_gear (MuJoCo 2.2.2 names no constant for it)
 constexpr int k_gear_size = 6;
-
-bool same(double a, double b) { return std::abs(a - b) <= 1e-9 * std::max(std::abs(a), std::abs(b)); }
 
 ArmatureJoint describe(const mjModel* m, int j) {
   ArmatureJoint out;
@@ -61,7 +48,6 @@ ArmatureJoint describe(const mjModel* m, int j) {
   }
   return out;
 }
-
 }  // namespace
 
 std::string_view to_string(JointKind kind) { return kind == JointKind::prismatic ? "prismatic" : "revolute"; }
@@ -160,5 +146,4 @@ std::size_t JointSet::index_of(const std::string& name, std::string_view paramet
                          join(valid) + ")",
                      Failure::bad_arguments, {{"parameter", std::string(parameter)}});
 }
-
 }  // namespace simgate::sim

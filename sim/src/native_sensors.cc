@@ -6,13 +6,11 @@
 
 #include "simgate/core/errors.h"
 #include "simgate/sim/bounds.h"
+#include "helpers.h"
 
 namespace simgate::sim {
 
 namespace {
-// An angle brought into [-pi, pi].
-double wrap_angle(double a) { return std::remainder(a, 2 * M_PI); }
-
 std::string join_names(const std::vector<std::string>& names, std::size_t at_most) {
   std::string out;
   for (std::size_t i = 0; i < names.size() && i < at_most; ++i) out += (i ? ", " : "") + names[i];

@@ -2,23 +2,12 @@
 
 #include "simgate/core/errors.h"
 #include "simgate/core/suggest.h"
+#include "helpers.h"
 
 namespace simgate::sim {
 
 namespace {
 std::string kind_name(Kind kind) { return kind == Kind::robot ? "robot" : "component"; }
-
-// "; did you mean 'x'?" or ""
-std::string suggestion(const std::string& word, const std::vector<std::string>& candidates) {
-  auto match = closest_match(word, candidates);
-  return match ? "; did you mean '" + *match + "'?" : "";
-}
-
-std::string join(const std::vector<std::string>& items) {
-  std::string out;
-  for (const auto& i : items) out += (out.empty() ? "" : ", ") + i;
-  return out;
-}
 }  // namespace
 
 void ComponentContext::fail(const std::string& where, const std::string& message) const {
@@ -106,7 +95,6 @@ std::unique_ptr<SimComponent> ComponentRegistry::create(Kind kind, const Compone
   component->add_object_services(std::move(configuration), body, robot ? robot->body() : body);
   return component;
 }
-
 
 
 }  // namespace simgate::sim

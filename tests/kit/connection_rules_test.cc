@@ -39,7 +39,7 @@ TEST(PeerCountsTest, ZeroMeansNoLimit) {
   EXPECT_EQ(counts.refusal_reason(remote), "");
 }
 
-struct FakeConnection {
+struct TimedConnection {
   std::uint32_t idle = 0, silent = 0;
   std::size_t owed = 0;
   std::string name;
@@ -52,9 +52,9 @@ struct FakeConnection {
 };
 
 TEST(MakeRoomTest, ClosesTheConnectionIdleLongestOnceIdleLongEnough) {
-  std::vector<std::shared_ptr<FakeConnection>> all = {std::make_shared<FakeConnection>(FakeConnection{3, 3, 0, "a", ""}),
-                                                      std::make_shared<FakeConnection>(FakeConnection{7, 7, 0, "b", ""}),
-                                                      std::make_shared<FakeConnection>(FakeConnection{0, 9, 1, "c", ""})};
+  std::vector<std::shared_ptr<TimedConnection>> all = {std::make_shared<TimedConnection>(TimedConnection{3, 3, 0, "a", ""}),
+                                                      std::make_shared<TimedConnection>(TimedConnection{7, 7, 0, "b", ""}),
+                                                      std::make_shared<TimedConnection>(TimedConnection{0, 9, 1, "c", ""})};
   EXPECT_FALSE(make_room(all, 10, "test", 3));  // none idle (or silent) for 10 sweeps
   EXPECT_TRUE(make_room(all, 5, "test", 3));
   EXPECT_EQ(all[1]->closed_for, "idle while the server was full");
@@ -63,8 +63,8 @@ TEST(MakeRoomTest, ClosesTheConnectionIdleLongestOnceIdleLongEnough) {
 }
 
 TEST(MakeRoomTest, FailingAnIdleOneTheOneSilentLongestWhileItWaits) {
-  std::vector<std::shared_ptr<FakeConnection>> all = {std::make_shared<FakeConnection>(FakeConnection{0, 2, 1, "a", ""}),
-                                                      std::make_shared<FakeConnection>(FakeConnection{0, 8, 1, "b", ""})};
+  std::vector<std::shared_ptr<TimedConnection>> all = {std::make_shared<TimedConnection>(TimedConnection{0, 2, 1, "a", ""}),
+                                                      std::make_shared<TimedConnection>(TimedConnection{0, 8, 1, "b", ""})};
   EXPECT_TRUE(make_room(all, 4, "test", 2));
   EXPECT_EQ(all[1]->closed_for, "silent while the server was full");
   EXPECT_EQ(sweep_ticks(std::chrono::milliseconds(1)), 1u);

@@ -162,13 +162,13 @@ TEST(IdleSpinTest, TheWatchedSocketIsHandedBackBeforeTheThreadSleeps) {
 // ---- DirectReads: the watched connection
 
 // A connection whose reads are scripted: each read_now() takes the next answer.
-struct FakeConnection {
+struct ScriptedReadConnection {
   std::vector<bool> waiting;  // read_now() answers, in order (then: nothing waiting)
   std::size_t reads = 0;      // read_now() calls
   int async_reads = 0;        // read_async() calls
   bool is_closed = false;
-  DirectReads<FakeConnection>* rewatch = nullptr;  // watched again after a read, as a session is
-  std::shared_ptr<FakeConnection> self;
+  DirectReads<ScriptedReadConnection>* rewatch = nullptr;  // watched again after a read, as a session is
+  std::shared_ptr<ScriptedReadConnection> self;
 
   bool read_now() {
     const bool got = reads < waiting.size() && waiting[reads];
@@ -180,17 +180,17 @@ struct FakeConnection {
   bool closed() const { return is_closed; }
 };
 
-std::shared_ptr<FakeConnection> fake_connection(std::vector<bool> waiting) {
-  auto c = std::make_shared<FakeConnection>();
+std::shared_ptr<ScriptedReadConnection> scripted_read_connection(std::vector<bool> waiting) {
+  auto c = std::make_shared<ScriptedReadConnection>();
   c->waiting = std::move(waiting);
   c->self = c;  // the test breaks the cycle
   return c;
 }
 
 TEST(DirectReadsTest, PollsTheWatchedConnectionUntilParked) {
-  DirectReads<FakeConnection> direct;
+  DirectReads<ScriptedReadConnection> direct;
   EXPECT_EQ(direct.poll(), 0u);  // nothing watched
-  auto c = fake_connection({false, true, false});
+  auto c = scripted_read_connection({false, true, false});
   c->rewatch = &direct;
   direct.watch(c);
   EXPECT_EQ(direct.poll(), 0u);  // nothing waiting: still watched
@@ -208,9 +208,9 @@ TEST(DirectReadsTest, PollsTheWatchedConnectionUntilParked) {
 }
 
 TEST(DirectReadsTest, AClosedConnectionIsDroppedAndAnotherParksThePrevious) {
-  DirectReads<FakeConnection> direct;
-  auto first = fake_connection({});
-  auto second = fake_connection({});
+  DirectReads<ScriptedReadConnection> direct;
+  auto first = scripted_read_connection({});
+  auto second = scripted_read_connection({});
   direct.watch(first);
   direct.watch(second);  // the first waits through the event loop again
   EXPECT_EQ(first->async_reads, 1);

@@ -13,8 +13,8 @@ using testing::ArmatureSim;
 using testing::message;
 using ::testing::HasSubstr;
 
-constexpr double k_nan = std::numeric_limits<double>::quiet_NaN();
-constexpr double k_inf = std::numeric_limits<double>::infinity();
+using testing::k_nan;
+using testing::k_inf;
 
 class ArmatureTest : public ArmatureSim {
  protected:

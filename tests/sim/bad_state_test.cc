@@ -20,7 +20,7 @@ namespace {
 using testing::DemoSim;
 using ::testing::HasSubstr;
 
-constexpr double k_nan = std::numeric_limits<double>::quiet_NaN();
+using testing::k_nan;
 
 // Counts the resets it is told about.
 class ResetProbe : public SimComponent {

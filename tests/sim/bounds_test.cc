@@ -14,8 +14,8 @@ namespace {
 using testing::DemoSim;
 using ::testing::HasSubstr;
 
-constexpr double k_nan = std::numeric_limits<double>::quiet_NaN();
-constexpr double k_inf = std::numeric_limits<double>::infinity();
+using testing::k_nan;
+using testing::k_inf;
 
 class SimBoundsTest : public DemoSim {
  protected:

@@ -20,20 +20,20 @@ using testing::DecodedPng;
 using testing::decode_base64;
 using testing::decode_png;
 
-const std::string k_scene = simgate::testing::red_box_scene("camera-raw-test", "0.01", "10", /*eye_site=*/true);
-
-constexpr double k_face = 1.7;                          // m from the rig to the box's near face
-constexpr auto k_deadline = std::chrono::seconds(60);  // bounds every wait on the render thread
+const std::string k_camera_raw_scene = simgate::testing::red_box_scene("camera-raw-test", "0.01", "10", /*eye_site=*/true);
+using simgate::testing::is_red;
+using simgate::testing::k_render_deadline;
+using simgate::testing::k_red_box_face;
 
 class CameraRawTest : public testing::MjcfSim {
  protected:
   void SetUp() override {
-    load_string(k_scene);
+    load_string(k_camera_raw_scene);
     robot_ = &add_robot("rig", "rig");
   }
 
-  // Steps (and serves) until `id` has its outcome, at most k_deadline of wall time.
-  Outcome wait_for(RequestId id) { return step_until_outcome(id, k_deadline); }
+  // Steps (and serves) until `id` has its outcome, at most k_render_deadline of wall time.
+  Outcome wait_for(RequestId id) { return step_until_outcome(id, k_render_deadline); }
   Outcome raw(const std::string& service, json params = json::array()) {
     return wait_for(rm_->call_raw("rig.camera", service, std::move(params)));
   }
@@ -43,8 +43,6 @@ class CameraRawTest : public testing::MjcfSim {
 
   Robot* robot_ = nullptr;
 };
-
-bool is_red(const std::uint8_t* p) { return p[0] > 100 && p[0] > 3 * p[1] && p[0] > 3 * p[2]; }
 
 // A 64x48 video record taken raw: no image, "format": "raw", the rest as the PNG record's;
 // its attachment the red box's pixels, whose to_json makes the PNG record of those pixels.
@@ -152,7 +150,7 @@ TEST_F(CameraRawTest, ADepthRecordTakenRawKeepsItsDepthsAndItsPngComesOnDemand) 
   ASSERT_EQ(pixels.bytes.size(), 160u * 120 * sizeof(float));
   float middle;
   std::memcpy(&middle, &pixels.bytes[(60 * 160 + 80) * sizeof(float)], sizeof middle);
-  EXPECT_NEAR(middle, k_face, 0.005);
+  EXPECT_NEAR(middle, k_red_box_face, 0.005);
   // the PNG record on demand: the same record with its 16-bit PNG
   json full = pixels.to_json(pixels);
   EXPECT_EQ(full["format"], "png");

@@ -5,9 +5,20 @@
 #ifndef SIMGATE_TESTS_SIM_CAMERA_SCENE_H_
 #define SIMGATE_TESTS_SIM_CAMERA_SCENE_H_
 
+#include <array>
+#include <chrono>
+#include <cstdint>
 #include <string>
 
 namespace simgate::testing {
+
+constexpr double k_red_box_face = 1.7;  // m from the rig to the box's near face
+// bounds every wait on the render thread
+constexpr auto k_render_deadline = std::chrono::seconds(60);
+
+// A pixel of the red box (RGB, 0-255).
+inline bool is_red(const std::array<int, 3>& p) { return p[0] > 100 && p[0] > 3 * p[1] && p[0] > 3 * p[2]; }
+inline bool is_red(const std::uint8_t* p) { return is_red({p[0], p[1], p[2]}); }
 
 inline std::string red_box_scene(const std::string& model, const std::string& timestep, const std::string& floor_half,
                                  bool eye_site) {

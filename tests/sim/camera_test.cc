@@ -28,21 +28,20 @@ using testing::decode_base64;
 
 // A rig 0.5 m above a grey floor, looking along +x (MJCF camera "front", and site "eye"
 // for a frame camera); a red box whose near face is at x = 1.7 m, centred on the axis.
-const std::string k_scene = simgate::testing::red_box_scene("camera-test", "0.01", "10", /*eye_site=*/true);
-
-constexpr double k_face = 1.7;  // m from the rig to the box's near face
-// bounds every wait on the render thread
-constexpr auto k_deadline = std::chrono::seconds(60);
+const std::string k_camera_scene = simgate::testing::red_box_scene("camera-test", "0.01", "10", /*eye_site=*/true);
+using simgate::testing::is_red;
+using simgate::testing::k_render_deadline;
+using simgate::testing::k_red_box_face;
 
 class CameraTest : public testing::MjcfSim {
  protected:
   void SetUp() override {
-    load_string(k_scene);
+    load_string(k_camera_scene);
     robot_ = &add_robot("rig", "rig");
   }
 
-  // Steps (and serves) until `id` has its outcome, at most k_deadline of wall time.
-  Outcome wait_for(RequestId id) { return step_until_outcome(id, k_deadline); }
+  // Steps (and serves) until `id` has its outcome, at most k_render_deadline of wall time.
+  Outcome wait_for(RequestId id) { return step_until_outcome(id, k_render_deadline); }
   json image_of(const std::string& component) {
     Outcome o = wait_for(rm_->call(component, "get_image"));
     EXPECT_EQ(o.status, Status::success) << o.message;
@@ -57,10 +56,10 @@ class CameraTest : public testing::MjcfSim {
   }
   Camera& camera() { return dynamic_cast<Camera&>(*sim_->find("rig.camera")->component); }
   // Steps (sleeping a little, so that the render thread keeps up) until `sub` has `n`
-  // samples, or k_deadline; returns those it got.
+  // samples, or k_render_deadline; returns those it got.
   std::vector<SamplePtr> samples_of(StreamSubscription& sub, std::size_t n) {
     std::vector<SamplePtr> out;
-    const auto deadline = std::chrono::steady_clock::now() + k_deadline;
+    const auto deadline = std::chrono::steady_clock::now() + k_render_deadline;
     while (out.size() < n && std::chrono::steady_clock::now() < deadline) {
       sim_->process_requests();
       sim_->step();
@@ -95,8 +94,6 @@ int gray16_at(const DecodedPng& png, int x, int y) {
   const std::size_t i = (static_cast<std::size_t>(y) * png.width + x) * 2;
   return (png.pixels[i] << 8) | png.pixels[i + 1];
 }
-
-bool is_red(const std::array<int, 3>& p) { return p[0] > 100 && p[0] > 3 * p[1] && p[0] > 3 * p[2]; }
 
 TEST_F(CameraTest, RedBoxInFrontIsRedInTheMiddle) {
   add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 320}, {"cam_height", 240}});
@@ -161,7 +158,7 @@ TEST_F(CameraTest, DepthOfTheBoxFaceIsItsDistance) {
   ASSERT_TRUE(png.error.empty()) << png.error;
   EXPECT_EQ(png.bit_depth, 16);
   EXPECT_EQ(png.colour_type, 0);
-  EXPECT_NEAR(gray16_at(png, 80, 60), k_face * 1000, 5);
+  EXPECT_NEAR(gray16_at(png, 80, 60), k_red_box_face * 1000, 5);
   // the nearest hit is the floor at the bottom row: 0.5 m below, 22.5° down (fovy 45°) at
   // the image's edge; within the bottom row's pixel (MuJoCo's multisampling resolves a
   // pixel's depth to one of its samples)
@@ -488,12 +485,12 @@ TEST_F(CameraTest, TheDepthStreamGivesMetresAsFloatsAndTheMillimetrePngOnAsking)
   ASSERT_EQ(p.bytes.size(), 40u * 30 * 4);
   float middle = 0;
   std::memcpy(&middle, p.bytes.data() + (15 * 40 + 20) * 4, sizeof middle);
-  EXPECT_NEAR(middle, k_face, 0.01);
+  EXPECT_NEAR(middle, k_red_box_face, 0.01);
   const json& record = samples[0]->data();
   EXPECT_EQ(record["encoding"], "mono16");
   const DecodedPng png = decode_png(decode_base64(record["image"].get<std::string>()));
   ASSERT_TRUE(png.error.empty()) << png.error;
-  EXPECT_NEAR(gray16_at(png, 20, 15), k_face * 1000, 10);
+  EXPECT_NEAR(gray16_at(png, 20, 15), k_red_box_face * 1000, 10);
 }
 
 TEST_F(CameraTest, WithoutASubscriberTheStreamRendersNothing) {
@@ -567,7 +564,7 @@ TEST_F(CameraTest, PrintsTheTimeOfA320x240Render) {
     });
   }
   std::unique_lock lock(mutex);
-  ASSERT_TRUE(cv.wait_for(lock, k_deadline, [&] { return done == k_frames; }));
+  ASSERT_TRUE(cv.wait_for(lock, k_render_deadline, [&] { return done == k_frames; }));
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   std::printf("[ measure  ] 320x240 render + readPixels (llvmpipe): %.2f ms per frame over %d frames\n",
               ms / k_frames, k_frames);

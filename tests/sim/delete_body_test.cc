@@ -21,7 +21,7 @@ namespace {
 
 // A table (with a lamp on a hinge, a tendon, a motor, sensors and an equality that refer to
 // them) and a ball come BEFORE the robot: deleting the table moves every id of the robot.
-constexpr const char* k_scene = R"(<mujoco model="delete-test">
+constexpr const char* k_delete_body_scene = R"(<mujoco model="delete-test">
   <option timestep="0.002" integrator="implicit"/>
   <worldbody>
     <geom name="floor" type="plane" size="20 20 0.1"/>
@@ -76,7 +76,7 @@ constexpr const char* k_scene = R"(<mujoco model="delete-test">
 
 class SimDeleteBodyTest : public ::testing::Test {
  protected:
-  void SetUp() override { build(k_scene); }
+  void SetUp() override { build(k_delete_body_scene); }
   void TearDown() override {
     rm_.reset();
     sim_.reset();
@@ -252,7 +252,7 @@ TEST_F(SimDeleteBodyTest, WhatAComponentUsesIsRefused) {
 }
 
 TEST_F(SimDeleteBodyTest, KeyframesAndIncludedBodiesAreRefused) {
-  std::string keyed = k_scene;
+  std::string keyed = k_delete_body_scene;
   keyed.replace(keyed.rfind("</mujoco>"), 9, "<keyframe><key name='start' time='0'/></keyframe></mujoco>");
   build(keyed);
   expect_refused("table", "keyframes");
@@ -261,7 +261,7 @@ TEST_F(SimDeleteBodyTest, KeyframesAndIncludedBodiesAreRefused) {
   std::filesystem::create_directories(dir);
   std::ofstream(dir / "objects.xml") << R"(<mujoco><body name="box" pos="1 1 0.2"><freejoint/>
       <geom type="box" size="0.1 0.1 0.1" mass="1"/></body></mujoco>)";
-  std::string including = k_scene;
+  std::string including = k_delete_body_scene;
   including.replace(including.find("<worldbody>") + 11, 0, "<include file='objects.xml'/>");
   std::ofstream(dir / "scene.xml") << including;
   build("", (dir / "scene.xml").string());

@@ -8,14 +8,14 @@
 namespace simgate::sim {
 namespace {
 
-constexpr const char* k_scene = R"(<mujoco><option timestep="0.01"/><worldbody>
+constexpr const char* k_loop_scene = R"(<mujoco><option timestep="0.01"/><worldbody>
   <body name="ball" pos="0 0 1"><freejoint/><geom type="sphere" size=".1"/></body>
 </worldbody></mujoco>)";
 
 class SimLoopTest : public ::testing::Test {
  protected:
   void start(double timestep, double factor) {
-    sim_ = std::make_unique<Simulation>(Model::load_string(k_scene), SimulationOptions{timestep, factor});
+    sim_ = std::make_unique<Simulation>(Model::load_string(k_loop_scene), SimulationOptions{timestep, factor});
     sim_->add_supervision_services();
     rm_ = std::make_shared<testing::RecordingManager>();
     for (auto& e : sim_->components()) rm_->register_component(*e->component);
@@ -150,7 +150,7 @@ class StepProbe : public Component {
 };
 
 TEST(SimLoopLockTest, ServicesNeverRunDuringAStepWhicheverThreadRunsThem) {
-  auto sim = std::make_unique<Simulation>(Model::load_string(k_scene), SimulationOptions{0.001, 0.0});
+  auto sim = std::make_unique<Simulation>(Model::load_string(k_loop_scene), SimulationOptions{0.001, 0.0});
   auto& probe = static_cast<StepProbe&>(*sim->add_component(std::make_unique<StepProbe>(), "probe").component);
   auto rm = std::make_shared<testing::RecordingManager>();
   rm->register_component(probe);
@@ -174,8 +174,8 @@ TEST(SimLoopLockTest, ServicesNeverRunDuringAStepWhicheverThreadRunsThem) {
 }
 
 TEST(SimLoopOptionsTest, InvalidPacingIsRejected) {
-  EXPECT_THROW(Simulation(Model::load_string(k_scene), SimulationOptions{std::nullopt, -1.0}), std::invalid_argument);
-  EXPECT_THROW(Simulation(Model::load_string(k_scene), SimulationOptions{0.0, 1.0}), std::invalid_argument);
+  EXPECT_THROW(Simulation(Model::load_string(k_loop_scene), SimulationOptions{std::nullopt, -1.0}), std::invalid_argument);
+  EXPECT_THROW(Simulation(Model::load_string(k_loop_scene), SimulationOptions{0.0, 1.0}), std::invalid_argument);
 }
 
 }  // namespace

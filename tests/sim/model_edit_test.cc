@@ -13,7 +13,7 @@
 namespace simgate::sim {
 namespace {
 
-constexpr const char* k_ball = R"(<body name="ignored" euler="0 0 90"><freejoint/>
+constexpr const char* k_edit_ball = R"(<body name="ignored" euler="0 0 90"><freejoint/>
   <geom type="sphere" size="0.1" mass="1"/></body>)";
 
 // One spawned entity of `model`'s scene: `fragment` as `name` at `pose`.
@@ -37,7 +37,7 @@ TEST(ModelEditTest, BodyFragmentIsNamedAndPlaced) {
   EntityPose pose;
   pose.position = {1, 2, 0.5};
   pose.orientation = std::array<double, 4>{0, 0, 0, 1};
-  const std::string sections = entity_sections(k_ball, "ball", pose);
+  const std::string sections = entity_sections(k_edit_ball, "ball", pose);
   EXPECT_NE(sections.find("<worldbody><body name=\"ball\""), std::string::npos) << sections;
   EXPECT_NE(sections.find("pos=\"1 2 0.5\""), std::string::npos) << sections;
   EXPECT_NE(sections.find("quat=\"0 0 0 1\""), std::string::npos) << sections;
@@ -46,7 +46,7 @@ TEST(ModelEditTest, BodyFragmentIsNamedAndPlaced) {
 }
 
 TEST(ModelEditTest, WithoutOrientationTheFragmentKeepsItsOwn) {
-  const std::string sections = entity_sections(k_ball, "ball", {});
+  const std::string sections = entity_sections(k_edit_ball, "ball", {});
   EXPECT_NE(sections.find("euler=\"0 0 90\""), std::string::npos) << sections;
 }
 
@@ -80,7 +80,7 @@ TEST(ModelEditTest, BadFragmentsAreRefusedNamingTheReason) {
 
 TEST(ModelEditTest, SpawnedEntityComesAfterTheSceneWhoseIdsStay) {
   Model scene = Model::load_file(testing::demo_scene());
-  Model spawned = compile_scene(scene.scene(), {entity("ball", k_ball)}, true);
+  Model spawned = compile_scene(scene.scene(), {entity("ball", k_edit_ball)}, true);
   const mjModel* before = scene.model();
   const mjModel* after = spawned.model();
   // every object of the scene keeps its id and name
@@ -118,7 +118,7 @@ TEST(ModelEditTest, AKeyframeSceneTakesAnEntityItsKeysPaddedWithTheEntitysInitia
   </mujoco>)");
   EntityPose pose;
   pose.position = {7, 8, 9};
-  Model spawned = compile_scene(scene.scene(), {entity("ball", k_ball, pose)}, true);
+  Model spawned = compile_scene(scene.scene(), {entity("ball", k_edit_ball, pose)}, true);
   const mjModel* m = spawned.model();
   ASSERT_EQ(m->nkey, 2);
   ASSERT_EQ(m->nq, 1 + 7);
@@ -137,7 +137,7 @@ TEST(ModelEditTest, AKeyframeSceneTakesAnEntityItsKeysPaddedWithTheEntitysInitia
   for (int i = 0; i < m->nq; ++i) EXPECT_EQ(m->key_qpos[m->nq + i], m->qpos0[i]) << "qpos " << i;
 
   // a second entity after the first, and back to the scene alone
-  Model two = compile_scene(scene.scene(), {spawned.entities()[0], entity("other", k_ball)}, true);
+  Model two = compile_scene(scene.scene(), {spawned.entities()[0], entity("other", k_edit_ball)}, true);
   EXPECT_EQ(two.model()->nq, 1 + 7 + 7);
   EXPECT_EQ(two.model()->key_qpos[0], 0.5);
   Model alone = compile_scene(scene.scene(), {}, false);
@@ -161,9 +161,9 @@ TEST(ModelEditTest, StateOfTheSceneAndOfSurvivingEntitiesIsCarriedAcross) {
   EntityPose at_a, at_b;
   at_a.position = {1, 0, 1};
   at_b.position = {0, 1, 1};
-  Model two = compile_scene(scene.scene(), {entity("a", k_ball, at_a)}, true);
+  Model two = compile_scene(scene.scene(), {entity("a", k_edit_ball, at_a)}, true);
   std::vector<SpawnedEntity> with_b = two.entities();
-  with_b.push_back(entity("b", k_ball, at_b));
+  with_b.push_back(entity("b", k_edit_ball, at_b));
   two = compile_scene(scene.scene(), with_b, true);
   // a moved state: the robot, and b
   mjData* d = two.data();
@@ -198,7 +198,7 @@ TEST(ModelEditTest, SceneRelativeIncludesResolveAndTheSceneDirectoryIsNotWritten
   Model scene = Model::load_file((dir / "scene.xml").string());
   // the file changes after loading: recompilations start from the text first read
   std::ofstream(dir / "scene.xml") << "<mujoco/>";
-  Model spawned = compile_scene(scene.scene(), {entity("ball", k_ball)}, true);
+  Model spawned = compile_scene(scene.scene(), {entity("ball", k_edit_ball)}, true);
   EXPECT_GE(spawned.body_id("part"), 0);
   EXPECT_GE(spawned.body_id("ball"), 0);
   EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir), std::filesystem::directory_iterator()), 2);

@@ -12,7 +12,7 @@ using Components = std::vector<std::string>;
 
 // an arm (hinges, a position servo, a touch sensor), a body with only a sensor, a free box,
 // an unnamed body with a slide joint, bodies whose names need care
-constexpr const char* k_scene = R"(
+constexpr const char* k_model_robots_scene = R"(
 <mujoco>
   <worldbody>
     <body name="arm.v2" pos="0 0 1">
@@ -55,7 +55,7 @@ constexpr const char* k_scene = R"(
 </mujoco>)";
 
 TEST(ModelRobotsTest, EachTopLevelBodyWithJointsActuatorsOrSensorsIsARobot) {
-  Model model = Model::load_string(k_scene);
+  Model model = Model::load_string(k_model_robots_scene);
   std::vector<ModelRobot> robots = find_model_robots(model);
   ASSERT_EQ(robots.size(), 5u);
   // '.' would split component names: replaced by '_'

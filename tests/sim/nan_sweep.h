@@ -27,7 +27,6 @@
 
 namespace simgate::sim::testing {
 
-inline constexpr double k_inf = std::numeric_limits<double>::infinity();
 // What no service may accept for a number: not a number, infinities, and magnitudes far
 // beyond every bound of bounds.h (which MuJoCo's own checks would only catch at 1e10).
 inline const double k_bad_values[] = {std::numeric_limits<double>::quiet_NaN(), k_inf, -k_inf, 1e300, -1e300};

@@ -19,7 +19,7 @@ using ::testing::HasSubstr;
 // Inner faces of the walls: x = 3 (east, y from -5 to 5), y = 2 (north, x from -5 to 5).
 // The robot's laser site sits at the world's z axis, 0.2 m up, inside the chassis; the mast
 // (a second body of the robot) crosses the rays between about 35° and 75°.
-constexpr const char* k_scene = R"(
+constexpr const char* k_native_sensors_scene = R"(
 <mujoco model="native-sensors-test">
   <option timestep="0.002"/>
   <worldbody>
@@ -54,8 +54,8 @@ constexpr const char* k_scene = R"(
 </mujoco>
 )";
 
-constexpr double k_nan = std::numeric_limits<double>::quiet_NaN();
-constexpr double k_inf = std::numeric_limits<double>::infinity();
+using testing::k_nan;
+using testing::k_inf;
 constexpr double k_g = 9.81;
 
 // What the robot's laser must read along `degrees` (from the x axis of a sensor turned by
@@ -77,7 +77,7 @@ double wall_distance(double degrees, double x0 = 0, double y0 = 0, double yaw = 
 class NativeSensorsTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    sim_ = std::make_unique<Simulation>(Model::load_string(k_scene, "native-sensors-test.xml"),
+    sim_ = std::make_unique<Simulation>(Model::load_string(k_native_sensors_scene, "native-sensors-test.xml"),
                                         SimulationOptions{std::nullopt, 0.0});
     robot_ = add_robot("robot");
     turntable_ = add_robot("turntable");

@@ -11,7 +11,7 @@ using ::testing::HasSubstr;
 
 class ObjectServicesTest : public DemoSim {};
 
-std::string message(const Outcome& o) { return o.value.value_or(json()).get<std::string>(); }
+std::string answer_text(const Outcome& o) { return o.value.value_or(json()).get<std::string>(); }
 
 TEST_F(ObjectServicesTest, EveryComponentAnswersTheThreeServices) {
   for (const auto& e : sim_->components()) {
@@ -46,17 +46,17 @@ TEST_F(ObjectServicesTest, SetPropertyChangesWhatTheComponentUses) {
 TEST_F(ObjectServicesTest, SetPropertyRefusesUnknownReadOnlyAndOutOfRangeValues) {
   Outcome unknown = call("robot.waypoint", "set_property", {"max_speed", 1.0});
   EXPECT_EQ(unknown.status, Status::failed);
-  EXPECT_THAT(message(unknown), HasSubstr("no property 'max_speed' in robot.waypoint (properties: max_angular_speed, "
+  EXPECT_THAT(answer_text(unknown), HasSubstr("no property 'max_speed' in robot.waypoint (properties: max_angular_speed, "
                                            "heading_gain, target, tolerance, speed)"));
   Outcome read_only = call("robot.waypoint", "set_property", {"target", json::array({1, 2, 3})});
   EXPECT_EQ(read_only.status, Status::failed);
-  EXPECT_THAT(message(read_only), HasSubstr("read-only (settable: max_angular_speed, heading_gain)"));
+  EXPECT_THAT(answer_text(read_only), HasSubstr("read-only (settable: max_angular_speed, heading_gain)"));
   for (json bad : {json(std::nan("")), json(1e300), json(-1.0), json("fast")}) {
     Outcome o = call("robot.waypoint", "set_property", {"heading_gain", bad});
     EXPECT_EQ(o.status, Status::failed) << bad;
   }
   EXPECT_EQ(call("robot.waypoint", "get_properties").value->at("properties")["heading_gain"], 2.0);
-  EXPECT_THAT(message(call("robot.pose", "set_property", {"x", 1.0})), HasSubstr("(it has none)"));
+  EXPECT_THAT(answer_text(call("robot.pose", "set_property", {"x", 1.0})), HasSubstr("(it has none)"));
 }
 
 TEST_F(ObjectServicesTest, GetConfigurationsSaysHowItWasMadeAndWhereItSitsOnTheRobot) {

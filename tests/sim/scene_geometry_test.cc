@@ -25,7 +25,7 @@ namespace {
 
 // One geom of each drawable kind. "top" takes its material's colour (its own rgba is left at
 // MuJoCo's default); "tetra" has a material too but an rgba of its own, which wins.
-constexpr const char* k_scene = R"(<mujoco model="geometry">
+constexpr const char* k_geometry_scene = R"(<mujoco model="geometry">
   <option timestep="0.002"/>
   <asset>
     <material name="blue" rgba="0 0 1 1"/>
@@ -72,7 +72,7 @@ class SimSceneGeometryTest : public testing::MjcfSim {
 };
 
 TEST_F(SimSceneGeometryTest, DescribesEveryBodyAndGeomOfTheModel) {
-  start(k_scene);
+  start(k_geometry_scene);
   const json g = geometry();
   EXPECT_EQ(g["generation"], 0);
   EXPECT_EQ(g["timestamp"].get<double>(), sim_->state_time());
@@ -123,7 +123,7 @@ TEST_F(SimSceneGeometryTest, DescribesEveryBodyAndGeomOfTheModel) {
 // (MuJoCo moves them to the mesh's centre of mass and principal axes when it compiles), they
 // are the points the MJCF wrote. Faces index the mesh's own vertices from 0.
 TEST_F(SimSceneGeometryTest, MeshVerticesPlacedByTheGeomAreThePointsTheMjcfWrote) {
-  start(k_scene);
+  start(k_geometry_scene);
   const json g = geometry();
   ASSERT_EQ(g["meshes"].size(), 1u);
   const json mesh = g["meshes"][0];
@@ -159,7 +159,7 @@ TEST_F(SimSceneGeometryTest, MeshVerticesPlacedByTheGeomAreThePointsTheMjcfWrote
 }
 
 TEST_F(SimSceneGeometryTest, IncludeMeshesFalseLeavesTheMeshesOut) {
-  start(k_scene);
+  start(k_geometry_scene);
   for (const json& params : {json{{"include_meshes", false}}, json::array({false})}) {
     const json g = geometry(params);
     EXPECT_EQ(g["meshes"], json::array()) << params.dump();
@@ -173,7 +173,7 @@ TEST_F(SimSceneGeometryTest, IncludeMeshesFalseLeavesTheMeshesOut) {
 }
 
 TEST_F(SimSceneGeometryTest, BodiesPosesAreTheCurrentOnes) {
-  start(k_scene);
+  start(k_geometry_scene);
   const int ball = sim_->model().body_id("ball");
   const double z0 = geometry()["bodies"][ball]["pos"][2];
   EXPECT_NEAR(z0, 2.0, 1e-9);
@@ -223,7 +223,7 @@ TEST_F(SimSceneGeometryTest, SampleModelsAreDescribedWhole) {
 }
 
 TEST_F(SimSceneGeometryTest, BodyPosesSamplesAreEveryBodysWorldPose) {
-  start(k_scene);
+  start(k_geometry_scene);
   ComponentEntry* simulation = sim_->find("simulation");
   ASSERT_NE(simulation, nullptr);
   ASSERT_NE(simulation->component->stream(), nullptr);
@@ -263,7 +263,7 @@ TEST_F(SimSceneGeometryTest, BodyPosesSamplesAreEveryBodysWorldPose) {
 // The meshes and heightfields are written once per model (SceneGeometryCache): repeated
 // answers are equal, and equal to the answer written without the cache.
 TEST_F(SimSceneGeometryTest, RepeatedCallsGiveEqualMeshesWrittenOnce) {
-  start(k_scene);
+  start(k_geometry_scene);
   SceneGeometryCache cache;
   const json uncached = scene_geometry(*sim_, true);
   const json first = scene_geometry(*sim_, true, &cache);

@@ -10,6 +10,8 @@
 #include <cmath>
 #include <condition_variable>
 #include <map>
+#include <cstring>
+#include <limits>
 #include <vector>
 #include <mutex>
 
@@ -19,6 +21,14 @@
 #include "simgate/sim/simulation.h"
 
 namespace simgate::sim::testing {
+
+constexpr double k_nan = std::numeric_limits<double>::quiet_NaN();
+constexpr double k_inf = std::numeric_limits<double>::infinity();
+
+// a and b hold the same numbers, bit for bit
+inline bool same_bits(const std::vector<mjtNum>& a, const std::vector<mjtNum>& b) {
+  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(mjtNum)) == 0;
+}
 
 class RecordingManager : public RequestManager {
  public:

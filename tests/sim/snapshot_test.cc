@@ -22,21 +22,21 @@ using testing::decode_base64;
 using testing::decode_png;
 
 // A red box 1.7 m in front of MJCF camera "front", on a grey floor.
-const std::string k_scene = simgate::testing::red_box_scene("snapshot-test", "0.01", "3", /*eye_site=*/false);
-
-constexpr auto k_deadline = std::chrono::seconds(60);  // bounds every wait on the render thread
+const std::string k_snapshot_scene = simgate::testing::red_box_scene("snapshot-test", "0.01", "3", /*eye_site=*/false);
+using simgate::testing::is_red;
+using simgate::testing::k_render_deadline;
 
 class SnapshotTest : public testing::MjcfSim {
  protected:
   void SetUp() override {
-    load_string(k_scene);
+    load_string(k_snapshot_scene);
     add_robot("rig", "rig");
     serve();
   }
 
-  // Calls get_snapshot and serves (stepping) until it is answered, at most k_deadline.
+  // Calls get_snapshot and serves (stepping) until it is answered, at most k_render_deadline.
   Outcome snapshot(json params) {
-    return step_until_outcome(rm_->call("simulation", "get_snapshot", std::move(params)), k_deadline);
+    return step_until_outcome(rm_->call("simulation", "get_snapshot", std::move(params)), k_render_deadline);
   }
   DecodedPng png_of(const Outcome& o) {
     EXPECT_EQ(o.status, Status::success) << o.message;
@@ -54,7 +54,6 @@ std::array<int, 3> rgb_at(const DecodedPng& png, int x, int y) {
   const std::size_t i = (static_cast<std::size_t>(y) * png.width + x) * 3;
   return {png.pixels[i], png.pixels[i + 1], png.pixels[i + 2]};
 }
-bool is_red(const std::array<int, 3>& p) { return p[0] > 100 && p[0] > 3 * p[1] && p[0] > 3 * p[2]; }
 
 TEST_F(SnapshotTest, FreeViewHasTheAskedSizeAndShowsTheScene) {
   const auto started = std::chrono::steady_clock::now();
@@ -135,7 +134,7 @@ TEST_F(SnapshotTest, IsListedWithItsParameters) {
 }
 
 TEST(SnapshotFreeView, LooksAtTheSceneFromTheChosenAngleAndFramesIt) {
-  const Model model = Model::load_string(k_scene, "test.xml");
+  const Model model = Model::load_string(k_snapshot_scene, "test.xml");
   const mjModel* m = model.model();
   const Framing f = frame_scene(m, model.data());
   // the floor plane and the invisible rig are left out: the box is the red cube's (at x = 2 m)

@@ -15,7 +15,7 @@
 namespace simgate::sim {
 namespace {
 
-constexpr const char* k_ball = R"(<body><freejoint/><geom type="sphere" size="0.1" mass="1"/></body>)";
+constexpr const char* k_spawn_ball = R"(<body><freejoint/><geom type="sphere" size="0.1" mass="1"/></body>)";
 
 class SimSpawnTest : public testing::DemoSim {
  protected:
@@ -31,7 +31,7 @@ class SimSpawnTest : public testing::DemoSim {
     }
     return o;
   }
-  Outcome spawn(const std::string& name, json pose = {1.0, 1.0, 0.5}, const std::string& mjcf = k_ball) {
+  Outcome spawn(const std::string& name, json pose = {1.0, 1.0, 0.5}, const std::string& mjcf = k_spawn_ball) {
     return finish(rm_->call("simulation", "spawn_entity", {name, mjcf, std::move(pose)}));
   }
   Outcome remove(const std::string& name) { return finish(rm_->call("simulation", "delete_entity", {name})); }
@@ -80,7 +80,7 @@ TEST_F(SimSpawnTest, ASpawnWhilePausedCompletesWithoutAStep) {
   ASSERT_EQ(call("simulation", "pause").status, Status::success);
   const std::uint64_t steps = sim_->steps();
   const double time = sim_->sim_time();
-  auto o = answer_without_stepping(rm_->call("simulation", "spawn_entity", {"ball", k_ball, {1.0, 1.0, 0.5}}));
+  auto o = answer_without_stepping(rm_->call("simulation", "spawn_entity", {"ball", k_spawn_ball, {1.0, 1.0, 0.5}}));
   ASSERT_TRUE(o.has_value()) << "spawn_entity not answered while paused";
   EXPECT_EQ(o->status, Status::success) << o->message;
   EXPECT_EQ(sim_->steps(), steps);
@@ -146,8 +146,8 @@ TEST_F(SimSpawnTest, RespawnAfterDeleteReusesTheName) {
 }
 
 TEST_F(SimSpawnTest, SecondChangeWhileOneCompilesFails) {
-  RequestId first = rm_->call("simulation", "spawn_entity", {"a", k_ball, {1.0, 0.0, 0.5}});
-  RequestId second = rm_->call("simulation", "spawn_entity", {"b", k_ball, {2.0, 0.0, 0.5}});
+  RequestId first = rm_->call("simulation", "spawn_entity", {"a", k_spawn_ball, {1.0, 0.0, 0.5}});
+  RequestId second = rm_->call("simulation", "spawn_entity", {"b", k_spawn_ball, {2.0, 0.0, 0.5}});
   RequestId third = rm_->call("simulation", "delete_entity", {"a"});
   sim_->process_requests();
   for (RequestId id : {second, third}) {
@@ -166,7 +166,7 @@ TEST_F(SimSpawnTest, CancelledSpawnLeavesTheWorldUnchanged) {
   // the cancel goes with the request, in the same turn: a worker that compiled before a
   // later turn would have its model swapped in first (the turn's run_soon tasks come before
   // its requests), and the spawn would succeed (seen once on a loaded machine)
-  RequestId id = rm_->call("simulation", "spawn_entity", {"ball", k_ball, {1.0, 0.0, 0.5}});
+  RequestId id = rm_->call("simulation", "spawn_entity", {"ball", k_spawn_ball, {1.0, 0.0, 0.5}});
   rm_->cancel(id);
   Outcome o = finish(id);
   EXPECT_EQ(o.status, Status::preempted);
@@ -260,9 +260,9 @@ class SimSpawnFileTest : public ::testing::Test {
   void SetUp() override {
     root_ = std::filesystem::temp_directory_path() / ("simgate_spawn_files_" + std::to_string(::getpid()));
     std::filesystem::create_directories(root_ / "allowed");
-    std::ofstream(root_ / "allowed" / "ball.xml") << k_ball;
+    std::ofstream(root_ / "allowed" / "ball.xml") << k_spawn_ball;
     std::ofstream(root_ / "allowed" / "broken.xml") << "<body><geom type='sphere' size='0.1'></body";
-    std::ofstream(root_ / "outside.xml") << k_ball;
+    std::ofstream(root_ / "outside.xml") << k_spawn_ball;
     std::filesystem::create_symlink(root_ / "outside.xml", root_ / "allowed" / "link.xml");
     SimulationOptions options{std::nullopt, 0.0};
     options.spawn_allowed_dirs = {std::filesystem::canonical(root_ / "allowed").string()};

@@ -258,9 +258,7 @@ class LockstepRun : public SimPausedTest {
   void finish() { TearDown(); }
 };
 
-bool same_bits(const std::vector<mjtNum>& a, const std::vector<mjtNum>& b) {
-  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(mjtNum)) == 0;
-}
+using testing::same_bits;
 
 TEST(SimLockstepTest, TheSameRequestsAndStepsGiveBitIdenticalStates) {
   std::vector<Trace> traces;

@@ -12,9 +12,7 @@ using ::testing::HasSubstr;
 
 std::vector<mjtNum> copy(const mjtNum* v, int n) { return {v, v + n}; }
 
-bool same_bits(const std::vector<mjtNum>& a, const std::vector<mjtNum>& b) {
-  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(mjtNum)) == 0;
-}
+using testing::same_bits;
 
 class SimWorldStateTest : public testing::DemoSim {
  protected:

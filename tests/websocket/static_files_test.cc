@@ -32,8 +32,6 @@ namespace {
 namespace fs = std::filesystem;
 using jsonrpc_test::TestHost;
 
-std::string plugin_path() { return std::string(SIMGATE_TEST_PLUGIN_DIR) + "/libsimgate_transport_websocket.so"; }
-
 // One HTTP exchange: `request` written whole, the answer read until the server closes.
 std::string http_exchange(std::uint16_t port, const std::string& request) {
   boost::asio::io_context io;

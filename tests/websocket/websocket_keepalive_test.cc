@@ -19,14 +19,13 @@
 
 #include "simgate/core/plugin_loader.h"
 #include "test_services.h"
+#include "ws_test_client.h"
 
 namespace simgate::websocket_test {
 namespace {
 
 using jsonrpc_test::TestHost;
 using boost::asio::ip::tcp;
-
-std::string plugin_path() { return std::string(SIMGATE_TEST_PLUGIN_DIR) + "/libsimgate_transport_websocket.so"; }
 
 // A WebSocket client on a raw socket: the upgrade, then frames read and written one by one.
 class RawWsClient {
@@ -90,7 +89,6 @@ class RawWsClient {
   std::string buffer_;  // read, not yet taken
 };
 
-constexpr std::uint8_t k_text = 0x1, k_ping = 0x9, k_pong = 0xa;
 
 TEST(WebSocketKeepAlive, ASilentClientIsPingedThenDropped) {
   TestHost host(json{{"keepalive_s", 0.5}}, plugin_path());

@@ -30,8 +30,6 @@ namespace {
 using jsonrpc_test::TestHost;
 namespace ws = boost::beast::websocket;
 
-std::string plugin_path() { return std::string(SIMGATE_TEST_PLUGIN_DIR) + "/libsimgate_transport_websocket.so"; }
-
 json request(const json& id, const std::string& method, json params = nullptr) {
   json r{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}};
   if (!params.is_null()) r["params"] = std::move(params);
@@ -415,7 +413,6 @@ class RawWs {
   boost::system::error_code ec_;
 };
 
-constexpr std::uint8_t k_text = 0x1, k_binary = 0x2, k_close = 0x8, k_ping = 0x9, k_pong = 0xA;
 
 int close_code_of(const RawWs::Frame& f) {
   return f.payload.size() >= 2 ? (static_cast<unsigned char>(f.payload[0]) << 8) | static_cast<unsigned char>(f.payload[1])

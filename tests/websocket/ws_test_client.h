@@ -1,7 +1,8 @@
 // tests/websocket/ws_test_client.h — a small blocking WebSocket client (Boost.Beast, client
 // side) for the websocket transport's tests: connect and upgrade, send text or binary
 // messages, receive the next message within a deadline (SO_RCVTIMEO: a reply that never
-// comes fails the test instead of hanging it).
+// comes fails the test instead of hanging it); the plugin's path and the frame opcodes the
+// tests that write frames by hand use.
 #ifndef SIMGATE_TESTS_WEBSOCKET_WS_TEST_CLIENT_H_
 #define SIMGATE_TESTS_WEBSOCKET_WS_TEST_CLIENT_H_
 
@@ -24,6 +25,12 @@
 #include "simgate/core/status.h"
 
 namespace simgate::websocket_test {
+
+// The websocket transport plugin of this build.
+inline std::string plugin_path() { return std::string(SIMGATE_TEST_PLUGIN_DIR) + "/libsimgate_transport_websocket.so"; }
+
+// RFC 6455 opcodes, for the tests that write frames by hand
+constexpr std::uint8_t k_text = 0x1, k_binary = 0x2, k_close = 0x8, k_ping = 0x9, k_pong = 0xA;
 
 class WsClient {
  public:
