@@ -34,6 +34,14 @@ for package in GTest benchmark; do
     { echo "the runtime build looks for $package"; exit 1; }
 done
 
+# the unity batches (cmake/SimgateBuildSpeed.cmake) name their sources by relative paths, so
+# that ccache's base_dir reuses a build of the same sources in a clone elsewhere
+batches=$(find "$work/build" -name '*_unity_*.cc')
+[ -n "$batches" ] || { echo "no unity batches in a default configure"; exit 1; }
+if grep -l '^#include "/' $batches; then echo "unity batches that include by absolute path (above)"; exit 1; fi
+grep -q '^#include "\.\./.*/sim/src/model\.cc"$' "$work/build/sim/simgate_sim_unity_0.cc" ||
+  { cat "$work/build/sim/simgate_sim_unity_0.cc"; echo "sim's first batch does not include sim/src/model.cc"; exit 1; }
+
 # what simgate_runtime builds
 plan=$(ninja -C "$work/build" -n simgate_runtime)
 for wanted in bin/simgate plugins/libsimgate_transport_socket.so plugins/libsimgate_transport_jsonrpc.so \
