@@ -98,13 +98,15 @@ print_timings() {
   log "timings $line"
   [ -z "${SIMGATE_TIMINGS_FILE:-}" ] || echo "$line" >>"$SIMGATE_TIMINGS_FILE"
 }
+# (The lists end with awk, not head: head would leave sort writing into a closed pipe, and
+# under pipefail its SIGPIPE would end the calling script.)
 # slowest_build_steps BUILD_DIR [N]: the N slowest steps (compiles, links) of the last
 # configure_and_build of BUILD_DIR, from ninja's log (outputs written since it started)
 slowest_build_steps() {
   local log=$1/.ninja_log
   [ -f "$log" ] || return 0
   awk -F'\t' -v since="${SIMGATE_BUILD_STARTED_NS:-0}" '!/^#/ && $3 >= since {printf "%8.1f s  %s\n", ($2 - $1) / 1000, $4}' "$log" |
-    sort -rn | head -n "${2:-15}"
+    sort -rn | awk -v n="${2:-15}" 'NR <= n'
 }
 
 # slowest_tests [N]: in a build directory after ctest, the N tests that took longest (ctest's
@@ -112,7 +114,7 @@ slowest_build_steps() {
 slowest_tests() {
   local costs=Testing/Temporary/CTestCostData.txt
   [ -f "$costs" ] || return 0
-  awk '/^---/ {exit} NF == 3 {printf "%8.1f s  %s\n", $3, $1}' "$costs" | sort -rn | head -n "${1:-15}"
+  awk '/^---/ {exit} NF == 3 {printf "%8.1f s  %s\n", $3, $1}' "$costs" | sort -rn | awk -v n="${1:-15}" 'NR <= n'
 }
 
 # configure_and_build BUILD_DIR [cmake args...] [-- targets...]: the stages "configure"

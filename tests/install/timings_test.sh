@@ -39,4 +39,9 @@ mkdir -p "$work/build/Testing/Temporary"
 printf 'Quick 1 0.5\nSlow 2 12.25\nMiddle 1 3\n---\nFailedTest\n' >"$work/build/Testing/Temporary/CTestCostData.txt"
 tests=$(cd "$work/build" && slowest_tests 2)
 [ "$(awk '{print $3}' <<<"$tests" | tr '\n' ' ')" = "Slow Middle " ] || fail "tests: $tests"
+# ... also from a suite of thousands of tests, under pipefail (a head ending the pipe early
+# made sort die of SIGPIPE, and scripts/test with it)
+for i in $(seq 1 5000); do echo "Suite.ATestWithAFairlyLongNameNumber$i 1 0.$i"; done >"$work/build/Testing/Temporary/CTestCostData.txt"
+tests=$(cd "$work/build" && slowest_tests 3) || fail "slowest_tests failed ($?) on 5000 tests"
+[ "$(wc -l <<<"$tests")" -eq 3 ] || fail "5000 tests: $tests"
 echo "timings: stages, summary line, build steps and tests as expected"
