@@ -3,15 +3,17 @@
 #
 #   SIMGATE_UNITY_BUILD  ON: each target's sources are compiled in batches of
 #                        SIMGATE_UNITY_BATCH_SIZE, one compiler run per batch, so a batch
-#                        parses nlohmann/json, Asio, GoogleTest... once, not once per file.
+#                        parses the heavy headers (nlohmann/json, Asio, GoogleTest) and
+#                        instantiates their templates once, not once per file.
 #   SIMGATE_CCACHE       ON: ccache as the compiler launcher when it is installed, with the
 #                        source tree as its base directory, so a clone in another folder reuses
 #                        an earlier build's objects.
-#   simgate_precompile_headers(TARGET KIND): the heavy headers of a kind of target, compiled
-#                        once per target (or once for every test executable: KIND tests).
 
 option(SIMGATE_UNITY_BUILD "Compile each target's sources in batches (unity build)" ON)
 set(SIMGATE_UNITY_BATCH_SIZE 8 CACHE STRING "Sources per unity batch")
+if(NOT SIMGATE_UNITY_BATCH_SIZE MATCHES "^[1-9][0-9]*$")
+  message(FATAL_ERROR "SIMGATE_UNITY_BATCH_SIZE must be a positive number, not '${SIMGATE_UNITY_BATCH_SIZE}'")
+endif()
 
 # simgate_unity_build(DIRECTORY): every C++ target defined in DIRECTORY or below it has its
 # .cc sources compiled in batches of SIMGATE_UNITY_BATCH_SIZE: a file <target>_unity_<n>.cc
@@ -95,19 +97,24 @@ if(SIMGATE_CCACHE AND NOT CMAKE_CXX_COMPILER_LAUNCHER)
   if(SIMGATE_CCACHE_PROGRAM)
     # base_dir: paths under the source tree are hashed relative to it, so a clone elsewhere
     # hits the same entries; hash_dir off: the build directory's path is not hashed either;
-    # the sloppiness precompiled headers need (ccache's manual, "Precompiled headers")
+    # sloppiness: a fresh clone's headers are newer than the cache entries made from the
+    # same contents, which must not turn their hits into misses
     if(DEFINED SIMGATE_ROOT)  # tests/fuzz, a project of its own inside the tree
       set(base_dir ${SIMGATE_ROOT})
     else()
       set(base_dir ${PROJECT_SOURCE_DIR})
     endif()
     set(launcher env CCACHE_BASEDIR=${base_dir} CCACHE_NOHASHDIR=1
-        CCACHE_SLOPPINESS=pch_defines,time_macros,include_file_mtime,include_file_ctime
+        CCACHE_SLOPPINESS=include_file_mtime,include_file_ctime
         ${SIMGATE_CCACHE_PROGRAM})
     set(CMAKE_C_COMPILER_LAUNCHER ${launcher})
     set(CMAKE_CXX_COMPILER_LAUNCHER ${launcher})
   endif()
 endif()
 
-message(STATUS "simgate build: unity ${SIMGATE_UNITY_BUILD} (batches of ${SIMGATE_UNITY_BATCH_SIZE}), "
-               "ccache ${SIMGATE_CCACHE_PROGRAM}")
+if(CMAKE_CXX_COMPILER_LAUNCHER)
+  set(launcher_text "launcher ${CMAKE_CXX_COMPILER_LAUNCHER}")
+else()
+  set(launcher_text "no ccache")
+endif()
+message(STATUS "simgate build: unity ${SIMGATE_UNITY_BUILD} (batches of ${SIMGATE_UNITY_BATCH_SIZE}), ${launcher_text}")
