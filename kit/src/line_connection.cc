@@ -12,6 +12,18 @@
 
 namespace simgate::kit {
 
+bool is_http_request_line(std::string_view line) {
+  if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+  std::size_t method = 0;
+  while (method < line.size() && line[method] >= 'A' && line[method] <= 'Z') ++method;
+  if (method == 0 || method > 16 || method >= line.size() || line[method] != ' ') return false;
+  const std::size_t version = line.rfind(' ');
+  if (version <= method + 1) return false;  // no request target between the two spaces
+  const std::string_view v = line.substr(version + 1);
+  return v.size() == 8 && v.substr(0, 5) == "HTTP/" && v[5] >= '0' && v[5] <= '9' && v[6] == '.' && v[7] >= '0' &&
+         v[7] <= '9' && line.substr(method + 1, version - method - 1).find(' ') == std::string_view::npos;
+}
+
 namespace asio = boost::asio;
 using boost::system::error_code;
 
@@ -154,7 +166,8 @@ void LineConnection::handle_read(const error_code& ec, std::size_t n) {
     // the client finished sending: answer what it asked, then close
     if (!partial_.empty() && !discarding_) {
       const std::string last = take_line();
-      host_.on_line(*this, last);
+      deliver(last);
+      if (closed_) return;
       host_.on_lines_done(*this, /*read_finished=*/true);
     }
     eof_ = true;
@@ -205,12 +218,25 @@ void LineConnection::consume(std::string_view data) {
     if (partial_.size() + piece.size() > limits_.max_message_bytes) {
       oversized(piece, partial_.size() + piece.size());
     } else if (partial_.empty()) {
-      host_.on_line(*this, piece);  // fast path: the whole line is in this read
+      deliver(piece);  // fast path: the whole line is in this read
     } else {
       const std::string line = take_line(piece);
-      host_.on_line(*this, line);
+      deliver(line);
     }
   }
+}
+
+void LineConnection::deliver(std::string_view line) {
+  if (!is_http_request_line(line)) {
+    host_.on_line(*this, line);
+    return;
+  }
+  // a web page posting to this port (fetch with mode "no-cors"): its headers and its body
+  // would be read as lines of this protocol, so nothing more is read
+  if (line.back() == '\r') line.remove_suffix(1);
+  log::warning(who_, ": ", label_, ": closed on an HTTP request line (", log::quoted_prefix(line),
+               "): this port does not speak HTTP; nothing that followed it was run");
+  close("an HTTP request line");
 }
 
 void LineConnection::oversized(std::string_view start, std::size_t bytes) {

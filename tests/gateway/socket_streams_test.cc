@@ -232,6 +232,24 @@ TEST(SocketStreamsTest, MalformedCommandLinesAreCountedAsRefusedWithWhatWasWrong
   EXPECT_EQ(stats["refused"], 4) << stats;
 }
 
+// A web page posting to a command port (fetch with mode "no-cors", issue #35): the
+// connection closes at its request line; neither the headers nor the body become commands.
+TEST(SocketStreamsTest, ABrowsersPostToACommandPortIsClosedAndItsBodyNeverApplied) {
+  InProcessGateway g(streams_config());
+  LineClient service(g.port());
+  const int port = stream_port(service, "robot.motion");
+  LineClient page(port);
+  page.send("POST / HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: text/plain;charset=UTF-8\r\n"
+            "Content-Length: 17\r\n\r\n{\"v\": 1, \"w\": 0}\n");
+  EXPECT_FALSE(page.read_line(5s)) << "a stream port wrote to a client";
+  // a command of another client afterwards is the only one counted
+  LineClient motion(port);
+  motion.send("{\"v\": 0, \"w\": 0}\n");
+  const json stats = stream_stats(service, "robot.motion", "commands", 1);
+  EXPECT_EQ(stats["commands"], 1) << stats;
+  EXPECT_EQ(stats.value("refused", 0), 0) << "the headers were read as commands: " << stats;
+}
+
 // MORSE skips a port in use for the next one; past 65535 there is none: the last stream
 // (robot.pose, after robot.motion on 65534) cannot have 65535 while this test holds it.
 TEST(SocketStreamsTest, AStreamWhosePortCouldNotBeBoundSaysWhyAfterMorsesWords) {

@@ -64,6 +64,7 @@ class TcpTransportFixture : public ::testing::TestWithParam<std::string> {
           return done;
         },
         "release");
+    manager_->register_service("test", [this] { return ++touched_; }, "touch");
     manager_->start();
     const std::string endpoint = manager_->endpoints().at(0);
     port_ = static_cast<std::uint16_t>(std::stoi(endpoint.substr(endpoint.rfind(':') + 1)));
@@ -102,6 +103,7 @@ class TcpTransportFixture : public ::testing::TestWithParam<std::string> {
   std::thread loop_;                         // runs process()
   std::atomic<bool> stop_{false};            // ends loop_
   Completion held_;                          // test hold's call (the process() thread)
+  std::atomic<int> touched_{0};              // test touch's calls
 };
 
 class TcpTransportOverTheLimit : public TcpTransportFixture {
@@ -247,6 +249,57 @@ TEST_P(TcpTransportResources, UnfinishedLinesOfAllConnectionsStayUnderMaxBuffere
 }
 
 INSTANTIATE_TEST_SUITE_P(SocketAndJsonRpc, TcpTransportResources, ::testing::Values("socket", "jsonrpc"));
+
+
+// ---- cross-site requests (issue #35, item 4): both TCP transports, through the kit
+
+using TcpTransportCrossSite = TcpTransportFixture;
+
+// What a browser sends for fetch("http://127.0.0.1:<port>/", {mode: "no-cors", method: "POST",
+// body}) from any web page: the request line, the headers, then the body.
+std::string browser_post(std::uint16_t port, const std::string& body) {
+  return "POST / HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(port) +
+         "\r\nConnection: keep-alive\r\nContent-Length: " + std::to_string(body.size()) +
+         "\r\nContent-Type: text/plain;charset=UTF-8\r\nOrigin: http://attacker.example\r\nAccept: */*\r\n\r\n" + body;
+}
+
+TEST_P(TcpTransportCrossSite, ABrowsersPostIsClosedAtItsRequestLineAndItsBodyNeverRuns) {
+  start({});
+  WarningLog warnings;
+  int page = connect_raw(port_);
+  const std::string post = browser_post(port_, request("touch") + request("touch"));
+  ASSERT_EQ(::send(page, post.data(), post.size(), MSG_NOSIGNAL), static_cast<ssize_t>(post.size()));
+  auto [received, ended] = read_to_end(page, 10s);
+  ::close(page);
+  EXPECT_TRUE(ended) << "the connection of an HTTP request was kept";
+  EXPECT_EQ(received, "") << "the headers or the body were answered";
+  // the transport serves on; the body never ran
+  int good = connect_raw(port_);
+  EXPECT_THAT(ping(good), HasSubstr("pong"));
+  ::close(good);
+  EXPECT_EQ(touched_.load(), 0);
+  EXPECT_EQ(warnings.count("closed on an HTTP request line ('POST / HTTP/1.1"), 1u)
+      << ::testing::PrintToString(warnings.lines());
+}
+
+TEST_P(TcpTransportCrossSite, TheBodyInALaterSegmentNeverRunsEither) {
+  start({});
+  int page = connect_raw(port_);
+  const std::string head = "GET /x HTTP/1.0\r\n";
+  ASSERT_EQ(::send(page, head.data(), head.size(), MSG_NOSIGNAL), static_cast<ssize_t>(head.size()));
+  auto [received, ended] = read_to_end(page, 10s);
+  EXPECT_TRUE(ended);
+  EXPECT_EQ(received, "");
+  const std::string body = request("touch");
+  ::send(page, body.data(), body.size(), MSG_NOSIGNAL);  // to a closed connection: fails or is dropped
+  ::close(page);
+  int good = connect_raw(port_);
+  EXPECT_THAT(ping(good), HasSubstr("pong"));
+  ::close(good);
+  EXPECT_EQ(touched_.load(), 0);
+}
+
+INSTANTIATE_TEST_SUITE_P(SocketAndJsonRpc, TcpTransportCrossSite, ::testing::Values("socket", "jsonrpc"));
 
 }  // namespace
 }  // namespace simgate::socket::test

@@ -30,6 +30,10 @@
 //     (so `echo req | nc` gets its answer).
 //   - A handler that throws closes its connection with the error logged; the server keeps
 //     serving everyone else.
+//   - Cross-site requests: a line that is an HTTP request line ("POST / HTTP/1.1": what a
+//     browser sends first when a web page posts to the port) closes the connection before
+//     the host sees it, so neither the headers nor the body that follow are ever taken as
+//     requests (is_http_request_line).
 //   - Resources held without use (LineServer, the transport's options): a line begun must
 //     end within line_timeout_s; a connection idle (nothing owed, nothing unsent, nothing
 //     read) for idle_timeout_s is closed; at max_connections the connection idle longest
@@ -69,6 +73,11 @@
 #include "simgate/kit/tcp_server.h"
 
 namespace simgate::kit {
+
+// True when `line` is an HTTP request line: a method token of capital letters, one space, a
+// request target, one space, "HTTP/<digit>.<digit>", maybe a '\r' ("POST / HTTP/1.1").
+// No line of a line protocol looks like one.
+bool is_http_request_line(std::string_view line);
 
 class LineConnection;
 
@@ -242,6 +251,7 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
   // on_read() without starting the next read: the lines, end of input or error.
   void handle_read(const boost::system::error_code& ec, std::size_t n);
   void consume(std::string_view data);
+  void deliver(std::string_view line);  // to the host, unless it is an HTTP request line
   void oversized(std::string_view start, std::size_t bytes);
   // Whether a reply may be queued: false when closed, or closes it when the client does not
   // read its replies.
