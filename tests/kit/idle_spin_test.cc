@@ -36,7 +36,7 @@ class ScriptedLoop {
     ++polls;
     FakeClock::current += microseconds(1);
     std::size_t ran = 0;
-    while (next_ < events_.size() && due(events_[next_])) ++next_, ++ran;
+    for (; next_ < events_.size() && due(events_[next_]); ++next_, ++ran) note_lateness(events_[next_]);
     return ran;
   }
   std::size_t run_one() {
@@ -58,8 +58,13 @@ class ScriptedLoop {
   bool ran_plainly = false;
   const bool* watched = nullptr;        // a direct reader's socket is watched (no async read)
   std::size_t sleeps_while_watched = 0;  // run_one() calls with *watched: a lost socket
+  microseconds most_late{0};             // the longest an event waited for poll()
 
  private:
+  void note_lateness(long at_us) {
+    const auto late = std::chrono::duration_cast<microseconds>(FakeClock::now() - FakeClock::time_point{microseconds(at_us)});
+    if (late > most_late) most_late = late;
+  }
   static bool due(long at_us) { return FakeClock::now() >= FakeClock::time_point{microseconds(at_us)}; }
   std::vector<long> events_;
   std::size_t next_ = 0;
@@ -140,10 +145,23 @@ TEST(IdleSpinTest, AWatchedSocketIsReadDirectlyAndTheEventLoopStillPolled) {
   EXPECT_EQ(direct.next, 990u);   // every request taken by a direct read
   EXPECT_EQ(direct.parks, 0u);    // never slept: never handed back
   EXPECT_EQ(loop.sleeps, 0u);
-  // the event loop is polled once every k_direct_polls_per_poll direct reads that find nothing
-  const std::size_t empty_reads = direct.polls - 990;
-  EXPECT_GE(loop.polls, empty_reads / k_direct_polls_per_poll);
-  EXPECT_LE(loop.polls, empty_reads / k_direct_polls_per_poll + 1);
+  // the event loop is polled once every k_direct_polls_per_poll direct reads
+  EXPECT_GE(loop.polls, direct.polls / k_direct_polls_per_poll);
+  EXPECT_LE(loop.polls, direct.polls / k_direct_polls_per_poll + 1);
+}
+
+TEST(IdleSpinTest, AWatchedSocketThatNeverRunsDryDoesNotStarveTheEventLoop) {
+  // a client flooding its connection (blank lines, junk, notifications): every direct read
+  // finds something. Other connections' requests (the event loop's, every 200 µs) are
+  // still served within a few reads: before, the loop was polled only when a direct read
+  // found nothing, and they waited for the whole flood (issue #35, item 3)
+  ScriptedDirectReads direct(every(0, 1, 20'000));  // one request per 1 µs read, for 20 ms
+  ScriptedLoop loop(every(100, 200, 110));          // the last at 21 900 µs
+  loop.watched = &direct.watched;
+  run_with_idle_spin<ScriptedLoop, FakeClock>(loop, microseconds(50), direct);
+  EXPECT_EQ(direct.next, 20'000u);
+  EXPECT_GE(loop.polls, direct.polls / k_direct_polls_per_poll);
+  EXPECT_LE(loop.most_late, microseconds(2 * k_direct_polls_per_poll)) << loop.most_late.count() << " µs";
 }
 
 TEST(IdleSpinTest, TheWatchedSocketIsHandedBackBeforeTheThreadSleeps) {

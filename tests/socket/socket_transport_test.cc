@@ -408,6 +408,29 @@ TEST_F(SocketTransport, OthersAreServedWhileALoneClientIsReadDirectly) {
   EXPECT_EQ(wrong.load(), 0);
 }
 
+TEST_F(SocketTransport, AClientFloodingBlankLinesDoesNotHoldUpTheOthers) {
+  // the flooder is read directly (it sends alone, then always has bytes waiting); the
+  // probe's request must be answered while the flood goes on, not after it (issue #35,
+  // item 3: before, the event loop was polled only when a direct read found nothing)
+  std::atomic<bool> answered{false}, flood_over{false};
+  std::thread flooder([&] {
+    try {
+      SocketClient c("127.0.0.1", port_);
+      const std::string blanks(64 * 1024, '\n');
+      const auto until = std::chrono::steady_clock::now() + 5s;
+      while (!answered.load() && std::chrono::steady_clock::now() < until) c.send_raw(blanks);
+    } catch (const std::exception&) {
+    }
+    flood_over = true;
+  });
+  std::this_thread::sleep_for(50ms);  // the flooder is read directly by now
+  auto probe = connect();
+  EXPECT_EQ(roundtrip(*probe, "p test ping"), "p SUCCESS \"pong\"");
+  EXPECT_FALSE(flood_over.load()) << "the probe was answered only once the flood had stopped";
+  answered = true;
+  flooder.join();
+}
+
 TEST_F(SocketTransport, RepliesFromTheSimulationThreadReachALoneClientReadDirectly) {
   // the simulation lock is held: the request read directly is queued, run by the
   // process() thread, and its reply handed over to the polling I/O thread

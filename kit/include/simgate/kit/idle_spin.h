@@ -34,7 +34,9 @@
 //   void park()          before the thread sleeps: the watched socket (if any) waits
 //                        through the event loop again (an async read)
 // While a socket is watched, the event loop is still polled, every k_direct_polls_per_poll
-// polls, so that other connections and posted work wait a few microseconds at most.
+// direct reads whether or not they found anything, so that other connections and posted
+// work wait a few microseconds at most, even while the watched client floods its socket
+// (blank lines, junk, notifications: every direct read finds something).
 // DirectReads<Connection> below is such an argument, for a transport's connection class.
 //
 // Direct reads run outside the event loop's run()/poll(): code that asks "am I on the I/O
@@ -56,7 +58,7 @@ namespace simgate::kit {
 inline constexpr unsigned k_polls_per_yield = 8;
 
 // While a socket is read directly, the event loop is polled once every this many direct
-// reads that find nothing (each poll of either is a system call of about the same cost).
+// reads (each poll of either is a system call of about the same cost).
 inline constexpr unsigned k_direct_polls_per_poll = 4;
 
 // The `direct` argument of a transport that reads nothing itself.
@@ -118,9 +120,11 @@ void run_with_idle_spin(EventLoop& loop, std::chrono::microseconds spin, Direct&
   unsigned direct_polls = 0;
   while (!loop.stopped()) {
     if (polling) {
+      // the event loop is polled every few direct reads, whatever they found: a watched
+      // socket that never runs dry (a flooding client) must not keep the others unserved
       std::size_t handled = direct.poll();
-      if (handled == 0 && (!direct.watching() || ++direct_polls % k_direct_polls_per_poll == 0))
-        handled = loop.poll();
+      if (!direct.watching() ? handled == 0 : ++direct_polls % k_direct_polls_per_poll == 0)
+        handled += loop.poll();
       if (handled > 0) {
         poll_until = Clock::now() + spin;  // something happened: keep watching
         continue;
