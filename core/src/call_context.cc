@@ -47,4 +47,10 @@ bool caller_takes_raw_attachments() {
   return context && context->takes_raw_attachments();
 }
 
+std::string caller_description() {
+  const CallContext* context = CallContext::current();
+  if (!context) return "the host";
+  return context->manager().name() + ", request " + std::to_string(context->request());
+}
+
 }  // namespace simgate

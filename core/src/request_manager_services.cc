@@ -110,7 +110,7 @@ std::vector<ServiceDescriptor> RequestManager::descriptors() const {
   std::vector<ServiceDescriptor> out;
   for (const auto& [component, table] : services_)
     for (const auto& [name, service] : table)
-      if (access_.allows(component, name)) out.push_back(service->descriptor());
+      if (access_.allows(service->descriptor())) out.push_back(service->descriptor());
   std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) {
     return std::tie(a.component, a.name) < std::tie(b.component, b.name);
   });
@@ -131,7 +131,9 @@ bool RequestManager::serves_component(const std::string& component) const {
 bool RequestManager::may_call(const std::string& component, const std::string& service) const {
   std::lock_guard lock(table_mutex_);
   auto c = services_.find(component);
-  return c != services_.end() && c->second.count(service) > 0 && access_.allows(component, service);
+  if (c == services_.end()) return false;
+  auto s = c->second.find(service);
+  return s != c->second.end() && access_.allows(s->second->descriptor());
 }
 
 std::vector<std::string> RequestManager::components() const {
@@ -156,10 +158,11 @@ Outcome RequestManager::unknown_service(const Call& call) const {
     // robot.pose's service
     std::vector<std::string> owners;
     const std::string prefix = call.component + ".";
-    for (const auto& [component, table] : services_)
-      if (component.size() > prefix.size() && component.compare(0, prefix.size(), prefix) == 0 &&
-          table.count(call.service) && access_.allows(component, call.service))
-        owners.push_back(component);
+    for (const auto& [component, table] : services_) {
+      if (component.size() <= prefix.size() || component.compare(0, prefix.size(), prefix) != 0) continue;
+      auto s = table.find(call.service);
+      if (s != table.end() && access_.allows(s->second->descriptor())) owners.push_back(component);
+    }
     std::sort(owners.begin(), owners.end());
 
     auto it = services_.find(call.component);
@@ -171,10 +174,17 @@ Outcome RequestManager::unknown_service(const Call& call) const {
         std::sort(components.begin(), components.end());
         why += did_you_mean(call.component, components);
       }
+    } else if (auto s = it->second.find(call.service);
+               s != it->second.end() && access_.refuses_as_no_console(s->second->descriptor())) {
+      // a process-wide service of a transport that is no console: said as it is
+      why = call.component + "." + call.service +
+            " acts on the whole process, and this transport is not a console: only consoles serve process-wide "
+            "services (by default the socket transport on a loopback address; a transport's \"console\": true in "
+            "the configuration, docs/configuration.md)";
     } else {
       std::vector<std::string> names;
       for (const auto& [name, s] : it->second)
-        if (access_.allows(call.component, name)) names.push_back(name);
+        if (access_.allows(s->descriptor())) names.push_back(name);
       std::sort(names.begin(), names.end());
       std::string list;
       for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
@@ -207,11 +217,11 @@ std::shared_ptr<Service> RequestManager::find_service(const Call& call) {
       // runs (only found services are remembered above, so this costs nothing per request
       // of a pipelining client)
       if (s != c->second.end()) {
-        if (access_.allows(call.component, call.service))
+        if (access_.allows(s->second->descriptor()))
           service = s->second;
         else
           log::debug(name_, ": ", call.component, " ", call.service,
-                     " refused: this transport's allow/deny lists do not let clients call it");
+                     " refused: this transport's allow/deny lists or console rule do not let clients call it");
       }
     }
   }

@@ -44,6 +44,7 @@ json ServiceDescriptor::to_json() const {
     out["policy"] = std::string(to_string(policy));
     out["concurrent"] = concurrent;
   }
+  if (process_wide) out["process_wide"] = true;
   return out;
 }
 
@@ -132,6 +133,11 @@ ServiceBuilder& ServiceBuilder::interruptible() {
 
 ServiceBuilder& ServiceBuilder::noninterruptible() {
   set_policy(service_->descriptor(), Policy::noninterruptible);
+  return *this;
+}
+
+ServiceBuilder& ServiceBuilder::process_wide() {
+  service_->descriptor().process_wide = true;
   return *this;
 }
 

@@ -20,8 +20,9 @@ char qualified_at(std::string_view component, std::string_view service, std::siz
 
 }  // namespace
 
-ServiceAccess::ServiceAccess(std::optional<std::vector<std::string>> allow, std::vector<std::string> deny)
-    : allow_(std::move(allow)), deny_(std::move(deny)) {
+ServiceAccess::ServiceAccess(std::optional<std::vector<std::string>> allow, std::vector<std::string> deny,
+                             bool console)
+    : allow_(std::move(allow)), deny_(std::move(deny)), console_(console) {
   auto check = [](const std::vector<std::string>& patterns, const char* list) {
     for (const auto& p : patterns)
       if (std::string why = pattern_error(p); !why.empty())
@@ -87,6 +88,7 @@ std::string ServiceAccess::describe() const {
   std::string out;
   if (allow_) out = "allow " + list(*allow_);
   if (!deny_.empty()) out += (out.empty() ? "" : "; ") + std::string("deny ") + list(deny_);
+  if (!console_) out += (out.empty() ? "" : "; ") + std::string("no process-wide services");
   return out;
 }
 

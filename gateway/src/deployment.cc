@@ -11,6 +11,7 @@
 #include "simgate/core/log.h"
 #include "simgate/core/streams.h"
 #include "simgate/core/suggest.h"
+#include "simgate/sim/simulation.h"
 
 namespace simgate::gateway {
 
@@ -153,6 +154,14 @@ void parse_scene(ConfigObject& root, const std::string& base_dir, Deployment& d)
     }
   });
   errors.check([&] { d.start_paused = scene.get_bool("start_paused", false); });
+  errors.check([&] {
+    d.on_divergence = scene.get_string("on_divergence", d.on_divergence);
+    sim::DivergencePolicy policy;
+    if (!sim::parse_divergence_policy(d.on_divergence, policy))
+      throw ConfigError(scene.path_of("on_divergence") + ": expected \"pause\" (undo the step and pause), "
+                        "\"restore\" (the last checkpoint) or \"reset\" (the initial state), found " +
+                        describe_json(json(d.on_divergence)));
+  });
   errors.check([&] { scene.finish(); });
   errors.throw_if_any();
 }
@@ -186,6 +195,17 @@ void parse_spawn(ConfigObject& root, const std::string& base_dir, Deployment& d)
   errors.throw_if_any();
 }
 
+// Whether a transport is a console by default (service_access.h): the MORSE socket
+// transport bound to a loopback address (its default, 127.0.0.1), the operator's telnet.
+bool console_by_default(const TransportConfig& tc) {
+  if (tc.plugin != "socket") return false;
+  const auto host = tc.options.find("host");
+  if (host == tc.options.end()) return true;
+  if (!host->is_string()) return false;  // the plugin refuses it
+  const std::string h = host->get<std::string>();
+  return h == "localhost" || h == "::1" || h.rfind("127.", 0) == 0;
+}
+
 TransportConfig parse_transport(const std::string& name, const json& value, const std::string& path) {
   check_name(name, path);
   ConfigObject t(value, path);
@@ -205,9 +225,11 @@ TransportConfig parse_transport(const std::string& name, const json& value, cons
   errors.check([&] {
     if (auto value = t.get_json("deny")) deny = pattern_list(*value, t.path_of("deny"));
   });
+  bool console = false;
+  errors.check([&] { console = t.get_bool("console", console_by_default(tc)); });
   errors.check([&] { t.finish(); });
   errors.throw_if_any();
-  tc.access = ServiceAccess(std::move(allow), std::move(deny));
+  tc.access = ServiceAccess(std::move(allow), std::move(deny), console);
   return tc;
 }
 

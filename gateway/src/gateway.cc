@@ -22,6 +22,7 @@ Gateway::Gateway(const Deployment& deployment, const sim::ComponentRegistry& reg
   sim_options.timestep = deployment_.timestep;
   sim_options.realtime_factor = options_.realtime_factor.value_or(deployment_.realtime_factor);
   sim_options.start_paused = deployment_.start_paused;
+  sim::parse_divergence_policy(deployment_.on_divergence, sim_options.on_divergence);  // checked by the parser
   sim_options.spawn_allowed_dirs = deployment_.spawn_allowed_dirs;
   try {
     simulation_ = std::make_unique<sim::Simulation>(sim::Model::load_file(deployment_.mjcf), sim_options);
@@ -116,6 +117,38 @@ std::optional<double> Gateway::stream_frequency(const ComponentConfig& c) const 
   return c.frequency;
 }
 
+std::vector<std::string> Gateway::carriers(const Component& component, const std::vector<std::string>& transports) {
+  // a stream is a path to what its component's services do: a transport whose lists refuse
+  // one of them does not carry it (issue #35, item 8: a teleport stream on a transport
+  // denying robot.teleport.*). An input stream does what any of its services do; an output
+  // stream shows what get_local_data returns.
+  const StreamDeclaration* stream = component.stream();
+  std::vector<std::string> out;
+  for (const std::string& name : transports) {
+    const auto t = std::find_if(deployment_.transports.begin(), deployment_.transports.end(),
+                                [&](const TransportConfig& c) { return c.name == name; });
+    std::string refused;  // the first service its lists refuse
+    if (t != deployment_.transports.end())
+      for (const auto& service : component.services()) {
+        const ServiceDescriptor& d = service->descriptor();
+        if (stream->direction == StreamDirection::out && d.name != "get_local_data") continue;
+        if (!t->access.allows(d.component, d.name)) {
+          refused = d.qualified_name();
+          break;
+        }
+      }
+    if (refused.empty()) {
+      out.push_back(name);
+      continue;
+    }
+    warnings_.push_back(t->path + ": transport '" + name + "' does not carry the " +
+                        (stream->direction == StreamDirection::in ? "input" : "output") + " stream of '" +
+                        component.name() + "': its allow/deny lists refuse " + refused +
+                        ", and a stream does what its component's services do (docs/configuration.md, access lists)");
+  }
+  return out;
+}
+
 void Gateway::add_streams(ConfigErrors& errors) {
   // the stream of `component`, if the "streams" section maps it; `frequency`: the rate the
   // configuration gives (the rule's, else the component's own), `fallback` without one
@@ -137,7 +170,7 @@ void Gateway::add_streams(ConfigErrors& errors) {
                    "body_poses)");
       return;
     }
-    simulation_->streams().add(component, type, transports, frequency.value_or(fallback));
+    simulation_->streams().add(component, type, carriers(component, transports), frequency.value_or(fallback));
   };
   auto check_component = [&](const ComponentConfig& c) {
     const sim::ComponentEntry* entry = simulation_->find(c.name);

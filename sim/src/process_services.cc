@@ -7,6 +7,10 @@
 // connection end) and DDS peers see the participant go when its lease expires. quit is the
 // clean way: the loop stops after this step and every request still pending is answered.
 //
+// Both act on the whole process, not the world: they are process-wide services
+// (ServiceDescriptor::process_wide), served only through console transports (by default the
+// socket transport on loopback: service_access.h). quit (supervision.cc) is one too.
+//
 // set_log_level component level: MORSE sets the level of the Python logger
 // `morse.<component>`. simgate's log has one process-wide level (core/log.h; its lines
 // do not carry a component), so the level is set for everything; the component must still
@@ -34,7 +38,8 @@ void add_process_services(SupervisionServices& simulation, Simulation& sim) {
                        std::fflush(nullptr);
                        std::_Exit(0);
                      })
-      .doc("End the process at once: no finalization, no reply, pending requests left unanswered");
+      .doc("End the process at once: no finalization, no reply, pending requests left unanswered")
+      .process_wide();
   simulation
       .offer_service(
           "set_log_level",
@@ -55,12 +60,16 @@ void add_process_services(SupervisionServices& simulation, Simulation& sim) {
               throw ServiceError("Unknown level: '" + level +
                                      "' (expected one of DEBUG, INFO, WARNING, ERROR, CRITICAL, or trace, off)",
                                  Failure::bad_arguments, {{"parameter", "level"}, {"expected", "a log level"}});
+            // said before the change, as a warning: a level that hides warnings (error, off)
+            // is still seen being set, and by whom
+            log::warning("simulation: log level ", log::to_string(log::level()), " -> ", log::to_string(parsed),
+                         " (asked by ", caller_description(), ", for '", component, "')");
             log::set_level(parsed);
-            log::info("simulation: log level set to ", log::to_string(parsed), " (asked for '", component, "')");
           },
           {"component", "level"})
       .doc("Set the log level, process-wide (DEBUG, INFO, WARNING, ERROR, CRITICAL); component: one this transport "
-           "serves");
+           "serves")
+      .process_wide();
 }
 
 }  // namespace simgate::sim

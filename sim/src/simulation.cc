@@ -87,6 +87,24 @@ const char* state_array(int warning) {
 }
 }  // namespace
 
+const char* to_string(DivergencePolicy policy) {
+  switch (policy) {
+    case DivergencePolicy::pause: return "pause";
+    case DivergencePolicy::restore: return "restore";
+    case DivergencePolicy::reset: return "reset";
+  }
+  return "unknown";
+}
+
+bool parse_divergence_policy(std::string_view text, DivergencePolicy& out) {
+  for (auto p : {DivergencePolicy::pause, DivergencePolicy::restore, DivergencePolicy::reset})
+    if (text == to_string(p)) {
+      out = p;
+      return true;
+    }
+  return false;
+}
+
 const char* to_string(RunState state) {
   switch (state) {
     case RunState::playing: return "playing";
@@ -101,6 +119,7 @@ Simulation::Simulation(Model model, SimulationOptions options)
     : model_(std::move(model)),
       gate_(std::make_shared<SimulationGate>()),
       streams_(std::make_shared<StreamHub>(gate_)),
+      on_divergence_(options.on_divergence),
       spawn_allowed_dirs_(std::move(options.spawn_allowed_dirs)) {
   if (options.timestep) {
     if (!(*options.timestep > 0) || !std::isfinite(*options.timestep))
@@ -247,11 +266,24 @@ void Simulation::step() {
     forward();
   } else {
     const double time_before = d()->time;
+    // what a divergence goes back to: the state this step starts from, or a checkpoint (the
+    // state a step started from, kept once that step went well)
+    const bool checkpoint_due =
+        on_divergence_ == DivergencePolicy::restore &&
+        (!checkpoint_.fits(m(), model_generation_) || time_before >= checkpoint_.time() + k_checkpoint_interval ||
+         time_before < checkpoint_.time());
+    if (on_divergence_ == DivergencePolicy::pause)
+      before_step_.capture(m(), d(), model_generation_);
+    else if (checkpoint_due)
+      next_checkpoint_.capture(m(), d(), model_generation_);
+    const std::uint64_t divergences = bad_states_;
     // mj_step evaluates the state it starts from, then integrates (a bad state's recovery
     // below evaluates the restored state anew)
     state_time_ = time_before;
     mj_step(m(), d());
-    check_mujoco_warnings(time_before);
+    // undone (pause): no step was taken, nothing new to publish
+    if (check_mujoco_warnings(time_before)) return;
+    if (checkpoint_due && bad_states_ == divergences) std::swap(checkpoint_, next_checkpoint_);  // no allocation
     // RK4 leaves poses from its last intermediate stage and sensors from the start: one
     // evaluation of where the step ended makes them agree (and costs a fifth more)
     if (m()->opt.integrator == mjINT_RK4 && state_time_ != d()->time) forward();
@@ -372,8 +404,9 @@ std::uint64_t Simulation::take_owed_steps(Clock::time_point until) {
   std::uint64_t taken = 0;
   while (owed_steps_ > 0) {
     step();
-    --owed_steps_;
     ++taken;
+    if (owed_steps_ == 0) break;  // forgiven by a diverging step (on_divergence pause)
+    --owed_steps_;
     if (owed_steps_ > 0 && Clock::now() >= until) break;
   }
   if (owed_steps_ > 0) {
@@ -459,7 +492,7 @@ void Simulation::forward() {
   state_time_ = d()->time;
 }
 
-void Simulation::check_mujoco_warnings(double time_before) {
+bool Simulation::check_mujoco_warnings(double time_before) {
   mjData* data = d();
   // MuJoCo's reset inside mj_step zeroes every counter, then sets the bad kind's to 1, and
   // restarts time from 0 (plus the step): a counter that moved or a clock that went back
@@ -476,7 +509,7 @@ void Simulation::check_mujoco_warnings(double time_before) {
     fresh[k] = engine_reset || now < warnings_seen_[k] ? now : now - warnings_seen_[k];
     any = any || fresh[k] > 0;
   }
-  if (!any && !engine_reset) return;
+  if (!any && !engine_reset) return false;
 
   const std::string when = "in the step from " + seconds(time_before);
   for (int k = 0; k < mjNWARNING; ++k) {
@@ -497,25 +530,20 @@ void Simulation::check_mujoco_warnings(double time_before) {
     }
   }
 
+  bool undone = false;
   if (engine_reset) {
     // no counter moved, yet the clock went back: something else reset MuJoCo's data
     std::string what = "simulated time went back to " + seconds(data->time);
+    std::string quantity, where;
     for (int k = 0; k < mjNWARNING; ++k) {
       if (!resets_the_state(k) || fresh[k] == 0) continue;
       warning_totals_[k] += fresh[k];
       const int index = data->warning[k].lastinfo;
-      what = std::string("a NaN, an infinity or a magnitude beyond 1e10 in ") + state_array(k) + "[" +
-             std::to_string(index) + "] (" + where_in_state(m(), k, index) + ")";
+      quantity = std::string(state_array(k)) + "[" + std::to_string(index) + "]";
+      where = where_in_state(m(), k, index);
+      what = "a NaN, an infinity or a magnitude beyond 1e10 in " + quantity + " (" + where + ")";
     }
-    ++bad_states_;
-    if (worth_a_line(bad_states_ - 1, bad_states_))
-      log::warning("simulation: bad state ", when, ": ", what,
-                   "; MuJoCo reset its data, the simulation restored the initial state as reset_objects does "
-                   "(components reset, simulated time goes on)",
-                   occurrence("bad state", bad_states_, " (time statistics: bad_states)"));
-    // time goes on from where the step started, as if it had been a step of the reset world
-    data->time = time_before + timestep();
-    reset();
+    undone = diverged(time_before, what, std::move(quantity), std::move(where));
   }
 
   // rebase: 1 for a kind ever seen keeps MuJoCo from printing it again (it prints while the
@@ -524,6 +552,71 @@ void Simulation::check_mujoco_warnings(double time_before) {
     data->warning[k].number = warning_totals_[k] > 0 ? 1 : 0;
     warnings_seen_[k] = data->warning[k].number;
   }
+  return undone;
+}
+
+bool Simulation::diverged(double time_before, const std::string& what, std::string quantity, std::string where) {
+  ++bad_states_;
+  DivergencePolicy action = on_divergence_;
+  // nothing to go back to (the model changed since, or no checkpoint yet): the initial state
+  if ((action == DivergencePolicy::pause && !before_step_.fits(m(), model_generation_)) ||
+      (action == DivergencePolicy::restore && !checkpoint_.fits(m(), model_generation_)))
+    action = DivergencePolicy::reset;
+  std::string done;
+  switch (action) {
+    case DivergencePolicy::pause:
+      // the step never happened: the world as the step found it, waiting for a client
+      restore_physics(before_step_);
+      forgive_owed_steps();
+      set_paused(true);
+      done = "the simulation paused in the state before that step (simulation play goes on from there)";
+      break;
+    case DivergencePolicy::restore:
+      restore_physics(checkpoint_);
+      for (auto& e : entries_)
+        if (e->sim_component) e->sim_component->on_reset();
+      done = "the simulation went back to its checkpoint of " + seconds(checkpoint_.time()) + " and goes on";
+      break;
+    case DivergencePolicy::reset:
+      // time goes on from where the step started, as if it had been a step of the reset world
+      d()->time = time_before + timestep();
+      reset();
+      done = "the simulation restored the initial state as reset_objects does (time goes on)";
+      break;
+  }
+  const std::string when = "in the step from " + seconds(time_before);
+  if (worth_a_line(bad_states_ - 1, bad_states_))
+    log::warning("simulation: bad state ", when, ": ", what, " (scene.on_divergence ", to_string(on_divergence_),
+                 "): ", done, occurrence("bad state", bad_states_, " (time statistics: bad_states)"));
+  last_divergence_ = Divergence{time_before, steps(), std::move(quantity), std::move(where), action, d()->time};
+  // what was asked of the world before is void: its clients are told, not left waiting
+  fail_requests("the simulation diverged " + when + ": " + what + "; " + done);
+  return action == DivergencePolicy::pause;
+}
+
+void Simulation::fail_requests(const std::string& reason) {
+  const Outcome failed = Outcome::failed(Failure::service_error, reason, json{{"diverged", true}});
+  for (auto& e : entries_) {
+    AsyncSlot& slot = *e->component->async_slot();
+    // finished first (the one reply), then stopped: the component's own completion from
+    // its interrupt() is dropped
+    if (slot.busy() && slot.running_completion.finish(failed) && slot.interrupt) slot.interrupt();
+    for (const Completion& call : slot.running_concurrent()) call.finish(failed);
+  }
+}
+
+void Simulation::restore_physics(const PhysicsState& state) {
+  state.apply(m(), d());
+  // what sensors read is of the restored state; the warm start is the saved one whatever
+  // mj_forward did with it, so the next step is the one the saved state took
+  forward();
+  state.apply_warmstart(m(), d());
+}
+
+void Simulation::set_on_divergence(DivergencePolicy policy) {
+  on_divergence_ = policy;
+  checkpoint_ = PhysicsState{};  // taken anew from the next step
+  next_checkpoint_ = PhysicsState{};
 }
 
 std::string Simulation::drop_bad_controls() {

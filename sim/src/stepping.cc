@@ -36,6 +36,11 @@ class Stepping {
       clients += n;
       by_transport[manager->transport_name()] = n;
     }
+    json last = nullptr;
+    if (const auto& dv = sim_.last_divergence())
+      last = {{"sim_time", dv->time},       {"step", dv->step},
+              {"quantity", dv->quantity},   {"where", dv->where},
+              {"action", to_string(dv->action)}, {"resumed_at", dv->resumed_at}};
     return {{"state", to_string(sim_.run_state())},
             {"sim_time", s.sim_time},
             {"steps", s.steps},
@@ -45,7 +50,10 @@ class Stepping {
             {"dynamics_suspended", sim_.dynamics_suspended()},
             {"owed_steps", sim_.owed_steps()},
             {"clients", clients},
-            {"clients_by_transport", by_transport}};
+            {"clients_by_transport", by_transport},
+            {"on_divergence", to_string(sim_.on_divergence())},
+            {"divergences", s.bad_states},
+            {"last_divergence", last}};
   }
 
   std::string pause() {

@@ -63,7 +63,9 @@ SupervisionServices::SupervisionServices(Simulation& sim) : Component("simulatio
   add_service("restore_dynamics", &SupervisionServices::restore_dynamics).doc("Resume physics");
   add_service("get_scene_objects", &SupervisionServices::get_scene_objects)
       .doc("{name: [children, [x, y, z], [qx, qy, qz, qw]]} for every body");
-  add_service("quit", &SupervisionServices::quit).doc("Stop the simulation cleanly (replies are sent first)");
+  add_service("quit", &SupervisionServices::quit)
+      .doc("Stop the simulation cleanly (replies are sent first)")
+      .process_wide();
   add_world_services(*this, sim);
   // every body's pose, for a client that draws the scene (scene_geometry.cc)
   declare_output_stream("body_poses", [this] { return body_poses(sim_); });

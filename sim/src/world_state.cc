@@ -1,24 +1,23 @@
 // The state group of `simulation` (world_services.h, docs/world/state.md): reset with a
 // scope, and in-memory snapshots (save_state, restore_state, list_states, drop_state).
 //
-// A snapshot is every part of mjData that the next step reads: time, qpos, qvel, act, ctrl,
-// the solver's warm start, the applied forces, the mocap poses and userdata. Restoring it
-// and stepping gives, bit for bit, what stepping from the moment it was saved gave (the
-// components' own commands aside: see restore below). A snapshot belongs to the model it
-// was saved from (Simulation::model_generation() and the sizes): a model replaced since
-// (spawn, delete) refuses it.
+// A snapshot is a PhysicsState (physics_state.h): every part of mjData that the next step
+// reads. Restoring it and stepping gives, bit for bit, what stepping from the moment it was
+// saved gave (the components' own commands aside: see restore below). A snapshot belongs to
+// the model it was saved from (Simulation::model_generation() and the sizes): a model
+// replaced since (spawn, delete) refuses it.
 //
 // Whatever puts the world somewhere else (a reset, a restore) ends the async requests of
 // the components it moves PREEMPTED, saying why: a goto or a trajectory started in the old
 // state means nothing in the new one. When simulated time jumps (reset everything, restore),
 // the running `time sleep` calls end the same way: their wake-up time was of the old clock.
 #include <cstdint>
-#include <cstring>
 #include <map>
 #include <memory>
 
 #include "simgate/core/call_context.h"
 #include "simgate/core/errors.h"
+#include "simgate/sim/physics_state.h"
 #include "simgate/sim/sim_component.h"
 #include "simgate/sim/world_services.h"
 
@@ -30,39 +29,8 @@ namespace {
 // hundred for a large model); a client that saves in a loop without dropping meets this.
 constexpr std::size_t k_max_states = 64;
 
-// One mjData array a snapshot copies, and its length in the model.
-struct StateArray {
-  mjtNum* mjData::*field;
-  int (*size)(const mjModel*);
-};
-
-// What the next step reads, besides time (the list is MuJoCo 2.2.2's mj_step inputs).
-const StateArray k_state_arrays[] = {
-    {&mjData::qpos, [](const mjModel* m) { return m->nq; }},
-    {&mjData::qvel, [](const mjModel* m) { return m->nv; }},
-    {&mjData::act, [](const mjModel* m) { return m->na; }},
-    {&mjData::ctrl, [](const mjModel* m) { return m->nu; }},
-    {&mjData::qacc_warmstart, [](const mjModel* m) { return m->nv; }},
-    {&mjData::qfrc_applied, [](const mjModel* m) { return m->nv; }},
-    {&mjData::xfrc_applied, [](const mjModel* m) { return 6 * m->nbody; }},
-    {&mjData::mocap_pos, [](const mjModel* m) { return 3 * m->nmocap; }},
-    {&mjData::mocap_quat, [](const mjModel* m) { return 4 * m->nmocap; }},
-    {&mjData::userdata, [](const mjModel* m) { return m->nuserdata; }},
-};
-
-// The numbers of the model a snapshot fits.
-std::size_t state_size(const mjModel* m) {
-  std::size_t n = 0;
-  for (const auto& a : k_state_arrays) n += static_cast<std::size_t>(a.size(m));
-  return n;
-}
-
-struct Snapshot {
-  std::uint64_t generation = 0;  // Simulation::model_generation() when saved
-  std::size_t size = 0;          // state_size() of that model
-  double time = 0;               // simulated time
-  std::vector<mjtNum> values;    // k_state_arrays, one after the other
-};
+// A saved state (physics_state.h): what the next step reads.
+using Snapshot = PhysicsState;
 
 // Ends what `e` is running PREEMPTED with `reason`: its slot's request (through
 // interrupt(), which stops what it moves) and the calls of its concurrent services.
@@ -116,19 +84,8 @@ class WorldState {
       throw ServiceError("simulation save_state: " + std::to_string(k_max_states) +
                              " states are saved already (the limit): drop one first (simulation drop_state handle)",
                          Failure::service_error, {{"limit", k_max_states}});
-    const mjModel* m = sim_.m();
-    const mjData* d = sim_.d();
     Snapshot s;
-    s.generation = sim_.model_generation();
-    s.size = state_size(m);
-    s.time = d->time;
-    s.values.resize(s.size);
-    mjtNum* out = s.values.data();
-    for (const auto& a : k_state_arrays) {
-      const int n = a.size(m);
-      std::memcpy(out, d->*a.field, sizeof(mjtNum) * static_cast<std::size_t>(n));
-      out += n;
-    }
+    s.capture(sim_.m(), sim_.d(), sim_.model_generation());
     const std::uint64_t handle = next_handle_++;
     snapshots_.emplace(handle, std::move(s));
     return handle;
@@ -136,43 +93,31 @@ class WorldState {
 
   json restore_state(std::int64_t handle) {
     const Snapshot& s = find(handle, "restore_state");
-    const mjModel* m = sim_.m();
-    if (s.generation != sim_.model_generation() || s.size != state_size(m))
+    if (!s.fits(sim_.m(), sim_.model_generation()))
       throw ServiceError("simulation restore_state: state " + std::to_string(handle) +
-                             " was saved from another model (generation " + std::to_string(s.generation) +
+                             " was saved from another model (generation " + std::to_string(s.generation()) +
                              "; the model is now generation " + std::to_string(sim_.model_generation()) +
                              ", replaced by a spawn or a delete since): it cannot be restored",
                          Failure::service_error, {{"parameter", "handle"}});
     // what moves stops first, in the world it was started in
     end_robots_requests("simulation restore_state: the simulation went back to state " + std::to_string(handle));
-    const bool clock_moves = s.time != sim_.sim_time();
-    mjData* d = sim_.d();
-    d->time = s.time;
-    const mjtNum* in = s.values.data();
-    for (const auto& a : k_state_arrays) {
-      const int n = a.size(m);
-      std::memcpy(d->*a.field, in, sizeof(mjtNum) * static_cast<std::size_t>(n));
-      in += n;
-    }
-    // what sensors read is of the restored state; the warm start is the saved one whatever
-    // mj_forward did with it, so the next step is the one the saved state took
-    sim_.forward();
-    std::memcpy(d->qacc_warmstart, s.values.data() + warmstart_offset(m), sizeof(mjtNum) * static_cast<std::size_t>(m->nv));
+    const bool clock_moves = s.time() != sim_.sim_time();
+    sim_.restore_physics(s);
     // what components held of the state they were in (a held joint, a motion's start) is gone
     for (auto& e : sim_.components())
       if (e->sim_component) e->sim_component->on_reset();
     if (clock_moves)
       end_sleeps("simulation restore_state: simulated time went to that of state " + std::to_string(handle));
-    return {{"sim_time", s.time}};
+    return {{"sim_time", s.time()}};
   }
 
   json list_states() const {
     json out = json::array();
     for (const auto& [handle, s] : snapshots_)
       out.push_back({{"handle", handle},
-                     {"sim_time", s.time},
-                     {"model_generation", s.generation},
-                     {"restorable", s.generation == sim_.model_generation() && s.size == state_size(sim_.m())}});
+                     {"sim_time", s.time()},
+                     {"model_generation", s.generation()},
+                     {"restorable", s.fits(sim_.m(), sim_.model_generation())}});
     return out;
   }
 
@@ -190,15 +135,6 @@ class WorldState {
                              ": expected a handle from simulation save_state (simulation list_states)",
                          Failure::bad_arguments, {{"parameter", "handle"}});
     return it->second;
-  }
-
-  static std::size_t warmstart_offset(const mjModel* m) {
-    std::size_t offset = 0;
-    for (const auto& a : k_state_arrays) {
-      if (a.field == &mjData::qacc_warmstart) break;
-      offset += static_cast<std::size_t>(a.size(m));
-    }
-    return offset;
   }
 
   [[noreturn]] static void refuse_robot_with(const std::string& scope) {

@@ -1,8 +1,9 @@
 #!/usr/bin/python3
 """AttacksSmoke: bench/attacks on the items whose outcome does not depend on timing.
 
-Runs `bench/attacks --only 1,4,5,8` (DDS params nested 80 000 deep, non-finite and huge
-numbers, DDS client-id hijack and zero id, `simgate check` on the bad configs) against the
+Runs `bench/attacks --only 1,4,5,8,35` (DDS params nested 80 000 deep, non-finite and huge
+numbers, DDS client-id hijack and zero id, `simgate check` on the bad configs; issue #35's
+POST to a line port, process control from JSON-RPC, a stream around a denied service) against the
 build tree and checks, never a timing threshold:
   * it exits 0 and writes its JSON;
   * every item asked for has rows, every row has the four columns and a verdict, and every
@@ -20,7 +21,7 @@ import tempfile
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
-ITEMS = (1, 4, 5, 8)
+ITEMS = (1, 4, 5, 8, 35)
 
 passed, failed = 0, 0
 
@@ -57,7 +58,8 @@ def main():
         check(all(row.get(k) for k in ("item", "attack", "now")) and row.get("verdict") == "PASS",
               f"row {row.get('item')}: {row.get('verdict')}: {row.get('attack')}: {row.get('now')}")
     check(rows and rows[-1]["item"] == "end", "the last row is the final check on every transport")
-    check("| # | attack | before (issue #17) | now (measured) | verdict |" in r.stdout, "stdout has the table")
+    check("| # | attack | before (issue #17; 35.x: issue #35) | now (measured) | verdict |" in r.stdout,
+          "stdout has the table")
     print(f"{passed} passed, {failed} failed")
     return 1 if failed else 0
 

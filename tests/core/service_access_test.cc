@@ -211,5 +211,54 @@ TEST_F(RequestManagerAccessTest, ARunningServiceSeesItsCallersLists) {
   EXPECT_TRUE(caller_may_call("simulation", "quit"));  // the host, outside any request
 }
 
+// ---- consoles: process-wide services (issue #35, item 5)
+
+TEST(ServiceAccessTest, OnlyAConsoleAllowsProcessWideServices) {
+  ServiceDescriptor terminate{.component = "simulation", .name = "terminate", .process_wide = true};
+  ServiceDescriptor details{.component = "simulation", .name = "details"};
+  EXPECT_TRUE(ServiceAccess().allows(terminate));  // the default (a host, tests) is a console
+  const ServiceAccess no_console(std::nullopt, {}, /*console=*/false);
+  EXPECT_FALSE(no_console.allows(terminate));
+  EXPECT_TRUE(no_console.refuses_as_no_console(terminate));
+  EXPECT_TRUE(no_console.allows(details));
+  EXPECT_FALSE(no_console.allows_everything());
+  EXPECT_EQ(no_console.describe(), "no process-wide services");
+  // a console's lists still apply, and a denied service is not refused "as no console"
+  const ServiceAccess console(std::nullopt, {"simulation.terminate"}, /*console=*/true);
+  EXPECT_FALSE(console.allows(terminate));
+  EXPECT_FALSE(console.refuses_as_no_console(terminate));
+  const ServiceAccess denied(std::nullopt, {"simulation.terminate"}, /*console=*/false);
+  EXPECT_FALSE(denied.refuses_as_no_console(terminate));
+}
+
+TEST_F(RequestManagerAccessTest, ATransportThatIsNoConsoleRefusesProcessWideServicesSayingWhy) {
+  int terminations = 0;
+  rm.register_service("simulation", [&] { ++terminations; }, "terminate").process_wide();
+  rm.set_access(ServiceAccess(std::nullopt, {}, /*console=*/false));
+  auto refused = rm.run("simulation", "terminate");
+  ASSERT_TRUE(refused);
+  EXPECT_EQ(terminations, 0);
+  EXPECT_EQ(refused->status, Status::failed);
+  EXPECT_EQ(refused->failure, Failure::unknown_service);
+  EXPECT_THAT(refused->message, HasSubstr("simulation.terminate acts on the whole process, and this transport is "
+                                          "not a console"));
+  EXPECT_FALSE(rm.may_call("simulation", "terminate"));
+  for (const auto& d : rm.descriptors()) EXPECT_NE(d.qualified_name(), "simulation.terminate");
+  // nor is it listed or suggested in another refusal
+  EXPECT_THAT(rm.run("simulation", "terminat")->message, Not(HasSubstr("terminate")));
+  EXPECT_EQ(rm.run("simulation", "quit")->status, Status::success);  // not process-wide here
+  // a console runs it
+  rm.set_access(ServiceAccess(std::nullopt, {}, /*console=*/true));
+  EXPECT_EQ(rm.run("simulation", "terminate")->status, Status::success);
+  EXPECT_EQ(terminations, 1);
+}
+
+TEST(ServiceDescriptorTest, AProcessWideServiceSaysSoInItsDescription) {
+  ServiceDescriptor d{.component = "simulation", .name = "terminate"};
+  EXPECT_FALSE(d.to_json().contains("process_wide"));
+  d.process_wide = true;
+  EXPECT_EQ(d.to_json()["process_wide"], true);
+}
+
 }  // namespace
 }  // namespace simgate

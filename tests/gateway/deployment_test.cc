@@ -548,12 +548,35 @@ TEST(GatewayAccessListsTest, EveryMalformedPatternOfBothListsIsReportedAtOnce) {
   EXPECT_THAT(errors[3], ::testing::StartsWith("transports.socket.denny: unknown key (did you mean 'deny'?"));
 }
 
-TEST(GatewayAccessListsTest, TheAllTransportsExampleDeniesQuitOnJsonRpcOnly) {
-  Deployment d = load_deployment(SIMGATE_SOURCE_DIR "/config/all-transports.json");
-  for (const auto& t : d.transports) {
-    EXPECT_EQ(t.access.allows("simulation", "quit"), t.name == "socket") << t.name;
-    EXPECT_EQ(t.access.allows("simulation", "terminate"), t.name == "socket") << t.name;
+TEST(GatewayAccessListsTest, EveryShippedConfigHasTheLocalSocketAsItsOnlyConsole) {
+  // process-wide services (quit, terminate, set_log_level) from the socket console only:
+  // before, the web app's console ended the demo with simulation.terminate (issue #35, item 5)
+  for (const char* name : {"all-transports.json", "demo.json", "arm.json", "rover.json"}) {
+    Deployment d = load_deployment(std::string(SIMGATE_SOURCE_DIR "/config/") + name);
+    for (const auto& t : d.transports) EXPECT_EQ(t.access.console(), t.name == "socket") << name << ": " << t.name;
   }
+}
+
+TEST(GatewayAccessListsTest, ATransportIsAConsoleWhenItSaysSoOrIsTheSocketOnLoopback) {
+  auto console_of = [](json transport) {
+    json c = demo_config();
+    c["transports"] = {{"t", std::move(transport)}};
+    c.erase("services");
+    c.erase("streams");
+    return parse_deployment(c, SIMGATE_SOURCE_DIR "/config").transports.at(0).access.console();
+  };
+  EXPECT_TRUE(console_of({{"plugin", "socket"}}));
+  EXPECT_TRUE(console_of({{"plugin", "socket"}, {"options", {{"host", "127.0.0.1"}}}}));
+  EXPECT_TRUE(console_of({{"plugin", "socket"}, {"options", {{"host", "::1"}}}}));
+  EXPECT_TRUE(console_of({{"plugin", "socket"}, {"options", {{"host", "localhost"}}}}));
+  EXPECT_FALSE(console_of({{"plugin", "socket"}, {"options", {{"host", "0.0.0.0"}}}}));
+  EXPECT_FALSE(console_of({{"plugin", "socket"}, {"console", false}}));
+  EXPECT_FALSE(console_of({{"plugin", "jsonrpc"}}));
+  EXPECT_FALSE(console_of({{"plugin", "websocket"}}));
+  EXPECT_TRUE(console_of({{"plugin", "jsonrpc"}, {"console", true}}));
+  json c = demo_config();
+  c["transports"]["socket"]["console"] = "yes";
+  EXPECT_THROW(parse_deployment(c, SIMGATE_SOURCE_DIR "/config"), ConfigError);
 }
 
 TEST(GatewayAccessListsTest, APatternMatchingNoServiceOfItsTransportIsAWarning) {

@@ -27,6 +27,10 @@ using testing::payload;
 const char* k_entity_services[] = {"set_object_position", "get_object_pose", "get_object_bbox",
                                    "get_object_global_bbox", "set_object_dynamics", "get_entity_state",
                                    "set_entity_state", "list_entities", "terminate", "set_log_level"};
+// terminate and set_log_level are process-wide: served by the socket console only
+bool process_wide(const char* service) {
+  return std::string(service) == "terminate" || std::string(service) == "set_log_level";
+}
 
 #ifdef SIMGATE_TEST_WITH_DDS
 // A DDS domain and partition of this process and test, on loopback.
@@ -124,7 +128,8 @@ TEST_F(GatewayEntitiesTest, JsonRpcTakesNamedParametersAndReportsTheBadOne) {
   const json discovery = rpc(c, 6, "rpc.discover");
   for (const auto& m : discovery["result"]["methods"]) discovered.insert(m["name"].get<std::string>());
   EXPECT_TRUE(discovery.contains("result")) << discovery.dump().substr(0, 500);
-  for (const char* s : k_entity_services) EXPECT_TRUE(discovered.count(std::string("simulation.") + s)) << s;
+  for (const char* s : k_entity_services)
+    EXPECT_EQ(discovered.count(std::string("simulation.") + s), process_wide(s) ? 0u : 1u) << s;
   EXPECT_TRUE(discovered.count("communication.distance_and_view"));
 }
 #endif
@@ -144,7 +149,8 @@ TEST_F(GatewayEntitiesTest, DdsClientsReachThemToo) {
   std::set<std::string> catalog;
   for (const auto& d : client->list_services(std::chrono::seconds(20)))
     catalog.insert(d["component"].get<std::string>() + "." + d["name"].get<std::string>());
-  for (const char* s : k_entity_services) EXPECT_TRUE(catalog.count(std::string("simulation.") + s)) << s;
+  for (const char* s : k_entity_services)
+    EXPECT_EQ(catalog.count(std::string("simulation.") + s), process_wide(s) ? 0u : 1u) << s;
   EXPECT_TRUE(catalog.count("communication.distance_and_view"));
 }
 #endif
@@ -160,10 +166,13 @@ TEST(GatewayTerminateTest, TerminateEndsTheProcessAtOnceWithoutFinalization) {
   ASSERT_TRUE(e.contains("socket")) << p.err();
   LineClient c(testing::port_of(e["socket"][0].get<std::string>()));
   EXPECT_THAT(c.request("1", "simulation list_robots"), StartsWith("1 SUCCESS"));
+  // who changes the log level is logged, before the change (issue #35, item 5)
+  EXPECT_EQ(c.request("l", "simulation set_log_level [\"robot\", \"INFO\"]"), "l SUCCESS");
   c.send("2 simulation terminate\n");
   EXPECT_EQ(p.wait(), 0) << p.err();
   EXPECT_TRUE(c.closed_by_server());
   EXPECT_THAT(c.other_lines(), ::testing::IsEmpty());  // no reply
+  EXPECT_THAT(p.err(), HasSubstr("simulation: log level warning -> info (asked by Socket service manager, request "));
   EXPECT_THAT(p.err(), HasSubstr("terminate requested: exiting now, without finalization"));
   EXPECT_TRUE(std::filesystem::exists(endpoints));
 }

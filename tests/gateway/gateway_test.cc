@@ -277,7 +277,10 @@ json access_config() {
 // What access_config() lets a JSON-RPC client call.
 bool callable_through_jsonrpc(const std::string& qualified) {
   auto starts = [&](const std::string& prefix) { return qualified.rfind(prefix, 0) == 0; };
-  return (starts("robot.") && !starts("robot.teleport.")) || (starts("simulation.") && qualified != "simulation.quit") ||
+  // quit, terminate and set_log_level are process-wide: JSON-RPC is no console
+  const bool process_wide =
+      qualified == "simulation.quit" || qualified == "simulation.terminate" || qualified == "simulation.set_log_level";
+  return (starts("robot.") && !starts("robot.teleport.")) || (starts("simulation.") && !process_wide) ||
          qualified == "time.now";
 }
 
@@ -312,6 +315,39 @@ TEST_F(GatewayIntegrationTest, ADeniedServiceIsRefusedThroughJsonRpcAsAnUnknownO
   EXPECT_EQ(socket.request("h", "human move [0.0, 0.0]"), "h SUCCESS");
   EXPECT_EQ(socket.request("q", "simulation quit"), "q SUCCESS");
   gateway_->join();  // the loop ends: quit ran, through the socket transport only
+}
+
+TEST_F(GatewayIntegrationTest, OnlyTheSocketConsoleEndsTheProcessOrChangesItsLogLevel) {
+  // the shipped demo: before, the web app's console (JSON-RPC over WebSocket) ended it with
+  // one simulation.terminate, and any client could set the log level off (issue #35, item 5)
+  json config = testing::demo_config(4.0);
+  config["transports"]["jsonrpc"] = {{"plugin", "jsonrpc"}, {"options", {{"port", 0}}}};
+  config["services"] = {{"default", json::array({"socket", "jsonrpc"})}};
+  config.erase("streams");
+  start(config);
+  LineClient socket(port("socket")), jsonrpc(port("jsonrpc"));
+  for (const char* method : {"simulation.terminate", "simulation.quit"}) {
+    json refused = rpc(jsonrpc, 1, method);
+    ASSERT_TRUE(refused.contains("error")) << refused;
+    EXPECT_EQ(refused["error"]["code"], -32601);
+    EXPECT_THAT(refused["error"]["message"].get<std::string>(),
+                HasSubstr("acts on the whole process, and this transport is not a console")) << refused;
+  }
+  const log::Level level_before = log::level();
+  json level = rpc(jsonrpc, 2, "simulation.set_log_level", {"simulation", "off"});
+  EXPECT_EQ(level["error"]["code"], -32601) << level;
+  EXPECT_EQ(log::level(), level_before);
+  // introspection leaves them out on JSON-RPC, shows them on the socket console
+  std::set<std::string> listed = qualified_names(rpc(jsonrpc, 3, "simulation.list_services")["result"]);
+  EXPECT_FALSE(listed.count("simulation.terminate") || listed.count("simulation.quit") ||
+               listed.count("simulation.set_log_level"));
+  std::set<std::string> on_console = qualified_names(payload(socket.request("1", "simulation list_services")));
+  EXPECT_TRUE(on_console.count("simulation.terminate") && on_console.count("simulation.set_log_level"));
+  // the process still runs, and the socket console may end it
+  EXPECT_TRUE(rpc(jsonrpc, 4, "time.now")["result"].is_number());
+  EXPECT_EQ(socket.request("l", "simulation set_log_level [\"simulation\", \"WARNING\"]"), "l SUCCESS");
+  EXPECT_EQ(socket.request("q", "simulation quit"), "q SUCCESS");
+  gateway_->join();
 }
 
 TEST_F(GatewayIntegrationTest, IntrospectionOnEachTransportListsExactlyTheCallableServices) {

@@ -87,6 +87,35 @@ TEST(JsonRpcStreamsTest, ListsItsStreamsInRpcStreamsAndDiscover) {
   EXPECT_EQ(discover["x-simgate-streams"], streams);
 }
 
+TEST(JsonRpcStreamsTest, AStreamIsNotCarriedWhereTheListsRefuseItsComponentsServices) {
+  // before, a transport denying robot.teleport.* still teleported the robot through the
+  // teleport's input stream, and showed robot.pose's samples with get_local_data denied
+  // (issue #35, item 8: a denied service is denied on every path to it)
+  json config = streams_config();
+  config["transports"]["jsonrpc"]["deny"] = {"robot.teleport.*", "robot.pose.get_local_data"};
+  config["streams"]["robot.teleport"] = {"socket", "jsonrpc"};
+  InProcessGateway g(config);
+  StreamClient c(g.port("jsonrpc"));
+  json streams = c.call(1, "rpc.streams")["result"];
+  ASSERT_EQ(streams.size(), 1u) << streams.dump();
+  EXPECT_EQ(streams[0]["component"], "robot.motion");
+  json teleported = c.call(2, "rpc.publish", {{"component", "robot.teleport"}, {"data", {{"x", 5.0}}}});
+  EXPECT_EQ(teleported["error"]["code"], -32602) << teleported.dump();
+  EXPECT_EQ(c.call(3, "rpc.subscribe", {{"component", "robot.pose"}})["error"]["code"], -32602);
+  const auto& warnings = g.gateway().warnings();
+  auto warned = [&](const std::string& text) {
+    return std::any_of(warnings.begin(), warnings.end(), [&](const std::string& w) { return w.find(text) != std::string::npos; });
+  };
+  EXPECT_TRUE(warned("transport 'jsonrpc' does not carry the input stream of 'robot.teleport': its allow/deny lists "
+                     "refuse robot.teleport."));
+  EXPECT_TRUE(warned("transport 'jsonrpc' does not carry the output stream of 'robot.pose': its allow/deny lists "
+                     "refuse robot.pose.get_local_data"));
+  // the socket transport, whose lists refuse nothing, still carries the teleport's
+  bool on_socket = false;
+  for (const auto& info : g.gateway().simulation().streams().streams("socket")) on_socket |= info.component == "robot.teleport";
+  EXPECT_TRUE(on_socket);
+}
+
 TEST(JsonRpcStreamsTest, SamplesComeAsNotificationsUntilUnsubscribed) {
   InProcessGateway g(streams_config());
   StreamClient c(g.port("jsonrpc"));

@@ -1,9 +1,11 @@
 // SimBadState: when MuJoCo finds a bad number in qpos, qvel or qacc it resets its data in the
 // middle of mj_step (2.2.2: time back to 0, components never told, only the first time
 // logged). The simulation detects it after every step, logs every occurrence (a flood in
-// bounded form), and recovers through its own reset path — the one `simulation
-// reset_objects` takes: components get on_reset(), running requests go on, simulated time
-// goes on. A bad control is logged and dropped, without a reset.
+// bounded form), and recovers by its divergence policy (scene.on_divergence): `reset` takes
+// the path `simulation reset_objects` takes (components get on_reset(), simulated time goes
+// on); `pause` undoes the step and pauses; `restore` goes back to the last checkpoint. Every
+// async request in flight ends FAILED saying why, and get_simulation_state tells what
+// happened. A bad control is logged and dropped, without a reset.
 #include <cmath>
 #include <limits>
 #include <mutex>
@@ -41,6 +43,7 @@ class SimBadStateTest : public DemoSim {
  protected:
   void SetUp() override {
     DemoSim::SetUp();
+    sim_->set_on_divergence(policy_);
     probe_ = static_cast<ResetProbe*>(
         sim_->add_component(std::make_unique<ResetProbe>(*sim_), "probe").component.get());
     log::set_sink([this](log::Level level, std::string_view text) {
@@ -73,6 +76,9 @@ class SimBadStateTest : public DemoSim {
     write(sim_->d());
   }
 
+  json simulation_state() { return call("simulation", "get_simulation_state").value.value_or(json::object()); }
+
+  DivergencePolicy policy_ = DivergencePolicy::reset;  // the tests below: the reset path
   ResetProbe* probe_ = nullptr;
   std::mutex lines_mutex_;             // the sink may be called from any thread
   std::vector<std::string> warnings_;  // every warning logged during the test
@@ -136,26 +142,33 @@ TEST_F(SimBadStateTest, AHugeAccelerationIsRecoveredTheSameWay) {
   EXPECT_NEAR(pose()["z"].get<double>(), 0.1, 0.01);  // the robot stands where it started
 }
 
-TEST_F(SimBadStateTest, RunningRequestsGoOnAsAcrossReset_objects) {
+TEST_F(SimBadStateTest, RunningRequestsEndFailedSayingWhy) {
+  // before, they went on in a world they were not started in, and their clients were never
+  // told (issue #35, item 1)
   RequestId sleep = rm_->call("time", "sleep", {0.5});
   RequestId go = rm_->call("robot.waypoint", "goto", {1.0, 0.0, 0.0, 0.2});
   sim_->process_requests();
-  const std::uint64_t start = sim_->steps();
   run_for(0.2);
   corrupt([&](mjData* d) { d->qpos[qpos_of("robot_root")] = k_nan; });
   sim_->step();
   EXPECT_EQ(probe_->resets, 1);
-  // neither request ended: the sleep counts simulated time, which never went back
-  EXPECT_FALSE(rm_->outcome(sleep).has_value());
-  EXPECT_FALSE(rm_->outcome(go).has_value());
-  auto o = step_until(sleep, 2000);
-  ASSERT_TRUE(o.has_value());
-  EXPECT_EQ(o->status, Status::success);
-  EXPECT_NEAR(double(sim_->steps() - start) * sim_->timestep(), 0.5, 2 * sim_->timestep());
-  // the goto drives on from the initial pose, as after reset_objects
-  o = step_until(go, 10000);
-  ASSERT_TRUE(o.has_value());
-  EXPECT_EQ(o->value, json("Arrived"));
+  sim_->process_requests();  // the manager hands the outcomes over
+  for (RequestId id : {sleep, go}) {
+    auto o = rm_->outcome(id);
+    ASSERT_TRUE(o.has_value());
+    EXPECT_EQ(o->status, Status::failed);
+    EXPECT_THAT(o->message, HasSubstr("the simulation diverged in the step from t=0.2"));
+    EXPECT_THAT(o->message, HasSubstr("qpos"));
+    EXPECT_THAT(o->message, HasSubstr("restored the initial state"));
+  }
+  // the goto was stopped: the robot stays where the reset put it
+  run_for(0.3);
+  EXPECT_NEAR(pose()["x"].get<double>(), 0.0, 0.01);
+  json state = simulation_state();
+  EXPECT_EQ(state["divergences"], 1);
+  EXPECT_EQ(state["on_divergence"], "reset");
+  EXPECT_EQ(state["last_divergence"]["action"], "reset");
+  EXPECT_EQ(state["last_divergence"]["where"], "joint 'robot_root' of body 'robot'");
 }
 
 TEST_F(SimBadStateTest, AFloodIsCountedInFullAndLoggedInBoundedForm) {
@@ -209,6 +222,104 @@ TEST_F(SimBadStateTest, AComponentWhoseOnResetThrowsIsSwitchedOffAndTheOthersAre
   corrupt([&](mjData* d) { d->qpos[qpos_of("robot_root")] = 1e11; });
   EXPECT_NO_THROW(sim_->step());
   EXPECT_EQ(later.resets, 2);
+}
+
+// ---- the default policy: pause in the state before the bad step
+
+class SimDivergencePauseTest : public SimBadStateTest {
+ protected:
+  SimDivergencePauseTest() { policy_ = DivergencePolicy::pause; }
+};
+
+TEST_F(SimDivergencePauseTest, TheStepIsUndoneAndTheSimulationPausesTellingEveryone) {
+  EXPECT_EQ(SimulationOptions{}.on_divergence, DivergencePolicy::pause);  // the default
+  call("robot.motion", "set_speed", {1.0, 0.0});
+  run_for(0.5);
+  RequestId sleep = rm_->call("time", "sleep", {5.0});
+  sim_->process_requests();
+  const double x = sim_->d()->qpos[qpos_of("robot_root")];
+  const double before = sim_->sim_time();
+  const std::uint64_t steps = sim_->steps();
+  // a force no body of the scene can take: MuJoCo resets in the step (before: the world
+  // went back to its initial state and only the log said so)
+  corrupt([&](mjData* d) { d->qfrc_applied[dof_of("human_root")] = 1e20; });
+  sim_->step();
+  // the world as the step found it: same time, same pose, not counted as a step
+  EXPECT_EQ(sim_->sim_time(), before);
+  EXPECT_EQ(sim_->steps(), steps);
+  EXPECT_EQ(sim_->d()->qpos[qpos_of("robot_root")], x);
+  EXPECT_EQ(sim_->d()->qfrc_applied[dof_of("human_root")], 1e20);  // the cause is still there, to be seen
+  EXPECT_TRUE(sim_->paused());
+  EXPECT_EQ(probe_->resets, 0);
+  sim_->process_requests();
+  auto o = rm_->outcome(sleep);
+  ASSERT_TRUE(o.has_value());
+  EXPECT_EQ(o->status, Status::failed);
+  EXPECT_THAT(o->message, HasSubstr("paused in the state before that step"));
+  json state = simulation_state();
+  EXPECT_EQ(state["state"], "paused");
+  EXPECT_EQ(state["divergences"], 1);
+  const json& last = state["last_divergence"];
+  EXPECT_EQ(last["action"], "pause");
+  EXPECT_EQ(last["quantity"].get<std::string>().substr(0, 5), "qacc[");
+  EXPECT_NEAR(last["sim_time"].get<double>(), before, 1e-12);
+  EXPECT_EQ(last["step"], steps);
+  EXPECT_NEAR(last["resumed_at"].get<double>(), before, 1e-12);
+  auto lines = warnings_with("simulation: bad state");
+  ASSERT_EQ(lines.size(), 1u);
+  EXPECT_THAT(lines[0], HasSubstr("scene.on_divergence pause"));
+  // the client removes the cause and plays on from there
+  corrupt([&](mjData* d) { d->qfrc_applied[dof_of("human_root")] = 0; });
+  EXPECT_EQ(call("simulation", "play").status, Status::success);
+  sim_->step();
+  EXPECT_GT(sim_->sim_time(), before);
+  EXPECT_GT(sim_->d()->qpos[qpos_of("robot_root")], x);
+}
+
+TEST_F(SimDivergencePauseTest, AStepRequestThatDivergesEndsFailedWithTheStepsLeftForgiven) {
+  EXPECT_EQ(call("simulation", "pause").status, Status::success);
+  corrupt([&](mjData* d) { d->qpos[qpos_of("robot_root")] = 1e11; });
+  RequestId stepping = rm_->call("simulation", "step", {100});
+  sim_->process_requests();
+  for (int i = 0; i < 10 && sim_->owed_steps() > 0; ++i) sim_->take_owed_steps(std::chrono::steady_clock::now());
+  auto o = rm_->outcome(stepping);
+  ASSERT_TRUE(o.has_value());
+  EXPECT_EQ(o->status, Status::failed);
+  EXPECT_THAT(o->message, HasSubstr("the simulation diverged"));
+  EXPECT_EQ(sim_->owed_steps(), 0u);
+  EXPECT_EQ(sim_->sim_time(), 0.0);
+}
+
+// ---- restore: the last checkpoint
+
+class SimDivergenceRestoreTest : public SimBadStateTest {
+ protected:
+  SimDivergenceRestoreTest() { policy_ = DivergencePolicy::restore; }
+};
+
+TEST_F(SimDivergenceRestoreTest, TheLastCheckpointIsPutBackAndTheSimulationGoesOn) {
+  call("robot.motion", "set_speed", {1.0, 0.0});
+  run_for(1.5);  // a checkpoint at 1 s
+  corrupt([&](mjData* d) { d->qpos[qpos_of("robot_root")] = 1e11; });
+  sim_->step();
+  EXPECT_FALSE(sim_->paused());
+  EXPECT_NEAR(sim_->sim_time(), 1.0, 2 * sim_->timestep());
+  EXPECT_EQ(probe_->resets, 1);
+  json last = simulation_state()["last_divergence"];
+  EXPECT_EQ(last["action"], "restore");
+  EXPECT_NEAR(last["resumed_at"].get<double>(), 1.0, 2 * sim_->timestep());
+  EXPECT_THAT(warnings_with("simulation: bad state").at(0), HasSubstr("went back to its checkpoint of t=1"));
+  run_for(0.1);
+  EXPECT_GT(sim_->sim_time(), 1.05);
+}
+
+TEST_F(SimDivergenceRestoreTest, WithoutACheckpointYetTheInitialStateIsTaken) {
+  // a state that diverges in its first step is no checkpoint: the world resets
+  corrupt([&](mjData* d) { d->qpos[qpos_of("robot_root")] = 1e11; });
+  sim_->step();
+  EXPECT_EQ(simulation_state()["last_divergence"]["action"], "reset");
+  EXPECT_NEAR(pose()["x"].get<double>(), 0.0, 1e-6);
+  EXPECT_EQ(probe_->resets, 1);
 }
 
 }  // namespace

@@ -15,7 +15,10 @@ constexpr const char* k_loop_scene = R"(<mujoco><option timestep="0.01"/><worldb
 class SimLoopTest : public ::testing::Test {
  protected:
   void start(double timestep, double factor) {
-    sim_ = std::make_unique<Simulation>(Model::load_string(k_loop_scene), SimulationOptions{timestep, factor});
+    SimulationOptions options = options_;
+    options.timestep = timestep;
+    options.realtime_factor = factor;
+    sim_ = std::make_unique<Simulation>(Model::load_string(k_loop_scene), options);
     sim_->add_supervision_services();
     rm_ = std::make_shared<testing::RecordingManager>();
     for (auto& e : sim_->components()) rm_->register_component(*e->component);
@@ -34,6 +37,7 @@ class SimLoopTest : public ::testing::Test {
     return o.value_or(Outcome::failed(Failure::internal, "timeout"));
   }
 
+  SimulationOptions options_;  // start() sets the timestep and the factor
   std::unique_ptr<Simulation> sim_;
   std::shared_ptr<testing::RecordingManager> rm_;
   std::thread thread_;
@@ -104,6 +108,7 @@ TEST_F(SimLoopTest, ATransportThreadRunsRequestsItselfWhileTheLoopWaits) {
 }
 
 TEST_F(SimLoopTest, ABadStateWhileRunningIsRecoveredAndTheLoopGoesOn) {
+  options_.on_divergence = DivergencePolicy::reset;
   start(0.01, 1.0);
   for (int i = 0; i < 2000 && sim_->steps() < 10; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
   ASSERT_GE(sim_->steps(), 10u);
@@ -128,6 +133,36 @@ TEST_F(SimLoopTest, ABadStateWhileRunningIsRecoveredAndTheLoopGoesOn) {
   for (int i = 0; i < 2000 && sim_->steps() < steps + 10; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
   EXPECT_GE(sim_->steps(), steps + 10);
   EXPECT_GT(call("time", "statistics").value.value_or(json::object()).value("sim_time", 0.0), before + 0.05);
+}
+
+TEST_F(SimLoopTest, ABadStateWhileRunningPausesTheLoopUntilAClientPlaysAgain) {
+  start(0.01, 1.0);  // the default policy: pause
+  for (int i = 0; i < 2000 && sim_->steps() < 10; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  ASSERT_GE(sim_->steps(), 10u);
+  {
+    std::lock_guard lock(*sim_->gate());
+    sim_->d()->qvel[0] = std::numeric_limits<double>::quiet_NaN();
+  }
+  json state;
+  for (int i = 0; i < 2000; ++i) {
+    state = call("simulation", "get_simulation_state").value.value_or(json::object());
+    if (state.value("divergences", 0) >= 1) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  ASSERT_EQ(state.value("divergences", 0), 1) << state;
+  EXPECT_EQ(state["state"], "paused");
+  const std::uint64_t steps = state["steps"].get<std::uint64_t>();
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  EXPECT_EQ(sim_->steps(), steps);  // paused: no step of its own
+  // the client removes the cause and plays: the loop steps again
+  {
+    std::lock_guard lock(*sim_->gate());
+    sim_->d()->qvel[0] = 0;
+  }
+  EXPECT_EQ(call("simulation", "play").status, Status::success);
+  for (int i = 0; i < 2000 && sim_->steps() < steps + 10; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  EXPECT_GE(sim_->steps(), steps + 10);
+  EXPECT_EQ(call("simulation", "get_simulation_state").value.value_or(json::object()).value("divergences", 0), 1);
 }
 
 // Counts what it sees: a service must never run while a step is under way.

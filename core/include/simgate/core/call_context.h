@@ -102,6 +102,9 @@ bool caller_serves(const std::string& component);
 bool caller_may_call(const std::string& component, const std::string& service);
 // Whether the caller of the running service takes its attachments raw (false outside a request).
 bool caller_takes_raw_attachments();
+// Who is calling, for a log line: "Socket service manager, request 12", or "the host"
+// outside a request.
+std::string caller_description();
 
 }  // namespace simgate
 

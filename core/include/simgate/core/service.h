@@ -77,13 +77,16 @@ struct ServiceDescriptor {
   Policy policy = Policy::unspecified;  // async only (never for concurrent services)
   std::string doc;                     // one line
   json result_schema = json::object();  // JSON schema of the result ({} = unknown)
+  // Acts on the whole process rather than the world (ends it, changes its log level):
+  // served only through console transports (ServiceAccess::console, service_access.h).
+  bool process_wide = false;
 
   std::string qualified_name() const { return component + "." + name; }
   std::size_t required_count() const;
   // "x, y, z, tolerance=0.5, speed=1.0"
   std::string signature() const;
   // {"component", "name", "async", "policy", "concurrent" (async only), "doc",
-  //  "params": [{"name","schema","default"}]}
+  //  "params": [{"name","schema","default"}], "process_wide": true (only when it is)}
   json to_json() const;
 };
 
@@ -191,6 +194,8 @@ class ServiceBuilder {
   // function takes a Completion first, with no interruption policy.
   ServiceBuilder& concurrent();
   ServiceBuilder& result_schema(json schema);
+  // Acts on the whole process (ServiceDescriptor::process_wide): console transports only.
+  ServiceBuilder& process_wide();
   const ServiceDescriptor& descriptor() const;
 
  private:

@@ -1,7 +1,8 @@
 // simgate/gateway/deployment.h — the deployment file: what to simulate and how to serve it.
 //
 // One JSON file per deployment (docs/configuration.md):
-//   scene       {mjcf, timestep?, realtime_factor? (number >= 0, or "max"), start_paused? (bool)}
+//   scene       {mjcf, timestep?, realtime_factor? (number >= 0, or "max"), start_paused? (bool),
+//                on_divergence? ("pause", "restore", "reset")}
 //   component_libraries  [name or path of a component library (sim/component_library.h)]
 //   transports  {name: {plugin?, options?, allow?, deny?}}
 //   robots      [{name, type?, body?, options?, components?: [{name, type, body?, options?}]}]
@@ -50,7 +51,7 @@ struct TransportConfig {
   std::string name;    // key in "transports"
   std::string plugin;  // plugin name or path (default: the name)
   json options;        // passed to the plugin's create()
-  ServiceAccess access;  // "allow" and "deny": which served services clients may call
+  ServiceAccess access;  // "allow", "deny" and "console": which served services clients may call
   std::string path;    // "transports.socket"
 };
 
@@ -87,6 +88,7 @@ struct Deployment {
   std::optional<double> timestep;        // overrides the MJCF's
   double realtime_factor = 1.0;          // 0 = as fast as possible
   bool start_paused = false;             // lockstep: clients drive it with `simulation step`
+  std::string on_divergence = "pause";   // sim::DivergencePolicy's word, checked
   std::vector<std::string> spawn_allowed_dirs;  // "spawn.allowed_dirs", canonical: fragment files of spawn_entity
   std::vector<TransportConfig> transports;  // sorted by name
   std::vector<std::string> component_libraries;  // names or paths, in file order

@@ -87,6 +87,10 @@ class Gateway {
   // The components' data streams the "streams" section asks for (a component named there
   // that has none is an error; a frequency on one without an output stream a warning).
   void add_streams(ConfigErrors& errors);
+  // Of `transports`, those that may carry `component`'s stream: their allow/deny lists let
+  // through every service of the component (an input stream) or its get_local_data (an
+  // output stream); each other one is a warning.
+  std::vector<std::string> carriers(const Component& component, const std::vector<std::string>& transports);
   // The stream rate the configuration gives component `c`: its "streams" rule's frequency,
   // else its own "frequency"; none when neither says.
   std::optional<double> stream_frequency(const ComponentConfig& c) const;

@@ -62,6 +62,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "simgate/core/component.h"
@@ -70,10 +71,36 @@
 #include "simgate/core/streams.h"
 #include "simgate/sim/model.h"
 #include "simgate/sim/model_remap.h"
+#include "simgate/sim/physics_state.h"
 
 namespace simgate::sim {
 
 class SimComponent;
+
+// What the simulation does when MuJoCo finds a bad state in a step (a NaN, an infinity or a
+// magnitude beyond 1e10 in qpos, qvel or qacc: the model diverged), scene.on_divergence. In
+// every case the divergence is counted and described (Simulation::last_divergence, `simulation
+// get_simulation_state`), logged, and every async request in flight ends FAILED saying why.
+enum class DivergencePolicy : std::uint8_t {
+  pause,    // the step is undone (the state before it put back) and the simulation pauses
+  restore,  // the last automatic checkpoint (one per k_checkpoint_interval of simulated time)
+            // is put back, time included, and the simulation goes on
+  reset,    // every object back to its initial state, time going on (reset_objects)
+};
+// "pause", "restore", "reset": the words of the configuration and of the wire.
+const char* to_string(DivergencePolicy policy);
+// Parses those words; false for anything else.
+bool parse_divergence_policy(std::string_view text, DivergencePolicy& out);
+
+// One divergence, as clients are told of it.
+struct Divergence {
+  double time = 0;         // the simulated time the diverging step started from
+  std::uint64_t step = 0;  // steps taken before it
+  std::string quantity;    // the bad number: "qacc[12]"
+  std::string where;       // what it belongs to: "joint 'knee' of body 'shin'"
+  DivergencePolicy action = DivergencePolicy::pause;  // what was done
+  double resumed_at = 0;   // the simulated time the world was put back to
+};
 
 struct SimulationOptions {
   std::optional<double> timestep;  // seconds; overrides the MJCF's <option timestep>
@@ -81,6 +108,7 @@ struct SimulationOptions {
   bool start_paused = false;       // lockstep: clients drive the simulation with `simulation step`
   // Directories `simulation spawn_entity` may read fragment files from (absolute; none: inline MJCF only).
   std::vector<std::string> spawn_allowed_dirs = {};
+  DivergencePolicy on_divergence = DivergencePolicy::pause;  // scene.on_divergence
 };
 
 // What the loop is doing (simulation get_simulation_state).
@@ -113,7 +141,7 @@ struct SimulationStatistics {
   double target_factor = 0;       // configured factor (0 = as fast as possible)
   double timestep = 0;            // physics step, seconds
   std::uint64_t overruns = 0;     // times the loop fell behind real time and resynchronised
-  std::uint64_t bad_states = 0;   // steps in which MuJoCo found a bad state (each recovered by reset())
+  std::uint64_t bad_states = 0;   // steps in which MuJoCo found a bad state (divergences: on_divergence)
   double recent_factor = 0;       // measured over the last second of playing (0 while paused)
 };
 
@@ -239,7 +267,21 @@ class Simulation {
   bool dynamics_suspended() const { return dynamics_suspended_; }
   // reset() with simulated time back to 0 as well (the world as it started).
   void reset_all();
+  // Puts `state` (which fits the model: PhysicsState::fits) back, time included, and
+  // evaluates it; the next step is the one taken from it when it was captured. Components
+  // are not told (the caller decides: on_reset() after a jump).
+  void restore_physics(const PhysicsState& state);
   SimulationStatistics statistics() const;
+
+  // ---- divergence (simulation thread) ----
+
+  // Under the restore policy, a checkpoint is taken after each this much simulated time
+  // without a divergence.
+  static constexpr double k_checkpoint_interval = 1.0;
+  DivergencePolicy on_divergence() const { return on_divergence_; }
+  void set_on_divergence(DivergencePolicy policy);
+  // The latest divergence, if any (their count: statistics().bad_states).
+  const std::optional<Divergence>& last_divergence() const { return last_divergence_; }
 
   // ---- playing, pausing and stepping (under the simulation lock) ----
 
@@ -290,9 +332,15 @@ class Simulation {
   // its running request.
   void fail_component(ComponentEntry& entry, const std::string& what, const std::string& reason);
   // After mj_step: reports what MuJoCo warned about since the last look, and recovers from
-  // a bad state (MuJoCo's reset) through reset() with time going on from `time_before` (the
-  // simulated time the step started from).
-  void check_mujoco_warnings(double time_before);
+  // a bad state (MuJoCo's reset) by the divergence policy (diverged()). `time_before`: the
+  // simulated time the step started from. True when the step was undone (pause).
+  bool check_mujoco_warnings(double time_before);
+  // Applies the divergence policy to the step from `time_before` that MuJoCo found `what`
+  // in (`quantity` of `where`); true when the step was undone.
+  bool diverged(double time_before, const std::string& what, std::string quantity, std::string where);
+  // Ends every async request in flight (each component's running one, and its concurrent
+  // calls) FAILED with `reason`, then interrupts what they were doing.
+  void fail_requests(const std::string& reason);
   // Sets every bad control to 0 and names their actuators.
   std::string drop_bad_controls();
 
@@ -326,7 +374,12 @@ class Simulation {
   // int never overflows and its own message, printed when the counter is 0, comes once)
   std::array<int, mjNWARNING> warnings_seen_{};
   std::array<std::uint64_t, mjNWARNING> warning_totals_{};  // occurrences of each warning since start
-  std::uint64_t bad_states_ = 0;                             // recoveries from MuJoCo's resets
+  std::uint64_t bad_states_ = 0;                             // divergences since start
+  DivergencePolicy on_divergence_;                           // see SimulationOptions
+  std::optional<Divergence> last_divergence_;                // see last_divergence()
+  PhysicsState before_step_;                                 // pause: the state the step started from
+  PhysicsState checkpoint_;                                  // restore: the last checkpoint
+  PhysicsState next_checkpoint_;                             // restore: the one being taken (kept if its step goes well)
   std::vector<std::string> spawn_allowed_dirs_;              // see SimulationOptions
 };
 

@@ -1,0 +1,53 @@
+// simgate/sim/physics_state.h — a copy of everything MuJoCo's next step reads.
+//
+// time, qpos, qvel, act, ctrl, the solver's warm start, the applied forces (qfrc_applied,
+// xfrc_applied), the mocap poses and userdata: MuJoCo 2.2.2's mj_step inputs. Put back
+// (Simulation::restore_physics) and stepped, it gives bit for bit what stepping from the
+// moment it was captured gave. It belongs to the model it was captured from: fits() says
+// whether it still does (the model generation and the sizes: a spawn or a delete since
+// makes it unusable).
+//
+// The simulation's saved states (simulation save_state, world_state.cc) and its recovery
+// from a diverging step (scene.on_divergence: the state before the step, or the last
+// checkpoint) are such copies. capture() into a PhysicsState that already holds one of the
+// same model reuses its memory: the simulation takes one before every step without
+// allocating.
+//
+// Threads: whoever holds the simulation lock (it reads and writes mjData).
+#ifndef SIMGATE_SIM_PHYSICS_STATE_H_
+#define SIMGATE_SIM_PHYSICS_STATE_H_
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include <mujoco/mujoco.h>
+
+namespace simgate::sim {
+
+class PhysicsState {
+ public:
+  // Copies `d`'s state; `generation`: Simulation::model_generation() of `m`.
+  void capture(const mjModel* m, const mjData* d, std::uint64_t generation);
+  // Whether a state was captured and fits `m` of `generation`.
+  bool fits(const mjModel* m, std::uint64_t generation) const;
+  // Writes the state into `d` (which it fits), time included. The computed quantities are
+  // not updated: Simulation::restore_physics forwards, then puts the warm start back.
+  void apply(const mjModel* m, mjData* d) const;
+  // Puts the captured warm start back into `d` (mj_forward overwrites it).
+  void apply_warmstart(const mjModel* m, mjData* d) const;
+
+  bool empty() const { return !captured_; }
+  double time() const { return time_; }
+  std::uint64_t generation() const { return generation_; }
+
+ private:
+  bool captured_ = false;
+  std::uint64_t generation_ = 0;  // Simulation::model_generation() when captured
+  double time_ = 0;               // simulated time
+  std::vector<mjtNum> values_;    // the arrays, one after the other (physics_state.cc)
+};
+
+}  // namespace simgate::sim
+
+#endif  // SIMGATE_SIM_PHYSICS_STATE_H_
