@@ -161,7 +161,6 @@ void LineConnection::on_read(const error_code& ec, std::size_t n) {
 
 void LineConnection::handle_read(const error_code& ec, std::size_t n) {
   if (closed_) return;
-  active();
   if (ec == asio::error::eof) {
     // the client finished sending: answer what it asked, then close
     if (!partial_.empty() && !discarding_) {
@@ -228,6 +227,9 @@ void LineConnection::consume(std::string_view data) {
 
 void LineConnection::deliver(std::string_view line) {
   if (!is_http_request_line(line)) {
+    // a blank line is no request: a client sending only those is idle (it does not keep
+    // its place at max_connections, issue #35 item 9)
+    if (line.find_first_not_of(" \t\r") != std::string_view::npos) active();
     host_.on_line(*this, line);
     return;
   }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <utility>
 
 #include <boost/asio/write.hpp>
 #include <boost/beast/http/read.hpp>
@@ -147,9 +148,8 @@ void WsSession::handle_read(const error_code& ec, std::size_t n) {
     return;
   }
   in_end_ += n;
-  heard_tick_ = host_.tick();
+  heard_tick_ = host_.tick();  // the keep-alive's clock: any frame, a pong too
   pinged_ = false;
-  active();
   delivered_ = false;
   handling_ = true;  // no read starts before these frames are parsed (they are in in_)
   try {
@@ -171,11 +171,13 @@ bool WsSession::consume() {
 
 void WsSession::on_text(std::string_view text) {
   delivered_ = true;
+  active();  // a message, not a ping: pings keep no place at max_connections (issue #35, item 9)
   host_.on_message(*this, text);
 }
 
 void WsSession::on_refused(std::size_t bytes, bool binary) {
   delivered_ = true;
+  active();
   host_.on_refused_message(*this, bytes, binary);
 }
 
@@ -267,6 +269,7 @@ void WsSession::queue_message(std::string_view text) {
     return;
   }
   append_frame(FrameParser::k_text, text);
+  message_queued_ = true;
   if (outbox_.size() >= k_coalesce_bytes)
     flush_writes();  // a large burst goes out as it grows
   else if (!touched)
@@ -313,7 +316,8 @@ void WsSession::start_write() {
 
 void WsSession::after_write() {
   if (aborted_) return;
-  active();
+  // a message written (a reply, a sample) is activity; a pong or a keep-alive ping is not
+  if (std::exchange(message_queued_, false)) active();
   if (sending_.capacity() > k_coalesce_bytes * 4) std::string().swap(sending_);  // keep no large buffer
   sending_.clear();
   sent_ = 0;

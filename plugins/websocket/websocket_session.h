@@ -176,8 +176,9 @@ class WsSession : public std::enable_shared_from_this<WsSession>,
   bool touched = false;
 
   // ---- resources held without use (kit/connection_rules.h, the host's sweep)
-  // Sweeps since it last read (a message, a ping, a pong), wrote or was owed a reply; 0
-  // while it owes one or has messages unsent (it is not idle then).
+  // Sweeps since it last read a message (not a ping or a pong: those keep nothing alive),
+  // wrote one or was owed a reply; 0 while it owes one or has messages unsent (it is not
+  // idle then).
   std::uint32_t idle_ticks() const {
     if (in_flight_ > 0 || unsent() > 0) return 0;
     return host_.tick() - active_tick_;
@@ -260,6 +261,7 @@ class WsSession : public std::enable_shared_from_this<WsSession>,
   std::string sending_;                         // frames being written...
   std::size_t sent_ = 0;                        // ...of which this many are written
   bool writing_ = false;                        // an async write is in flight
+  bool message_queued_ = false;                 // a message (not only control frames) queued since the last write ended
 
   std::size_t in_flight_ = 0;                   // calls, notifications and cancels not finished
   bool closed_ = false;                         // close() or abort() was called (the host was told)

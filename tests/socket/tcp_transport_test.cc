@@ -192,6 +192,33 @@ TEST_P(TcpTransportResources, AtTheLimitTheConnectionIdleLongestMakesRoom) {
   ::close(busy);
 }
 
+// issue #35 item 9: a connection that sends only blank lines is idle (before, each blank
+// line kept its place, and 1 024 of them locked newcomers out for good)
+TEST_P(TcpTransportResources, AtTheLimitAConnectionSendingOnlyBlankLinesIsIdleAndMakesRoom) {
+  WarningLog warnings;
+  start({{"max_connections", 2}, {"idle_evict_s", 0.5}});
+  int blank = connect_raw(port_);
+  EXPECT_THAT(ping(blank), HasSubstr("pong"));
+  int busy = connect_raw(port_);
+  EXPECT_THAT(ping(busy), HasSubstr("pong"));
+  std::string answer;
+  for (int i = 0; i < 30 && answer.find("pong") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(100ms);
+    ::send(blank, "\n", 1, MSG_NOSIGNAL);  // fails once it is closed: the loop ends at the newcomer
+    EXPECT_THAT(ping(busy), HasSubstr("pong"));
+    int newcomer = connect_raw(port_);
+    answer = ping(newcomer);
+    ::close(newcomer);
+  }
+  EXPECT_THAT(answer, HasSubstr("pong")) << "the newcomer was never let in";
+  EXPECT_EQ(warnings.count("to make room"), 1u) << ::testing::PrintToString(warnings.lines());
+  auto [received, ended] = read_to_end(blank, 10s);
+  EXPECT_TRUE(ended) << "the connection sending blank lines was kept";
+  EXPECT_THAT(ping(busy), HasSubstr("pong"));
+  ::close(blank);
+  ::close(busy);
+}
+
 // issue #17 (bench/attacks 7a'): a client whose every connection waits for a call that never
 // ends (`time sleep [1e9]`) owes nothing idle; at the limit the one silent longest makes room
 TEST_P(TcpTransportResources, AtTheLimitAConnectionSilentWhileItWaitsMakesRoomToo) {

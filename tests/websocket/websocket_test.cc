@@ -586,6 +586,31 @@ TEST_F(WebSocketEvictTest, AtTheLimitTheConnectionIdleLongestMakesRoom) {
   EXPECT_EQ(busy.call(request(99, "spec.subtract", json::array({3, 1})))["result"], 2);  // never chosen
 }
 
+TEST_F(WebSocketEvictTest, AtTheLimitAConnectionSendingOnlyPingsIsIdleAndMakesRoom) {
+  // issue #35 item 9: before, a ping every so often kept a connection's place for good
+  WsClient busy(host_->port());
+  EXPECT_EQ(client_->call(request(1, "spec.subtract", json::array({3, 1})))["result"], 2);
+  std::unique_ptr<WsClient> newcomer;
+  for (int attempt = 0; attempt < 30 && !newcomer; ++attempt) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    try {
+      client_->ping();
+    } catch (const boost::system::system_error&) {
+      // closed: it made room
+    }
+    EXPECT_EQ(busy.call(request(attempt, "spec.subtract", json::array({3, 1})))["result"], 2);
+    try {
+      newcomer = std::make_unique<WsClient>(host_->port());
+    } catch (const boost::system::system_error&) {
+      // refused (503): nobody idle long enough yet
+    }
+  }
+  ASSERT_TRUE(newcomer) << "no room was made";
+  EXPECT_EQ(newcomer->call(request(1, "spec.subtract", json::array({5, 1})))["result"], 4);
+  EXPECT_FALSE(client_->receive_text().has_value());
+  EXPECT_EQ(client_->close_reason().reason, "idle while the server was full");
+}
+
 // ---- allowed_origins (cross-site WebSocket hijacking)
 
 // The raw HTTP response to an upgrade request carrying `origin` (none when empty).

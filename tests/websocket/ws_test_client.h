@@ -91,6 +91,8 @@ class WsClient {
     send(request);
     return receive();
   }
+  // A ping frame (its pong is read, and dropped, by the next receive()).
+  void ping() { ws_.ping({}); }
   // The close frame's code and reason, once receive() ended on it.
   boost::beast::websocket::close_reason close_reason() const { return ws_.reason(); }
   // Closes the TCP connection without a close frame (a client vanishing).

@@ -218,11 +218,13 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
   // Closes the socket and tells the host; idempotent.
   void close(std::string_view reason);
   bool closed() const { return closed_; }
-  // Sweeps (of LineServer) since it last read, wrote or was owed a reply; 0 while it owes
-  // one or has replies unsent (it is not idle then).
+  // Sweeps (of LineServer) since it last read a line that is not blank, wrote or was owed
+  // a reply; 0 while it owes one or has replies unsent (it is not idle then). Blank lines
+  // keep nothing alive: a client sending only those is idle.
   std::uint32_t idle_ticks() const;
-  // Sweeps since it last read, wrote or was answered, even while it owes replies (a client
-  // waiting for calls that do not end); 0 while it has replies unsent.
+  // Sweeps since it last read a line that is not blank, wrote or was answered, even while
+  // it owes replies (a client waiting for calls that do not end); 0 while it has replies
+  // unsent.
   std::uint32_t silent_ticks() const;
   // Sweeps since its unfinished line began; 0 when there is none.
   std::uint32_t line_ticks() const;
