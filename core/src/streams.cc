@@ -5,6 +5,7 @@
 
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
+#include "simgate/core/suggest.h"
 
 namespace simgate {
 
@@ -434,6 +435,19 @@ void StreamHub::note_skipped(const std::string& component) {
                  "render thread behind); this is logged once; simulation get_stream_statistics counts them");
 }
 
+std::string StreamHub::unknown_key(const StreamInfo& info, const json& command) {
+  for (auto it = command.begin(); it != command.end(); ++it) {
+    // a sample written back keeps its timestamp (an armature_pose's to an armature)
+    if (it.key() == "timestamp" || std::find(info.fields.begin(), info.fields.end(), it.key()) != info.fields.end())
+      continue;
+    std::string expected;
+    for (const auto& k : info.fields) expected += (expected.empty() ? "" : ", ") + k;
+    return "the command has an unknown key '" + it.key() + "' (expected " + expected + ")" +
+           did_you_mean(it.key(), info.fields);
+  }
+  return "";
+}
+
 std::string StreamHub::apply(Stream& stream, const json& command) {
   // the component, without the hub mutex (the caller holds the simulation lock, which keeps
   // the stream); then the counters, with it
@@ -553,6 +567,13 @@ PublishResult StreamHub::publish(std::string_view component, std::string_view tr
     s = find_input_locked(component, transport);
     if (!s) {
       result.error = "no input stream '" + std::string(component) + "' here";
+      return result;
+    }
+    // a key the stream does not take is refused now, not after waiting for the lock: the
+    // client is never told "queued" of a command that will be refused (issue #35, item 10)
+    result.error = unknown_key(s->info, command);
+    if (!result.error.empty()) {
+      count_refusal_locked(*s, result.error, /*log=*/true);
       return result;
     }
     if (!gate.owns_lock()) {

@@ -145,11 +145,12 @@ void parse_scene(ConfigObject& root, const std::string& base_dir, Deployment& d)
     if (!factor) return;
     if (factor->is_string() && factor->get<std::string>() == "max") {
       d.realtime_factor = 0;
-    } else if (factor->is_number() && factor->get<double>() >= 0 && factor->get<double>() <= 1e6) {
+    } else if (factor->is_number() && factor->get<double>() <= 1e6 &&
+               (factor->get<double>() == 0 || factor->get<double>() >= sim::Simulation::k_min_realtime_factor)) {
       d.realtime_factor = factor->get<double>();
     } else {
       throw ConfigError(scene.path_of("realtime_factor") +
-                        ": expected a number >= 0 (0 = as fast as possible) or \"max\", found " +
+                        ": expected 0 (as fast as possible), \"max\" or a number from 1e-06 to 1e+06, found " +
                         describe_json(*factor));
     }
   });

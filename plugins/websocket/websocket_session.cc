@@ -15,6 +15,12 @@
 
 namespace simgate::websocket {
 
+bool is_valid_close_code(std::uint16_t code) {
+  // 1004-1006 and 1015 are reserved (never sent), 1016-2999 unassigned; 3000-4999 are for
+  // libraries and applications
+  return (code >= 1000 && code <= 1003) || (code >= 1007 && code <= 1014) || (code >= 3000 && code <= 4999);
+}
+
 namespace asio = boost::asio;
 namespace beast = boost::beast;
 namespace http = beast::http;
@@ -207,7 +213,13 @@ void WsSession::on_control(std::uint8_t opcode, std::string_view payload) {
   }
   if (!close_queued_) {
     close_queued_ = true;
-    append_frame(FrameParser::k_close, payload.substr(0, std::min<std::size_t>(payload.size(), 2)));
+    // its code echoed, when it is one a peer may send (RFC 6455 7.4): else 1002
+    std::string_view code = payload.substr(0, std::min<std::size_t>(payload.size(), 2));
+    if (code.size() == 2 &&
+        !is_valid_close_code(static_cast<std::uint16_t>((static_cast<unsigned char>(code[0]) << 8) |
+                                                        static_cast<unsigned char>(code[1]))))
+      code = std::string_view("\x03\xea", 2);  // 1002, protocol error
+    append_frame(FrameParser::k_close, code);
   }
   flush_writes();
 }

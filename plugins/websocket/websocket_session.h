@@ -69,6 +69,10 @@
 
 namespace simgate::websocket {
 
+// Whether a close frame may carry `code` (RFC 6455 section 7.4): a client's other codes
+// are answered with 1002, not echoed.
+bool is_valid_close_code(std::uint16_t code);
+
 class WsSession;
 
 // What a session needs from the transport that owns it (I/O thread).

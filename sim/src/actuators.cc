@@ -17,7 +17,6 @@ MotionVW::MotionVW(ComponentContext& c) : SimComponent(c.name(), c.sim()), drive
   add_service("stop", &MotionVW::stop).doc("Stop the robot");
   // MORSE's motion_vw datastream: {"v": m/s, "w": rad/s}
   declare_input_stream("velocity", {"v", "w"}, [this](const json& command) {
-    require_command_keys(command, {"v", "w"});
     set_speed(command_number(command, "v"), command_number(command, "w"));
   });
 }
@@ -52,7 +51,6 @@ Waypoint::Waypoint(ComponentContext& c)
   add_service("get_status", &Waypoint::get_status).doc("Transit, Arrived or Stop");
   // MORSE's waypoint datastream: a new destination, as setdest
   declare_input_stream("waypoint", {"x", "y", "z", "tolerance", "speed"}, [this](const json& command) {
-    require_command_keys(command, {"x", "y", "z", "tolerance", "speed"});
     setdest(command_number(command, "x"), command_number(command, "y"), command_number(command, "z", 0.0),
             command_number(command, "tolerance", 0.5), command_number(command, "speed", 1.0));
   });
@@ -162,7 +160,6 @@ Teleport::Teleport(ComponentContext& c)
 }
 
 void Teleport::place(const json& command) {
-  require_command_keys(command, {"x", "y", "z", "roll", "pitch", "yaw"});
   const Eigen::Vector3d now = body_position(sim(), body_);
   Eigen::Vector3d position(command_number(command, "x", now.x()), command_number(command, "y", now.y()),
                            command_number(command, "z", now.z()));

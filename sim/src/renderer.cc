@@ -136,6 +136,11 @@ std::uint64_t Renderer::renders() const {
   return renders_;
 }
 
+std::uint64_t Renderer::abandoned() const {
+  std::lock_guard lock(mutex_);
+  return abandoned_;
+}
+
 std::shared_ptr<const mjModel> Renderer::model_copy(const mjModel* m) {
   std::lock_guard lock(copy_mutex_);
   if (last_copy_ && same_model(last_copy_.get(), m)) return last_copy_;
@@ -145,10 +150,11 @@ std::shared_ptr<const mjModel> Renderer::model_copy(const mjModel* m) {
   return last_copy_;
 }
 
-void Renderer::render(std::unique_ptr<SceneCopy> scene, bool want_rgb, bool want_depth, Callback done) {
+void Renderer::render(std::unique_ptr<SceneCopy> scene, bool want_rgb, bool want_depth, Callback done,
+                      std::function<bool()> wanted) {
   {
     std::lock_guard lock(mutex_);
-    queue_.push_back(Job{std::move(scene), want_rgb, want_depth, std::move(done)});
+    queue_.push_back(Job{std::move(scene), want_rgb, want_depth, std::move(done), std::move(wanted)});
   }
   wake_.notify_one();
 }
@@ -180,8 +186,13 @@ void Renderer::run() {
     RenderResult result;
     result.view = job.scene->view();
     result.timestamp = job.scene->timestamp();
+    const bool abandoned = job.wanted && !job.wanted();
     if (!why.empty()) {
       result.error = why;
+    } else if (abandoned) {
+      // its request ended while it waited (its client left, or cancelled it): no GL work
+      // for nobody (issue #35, item 7: a client's 300 large snapshots, then gone)
+      result.error = "abandoned: its request ended before its turn";
     } else {
       try {
         render_job(job, result);
@@ -192,7 +203,7 @@ void Renderer::run() {
     result.scene = std::move(job.scene);
     {
       std::lock_guard lock(mutex_);
-      ++renders_;
+      ++(abandoned ? abandoned_ : renders_);
     }
     try {
       job.done(std::move(result));

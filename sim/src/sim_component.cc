@@ -136,16 +136,6 @@ double command_number(const json& command, const std::string& key, std::optional
   return it->get<double>();
 }
 
-void require_command_keys(const json& command, const std::vector<std::string>& keys) {
-  for (auto it = command.begin(); it != command.end(); ++it) {
-    if (it.key() == "timestamp" || std::find(keys.begin(), keys.end(), it.key()) != keys.end()) continue;
-    std::string expected;
-    for (const auto& k : keys) expected += (expected.empty() ? "" : ", ") + k;
-    throw ServiceError("the command has an unknown key '" + it.key() + "' (expected " + expected + ")",
-                       Failure::bad_arguments, {{"parameter", it.key()}});
-  }
-}
-
 void set_free_body_pose(Simulation& sim, int free_joint, const Eigen::Vector3d& position,
                         const Eigen::Quaterniond& orientation) {
   const mjModel* m = sim.m();

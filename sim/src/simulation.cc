@@ -12,6 +12,7 @@
 #include "simgate/sim/model_edit.h"
 #include "simgate/sim/sim_component.h"
 #include "simgate/sim/supervision.h"
+#include "bad_state.h"
 
 namespace simgate::sim {
 
@@ -47,25 +48,6 @@ std::string seconds(double t) {
   return text;
 }
 
-std::string name_or_index(const mjModel* m, mjtObj type, int id, const char* kind) {
-  const char* name = mj_id2name(m, type, id);
-  return name && *name ? std::string(kind) + " '" + name + "'" : std::string(kind) + " " + std::to_string(id);
-}
-
-// "joint 'robot_root' of body 'robot'" for a qpos address (qpos) or a dof (qvel, qacc).
-std::string where_in_state(const mjModel* m, int warning, int index) {
-  int joint = -1;
-  if (warning == mjWARN_BADQPOS) {
-    for (int j = 0; j < m->njnt; ++j)
-      if (m->jnt_qposadr[j] <= index) joint = j;  // addresses grow with the joint index
-  } else if (index >= 0 && index < m->nv) {
-    joint = m->dof_jntid[index];
-  }
-  if (joint < 0 || joint >= m->njnt) return "an unknown joint";
-  return name_or_index(m, mjOBJ_JOINT, joint, "joint") + " of " +
-         name_or_index(m, mjOBJ_BODY, m->jnt_bodyid[joint], "body");
-}
-
 // The warnings that do not reset the state, as a user can act on them.
 const char* describe_warning(int warning) {
   switch (warning) {
@@ -77,14 +59,6 @@ const char* describe_warning(int warning) {
   }
 }
 
-bool resets_the_state(int warning) {
-  return warning == mjWARN_BADQPOS || warning == mjWARN_BADQVEL || warning == mjWARN_BADQACC;
-}
-
-// The mjData array a state warning is about.
-const char* state_array(int warning) {
-  return warning == mjWARN_BADQPOS ? "qpos" : warning == mjWARN_BADQVEL ? "qvel" : "qacc";
-}
 }  // namespace
 
 const char* to_string(DivergencePolicy policy) {
@@ -142,9 +116,9 @@ Simulation::~Simulation() {
 }
 
 void Simulation::set_realtime_factor(double factor) {
-  if (!(factor >= 0) || !std::isfinite(factor))
-    throw std::invalid_argument("simulation: realtime_factor must be >= 0 (0 = as fast as possible), not " +
-                                std::to_string(factor));
+  if (!(factor >= 0) || !std::isfinite(factor) || (factor > 0 && factor < k_min_realtime_factor))
+    throw std::invalid_argument("simulation: realtime_factor must be 0 (as fast as possible) or at least " +
+                                std::to_string(k_min_realtime_factor) + ", not " + std::to_string(factor));
   realtime_factor_ = factor;
   // the loop may be asleep until a step scheduled at the old pace
   reschedule_ = true;
@@ -539,7 +513,7 @@ bool Simulation::check_mujoco_warnings(double time_before) {
       if (!resets_the_state(k) || fresh[k] == 0) continue;
       warning_totals_[k] += fresh[k];
       const int index = data->warning[k].lastinfo;
-      quantity = std::string(state_array(k)) + "[" + std::to_string(index) + "]";
+      quantity = bad_quantity(k, index);
       where = where_in_state(m(), k, index);
       what = "a NaN, an infinity or a magnitude beyond 1e10 in " + quantity + " (" + where + ")";
     }

@@ -166,11 +166,32 @@ std::unique_ptr<SceneCopy> Snapshotter::scene(const CameraView& view) {
   return scene;
 }
 
-void Snapshotter::start(const SnapshotOptions& options, Done done) {
+std::size_t Snapshotter::InFlight::still_wanted() {
+  std::lock_guard lock(mutex);
+  return static_cast<std::size_t>(
+      std::count_if(wanted.begin(), wanted.end(), [](const auto& entry) { return entry.second(); }));
+}
+
+void Snapshotter::start(const SnapshotOptions& options, Done done, std::function<bool()> wanted) {
   std::string camera;
   const CameraView v = view(options, camera);
   Renderer& r = renderer();
-  r.render(scene(v), true, false, [done = std::move(done), camera](RenderResult result) {
+  if (in_flight_->still_wanted() >= k_max_in_flight)
+    throw ServiceError(std::string(k_who) + ": " + std::to_string(k_max_in_flight) +
+                           " snapshots are being rendered already (the limit): ask again when one is done",
+                       Failure::service_error, {{"limit", k_max_in_flight}});
+  auto copy = scene(v);
+  std::uint64_t ticket = 0;
+  {
+    std::lock_guard lock(in_flight_->mutex);
+    ticket = in_flight_->next_ticket++;
+    in_flight_->wanted.emplace(ticket, wanted ? wanted : [] { return true; });
+  }
+  r.render(std::move(copy), true, false, [done = std::move(done), camera, in_flight = in_flight_, ticket](RenderResult result) {
+    {
+      std::lock_guard lock(in_flight->mutex);
+      in_flight->wanted.erase(ticket);
+    }
     std::string error = result.error;
     json record;
     if (error.empty()) {
@@ -187,7 +208,7 @@ void Snapshotter::start(const SnapshotOptions& options, Done done) {
     record["camera"] = camera;
     record["view"] = view_json(result.view);
     done(Status::success, std::move(record));
-  });
+  }, std::move(wanted));
 }
 
 json Snapshotter::take(const SnapshotOptions& options, std::chrono::milliseconds timeout) {
@@ -209,7 +230,8 @@ void add_snapshot_services(SupervisionServices& simulation, Simulation& sim) {
           "get_snapshot",
           [snapshots](Completion done, std::string camera, std::int64_t width, std::int64_t height) {
             snapshots->start({std::move(camera), width, height},
-                             [done](Status status, json value) { done(status, std::move(value)); });
+                             [done](Status status, json value) { done(status, std::move(value)); },
+                             [done] { return !done.done(); });  // its client may leave before its turn
           },
           {{"camera", ""},
            {"width", SnapshotOptions::k_default_width},

@@ -19,6 +19,7 @@
 #include <filesystem>
 #include <fstream>
 #include <future>
+#include <memory>
 #include <optional>
 #include <set>
 #include <sstream>
@@ -31,6 +32,8 @@
 #include "simgate/sim/model_remap.h"
 #include "simgate/sim/sim_component.h"
 #include "simgate/sim/world_services.h"
+#include "bad_state.h"
+#include "helpers.h"
 
 namespace simgate::sim {
 
@@ -41,8 +44,152 @@ namespace fs = std::filesystem;
 // A fragment file larger than this is refused unread (an MJCF body is kilobytes).
 constexpr std::uintmax_t k_max_fragment_bytes = 1 << 20;
 
+// What one fragment may add: far more than a robot has (the humanoid: 17 bodies, 21
+// joints, 20 geoms), far less than what would slow every step of everyone for good.
+constexpr int k_max_fragment_bodies = 1000;
+constexpr int k_max_fragment_joints = 1000;
+constexpr int k_max_fragment_geoms = 10000;
+
+// A compiled fragment is stepped this many times, from its initial state, on a scratch
+// copy before it goes live: one that diverges at once (a gain of 1e300, a spring reference
+// of 1e11) is refused instead of resetting the world every step.
+constexpr int k_trial_steps = 100;
+
 [[noreturn]] void refuse(const std::string& parameter, const std::string& message) {
   throw ServiceError(message, Failure::bad_arguments, {{"parameter", parameter}});
+}
+
+// Refuses a fragment (the last entity of `model`) that is too large, holds a number beyond
+// what MuJoCo takes as sound (1e10: mjMAXVAL) in what drives its dynamics, or makes the
+// model diverge within k_trial_steps of its initial state (issue #35, item 2). Its block is
+// the last one of every array (model.h), its counts measured by compile_scene. Any thread
+// (a worker's: the model is not live yet).
+void check_fragment(const Model& model) {
+  const SpawnedEntity& e = model.entities().back();
+  const ModelCounts& c = e.counts;
+  const std::string who = "mjcf: entity '" + e.name + "'";
+  auto cap = [&](int count, int limit, const char* what) {
+    if (count > limit)
+      refuse("mjcf", who + " has " + std::to_string(count) + " " + what + ": at most " + std::to_string(limit) +
+                         " in one fragment");
+  };
+  cap(c.nbody, k_max_fragment_bodies, "bodies");
+  cap(c.njnt, k_max_fragment_joints, "joints");
+  cap(c.ngeom, k_max_fragment_geoms, "geoms");
+
+  const mjModel* m = model.model();
+  // self-contained: what it adds refers to its own objects (and the world body) only
+  auto owned = [&](mjtObj type, int id) {
+    if (id < 0) return true;  // none, or the global frame
+    switch (type) {
+      case mjOBJ_BODY:
+      case mjOBJ_XBODY: return id == 0 || id >= m->nbody - c.nbody;
+      case mjOBJ_JOINT: return id >= m->njnt - c.njnt;
+      case mjOBJ_GEOM: return id >= m->ngeom - c.ngeom;
+      case mjOBJ_SITE: return id >= m->nsite - c.nsite;
+      case mjOBJ_CAMERA: return id >= m->ncam - c.ncam;
+      case mjOBJ_ACTUATOR: return id >= m->nu - c.nu;
+      case mjOBJ_TENDON: return id >= m->ntendon - c.ntendon;
+      default: return true;
+    }
+  };
+  auto require_owned = [&](const std::string& what, mjtObj type, int id, const char* kind) {
+    if (owned(type, id)) return;
+    refuse("mjcf", who + ": " + what + " refers to " + name_or_index(m, type, id, kind) +
+                       ", which is not the entity's: a fragment's actuators, sensors, tendons and equalities refer "
+                       "to its own objects only (the scene's would be driven by an entity, and left broken when it "
+                       "is deleted)");
+  };
+  for (int i = m->nu - c.nu; i < m->nu; ++i) {
+    const std::string what = name_or_index(m, mjOBJ_ACTUATOR, i, "actuator");
+    const int* id = m->actuator_trnid + 2 * i;
+    switch (m->actuator_trntype[i]) {
+      case mjTRN_JOINT:
+      case mjTRN_JOINTINPARENT: require_owned(what, mjOBJ_JOINT, id[0], "joint"); break;
+      case mjTRN_SLIDERCRANK:
+        require_owned(what, mjOBJ_SITE, id[0], "site");
+        require_owned(what, mjOBJ_SITE, id[1], "site");
+        break;
+      case mjTRN_TENDON: require_owned(what, mjOBJ_TENDON, id[0], "tendon"); break;
+      case mjTRN_SITE: require_owned(what, mjOBJ_SITE, id[0], "site"); break;
+      case mjTRN_BODY: require_owned(what, mjOBJ_BODY, id[0], "body"); break;
+      default: break;
+    }
+  }
+  for (int i = m->nsensor - c.nsensor; i < m->nsensor; ++i) {
+    const std::string what = name_or_index(m, mjOBJ_SENSOR, i, "sensor");
+    const auto type = static_cast<mjtObj>(m->sensor_objtype[i]);
+    require_owned(what, type, m->sensor_objid[i], "object");
+    require_owned(what, static_cast<mjtObj>(m->sensor_reftype[i]), m->sensor_refid[i], "object");
+  }
+  for (int i = m->neq - c.neq; i < m->neq; ++i) {
+    const std::string what = name_or_index(m, mjOBJ_EQUALITY, i, "equality");
+    const mjtObj type = m->eq_type[i] == mjEQ_JOINT    ? mjOBJ_JOINT
+                        : m->eq_type[i] == mjEQ_TENDON ? mjOBJ_TENDON
+                                                       : mjOBJ_BODY;
+    const char* kind = type == mjOBJ_JOINT ? "joint" : type == mjOBJ_TENDON ? "tendon" : "body";
+    require_owned(what, type, m->eq_obj1id[i], kind);
+    require_owned(what, type, m->eq_obj2id[i], kind);
+  }
+  for (int t = m->ntendon - c.ntendon; t < m->ntendon; ++t) {
+    const std::string what = name_or_index(m, mjOBJ_TENDON, t, "tendon");
+    for (int w = m->tendon_adr[t]; w < m->tendon_adr[t] + m->tendon_num[t]; ++w) {
+      const int id = m->wrap_objid[w];
+      switch (m->wrap_type[w]) {
+        case mjWRAP_JOINT: require_owned(what, mjOBJ_JOINT, id, "joint"); break;
+        case mjWRAP_SITE: require_owned(what, mjOBJ_SITE, id, "site"); break;
+        case mjWRAP_SPHERE:
+        case mjWRAP_CYLINDER: require_owned(what, mjOBJ_GEOM, id, "geom"); break;
+        default: break;
+      }
+    }
+  }
+
+  // `n` values from `values`, those of object `id`: each finite and within mjMAXVAL
+  auto sound = [&](const mjtNum* values, int n, mjtObj type, int id, const char* kind, const char* attribute) {
+    for (int k = 0; k < n; ++k) {
+      if (std::isfinite(values[k]) && std::abs(values[k]) <= mjMAXVAL) continue;
+      refuse("mjcf", who + ": " + name_or_index(m, type, id, kind) + " has " + attribute + " " + number(values[k]) +
+                         ", beyond what MuJoCo steps soundly (at most 1e10 in magnitude)");
+    }
+  };
+  // the last `count` of `total` objects, `stride` values each
+  auto bounded = [&](const mjtNum* array, int total, int count, int stride, mjtObj type, const char* kind,
+                     const char* attribute) {
+    for (int i = total - count; i < total; ++i)
+      sound(array + static_cast<std::size_t>(i) * stride, stride, type, i, kind, attribute);
+  };
+  bounded(m->actuator_gainprm, m->nu, c.nu, mjNGAIN, mjOBJ_ACTUATOR, "actuator", "a gain parameter");
+  bounded(m->actuator_biasprm, m->nu, c.nu, mjNBIAS, mjOBJ_ACTUATOR, "actuator", "a bias parameter");
+  bounded(m->actuator_gear, m->nu, c.nu, 6, mjOBJ_ACTUATOR, "actuator", "a gear");
+  bounded(m->jnt_stiffness, m->njnt, c.njnt, 1, mjOBJ_JOINT, "joint", "a stiffness");
+  bounded(m->body_mass, m->nbody, c.nbody, 1, mjOBJ_BODY, "body", "a mass");
+  bounded(m->body_inertia, m->nbody, c.nbody, 3, mjOBJ_BODY, "body", "an inertia");
+  bounded(m->tendon_stiffness, m->ntendon, c.ntendon, 1, mjOBJ_TENDON, "tendon", "a stiffness");
+  bounded(m->tendon_damping, m->ntendon, c.ntendon, 1, mjOBJ_TENDON, "tendon", "a damping");
+  bounded(m->eq_data, m->neq, c.neq, mjNEQDATA, mjOBJ_EQUALITY, "equality", "a parameter");
+  for (int j = m->njnt - c.njnt; j < m->njnt; ++j) {
+    const int nq = m->jnt_type[j] == mjJNT_FREE ? 7 : m->jnt_type[j] == mjJNT_BALL ? 4 : 1;
+    const int nv = m->jnt_type[j] == mjJNT_FREE ? 6 : m->jnt_type[j] == mjJNT_BALL ? 3 : 1;
+    sound(m->qpos_spring + m->jnt_qposadr[j], nq, mjOBJ_JOINT, j, "joint", "a spring reference");
+    sound(m->dof_damping + m->jnt_dofadr[j], nv, mjOBJ_JOINT, j, "joint", "a damping");
+    sound(m->dof_armature + m->jnt_dofadr[j], nv, mjOBJ_JOINT, j, "joint", "an armature");
+  }
+
+  // the trial: a scratch copy of its initial state, stepped
+  std::unique_ptr<mjData, void (*)(mjData*)> d(mj_makeData(m), mj_deleteData);
+  if (!d) refuse("mjcf", who + ": MuJoCo could not allocate its state");
+  mj_copyData(d.get(), m, model.data());
+  for (int step = 0; step < k_trial_steps; ++step) {
+    mj_step(m, d.get());
+    for (int k = 0; k < mjNWARNING; ++k) {
+      if (!resets_the_state(k) || d->warning[k].number == 0) continue;
+      const int index = d->warning[k].lastinfo;
+      refuse("mjcf", who + " makes the model diverge: stepped from its initial state, step " + std::to_string(step + 1) +
+                         " found a NaN, an infinity or a magnitude beyond 1e10 in " + bad_quantity(k, index) + " (" +
+                         where_in_state(m, k, index) + "); nothing was spawned");
+    }
+  }
 }
 
 // A name MuJoCo and every transport carry as is, and that no unnamed body answers to
@@ -308,7 +455,9 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
                              last_is_new, file = std::move(file)]() mutable {
           try {
             if (file) entities.back().sections = file->sections(entities.back().name);
-            result->set_value(compile_scene(scene, entities, last_is_new, edited.get()));
+            Model model = compile_scene(scene, entities, last_is_new, edited.get());
+            if (last_is_new) check_fragment(model);
+            result->set_value(std::move(model));
           } catch (...) {
             result->set_exception(std::current_exception());
           }

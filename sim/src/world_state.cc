@@ -161,6 +161,14 @@ class WorldState {
       throw ServiceError("simulation reset: robot = \"" + name + "\": expected the name of a robot (simulation "
                          "list_robots)",
                          Failure::bad_arguments, {{"parameter", "robot"}});
+    // its components' requests end: a component the caller's transport does not serve is
+    // beyond its reach (a JSON-RPC reset ended a socket client's goto, issue #35 item 10)
+    for (auto& e : sim_.components())
+      if (e->robot == name && !caller_serves(e->component->name()))
+        throw ServiceError("simulation reset: robot '" + name + "' has component '" + e->component->name() +
+                               "', which this transport does not serve: its reset would act behind that "
+                               "component's clients; reset it through a transport that serves all of the robot",
+                           Failure::service_error, {{"parameter", "robot"}, {"component", e->component->name()}});
     const std::string reason = "simulation reset (robot): robot '" + name + "' went back to its initial state";
     end_requests(*entry, reason);
     for (auto& e : sim_.components())

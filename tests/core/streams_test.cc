@@ -194,6 +194,26 @@ TEST_F(StreamHubTest, ACommandTheTransportCouldNotReadIsCountedAsRefused) {
   EXPECT_EQ(stats[1].last_refusal, "the command has no 'v'");
 }
 
+TEST_F(StreamHubTest, ACommandWithAKeyTheStreamDoesNotTakeIsRefusedAtOnceEvenWhileTheLockIsHeld) {
+  // before, it waited for the simulation's turn (the client told it was queued) and was
+  // refused there, out of the client's sight (issue #35, item 10)
+  gate->lock();
+  PublishResult r;
+  std::thread transport([&] { r = hub.publish("robot.motion", "socket", {{"v", 1}, {"speed", 2}}); });
+  transport.join();
+  EXPECT_FALSE(r.ok);
+  EXPECT_EQ(r.error, "the command has an unknown key 'speed' (expected v, w)");
+  EXPECT_FALSE(hub.turn_wanted());  // nothing queued
+  // a timestamp (a sample written back) is taken
+  std::thread again([&] { r = hub.publish("robot.motion", "socket", {{"v", 1}, {"w", 0}, {"timestamp", 3.5}}); });
+  again.join();
+  EXPECT_TRUE(r.ok);
+  EXPECT_TRUE(hub.turn_wanted());
+  EXPECT_EQ(hub.apply_commands(), 1u);
+  gate->unlock();
+  EXPECT_EQ(hub.statistics("socket")[1].refused, 1u);
+}
+
 TEST_F(StreamHubTest, WhileTheLockIsHeldTheLatestCommandWaitsForTheNextTurn) {
   gate->lock();
   std::thread transport([&] {

@@ -92,6 +92,40 @@ TEST_F(SnapshotTest, FreeViewHasTheAskedSizeAndShowsTheScene) {
   EXPECT_EQ(second.status, Status::success) << second.message;
 }
 
+TEST_F(SnapshotTest, SnapshotsWhoseRequestsEndedAreNotRenderedAndAtMostEightWait) {
+  // issue #35 item 7: a client's batch of large snapshots kept the renderer (and every
+  // camera) busy for minutes after it left; now a render whose request ended is skipped,
+  // and a ninth snapshot under way is refused
+  ASSERT_EQ(snapshot({{"width", 64}, {"height", 64}}).status, Status::success);  // the renderer is up
+  const std::shared_ptr<Renderer> renderer = Renderer::shared();
+  const std::uint64_t rendered = renderer->renders(), abandoned = renderer->abandoned();
+  std::vector<RequestId> ids;
+  for (int i = 0; i < Snapshotter::k_max_in_flight + 1; ++i)
+    ids.push_back(rm_->call("simulation", "get_snapshot", {{"width", 2048}, {"height", 2048}}));
+  sim_->process_requests();
+  const auto refused = rm_->outcome(ids.back());
+  ASSERT_TRUE(refused.has_value()) << "the ninth was queued too";
+  EXPECT_EQ(refused->status, Status::failed);
+  EXPECT_THAT(refused->message, HasSubstr("snapshots are being rendered already (the limit)"));
+  ids.pop_back();
+  // the client leaves: its calls are cancelled (the transports do so for a client gone)
+  for (RequestId id : ids) rm_->cancel(id);
+  sim_->process_requests();
+  for (RequestId id : ids) EXPECT_EQ(rm_->outcome(id).value_or(Outcome{}).status, Status::preempted);
+  // those left behind no longer count: another client's snapshot is taken at once
+  const RequestId next = rm_->call("simulation", "get_snapshot", {{"width", 64}, {"height", 64}});
+  sim_->process_requests();
+  EXPECT_FALSE(rm_->outcome(next).has_value()) << rm_->outcome(next)->message;
+  // the renderer goes through its queue: the first may be rendering already, the rest are skipped
+  const auto deadline = std::chrono::steady_clock::now() + k_render_deadline;
+  while (renderer->renders() + renderer->abandoned() < rendered + abandoned + ids.size() + 1 &&
+         std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  EXPECT_GE(renderer->abandoned() - abandoned, ids.size() - 2);
+  EXPECT_LE(renderer->renders() - rendered, 3u);  // the one rendering when they left, the other client's
+  EXPECT_EQ(step_until_outcome(next, k_render_deadline).status, Status::success);
+}
+
 TEST_F(SnapshotTest, NamedCameraSeesTheRedBoxAndSizeIsAsAsked) {
   const Outcome o = snapshot({{"camera", "front"}, {"width", 160}, {"height", 100}});
   const DecodedPng png = png_of(o);

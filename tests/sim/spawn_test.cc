@@ -219,6 +219,60 @@ TEST_F(SimSpawnTest, FragmentThatDoesNotCompileGivesMujocosMessage) {
   EXPECT_TRUE(testing::state_is_finite(*sim_));
 }
 
+// issue #35 item 2: each of these went live and sent MuJoCo into a bad state on every step
+// (the world reset each time), and some could not be deleted
+TEST_F(SimSpawnTest, AFragmentThatWouldPoisonTheWorldIsRefusedAndNothingChanges) {
+  remember_world();
+  // refers to the scene's own joint
+  expect_refused(spawn("thief", {0.0, -2.0, 0.5}, R"(<mujoco><worldbody><body><geom size=".1"/></body></worldbody>
+      <actuator><motor name="thief_motor" joint="robot_left_wheel_joint" gear="1"/></actuator></mujoco>)"),
+                 "mjcf", "refers to joint 'robot_left_wheel_joint', which is not the entity's");
+  expect_refused(spawn("spy", {0.0, -2.0, 0.5}, R"(<mujoco><worldbody><body><geom size=".1"/></body></worldbody>
+      <sensor><jointpos name="spy_pos" joint="robot_left_wheel_joint"/></sensor></mujoco>)"),
+                 "mjcf", "which is not the entity's");
+  // numbers no step survives
+  expect_refused(spawn("biased", {0.0, -2.0, 0.5}, R"(<mujoco><worldbody><body><joint name="b_hinge" axis="0 0 1"/>
+      <geom size=".1" mass="1"/></body></worldbody>
+      <actuator><general name="b_motor" joint="b_hinge" biastype="affine" biasprm="0 1e300 0"/></actuator></mujoco>)"),
+                 "mjcf", "actuator 'b_motor' has a bias parameter 1e+300");
+  expect_refused(spawn("stiff", {0.0, -2.0, 0.5}, R"(<body><joint name="s_hinge" axis="0 0 1" stiffness="1e300"/>
+      <geom size=".1" mass="1"/></body>)"),
+                 "mjcf", "joint 's_hinge' has a stiffness 1e+300");
+  expect_refused(spawn("sprung", {0.0, -2.0, 0.5}, R"(<body><joint name="r_slide" type="slide" stiffness="10"
+      springref="1e11"/><geom size=".1" mass="1"/></body>)"),
+                 "mjcf", "joint 'r_slide' has a spring reference 1e+11");
+  // sound numbers, yet it diverges from its first steps: the trial catches it
+  expect_refused(spawn("wild", {0.0, -2.0, 0.5}, R"(<mujoco><worldbody><body><joint name="w_hinge" axis="0 0 1"/>
+      <geom size=".1" mass="1e-9"/></body></worldbody>
+      <actuator><general name="w_motor" joint="w_hinge" biastype="affine" biasprm="1e9 0 0"/></actuator></mujoco>)"),
+                 "mjcf", "makes the model diverge");
+  run_for(0.1);
+  EXPECT_EQ(sim_->statistics().bad_states, 0u);
+}
+
+TEST_F(SimSpawnTest, ASelfContainedRobotWithActuatorSensorTendonAndEqualityCanBeDeleted) {
+  Outcome o = spawn("arm", {0.0, -2.0, 0.5}, R"(<mujoco>
+      <worldbody><body><joint name="arm_j1" axis="0 0 1"/><geom name="arm_g1" size=".1" mass="1"/><site name="arm_s1"/>
+        <body pos=".3 0 0"><joint name="arm_j2" axis="0 0 1"/><geom size=".05" mass="1"/><site name="arm_s2"/></body>
+      </body></worldbody>
+      <tendon><fixed name="arm_t"><joint joint="arm_j1" coef="1"/><joint joint="arm_j2" coef="-1"/></fixed></tendon>
+      <equality><joint name="arm_eq" joint1="arm_j1" joint2="arm_j2"/></equality>
+      <actuator><motor name="arm_m" joint="arm_j1"/><motor name="arm_mt" tendon="arm_t"/></actuator>
+      <sensor><jointpos name="arm_p" joint="arm_j1"/><tendonpos name="arm_tp" tendon="arm_t"/></sensor>
+    </mujoco>)");
+  ASSERT_EQ(o.status, Status::success) << o.message;
+  ASSERT_EQ(spawn("ball").status, Status::success);
+  run_for(0.1);
+  Outcome deleted = remove("arm");
+  ASSERT_EQ(deleted.status, Status::success) << deleted.message;
+  EXPECT_EQ(sim_->model().actuator_id("arm_m"), -1);
+  EXPECT_EQ(sim_->model().actuator_id("robot_left_motor"), 0);
+  run_for(0.2);
+  EXPECT_TRUE(testing::state_is_finite(*sim_));
+  EXPECT_EQ(sim_->statistics().bad_states, 0u);
+  EXPECT_EQ(remove("ball").status, Status::success);
+}
+
 TEST_F(SimSpawnTest, DeleteOfUnknownOrUsedBodyIsRefused) {
   remember_world();
   expect_refused(remove("ghost"), "name", "no body or entity named 'ghost' (no entity has been spawned)");

@@ -204,8 +204,10 @@ TEST_F(SimSteppingTest, SetTimeScaleChangesTheFactorModeAndStatistics) {
   EXPECT_EQ((*call("simulation", "get_simulation_state").value)["target_realtime_factor"], 0.5);
   EXPECT_EQ(call("time", "set_time_scale", {0}).status, Status::success);
   EXPECT_EQ(*call("time", "mode").value, "FixedSimulationStep (as fast as possible)");
+  // 1e-300 and 1e-7: a step period no clock holds (1e-300 ran at full speed: issue #35, item 10)
   for (const json& bad : {json(-1), json(std::numeric_limits<double>::quiet_NaN()),
-                          json(std::numeric_limits<double>::infinity()), json(1e300), json("fast")}) {
+                          json(std::numeric_limits<double>::infinity()), json(1e300), json("fast"), json(1e-300),
+                          json(1e-7)}) {
     Outcome refused = call("time", "set_time_scale", {bad});
     EXPECT_EQ(refused.status, Status::failed) << bad.dump();
     EXPECT_EQ(refused.failure, Failure::bad_arguments) << bad.dump();

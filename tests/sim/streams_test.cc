@@ -83,7 +83,7 @@ TEST_F(DemoStreams, TeleportCommandsPlaceTheRobotAbsolutely) {
   EXPECT_NEAR(pose()["yaw"].get<double>(), 0, 1e-9);
   EXPECT_FALSE(publish("robot.teleport", {{"x", 1e12}}).ok);
   PublishResult r = publish("robot.teleport", {{"X", 1.0}});
-  EXPECT_EQ(r.error, "the command has an unknown key 'X' (expected x, y, z, roll, pitch, yaw)");
+  EXPECT_EQ(r.error, "the command has an unknown key 'X' (expected x, y, z, roll, pitch, yaw) (did you mean 'x'?)");
 }
 
 TEST_F(DemoStreams, WaypointCommandsSetTheDestination) {

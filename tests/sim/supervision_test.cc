@@ -269,6 +269,23 @@ class SimSupervisionBoundaryTest : public DemoSim {
   std::shared_ptr<testing::RecordingManager> partial_;
 };
 
+TEST_F(SimSupervisionBoundaryTest, AResetOfARobotWithComponentsTheCallerDoesNotServeIsRefused) {
+  // issue #35 item 10: a transport serving the robot but not its waypoint ended a goto of a
+  // client of another transport, behind its back
+  ComponentEntry* robot = sim_->find("robot");
+  partial_->register_component(*robot->component);
+  robot->interfaces.push_back("partial");
+  RequestId go = rm_->call("robot.waypoint", "goto", {3.0, 0.0, 0.0});
+  run_for(0.1);
+  Outcome refused = call_partial("simulation", "reset", {"robot", "robot"});
+  EXPECT_EQ(refused.status, Status::failed);
+  EXPECT_THAT(refused.message, HasSubstr("which this transport does not serve"));
+  sim_->process_requests();
+  EXPECT_FALSE(rm_->outcome(go).has_value()) << "the goto was ended";
+  // the transport that serves all of the robot resets it
+  EXPECT_EQ(call("simulation", "reset", {"robot", "robot"}).status, Status::success);
+}
+
 TEST_F(SimSupervisionBoundaryTest, DeactivateRefusesAComponentTheCallerDoesNotServeAsIfItDidNotExist) {
   Outcome unserved = call_partial("simulation", "deactivate", {"robot.waypoint"});
   Outcome missing = call_partial("simulation", "deactivate", {"robot.nowhere"});

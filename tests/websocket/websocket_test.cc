@@ -469,6 +469,22 @@ TEST_F(WebSocketTest, TheClientsCloseFrameIsAnsweredWithItsCodeThenTheConnection
   EXPECT_EQ(client_->call(request(1, "spec.subtract", json::array({3, 1})))["result"], 2);
 }
 
+TEST_F(WebSocketTest, ACloseFrameWithACodeNoPeerMaySendIsAnsweredWith1002NotEchoed) {
+  // issue #35 item 10: before, 1005, 1006, 999 or 2999 came back as they were sent
+  for (int code : {999, 1004, 1005, 1006, 1015, 1016, 2999, 5000}) {
+    RawWs raw(host_->port());
+    raw.send_raw(RawWs::frame(k_close, std::string{static_cast<char>(code >> 8), static_cast<char>(code & 0xFF)}));
+    RawWs::Frame close = raw.read_frame();
+    EXPECT_EQ(close.opcode, k_close) << code;
+    EXPECT_EQ(close_code_of(close), 1002) << code;
+  }
+  for (int code : {1000, 1001, 1011, 3000, 4999}) {
+    RawWs raw(host_->port());
+    raw.send_raw(RawWs::frame(k_close, std::string{static_cast<char>(code >> 8), static_cast<char>(code & 0xFF)}));
+    EXPECT_EQ(close_code_of(raw.read_frame()), code);
+  }
+}
+
 TEST_F(WebSocketTest, ProtocolErrorsAreClosedWith1002AndOthersServed) {
   const std::string text = request(1, "spec.subtract", json::array({3, 1})).dump();
   for (const std::string& bad :

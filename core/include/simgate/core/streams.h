@@ -24,8 +24,9 @@
 //    JSON transports read data(), made from the payload by its to_json once, on the first
 //    transport thread that asks (an image's PNG, base64, is encoded there, never under the
 //    simulation lock).
-//  - command: what a client writes to an input stream (a JSON object). The latest wins: a
-//    command not yet applied when a newer one comes is replaced (counted).
+//  - command: what a client writes to an input stream (a JSON object whose keys are among
+//    the stream's fields, or "timestamp": the hub refuses any other at once). The latest
+//    wins: a command not yet applied when a newer one comes is replaced (counted).
 //
 // The StreamHub runs every stream of one simulation. The simulation calls publish_due()
 // after each step (a sample for each output stream that has subscribers and is due by its
@@ -342,6 +343,9 @@ class StreamHub {
   std::string apply(Stream& stream, const json& command);
   // Counts a refusal of `stream` (under the hub mutex); logs the stream's first when `log`.
   static void count_refusal_locked(Stream& stream, std::string reason, bool log);
+  // Why `command` does not fit the input stream `info` (a key that is none of its fields, nor
+  // "timestamp"), or "".
+  static std::string unknown_key(const StreamInfo& info, const json& command);
   // Gives `sample` to the subscribers of `stream` (under the hub mutex): queued ones and
   // direct ones now, those to wake noted for after_fan_out(). True when a queue took it
   // (another thread may read it from then on).

@@ -112,11 +112,16 @@ class Renderer {
   std::shared_ptr<const mjModel> model_copy(const mjModel* m);
 
   // Queues a render of `scene`; `done` runs on the render thread with the result (or the
-  // reason it failed), and gets the scene back. Never blocks on the render.
-  void render(std::unique_ptr<SceneCopy> scene, bool want_rgb, bool want_depth, Callback done);
+  // reason it failed), and gets the scene back. Never blocks on the render. `wanted`, when
+  // given, is asked on the render thread when the render's turn comes: false (the request
+  // it is for ended meanwhile: its client left or cancelled it) skips the rendering, and
+  // `done` gets the error "abandoned...".
+  void render(std::unique_ptr<SceneCopy> scene, bool want_rgb, bool want_depth, Callback done,
+              std::function<bool()> wanted = {});
 
-  // Renders completed so far (for statistics and tests).
+  // Renders completed so far, and renders skipped as abandoned (for statistics and tests).
   std::uint64_t renders() const;
+  std::uint64_t abandoned() const;
 
  private:
   struct Job {
@@ -124,6 +129,7 @@ class Renderer {
     bool want_rgb = true;
     bool want_depth = false;
     Callback done;
+    std::function<bool()> wanted;  // empty: always
   };
   struct Gl;  // the GlContext and the mjrContext: render thread only
 
@@ -140,6 +146,7 @@ class Renderer {
   std::string unavailable_;            // why there is no context ("" when there is one)
   std::deque<Job> queue_;              // renders waiting
   std::uint64_t renders_ = 0;          // renders completed
+  std::uint64_t abandoned_ = 0;        // renders skipped: nobody wanted them any more
   std::mutex copy_mutex_;              // guards last_copy_
   std::shared_ptr<const mjModel> last_copy_;  // the latest model_copy(), shared when equal
   std::unique_ptr<Gl> gl_;             // render thread only

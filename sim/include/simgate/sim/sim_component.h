@@ -124,10 +124,6 @@ void set_free_body_pose(Simulation& sim, int free_joint, const Eigen::Vector3d& 
 // `key`, or `fallback` when it is absent; absent without a fallback, or not a number, is a
 // ServiceError (bad_arguments) naming the key.
 double command_number(const json& command, const std::string& key, std::optional<double> fallback = std::nullopt);
-// Refuses a command with a key other than `keys` (and "timestamp", which samples carry, so
-// that a sample read from one stream can be written to another): a misspelt key must not
-// be ignored.
-void require_command_keys(const json& command, const std::vector<std::string>& keys);
 
 // Linear (m/s) and angular (rad/s, counter-clockwise) velocity commands for a ground robot.
 class DifferentialDrive {

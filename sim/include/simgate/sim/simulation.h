@@ -172,8 +172,12 @@ class Simulation {
 
   double timestep() const { return m()->opt.timestep; }
   double realtime_factor() const { return realtime_factor_; }
-  // 0 = as fast as possible. Under the simulation lock (or before run()); the loop schedules
-  // its next step from now, at the new pace.
+  // The slowest pace (a simulated second per ~12 wall days): slower, a step's period would
+  // pass what the clock holds.
+  static constexpr double k_min_realtime_factor = 1e-6;
+  // 0 = as fast as possible, else at least k_min_realtime_factor (std::invalid_argument
+  // otherwise). Under the simulation lock (or before run()); the loop schedules its next
+  // step from now, at the new pace.
   void set_realtime_factor(double factor);
 
   // ---- components (before run(), or on the simulation thread) ----

@@ -19,6 +19,9 @@
 #define SIMGATE_SIM_SNAPSHOT_H_
 
 #include <chrono>
+#include <cstdint>
+#include <map>
+#include <mutex>
 #include <functional>
 #include <memory>
 #include <string>
@@ -60,11 +63,18 @@ class Snapshotter {
 
   explicit Snapshotter(Simulation& sim) : sim_(sim) {}
 
+  // Snapshots queued or rendering at once, at most, not counting those whose request ended
+  // (skipped when their turn comes): more are refused, so that one client's batch of large
+  // snapshots cannot hold the renderer (and every camera) for minutes.
+  static constexpr std::size_t k_max_in_flight = 8;
+
   // Checks the options (ServiceError naming the parameter: bad_arguments), copies the
   // scene of the current state and queues its render; `done` runs on the render thread
   // with the record: rgb_image_record's fields plus `camera` (the name, or "free") and
-  // `view` {position, forward, up, fovy}. ServiceError when nothing can be rendered.
-  void start(const SnapshotOptions& options, Done done);
+  // `view` {position, forward, up, fovy}. ServiceError when nothing can be rendered, or
+  // k_max_in_flight snapshots are under way. `wanted` (Renderer::render): asked when the
+  // render's turn comes; false skips it (the request ended: its client left).
+  void start(const SnapshotOptions& options, Done done, std::function<bool()> wanted = {});
   // start() and wait (bounded) for the record; ServiceError when it failed. For a caller
   // that is the only thread of its simulation (the offline `simgate snapshot`).
   json take(const SnapshotOptions& options, std::chrono::milliseconds timeout);
@@ -77,6 +87,15 @@ class Snapshotter {
 
   Simulation& sim_;
   std::shared_ptr<Renderer> renderer_;  // null until the first snapshot
+  // The snapshots queued or rendering, each with its `wanted` (the render thread's
+  // callbacks take theirs out).
+  struct InFlight {
+    std::mutex mutex;
+    std::map<std::uint64_t, std::function<bool()>> wanted;  // by ticket
+    std::uint64_t next_ticket = 0;
+    std::size_t still_wanted();  // those whose request has not ended
+  };
+  std::shared_ptr<InFlight> in_flight_ = std::make_shared<InFlight>();
   RenderModelCopy model_copy_;          // the renderer's copy of the current model
 };
 
