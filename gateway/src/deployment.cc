@@ -494,8 +494,9 @@ json load_config_document(const std::string& file) {
     // syntax, numbers beyond a double and nesting deeper than k_max_config_depth are refused
     // with their JSON path before anything recursive touches the document
     return parse_config_text(text.str());
-  } catch (const ConfigError& e) {
-    throw ConfigError(e.errors(), file);
+  } catch (const ConfigTextError& e) {
+    // "demo.json:3:17: scene: invalid JSON: ...", where editors jump from
+    throw ConfigError(e.located(file));
   }
 }
 
