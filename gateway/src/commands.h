@@ -18,6 +18,7 @@
 #include "simgate/client/client.h"
 #include "simgate/gateway/cli.h"
 #include "simgate/gateway/deployment.h"
+#include "simgate/gateway/gateway.h"
 
 namespace simgate::gateway {
 
@@ -108,8 +109,14 @@ ClientTarget client_target(const ClientArgs& args);
 // gets --timeout.
 std::unique_ptr<client::Client> connect_client(const ClientArgs& args, std::chrono::milliseconds& timeout);
 // The deployment of `run` / `check` (CONFIG, or --model's), its log level applied unless
-// the command line set one.
-Deployment load_deployment_args(const RunArgs& args);
+// the command line set one; the errors of its structure are recorded in `errors`, what is
+// valid returned (parse_deployment), for build_gateway to report them with its own.
+Deployment load_deployment_args(const RunArgs& args, ConfigErrors& errors);
+// The gateway of that deployment (Gateway, given the structure's errors): throws one
+// ConfigError naming CONFIG (or the model) with every error of every section.
+std::unique_ptr<Gateway> build_gateway(const RunArgs& args, const Deployment& deployment,
+                                       const sim::ComponentRegistry& registry, GatewayOptions options,
+                                       ConfigErrors errors);
 
 // ---- parsing helpers shared by the commands (cli.cc); each throws UsageError
 

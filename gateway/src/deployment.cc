@@ -357,17 +357,24 @@ const ServiceRule* Deployment::stream_rule_named(const std::string& component) c
 }
 
 Deployment parse_deployment(const json& document, const std::string& base_dir, const std::string& file) {
+  ConfigErrors errors;
+  Deployment d = parse_deployment(document, base_dir, file, errors);
+  errors.throw_if_any();
+  return d;
+}
+
+Deployment parse_deployment(const json& document, const std::string& base_dir, const std::string& file,
+                            ConfigErrors& errors) {
   Deployment d;
   d.file = file;
   d.base_dir = base_dir;
   // every independent part is checked even when another failed: all of a file's errors
   // are reported at once
-  ConfigErrors errors;
+  const std::size_t errors_before = errors.errors().size();
   std::optional<ConfigObject> root_object;
-  errors.check([&] { root_object.emplace(document, ""); });
-  errors.throw_if_any();
+  if (!errors.check([&] { root_object.emplace(document, ""); })) return d;
   ConfigObject& root = *root_object;
-  root.get_string("description", "");  // free text, ignored
+  errors.check([&] { root.get_string("description", ""); });  // free text, ignored
 
   // ---- log level ----
   errors.check([&] {
@@ -471,7 +478,7 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
   });
 
   errors.check([&] { root.finish(); });
-  errors.throw_if_any();
+  if (errors.errors().size() != errors_before) return d;
 
   // transports nobody uses are probably a mistake, but harmless
   for (const auto& t : d.transports) {
@@ -501,13 +508,16 @@ json load_config_document(const std::string& file) {
 }
 
 Deployment load_deployment(const std::string& file) {
+  ConfigErrors errors;
+  Deployment d = load_deployment(file, errors);
+  if (!errors.empty()) throw ConfigError(errors.errors(), file);
+  return d;
+}
+
+Deployment load_deployment(const std::string& file, ConfigErrors& errors) {
   json document = load_config_document(file);
   fs::path base = fs::absolute(fs::path(file)).parent_path();
-  try {
-    return parse_deployment(document, base.string(), file);
-  } catch (const ConfigError& e) {
-    throw ConfigError(e.errors(), file);
-  }
+  return parse_deployment(document, base.string(), file, errors);
 }
 
 }  // namespace simgate::gateway

@@ -138,6 +138,40 @@ TEST(GatewayCliTest, CheckReportsEveryErrorOfTheFileAtOnce) {
   EXPECT_THAT(out, HasSubstr("\n  transports.socket.options.port: expected an integer from 0 to 65535"));
 }
 
+
+// Issue #35, item 11: a mistake of one section was hidden behind another's (the structure's
+// errors were all reported, but a robot's type, body or options, and a transport's plugin
+// options, only once the whole structure was valid and the scene loaded).
+TEST(GatewayCliTest, CheckReportsTheErrorsOfEverySectionAtOnce) {
+  TempDir dir;
+  // a scene that loads with a wrong timestep, a robot's body, a transport's port
+  json loads = demo_config();
+  loads["scene"]["timestep"] = -1;
+  loads["robots"][1]["body"] = "humn";
+  loads["transports"]["socket"]["options"]["port"] = 70000;
+  // a scene that cannot load, a component's type, a transport's port
+  json missing = demo_config();
+  missing["scene"]["mjcf"] = "nowhere.xml";
+  missing["robots"][0]["components"][0]["type"] = "motion_wv";
+  missing["transports"]["socket"]["options"]["port"] = 70000;
+  for (const auto& [name, config, scene, robot] :
+       {std::tuple{"loads", loads, "scene.timestep: expected a number from ", "robots[1].body: expected the name of a body"},
+        std::tuple{"missing", missing, "scene.mjcf: expected an MJCF file, found '",
+                   "robots[0].components[0].type: expected a component type ("}}) {
+    const std::string file = dir.write(std::string(name) + ".json", config.dump());
+    const CliRun check = run_split({"check", file}, dir);
+    EXPECT_EQ(check.code, 2) << name << ": " << check.err;
+    EXPECT_THAT(check.err, HasSubstr("simgate: invalid configuration: config '" + file + "': 3 errors:\n")) << name;
+    EXPECT_THAT(check.err, HasSubstr("\n  " + std::string(scene))) << name << ": " << check.err;
+    EXPECT_THAT(check.err, HasSubstr("\n  " + std::string(robot))) << name << ": " << check.err;
+    EXPECT_THAT(check.err, HasSubstr("\n  transports.socket.options.port: expected an integer from 0 to 65535")) << name;
+    // run refuses it alike, before starting anything
+    const CliRun run = run_split({"run", file}, dir, 20s);
+    EXPECT_EQ(run.code, 2) << name;
+    EXPECT_EQ(run.err, check.err) << name;
+  }
+}
+
 // What `run` refuses because of the file, `check` refuses alike: exit 2, the JSON path and
 // the same message, and `run` refuses it before starting anything (issue #17, item 8:
 // check said OK, or crashed, or left the error format, for each of these).
