@@ -41,6 +41,7 @@ struct ClientArgs {
   std::optional<std::string> domain;    // --domain
   std::optional<std::string> partition; // --partition
   std::optional<std::string> dds_config;  // --dds-config
+  std::optional<std::string> token;     // --token (else the SIMGATE_TOKEN environment variable)
   std::string timeout = "30";           // --timeout, seconds
 };
 
@@ -98,7 +99,8 @@ int cmd_publish(const PublishArgs& args);
 int cmd_snapshot(const SnapshotArgs& args);
 
 // Where the client options point: the transport, make_client()'s options ({host, port} or
-// {domain, partition, config}) and --timeout. UsageError when they are wrong.
+// {domain, partition, config}; and the token of --token or SIMGATE_TOKEN, which
+// make_client() presents) and --timeout. UsageError when they are wrong.
 struct ClientTarget {
   std::string transport;               // socket, jsonrpc, websocket or dds
   json options;                        // for client::make_client()

@@ -97,7 +97,7 @@ int cmd_snapshot(const SnapshotArgs& args) {
   const auto [width, height] = parse_size(args.size);
   const bool offline = !args.scene.config.empty() || args.scene.model;
   if (offline && (args.client.host || args.client.port || args.client.domain || args.client.partition ||
-                  args.client.dds_config || args.client.transport != "socket"))
+                  args.client.dds_config || args.client.token || args.client.transport != "socket"))
     throw UsageError("either --config/--model (render the scene here) or the client options (ask a running "
                      "simulation), not both");
   check_output(args.out);

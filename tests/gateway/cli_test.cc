@@ -9,6 +9,7 @@
 #include <regex>
 #include <sstream>
 
+#include "in_process_gateway.h"
 #include "simgate/gateway/cli.h"
 #include "test_support.h"
 
@@ -474,6 +475,87 @@ TEST(GatewayCliTest, ClientOptionsAreChecked) {
   auto [hcode, hout] = run_simgate({"call", "--transport", "dds", "--host", "127.0.0.1", "simulation", "list_robots"}, dir);
   EXPECT_EQ(hcode, 2);
   EXPECT_THAT(hout, HasSubstr("--host"));
+}
+
+// ---- a gateway whose transports require a token (the "auth" option, issue #35 item 11)
+
+constexpr const char* k_token = "cli-test-token-0123456789abcdef";
+constexpr const char* k_token_env = "SIMGATE_TEST_CLI_TOKEN";  // where the gateway reads it
+const std::vector<std::string> k_tcp_transports = {"socket", "jsonrpc", "websocket"};
+
+// The demo served by socket, jsonrpc and websocket, each requiring k_token of every client.
+json demo_requiring_a_token() {
+  json c = demo_config();
+  c["transports"]["jsonrpc"] = {{"plugin", "jsonrpc"}, {"options", {{"host", "127.0.0.1"}, {"port", 0}}}};
+  c["services"] = {{"default", k_tcp_transports}};
+  c.erase("streams");
+  require_token(c, k_token_env);
+  return c;
+}
+
+// `simgate COMMAND --transport T --port P REST...` against `gateway`.
+CliRun through(const InProcessGateway& gateway, const std::string& transport, const std::string& command,
+               std::vector<std::string> rest, const TempDir& dir) {
+  std::vector<std::string> args = {command, "--transport", transport, "--port", std::to_string(gateway.port(transport))};
+  args.insert(args.end(), rest.begin(), rest.end());
+  return run_split(args, dir);
+}
+
+TEST(GatewayCliTest, CallAndListPresentTheTokenOfTokenOrSimgateToken) {
+  TempDir dir;
+  const ScopedEnv source(k_token_env, k_token);
+  const ScopedEnv unset("SIMGATE_TOKEN", std::nullopt);
+  InProcessGateway gateway(demo_requiring_a_token());
+  for (const auto& t : k_tcp_transports) {
+    const CliRun call = through(gateway, t, "call", {"--token", k_token, "simulation", "list_robots"}, dir);
+    EXPECT_EQ(call.code, 0) << t << ": " << call.err;
+    EXPECT_EQ(call.out, "[\"robot\",\"human\"]\n") << t;
+    const CliRun list = through(gateway, t, "list", {"--token=" + std::string(k_token)}, dir);
+    EXPECT_EQ(list.code, 0) << t << ": " << list.err;
+    EXPECT_THAT(list.out, HasSubstr("robot.motion set_speed(v, w)")) << t;
+    {
+      const ScopedEnv token("SIMGATE_TOKEN", k_token);
+      const CliRun env_call = through(gateway, t, "call", {"human", "move", "-1", "0"}, dir);
+      EXPECT_EQ(env_call.code, 1) << t;  // logged in: the service itself answers
+      EXPECT_THAT(env_call.err, HasSubstr("Our human cannot walk at negative speed!")) << t;
+      const CliRun env_list = through(gateway, t, "list", {"--json"}, dir);
+      EXPECT_EQ(env_list.code, 0) << t << ": " << env_list.err;
+      EXPECT_TRUE(json::parse(env_list.out, nullptr, false).is_array()) << t << ": " << env_list.out;
+    }
+    // the option wins over the variable
+    const ScopedEnv wrong("SIMGATE_TOKEN", "a-wrong-token-0123456789");
+    const CliRun both = through(gateway, t, "call", {"--token", k_token, "simulation", "list_robots"}, dir);
+    EXPECT_EQ(both.code, 0) << t << ": " << both.err;
+  }
+}
+
+TEST(GatewayCliTest, CallAndListWithoutTheTokenOrWithAWrongOneFailClearly) {
+  TempDir dir;
+  const ScopedEnv source(k_token_env, k_token);
+  const ScopedEnv unset("SIMGATE_TOKEN", std::nullopt);
+  InProcessGateway gateway(demo_requiring_a_token());
+  for (const auto& t : k_tcp_transports) {
+    for (const std::string command : {"call", "list"}) {
+      std::vector<std::string> rest;
+      if (command == "call") rest = {"simulation", "list_robots"};
+      const CliRun none = through(gateway, t, command, rest, dir);
+      EXPECT_EQ(none.code, 1) << t << " " << command << ": " << none.err;
+      EXPECT_THAT(none.err, HasSubstr("--token TOKEN or the SIMGATE_TOKEN environment variable")) << t << " " << command;
+      EXPECT_EQ(none.out, "") << t << " " << command;
+      rest.insert(rest.begin(), {"--token", "a-wrong-token-0123456789"});
+      const CliRun wrong = through(gateway, t, command, rest, dir);
+      EXPECT_EQ(wrong.code, 1) << t << " " << command << ": " << wrong.err;
+      EXPECT_THAT(wrong.err, HasSubstr("wrong token")) << t << " " << command;
+      EXPECT_EQ(wrong.out, "") << t << " " << command;
+    }
+  }
+}
+
+TEST(GatewayCliTest, ATokenForDdsIsRefusedForDdsHasNoTokenAuthentication) {
+  TempDir dir;
+  const CliRun r = run_split({"call", "--transport", "dds", "--token", k_token, "simulation", "list_robots"}, dir);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_THAT(r.err, HasSubstr("--token: the dds transport has no token authentication"));
 }
 
 TEST(GatewayCliTest, EveryCommandHasItsOwnHelp) {
