@@ -625,6 +625,10 @@ Outcome DdsClient::call(const std::string& component, const std::string& service
 
 json DdsClient::list_services(std::chrono::milliseconds timeout) { return impl_->list_services(timeout); }
 
+void DdsClient::login(const std::string&, std::chrono::milliseconds) {
+  throw ClientError("dds client: " + std::string(k_dds_has_no_token));
+}
+
 const std::string& DdsClient::id() const { return impl_->id_hex_; }
 
 std::unique_ptr<Client> make_dds_client(const json& options) {

@@ -71,6 +71,7 @@ json JsonRpcClient::wait_for(const json& id, std::chrono::milliseconds timeout) 
     if (it->is_object() && it->value("id", json()) == id) {
       json message = std::move(*it);
       early_.erase(it);
+      throw_if_unauthorized(message, "jsonrpc client: " + peer_);
       return message;
     }
   }
@@ -87,7 +88,10 @@ json JsonRpcClient::wait_for(const json& id, std::chrono::milliseconds timeout) 
     } catch (const json::parse_error& e) {
       throw ClientError("jsonrpc client: " + peer_ + ": unparsable response: " + e.what());
     }
-    if (message.is_object() && message.value("id", json()) == id) return message;
+    if (message.is_object() && message.value("id", json()) == id) {
+      throw_if_unauthorized(message, "jsonrpc client: " + peer_);
+      return message;
+    }
     early_.push_back(std::move(message));
   }
 }
@@ -101,6 +105,19 @@ json JsonRpcClient::request(const std::string& method, const json& params, std::
 Outcome JsonRpcClient::call(const std::string& component, const std::string& service, const json& params,
                             std::chrono::milliseconds timeout) {
   return to_outcome(request(component + "." + service, params, timeout));
+}
+
+void JsonRpcClient::login(const std::string& token, std::chrono::milliseconds timeout) {
+  const json response = request("rpc.login", json{{"token", token}}, timeout);  // refused: AuthError
+  if (response.value("result", json()) != true)
+    throw ClientError("jsonrpc client: " + peer_ + ": rpc.login failed: " + response.dump());
+}
+
+void JsonRpcClient::throw_if_unauthorized(const json& response, const std::string& who) {
+  if (!response.is_object()) return;
+  const auto error = response.find("error");
+  if (error == response.end() || !error->is_object() || error->value("code", 0) != k_unauthorized) return;
+  throw AuthError(who + ": " + error->value("message", std::string("Unauthorized")));
 }
 
 json JsonRpcClient::discover(std::chrono::milliseconds timeout) {

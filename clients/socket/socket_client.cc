@@ -14,10 +14,13 @@ std::chrono::milliseconds remaining(Clock::time_point deadline) {
                   std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()));
 }
 
+// The socket transport's reply to a request before `auth <token>` (socket_request_manager.cc).
+constexpr std::string_view k_authentication_required = "Authentication required";
+
 }  // namespace
 
 SocketClient::SocketClient(const std::string& host, std::uint16_t port, std::chrono::milliseconds timeout)
-    : connection_("socket client", host, port, timeout) {}
+    : connection_("socket client", host, port, timeout), host_(host) {}
 
 SocketClient::~SocketClient() = default;
 
@@ -102,9 +105,35 @@ SocketReply SocketClient::wait_reply(const std::string& id, std::chrono::millise
     if (!line)
       throw ClientError("socket client: no reply to request " + id + " from " + connection_.peer() + " in time");
     SocketReply r = parse_reply(*line);
+    // a request the server did not run: this connection has not presented its token
+    if (r.status == "FAILED" && r.value && r.value->is_string() &&
+        r.value->get_ref<const std::string&>().starts_with(k_authentication_required))
+      throw AuthError("socket client: " + connection_.peer() + ": " + r.value->get<std::string>());
     if (r.id == id) return r;
     early_[r.id] = std::move(r);
   }
+}
+
+void SocketClient::login(const std::string& token, std::chrono::milliseconds timeout) {
+  send_line("auth " + token);
+  const SocketReply reply = wait_reply("auth", timeout);
+  if (reply.status == "SUCCESS" || reply.status == "OK") {
+    token_ = token;  // the stream ports ask for it too
+    return;
+  }
+  const std::string message = reply.value && reply.value->is_string() ? reply.value->get<std::string>() : "";
+  if (message.starts_with("wrong token"))
+    throw AuthError("socket client: " + connection_.peer() + ": the server refused the token: " + message);
+  // any other reply: the line was read as a request, the server asks no token of this connection
+}
+
+std::unique_ptr<LineConnection> SocketClient::open_stream_port(const std::string& owner, std::uint16_t port,
+                                                               std::chrono::milliseconds timeout) {
+  auto stream = std::make_unique<LineConnection>(owner, host_, port, timeout);
+  // nothing is answered on a stream port: a wrong token closes it (the service port has
+  // accepted this one)
+  if (!token_.empty()) stream->send_line("auth " + token_);
+  return stream;
 }
 
 Outcome SocketClient::call(const std::string& component, const std::string& service,

@@ -76,6 +76,12 @@ json WebSocketClient::list_services(std::chrono::milliseconds timeout) {
   return JsonRpcClient::services_of(response["result"]);
 }
 
+void WebSocketClient::login(const std::string& token, std::chrono::milliseconds timeout) {
+  const json response = request("rpc.login", json{{"token", token}}, timeout);  // refused: AuthError
+  if (response.value("result", json()) != true)
+    throw ClientError("websocket client: " + peer_ + ": rpc.login failed: " + response.dump());
+}
+
 json WebSocketClient::request(const std::string& method, const json& params, std::chrono::milliseconds timeout) {
   if (closed()) throw ClientError("websocket client: " + peer_ + ": the connection is closed");
   const json id = ++next_id_;
@@ -99,6 +105,7 @@ json WebSocketClient::request(const std::string& method, const json& params, std
                         std::to_string(timeout.count()) + " ms");
     if (next->is_object() && next->contains("id") && (*next)["id"] == id) {
       early_.insert(early_.end(), kept.begin(), kept.end());
+      JsonRpcClient::throw_if_unauthorized(*next, "websocket client: " + peer_);
       return std::move(*next);
     }
     kept.push_back(std::move(*next));

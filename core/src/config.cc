@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <sstream>
+#include <utility>
 
 #include "simgate/core/suggest.h"
 
@@ -141,8 +142,10 @@ class ConfigScanner final : public nlohmann::json_sax<json> {
  public:
   ConfigScanner(std::string_view text, std::size_t max_depth) : text_(text), max_depth_(max_depth) {}
 
-  // The problem found (empty when the text is a valid document).
+  // The problem found (empty when the text is a valid document), and the byte offset it
+  // points at.
   const std::string& error() const { return error_; }
+  std::size_t error_offset() const { return error_offset_; }
 
   bool null() override { return value(); }
   bool boolean(bool) override { return value(); }
@@ -162,17 +165,17 @@ class ConfigScanner final : public nlohmann::json_sax<json> {
 
   bool parse_error(std::size_t position, const std::string& last_token,
                    const nlohmann::detail::exception& ex) override {
-    // the offending token ends at `position`
-    std::size_t start = position >= last_token.size() ? position - last_token.size() : 0;
-    if (ex.id == 406) {  // out_of_range: a number beyond a double
+    // `position` counts the bytes read, the offending one included (one past the end at the
+    // end of the text)
+    if (ex.id == 406) {  // out_of_range: a number beyond a double, pointed at from its start
+      error_offset_ = position >= last_token.size() ? position - last_token.size() : 0;
       error_ = path() + ": expected a number a double can hold (at most about 1.8e308 in magnitude), found " +
-               last_token + " (" + where(start) + ")";
+               last_token;
     } else {
-      // "[json.exception.parse_error.101] parse error at line 1, column 9: syntax error ..."
-      std::string what = ex.what();
-      auto bracket = what.find("] ");
-      if (what.rfind("[json.exception.", 0) == 0 && bracket != std::string::npos) what = what.substr(bracket + 2);
-      error_ = path() + ": invalid JSON: " + what;
+      // the byte that made it fail (nlohmann's token string is not the token's text: it
+      // keeps what came before an invalid literal and writes control characters as <U+000A>)
+      error_offset_ = position > 0 ? position - 1 : 0;
+      error_ = path() + ": invalid JSON: " + syntax_error(ex.what());
     }
     return false;
   }
@@ -198,8 +201,8 @@ class ConfigScanner final : public nlohmann::json_sax<json> {
     if (frames_.size() >= max_depth_) {
       // the bracket just read: the scanner has consumed it
       error_ = path(4) + ": expected at most " + std::to_string(max_depth_) +
-               " levels of nested arrays and objects, found deeper nesting (" + where(too_deep_bracket()) +
-               ")";
+               " levels of nested arrays and objects, found deeper nesting";
+      error_offset_ = too_deep_bracket();
       return false;
     }
     frames_.push_back(Frame{array, 0, std::nullopt});
@@ -230,19 +233,40 @@ class ConfigScanner final : public nlohmann::json_sax<json> {
     return out;
   }
 
-  // "line 3, column 17" of byte `offset` (both from 1).
-  std::string where(std::size_t offset) const {
-    offset = std::min(offset, text_.size());
-    std::size_t line = 1, column = 1;
-    for (std::size_t i = 0; i < offset; ++i) {
-      if (text_[i] == '\n') {
-        ++line;
-        column = 1;
-      } else {
-        ++column;
-      }
+  // nlohmann's "[json.exception.parse_error.101] parse error at line 1, column 9: syntax
+  // error while parsing object key - unexpected '}'; expected string literal" as "expected
+  // string literal, found '}' (while parsing object key)"; its position is the caller's.
+  static std::string syntax_error(std::string what) {
+    const std::size_t syntax = what.find("syntax error ");
+    if (syntax == std::string::npos) {
+      const std::size_t bracket = what.find("] ");
+      return bracket == std::string::npos ? what : what.substr(bracket + 2);
     }
-    return "line " + std::to_string(line) + ", column " + std::to_string(column);
+    std::string rest = what.substr(syntax + 13);  // "[while parsing C ]- E[; expected X]"
+    std::string context;
+    if (rest.starts_with("while parsing ")) {
+      const std::size_t dash = rest.find(" - ");
+      context = rest.substr(14, dash == std::string::npos ? std::string::npos : dash - 14);
+      rest = dash == std::string::npos ? "" : rest.substr(dash + 3);
+    } else if (rest.starts_with("- ")) {
+      rest = rest.substr(2);
+    }
+    std::string expected;
+    if (const std::size_t at = rest.rfind("; expected "); at != std::string::npos) {
+      expected = rest.substr(at + 11);
+      rest = rest.substr(0, at);
+    }
+    // "unexpected <token>", or the lexer's "<what>; last read: '<text>'"
+    std::string found = rest, details;
+    if (rest.starts_with("unexpected ")) {
+      found = rest.substr(11);
+    } else if (const std::size_t read = rest.find("; last read: "); read != std::string::npos) {
+      found = rest.substr(0, read);
+      details = rest.substr(read + 2);
+    }
+    if (!context.empty()) details += (details.empty() ? "" : "; ") + std::string("while parsing ") + context;
+    return (expected.empty() ? "found " : "expected " + expected + ", found ") + found +
+           (details.empty() ? "" : " (" + details + ")");
   }
 
   // The offset of the bracket that opens level max_depth + 1 (the SAX interface gives no
@@ -272,7 +296,16 @@ class ConfigScanner final : public nlohmann::json_sax<json> {
   std::size_t max_depth_;      // deepest nesting accepted
   std::vector<Frame> frames_;  // the containers open at the current value
   std::string error_;          // the problem found, if any
+  std::size_t error_offset_ = 0;  // the byte it points at
 };
+
+// Line and column (both from 1, the column in bytes) of byte `offset` of `text`.
+std::pair<std::size_t, std::size_t> line_and_column(std::string_view text, std::size_t offset) {
+  const std::string_view before = text.substr(0, std::min(offset, text.size()));
+  const std::size_t line = 1 + static_cast<std::size_t>(std::count(before.begin(), before.end(), '\n'));
+  const std::size_t line_start = before.rfind('\n') == std::string_view::npos ? 0 : before.rfind('\n') + 1;
+  return {line, before.size() - line_start + 1};
+}
 
 }  // namespace
 
@@ -280,15 +313,15 @@ json parse_config_text(std::string_view text, std::size_t max_depth) {
   // nlohmann's parser ends the document at a NUL byte: what follows would be ignored
   // (issue #17, item 9). A text file has none.
   if (const std::size_t nul = text.find('\0'); nul != std::string_view::npos) {
-    const std::string_view before = text.substr(0, nul);
-    const std::size_t line = 1 + static_cast<std::size_t>(std::count(before.begin(), before.end(), '\n'));
-    const std::size_t line_start = before.rfind('\n') == std::string_view::npos ? 0 : before.rfind('\n') + 1;
-    throw ConfigError("configuration: invalid JSON: a NUL byte at line " + std::to_string(line) + ", column " +
-                      std::to_string(nul - line_start + 1) + " (not a text file?)");
+    const auto [line, column] = line_and_column(text, nul);
+    throw ConfigTextError("configuration: expected a text file, found a NUL byte", line, column);
   }
   ConfigScanner scanner(text, max_depth);
-  if (!json::sax_parse(text.begin(), text.end(), &scanner) || !scanner.error().empty())
-    throw ConfigError(scanner.error().empty() ? std::string("configuration: invalid JSON") : scanner.error());
+  if (!json::sax_parse(text.begin(), text.end(), &scanner) || !scanner.error().empty()) {
+    const auto [line, column] = line_and_column(text, scanner.error_offset());
+    throw ConfigTextError(scanner.error().empty() ? std::string("configuration: invalid JSON") : scanner.error(), line,
+                          column);
+  }
   // known to be valid and shallow: building, copying and dumping it recurse little
   return json::parse(text.begin(), text.end());
 }

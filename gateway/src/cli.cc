@@ -35,7 +35,8 @@ constexpr const char* k_footer = R"(Synopsis:
   simgate snapshot --config CONFIG | --model FILE.xml [--camera NAME] [--size WxH] OUT.png
   simgate help [COMMAND]
   CLIENT OPTIONS: --transport socket|jsonrpc|websocket|dds, --timeout S, then --host H --port P
-                  (socket, jsonrpc, websocket) or --domain N --partition P --dds-config XML (dds)
+                  [--token TOKEN] (socket, jsonrpc, websocket) or --domain N --partition P
+                  --dds-config XML (dds); without --token, the SIMGATE_TOKEN environment variable
 
 `simgate COMMAND --help` shows a command's options (docs/cli.md: the reference).)";
 
@@ -304,6 +305,10 @@ class CommandLine {
     command->add_option("--dds-config", args.dds_config,
                         "dds: Cyclone XML or file:// URI (default: loopback only; env = CYCLONEDDS_URI)")
         ->type_name("XML");
+    command->add_option("--token", args.token,
+                        "socket/jsonrpc/websocket: the token the transport's \"auth\" option requires (default: "
+                        "the SIMGATE_TOKEN environment variable, which `ps` does not show)")
+        ->type_name("TOKEN");
     command->add_option("--timeout", args.timeout, "seconds to wait for the simulation and its answer (default 30)")
         ->type_name("S");
   }
@@ -384,6 +389,10 @@ int run_cli(int argc, char** argv) {
   } catch (const ConfigError& e) {
     std::cerr << "simgate: invalid configuration: " << e.what() << "\n";
     return 2;
+  } catch (const client::AuthError& e) {
+    std::cerr << "simgate: " << e.what() << "\n(a transport whose \"auth\" option requires a token takes it from "
+                 "--token TOKEN or the SIMGATE_TOKEN environment variable; docs/cli.md)\n";
+    return 1;
   } catch (const client::ClientError& e) {
     std::cerr << "simgate: " << e.what() << "\n";
     return 1;

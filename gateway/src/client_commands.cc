@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <cctype>
 #include <chrono>
+#include <cstdlib>
 #include <iostream>
 
 #include "commands.h"
@@ -13,6 +14,9 @@ namespace simgate::gateway {
 namespace {
 
 const std::vector<std::string> k_transports = {"socket", "jsonrpc", "websocket", "dds"};
+
+// The environment variable that holds a token when --token is not given.
+constexpr const char* k_token_variable = "SIMGATE_TOKEN";
 
 }  // namespace
 
@@ -43,6 +47,17 @@ ClientTarget client_target(const ClientArgs& args) {
                        " is for --transport dds");
     target.options = {{"host", args.host.value_or("127.0.0.1")},
                       {"port", args.port ? parse_int("--port", *args.port, 1, 65535) : (transport == "jsonrpc" ? 4001 : transport == "websocket" ? 8090 : 4000)}};
+  }
+
+  // the token of the transport's "auth": the option's, else the environment's
+  const char* from_environment = std::getenv(k_token_variable);
+  if (transport == "dds") {
+    if (args.token) throw UsageError("--token: " + std::string(client::k_dds_has_no_token));
+    if (from_environment && *from_environment)
+      std::cerr << "simgate: note: " << k_token_variable << " is not used: " << client::k_dds_has_no_token << "\n";
+  } else if (args.token || (from_environment && *from_environment)) {
+    target.options["token"] = args.token ? *args.token : std::string(from_environment);
+    target.options["timeout_ms"] = target.timeout.count();
   }
   return target;
 }

@@ -18,6 +18,7 @@
 #include "simgate/client/client.h"
 #include "simgate/gateway/cli.h"
 #include "simgate/gateway/deployment.h"
+#include "simgate/gateway/gateway.h"
 
 namespace simgate::gateway {
 
@@ -40,6 +41,7 @@ struct ClientArgs {
   std::optional<std::string> domain;    // --domain
   std::optional<std::string> partition; // --partition
   std::optional<std::string> dds_config;  // --dds-config
+  std::optional<std::string> token;     // --token (else the SIMGATE_TOKEN environment variable)
   std::string timeout = "30";           // --timeout, seconds
 };
 
@@ -97,7 +99,8 @@ int cmd_publish(const PublishArgs& args);
 int cmd_snapshot(const SnapshotArgs& args);
 
 // Where the client options point: the transport, make_client()'s options ({host, port} or
-// {domain, partition, config}) and --timeout. UsageError when they are wrong.
+// {domain, partition, config}; and the token of --token or SIMGATE_TOKEN, which
+// make_client() presents) and --timeout. UsageError when they are wrong.
 struct ClientTarget {
   std::string transport;               // socket, jsonrpc, websocket or dds
   json options;                        // for client::make_client()
@@ -108,8 +111,14 @@ ClientTarget client_target(const ClientArgs& args);
 // gets --timeout.
 std::unique_ptr<client::Client> connect_client(const ClientArgs& args, std::chrono::milliseconds& timeout);
 // The deployment of `run` / `check` (CONFIG, or --model's), its log level applied unless
-// the command line set one.
-Deployment load_deployment_args(const RunArgs& args);
+// the command line set one; the errors of its structure are recorded in `errors`, what is
+// valid returned (parse_deployment), for build_gateway to report them with its own.
+Deployment load_deployment_args(const RunArgs& args, ConfigErrors& errors);
+// The gateway of that deployment (Gateway, given the structure's errors): throws one
+// ConfigError naming CONFIG (or the model) with every error of every section.
+std::unique_ptr<Gateway> build_gateway(const RunArgs& args, const Deployment& deployment,
+                                       const sim::ComponentRegistry& registry, GatewayOptions options,
+                                       ConfigErrors errors);
 
 // ---- parsing helpers shared by the commands (cli.cc); each throws UsageError
 

@@ -358,17 +358,24 @@ const ServiceRule* Deployment::stream_rule_named(const std::string& component) c
 }
 
 Deployment parse_deployment(const json& document, const std::string& base_dir, const std::string& file) {
+  ConfigErrors errors;
+  Deployment d = parse_deployment(document, base_dir, file, errors);
+  errors.throw_if_any();
+  return d;
+}
+
+Deployment parse_deployment(const json& document, const std::string& base_dir, const std::string& file,
+                            ConfigErrors& errors) {
   Deployment d;
   d.file = file;
   d.base_dir = base_dir;
   // every independent part is checked even when another failed: all of a file's errors
   // are reported at once
-  ConfigErrors errors;
+  const std::size_t errors_before = errors.errors().size();
   std::optional<ConfigObject> root_object;
-  errors.check([&] { root_object.emplace(document, ""); });
-  errors.throw_if_any();
+  if (!errors.check([&] { root_object.emplace(document, ""); })) return d;
   ConfigObject& root = *root_object;
-  root.get_string("description", "");  // free text, ignored
+  errors.check([&] { root.get_string("description", ""); });  // free text, ignored
 
   // ---- log level ----
   errors.check([&] {
@@ -472,7 +479,7 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
   });
 
   errors.check([&] { root.finish(); });
-  errors.throw_if_any();
+  if (errors.errors().size() != errors_before) return d;
 
   // transports nobody uses are probably a mistake, but harmless
   for (const auto& t : d.transports) {
@@ -495,19 +502,23 @@ json load_config_document(const std::string& file) {
     // syntax, numbers beyond a double and nesting deeper than k_max_config_depth are refused
     // with their JSON path before anything recursive touches the document
     return parse_config_text(text.str());
-  } catch (const ConfigError& e) {
-    throw ConfigError(e.errors(), file);
+  } catch (const ConfigTextError& e) {
+    // "demo.json:3:17: scene: invalid JSON: ...", where editors jump from
+    throw ConfigError(e.located(file));
   }
 }
 
 Deployment load_deployment(const std::string& file) {
+  ConfigErrors errors;
+  Deployment d = load_deployment(file, errors);
+  if (!errors.empty()) throw ConfigError(errors.errors(), file);
+  return d;
+}
+
+Deployment load_deployment(const std::string& file, ConfigErrors& errors) {
   json document = load_config_document(file);
   fs::path base = fs::absolute(fs::path(file)).parent_path();
-  try {
-    return parse_deployment(document, base.string(), file);
-  } catch (const ConfigError& e) {
-    throw ConfigError(e.errors(), file);
-  }
+  return parse_deployment(document, base.string(), file, errors);
 }
 
 }  // namespace simgate::gateway

@@ -13,10 +13,12 @@
 
 namespace simgate::gateway {
 
-Gateway::Gateway(const Deployment& deployment, const sim::ComponentRegistry& registry, GatewayOptions options)
+Gateway::Gateway(const Deployment& deployment, const sim::ComponentRegistry& registry, GatewayOptions options,
+                 ConfigErrors earlier)
     : deployment_(deployment), options_(std::move(options)), registry_(registry), warnings_(deployment.warnings) {
-  // every part is checked even when another failed: all errors are reported at once
-  ConfigErrors errors;
+  // every part is checked even when another failed, the deployment's structure included:
+  // all errors are reported at once
+  ConfigErrors errors = std::move(earlier);
   // the scene
   sim::SimulationOptions sim_options;
   sim_options.timestep = deployment_.timestep;
@@ -24,10 +26,13 @@ Gateway::Gateway(const Deployment& deployment, const sim::ComponentRegistry& reg
   sim_options.start_paused = deployment_.start_paused;
   sim::parse_divergence_policy(deployment_.on_divergence, sim_options.on_divergence);  // checked by the parser
   sim_options.spawn_allowed_dirs = deployment_.spawn_allowed_dirs;
-  try {
-    simulation_ = std::make_unique<sim::Simulation>(sim::Model::load_file(deployment_.mjcf), sim_options);
-  } catch (const std::exception& e) {
-    errors.add("scene.mjcf: expected a loadable MJCF scene, found an error: " + std::string(e.what()));
+  // (no file: the structure's error said why)
+  if (!deployment_.mjcf.empty()) {
+    try {
+      simulation_ = std::make_unique<sim::Simulation>(sim::Model::load_file(deployment_.mjcf), sim_options);
+    } catch (const std::exception& e) {
+      errors.add("scene.mjcf: expected a loadable MJCF scene, found an error: " + std::string(e.what()));
+    }
   }
   // the component types the config's libraries add
   load_component_libraries(errors);
@@ -36,6 +41,8 @@ Gateway::Gateway(const Deployment& deployment, const sim::ComponentRegistry& reg
     build_components(errors);
     simulation_->add_supervision_services();
     add_streams(errors);
+  } else {
+    check_component_types(errors);
   }
   // plugins and their options
   load_plugins(errors);
@@ -109,6 +116,14 @@ void Gateway::build_components(ConfigErrors& errors) {
         auto component = registry.create(sim::Kind::component, cspec, c.options, sim, robot_ptr);
         sim.add_component(std::move(component), c.type, r.robot.name, false);
       });
+  }
+}
+
+void Gateway::check_component_types(ConfigErrors& errors) const {
+  for (const auto& r : deployment_.robots) {
+    errors.check([&] { registry_.type_of(sim::Kind::robot, {r.robot.name, r.robot.type, r.robot.body, r.robot.path}); });
+    for (const auto& c : r.components)
+      errors.check([&] { registry_.type_of(sim::Kind::component, {c.name, c.type, c.body, c.path}); });
   }
 }
 

@@ -35,7 +35,7 @@ json default_model_document() {
 // of type mjcf; the scene is the model (CONFIG's timestep and realtime_factor kept); the
 // rest (transports, access lists, component libraries, log level) is CONFIG's, whose own
 // robots and mapping are replaced (every transport serves every component).
-Deployment model_deployment(const RunArgs& args) {
+Deployment model_deployment(const RunArgs& args, ConfigErrors& errors) {
   const std::string model_file = std::filesystem::absolute(*args.model).lexically_normal().string();
   std::vector<sim::ModelRobot> robots;
   try {
@@ -44,7 +44,7 @@ Deployment model_deployment(const RunArgs& args) {
     throw ConfigError("--model: expected a loadable MJCF model, found an error: " + std::string(e.what()));
   }
   json document = args.config.empty() ? default_model_document() : load_config_document(args.config);
-  if (!document.is_object()) return parse_deployment(document, ".", args.config);  // its own error
+  if (!document.is_object()) return parse_deployment(document, ".", args.config, errors);  // its own error
   json scene = document.contains("scene") && document["scene"].is_object() ? document["scene"] : json::object();
   scene["mjcf"] = model_file;
   document["scene"] = scene;
@@ -54,11 +54,7 @@ Deployment model_deployment(const RunArgs& args) {
   const std::string base =
       args.config.empty() ? std::filesystem::current_path().string()
                           : std::filesystem::absolute(args.config).parent_path().string();
-  try {
-    return parse_deployment(document, base, args.config);
-  } catch (const ConfigError& e) {
-    throw ConfigError(e.errors(), args.config.empty() ? *args.model : args.config);
-  }
+  return parse_deployment(document, base, args.config, errors);
 }
 
 void write_endpoints_file(const std::string& path, const std::map<std::string, std::vector<std::string>>& endpoints) {
@@ -260,10 +256,8 @@ class StatusReporter {
 
 }  // namespace
 
-// Loads the deployment (CONFIG, or --model's) and applies its log level unless the command
-// line set one.
-Deployment load_deployment_args(const RunArgs& args) {
-  Deployment d = args.model ? model_deployment(args) : load_deployment(args.config);
+Deployment load_deployment_args(const RunArgs& args, ConfigErrors& errors) {
+  Deployment d = args.model ? model_deployment(args, errors) : load_deployment(args.config, errors);
   const std::optional<std::string>& cli_level = args.log_level;
   if (cli_level) {
     apply_log_level(cli_level);
@@ -271,6 +265,16 @@ Deployment load_deployment_args(const RunArgs& args) {
     apply_log_level(d.log_level);
   }
   return d;
+}
+
+std::unique_ptr<Gateway> build_gateway(const RunArgs& args, const Deployment& deployment,
+                                       const sim::ComponentRegistry& registry, GatewayOptions options,
+                                       ConfigErrors errors) {
+  try {
+    return std::make_unique<Gateway>(deployment, registry, std::move(options), std::move(errors));
+  } catch (const ConfigError& e) {
+    throw ConfigError(e.errors(), args.config.empty() ? *args.model : args.config);
+  }
 }
 
 int cmd_run(const RunArgs& args, bool check_only) {
@@ -291,16 +295,13 @@ int cmd_run(const RunArgs& args, bool check_only) {
     signal(SIGPIPE, SIG_IGN);
   }
 
-  Deployment deployment = load_deployment_args(args);
-  const std::string source = args.config.empty() ? *args.model : args.config;  // names it in messages
+  // the errors of the file's structure are reported with those the gateway finds
+  ConfigErrors errors;
+  Deployment deployment = load_deployment_args(args, errors);
   auto registry = sim::builtin_registry();
-  std::unique_ptr<Gateway> built;
-  try {
-    built = std::make_unique<Gateway>(deployment, registry, options);
-  } catch (const ConfigError& e) {
-    throw ConfigError(e.errors(), source);
-  }
+  std::unique_ptr<Gateway> built = build_gateway(args, deployment, registry, options, std::move(errors));
   Gateway& gateway = *built;
+  const std::string source = args.config.empty() ? *args.model : args.config;  // names it in messages
   if (check_only) {
     for (const auto& w : gateway.warnings()) std::cout << "warning: " << w << "\n";
     std::cout << source << ": OK (" << counts(gateway.deployment()) << ", " << deployment.transports.size()

@@ -97,7 +97,7 @@ int cmd_snapshot(const SnapshotArgs& args) {
   const auto [width, height] = parse_size(args.size);
   const bool offline = !args.scene.config.empty() || args.scene.model;
   if (offline && (args.client.host || args.client.port || args.client.domain || args.client.partition ||
-                  args.client.dds_config || args.client.transport != "socket"))
+                  args.client.dds_config || args.client.token || args.client.transport != "socket"))
     throw UsageError("either --config/--model (render the scene here) or the client options (ask a running "
                      "simulation), not both");
   check_output(args.out);
@@ -123,13 +123,14 @@ int cmd_snapshot(const SnapshotArgs& args) {
   } catch (const std::exception&) {
   }
   if (!(seconds > 0)) throw UsageError("--timeout: expected a positive number of seconds, found '" + args.client.timeout + "'");
-  const Deployment deployment = load_deployment_args(args.scene);
+  ConfigErrors errors;
+  const Deployment deployment = load_deployment_args(args.scene, errors);
   GatewayOptions options;
   options.check_only = true;  // nothing listens
   options.plugin_dirs = args.scene.plugin_dirs;
   const sim::ComponentRegistry registry = sim::builtin_registry();
-  Gateway gateway(deployment, registry, options);
-  sim::Snapshotter snapshotter(gateway.simulation());
+  const std::unique_ptr<Gateway> gateway = build_gateway(args.scene, deployment, registry, options, std::move(errors));
+  sim::Snapshotter snapshotter(gateway->simulation());
   const json record = snapshotter.take({camera, width, height},
                                        std::chrono::milliseconds(static_cast<long long>(seconds * 1000)));
   return save(args, record);

@@ -20,6 +20,7 @@
 #include "simgate/client/client.h"
 #include "simgate/client/jsonrpc_client.h"
 #include "simgate/client/line_connection.h"
+#include "simgate/client/socket_client.h"
 #include "simgate/client/websocket_client.h"
 #include "simgate/core/suggest.h"
 
@@ -167,7 +168,6 @@ class SocketStreamLink : public StreamLink {
  public:
   SocketStreamLink(const ClientTarget& target, std::string command)
       : command_(std::move(command)),
-        host_(target.options.value("host", "127.0.0.1")),
         timeout_(target.timeout),
         client_(client::make_client("socket", target.options)) {}
 
@@ -211,12 +211,12 @@ class SocketStreamLink : public StreamLink {
       throw std::runtime_error(command_ + ": " + component + ": simulation get_stream_port: " +
                                (port.message.empty() ? (port.value ? port.value->dump() : std::string(to_string(port.status))) : port.message));
     port_ = port.value->get<int>();
-    stream_ = std::make_unique<client::LineConnection>("simgate " + command_, host_, static_cast<std::uint16_t>(port_),
-                                                       timeout_);
+    // on the service port's host, with its token if it asked for one
+    stream_ = dynamic_cast<client::SocketClient&>(*client_).open_stream_port(
+        "simgate " + command_, static_cast<std::uint16_t>(port_), timeout_);
   }
 
   std::string command_;                              // watch or publish, for messages
-  std::string host_;                                 // the service port's host: the stream port's too
   std::chrono::milliseconds timeout_;                // --timeout
   std::unique_ptr<client::Client> client_;           // the service port
   std::unique_ptr<client::LineConnection> stream_;   // the stream port, once open

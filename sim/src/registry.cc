@@ -76,8 +76,7 @@ std::vector<std::string> ComponentRegistry::names(Kind kind) const {
   return out;
 }
 
-std::unique_ptr<SimComponent> ComponentRegistry::create(Kind kind, const ComponentSpec& spec, const json& options,
-                                                        Simulation& sim, Robot* robot) const {
+const ComponentType& ComponentRegistry::type_of(Kind kind, const ComponentSpec& spec) const {
   const ComponentType* type = find(spec.type);
   if (!type)
     throw ConfigError(spec.path + ".type: expected a " + kind_name(kind) + " type (" + join(names(kind)) +
@@ -85,6 +84,12 @@ std::unique_ptr<SimComponent> ComponentRegistry::create(Kind kind, const Compone
   if (type->kind != kind)
     throw ConfigError(spec.path + ".type: expected a " + kind_name(kind) + " type (" + join(names(kind)) +
                       "), found '" + spec.type + "', which is a " + kind_name(type->kind) + " type");
+  return *type;
+}
+
+std::unique_ptr<SimComponent> ComponentRegistry::create(Kind kind, const ComponentSpec& spec, const json& options,
+                                                        Simulation& sim, Robot* robot) const {
+  const ComponentType* type = &type_of(kind, spec);
   ConfigObject object(options.is_null() ? json::object() : options, spec.path + ".options");
   ComponentContext context(sim, spec, object, robot);
   auto component = type->factory(context);

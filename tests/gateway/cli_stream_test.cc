@@ -248,6 +248,90 @@ TEST(GatewayCliStream, DdsAndAnUnreachableServerAreClearErrors) {
   EXPECT_THAT(bad_count.err, HasSubstr("--count"));
 }
 
+// ---- a gateway whose transports require a token (the "auth" option, issue #35 item 11)
+
+constexpr const char* k_token = "cli-stream-token-0123456789abcdef";
+constexpr const char* k_token_env = "SIMGATE_TEST_CLI_STREAM_TOKEN";  // where the gateway reads it
+
+// The demo streaming everywhere, its three transports requiring k_token of every client.
+json demo_requiring_a_token() {
+  json c = demo_streaming_everywhere();
+  require_token(c, k_token_env);
+  return c;
+}
+
+// robot.motion's commands counted by the server (the socket transport answers none on its
+// stream port: counting them is how to know they got through), through a client that logs in.
+int motion_commands(const InProcessGateway& gateway) {
+  auto client = client::make_client("socket", {{"host", "127.0.0.1"}, {"port", gateway.port("socket")}, {"token", k_token}});
+  Outcome stats = client->call("simulation", "get_stream_statistics", json::array(), 10s);
+  const json motion = stats.value ? stream_of(*stats.value, "robot.motion") : json();
+  return motion.is_object() ? motion.value("commands", 0) : -1;
+}
+
+// Waits (bounded) for the server to have counted `count` commands of robot.motion.
+bool counted(const InProcessGateway& gateway, int count) {
+  const auto deadline = std::chrono::steady_clock::now() + 30s;
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (motion_commands(gateway) >= count) return true;
+    std::this_thread::sleep_for(20ms);  // the stream port's reader runs meanwhile; bounded
+  }
+  return false;
+}
+
+TEST(GatewayCliStream, WatchAndPublishPresentTheTokenOfTokenOrSimgateToken) {
+  const TempDir dir;
+  const ScopedEnv source(k_token_env, k_token);
+  const ScopedEnv unset("SIMGATE_TOKEN", std::nullopt);
+  InProcessGateway gateway(demo_requiring_a_token());
+  int published = 0;  // commands sent so far
+  for (const auto& transport : k_transports) {
+    const CliRun watch = simgate(through(gateway, transport, {"watch", "--token", k_token, "robot.pose", "--count", "2"}), dir);
+    EXPECT_EQ(watch.code, 0) << transport << ": " << watch.err;
+    expect_pose_samples(watch.out, 2, transport);
+    const CliRun publish =
+        simgate(through(gateway, transport, {"publish", "--token", k_token, "robot.motion", R"({"v": 0, "w": 0})"}), dir);
+    EXPECT_EQ(publish.code, 0) << transport << ": " << publish.err;
+    EXPECT_TRUE(counted(gateway, ++published)) << transport << ": the command did not get through";
+    {
+      const ScopedEnv token("SIMGATE_TOKEN", k_token);
+      const CliRun env_watch = simgate(through(gateway, transport, {"watch", "robot.pose", "--count", "1"}), dir);
+      EXPECT_EQ(env_watch.code, 0) << transport << ": " << env_watch.err;
+      expect_pose_samples(env_watch.out, 1, transport);
+      const CliRun env_publish = simgate(through(gateway, transport, {"publish", "robot.motion", R"({"v": 0, "w": 0})"}), dir);
+      EXPECT_EQ(env_publish.code, 0) << transport << ": " << env_publish.err;
+      EXPECT_TRUE(counted(gateway, ++published)) << transport << ": the command did not get through";
+    }
+    // the option wins over the variable
+    const ScopedEnv wrong("SIMGATE_TOKEN", "a-wrong-token-0123456789");
+    const CliRun both = simgate(through(gateway, transport, {"watch", "--token", k_token, "robot.pose", "--count", "1"}), dir);
+    EXPECT_EQ(both.code, 0) << transport << ": " << both.err;
+  }
+}
+
+TEST(GatewayCliStream, WatchAndPublishWithoutTheTokenOrWithAWrongOneFailClearly) {
+  const TempDir dir;
+  const ScopedEnv source(k_token_env, k_token);
+  const ScopedEnv unset("SIMGATE_TOKEN", std::nullopt);
+  InProcessGateway gateway(demo_requiring_a_token());
+  for (const auto& transport : k_transports) {
+    for (const std::string command : {"watch", "publish"}) {
+      std::vector<std::string> rest = {command, "robot.motion", R"({"v": 0, "w": 0})"};
+      if (command == "watch") rest = {command, "robot.pose", "--count", "1"};
+      const CliRun none = simgate(through(gateway, transport, rest), dir);
+      EXPECT_EQ(none.code, 1) << transport << " " << command << ": " << none.err;
+      EXPECT_THAT(none.err, HasSubstr("--token TOKEN or the SIMGATE_TOKEN environment variable")) << transport << " " << command;
+      EXPECT_EQ(none.out, "") << transport << " " << command;
+      rest.insert(rest.begin() + 1, {"--token", "a-wrong-token-0123456789"});
+      const CliRun wrong = simgate(through(gateway, transport, rest), dir);
+      EXPECT_EQ(wrong.code, 1) << transport << " " << command << ": " << wrong.err;
+      EXPECT_THAT(wrong.err, HasSubstr("wrong token")) << transport << " " << command;
+      EXPECT_EQ(wrong.out, "") << transport << " " << command;
+    }
+  }
+  EXPECT_EQ(motion_commands(gateway), 0);  // none got through
+}
+
 TEST(GatewayCliStream, HelpDescribesWatchAndPublish) {
   const TempDir dir;
   const CliRun top = simgate({"--help"}, dir);

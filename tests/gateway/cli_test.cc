@@ -9,6 +9,7 @@
 #include <regex>
 #include <sstream>
 
+#include "in_process_gateway.h"
 #include "simgate/gateway/cli.h"
 #include "test_support.h"
 
@@ -138,6 +139,40 @@ TEST(GatewayCliTest, CheckReportsEveryErrorOfTheFileAtOnce) {
   EXPECT_THAT(out, HasSubstr("\n  transports.socket.options.port: expected an integer from 0 to 65535"));
 }
 
+
+// Issue #35, item 11: a mistake of one section was hidden behind another's (the structure's
+// errors were all reported, but a robot's type, body or options, and a transport's plugin
+// options, only once the whole structure was valid and the scene loaded).
+TEST(GatewayCliTest, CheckReportsTheErrorsOfEverySectionAtOnce) {
+  TempDir dir;
+  // a scene that loads with a wrong timestep, a robot's body, a transport's port
+  json loads = demo_config();
+  loads["scene"]["timestep"] = -1;
+  loads["robots"][1]["body"] = "humn";
+  loads["transports"]["socket"]["options"]["port"] = 70000;
+  // a scene that cannot load, a component's type, a transport's port
+  json missing = demo_config();
+  missing["scene"]["mjcf"] = "nowhere.xml";
+  missing["robots"][0]["components"][0]["type"] = "motion_wv";
+  missing["transports"]["socket"]["options"]["port"] = 70000;
+  for (const auto& [name, config, scene, robot] :
+       {std::tuple{"loads", loads, "scene.timestep: expected a number from ", "robots[1].body: expected the name of a body"},
+        std::tuple{"missing", missing, "scene.mjcf: expected an MJCF file, found '",
+                   "robots[0].components[0].type: expected a component type ("}}) {
+    const std::string file = dir.write(std::string(name) + ".json", config.dump());
+    const CliRun check = run_split({"check", file}, dir);
+    EXPECT_EQ(check.code, 2) << name << ": " << check.err;
+    EXPECT_THAT(check.err, HasSubstr("simgate: invalid configuration: config '" + file + "': 3 errors:\n")) << name;
+    EXPECT_THAT(check.err, HasSubstr("\n  " + std::string(scene))) << name << ": " << check.err;
+    EXPECT_THAT(check.err, HasSubstr("\n  " + std::string(robot))) << name << ": " << check.err;
+    EXPECT_THAT(check.err, HasSubstr("\n  transports.socket.options.port: expected an integer from 0 to 65535")) << name;
+    // run refuses it alike, before starting anything
+    const CliRun run = run_split({"run", file}, dir, 20s);
+    EXPECT_EQ(run.code, 2) << name;
+    EXPECT_EQ(run.err, check.err) << name;
+  }
+}
+
 // What `run` refuses because of the file, `check` refuses alike: exit 2, the JSON path and
 // the same message, and `run` refuses it before starting anything (issue #17, item 8:
 // check said OK, or crashed, or left the error format, for each of these).
@@ -145,7 +180,8 @@ TEST(GatewayCliTest, CheckRefusesWhatRunRefusesWithTheSameMessage) {
   struct Case {
     std::string name;      // what is wrong
     std::string text;      // the file
-    std::string expected;  // in the error, after "config '<file>': "
+    std::string expected;  // in the error, after "config '<file>': " (located: "<file>:1:<column>: ")
+    bool located = false;  // an error of the JSON text, at its line and column
   };
   auto with = [](const std::function<void(json&)>& change) {
     json c = demo_config();
@@ -174,12 +210,11 @@ TEST(GatewayCliTest, CheckRefusesWhatRunRefusesWithTheSameMessage) {
        with([](json& c) { c["transports"]["socket"]["options"]["host"] = "203.0.113.7"; }),
        "transports.socket.options.host: expected an address of this machine"},
       {"a number beyond a double", replacing(demo, "\"timestep\":0.002", "\"timestep\":1e400"),
-       "scene.timestep: expected a number a double can hold (at most about 1.8e308 in magnitude), found 1e400 "
-       "(line 1, column "},
+       "scene.timestep: expected a number a double can hold (at most about 1.8e308 in magnitude), found 1e400", true},
       {"nesting 100000 deep",
        replacing(demo, "\"log_level\"", "\"description\":" + std::string(100000, '[') + std::string(100000, ']') +
                                               ",\"log_level\""),
-       "description[0][0][0]...: expected at most 64 levels of nested arrays and objects, found deeper nesting"},
+       "description[0][0][0]...: expected at most 64 levels of nested arrays and objects, found deeper nesting", true},
 #ifdef SIMGATE_TEST_WITH_DDS
       {"DDS domain 300",
        with([](json& c) { c["transports"]["dds"] = {{"plugin", "dds"}, {"options", {{"domain", 300}}}}; }),
@@ -199,7 +234,13 @@ TEST(GatewayCliTest, CheckRefusesWhatRunRefusesWithTheSameMessage) {
     std::string file = dir.write("case.json", c.text);
     auto check = run_split({"check", file}, dir);
     EXPECT_EQ(check.code, 2) << c.name << ": " << check.out << check.err;
-    EXPECT_THAT(check.err, HasSubstr("simgate: invalid configuration: config '" + file + "': " + c.expected)) << c.name;
+    // what the JSON text itself gets wrong is located: FILE:LINE:COLUMN
+    if (c.located) {
+      EXPECT_THAT(check.err, ::testing::MatchesRegex("simgate: invalid configuration: " + file + ":1:[0-9]+: .*")) << c.name;
+      EXPECT_THAT(check.err, HasSubstr(": " + c.expected)) << c.name;
+    } else {
+      EXPECT_THAT(check.err, HasSubstr("simgate: invalid configuration: config '" + file + "': " + c.expected)) << c.name;
+    }
     if (check.code == 0) continue;  // run would start a simulation
     auto run = run_split({"run", file}, dir, 20s);
     EXPECT_EQ(run.code, 2) << c.name << ": " << run.out << run.err;
@@ -434,6 +475,87 @@ TEST(GatewayCliTest, ClientOptionsAreChecked) {
   auto [hcode, hout] = run_simgate({"call", "--transport", "dds", "--host", "127.0.0.1", "simulation", "list_robots"}, dir);
   EXPECT_EQ(hcode, 2);
   EXPECT_THAT(hout, HasSubstr("--host"));
+}
+
+// ---- a gateway whose transports require a token (the "auth" option, issue #35 item 11)
+
+constexpr const char* k_token = "cli-test-token-0123456789abcdef";
+constexpr const char* k_token_env = "SIMGATE_TEST_CLI_TOKEN";  // where the gateway reads it
+const std::vector<std::string> k_tcp_transports = {"socket", "jsonrpc", "websocket"};
+
+// The demo served by socket, jsonrpc and websocket, each requiring k_token of every client.
+json demo_requiring_a_token() {
+  json c = demo_config();
+  c["transports"]["jsonrpc"] = {{"plugin", "jsonrpc"}, {"options", {{"host", "127.0.0.1"}, {"port", 0}}}};
+  c["services"] = {{"default", k_tcp_transports}};
+  c.erase("streams");
+  require_token(c, k_token_env);
+  return c;
+}
+
+// `simgate COMMAND --transport T --port P REST...` against `gateway`.
+CliRun through(const InProcessGateway& gateway, const std::string& transport, const std::string& command,
+               std::vector<std::string> rest, const TempDir& dir) {
+  std::vector<std::string> args = {command, "--transport", transport, "--port", std::to_string(gateway.port(transport))};
+  args.insert(args.end(), rest.begin(), rest.end());
+  return run_split(args, dir);
+}
+
+TEST(GatewayCliTest, CallAndListPresentTheTokenOfTokenOrSimgateToken) {
+  TempDir dir;
+  const ScopedEnv source(k_token_env, k_token);
+  const ScopedEnv unset("SIMGATE_TOKEN", std::nullopt);
+  InProcessGateway gateway(demo_requiring_a_token());
+  for (const auto& t : k_tcp_transports) {
+    const CliRun call = through(gateway, t, "call", {"--token", k_token, "simulation", "list_robots"}, dir);
+    EXPECT_EQ(call.code, 0) << t << ": " << call.err;
+    EXPECT_EQ(call.out, "[\"robot\",\"human\"]\n") << t;
+    const CliRun list = through(gateway, t, "list", {"--token=" + std::string(k_token)}, dir);
+    EXPECT_EQ(list.code, 0) << t << ": " << list.err;
+    EXPECT_THAT(list.out, HasSubstr("robot.motion set_speed(v, w)")) << t;
+    {
+      const ScopedEnv token("SIMGATE_TOKEN", k_token);
+      const CliRun env_call = through(gateway, t, "call", {"human", "move", "-1", "0"}, dir);
+      EXPECT_EQ(env_call.code, 1) << t;  // logged in: the service itself answers
+      EXPECT_THAT(env_call.err, HasSubstr("Our human cannot walk at negative speed!")) << t;
+      const CliRun env_list = through(gateway, t, "list", {"--json"}, dir);
+      EXPECT_EQ(env_list.code, 0) << t << ": " << env_list.err;
+      EXPECT_TRUE(json::parse(env_list.out, nullptr, false).is_array()) << t << ": " << env_list.out;
+    }
+    // the option wins over the variable
+    const ScopedEnv wrong("SIMGATE_TOKEN", "a-wrong-token-0123456789");
+    const CliRun both = through(gateway, t, "call", {"--token", k_token, "simulation", "list_robots"}, dir);
+    EXPECT_EQ(both.code, 0) << t << ": " << both.err;
+  }
+}
+
+TEST(GatewayCliTest, CallAndListWithoutTheTokenOrWithAWrongOneFailClearly) {
+  TempDir dir;
+  const ScopedEnv source(k_token_env, k_token);
+  const ScopedEnv unset("SIMGATE_TOKEN", std::nullopt);
+  InProcessGateway gateway(demo_requiring_a_token());
+  for (const auto& t : k_tcp_transports) {
+    for (const std::string command : {"call", "list"}) {
+      std::vector<std::string> rest;
+      if (command == "call") rest = {"simulation", "list_robots"};
+      const CliRun none = through(gateway, t, command, rest, dir);
+      EXPECT_EQ(none.code, 1) << t << " " << command << ": " << none.err;
+      EXPECT_THAT(none.err, HasSubstr("--token TOKEN or the SIMGATE_TOKEN environment variable")) << t << " " << command;
+      EXPECT_EQ(none.out, "") << t << " " << command;
+      rest.insert(rest.begin(), {"--token", "a-wrong-token-0123456789"});
+      const CliRun wrong = through(gateway, t, command, rest, dir);
+      EXPECT_EQ(wrong.code, 1) << t << " " << command << ": " << wrong.err;
+      EXPECT_THAT(wrong.err, HasSubstr("wrong token")) << t << " " << command;
+      EXPECT_EQ(wrong.out, "") << t << " " << command;
+    }
+  }
+}
+
+TEST(GatewayCliTest, ATokenForDdsIsRefusedForDdsHasNoTokenAuthentication) {
+  TempDir dir;
+  const CliRun r = run_split({"call", "--transport", "dds", "--token", k_token, "simulation", "list_robots"}, dir);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_THAT(r.err, HasSubstr("--token: the dds transport has no token authentication"));
 }
 
 TEST(GatewayCliTest, EveryCommandHasItsOwnHelp) {

@@ -242,15 +242,48 @@ TEST(GatewayConfigTest, InvalidJsonSyntaxNamesTheFile) {
   }
 }
 
-TEST(GatewayConfigTest, InvalidJsonSyntaxNamesThePathLineAndColumn) {
+// "FILE:LINE:COLUMN: " of the byte at `offset` of `text` (both from 1), as compilers locate
+// their errors (editors jump there).
+std::string located(const std::string& file, const std::string& text, std::size_t offset) {
+  const std::string before = text.substr(0, offset);
+  const std::size_t line = 1 + std::count(before.begin(), before.end(), '\n');
+  const std::size_t line_start = before.rfind('\n') == std::string::npos ? 0 : before.rfind('\n') + 1;
+  return file + ":" + std::to_string(line) + ":" + std::to_string(offset - line_start + 1) + ": ";
+}
+
+// Issue #35, item 11: was "config 'broken.json': scene: invalid JSON: parse error at line 2,
+// column 29: ...", nlohmann's wording inside the message, not where editors look.
+TEST(GatewayConfigTest, InvalidJsonSyntaxIsReportedAtFileLineAndColumn) {
   testing::TempDir dir;
-  std::string file = dir.write("broken.json", "{\"scene\": {\"mjcf\": \"x.xml\",}\n");
-  try {
-    load_deployment(file);
-    FAIL() << "accepted";
-  } catch (const ConfigError& e) {
-    ASSERT_EQ(e.errors().size(), 1u);
-    EXPECT_THAT(e.errors()[0], HasSubstr("scene: invalid JSON: parse error at line 1, column 28"));
+  struct Case {
+    std::string name;      // the mistake
+    std::string text;      // the file
+    std::string at;        // where the error points, the byte that made it fail: the first occurrence of this ("": the end)
+    std::string expected;  // the message after "FILE:LINE:COLUMN: "
+  };
+  const std::vector<Case> cases = {
+      {"a trailing comma", "{\n  \"scene\": {\"mjcf\": \"x.xml\",}\n}\n", "}\n}",
+       "scene: invalid JSON: expected string literal, found '}' (while parsing object key)"},
+      {"a missing closing quote", "{\n  \"scene\": {\n    \"mjcf\": \"x.xml\n  }\n}\n", "\n  }",
+       "scene.mjcf: invalid JSON: found invalid string: control character U+000A (LF) must be escaped to \\u000A or "
+       "\\n (last read: '\"x.xml<U+000A>'; while parsing value)"},
+      {"a missing opening quote", "{\n  \"scene\": {\n    \"mjcf\": x.xml\"\n  }\n}\n", "x.xml",
+       "scene.mjcf: invalid JSON: found invalid literal (last read: '\"mjcf\": x'; while parsing value)"},
+      {"a missing comma", "{\"scene\": {\"mjcf\": \"x.xml\"}\n\"robots\": []}", "\": []",
+       "configuration: invalid JSON: expected '}', found string literal (while parsing object)"},
+      {"the end of the file", "{\"scene\": {\"mjcf\": \"x.xml\"}", "",
+       "configuration: invalid JSON: expected '}', found end of input (while parsing object)"},
+  };
+  for (const auto& c : cases) {
+    const std::string file = dir.write("broken.json", c.text);
+    const std::size_t offset = c.at.empty() ? c.text.size() : c.text.find(c.at);
+    try {
+      load_deployment(file);
+      ADD_FAILURE() << c.name << ": accepted";
+    } catch (const ConfigError& e) {
+      ASSERT_EQ(e.errors().size(), 1u) << c.name;
+      EXPECT_EQ(e.what(), located(file, c.text, offset) + c.expected) << c.name;
+    }
   }
 }
 
@@ -278,9 +311,10 @@ TEST(GatewayConfigTest, ANumberBeyondADoubleIsAConfigErrorWithItsPathAndPosition
   std::size_t offset = text.find("1e400");
   std::size_t line = 1 + std::count(text.begin(), text.begin() + offset, '\n');
   std::size_t column = offset - text.rfind('\n', offset);
-  EXPECT_EQ(load_error(text), "scene.timestep: expected a number a double can hold (at most about 1.8e308 in "
-                              "magnitude), found 1e400 (line " + std::to_string(line) + ", column " +
-                              std::to_string(column) + ")");
+  EXPECT_THAT(load_error(text), ::testing::EndsWith("/config.json:" + std::to_string(line) + ":" +
+                                                    std::to_string(column) +
+                                                    ": scene.timestep: expected a number a double can hold (at most "
+                                                    "about 1.8e308 in magnitude), found 1e400"));
   // in a list, negative, in a component's options
   text = demo_config().dump();
   text.replace(text.find("\"wheel_radius\":0.1"), 18, "\"wheel_radius\":-2e999");
@@ -297,8 +331,9 @@ TEST(GatewayConfigTest, ADocumentNestedTooDeeplyIsRefusedBeforeItIsBuilt) {
   const std::size_t depth = 100000;
   text.replace(text.find("\"@\""), 3, std::string(depth, '[') + std::string(depth, ']'));
   std::string error = load_error(text);
-  EXPECT_THAT(error, HasSubstr("description[0][0][0]...: expected at most 64 levels of nested arrays and objects, "
-                               "found deeper nesting (line 1, column "));
+  EXPECT_THAT(error, HasSubstr("/config.json:1:"));
+  EXPECT_THAT(error, HasSubstr(": description[0][0][0]...: expected at most 64 levels of nested arrays and objects, "
+                               "found deeper nesting"));
   // within the limit it loads (and fails on the value's type, not its depth)
   text = c.dump();
   text.replace(text.find("\"@\""), 3, std::string(60, '[') + std::string(60, ']'));

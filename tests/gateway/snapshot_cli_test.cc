@@ -215,6 +215,43 @@ TEST(GatewaySnapshot, ErrorsAreClear) {
   EXPECT_FALSE(std::filesystem::exists(dir.file("n.png")));
 }
 
+TEST(GatewaySnapshot, PresentsTheTokenOfTokenOrSimgateTokenAndFailsClearlyWithoutIt) {
+  // the "auth" option (issue #35, item 11): both transports require the token of every client
+  const TempDir dir;
+  const std::string token = "snapshot-token-0123456789abcdef";
+  const ScopedEnv source("SIMGATE_TEST_SNAPSHOT_TOKEN", token);
+  const ScopedEnv unset("SIMGATE_TOKEN", std::nullopt);
+  json c = demo_on_two_transports();
+  require_token(c, "SIMGATE_TEST_SNAPSHOT_TOKEN");
+  InProcessGateway gateway(c);
+  for (const std::string transport : {"socket", "jsonrpc"}) {
+    auto args = [&](const std::string& out, std::vector<std::string> more) {
+      std::vector<std::string> a = {"snapshot", "--transport", transport, "--port", std::to_string(gateway.port(transport)),
+                                    "--size", "64x48"};
+      a.insert(a.end(), more.begin(), more.end());
+      a.push_back(dir.file(out));
+      return a;
+    };
+    const CliRun with_option = simgate(args(transport + "-option.png", {"--token", token}), dir);
+    ASSERT_EQ(with_option.code, 0) << transport << ": " << with_option.err;
+    EXPECT_EQ(png_file(dir.file(transport + "-option.png")).width, 64) << transport;
+    {
+      const ScopedEnv env("SIMGATE_TOKEN", token);
+      const CliRun with_env = simgate(args(transport + "-env.png", {}), dir);
+      ASSERT_EQ(with_env.code, 0) << transport << ": " << with_env.err;
+      EXPECT_EQ(png_file(dir.file(transport + "-env.png")).width, 64) << transport;
+    }
+    const CliRun none = simgate(args(transport + "-none.png", {}), dir);
+    EXPECT_EQ(none.code, 1) << transport;
+    EXPECT_THAT(none.err, HasSubstr("--token TOKEN or the SIMGATE_TOKEN environment variable")) << transport;
+    EXPECT_FALSE(std::filesystem::exists(dir.file(transport + "-none.png"))) << transport;
+    const CliRun wrong = simgate(args(transport + "-wrong.png", {"--token", "a-wrong-token-0123456789"}), dir);
+    EXPECT_EQ(wrong.code, 1) << transport;
+    EXPECT_THAT(wrong.err, HasSubstr("wrong token")) << transport;
+    EXPECT_FALSE(std::filesystem::exists(dir.file(transport + "-wrong.png"))) << transport;
+  }
+}
+
 TEST(GatewaySnapshot, WithoutGlTheReasonIsGiven) {
   const TempDir dir;
   const std::string config = dir.write("demo.json", demo_config().dump());

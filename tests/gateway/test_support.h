@@ -16,6 +16,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <optional>
@@ -222,6 +223,43 @@ inline std::string read_file(const std::string& path) {
   std::stringstream s;
   s << in.rdbuf();
   return s.str();
+}
+
+// An environment variable set (or unset, with nullopt) for the life of the object, then
+// restored: the processes started meanwhile inherit it.
+class ScopedEnv {
+ public:
+  ScopedEnv(std::string name, const std::optional<std::string>& value) : name_(std::move(name)) {
+    if (const char* old = std::getenv(name_.c_str())) old_ = old;
+    if (value) {
+      ::setenv(name_.c_str(), value->c_str(), 1);
+    } else {
+      ::unsetenv(name_.c_str());
+    }
+  }
+  ~ScopedEnv() {
+    if (old_) {
+      ::setenv(name_.c_str(), old_->c_str(), 1);
+    } else {
+      ::unsetenv(name_.c_str());
+    }
+  }
+  ScopedEnv(const ScopedEnv&) = delete;
+  ScopedEnv& operator=(const ScopedEnv&) = delete;
+
+ private:
+  std::string name_;                // the variable
+  std::optional<std::string> old_;  // its value before, if it had one
+};
+
+// A config's TCP transports (socket, jsonrpc, websocket plugins) requiring the token that
+// `token_env` holds, from every client: loopback ones too, which the tests are.
+inline void require_token(json& config, const std::string& token_env) {
+  for (auto& [name, transport] : config["transports"].items()) {
+    const std::string plugin = transport.value("plugin", name);
+    if (plugin == "socket" || plugin == "jsonrpc" || plugin == "websocket")
+      transport["options"]["auth"] = {{"token_env", token_env}, {"loopback", true}};
+  }
 }
 
 // A child process with stdout/stderr in files.

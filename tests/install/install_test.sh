@@ -36,13 +36,23 @@ for f in "$bindir/simgate" \
          "$libdir/pkgconfig/simgate-sim.pc" "$libdir/pkgconfig/simgate-clients.pc" \
          "$datadir/simgate/config/demo.json" "$datadir/simgate/config/all-transports.json" \
          "$datadir/simgate/config/scenes/demo.xml" "$datadir/simgate/config/dds/loopback.xml" \
-         "$datadir/doc/simgate/LICENSE" \
+         "$datadir/doc/simgate/LICENSE" "$datadir/doc/simgate/README.md" \
+         "$datadir/doc/simgate/docs/configuration.md" "$datadir/doc/simgate/docs/cli.md" \
+         "$datadir/doc/simgate/docs/transports/socket.md" "$datadir/doc/simgate/docs/world/snapshot.md" \
          "$libdir/simgate/plugins/libsimgate_transport_websocket.so" \
          "$datadir/simgate/web/index.html" "$datadir/simgate/web/app.js" \
          "$datadir/simgate/web/vendor/three.module.js" "$datadir/simgate/web/vendor/OrbitControls.js"; do
   [ -e "$prefix/$f" ] || fail "not installed: $f"
 done
 echo "installed into $prefix"
+# every page a message of the code cites ("docs/configuration.md") is in share/doc/simgate
+cited=$(grep -rhoE 'docs/[A-Za-z0-9_/.-]+[.]md' "$source_dir"/{core,kit,sim,plugins,clients,gateway} \
+          --include='*.cc' --include='*.h' | sort -u)
+[ -n "$cited" ] || fail "no docs/*.md cited in the sources: the pattern is wrong"
+for doc in $cited; do
+  [ -e "$prefix/$datadir/doc/simgate/$doc" ] || fail "not installed: $doc (cited by the code's messages)"
+done
+echo "installed the $(wc -w <<<"$cited") pages the code's messages cite"
 
 # --- RUNPATH: present, relative to the file ($ORIGIN), never the build or source tree ----
 elves=("$prefix/$bindir/simgate")

@@ -1,8 +1,9 @@
 // simgate/client/client.h — the common client interface of every transport.
 //
-// `simgate call` and `simgate list` use it, so do the tests. Each transport's client
-// (clients/<name>/) offers a richer class of its own (pipelining, async calls, cancel);
-// this is their common denominator: one blocking call at a time, with a deadline.
+// The `simgate` client commands (call, list, watch, publish, snapshot) use it, so do the
+// tests. Each transport's client (clients/<name>/) offers a richer class of its own
+// (pipelining, async calls, cancel); this is their common denominator: one blocking call at
+// a time, with a deadline, and the login a transport's "auth" option asks for.
 #ifndef SIMGATE_CLIENT_CLIENT_H_
 #define SIMGATE_CLIENT_CLIENT_H_
 
@@ -10,6 +11,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 #include "simgate/core/status.h"
 
@@ -22,6 +24,19 @@ class ClientError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// The server refused the client: its transport's "auth" option requires a token that was
+// not presented, or the one presented is wrong (the server then closes the connection).
+class AuthError : public ClientError {
+ public:
+  using ClientError::ClientError;
+};
+
+// Why a token cannot be presented to the DDS transport (DdsClient::login's error, and the
+// command line's).
+inline constexpr std::string_view k_dds_has_no_token =
+    "the dds transport has no token authentication: who may reach it is set with Cyclone's network settings "
+    "or DDS Security (docs/transports/dds.md, \"Network exposure\")";
+
 class Client {
  public:
   virtual ~Client() = default;
@@ -32,10 +47,17 @@ class Client {
   // Everything the server offers through this transport: a JSON array of
   // ServiceDescriptor::to_json() objects.
   virtual json list_services(std::chrono::milliseconds timeout) = 0;
+  // Presents the shared token of the transport's "auth" option
+  // (docs/configuration.md#authentication-auth-per-tcp-transport), as the transport expects
+  // it, before any call. Throws AuthError when the server refuses it, ClientError when the
+  // transport has no token authentication (DDS) or the server does not answer in time.
+  virtual void login(const std::string& token, std::chrono::milliseconds timeout) = 0;
 };
 
 // transport: "socket", "jsonrpc", "websocket" or "dds". options: {"host", "port"} for TCP transports,
-// {"domain", "partition", "config"} for DDS. Throws ClientError for unknown transports.
+// {"domain", "partition", "config"} for DDS; and for any of them "token", presented at once
+// (login()) within "timeout_ms" (default 5000). Throws ClientError for unknown transports,
+// and what login() throws.
 std::unique_ptr<Client> make_client(const std::string& transport, const json& options);
 
 // Implemented in clients/<name>/ (present when SIMGATE_CLIENT_<NAME> is defined).

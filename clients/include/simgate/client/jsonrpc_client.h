@@ -11,7 +11,9 @@
 //
 // Threads: not thread-safe; use one JsonRpcClient per thread. Every wait has a deadline;
 // connection loss, timeouts and unparsable responses throw ClientError. Error responses
-// are not exceptions: request() returns the response object, call() an Outcome.
+// are not exceptions: request() returns the response object, call() an Outcome; but for
+// k_unauthorized (the transport's "auth" wants rpc.login first, or refused its token), which
+// throws AuthError: no call ran.
 #ifndef SIMGATE_CLIENT_JSONRPC_CLIENT_H_
 #define SIMGATE_CLIENT_JSONRPC_CLIENT_H_
 
@@ -58,6 +60,9 @@ class JsonRpcClient : public Client {
                std::chrono::milliseconds timeout) override;
   // rpc.discover, converted to ServiceDescriptor::to_json() objects.
   json list_services(std::chrono::milliseconds timeout) override;
+  // rpc.login {"token"}: AuthError when the server refuses it (and closes the connection).
+  // A server without "auth" accepts any token.
+  void login(const std::string& token, std::chrono::milliseconds timeout) override;
   // The raw OpenRPC document.
   json discover(std::chrono::milliseconds timeout);
   // Sends a call and returns its whole response object (result or error).
@@ -96,6 +101,9 @@ class JsonRpcClient : public Client {
   // The services of an rpc.discover result (OpenRPC) as ServiceDescriptor::to_json()
   // objects (also the websocket client's: the same protocol).
   static json services_of(const json& openrpc);
+  // Throws AuthError, prefixed with `who` ("jsonrpc client: 127.0.0.1:4001"), when
+  // `response` is the k_unauthorized error (also the websocket client's).
+  static void throw_if_unauthorized(const json& response, const std::string& who);
 
  private:
   LineConnection connection_;   // the TCP connection and its line buffer

@@ -7,6 +7,9 @@
 //   - send_line() / send_raw() / read_line(): raw protocol access for tests and pipelined
 //     benchmarks.
 // Replies are parsed like pymorse does: "<id> <STATUS>[ <json>]"; "OK" is read as SUCCESS.
+// A transport with "auth" reads a first line `auth <token>` (login()), on the service port
+// and on each stream port (open_stream_port()); a request refused for want of it throws
+// AuthError.
 //
 // Threads: not thread-safe; use one SocketClient per thread. Every wait has a deadline;
 // connection loss, timeouts and unparsable replies throw ClientError.
@@ -16,6 +19,7 @@
 #include <chrono>
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -45,6 +49,16 @@ class SocketClient : public Client {
                std::chrono::milliseconds timeout) override;
   // `simulation list_services`; throws ClientError if the server has no such service.
   json list_services(std::chrono::milliseconds timeout) override;
+  // Sends `auth <token>` and reads its reply: `auth SUCCESS` (or OK) logs in; `auth FAILED
+  // "wrong token..."` throws AuthError (the server closes the connection). Any other reply
+  // is a server that asks no token of this connection (no "auth", or a loopback client it
+  // trusts), which took the line for a request: the token is then not needed.
+  void login(const std::string& token, std::chrono::milliseconds timeout) override;
+  // A connection to one of the server's stream ports (`simulation get_stream_port`), on
+  // the service port's host, presenting the token as its first line when the service port
+  // asked for it. `owner` names it in messages ("simgate watch").
+  std::unique_ptr<LineConnection> open_stream_port(const std::string& owner, std::uint16_t port,
+                                                   std::chrono::milliseconds timeout);
 
   // Sends "<id> <component> <service> <params as JSON>" with a fresh id; returns the id.
   std::string send_request(const std::string& component, const std::string& service,
@@ -71,8 +85,10 @@ class SocketClient : public Client {
 
  private:
   LineConnection connection_;                // the TCP connection and its line buffer
+  std::string host_;                         // the server's address, its stream ports' too
   std::map<std::string, SocketReply> early_;  // replies that arrived before they were awaited
   std::uint64_t next_id_ = 0;                // ids are decimal counters, as pymorse's
+  std::string token_;                        // the token the server accepted ("" before, or if none was needed)
 };
 
 }  // namespace simgate::client

@@ -37,9 +37,12 @@ class WebSocketClient : public Client {
                std::chrono::milliseconds timeout) override;
   // rpc.discover, converted to ServiceDescriptor::to_json() objects.
   json list_services(std::chrono::milliseconds timeout) override;
+  // rpc.login {"token"}, as JsonRpcClient::login.
+  void login(const std::string& token, std::chrono::milliseconds timeout) override;
 
   // Sends a call (params: array, object or null, omitted) and returns its whole response
-  // object; other messages received meanwhile are kept for receive().
+  // object; other messages received meanwhile are kept for receive(). The "auth" option's
+  // refusal (-32005) throws AuthError, as JsonRpcClient's.
   json request(const std::string& method, const json& params, std::chrono::milliseconds timeout);
   // The next message the server sent (kept ones first), or nullopt when `timeout` passes
   // first (the client is then closed). std::chrono::milliseconds::max(): no deadline.

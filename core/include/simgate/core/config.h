@@ -40,10 +40,11 @@ bool json_nests_deeper_than(std::string_view text, std::size_t max_depth) noexce
 // operation on a document (copies, comparisons, dumps) shallow.
 inline constexpr std::size_t k_max_config_depth = 64;
 
-// Parses the text of a configuration document. Throws one ConfigError naming the JSON path
-// of the offending value ("scene.timestep", "robots[1].options"; "configuration" for the
-// document itself) and its line and column when the text is not JSON, holds a number beyond
-// a double (1e400: nlohmann's out_of_range), or nests `[`/`{` deeper than `max_depth`.
+// Parses the text of a configuration document. Throws one ConfigTextError (errors.h) naming
+// the JSON path of the offending value ("scene.timestep", "robots[1].options";
+// "configuration" for the document itself), its line and column when the text is not JSON
+// (the start of the offending token), holds a number beyond a double (1e400: nlohmann's
+// out_of_range), nests `[`/`{` deeper than `max_depth`, or holds a NUL byte.
 // Nothing recursive runs before the depth is known: one streaming pass (nlohmann's SAX
 // parser, iterative), then the document is built.
 json parse_config_text(std::string_view text, std::size_t max_depth = k_max_config_depth);

@@ -83,6 +83,30 @@ class ConfigError : public std::runtime_error {
   std::string file_;                 // where they were found
 };
 
+// A configuration text that is not a document simgate reads (not JSON, a number beyond a
+// double, nested too deeply, a NUL byte: parse_config_text), at a line and column (from 1,
+// the column in bytes). errors() and what() read "<message> (line L, column C)"; a loader
+// that knows the file reports located(file) instead, as compilers locate their errors.
+class ConfigTextError : public ConfigError {
+ public:
+  ConfigTextError(std::string message, std::size_t line, std::size_t column)
+      : ConfigError(message + " (line " + std::to_string(line) + ", column " + std::to_string(column) + ")"),
+        message_(std::move(message)), line_(line), column_(column) {}
+  // The message without its position: "scene: invalid JSON: expected ..., found ...".
+  const std::string& message() const noexcept { return message_; }
+  std::size_t line() const noexcept { return line_; }
+  std::size_t column() const noexcept { return column_; }
+  // "FILE:LINE:COLUMN: <message>", where editors jump from.
+  std::string located(const std::string& file) const {
+    return file + ":" + std::to_string(line_) + ":" + std::to_string(column_) + ": " + message_;
+  }
+
+ private:
+  std::string message_;  // what is wrong, starting with the JSON path
+  std::size_t line_;     // where, from 1
+  std::size_t column_;   // from 1, in bytes
+};
+
 // Collects the ConfigErrors of independent checks so that all of a file's errors are
 // reported at once: errors.check([&] { ...may throw ConfigError... }); errors.throw_if_any().
 class ConfigErrors {

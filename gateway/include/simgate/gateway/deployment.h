@@ -21,7 +21,9 @@
 // and the plugins (bodies, component types and options, plugin loading). Every error is a
 // message that starts with the JSON path, says what was expected and what was found (and
 // "did you mean" for a misspelt name); independent parts are all checked, so one
-// ConfigError carries every error of the file.
+// ConfigError carries every error of the file. The forms that take a ConfigErrors record
+// them instead and return what is valid, for the gateway to check the rest with it: every
+// error of every section at once (`simgate check`, `run`).
 //
 // Mapping: a component's transports come from its exact name if listed, else from the most
 // specific matching glob (the one with the most literal characters), else from "default".
@@ -43,6 +45,7 @@
 #include <vector>
 
 #include "simgate/core/config.h"
+#include "simgate/core/errors.h"
 #include "simgate/core/service_access.h"
 
 namespace simgate::gateway {
@@ -121,13 +124,23 @@ struct Deployment {
   const ServiceRule* stream_rule_named(const std::string& component) const;
 };
 
-// Validates and converts a parsed document. `base_dir` resolves relative paths.
+// Validates and converts a parsed document. `base_dir` resolves relative paths. Throws one
+// ConfigError carrying every error of the document's structure.
 Deployment parse_deployment(const json& document, const std::string& base_dir, const std::string& file = "");
-// Reads and parses a file (parse_config_text: a syntax error, a number beyond a double or
-// nesting deeper than k_max_config_depth names the file, the JSON path, line and column).
+// The same, recording the errors in `errors` rather than throwing them: the deployment
+// holds what is valid (a robot, transport or mapping rule with an error is left out; a
+// scene whose file is unusable leaves `mjcf` empty), for Gateway to check the rest.
+Deployment parse_deployment(const json& document, const std::string& base_dir, const std::string& file,
+                            ConfigErrors& errors);
+// Reads and parses a file: parse_deployment, or first parse_config_text, whose error (a
+// syntax error, a number beyond a double, nesting deeper than k_max_config_depth) is thrown
+// as "FILE:LINE:COLUMN: <path>: ...".
 Deployment load_deployment(const std::string& file);
+// The same, recording the errors of the structure in `errors` (parse_deployment's second
+// form); a text that is no document is still thrown.
+Deployment load_deployment(const std::string& file, ConfigErrors& errors);
 // The document of a deployment file, read and parsed as load_deployment does, not yet
-// validated (ConfigError naming the file).
+// validated (ConfigError naming the file, located for the text's errors).
 json load_config_document(const std::string& file);
 
 }  // namespace simgate::gateway

@@ -40,8 +40,12 @@ class Gateway {
   // Throws one ConfigError carrying every problem it finds (each path-precise), or a
   // TransportError when a transport with valid options cannot start (a port in use).
   // `registry`: the component types (the built-ins); the deployment's component libraries
-  // are added to the gateway's own copy of it.
-  Gateway(const Deployment& deployment, const sim::ComponentRegistry& registry, GatewayOptions options = {});
+  // are added to the gateway's own copy of it. `earlier`: the errors of the deployment's
+  // structure (parse_deployment's recording form), reported first with the gateway's own;
+  // with any, nothing is created. Without a scene (`mjcf` empty or not loadable) only the
+  // components' types are checked: their bodies and options need it.
+  Gateway(const Deployment& deployment, const sim::ComponentRegistry& registry, GatewayOptions options = {},
+          ConfigErrors earlier = {});
   ~Gateway();
   Gateway(const Gateway&) = delete;
   Gateway& operator=(const Gateway&) = delete;
@@ -84,6 +88,8 @@ class Gateway {
   void add_generic_components(RobotConfig& r);
   // Each records its errors and goes on with the next robot, component or transport.
   void build_components(ConfigErrors& errors);
+  // Without a scene: that each robot's and component's type is one of the registry's.
+  void check_component_types(ConfigErrors& errors) const;
   // The components' data streams the "streams" section asks for (a component named there
   // that has none is an error; a frequency on one without an output stream a warning).
   void add_streams(ConfigErrors& errors);

@@ -99,8 +99,11 @@ class ComponentRegistry {
   // Every type, by name.
   const std::map<std::string, ComponentType>& types() const { return types_; }
 
-  // Creates one component: checks the type exists and is of `kind`, runs the factory,
-  // then rejects unread option keys. Throws ConfigError.
+  // The type `spec` names, which must be one of `kind`; throws ConfigError ("<path>.type:
+  // expected a component type (...), found ...") otherwise.
+  const ComponentType& type_of(Kind kind, const ComponentSpec& spec) const;
+  // Creates one component: checks the type exists and is of `kind` (type_of), runs the
+  // factory, then rejects unread option keys. Throws ConfigError.
   std::unique_ptr<SimComponent> create(Kind kind, const ComponentSpec& spec, const json& options,
                                        Simulation& sim, Robot* robot) const;
 

@@ -105,6 +105,9 @@ class DdsClient final : public Client {
   // The catalog: a JSON array of ServiceDescriptor::to_json() objects, by component name.
   // Throws ClientError when no complete catalog arrives within `timeout`.
   json list_services(std::chrono::milliseconds timeout) override;
+  // Throws ClientError: the DDS transport has no token authentication (its network is
+  // restricted with Cyclone's settings or DDS Security instead).
+  void login(const std::string& token, std::chrono::milliseconds timeout) override;
 
   // This client's id on the wire (32 hex digits).
   const std::string& id() const;
