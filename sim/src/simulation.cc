@@ -13,6 +13,7 @@
 #include "simgate/sim/sim_component.h"
 #include "simgate/sim/supervision.h"
 #include "bad_state.h"
+#include "helpers.h"
 
 namespace simgate::sim {
 
@@ -118,7 +119,7 @@ Simulation::~Simulation() {
 void Simulation::set_realtime_factor(double factor) {
   if (!(factor >= 0) || !std::isfinite(factor) || (factor > 0 && factor < k_min_realtime_factor))
     throw std::invalid_argument("simulation: realtime_factor must be 0 (as fast as possible) or at least " +
-                                std::to_string(k_min_realtime_factor) + ", not " + std::to_string(factor));
+                                number(k_min_realtime_factor) + ", not " + number(factor));
   realtime_factor_ = factor;
   // the loop may be asleep until a step scheduled at the old pace
   reschedule_ = true;

@@ -4,6 +4,7 @@
 #include "simgate/core/errors.h"
 #include "simgate/sim/bounds.h"
 #include "simgate/sim/supervision.h"
+#include "helpers.h"
 
 namespace simgate::sim {
 
@@ -78,9 +79,9 @@ bool TimeServices::set_time_scale(double value) {
   bounds::require_between("value", value, 0, k_max_time_scale, "(simulated seconds per wall second)");
   // a factor of 1e-300 would make a step period no clock holds (it ran at full speed)
   if (value > 0 && value < Simulation::k_min_realtime_factor)
-    throw ServiceError("time set_time_scale: value = " + std::to_string(value) + " is too slow to pace: expected 0 "
-                       "(as fast as possible) or a factor from " + std::to_string(Simulation::k_min_realtime_factor) +
-                       " (a simulated second in about 12 days) to " + std::to_string(k_max_time_scale),
+    throw ServiceError("time set_time_scale: value = " + number(value) + " is too slow to pace: expected 0 "
+                       "(as fast as possible) or a factor from " + number(Simulation::k_min_realtime_factor) +
+                       " (a simulated second in about 12 days) to " + number(k_max_time_scale),
                        Failure::bad_arguments, {{"parameter", "value"}});
   sim_.set_realtime_factor(value);
   return true;
