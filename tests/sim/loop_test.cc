@@ -37,6 +37,21 @@ class SimLoopTest : public ::testing::Test {
     return o.value_or(Outcome::failed(Failure::internal, "timeout"));
   }
 
+  // Waits (bounded: 10 s) until the loop has taken `n` steps.
+  void wait_for_steps(std::uint64_t n) {
+    for (int i = 0; i < 2000 && sim_->steps() < n; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  // `component service`'s answer once its `key` counts one or more (bounded: 10 s), or the last.
+  json answer_once_counted(const std::string& component, const std::string& service, const char* key) {
+    json answer;
+    for (int i = 0; i < 2000; ++i) {
+      answer = call(component, service).value.value_or(json::object());
+      if (answer.value(key, 0) >= 1) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    return answer;
+  }
+
   SimulationOptions options_;  // start() sets the timestep and the factor
   std::unique_ptr<Simulation> sim_;
   std::shared_ptr<testing::RecordingManager> rm_;
@@ -47,7 +62,7 @@ TEST_F(SimLoopTest, RequestsAreServedBetweenStepsNotOncePerFrame) {
   // one step every 30 s of wall time: every answer below arrives long before the next step
   start(30.0, 1.0);
   // the first step happens at once; wait (bounded) for it
-  for (int i = 0; i < 2000 && sim_->steps() < 1; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  wait_for_steps(1);
   ASSERT_EQ(sim_->steps(), 1u);
   for (int i = 0; i < 20; ++i) {
     Outcome o = call("time", "statistics");
@@ -87,7 +102,7 @@ TEST_F(SimLoopTest, ShutdownAnswersPendingAsyncRequests) {
 TEST_F(SimLoopTest, ATransportThreadRunsRequestsItselfWhileTheLoopWaits) {
   // one step every 30 s: the loop waits, the simulation lock is free
   start(30.0, 1.0);
-  for (int i = 0; i < 2000 && sim_->steps() < 1; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  wait_for_steps(1);
   ASSERT_EQ(sim_->steps(), 1u);
   RequestId id = rm_->new_request_id();
   // the loop may still be finishing its first iteration: retry (bounded) until the lock is free
@@ -110,7 +125,7 @@ TEST_F(SimLoopTest, ATransportThreadRunsRequestsItselfWhileTheLoopWaits) {
 TEST_F(SimLoopTest, ABadStateWhileRunningIsRecoveredAndTheLoopGoesOn) {
   options_.on_divergence = DivergencePolicy::reset;
   start(0.01, 1.0);
-  for (int i = 0; i < 2000 && sim_->steps() < 10; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  wait_for_steps(10);
   ASSERT_GE(sim_->steps(), 10u);
   // what a faulty component would do: a NaN into MuJoCo's state, under the simulation lock
   double before = 0;
@@ -120,35 +135,25 @@ TEST_F(SimLoopTest, ABadStateWhileRunningIsRecoveredAndTheLoopGoesOn) {
     sim_->d()->qvel[0] = std::numeric_limits<double>::quiet_NaN();
   }
   // the loop's next step finds it and recovers (bounded wait, no timing asserted)
-  json s;
-  for (int i = 0; i < 2000; ++i) {
-    s = call("time", "statistics").value.value_or(json::object());
-    if (s.value("bad_states", 0) >= 1) break;
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  }
+  json s = answer_once_counted("time", "statistics", "bad_states");
   ASSERT_EQ(s.value("bad_states", 0), 1);
   EXPECT_GT(s["sim_time"].get<double>(), before);  // MuJoCo alone restarted it from 0
   // and the loop goes on stepping from there
   const std::uint64_t steps = s["steps"].get<std::uint64_t>();
-  for (int i = 0; i < 2000 && sim_->steps() < steps + 10; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  wait_for_steps(steps + 10);
   EXPECT_GE(sim_->steps(), steps + 10);
   EXPECT_GT(call("time", "statistics").value.value_or(json::object()).value("sim_time", 0.0), before + 0.05);
 }
 
 TEST_F(SimLoopTest, ABadStateWhileRunningPausesTheLoopUntilAClientPlaysAgain) {
   start(0.01, 1.0);  // the default policy: pause
-  for (int i = 0; i < 2000 && sim_->steps() < 10; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  wait_for_steps(10);
   ASSERT_GE(sim_->steps(), 10u);
   {
     std::lock_guard lock(*sim_->gate());
     sim_->d()->qvel[0] = std::numeric_limits<double>::quiet_NaN();
   }
-  json state;
-  for (int i = 0; i < 2000; ++i) {
-    state = call("simulation", "get_simulation_state").value.value_or(json::object());
-    if (state.value("divergences", 0) >= 1) break;
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  }
+  json state = answer_once_counted("simulation", "get_simulation_state", "divergences");
   ASSERT_EQ(state.value("divergences", 0), 1) << state;
   EXPECT_EQ(state["state"], "paused");
   const std::uint64_t steps = state["steps"].get<std::uint64_t>();
@@ -160,7 +165,7 @@ TEST_F(SimLoopTest, ABadStateWhileRunningPausesTheLoopUntilAClientPlaysAgain) {
     sim_->d()->qvel[0] = 0;
   }
   EXPECT_EQ(call("simulation", "play").status, Status::success);
-  for (int i = 0; i < 2000 && sim_->steps() < steps + 10; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  wait_for_steps(steps + 10);
   EXPECT_GE(sim_->steps(), steps + 10);
   EXPECT_EQ(call("simulation", "get_simulation_state").value.value_or(json::object()).value("divergences", 0), 1);
 }

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
+#include <functional>
 #include <stdexcept>
 
 #include "socket_test_fixture.h"
@@ -95,6 +96,20 @@ class TcpTransportFixture : public ::testing::TestWithParam<std::string> {
     char ch = 0;
     while (::recv(fd, &ch, 1, 0) == 1 && ch != '\n') line += ch;
     return line;
+  }
+  // Keeps `busy` calling, running `meanwhile` before each call, until a newcomer is let in
+  // (30 attempts, 100 ms apart); the newcomer's answer ("" when it never was).
+  std::string newcomer_answer_once_room_is_made(int busy, const std::function<void()>& meanwhile = {}) {
+    std::string answer;
+    for (int i = 0; i < 30 && answer.find("pong") == std::string::npos; ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      if (meanwhile) meanwhile();
+      EXPECT_THAT(ping(busy), ::testing::HasSubstr("pong"));
+      int newcomer = connect_raw(port_);
+      answer = ping(newcomer);
+      ::close(newcomer);
+    }
+    return answer;
   }
 
   std::shared_ptr<TransportPlugin> plugin_;  // keeps the library loaded
@@ -201,15 +216,8 @@ TEST_P(TcpTransportResources, AtTheLimitAConnectionSendingOnlyBlankLinesIsIdleAn
   EXPECT_THAT(ping(blank), HasSubstr("pong"));
   int busy = connect_raw(port_);
   EXPECT_THAT(ping(busy), HasSubstr("pong"));
-  std::string answer;
-  for (int i = 0; i < 30 && answer.find("pong") == std::string::npos; ++i) {
-    std::this_thread::sleep_for(100ms);
-    ::send(blank, "\n", 1, MSG_NOSIGNAL);  // fails once it is closed: the loop ends at the newcomer
-    EXPECT_THAT(ping(busy), HasSubstr("pong"));
-    int newcomer = connect_raw(port_);
-    answer = ping(newcomer);
-    ::close(newcomer);
-  }
+  // (the send fails once it is closed: the newcomer is in then)
+  const std::string answer = newcomer_answer_once_room_is_made(busy, [&] { ::send(blank, "\n", 1, MSG_NOSIGNAL); });
   EXPECT_THAT(answer, HasSubstr("pong")) << "the newcomer was never let in";
   EXPECT_EQ(warnings.count("to make room"), 1u) << ::testing::PrintToString(warnings.lines());
   auto [received, ended] = read_to_end(blank, 10s);
@@ -229,14 +237,7 @@ TEST_P(TcpTransportResources, AtTheLimitAConnectionSilentWhileItWaitsMakesRoomTo
   ASSERT_EQ(::send(waiting, hold.data(), hold.size(), MSG_NOSIGNAL), static_cast<ssize_t>(hold.size()));
   int busy = connect_raw(port_);
   EXPECT_THAT(ping(busy), HasSubstr("pong"));
-  std::string answer;
-  for (int i = 0; i < 30 && answer.find("pong") == std::string::npos; ++i) {
-    std::this_thread::sleep_for(100ms);
-    EXPECT_THAT(ping(busy), HasSubstr("pong"));
-    int newcomer = connect_raw(port_);
-    answer = ping(newcomer);
-    ::close(newcomer);
-  }
+  const std::string answer = newcomer_answer_once_room_is_made(busy);
   EXPECT_THAT(answer, HasSubstr("pong")) << "the newcomer was never let in";
   EXPECT_EQ(warnings.count("replies owed"), 1u) << ::testing::PrintToString(warnings.lines());
   auto [received, ended] = read_to_end(waiting, 10s);

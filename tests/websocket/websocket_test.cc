@@ -11,6 +11,7 @@
 
 #include <chrono>
 #include <cstdlib>
+#include <functional>
 #include <thread>
 #include <memory>
 #include <set>
@@ -578,22 +579,29 @@ TEST_F(WebSocketIdleTest, AnIdleConnectionIsClosedButNotOneWaitingForAnAnswer) {
 class WebSocketEvictTest : public WebSocketTest {
  protected:
   json options() override { return json{{"max_connections", 2}, {"idle_evict_s", 0.5}}; }
+
+  // Keeps `busy` calling, running `meanwhile` before each call, until a newcomer is let in
+  // (30 attempts, 100 ms apart); null when no room was made.
+  std::unique_ptr<WsClient> newcomer_once_room_is_made(WsClient& busy, const std::function<void()>& meanwhile = {}) {
+    for (int attempt = 0; attempt < 30; ++attempt) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      if (meanwhile) meanwhile();
+      EXPECT_EQ(busy.call(request(attempt, "spec.subtract", json::array({3, 1})))["result"], 2);
+      try {
+        return std::make_unique<WsClient>(host_->port());
+      } catch (const boost::system::system_error&) {
+        // refused (503): nobody idle long enough yet
+      }
+    }
+    return nullptr;
+  }
 };
 
 TEST_F(WebSocketEvictTest, AtTheLimitTheConnectionIdleLongestMakesRoom) {
   // client_ is the oldest and stays idle; `busy` keeps calling; a newcomer gets client_'s place
   WsClient busy(host_->port());
   EXPECT_EQ(client_->call(request(1, "spec.subtract", json::array({3, 1})))["result"], 2);
-  std::unique_ptr<WsClient> newcomer;
-  for (int attempt = 0; attempt < 30 && !newcomer; ++attempt) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    EXPECT_EQ(busy.call(request(attempt, "spec.subtract", json::array({3, 1})))["result"], 2);
-    try {
-      newcomer = std::make_unique<WsClient>(host_->port());
-    } catch (const boost::system::system_error&) {
-      // refused (503): nobody idle long enough yet
-    }
-  }
+  std::unique_ptr<WsClient> newcomer = newcomer_once_room_is_made(busy);
   ASSERT_TRUE(newcomer) << "no room was made";
   EXPECT_EQ(newcomer->call(request(1, "spec.subtract", json::array({5, 1})))["result"], 4);
   EXPECT_FALSE(client_->receive_text().has_value());
@@ -606,21 +614,13 @@ TEST_F(WebSocketEvictTest, AtTheLimitAConnectionSendingOnlyPingsIsIdleAndMakesRo
   // issue #35 item 9: before, a ping every so often kept a connection's place for good
   WsClient busy(host_->port());
   EXPECT_EQ(client_->call(request(1, "spec.subtract", json::array({3, 1})))["result"], 2);
-  std::unique_ptr<WsClient> newcomer;
-  for (int attempt = 0; attempt < 30 && !newcomer; ++attempt) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  std::unique_ptr<WsClient> newcomer = newcomer_once_room_is_made(busy, [&] {
     try {
       client_->ping();
     } catch (const boost::system::system_error&) {
       // closed: it made room
     }
-    EXPECT_EQ(busy.call(request(attempt, "spec.subtract", json::array({3, 1})))["result"], 2);
-    try {
-      newcomer = std::make_unique<WsClient>(host_->port());
-    } catch (const boost::system::system_error&) {
-      // refused (503): nobody idle long enough yet
-    }
-  }
+  });
   ASSERT_TRUE(newcomer) << "no room was made";
   EXPECT_EQ(newcomer->call(request(1, "spec.subtract", json::array({5, 1})))["result"], 4);
   EXPECT_FALSE(client_->receive_text().has_value());
