@@ -11,7 +11,7 @@
 #include "simgate/core/log.h"
 #include "simgate/core/streams.h"
 #include "simgate/core/suggest.h"
-#include "simgate/sim/simulation.h"
+#include "simgate/sim/run_policy.h"
 
 namespace simgate::gateway {
 
@@ -146,7 +146,7 @@ void parse_scene(ConfigObject& root, const std::string& base_dir, Deployment& d)
     if (factor->is_string() && factor->get<std::string>() == "max") {
       d.realtime_factor = 0;
     } else if (factor->is_number() && factor->get<double>() <= 1e6 &&
-               (factor->get<double>() == 0 || factor->get<double>() >= sim::Simulation::k_min_realtime_factor)) {
+               (factor->get<double>() == 0 || factor->get<double>() >= sim::k_min_realtime_factor)) {
       d.realtime_factor = factor->get<double>();
     } else {
       throw ConfigError(scene.path_of("realtime_factor") +

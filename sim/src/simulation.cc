@@ -62,24 +62,6 @@ const char* describe_warning(int warning) {
 
 }  // namespace
 
-const char* to_string(DivergencePolicy policy) {
-  switch (policy) {
-    case DivergencePolicy::pause: return "pause";
-    case DivergencePolicy::restore: return "restore";
-    case DivergencePolicy::reset: return "reset";
-  }
-  return "unknown";
-}
-
-bool parse_divergence_policy(std::string_view text, DivergencePolicy& out) {
-  for (auto p : {DivergencePolicy::pause, DivergencePolicy::restore, DivergencePolicy::reset})
-    if (text == to_string(p)) {
-      out = p;
-      return true;
-    }
-  return false;
-}
-
 const char* to_string(RunState state) {
   switch (state) {
     case RunState::playing: return "playing";

@@ -72,25 +72,11 @@
 #include "simgate/sim/model.h"
 #include "simgate/sim/model_remap.h"
 #include "simgate/sim/physics_state.h"
+#include "simgate/sim/run_policy.h"
 
 namespace simgate::sim {
 
 class SimComponent;
-
-// What the simulation does when MuJoCo finds a bad state in a step (a NaN, an infinity or a
-// magnitude beyond 1e10 in qpos, qvel or qacc: the model diverged), scene.on_divergence. In
-// every case the divergence is counted and described (Simulation::last_divergence, `simulation
-// get_simulation_state`), logged, and every async request in flight ends FAILED saying why.
-enum class DivergencePolicy : std::uint8_t {
-  pause,    // the step is undone (the state before it put back) and the simulation pauses
-  restore,  // the last automatic checkpoint (one per k_checkpoint_interval of simulated time)
-            // is put back, time included, and the simulation goes on
-  reset,    // every object back to its initial state, time going on (reset_objects)
-};
-// "pause", "restore", "reset": the words of the configuration and of the wire.
-const char* to_string(DivergencePolicy policy);
-// Parses those words; false for anything else.
-bool parse_divergence_policy(std::string_view text, DivergencePolicy& out);
 
 // One divergence, as clients are told of it.
 struct Divergence {
@@ -172,9 +158,8 @@ class Simulation {
 
   double timestep() const { return m()->opt.timestep; }
   double realtime_factor() const { return realtime_factor_; }
-  // The slowest pace (a simulated second per ~12 wall days): slower, a step's period would
-  // pass what the clock holds.
-  static constexpr double k_min_realtime_factor = 1e-6;
+  // The slowest pace (run_policy.h).
+  static constexpr double k_min_realtime_factor = sim::k_min_realtime_factor;
   // 0 = as fast as possible, else at least k_min_realtime_factor (std::invalid_argument
   // otherwise). Under the simulation lock (or before run()); the loop schedules its next
   // step from now, at the new pace.
