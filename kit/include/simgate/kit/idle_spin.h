@@ -34,9 +34,10 @@
 //   void park()          before the thread sleeps: the watched socket (if any) waits
 //                        through the event loop again (an async read)
 // While a socket is watched, the event loop is still polled, every k_direct_polls_per_poll
-// direct reads whether or not they found anything, so that other connections and posted
-// work wait a few microseconds at most, even while the watched client floods its socket
-// (blank lines, junk, notifications: every direct read finds something).
+// direct reads that found nothing and every k_direct_reads_per_poll that found something,
+// so that other connections and posted work wait a few microseconds at most, even while
+// the watched client floods its socket (blank lines, junk, notifications: every direct
+// read finds something).
 // DirectReads<Connection> below is such an argument, for a transport's connection class.
 //
 // Direct reads run outside the event loop's run()/poll(): code that asks "am I on the I/O
@@ -58,8 +59,12 @@ namespace simgate::kit {
 inline constexpr unsigned k_polls_per_yield = 8;
 
 // While a socket is read directly, the event loop is polled once every this many direct
-// reads (each poll of either is a system call of about the same cost).
+// reads that find nothing (each poll of either is a system call of about the same cost)...
 inline constexpr unsigned k_direct_polls_per_poll = 4;
+// ...and once every this many that find something: a client that never runs dry (a
+// pipelining one, or one flooding its socket) does not keep the others waiting for more
+// than this many reads, and pays one event-loop poll per this many of its reads.
+inline constexpr unsigned k_direct_reads_per_poll = 32;
 
 // The `direct` argument of a transport that reads nothing itself.
 struct NoDirectReads {
@@ -117,14 +122,17 @@ void run_with_idle_spin(EventLoop& loop, std::chrono::microseconds spin, Direct&
   bool polling = true;  // waiting has been short lately: poll before sleeping
   auto poll_until = Clock::now() + spin;
   unsigned idle_polls = 0;
-  unsigned direct_polls = 0;
+  unsigned direct_polls = 0;  // direct reads that found nothing
+  unsigned direct_reads = 0;  // direct reads that found something
   while (!loop.stopped()) {
     if (polling) {
       // the event loop is polled every few direct reads, whatever they found: a watched
       // socket that never runs dry (a flooding client) must not keep the others unserved
       std::size_t handled = direct.poll();
-      if (!direct.watching() ? handled == 0 : ++direct_polls % k_direct_polls_per_poll == 0)
-        handled += loop.poll();
+      const bool loop_due = !direct.watching()  ? handled == 0
+                            : handled == 0      ? ++direct_polls % k_direct_polls_per_poll == 0
+                                                : ++direct_reads % k_direct_reads_per_poll == 0;
+      if (loop_due) handled += loop.poll();
       if (handled > 0) {
         poll_until = Clock::now() + spin;  // something happened: keep watching
         continue;
