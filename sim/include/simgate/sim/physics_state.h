@@ -37,7 +37,6 @@ class PhysicsState {
   // Puts the captured warm start back into `d` (mj_forward overwrites it).
   void apply_warmstart(const mjModel* m, mjData* d) const;
 
-  bool empty() const { return !captured_; }
   double time() const { return time_; }
   std::uint64_t generation() const { return generation_; }
 
