@@ -75,9 +75,9 @@ std::uint32_t LineConnection::line_ticks() const {
 }
 
 bool LineConnection::grow_line(std::string_view data) {
-  if (host_.shared_.buffered + data.size() > host_.shared_.max_buffered) {
+  if (!host_.shared_.held.fits(data.size())) {
     log::warning(who_, ": ", label_, " disconnected: its unfinished line would take the transport past ",
-                 host_.shared_.max_buffered, " bytes held for all connections (max_buffered_bytes)");
+                 host_.shared_.held.max(), " bytes held for all connections (max_buffered_bytes)");
     close("max_buffered_bytes reached");
     return false;
   }
@@ -254,17 +254,27 @@ void LineConnection::oversized(std::string_view start, std::size_t bytes) {
 bool LineConnection::room_for_reply() {
   if (closed_) return false;
   const std::size_t waiting = outbox_.size() + in_flight_.size();
-  if (waiting <= limits_.max_unsent_bytes && (waiting == 0 || host_.shared_.buffered <= host_.shared_.max_buffered))
-    return true;
+  if (waiting <= limits_.max_unsent_bytes && (waiting == 0 || !host_.shared_.held.over())) return true;
   // the client does not read its replies: it may not grow our memory
   if (waiting > limits_.max_unsent_bytes)
     log::warning(who_, ": ", label_, " disconnected: more than ", limits_.max_unsent_bytes,
                  " bytes of replies unread (", limits_.unsent_bytes_key, ")");
   else
     log::warning(who_, ": ", label_, " disconnected: ", waiting, " bytes of its replies unread while the transport holds more than ",
-                 host_.shared_.max_buffered, " for all connections (max_buffered_bytes)");
+                 host_.shared_.held.max(), " for all connections (max_buffered_bytes)");
   close("too many unread replies");
   return false;
+}
+
+void LineConnection::write_or_close() {
+  flush_writes();
+  if (closed_ || (outbox_.empty() && in_flight_.empty()) || !host_.shared_.held.over()) return;
+  // its socket did not take the reply while the transport is past its cap: a first reply
+  // may not hold memory for a client that does not read either
+  log::warning(who_, ": ", label_, " disconnected: ", outbox_.size() + in_flight_.size(),
+               " bytes of its replies unread while the transport holds more than ", host_.shared_.held.max(),
+               " for all connections (max_buffered_bytes)");
+  close("too many unread replies");
 }
 
 void LineConnection::flush_writes() {
@@ -355,7 +365,7 @@ LineServer::LineServer(std::string who, const TcpOptions& options)
       idle_timeout_(options.idle_timeout),
       idle_evict_(options.idle_evict),
       line_timeout_(options.line_timeout) {
-  shared_.max_buffered = options.max_buffered_bytes;
+  shared_.held.set_max(options.max_buffered_bytes);
 }
 
 void LineServer::add(const std::shared_ptr<LineConnection>& connection) {

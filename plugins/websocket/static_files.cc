@@ -236,13 +236,14 @@ std::size_t StaticFiles::cached_bytes() const {
 }
 
 std::shared_ptr<const std::string> StaticFiles::contents(const fs::path& file, fs::file_time_type mtime,
-                                                         std::uintmax_t size) const {
+                                                         std::uintmax_t size, bool& cached) const {
   const std::string key = file.string();
   {
     std::lock_guard lock(cache_mutex_);
     if (auto it = cache_.find(key); it != cache_.end()) {
       if (it->second.mtime == mtime && it->second.size == size) {
         lru_.splice(lru_.begin(), lru_, it->second.use);
+        cached = true;
         return it->second.body;
       }
       // changed since it was read: drop it, read it again below
@@ -270,27 +271,38 @@ std::shared_ptr<const std::string> StaticFiles::contents(const fs::path& file, f
   lru_.push_front(key);
   cache_.emplace(key, Cached{mtime, size, body, lru_.begin()});
   cache_bytes_ += size;
+  cached = true;
   return body;
 }
 
-std::string StaticFiles::response(unsigned status, std::string_view reason, std::string_view type,
-                                  std::string_view body, bool head, std::string_view extra_headers) const {
+std::string StaticFiles::head_of(unsigned status, std::string_view reason, std::string_view type,
+                                 std::size_t body_bytes, std::string_view extra_headers) const {
   std::string out;
-  out.reserve(256 + (head ? 0 : body.size()));
+  out.reserve(256);
   out += "HTTP/1.1 " + std::to_string(status) + " ";
   out += reason;
   out += "\r\nServer: " + server_name_;
   out += "\r\nContent-Type: ";
   out += type;
-  out += "\r\nContent-Length: " + std::to_string(body.size());
+  out += "\r\nContent-Length: " + std::to_string(body_bytes);
   out += "\r\nCache-Control: no-cache\r\nX-Content-Type-Options: nosniff\r\nConnection: close\r\n";
   out += extra_headers;
   out += "\r\n";
-  if (!head) out += body;
   return out;
 }
 
-std::string StaticFiles::answer(const http::request<http::string_body>& request) const {
+HttpResponse StaticFiles::response(unsigned status, std::string_view reason, std::string_view type,
+                                   std::string_view body, bool head, std::string_view extra_headers) const {
+  HttpResponse out{head_of(status, reason, type, body.size(), extra_headers)};
+  if (!head) out.head += body;
+  return out;
+}
+
+HttpResponse StaticFiles::short_answer(unsigned status, std::string_view reason, std::string_view text) const {
+  return response(status, reason, "text/plain; charset=utf-8", text, false);
+}
+
+HttpResponse StaticFiles::answer(const http::request<http::string_body>& request) const {
   constexpr std::string_view text = "text/plain; charset=utf-8";
   const bool head = request.method() == http::verb::head;
   if (request.method() != http::verb::get && !head)
@@ -341,17 +353,23 @@ std::string StaticFiles::answer(const http::request<http::string_body>& request)
   }
 
   // the contents, from memory when unchanged since they were read; unreadable = missing
-  const std::shared_ptr<const std::string> body = contents(file, mtime, size);
+  bool cached = false;
+  std::shared_ptr<const std::string> body = contents(file, mtime, size, cached);
   if (!body) return not_found();
-  return response(200, "OK", content_type(file.filename().string()), *body, head, validators);
+  HttpResponse out{head_of(200, "OK", content_type(file.filename().string()), body->size(), validators)};
+  if (!head) {
+    out.body = std::move(body);
+    out.body_cached = cached;
+  }
+  return out;
 }
 
-std::string StaticFiles::not_modified(std::string_view validators) const {
+HttpResponse StaticFiles::not_modified(std::string_view validators) const {
   std::string out = "HTTP/1.1 304 Not Modified\r\nServer: " + server_name_;
   out += "\r\nCache-Control: no-cache\r\nConnection: close\r\n";
   out += validators;
   out += "\r\n";
-  return out;
+  return HttpResponse{std::move(out)};
 }
 
 }  // namespace simgate::websocket

@@ -18,6 +18,10 @@
 //
 // Cache: the files' contents are kept in memory, keyed by their resolved path, up to
 // the constructor's `cache_bytes` in all (least recently used out first; a larger file is read each time).
+// A response shares the cached contents (never a copy per response: forty clients that do
+// not read a 30 MB file hold it once); what a response holds of its own (its head, a file
+// too large for the cache) counts against the transport's max_buffered_bytes while it is
+// written (kit/held_bytes.h).
 // Each request still looks at the file (stat): a file whose mtime or size changed is read
 // again, so an edited file is served fresh; one that disappeared is 404.
 //
@@ -39,6 +43,7 @@
 #include <string>
 #include <string_view>
 #include <unordered_map>
+#include <utility>
 
 #include <boost/beast/http/message.hpp>
 #include <boost/beast/http/string_body.hpp>
@@ -63,6 +68,23 @@ struct WebOptions {
 // plugin runs (so a moved prefix still finds its own), else the configured install prefix's.
 std::string default_web_root();
 
+// One HTTP response as written: its head (status line and headers, and the body of a short
+// answer) and, for a file, the body, which the cache may share with other responses.
+struct HttpResponse {
+  HttpResponse() = default;
+  explicit HttpResponse(std::string head) : head(std::move(head)) {}
+
+  std::string head;                         // status line, headers, blank line (and a short body)
+  std::shared_ptr<const std::string> body;  // a file's contents (nullptr: none, or in head)
+  bool body_cached = false;                 // body is the cache's copy, not this response's own
+
+  // The memory this response holds of its own while it is written (a cached body is held
+  // by the cache whatever happens: not counted per response).
+  std::size_t own_bytes() const { return head.size() + (body && !body_cached ? body->size() : 0); }
+  // The whole response as one text (for tests and logs).
+  std::string text() const { return body ? head + *body : head; }
+};
+
 class StaticFiles {
  public:
   // `root` need not exist: every request is then answered 404 saying so.
@@ -71,8 +93,10 @@ class StaticFiles {
   StaticFiles(const std::string& root, std::string server_name, std::string not_found_text,
               std::size_t cache_bytes = k_max_cache_bytes);
 
-  // The whole HTTP response (status line, headers and body) to `request`.
-  std::string answer(const boost::beast::http::request<boost::beast::http::string_body>& request) const;
+  // The HTTP response to `request` (a file's body shared with the cache, not copied).
+  HttpResponse answer(const boost::beast::http::request<boost::beast::http::string_body>& request) const;
+  // A short answer with a text body: "503 Service Unavailable" and its reason, say.
+  HttpResponse short_answer(unsigned status, std::string_view reason, std::string_view text) const;
 
   const std::filesystem::path& root() const { return root_; }
 
@@ -99,10 +123,14 @@ class StaticFiles {
   std::size_t cached_bytes() const;
 
  private:
-  std::string response(unsigned status, std::string_view reason, std::string_view content_type, std::string_view body,
-                       bool head, std::string_view extra_headers = {}) const;
+  // The head of a response whose body has `body_bytes` bytes.
+  std::string head_of(unsigned status, std::string_view reason, std::string_view content_type, std::size_t body_bytes,
+                      std::string_view extra_headers = {}) const;
+  // A response whose (short) body goes in its head, unless `head` (a HEAD request).
+  HttpResponse response(unsigned status, std::string_view reason, std::string_view content_type, std::string_view body,
+                        bool head, std::string_view extra_headers = {}) const;
   // A 304 with `validators` (the ETag and Last-Modified header lines) and no body.
-  std::string not_modified(std::string_view validators) const;
+  HttpResponse not_modified(std::string_view validators) const;
 
   // A file's contents as last read, and what says whether they are still current.
   struct Cached {
@@ -111,10 +139,11 @@ class StaticFiles {
     std::shared_ptr<const std::string> body;  // its contents
     std::list<std::string>::iterator use;   // its place in lru_
   };
-  // The contents of `file` (mtime and size as just seen), from the cache or read now;
-  // nullptr when it cannot be read.
+  // The contents of `file` (mtime and size as just seen), from the cache or read now
+  // (`cached`: they are the cache's copy); nullptr when it cannot be read.
   std::shared_ptr<const std::string> contents(const std::filesystem::path& file,
-                                              std::filesystem::file_time_type mtime, std::uintmax_t size) const;
+                                              std::filesystem::file_time_type mtime, std::uintmax_t size,
+                                              bool& cached) const;
 
   std::filesystem::path root_;          // the web root, canonical when it exists
   bool root_exists_ = false;            // it existed (as a directory) at construction

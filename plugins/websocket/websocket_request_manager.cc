@@ -57,7 +57,8 @@ WebSocketRequestManager::WebSocketRequestManager(Settings s)
       io_thread_(io_, name(), options_.tcp.io_spin),
       per_peer_(options_.tcp.max_connections_per_peer),
       origins_(std::move(s.origins)),
-      keepalive_(s.keepalive) {
+      keepalive_(s.keepalive),
+      held_(options_.tcp.max_buffered_bytes) {
   origins_.bind(options_.tcp.host, listener_.port());
   if (s.web.enabled) web_.emplace(s.web.root, "simgate websocket transport", port_text());
 }
@@ -234,12 +235,9 @@ std::string WebSocketRequestManager::port_text() const {
          endpoints().front() + " (docs/transports/websocket.md)\n";
 }
 
-std::string WebSocketRequestManager::on_http_request(const http::request<http::string_body>& request) {
-  // the web app's files
-  if (web_) return web_->answer(request);
-  // no web app (`web` false): a short text says what this port is
-  const std::string body = port_text();
-  http::response<http::string_body> response{http::status::not_found, request.version()};
+std::string WebSocketRequestManager::plain_response(const http::request<http::string_body>& request,
+                                                    http::status status, const std::string& body) const {
+  http::response<http::string_body> response{status, request.version()};
   response.set(http::field::server, "simgate websocket transport");
   response.set(http::field::content_type, "text/plain; charset=utf-8");
   response.keep_alive(false);
@@ -250,6 +248,21 @@ std::string WebSocketRequestManager::on_http_request(const http::request<http::s
   return out.str();
 }
 
+HttpResponse WebSocketRequestManager::on_http_request(const http::request<http::string_body>& request) {
+  // past the memory cap (clients that do not read): nothing more is held for a new one
+  if (held_.over()) {
+    log::warning(name(), ": HTTP request answered 503: the transport holds more than ", held_.max(),
+                 " bytes for its clients (max_buffered_bytes)");
+    return HttpResponse{plain_response(request, http::status::service_unavailable,
+                                       "503 the server holds too much for its clients now (max_buffered_bytes); "
+                                       "try again later\n")};
+  }
+  // the web app's files
+  if (web_) return web_->answer(request);
+  // no web app (`web` false): a short text says what this port is
+  return HttpResponse{plain_response(request, http::status::not_found, port_text())};
+}
+
 std::string WebSocketRequestManager::refuse_upgrade(const http::request<http::string_body>& request) {
   std::optional<std::string_view> origin;
   if (auto it = request.find(http::field::origin); it != request.end()) origin = std::string_view(it->value().data(), it->value().size());
@@ -258,17 +271,10 @@ std::string WebSocketRequestManager::refuse_upgrade(const http::request<http::st
   const std::string shown = std::string(origin->substr(0, 200));
   log::warning(name(), ": WebSocket upgrade from a page of origin '", shown, "' refused (allowed_origins: ",
                origins_.describe(), ")");
-  http::response<http::string_body> response{http::status::forbidden, request.version()};
-  response.set(http::field::server, "simgate websocket transport");
-  response.set(http::field::content_type, "text/plain; charset=utf-8");
-  response.keep_alive(false);
-  response.body() = "simgate websocket transport: WebSocket connections from pages of origin '" + shown +
-                    "' are not allowed (allowed: " + origins_.describe() +
-                    "; the transport's option allowed_origins, docs/security.md)\n";
-  response.prepare_payload();
-  std::ostringstream out;
-  out << response;
-  return out.str();
+  return plain_response(request, http::status::forbidden,
+                        "simgate websocket transport: WebSocket connections from pages of origin '" + shown +
+                            "' are not allowed (allowed: " + origins_.describe() +
+                            "; the transport's option allowed_origins, docs/security.md)\n");
 }
 
 void WebSocketRequestManager::on_closed(WsSession& session) {
@@ -289,6 +295,6 @@ void WebSocketRequestManager::touch(WsSession& session) {
 
 SIMGATE_TRANSPORT_PLUGIN(websocket, simgate::websocket::WebSocketRequestManager, "0.1.0", "host", "port",
                          "max_message_bytes", "max_depth", "max_in_flight", "max_unsent_bytes",
-                         "max_connections", "max_connections_per_peer", "idle_timeout_s", "idle_evict_s",
+                         "max_buffered_bytes", "max_connections", "max_connections_per_peer", "idle_timeout_s", "idle_evict_s",
                          "io_spin_us", "on_disconnect", "global_policy", "auth", "progress_interval_ms",
                          "stream_queue", "web", "web_root", "allowed_origins", "keepalive_s")

@@ -82,6 +82,9 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine<WsSession>, privat
   explicit WebSocketRequestManager(Settings settings);
   // The 404 body that says what this port is.
   std::string port_text() const;
+  // A plain-text HTTP response (the 404 without a web app, a refused upgrade's 403, 503).
+  std::string plain_response(const boost::beast::http::request<boost::beast::http::string_body>& request,
+                             boost::beast::http::status status, const std::string& body) const;
 
   // JsonRpcEngine: the end of a burst
   void flush_replies() override;
@@ -90,11 +93,12 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine<WsSession>, privat
   void on_message(WsSession& session, std::string_view text) override;
   void on_refused_message(WsSession& session, std::size_t bytes, bool binary) override;
   void on_read_done(WsSession& session) override;
-  std::string on_http_request(const boost::beast::http::request<boost::beast::http::string_body>& request) override;
+  HttpResponse on_http_request(const boost::beast::http::request<boost::beast::http::string_body>& request) override;
   std::string refuse_upgrade(const boost::beast::http::request<boost::beast::http::string_body>& request) override;
   void on_closed(WsSession& session) override;
   void touch(WsSession& session) override;
   std::uint32_t tick() const override { return tick_; }
+  kit::HeldBytes& held() override { return held_; }
   bool watch(WsSession& session) override;
 
   // A new connection (refusal_reason keeps the count under max_connections and
@@ -124,6 +128,7 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine<WsSession>, privat
   std::optional<StaticFiles> web_;                        // the web app's files (none: `web` false)
   OriginPolicy origins_;                                  // allowed_origins, bound to the port
   std::chrono::milliseconds keepalive_;                   // keepalive_s (WsLimits::keepalive)
+  kit::HeldBytes held_;                                   // what all sessions hold (max_buffered_bytes; I/O thread)
 };
 
 }  // namespace simgate::websocket

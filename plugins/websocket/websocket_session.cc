@@ -68,12 +68,15 @@ void WsSession::on_request(const error_code& ec) {
     return;
   }
   const bool upgrade = ws::is_upgrade(parser_->get());
-  if (upgrade) http_response_ = host_.refuse_upgrade(parser_->get());
-  if (!upgrade || !http_response_.empty()) {
+  if (upgrade) http_response_ = HttpResponse{host_.refuse_upgrade(parser_->get())};
+  if (!upgrade || !http_response_.head.empty()) {
     // plain HTTP, or a refused upgrade: the host's answer, then the connection closes
     if (!upgrade) http_response_ = host_.on_http_request(parser_->get());
     parser_.reset();
-    asio::async_write(socket_, asio::buffer(http_response_),
+    recount();  // its own bytes, until written
+    std::vector<asio::const_buffer> buffers{asio::buffer(http_response_.head)};
+    if (http_response_.body) buffers.push_back(asio::buffer(*http_response_.body));
+    asio::async_write(socket_, buffers,
                       [self = shared()](const error_code&, std::size_t) { self->abort("HTTP request answered"); });
     return;
   }
@@ -165,6 +168,15 @@ void WsSession::handle_read(const error_code& ec, std::size_t n) {
     abort("handler failed");
   }
   handling_ = false;
+  recount();
+  if (!closed_ && frames_.message_bytes_held() > 0 && host_.held().over()) [[unlikely]] {
+    // the message it is sending may not take the transport's memory past its cap
+    log::warning(who_, ": ", label_, " disconnected: its unfinished message (", frames_.message_bytes_held(),
+                 " bytes so far) takes the transport past ", host_.held().max(),
+                 " bytes held for all connections (max_buffered_bytes)");
+    close_with(ws::close_code::try_again_later, "the server holds too much for its clients (max_buffered_bytes)");
+    recount();  // its message was let go
+  }
 }
 
 bool WsSession::consume() {
@@ -280,12 +292,40 @@ void WsSession::queue_message(std::string_view text) {
     abort("client does not read");
     return;
   }
+  if (unsent() > 0 && host_.held().over()) {
+    log::warning(who_, ": ", label_, " does not read its replies (", unsent(),
+                 " bytes unsent) while the transport holds more than ", host_.held().max(),
+                 " for all connections (max_buffered_bytes); connection closed");
+    abort("client does not read");
+    return;
+  }
   append_frame(FrameParser::k_text, text);
   message_queued_ = true;
-  if (outbox_.size() >= k_coalesce_bytes)
+  recount();
+  if (host_.held().over())
+    write_or_close();
+  else if (outbox_.size() >= k_coalesce_bytes)
     flush_writes();  // a large burst goes out as it grows
   else if (!touched)
     host_.touch(*this);
+}
+
+void WsSession::write_or_close() {
+  flush_writes();
+  if (aborted_ || unsent() == 0 || !host_.held().over()) return;
+  // its socket did not take the message while the transport is past its cap: a first
+  // message may not hold memory for a client that does not read either
+  log::warning(who_, ": ", label_, " does not read its replies (", unsent(),
+               " bytes unsent) while the transport holds more than ", host_.held().max(),
+               " for all connections (max_buffered_bytes); connection closed");
+  abort("client does not read");
+}
+
+void WsSession::recount() {
+  const std::size_t now =
+      aborted_ ? 0 : unsent() + frames_.message_bytes_held() + (upgraded_ ? 0 : http_response_.own_bytes());
+  host_.held().add(static_cast<std::ptrdiff_t>(now) - static_cast<std::ptrdiff_t>(counted_));
+  counted_ = now;
 }
 
 void WsSession::flush_writes() {
@@ -306,6 +346,7 @@ void WsSession::start_write() {
   }
   if (ec == asio::error::would_block || ec == asio::error::try_again) {
     // the rest when the client reads
+    recount();
     writing_ = true;
     asio::async_write(socket_, asio::buffer(sending_.data() + sent_, sending_.size() - sent_),
                       [self = shared()](const error_code& ec, std::size_t n) {
@@ -333,6 +374,7 @@ void WsSession::after_write() {
   if (sending_.capacity() > k_coalesce_bytes * 4) std::string().swap(sending_);  // keep no large buffer
   sending_.clear();
   sent_ = 0;
+  recount();
   if (!outbox_.empty()) {
     start_write();
     return;
@@ -400,6 +442,7 @@ void WsSession::abort(std::string_view reason) {
     std::string().swap(sending_);
     sent_ = 0;
   }
+  recount();  // to 0: what it holds is no longer the transport's
 }
 
 }  // namespace simgate::websocket

@@ -30,6 +30,11 @@
 //   - A client that does not read: a reply that finds more than max_unsent_bytes waiting
 //     closes the connection; droppable messages (progress, samples) are dropped once more
 //     than kit::LineConnection::k_droppable_unsent_bytes wait (the TCP transports' limits).
+//   - Memory of all sessions together (WsHost::held, kit/held_bytes.h: max_buffered_bytes):
+//     each session counts its unsent frames, the message it is receiving and its HTTP
+//     response's own bytes there; past the cap, the session whose message is still arriving
+//     is closed (1013), a reply that finds its session with frames unsent closes it, and
+//     one its socket does not take at once too (the TCP transports' rules).
 //   - Keep-alive (keep_alive(), from the host's sweep): a client silent for
 //     WsLimits::keepalive (the `keepalive_s` option, 150 s by default) is sent a ping; silent
 //     for twice that (it answered no ping either), it is dropped. 0: neither.
@@ -64,7 +69,9 @@
 #include <boost/beast/websocket/stream.hpp>
 
 #include "jsonrpc_engine.h"
+#include "simgate/kit/held_bytes.h"
 #include "simgate/kit/line_connection.h"
+#include "static_files.h"
 #include "ws_frames.h"
 
 namespace simgate::websocket {
@@ -87,7 +94,7 @@ class WsHost {
   // The end of one read: hand the calls over, write the replies.
   virtual void on_read_done(WsSession& session) = 0;
   // A plain HTTP request (not an upgrade): the response to send before closing.
-  virtual std::string on_http_request(const boost::beast::http::request<boost::beast::http::string_body>& request) = 0;
+  virtual HttpResponse on_http_request(const boost::beast::http::request<boost::beast::http::string_body>& request) = 0;
   // An upgrade request: "" to accept it, else the HTTP response refusing it (403: a page of
   // another origin, origin_policy.h), sent before closing.
   virtual std::string refuse_upgrade(const boost::beast::http::request<boost::beast::http::string_body>& request) = 0;
@@ -100,6 +107,8 @@ class WsHost {
   virtual bool watch(WsSession& session) = 0;
   // Sweeps of the connections so far (kit/connection_rules.h): the sessions' clock.
   virtual std::uint32_t tick() const = 0;
+  // What all sessions hold in memory together (max_buffered_bytes).
+  virtual kit::HeldBytes& held() = 0;
 };
 
 struct WsLimits {
@@ -136,7 +145,7 @@ class WsSession : public std::enable_shared_from_this<WsSession>,
 
   // ---- the engine's session (jsonrpc_engine.h)
   // Queues one text message; a message that finds more than max_unsent_bytes waiting
-  // closes the connection instead.
+  // closes the connection instead (and the memory rules of the file's comment).
   void queue_message(std::string_view text);
   // Queues the message `format(std::string&)` builds, unless more than
   // k_droppable_unsent_bytes wait unsent (false: dropped).
@@ -232,6 +241,11 @@ class WsSession : public std::enable_shared_from_this<WsSession>,
   void append_frame(std::uint8_t opcode, std::string_view payload);
   void start_write();
   void after_write();
+  // Brings what the host counts for this session (WsHost::held) to what it holds now.
+  void recount();
+  // The host is past max_buffered_bytes after a message was queued: written now, and the
+  // session closed when its socket leaves some of it unsent.
+  void write_or_close();
   // The close frame is out: waits for the client's, or closes at once when it sent it first.
   void after_close_sent();
   bool paused() const { return unsent() > limits_.pause_at_unsent_bytes && !close_sent_; }
@@ -273,7 +287,8 @@ class WsSession : public std::enable_shared_from_this<WsSession>,
   bool close_sent_ = false;                     // ...and written
   bool client_closed_ = false;                  // the client's close frame arrived
   bool aborted_ = false;                        // the socket is closed
-  std::string http_response_;                   // a plain HTTP request's answer, being written
+  HttpResponse http_response_;                  // a plain HTTP request's answer, being written
+  std::size_t counted_ = 0;                     // what the host's held() counts for this session
   boost::asio::steady_timer timer_;             // the handshake's deadline, then the close's
   std::uint32_t active_tick_ = 0;               // the sweep of its last read, write or reply owed
 };

@@ -76,7 +76,10 @@ class FrameParser {
   // No more parsing: feed() ignores what it is given.
   void stop() { stopped_ = true; }
   // Data messages are no longer buffered or reported (control frames still are).
-  void discard_messages() { discard_ = true; }
+  void discard_messages() {
+    discard_ = true;
+    std::string().swap(message_);  // what was received of the current one is let go
+  }
 
   bool stopped() const { return stopped_; }
   // A protocol error stopped it (error() is its reason).
@@ -84,6 +87,9 @@ class FrameParser {
   const std::string& error() const { return error_; }
   // Between messages: no data frame begun, no frame head kept.
   bool idle() const { return !in_message_ && !in_frame_ && head_size_ == 0; }
+  // The bytes of the message being received that are kept (0 between messages, and while
+  // one is skipped or discarded).
+  std::size_t message_bytes_held() const { return message_.size(); }
   // The message buffer's capacity (bounded: k_keep_bytes once a message ends).
   std::size_t buffer_capacity() const { return message_.capacity(); }
 

@@ -35,8 +35,10 @@ std::pair<std::string, bool> read_to_end(int fd, std::chrono::seconds timeout) {
   }
 }
 
-int connect_raw(std::uint16_t port) {
+// `receive_buffer` (bytes, 0: the system's), set before connecting: the window it offers.
+int connect_raw(std::uint16_t port, int receive_buffer = 0) {
   int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  if (fd >= 0 && receive_buffer > 0) ::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &receive_buffer, sizeof receive_buffer);
   sockaddr_in addr{};
   addr.sin_family = AF_INET;
   addr.sin_port = htons(port);
@@ -66,6 +68,7 @@ class TcpTransportFixture : public ::testing::TestWithParam<std::string> {
         },
         "release");
     manager_->register_service("test", [this] { return ++touched_; }, "touch");
+    manager_->register_service("test", [] { return std::string(k_big_reply_bytes, 'x'); }, "big");
     manager_->start();
     const std::string endpoint = manager_->endpoints().at(0);
     port_ = static_cast<std::uint16_t>(std::stoi(endpoint.substr(endpoint.rfind(':') + 1)));
@@ -119,6 +122,7 @@ class TcpTransportFixture : public ::testing::TestWithParam<std::string> {
   std::atomic<bool> stop_{false};            // ends loop_
   Completion held_;                          // test hold's call (the process() thread)
   std::atomic<int> touched_{0};              // test touch's calls
+  static constexpr std::size_t k_big_reply_bytes = 6000000;  // test big's reply
 };
 
 class TcpTransportOverTheLimit : public TcpTransportFixture {
@@ -274,6 +278,47 @@ TEST_P(TcpTransportResources, UnfinishedLinesOfAllConnectionsStayUnderMaxBuffere
     EXPECT_FALSE(line.empty()) << "connection " << i << " within the budget got no answer";
   }
   for (int fd : fds) ::close(fd);
+}
+
+// issue #35, item 6: a reply that finds nothing unsent on its connection was queued whatever
+// the transport held, so clients that each asked one large reply and read nothing held
+// memory past max_buffered_bytes without bound (one reply each)
+TEST_P(TcpTransportResources, FirstRepliesOfClientsThatDoNotReadStayUnderMaxBufferedBytes) {
+  WarningLog warnings;
+  start({{"max_buffered_bytes", 1 << 20}, {"max_message_bytes", 2 << 20}});
+  // a client's unfinished line holds 700 kB of the 1 MiB; then four clients offering a small
+  // window each ask a 6 MB reply (more than the kernel takes at once) and read nothing
+  int occupier = connect_raw(port_);
+  const std::string begun = GetParam() == "socket" ? "p test ping [\"" : "{\"jsonrpc\":\"2.0\",\"id\":1,\"x\":\"";
+  const std::string part = begun + std::string(700000, 'x');
+  ASSERT_EQ(::send(occupier, part.data(), part.size(), MSG_NOSIGNAL), static_cast<ssize_t>(part.size()));
+  std::this_thread::sleep_for(100ms);
+  std::vector<int> fds;
+  const std::string big = request("big");
+  for (int i = 0; i < 4; ++i) {
+    fds.push_back(connect_raw(port_, 4096));
+    ASSERT_EQ(::send(fds.back(), big.data(), big.size(), MSG_NOSIGNAL), static_cast<ssize_t>(big.size()));
+  }
+  int reader = connect_raw(port_);
+  EXPECT_THAT(ping(reader), HasSubstr("pong")) << "a client that reads is served";
+  // each reply took the transport past its budget and was not taken at once: closed
+  int closed = 0;
+  for (int fd : fds) {
+    auto [received, ended] = read_to_end(fd, 2s);
+    if (ended && received.size() < k_big_reply_bytes) ++closed;
+  }
+  EXPECT_EQ(closed, 4) << "unread first replies held past max_buffered_bytes";
+  EXPECT_GE(warnings.count("max_buffered_bytes"), 4u) << ::testing::PrintToString(warnings.lines());
+  // the client within the budget finishes its line and is answered
+  const std::string end = GetParam() == "socket" ? "\"]\n" : "\",\"method\":\"test.ping\"}\n";
+  ASSERT_EQ(::send(occupier, end.data(), end.size(), MSG_NOSIGNAL), static_cast<ssize_t>(end.size()));
+  auto [answer, ended] = read_to_end(occupier, 2s);
+  EXPECT_FALSE(ended);
+  EXPECT_NE(answer.find('\n'), std::string::npos) << "the client within the budget got no answer";
+  EXPECT_THAT(ping(reader), HasSubstr("pong"));
+  for (int fd : fds) ::close(fd);
+  ::close(occupier);
+  ::close(reader);
 }
 
 INSTANTIATE_TEST_SUITE_P(SocketAndJsonRpc, TcpTransportResources, ::testing::Values("socket", "jsonrpc"));

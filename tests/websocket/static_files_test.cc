@@ -266,26 +266,47 @@ TEST(StaticFilesCache, HoldsTheFilesServedWithinItsBoundLeastRecentlyUsedOut) {
   WebRoot::write(web.root() / "huge.txt", std::string(1500, 'h'));
   websocket::StaticFiles files(web.root().string(), "test", "", 1000);
   EXPECT_EQ(files.cached_files(), 0u);
-  EXPECT_EQ(body_of(files.answer(request_for("/a.txt"))), big);
+  EXPECT_EQ(body_of(files.answer(request_for("/a.txt")).text()), big);
   EXPECT_EQ(files.cached_files(), 1u);
   EXPECT_EQ(files.cached_bytes(), 600u);
   // b pushes a out (1200 > 1000)
-  EXPECT_EQ(body_of(files.answer(request_for("/b.txt"))), big);
+  EXPECT_EQ(body_of(files.answer(request_for("/b.txt")).text()), big);
   EXPECT_EQ(files.cached_files(), 1u);
   EXPECT_EQ(files.cached_bytes(), 600u);
   // larger than the bound: served, never cached
-  EXPECT_EQ(body_of(files.answer(request_for("/huge.txt"))), std::string(1500, 'h'));
+  EXPECT_EQ(body_of(files.answer(request_for("/huge.txt")).text()), std::string(1500, 'h'));
   EXPECT_EQ(files.cached_bytes(), 600u);
   // a changed file replaces its old contents
   WebRoot::rewrite(web.root() / "b.txt", "short");
-  EXPECT_EQ(body_of(files.answer(request_for("/b.txt"))), "short");
+  EXPECT_EQ(body_of(files.answer(request_for("/b.txt")).text()), "short");
   EXPECT_EQ(files.cached_files(), 1u);
   EXPECT_EQ(files.cached_bytes(), 5u);
-  EXPECT_EQ(body_of(files.answer(request_for("/index.html"))), WebRoot::index_html);
+  EXPECT_EQ(body_of(files.answer(request_for("/index.html")).text()), WebRoot::index_html);
   EXPECT_EQ(files.cached_files(), 2u);
   // refusals and 304s cache nothing
-  EXPECT_EQ(status_of(files.answer(request_for("/../secret.txt"))), 404);
+  EXPECT_EQ(status_of(files.answer(request_for("/../secret.txt")).text()), 404);
   EXPECT_EQ(files.cached_files(), 2u);
+}
+
+// issue #35, item 6: every response carried its own copy of the file (40 clients that do not
+// read a 30 MB file: 1.25 GB); a cached file is now shared, and only what a response owns
+// counts against max_buffered_bytes
+TEST(StaticFilesCache, ResponsesShareTheCachedContentsInsteadOfCopyingThem) {
+  WebRoot web;
+  WebRoot::write(web.root() / "big.bin", std::string(600, 'b'));
+  WebRoot::write(web.root() / "huge.bin", std::string(1500, 'h'));
+  websocket::StaticFiles files(web.root().string(), "test", "", 1000);
+  const auto first = files.answer(request_for("/big.bin"));
+  const auto second = files.answer(request_for("/big.bin"));
+  ASSERT_TRUE(first.body && second.body);
+  EXPECT_EQ(first.body.get(), second.body.get()) << "each response copied the file";
+  EXPECT_TRUE(second.body_cached);
+  EXPECT_EQ(second.own_bytes(), second.head.size());
+  // a file larger than the cache is this response's own, and counted as such
+  const auto huge = files.answer(request_for("/huge.bin"));
+  ASSERT_TRUE(huge.body);
+  EXPECT_FALSE(huge.body_cached);
+  EXPECT_EQ(huge.own_bytes(), huge.head.size() + 1500);
 }
 
 TEST(StaticFilesCache, HttpDatesRoundTrip) {

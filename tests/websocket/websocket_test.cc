@@ -420,6 +420,61 @@ int close_code_of(const RawWs::Frame& f) {
                                : 0;
 }
 
+// ---- memory of all sessions together (issue #35, item 6): max_buffered_bytes
+
+class WebSocketMemoryTest : public WebSocketTest {
+ protected:
+  json options() override { return json{{"max_buffered_bytes", 1 << 20}}; }
+};
+
+// before: no total at all (16.5 MB held per client that does not read, times max_connections)
+TEST_F(WebSocketMemoryTest, RepliesUnreadByClientsStayUnderMaxBufferedBytes) {
+  // a message still arriving holds 700 kB of the 1 MiB; then four clients offering a small
+  // window each ask a 6 MB reply (more than the kernel takes at once) and read nothing
+  constexpr int k_reply_bytes = 6000000;
+  const std::string frame =
+      RawWs::frame(k_text, request(1, "robot.arm.echo", json::array({std::string(900000, 'y')})).dump());
+  RawWs occupier(host_->port());
+  occupier.send_raw(frame.substr(0, 700000));
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  std::vector<std::unique_ptr<WsClient>> slow;
+  for (int i = 0; i < 4; ++i) {
+    slow.push_back(std::make_unique<WsClient>(host_->port(), std::chrono::milliseconds(2000), 4096));
+    slow.back()->send(request(i, "robot.arm.blob", json::array({k_reply_bytes})));
+  }
+  EXPECT_EQ(client_->call(request(99, "spec.subtract", json::array({3, 1})))["result"], 2) << "a reader is served";
+  // each reply took the transport past its budget and was not taken at once: closed
+  int closed = 0;
+  for (auto& c : slow)
+    if (!c->receive_text()) ++closed;
+  EXPECT_EQ(closed, 4) << "unread replies held past max_buffered_bytes";
+  // the client within the budget finishes its message and is answered
+  occupier.send_raw(frame.substr(700000));
+  EXPECT_EQ(occupier.read_frame().opcode, k_text);
+  EXPECT_EQ(client_->call(request(100, "spec.subtract", json::array({3, 1})))["result"], 2);
+}
+
+// before: each session could hold a message of up to max_message_bytes as it arrived, with
+// no total
+TEST_F(WebSocketMemoryTest, MessagesStillArrivingStayUnderMaxBufferedBytes) {
+  // two clients each send 700 kB of a 900 kB message (under max_message_bytes): the second
+  // takes the transport past 1 MiB and is closed with 1013; the first finishes and is answered
+  const std::string message = request(1, "robot.arm.echo", json::array({std::string(900000, 'y')})).dump();
+  const std::string frame = RawWs::frame(k_text, message);
+  const std::size_t part = 700000;
+  RawWs first(host_->port()), second(host_->port());
+  first.send_raw(frame.substr(0, part));
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  second.send_raw(frame.substr(0, part));
+  const RawWs::Frame closing = second.read_frame();
+  EXPECT_EQ(closing.opcode, k_close);
+  EXPECT_EQ(close_code_of(closing), 1013) << closing.payload;
+  first.send_raw(frame.substr(part));
+  const RawWs::Frame answer = first.read_frame();
+  EXPECT_EQ(answer.opcode, k_text);
+  EXPECT_NE(answer.payload.find(std::string(900000, 'y')), std::string::npos) << answer.payload.substr(0, 200);
+}
+
 TEST_F(WebSocketTest, AFragmentedMessageWithAPingBetweenItsFragmentsIsAnsweredAfterThePong) {
   RawWs raw(host_->port());
   const std::string text = request(1, "spec.subtract", json::array({42, 23})).dump();

@@ -38,8 +38,9 @@
 //     end within line_timeout_s; a connection idle (nothing owed, nothing unsent, nothing
 //     read) for idle_timeout_s is closed; at max_connections the connection idle longest
 //     makes room for a new one once idle for idle_evict_s; the unfinished lines and unsent
-//     replies of all connections together stay under max_buffered_bytes (the connection
-//     that would pass it is closed); buffers grown by a burst are given back after it.
+//     replies of all connections together stay under max_buffered_bytes (held_bytes.h: the
+//     connection that would pass it is closed, a first reply included); buffers grown by a
+//     burst are given back after it.
 //
 // A transport derives its session from LineConnection (adding its per-connection state:
 // pending ids) and its manager from LineServer (implementing the LineHost calls that are
@@ -68,6 +69,7 @@
 #include <boost/asio/steady_timer.hpp>
 
 #include "simgate/kit/connection_rules.h"
+#include "simgate/kit/held_bytes.h"
 #include "simgate/kit/idle_spin.h"
 #include "simgate/kit/read_split.h"
 #include "simgate/kit/tcp_server.h"
@@ -116,8 +118,7 @@ class LineHost {
   // What every connection of the host shares, kept by LineServer (the I/O thread).
   struct Shared {
     std::uint32_t tick = 0;                  // sweeps so far: the connections' clock
-    std::size_t buffered = 0;                // unfinished lines and unsent replies, all connections
-    std::size_t max_buffered = SIZE_MAX;     // max_buffered_bytes
+    HeldBytes held;                          // unfinished lines and unsent replies, all connections
     std::size_t freed = 0;                   // large buffers given back since the last sweep
   };
   Shared shared_;
@@ -164,7 +165,9 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
 
   // Queues reply bytes (whole lines, '\n' included) for the next flush_writes(); a reply
   // that finds more than max_unsent_bytes already waiting (or the host's connections holding
-  // more than max_buffered_bytes, this one some of them) closes the connection instead.
+  // more than max_buffered_bytes, this one some of them) closes the connection instead, and
+  // so does one that takes the total past max_buffered_bytes and is not taken at once by
+  // the socket (held_bytes.h).
   void queue(std::string_view bytes) {
     queue_with([bytes](std::string& out) { out.append(bytes); });
   }
@@ -174,14 +177,15 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
   void queue_with(Format&& format) {
     const std::size_t waiting = outbox_.size() + in_flight_.size();
     // the usual case inline: open, within both budgets (room_for_reply() says the rest)
-    if (closed_ || waiting > limits_.max_unsent_bytes ||
-        (waiting > 0 && host_.shared_.buffered > host_.shared_.max_buffered)) [[unlikely]] {
+    if (closed_ || waiting > limits_.max_unsent_bytes || (waiting > 0 && host_.shared_.held.over())) [[unlikely]] {
       if (!room_for_reply()) return;
     }
     const std::size_t before = outbox_.size();
     format(outbox_);
     account(static_cast<std::ptrdiff_t>(outbox_.size() - before));
-    if (outbox_.size() >= k_coalesce_bytes) [[unlikely]]
+    if (host_.shared_.held.over()) [[unlikely]]
+      write_or_close();
+    else if (outbox_.size() >= k_coalesce_bytes) [[unlikely]]
       flush_writes();  // a large burst goes out as it grows
     else if (!touched_)
       host_.touch(*this);
@@ -258,13 +262,16 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
   // Whether a reply may be queued: false when closed, or closes it when the client does not
   // read its replies.
   bool room_for_reply();
+  // A reply took the host's connections past max_buffered_bytes: written now, and the
+  // connection closed when its socket leaves some of it unsent.
+  void write_or_close();
   void start_write();
   void after_write();
   void maybe_finish();
   bool paused() const;
   // Adds to (or takes from) the bytes the host's connections hold; the partial line grows
   // only within max_buffered_bytes (false: the connection was closed instead).
-  void account(std::ptrdiff_t bytes) { host_.shared_.buffered += static_cast<std::size_t>(bytes); }
+  void account(std::ptrdiff_t bytes) { host_.shared_.held.add(bytes); }
   bool grow_line(std::string_view data);
   // The unfinished line with `end` appended, taken out of the connection.
   std::string take_line(std::string_view end = {});
