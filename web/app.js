@@ -616,20 +616,93 @@ function setupScene(rpc) {
 // The image kinds of the data streams (docs/components/cameras.md, Streams).
 const IMAGE_KINDS = new Set(['image', 'depth_image']);
 
+// A depth image (a 16-bit grey PNG of millimetres: docs/components/cameras.md) as an 8-bit
+// PNG a person can read: the record's min_depth..max_depth stretched from white (near) to
+// dark grey (far), black where nothing is within reach. Shown as is, millimetres in 16 bits
+// come out nearly black (a browser keeps the high byte: 4 m is 15 of 255).
+async function depthPreview(record) {
+  const png = Uint8Array.from(atob(record.image), (c) => c.charCodeAt(0));
+  const view = new DataView(png.buffer);
+  const idat = [];
+  let width = 0, height = 0, depth = 0, colour = -1, interlace = 0;
+  for (let at = 8; at + 8 <= png.length;) {
+    const length = view.getUint32(at);
+    const type = String.fromCharCode(...png.subarray(at + 4, at + 8));
+    const data = png.subarray(at + 8, at + 8 + length);
+    if (type === 'IHDR') {
+      width = view.getUint32(at + 8);
+      height = view.getUint32(at + 12);
+      [depth, colour, , , interlace] = data.subarray(8, 13);
+    } else if (type === 'IDAT') {
+      idat.push(data);
+    } else if (type === 'IEND') {
+      break;
+    }
+    at += 12 + length;
+  }
+  if (depth !== 16 || colour !== 0 || interlace !== 0 || !width || !height) throw new Error('not a 16-bit grey PNG');
+  // the image data: zlib (DecompressionStream's 'deflate'), then the filters of each row
+  const inflated = new Uint8Array(await new Response(
+    new Blob(idat).stream().pipeThrough(new DecompressionStream('deflate'))).arrayBuffer());
+  const stride = width * 2;
+  if (inflated.length < height * (stride + 1)) throw new Error('truncated image data');
+  const rows = new Uint8Array(height * stride);
+  for (let y = 0; y < height; ++y) {
+    const filter = inflated[y * (stride + 1)];
+    const line = inflated.subarray(y * (stride + 1) + 1, (y + 1) * (stride + 1));
+    const out = rows.subarray(y * stride, (y + 1) * stride);
+    const up = y > 0 ? rows.subarray((y - 1) * stride, y * stride) : new Uint8Array(stride);
+    for (let i = 0; i < stride; ++i) {
+      const a = i >= 2 ? out[i - 2] : 0, b = up[i], c = i >= 2 ? up[i - 2] : 0;
+      let predicted = 0;
+      if (filter === 1) predicted = a;
+      else if (filter === 2) predicted = b;
+      else if (filter === 3) predicted = (a + b) >> 1;
+      else if (filter === 4) {
+        const p = a + b - c, pa = Math.abs(p - a), pb = Math.abs(p - b), pc = Math.abs(p - c);
+        predicted = pa <= pb && pa <= pc ? a : pb <= pc ? b : c;
+      }
+      out[i] = (line[i] + predicted) & 0xff;
+    }
+  }
+  const near = (record.min_depth ?? 0) * 1000, far = Math.max((record.max_depth ?? 0) * 1000, near + 1);
+  const canvas = document.createElement('canvas');
+  canvas.width = width;
+  canvas.height = height;
+  const ctx = canvas.getContext('2d');
+  const pixels = ctx.createImageData(width, height);
+  for (let i = 0; i < width * height; ++i) {
+    const mm = (rows[2 * i] << 8) | rows[2 * i + 1];
+    const grey = mm === 0 ? 0 : Math.round(255 - 200 * Math.min(1, Math.max(0, (mm - near) / (far - near))));
+    pixels.data.set([grey, grey, grey, 255], 4 * i);
+  }
+  ctx.putImageData(pixels, 0, 0);
+  return canvas.toDataURL('image/png');
+}
+
 function setupCameras(rpc) {
   const figures = new Map();      // component -> {img, caption, live checkbox, status}
   const subscriptions = new Map(); // component -> subscription number, while live
 
-  // An image record (get_image's reply, a stream sample): PNG in base64 (MORSE's way).
-  function show(component, record) {
+  // An image record (get_image's reply, a stream sample): PNG in base64 (MORSE's way); a
+  // depth image stretched so that it can be seen (depthPreview).
+  async function show(component, record) {
     const figure = figures.get(component);
     const state = exposed.cameras[component];
     if (!figure || !record?.image || record.format !== 'png') return;
-    figure.img.src = `data:image/png;base64,${record.image}`;
+    const depth = record.encoding === 'mono16';
+    try {
+      figure.img.src = depth ? await depthPreview(record) : `data:image/png;base64,${record.image}`;
+    } catch (e) {
+      fail(component, 'depth image', e);
+      return;
+    }
     state.images += 1;
     state.width = record.width;
     state.height = record.height;
-    figure.status.textContent = `${record.width}×${record.height} ${record.encoding ?? ''}, t = ${fmt(record.timestamp, 2)} s`;
+    state.depth = depth;
+    const range = depth ? ` ${fmt(record.min_depth, 2)}–${fmt(record.max_depth, 2)} m (near is light)` : '';
+    figure.status.textContent = `${record.width}×${record.height} ${record.encoding ?? ''}${range}, t = ${fmt(record.timestamp, 2)} s`;
   }
 
   function fail(component, what, e) {
@@ -639,7 +712,7 @@ function setupCameras(rpc) {
 
   async function snapshot(component) {
     try {
-      show(component, await rpc.call(`${component}.get_image`));
+      await show(component, await rpc.call(`${component}.get_image`));
     } catch (e) {
       fail(component, 'get_image', e);
     }
