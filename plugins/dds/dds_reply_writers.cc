@@ -72,6 +72,15 @@ void DdsRequestManager::write_finished(std::vector<std::pair<RequestId, Outcome>
     if (p == pending_.end()) continue;
     Pending pending = p->second;
     pending_.erase(p);
+    // its seq is free again once this, its final reply, is written
+    auto c = clients_.find(pending.client);
+    if (c != clients_.end()) {
+      c->second.calls.erase(pending.seq);
+      if (c->second.gone) {
+        if (c->second.calls.empty()) forget_client(pending.client);
+        continue;
+      }
+    }
     if (pending.cancel_answer) {
       // the answer to a cancel: whether the call was still running
       const bool found = outcome.value && outcome.value->is_boolean() && outcome.value->get<bool>();
@@ -83,14 +92,6 @@ void DdsRequestManager::write_finished(std::vector<std::pair<RequestId, Outcome>
       continue;
     }
     // a completed call
-    auto c = clients_.find(pending.client);
-    if (c != clients_.end()) {
-      c->second.calls.erase(pending.seq);
-      if (c->second.gone) {
-        if (c->second.calls.empty()) forget_client(pending.client);
-        continue;
-      }
-    }
     // a result with images: its text is written when it goes (prepare_images)
     std::shared_ptr<Outcome> images;
     if (!outcome.attachments.empty() && outcome.status == Status::success && outcome.value) {

@@ -420,21 +420,35 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
     return;
   }
 
+  // One id (client, seq), one final reply: a request under the seq of a request still
+  // pending (a call, or a cancel not answered yet) would be answered under the same id as
+  // it. Refused, ST_REFUSED and not last, so that nobody takes it for the pending one's
+  // end (issues #17, #35); the pending request goes on and ends with its own final reply.
+  // The one exception is a cancel of the pending call under that call's own seq: it is done,
+  // and the call's final reply (PREEMPTED, cancelled; or its result, had it ended first) is
+  // the one final reply of the id, the cancel having no answer of its own.
+  if (auto pending = client.calls.find(seq); pending != client.calls.end()) {
+    run_batch();
+    const bool is_call = pending_.count(pending->second) && !pending_.at(pending->second).cancel_answer;
+    if (request.op == simgate_OP_CANCEL && request.target == seq && is_call) {
+      cancel(pending->second);
+      run_pending_ = true;  // the next run_batch() executes it here if it can
+      return;
+    }
+    ReplyData refused = failure_reply(
+        seq, simgate_FL_BAD_REQUEST,
+        "DDS transport: " + std::string(request.op == simgate_OP_CANCEL ? "cancel " : "call ") + std::to_string(seq) +
+            " of client " + to_hex(client_id) + " refused: " + (is_call ? "call " : "cancel ") + std::to_string(seq) +
+            " is still pending (duplicate seq: a seq is used again only once its request's final reply is out); "
+            "the pending one goes on");
+    refused.status = simgate_ST_REFUSED;
+    refused.last = false;
+    send_reply(client_id, std::move(refused));
+    return;
+  }
+
   switch (request.op) {
     case simgate_OP_CALL: {
-      if (client.calls.count(seq)) {
-        // keyed like the running call's replies: ST_REFUSED and not last, so that nobody
-        // takes it for that call's end (issue #17)
-        run_batch();
-        ReplyData refused = failure_reply(seq, simgate_FL_BAD_REQUEST,
-                                          "DDS transport: call " + std::to_string(seq) + " of client " +
-                                              to_hex(client_id) + " is already pending (duplicate seq); "
-                                              "this request was refused, the pending call goes on");
-        refused.status = simgate_ST_REFUSED;
-        refused.last = false;
-        send_reply(client_id, std::move(refused));
-        return;
-      }
       // names are bounded before they are looked up, remembered or quoted (issue #17: 10 MB
       // names were all three)
       for (auto [what, name] : {std::pair{"component", request.component}, std::pair{"service", request.service}}) {
@@ -524,9 +538,10 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
         send_reply(client_id, std::move(answer));
         return;
       }
-      // the answer goes out like a completion, in order with them
+      // the answer goes out like a completion, in order with them; its seq is pending till then
       const RequestId answer_id = new_request_id();
       pending_.emplace(answer_id, Pending{client_id, seq, false, true});
+      client.calls.emplace(seq, answer_id);
       cancel(target->second, [this, answer_id](bool found) { complete_request(answer_id, Outcome::success(json(found))); });
       run_pending_ = true;  // the next run_batch() executes it here if it can
       return;

@@ -165,7 +165,9 @@ class DdsRequestManager : public RequestManager {
     // image writer's match counts below (the set of matches changed when either moved)
     bool images_raw = false;
     std::uint32_t image_matches_total = 0, image_matches_current = 0;
-    std::unordered_map<std::uint64_t, RequestId> calls;  // seq -> request in the core
+    // seq -> its pending request: a call in the core, or a cancel not answered yet (a seq in
+    // here is refused to any new request until that one's final reply is out)
+    std::unordered_map<std::uint64_t, RequestId> calls;
     std::deque<ReplyData> parked;                       // replies not written yet, in order
     bool stalled = false;                               // its writer was full at the last write
     bool images_stalled = false;                        // ... its image writer (not worth a log line)

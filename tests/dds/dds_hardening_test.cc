@@ -274,5 +274,80 @@ TEST_F(DdsTransportTest, UnderLetRunTheCallsOfAClientThatLeftRunOn) {
   EXPECT_EQ(other->call("calc", "add", {1, 2}, 10s).value, json(3.0));
 }
 
+// ---- issue #35, item 10 ----
+
+// The replies of `raw` for `seq` up to the final reply of `until` (a later call: a client's
+// replies leave in the order they were produced, so everything for `seq` came before it).
+std::vector<RawClient::Reply> replies_for(RawClient& raw, std::uint64_t seq, std::uint64_t until) {
+  std::vector<RawClient::Reply> out;
+  while (auto reply = raw.next()) {
+    if (reply->seq == seq) out.push_back(*reply);
+    if (reply->seq == until && reply->last) break;
+  }
+  return out;
+}
+
+int final_count(const std::vector<RawClient::Reply>& replies) {
+  return static_cast<int>(std::count_if(replies.begin(), replies.end(), [](const auto& r) { return r.last; }));
+}
+
+// Item 10: a cancel under its target's own seq (OP_CANCEL {id.seq 5, target 5}) was answered
+// under that id (SUCCESS, last) beside the call's own end (PREEMPTED, last): two final replies
+// for one id. It cancels the call, whose PREEMPTED reply is the id's one final reply.
+TEST_F(DdsTransportTest, ACancelUnderItsCallsOwnSeqEndsTheCallWithOneFinalReply) {
+  auto server = make_server(test_partition());
+  SimThread sim(server);
+  RawClient raw(test_partition());
+  raw.create_reply_reader();
+  ASSERT_TRUE(raw.wait_request_matched());
+  raw.write(5, simgate_OP_CALL, "robot", "goto", "[1]");
+  auto accepted = raw.next();
+  ASSERT_TRUE(accepted);
+  EXPECT_EQ(accepted->status, simgate_ST_ACCEPTED);
+  ASSERT_TRUE(goto_.wait_started(1));
+  raw.write(5, simgate_OP_CANCEL, "", "", "", 5);
+  raw.write(6, simgate_OP_CALL, "calc", "add", "[1, 2]");
+  const auto replies = replies_for(raw, 5, 6);
+  ASSERT_EQ(final_count(replies), 1);
+  for (const auto& reply : replies) {
+    if (!reply.last) continue;
+    EXPECT_EQ(reply.status, simgate_ST_PREEMPTED);
+    EXPECT_EQ(reply.failure, simgate_FL_CANCELLED);
+  }
+  EXPECT_TRUE(goto_.completion().done());
+}
+
+// Item 10: any other request under a pending seq (a cancel of another call, a call) is
+// refused without being acted on, ST_REFUSED and not final; the pending call goes on and
+// ends with its own final reply, the id's only one.
+TEST_F(DdsTransportTest, ACancelUnderAnotherPendingSeqIsRefusedNotFinal) {
+  auto server = make_server(test_partition());
+  SimThread sim(server);
+  RawClient raw(test_partition());
+  raw.create_reply_reader();
+  ASSERT_TRUE(raw.wait_request_matched());
+  raw.write(5, simgate_OP_CALL, "robot", "goto", "[1]");
+  auto accepted = raw.next();
+  ASSERT_TRUE(accepted);
+  ASSERT_TRUE(goto_.wait_started(1));
+  raw.write(7, simgate_OP_CALL, "arm", "grasp", "");  // another pending call, the cancel's target
+  ASSERT_TRUE(grasp_.wait_started(1));
+  raw.write(5, simgate_OP_CANCEL, "", "", "", 7);
+  raw.write(6, simgate_OP_CALL, "calc", "add", "[1, 2]");
+  auto replies = replies_for(raw, 5, 6);
+  EXPECT_EQ(final_count(replies), 0);
+  ASSERT_EQ(replies.size(), 1u);
+  EXPECT_EQ(replies[0].status, simgate_ST_REFUSED);
+  EXPECT_EQ(replies[0].failure, simgate_FL_BAD_REQUEST);
+  EXPECT_THAT(replies[0].message, ::testing::HasSubstr("call 5 is still pending"));
+  // neither call was touched; each ends with its own one final reply
+  EXPECT_FALSE(grasp_.completion().done());
+  EXPECT_TRUE(goto_.completion()(Status::success, "arrived"));
+  EXPECT_TRUE(grasp_.completion()(Status::success, "grasped"));
+  replies = replies_for(raw, 5, 5);
+  ASSERT_EQ(final_count(replies), 1);
+  EXPECT_EQ(replies.back().status, simgate_ST_SUCCESS);
+}
+
 }  // namespace
 }  // namespace simgate::dds::test
