@@ -55,6 +55,8 @@ DdsOptions DdsOptions::parse(const json& options) {
     config.fail("partition", "a non-empty partition name without wildcards (* ? [ ])");
   out.config = config.get_string("config", "");
   out.max_samples = static_cast<int32_t>(config.get_int("max_samples", out.max_samples, 1, 1 << 20));
+  out.max_in_flight = static_cast<int32_t>(config.get_int("max_in_flight", std::max(1, out.max_samples / 4), 1,
+                                                         std::max(1, out.max_samples / 3)));
   out.park_timeout = std::chrono::milliseconds(
       config.get_int("park_timeout_ms", out.park_timeout.count(), 0, 3'600'000));
   out.max_params = static_cast<std::size_t>(
@@ -447,6 +449,17 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
     return;
   }
 
+  // A client that writes requests faster than it takes its replies: each request taken is
+  // in flight until its final reply has gone to its reply writer, and past max_in_flight a
+  // request is refused Overloaded without running (issue #35: its replies piled up behind
+  // its full writer and those past max_samples were dropped, unknown to it). The refusal is
+  // a reply too, parked behind the others; consecutive ones share one parked entry.
+  if (in_flight(client) >= static_cast<std::size_t>(options_.max_in_flight)) {
+    run_batch();
+    send_reply(client_id, overloaded_reply(seq));
+    return;
+  }
+
   switch (request.op) {
     case simgate_OP_CALL: {
       // names are bounded before they are looked up, remembered or quoted (issue #17: 10 MB
@@ -565,6 +578,16 @@ DdsRequestManager::ReplyData DdsRequestManager::to_reply(std::uint64_t seq, cons
   if (outcome.value) reply.result = dump(*outcome.value);
   reply.message = outcome.message;
   if (!outcome.data.is_null() && !outcome.data.empty()) reply.data = dump(outcome.data);
+  return reply;
+}
+
+DdsRequestManager::ReplyData DdsRequestManager::overloaded_reply(std::uint64_t seq) const {
+  const std::string limit = std::to_string(options_.max_in_flight);
+  ReplyData reply = failure_reply(seq, simgate_FL_BUSY,
+                                  "Overloaded: " + limit + " requests of this client are not answered yet (max_in_flight " +
+                                      limit + "); refused without running: send it again once replies come");
+  reply.seq_end = seq;
+  reply.data = dump(json{{"reason", "overloaded"}, {"max_in_flight", options_.max_in_flight}});
   return reply;
 }
 
