@@ -12,6 +12,8 @@
 #include <gtest/gtest.h>
 
 #include "dds_transport_fixture.h"
+#include "simgate/core/component.h"
+#include "simgate/core/streams.h"
 #include "simgate/core/log.h"
 
 namespace simgate::dds::test {
@@ -347,6 +349,98 @@ TEST_F(DdsTransportTest, ACancelUnderAnotherPendingSeqIsRefusedNotFinal) {
   replies = replies_for(raw, 5, 5);
   ASSERT_EQ(final_count(replies), 1);
   EXPECT_EQ(replies.back().status, simgate_ST_SUCCESS);
+}
+
+// An actuator with an input stream, as motion_vw's: keeps the commands it was given.
+class Motion : public Component {
+ public:
+  Motion() : Component("robot.motion") {
+    declare_input_stream("velocity", {"v", "w"}, [this](const json& command) {
+      std::lock_guard lock(mutex);
+      applied.push_back(command);
+    });
+  }
+  std::vector<json> given() {
+    std::lock_guard lock(mutex);
+    return applied;
+  }
+  std::mutex mutex;            // guards applied (applied under the simulation lock; read by the test)
+  std::vector<json> applied;   // every command applied
+};
+
+// A writer of an input stream's JsonCommand topic ("simgate/<component>/json"), matched.
+class CommandWriter {
+ public:
+  CommandWriter(const std::string& partition, const std::string& topic_name)
+      : participant_(test_domain(), loopback_uri().c_str(), "command writer") {
+    dds_entity_t pp = participant_.handle();
+    QosPtr partition_qos(dds_create_qos());
+    dds_qset_partition1(partition_qos.get(), partition.c_str());
+    dds_entity_t publisher = dds_create_publisher(pp, partition_qos.get(), nullptr);
+    dds_entity_t topic = dds_create_topic(pp, &simgate_stream_JsonCommand_desc, topic_name.c_str(), nullptr, nullptr);
+    QosPtr qos = make_qos(false, 0, DDS_SECS(5));
+    writer_ = dds_create_writer(publisher, topic, qos.get(), nullptr);
+  }
+  bool wait_matched() {
+    return eventually([&] {
+      dds_publication_matched_status_t st{};
+      dds_get_publication_matched_status(writer_, &st);
+      return st.current_count > 0;
+    });
+  }
+  dds_return_t write(const std::string& text) {
+    simgate_stream_JsonCommand command{};
+    command.json = const_cast<char*>(text.c_str());
+    return dds_write(writer_, &command);
+  }
+
+ private:
+  Participant participant_;  // own participant
+  dds_entity_t writer_ = 0;  // JsonCommand
+};
+
+// Item 10: a command on a DDS input stream had no bound: a 20 MB one was parsed on the DDS
+// thread (the server's peak resident size 510 MB, its next reply 1.3 s late) and handed to
+// the component. A JsonCommand's text is bounded as a request's params are, by max_params
+// and max_depth, before it is parsed: refused unread, counted as a refused command of the
+// stream, logged once; the next command is applied.
+TEST_F(DdsTransportTest, AStreamCommandBeyondMaxParamsOrMaxDepthIsRefusedUnread) {
+  LogWatch watch("refused unread");
+  auto server = make_server(test_partition(), "server", {{"max_params", 4096}, {"max_depth", 8}});
+  auto hub = std::make_shared<StreamHub>(server->gate());
+  Motion motion;
+  hub->add(motion, "motion_vw", {"dds"});
+  server->set_streams(hub, "dds");
+  SimThread sim(server);
+  CommandWriter commands(test_partition(), "simgate/robot/motion/json");
+  ASSERT_TRUE(commands.wait_matched());
+  auto refused = [&] { return hub->statistics("dds").at(0).refused; };
+  // a command of 10 kB, then one nested 9 deep: refused, neither reaches the component
+  std::string big = "{\"v\": [1";
+  while (big.size() < 10000) big += ",1";
+  big += "], \"w\": 0}";
+  ASSERT_EQ(commands.write(big), DDS_RETCODE_OK);
+  ASSERT_TRUE(eventually([&] { return refused() == 1; })) << refused();
+  EXPECT_THAT(hub->statistics("dds").at(0).last_refusal,
+              ::testing::HasSubstr("a command of 10010 bytes, more than max_params (4096)"));
+  ASSERT_EQ(commands.write("{\"v\": [[[[[[[[1]]]]]]]], \"w\": 0}"), DDS_RETCODE_OK);
+  ASSERT_TRUE(eventually([&] { return refused() == 2; })) << refused();
+  EXPECT_THAT(hub->statistics("dds").at(0).last_refusal, ::testing::HasSubstr("deeper than max_depth (8)"));
+  // at the limits, a command is applied (the lock taken for the hub's turn, as the loop does)
+  ASSERT_EQ(commands.write("{\"v\": 0.5, \"w\": [[[[[[[0]]]]]]]}"), DDS_RETCODE_OK);
+  ASSERT_TRUE(eventually([&] {
+    std::lock_guard lock(*server->gate());
+    hub->apply_commands();
+    return !motion.given().empty();
+  }));
+  EXPECT_EQ(motion.given().size(), 1u);
+  EXPECT_EQ(motion.given().front()["v"], 0.5);
+  EXPECT_EQ(refused(), 2u);
+  EXPECT_EQ(watch.lines().size(), 1u);  // once per reader
+  // and the server still serves
+  auto client = make_client(test_partition());
+  EXPECT_EQ(client->call("calc", "add", {1, 2}, 10s).value, json(3.0));
+  hub->remove("robot.motion");
 }
 
 }  // namespace
