@@ -72,6 +72,15 @@ void DdsRequestManager::write_finished(std::vector<std::pair<RequestId, Outcome>
     if (p == pending_.end()) continue;
     Pending pending = p->second;
     pending_.erase(p);
+    // its seq is free again once this, its final reply, is written
+    auto c = clients_.find(pending.client);
+    if (c != clients_.end()) {
+      c->second.calls.erase(pending.seq);
+      if (c->second.gone) {
+        if (c->second.calls.empty()) forget_client(pending.client);
+        continue;
+      }
+    }
     if (pending.cancel_answer) {
       // the answer to a cancel: whether the call was still running
       const bool found = outcome.value && outcome.value->is_boolean() && outcome.value->get<bool>();
@@ -83,14 +92,6 @@ void DdsRequestManager::write_finished(std::vector<std::pair<RequestId, Outcome>
       continue;
     }
     // a completed call
-    auto c = clients_.find(pending.client);
-    if (c != clients_.end()) {
-      c->second.calls.erase(pending.seq);
-      if (c->second.gone) {
-        if (c->second.calls.empty()) forget_client(pending.client);
-        continue;
-      }
-    }
     // a result with images: its text is written when it goes (prepare_images)
     std::shared_ptr<Outcome> images;
     if (!outcome.attachments.empty() && outcome.status == Status::success && outcome.value) {
@@ -251,17 +252,30 @@ void DdsRequestManager::send_reply(const ClientId& client_id, ReplyData reply, b
                " parked until its reply reader matches");
   }
   // otherwise parked behind the others (bounded in count and time)
+  const auto deadline = std::chrono::steady_clock::now() + options_.park_timeout;
+  if (reply.seq_end != 0 && !client.parked.empty()) {
+    // an Overloaded refusal right after another's run (the next seq): the run grows by one
+    ReplyData& back = client.parked.back();
+    if (back.seq_end != 0 && back.seq_end + 1 == reply.seq) {
+      back.seq_end = reply.seq;
+      back.deadline = deadline;
+      return;
+    }
+  }
+  // (with max_in_flight at most max_samples / 3, a client whose seqs follow one another
+  // never gets here: its parked finals, acknowledgements and runs of refusals stay below)
   if (client.parked.size() >= static_cast<std::size_t>(options_.max_samples)) {
     drop_reply(client_id, client, reply);
     return;
   }
-  reply.deadline = std::chrono::steady_clock::now() + options_.park_timeout;
+  reply.deadline = deadline;
+  client.parked_finals += counted(reply);
   client.parked.push_back(std::move(reply));
   ++parked_count_;
 }
 
 dds_return_t DdsRequestManager::write_reply(const ClientId& client_id, const ClientState& client,
-                                            const ReplyData& reply) {
+                                            ReplyData& reply) {
   simgate_Reply sample{};
   std::memcpy(sample.client, client_id.data(), client_id.size());
   sample.seq = reply.seq;
@@ -272,6 +286,11 @@ dds_return_t DdsRequestManager::write_reply(const ClientId& client_id, const Cli
   sample.message = const_cast<char*>(reply.message.c_str());
   sample.data = const_cast<char*>(reply.data.c_str());
   dds_return_t rc = dds_write(client.reply_writer, &sample);
+  // a run of Overloaded refusals: one sample per seq, as far as the writer takes them
+  while (rc >= 0 && reply.seq_end > reply.seq) {
+    sample.seq = ++reply.seq;
+    rc = dds_write(client.reply_writer, &sample);
+  }
   if (rc < 0 && rc != DDS_RETCODE_TIMEOUT)
     log::warning("DDS transport: reply ", reply.seq, " to client ", to_hex(client_id),
                  " not written: ", retcode_text(rc));
@@ -281,7 +300,7 @@ dds_return_t DdsRequestManager::write_reply(const ClientId& client_id, const Cli
 void DdsRequestManager::drop_reply(const ClientId& client_id, ClientState& client, const ReplyData& reply) {
   // one line at once, then at most one per interval with the count: a client that never
   // reads must not flood the log either
-  ++client.dropped;
+  client.dropped += reply.seq_end > reply.seq ? reply.seq_end - reply.seq + 1 : 1;
   auto now = std::chrono::steady_clock::now();
   if (client.logged_at != std::chrono::steady_clock::time_point{} && now - client.logged_at < k_drop_log_interval)
     return;
@@ -334,6 +353,7 @@ void DdsRequestManager::flush_parked(const ClientId& id, ClientState& client,
       if (!expired) return;
       drop_reply(id, client, reply);  // waited park_timeout_ms for room (or a reader) in vain
     }
+    client.parked_finals -= counted(client.parked.front());
     client.parked.pop_front();
     --parked_count_;
   }
@@ -427,6 +447,7 @@ void DdsRequestManager::client_gone(const ClientId& id, ClientState& client) {
   client.gone = true;
   parked_count_ -= client.parked.size();
   client.parked.clear();
+  client.parked_finals = 0;
   // its async calls are cancelled (on_disconnect "cancel", or run on: "let_run"); sync ones
   // finish; the replies of all are dropped
   std::size_t cancelled = 0;

@@ -55,6 +55,8 @@ DdsOptions DdsOptions::parse(const json& options) {
     config.fail("partition", "a non-empty partition name without wildcards (* ? [ ])");
   out.config = config.get_string("config", "");
   out.max_samples = static_cast<int32_t>(config.get_int("max_samples", out.max_samples, 1, 1 << 20));
+  out.max_in_flight = static_cast<int32_t>(config.get_int("max_in_flight", std::max(1, out.max_samples / 4), 1,
+                                                         std::max(1, out.max_samples / 3)));
   out.park_timeout = std::chrono::milliseconds(
       config.get_int("park_timeout_ms", out.park_timeout.count(), 0, 3'600'000));
   out.max_params = static_cast<std::size_t>(
@@ -164,7 +166,8 @@ void DdsRequestManager::start() {
   // the data streams (issue #21): also with none yet, for those of robots spawned later
   if (stream_hub())
     streams_ = std::make_unique<DdsStreams>(stream_hub(), transport_name(), participant_->handle(), publisher_,
-                                            subscriber_, waitset_, server_id_, options_.direct_stream_writes);
+                                            subscriber_, waitset_, server_id_, options_.direct_stream_writes,
+                                            options_.max_params, options_.max_depth);
   thread_ = std::thread([this] { run(); });
 }
 
@@ -420,21 +423,46 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
     return;
   }
 
+  // One id (client, seq), one final reply: a request under the seq of a request still
+  // pending (a call, or a cancel not answered yet) would be answered under the same id as
+  // it. Refused, ST_REFUSED and not last, so that nobody takes it for the pending one's
+  // end (issues #17, #35); the pending request goes on and ends with its own final reply.
+  // The one exception is a cancel of the pending call under that call's own seq: it is done,
+  // and the call's final reply (PREEMPTED, cancelled; or its result, had it ended first) is
+  // the one final reply of the id, the cancel having no answer of its own.
+  if (auto pending = client.calls.find(seq); pending != client.calls.end()) {
+    run_batch();
+    const bool is_call = pending_.count(pending->second) && !pending_.at(pending->second).cancel_answer;
+    if (request.op == simgate_OP_CANCEL && request.target == seq && is_call) {
+      cancel(pending->second);
+      run_pending_ = true;  // the next run_batch() executes it here if it can
+      return;
+    }
+    ReplyData refused = failure_reply(
+        seq, simgate_FL_BAD_REQUEST,
+        "DDS transport: " + std::string(request.op == simgate_OP_CANCEL ? "cancel " : "call ") + std::to_string(seq) +
+            " of client " + to_hex(client_id) + " refused: " + (is_call ? "call " : "cancel ") + std::to_string(seq) +
+            " is still pending (duplicate seq: a seq is used again only once its request's final reply is out); "
+            "the pending one goes on");
+    refused.status = simgate_ST_REFUSED;
+    refused.last = false;
+    send_reply(client_id, std::move(refused));
+    return;
+  }
+
+  // A client that writes requests faster than it takes its replies: each request taken is
+  // in flight until its final reply has gone to its reply writer, and past max_in_flight a
+  // request is refused Overloaded without running (issue #35: its replies piled up behind
+  // its full writer and those past max_samples were dropped, unknown to it). The refusal is
+  // a reply too, parked behind the others; consecutive ones share one parked entry.
+  if (in_flight(client) >= static_cast<std::size_t>(options_.max_in_flight)) {
+    run_batch();
+    send_reply(client_id, overloaded_reply(seq));
+    return;
+  }
+
   switch (request.op) {
     case simgate_OP_CALL: {
-      if (client.calls.count(seq)) {
-        // keyed like the running call's replies: ST_REFUSED and not last, so that nobody
-        // takes it for that call's end (issue #17)
-        run_batch();
-        ReplyData refused = failure_reply(seq, simgate_FL_BAD_REQUEST,
-                                          "DDS transport: call " + std::to_string(seq) + " of client " +
-                                              to_hex(client_id) + " is already pending (duplicate seq); "
-                                              "this request was refused, the pending call goes on");
-        refused.status = simgate_ST_REFUSED;
-        refused.last = false;
-        send_reply(client_id, std::move(refused));
-        return;
-      }
       // names are bounded before they are looked up, remembered or quoted (issue #17: 10 MB
       // names were all three)
       for (auto [what, name] : {std::pair{"component", request.component}, std::pair{"service", request.service}}) {
@@ -524,9 +552,10 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
         send_reply(client_id, std::move(answer));
         return;
       }
-      // the answer goes out like a completion, in order with them
+      // the answer goes out like a completion, in order with them; its seq is pending till then
       const RequestId answer_id = new_request_id();
       pending_.emplace(answer_id, Pending{client_id, seq, false, true});
+      client.calls.emplace(seq, answer_id);
       cancel(target->second, [this, answer_id](bool found) { complete_request(answer_id, Outcome::success(json(found))); });
       run_pending_ = true;  // the next run_batch() executes it here if it can
       return;
@@ -550,6 +579,16 @@ DdsRequestManager::ReplyData DdsRequestManager::to_reply(std::uint64_t seq, cons
   if (outcome.value) reply.result = dump(*outcome.value);
   reply.message = outcome.message;
   if (!outcome.data.is_null() && !outcome.data.empty()) reply.data = dump(outcome.data);
+  return reply;
+}
+
+DdsRequestManager::ReplyData DdsRequestManager::overloaded_reply(std::uint64_t seq) const {
+  const std::string limit = std::to_string(options_.max_in_flight);
+  ReplyData reply = failure_reply(seq, simgate_FL_BUSY,
+                                  "Overloaded: " + limit + " requests of this client are not answered yet (max_in_flight " +
+                                      limit + "); refused without running: send it again once replies come");
+  reply.seq_end = seq;
+  reply.data = dump(json{{"reason", "overloaded"}, {"max_in_flight", options_.max_in_flight}});
   return reply;
 }
 

@@ -24,6 +24,11 @@
 //  - Partition: every endpoint lives in the partition named by the "partition" option (the
 //    reply writers in their sub-partitions), so several simulations share a domain without
 //    crosstalk.
+//  - In flight: a client's request from its take until its final reply has gone to the
+//    client's reply writer (running, queued, or that reply parked). Past max_in_flight a
+//    request is refused Overloaded without running, so that a client writing requests
+//    faster than it acknowledges replies gets a final reply to each (issue #35: those past
+//    max_samples parked were dropped). Consecutive refusals share one parked entry.
 //  - Parked reply: a reply not written yet, in order behind the client's earlier ones:
 //    its reply reader has not matched (discovery is asymmetric: written as soon as it
 //    matches, or anyway after park_timeout_ms), or its writer is full (retried with backoff,
@@ -87,6 +92,11 @@ struct DdsOptions {
   std::string partition = "simgate";   // one per simulation
   std::string config;                  // Cyclone XML or file:// URI; "" = loopback; "env"
   int32_t max_samples = 1024;          // resource limit: queued requests, parked replies per client
+  // requests of one client taken and not yet answered (in the core, or their final reply
+  // parked); past it a request is refused Overloaded without running. 1 .. max_samples / 3
+  // (so that a client's parked replies, refusals included, stay within max_samples);
+  // default max_samples / 4
+  int32_t max_in_flight = 256;
   std::chrono::milliseconds park_timeout{10000};  // how long a reply waits for its reader (or writer)
   std::size_t max_params = 1 << 20;    // largest accepted params text, in bytes
   std::size_t max_depth = 128;         // deepest [/{ nesting accepted in params (2..10000)
@@ -139,6 +149,9 @@ class DdsRequestManager : public RequestManager {
     std::string result;                          // JSON text or ""
     std::string message;                         // human-readable reason
     std::string data;                            // JSON object text or ""
+    // an Overloaded refusal (overloaded_reply) may stand for the requests seq .. seq_end,
+    // whose refusals are the same but for their seq: one parked entry for a run of them
+    std::uint64_t seq_end = 0;
     std::chrono::steady_clock::time_point deadline;  // parked: when to give up waiting
     // A result with images (Outcome::attachments): `result` is written from it when the reply
     // goes (prepare_images), so that whether the client reads its images raw is known then.
@@ -165,8 +178,11 @@ class DdsRequestManager : public RequestManager {
     // image writer's match counts below (the set of matches changed when either moved)
     bool images_raw = false;
     std::uint32_t image_matches_total = 0, image_matches_current = 0;
-    std::unordered_map<std::uint64_t, RequestId> calls;  // seq -> request in the core
+    // seq -> its pending request: a call in the core, or a cancel not answered yet (a seq in
+    // here is refused to any new request until that one's final reply is out)
+    std::unordered_map<std::uint64_t, RequestId> calls;
     std::deque<ReplyData> parked;                       // replies not written yet, in order
+    std::size_t parked_finals = 0;                      // of them, final replies counted in flight
     bool stalled = false;                               // its writer was full at the last write
     bool images_stalled = false;                        // ... its image writer (not worth a log line)
     std::chrono::steady_clock::time_point retry_at;     // stalled: next write attempt
@@ -239,11 +255,20 @@ class DdsRequestManager : public RequestManager {
   // Every client's flush_parked; returns when the next parked reply needs attention.
   std::chrono::steady_clock::time_point flush_all_parked();
   // DDS_RETCODE_TIMEOUT: the writer is full (its reader does not acknowledge); never blocks.
-  dds_return_t write_reply(const ClientId& id, const ClientState& client, const ReplyData& reply);
+  // A run of Overloaded refusals (seq_end) is written one sample per seq; `reply.seq` is
+  // left at the first one the writer did not take.
+  dds_return_t write_reply(const ClientId& id, const ClientState& client, ReplyData& reply);
   void drop_reply(const ClientId& id, ClientState& client, const ReplyData& reply);
   bool lookup_async(const std::string& component, const std::string& service);
   static ReplyData to_reply(std::uint64_t seq, const Outcome& outcome);
   static ReplyData failure_reply(std::uint64_t seq, simgate_Failure failure, std::string message);
+  // Requests of `client` taken and not answered yet: pending in the core (calls, cancels)
+  // or with their final reply parked. At max_in_flight, a request is refused Overloaded.
+  static std::size_t in_flight(const ClientState& client) { return client.calls.size() + client.parked_finals; }
+  // The refusal of a request past max_in_flight (ST_FAILED, FL_BUSY, "Overloaded: ...").
+  ReplyData overloaded_reply(std::uint64_t seq) const;
+  // A final reply counted in flight while parked (not an Overloaded refusal).
+  static bool counted(const ReplyData& reply) { return reply.last && reply.seq_end == 0; }
 
   DdsOptions options_;                       // validated options
   std::unique_ptr<Participant> participant_;  // owns every entity below

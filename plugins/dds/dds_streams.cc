@@ -7,6 +7,7 @@
 #include <string_view>
 
 #include "dds_support.h"
+#include "simgate/core/config.h"
 #include "simgate/core/log.h"
 #include "simgate_streams.h"
 
@@ -186,13 +187,15 @@ struct DdsStreams::Input {
   dds_entity_t json_reader = 0;
   dds_entity_t typed_reader = 0;
   bool bad_logged = false;     // a command that is not a JSON object was logged
+  bool limit_logged = false;   // a command beyond max_params or max_depth was logged
 };
 
 DdsStreams::DdsStreams(std::shared_ptr<StreamHub> hub, std::string transport, dds_entity_t participant,
                        dds_entity_t publisher, dds_entity_t subscriber, dds_entity_t waitset, std::string server_id,
-                       bool direct_writes)
+                       bool direct_writes, std::size_t max_command_bytes, std::size_t max_command_depth)
     : hub_(std::move(hub)), transport_(std::move(transport)), participant_(participant), publisher_(publisher),
-      subscriber_(subscriber), waitset_(waitset), server_id_(std::move(server_id)), direct_writes_(direct_writes) {
+      subscriber_(subscriber), waitset_(waitset), server_id_(std::move(server_id)), direct_writes_(direct_writes),
+      max_command_bytes_(max_command_bytes), max_command_depth_(max_command_depth) {
   guard_ = check_created(dds_create_guardcondition(participant_), "guard condition (streams)");
   check_created(dds_waitset_attach(waitset_, guard_, k_token_samples), "waitset attachment (streams)");
   // the catalog: the last entry of each topic, kept for late joiners
@@ -432,6 +435,21 @@ void DdsStreams::take(Input& input, dds_entity_t reader, bool typed) {
     } else {
       const char* raw = static_cast<const simgate_stream_JsonCommand*>(samples[i])->json;
       const std::string_view text = raw ? raw : "";
+      // bounded before it is parsed, as a request's params are (max_params, max_depth)
+      std::string beyond;
+      if (text.size() > max_command_bytes_)
+        beyond = "a command of " + std::to_string(text.size()) + " bytes, more than max_params (" +
+                 std::to_string(max_command_bytes_) + ")";
+      else if (json_nests_deeper_than(text, max_command_depth_))
+        beyond = "a command nested deeper than max_depth (" + std::to_string(max_command_depth_) + ")";
+      if (!beyond.empty()) {
+        hub_->note_refused(input.info.component, transport_, beyond);
+        if (!input.limit_logged)
+          log::warning("DDS transport: ", input.json_topic, " got ", beyond,
+                       ": refused unread (logged once per reader; simulation get_stream_statistics counts them)");
+        input.limit_logged = true;
+        continue;
+      }
       command = json::parse(text, nullptr, false);
       if (!command.is_object()) {
         // never reaches the component, but is a refused command of the stream all the same

@@ -16,9 +16,14 @@
 //    a best-effort write of a few dozen bytes never waits for a reader, and skipping the
 //    queue and the DDS thread's wake-up is what lets a stream keep up with a raw Cyclone
 //    writer (docs/performance.md, "Data streams"). Option "stream_writes": "thread" turns it off.
-//  - input: readers reliable, keep-last 1, volatile; a command goes to StreamHub::publish
-//    (applied at once when the simulation lock is free, else the latest waits for the next
-//    turn; refusals are counted and logged by the hub).
+//  - input: readers reliable, keep-last 1, volatile (Cyclone holds at most one command per
+//    reader, the latest); a command goes to StreamHub::publish (applied at once when the
+//    simulation lock is free, else the latest waits for the next turn; refusals are counted
+//    and logged by the hub). A JsonCommand's text is bounded as a request's params are, by
+//    the transport's max_params (bytes) and max_depth (nesting), both checked before it is
+//    parsed (issue #35: a 20 MB command was parsed, 0.5 GB at its peak): beyond, it is
+//    refused, counted by the hub as a refused command of its stream (note_refused) and
+//    logged once per reader.
 //
 // Life cycle: the DdsRequestManager creates it in start() (host thread, once the hub is set),
 // before the DDS thread runs; sync() on the DDS thread creates the endpoints of the streams
@@ -66,9 +71,11 @@ class DdsStreams {
 
   // Host thread, before the DDS thread starts: creates the catalog writer and the guard
   // condition, attached to `waitset`. Throws std::runtime_error when DDS fails.
+  // `max_command_bytes`, `max_command_depth`: the longest JsonCommand text, in bytes, and its
+  // deepest [/{ nesting, accepted (the transport's max_params and max_depth).
   DdsStreams(std::shared_ptr<StreamHub> hub, std::string transport, dds_entity_t participant,
              dds_entity_t publisher, dds_entity_t subscriber, dds_entity_t waitset, std::string server_id,
-             bool direct_writes);
+             bool direct_writes, std::size_t max_command_bytes, std::size_t max_command_depth);
   ~DdsStreams();
   DdsStreams(const DdsStreams&) = delete;
   DdsStreams& operator=(const DdsStreams&) = delete;
@@ -108,6 +115,8 @@ class DdsStreams {
   const dds_entity_t waitset_;           // the DDS thread's
   const std::string server_id_;          // our participant GUID, hex (catalog entries)
   const bool direct_writes_;             // small typed samples written by the simulation thread
+  const std::size_t max_command_bytes_;  // longest JsonCommand text accepted (max_params)
+  const std::size_t max_command_depth_;  // deepest nesting of it accepted (max_depth)
   dds_entity_t guard_ = 0;               // samples are waiting (raised by the wake)
   dds_entity_t catalog_writer_ = 0;      // simgate_Streams
   std::map<std::string, dds_entity_t> topics_;                   // by name: created once

@@ -3,6 +3,6 @@
 #include "simgate/core/plugin.h"
 
 SIMGATE_TRANSPORT_PLUGIN(dds, simgate::dds::DdsRequestManager, "0.1.0", "domain", "partition", "config",
-                         "max_samples", "park_timeout_ms", "max_params", "max_depth",
+                         "max_samples", "max_in_flight", "park_timeout_ms", "max_params", "max_depth",
                          "global_policy", "progress_interval_ms",
                          "on_disconnect", "stream_writes")

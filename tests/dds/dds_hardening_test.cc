@@ -12,6 +12,8 @@
 #include <gtest/gtest.h>
 
 #include "dds_transport_fixture.h"
+#include "simgate/core/component.h"
+#include "simgate/core/streams.h"
 #include "simgate/core/log.h"
 
 namespace simgate::dds::test {
@@ -272,6 +274,173 @@ TEST_F(DdsTransportTest, UnderLetRunTheCallsOfAClientThatLeftRunOn) {
   EXPECT_TRUE(running(Status::success, "arrived"));  // it ends when it ends; nobody to tell
   auto other = make_client(test_partition());
   EXPECT_EQ(other->call("calc", "add", {1, 2}, 10s).value, json(3.0));
+}
+
+// ---- issue #35, item 10 ----
+
+// The replies of `raw` for `seq` up to the final reply of `until` (a later call: a client's
+// replies leave in the order they were produced, so everything for `seq` came before it).
+std::vector<RawClient::Reply> replies_for(RawClient& raw, std::uint64_t seq, std::uint64_t until) {
+  std::vector<RawClient::Reply> out;
+  while (auto reply = raw.next()) {
+    if (reply->seq == seq) out.push_back(*reply);
+    if (reply->seq == until && reply->last) break;
+  }
+  return out;
+}
+
+int final_count(const std::vector<RawClient::Reply>& replies) {
+  return static_cast<int>(std::count_if(replies.begin(), replies.end(), [](const auto& r) { return r.last; }));
+}
+
+// Item 10: a cancel under its target's own seq (OP_CANCEL {id.seq 5, target 5}) was answered
+// under that id (SUCCESS, last) beside the call's own end (PREEMPTED, last): two final replies
+// for one id. It cancels the call, whose PREEMPTED reply is the id's one final reply.
+TEST_F(DdsTransportTest, ACancelUnderItsCallsOwnSeqEndsTheCallWithOneFinalReply) {
+  auto server = make_server(test_partition());
+  SimThread sim(server);
+  RawClient raw(test_partition());
+  raw.create_reply_reader();
+  ASSERT_TRUE(raw.wait_request_matched());
+  raw.write(5, simgate_OP_CALL, "robot", "goto", "[1]");
+  auto accepted = raw.next();
+  ASSERT_TRUE(accepted);
+  EXPECT_EQ(accepted->status, simgate_ST_ACCEPTED);
+  ASSERT_TRUE(goto_.wait_started(1));
+  raw.write(5, simgate_OP_CANCEL, "", "", "", 5);
+  raw.write(6, simgate_OP_CALL, "calc", "add", "[1, 2]");
+  const auto replies = replies_for(raw, 5, 6);
+  ASSERT_EQ(final_count(replies), 1);
+  for (const auto& reply : replies) {
+    if (!reply.last) continue;
+    EXPECT_EQ(reply.status, simgate_ST_PREEMPTED);
+    EXPECT_EQ(reply.failure, simgate_FL_CANCELLED);
+  }
+  EXPECT_TRUE(goto_.completion().done());
+}
+
+// Item 10: any other request under a pending seq (a cancel of another call, a call) is
+// refused without being acted on, ST_REFUSED and not final; the pending call goes on and
+// ends with its own final reply, the id's only one.
+TEST_F(DdsTransportTest, ACancelUnderAnotherPendingSeqIsRefusedNotFinal) {
+  auto server = make_server(test_partition());
+  SimThread sim(server);
+  RawClient raw(test_partition());
+  raw.create_reply_reader();
+  ASSERT_TRUE(raw.wait_request_matched());
+  raw.write(5, simgate_OP_CALL, "robot", "goto", "[1]");
+  auto accepted = raw.next();
+  ASSERT_TRUE(accepted);
+  ASSERT_TRUE(goto_.wait_started(1));
+  raw.write(7, simgate_OP_CALL, "arm", "grasp", "");  // another pending call, the cancel's target
+  ASSERT_TRUE(grasp_.wait_started(1));
+  raw.write(5, simgate_OP_CANCEL, "", "", "", 7);
+  raw.write(6, simgate_OP_CALL, "calc", "add", "[1, 2]");
+  auto replies = replies_for(raw, 5, 6);
+  EXPECT_EQ(final_count(replies), 0);
+  ASSERT_EQ(replies.size(), 1u);
+  EXPECT_EQ(replies[0].status, simgate_ST_REFUSED);
+  EXPECT_EQ(replies[0].failure, simgate_FL_BAD_REQUEST);
+  EXPECT_THAT(replies[0].message, ::testing::HasSubstr("call 5 is still pending"));
+  // neither call was touched; each ends with its own one final reply
+  EXPECT_FALSE(grasp_.completion().done());
+  EXPECT_TRUE(goto_.completion()(Status::success, "arrived"));
+  EXPECT_TRUE(grasp_.completion()(Status::success, "grasped"));
+  replies = replies_for(raw, 5, 5);
+  ASSERT_EQ(final_count(replies), 1);
+  EXPECT_EQ(replies.back().status, simgate_ST_SUCCESS);
+}
+
+// An actuator with an input stream, as motion_vw's: keeps the commands it was given.
+class Motion : public Component {
+ public:
+  Motion() : Component("robot.motion") {
+    declare_input_stream("velocity", {"v", "w"}, [this](const json& command) {
+      std::lock_guard lock(mutex);
+      applied.push_back(command);
+    });
+  }
+  std::vector<json> given() {
+    std::lock_guard lock(mutex);
+    return applied;
+  }
+  std::mutex mutex;            // guards applied (applied under the simulation lock; read by the test)
+  std::vector<json> applied;   // every command applied
+};
+
+// A writer of an input stream's JsonCommand topic ("simgate/<component>/json"), matched.
+class CommandWriter {
+ public:
+  CommandWriter(const std::string& partition, const std::string& topic_name)
+      : participant_(test_domain(), loopback_uri().c_str(), "command writer") {
+    dds_entity_t pp = participant_.handle();
+    QosPtr partition_qos(dds_create_qos());
+    dds_qset_partition1(partition_qos.get(), partition.c_str());
+    dds_entity_t publisher = dds_create_publisher(pp, partition_qos.get(), nullptr);
+    dds_entity_t topic = dds_create_topic(pp, &simgate_stream_JsonCommand_desc, topic_name.c_str(), nullptr, nullptr);
+    QosPtr qos = make_qos(false, 0, DDS_SECS(5));
+    writer_ = dds_create_writer(publisher, topic, qos.get(), nullptr);
+  }
+  bool wait_matched() {
+    return eventually([&] {
+      dds_publication_matched_status_t st{};
+      dds_get_publication_matched_status(writer_, &st);
+      return st.current_count > 0;
+    });
+  }
+  dds_return_t write(const std::string& text) {
+    simgate_stream_JsonCommand command{};
+    command.json = const_cast<char*>(text.c_str());
+    return dds_write(writer_, &command);
+  }
+
+ private:
+  Participant participant_;  // own participant
+  dds_entity_t writer_ = 0;  // JsonCommand
+};
+
+// Item 10: a command on a DDS input stream had no bound: a 20 MB one was parsed on the DDS
+// thread (the server's peak resident size 510 MB, its next reply 1.3 s late) and handed to
+// the component. A JsonCommand's text is bounded as a request's params are, by max_params
+// and max_depth, before it is parsed: refused unread, counted as a refused command of the
+// stream, logged once; the next command is applied.
+TEST_F(DdsTransportTest, AStreamCommandBeyondMaxParamsOrMaxDepthIsRefusedUnread) {
+  LogWatch watch("refused unread");
+  auto server = make_server(test_partition(), "server", {{"max_params", 4096}, {"max_depth", 8}});
+  auto hub = std::make_shared<StreamHub>(server->gate());
+  Motion motion;
+  hub->add(motion, "motion_vw", {"dds"});
+  server->set_streams(hub, "dds");
+  SimThread sim(server);
+  CommandWriter commands(test_partition(), "simgate/robot/motion/json");
+  ASSERT_TRUE(commands.wait_matched());
+  auto refused = [&] { return hub->statistics("dds").at(0).refused; };
+  // a command of 10 kB, then one nested 9 deep: refused, neither reaches the component
+  std::string big = "{\"v\": [1";
+  while (big.size() < 10000) big += ",1";
+  big += "], \"w\": 0}";
+  ASSERT_EQ(commands.write(big), DDS_RETCODE_OK);
+  ASSERT_TRUE(eventually([&] { return refused() == 1; })) << refused();
+  EXPECT_THAT(hub->statistics("dds").at(0).last_refusal,
+              ::testing::HasSubstr("a command of 10010 bytes, more than max_params (4096)"));
+  ASSERT_EQ(commands.write("{\"v\": [[[[[[[[1]]]]]]]], \"w\": 0}"), DDS_RETCODE_OK);
+  ASSERT_TRUE(eventually([&] { return refused() == 2; })) << refused();
+  EXPECT_THAT(hub->statistics("dds").at(0).last_refusal, ::testing::HasSubstr("deeper than max_depth (8)"));
+  // at the limits, a command is applied (the lock taken for the hub's turn, as the loop does)
+  ASSERT_EQ(commands.write("{\"v\": 0.5, \"w\": [[[[[[[0]]]]]]]}"), DDS_RETCODE_OK);
+  ASSERT_TRUE(eventually([&] {
+    std::lock_guard lock(*server->gate());
+    hub->apply_commands();
+    return !motion.given().empty();
+  }));
+  EXPECT_EQ(motion.given().size(), 1u);
+  EXPECT_EQ(motion.given().front()["v"], 0.5);
+  EXPECT_EQ(refused(), 2u);
+  EXPECT_EQ(watch.lines().size(), 1u);  // once per reader
+  // and the server still serves
+  auto client = make_client(test_partition());
+  EXPECT_EQ(client->call("calc", "add", {1, 2}, 10s).value, json(3.0));
+  hub->remove("robot.motion");
 }
 
 }  // namespace

@@ -7,6 +7,10 @@
 //   dds_probe_client DOMAIN PARTITION CONFIG hang COMPONENT SERVICE PARAMS_JSON
 //       starts an async call, prints "accepted" once acknowledged, then waits (at most 60 s)
 //       to be killed.
+//   dds_probe_client DOMAIN PARTITION CONFIG pipeline N
+//       starts N calls of calc.add(i, 1) back to back, then waits for each (60 s in all at
+//       most); prints {"answered": ..., "overloaded": ..., "other": ..., "lost": ...}: lost =
+//       calls that got no final reply, overloaded = refused "Overloaded" (FL_BUSY).
 //   dds_probe_client DOMAIN PARTITION CONFIG echo N BYTES
 //       calls calc.echo(text of BYTES bytes) N times, one after the other (5 s each at most);
 //       prints {"answered": ..., "failed": ..., "ms": ...} and exits 0.
@@ -16,6 +20,7 @@
 #include <iostream>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "simgate/client/dds_client.h"
 
@@ -37,7 +42,7 @@ json outcome_json(const simgate::Outcome& o) {
 int main(int argc, char** argv) {
   if (argc < 5) {
     std::cerr << "usage: dds_probe_client DOMAIN PARTITION CONFIG (waypoint X Y | hang COMPONENT SERVICE PARAMS | "
-                 "echo N BYTES)\n";
+                 "pipeline N | echo N BYTES)\n";
     return 2;
   }
   try {
@@ -73,6 +78,33 @@ int main(int argc, char** argv) {
       std::cout << "accepted" << std::endl;
       std::this_thread::sleep_for(60s);  // until killed
       return 1;
+    }
+    if (mode == "pipeline" && argc == 6) {
+      const int count = std::stoi(argv[5]);
+      std::vector<DdsClient::CallId> ids;
+      for (int i = 0; i < count; ++i) ids.push_back(client.start("calc", "add", {i, 1}));
+      int answered = 0, overloaded = 0, other = 0, lost = 0;
+      json first_other;
+      const auto deadline = std::chrono::steady_clock::now() + 60s;
+      for (int i = 0; i < count; ++i) {
+        auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+        try {
+          simgate::Outcome out = client.wait(ids[i], std::max(left, std::chrono::milliseconds(1)));
+          if (out.status == simgate::Status::success && out.value == json(double(i + 1))) {
+            ++answered;
+          } else if (out.failure == simgate::Failure::busy && out.message.rfind("Overloaded", 0) == 0) {
+            ++overloaded;
+          } else if (other++ == 0) {
+            first_other = outcome_json(out);
+          }
+        } catch (const std::exception& e) {
+          ++lost;  // no final reply in time
+        }
+      }
+      std::cout << json{{"answered", answered}, {"overloaded", overloaded}, {"other", other},
+                        {"first_other", first_other}, {"lost", lost}}.dump()
+                << std::endl;
+      return 0;
     }
     if (mode == "echo" && argc == 7) {
       const int count = std::stoi(argv[5]);
