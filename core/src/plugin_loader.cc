@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cstdlib>
 #include <sstream>
+#include <string_view>
 
 #include "simgate/core/config.h"
 #include "simgate/core/log.h"
@@ -161,11 +162,19 @@ std::vector<std::string> TransportPlugin::option_keys() const {
   return keys;
 }
 
-void TransportPlugin::validate(const json& options, const std::string& config_path) const {
+std::vector<std::string> TransportPlugin::validate(const json& options, const std::string& config_path) const {
   std::vector<std::string> keys = option_keys();
   ConfigObject(options, config_path).allow_only(keys);
   char error[1024] = {0};
-  if (descriptor_->validate(options.dump().c_str(), error, sizeof(error))) return;
+  char warnings[4096] = {0};
+  if (descriptor_->validate(options.dump().c_str(), error, sizeof(error), warnings, sizeof(warnings))) {
+    std::vector<std::string> out;
+    std::string_view rest(warnings);
+    for (std::size_t end; (end = rest.find('\n')) != std::string_view::npos; rest.remove_prefix(end + 1))
+      if (end > 0) out.emplace_back(rest.substr(0, end));
+    if (!rest.empty()) out.emplace_back(rest);
+    return out;
+  }
   // a plugin reads its options with a ConfigObject at the root: "port: expected ..." is
   // about one of its keys, and becomes "<config_path>.port: expected ..."
   const std::string message = error[0] ? error : "no reason given";
@@ -176,7 +185,12 @@ void TransportPlugin::validate(const json& options, const std::string& config_pa
 }
 
 std::shared_ptr<RequestManager> TransportPlugin::create(const json& options, const std::string& config_path) const {
-  validate(options, config_path);
+  for (const std::string& warning : validate(options, config_path)) log::warning(warning);
+  return create_validated(options, config_path);
+}
+
+std::shared_ptr<RequestManager> TransportPlugin::create_validated(const json& options,
+                                                                  const std::string& config_path) const {
   char error[1024] = {0};
   RequestManager* manager = descriptor_->create(options.dump().c_str(), error, sizeof(error));
   if (!manager)

@@ -228,7 +228,9 @@ void Gateway::load_plugins(ConfigErrors& errors) {
     bool options_valid = errors.check([&] {
       if (!t.options.is_object())
         throw ConfigError(t.path + ".options: expected an object, found " + describe_json(t.options));
-      transport.plugin->validate(t.options, t.path + ".options");
+      // its warnings (a deprecated key, a token file others may read): check says what run does
+      for (std::string& warning : transport.plugin->validate(t.options, t.path + ".options"))
+        warnings_.push_back(std::move(warning));
     });
     if (options_valid)
       if (auto listener = listener_of(transport.plugin->name(), t)) listeners.push_back(std::move(*listener));
@@ -313,7 +315,7 @@ void Gateway::create_transports() {
   // create every transport (sockets are bound here), then register the components
   for (auto& transport : transports_) {
     const TransportConfig& t = *transport.config;
-    transport.manager = transport.plugin->create(t.options, t.path + ".options");
+    transport.manager = transport.plugin->create_validated(t.options, t.path + ".options");
     // the allow and deny lists first: no service is ever callable that they deny
     transport.manager->set_access(t.access);
     transport.manager->set_max_wait(deployment_.max_wait);  // requests.max_wait_ms

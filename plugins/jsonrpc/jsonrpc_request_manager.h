@@ -44,7 +44,7 @@ class JsonRpcRequestManager : public JsonRpcEngine<Session>, private kit::LineSe
   explicit JsonRpcRequestManager(const json& options);
   ~JsonRpcRequestManager() override;
   // What the constructor checks of `options`, without binding (the plugin's validate).
-  static void validate_options(const json& options) { (void)Options::parse(options); }
+  static std::vector<std::string> validate_options(const json& options) { return Options::parse(options).tcp.warnings; }
   std::size_t client_count() const override { return connection_count(); }
 
   void start() override;

@@ -88,8 +88,6 @@ SocketRequestManager::SocketRequestManager(SocketOptions o)
   limits_.pause_at_unanswered = options_.tcp.max_in_flight;
   set_global_policy(options_.tcp.global_policy);
   set_progress_interval(options_.tcp.progress_interval);
-  // once per transport created (validate_options parses too, and says nothing)
-  for (const auto& message : options_.tcp.warnings) log::warning(message);
   log::info(name(), " now listening on port ", listener_.port(), " (", listener_.endpoint(), ")");
 }
 

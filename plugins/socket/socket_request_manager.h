@@ -100,7 +100,9 @@ class SocketRequestManager : public RequestManager, private kit::LineServer {
   explicit SocketRequestManager(const json& options);
   ~SocketRequestManager() override;
   // What the constructor checks of `options`, without binding (the plugin's validate).
-  static void validate_options(const json& options) { (void)SocketOptions::parse(options); }
+  static std::vector<std::string> validate_options(const json& options) {
+    return SocketOptions::parse(options).tcp.warnings;
+  }
 
   void start() override;
   void stop() override;

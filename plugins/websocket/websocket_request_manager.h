@@ -59,7 +59,9 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine<WsSession>, privat
   explicit WebSocketRequestManager(const json& options);
   ~WebSocketRequestManager() override;
   // What the constructor checks of `options`, without binding (the plugin's validate).
-  static void validate_options(const json& options) { (void)Settings::parse(options); }
+  static std::vector<std::string> validate_options(const json& options) {
+    return Settings::parse(options).rpc.tcp.warnings;
+  }
   std::size_t client_count() const override { return count_.load(std::memory_order_relaxed); }
 
   void start() override;

@@ -275,6 +275,20 @@ TEST(GatewayCliTest, CheckRefusesAMalformedServicePatternAndWarnsOfOneThatMatche
                               "'socket' serves: it denies nothing (did you mean 'simulation.quit'?)"));
 }
 
+// issue #35, item 10: the transports' own warnings (a deprecated key, a token file others
+// may read) were logged when `run` created them, and never said by `check`
+TEST(GatewayCliTest, CheckGivesTheTransportsOwnWarningsAsRunDoes) {
+  TempDir dir;
+  json c = demo_config();
+  c["transports"]["socket"]["options"]["max_clients"] = 8;
+  const std::string file = dir.write("old.json", c.dump());
+  const std::string warning =
+      "warning: socket: option 'max_clients' is deprecated, use 'max_connections' (the old name goes in the next release)";
+  auto [code, out] = run_simgate({"check", file}, dir);
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_THAT(out, HasSubstr(warning)) << out;
+}
+
 TEST(GatewayCliTest, RunAndCheckCountComponentsAlike) {
   TempDir dir;
   auto [code, out] = run_simgate({"check", source_path("config/demo.json")}, dir);

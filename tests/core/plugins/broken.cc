@@ -18,7 +18,7 @@ const char* const no_keys[] = {nullptr};
 
 [[maybe_unused]] simgate::RequestManager* create_none(const char*, char*, size_t) { return nullptr; }
 [[maybe_unused]] void destroy_none(simgate::RequestManager*) {}
-[[maybe_unused]] int validate_none(const char*, char*, size_t) { return 1; }
+[[maybe_unused]] int validate_none(const char*, char*, size_t, char*, size_t) { return 1; }
 
 }  // namespace
 

@@ -9,8 +9,11 @@
 //
 //   create(options_json, error, error_size) -> RequestManager* (nullptr + message on error)
 //   destroy(RequestManager*)
-//   validate(options_json, error, error_size) -> 1, or 0 + message: every check create()
-//       makes of the options, short of opening anything (`simgate check` calls it)
+//   validate(options_json, error, error_size, warnings, warnings_size) -> 1, or 0 + message:
+//       every check create() makes of the options, short of opening anything (`simgate
+//       check` calls it, and `run` before it creates anything); on success `warnings` holds
+//       what the options deserve a warning for (a deprecated key, a token file others may
+//       read), one per line, "" for none, so that `check` says what `run` would
 //
 // No exception crosses this boundary: create catches everything and writes the message.
 // Write a plugin with one line:
@@ -20,8 +23,9 @@
 //
 // where the class has a constructor taking (const simgate::json& options) and, optionally,
 // a static `validate_options(const simgate::json& options)` that throws what the
-// constructor would throw for bad options without binding or starting anything (without
-// it, validate checks nothing beyond the option keys). Bump
+// constructor would throw for bad options without binding or starting anything, and
+// returns its warnings (std::vector<std::string>) or nothing (void) (without it, validate
+// checks nothing beyond the option keys). Bump
 // SIMGATE_PLUGIN_ABI_VERSION on any change to this struct or to RequestManager.
 #ifndef SIMGATE_CORE_PLUGIN_H_
 #define SIMGATE_CORE_PLUGIN_H_
@@ -31,10 +35,11 @@
 #include <cstring>
 #include <exception>
 #include <string>
+#include <type_traits>
 
 #include "simgate/core/request_manager.h"
 
-#define SIMGATE_PLUGIN_ABI_VERSION 7u
+#define SIMGATE_PLUGIN_ABI_VERSION 8u
 
 #define SIMGATE_STRINGIFY_(x) #x
 #define SIMGATE_STRINGIFY(x) SIMGATE_STRINGIFY_(x)
@@ -51,7 +56,8 @@ extern "C" {
 typedef simgate::RequestManager* (*simgate_create_fn)(const char* options_json, char* error,
                                                        size_t error_size);
 typedef void (*simgate_destroy_fn)(simgate::RequestManager* manager);
-typedef int (*simgate_validate_fn)(const char* options_json, char* error, size_t error_size);
+typedef int (*simgate_validate_fn)(const char* options_json, char* error, size_t error_size, char* warnings,
+                                   size_t warnings_size);
 
 struct simgate_transport_descriptor {
   uint32_t abi_version;            // SIMGATE_PLUGIN_ABI_VERSION of the plugin's build
@@ -90,12 +96,23 @@ RequestManager* create_manager(const char* options_json, char* error, size_t err
   return nullptr;
 }
 
-// Shared body of every plugin's validate(): the class's validate_options() if it has one.
+// Shared body of every plugin's validate(): the class's validate_options() if it has one,
+// its warnings (if it returns some) one per line.
 template <class Manager>
-int validate_options(const char* options_json, char* error, size_t error_size) noexcept {
+int validate_options(const char* options_json, char* error, size_t error_size, char* warnings,
+                     size_t warnings_size) noexcept {
   try {
+    copy_error(warnings, warnings_size, "");
     json options = options_json && *options_json ? json::parse(options_json) : json::object();
-    if constexpr (requires { Manager::validate_options(options); }) Manager::validate_options(options);
+    if constexpr (requires { Manager::validate_options(options); }) {
+      if constexpr (std::is_void_v<decltype(Manager::validate_options(options))>) {
+        Manager::validate_options(options);
+      } else {
+        std::string lines;
+        for (const std::string& w : Manager::validate_options(options)) lines += w + "\n";
+        copy_error(warnings, warnings_size, lines.c_str());
+      }
+    }
     return 1;
   } catch (const std::exception& e) {
     copy_error(error, error_size, e.what());

@@ -51,13 +51,17 @@ class TransportPlugin {
   const std::string& name() const { return name_; }
   std::vector<std::string> option_keys() const;
 
-  // Creates a manager from the plugin: validate() first (ConfigError), then the plugin's
-  // create(), whose failure is a TransportError prefixed with `config_path`. The returned
-  // manager keeps the library loaded.
+  // Creates a manager from the plugin: validate() first (ConfigError; its warnings logged),
+  // then create_validated().
   std::shared_ptr<RequestManager> create(const json& options, const std::string& config_path) const;
+  // The plugin's create() on options validate() accepted (the host reported its warnings),
+  // whose failure is a TransportError prefixed with `config_path`. The returned manager
+  // keeps the library loaded.
+  std::shared_ptr<RequestManager> create_validated(const json& options, const std::string& config_path) const;
   // Every check create() makes of `options`, opening nothing (no socket bound, no DDS
-  // participant). Throws ConfigError prefixed with `config_path`.
-  void validate(const json& options, const std::string& config_path) const;
+  // participant). Throws ConfigError prefixed with `config_path`; returns the warnings the
+  // options deserve (a deprecated key, a token file others may read), as `run` gives them.
+  std::vector<std::string> validate(const json& options, const std::string& config_path) const;
 
  private:
   friend std::shared_ptr<TransportPlugin> load_transport_plugin(const std::string&,
