@@ -547,6 +547,8 @@ bool Simulation::diverged(double time_before, const std::string& what, std::stri
   last_divergence_ = Divergence{time_before, steps(), std::move(quantity), std::move(where), action, resumed_at};
   // subscribers hear of the divergence first, then of what the policy does to the world
   json event = to_json(*last_divergence_);
+  // of the state the bad step started from (MuJoCo's own reset left its clock elsewhere)
+  event["timestamp"] = time_before;
   event["divergences"] = bad_states_;
   event["message"] = reason;
   announce("diverged", std::move(event));
@@ -584,14 +586,15 @@ json to_json(const Divergence& divergence) {
 void Simulation::announce(const char* event, json fields) {
   if (!events_ || !events_->stream_wanted()) return;
   fields["event"] = event;
-  fields["timestamp"] = d()->time;
+  if (!fields.contains("timestamp")) fields["timestamp"] = d()->time;
   if (!fields.contains("step")) fields["step"] = steps();
   if (!fields.contains("by")) {
     // who did it: a client's request (its transport), else the simulation itself
     const CallContext* context = CallContext::current();
     fields["by"] = context ? context->manager().transport_name() : std::string("simulation");
   }
-  events_->publish(d()->time, std::move(fields));
+  const double time = fields["timestamp"].get<double>();
+  events_->publish(time, std::move(fields));
 }
 
 void Simulation::fail_requests(const std::string& reason) {

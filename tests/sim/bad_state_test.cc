@@ -327,6 +327,7 @@ TEST_F(SimDivergencePauseTest, SubscribersOfTheEventStreamHearOfTheDivergenceThe
   EXPECT_EQ(told[0]["action"], "pause");
   EXPECT_EQ(told[0]["quantity"].get<std::string>().substr(0, 5), "qacc[");
   EXPECT_NEAR(told[0]["resumed_at"].get<double>(), before, 1e-12);
+  EXPECT_NEAR(told[0]["timestamp"].get<double>(), before, 1e-12);  // not MuJoCo's reset clock
   EXPECT_EQ(told[1]["event"], "paused");
   EXPECT_EQ(told[1]["by"], "simulation");  // its policy, not a client
   EXPECT_NEAR(told[1]["timestamp"].get<double>(), before, 1e-12);

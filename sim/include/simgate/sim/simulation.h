@@ -278,8 +278,9 @@ class Simulation {
   // ---- events (under the simulation lock) ----
 
   // Tells the subscribers of simulation.events (supervision.h) that `event` happened now:
-  // {"event", "timestamp": simulated time, "step": steps taken, ...fields}. The simulation
-  // announces "diverged" (fields: to_json(Divergence), "divergences", "message"), then what
+  // {"event", "timestamp": simulated time (unless `fields` has one), "step": steps taken,
+  // ...fields}. The simulation announces "diverged" (fields: to_json(Divergence),
+  // "divergences", "message"; its timestamp the diverging step's start), then what
   // its policy did: "paused" (set_paused) or "reset" (reset()); and "paused", "resumed",
   // "reset" whoever causes them. Every event has "by": the transport of the client request
   // that caused it, or "simulation" (its own policy, the host). Costs one atomic read when
