@@ -144,6 +144,7 @@ bool Simulation::remove_component(const std::string& name, const std::string& re
   for (const Completion& call : slot.running_concurrent()) call.finish(failed);
   slot.interrupt = nullptr;  // it calls the component, which goes now
   log::info("simulation: component '", name, "' removed: ", reason);
+  if ((*it)->component.get() == events_) events_ = nullptr;
   entries_.erase(it);
   return true;
 }
@@ -416,6 +417,7 @@ void Simulation::shutdown() {
   managers_.clear();
   manager_names_.clear();
   // components last: the managers referred to their services
+  events_ = nullptr;
   entries_.clear();
 }
 
