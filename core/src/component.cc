@@ -67,6 +67,11 @@ void Component::declare_pushed_stream(std::string kind, double frequency) {
                               std::make_shared<StreamOutlet>(name_), frequency};
 }
 
+void Component::declare_event_stream(std::string kind) {
+  stream_ = StreamDeclaration{StreamDirection::out, std::move(kind), {}, {}, {}, {},
+                              std::make_shared<StreamOutlet>(name_), 0};
+}
+
 bool Component::stream_wanted() const { return stream_ && stream_->outlet && stream_->outlet->wanted(); }
 
 void Component::note_skipped_sample() {

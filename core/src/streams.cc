@@ -274,12 +274,13 @@ void StreamHub::add(const Component& component, std::string type, std::vector<st
     stream->period = 1.0 / frequency;
     stream->produce = declaration->produce;
     if (declaration->outlet) {
-      // pushed: the component's rate is the stream's; the hub only fans out
+      // pushed: the component's rate is the stream's (0: an event stream, no rate); the hub
+      // only fans out
       if (declaration->outlet->hub_ && declaration->outlet->hub_ != this)
         throw std::invalid_argument(component.name() + ": its pushed stream is run by another hub already");
       stream->outlet = declaration->outlet;
       stream->info.pushed = true;
-      if (declaration->pushed_frequency > 0) stream->info.frequency = declaration->pushed_frequency;
+      stream->info.frequency = declaration->pushed_frequency;
       stream->produce = nullptr;
     }
     if (declaration->produce_record) {

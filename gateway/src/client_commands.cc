@@ -123,7 +123,9 @@ void print_streams(client::Client& client, std::chrono::milliseconds timeout) {
     const std::string component = s.value("component", std::string("?"));
     std::cout << component << " stream " << s.value("direction", std::string("?")) << " "
               << s.value("kind", std::string("?"));
-    if (s.contains("frequency")) std::cout << ", " << s["frequency"].dump() << " Hz";
+    // an event stream (simulation.events) has no rate: frequency 0
+    if (s.contains("frequency") && s["frequency"] != 0) std::cout << ", " << s["frequency"].dump() << " Hz";
+    else if (s.contains("frequency")) std::cout << ", as events happen";
     if (s.contains("fields")) {
       std::string fields;
       for (const auto& f : s["fields"]) fields += (fields.empty() ? "" : ", ") + f.get<std::string>();

@@ -18,6 +18,7 @@ namespace simgate::gateway {
 namespace fs = std::filesystem;
 
 const std::vector<std::string> k_pseudo_components = {"simulation", "time", "communication"};
+const std::vector<std::string> k_stream_only_components = {"simulation.events"};
 
 namespace {
 
@@ -315,7 +316,9 @@ std::vector<std::string> match_rules(const std::vector<ServiceRule>& rules,
 }
 
 bool is_pseudo_component(const std::string& name) {
-  return std::find(k_pseudo_components.begin(), k_pseudo_components.end(), name) != k_pseudo_components.end();
+  return std::find(k_pseudo_components.begin(), k_pseudo_components.end(), name) != k_pseudo_components.end() ||
+         std::find(k_stream_only_components.begin(), k_stream_only_components.end(), name) !=
+             k_stream_only_components.end();
 }
 
 }  // namespace
@@ -417,6 +420,7 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
 
   // ---- robots ----
   std::set<std::string> names(k_pseudo_components.begin(), k_pseudo_components.end());
+  names.insert(k_stream_only_components.begin(), k_stream_only_components.end());
   const std::size_t errors_before_robots = errors.errors().size();
   errors.check([&] {
     auto robots = root.get_json("robots");
@@ -433,6 +437,9 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
   for (const auto& r : d.robots)
     if (r.robot.type == "mjcf")
       for (const char* type : {"armature", "armature_pose", "actuators", "sensors"}) all.push_back(r.robot.name + "." + type);
+  // what a "streams" rule may name besides: the components that only stream
+  std::vector<std::string> streamed = all;
+  streamed.insert(streamed.end(), k_stream_only_components.begin(), k_stream_only_components.end());
   // `frequency`: the section is "streams", whose rules may be {"transports": [...],
   // "frequency": Hz} as well as a list; the default rule's frequency goes there
   auto parse_rules = [&](const char* key, std::vector<ServiceRule>& rules,
@@ -462,12 +469,13 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
         }
         // every rule must match something: a typo must not silently disconnect a component
         // (not checked when a robot was invalid: its components are unknown)
-        bool matched = std::any_of(all.begin(), all.end(), [&](const std::string& n) {
+        const std::vector<std::string>& names = frequency ? streamed : all;
+        bool matched = std::any_of(names.begin(), names.end(), [&](const std::string& n) {
           return is_glob(it.key()) ? glob_matches(it.key(), n) : it.key() == n;
         });
         if (!matched && robots_ok)
-          throw ConfigError(path + ": expected a component name or a glob matching one (" + join(all) +
-                            "), found '" + it.key() + "', which matches none" + did_you_mean(it.key(), all));
+          throw ConfigError(path + ": expected a component name or a glob matching one (" + join(names) +
+                            "), found '" + it.key() + "', which matches none" + did_you_mean(it.key(), names));
         rules.push_back(ServiceRule{it.key(), std::move(list), path, rate});
       });
     }

@@ -175,6 +175,9 @@ void Gateway::add_streams(ConfigErrors& errors) {
     if (named && named->frequency && (!stream || stream->direction != StreamDirection::out))
       warnings_.push_back(named->path + ".frequency: component '" + component.name() + "' (type " + type +
                           ") has no output stream: the frequency is not used");
+    else if (named && named->frequency && stream->outlet && stream->pushed_frequency == 0)
+      warnings_.push_back(named->path + ".frequency: component '" + component.name() +
+                          "' streams events as they happen, at no frequency: the frequency is not used");
     if (transports.empty()) return;
     if (!stream) {
       // an exact name must mean a stream; a glob may match components without one
@@ -203,11 +206,13 @@ void Gateway::add_streams(ConfigErrors& errors) {
     for (const auto& c : r.components) check_component(c);
   }
   // the pseudo-components, after the robots' (the socket transport numbers its stream ports
-  // in this order): `simulation` streams its bodies' poses
-  for (const std::string& pseudo : k_pseudo_components)
-    if (const sim::ComponentEntry* entry = simulation_->find(pseudo))
-      add(*entry->component, entry->type, deployment_.stream_frequency_for(pseudo),
-          sim::SupervisionServices::k_body_poses_frequency);
+  // in this order): `simulation` streams its bodies' poses, `simulation.events` its events
+  // (an event stream: no frequency applies)
+  for (const auto* names : {&k_pseudo_components, &k_stream_only_components})
+    for (const std::string& pseudo : *names)
+      if (const sim::ComponentEntry* entry = simulation_->find(pseudo))
+        add(*entry->component, entry->type, deployment_.stream_frequency_for(pseudo),
+            sim::SupervisionServices::k_body_poses_frequency);
 }
 
 void Gateway::load_plugins(ConfigErrors& errors) {

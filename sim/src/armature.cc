@@ -286,8 +286,7 @@ void Armature::drive(std::size_t i, double p, double p_next) {
     d->ctrl[j.servo] = ctrl;
     return;
   }
-  d->qpos[j.qpos] = p;
-  d->qvel[j.dof] = (p_next - p) / model()->opt.timestep;
+  kinematic_.add(j.qpos, j.dof, p, (p_next - p) / model()->opt.timestep);
 }
 
 void Armature::default_action() {
@@ -300,6 +299,7 @@ void Armature::default_action() {
       drive(i, *hold_[i], *hold_[i]);
     }
   }
+  drive_kinematic();
   if (motion_ && progress_due()) report_progress(t);
   if (!motion_ || t < motion_->end_time()) return;
 
@@ -346,6 +346,7 @@ void Armature::interrupt() {
       hold_[path.joint] = joints_.position(data(), path.joint);
       drive(path.joint, *hold_[path.joint], *hold_[path.joint]);
     }
+  drive_kinematic();
   motion_.reset();
   std::fill(path_of_.begin(), path_of_.end(), -1);
   Component::interrupt();

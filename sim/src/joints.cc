@@ -146,4 +146,41 @@ std::size_t JointSet::index_of(const std::string& name, std::string_view paramet
                          join(valid) + ")",
                      Failure::bad_arguments, {{"parameter", std::string(parameter)}});
 }
+void KinematicDrive::add(int qpos, int dof, double position, double velocity) {
+  wanted_.push_back({qpos, dof, position, velocity});
+}
+
+void KinematicDrive::apply(const mjModel* m, mjData* d) {
+  const int n = static_cast<int>(wanted_.size());
+  if (n == 0) return;
+  const int nv = m->nv;
+  const auto nn = static_cast<std::size_t>(n);
+  const auto size = nn * static_cast<std::size_t>(nv);
+  units_.assign(size, 0);
+  columns_.resize(size);
+  gram_.resize(nn * nn);
+  missing_.resize(nn);
+  impulse_.resize(nn);
+  // the columns of M^-1 of the joints' dofs, and how much velocity each joint misses
+  for (int k = 0; k < n; ++k) {
+    units_[static_cast<std::size_t>(k * nv + wanted_[k].dof)] = 1;
+    missing_[k] = wanted_[k].velocity - d->qvel[wanted_[k].dof];
+  }
+  mj_solveM(m, d, columns_.data(), units_.data(), n);
+  // the impulses that give each joint its velocity: (M^-1)_SS lambda = missing
+  for (int k = 0; k < n; ++k)
+    for (int l = 0; l < n; ++l) gram_[static_cast<std::size_t>(k * n + l)] = columns_[static_cast<std::size_t>(l * nv + wanted_[k].dof)];
+  if (mju_cholFactor(gram_.data(), n, mjMINVAL) == n) {
+    mju_cholSolve(impulse_.data(), gram_.data(), missing_.data(), n);
+    for (int l = 0; l < n; ++l) mju_addToScl(d->qvel, &columns_[static_cast<std::size_t>(l * nv)], impulse_[l], nv);
+  }
+  // exactly where and how fast they were asked to be (the impulse gets there up to rounding;
+  // a joint listed twice or a singular inertia falls back to the plain write)
+  for (const Wanted& w : wanted_) {
+    d->qpos[w.qpos] = w.position;
+    d->qvel[w.dof] = w.velocity;
+  }
+  wanted_.clear();
+}
+
 }  // namespace simgate::sim

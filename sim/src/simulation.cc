@@ -125,6 +125,9 @@ ComponentEntry& Simulation::add_component(std::unique_ptr<Component> component, 
 
 void Simulation::add_supervision_services() {
   add_component(std::make_unique<SupervisionServices>(*this), "simulation");
+  auto events = std::make_unique<SimulationEvents>();
+  events_ = events.get();
+  add_component(std::move(events), "events");
   add_component(std::make_unique<TimeServices>(*this), "time");
   add_component(std::make_unique<CommunicationServices>(*this), "communication");
 }
@@ -141,6 +144,7 @@ bool Simulation::remove_component(const std::string& name, const std::string& re
   for (const Completion& call : slot.running_concurrent()) call.finish(failed);
   slot.interrupt = nullptr;  // it calls the component, which goes now
   log::info("simulation: component '", name, "' removed: ", reason);
+  if ((*it)->component.get() == events_) events_ = nullptr;
   entries_.erase(it);
   return true;
 }
@@ -341,6 +345,7 @@ RunState Simulation::run_state() const {
 void Simulation::set_paused(bool paused) {
   if (paused == paused_) return;
   paused_ = paused;
+  announce(paused ? "paused" : "resumed");
   // time stood still: the pace (and the measured rate) start again from the moment it runs
   if (paused) recent_factor_.store(0, std::memory_order_relaxed);
   reschedule_ = true;
@@ -412,6 +417,7 @@ void Simulation::shutdown() {
   managers_.clear();
   manager_names_.clear();
   // components last: the managers referred to their services
+  events_ = nullptr;
   entries_.clear();
 }
 
@@ -427,6 +433,7 @@ void Simulation::reset() {
   d()->time = time;
   std::copy(warnings.begin(), warnings.end(), std::begin(d()->warning));
   forward();
+  announce("reset");
   for (auto& e : entries_) {
     if (!e->sim_component) continue;
     try {
@@ -519,36 +526,77 @@ bool Simulation::diverged(double time_before, const std::string& what, std::stri
   if ((action == DivergencePolicy::pause && !before_step_.fits(m(), model_generation_)) ||
       (action == DivergencePolicy::restore && !checkpoint_.fits(m(), model_generation_)))
     action = DivergencePolicy::reset;
+  // what the world goes back to, and how it is said
+  double resumed_at = 0;
   std::string done;
+  switch (action) {
+    case DivergencePolicy::pause:
+      resumed_at = before_step_.time();
+      done = "the simulation paused in the state before that step (simulation play goes on from there)";
+      break;
+    case DivergencePolicy::restore:
+      resumed_at = checkpoint_.time();
+      done = "the simulation went back to its checkpoint of " + seconds(checkpoint_.time()) + " and goes on";
+      break;
+    case DivergencePolicy::reset:
+      // time goes on from where the step started, as if it had been a step of the reset world
+      resumed_at = time_before + timestep();
+      done = "the simulation restored the initial state as reset_objects does (time goes on)";
+      break;
+  }
+  const std::string when = "in the step from " + seconds(time_before);
+  const std::string reason = "the simulation diverged " + when + ": " + what + "; " + done;
+  last_divergence_ = Divergence{time_before, steps(), std::move(quantity), std::move(where), action, resumed_at};
+  // subscribers hear of the divergence first, then of what the policy does to the world
+  json event = to_json(*last_divergence_);
+  // of the state the bad step started from (MuJoCo's own reset left its clock elsewhere)
+  event["timestamp"] = time_before;
+  event["divergences"] = bad_states_;
+  event["message"] = reason;
+  announce("diverged", std::move(event));
   switch (action) {
     case DivergencePolicy::pause:
       // the step never happened: the world as the step found it, waiting for a client
       restore_physics(before_step_);
       forgive_owed_steps();
       set_paused(true);
-      done = "the simulation paused in the state before that step (simulation play goes on from there)";
       break;
     case DivergencePolicy::restore:
       restore_physics(checkpoint_);
       for (auto& e : entries_)
         if (e->sim_component) e->sim_component->on_reset();
-      done = "the simulation went back to its checkpoint of " + seconds(checkpoint_.time()) + " and goes on";
       break;
     case DivergencePolicy::reset:
-      // time goes on from where the step started, as if it had been a step of the reset world
-      d()->time = time_before + timestep();
+      d()->time = resumed_at;
       reset();
-      done = "the simulation restored the initial state as reset_objects does (time goes on)";
       break;
   }
-  const std::string when = "in the step from " + seconds(time_before);
   if (worth_a_line(bad_states_ - 1, bad_states_))
     log::warning("simulation: bad state ", when, ": ", what, " (scene.on_divergence ", to_string(on_divergence_),
                  "): ", done, occurrence("bad state", bad_states_, " (time statistics: bad_states)"));
-  last_divergence_ = Divergence{time_before, steps(), std::move(quantity), std::move(where), action, d()->time};
   // what was asked of the world before is void: its clients are told, not left waiting
-  fail_requests("the simulation diverged " + when + ": " + what + "; " + done);
+  fail_requests(reason);
   return action == DivergencePolicy::pause;
+}
+
+json to_json(const Divergence& divergence) {
+  return {{"sim_time", divergence.time},         {"step", divergence.step},
+          {"quantity", divergence.quantity},     {"where", divergence.where},
+          {"action", to_string(divergence.action)}, {"resumed_at", divergence.resumed_at}};
+}
+
+void Simulation::announce(const char* event, json fields) {
+  if (!events_ || !events_->stream_wanted()) return;
+  fields["event"] = event;
+  if (!fields.contains("timestamp")) fields["timestamp"] = d()->time;
+  if (!fields.contains("step")) fields["step"] = steps();
+  if (!fields.contains("by")) {
+    // who did it: a client's request (its transport), else the simulation itself
+    const CallContext* context = CallContext::current();
+    fields["by"] = context ? context->manager().transport_name() : std::string("simulation");
+  }
+  const double time = fields["timestamp"].get<double>();
+  events_->publish(time, std::move(fields));
 }
 
 void Simulation::fail_requests(const std::string& reason) {

@@ -37,10 +37,7 @@ class Stepping {
       by_transport[manager->transport_name()] = n;
     }
     json last = nullptr;
-    if (const auto& dv = sim_.last_divergence())
-      last = {{"sim_time", dv->time},       {"step", dv->step},
-              {"quantity", dv->quantity},   {"where", dv->where},
-              {"action", to_string(dv->action)}, {"resumed_at", dv->resumed_at}};
+    if (const auto& dv = sim_.last_divergence()) last = to_json(*dv);
     return {{"state", to_string(sim_.run_state())},
             {"sim_time", s.sim_time},
             {"steps", s.steps},

@@ -71,6 +71,8 @@ SupervisionServices::SupervisionServices(Simulation& sim) : Component("simulatio
   declare_output_stream("body_poses", [this] { return body_poses(sim_); });
 }
 
+SimulationEvents::SimulationEvents() : Component(k_name) { declare_event_stream("events"); }
+
 void SupervisionServices::on_step(std::function<void()> fn) { step_hooks_.push_back(std::move(fn)); }
 
 void SupervisionServices::on_interrupt(const std::string& service, std::function<void()> fn) {

@@ -4,8 +4,9 @@
 // bounded form), and recovers by its divergence policy (scene.on_divergence): `reset` takes
 // the path `simulation reset_objects` takes (components get on_reset(), simulated time goes
 // on); `pause` undoes the step and pauses; `restore` goes back to the last checkpoint. Every
-// async request in flight ends FAILED saying why, and get_simulation_state tells what
-// happened. A bad control is logged and dropped, without a reset.
+// async request in flight ends FAILED saying why, get_simulation_state tells what happened,
+// and the simulation.events stream tells its subscribers as it happens ("diverged", then
+// "paused" or "reset"). A bad control is logged and dropped, without a reset.
 #include <cmath>
 #include <limits>
 #include <mutex>
@@ -77,6 +78,20 @@ class SimBadStateTest : public DemoSim {
   }
 
   json simulation_state() { return call("simulation", "get_simulation_state").value.value_or(json::object()); }
+
+  // Subscribes to the simulation's event stream (carried by the test transport).
+  std::shared_ptr<StreamSubscription> subscribe_to_events() {
+    sim_->streams().add(*sim_->find("simulation.events")->component, "events", {"test"});
+    return sim_->streams().subscribe("simulation.events", "test", {64, "test", {}});
+  }
+  // The events the subscription holds, oldest first.
+  static std::vector<json> events_of(StreamSubscription& subscription) {
+    std::vector<SamplePtr> samples;
+    subscription.take(samples);
+    std::vector<json> out;
+    for (const auto& s : samples) out.push_back(s->data());
+    return out;
+  }
 
   DivergencePolicy policy_ = DivergencePolicy::reset;  // the tests below: the reset path
   ResetProbe* probe_ = nullptr;
@@ -224,6 +239,30 @@ TEST_F(SimBadStateTest, AComponentWhoseOnResetThrowsIsSwitchedOffAndTheOthersAre
   EXPECT_EQ(later.resets, 2);
 }
 
+TEST_F(SimBadStateTest, SubscribersOfTheEventStreamHearOfTheDivergenceThenOfTheReset) {
+  auto events = subscribe_to_events();
+  run_for(0.1);
+  const double before = sim_->sim_time();
+  corrupt([&](mjData* d) { d->qpos[qpos_of("robot_root")] = 1e11; });
+  sim_->step();
+  const std::vector<json> told = events_of(*events);
+  ASSERT_EQ(told.size(), 2u);
+  // the divergence, with get_simulation_state's last_divergence fields, then what was done
+  EXPECT_EQ(told[0]["event"], "diverged");
+  EXPECT_EQ(told[0]["action"], "reset");
+  EXPECT_EQ(told[0]["quantity"].get<std::string>().substr(0, 5), "qpos[");
+  EXPECT_THAT(told[0]["where"].get<std::string>(), HasSubstr("robot_root"));
+  EXPECT_NEAR(told[0]["sim_time"].get<double>(), before, 1e-12);
+  EXPECT_EQ(told[0]["divergences"], 1);
+  EXPECT_THAT(told[0]["message"].get<std::string>(), HasSubstr("the simulation diverged"));
+  json last = simulation_state()["last_divergence"];
+  for (const char* key : {"sim_time", "step", "quantity", "where", "action", "resumed_at"})
+    EXPECT_EQ(told[0][key], last[key]) << key;
+  EXPECT_EQ(told[1]["event"], "reset");
+  EXPECT_EQ(told[1]["by"], "simulation");
+  EXPECT_NEAR(told[1]["timestamp"].get<double>(), last["resumed_at"].get<double>(), 1e-12);
+}
+
 // ---- the default policy: pause in the state before the bad step
 
 class SimDivergencePauseTest : public SimBadStateTest {
@@ -274,6 +313,31 @@ TEST_F(SimDivergencePauseTest, TheStepIsUndoneAndTheSimulationPausesTellingEvery
   sim_->step();
   EXPECT_GT(sim_->sim_time(), before);
   EXPECT_GT(sim_->d()->qpos[qpos_of("robot_root")], x);
+}
+
+TEST_F(SimDivergencePauseTest, SubscribersOfTheEventStreamHearOfTheDivergenceThenOfThePauseAndOfThePlay) {
+  auto events = subscribe_to_events();
+  run_for(0.2);
+  const double before = sim_->sim_time();
+  corrupt([&](mjData* d) { d->qfrc_applied[dof_of("human_root")] = 1e20; });
+  sim_->step();
+  std::vector<json> told = events_of(*events);
+  ASSERT_EQ(told.size(), 2u);
+  EXPECT_EQ(told[0]["event"], "diverged");
+  EXPECT_EQ(told[0]["action"], "pause");
+  EXPECT_EQ(told[0]["quantity"].get<std::string>().substr(0, 5), "qacc[");
+  EXPECT_NEAR(told[0]["resumed_at"].get<double>(), before, 1e-12);
+  EXPECT_NEAR(told[0]["timestamp"].get<double>(), before, 1e-12);  // not MuJoCo's reset clock
+  EXPECT_EQ(told[1]["event"], "paused");
+  EXPECT_EQ(told[1]["by"], "simulation");  // its policy, not a client
+  EXPECT_NEAR(told[1]["timestamp"].get<double>(), before, 1e-12);
+  // a client plays on: told too, naming the transport its request came through
+  corrupt([&](mjData* d) { d->qfrc_applied[dof_of("human_root")] = 0; });
+  EXPECT_EQ(call("simulation", "play").status, Status::success);
+  told = events_of(*events);
+  ASSERT_EQ(told.size(), 1u);
+  EXPECT_EQ(told[0]["event"], "resumed");
+  EXPECT_EQ(told[0]["by"], "test");
 }
 
 TEST_F(SimDivergencePauseTest, AStepRequestThatDivergesEndsFailedWithTheStepsLeftForgiven) {

@@ -24,7 +24,9 @@
 // (its `frequency`); StreamHub (streams.h) runs them. One stream per component, as in MORSE.
 // A component whose samples are ready only later (a camera's images, rendered on another
 // thread) declares a pushed stream instead (declare_pushed_stream): it asks whether anyone
-// wants samples (stream_wanted) and pushes each one when it has it (push_sample).
+// wants samples (stream_wanted) and pushes each one when it has it (push_sample). A component
+// that tells of things as they happen (the simulation's events: a divergence, a pause)
+// declares an event stream (declare_event_stream): a pushed stream with no rate.
 #ifndef SIMGATE_CORE_COMPONENT_H_
 #define SIMGATE_CORE_COMPONENT_H_
 
@@ -72,7 +74,8 @@ struct StreamDeclaration {
   // stream; produce is empty (the hub never asks, the component pushes). Null otherwise.
   std::shared_ptr<StreamOutlet> outlet;
   // out, pushed: the samples per simulated second the component pushes while the stream is
-  // wanted (listed as the stream's frequency).
+  // wanted (listed as the stream's frequency); 0 for an event stream (declare_event_stream:
+  // samples come as things happen, listed with frequency 0).
   double pushed_frequency = 0;
 };
 
@@ -151,6 +154,11 @@ class Component {
   // stream_wanted() (> 0; the component keeps that rate itself).
   //   declare_pushed_stream("image", frequency_);
   void declare_pushed_stream(std::string kind, double frequency);
+  // A pushed stream with no rate: a sample is pushed (push_sample) each time something
+  // happens that subscribers are to be told of, at most a few per step. Listed with
+  // frequency 0; the configuration's frequency does not apply to it.
+  //   declare_event_stream("events");
+  void declare_event_stream(std::string kind);
   // Pushes one sample of the pushed stream, of the simulated time `time`: JSON, or a binary
   // payload (bytes JSON transports see through its to_json, streams.h). Under the
   // simulation lock (a service, default_action()); fanned out to the subscribers as a

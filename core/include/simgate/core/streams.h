@@ -107,7 +107,7 @@ struct StreamInfo {
   StreamDirection direction = StreamDirection::out;
   std::string kind;                     // StreamDeclaration::kind: "pose", "velocity"...
   std::string type;                     // the component's type name ("pose", "motion_vw")
-  double frequency = 0;                 // out: samples per simulated second; in: 0
+  double frequency = 0;                 // out: samples per simulated second (an event stream: 0); in: 0
   bool pushed = false;                  // out: its component pushes its samples (see above)
   std::vector<std::string> fields;      // in: the keys a command takes
   std::vector<std::string> transports;  // the transports that carry it

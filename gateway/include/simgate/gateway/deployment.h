@@ -11,7 +11,8 @@
 //               {"transports": [transports], "frequency"?: Hz}: which transports carry a
 //               component's data stream (none without it); the rule's "frequency", else the
 //               component's own "frequency" (Hz), sets its output stream's rate. The
-//               pseudo-components (`simulation`: body_poses) stream only when a rule names
+//               pseudo-components (`simulation`: body_poses; `simulation.events`: the
+//               simulation's events) stream only when a rule names
 //               them exactly: neither "default" nor a glob maps them, so that a file written
 //               before they could stream keeps its streams (and the socket's stream ports)
 //   log_level   "trace" | "debug" | "info" | "warning" | "error" | "off"
@@ -83,6 +84,10 @@ struct ServiceRule {
 // the order they are created: never robot names; they stream only when a "streams" rule
 // names them exactly.
 extern const std::vector<std::string> k_pseudo_components;
+// The pseudo-components that only stream, with no service (`simulation.events`, the
+// simulation's event stream): never robot names either, named exactly by a "streams" rule
+// to stream, and never in the services mapping (nothing to serve).
+extern const std::vector<std::string> k_stream_only_components;
 
 struct Deployment {
   std::string file;                      // the config file ("" for in-memory documents)

@@ -10,12 +10,14 @@
 //  - hold: a joint the armature commanded stays at its last target (or, after a cancel or
 //    a preemption, where it was then) until it is commanded again or the simulation is
 //    reset: its servo keeps that ctrl, or, for a kinematic joint, qpos is set there each
-//    step with qvel 0. Joints never commanded are left to the physics and to other
-//    components.
+//    step with qvel 0 (a KinematicDrive: the velocity through an impulse along the joint,
+//    joints.h). Joints never commanded are left to the physics and to other components.
 //  - driving (each step, before the physics step at simulated time t with time step dt):
 //    a joint with a position servo gets ctrl = gear * p(t + dt); any other joint is set
 //    kinematically, as MORSE sets its Blender bones: qpos = p(t) and
-//    qvel = (p(t + dt) - p(t)) / dt, so that the step lands on p(t + dt).
+//    qvel = (p(t + dt) - p(t)) / dt, so that the step lands on p(t + dt); the velocity
+//    is reached by an impulse along the driven joints (KinematicDrive, joints.h), so the
+//    rest of the robot takes the reaction and no energy is made.
 //  - arrival: a motion ends once simulated time has passed its last knot and every servo
 //    joint is within angle_tolerance / distance_tolerance of its target (kinematic joints
 //    are there by construction): SUCCESS. A servo joint that has not arrived
@@ -153,8 +155,11 @@ class Armature : public SimComponent {
   void start_moves(const std::vector<Target>& targets, JointKind kind, std::optional<double> speed);
   // Begins `motion` (refused requests never get here).
   void begin(Motion motion);
-  // Drives joint i to position p at time t (p_next: where it should be at t + dt).
+  // Drives joint i to position p at time t (p_next: where it should be at t + dt): a servo
+  // joint's ctrl at once, a kinematic joint's at the next drive_kinematic().
   void drive(std::size_t i, double p, double p_next);
+  // Sets the kinematic joints drive() was given since the last call (KinematicDrive).
+  void drive_kinematic() { kinematic_.apply(model(), data()); }
   // Servo joints of the motion not yet within tolerance of their final target.
   std::vector<std::size_t> not_arrived() const;
   double tolerance_of(std::size_t i) const;
@@ -168,6 +173,7 @@ class Armature : public SimComponent {
   std::optional<Motion> motion_;            // what the running request asked for
   std::vector<int> path_of_;                // joint -> index in motion_->paths, or -1
   std::vector<std::optional<double>> hold_; // joint -> position held when not in motion
+  KinematicDrive kinematic_;                // this step's kinematic joints
 };
 
 // MORSE's armature pose sensor.

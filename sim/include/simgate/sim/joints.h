@@ -22,6 +22,10 @@
 //    muscles and tendon or slider-crank transmissions are not position servos of a joint.
 //  - names: a joint's MJCF name, or "joint<id>" for an unnamed one (Debian's
 //    slider_crank.xml names none), stable for a given model.
+//  - kinematic drive: joints set to a position and velocity, not driven by a force
+//    (KinematicDrive below). The velocity is given by an impulse along the joints' own
+//    degrees of freedom, so the rest of the robot takes its reaction as from the joints'
+//    own torques; writing one qvel alone would not, and adds energy (see KinematicDrive).
 //
 // Life cycle: a JointSet is built once, when its component is created (it reads the
 // `joints` option), and only reads the model afterwards; when the model is replaced, its
@@ -71,6 +75,39 @@ std::string joint_name(const mjModel* m, int joint);
 
 // True when actuator `a` is a position servo (see the terms above) on a joint.
 bool is_position_servo(const mjModel* m, int a);
+
+// Sets joints kinematically, as a lock of those joints to a path would: qvel of each
+// becomes its wanted velocity through one impulse along their own degrees of freedom
+// (M dv = sum_k e_k lambda_k, the lambdas such that each joint gets exactly its velocity),
+// whose reaction the other degrees of freedom take as they would take the joints' torques,
+// then qpos of each is set. An impulse of this form never adds kinetic energy to reach a
+// velocity of 0 (it removes what the joint had, with what coupling carries of it) and
+// keeps a floating robot's momentum. Overwriting a joint's qvel alone does neither: with
+// the joint's coupling to a free base (M's off-diagonal terms), zeroing it every step
+// fed the base's spin. Debian's humanoid, abdomen_y held at 0.3 rad against its joint
+// spring, spun up until MuJoCo's accelerations passed 1e10 within 0.4 to 2.1 s
+// (docs/components/armature.md, "Holding").
+// Uses M's factorisation (qLD) as the last mj_step or mj_forward left it.
+// Keeps its buffers between calls (it runs every step): one per component.
+class KinematicDrive {
+ public:
+  // Asks for dof `dof` at position `position` (qpos address `qpos`) with velocity `velocity`.
+  void add(int qpos, int dof, double position, double velocity);
+  // Sets every joint asked for since the last apply (none: nothing), then forgets them.
+  void apply(const mjModel* m, mjData* d);
+
+ private:
+  struct Wanted {
+    int qpos, dof;
+    double position, velocity;
+  };
+  std::vector<Wanted> wanted_;  // since the last apply
+  std::vector<mjtNum> units_;   // n unit vectors of size nv, then M^-1 times them
+  std::vector<mjtNum> columns_; // M^-1 e_k, n × nv
+  std::vector<mjtNum> gram_;    // (M^-1)_SS, n × n, then its Cholesky factor
+  std::vector<mjtNum> missing_; // wanted velocity minus qvel, per joint
+  std::vector<mjtNum> impulse_; // lambda, per joint
+};
 
 class JointSet {
  public:

@@ -76,6 +76,7 @@
 namespace simgate::sim {
 
 class SimComponent;
+class SimulationEvents;
 
 // One divergence, as clients are told of it.
 struct Divergence {
@@ -86,6 +87,9 @@ struct Divergence {
   DivergencePolicy action = DivergencePolicy::pause;  // what was done
   double resumed_at = 0;   // the simulated time the world was put back to
 };
+// As clients read it: get_simulation_state's last_divergence, the "diverged" event's fields.
+// {"sim_time", "step", "quantity", "where", "action", "resumed_at"}
+json to_json(const Divergence& divergence);
 
 struct SimulationOptions {
   std::optional<double> timestep;  // seconds; overrides the MJCF's <option timestep>
@@ -169,7 +173,7 @@ class Simulation {
   // Takes ownership; names must be unique (throws std::invalid_argument otherwise).
   ComponentEntry& add_component(std::unique_ptr<Component> component, std::string type,
                                 std::string robot = "", bool is_robot = false);
-  // Adds the `simulation`, `time` and `communication` pseudo-components.
+  // Adds the `simulation`, `simulation.events`, `time` and `communication` pseudo-components.
   void add_supervision_services();
   ComponentEntry* find(const std::string& name);
   // Removes the component `name` at run time (a robot deleted with its body,
@@ -271,6 +275,18 @@ class Simulation {
   // The latest divergence, if any (their count: statistics().bad_states).
   const std::optional<Divergence>& last_divergence() const { return last_divergence_; }
 
+  // ---- events (under the simulation lock) ----
+
+  // Tells the subscribers of simulation.events (supervision.h) that `event` happened now:
+  // {"event", "timestamp": simulated time (unless `fields` has one), "step": steps taken,
+  // ...fields}. The simulation announces "diverged" (fields: to_json(Divergence),
+  // "divergences", "message"; its timestamp the diverging step's start), then what
+  // its policy did: "paused" (set_paused) or "reset" (reset()); and "paused", "resumed",
+  // "reset" whoever causes them. Every event has "by": the transport of the client request
+  // that caused it, or "simulation" (its own policy, the host). Costs one atomic read when
+  // nobody subscribes.
+  void announce(const char* event, json fields = json::object());
+
   // ---- playing, pausing and stepping (under the simulation lock) ----
 
   RunState run_state() const;
@@ -369,6 +385,7 @@ class Simulation {
   PhysicsState checkpoint_;                                  // restore: the last checkpoint
   PhysicsState next_checkpoint_;                             // restore: the one being taken (kept if its step goes well)
   std::vector<std::string> spawn_allowed_dirs_;              // see SimulationOptions
+  SimulationEvents* events_ = nullptr;                       // simulation.events (owned by entries_), once added
 };
 
 }  // namespace simgate::sim

@@ -21,6 +21,12 @@
 // section names `simulation`, at k_body_poses_frequency unless it says otherwise): every
 // body's world pose, {timestamp, generation, poses: [[x, y, z, qw, qx, qy, qz], ...]}, for a
 // client that draws the scene from get_scene_geometry (docs/world/scene_geometry.md).
+// simulation.events: the simulation's event stream (kind "events", an event stream: no rate),
+// a pseudo-component of its own because a component has one stream and `simulation`'s is
+// body_poses. Its samples tell what happened to the whole world as it happens, whether or
+// not a client asked: {"event": "diverged", ...} (the fields of get_simulation_state's
+// last_divergence), "paused", "resumed", "reset" (Simulation::announce,
+// docs/world/divergence.md). Carried when the "streams" section names it exactly.
 // time: now (simulated time, seconds since the epoch at start), async sleep t (completes
 // when t simulated seconds have passed; a concurrent service: every caller sleeps on its
 // own), statistics, mode, set_time_scale value (the real-time factor, changed at run time).
@@ -95,6 +101,15 @@ class SupervisionServices : public Component {
   Simulation& sim_;                                               // supervised
   std::vector<std::function<void()>> step_hooks_;                 // on_step, in order
   std::map<std::string, std::function<void()>> interrupt_hooks_;  // on_interrupt, by service
+};
+
+class SimulationEvents : public Component {
+ public:
+  static constexpr const char* k_name = "simulation.events";
+  SimulationEvents();
+  // Gives `event` (a JSON object with "event" and "timestamp") of simulated time `time` to
+  // every subscriber. Under the simulation lock. False when nobody subscribes.
+  bool publish(double time, json event) { return push_sample(time, std::move(event)); }
 };
 
 class TimeServices : public Component {
