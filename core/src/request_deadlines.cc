@@ -78,7 +78,7 @@ void RequestManager::expire_deadlines() {
       state->interrupt_reason = Failure::timeout;
       state->interrupt_message = std::move(timeout.message);
       state->timed_out.store(true, std::memory_order_release);
-      Completion{state}.finish(Outcome{});
+      if (Completion{state}.finish(Outcome{})) run_interrupt_hook(*state);
     }
   }
   if (!deadlines_.empty()) gate_->wake_at(deadlines_.front().at);

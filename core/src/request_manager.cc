@@ -426,6 +426,15 @@ void RequestManager::interrupt_running(AsyncSlot& slot, Failure reason, std::str
   if (!state->finished) Completion{state}(Status::preempted);
 }
 
+void RequestManager::run_interrupt_hook(detail::CallState& state) {
+  if (!state.on_interrupt) return;
+  try {
+    std::exchange(state.on_interrupt, nullptr)();
+  } catch (const std::exception& e) {
+    log::error(name_, ": the interrupt hook of ", state.service, " threw: ", e.what());
+  }
+}
+
 void RequestManager::execute_cancel(RequestId id, const std::function<void(bool)>& done) {
   bool found = false;
   auto it = running_.find(id);
@@ -438,6 +447,7 @@ void RequestManager::execute_cancel(RequestId id, const std::function<void(bool)
       cancelled.failure = Failure::cancelled;
       cancelled.message = "cancelled by its client";
       found = Completion{state}.finish(std::move(cancelled));
+      if (found) run_interrupt_hook(*state);
     } else if (!state->finished && slot->running == state) {
       interrupt_running(*slot, Failure::cancelled, "cancelled by its client");
       found = true;

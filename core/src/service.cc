@@ -74,6 +74,10 @@ bool Completion::finish(Outcome outcome) const {
   return true;
 }
 
+void Completion::on_interrupt(std::function<void()> hook) const {
+  if (state_) state_->on_interrupt = std::move(hook);
+}
+
 namespace {
 std::int64_t steady_now_ns() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())

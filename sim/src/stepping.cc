@@ -1,5 +1,6 @@
 // The stepping group of `simulation` (world_services.h, docs/world/stepping.md):
-// get_simulation_state, pause, play and the async step n.
+// get_simulation_state, pause, play, the async step n, and the lockstep barrier's
+// lockstep_join and lockstep_step (lockstep.cc, stepping.h).
 //
 // `step n` is a request for n steps of a paused simulation (Simulation::owe_steps). The
 // thread that runs the request takes them at once, for up to Simulation::k_inline_step_budget
@@ -12,19 +13,33 @@
 
 #include "simgate/core/errors.h"
 #include "simgate/sim/world_services.h"
+#include "stepping.h"
 
 namespace simgate::sim {
 
+void check_step_count(const char* service, std::int64_t n) {
+  if (n < 1 || n > k_max_steps)
+    throw ServiceError(std::string(service) + ": n = " + std::to_string(n) +
+                           " is out of range: expected an integer from 1 to " + std::to_string(k_max_steps),
+                       Failure::bad_arguments, {{"parameter", "n"}});
+}
+
+void check_paused(const char* service, const Simulation& sim) {
+  if (!sim.paused())
+    throw ServiceError(std::string(service) + ": the simulation is playing; pause it first (simulation pause)",
+                       Failure::service_error, {{"state", to_string(sim.run_state())}});
+}
+
 namespace {
 
-// More than this in one request is a mistake (a typo, a unit error): 1e6 steps are half an
-// hour of simulated time at the demo's 2 ms, and about a minute of stepping.
-constexpr std::int64_t k_max_steps = 1'000'000;
-
-// The one step request running: `simulation`'s async slot holds at most one.
+// The one step request running (`simulation`'s async slot holds at most one), and the
+// lockstep barrier beside it.
 class Stepping {
  public:
-  explicit Stepping(Simulation& sim) : sim_(sim) {}
+  explicit Stepping(Simulation& sim)
+      : sim_(sim), lockstep_(std::make_shared<Lockstep>(sim, [this](const char* why) { stop_stepping(why); })) {}
+
+  Lockstep& lockstep() { return *lockstep_; }
 
   json state() const {
     const SimulationStatistics s = sim_.statistics();
@@ -50,29 +65,30 @@ class Stepping {
             {"clients_by_transport", by_transport},
             {"on_divergence", to_string(sim_.on_divergence())},
             {"divergences", s.bad_states},
-            {"last_divergence", last}};
+            {"last_divergence", last},
+            {"lockstep", lockstep_->state()}};
   }
 
   std::string pause() {
     stop_stepping("simulation pause stopped the steps");
+    lockstep_->stop_steps("simulation pause stopped the steps");
     sim_.set_paused(true);
     return "Simulation is paused";
   }
 
   std::string play() {
     stop_stepping("simulation play resumed the simulation");
+    lockstep_->stop_all("simulation play resumed the simulation");
     sim_.set_paused(false);
     return "Simulation is playing";
   }
 
   void step(Completion done, std::int64_t n) {
-    if (n < 1 || n > k_max_steps)
-      throw ServiceError("simulation step: n = " + std::to_string(n) + " is out of range: expected an integer from 1 to " +
-                             std::to_string(k_max_steps),
-                         Failure::bad_arguments, {{"parameter", "n"}});
-    if (!sim_.paused())
-      throw ServiceError("simulation step: the simulation is playing; pause it first (simulation pause)",
-                         Failure::service_error, {{"state", to_string(sim_.run_state())}});
+    check_step_count("simulation step", n);
+    check_paused("simulation step", sim_);
+    // clients stepping in lockstep: one step of another client would move them all unasked
+    if (std::string why; lockstep_->refuses_plain_steps("simulation step", why))
+      throw ServiceError(why, Failure::service_error, {{"lockstep", lockstep_->state()}});
     // a step request preempted by this one was settled by the slot (interrupt) already
     requested_ = static_cast<std::uint64_t>(n);
     done_ = done;
@@ -118,8 +134,9 @@ class Stepping {
   }
 
   Simulation& sim_;
-  std::uint64_t requested_ = 0;  // n of the running request
-  Completion done_;              // the running request (empty when none)
+  std::shared_ptr<Lockstep> lockstep_;  // the lockstep barrier (stepping.h)
+  std::uint64_t requested_ = 0;         // n of the running request
+  Completion done_;                     // the running request (empty when none)
 };
 
 }  // namespace
@@ -129,7 +146,8 @@ void add_stepping_services(SupervisionServices& simulation, Simulation& sim) {
   simulation
       .offer_service("get_simulation_state", [stepping] { return stepping->state(); })
       .doc("{state, sim_time, steps, timestep, realtime_factor (measured over the last second of playing), "
-           "target_realtime_factor, dynamics_suspended, owed_steps}");
+           "target_realtime_factor, dynamics_suspended, owed_steps, clients, on_divergence, divergences, "
+           "last_divergence, lockstep}");
   simulation.offer_service("pause", [stepping] { return stepping->pause(); })
       .doc("Stop time and physics (requests are still served); ends a running step PREEMPTED");
   simulation.offer_service("play", [stepping] { return stepping->play(); })
@@ -141,6 +159,22 @@ void add_stepping_services(SupervisionServices& simulation, Simulation& sim) {
       .doc("Paused only: take n steps as fast as possible; SUCCESS {sim_time, steps_done}, or PREEMPTED with the "
            "steps done");
   simulation.on_interrupt("step", [stepping] { stepping->interrupted(); });
+  simulation
+      .offer_async_service("lockstep_join", [stepping](Completion call, const std::string& participant) {
+        stepping->lockstep().join(std::move(call), participant);
+      }, {{"participant", ""}})
+      .concurrent()
+      .doc("Take part in the lockstep until this call ends (cancel it, or leave): the simulation steps when "
+           "every participant has asked (lockstep_step); the first progress report names the participant");
+  simulation
+      .offer_async_service("lockstep_step",
+                           [stepping](Completion call, const std::string& participant, std::int64_t n) {
+                             stepping->lockstep().step(std::move(call), participant, n);
+                           },
+                           {"participant", {"n", 1}})
+      .concurrent()
+      .doc("Paused only: wait at the lockstep barrier until every participant has asked for the same n, then "
+           "the n steps are taken once; SUCCESS {sim_time, steps_done}");
   simulation.on_step([stepping] { stepping->report_progress(); });
 }
 

@@ -166,6 +166,18 @@ TEST_F(DeadlineTest, AConcurrentCallPastItsDeadlineEndsThroughItsCompletion) {
   EXPECT_EQ(rm.completion_count(timed), 1u);
 }
 
+TEST_F(DeadlineTest, AConcurrentCallPastItsDeadlineRunsItsInterruptHook) {
+  const RequestId timed = call("each", 50ms);
+  rm.process();  // started
+  ASSERT_EQ(forever.calls.size(), 1u);
+  int told = 0;
+  forever.calls[0].on_interrupt([&] { ++told; });
+  auto outcome = wait_for(timed);
+  ASSERT_TRUE(outcome);
+  EXPECT_EQ(outcome->failure, Failure::timeout);
+  EXPECT_EQ(told, 1);
+}
+
 TEST_F(DeadlineTest, ARequestThatWaitedForTheLockPastItsDeadlineIsNotRun) {
   rm.process();  // started
   RequestId id = 0;

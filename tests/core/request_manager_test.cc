@@ -779,6 +779,33 @@ TEST_F(ConcurrentServiceTest, CancelEndsThatCallOnlyAndTheComponentSeesItDone) {
   EXPECT_FALSE(again.value_or(true));
 }
 
+TEST_F(ConcurrentServiceTest, CancelRunsThatCallsInterruptHookAtOnce) {
+  auto first = rm.call("clock", "wait", json{3});
+  auto second = rm.call("clock", "wait", json{3});
+  rm.process();
+  ASSERT_EQ(clock.waits.size(), 2u);
+  int first_told = 0, second_told = 0;
+  clock.waits[0].done.on_interrupt([&] {
+    ++first_told;
+    EXPECT_TRUE(clock.waits[0].done.done());  // told after its outcome was given
+  });
+  clock.waits[1].done.on_interrupt([&] { ++second_told; });
+  rm.cancel(first);
+  rm.process();
+  // no tick: the component learns of it without looking
+  EXPECT_EQ(first_told, 1);
+  EXPECT_EQ(second_told, 0);
+  rm.cancel(first);  // a second cancel finds nothing: not told twice
+  rm.process();
+  EXPECT_EQ(first_told, 1);
+  // a call the component finishes itself runs no hook
+  tick();
+  tick();
+  tick();
+  EXPECT_EQ(rm.outcome(second)->status, Status::success);
+  EXPECT_EQ(second_told, 0);
+}
+
 TEST_F(ConcurrentServiceTest, AbandonPendingEndsEveryCallWithShutdown) {
   auto first = rm.call("clock", "wait", json{5});
   auto second = rm.call("clock", "wait", json{5});

@@ -9,6 +9,9 @@ naming n; save_state / restore_state / list_states / drop_state / reset / set_ti
 answer as docs/world/*.md shows. Through JSON-RPC: the same services by name, with named
 parameters, and rpc.discover lists them. Through DDS: `simgate call --transport dds` steps
 it. Both the socket's list_services and JSON-RPC's rpc.discover list every new service.
+The lockstep barrier (issue #35, item 11) with a socket client and a JSON-RPC client as its
+two participants: one asking takes no step, both asking take the steps once, a plain step
+is refused meanwhile, and a participant whose connection closes releases the other.
 Every wait is bounded.
 """
 import argparse
@@ -25,7 +28,7 @@ import unittest
 ARGS = None
 TIMEOUT = 60
 NEW_SERVICES = ["get_simulation_state", "pause", "play", "step", "reset", "save_state", "restore_state",
-                "list_states", "drop_state"]
+                "list_states", "drop_state", "lockstep_join", "lockstep_step"]
 
 
 class Gateway:
@@ -87,6 +90,8 @@ class Lines:
         return self.reader.readline().decode().rstrip("\n")
 
     def close(self):
+        # the file made by makefile() holds the socket open: closed first, the peer sees it leave
+        self.reader.close()
         self.sock.close()
 
 
@@ -260,6 +265,65 @@ class WorldTest(unittest.TestCase):
         paused = self.state()
         self.assertEqual(paused["state"], "paused")
         self.assertEqual(self.state()["steps"], paused["steps"])
+
+    def test_7_a_socket_and_a_json_rpc_client_step_in_lockstep(self):
+        sock, rpc = Lines(self.gateway.socket_port), Lines(self.gateway.jsonrpc_port)
+        try:
+            before = self.state()["steps"]
+            # each joins: the call runs as long as its client takes part (no reply until then);
+            # the JSON-RPC one asks for progress, whose first report names it
+            sock.sock.sendall(b'j simulation lockstep_join ["sock"]\n')
+            rpc.sock.sendall((json.dumps({"jsonrpc": "2.0", "id": "join", "method": "simulation.lockstep_join",
+                                          "params": {"participant": "rpc", "_meta": {"progress": True}}})
+                              + "\n").encode())
+            report = json.loads(rpc.reader.readline())
+            self.assertEqual(report["method"], "rpc.progress", report)
+            self.assertEqual(report["params"]["id"], "join", report)
+            self.assertEqual(report["params"]["data"]["participant"], "rpc", report)
+            # a sync call answered on the socket client's connection: its join was handled
+            self.assertTrue(sock.ask("s simulation get_simulation_state").startswith("s SUCCESS"))
+            self.assertEqual(sorted(self.state()["lockstep"]["participants"]), ["rpc", "sock"])
+
+            # the socket participant asks: no step yet
+            sock.sock.sendall(b'1 simulation lockstep_step ["sock", 3]\n')
+            self.assertTrue(sock.ask("s simulation get_simulation_state").startswith("s SUCCESS"))
+            state = self.state()
+            self.assertEqual(state["steps"], before)
+            self.assertEqual(state["lockstep"]["waiting"], ["sock"])
+            # a plain step would move both unasked: refused
+            status, value = self.morse("p", "simulation step [1]")
+            self.assertEqual(status, "FAILED")
+            self.assertIn("stepped in lockstep", value)
+            # the JSON-RPC participant asks: the 3 steps are taken once, both asks complete
+            rpc.sock.sendall((json.dumps({"jsonrpc": "2.0", "id": 1, "method": "simulation.lockstep_step",
+                                          "params": {"participant": "rpc", "n": 3}}) + "\n").encode())
+            response = json.loads(rpc.reader.readline())
+            self.assertEqual(response["id"], 1, response)
+            self.assertEqual(response["result"]["steps_done"], 3, response)
+            reply = sock.reader.readline().decode().rstrip("\n")
+            self.assertRegex(reply, r'^1 SUCCESS \{"sim_time": [0-9.e-]+, "steps_done": 3\}$')
+            self.assertEqual(json.loads(reply.split(" ", 2)[2])["sim_time"], response["result"]["sim_time"])
+            self.assertEqual(self.state()["steps"], before + 3)
+
+            # the socket participant asks again, then the JSON-RPC client leaves (its connection
+            # closes, its join is cancelled): the barrier no longer waits for it
+            sock.sock.sendall(b'2 simulation lockstep_step ["sock", 2]\n')
+            self.assertTrue(sock.ask("s simulation get_simulation_state").startswith("s SUCCESS"))
+            self.assertEqual(self.state()["steps"], before + 3)
+            rpc.close()
+            reply = sock.reader.readline().decode().rstrip("\n")
+            self.assertRegex(reply, r'^2 SUCCESS \{"sim_time": [0-9.e-]+, "steps_done": 2\}$')
+            self.assertEqual(self.state()["steps"], before + 5)
+            self.assertEqual(self.state()["lockstep"]["participants"], ["sock"])
+        finally:
+            sock.close()
+            rpc.close()
+        # the last participant gone (bounded: answers, not time), anyone steps again
+        for _ in range(100000):
+            if not self.state()["lockstep"]["participants"]:
+                break
+        self.assertEqual(self.state()["lockstep"]["participants"], [])
+        self.assertEqual(self.morse("q", "simulation step [1]")[0], "SUCCESS")
 
 
 if __name__ == "__main__":

@@ -21,6 +21,7 @@
 #include <string>
 #include <thread>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 #include "sim_fixture.h"
@@ -311,6 +312,19 @@ class ValidValues {
     }
     return json();
   }
+  // Makes the sweep a lockstep participant named "sweep" (its lockstep_join call runs until
+  // leave_lockstep()), for lockstep_step's valid call.
+  void join_lockstep(const std::string& component) {
+    if (lockstep_join_ != 0) return;
+    lockstep_join_ = rm_.call(component, "lockstep_join", {"sweep"});
+    sim_.process_requests();
+  }
+  // Ends that participation: a plain `step` is refused while there is one.
+  void leave_lockstep() {
+    if (lockstep_join_ == 0) return;
+    rm_.cancel(std::exchange(lockstep_join_, 0));
+    sim_.process_requests();
+  }
   // An armature's joints of a kind (mjJNT_HINGE, mjJNT_SLIDE), in get_joints' order.
   std::vector<std::string> joints(const std::string& armature, int type) {
     std::vector<std::string> out;
@@ -349,6 +363,7 @@ class ValidValues {
  private:
   Simulation& sim_;
   RecordingManager& rm_;
+  RequestId lockstep_join_ = 0;  // the sweep's lockstep_join call, while it takes part
 };
 
 // Valid calls of every built-in service that takes more than plain numbers. `values` must
@@ -381,7 +396,14 @@ inline ValidCallTable builtin_valid_calls(ValidValues& values) {
   // itself, paused or not); a state's handle comes from save_state
   t["simulation.step"] = [v](const std::string& c) {
     v->value(c, "pause");
+    v->leave_lockstep();
     return ValidCalls{{1}};
+  };
+  // the lockstep barrier's ask: the sweep alone takes part, so its ask steps at once
+  t["simulation.lockstep_step"] = [v](const std::string& c) {
+    v->value(c, "pause");
+    v->join_lockstep(c);
+    return ValidCalls{{"sweep", 1}};
   };
   // a camera captures at least one image; its first image (get_local_data, awaited)
   // makes the render context first, so that the capture takes milliseconds

@@ -1,6 +1,7 @@
 // SimStepping: simulation get_simulation_state / pause / play / step n, time set_time_scale,
-// and lockstep (a simulation started paused and driven by steps is bit-for-bit repeatable),
-// on the demo scene with the real loop running on its own thread.
+// lockstep (a simulation started paused and driven by steps is bit-for-bit repeatable) and
+// the lockstep barrier of several stepping clients (lockstep_join, lockstep_step), on the
+// demo scene with the real loop running on its own thread.
 #include <cstring>
 #include <limits>
 #include <thread>
@@ -224,6 +225,209 @@ TEST_F(SimSteppingTest, ANewTimeScaleTakesEffectAtOnceInTheRunningLoop) {
   bool stepping = false;
   for (int i = 0; i < 100000 && !stepping; ++i) stepping = state()["steps"].get<std::uint64_t>() > 100;
   EXPECT_TRUE(stepping);
+}
+
+// ---- the lockstep barrier: several clients step together (issue #35, item 11)
+
+class SimLockstepBarrierTest : public SimPausedTest {
+ protected:
+  // A participant's lockstep_join call: it runs as long as the participant takes part.
+  RequestId join(const std::string& name) { return rm_->call("simulation", "lockstep_join", {name}); }
+  RequestId ask_steps(const std::string& name, std::int64_t n) {
+    return rm_->call("simulation", "lockstep_step", {name, n});
+  }
+  std::uint64_t steps() { return state()["steps"].get<std::uint64_t>(); }
+  json lockstep() { return state()["lockstep"]; }
+};
+
+TEST_F(SimLockstepBarrierTest, OneParticipantAskingTakesNoStepTillEveryParticipantHasAsked) {
+  run_loop();
+  const RequestId a = join("a");
+  const RequestId b = join("b");
+  EXPECT_EQ(lockstep()["participants"], json({"a", "b"}));
+  const RequestId a_asks = ask_steps("a", 5);
+  // answered after a's ask was handled (one queue, in order): no step, a waits
+  EXPECT_EQ(steps(), 0u);
+  EXPECT_EQ(lockstep()["waiting"], json({"a"}));
+  EXPECT_EQ(lockstep()["n"], 5);
+  EXPECT_FALSE(rm_->outcome(a_asks));
+  // b asks: the steps are taken once, and both asks complete with them
+  const RequestId b_asks = ask_steps("b", 5);
+  for (RequestId id : {a_asks, b_asks}) {
+    Outcome o = wait(id);
+    ASSERT_EQ(o.status, Status::success) << o.message;
+    EXPECT_EQ((*o.value)["steps_done"], 5u);
+    EXPECT_NEAR((*o.value)["sim_time"].get<double>(), 5 * sim_->timestep(), 1e-12);
+  }
+  EXPECT_EQ(steps(), 5u);  // not 10: two clients stepping no longer advance the world twice
+  EXPECT_EQ(lockstep()["waiting"], json::array());
+  // the next barrier gathers anew
+  const RequestId b_again = ask_steps("b", 2);
+  EXPECT_EQ(steps(), 5u);
+  const RequestId a_again = ask_steps("a", 2);
+  EXPECT_EQ(wait(b_again).status, Status::success);
+  EXPECT_EQ(wait(a_again).status, Status::success);
+  EXPECT_EQ(steps(), 7u);
+  // the joins still run: both are still participants
+  EXPECT_FALSE(rm_->outcome(a));
+  EXPECT_FALSE(rm_->outcome(b));
+}
+
+TEST_F(SimLockstepBarrierTest, AParticipantWhoLeavesReleasesTheBarrierTheOthersWaitAt) {
+  run_loop();
+  join("a");
+  const RequestId b = join("b");
+  const RequestId a_asks = ask_steps("a", 3);
+  EXPECT_EQ(steps(), 0u);
+  // b's client leaves (a transport cancels a leaving client's calls): a no longer waits for b
+  rm_->cancel(b);
+  EXPECT_EQ(wait(b).status, Status::preempted);
+  Outcome o = wait(a_asks);
+  ASSERT_EQ(o.status, Status::success) << o.message;
+  EXPECT_EQ((*o.value)["steps_done"], 3u);
+  EXPECT_EQ(steps(), 3u);
+  EXPECT_EQ(lockstep()["participants"], json({"a"}));
+  // b is unknown now
+  Outcome unknown = ask("simulation", "lockstep_step", {"b", 1});
+  EXPECT_EQ(unknown.status, Status::failed);
+  EXPECT_EQ(unknown.failure, Failure::bad_arguments);
+  EXPECT_THAT(unknown.message, HasSubstr("participant = \"b\" is not in the lockstep (participants: a)"));
+}
+
+TEST_F(SimLockstepBarrierTest, ALeavingParticipantsOwnAskEndsPreempted) {
+  run_loop();
+  const RequestId a = join("a");
+  join("b");
+  const RequestId a_asks = ask_steps("a", 1);
+  rm_->cancel(a);  // its join only: a leaves, its ask cannot stand
+  Outcome o = wait(a_asks);
+  EXPECT_EQ(o.status, Status::preempted);
+  EXPECT_THAT(o.message, HasSubstr("left the lockstep"));
+  EXPECT_EQ(steps(), 0u);
+  EXPECT_EQ(lockstep()["participants"], json({"b"}));
+}
+
+TEST_F(SimLockstepBarrierTest, APlainStepIsRefusedWhileParticipantsTakePart) {
+  run_loop();
+  const RequestId a = join("a");
+  Outcome o = ask("simulation", "step", {1});
+  EXPECT_EQ(o.status, Status::failed);
+  EXPECT_THAT(o.message, HasSubstr("simulation step: the simulation is stepped in lockstep (participants: a)"));
+  EXPECT_EQ(steps(), 0u);
+  // once the last participant has left, anyone steps again
+  rm_->cancel(a);
+  wait(a);
+  EXPECT_EQ(ask("simulation", "step", {1}).status, Status::success);
+  EXPECT_EQ(steps(), 1u);
+}
+
+TEST_F(SimLockstepBarrierTest, AJoinEndsARunningStepPreempted) {
+  run_loop();
+  const RequestId running = rm_->call("simulation", "step", {1'000'000});
+  join("a");
+  Outcome o = wait(running);
+  ASSERT_EQ(o.status, Status::preempted);
+  EXPECT_THAT(o.message, HasSubstr("lockstep"));
+  const json s = state();
+  EXPECT_EQ(s["owed_steps"], 0u);
+  EXPECT_EQ(s["steps"], (*o.value)["steps_done"]);
+}
+
+TEST_F(SimLockstepBarrierTest, BadAsksAreRefusedClearly) {
+  run_loop();
+  join("a");
+  join("b");
+  // n as `step` checks it, in lockstep_step's words
+  for (const json& n : {json(0), json(-1), json(1.5), json(2'000'000), json("ten")}) {
+    Outcome o = ask("simulation", "lockstep_step", {"a", n});
+    EXPECT_EQ(o.status, Status::failed) << n.dump();
+    EXPECT_EQ(o.failure, Failure::bad_arguments) << n.dump();
+    EXPECT_THAT(o.message + o.data.dump(), HasSubstr("\"n\"")) << n.dump() << ": " << o.message;
+  }
+  EXPECT_THAT(ask("simulation", "lockstep_step", {"a", 0}).message,
+              HasSubstr("simulation lockstep_step: n = 0 is out of range: expected an integer from 1 to 1000000"));
+  // nobody of that name
+  Outcome unknown = ask("simulation", "lockstep_step", {"c", 1});
+  EXPECT_EQ(unknown.failure, Failure::bad_arguments);
+  EXPECT_THAT(unknown.message, HasSubstr("participant = \"c\" is not in the lockstep (participants: a, b)"));
+  // a name taken
+  Outcome taken = ask("simulation", "lockstep_join", {"a"});
+  EXPECT_EQ(taken.status, Status::failed);
+  EXPECT_THAT(taken.message, HasSubstr("participant 'a' is already in the lockstep"));
+  // another n than the barrier's, and a second ask of one participant
+  const RequestId a_asks = ask_steps("a", 4);
+  Outcome mismatch = ask("simulation", "lockstep_step", {"b", 3});
+  EXPECT_EQ(mismatch.failure, Failure::bad_arguments);
+  EXPECT_THAT(mismatch.message, HasSubstr("n = 3, but the barrier waits for n = 4 (asked by a)"));
+  Outcome twice = ask("simulation", "lockstep_step", {"a", 4});
+  EXPECT_EQ(twice.status, Status::failed);
+  EXPECT_THAT(twice.message, HasSubstr("participant 'a' already waits at the barrier"));
+  EXPECT_EQ(steps(), 0u);
+  // the barrier still stands: b's right ask releases it
+  EXPECT_EQ(ask("simulation", "lockstep_step", {"b", 4}).status, Status::success);
+  EXPECT_EQ(wait(a_asks).status, Status::success);
+  EXPECT_EQ(steps(), 4u);
+}
+
+TEST_F(SimLockstepBarrierTest, TheJoinsFirstProgressReportNamesTheParticipant) {
+  run_loop();
+  const RequestId named = rm_->call_with_progress("simulation", "lockstep_join", {"robot_a"});
+  const RequestId unnamed = rm_->call_with_progress("simulation", "lockstep_join", json::array());
+  EXPECT_EQ(lockstep()["participants"], json({"robot_a", "p1"}));
+  // reports made while a request runs go out at the end of its turn, after the sync answers
+  // of that turn: one more answer comes after them
+  state();
+  const std::vector<json> first = rm_->progress(named);
+  ASSERT_FALSE(first.empty());
+  EXPECT_EQ(first[0]["participant"], "robot_a");
+  const std::vector<json> second = rm_->progress(unnamed);
+  ASSERT_FALSE(second.empty());
+  EXPECT_EQ(second[0]["participant"], "p1");
+  EXPECT_EQ(second[0]["participants"], json({"robot_a", "p1"}));
+}
+
+TEST_F(SimLockstepBarrierTest, PlayEndsTheWaitingAsksAndLockstepStepIsRefusedWhilePlaying) {
+  run_loop();
+  join("a");
+  join("b");
+  const RequestId a_asks = ask_steps("a", 1);
+  ASSERT_EQ(ask("simulation", "play").status, Status::success);
+  Outcome o = wait(a_asks);
+  ASSERT_EQ(o.status, Status::preempted);
+  EXPECT_THAT(o.message, HasSubstr("simulation play resumed the simulation"));
+  EXPECT_EQ((*o.value)["steps_done"], 0u);
+  Outcome playing = ask("simulation", "lockstep_step", {"a", 1});
+  EXPECT_EQ(playing.status, Status::failed);
+  EXPECT_THAT(playing.message, HasSubstr("simulation lockstep_step: the simulation is playing; pause it first"));
+  // the participants stay: paused again, they step together as before
+  ASSERT_EQ(ask("simulation", "pause").status, Status::success);
+  EXPECT_EQ(lockstep()["participants"], json({"a", "b"}));
+}
+
+TEST_F(SimLockstepBarrierTest, PauseEndsTheBarriersStepsPreemptedWithTheStepsDone) {
+  run_loop();
+  join("a");
+  join("b");
+  const RequestId a_asks = ask_steps("a", 1'000'000);
+  const RequestId b_asks = ask_steps("b", 1'000'000);
+  ASSERT_EQ(ask("simulation", "pause").status, Status::success);
+  std::uint64_t done = 0;
+  for (RequestId id : {a_asks, b_asks}) {
+    Outcome o = wait(id);
+    ASSERT_EQ(o.status, Status::preempted);
+    EXPECT_THAT(o.message, HasSubstr("simulation pause stopped the steps"));
+    EXPECT_EQ((*o.value)["steps_requested"], 1'000'000u);
+    done = (*o.value)["steps_done"];
+  }
+  const json s = state();
+  EXPECT_EQ(s["steps"], done);
+  EXPECT_EQ(s["owed_steps"], 0u);
+  EXPECT_EQ(s["lockstep"]["stepping"], false);
+  // and the next barrier works
+  const RequestId a_again = ask_steps("a", 1);
+  EXPECT_EQ(ask("simulation", "lockstep_step", {"b", 1}).status, Status::success);
+  EXPECT_EQ(wait(a_again).status, Status::success);
+  EXPECT_EQ(steps(), done + 1);
 }
 
 // ---- lockstep: the same requests and steps from the same start give the same state

@@ -355,6 +355,8 @@ class RequestManager {
   void log_outcome(std::string_view component, std::string_view service, const Outcome& outcome,
                    std::chrono::steady_clock::time_point started, std::string_view took) const;
   void interrupt_running(AsyncSlot& slot, Failure reason, std::string message);
+  // Runs the Completion::on_interrupt hook of a concurrent call the core has just ended.
+  void run_interrupt_hook(detail::CallState& state);
   void execute_cancel(RequestId id, const std::function<void(bool)>& done);
   // Delivers an outcome: on_service_completion here, or handed over to the delivery thread.
   void deliver(RequestId id, Outcome&& outcome);

@@ -14,7 +14,8 @@
 //    Completion first and finishes each call through it; a cancel ends that one call
 //    PREEMPTED (Failure::cancelled) through the same completion, shutdown ends it FAILED
 //    (Failure::shutdown), a deadline FAILED (Failure::timeout), and the component sees that
-//    a call is over by its Completion::done() (then drops it).
+//    a call is over by its Completion::done() (then drops it), or is told at once by the
+//    call's Completion::on_interrupt hook when it cannot wait for its next look.
 //  - Completion: the handle an async request is finished with, exactly once, from any
 //    thread (MORSE's result_setter / completed()).
 //
@@ -127,6 +128,9 @@ struct CallState {
   std::chrono::nanoseconds progress_interval{-1};
   // steady_clock time (ns since its epoch) of the last report passed on
   std::atomic<std::int64_t> last_progress_ns{std::numeric_limits<std::int64_t>::min()};
+  // A concurrent call's Completion::on_interrupt hook (empty when none); set and run under
+  // the simulation lock.
+  std::function<void()> on_interrupt;
 };
 
 }  // namespace detail
@@ -155,6 +159,14 @@ class Completion {
   bool progress_due() const;
 
   bool done() const { return !state_ || state_->finished.load(); }
+  // A call of a concurrent service: `hook` runs, under the simulation lock, right after the
+  // core has ended the call from outside (its client cancelled it or left, its deadline
+  // passed), for a component that must act at once rather than find the call done() at its
+  // next look (a lockstep participant who leaves releases the others, even while the
+  // simulation is paused and takes no step). Set it under the lock, when the call starts;
+  // a later hook replaces it. Not run when the component finishes the call itself, nor at
+  // shutdown.
+  void on_interrupt(std::function<void()> hook) const;
   explicit operator bool() const { return state_ != nullptr; }
   const std::shared_ptr<detail::CallState>& state() const { return state_; }
 

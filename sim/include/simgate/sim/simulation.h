@@ -12,7 +12,8 @@
 //    (paused, taking the steps a client asked for with `simulation step`, as fast as
 //    possible), quitting. Unlike dynamics suspended (MORSE's suspend_dynamics: time goes
 //    on, physics frozen), a pause stops the clock too. docs/world/stepping.md.
-//  - owed steps: the steps `simulation step n` asked for. The thread that runs the request
+//  - owed steps: the steps `simulation step n` asked for (or a lockstep barrier's, once
+//    every participant has asked: sim/src/stepping.h). The thread that runs the request
 //    takes them at once (take_owed_steps, no hand-off to the simulation thread for a client
 //    that drives the simulation step by step); what is left after a short budget the loop
 //    takes, one per iteration, with requests processed between two, so that a long run of

@@ -6,7 +6,9 @@
 // Groups and their files (docs/world/*.md describes each on the wire):
 //   capabilities.cc  get_capabilities: the features the groups below offer, in ROS 2
 //                    simulation_interfaces' numbering (read off the registered services)
-//   stepping.cc      get_simulation_state, pause, play, step n (docs/world/stepping.md)
+//   stepping.cc      get_simulation_state, pause, play, step n, and the lockstep barrier's
+//                    lockstep_join and lockstep_step (lockstep.cc, sim/src/stepping.h)
+//                    (docs/world/stepping.md)
 //   world_state.cc   reset scope robot, save_state, restore_state, list_states, drop_state
 //                    (docs/world/state.md)
 //   entities.cc      set_object_position, get_object_pose, get_object_bbox,
