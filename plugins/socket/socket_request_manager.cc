@@ -220,12 +220,14 @@ void SocketRequestManager::set_progress(Session& session, const RequestLine& req
   }
   const json* on = nullptr;
   if (params.is_array() && params.size() == 1) on = &params[0];
+  // `simgate progress true`: one bare value is that one parameter
+  if (params.is_primitive() && !params.is_null()) on = &params;
   if (params.is_object() && params.size() == 1 && params.contains("on")) on = &params["on"];
   const bool none = params.is_null() || (params.is_array() && params.empty());
   if (!none && !on) {
     fail_in_order(session, request.id,
                   "wrong # of parameters for service simgate.progress: expected at most 1 (on), got " +
-                      std::to_string(params.is_array() || params.is_object() ? params.size() : 1));
+                      std::to_string(params.size()));
     return;
   }
   if (on && !on->is_boolean()) {

@@ -97,6 +97,11 @@ TEST_F(SocketProgress, BadOptInParamsAreFailedInMorsesPhrases) {
   EXPECT_EQ(roundtrip(*client, "p2 simgate progress [true, false]"),
             "p2 FAILED \"wrong # of parameters for service simgate.progress: expected at most 1 (on), got 2\"");
   EXPECT_THAT(roundtrip(*client, "p3 simgate progress [tru"), ::testing::StartsWith("p3 FAILED \"Invalid request syntax"));
+  // a bare value is the one parameter (before: "expected at most 1 (on), got 1")
+  EXPECT_EQ(roundtrip(*client, "p4 simgate progress 7"),
+            "p4 FAILED \"wrong parameter type for service simgate.progress: parameter 'on' expects boolean, got "
+            "number 7\"");
+  EXPECT_EQ(roundtrip(*client, "p5 simgate progress false"), "p5 SUCCESS");
   // the connection did not opt in
   start(*client, "a1 job hold [\"t\"]");
   auto control = connect();
