@@ -300,13 +300,7 @@ TEST_F(DdsTransportTest, ACancelUnderItsCallsOwnSeqEndsTheCallWithOneFinalReply)
   auto server = make_server(test_partition());
   SimThread sim(server);
   RawClient raw(test_partition());
-  raw.create_reply_reader();
-  ASSERT_TRUE(raw.wait_request_matched());
-  raw.write(5, simgate_OP_CALL, "robot", "goto", "[1]");
-  auto accepted = raw.next();
-  ASSERT_TRUE(accepted);
-  EXPECT_EQ(accepted->status, simgate_ST_ACCEPTED);
-  ASSERT_TRUE(goto_.wait_started(1));
+  ASSERT_NO_FATAL_FAILURE(start_goto(raw, 5));
   raw.write(5, simgate_OP_CANCEL, "", "", "", 5);
   raw.write(6, simgate_OP_CALL, "calc", "add", "[1, 2]");
   const auto replies = replies_for(raw, 5, 6);
@@ -326,12 +320,7 @@ TEST_F(DdsTransportTest, ACancelUnderAnotherPendingSeqIsRefusedNotFinal) {
   auto server = make_server(test_partition());
   SimThread sim(server);
   RawClient raw(test_partition());
-  raw.create_reply_reader();
-  ASSERT_TRUE(raw.wait_request_matched());
-  raw.write(5, simgate_OP_CALL, "robot", "goto", "[1]");
-  auto accepted = raw.next();
-  ASSERT_TRUE(accepted);
-  ASSERT_TRUE(goto_.wait_started(1));
+  ASSERT_NO_FATAL_FAILURE(start_goto(raw, 5));
   raw.write(7, simgate_OP_CALL, "arm", "grasp", "");  // another pending call, the cancel's target
   ASSERT_TRUE(grasp_.wait_started(1));
   raw.write(5, simgate_OP_CANCEL, "", "", "", 7);

@@ -203,6 +203,17 @@ class DdsTransportTest : public ::testing::Test {
     return c;
   }
 
+  // `raw`, its reply reader matched, with robot.goto pending under `seq` (ACCEPTED, started).
+  void start_goto(RawClient& raw, std::uint64_t seq) {
+    raw.create_reply_reader();
+    ASSERT_TRUE(raw.wait_request_matched());
+    raw.write(seq, simgate_OP_CALL, "robot", "goto", "[1]");
+    auto accepted = raw.next();
+    ASSERT_TRUE(accepted);
+    EXPECT_EQ(accepted->status, simgate_ST_ACCEPTED);
+    ASSERT_TRUE(goto_.wait_started(1));
+  }
+
   std::atomic<int> count_{0};  // calc.count
   AsyncProbe goto_;            // robot.goto
   AsyncProbe grasp_;           // arm.grasp
