@@ -9,8 +9,9 @@ namespace {
 thread_local const CallContext* t_current = nullptr;
 }  // namespace
 
-CallContext::CallContext(const RequestManager& manager, RequestId id, bool raw_attachments) noexcept
-    : manager_(manager), id_(id), raw_attachments_(raw_attachments), previous_(t_current) {
+CallContext::CallContext(const RequestManager& manager, RequestId id, bool raw_attachments,
+                         std::uint64_t client) noexcept
+    : manager_(manager), id_(id), raw_attachments_(raw_attachments), client_(client), previous_(t_current) {
   t_current = this;
 }
 

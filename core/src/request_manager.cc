@@ -299,7 +299,7 @@ bool RequestManager::execute(RequestId id, const Call& call, Outcome& out,
   try {
     // the service may ask who calls (call_context.h): what this transport serves bounds
     // what it may see and act on
-    CallContext context(*this, id, call.raw_attachments);
+    CallContext context(*this, id, call.raw_attachments, call.client);
     BoundArguments args = bind_arguments(d, call.params);
     if (d.is_async) {
       start_async(id, *service, args.span(), call.progress, started);
@@ -424,6 +424,23 @@ void RequestManager::interrupt_running(AsyncSlot& slot, Failure reason, std::str
   }
   // an interrupt() override that forgot Component::interrupt(): end it anyway
   if (!state->finished) Completion{state}(Status::preempted);
+}
+
+bool RequestManager::client_connected(std::uint64_t client) const {
+  if (client == 0) return false;
+  std::lock_guard lock(connected_mutex_);
+  return connected_.contains(client);
+}
+
+void RequestManager::client_arrived(std::uint64_t client) {
+  if (client == 0) return;
+  std::lock_guard lock(connected_mutex_);
+  connected_.insert(client);
+}
+
+void RequestManager::client_left(std::uint64_t client) {
+  std::lock_guard lock(connected_mutex_);
+  connected_.erase(client);
 }
 
 void RequestManager::run_interrupt_hook(detail::CallState& state) {

@@ -42,7 +42,8 @@ bool would_block(const error_code& ec) { return ec == asio::error::would_block |
 
 LineConnection::LineConnection(asio::ip::tcp::socket socket, LineHost& host, LineLimits limits, std::string_view who,
                                std::uint64_t number)
-    : socket_(std::move(socket)), host_(host), limits_(limits), who_(who), read_buffer_(limits.read_bytes) {
+    : socket_(std::move(socket)), host_(host), limits_(limits), who_(who), number_(number),
+      read_buffer_(limits.read_bytes) {
   error_code ec;
   const auto peer = socket_.remote_endpoint(ec);
   label_ = "client #" + std::to_string(number);

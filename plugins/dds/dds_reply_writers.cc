@@ -429,6 +429,7 @@ void DdsRequestManager::add_client(dds_instance_handle_t writer) {
     return;
   }
   ClientState& client = clients_[id];
+  client_arrived(client_number(id));
   client.writer = writer;
   client.reply_publisher = publisher;
   client.reply_writer = reply_writer;
@@ -445,6 +446,7 @@ void DdsRequestManager::add_client(dds_instance_handle_t writer) {
 
 void DdsRequestManager::client_gone(const ClientId& id, ClientState& client) {
   client.gone = true;
+  client_left(client_number(id));
   parked_count_ -= client.parked.size();
   client.parked.clear();
   client.parked_finals = 0;

@@ -526,6 +526,7 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
       call.progress = request.progress && is_async && ensure_progress_writer(client_id, client);
       // a client that reads its images raw: the service need not encode them (no PNG made)
       call.raw_attachments = takes_images_raw(client_id, client);
+      call.client = client_number(client_id);
       RequestId id = new_request_id();
       pending_.emplace(id, Pending{client_id, seq, is_async});
       client.calls.emplace(seq, id);

@@ -64,6 +64,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <cstring>
 #include <deque>
 #include <map>
 #include <memory>
@@ -262,6 +263,13 @@ class DdsRequestManager : public RequestManager {
   bool lookup_async(const std::string& component, const std::string& service);
   static ReplyData to_reply(std::uint64_t seq, const Outcome& outcome);
   static ReplyData failure_reply(std::uint64_t seq, simgate_Failure failure, std::string message);
+  // The number a client's calls carry as Call::client: its 16-byte id folded to 64 bits
+  // (never 0).
+  static std::uint64_t client_number(const ClientId& id) {
+    std::uint64_t halves[2];
+    std::memcpy(halves, id.data(), sizeof halves);
+    return (halves[0] ^ halves[1]) | 1;
+  }
   // Requests of `client` taken and not answered yet: pending in the core (calls, cancels)
   // or with their final reply parked. At max_in_flight, a request is refused Overloaded.
   static std::size_t in_flight(const ClientState& client) { return client.calls.size() + client.parked_finals; }

@@ -50,6 +50,7 @@ void JsonRpcEngine<Session>::input_ended(Session& session) {
 
 template <class Session>
 void JsonRpcEngine<Session>::session_closed(Session& session) {
+  client_left(session.number());
   end_subscriptions(&session);
   if (stopping_ || !options_.tcp.cancel_on_disconnect) return;
   // the client is gone: its pending calls end (their replies are dropped)
@@ -288,6 +289,7 @@ void JsonRpcEngine<Session>::dispatch(const std::shared_ptr<Session>& session, R
   if (call.service != service) call.service.swap(service);
   call.params.swap(request.params);  // request_ takes the call's old array, for the next parse
   call.progress = wants_progress;
+  call.client = session->number();
   call.timeout = call_options.timeout;  // a notification's too: its service stops in time
   Pending& pending = pending_.try_emplace(id).first->second;  // a recycled node when there is one
   pending.to = std::move(to);

@@ -64,7 +64,9 @@ void JsonRpcRequestManager::accept(tcp::socket socket) {
   limits.pause_at_unsent_bytes = options_.tcp.max_unsent_bytes / 2;
   limits.read_bytes = k_read_bytes;
   kit::LineHost& host = *this;
-  add(std::make_shared<Session>(std::move(socket), host, limits, name(), next_session_++));
+  const std::uint64_t number = next_session_++;
+  client_arrived(number);
+  add(std::make_shared<Session>(std::move(socket), host, limits, name(), number));
 }
 
 // ---- kit::LineHost: the framing (I/O thread)

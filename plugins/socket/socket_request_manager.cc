@@ -152,7 +152,9 @@ void SocketRequestManager::close_all() {
 
 void SocketRequestManager::accept(tcp::socket socket) {
   kit::LineHost& host = *this;
-  add(std::make_shared<Session>(std::move(socket), host, limits_, name(), next_session_++));
+  const std::uint64_t number = next_session_++;
+  client_arrived(number);
+  add(std::make_shared<Session>(std::move(socket), host, limits_, name(), number));
 }
 
 // ---- requests (I/O thread)
@@ -334,6 +336,7 @@ void SocketRequestManager::on_line(kit::LineConnection& connection, std::string_
   if (call.component != request.component) call.component.assign(request.component);
   if (call.service != request.service) call.service.assign(request.service);
   call.progress = session.wants_progress();
+  call.client = session.number();
   call.timeout = timeout_for(call.component, call.service);
   // handed to the core with the rest of this read (on_lines_done)
   ++batch_count_;
@@ -375,6 +378,7 @@ void SocketRequestManager::on_closed(kit::LineConnection& connection) {
   // its outcomes have nowhere to go: forget them
   session.pending().for_each([this](const kit::IdTable::Entry& e) { requests_.erase(e.id); });
   session.clear_pending();
+  client_left(session.number());
   forget(session);
 }
 

@@ -181,7 +181,9 @@ void WebSocketRequestManager::accept(tcp::socket socket) {
   limits.pause_at_unsent_bytes = options_.tcp.max_unsent_bytes / 2;
   limits.keepalive = keepalive_;
   WsHost& host = *this;
-  auto session = std::make_shared<WsSession>(std::move(socket), host, limits, name(), next_session_++);
+  const std::uint64_t number = next_session_++;
+  client_arrived(number);
+  auto session = std::make_shared<WsSession>(std::move(socket), host, limits, name(), number);
   // a peer that must present the token (the "auth" option) calls rpc.login first
   if (options_.tcp.auth.required_for(session->peer())) session->require_login();
   sessions_.insert(session);

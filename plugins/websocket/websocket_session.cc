@@ -33,6 +33,7 @@ WsSession::WsSession(tcp::socket socket, WsHost& host, WsLimits limits, std::str
       host_(host),
       limits_(limits),
       who_(who),
+      number_(number),
       frames_(limits.max_message_bytes),
       timer_(socket_.get_executor()) {
   active();

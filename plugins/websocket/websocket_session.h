@@ -174,6 +174,8 @@ class WsSession : public std::enable_shared_from_this<WsSession>,
   // The client must call rpc.login before anything else (the host decides at accept).
   void require_login() { authenticated_ = false; }
   const std::string& label() const { return label_; }
+  // Its number within the transport: what its calls carry as Call::client.
+  std::uint64_t number() const { return number_; }
   const boost::asio::ip::address& peer() const { return peer_; }
   bool closed() const { return closed_; }
   // Ends the connection with a close frame (policy violation) carrying `reason`, after the
@@ -258,6 +260,7 @@ class WsSession : public std::enable_shared_from_this<WsSession>,
   WsLimits limits_;                             // from the transport options
   std::string who_;                             // the transport, for logs
   std::string label_;                           // the client, for logs
+  std::uint64_t number_;                        // the connection's number within its transport
   boost::asio::ip::address peer_;               // the client's address
   bool authenticated_ = true;                   // may call services (the host decides at accept)
   boost::beast::flat_buffer http_buffer_;       // the HTTP request

@@ -7,16 +7,27 @@
 // the model it was saved from (Simulation::model_generation() and the sizes): a model
 // replaced since (spawn, delete) refuses it.
 //
+// A snapshot belongs to the client that saved it (CallContext::client(): a connection of a
+// transport, a DDS client): any client may restore it, only its client drops it while that
+// client is connected; once it has left, anyone may, and a save that finds every slot taken
+// makes room by dropping the oldest snapshot of a client that left. One client keeps at
+// most k_max_states_per_client, so that no client takes every slot (issue #35, item 10).
+// The host (no request) is trusted with all of them.
+//
 // Whatever puts the world somewhere else (a reset, a restore) ends the async requests of
 // the components it moves PREEMPTED, saying why: a goto or a trajectory started in the old
 // state means nothing in the new one. When simulated time jumps (reset everything, restore),
 // the running `time sleep` calls end the same way: their wake-up time was of the old clock.
+#include <algorithm>
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <string>
 
 #include "simgate/core/call_context.h"
 #include "simgate/core/errors.h"
+#include "simgate/core/log.h"
+#include "simgate/core/request_manager.h"
 #include "simgate/sim/physics_state.h"
 #include "simgate/sim/sim_component.h"
 #include "simgate/sim/world_services.h"
@@ -28,9 +39,32 @@ namespace {
 // Snapshots kept at once: each holds a copy of the state (a few KiB for the demo, a few
 // hundred for a large model); a client that saves in a loop without dropping meets this.
 constexpr std::size_t k_max_states = 64;
+// Snapshots one client keeps at once.
+constexpr std::size_t k_max_states_per_client = 16;
 
-// A saved state (physics_state.h): what the next step reads.
-using Snapshot = PhysicsState;
+// Who saved a snapshot: a client of a transport, or the host (transport "").
+struct Owner {
+  std::string transport;     // the configuration's name of the caller's transport
+  std::uint64_t client = 0;  // Call::client within it (0: the transport does not say)
+
+  // The caller of the service running now.
+  static Owner caller() {
+    const CallContext* context = CallContext::current();
+    if (!context) return {};
+    return {context->manager().transport_name(), context->client()};
+  }
+  bool host() const { return transport.empty(); }
+  bool operator==(const Owner&) const = default;
+  std::string describe() const {
+    if (host()) return "the host";
+    return "a client of transport '" + transport + "'" + (client ? " (client #" + std::to_string(client) + ")" : "");
+  }
+};
+
+// A saved state (physics_state.h): what the next step reads, and whose it is.
+struct Snapshot : PhysicsState {
+  Owner owner;
+};
 
 // Ends what `e` is running PREEMPTED with `reason`: its slot's request (through
 // interrupt(), which stops what it moves) and the calls of its concurrent services.
@@ -80,11 +114,24 @@ class WorldState {
   }
 
   std::uint64_t save_state() {
-    if (snapshots_.size() >= k_max_states)
+    const Owner owner = Owner::caller();
+    // (a transport that does not number its clients: they are not told apart, nor limited)
+    if (!owner.host() && owner.client != 0) {
+      const auto own = std::count_if(snapshots_.begin(), snapshots_.end(),
+                                     [&](const auto& entry) { return entry.second.owner == owner; });
+      if (static_cast<std::size_t>(own) >= k_max_states_per_client)
+        throw ServiceError("simulation save_state: this client keeps " + std::to_string(own) +
+                               " saved states already (the most one client keeps): drop one first (simulation "
+                               "drop_state handle)",
+                           Failure::service_error, {{"limit", k_max_states_per_client}});
+    }
+    if (snapshots_.size() >= k_max_states && !drop_one_left_behind())
       throw ServiceError("simulation save_state: " + std::to_string(k_max_states) +
-                             " states are saved already (the limit): drop one first (simulation drop_state handle)",
+                             " states are saved already (the limit), by clients still connected: drop one first "
+                             "(simulation drop_state handle)",
                          Failure::service_error, {{"limit", k_max_states}});
     Snapshot s;
+    s.owner = owner;
     s.capture(sim_.m(), sim_.d(), sim_.model_generation());
     const std::uint64_t handle = next_handle_++;
     snapshots_.emplace(handle, std::move(s));
@@ -112,22 +159,51 @@ class WorldState {
   }
 
   json list_states() const {
+    const Owner caller = Owner::caller();
     json out = json::array();
     for (const auto& [handle, s] : snapshots_)
       out.push_back({{"handle", handle},
                      {"sim_time", s.time()},
                      {"model_generation", s.generation()},
-                     {"restorable", s.fits(sim_.m(), sim_.model_generation())}});
+                     {"restorable", s.fits(sim_.m(), sim_.model_generation())},
+                     {"yours", s.owner == caller},
+                     {"owner_connected", connected(s.owner)}});
     return out;
   }
 
   bool drop_state(std::int64_t handle) {
-    find(handle, "drop_state");
+    const Snapshot& s = find(handle, "drop_state");
+    const Owner caller = Owner::caller();
+    if (!caller.host() && !(s.owner == caller) && connected(s.owner))
+      throw ServiceError("simulation drop_state: state " + std::to_string(handle) + " was saved by " +
+                             s.owner.describe() + ", still connected: only it drops its states (any client may "
+                             "restore it)",
+                         Failure::service_error, {{"parameter", "handle"}});
     snapshots_.erase(static_cast<std::uint64_t>(handle));
     return true;
   }
 
  private:
+  // Whether the client that saved a snapshot is still connected (the host always is; a
+  // transport that does not number its clients: assumed so).
+  bool connected(const Owner& owner) const {
+    if (owner.host()) return true;
+    const RequestManager* manager = sim_.request_manager(owner.transport);
+    return manager && (owner.client == 0 || manager->client_connected(owner.client));
+  }
+
+  // Drops the oldest snapshot whose client left; false when every one's client is here.
+  bool drop_one_left_behind() {
+    for (auto it = snapshots_.begin(); it != snapshots_.end(); ++it) {
+      if (connected(it->second.owner)) continue;
+      log::info("simulation save_state: state ", it->first, " of ", it->second.owner.describe(),
+                ", which left, dropped to make room");
+      snapshots_.erase(it);
+      return true;
+    }
+    return false;
+  }
+
   const Snapshot& find(std::int64_t handle, const char* service) const {
     const auto it = handle > 0 ? snapshots_.find(static_cast<std::uint64_t>(handle)) : snapshots_.end();
     if (it == snapshots_.end())
@@ -225,10 +301,10 @@ void add_state_services(SupervisionServices& simulation, Simulation& sim) {
                      {"handle"})
       .doc("Go back to a saved state (same model only); components are reset; returns {sim_time}");
   simulation.offer_service("list_states", [state] { return state->list_states(); })
-      .doc("[{handle, sim_time, model_generation, restorable}] of the saved states");
+      .doc("[{handle, sim_time, model_generation, restorable, yours, owner_connected}] of the saved states");
   simulation
       .offer_service("drop_state", [state](std::int64_t handle) { return state->drop_state(handle); }, {"handle"})
-      .doc("Forget a saved state");
+      .doc("Forget a saved state (one this client saved, or whose client left)");
 }
 
 }  // namespace simgate::sim

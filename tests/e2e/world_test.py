@@ -213,6 +213,58 @@ class WorldTest(unittest.TestCase):
         self.assertIn("result", response)
         self.assertEqual(self.state()["sim_time"], 0)
 
+    def test_5c_a_saved_state_is_its_clients_to_drop_while_it_is_connected(self):
+        # issue #35 item 10: any client dropped another's states, and one took all 64 slots
+        status, handle = self.morse("a", "simulation save_state")
+        self.assertEqual(status, "SUCCESS")
+        states = {s["handle"]: s for s in self.rpc("simulation.list_states")["result"]}
+        self.assertEqual((states[handle]["yours"], states[handle]["owner_connected"]), (False, True))
+        dropped = self.rpc("simulation.drop_state", [handle])
+        self.assertIn("error", dropped)
+        self.assertIn("only it drops its states", dropped["error"]["message"])
+        self.assertIn("result", self.rpc("simulation.restore_state", [handle]))  # anyone restores
+        # a client that saves and leaves: its state may be dropped by anyone then
+        other = Lines(self.gateway.socket_port)
+        reply = other.ask("x simulation save_state")
+        self.assertTrue(reply.startswith("x SUCCESS "), reply)
+        left = int(reply.split(" ", 2)[2])
+        other.close()
+        for _ in range(100):  # bounded: the server sees the connection close within moments
+            states = {s["handle"]: s for s in self.rpc("simulation.list_states")["result"]}
+            if not states[left]["owner_connected"]:
+                break
+            time.sleep(0.05)
+        self.assertEqual(self.rpc("simulation.drop_state", [left]).get("result"), True)
+        # one client keeps at most 16
+        handles = []
+        for i in range(16):
+            status, h = self.morse("q%d" % i, "simulation save_state")
+            if status != "SUCCESS":
+                break
+            handles.append(h)
+        status, value = self.morse("q", "simulation save_state")
+        self.assertEqual(status, "FAILED")
+        self.assertIn("the most one client keeps", value)
+        for i, h in enumerate(handles + [handle]):
+            self.assertEqual(self.socket.ask("r%d simulation drop_state [%d]" % (i, h)), "r%d SUCCESS true" % i)
+        # every slot taken by clients that left: a save makes room by dropping the oldest of theirs
+        for k in range(4):
+            gone = Lines(self.gateway.socket_port)
+            for i in range(16):
+                reply = gone.ask("g%d simulation save_state" % i)
+                self.assertTrue(reply.startswith("g%d SUCCESS " % i), reply)
+            gone.close()
+        for _ in range(100):  # bounded, as above
+            if not any(s["owner_connected"] for s in self.rpc("simulation.list_states")["result"]):
+                break
+            time.sleep(0.05)
+        status, h = self.morse("s", "simulation save_state")
+        self.assertEqual(status, "SUCCESS", h)
+        states = self.rpc("simulation.list_states")["result"]
+        self.assertEqual(len(states), 64)
+        for i, s in enumerate(states):
+            self.assertEqual(self.socket.ask("t%d simulation drop_state [%d]" % (i, s["handle"])), "t%d SUCCESS true" % i)
+
     def test_5b_cancel_ends_a_step_preempted_with_the_steps_done(self):
         # socket: MORSE's cancel line, no reply of its own; the step answers PREEMPTED
         self.socket.sock.sendall(b"c1 simulation step [1000000]\n")

@@ -24,6 +24,7 @@
 #ifndef SIMGATE_CORE_CALL_CONTEXT_H_
 #define SIMGATE_CORE_CALL_CONTEXT_H_
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -38,7 +39,8 @@ class CallContext {
  public:
   // Makes this the current context of the calling thread until destruction. The core does
   // this around every service it runs; a host may do it to act as a given transport.
-  CallContext(const RequestManager& manager, RequestId id, bool raw_attachments = false) noexcept;
+  CallContext(const RequestManager& manager, RequestId id, bool raw_attachments = false,
+              std::uint64_t client = 0) noexcept;
   ~CallContext();
   CallContext(const CallContext&) = delete;
   CallContext& operator=(const CallContext&) = delete;
@@ -50,6 +52,10 @@ class CallContext {
   const RequestManager& manager() const noexcept { return manager_; }
   // Its id, as the manager allocated it.
   RequestId request() const noexcept { return id_; }
+  // The client it came from (Call::client: a connection's number within its transport;
+  // 0 when the transport does not say). manager().client_connected(client()) tells whether
+  // it is still there.
+  std::uint64_t client() const noexcept { return client_; }
   // Whether the calling transport serves `component` (it was registered with the manager).
   bool serves(const std::string& component) const;
   // Whether the calling transport lets its clients call `component`.`service` (served and
@@ -74,6 +80,7 @@ class CallContext {
   const RequestManager& manager_;  // the caller's transport (outlives the call)
   RequestId id_;                   // the request being run
   bool raw_attachments_;           // Call::raw_attachments of the request
+  std::uint64_t client_;           // Call::client of the request
   const CallContext* previous_;    // the context this one hides, restored at destruction
   // attach()'s payloads (written through current(), on this thread only)
   mutable std::vector<std::shared_ptr<const StreamPayload>> attachments_;

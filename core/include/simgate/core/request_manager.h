@@ -61,6 +61,7 @@
 #include <string_view>
 #include <thread>
 #include <unordered_map>
+#include <unordered_set>
 #include <vector>
 
 #include "simgate/core/component.h"
@@ -96,6 +97,11 @@ struct Call {
   // raw): a service may then leave the encoded copy out of its records (a camera: no PNG),
   // and must still attach the raw bytes. CallContext::takes_raw_attachments() while it runs.
   bool raw_attachments = false;
+  // The client the call came from: a number the transport gives each connection (or DDS
+  // client), unique within the transport for the process's life; 0: not said. What a
+  // service keeps for its caller (a saved state) is keyed by it (CallContext::client()), and
+  // RequestManager::client_connected() says whether that client is still there.
+  std::uint64_t client = 0;
 };
 
 namespace detail {
@@ -269,6 +275,9 @@ class RequestManager {
   // Clients connected now (TCP connections, DDS writers), for status lines. Transports
   // override it; the default knows of none. Any thread; must not block.
   virtual std::size_t client_count() const { return 0; }
+  // Whether client `client` (a Call::client of this transport) is connected now: between
+  // the transport's client_arrived() and client_left() for it. False for 0. Any thread.
+  bool client_connected(std::uint64_t client) const;
 
   // Finishes every request not yet answered (queued or running async) FAILED with
   // Failure::shutdown, delivering each through on_service_completion, and refuses later
@@ -318,6 +327,10 @@ class RequestManager {
   // Under the simulation lock (a posted task, a cancel's `done`): delivers an outcome the
   // transport made itself, through the same path as the core's.
   void complete_request(RequestId id, Outcome&& outcome);
+  // Client `client` (the number its calls carry in Call::client) connected, or left. Any
+  // thread; a transport that numbers its clients tells both, once each.
+  void client_arrived(std::uint64_t client);
+  void client_left(std::uint64_t client);
 
  private:
   struct Table;
@@ -383,6 +396,8 @@ class RequestManager {
   std::shared_ptr<SimulationGate> gate_;   // wake-up and simulation lock, shared with the loop
   std::shared_ptr<StreamHub> stream_hub_;  // the simulation's streams (null: none)
   std::string transport_name_;             // the configuration's name of this transport
+  mutable std::mutex connected_mutex_;     // guards connected_
+  std::unordered_set<std::uint64_t> connected_;  // client_arrived and not client_left
   mutable std::mutex table_mutex_;         // guards services_, slots_ and access_
   // component -> service name -> service
   std::unordered_map<std::string, std::unordered_map<std::string, std::shared_ptr<Service>>> services_;

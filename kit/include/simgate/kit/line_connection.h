@@ -236,6 +236,8 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
 
   // "client #3 (127.0.0.1:51234)", for log messages.
   const std::string& label() const { return label_; }
+  // Its number within the transport (3 above): what its calls carry as Call::client.
+  std::uint64_t number() const { return number_; }
   // The client's address (unspecified when the socket had none).
   const boost::asio::ip::address& peer() const { return peer_; }
 
@@ -284,6 +286,7 @@ class LineConnection : public std::enable_shared_from_this<LineConnection> {
   LineLimits limits_;                    // from the transport options
   std::string who_;                      // the transport, for logs
   std::string label_;                    // the client, for logs
+  std::uint64_t number_;                 // the connection's number within its transport
   boost::asio::ip::address peer_;        // the client's address
   bool authenticated_ = true;            // may call services (LineServer::add decides)
   std::vector<char> read_buffer_;        // one read's bytes (LineLimits::read_bytes)
