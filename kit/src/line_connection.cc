@@ -12,18 +12,6 @@
 
 namespace simgate::kit {
 
-bool is_http_request_line(std::string_view line) {
-  if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-  std::size_t method = 0;
-  while (method < line.size() && line[method] >= 'A' && line[method] <= 'Z') ++method;
-  if (method == 0 || method > 16 || method >= line.size() || line[method] != ' ') return false;
-  const std::size_t version = line.rfind(' ');
-  if (version <= method + 1) return false;  // no request target between the two spaces
-  const std::string_view v = line.substr(version + 1);
-  return v.size() == 8 && v.substr(0, 5) == "HTTP/" && v[5] >= '0' && v[5] <= '9' && v[6] == '.' && v[7] >= '0' &&
-         v[7] <= '9' && line.substr(method + 1, version - method - 1).find(' ') == std::string_view::npos;
-}
-
 namespace asio = boost::asio;
 using boost::system::error_code;
 

@@ -318,6 +318,10 @@ class StreamHub {
   // else kept for the simulation's next turn (replacing one not yet applied).
   // A command that is not a JSON object is refused and counted too, when the stream is there.
   PublishResult publish(std::string_view component, std::string_view transport, json command);
+  // Why `command` (an object) does not fit the input stream `info` (a key that is none of
+  // its fields, nor "timestamp"), or "": what publish() refuses at once. Public for the
+  // fuzz target line_decoders.
+  static std::string unknown_key(const StreamInfo& info, const json& command);
   // A command for the input stream of `component` carried by `transport` that the transport
   // could not even read (a socket line that is not JSON, too long; a DDS sample that is not
   // a JSON object): counted as refused, `reason` kept as its last_refusal, as if the
@@ -343,9 +347,6 @@ class StreamHub {
   std::string apply(Stream& stream, const json& command);
   // Counts a refusal of `stream` (under the hub mutex); logs the stream's first when `log`.
   static void count_refusal_locked(Stream& stream, std::string reason, bool log);
-  // Why `command` does not fit the input stream `info` (a key that is none of its fields, nor
-  // "timestamp"), or "".
-  static std::string unknown_key(const StreamInfo& info, const json& command);
   // Gives `sample` to the subscribers of `stream` (under the hub mutex): queued ones and
   // direct ones now, those to wake noted for after_fan_out(). True when a queue took it
   // (another thread may read it from then on).

@@ -70,16 +70,12 @@
 
 #include "simgate/kit/connection_rules.h"
 #include "simgate/kit/held_bytes.h"
+#include "simgate/kit/http_line.h"
 #include "simgate/kit/idle_spin.h"
 #include "simgate/kit/read_split.h"
 #include "simgate/kit/tcp_server.h"
 
 namespace simgate::kit {
-
-// True when `line` is an HTTP request line: a method token of capital letters, one space, a
-// request target, one space, "HTTP/<digit>.<digit>", maybe a '\r' ("POST / HTTP/1.1").
-// No line of a line protocol looks like one.
-bool is_http_request_line(std::string_view line);
 
 class LineConnection;
 
