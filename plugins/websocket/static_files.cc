@@ -298,10 +298,6 @@ HttpResponse StaticFiles::response(unsigned status, std::string_view reason, std
   return out;
 }
 
-HttpResponse StaticFiles::short_answer(unsigned status, std::string_view reason, std::string_view text) const {
-  return response(status, reason, "text/plain; charset=utf-8", text, false);
-}
-
 HttpResponse StaticFiles::answer(const http::request<http::string_body>& request) const {
   constexpr std::string_view text = "text/plain; charset=utf-8";
   const bool head = request.method() == http::verb::head;

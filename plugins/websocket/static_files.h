@@ -95,8 +95,6 @@ class StaticFiles {
 
   // The HTTP response to `request` (a file's body shared with the cache, not copied).
   HttpResponse answer(const boost::beast::http::request<boost::beast::http::string_body>& request) const;
-  // A short answer with a text body: "503 Service Unavailable" and its reason, say.
-  HttpResponse short_answer(unsigned status, std::string_view reason, std::string_view text) const;
 
   const std::filesystem::path& root() const { return root_; }
 

@@ -294,10 +294,7 @@ void WsSession::queue_message(std::string_view text) {
     return;
   }
   if (unsent() > 0 && host_.held().over()) {
-    log::warning(who_, ": ", label_, " does not read its replies (", unsent(),
-                 " bytes unsent) while the transport holds more than ", host_.held().max(),
-                 " for all connections (max_buffered_bytes); connection closed");
-    abort("client does not read");
+    close_past_the_cap();
     return;
   }
   append_frame(FrameParser::k_text, text);
@@ -313,9 +310,12 @@ void WsSession::queue_message(std::string_view text) {
 
 void WsSession::write_or_close() {
   flush_writes();
-  if (aborted_ || unsent() == 0 || !host_.held().over()) return;
   // its socket did not take the message while the transport is past its cap: a first
   // message may not hold memory for a client that does not read either
+  if (!aborted_ && unsent() > 0 && host_.held().over()) close_past_the_cap();
+}
+
+void WsSession::close_past_the_cap() {
   log::warning(who_, ": ", label_, " does not read its replies (", unsent(),
                " bytes unsent) while the transport holds more than ", host_.held().max(),
                " for all connections (max_buffered_bytes); connection closed");

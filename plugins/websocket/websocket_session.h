@@ -248,6 +248,8 @@ class WsSession : public std::enable_shared_from_this<WsSession>,
   // The host is past max_buffered_bytes after a message was queued: written now, and the
   // session closed when its socket leaves some of it unsent.
   void write_or_close();
+  // Closes a session whose replies wait unread while the host is past max_buffered_bytes.
+  void close_past_the_cap();
   // The close frame is out: waits for the client's, or closes at once when it sent it first.
   void after_close_sent();
   bool paused() const { return unsent() > limits_.pause_at_unsent_bytes && !close_sent_; }
