@@ -25,7 +25,9 @@ namespace simgate::dds {
 
 namespace {
 
-// A client whose reply writer is full is retried after 5 ms, then 10, 20... up to this.
+// A client whose reply writer is full is retried after 5 ms, then 10, 20... up to 320 ms
+// while its reader takes nothing (after 5 ms again once it took something).
+constexpr std::chrono::milliseconds k_min_retry_delay{5};
 constexpr std::chrono::milliseconds k_max_retry_delay{320};
 // At most one "dropped" log line per client per interval (with the count meanwhile).
 constexpr std::chrono::seconds k_drop_log_interval{10};
@@ -243,7 +245,7 @@ void DdsRequestManager::send_reply(const ClientId& client_id, ReplyData reply, b
     // before; retried with backoff
     client.stalled = true;
     client.images_stalled = !images_ready;
-    client.retry_delay = std::chrono::milliseconds(5);
+    client.retry_delay = k_min_retry_delay;
     client.retry_at = std::chrono::steady_clock::now() + client.retry_delay;
     log::debug("DDS transport: the reply writer of client ", to_hex(client_id), " is full; reply ", reply.seq,
                " parked");
@@ -319,7 +321,8 @@ void DdsRequestManager::flush_parked(const ClientId& id, ClientState& client,
                                      std::chrono::steady_clock::time_point now) {
   while (!client.parked.empty()) {
     ReplyData& reply = client.parked.front();
-    const bool expired = reply.deadline <= now;
+    const bool expired = parked_expiry(client, reply) <= now;
+    const std::uint64_t first_seq = reply.seq;  // a run of refusals advances as it is written
     // waiting for its reader (after park_timeout_ms it is written anyway, for readers that
     // do not announce simgate.id), or for its writer to have room again; one whose images
     // waited in vain goes with their PNGs at its deadline, not at the next retry of a backoff
@@ -331,6 +334,7 @@ void DdsRequestManager::flush_parked(const ClientId& id, ClientState& client,
       const bool images_ready = prepare_images(id, client, reply, expired);
       const dds_return_t rc = images_ready ? write_reply(id, client, reply) : DDS_RETCODE_TIMEOUT;
       const bool was_images = std::exchange(client.images_stalled, !images_ready);
+      if (rc != DDS_RETCODE_TIMEOUT || reply.seq != first_seq) client.progressed_at = now;
       if (rc != DDS_RETCODE_TIMEOUT) {
         if (client.stalled && (was_images && client.dropped == 0)) {
           // only its image writer was full a moment: nothing to report
@@ -343,8 +347,13 @@ void DdsRequestManager::flush_parked(const ClientId& id, ClientState& client,
           client.dropped = 0;
         }
       } else {
+        // full again: the backoff doubles only while the reader takes nothing; one that
+        // took some of what was written (a client reading thousands of replies at once)
+        // is retried soon, or its writer would idle most of the time and its replies expire
         client.stalled = true;
-        client.retry_delay = std::min(std::max(client.retry_delay * 2, std::chrono::milliseconds(5)), k_max_retry_delay);
+        client.retry_delay = client.progressed_at == now
+                                 ? k_min_retry_delay
+                                 : std::min(std::max(client.retry_delay * 2, k_min_retry_delay), k_max_retry_delay);
         client.retry_at = now + client.retry_delay;
         attempt = false;
       }
@@ -367,7 +376,7 @@ std::chrono::steady_clock::time_point DdsRequestManager::flush_all_parked() {
     flush_parked(id, client, now);
     if (client.parked.empty()) continue;
     // what it waits for: its writer's next attempt, or its oldest reply's deadline
-    next = std::min(next, client.parked.front().deadline);
+    next = std::min(next, parked_expiry(client, client.parked.front()));
     if (client.stalled && client.reader_matched) next = std::min(next, client.retry_at);
   }
   return next;

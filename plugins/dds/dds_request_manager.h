@@ -188,6 +188,7 @@ class DdsRequestManager : public RequestManager {
     bool images_stalled = false;                        // ... its image writer (not worth a log line)
     std::chrono::steady_clock::time_point retry_at;     // stalled: next write attempt
     std::chrono::milliseconds retry_delay{0};           // stalled: backoff, doubling
+    std::chrono::steady_clock::time_point progressed_at;  // its writer last took a parked reply
     std::size_t dropped = 0;                            // replies dropped, not yet logged
     std::chrono::steady_clock::time_point logged_at;    // the last "dropped" log line
     bool gone = false;                                  // its request writer disappeared
@@ -253,6 +254,12 @@ class DdsRequestManager : public RequestManager {
   // Writes what the client's writer takes of its parked replies; drops the expired ones
   // it does not take.
   void flush_parked(const ClientId& id, ClientState& client, std::chrono::steady_clock::time_point now);
+  // When a parked reply is given up: park_timeout_ms after it was parked or after its
+  // writer last took one, whichever is later (a client that reads, however slowly, loses
+  // nothing to a queue longer than park_timeout_ms allows at full speed).
+  std::chrono::steady_clock::time_point parked_expiry(const ClientState& client, const ReplyData& reply) const {
+    return std::max(reply.deadline, client.progressed_at + options_.park_timeout);
+  }
   // Every client's flush_parked; returns when the next parked reply needs attention.
   std::chrono::steady_clock::time_point flush_all_parked();
   // DDS_RETCODE_TIMEOUT: the writer is full (its reader does not acknowledge); never blocks.

@@ -211,6 +211,30 @@ TEST(DdsProcessTest, APipeliningClientGetsAFinalReplyToEveryCall) {
   std::printf("%d calls started back to back: %s\n", k_calls, result.dump().c_str());
 }
 
+// A client that reads thousands of replies at once keeps its reply writer full for a while:
+// before, every write that found it full doubled the retry delay (to 320 ms) even when the
+// reader had taken the previous batch, the writer idled most of the time (20 000 replies took
+// 10 s), and the replies at the end of the queue expired (park_timeout_ms) while the client
+// was reading them (bench/attacks 35.10b: 135-1772 of 20 000 lost). A reader that takes
+// something now brings the retry back to 5 ms, and a reply expires only after its writer
+// took nothing for park_timeout_ms (2 s here).
+TEST(DdsProcessTest, AClientReadingManyRepliesAtOnceLosesNoneWhileItTakesThem) {
+  auto server = load_transport(k_plugin, server_options(test_partition(), {{"park_timeout_ms", 2000}}));
+  server->register_service("calc", [](double a, double b) { return a + b; }, "add", {"a", "b"});
+  SimThread sim(server);
+  constexpr int k_calls = 20000;
+  Child client({k_probe, std::to_string(test_domain()), test_partition(), loopback_uri(), "pipeline",
+                std::to_string(k_calls)});
+  ASSERT_TRUE(client.running());
+  std::string out = client.read_until("}", 120s);
+  ASSERT_EQ(client.wait_exit(10s), 0) << out;
+  ASSERT_NE(out.find('{'), std::string::npos) << out;
+  json result = json::parse(out.substr(out.find('{')), nullptr, false);
+  ASSERT_TRUE(result.is_object()) << out;
+  EXPECT_EQ(result["lost"], 0) << out;
+  EXPECT_EQ(result["answered"].get<int>() + result["overloaded"].get<int>(), k_calls) << out;
+}
+
 // The C client of docs/transports/dds.md, written against the IDL alone.
 TEST(DdsProcessTest, PlainCClientFromTheDocsCallsAService) {
   auto server = load_transport(k_plugin, server_options(test_partition()));

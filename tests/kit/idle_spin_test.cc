@@ -71,14 +71,14 @@ class ScriptedLoop {
 };
 
 // A socket read directly (idle_spin.h's `direct`): its requests arrive at given times;
-// poll() costs 1 µs and takes those due while the socket is watched. Parked, it waits for
-// the event loop (not modelled: the tests give it nothing more to read).
+// poll() costs `read_cost` and takes those due while the socket is watched. Parked, it
+// waits for the event loop (not modelled: the tests give it nothing more to read).
 struct ScriptedDirectReads {
   explicit ScriptedDirectReads(std::vector<long> request_times_us) : requests(std::move(request_times_us)) {}
   std::size_t poll() {
     if (!watched) return 0;
     ++polls;
-    FakeClock::current += microseconds(1);
+    FakeClock::current += read_cost;
     std::size_t ran = 0;
     while (next < requests.size() && FakeClock::now() >= FakeClock::time_point{microseconds(requests[next])})
       ++next, ++ran;
@@ -92,6 +92,7 @@ struct ScriptedDirectReads {
 
   std::vector<long> requests;
   std::size_t next = 0;    // requests[next] is the next to arrive
+  microseconds read_cost{1};  // how long one poll() takes to read and handle what it finds
   bool watched = true;     // no async read pending: only poll() reads the socket
   std::size_t polls = 0;   // poll() calls that read the socket
   std::size_t parks = 0;   // park() calls that handed the socket back
@@ -164,6 +165,19 @@ TEST(IdleSpinTest, AWatchedSocketThatNeverRunsDryDoesNotStarveTheEventLoop) {
   EXPECT_EQ(direct.next, 20'000u);
   EXPECT_GE(loop.polls, direct.polls / k_direct_reads_per_poll);
   EXPECT_LE(loop.most_late, microseconds(2 * k_direct_reads_per_poll)) << loop.most_late.count() << " µs";
+}
+
+TEST(IdleSpinTest, AFloodReadInLargeBuffersDoesNotHoldTheEventLoopForManyReads) {
+  // a flood handled in full buffers: each direct read takes 6 ms to handle (a JSON-RPC
+  // client's 64 KiB of blank lines). Before, the loop waited for k_direct_reads_per_poll
+  // of them (190 ms); now an event waits about one read at most (issue #35, item 3)
+  ScriptedDirectReads direct(every(0, 6'000, 80));  // one full buffer waiting per read, 480 ms
+  direct.read_cost = microseconds(6'000);
+  ScriptedLoop loop(every(100, 1'000, 500));  // another client's call every millisecond, 500 ms
+  loop.watched = &direct.watched;
+  run_with_idle_spin<ScriptedLoop, FakeClock>(loop, microseconds(50), direct);
+  EXPECT_EQ(direct.next, 80u);
+  EXPECT_LE(loop.most_late, direct.read_cost + k_direct_reading_per_poll) << loop.most_late.count() << " µs";
 }
 
 TEST(IdleSpinTest, TheWatchedSocketIsHandedBackBeforeTheThreadSleeps) {

@@ -34,10 +34,11 @@
 //   void park()          before the thread sleeps: the watched socket (if any) waits
 //                        through the event loop again (an async read)
 // While a socket is watched, the event loop is still polled, every k_direct_polls_per_poll
-// direct reads that found nothing and every k_direct_reads_per_poll that found something,
-// so that other connections and posted work wait a few microseconds at most, even while
-// the watched client floods its socket (blank lines, junk, notifications: every direct
-// read finds something).
+// direct reads that found nothing, and every k_direct_reads_per_poll that found something
+// or k_direct_reading_per_poll of them, whichever comes first, so that other connections
+// and posted work wait microseconds, at most about one direct read, even while the
+// watched client floods its socket (blank lines, junk, notifications: every direct read
+// finds something, and a read of a full buffer can take milliseconds to handle).
 // DirectReads<Connection> below is such an argument, for a transport's connection class.
 //
 // Direct reads run outside the event loop's run()/poll(): code that asks "am I on the I/O
@@ -65,6 +66,11 @@ inline constexpr unsigned k_direct_polls_per_poll = 4;
 // pipelining one, or one flooding its socket) does not keep the others waiting for more
 // than this many reads, and pays one event-loop poll per this many of its reads.
 inline constexpr unsigned k_direct_reads_per_poll = 32;
+// ...or sooner, once direct reads have held the thread this long since the event loop was
+// last polled: a client that sends full buffers (a flood) is handled in large reads, and
+// 32 of them kept the others waiting up to 190 ms (issue #35, item 3). A pipelining
+// client's small reads never take this long, so it still pays one poll per 32 reads.
+inline constexpr std::chrono::microseconds k_direct_reading_per_poll{500};
 
 // The `direct` argument of a transport that reads nothing itself.
 struct NoDirectReads {
@@ -124,15 +130,20 @@ void run_with_idle_spin(EventLoop& loop, std::chrono::microseconds spin, Direct&
   unsigned idle_polls = 0;
   unsigned direct_polls = 0;  // direct reads that found nothing
   unsigned direct_reads = 0;  // direct reads that found something
+  auto loop_polled_at = Clock::now();
   while (!loop.stopped()) {
     if (polling) {
       // the event loop is polled every few direct reads, whatever they found: a watched
       // socket that never runs dry (a flooding client) must not keep the others unserved
       std::size_t handled = direct.poll();
-      const bool loop_due = !direct.watching()  ? handled == 0
-                            : handled == 0      ? ++direct_polls % k_direct_polls_per_poll == 0
-                                                : ++direct_reads % k_direct_reads_per_poll == 0;
-      if (loop_due) handled += loop.poll();
+      const bool loop_due = !direct.watching() ? handled == 0
+                            : handled == 0     ? ++direct_polls % k_direct_polls_per_poll == 0
+                                               : ++direct_reads % k_direct_reads_per_poll == 0 ||
+                                                 Clock::now() - loop_polled_at >= k_direct_reading_per_poll;
+      if (loop_due) {
+        handled += loop.poll();
+        loop_polled_at = Clock::now();
+      }
       if (handled > 0) {
         poll_until = Clock::now() + spin;  // something happened: keep watching
         continue;
@@ -150,6 +161,7 @@ void run_with_idle_spin(EventLoop& loop, std::chrono::microseconds spin, Direct&
     const auto woke_at = Clock::now();
     polling = woke_at - slept_at < spin;
     poll_until = woke_at + spin;
+    loop_polled_at = woke_at;
   }
 }
 
