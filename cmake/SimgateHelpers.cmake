@@ -68,30 +68,6 @@ function(simgate_install_rpath var dir)
   endif()
 endfunction()
 
-# simgate_find_mujoco()
-#   Defines the imported target simgate::mujoco (MuJoCo's library and headers) unless it
-#   exists; sets SIMGATE_MUJOCO_FOUND. Debian's libmujoco-dev ships a CMake package whose
-#   target names an include directory the package does not install (/usr/include/libqhull_r),
-#   so the library and the header are found directly (MUJOCO_LIBRARY, MUJOCO_INCLUDE_DIR
-#   may be set to point elsewhere). Used by the tree and by the installed simgateConfig.cmake.
-macro(simgate_find_mujoco)
-  if(NOT TARGET simgate::mujoco)
-    find_library(MUJOCO_LIBRARY NAMES mujoco)
-    find_path(MUJOCO_INCLUDE_DIR mujoco/mujoco.h)
-    if(MUJOCO_LIBRARY AND MUJOCO_INCLUDE_DIR)
-      add_library(simgate::mujoco UNKNOWN IMPORTED)
-      set_target_properties(simgate::mujoco PROPERTIES
-        IMPORTED_LOCATION "${MUJOCO_LIBRARY}"
-        INTERFACE_INCLUDE_DIRECTORIES "${MUJOCO_INCLUDE_DIR}")
-    endif()
-  endif()
-  if(TARGET simgate::mujoco)
-    set(SIMGATE_MUJOCO_FOUND TRUE)
-  else()
-    set(SIMGATE_MUJOCO_FOUND FALSE)
-  endif()
-endmacro()
-
 # simgate_add_test(NAME SOURCES... [LIBS libs...] [LABELS labels...] [TIMEOUT s])
 #   A GoogleTest executable registered with CTest, test by test.
 function(simgate_add_test name)

@@ -62,6 +62,40 @@ ensure_packages() {
   fi
 }
 
+# ---- the official MuJoCo (issue #36): the C library, headers and engine plugins of the PyPI
+# wheel, at the version pinned in cmake/mujoco-version.txt (the one place it is named).
+# From 4.0 the `mujoco` package is a meta-package; the C library lives in `mujoco-core`.
+# Installed once per version under the user's cache, shared by every clone and worktree:
+#   ${XDG_CACHE_HOME:-~/.cache}/simgate/mujoco-<version>/mujoco/{include/mujoco,libmujoco.so.<version>,plugin}
+# which is what CMake takes as MUJOCO_DIR. pip runs from a private virtualenv beside it
+# (needs Debian's python3-venv), never the system Python's; --no-deps: numpy and the rest
+# serve the Python bindings, which simgate does not use.
+SIMGATE_MUJOCO_VERSION=$(<"$SIMGATE_ROOT/cmake/mujoco-version.txt")
+SIMGATE_MUJOCO_CACHE=${XDG_CACHE_HOME:-$HOME/.cache}/simgate
+SIMGATE_MUJOCO_DIR=$SIMGATE_MUJOCO_CACHE/mujoco-$SIMGATE_MUJOCO_VERSION/mujoco
+
+# ensure_mujoco: installs the pinned wheel unless it is there; prints nothing when it is
+ensure_mujoco() {
+  local target=$SIMGATE_MUJOCO_CACHE/mujoco-$SIMGATE_MUJOCO_VERSION venv=$SIMGATE_MUJOCO_CACHE/pip-venv tmp
+  [ -f "$SIMGATE_MUJOCO_DIR/libmujoco.so.$SIMGATE_MUJOCO_VERSION" ] && return 0
+  mkdir -p "$SIMGATE_MUJOCO_CACHE"
+  if [ ! -x "$venv/bin/pip" ]; then
+    python3 -m venv "$venv" || { log "python3 -m venv failed (Debian: apt-get install python3-venv)"; return 1; }
+  fi
+  log "installing MuJoCo $SIMGATE_MUJOCO_VERSION (PyPI mujoco-core) into ${target/#$HOME/\~}"
+  # into a fresh directory renamed into place: a run interrupted half way leaves no
+  # directory that looks installed, and two runs at once do not mix their files
+  tmp=$(mktemp -d "$target.XXXXXX")
+  if ! "$venv/bin/pip" install --quiet --disable-pip-version-check --no-compile --no-deps --only-binary=:all: \
+       --target "$tmp" "mujoco-core==$SIMGATE_MUJOCO_VERSION"; then
+    rm -rf "$tmp"; log "pip could not install mujoco-core==$SIMGATE_MUJOCO_VERSION"; return 1
+  fi
+  if [ ! -f "$tmp/mujoco/libmujoco.so.$SIMGATE_MUJOCO_VERSION" ] || [ ! -f "$tmp/mujoco/include/mujoco/mujoco.h" ]; then
+    rm -rf "$tmp"; log "mujoco-core==$SIMGATE_MUJOCO_VERSION: no libmujoco.so.$SIMGATE_MUJOCO_VERSION or include/mujoco/mujoco.h in the wheel"; return 1
+  fi
+  mv -T "$tmp" "$target" 2>/dev/null || rm -rf "$tmp"   # lost a race: the other run's copy stays
+}
+
 # npm test clients (JSON-RPC libraries nobody on the team wrote): every package.json under tests/ and bench/
 ensure_node_modules() {
   local manifest dir
