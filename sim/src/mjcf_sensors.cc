@@ -5,22 +5,11 @@
 #include "simgate/core/errors.h"
 #include "simgate/sim/actuator_kind.h"
 #include "simgate/sim/actuators_sensors.h"
+#include "simgate/sim/mujoco_compat.h"
 
 namespace simgate::sim {
 
 namespace {
-// MJCF element names by mjtSensor value (MuJoCo 2.2.2's order)
-constexpr const char* k_sensor_types[] = {
-    "touch",         "accelerometer",  "velocimeter",    "gyro",           "force",       "torque",
-    "magnetometer",  "rangefinder",    "jointpos",       "jointvel",       "tendonpos",   "tendonvel",
-    "actuatorpos",   "actuatorvel",    "actuatorfrc",    "ballquat",       "ballangvel",  "jointlimitpos",
-    "jointlimitvel", "jointlimitfrc",  "tendonlimitpos", "tendonlimitvel", "tendonlimitfrc", "framepos",
-    "framequat",     "framexaxis",     "frameyaxis",     "framezaxis",     "framelinvel", "frameangvel",
-    "framelinacc",   "frameangacc",    "subtreecom",     "subtreelinvel",  "subtreeangmom", "clock",
-    "user"};
-static_assert(std::size(k_sensor_types) == mjSENS_USER + 1, "one name per mjtSensor value");
-static_assert(mjSENS_CLOCK == 35 && mjSENS_FRAMEPOS == 23, "mjtSensor as in MuJoCo 2.2.2");
-
 // The sensorised object's MJCF kind as the <sensor objtype> attribute spells it ("site",
 // "joint", "body", "xbody", "geom", "camera", "tendon", "actuator").
 std::string object_kind(int type) { return mju_type2Str(type); }
@@ -36,8 +25,62 @@ std::string sensor_place(const mjModel* m, int s) {
 }
 }  // namespace
 
+// The MJCF element of each mjtSensor value (a switch, not a table: the values moved between
+// MuJoCo releases as sensors were added).
 const char* sensor_type_name(int type) {
-  return type >= 0 && type <= mjSENS_USER ? k_sensor_types[type] : "user";
+  switch (type) {
+    case mjSENS_TOUCH: return "touch";
+    case mjSENS_ACCELEROMETER: return "accelerometer";
+    case mjSENS_VELOCIMETER: return "velocimeter";
+    case mjSENS_GYRO: return "gyro";
+    case mjSENS_FORCE: return "force";
+    case mjSENS_TORQUE: return "torque";
+    case mjSENS_MAGNETOMETER: return "magnetometer";
+    case mjSENS_RANGEFINDER: return "rangefinder";
+    case mjSENS_JOINTPOS: return "jointpos";
+    case mjSENS_JOINTVEL: return "jointvel";
+    case mjSENS_TENDONPOS: return "tendonpos";
+    case mjSENS_TENDONVEL: return "tendonvel";
+    case mjSENS_ACTUATORPOS: return "actuatorpos";
+    case mjSENS_ACTUATORVEL: return "actuatorvel";
+    case mjSENS_ACTUATORFRC: return "actuatorfrc";
+    case mjSENS_BALLQUAT: return "ballquat";
+    case mjSENS_BALLANGVEL: return "ballangvel";
+    case mjSENS_JOINTLIMITPOS: return "jointlimitpos";
+    case mjSENS_JOINTLIMITVEL: return "jointlimitvel";
+    case mjSENS_JOINTLIMITFRC: return "jointlimitfrc";
+    case mjSENS_TENDONLIMITPOS: return "tendonlimitpos";
+    case mjSENS_TENDONLIMITVEL: return "tendonlimitvel";
+    case mjSENS_TENDONLIMITFRC: return "tendonlimitfrc";
+    case mjSENS_FRAMEPOS: return "framepos";
+    case mjSENS_FRAMEQUAT: return "framequat";
+    case mjSENS_FRAMEXAXIS: return "framexaxis";
+    case mjSENS_FRAMEYAXIS: return "frameyaxis";
+    case mjSENS_FRAMEZAXIS: return "framezaxis";
+    case mjSENS_FRAMELINVEL: return "framelinvel";
+    case mjSENS_FRAMEANGVEL: return "frameangvel";
+    case mjSENS_FRAMELINACC: return "framelinacc";
+    case mjSENS_FRAMEANGACC: return "frameangacc";
+    case mjSENS_SUBTREECOM: return "subtreecom";
+    case mjSENS_SUBTREELINVEL: return "subtreelinvel";
+    case mjSENS_SUBTREEANGMOM: return "subtreeangmom";
+    case mjSENS_CLOCK: return "clock";
+#if !SIMGATE_MUJOCO_LEGACY
+    case mjSENS_CAMPROJECTION: return "camprojection";
+    case mjSENS_JOINTACTFRC: return "jointactuatorfrc";
+    case mjSENS_TENDONACTFRC: return "tendonactuatorfrc";
+    case mjSENS_INSIDESITE: return "insidesite";
+    case mjSENS_GEOMDIST: return "distance";
+    case mjSENS_GEOMNORMAL: return "normal";
+    case mjSENS_GEOMFROMTO: return "fromto";
+    case mjSENS_CONTACT: return "contact";
+    case mjSENS_E_POTENTIAL: return "e_potential";
+    case mjSENS_E_KINETIC: return "e_kinetic";
+    case mjSENS_TACTILE: return "tactile";
+    case mjSENS_PLUGIN: return "plugin";
+#endif
+    default: return "user";
+  }
 }
 
 MjcfSensors::MjcfSensors(ComponentContext& c) : SimComponent(c.name(), c.sim()) {

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "simgate/core/log.h"
+#include "simgate/sim/mujoco_compat.h"
 
 namespace simgate::sim {
 
@@ -76,10 +77,10 @@ Model Model::load_string(const std::string& xml, const std::string& name) {
   // a virtual file system holding the one file (mjVFS is large: keep it off the stack)
   auto vfs = std::make_unique<mjVFS>();
   mj_defaultVFS(vfs.get());
-  if (mj_makeEmptyFileVFS(vfs.get(), name.c_str(), static_cast<int>(xml.size())) != 0)
+  if (!compat::vfs_add(vfs.get(), name.c_str(), xml)) {
+    mj_deleteVFS(vfs.get());
     throw MujocoError("scene '" + name + "': could not create a virtual file");
-  int index = mj_findFileVFS(vfs.get(), name.c_str());
-  std::memcpy(vfs->filedata[index], xml.data(), xml.size());
+  }
   char error[1024] = "";
   mjModel* m = nullptr;
   try {

@@ -1,6 +1,7 @@
 #include "simgate/sim/model_edit.h"
 
 #include <algorithm>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <map>
@@ -12,6 +13,7 @@
 #include <tinyxml2.h>
 
 #include "simgate/core/errors.h"
+#include "simgate/sim/mujoco_compat.h"
 
 namespace simgate::sim {
 
@@ -186,7 +188,7 @@ void pad_keyframes(tinyxml2::XMLDocument& doc, const mjModel* bare) {
   // an array's size in the whole model, and the value of its i-th number when added
   struct Array {
     const char* attribute;
-    int size;
+    std::int64_t size;  // int in MuJoCo 2.2.2, mjtSize (64 bits) from 3.x
     std::function<double(int)> initial;
   };
   const std::vector<Array> arrays = {
@@ -316,9 +318,8 @@ Model compile_scene(const std::shared_ptr<const SceneSource>& scene, std::vector
     ~Release() { mj_deleteVFS(vfs); }
   } release{vfs.get()};
   auto add = [&](const char* file, const std::string& text) {
-    if (mj_makeEmptyFileVFS(vfs.get(), file, static_cast<int>(text.size())) != 0)
+    if (!compat::vfs_add(vfs.get(), file, text))
       throw MujocoError("scene '" + scene->file_name + "': could not create the virtual file '" + file + "'");
-    std::memcpy(vfs->filedata[mj_findFileVFS(vfs.get(), file)], text.data(), text.size());
   };
   add(k_wrapper_name, wrapper);
   // as if beside the scene file: relative names resolve in its directory
@@ -326,7 +327,7 @@ Model compile_scene(const std::shared_ptr<const SceneSource>& scene, std::vector
   const std::string source = scene->directory.empty() ? scene->file_name : scene->directory + "/" + scene->file_name;
   // compiles the wrapper with `scene_text` as the scene's file
   auto load = [&](const std::string& scene_text) {
-    if (mj_findFileVFS(vfs.get(), scene->file_name.c_str()) >= 0) mj_deleteFileVFS(vfs.get(), scene->file_name.c_str());
+    if (compat::vfs_contains(vfs.get(), scene->file_name.c_str())) mj_deleteFileVFS(vfs.get(), scene->file_name.c_str());
     add(scene->file_name.c_str(), scene_text);
     char error[1024] = "";
     mjModel* m = mj_loadXML(path.c_str(), vfs.get(), error, sizeof error);

@@ -2,8 +2,11 @@
 
 #include <cstring>
 
+#include "simgate/sim/mujoco_compat.h"
+
 namespace simgate::sim {
 
+#if SIMGATE_MUJOCO_LEGACY
 namespace {
 
 // One mjData array of the state, and its length in the model.
@@ -73,5 +76,44 @@ void PhysicsState::apply(const mjModel* m, mjData* d) const {
 void PhysicsState::apply_warmstart(const mjModel* m, mjData* d) const {
   std::memcpy(d->qacc_warmstart, values_.data() + warmstart_offset(m), sizeof(mjtNum) * static_cast<std::size_t>(m->nv));
 }
+
+#else  // MuJoCo 3.x and later: its own definition of what the next step reads
+
+namespace {
+
+// mjSTATE_INTEGRATION: time, qpos, qvel, act, the history buffers, the plastic state, the
+// plugins' state, ctrl, the applied forces, eq_active, the mocap poses, userdata and the
+// warm start: "everything required to reproduce the next step" (mjtState).
+constexpr int k_signature = mjSTATE_INTEGRATION;
+
+std::size_t state_size(const mjModel* m) { return static_cast<std::size_t>(mj_stateSize(m, k_signature)); }
+
+// The components are laid out in the order of their mjtState bits: the warm start follows
+// those of the lower bits.
+std::size_t warmstart_offset(const mjModel* m) {
+  return static_cast<std::size_t>(mj_stateSize(m, k_signature & (mjSTATE_WARMSTART - 1)));
+}
+
+}  // namespace
+
+void PhysicsState::capture(const mjModel* m, const mjData* d, std::uint64_t generation) {
+  values_.resize(state_size(m));  // no allocation when it held the same model's
+  mj_getState(m, d, values_.data(), k_signature);
+  time_ = d->time;
+  generation_ = generation;
+  captured_ = true;
+}
+
+bool PhysicsState::fits(const mjModel* m, std::uint64_t generation) const {
+  return captured_ && generation_ == generation && values_.size() == state_size(m);
+}
+
+void PhysicsState::apply(const mjModel* m, mjData* d) const { mj_setState(m, d, values_.data(), k_signature); }
+
+void PhysicsState::apply_warmstart(const mjModel* m, mjData* d) const {
+  mj_setState(m, d, values_.data() + warmstart_offset(m), mjSTATE_WARMSTART);
+}
+
+#endif
 
 }  // namespace simgate::sim
