@@ -19,7 +19,9 @@ macro(simgate_find_mujoco)
     if(NOT DEFINED MUJOCO_DIR AND DEFINED ENV{MUJOCO_DIR})
       set(MUJOCO_DIR "$ENV{MUJOCO_DIR}")
     endif()
-    if(MUJOCO_DIR)
+    if(MUJOCO_LIBRARY AND MUJOCO_INCLUDE_DIR)
+      # named by the user, or by the installed simgateConfig.cmake (the MuJoCo it carries)
+    elseif(MUJOCO_DIR)
       # the wheel carries only libmujoco.so.X.Y.Z (its SONAME), no libmujoco.so link
       file(GLOB _simgate_mujoco_libs "${MUJOCO_DIR}/libmujoco.so*" "${MUJOCO_DIR}/lib/libmujoco.so*")
       list(SORT _simgate_mujoco_libs)     # libmujoco.so, if present, sorts first

@@ -56,7 +56,8 @@ echo "installed the $(wc -w <<<"$cited") pages the code's messages cite"
 
 # --- RUNPATH: present, relative to the file ($ORIGIN), never the build or source tree ----
 elves=("$prefix/$bindir/simgate")
-while IFS= read -r -d '' f; do elves+=("$f"); done < <(find "$prefix/$libdir" -name '*.so*' -type f -print0)
+# (the MuJoCo a tree built with MUJOCO_DIR carries is not simgate's: it needs nothing but libc)
+while IFS= read -r -d '' f; do elves+=("$f"); done < <(find "$prefix/$libdir" -name '*.so*' -not -name 'libmujoco.so*' -type f -print0)
 for f in "${elves[@]}"; do
   dynamic=$(readelf -d "$f")
   runpath=$(sed -n 's/.*(RUNPATH).*\[\(.*\)\]/\1/p' <<<"$dynamic")
