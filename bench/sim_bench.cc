@@ -95,7 +95,6 @@
 #include "simgate/gateway/deployment.h"
 #include "simgate/gateway/gateway.h"
 #include "simgate/sim/model_edit.h"
-#include "simgate/sim/mujoco_compat.h"
 #include "simgate/sim/simulation.h"
 #include "simgate/sim/native_sensors.h"
 #include "simgate/sim/registry.h"
@@ -368,7 +367,7 @@ json run_laser(double duration_s) {
       const double* l = &local[3 * i];
       const mjtNum world[3] = {r[0] * l[0] + r[1] * l[1], r[3] * l[0] + r[4] * l[1], r[6] * l[0] + r[7] * l[1]};
       int geom = -1;
-      bare_ranges[i] = simgate::sim::compat::ray(m, d, origin, world, laser.geom_groups(), 1, laser.frame().body(), &geom);
+      bare_ranges[i] = mj_ray(m, d, origin, world, laser.geom_groups(), 1, laser.frame().body(), &geom, nullptr);
     }
   };
   // the two must agree before they are compared

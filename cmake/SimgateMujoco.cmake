@@ -4,15 +4,14 @@
 #     SIMGATE_MUJOCO_FOUND     TRUE or FALSE
 #     SIMGATE_MUJOCO_VERSION   "4.0.0", read from mujoco.h's mjVERSION_HEADER
 #     MUJOCO_LIBRARY, MUJOCO_INCLUDE_DIR   the files found (cache variables)
-#   Where MuJoCo is found, in order:
-#     1. MUJOCO_DIR (CMake or environment variable): a MuJoCo whose headers are under
-#        include/mujoco/ and whose library libmujoco.so* is in it or in its lib/ — the PyPI
-#        wheel's mujoco/ directory (scripts/lib.sh's ensure_mujoco installs the pinned one),
-#        or a user's own build or install. Nothing else is searched then.
-#     2. the system: Debian's libmujoco-dev. Debian's own CMake package names an include
-#        directory it does not install (/usr/include/libqhull_r), so the library and the
-#        header are found directly.
-#   MUJOCO_LIBRARY and MUJOCO_INCLUDE_DIR may be set instead, to name the files themselves.
+#   Where MuJoCo is found: MUJOCO_LIBRARY and MUJOCO_INCLUDE_DIR, when both are set (the
+#   files themselves: the installed simgateConfig.cmake names the copy it carries); else
+#   MUJOCO_DIR (CMake or environment variable): a MuJoCo whose headers are under
+#   include/mujoco/ and whose library libmujoco.so* is in it or in its lib/ — the PyPI
+#   wheel's mujoco/ directory (scripts/lib.sh's ensure_mujoco installs the pinned one, which
+#   sim/CMakeLists.txt names unless the user names another), or a user's own build or
+#   install. The system is not searched (Debian 12's libmujoco-dev is 2.2.2, which simgate
+#   no longer builds on).
 #   Used by the tree (sim/) and by the installed simgateConfig.cmake.
 macro(simgate_find_mujoco)
   if(NOT TARGET simgate::mujoco)
@@ -38,9 +37,6 @@ macro(simgate_find_mujoco)
       find_path(MUJOCO_INCLUDE_DIR mujoco/mujoco.h PATHS "${MUJOCO_DIR}/include" NO_DEFAULT_PATH)
       unset(_simgate_mujoco_libs)
       unset(_simgate_mujoco_lib)
-    else()
-      find_library(MUJOCO_LIBRARY NAMES mujoco)
-      find_path(MUJOCO_INCLUDE_DIR mujoco/mujoco.h)
     endif()
     if(MUJOCO_LIBRARY AND MUJOCO_INCLUDE_DIR)
       # SHARED (not UNKNOWN): CMake then puts the library's directory in the build tree's

@@ -7,7 +7,8 @@ SIMGATE_ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 # what the test suite and benchmarks need on top (scripts/test).
 SIMGATE_RUNTIME_PACKAGES=(
   build-essential cmake ninja-build pkg-config ccache
-  libboost-dev libcli11-dev nlohmann-json3-dev libeigen3-dev libmujoco-dev libtinyxml2-dev
+  libboost-dev libcli11-dev nlohmann-json3-dev libeigen3-dev libtinyxml2-dev
+  python3 python3-venv
   cyclonedds-dev cyclonedds-tools
   libegl-dev libegl1 libgl1-mesa-dri zlib1g-dev
   telnet
@@ -15,7 +16,7 @@ SIMGATE_RUNTIME_PACKAGES=(
 SIMGATE_TEST_PACKAGES=(
   git libgtest-dev libgmock-dev libbenchmark-dev
   libmujoco-samples
-  python3 python3-morse-simulator python3-jsonschema
+  python3-morse-simulator python3-jsonschema
   iproute2 procps util-linux
   clang-14 libclang-rt-14-dev llvm-14
   chromium
@@ -28,7 +29,10 @@ SIMGATE_TEST_PACKAGES=(
 # display, no GPU needed),
 # zlib1g-dev for the PNG images' deflate. Without them at run time the cameras answer
 # FAILED and the rest runs.
+# python3 and python3-venv: ensure_mujoco's private virtualenv, whose pip installs the pinned
+# official MuJoCo (below; Debian's libmujoco-dev, 2.2.2, is no longer used)
 # libmujoco-samples: Debian's sample models (/usr/share/mujoco/model) the sim tests run on
+# (those the current MuJoCo loads; the others must be refused with its message)
 # clang-14 and its runtime libraries build the fuzz targets (libFuzzer, tests/fuzz), llvm-14's
 # llvm-symbolizer puts file and line in their crash reports (scripts/fuzz, docs/fuzzing.md)
 # chromium: the web app's browser test (tests/web) drives Debian's headless Chromium

@@ -13,13 +13,14 @@ namespace {
 const mjtNum* gain_of(const mjModel* m, int a) { return m->actuator_gainprm + a * mjNGAIN; }
 const mjtNum* bias_of(const mjModel* m, int a) { return m->actuator_biasprm + a * mjNBIAS; }
 
-// fixed gain k, affine bias -k times the length (position): what <position> and
-// <intvelocity> compile to
+// fixed gain k, affine bias -k times the length (position), and -kv times its velocity
+// (kv >= 0: MuJoCo 3.x's <position kv=".."> or dampratio, compiled to kv): what <position>
+// and <intvelocity> compile to
 bool has_position_servo_shape(const mjModel* m, int a) {
   const mjtNum* gain = gain_of(m, a);
   const mjtNum* bias = bias_of(m, a);
   return m->actuator_gaintype[a] == mjGAIN_FIXED && m->actuator_biastype[a] == mjBIAS_AFFINE && gain[0] > 0 &&
-         bias[0] == 0 && same(bias[1], -gain[0]) && bias[2] == 0;
+         bias[0] == 0 && same(bias[1], -gain[0]) && bias[2] <= 0;
 }
 
 }  // namespace
@@ -75,9 +76,9 @@ std::string describe_actuator(const mjModel* m, int a) {
   if (gain_type == mjGAIN_MUSCLE || bias_type == mjBIAS_MUSCLE) return "a muscle";
   if (gain_type == mjGAIN_FIXED && bias_type == mjBIAS_NONE)
     return "a motor (torque: fixed gain, no bias)";
-  if (gain_type == mjGAIN_FIXED && bias_type == mjBIAS_AFFINE && bias[0] == 0 && same(bias[1], -gain[0]) &&
-      bias[2] == 0)
-    return "a position servo (kp=" + number(gain[0]) + ": fixed gain, bias -kp times the position)";
+  if (has_position_servo_shape(m, a))
+    return "a position servo (kp=" + number(gain[0]) + (bias[2] < 0 ? ", kv=" + number(-bias[2]) : std::string()) +
+           ": fixed gain, bias -kp times the position" + (bias[2] < 0 ? " and -kv times its velocity)" : ")");
   auto type_name = [](int t, bool is_gain) -> std::string {
     if (t == (is_gain ? int(mjGAIN_FIXED) : int(mjBIAS_NONE))) return is_gain ? "fixed" : "none";
     if (t == (is_gain ? int(mjGAIN_AFFINE) : int(mjBIAS_AFFINE))) return "affine";

@@ -4,7 +4,6 @@
 
 #include "simgate/core/call_context.h"
 #include "simgate/core/errors.h"
-#include "simgate/sim/mujoco_compat.h"
 #include "simgate/sim/sim_component.h"
 
 namespace simgate::sim {
@@ -51,7 +50,7 @@ bool CommunicationServices::line_of_sight(int body1, int body2) const {
     const Eigen::Vector3d start = from + t * segment;
     int geom = -1;
     // x: the hit as a multiple of `segment`, or -1 (mj_ray skips fully transparent geoms)
-    const mjtNum x = compat::ray(m, d, start.data(), segment.data(), nullptr, 1, body1, &geom);
+    const mjtNum x = mj_ray(m, d, start.data(), segment.data(), nullptr, 1, body1, &geom, nullptr);
     if (x < 0 || t + x >= 1) return true;
     const int body = m->geom_bodyid[geom];
     if (!in_subtree(m, body, body1) && !in_subtree(m, body, body2)) return false;

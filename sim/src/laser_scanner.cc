@@ -15,7 +15,6 @@
 
 #include "simgate/core/errors.h"
 #include "simgate/sim/bounds.h"
-#include "simgate/sim/mujoco_compat.h"
 #include "simgate/sim/native_sensors.h"
 
 namespace simgate::sim {
@@ -107,7 +106,7 @@ double LaserScanner::cast(const mjtNum* origin, const mjtNum* direction) const {
   // each pass gets past one surface of the robot: at most two per geom (in and out)
   for (int pass = 0; pass <= 2 * own_geom_count_ + 1; ++pass) {
     int geom = -1;
-    const mjtNum t = compat::ray(m, d, start, direction, geom_groups_.data(), 1, exclude, &geom);
+    const mjtNum t = mj_ray(m, d, start, direction, geom_groups_.data(), 1, exclude, &geom, nullptr);
     if (t < 0 || geom < 0) return -1;
     const double distance = travelled + t;
     if (distance > laser_range_) return -1;

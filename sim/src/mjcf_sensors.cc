@@ -5,7 +5,6 @@
 #include "simgate/core/errors.h"
 #include "simgate/sim/actuator_kind.h"
 #include "simgate/sim/actuators_sensors.h"
-#include "simgate/sim/mujoco_compat.h"
 
 namespace simgate::sim {
 
@@ -65,7 +64,6 @@ const char* sensor_type_name(int type) {
     case mjSENS_SUBTREELINVEL: return "subtreelinvel";
     case mjSENS_SUBTREEANGMOM: return "subtreeangmom";
     case mjSENS_CLOCK: return "clock";
-#if !SIMGATE_MUJOCO_LEGACY
     case mjSENS_CAMPROJECTION: return "camprojection";
     case mjSENS_JOINTACTFRC: return "jointactuatorfrc";
     case mjSENS_TENDONACTFRC: return "tendonactuatorfrc";
@@ -78,7 +76,6 @@ const char* sensor_type_name(int type) {
     case mjSENS_E_KINETIC: return "e_kinetic";
     case mjSENS_TACTILE: return "tactile";
     case mjSENS_PLUGIN: return "plugin";
-#endif
     default: return "user";
   }
 }

@@ -1,5 +1,8 @@
 #include "simgate/sim/model.h"
 
+#include <dlfcn.h>
+
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -9,15 +12,14 @@
 #include <vector>
 
 #include "simgate/core/log.h"
-#include "simgate/sim/mujoco_compat.h"
+#include "urdf.h"
 
 namespace simgate::sim {
 
 namespace {
 
-// MuJoCo calls this instead of exit(1). It must not return: 2.2.2's mju_error returns to
-// the engine code that found the error when the handler does, and that code carries on with
-// the broken state. The engine is built with unwind tables, so the exception propagates
+// MuJoCo calls this instead of exit(1). It must not return: were it to, mju_error would
+// return to the engine code that found the error, which carries on with the broken state. The engine is built with unwind tables, so the exception propagates
 // through its C frames to the caller of mj_step / mj_forward.
 void on_mujoco_error(const char* message) { throw MujocoError(std::string("MuJoCo error: ") + message); }
 
@@ -35,6 +37,35 @@ std::shared_ptr<const SceneSource> scene_of(const mjModel* m, std::string xml, s
   return scene;
 }
 
+// The directory of MuJoCo's engine plugins: $SIMGATE_MUJOCO_PLUGIN_DIR, else the first of
+// the layouts beside the libmujoco this process runs on that exists; "" when none does.
+std::string engine_plugin_directory() {
+  if (const char* dir = std::getenv("SIMGATE_MUJOCO_PLUGIN_DIR"); dir && *dir) return dir;
+  Dl_info info{};
+  if (dladdr(reinterpret_cast<void*>(&mj_version), &info) == 0 || !info.dli_fname) return "";
+  const std::filesystem::path lib_dir = std::filesystem::path(info.dli_fname).parent_path();
+  for (const auto& dir : {lib_dir / "plugin", lib_dir / "mujoco_plugin", lib_dir / ".." / "bin" / "mujoco_plugin"}) {
+    std::error_code ec;
+    if (std::filesystem::is_directory(dir, ec)) return dir.lexically_normal().string();
+  }
+  return "";
+}
+
+EnginePlugins load_engine_plugins() {
+  EnginePlugins plugins;
+  plugins.directory = engine_plugin_directory();
+  if (plugins.directory.empty()) {
+    log::debug("MuJoCo engine plugins: no plugin directory beside libmujoco");
+    return plugins;
+  }
+  const int before = mjp_pluginCount();
+  mj_loadAllPluginLibraries(plugins.directory.c_str(), nullptr);
+  for (int slot = before; slot < mjp_pluginCount(); ++slot)
+    if (const mjpPlugin* p = mjp_getPluginAtSlot(slot); p && p->name) plugins.names.emplace_back(p->name);
+  log::debug("MuJoCo engine plugins from ", plugins.directory, ": ", plugins.names.size());
+  return plugins;
+}
+
 }  // namespace
 
 void install_mujoco_handlers() {
@@ -43,6 +74,12 @@ void install_mujoco_handlers() {
     mju_user_error = &on_mujoco_error;
     mju_user_warning = &on_mujoco_warning;
   });
+  engine_plugins();
+}
+
+const EnginePlugins& engine_plugins() {
+  static const EnginePlugins plugins = load_engine_plugins();  // once, thread-safe
+  return plugins;
 }
 
 Model::Model(mjModel* m, std::string source) : model_(m), source_(std::move(source)) {
@@ -53,22 +90,32 @@ Model::Model(mjModel* m, std::string source) : model_(m), source_(std::move(sour
 
 Model Model::load_file(const std::string& path) {
   install_mujoco_handlers();
-  char error[1024] = "";
-  mjModel* m = nullptr;
-  try {
-    m = mj_loadXML(path.c_str(), nullptr, error, sizeof error);
-  } catch (const MujocoError& e) {
-    throw MujocoError("scene '" + path + "': " + e.what());
-  }
-  if (!m) throw MujocoError("scene '" + path + "': " + (error[0] ? error : "MuJoCo could not load it"));
-  if (error[0]) log::warning("scene '", path, "': ", error);
-  Model model(m, path);
   // the text a recompilation (spawned entities) starts from
   std::ifstream file(path, std::ios::binary);
-  std::stringstream text;
-  text << file.rdbuf();
+  std::stringstream read;
+  read << file.rdbuf();
+  std::string text = read.str();
   const std::filesystem::path absolute = std::filesystem::absolute(path);
-  model.scene_ = scene_of(m, text.str(), absolute.filename().string(), absolute.parent_path().string());
+  std::string file_name = absolute.filename().string();
+  mjModel* m = nullptr;
+  if (file && is_urdf(text)) {
+    // MuJoCo's URDF parser and the transmissions' actuators; recompiled from its MJCF
+    CompiledUrdf urdf = compile_urdf(path, text);
+    m = urdf.model;
+    text = std::move(urdf.mjcf);
+    file_name += ".xml";
+  } else {
+    char error[1024] = "";
+    try {
+      m = mj_loadXML(path.c_str(), nullptr, error, sizeof error);
+    } catch (const MujocoError& e) {
+      throw MujocoError("scene '" + path + "': " + e.what());
+    }
+    if (!m) throw MujocoError("scene '" + path + "': " + (error[0] ? error : "MuJoCo could not load it"));
+    if (error[0]) log::warning("scene '", path, "': ", error);
+  }
+  Model model(m, path);
+  model.scene_ = scene_of(m, std::move(text), std::move(file_name), absolute.parent_path().string());
   return model;
 }
 
@@ -77,7 +124,7 @@ Model Model::load_string(const std::string& xml, const std::string& name) {
   // a virtual file system holding the one file (mjVFS is large: keep it off the stack)
   auto vfs = std::make_unique<mjVFS>();
   mj_defaultVFS(vfs.get());
-  if (!compat::vfs_add(vfs.get(), name.c_str(), xml)) {
+  if (mj_addBufferVFS(vfs.get(), name.c_str(), xml.data(), static_cast<int>(xml.size())) != 0) {
     mj_deleteVFS(vfs.get());
     throw MujocoError("scene '" + name + "': could not create a virtual file");
   }

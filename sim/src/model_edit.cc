@@ -13,7 +13,6 @@
 #include <tinyxml2.h>
 
 #include "simgate/core/errors.h"
-#include "simgate/sim/mujoco_compat.h"
 
 namespace simgate::sim {
 
@@ -188,7 +187,7 @@ void pad_keyframes(tinyxml2::XMLDocument& doc, const mjModel* bare) {
   // an array's size in the whole model, and the value of its i-th number when added
   struct Array {
     const char* attribute;
-    std::int64_t size;  // int in MuJoCo 2.2.2, mjtSize (64 bits) from 3.x
+    std::int64_t size;  // mjtSize (64 bits)
     std::function<double(int)> initial;
   };
   const std::vector<Array> arrays = {
@@ -318,7 +317,7 @@ Model compile_scene(const std::shared_ptr<const SceneSource>& scene, std::vector
     ~Release() { mj_deleteVFS(vfs); }
   } release{vfs.get()};
   auto add = [&](const char* file, const std::string& text) {
-    if (!compat::vfs_add(vfs.get(), file, text))
+    if (mj_addBufferVFS(vfs.get(), file, text.data(), static_cast<int>(text.size())) != 0)
       throw MujocoError("scene '" + scene->file_name + "': could not create the virtual file '" + file + "'");
   };
   add(k_wrapper_name, wrapper);
@@ -327,7 +326,7 @@ Model compile_scene(const std::shared_ptr<const SceneSource>& scene, std::vector
   const std::string source = scene->directory.empty() ? scene->file_name : scene->directory + "/" + scene->file_name;
   // compiles the wrapper with `scene_text` as the scene's file
   auto load = [&](const std::string& scene_text) {
-    if (compat::vfs_contains(vfs.get(), scene->file_name.c_str())) mj_deleteFileVFS(vfs.get(), scene->file_name.c_str());
+    if (mj_containsBufferVFS(vfs.get(), scene->file_name.c_str())) mj_deleteFileVFS(vfs.get(), scene->file_name.c_str());
     add(scene->file_name.c_str(), scene_text);
     char error[1024] = "";
     mjModel* m = mj_loadXML(path.c_str(), vfs.get(), error, sizeof error);

@@ -10,7 +10,6 @@
 #include "simgate/core/log.h"
 #include "simgate/sim/communication.h"
 #include "simgate/sim/model_edit.h"
-#include "simgate/sim/mujoco_compat.h"
 #include "simgate/sim/sim_component.h"
 #include "simgate/sim/supervision.h"
 
@@ -55,16 +54,9 @@ std::string seconds(double t) {
 const char* describe_warning(int warning) {
   switch (warning) {
     case mjWARN_INERTIA: return "a (nearly) singular inertia matrix";
-#if SIMGATE_MUJOCO_LEGACY
-    case mjWARN_CONTACTFULL: return "too many contacts: some were dropped (raise nconmax in the MJCF's <size>)";
-    case mjWARN_CNSTRFULL: return "too many constraints: some were dropped (raise njmax in the MJCF's <size>)";
-#else  // 3.x: contacts and constraints share one arena, sized by <size memory="...">
+    // contacts and constraints share one arena, sized by <size memory="...">
     case mjWARN_CONTACTFULL: return "too many contacts: some were dropped (raise memory in the MJCF's <size>)";
     case mjWARN_CNSTRFULL: return "too many constraints: some were dropped (raise memory in the MJCF's <size>)";
-#endif
-#if SIMGATE_MUJOCO_LEGACY
-    case mjWARN_VGEOMFULL: return "too many visual geoms";  // 3.x no longer has it
-#endif
     default: return "an unknown warning";
   }
 }

@@ -56,8 +56,11 @@ echo "installed the $(wc -w <<<"$cited") pages the code's messages cite"
 
 # --- RUNPATH: present, relative to the file ($ORIGIN), never the build or source tree ----
 elves=("$prefix/$bindir/simgate")
-# (the MuJoCo a tree built with MUJOCO_DIR carries is not simgate's: it needs nothing but libc)
-while IFS= read -r -d '' f; do elves+=("$f"); done < <(find "$prefix/$libdir" -name '*.so*' -not -name 'libmujoco.so*' -type f -print0)
+# (the MuJoCo the tree carries, its library and engine plugins, is not simgate's: the library
+# needs nothing but libc, the plugins find it loaded already)
+while IFS= read -r -d '' f; do elves+=("$f"); done < <(find "$prefix/$libdir" -name '*.so*' -not -name 'libmujoco.so*' \
+  -not -path "$prefix/$libdir/mujoco_plugin/*" -type f -print0)
+ls "$prefix/$libdir/mujoco_plugin/"*.so >/dev/null 2>&1 || fail "not installed: MuJoCo's engine plugins in $libdir/mujoco_plugin"
 for f in "${elves[@]}"; do
   dynamic=$(readelf -d "$f")
   runpath=$(sed -n 's/.*(RUNPATH).*\[\(.*\)\]/\1/p' <<<"$dynamic")
@@ -87,6 +90,11 @@ for var in ASAN_OPTIONS LSAN_OPTIONS TSAN_OPTIONS UBSAN_OPTIONS; do
   export "$var=${value/suppressions=$file/suppressions=$work/$var.supp}"
 done
 cp "$here/pkg_config_probe.cc" "$work/"
+# a model using an engine plugin (mujoco.pid): the installed tree's own plugins must load it
+cp "$source_dir/tests/models/current_mujoco.xml" "$work/"
+# the MuJoCo the build used (the wheel in the user's cache) is hidden too: the installed tree
+# runs on the copy it carries
+mujoco_used=$(dirname "$(sed -n 's/^MUJOCO_LIBRARY:[A-Z]*=//p' "$build_dir/CMakeCache.txt")")
 cp "$source_dir/docs/examples/odometer_library.cc" "$work/"
 
 # a private mount namespace: as root, or as an unprivileged user through a user namespace
@@ -108,13 +116,18 @@ fi
 echo "hiding $build_dir and $source_dir with: ${hide[*]}"
 
 export BUILD_DIR=$build_dir SOURCE_DIR=$source_dir WORK=$work PREFIX=$prefix VERSION=$version
-export BINDIR=$bindir LIBDIR=$libdir DATADIR=$datadir CXX_COMPILER=$cxx SANITIZE=$sanitize
+export BINDIR=$bindir LIBDIR=$libdir DATADIR=$datadir CXX_COMPILER=$cxx SANITIZE=$sanitize MUJOCO_USED=$mujoco_used
 timeout 420 "${hide[@]}" bash -s <<'INNER'
 set -euo pipefail
 fail() { echo "FAILED: $*" >&2; exit 1; }
 mount -t tmpfs -o size=1m simgate-hidden-build "$BUILD_DIR"
 mount -t tmpfs -o size=1m simgate-hidden-source "$SOURCE_DIR"
 [ ! -e "$BUILD_DIR/CMakeCache.txt" ] && [ ! -e "$SOURCE_DIR/CMakeLists.txt" ] || fail "the trees are not hidden"
+# (only a MuJoCo directory of its own: never a system library directory)
+if [ -d "$MUJOCO_USED" ] && [[ $(basename "$MUJOCO_USED") == *mujoco* ]]; then
+  mount -t tmpfs -o size=1m simgate-hidden-mujoco "$MUJOCO_USED"
+  echo "hid the MuJoCo the build used: $MUJOCO_USED"
+fi
 cd /
 unset SIMGATE_PLUGIN_PATH LD_LIBRARY_PATH CYCLONEDDS_URI
 
@@ -137,6 +150,9 @@ exercise() {
     fi
     timeout 60 "$simgate" check "$config" || fail "simgate check $config"
   done
+  out=$(timeout 60 "$simgate" check --model "$WORK/current_mujoco.xml" 2>&1) ||
+    fail "simgate check --model current_mujoco.xml (MuJoCo's PID plugin from $LIBDIR/mujoco_plugin): $out"
+  echo "$prefix: a model using MuJoCo's PID actuator plugin: $out"
 }
 # The web app answers GET / from the installed share/simgate/web (the build tree's is hidden):
 # the ws:// endpoint of the running `simgate run` ($run) in $WORK/endpoints.json.

@@ -12,12 +12,17 @@ trap 'rm -rf "$work"' EXIT
 # the package lists
 # shellcheck source=/dev/null
 source "$source_dir/scripts/lib.sh"
+# (python3 and python3-venv are the runtime's: ensure_mujoco's pip installs MuJoCo with them)
 for p in "${SIMGATE_RUNTIME_PACKAGES[@]}"; do
   case "$p" in
-    libgtest-dev|libgmock-dev|libbenchmark-dev|python3*|nodejs|npm)
+    libgtest-dev|libgmock-dev|libbenchmark-dev|nodejs|npm)
       echo "scripts/run would install the test package $p"; exit 1 ;;
   esac
+  for t in "${SIMGATE_TEST_PACKAGES[@]}"; do
+    [ "$p" != "$t" ] || { echo "scripts/run would install the test package $p"; exit 1; }
+  done
 done
+grep -q '^ensure_mujoco' "$source_dir/scripts/run" || { echo "scripts/run does not install the pinned MuJoCo"; exit 1; }
 grep -q '^ensure_packages runtime$' "$source_dir/scripts/run" || { echo "scripts/run does not ask for the runtime packages only"; exit 1; }
 grep -q -- '-- simgate_runtime' "$source_dir/scripts/run" || { echo "scripts/run does not build simgate_runtime"; exit 1; }
 

@@ -12,6 +12,7 @@ namespace {
 
 using testing::MjcfSim;
 using testing::mujoco_sample;
+using testing::test_model;
 using ::testing::HasSubstr;
 
 class ActuatorSetTest : public MjcfSim {
@@ -195,8 +196,8 @@ TEST_F(ActuatorSetConfigTest, AGeneratedNameTakenByAnotherActuatorIsAConfigError
 
 // ---- Debian's MuJoCo samples -----------------------------------------------------------------
 
-TEST_F(MjcfSim, Arm26MusclesPullOnTheirTendonsWithinTheirRange) {
-  load_file(mujoco_sample("tendon_arm/arm26.xml"));
+TEST_F(MjcfSim, TendonArmMusclesPullOnTheirTendonsWithinTheirRange) {
+  load_file(test_model("tendon_arm.xml"));
   Robot& arm = add_robot("arm", "#1");  // the arm's root body has no name
   add_component(arm, "actuators", "actuators");
   serve();
@@ -249,7 +250,7 @@ TEST_F(MjcfSim, SliderCranksBelongToTheBodyOfTheirCrank) {
 }
 
 TEST_F(MjcfSim, AdhesionActuatorsActOnABody) {
-  load_file(mujoco_sample("adhesion/active_adhesion.xml"));
+  load_file(test_model("adhesion_crane.xml"));
   const mjModel* m = sim_->m();
   int adhere = sim_->model().actuator_id("adhere_winch");
   ASSERT_GE(adhere, 0);

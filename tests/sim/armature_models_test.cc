@@ -1,8 +1,9 @@
 // ArmatureModelsTest: the armature and its pose sensor on the models Debian's
 // libmujoco-samples ships (/usr/share/mujoco/model): humanoid.xml (a free root joint that
-// is not an armature joint, 21 hinges driven by motors, so kinematically), arm26.xml (two
-// hinges moved by muscles through tendons: kinematic too; an unnamed root body) and
-// slider_crank.xml (unnamed bodies and joints, slider-crank transmissions). And the
+// is not an armature joint, 21 hinges driven by motors, so kinematically) and
+// slider_crank.xml (unnamed bodies and joints, slider-crank transmissions); and the
+// project's tests/models/tendon_arm.xml (two hinges moved by muscles through tendons:
+// kinematic too; an unnamed root body), in place of arm26.xml, which MuJoCo 4.0 refuses. And the
 // configuration errors of the `joints` option.
 #include "armature_fixture.h"
 
@@ -21,6 +22,9 @@ class ArmatureModelsTest : public ArmatureSim {
     const std::string path = debian_model(relative);
     ASSERT_TRUE(std::filesystem::exists(path)) << path << " missing: apt-get install libmujoco-samples";
     build(Model::load_file(path), robot, body, std::move(options));
+  }
+  void build_own(const std::string& name, const std::string& robot, const std::string& body) {
+    build(Model::load_file(testing::test_model(name)), robot, body);
   }
 };
 
@@ -89,9 +93,9 @@ TEST_F(ArmatureModelsTest, HumanoidFollowsATrajectoryOfTwoNamedJoints) {
   EXPECT_NEAR(qpos("left_elbow"), -0.8, 0.02);
 }
 
-TEST_F(ArmatureModelsTest, Arm26HingesMovedByMusclesAreSetKinematically) {
+TEST_F(ArmatureModelsTest, TendonArmHingesMovedByMusclesAreSetKinematically) {
   // its root body is unnamed: MuJoCo's id makes its name, body1
-  build_file("tendon_arm/arm26.xml", "arm26", "body1");
+  build_own("tendon_arm.xml", "arm", "body1");
   EXPECT_EQ(arm("get_joints").value, json({"shoulder", "elbow"}));
   ASSERT_EQ(arm("set_rotation", {"elbow", 1.0}).status, Status::success);
   run_for(1.0);

@@ -6,7 +6,6 @@
 #include <cmath>
 
 #include "sim_fixture.h"
-#include "simgate/sim/mujoco_compat.h"
 
 namespace simgate::sim::testing {
 namespace {
@@ -53,7 +52,7 @@ TEST_F(SimCommunicationTest, ARobotsOwnBodiesDoNotHideIt) {
   const Eigen::Vector3d from = body_position(*sim_, sim_->model().body_id("robot"));
   Eigen::Vector3d segment = body_position(*sim_, sim_->model().body_id("human")) - from;
   int geom = -1;
-  ASSERT_GE(compat::ray(sim_->m(), sim_->d(), from.data(), segment.data(), nullptr, 1, sim_->model().body_id("robot"), &geom),
+  ASSERT_GE(mj_ray(sim_->m(), sim_->d(), from.data(), segment.data(), nullptr, 1, sim_->model().body_id("robot"), &geom, nullptr),
             0);
   ASSERT_EQ(sim_->m()->geom_bodyid[geom], wheel) << "the scene no longer tests what it should";
   EXPECT_EQ(distance_and_view("robot", "human")[1], true);

@@ -12,6 +12,7 @@ namespace {
 
 using testing::MjcfSim;
 using testing::mujoco_sample;
+using testing::test_model;
 using ::testing::HasSubstr;
 
 class MjcfSensorsTest : public MjcfSim {
@@ -225,7 +226,7 @@ TEST_F(MjcfSensorsConfigTest, TypeNamesFollowMuJoCosElements) {
 // ---- Debian's MuJoCo samples -----------------------------------------------------------------
 
 TEST_F(MjcfSim, AnUnnamedForceSensorIsNamedAfterItsTypeAndRank) {
-  load_file(mujoco_sample("adhesion/active_adhesion.xml"));
+  load_file(test_model("adhesion_crane.xml"));
   const int site = mj_name2id(sim_->m(), mjOBJ_SITE, "force_sensor");
   ASSERT_GE(site, 0);
   // the robot: the top-level body holding the sensor's site

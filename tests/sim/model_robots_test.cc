@@ -82,7 +82,7 @@ TEST(ModelRobotsTest, DebiansSampleModels) {
   ASSERT_EQ(robots.size(), 1u);
   EXPECT_EQ(robots[0].name, "torso");
   EXPECT_EQ(robots[0].components, (Components{"armature", "armature_pose", "actuators"}));
-  robots = find_model_robots(Model::load_file(dir + "tendon_arm/arm26.xml"));
+  robots = find_model_robots(Model::load_file(std::string(SIMGATE_SOURCE_DIR) + "/tests/models/tendon_arm.xml"));
   ASSERT_EQ(robots.size(), 1u);
   EXPECT_EQ(robots[0].components, (Components{"armature", "armature_pose", "actuators"}));
   robots = find_model_robots(Model::load_file(dir + "slider_crank/slider_crank.xml"));

@@ -1,4 +1,7 @@
 // SimModel: loading MJCF scenes, MuJoCo errors as exceptions (never a process exit).
+#include <algorithm>
+#include <string>
+
 #include <gtest/gtest.h>
 
 #include "simgate/core/log.h"
@@ -59,6 +62,46 @@ TEST(SimModelTest, EngineWarningBecomesALogLine) {
   log::set_sink({});
   ASSERT_EQ(lines.size(), 1u);
   EXPECT_NE(lines[0].find("deliberate test warning"), std::string::npos);
+}
+
+// ---- the current MuJoCo (issue #36) ---------------------------------------------------------
+
+TEST(SimModelTest, MujocosEnginePluginsAreLoadedFromBesideItsLibrary) {
+  install_mujoco_handlers();
+  const EnginePlugins& plugins = engine_plugins();
+  EXPECT_FALSE(plugins.directory.empty());
+  for (const char* name : {"mujoco.pid", "mujoco.sensor.touch_grid"})
+    EXPECT_NE(std::find(plugins.names.begin(), plugins.names.end(), name), plugins.names.end())
+        << name << " not among " << ::testing::PrintToString(plugins.names);
+}
+
+TEST(SimModelTest, AModelOfTheCurrentMujocoLoadsAndItsPidActuatorHoldsTheTarget) {
+  // an actuator plugin, actuatorfrcrange, <frame>, <replicate>, <flexcomp>: all refused by 2.2.2
+  Model m = Model::load_file(testing::test_model("current_mujoco.xml"));
+  EXPECT_EQ(m.model()->nplugin, 1);
+  int posts = 0;  // <replicate>'s four copies, named post + a suffix
+  for (int b = 0; b < m.model()->nbody; ++b) posts += m.body_name(b).rfind("post", 0) == 0;
+  EXPECT_EQ(posts, 4);
+  EXPECT_EQ(m.model()->nflex, 1);
+  const int swing = m.joint_id("swing");
+  ASSERT_GE(swing, 0);
+  EXPECT_EQ(m.model()->jnt_actfrclimited[swing], 1);
+  // the PID drives the pendulum to 0.5 rad (its ctrl) and holds it there
+  const int pid = m.actuator_id("swing_pid");
+  ASSERT_GE(pid, 0);
+  m.data()->ctrl[pid] = 0.5;
+  for (int i = 0; i < 2500; ++i) mj_step(m.model(), m.data());  // 5 s
+  EXPECT_NEAR(m.data()->qpos[m.model()->jnt_qposadr[swing]], 0.5, 0.05);
+}
+
+TEST(SimModelTest, AModelUsingAPluginNobodyRegisteredIsRefusedNamingIt) {
+  try {
+    Model::load_string(R"(<mujoco><extension><plugin plugin="no.such.plugin"/></extension>
+      <worldbody><body><geom size="0.1"/></body></worldbody></mujoco>)", "unknown-plugin.xml");
+    FAIL() << "no exception";
+  } catch (const MujocoError& e) {
+    EXPECT_NE(std::string(e.what()).find("no.such.plugin"), std::string::npos) << e.what();
+  }
 }
 
 TEST(SimModelTest, SteppingTheModelMovesTheFreeBody) {

@@ -8,7 +8,6 @@
 
 #include "sim_fixture.h"
 #include "simgate/core/errors.h"
-#include "simgate/sim/mujoco_compat.h"
 #include "simgate/sim/native_sensors.h"
 
 namespace simgate::sim {
@@ -220,7 +219,7 @@ TEST_F(NativeSensorsTest, LaserDoesNotSeeAnyPartOfItsRobot) {
   const mjtNum direction[3] = {std::cos(a), std::sin(a), 0};
   const mjtNum* origin = sim_->d()->site_xpos + 3 * mj_name2id(m, mjOBJ_SITE, "laser");
   int geom = -1;
-  compat::ray(m, sim_->d(), origin, direction, nullptr, 1, sim_->model().body_id("robot"), &geom);
+  mj_ray(m, sim_->d(), origin, direction, nullptr, 1, sim_->model().body_id("robot"), &geom, nullptr);
   ASSERT_EQ(geom, mj_name2id(m, mjOBJ_GEOM, "mast"));
   // the scanner sees through it, and through the chassis it starts in
   json ranges = data("robot.laser")["range_list"];

@@ -120,6 +120,9 @@ inline bool state_is_finite(const Simulation& sim) {
 }
 
 inline std::string demo_scene() { return std::string(SIMGATE_SOURCE_DIR) + "/config/scenes/demo.xml"; }
+// The project's own test models (tests/models): among them, what Debian's samples showed that
+// the current MuJoCo refuses in them (arm26's muscles, adhesion's <composite>)
+inline std::string test_model(const std::string& name) { return std::string(SIMGATE_SOURCE_DIR) + "/tests/models/" + name; }
 
 class DemoSim : public ::testing::Test {
  protected:

@@ -4,7 +4,7 @@
 // into one <general> form: a transmission (joint, tendon, site, slider-crank, body), a
 // dynamics type, a gain and a bias. The element's name is gone from the compiled model;
 // actuator_type() recognises it again from the parameters each shortcut sets (MuJoCo
-// 2.2.2's XML reference), so a <general> written in the shape of a <position> is reported
+// XML reference), so a <general> written in the shape of a <position> is reported
 // as "position" — it behaves as one.
 //
 // Ownership: an actuator belongs to a robot when what it moves is attached to a body of the

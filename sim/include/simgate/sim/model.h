@@ -32,8 +32,20 @@ class MujocoError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// Installs the error/warning handlers (idempotent, thread-safe). Called by Model.
+// Installs the error/warning handlers and loads MuJoCo's engine plugins (idempotent,
+// thread-safe). Called by Model.
 void install_mujoco_handlers();
+
+// MuJoCo's engine plugins (the PID actuator, SDF collisions, touch-grid sensors...), loaded
+// once, before the first model: every library in the plugin directory beside libmujoco —
+// the PyPI wheel's mujoco/plugin/, an installed simgate's lib/mujoco_plugin/, a MuJoCo
+// release's bin/mujoco_plugin/ — or in $SIMGATE_MUJOCO_PLUGIN_DIR when set. A model using
+// a plugin none of them registers is refused by MuJoCo, naming it.
+struct EnginePlugins {
+  std::string directory;           // where they were looked for ("" when nowhere)
+  std::vector<std::string> names;  // the plugins registered, e.g. "mujoco.pid"
+};
+const EnginePlugins& engine_plugins();
 
 // How many objects of each kind a model, or one block of it, holds.
 struct ModelCounts {

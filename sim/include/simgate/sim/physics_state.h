@@ -1,9 +1,8 @@
 // simgate/sim/physics_state.h — a copy of everything MuJoCo's next step reads.
 //
-// time, qpos, qvel, act, ctrl, the solver's warm start, the applied forces (qfrc_applied,
-// xfrc_applied), the mocap poses and userdata: MuJoCo 2.2.2's mj_step inputs; on MuJoCo 3.x
-// and later, its own mjSTATE_INTEGRATION (the same, and eq_active, the plugins' state, the
-// history buffers and the plastic state). Put back
+// MuJoCo's own mjSTATE_INTEGRATION: time, qpos, qvel, act, ctrl, the solver's warm start,
+// the applied forces (qfrc_applied, xfrc_applied), the mocap poses, userdata, eq_active, the
+// plugins' state, the history buffers and the plastic state. Put back
 // (Simulation::restore_physics) and stepped, it gives bit for bit what stepping from the
 // moment it was captured gave. It belongs to the model it was captured from: fits() says
 // whether it still does (the model generation and the sizes: a spawn or a delete since
