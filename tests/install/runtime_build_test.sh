@@ -59,4 +59,17 @@ if grep -qiE 'gtest|benchmark|_test|tests/' <<<"$plan"; then
   grep -iE 'gtest|benchmark|_test|tests/' <<<"$plan" | head -5
   echo "simgate_runtime builds test code"; exit 1
 fi
-echo "runtime build: no test package, $(grep -c Linking <<<"$plan") links, simgate, 4 plugins and the web app"
+
+# the pinned MuJoCo (cmake/mujoco-version.txt) from the cache scripts/run installs it into,
+# also in a build directory configured before on another MuJoCo (Debian's, before issue
+# #36: the files it found stay cached, with no MUJOCO_DIR; it kept them, and failed to build)
+pinned=$(<"$source_dir/cmake/mujoco-version.txt")
+grep -q "^MUJOCO_LIBRARY:FILEPATH=.*/mujoco-$pinned/mujoco/libmujoco.so" "$work/build/CMakeCache.txt" ||
+  { grep '^MUJOCO_' "$work/build/CMakeCache.txt"; echo "not built on the pinned MuJoCo $pinned"; exit 1; }
+cmake "$work/build" -DMUJOCO_LIBRARY:FILEPATH=/usr/lib/x86_64-linux-gnu/libmujoco.so.2.2.2 \
+  -DMUJOCO_INCLUDE_DIR:PATH=/usr/include -DSIMGATE_MUJOCO_SEARCHED_DIR= >"$work/reconfigure.log" 2>&1 ||
+  { cat "$work/reconfigure.log"; echo "reconfiguring a build directory of Debian's MuJoCo failed"; exit 1; }
+grep -q "^MUJOCO_LIBRARY:FILEPATH=.*/mujoco-$pinned/mujoco/libmujoco.so" "$work/build/CMakeCache.txt" ||
+  { grep '^MUJOCO_' "$work/build/CMakeCache.txt"; echo "a build directory of Debian's MuJoCo kept it"; exit 1; }
+
+echo "runtime build: no test package, $(grep -c Linking <<<"$plan") links, simgate, 4 plugins and the web app, MuJoCo $pinned"
