@@ -287,6 +287,10 @@ class CommandLine {
                         "serve every robot of this MJCF model with its generic components (armature, armature_pose, "
                         "actuators, sensors); the transports are CONFIG's, or socket 4000 and jsonrpc 4001 on 127.0.0.1")
         ->type_name("FILE.xml");
+    command->add_option("--port", args.port,
+                        "with --model and no CONFIG: the socket transport listens on BASE, jsonrpc on BASE+1 "
+                        "(default 4000; 0: ports the kernel picks)")
+        ->type_name("BASE");
     command->add_option("--log-level", args.log_level, "trace, debug, info, warning, error or off (overrides the config)")
         ->type_name("L");
     command->add_option("--plugin-path", args.plugin_dirs, "search transport plugins in DIR (after SIMGATE_PLUGIN_PATH; repeatable)")

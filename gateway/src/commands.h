@@ -26,6 +26,7 @@ namespace simgate::gateway {
 struct RunArgs {
   std::string config;                          // CONFIG ("" when --model alone)
   std::optional<std::string> model;            // --model FILE.xml
+  std::optional<std::string> port;             // --port BASE (--model without CONFIG)
   std::optional<std::string> log_level;        // --log-level
   std::optional<std::string> realtime_factor;  // --realtime-factor
   std::optional<std::string> endpoints_file;   // --endpoints-file

@@ -24,11 +24,13 @@ namespace simgate::gateway {
 namespace {
 
 // The transports of `--model` without CONFIG: MORSE's socket protocol and JSON-RPC on
-// loopback, at their usual ports.
-json default_model_document() {
+// loopback, at `base` and base + 1 (their usual ports 4000 and 4001 by default; 0: both
+// ports the kernel picks).
+json default_model_document(int base) {
   return {{"transports",
-           {{"socket", {{"plugin", "socket"}, {"options", {{"host", "127.0.0.1"}, {"port", 4000}}}}},
-            {"jsonrpc", {{"plugin", "jsonrpc"}, {"options", {{"host", "127.0.0.1"}, {"port", 4001}}}}}}}};
+           {{"socket", {{"plugin", "socket"}, {"options", {{"host", "127.0.0.1"}, {"port", base}}}}},
+            {"jsonrpc",
+             {{"plugin", "jsonrpc"}, {"options", {{"host", "127.0.0.1"}, {"port", base == 0 ? 0 : base + 1}}}}}}}};
 }
 
 // The deployment of `--model FILE.xml [CONFIG]`: the model's robots (model_robots.h), each
@@ -43,7 +45,10 @@ Deployment model_deployment(const RunArgs& args, ConfigErrors& errors) {
   } catch (const std::exception& e) {
     throw ConfigError("--model: expected a loadable MJCF model, found an error: " + std::string(e.what()));
   }
-  json document = args.config.empty() ? default_model_document() : load_config_document(args.config);
+  if (args.port && !args.config.empty())
+    throw UsageError("--port: only for --model without CONFIG (CONFIG's transports name their own ports)");
+  const int port_base = args.port ? parse_int("--port", *args.port, 0, 65534) : 4000;
+  json document = args.config.empty() ? default_model_document(port_base) : load_config_document(args.config);
   if (!document.is_object()) return parse_deployment(document, ".", args.config, errors);  // its own error
   json scene = document.contains("scene") && document["scene"].is_object() ? document["scene"] : json::object();
   scene["mjcf"] = model_file;
@@ -257,6 +262,7 @@ class StatusReporter {
 }  // namespace
 
 Deployment load_deployment_args(const RunArgs& args, ConfigErrors& errors) {
+  if (args.port && !args.model) throw UsageError("--port: only with --model (a config names its transports' ports)");
   Deployment d = args.model ? model_deployment(args, errors) : load_deployment(args.config, errors);
   const std::optional<std::string>& cli_level = args.log_level;
   if (cli_level) {

@@ -115,6 +115,12 @@ Camera::Camera(ComponentContext& c, Type type)
     if (camera_ < 0) o.fail("camera", "the name of an MJCF <camera> (the scene has: " + camera_names(m) + ")");
   } else {
     frame_ = SensorFrame::from(c);
+    // the body's own frame is usually inside the body's geometry: the images show its inside
+    if (!o.has("site"))
+      log::warning("camera '", c.name(), "': no `site` and no `camera`: it looks out from the origin of body '",
+                   c.sim().model().body_name(frame_->body()),
+                   "', likely from inside the body's own geometry (give it a `site` on the body's surface, or an "
+                   "MJCF <camera>; docs/components/cameras.md)");
   }
   width_ = static_cast<int>(o.get_int("cam_width", 256, 1, k_max_size));
   height_ = static_cast<int>(o.get_int("cam_height", 256, 1, k_max_size));

@@ -35,15 +35,21 @@ OWN_MODELS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "mod
 class ModelRun:
     """`simgate run --model MODEL CONFIG`, CONFIG giving a socket transport on port 0."""
 
-    def __init__(self, model, workdir):
-        config = os.path.join(workdir, "transports.json")
-        with open(config, "w") as f:
-            json.dump({"scene": {"mjcf": "replaced-by-the-model.xml", "realtime_factor": 4.0},
-                       "transports": {"socket": {"plugin": "socket", "options": {"port": 0}}},
-                       "log_level": "warning"}, f)
+    def __init__(self, model, workdir, port_base=None):
+        """port_base: no CONFIG, `--port port_base` (socket there, JSON-RPC one above)."""
+        if port_base is None:
+            config = os.path.join(workdir, "transports.json")
+            with open(config, "w") as f:
+                json.dump({"scene": {"mjcf": "replaced-by-the-model.xml", "realtime_factor": 4.0},
+                           "transports": {"socket": {"plugin": "socket", "options": {"port": 0}}},
+                           "log_level": "warning"}, f)
+            where = [config]
+        else:
+            where = ["--port", str(port_base)]
         endpoints = os.path.join(workdir, "endpoints.json")
+        self.endpoints_file = endpoints
         self.log = open(os.path.join(workdir, "run.log"), "w+")
-        self.process = subprocess.Popen([ARGS.simgate, "run", "--model", model, config, "--endpoints-file", endpoints],
+        self.process = subprocess.Popen([ARGS.simgate, "run", "--model", model, *where, "--endpoints-file", endpoints],
                                         stdout=self.log, stderr=subprocess.STDOUT)
         deadline = time.monotonic() + TIMEOUT
         while not os.path.exists(endpoints):
@@ -91,8 +97,8 @@ class ModelTest(unittest.TestCase):
     def tearDown(self):
         self.workdir.cleanup()
 
-    def check(self, model):
-        run = subprocess.run([ARGS.simgate, "check", "--model", model], capture_output=True, text=True,
+    def check(self, model, *more):
+        run = subprocess.run([ARGS.simgate, "check", "--model", model, *more], capture_output=True, text=True,
                              timeout=TIMEOUT)
         return run.returncode, run.stdout + run.stderr
 
@@ -141,6 +147,51 @@ class ModelTest(unittest.TestCase):
     def test_urdf_arm(self):
         # URDF through MuJoCo's own parser: the base, on its slider, is the robot
         self.move_a_joint_of_each_robot(os.path.join(OWN_MODELS, "urdf_arm.urdf"), ["base"])
+
+    def test_port_base_puts_the_socket_there_and_json_rpc_above(self):
+        # two free ports in a row (bounded search; another process may take one meanwhile)
+        base = None
+        for candidate in range(23000, 23400, 2):
+            try:
+                with socket.socket() as a, socket.socket() as b:
+                    a.bind(("127.0.0.1", candidate))
+                    b.bind(("127.0.0.1", candidate + 1))
+                base = candidate
+                break
+            except OSError:
+                continue
+        self.assertIsNotNone(base, "no two free ports in a row in 23000-23400")
+        run = ModelRun(os.path.join(OWN_MODELS, "urdf_arm.urdf"), self.workdir.name, port_base=base)
+        try:
+            with open(run.endpoints_file) as f:
+                endpoints = json.load(f)
+            self.assertEqual(endpoints["socket"], ["tcp://127.0.0.1:%d" % base])
+            self.assertEqual(endpoints["jsonrpc"], ["tcp://127.0.0.1:%d" % (base + 1)])
+            self.assertEqual(run.call("simulation", "list_robots"), ("SUCCESS", ["base"]))
+        finally:
+            output = run.output()
+            self.assertEqual(run.stop(), 0, output)
+        # with a CONFIG, or without --model: a usage error
+        config = os.path.join(self.workdir.name, "transports.json")
+        code, out = self.check(os.path.join(OWN_MODELS, "urdf_arm.urdf"), "--port", "5000", config)
+        self.assertEqual(code, 2, out)
+        self.assertIn("--port: only for --model without CONFIG", out)
+
+    def test_composite_particles_are_scenery_and_a_floating_base_gets_pose_and_odometry(self):
+        # current_mujoco.xml: a pendulum (a robot) and a 3x3 flexcomp (9 particle bodies: scenery)
+        code, out = self.check(os.path.join(OWN_MODELS, "current_mujoco.xml"))
+        self.assertEqual(code, 0, out)
+        self.assertIn("OK (1 robot(s)", out)
+        # Debian's humanoid: a free root joint, so pose and odometry besides its armature
+        run = ModelRun(MODELS + "/humanoid/humanoid.xml", self.workdir.name)
+        try:
+            status, pose = run.call("torso.pose", "get_local_data")
+            self.assertEqual(status, "SUCCESS")
+            self.assertIn("z", pose)
+            self.assertEqual(run.call("torso.odometry", "get_local_data")[0], "SUCCESS")
+        finally:
+            output = run.output()
+            self.assertEqual(run.stop(), 0, output)
 
     def test_every_debian_sample_loads_or_is_refused_with_mujocos_message(self):
         # MuJoCo 4.0 loads these; the 2022 samples it refuses say why, where (exit 2)

@@ -72,7 +72,9 @@ TEST_F(GatewayIntegrationTest, AnMjcfRobotGetsTheGenericComponentsOfItsSubtree) 
   const Deployment& d = gateway_->gateway().deployment();
   std::vector<std::string> names;
   for (const auto& c : d.robots[0].components) names.push_back(c.name);
-  EXPECT_EQ(names, (std::vector<std::string>{"robot.actuators", "robot.armature", "robot.armature_pose"}));
+  // (the demo robot has a free joint: a floating base, with pose and odometry)
+  EXPECT_EQ(names, (std::vector<std::string>{"robot.actuators", "robot.armature", "robot.armature_pose", "robot.pose",
+                                             "robot.odometry"}));
   LineClient c(port());
   // the config's own actuators component: one of the two wheel motors
   json actuators = payload(c.request("1", "robot.actuators list_actuators"));

@@ -14,6 +14,7 @@
 #include "camera_png.h"
 #include "camera_scene.h"
 #include "mjcf_fixture.h"
+#include "simgate/core/log.h"
 #include "simgate/core/streams.h"
 #include "simgate/sim/cameras.h"
 #include "simgate/sim/renderer.h"
@@ -145,6 +146,21 @@ TEST_F(CameraTest, FrameCameraOnASiteLooksAlongItsX) {
   const DecodedPng png = decode_png(decode_base64(record["image"].get<std::string>()));
   ASSERT_TRUE(png.error.empty()) << png.error;
   EXPECT_TRUE(is_red(rgb_at(png, 32, 24)));
+}
+
+// issue #36, item 6: a camera with neither `camera` nor `site` sees from its body's origin,
+// usually from inside the body: built, with a warning naming it and the body
+TEST_F(CameraTest, ACameraWithNoSiteWarnsThatItLooksOutFromInsideItsBody) {
+  std::vector<std::string> warnings;
+  log::set_sink([&](log::Level level, std::string_view text) {
+    if (level == log::Level::warning) warnings.emplace_back(text);
+  });
+  add_component(*robot_, "inside", "video_camera", {{"cam_width", 16}, {"cam_height", 16}}, "rig");
+  add_component(*robot_, "eye", "video_camera", {{"site", "eye"}, {"cam_width", 16}, {"cam_height", 16}});
+  log::set_sink({});
+  ASSERT_EQ(warnings.size(), 1u) << ::testing::PrintToString(warnings);
+  EXPECT_THAT(warnings[0], HasSubstr("camera 'rig.inside': no `site` and no `camera`: it looks out from the origin "
+                                     "of body 'rig'"));
 }
 
 TEST_F(CameraTest, DepthOfTheBoxFaceIsItsDistance) {

@@ -33,11 +33,11 @@ class MjcfSim : public ::testing::Test {
     return r;
   }
   // Creates component "<robot>.<short_name>" of `type` (throws ConfigError as the gateway
-  // would report it).
+  // would report it), bound to `body` ("": none; the gateway gives its robot's).
   void add_component(Robot& robot, const std::string& short_name, const std::string& type,
-                     json options = json::object()) {
+                     json options = json::object(), const std::string& body = "") {
     const std::string path = "robots[0].components[" + std::to_string(components_++) + "]";
-    auto c = registry_.create(Kind::component, {robot.name() + "." + short_name, type, "", path}, options, *sim_,
+    auto c = registry_.create(Kind::component, {robot.name() + "." + short_name, type, body, path}, options, *sim_,
                               &robot);
     sim_->add_component(std::move(c), type, robot.name());
   }

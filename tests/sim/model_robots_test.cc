@@ -11,7 +11,8 @@ namespace {
 using Components = std::vector<std::string>;
 
 // an arm (hinges, a position servo, a touch sensor), a body with only a sensor, a free box,
-// an unnamed body with a slide joint, bodies whose names need care
+// an unnamed body with a slide joint and a motor on it, an unnamed one with a slide joint
+// only (a particle: scenery), bodies whose names need care
 constexpr const char* k_model_robots_scene = R"(
 <mujoco>
   <worldbody>
@@ -33,6 +34,10 @@ constexpr const char* k_model_robots_scene = R"(
       <geom type="box" size="0.1 0.1 0.1"/>
     </body>
     <body pos="3 0 0">
+      <joint name="rail" type="slide" axis="1 0 0"/>
+      <geom type="box" size="0.1 0.1 0.1"/>
+    </body>
+    <body pos="3 1 0">
       <joint type="slide" axis="1 0 0"/>
       <geom type="box" size="0.1 0.1 0.1"/>
     </body>
@@ -47,6 +52,7 @@ constexpr const char* k_model_robots_scene = R"(
   </worldbody>
   <actuator>
     <position name="elbow_servo" joint="elbow" kp="10"/>
+    <motor name="rail_motor" joint="rail"/>
   </actuator>
   <sensor>
     <touch name="tip_touch" site="tip"/>
@@ -65,10 +71,11 @@ TEST(ModelRobotsTest, EachTopLevelBodyWithJointsActuatorsOrSensorsIsARobot) {
   // a sensor alone makes a robot of it
   EXPECT_EQ(robots[1].name, "beacon");
   EXPECT_EQ(robots[1].components, (Components{"sensors"}));
-  // the crate (a free joint only) is an object: skipped; the unnamed body is body<id>
+  // the crate (a free joint only) is an object: skipped; the unnamed body is body<id>; the
+  // next (body6: a slide joint, nothing acting on it, nothing sensing it) is scenery
   EXPECT_EQ(robots[2].name, "body5");
   EXPECT_EQ(robots[2].body, "body5");
-  EXPECT_EQ(robots[2].components, (Components{"armature", "armature_pose"}));
+  EXPECT_EQ(robots[2].components, (Components{"armature", "armature_pose", "actuators"}));
   // reserved and taken names get a suffix
   EXPECT_EQ(robots[3].name, "simulation_2");
   EXPECT_EQ(robots[3].body, "simulation");
@@ -76,12 +83,31 @@ TEST(ModelRobotsTest, EachTopLevelBodyWithJointsActuatorsOrSensorsIsARobot) {
   EXPECT_EQ(robots[4].body, "arm_v2");
 }
 
+// issue #36, item 6: MuJoCo's composite, replicate and flex particles (bodies that only slide
+// or float, nothing acting on or sensing them) are scenery, not robots (Debian's composite
+// samples were 1000 robots of 27 000 services); a floating base gets pose and odometry
+TEST(ModelRobotsTest, ParticlesAreSceneryAndAFloatingBaseGetsPoseAndOdometry) {
+  Model model = Model::load_string(R"(<mujoco><worldbody>
+    <body name="drone" pos="0 0 1"><freejoint/><geom type="box" size="0.2 0.2 0.05"/>
+      <body name="gimbal"><joint name="pan" type="hinge"/><geom type="sphere" size="0.05"/></body></body>
+    <replicate count="20" offset="0.1 0 0">
+      <body name="bead" pos="0 2 0.1"><joint type="slide" axis="1 0 0"/><joint type="slide" axis="0 1 0"/>
+        <geom type="sphere" size="0.02"/></body>
+    </replicate>
+    <flexcomp name="cloth" type="grid" count="4 4 1" spacing="0.1 0.1 0.1" pos="0 -2 1" radius="0.01" dim="2"/>
+  </worldbody></mujoco>)");
+  std::vector<ModelRobot> robots = find_model_robots(model);
+  ASSERT_EQ(robots.size(), 1u);
+  EXPECT_EQ(robots[0].name, "drone");
+  EXPECT_EQ(robots[0].components, (Components{"armature", "armature_pose", "pose", "odometry"}));
+}
+
 TEST(ModelRobotsTest, DebiansSampleModels) {
   const std::string dir = "/usr/share/mujoco/model/";
   auto robots = find_model_robots(Model::load_file(dir + "humanoid/humanoid.xml"));
   ASSERT_EQ(robots.size(), 1u);
   EXPECT_EQ(robots[0].name, "torso");
-  EXPECT_EQ(robots[0].components, (Components{"armature", "armature_pose", "actuators"}));
+  EXPECT_EQ(robots[0].components, (Components{"armature", "armature_pose", "actuators", "pose", "odometry"}));
   robots = find_model_robots(Model::load_file(std::string(SIMGATE_SOURCE_DIR) + "/tests/models/tendon_arm.xml"));
   ASSERT_EQ(robots.size(), 1u);
   EXPECT_EQ(robots[0].components, (Components{"armature", "armature_pose", "actuators"}));

@@ -6,10 +6,14 @@
 //  - generic components: a robot rooted at a body gets `armature` and `armature_pose` when
 //    its subtree has hinge or slide joints (joints.h), `actuators` when actuators act on it
 //    (actuator_kind.h), `sensors` when MJCF <sensor>s are attached to it
-//    (actuators_sensors.h); each is named "<robot>.<type>".
+//    (actuators_sensors.h), and `pose` and `odometry` when the root body has a free joint
+//    of its own (a floating base: a humanoid, a quadruped, a drone); each is named
+//    "<robot>.<type>".
 //  - robots of a model: every top-level body (a child of the world body) that gets at
-//    least one generic component. A body with nothing but a free joint (a box, a ball) is an
-//    object, not a robot.
+//    least one generic component and is not scenery. A body with nothing but a free joint
+//    (a box, a ball) is an object, not a robot; one that nothing acts on or senses and that
+//    only slides or floats (no hinge, no ball joint: a particle of a <composite>,
+//    <replicate> or flex) is scenery.
 //  - names: the body's MJCF name, with every character other than a letter, a digit, '_'
 //    or '-' replaced by '_' (a '.' would split the component names); an unnamed body is
 //    "body<id>"; a name already taken (an earlier robot, "simulation", "time") gets "_2",
@@ -27,7 +31,7 @@
 namespace simgate::sim {
 
 // The generic component types of the robot rooted at `body`, in this order: armature,
-// armature_pose, actuators, sensors (those it has).
+// armature_pose, actuators, sensors, pose, odometry (those it has).
 std::vector<std::string> generic_components(const mjModel* m, int body);
 
 struct ModelRobot {
