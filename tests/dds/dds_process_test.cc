@@ -186,28 +186,36 @@ TEST(DdsProcessTest, AFrozenClientHoldsUpNobodyElse) {
   frozen.kill_now();
 }
 
+// `calls` calc.add calls started back to back by a client process (dds_probe_client's
+// pipeline mode), against a server with `options`: its tally ({answered, overloaded, other,
+// lost}), or a null json after a test failure.
+json pipeline(json options, int calls) {
+  auto server = load_transport(k_plugin, std::move(options));
+  server->register_service("calc", [](double a, double b) { return a + b; }, "add", {"a", "b"});
+  SimThread sim(server);
+  Child client({k_probe, std::to_string(test_domain()), test_partition(), loopback_uri(), "pipeline",
+                std::to_string(calls)});
+  EXPECT_TRUE(client.running());
+  std::string out = client.read_until("}", 120s);
+  EXPECT_EQ(client.wait_exit(10s), 0) << out;
+  json result = out.find('{') == std::string::npos ? json() : json::parse(out.substr(out.find('{')), nullptr, false);
+  EXPECT_TRUE(result.is_object()) << out;
+  return result.is_object() ? result : json();
+}
+
 // Issue #35, item 10: a client process that starts calls back to back without waiting lost
 // most of their replies (its reply writer full, the replies parked, those past max_samples
 // dropped; 88 % of 20 000 in bench/dds_attack's pipeline mode). (In one process Cyclone
 // delivers locally and nothing is lost: the client must be another process.) Every call now
 // gets its final reply: its result, or Overloaded past max_in_flight requests unanswered.
 TEST(DdsProcessTest, APipeliningClientGetsAFinalReplyToEveryCall) {
-  auto server = load_transport(k_plugin, server_options(test_partition()));
-  server->register_service("calc", [](double a, double b) { return a + b; }, "add", {"a", "b"});
-  SimThread sim(server);
   constexpr int k_calls = 5000;
-  Child client({k_probe, std::to_string(test_domain()), test_partition(), loopback_uri(), "pipeline",
-                std::to_string(k_calls)});
-  ASSERT_TRUE(client.running());
-  std::string out = client.read_until("}", 120s);
-  ASSERT_EQ(client.wait_exit(10s), 0) << out;
-  ASSERT_NE(out.find('{'), std::string::npos) << out;
-  json result = json::parse(out.substr(out.find('{')), nullptr, false);
-  ASSERT_TRUE(result.is_object()) << out;
-  EXPECT_EQ(result["lost"], 0) << out;
-  EXPECT_EQ(result["other"], 0) << out;
-  EXPECT_EQ(result["answered"].get<int>() + result["overloaded"].get<int>(), k_calls) << out;
-  EXPECT_GT(result["answered"].get<int>(), 0) << out;
+  json result = pipeline(server_options(test_partition()), k_calls);
+  ASSERT_TRUE(result.is_object());
+  EXPECT_EQ(result["lost"], 0) << result;
+  EXPECT_EQ(result["other"], 0) << result;
+  EXPECT_EQ(result["answered"].get<int>() + result["overloaded"].get<int>(), k_calls) << result;
+  EXPECT_GT(result["answered"].get<int>(), 0) << result;
   std::printf("%d calls started back to back: %s\n", k_calls, result.dump().c_str());
 }
 
@@ -219,20 +227,11 @@ TEST(DdsProcessTest, APipeliningClientGetsAFinalReplyToEveryCall) {
 // something now brings the retry back to 5 ms, and a reply expires only after its writer
 // took nothing for park_timeout_ms (2 s here).
 TEST(DdsProcessTest, AClientReadingManyRepliesAtOnceLosesNoneWhileItTakesThem) {
-  auto server = load_transport(k_plugin, server_options(test_partition(), {{"park_timeout_ms", 2000}}));
-  server->register_service("calc", [](double a, double b) { return a + b; }, "add", {"a", "b"});
-  SimThread sim(server);
   constexpr int k_calls = 20000;
-  Child client({k_probe, std::to_string(test_domain()), test_partition(), loopback_uri(), "pipeline",
-                std::to_string(k_calls)});
-  ASSERT_TRUE(client.running());
-  std::string out = client.read_until("}", 120s);
-  ASSERT_EQ(client.wait_exit(10s), 0) << out;
-  ASSERT_NE(out.find('{'), std::string::npos) << out;
-  json result = json::parse(out.substr(out.find('{')), nullptr, false);
-  ASSERT_TRUE(result.is_object()) << out;
-  EXPECT_EQ(result["lost"], 0) << out;
-  EXPECT_EQ(result["answered"].get<int>() + result["overloaded"].get<int>(), k_calls) << out;
+  json result = pipeline(server_options(test_partition(), {{"park_timeout_ms", 2000}}), k_calls);
+  ASSERT_TRUE(result.is_object());
+  EXPECT_EQ(result["lost"], 0) << result;
+  EXPECT_EQ(result["answered"].get<int>() + result["overloaded"].get<int>(), k_calls) << result;
 }
 
 // The C client of docs/transports/dds.md, written against the IDL alone.
