@@ -30,7 +30,8 @@
 //            mj_step calls on the same model, from the same initial state (the same physics,
 //            step for step: no component acts unless asked), in alternating rounds for
 //            --duration seconds. Two variants: the model as shipped (armature,
-//            armature_pose, actuators: it has no <sensor>) and a copy with 40 sensor values
+//            armature_pose, actuators, and pose and odometry for its free root: it has no
+//            <sensor>) and a copy with 40 sensor values
 //            added (every joint's jointpos, the torso's frame and subtree), which adds the
 //            `sensors` component; the bare loop steps the same copy. Prints steps/s (medians)
 //            and gateway / bare (median of the rounds' ratios) per variant.
