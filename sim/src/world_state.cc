@@ -155,6 +155,8 @@ class WorldState {
       if (e->sim_component) e->sim_component->on_reset();
     if (clock_moves)
       end_sleeps("simulation restore_state: simulated time went to that of state " + std::to_string(handle));
+    // every client that watches the world learns that it went back
+    sim_.announce("restored", {{"handle", handle}});
     return {{"sim_time", s.time()}};
   }
 

@@ -4,6 +4,7 @@
 #include <limits>
 
 #include "sim_fixture.h"
+#include "simgate/core/streams.h"
 
 namespace simgate::sim {
 namespace {
@@ -52,6 +53,26 @@ TEST_F(SimWorldStateTest, RestoreThenStepIsBitIdenticalToTheOriginalContinuing) 
   EXPECT_EQ(sim_->sim_time(), time_a);
   EXPECT_TRUE(same_bits(qpos(), qpos_a));
   EXPECT_TRUE(same_bits(qvel(), qvel_a));
+}
+
+// Restoring a state changes the world under every client: simulation.events says so (it
+// said nothing before), with the state's handle, who asked, and the time it went back to.
+TEST_F(SimWorldStateTest, RestoringAStateIsAnnouncedOnTheEventStream) {
+  sim_->streams().add(*sim_->find("simulation.events")->component, "events", {"test"});
+  auto events = sim_->streams().subscribe("simulation.events", "test", {64, "test", {}});
+  run_for(0.2);
+  const std::uint64_t handle = save();
+  const double saved_time = sim_->sim_time();
+  run_for(0.3);
+  ASSERT_EQ(call("simulation", "restore_state", {handle}).status, Status::success);
+  std::vector<SamplePtr> samples;
+  events->take(samples);
+  ASSERT_EQ(samples.size(), 1u);
+  const json event = samples[0]->data();
+  EXPECT_EQ(event["event"], "restored");
+  EXPECT_EQ(event["handle"], handle);
+  EXPECT_EQ(event["timestamp"], saved_time);
+  EXPECT_EQ(event["by"], "test");
 }
 
 TEST_F(SimWorldStateTest, ListAndDropStates) {

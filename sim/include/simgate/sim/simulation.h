@@ -283,7 +283,7 @@ class Simulation {
   // ...fields}. The simulation announces "diverged" (fields: to_json(Divergence),
   // "divergences", "message"; its timestamp the diverging step's start), then what
   // its policy did: "paused" (set_paused) or "reset" (reset()); and "paused", "resumed",
-  // "reset" whoever causes them. Every event has "by": the transport of the client request
+  // "reset" whoever causes them, and "restored" (fields: "handle") for restore_state. Every event has "by": the transport of the client request
   // that caused it, or "simulation" (its own policy, the host). Costs one atomic read when
   // nobody subscribes.
   void announce(const char* event, json fields = json::object());
