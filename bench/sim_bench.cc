@@ -43,8 +43,8 @@
 //            scene --mjcf (the demo's), from the request to its SUCCESS (validation, the
 //            recompilation on the worker, the swap at the next step: the simulation steps as
 //            fast as possible meanwhile), then `delete_entity` of it, in rounds for
-//            --duration seconds (at least 20), each beside the recompilation alone
-//            (compile_scene, the worker's share, on the main thread) and a bare mj_loadXML
+//            --duration seconds (at least 20), each beside the edit alone
+//            (with_entity, the worker's share, on the main thread) and a bare mj_loadXML
 //            of the same scene. Prints ms p50 and p99 of the four.
 //   progress issue #20's progress target: 100 concurrent JSON-RPC calls getting progress
 //            reports at 1 kHz each, the real-time factor against the same calls without
@@ -616,10 +616,9 @@ json run_spawn(const std::string& mjcf, double duration) {
   while (Clock::now() < end || spawn.size() < 20) {
     spawn.push_back(timed("spawn_entity", json::array({"bench_ball", ball, {1.0, 1.0, 0.5}})));
     remove.push_back(timed("delete_entity", json::array({"bench_ball"})));
-    // the worker's share alone: the same recompilation, on this thread
+    // the worker's share alone: the same edit, on this thread
     auto start = Clock::now();
-    sim::compile_scene(simulation.model().scene(),
-                       {{"bench_ball", sim::entity_sections(ball, "bench_ball", {}), {}}}, true);
+    sim::with_entity(sim::EditBase::of(simulation.model()), "bench_ball", sim::entity_mjcf(ball, "bench_ball", {}));
     compile.push_back(ns_between(start, Clock::now()));
     char error[1024] = "";
     start = Clock::now();
@@ -635,7 +634,7 @@ json run_spawn(const std::string& mjcf, double duration) {
   };
   return json{{"mode", "spawn"},         {"model", mjcf},       {"rounds", spawn.size()},
               {"spawn_entity", ms(spawn)}, {"delete_entity", ms(remove)},
-              {"compile_scene", ms(compile)}, {"mj_loadXML", ms(load)},
+              {"with_entity", ms(compile)}, {"mj_loadXML", ms(load)},
               {"model_generation", simulation.model_generation()}};
 }
 

@@ -9,6 +9,7 @@
 #include <mutex>
 #include <sstream>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "simgate/core/log.h"
@@ -18,23 +19,19 @@ namespace simgate::sim {
 
 namespace {
 
+// A warning MuJoCo gives each time simgate attaches a spawned entity (model_edit.cc): its
+// objects keep their names, unprefixed, which only matters to a model saved back as MJCF
+// (simgate saves none).
+constexpr std::string_view k_attach_without_prefix = "Attaching a spec with an empty prefix";
+
 // MuJoCo calls this instead of exit(1). It must not return: were it to, mju_error would
 // return to the engine code that found the error, which carries on with the broken state. The engine is built with unwind tables, so the exception propagates
 // through its C frames to the caller of mj_step / mj_forward.
 void on_mujoco_error(const char* message) { throw MujocoError(std::string("MuJoCo error: ") + message); }
 
-void on_mujoco_warning(const char* message) { log::warning("MuJoCo: ", message); }
-
-// The scene as loaded: `m` compiled from `xml`, found as `file_name` in `directory`.
-std::shared_ptr<const SceneSource> scene_of(const mjModel* m, std::string xml, std::string file_name,
-                                            std::string directory) {
-  auto scene = std::make_shared<SceneSource>();
-  scene->xml = std::move(xml);
-  scene->file_name = std::move(file_name);
-  scene->directory = std::move(directory);
-  scene->model_name = m->names;  // the model's name comes first in names
-  scene->counts = ModelCounts::of(m);
-  return scene;
+void on_mujoco_warning(const char* message) {
+  if (std::string_view(message).starts_with(k_attach_without_prefix)) return;
+  log::warning("MuJoCo: ", message);
 }
 
 // The directory of MuJoCo's engine plugins: $SIMGATE_MUJOCO_PLUGIN_DIR, else the first of
@@ -88,65 +85,61 @@ Model::Model(mjModel* m, std::string source) : model_(m), source_(std::move(sour
   mj_forward(model(), data());
 }
 
+std::shared_ptr<mjSpec> Model::own(mjSpec* spec) { return std::shared_ptr<mjSpec>(spec, mj_deleteSpec); }
+
+namespace {
+
+// Compiles `spec` (parsed from `source`, named in messages): MuJoCo's message when it does not.
+mjModel* compile(mjSpec* spec, const std::string& source) {
+  mjModel* m = nullptr;
+  try {
+    m = mj_compile(spec, nullptr);
+  } catch (const MujocoError& e) {
+    throw MujocoError("scene '" + source + "': " + e.what());
+  }
+  if (!m) throw MujocoError("scene '" + source + "': " + mjs_getError(spec));
+  if (mjs_isWarning(spec)) log::warning("scene '", source, "': ", mjs_getError(spec));
+  return m;
+}
+
+// MuJoCo's parser on `source` (a file, or `text` when given): its message when it refuses.
+std::shared_ptr<mjSpec> parse(const std::string& source, const std::string* text) {
+  char error[1024] = "";
+  mjSpec* spec = nullptr;
+  try {
+    spec = text ? mj_parseXMLString(text->c_str(), nullptr, error, sizeof error)
+                : mj_parseXML(source.c_str(), nullptr, error, sizeof error);
+  } catch (const MujocoError& e) {
+    throw MujocoError("scene '" + source + "': " + e.what());
+  }
+  if (!spec) throw MujocoError("scene '" + source + "': " + (error[0] ? error : "MuJoCo could not parse it"));
+  return Model::own(spec);
+}
+
+}  // namespace
+
 Model Model::load_file(const std::string& path) {
   install_mujoco_handlers();
-  // the text a recompilation (spawned entities) starts from
   std::ifstream file(path, std::ios::binary);
   std::stringstream read;
   read << file.rdbuf();
-  std::string text = read.str();
-  const std::filesystem::path absolute = std::filesystem::absolute(path);
-  std::string file_name = absolute.filename().string();
-  mjModel* m = nullptr;
-  if (file && is_urdf(text)) {
-    // MuJoCo's URDF parser and the transmissions' actuators; recompiled from its MJCF
-    CompiledUrdf urdf = compile_urdf(path, text);
-    m = urdf.model;
-    text = std::move(urdf.mjcf);
-    file_name += ".xml";
-  } else {
-    char error[1024] = "";
-    try {
-      m = mj_loadXML(path.c_str(), nullptr, error, sizeof error);
-    } catch (const MujocoError& e) {
-      throw MujocoError("scene '" + path + "': " + e.what());
-    }
-    if (!m) throw MujocoError("scene '" + path + "': " + (error[0] ? error : "MuJoCo could not load it"));
-    if (error[0]) log::warning("scene '", path, "': ", error);
-  }
-  Model model(m, path);
-  model.scene_ = scene_of(m, std::move(text), std::move(file_name), absolute.parent_path().string());
-  return model;
+  std::shared_ptr<mjSpec> spec = parse(path, nullptr);
+  // MuJoCo reads URDF too, but makes no actuators of its transmissions
+  if (file && is_urdf(read.str())) add_transmission_actuators(spec.get(), path, read.str());
+  mjModel* m = compile(spec.get(), path);
+  return adopt(m, path, std::move(spec), {});
 }
 
 Model Model::load_string(const std::string& xml, const std::string& name) {
   install_mujoco_handlers();
-  // a virtual file system holding the one file (mjVFS is large: keep it off the stack)
-  auto vfs = std::make_unique<mjVFS>();
-  mj_defaultVFS(vfs.get());
-  if (mj_addBufferVFS(vfs.get(), name.c_str(), xml.data(), static_cast<int>(xml.size())) != 0) {
-    mj_deleteVFS(vfs.get());
-    throw MujocoError("scene '" + name + "': could not create a virtual file");
-  }
-  char error[1024] = "";
-  mjModel* m = nullptr;
-  try {
-    m = mj_loadXML(name.c_str(), vfs.get(), error, sizeof error);
-  } catch (const MujocoError& e) {
-    mj_deleteVFS(vfs.get());
-    throw MujocoError("scene '" + name + "': " + e.what());
-  }
-  mj_deleteVFS(vfs.get());
-  if (!m) throw MujocoError("scene '" + name + "': " + (error[0] ? error : "MuJoCo could not load it"));
-  Model model(m, name);
-  model.scene_ = scene_of(m, xml, name, "");
-  return model;
+  std::shared_ptr<mjSpec> spec = parse(name, &xml);
+  mjModel* m = compile(spec.get(), name);
+  return adopt(m, name, std::move(spec), {});
 }
 
-Model Model::adopt(mjModel* m, std::string source, std::shared_ptr<const SceneSource> scene,
-                   std::vector<SpawnedEntity> entities) {
+Model Model::adopt(mjModel* m, std::string source, SharedSpec spec, std::vector<SpawnedEntity> entities) {
   Model model(m, std::move(source));
-  model.scene_ = std::move(scene);
+  model.spec_ = std::move(spec);
   model.entities_ = std::move(entities);
   return model;
 }

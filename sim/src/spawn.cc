@@ -1,13 +1,12 @@
 // The spawn group of the `simulation` component (docs/world/spawn.md): spawn_entity and
 // delete_entity change the world's model at run time. delete_entity removes an entity
-// spawned at run time, or a body of the scene no component is bound to or part of (the
-// scene's text edited, model_edit.h scene_without); the swap then remaps every
-// component's MuJoCo ids (model_remap.h).
+// spawned at run time, or a body of the scene no component is bound to or part of; the swap
+// then remaps every component's MuJoCo ids (model_remap.h).
 //
-// MuJoCo 2.2.2 cannot edit a compiled model, so each change recompiles the scene with the
-// entities it now holds (model_edit.h). Compiling takes milliseconds to seconds, far more
-// than a step: it happens on a worker thread, off the simulation lock, from copies made
-// under it (a fragment file too is read there: under the lock it is only found); once the worker is done it asks the simulation for its next turn
+// Each change edits a copy of the model's specification and compiles it (model_edit.h).
+// Compiling takes milliseconds to seconds, far more than a step: it happens on a worker
+// thread, off the simulation lock, from copies made under it (a fragment file too is read
+// there: under the lock it is only found); once the worker is done it asks the simulation for its next turn
 // (Simulation::run_soon: between two steps, or at once while paused), which swaps the new
 // model in (Simulation::replace_model carries the state across) and only then completes the
 // request. Both services are concurrent async services: neither takes the component's one
@@ -18,6 +17,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <future>
 #include <memory>
 #include <optional>
@@ -62,7 +62,7 @@ constexpr int k_trial_steps = 100;
 // Refuses a fragment (the last entity of `model`) that is too large, holds a number beyond
 // what MuJoCo takes as sound (1e10: mjMAXVAL) in what drives its dynamics, or makes the
 // model diverge within k_trial_steps of its initial state (issue #35, item 2). Its block is
-// the last one of every array (model.h), its counts measured by compile_scene. Any thread
+// the last one of every array (model.h), its counts measured by with_entity. Any thread
 // (a worker's: the model is not live yet).
 void check_fragment(const Model& model) {
   const SpawnedEntity& e = model.entities().back();
@@ -230,14 +230,14 @@ struct FragmentFile {
   std::string given;  // the path as the client wrote it, for messages
   EntityPose where;
 
-  // The entity's MJCF sections (entity_sections); throws ServiceError as it does, or when
-  // the file cannot be read.
-  std::string sections(const std::string& name) const {
+  // The entity's MJCF document (entity_mjcf); throws ServiceError as it does, or when the
+  // file cannot be read.
+  std::string mjcf(const std::string& name) const {
     std::ifstream in(file, std::ios::binary);
     std::stringstream text;
     text << in.rdbuf();
     if (!in && !in.eof()) refuse("mjcf", "mjcf: '" + given + "' could not be read");
-    return entity_sections(text.str(), name, where);
+    return entity_mjcf(text.str(), name, where);
   }
 };
 
@@ -261,18 +261,21 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
     const bool inline_text = first != std::string::npos && mjcf[first] == '<';
     // inline text is checked now; a file is found now and read by the worker (disk I/O has
     // no place under the simulation lock)
-    std::optional<FragmentFile> file;
-    std::string sections;
-    if (inline_text) sections = entity_sections(mjcf, name, where);
-    else file = FragmentFile{fragment_file(mjcf), mjcf, where};
+    Edit edit;
+    if (inline_text)
+      edit = [name, document = entity_mjcf(mjcf, name, where)](const EditBase& base) {
+        return with_entity(base, name, document);
+      };
+    else
+      edit = [name, file = FragmentFile{fragment_file(mjcf), mjcf, where}](const EditBase& base) {
+        return with_entity(base, name, file.mjcf(name));
+      };
     refuse_if_busy(name);
     const Model& model = sim_.model();
     if (model.body_id(name) >= 0)
       refuse("name", "name '" + name + "' is taken: the world already has a body called so" +
                          (model.entity(name) ? " (a spawned entity)" : ""));
-    std::vector<SpawnedEntity> entities = model.entities();
-    entities.push_back({name, std::move(sections), {}});
-    start(std::move(done), "spawn_entity", name, std::move(entities), true, -1, nullptr, {}, std::move(file));
+    start(std::move(done), "spawn_entity", name, std::move(edit));
   }
 
   void delete_entity(Completion done, const std::string& name) {
@@ -281,10 +284,9 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
     const int body = model.body_id(name);
     if (body == 0) refuse("name", "'" + name + "' is the world body: it cannot be deleted");
     if (body < 0) refuse("name", "no body or entity named '" + name + "'" + spawned_list());
-    std::vector<SpawnedEntity> entities = model.entities();
+    auto edit = [body, name](const EditBase& base) { return without_body(base, body, name); };
     if (model.entity(name)) {
-      std::erase_if(entities, [&](const SpawnedEntity& e) { return e.name == name; });
-      start(std::move(done), "delete_entity", name, std::move(entities), false, body);
+      start(std::move(done), "delete_entity", name, std::move(edit), body);
       return;
     }
     // a body of the scene: the robots whose root body is in its subtree go, with their
@@ -317,9 +319,7 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
         refuse("name", "body '" + name + "' is part of " + who + "'s body '" + model.body_name(bound) +
                            "': delete_entity removes a robot's root body, not a part of it");
     }
-    std::shared_ptr<SceneSource> scene = scene_without(*model.scene(), name);
-    start(std::move(done), "delete_entity", name, std::move(entities), false, body, std::move(scene),
-          std::move(removed));
+    start(std::move(done), "delete_entity", name, std::move(edit), body, std::move(removed));
   }
 
   // The simulation's turn after a worker ended: swap its model in and complete the request.
@@ -332,7 +332,7 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
     try {
       next.emplace(change.compiled.get());
     } catch (const ServiceError& e) {
-      // the fragment file the worker read is no entity (entity_sections' refusal)
+      // the fragment file the worker read is no entity (entity_mjcf's refusal)
       change.done.finish(Outcome::failed(e.failure(), e.message(), e.data()));
       return;
     } catch (const std::exception& e) {
@@ -435,28 +435,28 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
     return names.empty() ? " (no entity has been spawned)" : " (spawned: " + names + ")";
   }
 
-  // Compiles the scene with `entities` on a worker thread (copies only: nothing shared
-  // with the running simulation). `file`: the last entity's fragment file, which the worker
-  // reads and turns into its sections first.
-  // `removed_body`: the body the change deletes (-1: none), in the running model; `edited`:
-  // the scene without it when it is one of the scene's (its counts measured by the worker).
-  // `removed`: the components that go with it (a robot's), removed at the swap.
-  void start(Completion done, std::string service, std::string name, std::vector<SpawnedEntity> entities,
-             bool last_is_new, int removed_body = -1, std::shared_ptr<SceneSource> edited = nullptr,
-             std::vector<RemovedComponent> removed = {}, std::optional<FragmentFile> file = std::nullopt) {
-    std::shared_ptr<const SceneSource> scene = edited ? edited : sim_.model().scene();
+  // A change of the model: the running one's copy (EditBase) in, the new model out (or
+  // MuJoCo's error); run by a worker.
+  using Edit = std::function<Model(const EditBase&)>;
+
+  // Runs `edit` on a worker thread, from copies only (nothing shared with the running
+  // simulation but the spec, read-only). `removed_body`: the body the change deletes (-1: a
+  // spawn), in the running model; `removed`: the components that go with it (a robot's),
+  // removed at the swap.
+  void start(Completion done, std::string service, std::string name, Edit edit, int removed_body = -1,
+             std::vector<RemovedComponent> removed = {}) {
+    const bool spawning = removed_body < 0;
     auto result = std::make_shared<std::promise<Model>>();
     std::future<Model> compiled = result->get_future();
     // the worker: the model (or MuJoCo's error), then a turn of the simulation thread for
     // apply() (the simulation outlives the worker: a Spawner waits for its workers when it
     // goes, through their futures)
-    std::future<void> worker = std::async(
-        std::launch::async, [&sim = sim_, self = weak_from_this(), result, scene, edited, entities = std::move(entities),
-                             last_is_new, file = std::move(file)]() mutable {
+    std::future<void> worker =
+        std::async(std::launch::async, [&sim = sim_, self = weak_from_this(), result, base = EditBase::of(sim_.model()),
+                                        edit = std::move(edit), spawning] {
           try {
-            if (file) entities.back().sections = file->sections(entities.back().name);
-            Model model = compile_scene(scene, entities, last_is_new, edited.get());
-            if (last_is_new) check_fragment(model);
+            Model model = edit(base);
+            if (spawning) check_fragment(model);
             result->set_value(std::move(model));
           } catch (...) {
             result->set_exception(std::current_exception());

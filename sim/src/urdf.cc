@@ -3,7 +3,6 @@
 
 #include <algorithm>
 #include <cctype>
-#include <memory>
 #include <vector>
 
 #include <tinyxml2.h>
@@ -141,19 +140,6 @@ void add_actuator(mjSpec* spec, const Drive& d, const std::string& scene) {
   }
 }
 
-std::string saved_mjcf(const mjSpec* spec, const std::string& scene) {
-  char error[1024] = "";
-  std::string xml(1 << 16, '\0');
-  int rc = mj_saveXMLString(spec, xml.data(), static_cast<int>(xml.size()), error, sizeof error);
-  if (rc > 0) {  // too small: rc is the size it needs
-    xml.assign(static_cast<std::size_t>(rc) + 1, '\0');
-    rc = mj_saveXMLString(spec, xml.data(), static_cast<int>(xml.size()), error, sizeof error);
-  }
-  if (rc != 0) throw MujocoError("scene '" + scene + "': could not write it as MJCF: " + error);
-  xml.resize(xml.find('\0'));
-  return xml;
-}
-
 }  // namespace
 
 bool is_urdf(const std::string& text) {
@@ -163,36 +149,12 @@ bool is_urdf(const std::string& text) {
   return root && std::string(root->Name()) == "robot";
 }
 
-CompiledUrdf compile_urdf(const std::string& path, const std::string& text) {
+void add_transmission_actuators(mjSpec* spec, const std::string& path, const std::string& text) {
   tinyxml2::XMLDocument doc;
   doc.Parse(text.data(), text.size());
   const std::vector<Drive> drives = drives_of(doc.RootElement(), path);
-
-  char error[1024] = "";
-  std::unique_ptr<mjSpec, void (*)(mjSpec*)> spec(nullptr, mj_deleteSpec);
-  try {
-    spec.reset(mj_parseXML(path.c_str(), nullptr, error, sizeof error));
-  } catch (const MujocoError& e) {
-    throw MujocoError("scene '" + path + "': " + e.what());
-  }
-  if (!spec) throw MujocoError("scene '" + path + "': " + (error[0] ? error : "MuJoCo could not parse it"));
-  for (const Drive& d : drives) add_actuator(spec.get(), d, path);
-
-  CompiledUrdf out;
-  try {
-    out.model = mj_compile(spec.get(), nullptr);
-  } catch (const MujocoError& e) {
-    throw MujocoError("scene '" + path + "': " + e.what());
-  }
-  if (!out.model) throw MujocoError("scene '" + path + "': " + mjs_getError(spec.get()));
+  for (const Drive& d : drives) add_actuator(spec, d, path);
   if (!drives.empty()) log::info("scene '", path, "': ", drives.size(), " actuator(s) from its transmissions");
-  try {
-    out.mjcf = saved_mjcf(spec.get(), path);
-  } catch (...) {
-    mj_deleteModel(out.model);
-    throw;
-  }
-  return out;
 }
 
 }  // namespace simgate::sim

@@ -26,16 +26,10 @@ namespace simgate::sim {
 // Whether `text` is a URDF document: its root element is <robot>.
 bool is_urdf(const std::string& text);
 
-struct CompiledUrdf {
-  mjModel* model = nullptr;  // owned by the caller (mj_deleteModel)
-  std::string mjcf;          // the same robot as MJCF: what a recompilation (spawn) starts from
-};
-
-// Compiles the URDF file `path` (whose text is `text`) with its transmissions' actuators.
-// Throws MujocoError naming the file: MuJoCo's own message (a missing mesh names the file), or
-// a transmission naming a joint the robot does not have, or a hardware interface simgate does
-// not know.
-CompiledUrdf compile_urdf(const std::string& path, const std::string& text);
+// Adds to `spec`, MuJoCo's parse of the URDF file `path` (whose text is `text`), an actuator
+// for each joint its transmissions drive. Throws MujocoError naming the file: a transmission
+// naming a joint the robot does not have, or a hardware interface simgate does not know.
+void add_transmission_actuators(mjSpec* spec, const std::string& path, const std::string& text);
 
 }  // namespace simgate::sim
 

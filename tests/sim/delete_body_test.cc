@@ -1,9 +1,9 @@
 // SimDeleteBody: `simulation delete_entity` of a body of the scene (spawn.cc, model_edit.cc
-// scene_without, model_remap.h): the body's subtree and what refers to it leave the scene,
+// without_body, model_remap.h): the body's subtree and what refers to it leave the scene,
 // everything after it moves down in MuJoCo's numbering, and the components after it
 // (a robot, its actuators and sensors) re-resolve their ids and keep reading and driving
-// the right objects. What a component uses, the world, keyframed scenes and bodies of
-// included files are refused, and the world is unchanged.
+// the right objects. What a component uses and the world are refused, and the world is
+// unchanged.
 #include <gtest/gtest.h>
 
 #include <unistd.h>
@@ -251,26 +251,35 @@ TEST_F(SimDeleteBodyTest, WhatAComponentUsesIsRefused) {
   EXPECT_EQ(call("robot.pose", "get_local_data").status, Status::success);
 }
 
-TEST_F(SimDeleteBodyTest, KeyframesAndIncludedBodiesAreRefused) {
+// The spec is edited, not the scene's text (issue #36): a scene with keyframes, a body of an
+// included file and an unnamed body ("body<n>") can be deleted. 2.2.2's text editing refused all three.
+TEST_F(SimDeleteBodyTest, KeyframedScenesIncludedAndUnnamedBodiesCanBeDeleted) {
   std::string keyed = k_delete_body_scene;
   keyed.replace(keyed.rfind("</mujoco>"), 9, "<keyframe><key name='start' time='0'/></keyframe></mujoco>");
   build(keyed);
-  expect_refused("table", "keyframes");
+  EXPECT_EQ(remove("table").status, Status::success);
+  EXPECT_EQ(sim_->m()->nkey, 1);
 
   const auto dir = std::filesystem::temp_directory_path() / ("simgate_delete_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
   std::ofstream(dir / "objects.xml") << R"(<mujoco><body name="box" pos="1 1 0.2"><freejoint/>
-      <geom type="box" size="0.1 0.1 0.1" mass="1"/></body></mujoco>)";
+      <geom type="box" size="0.1 0.1 0.1" mass="1"/></body>
+      <body pos="2 2 0.2"><freejoint/><geom type="sphere" size="0.1" mass="1"/></body></mujoco>)";
   std::string including = k_delete_body_scene;
   including.replace(including.find("<worldbody>") + 11, 0, "<include file='objects.xml'/>");
   std::ofstream(dir / "scene.xml") << including;
   build("", (dir / "scene.xml").string());
-  expect_refused("box", "not written in the scene file 'scene.xml'");
-  // a body of the scene file itself is deleted as usual
+  const std::string unnamed = sim_->model().body_name(sim_->model().body_id("box") + 1);
+  ASSERT_EQ(unnamed, "body2");
+  const int bodies = sim_->m()->nbody;
+  EXPECT_EQ(remove("box").status, Status::success);
+  EXPECT_EQ(sim_->model().body_id("box"), -1);
+  // the unnamed body moved down: it is "body1" now
+  EXPECT_EQ(remove("body1").status, Status::success);
+  EXPECT_EQ(sim_->m()->nbody, bodies - 2);
   EXPECT_EQ(remove("table").status, Status::success);
   std::filesystem::remove_all(dir);
 }
-
 
 // Deleting a robot's root body deletes the robot: its components leave the simulation and
 // every request manager, their requests in flight end FAILED with the reason, and the rest

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include "mjcf_fixture.h"
+#include "simgate/sim/model_edit.h"
 
 namespace simgate::sim {
 namespace {
@@ -43,16 +44,15 @@ TEST_F(MjcfSim, AUrdfRobotGetsAnActuatorPerTransmissionJointAndMovesThroughThem)
   EXPECT_EQ(call("arm.actuators", "set_controls", {{{"shoulder_servo", 2.0}}}).status, Status::failed);
 }
 
-TEST(UrdfTest, ItsSceneSourceIsMjcfSoThatSpawnCanRecompileIt) {
+// A URDF scene keeps its spec (with the transmissions' actuators), which a spawn edits.
+TEST(UrdfTest, AnEntitySpawnsIntoAUrdfScene) {
   Model m = Model::load_file(test_model("urdf_arm.urdf"));
-  ASSERT_TRUE(m.scene());
-  EXPECT_EQ(m.scene()->file_name, "urdf_arm.urdf.xml");
-  EXPECT_THAT(m.scene()->xml, HasSubstr("<mujoco"));
-  EXPECT_THAT(m.scene()->xml, HasSubstr("shoulder_servo"));
-  // and it compiles to the same model
-  Model again = Model::load_string(m.scene()->xml, "again.xml");
-  EXPECT_EQ(again.model()->nu, m.model()->nu);
-  EXPECT_EQ(again.model()->njnt, m.model()->njnt);
+  ASSERT_TRUE(m.spec());
+  Model with_ball = with_entity(EditBase::of(m), "ball",
+                                entity_mjcf("<body pos='1 0 1'><freejoint/><geom size='.1'/></body>", "ball", {}));
+  EXPECT_EQ(with_ball.model()->nu, m.model()->nu);
+  EXPECT_GE(with_ball.actuator_id("shoulder_servo"), 0);
+  EXPECT_EQ(with_ball.body_id("ball"), m.model()->nbody);
 }
 
 class UrdfErrors : public ::testing::Test {

@@ -6,12 +6,12 @@
 // exception (never a process exit), a warning becomes a log line. Load errors name the
 // file and MuJoCo's message.
 //
-// A Model remembers what it was compiled from: the scene (its text as first read, so that
-// a recompilation starts from the same scene even if the file changed since) and the
-// entities spawned into it at run time (model_edit.h), in order. Each entity's objects
-// come after the scene's and after those of the entities before it, in every MuJoCo array
-// (bodies, joints, geoms, sites, actuators, sensors, qpos...): an entity is a block, whose
-// size is its ModelCounts.
+// A Model keeps what it was compiled from: MuJoCo's model specification (mjSpec), which an
+// edit copies and changes (spawn, delete: model_edit.h) so that the scene file is never read
+// again, and the names of the entities spawned into it at run time, in order. Each entity's
+// objects come after those of the model it was spawned into, in every MuJoCo array (bodies,
+// joints, geoms, sites, actuators, sensors, qpos...): an entity is a block, whose size is its
+// ModelCounts when it was spawned.
 //
 // Threads: a Model is used by one thread at a time (the simulation thread once running).
 #ifndef SIMGATE_SIM_MODEL_H_
@@ -57,22 +57,15 @@ struct ModelCounts {
   ModelCounts operator-(const ModelCounts& other) const;
 };
 
-// The scene a model was loaded from, as first read.
-struct SceneSource {
-  std::string xml;         // the scene file's text (or the inline text)
-  std::string file_name;   // its base name: what its <include> in a recompiled model names
-  std::string directory;   // absolute directory of the file, where its relative includes,
-                           // meshes and textures resolve ("" for an inline scene)
-  std::string model_name;  // <mujoco model="...">, kept by recompiled models
-  ModelCounts counts;      // the scene's own objects: the block every model starts with
-};
-
 // An entity spawned at run time (model_edit.h).
 struct SpawnedEntity {
-  std::string name;      // its top body's name
-  std::string sections;  // the MJCF sections it adds (<worldbody> with its body, <asset>...)
-  ModelCounts counts;    // its block
+  std::string name;    // its top body's name
+  ModelCounts counts;  // its block when it was spawned (the last one of every array then)
 };
+
+// MuJoCo's model specification, shared read-only between the models compiled from it and the
+// workers that copy it (mj_copySpec) to edit the copy.
+using SharedSpec = std::shared_ptr<const mjSpec>;
 
 class Model {
  public:
@@ -84,15 +77,17 @@ class Model {
   mjModel* model() const { return model_.get(); }
   mjData* data() const { return data_.get(); }
   const std::string& source() const { return source_; }
-  // What it was compiled from (see above).
-  const std::shared_ptr<const SceneSource>& scene() const { return scene_; }
+  // What it was compiled from (see above): never changed once compiled (an edit copies it).
+  const SharedSpec& spec() const { return spec_; }
   const std::vector<SpawnedEntity>& entities() const { return entities_; }
   // The spawned entity called `name`, or null.
   const SpawnedEntity* entity(const std::string& name) const;
 
-  // A model compiled from `scene` plus `entities` (model_edit.cc): takes `m`, makes its data.
-  static Model adopt(mjModel* m, std::string source, std::shared_ptr<const SceneSource> scene,
-                     std::vector<SpawnedEntity> entities);
+  // A model compiled from `spec` (an edited copy, model_edit.cc), which it keeps: takes `m`,
+  // makes its data.
+  static Model adopt(mjModel* m, std::string source, SharedSpec spec, std::vector<SpawnedEntity> entities);
+  // Wraps a spec MuJoCo made (mj_parseXML, mj_copySpec...): mj_deleteSpec when the last owner goes.
+  static std::shared_ptr<mjSpec> own(mjSpec* spec);
 
   // Name -> id lookups; -1 when missing. body_id also finds an unnamed body by the name
   // body_name() gives it ("body3"), so that a config can bind to it.
@@ -114,7 +109,7 @@ class Model {
   std::unique_ptr<mjModel, ModelDeleter> model_;  // immutable description
   std::unique_ptr<mjData, DataDeleter> data_;     // mutable state
   std::string source_;                            // file path or inline name, for messages
-  std::shared_ptr<const SceneSource> scene_;      // the scene it was compiled from
+  SharedSpec spec_;                               // what it was compiled from
   std::vector<SpawnedEntity> entities_;           // spawned into it, in order
 };
 

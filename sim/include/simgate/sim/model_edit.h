@@ -1,40 +1,33 @@
-// simgate/sim/model_edit.h — a scene recompiled with entities spawned into it at run time.
+// simgate/sim/model_edit.h — a model edited at run time: an entity spawned into it, a body
+// deleted from it, through MuJoCo's model specification (mjSpec).
 //
-// MuJoCo 2.2.2 has no model editing API: a changed world is a new model, compiled from the
-// scene and the entities' MJCF. A spawned entity is one body subtree (with, optionally, the
-// assets, defaults, actuators, sensors, tendons, equalities and contact pairs it uses),
-// appended after everything the scene and the earlier entities hold. MuJoCo numbers every
-// object in document order, so appending keeps every existing id and address (bodies,
-// joints, geoms, sites, actuators, sensors, qpos, dofs...). Deleting an entity recompiles
-// without it, and deleting a body of the scene recompiles an edited copy of the scene's
-// text (scene_without): everything numbered after what was removed moves down. The
-// simulation then tells every component where its objects went (a ModelRemap,
-// model_remap.h; SimComponent::on_model_changed), and components re-resolve their ids.
-//
-// The recompiled model is a small wrapper, compiled through a MuJoCo virtual file system
-// (nothing is written to disk):
-//
-//   <mujoco model="<scene's name>">
-//     <include file="<scene's file name>"/>   (the scene's text as first read, in the VFS)
-//     <worldbody><body name="crate" pos="1 2 0.5">...</body></worldbody>
-//     <actuator>...</actuator>                  (each entity's sections, in spawn order)
-//   </mujoco>
-//
-// loaded as if it sat beside the scene file: the scene's relative includes, meshes and
-// textures resolve where they always did (read from disk there), and so do the relative
-// file names of an entity's assets. A fragment may not name files outside them (absolute
-// paths, "..") nor <include> anything.
+// Every Model keeps the mjSpec it was compiled from (model.h). An edit copies it
+// (mj_copySpec), changes the copy and compiles it into a new model:
+//  - spawning parses the entity's MJCF (entity_mjcf: one body subtree with, optionally, the
+//    assets, defaults, actuators, sensors, tendons, equalities and contact pairs it uses) into
+//    a spec of its own and attaches its body to the world (mjs_attach), after everything the
+//    world holds. MuJoCo numbers every object in tree and document order, so appending keeps
+//    every existing id and address (bodies, joints, geoms, sites, actuators, sensors, qpos,
+//    dofs...). The entity's defaults stay its own, and its file names (meshes, textures)
+//    resolve as the scene's do: relative to the scene file's directory, meshdir and texturedir;
+//  - deleting removes a body's subtree (mjs_delete), and MuJoCo removes with it what refers to
+//    it (an actuator on one of its joints, a sensor of that actuator...) and shortens the
+//    keyframes. Everything numbered after what was removed moves down: the simulation then
+//    tells every component where its objects went (a ModelRemap, model_remap.h;
+//    SimComponent::on_model_changed), and components re-resolve their ids.
+// The scene file is never read again (a file changed since does not leak in) and nothing is
+// written to disk.
 //
 // Life cycle of a change (spawn.cc): on the simulation thread, under the simulation lock,
-// entity_sections() checks the fragment (or scene_without() edits the scene's text) and the
-// current model's entities are copied; a worker thread compiles (compile_scene: slow, no
-// simulation state touched); back on the simulation thread, the ModelRemap between the two
-// models is computed, Simulation::replace_model() swaps them, carry_state() brings every
-// surviving object's state across and the components re-resolve their ids.
+// entity_mjcf() checks the fragment and EditBase::of() copies what the edit starts from; a
+// worker thread edits and compiles (with_entity, without_body: slow, no simulation state
+// touched); back on the simulation thread, the ModelRemap between the two models is computed,
+// Simulation::replace_model() swaps them, carry_state() brings every surviving object's state
+// across and the components re-resolve their ids.
 //
-// Threads: entity_sections(), scene_without() and compile_scene() touch no simulation state
-// and may run on any thread; carry_state() reads and writes the two models given (the caller holds the
-// simulation lock for the running one).
+// Threads: entity_mjcf(), with_entity() and without_body() touch no simulation state and may
+// run on any thread (the spec they start from is shared read-only); carry_state() reads and
+// writes the two models given (the caller holds the simulation lock for the running one).
 #ifndef SIMGATE_SIM_MODEL_EDIT_H_
 #define SIMGATE_SIM_MODEL_EDIT_H_
 
@@ -56,36 +49,36 @@ struct EntityPose {
                                                         // none: the fragment's own orientation
 };
 
-// The MJCF sections that spawn `fragment` as an entity called `name` at `pose`: its top
-// body renamed `name` and placed at `pose`. `fragment` is the MJCF of one <body>, or a
-// <mujoco> whose <worldbody> holds exactly one <body> and whose other sections are among
-// asset, default, actuator, sensor, tendon, equality, contact. Throws ServiceError
-// (Failure::bad_arguments, {"parameter": "mjcf"}) naming what is wrong: XML that does not
-// parse, another root, another section, no or several bodies, an <include>, a file name
-// that is absolute or climbs out with "..".
-std::string entity_sections(const std::string& fragment, const std::string& name, const EntityPose& pose);
+// The MJCF document that spawns `fragment` as an entity called `name` at `pose`: a <mujoco>
+// holding the fragment's sections, its top body renamed `name` and placed at `pose`.
+// `fragment` is the MJCF of one <body>, or a <mujoco> whose <worldbody> holds exactly one
+// <body> and whose other sections are among asset, default, actuator, sensor, tendon,
+// equality, contact. Throws ServiceError (Failure::bad_arguments, {"parameter": "mjcf"})
+// naming what is wrong: XML that does not parse, another root, another section, no or
+// several bodies, an <include>, a file name that is absolute or climbs out with "..".
+std::string entity_mjcf(const std::string& fragment, const std::string& name, const EntityPose& pose);
 
-// The scene without its body `body` (named in the scene file's own text, anywhere in its
-// <worldbody>): the body's subtree goes, and so does every element of the actuator, sensor,
-// tendon, equality and contact sections that names one of its bodies, joints, geoms,
-// sites, cameras or lights, or a tendon or actuator removed that way (a tendon that loses
-// a joint goes, then the actuator on that tendon, then a sensor of that actuator). Counts
-// are left to compile_scene (measure_scene). Throws ServiceError (Failure::bad_arguments,
-// {"parameter": "name"}) when the body is not in the scene file's text (only in a file it
-// includes, or unnamed), or when the scene has keyframes (sized to the whole model). Any
+// What an edit starts from: the running model's spec, name and entities, copied under the
+// simulation lock so that a worker edits without touching the running model.
+struct EditBase {
+  SharedSpec spec;                      // the running model's, shared read-only
+  std::string source;                   // its file or inline name, for messages
+  std::vector<SpawnedEntity> entities;  // spawned into it, in order
+  ModelCounts counts;                   // its size: where a spawned entity's block starts
+
+  static EditBase of(const Model& model);
+};
+
+// `base` with the entity `name` (entity_mjcf's document `mjcf`) attached to the world after
+// everything it holds; the entity's counts measured. Throws MujocoError with MuJoCo's message
+// when it does not parse or compile with the world (a joint name taken, a missing mesh). Any
 // thread.
-std::shared_ptr<SceneSource> scene_without(const SceneSource& scene, const std::string& body);
+Model with_entity(const EditBase& base, const std::string& name, const std::string& mjcf);
 
-// Compiles `scene` with `entities`, in order. A scene whose keyframes give arrays (MuJoCo
-// 2.2.2 wants them sized to the whole model) is compiled once without them, then with each
-// key padded with the entities' initial state (qpos0, zero velocities, activations and
-// controls, the mocap bodies' poses). When `last_is_new`, the last entity's counts
-// are measured (the compiled model's minus everything before it); the others' are kept.
-// `measure_scene` (the same object as `scene`, freshly edited and not yet shared): its
-// counts are measured too (the compiled model's minus the entities'). Throws MujocoError
-// with MuJoCo's message when it does not compile. Any thread.
-Model compile_scene(const std::shared_ptr<const SceneSource>& scene, std::vector<SpawnedEntity> entities,
-                    bool last_is_new, SceneSource* measure_scene = nullptr);
+// `base` without the body numbered `body` (named `name`: a spawned entity, or any body of the
+// scene, in its file or in one it includes) and its subtree, and without what MuJoCo removes
+// with them (what refers to them). Throws MujocoError when MuJoCo refuses. Any thread.
+Model without_body(const EditBase& base, int body, const std::string& name);
 
 // Copies into `to` the state of every object `from` also has, found through `remap`
 // (model_remap.h): joint positions and velocities, actuator controls and activations,
