@@ -9,6 +9,7 @@
 #include <tinyxml2.h>
 
 #include "simgate/core/errors.h"
+#include "simgate/sim/object_state.h"
 
 namespace simgate::sim {
 
@@ -173,42 +174,12 @@ Model without_body(const EditBase& base, int body, const std::string& name) {
 }
 
 void carry_state(const Model& from, Model& to, const ModelRemap& remap) {
-  const mjModel* m0 = from.model();
-  const mjModel* m1 = to.model();
+  ObjectState state;
+  state.capture(from.model(), from.data());
+  state.put(to.model(), to.data(), ObjectState::through(remap));
   const mjData* old = from.data();
-  mjData* data = to.data();
-  for (int j = 0; j < m0->njnt; ++j) {
-    const int k = remap.joint_of(j);
-    if (k < 0) continue;
-    const int type = m0->jnt_type[j];
-    const int nq = type == mjJNT_FREE ? 7 : type == mjJNT_BALL ? 4 : 1;
-    const int nv = type == mjJNT_FREE ? 6 : type == mjJNT_BALL ? 3 : 1;
-    std::copy_n(old->qpos + m0->jnt_qposadr[j], nq, data->qpos + m1->jnt_qposadr[k]);
-    const int from_dof = m0->jnt_dofadr[j], to_dof = m1->jnt_dofadr[k];
-    std::copy_n(old->qvel + from_dof, nv, data->qvel + to_dof);
-    std::copy_n(old->qacc_warmstart + from_dof, nv, data->qacc_warmstart + to_dof);
-    std::copy_n(old->qfrc_applied + from_dof, nv, data->qfrc_applied + to_dof);
-  }
-  for (int a = 0; a < m0->nu; ++a) {
-    const int k = remap.actuator_of(a);
-    if (k < 0) continue;
-    data->ctrl[k] = old->ctrl[a];
-    // an actuator's activations, wherever its model keeps them
-    const int n = m0->actuator_actnum[a];
-    if (n > 0 && m1->actuator_actnum[k] == n)
-      std::copy_n(old->act + m0->actuator_actadr[a], n, data->act + m1->actuator_actadr[k]);
-  }
-  for (int b = 0; b < m0->nbody; ++b) {
-    const int k = remap.body_of(b);
-    if (k < 0) continue;
-    std::copy_n(old->xfrc_applied + 6 * b, 6, data->xfrc_applied + 6 * k);
-    const int mocap = m0->body_mocapid[b], to_mocap = m1->body_mocapid[k];
-    if (mocap < 0 || to_mocap < 0) continue;
-    std::copy_n(old->mocap_pos + 3 * mocap, 3, data->mocap_pos + 3 * to_mocap);
-    std::copy_n(old->mocap_quat + 4 * mocap, 4, data->mocap_quat + 4 * to_mocap);
-  }
-  data->time = old->time;
-  std::copy(std::begin(old->warning), std::end(old->warning), std::begin(data->warning));
+  to.data()->time = old->time;
+  std::copy(std::begin(old->warning), std::end(old->warning), std::begin(to.data()->warning));
 }
 
 }  // namespace simgate::sim

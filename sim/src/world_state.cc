@@ -3,9 +3,12 @@
 //
 // A snapshot is a PhysicsState (physics_state.h): every part of mjData that the next step
 // reads. Restoring it and stepping gives, bit for bit, what stepping from the moment it was
-// saved gave (the components' own commands aside: see restore below). A snapshot belongs to
-// the model it was saved from (Simulation::model_generation() and the sizes): a model
-// replaced since (spawn, delete) refuses it.
+// saved gave (the components' own commands aside: see restore below). A snapshot also keeps
+// each object's state by name (object_state.h): once the model has changed (a spawn, a
+// delete), it is put back object by object, bodies, joints and actuators matched by name;
+// the restore reports what the saved state had that the world no longer has (missing) and
+// what the world has that it did not (kept as they are). A spawn and its delete leave every
+// object's state as saved: stepping on gives the same bits.
 //
 // A snapshot belongs to the client that saved it (CallContext::client(): a connection of a
 // transport, a DDS client): any client may restore it, only its client drops it while that
@@ -28,6 +31,7 @@
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
 #include "simgate/core/request_manager.h"
+#include "simgate/sim/object_state.h"
 #include "simgate/sim/physics_state.h"
 #include "simgate/sim/sim_component.h"
 #include "simgate/sim/world_services.h"
@@ -61,10 +65,17 @@ struct Owner {
   }
 };
 
-// A saved state (physics_state.h): what the next step reads, and whose it is.
+// A saved state (physics_state.h): what the next step reads, the same by object, and whose
+// it is.
 struct Snapshot : PhysicsState {
+  ObjectState objects;  // put back when the model changed since
   Owner owner;
 };
+
+json to_json(const ObjectState::Unmatched& u) {
+  return {{"missing", {{"bodies", u.missing_bodies}, {"joints", u.missing_joints}, {"actuators", u.missing_actuators}}},
+          {"kept", {{"bodies", u.kept_bodies}, {"joints", u.kept_joints}, {"actuators", u.kept_actuators}}}};
+}
 
 // Ends what `e` is running PREEMPTED with `reason`: its slot's request (through
 // interrupt(), which stops what it moves) and the calls of its concurrent services.
@@ -133,6 +144,7 @@ class WorldState {
     Snapshot s;
     s.owner = owner;
     s.capture(sim_.m(), sim_.d(), sim_.model_generation());
+    s.objects.capture(sim_.m(), sim_.d());
     const std::uint64_t handle = next_handle_++;
     snapshots_.emplace(handle, std::move(s));
     return handle;
@@ -140,16 +152,29 @@ class WorldState {
 
   json restore_state(std::int64_t handle) {
     const Snapshot& s = find(handle, "restore_state");
-    if (!s.fits(sim_.m(), sim_.model_generation()))
-      throw ServiceError("simulation restore_state: state " + std::to_string(handle) +
-                             " was saved from another model (generation " + std::to_string(s.generation()) +
-                             "; the model is now generation " + std::to_string(sim_.model_generation()) +
-                             ", replaced by a spawn or a delete since): it cannot be restored",
-                         Failure::service_error, {{"parameter", "handle"}});
     // what moves stops first, in the world it was started in
     end_robots_requests("simulation restore_state: the simulation went back to state " + std::to_string(handle));
     const bool clock_moves = s.time() != sim_.sim_time();
-    sim_.restore_physics(s);
+    const bool exact = s.fits(sim_.m(), sim_.model_generation());
+    ObjectState::Unmatched unmatched;
+    if (exact) {
+      sim_.restore_physics(s);
+    } else {
+      // the model changed since: object by object, by name
+      const mjModel* m = sim_.m();
+      mjData* d = sim_.d();
+      const ObjectState::Mapping by_name = ObjectState::by_name(m);
+      unmatched = s.objects.put(m, d, by_name);
+      d->time = s.time();
+      sim_.forward();
+      s.objects.put_warmstart(m, d, by_name);  // as restore_physics does
+      if (!unmatched.empty())
+        log::info("simulation restore_state: state ", handle, " of model generation ", s.generation(),
+                  " restored by name into generation ", sim_.model_generation(), ": ", to_json(unmatched).dump());
+    }
+    json out = to_json(unmatched);
+    out["sim_time"] = s.time();
+    out["exact"] = exact;
     // what components held of the state they were in (a held joint, a motion's start) is gone
     for (auto& e : sim_.components())
       if (e->sim_component) e->sim_component->on_reset();
@@ -157,7 +182,7 @@ class WorldState {
       end_sleeps("simulation restore_state: simulated time went to that of state " + std::to_string(handle));
     // every client that watches the world learns that it went back
     sim_.announce("restored", {{"handle", handle}});
-    return {{"sim_time", s.time()}};
+    return out;
   }
 
   json list_states() const {
@@ -167,7 +192,7 @@ class WorldState {
       out.push_back({{"handle", handle},
                      {"sim_time", s.time()},
                      {"model_generation", s.generation()},
-                     {"restorable", s.fits(sim_.m(), sim_.model_generation())},
+                     {"exact", s.fits(sim_.m(), sim_.model_generation())},
                      {"yours", s.owner == caller},
                      {"owner_connected", connected(s.owner)}});
     return out;
@@ -268,7 +293,7 @@ class WorldState {
       for (int u = 0; u < m->nu; ++u) {
         if (m->actuator_trntype[u] != mjTRN_JOINT || m->actuator_trnid[2 * u] != j) continue;
         d->ctrl[u] = 0;
-        if (m->actuator_dyntype[u] != mjDYN_NONE) d->act[u - (m->nu - m->na)] = 0;
+        if (m->actuator_actnum[u] > 0) mju_zero(d->act + m->actuator_actadr[u], m->actuator_actnum[u]);
       }
     }
     for (int b = 0; b < m->nbody; ++b)
@@ -301,9 +326,10 @@ void add_state_services(SupervisionServices& simulation, Simulation& sim) {
   simulation
       .offer_service("restore_state", [state](std::int64_t handle) { return state->restore_state(handle); },
                      {"handle"})
-      .doc("Go back to a saved state (same model only); components are reset; returns {sim_time}");
+      .doc("Go back to a saved state (after a spawn or a delete: object by object, by name); components are reset; "
+           "returns {sim_time, exact, missing, kept}");
   simulation.offer_service("list_states", [state] { return state->list_states(); })
-      .doc("[{handle, sim_time, model_generation, restorable, yours, owner_connected}] of the saved states");
+      .doc("[{handle, sim_time, model_generation, exact, yours, owner_connected}] of the saved states");
   simulation
       .offer_service("drop_state", [state](std::int64_t handle) { return state->drop_state(handle); }, {"handle"})
       .doc("Forget a saved state (one this client saved, or whose client left)");

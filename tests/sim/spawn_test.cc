@@ -298,6 +298,51 @@ TEST_F(SimSpawnTest, MujocoFragmentWithAnActuatorCanBeDriven) {
   EXPECT_NEAR(sim_->d()->qvel[sim_->m()->jnt_dofadr[sim_->model().joint_id("spinner_hinge")]], 2.0, 0.1);
 }
 
+// A state saved before a spawn and a delete is restored after them, and stepping on from it
+// gives the same bits as stepping on from it before the model changed (issue #36).
+TEST_F(SimSpawnTest, AStateSavedBeforeASpawnAndADeleteIsRestoredExactly) {
+  auto qpos = [&] { return std::vector<mjtNum>(sim_->d()->qpos, sim_->d()->qpos + sim_->m()->nq); };
+  ASSERT_EQ(call("robot.motion", "set_speed", {0.7, 0.4}).status, Status::success);
+  run_for(0.3);
+  const json handle = call("simulation", "save_state").value.value_or(json());
+  // stepping on from the saved state, on the model it was saved from
+  ASSERT_EQ(call("simulation", "restore_state", {handle}).status, Status::success);
+  ASSERT_EQ(call("robot.motion", "set_speed", {0.7, 0.4}).status, Status::success);
+  run_for(0.5);
+  const auto expected = qpos();
+
+  ASSERT_EQ(spawn("ball").status, Status::success);
+  run_for(0.2);
+  ASSERT_EQ(remove("ball").status, Status::success);
+  Outcome o = call("simulation", "restore_state", {handle});
+  ASSERT_EQ(o.status, Status::success) << o.message;
+  EXPECT_EQ((*o.value)["exact"], false);
+  EXPECT_TRUE((*o.value)["missing"]["bodies"].empty()) << o.value->dump();
+  EXPECT_TRUE((*o.value)["kept"]["bodies"].empty()) << o.value->dump();
+  ASSERT_EQ(call("robot.motion", "set_speed", {0.7, 0.4}).status, Status::success);
+  run_for(0.5);
+  EXPECT_TRUE(testing::same_bits(qpos(), expected));
+}
+
+// What the saved state does not know (an entity spawned since) stays as it is and is
+// reported kept; what it knew that is gone (a body deleted since) is reported missing.
+TEST_F(SimSpawnTest, RestoringAcrossAnEditReportsWhatIsMissingAndWhatIsKept) {
+  const json handle = call("simulation", "save_state").value.value_or(json());
+  ASSERT_EQ(spawn("ball", {1.0, 1.0, 3.0}).status, Status::success);
+  ASSERT_EQ(remove("crate1").status, Status::success);
+  run_for(0.2);
+  const int ball_z = sim_->m()->jnt_qposadr[sim_->m()->body_jntadr[sim_->model().body_id("ball")]] + 2;
+  const double z = sim_->d()->qpos[ball_z];
+  ASSERT_LT(z, 3.0);  // it fell
+  Outcome o = call("simulation", "restore_state", {handle});
+  ASSERT_EQ(o.status, Status::success) << o.message;
+  EXPECT_EQ((*o.value)["missing"]["bodies"], json::array({"crate1"})) << o.value->dump();
+  EXPECT_EQ((*o.value)["kept"]["bodies"], json::array({"ball"})) << o.value->dump();
+  EXPECT_EQ((*o.value)["kept"]["joints"], json::array({"ball/0"})) << o.value->dump();
+  EXPECT_EQ(sim_->d()->qpos[ball_z], z);
+  EXPECT_EQ(sim_->sim_time(), 0.0);
+}
+
 TEST_F(SimSpawnTest, ServicesAreListed) {
   json services = call("simulation", "list_services").value.value();
   int found = 0;

@@ -3,6 +3,7 @@
 #include <cstring>
 #include <limits>
 
+#include "mjcf_fixture.h"
 #include "sim_fixture.h"
 #include "simgate/core/streams.h"
 
@@ -86,7 +87,7 @@ TEST_F(SimWorldStateTest, ListAndDropStates) {
   EXPECT_EQ((*list.value)[0]["handle"], a);
   EXPECT_EQ((*list.value)[1]["handle"], b);
   EXPECT_EQ((*list.value)[0]["sim_time"], 0.0);
-  EXPECT_EQ((*list.value)[1]["restorable"], true);
+  EXPECT_EQ((*list.value)[1]["exact"], true);
   EXPECT_EQ(call("simulation", "drop_state", {a}).status, Status::success);
   EXPECT_EQ(call("simulation", "list_states").value->size(), 1u);
   // a dropped or unknown handle is refused, naming the parameter
@@ -117,13 +118,25 @@ TEST_F(SimWorldStateTest, SavingBeyondTheLimitFails) {
   EXPECT_EQ(call("simulation", "save_state").status, Status::success);
 }
 
-TEST_F(SimWorldStateTest, AStateOfAnotherModelGenerationIsRefused) {
+// A state of another model generation goes back by name (it was refused before issue #36):
+// the same scene compiled anew matches object for object, nothing missing, nothing kept.
+TEST_F(SimWorldStateTest, AStateOfAnotherModelGenerationIsRestoredByName) {
+  ASSERT_EQ(call("robot.motion", "set_speed", {0.7, 0.4}).status, Status::success);
+  run_for(0.3);
   const std::uint64_t handle = save();
+  const auto saved_qpos = qpos();
+  const auto saved_qvel = qvel();
+  run_for(0.3);
   sim_->replace_model(Model::load_file(testing::demo_scene()));  // as a spawn does
+  EXPECT_EQ((*call("simulation", "list_states").value)[0]["exact"], false);
   Outcome o = call("simulation", "restore_state", {handle});
-  EXPECT_EQ(o.status, Status::failed);
-  EXPECT_THAT(o.message, HasSubstr("another model"));
-  EXPECT_EQ((*call("simulation", "list_states").value)[0]["restorable"], false);
+  ASSERT_EQ(o.status, Status::success) << o.message;
+  EXPECT_EQ((*o.value)["exact"], false);
+  for (const char* part : {"missing", "kept"})
+    for (const char* kind : {"bodies", "joints", "actuators"})
+      EXPECT_TRUE((*o.value)[part][kind].empty()) << part << " " << kind << ": " << o.value->dump();
+  EXPECT_TRUE(same_bits(qpos(), saved_qpos));
+  EXPECT_TRUE(same_bits(qvel(), saved_qvel));
 }
 
 TEST_F(SimWorldStateTest, RestoreEndsRunningRequestsPreempted) {
@@ -220,6 +233,29 @@ TEST_F(SimWorldStateTest, ResetObjectsIsUnchanged) {
   Outcome o = call("simulation", "reset_objects");
   ASSERT_EQ(o.status, Status::success);
   EXPECT_EQ(o.value, json("Objects restored to initial position"));
+}
+
+// Resetting a robot zeroes its actuators' activations where MuJoCo 4 keeps them
+// (actuator_actadr). The 2.2.2 layout (stateful actuators last) wrote act[-1] for a filter
+// actuator before a motor, and left its activation as it was.
+class SimResetRobotTest : public testing::MjcfSim {};
+
+TEST_F(SimResetRobotTest, ResettingARobotZeroesItsActivationsWhereverTheyAre) {
+  load_string(R"(<mujoco>
+    <worldbody><body name="arm"><joint name="hinge"/><geom type="capsule" size=".05" fromto="0 0 0 .3 0 0"/></body></worldbody>
+    <actuator>
+      <general name="filtered" joint="hinge" dyntype="filter" dynprm="0.5"/>
+      <motor name="plain" joint="hinge"/>
+    </actuator>
+  </mujoco>)");
+  add_robot("arm", "arm");
+  serve();
+  const int filtered = sim_->model().actuator_id("filtered");
+  const int act = sim_->m()->actuator_actadr[filtered];
+  ASSERT_EQ(act, 0);
+  sim_->d()->act[act] = 0.75;
+  ASSERT_EQ(call("simulation", "reset", {"robot", "arm"}).status, Status::success);
+  EXPECT_EQ(sim_->d()->act[act], 0.0);
 }
 
 }  // namespace

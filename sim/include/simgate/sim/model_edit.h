@@ -81,10 +81,10 @@ Model with_entity(const EditBase& base, const std::string& name, const std::stri
 Model without_body(const EditBase& base, int body, const std::string& name);
 
 // Copies into `to` the state of every object `from` also has, found through `remap`
-// (model_remap.h): joint positions and velocities, actuator controls and activations,
-// mocap poses, applied forces, the warm start; and the clock and MuJoCo's warning
-// counters. Objects only `to` has keep their initial state. The caller then runs
-// mj_forward (Simulation::forward()).
+// (model_remap.h): each object's part of the state (object_state.h: joint positions and
+// velocities, actuator controls and activations, mocap poses, applied forces, the warm
+// start, active equalities); and the clock and MuJoCo's warning counters. Objects only `to`
+// has keep their initial state. The caller then runs mj_forward (Simulation::forward()).
 void carry_state(const Model& from, Model& to, const ModelRemap& remap);
 
 }  // namespace simgate::sim
