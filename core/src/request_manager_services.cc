@@ -39,9 +39,12 @@ ServiceBuilder RequestManager::add_service(std::shared_ptr<Service> service) {
 
 void RequestManager::register_component(Component& component) {
   for (const auto& service : component.services()) add_service(service);
-  // a component without services is still known (so errors say "no service", not "no component")
-  std::lock_guard lock(table_mutex_);
-  services_.try_emplace(component.name());
+  {
+    // a component without services is still known (so errors say "no service", not "no component")
+    std::lock_guard lock(table_mutex_);
+    services_.try_emplace(component.name());
+  }
+  notify_services_changed();
 }
 
 bool RequestManager::unregister_component(const std::string& component, const std::string& reason) {
@@ -71,12 +74,16 @@ bool RequestManager::unregister_component(const std::string& component, const st
   }
   last_lookup_ = LastLookup{};  // it may hold one of the services
   if (!served) return false;
+  notify_services_changed();
+  return true;
+}
+
+void RequestManager::notify_services_changed() {
   try {
     on_services_changed();
   } catch (const std::exception& e) {
     log::error(name_, ": on_services_changed threw: ", e.what());
   }
-  return true;
 }
 
 std::shared_ptr<AsyncSlot> RequestManager::slot_for(const std::string& component) {

@@ -235,12 +235,11 @@ TransportConfig parse_transport(const std::string& name, const json& value, cons
   return tc;
 }
 
-// One robot and its components (names checked for uniqueness against `names`), or nullopt
-// when it has errors, which are recorded in `errors`.
-std::optional<RobotConfig> parse_robot(const json& value, std::size_t index, std::set<std::string>& names,
+// One robot and its components at `path` (names checked for uniqueness against `names`), or
+// nullopt when it has errors, which are recorded in `errors`.
+std::optional<RobotConfig> parse_robot(const json& value, const std::string& path, std::set<std::string>& names,
                                        ConfigErrors& errors) {
   const std::size_t errors_before = errors.errors().size();
-  const std::string path = "robots[" + std::to_string(index) + "]";
   std::optional<ConfigObject> r;
   RobotConfig rc;
   bool named = errors.check([&] {
@@ -280,6 +279,15 @@ void check_transports(const std::vector<std::string>& list, const std::vector<st
 }
 
 }  // namespace
+
+RobotConfig parse_robot_section(const json& section, const std::string& path, std::set<std::string> taken) {
+  taken.insert(k_pseudo_components.begin(), k_pseudo_components.end());
+  taken.insert(k_stream_only_components.begin(), k_stream_only_components.end());
+  ConfigErrors errors;
+  std::optional<RobotConfig> robot = parse_robot(section, path, taken, errors);
+  errors.throw_if_any();
+  return std::move(*robot);
+}
 
 std::vector<std::string> Deployment::component_names() const {
   std::vector<std::string> names;
@@ -427,7 +435,8 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
     if (!robots) return;
     if (!robots->is_array()) root.fail("robots", "an array of robots");
     for (std::size_t i = 0; i < robots->size(); ++i)
-      if (auto robot = parse_robot((*robots)[i], i, names, errors)) d.robots.push_back(std::move(*robot));
+      if (auto robot = parse_robot((*robots)[i], "robots[" + std::to_string(i) + "]", names, errors))
+        d.robots.push_back(std::move(*robot));
   });
   const bool robots_ok = errors.errors().size() == errors_before_robots;
 

@@ -13,6 +13,50 @@
 
 namespace simgate::gateway {
 
+// Robots spawned at run time (simulation spawn_entity's `robot` section), checked and built as
+// the config's robots are, and served as the config's mapping says of their names.
+class Gateway::SpawnedRobots : public sim::Simulation::RobotFactory {
+ public:
+  explicit SpawnedRobots(Gateway& gateway) : gateway_(gateway) {}
+
+  void check(const std::string& name, const json& section) const override { config_of(name, section); }
+  void build(const std::string& name, const json& section) override {
+    gateway_.add_spawned_robot(config_of(name, section));
+  }
+
+ private:
+  [[noreturn]] static void refuse(const std::string& message) {
+    throw ServiceError(message, Failure::bad_arguments, {{"parameter", "robot"}});
+  }
+
+  // The section as a config's robot: named and bodied after the entity, its names free,
+  // its types known.
+  RobotConfig config_of(const std::string& name, const json& section) const {
+    for (const char* key : {"name", "body"})
+      if (section.contains(key))
+        refuse(std::string("robot.") + key + ": the spawned entity gives its robot its name and its body ('" + name +
+               "'); leave it out");
+    json document = section;
+    document["name"] = name;
+    document["body"] = name;
+    std::set<std::string> taken;
+    for (const auto& entry : gateway_.simulation_->components()) taken.insert(entry->component->name());
+    try {
+      RobotConfig r = parse_robot_section(document, "robot", std::move(taken));
+      ConfigErrors errors;
+      errors.check([&] { gateway_.registry_.type_of(sim::Kind::robot, {r.robot.name, r.robot.type, "", r.robot.path}); });
+      for (const auto& c : r.components)
+        errors.check([&] { gateway_.registry_.type_of(sim::Kind::component, {c.name, c.type, "", c.path}); });
+      errors.throw_if_any();
+      return r;
+    } catch (const ConfigError& e) {
+      refuse(e.what());
+    }
+  }
+
+  Gateway& gateway_;
+};
+
 Gateway::Gateway(const Deployment& deployment, const sim::ComponentRegistry& registry, GatewayOptions options,
                  ConfigErrors earlier)
     : deployment_(deployment), options_(std::move(options)), registry_(registry), warnings_(deployment.warnings) {
@@ -41,6 +85,7 @@ Gateway::Gateway(const Deployment& deployment, const sim::ComponentRegistry& reg
     build_components(errors);
     simulation_->add_supervision_services();
     add_streams(errors);
+    simulation_->set_robot_factory(std::make_shared<SpawnedRobots>(*this));
   } else {
     check_component_types(errors);
   }
@@ -97,26 +142,62 @@ void Gateway::add_generic_components(RobotConfig& r) {
 }
 
 void Gateway::build_components(ConfigErrors& errors) {
-  const sim::ComponentRegistry& registry = registry_;
-  sim::Simulation& sim = *simulation_;
   for (auto& r : deployment_.robots)
     if (r.robot.type == "mjcf") add_generic_components(r);
-  for (const auto& r : deployment_.robots) {
-    sim::Robot* robot_ptr = nullptr;
+  for (const auto& r : deployment_.robots) build_robot(r, errors);
+}
+
+std::vector<std::string> Gateway::build_robot(const RobotConfig& r, ConfigErrors& errors) {
+  sim::Simulation& sim = *simulation_;
+  std::vector<std::string> added;
+  sim::Robot* robot_ptr = nullptr;
+  errors.check([&] {
+    sim::ComponentSpec spec{r.robot.name, r.robot.type, r.robot.body, r.robot.path};
+    auto robot = registry_.create(sim::Kind::robot, spec, r.robot.options, sim, nullptr);
+    robot_ptr = static_cast<sim::Robot*>(robot.get());
+    sim.add_component(std::move(robot), r.robot.type, "", true);
+    added.push_back(r.robot.name);
+  });
+  if (!robot_ptr) return added;  // its components need it
+  for (const auto& c : r.components)
     errors.check([&] {
-      sim::ComponentSpec spec{r.robot.name, r.robot.type, r.robot.body, r.robot.path};
-      auto robot = registry.create(sim::Kind::robot, spec, r.robot.options, sim, nullptr);
-      robot_ptr = static_cast<sim::Robot*>(robot.get());
-      sim.add_component(std::move(robot), r.robot.type, "", true);
+      sim::ComponentSpec cspec{c.name, c.type, c.body, c.path, stream_frequency(c)};
+      auto component = registry_.create(sim::Kind::component, cspec, c.options, sim, robot_ptr);
+      sim.add_component(std::move(component), c.type, r.robot.name, false);
+      added.push_back(c.name);
     });
-    if (!robot_ptr) continue;  // its components need it
-    for (const auto& c : r.components)
-      errors.check([&] {
-        sim::ComponentSpec cspec{c.name, c.type, c.body, c.path, stream_frequency(c)};
-        auto component = registry.create(sim::Kind::component, cspec, c.options, sim, robot_ptr);
-        sim.add_component(std::move(component), c.type, r.robot.name, false);
-      });
+  return added;
+}
+
+void Gateway::add_spawned_robot(RobotConfig r) {
+  if (r.robot.type == "mjcf") add_generic_components(r);
+  ConfigErrors errors;
+  const std::vector<std::string> added = build_robot(r, errors);
+  if (!errors.errors().empty()) {
+    for (auto it = added.rbegin(); it != added.rend(); ++it)
+      simulation_->remove_component(*it, "robot '" + r.robot.name + "' could not be built");
+    try {
+      errors.throw_if_any();
+    } catch (const ConfigError& e) {
+      throw ServiceError(e.what(), Failure::bad_arguments, {{"parameter", "robot"}});
+    }
   }
+  // its streams and transports, as the config's mapping gives them to its names
+  std::vector<const ComponentConfig*> configs{&r.robot};
+  for (const auto& c : r.components) configs.push_back(&c);
+  for (const ComponentConfig* c : configs) {
+    sim::ComponentEntry* entry = simulation_->find(c->name);
+    ConfigErrors stream_errors;
+    add_stream(*entry->component, c->type, stream_frequency(*c), StreamHub::k_default_frequency, stream_errors);
+    for (const std::string& e : stream_errors.errors()) log::warning("spawned robot '", r.robot.name, "': ", e);
+    const std::vector<std::string> transports = deployment_.transports_for(c->name);
+    for (Transport& t : transports_)
+      if (t.manager && std::find(transports.begin(), transports.end(), t.name) != transports.end()) {
+        serve_on(t, *entry);
+        served_[t.name].push_back(c->name);
+      }
+  }
+  log::info("simulation: robot '", r.robot.name, "' spawned with ", added.size() - 1, " component(s)");
 }
 
 void Gateway::check_component_types(ConfigErrors& errors) const {
@@ -164,32 +245,33 @@ std::vector<std::string> Gateway::carriers(const Component& component, const std
   return out;
 }
 
+void Gateway::add_stream(const Component& component, const std::string& type, std::optional<double> frequency,
+                         double fallback, ConfigErrors& errors) {
+  const StreamDeclaration* stream = component.stream();
+  const std::vector<std::string> transports = deployment_.streams_for(component.name());
+  const ServiceRule* named = deployment_.stream_rule_named(component.name());
+  if (named && named->frequency && (!stream || stream->direction != StreamDirection::out))
+    warnings_.push_back(named->path + ".frequency: component '" + component.name() + "' (type " + type +
+                        ") has no output stream: the frequency is not used");
+  else if (named && named->frequency && stream->outlet && stream->pushed_frequency == 0)
+    warnings_.push_back(named->path + ".frequency: component '" + component.name() +
+                        "' streams events as they happen, at no frequency: the frequency is not used");
+  if (transports.empty()) return;
+  if (!stream) {
+    // an exact name must mean a stream; a glob may match components without one
+    if (named)
+      errors.add(named->path + ": component '" + component.name() + "' (type " + type +
+                 ") has no data stream (streaming types: sensors such as pose, imu, odometry, laser_scanner; "
+                 "actuators such as motion_vw, waypoint, teleport, armature, actuators; the simulation's "
+                 "body_poses)");
+    return;
+  }
+  simulation_->streams().add(component, type, carriers(component, transports), frequency.value_or(fallback));
+}
+
 void Gateway::add_streams(ConfigErrors& errors) {
-  // the stream of `component`, if the "streams" section maps it; `frequency`: the rate the
-  // configuration gives (the rule's, else the component's own), `fallback` without one
   auto add = [&](const Component& component, const std::string& type, std::optional<double> frequency,
-                 double fallback) {
-    const StreamDeclaration* stream = component.stream();
-    const std::vector<std::string> transports = deployment_.streams_for(component.name());
-    const ServiceRule* named = deployment_.stream_rule_named(component.name());
-    if (named && named->frequency && (!stream || stream->direction != StreamDirection::out))
-      warnings_.push_back(named->path + ".frequency: component '" + component.name() + "' (type " + type +
-                          ") has no output stream: the frequency is not used");
-    else if (named && named->frequency && stream->outlet && stream->pushed_frequency == 0)
-      warnings_.push_back(named->path + ".frequency: component '" + component.name() +
-                          "' streams events as they happen, at no frequency: the frequency is not used");
-    if (transports.empty()) return;
-    if (!stream) {
-      // an exact name must mean a stream; a glob may match components without one
-      if (named)
-        errors.add(named->path + ": component '" + component.name() + "' (type " + type +
-                   ") has no data stream (streaming types: sensors such as pose, imu, odometry, laser_scanner; "
-                   "actuators such as motion_vw, waypoint, teleport, armature, actuators; the simulation's "
-                   "body_poses)");
-      return;
-    }
-    simulation_->streams().add(component, type, carriers(component, transports), frequency.value_or(fallback));
-  };
+                 double fallback) { add_stream(component, type, frequency, fallback, errors); };
   auto check_component = [&](const ComponentConfig& c) {
     const sim::ComponentEntry* entry = simulation_->find(c.name);
     if (!entry) return;  // not created: its own error is reported
@@ -324,13 +406,14 @@ void Gateway::create_transports() {
     // the allow and deny lists first: no service is ever callable that they deny
     transport.manager->set_access(t.access);
     transport.manager->set_max_wait(deployment_.max_wait);  // requests.max_wait_ms
-    for (const auto& name : served_[t.name]) {
-      sim::ComponentEntry* entry = simulation_->find(name);
-      transport.manager->register_component(*entry->component);
-      entry->interfaces.push_back(t.name);
-    }
+    for (const auto& name : served_[t.name]) serve_on(transport, *simulation_->find(name));
     simulation_->add_request_manager(transport.manager, t.name);
   }
+}
+
+void Gateway::serve_on(Transport& transport, sim::ComponentEntry& entry) {
+  transport.manager->register_component(*entry.component);
+  entry.interfaces.push_back(transport.name);
 }
 
 void Gateway::start() {

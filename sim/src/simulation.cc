@@ -635,19 +635,20 @@ std::string Simulation::drop_bad_controls() {
   return names;
 }
 
-void Simulation::replace_model(Model next) {
+Model Simulation::replace_model(Model next) {
   const ModelRemap remap = ModelRemap::between(m(), next.model(), -1, true);
-  replace_model(std::move(next), remap);
+  return replace_model(std::move(next), remap);
 }
 
-void Simulation::replace_model(Model next, const ModelRemap& remap) {
+Model Simulation::replace_model(Model next, const ModelRemap& remap) {
   next.model()->opt = m()->opt;
   carry_state(model_, next, remap);
-  model_ = std::move(next);
+  std::swap(model_, next);
   ++model_generation_;
   forward();
   for (auto& entry : entries_)
     if (entry->sim_component) entry->sim_component->model_changed(remap);
+  return next;
 }
 
 SimulationStatistics Simulation::statistics() const {

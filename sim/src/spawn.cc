@@ -253,10 +253,18 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
   explicit Spawner(Simulation& sim) : sim_(sim) {}
 
   void spawn_entity(Completion done, const std::string& name, const std::string& mjcf,
-                    const std::vector<double>& pose) {
+                    const std::vector<double>& pose, const json& robot) {
     // the arguments themselves first, then what they mean for the world as it is
     check_entity_name(name);
     const EntityPose where = entity_pose(pose);
+    if (!robot.is_object()) refuse("robot", "robot: expected an object (a robot section: type, components...), "
+                                            "or {} for a plain body, found " + robot.dump());
+    const bool with_robot = !robot.empty();
+    if (with_robot) {
+      if (!sim_.robot_factory())
+        refuse("robot", "robot: this simulation builds no robots at run time (it runs without a configuration)");
+      sim_.robot_factory()->check(name, robot);
+    }
     const std::size_t first = mjcf.find_first_not_of(" \t\r\n");
     const bool inline_text = first != std::string::npos && mjcf[first] == '<';
     // inline text is checked now; a file is found now and read by the worker (disk I/O has
@@ -276,6 +284,7 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
       refuse("name", "name '" + name + "' is taken: the world already has a body called so" +
                          (model.entity(name) ? " (a spawned entity)" : ""));
     start(std::move(done), "spawn_entity", name, std::move(edit));
+    if (with_robot) change_->robot = robot;
   }
 
   void delete_entity(Completion done, const std::string& name) {
@@ -285,13 +294,9 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
     if (body == 0) refuse("name", "'" + name + "' is the world body: it cannot be deleted");
     if (body < 0) refuse("name", "no body or entity named '" + name + "'" + spawned_list());
     auto edit = [body, name](const EditBase& base) { return without_body(base, body, name); };
-    if (model.entity(name)) {
-      start(std::move(done), "delete_entity", name, std::move(edit), body);
-      return;
-    }
-    // a body of the scene: the robots whose root body is in its subtree go, with their
-    // components; no other component may be bound to the subtree, nor the body be part of
-    // a component's body
+    // the robots whose root body is in its subtree go (a robot spawned with it, or one of
+    // the scene), with their components; no other component may be bound to the subtree,
+    // nor the body be part of a component's body
     std::set<std::string> robots;
     for (const auto& entry : sim_.components())
       if (const auto* robot = dynamic_cast<const Robot*>(entry->component.get());
@@ -370,7 +375,8 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
     // the deleted robots' components first: their requests end, their services go
     for (const RemovedComponent& c : change.removed_components)
       sim_.remove_component(c.name, "robot '" + c.robot + "' was deleted by simulation.delete_entity");
-    sim_.replace_model(std::move(*next), remap);
+    Model previous = sim_.replace_model(std::move(*next), remap);
+    if (!change.robot.is_null() && !build_robot(change, previous)) return;
     log::info("simulation: ", change.service, " '", change.name, "': model generation ", sim_.model_generation(),
               " (", sim_.m()->nbody, " bodies)");
     change.done(Status::success, json{{"name", change.name}, {"model_generation", sim_.model_generation()}});
@@ -479,7 +485,27 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
     std::vector<RemovedComponent> removed_components;  // a deleted robot's, removed at the swap
     std::future<Model> compiled;   // the worker's result (or MuJoCo's error)
     std::future<void> worker;      // the worker itself (ready once it has asked for apply())
+    json robot;                    // spawn_entity's robot section (null: a plain body)
   };
+
+  // Builds the robot a spawn brings, its body now in the model. When it cannot be built,
+  // nothing of the spawn stays: the model it was spawned into goes back (the state as it is:
+  // no step ran between), the request FAILS saying why, and false.
+  bool build_robot(Change& change, Model& previous) {
+    try {
+      sim_.robot_factory()->build(change.name, change.robot);
+      return true;
+    } catch (const std::exception& e) {
+      const ModelRemap back = ModelRemap::between(sim_.m(), previous.model(), sim_.model().body_id(change.name), false);
+      sim_.replace_model(std::move(previous), back);
+      const auto* error = dynamic_cast<const ServiceError*>(&e);
+      const std::string why = error ? error->message() : e.what();
+      change.done.finish(Outcome::failed(error ? error->failure() : Failure::bad_arguments,
+                                         "spawn_entity '" + change.name + "': " + why + "; nothing was spawned",
+                                         error ? error->data() : json{{"parameter", "robot"}}));
+      return false;
+    }
+  }
 
   Simulation& sim_;                        // whose model changes
   std::optional<Change> change_;           // the one being compiled
@@ -493,12 +519,12 @@ void add_spawn_services(SupervisionServices& simulation, Simulation& sim) {
   simulation
       .offer_async_service(
           "spawn_entity",
-          [spawner](Completion done, const std::string& name, const std::string& mjcf, const std::vector<double>& pose) {
-            spawner->spawn_entity(std::move(done), name, mjcf, pose);
-          },
-          {"name", "mjcf", "pose"})
+          [spawner](Completion done, const std::string& name, const std::string& mjcf, const std::vector<double>& pose,
+                    const json& robot) { spawner->spawn_entity(std::move(done), name, mjcf, pose, robot); },
+          {"name", "mjcf", "pose", {"robot", json::object()}})
       .concurrent()
-      .doc("Add the MJCF body `mjcf` to the world as `name` at `pose` [x, y, z] or [x, y, z, qx, qy, qz, qw]");
+      .doc("Add the MJCF body `mjcf` to the world as `name` at `pose` [x, y, z] or [x, y, z, qx, qy, qz, qw]; "
+           "`robot` (a config's robot section: type, components) makes it a robot with components");
   simulation
       .offer_async_service(
           "delete_entity",

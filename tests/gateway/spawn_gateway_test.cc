@@ -96,6 +96,90 @@ TEST_F(GatewaySpawnTest, IntrospectionListsTheServices) {
   EXPECT_EQ(discovered, 2) << discover.dump().substr(0, 2000);
 }
 
+// An arm on a hinge, with a position servo and a joint sensor, spawned as a robot.
+constexpr const char* k_arm = R"(<mujoco>
+  <worldbody><body><geom type="box" size=".1 .1 .05" mass="2"/>
+    <body name="arm2_link" pos="0 0 .1"><joint name="arm2_hinge" axis="0 0 1"/>
+      <geom type="capsule" size=".03" fromto="0 0 0 .3 0 0" mass=".5"/></body></body></worldbody>
+  <actuator><position name="arm2_servo" joint="arm2_hinge" kp="20" ctrlrange="-1.5 1.5"/></actuator>
+  <sensor><jointpos name="arm2_angle" joint="arm2_hinge"/></sensor>
+</mujoco>)";
+
+// A spawned robot comes with its components (a config's robot section), served at once by
+// every transport the mapping gives its names, listed by each one's introspection, and gone
+// again with its body (issue #36).
+TEST_F(GatewaySpawnTest, ASpawnedRobotServesItsComponentsOnEveryTransport) {
+  LineClient socket(port("socket")), jsonrpc(port("jsonrpc"));
+  const json robot = {{"type", "robot"},
+                      {"components", json::array({{{"name", "pose"}, {"type", "pose"}},
+                                                  {{"name", "actuators"}, {"type", "actuators"}},
+                                                  {{"name", "sensors"}, {"type", "sensors"}}})}};
+  json spawned = rpc(jsonrpc, 1, "simulation.spawn_entity",
+                     {{"name", "arm2"}, {"mjcf", k_arm}, {"pose", {2.0, 2.0, 0.05}}, {"robot", robot}});
+  EXPECT_EQ(spawned["result"], json({{"name", "arm2"}, {"model_generation", 1}})) << spawned.dump();
+  // MORSE's socket protocol: listed, and served
+  EXPECT_NE(payload(socket.request("1", "simulation list_robots")).dump().find("\"arm2\""), std::string::npos);
+  int listed = 0;
+  for (const auto& s : payload(socket.request("2", "simulation list_services")))
+    listed += s["component"].get<std::string>().starts_with("arm2.");
+  EXPECT_GE(listed, 5);
+  EXPECT_EQ(socket.request("3", "arm2.actuators set_control [\"arm2_servo\", 0.8]"), "3 SUCCESS");
+  const json pose = payload(socket.request("4", "arm2.pose get_local_data"));
+  EXPECT_NEAR(pose["x"].get<double>(), 2.0, 1e-3) << pose;
+  // JSON-RPC: discovered and called
+  const json discover = rpc(jsonrpc, 2, "rpc.discover");
+  bool discovered = false;
+  for (const auto& m : discover["result"]["methods"]) discovered |= m["name"] == "arm2.sensors.get_local_data";
+  EXPECT_TRUE(discovered);
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the servo turns the hinge
+  const json angle = rpc(jsonrpc, 3, "arm2.sensors.get_local_data")["result"];
+  EXPECT_NEAR(angle["arm2_angle"].get<double>(), 0.8, 0.1) << angle;
+#ifdef SIMGATE_TEST_WITH_DDS
+  {
+    // DDS: the catalog is published anew with it
+    auto [code, out] = testing::run_simgate({"list", "--transport", "dds", "--partition", partition_}, dir_);
+    EXPECT_EQ(code, 0) << out;
+    EXPECT_NE(out.find("arm2.actuators"), std::string::npos) << out;
+  }
+#endif
+  // deleted with its body: every transport forgets it
+  json deleted = rpc(jsonrpc, 4, "simulation.delete_entity", {"arm2"});
+  EXPECT_EQ(deleted["result"], json({{"name", "arm2"}, {"model_generation", 2}})) << deleted.dump();
+  EXPECT_EQ(socket.request("5", "arm2.pose get_local_data").substr(0, 8), "5 FAILED");
+  for (const auto& s : payload(socket.request("6", "simulation list_services")))
+    EXPECT_FALSE(s["component"].get<std::string>().starts_with("arm2")) << s;
+}
+
+// A robot section that is wrong is refused before anything compiles, or, when a component
+// cannot be made with the body in the world, after: either way nothing is spawned.
+TEST_F(GatewaySpawnTest, ABadRobotSectionSpawnsNothing) {
+  LineClient socket(port("socket")), jsonrpc(port("jsonrpc"));
+  auto spawn = [&](int id, const json& robot) {
+    return rpc(jsonrpc, id, "simulation.spawn_entity",
+               {{"name", "arm2"}, {"mjcf", k_arm}, {"pose", {2.0, 2.0, 0.05}}, {"robot", robot}});
+  };
+  const json unknown_type = spawn(1, {{"components", json::array({{{"name", "x"}, {"type", "motion_wv"}}})}});
+  EXPECT_EQ(unknown_type["error"]["code"], -32602) << unknown_type.dump();
+  EXPECT_EQ(unknown_type["error"]["data"]["parameter"], "robot") << unknown_type.dump();
+  EXPECT_NE(unknown_type["error"]["message"].get<std::string>().find("robot.components[0].type"), std::string::npos)
+      << unknown_type.dump();
+  const json named = spawn(2, {{"name", "other"}});
+  EXPECT_NE(named["error"]["message"].get<std::string>().find("robot.name"), std::string::npos) << named.dump();
+  const json not_object = spawn(3, json::array({1}));
+  EXPECT_EQ(not_object["error"]["data"]["parameter"], "robot") << not_object.dump();
+  // known types, but an actuator the body does not have: found once the body is in the world
+  const json missing_actuator =
+      spawn(4, {{"components", json::array({{{"name", "actuators"}, {"type", "actuators"},
+                                             {"options", {{"actuators", json::array({"nope"})}}}}})}});
+  EXPECT_EQ(missing_actuator["error"]["code"], -32602) << missing_actuator.dump();
+  EXPECT_NE(missing_actuator["error"]["message"].get<std::string>().find("nothing was spawned"), std::string::npos)
+      << missing_actuator.dump();
+  EXPECT_FALSE(payload(socket.request("1", "simulation get_scene_objects")).contains("arm2"));
+  EXPECT_EQ(payload(socket.request("2", "simulation list_robots")), json::array({"robot", "human"}));
+  // the name is free again: a good one spawns
+  EXPECT_EQ(spawn(5, {{"type", "robot"}})["result"]["name"], "arm2");
+}
+
 // Deleting a robot's body deletes the robot: its request in flight gets its one answer,
 // FAILED with the reason, and no transport lists its components any more.
 TEST_F(GatewaySpawnTest, DeletingARobotEndsItsRequestsAndEveryTransportForgetsIt) {

@@ -343,6 +343,19 @@ TEST_F(SimSpawnTest, RestoringAcrossAnEditReportsWhatIsMissingAndWhatIsKept) {
   EXPECT_EQ(sim_->sim_time(), 0.0);
 }
 
+// A robot section needs the host's factory (the gateway's: component types, mapping); a
+// simulation without one says so, and a section that is not an object is refused.
+TEST_F(SimSpawnTest, ARobotSectionWithoutAFactoryOrNotAnObjectIsRefused) {
+  remember_world();
+  expect_refused(finish(rm_->call("simulation", "spawn_entity", {"arm", k_spawn_ball, {1.0, 1.0, 0.5}, {{"type", "robot"}}})),
+                 "robot", "builds no robots at run time");
+  expect_refused(finish(rm_->call("simulation", "spawn_entity", {"arm", k_spawn_ball, {1.0, 1.0, 0.5}, "robot"})),
+                 "robot", "expected an object");
+  // {} is a plain body, as without the parameter
+  EXPECT_EQ(finish(rm_->call("simulation", "spawn_entity", {"arm", k_spawn_ball, {1.0, 1.0, 0.5}, json::object()})).status,
+            Status::success);
+}
+
 TEST_F(SimSpawnTest, ServicesAreListed) {
   json services = call("simulation", "list_services").value.value();
   int found = 0;

@@ -40,9 +40,10 @@
 // cancel() are thread-safe and never block for long; a queued request wakes process() at
 // once.
 //
-// A component can leave while the manager runs (unregister_component: a robot deleted at run
-// time): its running requests end FAILED with the reason, its services leave the table,
-// and on_services_changed() tells the transport.
+// A component can come and leave while the manager runs (register_component: a robot
+// spawned at run time; unregister_component: one deleted): a leaving one's running requests
+// end FAILED with the reason, its services leave the table; either way
+// on_services_changed() tells the transport.
 //
 // A transport plugin subclasses RequestManager, does its I/O on its own threads between
 // start() and stop(), and overrides on_service_completion(). See
@@ -138,7 +139,8 @@ class RequestManager {
                                     std::move(params), true));
   }
   // Serves every service of `component` (shared, not copied: the component must outlive
-  // this manager's use of it).
+  // this manager's use of it); then on_services_changed(). Before start(), or under the
+  // simulation lock (a robot spawned at run time).
   void register_component(Component& component);
   // Stops serving `component` (a robot deleted at run time): its async requests running
   // here end FAILED (Failure::service_error) with `reason`, each delivered as any outcome
@@ -293,10 +295,10 @@ class RequestManager {
   // outcomes were produced. Must not throw. The outcome is the transport's to read or to
   // move from (the core may reuse the object for the next request).
   virtual void on_service_completion(RequestId id, Outcome&& outcome) = 0;
-  // After the table of services changed while running (unregister_component): a transport
-  // that publishes it (the DDS catalog) publishes it anew. Runs under the simulation lock,
-  // on whichever thread removed the component: it must only post to the transport's own
-  // thread, not block. Must not throw. The default does nothing (introspection that reads
+  // After the table of services changed (register_component, unregister_component): a
+  // transport that publishes it (the DDS catalog) publishes it anew. Runs under the
+  // simulation lock (or before start()), on whichever thread added or removed the component:
+  // it must only post to the transport's own thread, not block. Must not throw. The default does nothing (introspection that reads
   // descriptors() at each call is always current).
   virtual void on_services_changed() {}
   // Delivers a progress report of request `id`, a call submitted with Call::progress, on
@@ -333,6 +335,7 @@ class RequestManager {
   void client_left(std::uint64_t client);
 
  private:
+  void notify_services_changed();  // on_services_changed(), an exception logged
   struct Table;
   // execute(), and with debug logging on (looked at once per request) the time it takes and
   // a log line for its outcome: of a sync request here, of an async one when it ends.

@@ -42,6 +42,7 @@
 
 #include <chrono>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -137,6 +138,10 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
 // scene whose file is unusable leaves `mjcf` empty), for Gateway to check the rest.
 Deployment parse_deployment(const json& document, const std::string& base_dir, const std::string& file,
                             ConfigErrors& errors);
+// One robot section (a config's robots[i]; a robot spawned at run time, simulation
+// spawn_entity's `robot`) at `path`, its names checked against `taken` (the components that
+// exist) and the pseudo-components'. Throws one ConfigError carrying every error of it.
+RobotConfig parse_robot_section(const json& section, const std::string& path, std::set<std::string> taken);
 // Reads and parses a file: parse_deployment, or first parse_config_text, whose error (a
 // syntax error, a number beyond a double, nesting deeper than k_max_config_depth) is thrown
 // as "FILE:LINE:COLUMN: <path>: ...".

@@ -88,11 +88,24 @@ class Gateway {
   void add_generic_components(RobotConfig& r);
   // Each records its errors and goes on with the next robot, component or transport.
   void build_components(ConfigErrors& errors);
+  // Creates robot `r` and its components in the simulation (recording errors; a robot that
+  // cannot be made skips its components); returns the names of those made.
+  std::vector<std::string> build_robot(const RobotConfig& r, ConfigErrors& errors);
+  // The simulation's RobotFactory (gateway.cc): robots spawned at run time.
+  class SpawnedRobots;
+  // A robot spawned at run time (checked by SpawnedRobots): built, its streams added and its
+  // components served as the config's mapping says of their names; under the simulation
+  // lock. Throws ServiceError (parameter "robot") having added nothing when it cannot be built.
+  void add_spawned_robot(RobotConfig r);
   // Without a scene: that each robot's and component's type is one of the registry's.
   void check_component_types(ConfigErrors& errors) const;
   // The components' data streams the "streams" section asks for (a component named there
   // that has none is an error; a frequency on one without an output stream a warning).
   void add_streams(ConfigErrors& errors);
+  // The stream of `component`, if the "streams" section maps it; `frequency`: the rate the
+  // configuration gives (the rule's, else the component's own), `fallback` without one.
+  void add_stream(const Component& component, const std::string& type, std::optional<double> frequency,
+                  double fallback, ConfigErrors& errors);
   // Of `transports`, those that may carry `component`'s stream: their allow/deny lists let
   // through every service of the component (an input stream) or its get_local_data (an
   // output stream); each other one is a warning.
@@ -109,6 +122,8 @@ class Gateway {
   void warn_about_access_lists();
   // Creates every transport (binding its sockets) and registers its components.
   void create_transports();
+  // Serves `entry`'s component on `transport` (its interfaces name it).
+  void serve_on(Transport& transport, sim::ComponentEntry& entry);
 
   Deployment deployment_;                             // validated configuration
   GatewayOptions options_;                            // how it was built

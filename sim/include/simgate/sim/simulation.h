@@ -319,14 +319,34 @@ class Simulation {
   // physics options (a timestep set by the config or at run time); bumps
   // model_generation(), then forward(), then tells every SimComponent where its objects
   // went (SimComponent::on_model_changed): a body removed from the middle moves the ids of
-  // everything after it. The caller has removed the components whose objects go.
-  void replace_model(Model next, const ModelRemap& remap);
+  // everything after it. The caller has removed the components whose objects go. Returns
+  // the model replaced (a spawn whose robot cannot be built swaps it back).
+  Model replace_model(Model next, const ModelRemap& remap);
   // The same for a model that only adds objects after the current ones (a spawn): the
   // remap is computed here (ModelRemap::between; throws MujocoError when `next` does not
   // start with the current model's objects).
-  void replace_model(Model next);
+  Model replace_model(Model next);
   // SimulationOptions::spawn_allowed_dirs.
   const std::vector<std::string>& spawn_allowed_dirs() const { return spawn_allowed_dirs_; }
+
+  // Builds the robots `simulation spawn_entity` brings (its `robot` parameter): set by the
+  // host that knows the configuration (the gateway: component types, the transports that
+  // serve a name, stream rules). Without one, a spawn with a robot is refused.
+  class RobotFactory {
+   public:
+    virtual ~RobotFactory() = default;
+    // Checks robot `name`'s section before anything is compiled (its structure, names,
+    // component types): throws ServiceError (bad_arguments, parameter "robot") saying what
+    // is wrong. Under the simulation lock.
+    virtual void check(const std::string& name, const json& section) const = 0;
+    // Creates robot `name` (its body, the spawned entity's, is in the model now) and its
+    // components, adds them to the simulation and serves them on the transports the
+    // configuration maps them to, with their streams. Under the simulation lock. Throws
+    // (ServiceError, parameter "robot") having added nothing when a component cannot be made.
+    virtual void build(const std::string& name, const json& section) = 0;
+  };
+  void set_robot_factory(std::shared_ptr<RobotFactory> factory) { robot_factory_ = std::move(factory); }
+  RobotFactory* robot_factory() const { return robot_factory_.get(); }
 
  private:
   // After a step taken while playing: the measured real-time factor, window by window.
@@ -386,6 +406,7 @@ class Simulation {
   PhysicsState checkpoint_;                                  // restore: the last checkpoint
   PhysicsState next_checkpoint_;                             // restore: the one being taken (kept if its step goes well)
   std::vector<std::string> spawn_allowed_dirs_;              // see SimulationOptions
+  std::shared_ptr<RobotFactory> robot_factory_;              // see set_robot_factory
   SimulationEvents* events_ = nullptr;                       // simulation.events (owned by entries_), once added
 };
 
