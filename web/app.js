@@ -10,6 +10,8 @@
 //   - the scene: simulation get_scene_geometry drawn with three.js, bodies moved by the
 //     `simulation` stream (rpc.subscribe), or by polling when the server has no such stream;
 //     without get_scene_geometry, each root body of simulation get_scene_objects as a marker;
+//     a new model generation (a spawn, a delete) reloads it, and the console's services and
+//     the input streams with it (a robot spawned with components, or deleted);
 //   - the cameras: every component with a get_image service, its image on asking, and live
 //     from its data stream (rpc.subscribe) when this transport carries one;
 //   - the input streams (rpc.streams, direction IN): a command box for each (rpc.publish),
@@ -524,7 +526,7 @@ class SceneView {
   }
 }
 
-function setupScene(rpc) {
+function setupScene(rpc, onModelChanged) {
   let view = null;
   try {
     view = new SceneView($('view'));
@@ -549,6 +551,7 @@ function setupScene(rpc) {
     if (!geometry) return;
     if (sample.generation !== undefined && sample.generation !== geometry.generation) {
       await loadGeometry();  // the model changed (an entity spawned or deleted)
+      onModelChanged();      // and with it, maybe, the services (a robot spawned or deleted)
       return;
     }
     // poses one per body in id order: by index when the lists match, else by id
@@ -887,7 +890,11 @@ function setupInputs(rpc) {
 const rpc = new Rpc(`${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/`);
 const refreshState = setupState(rpc);
 const loadServices = setupConsole(rpc);
-const startScene = setupScene(rpc);
+// a model changed by a spawn or a delete may bring or take a robot: its services and streams
+const startScene = setupScene(rpc, () => {
+  loadServices();
+  startInputs(rpc.call('rpc.streams').catch(() => []));
+});
 const startCameras = setupCameras(rpc);
 const startInputs = setupInputs(rpc);
 

@@ -476,15 +476,22 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
           if (frequency) *frequency = rate;
           return;
         }
-        // every rule must match something: a typo must not silently disconnect a component
-        // (not checked when a robot was invalid: its components are unknown)
+        // a rule should match something: a typo must not silently disconnect a component
+        // (not checked when a robot was invalid: its components are unknown). One close to a
+        // name of the file is taken for a typo; another may map robots spawned at run time
+        // (simulation spawn_entity's robot), and is only warned about.
         const std::vector<std::string>& names = frequency ? streamed : all;
         bool matched = std::any_of(names.begin(), names.end(), [&](const std::string& n) {
           return is_glob(it.key()) ? glob_matches(it.key(), n) : it.key() == n;
         });
-        if (!matched && robots_ok)
-          throw ConfigError(path + ": expected a component name or a glob matching one (" + join(names) +
-                            "), found '" + it.key() + "', which matches none" + did_you_mean(it.key(), names));
+        if (!matched && robots_ok) {
+          const std::string suggestion = did_you_mean(it.key(), names);
+          if (!suggestion.empty())
+            throw ConfigError(path + ": expected a component name or a glob matching one (" + join(names) +
+                              "), found '" + it.key() + "', which matches none" + suggestion);
+          d.warnings.push_back(path + ": '" + it.key() + "' matches no component of this file (" + join(names) +
+                               "): it maps only robots spawned at run time under such names");
+        }
         rules.push_back(ServiceRule{it.key(), std::move(list), path, rate});
       });
     }

@@ -379,6 +379,13 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
     if (!change.robot.is_null() && !build_robot(change, previous)) return;
     log::info("simulation: ", change.service, " '", change.name, "': model generation ", sim_.model_generation(),
               " (", sim_.m()->nbody, " bodies)");
+    // every client that watches the world learns what changed in it, and who changed it
+    json event = {{"name", change.name}, {"model_generation", sim_.model_generation()}, {"by", change.by}};
+    std::set<std::string> robots;
+    for (const RemovedComponent& c : change.removed_components) robots.insert(c.robot);
+    if (change.service == "spawn_entity") event["robot"] = !change.robot.is_null();
+    else event["robots"] = robots;
+    sim_.announce(change.service == "spawn_entity" ? "spawned" : "deleted", std::move(event));
     change.done(Status::success, json{{"name", change.name}, {"model_generation", sim_.model_generation()}});
   }
 
@@ -473,6 +480,9 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
         });
     change_.emplace(Change{std::move(done), std::move(service), std::move(name), sim_.model_generation(),
                            removed_body, std::move(removed), std::move(compiled), std::move(worker)});
+    // the swap runs outside this request's context: who asked is kept for the announcement
+    const CallContext* context = CallContext::current();
+    change_->by = context ? context->manager().transport_name() : std::string("simulation");
   }
 
   // A model being compiled, and the request waiting for it.
@@ -486,6 +496,7 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
     std::future<Model> compiled;   // the worker's result (or MuJoCo's error)
     std::future<void> worker;      // the worker itself (ready once it has asked for apply())
     json robot;                    // spawn_entity's robot section (null: a plain body)
+    std::string by;                // the caller's transport (simulation.events' `by`)
   };
 
   // Builds the robot a spawn brings, its body now in the model. When it cannot be built,

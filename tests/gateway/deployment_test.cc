@@ -340,6 +340,21 @@ TEST(GatewayConfigTest, ADocumentNestedTooDeeplyIsRefusedBeforeItIsBuilt) {
   EXPECT_THAT(load_error(text), HasSubstr("description: expected a string"));
 }
 
+// A rule for names no component of the file has, and close to none of them, may be for
+// robots spawned at run time (simulation spawn_entity's robot): a warning, not an error (it
+// was an error before issue #36). One close to a name stays an error (a typo).
+TEST(GatewayConfigTest, ARuleForRobotsSpawnedLaterIsAWarning) {
+  json config = demo_config();
+  config["services"]["rover.*"] = json::array({"socket"});
+  EXPECT_EQ(error_of(config), "");
+  Deployment d = parse_deployment(config, SIMGATE_SOURCE_DIR "/config");
+  ASSERT_EQ(d.rules.size(), config["services"].size() - (config["services"].contains("default") ? 1 : 0));
+  std::string warnings;
+  for (const auto& w : d.warnings) warnings += w + "\n";
+  EXPECT_THAT(warnings, HasSubstr("services.rover.*: 'rover.*' matches no component of this file"));
+  EXPECT_EQ(d.transports_for("rover.pose"), std::vector<std::string>{"socket"});
+}
+
 TEST(GatewayConfigTest, RelativeSceneIsResolvedNextToTheConfig) {
   Deployment d = load_deployment(SIMGATE_SOURCE_DIR "/config/demo.json");
   EXPECT_THAT(d.mjcf, HasSubstr("config/scenes/demo.xml"));

@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "sim_fixture.h"
+#include "simgate/core/streams.h"
 
 namespace simgate::sim {
 namespace {
@@ -354,6 +355,30 @@ TEST_F(SimSpawnTest, ARobotSectionWithoutAFactoryOrNotAnObjectIsRefused) {
   // {} is a plain body, as without the parameter
   EXPECT_EQ(finish(rm_->call("simulation", "spawn_entity", {"arm", k_spawn_ball, {1.0, 1.0, 0.5}, json::object()})).status,
             Status::success);
+}
+
+// A spawn and a delete change the world under every client: simulation.events says so, with
+// the name, the new model generation and who asked (the swap runs outside the request; it
+// said nothing before).
+TEST_F(SimSpawnTest, SpawnAndDeleteAreAnnouncedOnTheEventStream) {
+  sim_->streams().add(*sim_->find("simulation.events")->component, "events", {"test"});
+  auto events = sim_->streams().subscribe("simulation.events", "test", {64, "test", {}});
+  ASSERT_EQ(spawn("ball").status, Status::success);
+  ASSERT_EQ(remove("robot").status, Status::success);
+  std::vector<SamplePtr> samples;
+  events->take(samples);
+  ASSERT_EQ(samples.size(), 2u);
+  const json spawned = samples[0]->data(), deleted = samples[1]->data();
+  EXPECT_EQ(spawned["event"], "spawned");
+  EXPECT_EQ(spawned["name"], "ball");
+  EXPECT_EQ(spawned["model_generation"], 1);
+  EXPECT_EQ(spawned["robot"], false);
+  EXPECT_EQ(spawned["by"], "test");
+  EXPECT_EQ(deleted["event"], "deleted");
+  EXPECT_EQ(deleted["name"], "robot");
+  EXPECT_EQ(deleted["model_generation"], 2);
+  EXPECT_EQ(deleted["robots"], json::array({"robot"}));
+  EXPECT_EQ(deleted["by"], "test");
 }
 
 TEST_F(SimSpawnTest, ServicesAreListed) {

@@ -7,7 +7,7 @@
 // succeeds; a second goto cancelled from the page ends PREEMPTED; pause, step and play
 // drive the simulation, and the real-time factor shown is never "0.00" (a number once
 // measured, else "–"); the 3D view has drawn the scene, and draws a height field spawned
-// from the page's console; a camera on the robot shows its image, then live from its stream;
+// from the page's console; a robot another client spawns shows its services in the console; a camera on the robot shows its image, then live from its stream;
 // the arrow keys on the drive pad move the robot (rpc.publish to robot.motion). Then, against a second `simgate run`
 // whose websocket transport wants a token (`auth`), the page asks for it before anything,
 // asks again after a wrong one, and works once given the right one. Keeps a screenshot:
@@ -145,12 +145,29 @@ function imageShown(page, component) {
   }, component);
 }
 
-// The demo robot with a camera on its body (looking forward), streamed to the page's transport.
+// One JSON-RPC call on a connection of its own (another client than the page's app), opened
+// from the page's browser: its answer.
+function rpcCall(page, port, method, params) {
+  return page.evaluate(([url, method, params]) => new Promise((resolve, reject) => {
+    const ws = new WebSocket(url);
+    ws.onopen = () => ws.send(JSON.stringify({ jsonrpc: '2.0', id: 1, method, params }));
+    ws.onmessage = (e) => {
+      const m = JSON.parse(e.data);
+      if (m.id === 1) { ws.close(); resolve(m); }
+    };
+    ws.onerror = () => reject(new Error(`websocket ${url}: error`));
+  }), [`ws://127.0.0.1:${port}/`, method, params]);
+}
+
+// The demo robot with a camera on its body (looking forward), streamed to the page's transport;
+// the page's transport serves a robot spawned as "rover".
 function withCamera(config) {
   config.robots.find((r) => r.name === 'robot').components.push(
     { name: 'camera', type: 'video_camera', frequency: 5, options: { cam_width: 160, cam_height: 120 } },
     { name: 'depth', type: 'depth_camera', options: { cam_width: 80, cam_height: 60 } });
   config.streams['robot.camera'] = { transports: ['websocket'] };
+  // a robot spawned at run time as "rover" is served to the page too (the mapping of its names)
+  config.services['rover.*'] = ['socket', 'websocket'];
 }
 
 async function main() {
@@ -340,6 +357,18 @@ async function main() {
       `spawn_entity of a height field from the page: ${await spawned.locator('.reply').textContent()}`);
     await page.waitForFunction(() => window.simgate.hfields === 1, null, { timeout: WAIT_MS });
     check(true, `the page draws the spawned height field (${await page.evaluate(() => window.simgate.meshes)} meshes)`);
+
+    // a robot spawned with a component (by another client: the page is told by the new
+    // model generation): its services appear in the console without a reload
+    const other = await rpcCall(page, port, 'simulation.spawn_entity', {
+      name: 'rover', mjcf: '<body><freejoint/><geom type="box" size="0.2 0.15 0.1" mass="3"/></body>',
+      pose: [-3, 2, 0.2], robot: { type: 'robot', components: [{ name: 'pose', type: 'pose' }] },
+    });
+    check(other.result?.name === 'rover', `another client spawns a robot with a component: ${JSON.stringify(other)}`);
+    await page.waitForFunction(() => window.simgate.services.includes('rover.pose.get_local_data'), null,
+      { timeout: WAIT_MS });
+    check(await page.locator('details.component[data-component="rover.pose"]').count() === 1,
+      'the console lists the spawned robot\'s component');
   }
 
   check(problems.length === 0, `no page error, console error or failed request${problems.length ? ':\n  ' + problems.join('\n  ') : ''}`);
