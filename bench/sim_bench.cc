@@ -618,7 +618,7 @@ json run_spawn(const std::string& mjcf, double duration) {
     remove.push_back(timed("delete_entity", json::array({"bench_ball"})));
     // the worker's share alone: the same edit, on this thread
     auto start = Clock::now();
-    sim::with_entity(sim::EditBase::of(simulation.model()), "bench_ball", sim::entity_mjcf(ball, "bench_ball", {}));
+    sim::with_entity(sim::EditBase::of(simulation.model()), "bench_ball", sim::entity_document(ball, "bench_ball", {}));
     compile.push_back(ns_between(start, Clock::now()));
     char error[1024] = "";
     start = Clock::now();

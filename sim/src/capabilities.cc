@@ -30,7 +30,7 @@ const std::vector<Feature>& features() {
       {1, "DELETING", {"delete_entity"},
        "delete_entity: an entity spawned at run time, a body of the scene or a robot removed"},
       {5, "ENTITY_BOUNDS", {"get_object_bbox", "get_object_global_bbox"}, "axis-aligned bounding boxes of any body"},
-      {9, "SPAWNING_RESOURCE_STRING", {"spawn_entity"}, "spawn_entity takes MJCF text inline"},
+      {9, "SPAWNING_RESOURCE_STRING", {"spawn_entity"}, "spawn_entity takes MJCF or URDF text inline"},
       {10, "ENTITY_STATE_GETTING", {"get_entity_state"}, "pose and twist of any body in the world frame"},
       {11, "ENTITY_STATE_SETTING", {"set_entity_state"}, "set pose and twist of any free body"},
       {12, "ENTITY_INFO_GETTING", {"list_entities"}, "list_entities with a name filter"},
@@ -70,7 +70,7 @@ void add_capability_services(SupervisionServices& simulation, Simulation&) {
                          listed.push_back({{"id", f.id}, {"name", f.name}, {"services", f.services}, {"what", f.what}});
                        }
                        return json{{"features", std::move(listed)},
-                                   {"spawn_formats", spawns ? json::array({"mjcf"}) : json::array()},
+                                   {"spawn_formats", spawns ? json::array({"mjcf", "urdf"}) : json::array()},
                                    {"standard", "ROS 2 simulation_interfaces, msg/SimulatorFeatures.msg"}};
                      })
       .doc("The world-control features offered here, numbered and named as ROS 2's simulation_interfaces "

@@ -125,7 +125,7 @@ Model Model::load_file(const std::string& path) {
   read << file.rdbuf();
   std::shared_ptr<mjSpec> spec = parse(path, nullptr);
   // MuJoCo reads URDF too, but makes no actuators of its transmissions
-  if (file && is_urdf(read.str())) add_transmission_actuators(spec.get(), path, read.str());
+  if (file && is_urdf(read.str())) add_transmission_actuators(spec.get(), "scene '" + path + "'", read.str());
   mjModel* m = compile(spec.get(), path);
   return adopt(m, path, std::move(spec), {});
 }

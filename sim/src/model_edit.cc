@@ -10,6 +10,7 @@
 
 #include "simgate/core/errors.h"
 #include "simgate/sim/object_state.h"
+#include "urdf.h"
 
 namespace simgate::sim {
 
@@ -83,7 +84,7 @@ std::string entity_mjcf(const std::string& fragment, const std::string& name, co
     return "<mujoco><worldbody>" + text_of(*root) + "</worldbody></mujoco>";
   }
   if (root_name != "mujoco")
-    refuse("expected a <body> or a <mujoco> root element, found <" + root_name + ">");
+    refuse("expected a <body> or a <mujoco> root element (or a URDF <robot>), found <" + root_name + ">");
 
   tinyxml2::XMLElement* body = nullptr;
   for (auto* section = root->FirstChildElement(); section; section = section->NextSiblingElement()) {
@@ -106,6 +107,13 @@ std::string entity_mjcf(const std::string& fragment, const std::string& name, co
   return text_of(*root);
 }
 
+EntityDocument entity_document(const std::string& fragment, const std::string& name, const EntityPose& pose) {
+  if (!is_urdf(fragment)) return {entity_mjcf(fragment, name, pose), false, pose};
+  // MuJoCo's URDF parser keeps file names' base names only (strippath): a mesh resolves in
+  // the scene's mesh directory, wherever the URDF says it is
+  return {fragment, true, pose};
+}
+
 EditBase EditBase::of(const Model& model) {
   return {model.spec(), model.source(), model.entities(), ModelCounts::of(model.model())};
 }
@@ -125,6 +133,26 @@ std::shared_ptr<mjSpec> copy_of(const EditBase& base) {
 // spawn and delete would leave an empty frame, and the spec would grow for good.
 std::string entity_frame(const std::string& entity) { return "simgate-entity:" + entity; }
 
+// The root link of a parsed URDF robot, named `name` and placed at `document.pose`, with an
+// actuator per transmission joint.
+mjsBody* urdf_root(mjSpec* entity, const std::string& name, const EntityDocument& document) {
+  const std::string source = "entity '" + name + "'";
+  add_transmission_actuators(entity, source, document.text);
+  mjsBody* world = mjs_findBody(entity, "world");
+  mjsElement* root = world ? mjs_firstChild(world, mjOBJ_BODY, 0) : nullptr;
+  if (!root || mjs_nextChild(world, root, 0))
+    throw MujocoError(source + ": a spawned URDF robot has one root link (one link no joint has as its child), "
+                               "found " + std::string(root ? "several" : "none"));
+  mjsBody* body = mjs_asBody(root);
+  mjs_setName(root, name.c_str());
+  std::copy(document.pose.position.begin(), document.pose.position.end(), body->pos);
+  if (document.pose.orientation) {
+    std::copy(document.pose.orientation->begin(), document.pose.orientation->end(), body->quat);
+    body->alt.type = mjORIENTATION_QUAT;
+  }
+  return body;
+}
+
 // Compiles the edited `spec`: MuJoCo's message when it does not.
 mjModel* compile(mjSpec* spec) {
   mjModel* m = mj_compile(spec, nullptr);  // an engine error throws MujocoError (model.h)
@@ -134,17 +162,17 @@ mjModel* compile(mjSpec* spec) {
 
 }  // namespace
 
-Model with_entity(const EditBase& base, const std::string& name, const std::string& mjcf) {
+Model with_entity(const EditBase& base, const std::string& name, const EntityDocument& document) {
   std::shared_ptr<mjSpec> spec = copy_of(base);
   char error[1024] = "";
-  mjSpec* parsed = mj_parseXMLString(mjcf.c_str(), nullptr, error, sizeof error);
+  mjSpec* parsed = mj_parseXMLString(document.text.c_str(), nullptr, error, sizeof error);
   if (!parsed) throw MujocoError(error[0] ? error : "MuJoCo could not parse it");
   std::shared_ptr<mjSpec> entity = Model::own(parsed);
   // its files resolve where the scene's do
   mjs_setString(entity->modelfiledir, mjs_getString(spec->modelfiledir));
   mjs_setString(entity->compiler.meshdir, mjs_getString(spec->compiler.meshdir));
   mjs_setString(entity->compiler.texturedir, mjs_getString(spec->compiler.texturedir));
-  mjsBody* body = mjs_findBody(entity.get(), name.c_str());
+  mjsBody* body = document.urdf ? urdf_root(entity.get(), name, document) : mjs_findBody(entity.get(), name.c_str());
   mjsBody* world = mjs_findBody(spec.get(), "world");
   if (!body || !world) throw MujocoError("the entity's body '" + name + "' is missing from its own document");
   // after everything the world holds, its names as written (no prefix)

@@ -230,14 +230,14 @@ struct FragmentFile {
   std::string given;  // the path as the client wrote it, for messages
   EntityPose where;
 
-  // The entity's MJCF document (entity_mjcf); throws ServiceError as it does, or when the
-  // file cannot be read.
-  std::string mjcf(const std::string& name) const {
+  // The entity's document (entity_document: MJCF or URDF); throws ServiceError as it does,
+  // or when the file cannot be read.
+  EntityDocument document(const std::string& name) const {
     std::ifstream in(file, std::ios::binary);
     std::stringstream text;
     text << in.rdbuf();
     if (!in && !in.eof()) refuse("mjcf", "mjcf: '" + given + "' could not be read");
-    return entity_mjcf(text.str(), name, where);
+    return entity_document(text.str(), name, where);
   }
 };
 
@@ -271,12 +271,12 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
     // no place under the simulation lock)
     Edit edit;
     if (inline_text)
-      edit = [name, document = entity_mjcf(mjcf, name, where)](const EditBase& base) {
+      edit = [name, document = entity_document(mjcf, name, where)](const EditBase& base) {
         return with_entity(base, name, document);
       };
     else
       edit = [name, file = FragmentFile{fragment_file(mjcf), mjcf, where}](const EditBase& base) {
-        return with_entity(base, name, file.mjcf(name));
+        return with_entity(base, name, file.document(name));
       };
     refuse_if_busy(name);
     const Model& model = sim_.model();
@@ -337,7 +337,7 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
     try {
       next.emplace(change.compiled.get());
     } catch (const ServiceError& e) {
-      // the fragment file the worker read is no entity (entity_mjcf's refusal)
+      // the fragment file the worker read is no entity (entity_document's refusal)
       change.done.finish(Outcome::failed(e.failure(), e.message(), e.data()));
       return;
     } catch (const std::exception& e) {
@@ -419,7 +419,7 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
                      "fragment files need directories allowed in the config (spawn.allowed_dirs), and it allows none");
     std::string dirs;
     for (const auto& dir : allowed) dirs += (dirs.empty() ? "" : ", ") + dir;
-    const std::string refusal = "mjcf: '" + path + "' is neither MJCF text nor a fragment file under the " +
+    const std::string refusal = "mjcf: '" + path + "' is neither MJCF or URDF text nor a fragment file under the " +
                                 "directories the config allows (spawn.allowed_dirs: " + dirs + ")";
     if (path.empty() || path.size() > 4096 || path.find('\0') != std::string::npos) refuse("mjcf", refusal);
     std::vector<fs::path> candidates;

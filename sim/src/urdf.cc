@@ -49,18 +49,18 @@ bool interface_of(const std::string& name, Interface& out) {
 }
 
 // The joints the URDF's <transmission> and <ros2_control> elements drive, in order, each once.
-std::vector<Drive> drives_of(const tinyxml2::XMLElement* robot, const std::string& scene) {
+std::vector<Drive> drives_of(const tinyxml2::XMLElement* robot, const std::string& source) {
   std::vector<Drive> drives;
   auto add = [&](const std::string& joint, const std::string& actuator, const std::string& interface,
                  const std::string& where) {
-    if (joint.empty()) throw MujocoError("scene '" + scene + "': " + where + " names no joint");
+    if (joint.empty()) throw MujocoError(source + ": " + where + " names no joint");
     for (const Drive& d : drives)
       if (d.joint == joint) return;  // a joint in both a transmission and ros2_control
     Drive d;
     d.joint = joint;
     d.actuator = actuator.empty() ? joint + "_actuator" : actuator;
     if (!interface_of(interface, d.interface))
-      throw MujocoError("scene '" + scene + "': " + where + " drives joint '" + joint + "' through '" + interface +
+      throw MujocoError(source + ": " + where + " drives joint '" + joint + "' through '" + interface +
                         "': simgate knows position, velocity and effort interfaces");
     drives.push_back(std::move(d));
   };
@@ -100,9 +100,9 @@ std::vector<Drive> drives_of(const tinyxml2::XMLElement* robot, const std::strin
   return drives;
 }
 
-void add_actuator(mjSpec* spec, const Drive& d, const std::string& scene) {
+void add_actuator(mjSpec* spec, const Drive& d, const std::string& source) {
   if (!mjs_findElement(spec, mjOBJ_JOINT, d.joint.c_str()))
-    throw MujocoError("scene '" + scene + "': a transmission drives joint '" + d.joint + "', which the robot does not have");
+    throw MujocoError(source + ": a transmission drives joint '" + d.joint + "', which the robot does not have");
   mjsActuator* a = mjs_addActuator(spec, nullptr);
   mjs_setName(a->element, d.actuator.c_str());
   a->trntype = mjTRN_JOINT;
@@ -133,7 +133,7 @@ void add_actuator(mjSpec* spec, const Drive& d, const std::string& scene) {
       }
       break;
   }
-  if (error && *error) throw MujocoError("scene '" + scene + "': actuator '" + d.actuator + "': " + error);
+  if (error && *error) throw MujocoError(source + ": actuator '" + d.actuator + "': " + error);
   if (d.effort > 0 && d.interface != Interface::effort) {
     a->forcelimited = mjLIMITED_TRUE;
     a->forcerange[0] = -d.effort, a->forcerange[1] = d.effort;
@@ -149,12 +149,12 @@ bool is_urdf(const std::string& text) {
   return root && std::string(root->Name()) == "robot";
 }
 
-void add_transmission_actuators(mjSpec* spec, const std::string& path, const std::string& text) {
+void add_transmission_actuators(mjSpec* spec, const std::string& source, const std::string& text) {
   tinyxml2::XMLDocument doc;
   doc.Parse(text.data(), text.size());
-  const std::vector<Drive> drives = drives_of(doc.RootElement(), path);
-  for (const Drive& d : drives) add_actuator(spec, d, path);
-  if (!drives.empty()) log::info("scene '", path, "': ", drives.size(), " actuator(s) from its transmissions");
+  const std::vector<Drive> drives = drives_of(doc.RootElement(), source);
+  for (const Drive& d : drives) add_actuator(spec, d, source);
+  if (!drives.empty()) log::info(source, ": ", drives.size(), " actuator(s) from its transmissions");
 }
 
 }  // namespace simgate::sim

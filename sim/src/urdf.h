@@ -1,5 +1,5 @@
 // sim/src/urdf.h — URDF scenes (issue #36): MuJoCo's own URDF parser, and an actuator for
-// each joint a ROS <transmission> drives. Private to libsimgate_sim (model.cc).
+// each joint a ROS <transmission> drives. Private to libsimgate_sim (model.cc, model_edit.cc).
 //
 // MuJoCo reads URDF itself (links, joints, limits, inertials, collision and visual
 // geometry, meshes; its <mujoco><compiler .../></mujoco> extension sets compiler options such
@@ -26,10 +26,11 @@ namespace simgate::sim {
 // Whether `text` is a URDF document: its root element is <robot>.
 bool is_urdf(const std::string& text);
 
-// Adds to `spec`, MuJoCo's parse of the URDF file `path` (whose text is `text`), an actuator
-// for each joint its transmissions drive. Throws MujocoError naming the file: a transmission
-// naming a joint the robot does not have, or a hardware interface simgate does not know.
-void add_transmission_actuators(mjSpec* spec, const std::string& path, const std::string& text);
+// Adds to `spec`, MuJoCo's parse of the URDF text `text`, an actuator for each joint its
+// transmissions drive. Throws MujocoError starting with `source` ("scene 'arm.urdf'", "entity
+// 'rover'"): a transmission naming a joint the robot does not have, or a hardware interface
+// simgate does not know.
+void add_transmission_actuators(mjSpec* spec, const std::string& source, const std::string& text);
 
 }  // namespace simgate::sim
 

@@ -34,7 +34,7 @@ TEST_F(SimCapabilitiesTest, EveryListedFeatureHasItsServicesAndEveryFeatureWhose
   EXPECT_EQ(ids.count(26) == 1, offered.count("pause") == 1);
   EXPECT_EQ(ids.count(10) == 1, offered.count("get_entity_state") == 1);
   EXPECT_EQ(ids.count(0) == 1, offered.count("spawn_entity") == 1);
-  EXPECT_EQ(caps["spawn_formats"], offered.count("spawn_entity") ? json({"mjcf"}) : json::array());
+  EXPECT_EQ(caps["spawn_formats"], offered.count("spawn_entity") ? json({"mjcf", "urdf"}) : json::array());
 }
 
 TEST_F(SimCapabilitiesTest, TheWorldControlGroupsOfferEveryFeatureSimgateHas) {
@@ -42,7 +42,7 @@ TEST_F(SimCapabilitiesTest, TheWorldControlGroupsOfferEveryFeatureSimgateHas) {
   std::set<int> ids;
   for (const json& f : caps["features"]) ids.insert(f["id"].get<int>());
   EXPECT_EQ(ids, (std::set<int>{0, 1, 5, 9, 10, 11, 12, 20, 21, 22, 24, 25, 26, 31, 32, 33}));
-  EXPECT_EQ(caps["spawn_formats"], json({"mjcf"}));
+  EXPECT_EQ(caps["spawn_formats"], json({"mjcf", "urdf"}));
 }
 
 }  // namespace

@@ -18,7 +18,7 @@ constexpr const char* k_edit_ball = R"(<body name="ignored" euler="0 0 90"><free
 
 // `model` with `fragment` spawned as `name` at `pose`.
 Model spawned(const Model& model, const std::string& name, const std::string& fragment, EntityPose pose = {}) {
-  return with_entity(EditBase::of(model), name, entity_mjcf(fragment, name, pose));
+  return with_entity(EditBase::of(model), name, entity_document(fragment, name, pose));
 }
 
 // `model` without its body `name`.

@@ -456,7 +456,7 @@ TEST_F(SimSpawnFileTest, AnythingElseIsRefusedAsIfMissing) {
     Outcome o = spawn("a", path);
     EXPECT_EQ(o.status, Status::failed) << path;
     EXPECT_EQ(o.failure, Failure::bad_arguments) << path;
-    EXPECT_NE(o.message.find("is neither MJCF text nor a fragment file under the directories the config allows"),
+    EXPECT_NE(o.message.find("is neither MJCF or URDF text nor a fragment file under the directories the config allows"),
               std::string::npos)
         << o.message;
   }

@@ -3,6 +3,7 @@
 // the errors a broken URDF gets.
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -49,10 +50,55 @@ TEST(UrdfTest, AnEntitySpawnsIntoAUrdfScene) {
   Model m = Model::load_file(test_model("urdf_arm.urdf"));
   ASSERT_TRUE(m.spec());
   Model with_ball = with_entity(EditBase::of(m), "ball",
-                                entity_mjcf("<body pos='1 0 1'><freejoint/><geom size='.1'/></body>", "ball", {}));
+                                entity_document("<body pos='1 0 1'><freejoint/><geom size='.1'/></body>", "ball", {}));
   EXPECT_EQ(with_ball.model()->nu, m.model()->nu);
   EXPECT_GE(with_ball.actuator_id("shoulder_servo"), 0);
   EXPECT_EQ(with_ball.body_id("ball"), m.model()->nbody);
+}
+
+std::string text_of(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// A URDF robot spawns as an entity: its root link becomes the entity's body, named and
+// placed, and its transmissions' joints get actuators, as a URDF scene's do.
+TEST(UrdfTest, AUrdfRobotSpawnsWithItsTransmissionsActuators) {
+  Model scene = Model::load_file(testing::demo_scene());
+  EntityPose pose;
+  pose.position = {3, -1, 0.5};
+  const EntityDocument document = entity_document(text_of(test_model("urdf_arm.urdf")), "arm2", pose);
+  ASSERT_TRUE(document.urdf);
+  Model with_arm = with_entity(EditBase::of(scene), "arm2", document);
+  const int body = with_arm.body_id("arm2");
+  ASSERT_EQ(body, scene.model()->nbody);  // after the scene's bodies
+  EXPECT_EQ(with_arm.model()->body_pos[3 * body], 3);
+  EXPECT_EQ(with_arm.model()->body_pos[3 * body + 2], 0.5);
+  for (const char* actuator : {"shoulder_servo", "drive_motor"})
+    EXPECT_GE(with_arm.actuator_id(actuator), 0) << actuator;
+  EXPECT_EQ(with_arm.model()->nu, scene.model()->nu + 3);
+  ASSERT_EQ(with_arm.entities().size(), 1u);
+  EXPECT_EQ(with_arm.entities()[0].counts.nu, 3);
+}
+
+TEST(UrdfTest, ASpawnedUrdfWithSeveralRootLinksOrABadTransmissionIsRefused) {
+  Model scene = Model::load_file(testing::demo_scene());
+  auto error_of = [&](const std::string& urdf) {
+    try {
+      with_entity(EditBase::of(scene), "r", entity_document(urdf, "r", {}));
+    } catch (const MujocoError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_THAT(error_of(R"(<robot name="two"><link name="a"><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link>
+      <link name="b"><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link></robot>)"),
+              HasSubstr("entity 'r': a spawned URDF robot has one root link"));
+  EXPECT_THAT(error_of(R"(<robot name="t"><link name="a"><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link>
+      <transmission name="t"><joint name="nope"><hardwareInterface>hardware_interface/EffortJointInterface</hardwareInterface></joint></transmission></robot>)"),
+              HasSubstr("entity 'r': a transmission drives joint 'nope', which the robot does not have"));
 }
 
 class UrdfErrors : public ::testing::Test {

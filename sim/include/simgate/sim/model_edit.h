@@ -58,6 +58,19 @@ struct EntityPose {
 // several bodies, an <include>, a file name that is absolute or climbs out with "..".
 std::string entity_mjcf(const std::string& fragment, const std::string& name, const EntityPose& pose);
 
+// What spawns an entity: MJCF named and placed (entity_mjcf), or a URDF robot as written,
+// whose root link becomes the entity's body (named and placed in the spec by with_entity).
+struct EntityDocument {
+  std::string text;
+  bool urdf = false;
+  EntityPose pose;  // URDF: where its root link goes
+};
+
+// The document that spawns `fragment` as entity `name` at `pose`: URDF when its root element
+// is <robot> (checked as XML that parses), else entity_mjcf's. Throws ServiceError as
+// entity_mjcf does.
+EntityDocument entity_document(const std::string& fragment, const std::string& name, const EntityPose& pose);
+
 // What an edit starts from: the running model's spec, name and entities, copied under the
 // simulation lock so that a worker edits without touching the running model.
 struct EditBase {
@@ -69,11 +82,12 @@ struct EditBase {
   static EditBase of(const Model& model);
 };
 
-// `base` with the entity `name` (entity_mjcf's document `mjcf`) attached to the world after
-// everything it holds; the entity's counts measured. Throws MujocoError with MuJoCo's message
-// when it does not parse or compile with the world (a joint name taken, a missing mesh). Any
-// thread.
-Model with_entity(const EditBase& base, const std::string& name, const std::string& mjcf);
+// `base` with the entity `name` (`document`) attached to the world after everything it holds;
+// the entity's counts measured. A URDF robot gets an actuator per transmission joint, as a
+// URDF scene does (urdf.h). Throws MujocoError with MuJoCo's message when it does not parse
+// or compile with the world (a joint name taken, a missing mesh), or a URDF that has not one
+// root link. Any thread.
+Model with_entity(const EditBase& base, const std::string& name, const EntityDocument& document);
 
 // `base` without the body numbered `body` (named `name`: a spawned entity, or any body of the
 // scene, in its file or in one it includes) and its subtree, and without what MuJoCo removes
