@@ -64,34 +64,57 @@ Datastreams::~Datastreams() = default;
 
 // ---- ports (host thread, before the I/O thread runs)
 
-bool Datastreams::open(std::shared_ptr<StreamHub> hub, std::string transport) {
-  if (opened_) return false;  // the transport's start() may be called again
+void Datastreams::open(std::shared_ptr<StreamHub> hub, std::string transport, RequestManager& manager) {
+  if (opened_) return;  // the transport's start() may be called again
   opened_ = true;
   hub_ = std::move(hub);
   transport_ = std::move(transport);
-  if (!hub_) return false;
-  std::uint16_t next = base_port_;
-  for (const StreamInfo& info : hub_->streams(transport_)) {
-    auto port = bind(info, next);
-    if (!port) continue;
-    // MORSE's numbering: the next stream takes the port after this one
-    if (base_port_ != 0) next = port->number == 65535 ? 0 : static_cast<std::uint16_t>(port->number + 1);
-    log::info(who_, ": ", info.component, " stream (", to_string(info.direction), " ", info.kind, ") on ",
-              port->listener->endpoint());
-    ports_.push_back(std::move(port));
-  }
-  return !ports_.empty();
+  manager_ = &manager;
+  next_port_ = base_port_;
+  if (!hub_) return;
+  for (const StreamInfo& info : hub_->streams(transport_))
+    if (auto port = bind(info)) {
+      std::lock_guard lock(ports_mutex_);
+      ports_.push_back(std::move(port));
+    }
+  if (!ports_.empty()) register_services();
 }
 
-std::unique_ptr<Datastreams::Port> Datastreams::bind(const StreamInfo& info, std::uint16_t next) {
+void Datastreams::sync() {
+  if (!hub_) return;
+  for (const StreamInfo& info : hub_->streams(transport_)) {
+    {
+      // a port that still serves this component's stream (one closed when its component
+      // went, before a robot of that name was spawned again, does not)
+      std::lock_guard lock(ports_mutex_);
+      if (std::any_of(ports_.begin(), ports_.end(),
+                      [&](const auto& p) { return p->info.component == info.component && !p->closed; }) ||
+          std::any_of(unbound_.begin(), unbound_.end(), [&](const Unbound& u) { return u.component == info.component; }))
+        continue;
+    }
+    auto port = bind(info);
+    if (!port) continue;
+    listen(*port);
+    std::lock_guard lock(ports_mutex_);
+    ports_.push_back(std::move(port));
+  }
+  if (!services_registered_ && !list().empty()) register_services();
+}
+
+std::unique_ptr<Datastreams::Port> Datastreams::bind(const StreamInfo& info) {
   auto port = std::make_unique<Port>();
   port->info = info;
   port->who = who_ + ", " + info.component + " stream";
   std::string error;
+  std::uint16_t next = next_port_;
   for (int attempt = 0; attempt < k_port_attempts; ++attempt) {
     try {
       port->listener = std::make_unique<kit::TcpListener>(io_, port->who, tcp_.host, next);
       port->number = port->listener->port();
+      // MORSE's numbering: the next stream takes the port after this one
+      if (base_port_ != 0) next_port_ = port->number == 65535 ? 0 : static_cast<std::uint16_t>(port->number + 1);
+      log::info(who_, ": ", info.component, " stream (", to_string(info.direction), " ", info.kind, ") on ",
+                port->listener->endpoint());
       return port;
     } catch (const std::exception& e) {
       error = e.what();
@@ -103,27 +126,32 @@ std::unique_ptr<Datastreams::Port> Datastreams::bind(const StreamInfo& info, std
   // get_stream_port says why too: the listener's message, without its who (the answer names the component)
   const std::string prefix = port->who + ": ";
   if (error.starts_with(prefix)) error.erase(0, prefix.size());
+  std::lock_guard lock(ports_mutex_);
   unbound_.push_back({info.component, std::move(error)});
   return nullptr;
 }
 
 // ---- the services (any thread)
 
+// Under ports_mutex_.
 const Datastreams::Port* Datastreams::find(std::string_view component) const {
-  // a component removed at run time has no stream any more (the hub forgot it)
+  // a component removed at run time has no stream any more (the hub forgot it), and a port
+  // closed with it serves none (a robot spawned again under its name has a port of its own)
   for (const auto& p : ports_)
-    if (p->info.component == component) return hub_->find(component, transport_) ? p.get() : nullptr;
+    if (p->info.component == component && !p->closed) return hub_->find(component, transport_) ? p.get() : nullptr;
   return nullptr;
 }
 
 std::vector<std::string> Datastreams::list() const {
+  std::lock_guard lock(ports_mutex_);
   std::vector<std::string> names;
   for (const auto& p : ports_)
-    if (find(p->info.component)) names.push_back(p->info.component);
+    if (find(p->info.component) == p.get()) names.push_back(p->info.component);
   return names;
 }
 
 int Datastreams::port_of(const std::string& component) const {
+  std::lock_guard lock(ports_mutex_);
   if (const Port* p = find(component)) return p->number;
   std::string message = "Stream unavailable for component " + component;  // MORSE's words, which pymorse logs
   // then why, for a stream that is there but has no port (pymorse logs the whole message)
@@ -133,13 +161,16 @@ int Datastreams::port_of(const std::string& component) const {
 }
 
 json Datastreams::all_ports() const {
+  std::lock_guard lock(ports_mutex_);
   json out = json::object();
   for (const auto& p : ports_)
-    if (find(p->info.component)) out[p->info.component] = p->number;
+    if (find(p->info.component) == p.get()) out[p->info.component] = p->number;
   return out;
 }
 
-void Datastreams::register_services(RequestManager& manager) {
+void Datastreams::register_services() {
+  services_registered_ = true;
+  RequestManager& manager = *manager_;
   manager.register_service("simulation", [this] { return list(); }, "list_streams")
       .doc("Components with a datastream port on this socket transport (MORSE's socket datastreams)");
   manager.register_service("simulation", [this](const std::string& name) { return port_of(name); }, "get_stream_port",
@@ -152,13 +183,14 @@ void Datastreams::register_services(RequestManager& manager) {
 // ---- connections (I/O thread)
 
 void Datastreams::start() {
-  for (const auto& p : ports_) {
-    Port& port = *p;
-    port.listener->start({[this, &port](tcp::socket socket) { accept(port, std::move(socket)); },
-                          [this](const tcp::endpoint& peer) { return refusal_reason(peer); },
-                          // a stream carries only its samples: a refused client is just closed
-                          [](const std::string&) { return std::string(); }});
-  }
+  for (const auto& p : ports_) listen(*p);
+}
+
+void Datastreams::listen(Port& port) {
+  port.listener->start({[this, &port](tcp::socket socket) { accept(port, std::move(socket)); },
+                        [this](const tcp::endpoint& peer) { return refusal_reason(peer); },
+                        // a stream carries only its samples: a refused client is just closed
+                        [](const std::string&) { return std::string(); }});
 }
 
 void Datastreams::close_all() {

@@ -11,7 +11,9 @@
 //     starts (the streams are known then): from `stream_port` up, a port in use skipped for
 //     the next one, as MORSE does; `stream_port` 0 gives each stream a free port of the
 //     system's choosing. A stream whose port cannot be opened is logged and left out
-//     (get_stream_port answers why).
+//     (get_stream_port answers why). A stream added later (a robot spawned at run time:
+//     sync(), when the transport's services change) gets a port the same way, numbered
+//     after the last.
 //   - Output stream (sensor): each connection subscribes (StreamHub::subscribe, keeping the
 //     latest `stream_queue` samples) and gets every sample as `<json>\n`, in order. A client
 //     that does not read loses samples, never slows anyone: past
@@ -28,7 +30,8 @@
 //     unavailable for component <name>", MORSE's text, followed by ": <why>" for a stream
 //     whose port could not be bound), `get_all_stream_ports`, in the socket manager's own
 //     table. A stream without a port is in neither list.
-//   - A component removed at run time: its port and connections are closed.
+//   - A component removed at run time: its port and connections are closed (one spawned
+//     again under its name later gets a port anew).
 //
 // Connections are the kit's line connections (framing, limits, coalesced writes), served
 // by a LineServer of their own with the transport's limits, except that a stream
@@ -43,10 +46,10 @@
 // port through the services, and the log names each at start.
 //
 // Life cycle: open() (the host thread, in SocketRequestManager::start(), before the I/O
-// thread runs), register_services(), start() and close_all() on the I/O thread.
-// Threads: the transport's I/O thread, except open() and register_services() (before it
-// runs), the services (whichever thread holds the simulation lock: they read only what
-// open() fixed, and the hub) and wake() (the thread holding the simulation lock: it posts).
+// thread runs), start(), sync() and close_all() on the I/O thread.
+// Threads: the transport's I/O thread, except open() (before it runs), the services
+// (whichever thread holds the simulation lock: they read the ports under ports_mutex_, and
+// the hub) and wake() (the thread holding the simulation lock: it posts).
 #ifndef SIMGATE_PLUGINS_SOCKET_DATASTREAMS_H_
 #define SIMGATE_PLUGINS_SOCKET_DATASTREAMS_H_
 
@@ -54,6 +57,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -78,14 +82,16 @@ class Datastreams : private kit::LineServer {
   Datastreams(const Datastreams&) = delete;
   Datastreams& operator=(const Datastreams&) = delete;
 
-  // Opens a port for every stream `transport` carries in `hub`, logging each. False when
-  // none has a port (the transport carries no stream), or on a second call.
-  bool open(std::shared_ptr<StreamHub> hub, std::string transport);
-  // `simulation list_streams`, `get_stream_port`, `get_all_stream_ports` in `manager`'s
-  // table. After open(), before the I/O thread runs.
-  void register_services(RequestManager& manager);
+  // Opens a port for every stream `transport` carries in `hub`, logging each, and, when one
+  // has a port, registers `simulation list_streams`, `get_stream_port` and
+  // `get_all_stream_ports` in `manager`'s table (MORSE registers them only then). A second
+  // call does nothing.
+  void open(std::shared_ptr<StreamHub> hub, std::string transport, RequestManager& manager);
   // Accepts on every port (the I/O thread).
   void start();
+  // Opens and accepts on a port for each stream the hub lists now that has none (added since:
+  // a robot spawned at run time), registering the services with the first (the I/O thread).
+  void sync();
   // Closes every port and connection, ending their subscriptions (the I/O thread, when the
   // transport stops). Idempotent.
   void close_all();
@@ -109,12 +115,16 @@ class Datastreams : private kit::LineServer {
     std::vector<std::shared_ptr<Connection>> connections;  // open ones
     std::size_t writers = 0;                     // input stream: connections writing now
     bool warned_writers = false;                 // a second writer was warned about
-    bool closed = false;                         // its component was removed, or close_all()
+    std::atomic<bool> closed{false};             // its component was removed, or close_all() (read by the services)
   };
 
-  // Binds `info`'s port: `next` first (0: any), then the ports above it while in use.
-  // Null (logged) when none could be bound.
-  std::unique_ptr<Port> bind(const StreamInfo& info, std::uint16_t next);
+  // Binds a port for `info`, from next_port_ (0: any) up while in use, and moves next_port_
+  // after it (MORSE's numbering); logs it. Null (logged, kept in unbound_) when none could be
+  // bound.
+  std::unique_ptr<Port> bind(const StreamInfo& info);
+  // Accepts on `port` (the I/O thread).
+  void listen(Port& port);
+  void register_services();
   const Port* find(std::string_view component) const;
   void accept(Port& port, boost::asio::ip::tcp::socket socket);
   // The connection may have the stream: subscribes a reader, counts a writer.
@@ -146,8 +156,13 @@ class Datastreams : private kit::LineServer {
   std::shared_ptr<StreamHub> hub_;   // from open()
   std::string transport_;            // the configuration's name of this transport
   bool opened_ = false;                       // open() ran
-  std::vector<std::unique_ptr<Port>> ports_;  // in the hub's order; fixed by open()
-  // A stream whose port could not be bound, and why (get_stream_port says it). Fixed by open().
+  RequestManager* manager_ = nullptr;         // whose table gets the services (from open())
+  bool services_registered_ = false;          // they are in it
+  std::uint16_t next_port_ = 0;               // the next stream's port (0: the system's choice)
+  // ports_ and unbound_: added to by the I/O thread (and open()), read by the services
+  mutable std::mutex ports_mutex_;
+  std::vector<std::unique_ptr<Port>> ports_;  // in the order their streams were added
+  // A stream whose port could not be bound, and why (get_stream_port says it).
   struct Unbound {
     std::string component;
     std::string reason;  // "cannot listen on 127.0.0.1:60000: bind failed: Address already in use ..."

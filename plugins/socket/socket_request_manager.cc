@@ -107,7 +107,7 @@ void SocketRequestManager::start() {
   }
   // MORSE's socket datastreams: a port for each stream this transport carries, and the
   // services that say which (registered only when there is one, as MORSE does)
-  if (datastreams_.open(stream_hub(), transport_name())) datastreams_.register_services(*this);
+  datastreams_.open(stream_hub(), transport_name(), *this);
   // the id "-" of the refusal matches no request: pymorse ignores the line, telnet shows it
   kit::TcpListener::Handlers handlers{[this](tcp::socket socket) { accept(std::move(socket)); },
                                       [this](const tcp::endpoint& peer) { return refusal_reason(peer); },
@@ -126,6 +126,11 @@ void SocketRequestManager::start() {
         datastreams_.start();
       },
       direct_reads());
+}
+
+void SocketRequestManager::on_services_changed() {
+  // a robot spawned at run time may bring streams: their ports open on the I/O thread
+  asio::post(io_, [this] { datastreams_.sync(); });
 }
 
 void SocketRequestManager::stop() {

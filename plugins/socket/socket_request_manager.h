@@ -121,6 +121,9 @@ class SocketRequestManager : public RequestManager, private kit::LineServer {
   // lost, not queued, when the client lets replies pile up unread
   // (LineConnection::queue_droppable_with).
   void on_service_progress(RequestId id, json&& value) override;
+  // A component came or went (a robot spawned or deleted): the datastreams open the ports
+  // of new streams (Datastreams::sync, posted to the I/O thread).
+  void on_services_changed() override;
 
  private:
   // kit::LineHost: the protocol (I/O thread)

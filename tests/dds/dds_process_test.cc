@@ -278,7 +278,9 @@ class RoverOnDds {
     config["transports"] = {{"dds", {{"plugin", "dds"}, {"options", dds_options}}}};
     config["services"] = {{"default", {"dds"}}};
     config["streams"] = {{"rover.pose", {"dds"}}, {"rover.motion", {"dds"}}, {"rover.odometry", {"dds"}},
-                         {"rover.proximity", {"dds"}}};
+                         {"rover.proximity", {"dds"}},
+                         // a robot spawned at run time as "crawler"
+                         {"crawler*", {"dds"}}};
     dir_ = fs::path(SIMGATE_BINARY_DIR) / "tests" / "dds" / ("streams-" + std::to_string(getpid()));
     fs::create_directories(dir_);
     const std::string path = (dir_ / "deployment.json").string();
@@ -426,6 +428,27 @@ TEST(DdsStreamsTest, TheTopicsOfADeletedRobotEndAndLeaveTheCatalog) {
   // a reader that joins now finds no alive entry (it waits 3 s for one in vain: exit 3)
   std::string after = RoverOnDds::client({"catalog", "1", "3"});
   EXPECT_NE(after.find("exit 3"), std::string::npos) << after;
+}
+
+// A robot spawned at run time (a DDS client's spawn_entity with a robot section) gets its
+// stream topics at once: in the catalog, and written (issue #36).
+TEST(DdsStreamsTest, ASpawnedRobotsPoseTopicIsWrittenAtOnce) {
+  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  RoverOnDds rover;
+  ASSERT_TRUE(rover.running());
+  Child call({k_c_client, std::to_string(test_domain()), test_partition(), "simulation", "spawn_entity",
+              R"(["crawler", "<body><freejoint/><geom type='box' size='.2 .1 .1' mass='2'/></body>", [1.5, -1, 0.1],)"
+              R"( {"components": [{"name": "pose", "type": "pose"}]}])",
+              read_file(SIMGATE_LOOPBACK_DDS_XML)});
+  EXPECT_NE(call.read_until("\n", 60s).find("SUCCESS"), std::string::npos);
+  EXPECT_EQ(call.wait_exit(30s), 0);
+  std::string catalog = RoverOnDds::client({"catalog", "6"});
+  EXPECT_NE(catalog.find("simgate/crawler/pose simgate::stream::Pose crawler.pose"), std::string::npos) << catalog;
+  const std::string text = RoverOnDds::client({"pose", "simgate/crawler/pose", "3"});
+  const auto poses = rows(text);
+  ASSERT_EQ(poses.size(), 3u) << text;
+  EXPECT_NEAR(poses.back()[2], 1.5, 0.05) << text;
+  EXPECT_NEAR(poses.back()[3], -1.0, 0.05) << text;
 }
 
 TEST(DdsStreamsTest, AStreamOfAnotherKindArrivesAsJsonSample) {

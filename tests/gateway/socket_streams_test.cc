@@ -3,6 +3,8 @@
 // ephemeral ports here); clients find the ports through the `simulation` services, read
 // JSON lines from the pose port and write commands to the motion port over real sockets.
 #include <gtest/gtest.h>
+
+#include <thread>
 #include <sys/socket.h>
 
 #include <chrono>
@@ -318,6 +320,44 @@ TEST(SocketStreamsTest, ADeletedRobotClosesItsStreamPorts) {
             "2 FAILED \"Stream unavailable for component robot.pose\"");
   EXPECT_EQ(payload(service.request("3", "simulation list_streams")), json::array());
   EXPECT_EQ(payload(service.request("4", "simulation get_all_stream_ports")), json::object());
+}
+
+// A robot spawned at run time whose names the "streams" section maps gets stream ports at
+// once, numbered after the others; deleted, they close; spawned again, it gets new ones. A
+// transport that carried no stream registers the stream services with the first (issue #36).
+TEST(SocketStreamsTest, ASpawnedRobotsStreamsGetPortsAtOnce) {
+  for (const bool with_streams : {true, false}) {
+    json config = streams_config();
+    if (!with_streams) config.erase("streams");
+    config["streams"]["forklift*"] = {"socket"};
+    InProcessGateway g(config);
+    LineClient service(g.port());
+    const std::string spawn = "simulation spawn_entity " +
+                              json::array({"forklift", "<body><freejoint/><geom type='box' size='.2 .1 .1' mass='2'/></body>",
+                                           {2.0, 2.0, 0.1}, {{"components", json::array({{{"name", "pose"}, {"type", "pose"}}})}}})
+                                  .dump();
+    for (int round = 0; round < 2; ++round) {
+      const std::string r = std::to_string(round);
+      ASSERT_EQ(payload(service.request("s" + r, spawn))["name"], "forklift") << with_streams;
+      // the port opens on the transport's I/O thread, right after the spawn's answer
+      int port = 0;
+      for (int i = 0; i < 100 && port <= 0; ++i) {
+        const std::string answer = service.request("p" + r, "simulation get_stream_port [\"forklift.pose\"]");
+        if (answer.find("SUCCESS") != std::string::npos) port = payload(answer).get<int>();
+        else std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      }
+      ASSERT_GT(port, 0) << with_streams;
+      LineClient reader(port);
+      const json sample = next_sample(reader);
+      ASSERT_TRUE(sample.is_object()) << sample;
+      EXPECT_NEAR(sample["x"].get<double>(), 2.0, 0.05) << sample;
+      EXPECT_EQ(payload(service.request("l" + r, "simulation list_streams")).back(), "forklift.pose");
+      ASSERT_EQ(payload(service.request("d" + r, "simulation delete_entity [\"forklift\"]"))["name"], "forklift");
+      EXPECT_TRUE(reader.closed_by_server());
+      EXPECT_EQ(service.request("g" + r, "simulation get_stream_port [\"forklift.pose\"]"),
+                "g" + r + " FAILED \"Stream unavailable for component forklift.pose\"");
+    }
+  }
 }
 
 TEST(SocketStreamsTest, WithoutStreamsTheStreamServicesDoNotExist) {

@@ -37,6 +37,8 @@ class GatewaySpawnTest : public ::testing::Test {
     config["services"]["default"].push_back("dds");
 #endif
     config["spawn"] = {{"allowed_dirs", json::array({dir_.file("fragments")})}};
+    // the streams of a robot spawned as "arm2", on every transport
+    config["streams"]["arm2*"] = config["services"]["default"];
     gateway_ = std::make_unique<testing::InProcessGateway>(config);
   }
   int port(const std::string& transport) { return gateway_->port(transport); }
@@ -150,6 +152,14 @@ TEST_F(GatewaySpawnTest, ASpawnedRobotServesItsComponentsOnEveryTransport) {
     EXPECT_NE(out.find("arm2.actuators"), std::string::npos) << out;
   }
 #endif
+  // its pose stream, on the socket transport (a stream port opened for it) and JSON-RPC
+  // (rpc.subscribe); DDS's topics: DdsStreamsTest.ASpawnedRobotsPoseTopicIsWrittenAtOnce
+  for (const std::string transport : {"socket", "jsonrpc"}) {
+    auto [code, out] = testing::run_simgate(
+        {"watch", "--transport", transport, "--port", std::to_string(port(transport)), "arm2.pose", "--count", "1"}, dir_);
+    EXPECT_EQ(code, 0) << transport << ": " << out;
+    EXPECT_NE(out.find("\"x\":2.0"), std::string::npos) << transport << ": " << out;
+  }
   // deleted with its body: every transport forgets it
   json deleted = rpc(jsonrpc, 4, "simulation.delete_entity", {"arm2"});
   EXPECT_EQ(deleted["result"], json({{"name", "arm2"}, {"model_generation", 2}})) << deleted.dump();
