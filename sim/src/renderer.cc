@@ -141,6 +141,11 @@ std::uint64_t Renderer::abandoned() const {
   return abandoned_;
 }
 
+bool Renderer::idle() const {
+  std::lock_guard lock(mutex_);
+  return queue_.empty() && !busy_;
+}
+
 std::shared_ptr<const mjModel> Renderer::model_copy(const mjModel* m) {
   std::lock_guard lock(copy_mutex_);
   if (last_copy_ && same_model(last_copy_.get(), m)) return last_copy_;
@@ -182,6 +187,7 @@ void Renderer::run() {
       if (stop_) break;
       job = std::move(queue_.front());
       queue_.pop_front();
+      busy_ = true;
     }
     RenderResult result;
     result.view = job.scene->view();
@@ -210,6 +216,8 @@ void Renderer::run() {
     } catch (const std::exception& e) {
       log::warning("renderer: a render's callback threw: ", e.what());
     }
+    std::lock_guard lock(mutex_);
+    busy_ = false;
   }
   // stopping: what is still queued ends with an error
   std::deque<Job> left;

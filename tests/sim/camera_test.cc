@@ -70,15 +70,15 @@ class CameraTest : public testing::MjcfSim {
     return out;
   }
   // Steps until every stream render asked for has come back (bounded).
+  // Steps until the renders asked so far have come back and a few steps more ask for none:
+  // the renderer idle after each of them (it was "no render counted for 100 ms", which a
+  // render slower than that under ASan and a loaded machine broke). Bounded.
   void drain_renders() {
     auto renderer = Renderer::shared();
-    std::uint64_t last = renderer->renders();
-    for (int quiet = 0, i = 0; quiet < 20 && i < 2000; ++i) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    for (int idle_steps = 0, i = 0; idle_steps < 5 && i < 4000; ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
       sim_->step();
-      const std::uint64_t now = renderer->renders();
-      quiet = now == last ? quiet + 1 : 0;
-      last = now;
+      idle_steps = renderer->idle() ? idle_steps + 1 : 0;
     }
   }
 

@@ -122,6 +122,9 @@ class Renderer {
   // Renders completed so far, and renders skipped as abandoned (for statistics and tests).
   std::uint64_t renders() const;
   std::uint64_t abandoned() const;
+  // Whether nothing is queued or being rendered now (its callback included): a test that
+  // waits for the renders asked so far to come back waits for this, however slow a render is.
+  bool idle() const;
 
  private:
   struct Job {
@@ -147,6 +150,7 @@ class Renderer {
   std::deque<Job> queue_;              // renders waiting
   std::uint64_t renders_ = 0;          // renders completed
   std::uint64_t abandoned_ = 0;        // renders skipped: nobody wanted them any more
+  bool busy_ = false;                  // the render thread holds a job (see idle())
   std::mutex copy_mutex_;              // guards last_copy_
   std::shared_ptr<const mjModel> last_copy_;  // the latest model_copy(), shared when equal
   std::unique_ptr<Gl> gl_;             // render thread only
