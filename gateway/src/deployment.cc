@@ -11,6 +11,7 @@
 #include "simgate/core/log.h"
 #include "simgate/core/streams.h"
 #include "simgate/core/suggest.h"
+#include "simgate/core/text.h"
 #include "simgate/sim/run_policy.h"
 
 namespace simgate::gateway {
@@ -21,12 +22,6 @@ const std::vector<std::string> k_pseudo_components = {"simulation", "time", "com
 const std::vector<std::string> k_stream_only_components = {"simulation.events"};
 
 namespace {
-
-std::string join(const std::vector<std::string>& items, const std::string& sep = ", ") {
-  std::string out;
-  for (const auto& i : items) out += (out.empty() ? "" : sep) + i;
-  return out;
-}
 
 bool is_glob(const std::string& pattern) { return pattern.find_first_of("*?[") != std::string::npos; }
 

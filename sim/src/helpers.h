@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "simgate/core/suggest.h"
+#include "simgate/core/text.h"
 
 namespace simgate::sim {
 
@@ -20,13 +21,6 @@ inline std::string number(double x) {
   char text[32];
   std::snprintf(text, sizeof text, "%g", x);
   return text;
-}
-
-// "a, b, c".
-inline std::string join(const std::vector<std::string>& items) {
-  std::string out;
-  for (const auto& i : items) out += (out.empty() ? "" : ", ") + i;
-  return out;
 }
 
 // "; did you mean 'x'?" when `word` looks like a misspelt candidate, else "".

@@ -69,7 +69,7 @@ void Lockstep::step(Completion call, const std::string& participant, std::int64_
                        Failure::service_error, {{"parameter", "participant"}});
   if (gathering_n_ != 0 && static_cast<std::uint64_t>(n) != gathering_n_)
     throw ServiceError("simulation lockstep_step: n = " + std::to_string(n) + ", but the barrier waits for n = " +
-                           std::to_string(gathering_n_) + " (asked by " + sim::join(waiting_names()) +
+                           std::to_string(gathering_n_) + " (asked by " + simgate::join(waiting_names()) +
                            "): every participant asks for the same steps",
                        Failure::bad_arguments, {{"parameter", "n"}, {"expected", gathering_n_}});
   p->asked = std::move(call);
@@ -195,6 +195,6 @@ std::vector<std::string> Lockstep::waiting_names() const {
   return out;
 }
 
-std::string Lockstep::names_text() const { return participants_.empty() ? "none" : sim::join(names()); }
+std::string Lockstep::names_text() const { return participants_.empty() ? "none" : simgate::join(names()); }
 
 }  // namespace simgate::sim

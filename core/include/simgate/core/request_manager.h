@@ -336,7 +336,6 @@ class RequestManager {
 
  private:
   void notify_services_changed();  // on_services_changed(), an exception logged
-  struct Table;
   // execute(), and with debug logging on (looked at once per request) the time it takes and
   // a log line for its outcome: of a sync request here, of an async one when it ends.
   bool run_request(RequestId id, const Call& call, Outcome& out);
