@@ -10,8 +10,8 @@
 //   - the scene: simulation get_scene_geometry drawn with three.js, bodies moved by the
 //     `simulation` stream (rpc.subscribe), or by polling when the server has no such stream;
 //     without get_scene_geometry, each root body of simulation get_scene_objects as a marker;
-//     a new model generation (a spawn, a delete) reloads it, and the console's services and
-//     the input streams with it (a robot spawned with components, or deleted);
+//     a new model generation (a spawn, a delete) reloads it, and the console's services, the
+//     cameras and the input streams with it (a robot spawned with components, or deleted);
 //   - the cameras: every component with a get_image service, its image on asking, and live
 //     from its data stream (rpc.subscribe) when this transport carries one;
 //   - the input streams (rpc.streams, direction IN): a command box for each (rpc.publish),
@@ -758,15 +758,19 @@ function setupCameras(rpc) {
   }
 
   // `methods`: a promise of rpc.discover's methods (the console's load()); `streamList` one
-  // of rpc.streams' answer ([] where there is none).
-  return async function start(methods, streamList) {
+  // of rpc.streams' answer ([] where there is none). `connected`: the connection is the one
+  // the panel was built on (a model change: a robot spawned or deleted), whose live
+  // subscriptions end first; else a new one, whose server forgot them.
+  return async function start(methods, streamList, connected = false) {
+    if (connected)
+      for (const subscription of subscriptions.values())
+        rpc.call('rpc.unsubscribe', { subscription }).catch(() => {});  // its camera may be gone
     const names = (await methods).map((m) => m.name);
     const streams = await streamList;
     const streamOf = new Map(streams.filter((s) => s.direction === 'OUT' && IMAGE_KINDS.has(s.kind))
       .map((s) => [s.component, s]));
     const cameras = [...new Set([...names.filter((n) => n.endsWith('.get_image')).map((n) => n.slice(0, -'.get_image'.length)),
       ...streamOf.keys()])].sort();
-    // a reconnection starts over: the server forgot the subscriptions with the connection
     subscriptions.clear();
     figures.clear();
     exposed.cameras = Object.fromEntries(cameras.map((c) => [c, { images: 0, width: 0, height: 0, live: false, error: '' }]));
@@ -890,10 +894,13 @@ function setupInputs(rpc) {
 const rpc = new Rpc(`${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/`);
 const refreshState = setupState(rpc);
 const loadServices = setupConsole(rpc);
-// a model changed by a spawn or a delete may bring or take a robot: its services and streams
+// a model changed by a spawn or a delete may bring or take a robot: its services, cameras
+// and streams
 const startScene = setupScene(rpc, () => {
-  loadServices();
-  startInputs(rpc.call('rpc.streams').catch(() => []));
+  const methods = loadServices();
+  const streams = rpc.call('rpc.streams').catch(() => []);
+  startCameras(methods, streams, true);
+  startInputs(streams);
 });
 const startCameras = setupCameras(rpc);
 const startInputs = setupInputs(rpc);

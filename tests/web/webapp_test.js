@@ -7,7 +7,8 @@
 // succeeds; a second goto cancelled from the page ends PREEMPTED; pause, step and play
 // drive the simulation, and the real-time factor shown is never "0.00" (a number once
 // measured, else "–"); the 3D view has drawn the scene, and draws a height field spawned
-// from the page's console; a robot another client spawns shows its services in the console; a camera on the robot shows its image, then live from its stream;
+// from the page's console; a robot another client spawns shows its services in the console
+// and its camera in the camera panel; a camera on the robot shows its image, then live from its stream;
 // the arrow keys on the drive pad move the robot (rpc.publish to robot.motion). Then, against a second `simgate run`
 // whose websocket transport wants a token (`auth`), the page asks for it before anything,
 // asks again after a wrong one, and works once given the right one. Keeps a screenshot:
@@ -362,13 +363,17 @@ async function main() {
     // model generation): its services appear in the console without a reload
     const other = await rpcCall(page, port, 'simulation.spawn_entity', {
       name: 'rover', mjcf: '<body><freejoint/><geom type="box" size="0.2 0.15 0.1" mass="3"/></body>',
-      pose: [-3, 2, 0.2], robot: { type: 'robot', components: [{ name: 'pose', type: 'pose' }] },
+      pose: [-3, 2, 0.2],
+      robot: { type: 'robot', components: [{ name: 'pose', type: 'pose' },
+        { name: 'camera', type: 'video_camera', options: { cam_width: 32, cam_height: 24 } }] },
     });
     check(other.result?.name === 'rover', `another client spawns a robot with a component: ${JSON.stringify(other)}`);
     await page.waitForFunction(() => window.simgate.services.includes('rover.pose.get_local_data'), null,
       { timeout: WAIT_MS });
     check(await page.locator('details.component[data-component="rover.pose"]').count() === 1,
       'the console lists the spawned robot\'s component');
+    await page.waitForFunction(() => window.simgate.cameras['rover.camera']?.images >= 1, null, { timeout: WAIT_MS });
+    check(true, 'the camera panel shows the spawned robot\'s camera');
   }
 
   check(problems.length === 0, `no page error, console error or failed request${problems.length ? ':\n  ' + problems.join('\n  ') : ''}`);
