@@ -89,51 +89,58 @@ std::shared_ptr<mjSpec> Model::own(mjSpec* spec) { return std::shared_ptr<mjSpec
 
 namespace {
 
-// Compiles `spec` (parsed from `source`, named in messages): MuJoCo's message when it does not.
-mjModel* compile(mjSpec* spec, const std::string& source) {
-  mjModel* m = nullptr;
-  try {
-    m = mj_compile(spec, nullptr);
-  } catch (const MujocoError& e) {
-    throw MujocoError("scene '" + source + "': " + e.what());
-  }
-  if (!m) throw MujocoError("scene '" + source + "': " + mjs_getError(spec));
-  if (mjs_isWarning(spec)) log::warning("scene '", source, "': ", mjs_getError(spec));
-  return m;
+// "<source>: <message>", or the message alone without a source.
+std::string from(const std::string& source, const std::string& message) {
+  return source.empty() ? message : source + ": " + message;
 }
 
-// MuJoCo's parser on `source` (a file, or `text` when given): its message when it refuses.
-std::shared_ptr<mjSpec> parse(const std::string& source, const std::string* text) {
+}  // namespace
+
+std::shared_ptr<mjSpec> parse_spec(const std::string& path, const std::string* text, const std::string& source) {
+  install_mujoco_handlers();
   char error[1024] = "";
   mjSpec* spec = nullptr;
   try {
     spec = text ? mj_parseXMLString(text->c_str(), nullptr, error, sizeof error)
-                : mj_parseXML(source.c_str(), nullptr, error, sizeof error);
+                : mj_parseXML(path.c_str(), nullptr, error, sizeof error);
   } catch (const MujocoError& e) {
-    throw MujocoError("scene '" + source + "': " + e.what());
+    throw MujocoError(from(source, e.what()));
   }
-  if (!spec) throw MujocoError("scene '" + source + "': " + (error[0] ? error : "MuJoCo could not parse it"));
+  if (!spec) throw MujocoError(from(source, error[0] ? error : "MuJoCo could not parse it"));
   return Model::own(spec);
 }
 
-}  // namespace
+mjModel* compile_spec(mjSpec* spec, const std::string& source) {
+  mjModel* m = nullptr;
+  try {
+    m = mj_compile(spec, nullptr);
+  } catch (const MujocoError& e) {
+    throw MujocoError(from(source, e.what()));
+  }
+  if (!m) throw MujocoError(from(source, mjs_getError(spec)));
+  if (mjs_isWarning(spec)) log::warning(source.empty() ? "MuJoCo" : source, ": ", mjs_getError(spec));
+  return m;
+}
+
 
 Model Model::load_file(const std::string& path) {
   install_mujoco_handlers();
   std::ifstream file(path, std::ios::binary);
   std::stringstream read;
   read << file.rdbuf();
-  std::shared_ptr<mjSpec> spec = parse(path, nullptr);
+  const std::string source = "scene '" + path + "'";
+  std::shared_ptr<mjSpec> spec = parse_spec(path, nullptr, source);
   // MuJoCo reads URDF too, but makes no actuators of its transmissions
-  if (file && is_urdf(read.str())) add_transmission_actuators(spec.get(), "scene '" + path + "'", read.str());
-  mjModel* m = compile(spec.get(), path);
+  if (file && is_urdf(read.str())) add_transmission_actuators(spec.get(), source, read.str());
+  mjModel* m = compile_spec(spec.get(), source);
   return adopt(m, path, std::move(spec), {});
 }
 
 Model Model::load_string(const std::string& xml, const std::string& name) {
   install_mujoco_handlers();
-  std::shared_ptr<mjSpec> spec = parse(name, &xml);
-  mjModel* m = compile(spec.get(), name);
+  const std::string source = "scene '" + name + "'";
+  std::shared_ptr<mjSpec> spec = parse_spec(name, &xml, source);
+  mjModel* m = compile_spec(spec.get(), source);
   return adopt(m, name, std::move(spec), {});
 }
 

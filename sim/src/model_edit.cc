@@ -153,21 +153,11 @@ mjsBody* urdf_root(mjSpec* entity, const std::string& name, const EntityDocument
   return body;
 }
 
-// Compiles the edited `spec`: MuJoCo's message when it does not.
-mjModel* compile(mjSpec* spec) {
-  mjModel* m = mj_compile(spec, nullptr);  // an engine error throws MujocoError (model.h)
-  if (!m) throw MujocoError(mjs_getError(spec));
-  return m;
-}
-
 }  // namespace
 
 Model with_entity(const EditBase& base, const std::string& name, const EntityDocument& document) {
   std::shared_ptr<mjSpec> spec = copy_of(base);
-  char error[1024] = "";
-  mjSpec* parsed = mj_parseXMLString(document.text.c_str(), nullptr, error, sizeof error);
-  if (!parsed) throw MujocoError(error[0] ? error : "MuJoCo could not parse it");
-  std::shared_ptr<mjSpec> entity = Model::own(parsed);
+  std::shared_ptr<mjSpec> entity = parse_spec(name, &document.text, "");
   // its files resolve where the scene's do
   mjs_setString(entity->modelfiledir, mjs_getString(spec->modelfiledir));
   mjs_setString(entity->compiler.meshdir, mjs_getString(spec->compiler.meshdir));
@@ -179,7 +169,7 @@ Model with_entity(const EditBase& base, const std::string& name, const EntityDoc
   mjsFrame* frame = mjs_addFrame(world, nullptr);
   mjs_setName(frame->element, entity_frame(name).c_str());
   if (!mjs_attach(frame->element, body->element, "", "")) throw MujocoError(mjs_getError(spec.get()));
-  mjModel* m = compile(spec.get());
+  mjModel* m = compile_spec(spec.get(), "");
   std::vector<SpawnedEntity> entities = base.entities;
   entities.push_back({name, ModelCounts::of(m) - base.counts});
   return Model::adopt(m, base.source, std::move(spec), std::move(entities));
@@ -195,7 +185,7 @@ Model without_body(const EditBase& base, int body, const std::string& name) {
   // a spawned entity's frame, empty now
   if (mjsElement* frame = mjs_findElement(spec.get(), mjOBJ_FRAME, entity_frame(name).c_str()))
     if (mjs_delete(spec.get(), frame) != 0) throw MujocoError(mjs_getError(spec.get()));
-  mjModel* m = compile(spec.get());
+  mjModel* m = compile_spec(spec.get(), "");
   std::vector<SpawnedEntity> entities = base.entities;
   std::erase_if(entities, [&](const SpawnedEntity& e) { return e.name == name; });
   return Model::adopt(m, base.source, std::move(spec), std::move(entities));

@@ -619,6 +619,15 @@ void Simulation::restore_physics(const PhysicsState& state) {
   state.apply_warmstart(m(), d());
 }
 
+ObjectState::Unmatched Simulation::restore_objects(const ObjectState& state, double time) {
+  const ObjectState::Mapping by_name = ObjectState::by_name(m());
+  ObjectState::Unmatched unmatched = state.put(m(), d(), by_name);
+  d()->time = time;
+  forward();
+  state.put_warmstart(m(), d(), by_name);  // as restore_physics does
+  return unmatched;
+}
+
 void Simulation::set_on_divergence(DivergencePolicy policy) {
   on_divergence_ = policy;
   checkpoint_ = PhysicsState{};  // taken anew from the next step

@@ -283,8 +283,7 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
     if (model.body_id(name) >= 0)
       refuse("name", "name '" + name + "' is taken: the world already has a body called so" +
                          (model.entity(name) ? " (a spawned entity)" : ""));
-    start(std::move(done), "spawn_entity", name, std::move(edit));
-    if (with_robot) change_->robot = robot;
+    start(std::move(done), "spawn_entity", name, std::move(edit), -1, {}, with_robot ? robot : json());
   }
 
   void delete_entity(Completion done, const std::string& name) {
@@ -455,9 +454,9 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
   // Runs `edit` on a worker thread, from copies only (nothing shared with the running
   // simulation but the spec, read-only). `removed_body`: the body the change deletes (-1: a
   // spawn), in the running model; `removed`: the components that go with it (a robot's),
-  // removed at the swap.
+  // removed at the swap. `robot`: the section of the robot a spawn brings (null: none).
   void start(Completion done, std::string service, std::string name, Edit edit, int removed_body = -1,
-             std::vector<RemovedComponent> removed = {}) {
+             std::vector<RemovedComponent> removed = {}, json robot = json()) {
     const bool spawning = removed_body < 0;
     auto result = std::make_shared<std::promise<Model>>();
     std::future<Model> compiled = result->get_future();
@@ -478,11 +477,11 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
             if (auto spawner = self.lock()) spawner->apply();
           });
         });
-    change_.emplace(Change{std::move(done), std::move(service), std::move(name), sim_.model_generation(),
-                           removed_body, std::move(removed), std::move(compiled), std::move(worker)});
     // the swap runs outside this request's context: who asked is kept for the announcement
     const CallContext* context = CallContext::current();
-    change_->by = context ? context->manager().transport_name() : std::string("simulation");
+    change_.emplace(Change{std::move(done), std::move(service), std::move(name), sim_.model_generation(),
+                           removed_body, std::move(removed), std::move(compiled), std::move(worker),
+                           std::move(robot), context ? context->manager().transport_name() : "simulation"});
   }
 
   // A model being compiled, and the request waiting for it.

@@ -161,13 +161,7 @@ class WorldState {
       sim_.restore_physics(s);
     } else {
       // the model changed since: object by object, by name
-      const mjModel* m = sim_.m();
-      mjData* d = sim_.d();
-      const ObjectState::Mapping by_name = ObjectState::by_name(m);
-      unmatched = s.objects.put(m, d, by_name);
-      d->time = s.time();
-      sim_.forward();
-      s.objects.put_warmstart(m, d, by_name);  // as restore_physics does
+      unmatched = sim_.restore_objects(s.objects, s.time());
       if (!unmatched.empty())
         log::info("simulation restore_state: state ", handle, " of model generation ", s.generation(),
                   " restored by name into generation ", sim_.model_generation(), ": ", to_json(unmatched).dump());

@@ -67,6 +67,12 @@ struct SpawnedEntity {
 // workers that copy it (mj_copySpec) to edit the copy.
 using SharedSpec = std::shared_ptr<const mjSpec>;
 
+// MuJoCo's parser on the file `path`, or on `*text` when given; mj_compile of a spec. Each
+// throws MujocoError "<source>: <MuJoCo's message>" (the message alone when `source` is
+// empty: "scene 'arm.xml'"); compile_spec logs MuJoCo's compile warning. Any thread.
+std::shared_ptr<mjSpec> parse_spec(const std::string& path, const std::string* text, const std::string& source);
+mjModel* compile_spec(mjSpec* spec, const std::string& source);
+
 class Model {
  public:
   // Throws MujocoError("scene '<path>': <MuJoCo's message>").

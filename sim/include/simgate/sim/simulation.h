@@ -71,6 +71,7 @@
 #include "simgate/core/streams.h"
 #include "simgate/sim/model.h"
 #include "simgate/sim/model_remap.h"
+#include "simgate/sim/object_state.h"
 #include "simgate/sim/physics_state.h"
 #include "simgate/sim/run_policy.h"
 
@@ -264,6 +265,10 @@ class Simulation {
   // evaluates it; the next step is the one taken from it when it was captured. Components
   // are not told (the caller decides: on_reset() after a jump).
   void restore_physics(const PhysicsState& state);
+  // A state saved from an older model (a spawn or a delete since) put back object by object,
+  // matched by name (object_state.h), simulated time `time` included; then as
+  // restore_physics. Returns what did not match. Under the lock.
+  ObjectState::Unmatched restore_objects(const ObjectState& state, double time);
   SimulationStatistics statistics() const;
 
   // ---- divergence (simulation thread) ----
