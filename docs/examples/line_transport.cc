@@ -70,7 +70,7 @@ class LineTransport : public simgate::RequestManager, private kit::LineServer {
  private:
   // Where a request's reply goes.
   struct Pending {
-    std::weak_ptr<kit::LineConnection> connection;
+    std::weak_ptr<kit::Connection> connection;
     std::string client_id;
   };
 
@@ -93,13 +93,13 @@ class LineTransport : public simgate::RequestManager, private kit::LineServer {
   }
 
   void accept(asio::ip::tcp::socket socket) {
-    kit::LineLimits limits = kit::LineLimits::from(options_);
+    kit::ConnectionLimits limits = kit::ConnectionLimits::from(options_);
     limits.pause_at_unanswered = options_.max_in_flight;  // backpressure: reading waits for answers
-    kit::LineHost& host = *this;
-    add(std::make_shared<kit::LineConnection>(std::move(socket), host, limits, name(), ++connections_));
+    kit::LineServer& server = *this;
+    add(std::make_shared<kit::LineConnection>(std::move(socket), server, limits, name(), ++connections_));
   }
 
-  // ---- kit::LineHost: the protocol (I/O thread)
+  // ---- kit::LineServer: the protocol (I/O thread)
   void on_line(kit::LineConnection& connection, std::string_view line) override {
     auto word = [&line] {
       const auto begin = std::min(line.find_first_not_of(" \t\r"), line.size());
@@ -124,15 +124,15 @@ class LineTransport : public simgate::RequestManager, private kit::LineServer {
   void on_oversized_line(kit::LineConnection& connection, std::string_view, std::size_t) override {
     reply(connection, "-", "FAILED", "line longer than max_message_bytes");
   }
-  void on_lines_done(kit::LineConnection&, bool) override {
+  void on_messages_done(kit::Connection&, bool) override {
     // the calls read so far go to the core together: run here when the simulation lock is
     // free (their replies are queued at once), else on the simulation thread
     if (!calls_.empty()) run_or_submit(std::exchange(calls_, {}));
   }
   void on_input_ended(kit::LineConnection&) override {}  // calls of a client that left run on
-  void on_closed(kit::LineConnection& connection) override { forget(connection); }
+  void on_closed(kit::Connection&) override {}  // its pending calls still end (reply() drops them)
 
-  void reply(kit::LineConnection& connection, std::string_view id, std::string_view status, const json& value) {
+  void reply(kit::Connection& connection, std::string_view id, std::string_view status, const json& value) {
     connection.queue_with([&](std::string& out) {
       // invalid UTF-8 in a service's string is replaced, never thrown
       out.append(id).append(" ").append(status).append(" ");

@@ -28,7 +28,7 @@
 //   std::size_t in_flight() const; void add_in_flight(); void done(const std::string& key);
 //   bool authenticated() const; void set_authenticated();
 //   const std::string& label() const; bool closed() const;
-//   void flush_writes(); void close(std::string_view reason);
+//   void flush_writes(); void end(std::string_view reason, kit::Ending how);
 //   plus SessionCalls (the ids of its pending calls) as a base.
 //
 // Terms:

@@ -323,7 +323,7 @@ void JsonRpcEngine<Session>::handle_login(const std::shared_ptr<Session>& sessio
                            json{{"method", "rpc.login"}}));
   boost::asio::post(io_, [session] {
     session->flush_writes();
-    session->close("wrong token");
+    session->end("wrong token", kit::Ending::refused);
   });
 }
 

@@ -6,7 +6,7 @@
 // leaves, or when its component is deleted (rpc.unsubscribed {subscription, reason} tells
 // the client). Samples are notifications the client may miss: each subscription keeps the
 // latest `stream_queue` samples in the core, and a connection that lets more than the
-// session's droppable budget (kit::LineConnection::k_droppable_unsent_bytes, both transports)
+// session's droppable budget (kit::kit::Connection::k_droppable_unsent_bytes, both transports)
 // pile up unread loses samples rather than its replies; both losses are counted (simulation
 // get_stream_statistics) and logged once.
 //

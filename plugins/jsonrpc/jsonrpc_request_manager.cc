@@ -58,18 +58,18 @@ void JsonRpcRequestManager::shutdown_io() {
 }
 
 void JsonRpcRequestManager::accept(tcp::socket socket) {
-  kit::LineLimits limits = kit::LineLimits::from(options_.tcp);
+  kit::ConnectionLimits limits = kit::ConnectionLimits::from(options_.tcp);
   // a call over max_in_flight is answered -32006 (dispatch), never left unread; a client
   // that lets its replies pile up stops being read at half the unsent budget
   limits.pause_at_unsent_bytes = options_.tcp.max_unsent_bytes / 2;
   limits.read_bytes = k_read_bytes;
-  kit::LineHost& host = *this;
+  kit::LineServer& server = *this;
   const std::uint64_t number = next_session_++;
   client_arrived(number);
-  add(std::make_shared<Session>(std::move(socket), host, limits, name(), number));
+  add(std::make_shared<Session>(std::move(socket), server, limits, name(), number));
 }
 
-// ---- kit::LineHost: the framing (I/O thread)
+// ---- kit::LineServer: the framing (I/O thread)
 
 void JsonRpcRequestManager::on_line(kit::LineConnection& connection, std::string_view line) {
   handle_message(static_cast<Session&>(connection).shared(), line);
@@ -84,7 +84,7 @@ void JsonRpcRequestManager::on_oversized_line(kit::LineConnection& connection, s
                                          json{{"reason", "message too large"}, {"bytes_so_far", bytes}, {"max_message_bytes", max}})));
 }
 
-void JsonRpcRequestManager::on_lines_done(kit::LineConnection& connection, bool read_finished) {
+void JsonRpcRequestManager::on_messages_done(kit::Connection& connection, bool read_finished) {
   // a large read from a client pipelining alone: its first half runs and is answered
   // before the rest is parsed (simgate/kit/read_split.h)
   if (read_finished) {
@@ -99,8 +99,7 @@ void JsonRpcRequestManager::on_input_ended(kit::LineConnection& connection) {
   input_ended(static_cast<Session&>(connection));
 }
 
-void JsonRpcRequestManager::on_closed(kit::LineConnection& connection) {
-  forget(connection);
+void JsonRpcRequestManager::on_closed(kit::Connection& connection) {
   session_closed(static_cast<Session&>(connection));
 }
 

@@ -60,12 +60,12 @@ class JsonRpcRequestManager : public JsonRpcEngine<Session>, private kit::LineSe
   // JsonRpcEngine: the end of a burst
   void flush_replies() override { flush_touched(); }
 
-  // kit::LineHost: the framing (I/O thread)
+  // kit::LineServer: the framing (I/O thread)
   void on_line(kit::LineConnection& connection, std::string_view line) override;
   void on_oversized_line(kit::LineConnection& connection, std::string_view prefix, std::size_t bytes) override;
-  void on_lines_done(kit::LineConnection& connection, bool read_finished) override;
+  void on_messages_done(kit::Connection& connection, bool read_finished) override;
   void on_input_ended(kit::LineConnection& connection) override;
-  void on_closed(kit::LineConnection& connection) override;
+  void on_closed(kit::Connection& connection) override;
 
   // A new connection (the listener keeps the count under max_connections).
   void accept(boost::asio::ip::tcp::socket socket);

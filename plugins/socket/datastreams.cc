@@ -35,8 +35,9 @@ std::string command_example(const StreamInfo& info) {
 // One client of a stream port.
 class Datastreams::Connection : public kit::LineConnection {
  public:
-  Connection(tcp::socket socket, kit::LineHost& host, const kit::LineLimits& limits, Port& port, std::uint64_t number)
-      : LineConnection(std::move(socket), host, limits, port.who, number), port(port) {}
+  Connection(tcp::socket socket, kit::LineServer& server, const kit::ConnectionLimits& limits, Port& port,
+             std::uint64_t number)
+      : LineConnection(std::move(socket), server, limits, port.who, number), port(port) {}
 
   Port& port;                                         // its stream
   std::shared_ptr<StreamSubscription> subscription;  // output stream: its queue of samples
@@ -56,7 +57,7 @@ Datastreams::Datastreams(asio::io_context& io, std::string who, const kit::TcpOp
       io_(io),
       who_(std::move(who)),
       tcp_(tcp),
-      limits_(kit::LineLimits::from(tcp)),
+      limits_(kit::ConnectionLimits::from(tcp)),
       base_port_(base_port),
       queue_(queue) {}
 
@@ -203,8 +204,8 @@ void Datastreams::close_all() {
 
 void Datastreams::accept(Port& port, tcp::socket socket) {
   if (port.closed) return;  // its component went; the socket closes here
-  kit::LineHost& host = *this;
-  auto connection = std::make_shared<Connection>(std::move(socket), host, limits_, port, next_connection_++);
+  kit::LineServer& server = *this;
+  auto connection = std::make_shared<Connection>(std::move(socket), server, limits_, port, next_connection_++);
   port.connections.push_back(connection);
   add(connection);  // decides whether it must authenticate, starts reading
   if (connection->authenticated() && !connection->closed()) begin(*connection);
@@ -296,7 +297,7 @@ void Datastreams::on_oversized_line(kit::LineConnection& c, std::string_view /*p
                ": ignored (logged once per connection; simulation get_stream_statistics counts them)");
 }
 
-void Datastreams::on_lines_done(kit::LineConnection& /*connection*/, bool /*read_finished*/) {
+void Datastreams::on_messages_done(kit::Connection& /*connection*/, bool /*read_finished*/) {
   // each command went to the hub as it was read: nothing waits for the end of the read
 }
 
@@ -305,13 +306,12 @@ void Datastreams::on_input_ended(kit::LineConnection& /*connection*/) {
   // unsent samples are written
 }
 
-void Datastreams::on_closed(kit::LineConnection& c) {
+void Datastreams::on_closed(kit::Connection& c) {
   auto& connection = static_cast<Connection&>(c);
   Port& port = connection.port;
   if (connection.subscription) hub_->unsubscribe(connection.subscription);
   if (connection.writing) --port.writers;
   std::erase_if(port.connections, [&](const auto& p) { return p.get() == &connection; });
-  forget(connection);
 }
 
 void Datastreams::retire(Port& port) {

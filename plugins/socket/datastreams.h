@@ -17,7 +17,7 @@
 //   - Output stream (sensor): each connection subscribes (StreamHub::subscribe, keeping the
 //     latest `stream_queue` samples) and gets every sample as `<json>\n`, in order. A client
 //     that does not read loses samples, never slows anyone: past
-//     LineConnection::k_droppable_unsent_bytes unsent, samples are dropped and counted
+//     kit::Connection::k_droppable_unsent_bytes unsent, samples are dropped and counted
 //     (StreamSubscription::note_dropped). What such a client sends is read and ignored.
 //   - Input stream (actuator): each line is one JSON object, a command published to the
 //     hub (applied at once when the simulation lock is free, else the latest wins at the
@@ -140,17 +140,17 @@ class Datastreams : private kit::LineServer {
   // Writes every reader's samples; retires the ports whose component was removed.
   void drain();
 
-  // kit::LineHost (I/O thread)
+  // kit::LineServer (I/O thread)
   void on_line(kit::LineConnection& connection, std::string_view line) override;
   void on_oversized_line(kit::LineConnection& connection, std::string_view prefix, std::size_t bytes) override;
-  void on_lines_done(kit::LineConnection& connection, bool read_finished) override;
+  void on_messages_done(kit::Connection& connection, bool read_finished) override;
   void on_input_ended(kit::LineConnection& connection) override;
-  void on_closed(kit::LineConnection& connection) override;
+  void on_closed(kit::Connection& connection) override;
 
   boost::asio::io_context& io_;      // the transport's
   std::string who_;                  // for logs
   kit::TcpOptions tcp_;              // the transport's options (host, auth)
-  kit::LineLimits limits_;           // per connection
+  kit::ConnectionLimits limits_;           // per connection
   std::uint16_t base_port_;          // "stream_port"
   std::size_t queue_;                // "stream_queue"
   std::shared_ptr<StreamHub> hub_;   // from open()

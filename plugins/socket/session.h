@@ -5,7 +5,7 @@
 // socket protocol keeps per connection:
 //   - Pending requests: the client's ids of requests not yet answered, mapped to the core's
 //     RequestId, so ids and cancel are scoped to the connection. Reading pauses while
-//     max_in_flight replies are owed (LineLimits::pause_at_unanswered).
+//     max_in_flight replies are owed (ConnectionLimits::pause_at_unanswered).
 //   - Deferred replies: an error reply the manager made itself, travelling through the
 //     core behind the connection's earlier requests so the replies keep their order.
 //   - Progress: whether the client opted in (`<id> simgate progress [true]`) to progress
@@ -50,7 +50,7 @@ class Session : public kit::LineConnection {
   void answer(std::size_t client_id_hash, RequestId id, std::string_view status, const json* value);
   const kit::IdTable& pending() const { return pending_; }
   // Queues the progress line "<client id> PROGRESS <json>" of the pending request `id`
-  // (hash as for answer()), unless more than LineConnection::k_droppable_unsent_bytes wait
+  // (hash as for answer()), unless more than kit::Connection::k_droppable_unsent_bytes wait
   // unsent: a client that does not read loses reports, never a reply. True if queued.
   bool report_progress(std::size_t client_id_hash, RequestId id, const json& value);
   // The connection opted in to progress lines (`<id> simgate progress [true|false]`):

@@ -83,7 +83,7 @@ SocketRequestManager::SocketRequestManager(SocketOptions o)
       listener_(io_, name(), options_.tcp.host, options_.tcp.port),
       io_thread_(io_, name(), options_.tcp.io_spin),
       datastreams_(io_, name(), options_.tcp, options_.stream_port, options_.stream_queue) {
-  limits_ = kit::LineLimits::from(options_.tcp);
+  limits_ = kit::ConnectionLimits::from(options_.tcp);
   // a client with max_in_flight requests unanswered waits for answers before more is read
   limits_.pause_at_unanswered = options_.tcp.max_in_flight;
   set_global_policy(options_.tcp.global_policy);
@@ -156,10 +156,10 @@ void SocketRequestManager::close_all() {
 }
 
 void SocketRequestManager::accept(tcp::socket socket) {
-  kit::LineHost& host = *this;
+  kit::LineServer& server = *this;
   const std::uint64_t number = next_session_++;
   client_arrived(number);
-  add(std::make_shared<Session>(std::move(socket), host, limits_, name(), number));
+  add(std::make_shared<Session>(std::move(socket), server, limits_, name(), number));
 }
 
 // ---- requests (I/O thread)
@@ -184,7 +184,7 @@ void SocketRequestManager::run_batch() {
   flush_touched();
 }
 
-void SocketRequestManager::on_lines_done(kit::LineConnection& connection, bool read_finished) {
+void SocketRequestManager::on_messages_done(kit::Connection& connection, bool read_finished) {
   // half-way through a large read: its first half runs and is answered now only for a
   // client pipelining alone (read_split.h)
   if (read_finished)
@@ -343,7 +343,7 @@ void SocketRequestManager::on_line(kit::LineConnection& connection, std::string_
   call.progress = session.wants_progress();
   call.client = session.number();
   call.timeout = timeout_for(call.component, call.service);
-  // handed to the core with the rest of this read (on_lines_done)
+  // handed to the core with the rest of this read (on_messages_done)
   ++batch_count_;
 }
 
@@ -377,14 +377,13 @@ void SocketRequestManager::on_input_ended(kit::LineConnection& connection) {
   cancel_requests_of(static_cast<Session&>(connection));
 }
 
-void SocketRequestManager::on_closed(kit::LineConnection& connection) {
+void SocketRequestManager::on_closed(kit::Connection& connection) {
   auto& session = static_cast<Session&>(connection);
   cancel_requests_of(session);
   // its outcomes have nowhere to go: forget them
   session.pending().for_each([this](const kit::IdTable::Entry& e) { requests_.erase(e.id); });
   session.clear_pending();
   client_left(session.number());
-  forget(session);
 }
 
 void SocketRequestManager::cancel_requests_of(const Session& session) {

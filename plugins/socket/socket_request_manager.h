@@ -126,12 +126,12 @@ class SocketRequestManager : public RequestManager, private kit::LineServer {
   void on_services_changed() override;
 
  private:
-  // kit::LineHost: the protocol (I/O thread)
+  // kit::LineServer: the protocol (I/O thread)
   void on_line(kit::LineConnection& connection, std::string_view line) override;
   void on_oversized_line(kit::LineConnection& connection, std::string_view prefix, std::size_t bytes) override;
-  void on_lines_done(kit::LineConnection& connection, bool read_finished) override;
+  void on_messages_done(kit::Connection& connection, bool read_finished) override;
   void on_input_ended(kit::LineConnection& connection) override;
-  void on_closed(kit::LineConnection& connection) override;
+  void on_closed(kit::Connection& connection) override;
 
   // An error reply waiting for the outcomes of the connection's earlier requests.
   struct DeferredReply {
@@ -184,7 +184,7 @@ class SocketRequestManager : public RequestManager, private kit::LineServer {
   kit::TcpListener listener_;    // the listening socket, bound in the constructor
   kit::IoThread io_thread_;      // runs io_
   Datastreams datastreams_;      // the stream ports, opened by start()
-  kit::LineLimits limits_;       // per-connection limits, from options_
+  kit::ConnectionLimits limits_;       // per-connection limits, from options_
   bool stopping_ = false;                    // close_all() runs: closed sessions cancel nothing (I/O thread)
   std::uint64_t next_session_ = 1;           // numbers sessions in logs
   kit::RequestSlots<Pending> requests_;           // unanswered requests, by the ids it gives them (I/O thread)

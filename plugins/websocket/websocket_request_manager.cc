@@ -52,13 +52,12 @@ WebSocketRequestManager::WebSocketRequestManager(const json& options)
 
 WebSocketRequestManager::WebSocketRequestManager(Settings s)
     : JsonRpcEngine("WebSocket service manager", "websocket", std::move(s.rpc)),
+      WsServer(name(), options_.tcp),
       // bound now, so that a port in use fails the creation of the transport
       listener_(io_, name(), options_.tcp.host, options_.tcp.port),
       io_thread_(io_, name(), options_.tcp.io_spin),
-      per_peer_(options_.tcp.max_connections_per_peer),
       origins_(std::move(s.origins)),
-      keepalive_(s.keepalive),
-      held_(options_.tcp.max_buffered_bytes) {
+      keepalive_(s.keepalive) {
   origins_.bind(options_.tcp.host, listener_.port());
   if (s.web.enabled) web_.emplace(s.web.root, "simgate websocket transport", port_text());
 }
@@ -87,7 +86,7 @@ void WebSocketRequestManager::start() {
             deliver_here();
             listener_.start(std::move(handlers));
           },
-          direct_)) {
+          direct_reads())) {
     log::info("websocket: listening on ", endpoints().front());
     if (web_) {
       std::string page = endpoints().front();
@@ -110,105 +109,21 @@ void WebSocketRequestManager::stop() {
 void WebSocketRequestManager::shutdown_io() {
   stop_io();
   listener_.close();
-  auto sessions = std::move(sessions_);
-  sessions_.clear();
-  count_.store(0, std::memory_order_relaxed);
-  per_peer_.clear();
-  for (const auto& s : sessions) s->abort("server stopping");
-  touched_.clear();
-  direct_ = kit::DirectReads<WsSession>{};
-  sweep_timer_.reset();
-}
-
-std::string WebSocketRequestManager::refusal_reason(const tcp::endpoint& peer) {
-  const auto& tcp = options_.tcp;
-  if (sessions_.size() >= tcp.max_connections &&
-      (tcp.idle_evict.count() <= 0 ||
-       !kit::make_room(sessions_, kit::sweep_ticks(tcp.idle_evict), name(), tcp.max_connections)))
-    return "too many connections (" + std::string(tcp.connections_key) + " " + std::to_string(tcp.max_connections) +
-           ")";
-  return per_peer_.refusal_reason(peer.address());
-}
-
-void WebSocketRequestManager::schedule_sweep() {
-  if (sweeping_) return;
-  if (!sweep_timer_) sweep_timer_.emplace(io_);
-  sweeping_ = true;
-  sweep_timer_->expires_after(kit::k_connection_sweep);
-  sweep_timer_->async_wait([this](const boost::system::error_code& ec) {
-    sweeping_ = false;
-    if (ec) return;  // the server stops
-    sweep();
-  });
-}
-
-void WebSocketRequestManager::sweep() {
-  ++tick_;
-  const auto timeout = options_.tcp.idle_timeout;
-  if (timeout.count() > 0) {
-    // closed after the walk: a close changes sessions_
-    const std::uint32_t limit = kit::sweep_ticks(timeout);
-    std::vector<std::shared_ptr<WsSession>> idle;
-    for (const auto& s : sessions_)
-      if (s->idle_ticks() >= limit) idle.push_back(s);
-    if (!idle.empty()) {
-      const std::string why = "idle for " + std::to_string(timeout.count() / 1000.0) + " s (idle_timeout_s)";
-      // one warning per sweep, each connection at debug level (a flood logs little)
-      log::warning(name(), ": closed ", idle.size(), idle.size() == 1 ? " connection: " : " connections: ", why,
-                   idle.size() == 1 ? " (" + idle.front()->label() + ")" : std::string());
-      for (const auto& s : idle) s->close_with(boost::beast::websocket::close_code::going_away, why);
-    }
-  }
-  // keep-alive pings, and the end of clients silent too long
-  std::vector<std::shared_ptr<WsSession>> all(sessions_.begin(), sessions_.end());
-  for (const auto& s : all) s->keep_alive(tick_);
-  if (!sessions_.empty()) schedule_sweep();
-}
-
-bool WebSocketRequestManager::watch(WsSession& session) {
-  // only while the I/O thread polls (never with io_spin_us 0), for a client sending alone:
-  // others are served by the event loop between direct reads
-  if (options_.tcp.io_spin.count() <= 0 || !read_split_.alone(&session)) return false;
-  direct_.watch(session.shared());
-  return true;
+  close_all();
 }
 
 void WebSocketRequestManager::accept(tcp::socket socket) {
-  WsLimits limits;
-  limits.max_message_bytes = options_.tcp.max_message_bytes;
-  limits.max_unsent_bytes = options_.tcp.max_unsent_bytes;
+  kit::ConnectionLimits limits = kit::ConnectionLimits::from(options_.tcp);
   // a client that lets its replies pile up stops being read at half the unsent budget
   limits.pause_at_unsent_bytes = options_.tcp.max_unsent_bytes / 2;
-  limits.keepalive = keepalive_;
-  WsHost& host = *this;
+  limits.read_bytes = WsSession::k_read_bytes;
+  WsServer& server = *this;
   const std::uint64_t number = next_session_++;
   client_arrived(number);
-  auto session = std::make_shared<WsSession>(std::move(socket), host, limits, name(), number);
-  // a peer that must present the token (the "auth" option) calls rpc.login first
-  if (options_.tcp.auth.required_for(session->peer())) session->require_login();
-  sessions_.insert(session);
-  per_peer_.add(session->peer());
-  count_.store(sessions_.size(), std::memory_order_relaxed);
-  schedule_sweep();
-  log::debug(name(), ": ", session->label(), " connected");
-  session->start();
+  add(std::make_shared<WsSession>(std::move(socket), server, limits, keepalive_, name(), number));
 }
 
-void WebSocketRequestManager::flush_replies() {
-  // swapped out first: a write that fails closes its session, which may touch the list
-  auto touched = std::move(touched_);
-  touched_.clear();
-  for (const auto& s : touched) {
-    s->touched = false;
-    s->flush_writes();
-  }
-  if (touched_.empty()) {
-    touched.clear();
-    touched_.swap(touched);  // keeps the capacity
-  }
-}
-
-// ---- WsHost: the framing (I/O thread)
+// ---- WsServer: the framing (I/O thread)
 
 void WebSocketRequestManager::on_message(WsSession& session, std::string_view text) {
   handle_message(session.shared(), text);
@@ -227,9 +142,9 @@ void WebSocketRequestManager::on_refused_message(WsSession& session, std::size_t
       json{{"reason", "message too large"}, {"bytes", bytes}, {"max_message_bytes", max}})));
 }
 
-void WebSocketRequestManager::on_read_done(WsSession& /*session*/) {
-  flush_submissions();
-  flush_replies();
+void WebSocketRequestManager::on_messages_done(kit::Connection& /*session*/, bool read_finished) {
+  // the calls of a read go to the core together; they are answered at its end
+  if (read_finished) flush_submissions();
 }
 
 std::string WebSocketRequestManager::port_text() const {
@@ -252,8 +167,8 @@ std::string WebSocketRequestManager::plain_response(const http::request<http::st
 
 HttpResponse WebSocketRequestManager::on_http_request(const http::request<http::string_body>& request) {
   // past the memory cap (clients that do not read): nothing more is held for a new one
-  if (held_.over()) {
-    log::warning(name(), ": HTTP request answered 503: the transport holds more than ", held_.max(),
+  if (held().over()) {
+    log::warning(name(), ": HTTP request answered 503: the transport holds more than ", held().max(),
                  " bytes for its clients (max_buffered_bytes)");
     return HttpResponse{plain_response(request, http::status::service_unavailable,
                                        "503 the server holds too much for its clients now (max_buffered_bytes); "
@@ -279,24 +194,13 @@ std::string WebSocketRequestManager::refuse_upgrade(const http::request<http::st
                             "; the transport's option allowed_origins, docs/security.md)\n");
 }
 
-void WebSocketRequestManager::on_closed(WsSession& session) {
-  direct_.forget(session);
-  if (sessions_.erase(session.shared()) > 0) {
-    per_peer_.remove(session.peer());
-    count_.store(sessions_.size(), std::memory_order_relaxed);
-  }
-  session_closed(session);
-}
-
-void WebSocketRequestManager::touch(WsSession& session) {
-  session.touched = true;
-  touched_.push_back(session.shared());
-}
+void WebSocketRequestManager::on_closed(kit::Connection& session) { session_closed(static_cast<WsSession&>(session)); }
 
 }  // namespace simgate::websocket
 
 SIMGATE_TRANSPORT_PLUGIN(websocket, simgate::websocket::WebSocketRequestManager, "0.1.0", "host", "port",
                          "max_message_bytes", "max_depth", "max_in_flight", "max_unsent_bytes",
                          "max_buffered_bytes", "max_connections", "max_connections_per_peer", "idle_timeout_s", "idle_evict_s",
+                         "line_timeout_s",
                          "io_spin_us", "on_disconnect", "global_policy", "auth", "progress_interval_ms",
                          "stream_queue", "web", "web_root", "allowed_origins", "keepalive_s")

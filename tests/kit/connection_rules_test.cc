@@ -48,7 +48,10 @@ struct TimedConnection {
   std::uint32_t silent_ticks() const { return silent; }
   std::size_t unanswered() const { return owed; }
   const std::string& label() const { return name; }
-  void close(std::string_view reason) { closed_for = reason; }
+  void end(std::string_view reason, Ending how) {
+    closed_for = reason;
+    EXPECT_EQ(how, Ending::refused);
+  }
 };
 
 TEST(MakeRoomTest, ClosesTheConnectionIdleLongestOnceIdleLongEnough) {

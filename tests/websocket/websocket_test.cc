@@ -475,6 +475,49 @@ TEST_F(WebSocketMemoryTest, MessagesStillArrivingStayUnderMaxBufferedBytes) {
   EXPECT_NE(answer.payload.find(std::string(900000, 'y')), std::string::npos) << answer.payload.substr(0, 200);
 }
 
+// ---- an unfinished message (issue #37): line_timeout_s bounds it as it bounds a line
+
+class WebSocketTrickleTest : public WebSocketTest {
+ protected:
+  json options() override { return json{{"line_timeout_s", 0.5}}; }
+};
+
+// before: the websocket transport refused line_timeout_s, and a client that announced a
+// large message and trickled it kept its connection (and what it sent) forever
+TEST_F(WebSocketTrickleTest, AMessageTrickledPastLineTimeoutIsClosedAndOthersAreServed) {
+  const std::string frame =
+      RawWs::frame(k_text, request(1, "robot.arm.echo", json::array({std::string(100000, 't')})).dump());
+  RawWs trickler(host_->port()), half_header(host_->port());
+  trickler.send_raw(frame.substr(0, 1000));
+  half_header.send_raw(frame.substr(0, 1));  // not even a whole frame head
+  const auto began = std::chrono::steady_clock::now();
+  // a byte every 100 ms keeps the client heard, not its message finished
+  std::size_t sent = 1000;
+  for (int i = 0; i < 8; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    trickler.send_raw(frame.substr(sent++, 1));
+    EXPECT_EQ(client_->call(request(i, "spec.subtract", json::array({3, 1})))["result"], 2) << "others are served";
+  }
+  for (RawWs* raw : {&trickler, &half_header}) {
+    const RawWs::Frame close = raw->read_frame();
+    EXPECT_EQ(close.opcode, k_close);
+    EXPECT_EQ(close_code_of(close), 1001) << close.payload;
+    EXPECT_NE(close.payload.find("line_timeout_s"), std::string::npos) << close.payload;
+  }
+  const auto waited = std::chrono::steady_clock::now() - began;
+  EXPECT_LT(waited, std::chrono::seconds(5)) << "closed at line_timeout_s, not by another rule";
+}
+
+TEST_F(WebSocketTrickleTest, WholeMessagesSentSlowlyAreNotUnfinished) {
+  // a client that sends a whole message every 300 ms never has one unfinished past 0.5 s
+  WsClient slow(host_->port());
+  for (int i = 0; i < 5; ++i) {
+    EXPECT_EQ(slow.call(request(i, "spec.subtract", json::array({3, 1})))["result"], 2);
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  }
+  EXPECT_EQ(slow.call(request(9, "spec.subtract", json::array({3, 1})))["result"], 2);
+}
+
 TEST_F(WebSocketTest, AFragmentedMessageWithAPingBetweenItsFragmentsIsAnsweredAfterThePong) {
   RawWs raw(host_->port());
   const std::string text = request(1, "spec.subtract", json::array({42, 23})).dump();
@@ -586,10 +629,11 @@ TEST_F(WebSocketTest, ABinaryMessageInFragmentsIsRefusedWhole) {
 
 TEST(WebSocketPlugin, TakesTheTcpTransportsConnectionLimits) {
   auto rm = load_transport(plugin_path(), json{{"port", 0}, {"max_connections_per_peer", 4}, {"idle_timeout_s", 30},
-                                               {"idle_evict_s", 0}});
+                                               {"idle_evict_s", 0}, {"line_timeout_s", 10}, {"max_buffered_bytes", 1 << 20}});
   rm->start();
   rm->stop();
-  for (const char* key : {"max_connections_per_peer", "idle_timeout_s", "idle_evict_s"}) {
+  for (const char* key :
+       {"max_connections_per_peer", "idle_timeout_s", "idle_evict_s", "line_timeout_s", "max_buffered_bytes"}) {
     try {
       load_transport(plugin_path(), json{{"port", 0}, {key, -1}});
       ADD_FAILURE() << key << " -1 accepted";

@@ -41,6 +41,13 @@ inline std::uint32_t sweep_ticks(std::chrono::milliseconds duration) {
       1, (duration + k_connection_sweep - std::chrono::milliseconds(1)) / k_connection_sweep));
 }
 
+// Why the server ends a connection (Connection::end), for framings that tell the client (a
+// WebSocket close code).
+enum class Ending {
+  refused,  // it broke a rule or made room for another (a wrong token, idle_evict_s): 1008
+  timeout,  // it held the connection without use (idle_timeout_s, line_timeout_s): 1001
+};
+
 // Open connections by non-loopback address (max_connections_per_peer; 0: no limit).
 class PeerCounts {
  public:
@@ -77,7 +84,7 @@ class PeerCounts {
 // `connections` (a range of shared_ptr<Connection>) idle for at least `limit` ticks
 // (sweep_ticks(idle_evict_s)): the one idle longest, else the one silent longest while it
 // waits for replies. `Connection` has idle_ticks(), silent_ticks(), unanswered(), label()
-// and close(std::string_view reason). `who` names the transport in the warning logged.
+// and end(std::string_view reason, Ending). `who` names the transport in the warning logged.
 // True when one was closed.
 template <class Connections>
 bool make_room(const Connections& connections, std::uint32_t limit, const std::string& who,
@@ -92,14 +99,14 @@ bool make_room(const Connections& connections, std::uint32_t limit, const std::s
   if (idlest && idlest->idle_ticks() >= limit) {
     log::warning(who, ": ", idlest->label(), " closed to make room for a new connection: idle for ",
                  idlest->idle_ticks() * sweep_s, " s while ", max_connections, " connections were open (idle_evict_s)");
-    idlest->close("idle while the server was full");
+    idlest->end("idle while the server was full", Ending::refused);
     return true;
   }
   if (silentest && silentest->silent_ticks() >= limit) {
     log::warning(who, ": ", silentest->label(), " closed to make room for a new connection: silent for ",
                  silentest->silent_ticks() * sweep_s, " s with ", silentest->unanswered(), " replies owed while ",
                  max_connections, " connections were open (idle_evict_s)");
-    silentest->close("silent while the server was full");
+    silentest->end("silent while the server was full", Ending::refused);
     return true;
   }
   return false;
