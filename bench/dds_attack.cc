@@ -1,6 +1,6 @@
 // dds_attack.cc — the DDS side of bench/attacks (issue #17's attack list, re-run).
 //
-// A raw Cyclone client speaking simgate's wire types (plugins/dds/simgate_dds.idl) with no
+// A raw Cyclone client speaking simgate's wire types (protocols/dds/simgate_dds.idl) with no
 // DdsClient in between, so that it can send what a well-behaved client never sends: params
 // nested 80 000 deep, another client's id or a zero id, a duplicate seq, names of 10 MB, and
 // a reply reader that never takes. One mode per run; each prints one JSON object on stdout.

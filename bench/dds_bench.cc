@@ -10,7 +10,7 @@
 //            its camera served by DDS) --count times, one after the other, with raw_images
 //            (--raw) or not: frames/s, and the bytes of the reply's text. The render thread's
 //            work per frame is what the rate shows (the camera renders each get_image).
-// ping and pong use simgate's own wire types (plugins/dds/simgate_dds.idl), the same topics,
+// ping and pong use simgate's own wire types (protocols/dds/simgate_dds.idl), the same topics,
 // the same payload ("test_component", "add", "[1,2]") and the same QoS as the transport
 // (RELIABLE, KEEP_ALL, VOLATILE, partition), so the ratio is what simgate adds on top of
 // Cyclone: the request table, the core's process() (run on the transport's DDS thread when

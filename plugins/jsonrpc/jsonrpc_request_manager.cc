@@ -1,14 +1,10 @@
 #include "jsonrpc_request_manager.h"
 
-#include "jsonrpc_engine_impl.h"
-#include "jsonrpc_engine_streams.h"
-#include "protocol.h"
+#include "simgate/jsonrpc/protocol.h"
 #include "simgate/core/log.h"
 #include "simgate/core/plugin.h"
 
 namespace simgate::jsonrpc {
-
-template class JsonRpcEngine<Session>;
 
 namespace asio = boost::asio;
 using asio::ip::tcp;
@@ -66,19 +62,19 @@ void JsonRpcRequestManager::accept(tcp::socket socket) {
   kit::LineServer& server = *this;
   const std::uint64_t number = next_session_++;
   client_arrived(number);
-  add(std::make_shared<Session>(std::move(socket), server, limits, name(), number));
+  add(std::make_shared<LineSession>(std::move(socket), server, limits, name(), number));
 }
 
 // ---- kit::LineServer: the framing (I/O thread)
 
 void JsonRpcRequestManager::on_line(kit::LineConnection& connection, std::string_view line) {
-  handle_message(static_cast<Session&>(connection).shared(), line);
+  handle_message(static_cast<LineSession&>(connection).shared(), line);
 }
 
 void JsonRpcRequestManager::on_oversized_line(kit::LineConnection& connection, std::string_view /*prefix*/,
                                               std::size_t bytes) {
   const auto max = options_.tcp.max_message_bytes;
-  static_cast<Session&>(connection)
+  static_cast<LineSession&>(connection)
       .queue_message(dump(error_response(nullptr, code::invalid_request,
                                          "Invalid Request: message exceeds max_message_bytes (" + std::to_string(max) + ")",
                                          json{{"reason", "message too large"}, {"bytes_so_far", bytes}, {"max_message_bytes", max}})));
@@ -96,11 +92,11 @@ void JsonRpcRequestManager::on_messages_done(kit::Connection& connection, bool r
 }
 
 void JsonRpcRequestManager::on_input_ended(kit::LineConnection& connection) {
-  input_ended(static_cast<Session&>(connection));
+  input_ended(static_cast<LineSession&>(connection));
 }
 
 void JsonRpcRequestManager::on_closed(kit::Connection& connection) {
-  session_closed(static_cast<Session&>(connection));
+  session_closed(static_cast<LineSession&>(connection));
 }
 
 }  // namespace simgate::jsonrpc

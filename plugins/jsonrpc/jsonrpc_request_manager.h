@@ -31,14 +31,14 @@
 
 #include <boost/asio/ip/tcp.hpp>
 
-#include "jsonrpc_engine.h"
 #include "session.h"
+#include "simgate/jsonrpc/engine.h"
 #include "simgate/kit/line_connection.h"
 #include "simgate/kit/tcp_server.h"
 
 namespace simgate::jsonrpc {
 
-class JsonRpcRequestManager : public JsonRpcEngine<Session>, private kit::LineServer {
+class JsonRpcRequestManager : public JsonRpcEngine, private kit::LineServer {
  public:
   // Parses the options and binds; throws ConfigError or std::runtime_error.
   explicit JsonRpcRequestManager(const json& options);

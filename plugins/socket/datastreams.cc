@@ -9,7 +9,7 @@
 
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
-#include "wire.h"
+#include "simgate/morse/wire.h"
 
 namespace simgate::socket {
 

@@ -1,7 +1,7 @@
 #include "session.h"
 
 #include "simgate/core/log.h"
-#include "wire.h"
+#include "simgate/morse/wire.h"
 
 namespace simgate::socket {
 

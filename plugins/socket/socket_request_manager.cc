@@ -2,12 +2,12 @@
 
 #include <boost/asio/post.hpp>
 
-#include "params_parser.h"
+#include "simgate/morse/params_parser.h"
 #include "simgate/core/config.h"
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
 #include "simgate/core/plugin.h"
-#include "wire.h"
+#include "simgate/morse/wire.h"
 
 namespace simgate::socket {
 

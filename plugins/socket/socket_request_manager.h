@@ -71,13 +71,13 @@
 #include <boost/asio/ip/tcp.hpp>
 
 #include "datastreams.h"
-#include "params_parser.h"
+#include "simgate/morse/params_parser.h"
 #include "session.h"
 #include "simgate/core/request_manager.h"
 #include "simgate/kit/line_connection.h"
 #include "simgate/kit/request_slots.h"
 #include "simgate/kit/tcp_server.h"
-#include "wire.h"
+#include "simgate/morse/wire.h"
 
 namespace simgate::socket {
 

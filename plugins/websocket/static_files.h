@@ -49,6 +49,7 @@
 #include <boost/beast/http/string_body.hpp>
 
 #include "simgate/core/config.h"
+#include "simgate/kit/websocket_connection.h"
 
 namespace simgate::websocket {
 
@@ -68,22 +69,10 @@ struct WebOptions {
 // plugin runs (so a moved prefix still finds its own), else the configured install prefix's.
 std::string default_web_root();
 
-// One HTTP response as written: its head (status line and headers, and the body of a short
-// answer) and, for a file, the body, which the cache may share with other responses.
-struct HttpResponse {
-  HttpResponse() = default;
-  explicit HttpResponse(std::string head) : head(std::move(head)) {}
-
-  std::string head;                         // status line, headers, blank line (and a short body)
-  std::shared_ptr<const std::string> body;  // a file's contents (nullptr: none, or in head)
-  bool body_cached = false;                 // body is the cache's copy, not this response's own
-
-  // The memory this response holds of its own while it is written (a cached body is held
-  // by the cache whatever happens: not counted per response).
-  std::size_t own_bytes() const { return head.size() + (body && !body_cached ? body->size() : 0); }
-  // The whole response as one text (for tests and logs).
-  std::string text() const { return body ? head + *body : head; }
-};
+// One HTTP response as written (kit/websocket_connection.h): its head (status line and
+// headers, and the body of a short answer) and, for a file, the body, which the cache may
+// share with other responses.
+using kit::HttpResponse;
 
 class StaticFiles {
  public:

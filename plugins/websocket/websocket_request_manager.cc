@@ -6,15 +6,9 @@
 #include <boost/beast/http/status.hpp>
 #include <boost/beast/http/write.hpp>
 
-#include "jsonrpc_engine_impl.h"
-#include "jsonrpc_engine_streams.h"
-#include "protocol.h"
+#include "simgate/jsonrpc/protocol.h"
 #include "simgate/core/log.h"
 #include "simgate/core/plugin.h"
-
-namespace simgate::jsonrpc {
-template class JsonRpcEngine<websocket::WsSession>;
-}  // namespace simgate::jsonrpc
 
 namespace simgate::websocket {
 
@@ -31,7 +25,7 @@ WebSocketRequestManager::Settings WebSocketRequestManager::Settings::parse(const
   json rest = options.is_null() ? json::object() : options;
   Settings s;
   s.web = WebOptions::take(rest);
-  s.origins = OriginPolicy::take(rest);
+  s.origins = kit::OriginPolicy::take(rest);
   if (rest.is_object()) {
     if (auto it = rest.find("keepalive_s"); it != rest.end()) {
       json mine = {{"keepalive_s", *it}};
@@ -52,7 +46,7 @@ WebSocketRequestManager::WebSocketRequestManager(const json& options)
 
 WebSocketRequestManager::WebSocketRequestManager(Settings s)
     : JsonRpcEngine("WebSocket service manager", "websocket", std::move(s.rpc)),
-      WsServer(name(), options_.tcp),
+      WebSocketServer(name(), options_.tcp),
       // bound now, so that a port in use fails the creation of the transport
       listener_(io_, name(), options_.tcp.host, options_.tcp.port),
       io_thread_(io_, name(), options_.tcp.io_spin),
@@ -117,27 +111,27 @@ void WebSocketRequestManager::accept(tcp::socket socket) {
   // a client that lets its replies pile up stops being read at half the unsent budget
   limits.pause_at_unsent_bytes = options_.tcp.max_unsent_bytes / 2;
   limits.read_bytes = WsSession::k_read_bytes;
-  WsServer& server = *this;
+  kit::WebSocketServer& server = *this;
   const std::uint64_t number = next_session_++;
   client_arrived(number);
   add(std::make_shared<WsSession>(std::move(socket), server, limits, keepalive_, name(), number));
 }
 
-// ---- WsServer: the framing (I/O thread)
+// ---- kit::WebSocketServer: the framing (I/O thread)
 
-void WebSocketRequestManager::on_message(WsSession& session, std::string_view text) {
-  handle_message(session.shared(), text);
+void WebSocketRequestManager::on_message(kit::WebSocketConnection& session, std::string_view text) {
+  handle_message(static_cast<WsSession&>(session).shared(), text);
 }
 
-void WebSocketRequestManager::on_refused_message(WsSession& session, std::size_t bytes, bool binary) {
+void WebSocketRequestManager::on_refused_message(kit::WebSocketConnection& session, std::size_t bytes, bool binary) {
   if (binary) {
-    session.queue_message(dump(error_response(
+    session.queue_text(dump(error_response(
         nullptr, invalid_request, "Invalid Request: a binary message (send JSON-RPC as text messages)",
         json{{"reason", "binary message"}, {"bytes", bytes}})));
     return;
   }
   const auto max = options_.tcp.max_message_bytes;
-  session.queue_message(dump(error_response(
+  session.queue_text(dump(error_response(
       nullptr, invalid_request, "Invalid Request: message exceeds max_message_bytes (" + std::to_string(max) + ")",
       json{{"reason", "message too large"}, {"bytes", bytes}, {"max_message_bytes", max}})));
 }
@@ -165,19 +159,19 @@ std::string WebSocketRequestManager::plain_response(const http::request<http::st
   return out.str();
 }
 
-HttpResponse WebSocketRequestManager::on_http_request(const http::request<http::string_body>& request) {
+kit::HttpResponse WebSocketRequestManager::on_http_request(const http::request<http::string_body>& request) {
   // past the memory cap (clients that do not read): nothing more is held for a new one
   if (held().over()) {
     log::warning(name(), ": HTTP request answered 503: the transport holds more than ", held().max(),
                  " bytes for its clients (max_buffered_bytes)");
-    return HttpResponse{plain_response(request, http::status::service_unavailable,
+    return kit::HttpResponse{plain_response(request, http::status::service_unavailable,
                                        "503 the server holds too much for its clients now (max_buffered_bytes); "
                                        "try again later\n")};
   }
   // the web app's files
   if (web_) return web_->answer(request);
   // no web app (`web` false): a short text says what this port is
-  return HttpResponse{plain_response(request, http::status::not_found, port_text())};
+  return kit::HttpResponse{plain_response(request, http::status::not_found, port_text())};
 }
 
 std::string WebSocketRequestManager::refuse_upgrade(const http::request<http::string_body>& request) {

@@ -37,8 +37,8 @@
 
 #include <boost/asio/ip/tcp.hpp>
 
-#include "jsonrpc_engine.h"
-#include "origin_policy.h"
+#include "simgate/jsonrpc/engine.h"
+#include "simgate/kit/origin_policy.h"
 #include "simgate/kit/tcp_server.h"
 #include "static_files.h"
 #include "websocket_session.h"
@@ -48,7 +48,7 @@ namespace simgate::websocket {
 // The default port (jsonrpc has 4001, the socket transport 4000).
 inline constexpr std::uint16_t k_default_port = 8090;
 
-class WebSocketRequestManager : public jsonrpc::JsonRpcEngine<WsSession>, private WsServer {
+class WebSocketRequestManager : public jsonrpc::JsonRpcEngine, private kit::WebSocketServer {
  public:
   // Parses the options and binds; throws ConfigError or std::runtime_error.
   explicit WebSocketRequestManager(const json& options);
@@ -74,7 +74,7 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine<WsSession>, privat
   struct Settings {
     jsonrpc::Options rpc;
     WebOptions web;
-    OriginPolicy origins;
+    kit::OriginPolicy origins;
     std::chrono::milliseconds keepalive{150'000};
     static Settings parse(const json& options);
   };
@@ -88,11 +88,11 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine<WsSession>, privat
   // JsonRpcEngine: the end of a burst
   void flush_replies() override { flush_touched(); }
 
-  // WsServer: the framing (I/O thread)
-  void on_message(WsSession& session, std::string_view text) override;
-  void on_refused_message(WsSession& session, std::size_t bytes, bool binary) override;
+  // kit::WebSocketServer: the framing (I/O thread)
+  void on_message(kit::WebSocketConnection& session, std::string_view text) override;
+  void on_refused_message(kit::WebSocketConnection& session, std::size_t bytes, bool binary) override;
   void on_messages_done(kit::Connection& session, bool read_finished) override;
-  HttpResponse on_http_request(const boost::beast::http::request<boost::beast::http::string_body>& request) override;
+  kit::HttpResponse on_http_request(const boost::beast::http::request<boost::beast::http::string_body>& request) override;
   std::string refuse_upgrade(const boost::beast::http::request<boost::beast::http::string_body>& request) override;
   void on_closed(kit::Connection& session) override;
 
@@ -105,7 +105,7 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine<WsSession>, privat
   kit::IoThread io_thread_;                               // runs io_
   std::uint64_t next_session_ = 1;                        // numbers connections in logs (I/O thread)
   std::optional<StaticFiles> web_;                        // the web app's files (none: `web` false)
-  OriginPolicy origins_;                                  // allowed_origins, bound to the port
+  kit::OriginPolicy origins_;                                  // allowed_origins, bound to the port
   std::chrono::milliseconds keepalive_;                   // keepalive_s
 };
 

@@ -19,7 +19,7 @@
 #include <vector>
 
 #include "fuzz_support.h"
-#include "protocol.h"
+#include "simgate/jsonrpc/protocol.h"
 
 namespace simgate::fuzz {
 namespace {

@@ -18,8 +18,8 @@
 #include <string_view>
 
 #include "fuzz_support.h"
-#include "params_parser.h"
-#include "wire.h"
+#include "simgate/morse/params_parser.h"
+#include "simgate/morse/wire.h"
 
 namespace simgate::fuzz {
 namespace {

@@ -23,13 +23,13 @@
 #include <vector>
 
 #include "fuzz_support.h"
-#include "ws_frames.h"
+#include "simgate/kit/ws_frames.h"
 
 namespace simgate::fuzz {
 namespace {
 
-using websocket::FrameParser;
-using websocket::FrameSink;
+using kit::FrameParser;
+using kit::FrameSink;
 
 struct Event {
   char kind;  // 't' text, 'r' too long, 'b' binary, 'c' control, 'e' protocol error

@@ -10,7 +10,7 @@
 
 #include <gtest/gtest.h>
 
-#include "protocol.h"
+#include "simgate/jsonrpc/protocol.h"
 #include "simgate/core/config.h"
 
 namespace simgate::jsonrpc {

@@ -1,5 +1,5 @@
 // The socket transport's parameters parser: Python literals and JSON, never evaluated.
-#include "params_parser.h"
+#include "simgate/morse/params_parser.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>

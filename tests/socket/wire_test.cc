@@ -1,5 +1,5 @@
 // The socket transport's line grammar and Python-compatible JSON formatting.
-#include "wire.h"
+#include "simgate/morse/wire.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>

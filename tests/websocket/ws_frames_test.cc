@@ -1,7 +1,7 @@
 // The websocket transport's frame parser without a socket (plugins/websocket/ws_frames.h):
 // client frames in any split, the events out, every protocol error. The session's use of it
 // on a real socket is in websocket_test.cc (WebSocketTest: raw frames on a socket).
-#include "ws_frames.h"
+#include "simgate/kit/ws_frames.h"
 
 #include <gtest/gtest.h>
 
@@ -10,7 +10,7 @@
 #include <string_view>
 #include <vector>
 
-namespace simgate::websocket {
+namespace simgate::kit {
 namespace {
 
 using P = FrameParser;
@@ -272,4 +272,4 @@ TEST(WebSocketFrames, StopEndsParsingAtOnce) {
 }
 
 }  // namespace
-}  // namespace simgate::websocket
+}  // namespace simgate::kit

@@ -132,10 +132,12 @@ class Connection : public std::enable_shared_from_this<Connection> {
   static constexpr std::size_t k_droppable_unsent_bytes = 64 << 10;
   template <class Format>
   bool queue_droppable_with(Format&& format) {
-    if (closed_ || unsent() > k_droppable_unsent_bytes) return false;
+    if (!room_for_droppable()) return false;
     queue_with(std::forward<Format>(format));
     return true;
   }
+  // Whether a droppable message would be queued now.
+  bool room_for_droppable() const { return !closed_ && unsent() <= k_droppable_unsent_bytes; }
   // Writes what was queued, unless a write is in flight (it takes them next).
   void flush_writes();
 
@@ -166,6 +168,9 @@ class Connection : public std::enable_shared_from_this<Connection> {
   // Sweeps since its unfinished message began (line_timeout_s); 0 when there is none.
   std::uint32_t message_ticks() const;
   boost::asio::ip::tcp::socket::executor_type executor() { return socket_.get_executor(); }
+
+  // This connection as the kit's (for a class that derives from it and from another base).
+  Connection& connection() { return *this; }
 
   // "client #3 (127.0.0.1:51234)", for log messages.
   const std::string& label() const { return label_; }

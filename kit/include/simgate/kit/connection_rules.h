@@ -1,6 +1,6 @@
 // simgate/kit/connection_rules.h — the rules on a TCP transport's connections that do not
-// depend on how it frames its messages, shared by the line transports (LineServer,
-// line_connection.h) and the websocket transport:
+// depend on how it frames its messages (ConnectionServer, connection.h, applies them to
+// every TCP transport's connections):
 //
 //   PeerCounts  open connections by non-loopback address, against max_connections_per_peer
 //               (loopback peers are the machine's own programs, all one address: not counted).

@@ -6,7 +6,7 @@
 // bytes an HTTP response owns while it is written (a file the web server's cache shares is
 // not counted again per response). Each connection adds what it comes to hold and takes it
 // back when it no longer holds it. The rules built on it, the same on every TCP transport
-// (line_connection.h, plugins/websocket/websocket_session.h):
+// (connection.h: every connection of a transport):
 //   - a connection whose unfinished message would take the total past the cap is closed;
 //   - a reply that finds the total past the cap while its own connection still has replies
 //     unsent closes that connection (its client does not read);

@@ -58,7 +58,7 @@ struct TcpOptions {
   std::chrono::microseconds io_spin{50};             // ("io_spin_us") idle_spin.h
   bool cancel_on_disconnect = true;                  // ("on_disconnect": "cancel" | "let_run")
   GlobalPolicy global_policy = GlobalPolicy::reject;  // ("global_policy": "reject" | "preempt")
-  // Connections that hold resources without using them (line_connection.h, LineServer):
+  // Connections that hold resources without using them (connection.h, ConnectionServer):
   std::chrono::milliseconds idle_timeout{0};       // ("idle_timeout_s") close a connection idle this long; 0: never
   std::chrono::milliseconds idle_evict{60000};     // ("idle_evict_s") at max_connections, the connection idle
                                                    //   longest makes room if idle this long; 0: never
@@ -123,7 +123,7 @@ class TcpListener {
     // A new connection (TCP_NODELAY set) to serve.
     std::function<void(boost::asio::ip::tcp::socket)> accepted;
     // Why a connection from `peer` is refused ("" to accept it), for the log and the client:
-    // "too many connections (max_connections 1024)" (LineServer::refusal_reason).
+    // "too many connections (max_connections 1024)" (ConnectionServer::refusal_reason).
     std::function<std::string(const boost::asio::ip::tcp::endpoint& peer)> refuse;
     // The one line (with its '\n') a refused connection is sent before it is closed.
     std::function<std::string(const std::string& why)> refusal;

@@ -1,6 +1,6 @@
 // simgate/client/dds_client.h — a C++ client of simgate's DDS transport.
 //
-// Terms (see docs/transports/dds.md and plugins/dds/simgate_dds.idl):
+// Terms (see docs/transports/dds.md and protocols/dds/simgate_dds.idl):
 //  - A DdsClient joins a DDS domain and partition (those of the simulation it talks to) with
 //    its own participant, a request writer and a reply reader. Its id is the GUID of its
 //    request writer (the server refuses any other); its reply reader lives in the partition

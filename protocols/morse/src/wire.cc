@@ -1,4 +1,4 @@
-#include "wire.h"
+#include "simgate/morse/wire.h"
 
 #include <array>
 #include <charconv>

@@ -1,5 +1,5 @@
-// options.cc — the options of the JSON-RPC transports (jsonrpc_engine.h: Options).
-#include "jsonrpc_engine.h"
+// options.cc — the options of the JSON-RPC transports (simgate/jsonrpc/engine.h: Options).
+#include "simgate/jsonrpc/engine.h"
 #include "simgate/core/config.h"
 
 namespace simgate::jsonrpc {

@@ -1,9 +1,9 @@
-#include "ws_frames.h"
+#include "simgate/kit/ws_frames.h"
 
 #include <algorithm>
 #include <cstring>
 
-namespace simgate::websocket {
+namespace simgate::kit {
 
 bool FrameParser::feed(std::string_view bytes, FrameSink& sink) {
   const char* p = bytes.data();
@@ -151,4 +151,4 @@ FrameParser::Head FrameParser::fail(std::string_view reason, FrameSink& sink) {
   return Head::error;
 }
 
-}  // namespace simgate::websocket
+}  // namespace simgate::kit

@@ -1,4 +1,4 @@
-// jsonrpc_engine_streams.h — the JSON-RPC engine's data streams (core/streams.h): the reserved
+// engine_streams.cc — the JSON-RPC engine's data streams (core/streams.h): the reserved
 // methods rpc.streams, rpc.subscribe, rpc.unsubscribe and rpc.publish, and the rpc.sample
 // notifications a subscription brings. Wire: docs/transports/jsonrpc.md#data-streams.
 //
@@ -6,27 +6,24 @@
 // leaves, or when its component is deleted (rpc.unsubscribed {subscription, reason} tells
 // the client). Samples are notifications the client may miss: each subscription keeps the
 // latest `stream_queue` samples in the core, and a connection that lets more than the
-// session's droppable budget (kit::kit::Connection::k_droppable_unsent_bytes, both transports)
+// session's droppable budget (kit::Connection::k_droppable_unsent_bytes, both transports)
 // pile up unread loses samples rather than its replies; both losses are counted (simulation
 // get_stream_statistics) and logged once.
 //
 // Threads: the I/O thread, except wake_streams() (the thread that holds the simulation
 // lock, when a subscription's queue stops being empty: one post per burst).
-#ifndef SIMGATE_PLUGINS_JSONRPC_JSONRPC_ENGINE_STREAMS_H_
-#define SIMGATE_PLUGINS_JSONRPC_JSONRPC_ENGINE_STREAMS_H_
-
 #include <algorithm>
 
 #include <boost/asio/post.hpp>
 
-#include "jsonrpc_engine.h"
+#include "simgate/jsonrpc/engine.h"
 #include "simgate/core/log.h"
 
 namespace simgate::jsonrpc {
 
 namespace streams_detail {
 
-inline json stream_json(const StreamInfo& info) {
+json stream_json(const StreamInfo& info) {
   json out{{"component", info.component},
            {"direction", to_string(info.direction)},
            {"kind", info.kind},
@@ -39,7 +36,7 @@ inline json stream_json(const StreamInfo& info) {
 }
 
 // The one argument `name` of `params`: {"<name>": X} or [X]; null when absent.
-inline const json* single_param(const json& params, const char* name) {
+const json* single_param(const json& params, const char* name) {
   if (params.is_object() && params.size() == 1 && params.contains(name)) return &params[name];
   if (params.is_array() && params.size() == 1) return &params[0];
   return nullptr;
@@ -47,16 +44,14 @@ inline const json* single_param(const json& params, const char* name) {
 
 }  // namespace streams_detail
 
-template <class Session>
-json JsonRpcEngine<Session>::stream_list() const {
+json JsonRpcEngine::stream_list() const {
   json out = json::array();
   if (stream_hub())
     for (const auto& info : stream_hub()->streams(transport_name())) out.push_back(streams_detail::stream_json(info));
   return out;
 }
 
-template <class Session>
-bool JsonRpcEngine<Session>::handle_stream_method(const std::shared_ptr<Session>& session, const std::string& method,
+bool JsonRpcEngine::handle_stream_method(const std::shared_ptr<Session>& session, const std::string& method,
                                                  const json& params, ReplyTo& to) {
   if (method == "rpc.streams") {
     reply(to, result_response(to.id, stream_list()));
@@ -80,8 +75,7 @@ bool JsonRpcEngine<Session>::handle_stream_method(const std::shared_ptr<Session>
   return true;
 }
 
-template <class Session>
-void JsonRpcEngine<Session>::subscribe(const std::shared_ptr<Session>& session, const json& params, ReplyTo& to) {
+void JsonRpcEngine::subscribe(const std::shared_ptr<Session>& session, const json& params, ReplyTo& to) {
   const json* component = streams_detail::single_param(params, "component");
   if (!component || !component->is_string()) {
     reply(to, error_response(to.id, code::invalid_params,
@@ -127,8 +121,7 @@ void JsonRpcEngine<Session>::subscribe(const std::shared_ptr<Session>& session, 
   stream_subs_.push_back(std::move(sub));
 }
 
-template <class Session>
-bool JsonRpcEngine<Session>::unsubscribe(Session& session, std::uint64_t id) {
+bool JsonRpcEngine::unsubscribe(Session& session, std::uint64_t id) {
   auto it = std::find_if(stream_subs_.begin(), stream_subs_.end(), [&](const StreamSub& s) {
     return s.id == id && s.session.lock().get() == &session;
   });
@@ -138,8 +131,7 @@ bool JsonRpcEngine<Session>::unsubscribe(Session& session, std::uint64_t id) {
   return true;
 }
 
-template <class Session>
-void JsonRpcEngine<Session>::publish(const json& params, ReplyTo& to) {
+void JsonRpcEngine::publish(const json& params, ReplyTo& to) {
   // {"component": "robot.motion", "data": {...}} or ["robot.motion", {...}]
   const json* component = nullptr;
   const json* data = nullptr;
@@ -171,14 +163,12 @@ void JsonRpcEngine<Session>::publish(const json& params, ReplyTo& to) {
   reply(to, result_response(to.id, json{{"applied", result.applied}}));
 }
 
-template <class Session>
-void JsonRpcEngine<Session>::wake_streams() {
+void JsonRpcEngine::wake_streams() {
   if (streams_woken_.exchange(true, std::memory_order_acq_rel)) return;
   boost::asio::post(io_, [this] { drain_streams(); });
 }
 
-template <class Session>
-void JsonRpcEngine<Session>::drain_streams() {
+void JsonRpcEngine::drain_streams() {
   streams_woken_.store(false, std::memory_order_release);
   for (auto it = stream_subs_.begin(); it != stream_subs_.end();) {
     StreamSub& s = *it;
@@ -224,8 +214,7 @@ void JsonRpcEngine<Session>::drain_streams() {
   flush_replies();
 }
 
-template <class Session>
-void JsonRpcEngine<Session>::end_subscriptions(const Session* session) {
+void JsonRpcEngine::end_subscriptions(const Session* session) {
   for (auto it = stream_subs_.begin(); it != stream_subs_.end();) {
     auto owner = it->session.lock();
     if (session && owner && owner.get() != session) {
@@ -239,4 +228,3 @@ void JsonRpcEngine<Session>::end_subscriptions(const Session* session) {
 
 }  // namespace simgate::jsonrpc
 
-#endif  // SIMGATE_PLUGINS_JSONRPC_JSONRPC_ENGINE_STREAMS_H_

@@ -1,4 +1,4 @@
-// origin_policy.h — which web pages may open a WebSocket to the transport (the
+// simgate/kit/origin_policy.h — which web pages may open a WebSocket to the transport (the
 // `allowed_origins` option), against cross-site WebSocket hijacking: a browser lets any page
 // open a WebSocket to any address, and tells the server which site the page came from in the
 // upgrade's `Origin` header; the server must refuse the sites it does not trust.
@@ -17,8 +17,8 @@
 //
 // Life cycle: parsed from the options once (take()), completed with the bound port
 // (bind()), then consulted by the I/O thread for each upgrade (allows()); immutable after.
-#ifndef SIMGATE_PLUGINS_WEBSOCKET_ORIGIN_POLICY_H_
-#define SIMGATE_PLUGINS_WEBSOCKET_ORIGIN_POLICY_H_
+#ifndef SIMGATE_KIT_ORIGIN_POLICY_H_
+#define SIMGATE_KIT_ORIGIN_POLICY_H_
 
 #include <cstdint>
 #include <optional>
@@ -28,7 +28,7 @@
 
 #include "simgate/core/config.h"
 
-namespace simgate::websocket {
+namespace simgate::kit {
 
 class OriginPolicy {
  public:
@@ -57,6 +57,6 @@ class OriginPolicy {
   bool every_interface_ = false;   // bound to 0.0.0.0 or :: (default list)
 };
 
-}  // namespace simgate::websocket
+}  // namespace simgate::kit
 
-#endif  // SIMGATE_PLUGINS_WEBSOCKET_ORIGIN_POLICY_H_
+#endif  // SIMGATE_KIT_ORIGIN_POLICY_H_

@@ -1,5 +1,5 @@
-// ws_frames.h — the websocket transport's reader of RFC 6455 client frames, without a
-// socket: bytes in, events out (what WsSession does with a read; fuzzed by
+// simgate/kit/ws_frames.h — the reader of RFC 6455 client frames, without a socket: bytes
+// in, events out (what kit::WebSocketConnection does with a read; fuzzed by
 // tests/fuzz/websocket_frames.cc).
 //
 // Terms: a message is one data frame, or a text/binary frame and its continuation frames up
@@ -31,15 +31,15 @@
 //
 // Life cycle: one parser per connection, for its whole life. Threads: not thread-safe; the
 // session's I/O thread uses it.
-#ifndef SIMGATE_PLUGINS_WEBSOCKET_WS_FRAMES_H_
-#define SIMGATE_PLUGINS_WEBSOCKET_WS_FRAMES_H_
+#ifndef SIMGATE_KIT_WS_FRAMES_H_
+#define SIMGATE_KIT_WS_FRAMES_H_
 
 #include <cstddef>
 #include <cstdint>
 #include <string>
 #include <string_view>
 
-namespace simgate::websocket {
+namespace simgate::kit {
 
 // What a FrameParser reports (its owner implements it).
 class FrameSink {
@@ -122,6 +122,6 @@ class FrameParser {
   std::string error_;                            // the protocol error's reason
 };
 
-}  // namespace simgate::websocket
+}  // namespace simgate::kit
 
-#endif  // SIMGATE_PLUGINS_WEBSOCKET_WS_FRAMES_H_
+#endif  // SIMGATE_KIT_WS_FRAMES_H_

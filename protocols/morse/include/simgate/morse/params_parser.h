@@ -1,4 +1,4 @@
-// params_parser.h — the socket transport's parser for the parameters of a request line.
+// simgate/morse/params_parser.h — the socket transport's parser for the parameters of a request line.
 //
 // MORSE's text protocol carries the parameters as the rest of the line after the service
 // name. Today's MORSE sends JSON (`[1, 2]`); its documentation and older clients send
@@ -17,8 +17,8 @@
 // hostile line cannot exhaust the stack.
 //
 // Threads: pure functions, callable from any thread.
-#ifndef SIMGATE_PLUGINS_SOCKET_PARAMS_PARSER_H_
-#define SIMGATE_PLUGINS_SOCKET_PARAMS_PARSER_H_
+#ifndef SIMGATE_MORSE_PARAMS_PARSER_H_
+#define SIMGATE_MORSE_PARAMS_PARSER_H_
 
 #include <cstddef>
 #include <string>
@@ -56,4 +56,4 @@ bool parse_params_into(std::string_view text, std::size_t first_column, json& va
 
 }  // namespace simgate::socket
 
-#endif  // SIMGATE_PLUGINS_SOCKET_PARAMS_PARSER_H_
+#endif  // SIMGATE_MORSE_PARAMS_PARSER_H_

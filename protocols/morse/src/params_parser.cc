@@ -1,6 +1,6 @@
-#include "params_parser.h"
+#include "simgate/morse/params_parser.h"
 
-#include "wire.h"
+#include "simgate/morse/wire.h"
 
 #include <array>
 #include <charconv>

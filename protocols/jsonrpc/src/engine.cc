@@ -1,10 +1,6 @@
-// plugins/jsonrpc/jsonrpc_engine_impl.h — the JSON-RPC engine's member definitions
-// (jsonrpc_engine.h): parsing a message, batches, dispatch to the core, rpc.login,
-// rpc.cancel, rpc.discover, replies. A transport includes it (and jsonrpc_engine_streams.h)
-// in the one .cc that instantiates JsonRpcEngine<its Session>.
-#ifndef SIMGATE_PLUGINS_JSONRPC_JSONRPC_ENGINE_IMPL_H_
-#define SIMGATE_PLUGINS_JSONRPC_JSONRPC_ENGINE_IMPL_H_
-
+// engine.cc — the JSON-RPC engine's member definitions (simgate/jsonrpc/engine.h): parsing a
+// message, batches, dispatch to the core, rpc.login, rpc.cancel, rpc.discover, replies
+// (engine_streams.cc: the data streams). Compiled once, for every framing.
 #include <algorithm>
 #include <cstring>
 #include <exception>
@@ -13,43 +9,39 @@
 
 #include <boost/asio/post.hpp>
 
-#include "jsonrpc_engine.h"
-#include "protocol.h"
+#include "simgate/jsonrpc/engine.h"
+#include "simgate/jsonrpc/protocol.h"
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
 
 namespace simgate::jsonrpc {
 
 namespace engine_detail {
-inline constexpr std::string_view k_version = "0.1.0";
+constexpr std::string_view k_version = "0.1.0";
 // a reply buffer larger than this is not kept for the next reply
-inline constexpr std::size_t k_kept_line_bytes = 256 * 1024;
+constexpr std::size_t k_kept_line_bytes = 256 * 1024;
 }  // namespace engine_detail
 
-template <class Session>
-JsonRpcEngine<Session>::JsonRpcEngine(std::string who, std::string tag, Options options)
+JsonRpcEngine::JsonRpcEngine(std::string who, std::string tag, Options options)
     : RequestManager(std::move(who)), options_(std::move(options)), tag_(std::move(tag)) {
   set_global_policy(options_.tcp.global_policy);
   set_progress_interval(options_.tcp.progress_interval);
   for (const auto& message : options_.tcp.warnings) log::warning(message);
 }
 
-template <class Session>
-void JsonRpcEngine<Session>::deliver_here() {
+void JsonRpcEngine::deliver_here() {
   // outcomes produced on the simulation thread come here: one drain per burst, then one
   // write per connection
   deliver_on_this_thread([this] { boost::asio::post(io_, [this] { drain_completions(); }); });
 }
 
-template <class Session>
-void JsonRpcEngine<Session>::input_ended(Session& session) {
+void JsonRpcEngine::input_ended(Session& session) {
   // the client will send nothing more: under "cancel" it has left, and its calls end
   if (options_.tcp.cancel_on_disconnect)
     for (RequestId id : session.pending_calls()) cancel(id);
 }
 
-template <class Session>
-void JsonRpcEngine<Session>::session_closed(Session& session) {
+void JsonRpcEngine::session_closed(Session& session) {
   client_left(session.number());
   end_subscriptions(&session);
   if (stopping_ || !options_.tcp.cancel_on_disconnect) return;
@@ -57,14 +49,12 @@ void JsonRpcEngine<Session>::session_closed(Session& session) {
   for (RequestId id : session.pending_calls()) cancel(id);
 }
 
-template <class Session>
-void JsonRpcEngine<Session>::stop_io() {
+void JsonRpcEngine::stop_io() {
   stopping_ = true;
   end_subscriptions(nullptr);
 }
 
-template <class Session>
-void JsonRpcEngine<Session>::finish_stop() {
+void JsonRpcEngine::finish_stop() {
   deliver_on_any_thread();  // the connections are gone: outcomes from now on go nowhere
   // finish what the core still holds (replies can no longer be sent)
   abandon_pending();
@@ -74,8 +64,7 @@ void JsonRpcEngine<Session>::finish_stop() {
 // reply is bounded: once the responses stored reach max_unsent_bytes, each later entry
 // answers a short -32006 instead of its result (issue #17: a batch of rpc.discover built a
 // 222 MB reply).
-template <class Session>
-struct JsonRpcEngine<Session>::Batch {
+struct JsonRpcEngine::Batch {
   Batch(std::size_t n, std::size_t max_bytes) : responses(n), remaining(n), max_bytes(max_bytes) {}
   std::vector<std::string> responses;  // serialised; empty = no response (notification)
   std::size_t remaining;               // entries not yet finished
@@ -84,8 +73,7 @@ struct JsonRpcEngine<Session>::Batch {
   bool full() const { return bytes >= max_bytes; }
 };
 
-template <class Session>
-void JsonRpcEngine<Session>::handle_message(const std::shared_ptr<Session>& session, std::string_view line) {
+void JsonRpcEngine::handle_message(const std::shared_ptr<Session>& session, std::string_view line) {
   // framing: optional "\r" before the "\n"; blank lines are keep-alives
   if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
   if (line.find_first_not_of(" \t\r") == std::string_view::npos) return;
@@ -165,8 +153,7 @@ void JsonRpcEngine<Session>::handle_message(const std::shared_ptr<Session>& sess
   handle_request(session, message, single);
 }
 
-template <class Session>
-void JsonRpcEngine<Session>::flush_submissions() {
+void JsonRpcEngine::flush_submissions() {
   // one hand-over per read: a batch's calls always travel together, so they run in the
   // same process(); when the simulation lock is free they run here, on this thread, and
   // their replies are queued on their connections before run_or_submit returns
@@ -178,8 +165,7 @@ void JsonRpcEngine<Session>::flush_submissions() {
   if (to_submit_.size() > k_kept_calls) to_submit_.erase(to_submit_.begin() + k_kept_calls, to_submit_.end());
 }
 
-template <class Session>
-void JsonRpcEngine<Session>::handle_request(const std::shared_ptr<Session>& session, json& message,
+void JsonRpcEngine::handle_request(const std::shared_ptr<Session>& session, json& message,
                                            ReplyTo to) {
   // validate; invalid requests are answered even without an id
   Request request;
@@ -192,8 +178,7 @@ void JsonRpcEngine<Session>::handle_request(const std::shared_ptr<Session>& sess
   dispatch(session, request, std::move(to));
 }
 
-template <class Session>
-void JsonRpcEngine<Session>::dispatch(const std::shared_ptr<Session>& session, Request& request, ReplyTo to) {
+void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& request, ReplyTo to) {
   to.id = request.id;
   to.notification = !request.has_id;
 
@@ -298,8 +283,7 @@ void JsonRpcEngine<Session>::dispatch(const std::shared_ptr<Session>& session, R
   pending.cancel = false;
 }
 
-template <class Session>
-void JsonRpcEngine<Session>::handle_login(const std::shared_ptr<Session>& session, const json& params, ReplyTo to) {
+void JsonRpcEngine::handle_login(const std::shared_ptr<Session>& session, const json& params, ReplyTo to) {
   // {"token": "..."} or ["..."]
   const json* token = nullptr;
   if (params.is_object() && params.size() == 1 && params.contains("token")) token = &params["token"];
@@ -327,8 +311,7 @@ void JsonRpcEngine<Session>::handle_login(const std::shared_ptr<Session>& sessio
   });
 }
 
-template <class Session>
-void JsonRpcEngine<Session>::handle_cancel(const std::shared_ptr<Session>& session, const std::string& method,
+void JsonRpcEngine::handle_cancel(const std::shared_ptr<Session>& session, const std::string& method,
                                           const json& params, ReplyTo to) {
   // {"id": X} or [X]
   const json* target = nullptr;
@@ -360,14 +343,12 @@ void JsonRpcEngine<Session>::handle_cancel(const std::shared_ptr<Session>& sessi
   cancel(*id, [this, cancel_id](bool found) { complete_request(cancel_id, Outcome::success(json(found))); });
 }
 
-template <class Session>
-void JsonRpcEngine<Session>::on_service_completion(RequestId id, Outcome&& outcome) {
+void JsonRpcEngine::on_service_completion(RequestId id, Outcome&& outcome) {
   // the I/O thread (deliver_on_this_thread): inside run_or_submit, or drain_completions()
   finish_call(id, std::move(outcome));
 }
 
-template <class Session>
-void JsonRpcEngine<Session>::on_service_progress(RequestId id, json&& value) {
+void JsonRpcEngine::on_service_progress(RequestId id, json&& value) {
   // the I/O thread, before the call's response
   auto it = pending_.find(id);
   if (it == pending_.end()) return;
@@ -383,15 +364,13 @@ void JsonRpcEngine<Session>::on_service_progress(RequestId id, json&& value) {
   });
 }
 
-template <class Session>
-void JsonRpcEngine<Session>::drain_completions() {
+void JsonRpcEngine::drain_completions() {
   // replies of the whole burst go out with one write per connection
   deliver_handed_over();
   flush_replies();
 }
 
-template <class Session>
-void JsonRpcEngine<Session>::finish_call(RequestId id, Outcome&& outcome) {
+void JsonRpcEngine::finish_call(RequestId id, Outcome&& outcome) {
   auto it = pending_.find(id);
   if (it == pending_.end()) return;
   // taken out of the table while it is answered; its node is given back for a later call
@@ -429,8 +408,7 @@ void JsonRpcEngine<Session>::finish_call(RequestId id, Outcome&& outcome) {
   session->done(pending.id_key);
 }
 
-template <class Session>
-void JsonRpcEngine<Session>::reply(ReplyTo& to, std::optional<json> response) {
+void JsonRpcEngine::reply(ReplyTo& to, std::optional<json> response) {
   if (to.batch) {
     auto& batch = *to.batch;
     if (!to.notification) {
@@ -467,4 +445,3 @@ void JsonRpcEngine<Session>::reply(ReplyTo& to, std::optional<json> response) {
 
 }  // namespace simgate::jsonrpc
 
-#endif  // SIMGATE_PLUGINS_JSONRPC_JSONRPC_ENGINE_IMPL_H_

@@ -1,4 +1,4 @@
-// plugins/jsonrpc/protocol.h — the JSON-RPC 2.0 wire vocabulary of the jsonrpc transport.
+// simgate/jsonrpc/protocol.h — the JSON-RPC 2.0 wire vocabulary of the JSON-RPC transports.
 //
 // Pure functions, no I/O: error codes and the Outcome -> code mapping, building response
 // lines, validating one request object (and its fast path, which reads the common shape of
@@ -8,8 +8,8 @@
 //
 // Terms: a *message* is one line of the stream: a request object or a batch (array). A
 // *call* has an id and gets a response; a *notification* has none and gets nothing.
-#ifndef SIMGATE_PLUGINS_JSONRPC_PROTOCOL_H_
-#define SIMGATE_PLUGINS_JSONRPC_PROTOCOL_H_
+#ifndef SIMGATE_JSONRPC_PROTOCOL_H_
+#define SIMGATE_JSONRPC_PROTOCOL_H_
 
 #include <chrono>
 #include <optional>
@@ -119,4 +119,4 @@ json openrpc_document(const std::vector<ServiceDescriptor>& services, std::strin
 
 }  // namespace simgate::jsonrpc
 
-#endif  // SIMGATE_PLUGINS_JSONRPC_PROTOCOL_H_
+#endif  // SIMGATE_JSONRPC_PROTOCOL_H_

@@ -1,4 +1,4 @@
-#include "origin_policy.h"
+#include "simgate/kit/origin_policy.h"
 
 #include <algorithm>
 #include <cctype>
@@ -8,7 +8,7 @@
 
 #include "simgate/core/errors.h"
 
-namespace simgate::websocket {
+namespace simgate::kit {
 
 namespace {
 
@@ -127,4 +127,4 @@ std::string OriginPolicy::describe() const {
   return s.empty() ? "none" : s;
 }
 
-}  // namespace simgate::websocket
+}  // namespace simgate::kit

@@ -1,4 +1,4 @@
-// wire.h — the socket transport's line grammar and reply formatting (MORSE's text protocol).
+// simgate/morse/wire.h — the socket transport's line grammar and reply formatting (MORSE's text protocol).
 //
 // Requests, one per line (LF or CRLF; blanks between tokens are any run of spaces/tabs):
 //
@@ -21,8 +21,8 @@
 // formatting never fails.
 //
 // Threads: pure functions, callable from any thread.
-#ifndef SIMGATE_PLUGINS_SOCKET_WIRE_H_
-#define SIMGATE_PLUGINS_SOCKET_WIRE_H_
+#ifndef SIMGATE_MORSE_WIRE_H_
+#define SIMGATE_MORSE_WIRE_H_
 
 #include <cstddef>
 #include <cstdint>
@@ -83,4 +83,4 @@ void append_reply(std::string& out, std::string_view id, std::string_view status
 
 }  // namespace simgate::socket
 
-#endif  // SIMGATE_PLUGINS_SOCKET_WIRE_H_
+#endif  // SIMGATE_MORSE_WIRE_H_

@@ -1,4 +1,4 @@
-#include "protocol.h"
+#include "simgate/jsonrpc/protocol.h"
 
 #include <algorithm>
 #include <array>

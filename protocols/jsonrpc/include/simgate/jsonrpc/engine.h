@@ -1,4 +1,4 @@
-// plugins/jsonrpc/jsonrpc_engine.h — JSON-RPC 2.0 served over any framing: the protocol
+// simgate/jsonrpc/engine.h — JSON-RPC 2.0 served over any framing: the protocol
 // both JSON-RPC transports share (newline-delimited over TCP: the `jsonrpc` plugin;
 // WebSocket text messages: the `websocket` plugin).
 //
@@ -10,26 +10,17 @@
 // rpc.cancel {"id": X} (cancels the caller's own pending call), rpc.login {"token"} (with
 // the "auth" option, clients that must authenticate (kit/auth.h) get -32005 for anything
 // else first), and the data streams' rpc.streams, rpc.subscribe, rpc.unsubscribe,
-// rpc.publish (jsonrpc_engine_streams.h; samples come as rpc.sample notifications). Wire
+// rpc.publish (engine_streams.cc; samples come as rpc.sample notifications). Wire
 // details and the error table: docs/transports/jsonrpc.md.
 //
-// The engine knows nothing of sockets. A transport derives from JsonRpcEngine<Session>,
-// owns the listener and the connections, hands each received message to handle_message()
-// and the end of each read to flush_submissions(), and writes the replies the engine
-// queued on its sessions when flush_replies() is called (once per burst). The Session type
-// is the transport's connection; it provides (no virtual call: the engine is a template,
-// instantiated once per transport in its plugin):
-//
-//   std::shared_ptr<Session> shared();                  // this connection
-//   void queue_message(std::string_view text);          // one message; the framing is added
-//   template <class F> bool queue_droppable_message(F&& format);
-//                                                       // format(std::string&) appends one
-//                                                       // message; false: dropped (client not reading)
-//   std::size_t in_flight() const; void add_in_flight(); void done(const std::string& key);
-//   bool authenticated() const; void set_authenticated();
-//   const std::string& label() const; bool closed() const;
-//   void flush_writes(); void end(std::string_view reason, kit::Ending how);
-//   plus SessionCalls (the ids of its pending calls) as a base.
+// The engine knows nothing of sockets. A transport derives from JsonRpcEngine (and from a
+// kit server: kit::LineServer, kit::WebSocketServer), owns the listener and the
+// connections, hands each received message to handle_message() and the end of each read to
+// flush_submissions(), and writes the replies the engine queued on its sessions when
+// flush_replies() is called (once per burst). Its connection type derives from the kit's
+// connection of its framing and from jsonrpc::Session, whose one call of its own,
+// queue_message(), frames a message the transport's way (a line, a WebSocket text message).
+// The engine is compiled once (libsimgate_protocol_jsonrpc), for every framing.
 //
 // Terms:
 //  - session: one client connection; call ids are scoped to it.
@@ -42,8 +33,8 @@
 // held, the simulation thread runs them later and the core hands their outcomes over to
 // the I/O thread (deliver_on_this_thread, posted to io_): one drain_completions() per
 // burst. A connection's replies keep the order in which outcomes were produced.
-#ifndef SIMGATE_PLUGINS_JSONRPC_JSONRPC_ENGINE_H_
-#define SIMGATE_PLUGINS_JSONRPC_JSONRPC_ENGINE_H_
+#ifndef SIMGATE_JSONRPC_ENGINE_H_
+#define SIMGATE_JSONRPC_ENGINE_H_
 
 #include <atomic>
 #include <cstdint>
@@ -56,8 +47,9 @@
 
 #include <boost/asio/io_context.hpp>
 
-#include "protocol.h"
 #include "simgate/core/request_manager.h"
+#include "simgate/jsonrpc/protocol.h"
+#include "simgate/kit/connection.h"
 #include "simgate/kit/id_table.h"
 #include "simgate/kit/recycling_map.h"
 #include "simgate/kit/tcp_server.h"
@@ -108,7 +100,53 @@ class SessionCalls {
   kit::IdTable calls_;  // dumped JSON-RPC id -> the core's request id
 };
 
-template <class Session>
+// One client connection as the engine sees it: the kit's connection of the transport's
+// framing (`connection`), the ids of its pending calls (SessionCalls), and how a message is
+// framed on it (queue_message, the transport's).
+class Session : public SessionCalls {
+ public:
+  explicit Session(kit::Connection& connection) : connection_(connection) {}
+  virtual ~Session() = default;
+  Session(const Session&) = delete;
+  Session& operator=(const Session&) = delete;
+
+  // Queues one message (request answer, notification); the transport adds its framing.
+  virtual void queue_message(std::string_view text) = 0;
+  // Queues the message `format(std::string&)` appends, unless the client lets messages pile
+  // up unread (kit::Connection::k_droppable_unsent_bytes): false, dropped.
+  template <class Format>
+  bool queue_droppable_message(Format&& format) {
+    if (!connection_.room_for_droppable()) return false;
+    droppable_.clear();
+    format(droppable_);
+    queue_message(droppable_);
+    if (droppable_.capacity() > kit::Connection::k_kept_buffer_bytes) std::string().swap(droppable_);
+    return true;
+  }
+  // This session, sharing its connection's ownership.
+  std::shared_ptr<Session> shared() { return std::shared_ptr<Session>(connection_.shared_from_this(), this); }
+
+  // Calls, notifications and cancels in flight (max_in_flight), each until done().
+  std::size_t in_flight() const { return connection_.unanswered(); }
+  void add_in_flight() { connection_.expect_reply(); }
+  // A call (or cancel) in flight produced its reply; `key` is its id's ("" when untracked).
+  void done(const std::string& key) {
+    forget_id(key);
+    connection_.replied();
+  }
+  bool authenticated() const { return connection_.authenticated(); }
+  void set_authenticated() { connection_.set_authenticated(); }
+  const std::string& label() const { return connection_.label(); }
+  std::uint64_t number() const { return connection_.number(); }
+  bool closed() const { return connection_.closed(); }
+  void flush_writes() { connection_.flush_writes(); }
+  void end(std::string_view reason, kit::Ending how) { connection_.end(reason, how); }
+
+ private:
+  kit::Connection& connection_;  // the session's connection (its other base)
+  std::string droppable_;        // a droppable message being formatted
+};
+
 class JsonRpcEngine : public RequestManager {
  public:
   const Options& options() const { return options_; }
@@ -226,4 +264,4 @@ class JsonRpcEngine : public RequestManager {
 
 }  // namespace simgate::jsonrpc
 
-#endif  // SIMGATE_PLUGINS_JSONRPC_JSONRPC_ENGINE_H_
+#endif  // SIMGATE_JSONRPC_ENGINE_H_

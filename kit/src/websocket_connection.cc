@@ -1,4 +1,4 @@
-#include "websocket_session.h"
+#include "simgate/kit/websocket_connection.h"
 
 #include <algorithm>
 #include <utility>
@@ -11,7 +11,7 @@
 
 #include "simgate/core/log.h"
 
-namespace simgate::websocket {
+namespace simgate::kit {
 
 bool is_valid_close_code(std::uint16_t code) {
   // 1004-1006 and 1015 are reserved (never sent), 1016-2999 unassigned; 3000-4999 are for
@@ -26,8 +26,9 @@ namespace ws = beast::websocket;
 using asio::ip::tcp;
 using boost::system::error_code;
 
-WsSession::WsSession(tcp::socket socket, WsServer& server, kit::ConnectionLimits limits,
-                     std::chrono::milliseconds keepalive, std::string_view who, std::uint64_t number)
+WebSocketConnection::WebSocketConnection(tcp::socket socket, WebSocketServer& server, ConnectionLimits limits,
+                                         std::chrono::milliseconds keepalive, std::string_view who,
+                                         std::uint64_t number)
     : Connection(std::move(socket), server, limits, who, number),
       host_(server),
       keepalive_(keepalive),
@@ -36,20 +37,20 @@ WsSession::WsSession(tcp::socket socket, WsServer& server, kit::ConnectionLimits
 
 // ---- the HTTP request and the upgrade (Beast)
 
-void WsSession::start() {
+void WebSocketConnection::start() {
   // the HTTP request first: an upgrade becomes the WebSocket, anything else gets the host's answer
   parser_.emplace();
   parser_->header_limit(k_max_request_bytes);
   parser_->body_limit(k_max_request_bytes);
   timer_.expires_after(k_handshake_timeout);
-  timer_.async_wait([self = shared()](const error_code& ec) {
+  timer_.async_wait([self = shared_self()](const error_code& ec) {
     if (!ec && !self->upgraded_) self->close("no WebSocket handshake within the handshake timeout");
   });
   http::async_read(socket(), http_buffer_, *parser_,
-                   [self = shared()](const error_code& ec, std::size_t) { self->on_request(ec); });
+                   [self = shared_self()](const error_code& ec, std::size_t) { self->on_request(ec); });
 }
 
-void WsSession::on_request(const error_code& ec) {
+void WebSocketConnection::on_request(const error_code& ec) {
   if (closed()) return;
   if (ec) {
     close("bad HTTP request: " + ec.message());
@@ -65,7 +66,7 @@ void WsSession::on_request(const error_code& ec) {
     std::vector<asio::const_buffer> buffers{asio::buffer(http_response_.head)};
     if (http_response_.body) buffers.push_back(asio::buffer(*http_response_.body));
     asio::async_write(socket(), buffers,
-                      [self = shared()](const error_code&, std::size_t) { self->close("HTTP request answered"); });
+                      [self = shared_self()](const error_code&, std::size_t) { self->close("HTTP request answered"); });
     return;
   }
   // Beast checks the upgrade and answers it (101, or 400 with the reason); the frames are ours
@@ -75,10 +76,10 @@ void WsSession::on_request(const error_code& ec) {
   }));
   auto request = parser_->release();
   parser_.reset();
-  upgrade_->async_accept(request, [self = shared()](const error_code& ec) { self->on_upgraded(ec); });
+  upgrade_->async_accept(request, [self = shared_self()](const error_code& ec) { self->on_upgraded(ec); });
 }
 
-void WsSession::on_upgraded(const error_code& ec) {
+void WebSocketConnection::on_upgraded(const error_code& ec) {
   upgrade_.reset();
   if (shut()) return;
   if (ec) {
@@ -98,7 +99,7 @@ void WsSession::on_upgraded(const error_code& ec) {
 
 // ---- reading
 
-void WsSession::consume(std::string_view data) {
+void WebSocketConnection::consume(std::string_view data) {
   heard_tick_ = tick();  // the keep-alive's clock: any frame, a pong too
   pinged_ = false;
   delivered_ = false;
@@ -123,19 +124,19 @@ void WsSession::consume(std::string_view data) {
   }
 }
 
-void WsSession::on_text(std::string_view text) {
+void WebSocketConnection::on_text(std::string_view text) {
   delivered_ = true;
   active();  // a message, not a ping: pings keep no place at max_connections (issue #35, item 9)
   host_.on_message(*this, text);
 }
 
-void WsSession::on_refused(std::size_t bytes, bool binary) {
+void WebSocketConnection::on_refused(std::size_t bytes, bool binary) {
   delivered_ = true;
   active();
   host_.on_refused_message(*this, bytes, binary);
 }
 
-void WsSession::on_control(std::uint8_t opcode, std::string_view payload) {
+void WebSocketConnection::on_control(std::uint8_t opcode, std::string_view payload) {
   if (opcode == FrameParser::k_ping) {
     if (!close_queued_) queue_frame(FrameParser::k_pong, payload);
     return;
@@ -165,7 +166,7 @@ void WsSession::on_control(std::uint8_t opcode, std::string_view payload) {
   flush_writes();
 }
 
-void WsSession::protocol_error(std::string_view reason) {
+void WebSocketConnection::protocol_error(std::string_view reason) {
   log::debug(who_, ": ", label_, ": WebSocket protocol error: ", reason);
   if (close_queued_)
     close(reason);
@@ -173,16 +174,16 @@ void WsSession::protocol_error(std::string_view reason) {
     close_with(ws::close_code::protocol_error, reason);
 }
 
-void WsSession::on_sweep(std::uint32_t tick) {
+void WebSocketConnection::on_sweep(std::uint32_t tick) {
   if (!upgraded_ || keepalive_.count() <= 0) return;
   const std::uint32_t silent = tick - heard_tick_;
-  if (silent >= kit::sweep_ticks(2 * keepalive_)) {
+  if (silent >= sweep_ticks(2 * keepalive_)) {
     log::debug(who_, ": ", label_, " sent nothing for ", 2 * keepalive_.count() / 1000.0,
                " s and answered no ping (keepalive_s)");
     close("the client went silent");
     return;
   }
-  if (!pinged_ && !close_queued_ && silent >= kit::sweep_ticks(keepalive_)) {
+  if (!pinged_ && !close_queued_ && silent >= sweep_ticks(keepalive_)) {
     pinged_ = true;
     queue_frame(FrameParser::k_ping, {});
     flush_writes();
@@ -191,7 +192,7 @@ void WsSession::on_sweep(std::uint32_t tick) {
 
 // ---- writing
 
-void WsSession::append_frame(std::string& out, std::uint8_t opcode, std::string_view payload) {
+void WebSocketConnection::append_frame(std::string& out, std::uint8_t opcode, std::string_view payload) {
   char header[10];
   std::size_t size = 2;
   header[0] = static_cast<char>(0x80 | opcode);
@@ -212,7 +213,7 @@ void WsSession::append_frame(std::string& out, std::uint8_t opcode, std::string_
   out.append(payload);
 }
 
-void WsSession::on_written() {
+void WebSocketConnection::on_written() {
   if (!close_queued_ || close_sent_ || unsent() > 0) return;
   // our close frame is out: the client answers with its own (its messages are ignored
   // meanwhile), or it already did
@@ -222,14 +223,14 @@ void WsSession::on_written() {
     return;
   }
   timer_.expires_after(k_close_timeout);
-  timer_.async_wait([self = shared()](const error_code& ec) {
+  timer_.async_wait([self = shared_self()](const error_code& ec) {
     if (!ec) self->close("no close frame from the client within the close timeout");
   });
 }
 
 // ---- closing
 
-void WsSession::close_with(ws::close_code code, std::string_view reason) {
+void WebSocketConnection::close_with(ws::close_code code, std::string_view reason) {
   if (closed()) return;
   closing(reason);
   if (!upgraded_) {
@@ -247,13 +248,13 @@ void WsSession::close_with(ws::close_code code, std::string_view reason) {
   flush_writes();
 }
 
-void WsSession::end(std::string_view reason, kit::Ending how) {
-  close_with(how == kit::Ending::timeout ? ws::close_code::going_away : ws::close_code::policy_error, reason);
+void WebSocketConnection::end(std::string_view reason, Ending how) {
+  close_with(how == Ending::timeout ? ws::close_code::going_away : ws::close_code::policy_error, reason);
 }
 
-void WsSession::on_close() {
+void WebSocketConnection::on_close() {
   frames_.stop();  // nothing more is parsed, not even the rest of this read
   timer_.cancel();
 }
 
-}  // namespace simgate::websocket
+}  // namespace simgate::kit
