@@ -23,6 +23,7 @@ namespace {
 
 using namespace std::chrono_literals;
 using ::testing::HasSubstr;
+using websocket_test::WsClient;
 
 std::string read_file(const std::string& path) {
   std::ifstream in(path);
