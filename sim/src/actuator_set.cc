@@ -217,4 +217,12 @@ json ActuatorSet::get_controls() const {
   return out;
 }
 
+SIMGATE_BUILTIN_TYPE(actuators,
+    builtin_type<ActuatorSet>(
+        "actuators", Kind::component,
+        "the robot's MJCF actuators: set_controls, set_control, get_controls, list_actuators",
+        "docs/components/actuators-and-sensors.md",
+        {{"actuators", {{"type", "array"}, {"minItems", 1}, {"uniqueItems", true}, {"items", {{"type", "string"}}}},
+          "only these of the robot's MJCF actuators (default: every one acting on its subtree)"}}));
+
 }  // namespace simgate::sim

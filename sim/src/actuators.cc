@@ -195,4 +195,18 @@ void Teleport::rotate(double roll, double pitch, double yaw) {
                      body_orientation(sim(), body_) * from_roll_pitch_yaw(roll, pitch, yaw));
 }
 
+SIMGATE_BUILTIN_TYPE(motion_vw, builtin_type<MotionVW>("motion_vw", Kind::component,
+                                                       "linear/angular velocity actuator: set_speed v w, stop",
+                                                       "docs/configuration.md", {}));
+SIMGATE_BUILTIN_TYPE(waypoint,
+    builtin_type<Waypoint>(
+        "waypoint", Kind::component, "drives to a destination: goto, setdest, stop, resume, get_status",
+        "docs/configuration.md",
+        {{"max_angular_speed", {{"type", "number"}, {"minimum", 1e-3}, {"maximum", 100}, {"default", 1.5}}, "rad/s"},
+         {"heading_gain", {{"type", "number"}, {"minimum", 1e-3}, {"maximum", 100}, {"default", 2.0}},
+          "angular speed per radian of heading error"}}));
+SIMGATE_BUILTIN_TYPE(teleport, builtin_type<Teleport>("teleport", Kind::component,
+                                                      "moves the robot instantly: translate, rotate",
+                                                      "docs/configuration.md", {}));
+
 }  // namespace simgate::sim

@@ -362,4 +362,20 @@ void Armature::on_reset() {
                                  "state): the motion was dropped");
 }
 
+SIMGATE_BUILTIN_TYPE(armature,
+    builtin_type<Armature>(
+        "armature", Kind::component, "moves hinge and slide joints: set_rotations, rotate_joints, trajectory...",
+        "docs/components/armature.md",
+        {{"joints", {{"$ref", "#/$defs/armature_joints"}}, "only these joints of its subtree, in this order"},
+         {"radial_speed", {{"type", "number"}, {"minimum", 1e-6}, {"maximum", 1000}, {"default", 0.8}},
+          "rad/s when a rotation's speed is null"},
+         {"linear_speed", {{"type", "number"}, {"minimum", 1e-6}, {"maximum", 1000}, {"default", 0.05}},
+          "m/s when a translation's speed is null"},
+         {"angle_tolerance", {{"type", "number"}, {"minimum", 1e-9}, {"maximum", 1}, {"default", 0.01}},
+          "radians: arrival of a servo-driven revolute joint"},
+         {"distance_tolerance", {{"type", "number"}, {"minimum", 1e-9}, {"maximum", 1}, {"default", 0.005}},
+          "metres: arrival of a servo-driven prismatic joint"},
+         {"settle_timeout", {{"type", "number"}, {"minimum", 0}, {"maximum", 1e6}, {"default", 2}},
+          "seconds a servo-driven joint may take to arrive after a motion's end"}}));
+
 }  // namespace simgate::sim

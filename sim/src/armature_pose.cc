@@ -85,4 +85,11 @@ json ArmaturePose::get_local_data() const {
   return out;
 }
 
+SIMGATE_BUILTIN_TYPE(armature_pose,
+    builtin_type<ArmaturePose>("armature_pose", Kind::component,
+                               "joint state: get_joints, get_state, get_joint, get_local_data",
+                               "docs/components/armature.md",
+                               {{"joints", {{"$ref", "#/$defs/armature_joints"}},
+                                 "only these joints of its subtree, in this order"}}));
+
 }  // namespace simgate::sim

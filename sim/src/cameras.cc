@@ -440,17 +440,34 @@ void Camera::on_model_changed(const ModelRemap& remap) {
   if (frame_) frame_->remap(remap);
 }
 
-void register_cameras(ComponentRegistry& r) {
-  r.add("video_camera", Kind::component,
-        "RGB camera rendered headless (MJCF camera or robot frame): capture n, get_image, get_local_data (base64 PNG)",
-        [](ComponentContext& c) -> std::unique_ptr<SimComponent> {
-          return std::make_unique<Camera>(c, Camera::Type::video);
-        });
-  r.add("depth_camera", Kind::component,
-        "depth camera (mm, 16-bit PNG) rendered headless: capture n, get_image, get_local_data",
-        [](ComponentContext& c) -> std::unique_ptr<SimComponent> {
-          return std::make_unique<Camera>(c, Camera::Type::depth);
-        });
-}
+namespace {
+const std::vector<OptionSpec> camera_options = {
+    {"camera", {{"type", "string"}}, "an MJCF <camera> to see from (looks along its -z, +y up)"},
+    {"site", {{"type", "string"}},
+     "without camera: a MuJoCo site on the robot to see from (looks along its +x, +z up; default: the body's frame)"},
+    {"cam_width", {{"type", "integer"}, {"minimum", 1}, {"maximum", 8192}, {"default", 256}}, "pixels"},
+    {"cam_height", {{"type", "integer"}, {"minimum", 1}, {"maximum", 8192}, {"default", 256}}, "pixels"},
+    {"cam_fovy", {{"type", "number"}, {"minimum", 0.1}, {"maximum", 179}},
+     "vertical field of view, degrees (default the MJCF camera's, else 45)"},
+    {"cam_focal", {{"type", "number"}, {"minimum", 0.1}, {"maximum", 1e4}},
+     "MORSE's focal length: mm on a 32 mm sensor (its larger side); instead of cam_fovy"},
+    {"cam_near", {{"type", "number"}, {"minimum", 1e-6}, {"maximum", 1e6}},
+     "near clipping plane, m (default MuJoCo's: znear x extent)"},
+    {"cam_far", {{"type", "number"}, {"minimum", 1e-6}, {"maximum", 1e7}},
+     "far clipping plane, m (default MuJoCo's: zfar x extent)"}};
+}  // namespace
+
+SIMGATE_BUILTIN_TYPE(video_camera,
+    builtin_type("video_camera", Kind::component,
+                 "RGB camera rendered headless (MJCF camera or robot frame): capture n, get_image, get_local_data (base64 PNG)",
+                 "docs/components/cameras.md", camera_options, [](ComponentContext& c) -> std::unique_ptr<SimComponent> {
+                   return std::make_unique<Camera>(c, Camera::Type::video);
+                 }));
+SIMGATE_BUILTIN_TYPE(depth_camera,
+    builtin_type("depth_camera", Kind::component,
+                 "depth camera (mm, 16-bit PNG) rendered headless: capture n, get_image, get_local_data",
+                 "docs/components/cameras.md", camera_options, [](ComponentContext& c) -> std::unique_ptr<SimComponent> {
+                   return std::make_unique<Camera>(c, Camera::Type::depth);
+                 }));
 
 }  // namespace simgate::sim

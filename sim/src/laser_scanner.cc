@@ -162,4 +162,16 @@ json LaserScanner::get_local_data() {
   return {{"range_list", ranges_}, {"point_list", std::move(points)}, {"timestamp", sim().state_time()}};
 }
 
+SIMGATE_BUILTIN_TYPE(laser_scanner,
+    builtin_type<LaserScanner>(
+        "laser_scanner", Kind::component, "fan of mj_ray rays: get_local_data (range_list, point_list)",
+        "docs/components/native-sensors.md",
+        {{"site", {{"type", "string"}}, "a MuJoCo site on the robot: the sensor's frame (default: the body's frame)"},
+         {"laser_range", {{"type", "number"}, {"minimum", 1e-3}, {"maximum", 1e4}, {"default", 30}}, "metres"},
+         {"scan_window", {{"type", "number"}, {"minimum", 0}, {"maximum", 360}, {"default", 180}}, "degrees"},
+         {"resolution", {{"type", "number"}, {"minimum", 1e-2}, {"maximum", 360}, {"default", 1}},
+          "degrees between rays"},
+         {"geom_groups", {{"type", "array"}, {"items", {{"type", "integer"}, {"minimum", 0}, {"maximum", 5}}}},
+          "the MuJoCo geom groups the laser sees (default all)"}}));
+
 }  // namespace simgate::sim

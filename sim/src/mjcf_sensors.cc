@@ -147,4 +147,11 @@ json MjcfSensors::get_local_data() const {
   return out;
 }
 
+SIMGATE_BUILTIN_TYPE(sensors,
+    builtin_type<MjcfSensors>(
+        "sensors", Kind::component, "the robot's MJCF <sensor>s: get_local_data {name: value}",
+        "docs/components/actuators-and-sensors.md",
+        {{"sensors", {{"type", "array"}, {"minItems", 1}, {"uniqueItems", true}, {"items", {{"type", "string"}}}},
+          "only these of the robot's MJCF sensors (default: every one attached to its subtree)"}}));
+
 }  // namespace simgate::sim

@@ -283,4 +283,23 @@ json Proximity::get_local_data() const {
   return {{"near_objects", near}, {"near_robots", near}, {"timestamp", sim().state_time()}};
 }
 
+SIMGATE_BUILTIN_TYPE(imu, builtin_type<Imu>("imu", Kind::component,
+                                            "inertial measurement unit: get_local_data (angular_velocity, linear_acceleration)",
+                                            "docs/components/native-sensors.md", {{"site", {{"type", "string"}}, "a MuJoCo site on the robot: the sensor's frame (default: the body's frame)"}}));
+SIMGATE_BUILTIN_TYPE(odometry,
+    builtin_type<Odometry>("odometry", Kind::component,
+                           "odometry (level raw, differential or integrated): get_local_data",
+                           "docs/components/native-sensors.md",
+                           {{"site", {{"type", "string"}}, "a MuJoCo site on the robot: the sensor's frame (default: the body's frame)"},
+                            {"level", {{"enum", {"raw", "differential", "integrated"}}, {"default", "integrated"}},
+                             "MORSE's functional level"}}));
+SIMGATE_BUILTIN_TYPE(proximity,
+    builtin_type<Proximity>(
+        "proximity", Kind::component, "objects within range: get_local_data, set_range, set_tracked_tag",
+        "docs/components/native-sensors.md",
+        {{"site", {{"type", "string"}}, "a MuJoCo site on the robot: the sensor's frame (default: the body's frame)"},
+         {"range", {{"type", "number"}, {"minimum", 0}, {"maximum", 1e6}, {"default", 100}}, "metres"},
+         {"track", {{"type", "string"}, {"default", "Robot_Tag"}},
+          "Robot_Tag (the other robots) or the start of top-level body names"}}));
+
 }  // namespace simgate::sim

@@ -1,5 +1,8 @@
 #include "simgate/sim/registry.h"
 
+#include <algorithm>
+#include <stdexcept>
+
 #include "simgate/core/errors.h"
 #include "simgate/core/suggest.h"
 #include "helpers.h"
@@ -55,8 +58,48 @@ int ComponentContext::actuator_option(const std::string& key, const std::string&
   return id;
 }
 
+namespace {
+// Every SIMGATE_BUILTIN_TYPE, in load order (a function's static: filled before main, by the
+// static objects of libsimgate_sim's files).
+std::vector<ComponentType>& builtins() {
+  static std::vector<ComponentType> types;
+  return types;
+}
+}  // namespace
+
+detail::BuiltinTypeRegistrar::BuiltinTypeRegistrar(ComponentType type) { builtins().push_back(std::move(type)); }
+
+void register_builtin_components(ComponentRegistry& registry) {
+  for (const ComponentType& type : builtins()) registry.add(type);
+}
+
 void ComponentRegistry::add(std::string name, Kind kind, std::string doc, ComponentFactory factory) {
   add(ComponentType{nullptr, name, kind, std::move(doc), std::move(factory), ""});
+}
+
+json ComponentRegistry::options_schema(Kind kind) const {
+  json rules = json::array();
+  for (const auto& [name, type] : types_) {
+    if (type.kind != kind || !type.options_declared) continue;
+    json options = {{"type", "object"}};
+    if (type.options.empty()) {
+      options["maxProperties"] = 0;
+    } else {
+      options["additionalProperties"] = false;
+      json properties = json::object();
+      for (const OptionSpec& o : type.options) {
+        json schema = o.schema;
+        schema["description"] = o.doc;
+        properties[o.name] = std::move(schema);
+      }
+      options["properties"] = std::move(properties);
+    }
+    // a robot's type may be left out (it is then "robot"): the rule applies when it is given
+    json condition = {{"properties", {{"type", {{"const", name}}}}}};
+    if (kind == Kind::robot) condition["required"] = json::array({"type"});
+    rules.push_back({{"if", std::move(condition)}, {"then", {{"properties", {{"options", std::move(options)}}}}}});
+  }
+  return rules;
 }
 
 void ComponentRegistry::add(ComponentType type) {
@@ -91,9 +134,18 @@ std::unique_ptr<SimComponent> ComponentRegistry::create(Kind kind, const Compone
                                                         Simulation& sim, Robot* robot) const {
   const ComponentType* type = &type_of(kind, spec);
   ConfigObject object(options.is_null() ? json::object() : options, spec.path + ".options");
+  std::vector<std::string> declared;
+  for (const OptionSpec& o : type->options) declared.push_back(o.name);
+  // what the type does not declare is refused before it is built, naming what it declares
+  if (type->options_declared) object.allow_only(declared);
   ComponentContext context(sim, spec, object, robot);
   auto component = type->factory(context);
   object.finish();
+  if (type->options_declared)
+    for (const std::string& key : object.asked())
+      if (std::find(declared.begin(), declared.end(), key) == declared.end())
+        throw std::logic_error("component type '" + spec.type + "' read option '" + key +
+                               "', which it does not declare (its SIMGATE_BUILTIN_TYPE)");
   json configuration = {{"type", spec.type}, {"options", object.raw()}};
   if (!spec.body.empty()) configuration["body"] = spec.body;
   int body = spec.body.empty() ? -1 : sim.model().body_id(spec.body);

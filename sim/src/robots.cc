@@ -92,27 +92,23 @@ PlainRobot::PlainRobot(ComponentContext& c) : Robot(c.name(), c.sim(), c.body())
 
 // ---- registration ----------------------------------------------------------------------------
 
-void register_builtin_components(ComponentRegistry& r) {
-  r.add<GroundRobot>("ground_robot", Kind::robot, "differential-drive robot with two actuated wheels");
-  r.add<Human>("human", Kind::robot, "a human that steps with `move speed rotation`");
-  r.add<PlainRobot>("robot", Kind::robot, "a robot body with no services of its own");
-  // the gateway adds the generic components (model_robots.h); the robot itself is plain
-  r.add<PlainRobot>("mjcf", Kind::robot,
-                    "any MJCF robot: armature, armature_pose, actuators and sensors for what its subtree has");
-  r.add<MotionVW>("motion_vw", Kind::component, "linear/angular velocity actuator: set_speed v w, stop");
-  r.add<Waypoint>("waypoint", Kind::component, "drives to a destination: goto, setdest, stop, resume, get_status");
-  r.add<Teleport>("teleport", Kind::component, "moves the robot instantly: translate, rotate");
-  r.add<Pose>("pose", Kind::component, "pose sensor: get_local_data");
-  r.add<ActuatorSet>("actuators", Kind::component,
-                     "the robot's MJCF actuators: set_controls, set_control, get_controls, list_actuators");
-  r.add<MjcfSensors>("sensors", Kind::component, "the robot's MJCF <sensor>s: get_local_data {name: value}");
-  r.add<Armature>("armature", Kind::component, "moves hinge and slide joints: set_rotations, rotate_joints, trajectory...");
-  r.add<ArmaturePose>("armature_pose", Kind::component, "joint state: get_joints, get_state, get_joint, get_local_data");
-  r.add<Imu>("imu", Kind::component, "inertial measurement unit: get_local_data (angular_velocity, linear_acceleration)");
-  r.add<Odometry>("odometry", Kind::component, "odometry (level raw, differential or integrated): get_local_data");
-  register_cameras(r);
-  r.add<LaserScanner>("laser_scanner", Kind::component, "fan of mj_ray rays: get_local_data (range_list, point_list)");
-  r.add<Proximity>("proximity", Kind::component, "objects within range: get_local_data, set_range, set_tracked_tag");
-}
+SIMGATE_BUILTIN_TYPE(ground_robot,
+    builtin_type<GroundRobot>(
+        "ground_robot", Kind::robot, "differential-drive robot with two actuated wheels", "docs/configuration.md",
+        {{"left_actuator", {{"type", "string"}}, "the left wheel's velocity actuator (default <body>_left_motor)"},
+         {"right_actuator", {{"type", "string"}}, "the right wheel's velocity actuator (default <body>_right_motor)"},
+         {"wheel_radius", {{"type", "number"}, {"minimum", 1e-4}, {"maximum", 100}, {"default", 0.1}}, "m"},
+         {"wheel_separation", {{"type", "number"}, {"minimum", 1e-4}, {"maximum", 100}, {"default", 0.42}},
+          "m between the wheels"},
+         {"max_wheel_speed", {{"type", "number"}, {"minimum", 1e-3}, {"maximum", 1e6}, {"default", 30}}, "rad/s"}}));
+SIMGATE_BUILTIN_TYPE(human, builtin_type<Human>("human", Kind::robot, "a human that steps with `move speed rotation`",
+                                                "docs/configuration.md", {}));
+SIMGATE_BUILTIN_TYPE(robot, builtin_type<PlainRobot>("robot", Kind::robot, "a robot body with no services of its own",
+                                                     "docs/configuration.md", {}));
+// the gateway adds the generic components (model_robots.h); the robot itself is plain
+SIMGATE_BUILTIN_TYPE(mjcf,
+    builtin_type<PlainRobot>("mjcf", Kind::robot,
+                             "any MJCF robot: armature, armature_pose, actuators and sensors for what its subtree has",
+                             "docs/configuration.md", {}));
 
 }  // namespace simgate::sim

@@ -30,4 +30,7 @@ json Pose::get_local_data() const {
   return record_json(k_pose_fields, values);
 }
 
+SIMGATE_BUILTIN_TYPE(pose, builtin_type<Pose>("pose", Kind::component, "pose sensor: get_local_data",
+                                              "docs/configuration.md", {}));
+
 }  // namespace simgate::sim

@@ -76,6 +76,8 @@ class ConfigObject {
 
   // Throws ConfigError listing every key that no getter asked for, with the known keys.
   void finish() const;
+  // The keys a getter asked for so far (present or not).
+  const std::set<std::string>& asked() const { return used_; }
   // Throws if a key of the object is not in `allowed` (no getters needed).
   void allow_only(const std::vector<std::string>& allowed) const;
 

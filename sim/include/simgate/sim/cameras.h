@@ -129,9 +129,6 @@ class Camera : public SimComponent {
   std::deque<std::shared_ptr<const StreamPayload>> stream_images_;  // default_action's, reused
 };
 
-// Registers video_camera and depth_camera.
-void register_cameras(ComponentRegistry& registry);
-
 }  // namespace simgate::sim
 
 #endif  // SIMGATE_SIM_CAMERAS_H_

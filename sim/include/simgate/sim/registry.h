@@ -2,9 +2,17 @@
 //
 // A ComponentRegistry maps a type name ("motion_vw", "ground_robot") to a factory. A robot
 // type creates a Robot; a component type creates a SimComponent that belongs to a robot.
-// New types join by calling add() — in register_builtin_components() for the built-ins, in
-// a component library a config names (component_library.h), or in any program that owns a
+// New types join by calling add() — a built-in in the file that defines it
+// (SIMGATE_BUILTIN_TYPE, gathered by register_builtin_components()), a component library's
+// in the library a config names (component_library.h), or in any program that owns a
 // registry — without touching the gateway.
+//
+// A type declares its options (OptionSpec: the key, its JSON Schema with bounds and default,
+// one line of doc): the one place they are written. The deployment's JSON Schema
+// (config/schema/deployment.schema.json) and the docs' options tables are checked against the
+// built-ins' declarations (tests/sim/registry_options_test.cc), an option the config gives
+// and the type does not declare is refused naming the declared ones, and a component that
+// reads an undeclared option is a programming error (std::logic_error).
 //
 // A factory receives a ComponentContext: the component's name, its JSON path in the
 // config, its options (a ConfigObject: read them with the typed getters; keys nobody reads
@@ -71,6 +79,13 @@ class ComponentContext {
 
 using ComponentFactory = std::function<std::unique_ptr<SimComponent>(ComponentContext&)>;
 
+// One option of a component type, as the config spells it and the schema and docs show it.
+struct OptionSpec {
+  std::string name;  // "laser_range"
+  json schema;       // its JSON Schema: {"type": "number", "minimum": 0.001, "maximum": 10000, "default": 30}
+  std::string doc;   // what it does, one line: "maximum range, m"
+};
+
 struct ComponentType {
   // the component library its code is in (null for types linked in): first, so that it is
   // released only after the factory below, whose code it holds, is destroyed
@@ -80,6 +95,10 @@ struct ComponentType {
   std::string doc;           // one line
   ComponentFactory factory;  // creates it
   std::string origin;        // where it comes from: "built in", "component library 'x' (path)"
+  // what its "options" object may hold; unchecked unless declared (a library's type may not)
+  std::vector<OptionSpec> options = {};
+  bool options_declared = false;  // options is the whole list (every built-in)
+  std::string doc_page = {};      // the docs/ page that documents it ("docs/components/armature.md")
 };
 
 class ComponentRegistry {
@@ -98,6 +117,9 @@ class ComponentRegistry {
   std::vector<std::string> names(Kind kind) const;
   // Every type, by name.
   const std::map<std::string, ComponentType>& types() const { return types_; }
+  // The JSON Schema of the options of every type of `kind` that declares them: the `allOf`
+  // list of if/then rules of the deployment schema's "robot" or "component" definition.
+  json options_schema(Kind kind) const;
 
   // The type `spec` names, which must be one of `kind`; throws ConfigError ("<path>.type:
   // expected a component type (...), found ...") otherwise.
@@ -111,10 +133,34 @@ class ComponentRegistry {
   std::map<std::string, ComponentType> types_;  // by name
 };
 
-// The built-in types: robots ground_robot, human, robot, mjcf; components motion_vw,
-// waypoint, teleport, pose (components.h), actuators, sensors (actuators_sensors.h),
-// armature, armature_pose (armature.h), imu, odometry, laser_scanner, proximity
-// (native_sensors.h).
+// A built-in type, declared in the file that defines it:
+//   SIMGATE_BUILTIN_TYPE(laser_scanner, builtin_type<LaserScanner>("laser_scanner", Kind::component,
+//       "fan of mj_ray rays: ...", "docs/components/native-sensors.md", {{"laser_range", ...}}));
+inline ComponentType builtin_type(std::string name, Kind kind, std::string doc, std::string doc_page,
+                                  std::vector<OptionSpec> options, ComponentFactory factory) {
+  return ComponentType{nullptr, std::move(name), kind, std::move(doc), std::move(factory), "built in",
+                       std::move(options), true, std::move(doc_page)};
+}
+// The same for a class constructible from (ComponentContext&).
+template <class T>
+ComponentType builtin_type(std::string name, Kind kind, std::string doc, std::string doc_page,
+                           std::vector<OptionSpec> options) {
+  return builtin_type(std::move(name), kind, std::move(doc), std::move(doc_page), std::move(options),
+                      [](ComponentContext& c) -> std::unique_ptr<SimComponent> { return std::make_unique<T>(c); });
+}
+namespace detail {
+// Adds a type to the built-ins (at load time: a static object of the file that defines it).
+struct BuiltinTypeRegistrar {
+  explicit BuiltinTypeRegistrar(ComponentType type);
+};
+}  // namespace detail
+#define SIMGATE_BUILTIN_TYPE(id, ...) \
+  static const ::simgate::sim::detail::BuiltinTypeRegistrar simgate_builtin_type_##id { __VA_ARGS__ }
+
+// The built-in types (every SIMGATE_BUILTIN_TYPE of libsimgate_sim): robots ground_robot,
+// human, robot, mjcf; components motion_vw, waypoint, teleport, pose, actuators, sensors,
+// armature, armature_pose, imu, odometry, laser_scanner, proximity, video_camera,
+// depth_camera.
 void register_builtin_components(ComponentRegistry& registry);
 // A registry holding the built-ins, added as a component library is (component_library.h).
 ComponentRegistry builtin_registry();
