@@ -142,7 +142,7 @@ class DirectManager : public simgate::RequestManager {
 
 json run_snapshot(const std::string& mjcf, double duration_s) {
   simgate::sim::Simulation sim(simgate::sim::Model::load_file(mjcf), {std::nullopt, 0.0});
-  sim.add_supervision_services();
+  add_world_components(sim);
   auto rm = std::make_shared<DirectManager>();
   rm->register_component(*sim.find("simulation")->component);
   sim.add_request_manager(rm, "bench");
@@ -593,7 +593,7 @@ json run_spawn(const std::string& mjcf, double duration) {
   using simgate::bench::ns_between;
   namespace sim = simgate::sim;
   sim::Simulation simulation(sim::Model::load_file(mjcf), sim::SimulationOptions{std::nullopt, 0.0});
-  simulation.add_supervision_services();
+  add_world_components(simulation);
   auto manager = std::make_shared<SpawnBenchManager>();
   manager->register_component(*simulation.find("simulation")->component);
   simulation.add_request_manager(manager, "bench");

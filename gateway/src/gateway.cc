@@ -83,7 +83,7 @@ Gateway::Gateway(const Deployment& deployment, const sim::ComponentRegistry& reg
   // robots, components, pseudo-components (they need the scene)
   if (simulation_) {
     build_components(errors);
-    simulation_->add_supervision_services();
+    add_world_components(*simulation_);
     add_streams(errors);
     simulation_->set_robot_factory(std::make_shared<SpawnedRobots>(*this));
   } else {

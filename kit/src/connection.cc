@@ -36,6 +36,7 @@ Connection::Connection(asio::ip::tcp::socket socket, ConnectionServer& server, C
   }
   socket_.set_option(asio::ip::tcp::no_delay(true), ec);  // replies are small: no Nagle delay
   socket_.non_blocking(true, ec);  // reads on and writes go straight to the socket while it takes them
+  active();  // idle from now on, not from the server's first sweep (a handshake may come first)
 }
 
 std::uint32_t Connection::idle_ticks() const {

@@ -11,6 +11,7 @@
 #include "cyclone_config.h"
 #include "simgate/core/config.h"
 #include "simgate/core/log.h"
+#include "simgate/core/plugin.h"
 #include "simgate_streams.h"
 
 namespace simgate::dds {
@@ -413,13 +414,11 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
   ClientId claimed;
   std::memcpy(claimed.data(), request.id.client, claimed.size());
   if (claimed != client_id) {
-    run_batch();
     std::string why = is_zero(claimed) ? "the client id is zero"
                                        : "the client id " + to_hex(claimed) + " is not the GUID of the writer that sent it";
-    send_reply(client_id, failure_reply(seq, simgate_FL_BAD_REQUEST,
-                                        "DDS transport: request " + std::to_string(seq) + " refused: " + why +
-                                            "; a client's id is the GUID of its request writer, here " +
-                                            to_hex(client_id)));
+    refuse(client_id, seq, simgate_FL_BAD_REQUEST,
+           "DDS transport: request " + std::to_string(seq) + " refused: " + why +
+               "; a client's id is the GUID of its request writer, here " + to_hex(client_id));
     return;
   }
 
@@ -462,110 +461,111 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
   }
 
   switch (request.op) {
-    case simgate_OP_CALL: {
-      // names are bounded before they are looked up, remembered or quoted (issue #17: 10 MB
-      // names were all three)
-      for (auto [what, name] : {std::pair{"component", request.component}, std::pair{"service", request.service}}) {
-        const std::size_t size = name ? std::strlen(name) : 0;
-        if (size <= k_max_name_bytes) continue;
-        run_batch();
-        send_reply(client_id, failure_reply(seq, simgate_FL_BAD_REQUEST,
-                                            "DDS transport: request " + std::to_string(seq) + " refused: its " +
-                                                what + " name is " + std::to_string(size) + " bytes, more than " +
-                                                std::to_string(k_max_name_bytes)));
-        return;
-      }
-      Call call;
-      call.component = request.component ? request.component : "";
-      call.service = request.service ? request.service : "";
-      std::string_view params_text = request.params ? request.params : "";
-      if (params_text.size() > options_.max_params) {
-        run_batch();
-        send_reply(client_id, failure_reply(seq, simgate_FL_BAD_ARGUMENTS,
-                                            call.component + "." + call.service + ": params are " +
-                                                std::to_string(params_text.size()) + " bytes, more than max_params (" +
-                                                std::to_string(options_.max_params) + ")"));
-        return;
-      }
-      // before parsing: a deeper value would recurse once per level in dump(), copies and
-      // comparisons (issue #17: 80 000 levels overflowed the stack)
-      if (json_nests_deeper_than(params_text, options_.max_depth)) {
-        run_batch();
-        send_reply(client_id, failure_reply(seq, simgate_FL_BAD_ARGUMENTS,
-                                            call.component + "." + call.service +
-                                                ": params nest deeper than max_depth (" +
-                                                std::to_string(options_.max_depth) + ")"));
-        return;
-      }
-      if (!params_text.empty()) {
-        call.params = json::parse(params_text, nullptr, false);
-        if (call.params.is_discarded() || !(call.params.is_array() || call.params.is_object() || call.params.is_null())) {
-          run_batch();
-          send_reply(client_id, failure_reply(seq, simgate_FL_BAD_ARGUMENTS,
-                                              call.component + "." + call.service +
-                                                  ": params must be a JSON array, object or \"\", not '" +
-                                                  std::string(utf8_prefix(params_text, 60)) + "'"));
-          return;
-        }
-      }
-      // its deadline: 0 = none; beyond a signed 32-bit count of ms (about 24.8 days) it is
-      // more likely garbage than a wait anyone means
-      if (request.timeout_ms > k_max_timeout_ms) {
-        run_batch();
-        send_reply(client_id, failure_reply(seq, simgate_FL_BAD_ARGUMENTS,
-                                            call.component + "." + call.service + ": timeout_ms " +
-                                                std::to_string(request.timeout_ms) + " is more than " +
-                                                std::to_string(k_max_timeout_ms) + " (0 = no timeout)"));
-        return;
-      }
-      call.timeout = std::chrono::milliseconds(request.timeout_ms);
-      // into the batch for the core; async calls are acknowledged at once, after the
-      // replies of the calls before them
-      bool is_async = lookup_async(call.component, call.service);
-      // progress asked of an async service: the client's progress writer exists from now on
-      call.progress = request.progress && is_async && ensure_progress_writer(client_id, client);
-      // a client that reads its images raw: the service need not encode them (no PNG made)
-      call.raw_attachments = takes_images_raw(client_id, client);
-      call.client = client_number(client_id);
-      RequestId id = new_request_id();
-      pending_.emplace(id, Pending{client_id, seq, is_async});
-      client.calls.emplace(seq, id);
-      if (is_async) {
-        run_batch();
-        ReplyData accepted;
-        accepted.seq = seq;
-        accepted.status = simgate_ST_ACCEPTED;
-        accepted.last = false;
-        send_reply(client_id, std::move(accepted));
-      }
-      batch_.emplace_back(id, std::move(call));
+    case simgate_OP_CALL:
+      handle_call(request, client_id, client);
       return;
-    }
-    case simgate_OP_CANCEL: {
-      // after the calls before it (its target may be one of them)
-      run_batch();
-      auto target = client.calls.find(request.target);
-      if (target == client.calls.end()) {
-        ReplyData answer;
-        answer.seq = seq;
-        answer.result = "false";
-        answer.message = "no pending call " + std::to_string(request.target) + " of this client";
-        send_reply(client_id, std::move(answer));
-        return;
-      }
-      // the answer goes out like a completion, in order with them; its seq is pending till then
-      const RequestId answer_id = new_request_id();
-      pending_.emplace(answer_id, Pending{client_id, seq, false, true});
-      client.calls.emplace(seq, answer_id);
-      cancel(target->second, [this, answer_id](bool found) { complete_request(answer_id, Outcome::success(json(found))); });
-      run_pending_ = true;  // the next run_batch() executes it here if it can
+    case simgate_OP_CANCEL:
+      handle_cancel(request, client_id, client);
       return;
-    }
   }
+  refuse(client_id, seq, simgate_FL_BAD_REQUEST,
+         "DDS transport: unknown op " + std::to_string(int(request.op)) + " (expected OP_CALL or OP_CANCEL)");
+}
+
+void DdsRequestManager::refuse(const ClientId& client_id, std::uint64_t seq, simgate_Failure failure,
+                               std::string message) {
+  run_batch();  // after the replies of the requests before it
+  send_reply(client_id, failure_reply(seq, failure, std::move(message)));
+}
+
+std::optional<std::pair<simgate_Failure, std::string>> DdsRequestManager::call_refusal(const simgate_Request& request,
+                                                                                       Call& call) const {
+  // names are bounded before they are looked up, remembered or quoted (issue #17: 10 MB
+  // names were all three)
+  for (auto [what, name] : {std::pair{"component", request.component}, std::pair{"service", request.service}}) {
+    const std::size_t size = name ? std::strlen(name) : 0;
+    if (size > k_max_name_bytes)
+      return std::pair{simgate_FL_BAD_REQUEST, "DDS transport: request " + std::to_string(request.id.seq) +
+                                                   " refused: its " + what + " name is " + std::to_string(size) +
+                                                   " bytes, more than " + std::to_string(k_max_name_bytes)};
+  }
+  call.component = request.component ? request.component : "";
+  call.service = request.service ? request.service : "";
+  const std::string method = call.component + "." + call.service;
+  std::string_view params_text = request.params ? request.params : "";
+  if (params_text.size() > options_.max_params)
+    return std::pair{simgate_FL_BAD_ARGUMENTS, method + ": params are " + std::to_string(params_text.size()) +
+                                                   " bytes, more than max_params (" +
+                                                   std::to_string(options_.max_params) + ")"};
+  // before parsing: a deeper value would recurse once per level in dump(), copies and
+  // comparisons (issue #17: 80 000 levels overflowed the stack)
+  if (json_nests_deeper_than(params_text, options_.max_depth))
+    return std::pair{simgate_FL_BAD_ARGUMENTS,
+                     method + ": params nest deeper than max_depth (" + std::to_string(options_.max_depth) + ")"};
+  if (!params_text.empty()) {
+    call.params = json::parse(params_text, nullptr, false);
+    if (call.params.is_discarded() || !(call.params.is_array() || call.params.is_object() || call.params.is_null()))
+      return std::pair{simgate_FL_BAD_ARGUMENTS, method + ": params must be a JSON array, object or \"\", not '" +
+                                                     std::string(utf8_prefix(params_text, 60)) + "'"};
+  }
+  // its deadline: 0 = none; beyond a signed 32-bit count of ms (about 24.8 days) it is
+  // more likely garbage than a wait anyone means
+  if (request.timeout_ms > k_max_timeout_ms)
+    return std::pair{simgate_FL_BAD_ARGUMENTS, method + ": timeout_ms " + std::to_string(request.timeout_ms) +
+                                                   " is more than " + std::to_string(k_max_timeout_ms) +
+                                                   " (0 = no timeout)"};
+  call.timeout = std::chrono::milliseconds(request.timeout_ms);
+  return std::nullopt;
+}
+
+void DdsRequestManager::handle_call(const simgate_Request& request, const ClientId& client_id, ClientState& client) {
+  const std::uint64_t seq = request.id.seq;
+  Call call;
+  if (auto refusal = call_refusal(request, call)) {
+    refuse(client_id, seq, refusal->first, std::move(refusal->second));
+    return;
+  }
+  // into the batch for the core; async calls are acknowledged at once, after the replies of
+  // the calls before them
+  const bool is_async = lookup_async(call.component, call.service);
+  // progress asked of an async service: the client's progress writer exists from now on
+  call.progress = request.progress && is_async && ensure_progress_writer(client_id, client);
+  // a client that reads its images raw: the service need not encode them (no PNG made)
+  call.raw_attachments = takes_images_raw(client_id, client);
+  call.client = client_number(client_id);
+  RequestId id = new_request_id();
+  pending_.emplace(id, Pending{client_id, seq, is_async});
+  client.calls.emplace(seq, id);
+  if (is_async) {
+    run_batch();
+    ReplyData accepted;
+    accepted.seq = seq;
+    accepted.status = simgate_ST_ACCEPTED;
+    accepted.last = false;
+    send_reply(client_id, std::move(accepted));
+  }
+  batch_.emplace_back(id, std::move(call));
+}
+
+void DdsRequestManager::handle_cancel(const simgate_Request& request, const ClientId& client_id, ClientState& client) {
+  const std::uint64_t seq = request.id.seq;
+  // after the calls before it (its target may be one of them)
   run_batch();
-  send_reply(client_id, failure_reply(seq, simgate_FL_BAD_REQUEST,
-                                      "DDS transport: unknown op " + std::to_string(int(request.op)) +
-                                          " (expected OP_CALL or OP_CANCEL)"));
+  auto target = client.calls.find(request.target);
+  if (target == client.calls.end()) {
+    ReplyData answer;
+    answer.seq = seq;
+    answer.result = "false";
+    answer.message = "no pending call " + std::to_string(request.target) + " of this client";
+    send_reply(client_id, std::move(answer));
+    return;
+  }
+  // the answer goes out like a completion, in order with them; its seq is pending till then
+  const RequestId answer_id = new_request_id();
+  pending_.emplace(answer_id, Pending{client_id, seq, false, true});
+  client.calls.emplace(seq, answer_id);
+  cancel(target->second, [this, answer_id](bool found) { complete_request(answer_id, Outcome::success(json(found))); });
+  run_pending_ = true;  // the next run_batch() executes it here if it can
 }
 
 DdsRequestManager::ReplyData DdsRequestManager::to_reply(std::uint64_t seq, const Outcome& outcome) {
@@ -605,3 +605,9 @@ DdsRequestManager::ReplyData DdsRequestManager::failure_reply(std::uint64_t seq,
 }
 
 }  // namespace simgate::dds
+
+// The plugin entry point: libsimgate_transport_dds.so exports simgate_transport_dds_entry.
+SIMGATE_TRANSPORT_PLUGIN(dds, simgate::dds::DdsRequestManager, "0.1.0", "domain", "partition", "config",
+                         "max_samples", "max_in_flight", "park_timeout_ms", "max_params", "max_depth",
+                         "global_policy", "progress_interval_ms",
+                         "on_disconnect", "stream_writes")

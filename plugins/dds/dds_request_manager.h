@@ -69,10 +69,12 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <string>
 #include <thread>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "dds_streams.h"
@@ -203,7 +205,19 @@ class DdsRequestManager : public RequestManager {
   // the catalog anew (catalog_changed_, the guard condition). Under the simulation lock.
   void on_services_changed() override;
   void take_requests();
+  // One request taken: its client (by its writer), its id, a seq still pending, the
+  // client's requests in flight; then the call or the cancel.
   void handle_request(const simgate_Request& request, dds_instance_handle_t writer);
+  // OP_CALL: checked (call_refusal), then into batch_ (an async one acknowledged at once).
+  void handle_call(const simgate_Request& request, const ClientId& client_id, ClientState& client);
+  // OP_CANCEL: answered like a completion, in order with them.
+  void handle_cancel(const simgate_Request& request, const ClientId& client_id, ClientState& client);
+  // Why a call is refused before it runs (names, params' size, depth and JSON, timeout), or
+  // nothing; fills `call` from the request as it checks.
+  std::optional<std::pair<simgate_Failure, std::string>> call_refusal(const simgate_Request& request,
+                                                                       Call& call) const;
+  // A failure reply to `seq`, after the replies of the requests taken before it.
+  void refuse(const ClientId& client_id, std::uint64_t seq, simgate_Failure failure, std::string message);
   // DDS thread: hands batch_ (and pending cancels) to run_or_submit(), then writes the
   // replies it produced. Called after each take, and before any reply that must follow them.
   void run_batch();

@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <vector>
 
+#include "simgate/core/text.h"
+
 namespace simgate::dds {
 
 namespace {
@@ -17,12 +19,9 @@ std::mutex& domain_mutex() {
 }  // namespace
 
 std::string to_hex(const ClientId& id) {
-  static constexpr char digits[] = "0123456789abcdef";
-  std::string out(32, '0');
-  for (std::size_t i = 0; i < id.size(); ++i) {
-    out[2 * i] = digits[id[i] >> 4];
-    out[2 * i + 1] = digits[id[i] & 0xf];
-  }
+  std::string out;
+  out.reserve(2 * id.size());
+  append_hex(out, id.data(), id.size());
   return out;
 }
 

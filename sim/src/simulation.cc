@@ -8,10 +8,9 @@
 
 #include "simgate/core/call_context.h"
 #include "simgate/core/log.h"
-#include "simgate/sim/communication.h"
 #include "simgate/sim/model_edit.h"
 #include "simgate/sim/sim_component.h"
-#include "simgate/sim/supervision.h"
+#include "simgate/sim/events.h"
 
 #include "bad_state.h"
 #include "helpers.h"
@@ -122,15 +121,6 @@ ComponentEntry& Simulation::add_component(std::unique_ptr<Component> component, 
   entry->is_robot = is_robot;
   entries_.push_back(std::move(entry));
   return *entries_.back();
-}
-
-void Simulation::add_supervision_services() {
-  add_component(std::make_unique<SupervisionServices>(*this), "simulation");
-  auto events = std::make_unique<SimulationEvents>();
-  events_ = events.get();
-  add_component(std::move(events), "events");
-  add_component(std::make_unique<TimeServices>(*this), "time");
-  add_component(std::make_unique<CommunicationServices>(*this), "communication");
 }
 
 bool Simulation::remove_component(const std::string& name, const std::string& reason) {

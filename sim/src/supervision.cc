@@ -6,6 +6,7 @@
 #include "simgate/core/call_context.h"
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
+#include "simgate/sim/communication.h"
 #include "simgate/sim/sim_component.h"
 #include "simgate/sim/world_services.h"
 
@@ -71,7 +72,14 @@ SupervisionServices::SupervisionServices(Simulation& sim) : Component("simulatio
   declare_output_stream("body_poses", [this] { return body_poses(sim_); });
 }
 
-SimulationEvents::SimulationEvents() : Component(k_name) { declare_event_stream("events"); }
+void add_world_components(Simulation& sim) {
+  sim.add_component(std::make_unique<SupervisionServices>(sim), "simulation");
+  auto events = std::make_unique<SimulationEvents>();
+  sim.set_events(events.get());
+  sim.add_component(std::move(events), "events");
+  sim.add_component(std::make_unique<TimeServices>(sim), "time");
+  sim.add_component(std::make_unique<CommunicationServices>(sim), "communication");
+}
 
 void SupervisionServices::on_step(std::function<void()> fn) { step_hooks_.push_back(std::move(fn)); }
 

@@ -4,6 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <fstream>
+#include <iterator>
+#include <string>
 
 #include "plugins/mock_transport.h"
 #include "simgate/core/errors.h"
@@ -75,6 +78,15 @@ TEST(PluginLoaderTest, WrongAbiVersionIsRefused) {
   std::string e = load_error(path_of("badabi"));
   EXPECT_THAT(e, HasSubstr("transport plugin 'badabi' (" + path_of("badabi") + ")"));
   EXPECT_THAT(e, HasSubstr("ABI version 999, expected " + std::to_string(SIMGATE_PLUGIN_ABI_VERSION)));
+}
+
+// before: the page showed "ABI version 0, expected 1" while the code was at 8
+TEST(PluginLoaderTest, TheRefusalTheDocsShowNamesTheCodesAbiVersion) {
+  std::ifstream in(std::string(SIMGATE_SOURCE_DIR) + "/docs/writing-a-transport.md");
+  const std::string page((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const unsigned abi = SIMGATE_PLUGIN_ABI_VERSION;
+  EXPECT_THAT(page, HasSubstr("ABI version " + std::to_string(abi - 1) + ", expected " + std::to_string(abi) +
+                              " (rebuild the plugin against this simgate)"));
 }
 
 TEST(PluginLoaderTest, WrongBuildTagIsRefused) {

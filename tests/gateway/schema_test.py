@@ -103,7 +103,7 @@ for name, mistake in mistakes.items():
 # the built-in transports' option keys: the schema's and the plugin's declared ones agree
 for plugin, source_file in [("socket", "plugins/socket/socket_request_manager.cc"),
                             ("jsonrpc", "plugins/jsonrpc/jsonrpc_request_manager.cc"),
-                            ("dds", "plugins/dds/plugin.cc"),
+                            ("dds", "plugins/dds/dds_request_manager.cc"),
                             ("websocket", "plugins/websocket/websocket_request_manager.cc")]:
     with open(os.path.join(source, source_file)) as f:
         text = f.read()

@@ -79,7 +79,7 @@ class ArmatureSim : public ::testing::Test {
                                                           "robots[0].components[1]"},
                                         options, *sim_, robot_ptr),
                         "armature_pose", robot);
-    sim_->add_supervision_services();
+    add_world_components(*sim_);
     rm_ = std::make_shared<RecordingManager>();
     for (auto& e : sim_->components()) {
       rm_->register_component(*e->component);

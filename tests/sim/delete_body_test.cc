@@ -102,7 +102,7 @@ class SimDeleteBodyTest : public ::testing::Test {
     sim_->add_component(registry.create(Kind::component, {"robot.ball_pose", "pose", "ball", "robots[0].components[5]"},
                                         json::object(), *sim_, r),
                         "pose", "robot");
-    sim_->add_supervision_services();
+    add_world_components(*sim_);
     rm_ = std::make_shared<testing::RecordingManager>();
     for (auto& e : sim_->components()) rm_->register_component(*e->component);
     sim_->add_request_manager(rm_, "test");

@@ -311,7 +311,7 @@ class SimMocapTest : public ::testing::Test {
  protected:
   void SetUp() override {
     sim_ = std::make_unique<Simulation>(Model::load_string(k_mocap_xml, "mocap.xml"), SimulationOptions{std::nullopt, 0});
-    sim_->add_supervision_services();
+    add_world_components(*sim_);
     rm_ = std::make_shared<RecordingManager>();
     for (auto& e : sim_->components()) rm_->register_component(*e->component);
     sim_->add_request_manager(rm_, "test");

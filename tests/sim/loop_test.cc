@@ -19,7 +19,7 @@ class SimLoopTest : public ::testing::Test {
     options.timestep = timestep;
     options.realtime_factor = factor;
     sim_ = std::make_unique<Simulation>(Model::load_string(k_loop_scene), options);
-    sim_->add_supervision_services();
+    add_world_components(*sim_);
     rm_ = std::make_shared<testing::RecordingManager>();
     for (auto& e : sim_->components()) rm_->register_component(*e->component);
     sim_->add_request_manager(rm_, "test");

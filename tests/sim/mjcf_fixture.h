@@ -53,7 +53,7 @@ class MjcfSim : public ::testing::Test {
   }
   // Serves every component added so far; call once, after the last add_component.
   void serve() {
-    sim_->add_supervision_services();
+    add_world_components(*sim_);
     rm_ = std::make_shared<RecordingManager>();
     for (auto& e : sim_->components()) {
       rm_->register_component(*e->component);

@@ -149,7 +149,7 @@ class SimNanSweepTest : public ::testing::Test {
         type, robot.name());
   }
   void serve() {
-    sim_->add_supervision_services();
+    add_world_components(*sim_);
     rm_ = std::make_shared<RecordingManager>();
     for (auto& e : sim_->components()) {
       rm_->register_component(*e->component);

@@ -95,7 +95,7 @@ class NativeSensorsTest : public ::testing::Test {
     add("turntable", "rim_odometry_diff", "odometry", {{"site", "rim"}, {"level", "differential"}});
     add("turntable", "rim_odometry_raw", "odometry", {{"site", "rim"}, {"level", "raw"}});
     add("ball", "imu", "imu");
-    sim_->add_supervision_services();
+    add_world_components(*sim_);
     rm_ = std::make_shared<RecordingManager>();
     for (auto& e : sim_->components()) {
       rm_->register_component(*e->component);

@@ -19,6 +19,7 @@
 #include "simgate/sim/components.h"
 #include "simgate/sim/registry.h"
 #include "simgate/sim/simulation.h"
+#include "simgate/sim/supervision.h"
 
 namespace simgate::sim::testing {
 
@@ -144,7 +145,7 @@ class DemoSim : public ::testing::Test {
     sim_->add_component(
         registry.create(Kind::robot, {"human", "human", "human", "robots[1]"}, json::object(), *sim_, nullptr),
         "human", "", true);
-    sim_->add_supervision_services();
+    add_world_components(*sim_);
     rm_ = std::make_shared<RecordingManager>();
     for (auto& e : sim_->components()) {
       rm_->register_component(*e->component);

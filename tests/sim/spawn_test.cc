@@ -404,7 +404,7 @@ class SimSpawnFileTest : public ::testing::Test {
     SimulationOptions options{std::nullopt, 0.0};
     options.spawn_allowed_dirs = {std::filesystem::canonical(root_ / "allowed").string()};
     sim_ = std::make_unique<Simulation>(Model::load_file(testing::demo_scene()), options);
-    sim_->add_supervision_services();
+    add_world_components(*sim_);
     rm_ = std::make_shared<testing::RecordingManager>();
     rm_->register_component(*sim_->find("simulation")->component);
     sim_->add_request_manager(rm_, "test");

@@ -1,5 +1,6 @@
 #include "simgate/morse/params_parser.h"
 
+#include "simgate/core/text.h"
 #include "simgate/morse/wire.h"
 
 #include <array>
@@ -107,8 +108,7 @@ class Parser {
     if (pos_ >= text_.size()) return "the end of the parameters";
     unsigned char c = static_cast<unsigned char>(text_[pos_]);
     if (c >= 0x20 && c < 0x7F) return std::string("'") + char(c) + "'";
-    static const char* digits = "0123456789abcdef";
-    return std::string("byte 0x") + digits[c >> 4] + digits[c & 15];
+    return std::string("byte 0x") + hex_digit(c >> 4) + hex_digit(c);
   }
 
   void skip_blanks() {

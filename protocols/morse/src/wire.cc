@@ -6,6 +6,8 @@
 #include <cstdint>
 #include <cstring>
 
+#include "simgate/core/text.h"
+
 namespace simgate::socket {
 namespace {
 
@@ -29,11 +31,8 @@ std::size_t token_end(std::string_view line, std::size_t pos, unsigned& bytes) {
   return pos;
 }
 
-const char k_hex[] = "0123456789abcdef";
-
 void append_u_escape(std::string& out, std::uint32_t unit) {
-  char buf[6] = {'\\', 'u', k_hex[(unit >> 12) & 15], k_hex[(unit >> 8) & 15],
-                 k_hex[(unit >> 4) & 15], k_hex[unit & 15]};
+  char buf[6] = {'\\', 'u', hex_digit(unit >> 12), hex_digit(unit >> 8), hex_digit(unit >> 4), hex_digit(unit)};
   out.append(buf, 6);
 }
 

@@ -11,6 +11,8 @@
 #include <string>
 #include <string_view>
 
+#include "simgate/core/text.h"
+
 namespace simgate::log {
 
 enum class Level { trace, debug, info, warning, error, off };
@@ -23,14 +25,8 @@ void set_level(Level level);
 Level level();
 inline bool enabled(Level l) { return l >= level() && l != Level::off; }
 
-// `text` as a client sent it, for a log line or an error message: its first `max_bytes`
-// (then "..."), control characters shown as '?' (the log is read on terminals), in quotes.
-inline std::string quoted_prefix(std::string_view text, std::size_t max_bytes = 80) {
-  std::string out(text.substr(0, max_bytes));
-  for (char& c : out)
-    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';
-  return "'" + out + (text.size() > max_bytes ? "...'" : "'");
-}
+// `text` as a client sent it, quoted for a log line (simgate/core/text.h).
+using simgate::quoted_prefix;
 
 // Replaces the sink (default: one line per message on stderr). Empty restores the default.
 void set_sink(std::function<void(Level, std::string_view)> sink);

@@ -25,8 +25,8 @@
 //    active flag, the transports that serve it).
 //
 // Life cycle: construct from a Model; add_component() for every robot and component (the
-// `simulation`, `time` and `communication` pseudo-components are added by
-// add_supervision_services());
+// `simulation`, `simulation.events`, `time` and `communication` pseudo-components are added
+// by add_world_components(), supervision.h);
 // add_request_manager() for every transport (the simulation gives each one its gate);
 // run() until request_stop() (any thread, or the `simulation quit` service); while it runs,
 // replace_model() swaps a recompiled model in (the components re-resolve their ids) and
@@ -175,8 +175,9 @@ class Simulation {
   // Takes ownership; names must be unique (throws std::invalid_argument otherwise).
   ComponentEntry& add_component(std::unique_ptr<Component> component, std::string type,
                                 std::string robot = "", bool is_robot = false);
-  // Adds the `simulation`, `simulation.events`, `time` and `communication` pseudo-components.
-  void add_supervision_services();
+  // The simulation.events pseudo-component (events.h) announce() publishes to; the world's
+  // pseudo-components are added by add_world_components() (supervision.h).
+  void set_events(SimulationEvents* events) { events_ = events; }
   ComponentEntry* find(const std::string& name);
   // Removes the component `name` at run time (a robot deleted with its body,
   // simulation delete_entity): every request manager stops serving it

@@ -21,12 +21,7 @@
 // section names `simulation`, at k_body_poses_frequency unless it says otherwise): every
 // body's world pose, {timestamp, generation, poses: [[x, y, z, qw, qx, qy, qz], ...]}, for a
 // client that draws the scene from get_scene_geometry (docs/world/scene_geometry.md).
-// simulation.events: the simulation's event stream (kind "events", an event stream: no rate),
-// a pseudo-component of its own because a component has one stream and `simulation`'s is
-// body_poses. Its samples tell what happened to the whole world as it happens, whether or
-// not a client asked: {"event": "diverged", ...} (the fields of get_simulation_state's
-// last_divergence), "paused", "resumed", "reset" (Simulation::announce,
-// docs/world/divergence.md). Carried when the "streams" section names it exactly.
+// simulation.events: the simulation's event stream (events.h).
 // time: now (simulated time, seconds since the epoch at start), async sleep t (completes
 // when t simulated seconds have passed; a concurrent service: every caller sleeps on its
 // own), statistics, mode, set_time_scale value (the real-time factor, changed at run time).
@@ -41,6 +36,7 @@
 #include <vector>
 
 #include "simgate/core/component.h"
+#include "simgate/sim/events.h"
 #include "simgate/sim/simulation.h"
 
 namespace simgate::sim {
@@ -103,14 +99,6 @@ class SupervisionServices : public Component {
   std::map<std::string, std::function<void()>> interrupt_hooks_;  // on_interrupt, by service
 };
 
-class SimulationEvents : public Component {
- public:
-  static constexpr const char* k_name = "simulation.events";
-  SimulationEvents();
-  // Gives `event` (a JSON object with "event" and "timestamp") of simulated time `time` to
-  // every subscriber. Under the simulation lock. False when nobody subscribes.
-  bool publish(double time, json event) { return push_sample(time, std::move(event)); }
-};
 
 class TimeServices : public Component {
  public:
@@ -136,6 +124,10 @@ class TimeServices : public Component {
   double epoch_;                // wall-clock seconds since the epoch when the simulation started
   std::vector<Sleep> sleeps_;   // the sleeps running, in the order they started
 };
+
+// Adds the world's pseudo-components to `sim`: `simulation`, `simulation.events` (the
+// stream Simulation::announce publishes to), `time` and `communication`. Before run().
+void add_world_components(Simulation& sim);
 
 }  // namespace simgate::sim
 
