@@ -3,6 +3,7 @@
 #include <malloc.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <exception>
 
 #include <boost/asio/write.hpp>
@@ -19,6 +20,13 @@ namespace {
 constexpr std::size_t k_trim_after_bytes = 8 << 20;
 
 bool would_block(const error_code& ec) { return ec == asio::error::would_block || ec == asio::error::try_again; }
+
+// "0.5", "60": a timeout's seconds as the options spell them, for messages.
+std::string seconds_text(std::chrono::milliseconds duration) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", static_cast<double>(duration.count()) / 1000.0);
+  return text;
+}
 }  // namespace
 
 // ---- Connection
@@ -358,9 +366,8 @@ void ConnectionServer::sweep() {
                  which.size() == 1 ? " (" + which.front()->label() + ")" : std::string());
     for (const auto& c : which) c->end(why, Ending::timeout);
   };
-  end(message_late,
-      "a message not finished within " + std::to_string(line_timeout_.count() / 1000.0) + " s (line_timeout_s)");
-  end(idle, "idle for " + std::to_string(idle_timeout_.count() / 1000.0) + " s (idle_timeout_s)");
+  end(message_late, "a message not finished within " + seconds_text(line_timeout_) + " s (line_timeout_s)");
+  end(idle, "idle for " + seconds_text(idle_timeout_) + " s (idle_timeout_s)");
   for (const auto& c : all)
     if (!c->closed()) c->on_sweep(tick);  // keep-alives
   // the memory a burst used goes back to the system, not only to the allocator
