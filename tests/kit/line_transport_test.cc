@@ -5,19 +5,11 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include <atomic>
-#include <chrono>
-#include <fstream>
-#include <memory>
-#include <sstream>
 #include <stdexcept>
 #include <string>
-#include <thread>
 
+#include "example_transport.h"
 #include "simgate/client/socket_client.h"
-#include "simgate/core/errors.h"
-#include "simgate/core/plugin_loader.h"
-#include "simgate/core/request_manager.h"
 
 namespace simgate {
 namespace {
@@ -26,46 +18,15 @@ using namespace std::chrono_literals;
 using ::testing::HasSubstr;
 using ::testing::StartsWith;
 
-std::string read_file(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-class LineTransportTest : public ::testing::Test {
+class LineTransportTest : public testing::ExampleTransportTest {
  protected:
-  void SetUp() override {
-    plugin_ = load_transport_plugin(std::string(SIMGATE_TEST_EXAMPLE_PLUGIN_DIR) + "/libsimgate_transport_line.so");
-    manager_ = plugin_->create(json{{"port", 0}, {"max_message_bytes", 64}}, "transports.line");
-    manager_->register_service("test", [](int a, int b) { return a + b; }, "add", {"a", "b"});
-    manager_->register_service("test", [](std::string m) -> json { throw ServiceError(m); }, "fail", {"message"});
-    manager_->start();
-    const std::string endpoint = manager_->endpoints().at(0);
-    port_ = static_cast<std::uint16_t>(std::stoi(endpoint.substr(endpoint.rfind(':') + 1)));
-    // the simulation thread: runs what the I/O thread could not run at once
-    loop_ = std::thread([this] {
-      while (!stop_.load()) manager_->process(50ms);
-    });
-  }
-  void TearDown() override {
-    stop_ = true;
-    manager_->gate()->signal();
-    loop_.join();
-    manager_->stop();
-  }
+  LineTransportTest() : ExampleTransportTest("line", json{{"port", 0}, {"max_message_bytes", 64}}) {}
 
   std::string roundtrip(client::SocketClient& c, const std::string& line) {
     c.send_line(line);
     auto reply = c.read_line(10s);
     return reply ? *reply : "(no reply within 10 s)";
   }
-
-  std::shared_ptr<TransportPlugin> plugin_;
-  std::shared_ptr<RequestManager> manager_;
-  std::uint16_t port_ = 0;
-  std::atomic<bool> stop_{false};
-  std::thread loop_;
 };
 
 TEST_F(LineTransportTest, AnswersCallsAndErrorsOnOneConnection) {
@@ -94,13 +55,7 @@ TEST_F(LineTransportTest, AClientThatEndsItsInputGetsItsAnswersThenTheConnection
   EXPECT_THROW(c.read_line(10s), std::runtime_error) << "the connection stayed open after its answers";
 }
 
-TEST(LineTransportDoc, ThePageShowsTheExampleAsBuilt) {
-  const std::string page = read_file(std::string(SIMGATE_SOURCE_DIR) + "/docs/writing-a-transport.md");
-  const std::string file = read_file(std::string(SIMGATE_SOURCE_DIR) + "/docs/examples/line_transport.cc");
-  ASSERT_FALSE(file.empty());
-  EXPECT_THAT(page, HasSubstr("```cpp\n" + file + "```\n"))
-      << "docs/writing-a-transport.md must show docs/examples/line_transport.cc verbatim";
-}
+TEST(LineTransportDoc, ThePageShowsTheExampleAsBuilt) { EXPECT_TRUE(testing::the_page_shows("line_transport.cc")); }
 
 }  // namespace
 }  // namespace simgate

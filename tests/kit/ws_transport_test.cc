@@ -5,17 +5,9 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include <atomic>
-#include <chrono>
-#include <fstream>
-#include <memory>
-#include <sstream>
 #include <string>
-#include <thread>
 
-#include "simgate/core/errors.h"
-#include "simgate/core/plugin_loader.h"
-#include "simgate/core/request_manager.h"
+#include "example_transport.h"
 #include "ws_test_client.h"
 
 namespace simgate {
@@ -25,40 +17,9 @@ using namespace std::chrono_literals;
 using ::testing::HasSubstr;
 using websocket_test::WsClient;
 
-std::string read_file(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-class WsTransportTest : public ::testing::Test {
+class WsTransportTest : public testing::ExampleTransportTest {
  protected:
-  void SetUp() override {
-    plugin_ = load_transport_plugin(std::string(SIMGATE_TEST_EXAMPLE_PLUGIN_DIR) + "/libsimgate_transport_wsjson.so");
-    manager_ = plugin_->create(json{{"port", 0}, {"max_message_bytes", 256}}, "transports.wsjson");
-    manager_->register_service("test", [](int a, int b) { return a + b; }, "add", {"a", "b"});
-    manager_->register_service("test", [](std::string m) -> json { throw ServiceError(m); }, "fail", {"message"});
-    manager_->start();
-    const std::string endpoint = manager_->endpoints().at(0);  // "ws://127.0.0.1:PORT/"
-    port_ = static_cast<std::uint16_t>(std::stoi(endpoint.substr(endpoint.rfind(':') + 1)));
-    // the simulation thread: runs what the I/O thread could not run at once
-    loop_ = std::thread([this] {
-      while (!stop_.load()) manager_->process(50ms);
-    });
-  }
-  void TearDown() override {
-    stop_ = true;
-    manager_->gate()->signal();
-    loop_.join();
-    manager_->stop();
-  }
-
-  std::shared_ptr<TransportPlugin> plugin_;
-  std::shared_ptr<RequestManager> manager_;
-  std::uint16_t port_ = 0;
-  std::atomic<bool> stop_{false};
-  std::thread loop_;
+  WsTransportTest() : ExampleTransportTest("wsjson", json{{"port", 0}, {"max_message_bytes", 256}}) {}
 };
 
 TEST_F(WsTransportTest, AnswersCallsAndErrorsOnOneConnection) {
@@ -91,11 +52,8 @@ TEST_F(WsTransportTest, APageOfAnotherSiteMayNotOpenIt) {
 }
 
 TEST(WsTransportDoc, ThePageShowsTheExampleAsBuilt) {
-  const std::string page = read_file(std::string(SIMGATE_SOURCE_DIR) + "/docs/writing-a-transport.md");
-  const std::string file = read_file(std::string(SIMGATE_SOURCE_DIR) + "/docs/examples/ws_transport.cc");
-  ASSERT_FALSE(file.empty());
-  EXPECT_THAT(page, HasSubstr("```cpp\n" + file + "```\n"))
-      << "docs/writing-a-transport.md must show docs/examples/ws_transport.cc verbatim";
+  EXPECT_TRUE(testing::the_page_shows("ws_transport.cc"));
+  const std::string file = testing::read_file(std::string(SIMGATE_SOURCE_DIR) + "/docs/examples/ws_transport.cc");
   std::size_t lines = 0;
   for (char ch : file) lines += ch == '\n';
   EXPECT_LT(lines, 250u) << "a WebSocket transport on the kit fits in under 250 lines";
