@@ -1,6 +1,6 @@
 // plugins/jsonrpc/jsonrpc_request_manager.h — JSON-RPC 2.0 over TCP (newline-delimited).
 //
-// What: the JSON-RPC engine (jsonrpc_engine.h: the protocol, shared with the websocket
+// What: the JSON-RPC engine (simgate/jsonrpc/engine.h: the protocol, shared with the websocket
 // transport) framed as one message (request or batch) per `\n`-terminated line, in both
 // directions, on the kit's line connections (simgate/kit/line_connection.h). Wire details
 // and the error table: docs/transports/jsonrpc.md.

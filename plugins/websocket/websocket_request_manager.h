@@ -1,8 +1,9 @@
 // plugins/websocket/websocket_request_manager.h — JSON-RPC 2.0 over WebSocket.
 //
-// What: the JSON-RPC engine (plugins/jsonrpc/jsonrpc_engine.h: the very protocol of the
-// jsonrpc transport, shared, not copied) framed as one message (request or batch) per
-// WebSocket text message, in both directions, over Boost.Beast (websocket_session.h). Only
+// What: the JSON-RPC engine (simgate/jsonrpc/engine.h: the very protocol of the jsonrpc
+// transport, compiled once, not copied) framed as one message (request or batch) per
+// WebSocket text message, in both directions, on the kit's WebSocket connections
+// (simgate/kit/websocket_connection.h; a session: websocket_session.h). Only
 // the framing differs from the TCP transport: discover, named params, async out of order,
 // cancel, batches, login, deadlines, progress and stream subscriptions are the same code.
 // A binary message, or a text message over max_message_bytes, is answered -32600 and the
@@ -18,15 +19,15 @@
 // Its connections are the kit's (simgate/kit/connection.h), as the TCP transports' are: the
 // same options with the same meaning (idle_timeout_s, idle_evict_s, line_timeout_s for an
 // unfinished message, max_connections_per_peer, max_unsent_bytes, max_buffered_bytes for
-// what all connections hold); websocket_session.h adds the WebSocket handshake, frames,
-// keep-alive and close handshake.
+// what all connections hold); kit/websocket_connection.h adds the WebSocket handshake,
+// frames, keep-alive and close handshake.
 //
 // Threads: one I/O thread runs the io_context (accept, handshake, read, parse, hand over,
 // write), polling a little before it sleeps while events come close together (io_spin_us,
 // simgate/kit/idle_spin.h); while it polls, it reads the socket of a client sending alone
-// itself (DirectReads), as the TCP transport does. The calls of one message go to the core together, run on this
-// thread when the simulation lock is free; sessions and pending calls are touched by the
-// I/O thread only.
+// itself (DirectReads), as the TCP transport does. The calls of one read go to the core
+// together, run on this thread when the simulation lock is free; sessions and pending
+// calls are touched by the I/O thread only.
 #ifndef SIMGATE_PLUGINS_WEBSOCKET_WEBSOCKET_REQUEST_MANAGER_H_
 #define SIMGATE_PLUGINS_WEBSOCKET_WEBSOCKET_REQUEST_MANAGER_H_
 

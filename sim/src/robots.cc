@@ -5,7 +5,6 @@
 #include "simgate/sim/actuator_kind.h"
 #include "simgate/sim/actuators_sensors.h"
 #include "simgate/sim/armature.h"
-#include "simgate/sim/cameras.h"
 #include "simgate/sim/bounds.h"
 #include "simgate/sim/components.h"
 #include "simgate/sim/native_sensors.h"

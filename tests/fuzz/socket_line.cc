@@ -1,4 +1,4 @@
-// Fuzz target socket_line: what a socket client's bytes go through (plugins/socket/wire.h,
+// Fuzz target socket_line: what a socket client's bytes go through (simgate/morse/wire.h,
 // params_parser.h). The input is a connection's stream: split at '\n' like the session
 // does, each line tokenised by parse_request_line, a call's parameters parsed by
 // parse_params_into into the value the previous call used (the transport refills it) and

@@ -1,5 +1,5 @@
 // Fuzz target websocket_frames: what a WebSocket client's bytes go through once upgraded
-// (plugins/websocket/ws_frames.h, FrameParser: what WsSession feeds each read to).
+// (simgate/kit/ws_frames.h, FrameParser: what kit::WebSocketConnection feeds each read to).
 //
 // Input: byte 0 and 1 seed the split sizes (0 to 2 * (1 + byte 1 % 64) bytes per feed, empty
 // feeds included; byte 1 == 255: the whole stream in one feed), byte 2 picks

@@ -1,4 +1,4 @@
-// The websocket transport's frame parser without a socket (plugins/websocket/ws_frames.h):
+// The kit's WebSocket frame parser without a socket (simgate/kit/ws_frames.h):
 // client frames in any split, the events out, every protocol error. The session's use of it
 // on a real socket is in websocket_test.cc (WebSocketTest: raw frames on a socket).
 #include "simgate/kit/ws_frames.h"

@@ -220,7 +220,6 @@ class Connection : public std::enable_shared_from_this<Connection> {
     eof_ = true;
     maybe_finish();
   }
-  bool input_done() const { return eof_; }
   // Appends bytes that are no message (a pong, a close frame): no budget, no activity;
   // nothing once the socket is closed.
   template <class Format>
@@ -363,7 +362,6 @@ class ConnectionServer {
   bool alone(const Connection& connection) { return read_split_.alone(&connection); }
   // What all connections hold (max_buffered_bytes).
   HeldBytes& held() { return shared_.held; }
-  const std::string& who() const { return who_; }
 
  private:
   friend class Connection;

@@ -224,7 +224,7 @@ class JsonRpcEngine : public RequestManager {
   // end of the burst (flush_replies).
   void reply(ReplyTo& to, std::optional<json> response);
 
-  // ---- data streams (jsonrpc_engine_streams.h)
+  // ---- data streams (engine_streams.cc)
   // One subscription of a connection to an output stream.
   struct StreamSub {
     std::uint64_t id = 0;                               // what rpc.subscribe answered
