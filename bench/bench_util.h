@@ -51,7 +51,9 @@ inline double quantile(const std::vector<std::int64_t>& sorted, double q) {
 // The median of v (the mean of the middle two for an even count), 0 when v is empty.
 inline double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
-  return v.empty() ? 0 : v.size() % 2 ? v[v.size() / 2] : (v[v.size() / 2 - 1] + v[v.size() / 2]) / 2;
+  return v.empty()      ? 0
+         : v.size() % 2 ? v[v.size() / 2]
+                        : (v[v.size() / 2 - 1] + v[v.size() / 2]) / 2;
 }
 
 inline json summarize_us(std::vector<std::int64_t> samples) {
@@ -91,11 +93,13 @@ struct RealtimePhase {
   double cpu_s = 0;
 };
 template <class Steps, class During>
-void measure_realtime_phase(RealtimePhase& phase, double seconds, double timestep, Steps&& steps, During&& during) {
+void measure_realtime_phase(RealtimePhase& phase, double seconds, double timestep, Steps&& steps,
+                            During&& during) {
   const auto start = Clock::now();
   const std::uint64_t steps0 = steps();
   const double cpu0 = process_cpu_s(), client0 = thread_cpu_s();
-  during(start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds)));
+  during(start +
+         std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds)));
   const std::uint64_t steps1 = steps();
   phase.wall_s = std::chrono::duration<double>(Clock::now() - start).count();
   phase.cpu_s = process_cpu_s() - cpu0 - (thread_cpu_s() - client0);
@@ -134,7 +138,8 @@ inline std::optional<int> parse_command_line(CLI::App& app, int argc, char** arg
   } catch (const CLI::Success& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
-    std::cerr << app.get_name() << ": " << e.what() << " (" << app.get_name() << " --help shows the options)\n";
+    std::cerr << app.get_name() << ": " << e.what() << " (" << app.get_name()
+              << " --help shows the options)\n";
     return 2;
   }
 }

@@ -86,7 +86,8 @@ class BareLoop {
     mjr_defaultContext(&con_);
     mjr_makeContext(model_, &con_, mjFONTSCALE_50);
     mjr_setBuffer(mjFB_OFFSCREEN, &con_);
-    if (con_.currentBuffer != mjFB_OFFSCREEN) throw std::runtime_error("MuJoCo made no offscreen framebuffer");
+    if (con_.currentBuffer != mjFB_OFFSCREEN)
+      throw std::runtime_error("MuJoCo made no offscreen framebuffer");
     mjv_defaultScene(&scene_);
     mjv_makeScene(model_, &scene_, 2 * m->ngeom + 2 * m->ntendon + 100);
     mjv_defaultOption(&option_);
@@ -99,7 +100,8 @@ class BareLoop {
     for (int i = 0; i < 3; ++i) camera_.lookat[i] = view.position[i] + view.forward[i];
     camera_.azimuth = std::atan2(view.forward[1], view.forward[0]) * 180 / M_PI;
     camera_.elevation = std::asin(std::clamp(view.forward[2], -1.0, 1.0)) * 180 / M_PI;
-    const std::size_t pixels = static_cast<std::size_t>(view.width) * static_cast<std::size_t>(view.height);
+    const std::size_t pixels =
+        static_cast<std::size_t>(view.width) * static_cast<std::size_t>(view.height);
     rgb_.resize(3 * pixels);
     raw_depth_.resize(pixels);
     depth_.resize(pixels);
@@ -114,14 +116,16 @@ class BareLoop {
 
   void frame(const mjData* d, bool depth) {
     const mjrRect viewport{0, 0, view_.width, view_.height};
-    mjv_updateScene(model_, const_cast<mjData*>(d), &option_, &perturb_, &camera_, mjCAT_ALL, &scene_);
+    mjv_updateScene(model_, const_cast<mjData*>(d), &option_, &perturb_, &camera_, mjCAT_ALL,
+                    &scene_);
     mjr_render(viewport, &scene_, &con_);
     if (!depth) {
       mjr_readPixels(rgb_.data(), nullptr, viewport, &con_);
       return;
     }
     mjr_readPixels(nullptr, raw_depth_.data(), viewport, &con_);
-    const double n = model_->vis.map.znear * model_->stat.extent, f = model_->vis.map.zfar * model_->stat.extent;
+    const double n = model_->vis.map.znear * model_->stat.extent,
+                 f = model_->vis.map.zfar * model_->stat.extent;
     for (std::size_t i = 0; i < depth_.size(); ++i) depth_[i] = linear_depth(raw_depth_[i], n, f);
   }
   // The last image, rows bottom first (OpenGL's).
@@ -153,17 +157,18 @@ class RendererLoop {
     copy_ns_.push_back(ns_between(t0, Clock::now()));
     std::promise<sim::RenderResult> done;
     std::size_t bytes = 0;
-    renderer_.render(std::move(scene_), !depth, depth, [&done, &bytes, depth, record](sim::RenderResult r) {
-      try {
-        if (record && r.error.empty()) {
-          const json image = depth ? sim::depth_image_record(r) : sim::rgb_image_record(r);
-          bytes = image.at("image").get_ref<const std::string&>().size();
-        }
-      } catch (const std::exception& e) {
-        r.error = std::string("image record: ") + e.what();
-      }
-      done.set_value(std::move(r));
-    });
+    renderer_.render(
+        std::move(scene_), !depth, depth, [&done, &bytes, depth, record](sim::RenderResult r) {
+          try {
+            if (record && r.error.empty()) {
+              const json image = depth ? sim::depth_image_record(r) : sim::rgb_image_record(r);
+              bytes = image.at("image").get_ref<const std::string&>().size();
+            }
+          } catch (const std::exception& e) {
+            r.error = std::string("image record: ") + e.what();
+          }
+          done.set_value(std::move(r));
+        });
     result_ = done.get_future().get();
     scene_ = std::move(result_.scene);
     if (!result_.error.empty()) throw std::runtime_error("Renderer: " + result_.error);
@@ -188,7 +193,8 @@ double difference(const BareLoop& bare, const sim::RenderResult& r, bool depth) 
   double sum = 0;
   std::size_t n = 0;
   for (int y = 0; y < h; ++y) {
-    const std::size_t bare_row = static_cast<std::size_t>(h - 1 - y) * w, row = static_cast<std::size_t>(y) * w;
+    const std::size_t bare_row = static_cast<std::size_t>(h - 1 - y) * w,
+                      row = static_cast<std::size_t>(y) * w;
     for (int x = 0; x < w; ++x) {
       if (depth) {
         sum += std::fabs(bare.depth()[bare_row + x] - r.depth[row + x]);
@@ -252,7 +258,8 @@ json run_camera_fps(const CameraFpsOptions& o) {
       std::vector<double> fps[3], raw_ratio, png_ratio;
       double elapsed[3] = {0, 0, 0};
       int frames = 0, round = 0;
-      while (round < 2 || (frames < o.frames && *std::max_element(elapsed, elapsed + 3) < o.seconds)) {
+      while (round < 2 ||
+             (frames < o.frames && *std::max_element(elapsed, elapsed + 3) < o.seconds)) {
         double batch_fps[3] = {0, 0, 0};
         for (int k = 0; k < 3; ++k) {
           const int s = (round + k) % 3;
@@ -300,8 +307,8 @@ json run_camera_fps(const CameraFpsOptions& o) {
 namespace {
 
 struct RtfPhase : RealtimePhase {  // cpu_s: the gateway's threads
-  std::uint64_t samples = 0;   // rpc.sample notifications read
-  std::uint64_t bytes = 0;     // their lines' bytes
+  std::uint64_t samples = 0;       // rpc.sample notifications read
+  std::uint64_t bytes = 0;         // their lines' bytes
 };
 
 }  // namespace
@@ -312,7 +319,8 @@ json run_camera_rtf(const std::string& config, const std::string& camera, double
   {
     // no GL, no figure: the camera would render nothing and the phases would be equal
     std::shared_ptr<sim::Renderer> renderer = sim::Renderer::shared();
-    if (std::string r = renderer->unavailable(); !r.empty()) return {{"mode", "camera_rtf"}, {"skipped", r}};
+    if (std::string r = renderer->unavailable(); !r.empty())
+      return {{"mode", "camera_rtf"}, {"skipped", r}};
   }
   json document = gw::load_config_document(config);
   for (auto& [name, transport] : document.at("transports").items()) {
@@ -337,16 +345,19 @@ json run_camera_rtf(const std::string& config, const std::string& camera, double
     int fd = -1;
     try {
       auto measure = [&](RealtimePhase& phase, auto&& during) {
-        measure_realtime_phase(phase, seconds, timestep, [&] { return gateway.simulation().steps(); }, during);
+        measure_realtime_phase(
+            phase, seconds, timestep, [&] { return gateway.simulation().steps(); }, during);
       };
       // phase 1: nobody subscribed
       measure(without, [](Clock::time_point end) { std::this_thread::sleep_until(end); });
 
       // phase 2: a JSON-RPC subscriber, timed from its first sample
       fd = connect_loopback(port);
-      const std::string subscribe = R"({"jsonrpc":"2.0","id":1,"method":"rpc.subscribe","params":{"component":")" +
-                                    camera + "\"}}\n";
-      if (::send(fd, subscribe.data(), subscribe.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(subscribe.size()))
+      const std::string subscribe =
+          R"({"jsonrpc":"2.0","id":1,"method":"rpc.subscribe","params":{"component":")" + camera +
+          "\"}}\n";
+      if (::send(fd, subscribe.data(), subscribe.size(), MSG_NOSIGNAL) !=
+          static_cast<ssize_t>(subscribe.size()))
         throw std::runtime_error("send failed");
       std::string text;
       std::vector<char> buffer(1 << 20);
@@ -356,10 +367,13 @@ json run_camera_rtf(const std::string& config, const std::string& camera, double
           std::size_t begin = 0;
           for (std::size_t nl; (nl = text.find('\n', begin)) != std::string::npos; begin = nl + 1) {
             const std::string_view line(text.data() + begin, nl - begin);
-            const bool sample = line.substr(0, 200).find("\"rpc.sample\"") != std::string_view::npos;
+            const bool sample =
+                line.substr(0, 200).find("\"rpc.sample\"") != std::string_view::npos;
             if (!sample && line.find("\"error\"") != std::string_view::npos)
-              throw std::runtime_error("rpc.subscribe " + camera + ": " + std::string(line.substr(0, 400)));
-            if (!sample && line.find("\"result\"") != std::string_view::npos) subscribed = json::parse(line);
+              throw std::runtime_error("rpc.subscribe " + camera + ": " +
+                                       std::string(line.substr(0, 400)));
+            if (!sample && line.find("\"result\"") != std::string_view::npos)
+              subscribed = json::parse(line);
             if (sample && phase) {
               ++phase->samples;
               phase->bytes += line.size() + 1;
@@ -399,13 +413,17 @@ json run_camera_rtf(const std::string& config, const std::string& camera, double
                 {"gateway_cpu_per_s", p.cpu_s / p.wall_s},
                 {"samples", p.samples},
                 {"samples_per_s", static_cast<double>(p.samples) / p.wall_s},
-                {"mean_sample_bytes", p.samples ? static_cast<double>(p.bytes) / static_cast<double>(p.samples) : 0.0}};
+                {"mean_sample_bytes",
+                 p.samples ? static_cast<double>(p.bytes) / static_cast<double>(p.samples) : 0.0}};
   };
   return {{"mode", "camera_rtf"},
           {"config", config},
           {"camera", camera},
           {"timestep", timestep},
-          {"image", {{"width", data.at("width")}, {"height", data.at("height")}, {"encoding", data.at("encoding")}}},
+          {"image",
+           {{"width", data.at("width")},
+            {"height", data.at("height")},
+            {"encoding", data.at("encoding")}}},
           {"frequency_hz", subscribed.at("result").at("stream").at("frequency")},
           {"without", phase_json(without)},
           {"with", phase_json(with)},

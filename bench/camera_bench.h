@@ -17,13 +17,13 @@
 namespace simgate::bench {
 
 struct CameraFpsOptions {
-  std::string mjcf;                                  // the scene
-  std::string site = "laser";                        // the camera's frame (config/rover.json's)
+  std::string mjcf;            // the scene
+  std::string site = "laser";  // the camera's frame (config/rover.json's)
   std::vector<std::pair<int, int>> sizes = {{320, 240}, {640, 480}};
-  int frames = 200;                                  // per side, per size and kind, at most
-  double seconds = 5;                                // per side, per size and kind, at most
-  int batch = 10;                                    // frames of one side in a row
-  bool depth = true;                                 // the depth rows too
+  int frames = 200;    // per side, per size and kind, at most
+  double seconds = 5;  // per side, per size and kind, at most
+  int batch = 10;      // frames of one side in a row
+  bool depth = true;   // the depth rows too
 };
 
 // The frame-rate comparison. Throws on failure (not on a missing GL: then {"skipped": ...}).

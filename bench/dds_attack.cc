@@ -149,7 +149,8 @@ class RawClient {
     sd::QosPtr partition_qos(dds_create_qos());
     dds_qset_partition1(partition_qos.get(), partition.c_str());
     dds_entity_t publisher = dds_create_publisher(pp, partition_qos.get(), nullptr);
-    dds_entity_t topic = dds_create_topic(pp, &simgate_Request_desc, sd::k_request_topic, nullptr, nullptr);
+    dds_entity_t topic =
+        dds_create_topic(pp, &simgate_Request_desc, sd::k_request_topic, nullptr, nullptr);
     sd::QosPtr qos = sd::make_qos(false, 0, DDS_SECS(1));
     writer_ = dds_create_writer(publisher, topic, qos.get(), nullptr);
     if (writer_ < 0) throw std::runtime_error("request writer: " + sd::retcode_text(writer_));
@@ -165,7 +166,8 @@ class RawClient {
     sd::QosPtr partition_qos(dds_create_qos());
     dds_qset_partition1(partition_qos.get(), (partition_ + "/" + sd::to_hex(id_)).c_str());
     dds_entity_t subscriber = dds_create_subscriber(pp, partition_qos.get(), nullptr);
-    dds_entity_t topic = dds_create_topic(pp, &simgate_Reply_desc, sd::k_reply_topic, nullptr, nullptr);
+    dds_entity_t topic =
+        dds_create_topic(pp, &simgate_Reply_desc, sd::k_reply_topic, nullptr, nullptr);
     sd::QosPtr qos = sd::make_qos(false, 0, DDS_SECS(1));
     dds_qset_resource_limits(qos.get(), max_samples, DDS_LENGTH_UNLIMITED, DDS_LENGTH_UNLIMITED);
     std::string userdata = std::string(sd::k_userdata_id_prefix) + sd::to_hex(id_);
@@ -194,8 +196,9 @@ class RawClient {
   }
 
   // as: write with that id instead of ours (a spoofer)
-  void write(std::uint64_t seq, simgate_Op op, const std::string& component, const std::string& service,
-             const std::string& params, std::uint64_t target = 0, const sd::ClientId* as = nullptr) {
+  void write(std::uint64_t seq, simgate_Op op, const std::string& component,
+             const std::string& service, const std::string& params, std::uint64_t target = 0,
+             const sd::ClientId* as = nullptr) {
     simgate_Request rq{};
     std::memcpy(rq.id.client, (as ? *as : id_).data(), 16);
     rq.id.seq = seq;
@@ -219,7 +222,12 @@ class RawClient {
         const auto& r = *static_cast<const simgate_Reply*>(samples[0]);
         std::optional<Reply> out;
         if (info.valid_data && std::memcmp(r.client, id_.data(), 16) == 0)
-          out = Reply{r.seq, r.status, r.failure, r.last, r.result ? r.result : "", r.message ? r.message : "",
+          out = Reply{r.seq,
+                      r.status,
+                      r.failure,
+                      r.last,
+                      r.result ? r.result : "",
+                      r.message ? r.message : "",
                       ms_since(written_)};
         dds_return_loan(reader_, samples, 1);
         if (out) return out;
@@ -231,7 +239,8 @@ class RawClient {
   }
 
   // The final reply (last = true) for `seq`, skipping others; nullopt after `timeout`.
-  std::optional<Reply> final_reply(std::uint64_t seq, std::chrono::milliseconds timeout = g_timeout) {
+  std::optional<Reply> final_reply(std::uint64_t seq,
+                                   std::chrono::milliseconds timeout = g_timeout) {
     const auto deadline = Clock::now() + timeout;
     while (Clock::now() < deadline) {
       auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
@@ -277,7 +286,8 @@ json reply_json(const std::optional<Reply>& r) { return r ? r->to_json() : json(
 std::unique_ptr<RawClient> ready_client(std::uint32_t domain, const std::string& partition) {
   auto c = std::make_unique<RawClient>(domain, partition);
   c->create_reply_reader();
-  if (!c->wait_matched()) throw std::runtime_error("no simgate DDS server matched in partition '" + partition + "'");
+  if (!c->wait_matched())
+    throw std::runtime_error("no simgate DDS server matched in partition '" + partition + "'");
   return c;
 }
 
@@ -322,15 +332,19 @@ json mode_hijack(std::uint32_t domain, const std::string& partition) {
   return out;
 }
 
-json mode_stuck(std::uint32_t domain, const std::string& partition, int count, int max_samples, double hold_s,
-                const std::string& component, const std::string& service) {
+json mode_stuck(std::uint32_t domain, const std::string& partition, int count, int max_samples,
+                double hold_s, const std::string& component, const std::string& service) {
   RawClient c(domain, partition);
   c.create_reply_reader(max_samples > 0 ? max_samples : DDS_LENGTH_UNLIMITED);  // never takes
-  if (!c.wait_matched()) throw std::runtime_error("no simgate DDS server matched in partition '" + partition + "'");
+  if (!c.wait_matched())
+    throw std::runtime_error("no simgate DDS server matched in partition '" + partition + "'");
   for (int i = 1; i <= count; ++i) c.write(i, simgate_OP_CALL, component, service, "");
-  std::cout << json{{"ready", true}, {"id", sd::to_hex(c.id())}, {"written", count}}.dump() << std::endl;
-  const auto until = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(hold_s));
-  while (!g_stop.load() && Clock::now() < until) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  std::cout << json{{"ready", true}, {"id", sd::to_hex(c.id())}, {"written", count}}.dump()
+            << std::endl;
+  const auto until = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                        std::chrono::duration<double>(hold_s));
+  while (!g_stop.load() && Clock::now() < until)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
   c.drain(std::chrono::seconds(5));
   return {{"held_s", hold_s}};
 }
@@ -350,7 +364,10 @@ json mode_good(std::uint32_t domain, const std::string& partition, int count) {
     const auto t = Clock::now();
     try {
       auto o = client.call("simulation", "list_robots", nullptr, std::chrono::seconds(5));
-      if (o.status == simgate::Status::success) ++answered; else ++failed;
+      if (o.status == simgate::Status::success)
+        ++answered;
+      else
+        ++failed;
       if (i == 0) first = o.value ? *o.value : json(o.message);
     } catch (const std::exception& e) {
       ++failed;
@@ -358,8 +375,8 @@ json mode_good(std::uint32_t domain, const std::string& partition, int count) {
     }
     slowest = std::max(slowest, ms_since(t));
   }
-  return {{"calls", count}, {"answered", answered}, {"failed", failed}, {"total_ms", ms_since(t0)},
-          {"slowest_ms", slowest}, {"first", first}};
+  return {{"calls", count},           {"answered", answered},  {"failed", failed},
+          {"total_ms", ms_since(t0)}, {"slowest_ms", slowest}, {"first", first}};
 }
 
 json mode_names(std::uint32_t domain, const std::string& partition) {
@@ -421,9 +438,9 @@ json mode_call(std::uint32_t domain, const std::string& partition, const std::st
   return {{"reply", reply_json(c->final_reply(1))}};
 }
 
-
-json mode_pipeline(std::uint32_t domain, const std::string& partition, int count, const std::string& component,
-                   const std::string& service, const std::string& params) {
+json mode_pipeline(std::uint32_t domain, const std::string& partition, int count,
+                   const std::string& component, const std::string& service,
+                   const std::string& params) {
   auto c = ready_client(domain, partition);
   const auto t0 = Clock::now();
   for (int i = 1; i <= count; ++i) c->write(i, simgate_OP_CALL, component, service, params);
@@ -446,8 +463,10 @@ json mode_pipeline(std::uint32_t domain, const std::string& partition, int count
   }
   int missing = 0, doubled = 0;
   for (int i = 1; i <= count; ++i) missing += finals[i] == 0, doubled += finals[i] > 1;
-  return {{"sent", count},   {"final_replies", seen}, {"answered", answered}, {"overloaded", overloaded},
-          {"other", other},  {"first_other", first_other}, {"missing", missing}, {"doubled", doubled},
+  return {{"sent", count},        {"final_replies", seen},
+          {"answered", answered}, {"overloaded", overloaded},
+          {"other", other},       {"first_other", first_other},
+          {"missing", missing},   {"doubled", doubled},
           {"write_ms", write_ms}, {"total_ms", ms_since(t0)}};
 }
 
@@ -492,7 +511,8 @@ json mode_command(std::uint32_t domain, const std::string& partition, const std:
   // the stream's command topic: "simgate/" + the component with '.' as '/' (docs/transports/dds.md)
   std::string topic_name = "simgate/" + component + "/json";
   std::replace(topic_name.begin(), topic_name.end(), '.', '/');
-  dds_entity_t topic = dds_create_topic(pp, &simgate_stream_JsonCommand_desc, topic_name.c_str(), nullptr, nullptr);
+  dds_entity_t topic =
+      dds_create_topic(pp, &simgate_stream_JsonCommand_desc, topic_name.c_str(), nullptr, nullptr);
   sd::QosPtr qos = sd::make_qos(false, 0, DDS_SECS(10));
   dds_entity_t writer = dds_create_writer(publisher, topic, qos.get(), nullptr);
   if (writer < 0) throw std::runtime_error("command writer: " + sd::retcode_text(writer));
@@ -502,7 +522,8 @@ json mode_command(std::uint32_t domain, const std::string& partition, const std:
     dds_get_publication_matched_status(writer, &matched);
     dds_sleepfor(DDS_MSECS(2));
   }
-  if (matched.current_count == 0) throw std::runtime_error("no reader of " + topic_name + " matched");
+  if (matched.current_count == 0)
+    throw std::runtime_error("no reader of " + topic_name + " matched");
   // {"v": [1,1,1,...]}: a JSON object of `bytes` bytes, most of it a long array of small numbers
   std::string text = "{\"v\": [1";
   while (text.size() + 4 < bytes) text += ",1";
@@ -525,61 +546,84 @@ json mode_command(std::uint32_t domain, const std::string& partition, const std:
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"The DDS attacks of bench/attacks (issue #17), as a raw Cyclone client of simgate's wire types.",
-               "simgate_bench_dds_attack"};
+  CLI::App app{
+      "The DDS attacks of bench/attacks (issue #17), as a raw Cyclone client of simgate's wire "
+      "types.",
+      "simgate_bench_dds_attack"};
   std::string mode, partition = "simgate", component, service, params;
   std::uint32_t domain = 0;
   int count = 20, max_samples = 1, server_pid = 0;
   std::size_t bytes = 20u << 20;
   double hold = 30, timeout = 20;
   app.add_option("--mode", mode,
-                 "deep, hijack, stuck, good, names, dupseq, utf8, sessions, call, pipeline, cancelseq or command")
+                 "deep, hijack, stuck, good, names, dupseq, utf8, sessions, call, pipeline, "
+                 "cancelseq or command")
       ->required()
-      ->check(CLI::IsMember({"deep", "hijack", "stuck", "good", "names", "dupseq", "utf8", "sessions", "call",
-                             "pipeline", "cancelseq", "command"}));
-  app.add_option("--domain", domain, "DDS domain")->check(CLI::Range(0, 230))->capture_default_str();
+      ->check(CLI::IsMember({"deep", "hijack", "stuck", "good", "names", "dupseq", "utf8",
+                             "sessions", "call", "pipeline", "cancelseq", "command"}));
+  app.add_option("--domain", domain, "DDS domain")
+      ->check(CLI::Range(0, 230))
+      ->capture_default_str();
   app.add_option("--partition", partition, "DDS partition")->capture_default_str();
-  app.add_option("--count", count, "stuck, pipeline: calls written; good: calls made; sessions: sessions")
+  app.add_option("--count", count,
+                 "stuck, pipeline: calls written; good: calls made; sessions: sessions")
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
   app.add_option("--max-samples", max_samples, "stuck: replies its reader holds (0: no limit)")
       ->check(CLI::Range(0, 100000))
       ->capture_default_str();
-  app.add_option("--hold", hold, "stuck: seconds to stay (SIGTERM ends it sooner)")->capture_default_str();
-  app.add_option("--timeout", timeout, "seconds: every wait (a server, a reply)")->capture_default_str();
-  app.add_option("--component", component, "call, stuck, pipeline: component; command: the input stream's");
+  app.add_option("--hold", hold, "stuck: seconds to stay (SIGTERM ends it sooner)")
+      ->capture_default_str();
+  app.add_option("--timeout", timeout, "seconds: every wait (a server, a reply)")
+      ->capture_default_str();
+  app.add_option("--component", component,
+                 "call, stuck, pipeline: component; command: the input stream's");
   app.add_option("--service", service, "call, stuck, pipeline: service");
   app.add_option("--params", params, "call, pipeline: params (JSON text)");
-  app.add_option("--bytes", bytes, "command: size of the JsonCommand's text")->capture_default_str();
-  app.add_option("--server-pid", server_pid, "command: the server process, for its peak resident size");
+  app.add_option("--bytes", bytes, "command: size of the JsonCommand's text")
+      ->capture_default_str();
+  app.add_option("--server-pid", server_pid,
+                 "command: the server process, for its peak resident size");
   if (auto code = simgate::bench::parse_command_line(app, argc, argv)) return *code;
   g_timeout = std::chrono::milliseconds(static_cast<long long>(timeout * 1000));
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
   try {
     json out;
-    if (mode == "deep") out = mode_deep(domain, partition);
-    else if (mode == "hijack") out = mode_hijack(domain, partition);
+    if (mode == "deep")
+      out = mode_deep(domain, partition);
+    else if (mode == "hijack")
+      out = mode_hijack(domain, partition);
     else if (mode == "stuck")
-      out = mode_stuck(domain, partition, count, max_samples, hold, component.empty() ? "robot.pose" : component,
+      out = mode_stuck(domain, partition, count, max_samples, hold,
+                       component.empty() ? "robot.pose" : component,
                        service.empty() ? "get_local_data" : service);
-    else if (mode == "good") out = mode_good(domain, partition, count);
-    else if (mode == "names") out = mode_names(domain, partition);
-    else if (mode == "dupseq") out = mode_dupseq(domain, partition);
-    else if (mode == "utf8") out = mode_utf8(domain, partition);
-    else if (mode == "sessions") out = mode_sessions(domain, partition, count);
+    else if (mode == "good")
+      out = mode_good(domain, partition, count);
+    else if (mode == "names")
+      out = mode_names(domain, partition);
+    else if (mode == "dupseq")
+      out = mode_dupseq(domain, partition);
+    else if (mode == "utf8")
+      out = mode_utf8(domain, partition);
+    else if (mode == "sessions")
+      out = mode_sessions(domain, partition, count);
     else if (mode == "pipeline")
       out = mode_pipeline(domain, partition, count, component.empty() ? "simulation" : component,
                           service.empty() ? "list_robots" : service, params);
-    else if (mode == "cancelseq") out = mode_cancelseq(domain, partition);
+    else if (mode == "cancelseq")
+      out = mode_cancelseq(domain, partition);
     else if (mode == "command")
-      out = mode_command(domain, partition, component.empty() ? "robot.motion" : component, bytes, server_pid);
-    else out = mode_call(domain, partition, component, service, params);
+      out = mode_command(domain, partition, component.empty() ? "robot.motion" : component, bytes,
+                         server_pid);
+    else
+      out = mode_call(domain, partition, component, service, params);
     out["mode"] = mode;
     std::cout << out.dump(-1, ' ', false, json::error_handler_t::replace) << std::endl;
     return 0;
   } catch (const std::exception& e) {
-    std::cout << json{{"mode", mode}, {"error", e.what()}}.dump(-1, ' ', false, json::error_handler_t::replace)
+    std::cout << json{{"mode", mode}, {"error", e.what()}}.dump(-1, ' ', false,
+                                                                json::error_handler_t::replace)
               << std::endl;
     std::cerr << "simgate_bench_dds_attack: " << e.what() << "\n";
     return 1;

@@ -44,7 +44,8 @@ std::atomic<bool> g_stop{false};  // set by the signal handler
 extern "C" void on_signal(int) { g_stop.store(true); }
 
 dds_entity_t check(dds_entity_t e, const char* what) {
-  if (e < 0) throw std::runtime_error(std::string("raw DDS ") + what + ": " + simgate::dds::retcode_text(e));
+  if (e < 0)
+    throw std::runtime_error(std::string("raw DDS ") + what + ": " + simgate::dds::retcode_text(e));
   return e;
 }
 
@@ -60,10 +61,12 @@ struct RawEndpoints {
     dds_qset_partition1(partition_qos.get(), partition.c_str());
     publisher = check(dds_create_publisher(pp, partition_qos.get(), nullptr), "publisher");
     subscriber = check(dds_create_subscriber(pp, partition_qos.get(), nullptr), "subscriber");
-    request_topic = check(dds_create_topic(pp, &simgate_Request_desc, simgate::dds::k_request_topic, nullptr, nullptr),
+    request_topic = check(dds_create_topic(pp, &simgate_Request_desc, simgate::dds::k_request_topic,
+                                           nullptr, nullptr),
                           "request topic");
-    reply_topic = check(dds_create_topic(pp, &simgate_Reply_desc, simgate::dds::k_reply_topic, nullptr, nullptr),
-                        "reply topic");
+    reply_topic = check(
+        dds_create_topic(pp, &simgate_Reply_desc, simgate::dds::k_reply_topic, nullptr, nullptr),
+        "reply topic");
   }
   // reliable, keep-all, volatile: the transport's request and reply QoS
   static simgate::dds::QosPtr qos() { return simgate::dds::make_qos(false, 0, DDS_SECS(1)); }
@@ -83,7 +86,8 @@ void wait_matched(dds_entity_t entity, bool writer, Clock::time_point deadline) 
       count = static_cast<std::int32_t>(s.current_count);
     }
     if (count > 0) return;
-    if (Clock::now() > deadline) throw std::runtime_error("raw DDS: no peer matched before the timeout");
+    if (Clock::now() > deadline)
+      throw std::runtime_error("raw DDS: no peer matched before the timeout");
     dds_sleepfor(DDS_MSECS(5));
   }
 }
@@ -91,15 +95,18 @@ void wait_matched(dds_entity_t entity, bool writer, Clock::time_point deadline) 
 int run_pong(std::uint32_t domain, const std::string& partition, double timeout_s) {
   RawEndpoints ep(domain, partition);
   auto qos = RawEndpoints::qos();
-  dds_entity_t reader = check(dds_create_reader(ep.subscriber, ep.request_topic, qos.get(), nullptr), "reader");
-  dds_entity_t writer = check(dds_create_writer(ep.publisher, ep.reply_topic, qos.get(), nullptr), "writer");
+  dds_entity_t reader =
+      check(dds_create_reader(ep.subscriber, ep.request_topic, qos.get(), nullptr), "reader");
+  dds_entity_t writer =
+      check(dds_create_writer(ep.publisher, ep.reply_topic, qos.get(), nullptr), "writer");
   dds_entity_t waitset = check(dds_create_waitset(ep.participant.handle()), "waitset");
   dds_entity_t cond = check(dds_create_readcondition(reader, DDS_ANY_STATE), "read condition");
   check(dds_waitset_attach(waitset, cond, 0), "waitset attach");
   std::cout << json{{"ready", true}}.dump() << std::endl;
 
   // answer every request at once, until a signal or the time limit
-  auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(timeout_s));
+  auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                     std::chrono::duration<double>(timeout_s));
   void* samples[16] = {};
   dds_sample_info_t infos[16];
   static char k_result[] = "3", k_empty[] = "";
@@ -128,16 +135,19 @@ int run_pong(std::uint32_t domain, const std::string& partition, double timeout_
   return 0;
 }
 
-json run_ping(std::uint32_t domain, const std::string& partition, std::size_t count, std::size_t warmup,
-              double timeout_s) {
+json run_ping(std::uint32_t domain, const std::string& partition, std::size_t count,
+              std::size_t warmup, double timeout_s) {
   RawEndpoints ep(domain, partition);
   auto qos = RawEndpoints::qos();
-  dds_entity_t writer = check(dds_create_writer(ep.publisher, ep.request_topic, qos.get(), nullptr), "writer");
-  dds_entity_t reader = check(dds_create_reader(ep.subscriber, ep.reply_topic, qos.get(), nullptr), "reader");
+  dds_entity_t writer =
+      check(dds_create_writer(ep.publisher, ep.request_topic, qos.get(), nullptr), "writer");
+  dds_entity_t reader =
+      check(dds_create_reader(ep.subscriber, ep.reply_topic, qos.get(), nullptr), "reader");
   dds_entity_t waitset = check(dds_create_waitset(ep.participant.handle()), "waitset");
   dds_entity_t cond = check(dds_create_readcondition(reader, DDS_ANY_STATE), "read condition");
   check(dds_waitset_attach(waitset, cond, 0), "waitset attach");
-  auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(timeout_s));
+  auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                     std::chrono::duration<double>(timeout_s));
   wait_matched(writer, true, deadline);
   wait_matched(reader, false, deadline);
 
@@ -177,8 +187,9 @@ json run_ping(std::uint32_t domain, const std::string& partition, std::size_t co
 }
 
 // A DdsClient of the server in `partition`, once it has found it (within `timeout_s`).
-std::unique_ptr<simgate::client::DdsClient> connect(std::uint32_t domain, const std::string& partition,
-                                                    double timeout_s, bool raw_images = false) {
+std::unique_ptr<simgate::client::DdsClient> connect(std::uint32_t domain,
+                                                    const std::string& partition, double timeout_s,
+                                                    bool raw_images = false) {
   simgate::client::DdsClientOptions options;
   options.domain = domain;
   options.partition = partition;
@@ -190,8 +201,8 @@ std::unique_ptr<simgate::client::DdsClient> connect(std::uint32_t domain, const 
   return client;
 }
 
-json run_client(std::uint32_t domain, const std::string& partition, std::size_t count, std::size_t warmup,
-                double timeout_s) {
+json run_client(std::uint32_t domain, const std::string& partition, std::size_t count,
+                std::size_t warmup, double timeout_s) {
   auto connection = connect(domain, partition, timeout_s);
   simgate::client::DdsClient& client = *connection;
   std::vector<std::int64_t> samples;
@@ -204,7 +215,9 @@ json run_client(std::uint32_t domain, const std::string& partition, std::size_t 
     auto t1 = Clock::now();
     bool ok = outcome.status == simgate::Status::success && outcome.value && *outcome.value == 3;
     if (!ok) ++errors;
-    if (i == 0) first = outcome.value ? outcome.value->dump() : std::string(simgate::to_string(outcome.status));
+    if (i == 0)
+      first =
+          outcome.value ? outcome.value->dump() : std::string(simgate::to_string(outcome.status));
     if (i >= warmup) samples.push_back(simgate::bench::ns_between(t0, t1));
   }
   json out = simgate::bench::summarize_us(std::move(samples));
@@ -213,8 +226,8 @@ json run_client(std::uint32_t domain, const std::string& partition, std::size_t 
   return out;
 }
 
-json run_camera(std::uint32_t domain, const std::string& partition, const std::string& camera, bool raw,
-                std::size_t count, std::size_t warmup, double timeout_s) {
+json run_camera(std::uint32_t domain, const std::string& partition, const std::string& camera,
+                bool raw, std::size_t count, std::size_t warmup, double timeout_s) {
   auto connection = connect(domain, partition, timeout_s, raw);
   simgate::client::DdsClient& client = *connection;
   std::vector<std::int64_t> samples;
@@ -223,10 +236,11 @@ json run_camera(std::uint32_t domain, const std::string& partition, const std::s
   for (std::size_t i = 0; i < warmup + count; ++i) {
     if (i == warmup) started = Clock::now();
     auto t0 = Clock::now();
-    auto outcome = client.call(camera, "get_image", simgate::json::array(), std::chrono::seconds(60));
+    auto outcome =
+        client.call(camera, "get_image", simgate::json::array(), std::chrono::seconds(60));
     auto t1 = Clock::now();
-    const bool ok = outcome.status == simgate::Status::success && outcome.value && outcome.value->is_object() &&
-                    outcome.value->contains(raw ? "width" : "image");
+    const bool ok = outcome.status == simgate::Status::success && outcome.value &&
+                    outcome.value->is_object() && outcome.value->contains(raw ? "width" : "image");
     if (!ok) ++errors;
     if (i >= warmup) samples.push_back(simgate::bench::ns_between(t0, t1));
     if (ok && i == warmup) result_bytes = outcome.value->dump().size();
@@ -243,8 +257,10 @@ json run_camera(std::uint32_t domain, const std::string& partition, const std::s
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"DDS round trips: a raw Cyclone ping-pong, and simgate's DDS client against a transport host.",
-               "simgate_bench_dds"};
+  CLI::App app{
+      "DDS round trips: a raw Cyclone ping-pong, and simgate's DDS client against a transport "
+      "host.",
+      "simgate_bench_dds"};
   std::string mode, partition = "simgate-bench";
   std::uint32_t domain = 0;
   std::size_t count = 2000;
@@ -253,26 +269,34 @@ int main(int argc, char** argv) {
   std::string camera = "rig.camera";
   bool raw = false;
   app.add_option("--mode", mode,
-                 "pong (raw server), ping (raw client), client (simgate's DdsClient) or camera (its get_image)")
+                 "pong (raw server), ping (raw client), client (simgate's DdsClient) or camera "
+                 "(its get_image)")
       ->required()
       ->check(CLI::IsMember({"pong", "ping", "client", "camera"}));
   app.add_option("--camera", camera, "camera: the camera component")->capture_default_str();
-  app.add_flag("--raw", raw, "camera: the client reads its images raw (DdsClientOptions::raw_images)");
-  app.add_option("--domain", domain, "DDS domain")->check(CLI::Range(0, 230))->capture_default_str();
+  app.add_flag("--raw", raw,
+               "camera: the client reads its images raw (DdsClientOptions::raw_images)");
+  app.add_option("--domain", domain, "DDS domain")
+      ->check(CLI::Range(0, 230))
+      ->capture_default_str();
   app.add_option("--partition", partition, "DDS partition")->capture_default_str();
   app.add_option("--count", count, "ping, client: round trips measured")->capture_default_str();
-  app.add_option("--warmup", warmup, "ping, client: round trips before measuring (default count / 10)");
-  app.add_option("--timeout", timeout, "seconds: pong's lifetime, ping's and client's wait for the server")
+  app.add_option("--warmup", warmup,
+                 "ping, client: round trips before measuring (default count / 10)");
+  app.add_option("--timeout", timeout,
+                 "seconds: pong's lifetime, ping's and client's wait for the server")
       ->capture_default_str();
   if (auto code = simgate::bench::parse_command_line(app, argc, argv)) return *code;
   try {
     std::signal(SIGINT, on_signal);
     std::signal(SIGTERM, on_signal);
     if (mode == "pong") return run_pong(domain, partition, timeout);
-    json out = mode == "ping"     ? run_ping(domain, partition, count, warmup.value_or(count / 10), timeout)
-               : mode == "camera" ? run_camera(domain, partition, camera, raw, count, warmup.value_or(count / 10),
-                                               timeout)
-                                  : run_client(domain, partition, count, warmup.value_or(count / 10), timeout);
+    json out = mode == "ping"
+                   ? run_ping(domain, partition, count, warmup.value_or(count / 10), timeout)
+               : mode == "camera"
+                   ? run_camera(domain, partition, camera, raw, count, warmup.value_or(count / 10),
+                                timeout)
+                   : run_client(domain, partition, count, warmup.value_or(count / 10), timeout);
     out["mode"] = mode;
     std::cout << out.dump() << std::endl;
     return 0;

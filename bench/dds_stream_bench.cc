@@ -44,11 +44,12 @@
 
 namespace {
 
-using simgate::bench::Clock;
 using simgate::json;
+using simgate::bench::Clock;
 
 dds_entity_t check(dds_entity_t e, const char* what) {
-  if (e < 0) throw std::runtime_error(std::string("DDS ") + what + ": " + simgate::dds::retcode_text(e));
+  if (e < 0)
+    throw std::runtime_error(std::string("DDS ") + what + ": " + simgate::dds::retcode_text(e));
   return e;
 }
 
@@ -57,11 +58,12 @@ dds_entity_t check(dds_entity_t e, const char* what) {
 class SyntheticPose : public simgate::Component {
  public:
   SyntheticPose() : Component("bench.pose") {
-    declare_output_stream("pose", {"x", "y", "z", "roll", "pitch", "yaw", "timestamp"}, [this](std::span<double> v) {
-      ++n_;
-      const double a = static_cast<double>(n_) * 1e-6;
-      v[0] = a, v[1] = 2 * a, v[2] = 0.1, v[3] = 0, v[4] = 0, v[5] = a, v[6] = a;
-    });
+    declare_output_stream(
+        "pose", {"x", "y", "z", "roll", "pitch", "yaw", "timestamp"}, [this](std::span<double> v) {
+          ++n_;
+          const double a = static_cast<double>(n_) * 1e-6;
+          v[0] = a, v[1] = 2 * a, v[2] = 0.1, v[3] = 0, v[4] = 0, v[5] = a, v[6] = a;
+        });
   }
 
  private:
@@ -95,13 +97,15 @@ double seconds(Clock::duration d) { return std::chrono::duration<double>(d).coun
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"DDS pose stream: simgate's transport against a raw Cyclone writer.", "simgate_bench_dds_streams"};
+  CLI::App app{"DDS pose stream: simgate's transport against a raw Cyclone writer.",
+               "simgate_bench_dds_streams"};
   double duration = 3;
   std::uint32_t domain = 0;
   app.add_option("--duration", duration, "seconds per phase")->capture_default_str();
   app.add_option("--domain", domain, "DDS domain id")->capture_default_str();
   bool no_thread_phase = false;
-  app.add_flag("--no-thread-phase", no_thread_phase, "skip the stream_writes \"thread\" phase (to profile the others)");
+  app.add_flag("--no-thread-phase", no_thread_phase,
+               "skip the stream_writes \"thread\" phase (to profile the others)");
   if (auto code = simgate::bench::parse_command_line(app, argc, argv)) return *code;
   simgate::log::set_level(simgate::log::Level::warning);
   try {
@@ -111,15 +115,20 @@ int main(int argc, char** argv) {
     simgate::dds::QosPtr partition_qos(dds_create_qos());
     dds_qset_partition1(partition_qos.get(), partition.c_str());
     const dds_entity_t pp = participant.handle();
-    const dds_entity_t subscriber = check(dds_create_subscriber(pp, partition_qos.get(), nullptr), "subscriber");
-    const dds_entity_t publisher = check(dds_create_publisher(pp, partition_qos.get(), nullptr), "publisher");
-    const dds_entity_t topic =
-        check(dds_create_topic(pp, &simgate_stream_Pose_desc, "simgate/bench/pose", nullptr, nullptr), "topic");
+    const dds_entity_t subscriber =
+        check(dds_create_subscriber(pp, partition_qos.get(), nullptr), "subscriber");
+    const dds_entity_t publisher =
+        check(dds_create_publisher(pp, partition_qos.get(), nullptr), "publisher");
+    const dds_entity_t topic = check(
+        dds_create_topic(pp, &simgate_stream_Pose_desc, "simgate/bench/pose", nullptr, nullptr),
+        "topic");
     simgate::dds::QosPtr reader_qos(dds_create_qos());
     dds_qset_reliability(reader_qos.get(), DDS_RELIABILITY_BEST_EFFORT, 0);
     dds_qset_history(reader_qos.get(), DDS_HISTORY_KEEP_LAST, 64);
-    const dds_entity_t reader = check(dds_create_reader(subscriber, topic, reader_qos.get(), nullptr), "reader");
-    const auto phase = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(duration));
+    const dds_entity_t reader =
+        check(dds_create_reader(subscriber, topic, reader_qos.get(), nullptr), "reader");
+    const auto phase =
+        std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(duration));
 
     // ---- simgate: the plugin carries a hub's pose stream; `stream_writes` says who writes
     struct Phase {
@@ -147,10 +156,12 @@ int main(int argc, char** argv) {
         ++out.produced;
       }
       out.wall = seconds(Clock::now() - start);
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));  // the DDS thread writes what is queued
+      std::this_thread::sleep_for(
+          std::chrono::milliseconds(100));  // the DDS thread writes what is queued
       manager->stop();
       const simgate::StreamStatistics stats = hub->statistics().at(0);
-      out.written = stats.samples - stats.dropped;  // neither dropped by the queue nor refused by DDS
+      out.written =
+          stats.samples - stats.dropped;  // neither dropped by the queue nor refused by DDS
       received += take_all(reader);
       return out;
     };
@@ -159,7 +170,8 @@ int main(int argc, char** argv) {
       simgate::dds::QosPtr writer_qos(dds_create_qos());
       dds_qset_reliability(writer_qos.get(), DDS_RELIABILITY_BEST_EFFORT, 0);
       dds_qset_history(writer_qos.get(), DDS_HISTORY_KEEP_LAST, 1);
-      const dds_entity_t writer = check(dds_create_writer(publisher, topic, writer_qos.get(), nullptr), "writer");
+      const dds_entity_t writer =
+          check(dds_create_writer(publisher, topic, writer_qos.get(), nullptr), "writer");
       wait_matched(reader, 1, Clock::now() + std::chrono::seconds(10));
       simgate_stream_Pose sample{};
       sample.component = const_cast<char*>("bench.pose");
@@ -186,7 +198,8 @@ int main(int argc, char** argv) {
     const double raw_wall = raw_before.wall + raw_after.wall;
 
     const double raw_rate = raw_count / raw_wall;
-    const double direct_rate = direct.written / direct.wall, queued_rate = queued.written / queued.wall;
+    const double direct_rate = direct.written / direct.wall,
+                 queued_rate = queued.written / queued.wall;
     const double ratio = raw_rate > 0 ? direct_rate / raw_rate : 0;
     std::cout << json{{"mode", "dds_streams"},
                       {"duration_s", duration},

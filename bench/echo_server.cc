@@ -47,10 +47,11 @@ class EchoSession : public std::enable_shared_from_this<EchoSession> {
   void read() {
     // room for what the kernel holds, after the incomplete line kept from last time
     if (buffer_.size() - kept_ < 4096) buffer_.resize(buffer_.size() * 2);
-    socket_.async_read_some(asio::buffer(buffer_.data() + kept_, buffer_.size() - kept_),
-                            [self = shared_from_this()](boost::system::error_code ec, std::size_t n) {
-                              if (!ec) self->on_read(n);
-                            });
+    socket_.async_read_some(
+        asio::buffer(buffer_.data() + kept_, buffer_.size() - kept_),
+        [self = shared_from_this()](boost::system::error_code ec, std::size_t n) {
+          if (!ec) self->on_read(n);
+        });
   }
 
   void on_read(std::size_t n) {
@@ -73,10 +74,10 @@ class EchoSession : public std::enable_shared_from_this<EchoSession> {
                       });
   }
 
-  tcp::socket socket_;                 // the client
+  tcp::socket socket_;                             // the client
   std::string buffer_ = std::string(65536, '\0');  // bytes read; [0, kept_) is an incomplete line
-  std::size_t kept_ = 0;               // length of the incomplete line at the front of buffer_
-  std::string out_;                    // the lines being written back
+  std::size_t kept_ = 0;  // length of the incomplete line at the front of buffer_
+  std::string out_;       // the lines being written back
 };
 
 // Accepts clients until the io_context stops.
@@ -93,9 +94,11 @@ void accept_next(tcp::acceptor& acceptor) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"A Boost.Asio line-echo server: the limit (--spin-us 50) or a plain Asio server (--spin-us 0); "
-               "prints {\"port\": N} once listening.",
-               "simgate_bench_echo"};
+  CLI::App app{
+      "A Boost.Asio line-echo server: the limit (--spin-us 50) or a plain Asio server (--spin-us "
+      "0); "
+      "prints {\"port\": N} once listening.",
+      "simgate_bench_echo"};
   std::string host = "127.0.0.1";
   std::uint16_t port = 0;
   double max_seconds = 600;
@@ -107,7 +110,8 @@ int main(int argc, char** argv) {
                  "as the transports' io_spin_us); 0 = sleep in epoll_wait (a plain Asio server)")
       ->capture_default_str()
       ->check(CLI::Range(0, 10000));
-  app.add_option("--max-seconds", max_seconds, "exit after this long (a bounded run)")->capture_default_str();
+  app.add_option("--max-seconds", max_seconds, "exit after this long (a bounded run)")
+      ->capture_default_str();
   if (auto code = simgate::bench::parse_command_line(app, argc, argv)) return *code;
   try {
     asio::io_context io;
@@ -123,7 +127,8 @@ int main(int argc, char** argv) {
       if (!ec) io.stop();
     });
 
-    std::cout << simgate::bench::json{{"port", acceptor.local_endpoint().port()}}.dump() << std::endl;
+    std::cout << simgate::bench::json{{"port", acceptor.local_endpoint().port()}}.dump()
+              << std::endl;
     // returns when stopped (signal, --max-seconds), as io.run() does
     simgate::kit::run_with_idle_spin(io, std::chrono::microseconds(spin_us));
     return 0;

@@ -19,8 +19,8 @@
 //
 // Request lines (--proto): `ws-jsonrpc` is `jsonrpc` over a WebSocket (one request per
 // text message, no '\n'; Boost.Beast's client; --mode latency only), for the websocket
-// transport measured against the TCP one in the same run. `socket` sends "<id> <--request>" (default
-// "test_component add [1, 2]") and expects "<id> SUCCESS|OK ..."; `jsonrpc` sends
+// transport measured against the TCP one in the same run. `socket` sends "<id> <--request>"
+// (default "test_component add [1, 2]") and expects "<id> SUCCESS|OK ..."; `jsonrpc` sends
 // {"jsonrpc":"2.0","id":<id>,"method":<--method>,"params":<--params>} and expects a
 // "result". --echo expects the request back unchanged (the echo server). A reply that does
 // not match counts as an error; the harness refuses results with errors.
@@ -57,7 +57,7 @@ using simgate::bench::json;
 
 // How requests are written and replies recognised.
 struct Protocol {
-  std::string proto = "socket";  // "socket", "jsonrpc" or "ws-jsonrpc"
+  std::string proto = "socket";                       // "socket", "jsonrpc" or "ws-jsonrpc"
   std::string request = "test_component add [1, 2]";  // socket: everything after the id
   std::string method = "test_component.add";          // jsonrpc method
   std::string params = "[1,2]";                       // jsonrpc params (JSON text)
@@ -104,7 +104,8 @@ class Connection {
     if (inet_pton(AF_INET, host.c_str(), &addr.sin_addr) != 1)
       throw std::runtime_error("host '" + host + "': expected an IPv4 address");
     if (::connect(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0)
-      throw std::runtime_error("connect " + host + ":" + std::to_string(port) + ": " + std::strerror(errno));
+      throw std::runtime_error("connect " + host + ":" + std::to_string(port) + ": " +
+                               std::strerror(errno));
     int one = 1;
     ::setsockopt(fd_, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
     ::fcntl(fd_, F_SETFL, ::fcntl(fd_, F_GETFL) | O_NONBLOCK);
@@ -188,7 +189,8 @@ class Connection {
 
   // Blocks until `events` or `deadline` (throws on timeout).
   void wait(short events, Clock::time_point deadline) {
-    auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count();
+    auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count();
     if (left <= 0) throw std::runtime_error("timed out waiting for the server");
     pollfd p{fd_, events, 0};
     ::poll(&p, 1, static_cast<int>(std::min<long long>(left, 1000)));
@@ -238,12 +240,13 @@ json run_latency(const std::string& host, int port, const Protocol& p, std::size
 
 // run_latency over a WebSocket (--proto ws-jsonrpc): a blocking Beast client, one text
 // message per request; the run's deadline bounds every read (SO_RCVTIMEO).
-json run_ws_latency(const std::string& host, int port, const Protocol& p, std::size_t count, std::size_t warmup,
-                    double timeout_s) {
+json run_ws_latency(const std::string& host, int port, const Protocol& p, std::size_t count,
+                    std::size_t warmup, double timeout_s) {
   namespace ws = boost::beast::websocket;
   boost::asio::io_context io;
   ws::stream<boost::asio::ip::tcp::socket> stream(io);
-  stream.next_layer().connect({boost::asio::ip::make_address(host), static_cast<std::uint16_t>(port)});
+  stream.next_layer().connect(
+      {boost::asio::ip::make_address(host), static_cast<std::uint16_t>(port)});
   stream.next_layer().set_option(boost::asio::ip::tcp::no_delay(true));
   timeval tv{};
   tv.tv_sec = static_cast<time_t>(timeout_s);
@@ -300,7 +303,8 @@ json run_throughput(const std::string& host, int port, const Protocol& p, int co
   auto start = Clock::now();
   auto measure_from = start + seconds(warmup_s);
   auto measure_to = measure_from + seconds(duration_s);
-  const std::uint64_t min_replies = static_cast<std::uint64_t>(window) * static_cast<std::uint64_t>(connections);
+  const std::uint64_t min_replies =
+      static_cast<std::uint64_t>(window) * static_cast<std::uint64_t>(connections);
   constexpr auto k_max_extension = std::chrono::seconds(10);
   auto drain_deadline = measure_to + k_max_extension + std::chrono::seconds(10);
   bool measuring = false, sending = true;
@@ -317,7 +321,8 @@ json run_throughput(const std::string& host, int port, const Protocol& p, int co
     }
     // a figure needs at least one full window per connection: a slow server (MORSE's Python
     // loop on a busy host) gets more time than --duration rather than a rate of 0
-    if (sending && now >= measure_to && (replies >= min_replies || now >= measure_to + k_max_extension)) {
+    if (sending && now >= measure_to &&
+        (replies >= min_replies || now >= measure_to + k_max_extension)) {
       sending = false;
       t_last = now;
     }
@@ -326,13 +331,13 @@ json run_throughput(const std::string& host, int port, const Protocol& p, int co
     if (!sending && outstanding == 0) break;
     if (now >= drain_deadline) throw std::runtime_error("replies still missing 10 s after the run");
     for (int i = 0; i < connections; ++i)
-      fds[i] = pollfd{conns[i]->fd(), static_cast<short>(POLLIN | (conns[i]->wants_write() ? POLLOUT : 0)), 0};
+      fds[i] = pollfd{conns[i]->fd(),
+                      static_cast<short>(POLLIN | (conns[i]->wants_write() ? POLLOUT : 0)), 0};
     ::poll(fds.data(), fds.size(), 100);
     for (int i = 0; i < connections; ++i) {
       if (fds[i].revents & POLLOUT) conns[i]->flush();
       if (!(fds[i].revents & (POLLIN | POLLHUP | POLLERR))) continue;
-      while (conns[i]->read_some()) {
-      }
+      while (conns[i]->read_some()) {}
       std::size_t got = conns[i]->take_lines([&](std::string_view line) {
         if (first_reply.empty()) first_reply = line;
         if (!p.reply_ok(line)) ++errors;
@@ -345,14 +350,11 @@ json run_throughput(const std::string& host, int port, const Protocol& p, int co
     }
   }
   double elapsed = std::chrono::duration<double>(t_last - t_first).count();
-  return {{"mode", "throughput"},
-          {"connections", connections},
-          {"window", window},
-          {"replies", replies},
-          {"seconds", elapsed},
-          {"rps", elapsed > 0 ? static_cast<double>(replies) / elapsed : 0.0},
-          {"errors", errors},
-          {"first_reply", first_reply}};
+  return {
+      {"mode", "throughput"}, {"connections", connections},
+      {"window", window},     {"replies", replies},
+      {"seconds", elapsed},   {"rps", elapsed > 0 ? static_cast<double>(replies) / elapsed : 0.0},
+      {"errors", errors},     {"first_reply", first_reply}};
 }
 
 // Open loop at --rate requests per second over one connection.
@@ -370,7 +372,8 @@ json run_rate(const std::string& host, int port, const Protocol& p, double rate,
     auto now = Clock::now();
     if (now < stop_sending) {
       // send what is due by now (bounded outstanding: a stalled server cannot grow the queue)
-      auto due = static_cast<std::uint64_t>(std::chrono::duration<double>(now - start).count() * rate);
+      auto due =
+          static_cast<std::uint64_t>(std::chrono::duration<double>(now - start).count() * rate);
       batch.clear();
       while (sent + skipped < due) {
         if (sent_at.size() >= max_outstanding) {
@@ -391,8 +394,7 @@ json run_rate(const std::string& host, int port, const Protocol& p, double rate,
     ::poll(&pfd, 1, 1);
     if (pfd.revents & POLLOUT) c.flush();
     if (pfd.revents & (POLLIN | POLLHUP | POLLERR)) {
-      while (c.read_some()) {
-      }
+      while (c.read_some()) {}
       auto t = Clock::now();
       c.take_lines([&](std::string_view line) {
         if (!p.reply_ok(line)) ++errors;
@@ -439,8 +441,9 @@ json run_hold(const std::string& host, int port, std::size_t count, double durat
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"The TCP line client every line-protocol server is measured with; one JSON object on stdout.",
-               "simgate_bench_loadgen"};
+  CLI::App app{
+      "The TCP line client every line-protocol server is measured with; one JSON object on stdout.",
+      "simgate_bench_loadgen"};
   std::string mode = "latency", host = "127.0.0.1";
   int port = 0;
   Protocol p;
@@ -460,7 +463,8 @@ int main(int argc, char** argv) {
   app.add_option("--method", p.method, "jsonrpc: the method")->capture_default_str();
   app.add_option("--params", p.params, "jsonrpc: the params (JSON)")->capture_default_str();
   app.add_flag("--echo", p.echo, "expect every request back unchanged (the echo server)");
-  app.add_option("--count", count, "latency: round trips measured; hold: connections opened")->capture_default_str();
+  app.add_option("--count", count, "latency: round trips measured; hold: connections opened")
+      ->capture_default_str();
   app.add_option("--warmup", warmup, "latency: round trips before measuring (default count / 10)");
   app.add_option("--timeout", timeout, "latency: seconds for the whole run")->capture_default_str();
   app.add_option("--connections", connections, "throughput: connections")
@@ -469,14 +473,17 @@ int main(int argc, char** argv) {
   app.add_option("--window", window, "throughput: requests in flight per connection")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
-  app.add_option("--warmup-seconds", warmup_s, "throughput: seconds before measuring")->capture_default_str();
+  app.add_option("--warmup-seconds", warmup_s, "throughput: seconds before measuring")
+      ->capture_default_str();
   app.add_option("--duration", duration, "throughput, rate, hold: seconds")->capture_default_str();
   app.add_option("--rate", rate, "rate: requests per second")->capture_default_str();
-  app.add_option("--max-outstanding", max_outstanding, "rate: requests in flight at most")->capture_default_str();
+  app.add_option("--max-outstanding", max_outstanding, "rate: requests in flight at most")
+      ->capture_default_str();
   if (auto code = simgate::bench::parse_command_line(app, argc, argv)) return *code;
   try {
     json out;
-    if (p.proto == "ws-jsonrpc" && mode != "latency") throw std::runtime_error("--proto ws-jsonrpc: --mode latency only");
+    if (p.proto == "ws-jsonrpc" && mode != "latency")
+      throw std::runtime_error("--proto ws-jsonrpc: --mode latency only");
     if (mode == "latency" && p.proto == "ws-jsonrpc")
       out = run_ws_latency(host, port, p, count, warmup.value_or(count / 10), timeout);
     else if (mode == "latency")

@@ -48,10 +48,14 @@ namespace {
 class ProgressWorker : public sim::SimComponent {
  public:
   explicit ProgressWorker(sim::ComponentContext& c) : SimComponent(c.name(), c.sim()) {
-    add_async_service("run", [this](Completion call, int steps) { calls_.push_back({std::move(call), steps, 0}); },
-                      {"steps"})
+    add_async_service(
+        "run",
+        [this](Completion call, int steps) { calls_.push_back({std::move(call), steps, 0}); },
+        {"steps"})
         .concurrent()
-        .doc("reports {step} every step (at most once per progress interval), ends after `steps` steps");
+        .doc(
+            "reports {step} every step (at most once per progress interval), ends after `steps` "
+            "steps");
   }
   void default_action() override {
     std::erase_if(calls_, [](Running& r) {
@@ -84,14 +88,15 @@ struct RoundResult {
 
 // One round: every connection sends one call, then everything is read until each has its
 // response (bounded by `timeout`).
-RoundResult run_round(sim::Simulation& simulation, const std::vector<int>& fds, bool progress, int steps,
-                      double timestep, Clock::duration timeout) {
+RoundResult run_round(sim::Simulation& simulation, const std::vector<int>& fds, bool progress,
+                      int steps, double timestep, Clock::duration timeout) {
   RoundResult result;
   const std::uint64_t steps0 = simulation.steps();
   const auto start = Clock::now();
   for (std::size_t i = 0; i < fds.size(); ++i) {
-    std::string line = R"({"jsonrpc":"2.0","method":"bench.worker.run","params":{"steps":)" + std::to_string(steps) +
-                       (progress ? R"(,"_meta":{"progress":true}})" : "}") + R"(,"id":)" + std::to_string(i) + "}\n";
+    std::string line = R"({"jsonrpc":"2.0","method":"bench.worker.run","params":{"steps":)" +
+                       std::to_string(steps) + (progress ? R"(,"_meta":{"progress":true}})" : "}") +
+                       R"(,"id":)" + std::to_string(i) + "}\n";
     if (::send(fds[i], line.data(), line.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(line.size()))
       throw std::runtime_error("send failed");
   }
@@ -123,10 +128,11 @@ RoundResult run_round(sim::Simulation& simulation, const std::vector<int>& fds, 
   }
   const auto end = Clock::now();
   if (result.responses < fds.size())
-    throw std::runtime_error("only " + std::to_string(result.responses) + " of " + std::to_string(fds.size()) +
-                             " responses before the deadline");
+    throw std::runtime_error("only " + std::to_string(result.responses) + " of " +
+                             std::to_string(fds.size()) + " responses before the deadline");
   result.wall_s = std::chrono::duration<double>(end - start).count();
-  result.realtime_factor = static_cast<double>(simulation.steps() - steps0) * timestep / result.wall_s;
+  result.realtime_factor =
+      static_cast<double>(simulation.steps() - steps0) * timestep / result.wall_s;
   return result;
 }
 
@@ -143,16 +149,20 @@ json run_progress(const std::string& mjcf, double duration_s, double round_s, in
       {"scene", {{"mjcf", mjcf}, {"timestep", k_timestep}, {"realtime_factor", 1.0}}},
       {"transports",
        {{"jsonrpc",
-         {{"plugin", "jsonrpc"}, {"options", {{"host", "127.0.0.1"}, {"port", 0}, {"progress_interval_ms", 1}}}}}}},
-      {"robots", json::array({{{"name", "bench"},
-                               {"type", "robot"},
-                               {"body", "robot"},  // the demo's robot body: any body will do
-                               {"components", json::array({{{"name", "worker"}, {"type", "bench_progress"}}})}}})},
+         {{"plugin", "jsonrpc"},
+          {"options", {{"host", "127.0.0.1"}, {"port", 0}, {"progress_interval_ms", 1}}}}}}},
+      {"robots",
+       json::array(
+           {{{"name", "bench"},
+             {"type", "robot"},
+             {"body", "robot"},  // the demo's robot body: any body will do
+             {"components", json::array({{{"name", "worker"}, {"type", "bench_progress"}}})}}})},
       {"services", {{"default", {"jsonrpc"}}}},
       {"log_level", "warning"}};
   const gw::Deployment deployment = gw::parse_deployment(document, ".");
   auto registry = sim::builtin_registry();
-  registry.add<ProgressWorker>("bench_progress", sim::Kind::component, "issue #20's progress benchmark");
+  registry.add<ProgressWorker>("bench_progress", sim::Kind::component,
+                               "issue #20's progress benchmark");
   gw::Gateway gateway(deployment, registry, {});
   gateway.start();
   const std::uint16_t port = endpoint_port(gateway.endpoints().at("jsonrpc").at(0));
@@ -166,8 +176,10 @@ json run_progress(const std::string& mjcf, double duration_s, double round_s, in
     std::vector<int> fds;
     try {
       for (int i = 0; i < calls; ++i) fds.push_back(connect_loopback(port));
-      const auto timeout = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(round_s * 3 + 10));
-      const auto end = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(duration_s));
+      const auto timeout = std::chrono::duration_cast<Clock::duration>(
+          std::chrono::duration<double>(round_s * 3 + 10));
+      const auto end = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                          std::chrono::duration<double>(duration_s));
       // alternating, at least one round of each, at most 1000 in all
       for (int round = 0; round < 1000 && (round < 2 || Clock::now() < end); ++round) {
         const bool progress = round % 2 == 1;
@@ -192,16 +204,17 @@ json run_progress(const std::string& mjcf, double duration_s, double round_s, in
   if (!error.empty()) throw std::runtime_error(error);
 
   const double plain_rtf = median(plain), progress_rtf = median(with_progress);
-  return json{{"mode", "progress"},
-              {"model", mjcf},
-              {"timestep", k_timestep},
-              {"calls", calls},
-              {"round_s", round_s},
-              {"rounds", {{"plain", plain.size()}, {"progress", with_progress.size()}}},
-              {"realtime_factor", {{"plain", plain_rtf}, {"progress", progress_rtf}}},
-              {"ratio", plain_rtf > 0 ? progress_rtf / plain_rtf : 0.0},
-              {"progress_hz_per_call", progress_wall > 0 ? notifications / progress_wall / calls : 0.0},
-              {"target", {{"realtime_factor_min", 0.99}, {"met", progress_rtf >= 0.99}}}};
+  return json{
+      {"mode", "progress"},
+      {"model", mjcf},
+      {"timestep", k_timestep},
+      {"calls", calls},
+      {"round_s", round_s},
+      {"rounds", {{"plain", plain.size()}, {"progress", with_progress.size()}}},
+      {"realtime_factor", {{"plain", plain_rtf}, {"progress", progress_rtf}}},
+      {"ratio", plain_rtf > 0 ? progress_rtf / plain_rtf : 0.0},
+      {"progress_hz_per_call", progress_wall > 0 ? notifications / progress_wall / calls : 0.0},
+      {"target", {{"realtime_factor_min", 0.99}, {"met", progress_rtf >= 0.99}}}};
 }
 
 }  // namespace simgate::bench

@@ -130,9 +130,11 @@ class DirectManager : public simgate::RequestManager {
   DirectManager() : RequestManager("Bench service manager") {}
   // One sync call; throws unless it succeeded.
   simgate::json call(const std::string& service, simgate::json params = simgate::json::array()) {
-    auto outcome = on_incoming_request(new_request_id(), {"simulation", service, std::move(params)});
+    auto outcome =
+        on_incoming_request(new_request_id(), {"simulation", service, std::move(params)});
     if (!outcome || outcome->status != simgate::Status::success)
-      throw std::runtime_error("simulation " + service + " failed: " + (outcome ? outcome->message : "async"));
+      throw std::runtime_error("simulation " + service +
+                               " failed: " + (outcome ? outcome->message : "async"));
     return outcome->value.value_or(simgate::json());
   }
 
@@ -298,7 +300,8 @@ json run_gateway(const std::string& config, double factor, double duration_s, bo
   json out{{"mode", "gateway"},
            {"steps", stats.steps},
            {"wall_s", stats.wall_time},
-           {"steps_per_s", stats.wall_time > 0 ? static_cast<double>(stats.steps) / stats.wall_time : 0.0},
+           {"steps_per_s",
+            stats.wall_time > 0 ? static_cast<double>(stats.steps) / stats.wall_time : 0.0},
            {"timestep", stats.timestep},
            {"target_factor", factor},
            {"realtime_factor", stats.realtime_factor},
@@ -346,12 +349,12 @@ json run_laser(double duration_s) {
   sim::Simulation simulation(sim::Model::load_string(k_laser_room, "laser-bench-room.xml"),
                              sim::SimulationOptions{std::nullopt, 0.0});
   auto registry = sim::builtin_registry();
-  auto robot = registry.create(sim::Kind::robot, {"robot", "robot", "robot", "robots[0]"}, json::object(),
-                               simulation, nullptr);
-  auto component = registry.create(sim::Kind::component,
-                                   {"robot.laser", "laser_scanner", "robot", "robots[0].components[0]"},
-                                   json{{"site", "laser"}, {"scan_window", 360}, {"resolution", 1}}, simulation,
-                                   static_cast<sim::Robot*>(robot.get()));
+  auto robot = registry.create(sim::Kind::robot, {"robot", "robot", "robot", "robots[0]"},
+                               json::object(), simulation, nullptr);
+  auto component = registry.create(
+      sim::Kind::component, {"robot.laser", "laser_scanner", "robot", "robots[0].components[0]"},
+      json{{"site", "laser"}, {"scan_window", 360}, {"resolution", 1}}, simulation,
+      static_cast<sim::Robot*>(robot.get()));
   auto& laser = static_cast<sim::LaserScanner&>(*component);
   for (int i = 0; i < 100; ++i) simulation.step();  // settled on its wheels
   const mjModel* m = simulation.m();
@@ -366,9 +369,11 @@ json run_laser(double duration_s) {
     const mjtNum* r = laser.frame().rotation(d);
     for (std::size_t i = 0; i < rays; ++i) {
       const double* l = &local[3 * i];
-      const mjtNum world[3] = {r[0] * l[0] + r[1] * l[1], r[3] * l[0] + r[4] * l[1], r[6] * l[0] + r[7] * l[1]};
+      const mjtNum world[3] = {r[0] * l[0] + r[1] * l[1], r[3] * l[0] + r[4] * l[1],
+                               r[6] * l[0] + r[7] * l[1]};
       int geom = -1;
-      bare_ranges[i] = mj_ray(m, d, origin, world, laser.geom_groups(), 1, laser.frame().body(), &geom, nullptr);
+      bare_ranges[i] =
+          mj_ray(m, d, origin, world, laser.geom_groups(), 1, laser.frame().body(), &geom, nullptr);
     }
   };
   // the two must agree before they are compared
@@ -376,8 +381,9 @@ json run_laser(double duration_s) {
   laser.scan();
   for (std::size_t i = 0; i < rays; ++i)
     if (std::abs((bare_ranges[i] < 0 ? 30.0 : bare_ranges[i]) - laser.ranges()[i]) > 1e-12)
-      throw std::runtime_error("laser bench: ray " + std::to_string(i) + " reads " + std::to_string(laser.ranges()[i]) +
-                               " m, the bare loop " + std::to_string(bare_ranges[i]) + " m");
+      throw std::runtime_error("laser bench: ray " + std::to_string(i) + " reads " +
+                               std::to_string(laser.ranges()[i]) + " m, the bare loop " +
+                               std::to_string(bare_ranges[i]) + " m");
 
   // alternating batches, so that both see the same machine; medians of ns per scan
   constexpr int k_batch = 100;
@@ -398,7 +404,8 @@ json run_laser(double duration_s) {
     std::sort(v.begin(), v.end());
     return static_cast<double>(v[v.size() / 2]) / 1e3;
   };
-  const double bare_us = median_us(bare_ns), update_us = median_us(update_ns), json_us = median_us(json_ns);
+  const double bare_us = median_us(bare_ns), update_us = median_us(update_ns),
+               json_us = median_us(json_ns);
   return json{{"mode", "laser"},
               {"rays", rays},
               {"geoms", m->ngeom},
@@ -456,7 +463,8 @@ std::string with_sensors(const std::string& mjcf, const std::filesystem::path& d
     sensors += std::string("    <") + s + " objtype=\"xbody\" objname=\"torso\"/>\n";
   sensors += "    <subtreecom body=\"torso\"/>\n    <subtreelinvel body=\"torso\"/>\n  </sensor>\n";
   values += 3 + 4 + 3 + 3 + 3 + 3;
-  if (values != 40) std::cerr << "simgate_bench_sim: the sensor block has " << values << " values, not 40\n";
+  if (values != 40)
+    std::cerr << "simgate_bench_sim: the sensor block has " << values << " values, not 40\n";
   const auto end = xml.rfind("</mujoco>");
   if (end == std::string::npos) throw std::runtime_error("'" + mjcf + "' has no </mujoco>");
   xml.insert(end, sensors);
@@ -482,13 +490,16 @@ double time_bare(const std::string& mjcf, std::uint64_t steps) {
 
 // Seconds for the gateway's loop, as fast as possible, to take `steps` steps from the
 // initial state: a robot on the torso with `components` and an idle socket transport.
-double time_gateway(const std::string& mjcf, const std::vector<std::string>& components, std::uint64_t steps) {
+double time_gateway(const std::string& mjcf, const std::vector<std::string>& components,
+                    std::uint64_t steps) {
   namespace gw = simgate::gateway;
-  json robot = {{"name", "humanoid"}, {"type", "robot"}, {"body", "torso"}, {"components", json::array()}};
+  json robot = {
+      {"name", "humanoid"}, {"type", "robot"}, {"body", "torso"}, {"components", json::array()}};
   for (const auto& c : components) robot["components"].push_back({{"name", c}, {"type", c}});
   const json document = {
       {"scene", {{"mjcf", mjcf}, {"realtime_factor", 0}}},
-      {"transports", {{"socket", {{"plugin", "socket"}, {"options", {{"host", "127.0.0.1"}, {"port", 0}}}}}}},
+      {"transports",
+       {{"socket", {{"plugin", "socket"}, {"options", {{"host", "127.0.0.1"}, {"port", 0}}}}}}},
       {"robots", json::array({robot})},
       {"services", {{"default", {"socket"}}}},
       {"log_level", "warning"}};
@@ -521,13 +532,16 @@ json run_humanoid(const std::string& mjcf_arg, double duration_s) {
     std::vector<std::string> components;
   };
   std::vector<Variant> variants = {{"stock", stock, {"armature", "armature_pose", "actuators"}},
-                                   {"with_sensors", with_sensors(stock, dir),
+                                   {"with_sensors",
+                                    with_sensors(stock, dir),
                                     {"armature", "armature_pose", "actuators", "sensors"}}};
   // steps per round: about a tenth of the budget per variant and side
   const double rate = 2000 / time_bare(stock, 2000);
   constexpr int k_rounds = 7;
-  const auto steps = static_cast<std::uint64_t>(std::max(1000.0, rate * duration_s / (4.0 * k_rounds)));
-  json out = {{"mode", "humanoid"}, {"model", stock}, {"steps_per_round", steps}, {"rounds", k_rounds}};
+  const auto steps =
+      static_cast<std::uint64_t>(std::max(1000.0, rate * duration_s / (4.0 * k_rounds)));
+  json out = {
+      {"mode", "humanoid"}, {"model", stock}, {"steps_per_round", steps}, {"rounds", k_rounds}};
   auto median = [](std::vector<double> v) {
     std::sort(v.begin(), v.end());
     return v[v.size() / 2];
@@ -592,7 +606,8 @@ class SpawnBenchManager : public simgate::RequestManager {
 json run_spawn(const std::string& mjcf, double duration) {
   using simgate::bench::ns_between;
   namespace sim = simgate::sim;
-  sim::Simulation simulation(sim::Model::load_file(mjcf), sim::SimulationOptions{std::nullopt, 0.0});
+  sim::Simulation simulation(sim::Model::load_file(mjcf),
+                             sim::SimulationOptions{std::nullopt, 0.0});
   add_world_components(simulation);
   auto manager = std::make_shared<SpawnBenchManager>();
   manager->register_component(*simulation.find("simulation")->component);
@@ -604,7 +619,8 @@ json run_spawn(const std::string& mjcf, double duration) {
     for (;;) {
       simulation.process_requests();
       if (auto o = manager->take(id)) {
-        if (o->status != simgate::Status::success) throw std::runtime_error(service + ": " + o->message);
+        if (o->status != simgate::Status::success)
+          throw std::runtime_error(service + ": " + o->message);
         return ns_between(start, Clock::now());
       }
       simulation.step();
@@ -618,7 +634,8 @@ json run_spawn(const std::string& mjcf, double duration) {
     remove.push_back(timed("delete_entity", json::array({"bench_ball"})));
     // the worker's share alone: the same edit, on this thread
     auto start = Clock::now();
-    sim::with_entity(sim::EditBase::of(simulation.model()), "bench_ball", sim::entity_document(ball, "bench_ball", {}));
+    sim::with_entity(sim::EditBase::of(simulation.model()), "bench_ball",
+                     sim::entity_document(ball, "bench_ball", {}));
     compile.push_back(ns_between(start, Clock::now()));
     char error[1024] = "";
     start = Clock::now();
@@ -632,16 +649,21 @@ json run_spawn(const std::string& mjcf, double duration) {
     return json{{"p50_ms", simgate::bench::quantile(samples, 0.5) / 1e6},
                 {"p99_ms", simgate::bench::quantile(samples, 0.99) / 1e6}};
   };
-  return json{{"mode", "spawn"},         {"model", mjcf},       {"rounds", spawn.size()},
-              {"spawn_entity", ms(spawn)}, {"delete_entity", ms(remove)},
-              {"with_entity", ms(compile)}, {"mj_loadXML", ms(load)},
+  return json{{"mode", "spawn"},
+              {"model", mjcf},
+              {"rounds", spawn.size()},
+              {"spawn_entity", ms(spawn)},
+              {"delete_entity", ms(remove)},
+              {"with_entity", ms(compile)},
+              {"mj_loadXML", ms(load)},
               {"model_generation", simulation.model_generation()}};
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"Simulation speed: the gateway's step loop against a bare mj_step loop.", "simgate_bench_sim"};
+  CLI::App app{"Simulation speed: the gateway's step loop against a bare mj_step loop.",
+               "simgate_bench_sim"};
   std::string mode, mjcf, config;
   double factor = 0, duration = 2;
   bool until_stdin = false;
@@ -652,36 +674,47 @@ int main(int argc, char** argv) {
   std::string camera = "rover.camera";
   double frequency = 60;
   app.add_option("--mode", mode,
-                 "bare, sleep, gateway, laser, humanoid, snapshot, spawn, progress, streams, camera_fps, camera_rtf or "
+                 "bare, sleep, gateway, laser, humanoid, snapshot, spawn, progress, streams, "
+                 "camera_fps, camera_rtf or "
                  "web_poses "
                  "(see the source's header)")
       ->required()
-      ->check(CLI::IsMember({"bare", "sleep", "gateway", "laser", "humanoid", "snapshot", "spawn", "progress",
-                             "streams", "camera_fps", "camera_rtf", "web_poses"}));
-  app.add_option("--site", camera_fps.site, "camera_fps: the site the view is from")->capture_default_str();
-  app.add_option("--frames", camera_fps.frames, "camera_fps: frames per side, size and kind, at most")
+      ->check(CLI::IsMember({"bare", "sleep", "gateway", "laser", "humanoid", "snapshot", "spawn",
+                             "progress", "streams", "camera_fps", "camera_rtf", "web_poses"}));
+  app.add_option("--site", camera_fps.site, "camera_fps: the site the view is from")
       ->capture_default_str();
-  app.add_option("--batch", camera_fps.batch, "camera_fps: frames of one side in a row")->capture_default_str();
+  app.add_option("--frames", camera_fps.frames,
+                 "camera_fps: frames per side, size and kind, at most")
+      ->capture_default_str();
+  app.add_option("--batch", camera_fps.batch, "camera_fps: frames of one side in a row")
+      ->capture_default_str();
   app.add_option("--camera", camera, "camera_rtf: the camera component whose stream is subscribed")
       ->capture_default_str();
-  app.add_option("--frequency", frequency, "web_poses: the body poses' samples per simulated second")
+  app.add_option("--frequency", frequency,
+                 "web_poses: the body poses' samples per simulated second")
       ->capture_default_str();
   app.add_flag("--dds", dds, "streams: the DDS transport streams too");
-  app.add_option("--round", round_s, "progress: simulated seconds each call runs")->capture_default_str();
+  app.add_option("--round", round_s, "progress: simulated seconds each call runs")
+      ->capture_default_str();
   app.add_option("--calls", calls,
-                 "progress: concurrent calls, one connection each; streams: components; web_poses: WebSocket clients")
+                 "progress: concurrent calls, one connection each; streams: components; web_poses: "
+                 "WebSocket clients")
       ->capture_default_str();
   app.add_option("--mjcf", mjcf,
-                 "bare, sleep, snapshot, spawn, progress, streams, camera_fps: the MJCF scene; humanoid: another "
+                 "bare, sleep, snapshot, spawn, progress, streams, camera_fps: the MJCF scene; "
+                 "humanoid: another "
                  "humanoid.xml");
   app.add_option("--config", config, "gateway, camera_rtf, web_poses: the deployment file");
-  app.add_option("--realtime-factor", factor, "gateway: pacing (0 = as fast as possible)")->capture_default_str();
-  app.add_option("--duration", duration, "seconds to run (camera_fps: per side, size and kind, at most)")
+  app.add_option("--realtime-factor", factor, "gateway: pacing (0 = as fast as possible)")
       ->capture_default_str();
-  app.add_flag("--until-stdin-closes", until_stdin, "gateway: run until standard input closes instead");
+  app.add_option("--duration", duration,
+                 "seconds to run (camera_fps: per side, size and kind, at most)")
+      ->capture_default_str();
+  app.add_flag("--until-stdin-closes", until_stdin,
+               "gateway: run until standard input closes instead");
   if (auto code = simgate::bench::parse_command_line(app, argc, argv)) return *code;
-  if ((mode == "bare" || mode == "sleep" || mode == "snapshot" || mode == "spawn" || mode == "progress" ||
-       mode == "streams" || mode == "camera_fps") &&
+  if ((mode == "bare" || mode == "sleep" || mode == "snapshot" || mode == "spawn" ||
+       mode == "progress" || mode == "streams" || mode == "camera_fps") &&
       mjcf.empty()) {
     std::cerr << "simgate_bench_sim: --mode " << mode << " needs --mjcf PATH\n";
     return 2;

@@ -57,7 +57,9 @@ class StampedPose : public sim::Pose {
   explicit StampedPose(sim::ComponentContext& c) : Pose(c) {
     declare_output_stream("pose", [this] {
       json data = get_local_data();
-      data["wall_ns"] = std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch()).count();
+      data["wall_ns"] =
+          std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch())
+              .count();
       return data;
     });
   }
@@ -94,44 +96,53 @@ json deployment(const std::string& mjcf, int components, bool streams, bool dds)
   json list = json::array();
   for (int i = 0; i < components; ++i)
     list.push_back({{"name", "p" + std::to_string(i)}, {"type", "bench_pose"}, {"frequency", 100}});
-  json transports = {{"socket", {{"plugin", "socket"}, {"options", {{"port", 0}, {"stream_port", 0}}}}},
-                     {"jsonrpc", {{"plugin", "jsonrpc"}, {"options", {{"port", 0}, {"stream_queue", 64}}}}}};
+  json transports = {
+      {"socket", {{"plugin", "socket"}, {"options", {{"port", 0}, {"stream_port", 0}}}}},
+      {"jsonrpc", {{"plugin", "jsonrpc"}, {"options", {{"port", 0}, {"stream_queue", 64}}}}}};
   std::vector<std::string> names = {"socket", "jsonrpc"};
   if (dds) {
-    transports["dds"] = {{"plugin", "dds"}, {"options", {{"partition", "simgate_stream_bench_" + std::to_string(::getpid())}}}};
+    transports["dds"] = {
+        {"plugin", "dds"},
+        {"options", {{"partition", "simgate_stream_bench_" + std::to_string(::getpid())}}}};
     names.push_back("dds");
   }
-  json d = {{"scene", {{"mjcf", mjcf}, {"timestep", 0.002}, {"realtime_factor", 1.0}}},
-            {"transports", transports},
-            {"robots", json::array({{{"name", "bench"}, {"type", "robot"}, {"body", "robot"}, {"components", list}}})},
-            {"services", {{"default", names}}},
-            {"log_level", "warning"}};
+  json d = {
+      {"scene", {{"mjcf", mjcf}, {"timestep", 0.002}, {"realtime_factor", 1.0}}},
+      {"transports", transports},
+      {"robots",
+       json::array(
+           {{{"name", "bench"}, {"type", "robot"}, {"body", "robot"}, {"components", list}}})},
+      {"services", {{"default", names}}},
+      {"log_level", "warning"}};
   if (streams) d["streams"] = {{"bench.*", names}};
   return d;
 }
 
 struct StreamPhase {
   double realtime_factor = 0;
-  double cpu_s = 0;        // the gateway's threads
+  double cpu_s = 0;  // the gateway's threads
   double wall_s = 0;
-  std::uint64_t produced = 0;          // samples the simulation read
-  std::uint64_t socket_lines = 0;      // samples read from the stream ports
-  std::uint64_t jsonrpc_samples = 0;   // rpc.sample notifications read
-  std::uint64_t dropped = 0;           // samples subscribers lost
-  std::vector<std::int64_t> latency;   // step end -> socket read, ns
+  std::uint64_t produced = 0;            // samples the simulation read
+  std::uint64_t socket_lines = 0;        // samples read from the stream ports
+  std::uint64_t jsonrpc_samples = 0;     // rpc.sample notifications read
+  std::uint64_t dropped = 0;             // samples subscribers lost
+  std::vector<std::int64_t> latency;     // step end -> socket read, ns
   std::vector<std::int64_t> round_trip;  // sync `time now` on the socket transport, ns
 };
 
 // One gateway for `duration_s`; with streams, the client reads them all, then times `calls`
 // sync calls.
-StreamPhase run_phase(const std::string& mjcf, int components, bool streams, bool dds, double duration_s, int calls) {
+StreamPhase run_phase(const std::string& mjcf, int components, bool streams, bool dds,
+                      double duration_s, int calls) {
   namespace gw = simgate::gateway;
   const gw::Deployment d = gw::parse_deployment(deployment(mjcf, components, streams, dds), ".");
   auto registry = sim::builtin_registry();
-  registry.add<StampedPose>("bench_pose", sim::Kind::component, "a pose sensor stamping its samples");
+  registry.add<StampedPose>("bench_pose", sim::Kind::component,
+                            "a pose sensor stamping its samples");
   gw::Gateway gateway(d, registry, {});
   gateway.start();
-  const std::uint16_t socket_port = port_of(gateway, "socket"), jsonrpc_port = port_of(gateway, "jsonrpc");
+  const std::uint16_t socket_port = port_of(gateway, "socket"),
+                      jsonrpc_port = port_of(gateway, "jsonrpc");
 
   StreamPhase phase;
   std::string error;
@@ -150,8 +161,10 @@ StreamPhase run_phase(const std::string& mjcf, int components, bool streams, boo
       std::vector<bool> is_socket_stream;
       if (streams) {
         send_all(control, "1 simulation get_all_stream_ports []\n");
-        std::string line = read_line(control, control_rest, Clock::now() + std::chrono::seconds(10));
-        if (line.rfind("1 SUCCESS ", 0) != 0) throw std::runtime_error("simulation get_all_stream_ports: " + line);
+        std::string line =
+            read_line(control, control_rest, Clock::now() + std::chrono::seconds(10));
+        if (line.rfind("1 SUCCESS ", 0) != 0)
+          throw std::runtime_error("simulation get_all_stream_ports: " + line);
         json ports = json::parse(line.substr(10));
         for (auto it = ports.begin(); it != ports.end(); ++it) {
           fds.push_back(connect_loopback(static_cast<std::uint16_t>(it->get<int>())));
@@ -162,8 +175,9 @@ StreamPhase run_phase(const std::string& mjcf, int components, bool streams, boo
         is_socket_stream.push_back(false);
         std::string subscribe;
         for (int i = 0; i < components; ++i)
-          subscribe += R"({"jsonrpc":"2.0","method":"rpc.subscribe","params":{"component":"bench.p)" +
-                       std::to_string(i) + R"("},"id":)" + std::to_string(i) + "}\n";
+          subscribe +=
+              R"({"jsonrpc":"2.0","method":"rpc.subscribe","params":{"component":"bench.p)" +
+              std::to_string(i) + R"("},"id":)" + std::to_string(i) + "}\n";
         send_all(rpc, subscribe);
         for (std::size_t i = 1; i < fds.size(); ++i) polls.push_back({fds[i], POLLIN, 0});
         rests.resize(polls.size());
@@ -173,12 +187,15 @@ StreamPhase run_phase(const std::string& mjcf, int components, bool streams, boo
       cpu0 = process_cpu_s();
       steps0 = gateway.simulation().steps();
       const std::uint64_t produced0 = gateway.simulation().streams().total_samples();
-      end = start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(duration_s));
+      end = start +
+            std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(duration_s));
       char buffer[1 << 16];
       if (!streams) std::this_thread::sleep_until(end);
       while (streams && Clock::now() < end) {
         if (::poll(polls.data(), polls.size(), 50) <= 0) continue;
-        const auto now_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch()).count();
+        const auto now_ns =
+            std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch())
+                .count();
         for (std::size_t i = 0; i < polls.size(); ++i) {
           if (!(polls[i].revents & (POLLIN | POLLHUP | POLLERR))) continue;
           const ssize_t n = ::recv(polls[i].fd, buffer, sizeof buffer, 0);
@@ -242,26 +259,31 @@ json run_streams(const std::string& mjcf, double duration_s, int components, int
   const std::uint64_t delivered = streams.socket_lines + streams.jsonrpc_samples;
   std::vector<std::string> transports = {"socket", "jsonrpc"};
   if (dds) transports.push_back("dds");
-  return json{{"mode", "streams"},
-              {"model", mjcf},
-              {"components", components},
-              {"frequency_hz", 100},
-              {"transports", transports},
-              {"duration_s", duration_s},
-              {"realtime_factor", {{"baseline", baseline.realtime_factor}, {"streams", streams.realtime_factor}}},
-              {"cpu_s", {{"baseline", baseline.cpu_s}, {"streams", streams.cpu_s}}},
-              {"samples", {{"produced", streams.produced},
-                           {"produced_per_s", streams.produced / streams.wall_s},
-                           {"socket_read", streams.socket_lines},
-                           {"jsonrpc_read", streams.jsonrpc_samples},
-                           {"dropped_total", streams.dropped}}},
-              {"cpu_ms_per_1000_samples_produced", streams.produced ? extra_cpu * 1e6 / streams.produced : 0.0},
-              {"cpu_ms_per_1000_samples_delivered", delivered ? extra_cpu * 1e6 / delivered : 0.0},
-              {"socket_latency_step_to_read", summarize_us(streams.latency)},
-              {"socket_sync_round_trip", summarize_us(streams.round_trip)},
-              {"one_stream", {{"socket_latency_step_to_read", summarize_us(single.latency)},
-                              {"socket_sync_round_trip", summarize_us(single.round_trip)}}},
-              {"target", {{"realtime_factor_min", 0.99}, {"met", streams.realtime_factor >= 0.99}}}};
+  return json{
+      {"mode", "streams"},
+      {"model", mjcf},
+      {"components", components},
+      {"frequency_hz", 100},
+      {"transports", transports},
+      {"duration_s", duration_s},
+      {"realtime_factor",
+       {{"baseline", baseline.realtime_factor}, {"streams", streams.realtime_factor}}},
+      {"cpu_s", {{"baseline", baseline.cpu_s}, {"streams", streams.cpu_s}}},
+      {"samples",
+       {{"produced", streams.produced},
+        {"produced_per_s", streams.produced / streams.wall_s},
+        {"socket_read", streams.socket_lines},
+        {"jsonrpc_read", streams.jsonrpc_samples},
+        {"dropped_total", streams.dropped}}},
+      {"cpu_ms_per_1000_samples_produced",
+       streams.produced ? extra_cpu * 1e6 / streams.produced : 0.0},
+      {"cpu_ms_per_1000_samples_delivered", delivered ? extra_cpu * 1e6 / delivered : 0.0},
+      {"socket_latency_step_to_read", summarize_us(streams.latency)},
+      {"socket_sync_round_trip", summarize_us(streams.round_trip)},
+      {"one_stream",
+       {{"socket_latency_step_to_read", summarize_us(single.latency)},
+        {"socket_sync_round_trip", summarize_us(single.round_trip)}}},
+      {"target", {{"realtime_factor_min", 0.99}, {"met", streams.realtime_factor >= 0.99}}}};
 }
 
 }  // namespace simgate::bench

@@ -30,13 +30,15 @@ extern "C" void on_signal(int) { g_stop.store(true); }
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"A transport plugin serving `test_component add(a, b)` from a process() loop, no simulation.",
-               "simgate_bench_host"};
+  CLI::App app{
+      "A transport plugin serving `test_component add(a, b)` from a process() loop, no simulation.",
+      "simgate_bench_host"};
   std::string transport, options_text = "{}";
   double max_seconds = 600;
   app.add_option("--transport", transport, "the plugin: socket, jsonrpc, dds")->required();
   app.add_option("--options", options_text, "its options (JSON object)")->capture_default_str();
-  app.add_option("--max-seconds", max_seconds, "exit after this long (a bounded run)")->capture_default_str();
+  app.add_option("--max-seconds", max_seconds, "exit after this long (a bounded run)")
+      ->capture_default_str();
   if (auto code = simgate::bench::parse_command_line(app, argc, argv)) return *code;
   try {
     std::signal(SIGINT, on_signal);
@@ -44,8 +46,11 @@ int main(int argc, char** argv) {
 
     // the plugin, as the gateway would load it
     auto plugin = simgate::load_transport_plugin(transport);
-    auto manager = plugin->create(simgate::json::parse(options_text), "transports." + transport + ".options");
-    manager->register_service("test_component", [](std::int64_t a, std::int64_t b) { return a + b; }, "add", {"a", "b"})
+    auto manager =
+        plugin->create(simgate::json::parse(options_text), "transports." + transport + ".options");
+    manager
+        ->register_service("test_component", [](std::int64_t a, std::int64_t b) { return a + b; },
+                           "add", {"a", "b"})
         .doc("a + b (the seed's example)");
     manager->start();
 
@@ -53,8 +58,9 @@ int main(int argc, char** argv) {
               << std::endl;
 
     // the seed's loop, bounded in time
-    auto deadline = simgate::bench::Clock::now() +
-                    std::chrono::duration_cast<simgate::bench::Clock::duration>(std::chrono::duration<double>(max_seconds));
+    auto deadline =
+        simgate::bench::Clock::now() + std::chrono::duration_cast<simgate::bench::Clock::duration>(
+                                           std::chrono::duration<double>(max_seconds));
     while (!g_stop.load() && simgate::bench::Clock::now() < deadline)
       manager->process(std::chrono::milliseconds(50));
 

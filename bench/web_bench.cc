@@ -43,15 +43,18 @@ namespace {
 class WebSocketClient {
  public:
   explicit WebSocketClient(std::uint16_t port) : fd_(connect_loopback(port)) {
-    send_all("GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
-             "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n");
+    send_all(
+        "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+        "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n");
     const auto deadline = Clock::now() + std::chrono::seconds(30);
     std::size_t end;
     while ((end = buffer_.find("\r\n\r\n")) == std::string::npos) {
-      if (Clock::now() >= deadline || !read_some(100)) throw std::runtime_error("no WebSocket handshake answer");
+      if (Clock::now() >= deadline || !read_some(100))
+        throw std::runtime_error("no WebSocket handshake answer");
     }
     if (!buffer_.starts_with("HTTP/1.1 101"))
-      throw std::runtime_error("the WebSocket upgrade was refused: " + buffer_.substr(0, buffer_.find('\r')));
+      throw std::runtime_error("the WebSocket upgrade was refused: " +
+                               buffer_.substr(0, buffer_.find('\r')));
     buffer_.erase(0, end + 4);
   }
   ~WebSocketClient() { ::close(fd_); }
@@ -103,8 +106,9 @@ class WebSocketClient {
       if (buffer_.size() - at < header + length) break;
       const std::string_view payload(buffer_.data() + at + header, length);
       if (opcode == 0x8) throw std::runtime_error("the server closed the WebSocket");
-      if (opcode == 0x1 || opcode == 0x0) on_message(payload);  // text (the server sends whole ones)
-      at += header + length;                                    // pings are not answered: runs are short
+      if (opcode == 0x1 || opcode == 0x0)
+        on_message(payload);  // text (the server sends whole ones)
+      at += header + length;  // pings are not answered: runs are short
     }
     buffer_.erase(0, at);
   }
@@ -133,8 +137,8 @@ class WebSocketClient {
 };
 
 struct WebPhase : RealtimePhase {
-  std::vector<std::uint64_t> samples;    // rpc.sample messages read, per client
-  std::uint64_t bytes = 0;               // their payloads' bytes
+  std::vector<std::uint64_t> samples;  // rpc.sample messages read, per client
+  std::uint64_t bytes = 0;             // their payloads' bytes
 };
 
 bool is_sample(std::string_view message) {
@@ -155,7 +159,8 @@ json run_web_poses(const std::string& config, int clients, double frequency, dou
     if (options.contains("stream_port")) options["stream_port"] = 0;
     if (transport.value("plugin", "") == "websocket") websocket = name;
   }
-  if (websocket.empty()) throw std::runtime_error(config + " has no websocket transport (the web app's)");
+  if (websocket.empty())
+    throw std::runtime_error(config + " has no websocket transport (the web app's)");
   document["streams"]["simulation"] = {{"transports", {websocket}}, {"frequency", frequency}};
   document["log_level"] = "warning";
   const gw::Deployment deployment =
@@ -172,7 +177,8 @@ json run_web_poses(const std::string& config, int clients, double frequency, dou
   std::thread client([&] {
     try {
       auto measure = [&](RealtimePhase& phase, auto&& during) {
-        measure_realtime_phase(phase, seconds, timestep, [&] { return gateway.simulation().steps(); }, during);
+        measure_realtime_phase(
+            phase, seconds, timestep, [&] { return gateway.simulation().steps(); }, during);
       };
       // phase 1: nobody connected
       measure(without, [](Clock::time_point end) { std::this_thread::sleep_until(end); });
@@ -181,7 +187,8 @@ json run_web_poses(const std::string& config, int clients, double frequency, dou
       std::vector<std::unique_ptr<WebSocketClient>> pages;
       for (int i = 0; i < clients; ++i) {
         pages.push_back(std::make_unique<WebSocketClient>(port));
-        pages.back()->send_text(R"({"jsonrpc":"2.0","id":1,"method":"rpc.subscribe","params":{"component":"simulation"}})");
+        pages.back()->send_text(
+            R"({"jsonrpc":"2.0","id":1,"method":"rpc.subscribe","params":{"component":"simulation"}})");
       }
       std::vector<pollfd> fds;
       for (const auto& page : pages) fds.push_back({page->fd(), POLLIN, 0});
@@ -189,7 +196,9 @@ json run_web_poses(const std::string& config, int clients, double frequency, dou
       // reads every page until `end`; a refused subscription throws
       auto read_until = [&](Clock::time_point end, bool until_each_has_one) {
         while (Clock::now() < end) {
-          if (until_each_has_one && std::all_of(count.begin(), count.end(), [](auto n) { return n > 0; })) return;
+          if (until_each_has_one &&
+              std::all_of(count.begin(), count.end(), [](auto n) { return n > 0; }))
+            return;
           if (::poll(fds.data(), fds.size(), 20) <= 0) continue;
           for (std::size_t i = 0; i < pages.size(); ++i) {
             if (!(fds[i].revents & (POLLIN | POLLHUP | POLLERR))) continue;
@@ -197,14 +206,17 @@ json run_web_poses(const std::string& config, int clients, double frequency, dou
               if (is_sample(message)) {
                 ++count[i];
                 with.bytes += message.size();
-                if (bodies == 0) bodies = json::parse(message).at("params").at("data").at("poses").size();
+                if (bodies == 0)
+                  bodies = json::parse(message).at("params").at("data").at("poses").size();
               } else if (message.find("\"error\"") != std::string_view::npos) {
-                throw std::runtime_error("rpc.subscribe simulation: " + std::string(message.substr(0, 400)));
+                throw std::runtime_error("rpc.subscribe simulation: " +
+                                         std::string(message.substr(0, 400)));
               }
             });
           }
         }
-        if (until_each_has_one) throw std::runtime_error("not every client had a body_poses sample within 60 s");
+        if (until_each_has_one)
+          throw std::runtime_error("not every client had a body_poses sample within 60 s");
       };
       read_until(Clock::now() + std::chrono::seconds(60), true);
       std::fill(count.begin(), count.end(), 0);
@@ -221,9 +233,12 @@ json run_web_poses(const std::string& config, int clients, double frequency, dou
   gateway.shutdown();
   if (!error.empty()) throw std::runtime_error(error);
   std::uint64_t total = 0, fewest = with.samples.empty() ? 0 : with.samples[0], most = 0;
-  for (std::uint64_t n : with.samples) total += n, fewest = std::min(fewest, n), most = std::max(most, n);
+  for (std::uint64_t n : with.samples)
+    total += n, fewest = std::min(fewest, n), most = std::max(most, n);
   auto phase_json = [](const WebPhase& p) {
-    return json{{"wall_s", p.wall_s}, {"realtime_factor", p.realtime_factor}, {"gateway_cpu_per_s", p.cpu_s / p.wall_s}};
+    return json{{"wall_s", p.wall_s},
+                {"realtime_factor", p.realtime_factor},
+                {"gateway_cpu_per_s", p.cpu_s / p.wall_s}};
   };
   return {{"mode", "web_poses"},
           {"config", config},
@@ -237,7 +252,8 @@ json run_web_poses(const std::string& config, int clients, double frequency, dou
            {{"mean", static_cast<double>(total) / static_cast<double>(clients) / with.wall_s},
             {"min", static_cast<double>(fewest) / with.wall_s},
             {"max", static_cast<double>(most) / with.wall_s}}},
-          {"mean_sample_bytes", total ? static_cast<double>(with.bytes) / static_cast<double>(total) : 0.0},
+          {"mean_sample_bytes",
+           total ? static_cast<double>(with.bytes) / static_cast<double>(total) : 0.0},
           {"ratio", with.realtime_factor / without.realtime_factor}};
 }
 

@@ -33,13 +33,15 @@ std::unique_ptr<Client> make_client(const std::string& transport, const json& op
   std::chrono::milliseconds timeout{5000};
   if (transport_options.is_object()) {
     if (auto it = transport_options.find("token"); it != transport_options.end()) {
-      if (!it->is_string()) throw ClientError("client option 'token': expected a string, found " + it->dump());
+      if (!it->is_string())
+        throw ClientError("client option 'token': expected a string, found " + it->dump());
       token = it->get<std::string>();
       transport_options.erase(it);
     }
     if (auto it = transport_options.find("timeout_ms"); it != transport_options.end()) {
       if (!it->is_number_integer() || it->get<long long>() < 1)
-        throw ClientError("client option 'timeout_ms': expected a positive integer, found " + it->dump());
+        throw ClientError("client option 'timeout_ms': expected a positive integer, found " +
+                          it->dump());
       timeout = std::chrono::milliseconds(it->get<long long>());
       transport_options.erase(it);
     }

@@ -25,7 +25,8 @@ constexpr auto k_send_timeout = std::chrono::seconds(30);
 
 // Milliseconds left until `deadline`, for poll() (0 once passed).
 int remaining_ms(Clock::time_point deadline) {
-  auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count();
+  auto left =
+      std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count();
   return left <= 0 ? 0 : static_cast<int>(std::min<long long>(left, 1 << 30));
 }
 
@@ -106,7 +107,8 @@ void LineConnection::send_raw(std::string_view bytes) {
     if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) {
       // the server is not reading: wait, but not forever
       pollfd p{fd_, POLLOUT, 0};
-      if (::poll(&p, 1, remaining_ms(deadline)) == 0) fail("send timed out (the server does not read)");
+      if (::poll(&p, 1, remaining_ms(deadline)) == 0)
+        fail("send timed out (the server does not read)");
       continue;
     }
     closed_ = true;

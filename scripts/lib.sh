@@ -100,6 +100,29 @@ ensure_mujoco() {
   mv -T "$tmp" "$target" 2>/dev/null || rm -rf "$tmp"   # lost a race: the other run's copy stays
 }
 
+# ---- clang-format (scripts/format, the FormatCheck test): the version pinned here, from PyPI's
+# clang-format wheel (Debian 12's clang-format-14 formats some constructs differently), in the
+# same private virtualenv as MuJoCo's pip, installed once per version under the user's cache.
+SIMGATE_CLANG_FORMAT_VERSION=19.1.7
+SIMGATE_CLANG_FORMAT=$SIMGATE_MUJOCO_CACHE/clang-format-$SIMGATE_CLANG_FORMAT_VERSION/clang_format/data/bin/clang-format
+
+# ensure_clang_format: installs the pinned clang-format unless it is there
+ensure_clang_format() {
+  local target=$SIMGATE_MUJOCO_CACHE/clang-format-$SIMGATE_CLANG_FORMAT_VERSION venv=$SIMGATE_MUJOCO_CACHE/pip-venv tmp
+  [ -x "$SIMGATE_CLANG_FORMAT" ] && return 0
+  mkdir -p "$SIMGATE_MUJOCO_CACHE"
+  if [ ! -x "$venv/bin/pip" ]; then
+    python3 -m venv "$venv" || { log "python3 -m venv failed (Debian: apt-get install python3-venv)"; return 1; }
+  fi
+  log "installing clang-format $SIMGATE_CLANG_FORMAT_VERSION (PyPI) into ${target/#$HOME/\~}"
+  tmp=$(mktemp -d "$target.XXXXXX")
+  if ! "$venv/bin/pip" install --quiet --disable-pip-version-check --no-compile --no-deps --only-binary=:all: \
+       --target "$tmp" "clang-format==$SIMGATE_CLANG_FORMAT_VERSION" || [ ! -x "$tmp/clang_format/data/bin/clang-format" ]; then
+    rm -rf "$tmp"; log "pip could not install clang-format==$SIMGATE_CLANG_FORMAT_VERSION"; return 1
+  fi
+  mv -T "$tmp" "$target" 2>/dev/null || rm -rf "$tmp"
+}
+
 # npm test clients (JSON-RPC libraries nobody on the team wrote): every package.json under tests/ and bench/
 ensure_node_modules() {
   local manifest dir

@@ -57,7 +57,8 @@ std::shared_ptr<const StreamPayload> to_payload(const simgate_stream_Image& imag
   auto payload = std::make_shared<StreamPayload>();
   payload->content = "image";
   json k = json::array();
-  for (int row = 0; row < 3; ++row) k.push_back({image.K[row * 3], image.K[row * 3 + 1], image.K[row * 3 + 2]});
+  for (int row = 0; row < 3; ++row)
+    k.push_back({image.K[row * 3], image.K[row * 3 + 1], image.K[row * 3 + 2]});
   payload->description = {{"component", image.component ? image.component : ""},
                           {"width", image.width},
                           {"height", image.height},
@@ -66,7 +67,8 @@ std::shared_ptr<const StreamPayload> to_payload(const simgate_stream_Image& imag
                           {"is_bigendian", image.is_bigendian},
                           {"intrinsic_matrix", std::move(k)},
                           {"timestamp", image.time}};
-  if (image.data._length > 0) payload->bytes.assign(image.data._buffer, image.data._buffer + image.data._length);
+  if (image.data._length > 0)
+    payload->bytes.assign(image.data._buffer, image.data._buffer + image.data._length);
   return payload;
 }
 
@@ -100,9 +102,13 @@ std::string network_hint(const std::string& config) {
   } else {
     mine = "the Cyclone XML it was given";
   }
-  return "The simulation and this client must share the domain, the partition and the Cyclone network settings: "
-         "this client uses " + mine + "; a simulation's dds transport uses loopback only unless its \"config\" "
-         "option says otherwise (simgate call --dds-config: XML, a file:// URI, or env for CYCLONEDDS_URI).";
+  return "The simulation and this client must share the domain, the partition and the Cyclone "
+         "network settings: "
+         "this client uses " +
+         mine +
+         "; a simulation's dds transport uses loopback only unless its \"config\" "
+         "option says otherwise (simgate call --dds-config: XML, a file:// URI, or env for "
+         "CYCLONEDDS_URI).";
 }
 
 }  // namespace
@@ -114,8 +120,8 @@ DdsClientOptions DdsClientOptions::from_json(const json& options) {
     out.domain = static_cast<std::uint32_t>(config.get_int("domain", 0, 0, 230));
     out.partition = config.get_string("partition", out.partition);
     out.config = config.get_string("config", "");
-    out.discovery_timeout =
-        std::chrono::milliseconds(config.get_int("discovery_timeout_ms", out.discovery_timeout.count(), 0, 3'600'000));
+    out.discovery_timeout = std::chrono::milliseconds(
+        config.get_int("discovery_timeout_ms", out.discovery_timeout.count(), 0, 3'600'000));
     out.raw_images = config.get_bool("raw_images", out.raw_images);
     config.finish();
     return out;
@@ -133,7 +139,7 @@ class DdsClient::Impl {
     std::size_t raw = 0;             // how many of its records say "format": "raw"
     std::vector<std::shared_ptr<const StreamPayload>> images;  // simgate_ReplyImage of its
                                                                // seq, in arrival (= record) order
-    std::string error;               // the server went away
+    std::string error;                                         // the server went away
 
     // The final reply and every image it announces are here.
     bool complete() const { return outcome && images.size() >= raw; }
@@ -144,8 +150,8 @@ class DdsClient::Impl {
 
   bool wait_for_server(std::chrono::milliseconds timeout);
   // Waits up to `discovery` for a server, then writes the request; returns its seq.
-  CallId send(simgate_Op op, const std::string& component, const std::string& service, const json& params,
-              CallId target, std::chrono::milliseconds discovery);
+  CallId send(simgate_Op op, const std::string& component, const std::string& service,
+              const json& params, CallId target, std::chrono::milliseconds discovery);
   bool wait_accepted(CallId id, std::chrono::milliseconds timeout);
   // `whole`: the caller's whole timeout when part of it went into finding a server (for
   // the message); 0 = `timeout`.
@@ -157,7 +163,8 @@ class DdsClient::Impl {
   // reply reader itself and takes every reply (its own and the other callers'); the others
   // wait on changed_ until their reply is in their slot or the reader role is free.
   template <class Done>
-  bool await(std::unique_lock<std::mutex>& lock, std::chrono::steady_clock::time_point deadline, Done done);
+  bool await(std::unique_lock<std::mutex>& lock, std::chrono::steady_clock::time_point deadline,
+             Done done);
 
   DdsClientOptions options_;                       // as given
   std::unique_ptr<dds::Participant> participant_;  // owns every entity
@@ -175,18 +182,18 @@ class DdsClient::Impl {
   dds_entity_t reader_guard_ = 0;                  // wakes the reading caller (match change, stop)
   std::atomic<CallId> next_seq_{1};                // call numbering
 
-  std::mutex take_images_mutex_;                   // one take_images() at a time (taken before
-                                                   // mutex_): a call's images stay in order
-  std::mutex mutex_;                               // guards everything below
-  std::condition_variable changed_;                // a reply, a match, or stop
-  std::unordered_map<CallId, Slot> slots_;         // calls not yet consumed
-  int server_readers_ = 0;                         // matched request readers
-  int server_writers_ = 0;                         // matched reply writers
-  bool reading_ = false;                           // a caller is the reader (see await)
-  bool stopping_ = false;                          // the status thread must leave
-  dds_entity_t catalog_reader_ = 0;                // created by the first list_services
+  std::mutex take_images_mutex_;            // one take_images() at a time (taken before
+                                            // mutex_): a call's images stay in order
+  std::mutex mutex_;                        // guards everything below
+  std::condition_variable changed_;         // a reply, a match, or stop
+  std::unordered_map<CallId, Slot> slots_;  // calls not yet consumed
+  int server_readers_ = 0;                  // matched request readers
+  int server_writers_ = 0;                  // matched reply writers
+  bool reading_ = false;                    // a caller is the reader (see await)
+  bool stopping_ = false;                   // the status thread must leave
+  dds_entity_t catalog_reader_ = 0;         // created by the first list_services
 
-  std::thread thread_;                             // the status thread
+  std::thread thread_;  // the status thread
 
  private:
   void run();
@@ -197,8 +204,9 @@ class DdsClient::Impl {
 
 DdsClient::Impl::Impl(DdsClientOptions options) : options_(std::move(options)) {
   try {
-    participant_ = std::make_unique<dds::Participant>(options_.domain, dds::resolve_config(options_.config),
-                                                      "DDS client (domain " + std::to_string(options_.domain) + ")");
+    participant_ = std::make_unique<dds::Participant>(
+        options_.domain, dds::resolve_config(options_.config),
+        "DDS client (domain " + std::to_string(options_.domain) + ")");
   } catch (const std::runtime_error& e) {
     throw ClientError(e.what());
   }
@@ -209,10 +217,12 @@ DdsClient::Impl::Impl(DdsClientOptions options) : options_(std::move(options)) {
   subscriber_ = check(dds_create_subscriber(pp, partition_qos.get(), nullptr), "subscriber");
 
   // the request writer; its GUID is our id
-  dds_entity_t request_topic = check(
-      dds_create_topic(pp, &simgate_Request_desc, dds::k_request_topic, nullptr, nullptr), "topic simgate_Request");
+  dds_entity_t request_topic =
+      check(dds_create_topic(pp, &simgate_Request_desc, dds::k_request_topic, nullptr, nullptr),
+            "topic simgate_Request");
   dds::QosPtr request_qos = dds::make_qos(false, 0, DDS_SECS(1));
-  request_writer_ = check(dds_create_writer(publisher_, request_topic, request_qos.get(), nullptr), "request writer");
+  request_writer_ = check(dds_create_writer(publisher_, request_topic, request_qos.get(), nullptr),
+                          "request writer");
   dds_guid_t guid;
   check(dds_get_guid(request_writer_, &guid), "client id");
   client_id_ = dds::to_client_id(guid);
@@ -223,9 +233,11 @@ DdsClient::Impl::Impl(DdsClientOptions options) : options_(std::move(options)) {
   dds::QosPtr reply_partition_qos(dds_create_qos());
   const std::string reply_partition = options_.partition + "/" + id_hex_;
   dds_qset_partition1(reply_partition_qos.get(), reply_partition.c_str());
-  reply_subscriber_ = check(dds_create_subscriber(pp, reply_partition_qos.get(), nullptr), "reply subscriber");
+  reply_subscriber_ =
+      check(dds_create_subscriber(pp, reply_partition_qos.get(), nullptr), "reply subscriber");
   dds_entity_t reply_topic =
-      check(dds_create_topic(pp, &simgate_Reply_desc, dds::k_reply_topic, nullptr, nullptr), "topic simgate_Reply");
+      check(dds_create_topic(pp, &simgate_Reply_desc, dds::k_reply_topic, nullptr, nullptr),
+            "topic simgate_Reply");
   dds_topic_filter filter{};
   filter.mode = DDS_TOPIC_FILTER_SAMPLE_ARG;
   filter.f.sample_arg = &is_ours;
@@ -238,12 +250,15 @@ DdsClient::Impl::Impl(DdsClientOptions options) : options_(std::move(options)) {
   // participant's endpoints in the order they were created: when it has matched our reply
   // reader, it knows this one, and the images of our first call already come raw)
   if (options_.raw_images) {
-    dds_entity_t image_topic = check(
-        dds_create_topic(pp, &simgate_stream_Image_desc, dds::k_reply_image_topic, nullptr, nullptr),
-        "topic simgate_ReplyImage");
-    image_reader_ = check(dds_create_reader(reply_subscriber_, image_topic, reply_qos.get(), nullptr), "image reader");
+    dds_entity_t image_topic = check(dds_create_topic(pp, &simgate_stream_Image_desc,
+                                                      dds::k_reply_image_topic, nullptr, nullptr),
+                                     "topic simgate_ReplyImage");
+    image_reader_ =
+        check(dds_create_reader(reply_subscriber_, image_topic, reply_qos.get(), nullptr),
+              "image reader");
   }
-  reply_reader_ = check(dds_create_reader(reply_subscriber_, reply_topic, reply_qos.get(), nullptr), "reply reader");
+  reply_reader_ = check(dds_create_reader(reply_subscriber_, reply_topic, reply_qos.get(), nullptr),
+                        "reply reader");
 
   // callers wait for replies themselves (one at a time is the reader: see await)
   reader_waitset_ = check(dds_create_waitset(pp), "reply waitset");
@@ -252,7 +267,8 @@ DdsClient::Impl::Impl(DdsClientOptions options) : options_(std::move(options)) {
   check(dds_waitset_attach(reader_waitset_, read_condition_, 0), "waitset attachment");
   check(dds_waitset_attach(reader_waitset_, reader_guard_, 0), "waitset attachment");
   if (image_reader_ > 0) {
-    image_condition_ = check(dds_create_readcondition(image_reader_, DDS_ANY_STATE), "image read condition");
+    image_condition_ =
+        check(dds_create_readcondition(image_reader_, DDS_ANY_STATE), "image read condition");
     check(dds_waitset_attach(reader_waitset_, image_condition_, 0), "waitset attachment");
   }
 
@@ -288,7 +304,8 @@ void DdsClient::Impl::run() {
     dds_return_t n = dds_waitset_wait(waitset_, triggered, 8, DDS_SECS(1));
     if (n < 0) return;
     bool status = false;
-    for (dds_return_t i = 0; i < std::min<dds_return_t>(n, 8); ++i) status |= triggered[i] == k_token_status;
+    for (dds_return_t i = 0; i < std::min<dds_return_t>(n, 8); ++i)
+      status |= triggered[i] == k_token_status;
     if (status) update_matches();
   }
 }
@@ -309,11 +326,13 @@ void DdsClient::Impl::update_matches() {
   if (server_writers_ == 0 || server_readers_ == 0) {
     for (auto& [id, slot] : slots_)
       if (!slot.complete() && slot.error.empty())
-        slot.error = "DDS client: the server of partition '" + options_.partition + "' (domain " +
-                     std::to_string(options_.domain) + ") went away before answering call " + std::to_string(id) +
-                     (slot.outcome ? " (its reply came, " + std::to_string(slot.images.size()) + " of its " +
-                                         std::to_string(slot.raw) + " raw images did not)"
-                                   : std::string());
+        slot.error =
+            "DDS client: the server of partition '" + options_.partition + "' (domain " +
+            std::to_string(options_.domain) + ") went away before answering call " +
+            std::to_string(id) +
+            (slot.outcome ? " (its reply came, " + std::to_string(slot.images.size()) + " of its " +
+                                std::to_string(slot.raw) + " raw images did not)"
+                          : std::string());
   }
   changed_.notify_all();
   // the reading caller waits on DDS, not on changed_
@@ -351,7 +370,8 @@ void DdsClient::Impl::take_replies() {
         if (reply.message) outcome.message = reply.message;
         if (reply.data && *reply.data) outcome.data = parse_or_string(reply.data);
         // its images, written before it, may still be on their way (another topic)
-        if (image_reader_ > 0 && outcome.status == Status::success) slot.raw = raw_count(outcome.value);
+        if (image_reader_ > 0 && outcome.status == Status::success)
+          slot.raw = raw_count(outcome.value);
         slot.outcome = std::move(outcome);
       }
       changed_.notify_all();
@@ -395,8 +415,8 @@ void DdsClient::Impl::take_images() {
 }
 
 template <class Done>
-bool DdsClient::Impl::await(std::unique_lock<std::mutex>& lock, std::chrono::steady_clock::time_point deadline,
-                            Done done) {
+bool DdsClient::Impl::await(std::unique_lock<std::mutex>& lock,
+                            std::chrono::steady_clock::time_point deadline, Done done) {
   for (;;) {
     if (done()) return true;
     auto now = std::chrono::steady_clock::now();
@@ -424,30 +444,35 @@ bool DdsClient::Impl::await(std::unique_lock<std::mutex>& lock, std::chrono::ste
 
 bool DdsClient::Impl::wait_for_server(std::chrono::milliseconds timeout) {
   std::unique_lock lock(mutex_);
-  return changed_.wait_for(lock, timeout, [&] { return server_readers_ > 0 && server_writers_ > 0; });
+  return changed_.wait_for(lock, timeout,
+                           [&] { return server_readers_ > 0 && server_writers_ > 0; });
 }
 
-DdsClient::CallId DdsClient::Impl::send(simgate_Op op, const std::string& component, const std::string& service,
-                                        const json& params, CallId target, std::chrono::milliseconds discovery) {
+DdsClient::CallId DdsClient::Impl::send(simgate_Op op, const std::string& component,
+                                        const std::string& service, const json& params,
+                                        CallId target, std::chrono::milliseconds discovery) {
   if (!wait_for_server(discovery)) {
     std::string found;
     {
       std::lock_guard lock(mutex_);
-      found = server_readers_ > 0 ? "found its request reader only"
+      found = server_readers_ > 0   ? "found its request reader only"
               : server_writers_ > 0 ? "found its reply writer only"
                                     : "found neither";
     }
-    throw ClientError("DDS client: no simgate simulation in domain " + std::to_string(options_.domain) +
-                      ", partition '" + options_.partition + "' within " + std::to_string(discovery.count()) +
-                      " ms: waited for a simulation's request reader and reply writer to match this client (" +
-                      found + "). " + network_hint(options_.config));
+    throw ClientError(
+        "DDS client: no simgate simulation in domain " + std::to_string(options_.domain) +
+        ", partition '" + options_.partition + "' within " + std::to_string(discovery.count()) +
+        " ms: waited for a simulation's request reader and reply writer to match this client (" +
+        found + "). " + network_hint(options_.config));
   }
   CallId seq = next_seq_++;
   {
     std::lock_guard lock(mutex_);
     slots_.emplace(seq, Slot{});
   }
-  std::string params_text = params.is_null() ? std::string() : params.dump(-1, ' ', false, json::error_handler_t::replace);
+  std::string params_text = params.is_null()
+                                ? std::string()
+                                : params.dump(-1, ' ', false, json::error_handler_t::replace);
   simgate_Request request{};
   std::memcpy(request.id.client, client_id_.data(), client_id_.size());
   request.id.seq = seq;
@@ -460,7 +485,8 @@ DdsClient::CallId DdsClient::Impl::send(simgate_Op op, const std::string& compon
   if (rc < 0) {
     std::lock_guard lock(mutex_);
     slots_.erase(seq);
-    throw ClientError("DDS client: request " + component + "." + service + " not sent: " + retcode_text(rc));
+    throw ClientError("DDS client: request " + component + "." + service +
+                      " not sent: " + retcode_text(rc));
   }
   return seq;
 }
@@ -477,17 +503,20 @@ bool DdsClient::Impl::wait_accepted(CallId id, std::chrono::milliseconds timeout
   return it != slots_.end() && it->second.accepted;
 }
 
-Outcome DdsClient::Impl::wait(CallId id, std::chrono::milliseconds timeout, std::chrono::milliseconds whole) {
+Outcome DdsClient::Impl::wait(CallId id, std::chrono::milliseconds timeout,
+                              std::chrono::milliseconds whole) {
   std::unique_lock lock(mutex_);
   // the final reply and the images it announces (both topics: either may come first)
   auto finished = [&] {
     auto it = slots_.find(id);
     return it == slots_.end() || it->second.complete() || !it->second.error.empty();
   };
-  if (slots_.find(id) == slots_.end()) throw ClientError("DDS client: no call " + std::to_string(id) + " to wait for");
+  if (slots_.find(id) == slots_.end())
+    throw ClientError("DDS client: no call " + std::to_string(id) + " to wait for");
   await(lock, std::chrono::steady_clock::now() + timeout, finished);
   auto it = slots_.find(id);
-  if (it == slots_.end()) throw ClientError("DDS client: call " + std::to_string(id) + " was consumed by another wait()");
+  if (it == slots_.end())
+    throw ClientError("DDS client: call " + std::to_string(id) + " was consumed by another wait()");
   Slot slot = std::move(it->second);
   slots_.erase(it);
   lock.unlock();
@@ -520,13 +549,16 @@ json DdsClient::Impl::list_services(std::chrono::milliseconds timeout) {
     std::lock_guard lock(mutex_);
     if (catalog_reader_ == 0) {
       dds_entity_t topic = check(
-          dds_create_topic(pp, &simgate_CatalogEntry_desc, dds::k_catalog_topic, nullptr, nullptr), "topic simgate_Catalog");
+          dds_create_topic(pp, &simgate_CatalogEntry_desc, dds::k_catalog_topic, nullptr, nullptr),
+          "topic simgate_Catalog");
       dds::QosPtr qos = dds::make_qos(true, 1, DDS_SECS(1));
-      catalog_reader_ = check(dds_create_reader(subscriber_, topic, qos.get(), nullptr), "catalog reader");
+      catalog_reader_ =
+          check(dds_create_reader(subscriber_, topic, qos.get(), nullptr), "catalog reader");
     }
   }
   dds_entity_t waitset = check(dds_create_waitset(pp), "catalog waitset");
-  dds_entity_t fresh = check(dds_create_readcondition(catalog_reader_, DDS_NOT_READ_SAMPLE_STATE), "catalog condition");
+  dds_entity_t fresh = check(dds_create_readcondition(catalog_reader_, DDS_NOT_READ_SAMPLE_STATE),
+                             "catalog condition");
   dds_waitset_attach(waitset, fresh, 0);
   struct Entry {
     std::string server;      // who publishes it
@@ -540,7 +572,9 @@ json DdsClient::Impl::list_services(std::chrono::milliseconds timeout) {
     void* samples[64];
     dds_sample_info_t infos[64];
     samples[0] = nullptr;
-    dds_return_t n = dds_read_mask(catalog_reader_, samples, infos, 64, 64, DDS_ANY_SAMPLE_STATE | DDS_ANY_VIEW_STATE | DDS_ALIVE_INSTANCE_STATE);
+    dds_return_t n =
+        dds_read_mask(catalog_reader_, samples, infos, 64, 64,
+                      DDS_ANY_SAMPLE_STATE | DDS_ANY_VIEW_STATE | DDS_ALIVE_INSTANCE_STATE);
     entries.clear();
     std::map<std::string, std::uint32_t> latest;  // each server's highest revision
     for (dds_return_t i = 0; i < n; ++i) {
@@ -555,16 +589,18 @@ json DdsClient::Impl::list_services(std::chrono::milliseconds timeout) {
     if (n > 0) dds_return_loan(catalog_reader_, samples, n);
     // an entry of an older revision is a component its server serves no more, whose dispose
     // has not arrived yet
-    std::erase_if(entries, [&](const auto& e) { return e.second.revision < latest[e.second.server]; });
+    std::erase_if(entries,
+                  [&](const auto& e) { return e.second.revision < latest[e.second.server]; });
     // complete when every server's entries are all there
     std::map<std::string, std::uint32_t> present, expected;
     for (const auto& [component, entry] : entries) {
       ++present[entry.server];
       expected[entry.server] = entry.count;
     }
-    bool complete = !entries.empty() && std::all_of(expected.begin(), expected.end(), [&](const auto& server) {
-      return present[server.first] >= server.second;
-    });
+    bool complete =
+        !entries.empty() && std::all_of(expected.begin(), expected.end(), [&](const auto& server) {
+          return present[server.first] >= server.second;
+        });
     auto now = std::chrono::steady_clock::now();
     if (complete || now >= deadline) break;
     dds_waitset_wait(waitset, nullptr, 0,
@@ -573,9 +609,10 @@ json DdsClient::Impl::list_services(std::chrono::milliseconds timeout) {
   dds_delete(fresh);
   dds_delete(waitset);
   if (entries.empty())
-    throw ClientError("DDS client: no simgate simulation in domain " + std::to_string(options_.domain) +
-                      ", partition '" + options_.partition + "' within " + std::to_string(timeout.count()) +
-                      " ms: waited for a simulation's catalog of services. " + network_hint(options_.config));
+    throw ClientError(
+        "DDS client: no simgate simulation in domain " + std::to_string(options_.domain) +
+        ", partition '" + options_.partition + "' within " + std::to_string(timeout.count()) +
+        " ms: waited for a simulation's catalog of services. " + network_hint(options_.config));
   json out = json::array();
   for (auto& [component, entry] : entries)
     for (auto& service : entry.services) out.push_back(std::move(service));
@@ -584,24 +621,35 @@ json DdsClient::Impl::list_services(std::chrono::milliseconds timeout) {
 
 // ---------------------------------------------------------------------------------------
 
-DdsClient::DdsClient(DdsClientOptions options) : impl_(std::make_unique<Impl>(std::move(options))) {}
+DdsClient::DdsClient(DdsClientOptions options)
+    : impl_(std::make_unique<Impl>(std::move(options))) {}
 DdsClient::~DdsClient() = default;
 
-bool DdsClient::wait_for_server(std::chrono::milliseconds timeout) { return impl_->wait_for_server(timeout); }
-
-DdsClient::CallId DdsClient::start(const std::string& component, const std::string& service, const json& params) {
-  return impl_->send(simgate_OP_CALL, component, service, params, 0, impl_->options_.discovery_timeout);
+bool DdsClient::wait_for_server(std::chrono::milliseconds timeout) {
+  return impl_->wait_for_server(timeout);
 }
 
-bool DdsClient::wait_accepted(CallId id, std::chrono::milliseconds timeout) { return impl_->wait_accepted(id, timeout); }
+DdsClient::CallId DdsClient::start(const std::string& component, const std::string& service,
+                                   const json& params) {
+  return impl_->send(simgate_OP_CALL, component, service, params, 0,
+                     impl_->options_.discovery_timeout);
+}
 
-Outcome DdsClient::wait(CallId id, std::chrono::milliseconds timeout) { return impl_->wait(id, timeout); }
+bool DdsClient::wait_accepted(CallId id, std::chrono::milliseconds timeout) {
+  return impl_->wait_accepted(id, timeout);
+}
+
+Outcome DdsClient::wait(CallId id, std::chrono::milliseconds timeout) {
+  return impl_->wait(id, timeout);
+}
 
 namespace {
 
 // What is left of `timeout` since `started` (zero at least).
-std::chrono::milliseconds left_of(std::chrono::milliseconds timeout, std::chrono::steady_clock::time_point started) {
-  auto spent = std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - started);
+std::chrono::milliseconds left_of(std::chrono::milliseconds timeout,
+                                  std::chrono::steady_clock::time_point started) {
+  auto spent = std::chrono::duration_cast<std::chrono::milliseconds>(
+      std::chrono::steady_clock::now() - started);
   return std::max(timeout - spent, std::chrono::milliseconds(0));
 }
 
@@ -615,15 +663,17 @@ bool DdsClient::cancel(CallId id, std::chrono::milliseconds timeout) {
   return answer.value && answer.value->is_boolean() && answer.value->get<bool>();
 }
 
-Outcome DdsClient::call(const std::string& component, const std::string& service, const json& params,
-                        std::chrono::milliseconds timeout) {
+Outcome DdsClient::call(const std::string& component, const std::string& service,
+                        const json& params, std::chrono::milliseconds timeout) {
   // the timeout bounds the whole call, finding the server included (not discovery_timeout)
   auto started = std::chrono::steady_clock::now();
   CallId seq = impl_->send(simgate_OP_CALL, component, service, params, 0, timeout);
   return impl_->wait(seq, left_of(timeout, started), timeout);
 }
 
-json DdsClient::list_services(std::chrono::milliseconds timeout) { return impl_->list_services(timeout); }
+json DdsClient::list_services(std::chrono::milliseconds timeout) {
+  return impl_->list_services(timeout);
+}
 
 void DdsClient::login(const std::string&, std::chrono::milliseconds) {
   throw ClientError("dds client: " + std::string(k_dds_has_no_token));

@@ -6,7 +6,8 @@ namespace {
 using Clock = std::chrono::steady_clock;
 }  // namespace
 
-JsonRpcClient::JsonRpcClient(const std::string& host, std::uint16_t port, std::chrono::milliseconds timeout)
+JsonRpcClient::JsonRpcClient(const std::string& host, std::uint16_t port,
+                             std::chrono::milliseconds timeout)
     : connection_("jsonrpc client", host, port, timeout), peer_(connection_.peer()) {}
 
 JsonRpcClient::~JsonRpcClient() = default;
@@ -27,7 +28,9 @@ std::optional<std::string> JsonRpcClient::read_line(std::chrono::milliseconds ti
   return line;
 }
 
-bool JsonRpcClient::wait_closed(std::chrono::milliseconds timeout) { return connection_.wait_closed(timeout); }
+bool JsonRpcClient::wait_closed(std::chrono::milliseconds timeout) {
+  return connection_.wait_closed(timeout);
+}
 
 // ---- pipelined
 
@@ -53,14 +56,15 @@ std::optional<json> JsonRpcClient::receive(std::chrono::milliseconds timeout) {
   }
   const auto deadline = Clock::now() + timeout;
   for (;;) {
-    auto line = read_line(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()));
+    auto line =
+        read_line(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()));
     if (!line) return std::nullopt;
     if (line->empty()) continue;
     try {
       return json::parse(*line);
     } catch (const json::parse_error& e) {
-      throw ClientError("jsonrpc client: " + peer_ + ": unparsable response '" + line->substr(0, 200) +
-                        "': " + e.what());
+      throw ClientError("jsonrpc client: " + peer_ + ": unparsable response '" +
+                        line->substr(0, 200) + "': " + e.what());
     }
   }
 }
@@ -77,10 +81,11 @@ json JsonRpcClient::wait_for(const json& id, std::chrono::milliseconds timeout) 
   }
   const auto deadline = Clock::now() + timeout;
   for (;;) {
-    auto line = read_line(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()));
+    auto line =
+        read_line(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()));
     if (!line)
-      throw ClientError("jsonrpc client: " + peer_ + ": no response to id " + id.dump() + " within " +
-                        std::to_string(timeout.count()) + " ms");
+      throw ClientError("jsonrpc client: " + peer_ + ": no response to id " + id.dump() +
+                        " within " + std::to_string(timeout.count()) + " ms");
     if (line->empty()) continue;
     json message;
     try {
@@ -98,17 +103,19 @@ json JsonRpcClient::wait_for(const json& id, std::chrono::milliseconds timeout) 
 
 // ---- blocking
 
-json JsonRpcClient::request(const std::string& method, const json& params, std::chrono::milliseconds timeout) {
+json JsonRpcClient::request(const std::string& method, const json& params,
+                            std::chrono::milliseconds timeout) {
   return wait_for(send_request(method, params), timeout);
 }
 
-Outcome JsonRpcClient::call(const std::string& component, const std::string& service, const json& params,
-                            std::chrono::milliseconds timeout) {
+Outcome JsonRpcClient::call(const std::string& component, const std::string& service,
+                            const json& params, std::chrono::milliseconds timeout) {
   return to_outcome(request(component + "." + service, params, timeout));
 }
 
 void JsonRpcClient::login(const std::string& token, std::chrono::milliseconds timeout) {
-  const json response = request("rpc.login", json{{"token", token}}, timeout);  // refused: AuthError
+  const json response =
+      request("rpc.login", json{{"token", token}}, timeout);  // refused: AuthError
   if (response.value("result", json()) != true)
     throw ClientError("jsonrpc client: " + peer_ + ": rpc.login failed: " + response.dump());
 }
@@ -116,7 +123,8 @@ void JsonRpcClient::login(const std::string& token, std::chrono::milliseconds ti
 void JsonRpcClient::throw_if_unauthorized(const json& response, const std::string& who) {
   if (!response.is_object()) return;
   const auto error = response.find("error");
-  if (error == response.end() || !error->is_object() || error->value("code", 0) != k_unauthorized) return;
+  if (error == response.end() || !error->is_object() || error->value("code", 0) != k_unauthorized)
+    return;
   throw AuthError(who + ": " + error->value("message", std::string("Unauthorized")));
 }
 
@@ -127,7 +135,9 @@ json JsonRpcClient::discover(std::chrono::milliseconds timeout) {
   return response["result"];
 }
 
-json JsonRpcClient::list_services(std::chrono::milliseconds timeout) { return services_of(discover(timeout)); }
+json JsonRpcClient::list_services(std::chrono::milliseconds timeout) {
+  return services_of(discover(timeout));
+}
 
 json JsonRpcClient::services_of(const json& openrpc) {
   // OpenRPC methods back to ServiceDescriptor::to_json() objects
@@ -136,7 +146,8 @@ json JsonRpcClient::services_of(const json& openrpc) {
     json params = json::array();
     for (const auto& p : m.value("params", json::array())) {
       json schema = p.value("schema", json::object());
-      json e = {{"name", p.value("name", "")}, {"type", p.value("description", "")},
+      json e = {{"name", p.value("name", "")},
+                {"type", p.value("description", "")},
                 {"required", p.value("required", true)}};
       if (schema.contains("default")) {
         e["default"] = schema["default"];
@@ -150,7 +161,8 @@ json JsonRpcClient::services_of(const json& openrpc) {
               {"async", m.value("x-async", false)},
               {"params", std::move(params)},
               {"doc", m.value("description", "")},
-              {"result", m.contains("result") ? m["result"].value("schema", json::object()) : json::object()}};
+              {"result", m.contains("result") ? m["result"].value("schema", json::object())
+                                              : json::object()}};
     if (d["async"].get<bool>()) d["policy"] = m.value("x-policy", "unspecified");
     out.push_back(std::move(d));
   }
@@ -165,8 +177,10 @@ bool JsonRpcClient::cancel(const json& id, std::chrono::milliseconds timeout) {
 }
 
 Outcome JsonRpcClient::to_outcome(const json& response) {
-  if (!response.is_object()) throw ClientError("jsonrpc client: not a response object: " + response.dump());
-  if (auto result = response.find("result"); result != response.end()) return Outcome::success(*result);
+  if (!response.is_object())
+    throw ClientError("jsonrpc client: not a response object: " + response.dump());
+  if (auto result = response.find("result"); result != response.end())
+    return Outcome::success(*result);
   auto error = response.find("error");
   if (error == response.end() || !error->is_object())
     throw ClientError("jsonrpc client: response has neither result nor error: " + response.dump());
@@ -185,7 +199,8 @@ Outcome JsonRpcClient::to_outcome(const json& response) {
     default: failure = Failure::internal; break;
   }
   std::string message = error->value("message", "");
-  Outcome outcome = Outcome::failed(failure, message, data.is_object() ? data : json{{"data", data}});
+  Outcome outcome =
+      Outcome::failed(failure, message, data.is_object() ? data : json{{"data", data}});
   // the component's own value, when it gave one
   if (data.is_object() && data.contains("value")) outcome.value = data["value"];
   return outcome;
@@ -194,7 +209,8 @@ Outcome JsonRpcClient::to_outcome(const json& response) {
 std::unique_ptr<Client> make_jsonrpc_client(const json& options) {
   const std::string host = options.value("host", "127.0.0.1");
   const auto port = options.value("port", 4001);
-  if (port < 1 || port > 65535) throw ClientError("jsonrpc client: port " + std::to_string(port) + " out of range");
+  if (port < 1 || port > 65535)
+    throw ClientError("jsonrpc client: port " + std::to_string(port) + " out of range");
   return std::make_unique<JsonRpcClient>(host, static_cast<std::uint16_t>(port));
 }
 

@@ -19,7 +19,8 @@ constexpr std::string_view k_authentication_required = "Authentication required"
 
 }  // namespace
 
-SocketClient::SocketClient(const std::string& host, std::uint16_t port, std::chrono::milliseconds timeout)
+SocketClient::SocketClient(const std::string& host, std::uint16_t port,
+                           std::chrono::milliseconds timeout)
     : connection_("socket client", host, port, timeout), host_(host) {}
 
 SocketClient::~SocketClient() = default;
@@ -61,22 +62,26 @@ SocketReply SocketClient::parse_reply(std::string_view line) {
 Outcome SocketClient::to_outcome(const SocketReply& reply) {
   if (reply.status == "SUCCESS" || reply.status == "OK") return Outcome::success(reply.value);
   std::string message;
-  if (reply.value) message = reply.value->is_string() ? reply.value->get<std::string>() : reply.value->dump();
+  if (reply.value)
+    message = reply.value->is_string() ? reply.value->get<std::string>() : reply.value->dump();
   if (reply.status == "PREEMPTED") {
     Outcome o = Outcome::failed(Failure::preempted, message.empty() ? "preempted" : message);
     o.value = reply.value;
     return o;
   }
   if (reply.status != "FAILED")
-    throw ClientError("socket client: unknown status '" + reply.status + "' in reply to " + reply.id);
+    throw ClientError("socket client: unknown status '" + reply.status + "' in reply to " +
+                      reply.id);
   // the transport's messages keep MORSE's phrases: classify by them
   Failure failure = Failure::service_error;
-  if (message.find("has not been registered") != std::string::npos) failure = Failure::unknown_service;
+  if (message.find("has not been registered") != std::string::npos)
+    failure = Failure::unknown_service;
   else if (message.find("wrong # of parameters") != std::string::npos ||
            message.find("wrong parameter") != std::string::npos ||
            message.find("Invalid request syntax") != std::string::npos)
     failure = Failure::bad_arguments;
-  else if (message.find("already running") != std::string::npos) failure = Failure::busy;
+  else if (message.find("already running") != std::string::npos)
+    failure = Failure::busy;
   Outcome o = Outcome::failed(failure, message);
   o.value = reply.value;
   return o;
@@ -103,7 +108,8 @@ SocketReply SocketClient::wait_reply(const std::string& id, std::chrono::millise
   for (;;) {
     auto line = read_line(remaining(deadline));
     if (!line)
-      throw ClientError("socket client: no reply to request " + id + " from " + connection_.peer() + " in time");
+      throw ClientError("socket client: no reply to request " + id + " from " + connection_.peer() +
+                        " in time");
     SocketReply r = parse_reply(*line);
     // a request the server did not run: this connection has not presented its token
     if (r.status == "FAILED" && r.value && r.value->is_string() &&
@@ -121,13 +127,16 @@ void SocketClient::login(const std::string& token, std::chrono::milliseconds tim
     token_ = token;  // the stream ports ask for it too
     return;
   }
-  const std::string message = reply.value && reply.value->is_string() ? reply.value->get<std::string>() : "";
+  const std::string message =
+      reply.value && reply.value->is_string() ? reply.value->get<std::string>() : "";
   if (message.starts_with("wrong token"))
-    throw AuthError("socket client: " + connection_.peer() + ": the server refused the token: " + message);
+    throw AuthError("socket client: " + connection_.peer() +
+                    ": the server refused the token: " + message);
   // any other reply: the line was read as a request, the server asks no token of this connection
 }
 
-std::unique_ptr<LineConnection> SocketClient::open_stream_port(const std::string& owner, std::uint16_t port,
+std::unique_ptr<LineConnection> SocketClient::open_stream_port(const std::string& owner,
+                                                               std::uint16_t port,
                                                                std::chrono::milliseconds timeout) {
   auto stream = std::make_unique<LineConnection>(owner, host_, port, timeout);
   // nothing is answered on a stream port: a wrong token closes it (the service port has
@@ -153,7 +162,8 @@ std::unique_ptr<Client> make_socket_client(const json& options) {
   std::string host = "127.0.0.1";
   int port = 4000;
   if (options.is_object()) {
-    if (auto it = options.find("host"); it != options.end() && it->is_string()) host = it->get<std::string>();
+    if (auto it = options.find("host"); it != options.end() && it->is_string())
+      host = it->get<std::string>();
     if (auto it = options.find("port"); it != options.end()) {
       if (!it->is_number_integer() || it->get<long long>() < 1 || it->get<long long>() > 65535)
         throw ClientError("socket client: option 'port' must be an integer from 1 to 65535");

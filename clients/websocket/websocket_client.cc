@@ -29,9 +29,9 @@ using Clock = std::chrono::steady_clock;
 }  // namespace
 
 struct WebSocketClient::Connection {
-  asio::io_context io;                                // the socket's (blocking calls only)
-  ws::stream<asio::ip::tcp::socket> stream{io};       // the connection
-  bool failed = false;                                // a read failed or timed out: unusable
+  asio::io_context io;                           // the socket's (blocking calls only)
+  ws::stream<asio::ip::tcp::socket> stream{io};  // the connection
+  bool failed = false;                           // a read failed or timed out: unusable
 
   // The receive timeout of the next reads; milliseconds::max(): none.
   void set_timeout(std::chrono::milliseconds timeout) {
@@ -46,7 +46,8 @@ struct WebSocketClient::Connection {
   }
 };
 
-WebSocketClient::WebSocketClient(const std::string& host, std::uint16_t port, std::chrono::milliseconds timeout)
+WebSocketClient::WebSocketClient(const std::string& host, std::uint16_t port,
+                                 std::chrono::milliseconds timeout)
     : connection_(std::make_unique<Connection>()), peer_(host + ":" + std::to_string(port)) {
   try {
     asio::ip::tcp::resolver resolver(connection_->io);
@@ -64,8 +65,8 @@ WebSocketClient::WebSocketClient(const std::string& host, std::uint16_t port, st
 
 WebSocketClient::~WebSocketClient() = default;
 
-Outcome WebSocketClient::call(const std::string& component, const std::string& service, const json& params,
-                              std::chrono::milliseconds timeout) {
+Outcome WebSocketClient::call(const std::string& component, const std::string& service,
+                              const json& params, std::chrono::milliseconds timeout) {
   return JsonRpcClient::to_outcome(request(component + "." + service, params, timeout));
 }
 
@@ -77,19 +78,22 @@ json WebSocketClient::list_services(std::chrono::milliseconds timeout) {
 }
 
 void WebSocketClient::login(const std::string& token, std::chrono::milliseconds timeout) {
-  const json response = request("rpc.login", json{{"token", token}}, timeout);  // refused: AuthError
+  const json response =
+      request("rpc.login", json{{"token", token}}, timeout);  // refused: AuthError
   if (response.value("result", json()) != true)
     throw ClientError("websocket client: " + peer_ + ": rpc.login failed: " + response.dump());
 }
 
-json WebSocketClient::request(const std::string& method, const json& params, std::chrono::milliseconds timeout) {
+json WebSocketClient::request(const std::string& method, const json& params,
+                              std::chrono::milliseconds timeout) {
   if (closed()) throw ClientError("websocket client: " + peer_ + ": the connection is closed");
   const json id = ++next_id_;
   json message = {{"jsonrpc", "2.0"}, {"id", id}, {"method", method}};
   if (!params.is_null()) message["params"] = params;
   const auto deadline = Clock::now() + timeout;
   try {
-    connection_->stream.write(asio::buffer(message.dump(-1, ' ', false, json::error_handler_t::replace)));
+    connection_->stream.write(
+        asio::buffer(message.dump(-1, ' ', false, json::error_handler_t::replace)));
   } catch (const boost::system::system_error& e) {
     connection_->failed = true;
     throw ClientError("websocket client: " + peer_ + ": " + e.what());
@@ -97,7 +101,8 @@ json WebSocketClient::request(const std::string& method, const json& params, std
   // the response; what comes before it (notifications, other ids) is kept for receive()
   std::deque<json> kept;
   for (;;) {
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
     std::optional<json> next;
     if (left.count() > 0) next = read(left);
     if (!next)
@@ -128,27 +133,36 @@ std::optional<json> WebSocketClient::read(std::chrono::milliseconds timeout) {
   boost::system::error_code ec;
   connection_->stream.read(buffer, ec);
   if (ec) connection_->failed = true;  // Beast's stream is unusable after a failed read
-  if (ec == asio::error::would_block || ec == asio::error::try_again || ec == asio::error::timed_out)
+  if (ec == asio::error::would_block || ec == asio::error::try_again ||
+      ec == asio::error::timed_out)
     return std::nullopt;
   if (ec) throw ClientError("websocket client: " + peer_ + ": " + ec.message());
   const auto data = buffer.cdata();
-  json message = json::parse(std::string_view(static_cast<const char*>(data.data()), data.size()), nullptr,
-                             /*allow_exceptions=*/false);
-  if (message.is_discarded()) throw ClientError("websocket client: " + peer_ + ": a message is not JSON");
+  json message =
+      json::parse(std::string_view(static_cast<const char*>(data.data()), data.size()), nullptr,
+                  /*allow_exceptions=*/false);
+  if (message.is_discarded())
+    throw ClientError("websocket client: " + peer_ + ": a message is not JSON");
   return message;
 }
 
-bool WebSocketClient::closed() const { return connection_->failed || !connection_->stream.next_layer().is_open(); }
+bool WebSocketClient::closed() const {
+  return connection_->failed || !connection_->stream.next_layer().is_open();
+}
 
 int WebSocketClient::native_handle() {
-  return connection_->stream.next_layer().is_open() ? connection_->stream.next_layer().native_handle() : -1;
+  return connection_->stream.next_layer().is_open()
+             ? connection_->stream.next_layer().native_handle()
+             : -1;
 }
 
 std::unique_ptr<Client> make_websocket_client(const json& options) {
   const std::string host = options.value("host", "127.0.0.1");
   const auto port = options.value("port", 8090);
-  if (port < 1 || port > 65535) throw ClientError("websocket client: port " + std::to_string(port) + " out of range");
-  return std::make_unique<WebSocketClient>(host, static_cast<std::uint16_t>(port), std::chrono::seconds(5));
+  if (port < 1 || port > 65535)
+    throw ClientError("websocket client: port " + std::to_string(port) + " out of range");
+  return std::make_unique<WebSocketClient>(host, static_cast<std::uint16_t>(port),
+                                           std::chrono::seconds(5));
 }
 
 }  // namespace simgate::client

@@ -11,7 +11,11 @@ thread_local const CallContext* t_current = nullptr;
 
 CallContext::CallContext(const RequestManager& manager, RequestId id, bool raw_attachments,
                          std::uint64_t client) noexcept
-    : manager_(manager), id_(id), raw_attachments_(raw_attachments), client_(client), previous_(t_current) {
+    : manager_(manager),
+      id_(id),
+      raw_attachments_(raw_attachments),
+      client_(client),
+      previous_(t_current) {
   t_current = this;
 }
 
@@ -27,7 +31,9 @@ OutsideRequest::OutsideRequest() noexcept : hidden_(t_current) { t_current = nul
 
 OutsideRequest::~OutsideRequest() { t_current = hidden_; }
 
-bool CallContext::serves(const std::string& component) const { return manager_.serves_component(component); }
+bool CallContext::serves(const std::string& component) const {
+  return manager_.serves_component(component);
+}
 
 bool CallContext::may_call(const std::string& component, const std::string& service) const {
   return manager_.may_call(component, service);

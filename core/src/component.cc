@@ -7,7 +7,8 @@
 
 namespace simgate {
 
-Component::Component(std::string name) : name_(std::move(name)), slot_(std::make_shared<AsyncSlot>()) {
+Component::Component(std::string name)
+    : name_(std::move(name)), slot_(std::make_shared<AsyncSlot>()) {
   slot_->component = name_;
   slot_->interrupt = [this] { interrupt(); };
 }
@@ -29,16 +30,21 @@ bool Component::progress(json value) {
   return slot_->busy() && slot_->running_completion.progress(std::move(value));
 }
 
-bool Component::progress_due() const { return slot_->busy() && slot_->running_completion.progress_due(); }
+bool Component::progress_due() const {
+  return slot_->busy() && slot_->running_completion.progress_due();
+}
 
 std::string Component::running_service() const {
   return slot_->busy() ? slot_->running->service : std::string();
 }
 
-const char* to_string(StreamDirection direction) { return direction == StreamDirection::in ? "IN" : "OUT"; }
+const char* to_string(StreamDirection direction) {
+  return direction == StreamDirection::in ? "IN" : "OUT";
+}
 
 void Component::declare_output_stream(std::string kind, std::function<json()> produce) {
-  stream_ = StreamDeclaration{StreamDirection::out, std::move(kind), std::move(produce), {}, {}, {}, nullptr, 0};
+  stream_ = StreamDeclaration{
+      StreamDirection::out, std::move(kind), std::move(produce), {}, {}, {}, nullptr, 0};
 }
 
 json record_json(const std::vector<std::string>& fields, std::span<const double> values) {
@@ -50,29 +56,51 @@ json record_json(const std::vector<std::string>& fields, std::span<const double>
 void Component::declare_output_stream(std::string kind, std::vector<std::string> fields,
                                       std::function<void(std::span<double>)> produce) {
   if (fields.empty() || fields.size() > k_max_record_fields)
-    throw std::invalid_argument(name_ + ": a record stream has 1 to " + std::to_string(k_max_record_fields) +
-                                " numbers, not " + std::to_string(fields.size()));
+    throw std::invalid_argument(name_ + ": a record stream has 1 to " +
+                                std::to_string(k_max_record_fields) + " numbers, not " +
+                                std::to_string(fields.size()));
   auto as_json = [fields, produce] {
     double values[k_max_record_fields];
     produce(std::span<double>(values, fields.size()));
     return record_json(fields, std::span<const double>(values, fields.size()));
   };
-  stream_ = StreamDeclaration{StreamDirection::out, std::move(kind), std::move(as_json), {}, std::move(fields),
-                              std::move(produce), nullptr, 0};
+  stream_ = StreamDeclaration{StreamDirection::out,
+                              std::move(kind),
+                              std::move(as_json),
+                              {},
+                              std::move(fields),
+                              std::move(produce),
+                              nullptr,
+                              0};
 }
 
 void Component::declare_pushed_stream(std::string kind, double frequency) {
-  if (!(frequency > 0)) throw std::invalid_argument(name_ + ": a pushed stream's frequency must be > 0");
-  stream_ = StreamDeclaration{StreamDirection::out, std::move(kind), {}, {}, {}, {},
-                              std::make_shared<StreamOutlet>(name_), frequency};
+  if (!(frequency > 0))
+    throw std::invalid_argument(name_ + ": a pushed stream's frequency must be > 0");
+  stream_ = StreamDeclaration{StreamDirection::out,
+                              std::move(kind),
+                              {},
+                              {},
+                              {},
+                              {},
+                              std::make_shared<StreamOutlet>(name_),
+                              frequency};
 }
 
 void Component::declare_event_stream(std::string kind) {
-  stream_ = StreamDeclaration{StreamDirection::out, std::move(kind), {}, {}, {}, {},
-                              std::make_shared<StreamOutlet>(name_), 0};
+  stream_ = StreamDeclaration{StreamDirection::out,
+                              std::move(kind),
+                              {},
+                              {},
+                              {},
+                              {},
+                              std::make_shared<StreamOutlet>(name_),
+                              0};
 }
 
-bool Component::stream_wanted() const { return stream_ && stream_->outlet && stream_->outlet->wanted(); }
+bool Component::stream_wanted() const {
+  return stream_ && stream_->outlet && stream_->outlet->wanted();
+}
 
 void Component::note_skipped_sample() {
   if (stream_ && stream_->outlet) stream_->outlet->note_skipped();
@@ -90,7 +118,14 @@ bool Component::push_sample(double time, std::shared_ptr<const StreamPayload> pa
 
 void Component::declare_input_stream(std::string kind, std::vector<std::string> fields,
                                      std::function<void(const json&)> apply) {
-  stream_ = StreamDeclaration{StreamDirection::in, std::move(kind), {}, std::move(apply), std::move(fields), {}, nullptr, 0};
+  stream_ = StreamDeclaration{StreamDirection::in,
+                              std::move(kind),
+                              {},
+                              std::move(apply),
+                              std::move(fields),
+                              {},
+                              nullptr,
+                              0};
 }
 
 ServiceBuilder Component::adopt(std::shared_ptr<Service> service) {

@@ -93,7 +93,8 @@ std::string describe_json(const json& value) {
   std::string text;
   switch (value.type()) {
     case json::value_t::null: return "null";
-    case json::value_t::boolean: return std::string("boolean ") + (value.get<bool>() ? "true" : "false");
+    case json::value_t::boolean:
+      return std::string("boolean ") + (value.get<bool>() ? "true" : "false");
     case json::value_t::string: text = "string "; break;
     case json::value_t::number_integer:
     case json::value_t::number_unsigned:
@@ -112,9 +113,12 @@ bool json_nests_deeper_than(std::string_view text, std::size_t max_depth) noexce
   for (char c : text) {
     if (in_string) {
       // inside a string only the closing quote matters
-      if (escaped) escaped = false;
-      else if (c == '\\') escaped = true;
-      else if (c == '"') in_string = false;
+      if (escaped)
+        escaped = false;
+      else if (c == '\\')
+        escaped = true;
+      else if (c == '"')
+        in_string = false;
       continue;
     }
     switch (c) {
@@ -140,7 +144,8 @@ namespace {
 // beyond a double, a syntax error. Builds nothing.
 class ConfigScanner final : public nlohmann::json_sax<json> {
  public:
-  ConfigScanner(std::string_view text, std::size_t max_depth) : text_(text), max_depth_(max_depth) {}
+  ConfigScanner(std::string_view text, std::size_t max_depth)
+      : text_(text), max_depth_(max_depth) {}
 
   // The problem found (empty when the text is a valid document), and the byte offset it
   // points at.
@@ -169,8 +174,10 @@ class ConfigScanner final : public nlohmann::json_sax<json> {
     // end of the text)
     if (ex.id == 406) {  // out_of_range: a number beyond a double, pointed at from its start
       error_offset_ = position >= last_token.size() ? position - last_token.size() : 0;
-      error_ = path() + ": expected a number a double can hold (at most about 1.8e308 in magnitude), found " +
-               last_token;
+      error_ =
+          path() +
+          ": expected a number a double can hold (at most about 1.8e308 in magnitude), found " +
+          last_token;
     } else {
       // the byte that made it fail (nlohmann's token string is not the token's text: it
       // keeps what came before an invalid literal and writes control characters as <U+000A>)
@@ -182,8 +189,8 @@ class ConfigScanner final : public nlohmann::json_sax<json> {
 
  private:
   struct Frame {
-    bool array = false;     // else an object
-    std::size_t index = 0;  // arrays: the element being read
+    bool array = false;              // else an object
+    std::size_t index = 0;           // arrays: the element being read
     std::optional<std::string> key;  // objects: the member being read (none between members)
   };
 
@@ -264,7 +271,8 @@ class ConfigScanner final : public nlohmann::json_sax<json> {
       found = rest.substr(0, read);
       details = rest.substr(read + 2);
     }
-    if (!context.empty()) details += (details.empty() ? "" : "; ") + std::string("while parsing ") + context;
+    if (!context.empty())
+      details += (details.empty() ? "" : "; ") + std::string("while parsing ") + context;
     return (expected.empty() ? "found " : "expected " + expected + ", found ") + found +
            (details.empty() ? "" : " (" + details + ")");
   }
@@ -277,12 +285,16 @@ class ConfigScanner final : public nlohmann::json_sax<json> {
     for (std::size_t i = 0; i < text_.size(); ++i) {
       char c = text_[i];
       if (in_string) {
-        if (escaped) escaped = false;
-        else if (c == '\\') escaped = true;
-        else if (c == '"') in_string = false;
+        if (escaped)
+          escaped = false;
+        else if (c == '\\')
+          escaped = true;
+        else if (c == '"')
+          in_string = false;
         continue;
       }
-      if (c == '"') in_string = true;
+      if (c == '"')
+        in_string = true;
       else if (c == '[' || c == '{') {
         if (++depth > max_depth_) return i;
       } else if ((c == ']' || c == '}') && depth > 0) {
@@ -292,18 +304,20 @@ class ConfigScanner final : public nlohmann::json_sax<json> {
     return text_.size();
   }
 
-  std::string_view text_;      // the document
-  std::size_t max_depth_;      // deepest nesting accepted
-  std::vector<Frame> frames_;  // the containers open at the current value
-  std::string error_;          // the problem found, if any
+  std::string_view text_;         // the document
+  std::size_t max_depth_;         // deepest nesting accepted
+  std::vector<Frame> frames_;     // the containers open at the current value
+  std::string error_;             // the problem found, if any
   std::size_t error_offset_ = 0;  // the byte it points at
 };
 
 // Line and column (both from 1, the column in bytes) of byte `offset` of `text`.
 std::pair<std::size_t, std::size_t> line_and_column(std::string_view text, std::size_t offset) {
   const std::string_view before = text.substr(0, std::min(offset, text.size()));
-  const std::size_t line = 1 + static_cast<std::size_t>(std::count(before.begin(), before.end(), '\n'));
-  const std::size_t line_start = before.rfind('\n') == std::string_view::npos ? 0 : before.rfind('\n') + 1;
+  const std::size_t line =
+      1 + static_cast<std::size_t>(std::count(before.begin(), before.end(), '\n'));
+  const std::size_t line_start =
+      before.rfind('\n') == std::string_view::npos ? 0 : before.rfind('\n') + 1;
   return {line, before.size() - line_start + 1};
 }
 
@@ -319,14 +333,16 @@ json parse_config_text(std::string_view text, std::size_t max_depth) {
   ConfigScanner scanner(text, max_depth);
   if (!json::sax_parse(text.begin(), text.end(), &scanner) || !scanner.error().empty()) {
     const auto [line, column] = line_and_column(text, scanner.error_offset());
-    throw ConfigTextError(scanner.error().empty() ? std::string("configuration: invalid JSON") : scanner.error(), line,
-                          column);
+    throw ConfigTextError(
+        scanner.error().empty() ? std::string("configuration: invalid JSON") : scanner.error(),
+        line, column);
   }
   // known to be valid and shallow: building, copying and dumping it recurse little
   return json::parse(text.begin(), text.end());
 }
 
-ConfigObject::ConfigObject(const json& value, std::string path) : value_(value), path_(std::move(path)) {
+ConfigObject::ConfigObject(const json& value, std::string path)
+    : value_(value), path_(std::move(path)) {
   if (!value_.is_object())
     throw ConfigError((path_.empty() ? std::string("configuration") : path_) +
                       ": expected an object, found " + describe_json(value_));
@@ -363,7 +379,8 @@ std::string ConfigObject::required_string(const std::string& key) {
   return v->get<std::string>();
 }
 
-long long ConfigObject::get_int(const std::string& key, long long fallback, long long min, long long max) {
+long long ConfigObject::get_int(const std::string& key, long long fallback, long long min,
+                                long long max) {
   const json* v = find(key);
   if (!v) return fallback;
   std::string expected = "an integer from " + std::to_string(min) + " to " + std::to_string(max);
@@ -396,7 +413,8 @@ bool ConfigObject::get_bool(const std::string& key, bool fallback) {
 std::string ConfigObject::get_choice(const std::string& key, const std::string& fallback,
                                      const std::vector<std::string>& choices) {
   std::string expected = "one of";
-  for (std::size_t i = 0; i < choices.size(); ++i) expected += (i ? ", \"" : " \"") + choices[i] + "\"";
+  for (std::size_t i = 0; i < choices.size(); ++i)
+    expected += (i ? ", \"" : " \"") + choices[i] + "\"";
   const json* v = find(key);
   if (!v) return fallback;
   if (!v->is_string()) fail(key, expected);

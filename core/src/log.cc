@@ -12,17 +12,17 @@ namespace simgate::log {
 namespace {
 
 std::atomic<Level> g_level{Level::info};
-std::mutex g_mutex;                                       // guards what follows, and stderr lines
-std::function<void(Level, std::string_view)> g_sink;      // empty: stderr
+std::mutex g_mutex;                                   // guards what follows, and stderr lines
+std::function<void(Level, std::string_view)> g_sink;  // empty: stderr
 
 // The token bucket of set_rate_limit (under g_mutex).
 struct RateLimit {
   using Clock = std::chrono::steady_clock;
-  std::size_t burst = 200;        // 0: no limit
-  double per_second = 50;         // refill
-  double tokens = 200;            // lines that may pass now
+  std::size_t burst = 200;  // 0: no limit
+  double per_second = 50;   // refill
+  double tokens = 200;      // lines that may pass now
   Clock::time_point refilled = Clock::now();
-  std::size_t suppressed = 0;     // dropped since the last line that passed
+  std::size_t suppressed = 0;  // dropped since the last line that passed
 
   // Whether a line may pass now (takes its token).
   bool take() {
@@ -46,7 +46,8 @@ void emit(Level level, std::string_view message) {
   // "12:00:01.234 warning socket: client 3 vanished"
   auto now = std::chrono::system_clock::now();
   std::time_t t = std::chrono::system_clock::to_time_t(now);
-  auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(now.time_since_epoch()).count() % 1000;
+  auto ms =
+      std::chrono::duration_cast<std::chrono::milliseconds>(now.time_since_epoch()).count() % 1000;
   std::tm tm{};
   localtime_r(&t, &tm);
   std::fprintf(stderr, "%02d:%02d:%02d.%03d %-7s %.*s\n", tm.tm_hour, tm.tm_min, tm.tm_sec,
@@ -58,7 +59,7 @@ void emit(Level level, std::string_view message) {
 
 bool parse_level(std::string_view text, Level& out) {
   static constexpr std::pair<std::string_view, Level> names[] = {
-      {"trace", Level::trace}, {"debug", Level::debug},     {"info", Level::info},
+      {"trace", Level::trace},     {"debug", Level::debug},  {"info", Level::info},
       {"warning", Level::warning}, {"warn", Level::warning}, {"error", Level::error},
       {"off", Level::off}};
   for (const auto& [name, level] : names)
@@ -107,8 +108,8 @@ void write(Level level, std::string_view message) {
     if (g_rate.suppressed > 0) {
       char per_second[32];
       std::snprintf(per_second, sizeof per_second, "%g", g_rate.per_second);
-      emit(Level::warning, "log: " + std::to_string(g_rate.suppressed) + " lines suppressed (more than " +
-                               per_second + " a second)");
+      emit(Level::warning, "log: " + std::to_string(g_rate.suppressed) +
+                               " lines suppressed (more than " + per_second + " a second)");
       g_rate.suppressed = 0;
     }
   }

@@ -19,8 +19,8 @@ constexpr auto k_later = [](const auto& a, const auto& b) { return a.at > b.at; 
 
 }  // namespace
 
-Outcome RequestManager::timeout_outcome(std::string_view qualified, std::chrono::milliseconds limit, bool from_call,
-                                        std::string_view what) {
+Outcome RequestManager::timeout_outcome(std::string_view qualified, std::chrono::milliseconds limit,
+                                        bool from_call, std::string_view what) {
   std::string message(qualified);
   message += ": no reply within ";
   message += std::to_string(limit.count());
@@ -35,7 +35,8 @@ Outcome RequestManager::timeout_outcome(std::string_view qualified, std::chrono:
   return Outcome::failed(Failure::timeout, std::move(message), std::move(data));
 }
 
-void RequestManager::watch_deadline(RequestId id, const Call& call, std::chrono::steady_clock::time_point deadline) {
+void RequestManager::watch_deadline(RequestId id, const Call& call,
+                                    std::chrono::steady_clock::time_point deadline) {
   auto it = running_.find(id);
   if (it == running_.end()) return;  // it ended in its start method, already delivered
   deadlines_.push_back(Deadline{deadline, id, it->second.first, detail::wait_limit(call, max_wait_),
@@ -64,7 +65,8 @@ void RequestManager::expire_deadlines() {
     auto it = running_.find(expired.id);
     if (it == running_.end() || it->second.first != state) continue;
     const std::shared_ptr<AsyncSlot> slot = it->second.second;
-    Outcome timeout = timeout_outcome(state->service, expired.limit, expired.from_call, "interrupted");
+    Outcome timeout =
+        timeout_outcome(state->service, expired.limit, expired.from_call, "interrupted");
     log::debug(name_, ": ", timeout.message);
     // from now on, however it ends, its outcome is this timeout (Completion::finish reads the
     // message and the data once it sees timed_out, which is set after them)

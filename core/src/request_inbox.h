@@ -25,7 +25,8 @@ using Clock = std::chrono::steady_clock;
 // The longest a call may wait for its reply: the shorter of its own timeout and the
 // manager's max wait, either zero when absent; zero when neither is set.
 inline std::chrono::milliseconds wait_limit(const Call& call, std::chrono::milliseconds max_wait) {
-  if (call.timeout.count() <= 0) return max_wait.count() > 0 ? max_wait : std::chrono::milliseconds{0};
+  if (call.timeout.count() <= 0)
+    return max_wait.count() > 0 ? max_wait : std::chrono::milliseconds{0};
   return max_wait.count() > 0 && max_wait < call.timeout ? max_wait : call.timeout;
 }
 // Whether that limit is the call's own timeout (else the max wait).
@@ -62,9 +63,18 @@ class Inbox : public CompletionSink {
  public:
   // `deadline`: when its wait for a reply ends (deadline_for(), at submission); the epoch
   // when it has none
-  struct Request { RequestId id; Call call; Clock::time_point deadline; };
-  struct Cancel { RequestId id; std::function<void(bool)> done; };
-  struct Task { std::function<void()> run; };
+  struct Request {
+    RequestId id;
+    Call call;
+    Clock::time_point deadline;
+  };
+  struct Cancel {
+    RequestId id;
+    std::function<void(bool)> done;
+  };
+  struct Task {
+    std::function<void()> run;
+  };
   using Event = std::variant<Request, Cancel, Task>;
 
   // any thread; signals the gate
@@ -73,7 +83,8 @@ class Inbox : public CompletionSink {
   }
   // requests moved out of `calls`, each with its deadline (`max_wait`: the manager's);
   // `wake`: see push()
-  void push_requests(std::span<std::pair<RequestId, Call>> calls, std::chrono::milliseconds max_wait, bool wake) {
+  void push_requests(std::span<std::pair<RequestId, Call>> calls,
+                     std::chrono::milliseconds max_wait, bool wake) {
     queue(
         [&] {
           for (auto& [id, call] : calls) {
@@ -155,7 +166,8 @@ class Inbox : public CompletionSink {
   }
   // caller holds mutex_
   void note_queued() {
-    queued_.store(!events_.empty() || !finished_.empty() || !progress_.empty(), std::memory_order_release);
+    queued_.store(!events_.empty() || !finished_.empty() || !progress_.empty(),
+                  std::memory_order_release);
   }
   // caller holds mutex_
   void add(Event event) {
@@ -167,17 +179,20 @@ class Inbox : public CompletionSink {
   // caller holds mutex_
   void refuse(Event event) {
     if (auto* r = std::get_if<Request>(&event))
-      finished_.emplace_back(r->id, Outcome::failed(Failure::shutdown, "the request manager has stopped"));
+      finished_.emplace_back(r->id,
+                             Outcome::failed(Failure::shutdown, "the request manager has stopped"));
     // cancels and tasks after close have nothing left to act on: dropped
   }
 
-  std::mutex mutex_;                                        // guards everything below
-  std::vector<Event> events_;                               // requests, cancels, tasks in order
-  std::vector<std::pair<RequestId, Outcome>> finished_;     // async completions, any thread
-  std::vector<std::pair<RequestId, json>> progress_;        // progress reports, any thread
-  std::shared_ptr<SimulationGate> gate_ = std::make_shared<SimulationGate>();  // signalled on every push
-  std::atomic<bool> closed_{false};   // abandon_pending() was called (written under mutex_)
-  std::atomic<bool> queued_{false};   // events_, finished_ or progress_ holds something (written under mutex_)
+  std::mutex mutex_;                                     // guards everything below
+  std::vector<Event> events_;                            // requests, cancels, tasks in order
+  std::vector<std::pair<RequestId, Outcome>> finished_;  // async completions, any thread
+  std::vector<std::pair<RequestId, json>> progress_;     // progress reports, any thread
+  std::shared_ptr<SimulationGate> gate_ =
+      std::make_shared<SimulationGate>();  // signalled on every push
+  std::atomic<bool> closed_{false};        // abandon_pending() was called (written under mutex_)
+  std::atomic<bool> queued_{
+      false};  // events_, finished_ or progress_ holds something (written under mutex_)
 };
 
 // Outcomes (and progress reports) produced off a transport's delivery thread, on their way
@@ -216,9 +231,9 @@ class Handoff {
   std::vector<Item> spare;     // a taken vector kept for its capacity (the delivery thread)
 
  private:
-  std::mutex mutex_;                 // guards items_ and wake_due_
-  std::vector<Item> items_;          // in the order produced
-  bool wake_due_ = false;            // a wake was sent and its thread has not taken yet
+  std::mutex mutex_;                  // guards items_ and wake_due_
+  std::vector<Item> items_;           // in the order produced
+  bool wake_due_ = false;             // a wake was sent and its thread has not taken yet
   std::atomic<bool> waiting_{false};  // items_ is not empty
 };
 

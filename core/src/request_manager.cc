@@ -58,8 +58,10 @@ std::string format_duration(std::chrono::steady_clock::duration d) {
 }  // namespace detail
 
 RequestManager::RequestManager(std::string name)
-    : name_(std::move(name)), inbox_(std::make_shared<detail::Inbox>()),
-      handoff_(std::make_unique<detail::Handoff>()), gate_(inbox_->gate()) {}
+    : name_(std::move(name)),
+      inbox_(std::make_shared<detail::Inbox>()),
+      handoff_(std::make_unique<detail::Handoff>()),
+      gate_(inbox_->gate()) {}
 
 RequestManager::~RequestManager() = default;
 
@@ -69,7 +71,8 @@ void RequestManager::set_gate(std::shared_ptr<SimulationGate> gate) {
 }
 
 std::string RequestManager::datastream_class(StreamDirection direction) const {
-  return "simgate." + transport_name_ + (direction == StreamDirection::out ? ".publisher" : ".reader");
+  return "simgate." + transport_name_ +
+         (direction == StreamDirection::out ? ".publisher" : ".reader");
 }
 
 void RequestManager::set_streams(std::shared_ptr<StreamHub> hub, std::string transport) {
@@ -117,7 +120,8 @@ bool RequestManager::run_or_submit(std::span<std::pair<RequestId, Call>> calls, 
   process_locked();
   {
     const detail::Executing executing(inbox_.get());
-    for (auto& [id, call] : calls) execute_and_deliver(id, call, refilled, detail::deadline_for(call, max_wait_));
+    for (auto& [id, call] : calls)
+      execute_and_deliver(id, call, refilled, detail::deadline_for(call, max_wait_));
   }
   // completions these produced at once (preemption of a running request, an async service
   // that finished in its start method); the calls stay where they are, for the caller to
@@ -136,10 +140,14 @@ void RequestManager::cancel(RequestId id, std::function<void(bool)> done) {
   inbox_->push(detail::Inbox::Cancel{id, std::move(done)});
 }
 
-void RequestManager::post(std::function<void()> task) { inbox_->push(detail::Inbox::Task{std::move(task)}); }
+void RequestManager::post(std::function<void()> task) {
+  inbox_->push(detail::Inbox::Task{std::move(task)});
+}
 
 void RequestManager::answer_in_order(RequestId id, Outcome outcome) {
-  post([this, id, outcome = std::move(outcome)]() mutable { complete_request(id, std::move(outcome)); });
+  post([this, id, outcome = std::move(outcome)]() mutable {
+    complete_request(id, std::move(outcome));
+  });
 }
 
 // ---- the hand-off to the delivery thread
@@ -150,7 +158,9 @@ void RequestManager::deliver_on_this_thread(std::function<void()> wake) {
   delivery_thread_.store(std::this_thread::get_id(), std::memory_order_release);
 }
 
-void RequestManager::deliver_on_any_thread() { delivery_thread_.store(std::thread::id{}, std::memory_order_release); }
+void RequestManager::deliver_on_any_thread() {
+  delivery_thread_.store(std::thread::id{}, std::memory_order_release);
+}
 
 std::size_t RequestManager::deliver_handed_over() {
   if (!handoff_->waiting()) return 0;
@@ -171,7 +181,9 @@ std::size_t RequestManager::deliver_handed_over() {
   return n;
 }
 
-void RequestManager::complete_request(RequestId id, Outcome&& outcome) { deliver(id, std::move(outcome)); }
+void RequestManager::complete_request(RequestId id, Outcome&& outcome) {
+  deliver(id, std::move(outcome));
+}
 
 // ---- simulation thread
 
@@ -225,7 +237,8 @@ std::size_t RequestManager::process_locked() {
   }
 
   // requests past their deadline are interrupted here, their timeouts delivered below
-  if (!deadlines_.empty()) [[unlikely]] expire_deadlines();
+  if (!deadlines_.empty()) [[unlikely]]
+    expire_deadlines();
   executing.reset();
   // completions produced while executing (immediate completion, preemption, cancel, timeout);
   // requests that arrived meanwhile wait for the next process(), which the gate makes immediate
@@ -241,7 +254,8 @@ std::size_t RequestManager::process_locked() {
 std::optional<Outcome> RequestManager::on_incoming_request(RequestId id, const Call& call) {
   Outcome outcome;
   if (run_request(id, call, outcome)) return outcome;
-  if (const auto deadline = detail::deadline_for(call, max_wait_); deadline != detail::Clock::time_point{})
+  if (const auto deadline = detail::deadline_for(call, max_wait_);
+      deadline != detail::Clock::time_point{})
     watch_deadline(id, call, deadline);
   return std::nullopt;
 }
@@ -250,9 +264,12 @@ void RequestManager::execute_and_deliver(RequestId id, Call& call, bool refilled
                                          std::chrono::steady_clock::time_point deadline) {
   if (deadline != detail::Clock::time_point{} && detail::Clock::now() >= deadline) [[unlikely]] {
     // it waited for the lock past its deadline: its client has given up, nothing runs
-    requests_handled_.store(requests_handled_.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
-    deliver(id, timeout_outcome(call.component + "." + call.service, detail::wait_limit(call, max_wait_),
-                                detail::limit_from_call(call, max_wait_), "not run (it waited for the simulation lock)"));
+    requests_handled_.store(requests_handled_.load(std::memory_order_relaxed) + 1,
+                            std::memory_order_relaxed);
+    deliver(id, timeout_outcome(call.component + "." + call.service,
+                                detail::wait_limit(call, max_wait_),
+                                detail::limit_from_call(call, max_wait_),
+                                "not run (it waited for the simulation lock)"));
     detail::release_params(call.params, refilled);
     return;
   }
@@ -276,19 +293,23 @@ bool RequestManager::run_request(RequestId id, const Call& call, Outcome& out) {
   return true;
 }
 
-void RequestManager::log_outcome(std::string_view component, std::string_view service, const Outcome& outcome,
-                                 std::chrono::steady_clock::time_point started, std::string_view took) const {
+void RequestManager::log_outcome(std::string_view component, std::string_view service,
+                                 const Outcome& outcome,
+                                 std::chrono::steady_clock::time_point started,
+                                 std::string_view took) const {
   const auto elapsed = std::chrono::steady_clock::now() - started;
   std::string reason;
-  if (outcome.status != Status::success && !outcome.message.empty()) reason = " (" + outcome.message + ")";
-  log::debug(name_, ": ", component, " ", service, " -> ", to_string(outcome.status), reason, " ", took, " ",
-             detail::format_duration(elapsed));
+  if (outcome.status != Status::success && !outcome.message.empty())
+    reason = " (" + outcome.message + ")";
+  log::debug(name_, ": ", component, " ", service, " -> ", to_string(outcome.status), reason, " ",
+             took, " ", detail::format_duration(elapsed));
 }
 
 bool RequestManager::execute(RequestId id, const Call& call, Outcome& out,
                              std::chrono::steady_clock::time_point started) {
   // only the lock holder writes it: a plain store, no read-modify-write
-  requests_handled_.store(requests_handled_.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
+  requests_handled_.store(requests_handled_.load(std::memory_order_relaxed) + 1,
+                          std::memory_order_relaxed);
   std::shared_ptr<Service> service = find_service(call);
   if (!service) {
     out = unknown_service(call);
@@ -321,17 +342,19 @@ bool RequestManager::execute(RequestId id, const Call& call, Outcome& out,
     out = Outcome::failed(e.failure(), e.message(), std::move(data));
   } catch (const std::exception& e) {
     log::warning(name_, ": ", d.qualified_name(), " threw: ", e.what());
-    out = Outcome::failed(Failure::internal, "Internal error in service " + d.qualified_name() + ": " + e.what(),
+    out = Outcome::failed(Failure::internal,
+                          "Internal error in service " + d.qualified_name() + ": " + e.what(),
                           json{{"component", d.component}, {"service", d.name}});
   } catch (...) {
-    out = Outcome::failed(Failure::internal, "Internal error in service " + d.qualified_name() + ": unknown exception",
+    out = Outcome::failed(Failure::internal,
+                          "Internal error in service " + d.qualified_name() + ": unknown exception",
                           json{{"component", d.component}, {"service", d.name}});
   }
   return true;
 }
 
-void RequestManager::start_async(RequestId id, const Service& service, std::span<const json* const> args,
-                                 bool wants_progress,
+void RequestManager::start_async(RequestId id, const Service& service,
+                                 std::span<const json* const> args, bool wants_progress,
                                  std::chrono::steady_clock::time_point started) {
   const ServiceDescriptor& d = service.descriptor();
   AsyncSlot& slot = *service.slot();
@@ -345,11 +368,13 @@ void RequestManager::start_async(RequestId id, const Service& service, std::span
     const std::string running = slot.running->service;
     Policy policy = slot.running_policy;
     if (policy == Policy::noninterruptible)
-      throw ServiceAlreadyRunning("A non-interruptible service (" + running + ") is already running", running);
+      throw ServiceAlreadyRunning(
+          "A non-interruptible service (" + running + ") is already running", running);
     if (policy == Policy::unspecified && global_policy_ == GlobalPolicy::reject)
       throw ServiceAlreadyRunning(
           "A service (" + running + ") is already running. I do not know what to do.", running);
-    interrupt_running(slot, Failure::preempted, "preempted by a new request for " + d.qualified_name());
+    interrupt_running(slot, Failure::preempted,
+                      "preempted by a new request for " + d.qualified_name());
   }
 
   auto state = std::make_shared<detail::CallState>();
@@ -381,8 +406,8 @@ void RequestManager::start_async(RequestId id, const Service& service, std::span
   }
 }
 
-void RequestManager::start_concurrent(RequestId id, const Service& service, std::span<const json* const> args,
-                                      bool wants_progress,
+void RequestManager::start_concurrent(RequestId id, const Service& service,
+                                      std::span<const json* const> args, bool wants_progress,
                                       std::chrono::steady_clock::time_point started) {
   const ServiceDescriptor& d = service.descriptor();
   AsyncSlot& slot = *service.slot();
@@ -522,7 +547,8 @@ void RequestManager::deliver(RequestId id, Outcome&& outcome) {
         // debug logging was on when it started: "component service -> STATUS after 1.53 s"
         const std::string_view qualified = state.service;
         const std::size_t dot = qualified.rfind('.');
-        log_outcome(qualified.substr(0, dot), qualified.substr(dot + 1), outcome, state.started, "after");
+        log_outcome(qualified.substr(0, dot), qualified.substr(dot + 1), outcome, state.started,
+                    "after");
       }
       running_.erase(it);
     }

@@ -64,7 +64,8 @@ bool RequestManager::unregister_component(const std::string& component, const st
     ending.push_back(state);
     it = running_.erase(it);
   }
-  for (auto& state : ending) Completion{state}.finish(Outcome::failed(Failure::service_error, reason));
+  for (auto& state : ending)
+    Completion{state}.finish(Outcome::failed(Failure::service_error, reason));
   bool served = false;
   {
     std::lock_guard lock(table_mutex_);
@@ -166,7 +167,8 @@ Outcome RequestManager::unknown_service(const Call& call) const {
     std::vector<std::string> owners;
     const std::string prefix = call.component + ".";
     for (const auto& [component, table] : services_) {
-      if (component.size() <= prefix.size() || component.compare(0, prefix.size(), prefix) != 0) continue;
+      if (component.size() <= prefix.size() || component.compare(0, prefix.size(), prefix) != 0)
+        continue;
       auto s = table.find(call.service);
       if (s != table.end() && access_.allows(s->second->descriptor())) owners.push_back(component);
     }
@@ -185,8 +187,10 @@ Outcome RequestManager::unknown_service(const Call& call) const {
                s != it->second.end() && access_.refuses_as_no_console(s->second->descriptor())) {
       // a process-wide service of a transport that is no console: said as it is
       why = call.component + "." + call.service +
-            " acts on the whole process, and this transport is not a console: only consoles serve process-wide "
-            "services (by default the socket transport on a loopback address; a transport's \"console\": true in "
+            " acts on the whole process, and this transport is not a console: only consoles serve "
+            "process-wide "
+            "services (by default the socket transport on a loopback address; a transport's "
+            "\"console\": true in "
             "the configuration, docs/configuration.md)";
     } else {
       std::vector<std::string> names;
@@ -201,9 +205,10 @@ Outcome RequestManager::unknown_service(const Call& call) const {
     }
     if (!owners.empty()) why += " (did you mean " + join_or(owners) + "?)";
   }
-  return Outcome::failed(Failure::unknown_service,
-                         "The request " + call.service + " has not been registered in " + name_ + ": " + why,
-                         json{{"component", call.component}, {"service", call.service}});
+  return Outcome::failed(
+      Failure::unknown_service,
+      "The request " + call.service + " has not been registered in " + name_ + ": " + why,
+      json{{"component", call.component}, {"service", call.service}});
 }
 
 std::shared_ptr<Service> RequestManager::find_service(const Call& call) {
@@ -211,8 +216,8 @@ std::shared_ptr<Service> RequestManager::find_service(const Call& call) {
   // while nothing was registered since (two string compares instead of a lock and two
   // hashed lookups)
   const std::uint64_t version = table_version_.load(std::memory_order_acquire);
-  if (last_lookup_.service && last_lookup_.version == version && last_lookup_.component == call.component &&
-      last_lookup_.name == call.service)
+  if (last_lookup_.service && last_lookup_.version == version &&
+      last_lookup_.component == call.component && last_lookup_.name == call.service)
     return last_lookup_.service;
   std::shared_ptr<Service> service;
   {
@@ -228,7 +233,8 @@ std::shared_ptr<Service> RequestManager::find_service(const Call& call) {
           service = s->second;
         else
           log::debug(name_, ": ", call.component, " ", call.service,
-                     " refused: this transport's allow/deny lists or console rule do not let clients call it");
+                     " refused: this transport's allow/deny lists or console rule do not let "
+                     "clients call it");
       }
     }
   }

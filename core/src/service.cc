@@ -17,8 +17,8 @@ std::string_view to_string(Policy policy) noexcept {
 // ---- descriptors
 
 std::size_t ServiceDescriptor::required_count() const {
-  return static_cast<std::size_t>(std::count_if(params.begin(), params.end(),
-                                                [](const auto& p) { return !p.default_value; }));
+  return static_cast<std::size_t>(
+      std::count_if(params.begin(), params.end(), [](const auto& p) { return !p.default_value; }));
 }
 
 std::string ServiceDescriptor::signature() const {
@@ -34,12 +34,13 @@ std::string ServiceDescriptor::signature() const {
 json ServiceDescriptor::to_json() const {
   json ps = json::array();
   for (const auto& p : params) {
-    json e{{"name", p.name}, {"schema", p.schema}, {"type", p.type}, {"required", !p.default_value}};
+    json e{
+        {"name", p.name}, {"schema", p.schema}, {"type", p.type}, {"required", !p.default_value}};
     if (p.default_value) e["default"] = *p.default_value;
     ps.push_back(std::move(e));
   }
-  json out{{"component", component}, {"name", name}, {"async", is_async}, {"params", ps},
-           {"doc", doc}, {"result", result_schema}};
+  json out{{"component", component}, {"name", name}, {"async", is_async},
+           {"params", ps},           {"doc", doc},   {"result", result_schema}};
   if (is_async) {
     out["policy"] = std::string(to_string(policy));
     out["concurrent"] = concurrent;
@@ -80,7 +81,8 @@ void Completion::on_interrupt(std::function<void()> hook) const {
 
 namespace {
 std::int64_t steady_now_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
       .count();
 }
 bool interval_passed(std::int64_t last, std::int64_t now, std::chrono::nanoseconds interval) {
@@ -100,7 +102,8 @@ bool Completion::progress(json value) const {
   std::int64_t last = state_->last_progress_ns.load(std::memory_order_relaxed);
   // one report per interval, whichever thread reports
   if (!interval_passed(last, now, state_->progress_interval)) return false;
-  if (!state_->last_progress_ns.compare_exchange_strong(last, now, std::memory_order_relaxed)) return false;
+  if (!state_->last_progress_ns.compare_exchange_strong(last, now, std::memory_order_relaxed))
+    return false;
   if (auto sink = state_->sink.lock()) sink->progressed(state_->id, std::move(value));
   return true;
 }
@@ -122,10 +125,12 @@ ServiceBuilder& ServiceBuilder::doc(std::string text) {
 namespace {
 void set_policy(ServiceDescriptor& d, Policy policy) {
   if (!d.is_async)
-    detail::throw_registration_error(d.qualified_name() + ": only async services have an interruption policy");
-  if (d.concurrent)
     detail::throw_registration_error(d.qualified_name() +
-                                     ": a concurrent service has no interruption policy (its calls never meet)");
+                                     ": only async services have an interruption policy");
+  if (d.concurrent)
+    detail::throw_registration_error(
+        d.qualified_name() +
+        ": a concurrent service has no interruption policy (its calls never meet)");
   d.policy = policy;
 }
 }  // namespace
@@ -147,13 +152,17 @@ ServiceBuilder& ServiceBuilder::process_wide() {
 
 ServiceBuilder& ServiceBuilder::concurrent() {
   ServiceDescriptor& d = service_->descriptor();
-  if (!d.is_async) detail::throw_registration_error(d.qualified_name() + ": only async services can be concurrent");
+  if (!d.is_async)
+    detail::throw_registration_error(d.qualified_name() +
+                                     ": only async services can be concurrent");
   if (!service_->takes_completion())
-    detail::throw_registration_error(d.qualified_name() +
-                                     ": a concurrent service takes its call's Completion as first parameter");
+    detail::throw_registration_error(
+        d.qualified_name() +
+        ": a concurrent service takes its call's Completion as first parameter");
   if (d.policy != Policy::unspecified)
-    detail::throw_registration_error(d.qualified_name() +
-                                     ": a concurrent service has no interruption policy (its calls never meet)");
+    detail::throw_registration_error(
+        d.qualified_name() +
+        ": a concurrent service has no interruption policy (its calls never meet)");
   d.concurrent = true;
   return *this;
 }
@@ -184,11 +193,15 @@ json error_data(const ServiceDescriptor& d) {
 // expected for service ...!" when none came at all, which pymorse raises as
 // MorseServiceFailed; "wrong # of parameters for service ..." otherwise, which it raises as
 // TypeError. `missing`: the required parameters not given ("'a', 'b'"), or empty.
-[[noreturn]] void throw_arity(const ServiceDescriptor& d, std::size_t given, const std::string& missing) {
+[[noreturn]] void throw_arity(const ServiceDescriptor& d, std::size_t given,
+                              const std::string& missing) {
   const std::string expected = "expected " + expected_count(d) + ", got " + std::to_string(given) +
                                (missing.empty() ? "" : " (missing " + missing + ")");
-  if (given == 0) throw WrongArguments("parameters expected for service " + d.qualified_name() + "! " + expected, error_data(d));
-  throw WrongArguments("wrong # of parameters for service " + d.qualified_name() + ": " + expected, error_data(d));
+  if (given == 0)
+    throw WrongArguments("parameters expected for service " + d.qualified_name() + "! " + expected,
+                         error_data(d));
+  throw WrongArguments("wrong # of parameters for service " + d.qualified_name() + ": " + expected,
+                       error_data(d));
 }
 
 }  // namespace
@@ -207,7 +220,8 @@ BoundArguments bind_arguments(const ServiceDescriptor& d, const json& params) {
   if (params.is_null()) {
     // no arguments at all
   } else if (params.is_array()) {
-    if (params.size() > total || params.size() < d.required_count()) throw_arity(d, params.size(), "");
+    if (params.size() > total || params.size() < d.required_count())
+      throw_arity(d, params.size(), "");
     for (std::size_t i = 0; i < params.size(); ++i) args[i] = &params[i];
   } else if (params.is_object()) {
     for (auto it = params.begin(); it != params.end(); ++it) {
@@ -217,8 +231,8 @@ BoundArguments bind_arguments(const ServiceDescriptor& d, const json& params) {
         json data = error_data(d);
         data["parameter"] = it.key();
         throw WrongArguments("wrong parameter for service " + d.qualified_name() +
-                                 ": no parameter named '" + it.key() + "' (parameters: " +
-                                 (total ? d.signature() : "none") + ")",
+                                 ": no parameter named '" + it.key() +
+                                 "' (parameters: " + (total ? d.signature() : "none") + ")",
                              data);
       }
       args[std::size_t(p - d.params.begin())] = &it.value();
@@ -247,7 +261,9 @@ namespace detail {
 
 void throw_type_mismatch(const ServiceDescriptor& d, std::size_t index, const TypeMismatch& m) {
   const std::string& name = d.params[index].name;
-  json data{{"component", d.component}, {"service", d.name}, {"parameter", name},
+  json data{{"component", d.component},
+            {"service", d.name},
+            {"parameter", name},
             {"expected", m.expected}};
   throw WrongArguments("wrong parameter type for service " + d.qualified_name() + ": parameter '" +
                            name + m.where + "' expects " + m.expected + ", got " + m.found,
@@ -258,7 +274,8 @@ void throw_registration_error(const std::string& what) {
   throw std::logic_error("service registration: " + what);
 }
 
-void name_parameters(ServiceDescriptor& d, std::vector<ParamDescriptor> typed, std::vector<Param> names) {
+void name_parameters(ServiceDescriptor& d, std::vector<ParamDescriptor> typed,
+                     std::vector<Param> names) {
   if (!names.empty() && names.size() != typed.size())
     throw_registration_error(d.qualified_name() + ": " + std::to_string(names.size()) +
                              " parameter names given for " + std::to_string(typed.size()) +
@@ -269,7 +286,8 @@ void name_parameters(ServiceDescriptor& d, std::vector<ParamDescriptor> typed, s
     typed[i].name = names.empty() ? "arg" + std::to_string(i) : names[i].name;
     if (!names.empty()) typed[i].default_value = names[i].default_value;
     if (typed[i].name.empty() || !seen.insert(typed[i].name).second)
-      throw_registration_error(d.qualified_name() + ": parameter names must be unique and non-empty");
+      throw_registration_error(d.qualified_name() +
+                               ": parameter names must be unique and non-empty");
     if (typed[i].default_value)
       defaults_started = true;
     else if (defaults_started)

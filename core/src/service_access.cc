@@ -7,8 +7,8 @@ namespace simgate {
 namespace {
 
 bool pattern_char(char c) {
-  return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' || c == '-' ||
-         c == '.' || c == '*';
+  return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
+         c == '-' || c == '.' || c == '*';
 }
 
 // The character at `i` of "<component>.<service>", without building the string.
@@ -20,8 +20,8 @@ char qualified_at(std::string_view component, std::string_view service, std::siz
 
 }  // namespace
 
-ServiceAccess::ServiceAccess(std::optional<std::vector<std::string>> allow, std::vector<std::string> deny,
-                             bool console)
+ServiceAccess::ServiceAccess(std::optional<std::vector<std::string>> allow,
+                             std::vector<std::string> deny, bool console)
     : allow_(std::move(allow)), deny_(std::move(deny)), console_(console) {
   auto check = [](const std::vector<std::string>& patterns, const char* list) {
     for (const auto& p : patterns)
@@ -35,18 +35,21 @@ ServiceAccess::ServiceAccess(std::optional<std::vector<std::string>> allow, std:
 std::string ServiceAccess::pattern_error(std::string_view pattern) {
   if (pattern.empty()) return "is empty";
   for (char c : pattern)
-    if (!pattern_char(c)) return "has a character other than letters, digits, '_', '-', '.' and '*'";
+    if (!pattern_char(c))
+      return "has a character other than letters, digits, '_', '-', '.' and '*'";
   if (pattern == "*") return "";
   if (pattern.find('.') == std::string_view::npos)
     return "has no '.' between a component and a service (\"" + std::string(pattern) +
-           ".*\": every service of a component '" + std::string(pattern) + "'; \"*." + std::string(pattern) +
-           "\": a service '" + std::string(pattern) + "' of any component)";
-  if (pattern.front() == '.' || pattern.back() == '.' || pattern.find("..") != std::string_view::npos)
+           ".*\": every service of a component '" + std::string(pattern) + "'; \"*." +
+           std::string(pattern) + "\": a service '" + std::string(pattern) + "' of any component)";
+  if (pattern.front() == '.' || pattern.back() == '.' ||
+      pattern.find("..") != std::string_view::npos)
     return "has an empty name between dots";
   return "";
 }
 
-bool ServiceAccess::matches(std::string_view pattern, std::string_view component, std::string_view service) noexcept {
+bool ServiceAccess::matches(std::string_view pattern, std::string_view component,
+                            std::string_view service) noexcept {
   // '*' only: the classic linear match that backtracks to the last star (no recursion, no
   // allocation; O(pattern x name) at worst)
   const std::size_t n = component.size() + 1 + service.size();

@@ -20,7 +20,8 @@ const json& StreamSample::data() const {
       data_ = record_json(*fields_, {values_.data(), fields_->size()});
     } else {
       data_ = payload_->to_json ? payload_->to_json(*payload_)
-                                : json{{"content", payload_->content}, {"description", payload_->description},
+                                : json{{"content", payload_->content},
+                                       {"description", payload_->description},
                                        {"bytes", payload_->bytes.size()}};
     }
     data_made_.store(true, std::memory_order_release);
@@ -75,7 +76,8 @@ void StreamSample::numbers(std::span<const std::string_view> keys, std::span<dou
       at = at + 1 == fields.size() ? 0 : at + 1;
       ++tried;
     }
-    if (tried == fields.size()) throw std::out_of_range("the sample has no number '" + std::string(keys[k]) + "'");
+    if (tried == fields.size())
+      throw std::out_of_range("the sample has no number '" + std::string(keys[k]) + "'");
     out[k] = values_[at];
     at = at + 1 == fields.size() ? 0 : at + 1;
   }
@@ -99,9 +101,13 @@ void StreamSubscription::note_dropped(std::uint64_t n) {
   log_first_drop();
 }
 
-std::uint64_t StreamSubscription::dropped() const { return dropped_.load(std::memory_order_relaxed); }
+std::uint64_t StreamSubscription::dropped() const {
+  return dropped_.load(std::memory_order_relaxed);
+}
 
-std::uint64_t StreamSubscription::delivered() const { return delivered_.load(std::memory_order_relaxed); }
+std::uint64_t StreamSubscription::delivered() const {
+  return delivered_.load(std::memory_order_relaxed);
+}
 
 bool StreamSubscription::closed() const {
   std::lock_guard lock(mutex_);
@@ -150,9 +156,12 @@ void StreamSubscription::deliver(const StreamSample& sample, bool due) {
   delivered_.fetch_add(1, std::memory_order_relaxed);
   if (!sent) dropped_.fetch_add(1, std::memory_order_relaxed);
   if (!failure.empty())
-    log::warning(component_, " stream: ", options_.label.empty() ? std::string("a subscriber") : options_.label,
-                 " could not send a sample (logged once; simulation get_stream_statistics counts them as "
-                 "dropped): ", failure);
+    log::warning(
+        component_,
+        " stream: ", options_.label.empty() ? std::string("a subscriber") : options_.label,
+        " could not send a sample (logged once; simulation get_stream_statistics counts them as "
+        "dropped): ",
+        failure);
   else if (!sent)
     log_first_drop();
 }
@@ -169,9 +178,11 @@ void StreamSubscription::log_first_drop() {
     if (drop_logged_) return;
     drop_logged_ = true;
   }
-  log::warning(component_, " stream: ", options_.label.empty() ? std::string("a subscriber") : options_.label,
-               " reads slower than samples come; its oldest samples are dropped (this is logged once; "
-               "simulation get_stream_statistics counts them)");
+  log::warning(
+      component_,
+      " stream: ", options_.label.empty() ? std::string("a subscriber") : options_.label,
+      " reads slower than samples come; its oldest samples are dropped (this is logged once; "
+      "simulation get_stream_statistics counts them)");
 }
 
 // ---------------------------------------------------------------------------------------
@@ -191,37 +202,38 @@ void StreamOutlet::note_skipped() {
 
 struct StreamHub::Due {
   Stream* stream;
-  bool due;                             // by its frequency (else only its new subscribers get it)
+  bool due;                              // by its frequency (else only its new subscribers get it)
   std::shared_ptr<StreamSample> sample;  // once produced
   bool queued = false;                   // a subscriber's queue took the sample
 };
 
 struct StreamHub::Stream {
   StreamInfo info;
-  std::function<json()> produce;            // out
-  std::function<void(std::span<double>)> produce_record;       // out, a record (StreamDeclaration)
-  std::shared_ptr<const std::vector<std::string>> record_fields;  // its numbers' names, shared by its samples
-  std::function<void(const json&)> apply;   // in
-  std::shared_ptr<StreamOutlet> outlet;     // out, pushed (its produce is empty)
-  double period = 0;                        // out: simulated seconds between samples
-  double next_due = 0;                      // out: when the next sample is due
-  double last_time = 0;                     // out: time of the last sample
-  std::uint64_t seq = 0;                    // out: samples produced
-  std::shared_ptr<StreamSample> spare;      // out, a record: the last sample, if no queue took it
+  std::function<json()> produce;                          // out
+  std::function<void(std::span<double>)> produce_record;  // out, a record (StreamDeclaration)
+  std::shared_ptr<const std::vector<std::string>>
+      record_fields;                       // its numbers' names, shared by its samples
+  std::function<void(const json&)> apply;  // in
+  std::shared_ptr<StreamOutlet> outlet;    // out, pushed (its produce is empty)
+  double period = 0;                       // out: simulated seconds between samples
+  double next_due = 0;                     // out: when the next sample is due
+  double last_time = 0;                    // out: time of the last sample
+  std::uint64_t seq = 0;                   // out: samples produced
+  std::shared_ptr<StreamSample> spare;     // out, a record: the last sample, if no queue took it
   std::vector<std::shared_ptr<StreamSubscription>> subscribers;
   // what publish_due looks at before it takes the hub mutex (written under it)
   std::atomic<std::size_t> subscriber_count{0};  // subscribers.size()
   std::atomic<bool> first_wanted{false};         // a subscriber waits for its first sample
-  std::uint64_t dropped_before = 0;         // drops of subscriptions that ended
-  std::uint64_t skipped = 0;                // out, pushed: samples due that never came (note_skipped)
-  bool skip_logged = false;                 // the first skip was logged
-  std::optional<json> pending;              // in: the command waiting for the lock
+  std::uint64_t dropped_before = 0;              // drops of subscriptions that ended
+  std::uint64_t skipped = 0;    // out, pushed: samples due that never came (note_skipped)
+  bool skip_logged = false;     // the first skip was logged
+  std::optional<json> pending;  // in: the command waiting for the lock
   std::uint64_t commands = 0;
   std::uint64_t replaced = 0;
   std::uint64_t refused = 0;
   std::string last_refusal;
   bool refusal_logged = false;
-  bool failure_logged = false;              // out: produce() threw once
+  bool failure_logged = false;  // out: produce() threw once
 };
 
 StreamHub::StreamHub(std::shared_ptr<SimulationGate> gate) : gate_(std::move(gate)) {}
@@ -247,17 +259,19 @@ const StreamHub::Stream* StreamHub::find_locked(std::string_view component) cons
 
 namespace {
 bool carries(const StreamInfo& info, std::string_view transport) {
-  return std::find(info.transports.begin(), info.transports.end(), transport) != info.transports.end();
+  return std::find(info.transports.begin(), info.transports.end(), transport) !=
+         info.transports.end();
 }
 }  // namespace
 
-StreamHub::Stream* StreamHub::find_input_locked(std::string_view component, std::string_view transport) {
+StreamHub::Stream* StreamHub::find_input_locked(std::string_view component,
+                                                std::string_view transport) {
   Stream* s = find_locked(component);
   return s && s->info.direction == StreamDirection::in && carries(s->info, transport) ? s : nullptr;
 }
 
-void StreamHub::add(const Component& component, std::string type, std::vector<std::string> transports,
-                    double frequency) {
+void StreamHub::add(const Component& component, std::string type,
+                    std::vector<std::string> transports, double frequency) {
   const StreamDeclaration* declaration = component.stream();
   if (!declaration) throw std::invalid_argument(component.name() + " has no stream");
   if (declaration->direction == StreamDirection::out && !(frequency > 0))
@@ -277,7 +291,8 @@ void StreamHub::add(const Component& component, std::string type, std::vector<st
       // pushed: the component's rate is the stream's (0: an event stream, no rate); the hub
       // only fans out
       if (declaration->outlet->hub_ && declaration->outlet->hub_ != this)
-        throw std::invalid_argument(component.name() + ": its pushed stream is run by another hub already");
+        throw std::invalid_argument(component.name() +
+                                    ": its pushed stream is run by another hub already");
       stream->outlet = declaration->outlet;
       stream->info.pushed = true;
       stream->info.frequency = declaration->pushed_frequency;
@@ -291,7 +306,8 @@ void StreamHub::add(const Component& component, std::string type, std::vector<st
     stream->apply = declaration->apply;
   }
   std::lock_guard lock(mutex_);
-  if (find_locked(component.name())) throw std::invalid_argument(component.name() + " has a stream already");
+  if (find_locked(component.name()))
+    throw std::invalid_argument(component.name() + " has a stream already");
   if (stream->outlet) stream->outlet->hub_ = this;
   streams_.push_back(std::move(stream));
 }
@@ -354,7 +370,8 @@ void StreamHub::publish_due(double time) {
       // no sample this time; the next try is at the next due time
       if (!s.failure_logged) {
         s.failure_logged = true;
-        log::warning(s.info.component, " stream: reading a sample failed (logged once): ", e.what());
+        log::warning(s.info.component,
+                     " stream: reading a sample failed (logged once): ", e.what());
       }
     }
   }
@@ -432,14 +449,17 @@ void StreamHub::note_skipped(const std::string& component) {
     s->skip_logged = true;
   }
   if (first)
-    log::warning(component, " stream: a sample due was skipped (its component could not make it in time: a camera's "
-                 "render thread behind); this is logged once; simulation get_stream_statistics counts them");
+    log::warning(
+        component,
+        " stream: a sample due was skipped (its component could not make it in time: a camera's "
+        "render thread behind); this is logged once; simulation get_stream_statistics counts them");
 }
 
 std::string StreamHub::unknown_key(const StreamInfo& info, const json& command) {
   for (auto it = command.begin(); it != command.end(); ++it) {
     // a sample written back keeps its timestamp (an armature_pose's to an armature)
-    if (it.key() == "timestamp" || std::find(info.fields.begin(), info.fields.end(), it.key()) != info.fields.end())
+    if (it.key() == "timestamp" ||
+        std::find(info.fields.begin(), info.fields.end(), it.key()) != info.fields.end())
       continue;
     std::string expected;
     for (const auto& k : info.fields) expected += (expected.empty() ? "" : ", ") + k;
@@ -471,11 +491,14 @@ void StreamHub::count_refusal_locked(Stream& stream, std::string reason, bool lo
   stream.last_refusal = std::move(reason);
   if (!log || stream.refusal_logged) return;
   stream.refusal_logged = true;
-  log::warning(stream.info.component, " stream: a command was refused (logged once; simulation "
-               "get_stream_statistics counts them): ", stream.last_refusal);
+  log::warning(stream.info.component,
+               " stream: a command was refused (logged once; simulation "
+               "get_stream_statistics counts them): ",
+               stream.last_refusal);
 }
 
-bool StreamHub::note_refused(std::string_view component, std::string_view transport, std::string reason) {
+bool StreamHub::note_refused(std::string_view component, std::string_view transport,
+                             std::string reason) {
   std::lock_guard lock(mutex_);
   Stream* s = find_input_locked(component, transport);
   if (s) count_refusal_locked(*s, std::move(reason), /*log=*/false);
@@ -505,20 +528,23 @@ std::vector<StreamInfo> StreamHub::streams(std::string_view transport) const {
   return out;
 }
 
-std::optional<StreamInfo> StreamHub::find(std::string_view component, std::string_view transport) const {
+std::optional<StreamInfo> StreamHub::find(std::string_view component,
+                                          std::string_view transport) const {
   std::lock_guard lock(mutex_);
   const Stream* s = find_locked(component);
   if (!s || !carries(s->info, transport)) return std::nullopt;
   return s->info;
 }
 
-std::shared_ptr<StreamSubscription> StreamHub::subscribe(std::string_view component, std::string_view transport,
+std::shared_ptr<StreamSubscription> StreamHub::subscribe(std::string_view component,
+                                                         std::string_view transport,
                                                          SubscriberOptions options) {
   std::shared_ptr<StreamSubscription> subscription;
   {
     std::lock_guard lock(mutex_);
     Stream* s = find_locked(component);
-    if (!s || s->info.direction != StreamDirection::out || !carries(s->info, transport)) return nullptr;
+    if (!s || s->info.direction != StreamDirection::out || !carries(s->info, transport))
+      return nullptr;
     subscription = std::make_shared<StreamSubscription>(std::string(component), std::move(options));
     s->subscribers.push_back(subscription);
     s->subscriber_count.store(s->subscribers.size(), std::memory_order_release);
@@ -542,14 +568,16 @@ void StreamHub::unsubscribe(const std::shared_ptr<StreamSubscription>& subscript
         s->subscribers.erase(it);
         s->subscriber_count.store(s->subscribers.size(), std::memory_order_release);
         subscribers_.fetch_sub(1, std::memory_order_release);
-        if (s->outlet && s->subscribers.empty()) s->outlet->wanted_.store(false, std::memory_order_release);
+        if (s->outlet && s->subscribers.empty())
+          s->outlet->wanted_.store(false, std::memory_order_release);
       }
     }
   }
   subscription->close();
 }
 
-PublishResult StreamHub::publish(std::string_view component, std::string_view transport, json command) {
+PublishResult StreamHub::publish(std::string_view component, std::string_view transport,
+                                 json command) {
   PublishResult result;
   if (!command.is_object()) {
     // refused before any component sees it, but a refusal of the stream all the same (a
@@ -557,7 +585,8 @@ PublishResult StreamHub::publish(std::string_view component, std::string_view tr
     result.error = "a command of " + std::string(component) + " is a JSON object, found " +
                    std::string(command.type_name());
     std::lock_guard lock(mutex_);
-    if (Stream* s = find_input_locked(component, transport)) count_refusal_locked(*s, result.error, /*log=*/true);
+    if (Stream* s = find_input_locked(component, transport))
+      count_refusal_locked(*s, result.error, /*log=*/true);
     return result;
   }
   std::unique_lock gate(*gate_, std::try_to_lock);

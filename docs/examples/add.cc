@@ -23,7 +23,8 @@ using simgate::json;
 
 // Python's a + b for what a client can send: numbers, strings, lists.
 json add(json a, json b) {
-  if (a.is_number_integer() && b.is_number_integer()) return a.get<std::int64_t>() + b.get<std::int64_t>();
+  if (a.is_number_integer() && b.is_number_integer())
+    return a.get<std::int64_t>() + b.get<std::int64_t>();
   if (a.is_number() && b.is_number()) return a.get<double>() + b.get<double>();
   if (a.is_string() && b.is_string()) return a.get<std::string>() + b.get<std::string>();
   if (a.is_array() && b.is_array()) {
@@ -40,7 +41,8 @@ int main(int argc, char** argv) {
   simgate::json options;  // the socket transport's, from --host, --port, --success-word
   if (auto code = simgate::examples::parse_socket_options(
           argc, argv, "simgate_example_add",
-          "MORSE's standalone example: test_component add(a, b), served over the socket transport", options))
+          "MORSE's standalone example: test_component add(a, b), served over the socket transport",
+          options))
     return *code;  // --help, or a usage error
   try {
     auto req_manager = simgate::load_transport("socket", options);

@@ -28,9 +28,9 @@ using simgate::Status;
 // runs them (the transport's I/O thread runs a request itself when the lock is free), so
 // the main loop touches this state under that lock too, as a simulation loop steps under it.
 struct State {
-  Completion result_cb;          // finishes the request
-  bool run_computation = false;  // a computation is under way
-  long value = 0;                // units left
+  Completion result_cb;                             // finishes the request
+  bool run_computation = false;                     // a computation is under way
+  long value = 0;                                   // units left
   std::chrono::steady_clock::time_point next_step;  // when the next unit is due
 };
 State g_state;
@@ -41,7 +41,7 @@ bool start_computation(Completion result_setter, long start_value) {
   g_state.value = start_value;
   g_state.run_computation = true;
   g_state.next_step = std::chrono::steady_clock::now();  // the first unit right away
-  return true;  // the task was started
+  return true;                                           // the task was started
 }
 
 // One step of the computation, once per second.
@@ -60,12 +60,14 @@ int main(int argc, char** argv) {
   simgate::json options;  // the socket transport's, from --host, --port, --success-word
   if (auto code = simgate::examples::parse_socket_options(
           argc, argv, "simgate_example_compute",
-          "MORSE's standalone async example: test_component compute(start_value), 1 unit/s", options))
+          "MORSE's standalone async example: test_component compute(start_value), 1 unit/s",
+          options))
     return *code;  // --help, or a usage error
   try {
     auto req_manager = simgate::load_transport("socket", options);
     // the optional service name defines a custom one: test_component.compute
-    req_manager->register_async_service("test_component", start_computation, "compute", {"start_value"});
+    req_manager->register_async_service("test_component", start_computation, "compute",
+                                        {"start_value"});
 
     simgate::examples::install_stop_handlers();
     req_manager->start();

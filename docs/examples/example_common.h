@@ -37,7 +37,8 @@ inline std::optional<int> parse_socket_options(int argc, char** argv, const std:
   app.add_option("--port", port, "port to listen on (0 = any free port)")
       ->check(CLI::Range(0, 65535))
       ->capture_default_str();
-  app.add_option("--success-word", success_word, "the status word of a success: SUCCESS or OK (MORSE's docs)")
+  app.add_option("--success-word", success_word,
+                 "the status word of a success: SUCCESS or OK (MORSE's docs)")
       ->capture_default_str();  // the transport validates it
   try {
     app.parse(argc, argv);

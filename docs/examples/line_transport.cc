@@ -34,9 +34,10 @@ class LineTransport : public simgate::RequestManager, private kit::LineServer {
   static void validate_options(const json& options) { (void)parse(options); }
 
   void start() override {
-    kit::TcpListener::Handlers handlers{[this](asio::ip::tcp::socket socket) { accept(std::move(socket)); },
-                                        [this](const asio::ip::tcp::endpoint& peer) { return refusal_reason(peer); },
-                                        [](const std::string& why) { return "- FAILED \"" + why + "\"\n"; }};
+    kit::TcpListener::Handlers handlers{
+        [this](asio::ip::tcp::socket socket) { accept(std::move(socket)); },
+        [this](const asio::ip::tcp::endpoint& peer) { return refusal_reason(peer); },
+        [](const std::string& why) { return "- FAILED \"" + why + "\"\n"; }};
     io_thread_.start(
         [this, handlers = std::move(handlers)]() mutable {
           // outcomes produced on other threads are handed to this one, the I/O thread
@@ -78,7 +79,8 @@ class LineTransport : public simgate::RequestManager, private kit::LineServer {
       : RequestManager("Line service manager"),
         LineServer(name(), options),
         options_(std::move(options)),
-        listener_(io_, name(), options_.host, options_.port),  // bound now: a port in use fails here
+        listener_(io_, name(), options_.host,
+                  options_.port),  // bound now: a port in use fails here
         io_thread_(io_, name(), options_.io_spin) {
     set_global_policy(options_.global_policy);
   }
@@ -96,7 +98,8 @@ class LineTransport : public simgate::RequestManager, private kit::LineServer {
     kit::ConnectionLimits limits = kit::ConnectionLimits::from(options_);
     limits.pause_at_unanswered = options_.max_in_flight;  // backpressure: reading waits for answers
     kit::LineServer& server = *this;
-    add(std::make_shared<kit::LineConnection>(std::move(socket), server, limits, name(), ++connections_));
+    add(std::make_shared<kit::LineConnection>(std::move(socket), server, limits, name(),
+                                              ++connections_));
   }
 
   // ---- kit::LineServer: the protocol (I/O thread)
@@ -111,10 +114,12 @@ class LineTransport : public simgate::RequestManager, private kit::LineServer {
     const std::string id = word();
     simgate::Call call{word(), word(), nullptr};
     if (id.empty()) return;  // a blank line
-    if (call.service.empty()) return reply(connection, id, "FAILED", "expected <id> <component> <service> [<JSON>]");
+    if (call.service.empty())
+      return reply(connection, id, "FAILED", "expected <id> <component> <service> [<JSON>]");
     if (line.find_first_not_of(" \t\r") != std::string_view::npos) {
       call.params = json::parse(line, nullptr, /*allow_exceptions=*/false);
-      if (call.params.is_discarded()) return reply(connection, id, "FAILED", "the parameters are not JSON");
+      if (call.params.is_discarded())
+        return reply(connection, id, "FAILED", "the parameters are not JSON");
     }
     const simgate::RequestId request = new_request_id();
     pending_[request] = Pending{connection.shared_from_this(), id};
@@ -132,7 +137,8 @@ class LineTransport : public simgate::RequestManager, private kit::LineServer {
   void on_input_ended(kit::LineConnection&) override {}  // calls of a client that left run on
   void on_closed(kit::Connection&) override {}  // its pending calls still end (reply() drops them)
 
-  void reply(kit::Connection& connection, std::string_view id, std::string_view status, const json& value) {
+  void reply(kit::Connection& connection, std::string_view id, std::string_view status,
+             const json& value) {
     connection.queue_with([&](std::string& out) {
       // invalid UTF-8 in a service's string is replaced, never thrown
       out.append(id).append(" ").append(status).append(" ");
@@ -154,8 +160,8 @@ class LineTransport : public simgate::RequestManager, private kit::LineServer {
   asio::io_context io_;
   kit::TcpListener listener_;
   kit::IoThread io_thread_;
-  std::uint64_t connections_ = 0;                            // numbers connections in logs
-  std::unordered_map<simgate::RequestId, Pending> pending_;  // unanswered requests
+  std::uint64_t connections_ = 0;                                    // numbers connections in logs
+  std::unordered_map<simgate::RequestId, Pending> pending_;          // unanswered requests
   std::vector<std::pair<simgate::RequestId, simgate::Call>> calls_;  // read, not yet run
 };
 

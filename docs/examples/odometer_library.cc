@@ -43,8 +43,7 @@ class Odometer : public simgate::sim::SimComponent {
       total_ += step;
       last_ = p;
     }
-    if (has_running_request() && total_ >= goal_)
-      completed(simgate::Status::success, total_);
+    if (has_running_request() && total_ >= goal_) completed(simgate::Status::success, total_);
   }
 
   // after `simulation reset_objects` (and after the simulation recovered from a bad state,
@@ -63,7 +62,8 @@ class Odometer : public simgate::sim::SimComponent {
 };
 
 void register_types(simgate::sim::ComponentRegistry& registry) {
-  registry.add<Odometer>("odometer", simgate::sim::Kind::component, "distance travelled by the robot");
+  registry.add<Odometer>("odometer", simgate::sim::Kind::component,
+                         "distance travelled by the robot");
 }
 
 }  // namespace odometer

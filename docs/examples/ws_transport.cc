@@ -43,8 +43,10 @@ class WsTransport : public simgate::RequestManager, private kit::WebSocketServer
     kit::TcpListener::Handlers handlers{
         [this](asio::ip::tcp::socket socket) { accept(std::move(socket)); },
         [this](const asio::ip::tcp::endpoint& peer) { return refusal_reason(peer); },
-        [](const std::string& why) { return "HTTP/1.1 503 Service Unavailable\r\nContent-Length: " +
-                                            std::to_string(why.size()) + "\r\n\r\n" + why; }};
+        [](const std::string& why) {
+          return "HTTP/1.1 503 Service Unavailable\r\nContent-Length: " +
+                 std::to_string(why.size()) + "\r\n\r\n" + why;
+        }};
     io_thread_.start(
         [this, handlers = std::move(handlers)]() mutable {
           // outcomes produced on other threads are handed to this one, the I/O thread
@@ -56,7 +58,9 @@ class WsTransport : public simgate::RequestManager, private kit::WebSocketServer
   void stop() override {
     if (io_thread_.stop([this] { shutdown_io(); })) deliver_on_any_thread();
   }
-  std::vector<std::string> endpoints() const override { return {"ws" + listener_.endpoint().substr(3) + "/"}; }
+  std::vector<std::string> endpoints() const override {
+    return {"ws" + listener_.endpoint().substr(3) + "/"};
+  }
   std::size_t client_count() const override { return connection_count(); }
 
  protected:
@@ -91,7 +95,8 @@ class WsTransport : public simgate::RequestManager, private kit::WebSocketServer
         WebSocketServer(name(), settings.tcp),
         options_(std::move(settings.tcp)),
         origins_(std::move(settings.origins)),
-        listener_(io_, name(), options_.host, options_.port),  // bound now: a port in use fails here
+        listener_(io_, name(), options_.host,
+                  options_.port),  // bound now: a port in use fails here
         io_thread_(io_, name(), options_.io_spin) {
     set_global_policy(options_.global_policy);
     origins_.bind(options_.host, listener_.port());
@@ -113,8 +118,8 @@ class WsTransport : public simgate::RequestManager, private kit::WebSocketServer
     kit::ConnectionLimits limits = kit::ConnectionLimits::from(options_);
     limits.pause_at_unanswered = options_.max_in_flight;  // backpressure: reading waits for answers
     kit::WebSocketServer& server = *this;
-    add(std::make_shared<kit::WebSocketConnection>(std::move(socket), server, limits, std::chrono::seconds(150),
-                                                   name(), ++connections_));
+    add(std::make_shared<kit::WebSocketConnection>(
+        std::move(socket), server, limits, std::chrono::seconds(150), name(), ++connections_));
   }
 
   // ---- kit::WebSocketServer: the protocol (I/O thread)
@@ -124,17 +129,20 @@ class WsTransport : public simgate::RequestManager, private kit::WebSocketServer
     const std::string call = request.is_object() ? request.value("call", "") : "";
     const auto dot = call.rfind('.');
     if (dot == std::string::npos || dot == 0 || dot + 1 == call.size())
-      return reply(connection, id, "FAILED", "expected {\"id\", \"call\": \"component.service\", \"params\"}");
+      return reply(connection, id, "FAILED",
+                   "expected {\"id\", \"call\": \"component.service\", \"params\"}");
     const simgate::RequestId request_id = new_request_id();
-    pending_[request_id] = Pending{std::static_pointer_cast<kit::WebSocketConnection>(connection.shared_from_this()),
-                                   id};
+    pending_[request_id] = Pending{
+        std::static_pointer_cast<kit::WebSocketConnection>(connection.shared_from_this()), id};
     connection.expect_reply();
     calls_.emplace_back(request_id, simgate::Call{call.substr(0, dot), call.substr(dot + 1),
                                                   request.value("params", json::array())});
   }
-  void on_refused_message(kit::WebSocketConnection& connection, std::size_t bytes, bool binary) override {
+  void on_refused_message(kit::WebSocketConnection& connection, std::size_t bytes,
+                          bool binary) override {
     reply(connection, nullptr, "FAILED",
-          binary ? "binary messages are not requests" : std::to_string(bytes) + " bytes: over max_message_bytes");
+          binary ? "binary messages are not requests"
+                 : std::to_string(bytes) + " bytes: over max_message_bytes");
   }
   void on_messages_done(kit::Connection&, bool) override {
     // the calls read so far go to the core together: run here when the simulation lock is
@@ -143,16 +151,20 @@ class WsTransport : public simgate::RequestManager, private kit::WebSocketServer
   }
   void on_closed(kit::Connection&) override {}  // its pending calls still end (reply() drops them)
   kit::HttpResponse on_http_request(const Request&) override {
-    return kit::HttpResponse{"HTTP/1.1 404 Not Found\r\nContent-Length: 0\r\nConnection: close\r\n\r\n"};
+    return kit::HttpResponse{
+        "HTTP/1.1 404 Not Found\r\nContent-Length: 0\r\nConnection: close\r\n\r\n"};
   }
   std::string refuse_upgrade(const Request& request) override {
     // a page of another site must not drive the simulation (cross-site WebSocket hijacking)
     const auto it = request.find(boost::beast::http::field::origin);
-    if (it == request.end() || origins_.allows(std::string_view(it->value().data(), it->value().size()))) return {};
+    if (it == request.end() ||
+        origins_.allows(std::string_view(it->value().data(), it->value().size())))
+      return {};
     return "HTTP/1.1 403 Forbidden\r\nContent-Length: 0\r\nConnection: close\r\n\r\n";
   }
 
-  void reply(kit::WebSocketConnection& connection, const json& id, std::string_view status, const json& value) {
+  void reply(kit::WebSocketConnection& connection, const json& id, std::string_view status,
+             const json& value) {
     // invalid UTF-8 in a service's string is replaced, never thrown
     connection.queue_text(json{{"id", id}, {"status", status}, {"value", value}}.dump(
         -1, ' ', false, json::error_handler_t::replace));
@@ -173,8 +185,8 @@ class WsTransport : public simgate::RequestManager, private kit::WebSocketServer
   asio::io_context io_;
   kit::TcpListener listener_;
   kit::IoThread io_thread_;
-  std::uint64_t connections_ = 0;                            // numbers connections in logs
-  std::unordered_map<simgate::RequestId, Pending> pending_;  // unanswered requests
+  std::uint64_t connections_ = 0;                                    // numbers connections in logs
+  std::unordered_map<simgate::RequestId, Pending> pending_;          // unanswered requests
   std::vector<std::pair<simgate::RequestId, simgate::Call>> calls_;  // read, not yet run
 };
 

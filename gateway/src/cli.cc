@@ -20,7 +20,8 @@ namespace simgate::gateway {
 
 namespace {
 
-constexpr const char* k_description = "simgate: a MuJoCo simulation whose components serve MORSE-style services";
+constexpr const char* k_description =
+    "simgate: a MuJoCo simulation whose components serve MORSE-style services";
 
 constexpr const char* k_footer = R"(Synopsis:
   simgate run CONFIG [--status [SECONDS]] [--log-level L] [--realtime-factor F|max]
@@ -43,11 +44,13 @@ constexpr const char* k_footer = R"(Synopsis:
 constexpr const char* k_exit_codes =
     "Exit codes: 0 success, 1 failed call or runtime error, 2 bad usage or invalid configuration.";
 
-constexpr const char* k_run_footer = R"(--status prints one line every SECONDS (5 without a value), measured over that time:
+constexpr const char* k_run_footer =
+    R"(--status prints one line every SECONDS (5 without a value), measured over that time:
   status: sim 12.345 s, real-time factor 1.00 (target 1.00), 3 clients, 812 requests/s
 Ctrl-C (SIGINT) or SIGTERM stops the simulation cleanly; a second one exits at once.)";
 
-constexpr const char* k_call_footer = R"(ARGS: each is JSON (5, -1, "text", [1,2], {"a":1}) or a bare word (a string), sent as
+constexpr const char* k_call_footer =
+    R"(ARGS: each is JSON (5, -1, "text", [1,2], {"a":1}) or a bare word (a string), sent as
 positional params [..]; or all of them name=value (name an identifier, value JSON or a bare
 word), sent as named params {..}: `simgate call robot.motion set_speed v=0.5 w=0.2`.
 Named and positional ARGS cannot be mixed; a string containing '=' is written JSON-quoted:
@@ -56,27 +59,32 @@ Named and positional ARGS cannot be mixed; a string containing '=' is written JS
 Prints the result as JSON, or SUCCESS for a service that returns nothing (exit 0); a
 FAILED or PREEMPTED call prints its reason on stderr (exit 1).)";
 
-constexpr const char* k_watch_footer = R"(Prints each sample of COMPONENT's output stream (a sensor: robot.pose) as one JSON line,
+constexpr const char* k_watch_footer =
+    R"(Prints each sample of COMPONENT's output stream (a sensor: robot.pose) as one JSON line,
 flushed at once (`| head -3`, `| jq` work), until --count samples, --duration seconds, Ctrl-C
 or a closed stdout; exit 0. socket: reads the stream port `simulation get_stream_port`
 names, on --host; jsonrpc, websocket: rpc.subscribe. --timeout bounds connecting and the
 answers, not the wait for samples (a paused simulation sends its first sample only).
 `simgate list` shows the streams of a transport; dds: not here (its streams are topics).)";
 
-constexpr const char* k_publish_footer = R"(Sends JSON_OBJECT as a command to COMPONENT's input stream (an actuator): once, or --count
+constexpr const char* k_publish_footer =
+    R"(Sends JSON_OBJECT as a command to COMPONENT's input stream (an actuator): once, or --count
 times at --rate (default 10 per second). `simgate publish robot.motion '{"v": 0.5, "w": 0}'`
 jsonrpc, websocket: rpc.publish, a refused command is an error (exit 1); socket: lines on
 the stream port, MORSE's way: nothing is answered, a refusal is only counted by the server
 (`simgate call simulation get_stream_statistics`: refused, last_refusal).)";
 
-constexpr const char* k_snapshot_footer = R"(Without --config or --model it asks the running simulation the client options reach
+constexpr const char* k_snapshot_footer =
+    R"(Without --config or --model it asks the running simulation the client options reach
 (`simulation get_snapshot`); with either, it builds that deployment here (nothing listens)
 and pictures its initial state. Without --camera the view frames the whole scene.
 Prints what it wrote: `out.png: 640x480 PNG, 123456 bytes, camera free, sim time 0 s`.)";
 
 constexpr double k_default_status_interval = 5.0;  // seconds, `--status` without a value
 
-std::string version_text() { return std::string("simgate ") + SIMGATE_VERSION + " (MuJoCo " + mj_versionString() + ")"; }
+std::string version_text() {
+  return std::string("simgate ") + SIMGATE_VERSION + " (MuJoCo " + mj_versionString() + ")";
+}
 
 }  // namespace
 
@@ -84,7 +92,8 @@ void apply_log_level(const std::optional<std::string>& level) {
   if (!level) return;
   log::Level l;
   if (!log::parse_level(*level, l))
-    throw UsageError("--log-level: expected trace, debug, info, warning, error or off, found '" + *level + "'");
+    throw UsageError("--log-level: expected trace, debug, info, warning, error or off, found '" +
+                     *level + "'");
   log::set_level(l);
 }
 
@@ -95,8 +104,7 @@ std::optional<double> parse_factor(const std::optional<std::string>& text) {
     std::size_t used = 0;
     double f = std::stod(*text, &used);
     if (used == text->size() && f >= 0) return f;
-  } catch (const std::exception&) {
-  }
+  } catch (const std::exception&) {}
   throw UsageError("--realtime-factor: expected a number >= 0 or 'max', found '" + *text + "'");
 }
 
@@ -106,11 +114,11 @@ double parse_seconds(const std::string& option, const std::string& text, double 
     std::size_t used = 0;
     double seconds = std::stod(text, &used);
     if (used == text.size() && seconds >= min && seconds <= max) return seconds;
-  } catch (const std::exception&) {
-  }
+  } catch (const std::exception&) {}
   std::ostringstream range;
   range << min << " to " << max;
-  throw UsageError(option + ": expected a number of seconds from " + range.str() + ", found '" + text + "'" + hint);
+  throw UsageError(option + ": expected a number of seconds from " + range.str() + ", found '" +
+                   text + "'" + hint);
 }
 
 int parse_int(const std::string& option, const std::string& text, int min, int max) {
@@ -118,10 +126,9 @@ int parse_int(const std::string& option, const std::string& text, int min, int m
     std::size_t used = 0;
     int value = std::stoi(text, &used);
     if (used == text.size() && value >= min && value <= max) return value;
-  } catch (const std::exception&) {
-  }
-  throw UsageError(option + ": expected an integer from " + std::to_string(min) + " to " + std::to_string(max) +
-                   ", found '" + text + "'");
+  } catch (const std::exception&) {}
+  throw UsageError(option + ": expected an integer from " + std::to_string(min) + " to " +
+                   std::to_string(max) + ", found '" + text + "'");
 }
 
 namespace {
@@ -160,61 +167,89 @@ class CommandLine {
     run_->add_option("--endpoints-file", run_args_.endpoints_file,
                      "write {\"transport\": [\"tcp://host:port\", ...]} there once listening")
         ->type_name("PATH");
-    status_ = run_->add_option("--status", status_text_,
-                               "print sim time, real-time factor, clients, requests/s every SECONDS (default 5)")
-                  ->expected(0, 1)
-                  ->multi_option_policy(CLI::MultiOptionPolicy::TakeLast)
-                  ->option_text("[SECONDS]");
+    status_ =
+        run_->add_option(
+                "--status", status_text_,
+                "print sim time, real-time factor, clients, requests/s every SECONDS (default 5)")
+            ->expected(0, 1)
+            ->multi_option_policy(CLI::MultiOptionPolicy::TakeLast)
+            ->option_text("[SECONDS]");
     run_->footer(std::string(k_run_footer) + "\n" + k_exit_codes);
 
-    check_ = add_command("check", "validate CONFIG (scene, components, transport plugins and options) and exit");
+    check_ = add_command(
+        "check", "validate CONFIG (scene, components, transport plugins and options) and exit");
     add_config_options(check_, check_args_);
     check_->footer(k_exit_codes);
 
     call_ = add_command("call", "call a service of a running simulation and print its result");
     add_client_options(call_, call_args_.client);
-    call_->add_option("COMPONENT", call_args_.component, "the component: robot.motion, simulation, ...")
+    call_
+        ->add_option("COMPONENT", call_args_.component,
+                     "the component: robot.motion, simulation, ...")
         ->required();
-    call_->add_option("SERVICE", call_args_.service, "its service: set_speed, list_robots, ...")->required();
-    call_->add_option("ARGS", call_args_.args, "the parameters: JSON values or bare words, or all name=value (below)");
+    call_->add_option("SERVICE", call_args_.service, "its service: set_speed, list_robots, ...")
+        ->required();
+    call_->add_option("ARGS", call_args_.args,
+                      "the parameters: JSON values or bare words, or all name=value (below)");
     // options only before COMPONENT: ARGS may look like options (-1, --x)
     call_->positionals_at_end();
     call_->footer(std::string(k_call_footer) + "\n" + k_exit_codes);
 
-    list_ = add_command("list", "list the services a running simulation offers, with their parameters");
+    list_ =
+        add_command("list", "list the services a running simulation offers, with their parameters");
     add_client_options(list_, list_args_.client);
     list_->add_flag("--json", list_args_.json, "print the service descriptors as one JSON array");
     list_->footer(k_exit_codes);
 
-    watch_ = add_command("watch", "print a component's stream samples (a sensor), one JSON line each");
+    watch_ =
+        add_command("watch", "print a component's stream samples (a sensor), one JSON line each");
     add_client_options(watch_, watch_args_.client);
-    watch_->add_option("COMPONENT", watch_args_.component, "the component with an output stream: robot.pose, ...")
+    watch_
+        ->add_option("COMPONENT", watch_args_.component,
+                     "the component with an output stream: robot.pose, ...")
         ->required();
     watch_->add_option("--count", watch_args_.count, "stop after N samples")->type_name("N");
-    watch_->add_option("--duration", watch_args_.duration, "stop after SECONDS (wall clock)")->type_name("SECONDS");
+    watch_->add_option("--duration", watch_args_.duration, "stop after SECONDS (wall clock)")
+        ->type_name("SECONDS");
     watch_->footer(std::string(k_watch_footer) + "\n" + k_exit_codes);
 
-    publish_ = add_command("publish", "send a command (a JSON object) to a component's input stream (an actuator)");
+    publish_ = add_command(
+        "publish", "send a command (a JSON object) to a component's input stream (an actuator)");
     add_client_options(publish_, publish_args_.client);
-    publish_->add_option("COMPONENT", publish_args_.component, "the component with an input stream: robot.motion, ...")
+    publish_
+        ->add_option("COMPONENT", publish_args_.component,
+                     "the component with an input stream: robot.motion, ...")
         ->required();
-    publish_->add_option("JSON_OBJECT", publish_args_.data, "the command: {\"v\": 0.5, \"w\": 0}")->required();
-    publish_->add_option("--count", publish_args_.count, "send it N times (default 1)")->type_name("N");
-    publish_->add_option("--rate", publish_args_.rate, "commands per second with --count (default 10)")->type_name("HZ");
+    publish_->add_option("JSON_OBJECT", publish_args_.data, "the command: {\"v\": 0.5, \"w\": 0}")
+        ->required();
+    publish_->add_option("--count", publish_args_.count, "send it N times (default 1)")
+        ->type_name("N");
+    publish_
+        ->add_option("--rate", publish_args_.rate, "commands per second with --count (default 10)")
+        ->type_name("HZ");
     publish_->footer(std::string(k_publish_footer) + "\n" + k_exit_codes);
 
-    snapshot_ = add_command("snapshot", "write a picture of the scene (PNG), from a running simulation or a config");
+    snapshot_ = add_command(
+        "snapshot", "write a picture of the scene (PNG), from a running simulation or a config");
     add_client_options(snapshot_, snapshot_args_.client);
-    snapshot_->add_option("--camera", snapshot_args_.camera, "an MJCF camera of the scene (default: a free view of it all)")
+    snapshot_
+        ->add_option("--camera", snapshot_args_.camera,
+                     "an MJCF camera of the scene (default: a free view of it all)")
         ->type_name("NAME");
-    snapshot_->add_option("--size", snapshot_args_.size, "image size in pixels (default 640x480)")->type_name("WxH");
-    snapshot_->add_option("--config", snapshot_args_.scene.config,
-                          "no running simulation: build this deployment here and picture its initial state")
+    snapshot_->add_option("--size", snapshot_args_.size, "image size in pixels (default 640x480)")
+        ->type_name("WxH");
+    snapshot_
+        ->add_option(
+            "--config", snapshot_args_.scene.config,
+            "no running simulation: build this deployment here and picture its initial state")
         ->type_name("CONFIG");
-    snapshot_->add_option("--model", snapshot_args_.scene.model, "no running simulation: picture this MJCF model")
+    snapshot_
+        ->add_option("--model", snapshot_args_.scene.model,
+                     "no running simulation: picture this MJCF model")
         ->type_name("FILE.xml");
-    snapshot_->add_option("--plugin-path", snapshot_args_.scene.plugin_dirs,
-                          "with --config: search transport plugins in DIR too (repeatable)")
+    snapshot_
+        ->add_option("--plugin-path", snapshot_args_.scene.plugin_dirs,
+                     "with --config: search transport plugins in DIR too (repeatable)")
         ->allow_extra_args(false)
         ->option_text("DIR");
     snapshot_->add_option("OUT", snapshot_args_.out, "the PNG file to write")->required();
@@ -230,7 +265,8 @@ class CommandLine {
 
   // Parses argv and runs the command; CLI11's errors propagate.
   int run(int argc, char** argv) {
-    const int parsed = argc >= 2 && std::string_view(argv[1]) == "call" ? call_args_end(argc, argv) : argc;
+    const int parsed =
+        argc >= 2 && std::string_view(argv[1]) == "call" ? call_args_end(argc, argv) : argc;
     app_.parse(parsed, argv);
     if (call_->parsed()) call_args_.args.assign(argv + parsed, argv + argc);
     if (run_->parsed()) return cmd_run(with_scene(finish_run(run_args_)), false);
@@ -266,7 +302,8 @@ class CommandLine {
         break;
       }
       const CLI::Option* option = call_->get_option_no_throw(token.substr(0, token.find('=')));
-      const bool takes_value = option && option->get_expected_min() > 0 && token.find('=') == std::string::npos;
+      const bool takes_value =
+          option && option->get_expected_min() > 0 && token.find('=') == std::string::npos;
       i += takes_value ? 2 : 1;
     }
     return i + 2 <= argc ? i + 2 : argc;  // COMPONENT SERVICE
@@ -282,38 +319,63 @@ class CommandLine {
 
   static void add_config_options(CLI::App* command, RunArgs& args) {
     command->add_option("CONFIG", args.config,
-                        "the deployment file (JSON, docs/configuration.md); with --model: its transports and options");
-    command->add_option("--model", args.model,
-                        "serve every robot of this MJCF model with its generic components (armature, armature_pose, "
-                        "actuators, sensors); the transports are CONFIG's, or socket 4000 and jsonrpc 4001 on 127.0.0.1")
+                        "the deployment file (JSON, docs/configuration.md); with --model: its "
+                        "transports and options");
+    command
+        ->add_option("--model", args.model,
+                     "serve every robot of this MJCF model with its generic components (armature, "
+                     "armature_pose, "
+                     "actuators, sensors); the transports are CONFIG's, or socket 4000 and jsonrpc "
+                     "4001 on 127.0.0.1")
         ->type_name("FILE.xml");
-    command->add_option("--port", args.port,
-                        "with --model and no CONFIG: the socket transport listens on BASE, jsonrpc on BASE+1 "
-                        "(default 4000; 0: ports the kernel picks)")
+    command
+        ->add_option(
+            "--port", args.port,
+            "with --model and no CONFIG: the socket transport listens on BASE, jsonrpc on BASE+1 "
+            "(default 4000; 0: ports the kernel picks)")
         ->type_name("BASE");
-    command->add_option("--log-level", args.log_level, "trace, debug, info, warning, error or off (overrides the config)")
+    command
+        ->add_option("--log-level", args.log_level,
+                     "trace, debug, info, warning, error or off (overrides the config)")
         ->type_name("L");
-    command->add_option("--plugin-path", args.plugin_dirs, "search transport plugins in DIR (after SIMGATE_PLUGIN_PATH; repeatable)")
+    command
+        ->add_option("--plugin-path", args.plugin_dirs,
+                     "search transport plugins in DIR (after SIMGATE_PLUGIN_PATH; repeatable)")
         ->allow_extra_args(false)
         ->option_text("DIR");
   }
 
   static void add_client_options(CLI::App* command, ClientArgs& args) {
-    command->add_option("--transport", args.transport, "socket (default), jsonrpc, websocket or dds")->type_name("T");
-    command->add_option("--host", args.host, "socket/jsonrpc/websocket: the server's address (default 127.0.0.1)")
+    command
+        ->add_option("--transport", args.transport, "socket (default), jsonrpc, websocket or dds")
+        ->type_name("T");
+    command
+        ->add_option("--host", args.host,
+                     "socket/jsonrpc/websocket: the server's address (default 127.0.0.1)")
         ->type_name("H");
-    command->add_option("--port", args.port, "socket/jsonrpc/websocket: its port (default 4000 socket, 4001 jsonrpc, 8090 websocket)")
+    command
+        ->add_option("--port", args.port,
+                     "socket/jsonrpc/websocket: its port (default 4000 socket, 4001 jsonrpc, 8090 "
+                     "websocket)")
         ->type_name("P");
-    command->add_option("--domain", args.domain, "dds: the simulation's DDS domain (default 0)")->type_name("N");
-    command->add_option("--partition", args.partition, "dds: its partition (default simgate)")->type_name("P");
-    command->add_option("--dds-config", args.dds_config,
-                        "dds: Cyclone XML or file:// URI (default: loopback only; env = CYCLONEDDS_URI)")
+    command->add_option("--domain", args.domain, "dds: the simulation's DDS domain (default 0)")
+        ->type_name("N");
+    command->add_option("--partition", args.partition, "dds: its partition (default simgate)")
+        ->type_name("P");
+    command
+        ->add_option(
+            "--dds-config", args.dds_config,
+            "dds: Cyclone XML or file:// URI (default: loopback only; env = CYCLONEDDS_URI)")
         ->type_name("XML");
-    command->add_option("--token", args.token,
-                        "socket/jsonrpc/websocket: the token the transport's \"auth\" option requires (default: "
-                        "the SIMGATE_TOKEN environment variable, which `ps` does not show)")
+    command
+        ->add_option("--token", args.token,
+                     "socket/jsonrpc/websocket: the token the transport's \"auth\" option requires "
+                     "(default: "
+                     "the SIMGATE_TOKEN environment variable, which `ps` does not show)")
         ->type_name("TOKEN");
-    command->add_option("--timeout", args.timeout, "seconds to wait for the simulation and its answer (default 30)")
+    command
+        ->add_option("--timeout", args.timeout,
+                     "seconds to wait for the simulation and its answer (default 30)")
         ->type_name("S");
   }
 
@@ -336,16 +398,17 @@ class CommandLine {
     const std::string& text = status_text_.back();
     bool number = !json::parse(text, nullptr, false).is_discarded();
     args.status_interval =
-        parse_seconds("--status", text, 0.1, 86400, number ? "" : " (write CONFIG before a --status without SECONDS)");
+        parse_seconds("--status", text, 0.1, 86400,
+                      number ? "" : " (write CONFIG before a --status without SECONDS)");
     return args;
   }
 
-  CLI::App app_;                          // `simgate`
-  std::vector<std::string> names_;        // the commands, in order
+  CLI::App app_;                    // `simgate`
+  std::vector<std::string> names_;  // the commands, in order
   CLI::App *run_, *check_, *call_, *list_, *watch_, *publish_, *snapshot_;  // its commands
-  CLI::Option* status_;                   // run --status
-  std::vector<std::string> status_text_;  // its value, if any
-  RunArgs run_args_, check_args_;         // parsed values of each command
+  CLI::Option* status_;                                                     // run --status
+  std::vector<std::string> status_text_;                                    // its value, if any
+  RunArgs run_args_, check_args_;  // parsed values of each command
   CallArgs call_args_;
   ListArgs list_args_;
   WatchArgs watch_args_;
@@ -394,7 +457,8 @@ int run_cli(int argc, char** argv) {
     std::cerr << "simgate: invalid configuration: " << e.what() << "\n";
     return 2;
   } catch (const client::AuthError& e) {
-    std::cerr << "simgate: " << e.what() << "\n(a transport whose \"auth\" option requires a token takes it from "
+    std::cerr << "simgate: " << e.what()
+              << "\n(a transport whose \"auth\" option requires a token takes it from "
                  "--token TOKEN or the SIMGATE_TOKEN environment variable; docs/cli.md)\n";
     return 1;
   } catch (const client::ClientError& e) {

@@ -23,30 +23,38 @@ constexpr const char* k_token_variable = "SIMGATE_TOKEN";
 ClientTarget client_target(const ClientArgs& args) {
   const std::string& transport = args.transport;
   if (std::find(k_transports.begin(), k_transports.end(), transport) == k_transports.end())
-    throw UsageError("--transport: expected socket, jsonrpc, websocket or dds, found '" + transport + "'" +
-                     did_you_mean(transport, k_transports));
+    throw UsageError("--transport: expected socket, jsonrpc, websocket or dds, found '" +
+                     transport + "'" + did_you_mean(transport, k_transports));
   double seconds = 0;
   try {
     seconds = std::stod(args.timeout);
-  } catch (const std::exception&) {
-  }
-  if (!(seconds > 0)) throw UsageError("--timeout: expected a positive number of seconds, found '" + args.timeout + "'");
-  ClientTarget target{transport, json::object(), std::chrono::milliseconds(static_cast<long long>(seconds * 1000))};
+  } catch (const std::exception&) {}
+  if (!(seconds > 0))
+    throw UsageError("--timeout: expected a positive number of seconds, found '" + args.timeout +
+                     "'");
+  ClientTarget target{transport, json::object(),
+                      std::chrono::milliseconds(static_cast<long long>(seconds * 1000))};
 
   if (transport == "dds") {
     // DDS finds the simulation by domain and partition, not by address
     if (args.host || args.port)
       throw UsageError(std::string(args.host ? "--host" : "--port") +
-                       " is for --transport socket, jsonrpc or websocket; dds finds the simulation by --domain and --partition");
+                       " is for --transport socket, jsonrpc or websocket; dds finds the simulation "
+                       "by --domain and --partition");
     target.options = {{"domain", args.domain ? parse_int("--domain", *args.domain, 0, 230) : 0},
                       {"partition", args.partition.value_or("simgate")}};
     if (args.dds_config) target.options["config"] = *args.dds_config;
   } else {
     if (args.domain || args.partition || args.dds_config)
-      throw UsageError(std::string(args.domain ? "--domain" : args.partition ? "--partition" : "--dds-config") +
+      throw UsageError(std::string(args.domain      ? "--domain"
+                                   : args.partition ? "--partition"
+                                                    : "--dds-config") +
                        " is for --transport dds");
     target.options = {{"host", args.host.value_or("127.0.0.1")},
-                      {"port", args.port ? parse_int("--port", *args.port, 1, 65535) : (transport == "jsonrpc" ? 4001 : transport == "websocket" ? 8090 : 4000)}};
+                      {"port", args.port ? parse_int("--port", *args.port, 1, 65535)
+                                         : (transport == "jsonrpc"     ? 4001
+                                            : transport == "websocket" ? 8090
+                                                                       : 4000)}};
   }
 
   // the token of the transport's "auth": the option's, else the environment's
@@ -54,7 +62,8 @@ ClientTarget client_target(const ClientArgs& args) {
   if (transport == "dds") {
     if (args.token) throw UsageError("--token: " + std::string(client::k_dds_has_no_token));
     if (from_environment && *from_environment)
-      std::cerr << "simgate: note: " << k_token_variable << " is not used: " << client::k_dds_has_no_token << "\n";
+      std::cerr << "simgate: note: " << k_token_variable
+                << " is not used: " << client::k_dds_has_no_token << "\n";
   } else if (args.token || (from_environment && *from_environment)) {
     target.options["token"] = args.token ? *args.token : std::string(from_environment);
     target.options["timeout_ms"] = target.timeout.count();
@@ -62,7 +71,8 @@ ClientTarget client_target(const ClientArgs& args) {
   return target;
 }
 
-std::unique_ptr<client::Client> connect_client(const ClientArgs& args, std::chrono::milliseconds& timeout) {
+std::unique_ptr<client::Client> connect_client(const ClientArgs& args,
+                                               std::chrono::milliseconds& timeout) {
   ClientTarget target = client_target(args);
   timeout = target.timeout;
   return client::make_client(target.transport, target.options);
@@ -72,9 +82,11 @@ namespace {
 
 // "name=value" with name an identifier.
 bool is_identifier(const std::string& name) {
-  if (name.empty() || !(std::isalpha(static_cast<unsigned char>(name[0])) || name[0] == '_')) return false;
-  return std::all_of(name.begin(), name.end(),
-                     [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; });
+  if (name.empty() || !(std::isalpha(static_cast<unsigned char>(name[0])) || name[0] == '_'))
+    return false;
+  return std::all_of(name.begin(), name.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '_';
+  });
 }
 
 // JSON, or else the text itself as a string (a bare word).
@@ -116,7 +128,8 @@ namespace {
 // (the socket transport's `simulation get_all_stream_ports`).
 void print_streams(client::Client& client, std::chrono::milliseconds timeout) {
   Outcome streams = client.call("simulation", "get_stream_statistics", json::array(), timeout);
-  if (streams.status != Status::success || !streams.value || !streams.value->is_array() || streams.value->empty())
+  if (streams.status != Status::success || !streams.value || !streams.value->is_array() ||
+      streams.value->empty())
     return;
   Outcome ports = client.call("simulation", "get_all_stream_ports", json::array(), timeout);
   for (const auto& s : *streams.value) {
@@ -124,11 +137,14 @@ void print_streams(client::Client& client, std::chrono::milliseconds timeout) {
     std::cout << component << " stream " << s.value("direction", std::string("?")) << " "
               << s.value("kind", std::string("?"));
     // an event stream (simulation.events) has no rate: frequency 0
-    if (s.contains("frequency") && s["frequency"] != 0) std::cout << ", " << s["frequency"].dump() << " Hz";
-    else if (s.contains("frequency")) std::cout << ", as events happen";
+    if (s.contains("frequency") && s["frequency"] != 0)
+      std::cout << ", " << s["frequency"].dump() << " Hz";
+    else if (s.contains("frequency"))
+      std::cout << ", as events happen";
     if (s.contains("fields")) {
       std::string fields;
-      for (const auto& f : s["fields"]) fields += (fields.empty() ? "" : ", ") + f.get<std::string>();
+      for (const auto& f : s["fields"])
+        fields += (fields.empty() ? "" : ", ") + f.get<std::string>();
       std::cout << " {" << fields << "}";
     }
     if (ports.status == Status::success && ports.value && ports.value->contains(component))
@@ -153,8 +169,8 @@ int cmd_list(const ListArgs& args) {
       params += (params.empty() ? "" : ", ") + p.value("name", std::string("?"));
       if (p.contains("default")) params += "=" + p["default"].dump();
     }
-    std::cout << s.value("component", std::string("?")) << " " << s.value("name", std::string("?")) << "(" << params
-              << ")" << (s.value("async", false) ? " async" : "");
+    std::cout << s.value("component", std::string("?")) << " " << s.value("name", std::string("?"))
+              << "(" << params << ")" << (s.value("async", false) ? " async" : "");
     std::string doc = s.value("doc", std::string());
     if (!doc.empty()) std::cout << " — " << doc;
     std::cout << "\n";
@@ -179,15 +195,18 @@ json call_params(const std::vector<std::string>& args) {
     }
     std::string name = arg.substr(0, eq);
     if (!is_identifier(name))
-      throw UsageError("call: '" + arg + "': a named argument is name=value with name an identifier; a string "
-                       "containing '=' is written JSON-quoted: '" + json(arg).dump() + "'");
+      throw UsageError("call: '" + arg +
+                       "': a named argument is name=value with name an identifier; a string "
+                       "containing '=' is written JSON-quoted: '" +
+                       json(arg).dump() + "'");
     if (named.contains(name)) throw UsageError("call: parameter '" + name + "' is given twice");
     named[name] = json_or_word(arg.substr(eq + 1));
     if (a_named.empty()) a_named = arg;
   }
   if (!a_named.empty() && !a_positional.empty())
-    throw UsageError("call: ARGS are either all positional or all named (name=value), not both: '" + a_named +
-                     "' is named, '" + a_positional + "' is positional (a string containing '=' is written "
+    throw UsageError("call: ARGS are either all positional or all named (name=value), not both: '" +
+                     a_named + "' is named, '" + a_positional +
+                     "' is positional (a string containing '=' is written "
                      "JSON-quoted: '\"a=b\"')");
   return a_named.empty() ? positional : named;
 }

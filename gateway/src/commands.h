@@ -36,14 +36,14 @@ struct RunArgs {
 
 // The client options of `call`, `list`, `watch`, `publish` and `snapshot`, as written.
 struct ClientArgs {
-  std::string transport = "socket";     // --transport
-  std::optional<std::string> host;      // --host
-  std::optional<std::string> port;      // --port
-  std::optional<std::string> domain;    // --domain
-  std::optional<std::string> partition; // --partition
+  std::string transport = "socket";       // --transport
+  std::optional<std::string> host;        // --host
+  std::optional<std::string> port;        // --port
+  std::optional<std::string> domain;      // --domain
+  std::optional<std::string> partition;   // --partition
   std::optional<std::string> dds_config;  // --dds-config
-  std::optional<std::string> token;     // --token (else the SIMGATE_TOKEN environment variable)
-  std::string timeout = "30";           // --timeout, seconds
+  std::optional<std::string> token;       // --token (else the SIMGATE_TOKEN environment variable)
+  std::string timeout = "30";             // --timeout, seconds
 };
 
 // What `call` was given.
@@ -79,11 +79,11 @@ struct PublishArgs {
 
 // What `snapshot` was given.
 struct SnapshotArgs {
-  ClientArgs client;                   // how to reach a running simulation
-  RunArgs scene;                       // --config / --model: render it here, no gateway
-  std::optional<std::string> camera;   // --camera NAME (an MJCF camera; none: the free view)
-  std::string size = "640x480";        // --size WxH
-  std::string out;                     // OUT.png
+  ClientArgs client;                  // how to reach a running simulation
+  RunArgs scene;                      // --config / --model: render it here, no gateway
+  std::optional<std::string> camera;  // --camera NAME (an MJCF camera; none: the free view)
+  std::string size = "640x480";       // --size WxH
+  std::string out;                    // OUT.png
 };
 
 // `run CONFIG` (check_only false) or `check CONFIG`.
@@ -103,14 +103,15 @@ int cmd_snapshot(const SnapshotArgs& args);
 // {domain, partition, config}; and the token of --token or SIMGATE_TOKEN, which
 // make_client() presents) and --timeout. UsageError when they are wrong.
 struct ClientTarget {
-  std::string transport;               // socket, jsonrpc, websocket or dds
-  json options;                        // for client::make_client()
-  std::chrono::milliseconds timeout;   // --timeout
+  std::string transport;              // socket, jsonrpc, websocket or dds
+  json options;                       // for client::make_client()
+  std::chrono::milliseconds timeout;  // --timeout
 };
 ClientTarget client_target(const ClientArgs& args);
 // A client of the transport the options name (UsageError when they are wrong); `timeout`
 // gets --timeout.
-std::unique_ptr<client::Client> connect_client(const ClientArgs& args, std::chrono::milliseconds& timeout);
+std::unique_ptr<client::Client> connect_client(const ClientArgs& args,
+                                               std::chrono::milliseconds& timeout);
 // The deployment of `run` / `check` (CONFIG, or --model's), its log level applied unless
 // the command line set one; the errors of its structure are recorded in `errors`, what is
 // valid returned (parse_deployment), for build_gateway to report them with its own.
@@ -118,8 +119,8 @@ Deployment load_deployment_args(const RunArgs& args, ConfigErrors& errors);
 // The gateway of that deployment (Gateway, given the structure's errors): throws one
 // ConfigError naming CONFIG (or the model) with every error of every section.
 std::unique_ptr<Gateway> build_gateway(const RunArgs& args, const Deployment& deployment,
-                                       const sim::ComponentRegistry& registry, GatewayOptions options,
-                                       ConfigErrors errors);
+                                       const sim::ComponentRegistry& registry,
+                                       GatewayOptions options, ConfigErrors errors);
 
 // ---- parsing helpers shared by the commands (cli.cc); each throws UsageError
 

@@ -23,11 +23,14 @@ const std::vector<std::string> k_stream_only_components = {"simulation.events"};
 
 namespace {
 
-bool is_glob(const std::string& pattern) { return pattern.find_first_of("*?[") != std::string::npos; }
+bool is_glob(const std::string& pattern) {
+  return pattern.find_first_of("*?[") != std::string::npos;
+}
 
 std::size_t literal_chars(const std::string& pattern) {
-  return static_cast<std::size_t>(std::count_if(pattern.begin(), pattern.end(),
-                                                [](char c) { return c != '*' && c != '?' && c != '[' && c != ']'; }));
+  return static_cast<std::size_t>(std::count_if(pattern.begin(), pattern.end(), [](char c) {
+    return c != '*' && c != '?' && c != '[' && c != ']';
+  }));
 }
 
 bool glob_matches(const std::string& pattern, const std::string& name) {
@@ -46,24 +49,28 @@ void check_name(const std::string& name, const std::string& path) {
 
 // A JSON array of strings.
 std::vector<std::string> string_list(const json& value, const std::string& path) {
-  if (!value.is_array()) throw ConfigError(path + ": expected an array of transport names, found " + describe_json(value));
+  if (!value.is_array())
+    throw ConfigError(path + ": expected an array of transport names, found " +
+                      describe_json(value));
   std::vector<std::string> out;
   for (std::size_t i = 0; i < value.size(); ++i) {
     if (!value[i].is_string())
-      throw ConfigError(path + "[" + std::to_string(i) + "]: expected a transport name, found " + describe_json(value[i]));
+      throw ConfigError(path + "[" + std::to_string(i) + "]: expected a transport name, found " +
+                        describe_json(value[i]));
     out.push_back(value[i].get<std::string>());
   }
   return out;
 }
 
 // A "streams" rule written as an object: {"transports": [names], "frequency": Hz (optional)}.
-std::vector<std::string> stream_rule(const json& value, const std::string& path, std::optional<double>& frequency) {
+std::vector<std::string> stream_rule(const json& value, const std::string& path,
+                                     std::optional<double>& frequency) {
   ConfigObject rule(value, path);
   auto transports = rule.get_json("transports");
-  if (!transports)
-    rule.fail("transports", "an array of the transport names that carry the stream");
+  if (!transports) rule.fail("transports", "an array of the transport names that carry the stream");
   std::vector<std::string> list = string_list(*transports, rule.path_of("transports"));
-  if (rule.has("frequency")) frequency = rule.get_number("frequency", StreamHub::k_default_frequency, 1e-3, 1e6);
+  if (rule.has("frequency"))
+    frequency = rule.get_number("frequency", StreamHub::k_default_frequency, 1e-3, 1e6);
   rule.allow_only({"transports", "frequency"});
   return list;
 }
@@ -81,10 +88,13 @@ std::string quoted_pattern(const std::string& pattern) {
 // A transport's "allow" or "deny": an array of service patterns (service_access.h), each
 // checked; every malformed one is reported.
 std::vector<std::string> pattern_list(const json& value, const std::string& path) {
-  const std::string expected = "expected a service pattern \"component.service\" ('*': any characters), found ";
+  const std::string expected =
+      "expected a service pattern \"component.service\" ('*': any characters), found ";
   if (!value.is_array())
-    throw ConfigError(path + ": expected an array of service patterns (\"simulation.quit\", \"robot.*\"), found " +
-                      describe_json(value));
+    throw ConfigError(
+        path +
+        ": expected an array of service patterns (\"simulation.quit\", \"robot.*\"), found " +
+        describe_json(value));
   ConfigErrors errors;
   std::vector<std::string> out;
   for (std::size_t i = 0; i < value.size(); ++i) {
@@ -102,8 +112,8 @@ std::vector<std::string> pattern_list(const json& value, const std::string& path
   return out;
 }
 
-ComponentConfig parse_component(ConfigObject& o, const std::string& full_prefix, const std::string& default_body,
-                                const std::string& default_type) {
+ComponentConfig parse_component(ConfigObject& o, const std::string& full_prefix,
+                                const std::string& default_body, const std::string& default_type) {
   ComponentConfig c;
   c.path = o.path();
   std::string name = o.required_string("name");
@@ -114,10 +124,10 @@ ComponentConfig parse_component(ConfigObject& o, const std::string& full_prefix,
   auto options = o.get_object("options");
   c.options = options ? options->raw() : json::object();
   // a component's stream rate (robots have no stream: the key is theirs to refuse)
-  if (!full_prefix.empty() && o.has("frequency")) c.frequency = o.get_number("frequency", StreamHub::k_default_frequency, 1e-3, 1e6);
+  if (!full_prefix.empty() && o.has("frequency"))
+    c.frequency = o.get_number("frequency", StreamHub::k_default_frequency, 1e-3, 1e6);
   return c;
 }
-
 
 void parse_scene(ConfigObject& root, const std::string& base_dir, Deployment& d) {
   auto scene_object = root.get_object("scene");
@@ -129,8 +139,8 @@ void parse_scene(ConfigObject& root, const std::string& base_dir, Deployment& d)
     fs::path mjcf_path = fs::path(mjcf).is_absolute() ? fs::path(mjcf) : fs::path(base_dir) / mjcf;
     std::error_code ec;
     if (!fs::is_regular_file(mjcf_path, ec))
-      throw ConfigError(scene.path_of("mjcf") + ": expected an MJCF file, found '" + mjcf_path.string() +
-                        "' (no such file)");
+      throw ConfigError(scene.path_of("mjcf") + ": expected an MJCF file, found '" +
+                        mjcf_path.string() + "' (no such file)");
     d.mjcf = mjcf_path.lexically_normal().string();
   });
   errors.check([&] {
@@ -142,12 +152,14 @@ void parse_scene(ConfigObject& root, const std::string& base_dir, Deployment& d)
     if (factor->is_string() && factor->get<std::string>() == "max") {
       d.realtime_factor = 0;
     } else if (factor->is_number() && factor->get<double>() <= 1e6 &&
-               (factor->get<double>() == 0 || factor->get<double>() >= sim::k_min_realtime_factor)) {
+               (factor->get<double>() == 0 ||
+                factor->get<double>() >= sim::k_min_realtime_factor)) {
       d.realtime_factor = factor->get<double>();
     } else {
-      throw ConfigError(scene.path_of("realtime_factor") +
-                        ": expected 0 (as fast as possible), \"max\" or a number from 1e-06 to 1e+06, found " +
-                        describe_json(*factor));
+      throw ConfigError(
+          scene.path_of("realtime_factor") +
+          ": expected 0 (as fast as possible), \"max\" or a number from 1e-06 to 1e+06, found " +
+          describe_json(*factor));
     }
   });
   errors.check([&] { d.start_paused = scene.get_bool("start_paused", false); });
@@ -155,9 +167,11 @@ void parse_scene(ConfigObject& root, const std::string& base_dir, Deployment& d)
     d.on_divergence = scene.get_string("on_divergence", d.on_divergence);
     sim::DivergencePolicy policy;
     if (!sim::parse_divergence_policy(d.on_divergence, policy))
-      throw ConfigError(scene.path_of("on_divergence") + ": expected \"pause\" (undo the step and pause), "
-                        "\"restore\" (the last checkpoint) or \"reset\" (the initial state), found " +
-                        describe_json(json(d.on_divergence)));
+      throw ConfigError(
+          scene.path_of("on_divergence") +
+          ": expected \"pause\" (undo the step and pause), "
+          "\"restore\" (the last checkpoint) or \"reset\" (the initial state), found " +
+          describe_json(json(d.on_divergence)));
   });
   errors.check([&] { scene.finish(); });
   errors.throw_if_any();
@@ -174,17 +188,20 @@ void parse_spawn(ConfigObject& root, const std::string& base_dir, Deployment& d)
     auto dirs = spawn.get_json("allowed_dirs");
     if (!dirs) return;
     const std::string path = spawn.path_of("allowed_dirs");
-    if (!dirs->is_array()) throw ConfigError(path + ": expected an array of directories, found " + describe_json(*dirs));
+    if (!dirs->is_array())
+      throw ConfigError(path + ": expected an array of directories, found " + describe_json(*dirs));
     for (std::size_t i = 0; i < dirs->size(); ++i) {
       const json& dir = (*dirs)[i];
       const std::string at = path + "[" + std::to_string(i) + "]";
       if (!dir.is_string() || dir.get<std::string>().empty())
         throw ConfigError(at + ": expected a directory, found " + describe_json(dir));
-      fs::path resolved = fs::path(dir.get<std::string>()).is_absolute() ? fs::path(dir.get<std::string>())
-                                                                           : fs::path(base_dir) / dir.get<std::string>();
+      fs::path resolved = fs::path(dir.get<std::string>()).is_absolute()
+                              ? fs::path(dir.get<std::string>())
+                              : fs::path(base_dir) / dir.get<std::string>();
       std::error_code ec;
       if (!fs::is_directory(resolved, ec))
-        throw ConfigError(at + ": expected a directory, found '" + resolved.string() + "' (no such directory)");
+        throw ConfigError(at + ": expected a directory, found '" + resolved.string() +
+                          "' (no such directory)");
       d.spawn_allowed_dirs.push_back(fs::canonical(resolved).string());
     }
   });
@@ -203,7 +220,8 @@ bool console_by_default(const TransportConfig& tc) {
   return h == "localhost" || h == "::1" || h.rfind("127.", 0) == 0;
 }
 
-TransportConfig parse_transport(const std::string& name, const json& value, const std::string& path) {
+TransportConfig parse_transport(const std::string& name, const json& value,
+                                const std::string& path) {
   check_name(name, path);
   ConfigObject t(value, path);
   TransportConfig tc;
@@ -232,8 +250,8 @@ TransportConfig parse_transport(const std::string& name, const json& value, cons
 
 // One robot and its components at `path` (names checked for uniqueness against `names`), or
 // nullopt when it has errors, which are recorded in `errors`.
-std::optional<RobotConfig> parse_robot(const json& value, const std::string& path, std::set<std::string>& names,
-                                       ConfigErrors& errors) {
+std::optional<RobotConfig> parse_robot(const json& value, const std::string& path,
+                                       std::set<std::string>& names, ConfigErrors& errors) {
   const std::size_t errors_before = errors.errors().size();
   std::optional<ConfigObject> r;
   RobotConfig rc;
@@ -241,9 +259,12 @@ std::optional<RobotConfig> parse_robot(const json& value, const std::string& pat
     r.emplace(value, path);
     rc.robot = parse_component(*r, "", "", "robot");
     if (!names.insert(rc.robot.name).second)
-      throw ConfigError(r->path_of("name") + ": expected a unique name, found '" + rc.robot.name +
-                        "' a second time" +
-                        (std::count(k_pseudo_components.begin(), k_pseudo_components.end(), rc.robot.name) ? " (reserved)" : ""));
+      throw ConfigError(
+          r->path_of("name") + ": expected a unique name, found '" + rc.robot.name +
+          "' a second time" +
+          (std::count(k_pseudo_components.begin(), k_pseudo_components.end(), rc.robot.name)
+               ? " (reserved)"
+               : ""));
   });
   if (!named) return std::nullopt;
   errors.check([&] {
@@ -256,7 +277,8 @@ std::optional<RobotConfig> parse_robot(const json& value, const std::string& pat
         ComponentConfig cc = parse_component(c, rc.robot.name + ".", rc.robot.body, "");
         c.finish();
         if (!names.insert(cc.name).second)
-          throw ConfigError(c.path_of("name") + ": expected a unique name, found '" + cc.name + "' a second time");
+          throw ConfigError(c.path_of("name") + ": expected a unique name, found '" + cc.name +
+                            "' a second time");
         rc.components.push_back(std::move(cc));
       });
   });
@@ -265,17 +287,20 @@ std::optional<RobotConfig> parse_robot(const json& value, const std::string& pat
   return rc;
 }
 
-void check_transports(const std::vector<std::string>& list, const std::vector<std::string>& transport_names,
-                      const std::string& path) {
+void check_transports(const std::vector<std::string>& list,
+                      const std::vector<std::string>& transport_names, const std::string& path) {
   for (std::size_t i = 0; i < list.size(); ++i)
     if (std::find(transport_names.begin(), transport_names.end(), list[i]) == transport_names.end())
-      throw ConfigError(path + "[" + std::to_string(i) + "]: expected a transport declared in \"transports\" (" +
-                        join(transport_names) + "), found '" + list[i] + "'" + did_you_mean(list[i], transport_names));
+      throw ConfigError(path + "[" + std::to_string(i) +
+                        "]: expected a transport declared in \"transports\" (" +
+                        join(transport_names) + "), found '" + list[i] + "'" +
+                        did_you_mean(list[i], transport_names));
 }
 
 }  // namespace
 
-RobotConfig parse_robot_section(const json& section, const std::string& path, std::set<std::string> taken) {
+RobotConfig parse_robot_section(const json& section, const std::string& path,
+                                std::set<std::string> taken) {
   taken.insert(k_pseudo_components.begin(), k_pseudo_components.end());
   taken.insert(k_stream_only_components.begin(), k_stream_only_components.end());
   ConfigErrors errors;
@@ -319,7 +344,8 @@ std::vector<std::string> match_rules(const std::vector<ServiceRule>& rules,
 }
 
 bool is_pseudo_component(const std::string& name) {
-  return std::find(k_pseudo_components.begin(), k_pseudo_components.end(), name) != k_pseudo_components.end() ||
+  return std::find(k_pseudo_components.begin(), k_pseudo_components.end(), name) !=
+             k_pseudo_components.end() ||
          std::find(k_stream_only_components.begin(), k_stream_only_components.end(), name) !=
              k_stream_only_components.end();
 }
@@ -334,7 +360,8 @@ std::vector<std::string> Deployment::transports_for(const std::string& component
   }
   // communication goes with simulation unless named (MORSE serves both on every socket)
   if (component == "communication" &&
-      std::none_of(rules.begin(), rules.end(), [](const ServiceRule& r) { return r.pattern == "communication"; }))
+      std::none_of(rules.begin(), rules.end(),
+                   [](const ServiceRule& r) { return r.pattern == "communication"; }))
     return transports_for("simulation");
   return match_rules(rules, default_transports, component);
 }
@@ -363,15 +390,16 @@ const ServiceRule* Deployment::stream_rule_named(const std::string& component) c
   return nullptr;
 }
 
-Deployment parse_deployment(const json& document, const std::string& base_dir, const std::string& file) {
+Deployment parse_deployment(const json& document, const std::string& base_dir,
+                            const std::string& file) {
   ConfigErrors errors;
   Deployment d = parse_deployment(document, base_dir, file, errors);
   errors.throw_if_any();
   return d;
 }
 
-Deployment parse_deployment(const json& document, const std::string& base_dir, const std::string& file,
-                            ConfigErrors& errors) {
+Deployment parse_deployment(const json& document, const std::string& base_dir,
+                            const std::string& file, ConfigErrors& errors) {
   Deployment d;
   d.file = file;
   d.base_dir = base_dir;
@@ -386,7 +414,8 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
   // ---- log level ----
   errors.check([&] {
     if (root.has("log_level"))
-      d.log_level = root.get_choice("log_level", "info", {"trace", "debug", "info", "warning", "error", "off"});
+      d.log_level = root.get_choice("log_level", "info",
+                                    {"trace", "debug", "info", "warning", "error", "off"});
   });
 
   // ---- requests: limits every transport applies ----
@@ -413,10 +442,14 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
   std::vector<std::string> transport_names;
   errors.check([&] {
     auto transports = root.get_object("transports");
-    if (!transports) root.fail("transports", "an object {\"<name>\": {\"plugin\": ..., \"options\": {...}}}");
+    if (!transports)
+      root.fail("transports", "an object {\"<name>\": {\"plugin\": ..., \"options\": {...}}}");
     for (auto it = transports->raw().begin(); it != transports->raw().end(); ++it) {
       transport_names.push_back(it.key());
-      errors.check([&] { d.transports.push_back(parse_transport(it.key(), it.value(), transports->path_of(it.key()))); });
+      errors.check([&] {
+        d.transports.push_back(
+            parse_transport(it.key(), it.value(), transports->path_of(it.key())));
+      });
     }
     if (transport_names.empty()) root.fail("transports", "at least one transport");
   });
@@ -430,7 +463,8 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
     if (!robots) return;
     if (!robots->is_array()) root.fail("robots", "an array of robots");
     for (std::size_t i = 0; i < robots->size(); ++i)
-      if (auto robot = parse_robot((*robots)[i], "robots[" + std::to_string(i) + "]", names, errors))
+      if (auto robot =
+              parse_robot((*robots)[i], "robots[" + std::to_string(i) + "]", names, errors))
         d.robots.push_back(std::move(*robot));
   });
   const bool robots_ok = errors.errors().size() == errors_before_robots;
@@ -440,14 +474,16 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
   // a robot of type mjcf gets its generic components once the scene is loaded (gateway)
   for (const auto& r : d.robots)
     if (r.robot.type == "mjcf")
-      for (const char* type : {"armature", "armature_pose", "actuators", "sensors"}) all.push_back(r.robot.name + "." + type);
+      for (const char* type : {"armature", "armature_pose", "actuators", "sensors"})
+        all.push_back(r.robot.name + "." + type);
   // what a "streams" rule may name besides: the components that only stream
   std::vector<std::string> streamed = all;
   streamed.insert(streamed.end(), k_stream_only_components.begin(), k_stream_only_components.end());
   // `frequency`: the section is "streams", whose rules may be {"transports": [...],
   // "frequency": Hz} as well as a list; the default rule's frequency goes there
   auto parse_rules = [&](const char* key, std::vector<ServiceRule>& rules,
-                         std::optional<std::vector<std::string>>& fallback, std::optional<double>* frequency) {
+                         std::optional<std::vector<std::string>>& fallback,
+                         std::optional<double>* frequency) {
     auto section = root.get_object(key);
     if (!section) return false;
     for (auto it = section->raw().begin(); it != section->raw().end(); ++it) {
@@ -460,8 +496,10 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
           list = stream_rule(it.value(), path, rate);
           list_path += ".transports";
         } else if (frequency && !it.value().is_array()) {
-          throw ConfigError(path + ": expected an array of transport names or an object {\"transports\": [...], " +
-                            "\"frequency\": Hz}, found " + describe_json(it.value()));
+          throw ConfigError(
+              path +
+              ": expected an array of transport names or an object {\"transports\": [...], " +
+              "\"frequency\": Hz}, found " + describe_json(it.value()));
         } else {
           list = string_list(it.value(), path);
         }
@@ -482,9 +520,11 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
         if (!matched && robots_ok) {
           const std::string suggestion = did_you_mean(it.key(), names);
           if (!suggestion.empty())
-            throw ConfigError(path + ": expected a component name or a glob matching one (" + join(names) +
-                              "), found '" + it.key() + "', which matches none" + suggestion);
-          d.warnings.push_back(path + ": '" + it.key() + "' matches no component of this file (" + join(names) +
+            throw ConfigError(path + ": expected a component name or a glob matching one (" +
+                              join(names) + "), found '" + it.key() + "', which matches none" +
+                              suggestion);
+          d.warnings.push_back(path + ": '" + it.key() + "' matches no component of this file (" +
+                               join(names) +
                                "): it maps only robots spawned at run time under such names");
         }
         rules.push_back(ServiceRule{it.key(), std::move(list), path, rate});
@@ -492,9 +532,11 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
     }
     return true;
   };
-  errors.check([&] { d.has_services = parse_rules("services", d.rules, d.default_transports, nullptr); });
+  errors.check(
+      [&] { d.has_services = parse_rules("services", d.rules, d.default_transports, nullptr); });
   errors.check([&] {
-    parse_rules("streams", d.stream_rules, d.default_stream_transports, &d.default_stream_frequency);
+    parse_rules("streams", d.stream_rules, d.default_stream_transports,
+                &d.default_stream_frequency);
   });
 
   errors.check([&] { root.finish(); });
@@ -507,7 +549,8 @@ Deployment parse_deployment(const json& document, const std::string& base_dir, c
       auto list = d.transports_for(n);
       if (std::find(list.begin(), list.end(), t.name) != list.end()) used = true;
     }
-    if (!used) d.warnings.push_back(t.path + ": no component is mapped to transport '" + t.name + "'");
+    if (!used)
+      d.warnings.push_back(t.path + ": no component is mapped to transport '" + t.name + "'");
   }
   return d;
 }

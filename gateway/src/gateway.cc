@@ -19,7 +19,9 @@ class Gateway::SpawnedRobots : public sim::Simulation::RobotFactory {
  public:
   explicit SpawnedRobots(Gateway& gateway) : gateway_(gateway) {}
 
-  void check(const std::string& name, const json& section) const override { config_of(name, section); }
+  void check(const std::string& name, const json& section) const override {
+    config_of(name, section);
+  }
   void build(const std::string& name, const json& section) override {
     gateway_.add_spawned_robot(config_of(name, section));
   }
@@ -34,19 +36,26 @@ class Gateway::SpawnedRobots : public sim::Simulation::RobotFactory {
   RobotConfig config_of(const std::string& name, const json& section) const {
     for (const char* key : {"name", "body"})
       if (section.contains(key))
-        refuse(std::string("robot.") + key + ": the spawned entity gives its robot its name and its body ('" + name +
+        refuse(std::string("robot.") + key +
+               ": the spawned entity gives its robot its name and its body ('" + name +
                "'); leave it out");
     json document = section;
     document["name"] = name;
     document["body"] = name;
     std::set<std::string> taken;
-    for (const auto& entry : gateway_.simulation_->components()) taken.insert(entry->component->name());
+    for (const auto& entry : gateway_.simulation_->components())
+      taken.insert(entry->component->name());
     try {
       RobotConfig r = parse_robot_section(document, "robot", std::move(taken));
       ConfigErrors errors;
-      errors.check([&] { gateway_.registry_.type_of(sim::Kind::robot, {r.robot.name, r.robot.type, "", r.robot.path}); });
+      errors.check([&] {
+        gateway_.registry_.type_of(sim::Kind::robot,
+                                   {r.robot.name, r.robot.type, "", r.robot.path});
+      });
       for (const auto& c : r.components)
-        errors.check([&] { gateway_.registry_.type_of(sim::Kind::component, {c.name, c.type, "", c.path}); });
+        errors.check([&] {
+          gateway_.registry_.type_of(sim::Kind::component, {c.name, c.type, "", c.path});
+        });
       errors.throw_if_any();
       return r;
     } catch (const ConfigError& e) {
@@ -57,9 +66,12 @@ class Gateway::SpawnedRobots : public sim::Simulation::RobotFactory {
   Gateway& gateway_;
 };
 
-Gateway::Gateway(const Deployment& deployment, const sim::ComponentRegistry& registry, GatewayOptions options,
-                 ConfigErrors earlier)
-    : deployment_(deployment), options_(std::move(options)), registry_(registry), warnings_(deployment.warnings) {
+Gateway::Gateway(const Deployment& deployment, const sim::ComponentRegistry& registry,
+                 GatewayOptions options, ConfigErrors earlier)
+    : deployment_(deployment),
+      options_(std::move(options)),
+      registry_(registry),
+      warnings_(deployment.warnings) {
   // every part is checked even when another failed, the deployment's structure included:
   // all errors are reported at once
   ConfigErrors errors = std::move(earlier);
@@ -68,14 +80,17 @@ Gateway::Gateway(const Deployment& deployment, const sim::ComponentRegistry& reg
   sim_options.timestep = deployment_.timestep;
   sim_options.realtime_factor = options_.realtime_factor.value_or(deployment_.realtime_factor);
   sim_options.start_paused = deployment_.start_paused;
-  sim::parse_divergence_policy(deployment_.on_divergence, sim_options.on_divergence);  // checked by the parser
+  sim::parse_divergence_policy(deployment_.on_divergence,
+                               sim_options.on_divergence);  // checked by the parser
   sim_options.spawn_allowed_dirs = deployment_.spawn_allowed_dirs;
   // (no file: the structure's error said why)
   if (!deployment_.mjcf.empty()) {
     try {
-      simulation_ = std::make_unique<sim::Simulation>(sim::Model::load_file(deployment_.mjcf), sim_options);
+      simulation_ =
+          std::make_unique<sim::Simulation>(sim::Model::load_file(deployment_.mjcf), sim_options);
     } catch (const std::exception& e) {
-      errors.add("scene.mjcf: expected a loadable MJCF scene, found an error: " + std::string(e.what()));
+      errors.add("scene.mjcf: expected a loadable MJCF scene, found an error: " +
+                 std::string(e.what()));
     }
   }
   // the component types the config's libraries add
@@ -133,12 +148,16 @@ void Gateway::add_generic_components(RobotConfig& r) {
   for (const std::string& type : sim::generic_components(simulation_->m(), body)) {
     const std::string name = r.robot.name + "." + type;
     // a component of that name in the config wins (other options, or another type)
-    if (std::any_of(r.components.begin(), r.components.end(), [&](const auto& c) { return c.name == name; })) continue;
-    r.components.push_back(ComponentConfig{name, type, r.robot.body, json::object(), r.robot.path + ".generated." + type, std::nullopt});
+    if (std::any_of(r.components.begin(), r.components.end(),
+                    [&](const auto& c) { return c.name == name; }))
+      continue;
+    r.components.push_back(ComponentConfig{name, type, r.robot.body, json::object(),
+                                           r.robot.path + ".generated." + type, std::nullopt});
   }
   if (r.components.empty())
-    warnings_.push_back(r.robot.path + ": robot '" + r.robot.name + "' of type mjcf has no hinge or slide joint, " +
-                        "actuator or sensor under body '" + r.robot.body + "': it offers only its object services");
+    warnings_.push_back(
+        r.robot.path + ": robot '" + r.robot.name + "' of type mjcf has no hinge or slide joint, " +
+        "actuator or sensor under body '" + r.robot.body + "': it offers only its object services");
 }
 
 void Gateway::build_components(ConfigErrors& errors) {
@@ -188,23 +207,30 @@ void Gateway::add_spawned_robot(RobotConfig r) {
   for (const ComponentConfig* c : configs) {
     sim::ComponentEntry* entry = simulation_->find(c->name);
     ConfigErrors stream_errors;
-    add_stream(*entry->component, c->type, stream_frequency(*c), StreamHub::k_default_frequency, stream_errors);
-    for (const std::string& e : stream_errors.errors()) log::warning("spawned robot '", r.robot.name, "': ", e);
+    add_stream(*entry->component, c->type, stream_frequency(*c), StreamHub::k_default_frequency,
+               stream_errors);
+    for (const std::string& e : stream_errors.errors())
+      log::warning("spawned robot '", r.robot.name, "': ", e);
     const std::vector<std::string> transports = deployment_.transports_for(c->name);
     for (Transport& t : transports_)
-      if (t.manager && std::find(transports.begin(), transports.end(), t.name) != transports.end()) {
+      if (t.manager &&
+          std::find(transports.begin(), transports.end(), t.name) != transports.end()) {
         serve_on(t, *entry);
         served_[t.name].push_back(c->name);
       }
   }
-  log::info("simulation: robot '", r.robot.name, "' spawned with ", added.size() - 1, " component(s)");
+  log::info("simulation: robot '", r.robot.name, "' spawned with ", added.size() - 1,
+            " component(s)");
 }
 
 void Gateway::check_component_types(ConfigErrors& errors) const {
   for (const auto& r : deployment_.robots) {
-    errors.check([&] { registry_.type_of(sim::Kind::robot, {r.robot.name, r.robot.type, r.robot.body, r.robot.path}); });
+    errors.check([&] {
+      registry_.type_of(sim::Kind::robot, {r.robot.name, r.robot.type, r.robot.body, r.robot.path});
+    });
     for (const auto& c : r.components)
-      errors.check([&] { registry_.type_of(sim::Kind::component, {c.name, c.type, c.body, c.path}); });
+      errors.check(
+          [&] { registry_.type_of(sim::Kind::component, {c.name, c.type, c.body, c.path}); });
   }
 }
 
@@ -213,7 +239,8 @@ std::optional<double> Gateway::stream_frequency(const ComponentConfig& c) const 
   return c.frequency;
 }
 
-std::vector<std::string> Gateway::carriers(const Component& component, const std::vector<std::string>& transports) {
+std::vector<std::string> Gateway::carriers(const Component& component,
+                                           const std::vector<std::string>& transports) {
   // a stream is a path to what its component's services do: a transport whose lists refuse
   // one of them does not carry it (issue #35, item 8: a teleport stream on a transport
   // denying robot.teleport.*). An input stream does what any of its services do; an output
@@ -238,39 +265,46 @@ std::vector<std::string> Gateway::carriers(const Component& component, const std
       continue;
     }
     warnings_.push_back(t->path + ": transport '" + name + "' does not carry the " +
-                        (stream->direction == StreamDirection::in ? "input" : "output") + " stream of '" +
-                        component.name() + "': its allow/deny lists refuse " + refused +
-                        ", and a stream does what its component's services do (docs/configuration.md, access lists)");
+                        (stream->direction == StreamDirection::in ? "input" : "output") +
+                        " stream of '" + component.name() + "': its allow/deny lists refuse " +
+                        refused +
+                        ", and a stream does what its component's services do "
+                        "(docs/configuration.md, access lists)");
   }
   return out;
 }
 
-void Gateway::add_stream(const Component& component, const std::string& type, std::optional<double> frequency,
-                         double fallback, ConfigErrors& errors) {
+void Gateway::add_stream(const Component& component, const std::string& type,
+                         std::optional<double> frequency, double fallback, ConfigErrors& errors) {
   const StreamDeclaration* stream = component.stream();
   const std::vector<std::string> transports = deployment_.streams_for(component.name());
   const ServiceRule* named = deployment_.stream_rule_named(component.name());
   if (named && named->frequency && (!stream || stream->direction != StreamDirection::out))
-    warnings_.push_back(named->path + ".frequency: component '" + component.name() + "' (type " + type +
-                        ") has no output stream: the frequency is not used");
+    warnings_.push_back(named->path + ".frequency: component '" + component.name() + "' (type " +
+                        type + ") has no output stream: the frequency is not used");
   else if (named && named->frequency && stream->outlet && stream->pushed_frequency == 0)
-    warnings_.push_back(named->path + ".frequency: component '" + component.name() +
-                        "' streams events as they happen, at no frequency: the frequency is not used");
+    warnings_.push_back(
+        named->path + ".frequency: component '" + component.name() +
+        "' streams events as they happen, at no frequency: the frequency is not used");
   if (transports.empty()) return;
   if (!stream) {
     // an exact name must mean a stream; a glob may match components without one
     if (named)
-      errors.add(named->path + ": component '" + component.name() + "' (type " + type +
-                 ") has no data stream (streaming types: sensors such as pose, imu, odometry, laser_scanner; "
-                 "actuators such as motion_vw, waypoint, teleport, armature, actuators; the simulation's "
-                 "body_poses)");
+      errors.add(
+          named->path + ": component '" + component.name() + "' (type " + type +
+          ") has no data stream (streaming types: sensors such as pose, imu, odometry, "
+          "laser_scanner; "
+          "actuators such as motion_vw, waypoint, teleport, armature, actuators; the simulation's "
+          "body_poses)");
     return;
   }
-  simulation_->streams().add(component, type, carriers(component, transports), frequency.value_or(fallback));
+  simulation_->streams().add(component, type, carriers(component, transports),
+                             frequency.value_or(fallback));
 }
 
 void Gateway::add_streams(ConfigErrors& errors) {
-  auto add = [&](const Component& component, const std::string& type, std::optional<double> frequency,
+  auto add = [&](const Component& component, const std::string& type,
+                 std::optional<double> frequency,
                  double fallback) { add_stream(component, type, frequency, fallback, errors); };
   auto check_component = [&](const ComponentConfig& c) {
     const sim::ComponentEntry* entry = simulation_->find(c.name);
@@ -308,19 +342,22 @@ void Gateway::load_plugins(ConfigErrors& errors) {
     try {
       transport.plugin = load_transport_plugin(t.plugin, dirs);
     } catch (const std::exception& e) {
-      errors.add(t.path + ".plugin: expected a loadable transport plugin, found an error: " + e.what());
+      errors.add(t.path +
+                 ".plugin: expected a loadable transport plugin, found an error: " + e.what());
       continue;
     }
     // every check the plugin makes of its options, short of opening anything
     bool options_valid = errors.check([&] {
       if (!t.options.is_object())
-        throw ConfigError(t.path + ".options: expected an object, found " + describe_json(t.options));
+        throw ConfigError(t.path + ".options: expected an object, found " +
+                          describe_json(t.options));
       // its warnings (a deprecated key, a token file others may read): check says what run does
       for (std::string& warning : transport.plugin->validate(t.options, t.path + ".options"))
         warnings_.push_back(std::move(warning));
     });
     if (options_valid)
-      if (auto listener = listener_of(transport.plugin->name(), t)) listeners.push_back(std::move(*listener));
+      if (auto listener = listener_of(transport.plugin->name(), t))
+        listeners.push_back(std::move(*listener));
     // which components it serves
     std::vector<std::string>& served = served_[t.name];
     for (const auto& name : deployment_.component_names()) {
@@ -346,19 +383,23 @@ void Gateway::warn_about_mapping() {
                           (pseudo == "simulation" ? "list robots or services, reset or quit"
                                                   : "read or wait for simulated time") +
                           " (map it, e.g. \"" + pseudo + "\": [\"" +
-                          (transports_.empty() ? std::string("socket") : transports_.front().name) + "\"])");
+                          (transports_.empty() ? std::string("socket") : transports_.front().name) +
+                          "\"])");
   }
   // pymorse connects by calling `simulation details` on the socket transport
   for (const auto& t : transports_) {
     if (!t.plugin || t.plugin->name() != "socket") continue;
     if (!serves(t.name, "simulation"))
-      warnings_.push_back(t.config->path + ": the socket transport '" + t.name +
-                          "' does not serve 'simulation': pymorse cannot connect to it (it calls `simulation "
-                          "details` first); map it, e.g. \"simulation\": [\"" + t.name + "\"]");
+      warnings_.push_back(
+          t.config->path + ": the socket transport '" + t.name +
+          "' does not serve 'simulation': pymorse cannot connect to it (it calls `simulation "
+          "details` first); map it, e.g. \"simulation\": [\"" +
+          t.name + "\"]");
     else if (!t.config->access.allows("simulation", "details"))
-      warnings_.push_back(t.config->path + ": the socket transport '" + t.name +
-                          "' does not let clients call 'simulation.details': pymorse cannot connect to it (it "
-                          "calls `simulation details` first); let it through its allow and deny lists");
+      warnings_.push_back(
+          t.config->path + ": the socket transport '" + t.name +
+          "' does not let clients call 'simulation.details': pymorse cannot connect to it (it "
+          "calls `simulation details` first); let it through its allow and deny lists");
   }
   warn_about_access_lists();
 }
@@ -379,18 +420,22 @@ void Gateway::warn_about_access_lists() {
     const std::vector<std::string>& components = served_[t.name];
     // a pattern that matches nothing is most likely a typo: in a deny list it leaves the
     // service it meant callable
-    auto check = [&](const std::vector<std::string>& patterns, const std::string& list, const char* effect) {
+    auto check = [&](const std::vector<std::string>& patterns, const std::string& list,
+                     const char* effect) {
       for (std::size_t i = 0; i < patterns.size(); ++i) {
         const std::string& p = patterns[i];
-        bool matched = std::any_of(services.begin(), services.end(),
-                                   [&](const auto& s) { return ServiceAccess::matches(p, s.first, s.second); });
+        bool matched = std::any_of(services.begin(), services.end(), [&](const auto& s) {
+          return ServiceAccess::matches(p, s.first, s.second);
+        });
         if (matched) continue;
         // "robot.motion" names a component, not its services
-        std::string hint = std::find(components.begin(), components.end(), p) != components.end()
-                               ? " (a pattern names services: '" + p + ".*' for every service of '" + p + "')"
-                               : did_you_mean(p, qualified);
+        std::string hint =
+            std::find(components.begin(), components.end(), p) != components.end()
+                ? " (a pattern names services: '" + p + ".*' for every service of '" + p + "')"
+                : did_you_mean(p, qualified);
         warnings_.push_back(t.config->path + "." + list + "[" + std::to_string(i) + "]: '" + p +
-                            "' matches no service transport '" + t.name + "' serves: it " + effect + " nothing" + hint);
+                            "' matches no service transport '" + t.name + "' serves: it " + effect +
+                            " nothing" + hint);
       }
     };
     if (access.allow()) check(*access.allow(), "allow", "allows");

@@ -18,8 +18,8 @@ namespace {
 // plugins/jsonrpc/README.md, plugins/websocket/README.md): all listen on 127.0.0.1 unless
 // "host" says otherwise.
 struct TcpPlugin {
-  const char* name;   // the plugin's own name
-  int default_port;   // without "port"
+  const char* name;  // the plugin's own name
+  int default_port;  // without "port"
 };
 constexpr TcpPlugin k_tcp_plugins[] = {{"socket", 4000}, {"jsonrpc", 4001}, {"websocket", 8090}};
 constexpr const char* k_default_host = "127.0.0.1";
@@ -37,8 +37,10 @@ sockaddr_storage normalized(const sockaddr_storage& in) {
 }
 
 bool is_wildcard(const sockaddr_storage& a) {
-  if (a.ss_family == AF_INET) return reinterpret_cast<const sockaddr_in&>(a).sin_addr.s_addr == htonl(INADDR_ANY);
-  if (a.ss_family == AF_INET6) return IN6_IS_ADDR_UNSPECIFIED(&reinterpret_cast<const sockaddr_in6&>(a).sin6_addr);
+  if (a.ss_family == AF_INET)
+    return reinterpret_cast<const sockaddr_in&>(a).sin_addr.s_addr == htonl(INADDR_ANY);
+  if (a.ss_family == AF_INET6)
+    return IN6_IS_ADDR_UNSPECIFIED(&reinterpret_cast<const sockaddr_in6&>(a).sin6_addr);
   return false;
 }
 
@@ -49,7 +51,8 @@ bool same_address(const sockaddr_storage& a, const sockaddr_storage& b) {
            reinterpret_cast<const sockaddr_in&>(b).sin_addr.s_addr;
   const auto& x = reinterpret_cast<const sockaddr_in6&>(a);
   const auto& y = reinterpret_cast<const sockaddr_in6&>(b);
-  return std::memcmp(&x.sin6_addr, &y.sin6_addr, sizeof x.sin6_addr) == 0 && x.sin6_scope_id == y.sin6_scope_id;
+  return std::memcmp(&x.sin6_addr, &y.sin6_addr, sizeof x.sin6_addr) == 0 &&
+         x.sin6_scope_id == y.sin6_scope_id;
 }
 
 // Whether listening on both, on one port, fails on Linux (both transports set SO_REUSEADDR,
@@ -79,7 +82,8 @@ std::string address_text(const sockaddr_storage& a) {
 // "127.0.0.1:4000", "[::1]:4000".
 std::string endpoint_text(const Listener& l) {
   std::string address = address_text(l.address);
-  return (l.address.ss_family == AF_INET6 ? "[" + address + "]" : address) + ":" + std::to_string(l.port);
+  return (l.address.ss_family == AF_INET6 ? "[" + address + "]" : address) + ":" +
+         std::to_string(l.port);
 }
 
 // Binds a throwaway TCP socket to `l`'s address on port 0 (never listening): the error the
@@ -93,7 +97,8 @@ int bind_error(const Listener& l) {
   } else {
     reinterpret_cast<sockaddr_in6&>(probe).sin6_port = 0;
   }
-  int error = ::bind(fd, reinterpret_cast<const sockaddr*>(&probe), l.address_size) == 0 ? 0 : errno;
+  int error =
+      ::bind(fd, reinterpret_cast<const sockaddr*>(&probe), l.address_size) == 0 ? 0 : errno;
   ::close(fd);
   return error;
 }
@@ -110,7 +115,8 @@ std::optional<Listener> listener_of(const std::string& plugin_name, const Transp
   l.transport = &t;
   l.host = k_default_host;
   l.port = plugin->default_port;
-  if (auto it = t.options.find("host"); it != t.options.end() && it->is_string()) l.host = it->get<std::string>();
+  if (auto it = t.options.find("host"); it != t.options.end() && it->is_string())
+    l.host = it->get<std::string>();
   if (auto it = t.options.find("port"); it != t.options.end() && it->is_number_integer()) {
     l.port = it->get<int>();
     l.port_configured = true;
@@ -137,10 +143,12 @@ void check_listeners(const std::vector<Listener>& listeners, ConfigErrors& error
     if (!is_wildcard(l.address)) {
       int error = bind_error(l);
       if (error == EADDRNOTAVAIL || error == EAFNOSUPPORT) {
-        errors.add(path + ".options.host: expected an address of this machine (127.0.0.1, ::1, one of its "
-                          "interfaces', or 0.0.0.0 / :: for all), found '" + l.host + "'" +
-                   (l.host == address_text(l.address) ? "" : " (" + address_text(l.address) + ")") + ": " +
-                   std::strerror(error));
+        errors.add(path +
+                   ".options.host: expected an address of this machine (127.0.0.1, ::1, one of its "
+                   "interfaces', or 0.0.0.0 / :: for all), found '" +
+                   l.host + "'" +
+                   (l.host == address_text(l.address) ? "" : " (" + address_text(l.address) + ")") +
+                   ": " + std::strerror(error));
         continue;
       }
     }

@@ -27,10 +27,12 @@ namespace {
 // loopback, at `base` and base + 1 (their usual ports 4000 and 4001 by default; 0: both
 // ports the kernel picks).
 json default_model_document(int base) {
-  return {{"transports",
-           {{"socket", {{"plugin", "socket"}, {"options", {{"host", "127.0.0.1"}, {"port", base}}}}},
-            {"jsonrpc",
-             {{"plugin", "jsonrpc"}, {"options", {{"host", "127.0.0.1"}, {"port", base == 0 ? 0 : base + 1}}}}}}}};
+  return {
+      {"transports",
+       {{"socket", {{"plugin", "socket"}, {"options", {{"host", "127.0.0.1"}, {"port", base}}}}},
+        {"jsonrpc",
+         {{"plugin", "jsonrpc"},
+          {"options", {{"host", "127.0.0.1"}, {"port", base == 0 ? 0 : base + 1}}}}}}}};
 }
 
 // The deployment of `--model FILE.xml [CONFIG]`: the model's robots (model_robots.h), each
@@ -43,26 +45,33 @@ Deployment model_deployment(const RunArgs& args, ConfigErrors& errors) {
   try {
     robots = sim::find_model_robots(sim::Model::load_file(model_file));
   } catch (const std::exception& e) {
-    throw ConfigError("--model: expected a loadable MJCF model, found an error: " + std::string(e.what()));
+    throw ConfigError("--model: expected a loadable MJCF model, found an error: " +
+                      std::string(e.what()));
   }
   if (args.port && !args.config.empty())
-    throw UsageError("--port: only for --model without CONFIG (CONFIG's transports name their own ports)");
+    throw UsageError(
+        "--port: only for --model without CONFIG (CONFIG's transports name their own ports)");
   const int port_base = args.port ? parse_int("--port", *args.port, 0, 65534) : 4000;
-  json document = args.config.empty() ? default_model_document(port_base) : load_config_document(args.config);
-  if (!document.is_object()) return parse_deployment(document, ".", args.config, errors);  // its own error
-  json scene = document.contains("scene") && document["scene"].is_object() ? document["scene"] : json::object();
+  json document =
+      args.config.empty() ? default_model_document(port_base) : load_config_document(args.config);
+  if (!document.is_object())
+    return parse_deployment(document, ".", args.config, errors);  // its own error
+  json scene = document.contains("scene") && document["scene"].is_object() ? document["scene"]
+                                                                           : json::object();
   scene["mjcf"] = model_file;
   document["scene"] = scene;
   document["robots"] = json::array();
-  for (const auto& r : robots) document["robots"].push_back({{"name", r.name}, {"type", "mjcf"}, {"body", r.body}});
+  for (const auto& r : robots)
+    document["robots"].push_back({{"name", r.name}, {"type", "mjcf"}, {"body", r.body}});
   document.erase("services");
-  const std::string base =
-      args.config.empty() ? std::filesystem::current_path().string()
-                          : std::filesystem::absolute(args.config).parent_path().string();
+  const std::string base = args.config.empty()
+                               ? std::filesystem::current_path().string()
+                               : std::filesystem::absolute(args.config).parent_path().string();
   return parse_deployment(document, base, args.config, errors);
 }
 
-void write_endpoints_file(const std::string& path, const std::map<std::string, std::vector<std::string>>& endpoints) {
+void write_endpoints_file(const std::string& path,
+                          const std::map<std::string, std::vector<std::string>>& endpoints) {
   // written whole, then renamed: a reader never sees half a file
   std::string tmp = path + ".tmp" + std::to_string(getpid());
   {
@@ -88,8 +97,8 @@ std::optional<std::pair<std::string, std::string>> tcp_host_port(const std::stri
 // "2 robot(s), 8 component(s)": a component is anything a transport serves (robots, their
 // actuators and sensors, simulation, time), counted the same everywhere
 std::string counts(const Deployment& d) {
-  return std::to_string(d.robots.size()) + " robot(s), " + std::to_string(d.component_names().size()) +
-         " component(s)";
+  return std::to_string(d.robots.size()) + " robot(s), " +
+         std::to_string(d.component_names().size()) + " component(s)";
 }
 
 void print_banner(Gateway& g) {
@@ -100,15 +109,17 @@ void print_banner(Gateway& g) {
   std::error_code ec;
   auto relative = std::filesystem::relative(d.mjcf, std::filesystem::current_path(), ec);
   if (!ec && !relative.empty() && relative.begin()->string() != "..") scene = relative.string();
-  std::cout << "simgate " << SIMGATE_VERSION << ": scene " << scene << ", " << counts(d) << ", timestep "
-            << sim.timestep() << " s, "
-            << (sim.realtime_factor() == 0 ? std::string("as fast as possible")
-                                           : "real time x" + std::to_string(sim.realtime_factor()).substr(0, 4))
+  std::cout << "simgate " << SIMGATE_VERSION << ": scene " << scene << ", " << counts(d)
+            << ", timestep " << sim.timestep() << " s, "
+            << (sim.realtime_factor() == 0
+                    ? std::string("as fast as possible")
+                    : "real time x" + std::to_string(sim.realtime_factor()).substr(0, 4))
             << "\n";
   // what each robot is made of (a robot of type mjcf: what the model gave it)
   for (const auto& r : d.robots) {
     std::string parts;
-    for (const auto& c : r.components) parts += (parts.empty() ? "" : ", ") + c.name.substr(r.robot.name.size() + 1);
+    for (const auto& c : r.components)
+      parts += (parts.empty() ? "" : ", ") + c.name.substr(r.robot.name.size() + 1);
     std::cout << "robot " << r.robot.name << " (" << r.robot.type << ", body " << r.robot.body
               << "): " << (parts.empty() ? "no components" : parts) << "\n";
   }
@@ -117,7 +128,8 @@ void print_banner(Gateway& g) {
   for (const auto& [name, endpoints] : g.endpoints()) {
     for (const auto& e : endpoints) {
       std::cout << name << ": " << e << "\n";
-      auto t = std::find_if(d.transports.begin(), d.transports.end(), [&](const auto& c) { return c.name == name; });
+      auto t = std::find_if(d.transports.begin(), d.transports.end(),
+                            [&](const auto& c) { return c.name == name; });
       if (!socket_address && t != d.transports.end() && t->plugin == "socket") {
         socket_address = tcp_host_port(e);
         socket_name = name;
@@ -128,7 +140,8 @@ void print_banner(Gateway& g) {
     for (const auto& c : served) list += (list.empty() ? "" : ", ") + c;
     std::cout << "  serves: " << (list.empty() ? "(nothing)" : list) << "\n";
     // its allow and deny lists, when it has any: what its clients may call is narrower
-    auto t = std::find_if(d.transports.begin(), d.transports.end(), [&](const auto& c) { return c.name == name; });
+    auto t = std::find_if(d.transports.begin(), d.transports.end(),
+                          [&](const auto& c) { return c.name == name; });
     if (t != d.transports.end() && !t->access.allows_everything())
       std::cout << "  services: " << t->access.describe() << "\n";
     // the web app a websocket transport serves on its port (docs/web.md), unless turned off
@@ -142,8 +155,8 @@ void print_banner(Gateway& g) {
     // transport (another transport's component is not), else ask for the robots
     std::string first = "1 simulation list_robots";
     const auto& served = g.served().at(socket_name);
-    const auto socket_config =
-        std::find_if(d.transports.begin(), d.transports.end(), [&](const auto& c) { return c.name == socket_name; });
+    const auto socket_config = std::find_if(d.transports.begin(), d.transports.end(),
+                                            [&](const auto& c) { return c.name == socket_name; });
     for (const auto& r : d.robots)
       for (const auto& c : r.components) {
         bool on_socket = std::find(served.begin(), served.end(), c.name) != served.end() &&
@@ -151,8 +164,8 @@ void print_banner(Gateway& g) {
         if (c.type == "motion_vw" && on_socket && first.rfind("1 simulation", 0) == 0)
           first = "1 " + c.name + " set_speed [0.5, 0.2]";
       }
-    std::cout << "try: telnet " << socket_address->first << " " << socket_address->second << "   then type: " << first
-              << "\n";
+    std::cout << "try: telnet " << socket_address->first << " " << socket_address->second
+              << "   then type: " << first << "\n";
   }
   std::cout << "Ctrl-C (or `simulation quit`) stops the simulation.\n" << std::flush;
 }
@@ -173,18 +186,19 @@ struct StatusSample {
 // reset of the simulation clock does not count as going backwards).
 std::string status_line(const StatusSample& before, const StatusSample& now) {
   double wall = std::chrono::duration<double>(now.wall - before.wall).count();
-  double factor = wall > 0 ? static_cast<double>(now.steps - before.steps) * now.timestep / wall : 0.0;
+  double factor =
+      wall > 0 ? static_cast<double>(now.steps - before.steps) * now.timestep / wall : 0.0;
   double rate = wall > 0 ? static_cast<double>(now.requests - before.requests) / wall : 0.0;
   std::ostringstream line;
-  line << std::fixed << "status: sim " << std::setprecision(3) << now.sim_time << " s, real-time factor "
-       << std::setprecision(2) << factor << " (target ";
+  line << std::fixed << "status: sim " << std::setprecision(3) << now.sim_time
+       << " s, real-time factor " << std::setprecision(2) << factor << " (target ";
   if (now.target_factor == 0) {
     line << "max";
   } else {
     line << now.target_factor;
   }
-  line << "), " << now.clients << (now.clients == 1 ? " client, " : " clients, ") << std::setprecision(0) << rate
-       << " requests/s\n";
+  line << "), " << now.clients << (now.clients == 1 ? " client, " : " clients, ")
+       << std::setprecision(0) << rate << " requests/s\n";
   return line.str();
 }
 
@@ -251,18 +265,19 @@ class StatusReporter {
     return s;
   }
 
-  sim::Simulation& simulation_;                    // read, never changed
-  std::chrono::steady_clock::duration interval_;   // between two lines
-  std::mutex mutex_;                               // guards stopping_
-  std::condition_variable wake_;                   // stop() was called
-  bool stopping_ = false;                          // the thread must end
-  std::thread thread_;                             // prints the lines
+  sim::Simulation& simulation_;                   // read, never changed
+  std::chrono::steady_clock::duration interval_;  // between two lines
+  std::mutex mutex_;                              // guards stopping_
+  std::condition_variable wake_;                  // stop() was called
+  bool stopping_ = false;                         // the thread must end
+  std::thread thread_;                            // prints the lines
 };
 
 }  // namespace
 
 Deployment load_deployment_args(const RunArgs& args, ConfigErrors& errors) {
-  if (args.port && !args.model) throw UsageError("--port: only with --model (a config names its transports' ports)");
+  if (args.port && !args.model)
+    throw UsageError("--port: only with --model (a config names its transports' ports)");
   Deployment d = args.model ? model_deployment(args, errors) : load_deployment(args.config, errors);
   const std::optional<std::string>& cli_level = args.log_level;
   if (cli_level) {
@@ -274,8 +289,8 @@ Deployment load_deployment_args(const RunArgs& args, ConfigErrors& errors) {
 }
 
 std::unique_ptr<Gateway> build_gateway(const RunArgs& args, const Deployment& deployment,
-                                       const sim::ComponentRegistry& registry, GatewayOptions options,
-                                       ConfigErrors errors) {
+                                       const sim::ComponentRegistry& registry,
+                                       GatewayOptions options, ConfigErrors errors) {
   try {
     return std::make_unique<Gateway>(deployment, registry, std::move(options), std::move(errors));
   } catch (const ConfigError& e) {
@@ -305,13 +320,19 @@ int cmd_run(const RunArgs& args, bool check_only) {
   ConfigErrors errors;
   Deployment deployment = load_deployment_args(args, errors);
   auto registry = sim::builtin_registry();
-  std::unique_ptr<Gateway> built = build_gateway(args, deployment, registry, options, std::move(errors));
+  std::unique_ptr<Gateway> built =
+      build_gateway(args, deployment, registry, options, std::move(errors));
   Gateway& gateway = *built;
-  const std::string source = args.config.empty() ? *args.model : args.config;  // names it in messages
+  const std::string source =
+      args.config.empty() ? *args.model : args.config;  // names it in messages
   if (check_only) {
     for (const auto& w : gateway.warnings()) std::cout << "warning: " << w << "\n";
-    std::cout << source << ": OK (" << counts(gateway.deployment()) << ", " << deployment.transports.size()
-              << " transport(s)" << (gateway.warnings().empty() ? "" : ", " + std::to_string(gateway.warnings().size()) + " warning(s)") << ")\n";
+    std::cout << source << ": OK (" << counts(gateway.deployment()) << ", "
+              << deployment.transports.size() << " transport(s)"
+              << (gateway.warnings().empty()
+                      ? ""
+                      : ", " + std::to_string(gateway.warnings().size()) + " warning(s)")
+              << ")\n";
     return 0;
   }
   for (const auto& w : gateway.warnings()) log::warning("config '", source, "': ", w);

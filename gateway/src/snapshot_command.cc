@@ -32,22 +32,25 @@ std::pair<long long, long long> parse_size(const std::string& text) {
       if (used_w == w.size() && used_h == h.size() && width >= 1 && height >= 1 &&
           width <= sim::SnapshotOptions::k_max_size && height <= sim::SnapshotOptions::k_max_size)
         return {width, height};
-    } catch (const std::exception&) {
-    }
+    } catch (const std::exception&) {}
   }
   throw UsageError("--size: expected WIDTHxHEIGHT in pixels, each an integer from 1 to " +
-                   std::to_string(sim::SnapshotOptions::k_max_size) + " (e.g. 640x480), found '" + text + "'");
+                   std::to_string(sim::SnapshotOptions::k_max_size) + " (e.g. 640x480), found '" +
+                   text + "'");
 }
 
 // OUT must be a file in an existing directory; checked before anything is rendered.
 void check_output(const std::string& out) {
   namespace fs = std::filesystem;
   std::error_code ec;
-  if (fs::is_directory(out, ec)) throw UsageError("OUT: '" + out + "' is a directory; expected a file name (out.png)");
+  if (fs::is_directory(out, ec))
+    throw UsageError("OUT: '" + out + "' is a directory; expected a file name (out.png)");
   const fs::path dir = fs::absolute(out, ec).parent_path();
-  if (!fs::is_directory(dir, ec)) throw std::runtime_error("cannot write '" + out + "': no directory " + dir.string());
+  if (!fs::is_directory(dir, ec))
+    throw std::runtime_error("cannot write '" + out + "': no directory " + dir.string());
   if (access(dir.c_str(), W_OK) != 0)
-    throw std::runtime_error("cannot write '" + out + "': " + std::strerror(errno) + " (" + dir.string() + ")");
+    throw std::runtime_error("cannot write '" + out + "': " + std::strerror(errno) + " (" +
+                             dir.string() + ")");
 }
 
 // Writes the PNG whole, then renames it into place: OUT is never half written.
@@ -77,7 +80,8 @@ void write_png(const std::string& out, const std::vector<std::uint8_t>& png) {
 // The record's image, decoded and written; one line on stdout saying what was written.
 int save(const SnapshotArgs& args, const json& record) {
   if (!record.is_object() || !record.contains("image") || !record["image"].is_string())
-    throw std::runtime_error("simulation get_snapshot answered no image: " + record.dump().substr(0, 200));
+    throw std::runtime_error("simulation get_snapshot answered no image: " +
+                             record.dump().substr(0, 200));
   std::vector<std::uint8_t> png;
   try {
     png = sim::base64_decode(record["image"].get<std::string>());
@@ -85,8 +89,9 @@ int save(const SnapshotArgs& args, const json& record) {
     throw std::runtime_error(std::string("the image received is not valid base64: ") + e.what());
   }
   write_png(args.out, png);
-  std::cout << args.out << ": " << record.value("width", 0) << "x" << record.value("height", 0) << " PNG, "
-            << png.size() << " bytes, camera " << record.value("camera", std::string("?")) << ", sim time "
+  std::cout << args.out << ": " << record.value("width", 0) << "x" << record.value("height", 0)
+            << " PNG, " << png.size() << " bytes, camera "
+            << record.value("camera", std::string("?")) << ", sim time "
             << record.value("timestamp", 0.0) << " s\n";
   return 0;
 }
@@ -96,10 +101,12 @@ int save(const SnapshotArgs& args, const json& record) {
 int cmd_snapshot(const SnapshotArgs& args) {
   const auto [width, height] = parse_size(args.size);
   const bool offline = !args.scene.config.empty() || args.scene.model;
-  if (offline && (args.client.host || args.client.port || args.client.domain || args.client.partition ||
-                  args.client.dds_config || args.client.token || args.client.transport != "socket"))
-    throw UsageError("either --config/--model (render the scene here) or the client options (ask a running "
-                     "simulation), not both");
+  if (offline &&
+      (args.client.host || args.client.port || args.client.domain || args.client.partition ||
+       args.client.dds_config || args.client.token || args.client.transport != "socket"))
+    throw UsageError(
+        "either --config/--model (render the scene here) or the client options (ask a running "
+        "simulation), not both");
   check_output(args.out);
   const std::string camera = args.camera.value_or("");
 
@@ -110,7 +117,10 @@ int cmd_snapshot(const SnapshotArgs& args) {
     Outcome outcome = client->call("simulation", "get_snapshot", params, timeout);
     if (outcome.status != Status::success) {
       std::cerr << "simgate: " << to_string(outcome.status) << ": "
-                << (!outcome.message.empty() ? outcome.message : outcome.value ? outcome.value->dump() : "") << "\n";
+                << (!outcome.message.empty() ? outcome.message
+                    : outcome.value          ? outcome.value->dump()
+                                             : "")
+                << "\n";
       return 1;
     }
     return save(args, outcome.value.value_or(json()));
@@ -120,19 +130,21 @@ int cmd_snapshot(const SnapshotArgs& args) {
   double seconds = 0;
   try {
     seconds = std::stod(args.client.timeout);
-  } catch (const std::exception&) {
-  }
-  if (!(seconds > 0)) throw UsageError("--timeout: expected a positive number of seconds, found '" + args.client.timeout + "'");
+  } catch (const std::exception&) {}
+  if (!(seconds > 0))
+    throw UsageError("--timeout: expected a positive number of seconds, found '" +
+                     args.client.timeout + "'");
   ConfigErrors errors;
   const Deployment deployment = load_deployment_args(args.scene, errors);
   GatewayOptions options;
   options.check_only = true;  // nothing listens
   options.plugin_dirs = args.scene.plugin_dirs;
   const sim::ComponentRegistry registry = sim::builtin_registry();
-  const std::unique_ptr<Gateway> gateway = build_gateway(args.scene, deployment, registry, options, std::move(errors));
+  const std::unique_ptr<Gateway> gateway =
+      build_gateway(args.scene, deployment, registry, options, std::move(errors));
   sim::Snapshotter snapshotter(gateway->simulation());
-  const json record = snapshotter.take({camera, width, height},
-                                       std::chrono::milliseconds(static_cast<long long>(seconds * 1000)));
+  const json record = snapshotter.take(
+      {camera, width, height}, std::chrono::milliseconds(static_cast<long long>(seconds * 1000)));
   return save(args, record);
 }
 

@@ -52,12 +52,12 @@ class StopSignals {
   StopSignals() {
     g_stop_requested = false;
     g_fd_to_interrupt = -1;
-    struct sigaction stop {};
+    struct sigaction stop{};
     stop.sa_handler = on_stop_signal;
     sigemptyset(&stop.sa_mask);
     ::sigaction(SIGINT, &stop, &old_int_);
     ::sigaction(SIGTERM, &stop, &old_term_);
-    struct sigaction ignore {};
+    struct sigaction ignore{};
     ignore.sa_handler = SIG_IGN;
     sigemptyset(&ignore.sa_mask);
     ::sigaction(SIGPIPE, &ignore, &old_pipe_);
@@ -79,7 +79,7 @@ class StopSignals {
   }
 
  private:
-  struct sigaction old_int_ {}, old_term_ {}, old_pipe_ {};
+  struct sigaction old_int_{}, old_term_{}, old_pipe_{};
 };
 
 // Sleeps until `when`, or less when a stop is asked.
@@ -91,7 +91,8 @@ void sleep_until_or_stop(Clock::time_point when) {
 // The time left until `until` (milliseconds::max() for none), at least 1 ms.
 std::chrono::milliseconds time_left(Clock::time_point until) {
   if (until == Clock::time_point::max()) return std::chrono::milliseconds::max();
-  return std::max(std::chrono::milliseconds(1), std::chrono::duration_cast<std::chrono::milliseconds>(until - Clock::now()));
+  return std::max(std::chrono::milliseconds(1),
+                  std::chrono::duration_cast<std::chrono::milliseconds>(until - Clock::now()));
 }
 
 // ---- which streams a transport carries
@@ -106,7 +107,8 @@ std::vector<StreamEntry> stream_entries(const json& list) {
   std::vector<StreamEntry> entries;
   for (const auto& s : list)
     if (s.is_object())
-      entries.push_back({s.value("component", std::string("?")), s.value("direction", std::string("?")),
+      entries.push_back({s.value("component", std::string("?")),
+                         s.value("direction", std::string("?")),
                          s.value("kind", std::string("?"))});
   return entries;
 }
@@ -124,21 +126,27 @@ std::string describe(const std::vector<StreamEntry>& entries, const std::string&
 // Throws (exit 1) unless `component` has a stream going `direction` on this transport; the
 // message says which streams there are.
 void require_stream(const std::vector<StreamEntry>& entries, const std::string& component,
-                    const std::string& direction, const std::string& transport, const std::string& command) {
+                    const std::string& direction, const std::string& transport,
+                    const std::string& command) {
   const bool out = direction == "OUT";
   for (const auto& e : entries) {
     if (e.component != component) continue;
     if (e.direction == direction) return;
     throw std::runtime_error(
-        command + ": " + component + " is an " + (out ? "input" : "output") + " stream (" + e.direction + " " + e.kind +
-        "): " + (out ? "it takes commands (simgate publish " + component + " JSON_OBJECT)" : "it has samples to read (simgate watch " + component + ")") +
-        "; the " + (out ? "output" : "input") + " streams of the " + transport + " transport: " + describe(entries, direction));
+        command + ": " + component + " is an " + (out ? "input" : "output") + " stream (" +
+        e.direction + " " + e.kind + "): " +
+        (out ? "it takes commands (simgate publish " + component + " JSON_OBJECT)"
+             : "it has samples to read (simgate watch " + component + ")") +
+        "; the " + (out ? "output" : "input") + " streams of the " + transport +
+        " transport: " + describe(entries, direction));
   }
   std::vector<std::string> names;
   for (const auto& e : entries) names.push_back(e.component);
-  throw std::runtime_error(command + ": " + component + " has no stream on the " + transport + " transport" +
-                           did_you_mean(component, names) + "; its streams: " + describe(entries) +
-                           " (the configuration's \"streams\" section says which transports carry which, docs/streams.md)");
+  throw std::runtime_error(command + ": " + component + " has no stream on the " + transport +
+                           " transport" + did_you_mean(component, names) +
+                           "; its streams: " + describe(entries) +
+                           " (the configuration's \"streams\" section says which transports carry "
+                           "which, docs/streams.md)");
 }
 
 // ---- one transport's way to a stream
@@ -173,7 +181,8 @@ class SocketStreamLink : public StreamLink {
 
   std::optional<std::vector<StreamEntry>> streams() override {
     Outcome stats = client_->call("simulation", "get_stream_statistics", json::array(), timeout_);
-    if (stats.status != Status::success || !stats.value || !stats.value->is_array()) return std::nullopt;
+    if (stats.status != Status::success || !stats.value || !stats.value->is_array())
+      return std::nullopt;
     return stream_entries(*stats.value);
   }
 
@@ -200,27 +209,32 @@ class SocketStreamLink : public StreamLink {
 
   std::string published(int sent) const override {
     return commands_text(sent) + " written to stream port " + std::to_string(port_) +
-           " (the socket transport answers nothing there; simgate call simulation get_stream_statistics counts refusals)";
+           " (the socket transport answers nothing there; simgate call simulation "
+           "get_stream_statistics counts refusals)";
   }
 
  private:
   // Connects to the component's stream port, on the host of the service port.
   void open(const std::string& component) {
-    Outcome port = client_->call("simulation", "get_stream_port", json::array({component}), timeout_);
+    Outcome port =
+        client_->call("simulation", "get_stream_port", json::array({component}), timeout_);
     if (port.status != Status::success || !port.value || !port.value->is_number_integer())
-      throw std::runtime_error(command_ + ": " + component + ": simulation get_stream_port: " +
-                               (port.message.empty() ? (port.value ? port.value->dump() : std::string(to_string(port.status))) : port.message));
+      throw std::runtime_error(
+          command_ + ": " + component + ": simulation get_stream_port: " +
+          (port.message.empty()
+               ? (port.value ? port.value->dump() : std::string(to_string(port.status)))
+               : port.message));
     port_ = port.value->get<int>();
     // on the service port's host, with its token if it asked for one
     stream_ = dynamic_cast<client::SocketClient&>(*client_).open_stream_port(
         "simgate " + command_, static_cast<std::uint16_t>(port_), timeout_);
   }
 
-  std::string command_;                              // watch or publish, for messages
-  std::chrono::milliseconds timeout_;                // --timeout
-  std::unique_ptr<client::Client> client_;           // the service port
-  std::unique_ptr<client::LineConnection> stream_;   // the stream port, once open
-  int port_ = 0;                                     // its number
+  std::string command_;                             // watch or publish, for messages
+  std::chrono::milliseconds timeout_;               // --timeout
+  std::unique_ptr<client::Client> client_;          // the service port
+  std::unique_ptr<client::LineConnection> stream_;  // the stream port, once open
+  int port_ = 0;                                    // its number
 };
 
 // JSON-RPC's way (over TCP lines or WebSocket messages): rpc.subscribe, rpc.sample
@@ -230,8 +244,11 @@ template <class Rpc>
 class RpcStreamLink : public StreamLink {
  public:
   RpcStreamLink(const ClientTarget& target, std::string command)
-      : command_(std::move(command)), transport_(target.transport), timeout_(target.timeout),
-        client_(client::make_client(target.transport, target.options)), rpc_(dynamic_cast<Rpc&>(*client_)) {}
+      : command_(std::move(command)),
+        transport_(target.transport),
+        timeout_(target.timeout),
+        client_(client::make_client(target.transport, target.options)),
+        rpc_(dynamic_cast<Rpc&>(*client_)) {}
 
   std::optional<std::vector<StreamEntry>> streams() override {
     json response = rpc_.request("rpc.streams", nullptr, timeout_);
@@ -242,7 +259,8 @@ class RpcStreamLink : public StreamLink {
   void subscribe(const std::string& component) override {
     // a read of the WebSocket cannot be cut in slices (a timeout breaks it): Ctrl-C shuts
     // its socket down instead
-    if constexpr (std::is_same_v<Rpc, client::WebSocketClient>) StopSignals::interrupt_on_stop(rpc_.native_handle());
+    if constexpr (std::is_same_v<Rpc, client::WebSocketClient>)
+      StopSignals::interrupt_on_stop(rpc_.native_handle());
     json response = rpc_.request("rpc.subscribe", {{"component", component}}, timeout_);
     if (!response.contains("result")) throw refusal("rpc.subscribe", component, response);
     component_ = component;
@@ -267,7 +285,8 @@ class RpcStreamLink : public StreamLink {
       const std::string method = message->value("method", "");
       if (method == "rpc.sample") return params.value("data", json()).dump();
       if (method == "rpc.unsubscribed")
-        throw std::runtime_error(command_ + ": " + component_ + ": the stream ended: " + params.value("reason", std::string("?")));
+        throw std::runtime_error(command_ + ": " + component_ +
+                                 ": the stream ended: " + params.value("reason", std::string("?")));
     }
     return std::nullopt;
   }
@@ -282,7 +301,8 @@ class RpcStreamLink : public StreamLink {
   }
 
   void publish(const std::string& component, const json& data) override {
-    json response = rpc_.request("rpc.publish", {{"component", component}, {"data", data}}, timeout_);
+    json response =
+        rpc_.request("rpc.publish", {{"component", component}, {"data", data}}, timeout_);
     if (!response.contains("result")) throw refusal("rpc.publish", component, response);
     ++(response["result"].value("applied", false) ? applied_ : queued_);
   }
@@ -294,12 +314,14 @@ class RpcStreamLink : public StreamLink {
 
  private:
   // The server's error response as a failure of this command (exit 1).
-  std::runtime_error refusal(const std::string& method, const std::string& component, const json& response) const {
+  std::runtime_error refusal(const std::string& method, const std::string& component,
+                             const json& response) const {
     const json error = response.value("error", json::object());
-    std::string text = command_ + ": " + component + ": " + transport_ + " " + method + " refused: " +
-                       error.value("message", response.dump());
+    std::string text = command_ + ": " + component + ": " + transport_ + " " + method +
+                       " refused: " + error.value("message", response.dump());
     const json data = error.value("data", json::object());
-    if (data.is_object() && data.contains("streams")) text += " (streams: " + data["streams"].dump() + ")";
+    if (data.is_object() && data.contains("streams"))
+      text += " (streams: " + data["streams"].dump() + ")";
     return std::runtime_error(text);
   }
 
@@ -313,28 +335,32 @@ class RpcStreamLink : public StreamLink {
   int applied_ = 0, queued_ = 0;            // rpc.publish's answers: applied at once or not
 };
 
-std::unique_ptr<StreamLink> connect_stream_link(const ClientTarget& target, const std::string& command) {
+std::unique_ptr<StreamLink> connect_stream_link(const ClientTarget& target,
+                                                const std::string& command) {
   if (target.transport == "dds")
-    throw UsageError(command + ": --transport dds: DDS carries streams as typed topics of their own "
-                     "(simgate/<component>, simgate/<component>/json), read and written with a DDS reader or "
-                     "writer: docs/transports/dds.md, \"Data streams\"; simgate " + command +
-                     " speaks socket, jsonrpc and websocket");
-  if (target.transport == "jsonrpc") return std::make_unique<RpcStreamLink<client::JsonRpcClient>>(target, command);
+    throw UsageError(
+        command +
+        ": --transport dds: DDS carries streams as typed topics of their own "
+        "(simgate/<component>, simgate/<component>/json), read and written with a DDS reader or "
+        "writer: docs/transports/dds.md, \"Data streams\"; simgate " +
+        command + " speaks socket, jsonrpc and websocket");
+  if (target.transport == "jsonrpc")
+    return std::make_unique<RpcStreamLink<client::JsonRpcClient>>(target, command);
   if (target.transport == "websocket")
     return std::make_unique<RpcStreamLink<client::WebSocketClient>>(target, command);
   return std::make_unique<SocketStreamLink>(target, command);
 }
 
 // A number > 0 and <= max (--rate).
-double parse_positive(const std::string& option, const std::string& text, double max, const std::string& unit) {
+double parse_positive(const std::string& option, const std::string& text, double max,
+                      const std::string& unit) {
   try {
     std::size_t used = 0;
     double value = std::stod(text, &used);
     if (used == text.size() && value > 0 && value <= max) return value;
-  } catch (const std::exception&) {
-  }
-  throw UsageError(option + ": expected a number of " + unit + " above 0, up to " + std::to_string(static_cast<long>(max)) +
-                   ", found '" + text + "'");
+  } catch (const std::exception&) {}
+  throw UsageError(option + ": expected a number of " + unit + " above 0, up to " +
+                   std::to_string(static_cast<long>(max)) + ", found '" + text + "'");
 }
 
 }  // namespace
@@ -342,15 +368,18 @@ double parse_positive(const std::string& option, const std::string& text, double
 int cmd_watch(const WatchArgs& args) {
   const int count = args.count ? parse_int("--count", *args.count, 1, INT_MAX) : INT_MAX;
   const std::optional<double> duration =
-      args.duration ? std::optional(parse_seconds("--duration", *args.duration, 0.001, 1e8)) : std::nullopt;
+      args.duration ? std::optional(parse_seconds("--duration", *args.duration, 0.001, 1e8))
+                    : std::nullopt;
   const ClientTarget target = client_target(args.client);
   StopSignals signals;
   auto link = connect_stream_link(target, "watch");
-  if (auto streams = link->streams()) require_stream(*streams, args.component, "OUT", target.transport, "watch");
+  if (auto streams = link->streams())
+    require_stream(*streams, args.component, "OUT", target.transport, "watch");
   try {
     // the duration counts from the subscription: the samples it covers
     link->subscribe(args.component);
-    const auto until = duration ? Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(*duration))
+    const auto until = duration ? Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                                     std::chrono::duration<double>(*duration))
                                 : Clock::time_point::max();
     for (int printed = 0; printed < count; ++printed) {
       std::optional<std::string> sample = link->next_sample(until);
@@ -369,16 +398,21 @@ int cmd_watch(const WatchArgs& args) {
 int cmd_publish(const PublishArgs& args) {
   const json data = json::parse(args.data, nullptr, false);
   if (data.is_discarded() || !data.is_object())
-    throw UsageError("publish: JSON_OBJECT: expected one JSON object, such as '{\"v\": 0.5, \"w\": 0}', found " +
-                     (data.is_discarded() ? std::string("text that is not JSON") : std::string("a JSON ") + data.type_name()) +
-                     ": '" + args.data + "' (quote it for the shell)");
+    throw UsageError(
+        "publish: JSON_OBJECT: expected one JSON object, such as '{\"v\": 0.5, \"w\": 0}', found " +
+        (data.is_discarded() ? std::string("text that is not JSON")
+                             : std::string("a JSON ") + data.type_name()) +
+        ": '" + args.data + "' (quote it for the shell)");
   const int count = args.count ? parse_int("--count", *args.count, 1, 1000000) : 1;
-  const double rate = args.rate ? parse_positive("--rate", *args.rate, 10000, "commands per second") : 10.0;
+  const double rate =
+      args.rate ? parse_positive("--rate", *args.rate, 10000, "commands per second") : 10.0;
   const ClientTarget target = client_target(args.client);
   StopSignals signals;
   auto link = connect_stream_link(target, "publish");
-  if (auto streams = link->streams()) require_stream(*streams, args.component, "IN", target.transport, "publish");
-  const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / rate));
+  if (auto streams = link->streams())
+    require_stream(*streams, args.component, "IN", target.transport, "publish");
+  const auto period =
+      std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / rate));
   auto next = Clock::now();
   int sent = 0;
   while (sent < count && !StopSignals::stop_requested()) {

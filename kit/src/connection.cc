@@ -19,7 +19,9 @@ namespace {
 // Given back since the last sweep past which the sweep returns free memory to the system.
 constexpr std::size_t k_trim_after_bytes = 8 << 20;
 
-bool would_block(const error_code& ec) { return ec == asio::error::would_block || ec == asio::error::try_again; }
+bool would_block(const error_code& ec) {
+  return ec == asio::error::would_block || ec == asio::error::try_again;
+}
 
 // "0.5", "60": a timeout's seconds as the options spell them, for messages.
 std::string seconds_text(std::chrono::milliseconds duration) {
@@ -31,9 +33,13 @@ std::string seconds_text(std::chrono::milliseconds duration) {
 
 // ---- Connection
 
-Connection::Connection(asio::ip::tcp::socket socket, ConnectionServer& server, ConnectionLimits limits,
-                       std::string_view who, std::uint64_t number)
-    : limits_(limits), who_(who), socket_(std::move(socket)), server_(server), number_(number),
+Connection::Connection(asio::ip::tcp::socket socket, ConnectionServer& server,
+                       ConnectionLimits limits, std::string_view who, std::uint64_t number)
+    : limits_(limits),
+      who_(who),
+      socket_(std::move(socket)),
+      server_(server),
+      number_(number),
       read_buffer_(limits.read_bytes) {
   error_code ec;
   const auto peer = socket_.remote_endpoint(ec);
@@ -43,7 +49,8 @@ Connection::Connection(asio::ip::tcp::socket socket, ConnectionServer& server, C
     peer_ = peer.address();
   }
   socket_.set_option(asio::ip::tcp::no_delay(true), ec);  // replies are small: no Nagle delay
-  socket_.non_blocking(true, ec);  // reads on and writes go straight to the socket while it takes them
+  socket_.non_blocking(true,
+                       ec);  // reads on and writes go straight to the socket while it takes them
   active();  // idle from now on, not from the server's first sweep (a handshake may come first)
 }
 
@@ -78,7 +85,8 @@ bool Connection::paused() const {
 void Connection::start_reading(std::string_view first) {
   started_ = true;
   active();
-  if (!first.empty()) guarded([&] {
+  if (!first.empty())
+    guarded([&] {
       consume(first);
       if (!closed_) server_.on_messages_done(*this, /*read_finished=*/true);
     });
@@ -86,17 +94,19 @@ void Connection::start_reading(std::string_view first) {
 }
 
 void Connection::read_more() {
-  if (shut_ || !started_ || reading_ || eof_ || paused()) return;  // paused: backpressure instead of queues
+  if (shut_ || !started_ || reading_ || eof_ || paused())
+    return;  // paused: backpressure instead of queues
   reading_ = true;
-  if (!closed_ && server_.watch(*this)) return;  // the server's polling thread reads the socket (read_now)
+  if (!closed_ && server_.watch(*this))
+    return;  // the server's polling thread reads the socket (read_now)
   read_async();
 }
 
 void Connection::read_async() {
   if (shut_) return;
-  socket_.async_read_some(asio::buffer(read_buffer_), [self = shared_from_this()](const error_code& ec, std::size_t n) {
-    self->on_read(ec, n);
-  });
+  socket_.async_read_some(
+      asio::buffer(read_buffer_),
+      [self = shared_from_this()](const error_code& ec, std::size_t n) { self->on_read(ec, n); });
 }
 
 bool Connection::read_now() {
@@ -221,21 +231,24 @@ void Connection::start_write() {
   in_flight_.swap(outbox_);
   outbox_.clear();
   writing_ = true;
-  asio::async_write(socket_, asio::buffer(in_flight_), [self = shared_from_this()](const error_code& ec, std::size_t) {
-    self->writing_ = false;
-    if (!self->shut_) self->account(-static_cast<std::ptrdiff_t>(self->in_flight_.size()));  // close() took it
-    self->in_flight_.clear();
-    self->release_if_large(self->in_flight_);
-    if (self->shut_) return;
-    if (ec) {
-      self->close(ec.message());
-      return;
-    }
-    if (!self->outbox_.empty())
-      self->start_write();
-    else
-      self->after_write();
-  });
+  asio::async_write(
+      socket_, asio::buffer(in_flight_),
+      [self = shared_from_this()](const error_code& ec, std::size_t) {
+        self->writing_ = false;
+        if (!self->shut_)
+          self->account(-static_cast<std::ptrdiff_t>(self->in_flight_.size()));  // close() took it
+        self->in_flight_.clear();
+        self->release_if_large(self->in_flight_);
+        if (self->shut_) return;
+        if (ec) {
+          self->close(ec.message());
+          return;
+        }
+        if (!self->outbox_.empty())
+          self->start_write();
+        else
+          self->after_write();
+      });
 }
 
 void Connection::after_write() {
@@ -321,7 +334,8 @@ void ConnectionServer::close_all() {
 
 std::string ConnectionServer::refusal_reason(const boost::asio::ip::tcp::endpoint& peer) {
   if (full())
-    return "too many connections (" + connections_key_ + " " + std::to_string(max_connections_) + ")";
+    return "too many connections (" + connections_key_ + " " + std::to_string(max_connections_) +
+           ")";
   return per_peer_.refusal_reason(peer.address());
 }
 
@@ -362,18 +376,21 @@ void ConnectionServer::sweep() {
   // one warning per sweep and rule, each connection at debug level (a flood logs little)
   auto end = [&](std::vector<std::shared_ptr<Connection>>& which, const std::string& why) {
     if (which.empty()) return;
-    log::warning(who_, ": closed ", which.size(), which.size() == 1 ? " connection: " : " connections: ", why,
+    log::warning(who_, ": closed ", which.size(),
+                 which.size() == 1 ? " connection: " : " connections: ", why,
                  which.size() == 1 ? " (" + which.front()->label() + ")" : std::string());
     for (const auto& c : which) c->end(why, Ending::timeout);
   };
-  end(message_late, "a message not finished within " + seconds_text(line_timeout_) + " s (line_timeout_s)");
+  end(message_late,
+      "a message not finished within " + seconds_text(line_timeout_) + " s (line_timeout_s)");
   end(idle, "idle for " + seconds_text(idle_timeout_) + " s (idle_timeout_s)");
   for (const auto& c : all)
     if (!c->closed()) c->on_sweep(tick);  // keep-alives
   // the memory a burst used goes back to the system, not only to the allocator
   if (shared_.freed >= k_trim_after_bytes) {
     ::malloc_trim(0);
-    log::debug(who_, ": buffers of ", shared_.freed, " bytes freed since the last sweep; free memory returned to the system");
+    log::debug(who_, ": buffers of ", shared_.freed,
+               " bytes freed since the last sweep; free memory returned to the system");
     shared_.freed = 0;
   }
   if (!connections_.empty()) schedule_sweep(*connections_.begin());

@@ -13,8 +13,9 @@ constexpr std::size_t k_oversized_prefix = 1024;
 
 bool LineConnection::grow_line(std::string_view data) {
   if (!held().fits(data.size())) {
-    log::warning(who_, ": ", label_, " disconnected: its unfinished line would take the transport past ",
-                 held().max(), " bytes held for all connections (max_buffered_bytes)");
+    log::warning(who_, ": ", label_,
+                 " disconnected: its unfinished line would take the transport past ", held().max(),
+                 " bytes held for all connections (max_buffered_bytes)");
     close("max_buffered_bytes reached");
     return false;
   }

@@ -16,7 +16,8 @@ namespace simgate::kit {
 bool is_valid_close_code(std::uint16_t code) {
   // 1004-1006 and 1015 are reserved (never sent), 1016-2999 unassigned; 3000-4999 are for
   // libraries and applications
-  return (code >= 1000 && code <= 1003) || (code >= 1007 && code <= 1014) || (code >= 3000 && code <= 4999);
+  return (code >= 1000 && code <= 1003) || (code >= 1007 && code <= 1014) ||
+         (code >= 3000 && code <= 4999);
 }
 
 namespace asio = boost::asio;
@@ -26,7 +27,8 @@ namespace ws = beast::websocket;
 using asio::ip::tcp;
 using boost::system::error_code;
 
-WebSocketConnection::WebSocketConnection(tcp::socket socket, WebSocketServer& server, ConnectionLimits limits,
+WebSocketConnection::WebSocketConnection(tcp::socket socket, WebSocketServer& server,
+                                         ConnectionLimits limits,
                                          std::chrono::milliseconds keepalive, std::string_view who,
                                          std::uint64_t number)
     : Connection(std::move(socket), server, limits, who, number),
@@ -46,8 +48,9 @@ void WebSocketConnection::start() {
   timer_.async_wait([self = shared_self()](const error_code& ec) {
     if (!ec && !self->upgraded_) self->close("no WebSocket handshake within the handshake timeout");
   });
-  http::async_read(socket(), http_buffer_, *parser_,
-                   [self = shared_self()](const error_code& ec, std::size_t) { self->on_request(ec); });
+  http::async_read(
+      socket(), http_buffer_, *parser_,
+      [self = shared_self()](const error_code& ec, std::size_t) { self->on_request(ec); });
 }
 
 void WebSocketConnection::on_request(const error_code& ec) {
@@ -65,8 +68,9 @@ void WebSocketConnection::on_request(const error_code& ec) {
     set_framing_bytes(http_response_.own_bytes());  // its own bytes, until written
     std::vector<asio::const_buffer> buffers{asio::buffer(http_response_.head)};
     if (http_response_.body) buffers.push_back(asio::buffer(*http_response_.body));
-    asio::async_write(socket(), buffers,
-                      [self = shared_self()](const error_code&, std::size_t) { self->close("HTTP request answered"); });
+    asio::async_write(socket(), buffers, [self = shared_self()](const error_code&, std::size_t) {
+      self->close("HTTP request answered");
+    });
     return;
   }
   // Beast checks the upgrade and answers it (101, or 400 with the reason); the frames are ours
@@ -76,7 +80,8 @@ void WebSocketConnection::on_request(const error_code& ec) {
   }));
   auto request = parser_->release();
   parser_.reset();
-  upgrade_->async_accept(request, [self = shared_self()](const error_code& ec) { self->on_upgraded(ec); });
+  upgrade_->async_accept(request,
+                         [self = shared_self()](const error_code& ec) { self->on_upgraded(ec); });
 }
 
 void WebSocketConnection::on_upgraded(const error_code& ec) {
@@ -116,10 +121,11 @@ void WebSocketConnection::consume(std::string_view data) {
   set_framing_bytes(frames_.message_bytes_held());
   if (!closed() && frames_.message_bytes_held() > 0 && held().over()) [[unlikely]] {
     // the message it is sending may not take the transport's memory past its cap
-    log::warning(who_, ": ", label_, " disconnected: its unfinished message (", frames_.message_bytes_held(),
-                 " bytes so far) takes the transport past ", held().max(),
-                 " bytes held for all connections (max_buffered_bytes)");
-    close_with(ws::close_code::try_again_later, "the server holds too much for its clients (max_buffered_bytes)");
+    log::warning(who_, ": ", label_, " disconnected: its unfinished message (",
+                 frames_.message_bytes_held(), " bytes so far) takes the transport past ",
+                 held().max(), " bytes held for all connections (max_buffered_bytes)");
+    close_with(ws::close_code::try_again_later,
+               "the server holds too much for its clients (max_buffered_bytes)");
     set_framing_bytes(frames_.message_bytes_held());  // its message was let go
   }
 }
@@ -141,7 +147,8 @@ void WebSocketConnection::on_control(std::uint8_t opcode, std::string_view paylo
     if (!close_queued_) queue_frame(FrameParser::k_pong, payload);
     return;
   }
-  if (opcode == FrameParser::k_pong) return;  // the answer to a keep-alive ping (heard_tick_ is set)
+  if (opcode == FrameParser::k_pong)
+    return;  // the answer to a keep-alive ping (heard_tick_ is set)
   // a close frame: the handshake's end when we began it, else answered with its code
   if (payload.size() == 1) {
     protocol_error("a close frame of one byte");
@@ -192,7 +199,8 @@ void WebSocketConnection::on_sweep(std::uint32_t tick) {
 
 // ---- writing
 
-void WebSocketConnection::append_frame(std::string& out, std::uint8_t opcode, std::string_view payload) {
+void WebSocketConnection::append_frame(std::string& out, std::uint8_t opcode,
+                                       std::string_view payload) {
   char header[10];
   std::size_t size = 2;
   header[0] = static_cast<char>(0x80 | opcode);
@@ -249,7 +257,8 @@ void WebSocketConnection::close_with(ws::close_code code, std::string_view reaso
 }
 
 void WebSocketConnection::end(std::string_view reason, Ending how) {
-  close_with(how == Ending::timeout ? ws::close_code::going_away : ws::close_code::policy_error, reason);
+  close_with(how == Ending::timeout ? ws::close_code::going_away : ws::close_code::policy_error,
+             reason);
 }
 
 void WebSocketConnection::on_close() {

@@ -58,7 +58,8 @@ bool FrameParser::feed(std::string_view bytes, FrameSink& sink) {
       const std::size_t at = message_.size();
       message_.resize(at + n);
       char* out = message_.data() + at;
-      for (std::size_t i = 0; i < n; ++i) out[i] = static_cast<char>(p[i] ^ mask_[(mask_at_ + i) & 3]);
+      for (std::size_t i = 0; i < n; ++i)
+        out[i] = static_cast<char>(p[i] ^ mask_[(mask_at_ + i) & 3]);
     }
     mask_at_ += n;
     p += n;
@@ -70,8 +71,8 @@ bool FrameParser::feed(std::string_view bytes, FrameSink& sink) {
   return false;
 }
 
-FrameParser::Head FrameParser::read_head(const unsigned char* h, std::size_t avail, std::size_t& size,
-                                         std::size_t& header, FrameSink& sink) {
+FrameParser::Head FrameParser::read_head(const unsigned char* h, std::size_t avail,
+                                         std::size_t& size, std::size_t& header, FrameSink& sink) {
   if (avail < 2) {
     size = 2;
     return Head::more;
@@ -97,13 +98,16 @@ FrameParser::Head FrameParser::read_head(const unsigned char* h, std::size_t ava
   if (opcode >= 0x8) {
     // a control frame: whole, at most 125 bytes, handled once it is all here
     if (!fin || length > 125) return fail("a fragmented or long control frame", sink);
-    if (opcode != k_close && opcode != k_ping && opcode != k_pong) return fail("a reserved opcode", sink);
+    if (opcode != k_close && opcode != k_ping && opcode != k_pong)
+      return fail("a reserved opcode", sink);
     size = header + static_cast<std::size_t>(length);
     return avail < size ? Head::more : Head::control;
   }
   if (opcode > k_binary) return fail("a reserved opcode", sink);
-  if (opcode == k_continuation && !in_message_) return fail("a continuation frame with no message", sink);
-  if (opcode != k_continuation && in_message_) return fail("a new message inside a fragmented one", sink);
+  if (opcode == k_continuation && !in_message_)
+    return fail("a continuation frame with no message", sink);
+  if (opcode != k_continuation && in_message_)
+    return fail("a new message inside a fragmented one", sink);
   // a data frame begins
   if (opcode != k_continuation) {
     in_message_ = true;
@@ -121,11 +125,13 @@ FrameParser::Head FrameParser::read_head(const unsigned char* h, std::size_t ava
   return Head::data;
 }
 
-void FrameParser::control(const unsigned char* frame, std::size_t header, std::size_t size, FrameSink& sink) {
+void FrameParser::control(const unsigned char* frame, std::size_t header, std::size_t size,
+                          FrameSink& sink) {
   char payload[125];
   const std::size_t length = size - header;
   const unsigned char* key = frame + header - 4;
-  for (std::size_t i = 0; i < length; ++i) payload[i] = static_cast<char>(frame[header + i] ^ key[i & 3]);
+  for (std::size_t i = 0; i < length; ++i)
+    payload[i] = static_cast<char>(frame[header + i] ^ key[i & 3]);
   sink.on_control(frame[0] & 0x0F, std::string_view(payload, length));
 }
 

@@ -53,7 +53,8 @@ void with_png(json& record, const StreamPayload* pixels, std::uint64_t seq) {
   try {
     record = pixels->to_json(*pixels);
   } catch (const std::exception& e) {
-    log::warning("DDS transport: an image of reply ", seq, " could not be encoded as a PNG: ", e.what());
+    log::warning("DDS transport: an image of reply ", seq,
+                 " could not be encoded as a PNG: ", e.what());
   }
 }
 
@@ -68,7 +69,8 @@ void DdsRequestManager::write_finished() {
   write_finished(draining_, false);
 }
 
-void DdsRequestManager::write_finished(std::vector<std::pair<RequestId, Outcome>>& batch, bool final_flush) {
+void DdsRequestManager::write_finished(std::vector<std::pair<RequestId, Outcome>>& batch,
+                                       bool final_flush) {
   for (auto& [id, outcome] : batch) {
     auto p = pending_.find(id);
     if (p == pending_.end()) continue;
@@ -148,15 +150,16 @@ bool DdsRequestManager::send_images(const ClientId& id, ClientState& client, Rep
       rc = write_image_payload(client.image_writer, d.value("component", std::string()), reply.seq,
                                d.value("timestamp", 0.0), *pixels);
     } catch (const std::exception& e) {
-      log::warning("DDS transport: an image of reply ", reply.seq, " to client ", to_hex(id), " not written: ", e.what());
+      log::warning("DDS transport: an image of reply ", reply.seq, " to client ", to_hex(id),
+                   " not written: ", e.what());
       with_png(record, pixels, reply.seq);
       continue;
     }
     // its writer full (the images before it not acknowledged yet): this one and the rest later
     if (rc == DDS_RETCODE_TIMEOUT) return false;
     if (rc < 0) {
-      log::warning("DDS transport: an image of reply ", reply.seq, " to client ", to_hex(id), " stays a PNG: ",
-                   retcode_text(rc));
+      log::warning("DDS transport: an image of reply ", reply.seq, " to client ", to_hex(id),
+                   " stays a PNG: ", retcode_text(rc));
       with_png(record, pixels, reply.seq);
       continue;
     }
@@ -166,7 +169,8 @@ bool DdsRequestManager::send_images(const ClientId& id, ClientState& client, Rep
   return true;
 }
 
-bool DdsRequestManager::prepare_images(const ClientId& id, ClientState& client, ReplyData& reply, bool give_up) {
+bool DdsRequestManager::prepare_images(const ClientId& id, ClientState& client, ReplyData& reply,
+                                       bool give_up) {
   if (!reply.images) return true;
   // images raw on the client's image topic, when it reads it; else (or given up) the PNGs stay
   if (!give_up && !send_images(id, client, reply)) return false;
@@ -187,22 +191,26 @@ bool DdsRequestManager::takes_images_raw(const ClientId& id, ClientState& client
   // matches changed (a match moves the total, an unmatch the current count)
   dds_publication_matched_status_t status{};
   if (dds_get_publication_matched_status(client.image_writer, &status) < 0) return false;
-  if (status.total_count != client.image_matches_total || status.current_count != client.image_matches_current) {
+  if (status.total_count != client.image_matches_total ||
+      status.current_count != client.image_matches_current) {
     client.image_matches_total = status.total_count;
     client.image_matches_current = status.current_count;
-    client.images_raw = status.current_count > 0 && announced_reader_matched(client.image_writer, id);
+    client.images_raw =
+        status.current_count > 0 && announced_reader_matched(client.image_writer, id);
   }
   return client.images_raw;
 }
 
 bool DdsRequestManager::announced_reader_matched(dds_entity_t writer, const ClientId& id) {
   dds_publication_matched_status_t status{};
-  if (dds_get_publication_matched_status(writer, &status) < 0 || status.current_count == 0) return false;
+  if (dds_get_publication_matched_status(writer, &status) < 0 || status.current_count == 0)
+    return false;
   // a reader in the client's partition that announces its id: one that does not (or an
   // eavesdropper's, see docs) does not count
   std::vector<dds_instance_handle_t> handles(status.current_count + 4);
   dds_return_t n = dds_get_matched_subscriptions(writer, handles.data(), handles.size());
-  for (dds_return_t i = 0; i < std::min<dds_return_t>(n, static_cast<dds_return_t>(handles.size())); ++i) {
+  for (dds_return_t i = 0; i < std::min<dds_return_t>(n, static_cast<dds_return_t>(handles.size()));
+       ++i) {
     if (dds_builtintopic_endpoint_t* ep = dds_get_matched_subscription_data(writer, handles[i])) {
       const bool announced = client_id_from_userdata(ep->qos) == id;
       dds_builtintopic_free_endpoint(ep);
@@ -215,10 +223,12 @@ bool DdsRequestManager::announced_reader_matched(dds_entity_t writer, const Clie
 bool DdsRequestManager::ensure_progress_writer(const ClientId& id, ClientState& client) {
   if (client.progress_writer > 0) return true;
   if (client.progress_writer < 0) return false;  // failed before: not tried for every call
-  client.progress_writer = dds_create_writer(client.reply_publisher, progress_topic_, progress_qos_.get(), nullptr);
+  client.progress_writer =
+      dds_create_writer(client.reply_publisher, progress_topic_, progress_qos_.get(), nullptr);
   if (client.progress_writer < 0) {
-    log::error("DDS transport: client ", to_hex(id), " gets no progress reports: no progress writer: ",
-               retcode_text(client.progress_writer));
+    log::error(
+        "DDS transport: client ", to_hex(id),
+        " gets no progress reports: no progress writer: ", retcode_text(client.progress_writer));
     return false;
   }
   return true;
@@ -227,7 +237,8 @@ bool DdsRequestManager::ensure_progress_writer(const ClientId& id, ClientState& 
 void DdsRequestManager::send_reply(const ClientId& client_id, ReplyData reply, bool final_flush) {
   auto c = clients_.find(client_id);
   if (c == clients_.end() || c->second.gone) {
-    log::debug("DDS transport: reply ", reply.seq, " to client ", to_hex(client_id), " dropped: the client left");
+    log::debug("DDS transport: reply ", reply.seq, " to client ", to_hex(client_id),
+               " dropped: the client left");
     return;
   }
   ClientState& client = c->second;
@@ -247,8 +258,8 @@ void DdsRequestManager::send_reply(const ClientId& client_id, ReplyData reply, b
     client.images_stalled = !images_ready;
     client.retry_delay = k_min_retry_delay;
     client.retry_at = std::chrono::steady_clock::now() + client.retry_delay;
-    log::debug("DDS transport: the reply writer of client ", to_hex(client_id), " is full; reply ", reply.seq,
-               " parked");
+    log::debug("DDS transport: the reply writer of client ", to_hex(client_id), " is full; reply ",
+               reply.seq, " parked");
   } else if (!client.reader_matched) {
     log::debug("DDS transport: reply ", reply.seq, " to client ", to_hex(client_id),
                " parked until its reply reader matches");
@@ -299,19 +310,23 @@ dds_return_t DdsRequestManager::write_reply(const ClientId& client_id, const Cli
   return rc;
 }
 
-void DdsRequestManager::drop_reply(const ClientId& client_id, ClientState& client, const ReplyData& reply) {
+void DdsRequestManager::drop_reply(const ClientId& client_id, ClientState& client,
+                                   const ReplyData& reply) {
   // one line at once, then at most one per interval with the count: a client that never
   // reads must not flood the log either
   client.dropped += reply.seq_end > reply.seq ? reply.seq_end - reply.seq + 1 : 1;
   auto now = std::chrono::steady_clock::now();
-  if (client.logged_at != std::chrono::steady_clock::time_point{} && now - client.logged_at < k_drop_log_interval)
+  if (client.logged_at != std::chrono::steady_clock::time_point{} &&
+      now - client.logged_at < k_drop_log_interval)
     return;
   if (client.stalled)
     log::warning("DDS transport: client ", to_hex(client_id),
-                 " does not take its replies (its reply reader acknowledges nothing): ", client.dropped,
-                 " reply(ies) dropped, the latest to request ", reply.seq, "; other clients are not held up");
+                 " does not take its replies (its reply reader acknowledges nothing): ",
+                 client.dropped, " reply(ies) dropped, the latest to request ", reply.seq,
+                 "; other clients are not held up");
   else
-    log::warning("DDS transport: client ", to_hex(client_id), " has no reply reader matched: ", client.dropped,
+    log::warning("DDS transport: client ", to_hex(client_id),
+                 " has no reply reader matched: ", client.dropped,
                  " reply(ies) dropped, the latest to request ", reply.seq);
   client.logged_at = now;
   client.dropped = 0;
@@ -328,7 +343,8 @@ void DdsRequestManager::flush_parked(const ClientId& id, ClientState& client,
     // waited in vain goes with their PNGs at its deadline, not at the next retry of a backoff
     // that may end after it (it was dropped then)
     const bool images_given_up = expired && client.images_stalled;
-    bool attempt = (client.reader_matched || expired) && (images_given_up || !(client.stalled && now < client.retry_at));
+    bool attempt = (client.reader_matched || expired) &&
+                   (images_given_up || !(client.stalled && now < client.retry_at));
     if (attempt) {
       // (past its deadline, the images left go as PNGs in the reply)
       const bool images_ready = prepare_images(id, client, reply, expired);
@@ -342,7 +358,9 @@ void DdsRequestManager::flush_parked(const ClientId& id, ClientState& client,
         } else if (client.stalled) {
           // (with the drops not reported yet)
           log::info("DDS transport: client ", to_hex(id), " takes its replies again",
-                    client.dropped > 0 ? "; reply(ies) dropped meanwhile: " + std::to_string(client.dropped) : "");
+                    client.dropped > 0
+                        ? "; reply(ies) dropped meanwhile: " + std::to_string(client.dropped)
+                        : "");
           client.stalled = false;
           client.dropped = 0;
         }
@@ -351,9 +369,10 @@ void DdsRequestManager::flush_parked(const ClientId& id, ClientState& client,
         // took some of what was written (a client reading thousands of replies at once)
         // is retried soon, or its writer would idle most of the time and its replies expire
         client.stalled = true;
-        client.retry_delay = client.progressed_at == now
-                                 ? k_min_retry_delay
-                                 : std::min(std::max(client.retry_delay * 2, k_min_retry_delay), k_max_retry_delay);
+        client.retry_delay =
+            client.progressed_at == now
+                ? k_min_retry_delay
+                : std::min(std::max(client.retry_delay * 2, k_min_retry_delay), k_max_retry_delay);
         client.retry_at = now + client.retry_delay;
         attempt = false;
       }
@@ -429,10 +448,13 @@ void DdsRequestManager::add_client(dds_instance_handle_t writer) {
   QosPtr qos(dds_create_qos());
   dds_qset_partition1(qos.get(), partition.c_str());
   dds_entity_t publisher = dds_create_publisher(participant_->handle(), qos.get(), nullptr);
-  dds_entity_t reply_writer = publisher < 0 ? publisher : dds_create_writer(publisher, reply_topic_, reply_qos_.get(), nullptr);
+  dds_entity_t reply_writer =
+      publisher < 0 ? publisher
+                    : dds_create_writer(publisher, reply_topic_, reply_qos_.get(), nullptr);
   if (reply_writer < 0 || dds_set_status_mask(reply_writer, DDS_PUBLICATION_MATCHED_STATUS) < 0 ||
       dds_waitset_attach(waitset_, reply_writer, static_cast<dds_attach_t>(reply_writer)) < 0) {
-    log::error("DDS transport: client ", to_hex(id), " cannot be served: no reply writer in partition '", partition,
+    log::error("DDS transport: client ", to_hex(id),
+               " cannot be served: no reply writer in partition '", partition,
                "': ", retcode_text(reply_writer < 0 ? reply_writer : DDS_RETCODE_ERROR));
     if (publisher > 0) dds_delete(publisher);
     return;
@@ -445,8 +467,9 @@ void DdsRequestManager::add_client(dds_instance_handle_t writer) {
   // its images' writer (deleted with the publisher); without it its replies keep their PNGs
   client.image_writer = dds_create_writer(publisher, image_topic_, image_qos_.get(), nullptr);
   if (client.image_writer < 0)
-    log::warning("DDS transport: client ", to_hex(id), " gets its images as PNGs only: no image writer: ",
-                 retcode_text(client.image_writer));
+    log::warning(
+        "DDS transport: client ", to_hex(id),
+        " gets its images as PNGs only: no image writer: ", retcode_text(client.image_writer));
   writers_[writer] = id;
   reply_writers_[reply_writer] = id;
   log::debug("DDS transport: client ", to_hex(id), " appeared (", clients_.size(), " known)");
@@ -470,7 +493,8 @@ void DdsRequestManager::client_gone(const ClientId& id, ClientState& client) {
     }
   }
   if (cancelled > 0) run_pending_ = true;
-  log::info("DDS transport: client ", to_hex(id), " disappeared; ", cancelled, " async call(s) cancelled",
+  log::info("DDS transport: client ", to_hex(id), " disappeared; ", cancelled,
+            " async call(s) cancelled",
             options_.cancel_on_disconnect ? "" : " (on_disconnect: let_run)");
   if (client.calls.empty()) forget_client(id);
 }
@@ -480,14 +504,16 @@ void DdsRequestManager::forget_client(const ClientId& id) {
   if (c == clients_.end()) return;
   // its publisher and reply writer go with it
   if (c->second.reply_publisher > 0)
-    retire(c->second.reply_publisher, c->second.reply_writer, std::max<dds_entity_t>(c->second.image_writer, 0));
+    retire(c->second.reply_publisher, c->second.reply_writer,
+           std::max<dds_entity_t>(c->second.image_writer, 0));
   writers_.erase(c->second.writer);
   reply_writers_.erase(c->second.reply_writer);
   clients_.erase(c);
   log::debug("DDS transport: client ", to_hex(id), " forgotten (", clients_.size(), " known)");
 }
 
-void DdsRequestManager::retire(dds_entity_t publisher, dds_entity_t writer, dds_entity_t image_writer) {
+void DdsRequestManager::retire(dds_entity_t publisher, dds_entity_t writer,
+                               dds_entity_t image_writer) {
   dds_waitset_detach(waitset_, writer);
   // all acknowledged (or no reader left), replies and images: deleted at once, without lingering
   const Retiring entry{publisher, writer, image_writer};
@@ -499,8 +525,10 @@ void DdsRequestManager::retire(dds_entity_t publisher, dds_entity_t writer, dds_
     dds_delete(publisher);
     return;
   }
-  log::debug("DDS transport: a reply writer with unacknowledged replies (or images) is deleted once they are "
-             "acknowledged or their reader left");
+  log::debug(
+      "DDS transport: a reply writer with unacknowledged replies (or images) is deleted once they "
+      "are "
+      "acknowledged or their reader left");
   retiring_.push_back(entry);
 }
 

@@ -43,7 +43,9 @@ bool is_zero(const ClientId& id) {
   return std::all_of(id.begin(), id.end(), [](std::uint8_t b) { return b == 0; });
 }
 
-std::string dump(const json& value) { return value.dump(-1, ' ', false, json::error_handler_t::replace); }
+std::string dump(const json& value) {
+  return value.dump(-1, ' ', false, json::error_handler_t::replace);
+}
 
 }  // namespace
 
@@ -55,22 +57,26 @@ DdsOptions DdsOptions::parse(const json& options) {
   if (out.partition.empty() || out.partition.find_first_of("*?[]") != std::string::npos)
     config.fail("partition", "a non-empty partition name without wildcards (* ? [ ])");
   out.config = config.get_string("config", "");
-  out.max_samples = static_cast<int32_t>(config.get_int("max_samples", out.max_samples, 1, 1 << 20));
-  out.max_in_flight = static_cast<int32_t>(config.get_int("max_in_flight", std::max(1, out.max_samples / 4), 1,
-                                                         std::max(1, out.max_samples / 3)));
+  out.max_samples =
+      static_cast<int32_t>(config.get_int("max_samples", out.max_samples, 1, 1 << 20));
+  out.max_in_flight = static_cast<int32_t>(config.get_int(
+      "max_in_flight", std::max(1, out.max_samples / 4), 1, std::max(1, out.max_samples / 3)));
   out.park_timeout = std::chrono::milliseconds(
       config.get_int("park_timeout_ms", out.park_timeout.count(), 0, 3'600'000));
   out.max_params = static_cast<std::size_t>(
       config.get_int("max_params", static_cast<long long>(out.max_params), 2, 64ll << 20));
   out.max_depth = static_cast<std::size_t>(
       config.get_int("max_depth", static_cast<long long>(out.max_depth), 2, 10000));
-  out.global_policy = config.get_choice("global_policy", "reject", {"reject", "preempt"}) == "preempt"
-                          ? GlobalPolicy::preempt
-                          : GlobalPolicy::reject;
+  out.global_policy =
+      config.get_choice("global_policy", "reject", {"reject", "preempt"}) == "preempt"
+          ? GlobalPolicy::preempt
+          : GlobalPolicy::reject;
   out.progress_interval = std::chrono::milliseconds(
       config.get_int("progress_interval_ms", out.progress_interval.count(), 0, 3'600'000));
-  out.cancel_on_disconnect = config.get_choice("on_disconnect", "cancel", {"cancel", "let_run"}) == "cancel";
-  out.direct_stream_writes = config.get_choice("stream_writes", "direct", {"direct", "thread"}) == "direct";
+  out.cancel_on_disconnect =
+      config.get_choice("on_disconnect", "cancel", {"cancel", "let_run"}) == "cancel";
+  out.direct_stream_writes =
+      config.get_choice("stream_writes", "direct", {"direct", "thread"}) == "direct";
   config.finish();
   return out;
 }
@@ -90,9 +96,10 @@ DdsRequestManager::DdsRequestManager(const json& options)
 DdsRequestManager::~DdsRequestManager() { stop(); }
 
 void DdsRequestManager::create_entities() {
-  participant_ = std::make_unique<Participant>(options_.domain, resolve_config(options_.config),
-                                               "DDS transport (domain " + std::to_string(options_.domain) +
-                                                   ", partition '" + options_.partition + "')");
+  participant_ =
+      std::make_unique<Participant>(options_.domain, resolve_config(options_.config),
+                                    "DDS transport (domain " + std::to_string(options_.domain) +
+                                        ", partition '" + options_.partition + "')");
   dds_entity_t pp = participant_->handle();
   dds_guid_t guid;
   if (dds_get_guid(pp, &guid) == DDS_RETCODE_OK) server_id_ = to_hex(to_client_id(guid));
@@ -101,25 +108,33 @@ void DdsRequestManager::create_entities() {
   QosPtr partition_qos(dds_create_qos());
   dds_qset_partition1(partition_qos.get(), options_.partition.c_str());
   publisher_ = check_created(dds_create_publisher(pp, partition_qos.get(), nullptr), "publisher");
-  subscriber_ = check_created(dds_create_subscriber(pp, partition_qos.get(), nullptr), "subscriber");
+  subscriber_ =
+      check_created(dds_create_subscriber(pp, partition_qos.get(), nullptr), "subscriber");
 
   dds_entity_t request_topic =
-      check_created(dds_create_topic(pp, &simgate_Request_desc, k_request_topic, nullptr, nullptr), "topic simgate_Request");
+      check_created(dds_create_topic(pp, &simgate_Request_desc, k_request_topic, nullptr, nullptr),
+                    "topic simgate_Request");
   dds_entity_t catalog_topic = check_created(
-      dds_create_topic(pp, &simgate_CatalogEntry_desc, k_catalog_topic, nullptr, nullptr), "topic simgate_Catalog");
+      dds_create_topic(pp, &simgate_CatalogEntry_desc, k_catalog_topic, nullptr, nullptr),
+      "topic simgate_Catalog");
 
   // requests: reliable, keep-all, volatile, bounded (writers block when we fall behind)
   QosPtr request_qos = make_qos(false, 0, DDS_SECS(1));
-  dds_qset_resource_limits(request_qos.get(), options_.max_samples, DDS_LENGTH_UNLIMITED, DDS_LENGTH_UNLIMITED);
-  request_reader_ = check_created(dds_create_reader(subscriber_, request_topic, request_qos.get(), nullptr), "request reader");
+  dds_qset_resource_limits(request_qos.get(), options_.max_samples, DDS_LENGTH_UNLIMITED,
+                           DDS_LENGTH_UNLIMITED);
+  request_reader_ = check_created(
+      dds_create_reader(subscriber_, request_topic, request_qos.get(), nullptr), "request reader");
 
   // replies, one writer per client (add_client): reliable, keep-all, volatile, and never
   // blocking: a reader that stops acknowledging fills its own writer's history (up to
   // Cyclone's WHC high-water mark), after which writes to it fail at once (TIMEOUT) instead of
   // holding the DDS thread, and its replies are parked, retried, then dropped
-  reply_topic_ = check_created(dds_create_topic(pp, &simgate_Reply_desc, k_reply_topic, nullptr, nullptr), "topic simgate_Reply");
+  reply_topic_ =
+      check_created(dds_create_topic(pp, &simgate_Reply_desc, k_reply_topic, nullptr, nullptr),
+                    "topic simgate_Reply");
   reply_qos_ = make_qos(false, 0, 0);
-  dds_qset_resource_limits(reply_qos_.get(), options_.max_samples * 4, DDS_LENGTH_UNLIMITED, DDS_LENGTH_UNLIMITED);
+  dds_qset_resource_limits(reply_qos_.get(), options_.max_samples * 4, DDS_LENGTH_UNLIMITED,
+                           DDS_LENGTH_UNLIMITED);
   dds_qset_writer_data_lifecycle(reply_qos_.get(), false);
   std::string userdata = "simgate.role=server;simgate.v=2;simgate.id=" + server_id_;
   dds_qset_userdata(reply_qos_.get(), userdata.data(), userdata.size());
@@ -127,8 +142,9 @@ void DdsRequestManager::create_entities() {
   // progress reports, one writer per client that asks (ensure_progress_writer): best effort,
   // the last report only: never blocking, never lingering when deleted, and a reader that
   // takes nothing loses old reports and holds up no reply
-  progress_topic_ = check_created(dds_create_topic(pp, &simgate_Reply_desc, k_progress_topic, nullptr, nullptr),
-                          "topic simgate_Progress");
+  progress_topic_ =
+      check_created(dds_create_topic(pp, &simgate_Reply_desc, k_progress_topic, nullptr, nullptr),
+                    "topic simgate_Progress");
   progress_qos_ = make_qos(false, 1, 0);
   dds_qset_reliability(progress_qos_.get(), DDS_RELIABILITY_BEST_EFFORT, 0);
   dds_qset_writer_data_lifecycle(progress_qos_.get(), false);
@@ -137,25 +153,31 @@ void DdsRequestManager::create_entities() {
   // replies' images, raw (send_images), one writer per client beside its reply writer:
   // reliable, keep-all, never blocking (a write the writer cannot take leaves the image's PNG
   // in the reply), in the client's partition; only a client with a reader on it gets them
-  image_topic_ = check_created(dds_create_topic(pp, &simgate_stream_Image_desc, k_reply_image_topic, nullptr, nullptr),
-                       "topic simgate_ReplyImage");
+  image_topic_ = check_created(
+      dds_create_topic(pp, &simgate_stream_Image_desc, k_reply_image_topic, nullptr, nullptr),
+      "topic simgate_ReplyImage");
   image_qos_ = make_qos(false, 0, 0);
-  dds_qset_resource_limits(image_qos_.get(), options_.max_samples, DDS_LENGTH_UNLIMITED, DDS_LENGTH_UNLIMITED);
+  dds_qset_resource_limits(image_qos_.get(), options_.max_samples, DDS_LENGTH_UNLIMITED,
+                           DDS_LENGTH_UNLIMITED);
   dds_qset_writer_data_lifecycle(image_qos_.get(), false);
   dds_qset_userdata(image_qos_.get(), userdata.data(), userdata.size());
 
   // catalog: the last sample of each component, kept for late joiners
   QosPtr catalog_qos = make_qos(true, 1, DDS_SECS(1));
-  catalog_writer_ = check_created(dds_create_writer(publisher_, catalog_topic, catalog_qos.get(), nullptr), "catalog writer");
+  catalog_writer_ = check_created(
+      dds_create_writer(publisher_, catalog_topic, catalog_qos.get(), nullptr), "catalog writer");
 
   // the waitset of the DDS thread
   waitset_ = check_created(dds_create_waitset(pp), "waitset");
   guard_ = check_created(dds_create_guardcondition(pp), "guard condition");
-  read_condition_ = check_created(dds_create_readcondition(request_reader_, DDS_ANY_STATE), "read condition");
+  read_condition_ =
+      check_created(dds_create_readcondition(request_reader_, DDS_ANY_STATE), "read condition");
   dds_set_status_mask(request_reader_, DDS_SUBSCRIPTION_MATCHED_STATUS);
-  check_created(dds_waitset_attach(waitset_, read_condition_, k_token_requests), "waitset attachment");
+  check_created(dds_waitset_attach(waitset_, read_condition_, k_token_requests),
+                "waitset attachment");
   check_created(dds_waitset_attach(waitset_, guard_, k_token_guard), "waitset attachment");
-  check_created(dds_waitset_attach(waitset_, request_reader_, k_token_request_matched), "waitset attachment");
+  check_created(dds_waitset_attach(waitset_, request_reader_, k_token_request_matched),
+                "waitset attachment");
 }
 
 std::vector<std::string> DdsRequestManager::endpoints() const {
@@ -166,9 +188,9 @@ void DdsRequestManager::start() {
   if (stopped_ || started_.exchange(true)) return;
   // the data streams (issue #21): also with none yet, for those of robots spawned later
   if (stream_hub())
-    streams_ = std::make_unique<DdsStreams>(stream_hub(), transport_name(), participant_->handle(), publisher_,
-                                            subscriber_, waitset_, server_id_, options_.direct_stream_writes,
-                                            options_.max_params, options_.max_depth);
+    streams_ = std::make_unique<DdsStreams>(
+        stream_hub(), transport_name(), participant_->handle(), publisher_, subscriber_, waitset_,
+        server_id_, options_.direct_stream_writes, options_.max_params, options_.max_depth);
   thread_ = std::thread([this] { run(); });
 }
 
@@ -240,16 +262,17 @@ void DdsRequestManager::run() {
     dds_duration_t timeout = DDS_SECS(1);
     if (parked_count_ > 0) {
       auto left = next_parked - std::chrono::steady_clock::now();
-      timeout = std::clamp<dds_duration_t>(std::chrono::duration_cast<std::chrono::nanoseconds>(left).count(),
-                                           DDS_MSECS(1), DDS_SECS(1));
+      timeout = std::clamp<dds_duration_t>(
+          std::chrono::duration_cast<std::chrono::nanoseconds>(left).count(), DDS_MSECS(1),
+          DDS_SECS(1));
     }
     dds_return_t n = dds_waitset_wait(waitset_, triggered, k_slots, timeout);
     if (n < 0) {
       log::error("DDS transport: waitset failed: ", retcode_text(n));
       break;
     }
-    bool requests = false, outcomes = false, writers = false, samples = n > k_slots, commands = n > k_slots,
-         matched = n > k_slots;
+    bool requests = false, outcomes = false, writers = false, samples = n > k_slots,
+         commands = n > k_slots, matched = n > k_slots;
     std::array<dds_entity_t, k_slots> readers;  // reply writers whose match changed
     std::size_t reader_count = 0;
     for (dds_return_t i = 0; i < std::min(n, k_slots); ++i) {
@@ -281,7 +304,8 @@ void DdsRequestManager::run() {
       }
       if (catalog_changed_.exchange(false)) {
         publish_catalog();
-        if (streams_) streams_->sync();  // a component deleted (or spawned) may take its stream along
+        if (streams_)
+          streams_->sync();  // a component deleted (or spawned) may take its stream along
       }
       if (streams_ && matched) streams_->update_matches();
       if (streams_ && samples) streams_->write_samples();
@@ -326,7 +350,8 @@ void DdsRequestManager::publish_catalog() {
     entry.revision = catalog_revision_ + 1;
     entry.services = const_cast<char*>(text.c_str());
     dds_return_t rc = dds_write(catalog_writer_, &entry);
-    if (rc < 0) log::error("DDS transport: catalog entry '", component, "' not written: ", retcode_text(rc));
+    if (rc < 0)
+      log::error("DDS transport: catalog entry '", component, "' not written: ", retcode_text(rc));
   }
   // components served no more: their entries are disposed (a reader sees them not alive)
   for (const std::string& component : published_) {
@@ -336,12 +361,13 @@ void DdsRequestManager::publish_catalog() {
     key.server = const_cast<char*>(server_id_.c_str());
     key.services = const_cast<char*>("");
     dds_return_t rc = dds_dispose(catalog_writer_, &key);
-    if (rc < 0) log::error("DDS transport: catalog entry '", component, "' not disposed: ", retcode_text(rc));
+    if (rc < 0)
+      log::error("DDS transport: catalog entry '", component, "' not disposed: ", retcode_text(rc));
   }
   ++catalog_revision_;
   published_ = std::set<std::string>(order.begin(), order.end());
-  log::info("DDS transport: serving ", components().size(), " component(s) on domain ", options_.domain,
-            ", partition '", options_.partition, "'");
+  log::info("DDS transport: serving ", components().size(), " component(s) on domain ",
+            options_.domain, ", partition '", options_.partition, "'");
 }
 
 bool DdsRequestManager::lookup_async(const std::string& component, const std::string& service) {
@@ -352,7 +378,8 @@ bool DdsRequestManager::lookup_async(const std::string& component, const std::st
   // registered after start(), or unknown: look again (unknown names are remembered as sync)
   for (const ServiceDescriptor& d : descriptors()) async_services_[d.qualified_name()] = d.is_async;
   auto [again, inserted] = async_services_.try_emplace(key, false);
-  if (inserted && async_services_.size() > k_max_cached_names) async_services_.erase(again);  // bounded
+  if (inserted && async_services_.size() > k_max_cached_names)
+    async_services_.erase(again);  // bounded
   return inserted ? false : again->second;
 }
 
@@ -361,7 +388,8 @@ void DdsRequestManager::take_requests() {
   dds_sample_info_t infos[k_request_take_batch];
   for (;;) {
     samples[0] = nullptr;
-    dds_return_t n = dds_take(request_reader_, samples, infos, k_request_take_batch, k_request_take_batch);
+    dds_return_t n =
+        dds_take(request_reader_, samples, infos, k_request_take_batch, k_request_take_batch);
     if (n <= 0) {
       if (n < 0) log::error("DDS transport: taking requests failed: ", retcode_text(n));
       return;
@@ -369,7 +397,8 @@ void DdsRequestManager::take_requests() {
     for (dds_return_t i = 0; i < n; ++i) {
       if (!infos[i].valid_data) continue;
       try {
-        handle_request(*static_cast<const simgate_Request*>(samples[i]), infos[i].publication_handle);
+        handle_request(*static_cast<const simgate_Request*>(samples[i]),
+                       infos[i].publication_handle);
       } catch (const std::exception& e) {
         log::error("DDS transport: request dropped: ", e.what());
       }
@@ -392,7 +421,8 @@ void DdsRequestManager::run_batch() {
   write_finished();
 }
 
-void DdsRequestManager::handle_request(const simgate_Request& request, dds_instance_handle_t writer) {
+void DdsRequestManager::handle_request(const simgate_Request& request,
+                                       dds_instance_handle_t writer) {
   const std::uint64_t seq = request.id.seq;
   // the client is its request writer, known since that writer matched
   auto w = writers_.find(writer);
@@ -415,7 +445,8 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
   std::memcpy(claimed.data(), request.id.client, claimed.size());
   if (claimed != client_id) {
     std::string why = is_zero(claimed) ? "the client id is zero"
-                                       : "the client id " + to_hex(claimed) + " is not the GUID of the writer that sent it";
+                                       : "the client id " + to_hex(claimed) +
+                                             " is not the GUID of the writer that sent it";
     refuse(client_id, seq, simgate_FL_BAD_REQUEST,
            "DDS transport: request " + std::to_string(seq) + " refused: " + why +
                "; a client's id is the GUID of its request writer, here " + to_hex(client_id));
@@ -431,7 +462,8 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
   // the one final reply of the id, the cancel having no answer of its own.
   if (auto pending = client.calls.find(seq); pending != client.calls.end()) {
     run_batch();
-    const bool is_call = pending_.count(pending->second) && !pending_.at(pending->second).cancel_answer;
+    const bool is_call =
+        pending_.count(pending->second) && !pending_.at(pending->second).cancel_answer;
     if (request.op == simgate_OP_CANCEL && request.target == seq && is_call) {
       cancel(pending->second);
       run_pending_ = true;  // the next run_batch() executes it here if it can
@@ -439,9 +471,11 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
     }
     ReplyData refused = failure_reply(
         seq, simgate_FL_BAD_REQUEST,
-        "DDS transport: " + std::string(request.op == simgate_OP_CANCEL ? "cancel " : "call ") + std::to_string(seq) +
-            " of client " + to_hex(client_id) + " refused: " + (is_call ? "call " : "cancel ") + std::to_string(seq) +
-            " is still pending (duplicate seq: a seq is used again only once its request's final reply is out); "
+        "DDS transport: " + std::string(request.op == simgate_OP_CANCEL ? "cancel " : "call ") +
+            std::to_string(seq) + " of client " + to_hex(client_id) +
+            " refused: " + (is_call ? "call " : "cancel ") + std::to_string(seq) +
+            " is still pending (duplicate seq: a seq is used again only once its request's final "
+            "reply is out); "
             "the pending one goes on");
     refused.status = simgate_ST_REFUSED;
     refused.last = false;
@@ -461,64 +495,67 @@ void DdsRequestManager::handle_request(const simgate_Request& request, dds_insta
   }
 
   switch (request.op) {
-    case simgate_OP_CALL:
-      handle_call(request, client_id, client);
-      return;
-    case simgate_OP_CANCEL:
-      handle_cancel(request, client_id, client);
-      return;
+    case simgate_OP_CALL: handle_call(request, client_id, client); return;
+    case simgate_OP_CANCEL: handle_cancel(request, client_id, client); return;
   }
   refuse(client_id, seq, simgate_FL_BAD_REQUEST,
-         "DDS transport: unknown op " + std::to_string(int(request.op)) + " (expected OP_CALL or OP_CANCEL)");
+         "DDS transport: unknown op " + std::to_string(int(request.op)) +
+             " (expected OP_CALL or OP_CANCEL)");
 }
 
-void DdsRequestManager::refuse(const ClientId& client_id, std::uint64_t seq, simgate_Failure failure,
-                               std::string message) {
+void DdsRequestManager::refuse(const ClientId& client_id, std::uint64_t seq,
+                               simgate_Failure failure, std::string message) {
   run_batch();  // after the replies of the requests before it
   send_reply(client_id, failure_reply(seq, failure, std::move(message)));
 }
 
-std::optional<std::pair<simgate_Failure, std::string>> DdsRequestManager::call_refusal(const simgate_Request& request,
-                                                                                       Call& call) const {
+std::optional<std::pair<simgate_Failure, std::string>> DdsRequestManager::call_refusal(
+    const simgate_Request& request, Call& call) const {
   // names are bounded before they are looked up, remembered or quoted (issue #17: 10 MB
   // names were all three)
-  for (auto [what, name] : {std::pair{"component", request.component}, std::pair{"service", request.service}}) {
+  for (auto [what, name] :
+       {std::pair{"component", request.component}, std::pair{"service", request.service}}) {
     const std::size_t size = name ? std::strlen(name) : 0;
     if (size > k_max_name_bytes)
-      return std::pair{simgate_FL_BAD_REQUEST, "DDS transport: request " + std::to_string(request.id.seq) +
-                                                   " refused: its " + what + " name is " + std::to_string(size) +
-                                                   " bytes, more than " + std::to_string(k_max_name_bytes)};
+      return std::pair{simgate_FL_BAD_REQUEST,
+                       "DDS transport: request " + std::to_string(request.id.seq) +
+                           " refused: its " + what + " name is " + std::to_string(size) +
+                           " bytes, more than " + std::to_string(k_max_name_bytes)};
   }
   call.component = request.component ? request.component : "";
   call.service = request.service ? request.service : "";
   const std::string method = call.component + "." + call.service;
   std::string_view params_text = request.params ? request.params : "";
   if (params_text.size() > options_.max_params)
-    return std::pair{simgate_FL_BAD_ARGUMENTS, method + ": params are " + std::to_string(params_text.size()) +
+    return std::pair{simgate_FL_BAD_ARGUMENTS, method + ": params are " +
+                                                   std::to_string(params_text.size()) +
                                                    " bytes, more than max_params (" +
                                                    std::to_string(options_.max_params) + ")"};
   // before parsing: a deeper value would recurse once per level in dump(), copies and
   // comparisons (issue #17: 80 000 levels overflowed the stack)
   if (json_nests_deeper_than(params_text, options_.max_depth))
-    return std::pair{simgate_FL_BAD_ARGUMENTS,
-                     method + ": params nest deeper than max_depth (" + std::to_string(options_.max_depth) + ")"};
+    return std::pair{simgate_FL_BAD_ARGUMENTS, method + ": params nest deeper than max_depth (" +
+                                                   std::to_string(options_.max_depth) + ")"};
   if (!params_text.empty()) {
     call.params = json::parse(params_text, nullptr, false);
-    if (call.params.is_discarded() || !(call.params.is_array() || call.params.is_object() || call.params.is_null()))
-      return std::pair{simgate_FL_BAD_ARGUMENTS, method + ": params must be a JSON array, object or \"\", not '" +
-                                                     std::string(utf8_prefix(params_text, 60)) + "'"};
+    if (call.params.is_discarded() ||
+        !(call.params.is_array() || call.params.is_object() || call.params.is_null()))
+      return std::pair{simgate_FL_BAD_ARGUMENTS,
+                       method + ": params must be a JSON array, object or \"\", not '" +
+                           std::string(utf8_prefix(params_text, 60)) + "'"};
   }
   // its deadline: 0 = none; beyond a signed 32-bit count of ms (about 24.8 days) it is
   // more likely garbage than a wait anyone means
   if (request.timeout_ms > k_max_timeout_ms)
-    return std::pair{simgate_FL_BAD_ARGUMENTS, method + ": timeout_ms " + std::to_string(request.timeout_ms) +
-                                                   " is more than " + std::to_string(k_max_timeout_ms) +
-                                                   " (0 = no timeout)"};
+    return std::pair{simgate_FL_BAD_ARGUMENTS,
+                     method + ": timeout_ms " + std::to_string(request.timeout_ms) +
+                         " is more than " + std::to_string(k_max_timeout_ms) + " (0 = no timeout)"};
   call.timeout = std::chrono::milliseconds(request.timeout_ms);
   return std::nullopt;
 }
 
-void DdsRequestManager::handle_call(const simgate_Request& request, const ClientId& client_id, ClientState& client) {
+void DdsRequestManager::handle_call(const simgate_Request& request, const ClientId& client_id,
+                                    ClientState& client) {
   const std::uint64_t seq = request.id.seq;
   Call call;
   if (auto refusal = call_refusal(request, call)) {
@@ -547,7 +584,8 @@ void DdsRequestManager::handle_call(const simgate_Request& request, const Client
   batch_.emplace_back(id, std::move(call));
 }
 
-void DdsRequestManager::handle_cancel(const simgate_Request& request, const ClientId& client_id, ClientState& client) {
+void DdsRequestManager::handle_cancel(const simgate_Request& request, const ClientId& client_id,
+                                      ClientState& client) {
   const std::uint64_t seq = request.id.seq;
   // after the calls before it (its target may be one of them)
   run_batch();
@@ -564,11 +602,14 @@ void DdsRequestManager::handle_cancel(const simgate_Request& request, const Clie
   const RequestId answer_id = new_request_id();
   pending_.emplace(answer_id, Pending{client_id, seq, false, true});
   client.calls.emplace(seq, answer_id);
-  cancel(target->second, [this, answer_id](bool found) { complete_request(answer_id, Outcome::success(json(found))); });
+  cancel(target->second, [this, answer_id](bool found) {
+    complete_request(answer_id, Outcome::success(json(found)));
+  });
   run_pending_ = true;  // the next run_batch() executes it here if it can
 }
 
-DdsRequestManager::ReplyData DdsRequestManager::to_reply(std::uint64_t seq, const Outcome& outcome) {
+DdsRequestManager::ReplyData DdsRequestManager::to_reply(std::uint64_t seq,
+                                                         const Outcome& outcome) {
   ReplyData reply;
   reply.seq = seq;
   switch (outcome.status) {
@@ -585,15 +626,17 @@ DdsRequestManager::ReplyData DdsRequestManager::to_reply(std::uint64_t seq, cons
 
 DdsRequestManager::ReplyData DdsRequestManager::overloaded_reply(std::uint64_t seq) const {
   const std::string limit = std::to_string(options_.max_in_flight);
-  ReplyData reply = failure_reply(seq, simgate_FL_BUSY,
-                                  "Overloaded: " + limit + " requests of this client are not answered yet (max_in_flight " +
-                                      limit + "); refused without running: send it again once replies come");
+  ReplyData reply = failure_reply(
+      seq, simgate_FL_BUSY,
+      "Overloaded: " + limit + " requests of this client are not answered yet (max_in_flight " +
+          limit + "); refused without running: send it again once replies come");
   reply.seq_end = seq;
   reply.data = dump(json{{"reason", "overloaded"}, {"max_in_flight", options_.max_in_flight}});
   return reply;
 }
 
-DdsRequestManager::ReplyData DdsRequestManager::failure_reply(std::uint64_t seq, simgate_Failure failure,
+DdsRequestManager::ReplyData DdsRequestManager::failure_reply(std::uint64_t seq,
+                                                              simgate_Failure failure,
                                                               std::string message) {
   ReplyData reply;
   reply.seq = seq;
@@ -607,7 +650,7 @@ DdsRequestManager::ReplyData DdsRequestManager::failure_reply(std::uint64_t seq,
 }  // namespace simgate::dds
 
 // The plugin entry point: libsimgate_transport_dds.so exports simgate_transport_dds_entry.
-SIMGATE_TRANSPORT_PLUGIN(dds, simgate::dds::DdsRequestManager, "0.1.0", "domain", "partition", "config",
-                         "max_samples", "max_in_flight", "park_timeout_ms", "max_params", "max_depth",
-                         "global_policy", "progress_interval_ms",
-                         "on_disconnect", "stream_writes")
+SIMGATE_TRANSPORT_PLUGIN(dds, simgate::dds::DdsRequestManager, "0.1.0", "domain", "partition",
+                         "config", "max_samples", "max_in_flight", "park_timeout_ms", "max_params",
+                         "max_depth", "global_policy", "progress_interval_ms", "on_disconnect",
+                         "stream_writes")

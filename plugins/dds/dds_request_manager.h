@@ -91,25 +91,26 @@ inline constexpr std::uint32_t k_max_timeout_ms = 2'147'483'647;
 
 // The transport's options ("transports.<name>" in a deployment file).
 struct DdsOptions {
-  uint32_t domain = 0;                 // DDS domain id (0..230)
-  std::string partition = "simgate";   // one per simulation
-  std::string config;                  // Cyclone XML or file:// URI; "" = loopback; "env"
-  int32_t max_samples = 1024;          // resource limit: queued requests, parked replies per client
+  uint32_t domain = 0;                // DDS domain id (0..230)
+  std::string partition = "simgate";  // one per simulation
+  std::string config;                 // Cyclone XML or file:// URI; "" = loopback; "env"
+  int32_t max_samples = 1024;         // resource limit: queued requests, parked replies per client
   // requests of one client taken and not yet answered (in the core, or their final reply
   // parked); past it a request is refused Overloaded without running. 1 .. max_samples / 3
   // (so that a client's parked replies, refusals included, stay within max_samples);
   // default max_samples / 4
   int32_t max_in_flight = 256;
-  std::chrono::milliseconds park_timeout{10000};  // how long a reply waits for its reader (or writer)
-  std::size_t max_params = 1 << 20;    // largest accepted params text, in bytes
-  std::size_t max_depth = 128;         // deepest [/{ nesting accepted in params (2..10000)
+  std::chrono::milliseconds park_timeout{
+      10000};                        // how long a reply waits for its reader (or writer)
+  std::size_t max_params = 1 << 20;  // largest accepted params text, in bytes
+  std::size_t max_depth = 128;       // deepest [/{ nesting accepted in params (2..10000)
   GlobalPolicy global_policy = GlobalPolicy::reject;  // async calls without a local policy
-  std::chrono::milliseconds progress_interval{50};     // shortest time between two reports of a call
-  bool cancel_on_disconnect = true;    // "on_disconnect": a client that leaves has its async calls
-                                       // cancelled ("cancel") or left to run, replies dropped ("let_run")
-  bool direct_stream_writes = true;    // "stream_writes": small typed samples (pose, odometry, imu)
-                                       // written by the simulation thread as they are made ("direct")
-                                       // or handed to the DDS thread like the others ("thread")
+  std::chrono::milliseconds progress_interval{50};    // shortest time between two reports of a call
+  bool cancel_on_disconnect = true;  // "on_disconnect": a client that leaves has its async calls
+      // cancelled ("cancel") or left to run, replies dropped ("let_run")
+  bool direct_stream_writes = true;  // "stream_writes": small typed samples (pose, odometry, imu)
+                                     // written by the simulation thread as they are made ("direct")
+                                     // or handed to the DDS thread like the others ("thread")
 
   // Reads and validates `options` (unknown keys are errors). Throws ConfigError.
   static DdsOptions parse(const json& options);
@@ -125,7 +126,9 @@ class DdsRequestManager : public RequestManager {
   // validate, `simgate check`).
   static void validate_options(const json& options);
   // Request writers matched now (one per client program).
-  std::size_t client_count() const override { return client_count_.load(std::memory_order_relaxed); }
+  std::size_t client_count() const override {
+    return client_count_.load(std::memory_order_relaxed);
+  }
 
   void start() override;
   void stop() override;
@@ -145,13 +148,13 @@ class DdsRequestManager : public RequestManager {
  private:
   // A reply not yet written (parked, or queued from the simulation thread).
   struct ReplyData {
-    std::uint64_t seq = 0;                       // the request it answers
+    std::uint64_t seq = 0;                            // the request it answers
     simgate_ReplyStatus status = simgate_ST_SUCCESS;  // wire status
-    simgate_Failure failure = simgate_FL_NONE;   // why, for failures
-    bool last = true;                            // final reply of the request
-    std::string result;                          // JSON text or ""
-    std::string message;                         // human-readable reason
-    std::string data;                            // JSON object text or ""
+    simgate_Failure failure = simgate_FL_NONE;        // why, for failures
+    bool last = true;                                 // final reply of the request
+    std::string result;                               // JSON text or ""
+    std::string message;                              // human-readable reason
+    std::string data;                                 // JSON object text or ""
     // an Overloaded refusal (overloaded_reply) may stand for the requests seq .. seq_end,
     // whose refusals are the same but for their seq: one parked entry for a run of them
     std::uint64_t seq_end = 0;
@@ -163,20 +166,20 @@ class DdsRequestManager : public RequestManager {
   };
   // A request handed to the core and not yet completed, or a cancel waiting for its answer.
   struct Pending {
-    ClientId client;            // who asked
-    std::uint64_t seq = 0;      // their sequence number
-    bool is_async = false;      // cancelled if the client disappears
+    ClientId client;             // who asked
+    std::uint64_t seq = 0;       // their sequence number
+    bool is_async = false;       // cancelled if the client disappears
     bool cancel_answer = false;  // the answer to a cancel (outcome value: whether it was running)
   };
   // What the server knows about one client (DDS thread only), from the match of its request
   // writer until that writer left and its calls are over.
   struct ClientState {
-    dds_instance_handle_t writer = 0;                   // its request writer (GUID = its id)
-    dds_entity_t reply_publisher = 0;                   // in "<partition>/<id>"; owns reply_writer
-    dds_entity_t reply_writer = 0;                      // its replies, to its reader alone
-    dds_entity_t progress_writer = 0;                   // its progress reports (at its first call asking)
-    dds_entity_t image_writer = 0;                      // its replies' images, raw (simgate_ReplyImage)
-    bool reader_matched = false;                        // a reader announcing its id is matched
+    dds_instance_handle_t writer = 0;  // its request writer (GUID = its id)
+    dds_entity_t reply_publisher = 0;  // in "<partition>/<id>"; owns reply_writer
+    dds_entity_t reply_writer = 0;     // its replies, to its reader alone
+    dds_entity_t progress_writer = 0;  // its progress reports (at its first call asking)
+    dds_entity_t image_writer = 0;     // its replies' images, raw (simgate_ReplyImage)
+    bool reader_matched = false;       // a reader announcing its id is matched
     // whether an image reader announcing its id is matched (takes_images_raw), as of the
     // image writer's match counts below (the set of matches changed when either moved)
     bool images_raw = false;
@@ -184,16 +187,16 @@ class DdsRequestManager : public RequestManager {
     // seq -> its pending request: a call in the core, or a cancel not answered yet (a seq in
     // here is refused to any new request until that one's final reply is out)
     std::unordered_map<std::uint64_t, RequestId> calls;
-    std::deque<ReplyData> parked;                       // replies not written yet, in order
-    std::size_t parked_finals = 0;                      // of them, final replies counted in flight
-    bool stalled = false;                               // its writer was full at the last write
-    bool images_stalled = false;                        // ... its image writer (not worth a log line)
-    std::chrono::steady_clock::time_point retry_at;     // stalled: next write attempt
-    std::chrono::milliseconds retry_delay{0};           // stalled: backoff, doubling
+    std::deque<ReplyData> parked;                    // replies not written yet, in order
+    std::size_t parked_finals = 0;                   // of them, final replies counted in flight
+    bool stalled = false;                            // its writer was full at the last write
+    bool images_stalled = false;                     // ... its image writer (not worth a log line)
+    std::chrono::steady_clock::time_point retry_at;  // stalled: next write attempt
+    std::chrono::milliseconds retry_delay{0};        // stalled: backoff, doubling
     std::chrono::steady_clock::time_point progressed_at;  // its writer last took a parked reply
-    std::size_t dropped = 0;                            // replies dropped, not yet logged
-    std::chrono::steady_clock::time_point logged_at;    // the last "dropped" log line
-    bool gone = false;                                  // its request writer disappeared
+    std::size_t dropped = 0;                              // replies dropped, not yet logged
+    std::chrono::steady_clock::time_point logged_at;      // the last "dropped" log line
+    bool gone = false;                                    // its request writer disappeared
   };
 
   void create_entities();
@@ -211,13 +214,15 @@ class DdsRequestManager : public RequestManager {
   // OP_CALL: checked (call_refusal), then into batch_ (an async one acknowledged at once).
   void handle_call(const simgate_Request& request, const ClientId& client_id, ClientState& client);
   // OP_CANCEL: answered like a completion, in order with them.
-  void handle_cancel(const simgate_Request& request, const ClientId& client_id, ClientState& client);
+  void handle_cancel(const simgate_Request& request, const ClientId& client_id,
+                     ClientState& client);
   // Why a call is refused before it runs (names, params' size, depth and JSON, timeout), or
   // nothing; fills `call` from the request as it checks.
-  std::optional<std::pair<simgate_Failure, std::string>> call_refusal(const simgate_Request& request,
-                                                                       Call& call) const;
+  std::optional<std::pair<simgate_Failure, std::string>> call_refusal(
+      const simgate_Request& request, Call& call) const;
   // A failure reply to `seq`, after the replies of the requests taken before it.
-  void refuse(const ClientId& client_id, std::uint64_t seq, simgate_Failure failure, std::string message);
+  void refuse(const ClientId& client_id, std::uint64_t seq, simgate_Failure failure,
+              std::string message);
   // DDS thread: hands batch_ (and pending cancels) to run_or_submit(), then writes the
   // replies it produced. Called after each take, and before any reply that must follow them.
   void run_batch();
@@ -267,11 +272,13 @@ class DdsRequestManager : public RequestManager {
   void send_reply(const ClientId& client, ReplyData reply, bool final_flush = false);
   // Writes what the client's writer takes of its parked replies; drops the expired ones
   // it does not take.
-  void flush_parked(const ClientId& id, ClientState& client, std::chrono::steady_clock::time_point now);
+  void flush_parked(const ClientId& id, ClientState& client,
+                    std::chrono::steady_clock::time_point now);
   // When a parked reply is given up: park_timeout_ms after it was parked or after its
   // writer last took one, whichever is later (a client that reads, however slowly, loses
   // nothing to a queue longer than park_timeout_ms allows at full speed).
-  std::chrono::steady_clock::time_point parked_expiry(const ClientState& client, const ReplyData& reply) const {
+  std::chrono::steady_clock::time_point parked_expiry(const ClientState& client,
+                                                      const ReplyData& reply) const {
     return std::max(reply.deadline, client.progressed_at + options_.park_timeout);
   }
   // Every client's flush_parked; returns when the next parked reply needs attention.
@@ -293,48 +300,51 @@ class DdsRequestManager : public RequestManager {
   }
   // Requests of `client` taken and not answered yet: pending in the core (calls, cancels)
   // or with their final reply parked. At max_in_flight, a request is refused Overloaded.
-  static std::size_t in_flight(const ClientState& client) { return client.calls.size() + client.parked_finals; }
+  static std::size_t in_flight(const ClientState& client) {
+    return client.calls.size() + client.parked_finals;
+  }
   // The refusal of a request past max_in_flight (ST_FAILED, FL_BUSY, "Overloaded: ...").
   ReplyData overloaded_reply(std::uint64_t seq) const;
   // A final reply counted in flight while parked (not an Overloaded refusal).
   static bool counted(const ReplyData& reply) { return reply.last && reply.seq_end == 0; }
 
-  DdsOptions options_;                       // validated options
+  DdsOptions options_;                        // validated options
   std::unique_ptr<Participant> participant_;  // owns every entity below
-  dds_entity_t publisher_ = 0;               // in our partition
-  dds_entity_t subscriber_ = 0;              // in our partition
-  dds_entity_t request_reader_ = 0;          // simgate_Request
-  dds_entity_t reply_topic_ = 0;             // simgate_Reply (a writer per client)
-  QosPtr reply_qos_;                         // of every reply writer
-  dds_entity_t progress_topic_ = 0;          // simgate_Progress (a writer per client asking)
-  QosPtr progress_qos_;                      // of every progress writer
-  dds_entity_t image_topic_ = 0;             // simgate_ReplyImage (a writer per client)
-  QosPtr image_qos_;                         // of every image writer
-  dds_entity_t catalog_writer_ = 0;          // simgate_Catalog (transient-local)
-  dds_entity_t waitset_ = 0;                 // what the DDS thread waits on
-  dds_entity_t guard_ = 0;                   // raised by the sim thread and by stop()
-  dds_entity_t read_condition_ = 0;          // requests available
-  std::string server_id_;                    // our participant GUID, hex
-  std::unique_ptr<DdsStreams> streams_;      // the data streams (null: none carried)
-  std::thread thread_;                       // the DDS thread
-  std::atomic<bool> stopping_{false};        // asks the DDS thread to leave
-  std::atomic<bool> stopped_{false};         // stop() ran
-  std::atomic<bool> started_{false};         // start() ran
+  dds_entity_t publisher_ = 0;                // in our partition
+  dds_entity_t subscriber_ = 0;               // in our partition
+  dds_entity_t request_reader_ = 0;           // simgate_Request
+  dds_entity_t reply_topic_ = 0;              // simgate_Reply (a writer per client)
+  QosPtr reply_qos_;                          // of every reply writer
+  dds_entity_t progress_topic_ = 0;           // simgate_Progress (a writer per client asking)
+  QosPtr progress_qos_;                       // of every progress writer
+  dds_entity_t image_topic_ = 0;              // simgate_ReplyImage (a writer per client)
+  QosPtr image_qos_;                          // of every image writer
+  dds_entity_t catalog_writer_ = 0;           // simgate_Catalog (transient-local)
+  dds_entity_t waitset_ = 0;                  // what the DDS thread waits on
+  dds_entity_t guard_ = 0;                    // raised by the sim thread and by stop()
+  dds_entity_t read_condition_ = 0;           // requests available
+  std::string server_id_;                     // our participant GUID, hex
+  std::unique_ptr<DdsStreams> streams_;       // the data streams (null: none carried)
+  std::thread thread_;                        // the DDS thread
+  std::atomic<bool> stopping_{false};         // asks the DDS thread to leave
+  std::atomic<bool> stopped_{false};          // stop() ran
+  std::atomic<bool> started_{false};          // start() ran
 
   // outcomes delivered (on_service_completion), not yet written (DDS thread; at stop(),
   // under the simulation lock)
   std::vector<std::pair<RequestId, Outcome>> finished_;
-  std::vector<std::pair<RequestId, Outcome>> draining_;  // being written (DDS thread; stop() after the join)
+  std::vector<std::pair<RequestId, Outcome>>
+      draining_;  // being written (DDS thread; stop() after the join)
   // progress reports delivered (on_service_progress), not yet written (DDS thread; ignored
   // once stopping)
   std::vector<std::pair<RequestId, json>> progress_;
-  std::string progress_text_;                      // write_progress's JSON buffer (DDS thread)
+  std::string progress_text_;  // write_progress's JSON buffer (DDS thread)
 
   // ---- DDS thread only ----
-  std::unordered_map<RequestId, Pending> pending_;  // requests in the core
-  std::map<ClientId, ClientState> clients_;         // known clients
+  std::unordered_map<RequestId, Pending> pending_;     // requests in the core
+  std::map<ClientId, ClientState> clients_;            // known clients
   std::map<dds_instance_handle_t, ClientId> writers_;  // request writer -> its client
-  std::map<dds_entity_t, ClientId> reply_writers_;  // reply writer -> its client
+  std::map<dds_entity_t, ClientId> reply_writers_;     // reply writer -> its client
   // a forgotten client's publisher to delete once its reliable writers hold nothing unacknowledged
   struct Retiring {
     dds_entity_t publisher;     // deleted with its writers
@@ -342,15 +352,15 @@ class DdsRequestManager : public RequestManager {
     dds_entity_t image_writer;  // its image writer (0: none)
   };
   std::vector<Retiring> retiring_;
-  std::atomic<std::size_t> client_count_{0};        // matched request writers, for any thread
+  std::atomic<std::size_t> client_count_{0};              // matched request writers, for any thread
   std::unordered_map<std::string, bool> async_services_;  // "component.service" -> is_async
-  std::set<std::string> published_;                 // components with a catalog entry written
-  std::uint32_t catalog_revision_ = 0;              // of the last catalog published (CatalogEntry.revision)
-  std::atomic<bool> catalog_changed_{false};        // publish the catalog anew (any thread)
-  std::string lookup_key_;                          // lookup_async's key buffer
-  std::vector<std::pair<RequestId, Call>> batch_;   // calls taken, not yet given to the core
-  bool run_pending_ = false;                        // a cancel was queued: run_batch() runs it
-  std::size_t parked_count_ = 0;                    // replies parked over all clients
+  std::set<std::string> published_;                       // components with a catalog entry written
+  std::uint32_t catalog_revision_ = 0;  // of the last catalog published (CatalogEntry.revision)
+  std::atomic<bool> catalog_changed_{false};       // publish the catalog anew (any thread)
+  std::string lookup_key_;                         // lookup_async's key buffer
+  std::vector<std::pair<RequestId, Call>> batch_;  // calls taken, not yet given to the core
+  bool run_pending_ = false;                       // a cancel was queued: run_batch() runs it
+  std::size_t parked_count_ = 0;                   // replies parked over all clients
 };
 
 }  // namespace simgate::dds

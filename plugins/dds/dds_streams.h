@@ -58,8 +58,8 @@ std::string topic_path(std::string_view component);
 // description) as a simgate::stream::Image with `component`, `seq` and `time`, on `writer`
 // (of that type): a stream sample, or a reply's image (simgate_ReplyImage). Throws
 // std::invalid_argument when the payload is no image of that shape; else dds_write's code.
-dds_return_t write_image_payload(dds_entity_t writer, const std::string& component, std::uint64_t seq, double time,
-                                 const StreamPayload& payload);
+dds_return_t write_image_payload(dds_entity_t writer, const std::string& component,
+                                 std::uint64_t seq, double time, const StreamPayload& payload);
 
 class DdsStreams {
  public:
@@ -74,8 +74,9 @@ class DdsStreams {
   // `max_command_bytes`, `max_command_depth`: the longest JsonCommand text, in bytes, and its
   // deepest [/{ nesting, accepted (the transport's max_params and max_depth).
   DdsStreams(std::shared_ptr<StreamHub> hub, std::string transport, dds_entity_t participant,
-             dds_entity_t publisher, dds_entity_t subscriber, dds_entity_t waitset, std::string server_id,
-             bool direct_writes, std::size_t max_command_bytes, std::size_t max_command_depth);
+             dds_entity_t publisher, dds_entity_t subscriber, dds_entity_t waitset,
+             std::string server_id, bool direct_writes, std::size_t max_command_bytes,
+             std::size_t max_command_depth);
   ~DdsStreams();
   DdsStreams(const DdsStreams&) = delete;
   DdsStreams& operator=(const DdsStreams&) = delete;
@@ -108,7 +109,7 @@ class DdsStreams {
   void take(Input& input, dds_entity_t reader, bool typed);
 
   std::shared_ptr<StreamHub> hub_;
-  const std::string transport_;          // our name in the configuration
+  const std::string transport_;  // our name in the configuration
   const dds_entity_t participant_;
   const dds_entity_t publisher_;         // in our partition
   const dds_entity_t subscriber_;        // in our partition
@@ -119,10 +120,10 @@ class DdsStreams {
   const std::size_t max_command_depth_;  // deepest nesting of it accepted (max_depth)
   dds_entity_t guard_ = 0;               // samples are waiting (raised by the wake)
   dds_entity_t catalog_writer_ = 0;      // simgate_Streams
-  std::map<std::string, dds_entity_t> topics_;                   // by name: created once
-  std::map<std::string, std::unique_ptr<Output>> outputs_;       // by component
-  std::map<std::string, std::unique_ptr<Input>> inputs_;         // by component
-  std::vector<SamplePtr> taken_;                                 // write_samples' buffer
+  std::map<std::string, dds_entity_t> topics_;              // by name: created once
+  std::map<std::string, std::unique_ptr<Output>> outputs_;  // by component
+  std::map<std::string, std::unique_ptr<Input>> inputs_;    // by component
+  std::vector<SamplePtr> taken_;                            // write_samples' buffer
 };
 
 }  // namespace simgate::dds

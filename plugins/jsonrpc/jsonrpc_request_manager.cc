@@ -14,7 +14,8 @@ namespace {
 constexpr std::size_t k_read_bytes = 64 * 1024;
 }  // namespace
 
-JsonRpcRequestManager::JsonRpcRequestManager(const json& options) : JsonRpcRequestManager(Options::parse(options)) {}
+JsonRpcRequestManager::JsonRpcRequestManager(const json& options)
+    : JsonRpcRequestManager(Options::parse(options)) {}
 
 JsonRpcRequestManager::JsonRpcRequestManager(Options o)
     : JsonRpcEngine("JSON-RPC service manager", "jsonrpc", std::move(o)),
@@ -28,11 +29,12 @@ JsonRpcRequestManager::~JsonRpcRequestManager() { stop(); }
 std::vector<std::string> JsonRpcRequestManager::endpoints() const { return {listener_.endpoint()}; }
 
 void JsonRpcRequestManager::start() {
-  kit::TcpListener::Handlers handlers{[this](tcp::socket socket) { accept(std::move(socket)); },
-                                      [this](const tcp::endpoint& peer) { return refusal_reason(peer); },
-                                      [](const std::string& why) {
-                                        return dump(error_response(nullptr, code::overloaded, "Overloaded: " + why)) + "\n";
-                                      }};
+  kit::TcpListener::Handlers handlers{
+      [this](tcp::socket socket) { accept(std::move(socket)); },
+      [this](const tcp::endpoint& peer) { return refusal_reason(peer); },
+      [](const std::string& why) {
+        return dump(error_response(nullptr, code::overloaded, "Overloaded: " + why)) + "\n";
+      }};
   if (io_thread_.start(
           [this, handlers = std::move(handlers)]() mutable {
             deliver_here();
@@ -71,13 +73,16 @@ void JsonRpcRequestManager::on_line(kit::LineConnection& connection, std::string
   handle_message(static_cast<LineSession&>(connection).shared(), line);
 }
 
-void JsonRpcRequestManager::on_oversized_line(kit::LineConnection& connection, std::string_view /*prefix*/,
-                                              std::size_t bytes) {
+void JsonRpcRequestManager::on_oversized_line(kit::LineConnection& connection,
+                                              std::string_view /*prefix*/, std::size_t bytes) {
   const auto max = options_.tcp.max_message_bytes;
   static_cast<LineSession&>(connection)
-      .queue_message(dump(error_response(nullptr, code::invalid_request,
-                                         "Invalid Request: message exceeds max_message_bytes (" + std::to_string(max) + ")",
-                                         json{{"reason", "message too large"}, {"bytes_so_far", bytes}, {"max_message_bytes", max}})));
+      .queue_message(dump(error_response(
+          nullptr, code::invalid_request,
+          "Invalid Request: message exceeds max_message_bytes (" + std::to_string(max) + ")",
+          json{{"reason", "message too large"},
+               {"bytes_so_far", bytes},
+               {"max_message_bytes", max}})));
 }
 
 void JsonRpcRequestManager::on_messages_done(kit::Connection& connection, bool read_finished) {

@@ -44,7 +44,9 @@ class JsonRpcRequestManager : public JsonRpcEngine, private kit::LineServer {
   explicit JsonRpcRequestManager(const json& options);
   ~JsonRpcRequestManager() override;
   // What the constructor checks of `options`, without binding (the plugin's validate).
-  static std::vector<std::string> validate_options(const json& options) { return Options::parse(options).tcp.warnings; }
+  static std::vector<std::string> validate_options(const json& options) {
+    return Options::parse(options).tcp.warnings;
+  }
   std::size_t client_count() const override { return connection_count(); }
 
   void start() override;
@@ -62,7 +64,8 @@ class JsonRpcRequestManager : public JsonRpcEngine, private kit::LineServer {
 
   // kit::LineServer: the framing (I/O thread)
   void on_line(kit::LineConnection& connection, std::string_view line) override;
-  void on_oversized_line(kit::LineConnection& connection, std::string_view prefix, std::size_t bytes) override;
+  void on_oversized_line(kit::LineConnection& connection, std::string_view prefix,
+                         std::size_t bytes) override;
   void on_messages_done(kit::Connection& connection, bool read_finished) override;
   void on_input_ended(kit::LineConnection& connection) override;
   void on_closed(kit::Connection& connection) override;
@@ -71,9 +74,9 @@ class JsonRpcRequestManager : public JsonRpcEngine, private kit::LineServer {
   void accept(boost::asio::ip::tcp::socket socket);
   void shutdown_io();
 
-  kit::TcpListener listener_;        // the listening socket, bound in the constructor
-  kit::IoThread io_thread_;          // runs io_
-  std::uint64_t next_session_ = 1;   // numbers connections in logs (I/O thread)
+  kit::TcpListener listener_;       // the listening socket, bound in the constructor
+  kit::IoThread io_thread_;         // runs io_
+  std::uint64_t next_session_ = 1;  // numbers connections in logs (I/O thread)
 };
 
 }  // namespace simgate::jsonrpc

@@ -21,7 +21,8 @@ namespace simgate::jsonrpc {
 class LineSession : public kit::LineConnection, public Session {
  public:
   template <class... Args>
-  explicit LineSession(Args&&... args) : LineConnection(std::forward<Args>(args)...), Session(connection()) {}
+  explicit LineSession(Args&&... args)
+      : LineConnection(std::forward<Args>(args)...), Session(connection()) {}
 
   // One message: the line, its newline added; written at the end of the burst.
   void queue_message(std::string_view line) override {

@@ -35,23 +35,25 @@ std::string command_example(const StreamInfo& info) {
 // One client of a stream port.
 class Datastreams::Connection : public kit::LineConnection {
  public:
-  Connection(tcp::socket socket, kit::LineServer& server, const kit::ConnectionLimits& limits, Port& port,
-             std::uint64_t number)
+  Connection(tcp::socket socket, kit::LineServer& server, const kit::ConnectionLimits& limits,
+             Port& port, std::uint64_t number)
       : LineConnection(std::move(socket), server, limits, port.who, number), port(port) {}
 
-  Port& port;                                         // its stream
+  Port& port;                                        // its stream
   std::shared_ptr<StreamSubscription> subscription;  // output stream: its queue of samples
-  bool writing = false;                               // input stream: counted in port.writers
-  bool warned_malformed = false;                      // a line it sent was not a command (logged once)
+  bool writing = false;                              // input stream: counted in port.writers
+  bool warned_malformed = false;  // a line it sent was not a command (logged once)
 };
 
-Datastreams::Datastreams(asio::io_context& io, std::string who, const kit::TcpOptions& tcp, std::uint16_t base_port,
-                         std::size_t queue)
+Datastreams::Datastreams(asio::io_context& io, std::string who, const kit::TcpOptions& tcp,
+                         std::uint16_t base_port, std::size_t queue)
     : LineServer(who + " datastreams",
                  [&] {
                    kit::TcpOptions o = tcp;
-                   o.idle_timeout = o.idle_evict = std::chrono::milliseconds(0);  // readers may wait for long
-                   o.io_spin = std::chrono::microseconds(0);  // the I/O thread reads the service port directly only
+                   o.idle_timeout = o.idle_evict =
+                       std::chrono::milliseconds(0);  // readers may wait for long
+                   o.io_spin = std::chrono::microseconds(
+                       0);  // the I/O thread reads the service port directly only
                    return o;
                  }()),
       io_(io),
@@ -65,7 +67,8 @@ Datastreams::~Datastreams() = default;
 
 // ---- ports (host thread, before the I/O thread runs)
 
-void Datastreams::open(std::shared_ptr<StreamHub> hub, std::string transport, RequestManager& manager) {
+void Datastreams::open(std::shared_ptr<StreamHub> hub, std::string transport,
+                       RequestManager& manager) {
   if (opened_) return;  // the transport's start() may be called again
   opened_ = true;
   hub_ = std::move(hub);
@@ -88,9 +91,11 @@ void Datastreams::sync() {
       // a port that still serves this component's stream (one closed when its component
       // went, before a robot of that name was spawned again, does not)
       std::lock_guard lock(ports_mutex_);
-      if (std::any_of(ports_.begin(), ports_.end(),
-                      [&](const auto& p) { return p->info.component == info.component && !p->closed; }) ||
-          std::any_of(unbound_.begin(), unbound_.end(), [&](const Unbound& u) { return u.component == info.component; }))
+      if (std::any_of(
+              ports_.begin(), ports_.end(),
+              [&](const auto& p) { return p->info.component == info.component && !p->closed; }) ||
+          std::any_of(unbound_.begin(), unbound_.end(),
+                      [&](const Unbound& u) { return u.component == info.component; }))
         continue;
     }
     auto port = bind(info);
@@ -113,18 +118,22 @@ std::unique_ptr<Datastreams::Port> Datastreams::bind(const StreamInfo& info) {
       port->listener = std::make_unique<kit::TcpListener>(io_, port->who, tcp_.host, next);
       port->number = port->listener->port();
       // MORSE's numbering: the next stream takes the port after this one
-      if (base_port_ != 0) next_port_ = port->number == 65535 ? 0 : static_cast<std::uint16_t>(port->number + 1);
-      log::info(who_, ": ", info.component, " stream (", to_string(info.direction), " ", info.kind, ") on ",
-                port->listener->endpoint());
+      if (base_port_ != 0)
+        next_port_ = port->number == 65535 ? 0 : static_cast<std::uint16_t>(port->number + 1);
+      log::info(who_, ": ", info.component, " stream (", to_string(info.direction), " ", info.kind,
+                ") on ", port->listener->endpoint());
       return port;
     } catch (const std::exception& e) {
       error = e.what();
-      if (next == 0 || next == 65535) break;  // the system's choice failed, or no port is left above
-      ++next;                                 // MORSE's rule: in use, try the next one
+      if (next == 0 || next == 65535)
+        break;  // the system's choice failed, or no port is left above
+      ++next;   // MORSE's rule: in use, try the next one
     }
   }
-  log::error(who_, ": ", info.component, " stream has no port, pymorse and other clients cannot reach it: ", error);
-  // get_stream_port says why too: the listener's message, without its who (the answer names the component)
+  log::error(who_, ": ", info.component,
+             " stream has no port, pymorse and other clients cannot reach it: ", error);
+  // get_stream_port says why too: the listener's message, without its who (the answer
+  // names the component)
   const std::string prefix = port->who + ": ";
   if (error.starts_with(prefix)) error.erase(0, prefix.size());
   std::lock_guard lock(ports_mutex_);
@@ -139,7 +148,8 @@ const Datastreams::Port* Datastreams::find(std::string_view component) const {
   // a component removed at run time has no stream any more (the hub forgot it), and a port
   // closed with it serves none (a robot spawned again under its name has a port of its own)
   for (const auto& p : ports_)
-    if (p->info.component == component && !p->closed) return hub_->find(component, transport_) ? p.get() : nullptr;
+    if (p->info.component == component && !p->closed)
+      return hub_->find(component, transport_) ? p.get() : nullptr;
   return nullptr;
 }
 
@@ -154,7 +164,8 @@ std::vector<std::string> Datastreams::list() const {
 int Datastreams::port_of(const std::string& component) const {
   std::lock_guard lock(ports_mutex_);
   if (const Port* p = find(component)) return p->number;
-  std::string message = "Stream unavailable for component " + component;  // MORSE's words, which pymorse logs
+  std::string message =
+      "Stream unavailable for component " + component;  // MORSE's words, which pymorse logs
   // then why, for a stream that is there but has no port (pymorse logs the whole message)
   for (const auto& u : unbound_)
     if (u.component == component && hub_->find(component, transport_)) message += ": " + u.reason;
@@ -172,12 +183,19 @@ json Datastreams::all_ports() const {
 void Datastreams::register_services() {
   services_registered_ = true;
   RequestManager& manager = *manager_;
-  manager.register_service("simulation", [this] { return list(); }, "list_streams")
-      .doc("Components with a datastream port on this socket transport (MORSE's socket datastreams)");
-  manager.register_service("simulation", [this](const std::string& name) { return port_of(name); }, "get_stream_port",
-                           {"name"})
-      .doc("The TCP port of a component's datastream: one JSON object per line (what pymorse connects to)");
-  manager.register_service("simulation", [this] { return all_ports(); }, "get_all_stream_ports")
+  manager.register_service(
+             "simulation", [this] { return list(); }, "list_streams")
+      .doc(
+          "Components with a datastream port on this socket transport (MORSE's socket "
+          "datastreams)");
+  manager
+      .register_service("simulation", [this](const std::string& name) { return port_of(name); },
+                        "get_stream_port", {"name"})
+      .doc(
+          "The TCP port of a component's datastream: one JSON object per line (what pymorse "
+          "connects to)");
+  manager.register_service(
+             "simulation", [this] { return all_ports(); }, "get_all_stream_ports")
       .doc("{component: port} of every datastream on this socket transport");
 }
 
@@ -205,7 +223,8 @@ void Datastreams::close_all() {
 void Datastreams::accept(Port& port, tcp::socket socket) {
   if (port.closed) return;  // its component went; the socket closes here
   kit::LineServer& server = *this;
-  auto connection = std::make_shared<Connection>(std::move(socket), server, limits_, port, next_connection_++);
+  auto connection =
+      std::make_shared<Connection>(std::move(socket), server, limits_, port, next_connection_++);
   port.connections.push_back(connection);
   add(connection);  // decides whether it must authenticate, starts reading
   if (connection->authenticated() && !connection->closed()) begin(*connection);
@@ -218,14 +237,16 @@ void Datastreams::begin(Connection& connection) {
     // MORSE warns too: two writers interleave their commands, the latest wins
     if (++port.writers == 2 && !port.warned_writers) {
       port.warned_writers = true;
-      log::warning(port.who, ": ", connection.label(), " is a second client writing commands to this stream: "
+      log::warning(port.who, ": ", connection.label(),
+                   " is a second client writing commands to this stream: "
                    "the latest command wins (logged once)");
     }
     return;
   }
   connection.subscription = hub_->subscribe(
       port.info.component, transport_,
-      SubscriberOptions{queue_, "socket " + connection.label() + " on port " + std::to_string(port.number),
+      SubscriberOptions{queue_,
+                        "socket " + connection.label() + " on port " + std::to_string(port.number),
                         [this] { wake(); }});
   if (!connection.subscription) retire(port);  // its component was removed meanwhile
 }
@@ -239,9 +260,10 @@ void Datastreams::authenticate(Connection& connection, std::string_view line) {
     return;
   }
   // one guess per connection, as on the service port; nothing is written on a stream port
-  log::warning(connection.port.who, ": ", connection.label(),
-               token ? " presented a wrong token" : " sent something else than 'auth <token>' first",
-               "; connection closed (the transport's \"auth\" option)");
+  log::warning(
+      connection.port.who, ": ", connection.label(),
+      token ? " presented a wrong token" : " sent something else than 'auth <token>' first",
+      "; connection closed (the transport's \"auth\" option)");
   connection.close("not authenticated");
 }
 
@@ -257,19 +279,22 @@ void Datastreams::on_line(kit::LineConnection& c, std::string_view line) {
 
 void Datastreams::publish(Connection& connection, std::string_view line) {
   Port& port = connection.port;
-  const auto first = std::find_if(line.begin(), line.end(), [](char ch) { return ch != ' ' && ch != '\t' && ch != '\r'; });
+  const auto first = std::find_if(line.begin(), line.end(),
+                                  [](char ch) { return ch != ' ' && ch != '\t' && ch != '\r'; });
   if (first == line.end()) return;  // a blank line
   json command = json::parse(line, nullptr, /*allow_exceptions=*/false);
   if (!command.is_object()) {
     // a command all the same, refused: counted with the component's refusals (nothing is
     // written back on a stream port, get_stream_statistics is where a client sees it)
-    hub_->note_refused(port.info.component, transport_,
-                       (command.is_discarded() ? "not JSON: " : "not a JSON object: ") + log::quoted_prefix(line));
+    hub_->note_refused(
+        port.info.component, transport_,
+        (command.is_discarded() ? "not JSON: " : "not a JSON object: ") + log::quoted_prefix(line));
     if (!connection.warned_malformed) {
       connection.warned_malformed = true;
       log::warning(port.who, ": ", connection.label(), " sent ", log::quoted_prefix(line),
                    command.is_discarded() ? ", which is not JSON" : ", which is not a JSON object",
-                   ": ignored; the stream takes one JSON object per line, ", command_example(port.info),
+                   ": ignored; the stream takes one JSON object per line, ",
+                   command_example(port.info),
                    " (logged once per connection; simulation get_stream_statistics counts them)");
     }
     return;
@@ -284,17 +309,21 @@ void Datastreams::publish(Connection& connection, std::string_view line) {
   log::debug(port.who, ": ", connection.label(), ": command refused: ", result.error);
 }
 
-void Datastreams::on_oversized_line(kit::LineConnection& c, std::string_view /*prefix*/, std::size_t /*bytes*/) {
+void Datastreams::on_oversized_line(kit::LineConnection& c, std::string_view /*prefix*/,
+                                    std::size_t /*bytes*/) {
   auto& connection = static_cast<Connection&>(c);
-  if (connection.port.info.direction == StreamDirection::out) return;  // a reader's lines mean nothing
-  const std::string too_long = "a line longer than " + std::to_string(limits_.max_message_bytes) + " bytes (" +
-                               std::string(limits_.message_bytes_key) + ")";
+  if (connection.port.info.direction == StreamDirection::out)
+    return;  // a reader's lines mean nothing
+  const std::string too_long = "a line longer than " + std::to_string(limits_.max_message_bytes) +
+                               " bytes (" + std::string(limits_.message_bytes_key) + ")";
   // counted as a refused command, unless the peer has yet to authenticate (no commands then)
-  if (connection.authenticated()) hub_->note_refused(connection.port.info.component, transport_, too_long);
+  if (connection.authenticated())
+    hub_->note_refused(connection.port.info.component, transport_, too_long);
   if (connection.warned_malformed) return;
   connection.warned_malformed = true;
-  log::warning(connection.port.who, ": ", connection.label(), " sent ", too_long,
-               ": ignored (logged once per connection; simulation get_stream_statistics counts them)");
+  log::warning(
+      connection.port.who, ": ", connection.label(), " sent ", too_long,
+      ": ignored (logged once per connection; simulation get_stream_statistics counts them)");
 }
 
 void Datastreams::on_messages_done(kit::Connection& /*connection*/, bool /*read_finished*/) {
@@ -318,8 +347,8 @@ void Datastreams::retire(Port& port) {
   if (port.closed) return;
   port.closed = true;
   port.listener->close();
-  log::info(port.who, ": the component was removed from the simulation; port ", port.number, " and its ",
-            port.connections.size(), " connection(s) closed");
+  log::info(port.who, ": the component was removed from the simulation; port ", port.number,
+            " and its ", port.connections.size(), " connection(s) closed");
   const auto connections = port.connections;  // each close changes the list
   for (const auto& c : connections) c->close("its component was removed");
 }

@@ -76,8 +76,8 @@ class Datastreams : private kit::LineServer {
  public:
   // `io`: the transport's; `who` names it in logs ("Socket service manager"); `tcp`: its
   // options (host, limits, auth); `base_port`: "stream_port"; `queue`: "stream_queue".
-  Datastreams(boost::asio::io_context& io, std::string who, const kit::TcpOptions& tcp, std::uint16_t base_port,
-              std::size_t queue);
+  Datastreams(boost::asio::io_context& io, std::string who, const kit::TcpOptions& tcp,
+              std::uint16_t base_port, std::size_t queue);
   ~Datastreams() override;
   Datastreams(const Datastreams&) = delete;
   Datastreams& operator=(const Datastreams&) = delete;
@@ -113,9 +113,10 @@ class Datastreams : private kit::LineServer {
     std::uint16_t number = 0;                    // the bound port
     // I/O thread:
     std::vector<std::shared_ptr<Connection>> connections;  // open ones
-    std::size_t writers = 0;                     // input stream: connections writing now
-    bool warned_writers = false;                 // a second writer was warned about
-    std::atomic<bool> closed{false};             // its component was removed, or close_all() (read by the services)
+    std::size_t writers = 0;                               // input stream: connections writing now
+    bool warned_writers = false;                           // a second writer was warned about
+    std::atomic<bool> closed{
+        false};  // its component was removed, or close_all() (read by the services)
   };
 
   // Binds a port for `info`, from next_port_ (0: any) up while in use, and moves next_port_
@@ -142,36 +143,39 @@ class Datastreams : private kit::LineServer {
 
   // kit::LineServer (I/O thread)
   void on_line(kit::LineConnection& connection, std::string_view line) override;
-  void on_oversized_line(kit::LineConnection& connection, std::string_view prefix, std::size_t bytes) override;
+  void on_oversized_line(kit::LineConnection& connection, std::string_view prefix,
+                         std::size_t bytes) override;
   void on_messages_done(kit::Connection& connection, bool read_finished) override;
   void on_input_ended(kit::LineConnection& connection) override;
   void on_closed(kit::Connection& connection) override;
 
-  boost::asio::io_context& io_;      // the transport's
-  std::string who_;                  // for logs
-  kit::TcpOptions tcp_;              // the transport's options (host, auth)
-  kit::ConnectionLimits limits_;           // per connection
-  std::uint16_t base_port_;          // "stream_port"
-  std::size_t queue_;                // "stream_queue"
-  std::shared_ptr<StreamHub> hub_;   // from open()
-  std::string transport_;            // the configuration's name of this transport
-  bool opened_ = false;                       // open() ran
-  RequestManager* manager_ = nullptr;         // whose table gets the services (from open())
-  bool services_registered_ = false;          // they are in it
-  std::uint16_t next_port_ = 0;               // the next stream's port (0: the system's choice)
+  boost::asio::io_context& io_;        // the transport's
+  std::string who_;                    // for logs
+  kit::TcpOptions tcp_;                // the transport's options (host, auth)
+  kit::ConnectionLimits limits_;       // per connection
+  std::uint16_t base_port_;            // "stream_port"
+  std::size_t queue_;                  // "stream_queue"
+  std::shared_ptr<StreamHub> hub_;     // from open()
+  std::string transport_;              // the configuration's name of this transport
+  bool opened_ = false;                // open() ran
+  RequestManager* manager_ = nullptr;  // whose table gets the services (from open())
+  bool services_registered_ = false;   // they are in it
+  std::uint16_t next_port_ = 0;        // the next stream's port (0: the system's choice)
   // ports_ and unbound_: added to by the I/O thread (and open()), read by the services
   mutable std::mutex ports_mutex_;
   std::vector<std::unique_ptr<Port>> ports_;  // in the order their streams were added
   // A stream whose port could not be bound, and why (get_stream_port says it).
   struct Unbound {
     std::string component;
-    std::string reason;  // "cannot listen on 127.0.0.1:60000: bind failed: Address already in use ..."
+    std::string
+        reason;  // "cannot listen on 127.0.0.1:60000: bind failed: Address already in use ..."
   };
   std::vector<Unbound> unbound_;
-  std::uint64_t next_connection_ = 1;         // numbers connections in logs (I/O thread)
-  std::vector<SamplePtr> samples_;            // drain's scratch (I/O thread)
-  std::vector<std::shared_ptr<Connection>> draining_;  // drain's copy of a port's readers (I/O thread)
-  std::atomic<bool> woken_{false};            // a drain is posted
+  std::uint64_t next_connection_ = 1;  // numbers connections in logs (I/O thread)
+  std::vector<SamplePtr> samples_;     // drain's scratch (I/O thread)
+  std::vector<std::shared_ptr<Connection>>
+      draining_;                    // drain's copy of a port's readers (I/O thread)
+  std::atomic<bool> woken_{false};  // a drain is posted
 };
 
 }  // namespace simgate::socket

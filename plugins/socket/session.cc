@@ -5,11 +5,13 @@
 
 namespace simgate::socket {
 
-void Session::answer(std::size_t client_id_hash, RequestId id, std::string_view status, const json* value) {
+void Session::answer(std::size_t client_id_hash, RequestId id, std::string_view status,
+                     const json* value) {
   if (closed()) return;
   const kit::IdTable::Entry* entry = pending_.find(client_id_hash, id);
   if (!entry) {
-    log::error("Socket service manager: ", label(), ": no pending request ", id, " to answer (reply dropped)");
+    log::error("Socket service manager: ", label(), ": no pending request ", id,
+               " to answer (reply dropped)");
     return;
   }
   // formatted straight into the outbox, then forgotten; the limit may close the connection
@@ -23,7 +25,8 @@ void Session::answer(std::size_t client_id_hash, RequestId id, std::string_view 
 bool Session::report_progress(std::size_t client_id_hash, RequestId id, const json& value) {
   const kit::IdTable::Entry* entry = pending_.find(client_id_hash, id);
   if (!entry) return false;
-  return queue_droppable_with([&](std::string& out) { append_reply(out, entry->key, k_progress_status, &value); });
+  return queue_droppable_with(
+      [&](std::string& out) { append_reply(out, entry->key, k_progress_status, &value); });
 }
 
 }  // namespace simgate::socket

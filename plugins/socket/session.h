@@ -29,10 +29,14 @@ class Session : public kit::LineConnection {
  public:
   using LineConnection::LineConnection;
 
-  std::shared_ptr<Session> shared() { return std::static_pointer_cast<Session>(shared_from_this()); }
+  std::shared_ptr<Session> shared() {
+    return std::static_pointer_cast<Session>(shared_from_this());
+  }
 
   // Pending requests of this connection, by the client's id.
-  const kit::IdTable::Entry* find_pending(std::string_view client_id) const { return pending_.find(client_id); }
+  const kit::IdTable::Entry* find_pending(std::string_view client_id) const {
+    return pending_.find(client_id);
+  }
   // Registers a request under the client's id: returns its entry, whose `id` the caller
   // sets at once (the pointer is valid until the table next changes), or null when that id
   // is already pending here.
@@ -71,7 +75,7 @@ class Session : public kit::LineConnection {
   bool has_unanswered() const { return unanswered() > 0; }
 
  private:
-  kit::IdTable pending_;  // client id -> core request id
+  kit::IdTable pending_;         // client id -> core request id
   bool wants_progress_ = false;  // opted in to progress lines
 };
 

@@ -56,15 +56,19 @@ SocketOptions SocketOptions::parse(const json& options) {
       for (const auto& [name, value] : services->raw().items()) {
         const std::size_t dot = name.rfind('.');
         if (dot == std::string::npos || dot == 0 || dot + 1 == name.size())
-          throw ConfigError(services->path_of(name) + ": expected a service as \"component.service\" "
-                            "(\"robot.waypoint.goto\"), found '" + name + "'");
-        o.service_timeouts.emplace(name, std::chrono::milliseconds(services->get_int(name, 0, 0, k_max_ms)));
+          throw ConfigError(services->path_of(name) +
+                            ": expected a service as \"component.service\" "
+                            "(\"robot.waypoint.goto\"), found '" +
+                            name + "'");
+        o.service_timeouts.emplace(
+            name, std::chrono::milliseconds(services->get_int(name, 0, 0, k_max_ms)));
       }
       services->finish();
     }
     timeouts->finish();
   }
-  o.stream_port = static_cast<std::uint16_t>(config.get_int("stream_port", o.stream_port, 0, 65535));
+  o.stream_port =
+      static_cast<std::uint16_t>(config.get_int("stream_port", o.stream_port, 0, 65535));
   o.stream_queue = static_cast<std::size_t>(
       config.get_int("stream_queue", static_cast<long long>(o.stream_queue), 1, 100000));
   o.tcp = kit::TcpOptions::read(config, tcp_defaults(), "socket", k_renamed);
@@ -109,14 +113,15 @@ void SocketRequestManager::start() {
   // services that say which (registered only when there is one, as MORSE does)
   datastreams_.open(stream_hub(), transport_name(), *this);
   // the id "-" of the refusal matches no request: pymorse ignores the line, telnet shows it
-  kit::TcpListener::Handlers handlers{[this](tcp::socket socket) { accept(std::move(socket)); },
-                                      [this](const tcp::endpoint& peer) { return refusal_reason(peer); },
-                                      [](const std::string& why) {
-                                        std::string line;
-                                        const json text = why;
-                                        append_reply(line, "-", k_failed, &text);
-                                        return line;
-                                      }};
+  kit::TcpListener::Handlers handlers{
+      [this](tcp::socket socket) { accept(std::move(socket)); },
+      [this](const tcp::endpoint& peer) { return refusal_reason(peer); },
+      [](const std::string& why) {
+        std::string line;
+        const json text = why;
+        append_reply(line, "-", k_failed, &text);
+        return line;
+      }};
   // outcomes produced on the simulation thread come here: one flush per burst, then one
   // write per connection
   io_thread_.start(
@@ -193,13 +198,14 @@ void SocketRequestManager::on_messages_done(kit::Connection& connection, bool re
     run_batch();
 }
 
-void SocketRequestManager::fail_in_order(Session& session, std::string_view id, std::string message) {
+void SocketRequestManager::fail_in_order(Session& session, std::string_view id,
+                                         std::string message) {
   const json text = std::move(message);
   reply_in_order(session, id, k_failed, &text);
 }
 
-void SocketRequestManager::reply_in_order(Session& session, std::string_view id, std::string_view status,
-                                          const json* value) {
+void SocketRequestManager::reply_in_order(Session& session, std::string_view id,
+                                          std::string_view status, const json* value) {
   // earlier requests of this read may run at once, answering them
   if (session.has_unanswered()) run_batch();
   scratch_.clear();
@@ -211,7 +217,8 @@ void SocketRequestManager::reply_in_order(Session& session, std::string_view id,
   // earlier requests are still with the core: the answer follows their outcomes, so that a
   // client reading replies in order (telnet, scripts) sees them in order
   session.defer_reply();
-  const RequestId reply_id = new_request_id();  // never one of requests_'s ids (kit::RequestSlots::k_mark)
+  const RequestId reply_id =
+      new_request_id();  // never one of requests_'s ids (kit::RequestSlots::k_mark)
   deferred_replies_.emplace(reply_id, DeferredReply{session.shared(), scratch_});
   answer_in_order(reply_id, Outcome{});
 }
@@ -232,15 +239,17 @@ void SocketRequestManager::set_progress(Session& session, const RequestLine& req
   if (params.is_object() && params.size() == 1 && params.contains("on")) on = &params["on"];
   const bool none = params.is_null() || (params.is_array() && params.empty());
   if (!none && !on) {
-    fail_in_order(session, request.id,
-                  "wrong # of parameters for service simgate.progress: expected at most 1 (on), got " +
-                      std::to_string(params.size()));
+    fail_in_order(
+        session, request.id,
+        "wrong # of parameters for service simgate.progress: expected at most 1 (on), got " +
+            std::to_string(params.size()));
     return;
   }
   if (on && !on->is_boolean()) {
-    fail_in_order(session, request.id,
-                  "wrong parameter type for service simgate.progress: parameter 'on' expects boolean, got " +
-                      describe_json(*on));
+    fail_in_order(
+        session, request.id,
+        "wrong parameter type for service simgate.progress: parameter 'on' expects boolean, got " +
+            describe_json(*on));
     return;
   }
   const bool enable = on ? on->get<bool>() : true;
@@ -283,8 +292,7 @@ void SocketRequestManager::on_line(kit::LineConnection& connection, std::string_
   }
   RequestLine request = parse_request_line(line);
   switch (request.kind) {
-    case RequestLine::Kind::blank:
-      return;
+    case RequestLine::Kind::blank: return;
     case RequestLine::Kind::malformed:
       fail_in_order(session, request.id, std::move(request.error));
       return;
@@ -296,8 +304,7 @@ void SocketRequestManager::on_line(kit::LineConnection& connection, std::string_
         cancel(id);
       }
       return;
-    case RequestLine::Kind::call:
-      break;
+    case RequestLine::Kind::call: break;
   }
   // the transport's own request: progress lines for this connection (opt-in)
   if (request.component == k_simgate && request.service == k_progress) [[unlikely]] {
@@ -308,9 +315,10 @@ void SocketRequestManager::on_line(kit::LineConnection& connection, std::string_
   // one pending request per id and connection, or replies could not be told apart
   kit::IdTable::Entry* pending = session.add_pending(request.id);
   if (!pending) {
-    fail_in_order(session, request.id,
-                  "Request id '" + std::string(request.id) +
-                      "' is already pending on this connection: wait for its reply or use another id");
+    fail_in_order(
+        session, request.id,
+        "Request id '" + std::string(request.id) +
+            "' is already pending on this connection: wait for its reply or use another id");
     return;
   }
 
@@ -325,12 +333,14 @@ void SocketRequestManager::on_line(kit::LineConnection& connection, std::string_
                       ? "Invalid request syntax: error while parsing the parameters at column " +
                             std::to_string(params_error_.column) + ": " + params_error_.error
                       // `set_speed 0.5 0.2`: bare values where a list belongs
-                      : "Invalid request syntax: parameters must be a list, e.g. `" + params_error_.example + "`");
+                      : "Invalid request syntax: parameters must be a list, e.g. `" +
+                            params_error_.example + "`");
     return;
   }
   if (requests_.size() >= decltype(requests_)::k_max_live) {
     session.drop_pending(request.id);
-    fail_in_order(session, request.id, "Too many requests are waiting for their outcome in this server: retry later");
+    fail_in_order(session, request.id,
+                  "Too many requests are waiting for their outcome in this server: retry later");
     return;
   }
 
@@ -347,28 +357,31 @@ void SocketRequestManager::on_line(kit::LineConnection& connection, std::string_
   ++batch_count_;
 }
 
-std::chrono::milliseconds SocketRequestManager::timeout_for(const std::string& component, const std::string& service) {
+std::chrono::milliseconds SocketRequestManager::timeout_for(const std::string& component,
+                                                            const std::string& service) {
   if (options_.service_timeouts.empty()) return options_.default_timeout;
   timeout_key_.assign(component).append(1, '.').append(service);  // no allocation once grown
   auto it = options_.service_timeouts.find(timeout_key_);
   return it == options_.service_timeouts.end() ? options_.default_timeout : it->second;
 }
 
-void SocketRequestManager::on_oversized_line(kit::LineConnection& connection, std::string_view prefix,
-                                             std::size_t /*bytes*/) {
+void SocketRequestManager::on_oversized_line(kit::LineConnection& connection,
+                                             std::string_view prefix, std::size_t /*bytes*/) {
   auto& session = static_cast<Session&>(connection);
   // answer with the line's id when it has a usable one, "-" otherwise
   std::size_t begin = 0;
   while (begin < prefix.size() && (prefix[begin] == ' ' || prefix[begin] == '\t')) ++begin;
   std::size_t end = begin;
-  while (end < prefix.size() && prefix[end] != ' ' && prefix[end] != '\t' && prefix[end] != '\r') ++end;
+  while (end < prefix.size() && prefix[end] != ' ' && prefix[end] != '\t' && prefix[end] != '\r')
+    ++end;
   std::string_view id = prefix.substr(begin, end - begin);
-  if (id.empty() || id.size() > k_max_echoed_id || end == prefix.size() || !echoable_id(id)) id = "-";
+  if (id.empty() || id.size() > k_max_echoed_id || end == prefix.size() || !echoable_id(id))
+    id = "-";
   log::warning(name(), ": ", session.label(), ": request line longer than ",
                limits_.max_message_bytes, " bytes ignored");
   fail_in_order(session, id,
-                "Request too long: the line exceeds " + std::to_string(limits_.max_message_bytes) + " bytes (" +
-                    limits_.message_bytes_key + "); it was ignored");
+                "Request too long: the line exceeds " + std::to_string(limits_.max_message_bytes) +
+                    " bytes (" + limits_.message_bytes_key + "); it was ignored");
 }
 
 void SocketRequestManager::on_input_ended(kit::LineConnection& connection) {
@@ -458,11 +471,11 @@ void SocketRequestManager::deliver(RequestId id, const Outcome& outcome) try {
 }  // namespace simgate::socket
 
 SIMGATE_TRANSPORT_PLUGIN(socket, simgate::socket::SocketRequestManager, "0.1.0", "host", "port",
-                         "success_word", "max_connections", "max_message_bytes",
-                         "max_unsent_bytes", "max_in_flight", "io_spin_us", "global_policy",
-                         "on_disconnect", "idle_timeout_s", "idle_evict_s", "line_timeout_s",
-                         "max_buffered_bytes", "max_connections_per_peer", "auth", "progress_interval_ms",
-                         "timeouts", "stream_port", "stream_queue",
+                         "success_word", "max_connections", "max_message_bytes", "max_unsent_bytes",
+                         "max_in_flight", "io_spin_us", "global_policy", "on_disconnect",
+                         "idle_timeout_s", "idle_evict_s", "line_timeout_s", "max_buffered_bytes",
+                         "max_connections_per_peer", "auth", "progress_interval_ms", "timeouts",
+                         "stream_port", "stream_queue",
                          // deprecated names: accepted with a warning until the next release
                          "max_clients", "max_line_bytes", "max_pending_replies_bytes",
                          "max_pending_requests")

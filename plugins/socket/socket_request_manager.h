@@ -88,8 +88,10 @@ struct SocketOptions {
   // "timeouts": every call's deadline (zero: none), and per service ("component.service")
   std::chrono::milliseconds default_timeout{0};
   std::map<std::string, std::chrono::milliseconds, std::less<>> service_timeouts;
-  std::uint16_t stream_port = 60000;  // ("stream_port") the first datastream's port; 0: any free port each
-  std::size_t stream_queue = 16;      // ("stream_queue") samples a datastream reader keeps (core/streams.h)
+  std::uint16_t stream_port =
+      60000;  // ("stream_port") the first datastream's port; 0: any free port each
+  std::size_t stream_queue =
+      16;  // ("stream_queue") samples a datastream reader keeps (core/streams.h)
 
   // Every check of the options, resolving the host but binding nothing. Throws ConfigError.
   static SocketOptions parse(const json& options);
@@ -128,7 +130,8 @@ class SocketRequestManager : public RequestManager, private kit::LineServer {
  private:
   // kit::LineServer: the protocol (I/O thread)
   void on_line(kit::LineConnection& connection, std::string_view line) override;
-  void on_oversized_line(kit::LineConnection& connection, std::string_view prefix, std::size_t bytes) override;
+  void on_oversized_line(kit::LineConnection& connection, std::string_view prefix,
+                         std::size_t bytes) override;
   void on_messages_done(kit::Connection& connection, bool read_finished) override;
   void on_input_ended(kit::LineConnection& connection) override;
   void on_closed(kit::Connection& connection) override;
@@ -164,7 +167,8 @@ class SocketRequestManager : public RequestManager, private kit::LineServer {
   // Answers FAILED `message` after the connection's earlier requests have been answered.
   void fail_in_order(Session& session, std::string_view id, std::string message);
   // Answers "<id> <status>[ <value>]" after the connection's earlier requests.
-  void reply_in_order(Session& session, std::string_view id, std::string_view status, const json* value);
+  void reply_in_order(Session& session, std::string_view id, std::string_view status,
+                      const json* value);
   // `<id> simgate progress [true|false]`: opts the connection in to (or out of) progress
   // lines for the requests it sends from now on; answered SUCCESS, or FAILED for bad params.
   void set_progress(Session& session, const RequestLine& request);
@@ -179,25 +183,27 @@ class SocketRequestManager : public RequestManager, private kit::LineServer {
     std::size_t client_id_hash = 0;  // finds the request in the session's pending table
   };
 
-  SocketOptions options_;        // as parsed
-  boost::asio::io_context io_;   // runs every handler, on the I/O thread
-  kit::TcpListener listener_;    // the listening socket, bound in the constructor
-  kit::IoThread io_thread_;      // runs io_
-  Datastreams datastreams_;      // the stream ports, opened by start()
-  kit::ConnectionLimits limits_;       // per-connection limits, from options_
-  bool stopping_ = false;                    // close_all() runs: closed sessions cancel nothing (I/O thread)
-  std::uint64_t next_session_ = 1;           // numbers sessions in logs
-  kit::RequestSlots<Pending> requests_;           // unanswered requests, by the ids it gives them (I/O thread)
-  std::string scratch_;                      // reply formatting buffer (I/O thread)
-  std::string timeout_key_;                  // "component.service", looked up in service_timeouts (I/O thread)
+  SocketOptions options_;           // as parsed
+  boost::asio::io_context io_;      // runs every handler, on the I/O thread
+  kit::TcpListener listener_;       // the listening socket, bound in the constructor
+  kit::IoThread io_thread_;         // runs io_
+  Datastreams datastreams_;         // the stream ports, opened by start()
+  kit::ConnectionLimits limits_;    // per-connection limits, from options_
+  bool stopping_ = false;           // close_all() runs: closed sessions cancel nothing (I/O thread)
+  std::uint64_t next_session_ = 1;  // numbers sessions in logs
+  kit::RequestSlots<Pending>
+      requests_;             // unanswered requests, by the ids it gives them (I/O thread)
+  std::string scratch_;      // reply formatting buffer (I/O thread)
+  std::string timeout_key_;  // "component.service", looked up in service_timeouts (I/O thread)
   // calls of the current read, not yet handed to the core: the first batch_count_ of batch_;
   // the objects are reused from read to read, at most k_kept_calls of them kept (I/O thread)
   static constexpr std::size_t k_kept_calls = 1024;
   std::vector<std::pair<RequestId, Call>> batch_;
   std::size_t batch_count_ = 0;
-  std::vector<RequestId> cancel_after_batch_;  // cancels of a client that left, after the batch (I/O thread)
-  ParamsParse params_error_;                 // the last parameters syntax error (I/O thread)
-  json progress_params_;                     // set_progress's parameters (I/O thread)
+  std::vector<RequestId>
+      cancel_after_batch_;    // cancels of a client that left, after the batch (I/O thread)
+  ParamsParse params_error_;  // the last parameters syntax error (I/O thread)
+  json progress_params_;      // set_progress's parameters (I/O thread)
   // error replies travelling through the core behind earlier requests, by the
   // new_request_id() their answer_in_order() carries (I/O thread)
   std::unordered_map<RequestId, DeferredReply> deferred_replies_;

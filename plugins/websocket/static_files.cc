@@ -37,8 +37,8 @@ WebOptions WebOptions::take(json& options) {
     std::error_code ec;
     if (o.root.empty()) config.fail("web_root", "a directory (the web app's files)");
     if (o.enabled && !fs::is_directory(o.root, ec))
-      throw ConfigError("web_root: expected a directory (the web app's files), found '" + o.root + "': " +
-                        (fs::exists(o.root, ec) ? "not a directory" : "no such directory"));
+      throw ConfigError("web_root: expected a directory (the web app's files), found '" + o.root +
+                        "': " + (fs::exists(o.root, ec) ? "not a directory" : "no such directory"));
   }
   config.finish();
   return o;
@@ -63,8 +63,8 @@ std::string default_web_root() {
 
 // ---- requests
 
-StaticFiles::StaticFiles(const std::string& root, std::string server_name, std::string not_found_text,
-                         std::size_t cache_bytes)
+StaticFiles::StaticFiles(const std::string& root, std::string server_name,
+                         std::string not_found_text, std::size_t cache_bytes)
     : root_(root),
       server_name_(std::move(server_name)),
       not_found_text_(std::move(not_found_text)),
@@ -163,7 +163,8 @@ std::int64_t epoch_s(fs::file_time_type t) {
 
 std::string etag_of(std::uintmax_t size, fs::file_time_type mtime) {
   char text[64];
-  std::snprintf(text, sizeof text, "\"%jx-%llx\"", size, static_cast<unsigned long long>(epoch_ns(mtime)));
+  std::snprintf(text, sizeof text, "\"%jx-%llx\"", size,
+                static_cast<unsigned long long>(epoch_ns(mtime)));
   return text;
 }
 
@@ -193,14 +194,16 @@ std::string StaticFiles::http_date(std::int64_t seconds) {
   std::tm tm{};
   ::gmtime_r(&t, &tm);
   char text[40];
-  std::snprintf(text, sizeof text, "%s, %02d %s %04d %02d:%02d:%02d GMT", k_days[tm.tm_wday % 7], tm.tm_mday,
-                k_months[tm.tm_mon % 12], tm.tm_year + 1900, tm.tm_hour, tm.tm_min, tm.tm_sec);
+  std::snprintf(text, sizeof text, "%s, %02d %s %04d %02d:%02d:%02d GMT", k_days[tm.tm_wday % 7],
+                tm.tm_mday, k_months[tm.tm_mon % 12], tm.tm_year + 1900, tm.tm_hour, tm.tm_min,
+                tm.tm_sec);
   return text;
 }
 
 std::optional<std::int64_t> StaticFiles::parse_http_date(std::string_view text) {
   // "Sun, 06 Nov 1994 08:49:37 GMT": 29 characters, fixed places
-  if (text.size() != 29 || text.substr(3, 2) != ", " || text.substr(25) != " GMT") return std::nullopt;
+  if (text.size() != 29 || text.substr(3, 2) != ", " || text.substr(25) != " GMT")
+    return std::nullopt;
   const auto number = [&](std::size_t at, std::size_t digits) -> int {
     int n = 0;
     for (std::size_t i = at; i < at + digits; ++i) {
@@ -218,9 +221,10 @@ std::optional<std::int64_t> StaticFiles::parse_http_date(std::string_view text) 
   tm.tm_hour = number(17, 2);
   tm.tm_min = number(20, 2);
   tm.tm_sec = number(23, 2);
-  if (tm.tm_mday < 1 || tm.tm_mday > 31 || tm.tm_mon < 0 || tm.tm_year < 70 - 1900 || tm.tm_hour < 0 ||
-      tm.tm_hour > 23 || tm.tm_min < 0 || tm.tm_min > 59 || tm.tm_sec < 0 || tm.tm_sec > 60 || text[7] != ' ' ||
-      text[11] != ' ' || text[16] != ' ' || text[19] != ':' || text[22] != ':')
+  if (tm.tm_mday < 1 || tm.tm_mday > 31 || tm.tm_mon < 0 || tm.tm_year < 70 - 1900 ||
+      tm.tm_hour < 0 || tm.tm_hour > 23 || tm.tm_min < 0 || tm.tm_min > 59 || tm.tm_sec < 0 ||
+      tm.tm_sec > 60 || text[7] != ' ' || text[11] != ' ' || text[16] != ' ' || text[19] != ':' ||
+      text[22] != ':')
     return std::nullopt;
   return static_cast<std::int64_t>(::timegm(&tm));
 }
@@ -235,7 +239,8 @@ std::size_t StaticFiles::cached_bytes() const {
   return cache_bytes_;
 }
 
-std::shared_ptr<const std::string> StaticFiles::contents(const fs::path& file, fs::file_time_type mtime,
+std::shared_ptr<const std::string> StaticFiles::contents(const fs::path& file,
+                                                         fs::file_time_type mtime,
                                                          std::uintmax_t size, bool& cached) const {
   const std::string key = file.string();
   {
@@ -292,7 +297,8 @@ std::string StaticFiles::head_of(unsigned status, std::string_view reason, std::
 }
 
 HttpResponse StaticFiles::response(unsigned status, std::string_view reason, std::string_view type,
-                                   std::string_view body, bool head, std::string_view extra_headers) const {
+                                   std::string_view body, bool head,
+                                   std::string_view extra_headers) const {
   HttpResponse out{head_of(status, reason, type, body.size(), extra_headers)};
   if (!head) out.head += body;
   return out;
@@ -302,8 +308,8 @@ HttpResponse StaticFiles::answer(const http::request<http::string_body>& request
   constexpr std::string_view text = "text/plain; charset=utf-8";
   const bool head = request.method() == http::verb::head;
   if (request.method() != http::verb::get && !head)
-    return response(405, "Method Not Allowed", text, "405 method not allowed: GET or HEAD only\n", false,
-                    "Allow: GET, HEAD\r\n");
+    return response(405, "Method Not Allowed", text, "405 method not allowed: GET or HEAD only\n",
+                    false, "Allow: GET, HEAD\r\n");
   const std::string_view target(request.target().data(), request.target().size());
   if (target.size() > k_max_target_bytes)
     return response(414, "URI Too Long", text, "414 request target too long\n", head);
@@ -319,7 +325,8 @@ HttpResponse StaticFiles::answer(const http::request<http::string_body>& request
   if (ec || !fs::is_directory(root, ec)) {
     // no web app (not built, not installed, or turned off): say what the port is
     return response(404, "Not Found", text,
-                    not_found_text_ + "the web app is not here: no directory " + root_.string() + " (web_root)\n",
+                    not_found_text_ + "the web app is not here: no directory " + root_.string() +
+                        " (web_root)\n",
                     head);
   }
   const fs::path file = fs::weakly_canonical(root / *relative, ec);
@@ -331,7 +338,8 @@ HttpResponse StaticFiles::answer(const http::request<http::string_body>& request
   if (ec) return not_found();
   if (size > k_max_file_bytes)
     return response(403, "Forbidden", text,
-                    "403 file larger than the web server's limit (" + std::to_string(k_max_file_bytes) + " bytes)\n",
+                    "403 file larger than the web server's limit (" +
+                        std::to_string(k_max_file_bytes) + " bytes)\n",
                     head);
 
   const auto mtime = fs::last_write_time(file, ec);
@@ -342,7 +350,8 @@ HttpResponse StaticFiles::answer(const http::request<http::string_body>& request
   const std::string last_modified = http_date(epoch_s(mtime));
   const std::string validators = "ETag: " + etag + "\r\nLast-Modified: " + last_modified + "\r\n";
   if (const auto inm = request.find(http::field::if_none_match); inm != request.end()) {
-    if (none_match_names(std::string_view(inm->value().data(), inm->value().size()), etag)) return not_modified(validators);
+    if (none_match_names(std::string_view(inm->value().data(), inm->value().size()), etag))
+      return not_modified(validators);
   } else if (const auto ims = request.find(http::field::if_modified_since); ims != request.end()) {
     const auto since = parse_http_date(std::string_view(ims->value().data(), ims->value().size()));
     if (since && epoch_s(mtime) <= *since) return not_modified(validators);
@@ -352,7 +361,8 @@ HttpResponse StaticFiles::answer(const http::request<http::string_body>& request
   bool cached = false;
   std::shared_ptr<const std::string> body = contents(file, mtime, size, cached);
   if (!body) return not_found();
-  HttpResponse out{head_of(200, "OK", content_type(file.filename().string()), body->size(), validators)};
+  HttpResponse out{
+      head_of(200, "OK", content_type(file.filename().string()), body->size(), validators)};
   if (!head) {
     out.body = std::move(body);
     out.body_cached = cached;

@@ -17,8 +17,8 @@
 // Modified with no body.
 //
 // Cache: the files' contents are kept in memory, keyed by their resolved path, up to
-// the constructor's `cache_bytes` in all (least recently used out first; a larger file is read each time).
-// A response shares the cached contents (never a copy per response: forty clients that do
+// the constructor's `cache_bytes` in all (least recently used out first; a larger file is read each
+// time). A response shares the cached contents (never a copy per response: forty clients that do
 // not read a 30 MB file hold it once); what a response holds of its own (its head, a file
 // too large for the cache) counts against the transport's max_buffered_bytes while it is
 // written (kit/held_bytes.h).
@@ -55,8 +55,8 @@ namespace simgate::websocket {
 
 // The options `web` and `web_root` of the transport.
 struct WebOptions {
-  bool enabled = true;    // ("web") serve the web app on plain HTTP requests
-  std::string root;       // ("web_root") its directory; default: default_web_root()
+  bool enabled = true;  // ("web") serve the web app on plain HTTP requests
+  std::string root;     // ("web_root") its directory; default: default_web_root()
 
   // Reads and removes `web` and `web_root` from `options` (so that the JSON-RPC options
   // see the rest); ConfigError naming the key when one is malformed, or when an explicit
@@ -83,7 +83,8 @@ class StaticFiles {
               std::size_t cache_bytes = k_max_cache_bytes);
 
   // The HTTP response to `request` (a file's body shared with the cache, not copied).
-  HttpResponse answer(const boost::beast::http::request<boost::beast::http::string_body>& request) const;
+  HttpResponse answer(
+      const boost::beast::http::request<boost::beast::http::string_body>& request) const;
 
   const std::filesystem::path& root() const { return root_; }
 
@@ -111,35 +112,36 @@ class StaticFiles {
 
  private:
   // The head of a response whose body has `body_bytes` bytes.
-  std::string head_of(unsigned status, std::string_view reason, std::string_view content_type, std::size_t body_bytes,
-                      std::string_view extra_headers = {}) const;
+  std::string head_of(unsigned status, std::string_view reason, std::string_view content_type,
+                      std::size_t body_bytes, std::string_view extra_headers = {}) const;
   // A response whose (short) body goes in its head, unless `head` (a HEAD request).
-  HttpResponse response(unsigned status, std::string_view reason, std::string_view content_type, std::string_view body,
-                        bool head, std::string_view extra_headers = {}) const;
+  HttpResponse response(unsigned status, std::string_view reason, std::string_view content_type,
+                        std::string_view body, bool head,
+                        std::string_view extra_headers = {}) const;
   // A 304 with `validators` (the ETag and Last-Modified header lines) and no body.
   HttpResponse not_modified(std::string_view validators) const;
 
   // A file's contents as last read, and what says whether they are still current.
   struct Cached {
-    std::filesystem::file_time_type mtime;  // the file's mtime when read
-    std::uintmax_t size = 0;                // its size when read (== body->size())
+    std::filesystem::file_time_type mtime;    // the file's mtime when read
+    std::uintmax_t size = 0;                  // its size when read (== body->size())
     std::shared_ptr<const std::string> body;  // its contents
-    std::list<std::string>::iterator use;   // its place in lru_
+    std::list<std::string>::iterator use;     // its place in lru_
   };
   // The contents of `file` (mtime and size as just seen), from the cache or read now
   // (`cached`: they are the cache's copy); nullptr when it cannot be read.
   std::shared_ptr<const std::string> contents(const std::filesystem::path& file,
-                                              std::filesystem::file_time_type mtime, std::uintmax_t size,
-                                              bool& cached) const;
+                                              std::filesystem::file_time_type mtime,
+                                              std::uintmax_t size, bool& cached) const;
 
-  std::filesystem::path root_;          // the web root, canonical when it exists
-  bool root_exists_ = false;            // it existed (as a directory) at construction
-  std::string server_name_;             // the Server header
-  std::string not_found_text_;          // the body of a 404 for "/" without a web app
-  std::size_t cache_limit_;             // the most bytes cache_ holds
-  mutable std::mutex cache_mutex_;      // guards the three members below
+  std::filesystem::path root_;      // the web root, canonical when it exists
+  bool root_exists_ = false;        // it existed (as a directory) at construction
+  std::string server_name_;         // the Server header
+  std::string not_found_text_;      // the body of a 404 for "/" without a web app
+  std::size_t cache_limit_;         // the most bytes cache_ holds
+  mutable std::mutex cache_mutex_;  // guards the three members below
   mutable std::unordered_map<std::string, Cached> cache_;  // resolved path -> contents
-  mutable std::list<std::string> lru_;  // the cached paths, most recently used first
+  mutable std::list<std::string> lru_;   // the cached paths, most recently used first
   mutable std::size_t cache_bytes_ = 0;  // the sum of the cached sizes
 };
 

@@ -15,10 +15,10 @@ namespace simgate::websocket {
 namespace asio = boost::asio;
 namespace http = boost::beast::http;
 using asio::ip::tcp;
-using jsonrpc::code::invalid_request;
-using jsonrpc::code::overloaded;
 using jsonrpc::dump;
 using jsonrpc::error_response;
+using jsonrpc::code::invalid_request;
+using jsonrpc::code::overloaded;
 
 WebSocketRequestManager::Settings WebSocketRequestManager::Settings::parse(const json& options) {
   // the web app's keys first, so that JSON-RPC's parser sees only its own
@@ -70,9 +70,12 @@ void WebSocketRequestManager::start() {
       [this](tcp::socket socket) { accept(std::move(socket)); },
       [this](const tcp::endpoint& peer) { return refusal_reason(peer); },
       [](const std::string& why) {
-        // the client is still sending its HTTP request: an HTTP answer, the JSON-RPC error as its body
-        const std::string body = dump(error_response(nullptr, overloaded, "Overloaded: " + why)) + "\n";
-        return "HTTP/1.1 503 Service Unavailable\r\nContent-Type: application/json\r\nContent-Length: " +
+        // the client is still sending its HTTP request: an HTTP answer, the JSON-RPC error
+        // as its body
+        const std::string body =
+            dump(error_response(nullptr, overloaded, "Overloaded: " + why)) + "\n";
+        return "HTTP/1.1 503 Service Unavailable\r\nContent-Type: "
+               "application/json\r\nContent-Length: " +
                std::to_string(body.size()) + "\r\nConnection: close\r\n\r\n" + body;
       }};
   if (io_thread_.start(
@@ -123,16 +126,19 @@ void WebSocketRequestManager::on_message(kit::WebSocketConnection& session, std:
   handle_message(static_cast<WsSession&>(session).shared(), text);
 }
 
-void WebSocketRequestManager::on_refused_message(kit::WebSocketConnection& session, std::size_t bytes, bool binary) {
+void WebSocketRequestManager::on_refused_message(kit::WebSocketConnection& session,
+                                                 std::size_t bytes, bool binary) {
   if (binary) {
-    session.queue_text(dump(error_response(
-        nullptr, invalid_request, "Invalid Request: a binary message (send JSON-RPC as text messages)",
-        json{{"reason", "binary message"}, {"bytes", bytes}})));
+    session.queue_text(
+        dump(error_response(nullptr, invalid_request,
+                            "Invalid Request: a binary message (send JSON-RPC as text messages)",
+                            json{{"reason", "binary message"}, {"bytes", bytes}})));
     return;
   }
   const auto max = options_.tcp.max_message_bytes;
   session.queue_text(dump(error_response(
-      nullptr, invalid_request, "Invalid Request: message exceeds max_message_bytes (" + std::to_string(max) + ")",
+      nullptr, invalid_request,
+      "Invalid Request: message exceeds max_message_bytes (" + std::to_string(max) + ")",
       json{{"reason", "message too large"}, {"bytes", bytes}, {"max_message_bytes", max}})));
 }
 
@@ -142,12 +148,14 @@ void WebSocketRequestManager::on_messages_done(kit::Connection& /*session*/, boo
 }
 
 std::string WebSocketRequestManager::port_text() const {
-  return "simgate websocket transport: JSON-RPC 2.0 over WebSocket; connect with a WebSocket client to " +
+  return "simgate websocket transport: JSON-RPC 2.0 over WebSocket; connect with a WebSocket "
+         "client to " +
          endpoints().front() + " (docs/transports/websocket.md)\n";
 }
 
 std::string WebSocketRequestManager::plain_response(const http::request<http::string_body>& request,
-                                                    http::status status, const std::string& body) const {
+                                                    http::status status,
+                                                    const std::string& body) const {
   http::response<http::string_body> response{status, request.version()};
   response.set(http::field::server, "simgate websocket transport");
   response.set(http::field::content_type, "text/plain; charset=utf-8");
@@ -159,14 +167,16 @@ std::string WebSocketRequestManager::plain_response(const http::request<http::st
   return out.str();
 }
 
-kit::HttpResponse WebSocketRequestManager::on_http_request(const http::request<http::string_body>& request) {
+kit::HttpResponse WebSocketRequestManager::on_http_request(
+    const http::request<http::string_body>& request) {
   // past the memory cap (clients that do not read): nothing more is held for a new one
   if (held().over()) {
-    log::warning(name(), ": HTTP request answered 503: the transport holds more than ", held().max(),
-                 " bytes for its clients (max_buffered_bytes)");
-    return kit::HttpResponse{plain_response(request, http::status::service_unavailable,
-                                       "503 the server holds too much for its clients now (max_buffered_bytes); "
-                                       "try again later\n")};
+    log::warning(name(), ": HTTP request answered 503: the transport holds more than ",
+                 held().max(), " bytes for its clients (max_buffered_bytes)");
+    return kit::HttpResponse{
+        plain_response(request, http::status::service_unavailable,
+                       "503 the server holds too much for its clients now (max_buffered_bytes); "
+                       "try again later\n")};
   }
   // the web app's files
   if (web_) return web_->answer(request);
@@ -174,27 +184,33 @@ kit::HttpResponse WebSocketRequestManager::on_http_request(const http::request<h
   return kit::HttpResponse{plain_response(request, http::status::not_found, port_text())};
 }
 
-std::string WebSocketRequestManager::refuse_upgrade(const http::request<http::string_body>& request) {
+std::string WebSocketRequestManager::refuse_upgrade(
+    const http::request<http::string_body>& request) {
   std::optional<std::string_view> origin;
-  if (auto it = request.find(http::field::origin); it != request.end()) origin = std::string_view(it->value().data(), it->value().size());
+  if (auto it = request.find(http::field::origin); it != request.end())
+    origin = std::string_view(it->value().data(), it->value().size());
   if (origins_.allows(origin)) return {};
   // a page of another site must not drive the simulation (cross-site WebSocket hijacking)
   const std::string shown = std::string(origin->substr(0, 200));
-  log::warning(name(), ": WebSocket upgrade from a page of origin '", shown, "' refused (allowed_origins: ",
-               origins_.describe(), ")");
-  return plain_response(request, http::status::forbidden,
-                        "simgate websocket transport: WebSocket connections from pages of origin '" + shown +
-                            "' are not allowed (allowed: " + origins_.describe() +
-                            "; the transport's option allowed_origins, docs/security.md)\n");
+  log::warning(name(), ": WebSocket upgrade from a page of origin '", shown,
+               "' refused (allowed_origins: ", origins_.describe(), ")");
+  return plain_response(
+      request, http::status::forbidden,
+      "simgate websocket transport: WebSocket connections from pages of origin '" + shown +
+          "' are not allowed (allowed: " + origins_.describe() +
+          "; the transport's option allowed_origins, docs/security.md)\n");
 }
 
-void WebSocketRequestManager::on_closed(kit::Connection& session) { session_closed(static_cast<WsSession&>(session)); }
+void WebSocketRequestManager::on_closed(kit::Connection& session) {
+  session_closed(static_cast<WsSession&>(session));
+}
 
 }  // namespace simgate::websocket
 
-SIMGATE_TRANSPORT_PLUGIN(websocket, simgate::websocket::WebSocketRequestManager, "0.1.0", "host", "port",
-                         "max_message_bytes", "max_depth", "max_in_flight", "max_unsent_bytes",
-                         "max_buffered_bytes", "max_connections", "max_connections_per_peer", "idle_timeout_s", "idle_evict_s",
-                         "line_timeout_s",
-                         "io_spin_us", "on_disconnect", "global_policy", "auth", "progress_interval_ms",
-                         "stream_queue", "web", "web_root", "allowed_origins", "keepalive_s")
+SIMGATE_TRANSPORT_PLUGIN(websocket, simgate::websocket::WebSocketRequestManager, "0.1.0", "host",
+                         "port", "max_message_bytes", "max_depth", "max_in_flight",
+                         "max_unsent_bytes", "max_buffered_bytes", "max_connections",
+                         "max_connections_per_peer", "idle_timeout_s", "idle_evict_s",
+                         "line_timeout_s", "io_spin_us", "on_disconnect", "global_policy", "auth",
+                         "progress_interval_ms", "stream_queue", "web", "web_root",
+                         "allowed_origins", "keepalive_s")

@@ -83,18 +83,22 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine, private kit::WebS
   // The 404 body that says what this port is.
   std::string port_text() const;
   // A plain-text HTTP response (the 404 without a web app, a refused upgrade's 403, 503).
-  std::string plain_response(const boost::beast::http::request<boost::beast::http::string_body>& request,
-                             boost::beast::http::status status, const std::string& body) const;
+  std::string plain_response(
+      const boost::beast::http::request<boost::beast::http::string_body>& request,
+      boost::beast::http::status status, const std::string& body) const;
 
   // JsonRpcEngine: the end of a burst
   void flush_replies() override { flush_touched(); }
 
   // kit::WebSocketServer: the framing (I/O thread)
   void on_message(kit::WebSocketConnection& session, std::string_view text) override;
-  void on_refused_message(kit::WebSocketConnection& session, std::size_t bytes, bool binary) override;
+  void on_refused_message(kit::WebSocketConnection& session, std::size_t bytes,
+                          bool binary) override;
   void on_messages_done(kit::Connection& session, bool read_finished) override;
-  kit::HttpResponse on_http_request(const boost::beast::http::request<boost::beast::http::string_body>& request) override;
-  std::string refuse_upgrade(const boost::beast::http::request<boost::beast::http::string_body>& request) override;
+  kit::HttpResponse on_http_request(
+      const boost::beast::http::request<boost::beast::http::string_body>& request) override;
+  std::string refuse_upgrade(
+      const boost::beast::http::request<boost::beast::http::string_body>& request) override;
   void on_closed(kit::Connection& session) override;
 
   // A new connection (refusal_reason keeps the count under max_connections and
@@ -102,12 +106,12 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine, private kit::WebS
   void accept(boost::asio::ip::tcp::socket socket);
   void shutdown_io();
 
-  kit::TcpListener listener_;                             // the listening socket, bound in the constructor
-  kit::IoThread io_thread_;                               // runs io_
-  std::uint64_t next_session_ = 1;                        // numbers connections in logs (I/O thread)
-  std::optional<StaticFiles> web_;                        // the web app's files (none: `web` false)
-  kit::OriginPolicy origins_;                                  // allowed_origins, bound to the port
-  std::chrono::milliseconds keepalive_;                   // keepalive_s
+  kit::TcpListener listener_;            // the listening socket, bound in the constructor
+  kit::IoThread io_thread_;              // runs io_
+  std::uint64_t next_session_ = 1;       // numbers connections in logs (I/O thread)
+  std::optional<StaticFiles> web_;       // the web app's files (none: `web` false)
+  kit::OriginPolicy origins_;            // allowed_origins, bound to the port
+  std::chrono::milliseconds keepalive_;  // keepalive_s
 };
 
 }  // namespace simgate::websocket

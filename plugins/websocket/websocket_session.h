@@ -20,7 +20,8 @@ namespace simgate::websocket {
 class WsSession : public kit::WebSocketConnection, public jsonrpc::Session {
  public:
   template <class... Args>
-  explicit WsSession(Args&&... args) : WebSocketConnection(std::forward<Args>(args)...), Session(connection()) {}
+  explicit WsSession(Args&&... args)
+      : WebSocketConnection(std::forward<Args>(args)...), Session(connection()) {}
 
   // One message: a text message.
   void queue_message(std::string_view text) override { queue_text(text); }

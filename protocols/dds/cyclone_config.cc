@@ -29,13 +29,15 @@ constexpr const char* k_absent_interface = "simgate-settings-check";
 const std::string k_stop_before_sockets =
     std::string("<CycloneDDS><Domain Id=\"any\"><General><Interfaces><NetworkInterface name=\"") +
     k_absent_interface +
-    "\" presence_required=\"true\"/></Interfaces></General><Tracing><OutputFile>stderr</OutputFile></Tracing>"
+    "\" "
+    "presence_required=\"true\"/></Interfaces></General><Tracing><OutputFile>stderr</OutputFile></"
+    "Tracing>"
     "</Domain></CycloneDDS>";
 
 // Counts the elements left open at the end of the parse (ddsrt_xmlp callbacks).
 struct Depth {
-  std::size_t open = 0;      // elements opened and not closed
-  bool failed = false;       // the parser reported an error
+  std::size_t open = 0;  // elements opened and not closed
+  bool failed = false;   // the parser reported an error
 };
 
 int on_open(void* varg, uintptr_t, uintptr_t*, const char*, int) {
@@ -86,7 +88,8 @@ std::string missing_closing_tags(const std::string& settings) {
     std::size_t used = 0;
     Depth lenient = parse(settings.c_str() + cursor,
                           DDSRT_XMLP_ANONYMOUS_CLOSE_TAG | DDSRT_XMLP_MISSING_CLOSE_AS_EOF, &used);
-    if (lenient.failed) return "";  // Cyclone stops there with a parse error: nothing after it is read
+    if (lenient.failed)
+      return "";  // Cyclone stops there with a parse error: nothing after it is read
     if (cursor + used < settings.size() && used > 0) {
       cursor += used;
       continue;
@@ -124,7 +127,8 @@ void check_cyclone_config(uint32_t domain, const std::string& config) {
   const std::string settings = resolved;
   const std::string probe = settings + missing_closing_tags(settings) + "," + k_stop_before_sockets;
   DomainTrial trial = trial_domain(domain, probe.c_str());
-  if (trial.result == DDS_RETCODE_PRECONDITION_NOT_MET) return;  // the process has the domain: its settings prevail
+  if (trial.result == DDS_RETCODE_PRECONDITION_NOT_MET)
+    return;  // the process has the domain: its settings prevail
   std::string complaints;
   for (const auto& line : trial.errors) {
     // our own interface's failure means every setting before it passed
@@ -137,8 +141,10 @@ void check_cyclone_config(uint32_t domain, const std::string& config) {
     complaints += (complaints.empty() ? "" : "; ") + with_suggestion(said);
   }
   if (!complaints.empty())
-    throw ConfigError("config: expected Cyclone DDS settings (XML, file names or file:// URIs) that Cyclone "
-                      "accepts for domain " + std::to_string(domain) + ", found settings it refuses: " + complaints);
+    throw ConfigError(
+        "config: expected Cyclone DDS settings (XML, file names or file:// URIs) that Cyclone "
+        "accepts for domain " +
+        std::to_string(domain) + ", found settings it refuses: " + complaints);
 }
 
 }  // namespace simgate::dds

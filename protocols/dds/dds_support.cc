@@ -65,7 +65,8 @@ std::string retcode_text(dds_return_t rc) {
 }
 
 dds_entity_t check_created(dds_entity_t rc, const std::string& what) {
-  if (rc < 0) throw std::runtime_error("DDS transport: cannot create " + what + ": " + retcode_text(rc));
+  if (rc < 0)
+    throw std::runtime_error("DDS transport: cannot create " + what + ": " + retcode_text(rc));
   return rc;
 }
 
@@ -110,11 +111,13 @@ QosPtr make_qos(bool transient_local, int32_t keep_last, dds_duration_t max_bloc
     dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, keep_last);
   else
     dds_qset_history(qos.get(), DDS_HISTORY_KEEP_ALL, 0);
-  dds_qset_durability(qos.get(), transient_local ? DDS_DURABILITY_TRANSIENT_LOCAL : DDS_DURABILITY_VOLATILE);
+  dds_qset_durability(qos.get(),
+                      transient_local ? DDS_DURABILITY_TRANSIENT_LOCAL : DDS_DURABILITY_VOLATILE);
   return qos;
 }
 
-Participant::Participant(uint32_t domain, const char* config, const std::string& what) : domain_(domain) {
+Participant::Participant(uint32_t domain, const char* config, const std::string& what)
+    : domain_(domain) {
   std::lock_guard lock(domain_mutex());
   // create the domain with our settings, unless this process already has it
   dds_entity_t created = dds_create_domain(domain, config);
@@ -137,7 +140,8 @@ Participant::~Participant() {
   std::lock_guard lock(domain_mutex());
   if (participant_ > 0) dds_delete(participant_);
   // the last participant of the domain deletes it (whoever created it)
-  if (domain_entity_ > 0 && dds_get_children(domain_entity_, nullptr, 0) == 0) dds_delete(domain_entity_);
+  if (domain_entity_ > 0 && dds_get_children(domain_entity_, nullptr, 0) == 0)
+    dds_delete(domain_entity_);
 }
 
 simgate_Failure to_wire(Failure failure) {

@@ -100,9 +100,9 @@ class Participant {
   uint32_t domain() const { return domain_; }
 
  private:
-  uint32_t domain_;                // DDS domain id
+  uint32_t domain_;                 // DDS domain id
   dds_entity_t domain_entity_ = 0;  // the domain (parent of the participant)
-  dds_entity_t participant_ = 0;   // ours
+  dds_entity_t participant_ = 0;    // ours
 };
 
 // Wire <-> core conversions.

@@ -19,8 +19,8 @@ const mjtNum* bias_of(const mjModel* m, int a) { return m->actuator_biasprm + a 
 bool has_position_servo_shape(const mjModel* m, int a) {
   const mjtNum* gain = gain_of(m, a);
   const mjtNum* bias = bias_of(m, a);
-  return m->actuator_gaintype[a] == mjGAIN_FIXED && m->actuator_biastype[a] == mjBIAS_AFFINE && gain[0] > 0 &&
-         bias[0] == 0 && same(bias[1], -gain[0]) && bias[2] <= 0;
+  return m->actuator_gaintype[a] == mjGAIN_FIXED && m->actuator_biastype[a] == mjBIAS_AFFINE &&
+         gain[0] > 0 && bias[0] == 0 && same(bias[1], -gain[0]) && bias[2] <= 0;
 }
 
 }  // namespace
@@ -39,7 +39,8 @@ int object_body(const mjModel* m, int type, int id) {
 }
 
 const char* actuator_type(const mjModel* m, int a) {
-  const int dyn = m->actuator_dyntype[a], gain = m->actuator_gaintype[a], bias = m->actuator_biastype[a];
+  const int dyn = m->actuator_dyntype[a], gain = m->actuator_gaintype[a],
+            bias = m->actuator_biastype[a];
   const mjtNum* g = gain_of(m, a);
   const mjtNum* b = bias_of(m, a);
   if (dyn == mjDYN_MUSCLE || gain == mjGAIN_MUSCLE || bias == mjBIAS_MUSCLE) return "muscle";
@@ -49,11 +50,13 @@ const char* actuator_type(const mjModel* m, int a) {
     if (has_position_servo_shape(m, a)) return "position";
     if (is_velocity_actuator(m, a)) return "velocity";
     // <damper kv>: force = -kv * velocity * ctrl
-    if (gain == mjGAIN_AFFINE && bias == mjBIAS_NONE && g[0] == 0 && g[1] == 0 && g[2] < 0) return "damper";
+    if (gain == mjGAIN_AFFINE && bias == mjBIAS_NONE && g[0] == 0 && g[1] == 0 && g[2] < 0)
+      return "damper";
   }
   if (dyn == mjDYN_INTEGRATOR && has_position_servo_shape(m, a)) return "intvelocity";
   // <cylinder area bias>: a first-order filter of the pressure, times the area
-  if (dyn == mjDYN_FILTER && gain == mjGAIN_FIXED && bias == mjBIAS_AFFINE && b[1] == 0 && b[2] == 0)
+  if (dyn == mjDYN_FILTER && gain == mjGAIN_FIXED && bias == mjBIAS_AFFINE && b[1] == 0 &&
+      b[2] == 0)
     return "cylinder";
   return "general";
 }
@@ -61,8 +64,8 @@ const char* actuator_type(const mjModel* m, int a) {
 bool is_velocity_actuator(const mjModel* m, int a) {
   const mjtNum* gain = gain_of(m, a);
   const mjtNum* bias = bias_of(m, a);
-  return m->actuator_gaintype[a] == mjGAIN_FIXED && m->actuator_biastype[a] == mjBIAS_AFFINE && gain[0] > 0 &&
-         bias[1] == 0 && same(bias[2], -gain[0]);
+  return m->actuator_gaintype[a] == mjGAIN_FIXED && m->actuator_biastype[a] == mjBIAS_AFFINE &&
+         gain[0] > 0 && bias[1] == 0 && same(bias[2], -gain[0]);
 }
 
 bool is_position_actuator(const mjModel* m, int a) {
@@ -77,17 +80,20 @@ std::string describe_actuator(const mjModel* m, int a) {
   if (gain_type == mjGAIN_FIXED && bias_type == mjBIAS_NONE)
     return "a motor (torque: fixed gain, no bias)";
   if (has_position_servo_shape(m, a))
-    return "a position servo (kp=" + number(gain[0]) + (bias[2] < 0 ? ", kv=" + number(-bias[2]) : std::string()) +
-           ": fixed gain, bias -kp times the position" + (bias[2] < 0 ? " and -kv times its velocity)" : ")");
+    return "a position servo (kp=" + number(gain[0]) +
+           (bias[2] < 0 ? ", kv=" + number(-bias[2]) : std::string()) +
+           ": fixed gain, bias -kp times the position" +
+           (bias[2] < 0 ? " and -kv times its velocity)" : ")");
   auto type_name = [](int t, bool is_gain) -> std::string {
     if (t == (is_gain ? int(mjGAIN_FIXED) : int(mjBIAS_NONE))) return is_gain ? "fixed" : "none";
     if (t == (is_gain ? int(mjGAIN_AFFINE) : int(mjBIAS_AFFINE))) return "affine";
     if (t == (is_gain ? int(mjGAIN_MUSCLE) : int(mjBIAS_MUSCLE))) return "muscle";
     return "user";
   };
-  return "a general actuator (gaintype " + type_name(gain_type, true) + ", gainprm " + number(gain[0]) + " " +
-         number(gain[1]) + " " + number(gain[2]) + "; biastype " + type_name(bias_type, false) + ", biasprm " +
-         number(bias[0]) + " " + number(bias[1]) + " " + number(bias[2]) + ")";
+  return "a general actuator (gaintype " + type_name(gain_type, true) + ", gainprm " +
+         number(gain[0]) + " " + number(gain[1]) + " " + number(gain[2]) + "; biastype " +
+         type_name(bias_type, false) + ", biasprm " + number(bias[0]) + " " + number(bias[1]) +
+         " " + number(bias[2]) + ")";
 }
 
 bool tendon_in_subtree(const mjModel* m, int tendon, int root) {

@@ -88,28 +88,33 @@ std::vector<int> select_objects(ComponentContext& c, const Selection& s) {
       const json& item = (*listed)[k];
       const std::string where = path + "[" + std::to_string(k) + "]";
       if (!item.is_string())
-        throw ConfigError(where + ": expected the name of " + a_or_an(s.what) + ", found " + describe_json(item));
+        throw ConfigError(where + ": expected the name of " + a_or_an(s.what) + ", found " +
+                          describe_json(item));
       const std::string name = item.get<std::string>();
       int id = -1;
       for (std::size_t i = 0; i < s.names.size(); ++i)
         if (s.names[i] == name) id = static_cast<int>(i);
       if (id < 0)
-        throw ConfigError(where + ": expected the name of " + a_or_an(s.what) + " of " + robot_text + " (" +
-                          (owned_names.empty() ? "it has none" : join(owned_names)) + "), found '" + name +
-                          "' (no such " + s.what + did_you_mean(name, owned_names) + ")");
+        throw ConfigError(where + ": expected the name of " + a_or_an(s.what) + " of " +
+                          robot_text + " (" +
+                          (owned_names.empty() ? "it has none" : join(owned_names)) + "), found '" +
+                          name + "' (no such " + s.what + did_you_mean(name, owned_names) + ")");
       if (!s.owned[id] && !s.unattached[id])
-        throw ConfigError(where + ": " + s.what + " '" + name + "' " + s.where(id) + ", outside " + robot_text +
-                          (owned_names.empty() ? "" : "; its " + s.what + "s: " + join(owned_names)));
+        throw ConfigError(
+            where + ": " + s.what + " '" + name + "' " + s.where(id) + ", outside " + robot_text +
+            (owned_names.empty() ? "" : "; its " + s.what + "s: " + join(owned_names)));
       for (int previous : chosen)
-        if (previous == id) throw ConfigError(where + ": " + s.what + " '" + name + "' is listed twice");
+        if (previous == id)
+          throw ConfigError(where + ": " + s.what + " '" + name + "' is listed twice");
       chosen.push_back(id);
     }
   } else {
     for (std::size_t i = 0; i < s.names.size(); ++i)
       if (s.owned[i]) chosen.push_back(static_cast<int>(i));
     if (chosen.empty())
-      c.fail("type", "component type '" + c.spec().type + "' needs " + s.what + "s, and " + robot_text +
-                         " has none (no MJCF " + s.what + " " + s.acting + " a body of its subtree)");
+      c.fail("type", "component type '" + c.spec().type + "' needs " + s.what + "s, and " +
+                         robot_text + " has none (no MJCF " + s.what + " " + s.acting +
+                         " a body of its subtree)");
   }
 
   // a generated name must not be the name of another object the model names so
@@ -117,8 +122,9 @@ std::vector<int> select_objects(ComponentContext& c, const Selection& s) {
     for (std::size_t other = 0; other < s.names.size(); ++other)
       if (static_cast<int>(other) != id && s.names[other] == s.names[id])
         throw ConfigError(c.spec().path + ": " + s.what + "s " + std::to_string(id) + " and " +
-                          std::to_string(other) + " of scene '" + c.sim().model().source() + "' are both called " +
-                          quoted(s.names[id]) + " (one unnamed, named after its type and rank): name it in the MJCF");
+                          std::to_string(other) + " of scene '" + c.sim().model().source() +
+                          "' are both called " + quoted(s.names[id]) +
+                          " (one unnamed, named after its type and rank): name it in the MJCF");
   return chosen;
 }
 
@@ -133,7 +139,8 @@ ActuatorSet::ActuatorSet(ComponentContext& c) : SimComponent(c.name(), c.sim()) 
   selection.option = "actuators";
   selection.what = "actuator";
   selection.acting = "acting on";
-  selection.names = detail::mjcf_names(m, mjOBJ_ACTUATOR, m->nu, [m](int a) { return actuator_type(m, a); });
+  selection.names =
+      detail::mjcf_names(m, mjOBJ_ACTUATOR, m->nu, [m](int a) { return actuator_type(m, a); });
   for (int a = 0; a < m->nu; ++a) {
     selection.owned.push_back(actuator_in_subtree(m, a, root));
     selection.unattached.push_back(false);
@@ -153,7 +160,8 @@ ActuatorSet::ActuatorSet(ComponentContext& c) : SimComponent(c.name(), c.sim()) 
     json entry = {{"type", actuator_type(m, id)}};
     add_target(entry, m, id);
     entry["ctrlrange"] = range_or_null(limited, ctrl);
-    entry["forcerange"] = range_or_null(m->actuator_forcelimited[id], m->actuator_forcerange + 2 * id);
+    entry["forcerange"] =
+        range_or_null(m->actuator_forcelimited[id], m->actuator_forcerange + 2 * id);
     const mjtNum* gear = m->actuator_gear + 6 * id;
     // a site transmits a wrench (6 numbers); every other transmission one scalar
     entry["gear"] = m->actuator_trntype[id] == mjTRN_SITE
@@ -168,9 +176,12 @@ ActuatorSet::ActuatorSet(ComponentContext& c) : SimComponent(c.name(), c.sim()) 
       .doc("Sets the controls {actuator: value} (all or none: each checked against its ctrlrange)");
   add_service("set_control", &ActuatorSet::set_control, {"name", "value"})
       .doc("Sets one actuator's control (checked against its ctrlrange)");
-  add_service("get_controls", &ActuatorSet::get_controls).doc("The current controls {actuator: value}");
+  add_service("get_controls", &ActuatorSet::get_controls)
+      .doc("The current controls {actuator: value}");
   add_service("list_actuators", &ActuatorSet::list_actuators)
-      .doc("Each actuator: type, what it drives (joint, tendon, site, body), ctrlrange, forcerange, gear");
+      .doc(
+          "Each actuator: type, what it drives (joint, tendon, site, body), ctrlrange, forcerange, "
+          "gear");
   // {actuator: control}, as set_controls
   declare_input_stream("controls", names_, [this](const json& command) {
     std::map<std::string, double> controls;
@@ -180,20 +191,23 @@ ActuatorSet::ActuatorSet(ComponentContext& c) : SimComponent(c.name(), c.sim()) 
   });
 }
 
-const ActuatorSet::Actuator& ActuatorSet::find(const std::string& name, const std::string& parameter) const {
+const ActuatorSet::Actuator& ActuatorSet::find(const std::string& name,
+                                               const std::string& parameter) const {
   auto it = by_name_.find(name);
   if (it != by_name_.end()) return actuators_[it->second];
-  throw ServiceError("no actuator '" + name + "' in " + this->name() + " (actuators: " + join(names_) + ")" +
-                         did_you_mean(name, names_),
+  throw ServiceError("no actuator '" + name + "' in " + this->name() +
+                         " (actuators: " + join(names_) + ")" + did_you_mean(name, names_),
                      Failure::bad_arguments, {{"parameter", parameter}, {"expected", names_}});
 }
 
 void ActuatorSet::check(const Actuator& a, double value, const std::string& parameter) const {
   if (a.limited)
-    bounds::require_between(parameter, value, a.low, a.high, "(the ctrlrange of actuator '" + a.name + "')");
+    bounds::require_between(parameter, value, a.low, a.high,
+                            "(the ctrlrange of actuator '" + a.name + "')");
   else
-    bounds::require_within(parameter, value, bounds::control,
-                           "(actuator '" + a.name + "' has no ctrlrange: the bound of every unlimited control)");
+    bounds::require_within(
+        parameter, value, bounds::control,
+        "(actuator '" + a.name + "' has no ctrlrange: the bound of every unlimited control)");
 }
 
 void ActuatorSet::set_controls(const std::map<std::string, double>& controls) {
@@ -201,7 +215,8 @@ void ActuatorSet::set_controls(const std::map<std::string, double>& controls) {
   std::vector<std::pair<const Actuator*, double>> accepted;
   accepted.reserve(controls.size());
   for (const auto& [name, value] : controls) accepted.emplace_back(&find(name, "controls"), value);
-  for (const auto& [actuator, value] : accepted) check(*actuator, value, "controls." + actuator->name);
+  for (const auto& [actuator, value] : accepted)
+    check(*actuator, value, "controls." + actuator->name);
   for (const auto& [actuator, value] : accepted) data()->ctrl[actuator->id] = value;
 }
 
@@ -217,12 +232,17 @@ json ActuatorSet::get_controls() const {
   return out;
 }
 
-SIMGATE_BUILTIN_TYPE(actuators,
+SIMGATE_BUILTIN_TYPE(
+    actuators,
     builtin_type<ActuatorSet>(
         "actuators", Kind::component,
         "the robot's MJCF actuators: set_controls, set_control, get_controls, list_actuators",
         "docs/components/actuators-and-sensors.md",
-        {{"actuators", {{"type", "array"}, {"minItems", 1}, {"uniqueItems", true}, {"items", {{"type", "string"}}}},
+        {{"actuators",
+          {{"type", "array"},
+           {"minItems", 1},
+           {"uniqueItems", true},
+           {"items", {{"type", "string"}}}},
           "only these of the robot's MJCF actuators (default: every one acting on its subtree)"}}));
 
 }  // namespace simgate::sim

@@ -43,17 +43,21 @@ Waypoint::Waypoint(ComponentContext& c)
   add_property("speed", [this] { return json(speed_); });
   add_async_service("goto", &Waypoint::go_to, {"x", "y", "z", {"tolerance", 0.5}, {"speed", 1.0}})
       .interruptible()
-      .doc("Drive to (x, y, z); completes SUCCESS \"Arrived\" within tolerance (metres, ground plane)");
+      .doc(
+          "Drive to (x, y, z); completes SUCCESS \"Arrived\" within tolerance (metres, ground "
+          "plane)");
   add_service("setdest", &Waypoint::setdest, {"x", "y", "z", {"tolerance", 0.5}, {"speed", 1.0}})
       .doc("Set a new destination; false when already within tolerance");
   add_service("stop", &Waypoint::stop).doc("Halt; a running goto stays pending (status Stop)");
   add_service("resume", &Waypoint::resume).doc("Continue towards the destination (status Transit)");
   add_service("get_status", &Waypoint::get_status).doc("Transit, Arrived or Stop");
   // MORSE's waypoint datastream: a new destination, as setdest
-  declare_input_stream("waypoint", {"x", "y", "z", "tolerance", "speed"}, [this](const json& command) {
-    setdest(command_number(command, "x"), command_number(command, "y"), command_number(command, "z", 0.0),
-            command_number(command, "tolerance", 0.5), command_number(command, "speed", 1.0));
-  });
+  declare_input_stream(
+      "waypoint", {"x", "y", "z", "tolerance", "speed"}, [this](const json& command) {
+        setdest(command_number(command, "x"), command_number(command, "y"),
+                command_number(command, "z", 0.0), command_number(command, "tolerance", 0.5),
+                command_number(command, "speed", 1.0));
+      });
 }
 
 void Waypoint::set_target(double x, double y, double z, double tolerance, double speed) {
@@ -161,7 +165,8 @@ Teleport::Teleport(ComponentContext& c)
 
 void Teleport::place(const json& command) {
   const Eigen::Vector3d now = body_position(sim(), body_);
-  Eigen::Vector3d position(command_number(command, "x", now.x()), command_number(command, "y", now.y()),
+  Eigen::Vector3d position(command_number(command, "x", now.x()),
+                           command_number(command, "y", now.y()),
                            command_number(command, "z", now.z()));
   const char* axes[] = {"x", "y", "z"};
   for (int k = 0; k < 3; ++k) bounds::require_within(axes[k], position[k], bounds::position, "m");
@@ -195,18 +200,24 @@ void Teleport::rotate(double roll, double pitch, double yaw) {
                      body_orientation(sim(), body_) * from_roll_pitch_yaw(roll, pitch, yaw));
 }
 
-SIMGATE_BUILTIN_TYPE(motion_vw, builtin_type<MotionVW>("motion_vw", Kind::component,
-                                                       "linear/angular velocity actuator: set_speed v w, stop",
-                                                       "docs/configuration.md", {}));
-SIMGATE_BUILTIN_TYPE(waypoint,
+SIMGATE_BUILTIN_TYPE(motion_vw,
+                     builtin_type<MotionVW>("motion_vw", Kind::component,
+                                            "linear/angular velocity actuator: set_speed v w, stop",
+                                            "docs/configuration.md", {}));
+SIMGATE_BUILTIN_TYPE(
+    waypoint,
     builtin_type<Waypoint>(
-        "waypoint", Kind::component, "drives to a destination: goto, setdest, stop, resume, get_status",
-        "docs/configuration.md",
-        {{"max_angular_speed", {{"type", "number"}, {"minimum", 1e-3}, {"maximum", 100}, {"default", 1.5}}, "rad/s"},
-         {"heading_gain", {{"type", "number"}, {"minimum", 1e-3}, {"maximum", 100}, {"default", 2.0}},
+        "waypoint", Kind::component,
+        "drives to a destination: goto, setdest, stop, resume, get_status", "docs/configuration.md",
+        {{"max_angular_speed",
+          {{"type", "number"}, {"minimum", 1e-3}, {"maximum", 100}, {"default", 1.5}},
+          "rad/s"},
+         {"heading_gain",
+          {{"type", "number"}, {"minimum", 1e-3}, {"maximum", 100}, {"default", 2.0}},
           "angular speed per radian of heading error"}}));
-SIMGATE_BUILTIN_TYPE(teleport, builtin_type<Teleport>("teleport", Kind::component,
-                                                      "moves the robot instantly: translate, rotate",
-                                                      "docs/configuration.md", {}));
+SIMGATE_BUILTIN_TYPE(teleport,
+                     builtin_type<Teleport>("teleport", Kind::component,
+                                            "moves the robot instantly: translate, rotate",
+                                            "docs/configuration.md", {}));
 
 }  // namespace simgate::sim

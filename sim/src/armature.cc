@@ -16,11 +16,14 @@ namespace simgate::sim {
 namespace {
 
 // "rotation" or "translation", as MORSE's services name the two kinds of motion
-std::string motion_word(JointKind kind) { return kind == JointKind::prismatic ? "translation" : "rotation"; }
+std::string motion_word(JointKind kind) {
+  return kind == JointKind::prismatic ? "translation" : "rotation";
+}
 
 }  // namespace
 
-Armature::Armature(ComponentContext& c) : SimComponent(c.name(), c.sim()), joints_(JointSet::from_config(c)) {
+Armature::Armature(ComponentContext& c)
+    : SimComponent(c.name(), c.sim()), joints_(JointSet::from_config(c)) {
   auto& o = c.options();
   radial_speed_ = o.get_number("radial_speed", 0.8, 1e-6, bounds::angular_speed);
   linear_speed_ = o.get_number("linear_speed", 0.05, 1e-6, bounds::linear_speed);
@@ -37,8 +40,10 @@ Armature::Armature(ComponentContext& c) : SimComponent(c.name(), c.sim()), joint
   add_number_property("distance_tolerance", distance_tolerance_, 1e-9, 1, "m");
   add_number_property("settle_timeout", settle_timeout_, 0, 1e6, "s");
 
-  add_service("get_joints", &Armature::get_joints).doc("The joints' names, from the root to the tip");
-  add_service("get_dofs", &Armature::get_dofs).doc("{joint: its axis [x, y, z] in its body's frame}");
+  add_service("get_joints", &Armature::get_joints)
+      .doc("The joints' names, from the root to the tip");
+  add_service("get_dofs", &Armature::get_dofs)
+      .doc("{joint: its axis [x, y, z] in its body's frame}");
   add_service("get_IK_limits", &Armature::get_IK_limits, {"joint"})
       .doc("[low, high] of a limited joint (rad or m); null when unlimited");
   add_service("list_IK_targets", &Armature::list_IK_targets).doc("IK targets: none ([])");
@@ -53,19 +58,24 @@ Armature::Armature(ComponentContext& c) : SimComponent(c.name(), c.sim()), joint
   add_async_service("rotate", &Armature::rotate, {"joint", "rotation", {"speed", nullptr}})
       .interruptible()
       .doc("Turn a revolute joint to `rotation` rad at `speed` rad/s (default radial_speed)");
-  add_async_service("rotate_joints", &Armature::rotate_joints, {"joint_rotations", {"speed", nullptr}})
+  add_async_service("rotate_joints", &Armature::rotate_joints,
+                    {"joint_rotations", {"speed", nullptr}})
       .interruptible()
       .doc("Turn revolute joints {joint: rad}, each at `speed` rad/s (default radial_speed)");
   add_async_service("translate", &Armature::translate, {"joint", "translation", {"speed", nullptr}})
       .interruptible()
       .doc("Slide a prismatic joint to `translation` m at `speed` m/s (default linear_speed)");
-  add_async_service("translate_joints", &Armature::translate_joints, {"joint_translations", {"speed", nullptr}})
+  add_async_service("translate_joints", &Armature::translate_joints,
+                    {"joint_translations", {"speed", nullptr}})
       .interruptible()
       .doc("Slide prismatic joints {joint: m}, each at `speed` m/s (default linear_speed)");
   add_async_service("trajectory", &Armature::trajectory, {"trajectory"})
-      .doc("Follow {starttime?, points: [{positions, velocities?, time_from_start}]} in simulated time");
+      .doc(
+          "Follow {starttime?, points: [{positions, velocities?, time_from_start}]} in simulated "
+          "time");
   // MORSE's armature datastream: {joint: position}, radians or metres by the joint's kind
-  declare_input_stream("joint_positions", joints_.names(), [this](const json& command) { set_positions(command); });
+  declare_input_stream("joint_positions", joints_.names(),
+                       [this](const json& command) { set_positions(command); });
 }
 
 void Armature::set_positions(const json& positions) {
@@ -99,15 +109,17 @@ json Armature::get_IK_limits(const std::string& joint) const {
   return {j.low, j.high};
 }
 
-std::size_t Armature::joint_of_kind(const std::string& name, JointKind kind, const std::string& parameter) const {
+std::size_t Armature::joint_of_kind(const std::string& name, JointKind kind,
+                                    const std::string& parameter) const {
   const std::size_t i = joints_.index_of(name, parameter);
   const ArmatureJoint& j = joints_[i];
   if (j.kind != kind)
-    throw ServiceError("joint '" + j.name + "' is " + std::string(to_string(j.kind)) + " (a " +
-                           (j.kind == JointKind::prismatic ? "slide joint, metres" : "hinge joint, radians") +
-                           "): a " + motion_word(kind) + " needs a " + std::string(to_string(kind)) +
-                           " joint; use the " + motion_word(j.kind) + " services",
-                       Failure::bad_arguments, {{"parameter", parameter}});
+    throw ServiceError(
+        "joint '" + j.name + "' is " + std::string(to_string(j.kind)) + " (a " +
+            (j.kind == JointKind::prismatic ? "slide joint, metres" : "hinge joint, radians") +
+            "): a " + motion_word(kind) + " needs a " + std::string(to_string(kind)) +
+            " joint; use the " + motion_word(j.kind) + " services",
+        Failure::bad_arguments, {{"parameter", parameter}});
   return i;
 }
 
@@ -120,26 +132,30 @@ std::vector<Armature::Target> Armature::targets_from(const json& values, JointKi
       const std::string where = parameter + "." + it.key();
       const std::size_t i = joint_of_kind(it.key(), kind, where);
       if (!it->is_number())
-        throw ServiceError(where + ": expected a number of " + unit + ", found " + describe_json(*it),
-                           Failure::bad_arguments, {{"parameter", where}});
+        throw ServiceError(
+            where + ": expected a number of " + unit + ", found " + describe_json(*it),
+            Failure::bad_arguments, {{"parameter", where}});
       out.push_back({i, it->get<double>(), where});
     }
   } else if (values.is_array()) {
     // MORSE: one value per joint from the root; a shorter list sets the first joints
     if (values.size() > joints_.size())
-      throw ServiceError(parameter + " has " + std::to_string(values.size()) + " values; this armature has " +
-                             std::to_string(joints_.size()) + " joints (get_joints)",
+      throw ServiceError(parameter + " has " + std::to_string(values.size()) +
+                             " values; this armature has " + std::to_string(joints_.size()) +
+                             " joints (get_joints)",
                          Failure::bad_arguments, {{"parameter", parameter}});
     for (std::size_t i = 0; i < values.size(); ++i) {
       const std::string where = parameter + "[" + std::to_string(i) + "]";
       joint_of_kind(joints_[i].name, kind, where);
       if (!values[i].is_number())
-        throw ServiceError(where + ": expected a number of " + unit + ", found " + describe_json(values[i]),
-                           Failure::bad_arguments, {{"parameter", where}});
+        throw ServiceError(
+            where + ": expected a number of " + unit + ", found " + describe_json(values[i]),
+            Failure::bad_arguments, {{"parameter", where}});
       out.push_back({i, values[i].get<double>(), where});
     }
   } else {
-    throw ServiceError(parameter + ": expected a list of " + unit + " (one per joint, in get_joints' order) or an " +
+    throw ServiceError(parameter + ": expected a list of " + unit +
+                           " (one per joint, in get_joints' order) or an " +
                            "object {joint: " + unit + "}, found " + describe_json(values),
                        Failure::bad_arguments, {{"parameter", parameter}});
   }
@@ -152,8 +168,8 @@ std::vector<Armature::Target> Armature::targets_from(const json& values, JointKi
 
 void Armature::require_not_moving(const Target& target) const {
   if (motion_ && path_of_[target.joint] >= 0)
-    throw ServiceError("joint '" + joints_[target.joint].name + "' is being moved by " + running_service() +
-                           ": cancel it or wait for it to end",
+    throw ServiceError("joint '" + joints_[target.joint].name + "' is being moved by " +
+                           running_service() + ": cancel it or wait for it to end",
                        Failure::busy, {{"parameter", target.parameter}});
 }
 
@@ -193,11 +209,13 @@ void Armature::set_translations(const json& translations) {
 
 // ---- async services ------------------------------------------------------------------------
 
-void Armature::start_moves(const std::vector<Target>& targets, JointKind kind, std::optional<double> speed) {
+void Armature::start_moves(const std::vector<Target>& targets, JointKind kind,
+                           std::optional<double> speed) {
   const bool prismatic = kind == JointKind::prismatic;
   double v = prismatic ? linear_speed_ : radial_speed_;
   if (speed) {
-    bounds::require_between("speed", *speed, 0, prismatic ? bounds::linear_speed : bounds::angular_speed,
+    bounds::require_between("speed", *speed, 0,
+                            prismatic ? bounds::linear_speed : bounds::angular_speed,
                             prismatic ? "m/s" : "rad/s");
     if (*speed == 0)
       throw ServiceError("speed must be positive (null: the armature's " +
@@ -210,7 +228,8 @@ void Armature::start_moves(const std::vector<Target>& targets, JointKind kind, s
   Motion motion;
   for (const auto& t : targets) {
     const double from = joints_.position(data(), t.joint);
-    motion.paths.push_back({t.joint, {{now, from, 0}, {now + std::abs(t.value - from) / v, t.value, 0}}});
+    motion.paths.push_back(
+        {t.joint, {{now, from, 0}, {now + std::abs(t.value - from) / v, t.value, 0}}});
   }
   begin(std::move(motion));
 }
@@ -221,15 +240,17 @@ void Armature::rotate(const std::string& joint, double rotation, std::optional<d
   start_moves({{i, rotation, "rotation"}}, JointKind::revolute, speed);
 }
 
-void Armature::translate(const std::string& joint, double translation, std::optional<double> speed) {
+void Armature::translate(const std::string& joint, double translation,
+                         std::optional<double> speed) {
   const std::size_t i = joint_of_kind(joint, JointKind::prismatic, "joint");
   require_reachable(joints_[i], translation, "translation");
   start_moves({{i, translation, "translation"}}, JointKind::prismatic, speed);
 }
 
-void Armature::rotate_joints(const std::map<std::string, double>& joint_rotations, std::optional<double> speed) {
-  start_moves(targets_from(json(joint_rotations), JointKind::revolute, "joint_rotations"), JointKind::revolute,
-              speed);
+void Armature::rotate_joints(const std::map<std::string, double>& joint_rotations,
+                             std::optional<double> speed) {
+  start_moves(targets_from(json(joint_rotations), JointKind::revolute, "joint_rotations"),
+              JointKind::revolute, speed);
 }
 
 void Armature::translate_joints(const std::map<std::string, double>& joint_translations,
@@ -242,7 +263,8 @@ void Armature::trajectory(const json& trajectory) {
   // starttime is on the scale of `time now` (MORSE's gettime()), when the simulation has it
   double offset = 0;
   if (auto* entry = sim().find("time"))
-    if (auto* time = dynamic_cast<TimeServices*>(entry->component.get())) offset = time->now() - data()->time;
+    if (auto* time = dynamic_cast<TimeServices*>(entry->component.get()))
+      offset = time->now() - data()->time;
   std::vector<double> from(joints_.size());
   for (std::size_t i = 0; i < joints_.size(); ++i) from[i] = joints_.position(data(), i);
   begin(parse_trajectory(trajectory, joints_, data()->time, offset, from));
@@ -251,7 +273,8 @@ void Armature::trajectory(const json& trajectory) {
 void Armature::begin(Motion motion) {
   motion_ = std::move(motion);
   std::fill(path_of_.begin(), path_of_.end(), -1);
-  for (std::size_t k = 0; k < motion_->paths.size(); ++k) path_of_[motion_->paths[k].joint] = static_cast<int>(k);
+  for (std::size_t k = 0; k < motion_->paths.size(); ++k)
+    path_of_[motion_->paths[k].joint] = static_cast<int>(k);
 }
 
 // ---- stepping ------------------------------------------------------------------------------
@@ -266,7 +289,8 @@ std::vector<std::size_t> Armature::not_arrived() const {
     const ArmatureJoint& j = joints_[path.joint];
     // kinematic joints are where their path puts them, by construction
     if (j.servo < 0) continue;
-    if (std::abs(joints_.position(data(), path.joint) - path.knots.back().position) > tolerance_of(path.joint))
+    if (std::abs(joints_.position(data(), path.joint) - path.knots.back().position) >
+        tolerance_of(path.joint))
       out.push_back(path.joint);
   }
   return out;
@@ -294,7 +318,8 @@ void Armature::default_action() {
   for (std::size_t i = 0; i < joints_.size(); ++i) {
     if (motion_ && path_of_[i] >= 0) {
       const JointPath& path = motion_->paths[static_cast<std::size_t>(path_of_[i])];
-      drive(i, sample(path, motion_->hermite, t).position, sample(path, motion_->hermite, t + dt).position);
+      drive(i, sample(path, motion_->hermite, t).position,
+            sample(path, motion_->hermite, t + dt).position);
     } else if (hold_[i]) {
       drive(i, *hold_[i], *hold_[i]);
     }
@@ -309,8 +334,9 @@ void Armature::default_action() {
   if (!late.empty() && !timed_out) return;
   std::string failure;
   for (std::size_t i : late)
-    failure += (failure.empty() ? "" : "; ") + std::string("joint '") + joints_[i].name + "' is at " +
-               number(joints_.position(data(), i)) + " " + std::string(unit_of(joints_[i].kind)) + ", target " +
+    failure += (failure.empty() ? "" : "; ") + std::string("joint '") + joints_[i].name +
+               "' is at " + number(joints_.position(data(), i)) + " " +
+               std::string(unit_of(joints_[i].kind)) + ", target " +
                number(motion_->paths[static_cast<std::size_t>(path_of_[i])].knots.back().position);
   // the joints stay commanded to their targets either way
   for (const auto& path : motion_->paths) hold_[path.joint] = path.knots.back().position;
@@ -320,9 +346,10 @@ void Armature::default_action() {
   if (failure.empty())
     completed(Status::success);
   else
-    completed(Status::failed, failure + " (" + number(settle_timeout_) +
-                                  " s after the motion's end: its position servo cannot get there; blocked, or too "
-                                  "weak against the load?)");
+    completed(Status::failed,
+              failure + " (" + number(settle_timeout_) +
+                  " s after the motion's end: its position servo cannot get there; blocked, or too "
+                  "weak against the load?)");
 }
 
 void Armature::report_progress(double t) {
@@ -331,11 +358,14 @@ void Armature::report_progress(double t) {
   // one speed arrive one by one)
   const std::size_t points = motion_->paths.front().knots.size() - 1;
   std::size_t reached = 0;
-  while (reached < points && std::all_of(motion_->paths.begin(), motion_->paths.end(), [&](const JointPath& p) {
-           return p.knots[reached + 1].time <= t;
-         }))
+  while (reached < points &&
+         std::all_of(
+             motion_->paths.begin(), motion_->paths.end(),
+             [&](const JointPath& p) { return p.knots[reached + 1].time <= t; }))
     ++reached;
-  progress({{"points_reached", reached}, {"points", points}, {"time_left", std::max(0.0, motion_->end_time() - t)}});
+  progress({{"points_reached", reached},
+            {"points", points},
+            {"time_left", std::max(0.0, motion_->end_time() - t)}});
 }
 
 void Armature::interrupt() {
@@ -358,24 +388,33 @@ void Armature::on_reset() {
   std::fill(path_of_.begin(), path_of_.end(), -1);
   std::fill(hold_.begin(), hold_.end(), std::nullopt);
   if (has_running_request())
-    completed(Status::preempted, "the simulation was reset (simulation reset_objects, or the recovery from a bad "
-                                 "state): the motion was dropped");
+    completed(Status::preempted,
+              "the simulation was reset (simulation reset_objects, or the recovery from a bad "
+              "state): the motion was dropped");
 }
 
-SIMGATE_BUILTIN_TYPE(armature,
-    builtin_type<Armature>(
-        "armature", Kind::component, "moves hinge and slide joints: set_rotations, rotate_joints, trajectory...",
-        "docs/components/armature.md",
-        {{"joints", {{"$ref", "#/$defs/armature_joints"}}, "only these joints of its subtree, in this order"},
-         {"radial_speed", {{"type", "number"}, {"minimum", 1e-6}, {"maximum", 1000}, {"default", 0.8}},
-          "rad/s when a rotation's speed is null"},
-         {"linear_speed", {{"type", "number"}, {"minimum", 1e-6}, {"maximum", 1000}, {"default", 0.05}},
-          "m/s when a translation's speed is null"},
-         {"angle_tolerance", {{"type", "number"}, {"minimum", 1e-9}, {"maximum", 1}, {"default", 0.01}},
-          "radians: arrival of a servo-driven revolute joint"},
-         {"distance_tolerance", {{"type", "number"}, {"minimum", 1e-9}, {"maximum", 1}, {"default", 0.005}},
-          "metres: arrival of a servo-driven prismatic joint"},
-         {"settle_timeout", {{"type", "number"}, {"minimum", 0}, {"maximum", 1e6}, {"default", 2}},
-          "seconds a servo-driven joint may take to arrive after a motion's end"}}));
+SIMGATE_BUILTIN_TYPE(
+    armature, builtin_type<Armature>(
+                  "armature", Kind::component,
+                  "moves hinge and slide joints: set_rotations, rotate_joints, trajectory...",
+                  "docs/components/armature.md",
+                  {{"joints",
+                    {{"$ref", "#/$defs/armature_joints"}},
+                    "only these joints of its subtree, in this order"},
+                   {"radial_speed",
+                    {{"type", "number"}, {"minimum", 1e-6}, {"maximum", 1000}, {"default", 0.8}},
+                    "rad/s when a rotation's speed is null"},
+                   {"linear_speed",
+                    {{"type", "number"}, {"minimum", 1e-6}, {"maximum", 1000}, {"default", 0.05}},
+                    "m/s when a translation's speed is null"},
+                   {"angle_tolerance",
+                    {{"type", "number"}, {"minimum", 1e-9}, {"maximum", 1}, {"default", 0.01}},
+                    "radians: arrival of a servo-driven revolute joint"},
+                   {"distance_tolerance",
+                    {{"type", "number"}, {"minimum", 1e-9}, {"maximum", 1}, {"default", 0.005}},
+                    "metres: arrival of a servo-driven prismatic joint"},
+                   {"settle_timeout",
+                    {{"type", "number"}, {"minimum", 0}, {"maximum", 1e6}, {"default", 2}},
+                    "seconds a servo-driven joint may take to arrive after a motion's end"}}));
 
 }  // namespace simgate::sim

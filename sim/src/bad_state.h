@@ -16,7 +16,8 @@ namespace simgate::sim {
 // "joint 'knee'", or "joint 3" for an unnamed one.
 inline std::string name_or_index(const mjModel* m, mjtObj type, int id, const char* kind) {
   const char* name = mj_id2name(m, type, id);
-  return name && *name ? std::string(kind) + " '" + name + "'" : std::string(kind) + " " + std::to_string(id);
+  return name && *name ? std::string(kind) + " '" + name + "'"
+                       : std::string(kind) + " " + std::to_string(id);
 }
 
 // "joint 'robot_root' of body 'robot'" for a qpos address (qpos) or a dof (qvel, qacc).

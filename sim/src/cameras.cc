@@ -21,11 +21,11 @@ namespace simgate::sim {
 
 namespace {
 
-constexpr long long k_max_size = 8192;                 // pixels, either side
-constexpr double k_min_fovy = 0.1, k_max_fovy = 179;   // degrees
-constexpr double k_default_frequency = 20;             // images per simulated second
+constexpr long long k_max_size = 8192;                // pixels, either side
+constexpr double k_min_fovy = 0.1, k_max_fovy = 179;  // degrees
+constexpr double k_default_frequency = 20;            // images per simulated second
 // MORSE's cam_focal is a Blender lens: millimetres, on a 32 mm wide sensor (its larger side)
-constexpr double k_blender_sensor = 32;                // mm
+constexpr double k_blender_sensor = 32;  // mm
 
 // The JSON record of one image (render_support.h), with its PNG or raw. Render thread.
 json image_record(const RenderResult& r, Camera::Type type, bool png) {
@@ -50,7 +50,8 @@ json raw_record(const json& record) {
 // attachments): the same pixels beside the record, to_json making the PNG record when a
 // transport has to send a raw record's image as a PNG after all. Render thread; takes r's
 // pixels.
-std::shared_ptr<const StreamPayload> image_payload(RenderResult& r, Camera::Type type, const std::string& component) {
+std::shared_ptr<const StreamPayload> image_payload(RenderResult& r, Camera::Type type,
+                                                   const std::string& component) {
   auto payload = std::make_shared<StreamPayload>();
   payload->content = "image";
   const bool video = type == Camera::Type::video;
@@ -86,20 +87,20 @@ std::shared_ptr<const StreamPayload> image_payload(RenderResult& r, Camera::Type
 // Images coming back from the render thread, and the spare scene for the next one.
 struct Camera::Mailbox {
   struct Delivery {
-    std::uint64_t capture_id;  // the capture it is for (0: none)
-    json record;               // the image record, or null on error
+    std::uint64_t capture_id;                     // the capture it is for (0: none)
+    json record;                                  // the image record, or null on error
     std::shared_ptr<const StreamPayload> pixels;  // its pixels raw (the reply's attachment)
-    std::string error;         // why it failed
+    std::string error;                            // why it failed
   };
   std::mutex mutex;
-  std::deque<Delivery> deliveries;   // for captures, read by default_action()
+  std::deque<Delivery> deliveries;  // for captures, read by default_action()
   std::deque<std::shared_ptr<const StreamPayload>> stream_images;  // for the stream, ditto
-  std::string stream_error;          // why the last stream render failed ("" when it did not)
-  int stream_in_flight = 0;          // stream renders asked for and not come back
-  json last;                         // the last image record (null: none yet)
+  std::string stream_error;  // why the last stream render failed ("" when it did not)
+  int stream_in_flight = 0;  // stream renders asked for and not come back
+  json last;                 // the last image record (null: none yet)
   std::shared_ptr<const StreamPayload> last_pixels;  // its pixels raw
-  std::string last_error;            // why the last render failed
-  std::unique_ptr<SceneCopy> spare;  // a scene given back, for reuse
+  std::string last_error;                            // why the last render failed
+  std::unique_ptr<SceneCopy> spare;                  // a scene given back, for reuse
 };
 
 Camera::Camera(ComponentContext& c, Type type)
@@ -109,34 +110,42 @@ Camera::Camera(ComponentContext& c, Type type)
   // where it sees from: an MJCF camera, or a frame of the robot
   const std::string camera = o.get_string("camera", "");
   if (!camera.empty()) {
-    if (o.has("site")) o.fail("site", "no `site` with `camera` (the MJCF camera is where it sees from)");
+    if (o.has("site"))
+      o.fail("site", "no `site` with `camera` (the MJCF camera is where it sees from)");
     camera_ = mj_name2id(m, mjOBJ_CAMERA, camera.c_str());
     camera_name_ = camera;
-    if (camera_ < 0) o.fail("camera", "the name of an MJCF <camera> (the scene has: " + camera_names(m) + ")");
+    if (camera_ < 0)
+      o.fail("camera", "the name of an MJCF <camera> (the scene has: " + camera_names(m) + ")");
   } else {
     frame_ = SensorFrame::from(c);
     // the body's own frame is usually inside the body's geometry: the images show its inside
     if (!o.has("site"))
-      log::warning("camera '", c.name(), "': no `site` and no `camera`: it looks out from the origin of body '",
+      log::warning("camera '", c.name(),
+                   "': no `site` and no `camera`: it looks out from the origin of body '",
                    c.sim().model().body_name(frame_->body()),
-                   "', likely from inside the body's own geometry (give it a `site` on the body's surface, or an "
+                   "', likely from inside the body's own geometry (give it a `site` on the body's "
+                   "surface, or an "
                    "MJCF <camera>; docs/components/cameras.md)");
   }
   width_ = static_cast<int>(o.get_int("cam_width", 256, 1, k_max_size));
   height_ = static_cast<int>(o.get_int("cam_height", 256, 1, k_max_size));
   // field of view: cam_fovy (degrees), or MORSE's cam_focal; default the MJCF camera's
-  if (o.has("cam_fovy") && o.has("cam_focal")) o.fail("cam_focal", "either cam_fovy or cam_focal, not both");
-  fovy_ = o.get_number("cam_fovy", camera_ >= 0 ? m->cam_fovy[camera_] : 45.0, k_min_fovy, k_max_fovy);
+  if (o.has("cam_fovy") && o.has("cam_focal"))
+    o.fail("cam_focal", "either cam_fovy or cam_focal, not both");
+  fovy_ =
+      o.get_number("cam_fovy", camera_ >= 0 ? m->cam_fovy[camera_] : 45.0, k_min_fovy, k_max_fovy);
   if (o.has("cam_focal")) {
     const double focal = o.get_number("cam_focal", 25, 0.1, 1e4);
-    const double half_large = k_blender_sensor / 2 / focal;  // tan of the half angle of the larger side
+    const double half_large =
+        k_blender_sensor / 2 / focal;  // tan of the half angle of the larger side
     const double half_y = width_ >= height_ ? half_large * height_ / width_ : half_large;
     fovy_ = std::atan(half_y) * 360 / M_PI;
   }
   // clipping planes: MuJoCo's own for the scene by default
   near_ = o.get_number("cam_near", m->vis.map.znear * m->stat.extent, 1e-6, 1e6);
   far_ = o.get_number("cam_far", m->vis.map.zfar * m->stat.extent, 1e-6, 1e7);
-  if (far_ <= near_) o.fail("cam_far", "a distance beyond cam_near (" + std::to_string(near_) + " m)");
+  if (far_ <= near_)
+    o.fail("cam_far", "a distance beyond cam_near (" + std::to_string(near_) + " m)");
   frequency_ = c.spec().frequency.value_or(k_default_frequency);
   if (!(frequency_ > 0)) o.fail("frequency", "images per simulated second, > 0");
   // the image stream: rendered only while someone subscribes, pushed when it comes back
@@ -149,11 +158,14 @@ Camera::Camera(ComponentContext& c, Type type)
            " images (one per 1/frequency of simulated time) with the list of their records");
   add_async_service("get_image", &Camera::get_image)
       .concurrent()
-      .doc(std::string("An ") + kind + " image of the current state: its record (image: base64 PNG)");
+      .doc(std::string("An ") + kind +
+           " image of the current state: its record (image: base64 PNG)");
   add_async_service("get_local_data", &Camera::get_local_data)
       .concurrent()
-      .doc("The last image record: image (base64 PNG), width, height, intrinsic_matrix, timestamp; the first one "
-           "rendered now, physics stepping meanwhile");
+      .doc(
+          "The last image record: image (base64 PNG), width, height, intrinsic_matrix, timestamp; "
+          "the first one "
+          "rendered now, physics stepping meanwhile");
   add_property("cam_width", [this] { return json(width_); });
   add_property("cam_height", [this] { return json(height_); });
   add_property("cam_fovy", [this] { return json(fovy_); });
@@ -229,61 +241,63 @@ void Camera::render_for_stream() {
     std::lock_guard lock(mailbox_->mutex);
     ++mailbox_->stream_in_flight;
   }
-  renderer_->render(std::move(scene), !depth, depth, [mailbox = mailbox_, type = type_, who = name()](RenderResult result) {
-    std::shared_ptr<const StreamPayload> payload;
-    std::string error = result.error.empty() ? "" : who + ": " + result.error;
-    if (error.empty()) payload = image_payload(result, type, who);
-    std::lock_guard lock(mailbox->mutex);
-    mailbox->spare = std::move(result.scene);
-    --mailbox->stream_in_flight;
-    mailbox->stream_error = error;
-    if (payload) mailbox->stream_images.push_back(std::move(payload));
-  });
+  renderer_->render(std::move(scene), !depth, depth,
+                    [mailbox = mailbox_, type = type_, who = name()](RenderResult result) {
+                      std::shared_ptr<const StreamPayload> payload;
+                      std::string error = result.error.empty() ? "" : who + ": " + result.error;
+                      if (error.empty()) payload = image_payload(result, type, who);
+                      std::lock_guard lock(mailbox->mutex);
+                      mailbox->spare = std::move(result.scene);
+                      --mailbox->stream_in_flight;
+                      mailbox->stream_error = error;
+                      if (payload) mailbox->stream_images.push_back(std::move(payload));
+                    });
 }
 
 void Camera::render_now(std::uint64_t capture_id, Completion done, bool png) {
   std::unique_ptr<SceneCopy> scene = scene_now();
   const bool depth = type_ == Type::depth;
-  renderer_->render(std::move(scene), !depth, depth,
-                    [mailbox = mailbox_, type = type_, capture_id, done, png, who = name()](RenderResult result) {
-                      json record;
-                      std::shared_ptr<const StreamPayload> pixels;
-                      std::string error = result.error.empty() ? "" : who + ": " + result.error;
-                      if (error.empty()) {
-                        try {
-                          record = image_record(result, type, png);
-                          // (after the record: takes the pixels)
-                          pixels = image_payload(result, type, who);
-                        } catch (const std::exception& e) {
-                          error = who + ": could not encode the image: " + e.what();
-                        }
-                      }
-                      {
-                        std::lock_guard lock(mailbox->mutex);
-                        mailbox->spare = std::move(result.scene);
-                        if (error.empty()) {
-                          mailbox->last = record;
-                          mailbox->last_pixels = pixels;
-                        }
-                        mailbox->last_error = error;
-                        if (capture_id != 0) mailbox->deliveries.push_back({capture_id, record, pixels, error});
-                      }
-                      if (!done) return;
-                      if (!error.empty()) {
-                        done(Status::failed, json(error));
-                        return;
-                      }
-                      // the record, and its pixels raw for the transports that send them typed
-                      Outcome outcome = Outcome::success(std::move(record));
-                      outcome.attachments.push_back(std::move(pixels));
-                      done.finish(std::move(outcome));
-                    });
+  renderer_->render(
+      std::move(scene), !depth, depth,
+      [mailbox = mailbox_, type = type_, capture_id, done, png, who = name()](RenderResult result) {
+        json record;
+        std::shared_ptr<const StreamPayload> pixels;
+        std::string error = result.error.empty() ? "" : who + ": " + result.error;
+        if (error.empty()) {
+          try {
+            record = image_record(result, type, png);
+            // (after the record: takes the pixels)
+            pixels = image_payload(result, type, who);
+          } catch (const std::exception& e) {
+            error = who + ": could not encode the image: " + e.what();
+          }
+        }
+        {
+          std::lock_guard lock(mailbox->mutex);
+          mailbox->spare = std::move(result.scene);
+          if (error.empty()) {
+            mailbox->last = record;
+            mailbox->last_pixels = pixels;
+          }
+          mailbox->last_error = error;
+          if (capture_id != 0) mailbox->deliveries.push_back({capture_id, record, pixels, error});
+        }
+        if (!done) return;
+        if (!error.empty()) {
+          done(Status::failed, json(error));
+          return;
+        }
+        // the record, and its pixels raw for the transports that send them typed
+        Outcome outcome = Outcome::success(std::move(record));
+        outcome.attachments.push_back(std::move(pixels));
+        done.finish(std::move(outcome));
+      });
 }
 
 void Camera::capture(long long n) {
   if (n < 1 || n > k_max_capture)
-    throw ServiceError(name() + " capture: n is the number of images, from 1 to " + std::to_string(k_max_capture) +
-                           ", found " + std::to_string(n),
+    throw ServiceError(name() + " capture: n is the number of images, from 1 to " +
+                           std::to_string(k_max_capture) + ", found " + std::to_string(n),
                        Failure::bad_arguments, {{"parameter", "n"}});
   renderer();  // FAILED now when nothing can be rendered
   end_capture();
@@ -341,7 +355,8 @@ void Camera::default_action() {
   }
   stream_step(stream_error, stream_in_flight);
   for (Mailbox::Delivery& delivery : arrived) {
-    if (delivery.capture_id != capture_id_ || !has_running_request()) continue;  // of an ended capture
+    if (delivery.capture_id != capture_id_ || !has_running_request())
+      continue;  // of an ended capture
     if (!delivery.error.empty()) {
       end_capture();
       completed(Status::failed, delivery.error);
@@ -400,7 +415,8 @@ void Camera::stream_step(const std::string& error, int in_flight) {
   stream_clock_ = now;
   if (now + 0.5 * sim().timestep() < next_stream_time_) return;
   next_stream_time_ += 1.0 / frequency_;
-  if (next_stream_time_ <= now) next_stream_time_ = now + 1.0 / frequency_;  // a reset, or a long pause
+  if (next_stream_time_ <= now)
+    next_stream_time_ = now + 1.0 / frequency_;  // a reset, or a long pause
   // the render thread behind: this image is skipped rather than queued (physics never waits)
   if (in_flight >= k_max_stream_in_flight) {
     ++stream_skipped_;
@@ -435,7 +451,8 @@ void Camera::on_model_changed(const ModelRemap& remap) {
   // MuJoCo's remap has no cameras: the camera by its name
   if (camera_ >= 0) {
     camera_ = mj_name2id(model(), mjOBJ_CAMERA, camera_name_.c_str());
-    if (camera_ < 0) throw std::logic_error(name() + ": MJCF camera '" + camera_name_ + "' is gone");
+    if (camera_ < 0)
+      throw std::logic_error(name() + ": MJCF camera '" + camera_name_ + "' is gone");
   }
   if (frame_) frame_->remap(remap);
 }
@@ -443,31 +460,46 @@ void Camera::on_model_changed(const ModelRemap& remap) {
 namespace {
 const std::vector<OptionSpec> camera_options = {
     {"camera", {{"type", "string"}}, "an MJCF <camera> to see from (looks along its -z, +y up)"},
-    {"site", {{"type", "string"}},
-     "without camera: a MuJoCo site on the robot to see from (looks along its +x, +z up; default: the body's frame)"},
-    {"cam_width", {{"type", "integer"}, {"minimum", 1}, {"maximum", 8192}, {"default", 256}}, "pixels"},
-    {"cam_height", {{"type", "integer"}, {"minimum", 1}, {"maximum", 8192}, {"default", 256}}, "pixels"},
-    {"cam_fovy", {{"type", "number"}, {"minimum", 0.1}, {"maximum", 179}},
+    {"site",
+     {{"type", "string"}},
+     "without camera: a MuJoCo site on the robot to see from (looks along its +x, +z up; default: "
+     "the body's frame)"},
+    {"cam_width",
+     {{"type", "integer"}, {"minimum", 1}, {"maximum", 8192}, {"default", 256}},
+     "pixels"},
+    {"cam_height",
+     {{"type", "integer"}, {"minimum", 1}, {"maximum", 8192}, {"default", 256}},
+     "pixels"},
+    {"cam_fovy",
+     {{"type", "number"}, {"minimum", 0.1}, {"maximum", 179}},
      "vertical field of view, degrees (default the MJCF camera's, else 45)"},
-    {"cam_focal", {{"type", "number"}, {"minimum", 0.1}, {"maximum", 1e4}},
+    {"cam_focal",
+     {{"type", "number"}, {"minimum", 0.1}, {"maximum", 1e4}},
      "MORSE's focal length: mm on a 32 mm sensor (its larger side); instead of cam_fovy"},
-    {"cam_near", {{"type", "number"}, {"minimum", 1e-6}, {"maximum", 1e6}},
+    {"cam_near",
+     {{"type", "number"}, {"minimum", 1e-6}, {"maximum", 1e6}},
      "near clipping plane, m (default MuJoCo's: znear x extent)"},
-    {"cam_far", {{"type", "number"}, {"minimum", 1e-6}, {"maximum", 1e7}},
+    {"cam_far",
+     {{"type", "number"}, {"minimum", 1e-6}, {"maximum", 1e7}},
      "far clipping plane, m (default MuJoCo's: zfar x extent)"}};
 }  // namespace
 
 SIMGATE_BUILTIN_TYPE(video_camera,
-    builtin_type("video_camera", Kind::component,
-                 "RGB camera rendered headless (MJCF camera or robot frame): capture n, get_image, get_local_data (base64 PNG)",
-                 "docs/components/cameras.md", camera_options, [](ComponentContext& c) -> std::unique_ptr<SimComponent> {
-                   return std::make_unique<Camera>(c, Camera::Type::video);
-                 }));
-SIMGATE_BUILTIN_TYPE(depth_camera,
-    builtin_type("depth_camera", Kind::component,
-                 "depth camera (mm, 16-bit PNG) rendered headless: capture n, get_image, get_local_data",
-                 "docs/components/cameras.md", camera_options, [](ComponentContext& c) -> std::unique_ptr<SimComponent> {
-                   return std::make_unique<Camera>(c, Camera::Type::depth);
-                 }));
+                     builtin_type("video_camera", Kind::component,
+                                  "RGB camera rendered headless (MJCF camera or robot frame): "
+                                  "capture n, get_image, get_local_data (base64 PNG)",
+                                  "docs/components/cameras.md", camera_options,
+                                  [](ComponentContext& c) -> std::unique_ptr<SimComponent> {
+                                    return std::make_unique<Camera>(c, Camera::Type::video);
+                                  }));
+SIMGATE_BUILTIN_TYPE(
+    depth_camera,
+    builtin_type(
+        "depth_camera", Kind::component,
+        "depth camera (mm, 16-bit PNG) rendered headless: capture n, get_image, get_local_data",
+        "docs/components/cameras.md", camera_options,
+        [](ComponentContext& c) -> std::unique_ptr<SimComponent> {
+          return std::make_unique<Camera>(c, Camera::Type::depth);
+        }));
 
 }  // namespace simgate::sim

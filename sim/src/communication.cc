@@ -8,27 +8,35 @@
 
 namespace simgate::sim {
 
-CommunicationServices::CommunicationServices(Simulation& sim) : Component("communication"), sim_(sim) {
+CommunicationServices::CommunicationServices(Simulation& sim)
+    : Component("communication"), sim_(sim) {
   add_service("distance_and_view", &CommunicationServices::distance_and_view, {"robot1", "robot2"})
-      .doc("[distance, can_see] between two robots' roots: metres, and whether nothing else lies between them");
+      .doc(
+          "[distance, can_see] between two robots' roots: metres, and whether nothing else lies "
+          "between them");
 }
 
 int CommunicationServices::robot_body(const std::string& name, const std::string& parameter) const {
   // a robot the caller's transport does not serve does not exist for it (call_context.h)
   const ComponentEntry* e = sim_.find(name);
-  const auto* robot = e && e->is_robot && caller_serves(name) ? dynamic_cast<const Robot*>(e->component.get()) : nullptr;
+  const auto* robot = e && e->is_robot && caller_serves(name)
+                          ? dynamic_cast<const Robot*>(e->component.get())
+                          : nullptr;
   if (!robot) {
     std::vector<std::string> robots;
     for (const auto& r : sim_.components())
-      if (r->is_robot && caller_serves(r->component->name())) robots.push_back(r->component->name());
+      if (r->is_robot && caller_serves(r->component->name()))
+        robots.push_back(r->component->name());
     // MORSE's text, trailing space included; the choices go in the detail
-    throw ServiceError(name + " does not exist in the simulation ", Failure::bad_arguments,
-                       {{"parameter", parameter}, {"expected", "a robot name"}, {"choices", robots}});
+    throw ServiceError(
+        name + " does not exist in the simulation ", Failure::bad_arguments,
+        {{"parameter", parameter}, {"expected", "a robot name"}, {"choices", robots}});
   }
   return robot->body();
 }
 
-json CommunicationServices::distance_and_view(const std::string& robot1, const std::string& robot2) const {
+json CommunicationServices::distance_and_view(const std::string& robot1,
+                                              const std::string& robot2) const {
   const int body1 = robot_body(robot1, "robot1");
   const int body2 = robot_body(robot2, "robot2");
   const double distance = (body_position(sim_, body2) - body_position(sim_, body1)).norm();
@@ -56,7 +64,8 @@ bool CommunicationServices::line_of_sight(int body1, int body2) const {
     if (!in_subtree(m, body, body1) && !in_subtree(m, body, body2)) return false;
     t += x + step_past;
   }
-  return false;  // not reached for convex geoms; a robot made of more hits than that is not seen through
+  // not reached for convex geoms; a robot made of more hits than that is not seen through
+  return false;
 }
 
 }  // namespace simgate::sim

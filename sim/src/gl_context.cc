@@ -54,8 +54,8 @@ std::unique_ptr<GlContext> GlContext::make(std::string& why_not) {
   // Mesa's surfaceless platform needs neither a display server nor a GPU
   EGLDisplay display = EGL_NO_DISPLAY;
   const char* client = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
-  auto get_platform_display =
-      reinterpret_cast<PFNEGLGETPLATFORMDISPLAYEXTPROC>(eglGetProcAddress("eglGetPlatformDisplayEXT"));
+  auto get_platform_display = reinterpret_cast<PFNEGLGETPLATFORMDISPLAYEXTPROC>(
+      eglGetProcAddress("eglGetPlatformDisplayEXT"));
   if (get_platform_display && has_extension(client, "EGL_MESA_platform_surfaceless")) {
     display = get_platform_display(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr);
     gl->platform_ = "surfaceless";
@@ -65,7 +65,8 @@ std::unique_ptr<GlContext> GlContext::make(std::string& why_not) {
     gl->platform_ = "default";
   }
   if (display == EGL_NO_DISPLAY) {
-    why_not = "no EGL display (" + egl_error() + ", no Mesa surfaceless platform): " + k_install_hint;
+    why_not =
+        "no EGL display (" + egl_error() + ", no Mesa surfaceless platform): " + k_install_hint;
     return nullptr;
   }
   EGLint major = 0, minor = 0;
@@ -76,7 +77,8 @@ std::unique_ptr<GlContext> GlContext::make(std::string& why_not) {
   gl->display_ = display;  // from here the destructor releases what was made
   const char* extensions = eglQueryString(display, EGL_EXTENSIONS);
   if (!has_extension(extensions, "EGL_KHR_surfaceless_context")) {
-    why_not = "EGL display has no EGL_KHR_surfaceless_context (Mesa's has): " + std::string(k_install_hint);
+    why_not = "EGL display has no EGL_KHR_surfaceless_context (Mesa's has): " +
+              std::string(k_install_hint);
     return nullptr;
   }
   if (!eglBindAPI(EGL_OPENGL_API)) {

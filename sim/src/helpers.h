@@ -31,7 +31,9 @@ inline std::string suggestion(const std::string& word, const std::vector<std::st
 
 // a and b equal but for rounding (relative 1e-9): the values MuJoCo's compiler derived from
 // one attribute of an actuator.
-inline bool same(double a, double b) { return std::abs(a - b) <= 1e-9 * std::max(std::abs(a), std::abs(b)); }
+inline bool same(double a, double b) {
+  return std::abs(a - b) <= 1e-9 * std::max(std::abs(a), std::abs(b));
+}
 
 // An angle brought into [-pi, pi].
 inline double wrap_angle(double a) { return std::remainder(a, 2 * M_PI); }

@@ -24,7 +24,8 @@ void put_u32(std::vector<std::uint8_t>& out, std::uint32_t v) {
   out.push_back(static_cast<std::uint8_t>(v));
 }
 
-void put_chunk(std::vector<std::uint8_t>& out, const char (&type)[5], const std::uint8_t* data, std::size_t size) {
+void put_chunk(std::vector<std::uint8_t>& out, const char (&type)[5], const std::uint8_t* data,
+               std::size_t size) {
   put_u32(out, static_cast<std::uint32_t>(size));
   const std::size_t start = out.size();
   out.insert(out.end(), type, type + 4);
@@ -37,25 +38,29 @@ void put_chunk(std::vector<std::uint8_t>& out, const char (&type)[5], const std:
 
 void check_size(std::size_t samples, int width, int height, int per_pixel, const char* what) {
   if (width <= 0 || height <= 0)
-    throw std::invalid_argument(std::string("PNG ") + what + ": width and height must be positive, found " +
+    throw std::invalid_argument(std::string("PNG ") + what +
+                                ": width and height must be positive, found " +
                                 std::to_string(width) + "x" + std::to_string(height));
   if (samples != static_cast<std::size_t>(width) * static_cast<std::size_t>(height) * per_pixel)
-    throw std::invalid_argument(std::string("PNG ") + what + ": " + std::to_string(samples) + " samples for " +
-                                std::to_string(width) + "x" + std::to_string(height));
+    throw std::invalid_argument(std::string("PNG ") + what + ": " + std::to_string(samples) +
+                                " samples for " + std::to_string(width) + "x" +
+                                std::to_string(height));
 }
 
 // The file for `raw`: the rows already prefixed by their filter byte.
-std::vector<std::uint8_t> png_file(const std::vector<std::uint8_t>& raw, int width, int height, int bit_depth,
-                                   int colour_type) {
+std::vector<std::uint8_t> png_file(const std::vector<std::uint8_t>& raw, int width, int height,
+                                   int bit_depth, int colour_type) {
   // IHDR: width, height, bit depth, colour type, compression 0, filter 0, interlace 0
   std::vector<std::uint8_t> ihdr;
   put_u32(ihdr, static_cast<std::uint32_t>(width));
   put_u32(ihdr, static_cast<std::uint32_t>(height));
-  ihdr.insert(ihdr.end(), {static_cast<std::uint8_t>(bit_depth), static_cast<std::uint8_t>(colour_type), 0, 0, 0});
+  ihdr.insert(ihdr.end(), {static_cast<std::uint8_t>(bit_depth),
+                           static_cast<std::uint8_t>(colour_type), 0, 0, 0});
 
   uLongf packed_size = compressBound(static_cast<uLong>(raw.size()));
   std::vector<std::uint8_t> packed(packed_size);
-  if (compress2(packed.data(), &packed_size, raw.data(), static_cast<uLong>(raw.size()), k_deflate_level) != Z_OK)
+  if (compress2(packed.data(), &packed_size, raw.data(), static_cast<uLong>(raw.size()),
+                k_deflate_level) != Z_OK)
     throw std::runtime_error("PNG: zlib could not compress the image");
 
   std::vector<std::uint8_t> out(std::begin(k_png_signature), std::end(k_png_signature));
@@ -68,7 +73,8 @@ std::vector<std::uint8_t> png_file(const std::vector<std::uint8_t>& raw, int wid
 
 }  // namespace
 
-std::vector<std::uint8_t> encode_png_rgb8(std::span<const std::uint8_t> rgb, int width, int height) {
+std::vector<std::uint8_t> encode_png_rgb8(std::span<const std::uint8_t> rgb, int width,
+                                          int height) {
   check_size(rgb.size(), width, height, 3, "rgb8");
   const std::size_t row = static_cast<std::size_t>(width) * 3;
   std::vector<std::uint8_t> raw;
@@ -81,14 +87,16 @@ std::vector<std::uint8_t> encode_png_rgb8(std::span<const std::uint8_t> rgb, int
   return png_file(raw, width, height, 8, 2);
 }
 
-std::vector<std::uint8_t> encode_png_gray16(std::span<const std::uint16_t> gray, int width, int height) {
+std::vector<std::uint8_t> encode_png_gray16(std::span<const std::uint16_t> gray, int width,
+                                            int height) {
   check_size(gray.size(), width, height, 1, "gray16");
   std::vector<std::uint8_t> raw;
   raw.reserve((static_cast<std::size_t>(width) * 2 + 1) * static_cast<std::size_t>(height));
   for (int y = 0; y < height; ++y) {
     raw.push_back(0);  // filter: None
     for (int x = 0; x < width; ++x) {
-      const std::uint16_t v = gray[static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + x];
+      const std::uint16_t v =
+          gray[static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + x];
       raw.push_back(static_cast<std::uint8_t>(v >> 8));  // PNG samples are big-endian
       raw.push_back(static_cast<std::uint8_t>(v));
     }
@@ -97,13 +105,15 @@ std::vector<std::uint8_t> encode_png_gray16(std::span<const std::uint16_t> gray,
 }
 
 std::string base64_encode(std::span<const std::uint8_t> bytes) {
-  static constexpr char k_alphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  static constexpr char k_alphabet[] =
+      "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
   std::string out;
   out.reserve((bytes.size() + 2) / 3 * 4);
   std::size_t i = 0;
   // whole groups of 3 bytes -> 4 characters
   for (; i + 3 <= bytes.size(); i += 3) {
-    const std::uint32_t v = (std::uint32_t{bytes[i]} << 16) | (std::uint32_t{bytes[i + 1]} << 8) | bytes[i + 2];
+    const std::uint32_t v =
+        (std::uint32_t{bytes[i]} << 16) | (std::uint32_t{bytes[i + 1]} << 8) | bytes[i + 2];
     out.push_back(k_alphabet[(v >> 18) & 63]);
     out.push_back(k_alphabet[(v >> 12) & 63]);
     out.push_back(k_alphabet[(v >> 6) & 63]);
@@ -126,7 +136,9 @@ std::vector<std::uint8_t> base64_decode(std::string_view text) {
   // padding ends the text: only '=' may follow it, and the length is a multiple of 4
   std::size_t end = text.size();
   while (end > 0 && text[end - 1] == '=' && text.size() - end < 2) --end;
-  if (text.size() % 4 != 0) throw std::invalid_argument("base64: the length " + std::to_string(text.size()) + " is not a multiple of 4");
+  if (text.size() % 4 != 0)
+    throw std::invalid_argument("base64: the length " + std::to_string(text.size()) +
+                                " is not a multiple of 4");
   std::vector<std::uint8_t> out;
   out.reserve(end / 4 * 3 + 2);
   std::uint32_t bits = 0;
@@ -134,12 +146,19 @@ std::vector<std::uint8_t> base64_decode(std::string_view text) {
   for (std::size_t i = 0; i < end; ++i) {
     const char c = text[i];
     int v;
-    if (c >= 'A' && c <= 'Z') v = c - 'A';
-    else if (c >= 'a' && c <= 'z') v = c - 'a' + 26;
-    else if (c >= '0' && c <= '9') v = c - '0' + 52;
-    else if (c == '+') v = 62;
-    else if (c == '/') v = 63;
-    else throw std::invalid_argument("base64: character " + std::to_string(i) + " is not of the alphabet");
+    if (c >= 'A' && c <= 'Z')
+      v = c - 'A';
+    else if (c >= 'a' && c <= 'z')
+      v = c - 'a' + 26;
+    else if (c >= '0' && c <= '9')
+      v = c - '0' + 52;
+    else if (c == '+')
+      v = 62;
+    else if (c == '/')
+      v = 63;
+    else
+      throw std::invalid_argument("base64: character " + std::to_string(i) +
+                                  " is not of the alphabet");
     bits = (bits << 6) | static_cast<std::uint32_t>(v);
     count += 6;
     if (count >= 8) {

@@ -38,7 +38,9 @@ ArmatureJoint describe(const mjModel* m, int j) {
   out.high = m->jnt_range[2 * j + 1];
   // the first position servo on the joint drives it (several would fight each other)
   for (int a = 0; a < m->nu; ++a) {
-    if (m->actuator_trntype[a] != mjTRN_JOINT || m->actuator_trnid[2 * a] != j || !is_position_servo(m, a)) continue;
+    if (m->actuator_trntype[a] != mjTRN_JOINT || m->actuator_trnid[2 * a] != j ||
+        !is_position_servo(m, a))
+      continue;
     out.servo = a;
     out.gear = m->actuator_gear[k_gear_size * a];
     out.ctrl_limited = m->actuator_ctrllimited[a] != 0;
@@ -50,7 +52,9 @@ ArmatureJoint describe(const mjModel* m, int j) {
 }
 }  // namespace
 
-std::string_view to_string(JointKind kind) { return kind == JointKind::prismatic ? "prismatic" : "revolute"; }
+std::string_view to_string(JointKind kind) {
+  return kind == JointKind::prismatic ? "prismatic" : "revolute";
+}
 
 std::string_view unit_of(JointKind kind) { return kind == JointKind::prismatic ? "m" : "rad"; }
 
@@ -65,9 +69,9 @@ bool is_position_servo(const mjModel* m, int a) {
   // a zero gear would make every target the same ctrl: not a servo of the joint. An
   // integrator (<intvelocity>) has the same gain and bias, but its ctrl is a velocity.
   return m->actuator_trntype[a] == mjTRN_JOINT && m->actuator_dyntype[a] != mjDYN_INTEGRATOR &&
-         m->actuator_gaintype[a] == mjGAIN_FIXED &&
-         m->actuator_biastype[a] == mjBIAS_AFFINE && gain[0] > 0 && bias[0] == 0 && same(bias[1], -gain[0]) &&
-         bias[2] <= 0 && m->actuator_gear[k_gear_size * a] != 0;
+         m->actuator_gaintype[a] == mjGAIN_FIXED && m->actuator_biastype[a] == mjBIAS_AFFINE &&
+         gain[0] > 0 && bias[0] == 0 && same(bias[1], -gain[0]) && bias[2] <= 0 &&
+         m->actuator_gear[k_gear_size * a] != 0;
 }
 
 void JointSet::remap(const mjModel* m, const ModelRemap& remap) {
@@ -96,34 +100,38 @@ JointSet JointSet::from_config(ComponentContext& c) {
     JointSet set = of_subtree(m, root);
     if (set.joints_.empty())
       c.fail("body", "body '" + body_name +
-                         "' has no hinge or slide joint in its subtree: an armature moves hinge (revolute) and slide "
+                         "' has no hinge or slide joint in its subtree: an armature moves hinge "
+                         "(revolute) and slide "
                          "(prismatic) joints; free and ball joints are not armature joints");
     return set;
   }
 
   const std::string path = c.options().path_of("joints");
   if (!listed->is_array() || listed->empty())
-    throw ConfigError(path + ": expected a non-empty list of joint names, found " + describe_json(*listed));
+    throw ConfigError(path + ": expected a non-empty list of joint names, found " +
+                      describe_json(*listed));
   const JointSet all = of_subtree(m, root);
   const std::vector<std::string> valid = all.names();
   JointSet set;
   for (std::size_t i = 0; i < listed->size(); ++i) {
     const json& item = (*listed)[i];
     const std::string where = path + "[" + std::to_string(i) + "]";
-    if (!item.is_string()) throw ConfigError(where + ": expected a joint name, found " + describe_json(item));
+    if (!item.is_string())
+      throw ConfigError(where + ": expected a joint name, found " + describe_json(item));
     const std::string name = item.get<std::string>();
     // unnamed joints are listed as "joint<id>", as get_joints shows them
     auto known = std::find(valid.begin(), valid.end(), name);
     int j = mj_name2id(m, mjOBJ_JOINT, name.c_str());
     if (known == valid.end() && j >= 0 && !is_armature_joint_type(m->jnt_type[j]))
-      throw ConfigError(where + ": joint '" + name + "' is " + std::string(type_name(m->jnt_type[j])) +
+      throw ConfigError(where + ": joint '" + name + "' is " +
+                        std::string(type_name(m->jnt_type[j])) +
                         ", not an armature joint (armatures move hinge and slide joints)");
     if (known == valid.end() && j >= 0)
-      throw ConfigError(where + ": joint '" + name + "' is not in the subtree of body '" + body_name +
-                        "' (its joints: " + join(valid) + ")");
+      throw ConfigError(where + ": joint '" + name + "' is not in the subtree of body '" +
+                        body_name + "' (its joints: " + join(valid) + ")");
     if (known == valid.end())
-      throw ConfigError(where + ": no joint '" + name + "' in the subtree of body '" + body_name + "'" +
-                        suggestion(name, valid) + " (its joints: " + join(valid) + ")");
+      throw ConfigError(where + ": no joint '" + name + "' in the subtree of body '" + body_name +
+                        "'" + suggestion(name, valid) + " (its joints: " + join(valid) + ")");
     for (const auto& earlier : set.joints_)
       if (earlier.name == name) throw ConfigError(where + ": joint '" + name + "' is listed twice");
     set.joints_.push_back(all.joints_[static_cast<std::size_t>(known - valid.begin())]);
@@ -142,8 +150,8 @@ std::size_t JointSet::index_of(const std::string& name, std::string_view paramet
   for (std::size_t i = 0; i < joints_.size(); ++i)
     if (joints_[i].name == name) return i;
   const std::vector<std::string> valid = names();
-  throw ServiceError("no joint '" + name + "' in this armature" + suggestion(name, valid) + " (its joints: " +
-                         join(valid) + ")",
+  throw ServiceError("no joint '" + name + "' in this armature" + suggestion(name, valid) +
+                         " (its joints: " + join(valid) + ")",
                      Failure::bad_arguments, {{"parameter", std::string(parameter)}});
 }
 void KinematicDrive::add(int qpos, int dof, double position, double velocity) {
@@ -169,10 +177,13 @@ void KinematicDrive::apply(const mjModel* m, mjData* d) {
   mj_solveM(m, d, columns_.data(), units_.data(), n);
   // the impulses that give each joint its velocity: (M^-1)_SS lambda = missing
   for (int k = 0; k < n; ++k)
-    for (int l = 0; l < n; ++l) gram_[static_cast<std::size_t>(k * n + l)] = columns_[static_cast<std::size_t>(l * nv + wanted_[k].dof)];
+    for (int l = 0; l < n; ++l)
+      gram_[static_cast<std::size_t>(k * n + l)] =
+          columns_[static_cast<std::size_t>(l * nv + wanted_[k].dof)];
   if (mju_cholFactor(gram_.data(), n, mjMINVAL) == n) {
     mju_cholSolve(impulse_.data(), gram_.data(), missing_.data(), n);
-    for (int l = 0; l < n; ++l) mju_addToScl(d->qvel, &columns_[static_cast<std::size_t>(l * nv)], impulse_[l], nv);
+    for (int l = 0; l < n; ++l)
+      mju_addToScl(d->qvel, &columns_[static_cast<std::size_t>(l * nv)], impulse_[l], nv);
   }
   // exactly where and how fast they were asked to be (the impulse gets there up to rounding;
   // a joint listed twice or a singular inertia falls back to the plain write)

@@ -22,22 +22,24 @@ namespace simgate::sim {
 namespace {
 // Bounds of the properties (and options): a laser sees from a millimetre to 10 km; the
 // finest resolution keeps a full turn within 36 001 rays.
-constexpr double k_min_range = 1e-3, k_max_range = 1e4;     // m
-constexpr double k_max_window = 360;                        // degrees
+constexpr double k_min_range = 1e-3, k_max_range = 1e4;            // m
+constexpr double k_max_window = 360;                               // degrees
 constexpr double k_min_resolution = 1e-2, k_max_resolution = 360;  // degrees
 // How far past a surface of the robot a re-cast starts: a step that always progresses,
 // far below any distance a scan resolves.
 constexpr double k_skip = 1e-9;  // m
 }  // namespace
 
-LaserScanner::LaserScanner(ComponentContext& c) : SimComponent(c.name(), c.sim()), frame_(SensorFrame::from(c)) {
+LaserScanner::LaserScanner(ComponentContext& c)
+    : SimComponent(c.name(), c.sim()), frame_(SensorFrame::from(c)) {
   // MORSE's defaults (its generic LaserScanner and the Sick preset)
   laser_range_ = c.options().get_number("laser_range", 30, k_min_range, k_max_range);
   scan_window_ = c.options().get_number("scan_window", 180, 0, k_max_window);
   resolution_ = c.options().get_number("resolution", 1, k_min_resolution, k_max_resolution);
   geom_groups_.fill(1);
   if (auto groups = c.options().get_json("geom_groups")) {
-    const std::string expected = "a list of geom groups, integers from 0 to " + std::to_string(mjNGROUP - 1);
+    const std::string expected =
+        "a list of geom groups, integers from 0 to " + std::to_string(mjNGROUP - 1);
     if (!groups->is_array()) c.options().fail("geom_groups", expected);
     geom_groups_.fill(0);
     for (const json& g : *groups) {
@@ -58,11 +60,14 @@ LaserScanner::LaserScanner(ComponentContext& c) : SimComponent(c.name(), c.sim()
   build_rays();
 
   add_service("get_local_data", &LaserScanner::get_local_data)
-      .doc("range_list (m, laser_range when nothing is hit) and point_list ([x, y, z] in the sensor frame, "
-           "[0, 0, 0] when nothing is hit), one per ray");
+      .doc(
+          "range_list (m, laser_range when nothing is hit) and point_list ([x, y, z] in the sensor "
+          "frame, "
+          "[0, 0, 0] when nothing is hit), one per ray");
   declare_output_stream("laser_scan", [this] { return get_local_data(); });
   // a settable number, checked as add_number_property does, then the rays rebuilt
-  auto number = [this](const std::string& name, double& value, double low, double high, const std::string& unit) {
+  auto number = [this](const std::string& name, double& value, double low, double high,
+                       const std::string& unit) {
     add_property(
         name, [&value] { return json(value); },
         [this, &value, name, low, high, unit](const json& v) {
@@ -106,7 +111,8 @@ double LaserScanner::cast(const mjtNum* origin, const mjtNum* direction) const {
   // each pass gets past one surface of the robot: at most two per geom (in and out)
   for (int pass = 0; pass <= 2 * own_geom_count_ + 1; ++pass) {
     int geom = -1;
-    const mjtNum t = mj_ray(m, d, start, direction, geom_groups_.data(), 1, exclude, &geom, nullptr);
+    const mjtNum t =
+        mj_ray(m, d, start, direction, geom_groups_.data(), 1, exclude, &geom, nullptr);
     if (t < 0 || geom < 0) return -1;
     const double distance = travelled + t;
     if (distance > laser_range_) return -1;
@@ -158,20 +164,33 @@ json LaserScanner::get_local_data() {
   const std::size_t n = ray_count();
   json points = json::array();
   points.get_ref<json::array_t&>().reserve(n);
-  for (std::size_t i = 0; i < n; ++i) points.push_back({points_[3 * i], points_[3 * i + 1], points_[3 * i + 2]});
-  return {{"range_list", ranges_}, {"point_list", std::move(points)}, {"timestamp", sim().state_time()}};
+  for (std::size_t i = 0; i < n; ++i)
+    points.push_back({points_[3 * i], points_[3 * i + 1], points_[3 * i + 2]});
+  return {{"range_list", ranges_},
+          {"point_list", std::move(points)},
+          {"timestamp", sim().state_time()}};
 }
 
-SIMGATE_BUILTIN_TYPE(laser_scanner,
+SIMGATE_BUILTIN_TYPE(
+    laser_scanner,
     builtin_type<LaserScanner>(
-        "laser_scanner", Kind::component, "fan of mj_ray rays: get_local_data (range_list, point_list)",
+        "laser_scanner", Kind::component,
+        "fan of mj_ray rays: get_local_data (range_list, point_list)",
         "docs/components/native-sensors.md",
-        {{"site", {{"type", "string"}}, "a MuJoCo site on the robot: the sensor's frame (default: the body's frame)"},
-         {"laser_range", {{"type", "number"}, {"minimum", 1e-3}, {"maximum", 1e4}, {"default", 30}}, "metres"},
-         {"scan_window", {{"type", "number"}, {"minimum", 0}, {"maximum", 360}, {"default", 180}}, "degrees"},
-         {"resolution", {{"type", "number"}, {"minimum", 1e-2}, {"maximum", 360}, {"default", 1}},
+        {{"site",
+          {{"type", "string"}},
+          "a MuJoCo site on the robot: the sensor's frame (default: the body's frame)"},
+         {"laser_range",
+          {{"type", "number"}, {"minimum", 1e-3}, {"maximum", 1e4}, {"default", 30}},
+          "metres"},
+         {"scan_window",
+          {{"type", "number"}, {"minimum", 0}, {"maximum", 360}, {"default", 180}},
+          "degrees"},
+         {"resolution",
+          {{"type", "number"}, {"minimum", 1e-2}, {"maximum", 360}, {"default", 1}},
           "degrees between rays"},
-         {"geom_groups", {{"type", "array"}, {"items", {{"type", "integer"}, {"minimum", 0}, {"maximum", 5}}}},
+         {"geom_groups",
+          {{"type", "array"}, {"items", {{"type", "integer"}, {"minimum", 0}, {"maximum", 5}}}},
           "the MuJoCo geom groups the laser sees (default all)"}}));
 
 }  // namespace simgate::sim

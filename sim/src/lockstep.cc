@@ -28,15 +28,19 @@ void Lockstep::join(Completion call, const std::string& participant) {
     do name = "p" + std::to_string(next_number_++);
     while (find(name));
   } else {
-    const bool printable = std::all_of(name.begin(), name.end(), [](char c) { return c > ' ' && c < 127; });
+    const bool printable =
+        std::all_of(name.begin(), name.end(), [](char c) { return c > ' ' && c < 127; });
     if (name.size() > k_max_name_length || !printable)
-      throw ServiceError("simulation lockstep_join: participant = \"" + name.substr(0, k_max_name_length) +
-                             "\": expected up to " + std::to_string(k_max_name_length) +
+      throw ServiceError("simulation lockstep_join: participant = \"" +
+                             name.substr(0, k_max_name_length) + "\": expected up to " +
+                             std::to_string(k_max_name_length) +
                              " printable characters without spaces (or nothing: a name is made up)",
                          Failure::bad_arguments, {{"parameter", "participant"}});
     if (find(name))
-      throw ServiceError("simulation lockstep_join: participant '" + name + "' is already in the lockstep "
-                             "(participants: " + names_text() + "); choose another name, or none (one is made up)",
+      throw ServiceError("simulation lockstep_join: participant '" + name +
+                             "' is already in the lockstep "
+                             "(participants: " +
+                             names_text() + "); choose another name, or none (one is made up)",
                          Failure::bad_arguments, {{"parameter", "participant"}});
   }
   // from now on the participants drive the steps
@@ -59,7 +63,8 @@ void Lockstep::step(Completion call, const std::string& participant, std::int64_
   prune();
   Participant* p = find(participant);
   if (!p)
-    throw ServiceError("simulation lockstep_step: participant = \"" + participant.substr(0, k_max_name_length) +
+    throw ServiceError("simulation lockstep_step: participant = \"" +
+                           participant.substr(0, k_max_name_length) +
                            "\" is not in the lockstep (participants: " + names_text() +
                            "); join first with simulation lockstep_join",
                        Failure::bad_arguments, {{"parameter", "participant"}});
@@ -68,8 +73,9 @@ void Lockstep::step(Completion call, const std::string& participant, std::int64_
                            "' already waits at the barrier; one ask per participant and barrier",
                        Failure::service_error, {{"parameter", "participant"}});
   if (gathering_n_ != 0 && static_cast<std::uint64_t>(n) != gathering_n_)
-    throw ServiceError("simulation lockstep_step: n = " + std::to_string(n) + ", but the barrier waits for n = " +
-                           std::to_string(gathering_n_) + " (asked by " + simgate::join(waiting_names()) +
+    throw ServiceError("simulation lockstep_step: n = " + std::to_string(n) +
+                           ", but the barrier waits for n = " + std::to_string(gathering_n_) +
+                           " (asked by " + simgate::join(waiting_names()) +
                            "): every participant asks for the same steps",
                        Failure::bad_arguments, {{"parameter", "n"}, {"expected", gathering_n_}});
   p->asked = std::move(call);
@@ -80,9 +86,11 @@ void Lockstep::step(Completion call, const std::string& participant, std::int64_
 bool Lockstep::refuses_plain_steps(const char* service, std::string& why) {
   prune();
   if (!participants_.empty()) {
-    why = std::string(service) + ": the simulation is stepped in lockstep (participants: " + names_text() +
-          "); a participant asks with simulation lockstep_step, the others leave by cancelling their "
-          "simulation lockstep_join";
+    why =
+        std::string(service) +
+        ": the simulation is stepped in lockstep (participants: " + names_text() +
+        "); a participant asks with simulation lockstep_step, the others leave by cancelling their "
+        "simulation lockstep_join";
     return true;
   }
   if (stepping_) {
@@ -135,7 +143,8 @@ void Lockstep::prune() {
     Outcome o;
     o.status = Status::preempted;
     o.failure = Failure::preempted;
-    o.message = "simulation lockstep_step: its participant left the lockstep (its lockstep_join ended)";
+    o.message =
+        "simulation lockstep_step: its participant left the lockstep (its lockstep_join ended)";
     call.finish(std::move(o));
   }
   if (waiting_names().empty()) gathering_n_ = 0;
@@ -165,13 +174,15 @@ void Lockstep::released_steps_done() {
   release_if_complete(/*inline_steps=*/false);
 }
 
-void Lockstep::preempt(std::vector<Completion>& calls, const char* why, std::uint64_t steps_done, std::uint64_t n) {
+void Lockstep::preempt(std::vector<Completion>& calls, const char* why, std::uint64_t steps_done,
+                       std::uint64_t n) {
   for (const Completion& call : std::exchange(calls, {})) {
     Outcome o;
     o.status = Status::preempted;
     o.failure = Failure::preempted;
     o.message = why;
-    o.value = json{{"sim_time", sim_.sim_time()}, {"steps_done", steps_done}, {"steps_requested", n}};
+    o.value =
+        json{{"sim_time", sim_.sim_time()}, {"steps_done", steps_done}, {"steps_requested", n}};
     call.finish(std::move(o));
   }
 }
@@ -195,6 +206,8 @@ std::vector<std::string> Lockstep::waiting_names() const {
   return out;
 }
 
-std::string Lockstep::names_text() const { return participants_.empty() ? "none" : simgate::join(names()); }
+std::string Lockstep::names_text() const {
+  return participants_.empty() ? "none" : simgate::join(names());
+}
 
 }  // namespace simgate::sim

@@ -87,8 +87,8 @@ MjcfSensors::MjcfSensors(ComponentContext& c) : SimComponent(c.name(), c.sim()) 
   selection.option = "sensors";
   selection.what = "sensor";
   selection.acting = "attached to";
-  selection.names =
-      detail::mjcf_names(m, mjOBJ_SENSOR, m->nsensor, [m](int s) { return sensor_type_name(m->sensor_type[s]); });
+  selection.names = detail::mjcf_names(m, mjOBJ_SENSOR, m->nsensor,
+                                       [m](int s) { return sensor_type_name(m->sensor_type[s]); });
   for (int s = 0; s < m->nsensor; ++s) {
     selection.owned.push_back(sensor_in_subtree(m, s, root));
     // <clock>, and user sensors given no object: the scene's, not a robot's
@@ -100,14 +100,16 @@ MjcfSensors::MjcfSensors(ComponentContext& c) : SimComponent(c.name(), c.sim()) 
   for (int id : detail::select_objects(c, selection)) {
     const std::string& name = selection.names[id];
     if (name == "timestamp")
-      c.fail("", "sensor " + std::to_string(id) + " is called 'timestamp', the key get_local_data gives the "
+      c.fail("", "sensor " + std::to_string(id) +
+                     " is called 'timestamp', the key get_local_data gives the "
                      "simulated time: rename it in the MJCF");
     sensors_.push_back({name, id, m->sensor_adr[id], m->sensor_dim[id]});
     names_.push_back(name);
 
     json entry = {{"type", sensor_type_name(m->sensor_type[id])}, {"dim", m->sensor_dim[id]}};
     const int type = m->sensor_objtype[id], object = m->sensor_objid[id];
-    if (type != mjOBJ_UNKNOWN && object >= 0) entry[object_kind(type)] = mujoco_name(m, type, object);
+    if (type != mjOBJ_UNKNOWN && object >= 0)
+      entry[object_kind(type)] = mujoco_name(m, type, object);
     const int ref_type = m->sensor_reftype[id], ref = m->sensor_refid[id];
     if (ref_type != mjOBJ_UNKNOWN && ref >= 0)
       entry["reference"] = {{object_kind(ref_type), mujoco_name(m, ref_type, ref)}};
@@ -115,12 +117,15 @@ MjcfSensors::MjcfSensors(ComponentContext& c) : SimComponent(c.name(), c.sim()) 
     description_[name] = std::move(entry);
   }
   // get_local_data inserts in name order: each insertion at the end of the map, no search
-  std::sort(sensors_.begin(), sensors_.end(), [](const Sensor& a, const Sensor& b) { return a.name < b.name; });
+  std::sort(sensors_.begin(), sensors_.end(),
+            [](const Sensor& a, const Sensor& b) { return a.name < b.name; });
 
   add_property("sensors", [this] { return description_; });
   add_property("count", [this] { return json(sensors_.size()); });
   add_service("get_local_data", &MjcfSensors::get_local_data)
-      .doc("Every sensor's value {name: number or array} and the simulated time they describe (timestamp)");
+      .doc(
+          "Every sensor's value {name: number or array} and the simulated time they describe "
+          "(timestamp)");
   declare_output_stream("sensors", [this] { return get_local_data(); });
 }
 
@@ -147,11 +152,16 @@ json MjcfSensors::get_local_data() const {
   return out;
 }
 
-SIMGATE_BUILTIN_TYPE(sensors,
+SIMGATE_BUILTIN_TYPE(
+    sensors,
     builtin_type<MjcfSensors>(
         "sensors", Kind::component, "the robot's MJCF <sensor>s: get_local_data {name: value}",
         "docs/components/actuators-and-sensors.md",
-        {{"sensors", {{"type", "array"}, {"minItems", 1}, {"uniqueItems", true}, {"items", {{"type", "string"}}}},
+        {{"sensors",
+          {{"type", "array"},
+           {"minItems", 1},
+           {"uniqueItems", true},
+           {"items", {{"type", "string"}}}},
           "only these of the robot's MJCF sensors (default: every one attached to its subtree)"}}));
 
 }  // namespace simgate::sim

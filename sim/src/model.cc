@@ -25,9 +25,12 @@ namespace {
 constexpr std::string_view k_attach_without_prefix = "Attaching a spec with an empty prefix";
 
 // MuJoCo calls this instead of exit(1). It must not return: were it to, mju_error would
-// return to the engine code that found the error, which carries on with the broken state. The engine is built with unwind tables, so the exception propagates
-// through its C frames to the caller of mj_step / mj_forward.
-void on_mujoco_error(const char* message) { throw MujocoError(std::string("MuJoCo error: ") + message); }
+// return to the engine code that found the error, which carries on with the broken state. The
+// engine is built with unwind tables, so the exception propagates through its C frames to the
+// caller of mj_step / mj_forward.
+void on_mujoco_error(const char* message) {
+  throw MujocoError(std::string("MuJoCo error: ") + message);
+}
 
 void on_mujoco_warning(const char* message) {
   if (std::string_view(message).starts_with(k_attach_without_prefix)) return;
@@ -41,7 +44,8 @@ std::string engine_plugin_directory() {
   Dl_info info{};
   if (dladdr(reinterpret_cast<void*>(&mj_version), &info) == 0 || !info.dli_fname) return "";
   const std::filesystem::path lib_dir = std::filesystem::path(info.dli_fname).parent_path();
-  for (const auto& dir : {lib_dir / "plugin", lib_dir / "mujoco_plugin", lib_dir / ".." / "bin" / "mujoco_plugin"}) {
+  for (const auto& dir :
+       {lib_dir / "plugin", lib_dir / "mujoco_plugin", lib_dir / ".." / "bin" / "mujoco_plugin"}) {
     std::error_code ec;
     if (std::filesystem::is_directory(dir, ec)) return dir.lexically_normal().string();
   }
@@ -58,7 +62,8 @@ EnginePlugins load_engine_plugins() {
   const int before = mjp_pluginCount();
   mj_loadAllPluginLibraries(plugins.directory.c_str(), nullptr);
   for (int slot = before; slot < mjp_pluginCount(); ++slot)
-    if (const mjpPlugin* p = mjp_getPluginAtSlot(slot); p && p->name) plugins.names.emplace_back(p->name);
+    if (const mjpPlugin* p = mjp_getPluginAtSlot(slot); p && p->name)
+      plugins.names.emplace_back(p->name);
   log::debug("MuJoCo engine plugins from ", plugins.directory, ": ", plugins.names.size());
   return plugins;
 }
@@ -85,7 +90,9 @@ Model::Model(mjModel* m, std::string source) : model_(m), source_(std::move(sour
   mj_forward(model(), data());
 }
 
-std::shared_ptr<mjSpec> Model::own(mjSpec* spec) { return std::shared_ptr<mjSpec>(spec, mj_deleteSpec); }
+std::shared_ptr<mjSpec> Model::own(mjSpec* spec) {
+  return std::shared_ptr<mjSpec>(spec, mj_deleteSpec);
+}
 
 namespace {
 
@@ -96,7 +103,8 @@ std::string from(const std::string& source, const std::string& message) {
 
 }  // namespace
 
-std::shared_ptr<mjSpec> parse_spec(const std::string& path, const std::string* text, const std::string& source) {
+std::shared_ptr<mjSpec> parse_spec(const std::string& path, const std::string* text,
+                                   const std::string& source) {
   install_mujoco_handlers();
   char error[1024] = "";
   mjSpec* spec = nullptr;
@@ -118,10 +126,10 @@ mjModel* compile_spec(mjSpec* spec, const std::string& source) {
     throw MujocoError(from(source, e.what()));
   }
   if (!m) throw MujocoError(from(source, mjs_getError(spec)));
-  if (mjs_isWarning(spec)) log::warning(source.empty() ? "MuJoCo" : source, ": ", mjs_getError(spec));
+  if (mjs_isWarning(spec))
+    log::warning(source.empty() ? "MuJoCo" : source, ": ", mjs_getError(spec));
   return m;
 }
-
 
 Model Model::load_file(const std::string& path) {
   install_mujoco_handlers();
@@ -144,7 +152,8 @@ Model Model::load_string(const std::string& xml, const std::string& name) {
   return adopt(m, name, std::move(spec), {});
 }
 
-Model Model::adopt(mjModel* m, std::string source, SharedSpec spec, std::vector<SpawnedEntity> entities) {
+Model Model::adopt(mjModel* m, std::string source, SharedSpec spec,
+                   std::vector<SpawnedEntity> entities) {
   Model model(m, std::move(source));
   model.spec_ = std::move(spec);
   model.entities_ = std::move(entities);
@@ -160,13 +169,15 @@ const SpawnedEntity* Model::entity(const std::string& name) const {
 ModelCounts ModelCounts::of(const mjModel* m) {
   ModelCounts c;
   c.nbody = m->nbody, c.njnt = m->njnt, c.ngeom = m->ngeom, c.nsite = m->nsite, c.ncam = m->ncam;
-  c.nlight = m->nlight, c.nmocap = m->nmocap, c.nq = m->nq, c.nv = m->nv, c.na = m->na, c.nu = m->nu;
+  c.nlight = m->nlight, c.nmocap = m->nmocap, c.nq = m->nq, c.nv = m->nv, c.na = m->na,
+  c.nu = m->nu;
   c.nsensor = m->nsensor, c.ntendon = m->ntendon, c.neq = m->neq;
   return c;
 }
 
 ModelCounts& ModelCounts::operator+=(const ModelCounts& o) {
-  nbody += o.nbody, njnt += o.njnt, ngeom += o.ngeom, nsite += o.nsite, ncam += o.ncam, nlight += o.nlight;
+  nbody += o.nbody, njnt += o.njnt, ngeom += o.ngeom, nsite += o.nsite, ncam += o.ncam,
+      nlight += o.nlight;
   nmocap += o.nmocap, nq += o.nq, nv += o.nv, na += o.na, nu += o.nu, nsensor += o.nsensor;
   ntendon += o.ntendon, neq += o.neq;
   return *this;
@@ -175,7 +186,8 @@ ModelCounts& ModelCounts::operator+=(const ModelCounts& o) {
 ModelCounts ModelCounts::operator-(const ModelCounts& o) const {
   ModelCounts c = *this;
   c.nbody -= o.nbody, c.njnt -= o.njnt, c.ngeom -= o.ngeom, c.nsite -= o.nsite, c.ncam -= o.ncam;
-  c.nlight -= o.nlight, c.nmocap -= o.nmocap, c.nq -= o.nq, c.nv -= o.nv, c.na -= o.na, c.nu -= o.nu;
+  c.nlight -= o.nlight, c.nmocap -= o.nmocap, c.nq -= o.nq, c.nv -= o.nv, c.na -= o.na,
+      c.nu -= o.nu;
   c.nsensor -= o.nsensor, c.ntendon -= o.ntendon, c.neq -= o.neq;
   return c;
 }

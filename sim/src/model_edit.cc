@@ -19,8 +19,8 @@ namespace {
 // The sections of a <mujoco> fragment that can belong to one entity. Not <option>,
 // <compiler>, <size>, <visual>, <statistic>: they are the scene's; not <keyframe>: a key
 // is a state of the whole world (MuJoCo extends the scene's keys with the entity's initial state).
-const std::set<std::string, std::less<>> k_entity_sections = {"asset",    "default", "worldbody", "actuator",
-                                                               "sensor",   "tendon",  "equality",  "contact"};
+const std::set<std::string, std::less<>> k_entity_sections = {
+    "asset", "default", "worldbody", "actuator", "sensor", "tendon", "equality", "contact"};
 
 [[noreturn]] void refuse(const std::string& message) {
   throw ServiceError("mjcf: " + message, Failure::bad_arguments, {{"parameter", "mjcf"}});
@@ -44,14 +44,16 @@ std::string numbers(const double* values, int n) {
 
 // An entity reads files beside the scene only: no <include>, no absolute or climbing file names.
 void check_files(const tinyxml2::XMLElement& element) {
-  if (std::strcmp(element.Name(), "include") == 0) refuse("<include> is not allowed in a spawned fragment");
+  if (std::strcmp(element.Name(), "include") == 0)
+    refuse("<include> is not allowed in a spawned fragment");
   for (const tinyxml2::XMLAttribute* a = element.FirstAttribute(); a; a = a->Next()) {
     if (std::strncmp(a->Name(), "file", 4) != 0) continue;
     const std::string file = a->Value();
-    if (file.starts_with('/') || file == ".." || file.starts_with("../") || file.find("/../") != std::string::npos ||
-        file.ends_with("/.."))
-      refuse("<" + std::string(element.Name()) + " " + a->Name() + "=\"" + file +
-             "\">: a spawned fragment names files relative to the scene's directories, without '..'");
+    if (file.starts_with('/') || file == ".." || file.starts_with("../") ||
+        file.find("/../") != std::string::npos || file.ends_with("/.."))
+      refuse(
+          "<" + std::string(element.Name()) + " " + a->Name() + "=\"" + file +
+          "\">: a spawned fragment names files relative to the scene's directories, without '..'");
   }
   for (const auto* child = element.FirstChildElement(); child; child = child->NextSiblingElement())
     check_files(*child);
@@ -69,12 +71,14 @@ void place(tinyxml2::XMLElement& body, const std::string& name, const EntityPose
 
 }  // namespace
 
-std::string entity_mjcf(const std::string& fragment, const std::string& name, const EntityPose& pose) {
+std::string entity_mjcf(const std::string& fragment, const std::string& name,
+                        const EntityPose& pose) {
   tinyxml2::XMLDocument doc;
   if (doc.Parse(fragment.data(), fragment.size()) != tinyxml2::XML_SUCCESS)
     refuse(std::string("not well-formed XML: ") + doc.ErrorStr());
   tinyxml2::XMLElement* root = doc.RootElement();
-  if (!root) refuse("expected MJCF text: a <body>, or a <mujoco> with a <worldbody> holding one <body>");
+  if (!root)
+    refuse("expected MJCF text: a <body>, or a <mujoco> with a <worldbody> holding one <body>");
   if (root->NextSiblingElement()) refuse("expected one root element, found several");
   check_files(*root);
 
@@ -84,20 +88,25 @@ std::string entity_mjcf(const std::string& fragment, const std::string& name, co
     return "<mujoco><worldbody>" + text_of(*root) + "</worldbody></mujoco>";
   }
   if (root_name != "mujoco")
-    refuse("expected a <body> or a <mujoco> root element (or a URDF <robot>), found <" + root_name + ">");
+    refuse("expected a <body> or a <mujoco> root element (or a URDF <robot>), found <" + root_name +
+           ">");
 
   tinyxml2::XMLElement* body = nullptr;
-  for (auto* section = root->FirstChildElement(); section; section = section->NextSiblingElement()) {
+  for (auto* section = root->FirstChildElement(); section;
+       section = section->NextSiblingElement()) {
     const std::string section_name = section->Name();
     if (!k_entity_sections.contains(section_name))
       refuse("<" + section_name +
-             "> cannot be spawned: a fragment's sections are asset, default, worldbody, actuator, sensor, "
+             "> cannot be spawned: a fragment's sections are asset, default, worldbody, actuator, "
+             "sensor, "
              "tendon, equality, contact");
     if (section_name == "worldbody") {
       for (auto* child = section->FirstChildElement(); child; child = child->NextSiblingElement()) {
         if (std::strcmp(child->Name(), "body") != 0 || body)
-          refuse("the <worldbody> of a spawned fragment holds exactly one <body> (the entity), found <" +
-                 std::string(child->Name()) + ">" + (body ? " beside it" : ""));
+          refuse(
+              "the <worldbody> of a spawned fragment holds exactly one <body> (the entity), found "
+              "<" +
+              std::string(child->Name()) + ">" + (body ? " beside it" : ""));
         body = child;
       }
     }
@@ -107,7 +116,8 @@ std::string entity_mjcf(const std::string& fragment, const std::string& name, co
   return text_of(*root);
 }
 
-EntityDocument entity_document(const std::string& fragment, const std::string& name, const EntityPose& pose) {
+EntityDocument entity_document(const std::string& fragment, const std::string& name,
+                               const EntityPose& pose) {
   if (!is_urdf(fragment)) return {entity_mjcf(fragment, name, pose), false, pose};
   // MuJoCo's URDF parser keeps file names' base names only (strippath): a mesh resolves in
   // the scene's mesh directory, wherever the URDF says it is
@@ -141,8 +151,11 @@ mjsBody* urdf_root(mjSpec* entity, const std::string& name, const EntityDocument
   mjsBody* world = mjs_findBody(entity, "world");
   mjsElement* root = world ? mjs_firstChild(world, mjOBJ_BODY, 0) : nullptr;
   if (!root || mjs_nextChild(world, root, 0))
-    throw MujocoError(source + ": a spawned URDF robot has one root link (one link no joint has as its child), "
-                               "found " + std::string(root ? "several" : "none"));
+    throw MujocoError(
+        source +
+        ": a spawned URDF robot has one root link (one link no joint has as its child), "
+        "found " +
+        std::string(root ? "several" : "none"));
   mjsBody* body = mjs_asBody(root);
   mjs_setName(root, name.c_str());
   std::copy(document.pose.position.begin(), document.pose.position.end(), body->pos);
@@ -162,13 +175,16 @@ Model with_entity(const EditBase& base, const std::string& name, const EntityDoc
   mjs_setString(entity->modelfiledir, mjs_getString(spec->modelfiledir));
   mjs_setString(entity->compiler.meshdir, mjs_getString(spec->compiler.meshdir));
   mjs_setString(entity->compiler.texturedir, mjs_getString(spec->compiler.texturedir));
-  mjsBody* body = document.urdf ? urdf_root(entity.get(), name, document) : mjs_findBody(entity.get(), name.c_str());
+  mjsBody* body = document.urdf ? urdf_root(entity.get(), name, document)
+                                : mjs_findBody(entity.get(), name.c_str());
   mjsBody* world = mjs_findBody(spec.get(), "world");
-  if (!body || !world) throw MujocoError("the entity's body '" + name + "' is missing from its own document");
+  if (!body || !world)
+    throw MujocoError("the entity's body '" + name + "' is missing from its own document");
   // after everything the world holds, its names as written (no prefix)
   mjsFrame* frame = mjs_addFrame(world, nullptr);
   mjs_setName(frame->element, entity_frame(name).c_str());
-  if (!mjs_attach(frame->element, body->element, "", "")) throw MujocoError(mjs_getError(spec.get()));
+  if (!mjs_attach(frame->element, body->element, "", ""))
+    throw MujocoError(mjs_getError(spec.get()));
   mjModel* m = compile_spec(spec.get(), "");
   std::vector<SpawnedEntity> entities = base.entities;
   entities.push_back({name, ModelCounts::of(m) - base.counts});

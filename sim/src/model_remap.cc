@@ -34,7 +34,8 @@ Removed removal(const mjModel* m, int root) {
   Removed r;
   r.body.assign(m->nbody, false), r.joint.assign(m->njnt, false), r.geom.assign(m->ngeom, false);
   r.site.assign(m->nsite, false), r.camera.assign(m->ncam, false), r.light.assign(m->nlight, false);
-  r.tendon.assign(m->ntendon, false), r.actuator.assign(m->nu, false), r.sensor.assign(m->nsensor, false);
+  r.tendon.assign(m->ntendon, false), r.actuator.assign(m->nu, false),
+      r.sensor.assign(m->nsensor, false);
   r.equality.assign(m->neq, false);
   if (root <= 0) return r;  // nothing, and never the world
   for (int b = 1; b < m->nbody; ++b) {
@@ -82,7 +83,8 @@ Removed removal(const mjModel* m, int root) {
     }
     for (int s = 0; s < m->nsensor; ++s)
       mark(r.sensor, s,
-           r.of(m->sensor_objtype[s], m->sensor_objid[s]) || r.of(m->sensor_reftype[s], m->sensor_refid[s]));
+           r.of(m->sensor_objtype[s], m->sensor_objid[s]) ||
+               r.of(m->sensor_reftype[s], m->sensor_refid[s]));
     for (int e = 0; e < m->neq; ++e) {
       int type = mjOBJ_UNKNOWN;
       switch (m->eq_type[e]) {
@@ -99,32 +101,34 @@ Removed removal(const mjModel* m, int root) {
 }
 
 // Maps the survivors of one kind in order and checks names and counts.
-std::vector<int> walk(const mjModel* from, const mjModel* to, int type, const char* kind, int n_from, int n_to,
-                      const std::vector<bool>& removed, bool appended) {
+std::vector<int> walk(const mjModel* from, const mjModel* to, int type, const char* kind,
+                      int n_from, int n_to, const std::vector<bool>& removed, bool appended) {
   std::vector<int> ids(n_from, -1);
   int next = 0;
   for (int i = 0; i < n_from; ++i) {
     if (removed[i]) continue;
     if (next >= n_to)
-      throw MujocoError(std::string("the recompiled model has fewer ") + kind + "s than expected (" +
-                        std::to_string(n_to) + ")");
+      throw MujocoError(std::string("the recompiled model has fewer ") + kind +
+                        "s than expected (" + std::to_string(n_to) + ")");
     const char* was = mj_id2name(from, type, i);
     const char* is = mj_id2name(to, type, next);
     if (was && *was && (!is || std::string(was) != is))
-      throw MujocoError(std::string(kind) + " " + std::to_string(i) + " '" + was + "' is not where expected in the "
-                        "recompiled model (found " + (is && *is ? "'" + std::string(is) + "'" : "an unnamed one") +
-                        ")");
+      throw MujocoError(std::string(kind) + " " + std::to_string(i) + " '" + was +
+                        "' is not where expected in the "
+                        "recompiled model (found " +
+                        (is && *is ? "'" + std::string(is) + "'" : "an unnamed one") + ")");
     ids[i] = next++;
   }
   if (appended ? next > n_to : next != n_to)
-    throw MujocoError(std::string("the recompiled model has ") + std::to_string(n_to) + " " + kind + "s, expected " +
-                      std::to_string(next) + (appended ? " or more" : ""));
+    throw MujocoError(std::string("the recompiled model has ") + std::to_string(n_to) + " " + kind +
+                      "s, expected " + std::to_string(next) + (appended ? " or more" : ""));
   return ids;
 }
 
 }  // namespace
 
-ModelRemap ModelRemap::between(const mjModel* from, const mjModel* to, int removed_body, bool appended) {
+ModelRemap ModelRemap::between(const mjModel* from, const mjModel* to, int removed_body,
+                               bool appended) {
   const Removed r = removal(from, removed_body);
   ModelRemap map;
   map.body = walk(from, to, mjOBJ_BODY, "body", from->nbody, to->nbody, r.body, appended);
@@ -133,10 +137,13 @@ ModelRemap ModelRemap::between(const mjModel* from, const mjModel* to, int remov
   map.site = walk(from, to, mjOBJ_SITE, "site", from->nsite, to->nsite, r.site, appended);
   map.camera = walk(from, to, mjOBJ_CAMERA, "camera", from->ncam, to->ncam, r.camera, appended);
   map.light = walk(from, to, mjOBJ_LIGHT, "light", from->nlight, to->nlight, r.light, appended);
-  map.tendon = walk(from, to, mjOBJ_TENDON, "tendon", from->ntendon, to->ntendon, r.tendon, appended);
+  map.tendon =
+      walk(from, to, mjOBJ_TENDON, "tendon", from->ntendon, to->ntendon, r.tendon, appended);
   map.actuator = walk(from, to, mjOBJ_ACTUATOR, "actuator", from->nu, to->nu, r.actuator, appended);
-  map.sensor = walk(from, to, mjOBJ_SENSOR, "sensor", from->nsensor, to->nsensor, r.sensor, appended);
-  map.equality = walk(from, to, mjOBJ_EQUALITY, "equality", from->neq, to->neq, r.equality, appended);
+  map.sensor =
+      walk(from, to, mjOBJ_SENSOR, "sensor", from->nsensor, to->nsensor, r.sensor, appended);
+  map.equality =
+      walk(from, to, mjOBJ_EQUALITY, "equality", from->neq, to->neq, r.equality, appended);
   // a joint keeps its type (so its qpos and dof widths)
   for (int j = 0; j < from->njnt; ++j)
     if (map.joint[j] >= 0 && from->jnt_type[j] != to->jnt_type[map.joint[j]])
@@ -151,14 +158,16 @@ ModelRemap ModelRemap::identity(const mjModel* m) {
     return ids;
   };
   ModelRemap map;
-  map.body = same(m->nbody), map.joint = same(m->njnt), map.geom = same(m->ngeom), map.site = same(m->nsite);
+  map.body = same(m->nbody), map.joint = same(m->njnt), map.geom = same(m->ngeom),
+  map.site = same(m->nsite);
   map.camera = same(m->ncam), map.light = same(m->nlight), map.tendon = same(m->ntendon);
   map.actuator = same(m->nu), map.sensor = same(m->nsensor), map.equality = same(m->neq);
   return map;
 }
 
 bool ModelRemap::moves_ids() const {
-  for (const auto* ids : {&body, &joint, &geom, &site, &camera, &light, &tendon, &actuator, &sensor, &equality})
+  for (const auto* ids :
+       {&body, &joint, &geom, &site, &camera, &light, &tendon, &actuator, &sensor, &equality})
     for (int i = 0; i < static_cast<int>(ids->size()); ++i)
       if ((*ids)[i] != i) return true;
   return false;

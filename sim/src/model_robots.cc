@@ -37,7 +37,8 @@ bool has_floating_base(const mjModel* m, int body) {
 bool is_scenery(const mjModel* m, int root) {
   if (has_actuator(m, root) || has_sensor(m, root)) return false;
   for (int j = 0; j < m->njnt; ++j)
-    if ((m->jnt_type[j] == mjJNT_HINGE || m->jnt_type[j] == mjJNT_BALL) && in_subtree(m, m->jnt_bodyid[j], root))
+    if ((m->jnt_type[j] == mjJNT_HINGE || m->jnt_type[j] == mjJNT_BALL) &&
+        in_subtree(m, m->jnt_bodyid[j], root))
       return false;
   return true;
 }

@@ -33,13 +33,17 @@ SensorFrame SensorFrame::from(ComponentContext& c) {
       const char* name = mj_id2name(m, mjOBJ_SITE, s);
       if (name) robot_sites.push_back(name);
     }
-  const std::string expected = "expected the name of a site on robot '" + c.robot().name() + "' (" +
-                               (robot_sites.empty() ? std::string("it has none") : join_names(robot_sites, 20)) + ")";
+  const std::string expected =
+      "expected the name of a site on robot '" + c.robot().name() + "' (" +
+      (robot_sites.empty() ? std::string("it has none") : join_names(robot_sites, 20)) + ")";
   const int id = mj_name2id(m, mjOBJ_SITE, site.c_str());
-  if (id < 0) throw ConfigError(c.options().path_of("site") + ": " + expected + ", found '" + site + "' (no such site)");
+  if (id < 0)
+    throw ConfigError(c.options().path_of("site") + ": " + expected + ", found '" + site +
+                      "' (no such site)");
   if (!in_subtree(m, m->site_bodyid[id], robot_body))
-    throw ConfigError(c.options().path_of("site") + ": " + expected + ", found '" + site + "', which is on body '" +
-                      c.sim().model().body_name(m->site_bodyid[id]) + "', not on the robot");
+    throw ConfigError(c.options().path_of("site") + ": " + expected + ", found '" + site +
+                      "', which is on body '" + c.sim().model().body_name(m->site_bodyid[id]) +
+                      "', not on the robot");
   return SensorFrame(m->site_bodyid[id], id);
 }
 
@@ -78,10 +82,14 @@ bool step_computes_cacc(const mjModel* m) {
 }  // namespace
 
 Imu::Imu(ComponentContext& c)
-    : SimComponent(c.name(), c.sim()), frame_(SensorFrame::from(c)), step_computes_cacc_(step_computes_cacc(c.sim().m())) {
+    : SimComponent(c.name(), c.sim()),
+      frame_(SensorFrame::from(c)),
+      step_computes_cacc_(step_computes_cacc(c.sim().m())) {
   add_service("get_local_data", &Imu::get_local_data)
-      .doc("angular_velocity (rad/s), linear_acceleration (m/s², gravity included) and magnetic_field in the "
-           "sensor frame");
+      .doc(
+          "angular_velocity (rad/s), linear_acceleration (m/s², gravity included) and "
+          "magnetic_field in the "
+          "sensor frame");
   declare_output_stream("imu", [this] { return get_local_data(); });
 }
 
@@ -105,7 +113,8 @@ json Imu::get_local_data() const {
   mj_objectAcceleration(m, d, frame_.object_type(), frame_.object_id(), acceleration, 1);
   // the scene's magnetic field, as MuJoCo's magnetometer reads it: turned into the frame
   Eigen::Vector3d field =
-      frame_.world_rotation(d).transpose() * Eigen::Vector3d(m->opt.magnetic[0], m->opt.magnetic[1], m->opt.magnetic[2]);
+      frame_.world_rotation(d).transpose() *
+      Eigen::Vector3d(m->opt.magnetic[0], m->opt.magnetic[1], m->opt.magnetic[2]);
   return {{"angular_velocity", {velocity[0], velocity[1], velocity[2]}},
           {"linear_acceleration", {acceleration[3], acceleration[4], acceleration[5]}},
           {"magnetic_field", {field.x(), field.y(), field.z()}},
@@ -114,15 +123,20 @@ json Imu::get_local_data() const {
 
 // ---- odometry ---------------------------------------------------------------------------------
 
-Odometry::Odometry(ComponentContext& c) : SimComponent(c.name(), c.sim()), frame_(SensorFrame::from(c)) {
-  level_name_ = c.options().get_choice("level", "integrated", {"raw", "differential", "integrated"});
-  level_ = level_name_ == "raw" ? Level::raw : level_name_ == "differential" ? Level::differential : Level::integrated;
+Odometry::Odometry(ComponentContext& c)
+    : SimComponent(c.name(), c.sim()), frame_(SensorFrame::from(c)) {
+  level_name_ =
+      c.options().get_choice("level", "integrated", {"raw", "differential", "integrated"});
+  level_ = level_name_ == "raw"            ? Level::raw
+           : level_name_ == "differential" ? Level::differential
+                                           : Level::integrated;
   restart();
   add_service("get_local_data", &Odometry::get_local_data)
-      .doc(level_ == Level::raw            ? "dS: distance travelled (m) since the previous reading"
-           : level_ == Level::differential ? "dx, dy, dz (m), dyaw, dpitch, droll (rad) since the previous reading"
-                                           : "x, y, z, yaw, pitch, roll since start; vx, vy, vz, wz, wy, wx in the "
-                                             "sensor frame");
+      .doc(level_ == Level::raw ? "dS: distance travelled (m) since the previous reading"
+           : level_ == Level::differential
+               ? "dx, dy, dz (m), dyaw, dpitch, droll (rad) since the previous reading"
+               : "x, y, z, yaw, pitch, roll since start; vx, vy, vz, wz, wy, wx in the "
+                 "sensor frame");
   add_property("level", [this] { return json(level_name_); });
   // its samples' shape depends on the level: "odometry" is the integrated pose and twist
   // (typed topics carry it), the other levels' differences are kinds of their own
@@ -164,21 +178,19 @@ json Odometry::get_local_data() {
   const double time = sim().state_time();
   json out;
   switch (level_) {
-    case Level::raw:
-      out = {{"dS", ds_}, {"timestamp", time}};
-      break;
+    case Level::raw: out = {{"dS", ds_}, {"timestamp", time}}; break;
     case Level::differential:
-      out = {{"dx", dposition_.x()},  {"dy", dposition_.y()},    {"dz", dposition_.z()},
-             {"dyaw", drpy_.z()},     {"dpitch", drpy_.y()},     {"droll", drpy_.x()},
+      out = {{"dx", dposition_.x()}, {"dy", dposition_.y()}, {"dz", dposition_.z()},
+             {"dyaw", drpy_.z()},    {"dpitch", drpy_.y()},  {"droll", drpy_.x()},
              {"timestamp", time}};
       break;
     case Level::integrated: {
       mjtNum velocity[6];  // angular, then linear, in the sensor frame
       mj_objectVelocity(model(), data(), frame_.object_type(), frame_.object_id(), velocity, 1);
       out = {{"x", last_position_.x()}, {"y", last_position_.y()}, {"z", last_position_.z()},
-             {"yaw", last_rpy_.z()},    {"pitch", last_rpy_.y()},   {"roll", last_rpy_.x()},
-             {"vx", velocity[3]},       {"vy", velocity[4]},        {"vz", velocity[5]},
-             {"wz", velocity[2]},       {"wy", velocity[1]},        {"wx", velocity[0]},
+             {"yaw", last_rpy_.z()},    {"pitch", last_rpy_.y()},  {"roll", last_rpy_.x()},
+             {"vx", velocity[3]},       {"vy", velocity[4]},       {"vz", velocity[5]},
+             {"wz", velocity[2]},       {"wy", velocity[1]},       {"wx", velocity[0]},
              {"timestamp", time}};
       break;
     }
@@ -212,8 +224,8 @@ Proximity::Proximity(ComponentContext& c)
       "Track", [this] { return json(tag_); },
       [this](const json& v) {
         if (!v.is_string())
-          throw ServiceError("property 'Track' is a string, found " + describe_json(v), Failure::bad_arguments,
-                             {{"parameter", "prop_val"}});
+          throw ServiceError("property 'Track' is a string, found " + describe_json(v),
+                             Failure::bad_arguments, {{"parameter", "prop_val"}});
         set_tracked_tag(v.get<std::string>());
       });
 }
@@ -244,10 +256,11 @@ void Proximity::set_tracked_tag(const std::string& tag) {
     // a tag that tracks nothing is a typo: say what could be tracked
     std::vector<std::string> names;
     for (int b : bodies_tagged("")) names.push_back(sim().model().body_name(b));
-    throw ServiceError("no object to track with tag '" + tag + "': expected '" + k_robot_tag +
-                           "' (the simulation's other robots) or the start of the name of a top-level body (" +
-                           (names.empty() ? std::string("there is none") : join_names(names, 20)) + ")",
-                       Failure::bad_arguments, {{"parameter", "tag"}});
+    throw ServiceError(
+        "no object to track with tag '" + tag + "': expected '" + k_robot_tag +
+            "' (the simulation's other robots) or the start of the name of a top-level body (" +
+            (names.empty() ? std::string("there is none") : join_names(names, 20)) + ")",
+        Failure::bad_arguments, {{"parameter", "tag"}});
   }
   tracked_ = std::move(bodies);
   tag_ = tag;
@@ -274,7 +287,8 @@ json Proximity::get_local_data() const {
     for (const auto& e : sim().components()) {
       if (!e->is_robot) continue;
       const auto* robot = dynamic_cast<const Robot*>(e->component.get());
-      if (robot && !in_subtree(m, robot->body(), robot_body_)) consider(robot->name(), robot->body());
+      if (robot && !in_subtree(m, robot->body(), robot_body_))
+        consider(robot->name(), robot->body());
     }
   } else {
     for (int b : tracked_) consider(sim().model().body_name(b), b);
@@ -283,23 +297,38 @@ json Proximity::get_local_data() const {
   return {{"near_objects", near}, {"near_robots", near}, {"timestamp", sim().state_time()}};
 }
 
-SIMGATE_BUILTIN_TYPE(imu, builtin_type<Imu>("imu", Kind::component,
-                                            "inertial measurement unit: get_local_data (angular_velocity, linear_acceleration)",
-                                            "docs/components/native-sensors.md", {{"site", {{"type", "string"}}, "a MuJoCo site on the robot: the sensor's frame (default: the body's frame)"}}));
-SIMGATE_BUILTIN_TYPE(odometry,
-    builtin_type<Odometry>("odometry", Kind::component,
-                           "odometry (level raw, differential or integrated): get_local_data",
-                           "docs/components/native-sensors.md",
-                           {{"site", {{"type", "string"}}, "a MuJoCo site on the robot: the sensor's frame (default: the body's frame)"},
-                            {"level", {{"enum", {"raw", "differential", "integrated"}}, {"default", "integrated"}},
-                             "MORSE's functional level"}}));
-SIMGATE_BUILTIN_TYPE(proximity,
-    builtin_type<Proximity>(
-        "proximity", Kind::component, "objects within range: get_local_data, set_range, set_tracked_tag",
-        "docs/components/native-sensors.md",
-        {{"site", {{"type", "string"}}, "a MuJoCo site on the robot: the sensor's frame (default: the body's frame)"},
-         {"range", {{"type", "number"}, {"minimum", 0}, {"maximum", 1e6}, {"default", 100}}, "metres"},
-         {"track", {{"type", "string"}, {"default", "Robot_Tag"}},
-          "Robot_Tag (the other robots) or the start of top-level body names"}}));
+SIMGATE_BUILTIN_TYPE(
+    imu, builtin_type<Imu>(
+             "imu", Kind::component,
+             "inertial measurement unit: get_local_data (angular_velocity, linear_acceleration)",
+             "docs/components/native-sensors.md",
+             {{"site",
+               {{"type", "string"}},
+               "a MuJoCo site on the robot: the sensor's frame (default: the body's frame)"}}));
+SIMGATE_BUILTIN_TYPE(
+    odometry, builtin_type<Odometry>(
+                  "odometry", Kind::component,
+                  "odometry (level raw, differential or integrated): get_local_data",
+                  "docs/components/native-sensors.md",
+                  {{"site",
+                    {{"type", "string"}},
+                    "a MuJoCo site on the robot: the sensor's frame (default: the body's frame)"},
+                   {"level",
+                    {{"enum", {"raw", "differential", "integrated"}}, {"default", "integrated"}},
+                    "MORSE's functional level"}}));
+SIMGATE_BUILTIN_TYPE(
+    proximity, builtin_type<Proximity>(
+                   "proximity", Kind::component,
+                   "objects within range: get_local_data, set_range, set_tracked_tag",
+                   "docs/components/native-sensors.md",
+                   {{"site",
+                     {{"type", "string"}},
+                     "a MuJoCo site on the robot: the sensor's frame (default: the body's frame)"},
+                    {"range",
+                     {{"type", "number"}, {"minimum", 0}, {"maximum", 1e6}, {"default", 100}},
+                     "metres"},
+                    {"track",
+                     {{"type", "string"}, {"default", "Robot_Tag"}},
+                     "Robot_Tag (the other robots) or the start of top-level body names"}}));
 
 }  // namespace simgate::sim

@@ -32,8 +32,8 @@ std::string joint_key(const mjModel* m, int joint) {
 }
 
 bool ObjectState::Unmatched::empty() const {
-  return missing_bodies.empty() && missing_joints.empty() && missing_actuators.empty() && kept_bodies.empty() &&
-         kept_joints.empty() && kept_actuators.empty();
+  return missing_bodies.empty() && missing_joints.empty() && missing_actuators.empty() &&
+         kept_bodies.empty() && kept_joints.empty() && kept_actuators.empty();
 }
 
 void ObjectState::capture(const mjModel* m, const mjData* d) {
@@ -124,7 +124,8 @@ ObjectState::Unmatched ObjectState::put(const mjModel* m, mjData* d, const Mappi
   for (int j = 0; j < m->njnt; ++j)
     if (!joint_written[j]) out.kept_joints.push_back(printed(joint_key(m, j), "joint", j));
   for (int a = 0; a < m->nu; ++a)
-    if (!actuator_written[a]) out.kept_actuators.push_back(printed(name_of(m, mjOBJ_ACTUATOR, a), "actuator", a));
+    if (!actuator_written[a])
+      out.kept_actuators.push_back(printed(name_of(m, mjOBJ_ACTUATOR, a), "actuator", a));
   for (int b = 1; b < m->nbody; ++b)
     if (!body_written[b]) out.kept_bodies.push_back(printed(name_of(m, mjOBJ_BODY, b), "body", b));
   return out;

@@ -9,7 +9,9 @@ namespace {
 // warm start: "everything required to reproduce the next step" (mjtState).
 constexpr int k_signature = mjSTATE_INTEGRATION;
 
-std::size_t state_size(const mjModel* m) { return static_cast<std::size_t>(mj_stateSize(m, k_signature)); }
+std::size_t state_size(const mjModel* m) {
+  return static_cast<std::size_t>(mj_stateSize(m, k_signature));
+}
 
 // The components are laid out in the order of their mjtState bits: the warm start follows
 // those of the lower bits.
@@ -31,7 +33,9 @@ bool PhysicsState::fits(const mjModel* m, std::uint64_t generation) const {
   return captured_ && generation_ == generation && values_.size() == state_size(m);
 }
 
-void PhysicsState::apply(const mjModel* m, mjData* d) const { mj_setState(m, d, values_.data(), k_signature); }
+void PhysicsState::apply(const mjModel* m, mjData* d) const {
+  mj_setState(m, d, values_.data(), k_signature);
+}
 
 void PhysicsState::apply_warmstart(const mjModel* m, mjData* d) const {
   mj_setState(m, d, values_.data() + warmstart_offset(m), mjSTATE_WARMSTART);

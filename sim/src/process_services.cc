@@ -32,12 +32,13 @@ namespace simgate::sim {
 
 void add_process_services(SupervisionServices& simulation, Simulation& sim) {
   simulation
-      .offer_service("terminate",
-                     [] {
-                       log::warning("simulation: terminate requested: exiting now, without finalization");
-                       std::fflush(nullptr);
-                       std::_Exit(0);
-                     })
+      .offer_service(
+          "terminate",
+          [] {
+            log::warning("simulation: terminate requested: exiting now, without finalization");
+            std::fflush(nullptr);
+            std::_Exit(0);
+          })
       .doc("End the process at once: no finalization, no reply, pending requests left unanswered")
       .process_wide();
   simulation
@@ -48,27 +49,35 @@ void add_process_services(SupervisionServices& simulation, Simulation& sim) {
             for (const auto& e : sim.components())
               if (caller_serves(e->component->name())) names.push_back(e->component->name());
             if (std::find(names.begin(), names.end(), component) == names.end())
-              throw ServiceError("Component '" + component + "' not found" + did_you_mean(component, names),
-                                 Failure::bad_arguments,
-                                 {{"parameter", "component"}, {"expected", "a component name"}, {"choices", names}});
+              throw ServiceError(
+                  "Component '" + component + "' not found" + did_you_mean(component, names),
+                  Failure::bad_arguments,
+                  {{"parameter", "component"},
+                   {"expected", "a component name"},
+                   {"choices", names}});
             // Python's names (DEBUG, INFO, WARNING, ERROR, CRITICAL) and simgate's, any case
             std::string lower;
-            for (char c : level) lower += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+            for (char c : level)
+              lower += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
             if (lower == "critical" || lower == "fatal") lower = "error";
             log::Level parsed;
             if (!log::parse_level(lower, parsed))
-              throw ServiceError("Unknown level: '" + level +
-                                     "' (expected one of DEBUG, INFO, WARNING, ERROR, CRITICAL, or trace, off)",
-                                 Failure::bad_arguments, {{"parameter", "level"}, {"expected", "a log level"}});
+              throw ServiceError(
+                  "Unknown level: '" + level +
+                      "' (expected one of DEBUG, INFO, WARNING, ERROR, CRITICAL, or trace, off)",
+                  Failure::bad_arguments, {{"parameter", "level"}, {"expected", "a log level"}});
             // said before the change, as a warning: a level that hides warnings (error, off)
             // is still seen being set, and by whom
-            log::warning("simulation: log level ", log::to_string(log::level()), " -> ", log::to_string(parsed),
-                         " (asked by ", caller_description(), ", for '", component, "')");
+            log::warning("simulation: log level ", log::to_string(log::level()), " -> ",
+                         log::to_string(parsed), " (asked by ", caller_description(), ", for '",
+                         component, "')");
             log::set_level(parsed);
           },
           {"component", "level"})
-      .doc("Set the log level, process-wide (DEBUG, INFO, WARNING, ERROR, CRITICAL); component: one this transport "
-           "serves")
+      .doc(
+          "Set the log level, process-wide (DEBUG, INFO, WARNING, ERROR, CRITICAL); component: one "
+          "this transport "
+          "serves")
       .process_wide();
 }
 

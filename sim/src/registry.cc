@@ -27,15 +27,18 @@ DifferentialDrive& ComponentContext::drive() const {
   DifferentialDrive* d = r.drive();
   if (!d) {
     auto* entry = sim_.find(r.name());
-    fail("type", "component type '" + spec_.type + "' needs a robot that can drive (type ground_robot); robot '" +
-                     r.name() + "' is of type '" + (entry ? entry->type : "?") + "'");
+    fail("type", "component type '" + spec_.type +
+                     "' needs a robot that can drive (type ground_robot); robot '" + r.name() +
+                     "' is of type '" + (entry ? entry->type : "?") + "'");
   }
   return *d;
 }
 
 int ComponentContext::body() const {
   int id = sim_.model().body_id(spec_.body);
-  if (id < 0) fail("body", "expected the name of a body of scene '" + sim_.model().source() + "', found '" + spec_.body + "' (no such body)");
+  if (id < 0)
+    fail("body", "expected the name of a body of scene '" + sim_.model().source() + "', found '" +
+                     spec_.body + "' (no such body)");
   if (id == 0) fail("body", "expected a body other than the world body");
   return id;
 }
@@ -44,8 +47,8 @@ int ComponentContext::free_joint() const {
   int b = body();
   int j = sim_.model().free_joint_of(b);
   if (j < 0)
-    fail("body", "component type '" + spec_.type + "' needs a body with a free joint; body '" + spec_.body +
-                     "' has none (add <freejoint/> to it in the MJCF)");
+    fail("body", "component type '" + spec_.type + "' needs a body with a free joint; body '" +
+                     spec_.body + "' has none (add <freejoint/> to it in the MJCF)");
   return j;
 }
 
@@ -67,13 +70,16 @@ std::vector<ComponentType>& builtins() {
 }
 }  // namespace
 
-detail::BuiltinTypeRegistrar::BuiltinTypeRegistrar(ComponentType type) { builtins().push_back(std::move(type)); }
+detail::BuiltinTypeRegistrar::BuiltinTypeRegistrar(ComponentType type) {
+  builtins().push_back(std::move(type));
+}
 
 void register_builtin_components(ComponentRegistry& registry) {
   for (const ComponentType& type : builtins()) registry.add(type);
 }
 
-void ComponentRegistry::add(std::string name, Kind kind, std::string doc, ComponentFactory factory) {
+void ComponentRegistry::add(std::string name, Kind kind, std::string doc,
+                            ComponentFactory factory) {
   add(ComponentType{nullptr, name, kind, std::move(doc), std::move(factory), ""});
 }
 
@@ -97,7 +103,8 @@ json ComponentRegistry::options_schema(Kind kind) const {
     // a robot's type may be left out (it is then "robot"): the rule applies when it is given
     json condition = {{"properties", {{"type", {{"const", name}}}}}};
     if (kind == Kind::robot) condition["required"] = json::array({"type"});
-    rules.push_back({{"if", std::move(condition)}, {"then", {{"properties", {{"options", std::move(options)}}}}}});
+    rules.push_back({{"if", std::move(condition)},
+                     {"then", {{"properties", {{"options", std::move(options)}}}}}});
   }
   return rules;
 }
@@ -122,16 +129,19 @@ std::vector<std::string> ComponentRegistry::names(Kind kind) const {
 const ComponentType& ComponentRegistry::type_of(Kind kind, const ComponentSpec& spec) const {
   const ComponentType* type = find(spec.type);
   if (!type)
-    throw ConfigError(spec.path + ".type: expected a " + kind_name(kind) + " type (" + join(names(kind)) +
-                      "), found '" + spec.type + "' (unknown type" + suggestion(spec.type, names(kind)) + ")");
+    throw ConfigError(spec.path + ".type: expected a " + kind_name(kind) + " type (" +
+                      join(names(kind)) + "), found '" + spec.type + "' (unknown type" +
+                      suggestion(spec.type, names(kind)) + ")");
   if (type->kind != kind)
-    throw ConfigError(spec.path + ".type: expected a " + kind_name(kind) + " type (" + join(names(kind)) +
-                      "), found '" + spec.type + "', which is a " + kind_name(type->kind) + " type");
+    throw ConfigError(spec.path + ".type: expected a " + kind_name(kind) + " type (" +
+                      join(names(kind)) + "), found '" + spec.type + "', which is a " +
+                      kind_name(type->kind) + " type");
   return *type;
 }
 
-std::unique_ptr<SimComponent> ComponentRegistry::create(Kind kind, const ComponentSpec& spec, const json& options,
-                                                        Simulation& sim, Robot* robot) const {
+std::unique_ptr<SimComponent> ComponentRegistry::create(Kind kind, const ComponentSpec& spec,
+                                                        const json& options, Simulation& sim,
+                                                        Robot* robot) const {
   const ComponentType* type = &type_of(kind, spec);
   ConfigObject object(options.is_null() ? json::object() : options, spec.path + ".options");
   std::vector<std::string> declared;
@@ -152,6 +162,5 @@ std::unique_ptr<SimComponent> ComponentRegistry::create(Kind kind, const Compone
   component->add_object_services(std::move(configuration), body, robot ? robot->body() : body);
   return component;
 }
-
 
 }  // namespace simgate::sim

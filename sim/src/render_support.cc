@@ -33,30 +33,33 @@ void mjcf_camera_pose(CameraView& v, const mjData* d, int camera) {
 void frame_pose(CameraView& v, const mjtNum* p, const mjtNum* r) {
   for (int i = 0; i < 3; ++i) {
     v.position[i] = p[i];
-    v.forward[i] = r[3 * i];     // looks along +x
-    v.up[i] = r[3 * i + 2];      // z up
+    v.forward[i] = r[3 * i];  // looks along +x
+    v.up[i] = r[3 * i + 2];   // z up
   }
 }
 
 namespace {
 
 json record_base(int width, int height, json intrinsic, double timestamp, bool png) {
-  return {{"width", width}, {"height", height}, {"format", png ? "png" : "raw"},
-          {"intrinsic_matrix", std::move(intrinsic)}, {"timestamp", timestamp}};
+  return {{"width", width},
+          {"height", height},
+          {"format", png ? "png" : "raw"},
+          {"intrinsic_matrix", std::move(intrinsic)},
+          {"timestamp", timestamp}};
 }
 
 }  // namespace
 
-json rgb_image_record(int width, int height, std::span<const std::uint8_t> rgb, json intrinsic, double timestamp,
-                      bool png) {
+json rgb_image_record(int width, int height, std::span<const std::uint8_t> rgb, json intrinsic,
+                      double timestamp, bool png) {
   json record = record_base(width, height, std::move(intrinsic), timestamp, png);
   record["encoding"] = "rgb8";
   if (png) record["image"] = base64_encode(encode_png_rgb8(rgb, width, height));
   return record;
 }
 
-json depth_image_record(int width, int height, std::span<const float> depth, json intrinsic, double timestamp,
-                        bool png) {
+json depth_image_record(int width, int height, std::span<const float> depth, json intrinsic,
+                        double timestamp, bool png) {
   // depth in millimetres, 0 where nothing is hit; the nearest and farthest hit in metres
   // (given raw too: the record says them either way)
   json record = record_base(width, height, std::move(intrinsic), timestamp, png);
@@ -85,7 +88,8 @@ json depth_image_record(const RenderResult& r, bool png) {
   return depth_image_record(r.width, r.height, r.depth, intrinsic_matrix(r.view), r.timestamp, png);
 }
 
-const std::shared_ptr<const mjModel>& RenderModelCopy::get(Renderer& renderer, const Simulation& sim) {
+const std::shared_ptr<const mjModel>& RenderModelCopy::get(Renderer& renderer,
+                                                           const Simulation& sim) {
   if (!copy_ || generation_ != sim.model_generation()) {
     copy_ = renderer.model_copy(sim.m());
     generation_ = sim.model_generation();

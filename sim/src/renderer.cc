@@ -23,7 +23,8 @@ constexpr auto k_start_timeout = std::chrono::seconds(20);
 // Equal models give equal contexts: sizes, the arrays' buffer, visual and statistics.
 bool same_model(const mjModel* a, const mjModel* b) {
   return std::memcmp(a, b, offsetof(mjModel, opt)) == 0 && a->nbuffer == b->nbuffer &&
-         std::memcmp(&a->vis, &b->vis, sizeof a->vis) == 0 && std::memcmp(&a->stat, &b->stat, sizeof a->stat) == 0 &&
+         std::memcmp(&a->vis, &b->vis, sizeof a->vis) == 0 &&
+         std::memcmp(&a->stat, &b->stat, sizeof a->stat) == 0 &&
          std::memcmp(a->buffer, b->buffer, static_cast<std::size_t>(a->nbuffer)) == 0;
 }
 
@@ -73,11 +74,11 @@ void SceneCopy::update(const mjModel* m, mjData* d, const CameraView& view, doub
 // ---- the GL side: render thread only --------------------------------------------------
 
 struct Renderer::Gl {
-  std::unique_ptr<GlContext> context;         // current on the render thread
-  mjrContext con;                             // MuJoCo's GL resources
-  bool con_made = false;                      // con holds resources
-  std::shared_ptr<const mjModel> con_model;   // the model con was made from
-  int con_width = 0, con_height = 0;          // its offscreen buffer
+  std::unique_ptr<GlContext> context;        // current on the render thread
+  mjrContext con;                            // MuJoCo's GL resources
+  bool con_made = false;                     // con holds resources
+  std::shared_ptr<const mjModel> con_model;  // the model con was made from
+  int con_width = 0, con_height = 0;         // its offscreen buffer
 
   // Makes the EGL context current; "" or why not.
   std::string open();
@@ -151,15 +152,17 @@ std::shared_ptr<const mjModel> Renderer::model_copy(const mjModel* m) {
   if (last_copy_ && same_model(last_copy_.get(), m)) return last_copy_;
   mjModel* copy = mj_copyModel(nullptr, m);
   if (!copy) throw std::runtime_error("renderer: could not copy the model");
-  last_copy_ = std::shared_ptr<const mjModel>(copy, [](const mjModel* p) { mj_deleteModel(const_cast<mjModel*>(p)); });
+  last_copy_ = std::shared_ptr<const mjModel>(
+      copy, [](const mjModel* p) { mj_deleteModel(const_cast<mjModel*>(p)); });
   return last_copy_;
 }
 
-void Renderer::render(std::unique_ptr<SceneCopy> scene, bool want_rgb, bool want_depth, Callback done,
-                      std::function<bool()> wanted) {
+void Renderer::render(std::unique_ptr<SceneCopy> scene, bool want_rgb, bool want_depth,
+                      Callback done, std::function<bool()> wanted) {
   {
     std::lock_guard lock(mutex_);
-    queue_.push_back(Job{std::move(scene), want_rgb, want_depth, std::move(done), std::move(wanted)});
+    queue_.push_back(
+        Job{std::move(scene), want_rgb, want_depth, std::move(done), std::move(wanted)});
   }
   wake_.notify_one();
 }
@@ -231,15 +234,15 @@ void Renderer::run() {
     result.scene = std::move(job.scene);
     try {
       job.done(std::move(result));
-    } catch (const std::exception&) {
-    }
+    } catch (const std::exception&) {}
   }
   gl_->close();
 }
 
 void Renderer::ensure_context(const std::shared_ptr<const mjModel>& model, int width, int height) {
   Gl& gl = *gl_;
-  if (gl.con_made && gl.con_model == model && width <= gl.con_width && height <= gl.con_height) return;
+  if (gl.con_made && gl.con_model == model && width <= gl.con_width && height <= gl.con_height)
+    return;
   // the largest image asked so far, so that cameras of several sizes do not remake it
   width = std::max(width, gl.con_width);
   height = std::max(height, gl.con_height);
@@ -262,7 +265,8 @@ void Renderer::ensure_context(const std::shared_ptr<const mjModel>& model, int w
   gl.con_width = width;
   gl.con_height = height;
   mjr_setBuffer(mjFB_OFFSCREEN, &gl.con);
-  if (gl.con.currentBuffer != mjFB_OFFSCREEN) throw std::runtime_error("MuJoCo made no offscreen framebuffer");
+  if (gl.con.currentBuffer != mjFB_OFFSCREEN)
+    throw std::runtime_error("MuJoCo made no offscreen framebuffer");
 }
 
 void Renderer::render_job(Job& job, RenderResult& result) {
@@ -277,7 +281,8 @@ void Renderer::render_job(Job& job, RenderResult& result) {
   const std::size_t pixels = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
   std::vector<std::uint8_t> rgb(job.want_rgb ? 3 * pixels : 0);
   std::vector<float> depth(job.want_depth ? pixels : 0);
-  mjr_readPixels(job.want_rgb ? rgb.data() : nullptr, job.want_depth ? depth.data() : nullptr, viewport, &gl_->con);
+  mjr_readPixels(job.want_rgb ? rgb.data() : nullptr, job.want_depth ? depth.data() : nullptr,
+                 viewport, &gl_->con);
 
   // OpenGL's rows go bottom up; images top down
   const auto row_bytes = static_cast<std::size_t>(w) * 3;

@@ -52,7 +52,8 @@ double short_double(float f) {
 json geom_rgba(const mjModel* m, int g) {
   const float* rgba = m->geom_rgba + 4 * g;
   const int material = m->geom_matid[g];
-  const bool default_rgba = rgba[0] == 0.5f && rgba[1] == 0.5f && rgba[2] == 0.5f && rgba[3] == 1.0f;
+  const bool default_rgba =
+      rgba[0] == 0.5f && rgba[1] == 0.5f && rgba[2] == 0.5f && rgba[3] == 1.0f;
   const float* chosen = material >= 0 && default_rgba ? m->mat_rgba + 4 * material : rgba;
   return json::array({short_double(chosen[0]), short_double(chosen[1]), short_double(chosen[2]),
                       short_double(chosen[3])});
@@ -63,12 +64,16 @@ json mesh_json(const mjModel* m, int mesh) {
   const int face_first = m->mesh_faceadr[mesh], face_count = m->mesh_facenum[mesh];
   json vertices = json::array();
   vertices.get_ref<json::array_t&>().reserve(3 * static_cast<std::size_t>(vert_count));
-  for (int i = 3 * vert_first; i < 3 * (vert_first + vert_count); ++i) vertices.push_back(short_double(m->mesh_vert[i]));
+  for (int i = 3 * vert_first; i < 3 * (vert_first + vert_count); ++i)
+    vertices.push_back(short_double(m->mesh_vert[i]));
   // mesh_face holds indices into the mesh's own vertices (0-based from mesh_vertadr)
   json faces = json::array();
   faces.get_ref<json::array_t&>().reserve(3 * static_cast<std::size_t>(face_count));
-  for (int i = 3 * face_first; i < 3 * (face_first + face_count); ++i) faces.push_back(m->mesh_face[i]);
-  return {{"name", raw_name(m, mjOBJ_MESH, mesh)}, {"vertices", std::move(vertices)}, {"faces", std::move(faces)}};
+  for (int i = 3 * face_first; i < 3 * (face_first + face_count); ++i)
+    faces.push_back(m->mesh_face[i]);
+  return {{"name", raw_name(m, mjOBJ_MESH, mesh)},
+          {"vertices", std::move(vertices)},
+          {"faces", std::move(faces)}};
 }
 
 // A heightfield: MuJoCo's hfield_size (x and y half sizes, the top's height, the base's
@@ -132,12 +137,9 @@ json scene_geometry(const Simulation& sim, bool include_meshes, SceneGeometryCac
     if (m->geom_type[g] == mjGEOM_HFIELD) geom["hfield"] = m->geom_dataid[g];
     geoms.push_back(std::move(geom));
   }
-  json answer{{"timestamp", sim.state_time()},
-              {"generation", sim.model_generation()},
-              {"bodies", std::move(bodies)},
-              {"geoms", std::move(geoms)},
-              {"meshes", json::array()},
-              {"hfields", json::array()}};
+  json answer{{"timestamp", sim.state_time()}, {"generation", sim.model_generation()},
+              {"bodies", std::move(bodies)},   {"geoms", std::move(geoms)},
+              {"meshes", json::array()},       {"hfields", json::array()}};
   if (include_meshes) {
     if (cache) {
       const json& data = cache->model_data(sim);
@@ -162,7 +164,9 @@ json body_poses(const Simulation& sim) {
     const mjtNum* q = d->xquat + 4 * b;
     poses.push_back(json::array({p[0], p[1], p[2], q[0], q[1], q[2], q[3]}));
   }
-  return {{"timestamp", sim.state_time()}, {"generation", sim.model_generation()}, {"poses", std::move(poses)}};
+  return {{"timestamp", sim.state_time()},
+          {"generation", sim.model_generation()},
+          {"poses", std::move(poses)}};
 }
 
 void add_scene_geometry_services(SupervisionServices& simulation, Simulation& sim) {
@@ -170,14 +174,19 @@ void add_scene_geometry_services(SupervisionServices& simulation, Simulation& si
   // at a time: the cache needs no lock of its own)
   auto cache = std::make_shared<SceneGeometryCache>();
   simulation
-      .offer_service(
-          "get_scene_geometry",
-          [&sim, cache](bool include_meshes) { return scene_geometry(sim, include_meshes, cache.get()); },
-          {{"include_meshes", true}})
-      .doc("What a client needs to draw the scene: {timestamp, generation (changes when the model is replaced), "
-           "bodies [{id, name, parent, pos, quat}] (current world poses), geoms [{id, name, body, type, size, rgba, "
-           "pos, quat, group, mesh?, hfield?}] (on their body), meshes [{name, vertices, faces}], hfields [{name, "
-           "size, nrow, ncol, data}] (both [] unless include_meshes)}");
+      .offer_service("get_scene_geometry",
+                     [&sim, cache](bool include_meshes) {
+                       return scene_geometry(sim, include_meshes, cache.get());
+                     },
+                     {{"include_meshes", true}})
+      .doc(
+          "What a client needs to draw the scene: {timestamp, generation (changes when the model "
+          "is replaced), "
+          "bodies [{id, name, parent, pos, quat}] (current world poses), geoms [{id, name, body, "
+          "type, size, rgba, "
+          "pos, quat, group, mesh?, hfield?}] (on their body), meshes [{name, vertices, faces}], "
+          "hfields [{name, "
+          "size, nrow, ncol, data}] (both [] unless include_meshes)}");
 }
 
 }  // namespace simgate::sim

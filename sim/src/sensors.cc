@@ -12,7 +12,9 @@ const std::vector<std::string> k_pose_fields{"x", "y", "z", "roll", "pitch", "ya
 
 Pose::Pose(ComponentContext& c) : SimComponent(c.name(), c.sim()), body_(c.body()) {
   add_service("get_local_data", &Pose::get_local_data)
-      .doc("Position (x, y, z metres) and orientation (roll, pitch, yaw radians) in the world frame");
+      .doc(
+          "Position (x, y, z metres) and orientation (roll, pitch, yaw radians) in the world "
+          "frame");
   // a record: streamed without building JSON (a DDS Pose is written from it as it is)
   declare_output_stream("pose", k_pose_fields, [this](std::span<double> values) { read(values); });
 }
@@ -20,7 +22,8 @@ Pose::Pose(ComponentContext& c) : SimComponent(c.name(), c.sim()), body_(c.body(
 void Pose::read(std::span<double> values) const {
   const Eigen::Vector3d p = body_position(sim(), body_);
   const Eigen::Vector3d rpy = to_roll_pitch_yaw(body_orientation(sim(), body_));
-  const std::array<double, 7> numbers{p.x(), p.y(), p.z(), rpy.x(), rpy.y(), rpy.z(), sim().state_time()};
+  const std::array<double, 7> numbers{
+      p.x(), p.y(), p.z(), rpy.x(), rpy.y(), rpy.z(), sim().state_time()};
   std::copy(numbers.begin(), numbers.end(), values.begin());
 }
 
@@ -30,7 +33,8 @@ json Pose::get_local_data() const {
   return record_json(k_pose_fields, values);
 }
 
-SIMGATE_BUILTIN_TYPE(pose, builtin_type<Pose>("pose", Kind::component, "pose sensor: get_local_data",
-                                              "docs/configuration.md", {}));
+SIMGATE_BUILTIN_TYPE(pose,
+                     builtin_type<Pose>("pose", Kind::component, "pose sensor: get_local_data",
+                                        "docs/configuration.md", {}));
 
 }  // namespace simgate::sim

@@ -14,11 +14,13 @@ void SimComponent::add_property(std::string name, std::function<json()> get) {
   properties_.push_back({std::move(name), std::move(get), {}});
 }
 
-void SimComponent::add_property(std::string name, std::function<json()> get, std::function<void(const json&)> set) {
+void SimComponent::add_property(std::string name, std::function<json()> get,
+                                std::function<void(const json&)> set) {
   properties_.push_back({std::move(name), std::move(get), std::move(set)});
 }
 
-void SimComponent::add_number_property(std::string name, double& value, double low, double high, std::string unit) {
+void SimComponent::add_number_property(std::string name, double& value, double low, double high,
+                                       std::string unit) {
   std::string parameter = name;
   add_property(
       std::move(name), [&value] { return json(value); },
@@ -63,9 +65,10 @@ void SimComponent::set_property(const std::string& name, const json& value) {
   for (const auto& p : properties_) {
     if (p.name != name) continue;
     if (!p.set)
-      throw ServiceError("property '" + name + "' of " + this->name() + " is read-only" +
-                             (settable.empty() ? " (none can be set)" : " (settable: " + settable + ")"),
-                         Failure::bad_arguments, {{"parameter", "prop_name"}});
+      throw ServiceError(
+          "property '" + name + "' of " + this->name() + " is read-only" +
+              (settable.empty() ? " (none can be set)" : " (settable: " + settable + ")"),
+          Failure::bad_arguments, {{"parameter", "prop_name"}});
     p.set(value);
     return;
   }
@@ -87,7 +90,8 @@ json SimComponent::get_configurations() const {
     t = root.conjugate() * (body_position(sim_, body_) - body_position(sim_, robot_body_));
     r = root.conjugate() * body_orientation(sim_, body_);
   }
-  c["object_to_robot"] = {{"translation", {t.x(), t.y(), t.z()}}, {"rotation", {r.w(), r.x(), r.y(), r.z()}}};
+  c["object_to_robot"] = {{"translation", {t.x(), t.y(), t.z()}},
+                          {"rotation", {r.w(), r.x(), r.y(), r.z()}}};
   return {{"configurations", std::move(c)}};
 }
 
@@ -111,7 +115,8 @@ Eigen::Vector3d to_roll_pitch_yaw(const Eigen::Quaterniond& q) {
 }
 
 Eigen::Quaterniond from_roll_pitch_yaw(double roll, double pitch, double yaw) {
-  return Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
+  return Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
+         Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
          Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX());
 }
 
@@ -128,11 +133,12 @@ double command_number(const json& command, const std::string& key, std::optional
   auto it = command.find(key);
   if (it == command.end()) {
     if (fallback) return *fallback;
-    throw ServiceError("the command has no '" + key + "'", Failure::bad_arguments, {{"parameter", key}});
+    throw ServiceError("the command has no '" + key + "'", Failure::bad_arguments,
+                       {{"parameter", key}});
   }
   if (!it->is_number())
-    throw ServiceError(key + ": expected a number, found " + describe_json(*it), Failure::bad_arguments,
-                       {{"parameter", key}});
+    throw ServiceError(key + ": expected a number, found " + describe_json(*it),
+                       Failure::bad_arguments, {{"parameter", key}});
   return it->get<double>();
 }
 

@@ -38,7 +38,8 @@ bool worth_a_line(std::uint64_t before, std::uint64_t after) {
 std::string occurrence(const char* what, std::uint64_t total, const char* counted_in = "") {
   std::string text = " [" + std::string(what) + " " + std::to_string(total);
   if (total == k_logged_individually)
-    return text + "; further " + what + "s are counted" + counted_in + " and logged at the 100th, 1000th, ...]";
+    return text + "; further " + what + "s are counted" + counted_in +
+           " and logged at the 100th, 1000th, ...]";
   if (total > k_logged_individually) return text + "; logged at powers of ten]";
   return text + "]";
 }
@@ -54,8 +55,10 @@ const char* describe_warning(int warning) {
   switch (warning) {
     case mjWARN_INERTIA: return "a (nearly) singular inertia matrix";
     // contacts and constraints share one arena, sized by <size memory="...">
-    case mjWARN_CONTACTFULL: return "too many contacts: some were dropped (raise memory in the MJCF's <size>)";
-    case mjWARN_CNSTRFULL: return "too many constraints: some were dropped (raise memory in the MJCF's <size>)";
+    case mjWARN_CONTACTFULL:
+      return "too many contacts: some were dropped (raise memory in the MJCF's <size>)";
+    case mjWARN_CNSTRFULL:
+      return "too many constraints: some were dropped (raise memory in the MJCF's <size>)";
     default: return "an unknown warning";
   }
 }
@@ -100,8 +103,9 @@ Simulation::~Simulation() {
 
 void Simulation::set_realtime_factor(double factor) {
   if (!(factor >= 0) || !std::isfinite(factor) || (factor > 0 && factor < k_min_realtime_factor))
-    throw std::invalid_argument("simulation: realtime_factor must be 0 (as fast as possible) or at least " +
-                                number(k_min_realtime_factor) + ", not " + number(factor));
+    throw std::invalid_argument(
+        "simulation: realtime_factor must be 0 (as fast as possible) or at least " +
+        number(k_min_realtime_factor) + ", not " + number(factor));
   realtime_factor_ = factor;
   // the loop may be asleep until a step scheduled at the old pace
   reschedule_ = true;
@@ -112,7 +116,8 @@ ComponentEntry& Simulation::add_component(std::unique_ptr<Component> component, 
                                           std::string robot, bool is_robot) {
   if (!component) throw std::invalid_argument("simulation: add_component(nullptr)");
   if (find(component->name()))
-    throw std::invalid_argument("simulation: a component named '" + component->name() + "' already exists");
+    throw std::invalid_argument("simulation: a component named '" + component->name() +
+                                "' already exists");
   auto entry = std::make_unique<ComponentEntry>();
   entry->sim_component = dynamic_cast<SimComponent*>(component.get());
   entry->component = std::move(component);
@@ -124,7 +129,8 @@ ComponentEntry& Simulation::add_component(std::unique_ptr<Component> component, 
 }
 
 bool Simulation::remove_component(const std::string& name, const std::string& reason) {
-  auto it = std::find_if(entries_.begin(), entries_.end(), [&](const auto& e) { return e->component->name() == name; });
+  auto it = std::find_if(entries_.begin(), entries_.end(),
+                         [&](const auto& e) { return e->component->name() == name; });
   if (it == entries_.end()) return false;
   for (const auto& manager : managers_) manager->unregister_component(name, reason);
   streams_->remove(name);
@@ -153,7 +159,8 @@ std::vector<std::string> Simulation::robot_names() const {
   return names;
 }
 
-void Simulation::add_request_manager(std::shared_ptr<RequestManager> manager, std::string transport) {
+void Simulation::add_request_manager(std::shared_ptr<RequestManager> manager,
+                                     std::string transport) {
   manager->set_gate(gate_);
   manager->set_streams(streams_, transport);
   managers_.push_back(std::move(manager));
@@ -220,10 +227,10 @@ void Simulation::step() {
     const double time_before = d()->time;
     // what a divergence goes back to: the state this step starts from, or a checkpoint (the
     // state a step started from, kept once that step went well)
-    const bool checkpoint_due =
-        on_divergence_ == DivergencePolicy::restore &&
-        (!checkpoint_.fits(m(), model_generation_) || time_before >= checkpoint_.time() + k_checkpoint_interval ||
-         time_before < checkpoint_.time());
+    const bool checkpoint_due = on_divergence_ == DivergencePolicy::restore &&
+                                (!checkpoint_.fits(m(), model_generation_) ||
+                                 time_before >= checkpoint_.time() + k_checkpoint_interval ||
+                                 time_before < checkpoint_.time());
     if (on_divergence_ == DivergencePolicy::pause)
       before_step_.capture(m(), d(), model_generation_);
     else if (checkpoint_due)
@@ -235,7 +242,8 @@ void Simulation::step() {
     mj_step(m(), d());
     // undone (pause): no step was taken, nothing new to publish
     if (check_mujoco_warnings(time_before)) return;
-    if (checkpoint_due && bad_states_ == divergences) std::swap(checkpoint_, next_checkpoint_);  // no allocation
+    if (checkpoint_due && bad_states_ == divergences)
+      std::swap(checkpoint_, next_checkpoint_);  // no allocation
     // RK4 leaves poses from its last intermediate stage and sensors from the start: one
     // evaluation of where the step ended makes them agree (and costs a fifth more)
     if (m()->opt.integrator == mjINT_RK4 && state_time_ != d()->time) forward();
@@ -245,13 +253,15 @@ void Simulation::step() {
   streams_->publish_due(state_time_);
 }
 
-void Simulation::fail_component(ComponentEntry& entry, const std::string& what, const std::string& reason) {
+void Simulation::fail_component(ComponentEntry& entry, const std::string& what,
+                                const std::string& reason) {
   const std::string& name = entry.component->name();
   log::error(name, ": ", what, " failed: ", reason, "; the component is deactivated",
              " (simulation activate \"", name, "\" turns it back on)");
   entry.active = false;
   AsyncSlot& slot = *entry.component->async_slot();
-  const Outcome failed = Outcome::failed(Failure::internal, name + ": " + what + " failed: " + reason);
+  const Outcome failed =
+      Outcome::failed(Failure::internal, name + ": " + what + " failed: " + reason);
   if (slot.busy()) slot.running_completion.finish(failed);
   for (const Completion& call : slot.running_concurrent()) call.finish(failed);
 }
@@ -322,7 +332,8 @@ void Simulation::measure_rate(Clock::time_point now) {
   if (elapsed < k_rate_window) return;
   // steps, not mjData::time: a reset or a restored state moves the clock, not the pace
   const double wall = std::chrono::duration<double>(elapsed).count();
-  recent_factor_.store(static_cast<double>(steps() - window_steps_) * timestep() / wall, std::memory_order_relaxed);
+  recent_factor_.store(static_cast<double>(steps() - window_steps_) * timestep() / wall,
+                       std::memory_order_relaxed);
   window_start_ = now;
   window_steps_ = steps();
 }
@@ -389,11 +400,12 @@ void Simulation::shutdown() {
       AsyncSlot& slot = *e->component->async_slot();
       if (slot.busy())
         slot.running_completion.finish(Outcome::failed(
-            Failure::shutdown, "the simulation stopped before " + slot.running->service + " completed"));
+            Failure::shutdown,
+            "the simulation stopped before " + slot.running->service + " completed"));
       // calls of concurrent services (every caller's `time sleep`)
       for (const Completion& call : slot.running_concurrent())
-        call.finish(Outcome::failed(Failure::shutdown,
-                                    "the simulation stopped before " + call.state()->service + " completed"));
+        call.finish(Outcome::failed(Failure::shutdown, "the simulation stopped before " +
+                                                           call.state()->service + " completed"));
     }
     lock.unlock();
     process_requests();
@@ -475,7 +487,8 @@ bool Simulation::check_mujoco_warnings(double time_before) {
       // MuJoCo applied no control at all in that step, and would go on so while it stays
       const std::string dropped = drop_bad_controls();
       if (worth_a_line(before, warning_totals_[k]))
-        log::warning("simulation: bad control ", when, ": a NaN, an infinity or a magnitude beyond 1e10 in ",
+        log::warning("simulation: bad control ", when,
+                     ": a NaN, an infinity or a magnitude beyond 1e10 in ",
                      dropped.empty() ? std::string("a control") : dropped,
                      "; MuJoCo applied no control in that step, the simulation set it to 0",
                      occurrence("bad control", warning_totals_[k]));
@@ -510,7 +523,8 @@ bool Simulation::check_mujoco_warnings(double time_before) {
   return undone;
 }
 
-bool Simulation::diverged(double time_before, const std::string& what, std::string quantity, std::string where) {
+bool Simulation::diverged(double time_before, const std::string& what, std::string quantity,
+                          std::string where) {
   ++bad_states_;
   DivergencePolicy action = on_divergence_;
   // nothing to go back to (the model changed since, or no checkpoint yet): the initial state
@@ -523,11 +537,14 @@ bool Simulation::diverged(double time_before, const std::string& what, std::stri
   switch (action) {
     case DivergencePolicy::pause:
       resumed_at = before_step_.time();
-      done = "the simulation paused in the state before that step (simulation play goes on from there)";
+      done =
+          "the simulation paused in the state before that step (simulation play goes on from "
+          "there)";
       break;
     case DivergencePolicy::restore:
       resumed_at = checkpoint_.time();
-      done = "the simulation went back to its checkpoint of " + seconds(checkpoint_.time()) + " and goes on";
+      done = "the simulation went back to its checkpoint of " + seconds(checkpoint_.time()) +
+             " and goes on";
       break;
     case DivergencePolicy::reset:
       // time goes on from where the step started, as if it had been a step of the reset world
@@ -537,7 +554,8 @@ bool Simulation::diverged(double time_before, const std::string& what, std::stri
   }
   const std::string when = "in the step from " + seconds(time_before);
   const std::string reason = "the simulation diverged " + when + ": " + what + "; " + done;
-  last_divergence_ = Divergence{time_before, steps(), std::move(quantity), std::move(where), action, resumed_at};
+  last_divergence_ =
+      Divergence{time_before, steps(), std::move(quantity), std::move(where), action, resumed_at};
   // subscribers hear of the divergence first, then of what the policy does to the world
   json event = to_json(*last_divergence_);
   // of the state the bad step started from (MuJoCo's own reset left its clock elsewhere)
@@ -563,17 +581,21 @@ bool Simulation::diverged(double time_before, const std::string& what, std::stri
       break;
   }
   if (worth_a_line(bad_states_ - 1, bad_states_))
-    log::warning("simulation: bad state ", when, ": ", what, " (scene.on_divergence ", to_string(on_divergence_),
-                 "): ", done, occurrence("bad state", bad_states_, " (time statistics: bad_states)"));
+    log::warning("simulation: bad state ", when, ": ", what, " (scene.on_divergence ",
+                 to_string(on_divergence_), "): ", done,
+                 occurrence("bad state", bad_states_, " (time statistics: bad_states)"));
   // what was asked of the world before is void: its clients are told, not left waiting
   fail_requests(reason);
   return action == DivergencePolicy::pause;
 }
 
 json to_json(const Divergence& divergence) {
-  return {{"sim_time", divergence.time},         {"step", divergence.step},
-          {"quantity", divergence.quantity},     {"where", divergence.where},
-          {"action", to_string(divergence.action)}, {"resumed_at", divergence.resumed_at}};
+  return {{"sim_time", divergence.time},
+          {"step", divergence.step},
+          {"quantity", divergence.quantity},
+          {"where", divergence.where},
+          {"action", to_string(divergence.action)},
+          {"resumed_at", divergence.resumed_at}};
 }
 
 void Simulation::announce(const char* event, json fields) {
@@ -629,7 +651,8 @@ std::string Simulation::drop_bad_controls() {
   for (int i = 0; i < m()->nu; ++i) {
     if (!mju_isBad(d()->ctrl[i])) continue;
     d()->ctrl[i] = 0;
-    names += (names.empty() ? "the control of " : ", ") + name_or_index(m(), mjOBJ_ACTUATOR, i, "actuator");
+    names += (names.empty() ? "the control of " : ", ") +
+             name_or_index(m(), mjOBJ_ACTUATOR, i, "actuator");
   }
   return names;
 }

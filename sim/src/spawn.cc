@@ -6,8 +6,8 @@
 // Each change edits a copy of the model's specification and compiles it (model_edit.h).
 // Compiling takes milliseconds to seconds, far more than a step: it happens on a worker
 // thread, off the simulation lock, from copies made under it (a fragment file too is read
-// there: under the lock it is only found); once the worker is done it asks the simulation for its next turn
-// (Simulation::run_soon: between two steps, or at once while paused), which swaps the new
+// there: under the lock it is only found); once the worker is done it asks the simulation for its
+// next turn (Simulation::run_soon: between two steps, or at once while paused), which swaps the new
 // model in (Simulation::replace_model carries the state across) and only then completes the
 // request. Both services are concurrent async services: neither takes the component's one
 // async slot from the other world-control services, and they keep their own rule of one
@@ -70,8 +70,8 @@ void check_fragment(const Model& model) {
   const std::string who = "mjcf: entity '" + e.name + "'";
   auto cap = [&](int count, int limit, const char* what) {
     if (count > limit)
-      refuse("mjcf", who + " has " + std::to_string(count) + " " + what + ": at most " + std::to_string(limit) +
-                         " in one fragment");
+      refuse("mjcf", who + " has " + std::to_string(count) + " " + what + ": at most " +
+                         std::to_string(limit) + " in one fragment");
   };
   cap(c.nbody, k_max_fragment_bodies, "bodies");
   cap(c.njnt, k_max_fragment_joints, "joints");
@@ -96,8 +96,10 @@ void check_fragment(const Model& model) {
   auto require_owned = [&](const std::string& what, mjtObj type, int id, const char* kind) {
     if (owned(type, id)) return;
     refuse("mjcf", who + ": " + what + " refers to " + name_or_index(m, type, id, kind) +
-                       ", which is not the entity's: a fragment's actuators, sensors, tendons and equalities refer "
-                       "to its own objects only (the scene's would be driven by an entity, and left broken when it "
+                       ", which is not the entity's: a fragment's actuators, sensors, tendons and "
+                       "equalities refer "
+                       "to its own objects only (the scene's would be driven by an entity, and "
+                       "left broken when it "
                        "is deleted)");
   };
   for (int i = m->nu - c.nu; i < m->nu; ++i) {
@@ -146,21 +148,25 @@ void check_fragment(const Model& model) {
   }
 
   // `n` values from `values`, those of object `id`: each finite and within mjMAXVAL
-  auto sound = [&](const mjtNum* values, int n, mjtObj type, int id, const char* kind, const char* attribute) {
+  auto sound = [&](const mjtNum* values, int n, mjtObj type, int id, const char* kind,
+                   const char* attribute) {
     for (int k = 0; k < n; ++k) {
       if (std::isfinite(values[k]) && std::abs(values[k]) <= mjMAXVAL) continue;
-      refuse("mjcf", who + ": " + name_or_index(m, type, id, kind) + " has " + attribute + " " + number(values[k]) +
+      refuse("mjcf", who + ": " + name_or_index(m, type, id, kind) + " has " + attribute + " " +
+                         number(values[k]) +
                          ", beyond what MuJoCo steps soundly (at most 1e10 in magnitude)");
     }
   };
   // the last `count` of `total` objects, `stride` values each
-  auto bounded = [&](const mjtNum* array, int total, int count, int stride, mjtObj type, const char* kind,
-                     const char* attribute) {
+  auto bounded = [&](const mjtNum* array, int total, int count, int stride, mjtObj type,
+                     const char* kind, const char* attribute) {
     for (int i = total - count; i < total; ++i)
       sound(array + static_cast<std::size_t>(i) * stride, stride, type, i, kind, attribute);
   };
-  bounded(m->actuator_gainprm, m->nu, c.nu, mjNGAIN, mjOBJ_ACTUATOR, "actuator", "a gain parameter");
-  bounded(m->actuator_biasprm, m->nu, c.nu, mjNBIAS, mjOBJ_ACTUATOR, "actuator", "a bias parameter");
+  bounded(m->actuator_gainprm, m->nu, c.nu, mjNGAIN, mjOBJ_ACTUATOR, "actuator",
+          "a gain parameter");
+  bounded(m->actuator_biasprm, m->nu, c.nu, mjNBIAS, mjOBJ_ACTUATOR, "actuator",
+          "a bias parameter");
   bounded(m->actuator_gear, m->nu, c.nu, 6, mjOBJ_ACTUATOR, "actuator", "a gear");
   bounded(m->jnt_stiffness, m->njnt, c.njnt, 1, mjOBJ_JOINT, "joint", "a stiffness");
   bounded(m->body_mass, m->nbody, c.nbody, 1, mjOBJ_BODY, "body", "a mass");
@@ -185,9 +191,11 @@ void check_fragment(const Model& model) {
     for (int k = 0; k < mjNWARNING; ++k) {
       if (!resets_the_state(k) || d->warning[k].number == 0) continue;
       const int index = d->warning[k].lastinfo;
-      refuse("mjcf", who + " makes the model diverge: stepped from its initial state, step " + std::to_string(step + 1) +
-                         " found a NaN, an infinity or a magnitude beyond 1e10 in " + bad_quantity(k, index) + " (" +
-                         where_in_state(m, k, index) + "); nothing was spawned");
+      refuse("mjcf", who + " makes the model diverge: stepped from its initial state, step " +
+                         std::to_string(step + 1) +
+                         " found a NaN, an infinity or a magnitude beyond 1e10 in " +
+                         bad_quantity(k, index) + " (" + where_in_state(m, k, index) +
+                         "); nothing was spawned");
     }
   }
 }
@@ -202,14 +210,15 @@ void check_entity_name(const std::string& name) {
     refuse("name", "name '" + name + "': expected 1 to 64 letters, digits, '_', '-' or '.'");
   if (name.size() > 4 && name.starts_with("body") &&
       name.find_first_not_of("0123456789", 4) == std::string::npos)
-    refuse("name", "name '" + name + "': 'body<number>' is how unnamed bodies are called; choose another name");
+    refuse("name", "name '" + name +
+                       "': 'body<number>' is how unnamed bodies are called; choose another name");
 }
 
 // [x, y, z] or [x, y, z, qx, qy, qz, qw] (get_scene_objects' order) -> MuJoCo's pose.
 EntityPose entity_pose(const std::vector<double>& pose) {
   if (pose.size() != 3 && pose.size() != 7)
-    refuse("pose", "pose: expected [x, y, z] or [x, y, z, qx, qy, qz, qw], found " + std::to_string(pose.size()) +
-                       " numbers");
+    refuse("pose", "pose: expected [x, y, z] or [x, y, z, qx, qy, qz, qw], found " +
+                       std::to_string(pose.size()) + " numbers");
   EntityPose out;
   const char* axes[] = {"pose[0] (x)", "pose[1] (y)", "pose[2] (z)"};
   for (int i = 0; i < 3; ++i) {
@@ -217,10 +226,14 @@ EntityPose entity_pose(const std::vector<double>& pose) {
     out.position[i] = pose[i];
   }
   if (pose.size() == 3) return out;
-  for (int i = 3; i < 7; ++i) bounds::require_within("pose[" + std::to_string(i) + "]", pose[i], 1e3, "");
-  const double norm = std::sqrt(pose[3] * pose[3] + pose[4] * pose[4] + pose[5] * pose[5] + pose[6] * pose[6]);
-  if (!(norm > 1e-9)) refuse("pose", "pose: the orientation quaternion [qx, qy, qz, qw] must not be zero");
-  out.orientation = std::array<double, 4>{pose[6] / norm, pose[3] / norm, pose[4] / norm, pose[5] / norm};
+  for (int i = 3; i < 7; ++i)
+    bounds::require_within("pose[" + std::to_string(i) + "]", pose[i], 1e3, "");
+  const double norm =
+      std::sqrt(pose[3] * pose[3] + pose[4] * pose[4] + pose[5] * pose[5] + pose[6] * pose[6]);
+  if (!(norm > 1e-9))
+    refuse("pose", "pose: the orientation quaternion [qx, qy, qz, qw] must not be zero");
+  out.orientation =
+      std::array<double, 4>{pose[6] / norm, pose[3] / norm, pose[4] / norm, pose[5] / norm};
   return out;
 }
 
@@ -257,12 +270,17 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
     // the arguments themselves first, then what they mean for the world as it is
     check_entity_name(name);
     const EntityPose where = entity_pose(pose);
-    if (!robot.is_object()) refuse("robot", "robot: expected an object (a robot section: type, components...), "
-                                            "or {} for a plain body, found " + robot.dump());
+    if (!robot.is_object())
+      refuse("robot",
+             "robot: expected an object (a robot section: type, components...), "
+             "or {} for a plain body, found " +
+                 robot.dump());
     const bool with_robot = !robot.empty();
     if (with_robot) {
       if (!sim_.robot_factory())
-        refuse("robot", "robot: this simulation builds no robots at run time (it runs without a configuration)");
+        refuse("robot",
+               "robot: this simulation builds no robots at run time (it runs without a "
+               "configuration)");
       sim_.robot_factory()->check(name, robot);
     }
     const std::size_t first = mjcf.find_first_not_of(" \t\r\n");
@@ -283,7 +301,8 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
     if (model.body_id(name) >= 0)
       refuse("name", "name '" + name + "' is taken: the world already has a body called so" +
                          (model.entity(name) ? " (a spawned entity)" : ""));
-    start(std::move(done), "spawn_entity", name, std::move(edit), -1, {}, with_robot ? robot : json());
+    start(std::move(done), "spawn_entity", name, std::move(edit), -1, {},
+          with_robot ? robot : json());
   }
 
   void delete_entity(Completion done, const std::string& name) {
@@ -306,8 +325,9 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
       const std::string& component = entry->component->name();
       if (robots.contains(component) || robots.contains(entry->robot)) {
         if (!caller_serves(component))
-          refuse("name", "body '" + name + "' holds components this transport does not serve: delete_entity "
-                         "cannot remove them");
+          refuse("name", "body '" + name +
+                             "' holds components this transport does not serve: delete_entity "
+                             "cannot remove them");
         removed.push_back({component, robots.contains(component) ? component : entry->robot});
         continue;
       }
@@ -320,7 +340,8 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
                            (entry->robot.empty() ? "" : " of robot '" + entry->robot + "'") +
                            ", whose robot stays: delete the robot's own body instead");
       if (in_subtree(sim_.m(), body, bound))
-        refuse("name", "body '" + name + "' is part of " + who + "'s body '" + model.body_name(bound) +
+        refuse("name", "body '" + name + "' is part of " + who + "'s body '" +
+                           model.body_name(bound) +
                            "': delete_entity removes a robot's root body, not a part of it");
     }
     start(std::move(done), "delete_entity", name, std::move(edit), body, std::move(removed));
@@ -343,49 +364,58 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
       // MuJoCo's message: the fragment does not compile with the scene (a taken joint or
       // geom name, a missing mesh...), and the running model is untouched
       const bool spawning = change.service == "spawn_entity";
-      change.done.finish(Outcome::failed(spawning ? Failure::bad_arguments : Failure::service_error,
-                                         change.service + " '" + change.name + "': the model does not compile: " +
-                                             e.what(),
-                                         spawning ? json{{"parameter", "mjcf"}} : json::object()));
+      change.done.finish(Outcome::failed(
+          spawning ? Failure::bad_arguments : Failure::service_error,
+          change.service + " '" + change.name + "': the model does not compile: " + e.what(),
+          spawning ? json{{"parameter", "mjcf"}} : json::object()));
       return;
     }
     if (change.done.done()) {
       // cancelled by its client, or ended at shutdown: the world stays as it is
-      log::info("simulation: ", change.service, " '", change.name, "' ended before its model was ready; dropped");
+      log::info("simulation: ", change.service, " '", change.name,
+                "' ended before its model was ready; dropped");
       return;
     }
     if (sim_.model_generation() != change.generation) {
-      change.done.finish(Outcome::failed(
-          Failure::service_error,
-          change.service + " '" + change.name + "': the model changed while it compiled; nothing was changed"));
+      change.done.finish(
+          Outcome::failed(Failure::service_error,
+                          change.service + " '" + change.name +
+                              "': the model changed while it compiled; nothing was changed"));
       return;
     }
     // where every object went (a body of the scene removed moves what came after it)
     ModelRemap remap;
     try {
-      remap = ModelRemap::between(sim_.m(), next->model(), change.removed_body, change.service == "spawn_entity");
+      remap = ModelRemap::between(sim_.m(), next->model(), change.removed_body,
+                                  change.service == "spawn_entity");
     } catch (const MujocoError& e) {
-      change.done.finish(Outcome::failed(Failure::service_error, change.service + " '" + change.name +
-                                                                     "': the recompiled model does not match the "
-                                                                     "running one: " + e.what() +
-                                                                     "; nothing was changed"));
+      change.done.finish(
+          Outcome::failed(Failure::service_error, change.service + " '" + change.name +
+                                                      "': the recompiled model does not match the "
+                                                      "running one: " +
+                                                      e.what() + "; nothing was changed"));
       return;
     }
     // the deleted robots' components first: their requests end, their services go
     for (const RemovedComponent& c : change.removed_components)
-      sim_.remove_component(c.name, "robot '" + c.robot + "' was deleted by simulation.delete_entity");
+      sim_.remove_component(c.name,
+                            "robot '" + c.robot + "' was deleted by simulation.delete_entity");
     Model previous = sim_.replace_model(std::move(*next), remap);
     if (!change.robot.is_null() && !build_robot(change, previous)) return;
-    log::info("simulation: ", change.service, " '", change.name, "': model generation ", sim_.model_generation(),
-              " (", sim_.m()->nbody, " bodies)");
+    log::info("simulation: ", change.service, " '", change.name, "': model generation ",
+              sim_.model_generation(), " (", sim_.m()->nbody, " bodies)");
     // every client that watches the world learns what changed in it, and who changed it
-    json event = {{"name", change.name}, {"model_generation", sim_.model_generation()}, {"by", change.by}};
+    json event = {
+        {"name", change.name}, {"model_generation", sim_.model_generation()}, {"by", change.by}};
     std::set<std::string> robots;
     for (const RemovedComponent& c : change.removed_components) robots.insert(c.robot);
-    if (change.service == "spawn_entity") event["robot"] = !change.robot.is_null();
-    else event["robots"] = robots;
+    if (change.service == "spawn_entity")
+      event["robot"] = !change.robot.is_null();
+    else
+      event["robots"] = robots;
     sim_.announce(change.service == "spawn_entity" ? "spawned" : "deleted", std::move(event));
-    change.done(Status::success, json{{"name", change.name}, {"model_generation", sim_.model_generation()}});
+    change.done(Status::success,
+                json{{"name", change.name}, {"model_generation", sim_.model_generation()}});
   }
 
  private:
@@ -403,8 +433,8 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
       change_.reset();
     }
     if (change_)
-      throw ServiceError("cannot change entity '" + name + "' now: " + change_->service + " '" + change_->name +
-                             "' is compiling; try again when it completes",
+      throw ServiceError("cannot change entity '" + name + "' now: " + change_->service + " '" +
+                             change_->name + "' is compiling; try again when it completes",
                          Failure::busy, {{"running", "simulation." + change_->service}});
   }
 
@@ -414,15 +444,21 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
   fs::path fragment_file(const std::string& path) const {
     const std::vector<std::string>& allowed = sim_.spawn_allowed_dirs();
     if (allowed.empty())
-      refuse("mjcf", "mjcf: expected MJCF text (a <body>, or a <mujoco> with a <worldbody> holding one <body>); "
-                     "fragment files need directories allowed in the config (spawn.allowed_dirs), and it allows none");
+      refuse("mjcf",
+             "mjcf: expected MJCF text (a <body>, or a <mujoco> with a <worldbody> holding one "
+             "<body>); "
+             "fragment files need directories allowed in the config (spawn.allowed_dirs), and it "
+             "allows none");
     std::string dirs;
     for (const auto& dir : allowed) dirs += (dirs.empty() ? "" : ", ") + dir;
-    const std::string refusal = "mjcf: '" + path + "' is neither MJCF or URDF text nor a fragment file under the " +
+    const std::string refusal = "mjcf: '" + path +
+                                "' is neither MJCF or URDF text nor a fragment file under the " +
                                 "directories the config allows (spawn.allowed_dirs: " + dirs + ")";
-    if (path.empty() || path.size() > 4096 || path.find('\0') != std::string::npos) refuse("mjcf", refusal);
+    if (path.empty() || path.size() > 4096 || path.find('\0') != std::string::npos)
+      refuse("mjcf", refusal);
     std::vector<fs::path> candidates;
-    if (fs::path(path).is_absolute()) candidates.push_back(path);
+    if (fs::path(path).is_absolute())
+      candidates.push_back(path);
     else
       for (const auto& dir : allowed) candidates.push_back(fs::path(dir) / path);
     for (const fs::path& candidate : candidates) {
@@ -435,7 +471,8 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
       });
       if (!inside) continue;
       if (fs::file_size(file, ec) > k_max_fragment_bytes)
-        refuse("mjcf", "mjcf: '" + path + "' is larger than " + std::to_string(k_max_fragment_bytes) + " bytes");
+        refuse("mjcf", "mjcf: '" + path + "' is larger than " +
+                           std::to_string(k_max_fragment_bytes) + " bytes");
       return file;
     }
     refuse("mjcf", refusal);
@@ -443,7 +480,8 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
 
   std::string spawned_list() const {
     std::string names;
-    for (const auto& e : sim_.model().entities()) names += (names.empty() ? "" : ", ") + ("'" + e.name + "'");
+    for (const auto& e : sim_.model().entities())
+      names += (names.empty() ? "" : ", ") + ("'" + e.name + "'");
     return names.empty() ? " (no entity has been spawned)" : " (spawned: " + names + ")";
   }
 
@@ -455,17 +493,18 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
   // simulation but the spec, read-only). `removed_body`: the body the change deletes (-1: a
   // spawn), in the running model; `removed`: the components that go with it (a robot's),
   // removed at the swap. `robot`: the section of the robot a spawn brings (null: none).
-  void start(Completion done, std::string service, std::string name, Edit edit, int removed_body = -1,
-             std::vector<RemovedComponent> removed = {}, json robot = json()) {
+  void start(Completion done, std::string service, std::string name, Edit edit,
+             int removed_body = -1, std::vector<RemovedComponent> removed = {},
+             json robot = json()) {
     const bool spawning = removed_body < 0;
     auto result = std::make_shared<std::promise<Model>>();
     std::future<Model> compiled = result->get_future();
     // the worker: the model (or MuJoCo's error), then a turn of the simulation thread for
     // apply() (the simulation outlives the worker: a Spawner waits for its workers when it
     // goes, through their futures)
-    std::future<void> worker =
-        std::async(std::launch::async, [&sim = sim_, self = weak_from_this(), result, base = EditBase::of(sim_.model()),
-                                        edit = std::move(edit), spawning] {
+    std::future<void> worker = std::async(
+        std::launch::async, [&sim = sim_, self = weak_from_this(), result,
+                             base = EditBase::of(sim_.model()), edit = std::move(edit), spawning] {
           try {
             Model model = edit(base);
             if (spawning) check_fragment(model);
@@ -479,23 +518,24 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
         });
     // the swap runs outside this request's context: who asked is kept for the announcement
     const CallContext* context = CallContext::current();
-    change_.emplace(Change{std::move(done), std::move(service), std::move(name), sim_.model_generation(),
-                           removed_body, std::move(removed), std::move(compiled), std::move(worker),
-                           std::move(robot), context ? context->manager().transport_name() : "simulation"});
+    change_.emplace(Change{std::move(done), std::move(service), std::move(name),
+                           sim_.model_generation(), removed_body, std::move(removed),
+                           std::move(compiled), std::move(worker), std::move(robot),
+                           context ? context->manager().transport_name() : "simulation"});
   }
 
   // A model being compiled, and the request waiting for it.
   struct Change {
-    Completion done;               // the request, completed after the swap
-    std::string service;           // "spawn_entity" or "delete_entity"
-    std::string name;              // the entity
-    std::uint64_t generation;      // the model generation it was made from
-    int removed_body;              // the body it deletes in that model (-1: none)
+    Completion done;           // the request, completed after the swap
+    std::string service;       // "spawn_entity" or "delete_entity"
+    std::string name;          // the entity
+    std::uint64_t generation;  // the model generation it was made from
+    int removed_body;          // the body it deletes in that model (-1: none)
     std::vector<RemovedComponent> removed_components;  // a deleted robot's, removed at the swap
-    std::future<Model> compiled;   // the worker's result (or MuJoCo's error)
-    std::future<void> worker;      // the worker itself (ready once it has asked for apply())
-    json robot;                    // spawn_entity's robot section (null: a plain body)
-    std::string by;                // the caller's transport (simulation.events' `by`)
+    std::future<Model> compiled;                       // the worker's result (or MuJoCo's error)
+    std::future<void> worker;  // the worker itself (ready once it has asked for apply())
+    json robot;                // spawn_entity's robot section (null: a plain body)
+    std::string by;            // the caller's transport (simulation.events' `by`)
   };
 
   // Builds the robot a spawn brings, its body now in the model. When it cannot be built,
@@ -506,19 +546,21 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
       sim_.robot_factory()->build(change.name, change.robot);
       return true;
     } catch (const std::exception& e) {
-      const ModelRemap back = ModelRemap::between(sim_.m(), previous.model(), sim_.model().body_id(change.name), false);
+      const ModelRemap back =
+          ModelRemap::between(sim_.m(), previous.model(), sim_.model().body_id(change.name), false);
       sim_.replace_model(std::move(previous), back);
       const auto* error = dynamic_cast<const ServiceError*>(&e);
       const std::string why = error ? error->message() : e.what();
-      change.done.finish(Outcome::failed(error ? error->failure() : Failure::bad_arguments,
-                                         "spawn_entity '" + change.name + "': " + why + "; nothing was spawned",
-                                         error ? error->data() : json{{"parameter", "robot"}}));
+      change.done.finish(
+          Outcome::failed(error ? error->failure() : Failure::bad_arguments,
+                          "spawn_entity '" + change.name + "': " + why + "; nothing was spawned",
+                          error ? error->data() : json{{"parameter", "robot"}}));
       return false;
     }
   }
 
-  Simulation& sim_;                        // whose model changes
-  std::optional<Change> change_;           // the one being compiled
+  Simulation& sim_;                           // whose model changes
+  std::optional<Change> change_;              // the one being compiled
   std::vector<std::future<void>> abandoned_;  // workers of cancelled changes, until they end
 };
 
@@ -529,20 +571,27 @@ void add_spawn_services(SupervisionServices& simulation, Simulation& sim) {
   simulation
       .offer_async_service(
           "spawn_entity",
-          [spawner](Completion done, const std::string& name, const std::string& mjcf, const std::vector<double>& pose,
-                    const json& robot) { spawner->spawn_entity(std::move(done), name, mjcf, pose, robot); },
+          [spawner](Completion done, const std::string& name, const std::string& mjcf,
+                    const std::vector<double>& pose, const json& robot) {
+            spawner->spawn_entity(std::move(done), name, mjcf, pose, robot);
+          },
           {"name", "mjcf", "pose", {"robot", json::object()}})
       .concurrent()
-      .doc("Add the MJCF body `mjcf` to the world as `name` at `pose` [x, y, z] or [x, y, z, qx, qy, qz, qw]; "
-           "`robot` (a config's robot section: type, components) makes it a robot with components");
+      .doc(
+          "Add the MJCF body `mjcf` to the world as `name` at `pose` [x, y, z] or [x, y, z, qx, "
+          "qy, qz, qw]; "
+          "`robot` (a config's robot section: type, components) makes it a robot with components");
   simulation
-      .offer_async_service(
-          "delete_entity",
-          [spawner](Completion done, const std::string& name) { spawner->delete_entity(std::move(done), name); },
-          {"name"})
+      .offer_async_service("delete_entity",
+                           [spawner](Completion done, const std::string& name) {
+                             spawner->delete_entity(std::move(done), name);
+                           },
+                           {"name"})
       .concurrent()
-      .doc("Remove the body `name` (an entity spawned at run time, or a body of the scene no component uses) "
-           "from the world");
+      .doc(
+          "Remove the body `name` (an entity spawned at run time, or a body of the scene no "
+          "component uses) "
+          "from the world");
 }
 
 }  // namespace simgate::sim

@@ -20,14 +20,16 @@ namespace simgate::sim {
 void check_step_count(const char* service, std::int64_t n) {
   if (n < 1 || n > k_max_steps)
     throw ServiceError(std::string(service) + ": n = " + std::to_string(n) +
-                           " is out of range: expected an integer from 1 to " + std::to_string(k_max_steps),
+                           " is out of range: expected an integer from 1 to " +
+                           std::to_string(k_max_steps),
                        Failure::bad_arguments, {{"parameter", "n"}});
 }
 
 void check_paused(const char* service, const Simulation& sim) {
   if (!sim.paused())
-    throw ServiceError(std::string(service) + ": the simulation is playing; pause it first (simulation pause)",
-                       Failure::service_error, {{"state", to_string(sim.run_state())}});
+    throw ServiceError(
+        std::string(service) + ": the simulation is playing; pause it first (simulation pause)",
+        Failure::service_error, {{"state", to_string(sim.run_state())}});
 }
 
 namespace {
@@ -37,7 +39,9 @@ namespace {
 class Stepping {
  public:
   explicit Stepping(Simulation& sim)
-      : sim_(sim), lockstep_(std::make_shared<Lockstep>(sim, [this](const char* why) { stop_stepping(why); })) {}
+      : sim_(sim),
+        lockstep_(
+            std::make_shared<Lockstep>(sim, [this](const char* why) { stop_stepping(why); })) {}
 
   Lockstep& lockstep() { return *lockstep_; }
 
@@ -102,7 +106,8 @@ class Stepping {
   // Every step: the steps done so far, to a client that asked for progress (issue #20).
   void report_progress() {
     if (!done_.progress_due()) return;
-    done_.progress(json{{"steps_done", requested_ - sim_.owed_steps()}, {"steps_requested", requested_}});
+    done_.progress(
+        json{{"steps_done", requested_ - sim_.owed_steps()}, {"steps_requested", requested_}});
   }
 
   // The running step request is interrupted (cancel, a new step, another async request of
@@ -118,7 +123,9 @@ class Stepping {
   void end_early(const char* why) {
     const std::uint64_t left = sim_.forgive_owed_steps();
     if (!done_ || done_.done()) return;
-    json value{{"sim_time", sim_.sim_time()}, {"steps_done", requested_ - left}, {"steps_requested", requested_}};
+    json value{{"sim_time", sim_.sim_time()},
+               {"steps_done", requested_ - left},
+               {"steps_requested", requested_}};
     if (why) {
       Outcome o;
       o.status = Status::preempted;
@@ -143,38 +150,52 @@ class Stepping {
 
 void add_stepping_services(SupervisionServices& simulation, Simulation& sim) {
   auto stepping = std::make_shared<Stepping>(sim);
-  simulation
-      .offer_service("get_simulation_state", [stepping] { return stepping->state(); })
-      .doc("{state, sim_time, steps, timestep, realtime_factor (measured over the last second of playing), "
-           "target_realtime_factor, dynamics_suspended, owed_steps, clients, on_divergence, divergences, "
-           "last_divergence, lockstep}");
+  simulation.offer_service("get_simulation_state", [stepping] { return stepping->state(); })
+      .doc(
+          "{state, sim_time, steps, timestep, realtime_factor (measured over the last second of "
+          "playing), "
+          "target_realtime_factor, dynamics_suspended, owed_steps, clients, on_divergence, "
+          "divergences, "
+          "last_divergence, lockstep}");
   simulation.offer_service("pause", [stepping] { return stepping->pause(); })
       .doc("Stop time and physics (requests are still served); ends a running step PREEMPTED");
   simulation.offer_service("play", [stepping] { return stepping->play(); })
       .doc("Resume time and physics at the real-time factor; ends a running step PREEMPTED");
   simulation
-      .offer_async_service("step", [stepping](Completion done, std::int64_t n) { stepping->step(std::move(done), n); },
-                           {{"n", 1}})
+      .offer_async_service(
+          "step",
+          [stepping](Completion done, std::int64_t n) { stepping->step(std::move(done), n); },
+          {{"n", 1}})
       .interruptible()
-      .doc("Paused only: take n steps as fast as possible; SUCCESS {sim_time, steps_done}, or PREEMPTED with the "
-           "steps done");
+      .doc(
+          "Paused only: take n steps as fast as possible; SUCCESS {sim_time, steps_done}, or "
+          "PREEMPTED with the "
+          "steps done");
   simulation.on_interrupt("step", [stepping] { stepping->interrupted(); });
   simulation
-      .offer_async_service("lockstep_join", [stepping](Completion call, const std::string& participant) {
-        stepping->lockstep().join(std::move(call), participant);
-      }, {{"participant", ""}})
-      .concurrent()
-      .doc("Take part in the lockstep until this call ends (cancel it, or leave): the simulation steps when "
-           "every participant has asked (lockstep_step); the first progress report names the participant");
-  simulation
-      .offer_async_service("lockstep_step",
-                           [stepping](Completion call, const std::string& participant, std::int64_t n) {
-                             stepping->lockstep().step(std::move(call), participant, n);
+      .offer_async_service("lockstep_join",
+                           [stepping](Completion call, const std::string& participant) {
+                             stepping->lockstep().join(std::move(call), participant);
                            },
-                           {"participant", {"n", 1}})
+                           {{"participant", ""}})
       .concurrent()
-      .doc("Paused only: wait at the lockstep barrier until every participant has asked for the same n, then "
-           "the n steps are taken once; SUCCESS {sim_time, steps_done}");
+      .doc(
+          "Take part in the lockstep until this call ends (cancel it, or leave): the simulation "
+          "steps when "
+          "every participant has asked (lockstep_step); the first progress report names the "
+          "participant");
+  simulation
+      .offer_async_service(
+          "lockstep_step",
+          [stepping](Completion call, const std::string& participant, std::int64_t n) {
+            stepping->lockstep().step(std::move(call), participant, n);
+          },
+          {"participant", {"n", 1}})
+      .concurrent()
+      .doc(
+          "Paused only: wait at the lockstep barrier until every participant has asked for the "
+          "same n, then "
+          "the n steps are taken once; SUCCESS {sim_time, steps_done}");
   simulation.on_step([stepping] { stepping->report_progress(); });
 }
 

@@ -72,7 +72,7 @@ class Lockstep : public std::enable_shared_from_this<Lockstep> {
 
  private:
   struct Participant {
-    std::string name;      // as the client gave it, or made up
+    std::string name;       // as the client gave it, or made up
     Completion membership;  // its lockstep_join call
     Completion asked;       // its lockstep_step call at the gathering barrier (empty: none)
   };
@@ -88,7 +88,8 @@ class Lockstep : public std::enable_shared_from_this<Lockstep> {
   // The last step of the released barrier was taken: its calls complete.
   void released_steps_done();
   // Ends `calls` PREEMPTED with `why` and the steps done of n.
-  void preempt(std::vector<Completion>& calls, const char* why, std::uint64_t steps_done, std::uint64_t n);
+  void preempt(std::vector<Completion>& calls, const char* why, std::uint64_t steps_done,
+               std::uint64_t n);
   Participant* find(const std::string& name);
   std::vector<std::string> names() const;
   std::vector<std::string> waiting_names() const;
@@ -97,12 +98,12 @@ class Lockstep : public std::enable_shared_from_this<Lockstep> {
 
   Simulation& sim_;
   std::function<void(const char*)> stop_plain_step_;  // ends a running `simulation step`
-  std::vector<Participant> participants_;              // in the order they joined
-  std::uint64_t gathering_n_ = 0;                      // the n the gathering barrier asks (0: no ask)
-  bool stepping_ = false;                              // a released barrier's steps are owed
-  std::uint64_t released_n_ = 0;                       // its n
-  std::vector<Completion> released_;                   // its calls
-  std::uint64_t next_number_ = 1;                      // for names made up: "p1", "p2"...
+  std::vector<Participant> participants_;             // in the order they joined
+  std::uint64_t gathering_n_ = 0;     // the n the gathering barrier asks (0: no ask)
+  bool stepping_ = false;             // a released barrier's steps are owed
+  std::uint64_t released_n_ = 0;      // its n
+  std::vector<Completion> released_;  // its calls
+  std::uint64_t next_number_ = 1;     // for names made up: "p1", "p2"...
 };
 
 }  // namespace simgate::sim

@@ -33,7 +33,8 @@ std::string caller_transport() {
 bool stream_visible(const StreamInfo& info) {
   if (!CallContext::current()) return true;
   const std::string transport = caller_transport();
-  return std::find(info.transports.begin(), info.transports.end(), transport) != info.transports.end();
+  return std::find(info.transports.begin(), info.transports.end(), transport) !=
+         info.transports.end();
 }
 
 // The stream of `component` the caller sees (stream_visible), if any.
@@ -49,18 +50,26 @@ SupervisionServices::SupervisionServices(Simulation& sim) : Component("simulatio
   add_service("list_robots", &SupervisionServices::list_robots)
       .doc("Names of the robots this transport serves (or serves a component of)");
   add_service("details", &SupervisionServices::details)
-      .doc("Robots with the components this transport serves and their services (what pymorse reads at connect)");
+      .doc(
+          "Robots with the components this transport serves and their services (what pymorse reads "
+          "at connect)");
   add_service("list_services", &SupervisionServices::list_services)
-      .doc("The services of every component this transport serves, with their parameters and transports");
+      .doc(
+          "The services of every component this transport serves, with their parameters and "
+          "transports");
   add_service("get_stream_statistics", &SupervisionServices::get_stream_statistics)
-      .doc("Each data stream this transport carries: direction, frequency, samples, subscribers, samples dropped "
-           "for slow subscribers, commands applied, replaced and refused");
-  add_service("reset_objects", &SupervisionServices::reset_objects).doc("Restore every object's initial pose (simulated time goes on)");
+      .doc(
+          "Each data stream this transport carries: direction, frequency, samples, subscribers, "
+          "samples dropped "
+          "for slow subscribers, commands applied, replaced and refused");
+  add_service("reset_objects", &SupervisionServices::reset_objects)
+      .doc("Restore every object's initial pose (simulated time goes on)");
   add_service("activate", &SupervisionServices::activate, {"component_name"})
       .doc("Resume the default action of a component this transport serves");
   add_service("deactivate", &SupervisionServices::deactivate, {"component_name"})
       .doc("Suspend the default action of a component this transport serves");
-  add_service("suspend_dynamics", &SupervisionServices::suspend_dynamics).doc("Freeze physics (time goes on)");
+  add_service("suspend_dynamics", &SupervisionServices::suspend_dynamics)
+      .doc("Freeze physics (time goes on)");
   add_service("restore_dynamics", &SupervisionServices::restore_dynamics).doc("Resume physics");
   add_service("get_scene_objects", &SupervisionServices::get_scene_objects)
       .doc("{name: [children, [x, y, z], [qx, qy, qz, qw]]} for every body");
@@ -81,7 +90,9 @@ void add_world_components(Simulation& sim) {
   sim.add_component(std::make_unique<CommunicationServices>(sim), "communication");
 }
 
-void SupervisionServices::on_step(std::function<void()> fn) { step_hooks_.push_back(std::move(fn)); }
+void SupervisionServices::on_step(std::function<void()> fn) {
+  step_hooks_.push_back(std::move(fn));
+}
 
 void SupervisionServices::on_interrupt(const std::string& service, std::function<void()> fn) {
   interrupt_hooks_[service] = std::move(fn);
@@ -161,7 +172,8 @@ json SupervisionServices::stream_interfaces(const std::string& component) const 
   if (!info) return out;
   for (const auto& t : info->transports) {
     const RequestManager* manager = sim_.request_manager(t);
-    out.push_back({manager ? manager->datastream_class(info->direction) : "simgate." + t, to_string(info->direction)});
+    out.push_back({manager ? manager->datastream_class(info->direction) : "simgate." + t,
+                   to_string(info->direction)});
   }
   return out;
 }
@@ -219,7 +231,8 @@ json SupervisionServices::list_services() const {
       const auto* owner = sim_.find(d.component);
       if (!owner) return false;
       const auto& services = owner->component->services();
-      return std::any_of(services.begin(), services.end(), [&](const auto& s) { return s->descriptor().name == d.name; });
+      return std::any_of(services.begin(), services.end(),
+                         [&](const auto& s) { return s->descriptor().name == d.name; });
     };
     for (const auto& d : context->manager().descriptors()) {
       if (held_by_a_component(d)) continue;
@@ -241,13 +254,18 @@ void SupervisionServices::set_active(const std::string& component_name, bool act
   // the mapping is a boundary, and its other side does not show through
   ComponentEntry* e = sim_.find(component_name);
   if (!e || !visible(*e))
-    throw ServiceError("Component '" + component_name + "' not found. Can't " + (active ? "activate" : "deactivate"),
+    throw ServiceError("Component '" + component_name + "' not found. Can't " +
+                           (active ? "activate" : "deactivate"),
                        Failure::bad_arguments, {{"parameter", "component_name"}});
   e->active = active;
 }
 
-void SupervisionServices::activate(const std::string& component_name) { set_active(component_name, true); }
-void SupervisionServices::deactivate(const std::string& component_name) { set_active(component_name, false); }
+void SupervisionServices::activate(const std::string& component_name) {
+  set_active(component_name, true);
+}
+void SupervisionServices::deactivate(const std::string& component_name) {
+  set_active(component_name, false);
+}
 
 std::string SupervisionServices::suspend_dynamics() {
   sim_.set_dynamics_suspended(true);

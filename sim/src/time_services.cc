@@ -14,8 +14,9 @@ constexpr double k_max_time_scale = 1e6;
 }  // namespace
 
 TimeServices::TimeServices(Simulation& sim) : Component("time"), sim_(sim) {
-  epoch_ = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count() -
-           sim.sim_time();
+  epoch_ =
+      std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count() -
+      sim.sim_time();
   add_service("now", &TimeServices::now).doc("Simulated time, seconds since the epoch");
   // concurrent: every caller gets its own sleep (two pymorse scripts calling simu.sleep()
   // together, or a client that left with one running, never block anyone)
@@ -23,7 +24,9 @@ TimeServices::TimeServices(Simulation& sim) : Component("time"), sim_(sim) {
       .concurrent()
       .doc("Completes after `time` simulated seconds (each caller sleeps on its own)");
   add_service("statistics", &TimeServices::statistics)
-      .doc("Simulated time, wall time, measured and target real-time factor, steps, bad states recovered");
+      .doc(
+          "Simulated time, wall time, measured and target real-time factor, steps, bad states "
+          "recovered");
   add_service("mode", &TimeServices::mode).doc("The time strategy");
   add_service("set_time_scale", &TimeServices::set_time_scale, {"value"})
       .doc("Simulated seconds per wall second from now on (0 = as fast as possible); returns true");
@@ -33,8 +36,8 @@ double TimeServices::now() const { return epoch_ + sim_.sim_time(); }
 
 void TimeServices::sleep(Completion done, double seconds) {
   if (!std::isfinite(seconds) || seconds < 0)
-    throw ServiceError("time sleep: expected a non-negative number of seconds", Failure::bad_arguments,
-                       {{"parameter", "time"}});
+    throw ServiceError("time sleep: expected a non-negative number of seconds",
+                       Failure::bad_arguments, {{"parameter", "time"}});
   sleeps_.push_back({std::move(done), sim_.sim_time() + seconds});
 }
 
@@ -71,17 +74,21 @@ json TimeServices::statistics() const {
 }
 
 std::string TimeServices::mode() const {
-  return sim_.realtime_factor() == 0 ? "FixedSimulationStep (as fast as possible)" : "FixedSimulationStep";
+  return sim_.realtime_factor() == 0 ? "FixedSimulationStep (as fast as possible)"
+                                     : "FixedSimulationStep";
 }
 
 bool TimeServices::set_time_scale(double value) {
   // 0 is "as fast as possible"
-  bounds::require_between("value", value, 0, k_max_time_scale, "(simulated seconds per wall second)");
+  bounds::require_between("value", value, 0, k_max_time_scale,
+                          "(simulated seconds per wall second)");
   // a factor of 1e-300 would make a step period no clock holds (it ran at full speed)
   if (value > 0 && value < Simulation::k_min_realtime_factor)
-    throw ServiceError("time set_time_scale: value = " + number(value) + " is too slow to pace: expected 0 "
-                       "(as fast as possible) or a factor from " + number(Simulation::k_min_realtime_factor) +
-                       " (a simulated second in about 12 days) to " + number(k_max_time_scale),
+    throw ServiceError("time set_time_scale: value = " + number(value) +
+                           " is too slow to pace: expected 0 "
+                           "(as fast as possible) or a factor from " +
+                           number(Simulation::k_min_realtime_factor) +
+                           " (a simulated second in about 12 days) to " + number(k_max_time_scale),
                        Failure::bad_arguments, {{"parameter", "value"}});
   sim_.set_realtime_factor(value);
   return true;

@@ -27,11 +27,14 @@ struct Drive {
 };
 
 std::string lowercase(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::transform(s.begin(), s.end(), s.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return s;
 }
 
-const char* element_text(const tinyxml2::XMLElement* e) { return e && e->GetText() ? e->GetText() : ""; }
+const char* element_text(const tinyxml2::XMLElement* e) {
+  return e && e->GetText() ? e->GetText() : "";
+}
 std::string attribute(const tinyxml2::XMLElement* e, const char* name) {
   const char* value = e ? e->Attribute(name) : nullptr;
   return value ? value : "";
@@ -41,18 +44,22 @@ std::string attribute(const tinyxml2::XMLElement* e, const char* name) {
 // ros2_control's "position"...); false when it is none of them
 bool interface_of(const std::string& name, Interface& out) {
   const std::string n = lowercase(name);
-  if (n.find("position") != std::string::npos) out = Interface::position;
-  else if (n.find("velocity") != std::string::npos) out = Interface::velocity;
-  else if (n.find("effort") != std::string::npos) out = Interface::effort;
-  else return false;
+  if (n.find("position") != std::string::npos)
+    out = Interface::position;
+  else if (n.find("velocity") != std::string::npos)
+    out = Interface::velocity;
+  else if (n.find("effort") != std::string::npos)
+    out = Interface::effort;
+  else
+    return false;
   return true;
 }
 
 // The joints the URDF's <transmission> and <ros2_control> elements drive, in order, each once.
 std::vector<Drive> drives_of(const tinyxml2::XMLElement* robot, const std::string& source) {
   std::vector<Drive> drives;
-  auto add = [&](const std::string& joint, const std::string& actuator, const std::string& interface,
-                 const std::string& where) {
+  auto add = [&](const std::string& joint, const std::string& actuator,
+                 const std::string& interface, const std::string& where) {
     if (joint.empty()) throw MujocoError(source + ": " + where + " names no joint");
     for (const Drive& d : drives)
       if (d.joint == joint) return;  // a joint in both a transmission and ros2_control
@@ -60,21 +67,24 @@ std::vector<Drive> drives_of(const tinyxml2::XMLElement* robot, const std::strin
     d.joint = joint;
     d.actuator = actuator.empty() ? joint + "_actuator" : actuator;
     if (!interface_of(interface, d.interface))
-      throw MujocoError(source + ": " + where + " drives joint '" + joint + "' through '" + interface +
-                        "': simgate knows position, velocity and effort interfaces");
+      throw MujocoError(source + ": " + where + " drives joint '" + joint + "' through '" +
+                        interface + "': simgate knows position, velocity and effort interfaces");
     drives.push_back(std::move(d));
   };
-  for (auto* t = robot->FirstChildElement("transmission"); t; t = t->NextSiblingElement("transmission")) {
+  for (auto* t = robot->FirstChildElement("transmission"); t;
+       t = t->NextSiblingElement("transmission")) {
     const std::string where = "transmission '" + attribute(t, "name") + "'";
     const auto* actuator = t->FirstChildElement("actuator");
     for (auto* j = t->FirstChildElement("joint"); j; j = j->NextSiblingElement("joint")) {
       // the interface is the joint's (ROS 1 Kinetic on), or the actuator's (older URDF)
       std::string interface = element_text(j->FirstChildElement("hardwareInterface"));
-      if (interface.empty() && actuator) interface = element_text(actuator->FirstChildElement("hardwareInterface"));
+      if (interface.empty() && actuator)
+        interface = element_text(actuator->FirstChildElement("hardwareInterface"));
       add(attribute(j, "name"), attribute(actuator, "name"), interface, where);
     }
   }
-  for (auto* block = robot->FirstChildElement("ros2_control"); block; block = block->NextSiblingElement("ros2_control")) {
+  for (auto* block = robot->FirstChildElement("ros2_control"); block;
+       block = block->NextSiblingElement("ros2_control")) {
     for (auto* j = block->FirstChildElement("joint"); j; j = j->NextSiblingElement("joint")) {
       const auto* command = j->FirstChildElement("command_interface");
       if (!command) continue;  // state only: nothing drives it
@@ -102,7 +112,8 @@ std::vector<Drive> drives_of(const tinyxml2::XMLElement* robot, const std::strin
 
 void add_actuator(mjSpec* spec, const Drive& d, const std::string& source) {
   if (!mjs_findElement(spec, mjOBJ_JOINT, d.joint.c_str()))
-    throw MujocoError(source + ": a transmission drives joint '" + d.joint + "', which the robot does not have");
+    throw MujocoError(source + ": a transmission drives joint '" + d.joint +
+                      "', which the robot does not have");
   mjsActuator* a = mjs_addActuator(spec, nullptr);
   mjs_setName(a->element, d.actuator.c_str());
   a->trntype = mjTRN_JOINT;
@@ -111,7 +122,8 @@ void add_actuator(mjSpec* spec, const Drive& d, const std::string& source) {
   switch (d.interface) {
     case Interface::position: {
       double dampratio[1] = {1.0};
-      error = mjs_setToPosition(a, d.effort > 0 ? d.effort / 0.1 : 100.0, nullptr, dampratio, nullptr, 0.0);
+      error = mjs_setToPosition(a, d.effort > 0 ? d.effort / 0.1 : 100.0, nullptr, dampratio,
+                                nullptr, 0.0);
       if (d.has_range) {
         a->ctrllimited = mjLIMITED_TRUE;
         a->ctrlrange[0] = d.lower, a->ctrlrange[1] = d.upper;
@@ -154,7 +166,8 @@ void add_transmission_actuators(mjSpec* spec, const std::string& source, const s
   doc.Parse(text.data(), text.size());
   const std::vector<Drive> drives = drives_of(doc.RootElement(), source);
   for (const Drive& d : drives) add_actuator(spec, d, source);
-  if (!drives.empty()) log::info(source, ": ", drives.size(), " actuator(s) from its transmissions");
+  if (!drives.empty())
+    log::info(source, ": ", drives.size(), " actuator(s) from its transmissions");
 }
 
 }  // namespace simgate::sim

@@ -61,7 +61,8 @@ struct Owner {
   bool operator==(const Owner&) const = default;
   std::string describe() const {
     if (host()) return "the host";
-    return "a client of transport '" + transport + "'" + (client ? " (client #" + std::to_string(client) + ")" : "");
+    return "a client of transport '" + transport + "'" +
+           (client ? " (client #" + std::to_string(client) + ")" : "");
   }
 };
 
@@ -73,8 +74,13 @@ struct Snapshot : PhysicsState {
 };
 
 json to_json(const ObjectState::Unmatched& u) {
-  return {{"missing", {{"bodies", u.missing_bodies}, {"joints", u.missing_joints}, {"actuators", u.missing_actuators}}},
-          {"kept", {{"bodies", u.kept_bodies}, {"joints", u.kept_joints}, {"actuators", u.kept_actuators}}}};
+  return {
+      {"missing",
+       {{"bodies", u.missing_bodies},
+        {"joints", u.missing_joints},
+        {"actuators", u.missing_actuators}}},
+      {"kept",
+       {{"bodies", u.kept_bodies}, {"joints", u.kept_joints}, {"actuators", u.kept_actuators}}}};
 }
 
 // Ends what `e` is running PREEMPTED with `reason`: its slot's request (through
@@ -119,28 +125,33 @@ class WorldState {
       reset_robot(robot);
       return "Robot '" + robot + "' restored to its initial state";
     }
-    throw ServiceError("simulation reset: scope = \"" + scope + "\": expected \"all\" (objects and time), "
-                       "\"state\" (objects; time goes on) or \"robot\" (one robot, named by `robot`)",
-                       Failure::bad_arguments, {{"parameter", "scope"}});
+    throw ServiceError(
+        "simulation reset: scope = \"" + scope +
+            "\": expected \"all\" (objects and time), "
+            "\"state\" (objects; time goes on) or \"robot\" (one robot, named by `robot`)",
+        Failure::bad_arguments, {{"parameter", "scope"}});
   }
 
   std::uint64_t save_state() {
     const Owner owner = Owner::caller();
     // (a transport that does not number its clients: they are not told apart, nor limited)
     if (!owner.host() && owner.client != 0) {
-      const auto own = std::count_if(snapshots_.begin(), snapshots_.end(),
-                                     [&](const auto& entry) { return entry.second.owner == owner; });
+      const auto own = std::count_if(snapshots_.begin(), snapshots_.end(), [&](const auto& entry) {
+        return entry.second.owner == owner;
+      });
       if (static_cast<std::size_t>(own) >= k_max_states_per_client)
-        throw ServiceError("simulation save_state: this client keeps " + std::to_string(own) +
-                               " saved states already (the most one client keeps): drop one first (simulation "
-                               "drop_state handle)",
-                           Failure::service_error, {{"limit", k_max_states_per_client}});
+        throw ServiceError(
+            "simulation save_state: this client keeps " + std::to_string(own) +
+                " saved states already (the most one client keeps): drop one first (simulation "
+                "drop_state handle)",
+            Failure::service_error, {{"limit", k_max_states_per_client}});
     }
     if (snapshots_.size() >= k_max_states && !drop_one_left_behind())
-      throw ServiceError("simulation save_state: " + std::to_string(k_max_states) +
-                             " states are saved already (the limit), by clients still connected: drop one first "
-                             "(simulation drop_state handle)",
-                         Failure::service_error, {{"limit", k_max_states}});
+      throw ServiceError(
+          "simulation save_state: " + std::to_string(k_max_states) +
+              " states are saved already (the limit), by clients still connected: drop one first "
+              "(simulation drop_state handle)",
+          Failure::service_error, {{"limit", k_max_states}});
     Snapshot s;
     s.owner = owner;
     s.capture(sim_.m(), sim_.d(), sim_.model_generation());
@@ -153,7 +164,8 @@ class WorldState {
   json restore_state(std::int64_t handle) {
     const Snapshot& s = find(handle, "restore_state");
     // what moves stops first, in the world it was started in
-    end_robots_requests("simulation restore_state: the simulation went back to state " + std::to_string(handle));
+    end_robots_requests("simulation restore_state: the simulation went back to state " +
+                        std::to_string(handle));
     const bool clock_moves = s.time() != sim_.sim_time();
     const bool exact = s.fits(sim_.m(), sim_.model_generation());
     ObjectState::Unmatched unmatched;
@@ -163,8 +175,9 @@ class WorldState {
       // the model changed since: object by object, by name
       unmatched = sim_.restore_objects(s.objects, s.time());
       if (!unmatched.empty())
-        log::info("simulation restore_state: state ", handle, " of model generation ", s.generation(),
-                  " restored by name into generation ", sim_.model_generation(), ": ", to_json(unmatched).dump());
+        log::info("simulation restore_state: state ", handle, " of model generation ",
+                  s.generation(), " restored by name into generation ", sim_.model_generation(),
+                  ": ", to_json(unmatched).dump());
     }
     json out = to_json(unmatched);
     out["sim_time"] = s.time();
@@ -173,7 +186,8 @@ class WorldState {
     for (auto& e : sim_.components())
       if (e->sim_component) e->sim_component->on_reset();
     if (clock_moves)
-      end_sleeps("simulation restore_state: simulated time went to that of state " + std::to_string(handle));
+      end_sleeps("simulation restore_state: simulated time went to that of state " +
+                 std::to_string(handle));
     // every client that watches the world learns that it went back
     sim_.announce("restored", {{"handle", handle}});
     return out;
@@ -196,8 +210,9 @@ class WorldState {
     const Snapshot& s = find(handle, "drop_state");
     const Owner caller = Owner::caller();
     if (!caller.host() && !(s.owner == caller) && connected(s.owner))
-      throw ServiceError("simulation drop_state: state " + std::to_string(handle) + " was saved by " +
-                             s.owner.describe() + ", still connected: only it drops its states (any client may "
+      throw ServiceError("simulation drop_state: state " + std::to_string(handle) +
+                             " was saved by " + s.owner.describe() +
+                             ", still connected: only it drops its states (any client may "
                              "restore it)",
                          Failure::service_error, {{"parameter", "handle"}});
     snapshots_.erase(static_cast<std::uint64_t>(handle));
@@ -226,17 +241,20 @@ class WorldState {
   }
 
   const Snapshot& find(std::int64_t handle, const char* service) const {
-    const auto it = handle > 0 ? snapshots_.find(static_cast<std::uint64_t>(handle)) : snapshots_.end();
+    const auto it =
+        handle > 0 ? snapshots_.find(static_cast<std::uint64_t>(handle)) : snapshots_.end();
     if (it == snapshots_.end())
-      throw ServiceError(std::string("simulation ") + service + ": no saved state " + std::to_string(handle) +
-                             ": expected a handle from simulation save_state (simulation list_states)",
-                         Failure::bad_arguments, {{"parameter", "handle"}});
+      throw ServiceError(
+          std::string("simulation ") + service + ": no saved state " + std::to_string(handle) +
+              ": expected a handle from simulation save_state (simulation list_states)",
+          Failure::bad_arguments, {{"parameter", "handle"}});
     return it->second;
   }
 
   [[noreturn]] static void refuse_robot_with(const std::string& scope) {
-    throw ServiceError("simulation reset: scope \"" + scope + "\" resets every robot: `robot` names one only with "
-                       "scope \"robot\"",
+    throw ServiceError("simulation reset: scope \"" + scope +
+                           "\" resets every robot: `robot` names one only with "
+                           "scope \"robot\"",
                        Failure::bad_arguments, {{"parameter", "robot"}});
   }
 
@@ -252,21 +270,25 @@ class WorldState {
   void reset_robot(const std::string& name) {
     // a robot the caller's transport does not serve is answered as one that does not exist
     ComponentEntry* entry = sim_.find(name);
-    auto* robot = entry && entry->is_robot && caller_serves(name) ? dynamic_cast<Robot*>(entry->component.get())
-                                                                   : nullptr;
+    auto* robot = entry && entry->is_robot && caller_serves(name)
+                      ? dynamic_cast<Robot*>(entry->component.get())
+                      : nullptr;
     if (!robot)
-      throw ServiceError("simulation reset: robot = \"" + name + "\": expected the name of a robot (simulation "
-                         "list_robots)",
+      throw ServiceError("simulation reset: robot = \"" + name +
+                             "\": expected the name of a robot (simulation "
+                             "list_robots)",
                          Failure::bad_arguments, {{"parameter", "robot"}});
     // its components' requests end: a component the caller's transport does not serve is
     // beyond its reach (a JSON-RPC reset ended a socket client's goto, issue #35 item 10)
     for (auto& e : sim_.components())
       if (e->robot == name && !caller_serves(e->component->name()))
-        throw ServiceError("simulation reset: robot '" + name + "' has component '" + e->component->name() +
-                               "', which this transport does not serve: its reset would act behind that "
-                               "component's clients; reset it through a transport that serves all of the robot",
-                           Failure::service_error, {{"parameter", "robot"}, {"component", e->component->name()}});
-    const std::string reason = "simulation reset (robot): robot '" + name + "' went back to its initial state";
+        throw ServiceError(
+            "simulation reset: robot '" + name + "' has component '" + e->component->name() +
+                "', which this transport does not serve: its reset would act behind that "
+                "component's clients; reset it through a transport that serves all of the robot",
+            Failure::service_error, {{"parameter", "robot"}, {"component", e->component->name()}});
+    const std::string reason =
+        "simulation reset (robot): robot '" + name + "' went back to its initial state";
     end_requests(*entry, reason);
     for (auto& e : sim_.components())
       if (e->robot == name) end_requests(*e, reason);
@@ -287,7 +309,8 @@ class WorldState {
       for (int u = 0; u < m->nu; ++u) {
         if (m->actuator_trntype[u] != mjTRN_JOINT || m->actuator_trnid[2 * u] != j) continue;
         d->ctrl[u] = 0;
-        if (m->actuator_actnum[u] > 0) mju_zero(d->act + m->actuator_actadr[u], m->actuator_actnum[u]);
+        if (m->actuator_actnum[u] > 0)
+          mju_zero(d->act + m->actuator_actadr[u], m->actuator_actnum[u]);
       }
     }
     for (int b = 0; b < m->nbody; ++b)
@@ -309,23 +332,32 @@ class WorldState {
 void add_state_services(SupervisionServices& simulation, Simulation& sim) {
   auto state = std::make_shared<WorldState>(sim);
   simulation
-      .offer_service(
-          "reset",
-          [state](const std::string& scope, const std::string& robot) { return state->reset(scope, robot); },
-          {{"scope", "all"}, {"robot", ""}})
-      .doc("scope \"all\": objects and time to their initial state; \"state\": objects only (time goes on); "
-           "\"robot\": the robot named `robot`. Running requests of what is reset end PREEMPTED");
+      .offer_service("reset",
+                     [state](const std::string& scope, const std::string& robot) {
+                       return state->reset(scope, robot);
+                     },
+                     {{"scope", "all"}, {"robot", ""}})
+      .doc(
+          "scope \"all\": objects and time to their initial state; \"state\": objects only (time "
+          "goes on); "
+          "\"robot\": the robot named `robot`. Running requests of what is reset end PREEMPTED");
   simulation.offer_service("save_state", [state] { return state->save_state(); })
       .doc("Keep the whole simulation state in memory; returns its handle (an integer)");
   simulation
-      .offer_service("restore_state", [state](std::int64_t handle) { return state->restore_state(handle); },
+      .offer_service("restore_state",
+                     [state](std::int64_t handle) { return state->restore_state(handle); },
                      {"handle"})
-      .doc("Go back to a saved state (after a spawn or a delete: object by object, by name); components are reset; "
-           "returns {sim_time, exact, missing, kept}");
+      .doc(
+          "Go back to a saved state (after a spawn or a delete: object by object, by name); "
+          "components are reset; "
+          "returns {sim_time, exact, missing, kept}");
   simulation.offer_service("list_states", [state] { return state->list_states(); })
-      .doc("[{handle, sim_time, model_generation, exact, yours, owner_connected}] of the saved states");
+      .doc(
+          "[{handle, sim_time, model_generation, exact, yours, owner_connected}] of the saved "
+          "states");
   simulation
-      .offer_service("drop_state", [state](std::int64_t handle) { return state->drop_state(handle); }, {"handle"})
+      .offer_service("drop_state",
+                     [state](std::int64_t handle) { return state->drop_state(handle); }, {"handle"})
       .doc("Forget a saved state (one this client saved, or whose client left)");
 }
 

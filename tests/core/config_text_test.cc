@@ -25,8 +25,10 @@ std::string error_of(std::string_view text) {
 // the rest ignored (issue #17, item 9, a fuzz finding)
 TEST(ConfigText, ANulByteIsRefusedWithItsPosition) {
   const std::string text("{\"a\": 1,\n \"b\": 2}\0{\"c\": 3}", 26);
-  EXPECT_EQ(error_of(text), "configuration: expected a text file, found a NUL byte (line 2, column 9)");
-  EXPECT_THAT(error_of(std::string("{\"a\": \"x\0y\"}", 12)), HasSubstr("a NUL byte (line 1, column 9)"));
+  EXPECT_EQ(error_of(text),
+            "configuration: expected a text file, found a NUL byte (line 2, column 9)");
+  EXPECT_THAT(error_of(std::string("{\"a\": \"x\0y\"}", 12)),
+              HasSubstr("a NUL byte (line 1, column 9)"));
   EXPECT_EQ(parse_config_text("{\"a\": 1,\n \"b\": 2}"), json({{"a", 1}, {"b", 2}}));
 }
 

@@ -138,7 +138,8 @@ TEST_F(DeadlineTest, TheServersMaxWaitBoundsCallsWithoutATimeoutAndLongerOnes) {
   ASSERT_TRUE(b);
   for (const auto& outcome : {*a, *b}) {
     EXPECT_EQ(outcome.failure, Failure::timeout);
-    EXPECT_EQ(outcome.message, "forever.each: no reply within 50 ms (the server's max wait); interrupted");
+    EXPECT_EQ(outcome.message,
+              "forever.each: no reply within 50 ms (the server's max wait); interrupted");
     EXPECT_EQ(outcome.data["limit"], "max_wait");
   }
 }
@@ -191,7 +192,8 @@ TEST_F(DeadlineTest, ARequestThatWaitedForTheLockPastItsDeadlineIsNotRun) {
   ASSERT_TRUE(outcome);
   EXPECT_EQ(outcome->failure, Failure::timeout);
   EXPECT_EQ(outcome->status, Status::failed);
-  EXPECT_THAT(outcome->message, HasSubstr("forever.count: no reply within 1 ms (deadline); not run"));
+  EXPECT_THAT(outcome->message,
+              HasSubstr("forever.count: no reply within 1 ms (deadline); not run"));
   EXPECT_EQ(forever.counted, 0);
 }
 

@@ -109,7 +109,8 @@ class ThreadedManager : public RequestManager {
   }
   void on_service_progress(RequestId id, json&& value) override {
     std::lock_guard lock(mutex_);
-    delivered_.push_back({id, Outcome::success(std::move(value)), std::this_thread::get_id() == io_thread_, true});
+    delivered_.push_back(
+        {id, Outcome::success(std::move(value)), std::this_thread::get_id() == io_thread_, true});
     cv_.notify_all();
   }
 
@@ -219,7 +220,8 @@ TEST(HandoffTest, AnAnswerInOrderFollowsTheRequestsSubmittedBeforeIt) {
 TEST(HandoffTest, ACancelsAnswerTravelsLikeAnOutcome) {
   ThreadedManager rm;
   const RequestId answer = rm.new_request_id();
-  rm.cancel(rm.new_request_id(), [&](bool found) { rm.complete_request(answer, Outcome::success(json(found))); });
+  rm.cancel(rm.new_request_id(),
+            [&](bool found) { rm.complete_request(answer, Outcome::success(json(found))); });
   rm.process();
   ASSERT_TRUE(rm.wait_for_deliveries(1));
   const auto delivered = rm.delivered();

@@ -40,8 +40,10 @@ TEST(JsonPreviewTest, ShortValuesReadAsTheirCompactDump) {
   EXPECT_EQ(describe_json(json(3)), "number 3");
   EXPECT_EQ(describe_json(json(2.5)), "number 2.5");
   EXPECT_EQ(describe_json(json("abc")), "string \"abc\"");
-  EXPECT_EQ(describe_json(json::parse(R"([1,"x",{"b":[true,null]}])")), R"(array [1,"x",{"b":[true,null]}])");
-  EXPECT_EQ(describe_json(json::parse(R"({"a":1,"b":"q\"uote"})")), R"(object {"a":1,"b":"q\"uote"})");
+  EXPECT_EQ(describe_json(json::parse(R"([1,"x",{"b":[true,null]}])")),
+            R"(array [1,"x",{"b":[true,null]}])");
+  EXPECT_EQ(describe_json(json::parse(R"({"a":1,"b":"q\"uote"})")),
+            R"(object {"a":1,"b":"q\"uote"})");
   EXPECT_EQ(json_preview(json::array()), "[]");
   EXPECT_EQ(json_preview(json::object()), "{}");
 }

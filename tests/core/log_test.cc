@@ -14,7 +14,9 @@ namespace {
 class LogRateLimitTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    log::set_sink([this](log::Level level, std::string_view message) { lines_.emplace_back(level, message); });
+    log::set_sink([this](log::Level level, std::string_view message) {
+      lines_.emplace_back(level, message);
+    });
   }
   void TearDown() override {
     log::set_rate_limit(200, 50);  // the defaults

@@ -19,7 +19,9 @@ using ::testing::HasSubstr;
 
 const std::string kDir = SIMGATE_TEST_BROKEN_PLUGIN_DIR;
 
-std::string path_of(const std::string& name) { return kDir + "/libsimgate_transport_" + name + ".so"; }
+std::string path_of(const std::string& name) {
+  return kDir + "/libsimgate_transport_" + name + ".so";
+}
 
 std::string load_error(const std::string& name_or_path) {
   try {
@@ -60,7 +62,8 @@ TEST(PluginLoaderTest, NotFoundListsEveryPathTried) {
   EXPECT_THAT(e, HasSubstr("transport plugin 'teleportation'"));
   EXPECT_THAT(e, HasSubstr("/nonexistent/a/libsimgate_transport_teleportation.so"));
   EXPECT_THAT(e, HasSubstr("/nonexistent/b/libsimgate_transport_teleportation.so"));
-  EXPECT_THAT(e, HasSubstr(std::string(SIMGATE_TEST_PLUGIN_DIR) + "/libsimgate_transport_teleportation.so"));
+  EXPECT_THAT(e, HasSubstr(std::string(SIMGATE_TEST_PLUGIN_DIR) +
+                           "/libsimgate_transport_teleportation.so"));
   EXPECT_THAT(e, HasSubstr("SIMGATE_PLUGIN_PATH"));
 }
 
@@ -70,14 +73,16 @@ TEST(PluginLoaderTest, UnknownOptionKeysAreRefusedBeforeCreate) {
     plugin->create(json{{"greting", "hi"}}, "transports.mock.options");
     FAIL() << "accepted an unknown key";
   } catch (const ConfigError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("transports.mock.options.greting: unknown key (did you mean 'greeting'? known keys: greeting)"));
+    EXPECT_THAT(e.what(), HasSubstr("transports.mock.options.greting: unknown key (did you mean "
+                                    "'greeting'? known keys: greeting)"));
   }
 }
 
 TEST(PluginLoaderTest, WrongAbiVersionIsRefused) {
   std::string e = load_error(path_of("badabi"));
   EXPECT_THAT(e, HasSubstr("transport plugin 'badabi' (" + path_of("badabi") + ")"));
-  EXPECT_THAT(e, HasSubstr("ABI version 999, expected " + std::to_string(SIMGATE_PLUGIN_ABI_VERSION)));
+  EXPECT_THAT(e,
+              HasSubstr("ABI version 999, expected " + std::to_string(SIMGATE_PLUGIN_ABI_VERSION)));
 }
 
 // before: the page showed "ABI version 0, expected 1" while the code was at 8
@@ -85,12 +90,13 @@ TEST(PluginLoaderTest, TheRefusalTheDocsShowNamesTheCodesAbiVersion) {
   std::ifstream in(std::string(SIMGATE_SOURCE_DIR) + "/docs/writing-a-transport.md");
   const std::string page((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   const unsigned abi = SIMGATE_PLUGIN_ABI_VERSION;
-  EXPECT_THAT(page, HasSubstr("ABI version " + std::to_string(abi - 1) + ", expected " + std::to_string(abi) +
-                              " (rebuild the plugin against this simgate)"));
+  EXPECT_THAT(page, HasSubstr("ABI version " + std::to_string(abi - 1) + ", expected " +
+                              std::to_string(abi) + " (rebuild the plugin against this simgate)"));
 }
 
 TEST(PluginLoaderTest, WrongBuildTagIsRefused) {
-  EXPECT_THAT(load_error(path_of("badtag")), HasSubstr("built with 'abi1;cxx11abi=0;json=2.0', expected"));
+  EXPECT_THAT(load_error(path_of("badtag")),
+              HasSubstr("built with 'abi1;cxx11abi=0;json=2.0', expected"));
 }
 
 TEST(PluginLoaderTest, MissingEntrySymbolIsRefused) {
@@ -103,7 +109,8 @@ TEST(PluginLoaderTest, MissingRequiredFunctionIsRefused) {
 }
 
 TEST(PluginLoaderTest, DescriptorNameMustMatch) {
-  EXPECT_THAT(load_error(path_of("misnamed")), HasSubstr("calls itself 'other', expected 'misnamed'"));
+  EXPECT_THAT(load_error(path_of("misnamed")),
+              HasSubstr("calls itself 'other', expected 'misnamed'"));
 }
 
 TEST(PluginLoaderTest, UnresolvedSymbolsFailAtDlopen) {

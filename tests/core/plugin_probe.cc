@@ -15,7 +15,8 @@ int main(int argc, char** argv) {
   }
   try {
     auto plugin = simgate::load_transport_plugin(argv[1]);
-    auto rm = plugin->create({{"call", {"test_component", "add", {1, 2}}}, {"output", argv[2]}}, "probe");
+    auto rm =
+        plugin->create({{"call", {"test_component", "add", {1, 2}}}, {"output", argv[2]}}, "probe");
     rm->register_service("test_component", [](int a, int b) { return a + b; }, "add", {"a", "b"});
     auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
     while (!std::filesystem::exists(argv[2]) && std::chrono::steady_clock::now() < deadline)

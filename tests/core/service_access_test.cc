@@ -58,12 +58,17 @@ TEST(ServiceAccessTest, MalformedPatternsAreRefusedWithTheReason) {
   EXPECT_EQ(ServiceAccess::pattern_error("*"), "");
   EXPECT_EQ(ServiceAccess::pattern_error("robot-1.*"), "");
   EXPECT_EQ(ServiceAccess::pattern_error(""), "is empty");
-  EXPECT_THAT(ServiceAccess::pattern_error("simulation"),
-              HasSubstr("has no '.' between a component and a service (\"simulation.*\": every service of a "
-                        "component 'simulation'; \"*.simulation\": a service 'simulation' of any component)"));
-  EXPECT_THAT(ServiceAccess::pattern_error("simulation.qu?t"), HasSubstr("has a character other than"));
-  EXPECT_THAT(ServiceAccess::pattern_error("robot.[a-z]*"), HasSubstr("has a character other than"));
-  EXPECT_THAT(ServiceAccess::pattern_error("simulation. quit"), HasSubstr("has a character other than"));
+  EXPECT_THAT(
+      ServiceAccess::pattern_error("simulation"),
+      HasSubstr(
+          "has no '.' between a component and a service (\"simulation.*\": every service of a "
+          "component 'simulation'; \"*.simulation\": a service 'simulation' of any component)"));
+  EXPECT_THAT(ServiceAccess::pattern_error("simulation.qu?t"),
+              HasSubstr("has a character other than"));
+  EXPECT_THAT(ServiceAccess::pattern_error("robot.[a-z]*"),
+              HasSubstr("has a character other than"));
+  EXPECT_THAT(ServiceAccess::pattern_error("simulation. quit"),
+              HasSubstr("has a character other than"));
   EXPECT_EQ(ServiceAccess::pattern_error(".quit"), "has an empty name between dots");
   EXPECT_EQ(ServiceAccess::pattern_error("simulation."), "has an empty name between dots");
   EXPECT_EQ(ServiceAccess::pattern_error("robot..quit"), "has an empty name between dots");
@@ -124,7 +129,8 @@ class RequestManagerAccessTest : public ::testing::Test {
 // `o`'s message and data with `name` replaced by NAME (to compare two refusals)
 std::string hidden(const Outcome& o, const std::string& name) {
   std::string text = o.message + " " + o.data.dump();
-  for (auto at = text.find(name); at != std::string::npos; at = text.find(name, at + 4)) text.replace(at, name.size(), "NAME");
+  for (auto at = text.find(name); at != std::string::npos; at = text.find(name, at + 4))
+    text.replace(at, name.size(), "NAME");
   return text;
 }
 
@@ -136,8 +142,9 @@ TEST_F(RequestManagerAccessTest, ADeniedServiceIsRefusedAsAnUnknownOneAndDoesNot
   EXPECT_EQ(quits, 0);
   EXPECT_EQ(denied->status, Status::failed);
   EXPECT_EQ(denied->failure, Failure::unknown_service);
-  EXPECT_EQ(denied->message, "The request quit has not been registered in Test service manager: component "
-                             "'simulation' has no service 'quit' (services: details)");
+  EXPECT_EQ(denied->message,
+            "The request quit has not been registered in Test service manager: component "
+            "'simulation' has no service 'quit' (services: details)");
   // word for word what a service that does not exist gets: the lists do not show through
   EXPECT_EQ(hidden(*denied, "quit"), hidden(*missing, "quiz"));
   EXPECT_EQ(denied->failure, missing->failure);
@@ -158,7 +165,8 @@ TEST_F(RequestManagerAccessTest, AnAllowListLetsOnlyItsServicesRun) {
 }
 
 TEST_F(RequestManagerAccessTest, DescriptorsAndServicesListOnlyCallableServices) {
-  rm.set_access(ServiceAccess({{"robot.*", "simulation.*"}}, {"simulation.quit", "robot.teleport.*"}));
+  rm.set_access(
+      ServiceAccess({{"robot.*", "simulation.*"}}, {"simulation.quit", "robot.teleport.*"}));
   std::vector<std::string> names;
   for (const auto& d : rm.descriptors()) names.push_back(d.qualified_name());
   EXPECT_EQ(names, std::vector<std::string>({"robot.pose.get_local_data", "simulation.details"}));
@@ -168,7 +176,8 @@ TEST_F(RequestManagerAccessTest, DescriptorsAndServicesListOnlyCallableServices)
   EXPECT_FALSE(rm.may_call("simulation", "quit"));
   EXPECT_FALSE(rm.may_call("robot.teleport", "translate"));
   EXPECT_FALSE(rm.may_call("simulation", "nothing"));  // allowed, but not registered
-  EXPECT_EQ(rm.components(), std::vector<std::string>({"robot.pose", "robot.teleport", "simulation"}));
+  EXPECT_EQ(rm.components(),
+            std::vector<std::string>({"robot.pose", "robot.teleport", "simulation"}));
 }
 
 TEST_F(RequestManagerAccessTest, RefusalsNeitherListNorSuggestADeniedService) {
@@ -200,10 +209,13 @@ TEST_F(RequestManagerAccessTest, ServicesRegisteredAfterTheListsAreFilteredToo) 
 TEST_F(RequestManagerAccessTest, ARunningServiceSeesItsCallersLists) {
   // what simulation list_services and details use to show only what the caller may call
   bool saw_quit = true, saw_details = false;
-  rm.register_service("simulation", [&] {
-    saw_quit = caller_may_call("simulation", "quit");
-    saw_details = caller_may_call("simulation", "details");
-  }, "look");
+  rm.register_service(
+      "simulation",
+      [&] {
+        saw_quit = caller_may_call("simulation", "quit");
+        saw_details = caller_may_call("simulation", "details");
+      },
+      "look");
   rm.set_access(ServiceAccess(std::nullopt, {"simulation.quit"}));
   rm.run("simulation", "look");
   EXPECT_FALSE(saw_quit);
@@ -240,8 +252,9 @@ TEST_F(RequestManagerAccessTest, ATransportThatIsNoConsoleRefusesProcessWideServ
   EXPECT_EQ(terminations, 0);
   EXPECT_EQ(refused->status, Status::failed);
   EXPECT_EQ(refused->failure, Failure::unknown_service);
-  EXPECT_THAT(refused->message, HasSubstr("simulation.terminate acts on the whole process, and this transport is "
-                                          "not a console"));
+  EXPECT_THAT(refused->message,
+              HasSubstr("simulation.terminate acts on the whole process, and this transport is "
+                        "not a console"));
   EXPECT_FALSE(rm.may_call("simulation", "terminate"));
   for (const auto& d : rm.descriptors()) EXPECT_NE(d.qualified_name(), "simulation.terminate");
   // nor is it listed or suggested in another refusal

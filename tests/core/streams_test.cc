@@ -98,15 +98,15 @@ TEST_F(StreamHubTest, SamplesFollowTheFrequencyInSimulatedTime) {
 
 TEST_F(StreamHubTest, ANewSubscriberGetsAFirstSampleAloneWithoutWaitingForTheNextDue) {
   auto a = hub.subscribe("robot.counter", "socket", {});
-  hub.publish_due(0);        // a's first, also due
-  hub.publish_due(0.004);    // not due
+  hub.publish_due(0);      // a's first, also due
+  hub.publish_due(0.004);  // not due
   auto b = hub.subscribe("robot.counter", "dds", {});
-  hub.publish_due(0.004);    // b's first, a gets nothing
+  hub.publish_due(0.004);  // b's first, a gets nothing
   EXPECT_EQ(take(*a).size(), 1u);
   auto b_samples = take(*b);
   ASSERT_EQ(b_samples.size(), 1u);
   EXPECT_DOUBLE_EQ(b_samples[0]->time(), 0.004);
-  hub.publish_due(0.01);     // due: both
+  hub.publish_due(0.01);  // due: both
   EXPECT_EQ(take(*a).size(), 1u);
   EXPECT_EQ(take(*b).size(), 1u);
 }
@@ -199,13 +199,15 @@ TEST_F(StreamHubTest, ACommandWithAKeyTheStreamDoesNotTakeIsRefusedAtOnceEvenWhi
   // refused there, out of the client's sight (issue #35, item 10)
   gate->lock();
   PublishResult r;
-  std::thread transport([&] { r = hub.publish("robot.motion", "socket", {{"v", 1}, {"speed", 2}}); });
+  std::thread transport(
+      [&] { r = hub.publish("robot.motion", "socket", {{"v", 1}, {"speed", 2}}); });
   transport.join();
   EXPECT_FALSE(r.ok);
   EXPECT_EQ(r.error, "the command has an unknown key 'speed' (expected v, w)");
   EXPECT_FALSE(hub.turn_wanted());  // nothing queued
   // a timestamp (a sample written back) is taken
-  std::thread again([&] { r = hub.publish("robot.motion", "socket", {{"v", 1}, {"w", 0}, {"timestamp", 3.5}}); });
+  std::thread again(
+      [&] { r = hub.publish("robot.motion", "socket", {{"v", 1}, {"w", 0}, {"timestamp", 3.5}}); });
   again.join();
   EXPECT_TRUE(r.ok);
   EXPECT_TRUE(hub.turn_wanted());
@@ -273,7 +275,8 @@ TEST_F(StreamHubTest, ADirectSubscriberGetsEachSampleAsItIsMadeAndNothingIsQueue
   };
   auto direct = hub.subscribe("robot.counter", "dds", std::move(options));
   ASSERT_TRUE(direct);
-  for (int step = 0; step <= 10; ++step) hub.publish_due(step * 0.002);  // due at 0 (first), 0.01, 0.02
+  for (int step = 0; step <= 10; ++step)
+    hub.publish_due(step * 0.002);  // due at 0 (first), 0.01, 0.02
   ASSERT_EQ(got.size(), 3u);
   EXPECT_EQ(got[0], (std::pair<std::uint64_t, double>{1, 0}));
   EXPECT_EQ(got[2].first, 3u);
@@ -322,9 +325,8 @@ TEST_F(StreamHubTest, ARecordSampleIsReadByNameAndIsTheSameJsonOnAsking) {
   class Position : public Component {
    public:
     Position() : Component("robot.position") {
-      declare_output_stream("position", {"x", "y", "timestamp"}, [this](std::span<double> v) {
-        v[0] = 1.5, v[1] = -2, v[2] = ++reads;
-      });
+      declare_output_stream("position", {"x", "y", "timestamp"},
+                            [this](std::span<double> v) { v[0] = 1.5, v[1] = -2, v[2] = ++reads; });
     }
     int reads = 0;
   } position;
@@ -360,7 +362,8 @@ TEST_F(StreamHubTest, ARecordSampleIsReusedOnlyWhenNobodyHoldsIt) {
   class Position : public Component {
    public:
     Position() : Component("robot.position") {
-      declare_output_stream("position", {"x", "timestamp"}, [this](std::span<double> v) { v[0] = ++reads, v[1] = 0; });
+      declare_output_stream("position", {"x", "timestamp"},
+                            [this](std::span<double> v) { v[0] = ++reads, v[1] = 0; });
     }
     int reads = 0;
   } position;
@@ -414,8 +417,8 @@ TEST(RecordStream, HasOneToSixteenNumbers) {
 class Pusher : public Component {
  public:
   Pusher() : Component("robot.camera") { declare_pushed_stream("image", 10); }
-  using Component::push_sample;
   using Component::note_skipped_sample;
+  using Component::push_sample;
   // A payload of `n` bytes valued `value`; its JSON counts how often it is made.
   std::shared_ptr<const StreamPayload> payload(std::size_t n, std::uint8_t value) {
     auto p = std::make_shared<StreamPayload>();
@@ -558,7 +561,8 @@ TEST_F(PushedStreamTest, ASkippedSampleIsCountedAsSkippedAndDropped) {
   EXPECT_EQ(take(*sub).size(), 2u);
   EXPECT_EQ(sub->dropped(), 0u);  // the subscriber's own queue lost nothing
   const auto stats = hub.statistics("socket");
-  auto camera = std::find_if(stats.begin(), stats.end(), [](const auto& s) { return s.info.component == "robot.camera"; });
+  auto camera = std::find_if(stats.begin(), stats.end(),
+                             [](const auto& s) { return s.info.component == "robot.camera"; });
   ASSERT_NE(camera, stats.end());
   EXPECT_EQ(camera->samples, 2u);
   EXPECT_EQ(camera->skipped, 2u);

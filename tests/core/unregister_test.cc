@@ -19,7 +19,9 @@ TEST(RequestManagerUnregister, RunningRequestsEndWithTheReasonAndTheServicesGo) 
   Completion saved;
   rm.register_async_service("robot", [&](Completion done) { saved = done; }, "work");
   Completion watching;
-  rm.register_async_service("robot", [&](Completion done) { watching = done; }, "watch").concurrent();
+  rm.register_async_service(
+        "robot", [&](Completion done) { watching = done; }, "watch")
+      .concurrent();
   rm.register_service("robot", [] { return 1; }, "ping");
   rm.register_service("other", [] { return 2; }, "ping");
   auto id = rm.call("robot", "work");

@@ -29,14 +29,17 @@ class FakeImageServer {
     dds_qset_partition1(reply_partition_qos.get(), (partition + "/" + client_hex).c_str());
     QosPtr qos = make_qos(false, 0, DDS_SECS(1));
     dds_entity_t subscriber = dds_create_subscriber(pp, partition_qos.get(), nullptr);
-    requests_ = dds_create_reader(subscriber, dds_create_topic(pp, &simgate_Request_desc, k_request_topic, nullptr, nullptr),
-                                  qos.get(), nullptr);
+    requests_ = dds_create_reader(
+        subscriber, dds_create_topic(pp, &simgate_Request_desc, k_request_topic, nullptr, nullptr),
+        qos.get(), nullptr);
     dds_entity_t publisher = dds_create_publisher(pp, reply_partition_qos.get(), nullptr);
-    replies_ = dds_create_writer(publisher, dds_create_topic(pp, &simgate_Reply_desc, k_reply_topic, nullptr, nullptr),
-                                 qos.get(), nullptr);
+    replies_ = dds_create_writer(
+        publisher, dds_create_topic(pp, &simgate_Reply_desc, k_reply_topic, nullptr, nullptr),
+        qos.get(), nullptr);
     images_ = dds_create_writer(
-        publisher, dds_create_topic(pp, &simgate_stream_Image_desc, k_reply_image_topic, nullptr, nullptr), qos.get(),
-        nullptr);
+        publisher,
+        dds_create_topic(pp, &simgate_stream_Image_desc, k_reply_image_topic, nullptr, nullptr),
+        qos.get(), nullptr);
   }
   bool ok() const { return requests_ > 0 && replies_ > 0 && images_ > 0; }
 
@@ -47,7 +50,8 @@ class FakeImageServer {
       void* samples[1] = {nullptr};
       dds_sample_info_t info;
       if (dds_take(requests_, samples, &info, 1, 1) != 1) return false;
-      if (info.valid_data) std::memcpy(client_.data(), static_cast<simgate_Request*>(samples[0])->id.client, 16);
+      if (info.valid_data)
+        std::memcpy(client_.data(), static_cast<simgate_Request*>(samples[0])->id.client, 16);
       if (info.valid_data) seq = static_cast<simgate_Request*>(samples[0])->id.seq;
       dds_return_loan(requests_, samples, 1);
       return seq != 0;
@@ -83,16 +87,17 @@ class FakeImageServer {
     image.step = 6;
     const double k[9] = {2, 0, 1, 0, 2, 1, 0, 0, 1};
     std::memcpy(image.K, k, sizeof k);
-    image.data = {static_cast<uint32_t>(pixels.size()), static_cast<uint32_t>(pixels.size()), pixels.data(), false};
+    image.data = {static_cast<uint32_t>(pixels.size()), static_cast<uint32_t>(pixels.size()),
+                  pixels.data(), false};
     ASSERT_GE(dds_write(images_, &image), 0);
   }
 
  private:
-  Participant participant_;       // its own participant (as a remote server's)
-  dds_entity_t requests_ = 0;     // simgate_Request
-  dds_entity_t replies_ = 0;      // simgate_Reply, in "<partition>/<client>"
-  dds_entity_t images_ = 0;       // simgate_ReplyImage, same partition
-  ClientId client_{};             // the last request's client
+  Participant participant_;    // its own participant (as a remote server's)
+  dds_entity_t requests_ = 0;  // simgate_Request
+  dds_entity_t replies_ = 0;   // simgate_Reply, in "<partition>/<client>"
+  dds_entity_t images_ = 0;    // simgate_ReplyImage, same partition
+  ClientId client_{};          // the last request's client
 };
 
 DdsClientOptions raw_options(const std::string& partition) {
@@ -101,7 +106,10 @@ DdsClientOptions raw_options(const std::string& partition) {
   return DdsClientOptions::from_json(options);
 }
 
-json record(double time) { return {{"encoding", "rgb8"}, {"format", "raw"}, {"width", 2}, {"height", 2}, {"timestamp", time}}; }
+json record(double time) {
+  return {
+      {"encoding", "rgb8"}, {"format", "raw"}, {"width", 2}, {"height", 2}, {"timestamp", time}};
+}
 
 TEST(DdsClientImagesTest, AReplyThatArrivesBeforeItsImagesIsReturnedWithThemOnceTheyCome) {
   const std::string partition = test_partition();
@@ -119,16 +127,19 @@ TEST(DdsClientImagesTest, AReplyThatArrivesBeforeItsImagesIsReturnedWithThemOnce
   server.image(seq, 2.0, 0, 0, 255);
   const Outcome outcome = client.wait(id, 10s);
   ASSERT_EQ(outcome.status, Status::success);
-  ASSERT_TRUE(outcome.value && outcome.value->is_array()) << (outcome.value ? outcome.value->dump() : "");
+  ASSERT_TRUE(outcome.value && outcome.value->is_array())
+      << (outcome.value ? outcome.value->dump() : "");
   EXPECT_EQ((*outcome.value)[0]["format"], "raw");
   ASSERT_EQ(outcome.attachments.size(), 2u);
   ASSERT_TRUE(outcome.attachments[0] && outcome.attachments[1]);
   // in record order, matched by seq: red, then blue
   EXPECT_EQ(outcome.attachments[0]->content, "image");
-  EXPECT_EQ(outcome.attachments[0]->bytes, std::vector<std::uint8_t>({255, 0, 0, 255, 0, 0, 255, 0, 0, 255, 0, 0}));
+  EXPECT_EQ(outcome.attachments[0]->bytes,
+            std::vector<std::uint8_t>({255, 0, 0, 255, 0, 0, 255, 0, 0, 255, 0, 0}));
   EXPECT_EQ(outcome.attachments[0]->description["timestamp"], 1.0);
   EXPECT_EQ(outcome.attachments[0]->description["component"], "rig.camera");
-  EXPECT_EQ(outcome.attachments[0]->description["intrinsic_matrix"], json::parse("[[2,0,1],[0,2,1],[0,0,1]]"));
+  EXPECT_EQ(outcome.attachments[0]->description["intrinsic_matrix"],
+            json::parse("[[2,0,1],[0,2,1],[0,0,1]]"));
   EXPECT_EQ(outcome.attachments[1]->bytes[2], 255);
   EXPECT_EQ(outcome.attachments[1]->description["timestamp"], 2.0);
 }
@@ -144,7 +155,9 @@ TEST(DdsClientImagesTest, ARecordThatKeptItsPngHasANullAttachment) {
   ASSERT_EQ(seq, id);
   // the server could send the first image only: the second record keeps its PNG
   server.image(seq, 1.0, 255, 0, 0);
-  server.reply(seq, json::array({record(1.0), {{"format", "png"}, {"image", "iVBORw0KGgo="}, {"timestamp", 2.0}}}));
+  server.reply(
+      seq, json::array(
+               {record(1.0), {{"format", "png"}, {"image", "iVBORw0KGgo="}, {"timestamp", 2.0}}}));
   const Outcome outcome = client.wait(id, 10s);
   ASSERT_EQ(outcome.attachments.size(), 2u);
   ASSERT_TRUE(outcome.attachments[0]);

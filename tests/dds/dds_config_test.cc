@@ -40,15 +40,16 @@ std::vector<std::string> bound(const std::string& table, const std::set<std::str
   while (std::getline(in, line)) {
     std::istringstream fields(line);
     std::string slot, local, remote, state, queues, timer, retransmits, uid, timeout, inode;
-    fields >> slot >> local >> remote >> state >> queues >> timer >> retransmits >> uid >> timeout >> inode;
+    fields >> slot >> local >> remote >> state >> queues >> timer >> retransmits >> uid >>
+        timeout >> inode;
     if (!inodes.count(inode)) continue;
     // IPv4 "0100007F:1F90": the address in host byte order (little-endian here), the port
     auto colon = local.find(':');
     std::string address = local.substr(0, colon);
     if (address.size() == 8) {
       unsigned long a = std::stoul(address, nullptr, 16);
-      address = std::to_string(a & 0xff) + "." + std::to_string(a >> 8 & 0xff) + "." + std::to_string(a >> 16 & 0xff) +
-                "." + std::to_string(a >> 24);
+      address = std::to_string(a & 0xff) + "." + std::to_string(a >> 8 & 0xff) + "." +
+                std::to_string(a >> 16 & 0xff) + "." + std::to_string(a >> 24);
     }
     out.push_back(address + ":" + std::to_string(std::stoul(local.substr(colon + 1), nullptr, 16)));
   }
@@ -85,8 +86,8 @@ TEST(DdsExposure, LoopbackSettingsOpenTwoWildcardUdpPortsAndALoopbackOne) {
   std::sort(wildcard.begin(), wildcard.end());
   const unsigned base = 7400 + 250 * test_domain();
   EXPECT_EQ((wildcard[0] - (base + 10)) % 2, 0u) << wildcard[0];  // discovery: 7410 + 250 d + 2 i
-  EXPECT_LE(wildcard[0], base + 10 + 2 * 60);                       // i <= MaxAutoParticipantIndex
-  EXPECT_EQ(wildcard[1], wildcard[0] + 1);                          // data
+  EXPECT_LE(wildcard[0], base + 10 + 2 * 60);                     // i <= MaxAutoParticipantIndex
+  EXPECT_EQ(wildcard[1], wildcard[0] + 1);                        // data
 }
 
 TEST(DdsTransportConfig, UnknownKeysAndBadValuesAreRejectedWithTheirName) {
@@ -101,12 +102,18 @@ TEST(DdsTransportConfig, UnknownKeysAndBadValuesAreRejectedWithTheirName) {
   std::string loopback = loopback_uri();
   expect_error({{"domain", test_domain()}, {"config", loopback}, {"bogus", 1}}, "bogus");
   expect_error({{"domain", 999}, {"config", loopback}}, "domain");
-  expect_error({{"domain", test_domain()}, {"config", loopback}, {"partition", "sim*"}}, "partition");
-  expect_error({{"domain", test_domain()}, {"config", loopback}, {"global_policy", "maybe"}}, "global_policy");
-  expect_error({{"domain", test_domain()}, {"config", loopback}, {"stream_writes", "sometimes"}}, "stream_writes");
+  expect_error({{"domain", test_domain()}, {"config", loopback}, {"partition", "sim*"}},
+               "partition");
+  expect_error({{"domain", test_domain()}, {"config", loopback}, {"global_policy", "maybe"}},
+               "global_policy");
+  expect_error({{"domain", test_domain()}, {"config", loopback}, {"stream_writes", "sometimes"}},
+               "stream_writes");
   expect_error({{"domain", test_domain()}, {"config", loopback}, {"max_depth", 1}}, "max_depth");
-  expect_error({{"domain", test_domain()}, {"config", loopback}, {"max_depth", 10001}}, "max_depth");
-  expect_error({{"domain", test_domain()}, {"config", "<CycloneDDS><Domain><General><NoSuchSetting/>"}}, "domain");
+  expect_error({{"domain", test_domain()}, {"config", loopback}, {"max_depth", 10001}},
+               "max_depth");
+  expect_error(
+      {{"domain", test_domain()}, {"config", "<CycloneDDS><Domain><General><NoSuchSetting/>"}},
+      "domain");
 }
 
 // ---- the Cyclone settings are checked before the transport starts (simgate check) ----
@@ -137,30 +144,39 @@ std::string settings_error(const std::string& config) {
 }
 
 TEST(DdsSettingsCheck, SettingsCycloneAcceptsPass) {
-  EXPECT_EQ(settings_error(""), "");             // the compiled-in loopback settings
-  EXPECT_EQ(settings_error(loopback_uri()), "");  // a file:// URI
+  EXPECT_EQ(settings_error(""), "");                        // the compiled-in loopback settings
+  EXPECT_EQ(settings_error(loopback_uri()), "");            // a file:// URI
   EXPECT_EQ(settings_error(SIMGATE_LOOPBACK_DDS_XML), "");  // a plain file name
-  EXPECT_EQ(settings_error(loopback_xml()), "");  // XML text
+  EXPECT_EQ(settings_error(loopback_xml()), "");            // XML text
   // two fragments; an element Cyclone closes at the end of the text itself
-  EXPECT_EQ(settings_error(loopback_xml() + ",<CycloneDDS><Domain><Discovery><ParticipantIndex>auto"), "");
+  EXPECT_EQ(
+      settings_error(loopback_xml() + ",<CycloneDDS><Domain><Discovery><ParticipantIndex>auto"),
+      "");
 }
 
 TEST(DdsSettingsCheck, SettingsCycloneRefusesAreAConfigErrorWithCyclonesReason) {
-  const std::string expected = "config: expected Cyclone DDS settings (XML, file names or file:// URIs) that Cyclone "
-                               "accepts for domain " + std::to_string(test_domain()) + ", found settings it refuses: ";
+  const std::string expected =
+      "config: expected Cyclone DDS settings (XML, file names or file:// URIs) that Cyclone "
+      "accepts for domain " +
+      std::to_string(test_domain()) + ", found settings it refuses: ";
   // XML its parser cannot read
-  EXPECT_THAT(settings_error("<CycloneDDS><Domain></General></Domain></CycloneDDS>"),
-              ::testing::StartsWith(expected + "//CycloneDDS/Domain: parser error open/close tag mismatch (General)"));
+  EXPECT_THAT(
+      settings_error("<CycloneDDS><Domain></General></Domain></CycloneDDS>"),
+      ::testing::StartsWith(expected +
+                            "//CycloneDDS/Domain: parser error open/close tag mismatch (General)"));
   // an element that does not exist, in a later fragment too
   EXPECT_THAT(settings_error(loopback_with("<Bogus/>")),
               ::testing::StartsWith(expected + "//CycloneDDS/Domain: Bogus: unknown element"));
   EXPECT_THAT(settings_error(loopback_xml() + ",<CycloneDDS><Domain><Discovery><Bogus/>"),
               ::testing::HasSubstr("//CycloneDDS/Domain/Discovery: Bogus: unknown element"));
   // a misspelt one, with the name meant (Cyclone's setting names, from its installed header)
-  EXPECT_THAT(settings_error(loopback_with("<Discovery><ParticipantIndx>auto</ParticipantIndx></Discovery>")),
-              ::testing::HasSubstr("ParticipantIndx: unknown element (did you mean 'ParticipantIndex'?)"));
+  EXPECT_THAT(
+      settings_error(
+          loopback_with("<Discovery><ParticipantIndx>auto</ParticipantIndx></Discovery>")),
+      ::testing::HasSubstr("ParticipantIndx: unknown element (did you mean 'ParticipantIndex'?)"));
   // a value out of its set
-  EXPECT_THAT(settings_error(loopback_with("<Discovery><ParticipantIndex>some</ParticipantIndex></Discovery>")),
+  EXPECT_THAT(settings_error(loopback_with(
+                  "<Discovery><ParticipantIndex>some</ParticipantIndex></Discovery>")),
               ::testing::HasSubstr("ParticipantIndex"));
   // a file that does not open
   EXPECT_EQ(settings_error("file:///nonexistent/cyclone.xml"),
@@ -174,13 +190,15 @@ TEST(DdsSettingsCheck, SettingsCycloneRefusesAreAConfigErrorWithCyclonesReason) 
 TEST(DdsSettingsCheck, CheckingWritesNoTraceFile) {
   // Cyclone opens a trace file before its interface lookup: the check sends tracing to stderr
   // (and drops it) instead
-  std::string trace = ::testing::TempDir() + "simgate-settings-check-" + std::to_string(getpid()) + ".log";
+  std::string trace =
+      ::testing::TempDir() + "simgate-settings-check-" + std::to_string(getpid()) + ".log";
   std::remove(trace.c_str());
-  std::string settings =
-      loopback_with("<Tracing><Verbosity>finest</Verbosity><OutputFile>" + trace + "</OutputFile></Tracing>");
+  std::string settings = loopback_with("<Tracing><Verbosity>finest</Verbosity><OutputFile>" +
+                                       trace + "</OutputFile></Tracing>");
   EXPECT_EQ(settings_error(settings), "");
   EXPECT_FALSE(std::ifstream(trace).good()) << trace << " was written";
-  EXPECT_THAT(settings_error(settings + ",<CycloneDDS><Domain><Bogus/>"), ::testing::HasSubstr("Bogus"));
+  EXPECT_THAT(settings_error(settings + ",<CycloneDDS><Domain><Bogus/>"),
+              ::testing::HasSubstr("Bogus"));
   EXPECT_FALSE(std::ifstream(trace).good()) << trace << " was written";
 }
 
@@ -188,7 +206,8 @@ TEST(DdsSettingsCheck, EnvMeansTheSettingsOfCycloneddsUri) {
   // ctest sets CYCLONEDDS_URI to the loopback file for every test
   const char* uri = std::getenv("CYCLONEDDS_URI");
   ASSERT_NE(uri, nullptr);
-  EXPECT_STREQ(resolve_config("env"), uri);  // was nullptr, which dds_create_domain() reads as Cyclone's defaults
+  EXPECT_STREQ(resolve_config("env"),
+               uri);  // was nullptr, which dds_create_domain() reads as Cyclone's defaults
   EXPECT_EQ(settings_error("env"), "");
   std::string saved = uri;
   ::setenv("CYCLONEDDS_URI", "<CycloneDDS><Domain><Bogus/></Domain></CycloneDDS>", 1);
@@ -216,7 +235,8 @@ TEST(DdsSettingsCheck, ThePluginsValidateNamesTheOptionsPath) {
     plugin->validate(options, "transports.dds.options");
     FAIL() << "accepted";
   } catch (const ConfigError& e) {
-    EXPECT_THAT(e.what(), ::testing::HasSubstr("transports.dds.options.config: expected Cyclone DDS settings"));
+    EXPECT_THAT(e.what(), ::testing::HasSubstr(
+                              "transports.dds.options.config: expected Cyclone DDS settings"));
     EXPECT_THAT(e.what(), ::testing::HasSubstr("Bogus: unknown element"));
   }
   options = {{"domain", 300}};
@@ -227,7 +247,8 @@ TEST(DdsTransportConfig, EndpointsNameDomainAndPartition) {
   auto rm = load_transport(k_plugin, server_options(test_partition()));
   auto endpoints = rm->endpoints();
   ASSERT_EQ(endpoints.size(), 1u);
-  EXPECT_EQ(endpoints[0], "dds:domain=" + std::to_string(test_domain()) + ";partition=" + test_partition());
+  EXPECT_EQ(endpoints[0],
+            "dds:domain=" + std::to_string(test_domain()) + ";partition=" + test_partition());
 }
 
 }  // namespace

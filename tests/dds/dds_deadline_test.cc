@@ -64,7 +64,8 @@ TEST_F(DdsTransportTest, SyncCallsWithATimeoutRunAndATimeoutTooLargeIsRefused) {
     EXPECT_EQ(reply->status, simgate_ST_FAILED);
     EXPECT_EQ(reply->failure, simgate_FL_BAD_ARGUMENTS);
     EXPECT_TRUE(reply->last);
-    EXPECT_THAT(reply->message, HasSubstr("timeout_ms " + std::to_string(bad) + " is more than 2147483647"));
+    EXPECT_THAT(reply->message,
+                HasSubstr("timeout_ms " + std::to_string(bad) + " is more than 2147483647"));
   }
   EXPECT_FALSE(grasp_.wait_started(1, 0ms));  // nothing ran
 }

@@ -25,7 +25,8 @@ namespace {
 class LogWatch {
  public:
   // level: the least level logged meanwhile (info again afterwards)
-  explicit LogWatch(std::string needle, log::Level level = log::Level::info) : needle_(std::move(needle)) {
+  explicit LogWatch(std::string needle, log::Level level = log::Level::info)
+      : needle_(std::move(needle)) {
     log::set_level(level);
     log::set_sink([this](log::Level, std::string_view message) {
       if (message.find(needle_) == std::string_view::npos) return;
@@ -51,7 +52,11 @@ class LogWatch {
 bool valid_utf8(const std::string& text) {
   for (std::size_t i = 0; i < text.size();) {
     const auto c = static_cast<unsigned char>(text[i]);
-    std::size_t n = c < 0x80 ? 1 : (c >> 5) == 0x6 ? 2 : (c >> 4) == 0xe ? 3 : (c >> 3) == 0x1e ? 4 : 0;
+    std::size_t n = c < 0x80           ? 1
+                    : (c >> 5) == 0x6  ? 2
+                    : (c >> 4) == 0xe  ? 3
+                    : (c >> 3) == 0x1e ? 4
+                                       : 0;
     if (n == 0 || i + n > text.size()) return false;
     for (std::size_t k = 1; k < n; ++k)
       if ((static_cast<unsigned char>(text[i + k]) & 0xc0) != 0x80) return false;
@@ -218,7 +223,8 @@ TEST_F(DdsTransportTest, NamesLongerThan256BytesAreRefused) {
   auto reply = raw.next();
   ASSERT_TRUE(reply);
   EXPECT_EQ(reply->failure, simgate_FL_BAD_REQUEST);
-  EXPECT_NE(reply->message.find("component name is 1048576 bytes, more than 256"), std::string::npos)
+  EXPECT_NE(reply->message.find("component name is 1048576 bytes, more than 256"),
+            std::string::npos)
       << reply->message.substr(0, 200);
   EXPECT_LT(reply->message.size(), 300u);
   raw.write(2, simgate_OP_CALL, "calc", long_service.c_str(), "[]");
@@ -269,7 +275,8 @@ TEST_F(DdsTransportTest, UnderLetRunTheCallsOfAClientThatLeftRunOn) {
   Completion running = goto_.completion();
   client.reset();  // leaves the domain with its call pending
   ASSERT_TRUE(eventually([&] { return !watch.lines().empty(); }));
-  EXPECT_THAT(watch.lines().front(), ::testing::HasSubstr("0 async call(s) cancelled (on_disconnect: let_run)"));
+  EXPECT_THAT(watch.lines().front(),
+              ::testing::HasSubstr("0 async call(s) cancelled (on_disconnect: let_run)"));
   EXPECT_FALSE(running.done());
   EXPECT_TRUE(running(Status::success, "arrived"));  // it ends when it ends; nobody to tell
   auto other = make_client(test_partition());
@@ -290,7 +297,8 @@ std::vector<RawClient::Reply> replies_for(RawClient& raw, std::uint64_t seq, std
 }
 
 int final_count(const std::vector<RawClient::Reply>& replies) {
-  return static_cast<int>(std::count_if(replies.begin(), replies.end(), [](const auto& r) { return r.last; }));
+  return static_cast<int>(
+      std::count_if(replies.begin(), replies.end(), [](const auto& r) { return r.last; }));
 }
 
 // Item 10: a cancel under its target's own seq (OP_CANCEL {id.seq 5, target 5}) was answered
@@ -353,8 +361,8 @@ class Motion : public Component {
     std::lock_guard lock(mutex);
     return applied;
   }
-  std::mutex mutex;            // guards applied (applied under the simulation lock; read by the test)
-  std::vector<json> applied;   // every command applied
+  std::mutex mutex;  // guards applied (applied under the simulation lock; read by the test)
+  std::vector<json> applied;  // every command applied
 };
 
 // A writer of an input stream's JsonCommand topic ("simgate/<component>/json"), matched.
@@ -366,7 +374,8 @@ class CommandWriter {
     QosPtr partition_qos(dds_create_qos());
     dds_qset_partition1(partition_qos.get(), partition.c_str());
     dds_entity_t publisher = dds_create_publisher(pp, partition_qos.get(), nullptr);
-    dds_entity_t topic = dds_create_topic(pp, &simgate_stream_JsonCommand_desc, topic_name.c_str(), nullptr, nullptr);
+    dds_entity_t topic = dds_create_topic(pp, &simgate_stream_JsonCommand_desc, topic_name.c_str(),
+                                          nullptr, nullptr);
     QosPtr qos = make_qos(false, 0, DDS_SECS(5));
     writer_ = dds_create_writer(publisher, topic, qos.get(), nullptr);
   }
@@ -414,7 +423,8 @@ TEST_F(DdsTransportTest, AStreamCommandBeyondMaxParamsOrMaxDepthIsRefusedUnread)
               ::testing::HasSubstr("a command of 10010 bytes, more than max_params (4096)"));
   ASSERT_EQ(commands.write("{\"v\": [[[[[[[[1]]]]]]]], \"w\": 0}"), DDS_RETCODE_OK);
   ASSERT_TRUE(eventually([&] { return refused() == 2; })) << refused();
-  EXPECT_THAT(hub->statistics("dds").at(0).last_refusal, ::testing::HasSubstr("deeper than max_depth (8)"));
+  EXPECT_THAT(hub->statistics("dds").at(0).last_refusal,
+              ::testing::HasSubstr("deeper than max_depth (8)"));
   // at the limits, a command is applied (the lock taken for the hub's turn, as the loop does)
   ASSERT_EQ(commands.write("{\"v\": 0.5, \"w\": [[[[[[[0]]]]]]]}"), DDS_RETCODE_OK);
   ASSERT_TRUE(eventually([&] {

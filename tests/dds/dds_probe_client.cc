@@ -41,7 +41,8 @@ json outcome_json(const simgate::Outcome& o) {
 
 int main(int argc, char** argv) {
   if (argc < 5) {
-    std::cerr << "usage: dds_probe_client DOMAIN PARTITION CONFIG (waypoint X Y | hang COMPONENT SERVICE PARAMS | "
+    std::cerr << "usage: dds_probe_client DOMAIN PARTITION CONFIG (waypoint X Y | hang COMPONENT "
+                 "SERVICE PARAMS | "
                  "pipeline N | echo N BYTES)\n";
     return 2;
   }
@@ -62,7 +63,9 @@ int main(int argc, char** argv) {
       json result;
       json services = client.list_services(30s);
       result["services"] = json::array();
-      for (const json& s : services) result["services"].push_back(s["component"].get<std::string>() + "." + s["name"].get<std::string>());
+      for (const json& s : services)
+        result["services"].push_back(s["component"].get<std::string>() + "." +
+                                     s["name"].get<std::string>());
       double x = std::stod(argv[5]), y = std::stod(argv[6]);
       result["goto"] = outcome_json(client.call("robot.waypoint", "goto", {x, y, 0.0}, 120s));
       result["pose"] = outcome_json(client.call("robot.pose", "get_local_data", nullptr, 30s));
@@ -87,12 +90,14 @@ int main(int argc, char** argv) {
       json first_other;
       const auto deadline = std::chrono::steady_clock::now() + 60s;
       for (int i = 0; i < count; ++i) {
-        auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+        auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+            deadline - std::chrono::steady_clock::now());
         try {
           simgate::Outcome out = client.wait(ids[i], std::max(left, std::chrono::milliseconds(1)));
           if (out.status == simgate::Status::success && out.value == json(double(i + 1))) {
             ++answered;
-          } else if (out.failure == simgate::Failure::busy && out.message.rfind("Overloaded", 0) == 0) {
+          } else if (out.failure == simgate::Failure::busy &&
+                     out.message.rfind("Overloaded", 0) == 0) {
             ++overloaded;
           } else if (other++ == 0) {
             first_other = outcome_json(out);
@@ -101,8 +106,12 @@ int main(int argc, char** argv) {
           ++lost;  // no final reply in time
         }
       }
-      std::cout << json{{"answered", answered}, {"overloaded", overloaded}, {"other", other},
-                        {"first_other", first_other}, {"lost", lost}}.dump()
+      std::cout << json{{"answered", answered},
+                        {"overloaded", overloaded},
+                        {"other", other},
+                        {"first_other", first_other},
+                        {"lost", lost}}
+                       .dump()
                 << std::endl;
       return 0;
     }
@@ -119,8 +128,10 @@ int main(int argc, char** argv) {
           ++failed;
         }
       }
-      auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - started);
-      std::cout << json{{"answered", answered}, {"failed", failed}, {"ms", ms.count()}}.dump() << std::endl;
+      auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(
+          std::chrono::steady_clock::now() - started);
+      std::cout << json{{"answered", answered}, {"failed", failed}, {"ms", ms.count()}}.dump()
+                << std::endl;
       return 0;
     }
     std::cerr << "dds_probe_client: unknown mode or wrong arguments\n";

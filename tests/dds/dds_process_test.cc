@@ -79,7 +79,8 @@ class Child {
   std::string read_until(const std::string& needle, std::chrono::milliseconds timeout) {
     auto deadline = std::chrono::steady_clock::now() + timeout;
     while (output_.find(needle) == std::string::npos) {
-      auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+      auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+          deadline - std::chrono::steady_clock::now());
       if (left.count() <= 0) break;
       pollfd p{out_, POLLIN, 0};
       if (poll(&p, 1, static_cast<int>(left.count())) <= 0) break;
@@ -128,7 +129,8 @@ class Child {
 TEST(DdsProcessTest, KilledClientHasItsAsyncCallsCancelled) {
   auto server = load_transport(k_plugin, server_options(test_partition()));
   AsyncProbe probe;
-  server->register_async_service("robot", [&](Completion c, double) { probe.on_start(c); }, "goto", {"x"});
+  server->register_async_service("robot", [&](Completion c, double) { probe.on_start(c); }, "goto",
+                                 {"x"});
   SimThread sim(server);
 
   // the client announces a 1 s lease, so its death is noticed quickly
@@ -136,7 +138,8 @@ TEST(DdsProcessTest, KilledClientHasItsAsyncCallsCancelled) {
   auto at = xml.find("<Discovery>");
   ASSERT_NE(at, std::string::npos);
   xml.insert(at + std::string("<Discovery>").size(), "<LeaseDuration>1s</LeaseDuration>");
-  Child client({k_probe, std::to_string(test_domain()), test_partition(), xml, "hang", "robot", "goto", "[1.0]"});
+  Child client({k_probe, std::to_string(test_domain()), test_partition(), xml, "hang", "robot",
+                "goto", "[1.0]"});
   ASSERT_TRUE(client.running());
   ASSERT_NE(client.read_until("accepted", 30s).find("accepted"), std::string::npos);
   ASSERT_TRUE(probe.wait_started(1));
@@ -144,7 +147,8 @@ TEST(DdsProcessTest, KilledClientHasItsAsyncCallsCancelled) {
   EXPECT_FALSE(running.done());
 
   client.kill_now(SIGKILL);  // no goodbye on the wire
-  EXPECT_TRUE(eventually([&] { return running.done(); }, 30s)) << "the killed client's call is still running";
+  EXPECT_TRUE(eventually([&] { return running.done(); }, 30s))
+      << "the killed client's call is still running";
 }
 
 // Issue #17, item 3: a client process that stops (SIGSTOP: its reader acknowledges nothing
@@ -154,7 +158,8 @@ TEST(DdsProcessTest, KilledClientHasItsAsyncCallsCancelled) {
 TEST(DdsProcessTest, AFrozenClientHoldsUpNobodyElse) {
   auto server = load_transport(k_plugin, server_options(test_partition()));
   AsyncProbe probe;
-  server->register_async_service("robot", [&](Completion c, double) { probe.on_start(c); }, "goto", {"x"});
+  server->register_async_service("robot", [&](Completion c, double) { probe.on_start(c); }, "goto",
+                                 {"x"});
   server->register_service("calc", [](std::string text) { return text; }, "echo", {"text"});
   SimThread sim(server);
 
@@ -163,14 +168,16 @@ TEST(DdsProcessTest, AFrozenClientHoldsUpNobodyElse) {
   auto at = xml.find("<Discovery>");
   ASSERT_NE(at, std::string::npos);
   xml.insert(at + std::string("<Discovery>").size(), "<LeaseDuration>60s</LeaseDuration>");
-  Child frozen({k_probe, std::to_string(test_domain()), test_partition(), xml, "hang", "robot", "goto", "[1.0]"});
+  Child frozen({k_probe, std::to_string(test_domain()), test_partition(), xml, "hang", "robot",
+                "goto", "[1.0]"});
   ASSERT_TRUE(frozen.running());
   ASSERT_NE(frozen.read_until("accepted", 30s).find("accepted"), std::string::npos);
   ASSERT_TRUE(probe.wait_started(1));
   frozen.stop();
 
   // 400 calls of 2 kB each way: far beyond what a reply writer holds unacknowledged
-  Child good({k_probe, std::to_string(test_domain()), test_partition(), loopback_uri(), "echo", "400", "2048"});
+  Child good({k_probe, std::to_string(test_domain()), test_partition(), loopback_uri(), "echo",
+              "400", "2048"});
   ASSERT_TRUE(good.running());
   std::string out = good.read_until("}", 120s);
   ASSERT_EQ(good.wait_exit(10s), 0) << out;
@@ -193,12 +200,14 @@ json pipeline(json options, int calls) {
   auto server = load_transport(k_plugin, std::move(options));
   server->register_service("calc", [](double a, double b) { return a + b; }, "add", {"a", "b"});
   SimThread sim(server);
-  Child client({k_probe, std::to_string(test_domain()), test_partition(), loopback_uri(), "pipeline",
-                std::to_string(calls)});
+  Child client({k_probe, std::to_string(test_domain()), test_partition(), loopback_uri(),
+                "pipeline", std::to_string(calls)});
   EXPECT_TRUE(client.running());
   std::string out = client.read_until("}", 120s);
   EXPECT_EQ(client.wait_exit(10s), 0) << out;
-  json result = out.find('{') == std::string::npos ? json() : json::parse(out.substr(out.find('{')), nullptr, false);
+  json result = out.find('{') == std::string::npos
+                    ? json()
+                    : json::parse(out.substr(out.find('{')), nullptr, false);
   EXPECT_TRUE(result.is_object()) << out;
   return result.is_object() ? result : json();
 }
@@ -239,13 +248,21 @@ TEST(DdsProcessTest, PlainCClientFromTheDocsCallsAService) {
   auto server = load_transport(k_plugin, server_options(test_partition()));
   server->register_service("calc", [](double a, double b) { return a + b; }, "add", {"a", "b"});
   AsyncProbe probe;
-  server->register_async_service("robot", [&](Completion c) { probe.on_start(c); c(Status::success, "done"); }, "go");
+  server->register_async_service(
+      "robot",
+      [&](Completion c) {
+        probe.on_start(c);
+        c(Status::success, "done");
+      },
+      "go");
   SimThread sim(server);
   std::string xml = read_file(SIMGATE_LOOPBACK_DDS_XML);
-  Child sync_call({k_c_client, std::to_string(test_domain()), test_partition(), "calc", "add", "[2, 40]", xml});
+  Child sync_call(
+      {k_c_client, std::to_string(test_domain()), test_partition(), "calc", "add", "[2, 40]", xml});
   EXPECT_NE(sync_call.read_until("\n", 60s).find("SUCCESS 42"), std::string::npos);
   EXPECT_EQ(sync_call.wait_exit(30s), 0);
-  Child async_call({k_c_client, std::to_string(test_domain()), test_partition(), "robot", "go", "[]", xml});
+  Child async_call(
+      {k_c_client, std::to_string(test_domain()), test_partition(), "robot", "go", "[]", xml});
   EXPECT_NE(async_call.read_until("\n", 60s).find("SUCCESS \"done\""), std::string::npos);
   EXPECT_EQ(async_call.wait_exit(30s), 0);
 }
@@ -257,7 +274,8 @@ TEST(DdsProcessTest, PlainCClientSaysWhatItWaitsForAndGivesUp) {
                 read_file(SIMGATE_LOOPBACK_DDS_XML)},
                /*with_stderr=*/true);
   std::string out = client.read_until("within 10 s", 60s);
-  EXPECT_NE(out.find("waiting for simgate in domain " + std::to_string(test_domain()) + ", partition '" + partition +
+  EXPECT_NE(out.find("waiting for simgate in domain " + std::to_string(test_domain()) +
+                     ", partition '" + partition +
                      "' (network config: the XML argument; the simulation must use the same)"),
             std::string::npos)
       << out;
@@ -277,7 +295,9 @@ class RoverOnDds {
     dds_options.update(options);
     config["transports"] = {{"dds", {{"plugin", "dds"}, {"options", dds_options}}}};
     config["services"] = {{"default", {"dds"}}};
-    config["streams"] = {{"rover.pose", {"dds"}}, {"rover.motion", {"dds"}}, {"rover.odometry", {"dds"}},
+    config["streams"] = {{"rover.pose", {"dds"}},
+                         {"rover.motion", {"dds"}},
+                         {"rover.odometry", {"dds"}},
                          {"rover.proximity", {"dds"}},
                          // a robot spawned at run time as "crawler"
                          {"crawler*", {"dds"}}};
@@ -285,8 +305,9 @@ class RoverOnDds {
     fs::create_directories(dir_);
     const std::string path = (dir_ / "deployment.json").string();
     std::ofstream(path) << config.dump(2);
-    gateway_ = std::make_unique<Child>(std::vector<std::string>{k_gateway, "run", path, "--plugin-path", SIMGATE_TEST_PLUGIN_DIR},
-                                       /*with_stderr=*/true);
+    gateway_ = std::make_unique<Child>(
+        std::vector<std::string>{k_gateway, "run", path, "--plugin-path", SIMGATE_TEST_PLUGIN_DIR},
+        /*with_stderr=*/true);
   }
   ~RoverOnDds() {
     gateway_->terminate();
@@ -327,18 +348,26 @@ std::vector<std::vector<double>> rows(const std::string& text) {
 }
 
 TEST(DdsStreamsTest, PlainCClientReadsTypedPoseAndDrivesTheRoverWithVelocity) {
-  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  if (!fs::exists(k_gateway))
+    GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
   RoverOnDds rover;
   ASSERT_TRUE(rover.running());
 
   // the catalog names every topic with its type
   std::string catalog = RoverOnDds::client({"catalog", "5"});
-  EXPECT_NE(catalog.find("simgate/rover/pose simgate::stream::Pose rover.pose"), std::string::npos) << catalog;
-  EXPECT_NE(catalog.find("simgate/rover/odometry simgate::stream::Odometry rover.odometry"), std::string::npos) << catalog;
-  EXPECT_NE(catalog.find("simgate/rover/proximity simgate::stream::JsonSample rover.proximity"), std::string::npos)
+  EXPECT_NE(catalog.find("simgate/rover/pose simgate::stream::Pose rover.pose"), std::string::npos)
       << catalog;
-  EXPECT_NE(catalog.find("simgate/rover/motion/cmd simgate::stream::Velocity rover.motion"), std::string::npos) << catalog;
-  EXPECT_NE(catalog.find("simgate/rover/motion/json simgate::stream::JsonCommand rover.motion"), std::string::npos)
+  EXPECT_NE(catalog.find("simgate/rover/odometry simgate::stream::Odometry rover.odometry"),
+            std::string::npos)
+      << catalog;
+  EXPECT_NE(catalog.find("simgate/rover/proximity simgate::stream::JsonSample rover.proximity"),
+            std::string::npos)
+      << catalog;
+  EXPECT_NE(catalog.find("simgate/rover/motion/cmd simgate::stream::Velocity rover.motion"),
+            std::string::npos)
+      << catalog;
+  EXPECT_NE(catalog.find("simgate/rover/motion/json simgate::stream::JsonCommand rover.motion"),
+            std::string::npos)
       << catalog;
 
   // typed poses: seq and time increase, values plausible (the rover stands in its room)
@@ -369,7 +398,8 @@ TEST(DdsStreamsTest, PlainCClientReadsTypedPoseAndDrivesTheRoverWithVelocity) {
 // The poses are written by the simulation thread by default (stream_writes "direct"); by the
 // DDS thread with "thread": the same topic, the same samples.
 TEST(DdsStreamsTest, WrittenByTheDdsThreadThePoseTopicIsTheSame) {
-  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  if (!fs::exists(k_gateway))
+    GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
   RoverOnDds rover(json{{"stream_writes", "thread"}});
   ASSERT_TRUE(rover.running());
   std::string text = RoverOnDds::client({"pose", "simgate/rover/pose", "5"});
@@ -380,18 +410,20 @@ TEST(DdsStreamsTest, WrittenByTheDdsThreadThePoseTopicIsTheSame) {
 }
 
 TEST(DdsStreamsTest, AJsonCommandDrivesTheRoverAndOneThatIsNoObjectIsRefusedAndCounted) {
-  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  if (!fs::exists(k_gateway))
+    GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
   RoverOnDds rover;
   ASSERT_TRUE(rover.running());
   std::string text = RoverOnDds::client({"pose", "simgate/rover/pose", "1"});
   auto before = rows(text);
   ASSERT_EQ(before.size(), 1u) << text;
-  ASSERT_EQ(RoverOnDds::client({"command", "simgate/rover/motion/json", "[1, 2]"}), "");  // logged, ignored
+  ASSERT_EQ(RoverOnDds::client({"command", "simgate/rover/motion/json", "[1, 2]"}),
+            "");  // logged, ignored
   const std::string log = rover.log_until("such commands are ignored");
   EXPECT_NE(log.find("is not a JSON object: '[1, 2]'"), std::string::npos) << log;
   // counted before it was logged: a refused command of the stream, with what was wrong
-  Child call({k_c_client, std::to_string(test_domain()), test_partition(), "simulation", "get_stream_statistics", "[]",
-              read_file(SIMGATE_LOOPBACK_DDS_XML)});
+  Child call({k_c_client, std::to_string(test_domain()), test_partition(), "simulation",
+              "get_stream_statistics", "[]", read_file(SIMGATE_LOOPBACK_DDS_XML)});
   const std::string statistics = call.read_until("\n", 60s);
   EXPECT_EQ(call.wait_exit(30s), 0);
   ASSERT_EQ(statistics.rfind("SUCCESS ", 0), 0u) << statistics;
@@ -402,7 +434,8 @@ TEST(DdsStreamsTest, AJsonCommandDrivesTheRoverAndOneThatIsNoObjectIsRefusedAndC
     if (s.value("component", "") == "rover.motion") motion = s;
   EXPECT_EQ(motion["refused"], 1) << statistics;
   EXPECT_EQ(motion["last_refusal"], "not a JSON object: '[1, 2]'") << statistics;
-  ASSERT_EQ(RoverOnDds::client({"command", "simgate/rover/motion/json", R"({"v": -0.5, "w": 0})"}), "");
+  ASSERT_EQ(RoverOnDds::client({"command", "simgate/rover/motion/json", R"({"v": -0.5, "w": 0})"}),
+            "");
   double moved = 0;
   for (int attempt = 0; attempt < 20 && moved < 0.1; ++attempt) {
     auto after = rows(RoverOnDds::client({"pose", "simgate/rover/pose", "5"}));
@@ -413,17 +446,20 @@ TEST(DdsStreamsTest, AJsonCommandDrivesTheRoverAndOneThatIsNoObjectIsRefusedAndC
 }
 
 TEST(DdsStreamsTest, TheTopicsOfADeletedRobotEndAndLeaveTheCatalog) {
-  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  if (!fs::exists(k_gateway))
+    GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
   RoverOnDds rover;
   ASSERT_TRUE(rover.running());
   std::string catalog = RoverOnDds::client({"catalog", "5"});
   ASSERT_NE(catalog.find("simgate/rover/pose "), std::string::npos) << catalog;
-  Child call({k_c_client, std::to_string(test_domain()), test_partition(), "simulation", "delete_entity", R"(["rover"])",
-              read_file(SIMGATE_LOOPBACK_DDS_XML)});
+  Child call({k_c_client, std::to_string(test_domain()), test_partition(), "simulation",
+              "delete_entity", R"(["rover"])", read_file(SIMGATE_LOOPBACK_DDS_XML)});
   EXPECT_NE(call.read_until("\n", 60s).find("SUCCESS"), std::string::npos);
   EXPECT_EQ(call.wait_exit(30s), 0);
   std::string log = rover.log_until("command topics of rover.motion ended");
-  EXPECT_NE(log.find("stream topic simgate/rover/pose ended (rover.pose is gone)"), std::string::npos) << log;
+  EXPECT_NE(log.find("stream topic simgate/rover/pose ended (rover.pose is gone)"),
+            std::string::npos)
+      << log;
   EXPECT_NE(log.find("command topics of rover.motion ended"), std::string::npos) << log;
   // a reader that joins now finds no alive entry (it waits 3 s for one in vain: exit 3)
   std::string after = RoverOnDds::client({"catalog", "1", "3"});
@@ -433,17 +469,21 @@ TEST(DdsStreamsTest, TheTopicsOfADeletedRobotEndAndLeaveTheCatalog) {
 // A robot spawned at run time (a DDS client's spawn_entity with a robot section) gets its
 // stream topics at once: in the catalog, and written (issue #36).
 TEST(DdsStreamsTest, ASpawnedRobotsPoseTopicIsWrittenAtOnce) {
-  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  if (!fs::exists(k_gateway))
+    GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
   RoverOnDds rover;
   ASSERT_TRUE(rover.running());
-  Child call({k_c_client, std::to_string(test_domain()), test_partition(), "simulation", "spawn_entity",
-              R"(["crawler", "<body><freejoint/><geom type='box' size='.2 .1 .1' mass='2'/></body>", [1.5, -1, 0.1],)"
-              R"( {"components": [{"name": "pose", "type": "pose"}]}])",
-              read_file(SIMGATE_LOOPBACK_DDS_XML)});
+  Child call(
+      {k_c_client, std::to_string(test_domain()), test_partition(), "simulation", "spawn_entity",
+       R"(["crawler", "<body><freejoint/><geom type='box' size='.2 .1 .1' mass='2'/></body>", [1.5, -1, 0.1],)"
+       R"( {"components": [{"name": "pose", "type": "pose"}]}])",
+       read_file(SIMGATE_LOOPBACK_DDS_XML)});
   EXPECT_NE(call.read_until("\n", 60s).find("SUCCESS"), std::string::npos);
   EXPECT_EQ(call.wait_exit(30s), 0);
   std::string catalog = RoverOnDds::client({"catalog", "6"});
-  EXPECT_NE(catalog.find("simgate/crawler/pose simgate::stream::Pose crawler.pose"), std::string::npos) << catalog;
+  EXPECT_NE(catalog.find("simgate/crawler/pose simgate::stream::Pose crawler.pose"),
+            std::string::npos)
+      << catalog;
   const std::string text = RoverOnDds::client({"pose", "simgate/crawler/pose", "3"});
   const auto poses = rows(text);
   ASSERT_EQ(poses.size(), 3u) << text;
@@ -452,7 +492,8 @@ TEST(DdsStreamsTest, ASpawnedRobotsPoseTopicIsWrittenAtOnce) {
 }
 
 TEST(DdsStreamsTest, AStreamOfAnotherKindArrivesAsJsonSample) {
-  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  if (!fs::exists(k_gateway))
+    GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
   RoverOnDds rover;
   ASSERT_TRUE(rover.running());
   std::string text = RoverOnDds::client({"json", "simgate/rover/proximity", "3"});
@@ -481,10 +522,12 @@ class CameraOnDds {
     dir_ = fs::path(SIMGATE_BINARY_DIR) / "tests" / "dds" / ("camera-" + std::to_string(getpid()));
     fs::create_directories(dir_);
     const std::string scene = (dir_ / "scene.xml").string();
-    std::ofstream(scene) << simgate::testing::red_box_scene("camera-stream", "0.005", "10", /*eye_site=*/false);
+    std::ofstream(scene) << simgate::testing::red_box_scene("camera-stream", "0.005", "10",
+                                                            /*eye_site=*/false);
     json config = {
         {"scene", {{"mjcf", scene}, {"timestep", 0.005}, {"realtime_factor", 1.0}}},
-        {"transports", {{"dds", {{"plugin", "dds"}, {"options", server_options(test_partition())}}}}},
+        {"transports",
+         {{"dds", {{"plugin", "dds"}, {"options", server_options(test_partition())}}}}},
         {"services", {{"default", {"dds"}}}},
         {"robots", json::array({{{"name", "rig"},
                                  {"type", "robot"},
@@ -492,15 +535,17 @@ class CameraOnDds {
                                  {"components", json::array({{{"name", "camera"},
                                                               {"type", "video_camera"},
                                                               {"frequency", 10},
-                                                              {"options", {{"camera", "front"},
-                                                                           {"cam_width", 640},
-                                                                           {"cam_height", 480}}}}})}}})},
+                                                              {"options",
+                                                               {{"camera", "front"},
+                                                                {"cam_width", 640},
+                                                                {"cam_height", 480}}}}})}}})},
         {"streams", {{"rig.camera", {"dds"}}}},
     };
     const std::string path = (dir_ / "deployment.json").string();
     std::ofstream(path) << config.dump(2);
-    gateway_ = std::make_unique<Child>(std::vector<std::string>{k_gateway, "run", path, "--plugin-path", SIMGATE_TEST_PLUGIN_DIR},
-                                       /*with_stderr=*/true);
+    gateway_ = std::make_unique<Child>(
+        std::vector<std::string>{k_gateway, "run", path, "--plugin-path", SIMGATE_TEST_PLUGIN_DIR},
+        /*with_stderr=*/true);
   }
   ~CameraOnDds() {
     gateway_->terminate();
@@ -514,22 +559,26 @@ class CameraOnDds {
 };
 
 TEST(DdsStreamsTest, ACamerasStreamIsATypedImageOfRawPixels) {
-  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  if (!fs::exists(k_gateway))
+    GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
   CameraOnDds camera;
   ASSERT_TRUE(camera.running());
   std::string catalog = RoverOnDds::client({"catalog", "1"});
-  EXPECT_NE(catalog.find("simgate/rig/camera simgate::stream::Image rig.camera"), std::string::npos) << catalog;
+  EXPECT_NE(catalog.find("simgate/rig/camera simgate::stream::Image rig.camera"), std::string::npos)
+      << catalog;
   // no reader yet: the transport does not subscribe, the camera renders nothing
   auto statistics = [] {
-    Child call({k_c_client, std::to_string(test_domain()), test_partition(), "simulation", "get_stream_statistics", "[]",
-                read_file(SIMGATE_LOOPBACK_DDS_XML)});
+    Child call({k_c_client, std::to_string(test_domain()), test_partition(), "simulation",
+                "get_stream_statistics", "[]", read_file(SIMGATE_LOOPBACK_DDS_XML)});
     std::string out = call.read_until("\n", 60s);
     call.wait_exit(30s);
     return out;
   };
   const std::string before = statistics();
   EXPECT_NE(before.find("SUCCESS"), std::string::npos) << before;
-  EXPECT_EQ(before.find("\"samples\": 0") == std::string::npos && before.find("\"samples\":0") == std::string::npos, false)
+  EXPECT_EQ(before.find("\"samples\": 0") == std::string::npos &&
+                before.find("\"samples\":0") == std::string::npos,
+            false)
       << before;
   // "seq time width height encoding step bytes R G B" (the middle pixel)
   const std::string text = RoverOnDds::client({"image", "simgate/rig/camera", "3"});
@@ -542,7 +591,8 @@ TEST(DdsStreamsTest, ACamerasStreamIsATypedImageOfRawPixels) {
     double time = -1;
     unsigned width = 0, height = 0, step = 0, bytes = 0, r = 0, g = 0, b = 0;
     std::string encoding;
-    if (!(fields >> seq >> time >> width >> height >> encoding >> step >> bytes >> r >> g >> b)) continue;
+    if (!(fields >> seq >> time >> width >> height >> encoding >> step >> bytes >> r >> g >> b))
+      continue;
     ++count;
     EXPECT_EQ(width, 640u) << line;
     EXPECT_EQ(height, 480u) << line;
@@ -556,10 +606,13 @@ TEST(DdsStreamsTest, ACamerasStreamIsATypedImageOfRawPixels) {
   EXPECT_EQ(count, 3) << text;
   // the reader gone: unsubscribed again (eventually: its leaving is discovered)
   std::string after;
-  const bool unsubscribed = eventually([&] {
-    after = statistics();
-    return after.find("\"subscribers\": 0") != std::string::npos || after.find("\"subscribers\":0") != std::string::npos;
-  }, 30s);
+  const bool unsubscribed = eventually(
+      [&] {
+        after = statistics();
+        return after.find("\"subscribers\": 0") != std::string::npos ||
+               after.find("\"subscribers\":0") != std::string::npos;
+      },
+      30s);
   EXPECT_TRUE(unsubscribed) << after;
 }
 
@@ -569,11 +622,15 @@ struct ImageCall {
   json result;                      // the reply's result (null: no SUCCESS reply)
   std::vector<std::string> images;  // "seq time width height encoding step bytes R G B"
 };
-ImageCall image_call(const std::string& client, const std::string& service, const std::string& params) {
-  std::vector<std::string> argv{client, std::to_string(test_domain()), test_partition(), read_file(SIMGATE_LOOPBACK_DDS_XML)};
-  if (client == k_c_client) argv = {client, std::to_string(test_domain()), test_partition(), "rig.camera", service, params,
-                                    read_file(SIMGATE_LOOPBACK_DDS_XML)};
-  else argv.insert(argv.end(), {"rig.camera", service, params});
+ImageCall image_call(const std::string& client, const std::string& service,
+                     const std::string& params) {
+  std::vector<std::string> argv{client, std::to_string(test_domain()), test_partition(),
+                                read_file(SIMGATE_LOOPBACK_DDS_XML)};
+  if (client == k_c_client)
+    argv = {client, std::to_string(test_domain()),      test_partition(), "rig.camera", service,
+            params, read_file(SIMGATE_LOOPBACK_DDS_XML)};
+  else
+    argv.insert(argv.end(), {"rig.camera", service, params});
   Child child(argv);
   ImageCall call;
   call.output = child.read_until("\x04", 90s);  // to EOF
@@ -582,7 +639,8 @@ ImageCall image_call(const std::string& client, const std::string& service, cons
   std::istringstream lines(call.output);
   for (std::string line; std::getline(lines, line);) {
     for (const std::string prefix : {"REPLY SUCCESS ", "SUCCESS "})
-      if (line.rfind(prefix, 0) == 0) call.result = json::parse(line.substr(prefix.size()), nullptr, false);
+      if (line.rfind(prefix, 0) == 0)
+        call.result = json::parse(line.substr(prefix.size()), nullptr, false);
     if (line.rfind("IMAGE ", 0) == 0) call.images.push_back(line.substr(6));
   }
   return call;
@@ -596,7 +654,8 @@ double expect_red_640x480(const std::string& line) {
   double time = -1;
   unsigned width = 0, height = 0, step = 0, bytes = 0, r = 0, g = 0, b = 0;
   std::string encoding;
-  EXPECT_TRUE(fields >> seq >> time >> width >> height >> encoding >> step >> bytes >> r >> g >> b) << line;
+  EXPECT_TRUE(fields >> seq >> time >> width >> height >> encoding >> step >> bytes >> r >> g >> b)
+      << line;
   EXPECT_EQ(seq, 1u) << line;
   EXPECT_EQ(width, 640u) << line;
   EXPECT_EQ(height, 480u) << line;
@@ -608,7 +667,8 @@ double expect_red_640x480(const std::string& line) {
 }
 
 TEST(DdsStreamsTest, AClientWithAnImageReaderGetsItsRepliesImagesRawAndTheRecordsWithoutPng) {
-  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  if (!fs::exists(k_gateway))
+    GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
   CameraOnDds camera;
   ASSERT_TRUE(camera.running());
   // get_image: the record without its PNG, the pixels on simgate_ReplyImage
@@ -619,13 +679,15 @@ TEST(DdsStreamsTest, AClientWithAnImageReaderGetsItsRepliesImagesRawAndTheRecord
   EXPECT_EQ(image.result["encoding"], "rgb8") << image.output;
   EXPECT_EQ(image.result["width"], 640) << image.output;
   ASSERT_EQ(image.images.size(), 1u) << image.output;
-  EXPECT_EQ(expect_red_640x480(image.images[0]), image.result["timestamp"].get<double>()) << image.output;
+  EXPECT_EQ(expect_red_640x480(image.images[0]), image.result["timestamp"].get<double>())
+      << image.output;
   // get_local_data: the last image, the same way
   ImageCall last = image_call(k_image_client, "get_local_data", "[]");
   ASSERT_TRUE(last.result.is_object()) << last.output;
   EXPECT_EQ(last.result["format"], "raw") << last.output;
   ASSERT_EQ(last.images.size(), 1u) << last.output;
-  EXPECT_EQ(expect_red_640x480(last.images[0]), image.result["timestamp"].get<double>()) << last.output;
+  EXPECT_EQ(expect_red_640x480(last.images[0]), image.result["timestamp"].get<double>())
+      << last.output;
   // capture 3: every image raw, in the order of the records (900 kB each: past Cyclone's
   // WhcHigh, the second waits for the first to be acknowledged, the reply behind them)
   ImageCall capture = image_call(k_image_client, "capture", "[3]");
@@ -636,12 +698,14 @@ TEST(DdsStreamsTest, AClientWithAnImageReaderGetsItsRepliesImagesRawAndTheRecord
     const json& record = capture.result[i];
     EXPECT_EQ(record["format"], "raw") << capture.output;
     EXPECT_FALSE(record.contains("image")) << capture.output;
-    EXPECT_EQ(expect_red_640x480(capture.images[i]), record["timestamp"].get<double>()) << capture.output;
+    EXPECT_EQ(expect_red_640x480(capture.images[i]), record["timestamp"].get<double>())
+        << capture.output;
   }
 }
 
 TEST(DdsStreamsTest, AClientWithoutAnImageReaderStillGetsThePngInTheReply) {
-  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  if (!fs::exists(k_gateway))
+    GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
   CameraOnDds camera;
   ASSERT_TRUE(camera.running());
   // the plain C client of the docs, built with the IDL before simgate_ReplyImage
@@ -649,7 +713,8 @@ TEST(DdsStreamsTest, AClientWithoutAnImageReaderStillGetsThePngInTheReply) {
   ASSERT_TRUE(image.result.is_object()) << image.output;
   EXPECT_EQ(image.result["format"], "png") << image.output;
   ASSERT_TRUE(image.result["image"].is_string()) << image.output;
-  EXPECT_EQ(image.result["image"].get<std::string>().rfind("iVBORw0KGgo", 0), 0u) << image.output;  // a PNG file
+  EXPECT_EQ(image.result["image"].get<std::string>().rfind("iVBORw0KGgo", 0), 0u)
+      << image.output;  // a PNG file
 }
 
 // A DdsClient of the camera's partition (raw_images as given), its server found.
@@ -682,7 +747,8 @@ void expect_red_attachment(const std::shared_ptr<const StreamPayload>& image, co
 }
 
 TEST(DdsStreamsTest, ADdsClientWithRawImagesGetsTheImageAsAnAttachmentAndTheRecordWithoutPng) {
-  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  if (!fs::exists(k_gateway))
+    GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
   CameraOnDds camera;
   ASSERT_TRUE(camera.running());
   auto c = camera_client(true);
@@ -700,7 +766,8 @@ TEST(DdsStreamsTest, ADdsClientWithRawImagesGetsTheImageAsAnAttachmentAndTheReco
 }
 
 TEST(DdsStreamsTest, ADdsClientWithRawImagesGetsACapturesImagesInRecordOrder) {
-  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  if (!fs::exists(k_gateway))
+    GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
   CameraOnDds camera;
   ASSERT_TRUE(camera.running());
   auto c = camera_client(true);
@@ -720,7 +787,8 @@ TEST(DdsStreamsTest, ADdsClientWithRawImagesGetsACapturesImagesInRecordOrder) {
 }
 
 TEST(DdsStreamsTest, ADdsClientWithoutRawImagesGetsThePngInTheRecord) {
-  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  if (!fs::exists(k_gateway))
+    GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
   CameraOnDds camera;
   ASSERT_TRUE(camera.running());
   auto c = camera_client(false);
@@ -775,45 +843,55 @@ class TwoHosts {
   // Cyclone settings of one host: its veth only, unicast discovery of both addresses.
   std::string cyclone_xml(const std::string& interface) const {
     return "<CycloneDDS xmlns=\"https://cdds.io/config\"><Domain Id=\"any\"><General><Interfaces>"
-           "<NetworkInterface name=\"" + interface + "\" multicast=\"false\"/></Interfaces>"
-           "<AllowMulticast>false</AllowMulticast></General><Discovery><ParticipantIndex>auto</ParticipantIndex>"
-           "<MaxAutoParticipantIndex>20</MaxAutoParticipantIndex><Peers><Peer address=\"" + addr_a +
-           "\"/><Peer address=\"" + addr_b + "\"/></Peers></Discovery></Domain></CycloneDDS>";
+           "<NetworkInterface name=\"" +
+           interface +
+           "\" multicast=\"false\"/></Interfaces>"
+           "<AllowMulticast>false</AllowMulticast></General><Discovery><ParticipantIndex>auto</"
+           "ParticipantIndex>"
+           "<MaxAutoParticipantIndex>20</MaxAutoParticipantIndex><Peers><Peer address=\"" +
+           addr_a + "\"/><Peer address=\"" + addr_b +
+           "\"/></Peers></Discovery></Domain></CycloneDDS>";
   }
 
-  std::string ns_a, ns_b;                   // namespace names ("hosts")
-  std::string if_a, if_b;                   // veth ends
-  std::string addr_a = "10.203.77.1";       // inside ns_a only
-  std::string addr_b = "10.203.77.2";       // inside ns_b only
-  bool ok = false;                          // everything was created
-  std::string error;                        // why not
+  std::string ns_a, ns_b;              // namespace names ("hosts")
+  std::string if_a, if_b;              // veth ends
+  std::string addr_a = "10.203.77.1";  // inside ns_a only
+  std::string addr_b = "10.203.77.2";  // inside ns_b only
+  bool ok = false;                     // everything was created
+  std::string error;                   // why not
 };
 
 TEST(DdsNetnsTest, ClientOnAnotherHostDiscoversListsAndDrivesRobotToWaypoint) {
-  if (geteuid() != 0) GTEST_SKIP() << "needs root to create network namespaces (ip netns add); skipped";
-  if (!fs::exists(k_gateway)) GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
+  if (geteuid() != 0)
+    GTEST_SKIP() << "needs root to create network namespaces (ip netns add); skipped";
+  if (!fs::exists(k_gateway))
+    GTEST_SKIP() << "the gateway (" << k_gateway << ") is not built; skipped";
   TwoHosts hosts;
-  if (!hosts.ok) GTEST_SKIP() << "cannot create two network namespaces joined by veth: " << hosts.error;
+  if (!hosts.ok)
+    GTEST_SKIP() << "cannot create two network namespaces joined by veth: " << hosts.error;
 
   // the demo deployment, served over DDS on host A's veth only
   json config = json::parse(read_file(SIMGATE_SOURCE_DIR "/config/demo.json"));
   config["scene"]["mjcf"] = SIMGATE_SOURCE_DIR "/config/scenes/demo.xml";
-  config["transports"] = {{"dds", {{"plugin", "dds"},
-                                   {"options", {{"domain", test_domain()},
-                                                {"partition", test_partition()},
-                                                {"config", hosts.cyclone_xml(hosts.if_a)}}}}}};
+  config["transports"] = {{"dds",
+                           {{"plugin", "dds"},
+                            {"options",
+                             {{"domain", test_domain()},
+                              {"partition", test_partition()},
+                              {"config", hosts.cyclone_xml(hosts.if_a)}}}}}};
   config["services"] = {{"default", {"dds"}}};
   config.erase("streams");  // the demo's datastreams are on the socket transport, replaced here
-  fs::path dir = fs::path(SIMGATE_BINARY_DIR) / "tests" / "dds" / ("netns-" + std::to_string(getpid()));
+  fs::path dir =
+      fs::path(SIMGATE_BINARY_DIR) / "tests" / "dds" / ("netns-" + std::to_string(getpid()));
   fs::create_directories(dir);
   std::string config_path = (dir / "deployment.json").string();
   std::ofstream(config_path) << config.dump(2);
 
-  Child gateway({"/usr/sbin/ip", "netns", "exec", hosts.ns_a, k_gateway, "run", config_path, "--realtime-factor",
-                 "4", "--plugin-path", SIMGATE_TEST_PLUGIN_DIR});
+  Child gateway({"/usr/sbin/ip", "netns", "exec", hosts.ns_a, k_gateway, "run", config_path,
+                 "--realtime-factor", "4", "--plugin-path", SIMGATE_TEST_PLUGIN_DIR});
   ASSERT_TRUE(gateway.running());
-  Child client({"/usr/sbin/ip", "netns", "exec", hosts.ns_b, k_probe, std::to_string(test_domain()), test_partition(),
-                hosts.cyclone_xml(hosts.if_b), "waypoint", "2.0", "1.0"});
+  Child client({"/usr/sbin/ip", "netns", "exec", hosts.ns_b, k_probe, std::to_string(test_domain()),
+                test_partition(), hosts.cyclone_xml(hosts.if_b), "waypoint", "2.0", "1.0"});
   ASSERT_TRUE(client.running());
   std::string output = client.read_until("\n", 150s);
   int code = client.wait_exit(10s);

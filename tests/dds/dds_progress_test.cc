@@ -17,10 +17,12 @@ namespace {
 // Reports {"step": i} on `call` until `client` has received `want` of them, bounded in count
 // and time (best effort: the reports written before the client's progress reader matched
 // the server's new progress writer are lost). Returns what was received.
-std::vector<RawClient::Reply> report_until_received(RawClient& client, const Completion& call, std::size_t want) {
+std::vector<RawClient::Reply> report_until_received(RawClient& client, const Completion& call,
+                                                    std::size_t want) {
   std::vector<RawClient::Reply> got;
   const auto deadline = std::chrono::steady_clock::now() + 10s;
-  for (int i = 0; i < 5000 && got.size() < want && std::chrono::steady_clock::now() < deadline; ++i) {
+  for (int i = 0; i < 5000 && got.size() < want && std::chrono::steady_clock::now() < deadline;
+       ++i) {
     EXPECT_TRUE(call.progress(json{{"step", i}}));
     std::this_thread::sleep_for(2ms);
     for (auto& r : client.take_progress()) got.push_back(std::move(r));
@@ -29,7 +31,8 @@ std::vector<RawClient::Reply> report_until_received(RawClient& client, const Com
 }
 
 TEST_F(DdsTransportTest, AnAsyncCallThatAskedGetsProgressSamplesThenItsFinalReply) {
-  auto server = make_server(test_partition(), "server", {{"progress_interval_ms", 0}});  // every report
+  auto server =
+      make_server(test_partition(), "server", {{"progress_interval_ms", 0}});  // every report
   SimThread sim(server);
   RawClient raw(test_partition());
   raw.create_reply_reader();

@@ -29,7 +29,8 @@ struct FakeCamera {
 
   // The record with its PNG ("PNG-<width>": the test's stand-in for the base64 PNG).
   static json png_record(int width, double timestamp) {
-    return {{"encoding", "rgb8"}, {"format", "png"}, {"width", width}, {"height", 1},
+    return {{"encoding", "rgb8"},     {"format", "png"},
+            {"width", width},         {"height", 1},
             {"timestamp", timestamp}, {"image", "PNG-" + std::to_string(width)}};
   }
 
@@ -38,9 +39,14 @@ struct FakeCamera {
     const int width = size / 3;
     auto payload = std::make_shared<StreamPayload>();
     payload->content = "image";
-    payload->description = {{"component", "cam"}, {"width", width}, {"height", 1}, {"encoding", "rgb8"},
-                            {"step", width * 3}, {"is_bigendian", false},
-                            {"intrinsic_matrix", {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}}, {"timestamp", timestamp}};
+    payload->description = {{"component", "cam"},
+                            {"width", width},
+                            {"height", 1},
+                            {"encoding", "rgb8"},
+                            {"step", width * 3},
+                            {"is_bigendian", false},
+                            {"intrinsic_matrix", {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}},
+                            {"timestamp", timestamp}};
     payload->bytes.assign(static_cast<std::size_t>(width) * 3, 7);
     payload->to_json = [this](const StreamPayload& p) {
       ++pngs_made;
@@ -61,7 +67,8 @@ class DdsReplyImagesTest : public DdsTransportTest {
  protected:
   std::shared_ptr<RequestManager> make_camera_server(json extra = json::object()) {
     auto server = make_server(test_partition(), "server", std::move(extra));
-    server->register_service("cam", [this](int size) { return camera_.shot(size); }, "shot", {"size"});
+    server->register_service("cam", [this](int size) { return camera_.shot(size); }, "shot",
+                             {"size"});
     return server;
   }
   std::unique_ptr<DdsClient> make_camera_client(bool raw_images) {

@@ -32,7 +32,8 @@ inline uint32_t test_domain() { return 20 + static_cast<uint32_t>(getpid() % 200
 inline std::string test_partition(const std::string& suffix = "") {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
   std::string name = info ? std::string(info->test_suite_name()) + "." + info->name() : "none";
-  return "simgate-test-" + std::to_string(getpid()) + "-" + name + (suffix.empty() ? "" : "-" + suffix);
+  return "simgate-test-" + std::to_string(getpid()) + "-" + name +
+         (suffix.empty() ? "" : "-" + suffix);
 }
 
 inline std::string loopback_uri() { return std::string("file://") + SIMGATE_LOOPBACK_DDS_XML; }
@@ -48,7 +49,8 @@ inline json client_options(const std::string& partition) {
 }
 
 // Waits up to `timeout` for `condition`, checking every millisecond.
-inline bool eventually(const std::function<bool()>& condition, std::chrono::milliseconds timeout = 10s) {
+inline bool eventually(const std::function<bool()>& condition,
+                       std::chrono::milliseconds timeout = 10s) {
   auto deadline = std::chrono::steady_clock::now() + timeout;
   while (!condition()) {
     if (std::chrono::steady_clock::now() >= deadline) return false;
@@ -79,10 +81,10 @@ class SimThread {
 
 // The async service of a test: remembers its Completion so the test can finish it.
 struct AsyncProbe {
-  std::mutex mutex;               // guards the fields below
-  std::condition_variable cv;     // a start
-  int started = 0;                // how many calls started
-  Completion last;                // the latest call's completion
+  std::mutex mutex;            // guards the fields below
+  std::condition_variable cv;  // a start
+  int started = 0;             // how many calls started
+  Completion last;             // the latest call's completion
 
   void on_start(const Completion& c) {
     std::lock_guard lock(mutex);

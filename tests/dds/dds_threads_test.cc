@@ -21,7 +21,7 @@ namespace {
 
 // Records the threads a service ran on.
 struct ThreadLog {
-  std::mutex mutex;             // guards ids
+  std::mutex mutex;               // guards ids
   std::set<std::thread::id> ids;  // where the service ran
 
   int record() {
@@ -43,7 +43,8 @@ TEST_F(DdsTransportTest, SyncCallIsAnsweredFromTheDdsThreadWhenTheLockIsFree) {
   server->register_service("probe", [&where] { return where.record(); }, "where");
   server->start();
   auto client = make_client(test_partition());
-  for (int i = 0; i < 3; ++i) EXPECT_EQ(client->call("calc", "add", {i, 1}, 10s).value, json(double(i + 1)));
+  for (int i = 0; i < 3; ++i)
+    EXPECT_EQ(client->call("calc", "add", {i, 1}, 10s).value, json(double(i + 1)));
   EXPECT_EQ(client->call("probe", "where", nullptr, 10s).value, json(1));
   EXPECT_EQ(client->call("probe", "where", nullptr, 10s).value, json(1));
   auto ids = where.get();

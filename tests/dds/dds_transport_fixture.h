@@ -29,19 +29,20 @@ using client::DdsClientOptions;
 
 inline const char* const k_plugin = SIMGATE_TEST_PLUGIN_DIR "/libsimgate_transport_dds.so";
 
-
 // A client speaking the wire types directly (no DdsClient), to control every field and
 // the moment its reply reader appears.
 class RawClient {
  public:
   explicit RawClient(const std::string& partition)
-      : participant_(test_domain(), ("file://" + std::string(SIMGATE_LOOPBACK_DDS_XML)).c_str(), "raw client"),
+      : participant_(test_domain(), ("file://" + std::string(SIMGATE_LOOPBACK_DDS_XML)).c_str(),
+                     "raw client"),
         partition_(partition) {
     dds_entity_t pp = participant_.handle();
     QosPtr partition_qos(dds_create_qos());
     dds_qset_partition1(partition_qos.get(), partition.c_str());
     publisher_ = dds_create_publisher(pp, partition_qos.get(), nullptr);
-    dds_entity_t topic = dds_create_topic(pp, &simgate_Request_desc, k_request_topic, nullptr, nullptr);
+    dds_entity_t topic =
+        dds_create_topic(pp, &simgate_Request_desc, k_request_topic, nullptr, nullptr);
     QosPtr qos = make_qos(false, 0, DDS_SECS(1));
     writer_ = dds_create_writer(publisher_, topic, qos.get(), nullptr);
     dds_guid_t guid;
@@ -50,11 +51,13 @@ class RawClient {
   }
 
   bool wait_request_matched(std::chrono::milliseconds timeout = 10s) {
-    return eventually([&] {
-      dds_publication_matched_status_t st;
-      dds_get_publication_matched_status(writer_, &st);
-      return st.current_count > 0;
-    }, timeout);
+    return eventually(
+        [&] {
+          dds_publication_matched_status_t st;
+          dds_get_publication_matched_status(writer_, &st);
+          return st.current_count > 0;
+        },
+        timeout);
   }
 
   // announce: put "simgate.id=<our id>" in the reader's USER_DATA, as clients should;
@@ -69,7 +72,8 @@ class RawClient {
   // its id: the server then sends its replies' images raw. Create it before the reply reader
   // (as clients must); max_samples as create_reply_reader's. Never read by the tests.
   void create_image_reader(int32_t max_samples = DDS_LENGTH_UNLIMITED) {
-    image_reader_ = own_partition_reader(&simgate_stream_Image_desc, k_reply_image_topic, true, max_samples);
+    image_reader_ =
+        own_partition_reader(&simgate_stream_Image_desc, k_reply_image_topic, true, max_samples);
     ASSERT_GT(image_reader_, 0);
   }
 
@@ -80,7 +84,8 @@ class RawClient {
     QosPtr partition_qos(dds_create_qos());
     dds_qset_partition1(partition_qos.get(), (partition_ + "/" + to_hex(id_)).c_str());
     dds_entity_t subscriber = dds_create_subscriber(pp, partition_qos.get(), nullptr);
-    dds_entity_t topic = dds_create_topic(pp, &simgate_Reply_desc, k_progress_topic, nullptr, nullptr);
+    dds_entity_t topic =
+        dds_create_topic(pp, &simgate_Reply_desc, k_progress_topic, nullptr, nullptr);
     QosPtr qos = make_qos(false, depth, 0);
     dds_qset_reliability(qos.get(), DDS_RELIABILITY_BEST_EFFORT, 0);
     progress_reader_ = dds_create_reader(subscriber, topic, qos.get(), nullptr);
@@ -89,9 +94,9 @@ class RawClient {
 
   // as_client: write with another client's id (what a spoofer would do); progress: the
   // call asks for progress reports; timeout_ms: the call's deadline (0: none)
-  void write(std::uint64_t seq, simgate_Op op, const char* component, const char* service, const char* params,
-             std::uint64_t target = 0, const ClientId* as_client = nullptr, bool progress = false,
-             std::uint32_t timeout_ms = 0) {
+  void write(std::uint64_t seq, simgate_Op op, const char* component, const char* service,
+             const char* params, std::uint64_t target = 0, const ClientId* as_client = nullptr,
+             bool progress = false, std::uint32_t timeout_ms = 0) {
     simgate_Request rq{};
     rq.progress = progress;
     std::memcpy(rq.id.client, (as_client ? *as_client : id_).data(), 16);
@@ -116,19 +121,21 @@ class RawClient {
   // The next reply for this client, or nullopt after `timeout`.
   std::optional<Reply> next(std::chrono::milliseconds timeout = 10s) {
     std::optional<Reply> out;
-    eventually([&] {
-      void* samples[1] = {nullptr};
-      dds_sample_info_t info;
-      while (dds_take(reader_, samples, &info, 1, 1) == 1) {
-        const auto& r = *static_cast<const simgate_Reply*>(samples[0]);
-        bool mine = info.valid_data && std::memcmp(r.client, id_.data(), 16) == 0;
-        if (mine) out = Reply{r.seq, r.status, r.failure, r.last, r.result, r.message};
-        dds_return_loan(reader_, samples, 1);
-        if (mine) return true;
-        samples[0] = nullptr;
-      }
-      return false;
-    }, timeout);
+    eventually(
+        [&] {
+          void* samples[1] = {nullptr};
+          dds_sample_info_t info;
+          while (dds_take(reader_, samples, &info, 1, 1) == 1) {
+            const auto& r = *static_cast<const simgate_Reply*>(samples[0]);
+            bool mine = info.valid_data && std::memcmp(r.client, id_.data(), 16) == 0;
+            if (mine) out = Reply{r.seq, r.status, r.failure, r.last, r.result, r.message};
+            dds_return_loan(reader_, samples, 1);
+            if (mine) return true;
+            samples[0] = nullptr;
+          }
+          return false;
+        },
+        timeout);
     return out;
   }
 
@@ -153,8 +160,8 @@ class RawClient {
   // A reliable reader of `topic` in the client's own partition, "<partition>/<id>", where the
   // server writes to it alone; `announce`: "simgate.id=<our id>" in its USER_DATA, as clients
   // should; `max_samples` bounds what it holds.
-  dds_entity_t own_partition_reader(const dds_topic_descriptor_t* type, const char* topic_name, bool announce,
-                                    int32_t max_samples) {
+  dds_entity_t own_partition_reader(const dds_topic_descriptor_t* type, const char* topic_name,
+                                    bool announce, int32_t max_samples) {
     dds_entity_t pp = participant_.handle();
     QosPtr partition_qos(dds_create_qos());
     dds_qset_partition1(partition_qos.get(), (partition_ + "/" + to_hex(id_)).c_str());
@@ -167,14 +174,14 @@ class RawClient {
     return dds_create_reader(subscriber, topic, qos.get(), nullptr);
   }
 
-  Participant participant_;      // own participant
-  std::string partition_;        // the server's
-  dds_entity_t publisher_ = 0;   // in the partition
-  dds_entity_t writer_ = 0;      // requests
-  dds_entity_t reader_ = 0;      // replies (created on demand)
+  Participant participant_;           // own participant
+  std::string partition_;             // the server's
+  dds_entity_t publisher_ = 0;        // in the partition
+  dds_entity_t writer_ = 0;           // requests
+  dds_entity_t reader_ = 0;           // replies (created on demand)
   dds_entity_t progress_reader_ = 0;  // progress reports (created on demand)
   dds_entity_t image_reader_ = 0;     // its replies' images (created on demand)
-  ClientId id_{};                // our request writer's GUID
+  ClientId id_{};                     // our request writer's GUID
 };
 
 class DdsTransportTest : public ::testing::Test {
@@ -182,17 +189,23 @@ class DdsTransportTest : public ::testing::Test {
   // A server with: calc.add(a, b), calc.echo(text), calc.fail(), calc.count(),
   // calc.whoami() -> `name`, robot.goto(x) async interruptible, arm.grasp() async
   // non-interruptible, tool.use() async without a local policy.
-  std::shared_ptr<RequestManager> make_server(const std::string& partition, const std::string& name = "server",
+  std::shared_ptr<RequestManager> make_server(const std::string& partition,
+                                              const std::string& name = "server",
                                               json extra = json::object()) {
     auto rm = load_transport(k_plugin, server_options(partition, extra));
-    rm->register_service("calc", [](double a, double b) { return a + b; }, "add", {"a", "b"}).doc("a + b");
+    rm->register_service("calc", [](double a, double b) { return a + b; }, "add", {"a", "b"})
+        .doc("a + b");
     rm->register_service("calc", [](std::string text) { return text; }, "echo", {"text"});
-    rm->register_service("calc", []() -> int { throw ServiceError("calc.fail: it failed on purpose"); }, "fail");
+    rm->register_service(
+        "calc", []() -> int { throw ServiceError("calc.fail: it failed on purpose"); }, "fail");
     rm->register_service("calc", [this]() { return ++count_; }, "count");
     rm->register_service("calc", [name]() { return name; }, "whoami");
-    rm->register_async_service("robot", [this](Completion c, double) { goto_.on_start(c); }, "goto", {"x"})
+    rm->register_async_service("robot", [this](Completion c, double) { goto_.on_start(c); }, "goto",
+                               {"x"})
         .interruptible();
-    rm->register_async_service("arm", [this](Completion c) { grasp_.on_start(c); }, "grasp").noninterruptible();
+    rm->register_async_service(
+          "arm", [this](Completion c) { grasp_.on_start(c); }, "grasp")
+        .noninterruptible();
     rm->register_async_service("tool", [this](Completion c) { use_.on_start(c); }, "use");
     return rm;
   }

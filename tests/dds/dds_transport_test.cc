@@ -203,8 +203,8 @@ TEST_F(DdsTransportTest, CatalogListsEveryServiceForLateJoiners) {
     if (s["component"] == "calc" && s["name"] == "add") add = s;
     if (s["component"] == "robot" && s["name"] == "goto") go = s;
   }
-  EXPECT_EQ(names, (std::set<std::string>{"calc.add", "calc.echo", "calc.fail", "calc.count", "calc.whoami",
-                                          "robot.goto", "arm.grasp", "tool.use"}));
+  EXPECT_EQ(names, (std::set<std::string>{"calc.add", "calc.echo", "calc.fail", "calc.count",
+                                          "calc.whoami", "robot.goto", "arm.grasp", "tool.use"}));
   ASSERT_TRUE(add.is_object());
   EXPECT_EQ(add["params"].size(), 2u);
   EXPECT_EQ(add["params"][0]["name"], "a");
@@ -226,7 +226,8 @@ TEST_F(DdsTransportTest, AnUnregisteredComponentLeavesTheCatalogAndItsCallFails)
   ASSERT_TRUE(goto_.wait_started(1));
   {
     std::lock_guard lock(*server->gate());  // as the simulation removes a component
-    EXPECT_TRUE(server->unregister_component("robot", "robot 'robot' was deleted by simulation.delete_entity"));
+    EXPECT_TRUE(server->unregister_component(
+        "robot", "robot 'robot' was deleted by simulation.delete_entity"));
   }
   const Outcome out = client->wait(call, 10s);
   EXPECT_EQ(out.status, Status::failed);
@@ -243,8 +244,8 @@ TEST_F(DdsTransportTest, AnUnregisteredComponentLeavesTheCatalogAndItsCallFails)
     std::this_thread::sleep_for(50ms);
     names = listed(client->list_services(10s));
   }
-  const std::set<std::string> expected{"calc.add", "calc.echo", "calc.fail", "calc.count", "calc.whoami",
-                                       "arm.grasp", "tool.use"};
+  const std::set<std::string> expected{"calc.add",    "calc.echo", "calc.fail", "calc.count",
+                                       "calc.whoami", "arm.grasp", "tool.use"};
   EXPECT_EQ(names, expected);
   // a client that joins now sees the same
   auto late = make_client(test_partition());
@@ -259,17 +260,22 @@ TEST_F(DdsTransportTest, AnUnregisteredComponentLeavesTheCatalogAndItsCallFails)
 // then revision 2 with one, and the dispose of the other two never sent.
 TEST_F(DdsTransportTest, CatalogEntriesOfAnOlderRevisionAreNotListed) {
   const std::string partition = test_partition();
-  Participant server(test_domain(), ("file://" + std::string(SIMGATE_LOOPBACK_DDS_XML)).c_str(), "fake server");
+  Participant server(test_domain(), ("file://" + std::string(SIMGATE_LOOPBACK_DDS_XML)).c_str(),
+                     "fake server");
   QosPtr partition_qos(dds_create_qos());
   dds_qset_partition1(partition_qos.get(), partition.c_str());
   dds_entity_t publisher = dds_create_publisher(server.handle(), partition_qos.get(), nullptr);
-  dds_entity_t topic = dds_create_topic(server.handle(), &simgate_CatalogEntry_desc, k_catalog_topic, nullptr, nullptr);
+  dds_entity_t topic = dds_create_topic(server.handle(), &simgate_CatalogEntry_desc,
+                                        k_catalog_topic, nullptr, nullptr);
   QosPtr qos = make_qos(true, 1, DDS_SECS(1));
   dds_entity_t writer = dds_create_writer(publisher, topic, qos.get(), nullptr);
   ASSERT_GT(writer, 0);
   auto write = [&](const char* component, std::uint32_t count, std::uint32_t revision) {
-    const std::string services =
-        json::array({{{"component", component}, {"name", "ping"}, {"async", false}, {"params", json::array()}}}).dump();
+    const std::string services = json::array({{{"component", component},
+                                               {"name", "ping"},
+                                               {"async", false},
+                                               {"params", json::array()}}})
+                                     .dump();
     simgate_CatalogEntry entry{};
     entry.component = const_cast<char*>(component);
     entry.server = const_cast<char*>("0123456789abcdef0123456789abcdef");
@@ -307,8 +313,8 @@ TEST_F(DdsTransportTest, CallWithoutServerFailsClearly) {
     FAIL() << "call without a server returned";
   } catch (const ClientError& e) {
     std::string what = e.what();
-    EXPECT_NE(what.find("no simgate simulation in domain " + std::to_string(test_domain()) + ", partition '" +
-                        test_partition() + "'"),
+    EXPECT_NE(what.find("no simgate simulation in domain " + std::to_string(test_domain()) +
+                        ", partition '" + test_partition() + "'"),
               std::string::npos)
         << what;
     EXPECT_NE(what.find("request reader and reply writer"), std::string::npos) << what;
@@ -535,7 +541,8 @@ TEST_F(DdsTransportTest, ParamsNestedDeeperThanMaxDepthAreRefusedAndServerKeepsS
     EXPECT_EQ(reply->seq, seq);
     EXPECT_EQ(reply->status, simgate_ST_FAILED);
     EXPECT_EQ(reply->failure, simgate_FL_BAD_ARGUMENTS);
-    EXPECT_NE(reply->message.find("max_depth (128)"), std::string::npos) << reply->message.substr(0, 200);
+    EXPECT_NE(reply->message.find("max_depth (128)"), std::string::npos)
+        << reply->message.substr(0, 200);
     EXPECT_LT(reply->message.size(), 300u);
   }
   raw.write(++seq, simgate_OP_CALL, "calc", "add", "[1, 2]");
@@ -554,7 +561,8 @@ TEST_F(DdsTransportTest, MaxDepthOptionBoundsParamsNesting) {
   RawClient raw(test_partition());
   raw.create_reply_reader();
   ASSERT_TRUE(raw.wait_request_matched());
-  raw.write(1, simgate_OP_CALL, "calc", "echo", "[[[\"[[[[\"]]]");  // brackets inside strings do not count
+  raw.write(1, simgate_OP_CALL, "calc", "echo",
+            "[[[\"[[[[\"]]]");  // brackets inside strings do not count
   auto reply = raw.next();
   ASSERT_TRUE(reply);
   EXPECT_EQ(reply->failure, simgate_FL_BAD_ARGUMENTS);

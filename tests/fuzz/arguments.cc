@@ -56,7 +56,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     std::string_view params_text;
     if (s1 != std::string_view::npos) {
       const std::size_t s2 = line.find(' ', s1 + 1);
-      service = line.substr(s1 + 1, s2 == std::string_view::npos ? std::string_view::npos : s2 - s1 - 1);
+      service =
+          line.substr(s1 + 1, s2 == std::string_view::npos ? std::string_view::npos : s2 - s1 - 1);
       if (s2 != std::string_view::npos) params_text = line.substr(s2 + 1);
     }
     json params;

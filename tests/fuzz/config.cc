@@ -64,10 +64,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     // refused: not JSON, a number beyond a double, too deep, or a NUL byte (where nlohmann
     // ends the text); never JSON that nlohmann reads, no deeper than the limit
     if (text.find('\0') != std::string_view::npos) {
-      FUZZ_CHECK(e.errors()[0].find("found a NUL byte (line ") != std::string::npos, "a NUL byte is named");
+      FUZZ_CHECK(e.errors()[0].find("found a NUL byte (line ") != std::string::npos,
+                 "a NUL byte is named");
     } else if (!json_nests_deeper_than(text, k_max_config_depth)) {
       const json reference = json::parse(text, nullptr, /*allow_exceptions=*/false);
-      FUZZ_CHECK(reference.is_discarded(), "parse_config_text refuses only what json::parse refuses: " + e.errors()[0]);
+      FUZZ_CHECK(reference.is_discarded(),
+                 "parse_config_text refuses only what json::parse refuses: " + e.errors()[0]);
     }
     return 0;
   }
@@ -87,7 +89,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     fuzz::read_options(t);
   }
   const std::vector<std::string> names = d.component_names();
-  FUZZ_CHECK(std::set<std::string>(names.begin(), names.end()).size() == names.size(), "component names are unique");
+  FUZZ_CHECK(std::set<std::string>(names.begin(), names.end()).size() == names.size(),
+             "component names are unique");
   for (const auto& name : names)
     for (const auto& t : d.transports_for(name))
       FUZZ_CHECK(transports.count(t), "the mapping names declared transports only: " + t);

@@ -34,19 +34,22 @@ void check_preview(const json& value) {
   if (text.size() <= 60) {
     FUZZ_CHECK(preview == text, "a short value's preview is its dump: " + preview + " vs " + text);
   } else {
-    FUZZ_CHECK(preview.size() <= 60 && preview.size() >= 3 && preview.substr(preview.size() - 3) == "...",
-               "a long value's preview is cut with '...': " + preview);
+    FUZZ_CHECK(
+        preview.size() <= 60 && preview.size() >= 3 && preview.substr(preview.size() - 3) == "...",
+        "a long value's preview is cut with '...': " + preview);
     const std::string shown = preview.substr(0, preview.size() - 3);
-    FUZZ_CHECK(text.compare(0, shown.size(), shown) == 0, "a preview is the start of the dump: " + preview);
+    FUZZ_CHECK(text.compare(0, shown.size(), shown) == 0,
+               "a preview is the start of the dump: " + preview);
     FUZZ_CHECK(shown.size() + 3 >= 57, "a preview backs off at most 3 bytes for UTF-8: " + preview);
   }
   const std::string described = describe_json(value);
   FUZZ_CHECK(described.size() <= 80, "describe_json is bounded: " + described);
 }
 
-void request(std::string_view component, std::string_view service, std::string_view params_text, ServiceHost& host) {
+void request(std::string_view component, std::string_view service, std::string_view params_text,
+             ServiceHost& host) {
   const std::string name = std::string(component) + "." + std::string(service);
-  if (params_text.size() > k_max_params) return;  // FL_BAD_ARGUMENTS: too large
+  if (params_text.size() > k_max_params) return;                 // FL_BAD_ARGUMENTS: too large
   if (json_nests_deeper_than(params_text, k_max_depth)) return;  // FL_BAD_ARGUMENTS: too deep
   json params;
   if (!params_text.empty()) {
@@ -62,9 +65,11 @@ void request(std::string_view component, std::string_view service, std::string_v
     check_preview(params);
     const std::size_t depth = depth_of(params);
     FUZZ_CHECK(depth <= k_max_depth, "the pre-scan keeps deeper params out");
-    FUZZ_CHECK(depth == 0 || json_nests_deeper_than(params_text, depth - 1), "the pre-scan sees the value's depth");
+    FUZZ_CHECK(depth == 0 || json_nests_deeper_than(params_text, depth - 1),
+               "the pre-scan sees the value's depth");
   }
-  const std::optional<Outcome> outcome = host.call(std::string(component), std::string(service), params);
+  const std::optional<Outcome> outcome =
+      host.call(std::string(component), std::string(service), params);
   if (!outcome) return;  // async: acknowledged, ends in a later step
   // the reply (send_outcome): result, data and message as text
   if (outcome->value) (void)dump(*outcome->value);
@@ -88,7 +93,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   std::string_view service, params;
   if (c_end != std::string_view::npos) {
     const std::size_t s_end = input.find('\n', c_end + 1);
-    service = input.substr(c_end + 1, s_end == std::string_view::npos ? std::string_view::npos : s_end - c_end - 1);
+    service = input.substr(
+        c_end + 1, s_end == std::string_view::npos ? std::string_view::npos : s_end - c_end - 1);
     if (s_end != std::string_view::npos) params = input.substr(s_end + 1);
   }
   // a DDS string ends at its first NUL

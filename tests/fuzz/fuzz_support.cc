@@ -10,7 +10,9 @@ namespace simgate::fuzz {
 class Mover : public Component {
  public:
   explicit Mover(std::string name) : Component(std::move(name)) {
-    add_async_service("goto", &Mover::go_to, {"x", "y", {"tolerance", 0.5}}).interruptible().doc("drive");
+    add_async_service("goto", &Mover::go_to, {"x", "y", {"tolerance", 0.5}})
+        .interruptible()
+        .doc("drive");
     add_async_service("lock", &Mover::lock, {}).noninterruptible();
     add_async_service("wander", &Mover::wander, {{"steps", 3}});  // no local policy
     add_async_service("hold", &Mover::hold, {"value"}).interruptible();
@@ -69,47 +71,67 @@ class Mover : public Component {
   std::optional<json> held_;
 };
 
-ServiceHost::ServiceHost() : RequestManager("Fuzz service manager"), mover_(std::make_unique<Mover>("robot.mover")) {
+ServiceHost::ServiceHost()
+    : RequestManager("Fuzz service manager"), mover_(std::make_unique<Mover>("robot.mover")) {
   register_component(*mover_);
   // free functions of many signatures (MORSE's register_service)
   register_service("calc", [](double a, double b) { return a + b; }, "add", {"a", "b"});
-  register_service("calc", [](const std::vector<double>& v) {
-    double s = 0;
-    for (double x : v) s += x;
-    return s;
-  }, "sum", {"values"});
-  register_service("calc", [](std::vector<double> v, double k) {
-    for (double& x : v) x *= k;
-    return v;
-  }, "scale", {"values", {"factor", 2.0}});
-  register_service("text", [](const std::string& name, std::optional<std::string> greeting) {
-    return greeting.value_or("hello") + ", " + name;
-  }, "greet", {"name", {"greeting", nullptr}});
+  register_service("calc",
+                   [](const std::vector<double>& v) {
+                     double s = 0;
+                     for (double x : v) s += x;
+                     return s;
+                   },
+                   "sum", {"values"});
+  register_service("calc",
+                   [](std::vector<double> v, double k) {
+                     for (double& x : v) x *= k;
+                     return v;
+                   },
+                   "scale", {"values", {"factor", 2.0}});
+  register_service("text",
+                   [](const std::string& name, std::optional<std::string> greeting) {
+                     return greeting.value_or("hello") + ", " + name;
+                   },
+                   "greet", {"name", {"greeting", nullptr}});
   register_service("text", [](const json& value) { return value; }, "echo", {"value"});
-  register_service("types", [](std::int8_t a, std::uint8_t b, std::int32_t c, std::uint32_t d, std::int64_t e,
-                               std::uint64_t f) { return json{a, b, c, d, e, f}; },
+  register_service("types",
+                   [](std::int8_t a, std::uint8_t b, std::int32_t c, std::uint32_t d,
+                      std::int64_t e, std::uint64_t f) { return json{a, b, c, d, e, f}; },
                    "ints", {"a", "b", "c", "d", "e", "f"});
   register_service("types", [](float f, double d) { return json{f, d}; }, "floats", {"f", "d"});
   register_service("types", [](const std::array<double, 3>& p) { return p; }, "point", {"p"});
-  register_service("types", [](const std::map<std::string, int>& m) { return m.size(); }, "table", {"entries"});
+  register_service("types", [](const std::map<std::string, int>& m) { return m.size(); }, "table",
+                   {"entries"});
   register_service("types", [](bool a, bool b) { return a && b; }, "flags", {"a", {"b", false}});
-  register_service("types", [](const std::vector<std::vector<int>>& m) { return m; }, "matrix", {"rows"});
-  register_service("types", [](const std::optional<std::vector<std::string>>& tags) { return tags.has_value(); },
-                   "tags", {{"tags", nullptr}});
+  register_service("types", [](const std::vector<std::vector<int>>& m) { return m; }, "matrix",
+                   {"rows"});
+  register_service(
+      "types", [](const std::optional<std::vector<std::string>>& tags) { return tags.has_value(); },
+      "tags", {{"tags", nullptr}});
   register_service("types", [] {}, "none");
-  register_service("types", [](int a, const std::string& b, const json& c, double d) { return json{a, b, c, d}; },
-                   "mixed", {"a", "b", "c", {"d", 1.5}});
+  register_service(
+      "types",
+      [](int a, const std::string& b, const json& c, double d) { return json{a, b, c, d}; },
+      "mixed", {"a", "b", "c", {"d", 1.5}});
   // async free functions: the completion is kept and finished by tick() (MORSE's
   // result_setter), one per component or, concurrent, any number
-  register_async_service("jobs", [this](Completion done, int start) {
-    jobs_.push_back({std::move(done), json(std::int64_t{start} + 1)});
-  }, "compute", {"start"});
-  register_async_service("jobs", [this](Completion done, double seconds) {
-    jobs_.push_back({std::move(done), json(seconds)});
-  }, "wait", {"seconds"}).concurrent();
-  register_async_service("jobs", [](Completion done, const json& value) {
-    done(Status::success, value);  // finished before it returns
-  }, "instant", {"value"});
+  register_async_service("jobs",
+                         [this](Completion done, int start) {
+                           jobs_.push_back({std::move(done), json(std::int64_t{start} + 1)});
+                         },
+                         "compute", {"start"});
+  register_async_service("jobs",
+                         [this](Completion done, double seconds) {
+                           jobs_.push_back({std::move(done), json(seconds)});
+                         },
+                         "wait", {"seconds"})
+      .concurrent();
+  register_async_service("jobs",
+                         [](Completion done, const json& value) {
+                           done(Status::success, value);  // finished before it returns
+                         },
+                         "instant", {"value"});
 }
 
 ServiceHost::~ServiceHost() {
@@ -127,11 +149,13 @@ void ServiceHost::end_input() {
   for (RequestId id : started_) cancel(id);  // those that ended are not found
   {
     std::lock_guard lock(*gate());
-    for (auto& [done, result] : jobs_) done(Status::success, std::move(result));  // no-op when cancelled
+    for (auto& [done, result] : jobs_)
+      done(Status::success, std::move(result));  // no-op when cancelled
     jobs_.clear();
   }
   process();
-  for (auto& [id, count] : async_) FUZZ_CHECK(count == 1, "an async request ended exactly once (" + std::to_string(count) + ")");
+  for (auto& [id, count] : async_)
+    FUZZ_CHECK(count == 1, "an async request ended exactly once (" + std::to_string(count) + ")");
   async_.clear();
   started_.clear();
   set_global_policy(GlobalPolicy::reject);

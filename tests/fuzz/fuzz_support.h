@@ -26,13 +26,13 @@
 #include "simgate/core/request_manager.h"
 
 // A property of the code under test does not hold: a finding, like a crash.
-#define FUZZ_CHECK(cond, what)                                                              \
-  do {                                                                                      \
-    if (!(cond)) {                                                                          \
+#define FUZZ_CHECK(cond, what)                                                                \
+  do {                                                                                        \
+    if (!(cond)) {                                                                            \
       std::fprintf(stderr, "fuzz property failed at %s:%d: %s\n  (%s)\n", __FILE__, __LINE__, \
-                   std::string(what).c_str(), #cond);                                       \
-      std::abort();                                                                         \
-    }                                                                                       \
+                   std::string(what).c_str(), #cond);                                         \
+      std::abort();                                                                           \
+    }                                                                                         \
   } while (0)
 
 namespace simgate::fuzz {
@@ -41,7 +41,9 @@ namespace simgate::fuzz {
 inline void quiet_logs() { log::set_level(log::Level::off); }
 
 // Serialises as the transports do (invalid UTF-8 replaced: never throws).
-inline std::string dump(const json& value) { return value.dump(-1, ' ', false, json::error_handler_t::replace); }
+inline std::string dump(const json& value) {
+  return value.dump(-1, ' ', false, json::error_handler_t::replace);
+}
 
 // Same value and, recursively, the same JSON types (json's == equates 1u, 1 and 1.0 and
 // never NaN with NaN).
@@ -86,7 +88,8 @@ inline void check_outcome(const Outcome& o) {
     FUZZ_CHECK(o.failure != Failure::none, "a failed or preempted outcome says why");
     // a service's own message may be empty: ServiceError's is what() (a C string), cut at
     // a NUL the client's text put there (docs/fuzzing.md, findings)
-    FUZZ_CHECK(!o.message.empty() || o.failure == Failure::service_error, "a failed or preempted outcome has a message");
+    FUZZ_CHECK(!o.message.empty() || o.failure == Failure::service_error,
+               "a failed or preempted outcome has a message");
   }
   if (o.value) (void)dump(*o.value), (void)json_preview(*o.value), (void)describe_json(*o.value);
   (void)dump(o.data);
@@ -119,7 +122,8 @@ class ServiceHost : public RequestManager {
 
   // Runs one request under the simulation lock, as a transport thread does; the outcome
   // of a sync request, nullopt for an async one (it ends in a later tick or cancel).
-  std::optional<Outcome> call(const std::string& component, const std::string& service, const json& params);
+  std::optional<Outcome> call(const std::string& component, const std::string& service,
+                              const json& params);
   // One simulation step: the components' default_action, the kept jobs finish, and the
   // completions are delivered.
   void tick();
@@ -134,7 +138,7 @@ class ServiceHost : public RequestManager {
     Completion done;
     json result;
   };
-  std::unique_ptr<Mover> mover_;    // served until abandon_pending() in ~ServiceHost
+  std::unique_ptr<Mover> mover_;  // served until abandon_pending() in ~ServiceHost
   std::mutex mutex_;
   std::map<RequestId, int> async_;  // async requests started -> completions received
   std::vector<RequestId> started_;  // in order

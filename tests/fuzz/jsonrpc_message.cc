@@ -29,23 +29,25 @@ constexpr std::size_t k_max_depth = 128;  // the transport's default max_depth
 // What the full path reads from one line: nothing (an error answered), one request, or a
 // batch of entries (each a request or an error).
 struct FullPath {
-  bool answered_error = false;           // parse error, too deep, empty batch, not a request
+  bool answered_error = false;  // parse error, too deep, empty batch, not a request
   bool batch = false;
   std::vector<std::optional<jsonrpc::Request>> requests;  // nullopt: answered invalid
-  std::vector<json> errors;              // the error responses written
+  std::vector<json> errors;                               // the error responses written
 };
 
 FullPath full_path(std::string_view line, std::size_t max_depth) {
   FullPath out;
   if (json_nests_deeper_than(line, max_depth)) {
     out.answered_error = true;
-    out.errors.push_back(jsonrpc::error_response(nullptr, jsonrpc::code::invalid_request, "too deep"));
+    out.errors.push_back(
+        jsonrpc::error_response(nullptr, jsonrpc::code::invalid_request, "too deep"));
     return out;
   }
   // the manager refuses a NUL byte before parsing (nlohmann would end the text there)
   if (line.find('\0') != std::string_view::npos) {
     out.answered_error = true;
-    out.errors.push_back(jsonrpc::error_response(nullptr, jsonrpc::code::parse_error, "Parse error"));
+    out.errors.push_back(
+        jsonrpc::error_response(nullptr, jsonrpc::code::parse_error, "Parse error"));
     return out;
   }
   json message;
@@ -61,12 +63,14 @@ FullPath full_path(std::string_view line, std::size_t max_depth) {
   // key's first value is dropped by the parser)
   const std::size_t depth = depth_of(message);
   FUZZ_CHECK(depth <= max_depth, "the pre-scan keeps deeper messages out");
-  FUZZ_CHECK(depth == 0 || json_nests_deeper_than(line, depth - 1), "the pre-scan sees the value's depth");
+  FUZZ_CHECK(depth == 0 || json_nests_deeper_than(line, depth - 1),
+             "the pre-scan sees the value's depth");
 
   auto one = [&](json& entry) {
     jsonrpc::Request request;
     if (auto error = jsonrpc::parse_request(entry, request)) {
-      FUZZ_CHECK(error->is_object() && error->contains("error") && error->contains("id"), "an error response");
+      FUZZ_CHECK(error->is_object() && error->contains("error") && error->contains("id"),
+                 "an error response");
       out.errors.push_back(std::move(*error));
       out.requests.emplace_back();
     } else {
@@ -77,7 +81,8 @@ FullPath full_path(std::string_view line, std::size_t max_depth) {
     out.batch = true;
     if (message.empty()) {
       out.answered_error = true;
-      out.errors.push_back(jsonrpc::error_response(nullptr, jsonrpc::code::invalid_request, "empty batch"));
+      out.errors.push_back(
+          jsonrpc::error_response(nullptr, jsonrpc::code::invalid_request, "empty batch"));
       return out;
     }
     for (auto& entry : message) one(entry);
@@ -102,7 +107,8 @@ void check_fast(std::string_view line, std::size_t max_depth, jsonrpc::Request& 
     FUZZ_CHECK(f->has_id == r.has_id, "fast path: has_id");
     FUZZ_CHECK(identical(f->id, r.id), "fast path: id " + dump(f->id) + " vs " + dump(r.id));
     FUZZ_CHECK(f->method == r.method, "fast path: method");
-    FUZZ_CHECK(identical(f->params, r.params), "fast path: params " + dump(f->params) + " vs " + dump(r.params));
+    FUZZ_CHECK(identical(f->params, r.params),
+               "fast path: params " + dump(f->params) + " vs " + dump(r.params));
     if (f->has_id) FUZZ_CHECK(f->id_text == jsonrpc::dump(f->id), "fast path: id_text is dump(id)");
   }
 }
@@ -112,7 +118,8 @@ void check_response(const std::string& text, const json& id) {
   const json parsed = json::parse(text, nullptr, false);
   FUZZ_CHECK(!parsed.is_discarded() && parsed.is_object(), "a response is a JSON object: " + text);
   FUZZ_CHECK(parsed.value("jsonrpc", "") == "2.0", "a response says jsonrpc 2.0");
-  FUZZ_CHECK(parsed.contains("id") && (identical(parsed["id"], id) || (id.is_number() && parsed["id"] == id)),
+  FUZZ_CHECK(parsed.contains("id") &&
+                 (identical(parsed["id"], id) || (id.is_number() && parsed["id"] == id)),
              "a response carries the request's id: " + text);
   FUZZ_CHECK(parsed.contains("result") != parsed.contains("error"), "a result or an error");
 }
@@ -121,7 +128,9 @@ void check_response(const std::string& text, const json& id) {
 void dispatch(jsonrpc::Request& request, ServiceHost& host, const json& discover) {
   const std::string& method = request.method;
   if (method == "rpc.discover") {
-    if (request.has_id) check_response(dump(json{{"jsonrpc", "2.0"}, {"id", request.id}, {"result", discover}}), request.id);
+    if (request.has_id)
+      check_response(dump(json{{"jsonrpc", "2.0"}, {"id", request.id}, {"result", discover}}),
+                     request.id);
     return;
   }
   std::string component, service;
@@ -131,12 +140,14 @@ void dispatch(jsonrpc::Request& request, ServiceHost& host, const json& discover
                    component + "." + service == method,
                "split_method splits at the last dot");
   } else {
-    FUZZ_CHECK(method.find('.') == std::string::npos || method.front() == '.' || method.back() == '.',
-               "split_method refuses only methods without a usable dot");
+    FUZZ_CHECK(
+        method.find('.') == std::string::npos || method.front() == '.' || method.back() == '.',
+        "split_method refuses only methods without a usable dot");
   }
   if (method.rfind("rpc.", 0) == 0 || !split) {
-    const json error = jsonrpc::error_response(request.id, jsonrpc::code::method_not_found, "Method not found: " + method,
-                                               json{{"method", method}});
+    const json error =
+        jsonrpc::error_response(request.id, jsonrpc::code::method_not_found,
+                                "Method not found: " + method, json{{"method", method}});
     if (request.has_id) check_response(jsonrpc::dump(error), request.id);
     return;
   }
@@ -146,15 +157,18 @@ void dispatch(jsonrpc::Request& request, ServiceHost& host, const json& discover
     const json result = outcome->value ? *outcome->value : json(nullptr);
     std::string line;
     jsonrpc::append_result_line(line, jsonrpc::dump(request.id), result);
-    FUZZ_CHECK(line == R"({"jsonrpc":"2.0","id":)" + jsonrpc::dump(request.id) + R"(,"result":)" + jsonrpc::dump(result) + "}",
+    FUZZ_CHECK(line == R"({"jsonrpc":"2.0","id":)" + jsonrpc::dump(request.id) + R"(,"result":)" +
+                           jsonrpc::dump(result) + "}",
                "append_result_line writes what dump() writes");
     check_response(line, request.id);
   } else {
-    check_response(jsonrpc::dump(jsonrpc::outcome_response(request.id, *outcome, method)), request.id);
+    check_response(jsonrpc::dump(jsonrpc::outcome_response(request.id, *outcome, method)),
+                   request.id);
   }
 }
 
-void one_message(std::string_view line, jsonrpc::Request& reused, ServiceHost& host, const json& discover) {
+void one_message(std::string_view line, jsonrpc::Request& reused, ServiceHost& host,
+                 const json& discover) {
   if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
   if (line.find_first_not_of(" \t\r") == std::string_view::npos) return;  // keep-alive
 
@@ -181,8 +195,8 @@ simgate::json discover_document;  // rpc.discover's result for the ServiceHost's
 
 extern "C" int LLVMFuzzerInitialize(int*, char***) {
   simgate::fuzz::quiet_logs();
-  discover_document = simgate::jsonrpc::openrpc_document(simgate::fuzz::ServiceHost::instance().descriptors(),
-                                                         "0.1.0", "reject");
+  discover_document = simgate::jsonrpc::openrpc_document(
+      simgate::fuzz::ServiceHost::instance().descriptors(), "0.1.0", "reject");
   return 0;
 }
 

@@ -25,7 +25,8 @@ namespace {
 
 // The grammar, as a regular expression: METHOD SP target SP HTTP/d.d [CR]
 bool by_the_grammar(std::string_view line) {
-  static const std::regex request_line("[A-Z]{1,16} [^ ]+ HTTP/[0-9]\\.[0-9]\r?", std::regex::ECMAScript);
+  static const std::regex request_line("[A-Z]{1,16} [^ ]+ HTTP/[0-9]\\.[0-9]\r?",
+                                       std::regex::ECMAScript);
   return std::regex_match(line.begin(), line.end(), request_line);
 }
 
@@ -43,7 +44,8 @@ const StreamInfo& motion_stream() {
 
 void one_line(std::string_view line) {
   const bool http = kit::is_http_request_line(line);
-  FUZZ_CHECK(http == by_the_grammar(line), "is_http_request_line agrees with the request-line grammar");
+  FUZZ_CHECK(http == by_the_grammar(line),
+             "is_http_request_line agrees with the request-line grammar");
   if (line.empty() || line.front() != '{') return;
   const json command = json::parse(line, nullptr, false);
   if (!command.is_object()) return;
@@ -51,9 +53,11 @@ void one_line(std::string_view line) {
   for (auto it = command.begin(); it != command.end() && !stranger; ++it)
     if (it.key() != "v" && it.key() != "w" && it.key() != "timestamp") stranger = it.key();
   const std::string refusal = StreamHub::unknown_key(motion_stream(), command);
-  FUZZ_CHECK(refusal.empty() == !stranger, "a command is refused exactly when it has an unknown key");
+  FUZZ_CHECK(refusal.empty() == !stranger,
+             "a command is refused exactly when it has an unknown key");
   if (stranger)
-    FUZZ_CHECK(refusal.find("unknown key '" + *stranger + "'") != std::string::npos, "the refusal names the key");
+    FUZZ_CHECK(refusal.find("unknown key '" + *stranger + "'") != std::string::npos,
+               "the refusal names the key");
 }
 
 }  // namespace

@@ -43,7 +43,8 @@ void reply(std::string& out, std::string_view id, std::string_view status, const
   FUZZ_CHECK(line.substr(0, id.size()) == id, "a reply starts with the request's id");
 }
 
-void one_line(std::string_view line, json& reused, socket::ParamsParse& error, ServiceHost& host, std::string& out) {
+void one_line(std::string_view line, json& reused, socket::ParamsParse& error, ServiceHost& host,
+              std::string& out) {
   const socket::RequestLine r = socket::parse_request_line(line);
   switch (r.kind) {
     case socket::RequestLine::Kind::blank:
@@ -51,7 +52,8 @@ void one_line(std::string_view line, json& reused, socket::ParamsParse& error, S
       return;
     case socket::RequestLine::Kind::malformed: {
       // its own id, or "-" for one that cannot be echoed (a control character in it)
-      FUZZ_CHECK(r.id == "-" || (!r.id.empty() && !has_blank(r.id) && inside(r.id, line)), "a malformed line has an id");
+      FUZZ_CHECK(r.id == "-" || (!r.id.empty() && !has_blank(r.id) && inside(r.id, line)),
+                 "a malformed line has an id");
       FUZZ_CHECK(socket::echoable_id(r.id), "an id echoed holds no control character");
       FUZZ_CHECK(!r.error.empty(), "a malformed line says why");
       const json message = r.error;
@@ -63,15 +65,17 @@ void one_line(std::string_view line, json& reused, socket::ParamsParse& error, S
       FUZZ_CHECK(socket::echoable_id(r.id), "an id echoed holds no control character");
       host.cancel_started(r.id.size());
       return;
-    case socket::RequestLine::Kind::call:
-      break;
+    case socket::RequestLine::Kind::call: break;
   }
   FUZZ_CHECK(!r.id.empty() && !has_blank(r.id) && inside(r.id, line), "a call has an id");
   FUZZ_CHECK(socket::echoable_id(r.id), "an id echoed holds no control character");
-  FUZZ_CHECK(!r.component.empty() && !has_blank(r.component) && inside(r.component, line), "a call has a component");
-  FUZZ_CHECK(!r.service.empty() && !has_blank(r.service) && inside(r.service, line), "a call has a service");
+  FUZZ_CHECK(!r.component.empty() && !has_blank(r.component) && inside(r.component, line),
+             "a call has a component");
+  FUZZ_CHECK(!r.service.empty() && !has_blank(r.service) && inside(r.service, line),
+             "a call has a service");
   FUZZ_CHECK(inside(r.params, line), "the parameters are part of the line");
-  FUZZ_CHECK(r.params_column >= 1 && r.params_column - 1 <= line.size(), "params_column is in the line");
+  FUZZ_CHECK(r.params_column >= 1 && r.params_column - 1 <= line.size(),
+             "params_column is in the line");
   FUZZ_CHECK(r.params.empty() || r.params.data() == line.data() + (r.params_column - 1),
              "params_column is where the parameters start");
   FUZZ_CHECK(r.params.empty() || (!is_blank(r.params.front()) && !is_blank(r.params.back())),
@@ -82,7 +86,8 @@ void one_line(std::string_view line, json& reused, socket::ParamsParse& error, S
   const socket::ParamsParse fresh = socket::parse_params(r.params, r.params_column);
   FUZZ_CHECK(ok == fresh.ok, "parse_params_into and parse_params agree on success");
   if (!ok) {
-    FUZZ_CHECK(error.error == fresh.error && error.column == fresh.column && error.example == fresh.example,
+    FUZZ_CHECK(error.error == fresh.error && error.column == fresh.column &&
+                   error.example == fresh.example,
                "parse_params_into and parse_params report the same error");
     FUZZ_CHECK(!error.error.empty(), "a syntax error says what");
     FUZZ_CHECK(error.column >= r.params_column && error.column <= r.params_column + r.params.size(),
@@ -92,9 +97,11 @@ void one_line(std::string_view line, json& reused, socket::ParamsParse& error, S
     reply(out, r.id, "FAILED", &message);
     return;
   }
-  FUZZ_CHECK(identical(reused, fresh.value), "a refilled value is the fresh one: " + dump(reused) + " vs " + dump(fresh.value));
+  FUZZ_CHECK(identical(reused, fresh.value),
+             "a refilled value is the fresh one: " + dump(reused) + " vs " + dump(fresh.value));
 
-  const std::optional<Outcome> outcome = host.call(std::string(r.component), std::string(r.service), reused);
+  const std::optional<Outcome> outcome =
+      host.call(std::string(r.component), std::string(r.service), reused);
   if (!outcome) return;  // async: ends in a later tick
   if (outcome->status == Status::success) {
     reply(out, r.id, "SUCCESS", outcome->value ? &*outcome->value : nullptr);

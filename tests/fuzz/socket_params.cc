@@ -79,7 +79,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   if (!p.ok) {
     FUZZ_CHECK(!p.error.empty(), "an error says what");
     FUZZ_CHECK(p.column >= 1 && p.column <= text.size() + 1, "the error's column is in the text");
-    FUZZ_CHECK(shifted.column == p.column + 999 && shifted.error == p.error && shifted.example == p.example,
+    FUZZ_CHECK(shifted.column == p.column + 999 && shifted.error == p.error &&
+                   shifted.example == p.example,
                "the error moves with first_column");
     if (!p.example.empty()) {
       // (wrapping bare values in a list adds a level: values k_max_depth deep make a hint
@@ -98,7 +99,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     socket::append_json(written, p.value);
     const socket::ParamsParse again = socket::parse_params(written);
     FUZZ_CHECK(again.ok, "append_json's text parses: " + written + " -> " + again.error);
-    FUZZ_CHECK(fuzz::identical(p.value, again.value), "append_json round trip: " + written + " -> " + dump(again.value));
+    FUZZ_CHECK(fuzz::identical(p.value, again.value),
+               "append_json round trip: " + written + " -> " + dump(again.value));
     std::string rewritten;
     socket::append_json(rewritten, again.value);
     FUZZ_CHECK(rewritten == written, "append_json is stable: " + written + " vs " + rewritten);
@@ -113,9 +115,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     if (!reference.is_discarded()) {
       // refused on purpose: integers beyond 64 bits (nlohmann makes them doubles) and
       // numbers beyond a double (numbers too small for one read 0.0, as nlohmann reads them)
-      const bool out_of_range = !p.ok && (p.error == "integer out of range" || p.error == "number out of range");
+      const bool out_of_range =
+          !p.ok && (p.error == "integer out of range" || p.error == "number out of range");
       FUZZ_CHECK(p.ok || out_of_range, "valid JSON is accepted: " + p.error);
-      if (p.ok) FUZZ_CHECK(fuzz::same_value(p.value, reference), "JSON reads as nlohmann reads it: " + dump(p.value) + " vs " + dump(reference));
+      if (p.ok)
+        FUZZ_CHECK(fuzz::same_value(p.value, reference),
+                   "JSON reads as nlohmann reads it: " + dump(p.value) + " vs " + dump(reference));
     }
   }
 
@@ -132,7 +137,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   if (!valid) {
     FUZZ_CHECK(bad < text.size(), "the first invalid byte is in the text");
     std::size_t before = 0;
-    FUZZ_CHECK(socket::valid_utf8(text.substr(0, bad), before), "the text before the first invalid byte is valid");
+    FUZZ_CHECK(socket::valid_utf8(text.substr(0, bad), before),
+               "the text before the first invalid byte is valid");
   }
   return 0;
 }

@@ -65,11 +65,13 @@ struct Recorder : FrameSink {
   }
   void on_refused(std::size_t bytes, bool binary) override {
     FUZZ_CHECK(!discarding, "no message after discard_messages()");
-    FUZZ_CHECK(binary || bytes > max_message_bytes, "a message refused as too long is longer than the limit");
+    FUZZ_CHECK(binary || bytes > max_message_bytes,
+               "a message refused as too long is longer than the limit");
     event({binary ? 'b' : 'r', 0, bytes, {}});
   }
   void on_control(std::uint8_t opcode, std::string_view payload) override {
-    FUZZ_CHECK(opcode == FrameParser::k_close || opcode == FrameParser::k_ping || opcode == FrameParser::k_pong,
+    FUZZ_CHECK(opcode == FrameParser::k_close || opcode == FrameParser::k_ping ||
+                   opcode == FrameParser::k_pong,
                "a control frame is a close, ping or pong");
     FUZZ_CHECK(payload.size() <= 125, "a control frame's payload is at most 125 bytes");
     payload_bytes += payload.size();
@@ -77,7 +79,8 @@ struct Recorder : FrameSink {
   }
   void on_protocol_error(std::string_view reason) override {
     FUZZ_CHECK(!reason.empty(), "a protocol error has a reason");
-    FUZZ_CHECK(parser->failed() && parser->error() == reason, "the parser keeps the error's reason");
+    FUZZ_CHECK(parser->failed() && parser->error() == reason,
+               "the parser keeps the error's reason");
     event({'e', 0, 0, std::string(reason)});
     failed = true;
   }
@@ -87,12 +90,13 @@ struct Recorder : FrameSink {
 void print(const char* title, const std::vector<Event>& events) {
   std::fprintf(stderr, "%s:\n", title);
   for (const Event& e : events)
-    std::fprintf(stderr, "  %c opcode %u bytes %zu payload %zu\n", e.kind, unsigned{e.opcode}, e.bytes,
-                 e.payload.size());
+    std::fprintf(stderr, "  %c opcode %u bytes %zu payload %zu\n", e.kind, unsigned{e.opcode},
+                 e.bytes, e.payload.size());
 }
 
 // Checks that `got` are the `expected` events, printing both if not.
-void expect_events(const std::vector<Event>& got, const std::vector<Event>& expected, const char* what) {
+void expect_events(const std::vector<Event>& got, const std::vector<Event>& expected,
+                   const char* what) {
   if (got == expected) return;
   print("expected", expected);
   print("got", got);
@@ -154,7 +158,9 @@ std::vector<Event> reference(std::string_view stream, std::size_t max, std::size
     }
     const std::size_t key_at = at + 2 + ext, payload_at = key_at + 4;
     const std::size_t here = stream.size() - payload_at;  // payload bytes present
-    const auto unmask = [&](std::size_t i) { return static_cast<char>(byte(payload_at + i) ^ byte(key_at + i % 4)); };
+    const auto unmask = [&](std::size_t i) {
+      return static_cast<char>(byte(payload_at + i) ^ byte(key_at + i % 4));
+    };
     if (op >= 8) {
       if (!fin || length > 125) {
         emit({'e', 0, 0, "a fragmented or long control frame"});
@@ -197,7 +203,8 @@ std::vector<Event> reference(std::string_view stream, std::size_t max, std::size
     if (!fin) continue;
     in_message = false;
     if (discard) continue;
-    if (total > max)  // too long first, binary or not (the session's answer since before the parser)
+    if (total >
+        max)  // too long first, binary or not (the session's answer since before the parser)
       emit({'r', 0, total, {}});
     else if (binary)
       emit({'b', 0, total, {}});
@@ -209,7 +216,8 @@ std::vector<Event> reference(std::string_view stream, std::size_t max, std::size
 
 // Feeds `stream` to a fresh parser, in one feed or in splits; checks what does not depend on
 // the split and returns the events.
-std::vector<Event> run(std::string_view stream, std::size_t max, std::size_t discard_after, Splits* splits) {
+std::vector<Event> run(std::string_view stream, std::size_t max, std::size_t discard_after,
+                       Splits* splits) {
   FrameParser parser(max);
   Recorder r;
   r.parser = &parser;
@@ -230,13 +238,15 @@ std::vector<Event> run(std::string_view stream, std::size_t max, std::size_t dis
   FUZZ_CHECK(going == !parser.stopped(), "feed() is false exactly when the parser stopped");
   FUZZ_CHECK(going == !r.failed, "only a protocol error stops the parser here");
   FUZZ_CHECK(r.payload_bytes <= stream.size(), "payloads delivered never exceed the stream");
-  FUZZ_CHECK(parser.buffer_capacity() <= std::max<std::size_t>(FrameParser::k_keep_bytes, stream.size() + 64),
+  FUZZ_CHECK(parser.buffer_capacity() <=
+                 std::max<std::size_t>(FrameParser::k_keep_bytes, stream.size() + 64),
              "the message buffer is bounded");
   if (!going) {
     // nothing more once stopped, not even a whole valid frame
     const std::size_t before = r.events.size();
     const char text_frame[] = {'\x81', '\x80', 0, 0, 0, 0};
-    FUZZ_CHECK(!parser.feed(std::string_view(text_frame, sizeof text_frame), r), "a stopped parser stays stopped");
+    FUZZ_CHECK(!parser.feed(std::string_view(text_frame, sizeof text_frame), r),
+               "a stopped parser stays stopped");
     FUZZ_CHECK(r.events.size() == before, "a stopped parser reports nothing");
   }
   return r.events;
@@ -258,7 +268,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const std::string_view stream(reinterpret_cast<const char*>(data + 4), size - 4);
 
   const std::vector<Event> whole = run(stream, max, discard_after, nullptr);
-  expect_events(whole, reference(stream, max, discard_after), "the events are the reference reader's");
+  expect_events(whole, reference(stream, max, discard_after),
+                "the events are the reference reader's");
   if (data[1] != 255) {
     Splits splits{(std::uint32_t{data[0]} << 8 | data[1]) * 2654435761u | 1u, 1u + data[1] % 64u};
     const std::vector<Event> split = run(stream, max, discard_after, &splits);
@@ -273,7 +284,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     r.discard_after = discard_after;
     for (char c : stream)
       if (!parser.feed(std::string_view(&c, 1), r)) break;
-    expect_events(r.events, whole, "the events do not depend on how the stream is split (byte by byte)");
+    expect_events(r.events, whole,
+                  "the events do not depend on how the stream is split (byte by byte)");
   }
   return 0;
 }

@@ -28,7 +28,8 @@ CliRun simgate(std::vector<std::string> args, const TempDir& dir) {
 // the pose and motion streams.
 json demo_streaming_everywhere() {
   json c = demo_config();
-  c["transports"]["jsonrpc"] = {{"plugin", "jsonrpc"}, {"options", {{"host", "127.0.0.1"}, {"port", 0}}}};
+  c["transports"]["jsonrpc"] = {{"plugin", "jsonrpc"},
+                                {"options", {{"host", "127.0.0.1"}, {"port", 0}}}};
   const json all = json::array({"socket", "jsonrpc", "websocket"});
   c["services"] = {{"default", all}};
   c["streams"] = {{"robot.pose", all}, {"robot.motion", all}};
@@ -61,25 +62,28 @@ void expect_pose_samples(const std::string& out, std::size_t count, const std::s
     const json sample = json::parse(line, nullptr, false);
     ASSERT_TRUE(sample.is_object()) << transport << ": " << line;
     for (const char* field : {"x", "y", "z", "roll", "pitch", "yaw", "timestamp"})
-      EXPECT_TRUE(sample.contains(field) && sample[field].is_number()) << transport << ": " << field << " in " << line;
+      EXPECT_TRUE(sample.contains(field) && sample[field].is_number())
+          << transport << ": " << field << " in " << line;
   }
 }
 
 // robot.pose get_local_data through the socket transport.
 json pose_of(const InProcessGateway& gateway) {
-  auto client = client::make_client("socket", {{"host", "127.0.0.1"}, {"port", gateway.port("socket")}});
+  auto client =
+      client::make_client("socket", {{"host", "127.0.0.1"}, {"port", gateway.port("socket")}});
   Outcome pose = client->call("robot.pose", "get_local_data", json::array(), 10s);
   return pose.status == Status::success && pose.value ? *pose.value : json();
 }
 
 // Waits (bounded) for the robot to be `distance` metres away from `from`; true if it got there.
-bool moves_away(const InProcessGateway& gateway, const json& from, double distance, std::chrono::milliseconds timeout = 30s) {
+bool moves_away(const InProcessGateway& gateway, const json& from, double distance,
+                std::chrono::milliseconds timeout = 30s) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   while (std::chrono::steady_clock::now() < deadline) {
     const json pose = pose_of(gateway);
     if (pose.is_object() &&
-        std::hypot(pose["x"].get<double>() - from["x"].get<double>(), pose["y"].get<double>() - from["y"].get<double>()) >
-            distance)
+        std::hypot(pose["x"].get<double>() - from["x"].get<double>(),
+                   pose["y"].get<double>() - from["y"].get<double>()) > distance)
       return true;
     std::this_thread::sleep_for(50ms);  // the simulation steps meanwhile; bounded by the deadline
   }
@@ -90,7 +94,8 @@ TEST(GatewayCliStream, WatchPrintsParseablePoseSamplesThroughEveryTransport) {
   const TempDir dir;
   InProcessGateway gateway(demo_streaming_everywhere());
   for (const auto& transport : k_transports) {
-    const CliRun run = simgate(through(gateway, transport, {"watch", "robot.pose", "--count", "3"}), dir);
+    const CliRun run =
+        simgate(through(gateway, transport, {"watch", "robot.pose", "--count", "3"}), dir);
     EXPECT_EQ(run.code, 0) << transport << ": " << run.err;
     EXPECT_EQ(run.err, "") << transport;
     expect_pose_samples(run.out, 3, transport);
@@ -101,10 +106,12 @@ TEST(GatewayCliStream, WatchEndsAfterItsDuration) {
   const TempDir dir;
   InProcessGateway gateway(demo_streaming_everywhere());
   for (const auto& transport : k_transports) {
-    const CliRun run = simgate(through(gateway, transport, {"watch", "robot.pose", "--duration", "0.3"}), dir);
+    const CliRun run =
+        simgate(through(gateway, transport, {"watch", "robot.pose", "--duration", "0.3"}), dir);
     EXPECT_EQ(run.code, 0) << transport << ": " << run.err;
     // how many samples fit in 0.3 s depends on the host: only that each is one
-    for (const auto& line : lines_of(run.out)) EXPECT_TRUE(json::parse(line, nullptr, false).is_object()) << line;
+    for (const auto& line : lines_of(run.out))
+      EXPECT_TRUE(json::parse(line, nullptr, false).is_object()) << line;
   }
 }
 
@@ -149,7 +156,8 @@ TEST(GatewayCliStream, PublishMovesTheRobotThroughEveryTransport) {
     InProcessGateway gateway(demo_streaming_everywhere());
     const json start = pose_of(gateway);
     ASSERT_TRUE(start.is_object()) << transport;
-    const CliRun run = simgate(through(gateway, transport, {"publish", "robot.motion", R"({"v": 1, "w": 0})"}), dir);
+    const CliRun run = simgate(
+        through(gateway, transport, {"publish", "robot.motion", R"({"v": 1, "w": 0})"}), dir);
     EXPECT_EQ(run.code, 0) << transport << ": " << run.err;
     EXPECT_THAT(run.out, HasSubstr("robot.motion: 1 command")) << transport;
     EXPECT_TRUE(moves_away(gateway, start, 0.05)) << transport << ": the robot did not move";
@@ -159,17 +167,21 @@ TEST(GatewayCliStream, PublishMovesTheRobotThroughEveryTransport) {
 TEST(GatewayCliStream, PublishSendsCountCommandsAtARate) {
   const TempDir dir;
   InProcessGateway gateway(demo_streaming_everywhere());
-  const CliRun rpc = simgate(
-      through(gateway, "jsonrpc", {"publish", "robot.motion", R"({"v": 0.2, "w": 0.1})", "--count", "3", "--rate", "50"}),
-      dir);
+  const CliRun rpc = simgate(through(gateway, "jsonrpc",
+                                     {"publish", "robot.motion", R"({"v": 0.2, "w": 0.1})",
+                                      "--count", "3", "--rate", "50"}),
+                             dir);
   EXPECT_EQ(rpc.code, 0) << rpc.err;
   EXPECT_THAT(rpc.out, HasSubstr("robot.motion: 3 commands published"));
   const CliRun socket = simgate(
-      through(gateway, "socket", {"publish", "robot.motion", R"({"v": 0, "w": 0})", "--count", "2", "--rate", "50"}), dir);
+      through(gateway, "socket",
+              {"publish", "robot.motion", R"({"v": 0, "w": 0})", "--count", "2", "--rate", "50"}),
+      dir);
   EXPECT_EQ(socket.code, 0) << socket.err;
   EXPECT_THAT(socket.out, HasSubstr("robot.motion: 2 commands written to stream port"));
   // the server counted all five (socket commands are applied on the server's thread)
-  auto client = client::make_client("socket", {{"host", "127.0.0.1"}, {"port", gateway.port("socket")}});
+  auto client =
+      client::make_client("socket", {{"host", "127.0.0.1"}, {"port", gateway.port("socket")}});
   const auto deadline = std::chrono::steady_clock::now() + 30s;
   json motion;
   while (std::chrono::steady_clock::now() < deadline) {
@@ -185,9 +197,12 @@ TEST(GatewayCliStream, AComponentWithoutAStreamIsAnErrorNamingTheStreams) {
   const TempDir dir;
   InProcessGateway gateway(demo_streaming_everywhere());
   for (const auto& transport : k_transports) {
-    const CliRun run = simgate(through(gateway, transport, {"watch", "robot.psoe", "--count", "1"}), dir);
+    const CliRun run =
+        simgate(through(gateway, transport, {"watch", "robot.psoe", "--count", "1"}), dir);
     EXPECT_EQ(run.code, 1) << transport;
-    EXPECT_THAT(run.err, HasSubstr("watch: robot.psoe has no stream on the " + transport + " transport")) << transport;
+    EXPECT_THAT(run.err,
+                HasSubstr("watch: robot.psoe has no stream on the " + transport + " transport"))
+        << transport;
     EXPECT_THAT(run.err, HasSubstr("did you mean 'robot.pose'?")) << transport;
     EXPECT_THAT(run.err, HasSubstr("robot.pose (OUT pose)")) << transport;
     EXPECT_EQ(run.out, "") << transport;
@@ -198,13 +213,17 @@ TEST(GatewayCliStream, AStreamOfTheWrongDirectionIsAnError) {
   const TempDir dir;
   InProcessGateway gateway(demo_streaming_everywhere());
   for (const auto& transport : {"socket", "jsonrpc"}) {
-    const CliRun watch = simgate(through(gateway, transport, {"watch", "robot.motion", "--count", "1"}), dir);
+    const CliRun watch =
+        simgate(through(gateway, transport, {"watch", "robot.motion", "--count", "1"}), dir);
     EXPECT_EQ(watch.code, 1) << transport;
-    EXPECT_THAT(watch.err, HasSubstr("watch: robot.motion is an input stream (IN velocity)")) << transport;
+    EXPECT_THAT(watch.err, HasSubstr("watch: robot.motion is an input stream (IN velocity)"))
+        << transport;
     EXPECT_THAT(watch.err, HasSubstr("simgate publish robot.motion")) << transport;
-    const CliRun publish = simgate(through(gateway, transport, {"publish", "robot.pose", R"({"x": 1})"}), dir);
+    const CliRun publish =
+        simgate(through(gateway, transport, {"publish", "robot.pose", R"({"x": 1})"}), dir);
     EXPECT_EQ(publish.code, 1) << transport;
-    EXPECT_THAT(publish.err, HasSubstr("publish: robot.pose is an output stream (OUT pose)")) << transport;
+    EXPECT_THAT(publish.err, HasSubstr("publish: robot.pose is an output stream (OUT pose)"))
+        << transport;
   }
 }
 
@@ -223,13 +242,15 @@ TEST(GatewayCliStream, ARefusedCommandIsAFailedPublishOverJsonRpcAndWebSocket) {
   const TempDir dir;
   InProcessGateway gateway(demo_streaming_everywhere());
   for (const auto& transport : {"jsonrpc", "websocket"}) {
-    const CliRun run = simgate(through(gateway, transport, {"publish", "robot.motion", R"({"v": 0.5, "speed": 1})"}), dir);
+    const CliRun run = simgate(
+        through(gateway, transport, {"publish", "robot.motion", R"({"v": 0.5, "speed": 1})"}), dir);
     EXPECT_EQ(run.code, 1) << transport;
     EXPECT_THAT(run.err, HasSubstr("rpc.publish refused")) << transport;
     EXPECT_THAT(run.err, HasSubstr("unknown key 'speed'")) << transport;
   }
   // the socket transport answers nothing on a stream port: sent is success
-  const CliRun socket = simgate(through(gateway, "socket", {"publish", "robot.motion", R"({"v": 0.5, "speed": 1})"}), dir);
+  const CliRun socket = simgate(
+      through(gateway, "socket", {"publish", "robot.motion", R"({"v": 0.5, "speed": 1})"}), dir);
   EXPECT_EQ(socket.code, 0) << socket.err;
 }
 
@@ -263,7 +284,8 @@ json demo_requiring_a_token() {
 // robot.motion's commands counted by the server (the socket transport answers none on its
 // stream port: counting them is how to know they got through), through a client that logs in.
 int motion_commands(const InProcessGateway& gateway) {
-  auto client = client::make_client("socket", {{"host", "127.0.0.1"}, {"port", gateway.port("socket")}, {"token", k_token}});
+  auto client = client::make_client(
+      "socket", {{"host", "127.0.0.1"}, {"port", gateway.port("socket")}, {"token", k_token}});
   Outcome stats = client->call("simulation", "get_stream_statistics", json::array(), 10s);
   const json motion = stats.value ? stream_of(*stats.value, "robot.motion") : json();
   return motion.is_object() ? motion.value("commands", 0) : -1;
@@ -286,25 +308,34 @@ TEST(GatewayCliStream, WatchAndPublishPresentTheTokenOfTokenOrSimgateToken) {
   InProcessGateway gateway(demo_requiring_a_token());
   int published = 0;  // commands sent so far
   for (const auto& transport : k_transports) {
-    const CliRun watch = simgate(through(gateway, transport, {"watch", "--token", k_token, "robot.pose", "--count", "2"}), dir);
+    const CliRun watch = simgate(
+        through(gateway, transport, {"watch", "--token", k_token, "robot.pose", "--count", "2"}),
+        dir);
     EXPECT_EQ(watch.code, 0) << transport << ": " << watch.err;
     expect_pose_samples(watch.out, 2, transport);
     const CliRun publish =
-        simgate(through(gateway, transport, {"publish", "--token", k_token, "robot.motion", R"({"v": 0, "w": 0})"}), dir);
+        simgate(through(gateway, transport,
+                        {"publish", "--token", k_token, "robot.motion", R"({"v": 0, "w": 0})"}),
+                dir);
     EXPECT_EQ(publish.code, 0) << transport << ": " << publish.err;
     EXPECT_TRUE(counted(gateway, ++published)) << transport << ": the command did not get through";
     {
       const ScopedEnv token("SIMGATE_TOKEN", k_token);
-      const CliRun env_watch = simgate(through(gateway, transport, {"watch", "robot.pose", "--count", "1"}), dir);
+      const CliRun env_watch =
+          simgate(through(gateway, transport, {"watch", "robot.pose", "--count", "1"}), dir);
       EXPECT_EQ(env_watch.code, 0) << transport << ": " << env_watch.err;
       expect_pose_samples(env_watch.out, 1, transport);
-      const CliRun env_publish = simgate(through(gateway, transport, {"publish", "robot.motion", R"({"v": 0, "w": 0})"}), dir);
+      const CliRun env_publish = simgate(
+          through(gateway, transport, {"publish", "robot.motion", R"({"v": 0, "w": 0})"}), dir);
       EXPECT_EQ(env_publish.code, 0) << transport << ": " << env_publish.err;
-      EXPECT_TRUE(counted(gateway, ++published)) << transport << ": the command did not get through";
+      EXPECT_TRUE(counted(gateway, ++published))
+          << transport << ": the command did not get through";
     }
     // the option wins over the variable
     const ScopedEnv wrong("SIMGATE_TOKEN", "a-wrong-token-0123456789");
-    const CliRun both = simgate(through(gateway, transport, {"watch", "--token", k_token, "robot.pose", "--count", "1"}), dir);
+    const CliRun both = simgate(
+        through(gateway, transport, {"watch", "--token", k_token, "robot.pose", "--count", "1"}),
+        dir);
     EXPECT_EQ(both.code, 0) << transport << ": " << both.err;
   }
 }
@@ -320,7 +351,8 @@ TEST(GatewayCliStream, WatchAndPublishWithoutTheTokenOrWithAWrongOneFailClearly)
       if (command == "watch") rest = {command, "robot.pose", "--count", "1"};
       const CliRun none = simgate(through(gateway, transport, rest), dir);
       EXPECT_EQ(none.code, 1) << transport << " " << command << ": " << none.err;
-      EXPECT_THAT(none.err, HasSubstr("--token TOKEN or the SIMGATE_TOKEN environment variable")) << transport << " " << command;
+      EXPECT_THAT(none.err, HasSubstr("--token TOKEN or the SIMGATE_TOKEN environment variable"))
+          << transport << " " << command;
       EXPECT_EQ(none.out, "") << transport << " " << command;
       rest.insert(rest.begin() + 1, {"--token", "a-wrong-token-0123456789"});
       const CliRun wrong = simgate(through(gateway, transport, rest), dir);

@@ -20,7 +20,8 @@ using ::testing::HasSubstr;
 using ::testing::Not;
 using namespace testing;
 
-CliRun run_split(std::vector<std::string> args, const TempDir& dir, std::chrono::milliseconds timeout = 60s) {
+CliRun run_split(std::vector<std::string> args, const TempDir& dir,
+                 std::chrono::milliseconds timeout = 60s) {
   return run_cli(std::move(args), dir, timeout);
 }
 
@@ -34,7 +35,8 @@ std::string matching_line(const std::string& text, const std::regex& pattern) {
 
 // Waits (bounded) for a line of the process's stdout matching `pattern`; runs `meanwhile`
 // between two looks (which paces the loop), or polls the output file every 10 ms.
-std::string wait_for_line(const Process& p, const std::regex& pattern, const std::function<void()>& meanwhile = {},
+std::string wait_for_line(const Process& p, const std::regex& pattern,
+                          const std::function<void()>& meanwhile = {},
                           std::chrono::milliseconds timeout = 30s) {
   auto deadline = std::chrono::steady_clock::now() + timeout;
   while (std::chrono::steady_clock::now() < deadline) {
@@ -55,7 +57,8 @@ class RunningDemo {
   explicit RunningDemo(const TempDir& dir, std::vector<std::string> extra = {}) {
     std::string config = dir.write("demo.json", demo_config().dump());
     std::string endpoints = dir.file("endpoints.json");
-    std::vector<std::string> args = {simgate_binary(), "run", config, "--endpoints-file", endpoints};
+    std::vector<std::string> args = {simgate_binary(), "run", config, "--endpoints-file",
+                                     endpoints};
     args.insert(args.end(), extra.begin(), extra.end());
     process_ = std::make_unique<Process>(args, dir.file(""));
     json e = json::parse(wait_for_file(endpoints), nullptr, false);
@@ -99,7 +102,8 @@ TEST(GatewayCliTest, UnknownCommandIsAUsageError) {
 
 TEST(GatewayCliTest, BadLogLevelIsAUsageError) {
   TempDir dir;
-  auto [code, out] = run_simgate({"run", source_path("config/demo.json"), "--log-level", "loud"}, dir);
+  auto [code, out] =
+      run_simgate({"run", source_path("config/demo.json"), "--log-level", "loud"}, dir);
   EXPECT_EQ(code, 2);
   EXPECT_THAT(out, HasSubstr("--log-level"));
 }
@@ -134,11 +138,13 @@ TEST(GatewayCliTest, CheckReportsEveryErrorOfTheFileAtOnce) {
   EXPECT_THAT(out, HasSubstr("simgate: invalid configuration: config '" + file + "': 3 errors:\n"));
   EXPECT_THAT(out, HasSubstr("\n  robots[0].components[0].type: "));
   EXPECT_THAT(out, HasSubstr("(unknown type; did you mean 'motion_vw'?)"));
-  EXPECT_THAT(out, HasSubstr("\n  robots[0].components[1].options.max_angular_sped: unknown key (did you mean "
-                             "'max_angular_speed'?"));
-  EXPECT_THAT(out, HasSubstr("\n  transports.socket.options.port: expected an integer from 0 to 65535"));
+  EXPECT_THAT(
+      out,
+      HasSubstr("\n  robots[0].components[1].options.max_angular_sped: unknown key (did you mean "
+                "'max_angular_speed'?"));
+  EXPECT_THAT(out,
+              HasSubstr("\n  transports.socket.options.port: expected an integer from 0 to 65535"));
 }
-
 
 // Issue #35, item 11: a mistake of one section was hidden behind another's (the structure's
 // errors were all reported, but a robot's type, body or options, and a transport's plugin
@@ -156,16 +162,22 @@ TEST(GatewayCliTest, CheckReportsTheErrorsOfEverySectionAtOnce) {
   missing["robots"][0]["components"][0]["type"] = "motion_wv";
   missing["transports"]["socket"]["options"]["port"] = 70000;
   for (const auto& [name, config, scene, robot] :
-       {std::tuple{"loads", loads, "scene.timestep: expected a number from ", "robots[1].body: expected the name of a body"},
+       {std::tuple{"loads", loads, "scene.timestep: expected a number from ",
+                   "robots[1].body: expected the name of a body"},
         std::tuple{"missing", missing, "scene.mjcf: expected an MJCF file, found '",
                    "robots[0].components[0].type: expected a component type ("}}) {
     const std::string file = dir.write(std::string(name) + ".json", config.dump());
     const CliRun check = run_split({"check", file}, dir);
     EXPECT_EQ(check.code, 2) << name << ": " << check.err;
-    EXPECT_THAT(check.err, HasSubstr("simgate: invalid configuration: config '" + file + "': 3 errors:\n")) << name;
+    EXPECT_THAT(check.err,
+                HasSubstr("simgate: invalid configuration: config '" + file + "': 3 errors:\n"))
+        << name;
     EXPECT_THAT(check.err, HasSubstr("\n  " + std::string(scene))) << name << ": " << check.err;
     EXPECT_THAT(check.err, HasSubstr("\n  " + std::string(robot))) << name << ": " << check.err;
-    EXPECT_THAT(check.err, HasSubstr("\n  transports.socket.options.port: expected an integer from 0 to 65535")) << name;
+    EXPECT_THAT(
+        check.err,
+        HasSubstr("\n  transports.socket.options.port: expected an integer from 0 to 65535"))
+        << name;
     // run refuses it alike, before starting anything
     const CliRun run = run_split({"run", file}, dir, 20s);
     EXPECT_EQ(run.code, 2) << name;
@@ -178,9 +190,10 @@ TEST(GatewayCliTest, CheckReportsTheErrorsOfEverySectionAtOnce) {
 // check said OK, or crashed, or left the error format, for each of these).
 TEST(GatewayCliTest, CheckRefusesWhatRunRefusesWithTheSameMessage) {
   struct Case {
-    std::string name;      // what is wrong
-    std::string text;      // the file
-    std::string expected;  // in the error, after "config '<file>': " (located: "<file>:1:<column>: ")
+    std::string name;  // what is wrong
+    std::string text;  // the file
+    std::string
+        expected;  // in the error, after "config '<file>': " (located: "<file>:1:<column>: ")
     bool located = false;  // an error of the JSON text, at its line and column
   };
   auto with = [](const std::function<void(json&)>& change) {
@@ -193,39 +206,48 @@ TEST(GatewayCliTest, CheckRefusesWhatRunRefusesWithTheSameMessage) {
   };
   const std::string demo = demo_config().dump();
   std::vector<Case> cases = {
-      {"port a string", with([](json& c) { c["transports"]["socket"]["options"]["port"] = "4000"; }),
-       "transports.socket.options.port: expected an integer from 0 to 65535, found string \"4000\""},
+      {"port a string",
+       with([](json& c) { c["transports"]["socket"]["options"]["port"] = "4000"; }),
+       "transports.socket.options.port: expected an integer from 0 to 65535, found string "
+       "\"4000\""},
       {"port -1", with([](json& c) { c["transports"]["socket"]["options"]["port"] = -1; }),
        "transports.socket.options.port: expected an integer from 0 to 65535, found number -1"},
       {"port 70000", with([](json& c) { c["transports"]["socket"]["options"]["port"] = 70000; }),
        "transports.socket.options.port: expected an integer from 0 to 65535, found number 70000"},
-      {"two transports on one port",
-       with([](json& c) {
+      {"two transports on one port", with([](json& c) {
          c["transports"]["socket"]["options"]["port"] = 4321;
          c["transports"]["other"] = {{"plugin", "socket"}, {"options", {{"port", 4321}}}};
        }),
-       "transports.socket.options.port: expected a port no other transport listens on, found 4321, which "
+       "transports.socket.options.port: expected a port no other transport listens on, found 4321, "
+       "which "
        "transports.other listens on too (127.0.0.1:4321)"},
       {"a host of no interface of this machine",
        with([](json& c) { c["transports"]["socket"]["options"]["host"] = "203.0.113.7"; }),
        "transports.socket.options.host: expected an address of this machine"},
       {"a number beyond a double", replacing(demo, "\"timestep\":0.002", "\"timestep\":1e400"),
-       "scene.timestep: expected a number a double can hold (at most about 1.8e308 in magnitude), found 1e400", true},
+       "scene.timestep: expected a number a double can hold (at most about 1.8e308 in magnitude), "
+       "found 1e400",
+       true},
       {"nesting 100000 deep",
-       replacing(demo, "\"log_level\"", "\"description\":" + std::string(100000, '[') + std::string(100000, ']') +
-                                              ",\"log_level\""),
-       "description[0][0][0]...: expected at most 64 levels of nested arrays and objects, found deeper nesting", true},
+       replacing(demo, "\"log_level\"",
+                 "\"description\":" + std::string(100000, '[') + std::string(100000, ']') +
+                     ",\"log_level\""),
+       "description[0][0][0]...: expected at most 64 levels of nested arrays and objects, found "
+       "deeper nesting",
+       true},
 #ifdef SIMGATE_TEST_WITH_DDS
-      {"DDS domain 300",
-       with([](json& c) { c["transports"]["dds"] = {{"plugin", "dds"}, {"options", {{"domain", 300}}}}; }),
+      {"DDS domain 300", with([](json& c) {
+         c["transports"]["dds"] = {{"plugin", "dds"}, {"options", {{"domain", 300}}}};
+       }),
        "transports.dds.options.domain: expected an integer from 0 to 230, found number 300"},
-      {"malformed Cyclone XML",
-       with([](json& c) {
+      {"malformed Cyclone XML", with([](json& c) {
          c["transports"]["dds"] = {
              {"plugin", "dds"},
-             {"options", {{"domain", 43}, {"config", "<CycloneDDS><Domain><General></Domain></CycloneDDS>"}}}};
+             {"options",
+              {{"domain", 43}, {"config", "<CycloneDDS><Domain><General></Domain></CycloneDDS>"}}}};
        }),
-       "transports.dds.options.config: expected Cyclone DDS settings (XML, file names or file:// URIs) that "
+       "transports.dds.options.config: expected Cyclone DDS settings (XML, file names or file:// "
+       "URIs) that "
        "Cyclone accepts for domain 43, found settings it refuses: "},
 #endif
   };
@@ -236,10 +258,14 @@ TEST(GatewayCliTest, CheckRefusesWhatRunRefusesWithTheSameMessage) {
     EXPECT_EQ(check.code, 2) << c.name << ": " << check.out << check.err;
     // what the JSON text itself gets wrong is located: FILE:LINE:COLUMN
     if (c.located) {
-      EXPECT_THAT(check.err, ::testing::MatchesRegex("simgate: invalid configuration: " + file + ":1:[0-9]+: .*")) << c.name;
+      EXPECT_THAT(check.err, ::testing::MatchesRegex("simgate: invalid configuration: " + file +
+                                                     ":1:[0-9]+: .*"))
+          << c.name;
       EXPECT_THAT(check.err, HasSubstr(": " + c.expected)) << c.name;
     } else {
-      EXPECT_THAT(check.err, HasSubstr("simgate: invalid configuration: config '" + file + "': " + c.expected)) << c.name;
+      EXPECT_THAT(check.err,
+                  HasSubstr("simgate: invalid configuration: config '" + file + "': " + c.expected))
+          << c.name;
     }
     if (check.code == 0) continue;  // run would start a simulation
     auto run = run_split({"run", file}, dir, 20s);
@@ -255,8 +281,9 @@ TEST(GatewayCliTest, CheckWarnsWhenPymorseCannotConnect) {
   c["services"] = {{"robot.*", {"socket"}}, {"human", {"socket"}}};
   auto [code, out] = run_simgate({"check", dir.write("cut.json", c.dump())}, dir);
   EXPECT_EQ(code, 0) << out;
-  EXPECT_THAT(out, HasSubstr("warning: transports.socket: the socket transport 'socket' does not serve "
-                             "'simulation': pymorse cannot connect"));
+  EXPECT_THAT(out,
+              HasSubstr("warning: transports.socket: the socket transport 'socket' does not serve "
+                        "'simulation': pymorse cannot connect"));
   EXPECT_THAT(out, HasSubstr("OK (2 robot(s), 9 component(s), 1 transport(s), 3 warning(s))"));
 }
 
@@ -266,13 +293,19 @@ TEST(GatewayCliTest, CheckRefusesAMalformedServicePatternAndWarnsOfOneThatMatche
   c["transports"]["socket"]["deny"] = {"quit"};
   auto [code, out] = run_simgate({"check", dir.write("bad.json", c.dump())}, dir);
   EXPECT_EQ(code, 2) << out;
-  EXPECT_THAT(out, HasSubstr("transports.socket.deny[0]: expected a service pattern \"component.service\" ('*': "
-                             "any characters), found 'quit', which has no '.' between a component and a service"));
+  EXPECT_THAT(
+      out,
+      HasSubstr(
+          "transports.socket.deny[0]: expected a service pattern \"component.service\" ('*': "
+          "any characters), found 'quit', which has no '.' between a component and a service"));
   c["transports"]["socket"]["deny"] = {"simulation.qiut"};
   auto [wcode, wout] = run_simgate({"check", dir.write("typo.json", c.dump())}, dir);
   EXPECT_EQ(wcode, 0) << wout;
-  EXPECT_THAT(wout, HasSubstr("warning: transports.socket.deny[0]: 'simulation.qiut' matches no service transport "
-                              "'socket' serves: it denies nothing (did you mean 'simulation.quit'?)"));
+  EXPECT_THAT(
+      wout,
+      HasSubstr(
+          "warning: transports.socket.deny[0]: 'simulation.qiut' matches no service transport "
+          "'socket' serves: it denies nothing (did you mean 'simulation.quit'?)"));
 }
 
 // issue #35, item 10: the transports' own warnings (a deprecated key, a token file others
@@ -283,7 +316,8 @@ TEST(GatewayCliTest, CheckGivesTheTransportsOwnWarningsAsRunDoes) {
   c["transports"]["socket"]["options"]["max_clients"] = 8;
   const std::string file = dir.write("old.json", c.dump());
   const std::string warning =
-      "warning: socket: option 'max_clients' is deprecated, use 'max_connections' (the old name goes in the next release)";
+      "warning: socket: option 'max_clients' is deprecated, use 'max_connections' (the old name "
+      "goes in the next release)";
   auto [code, out] = run_simgate({"check", file}, dir);
   EXPECT_EQ(code, 0) << out;
   EXPECT_THAT(out, HasSubstr(warning)) << out;
@@ -311,10 +345,12 @@ TEST(GatewayCliTest, RunWritesEndpointsServesAndStopsOnSigterm) {
     LineClient c(port);
     EXPECT_EQ(c.request("1", "simulation list_robots"), "1 SUCCESS [\"robot\", \"human\"]");
     // the command-line client
-    auto [code, out] = run_simgate({"call", "--port", std::to_string(port), "simulation", "list_robots"}, dir);
+    auto [code, out] =
+        run_simgate({"call", "--port", std::to_string(port), "simulation", "list_robots"}, dir);
     EXPECT_EQ(code, 0) << out;
     EXPECT_THAT(out, HasSubstr("[\"robot\",\"human\"]"));
-    auto [fcode, fout] = run_simgate({"call", "--port", std::to_string(port), "human", "move", "-1", "0"}, dir);
+    auto [fcode, fout] =
+        run_simgate({"call", "--port", std::to_string(port), "human", "move", "-1", "0"}, dir);
     EXPECT_EQ(fcode, 1);
     EXPECT_THAT(fout, HasSubstr("Our human cannot walk at negative speed!"));
   }
@@ -341,7 +377,8 @@ TEST(GatewayCliTest, RunSuggestsOnlyACommandTheAdvertisedSocketTransportServes) 
   p.signal(SIGTERM);
   EXPECT_EQ(p.wait(), 0) << p.err();
   const std::string socket_port = std::to_string(port_of(e["socket"][0].get<std::string>()));
-  EXPECT_THAT(p.out(), HasSubstr("try: telnet 127.0.0.1 " + socket_port + "   then type: 1 simulation list_robots"));
+  EXPECT_THAT(p.out(), HasSubstr("try: telnet 127.0.0.1 " + socket_port +
+                                 "   then type: 1 simulation list_robots"));
   EXPECT_THAT(p.out(), Not(HasSubstr("set_speed")));
 }
 
@@ -365,7 +402,9 @@ TEST(GatewayCliTest, SimulationQuitEndsTheProcessCleanly) {
   TempDir dir;
   std::string config = dir.write("demo.json", demo_config().dump());
   std::string endpoints = dir.file("endpoints.json");
-  Process p({simgate_binary(), "run", config, "--endpoints-file", endpoints, "--log-level", "error"}, dir.file(""));
+  Process p(
+      {simgate_binary(), "run", config, "--endpoints-file", endpoints, "--log-level", "error"},
+      dir.file(""));
   json e = json::parse(wait_for_file(endpoints), nullptr, false);
   ASSERT_TRUE(e.contains("socket")) << p.err();
   LineClient c(port_of(e["socket"][0].get<std::string>()));
@@ -394,7 +433,9 @@ TEST(GatewayCliTest, RunWithAPortInUseFailsClearly) {
   EXPECT_EQ(code, 1) << out;
   EXPECT_THAT(out, HasSubstr("transports.socket.options: transport 'socket' could not start"));
   EXPECT_THAT(out, HasSubstr("Address already in use"));
-  EXPECT_THAT(out, HasSubstr("ss -ltnp 'sport = :" + std::to_string(c["transports"]["socket"]["options"]["port"].get<int>())));
+  EXPECT_THAT(out,
+              HasSubstr("ss -ltnp 'sport = :" +
+                        std::to_string(c["transports"]["socket"]["options"]["port"].get<int>())));
   EXPECT_THAT(out, Not(HasSubstr("invalid configuration")));
   first.signal(SIGINT);
   EXPECT_EQ(first.wait(), 0);
@@ -411,8 +452,10 @@ TEST(GatewayCliTest, CallAndListReachEveryTransport) {
   // a partition of its own keeps this DDS traffic apart from other tests (loopback only)
   const std::string partition = "cli-test-" + std::to_string(::getpid());
   c["transports"]["jsonrpc"] = {{"plugin", "jsonrpc"}, {"options", {{"port", 0}}}};
-  c["transports"]["dds"] = {{"plugin", "dds"}, {"options", {{"domain", 42}, {"partition", partition}}}};
-  for (auto& [pattern, transports] : c["services"].items()) transports = {"socket", "jsonrpc", "dds"};
+  c["transports"]["dds"] = {{"plugin", "dds"},
+                            {"options", {{"domain", 42}, {"partition", partition}}}};
+  for (auto& [pattern, transports] : c["services"].items())
+    transports = {"socket", "jsonrpc", "dds"};
   std::string config = dir.write("all.json", c.dump());
   std::string endpoints = dir.file("endpoints.json");
   Process p({simgate_binary(), "run", config, "--endpoints-file", endpoints}, dir.file(""));
@@ -420,14 +463,17 @@ TEST(GatewayCliTest, CallAndListReachEveryTransport) {
   ASSERT_TRUE(e.contains("jsonrpc") && e.contains("dds")) << p.err();
   const std::string jsonrpc_port = std::to_string(port_of(e["jsonrpc"][0].get<std::string>()));
 
-  auto [jcode, jout] = run_simgate({"call", "--transport", "jsonrpc", "--port", jsonrpc_port, "human", "move", "-1", "0"}, dir);
+  auto [jcode, jout] = run_simgate(
+      {"call", "--transport", "jsonrpc", "--port", jsonrpc_port, "human", "move", "-1", "0"}, dir);
   EXPECT_EQ(jcode, 1);
   EXPECT_THAT(jout, HasSubstr("Our human cannot walk at negative speed!"));
-  auto [dcode, dout] = run_simgate({"call", "--transport", "dds", "--domain", "42", "--partition", partition,
-                                    "simulation", "list_robots"}, dir);
+  auto [dcode, dout] = run_simgate({"call", "--transport", "dds", "--domain", "42", "--partition",
+                                    partition, "simulation", "list_robots"},
+                                   dir);
   EXPECT_EQ(dcode, 0) << dout;
   EXPECT_THAT(dout, HasSubstr("[\"robot\",\"human\"]"));
-  auto [lcode, lout] = run_simgate({"list", "--transport", "dds", "--domain", "42", "--partition", partition}, dir);
+  auto [lcode, lout] =
+      run_simgate({"list", "--transport", "dds", "--domain", "42", "--partition", partition}, dir);
   EXPECT_EQ(lcode, 0) << lout;
   EXPECT_THAT(lout, HasSubstr("robot.waypoint goto(x, y, z, tolerance=0.5, speed=1.0) async"));
 
@@ -452,7 +498,8 @@ TEST(GatewayCliTest, ADdsTransportsDenyListRefusesAndHidesTheService) {
   Process p({simgate_binary(), "run", config, "--endpoints-file", endpoints}, dir.file(""));
   json e = json::parse(wait_for_file(endpoints), nullptr, false);
   ASSERT_TRUE(e.contains("dds")) << p.err();
-  const std::vector<std::string> dds = {"--transport", "dds", "--domain", "42", "--partition", partition};
+  const std::vector<std::string> dds = {"--transport", "dds",         "--domain",
+                                        "42",          "--partition", partition};
   auto with = [&](std::vector<std::string> args) {
     args.insert(args.begin() + 1, dds.begin(), dds.end());
     return run_simgate(args, dir);
@@ -463,8 +510,10 @@ TEST(GatewayCliTest, ADdsTransportsDenyListRefusesAndHidesTheService) {
   auto [mcode, mout] = with({"call", "simulation", "quiz"});
   EXPECT_EQ(mcode, 1) << mout;
   std::string quit = qout, quiz = mout;
-  for (auto at = quit.find("quit"); at != std::string::npos; at = quit.find("quit", at)) quit.replace(at, 4, "NAME");
-  for (auto at = quiz.find("quiz"); at != std::string::npos; at = quiz.find("quiz", at)) quiz.replace(at, 4, "NAME");
+  for (auto at = quit.find("quit"); at != std::string::npos; at = quit.find("quit", at))
+    quit.replace(at, 4, "NAME");
+  for (auto at = quiz.find("quiz"); at != std::string::npos; at = quiz.find("quiz", at))
+    quiz.replace(at, 4, "NAME");
   EXPECT_EQ(quit, quiz);  // as a service that does not exist
   auto [lcode, lout] = with({"list"});
   EXPECT_EQ(lcode, 0) << lout;
@@ -480,13 +529,15 @@ TEST(GatewayCliTest, ADdsTransportsDenyListRefusesAndHidesTheService) {
 
 TEST(GatewayCliTest, ClientOptionsAreChecked) {
   TempDir dir;
-  auto [dcode, dout] = run_simgate({"call", "--transport", "dds", "--domain", "999", "simulation", "list_robots"}, dir);
+  auto [dcode, dout] = run_simgate(
+      {"call", "--transport", "dds", "--domain", "999", "simulation", "list_robots"}, dir);
   EXPECT_EQ(dcode, 2);
   EXPECT_THAT(dout, HasSubstr("--domain: expected an integer from 0 to 230, found '999'"));
   auto [pcode, pout] = run_simgate({"call", "--port", "70000", "simulation", "list_robots"}, dir);
   EXPECT_EQ(pcode, 2);
   EXPECT_THAT(pout, HasSubstr("--port: expected an integer from 1 to 65535, found '70000'"));
-  auto [hcode, hout] = run_simgate({"call", "--transport", "dds", "--host", "127.0.0.1", "simulation", "list_robots"}, dir);
+  auto [hcode, hout] = run_simgate(
+      {"call", "--transport", "dds", "--host", "127.0.0.1", "simulation", "list_robots"}, dir);
   EXPECT_EQ(hcode, 2);
   EXPECT_THAT(hout, HasSubstr("--host"));
 }
@@ -500,7 +551,8 @@ const std::vector<std::string> k_tcp_transports = {"socket", "jsonrpc", "websock
 // The demo served by socket, jsonrpc and websocket, each requiring k_token of every client.
 json demo_requiring_a_token() {
   json c = demo_config();
-  c["transports"]["jsonrpc"] = {{"plugin", "jsonrpc"}, {"options", {{"host", "127.0.0.1"}, {"port", 0}}}};
+  c["transports"]["jsonrpc"] = {{"plugin", "jsonrpc"},
+                                {"options", {{"host", "127.0.0.1"}, {"port", 0}}}};
   c["services"] = {{"default", k_tcp_transports}};
   c.erase("streams");
   require_token(c, k_token_env);
@@ -508,9 +560,10 @@ json demo_requiring_a_token() {
 }
 
 // `simgate COMMAND --transport T --port P REST...` against `gateway`.
-CliRun through(const InProcessGateway& gateway, const std::string& transport, const std::string& command,
-               std::vector<std::string> rest, const TempDir& dir) {
-  std::vector<std::string> args = {command, "--transport", transport, "--port", std::to_string(gateway.port(transport))};
+CliRun through(const InProcessGateway& gateway, const std::string& transport,
+               const std::string& command, std::vector<std::string> rest, const TempDir& dir) {
+  std::vector<std::string> args = {command, "--transport", transport, "--port",
+                                   std::to_string(gateway.port(transport))};
   args.insert(args.end(), rest.begin(), rest.end());
   return run_split(args, dir);
 }
@@ -521,7 +574,8 @@ TEST(GatewayCliTest, CallAndListPresentTheTokenOfTokenOrSimgateToken) {
   const ScopedEnv unset("SIMGATE_TOKEN", std::nullopt);
   InProcessGateway gateway(demo_requiring_a_token());
   for (const auto& t : k_tcp_transports) {
-    const CliRun call = through(gateway, t, "call", {"--token", k_token, "simulation", "list_robots"}, dir);
+    const CliRun call =
+        through(gateway, t, "call", {"--token", k_token, "simulation", "list_robots"}, dir);
     EXPECT_EQ(call.code, 0) << t << ": " << call.err;
     EXPECT_EQ(call.out, "[\"robot\",\"human\"]\n") << t;
     const CliRun list = through(gateway, t, "list", {"--token=" + std::string(k_token)}, dir);
@@ -534,11 +588,13 @@ TEST(GatewayCliTest, CallAndListPresentTheTokenOfTokenOrSimgateToken) {
       EXPECT_THAT(env_call.err, HasSubstr("Our human cannot walk at negative speed!")) << t;
       const CliRun env_list = through(gateway, t, "list", {"--json"}, dir);
       EXPECT_EQ(env_list.code, 0) << t << ": " << env_list.err;
-      EXPECT_TRUE(json::parse(env_list.out, nullptr, false).is_array()) << t << ": " << env_list.out;
+      EXPECT_TRUE(json::parse(env_list.out, nullptr, false).is_array())
+          << t << ": " << env_list.out;
     }
     // the option wins over the variable
     const ScopedEnv wrong("SIMGATE_TOKEN", "a-wrong-token-0123456789");
-    const CliRun both = through(gateway, t, "call", {"--token", k_token, "simulation", "list_robots"}, dir);
+    const CliRun both =
+        through(gateway, t, "call", {"--token", k_token, "simulation", "list_robots"}, dir);
     EXPECT_EQ(both.code, 0) << t << ": " << both.err;
   }
 }
@@ -554,7 +610,8 @@ TEST(GatewayCliTest, CallAndListWithoutTheTokenOrWithAWrongOneFailClearly) {
       if (command == "call") rest = {"simulation", "list_robots"};
       const CliRun none = through(gateway, t, command, rest, dir);
       EXPECT_EQ(none.code, 1) << t << " " << command << ": " << none.err;
-      EXPECT_THAT(none.err, HasSubstr("--token TOKEN or the SIMGATE_TOKEN environment variable")) << t << " " << command;
+      EXPECT_THAT(none.err, HasSubstr("--token TOKEN or the SIMGATE_TOKEN environment variable"))
+          << t << " " << command;
       EXPECT_EQ(none.out, "") << t << " " << command;
       rest.insert(rest.begin(), {"--token", "a-wrong-token-0123456789"});
       const CliRun wrong = through(gateway, t, command, rest, dir);
@@ -567,7 +624,8 @@ TEST(GatewayCliTest, CallAndListWithoutTheTokenOrWithAWrongOneFailClearly) {
 
 TEST(GatewayCliTest, ATokenForDdsIsRefusedForDdsHasNoTokenAuthentication) {
   TempDir dir;
-  const CliRun r = run_split({"call", "--transport", "dds", "--token", k_token, "simulation", "list_robots"}, dir);
+  const CliRun r = run_split(
+      {"call", "--transport", "dds", "--token", k_token, "simulation", "list_robots"}, dir);
   EXPECT_EQ(r.code, 2);
   EXPECT_THAT(r.err, HasSubstr("--token: the dds transport has no token authentication"));
 }
@@ -629,7 +687,9 @@ TEST(GatewayCliTest, MissingOrExtraArgumentsAreUsageErrors) {
   TempDir dir;
   CliRun run = run_split({"run"}, dir);
   EXPECT_EQ(run.code, 2);
-  EXPECT_THAT(run.err, HasSubstr("expected CONFIG (a deployment file), or --model FILE.xml (any MJCF model)"));
+  EXPECT_THAT(
+      run.err,
+      HasSubstr("expected CONFIG (a deployment file), or --model FILE.xml (any MJCF model)"));
   EXPECT_THAT(run.err, HasSubstr("simgate run --help"));
   CliRun call = run_split({"call", "simulation"}, dir);
   EXPECT_EQ(call.code, 2);
@@ -646,8 +706,10 @@ TEST(GatewayCliTest, CallParamsArePositionalOrNamed) {
   EXPECT_EQ(call_params({}), json::array());
   EXPECT_EQ(call_params({"1", "-1", "-0.5", "text", "\"quoted\"", "[1,2]", "true", "null"}),
             json::parse(R"([1, -1, -0.5, "text", "quoted", [1, 2], true, null])"));
-  EXPECT_EQ(call_params({"v=0.5", "w=-0.2", "name=robot", "list=[1,2]", "s=\"a b\"", "empty="}),
-            json::parse(R"({"v": 0.5, "w": -0.2, "name": "robot", "list": [1, 2], "s": "a b", "empty": ""})"));
+  EXPECT_EQ(
+      call_params({"v=0.5", "w=-0.2", "name=robot", "list=[1,2]", "s=\"a b\"", "empty="}),
+      json::parse(
+          R"({"v": 0.5, "w": -0.2, "name": "robot", "list": [1, 2], "s": "a b", "empty": ""})"));
   // a string containing '=' is positional once JSON-quoted; so are JSON objects
   EXPECT_EQ(call_params({"\"a=b\"", R"({"k": "x=y"})"}), json::parse(R"(["a=b", {"k": "x=y"}])"));
   // a "--" before the ARGS ends nothing more: it is skipped
@@ -684,29 +746,36 @@ TEST(GatewayCliTest, CallSendsNamedArgsAndPrintsSuccessForNoValue) {
   ASSERT_NE(demo.port(), 0) << demo.process().err();
   const std::string port = std::to_string(demo.port());
 
-  CliRun named = run_split({"call", "--port", port, "robot.motion", "set_speed", "v=0.5", "w=0.2"}, dir);
+  CliRun named =
+      run_split({"call", "--port", port, "robot.motion", "set_speed", "v=0.5", "w=0.2"}, dir);
   EXPECT_EQ(named.code, 0) << named.err;
   EXPECT_EQ(named.out, "SUCCESS\n");
-  CliRun bad_name = run_split({"call", "--port", port, "robot.motion", "set_speed", "v=0.5", "speed=0.2"}, dir);
+  CliRun bad_name =
+      run_split({"call", "--port", port, "robot.motion", "set_speed", "v=0.5", "speed=0.2"}, dir);
   EXPECT_EQ(bad_name.code, 1);
   EXPECT_THAT(bad_name.err, HasSubstr("speed"));
-  CliRun mixed = run_split({"call", "--port", port, "robot.motion", "set_speed", "v=0.5", "0.2"}, dir);
+  CliRun mixed =
+      run_split({"call", "--port", port, "robot.motion", "set_speed", "v=0.5", "0.2"}, dir);
   EXPECT_EQ(mixed.code, 2);
   EXPECT_THAT(mixed.err, HasSubstr("all positional or all named"));
   // everything after COMPONENT is an ARG: "--" is skipped, -1 is a number, not an option
   CliRun negative = run_split({"call", "--port", port, "human", "move", "--", "-1", "0"}, dir);
   EXPECT_EQ(negative.code, 1);
   EXPECT_THAT(negative.err, HasSubstr("Our human cannot walk at negative speed!"));
-  CliRun option_after = run_split({"call", "--port", port, "simulation", "list_robots", "--timeout", "5"}, dir);
+  CliRun option_after =
+      run_split({"call", "--port", port, "simulation", "list_robots", "--timeout", "5"}, dir);
   EXPECT_EQ(option_after.code, 1) << "options after COMPONENT are ARGS";
   // a JSON array is one ARG (CLI11 alone would split [1,2,0.5] into three)
-  CliRun moved = run_split({"call", "--port", port, "simulation", "set_object_position", "robot", "[1,2,0.5]"}, dir);
+  CliRun moved = run_split(
+      {"call", "--port", port, "simulation", "set_object_position", "robot", "[1,2,0.5]"}, dir);
   EXPECT_EQ(moved.code, 0) << moved.err;
-  CliRun pose = run_split({"call", "--port=" + port, "--", "simulation", "get_object_pose", "robot"}, dir);
+  CliRun pose =
+      run_split({"call", "--port=" + port, "--", "simulation", "get_object_pose", "robot"}, dir);
   EXPECT_EQ(pose.code, 0) << pose.err;
   const json position = json::parse(pose.out, nullptr, false)[0];  // [[x, y, z], [qx, qy, qz, qw]]
   ASSERT_TRUE(position.is_array() && position.size() == 3) << pose.out;
-  EXPECT_NEAR(position[0].get<double>(), 1.0, 0.05) << pose.out;  // the simulation runs on: it may roll a little
+  EXPECT_NEAR(position[0].get<double>(), 1.0, 0.05)
+      << pose.out;  // the simulation runs on: it may roll a little
   EXPECT_NEAR(position[1].get<double>(), 2.0, 0.05) << pose.out;
   // a value prints as JSON
   CliRun value = run_split({"call", "--port", port, "simulation", "list_robots"}, dir);
@@ -757,7 +826,8 @@ TEST(GatewayCliTest, RunStatusIntervalIsChecked) {
   std::string config = dir.write("demo.json", demo_config().dump());
   CliRun zero = run_split({"run", config, "--status", "0"}, dir);
   EXPECT_EQ(zero.code, 2);
-  EXPECT_THAT(zero.err, HasSubstr("--status: expected a number of seconds from 0.1 to 86400, found '0'"));
+  EXPECT_THAT(zero.err,
+              HasSubstr("--status: expected a number of seconds from 0.1 to 86400, found '0'"));
   CliRun word = run_split({"run", "--status", "other.json", config}, dir);
   EXPECT_EQ(word.code, 2);
   EXPECT_THAT(word.err, HasSubstr("write CONFIG before a --status without SECONDS"));
@@ -768,8 +838,9 @@ TEST(GatewayCliTest, DdsDiscoveryIsBoundedByTheTimeoutAndExplained) {
   // for what
   TempDir dir;
   const std::string partition = "cli-test-nobody-" + std::to_string(::getpid());
-  CliRun call = run_split({"call", "--transport", "dds", "--domain", "42", "--partition", partition, "--timeout", "1",
-                        "simulation", "list_robots"}, dir);
+  CliRun call = run_split({"call", "--transport", "dds", "--domain", "42", "--partition", partition,
+                           "--timeout", "1", "simulation", "list_robots"},
+                          dir);
   EXPECT_EQ(call.code, 1);
   EXPECT_LT(call.took, 8s);
   EXPECT_THAT(call.err, HasSubstr("domain 42"));
@@ -777,7 +848,9 @@ TEST(GatewayCliTest, DdsDiscoveryIsBoundedByTheTimeoutAndExplained) {
   EXPECT_THAT(call.err, HasSubstr("within 1000 ms"));
   EXPECT_THAT(call.err, HasSubstr("request reader"));
   EXPECT_THAT(call.err, HasSubstr("loopback"));
-  CliRun list = run_split({"list", "--transport", "dds", "--domain", "42", "--partition", partition, "--timeout", "1"}, dir);
+  CliRun list = run_split(
+      {"list", "--transport", "dds", "--domain", "42", "--partition", partition, "--timeout", "1"},
+      dir);
   EXPECT_EQ(list.code, 1);
   EXPECT_LT(list.took, 8s);
   EXPECT_THAT(list.err, HasSubstr("partition '" + partition + "'"));

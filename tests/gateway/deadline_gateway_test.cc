@@ -32,7 +32,8 @@ TEST_F(GatewayDeadlineTest, TheServersMaxWaitEndsAFarGotoFailedAndTheRobotStops)
   start(config);
   LineClient c(port());
   EXPECT_EQ(c.request("g1", "robot.waypoint goto [50.0, 0.0, 0.0]"),
-            "g1 FAILED \"robot.waypoint.goto: no reply within 300 ms (the server's max wait); interrupted\"");
+            "g1 FAILED \"robot.waypoint.goto: no reply within 300 ms (the server's max wait); "
+            "interrupted\"");
   // interrupted: the waypoint's interrupt() made its destination where the robot is
   EXPECT_EQ(c.request("s", "robot.waypoint get_status"), "s SUCCESS \"Arrived\"");
   // sync requests are answered as ever
@@ -42,7 +43,8 @@ TEST_F(GatewayDeadlineTest, TheServersMaxWaitEndsAFarGotoFailedAndTheRobotStops)
 TEST_F(GatewayDeadlineTest, ASocketServiceDeadlineShorterThanTheMaxWaitWins) {
   json config = testing::demo_config();
   config["requests"] = {{"max_wait_ms", 600000}};
-  config["transports"]["socket"]["options"]["timeouts"] = {{"services", {{"robot.waypoint.goto", 300}}}};
+  config["transports"]["socket"]["options"]["timeouts"] = {
+      {"services", {{"robot.waypoint.goto", 300}}}};
   start(config);
   LineClient c(port());
   EXPECT_EQ(c.request("g1", "robot.waypoint goto [50.0, 0.0, 0.0]"),
@@ -71,9 +73,11 @@ TEST(GatewayDeadlineConfigTest, BadMaxWaitsAreConfigErrorsNamingTheirPath) {
   }
   json config = testing::demo_config();
   config["requests"] = {{"max_wait_ms", 2000}};
-  EXPECT_EQ(parse_deployment(config, SIMGATE_SOURCE_DIR "/config").max_wait, std::chrono::milliseconds(2000));
+  EXPECT_EQ(parse_deployment(config, SIMGATE_SOURCE_DIR "/config").max_wait,
+            std::chrono::milliseconds(2000));
   config.erase("requests");
-  EXPECT_EQ(parse_deployment(config, SIMGATE_SOURCE_DIR "/config").max_wait, std::chrono::milliseconds(0));
+  EXPECT_EQ(parse_deployment(config, SIMGATE_SOURCE_DIR "/config").max_wait,
+            std::chrono::milliseconds(0));
 }
 
 }  // namespace

@@ -19,9 +19,9 @@
 namespace simgate::gateway {
 namespace {
 
+using testing::demo_config;
 using ::testing::HasSubstr;
 using ::testing::Not;
-using testing::demo_config;
 
 // The errors a check of `config` reports, as `simgate check` does: structure, then scene,
 // components and plugins (empty when valid).
@@ -70,160 +70,237 @@ TEST_P(GatewayConfigCatalogueTest, IsRejectedWithPathExpectedAndFound) {
 }
 
 const BrokenCase k_cases[] = {
-    {"unknown top-level key", [](json& c) { c["robtos"] = json::array(); }, {"robtos", "unknown key"}},
+    {"unknown top-level key",
+     [](json& c) { c["robtos"] = json::array(); },
+     {"robtos", "unknown key"}},
     {"scene missing", [](json& c) { c.erase("scene"); }, {"scene", "expected"}},
-    {"scene key typo", [](json& c) { c["scene"]["timestpe"] = 0.01; }, {"scene.timestpe", "unknown key"}},
-    {"mjcf file missing", [](json& c) { c["scene"]["mjcf"] = "nope.xml"; }, {"scene.mjcf", "nope.xml", "no such file"}},
-    {"mjcf not a scene", [](json& c) { c["scene"]["mjcf"] = SIMGATE_SOURCE_DIR "/config/demo.json"; },
+    {"scene key typo",
+     [](json& c) { c["scene"]["timestpe"] = 0.01; },
+     {"scene.timestpe", "unknown key"}},
+    {"mjcf file missing",
+     [](json& c) { c["scene"]["mjcf"] = "nope.xml"; },
+     {"scene.mjcf", "nope.xml", "no such file"}},
+    {"mjcf not a scene",
+     [](json& c) { c["scene"]["mjcf"] = SIMGATE_SOURCE_DIR "/config/demo.json"; },
      {"scene.mjcf", "loadable MJCF"}},
-    {"timestep negative", [](json& c) { c["scene"]["timestep"] = -1; }, {"scene.timestep", "expected", "-1"}},
-    {"realtime factor word", [](json& c) { c["scene"]["realtime_factor"] = "fast"; },
+    {"timestep negative",
+     [](json& c) { c["scene"]["timestep"] = -1; },
+     {"scene.timestep", "expected", "-1"}},
+    {"realtime factor word",
+     [](json& c) { c["scene"]["realtime_factor"] = "fast"; },
      {"scene.realtime_factor", "\"max\"", "fast"}},
-    {"realtime factor too slow to pace", [](json& c) { c["scene"]["realtime_factor"] = 1e-300; },
+    {"realtime factor too slow to pace",
+     [](json& c) { c["scene"]["realtime_factor"] = 1e-300; },
      {"scene.realtime_factor", "from 1e-06", "1e-300"}},
-    {"on_divergence a typo", [](json& c) { c["scene"]["on_divergence"] = "pasue"; },
+    {"on_divergence a typo",
+     [](json& c) { c["scene"]["on_divergence"] = "pasue"; },
      {"scene.on_divergence", "\"pause\"", "pasue"}},
-    {"start_paused a word", [](json& c) { c["scene"]["start_paused"] = "yes"; }, {"scene.start_paused", "yes"}},
-    {"spawn directory missing", [](json& c) { c["spawn"]["allowed_dirs"] = {"no_such_dir"}; },
+    {"start_paused a word",
+     [](json& c) { c["scene"]["start_paused"] = "yes"; },
+     {"scene.start_paused", "yes"}},
+    {"spawn directory missing",
+     [](json& c) { c["spawn"]["allowed_dirs"] = {"no_such_dir"}; },
      {"spawn.allowed_dirs[0]", "no_such_dir", "no such directory"}},
-    {"spawn directories not a list", [](json& c) { c["spawn"]["allowed_dirs"] = "scenes"; },
+    {"spawn directories not a list",
+     [](json& c) { c["spawn"]["allowed_dirs"] = "scenes"; },
      {"spawn.allowed_dirs", "array of directories"}},
-    {"spawn key typo", [](json& c) { c["spawn"]["allowed_dir"] = json::array(); }, {"spawn.allowed_dir", "unknown key"}},
+    {"spawn key typo",
+     [](json& c) { c["spawn"]["allowed_dir"] = json::array(); },
+     {"spawn.allowed_dir", "unknown key"}},
     {"transports missing", [](json& c) { c.erase("transports"); }, {"transports", "expected"}},
-    {"transport key typo", [](json& c) { c["transports"]["socket"]["option"] = json::object(); },
+    {"transport key typo",
+     [](json& c) { c["transports"]["socket"]["option"] = json::object(); },
      {"transports.socket.option", "unknown key"}},
-    {"plugin that will not load", [](json& c) { c["transports"]["socket"]["plugin"] = "nosuch"; },
+    {"plugin that will not load",
+     [](json& c) { c["transports"]["socket"]["plugin"] = "nosuch"; },
      {"transports.socket.plugin", "nosuch"}},
-    {"unknown transport option", [](json& c) { c["transports"]["socket"]["options"]["prot"] = 4000; },
+    {"unknown transport option",
+     [](json& c) { c["transports"]["socket"]["options"]["prot"] = 4000; },
      {"transports.socket.options.prot", "unknown key", "port"}},
-    {"services names an unknown transport", [](json& c) { c["services"]["robot.*"] = {"sokcet"}; },
+    {"services names an unknown transport",
+     [](json& c) { c["services"]["robot.*"] = {"sokcet"}; },
      {"services.robot.*[0]", "sokcet", "socket"}},
-    {"services pattern matches nothing", [](json& c) { c["services"]["robot.motino"] = {"socket"}; },
+    {"services pattern matches nothing",
+     [](json& c) { c["services"]["robot.motino"] = {"socket"}; },
      {"services.robot.motino", "matches none"}},
-    {"services value not a list", [](json& c) { c["services"]["default"] = "socket"; },
+    {"services value not a list",
+     [](json& c) { c["services"]["default"] = "socket"; },
      {"services.default", "array"}},
     {"robots not a list", [](json& c) { c["robots"] = json::object(); }, {"robots", "array"}},
-    {"duplicate robot", [](json& c) { c["robots"][1]["name"] = "robot"; }, {"robots[1].name", "unique", "robot"}},
-    {"reserved robot name", [](json& c) { c["robots"][1]["name"] = "simulation"; }, {"robots[1].name", "reserved"}},
-    {"dotted component name", [](json& c) { c["robots"][0]["components"][0]["name"] = "mo.tion"; },
+    {"duplicate robot",
+     [](json& c) { c["robots"][1]["name"] = "robot"; },
+     {"robots[1].name", "unique", "robot"}},
+    {"reserved robot name",
+     [](json& c) { c["robots"][1]["name"] = "simulation"; },
+     {"robots[1].name", "reserved"}},
+    {"dotted component name",
+     [](json& c) { c["robots"][0]["components"][0]["name"] = "mo.tion"; },
      {"robots[0].components[0].name", "mo.tion"}},
-    {"component without type", [](json& c) { c["robots"][0]["components"][0].erase("type"); },
+    {"component without type",
+     [](json& c) { c["robots"][0]["components"][0].erase("type"); },
      {"robots[0].components[0].type"}},
-    {"unknown component type", [](json& c) { c["robots"][0]["components"][0]["type"] = "motion_wv"; },
+    {"unknown component type",
+     [](json& c) { c["robots"][0]["components"][0]["type"] = "motion_wv"; },
      {"robots[0].components[0].type", "motion_wv", "motion_vw"}},
-    {"unknown robot type", [](json& c) { c["robots"][1]["type"] = "android"; }, {"robots[1].type", "android"}},
-    {"missing MJCF body", [](json& c) { c["robots"][1]["body"] = "humn"; },
+    {"unknown robot type",
+     [](json& c) { c["robots"][1]["type"] = "android"; },
+     {"robots[1].type", "android"}},
+    {"missing MJCF body",
+     [](json& c) { c["robots"][1]["body"] = "humn"; },
      {"robots[1].body", "humn", "no such body"}},
-    {"missing MJCF actuator", [](json& c) { c["robots"][0]["options"]["left_actuator"] = "lm"; },
+    {"missing MJCF actuator",
+     [](json& c) { c["robots"][0]["options"]["left_actuator"] = "lm"; },
      {"robots[0].options.left_actuator", "lm", "no such actuator"}},
-    {"unknown component option", [](json& c) { c["robots"][0]["components"][1]["options"]["max_sped"] = 1; },
+    {"unknown component option",
+     [](json& c) { c["robots"][0]["components"][1]["options"]["max_sped"] = 1; },
      {"robots[0].components[1].options.max_sped", "unknown key"}},
-    {"component key typo", [](json& c) { c["robots"][0]["components"][2]["bdy"] = "robot"; },
+    {"component key typo",
+     [](json& c) { c["robots"][0]["components"][2]["bdy"] = "robot"; },
      {"robots[0].components[2].bdy", "unknown key"}},
     {"log level word", [](json& c) { c["log_level"] = "loud"; }, {"log_level", "loud"}},
     // ---- what `run` refused and `check` let through (issue #17, item 8) ----
-    {"port a string", [](json& c) { c["transports"]["socket"]["options"]["port"] = "4000"; },
-     {"transports.socket.options.port: expected an integer from 0 to 65535, found string \"4000\""}},
-    {"port negative", [](json& c) { c["transports"]["socket"]["options"]["port"] = -1; },
+    {"port a string",
+     [](json& c) { c["transports"]["socket"]["options"]["port"] = "4000"; },
+     {"transports.socket.options.port: expected an integer from 0 to 65535, found string "
+      "\"4000\""}},
+    {"port negative",
+     [](json& c) { c["transports"]["socket"]["options"]["port"] = -1; },
      {"transports.socket.options.port: expected an integer from 0 to 65535, found number -1"}},
-    {"port too large", [](json& c) { c["transports"]["socket"]["options"]["port"] = 70000; },
+    {"port too large",
+     [](json& c) { c["transports"]["socket"]["options"]["port"] = 70000; },
      {"transports.socket.options.port: expected an integer from 0 to 65535, found number 70000"}},
     {"two transports on one port",
      [](json& c) {
        c["transports"]["socket"]["options"]["port"] = 4000;
-       c["transports"]["other"] = {{"plugin", "socket"}};  // the socket transport's default port: 4000
+       c["transports"]["other"] = {
+           {"plugin", "socket"}};  // the socket transport's default port: 4000
      },
-     {"transports.socket.options.port: expected a port no other transport listens on, found 4000, which "
-      "transports.other listens on too (127.0.0.1:4000): choose another port, or 0 for any free one"}},
+     {"transports.socket.options.port: expected a port no other transport listens on, found 4000, "
+      "which "
+      "transports.other listens on too (127.0.0.1:4000): choose another port, or 0 for any free "
+      "one"}},
     {"a wildcard address over another transport's port",
      [](json& c) {
        c["transports"]["socket"]["options"]["port"] = 4321;
-       c["transports"]["other"] = {{"plugin", "socket"}, {"options", {{"host", "0.0.0.0"}, {"port", 4321}}}};
+       c["transports"]["other"] = {{"plugin", "socket"},
+                                   {"options", {{"host", "0.0.0.0"}, {"port", 4321}}}};
      },
-     {"transports.socket.options.port: expected a port no other transport listens on, found 4321, which "
+     {"transports.socket.options.port: expected a port no other transport listens on, found 4321, "
+      "which "
       "transports.other listens on too (0.0.0.0:4321 and 127.0.0.1:4321 overlap)"}},
     {"a dual-stack wildcard over an IPv4 address",
      [](json& c) {
        c["transports"]["socket"]["options"]["port"] = 4321;
-       c["transports"]["other"] = {{"plugin", "socket"}, {"options", {{"host", "::"}, {"port", 4321}}}};
+       c["transports"]["other"] = {{"plugin", "socket"},
+                                   {"options", {{"host", "::"}, {"port", 4321}}}};
      },
      {"transports.socket.options.port", "([::]:4321 and 127.0.0.1:4321 overlap)"}},
     {"a host that is not this machine's",
-     [](json& c) { c["transports"]["socket"]["options"]["host"] = "203.0.113.7"; },  // TEST-NET-3: nobody's
+     [](json& c) {
+       c["transports"]["socket"]["options"]["host"] = "203.0.113.7";
+     },  // TEST-NET-3: nobody's
      {"transports.socket.options.host: expected an address of this machine", "found '203.0.113.7'",
       "Cannot assign requested address"}},
     // ---- allow / deny lists (issue #17, access control) ----
-    {"deny not a list", [](json& c) { c["transports"]["socket"]["deny"] = "simulation.quit"; },
+    {"deny not a list",
+     [](json& c) { c["transports"]["socket"]["deny"] = "simulation.quit"; },
      {"transports.socket.deny: expected an array of service patterns"}},
-    {"deny pattern not a string", [](json& c) { c["transports"]["socket"]["deny"] = {"simulation.quit", 3}; },
-     {"transports.socket.deny[1]: expected a service pattern \"component.service\" ('*': any characters), found number 3"}},
+    {"deny pattern not a string",
+     [](json& c) { c["transports"]["socket"]["deny"] = {"simulation.quit", 3}; },
+     {"transports.socket.deny[1]: expected a service pattern \"component.service\" ('*': any "
+      "characters), found number 3"}},
     {"deny pattern without a service",
      [](json& c) { c["transports"]["socket"]["deny"] = {"simulation"}; },
-     {"transports.socket.deny[0]: expected a service pattern \"component.service\" ('*': any characters), found "
-      "'simulation', which has no '.' between a component and a service (\"simulation.*\": every service of a "
+     {"transports.socket.deny[0]: expected a service pattern \"component.service\" ('*': any "
+      "characters), found "
+      "'simulation', which has no '.' between a component and a service (\"simulation.*\": every "
+      "service of a "
       "component 'simulation'; \"*.simulation\": a service 'simulation' of any component)"}},
     {"allow pattern with a character no name has",
      [](json& c) { c["transports"]["socket"]["allow"] = {"robot.*", "simulation.qu?t"}; },
-     {"transports.socket.allow[1]: expected a service pattern", "found 'simulation.qu?t', which has a character "
+     {"transports.socket.allow[1]: expected a service pattern",
+      "found 'simulation.qu?t', which has a character "
       "other than letters, digits, '_', '-', '.' and '*'"}},
     {"allow pattern with an empty name",
      [](json& c) { c["transports"]["socket"]["allow"] = {"robot..motion.*"}; },
-     {"transports.socket.allow[0]", "found 'robot..motion.*', which has an empty name between dots"}},
-    {"allow pattern empty", [](json& c) { c["transports"]["socket"]["allow"] = {""}; },
+     {"transports.socket.allow[0]",
+      "found 'robot..motion.*', which has an empty name between dots"}},
+    {"allow pattern empty",
+     [](json& c) { c["transports"]["socket"]["allow"] = {""}; },
      {"transports.socket.allow[0]", "found '', which is empty"}},
 #ifdef SIMGATE_TEST_WITH_JSONRPC
     {"a JSON-RPC transport on the socket transport's port",
      [](json& c) {
        c["transports"]["socket"]["options"]["port"] = 4001;
-       c["transports"]["jsonrpc"] = {{"plugin", "jsonrpc"}, {"options", {{"host", "localhost"}}}};  // 4001
+       c["transports"]["jsonrpc"] = {{"plugin", "jsonrpc"},
+                                     {"options", {{"host", "localhost"}}}};  // 4001
      },
-     {"transports.socket.options.port: expected a port no other transport listens on, found 4001, which "
+     {"transports.socket.options.port: expected a port no other transport listens on, found 4001, "
+      "which "
       "transports.jsonrpc listens on too (127.0.0.1:4001)"}},
     {"a JSON-RPC host that is not this machine's",
-     [](json& c) { c["transports"]["jsonrpc"] = {{"plugin", "jsonrpc"}, {"options", {{"host", "203.0.113.7"}, {"port", 0}}}}; },
-     {"transports.jsonrpc.options.host: expected an address of this machine", "found '203.0.113.7'"}},
+     [](json& c) {
+       c["transports"]["jsonrpc"] = {{"plugin", "jsonrpc"},
+                                     {"options", {{"host", "203.0.113.7"}, {"port", 0}}}};
+     },
+     {"transports.jsonrpc.options.host: expected an address of this machine",
+      "found '203.0.113.7'"}},
 #endif
 #ifdef SIMGATE_TEST_WITH_DDS
-    {"DDS domain out of range", [](json& c) { c["transports"]["dds"] = {{"plugin", "dds"}, {"options", {{"domain", 300}}}}; },
+    {"DDS domain out of range",
+     [](json& c) { c["transports"]["dds"] = {{"plugin", "dds"}, {"options", {{"domain", 300}}}}; },
      {"transports.dds.options.domain: expected an integer from 0 to 230, found number 300"}},
     {"Cyclone XML Cyclone cannot parse",
      [](json& c) {
-       c["transports"]["dds"] = {{"plugin", "dds"},
-                                 {"options", {{"domain", 17}, {"config", "<CycloneDDS><Domain></General></Domain></CycloneDDS>"}}}};
-     },
-     {"transports.dds.options.config: expected Cyclone DDS settings", "that Cyclone accepts for domain 17",
-      "parser error open/close tag mismatch"}},
-    {"a Cyclone element that does not exist",
-     [](json& c) {
        c["transports"]["dds"] = {
            {"plugin", "dds"},
-           {"options", {{"config", "<CycloneDDS><Domain><General><AllowMulticst>false</AllowMulticst></General></Domain></CycloneDDS>"}}}};
+           {"options",
+            {{"domain", 17}, {"config", "<CycloneDDS><Domain></General></Domain></CycloneDDS>"}}}};
+     },
+     {"transports.dds.options.config: expected Cyclone DDS settings",
+      "that Cyclone accepts for domain 17", "parser error open/close tag mismatch"}},
+    {"a Cyclone element that does not exist",
+     [](json& c) {
+       c["transports"]["dds"] = {{"plugin", "dds"},
+                                 {"options",
+                                  {{"config",
+                                    "<CycloneDDS><Domain><General><AllowMulticst>false</"
+                                    "AllowMulticst></General></Domain></CycloneDDS>"}}}};
      },
      {"transports.dds.options.config: expected Cyclone DDS settings",
       "AllowMulticst: unknown element (did you mean 'AllowMulticast'?)"}},
     {"a Cyclone value out of its range",
      [](json& c) {
-       c["transports"]["dds"] = {
-           {"plugin", "dds"},
-           {"options", {{"config", "<CycloneDDS><Domain><General><AllowMulticast>maybe</AllowMulticast></General></Domain></CycloneDDS>"}}}};
+       c["transports"]["dds"] = {{"plugin", "dds"},
+                                 {"options",
+                                  {{"config",
+                                    "<CycloneDDS><Domain><General><AllowMulticast>maybe</"
+                                    "AllowMulticast></General></Domain></CycloneDDS>"}}}};
      },
      {"transports.dds.options.config", "AllowMulticast", "'maybe'"}},
     {"a Cyclone file that does not exist",
-     [](json& c) { c["transports"]["dds"] = {{"plugin", "dds"}, {"options", {{"config", "file:///nonexistent/cyclone.xml"}}}}; },
-     {"transports.dds.options.config", "can't open configuration file file:///nonexistent/cyclone.xml"}},
+     [](json& c) {
+       c["transports"]["dds"] = {{"plugin", "dds"},
+                                 {"options", {{"config", "file:///nonexistent/cyclone.xml"}}}};
+     },
+     {"transports.dds.options.config",
+      "can't open configuration file file:///nonexistent/cyclone.xml"}},
     {"a Cyclone network interface that does not exist",
      [](json& c) {
        c["transports"]["dds"] = {
            {"plugin", "dds"},
-           {"options", {{"config", "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"nosuchif0\"/>"
-                                   "</Interfaces><AllowMulticast>false</AllowMulticast></General></Domain></CycloneDDS>"}}}};
+           {"options",
+            {{"config",
+              "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"nosuchif0\"/>"
+              "</Interfaces><AllowMulticast>false</AllowMulticast></General></Domain></"
+              "CycloneDDS>"}}}};
      },
      {"transports.dds.options.config", "nosuchif0: does not match an available interface"}},
 #endif
 };
 
-INSTANTIATE_TEST_SUITE_P(GatewayBrokenConfig, GatewayConfigCatalogueTest, ::testing::ValuesIn(k_cases),
-                         [](const auto& info) {
+INSTANTIATE_TEST_SUITE_P(GatewayBrokenConfig, GatewayConfigCatalogueTest,
+                         ::testing::ValuesIn(k_cases), [](const auto& info) {
                            std::string n = info.param.name;
                            for (auto& ch : n)
                              if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
@@ -247,7 +324,8 @@ TEST(GatewayConfigTest, InvalidJsonSyntaxNamesTheFile) {
 std::string located(const std::string& file, const std::string& text, std::size_t offset) {
   const std::string before = text.substr(0, offset);
   const std::size_t line = 1 + std::count(before.begin(), before.end(), '\n');
-  const std::size_t line_start = before.rfind('\n') == std::string::npos ? 0 : before.rfind('\n') + 1;
+  const std::size_t line_start =
+      before.rfind('\n') == std::string::npos ? 0 : before.rfind('\n') + 1;
   return file + ":" + std::to_string(line) + ":" + std::to_string(offset - line_start + 1) + ": ";
 }
 
@@ -256,19 +334,22 @@ std::string located(const std::string& file, const std::string& text, std::size_
 TEST(GatewayConfigTest, InvalidJsonSyntaxIsReportedAtFileLineAndColumn) {
   testing::TempDir dir;
   struct Case {
-    std::string name;      // the mistake
-    std::string text;      // the file
-    std::string at;        // where the error points, the byte that made it fail: the first occurrence of this ("": the end)
+    std::string name;  // the mistake
+    std::string text;  // the file
+    std::string
+        at;  // where the error points, the byte that made it fail: the first occurrence of this ("": the end)
     std::string expected;  // the message after "FILE:LINE:COLUMN: "
   };
   const std::vector<Case> cases = {
       {"a trailing comma", "{\n  \"scene\": {\"mjcf\": \"x.xml\",}\n}\n", "}\n}",
        "scene: invalid JSON: expected string literal, found '}' (while parsing object key)"},
       {"a missing closing quote", "{\n  \"scene\": {\n    \"mjcf\": \"x.xml\n  }\n}\n", "\n  }",
-       "scene.mjcf: invalid JSON: found invalid string: control character U+000A (LF) must be escaped to \\u000A or "
+       "scene.mjcf: invalid JSON: found invalid string: control character U+000A (LF) must be "
+       "escaped to \\u000A or "
        "\\n (last read: '\"x.xml<U+000A>'; while parsing value)"},
       {"a missing opening quote", "{\n  \"scene\": {\n    \"mjcf\": x.xml\"\n  }\n}\n", "x.xml",
-       "scene.mjcf: invalid JSON: found invalid literal (last read: '\"mjcf\": x'; while parsing value)"},
+       "scene.mjcf: invalid JSON: found invalid literal (last read: '\"mjcf\": x'; while parsing "
+       "value)"},
       {"a missing comma", "{\"scene\": {\"mjcf\": \"x.xml\"}\n\"robots\": []}", "\": []",
        "configuration: invalid JSON: expected '}', found string literal (while parsing object)"},
       {"the end of the file", "{\"scene\": {\"mjcf\": \"x.xml\"}", "",
@@ -311,14 +392,16 @@ TEST(GatewayConfigTest, ANumberBeyondADoubleIsAConfigErrorWithItsPathAndPosition
   std::size_t offset = text.find("1e400");
   std::size_t line = 1 + std::count(text.begin(), text.begin() + offset, '\n');
   std::size_t column = offset - text.rfind('\n', offset);
-  EXPECT_THAT(load_error(text), ::testing::EndsWith("/config.json:" + std::to_string(line) + ":" +
-                                                    std::to_string(column) +
-                                                    ": scene.timestep: expected a number a double can hold (at most "
-                                                    "about 1.8e308 in magnitude), found 1e400"));
+  EXPECT_THAT(
+      load_error(text),
+      ::testing::EndsWith("/config.json:" + std::to_string(line) + ":" + std::to_string(column) +
+                          ": scene.timestep: expected a number a double can hold (at most "
+                          "about 1.8e308 in magnitude), found 1e400"));
   // in a list, negative, in a component's options
   text = demo_config().dump();
   text.replace(text.find("\"wheel_radius\":0.1"), 18, "\"wheel_radius\":-2e999");
-  EXPECT_THAT(load_error(text), HasSubstr("robots[0].options.wheel_radius: expected a number a double can hold"));
+  EXPECT_THAT(load_error(text),
+              HasSubstr("robots[0].options.wheel_radius: expected a number a double can hold"));
   EXPECT_THAT(load_error(text), HasSubstr("found -2e999"));
 }
 
@@ -332,8 +415,11 @@ TEST(GatewayConfigTest, ADocumentNestedTooDeeplyIsRefusedBeforeItIsBuilt) {
   text.replace(text.find("\"@\""), 3, std::string(depth, '[') + std::string(depth, ']'));
   std::string error = load_error(text);
   EXPECT_THAT(error, HasSubstr("/config.json:1:"));
-  EXPECT_THAT(error, HasSubstr(": description[0][0][0]...: expected at most 64 levels of nested arrays and objects, "
-                               "found deeper nesting"));
+  EXPECT_THAT(
+      error,
+      HasSubstr(
+          ": description[0][0][0]...: expected at most 64 levels of nested arrays and objects, "
+          "found deeper nesting"));
   // within the limit it loads (and fails on the value's type, not its depth)
   text = c.dump();
   text.replace(text.find("\"@\""), 3, std::string(60, '[') + std::string(60, ']'));
@@ -348,7 +434,8 @@ TEST(GatewayConfigTest, ARuleForRobotsSpawnedLaterIsAWarning) {
   config["services"]["rover.*"] = json::array({"socket"});
   EXPECT_EQ(error_of(config), "");
   Deployment d = parse_deployment(config, SIMGATE_SOURCE_DIR "/config");
-  ASSERT_EQ(d.rules.size(), config["services"].size() - (config["services"].contains("default") ? 1 : 0));
+  ASSERT_EQ(d.rules.size(),
+            config["services"].size() - (config["services"].contains("default") ? 1 : 0));
   std::string warnings;
   for (const auto& w : d.warnings) warnings += w + "\n";
   EXPECT_THAT(warnings, HasSubstr("services.rover.*: 'rover.*' matches no component of this file"));
@@ -377,12 +464,12 @@ TEST(GatewayConfigTest, StartPausedIsReadAndOffByDefault) {
 
 TEST(GatewayConfigTest, EveryErrorOfTheFileIsReportedAtOnce) {
   json c = demo_config();
-  c["robtos"] = json::array();                                        // structure
-  c["scene"]["timestep"] = -1;                                        // scene
-  c["robots"][0]["components"][1]["options"]["max_sped"] = 1;         // a component's options
-  c["robots"][0]["components"][3]["type"] = "poes";                   // a component type
-  c["robots"][1]["body"] = "humn";                                    // a body
-  c["transports"]["socket"]["options"]["port"] = 70000;               // a plugin's option value
+  c["robtos"] = json::array();                                 // structure
+  c["scene"]["timestep"] = -1;                                 // scene
+  c["robots"][0]["components"][1]["options"]["max_sped"] = 1;  // a component's options
+  c["robots"][0]["components"][3]["type"] = "poes";            // a component type
+  c["robots"][1]["body"] = "humn";                             // a body
+  c["transports"]["socket"]["options"]["port"] = 70000;        // a plugin's option value
   auto errors = errors_of(c);
   // the structure is checked first: its errors alone are reported
   ASSERT_EQ(errors.size(), 2u) << ::testing::PrintToString(errors);
@@ -452,8 +539,10 @@ TEST(GatewayConfigTest, CheckAppliesThePluginsOwnOptionChecks) {
   c["transports"]["socket"]["options"]["max_connections"] = 0;
   auto errors = errors_of(c);
   ASSERT_EQ(errors.size(), 1u) << ::testing::PrintToString(errors);
-  EXPECT_THAT(errors[0], HasSubstr("transports.socket.options.success_word: expected one of \"SUCCESS\", \"OK\", "
-                                   "found string \"YES\""));
+  EXPECT_THAT(
+      errors[0],
+      HasSubstr("transports.socket.options.success_word: expected one of \"SUCCESS\", \"OK\", "
+                "found string \"YES\""));
 }
 
 TEST(GatewayConfigTest, CheckRefusesAHostThatDoesNotResolve) {
@@ -468,7 +557,8 @@ TEST(GatewayConfigTest, TransportsShareAPortNumberOnlyOnAddressesThatDoNotOverla
   // 127.0.0.1 and 127.0.0.2 are two loopback addresses: both can listen on one port
   json c = demo_config();
   c["transports"]["socket"]["options"]["port"] = 4321;
-  c["transports"]["other"] = {{"plugin", "socket"}, {"options", {{"host", "127.0.0.2"}, {"port", 4321}}}};
+  c["transports"]["other"] = {{"plugin", "socket"},
+                              {"options", {{"host", "127.0.0.2"}, {"port", 4321}}}};
   EXPECT_EQ(error_of(c), "");
   // any number of transports on port 0: each gets a free port of its own
   c["transports"]["other"]["options"] = {{"port", 0}};
@@ -481,10 +571,14 @@ TEST(GatewayConfigTest, TransportsShareAPortNumberOnlyOnAddressesThatDoNotOverla
   c["transports"]["third"]["options"]["port"] = 4321;
   auto errors = errors_of(c);
   ASSERT_EQ(errors.size(), 2u) << ::testing::PrintToString(errors);
-  EXPECT_THAT(errors[0], HasSubstr("transports.socket.options.port: expected a port no other transport listens on, "
-                                   "found 4321, which transports.other listens on too"));
-  EXPECT_THAT(errors[1], HasSubstr("transports.third.options.port: expected a port no other transport listens on, "
-                                   "found 4321, which transports.other listens on too"));
+  EXPECT_THAT(
+      errors[0],
+      HasSubstr("transports.socket.options.port: expected a port no other transport listens on, "
+                "found 4321, which transports.other listens on too"));
+  EXPECT_THAT(
+      errors[1],
+      HasSubstr("transports.third.options.port: expected a port no other transport listens on, "
+                "found 4321, which transports.other listens on too"));
 }
 
 TEST(GatewayConfigTest, APortInUseIsARuntimeErrorNotAConfigError) {
@@ -508,7 +602,8 @@ TEST(GatewayConfigTest, APortInUseIsARuntimeErrorNotAConfigError) {
     Gateway g(d, registry);
     FAIL() << "started on a port in use";
   } catch (const TransportError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("transports.socket.options: transport 'socket' could not start"));
+    EXPECT_THAT(e.what(),
+                HasSubstr("transports.socket.options: transport 'socket' could not start"));
     EXPECT_THAT(e.what(), HasSubstr(":" + std::to_string(port)));
     EXPECT_THAT(e.what(), HasSubstr("ss -ltnp 'sport = :" + std::to_string(port) + "'"));
   }
@@ -537,8 +632,10 @@ TEST(GatewayWarningsTest, ASocketTransportWithoutSimulationWarnsThatPymorseCanno
   for (const auto& w : warnings_of(c)) all += w + "\n";
   EXPECT_THAT(all, HasSubstr("no transport serves 'simulation'"));
   EXPECT_THAT(all, HasSubstr("no transport serves 'time'"));
-  EXPECT_THAT(all, HasSubstr("transports.socket: the socket transport 'socket' does not serve 'simulation': "
-                             "pymorse cannot connect"));
+  EXPECT_THAT(
+      all,
+      HasSubstr("transports.socket: the socket transport 'socket' does not serve 'simulation': "
+                "pymorse cannot connect"));
 }
 
 TEST(GatewayWarningsTest, TheShippedConfigsHaveNone) {
@@ -572,7 +669,8 @@ TEST(GatewayAccessListsTest, TheListsBecomeTheTransportsAccess) {
   json c = testing::socket_demo_config();
   c["transports"]["socket"]["allow"] = {"robot.*", "simulation.*"};
   c["transports"]["socket"]["deny"] = {"simulation.quit"};
-  c["transports"]["other"] = {{"plugin", "socket"}, {"options", {{"port", 0}}}, {"deny", {"*.quit"}}};
+  c["transports"]["other"] = {
+      {"plugin", "socket"}, {"options", {{"port", 0}}}, {"deny", {"*.quit"}}};
   Deployment d = parse_deployment(c, SIMGATE_SOURCE_DIR "/config");
   ASSERT_EQ(d.transports.size(), 2u);
   const ServiceAccess& other = d.transports[0].access;  // sorted by name
@@ -586,7 +684,9 @@ TEST(GatewayAccessListsTest, TheListsBecomeTheTransportsAccess) {
   EXPECT_TRUE(other.allows("human", "move"));
   EXPECT_FALSE(other.allows("simulation", "quit"));
   // without lists: everything
-  EXPECT_TRUE(parse_deployment(demo_config(), SIMGATE_SOURCE_DIR "/config").transports[0].access.allows_everything());
+  EXPECT_TRUE(parse_deployment(demo_config(), SIMGATE_SOURCE_DIR "/config")
+                  .transports[0]
+                  .access.allows_everything());
 }
 
 TEST(GatewayAccessListsTest, EveryMalformedPatternOfBothListsIsReportedAtOnce) {
@@ -599,7 +699,8 @@ TEST(GatewayAccessListsTest, EveryMalformedPatternOfBothListsIsReportedAtOnce) {
   EXPECT_THAT(errors[0], ::testing::StartsWith("transports.socket.allow[0]: "));
   EXPECT_THAT(errors[1], ::testing::StartsWith("transports.socket.deny[0]: "));
   EXPECT_THAT(errors[2], ::testing::StartsWith("transports.socket.deny[2]: "));
-  EXPECT_THAT(errors[3], ::testing::StartsWith("transports.socket.denny: unknown key (did you mean 'deny'?"));
+  EXPECT_THAT(errors[3],
+              ::testing::StartsWith("transports.socket.denny: unknown key (did you mean 'deny'?"));
 }
 
 TEST(GatewayAccessListsTest, EveryShippedConfigHasTheLocalSocketAsItsOnlyConsole) {
@@ -607,7 +708,8 @@ TEST(GatewayAccessListsTest, EveryShippedConfigHasTheLocalSocketAsItsOnlyConsole
   // before, the web app's console ended the demo with simulation.terminate (issue #35, item 5)
   for (const char* name : {"all-transports.json", "demo.json", "arm.json", "rover.json"}) {
     Deployment d = load_deployment(std::string(SIMGATE_SOURCE_DIR "/config/") + name);
-    for (const auto& t : d.transports) EXPECT_EQ(t.access.console(), t.name == "socket") << name << ": " << t.name;
+    for (const auto& t : d.transports)
+      EXPECT_EQ(t.access.console(), t.name == "socket") << name << ": " << t.name;
   }
 }
 
@@ -638,11 +740,15 @@ TEST(GatewayAccessListsTest, APatternMatchingNoServiceOfItsTransportIsAWarning) 
   c["transports"]["socket"]["deny"] = {"simulation.qiut", "robot.motion.*"};
   c["transports"]["socket"]["allow"] = {"*", "robot.motion"};  // a component, not a service
   std::string all = all_warnings(c);
-  EXPECT_THAT(all, HasSubstr("transports.socket.deny[0]: 'simulation.qiut' matches no service transport 'socket' "
-                             "serves: it denies nothing (did you mean 'simulation.quit'?)"));
-  EXPECT_THAT(all, HasSubstr("transports.socket.allow[1]: 'robot.motion' matches no service transport 'socket' "
-                             "serves: it allows nothing (a pattern names services: 'robot.motion.*' for every "
-                             "service of 'robot.motion')"));
+  EXPECT_THAT(
+      all, HasSubstr(
+               "transports.socket.deny[0]: 'simulation.qiut' matches no service transport 'socket' "
+               "serves: it denies nothing (did you mean 'simulation.quit'?)"));
+  EXPECT_THAT(
+      all,
+      HasSubstr("transports.socket.allow[1]: 'robot.motion' matches no service transport 'socket' "
+                "serves: it allows nothing (a pattern names services: 'robot.motion.*' for every "
+                "service of 'robot.motion')"));
   EXPECT_THAT(all, Not(HasSubstr("deny[1]")));
   EXPECT_THAT(all, Not(HasSubstr("allow[0]")));
 }
@@ -651,15 +757,17 @@ TEST(GatewayAccessListsTest, APatternForAComponentTheTransportDoesNotServeIsAWar
   json c = demo_config();
   c["services"] = {{"default", {"socket"}}, {"human", json::array()}};
   c["transports"]["socket"]["deny"] = {"human.move"};
-  EXPECT_THAT(all_warnings(c), HasSubstr("transports.socket.deny[0]: 'human.move' matches no service transport "
-                                         "'socket' serves"));
+  EXPECT_THAT(all_warnings(c),
+              HasSubstr("transports.socket.deny[0]: 'human.move' matches no service transport "
+                        "'socket' serves"));
 }
 
 TEST(GatewayAccessListsTest, ASocketTransportThatDeniesDetailsWarnsThatPymorseCannotConnect) {
   json c = demo_config();
   c["transports"]["socket"]["deny"] = {"simulation.*"};
-  EXPECT_THAT(all_warnings(c), HasSubstr("transports.socket: the socket transport 'socket' does not let clients "
-                                         "call 'simulation.details': pymorse cannot connect to it"));
+  EXPECT_THAT(all_warnings(c),
+              HasSubstr("transports.socket: the socket transport 'socket' does not let clients "
+                        "call 'simulation.details': pymorse cannot connect to it"));
   c["transports"]["socket"]["deny"] = {"simulation.quit"};
   EXPECT_EQ(all_warnings(c), "");
 }
@@ -675,7 +783,9 @@ json mapping_config(json services) {
 
 TEST(GatewayMappingTest, ExactNameBeatsGlobBeatsDefault) {
   Deployment d = parse_deployment(
-      mapping_config({{"default", {"socket"}}, {"robot.*", {"other"}}, {"robot.pose", {"socket", "other"}}}), "/");
+      mapping_config(
+          {{"default", {"socket"}}, {"robot.*", {"other"}}, {"robot.pose", {"socket", "other"}}}),
+      "/");
   EXPECT_EQ(d.transports_for("robot.pose"), std::vector<std::string>({"socket", "other"}));
   EXPECT_EQ(d.transports_for("robot.motion"), std::vector<std::string>({"other"}));
   EXPECT_EQ(d.transports_for("human"), std::vector<std::string>({"socket"}));
@@ -683,7 +793,8 @@ TEST(GatewayMappingTest, ExactNameBeatsGlobBeatsDefault) {
 }
 
 TEST(GatewayMappingTest, MoreSpecificGlobWins) {
-  Deployment d = parse_deployment(mapping_config({{"*", {"socket"}}, {"robot.w*", {"other"}}}), "/");
+  Deployment d =
+      parse_deployment(mapping_config({{"*", {"socket"}}, {"robot.w*", {"other"}}}), "/");
   EXPECT_EQ(d.transports_for("robot.waypoint"), std::vector<std::string>({"other"}));
   EXPECT_EQ(d.transports_for("robot.motion"), std::vector<std::string>({"socket"}));
 }

@@ -19,14 +19,15 @@ namespace simgate::gateway {
 namespace {
 
 using ::testing::HasSubstr;
-using ::testing::StartsWith;
 using testing::LineClient;
-using testing::rpc;
 using testing::payload;
+using testing::rpc;
+using ::testing::StartsWith;
 
-const char* k_entity_services[] = {"set_object_position", "get_object_pose", "get_object_bbox",
-                                   "get_object_global_bbox", "set_object_dynamics", "get_entity_state",
-                                   "set_entity_state", "list_entities", "terminate", "set_log_level"};
+const char* k_entity_services[] = {
+    "set_object_position", "get_object_pose",  "get_object_bbox",  "get_object_global_bbox",
+    "set_object_dynamics", "get_entity_state", "set_entity_state", "list_entities",
+    "terminate",           "set_log_level"};
 // terminate and set_log_level are process-wide: served by the socket console only
 bool process_wide(const char* service) {
   return std::string(service) == "terminate" || std::string(service) == "set_log_level";
@@ -37,7 +38,8 @@ bool process_wide(const char* service) {
 json dds_options() {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
   return {{"domain", 20 + getpid() % 200},
-          {"partition", "simgate-test-" + std::to_string(getpid()) + "-" + (info ? info->name() : "none")},
+          {"partition",
+           "simgate-test-" + std::to_string(getpid()) + "-" + (info ? info->name() : "none")},
           {"config", std::string("file://") + SIMGATE_LOOPBACK_DDS_XML}};
 }
 #endif
@@ -69,15 +71,19 @@ class GatewayEntitiesTest : public ::testing::Test {
 
 TEST_F(GatewayEntitiesTest, TheSocketSpeaksMorsesWire) {
   LineClient c(port("socket"));
-  EXPECT_EQ(c.request("1", "simulation set_object_position [\"crate1\", [1.0, 2.0, 0.2], [0, 0, 0.5]]"), "1 SUCCESS");
+  EXPECT_EQ(
+      c.request("1", "simulation set_object_position [\"crate1\", [1.0, 2.0, 0.2], [0, 0, 0.5]]"),
+      "1 SUCCESS");
   json pose = payload(c.request("2", "simulation get_object_pose [\"crate1\"]"));
   EXPECT_NEAR(pose[0][0].get<double>(), 1.0, 1e-3);
   EXPECT_NEAR(pose[0][1].get<double>(), 2.0, 1e-3);
   EXPECT_NEAR(pose[1][2].get<double>(), std::sin(0.25), 1e-3);
   // MORSE returns the state (simgate sends falsy values too: docs/transports/socket.md)
-  EXPECT_EQ(c.request("3", "simulation set_object_dynamics [\"crate1\", false]"), "3 SUCCESS false");
+  EXPECT_EQ(c.request("3", "simulation set_object_dynamics [\"crate1\", false]"),
+            "3 SUCCESS false");
   EXPECT_EQ(c.request("4", "simulation set_object_dynamics [\"crate1\", true]"), "4 SUCCESS true");
-  EXPECT_EQ(c.request("5", "simulation list_entities [\"crate\"]"), "5 SUCCESS [\"crate1\", \"crate2\"]");
+  EXPECT_EQ(c.request("5", "simulation list_entities [\"crate\"]"),
+            "5 SUCCESS [\"crate1\", \"crate2\"]");
   EXPECT_EQ(c.request("6", "simulation set_object_position [\"crat1\", [0, 0, 1]]"),
             "6 FAILED \"Object 'crat1' does not appear in the scene. Did you mean 'crate1'?\"");
   // NaN reaches the socket's parser as MORSE's json.loads takes it; it is refused
@@ -88,14 +94,16 @@ TEST_F(GatewayEntitiesTest, TheSocketSpeaksMorsesWire) {
   EXPECT_EQ(view[1], true);
   EXPECT_EQ(c.request("9", "communication distance_and_view [\"robot\", \"nobody\"]"),
             "9 FAILED \"nobody does not exist in the simulation \"");
-  EXPECT_THAT(c.request("10", "communication distance_and_view"), HasSubstr("10 FAILED \"parameters expected for service"));
+  EXPECT_THAT(c.request("10", "communication distance_and_view"),
+              HasSubstr("10 FAILED \"parameters expected for service"));
   EXPECT_THAT(c.request("11", "simulation set_log_level [\"robot\", \"LOUD\"]"),
               StartsWith("11 FAILED \"Unknown level: 'LOUD'"));
   // introspection lists them
   std::set<std::string> listed;
   for (const auto& d : payload(c.request("12", "simulation list_services")))
     listed.insert(d["component"].get<std::string>() + "." + d["name"].get<std::string>());
-  for (const char* s : k_entity_services) EXPECT_TRUE(listed.count(std::string("simulation.") + s)) << s;
+  for (const char* s : k_entity_services)
+    EXPECT_TRUE(listed.count(std::string("simulation.") + s)) << s;
   EXPECT_TRUE(listed.count("communication.distance_and_view"));
   // and the simulation runs on
   EXPECT_THAT(c.request("13", "simulation list_robots"), StartsWith("13 SUCCESS"));
@@ -121,12 +129,14 @@ TEST_F(GatewayEntitiesTest, JsonRpcTakesNamedParametersAndReportsTheBadOne) {
   json bbox = rpc(c, 4, "simulation.get_object_global_bbox", {"human"});
   ASSERT_TRUE(bbox.contains("result")) << bbox;
   EXPECT_GT(bbox["result"][1][2].get<double>(), 1.5);  // the human is about 1.7 m tall
-  json view = rpc(c, 5, "communication.distance_and_view", {{"robot1", "human"}, {"robot2", "robot"}});
+  json view =
+      rpc(c, 5, "communication.distance_and_view", {{"robot1", "human"}, {"robot2", "robot"}});
   ASSERT_TRUE(view.contains("result")) << view;
   EXPECT_EQ(view["result"][1], true);
   std::set<std::string> discovered;
   const json discovery = rpc(c, 6, "rpc.discover");
-  for (const auto& m : discovery["result"]["methods"]) discovered.insert(m["name"].get<std::string>());
+  for (const auto& m : discovery["result"]["methods"])
+    discovered.insert(m["name"].get<std::string>());
   EXPECT_TRUE(discovery.contains("result")) << discovery.dump().substr(0, 500);
   for (const char* s : k_entity_services)
     EXPECT_EQ(discovered.count(std::string("simulation.") + s), process_wide(s) ? 0u : 1u) << s;
@@ -137,13 +147,15 @@ TEST_F(GatewayEntitiesTest, JsonRpcTakesNamedParametersAndReportsTheBadOne) {
 #ifdef SIMGATE_TEST_WITH_DDS
 TEST_F(GatewayEntitiesTest, DdsClientsReachThemToo) {
   auto client = client::make_client("dds", dds_options());
-  Outcome listed = client->call("simulation", "list_entities", {"*wheel"}, std::chrono::seconds(20));
+  Outcome listed =
+      client->call("simulation", "list_entities", {"*wheel"}, std::chrono::seconds(20));
   ASSERT_EQ(listed.status, Status::success) << listed.message;
   EXPECT_EQ(listed.value, json({"robot_left_wheel", "robot_right_wheel"}));
   Outcome bbox = client->call("simulation", "get_object_bbox", {"robot"}, std::chrono::seconds(20));
   ASSERT_EQ(bbox.status, Status::success) << bbox.message;
   EXPECT_NEAR(bbox.value.value()[1][1].get<double>(), 0.23, 1e-6);
-  Outcome view = client->call("communication", "distance_and_view", {"robot", "nobody"}, std::chrono::seconds(20));
+  Outcome view = client->call("communication", "distance_and_view", {"robot", "nobody"},
+                              std::chrono::seconds(20));
   EXPECT_EQ(view.status, Status::failed);
   EXPECT_EQ(view.message, "nobody does not exist in the simulation ");
   std::set<std::string> catalog;
@@ -161,7 +173,8 @@ TEST(GatewayTerminateTest, TerminateEndsTheProcessAtOnceWithoutFinalization) {
   testing::TempDir dir;
   const std::string config = dir.write("demo.json", testing::demo_config().dump());
   const std::string endpoints = dir.file("endpoints.json");
-  testing::Process p({testing::simgate_binary(), "run", config, "--endpoints-file", endpoints}, dir.file(""));
+  testing::Process p({testing::simgate_binary(), "run", config, "--endpoints-file", endpoints},
+                     dir.file(""));
   json e = json::parse(testing::wait_for_file(endpoints), nullptr, false);
   ASSERT_TRUE(e.contains("socket")) << p.err();
   LineClient c(testing::port_of(e["socket"][0].get<std::string>()));
@@ -172,7 +185,10 @@ TEST(GatewayTerminateTest, TerminateEndsTheProcessAtOnceWithoutFinalization) {
   EXPECT_EQ(p.wait(), 0) << p.err();
   EXPECT_TRUE(c.closed_by_server());
   EXPECT_THAT(c.other_lines(), ::testing::IsEmpty());  // no reply
-  EXPECT_THAT(p.err(), HasSubstr("simulation: log level warning -> info (asked by Socket service manager, request "));
+  EXPECT_THAT(
+      p.err(),
+      HasSubstr(
+          "simulation: log level warning -> info (asked by Socket service manager, request "));
   EXPECT_THAT(p.err(), HasSubstr("terminate requested: exiting now, without finalization"));
   EXPECT_TRUE(std::filesystem::exists(endpoints));
 }

@@ -64,9 +64,9 @@ json next_ws_sample(WsClient& c) {
 // subscription starts on the transport's thread once its connection is accepted.
 void wait_for_subscribers(LineClient& service, int n) {
   for (int i = 0; i < 500; ++i) {
-    const json stream =
-        stream_of(payload(service.request("w" + std::to_string(i), "simulation get_stream_statistics")),
-                  "simulation.events");
+    const json stream = stream_of(
+        payload(service.request("w" + std::to_string(i), "simulation get_stream_statistics")),
+        "simulation.events");
     if (stream.value("subscribers", 0) >= n) return;
     std::this_thread::sleep_for(10ms);
   }
@@ -79,11 +79,13 @@ TEST(EventsStreamTest, EveryTransportsSubscriberIsToldOfADivergence) {
   LineClient service(g.port("socket"));
   // listed as any stream is: an output stream of kind "events", at no frequency
   EXPECT_EQ(payload(service.request("1", "simulation list_streams")), json({"simulation.events"}));
-  const json listed = stream_of(payload(service.request("2", "simulation get_stream_statistics")), "simulation.events");
+  const json listed = stream_of(payload(service.request("2", "simulation get_stream_statistics")),
+                                "simulation.events");
   EXPECT_EQ(listed["kind"], "events");
   EXPECT_EQ(listed["direction"], "OUT");
   EXPECT_EQ(listed["frequency"], 0);
-  const json port = payload(service.request("3", "simulation get_stream_port [\"simulation.events\"]"));
+  const json port =
+      payload(service.request("3", "simulation get_stream_port [\"simulation.events\"]"));
   ASSERT_TRUE(port.is_number_integer()) << port;
 
   // a reader of each transport
@@ -92,9 +94,13 @@ TEST(EventsStreamTest, EveryTransportsSubscriberIsToldOfADivergence) {
   const json streams = rpc(rpc_client, 1, "rpc.streams")["result"];
   ASSERT_EQ(streams.size(), 1u) << streams;
   EXPECT_EQ(streams[0]["component"], "simulation.events");
-  ASSERT_TRUE(rpc(rpc_client, 2, "rpc.subscribe", {{"component", "simulation.events"}}).contains("result"));
+  ASSERT_TRUE(
+      rpc(rpc_client, 2, "rpc.subscribe", {{"component", "simulation.events"}}).contains("result"));
   WsClient ws(static_cast<std::uint16_t>(g.port("websocket")));
-  ws.send(json{{"jsonrpc", "2.0"}, {"id", 1}, {"method", "rpc.subscribe"}, {"params", {{"component", "simulation.events"}}}});
+  ws.send(json{{"jsonrpc", "2.0"},
+               {"id", 1},
+               {"method", "rpc.subscribe"},
+               {"params", {{"component", "simulation.events"}}}});
   ASSERT_TRUE(ws.receive().contains("result"));
   wait_for_subscribers(service, 3);
 
@@ -117,7 +123,8 @@ TEST(EventsStreamTest, EveryTransportsSubscriberIsToldOfADivergence) {
     EXPECT_EQ(event["divergences"], 1) << event;
   }
   // what get_simulation_state says of it is what the event said
-  const json last = payload(service.request("5", "simulation get_simulation_state"))["last_divergence"];
+  const json last =
+      payload(service.request("5", "simulation get_simulation_state"))["last_divergence"];
   for (const char* key : {"sim_time", "step", "quantity", "where", "action", "resumed_at"})
     EXPECT_EQ(by_socket[key], last[key]) << key;
 }
@@ -126,9 +133,11 @@ TEST(EventsStreamTest, AClientThatPlaysOnHearsItResumedThenDivergedThenPausedByT
   TempDir dir;
   InProcessGateway g(events_config(dir));
   LineClient rpc_client(g.port("jsonrpc"));
-  ASSERT_TRUE(rpc(rpc_client, 1, "rpc.subscribe", {{"component", "simulation.events"}}).contains("result"));
+  ASSERT_TRUE(
+      rpc(rpc_client, 1, "rpc.subscribe", {{"component", "simulation.events"}}).contains("result"));
   // the subscription is the hub's once rpc.subscribe has answered
-  rpc_client.send(R"({"jsonrpc":"2.0","id":2,"method":"simulation.play"})" "\n");
+  rpc_client.send(R"({"jsonrpc":"2.0","id":2,"method":"simulation.play"})"
+                  "\n");
   std::vector<json> told;
   for (int i = 0; i < 3; ++i) {
     const json sample = next_rpc_sample(rpc_client);

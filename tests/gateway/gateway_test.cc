@@ -15,11 +15,11 @@ namespace simgate::gateway {
 namespace {
 
 using ::testing::HasSubstr;
-using ::testing::Not;
-using ::testing::StartsWith;
 using testing::LineClient;
-using testing::rpc;
+using ::testing::Not;
 using testing::payload;
+using testing::rpc;
+using ::testing::StartsWith;
 
 class GatewayIntegrationTest : public ::testing::Test {
  protected:
@@ -37,7 +37,8 @@ TEST_F(GatewayIntegrationTest, ServesTheSupervisionServices) {
   std::string line = c.request("1", "simulation list_robots");
   EXPECT_EQ(line, "1 SUCCESS [\"robot\", \"human\"]");
   json details = payload(c.request("0", "simulation details []"));
-  EXPECT_EQ(details["robots"][0]["components"]["robot.motion"]["service_interfaces"], json({"socket"}));
+  EXPECT_EQ(details["robots"][0]["components"]["robot.motion"]["service_interfaces"],
+            json({"socket"}));
 }
 
 // issue #18: component types as plugins. The docs' odometer library, named in the config,
@@ -63,9 +64,12 @@ TEST_F(GatewayIntegrationTest, AComponentLibraryNamedInTheConfigServesItsTypes) 
 // component the config names so wins; the mapping may name the generated components.
 TEST_F(GatewayIntegrationTest, AnMjcfRobotGetsTheGenericComponentsOfItsSubtree) {
   json config = testing::demo_config(4.0);
-  config["robots"][0] = {{"name", "robot"}, {"type", "mjcf"},
-                         {"components", {{{"name", "actuators"}, {"type", "actuators"},
-                                          {"options", {{"actuators", {"robot_left_motor"}}}}}}}};
+  config["robots"][0] = {{"name", "robot"},
+                         {"type", "mjcf"},
+                         {"components",
+                          {{{"name", "actuators"},
+                            {"type", "actuators"},
+                            {"options", {{"actuators", {"robot_left_motor"}}}}}}}};
   config["services"] = {{"default", {"socket"}}, {"robot.armature_pose", json::array()}};
   config.erase("streams");  // the demo's name robot.pose and robot.motion
   start(config);
@@ -73,8 +77,9 @@ TEST_F(GatewayIntegrationTest, AnMjcfRobotGetsTheGenericComponentsOfItsSubtree) 
   std::vector<std::string> names;
   for (const auto& c : d.robots[0].components) names.push_back(c.name);
   // (the demo robot has a free joint: a floating base, with pose and odometry)
-  EXPECT_EQ(names, (std::vector<std::string>{"robot.actuators", "robot.armature", "robot.armature_pose", "robot.pose",
-                                             "robot.odometry"}));
+  EXPECT_EQ(names,
+            (std::vector<std::string>{"robot.actuators", "robot.armature", "robot.armature_pose",
+                                      "robot.pose", "robot.odometry"}));
   LineClient c(port());
   // the config's own actuators component: one of the two wheel motors
   json actuators = payload(c.request("1", "robot.actuators list_actuators"));
@@ -89,7 +94,8 @@ TEST_F(GatewayIntegrationTest, AnMjcfRobotGetsTheGenericComponentsOfItsSubtree) 
 
 TEST(GatewayComponentLibraryTest, AMissingOrBrokenLibraryIsAConfigErrorNamingItsPlace) {
   json config = testing::demo_config();
-  config["component_libraries"] = {"no_such_library", SIMGATE_TEST_PLUGIN_DIR "/libsimgate_transport_socket.so"};
+  config["component_libraries"] = {"no_such_library",
+                                   SIMGATE_TEST_PLUGIN_DIR "/libsimgate_transport_socket.so"};
   GatewayOptions options;
   options.check_only = true;
   sim::ComponentRegistry registry = sim::builtin_registry();
@@ -98,9 +104,12 @@ TEST(GatewayComponentLibraryTest, AMissingOrBrokenLibraryIsAConfigErrorNamingIts
     FAIL() << "accepted";
   } catch (const ConfigError& e) {
     const std::string text = e.what();
-    EXPECT_THAT(text, HasSubstr("component_libraries[0]: expected a loadable component library, found an error: "
-                                "component library 'no_such_library': no libsimgate_components_no_such_library.so "
-                                "found; paths tried:"));
+    EXPECT_THAT(
+        text,
+        HasSubstr(
+            "component_libraries[0]: expected a loadable component library, found an error: "
+            "component library 'no_such_library': no libsimgate_components_no_such_library.so "
+            "found; paths tried:"));
     EXPECT_THAT(text, HasSubstr("component_libraries[1]: expected a loadable component library"));
   }
   config["component_libraries"] = {42};
@@ -146,18 +155,21 @@ TEST_F(GatewayIntegrationTest, CancelPreemptsTheGotoAndTheRobotStops) {
 TEST_F(GatewayIntegrationTest, ComponentNotMappedToATransportIsUnreachableThroughIt) {
   json config = testing::demo_config();
   config["transports"]["private"] = {{"plugin", "socket"}, {"options", {{"port", 0}}}};
-  config["services"] = {{"default", json::array({"socket"})}, {"robot.teleport", json::array({"private"})}};
+  config["services"] = {{"default", json::array({"socket"})},
+                        {"robot.teleport", json::array({"private"})}};
   start(config);
   LineClient pub(port("socket")), priv(port("private"));
   EXPECT_THAT(pub.request("1", "robot.teleport translate [1.0]"), StartsWith("1 FAILED"));
-  EXPECT_THAT(pub.request("2", "robot.teleport translate [1.0]"), HasSubstr("has not been registered"));
+  EXPECT_THAT(pub.request("2", "robot.teleport translate [1.0]"),
+              HasSubstr("has not been registered"));
   EXPECT_EQ(priv.request("3", "robot.teleport translate [1.0]"), "3 SUCCESS");
   EXPECT_THAT(priv.request("4", "simulation list_robots"), StartsWith("4 FAILED"));
   // details describes only what the transport serves (issue #17, item 6): not even that
   // robot.teleport exists elsewhere
   json details = payload(pub.request("5", "simulation details"));
   EXPECT_FALSE(details["robots"][0]["components"].contains("robot.teleport"));
-  EXPECT_EQ(details["robots"][0]["components"]["robot.motion"]["service_interfaces"], json({"socket"}));
+  EXPECT_EQ(details["robots"][0]["components"]["robot.motion"]["service_interfaces"],
+            json({"socket"}));
 }
 
 // ---- the mapping is a boundary (issue #17, item 6) ----
@@ -177,7 +189,6 @@ json split_config() {
   return config;
 }
 
-
 // The names of the components a list of service descriptors covers.
 std::set<std::string> components_of(const json& descriptors, const char* key = "component") {
   std::set<std::string> out;
@@ -188,7 +199,8 @@ std::set<std::string> components_of(const json& descriptors, const char* key = "
 // `error` with every occurrence of `name` replaced by "NAME" (to compare two refusals).
 json with_name_hidden(json error, const std::string& name) {
   std::string text = error.dump();
-  for (auto at = text.find(name); at != std::string::npos; at = text.find(name, at + 4)) text.replace(at, name.size(), "NAME");
+  for (auto at = text.find(name); at != std::string::npos; at = text.find(name, at + 4))
+    text.replace(at, name.size(), "NAME");
   return json::parse(text);
 }
 
@@ -202,7 +214,8 @@ TEST_F(GatewayIntegrationTest, AJsonRpcClientCannotDeactivateASocketOnlyComponen
   json missing = rpc(jsonrpc, 2, "simulation.deactivate", {"robot.nowhere"});
   ASSERT_TRUE(unserved.contains("error")) << unserved;
   EXPECT_EQ(unserved["error"]["message"], "Component 'robot.waypoint' not found. Can't deactivate");
-  EXPECT_EQ(with_name_hidden(unserved["error"], "robot.waypoint"), with_name_hidden(missing["error"], "robot.nowhere"));
+  EXPECT_EQ(with_name_hidden(unserved["error"], "robot.waypoint"),
+            with_name_hidden(missing["error"], "robot.nowhere"));
   // the socket client's goto goes on and arrives
   EXPECT_EQ(socket.wait_for("g", std::chrono::seconds(60)), "g SUCCESS \"Arrived\"");
   // what JSON-RPC serves it may act on; the socket client still acts on its own
@@ -218,22 +231,27 @@ TEST_F(GatewayIntegrationTest, AJsonRpcClientCannotDeactivateASocketOnlyComponen
 TEST_F(GatewayIntegrationTest, IntrospectionShowsEachTransportOnlyWhatItServes) {
   start(split_config());
   LineClient socket(port("socket")), jsonrpc(port("jsonrpc"));
-  const std::set<std::string> on_socket{"robot", "robot.motion", "robot.pose", "robot.teleport", "robot.waypoint",
-                                        "simulation", "time", "communication"};
+  const std::set<std::string> on_socket{"robot",          "robot.motion",   "robot.pose",
+                                        "robot.teleport", "robot.waypoint", "simulation",
+                                        "time",           "communication"};
   // communication goes with simulation
-  const std::set<std::string> on_jsonrpc{"human", "robot.pose", "simulation", "time", "communication"};
+  const std::set<std::string> on_jsonrpc{"human", "robot.pose", "simulation", "time",
+                                         "communication"};
 
   // list_robots: a robot is there when it or one of its components is served
   EXPECT_EQ(socket.request("1", "simulation list_robots"), "1 SUCCESS [\"robot\"]");
   EXPECT_EQ(rpc(jsonrpc, 1, "simulation.list_robots")["result"], json({"robot", "human"}));
 
   // list_services and the transport's own introspection agree
-  std::set<std::string> socket_listed = components_of(payload(socket.request("2", "simulation list_services")));
+  std::set<std::string> socket_listed =
+      components_of(payload(socket.request("2", "simulation list_services")));
   socket_listed.insert("robot");  // a ground_robot has no services of its own
   EXPECT_EQ(socket_listed, on_socket);
-  std::set<std::string> jsonrpc_listed = components_of(rpc(jsonrpc, 2, "simulation.list_services")["result"]);
+  std::set<std::string> jsonrpc_listed =
+      components_of(rpc(jsonrpc, 2, "simulation.list_services")["result"]);
   EXPECT_EQ(jsonrpc_listed, on_jsonrpc);
-  EXPECT_EQ(components_of(rpc(jsonrpc, 3, "rpc.discover")["result"]["methods"], "x-component"), on_jsonrpc);
+  EXPECT_EQ(components_of(rpc(jsonrpc, 3, "rpc.discover")["result"]["methods"], "x-component"),
+            on_jsonrpc);
 
   // details: robots with the served components only
   json socket_details = payload(socket.request("3", "simulation details"));
@@ -245,16 +263,20 @@ TEST_F(GatewayIntegrationTest, IntrospectionShowsEachTransportOnlyWhatItServes) 
   EXPECT_EQ(robot["name"], "robot");
   EXPECT_FALSE(robot.contains("services"));
   EXPECT_EQ(robot["components"].size(), 1u);
-  EXPECT_EQ(robot["components"]["robot.pose"]["service_interfaces"], json({"jsonrpc", "socket"}));  // in name order
-  EXPECT_EQ(jsonrpc_details["robots"][1]["services"], json({"move", "get_properties", "set_property", "get_configurations"}));
+  EXPECT_EQ(robot["components"]["robot.pose"]["service_interfaces"],
+            json({"jsonrpc", "socket"}));  // in name order
+  EXPECT_EQ(jsonrpc_details["robots"][1]["services"],
+            json({"move", "get_properties", "set_property", "get_configurations"}));
 
   // `simgate list` through each transport
   testing::TempDir dir;
-  auto [scode, sout] = testing::run_simgate({"list", "--port", std::to_string(port("socket"))}, dir);
+  auto [scode, sout] =
+      testing::run_simgate({"list", "--port", std::to_string(port("socket"))}, dir);
   EXPECT_EQ(scode, 0) << sout;
   EXPECT_THAT(sout, HasSubstr("robot.waypoint goto("));
   EXPECT_THAT(sout, Not(HasSubstr("human move")));
-  auto [jcode, jout] = testing::run_simgate({"list", "--transport", "jsonrpc", "--port", std::to_string(port("jsonrpc"))}, dir);
+  auto [jcode, jout] = testing::run_simgate(
+      {"list", "--transport", "jsonrpc", "--port", std::to_string(port("jsonrpc"))}, dir);
   EXPECT_EQ(jcode, 0) << jout;
   EXPECT_THAT(jout, HasSubstr("human move("));
   EXPECT_THAT(jout, Not(HasSubstr("robot.waypoint")));
@@ -272,7 +294,8 @@ json access_config() {
                                      {"allow", {"robot.*", "simulation.*", "time.now"}},
                                      {"deny", {"simulation.quit", "robot.teleport.*"}}};
   config["services"] = {{"default", json::array({"socket", "jsonrpc"})}};
-  config.erase("streams");  // the socket transport's own stream services would be listed on it alone
+  config.erase(
+      "streams");  // the socket transport's own stream services would be listed on it alone
   return config;
 }
 
@@ -280,16 +303,17 @@ json access_config() {
 bool callable_through_jsonrpc(const std::string& qualified) {
   auto starts = [&](const std::string& prefix) { return qualified.rfind(prefix, 0) == 0; };
   // quit, terminate and set_log_level are process-wide: JSON-RPC is no console
-  const bool process_wide =
-      qualified == "simulation.quit" || qualified == "simulation.terminate" || qualified == "simulation.set_log_level";
-  return (starts("robot.") && !starts("robot.teleport.")) || (starts("simulation.") && !process_wide) ||
-         qualified == "time.now";
+  const bool process_wide = qualified == "simulation.quit" || qualified == "simulation.terminate" ||
+                            qualified == "simulation.set_log_level";
+  return (starts("robot.") && !starts("robot.teleport.")) ||
+         (starts("simulation.") && !process_wide) || qualified == "time.now";
 }
 
 // "component.service" of each descriptor of a list_services answer.
 std::set<std::string> qualified_names(const json& descriptors) {
   std::set<std::string> out;
-  for (const auto& d : descriptors) out.insert(d.at("component").get<std::string>() + "." + d.at("name").get<std::string>());
+  for (const auto& d : descriptors)
+    out.insert(d.at("component").get<std::string>() + "." + d.at("name").get<std::string>());
   return out;
 }
 
@@ -302,7 +326,8 @@ TEST_F(GatewayIntegrationTest, ADeniedServiceIsRefusedThroughJsonRpcAsAnUnknownO
   ASSERT_TRUE(quit.contains("error")) << quit;
   EXPECT_EQ(quit["error"]["code"], -32601);
   EXPECT_EQ(with_name_hidden(quit["error"], "quit"), with_name_hidden(missing["error"], "quiet"));
-  EXPECT_THAT(quit["error"]["message"].get<std::string>(), Not(HasSubstr("quit,")));  // not among "services: ..."
+  EXPECT_THAT(quit["error"]["message"].get<std::string>(),
+              Not(HasSubstr("quit,")));  // not among "services: ..."
   // the teleport did not move the robot; human is not on the allow list
   EXPECT_EQ(rpc(jsonrpc, 3, "robot.teleport.translate", {5.0})["error"]["code"], -32601);
   EXPECT_EQ(rpc(jsonrpc, 4, "human.move", {0.5, 0.0})["error"]["code"], -32601);
@@ -333,21 +358,26 @@ TEST_F(GatewayIntegrationTest, OnlyTheSocketConsoleEndsTheProcessOrChangesItsLog
     ASSERT_TRUE(refused.contains("error")) << refused;
     EXPECT_EQ(refused["error"]["code"], -32601);
     EXPECT_THAT(refused["error"]["message"].get<std::string>(),
-                HasSubstr("acts on the whole process, and this transport is not a console")) << refused;
+                HasSubstr("acts on the whole process, and this transport is not a console"))
+        << refused;
   }
   const log::Level level_before = log::level();
   json level = rpc(jsonrpc, 2, "simulation.set_log_level", {"simulation", "off"});
   EXPECT_EQ(level["error"]["code"], -32601) << level;
   EXPECT_EQ(log::level(), level_before);
   // introspection leaves them out on JSON-RPC, shows them on the socket console
-  std::set<std::string> listed = qualified_names(rpc(jsonrpc, 3, "simulation.list_services")["result"]);
+  std::set<std::string> listed =
+      qualified_names(rpc(jsonrpc, 3, "simulation.list_services")["result"]);
   EXPECT_FALSE(listed.count("simulation.terminate") || listed.count("simulation.quit") ||
                listed.count("simulation.set_log_level"));
-  std::set<std::string> on_console = qualified_names(payload(socket.request("1", "simulation list_services")));
-  EXPECT_TRUE(on_console.count("simulation.terminate") && on_console.count("simulation.set_log_level"));
+  std::set<std::string> on_console =
+      qualified_names(payload(socket.request("1", "simulation list_services")));
+  EXPECT_TRUE(on_console.count("simulation.terminate") &&
+              on_console.count("simulation.set_log_level"));
   // the process still runs, and the socket console may end it
   EXPECT_TRUE(rpc(jsonrpc, 4, "time.now")["result"].is_number());
-  EXPECT_EQ(socket.request("l", "simulation set_log_level [\"simulation\", \"WARNING\"]"), "l SUCCESS");
+  EXPECT_EQ(socket.request("l", "simulation set_log_level [\"simulation\", \"WARNING\"]"),
+            "l SUCCESS");
   EXPECT_EQ(socket.request("q", "simulation quit"), "q SUCCESS");
   gateway_->join();
 }
@@ -356,8 +386,10 @@ TEST_F(GatewayIntegrationTest, IntrospectionOnEachTransportListsExactlyTheCallab
   start(access_config());
   LineClient socket(port("socket")), jsonrpc(port("jsonrpc"));
   // the socket transport: everything
-  std::set<std::string> all = qualified_names(payload(socket.request("1", "simulation list_services")));
-  ASSERT_TRUE(all.count("simulation.quit") && all.count("human.move") && all.count("robot.teleport.translate"));
+  std::set<std::string> all =
+      qualified_names(payload(socket.request("1", "simulation list_services")));
+  ASSERT_TRUE(all.count("simulation.quit") && all.count("human.move") &&
+              all.count("robot.teleport.translate"));
   std::set<std::string> expected;
   for (const auto& name : all)
     if (callable_through_jsonrpc(name)) expected.insert(name);
@@ -373,7 +405,8 @@ TEST_F(GatewayIntegrationTest, IntrospectionOnEachTransportListsExactlyTheCallab
   }
   std::set<std::string> discovered;
   const json discovery = rpc(jsonrpc, 2, "rpc.discover");
-  for (const auto& m : discovery["result"]["methods"]) discovered.insert(m["name"].get<std::string>());
+  for (const auto& m : discovery["result"]["methods"])
+    discovered.insert(m["name"].get<std::string>());
   EXPECT_EQ(discovered, expected);
   json from_socket = payload(socket.request("2", "simulation list_services"));
   for (const auto& d : from_socket) {
@@ -384,16 +417,19 @@ TEST_F(GatewayIntegrationTest, IntrospectionOnEachTransportListsExactlyTheCallab
 
   // details: the components it serves, with only their callable services
   json details = rpc(jsonrpc, 3, "simulation.details")["result"];
-  ASSERT_EQ(details["robots"].size(), 2u) << details;  // human is served (mapped), with nothing to call
+  ASSERT_EQ(details["robots"].size(), 2u)
+      << details;  // human is served (mapped), with nothing to call
   json robot = details["robots"][0];
-  EXPECT_EQ(robot["components"]["robot.motion"]["services"], json({"set_speed", "stop", "get_properties", "set_property", "get_configurations"}));
+  EXPECT_EQ(robot["components"]["robot.motion"]["services"],
+            json({"set_speed", "stop", "get_properties", "set_property", "get_configurations"}));
   EXPECT_FALSE(robot["components"]["robot.teleport"].contains("services")) << robot;
   EXPECT_FALSE(details["robots"][1].contains("services")) << details["robots"][1];
   json socket_details = payload(socket.request("3", "simulation details"));
   EXPECT_TRUE(socket_details["robots"][0]["components"]["robot.teleport"].contains("services"));
 
   testing::TempDir dir;
-  auto [code, out] = testing::run_simgate({"list", "--transport", "jsonrpc", "--port", std::to_string(port("jsonrpc"))}, dir);
+  auto [code, out] = testing::run_simgate(
+      {"list", "--transport", "jsonrpc", "--port", std::to_string(port("jsonrpc"))}, dir);
   EXPECT_EQ(code, 0) << out;
   EXPECT_THAT(out, HasSubstr("robot.motion set_speed("));
   EXPECT_THAT(out, Not(HasSubstr("quit")));
@@ -402,14 +438,17 @@ TEST_F(GatewayIntegrationTest, IntrospectionOnEachTransportListsExactlyTheCallab
 }
 #endif
 
-TEST_F(GatewayIntegrationTest, ASocketTransportRefusesADeniedServiceWithMorsesUnknownServiceAnswer) {
+TEST_F(GatewayIntegrationTest,
+       ASocketTransportRefusesADeniedServiceWithMorsesUnknownServiceAnswer) {
   json config = testing::demo_config();
   config["transports"]["socket"]["deny"] = {"robot.teleport.translate"};
   start(config);
   LineClient c(port());
   EXPECT_EQ(c.request("1", "robot.teleport translate [1.0]"),
-            "1 FAILED \"The request translate has not been registered in Socket service manager: component "
-            "'robot.teleport' has no service 'translate' (services: get_configurations, get_properties, rotate, "
+            "1 FAILED \"The request translate has not been registered in Socket service manager: "
+            "component "
+            "'robot.teleport' has no service 'translate' (services: get_configurations, "
+            "get_properties, rotate, "
             "set_property)\"");
   json pose = payload(c.request("2", "robot.pose get_local_data"));
   EXPECT_LT(pose["x"].get<double>(), 0.5);
@@ -423,7 +462,8 @@ TEST_F(GatewayIntegrationTest, BadInputGetsAnErrorAndEveryoneKeepsBeingServed) {
   EXPECT_THAT(bad.request("2", "robot.motion set_speed [\"fast\", 0]"), StartsWith("2 FAILED"));
   EXPECT_THAT(bad.request("3", "robot.motion set_speed [1.0]"), HasSubstr("wrong # of parameters"));
   EXPECT_THAT(bad.request("4", "nobody nothing"), StartsWith("4 FAILED"));
-  EXPECT_EQ(bad.request("5", "human move [-1, 0]"), "5 FAILED \"Our human cannot walk at negative speed!\"");
+  EXPECT_EQ(bad.request("5", "human move [-1, 0]"),
+            "5 FAILED \"Our human cannot walk at negative speed!\"");
   EXPECT_THAT(good.request("6", "simulation list_robots"), StartsWith("6 SUCCESS"));
   EXPECT_THAT(bad.request("7", "simulation list_robots"), StartsWith("7 SUCCESS"));
 }

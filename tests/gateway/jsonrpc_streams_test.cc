@@ -99,20 +99,26 @@ TEST(JsonRpcStreamsTest, AStreamIsNotCarriedWhereTheListsRefuseItsComponentsServ
   json streams = c.call(1, "rpc.streams")["result"];
   ASSERT_EQ(streams.size(), 1u) << streams.dump();
   EXPECT_EQ(streams[0]["component"], "robot.motion");
-  json teleported = c.call(2, "rpc.publish", {{"component", "robot.teleport"}, {"data", {{"x", 5.0}}}});
+  json teleported =
+      c.call(2, "rpc.publish", {{"component", "robot.teleport"}, {"data", {{"x", 5.0}}}});
   EXPECT_EQ(teleported["error"]["code"], -32602) << teleported.dump();
   EXPECT_EQ(c.call(3, "rpc.subscribe", {{"component", "robot.pose"}})["error"]["code"], -32602);
   const auto& warnings = g.gateway().warnings();
   auto warned = [&](const std::string& text) {
-    return std::any_of(warnings.begin(), warnings.end(), [&](const std::string& w) { return w.find(text) != std::string::npos; });
+    return std::any_of(warnings.begin(), warnings.end(),
+                       [&](const std::string& w) { return w.find(text) != std::string::npos; });
   };
-  EXPECT_TRUE(warned("transport 'jsonrpc' does not carry the input stream of 'robot.teleport': its allow/deny lists "
-                     "refuse robot.teleport."));
-  EXPECT_TRUE(warned("transport 'jsonrpc' does not carry the output stream of 'robot.pose': its allow/deny lists "
-                     "refuse robot.pose.get_local_data"));
+  EXPECT_TRUE(
+      warned("transport 'jsonrpc' does not carry the input stream of 'robot.teleport': its "
+             "allow/deny lists "
+             "refuse robot.teleport."));
+  EXPECT_TRUE(warned(
+      "transport 'jsonrpc' does not carry the output stream of 'robot.pose': its allow/deny lists "
+      "refuse robot.pose.get_local_data"));
   // the socket transport, whose lists refuse nothing, still carries the teleport's
   bool on_socket = false;
-  for (const auto& info : g.gateway().simulation().streams().streams("socket")) on_socket |= info.component == "robot.teleport";
+  for (const auto& info : g.gateway().simulation().streams().streams("socket"))
+    on_socket |= info.component == "robot.teleport";
   EXPECT_TRUE(on_socket);
 }
 
@@ -162,7 +168,8 @@ TEST(JsonRpcStreamsTest, APausedSimulationGivesANewSubscriberOneSample) {
 TEST(JsonRpcStreamsTest, PublishedCommandsDriveTheRobot) {
   InProcessGateway g(streams_config());
   StreamClient c(g.port("jsonrpc"));
-  json published = c.call(1, "rpc.publish", {{"component", "robot.motion"}, {"data", {{"v", 1.0}, {"w", 0.0}}}});
+  json published =
+      c.call(1, "rpc.publish", {{"component", "robot.motion"}, {"data", {{"v", 1.0}, {"w", 0.0}}}});
   ASSERT_TRUE(published.contains("result")) << published.dump();
   EXPECT_TRUE(published["result"].contains("applied"));
   ASSERT_TRUE(c.call(2, "rpc.subscribe", {{"component", "robot.pose"}}).contains("result"));
@@ -179,11 +186,13 @@ TEST(JsonRpcStreamsTest, PublishedCommandsDriveTheRobot) {
   json refused;
   int attempts = 0;
   do {
-    refused = c.call(100 + attempts, "rpc.publish", json::array({"robot.motion", {{"v", 1.0}, {"speed", 2}}}));
+    refused = c.call(100 + attempts, "rpc.publish",
+                     json::array({"robot.motion", {{"v", 1.0}, {"speed", 2}}}));
     ++attempts;
   } while (!refused.contains("error") && attempts < 50);
   ASSERT_EQ(refused["error"]["code"], -32602) << refused.dump();
-  EXPECT_NE(refused["error"]["message"].get<std::string>().find("unknown key 'speed'"), std::string::npos)
+  EXPECT_NE(refused["error"]["message"].get<std::string>().find("unknown key 'speed'"),
+            std::string::npos)
       << refused.dump();
   json missing = c.call(4, "rpc.publish", {{"component", "robot.pose"}, {"data", {{"x", 1}}}});
   EXPECT_EQ(missing["error"]["code"], -32602);
@@ -202,7 +211,8 @@ TEST(JsonRpcStreamsTest, PublishedCommandsDriveTheRobot) {
   EXPECT_EQ(pose["subscribers"], 1);
   EXPECT_EQ(motion["commands"], 1);
   EXPECT_EQ(motion["refused"].get<int>() + motion["replaced"].get<int>(), attempts) << stats.dump();
-  EXPECT_NE(motion["last_refusal"].get<std::string>().find("unknown key 'speed'"), std::string::npos);
+  EXPECT_NE(motion["last_refusal"].get<std::string>().find("unknown key 'speed'"),
+            std::string::npos);
 }
 
 // Data that is no object never reaches the component, but is a refused command of the stream
@@ -212,14 +222,18 @@ TEST(JsonRpcStreamsTest, PublishedDataThatIsNoObjectIsRefusedAndCounted) {
   StreamClient c(g.port("jsonrpc"));
   json r = c.call(1, "rpc.publish", {{"component", "robot.motion"}, {"data", json::array({1, 0})}});
   EXPECT_EQ(r["error"]["code"], -32602) << r.dump();
-  EXPECT_EQ(r["error"]["message"], "Invalid params: a command of robot.motion is a JSON object, found array") << r.dump();
+  EXPECT_EQ(r["error"]["message"],
+            "Invalid params: a command of robot.motion is a JSON object, found array")
+      << r.dump();
   r = c.call(2, "rpc.publish", json::array({"robot.motion", "faster"}));
   EXPECT_EQ(r["error"]["code"], -32602) << r.dump();
   // counted at once (nothing waits for the simulation's turn), for the stream's transport only
-  const json motion = stream_of(c.call(3, "simulation.get_stream_statistics")["result"], "robot.motion");
+  const json motion =
+      stream_of(c.call(3, "simulation.get_stream_statistics")["result"], "robot.motion");
   EXPECT_EQ(motion["refused"], 2) << motion.dump();
   EXPECT_EQ(motion["commands"], 0) << motion.dump();
-  EXPECT_EQ(motion["last_refusal"], "a command of robot.motion is a JSON object, found string") << motion.dump();
+  EXPECT_EQ(motion["last_refusal"], "a command of robot.motion is a JSON object, found string")
+      << motion.dump();
 }
 
 TEST(JsonRpcStreamsTest, SubscribingToWhatIsNotThereSaysWhatIs) {
@@ -328,8 +342,10 @@ TEST(JsonRpcStreamsTest, AStreamsRuleSetsTheSimulationsFrequency) {
 class CameraScene {
  public:
   CameraScene() {
-    path_ = std::filesystem::temp_directory_path() / ("simgate-camera-stream-" + std::to_string(getpid()) + ".xml");
-    std::ofstream(path_) << simgate::testing::red_box_scene("camera-stream", "0.005", "10", /*eye_site=*/false);
+    path_ = std::filesystem::temp_directory_path() /
+            ("simgate-camera-stream-" + std::to_string(getpid()) + ".xml");
+    std::ofstream(path_) << simgate::testing::red_box_scene("camera-stream", "0.005", "10",
+                                                            /*eye_site=*/false);
   }
   ~CameraScene() { std::filesystem::remove(path_); }
   json config() const {
@@ -337,14 +353,16 @@ class CameraScene {
     c["scene"] = {{"mjcf", path_.string()}, {"timestep", 0.005}, {"realtime_factor", 1.0}};
     c["transports"]["jsonrpc"] = {{"plugin", "jsonrpc"}, {"options", {{"port", 0}}}};
     c["services"] = {{"default", {"socket", "jsonrpc"}}};
-    c["robots"] = json::array({{{"name", "rig"},
-                                {"type", "robot"},
-                                {"body", "rig"},
-                                {"components",
-                                 json::array({{{"name", "camera"},
-                                               {"type", "video_camera"},
-                                               {"frequency", 10},
-                                               {"options", {{"camera", "front"}, {"cam_width", 64}, {"cam_height", 48}}}}})}}});
+    c["robots"] = json::array(
+        {{{"name", "rig"},
+          {"type", "robot"},
+          {"body", "rig"},
+          {"components",
+           json::array(
+               {{{"name", "camera"},
+                 {"type", "video_camera"},
+                 {"frequency", 10},
+                 {"options", {{"camera", "front"}, {"cam_width", 64}, {"cam_height", 48}}}}})}}});
     c["streams"] = {{"rig.camera", {"jsonrpc"}}};
     return c;
   }
@@ -375,7 +393,8 @@ TEST(JsonRpcStreamsTest, ACamerasStreamGivesPngRecordsOfWhatItSeesAtItsFrequency
     EXPECT_EQ(data["timestamp"], samples[i]["time"]);
     EXPECT_EQ(data["width"], 64);
     EXPECT_EQ(data["format"], "png");
-    const auto png = sim::testing::decode_png(sim::testing::decode_base64(data["image"].get<std::string>()));
+    const auto png =
+        sim::testing::decode_png(sim::testing::decode_base64(data["image"].get<std::string>()));
     ASSERT_TRUE(png.error.empty()) << png.error;
     const std::size_t middle = (24 * 64 + 32) * 3;
     const int r = png.pixels[middle], green = png.pixels[middle + 1], b = png.pixels[middle + 2];

@@ -19,8 +19,8 @@ namespace {
 
 using ::testing::HasSubstr;
 using namespace testing;
-using sim::testing::DecodedPng;
 using sim::testing::decode_png;
+using sim::testing::DecodedPng;
 
 CliRun simgate(std::vector<std::string> args, const TempDir& dir) {
   return run_cli(std::move(args), dir, 120s);
@@ -28,7 +28,8 @@ CliRun simgate(std::vector<std::string> args, const TempDir& dir) {
 
 DecodedPng png_file(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
-  const std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)),
+                                        std::istreambuf_iterator<char>());
   return decode_png(bytes);
 }
 
@@ -44,7 +45,8 @@ bool has_a_picture(const DecodedPng& png) {
 // The demo on ephemeral socket and JSON-RPC ports, `simulation` served by both.
 json demo_on_two_transports() {
   json c = demo_config(0.0);
-  c["transports"]["jsonrpc"] = {{"plugin", "jsonrpc"}, {"options", {{"host", "127.0.0.1"}, {"port", 0}}}};
+  c["transports"]["jsonrpc"] = {{"plugin", "jsonrpc"},
+                                {"options", {{"host", "127.0.0.1"}, {"port", 0}}}};
   c["services"]["simulation"] = json::array({"socket", "jsonrpc"});
   return c;
 }
@@ -52,7 +54,8 @@ json demo_on_two_transports() {
 TEST(GatewaySnapshot, WritesThePngOfARunningGatewayThroughSocketAndJsonRpc) {
   const TempDir dir;
   InProcessGateway gateway(demo_on_two_transports());
-  const CliRun socket = simgate({"snapshot", "--port", std::to_string(gateway.port("socket")), dir.file("socket.png")}, dir);
+  const CliRun socket = simgate(
+      {"snapshot", "--port", std::to_string(gateway.port("socket")), dir.file("socket.png")}, dir);
   ASSERT_EQ(socket.code, 0) << socket.err;
   EXPECT_THAT(socket.out, HasSubstr("socket.png: 640x480 PNG"));
   EXPECT_THAT(socket.out, HasSubstr("camera free"));
@@ -62,9 +65,10 @@ TEST(GatewaySnapshot, WritesThePngOfARunningGatewayThroughSocketAndJsonRpc) {
   EXPECT_EQ(a.height, 480);
   EXPECT_TRUE(has_a_picture(a));
 
-  const CliRun rpc = simgate({"snapshot", "--transport", "jsonrpc", "--port", std::to_string(gateway.port("jsonrpc")),
-                              "--size", "200x150", dir.file("rpc.png")},
-                             dir);
+  const CliRun rpc =
+      simgate({"snapshot", "--transport", "jsonrpc", "--port",
+               std::to_string(gateway.port("jsonrpc")), "--size", "200x150", dir.file("rpc.png")},
+              dir);
   ASSERT_EQ(rpc.code, 0) << rpc.err;
   const DecodedPng b = png_file(dir.file("rpc.png"));
   ASSERT_TRUE(b.error.empty()) << b.error;
@@ -79,8 +83,10 @@ TEST(GatewaySnapshot, ListedThroughSocketAndJsonRpc) {
   InProcessGateway gateway(demo_on_two_transports());
   const CliRun list = simgate({"list", "--port", std::to_string(gateway.port("socket"))}, dir);
   ASSERT_EQ(list.code, 0) << list.err;
-  EXPECT_THAT(list.out, HasSubstr("simulation get_snapshot(camera=\"\", width=640, height=480) async"));
-  const CliRun list_rpc = simgate({"list", "--transport", "jsonrpc", "--port", std::to_string(gateway.port("jsonrpc"))}, dir);
+  EXPECT_THAT(list.out,
+              HasSubstr("simulation get_snapshot(camera=\"\", width=640, height=480) async"));
+  const CliRun list_rpc = simgate(
+      {"list", "--transport", "jsonrpc", "--port", std::to_string(gateway.port("jsonrpc"))}, dir);
   ASSERT_EQ(list_rpc.code, 0) << list_rpc.err;
   EXPECT_THAT(list_rpc.out, HasSubstr("simulation get_snapshot("));
 }
@@ -91,11 +97,12 @@ TEST(GatewaySnapshot, WritesThePngThroughDds) {
   const TempDir dir;
   json c = demo_config(0.0);
   const std::string partition = "snapshot-" + std::to_string(::getpid());
-  c["transports"]["dds"] = {{"plugin", "dds"}, {"options", {{"domain", 0}, {"partition", partition}}}};
+  c["transports"]["dds"] = {{"plugin", "dds"},
+                            {"options", {{"domain", 0}, {"partition", partition}}}};
   c["services"]["simulation"] = json::array({"socket", "dds"});
   InProcessGateway gateway(c);
-  const CliRun r = simgate({"snapshot", "--transport", "dds", "--partition", partition, "--timeout", "60", "--size",
-                            "320x240", dir.file("dds.png")},
+  const CliRun r = simgate({"snapshot", "--transport", "dds", "--partition", partition, "--timeout",
+                            "60", "--size", "320x240", dir.file("dds.png")},
                            dir);
   ASSERT_EQ(r.code, 0) << r.err;
   const DecodedPng png = png_file(dir.file("dds.png"));
@@ -109,8 +116,9 @@ TEST(GatewaySnapshot, WritesThePngThroughDds) {
 TEST(GatewaySnapshot, UnknownCameraOfARunningGatewayIsFailedListingTheCameras) {
   const TempDir dir;
   InProcessGateway gateway(demo_on_two_transports());
-  const CliRun r =
-      simgate({"snapshot", "--port", std::to_string(gateway.port("socket")), "--camera", "nope", dir.file("x.png")}, dir);
+  const CliRun r = simgate({"snapshot", "--port", std::to_string(gateway.port("socket")),
+                            "--camera", "nope", dir.file("x.png")},
+                           dir);
   EXPECT_EQ(r.code, 1);
   EXPECT_THAT(r.err, HasSubstr("FAILED"));
   EXPECT_THAT(r.err, HasSubstr("camera 'nope' is not an MJCF camera of the scene"));
@@ -120,7 +128,8 @@ TEST(GatewaySnapshot, UnknownCameraOfARunningGatewayIsFailedListingTheCameras) {
 TEST(GatewaySnapshot, OfflineFromAConfigAndFromAModel) {
   const TempDir dir;
   const std::string config = dir.write("demo.json", demo_config().dump());
-  const CliRun r = simgate({"snapshot", "--config", config, "--size", "320x240", dir.file("offline.png")}, dir);
+  const CliRun r =
+      simgate({"snapshot", "--config", config, "--size", "320x240", dir.file("offline.png")}, dir);
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_THAT(r.out, HasSubstr("offline.png: 320x240 PNG"));
   const DecodedPng png = png_file(dir.file("offline.png"));
@@ -129,9 +138,9 @@ TEST(GatewaySnapshot, OfflineFromAConfigAndFromAModel) {
   EXPECT_EQ(png.height, 240);
   EXPECT_TRUE(has_a_picture(png));
 
-  const CliRun model =
-      simgate({"snapshot", "--model", source_path("config/scenes/arm_table.xml"), "--size", "64x48", dir.file("arm.png")},
-              dir);
+  const CliRun model = simgate({"snapshot", "--model", source_path("config/scenes/arm_table.xml"),
+                                "--size", "64x48", dir.file("arm.png")},
+                               dir);
   ASSERT_EQ(model.code, 0) << model.err;
   EXPECT_EQ(png_file(dir.file("arm.png")).width, 64);
 }
@@ -142,7 +151,9 @@ std::array<int, 3> rgb_at(const DecodedPng& png, int x, int y) {
   return {png.pixels[i], png.pixels[i + 1], png.pixels[i + 2]};
 }
 // The crates (rgba 0.6 0.4 0.1), lit: orange-brown, not the floor's grey-green.
-bool is_orange(const std::array<int, 3>& p) { return p[0] > 120 && p[0] > p[1] + 30 && p[1] > p[2] + 50; }
+bool is_orange(const std::array<int, 3>& p) {
+  return p[0] > 120 && p[0] > p[1] + 30 && p[1] > p[2] + 50;
+}
 // Not the floor (whose blue is about its red): the rover's orange chassis (0.8 0.35 0.1),
 // however washed out by the lamp right above it.
 bool is_chassis(const std::array<int, 3>& p) { return p[0] > 120 && p[2] + 40 < p[0]; }
@@ -150,8 +161,8 @@ bool is_chassis(const std::array<int, 3>& p) { return p[0] > 120 && p[2] + 40 < 
 TEST(GatewaySnapshot, TheRoverScenesOverheadCameraSeesTheRoverInTheMiddleOfTheRoom) {
   const TempDir dir;
   // the shipped config as it is: its scene next to it, its MJCF camera "overhead"
-  const CliRun r = simgate({"snapshot", "--config", source_path("config/rover.json"), "--camera", "overhead", "--size",
-                            "320x240", dir.file("overhead.png")},
+  const CliRun r = simgate({"snapshot", "--config", source_path("config/rover.json"), "--camera",
+                            "overhead", "--size", "320x240", dir.file("overhead.png")},
                            dir);
   ASSERT_EQ(r.code, 0) << r.err;
   const DecodedPng png = png_file(dir.file("overhead.png"));
@@ -166,7 +177,8 @@ TEST(GatewaySnapshot, TheRoverScenesOverheadCameraSeesTheRoverInTheMiddleOfTheRo
   // (1.5, -1.3) down right
   for (const auto& [x, y] : {std::pair{86, 56}, std::pair{229, 180}}) {
     const auto crate = rgb_at(png, x, y);
-    EXPECT_TRUE(is_orange(crate)) << x << "," << y << ": " << crate[0] << " " << crate[1] << " " << crate[2];
+    EXPECT_TRUE(is_orange(crate)) << x << "," << y << ": " << crate[0] << " " << crate[1] << " "
+                                  << crate[2];
   }
   // the floor between them and the rover (at (-0.9, 0.7))
   const auto floor = rgb_at(png, 120, 90);
@@ -178,16 +190,19 @@ TEST(GatewaySnapshot, ErrorsAreClear) {
   const TempDir dir;
   const std::string config = dir.write("demo.json", demo_config().dump());
   for (const std::string size : {"640", "0x480", "640x9000", "axb", "640x480x3", "-5x5"}) {
-    const CliRun r = simgate({"snapshot", "--config", config, "--size", size, dir.file("s.png")}, dir);
+    const CliRun r =
+        simgate({"snapshot", "--config", config, "--size", size, dir.file("s.png")}, dir);
     EXPECT_EQ(r.code, 2) << size;
     EXPECT_THAT(r.err, HasSubstr("--size: expected WIDTHxHEIGHT")) << size;
   }
-  const CliRun camera = simgate({"snapshot", "--config", config, "--camera", "nope", dir.file("c.png")}, dir);
+  const CliRun camera =
+      simgate({"snapshot", "--config", config, "--camera", "nope", dir.file("c.png")}, dir);
   EXPECT_EQ(camera.code, 1);
   EXPECT_THAT(camera.err, HasSubstr("camera 'nope' is not an MJCF camera of the scene"));
   EXPECT_FALSE(std::filesystem::exists(dir.file("c.png")));
 
-  const CliRun nodir = simgate({"snapshot", "--config", config, dir.file("missing/dir/x.png")}, dir);
+  const CliRun nodir =
+      simgate({"snapshot", "--config", config, dir.file("missing/dir/x.png")}, dir);
   EXPECT_EQ(nodir.code, 1);
   EXPECT_THAT(nodir.err, HasSubstr("cannot write"));
 
@@ -195,7 +210,8 @@ TEST(GatewaySnapshot, ErrorsAreClear) {
   EXPECT_EQ(isdir.code, 2);
   EXPECT_THAT(isdir.err, HasSubstr("is a directory"));
 
-  const CliRun both = simgate({"snapshot", "--config", config, "--port", "4000", dir.file("b.png")}, dir);
+  const CliRun both =
+      simgate({"snapshot", "--config", config, "--port", "4000", dir.file("b.png")}, dir);
   EXPECT_EQ(both.code, 2);
   EXPECT_THAT(both.err, HasSubstr("not both"));
 
@@ -209,7 +225,8 @@ TEST(GatewaySnapshot, ErrorsAreClear) {
     InProcessGateway gateway(demo_config(0.0));
     free_port = gateway.port("socket");
   }
-  const CliRun none = simgate({"snapshot", "--port", std::to_string(free_port), "--timeout", "5", dir.file("n.png")}, dir);
+  const CliRun none = simgate(
+      {"snapshot", "--port", std::to_string(free_port), "--timeout", "5", dir.file("n.png")}, dir);
   EXPECT_EQ(none.code, 1);
   EXPECT_FALSE(none.err.empty());
   EXPECT_FALSE(std::filesystem::exists(dir.file("n.png")));
@@ -226,8 +243,9 @@ TEST(GatewaySnapshot, PresentsTheTokenOfTokenOrSimgateTokenAndFailsClearlyWithou
   InProcessGateway gateway(c);
   for (const std::string transport : {"socket", "jsonrpc"}) {
     auto args = [&](const std::string& out, std::vector<std::string> more) {
-      std::vector<std::string> a = {"snapshot", "--transport", transport, "--port", std::to_string(gateway.port(transport)),
-                                    "--size", "64x48"};
+      std::vector<std::string> a = {
+          "snapshot", "--transport", transport, "--port", std::to_string(gateway.port(transport)),
+          "--size",   "64x48"};
       a.insert(a.end(), more.begin(), more.end());
       a.push_back(dir.file(out));
       return a;
@@ -243,9 +261,11 @@ TEST(GatewaySnapshot, PresentsTheTokenOfTokenOrSimgateTokenAndFailsClearlyWithou
     }
     const CliRun none = simgate(args(transport + "-none.png", {}), dir);
     EXPECT_EQ(none.code, 1) << transport;
-    EXPECT_THAT(none.err, HasSubstr("--token TOKEN or the SIMGATE_TOKEN environment variable")) << transport;
+    EXPECT_THAT(none.err, HasSubstr("--token TOKEN or the SIMGATE_TOKEN environment variable"))
+        << transport;
     EXPECT_FALSE(std::filesystem::exists(dir.file(transport + "-none.png"))) << transport;
-    const CliRun wrong = simgate(args(transport + "-wrong.png", {"--token", "a-wrong-token-0123456789"}), dir);
+    const CliRun wrong =
+        simgate(args(transport + "-wrong.png", {"--token", "a-wrong-token-0123456789"}), dir);
     EXPECT_EQ(wrong.code, 1) << transport;
     EXPECT_THAT(wrong.err, HasSubstr("wrong token")) << transport;
     EXPECT_FALSE(std::filesystem::exists(dir.file(transport + "-wrong.png"))) << transport;

@@ -32,7 +32,8 @@ json streams_config(bool paused = false) {
 
 // The port `simulation get_stream_port` gives `component`.
 int stream_port(LineClient& service, const std::string& component) {
-  const std::string answer = service.request("p", "simulation get_stream_port [\"" + component + "\"]");
+  const std::string answer =
+      service.request("p", "simulation get_stream_port [\"" + component + "\"]");
   EXPECT_EQ(answer.rfind("p SUCCESS ", 0), 0u) << answer;
   const json port = payload(answer);
   return port.is_number_integer() ? port.get<int>() : 0;
@@ -49,8 +50,9 @@ json next_sample(LineClient& reader) {
 json stream_stats(LineClient& service, const std::string& component, const char* key, int want) {
   json stream;
   for (int i = 0; i < 500; ++i) {
-    stream = stream_of(payload(service.request("s" + std::to_string(i), "simulation get_stream_statistics")),
-                       component);
+    stream = stream_of(
+        payload(service.request("s" + std::to_string(i), "simulation get_stream_statistics")),
+        component);
     if (stream.value(key, 0) >= want) break;
     std::this_thread::sleep_for(10ms);
   }
@@ -78,7 +80,8 @@ class Listener {
     address.sin_family = AF_INET;
     address.sin_port = htons(static_cast<std::uint16_t>(port));
     address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    if (::bind(fd_, reinterpret_cast<const sockaddr*>(&address), sizeof address) == 0) ::listen(fd_, 1);
+    if (::bind(fd_, reinterpret_cast<const sockaddr*>(&address), sizeof address) == 0)
+      ::listen(fd_, 1);
   }
   ~Listener() { ::close(fd_); }
   Listener(const Listener&) = delete;
@@ -92,8 +95,10 @@ TEST(SocketStreamsTest, TheSimulationServicesSayWhereEachStreamIs) {
   InProcessGateway g(streams_config());
   LineClient service(g.port());
   // the hub's order: the configuration's (motion comes before pose in the demo robot)
-  EXPECT_EQ(payload(service.request("1", "simulation list_streams")), json({"robot.motion", "robot.pose"}));
-  const int pose = stream_port(service, "robot.pose"), motion = stream_port(service, "robot.motion");
+  EXPECT_EQ(payload(service.request("1", "simulation list_streams")),
+            json({"robot.motion", "robot.pose"}));
+  const int pose = stream_port(service, "robot.pose"),
+            motion = stream_port(service, "robot.motion");
   EXPECT_GT(pose, 0);
   EXPECT_GT(motion, 0);
   EXPECT_NE(pose, motion);
@@ -108,15 +113,21 @@ TEST(SocketStreamsTest, TheSimulationServicesSayWhereEachStreamIs) {
   int found = 0;
   for (const auto& s : payload(service.request("5", "simulation list_services")))
     if (s["component"] == "simulation" &&
-        (s["name"] == "list_streams" || s["name"] == "get_stream_port" || s["name"] == "get_all_stream_ports")) {
+        (s["name"] == "list_streams" || s["name"] == "get_stream_port" ||
+         s["name"] == "get_all_stream_ports")) {
       ++found;
       EXPECT_EQ(s["transports"], json({"socket"})) << s;
     }
   EXPECT_EQ(found, 3);
   // details names the streams by MORSE's datastream classes (what pymorse looks for)
-  const json components = payload(service.request("6", "simulation details"))["robots"][0]["components"];
-  EXPECT_EQ(components["robot.pose"]["stream_interfaces"], json::array({json::array({k_publisher, "OUT"})})) << components;
-  EXPECT_EQ(components["robot.motion"]["stream_interfaces"], json::array({json::array({k_reader, "IN"})})) << components;
+  const json components =
+      payload(service.request("6", "simulation details"))["robots"][0]["components"];
+  EXPECT_EQ(components["robot.pose"]["stream_interfaces"],
+            json::array({json::array({k_publisher, "OUT"})}))
+      << components;
+  EXPECT_EQ(components["robot.motion"]["stream_interfaces"],
+            json::array({json::array({k_reader, "IN"})}))
+      << components;
   EXPECT_FALSE(components["robot.waypoint"].contains("stream_interfaces")) << components;
 }
 
@@ -127,7 +138,8 @@ TEST(SocketStreamsTest, TheSimulationsBodyPosesHaveAPortAfterTheRobots) {
   config["streams"]["simulation"] = {"socket"};
   InProcessGateway g(config);
   LineClient service(g.port());
-  EXPECT_EQ(payload(service.request("1", "simulation list_streams")), json({"robot.motion", "robot.pose", "simulation"}));
+  EXPECT_EQ(payload(service.request("1", "simulation list_streams")),
+            json({"robot.motion", "robot.pose", "simulation"}));
   const int poses = stream_port(service, "simulation");
   EXPECT_GT(poses, 0);
   EXPECT_NE(poses, stream_port(service, "robot.pose"));
@@ -148,7 +160,8 @@ TEST(SocketStreamsTest, AnOutputPortSendsOneJsonSamplePerLineInOrder) {
   for (int i = 0; i < 5; ++i) {
     const json sample = next_sample(reader);
     ASSERT_TRUE(sample.is_object()) << sample;
-    for (const char* key : {"x", "y", "z", "roll", "pitch", "yaw", "timestamp"}) EXPECT_TRUE(sample.contains(key)) << sample;
+    for (const char* key : {"x", "y", "z", "roll", "pitch", "yaw", "timestamp"})
+      EXPECT_TRUE(sample.contains(key)) << sample;
     EXPECT_GT(sample["timestamp"].get<double>(), last);
     last = sample["timestamp"];
   }
@@ -160,7 +173,8 @@ TEST(SocketStreamsTest, AnOutputPortSendsOneJsonSamplePerLineInOrder) {
     EXPECT_GT(sample["timestamp"].get<double>(), last);
     last = sample["timestamp"];
   }
-  const json pose = stream_of(payload(service.request("1", "simulation get_stream_statistics")), "robot.pose");
+  const json pose =
+      stream_of(payload(service.request("1", "simulation get_stream_statistics")), "robot.pose");
   EXPECT_EQ(pose["subscribers"], 1) << pose;
 }
 
@@ -187,7 +201,9 @@ TEST(SocketStreamsTest, CommandLinesDriveTheRobotAndBadOnesAreCountedWithoutClos
     x = sample["x"];
   }
   EXPECT_GT(x, x0 + 0.05);
-  auto motion_stats = [&](const char* key, int want) { return stream_stats(service, "robot.motion", key, want); };
+  auto motion_stats = [&](const char* key, int want) {
+    return stream_stats(service, "robot.motion", key, want);
+  };
   EXPECT_EQ(motion_stats("commands", 1)["commands"], 1);
   // a line that is not JSON, then a command the component refuses: both counted, in that
   // order (one connection's lines are read in order); the connection stays, and the next
@@ -196,7 +212,8 @@ TEST(SocketStreamsTest, CommandLinesDriveTheRobotAndBadOnesAreCountedWithoutClos
   motion.send("{\"v\": 1, \"speed\": 2}\n");
   const json refused = motion_stats("refused", 2);
   EXPECT_EQ(refused["refused"], 2) << refused;
-  EXPECT_NE(refused.value("last_refusal", "").find("unknown key 'speed'"), std::string::npos) << refused;
+  EXPECT_NE(refused.value("last_refusal", "").find("unknown key 'speed'"), std::string::npos)
+      << refused;
   motion.send("{\"v\": 0, \"w\": 0}\n");
   EXPECT_EQ(motion_stats("commands", 2)["commands"], 2);
   // nothing is ever written back on an input stream: the next thing this connection sees is
@@ -241,8 +258,9 @@ TEST(SocketStreamsTest, ABrowsersPostToACommandPortIsClosedAndItsBodyNeverApplie
   LineClient service(g.port());
   const int port = stream_port(service, "robot.motion");
   LineClient page(port);
-  page.send("POST / HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: text/plain;charset=UTF-8\r\n"
-            "Content-Length: 17\r\n\r\n{\"v\": 1, \"w\": 0}\n");
+  page.send(
+      "POST / HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: text/plain;charset=UTF-8\r\n"
+      "Content-Length: 17\r\n\r\n{\"v\": 1, \"w\": 0}\n");
   EXPECT_FALSE(page.read_line(5s)) << "a stream port wrote to a client";
   // a command of another client afterwards is the only one counted
   LineClient motion(port);
@@ -260,14 +278,20 @@ TEST(SocketStreamsTest, AStreamWhosePortCouldNotBeBoundSaysWhyAfterMorsesWords) 
   c["transports"]["socket"]["options"]["stream_port"] = 65534;
   InProcessGateway g(c);
   LineClient service(g.port());
-  ASSERT_EQ(stream_port(service, "robot.motion"), 65534) << "port 65534 is in use by another program";
+  ASSERT_EQ(stream_port(service, "robot.motion"), 65534)
+      << "port 65534 is in use by another program";
   const std::string answer = service.request("1", "simulation get_stream_port [\"robot.pose\"]");
-  EXPECT_EQ(answer.rfind("1 FAILED \"Stream unavailable for component robot.pose: cannot listen on 127.0.0.1:65535: "
-                         "bind failed: ", 0), 0u) << answer;
+  EXPECT_EQ(answer.rfind("1 FAILED \"Stream unavailable for component robot.pose: cannot listen on "
+                         "127.0.0.1:65535: "
+                         "bind failed: ",
+                         0),
+            0u)
+      << answer;
   EXPECT_NE(answer.find("Address already in use"), std::string::npos) << answer;
   // the lists leave it out; a component without a stream keeps MORSE's words alone
   EXPECT_EQ(payload(service.request("2", "simulation list_streams")), json({"robot.motion"}));
-  EXPECT_EQ(payload(service.request("3", "simulation get_all_stream_ports")), json({{"robot.motion", 65534}}));
+  EXPECT_EQ(payload(service.request("3", "simulation get_all_stream_ports")),
+            json({{"robot.motion", 65534}}));
   EXPECT_EQ(service.request("4", "simulation get_stream_port [\"robot.waypoint\"]"),
             "4 FAILED \"Stream unavailable for component robot.waypoint\"");
 }
@@ -293,7 +317,9 @@ TEST(SocketStreamsTest, AReaderThatDoesNotReadHoldsUpNobodyAndItsLossesAreCounte
     ASSERT_GT(sample["timestamp"].get<double>(), last);
     last = sample["timestamp"];
     if (i % 2000 != 0) continue;
-    pose = stream_of(payload(service.request("s" + std::to_string(i), "simulation get_stream_statistics")), "robot.pose");
+    pose = stream_of(
+        payload(service.request("s" + std::to_string(i), "simulation get_stream_statistics")),
+        "robot.pose");
     if (pose["dropped"].get<int>() > 0) break;
   }
   EXPECT_GT(pose["dropped"].get<int>(), 0) << pose;
@@ -305,7 +331,8 @@ TEST(SocketStreamsTest, AReaderThatDoesNotReadHoldsUpNobodyAndItsLossesAreCounte
     EXPECT_GT(sample["timestamp"].get<double>(), last);
     last = sample["timestamp"];
   }
-  EXPECT_GT(payload(service.request("t", "time statistics"))["stream_samples_dropped"].get<int>(), 0);
+  EXPECT_GT(payload(service.request("t", "time statistics"))["stream_samples_dropped"].get<int>(),
+            0);
 }
 
 TEST(SocketStreamsTest, ADeletedRobotClosesItsStreamPorts) {
@@ -332,27 +359,36 @@ TEST(SocketStreamsTest, ASpawnedRobotsStreamsGetPortsAtOnce) {
     config["streams"]["forklift*"] = {"socket"};
     InProcessGateway g(config);
     LineClient service(g.port());
-    const std::string spawn = "simulation spawn_entity " +
-                              json::array({"forklift", "<body><freejoint/><geom type='box' size='.2 .1 .1' mass='2'/></body>",
-                                           {2.0, 2.0, 0.1}, {{"components", json::array({{{"name", "pose"}, {"type", "pose"}}})}}})
-                                  .dump();
+    const std::string spawn =
+        "simulation spawn_entity " +
+        json::array({"forklift",
+                     "<body><freejoint/><geom type='box' size='.2 .1 .1' mass='2'/></body>",
+                     {2.0, 2.0, 0.1},
+                     {{"components", json::array({{{"name", "pose"}, {"type", "pose"}}})}}})
+            .dump();
     for (int round = 0; round < 2; ++round) {
       const std::string r = std::to_string(round);
       ASSERT_EQ(payload(service.request("s" + r, spawn))["name"], "forklift") << with_streams;
       // the port opens on the transport's I/O thread, right after the spawn's answer
       int port = 0;
       for (int i = 0; i < 100 && port <= 0; ++i) {
-        const std::string answer = service.request("p" + r, "simulation get_stream_port [\"forklift.pose\"]");
-        if (answer.find("SUCCESS") != std::string::npos) port = payload(answer).get<int>();
-        else std::this_thread::sleep_for(std::chrono::milliseconds(10));
+        const std::string answer =
+            service.request("p" + r, "simulation get_stream_port [\"forklift.pose\"]");
+        if (answer.find("SUCCESS") != std::string::npos)
+          port = payload(answer).get<int>();
+        else
+          std::this_thread::sleep_for(std::chrono::milliseconds(10));
       }
       ASSERT_GT(port, 0) << with_streams;
       LineClient reader(port);
       const json sample = next_sample(reader);
       ASSERT_TRUE(sample.is_object()) << sample;
       EXPECT_NEAR(sample["x"].get<double>(), 2.0, 0.05) << sample;
-      EXPECT_EQ(payload(service.request("l" + r, "simulation list_streams")).back(), "forklift.pose");
-      ASSERT_EQ(payload(service.request("d" + r, "simulation delete_entity [\"forklift\"]"))["name"], "forklift");
+      EXPECT_EQ(payload(service.request("l" + r, "simulation list_streams")).back(),
+                "forklift.pose");
+      ASSERT_EQ(
+          payload(service.request("d" + r, "simulation delete_entity [\"forklift\"]"))["name"],
+          "forklift");
       EXPECT_TRUE(reader.closed_by_server());
       EXPECT_EQ(service.request("g" + r, "simulation get_stream_port [\"forklift.pose\"]"),
                 "g" + r + " FAILED \"Stream unavailable for component forklift.pose\"");
@@ -366,10 +402,13 @@ TEST(SocketStreamsTest, WithoutStreamsTheStreamServicesDoNotExist) {
   InProcessGateway g(c);
   LineClient service(g.port());
   const std::string answer = service.request("1", "simulation get_stream_port [\"robot.pose\"]");
-  EXPECT_NE(answer.find("1 FAILED \"The request get_stream_port has not been registered"), std::string::npos) << answer;
+  EXPECT_NE(answer.find("1 FAILED \"The request get_stream_port has not been registered"),
+            std::string::npos)
+      << answer;
   for (const auto& s : payload(service.request("2", "simulation list_services")))
     EXPECT_EQ(s["name"].get<std::string>().find("stream_port"), std::string::npos) << s;
-  const json components = payload(service.request("3", "simulation details"))["robots"][0]["components"];
+  const json components =
+      payload(service.request("3", "simulation details"))["robots"][0]["components"];
   EXPECT_FALSE(components["robot.pose"].contains("stream_interfaces")) << components;
 }
 

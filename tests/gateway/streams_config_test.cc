@@ -11,8 +11,8 @@
 namespace simgate::gateway {
 namespace {
 
-using ::testing::HasSubstr;
 using testing::demo_config;
+using ::testing::HasSubstr;
 
 json with_streams(json streams) {
   json c = demo_config();
@@ -63,7 +63,8 @@ TEST(GatewayStreamsConfigTest, NamesGlobsAndDefaultMapAsServicesDo) {
   EXPECT_EQ(by_name["robot.motion"].transports, (std::vector<std::string>{"jsonrpc"}));
   EXPECT_EQ(by_name["robot.motion"].direction, StreamDirection::in);
   EXPECT_EQ(by_name["robot.teleport"].kind, "teleport");
-  EXPECT_EQ(by_name["robot.waypoint"].fields, (std::vector<std::string>{"x", "y", "z", "tolerance", "speed"}));
+  EXPECT_EQ(by_name["robot.waypoint"].fields,
+            (std::vector<std::string>{"x", "y", "z", "tolerance", "speed"}));
   EXPECT_FALSE(by_name.count("robot"));  // the robot itself has no stream
   EXPECT_EQ(b.streams.size(), 4u);
 
@@ -86,7 +87,8 @@ TEST(GatewayStreamsConfigTest, MistakesAreErrorsNamingThePath) {
               HasSubstr("streams.robot.pose[0]: expected a transport declared in \"transports\""));
   EXPECT_THAT(error_text(with_streams({{"robot.poze", {"socket"}}})),
               HasSubstr("streams.robot.poze: expected a component name or a glob matching one"));
-  EXPECT_THAT(error_text(with_streams({{"robot.pose", "socket"}})), HasSubstr("streams.robot.pose"));
+  EXPECT_THAT(error_text(with_streams({{"robot.pose", "socket"}})),
+              HasSubstr("streams.robot.pose"));
   // named exactly, a component without a stream is a mistake
   EXPECT_THAT(error_text(with_streams({{"robot", {"socket"}}})),
               HasSubstr("streams.robot: component 'robot' (type ground_robot) has no data stream"));
@@ -114,17 +116,21 @@ TEST(GatewayStreamsConfigTest, ARuleObjectsFrequencyOverridesTheComponents) {
   // the default rule's frequency, for what it maps
   Built d = build(with_streams({{"default", {{"transports", {"socket"}}, {"frequency", 7}}}}));
   ASSERT_TRUE(d.errors.empty()) << ::testing::PrintToString(d.errors);
-  for (const auto& s : d.streams) EXPECT_EQ(s.frequency, s.component == "robot.pose" ? 7 : 0) << s.component;
+  for (const auto& s : d.streams)
+    EXPECT_EQ(s.frequency, s.component == "robot.pose" ? 7 : 0) << s.component;
   // a glob's
   Built g = build(with_streams({{"robot.*", {{"transports", {"socket"}}, {"frequency", 5}}}}));
   ASSERT_TRUE(g.errors.empty()) << ::testing::PrintToString(g.errors);
-  for (const auto& s : g.streams) EXPECT_EQ(s.frequency, s.component == "robot.pose" ? 5 : 0) << s.component;
+  for (const auto& s : g.streams)
+    EXPECT_EQ(s.frequency, s.component == "robot.pose" ? 5 : 0) << s.component;
 }
 
 TEST(GatewayStreamsConfigTest, ACameraTakesItsRulesFrequencyAsItsFrameRate) {
   json c = with_streams({{"robot.camera", {{"transports", {"jsonrpc"}}, {"frequency", 4}}}});
-  c["robots"][0]["components"].push_back(
-      {{"name", "camera"}, {"type", "video_camera"}, {"frequency", 5}, {"options", {{"cam_width", 32}}}});
+  c["robots"][0]["components"].push_back({{"name", "camera"},
+                                          {"type", "video_camera"},
+                                          {"frequency", 5},
+                                          {"options", {{"cam_width", 32}}}});
   Built b = build(c);
   ASSERT_TRUE(b.errors.empty()) << ::testing::PrintToString(b.errors);
   ASSERT_EQ(b.streams.size(), 1u);
@@ -143,7 +149,8 @@ TEST(GatewayStreamsConfigTest, TheSimulationStreamsItsBodyPosesWhenNamed) {
   EXPECT_EQ(b.streams[1].frequency, sim::SupervisionServices::k_body_poses_frequency);
   EXPECT_EQ(b.streams[1].frequency, 30);
 
-  Built f = build(with_streams({{"simulation", {{"transports", {"jsonrpc", "socket"}}, {"frequency", 15}}}}));
+  Built f = build(
+      with_streams({{"simulation", {{"transports", {"jsonrpc", "socket"}}, {"frequency", 15}}}}));
   ASSERT_TRUE(f.errors.empty()) << ::testing::PrintToString(f.errors);
   ASSERT_EQ(f.streams.size(), 1u);
   EXPECT_EQ(f.streams[0].frequency, 15);
@@ -153,7 +160,8 @@ TEST(GatewayStreamsConfigTest, TheSimulationStreamsItsBodyPosesWhenNamed) {
 // A file written before the simulation could stream keeps its streams (and the socket's
 // stream ports): "default" and globs map the robots' components only.
 TEST(GatewayStreamsConfigTest, DefaultAndGlobsDoNotMapThePseudoComponents) {
-  for (const json& streams : {json{{"default", {"socket"}}}, json{{"*", {"socket"}}}, json{{"sim*", {"socket"}}}}) {
+  for (const json& streams :
+       {json{{"default", {"socket"}}}, json{{"*", {"socket"}}}, json{{"sim*", {"socket"}}}}) {
     Built b = build(with_streams(streams));
     ASSERT_TRUE(b.errors.empty()) << streams.dump() << ::testing::PrintToString(b.errors);
     for (const auto& s : b.streams) EXPECT_NE(s.component, "simulation") << streams.dump();
@@ -166,29 +174,39 @@ TEST(GatewayStreamsConfigTest, RuleObjectMistakesAreErrorsNamingThePath) {
     for (const auto& e : build(config).errors) out += e + "\n";
     return out;
   };
-  EXPECT_THAT(error_text(with_streams({{"simulation", {{"frequency", 30}}}})),
-              HasSubstr("streams.simulation.transports: expected an array of the transport names that carry the "
-                        "stream, found nothing"));
-  EXPECT_THAT(error_text(with_streams({{"simulation", {{"transports", {"jsonrpc"}}, {"frequency", 0}}}})),
-              HasSubstr("streams.simulation.frequency: expected a number from 0.001 to"));
-  EXPECT_THAT(error_text(with_streams({{"simulation", {{"transports", {"jsonrpc"}}, {"frequency", "fast"}}}})),
+  EXPECT_THAT(
+      error_text(with_streams({{"simulation", {{"frequency", 30}}}})),
+      HasSubstr(
+          "streams.simulation.transports: expected an array of the transport names that carry the "
+          "stream, found nothing"));
+  EXPECT_THAT(
+      error_text(with_streams({{"simulation", {{"transports", {"jsonrpc"}}, {"frequency", 0}}}})),
+      HasSubstr("streams.simulation.frequency: expected a number from 0.001 to"));
+  EXPECT_THAT(error_text(with_streams(
+                  {{"simulation", {{"transports", {"jsonrpc"}}, {"frequency", "fast"}}}})),
               HasSubstr("streams.simulation.frequency: expected a number"));
-  EXPECT_THAT(error_text(with_streams({{"simulation", {{"transports", {"jsonrpc"}}, {"rate", 30}}}})),
-              HasSubstr("streams.simulation.rate: unknown key"));
-  EXPECT_THAT(error_text(with_streams({{"simulation", {{"transports", {"jsonrcp"}}}}})),
-              HasSubstr("streams.simulation.transports[0]: expected a transport declared in \"transports\""));
+  EXPECT_THAT(
+      error_text(with_streams({{"simulation", {{"transports", {"jsonrpc"}}, {"rate", 30}}}})),
+      HasSubstr("streams.simulation.rate: unknown key"));
+  EXPECT_THAT(
+      error_text(with_streams({{"simulation", {{"transports", {"jsonrcp"}}}}})),
+      HasSubstr(
+          "streams.simulation.transports[0]: expected a transport declared in \"transports\""));
   EXPECT_THAT(error_text(with_streams({{"simulation", {{"transports", "jsonrpc"}}}})),
               HasSubstr("streams.simulation.transports: expected an array of transport names"));
-  EXPECT_THAT(error_text(with_streams({{"simulation", "jsonrpc"}})),
-              HasSubstr("streams.simulation: expected an array of transport names or an object {\"transports\": "
-                        "[...], \"frequency\": Hz}, found string"));
+  EXPECT_THAT(
+      error_text(with_streams({{"simulation", "jsonrpc"}})),
+      HasSubstr(
+          "streams.simulation: expected an array of transport names or an object {\"transports\": "
+          "[...], \"frequency\": Hz}, found string"));
   // named exactly, a pseudo-component without a stream is a mistake, as a component is
   EXPECT_THAT(error_text(with_streams({{"time", {"socket"}}})),
               HasSubstr("streams.time: component 'time' (type time) has no data stream"));
   // "services" rules stay lists
   json services = with_streams({{"robot.pose", {"socket"}}});
   services["services"]["simulation"] = {{"transports", {"socket"}}};
-  EXPECT_THAT(error_text(services), HasSubstr("services.simulation: expected an array of transport names, found object"));
+  EXPECT_THAT(error_text(services),
+              HasSubstr("services.simulation: expected an array of transport names, found object"));
 }
 
 TEST(GatewayStreamsConfigTest, ARulesFrequencyOnAnInputStreamIsAWarning) {
@@ -197,8 +215,9 @@ TEST(GatewayStreamsConfigTest, ARulesFrequencyOnAnInputStreamIsAWarning) {
   Built b = build(c);
   ASSERT_TRUE(b.errors.empty()) << ::testing::PrintToString(b.errors);
   ASSERT_EQ(b.warnings.size(), 1u) << ::testing::PrintToString(b.warnings);
-  EXPECT_THAT(b.warnings[0], HasSubstr("streams.robot.motion.frequency: component 'robot.motion' (type motion_vw) "
-                                       "has no output stream: the frequency is not used"));
+  EXPECT_THAT(b.warnings[0],
+              HasSubstr("streams.robot.motion.frequency: component 'robot.motion' (type motion_vw) "
+                        "has no output stream: the frequency is not used"));
 }
 
 TEST(GatewayStreamsConfigTest, AFrequencyWithoutAnOutputStreamIsAWarning) {
@@ -207,21 +226,26 @@ TEST(GatewayStreamsConfigTest, AFrequencyWithoutAnOutputStreamIsAWarning) {
   Built b = build(c);
   ASSERT_TRUE(b.errors.empty()) << ::testing::PrintToString(b.errors);
   ASSERT_EQ(b.warnings.size(), 1u) << ::testing::PrintToString(b.warnings);
-  EXPECT_THAT(b.warnings[0], HasSubstr("robots[0].components[0].frequency: component 'robot.motion' (type motion_vw) "
-                                       "has no output stream"));
+  EXPECT_THAT(
+      b.warnings[0],
+      HasSubstr("robots[0].components[0].frequency: component 'robot.motion' (type motion_vw) "
+                "has no output stream"));
 }
 
 TEST(GatewayStreamsConfigTest, ACameraTakesTheFrequencyAsItsFrameRateWithoutAWarning) {
   json c = demo_config();
-  c["robots"][0]["components"].push_back(
-      {{"name", "camera"}, {"type", "video_camera"}, {"frequency", 5}, {"options", {{"cam_width", 32}}}});
+  c["robots"][0]["components"].push_back({{"name", "camera"},
+                                          {"type", "video_camera"},
+                                          {"frequency", 5},
+                                          {"options", {{"cam_width", 32}}}});
   Deployment d = parse_deployment(c, SIMGATE_SOURCE_DIR "/config");
   auto registry = sim::builtin_registry();
   Gateway g(d, registry, GatewayOptions{true, std::nullopt, {}});
   EXPECT_TRUE(g.warnings().empty()) << ::testing::PrintToString(g.warnings());
   const sim::ComponentEntry* camera = g.simulation().find("robot.camera");
   ASSERT_NE(camera, nullptr);
-  const json properties = static_cast<const sim::SimComponent&>(*camera->component).get_properties()["properties"];
+  const json properties =
+      static_cast<const sim::SimComponent&>(*camera->component).get_properties()["properties"];
   EXPECT_EQ(properties["frequency"], 5.0);
   EXPECT_EQ(properties["cam_width"], 32);
 }

@@ -35,7 +35,9 @@ namespace simgate::gateway::testing {
 using json = nlohmann::json;
 using namespace std::chrono_literals;
 
-inline std::string source_path(const std::string& rel) { return std::string(SIMGATE_SOURCE_DIR) + "/" + rel; }
+inline std::string source_path(const std::string& rel) {
+  return std::string(SIMGATE_SOURCE_DIR) + "/" + rel;
+}
 inline std::string simgate_binary() { return std::string(SIMGATE_BINARY_DIR) + "/bin/simgate"; }
 
 // A unique temporary directory, removed with the object.
@@ -85,7 +87,8 @@ inline json socket_demo_config(double factor = 1.0) {
       if (t != "websocket") kept.push_back(t);
     return kept;
   };
-  for (auto& [pattern, transports] : c["services"].items()) transports = without_websocket(transports);
+  for (auto& [pattern, transports] : c["services"].items())
+    transports = without_websocket(transports);
   // a stream rule is a list of transports or {"transports": [...], "frequency": Hz}; one
   // left with no transport goes
   json streams = json::object();
@@ -104,7 +107,8 @@ inline json socket_demo_config(double factor = 1.0) {
 // system's) is set before connecting, so that it is the window the client offers.
 inline int connect_loopback(int port, int receive_buffer = 0) {
   const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  if (receive_buffer > 0) ::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &receive_buffer, sizeof receive_buffer);
+  if (receive_buffer > 0)
+    ::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &receive_buffer, sizeof receive_buffer);
   sockaddr_in addr{};
   addr.sin_family = AF_INET;
   addr.sin_port = htons(static_cast<uint16_t>(port));
@@ -149,7 +153,8 @@ class LineClient {
         buffer_.erase(0, nl + 1);
         return line;
       }
-      auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+      auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+          deadline - std::chrono::steady_clock::now());
       if (left.count() <= 0) return std::nullopt;
       pollfd p{fd_, POLLIN, 0};
       if (::poll(&p, 1, static_cast<int>(left.count())) <= 0) continue;
@@ -163,7 +168,8 @@ class LineClient {
     }
   }
   // Sends "<id> <request>" and returns the answer line for that id (other ids are kept).
-  std::string request(const std::string& id, const std::string& request, std::chrono::milliseconds timeout = 20s) {
+  std::string request(const std::string& id, const std::string& request,
+                      std::chrono::milliseconds timeout = 20s) {
     send(id + " " + request + "\n");
     return wait_for(id, timeout);
   }
@@ -176,7 +182,8 @@ class LineClient {
       }
     auto deadline = std::chrono::steady_clock::now() + timeout;
     while (std::chrono::steady_clock::now() < deadline) {
-      auto line = read_line(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()));
+      auto line = read_line(std::chrono::duration_cast<std::chrono::milliseconds>(
+          deadline - std::chrono::steady_clock::now()));
       if (!line) break;
       if (line->rfind(id + " ", 0) == 0) return *line;
       others_.push_back(*line);
@@ -187,7 +194,8 @@ class LineClient {
   bool closed_by_server(std::chrono::milliseconds timeout = 20s) {
     auto deadline = std::chrono::steady_clock::now() + timeout;
     while (!closed_ && std::chrono::steady_clock::now() < deadline) {
-      auto line = read_line(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()));
+      auto line = read_line(std::chrono::duration_cast<std::chrono::milliseconds>(
+          deadline - std::chrono::steady_clock::now()));
       if (line) others_.push_back(*line);
     }
     return closed_;
@@ -266,7 +274,8 @@ inline void require_token(json& config, const std::string& token_env) {
 class Process {
  public:
   Process(std::vector<std::string> args, const std::string& out_dir)
-      : out_(out_dir + "/stdout" + std::to_string(next_id())), err_(out_dir + "/stderr" + std::to_string(next_id())) {
+      : out_(out_dir + "/stdout" + std::to_string(next_id())),
+        err_(out_dir + "/stderr" + std::to_string(next_id())) {
     posix_spawn_file_actions_t actions;
     posix_spawn_file_actions_init(&actions);
     posix_spawn_file_actions_addopen(&actions, 1, out_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
@@ -331,18 +340,21 @@ inline std::string wait_for_file(const std::string& path, std::chrono::milliseco
   return "";
 }
 
-inline int port_of(const std::string& endpoint) { return std::stoi(endpoint.substr(endpoint.rfind(':') + 1)); }
+inline int port_of(const std::string& endpoint) {
+  return std::stoi(endpoint.substr(endpoint.rfind(':') + 1));
+}
 
 // The outcome of a `simgate` run, stdout and stderr apart.
 struct CliRun {
-  int code = -1;    // exit code (-1: still running at the deadline)
-  std::string out;  // stdout
-  std::string err;  // stderr
+  int code = -1;                               // exit code (-1: still running at the deadline)
+  std::string out;                             // stdout
+  std::string err;                             // stderr
   std::chrono::steady_clock::duration took{};  // from start to exit
 };
 
 // Runs the simgate executable with `args` in `dir`, for at most `timeout`.
-inline CliRun run_cli(std::vector<std::string> args, const TempDir& dir, std::chrono::milliseconds timeout = 60s) {
+inline CliRun run_cli(std::vector<std::string> args, const TempDir& dir,
+                      std::chrono::milliseconds timeout = 60s) {
   args.insert(args.begin(), simgate_binary());
   const auto started = std::chrono::steady_clock::now();
   Process p(args, dir.file(""));

@@ -16,7 +16,8 @@ namespace {
 using JsonRpcAsync = JsonRpcFixture;
 
 // Polls `method` on `c` until it returns `expected` (bounded in count and time).
-bool eventually(JsonRpcClient& c, const std::string& method, const json& params, const json& expected) {
+bool eventually(JsonRpcClient& c, const std::string& method, const json& params,
+                const json& expected) {
   const auto deadline = std::chrono::steady_clock::now() + k_timeout;
   for (int i = 0; i < 100000 && std::chrono::steady_clock::now() < deadline; ++i)
     if (c.request(method, params, k_timeout).value("result", json()) == expected) return true;
@@ -119,12 +120,14 @@ TEST_F(JsonRpcAsync, NonInterruptibleServiceMakesTheNewCallBusy) {
 
 TEST_F(JsonRpcAsync, DuplicatePendingIdIsRefusedThenReusable) {
   client_->send_line(R"({"jsonrpc":"2.0","method":"robot.arm.hold","params":["d"],"id":"dup"})");
-  auto r = round_trip(*client_, R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[1,2],"id":"dup"})");
+  auto r = round_trip(*client_,
+                      R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[1,2],"id":"dup"})");
   EXPECT_EQ(error_code(r), -32600) << r.dump();
   EXPECT_EQ(r["id"], "dup");
   client_->request("ctl.release", json::array({"d", 1}), k_timeout);
   EXPECT_EQ(client_->wait_for("dup", k_timeout)["result"], 1);
-  r = round_trip(*client_, R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[1,2],"id":"dup"})");
+  r = round_trip(*client_,
+                 R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[1,2],"id":"dup"})");
   EXPECT_EQ(r["result"], 3.0) << r.dump();
 }
 
@@ -200,11 +203,14 @@ TEST_F(JsonRpcAsync, LargeBurstThenEndOfInputGetsEveryReply) {
 // Sync calls on `c` for `duration` (at most `max_calls`): long enough for the client to be
 // alone (kit::ReadSplit::k_alone_after) and its socket read directly by the polling I/O thread.
 // Returns how many were answered right; stops at the first wrong one.
-int call_back_to_back(JsonRpcClient& c, std::chrono::milliseconds duration, int max_calls = 50'000) {
+int call_back_to_back(JsonRpcClient& c, std::chrono::milliseconds duration,
+                      int max_calls = 50'000) {
   const auto end = std::chrono::steady_clock::now() + duration;
   int ok = 0;
   for (int i = 0; i < max_calls && std::chrono::steady_clock::now() < end; ++i, ++ok)
-    if (c.request("robot.arm.add", json::array({i, 1}), k_timeout).value("result", json()) != double(i + 1)) break;
+    if (c.request("robot.arm.add", json::array({i, 1}), k_timeout).value("result", json()) !=
+        double(i + 1))
+      break;
   return ok;
 }
 
@@ -216,7 +222,8 @@ TEST_F(JsonRpcLoneClient, CallingBackToBackAndPausingIsAlwaysAnswered) {
   for (int round = 0; round < 3; ++round) {
     EXPECT_GT(call_back_to_back(*client_, 20ms), 0);
     std::this_thread::sleep_for(5ms);
-    EXPECT_EQ(client_->request("robot.arm.add", json::array({round, 1}), k_timeout)["result"], round + 1.0);
+    EXPECT_EQ(client_->request("robot.arm.add", json::array({round, 1}), k_timeout)["result"],
+              round + 1.0);
   }
   // end of input found by a direct read: the last call is answered, then the close
   EXPECT_GT(call_back_to_back(*client_, 20ms), 0);
@@ -287,14 +294,17 @@ TEST_F(JsonRpcAsyncLetRun, DisconnectLetsPendingCallsRun) {
 
 class JsonRpcLimits : public JsonRpcFixture {
   json options() override {
-    return {{"max_message_bytes", 1024}, {"max_depth", 16}, {"max_in_flight", 2}, {"max_unsent_bytes", 65536},
+    return {{"max_message_bytes", 1024},
+            {"max_depth", 16},
+            {"max_in_flight", 2},
+            {"max_unsent_bytes", 65536},
             {"max_connections", 4}};
   }
 };
 
 TEST_F(JsonRpcLimits, OversizedMessageIsRefusedAndTheConnectionLivesOn) {
-  const std::string big = R"({"jsonrpc":"2.0","method":"robot.arm.echo","params":[")" + std::string(5000, 'a') +
-                          R"("],"id":1})";
+  const std::string big = R"({"jsonrpc":"2.0","method":"robot.arm.echo","params":[")" +
+                          std::string(5000, 'a') + R"("],"id":1})";
   auto r = round_trip(*client_, big);
   EXPECT_EQ(error_code(r), -32600) << r.dump();
   EXPECT_TRUE(r["id"].is_null());
@@ -306,8 +316,8 @@ TEST_F(JsonRpcLimits, OversizedMessageIsRefusedAndTheConnectionLivesOn) {
 }
 
 TEST_F(JsonRpcLimits, DeepNestingIsRefused) {
-  std::string deep = R"({"jsonrpc":"2.0","method":"robot.arm.echo","params":[)" + std::string(40, '[') +
-                     std::string(40, ']') + R"(],"id":1})";
+  std::string deep = R"({"jsonrpc":"2.0","method":"robot.arm.echo","params":[)" +
+                     std::string(40, '[') + std::string(40, ']') + R"(],"id":1})";
   auto r = round_trip(*client_, deep);
   EXPECT_EQ(error_code(r), -32600) << r.dump();
   // brackets inside strings do not count
@@ -321,8 +331,10 @@ TEST_F(JsonRpcLimits, ABatchLargerThanMaxInFlightIsRefusedWhole) {
   ASSERT_TRUE(r.is_object()) << r.dump();
   EXPECT_EQ(error_code(r), -32006) << r.dump();
   EXPECT_EQ(r["error"]["data"]["batch_entries"], 3);
-  r = round_trip(*client_, R"([{"jsonrpc":"2.0","method":"rpc.discover","id":1},{"jsonrpc":"2.0","method":"rpc.discover","id":2},)"
-                           R"({"jsonrpc":"2.0","method":"rpc.discover","id":3}])");
+  r = round_trip(
+      *client_,
+      R"([{"jsonrpc":"2.0","method":"rpc.discover","id":1},{"jsonrpc":"2.0","method":"rpc.discover","id":2},)"
+      R"({"jsonrpc":"2.0","method":"rpc.discover","id":3}])");
   EXPECT_EQ(error_code(r), -32006) << r.dump().substr(0, 200);
   // within the limit, a batch is served as before
   r = round_trip(*client_, "[1,1]");
@@ -340,7 +352,8 @@ TEST_F(JsonRpcBatchBytes, ABatchReplyStaysWithinMaxUnsentBytes) {
   // answers a short -32006 with its id
   std::string batch = "[";
   for (int i = 0; i < 40; ++i)
-    batch += (i ? "," : "") + std::string(R"({"jsonrpc":"2.0","method":"rpc.discover","id":)") + std::to_string(i) + "}";
+    batch += (i ? "," : "") + std::string(R"({"jsonrpc":"2.0","method":"rpc.discover","id":)") +
+             std::to_string(i) + "}";
   batch += "]";
   client_->send_line(batch);
   const auto line = client_->read_line(k_timeout);
@@ -379,7 +392,8 @@ TEST_F(JsonRpcSlowReader, ClientThatNeverReadsIsDroppedOthersAreServed) {
   JsonRpcClient hog("127.0.0.1", host_->port());
   std::string lines;
   for (int i = 0; i < 64; ++i)
-    lines += R"({"jsonrpc":"2.0","method":"robot.arm.blob","params":[262144],"id":)" + std::to_string(i) + "}\n";
+    lines += R"({"jsonrpc":"2.0","method":"robot.arm.blob","params":[262144],"id":)" +
+             std::to_string(i) + "}\n";
   hog.send_raw(lines);
   // meanwhile another client is served normally
   for (int i = 0; i < 5; ++i)
@@ -397,7 +411,8 @@ TEST_F(JsonRpcTinyBacklog, NoMessageIsTakenFromAReadAfterItsFirstHalfClosedTheCo
   // exceed the limit the connection closes there, and the rest of the read must not run
   // for the client that is gone (a call there would escape on_disconnect's cancel)
   auto call = [](const std::string& method, const std::string& params, const std::string& id) {
-    return R"({"jsonrpc":"2.0","method":")" + method + R"(","params":)" + params + R"(,"id":")" + id + "\"}\n";
+    return R"({"jsonrpc":"2.0","method":")" + method + R"(","params":)" + params + R"(,"id":")" +
+           id + "\"}\n";
   };
   // a first large read makes the connection the one sending (kit::ReadSplit notes it), then
   // it stays alone for longer than kit::ReadSplit::k_alone_after
@@ -410,22 +425,27 @@ TEST_F(JsonRpcTinyBacklog, NoMessageIsTakenFromAReadAfterItsFirstHalfClosedTheCo
   // first half: replies of 2 KB (the second finds the limit passed and closes); the second
   // half begins with a held call that must never start
   std::string first_half;
-  for (int i = 0; i < 8; ++i) first_half += call("robot.arm.blob", "[2048]", "b" + std::to_string(i));
+  for (int i = 0; i < 8; ++i)
+    first_half += call("robot.arm.blob", "[2048]", "b" + std::to_string(i));
   const std::string hold = call("robot.arm.hold", R"(["after-close"])", "h");
   const std::string head = R"({"jsonrpc":"2.0","method":"robot.arm.echo","params":[")";
-  const std::string tail = R"("],"id":"z"})" "\n";
-  const std::string padding = head + std::string(first_half.size() - hold.size() - head.size() - tail.size(), 'x') + tail;
+  const std::string tail = R"("],"id":"z"})"
+                           "\n";
+  const std::string padding =
+      head + std::string(first_half.size() - hold.size() - head.size() - tail.size(), 'x') + tail;
   ASSERT_EQ(hold.size() + padding.size(), first_half.size());  // the half falls just before `hold`
   client_->send_raw(first_half + hold + padding);
   EXPECT_TRUE(client_->wait_closed(k_timeout));
   auto other = connect();
-  EXPECT_EQ(other->request("ctl.pending", json::array({"after-close"}), k_timeout)["result"], false);
+  EXPECT_EQ(other->request("ctl.pending", json::array({"after-close"}), k_timeout)["result"],
+            false);
 }
 
 TEST_F(JsonRpcLimits, GarbageDoesNotDisturbOtherClients) {
   JsonRpcClient garbage("127.0.0.1", host_->port());
   std::string noise;
-  for (int i = 0; i < 256; ++i) noise.push_back(static_cast<char>((i * 37 + 11) % 256 == '\n' ? 'x' : (i * 37 + 11) % 256));
+  for (int i = 0; i < 256; ++i)
+    noise.push_back(static_cast<char>((i * 37 + 11) % 256 == '\n' ? 'x' : (i * 37 + 11) % 256));
   for (int i = 0; i < 20; ++i) {
     garbage.send_line(noise);
     EXPECT_EQ(client_->request("robot.arm.add", json::array({i, 1}), k_timeout)["result"], i + 1.0);
@@ -457,8 +477,7 @@ TEST_F(JsonRpcLimits, ConnectionsBeyondTheMaximumAreRefused) {
       JsonRpcClient again("127.0.0.1", host_->port());
       auto m = again.request("robot.arm.add", json::array({1, 1}), k_timeout);
       served = m.contains("result");
-    } catch (const client::ClientError&) {
-    }
+    } catch (const client::ClientError&) {}
   }
   EXPECT_TRUE(served);
 }

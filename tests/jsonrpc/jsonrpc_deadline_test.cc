@@ -17,27 +17,32 @@ bool contains(const json& text, const std::string& part) {
 
 TEST_F(JsonRpcDeadline, ACallPastItsTimeoutGetsMinus32003AndItsServiceIsInterrupted) {
   // robot.base.hold is non-interruptible: a second hold is refused busy while one runs
-  json r = round_trip(*client_,
-                      R"({"jsonrpc":"2.0","method":"robot.base.hold","params":{"key":"t","_meta":{"timeout_ms":50}},"id":"t1"})");
+  json r = round_trip(
+      *client_,
+      R"({"jsonrpc":"2.0","method":"robot.base.hold","params":{"key":"t","_meta":{"timeout_ms":50}},"id":"t1"})");
   EXPECT_EQ(r["id"], "t1");
   ASSERT_EQ(error_code(r), -32003) << r.dump();
-  EXPECT_EQ(r["error"]["message"], "robot.base.hold: no reply within 50 ms (deadline); interrupted");
+  EXPECT_EQ(r["error"]["message"],
+            "robot.base.hold: no reply within 50 ms (deadline); interrupted");
   EXPECT_EQ(r["error"]["data"]["failure"], "timeout");
   EXPECT_EQ(r["error"]["data"]["status"], "FAILED");
   EXPECT_EQ(r["error"]["data"]["timeout_ms"], 50);
   EXPECT_EQ(r["error"]["data"]["method"], "robot.base.hold");
   // nothing runs for nobody: the held call is over, and the component takes the next one
   EXPECT_EQ(client_->request("ctl.pending", json::array({"t"}), k_timeout)["result"], false);
-  client_->send_line(R"({"jsonrpc":"2.0","method":"robot.base.hold","params":{"key":"u"},"id":"u2"})");
+  client_->send_line(
+      R"({"jsonrpc":"2.0","method":"robot.base.hold","params":{"key":"u"},"id":"u2"})");
   barrier(*client_);
   auto control = connect();
   EXPECT_EQ(control->request("ctl.pending", json::array({"u"}), k_timeout)["result"], true);
-  EXPECT_EQ(control->request("ctl.release", json::array({"u", "second"}), k_timeout)["result"], true);
+  EXPECT_EQ(control->request("ctl.release", json::array({"u", "second"}), k_timeout)["result"],
+            true);
   r = next(*client_);
   EXPECT_EQ(r["id"], "u2");
   EXPECT_EQ(r["result"], "second");
   // the timed-out call's own completion, had it come, is dropped: it is no longer held
-  EXPECT_EQ(control->request("ctl.release", json::array({"t", "late"}), k_timeout)["result"], false);
+  EXPECT_EQ(control->request("ctl.release", json::array({"t", "late"}), k_timeout)["result"],
+            false);
 }
 
 TEST_F(JsonRpcDeadline, ACallThatEndsInTimeGetsItsResult) {
@@ -52,15 +57,18 @@ TEST_F(JsonRpcDeadline, ACallThatEndsInTimeGetsItsResult) {
 }
 
 TEST_F(JsonRpcDeadline, SyncCallsWithATimeoutRunAndAZeroTimeoutMeansNone) {
-  json r = round_trip(*client_,
-                      R"({"jsonrpc":"2.0","method":"robot.arm.add","params":{"a":1,"b":2,"_meta":{"timeout_ms":1000}},"id":1})");
+  json r = round_trip(
+      *client_,
+      R"({"jsonrpc":"2.0","method":"robot.arm.add","params":{"a":1,"b":2,"_meta":{"timeout_ms":1000}},"id":1})");
   EXPECT_EQ(r["result"], 3.0);
-  r = round_trip(*client_,
-                 R"({"jsonrpc":"2.0","method":"robot.arm.add","params":{"a":1,"b":2,"_meta":{"timeout_ms":0}},"id":2})");
+  r = round_trip(
+      *client_,
+      R"({"jsonrpc":"2.0","method":"robot.arm.add","params":{"a":1,"b":2,"_meta":{"timeout_ms":0}},"id":2})");
   EXPECT_EQ(r["result"], 3.0);
   // a client whose numbers are all doubles
-  r = round_trip(*client_,
-                 R"({"jsonrpc":"2.0","method":"robot.arm.add","params":{"a":1,"b":2,"_meta":{"timeout_ms":250.0}},"id":3})");
+  r = round_trip(
+      *client_,
+      R"({"jsonrpc":"2.0","method":"robot.arm.add","params":{"a":1,"b":2,"_meta":{"timeout_ms":250.0}},"id":3})");
   EXPECT_EQ(r["result"], 3.0);
 }
 
@@ -68,8 +76,10 @@ TEST_F(JsonRpcDeadline, BadTimeoutsAreInvalidParamsNamingMeta) {
   int id = 0;
   for (const char* bad : {"-1", "1.5", "\"100\"", "true", "null", "[5]", "{}", "1e12", "2147483648",
                           "18446744073709551615", "-9223372036854775808", "1e400"}) {
-    const std::string line = std::string(R"({"jsonrpc":"2.0","method":"robot.arm.hold","params":{"key":"b","_meta":{"timeout_ms":)") +
-                             bad + "}},\"id\":" + std::to_string(++id) + "}";
+    const std::string line =
+        std::string(
+            R"({"jsonrpc":"2.0","method":"robot.arm.hold","params":{"key":"b","_meta":{"timeout_ms":)") +
+        bad + "}},\"id\":" + std::to_string(++id) + "}";
     json r = round_trip(*client_, line);
     if (std::string(bad) == "1e400") {  // not JSON a parser accepts: a parse error, not a crash
       EXPECT_NE(error_code(r), 0) << line;
@@ -81,8 +91,9 @@ TEST_F(JsonRpcDeadline, BadTimeoutsAreInvalidParamsNamingMeta) {
   }
   // nothing was started: the component is free
   EXPECT_EQ(client_->request("ctl.pending", json::array({"b"}), k_timeout)["result"], false);
-  json r = round_trip(*client_,
-                      R"({"jsonrpc":"2.0","method":"robot.arm.add","params":{"a":1,"b":2,"_meta":{"timeout":5}},"id":"x"})");
+  json r = round_trip(
+      *client_,
+      R"({"jsonrpc":"2.0","method":"robot.arm.add","params":{"a":1,"b":2,"_meta":{"timeout":5}},"id":"x"})");
   EXPECT_EQ(error_code(r), -32602);
   EXPECT_TRUE(contains(r["error"]["message"], "known: progress, timeout_ms")) << r.dump();
 }

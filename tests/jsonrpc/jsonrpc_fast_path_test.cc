@@ -38,7 +38,8 @@ bool identical(const json& a, const json& b) {
       if (it.key() != jt.key() || !identical(it.value(), jt.value())) return false;
     return true;
   }
-  if (a.is_number_float()) return dump(a) == dump(b) && std::signbit(a.get<double>()) == std::signbit(b.get<double>());
+  if (a.is_number_float())
+    return dump(a) == dump(b) && std::signbit(a.get<double>()) == std::signbit(b.get<double>());
   return a == b;
 }
 
@@ -67,7 +68,8 @@ bool check(const std::string& line, Request& fast) {
   EXPECT_TRUE(full.has_value()) << "fast path accepted what the full path refuses: " << line;
   if (!full) return true;
   EXPECT_EQ(fast.has_id, full->has_id) << line;
-  EXPECT_TRUE(identical(fast.id, full->id)) << line << "\nfast: " << fast.id.dump() << "\nfull: " << full->id.dump();
+  EXPECT_TRUE(identical(fast.id, full->id))
+      << line << "\nfast: " << fast.id.dump() << "\nfull: " << full->id.dump();
   EXPECT_EQ(fast.method, full->method) << line;
   EXPECT_TRUE(identical(fast.params, full->params))
       << line << "\nfast: " << fast.params.dump() << "\nfull: " << full->params.dump();
@@ -146,11 +148,13 @@ const std::vector<std::string> k_invalid = {
 };
 
 TEST(JsonRpcFastPath, CommonShapesTakeTheFastPath) {
-  for (const char* line : {R"({"jsonrpc":"2.0","id":1,"method":"test_component.add","params":[1,2]})",
-                           R"({"jsonrpc": "2.0", "method": "spec.subtract", "params": {"subtrahend": 23, "minuend": 42}, "id": 3})",
-                           R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[1.5,-2.25e3],"id":"a"})",
-                           R"({"jsonrpc":"2.0","method":"robot.arm.echo","params":[{"a":[1,{"b":"c\"d"}]}],"id":null})",
-                           R"({"jsonrpc":"2.0","method":"spec.notify_hello","params":[7]})"})
+  for (
+      const char* line :
+      {R"({"jsonrpc":"2.0","id":1,"method":"test_component.add","params":[1,2]})",
+       R"({"jsonrpc": "2.0", "method": "spec.subtract", "params": {"subtrahend": 23, "minuend": 42}, "id": 3})",
+       R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[1.5,-2.25e3],"id":"a"})",
+       R"({"jsonrpc":"2.0","method":"robot.arm.echo","params":[{"a":[1,{"b":"c\"d"}]}],"id":null})",
+       R"({"jsonrpc":"2.0","method":"spec.notify_hello","params":[7]})"})
     EXPECT_TRUE(check(line)) << "not taken: " << line;
 }
 
@@ -184,10 +188,12 @@ TEST(JsonRpcFastPath, LeavesUnusualValidMessagesAndBatchesToTheFullParser) {
   for (const auto& line : k_declined) {
     Request fast;
     EXPECT_FALSE(parse_request_fast(line, k_max_depth, fast)) << line;
-    EXPECT_TRUE(full_path(line).has_value() || line.front() == '[') << "corpus entry should be valid: " << line;
+    EXPECT_TRUE(full_path(line).has_value() || line.front() == '[')
+        << "corpus entry should be valid: " << line;
   }
   Request fast;
-  EXPECT_FALSE(parse_request_fast(R"([{"jsonrpc":"2.0","method":"a.b","id":1}])", k_max_depth, fast));
+  EXPECT_FALSE(
+      parse_request_fast(R"([{"jsonrpc":"2.0","method":"a.b","id":1}])", k_max_depth, fast));
 }
 
 TEST(JsonRpcFastPath, DeclinesEveryInvalidMessage) {
@@ -222,10 +228,19 @@ TEST(JsonRpcFastPath, EveryOneByteMutationIsDeclinedOrReadIdentically) {
 }
 
 TEST(JsonRpcFastPath, ResultLineByHandIsTheSameBytes) {
-  const std::vector<json> ids = {json(1), json(-3), json(0u), json("abc"), json(nullptr), json(std::uint64_t(1) << 63)};
-  const std::vector<json> results = {json(3),    json(-3),         json(2.5),         json(3.0),  json(true),
-                                     json(false), json(nullptr),    json("x\"y\n\xff"), json::array({1, "a"}),
-                                     json::object({{"b", 1}, {"a", 2}}), json(std::int64_t(-9223372036854775807 - 1))};
+  const std::vector<json> ids = {json(1),     json(-3),      json(0u),
+                                 json("abc"), json(nullptr), json(std::uint64_t(1) << 63)};
+  const std::vector<json> results = {json(3),
+                                     json(-3),
+                                     json(2.5),
+                                     json(3.0),
+                                     json(true),
+                                     json(false),
+                                     json(nullptr),
+                                     json("x\"y\n\xff"),
+                                     json::array({1, "a"}),
+                                     json::object({{"b", 1}, {"a", 2}}),
+                                     json(std::int64_t(-9223372036854775807 - 1))};
   for (const auto& id : ids)
     for (const auto& result : results) {
       std::string line = "prefix";

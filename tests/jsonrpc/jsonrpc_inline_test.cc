@@ -46,12 +46,12 @@ class LogGate {
   }
 
  private:
-  std::string trigger_;            // the message part that holds the writer
-  log::Level previous_;            // level to restore
-  std::mutex mutex_;               // guards held_, released_
-  std::condition_variable cv_;     // signals both
-  bool held_ = false;              // a writer is held
-  bool released_ = false;          // release() was called
+  std::string trigger_;         // the message part that holds the writer
+  log::Level previous_;         // level to restore
+  std::mutex mutex_;            // guards held_, released_
+  std::condition_variable cv_;  // signals both
+  bool held_ = false;           // a writer is held
+  bool released_ = false;       // release() was called
 };
 
 TEST(JsonRpcInline, RequestsRunOnTheIoThreadWhenTheSimulationIsIdle) {
@@ -61,9 +61,11 @@ TEST(JsonRpcInline, RequestsRunOnTheIoThreadWhenTheSimulationIsIdle) {
   register_test_services(*rm, state);
   rm->start();
   const auto endpoint = rm->endpoints().at(0);
-  JsonRpcClient c("127.0.0.1", static_cast<std::uint16_t>(std::stoi(endpoint.substr(endpoint.rfind(':') + 1))));
+  JsonRpcClient c("127.0.0.1",
+                  static_cast<std::uint16_t>(std::stoi(endpoint.substr(endpoint.rfind(':') + 1))));
   EXPECT_EQ(c.request("robot.arm.add", json::array({1, 2}), k_timeout)["result"], 3.0);
-  c.send_line(R"([{"jsonrpc":"2.0","method":"spec.subtract","params":[5,3],"id":1},{"jsonrpc":"2.0","method":"spec.sum","params":[1,2,3],"id":2}])");
+  c.send_line(
+      R"([{"jsonrpc":"2.0","method":"spec.subtract","params":[5,3],"id":1},{"jsonrpc":"2.0","method":"spec.sum","params":[1,2,3],"id":2}])");
   auto batch = next(c);
   ASSERT_TRUE(batch.is_array()) << batch.dump();
   EXPECT_EQ(batch[0]["result"], 2);
@@ -76,11 +78,13 @@ TEST(JsonRpcInline, ReplyRunInlineFollowsOutcomesTheSimulationThreadProducedBefo
   // follows in the same read is dropped with a debug log line, where LogGate holds the I/O
   // thread: after the sync call was read, before it is handed to the core
   auto state = std::make_shared<ServiceState>();
-  auto rm = load_transport(TestHost::default_plugin_path(), json{{"port", 0}, {"max_in_flight", 3}});
+  auto rm =
+      load_transport(TestHost::default_plugin_path(), json{{"port", 0}, {"max_in_flight", 3}});
   register_test_services(*rm, state);
   rm->start();
   const auto endpoint = rm->endpoints().at(0);
-  JsonRpcClient c("127.0.0.1", static_cast<std::uint16_t>(std::stoi(endpoint.substr(endpoint.rfind(':') + 1))));
+  JsonRpcClient c("127.0.0.1",
+                  static_cast<std::uint16_t>(std::stoi(endpoint.substr(endpoint.rfind(':') + 1))));
 
   // two async calls (ids apart from the client's own), started (each request of a connection runs after the ones before)
   c.send_line(R"({"jsonrpc":"2.0","method":"robot.cam.hold","params":["k1"],"id":101})");

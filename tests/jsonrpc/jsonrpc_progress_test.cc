@@ -14,7 +14,9 @@ class JsonRpcProgress : public JsonRpcFixture {
 };
 
 json progress_note(const json& id, const json& data) {
-  return {{"jsonrpc", "2.0"}, {"method", "rpc.progress"}, {"params", {{"id", id}, {"status", "RUNNING"}, {"data", data}}}};
+  return {{"jsonrpc", "2.0"},
+          {"method", "rpc.progress"},
+          {"params", {{"id", id}, {"status", "RUNNING"}, {"data", data}}}};
 }
 
 TEST_F(JsonRpcProgress, ACallThatAskedGetsEachReportThenItsResponse) {
@@ -23,7 +25,9 @@ TEST_F(JsonRpcProgress, ACallThatAskedGetsEachReportThenItsResponse) {
   barrier(*client_);  // the hold has started (the service saw no _meta: it takes only key)
   auto control = connect();
   EXPECT_EQ(control->request("ctl.progress", json::array({"p", 1}), k_timeout)["result"], true);
-  EXPECT_EQ(control->request("ctl.progress", json::array({"p", {{"left", 2.5}}}), k_timeout)["result"], true);
+  EXPECT_EQ(
+      control->request("ctl.progress", json::array({"p", {{"left", 2.5}}}), k_timeout)["result"],
+      true);
   EXPECT_EQ(control->request("ctl.release", json::array({"p", "done"}), k_timeout)["result"], true);
   EXPECT_EQ(next(*client_), progress_note(7, 1));
   EXPECT_EQ(next(*client_), progress_note(7, {{"left", 2.5}}));
@@ -33,7 +37,8 @@ TEST_F(JsonRpcProgress, ACallThatAskedGetsEachReportThenItsResponse) {
 }
 
 TEST_F(JsonRpcProgress, ACallThatDidNotAskGetsNoReports) {
-  client_->send_line(R"({"jsonrpc":"2.0","method":"robot.arm.hold","params":{"key":"q"},"id":"q1"})");
+  client_->send_line(
+      R"({"jsonrpc":"2.0","method":"robot.arm.hold","params":{"key":"q"},"id":"q1"})");
   barrier(*client_);
   auto control = connect();
   EXPECT_EQ(control->request("ctl.progress", json::array({"q", 1}), k_timeout)["result"], false);
@@ -48,26 +53,34 @@ TEST_F(JsonRpcProgress, AStringIdIsEchoedAsSentInTheNotification) {
       R"({"jsonrpc":"2.0","method":"robot.arm.hold","params":{"key":"s","_meta":{"progress":true}},"id":"job-1"})");
   barrier(*client_);
   auto control = connect();
-  EXPECT_EQ(control->request("ctl.progress", json::array({"s", "half"}), k_timeout)["result"], true);
-  EXPECT_EQ(control->request("ctl.release", json::array({"s", nullptr}), k_timeout)["result"], true);
+  EXPECT_EQ(control->request("ctl.progress", json::array({"s", "half"}), k_timeout)["result"],
+            true);
+  EXPECT_EQ(control->request("ctl.release", json::array({"s", nullptr}), k_timeout)["result"],
+            true);
   EXPECT_EQ(next(*client_), progress_note("job-1", "half"));
   EXPECT_EQ(next(*client_)["id"], "job-1");
 }
 
 TEST_F(JsonRpcProgress, ABadMetaIsInvalidParamsNamingIt) {
-  json r = round_trip(*client_, R"({"jsonrpc":"2.0","method":"robot.arm.add","params":{"a":1,"b":2,"_meta":5},"id":1})");
+  json r = round_trip(
+      *client_,
+      R"({"jsonrpc":"2.0","method":"robot.arm.add","params":{"a":1,"b":2,"_meta":5},"id":1})");
   EXPECT_EQ(error_code(r), -32602);
   EXPECT_EQ(r["error"]["data"]["parameter"], "_meta");
-  r = round_trip(*client_,
-                 R"({"jsonrpc":"2.0","method":"robot.arm.add","params":{"a":1,"b":2,"_meta":{"progres":true}},"id":2})");
+  r = round_trip(
+      *client_,
+      R"({"jsonrpc":"2.0","method":"robot.arm.add","params":{"a":1,"b":2,"_meta":{"progres":true}},"id":2})");
   EXPECT_EQ(error_code(r), -32602);
-  EXPECT_NE(r["error"]["message"].get<std::string>().find("unknown call option 'progres'"), std::string::npos);
-  r = round_trip(*client_,
-                 R"({"jsonrpc":"2.0","method":"robot.arm.add","params":{"a":1,"b":2,"_meta":{"progress":1}},"id":3})");
+  EXPECT_NE(r["error"]["message"].get<std::string>().find("unknown call option 'progres'"),
+            std::string::npos);
+  r = round_trip(
+      *client_,
+      R"({"jsonrpc":"2.0","method":"robot.arm.add","params":{"a":1,"b":2,"_meta":{"progress":1}},"id":3})");
   EXPECT_EQ(error_code(r), -32602);
   // a sync call may ask: it simply has nothing to report
-  r = round_trip(*client_,
-                 R"({"jsonrpc":"2.0","method":"robot.arm.add","params":{"a":1,"b":2,"_meta":{"progress":true}},"id":4})");
+  r = round_trip(
+      *client_,
+      R"({"jsonrpc":"2.0","method":"robot.arm.add","params":{"a":1,"b":2,"_meta":{"progress":true}},"id":4})");
   EXPECT_EQ(r["result"], 3.0);
 }
 

@@ -17,18 +17,22 @@ using JsonRpcConformance = JsonRpcFixture;
 // ---- specification examples (methods prefixed "spec.": ours are component.service)
 
 TEST_F(JsonRpcConformance, PositionalParams) {
-  auto r = round_trip(*client_, R"({"jsonrpc": "2.0", "method": "spec.subtract", "params": [42, 23], "id": 1})");
+  auto r = round_trip(
+      *client_, R"({"jsonrpc": "2.0", "method": "spec.subtract", "params": [42, 23], "id": 1})");
   EXPECT_EQ(r, json::parse(R"({"jsonrpc": "2.0", "result": 19, "id": 1})"));
-  r = round_trip(*client_, R"({"jsonrpc": "2.0", "method": "spec.subtract", "params": [23, 42], "id": 2})");
+  r = round_trip(*client_,
+                 R"({"jsonrpc": "2.0", "method": "spec.subtract", "params": [23, 42], "id": 2})");
   EXPECT_EQ(r, json::parse(R"({"jsonrpc": "2.0", "result": -19, "id": 2})"));
 }
 
 TEST_F(JsonRpcConformance, NamedParams) {
-  auto r = round_trip(*client_,
-                      R"({"jsonrpc": "2.0", "method": "spec.subtract", "params": {"subtrahend": 23, "minuend": 42}, "id": 3})");
+  auto r = round_trip(
+      *client_,
+      R"({"jsonrpc": "2.0", "method": "spec.subtract", "params": {"subtrahend": 23, "minuend": 42}, "id": 3})");
   EXPECT_EQ(r, json::parse(R"({"jsonrpc": "2.0", "result": 19, "id": 3})"));
-  r = round_trip(*client_,
-                 R"({"jsonrpc": "2.0", "method": "spec.subtract", "params": {"minuend": 42, "subtrahend": 23}, "id": 4})");
+  r = round_trip(
+      *client_,
+      R"({"jsonrpc": "2.0", "method": "spec.subtract", "params": {"minuend": 42, "subtrahend": 23}, "id": 4})");
   EXPECT_EQ(r, json::parse(R"({"jsonrpc": "2.0", "result": 19, "id": 4})"));
 }
 
@@ -44,7 +48,8 @@ TEST_F(JsonRpcConformance, NamedParamsUseDefaults) {
 TEST_F(JsonRpcConformance, NotificationsGetNoResponse) {
   client_->send_line(R"({"jsonrpc": "2.0", "method": "spec.update", "params": [1,2,3,4,5]})");
   client_->send_line(R"({"jsonrpc": "2.0", "method": "spec.foobar"})");
-  client_->send_line(R"({"jsonrpc": "2.0", "method": "robot.arm.fail", "params": ["not reported"]})");
+  client_->send_line(
+      R"({"jsonrpc": "2.0", "method": "robot.arm.fail", "params": ["not reported"]})");
   // the first thing that comes back answers the call sent after the notifications
   auto r = round_trip(*client_, R"({"jsonrpc": "2.0", "method": "spec.get_data", "id": "after"})");
   EXPECT_EQ(r, json::parse(R"({"jsonrpc": "2.0", "result": ["hello", 5], "id": "after"})"));
@@ -78,19 +83,24 @@ TEST_F(JsonRpcConformance, InvalidJsonIsParseError) {
   EXPECT_EQ(error_code(r), -32700) << r.dump();
   EXPECT_TRUE(r["id"].is_null());
   // invalid UTF-8 is not JSON either
-  r = round_trip(*client_, "{\"jsonrpc\": \"2.0\", \"method\": \"robot.arm.echo\", \"params\": [\"\xff\xfe\"], \"id\": 1}");
+  r = round_trip(*client_,
+                 "{\"jsonrpc\": \"2.0\", \"method\": \"robot.arm.echo\", \"params\": "
+                 "[\"\xff\xfe\"], \"id\": 1}");
   EXPECT_EQ(error_code(r), -32700) << r.dump();
 }
 
 TEST_F(JsonRpcConformance, ANulByteIsAParseErrorNotTheEndOfTheMessage) {
   // nlohmann's parser stopped at the NUL: the request ran and the rest was ignored (issue
   // #17, item 9, a fuzz finding)
-  const std::string line = std::string(R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[1,2],"id":1})") +
-                           std::string(1, '\0') + "garbage";
+  const std::string line =
+      std::string(R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[1,2],"id":1})") +
+      std::string(1, '\0') + "garbage";
   auto r = round_trip(*client_, line);
   EXPECT_EQ(error_code(r), -32700) << r.dump();
   EXPECT_TRUE(r["id"].is_null());
-  EXPECT_NE(r["error"]["data"]["reason"].get<std::string>().find("a NUL byte at column 65"), std::string::npos) << r.dump();
+  EXPECT_NE(r["error"]["data"]["reason"].get<std::string>().find("a NUL byte at column 65"),
+            std::string::npos)
+      << r.dump();
   EXPECT_EQ(client_->request("robot.arm.add", json::array({1, 2}), k_timeout)["result"], 3.0);
 }
 
@@ -102,21 +112,26 @@ TEST_F(JsonRpcConformance, ANumberIdIsEchoedExactlyAsSent) {
     client_->send_line(line);
     return client_->read_line(k_timeout).value_or("(no reply)");
   };
-  EXPECT_EQ(raw(R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[1,2],"id":123456789012345678901234567890})"),
-            R"({"jsonrpc":"2.0","id":123456789012345678901234567890,"result":3.0})");
+  EXPECT_EQ(
+      raw(R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[1,2],"id":123456789012345678901234567890})"),
+      R"({"jsonrpc":"2.0","id":123456789012345678901234567890,"result":3.0})");
   EXPECT_EQ(raw(R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[1,2],"id":1.50})"),
             R"({"jsonrpc":"2.0","id":1.50,"result":3.0})");
   // errors too, and batch entries
-  EXPECT_EQ(raw(R"({"jsonrpc":"2.0","method":"robot.arm.nothing","id":2e3})").rfind(R"({"jsonrpc":"2.0","id":2e3,"error":{"code":-32601,)", 0), 0u);
-  EXPECT_EQ(raw(R"([{"jsonrpc":"2.0","method":"robot.arm.add","params":[1,2],"id":18446744073709551616},)"
-                R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[2,2],"id":18446744073709551617}])"),
-            R"([{"jsonrpc":"2.0","id":18446744073709551616,"result":3.0},)"
-            R"({"jsonrpc":"2.0","id":18446744073709551617,"result":4.0}])");
+  EXPECT_EQ(raw(R"({"jsonrpc":"2.0","method":"robot.arm.nothing","id":2e3})")
+                .rfind(R"({"jsonrpc":"2.0","id":2e3,"error":{"code":-32601,)", 0),
+            0u);
+  EXPECT_EQ(
+      raw(R"([{"jsonrpc":"2.0","method":"robot.arm.add","params":[1,2],"id":18446744073709551616},)"
+          R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[2,2],"id":18446744073709551617}])"),
+      R"([{"jsonrpc":"2.0","id":18446744073709551616,"result":3.0},)"
+      R"({"jsonrpc":"2.0","id":18446744073709551617,"result":4.0}])");
 }
 
 TEST_F(JsonRpcConformance, NumberBeyondADoubleIsParseErrorAndTheConnectionLivesOn) {
   // json::parse throws out_of_range (not parse_error) for it: it used to close the connection
-  auto r = round_trip(*client_, R"({"jsonrpc":"2.0","method":"robot.arm.echo","params":[1e400],"id":1})");
+  auto r = round_trip(*client_,
+                      R"({"jsonrpc":"2.0","method":"robot.arm.echo","params":[1e400],"id":1})");
   EXPECT_EQ(error_code(r), -32700) << r.dump();
   EXPECT_TRUE(r["id"].is_null());
   EXPECT_EQ(client_->request("robot.arm.add", json::array({1, 2}), k_timeout)["result"], 3.0);
@@ -127,16 +142,19 @@ TEST_F(JsonRpcConformance, InvalidRequestObject) {
   EXPECT_EQ(error_code(r), -32600) << r.dump();
   EXPECT_TRUE(r["id"].is_null());
   // wrong version, missing method, non-structured params: reported with the request's id
-  for (const char* line : {R"({"jsonrpc": "1.0", "method": "robot.arm.add", "params": [1, 2], "id": 7})",
-                           R"({"method": "robot.arm.add", "params": [1, 2], "id": 7})",
-                           R"({"jsonrpc": "2.0", "id": 7})",
-                           R"({"jsonrpc": "2.0", "method": "robot.arm.add", "params": 3, "id": 7})"}) {
+  for (const char* line :
+       {R"({"jsonrpc": "1.0", "method": "robot.arm.add", "params": [1, 2], "id": 7})",
+        R"({"method": "robot.arm.add", "params": [1, 2], "id": 7})",
+        R"({"jsonrpc": "2.0", "id": 7})",
+        R"({"jsonrpc": "2.0", "method": "robot.arm.add", "params": 3, "id": 7})"}) {
     r = round_trip(*client_, line);
     EXPECT_EQ(error_code(r), -32600) << line << " -> " << r.dump();
     EXPECT_EQ(r["id"], 7) << line;
   }
   // an id that is neither string, number nor null
-  r = round_trip(*client_, R"({"jsonrpc": "2.0", "method": "robot.arm.add", "params": [1, 2], "id": {"a": 1}})");
+  r = round_trip(
+      *client_,
+      R"({"jsonrpc": "2.0", "method": "robot.arm.add", "params": [1, 2], "id": {"a": 1}})");
   EXPECT_EQ(error_code(r), -32600);
   EXPECT_TRUE(r["id"].is_null());
   r = round_trip(*client_, R"("just a string")");
@@ -144,8 +162,9 @@ TEST_F(JsonRpcConformance, InvalidRequestObject) {
 }
 
 TEST_F(JsonRpcConformance, BatchWithInvalidJson) {
-  auto r = round_trip(*client_,
-                      R"([{"jsonrpc": "2.0", "method": "spec.sum", "params": [1,2,4], "id": "1"}, {"jsonrpc": "2.0", "method"])");
+  auto r = round_trip(
+      *client_,
+      R"([{"jsonrpc": "2.0", "method": "spec.sum", "params": [1,2,4], "id": "1"}, {"jsonrpc": "2.0", "method"])");
   ASSERT_TRUE(r.is_object()) << r.dump();
   EXPECT_EQ(error_code(r), -32700);
 }
@@ -192,7 +211,8 @@ TEST_F(JsonRpcConformance, MixedBatch) {
 }
 
 TEST_F(JsonRpcConformance, BatchOfNotificationsReturnsNothing) {
-  client_->send_line(one_line(R"([{"jsonrpc": "2.0", "method": "spec.notify_sum", "params": [1,2,4]},
+  client_->send_line(
+      one_line(R"([{"jsonrpc": "2.0", "method": "spec.notify_sum", "params": [1,2,4]},
                          {"jsonrpc": "2.0", "method": "spec.notify_hello", "params": [7]}])"));
   auto r = client_->request("robot.arm.add", json::array({1, 1}), k_timeout);
   EXPECT_EQ(r["result"], 2.0);
@@ -202,7 +222,8 @@ TEST_F(JsonRpcConformance, BatchOfNotificationsReturnsNothing) {
 TEST_F(JsonRpcConformance, BatchRunsWithinOneProcessCall) {
   std::string batch = "[";
   for (int i = 0; i < 8; ++i)
-    batch += std::string(i ? "," : "") + R"({"jsonrpc":"2.0","method":"ctl.iteration","id":)" + std::to_string(i) + "}";
+    batch += std::string(i ? "," : "") + R"({"jsonrpc":"2.0","method":"ctl.iteration","id":)" +
+             std::to_string(i) + "}";
   batch += "]";
   auto r = round_trip(*client_, batch);
   ASSERT_TRUE(r.is_array()) << r.dump();
@@ -213,7 +234,8 @@ TEST_F(JsonRpcConformance, BatchRunsWithinOneProcessCall) {
 // ---- framing
 
 TEST_F(JsonRpcConformance, CrLfAndSplitFramesAndSeveralPerWrite) {
-  client_->send_raw("{\"jsonrpc\":\"2.0\",\"method\":\"robot.arm.add\",\"params\":[1,2],\"id\":1}\r\n");
+  client_->send_raw(
+      "{\"jsonrpc\":\"2.0\",\"method\":\"robot.arm.add\",\"params\":[1,2],\"id\":1}\r\n");
   EXPECT_EQ(next(*client_)["result"], 3.0);
   // one message in three writes
   client_->send_raw("{\"jsonrpc\":\"2.0\",\"met");
@@ -245,7 +267,8 @@ TEST_F(JsonRpcConformance, InvalidParams) {
   // type: the data names the parameter
   r = client_->request("spec.subtract", json::array({1, "two"}), k_timeout);
   EXPECT_EQ(error_code(r), -32602) << r.dump();
-  EXPECT_NE(r["error"]["message"].get<std::string>().find("subtrahend"), std::string::npos) << r.dump();
+  EXPECT_NE(r["error"]["message"].get<std::string>().find("subtrahend"), std::string::npos)
+      << r.dump();
   // unknown name
   r = client_->request("spec.subtract", {{"minuend", 1}, {"subtrahen", 2}}, k_timeout);
   EXPECT_EQ(error_code(r), -32602) << r.dump();
@@ -267,9 +290,11 @@ TEST_F(JsonRpcConformance, ServiceFailureAndInternalError) {
 }
 
 TEST_F(JsonRpcConformance, StringAndNullIdsEchoed) {
-  auto r = round_trip(*client_, R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[1,2],"id":"abc"})");
+  auto r = round_trip(*client_,
+                      R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[1,2],"id":"abc"})");
   EXPECT_EQ(r["id"], "abc");
-  r = round_trip(*client_, R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[1,2],"id":null})");
+  r = round_trip(*client_,
+                 R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[1,2],"id":null})");
   EXPECT_TRUE(r.contains("id") && r["id"].is_null()) << r.dump();
   EXPECT_EQ(r["result"], 3.0);
   r = round_trip(*client_, R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[1,2],"id":2.5})");
@@ -325,8 +350,7 @@ TEST(JsonRpcDiscoveryScope, ServicesOfOtherManagersAreNeitherListedNorCallable) 
   TestHost host;
   JsonRpcClient c("127.0.0.1", host.port());
   const json doc = c.discover(k_timeout);
-  for (const auto& m : doc["methods"])
-    EXPECT_NE(m["x-component"], "hidden") << m.dump();
+  for (const auto& m : doc["methods"]) EXPECT_NE(m["x-component"], "hidden") << m.dump();
   EXPECT_EQ(error_code(c.request("hidden.secret", nullptr, k_timeout)), -32601);
   other->stop();
 }
@@ -344,7 +368,8 @@ TEST_F(JsonRpcClientTest, MakeClientCallsAndMapsErrors) {
   EXPECT_EQ(failed.status, Status::failed);
   EXPECT_EQ(failed.failure, Failure::service_error);
   EXPECT_EQ(c->call("robot.nothing", "add", nullptr, k_timeout).failure, Failure::unknown_service);
-  EXPECT_EQ(c->call("robot.arm", "add", json::array({1}), k_timeout).failure, Failure::bad_arguments);
+  EXPECT_EQ(c->call("robot.arm", "add", json::array({1}), k_timeout).failure,
+            Failure::bad_arguments);
 }
 
 TEST_F(JsonRpcClientTest, ListServicesMatchesDescriptors) {

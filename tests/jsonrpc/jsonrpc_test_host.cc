@@ -18,8 +18,7 @@ int main(int argc, char** argv) {
     std::cout << "listening on " << host.manager().endpoints().at(0) << std::endl;
     // serve until stdin closes
     std::string ignored;
-    while (std::getline(std::cin, ignored)) {
-    }
+    while (std::getline(std::cin, ignored)) {}
     host.stop();
     return 0;
   } catch (const std::exception& e) {

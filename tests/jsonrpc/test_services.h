@@ -46,73 +46,77 @@ struct ServiceState {
 
 inline void register_test_services(RequestManager& rm, const std::shared_ptr<ServiceState>& state) {
   // the specification's examples
-  rm.register_service("spec", [](int minuend, int subtrahend) { return minuend - subtrahend; }, "subtract",
-                      {"minuend", "subtrahend"})
+  rm.register_service("spec", [](int minuend, int subtrahend) { return minuend - subtrahend; },
+                      "subtract", {"minuend", "subtrahend"})
       .doc("minuend - subtrahend");
-  rm.register_service("spec", [](int a, int b, int c) { return a + b + c; }, "sum", {"a", "b", "c"});
+  rm.register_service("spec", [](int a, int b, int c) { return a + b + c; }, "sum",
+                      {"a", "b", "c"});
   rm.register_service("spec", [](int, int, int, int, int) {}, "update", {"a", "b", "c", "d", "e"});
   rm.register_service("spec", [](int) {}, "notify_hello", {"value"});
   rm.register_service("spec", [](int, int, int) {}, "notify_sum", {"a", "b", "c"});
   rm.register_service("spec", [] { return json::array({"hello", 5}); }, "get_data");
 
   // sync services of a component whose name contains a dot
-  rm.register_service("robot.arm", [](double a, double b) { return a + b; }, "add", {"a", "b"}).doc("a + b");
-  rm.register_service("robot.arm", [](std::string message) -> int { throw ServiceError(message); }, "fail",
-                      {"message"});
-  rm.register_service("robot.arm", []() -> int { throw std::runtime_error("unexpected crash"); }, "crash");
+  rm.register_service("robot.arm", [](double a, double b) { return a + b; }, "add", {"a", "b"})
+      .doc("a + b");
+  rm.register_service("robot.arm", [](std::string message) -> int { throw ServiceError(message); },
+                      "fail", {"message"});
+  rm.register_service(
+      "robot.arm", []() -> int { throw std::runtime_error("unexpected crash"); }, "crash");
   rm.register_service("robot.arm", [](json value) { return value; }, "echo", {"value"});
   rm.register_service("robot.arm",
-                      [](std::string name, std::string greeting) { return greeting + ", " + name; }, "greet",
-                      {"name", {"greeting", std::string("hello")}});
-  rm.register_service("robot.arm", [](int n) { return std::string(static_cast<std::size_t>(n), 'x'); }, "blob",
+                      [](std::string name, std::string greeting) { return greeting + ", " + name; },
+                      "greet", {"name", {"greeting", std::string("hello")}});
+  rm.register_service("robot.arm",
+                      [](int n) { return std::string(static_cast<std::size_t>(n), 'x'); }, "blob",
                       {"n"});
 
   // async services, finished by ctl.release
   auto hold = [state](Completion c, std::string key) { state->held[key] = c; };
-  rm.register_async_service("robot.arm", hold, "hold", {"key"}).interruptible().doc("waits for ctl.release");
+  rm.register_async_service("robot.arm", hold, "hold", {"key"})
+      .interruptible()
+      .doc("waits for ctl.release");
   rm.register_async_service("robot.base", hold, "hold", {"key"}).noninterruptible();
   rm.register_async_service("robot.cam", hold, "hold", {"key"});
 
-  rm.register_service(
-      "ctl",
-      [state](std::string key, json value) {
-        auto it = state->held.find(key);
-        if (it == state->held.end()) return false;
-        return it->second(Status::success, value);
-      },
-      "release", {"key", {"value", json(nullptr)}});
-  rm.register_service(
-      "ctl",
-      [state](std::string key, std::string message) {
-        auto it = state->held.find(key);
-        if (it == state->held.end()) return false;
-        return it->second(Status::failed, message);
-      },
-      "release_fail", {"key", "message"});
-  rm.register_service(
-      "ctl",
-      [state](std::string key) {
-        auto it = state->held.find(key);
-        return it != state->held.end() && !it->second.done();
-      },
-      "pending", {"key"});
-  rm.register_service(
-      "ctl",
-      [state](std::string key, json value) {
-        auto it = state->held.find(key);
-        return it != state->held.end() && it->second.progress(value);
-      },
-      "progress", {"key", "value"});
-  rm.register_service("ctl", [state](std::string key) { state->marks.insert(key); }, "mark", {"key"});
-  rm.register_service("ctl", [state](std::string key) { return state->marks.count(key) > 0; }, "marked",
+  rm.register_service("ctl",
+                      [state](std::string key, json value) {
+                        auto it = state->held.find(key);
+                        if (it == state->held.end()) return false;
+                        return it->second(Status::success, value);
+                      },
+                      "release", {"key", {"value", json(nullptr)}});
+  rm.register_service("ctl",
+                      [state](std::string key, std::string message) {
+                        auto it = state->held.find(key);
+                        if (it == state->held.end()) return false;
+                        return it->second(Status::failed, message);
+                      },
+                      "release_fail", {"key", "message"});
+  rm.register_service("ctl",
+                      [state](std::string key) {
+                        auto it = state->held.find(key);
+                        return it != state->held.end() && !it->second.done();
+                      },
+                      "pending", {"key"});
+  rm.register_service("ctl",
+                      [state](std::string key, json value) {
+                        auto it = state->held.find(key);
+                        return it != state->held.end() && it->second.progress(value);
+                      },
+                      "progress", {"key", "value"});
+  rm.register_service("ctl", [state](std::string key) { state->marks.insert(key); }, "mark",
                       {"key"});
+  rm.register_service("ctl", [state](std::string key) { return state->marks.count(key) > 0; },
+                      "marked", {"key"});
   rm.register_service("ctl", [state] { return state->iteration; }, "iteration");
 }
 
 // Loads the plugin, registers the services, runs process() on a thread of its own.
 class TestHost {
  public:
-  explicit TestHost(json options = json::object(), const std::string& plugin_path = default_plugin_path()) {
+  explicit TestHost(json options = json::object(),
+                    const std::string& plugin_path = default_plugin_path()) {
     if (!options.contains("port")) options["port"] = 0;
     rm_ = load_transport(plugin_path, options);
     register_test_services(*rm_, state_);
@@ -151,10 +155,10 @@ class TestHost {
 
  private:
   std::shared_ptr<ServiceState> state_ = std::make_shared<ServiceState>();  // services' state
-  std::shared_ptr<RequestManager> rm_;  // the plugin's manager
-  std::uint16_t port_ = 0;              // bound port
-  std::atomic<bool> quit_{false};       // ends the simulation loop
-  std::thread sim_;                     // the simulation thread
+  std::shared_ptr<RequestManager> rm_;                                      // the plugin's manager
+  std::uint16_t port_ = 0;                                                  // bound port
+  std::atomic<bool> quit_{false};  // ends the simulation loop
+  std::thread sim_;                // the simulation thread
 };
 
 }  // namespace simgate::jsonrpc_test

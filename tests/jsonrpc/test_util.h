@@ -61,7 +61,9 @@ class JsonRpcFixture : public ::testing::Test {
     client_.reset();
     host_.reset();
   }
-  std::unique_ptr<JsonRpcClient> connect() { return std::make_unique<JsonRpcClient>("127.0.0.1", host_->port()); }
+  std::unique_ptr<JsonRpcClient> connect() {
+    return std::make_unique<JsonRpcClient>("127.0.0.1", host_->port());
+  }
   // A sync round trip on `c`: when it returns, every call sent on `c` before it has started
   // (requests of one connection reach the simulation thread in order).
   void barrier(JsonRpcClient& c) {

@@ -89,16 +89,21 @@ TEST(TokenAuthTest, RefusesATokenWrittenInTheConfigWithoutRepeatingIt) {
 }
 
 TEST(TokenAuthTest, RefusesMissingAmbiguousWeakAndUnsendableTokens) {
-  EXPECT_THAT(error_of({{"auth", json::object()}}), HasSubstr("auth: expected exactly one of \"token_file\""));
-  EXPECT_THAT(error_of({{"auth", {{"token_file", "/x"}, {"token_env", "X"}}}}), HasSubstr("exactly one of"));
+  EXPECT_THAT(error_of({{"auth", json::object()}}),
+              HasSubstr("auth: expected exactly one of \"token_file\""));
+  EXPECT_THAT(error_of({{"auth", {{"token_file", "/x"}, {"token_env", "X"}}}}),
+              HasSubstr("exactly one of"));
   EXPECT_THAT(error_of({{"auth", {{"token_file", "/nonexistent/token"}}}}),
               HasSubstr("auth.token_file: cannot read '/nonexistent/token'"));
   ::unsetenv("SIMGATE_AUTH_TEST_UNSET");
-  EXPECT_THAT(error_of({{"auth", {{"token_env", "SIMGATE_AUTH_TEST_UNSET"}}}}),
-              HasSubstr("auth.token_env: the environment variable SIMGATE_AUTH_TEST_UNSET is not set"));
-  for (const char* weak : {"short", "has a space in it, long enough", "tab\there-and-long-enough"}) {
+  EXPECT_THAT(
+      error_of({{"auth", {{"token_env", "SIMGATE_AUTH_TEST_UNSET"}}}}),
+      HasSubstr("auth.token_env: the environment variable SIMGATE_AUTH_TEST_UNSET is not set"));
+  for (const char* weak :
+       {"short", "has a space in it, long enough", "tab\there-and-long-enough"}) {
     ::setenv("SIMGATE_AUTH_TEST_TOKEN", weak, 1);
-    EXPECT_THAT(error_of({{"auth", {{"token_env", "SIMGATE_AUTH_TEST_TOKEN"}}}}), HasSubstr("auth.token_env: "))
+    EXPECT_THAT(error_of({{"auth", {{"token_env", "SIMGATE_AUTH_TEST_TOKEN"}}}}),
+                HasSubstr("auth.token_env: "))
         << weak;
   }
   ::unsetenv("SIMGATE_AUTH_TEST_TOKEN");
@@ -108,7 +113,8 @@ TEST(TokenAuthTest, RefusesMissingAmbiguousWeakAndUnsendableTokens) {
 TEST(TokenAuthTest, LoopbackPeersAreTrustedUnlessAsked) {
   ::setenv("SIMGATE_AUTH_TEST_TOKEN", k_token, 1);
   TokenAuth remote_only = read_auth({{"auth", {{"token_env", "SIMGATE_AUTH_TEST_TOKEN"}}}});
-  TokenAuth everyone = read_auth({{"auth", {{"token_env", "SIMGATE_AUTH_TEST_TOKEN"}, {"loopback", true}}}});
+  TokenAuth everyone =
+      read_auth({{"auth", {{"token_env", "SIMGATE_AUTH_TEST_TOKEN"}, {"loopback", true}}}});
   ::unsetenv("SIMGATE_AUTH_TEST_TOKEN");
   for (const char* local : {"127.0.0.1", "127.3.2.1", "::1", "::ffff:127.0.0.1"}) {
     EXPECT_FALSE(remote_only.required_for(ip::make_address(local))) << local;

@@ -20,7 +20,8 @@ TEST(PeerCountsTest, RefusesAnAddressAtItsLimitAndNeverLoopback) {
   counts.add(remote);
   EXPECT_EQ(counts.refusal_reason(remote), "");
   counts.add(remote);
-  EXPECT_EQ(counts.refusal_reason(remote), "too many connections from 192.0.2.7 (max_connections_per_peer 2)");
+  EXPECT_EQ(counts.refusal_reason(remote),
+            "too many connections from 192.0.2.7 (max_connections_per_peer 2)");
   EXPECT_EQ(counts.refusal_reason(other), "");  // another address has its own budget
   counts.remove(remote);
   EXPECT_EQ(counts.refusal_reason(remote), "");
@@ -55,9 +56,10 @@ struct TimedConnection {
 };
 
 TEST(MakeRoomTest, ClosesTheConnectionIdleLongestOnceIdleLongEnough) {
-  std::vector<std::shared_ptr<TimedConnection>> all = {std::make_shared<TimedConnection>(TimedConnection{3, 3, 0, "a", ""}),
-                                                      std::make_shared<TimedConnection>(TimedConnection{7, 7, 0, "b", ""}),
-                                                      std::make_shared<TimedConnection>(TimedConnection{0, 9, 1, "c", ""})};
+  std::vector<std::shared_ptr<TimedConnection>> all = {
+      std::make_shared<TimedConnection>(TimedConnection{3, 3, 0, "a", ""}),
+      std::make_shared<TimedConnection>(TimedConnection{7, 7, 0, "b", ""}),
+      std::make_shared<TimedConnection>(TimedConnection{0, 9, 1, "c", ""})};
   EXPECT_FALSE(make_room(all, 10, "test", 3));  // none idle (or silent) for 10 sweeps
   EXPECT_TRUE(make_room(all, 5, "test", 3));
   EXPECT_EQ(all[1]->closed_for, "idle while the server was full");
@@ -66,8 +68,9 @@ TEST(MakeRoomTest, ClosesTheConnectionIdleLongestOnceIdleLongEnough) {
 }
 
 TEST(MakeRoomTest, FailingAnIdleOneTheOneSilentLongestWhileItWaits) {
-  std::vector<std::shared_ptr<TimedConnection>> all = {std::make_shared<TimedConnection>(TimedConnection{0, 2, 1, "a", ""}),
-                                                      std::make_shared<TimedConnection>(TimedConnection{0, 8, 1, "b", ""})};
+  std::vector<std::shared_ptr<TimedConnection>> all = {
+      std::make_shared<TimedConnection>(TimedConnection{0, 2, 1, "a", ""}),
+      std::make_shared<TimedConnection>(TimedConnection{0, 8, 1, "b", ""})};
   EXPECT_TRUE(make_room(all, 4, "test", 2));
   EXPECT_EQ(all[1]->closed_for, "silent while the server was full");
   EXPECT_EQ(sweep_ticks(std::chrono::milliseconds(1)), 1u);

@@ -22,9 +22,12 @@ namespace {
 TEST(RecyclingMapTest, ErasedNodesAreReusedWithFreshValues) {
   RecyclingMap<std::string, std::shared_ptr<int>, TransparentStringHash> map;
   auto held = std::make_shared<int>(7);
-  ASSERT_TRUE(map.try_emplace(std::string_view("a long client id, beyond any small-string buffer"), held).second);
+  ASSERT_TRUE(
+      map.try_emplace(std::string_view("a long client id, beyond any small-string buffer"), held)
+          .second);
   EXPECT_EQ(held.use_count(), 2);
-  const std::string* key_storage = &map.find(std::string_view("a long client id, beyond any small-string buffer"))->first;
+  const std::string* key_storage =
+      &map.find(std::string_view("a long client id, beyond any small-string buffer"))->first;
 
   map.erase(map.find(std::string_view("a long client id, beyond any small-string buffer")));
   EXPECT_TRUE(map.empty());
@@ -38,7 +41,8 @@ TEST(RecyclingMapTest, ErasedNodesAreReusedWithFreshValues) {
   ASSERT_NE(it, map.end());
   EXPECT_EQ(&it->first, key_storage);
   EXPECT_EQ(*it->second, 8);
-  EXPECT_EQ(map.find(std::string_view("a long client id, beyond any small-string buffer")), map.end());
+  EXPECT_EQ(map.find(std::string_view("a long client id, beyond any small-string buffer")),
+            map.end());
 }
 
 TEST(RecyclingMapTest, DuplicateKeysAreRefusedAndTheNodeIsKept) {
@@ -96,8 +100,9 @@ TEST(RecyclingMapTest, AValueWithRecycleKeepsWhatItChoosesAndExtractedNodesComeB
 TEST(TransparentStringHashTest, EqualTextEqualHashAndShortIdsSpreadOut) {
   TransparentStringHash hash;
   // std::string and string_view of the same text (heterogeneous lookup depends on it)
-  for (std::string text : std::initializer_list<std::string>{"", "a", "ab", "abc", "abcd", "1234567", "12345678", "123456789abcdef0",
-                           "123456789abcdef01", std::string(100, 'x')})
+  for (std::string text : std::initializer_list<std::string>{
+           "", "a", "ab", "abc", "abcd", "1234567", "12345678", "123456789abcdef0",
+           "123456789abcdef01", std::string(100, 'x')})
     EXPECT_EQ(hash(text), hash(std::string_view(text))) << text;
   // the ids clients use (counters, prefixed counters, uuids' pieces): no two of these
   // 20 000 collide in 64 bits, and their low bits (which pick buckets) spread
@@ -214,7 +219,8 @@ TEST(RequestSlotsTest, IdsFindTheirEntryUntilErasedAndNeverTheSlotsNextEntry) {
   EXPECT_EQ(slots.size(), 2u);
 
   // ids from new_request_id() (a counter from 1) are never this table's
-  for (RequestId id : {RequestId{1}, RequestId{2}, RequestId{1000}}) EXPECT_EQ(slots.find(id), nullptr);
+  for (RequestId id : {RequestId{1}, RequestId{2}, RequestId{1000}})
+    EXPECT_EQ(slots.find(id), nullptr);
   EXPECT_EQ(slots.find(0), nullptr);
   EXPECT_EQ(slots.find(RequestSlots<int>::k_mark | 12345), nullptr);  // a slot never used
   EXPECT_NE(c & RequestSlots<int>::k_mark, 0u);

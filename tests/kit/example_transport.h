@@ -31,16 +31,19 @@ inline std::string read_file(const std::string& path) {
 class ExampleTransportTest : public ::testing::Test {
  protected:
   // `name`: the plugin's ("line" for libsimgate_transport_line.so); `options` its options.
-  ExampleTransportTest(std::string name, json options) : name_(std::move(name)), options_(std::move(options)) {}
+  ExampleTransportTest(std::string name, json options)
+      : name_(std::move(name)), options_(std::move(options)) {}
 
   void SetUp() override {
-    plugin_ = load_transport_plugin(std::string(SIMGATE_TEST_EXAMPLE_PLUGIN_DIR) + "/libsimgate_transport_" + name_ +
-                                    ".so");
+    plugin_ = load_transport_plugin(std::string(SIMGATE_TEST_EXAMPLE_PLUGIN_DIR) +
+                                    "/libsimgate_transport_" + name_ + ".so");
     manager_ = plugin_->create(options_, "transports." + name_);
     manager_->register_service("test", [](int a, int b) { return a + b; }, "add", {"a", "b"});
-    manager_->register_service("test", [](std::string m) -> json { throw ServiceError(m); }, "fail", {"message"});
+    manager_->register_service("test", [](std::string m) -> json { throw ServiceError(m); }, "fail",
+                               {"message"});
     manager_->start();
-    const std::string endpoint = manager_->endpoints().at(0);  // "tcp://127.0.0.1:PORT", "ws://127.0.0.1:PORT/"
+    const std::string endpoint =
+        manager_->endpoints().at(0);  // "tcp://127.0.0.1:PORT", "ws://127.0.0.1:PORT/"
     const std::string address = endpoint.substr(0, endpoint.find_last_not_of('/') + 1);
     port_ = static_cast<std::uint16_t>(std::stoi(address.substr(address.rfind(':') + 1)));
     // the simulation thread: runs what the I/O thread could not run at once
@@ -66,12 +69,14 @@ class ExampleTransportTest : public ::testing::Test {
 
 // Whether docs/writing-a-transport.md shows `example` (a file of docs/examples) verbatim.
 inline ::testing::AssertionResult the_page_shows(const std::string& example) {
-  const std::string page = read_file(std::string(SIMGATE_SOURCE_DIR) + "/docs/writing-a-transport.md");
+  const std::string page =
+      read_file(std::string(SIMGATE_SOURCE_DIR) + "/docs/writing-a-transport.md");
   const std::string file = read_file(std::string(SIMGATE_SOURCE_DIR) + "/docs/examples/" + example);
-  if (file.empty()) return ::testing::AssertionFailure() << "docs/examples/" << example << " cannot be read";
+  if (file.empty())
+    return ::testing::AssertionFailure() << "docs/examples/" << example << " cannot be read";
   if (page.find("```cpp\n" + file + "```\n") == std::string::npos)
-    return ::testing::AssertionFailure() << "docs/writing-a-transport.md must show docs/examples/" << example
-                                         << " verbatim";
+    return ::testing::AssertionFailure()
+           << "docs/writing-a-transport.md must show docs/examples/" << example << " verbatim";
   return ::testing::AssertionSuccess();
 }
 

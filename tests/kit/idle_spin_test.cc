@@ -36,14 +36,16 @@ class ScriptedLoop {
     ++polls;
     FakeClock::current += microseconds(1);
     std::size_t ran = 0;
-    for (; next_ < events_.size() && due(events_[next_]); ++next_, ++ran) note_lateness(events_[next_]);
+    for (; next_ < events_.size() && due(events_[next_]); ++next_, ++ran)
+      note_lateness(events_[next_]);
     return ran;
   }
   std::size_t run_one() {
     ++sleeps;
     if (watched && *watched) ++sleeps_while_watched;
     if (next_ == events_.size()) return 0;
-    if (!due(events_[next_])) FakeClock::current = FakeClock::time_point{microseconds(events_[next_])};
+    if (!due(events_[next_]))
+      FakeClock::current = FakeClock::time_point{microseconds(events_[next_])};
     ++next_;
     return 1;
   }
@@ -56,16 +58,19 @@ class ScriptedLoop {
   std::size_t polls = 0;   // poll() calls
   std::size_t sleeps = 0;  // run_one() calls
   bool ran_plainly = false;
-  const bool* watched = nullptr;        // a direct reader's socket is watched (no async read)
+  const bool* watched = nullptr;         // a direct reader's socket is watched (no async read)
   std::size_t sleeps_while_watched = 0;  // run_one() calls with *watched: a lost socket
   microseconds most_late{0};             // the longest an event waited for poll()
 
  private:
   void note_lateness(long at_us) {
-    const auto late = std::chrono::duration_cast<microseconds>(FakeClock::now() - FakeClock::time_point{microseconds(at_us)});
+    const auto late = std::chrono::duration_cast<microseconds>(
+        FakeClock::now() - FakeClock::time_point{microseconds(at_us)});
     if (late > most_late) most_late = late;
   }
-  static bool due(long at_us) { return FakeClock::now() >= FakeClock::time_point{microseconds(at_us)}; }
+  static bool due(long at_us) {
+    return FakeClock::now() >= FakeClock::time_point{microseconds(at_us)};
+  }
   std::vector<long> events_;
   std::size_t next_ = 0;
 };
@@ -74,13 +79,15 @@ class ScriptedLoop {
 // poll() costs `read_cost` and takes those due while the socket is watched. Parked, it
 // waits for the event loop (not modelled: the tests give it nothing more to read).
 struct ScriptedDirectReads {
-  explicit ScriptedDirectReads(std::vector<long> request_times_us) : requests(std::move(request_times_us)) {}
+  explicit ScriptedDirectReads(std::vector<long> request_times_us)
+      : requests(std::move(request_times_us)) {}
   std::size_t poll() {
     if (!watched) return 0;
     ++polls;
     FakeClock::current += read_cost;
     std::size_t ran = 0;
-    while (next < requests.size() && FakeClock::now() >= FakeClock::time_point{microseconds(requests[next])})
+    while (next < requests.size() &&
+           FakeClock::now() >= FakeClock::time_point{microseconds(requests[next])})
       ++next, ++ran;
     return ran;
   }
@@ -91,11 +98,11 @@ struct ScriptedDirectReads {
   }
 
   std::vector<long> requests;
-  std::size_t next = 0;    // requests[next] is the next to arrive
+  std::size_t next = 0;       // requests[next] is the next to arrive
   microseconds read_cost{1};  // how long one poll() takes to read and handle what it finds
-  bool watched = true;     // no async read pending: only poll() reads the socket
-  std::size_t polls = 0;   // poll() calls that read the socket
-  std::size_t parks = 0;   // park() calls that handed the socket back
+  bool watched = true;        // no async read pending: only poll() reads the socket
+  std::size_t polls = 0;      // poll() calls that read the socket
+  std::size_t parks = 0;      // park() calls that handed the socket back
 };
 
 std::vector<long> every(long first_us, long gap_us, int count) {
@@ -127,7 +134,7 @@ TEST(IdleSpinTest, EventsFarApartAreWaitedForAsleepAfterOneWastedWindow) {
 }
 
 TEST(IdleSpinTest, PollingResumesWhenEventsComeCloseTogetherAgain) {
-  std::vector<long> t = every(1000, 1000, 20);  // slow: the thread sleeps at once
+  std::vector<long> t = every(1000, 1000, 20);             // slow: the thread sleeps at once
   for (long at : every(20'020, 10, 500)) t.push_back(at);  // then back to back
   ScriptedLoop loop(t);
   run_with_idle_spin<ScriptedLoop, FakeClock>(loop, microseconds(50));
@@ -140,11 +147,11 @@ TEST(IdleSpinTest, AWatchedSocketIsReadDirectlyAndTheEventLoopStillPolled) {
   // a lone client calling back to back, read directly; another connection's requests
   // (the event loop's) come every 200 µs and are served between the direct reads
   ScriptedDirectReads direct(every(0, 10, 990));  // the last at 9 890 µs
-  ScriptedLoop loop(every(100, 200, 50));          // the last at 9 900 µs
+  ScriptedLoop loop(every(100, 200, 50));         // the last at 9 900 µs
   loop.watched = &direct.watched;
   run_with_idle_spin<ScriptedLoop, FakeClock>(loop, microseconds(50), direct);
-  EXPECT_EQ(direct.next, 990u);   // every request taken by a direct read
-  EXPECT_EQ(direct.parks, 0u);    // never slept: never handed back
+  EXPECT_EQ(direct.next, 990u);  // every request taken by a direct read
+  EXPECT_EQ(direct.parks, 0u);   // never slept: never handed back
   EXPECT_EQ(loop.sleeps, 0u);
   // the event loop is polled once every k_direct_polls_per_poll direct reads that find
   // nothing, and every k_direct_reads_per_poll that find something
@@ -164,7 +171,8 @@ TEST(IdleSpinTest, AWatchedSocketThatNeverRunsDryDoesNotStarveTheEventLoop) {
   run_with_idle_spin<ScriptedLoop, FakeClock>(loop, microseconds(50), direct);
   EXPECT_EQ(direct.next, 20'000u);
   EXPECT_GE(loop.polls, direct.polls / k_direct_reads_per_poll);
-  EXPECT_LE(loop.most_late, microseconds(2 * k_direct_reads_per_poll)) << loop.most_late.count() << " µs";
+  EXPECT_LE(loop.most_late, microseconds(2 * k_direct_reads_per_poll))
+      << loop.most_late.count() << " µs";
 }
 
 TEST(IdleSpinTest, AFloodReadInLargeBuffersDoesNotHoldTheEventLoopForManyReads) {
@@ -177,7 +185,8 @@ TEST(IdleSpinTest, AFloodReadInLargeBuffersDoesNotHoldTheEventLoopForManyReads) 
   loop.watched = &direct.watched;
   run_with_idle_spin<ScriptedLoop, FakeClock>(loop, microseconds(50), direct);
   EXPECT_EQ(direct.next, 80u);
-  EXPECT_LE(loop.most_late, direct.read_cost + k_direct_reading_per_poll) << loop.most_late.count() << " µs";
+  EXPECT_LE(loop.most_late, direct.read_cost + k_direct_reading_per_poll)
+      << loop.most_late.count() << " µs";
 }
 
 TEST(IdleSpinTest, TheWatchedSocketIsHandedBackBeforeTheThreadSleeps) {
@@ -201,7 +210,8 @@ struct ScriptedReadConnection {
   std::size_t reads = 0;      // read_now() calls
   int async_reads = 0;        // read_async() calls
   bool is_closed = false;
-  DirectReads<ScriptedReadConnection>* rewatch = nullptr;  // watched again after a read, as a session is
+  DirectReads<ScriptedReadConnection>* rewatch =
+      nullptr;  // watched again after a read, as a session is
   std::shared_ptr<ScriptedReadConnection> self;
 
   bool read_now() {

@@ -10,17 +10,18 @@ namespace {
 
 TEST(HttpRequestLine, WhatBrowsersAndHttpClientsSendFirstIsOne) {
   for (const char* line : {"POST / HTTP/1.1", "POST / HTTP/1.1\r", "GET /index.html?x=1 HTTP/1.0\r",
-                           "OPTIONS * HTTP/1.1", "PRI * HTTP/2.0", "CONNECT 127.0.0.1:4000 HTTP/1.1",
-                           "DELETE /robots/1 HTTP/1.1"})
+                           "OPTIONS * HTTP/1.1", "PRI * HTTP/2.0",
+                           "CONNECT 127.0.0.1:4000 HTTP/1.1", "DELETE /robots/1 HTTP/1.1"})
     EXPECT_TRUE(is_http_request_line(line)) << line;
 }
 
 TEST(HttpRequestLine, NoLineOfTheLineProtocolsIsOne) {
   for (const char* line :
        {"1 simulation quit", "id1 robot.motion set_speed [0.5, 0.2]", "p test ping HTTP/1.1",
-        R"({"jsonrpc":"2.0","method":"simulation.quit","id":1})", R"({"v": 0.5, "w": "HTTP/1.1"})", "", "\r",
-        "GET", "GET /", "GET / HTTP/1.1 extra", "GET  HTTP/1.1", "GET / HTTP/11", "GET / HTTP/1.x", "get / HTTP/1.1",
-        "Host: 127.0.0.1:4000", "GET / / HTTP/1.1", "AVERYLONGMETHODNAMEX / HTTP/1.1"})
+        R"({"jsonrpc":"2.0","method":"simulation.quit","id":1})", R"({"v": 0.5, "w": "HTTP/1.1"})",
+        "", "\r", "GET", "GET /", "GET / HTTP/1.1 extra", "GET  HTTP/1.1", "GET / HTTP/11",
+        "GET / HTTP/1.x", "get / HTTP/1.1", "Host: 127.0.0.1:4000", "GET / / HTTP/1.1",
+        "AVERYLONGMETHODNAMEX / HTTP/1.1"})
     EXPECT_FALSE(is_http_request_line(line)) << line;
 }
 

@@ -20,7 +20,8 @@ using ::testing::StartsWith;
 
 class LineTransportTest : public testing::ExampleTransportTest {
  protected:
-  LineTransportTest() : ExampleTransportTest("line", json{{"port", 0}, {"max_message_bytes", 64}}) {}
+  LineTransportTest()
+      : ExampleTransportTest("line", json{{"port", 0}, {"max_message_bytes", 64}}) {}
 
   std::string roundtrip(client::SocketClient& c, const std::string& line) {
     c.send_line(line);
@@ -52,10 +53,13 @@ TEST_F(LineTransportTest, AClientThatEndsItsInputGetsItsAnswersThenTheConnection
   c.shutdown_send();
   EXPECT_EQ(c.read_line(10s).value_or(""), "9 SUCCESS 4");
   EXPECT_EQ(c.read_line(10s).value_or(""), "10 SUCCESS 6");
-  EXPECT_THROW(c.read_line(10s), std::runtime_error) << "the connection stayed open after its answers";
+  EXPECT_THROW(c.read_line(10s), std::runtime_error)
+      << "the connection stayed open after its answers";
 }
 
-TEST(LineTransportDoc, ThePageShowsTheExampleAsBuilt) { EXPECT_TRUE(testing::the_page_shows("line_transport.cc")); }
+TEST(LineTransportDoc, ThePageShowsTheExampleAsBuilt) {
+  EXPECT_TRUE(testing::the_page_shows("line_transport.cc"));
+}
 
 }  // namespace
 }  // namespace simgate

@@ -50,9 +50,15 @@ TEST(TcpOptionsTest, DefaultsComeFromTheTransport) {
 }
 
 TEST(TcpOptionsTest, EverySharedKeyIsRead) {
-  const TcpOptions o = read_options({{"host", "::1"}, {"port", 0}, {"max_connections", 3}, {"max_message_bytes", 100},
-                                     {"max_unsent_bytes", 2048}, {"max_in_flight", 5}, {"io_spin_us", 0},
-                                     {"on_disconnect", "let_run"}, {"global_policy", "preempt"}});
+  const TcpOptions o = read_options({{"host", "::1"},
+                                     {"port", 0},
+                                     {"max_connections", 3},
+                                     {"max_message_bytes", 100},
+                                     {"max_unsent_bytes", 2048},
+                                     {"max_in_flight", 5},
+                                     {"io_spin_us", 0},
+                                     {"on_disconnect", "let_run"},
+                                     {"global_policy", "preempt"}});
   EXPECT_EQ(o.host, "::1");
   EXPECT_EQ(o.max_connections, 3u);
   EXPECT_EQ(o.max_message_bytes, 100u);
@@ -71,7 +77,8 @@ TEST(TcpOptionsTest, BadValuesNameTheirKey) {
   EXPECT_THAT(config_error({{"prot", 1}}), HasSubstr("prot"));  // finish(): unknown keys
   // a resolver would read "" as some address of this machine (::1 here): refused
   EXPECT_THAT(config_error({{"host", ""}}), HasSubstr("host: expected an address or a name"));
-  EXPECT_THAT(config_error({{"max_connections_per_peer", -1}}), HasSubstr("max_connections_per_peer"));
+  EXPECT_THAT(config_error({{"max_connections_per_peer", -1}}),
+              HasSubstr("max_connections_per_peer"));
 }
 
 TEST(TcpOptionsTest, ThePerPeerLimitAndAuthAreShared) {
@@ -79,7 +86,8 @@ TEST(TcpOptionsTest, ThePerPeerLimitAndAuthAreShared) {
   EXPECT_EQ(defaults.max_connections_per_peer, 64u);
   EXPECT_FALSE(defaults.auth.enabled);
   EXPECT_EQ(read_options({{"max_connections_per_peer", 0}}).max_connections_per_peer, 0u);
-  EXPECT_THAT(config_error({{"auth", {{"token", "0123456789abcdef"}}}}), HasSubstr("auth.token: a token is never"));
+  EXPECT_THAT(config_error({{"auth", {{"token", "0123456789abcdef"}}}}),
+              HasSubstr("auth.token: a token is never"));
 }
 
 constexpr TcpOptions::Alias k_aliases[] = {{"max_connections", "max_clients"}};
@@ -90,7 +98,8 @@ TEST(TcpOptionsTest, ADeprecatedNameWorksWithAWarningAndBothNamesAreRefused) {
   EXPECT_STREQ(o.connections_key, "max_clients");
   ASSERT_EQ(o.warnings.size(), 1u);
   EXPECT_THAT(o.warnings[0], HasSubstr("'max_clients' is deprecated, use 'max_connections'"));
-  EXPECT_THAT(config_error({{"max_clients", 7}, {"max_connections", 8}}, k_aliases), HasSubstr("keep only"));
+  EXPECT_THAT(config_error({{"max_clients", 7}, {"max_connections", 8}}, k_aliases),
+              HasSubstr("keep only"));
 }
 
 TEST(TcpListenerTest, APortInUseIsAClearErrorWithAHint) {
@@ -100,7 +109,8 @@ TEST(TcpListenerTest, APortInUseIsAClearErrorWithAHint) {
     TcpListener second(io, "Test service manager", "127.0.0.1", first.port());
     FAIL() << "bound a port in use";
   } catch (const std::runtime_error& e) {
-    EXPECT_THAT(e.what(), HasSubstr("Test service manager: cannot listen on 127.0.0.1:" + std::to_string(first.port())));
+    EXPECT_THAT(e.what(), HasSubstr("Test service manager: cannot listen on 127.0.0.1:" +
+                                    std::to_string(first.port())));
     EXPECT_THAT(e.what(), HasSubstr("in use"));
     EXPECT_THAT(e.what(), HasSubstr("ss -ltnp"));
   }
@@ -117,7 +127,9 @@ struct OneConnectionServer {
   OneConnectionServer() {
     listener.start({[this](tcp::socket s) { accepted.push_back(std::move(s)); },
                     [this](const tcp::endpoint&) {
-                      return accepted.size() >= 1 ? std::string("too many connections (max_connections 1)") : std::string();
+                      return accepted.size() >= 1
+                                 ? std::string("too many connections (max_connections 1)")
+                                 : std::string();
                     },
                     [](const std::string& why) { return "refused: " + why + "\n"; }});
     thread = std::thread([this] { io.run(); });

@@ -19,7 +19,8 @@ using websocket_test::WsClient;
 
 class WsTransportTest : public testing::ExampleTransportTest {
  protected:
-  WsTransportTest() : ExampleTransportTest("wsjson", json{{"port", 0}, {"max_message_bytes", 256}}) {}
+  WsTransportTest()
+      : ExampleTransportTest("wsjson", json{{"port", 0}, {"max_message_bytes", 256}}) {}
 };
 
 TEST_F(WsTransportTest, AnswersCallsAndErrorsOnOneConnection) {
@@ -53,7 +54,8 @@ TEST_F(WsTransportTest, APageOfAnotherSiteMayNotOpenIt) {
 
 TEST(WsTransportDoc, ThePageShowsTheExampleAsBuilt) {
   EXPECT_TRUE(testing::the_page_shows("ws_transport.cc"));
-  const std::string file = testing::read_file(std::string(SIMGATE_SOURCE_DIR) + "/docs/examples/ws_transport.cc");
+  const std::string file =
+      testing::read_file(std::string(SIMGATE_SOURCE_DIR) + "/docs/examples/ws_transport.cc");
   std::size_t lines = 0;
   for (char ch : file) lines += ch == '\n';
   EXPECT_LT(lines, 250u) << "a WebSocket transport on the kit fits in under 250 lines";

@@ -10,10 +10,10 @@
 namespace simgate::sim {
 namespace {
 
+using ::testing::HasSubstr;
 using testing::MjcfSim;
 using testing::mujoco_sample;
 using testing::test_model;
-using ::testing::HasSubstr;
 
 class ActuatorSetTest : public MjcfSim {
  protected:
@@ -48,7 +48,8 @@ TEST_F(ActuatorSetTest, PropertiesNameAndCountTheActuators) {
 }
 
 TEST_F(ActuatorSetTest, PositionServoBringsItsJointToTheTarget) {
-  EXPECT_EQ(call("arm.actuators", "set_controls", {{{"shoulder_servo", 0.8}}}).status, Status::success);
+  EXPECT_EQ(call("arm.actuators", "set_controls", {{{"shoulder_servo", 0.8}}}).status,
+            Status::success);
   EXPECT_EQ(ctrl("shoulder_servo"), 0.8);
   // the servo's force is kp times the error, on the state the step starts from
   const double before = qpos("shoulder");
@@ -82,51 +83,66 @@ TEST_F(ActuatorSetTest, GetControlsReadsEveryControl) {
 }
 
 TEST_F(ActuatorSetTest, OutOfRangeIsRefusedNamingActuatorValueAndRangeAndNothingIsApplied) {
-  Outcome o = call("arm.actuators", "set_controls", {{{"shoulder_servo", 0.5}, {"elbow_motor", 3.0}}});
+  Outcome o =
+      call("arm.actuators", "set_controls", {{{"shoulder_servo", 0.5}, {"elbow_motor", 3.0}}});
   EXPECT_EQ(o.status, Status::failed);
   EXPECT_EQ(o.failure, Failure::bad_arguments);
-  EXPECT_THAT(o.message, HasSubstr("controls.elbow_motor = 3 is out of bounds: expected a finite number from -2 to "
-                                   "2 (the ctrlrange of actuator 'elbow_motor')"));
+  EXPECT_THAT(
+      o.message,
+      HasSubstr("controls.elbow_motor = 3 is out of bounds: expected a finite number from -2 to "
+                "2 (the ctrlrange of actuator 'elbow_motor')"));
   // the valid one was not applied either
   EXPECT_EQ(ctrl("shoulder_servo"), 0.0);
   EXPECT_EQ(ctrl("elbow_motor"), 0.0);
   // one at a time alike, the bound itself accepted
-  EXPECT_THAT(call("arm.actuators", "set_control", {"shoulder_servo", -1.6}).message,
-              HasSubstr("value = -1.6 is out of bounds: expected a finite number from -1.5 to 1.5"));
+  EXPECT_THAT(
+      call("arm.actuators", "set_control", {"shoulder_servo", -1.6}).message,
+      HasSubstr("value = -1.6 is out of bounds: expected a finite number from -1.5 to 1.5"));
   EXPECT_EQ(call("arm.actuators", "set_control", {"shoulder_servo", -1.5}).status, Status::success);
 }
 
 TEST_F(ActuatorSetTest, UnknownNamesFailNamingTheValidOnes) {
-  Outcome o = call("arm.actuators", "set_controls", {{{"sholder_servo", 0.1}, {"elbow_motor", 1.0}}});
+  Outcome o =
+      call("arm.actuators", "set_controls", {{{"sholder_servo", 0.1}, {"elbow_motor", 1.0}}});
   EXPECT_EQ(o.status, Status::failed);
   EXPECT_EQ(o.failure, Failure::bad_arguments);
-  EXPECT_THAT(o.message, HasSubstr("no actuator 'sholder_servo' in arm.actuators (actuators: shoulder_servo, "
-                                   "elbow_motor, motor_1) (did you mean 'shoulder_servo'?)"));
+  EXPECT_THAT(o.message,
+              HasSubstr("no actuator 'sholder_servo' in arm.actuators (actuators: shoulder_servo, "
+                        "elbow_motor, motor_1) (did you mean 'shoulder_servo'?)"));
   EXPECT_EQ(ctrl("elbow_motor"), 0.0);
-  EXPECT_THAT(call("arm.actuators", "set_control", {"wrist", 0.1}).message, HasSubstr("no actuator 'wrist'"));
+  EXPECT_THAT(call("arm.actuators", "set_control", {"wrist", 0.1}).message,
+              HasSubstr("no actuator 'wrist'"));
 }
 
 TEST_F(ActuatorSetTest, AControlWithoutRangeIsBoundedBySanity) {
   EXPECT_EQ(call("arm.actuators", "set_control", {"motor_1", 1e5}).status, Status::success);
   Outcome o = call("arm.actuators", "set_control", {"motor_1", 1e7});
   EXPECT_EQ(o.status, Status::failed);
-  EXPECT_THAT(o.message, HasSubstr("value = 1e+07 is out of bounds: expected a finite number within ±1e+06 (actuator "
-                                   "'motor_1' has no ctrlrange"));
+  EXPECT_THAT(
+      o.message,
+      HasSubstr("value = 1e+07 is out of bounds: expected a finite number within ±1e+06 (actuator "
+                "'motor_1' has no ctrlrange"));
   EXPECT_EQ(sim_->d()->ctrl[2], 1e5);  // motor_1 is unnamed in the MJCF
 }
 
 TEST_F(ActuatorSetTest, NonFiniteAndNonNumericValuesNeverReachMuJoCo) {
-  const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
+  const double nan = std::numeric_limits<double>::quiet_NaN(),
+               inf = std::numeric_limits<double>::infinity();
   for (const std::string name : {"shoulder_servo", "elbow_motor", "motor_1"}) {
     for (double bad : {nan, inf, -inf}) {
-      EXPECT_EQ(call("arm.actuators", "set_control", {name, bad}).status, Status::failed) << name << " " << bad;
-      EXPECT_EQ(call("arm.actuators", "set_controls", {{{name, bad}}}).status, Status::failed) << name << " " << bad;
+      EXPECT_EQ(call("arm.actuators", "set_control", {name, bad}).status, Status::failed)
+          << name << " " << bad;
+      EXPECT_EQ(call("arm.actuators", "set_controls", {{{name, bad}}}).status, Status::failed)
+          << name << " " << bad;
     }
-    EXPECT_EQ(call("arm.actuators", "set_controls", {{{name, "fast"}}}).failure, Failure::bad_arguments);
-    EXPECT_EQ(call("arm.actuators", "set_controls", {{{name, json::array({1.0})}}}).failure, Failure::bad_arguments);
+    EXPECT_EQ(call("arm.actuators", "set_controls", {{{name, "fast"}}}).failure,
+              Failure::bad_arguments);
+    EXPECT_EQ(call("arm.actuators", "set_controls", {{{name, json::array({1.0})}}}).failure,
+              Failure::bad_arguments);
   }
   // a list where a map is expected, a missing value, a name that is not a string
-  EXPECT_EQ(call("arm.actuators", "set_controls", {json::array({0.1, 0.2})}).status, Status::failed);
+  EXPECT_EQ(call("arm.actuators", "set_controls", {json::array({0.1, 0.2})}).status,
+            Status::failed);
   EXPECT_EQ(call("arm.actuators", "set_control", {"elbow_motor"}).status, Status::failed);
   EXPECT_EQ(call("arm.actuators", "set_control", {1, 0.1}).status, Status::failed);
   EXPECT_TRUE(state_is_finite());
@@ -164,10 +180,12 @@ TEST_F(ActuatorSetConfigTest, OptionActuatorsRestrictsTheSet) {
 
 TEST_F(ActuatorSetConfigTest, UnknownListedNamesAreConfigErrorsWithTheirPath) {
   Robot& arm = add_robot("arm", "base");
-  EXPECT_THAT(config_error(arm, "actuators", {{"actuators", {"shoulder_servo", "elbow_motr"}}}),
-              HasSubstr("robots[0].components[9].options.actuators[1]: expected the name of an actuator of robot "
-                        "'arm' (body 'base') (shoulder_servo, elbow_motor, motor_1), found 'elbow_motr' (no such "
-                        "actuator (did you mean 'elbow_motor'?))"));
+  EXPECT_THAT(
+      config_error(arm, "actuators", {{"actuators", {"shoulder_servo", "elbow_motr"}}}),
+      HasSubstr(
+          "robots[0].components[9].options.actuators[1]: expected the name of an actuator of robot "
+          "'arm' (body 'base') (shoulder_servo, elbow_motor, motor_1), found 'elbow_motr' (no such "
+          "actuator (did you mean 'elbow_motor'?))"));
   EXPECT_THAT(config_error(arm, "actuators", {{"actuators", json::array()}}),
               HasSubstr("options.actuators: expected a non-empty list of actuator names"));
   EXPECT_THAT(config_error(arm, "actuators", {{"actuators", "shoulder_servo"}}),
@@ -182,13 +200,16 @@ TEST_F(ActuatorSetConfigTest, AnotherRobotsActuatorsAreNotItsOwn) {
   Robot& block = add_robot("block", "block");
   EXPECT_THAT(config_error(block, "actuators"),
               HasSubstr("needs actuators, and robot 'block' (body 'block') has none"));
-  EXPECT_THAT(config_error(block, "actuators", {{"actuators", {"elbow_motor"}}}),
-              HasSubstr("actuators[0]: actuator 'elbow_motor' drives joint 'elbow', outside robot 'block'"));
+  EXPECT_THAT(
+      config_error(block, "actuators", {{"actuators", {"elbow_motor"}}}),
+      HasSubstr(
+          "actuators[0]: actuator 'elbow_motor' drives joint 'elbow', outside robot 'block'"));
 }
 
 TEST_F(ActuatorSetConfigTest, AGeneratedNameTakenByAnotherActuatorIsAConfigError) {
   sim_.reset();
-  load_string(R"(<mujoco><worldbody><body name="b"><joint name="j"/><geom size="0.1"/></body></worldbody>
+  load_string(
+      R"(<mujoco><worldbody><body name="b"><joint name="j"/><geom size="0.1"/></body></worldbody>
     <actuator><motor name="motor_1" joint="j"/><motor joint="j"/></actuator></mujoco>)");
   Robot& robot = add_robot("r", "b");
   EXPECT_THAT(config_error(robot, "actuators"), HasSubstr("are both called 'motor_1'"));
@@ -246,7 +267,8 @@ TEST_F(MjcfSim, SliderCranksBelongToTheBodyOfTheirCrank) {
   EXPECT_EQ(list["forward"]["site"], "cranksite");
   EXPECT_EQ(list["forward"]["slidersite"], "slidersite");
   EXPECT_EQ(list["backward"]["site"], "cranksite2");
-  EXPECT_EQ(value("broken.actuators", "get_properties")["properties"]["actuators"], json({"broken"}));
+  EXPECT_EQ(value("broken.actuators", "get_properties")["properties"]["actuators"],
+            json({"broken"}));
 }
 
 TEST_F(MjcfSim, AdhesionActuatorsActOnABody) {

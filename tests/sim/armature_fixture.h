@@ -54,7 +54,9 @@ inline const char* two_link_arm_xml() {
 </mujoco>)";
 }
 
-inline std::string debian_model(const std::string& relative) { return "/usr/share/mujoco/model/" + relative; }
+inline std::string debian_model(const std::string& relative) {
+  return "/usr/share/mujoco/model/" + relative;
+}
 
 class ArmatureSim : public ::testing::Test {
  protected:
@@ -65,20 +67,24 @@ class ArmatureSim : public ::testing::Test {
 
   // Builds the simulation: robot `robot` on `body`, its armature "<robot>.arm" and armature
   // pose "<robot>.pose" (both with `options`).
-  void build(Model model, const std::string& robot, const std::string& body, json options = json::object()) {
+  void build(Model model, const std::string& robot, const std::string& body,
+             json options = json::object()) {
     sim_ = std::make_unique<Simulation>(std::move(model), SimulationOptions{std::nullopt, 0.0});
     auto registry = builtin_registry();
-    auto r = registry.create(Kind::robot, {robot, "robot", body, "robots[0]"}, json::object(), *sim_, nullptr);
+    auto r = registry.create(Kind::robot, {robot, "robot", body, "robots[0]"}, json::object(),
+                             *sim_, nullptr);
     auto* robot_ptr = static_cast<Robot*>(r.get());
     sim_->add_component(std::move(r), "robot", "", true);
-    auto arm = registry.create(Kind::component, {robot + ".arm", "armature", body, "robots[0].components[0]"},
+    auto arm = registry.create(Kind::component,
+                               {robot + ".arm", "armature", body, "robots[0].components[0]"},
                                options, *sim_, robot_ptr);
     arm_ = static_cast<Armature*>(arm.get());
     sim_->add_component(std::move(arm), "armature", robot);
-    sim_->add_component(registry.create(Kind::component, {robot + ".pose", "armature_pose", body,
-                                                          "robots[0].components[1]"},
-                                        options, *sim_, robot_ptr),
-                        "armature_pose", robot);
+    sim_->add_component(
+        registry.create(Kind::component,
+                        {robot + ".pose", "armature_pose", body, "robots[0].components[1]"},
+                        options, *sim_, robot_ptr),
+        "armature_pose", robot);
     add_world_components(*sim_);
     rm_ = std::make_shared<RecordingManager>();
     for (auto& e : sim_->components()) {
@@ -90,18 +96,22 @@ class ArmatureSim : public ::testing::Test {
     pose_name_ = robot + ".pose";
   }
   void build_arm(json options = json::object()) {
-    build(Model::load_string(two_link_arm_xml(), "two_link_arm.xml"), "arm", "arm", std::move(options));
+    build(Model::load_string(two_link_arm_xml(), "two_link_arm.xml"), "arm", "arm",
+          std::move(options));
   }
 
   // A sync call (or the start of an async one that fails at once), answered.
-  Outcome call(const std::string& component, const std::string& service, json params = json::array()) {
+  Outcome call(const std::string& component, const std::string& service,
+               json params = json::array()) {
     RequestId id = rm_->call(component, service, std::move(params));
     sim_->process_requests();
     auto o = rm_->outcome(id);
     EXPECT_TRUE(o.has_value()) << component << " " << service << " not answered";
     return o.value_or(Outcome::failed(Failure::internal, "no answer"));
   }
-  Outcome arm(const std::string& service, json params = json::array()) { return call(arm_name_, service, params); }
+  Outcome arm(const std::string& service, json params = json::array()) {
+    return call(arm_name_, service, params);
+  }
   Outcome pose(const std::string& service, json params = json::array()) {
     return call(pose_name_, service, params);
   }
@@ -110,7 +120,8 @@ class ArmatureSim : public ::testing::Test {
     RequestId id = rm_->call(arm_name_, service, std::move(params));
     sim_->process_requests();
     auto o = rm_->outcome(id);
-    EXPECT_FALSE(o.has_value()) << service << " ended at once: " << (o && o->value ? o->value->dump() : "");
+    EXPECT_FALSE(o.has_value()) << service
+                                << " ended at once: " << (o && o->value ? o->value->dump() : "");
     return id;
   }
   // Steps (processing requests) until simulated time reaches `t`.
@@ -140,7 +151,9 @@ class ArmatureSim : public ::testing::Test {
   double qvel(const std::string& joint) {
     return sim_->d()->qvel[sim_->m()->jnt_dofadr[sim_->model().joint_id(joint)]];
   }
-  double ctrl(const std::string& actuator) { return sim_->d()->ctrl[sim_->model().actuator_id(actuator)]; }
+  double ctrl(const std::string& actuator) {
+    return sim_->d()->ctrl[sim_->model().actuator_id(actuator)];
+  }
   // Every qpos, qvel and ctrl of the model is a finite number.
   bool state_is_finite() { return testing::state_is_finite(*sim_); }
 

@@ -12,15 +12,16 @@ namespace {
 
 using testing::ArmatureSim;
 using testing::debian_model;
-using testing::message;
 using ::testing::HasSubstr;
+using testing::message;
 
 class ArmatureModelsTest : public ArmatureSim {
  protected:
   void build_file(const std::string& relative, const std::string& robot, const std::string& body,
                   json options = json::object()) {
     const std::string path = debian_model(relative);
-    ASSERT_TRUE(std::filesystem::exists(path)) << path << " missing: apt-get install libmujoco-samples";
+    ASSERT_TRUE(std::filesystem::exists(path))
+        << path << " missing: apt-get install libmujoco-samples";
     build(Model::load_file(path), robot, body, std::move(options));
   }
   void build_own(const std::string& name, const std::string& robot, const std::string& body) {
@@ -58,7 +59,8 @@ TEST_F(ArmatureModelsTest, HumanoidHingesMoveKinematicallyAtTheAskedSpeed) {
 TEST_F(ArmatureModelsTest, HumanoidHeldAgainstItsJointSpringWithItsKneesPushingDoesNotDiverge) {
   build_file("humanoid/humanoid.xml", "humanoid", "torso");
   ASSERT_EQ(arm("set_rotation", {"abdomen_y", 0.3}).status, Status::success);
-  for (const char* knee : {"right_knee", "left_knee"}) sim_->d()->ctrl[sim_->model().actuator_id(knee)] = 1.0;
+  for (const char* knee : {"right_knee", "left_knee"})
+    sim_->d()->ctrl[sim_->model().actuator_id(knee)] = 1.0;
   for (int i = 0; i < 2000 && sim_->statistics().bad_states == 0; ++i) {
     sim_->process_requests();
     sim_->step();
@@ -74,7 +76,8 @@ TEST_F(ArmatureModelsTest, HumanoidRangesComeFromTheModelInRadians) {
   build_file("humanoid/humanoid.xml", "humanoid", "torso");
   Outcome o = arm("set_rotation", {"right_elbow", 1.0});
   EXPECT_EQ(o.status, Status::failed);
-  EXPECT_THAT(message(o), HasSubstr("outside the range of joint 'right_elbow': [-1.5708, 0.872665] rad"));
+  EXPECT_THAT(message(o),
+              HasSubstr("outside the range of joint 'right_elbow': [-1.5708, 0.872665] rad"));
   EXPECT_THAT(message(arm("set_rotation", {"root", 0.1})), HasSubstr("no joint 'root'"));
 }
 
@@ -129,7 +132,8 @@ TEST_F(ArmatureModelsTest, SliderCrankUnnamedJointsAreNamedByTheirIds) {
   ASSERT_TRUE(done.has_value());
   EXPECT_EQ(done->status, Status::success);
   EXPECT_NEAR(qpos("joint0"), 1.0, 0.01);
-  EXPECT_THAT(message(arm("set_rotation", {"joint2", 0.1})), HasSubstr("(its joints: joint0, joint1)"));
+  EXPECT_THAT(message(arm("set_rotation", {"joint2", 0.1})),
+              HasSubstr("(its joints: joint0, joint1)"));
   EXPECT_TRUE(state_is_finite());
 }
 
@@ -139,12 +143,13 @@ class ArmatureConfigTest : public ArmatureSim {
  protected:
   // The ConfigError creating an armature with `options` on `body` of the inline arm.
   std::string config_error(const std::string& body, json options) {
-    sim_ = std::make_unique<Simulation>(Model::load_string(testing::two_link_arm_xml(), "two_link_arm.xml"),
-                                        SimulationOptions{std::nullopt, 0.0});
+    sim_ = std::make_unique<Simulation>(
+        Model::load_string(testing::two_link_arm_xml(), "two_link_arm.xml"),
+        SimulationOptions{std::nullopt, 0.0});
     auto registry = builtin_registry();
     try {
-      registry.create(Kind::component, {"arm.arm", "armature", body, "robots[0].components[0]"}, options, *sim_,
-                      nullptr);
+      registry.create(Kind::component, {"arm.arm", "armature", body, "robots[0].components[0]"},
+                      options, *sim_, nullptr);
     } catch (const ConfigError& e) {
       return e.what();
     }
@@ -162,17 +167,25 @@ TEST_F(ArmatureConfigTest, TheJointsOptionChoosesAndOrdersTheJoints) {
 
 TEST_F(ArmatureConfigTest, UnknownOrUnsuitableJointsAreConfigErrorsNamingThePath) {
   EXPECT_THAT(config_error("arm", {{"joints", {"shoulder", "elbo"}}}),
-              HasSubstr("robots[0].components[0].options.joints[1]: no joint 'elbo' in the subtree of body 'arm'; "
+              HasSubstr("robots[0].components[0].options.joints[1]: no joint 'elbo' in the subtree "
+                        "of body 'arm'; "
                         "did you mean 'elbow'? (its joints: shoulder, elbow, slider)"));
-  EXPECT_THAT(config_error("arm", {{"joints", {"box_free"}}}),
-              HasSubstr("options.joints[0]: joint 'box_free' is a free joint, not an armature joint"));
-  EXPECT_THAT(config_error("fore", {{"joints", {"shoulder"}}}),
-              HasSubstr("options.joints[0]: joint 'shoulder' is not in the subtree of body 'fore' (its joints: "
-                        "elbow, slider)"));
-  EXPECT_THAT(config_error("arm", {{"joints", {"elbow", "elbow"}}}), HasSubstr("joint 'elbow' is listed twice"));
-  EXPECT_THAT(config_error("arm", {{"joints", json::array()}}), HasSubstr("expected a non-empty list"));
-  EXPECT_THAT(config_error("box", json::object()),
-              HasSubstr("robots[0].components[0].body: body 'box' has no hinge or slide joint in its subtree"));
+  EXPECT_THAT(
+      config_error("arm", {{"joints", {"box_free"}}}),
+      HasSubstr("options.joints[0]: joint 'box_free' is a free joint, not an armature joint"));
+  EXPECT_THAT(
+      config_error("fore", {{"joints", {"shoulder"}}}),
+      HasSubstr(
+          "options.joints[0]: joint 'shoulder' is not in the subtree of body 'fore' (its joints: "
+          "elbow, slider)"));
+  EXPECT_THAT(config_error("arm", {{"joints", {"elbow", "elbow"}}}),
+              HasSubstr("joint 'elbow' is listed twice"));
+  EXPECT_THAT(config_error("arm", {{"joints", json::array()}}),
+              HasSubstr("expected a non-empty list"));
+  EXPECT_THAT(
+      config_error("box", json::object()),
+      HasSubstr(
+          "robots[0].components[0].body: body 'box' has no hinge or slide joint in its subtree"));
   EXPECT_THAT(config_error("arm", {{"radial_speed", 0}}), HasSubstr("options.radial_speed"));
   EXPECT_THAT(config_error("arm", {{"radial_sped", 1}}), HasSubstr("radial_sped"));
 }

@@ -8,8 +8,8 @@ namespace {
 
 using testing::ArmatureSim;
 using testing::debian_model;
-using testing::message;
 using ::testing::HasSubstr;
+using testing::message;
 
 class ArmaturePoseTest : public ArmatureSim {
  protected:
@@ -23,8 +23,9 @@ TEST_F(ArmaturePoseTest, GetJointsListsThemFromRootToTip) {
 TEST_F(ArmaturePoseTest, GetStateReadsPositionVelocityAndEffort) {
   // the slider kinematically, the elbow's servo along a ramp (its force overcomes damping)
   const double t0 = sim_->sim_time();
-  RequestId id = start("trajectory", {json{{"joint_names", {"elbow", "slider"}},
-                                           {"points", {{{"positions", {0.4, 0.08}}, {"time_from_start", 2.0}}}}}});
+  RequestId id = start(
+      "trajectory", {json{{"joint_names", {"elbow", "slider"}},
+                          {"points", {{{"positions", {0.4, 0.08}}, {"time_from_start", 2.0}}}}}});
   run_until(t0 + 1.0);
   json state = *pose("get_state").value;
   EXPECT_NEAR(state["slider"]["position"].get<double>(), 0.04, 1e-5);
@@ -44,8 +45,9 @@ TEST_F(ArmaturePoseTest, GetJointReadsOnePositionAndNamesTheValidJoints) {
   EXPECT_EQ(pose("get_joint", {"slider"}).value, json(0.03));
   Outcome o = pose("get_joint", {"sliders"});
   EXPECT_EQ(o.status, Status::failed);
-  EXPECT_THAT(message(o), HasSubstr("no joint 'sliders' in this armature; did you mean 'slider'? (its joints: "
-                                    "shoulder, elbow, slider)"));
+  EXPECT_THAT(message(o),
+              HasSubstr("no joint 'sliders' in this armature; did you mean 'slider'? (its joints: "
+                        "shoulder, elbow, slider)"));
 }
 
 TEST_F(ArmaturePoseTest, GetJointsLengthIsTheDistanceToTheNextJoint) {
@@ -77,7 +79,8 @@ class ArmaturePoseHumanoidTest : public ArmatureSim {};
 
 TEST_F(ArmaturePoseHumanoidTest, EffortIsTheMotorsForceThroughItsGear) {
   const std::string path = debian_model("humanoid/humanoid.xml");
-  ASSERT_TRUE(std::filesystem::exists(path)) << path << " missing: apt-get install libmujoco-samples";
+  ASSERT_TRUE(std::filesystem::exists(path))
+      << path << " missing: apt-get install libmujoco-samples";
   build(Model::load_file(path), "humanoid", "torso");
   // right_elbow's <motor gear="40">: a control of 0.5 gives 20 N m on the joint
   sim_->d()->ctrl[sim_->model().actuator_id("right_elbow")] = 0.5;

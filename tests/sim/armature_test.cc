@@ -10,11 +10,11 @@ namespace simgate::sim {
 namespace {
 
 using testing::ArmatureSim;
-using testing::message;
 using ::testing::HasSubstr;
+using testing::message;
 
-using testing::k_nan;
 using testing::k_inf;
+using testing::k_nan;
 
 class ArmatureTest : public ArmatureSim {
  protected:
@@ -183,7 +183,7 @@ TEST_F(ArmatureTest, TrajectoryInterpolatesLinearlyInSimulatedTime) {
                        {{"positions", {0.8, 0.0, 0.1}}, {"time_from_start", 2.0}}}}};
   RequestId id = start("trajectory", {trajectory});
   run_until(t0 + 0.5);
-  EXPECT_NEAR(qpos("slider"), 0.025, 1e-5);         // kinematic: on the path
+  EXPECT_NEAR(qpos("slider"), 0.025, 1e-5);        // kinematic: on the path
   EXPECT_NEAR(ctrl("shoulder_servo"), 0.2, 1e-9);  // servo: its target on the path
   EXPECT_NEAR(ctrl("elbow_servo"), -0.2, 1e-9);
   run_until(t0 + 1.5);
@@ -203,12 +203,17 @@ TEST_F(ArmatureTest, TrajectoryInterpolatesLinearlyInSimulatedTime) {
 TEST_F(ArmatureTest, TrajectoryWithVelocitiesIsCubicHermite) {
   const double t0 = sim_->sim_time();
   json trajectory = {{"points",
-                      {{{"positions", {0.0, 0.0, 0.05}}, {"velocities", {0.0, 0.0, 0.1}}, {"time_from_start", 1.0}},
-                       {{"positions", {0.0, 0.0, 0.1}}, {"velocities", {0.0, 0.0, 0.0}}, {"time_from_start", 2.0}}}}};
+                      {{{"positions", {0.0, 0.0, 0.05}},
+                        {"velocities", {0.0, 0.0, 0.1}},
+                        {"time_from_start", 1.0}},
+                       {{"positions", {0.0, 0.0, 0.1}},
+                        {"velocities", {0.0, 0.0, 0.0}},
+                        {"time_from_start", 2.0}}}}};
   RequestId id = start("trajectory", {trajectory});
   for (double t : {0.25, 0.5, 0.75, 1.25, 1.5, 1.75}) {
     run_until(t0 + t);
-    const double expected = t < 1 ? hermite(0.0, 0.0, 0.05, 0.1, 1.0, t) : hermite(0.05, 0.1, 0.1, 0.0, 1.0, t - 1);
+    const double expected =
+        t < 1 ? hermite(0.0, 0.0, 0.05, 0.1, 1.0, t) : hermite(0.05, 0.1, 0.1, 0.0, 1.0, t - 1);
     EXPECT_NEAR(qpos("slider"), expected, 1e-5) << "t = " << t;
   }
   EXPECT_NE(hermite(0.0, 0.0, 0.05, 0.1, 1.0, 0.5), 0.025);  // not the linear path
@@ -309,7 +314,9 @@ TEST_F(ArmatureBadInputTest, UnknownJointsAreRefusedNamingTheValidOnes) {
       {"translate_joints", {json{{"wrist", 0.01}}}, valid},
       {"set_rotations", {json{{"wrist", 0.1}}}, valid},
       {"set_translations", {json{{"wrist", 0.01}}}, valid},
-      {"trajectory", {json{{"joint_names", {"wrist"}}, {"points", {{{"positions", {0.1}}, {"time_from_start", 1}}}}}},
+      {"trajectory",
+       {json{{"joint_names", {"wrist"}},
+             {"points", {{{"positions", {0.1}}, {"time_from_start", 1}}}}}},
        "joint_names[0]: no joint 'wrist'"},
   });
 }
@@ -331,9 +338,12 @@ TEST_F(ArmatureBadInputTest, NanAndInfinityAreRefusedForEveryNumber) {
   for (double bad : {k_nan, k_inf, -k_inf}) {
     auto point = [bad](const std::string& field) {
       json p = {{"positions", {0.1, 0.1, 0.01}}, {"time_from_start", 1.0}};
-      if (field == "time_from_start") p[field] = bad;
-      else if (field == "positions") p[field] = {0.1, bad, 0.01};
-      else p[field] = {0.0, bad, 0.0};
+      if (field == "time_from_start")
+        p[field] = bad;
+      else if (field == "positions")
+        p[field] = {0.1, bad, 0.01};
+      else
+        p[field] = {0.0, bad, 0.0};
       return json{{"points", {p}}};
     };
     expect_refused({
@@ -355,7 +365,9 @@ TEST_F(ArmatureBadInputTest, NanAndInfinityAreRefusedForEveryNumber) {
         {"trajectory", {point("velocities")}, "points[0].velocities[1]: "},
         {"trajectory", {point("accelerations")}, "points[0].accelerations[1]: "},
         {"trajectory", {point("effort")}, "points[0].effort[1]: "},
-        {"trajectory", {json{{"starttime", bad}, {"points", point("positions")["points"]}}}, "starttime"},
+        {"trajectory",
+         {json{{"starttime", bad}, {"points", point("positions")["points"]}}},
+         "starttime"},
         {"set_property", {"radial_speed", bad}, "radial_speed = "},
         {"set_property", {"linear_speed", bad}, "linear_speed = "},
         {"set_property", {"angle_tolerance", bad}, "angle_tolerance = "},
@@ -366,15 +378,25 @@ TEST_F(ArmatureBadInputTest, NanAndInfinityAreRefusedForEveryNumber) {
 }
 
 TEST_F(ArmatureBadInputTest, TargetsOutsideTheRangeAreRefusedNamingIt) {
-  auto at = [](json positions) { return json{{"points", {{{"positions", positions}, {"time_from_start", 1}}}}}; };
+  auto at = [](json positions) {
+    return json{{"points", {{{"positions", positions}, {"time_from_start", 1}}}}};
+  };
   expect_refused({
-      {"set_rotation", {"elbow", 2.5}, "rotation = 2.5 is outside the range of joint 'elbow': [-2, 2] rad"},
+      {"set_rotation",
+       {"elbow", 2.5},
+       "rotation = 2.5 is outside the range of joint 'elbow': [-2, 2] rad"},
       {"rotate", {"elbow", -3.0}, "[-2, 2] rad"},
-      {"set_translation", {"slider", 0.2}, "translation = 0.2 is outside the range of joint 'slider': [0, 0.1] m"},
+      {"set_translation",
+       {"slider", 0.2},
+       "translation = 0.2 is outside the range of joint 'slider': [0, 0.1] m"},
       {"translate_joints", {json{{"slider", -0.01}}}, "[0, 0.1] m"},
       // inside the joint's range, beyond its servo's ctrlrange
-      {"set_rotation", {"shoulder", 1.3}, "beyond what the position servo of joint 'shoulder' can reach: [-1.2, 1.2]"},
-      {"trajectory", {at({0.1, 0.1, 0.5})}, "points[0].positions[2] = 0.5 is outside the range of joint 'slider'"},
+      {"set_rotation",
+       {"shoulder", 1.3},
+       "beyond what the position servo of joint 'shoulder' can reach: [-1.2, 1.2]"},
+      {"trajectory",
+       {at({0.1, 0.1, 0.5})},
+       "points[0].positions[2] = 0.5 is outside the range of joint 'slider'"},
       {"rotate", {"elbow", 0.1, 0.0}, "speed must be positive"},
       {"rotate", {"elbow", 0.1, -1.0}, "speed = -1 is out of bounds"},
       {"rotate", {"elbow", 0.1, 1e6}, "speed = 1e+06 is out of bounds"},
@@ -382,35 +404,59 @@ TEST_F(ArmatureBadInputTest, TargetsOutsideTheRangeAreRefusedNamingIt) {
 }
 
 TEST_F(ArmatureBadInputTest, MalformedTrajectoriesAreRefusedNamingTheField) {
-  auto point = [](json positions, double t) { return json{{"positions", positions}, {"time_from_start", t}}; };
+  auto point = [](json positions, double t) {
+    return json{{"positions", positions}, {"time_from_start", t}};
+  };
   const json p3 = {0.1, 0.1, 0.01};
   expect_refused({
       {"trajectory", {json{{"points", json::array()}}}, "points: empty"},
       {"trajectory", {json::object()}, "points: missing"},
-      {"trajectory", {json{{"points", {point(p3, 1), point(p3, 1)}}}},
-       "points[1].time_from_start: 1 is not after points[0].time_from_start (1): times must increase"},
+      {"trajectory",
+       {json{{"points", {point(p3, 1), point(p3, 1)}}}},
+       "points[1].time_from_start: 1 is not after points[0].time_from_start (1): times must "
+       "increase"},
       {"trajectory", {json{{"points", {point(p3, 2), point(p3, 1)}}}}, "points[1].time_from_start"},
-      {"trajectory", {json{{"points", {point(p3, -1)}}}}, "points[0].time_from_start = -1 is out of bounds"},
-      {"trajectory", {json{{"points", {point(p3, 1), point({0.1, 0.1}, 2)}}}},
+      {"trajectory",
+       {json{{"points", {point(p3, -1)}}}},
+       "points[0].time_from_start = -1 is out of bounds"},
+      {"trajectory",
+       {json{{"points", {point(p3, 1), point({0.1, 0.1}, 2)}}}},
        "points[1].positions: has 2 values; expected 3 (one per joint: shoulder, elbow, slider)"},
-      {"trajectory", {json{{"points", {point(p3, 1), point({0.1, 0.1, 0.01, 0.0}, 2)}}}}, "has 4 values"},
-      {"trajectory", {json{{"points", {json{{"time_from_start", 1}}}}}}, "points[0].positions: missing"},
-      {"trajectory", {json{{"points", {json{{"positions", p3}}}}}}, "points[0].time_from_start: missing"},
-      {"trajectory", {json{{"points", {json{{"positions", p3}, {"time_from_start", "1"}}}}}},
+      {"trajectory",
+       {json{{"points", {point(p3, 1), point({0.1, 0.1, 0.01, 0.0}, 2)}}}},
+       "has 4 values"},
+      {"trajectory",
+       {json{{"points", {json{{"time_from_start", 1}}}}}},
+       "points[0].positions: missing"},
+      {"trajectory",
+       {json{{"points", {json{{"positions", p3}}}}}},
+       "points[0].time_from_start: missing"},
+      {"trajectory",
+       {json{{"points", {json{{"positions", p3}, {"time_from_start", "1"}}}}}},
        "points[0].time_from_start: expected a number"},
-      {"trajectory", {json{{"points", {json{{"positions", p3}, {"velocities", {0, 0, 0}}, {"time_from_start", 1}},
-                                       point(p3, 2)}}}},
+      {"trajectory",
+       {json{{"points",
+              {json{{"positions", p3}, {"velocities", {0, 0, 0}}, {"time_from_start", 1}},
+               point(p3, 2)}}}},
        "points[1].velocities: missing while points[0] has them"},
-      {"trajectory", {json{{"points", {json{{"positions", p3}, {"time_from_star", 1}}}}}},
+      {"trajectory",
+       {json{{"points", {json{{"positions", p3}, {"time_from_star", 1}}}}}},
        "points[0].time_from_star: unknown field"},
       {"trajectory", {json{{"points", {point(p3, 1)}}, {"start", 0}}}, "start: unknown field"},
-      {"trajectory", {json{{"points", {point({0.1, "x", 0.01}, 1)}}}}, "points[0].positions[1]: expected a number"},
+      {"trajectory",
+       {json{{"points", {point({0.1, "x", 0.01}, 1)}}}},
+       "points[0].positions[1]: expected a number"},
       {"trajectory", {json{{"points", "none"}}}, "points: expected an array"},
       {"trajectory", {json{1, 2}}, "trajectory: expected an object"},
-      {"trajectory", {json{{"joint_names", {"elbow", "elbow"}}, {"points", {point({0.1, 0.1}, 1)}}}},
+      {"trajectory",
+       {json{{"joint_names", {"elbow", "elbow"}}, {"points", {point({0.1, 0.1}, 1)}}}},
        "joint_names[1]: joint 'elbow' is named twice"},
-      {"trajectory", {json{{"starttime", 1e12}, {"points", {point(p3, 1)}}}}, "expected at most 1e+06 s ahead"},
-      {"set_rotations", {json{0.1, 0.1, 0.01, 0.0}}, "rotations has 4 values; this armature has 3 joints"},
+      {"trajectory",
+       {json{{"starttime", 1e12}, {"points", {point(p3, 1)}}}},
+       "expected at most 1e+06 s ahead"},
+      {"set_rotations",
+       {json{0.1, 0.1, 0.01, 0.0}},
+       "rotations has 4 values; this armature has 3 joints"},
       {"set_rotations", {json("0.1")}, "rotations: expected a list of rad"},
       {"set_rotations", {json::array()}, "rotations is empty"},
       {"rotate_joints", {json::object()}, "joint_rotations is empty"},

@@ -28,7 +28,8 @@ using testing::k_nan;
 // Counts the resets it is told about.
 class ResetProbe : public SimComponent {
  public:
-  explicit ResetProbe(Simulation& sim, std::string name = "probe") : SimComponent(std::move(name), sim) {}
+  explicit ResetProbe(Simulation& sim, std::string name = "probe")
+      : SimComponent(std::move(name), sim) {}
   void on_reset() override { ++resets; }
   int resets = 0;
 };
@@ -68,8 +69,12 @@ class SimBadStateTest : public DemoSim {
   json statistics() { return call("time", "statistics").value.value_or(json::object()); }
   std::uint64_t bad_states() { return statistics().value("bad_states", std::uint64_t{0}); }
   // Address of a free joint's first qpos / dof.
-  int qpos_of(const std::string& joint) { return sim_->m()->jnt_qposadr[sim_->model().joint_id(joint)]; }
-  int dof_of(const std::string& joint) { return sim_->m()->jnt_dofadr[sim_->model().joint_id(joint)]; }
+  int qpos_of(const std::string& joint) {
+    return sim_->m()->jnt_qposadr[sim_->model().joint_id(joint)];
+  }
+  int dof_of(const std::string& joint) {
+    return sim_->m()->jnt_dofadr[sim_->model().joint_id(joint)];
+  }
   // Writes into MuJoCo's state as a faulty component (or a bug) would: under the lock.
   template <class F>
   void corrupt(F&& write) {
@@ -77,7 +82,9 @@ class SimBadStateTest : public DemoSim {
     write(sim_->d());
   }
 
-  json simulation_state() { return call("simulation", "get_simulation_state").value.value_or(json::object()); }
+  json simulation_state() {
+    return call("simulation", "get_simulation_state").value.value_or(json::object());
+  }
 
   // Subscribes to the simulation's event stream (carried by the test transport).
   std::shared_ptr<StreamSubscription> subscribe_to_events() {
@@ -287,7 +294,8 @@ TEST_F(SimDivergencePauseTest, TheStepIsUndoneAndTheSimulationPausesTellingEvery
   EXPECT_EQ(sim_->sim_time(), before);
   EXPECT_EQ(sim_->steps(), steps);
   EXPECT_EQ(sim_->d()->qpos[qpos_of("robot_root")], x);
-  EXPECT_EQ(sim_->d()->qfrc_applied[dof_of("human_root")], 1e20);  // the cause is still there, to be seen
+  EXPECT_EQ(sim_->d()->qfrc_applied[dof_of("human_root")],
+            1e20);  // the cause is still there, to be seen
   EXPECT_TRUE(sim_->paused());
   EXPECT_EQ(probe_->resets, 0);
   sim_->process_requests();
@@ -315,7 +323,8 @@ TEST_F(SimDivergencePauseTest, TheStepIsUndoneAndTheSimulationPausesTellingEvery
   EXPECT_GT(sim_->d()->qpos[qpos_of("robot_root")], x);
 }
 
-TEST_F(SimDivergencePauseTest, SubscribersOfTheEventStreamHearOfTheDivergenceThenOfThePauseAndOfThePlay) {
+TEST_F(SimDivergencePauseTest,
+       SubscribersOfTheEventStreamHearOfTheDivergenceThenOfThePauseAndOfThePlay) {
   auto events = subscribe_to_events();
   run_for(0.2);
   const double before = sim_->sim_time();
@@ -345,7 +354,8 @@ TEST_F(SimDivergencePauseTest, AStepRequestThatDivergesEndsFailedWithTheStepsLef
   corrupt([&](mjData* d) { d->qpos[qpos_of("robot_root")] = 1e11; });
   RequestId stepping = rm_->call("simulation", "step", {100});
   sim_->process_requests();
-  for (int i = 0; i < 10 && sim_->owed_steps() > 0; ++i) sim_->take_owed_steps(std::chrono::steady_clock::now());
+  for (int i = 0; i < 10 && sim_->owed_steps() > 0; ++i)
+    sim_->take_owed_steps(std::chrono::steady_clock::now());
   auto o = rm_->outcome(stepping);
   ASSERT_TRUE(o.has_value());
   EXPECT_EQ(o->status, Status::failed);
@@ -372,7 +382,8 @@ TEST_F(SimDivergenceRestoreTest, TheLastCheckpointIsPutBackAndTheSimulationGoesO
   json last = simulation_state()["last_divergence"];
   EXPECT_EQ(last["action"], "restore");
   EXPECT_NEAR(last["resumed_at"].get<double>(), 1.0, 2 * sim_->timestep());
-  EXPECT_THAT(warnings_with("simulation: bad state").at(0), HasSubstr("went back to its checkpoint of t=1"));
+  EXPECT_THAT(warnings_with("simulation: bad state").at(0),
+              HasSubstr("went back to its checkpoint of t=1"));
   run_for(0.1);
   EXPECT_GT(sim_->sim_time(), 1.05);
 }

@@ -20,12 +20,18 @@ inline std::vector<std::uint8_t> decode_base64(const std::string& text) {
   int count = 0;
   for (char ch : text) {
     int v;
-    if (ch >= 'A' && ch <= 'Z') v = ch - 'A';
-    else if (ch >= 'a' && ch <= 'z') v = ch - 'a' + 26;
-    else if (ch >= '0' && ch <= '9') v = ch - '0' + 52;
-    else if (ch == '+') v = 62;
-    else if (ch == '/') v = 63;
-    else break;
+    if (ch >= 'A' && ch <= 'Z')
+      v = ch - 'A';
+    else if (ch >= 'a' && ch <= 'z')
+      v = ch - 'a' + 26;
+    else if (ch >= '0' && ch <= '9')
+      v = ch - '0' + 52;
+    else if (ch == '+')
+      v = 62;
+    else if (ch == '/')
+      v = 63;
+    else
+      break;
     bits = (bits << 6) | static_cast<std::uint32_t>(v);
     count += 6;
     if (count >= 8) {
@@ -44,13 +50,15 @@ struct DecodedPng {
 };
 
 inline std::uint32_t read_u32(const std::uint8_t* p) {
-  return (std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) | (std::uint32_t{p[2]} << 8) | p[3];
+  return (std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) | (std::uint32_t{p[2]} << 8) |
+         p[3];
 }
 
 inline DecodedPng decode_png(const std::vector<std::uint8_t>& file) {
   DecodedPng png;
   static const std::uint8_t signature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
-  if (file.size() < 8 || std::memcmp(file.data(), signature, 8) != 0) return png.error = "no PNG signature", png;
+  if (file.size() < 8 || std::memcmp(file.data(), signature, 8) != 0)
+    return png.error = "no PNG signature", png;
   std::vector<std::uint8_t> packed;
   bool ended = false;
   for (std::size_t at = 8; at < file.size() && !ended;) {
@@ -68,7 +76,8 @@ inline DecodedPng decode_png(const std::vector<std::uint8_t>& file) {
       png.height = static_cast<int>(read_u32(data + 4));
       png.bit_depth = data[8];
       png.colour_type = data[9];
-      if (data[10] != 0 || data[11] != 0 || data[12] != 0) return png.error = "unexpected IHDR methods", png;
+      if (data[10] != 0 || data[11] != 0 || data[12] != 0)
+        return png.error = "unexpected IHDR methods", png;
     } else if (type == "IDAT") {
       packed.insert(packed.end(), data, data + length);
     } else if (type == "IEND") {
@@ -82,11 +91,13 @@ inline DecodedPng decode_png(const std::vector<std::uint8_t>& file) {
   const std::size_t row = static_cast<std::size_t>(png.width) * channels * (png.bit_depth / 8);
   std::vector<std::uint8_t> raw((row + 1) * static_cast<std::size_t>(png.height));
   uLongf raw_size = raw.size();
-  if (uncompress(raw.data(), &raw_size, packed.data(), packed.size()) != Z_OK || raw_size != raw.size())
+  if (uncompress(raw.data(), &raw_size, packed.data(), packed.size()) != Z_OK ||
+      raw_size != raw.size())
     return png.error = "IDAT does not inflate to the image's size", png;
   for (int y = 0; y < png.height; ++y) {
     const std::uint8_t* r = &raw[static_cast<std::size_t>(y) * (row + 1)];
-    if (r[0] != 0) return png.error = "filter type " + std::to_string(r[0]) + " (only None is written)", png;
+    if (r[0] != 0)
+      return png.error = "filter type " + std::to_string(r[0]) + " (only None is written)", png;
     png.pixels.insert(png.pixels.end(), r + 1, r + 1 + row);
   }
   return png;

@@ -16,14 +16,15 @@
 namespace simgate::sim {
 namespace {
 
-using testing::DecodedPng;
 using testing::decode_base64;
 using testing::decode_png;
+using testing::DecodedPng;
 
-const std::string k_camera_raw_scene = simgate::testing::red_box_scene("camera-raw-test", "0.01", "10", /*eye_site=*/true);
+const std::string k_camera_raw_scene =
+    simgate::testing::red_box_scene("camera-raw-test", "0.01", "10", /*eye_site=*/true);
 using simgate::testing::is_red;
-using simgate::testing::k_render_deadline;
 using simgate::testing::k_red_box_face;
+using simgate::testing::k_render_deadline;
 
 class CameraRawTest : public testing::MjcfSim {
  protected:
@@ -67,14 +68,16 @@ void expect_raw_video(const json& record, const std::shared_ptr<const StreamPayl
   EXPECT_EQ(full["format"], "png");
   const DecodedPng png = decode_png(decode_base64(full["image"].get<std::string>()));
   ASSERT_TRUE(png.error.empty()) << png.error;
-  EXPECT_TRUE(std::equal(png.pixels.begin(), png.pixels.end(), pixels->bytes.begin(), pixels->bytes.end()));
+  EXPECT_TRUE(
+      std::equal(png.pixels.begin(), png.pixels.end(), pixels->bytes.begin(), pixels->bytes.end()));
   full.erase("image");
   full["format"] = "raw";
   EXPECT_EQ(full, record);
 }
 
 TEST_F(CameraRawTest, ACallerTakingAttachmentsRawGetsRecordsWithoutPngAndThePixelsBeside) {
-  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 64}, {"cam_height", 48}});
+  add_component(*robot_, "camera", "video_camera",
+                {{"camera", "front"}, {"cam_width", 64}, {"cam_height", 48}});
   serve();
   // get_local_data's first image (rendered now), get_image's, a capture's two, the last one
   const Outcome first = raw("get_local_data");
@@ -98,7 +101,8 @@ TEST_F(CameraRawTest, ACallerTakingAttachmentsRawGetsRecordsWithoutPngAndThePixe
 }
 
 TEST_F(CameraRawTest, CallersNotTakingThemRawStillGetPngsWhateverTheRawCallersGotBefore) {
-  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 64}, {"cam_height", 48}});
+  add_component(*robot_, "camera", "video_camera",
+                {{"camera", "front"}, {"cam_width", 64}, {"cam_height", 48}});
   serve();
   const Outcome raw_image = raw("get_image");
   ASSERT_EQ(raw_image.status, Status::success) << raw_image.message;
@@ -108,7 +112,8 @@ TEST_F(CameraRawTest, CallersNotTakingThemRawStillGetPngsWhateverTheRawCallersGo
   ASSERT_EQ(local.status, Status::success) << local.message;
   ASSERT_TRUE(local.value->contains("image")) << local.value->dump();
   EXPECT_EQ((*local.value)["format"], "png");
-  EXPECT_GE((*local.value)["timestamp"].get<double>(), (*raw_image.value)["timestamp"].get<double>());
+  EXPECT_GE((*local.value)["timestamp"].get<double>(),
+            (*raw_image.value)["timestamp"].get<double>());
   const DecodedPng decoded = decode_png(decode_base64((*local.value)["image"].get<std::string>()));
   ASSERT_TRUE(decoded.error.empty()) << decoded.error;
   EXPECT_TRUE(is_red(&decoded.pixels[(24 * 64 + 32) * 3]));
@@ -133,7 +138,11 @@ TEST_F(CameraRawTest, CallersNotTakingThemRawStillGetPngsWhateverTheRawCallersGo
 
 TEST_F(CameraRawTest, ADepthRecordTakenRawKeepsItsDepthsAndItsPngComesOnDemand) {
   add_component(*robot_, "camera", "depth_camera",
-                {{"site", "eye"}, {"cam_width", 160}, {"cam_height", 120}, {"cam_near", 0.05}, {"cam_far", 20}});
+                {{"site", "eye"},
+                 {"cam_width", 160},
+                 {"cam_height", 120},
+                 {"cam_near", 0.05},
+                 {"cam_far", 20}});
   serve();
   const Outcome o = raw("get_image");
   ASSERT_EQ(o.status, Status::success) << o.message;

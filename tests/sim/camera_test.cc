@@ -22,17 +22,18 @@
 namespace simgate::sim {
 namespace {
 
-using ::testing::HasSubstr;
-using testing::DecodedPng;
-using testing::decode_png;
 using testing::decode_base64;
+using testing::decode_png;
+using testing::DecodedPng;
+using ::testing::HasSubstr;
 
 // A rig 0.5 m above a grey floor, looking along +x (MJCF camera "front", and site "eye"
 // for a frame camera); a red box whose near face is at x = 1.7 m, centred on the axis.
-const std::string k_camera_scene = simgate::testing::red_box_scene("camera-test", "0.01", "10", /*eye_site=*/true);
+const std::string k_camera_scene =
+    simgate::testing::red_box_scene("camera-test", "0.01", "10", /*eye_site=*/true);
 using simgate::testing::is_red;
-using simgate::testing::k_render_deadline;
 using simgate::testing::k_red_box_face;
+using simgate::testing::k_render_deadline;
 
 class CameraTest : public testing::MjcfSim {
  protected:
@@ -97,7 +98,8 @@ int gray16_at(const DecodedPng& png, int x, int y) {
 }
 
 TEST_F(CameraTest, RedBoxInFrontIsRedInTheMiddle) {
-  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 320}, {"cam_height", 240}});
+  add_component(*robot_, "camera", "video_camera",
+                {{"camera", "front"}, {"cam_width", 320}, {"cam_height", 240}});
   serve();
   const json record = image_of("rig.camera");
   ASSERT_TRUE(record.is_object()) << record.dump();
@@ -110,7 +112,8 @@ TEST_F(CameraTest, RedBoxInFrontIsRedInTheMiddle) {
   EXPECT_EQ(png.height, 240);
   EXPECT_EQ(png.bit_depth, 8);
   EXPECT_EQ(png.colour_type, 2);
-  EXPECT_TRUE(is_red(rgb_at(png, 160, 120))) << rgb_at(png, 160, 120)[0] << " " << rgb_at(png, 160, 120)[1];
+  EXPECT_TRUE(is_red(rgb_at(png, 160, 120)))
+      << rgb_at(png, 160, 120)[0] << " " << rgb_at(png, 160, 120)[1];
   // the box spans atan(0.3 / 1.7) = 10° each side of the axis: the image's corners are not red
   EXPECT_FALSE(is_red(rgb_at(png, 5, 5)));
   EXPECT_FALSE(is_red(rgb_at(png, 314, 234)));
@@ -123,7 +126,8 @@ TEST_F(CameraTest, RedBoxInFrontIsRedInTheMiddle) {
 }
 
 TEST_F(CameraTest, IntrinsicsFollowTheFieldOfView) {
-  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 320}, {"cam_height", 240}});
+  add_component(*robot_, "camera", "video_camera",
+                {{"camera", "front"}, {"cam_width", 320}, {"cam_height", 240}});
   serve();
   const json props = value("rig.camera", "get_properties")["properties"];
   // MJCF fovy 60°: fy = 120 / tan(30°)
@@ -140,7 +144,8 @@ TEST_F(CameraTest, IntrinsicsFollowTheFieldOfView) {
 }
 
 TEST_F(CameraTest, FrameCameraOnASiteLooksAlongItsX) {
-  add_component(*robot_, "eye", "video_camera", {{"site", "eye"}, {"cam_width", 64}, {"cam_height", 48}});
+  add_component(*robot_, "eye", "video_camera",
+                {{"site", "eye"}, {"cam_width", 64}, {"cam_height", 48}});
   serve();
   const json record = image_of("rig.eye");
   const DecodedPng png = decode_png(decode_base64(record["image"].get<std::string>()));
@@ -156,16 +161,23 @@ TEST_F(CameraTest, ACameraWithNoSiteWarnsThatItLooksOutFromInsideItsBody) {
     if (level == log::Level::warning) warnings.emplace_back(text);
   });
   add_component(*robot_, "inside", "video_camera", {{"cam_width", 16}, {"cam_height", 16}}, "rig");
-  add_component(*robot_, "eye", "video_camera", {{"site", "eye"}, {"cam_width", 16}, {"cam_height", 16}});
+  add_component(*robot_, "eye", "video_camera",
+                {{"site", "eye"}, {"cam_width", 16}, {"cam_height", 16}});
   log::set_sink({});
   ASSERT_EQ(warnings.size(), 1u) << ::testing::PrintToString(warnings);
-  EXPECT_THAT(warnings[0], HasSubstr("camera 'rig.inside': no `site` and no `camera`: it looks out from the origin "
-                                     "of body 'rig'"));
+  EXPECT_THAT(
+      warnings[0],
+      HasSubstr("camera 'rig.inside': no `site` and no `camera`: it looks out from the origin "
+                "of body 'rig'"));
 }
 
 TEST_F(CameraTest, DepthOfTheBoxFaceIsItsDistance) {
   add_component(*robot_, "depth", "depth_camera",
-                {{"site", "eye"}, {"cam_width", 160}, {"cam_height", 120}, {"cam_near", 0.05}, {"cam_far", 20}});
+                {{"site", "eye"},
+                 {"cam_width", 160},
+                 {"cam_height", 120},
+                 {"cam_near", 0.05},
+                 {"cam_far", 20}});
   serve();
   const json record = image_of("rig.depth");
   ASSERT_TRUE(record.is_object()) << record.dump();
@@ -186,7 +198,8 @@ TEST_F(CameraTest, DepthOfTheBoxFaceIsItsDistance) {
 }
 
 TEST_F(CameraTest, CaptureCompletesWithNImagesAfterEnoughSteps) {
-  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 32}, {"cam_height", 24}});
+  add_component(*robot_, "camera", "video_camera",
+                {{"camera", "front"}, {"cam_width", 32}, {"cam_height", 24}});
   serve();
   const RequestId id = rm_->call("rig.camera", "capture", {3});
   const Outcome o = wait_for(id);
@@ -194,7 +207,8 @@ TEST_F(CameraTest, CaptureCompletesWithNImagesAfterEnoughSteps) {
   ASSERT_TRUE(o.value && o.value->is_array()) << o.value.value_or(json()).dump();
   ASSERT_EQ(o.value->size(), 3u);
   // one per 1/frequency (20 Hz by default) of simulated time
-  const double t0 = (*o.value)[0]["timestamp"], t1 = (*o.value)[1]["timestamp"], t2 = (*o.value)[2]["timestamp"];
+  const double t0 = (*o.value)[0]["timestamp"], t1 = (*o.value)[1]["timestamp"],
+               t2 = (*o.value)[2]["timestamp"];
   EXPECT_NEAR(t1 - t0, 0.05, 0.011);
   EXPECT_NEAR(t2 - t1, 0.05, 0.011);
   for (const json& image : *o.value) {
@@ -208,7 +222,8 @@ TEST_F(CameraTest, CaptureCompletesWithNImagesAfterEnoughSteps) {
 }
 
 TEST_F(CameraTest, SecondCapturePreemptsTheFirst) {
-  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 16}, {"cam_height", 16}});
+  add_component(*robot_, "camera", "video_camera",
+                {{"camera", "front"}, {"cam_width", 16}, {"cam_height", 16}});
   serve();
   const RequestId first = rm_->call("rig.camera", "capture", {50});
   sim_->process_requests();
@@ -221,7 +236,8 @@ TEST_F(CameraTest, SecondCapturePreemptsTheFirst) {
 }
 
 TEST_F(CameraTest, ACancelledCaptureEndsPreemptedAndTheNextOneWorks) {
-  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 16}, {"cam_height", 16}});
+  add_component(*robot_, "camera", "video_camera",
+                {{"camera", "front"}, {"cam_width", 16}, {"cam_height", 16}});
   serve();
   const RequestId first = rm_->call("rig.camera", "capture", {50});
   sim_->process_requests();
@@ -235,7 +251,8 @@ TEST_F(CameraTest, ACancelledCaptureEndsPreemptedAndTheNextOneWorks) {
 }
 
 TEST_F(CameraTest, GetLocalDataRendersTheFirstImage) {
-  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 16}, {"cam_height", 16}});
+  add_component(*robot_, "camera", "video_camera",
+                {{"camera", "front"}, {"cam_width", 16}, {"cam_height", 16}});
   serve();
   const Outcome o = wait_for(rm_->call("rig.camera", "get_local_data"));
   ASSERT_EQ(o.status, Status::success) << o.message;
@@ -263,11 +280,13 @@ void expect_red_attachment(const Outcome& o, std::size_t i, const json& record) 
   // the same image as the record's PNG
   const DecodedPng png = decode_png(decode_base64(record["image"].get<std::string>()));
   ASSERT_TRUE(png.error.empty()) << png.error;
-  EXPECT_TRUE(std::equal(png.pixels.begin(), png.pixels.end(), pixels.bytes.begin(), pixels.bytes.end()));
+  EXPECT_TRUE(
+      std::equal(png.pixels.begin(), png.pixels.end(), pixels.bytes.begin(), pixels.bytes.end()));
 }
 
 TEST_F(CameraTest, RepliesCarryTheRawPixelsOfTheirImagesAsAttachments) {
-  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 64}, {"cam_height", 48}});
+  add_component(*robot_, "camera", "video_camera",
+                {{"camera", "front"}, {"cam_width", 64}, {"cam_height", 48}});
   serve();
   // get_local_data's first image (rendered now), get_image's, and a capture's two
   const Outcome first = wait_for(rm_->call("rig.camera", "get_local_data"));
@@ -292,7 +311,8 @@ TEST_F(CameraTest, RepliesCarryTheRawPixelsOfTheirImagesAsAttachments) {
 }
 
 TEST_F(CameraTest, GetLocalDatasFirstImageRendersWhilePhysicsKeepsStepping) {
-  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 16}, {"cam_height", 16}});
+  add_component(*robot_, "camera", "video_camera",
+                {{"camera", "front"}, {"cam_width", 16}, {"cam_height", 16}});
   serve();
   auto renderer = Renderer::shared();
   if (!renderer->unavailable().empty()) GTEST_SKIP() << renderer->unavailable();
@@ -333,19 +353,27 @@ TEST_F(CameraTest, CaptureRefusesABadCount) {
 }
 
 TEST_F(CameraTest, BadOptionsAreRefusedNamingTheOption) {
-  EXPECT_THAT(config_error(*robot_, "video_camera", {{"cam_width", 0}, {"camera", "front"}}), HasSubstr("options.cam_width"));
-  EXPECT_THAT(config_error(*robot_, "depth_camera", {{"cam_height", -3}, {"camera", "front"}}), HasSubstr("options.cam_height"));
+  EXPECT_THAT(config_error(*robot_, "video_camera", {{"cam_width", 0}, {"camera", "front"}}),
+              HasSubstr("options.cam_width"));
+  EXPECT_THAT(config_error(*robot_, "depth_camera", {{"cam_height", -3}, {"camera", "front"}}),
+              HasSubstr("options.cam_height"));
   const std::string unknown = config_error(*robot_, "video_camera", {{"camera", "back"}});
   EXPECT_THAT(unknown, HasSubstr("options.camera"));
   EXPECT_THAT(unknown, HasSubstr("front"));  // the cameras the scene has
-  EXPECT_THAT(config_error(*robot_, "video_camera", {{"cam_fovy", 180}, {"camera", "front"}}), HasSubstr("options.cam_fovy"));
-  EXPECT_THAT(config_error(*robot_, "video_camera", {{"cam_near", 2}, {"cam_far", 1}, {"camera", "front"}}), HasSubstr("options.cam_far"));
-  EXPECT_THAT(config_error(*robot_, "video_camera", {{"cam_fovy", 40}, {"cam_focal", 25}, {"camera", "front"}}),
+  EXPECT_THAT(config_error(*robot_, "video_camera", {{"cam_fovy", 180}, {"camera", "front"}}),
+              HasSubstr("options.cam_fovy"));
+  EXPECT_THAT(
+      config_error(*robot_, "video_camera", {{"cam_near", 2}, {"cam_far", 1}, {"camera", "front"}}),
+      HasSubstr("options.cam_far"));
+  EXPECT_THAT(config_error(*robot_, "video_camera",
+                           {{"cam_fovy", 40}, {"cam_focal", 25}, {"camera", "front"}}),
               HasSubstr("options.cam_focal"));
   EXPECT_THAT(config_error(*robot_, "video_camera", {{"site", "nowhere"}}), HasSubstr("site"));
-  EXPECT_THAT(config_error(*robot_, "video_camera", {{"camera", "front"}, {"site", "eye"}}), HasSubstr("options.site"));
+  EXPECT_THAT(config_error(*robot_, "video_camera", {{"camera", "front"}, {"site", "eye"}}),
+              HasSubstr("options.site"));
   // a misspelt option is not ignored
-  EXPECT_THAT(config_error(*robot_, "video_camera", {{"camera", "front"}, {"cam_widht", 10}}), HasSubstr("cam_widht"));
+  EXPECT_THAT(config_error(*robot_, "video_camera", {{"camera", "front"}, {"cam_widht", 10}}),
+              HasSubstr("cam_widht"));
 }
 
 TEST_F(CameraTest, WithoutGlTheServicesFailWithTheReason) {
@@ -369,23 +397,28 @@ TEST_F(CameraTest, WithoutGlTheServicesFailWithTheReason) {
 }
 
 TEST_F(CameraTest, ASpawnedBodyIsSeenAndADeletedOneIsGone) {
-  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 64}, {"cam_height", 48}});
+  add_component(*robot_, "camera", "video_camera",
+                {{"camera", "front"}, {"cam_width", 64}, {"cam_height", 48}});
   serve();
   auto centre = [&] {
-    const DecodedPng png = decode_png(decode_base64(image_of("rig.camera")["image"].get<std::string>()));
+    const DecodedPng png =
+        decode_png(decode_base64(image_of("rig.camera")["image"].get<std::string>()));
     EXPECT_TRUE(png.error.empty()) << png.error;
     return png.error.empty() ? rgb_at(png, 32, 24) : std::array<int, 3>{};
   };
   ASSERT_TRUE(is_red(centre()));  // the context is made from the first model
   // a green box between the camera and the red one: the model is replaced
   const std::uint64_t generation = sim_->model_generation();
-  const Outcome spawned = wait_for(rm_->call(
-      "simulation", "spawn_entity",
-      {"green", R"(<body><geom type="box" size="0.1 0.1 0.1" rgba="0 1 0 1"/></body>)", {1.0, 0.0, 0.5}}));
+  const Outcome spawned =
+      wait_for(rm_->call("simulation", "spawn_entity",
+                         {"green",
+                          R"(<body><geom type="box" size="0.1 0.1 0.1" rgba="0 1 0 1"/></body>)",
+                          {1.0, 0.0, 0.5}}));
   ASSERT_EQ(spawned.status, Status::success) << spawned.message;
   ASSERT_GT(sim_->model_generation(), generation);
   const auto green = centre();
-  EXPECT_TRUE(green[1] > 100 && green[1] > 3 * green[0]) << green[0] << " " << green[1] << " " << green[2];
+  EXPECT_TRUE(green[1] > 100 && green[1] > 3 * green[0])
+      << green[0] << " " << green[1] << " " << green[2];
   // deleted: red again
   const Outcome deleted = wait_for(rm_->call("simulation", "delete_entity", {"green"}));
   ASSERT_EQ(deleted.status, Status::success) << deleted.message;
@@ -395,7 +428,8 @@ TEST_F(CameraTest, ASpawnedBodyIsSeenAndADeletedOneIsGone) {
 // ---- the image stream ----
 
 TEST_F(CameraTest, TheImageStreamGivesRawPixelsAndPngRecordsOfTheRedBoxAtItsFrequency) {
-  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 64}, {"cam_height", 48}});
+  add_component(*robot_, "camera", "video_camera",
+                {{"camera", "front"}, {"cam_width", 64}, {"cam_height", 48}});
   serve();
   stream_camera();
   if (!Renderer::shared()->unavailable().empty()) GTEST_SKIP() << Renderer::shared()->unavailable();
@@ -442,11 +476,13 @@ TEST_F(CameraTest, TheImageStreamGivesRawPixelsAndPngRecordsOfTheRedBoxAtItsFreq
       EXPECT_NEAR(gap, 0.05, 1e-9);
     }
   }
-  std::cout << "[ info     ] stream images skipped (render thread behind): " << camera().stream_skipped() << "\n";
+  std::cout << "[ info     ] stream images skipped (render thread behind): "
+            << camera().stream_skipped() << "\n";
 }
 
 TEST_F(CameraTest, StreamImagesSkippedWhileTheRenderThreadIsBusyAreCountedInTheStatistics) {
-  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 16}, {"cam_height", 16}});
+  add_component(*robot_, "camera", "video_camera",
+                {{"camera", "front"}, {"cam_width", 16}, {"cam_height", 16}});
   serve();
   stream_camera();
   auto renderer = Renderer::shared();
@@ -486,7 +522,8 @@ TEST_F(CameraTest, StreamImagesSkippedWhileTheRenderThreadIsBusyAreCountedInTheS
 }
 
 TEST_F(CameraTest, TheDepthStreamGivesMetresAsFloatsAndTheMillimetrePngOnAsking) {
-  add_component(*robot_, "depth", "depth_camera", {{"camera", "front"}, {"cam_width", 40}, {"cam_height", 30}});
+  add_component(*robot_, "depth", "depth_camera",
+                {{"camera", "front"}, {"cam_width", 40}, {"cam_height", 30}});
   serve();
   const ComponentEntry* entry = sim_->find("rig.depth");
   sim_->streams().add(*entry->component, entry->type, {"test"});
@@ -510,7 +547,8 @@ TEST_F(CameraTest, TheDepthStreamGivesMetresAsFloatsAndTheMillimetrePngOnAsking)
 }
 
 TEST_F(CameraTest, WithoutASubscriberTheStreamRendersNothing) {
-  add_component(*robot_, "camera", "video_camera", {{"camera", "front"}, {"cam_width", 32}, {"cam_height", 24}});
+  add_component(*robot_, "camera", "video_camera",
+                {{"camera", "front"}, {"cam_width", 32}, {"cam_height", 24}});
   serve();
   stream_camera();
   auto renderer = Renderer::shared();
@@ -561,8 +599,10 @@ TEST_F(CameraTest, PrintsTheTimeOfA320x240Render) {
     constexpr int k_copies = 200;
     const auto start = std::chrono::steady_clock::now();
     for (int i = 0; i < k_copies; ++i) scene.update(sim_->m(), sim_->d(), view, 0);
-    const double us = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();
-    std::printf("[ measure  ] scene copy under the lock (%d geoms): %.1f us\n", scene.scene()->ngeom, us / k_copies);
+    const double us =
+        std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();
+    std::printf("[ measure  ] scene copy under the lock (%d geoms): %.1f us\n",
+                scene.scene()->ngeom, us / k_copies);
   }
   constexpr int k_frames = 20;
   std::mutex mutex;
@@ -581,9 +621,11 @@ TEST_F(CameraTest, PrintsTheTimeOfA320x240Render) {
   }
   std::unique_lock lock(mutex);
   ASSERT_TRUE(cv.wait_for(lock, k_render_deadline, [&] { return done == k_frames; }));
-  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-  std::printf("[ measure  ] 320x240 render + readPixels (llvmpipe): %.2f ms per frame over %d frames\n",
-              ms / k_frames, k_frames);
+  const double ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  std::printf(
+      "[ measure  ] 320x240 render + readPixels (llvmpipe): %.2f ms per frame over %d frames\n",
+      ms / k_frames, k_frames);
 }
 
 }  // namespace

@@ -14,12 +14,14 @@ class SimCapabilitiesTest : public DemoSim {
  protected:
   std::set<std::string> simulation_services() {
     std::set<std::string> names;
-    for (const auto& s : sim_->find("simulation")->component->services()) names.insert(s->descriptor().name);
+    for (const auto& s : sim_->find("simulation")->component->services())
+      names.insert(s->descriptor().name);
     return names;
   }
 };
 
-TEST_F(SimCapabilitiesTest, EveryListedFeatureHasItsServicesAndEveryFeatureWhoseServicesExistIsListed) {
+TEST_F(SimCapabilitiesTest,
+       EveryListedFeatureHasItsServicesAndEveryFeatureWhoseServicesExistIsListed) {
   json caps = *call("simulation", "get_capabilities").value;
   ASSERT_TRUE(caps["features"].is_array());
   const std::set<std::string> offered = simulation_services();
@@ -27,14 +29,16 @@ TEST_F(SimCapabilitiesTest, EveryListedFeatureHasItsServicesAndEveryFeatureWhose
   for (const json& f : caps["features"]) {
     ids.insert(f["id"].get<int>());
     ASSERT_FALSE(f["services"].empty()) << f.dump();
-    for (const json& s : f["services"]) EXPECT_TRUE(offered.count(s.get<std::string>())) << f.dump();
+    for (const json& s : f["services"])
+      EXPECT_TRUE(offered.count(s.get<std::string>())) << f.dump();
   }
   // the stepping, state and spawning features, by their services
   EXPECT_EQ(ids.count(31) == 1, offered.count("step") == 1);
   EXPECT_EQ(ids.count(26) == 1, offered.count("pause") == 1);
   EXPECT_EQ(ids.count(10) == 1, offered.count("get_entity_state") == 1);
   EXPECT_EQ(ids.count(0) == 1, offered.count("spawn_entity") == 1);
-  EXPECT_EQ(caps["spawn_formats"], offered.count("spawn_entity") ? json({"mjcf", "urdf"}) : json::array());
+  EXPECT_EQ(caps["spawn_formats"],
+            offered.count("spawn_entity") ? json({"mjcf", "urdf"}) : json::array());
 }
 
 TEST_F(SimCapabilitiesTest, TheWorldControlGroupsOfferEveryFeatureSimgateHas) {

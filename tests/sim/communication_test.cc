@@ -15,7 +15,8 @@ using ::testing::HasSubstr;
 class SimCommunicationTest : public DemoSim {
  protected:
   void place(const std::string& body, json position) {
-    ASSERT_EQ(call("simulation", "set_object_position", {body, std::move(position)}).status, Status::success);
+    ASSERT_EQ(call("simulation", "set_object_position", {body, std::move(position)}).status,
+              Status::success);
   }
   json distance_and_view(const std::string& a, const std::string& b) {
     Outcome o = call("communication", "distance_and_view", {a, b});
@@ -52,7 +53,8 @@ TEST_F(SimCommunicationTest, ARobotsOwnBodiesDoNotHideIt) {
   const Eigen::Vector3d from = body_position(*sim_, sim_->model().body_id("robot"));
   Eigen::Vector3d segment = body_position(*sim_, sim_->model().body_id("human")) - from;
   int geom = -1;
-  ASSERT_GE(mj_ray(sim_->m(), sim_->d(), from.data(), segment.data(), nullptr, 1, sim_->model().body_id("robot"), &geom, nullptr),
+  ASSERT_GE(mj_ray(sim_->m(), sim_->d(), from.data(), segment.data(), nullptr, 1,
+                   sim_->model().body_id("robot"), &geom, nullptr),
             0);
   ASSERT_EQ(sim_->m()->geom_bodyid[geom], wheel) << "the scene no longer tests what it should";
   EXPECT_EQ(distance_and_view("robot", "human")[1], true);
@@ -71,10 +73,12 @@ TEST_F(SimCommunicationTest, UnknownRobotsAndMissingArgumentsAreRefused) {
   // a body that is not a robot, and a component that is not one either
   EXPECT_EQ(call("communication", "distance_and_view", {"crate1", "robot"}).message,
             "crate1 does not exist in the simulation ");
-  EXPECT_EQ(call("communication", "distance_and_view", {"robot.motion", "robot"}).status, Status::failed);
+  EXPECT_EQ(call("communication", "distance_and_view", {"robot.motion", "robot"}).status,
+            Status::failed);
   Outcome none = call("communication", "distance_and_view", json::array());
   EXPECT_EQ(none.status, Status::failed);
-  EXPECT_THAT(none.message, HasSubstr("parameters expected for service communication.distance_and_view!"));
+  EXPECT_THAT(none.message,
+              HasSubstr("parameters expected for service communication.distance_and_view!"));
 }
 
 }  // namespace

@@ -132,7 +132,8 @@ TEST_F(SimComponentsTest, TeleportTranslatesAndRotates) {
   EXPECT_NEAR(p["y"].get<double>(), 2.0, 1e-6);
   EXPECT_EQ(call("robot.teleport", "rotate", {0.0, 0.0, 0.5}).status, Status::success);
   EXPECT_NEAR(pose()["yaw"].get<double>(), 0.5, 1e-6);
-  EXPECT_EQ(call("robot.teleport", "translate", json::array()).status, Status::failed);  // x is required
+  EXPECT_EQ(call("robot.teleport", "translate", json::array()).status,
+            Status::failed);  // x is required
 }
 
 TEST_F(SimComponentsTest, PoseReportsPositionAndOrientation) {

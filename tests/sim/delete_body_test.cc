@@ -84,31 +84,36 @@ class SimDeleteBodyTest : public ::testing::Test {
 
   void build(const std::string& xml, const std::string& path = "") {
     rm_.reset();
-    Model model = path.empty() ? Model::load_string(xml, "delete_test.xml") : Model::load_file(path);
+    Model model =
+        path.empty() ? Model::load_string(xml, "delete_test.xml") : Model::load_file(path);
     sim_ = std::make_unique<Simulation>(std::move(model), SimulationOptions{std::nullopt, 0.0});
     auto registry = builtin_registry();
-    auto robot = registry.create(Kind::robot, {"robot", "ground_robot", "robot", "robots[0]"}, json::object(), *sim_,
-                                 nullptr);
+    auto robot = registry.create(Kind::robot, {"robot", "ground_robot", "robot", "robots[0]"},
+                                 json::object(), *sim_, nullptr);
     auto* r = static_cast<Robot*>(robot.get());
     sim_->add_component(std::move(robot), "ground_robot", "", true);
     int i = 0;
     for (auto type : {"motion_vw", "pose", "sensors", "armature_pose", "waypoint"}) {
       std::string short_name = type == std::string("motion_vw") ? "motion" : type;
       const std::string path = "robots[0].components[" + std::to_string(i++) + "]";
-      auto c = registry.create(Kind::component, {"robot." + short_name, type, "robot", path}, json::object(), *sim_, r);
+      auto c = registry.create(Kind::component, {"robot." + short_name, type, "robot", path},
+                               json::object(), *sim_, r);
       sim_->add_component(std::move(c), type, "robot");
     }
     // a component of the robot bound to a body of the scene outside the robot
-    sim_->add_component(registry.create(Kind::component, {"robot.ball_pose", "pose", "ball", "robots[0].components[5]"},
-                                        json::object(), *sim_, r),
-                        "pose", "robot");
+    sim_->add_component(
+        registry.create(Kind::component,
+                        {"robot.ball_pose", "pose", "ball", "robots[0].components[5]"},
+                        json::object(), *sim_, r),
+        "pose", "robot");
     add_world_components(*sim_);
     rm_ = std::make_shared<testing::RecordingManager>();
     for (auto& e : sim_->components()) rm_->register_component(*e->component);
     sim_->add_request_manager(rm_, "test");
   }
 
-  Outcome call(const std::string& component, const std::string& service, json params = json::array()) {
+  Outcome call(const std::string& component, const std::string& service,
+               json params = json::array()) {
     RequestId id = rm_->call(component, service, std::move(params));
     sim_->process_requests();
     return rm_->outcome(id).value_or(Outcome::failed(Failure::internal, "no answer"));
@@ -163,10 +168,15 @@ TEST_F(SimDeleteBodyTest, DeletingASceneBodyRemovesItAndWhatRefersToIt) {
   EXPECT_EQ(body("table"), -1);
   EXPECT_EQ(body("lamp"), -1);
   const mjModel* m = sim_->m();
-  for (auto [type, name] : {std::pair{mjOBJ_JOINT, "table_slide"}, {mjOBJ_JOINT, "lamp_hinge"},
-                            {mjOBJ_GEOM, "lamp_geom"}, {mjOBJ_SITE, "table_site"}, {mjOBJ_TENDON, "table_tendon"},
-                            {mjOBJ_ACTUATOR, "table_motor"}, {mjOBJ_ACTUATOR, "tendon_motor"},
-                            {mjOBJ_SENSOR, "table_position"}, {mjOBJ_SENSOR, "tendon_force"}})
+  for (auto [type, name] : {std::pair{mjOBJ_JOINT, "table_slide"},
+                            {mjOBJ_JOINT, "lamp_hinge"},
+                            {mjOBJ_GEOM, "lamp_geom"},
+                            {mjOBJ_SITE, "table_site"},
+                            {mjOBJ_TENDON, "table_tendon"},
+                            {mjOBJ_ACTUATOR, "table_motor"},
+                            {mjOBJ_ACTUATOR, "tendon_motor"},
+                            {mjOBJ_SENSOR, "table_position"},
+                            {mjOBJ_SENSOR, "tendon_force"}})
     EXPECT_EQ(mj_name2id(m, type, name), -1) << name;
   EXPECT_EQ(m->neq, 0);
   EXPECT_EQ(m->nexclude, 0);
@@ -223,9 +233,11 @@ TEST_F(SimDeleteBodyTest, TheRobotAfterTheDeletedBodyStillReadsAndDrivesItsObjec
 }
 
 TEST_F(SimDeleteBodyTest, ASpawnedEntityAfterTheSceneMovesToo) {
-  const Outcome spawned = answer_without_stepping(rm_->call(
-      "simulation", "spawn_entity",
-      {"crate", "<body><freejoint/><geom type='box' size='0.1 0.1 0.1' mass='1'/></body>", {2.0, -2.0, 0.1}}));
+  const Outcome spawned = answer_without_stepping(
+      rm_->call("simulation", "spawn_entity",
+                {"crate",
+                 "<body><freejoint/><geom type='box' size='0.1 0.1 0.1' mass='1'/></body>",
+                 {2.0, -2.0, 0.1}}));
   ASSERT_EQ(spawned.status, Status::success) << spawned.message;
   const int crate_joint_before = sim_->model().free_joint_of(body("crate"));
   const double before = sim_->d()->qpos[sim_->m()->jnt_qposadr[crate_joint_before]];
@@ -255,12 +267,14 @@ TEST_F(SimDeleteBodyTest, WhatAComponentUsesIsRefused) {
 // included file and an unnamed body ("body<n>") can be deleted. 2.2.2's text editing refused all three.
 TEST_F(SimDeleteBodyTest, KeyframedScenesIncludedAndUnnamedBodiesCanBeDeleted) {
   std::string keyed = k_delete_body_scene;
-  keyed.replace(keyed.rfind("</mujoco>"), 9, "<keyframe><key name='start' time='0'/></keyframe></mujoco>");
+  keyed.replace(keyed.rfind("</mujoco>"), 9,
+                "<keyframe><key name='start' time='0'/></keyframe></mujoco>");
   build(keyed);
   EXPECT_EQ(remove("table").status, Status::success);
   EXPECT_EQ(sim_->m()->nkey, 1);
 
-  const auto dir = std::filesystem::temp_directory_path() / ("simgate_delete_" + std::to_string(::getpid()));
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("simgate_delete_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
   std::ofstream(dir / "objects.xml") << R"(<mujoco><body name="box" pos="1 1 0.2"><freejoint/>
       <geom type="box" size="0.1 0.1 0.1" mass="1"/></body>
@@ -297,16 +311,18 @@ TEST_F(SimDeleteBodyTest, DeletingARobotRemovesItsComponentsAndEndsTheirRequests
   const auto ended = rm_->outcome(going);
   ASSERT_TRUE(ended.has_value()) << "goto never answered";
   EXPECT_EQ(ended->status, Status::failed);
-  EXPECT_NE(ended->message.find("robot 'robot' was deleted by simulation.delete_entity"), std::string::npos)
+  EXPECT_NE(ended->message.find("robot 'robot' was deleted by simulation.delete_entity"),
+            std::string::npos)
       << ended->message;
 
   // gone from the simulation, the request manager and the model
-  for (auto name : {"robot", "robot.motion", "robot.pose", "robot.sensors", "robot.armature_pose", "robot.waypoint",
-                    "robot.ball_pose"}) {
+  for (auto name : {"robot", "robot.motion", "robot.pose", "robot.sensors", "robot.armature_pose",
+                    "robot.waypoint", "robot.ball_pose"}) {
     EXPECT_EQ(sim_->find(name), nullptr) << name;
     EXPECT_FALSE(rm_->serves_component(name)) << name;
   }
-  for (const auto& d : rm_->descriptors()) EXPECT_FALSE(d.component.starts_with("robot")) << d.qualified_name();
+  for (const auto& d : rm_->descriptors())
+    EXPECT_FALSE(d.component.starts_with("robot")) << d.qualified_name();
   EXPECT_TRUE(sim_->robot_names().empty());
   const Outcome late = call("robot.pose", "get_local_data");
   EXPECT_EQ(late.status, Status::failed);
@@ -335,8 +351,9 @@ TEST_F(SimDeleteBodyTest, ALaserScannerSeesASpawnedBodyThenNotOnceDeleted) {
   auto registry = builtin_registry();
   auto* robot = static_cast<Robot*>(sim_->find("robot")->component.get());
   ComponentEntry& laser = sim_->add_component(
-      registry.create(Kind::component, {"robot.laser", "laser_scanner", "robot", "robots[0].components[6]"},
-                      json{{"scan_window", 10.0}, {"resolution", 5.0}, {"laser_range", 10.0}}, *sim_, robot),
+      registry.create(
+          Kind::component, {"robot.laser", "laser_scanner", "robot", "robots[0].components[6]"},
+          json{{"scan_window", 10.0}, {"resolution", 5.0}, {"laser_range", 10.0}}, *sim_, robot),
       "laser_scanner", "robot");
   rm_->register_component(*laser.component);
   auto nearest = [&] {
@@ -346,8 +363,9 @@ TEST_F(SimDeleteBodyTest, ALaserScannerSeesASpawnedBodyThenNotOnceDeleted) {
     return nearest;
   };
   EXPECT_NEAR(nearest(), 10.0, 1e-9);  // nothing ahead
-  const Outcome spawned = answer_without_stepping(rm_->call(
-      "simulation", "spawn_entity", {"wall", "<body><geom type='box' size='0.1 1 0.5'/></body>", {2.0, 0.0, 0.5}}));
+  const Outcome spawned = answer_without_stepping(
+      rm_->call("simulation", "spawn_entity",
+                {"wall", "<body><geom type='box' size='0.1 1 0.5'/></body>", {2.0, 0.0, 0.5}}));
   ASSERT_EQ(spawned.status, Status::success) << spawned.message;
   EXPECT_LT(nearest(), 2.0);
   ASSERT_EQ(remove("table").status, Status::success);  // moves every geom of the robot and the wall

@@ -61,7 +61,8 @@ TEST(CameraCodecTest, Gray16PngStoresBigEndianSamples) {
   ASSERT_EQ(png.pixels.size(), 12u);
   EXPECT_EQ(png.pixels[4], 0x12);
   EXPECT_EQ(png.pixels[5], 0x34);
-  for (std::size_t i = 0; i < gray.size(); ++i) EXPECT_EQ((png.pixels[2 * i] << 8) | png.pixels[2 * i + 1], gray[i]);
+  for (std::size_t i = 0; i < gray.size(); ++i)
+    EXPECT_EQ((png.pixels[2 * i] << 8) | png.pixels[2 * i + 1], gray[i]);
 }
 
 TEST(CameraCodecTest, PngRefusesMismatchedSizes) {

@@ -39,10 +39,12 @@ class SimLoopTest : public ::testing::Test {
 
   // Waits (bounded: 10 s) until the loop has taken `n` steps.
   void wait_for_steps(std::uint64_t n) {
-    for (int i = 0; i < 2000 && sim_->steps() < n; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    for (int i = 0; i < 2000 && sim_->steps() < n; ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
   // `component service`'s answer once its `key` counts one or more (bounded: 10 s), or the last.
-  json answer_once_counted(const std::string& component, const std::string& service, const char* key) {
+  json answer_once_counted(const std::string& component, const std::string& service,
+                           const char* key) {
     json answer;
     for (int i = 0; i < 2000; ++i) {
       answer = call(component, service).value.value_or(json::object());
@@ -74,7 +76,8 @@ TEST_F(SimLoopTest, RequestsAreServedBetweenStepsNotOncePerFrame) {
 TEST_F(SimLoopTest, AsFastAsPossibleRunsMoreThanRealTime) {
   start(0.01, 0.0);
   // wait (bounded) until 1000 steps have run: 10 s of simulated time
-  for (int i = 0; i < 2000 && sim_->steps() < 1000; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  for (int i = 0; i < 2000 && sim_->steps() < 1000; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
   EXPECT_GE(sim_->steps(), 1000u);
 }
 
@@ -142,7 +145,8 @@ TEST_F(SimLoopTest, ABadStateWhileRunningIsRecoveredAndTheLoopGoesOn) {
   const std::uint64_t steps = s["steps"].get<std::uint64_t>();
   wait_for_steps(steps + 10);
   EXPECT_GE(sim_->steps(), steps + 10);
-  EXPECT_GT(call("time", "statistics").value.value_or(json::object()).value("sim_time", 0.0), before + 0.05);
+  EXPECT_GT(call("time", "statistics").value.value_or(json::object()).value("sim_time", 0.0),
+            before + 0.05);
 }
 
 TEST_F(SimLoopTest, ABadStateWhileRunningPausesTheLoopUntilAClientPlaysAgain) {
@@ -167,7 +171,10 @@ TEST_F(SimLoopTest, ABadStateWhileRunningPausesTheLoopUntilAClientPlaysAgain) {
   EXPECT_EQ(call("simulation", "play").status, Status::success);
   wait_for_steps(steps + 10);
   EXPECT_GE(sim_->steps(), steps + 10);
-  EXPECT_EQ(call("simulation", "get_simulation_state").value.value_or(json::object()).value("divergences", 0), 1);
+  EXPECT_EQ(call("simulation", "get_simulation_state")
+                .value.value_or(json::object())
+                .value("divergences", 0),
+            1);
 }
 
 // Counts what it sees: a service must never run while a step is under way.
@@ -190,8 +197,10 @@ class StepProbe : public Component {
 };
 
 TEST(SimLoopLockTest, ServicesNeverRunDuringAStepWhicheverThreadRunsThem) {
-  auto sim = std::make_unique<Simulation>(Model::load_string(k_loop_scene), SimulationOptions{0.001, 0.0});
-  auto& probe = static_cast<StepProbe&>(*sim->add_component(std::make_unique<StepProbe>(), "probe").component);
+  auto sim =
+      std::make_unique<Simulation>(Model::load_string(k_loop_scene), SimulationOptions{0.001, 0.0});
+  auto& probe = static_cast<StepProbe&>(
+      *sim->add_component(std::make_unique<StepProbe>(), "probe").component);
   auto rm = std::make_shared<testing::RecordingManager>();
   rm->register_component(probe);
   sim->add_request_manager(rm, "test");
@@ -214,8 +223,10 @@ TEST(SimLoopLockTest, ServicesNeverRunDuringAStepWhicheverThreadRunsThem) {
 }
 
 TEST(SimLoopOptionsTest, InvalidPacingIsRejected) {
-  EXPECT_THROW(Simulation(Model::load_string(k_loop_scene), SimulationOptions{std::nullopt, -1.0}), std::invalid_argument);
-  EXPECT_THROW(Simulation(Model::load_string(k_loop_scene), SimulationOptions{0.0, 1.0}), std::invalid_argument);
+  EXPECT_THROW(Simulation(Model::load_string(k_loop_scene), SimulationOptions{std::nullopt, -1.0}),
+               std::invalid_argument);
+  EXPECT_THROW(Simulation(Model::load_string(k_loop_scene), SimulationOptions{0.0, 1.0}),
+               std::invalid_argument);
 }
 
 }  // namespace

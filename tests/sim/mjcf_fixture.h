@@ -25,7 +25,8 @@ class MjcfSim : public ::testing::Test {
 
   // A robot rooted at `body` (a name, or "#<id>" for unnamed bodies).
   Robot& add_robot(const std::string& name, const std::string& body) {
-    const int id = body.rfind('#', 0) == 0 ? std::stoi(body.substr(1)) : sim_->model().body_id(body);
+    const int id =
+        body.rfind('#', 0) == 0 ? std::stoi(body.substr(1)) : sim_->model().body_id(body);
     EXPECT_GT(id, 0) << "no body " << body;
     auto robot = std::make_unique<Robot>(name, *sim_, id);
     Robot& r = *robot;
@@ -37,14 +38,15 @@ class MjcfSim : public ::testing::Test {
   void add_component(Robot& robot, const std::string& short_name, const std::string& type,
                      json options = json::object(), const std::string& body = "") {
     const std::string path = "robots[0].components[" + std::to_string(components_++) + "]";
-    auto c = registry_.create(Kind::component, {robot.name() + "." + short_name, type, body, path}, options, *sim_,
-                              &robot);
+    auto c = registry_.create(Kind::component, {robot.name() + "." + short_name, type, body, path},
+                              options, *sim_, &robot);
     sim_->add_component(std::move(c), type, robot.name());
   }
   // The ConfigError's message creating such a component, or "" when it is accepted.
   std::string config_error(Robot& robot, const std::string& type, json options = json::object()) {
     try {
-      registry_.create(Kind::component, {robot.name() + ".probe", type, "", "robots[0].components[9]"}, options,
+      registry_.create(Kind::component,
+                       {robot.name() + ".probe", type, "", "robots[0].components[9]"}, options,
                        *sim_, &robot);
     } catch (const ConfigError& e) {
       return e.what();
@@ -62,14 +64,16 @@ class MjcfSim : public ::testing::Test {
     sim_->add_request_manager(rm_, "test");
   }
 
-  Outcome call(const std::string& component, const std::string& service, json params = json::array()) {
+  Outcome call(const std::string& component, const std::string& service,
+               json params = json::array()) {
     RequestId id = rm_->call(component, service, std::move(params));
     sim_->process_requests();
     auto o = rm_->outcome(id);
     EXPECT_TRUE(o.has_value()) << component << " " << service << " not answered";
     return o.value_or(Outcome::failed(Failure::internal, "no answer"));
   }
-  json value(const std::string& component, const std::string& service, json params = json::array()) {
+  json value(const std::string& component, const std::string& service,
+             json params = json::array()) {
     Outcome o = call(component, service, std::move(params));
     EXPECT_EQ(o.status, Status::success) << component << " " << service << ": " << o.message;
     return o.value.value_or(json());
@@ -113,7 +117,9 @@ class MjcfSim : public ::testing::Test {
   ComponentRegistry registry_ = builtin_registry();
 
  private:
-  void start(Model model) { sim_ = std::make_unique<Simulation>(std::move(model), SimulationOptions{std::nullopt, 0.0}); }
+  void start(Model model) {
+    sim_ = std::make_unique<Simulation>(std::move(model), SimulationOptions{std::nullopt, 0.0});
+  }
   int components_ = 0;  // for the JSON paths
 };
 
@@ -165,7 +171,9 @@ inline const char* arm_and_block_xml() {
 </mujoco>)";
 }
 
-inline std::string mujoco_sample(const std::string& relative) { return "/usr/share/mujoco/model/" + relative; }
+inline std::string mujoco_sample(const std::string& relative) {
+  return "/usr/share/mujoco/model/" + relative;
+}
 
 }  // namespace simgate::sim::testing
 

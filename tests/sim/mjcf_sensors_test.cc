@@ -10,10 +10,10 @@
 namespace simgate::sim {
 namespace {
 
+using ::testing::HasSubstr;
 using testing::MjcfSim;
 using testing::mujoco_sample;
 using testing::test_model;
-using ::testing::HasSubstr;
 
 class MjcfSensorsTest : public MjcfSim {
  protected:
@@ -33,8 +33,8 @@ class MjcfSensorsTest : public MjcfSim {
 
 TEST_F(MjcfSensorsTest, EachRobotReadsTheSensorsOfItsOwnSubtree) {
   json data = arm_data();
-  for (auto name : {"imu_acc", "imu_gyro", "shoulder_pos", "shoulder_vel", "jointpos_1", "tip_pos", "elbow_force",
-                    "timestamp"})
+  for (auto name : {"imu_acc", "imu_gyro", "shoulder_pos", "shoulder_vel", "jointpos_1", "tip_pos",
+                    "elbow_force", "timestamp"})
     EXPECT_TRUE(data.contains(name)) << name;
   EXPECT_EQ(data.size(), 8u);
   json block = value("block.sensors", "get_local_data");
@@ -52,7 +52,8 @@ TEST_F(MjcfSensorsTest, OneValueIsANumberSeveralAreAnArray) {
 
 TEST_F(MjcfSensorsTest, AnAccelerometerAtRestReadsGravityUpwards) {
   settle();
-  const json data = arm_data();  // held: a range-for over a member of a temporary reads freed memory
+  const json data =
+      arm_data();  // held: a range-for over a member of a temporary reads freed memory
   const json& acc = data["imu_acc"];
   EXPECT_NEAR(acc[0].get<double>(), 0.0, 0.05);
   EXPECT_NEAR(acc[1].get<double>(), 0.0, 0.05);
@@ -80,7 +81,8 @@ TEST_F(MjcfSensorsTest, ValuesDescribeTheStateTheLastStepStartedFromAndTheTimest
   EXPECT_DOUBLE_EQ(data["timestamp"].get<double>(), t);
   EXPECT_NE(qpos("shoulder"), q);  // the step moved on from there
   const mjtNum* tip = sim_->d()->site_xpos + 3 * mj_name2id(sim_->m(), mjOBJ_SITE, "tip");
-  for (int i = 0; i < 3; ++i) EXPECT_EQ(data["tip_pos"][i].get<double>(), tip[i]);  // same evaluation
+  for (int i = 0; i < 3; ++i)
+    EXPECT_EQ(data["tip_pos"][i].get<double>(), tip[i]);  // same evaluation
 }
 
 TEST_F(MjcfSensorsTest, AfterAResetTheValuesAreOfTheCurrentState) {
@@ -127,7 +129,8 @@ TEST_F(MjcfSensorsTest, PropertiesGiveTypeDimensionAndObject) {
   EXPECT_EQ(s["imu_acc"], json({{"type", "accelerometer"}, {"dim", 3}, {"site", "imu"}}));
   EXPECT_EQ(s["shoulder_pos"], json({{"type", "jointpos"}, {"dim", 1}, {"joint", "shoulder"}}));
   EXPECT_EQ(s["jointpos_1"], json({{"type", "jointpos"}, {"dim", 1}, {"joint", "elbow"}}));
-  EXPECT_EQ(s["elbow_force"], json({{"type", "actuatorfrc"}, {"dim", 1}, {"actuator", "elbow_motor"}}));
+  EXPECT_EQ(s["elbow_force"],
+            json({{"type", "actuatorfrc"}, {"dim", 1}, {"actuator", "elbow_motor"}}));
   EXPECT_EQ(s["tip_pos"]["site"], "tip");
   json block = value("block.sensors", "get_properties")["properties"]["sensors"];
   EXPECT_EQ(block["block_pos"], json({{"type", "framepos"}, {"dim", 3}, {"xbody", "block"}}));
@@ -136,7 +139,8 @@ TEST_F(MjcfSensorsTest, PropertiesGiveTypeDimensionAndObject) {
 
 TEST_F(MjcfSensorsTest, TheServiceTakesNoParameters) {
   EXPECT_EQ(call("arm.sensors", "get_local_data", {1}).status, Status::failed);
-  EXPECT_THAT(call("arm.sensors", "get_local_data", json{{"x", 1}}).message, HasSubstr("no parameter named 'x'"));
+  EXPECT_THAT(call("arm.sensors", "get_local_data", json{{"x", 1}}).message,
+              HasSubstr("no parameter named 'x'"));
 }
 
 // ---- configuration ---------------------------------------------------------------------------
@@ -159,11 +163,14 @@ TEST_F(MjcfSensorsConfigTest, OptionSensorsRestrictsTheSet) {
 TEST_F(MjcfSensorsConfigTest, UnknownOrForeignListedSensorsAreConfigErrors) {
   Robot& arm = add_robot("arm", "base");
   EXPECT_THAT(config_error(arm, "sensors", {{"sensors", {"imu_accel"}}}),
-              HasSubstr("options.sensors[0]: expected the name of a sensor of robot 'arm' (body 'base') (imu_acc, "
-                        "imu_gyro, shoulder_pos, shoulder_vel, jointpos_1, tip_pos, elbow_force), found 'imu_accel' "
+              HasSubstr("options.sensors[0]: expected the name of a sensor of robot 'arm' (body "
+                        "'base') (imu_acc, "
+                        "imu_gyro, shoulder_pos, shoulder_vel, jointpos_1, tip_pos, elbow_force), "
+                        "found 'imu_accel' "
                         "(no such sensor (did you mean 'imu_acc'?))"));
   EXPECT_THAT(config_error(arm, "sensors", {{"sensors", {"pad_touch"}}}),
-              HasSubstr("options.sensors[0]: sensor 'pad_touch' is attached to site 'pad' of body 'block', outside "
+              HasSubstr("options.sensors[0]: sensor 'pad_touch' is attached to site 'pad' of body "
+                        "'block', outside "
                         "robot 'arm' (body 'base')"));
   EXPECT_THAT(config_error(arm, "sensors", {{"sensors", {3}}}),
               HasSubstr("options.sensors[0]: expected the name of a sensor, found number 3"));
@@ -171,19 +178,23 @@ TEST_F(MjcfSensorsConfigTest, UnknownOrForeignListedSensorsAreConfigErrors) {
 
 TEST_F(MjcfSensorsConfigTest, ARobotWithoutSensorsCannotHaveTheComponent) {
   sim_.reset();
-  load_string(R"(<mujoco><worldbody><body name="b"><joint/><geom size="0.1"/></body></worldbody></mujoco>)");
+  load_string(
+      R"(<mujoco><worldbody><body name="b"><joint/><geom size="0.1"/></body></worldbody></mujoco>)");
   Robot& robot = add_robot("r", "b");
-  EXPECT_THAT(config_error(robot, "sensors"), HasSubstr("needs sensors, and robot 'r' (body 'b') has none"));
+  EXPECT_THAT(config_error(robot, "sensors"),
+              HasSubstr("needs sensors, and robot 'r' (body 'b') has none"));
 }
 
 TEST_F(MjcfSensorsConfigTest, GeneratedNameCollisionsAndTimestampAreRefused) {
   sim_.reset();
-  load_string(R"(<mujoco><worldbody><body name="b"><joint name="j"/><geom size="0.1"/></body></worldbody>
+  load_string(
+      R"(<mujoco><worldbody><body name="b"><joint name="j"/><geom size="0.1"/></body></worldbody>
     <sensor><jointpos joint="j"/><jointvel name="jointpos_0" joint="j"/></sensor></mujoco>)");
   Robot& robot = add_robot("r", "b");
   EXPECT_THAT(config_error(robot, "sensors"), HasSubstr("are both called 'jointpos_0'"));
   sim_.reset();
-  load_string(R"(<mujoco><worldbody><body name="b"><joint name="j"/><geom size="0.1"/></body></worldbody>
+  load_string(
+      R"(<mujoco><worldbody><body name="b"><joint name="j"/><geom size="0.1"/></body></worldbody>
     <sensor><jointpos name="timestamp" joint="j"/></sensor></mujoco>)");
   Robot& other = add_robot("r", "b");
   EXPECT_THAT(config_error(other, "sensors"), HasSubstr("is called 'timestamp'"));
@@ -191,7 +202,8 @@ TEST_F(MjcfSensorsConfigTest, GeneratedNameCollisionsAndTimestampAreRefused) {
 
 TEST_F(MjcfSensorsConfigTest, AClockBelongsToNoRobotButCanBeListedAndAgreesWithTheTimestamp) {
   sim_.reset();
-  load_string(R"(<mujoco><worldbody><body name="b"><joint name="j"/><geom size="0.1"/><site name="s"/></body>
+  load_string(
+      R"(<mujoco><worldbody><body name="b"><joint name="j"/><geom size="0.1"/><site name="s"/></body>
     </worldbody><sensor><clock name="clock"/><framepos name="f" objtype="site" objname="s" reftype="body" refname="b"/>
     <jointvel joint="j" cutoff="2"/></sensor></mujoco>)");
   Robot& robot = add_robot("r", "b");

@@ -17,7 +17,8 @@ constexpr const char* k_edit_ball = R"(<body name="ignored" euler="0 0 90"><free
   <geom type="sphere" size="0.1" mass="1"/></body>)";
 
 // `model` with `fragment` spawned as `name` at `pose`.
-Model spawned(const Model& model, const std::string& name, const std::string& fragment, EntityPose pose = {}) {
+Model spawned(const Model& model, const std::string& name, const std::string& fragment,
+              EntityPose pose = {}) {
   return with_entity(EditBase::of(model), name, entity_document(fragment, name, pose));
 }
 
@@ -61,7 +62,7 @@ TEST(ModelEditTest, MujocoFragmentKeepsItsSections) {
       <worldbody><body><joint name="spin" type="hinge"/><geom type="box" size=".1 .1 .1" material="red"/></body></worldbody>
       <actuator><motor name="spin_motor" joint="spin"/></actuator>
     </mujoco>)",
-                                               "spinner", {});
+                                           "spinner", {});
   EXPECT_NE(sections.find("<asset>"), std::string::npos);
   EXPECT_NE(sections.find("<body name=\"spinner\""), std::string::npos);
   EXPECT_NE(sections.find("<actuator><motor name=\"spin_motor\""), std::string::npos) << sections;
@@ -71,16 +72,21 @@ TEST(ModelEditTest, BadFragmentsAreRefusedNamingTheReason) {
   expect_refused("<body><geom", "not well-formed XML");
   expect_refused("<geom type='sphere' size='1'/>", "found <geom>");
   expect_refused("<body/><body/>", "one root element");
-  expect_refused("<mujoco><option timestep='1'/><worldbody><body/></worldbody></mujoco>", "<option> cannot be spawned");
-  expect_refused("<mujoco><keyframe/><worldbody><body/></worldbody></mujoco>", "<keyframe> cannot be spawned");
+  expect_refused("<mujoco><option timestep='1'/><worldbody><body/></worldbody></mujoco>",
+                 "<option> cannot be spawned");
+  expect_refused("<mujoco><keyframe/><worldbody><body/></worldbody></mujoco>",
+                 "<keyframe> cannot be spawned");
   expect_refused("<mujoco><worldbody><body/><body/></worldbody></mujoco>", "exactly one <body>");
   expect_refused("<mujoco><worldbody><geom size='1'/></worldbody></mujoco>", "exactly one <body>");
   expect_refused("<mujoco><asset/></mujoco>", "needs a <worldbody>");
   expect_refused("<body><include file='other.xml'/></body>", "<include> is not allowed");
-  expect_refused("<mujoco><asset><mesh file='/etc/passwd'/></asset><worldbody><body/></worldbody></mujoco>",
-                 "without '..'");
-  expect_refused("<mujoco><asset><texture fileup='../../up.png'/></asset><worldbody><body/></worldbody></mujoco>",
-                 "without '..'");
+  expect_refused(
+      "<mujoco><asset><mesh file='/etc/passwd'/></asset><worldbody><body/></worldbody></mujoco>",
+      "without '..'");
+  expect_refused(
+      "<mujoco><asset><texture "
+      "fileup='../../up.png'/></asset><worldbody><body/></worldbody></mujoco>",
+      "without '..'");
 }
 
 TEST(ModelEditTest, SpawnedEntityComesAfterTheSceneWhoseIdsStay) {
@@ -89,12 +95,16 @@ TEST(ModelEditTest, SpawnedEntityComesAfterTheSceneWhoseIdsStay) {
   const mjModel* before = scene.model();
   const mjModel* after = with_ball.model();
   // every object of the scene keeps its id and name
-  for (auto [type, n] : {std::pair{mjOBJ_BODY, before->nbody}, {mjOBJ_JOINT, before->njnt}, {mjOBJ_GEOM, before->ngeom},
-                         {mjOBJ_ACTUATOR, before->nu}, {mjOBJ_SENSOR, before->nsensor}}) {
+  for (auto [type, n] : {std::pair{mjOBJ_BODY, before->nbody},
+                         {mjOBJ_JOINT, before->njnt},
+                         {mjOBJ_GEOM, before->ngeom},
+                         {mjOBJ_ACTUATOR, before->nu},
+                         {mjOBJ_SENSOR, before->nsensor}}) {
     for (int id = 0; id < n; ++id) {
       const char* was = mj_id2name(before, type, id);
       const char* is = mj_id2name(after, type, id);
-      EXPECT_EQ(was ? std::string(was) : "", is ? std::string(is) : "") << "object type " << type << " id " << id;
+      EXPECT_EQ(was ? std::string(was) : "", is ? std::string(is) : "")
+          << "object type " << type << " id " << id;
     }
   }
   EXPECT_EQ(with_ball.body_id("ball"), before->nbody);
@@ -161,7 +171,8 @@ TEST(ModelEditTest, DoesNotCompileGivesMujocosMessage) {
   }
   // a joint name the scene has
   try {
-    spawned(scene, "ball", "<body><joint name='robot_root' type='hinge'/><geom size='0.1'/></body>");
+    spawned(scene, "ball",
+            "<body><joint name='robot_root' type='hinge'/><geom size='0.1'/></body>");
     FAIL() << "compiled";
   } catch (const MujocoError& e) {
     EXPECT_NE(std::string(e.what()).find("robot_root"), std::string::npos) << e.what();
@@ -186,7 +197,8 @@ TEST(ModelEditTest, StateOfTheSceneAndOfSurvivingEntitiesIsCarriedAcross) {
 
   // delete a: b moves forward in every array, and keeps its state
   Model only_b = deleted(two, "a");
-  carry_state(two, only_b, ModelRemap::between(two.model(), only_b.model(), two.body_id("a"), false));
+  carry_state(two, only_b,
+              ModelRemap::between(two.model(), only_b.model(), two.body_id("a"), false));
   const mjModel* m2 = only_b.model();
   const mjData* d2 = only_b.data();
   EXPECT_EQ(d2->time, 12.5);
@@ -207,12 +219,14 @@ TEST(ModelEditTest, SpawnAndDeleteLeaveNothingBehindInTheSpec) {
   Model scene = Model::load_file(testing::demo_scene());
   auto count = [](const Model& model, mjtObj type) {
     int n = 0;
-    for (mjsElement* e = mjs_firstElement(model.spec().get(), type); e; e = mjs_nextElement(model.spec().get(), e))
+    for (mjsElement* e = mjs_firstElement(model.spec().get(), type); e;
+         e = mjs_nextElement(model.spec().get(), e))
       ++n;
     return n;
   };
   Model model = deleted(spawned(scene, "ball", k_edit_ball), "ball");
-  for (int round = 0; round < 3; ++round) model = deleted(spawned(model, "ball", k_edit_ball), "ball");
+  for (int round = 0; round < 3; ++round)
+    model = deleted(spawned(model, "ball", k_edit_ball), "ball");
   EXPECT_EQ(count(model, mjOBJ_FRAME), count(scene, mjOBJ_FRAME));
   EXPECT_EQ(count(model, mjOBJ_BODY), count(scene, mjOBJ_BODY));
   EXPECT_EQ(model.model()->nbody, scene.model()->nbody);
@@ -244,17 +258,21 @@ TEST(ModelEditTest, AnActivationIsCarriedAcrossWhereverItsActuatorIs) {
 // does not leak in), nothing is written beside it, and a fragment's meshes resolve where the
 // scene's do (its directory and meshdir).
 TEST(ModelEditTest, EditsStartFromTheSpecAndFragmentFilesResolveAsTheScenes) {
-  const auto dir = std::filesystem::temp_directory_path() / ("simgate_model_edit_" + std::to_string(::getpid()));
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("simgate_model_edit_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir / "assets");
-  std::ofstream(dir / "parts.xml") << "<mujoco><body name='part'><geom type='sphere' size='.1'/></body></mujoco>";
-  std::ofstream(dir / "assets" / "tetra.obj") << "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n";
+  std::ofstream(dir / "parts.xml")
+      << "<mujoco><body name='part'><geom type='sphere' size='.1'/></body></mujoco>";
+  std::ofstream(dir / "assets" / "tetra.obj")
+      << "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n";
   std::ofstream(dir / "scene.xml") << "<mujoco model='parts'><compiler meshdir='assets'/>"
                                       "<worldbody><include file='parts.xml'/></worldbody></mujoco>";
   Model scene = Model::load_file((dir / "scene.xml").string());
   std::ofstream(dir / "scene.xml") << "<mujoco/>";
-  Model with_tetra = spawned(scene, "tetra",
-                             "<mujoco><asset><mesh name='tetra' file='tetra.obj'/></asset>"
-                             "<worldbody><body><freejoint/><geom type='mesh' mesh='tetra'/></body></worldbody></mujoco>");
+  Model with_tetra = spawned(
+      scene, "tetra",
+      "<mujoco><asset><mesh name='tetra' file='tetra.obj'/></asset>"
+      "<worldbody><body><freejoint/><geom type='mesh' mesh='tetra'/></body></worldbody></mujoco>");
   EXPECT_GE(with_tetra.body_id("part"), 0);
   EXPECT_GE(with_tetra.body_id("tetra"), 0);
   EXPECT_EQ(with_tetra.model()->nmesh, 1);
@@ -263,7 +281,8 @@ TEST(ModelEditTest, EditsStartFromTheSpecAndFragmentFilesResolveAsTheScenes) {
   EXPECT_EQ(partless.body_id("part"), -1);
   EXPECT_GE(partless.body_id("tetra"), 0);
   std::size_t files = 0;
-  for (const auto& entry : std::filesystem::recursive_directory_iterator(dir)) files += entry.is_regular_file();
+  for (const auto& entry : std::filesystem::recursive_directory_iterator(dir))
+    files += entry.is_regular_file();
   EXPECT_EQ(files, 3u);
   std::filesystem::remove_all(dir);
 }
@@ -272,7 +291,8 @@ TEST(ModelEditTest, EditsStartFromTheSpecAndFragmentFilesResolveAsTheScenes) {
 TEST(ModelEditTest, ARemapBetweenModelsThatDoNotLineUpIsRefused) {
   Model scene = Model::load_file(testing::demo_scene());
   Model other = Model::load_string(
-      "<mujoco><worldbody><body name='a'><freejoint/><geom size='.1'/></body></worldbody></mujoco>");
+      "<mujoco><worldbody><body name='a'><freejoint/><geom "
+      "size='.1'/></body></worldbody></mujoco>");
   // nothing removed, nothing appended: the same model maps onto itself
   const ModelRemap same = ModelRemap::between(scene.model(), scene.model(), -1, false);
   EXPECT_FALSE(same.moves_ids());
@@ -281,7 +301,8 @@ TEST(ModelEditTest, ARemapBetweenModelsThatDoNotLineUpIsRefused) {
     ModelRemap::between(scene.model(), other.model(), -1, true);
     FAIL() << "unrelated models were remapped";
   } catch (const MujocoError& e) {
-    EXPECT_NE(std::string(e.what()).find("'robot' is not where expected"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("'robot' is not where expected"), std::string::npos)
+        << e.what();
   }
   // the crates removed, but the new model still holds them: the counts do not add up
   try {

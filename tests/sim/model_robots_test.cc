@@ -67,7 +67,8 @@ TEST(ModelRobotsTest, EachTopLevelBodyWithJointsActuatorsOrSensorsIsARobot) {
   // '.' would split component names: replaced by '_'
   EXPECT_EQ(robots[0].name, "arm_v2");
   EXPECT_EQ(robots[0].body, "arm.v2");
-  EXPECT_EQ(robots[0].components, (Components{"armature", "armature_pose", "actuators", "sensors"}));
+  EXPECT_EQ(robots[0].components,
+            (Components{"armature", "armature_pose", "actuators", "sensors"}));
   // a sensor alone makes a robot of it
   EXPECT_EQ(robots[1].name, "beacon");
   EXPECT_EQ(robots[1].components, (Components{"sensors"}));
@@ -107,8 +108,10 @@ TEST(ModelRobotsTest, DebiansSampleModels) {
   auto robots = find_model_robots(Model::load_file(dir + "humanoid/humanoid.xml"));
   ASSERT_EQ(robots.size(), 1u);
   EXPECT_EQ(robots[0].name, "torso");
-  EXPECT_EQ(robots[0].components, (Components{"armature", "armature_pose", "actuators", "pose", "odometry"}));
-  robots = find_model_robots(Model::load_file(std::string(SIMGATE_SOURCE_DIR) + "/tests/models/tendon_arm.xml"));
+  EXPECT_EQ(robots[0].components,
+            (Components{"armature", "armature_pose", "actuators", "pose", "odometry"}));
+  robots = find_model_robots(
+      Model::load_file(std::string(SIMGATE_SOURCE_DIR) + "/tests/models/tendon_arm.xml"));
   ASSERT_EQ(robots.size(), 1u);
   EXPECT_EQ(robots[0].components, (Components{"armature", "armature_pose", "actuators"}));
   robots = find_model_robots(Model::load_file(dir + "slider_crank/slider_crank.xml"));

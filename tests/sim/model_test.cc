@@ -31,7 +31,9 @@ TEST(SimModelTest, LoadsTheDemoScene) {
 
 TEST(SimModelTest, InvalidXmlIsAnExceptionNamingTheScene) {
   try {
-    Model::load_string("<mujoco><worldbody><body name='x'><geom type='sphere'/></worldbod></mujoco>", "broken.xml");
+    Model::load_string(
+        "<mujoco><worldbody><body name='x'><geom type='sphere'/></worldbod></mujoco>",
+        "broken.xml");
     FAIL() << "no exception";
   } catch (const MujocoError& e) {
     EXPECT_NE(std::string(e.what()).find("broken.xml"), std::string::npos) << e.what();
@@ -97,7 +99,8 @@ TEST(SimModelTest, AModelOfTheCurrentMujocoLoadsAndItsPidActuatorHoldsTheTarget)
 TEST(SimModelTest, AModelUsingAPluginNobodyRegisteredIsRefusedNamingIt) {
   try {
     Model::load_string(R"(<mujoco><extension><plugin plugin="no.such.plugin"/></extension>
-      <worldbody><body><geom size="0.1"/></body></worldbody></mujoco>)", "unknown-plugin.xml");
+      <worldbody><body><geom size="0.1"/></body></worldbody></mujoco>)",
+                       "unknown-plugin.xml");
     FAIL() << "no exception";
   } catch (const MujocoError& e) {
     EXPECT_NE(std::string(e.what()).find("no.such.plugin"), std::string::npos) << e.what();

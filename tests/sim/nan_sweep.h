@@ -30,7 +30,8 @@ namespace simgate::sim::testing {
 
 // What no service may accept for a number: not a number, infinities, and magnitudes far
 // beyond every bound of bounds.h (which MuJoCo's own checks would only catch at 1e10).
-inline const double k_bad_values[] = {std::numeric_limits<double>::quiet_NaN(), k_inf, -k_inf, 1e300, -1e300};
+inline const double k_bad_values[] = {std::numeric_limits<double>::quiet_NaN(), k_inf, -k_inf,
+                                      1e300, -1e300};
 
 inline std::string spell(double v) {
   if (std::isnan(v)) return "NaN";
@@ -52,7 +53,8 @@ inline bool admits_numbers(const json& schema) {
 }
 
 // The JSON pointers of every number inside `value`.
-inline void number_leaves(const json& value, const json::json_pointer& at, std::vector<json::json_pointer>& out) {
+inline void number_leaves(const json& value, const json::json_pointer& at,
+                          std::vector<json::json_pointer>& out) {
   if (value.is_number()) {
     out.push_back(at);
   } else if (value.is_array()) {
@@ -66,7 +68,8 @@ inline void number_leaves(const json& value, const json::json_pointer& at, std::
 inline std::string non_finite_state(const mjModel* m, const mjData* d) {
   auto first_bad = [](const char* what, const mjtNum* v, int n) -> std::string {
     for (int i = 0; i < n; ++i)
-      if (!std::isfinite(v[i])) return std::string(what) + "[" + std::to_string(i) + "] = " + spell(v[i]);
+      if (!std::isfinite(v[i]))
+        return std::string(what) + "[" + std::to_string(i) + "] = " + spell(v[i]);
     return "";
   };
   for (auto bad : {first_bad("qpos", d->qpos, m->nq), first_bad("qvel", d->qvel, m->nv),
@@ -78,7 +81,8 @@ inline std::string non_finite_state(const mjModel* m, const mjData* d) {
 // Valid argument lists (each: every parameter, positionally) for one service.
 using ValidCalls = std::vector<json>;
 // By "<component type>.<service>"; empty: the model has nothing it applies to.
-using ValidCallTable = std::map<std::string, std::function<ValidCalls(const std::string& component)>>;
+using ValidCallTable =
+    std::map<std::string, std::function<ValidCalls(const std::string& component)>>;
 
 // Runs the sweep over every component of a simulation served by `rm`; collects findings.
 class NanSweep {
@@ -98,7 +102,8 @@ class NanSweep {
   // arguments), for `reason`: a magnitude that never reaches MuJoCo and means something.
   // Never for a NaN or an infinity.
   void tolerate(std::string type_service, std::string slot, double value, std::string reason) {
-    if (!std::isfinite(value)) throw std::invalid_argument("the sweep tolerates no NaN or infinity");
+    if (!std::isfinite(value))
+      throw std::invalid_argument("the sweep tolerates no NaN or infinity");
     tolerated_[{std::move(type_service), std::move(slot), value}] = std::move(reason);
   }
   // "<component>.<service>" of every service swept with bad numbers, and of every property.
@@ -108,14 +113,15 @@ class NanSweep {
  private:
   void sweep_service(const ComponentEntry& e, const ServiceDescriptor& service) {
     bool takes_numbers = false;
-    for (const auto& p : service.params) takes_numbers = takes_numbers || admits_numbers(p.schema) || p.schema.empty();
+    for (const auto& p : service.params)
+      takes_numbers = takes_numbers || admits_numbers(p.schema) || p.schema.empty();
     // set_property: swept per property, below
     if (!takes_numbers || service.name == "set_property") return;
     const std::string name = service.qualified_name();
     std::optional<ValidCalls> calls = valid_calls(e, service);
     if (!calls) {
-      findings_.push_back(name + ": takes numbers, but the sweep knows no valid call (add '" + e.type + "." +
-                          service.name + "' to the table of valid calls)");
+      findings_.push_back(name + ": takes numbers, but the sweep knows no valid call (add '" +
+                          e.type + "." + service.name + "' to the table of valid calls)");
       return;
     }
     for (const json& args : *calls) {
@@ -126,8 +132,8 @@ class NanSweep {
       // the valid call first: a refusal below must be the bad number's doing
       Outcome valid = call(service, args);
       if (valid.status != Status::success) {
-        findings_.push_back(name + " " + args.dump() + ": the valid call ended " + std::string(to_string(valid.status)) +
-                            ": " + valid.message);
+        findings_.push_back(name + " " + args.dump() + ": the valid call ended " +
+                            std::string(to_string(valid.status)) + ": " + valid.message);
         continue;
       }
       check_state(name + " (valid call)");
@@ -143,7 +149,8 @@ class NanSweep {
             ;  // its outcome is the service's business; the state is checked all the same
           else if (o.status != Status::failed)
             findings_.push_back(what + ": ended " + std::string(to_string(o.status)) +
-                                (o.value ? " " + o.value->dump() : std::string()) + ", expected FAILED");
+                                (o.value ? " " + o.value->dump() : std::string()) +
+                                ", expected FAILED");
           else if (!names_the_parameter(o.message, service, slot))
             findings_.push_back(what + ": FAILED without naming the parameter: " + o.message);
           check_state(what);
@@ -157,7 +164,9 @@ class NanSweep {
                                   const json::json_pointer& slot) {
     const std::string path = slot.to_string();  // "/0/points/1/positions/0"
     const std::size_t index = std::stoul(path.substr(1, path.find('/', 1) - 1));
-    if (index < service.params.size() && message.find(service.params[index].name) != std::string::npos) return true;
+    if (index < service.params.size() &&
+        message.find(service.params[index].name) != std::string::npos)
+      return true;
     // deeper: the key or index it sits at
     const std::string last = slot.back();
     const bool is_index = !last.empty() && std::all_of(last.begin(), last.end(), ::isdigit);
@@ -166,19 +175,23 @@ class NanSweep {
 
   // Where the sweep puts bad numbers: every number of the valid arguments, and each
   // parameter that admits numbers but was given none (an optional number left null).
-  std::vector<json::json_pointer> number_slots(const ServiceDescriptor& service, const json& args) const {
+  std::vector<json::json_pointer> number_slots(const ServiceDescriptor& service,
+                                               const json& args) const {
     std::vector<json::json_pointer> slots;
     for (std::size_t i = 0; i < service.params.size() && i < args.size(); ++i) {
       const std::size_t before = slots.size();
       number_leaves(args[i], json::json_pointer() / i, slots);
-      if (slots.size() == before && admits_numbers(service.params[i].schema)) slots.push_back(json::json_pointer() / i);
+      if (slots.size() == before && admits_numbers(service.params[i].schema))
+        slots.push_back(json::json_pointer() / i);
     }
     return slots;
   }
 
   // The table's calls, or, when every parameter is a number, its default or 0.
-  std::optional<ValidCalls> valid_calls(const ComponentEntry& e, const ServiceDescriptor& service) const {
-    if (auto it = table_.find(e.type + "." + service.name); it != table_.end()) return it->second(e.component->name());
+  std::optional<ValidCalls> valid_calls(const ComponentEntry& e,
+                                        const ServiceDescriptor& service) const {
+    if (auto it = table_.find(e.type + "." + service.name); it != table_.end())
+      return it->second(e.component->name());
     if (auto it = table_.find(e.component->name() + "." + service.name); it != table_.end())
       return it->second(e.component->name());
     json args = json::array();
@@ -208,7 +221,8 @@ class NanSweep {
         // a read-only property cannot be set, and may follow the state the sweep steps (a
         // camera's pose): only a settable one must keep its value
         if (property.set && property.get() != before)
-          findings_.push_back(what + ": the property changed from " + before.dump() + " to " + property.get().dump());
+          findings_.push_back(what + ": the property changed from " + before.dump() + " to " +
+                              property.get().dump());
         check_state(what);
       }
     }
@@ -227,11 +241,13 @@ class NanSweep {
       sim_.process_requests();
       if (auto o = rm_.outcome(id)) return *o;
       // work of another thread (a camera's render) needs wall time, not steps
-      if (i >= k_async_steps / 5 && i % 50 == 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      if (i >= k_async_steps / 5 && i % 50 == 0)
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
     }
     rm_.cancel(id);
     sim_.process_requests();
-    return rm_.outcome(id).value_or(Outcome::failed(Failure::internal, "still running after a cancel"));
+    return rm_.outcome(id).value_or(
+        Outcome::failed(Failure::internal, "still running after a cancel"));
   }
   Outcome answer(RequestId id) {
     sim_.process_requests();
@@ -254,18 +270,21 @@ class NanSweep {
       broken = true;
     }
     if (!(std::abs(sim_.sim_time() - (t + 3 * sim_.timestep())) < 1e-9)) {
-      findings_.push_back(what + ": simulated time went from " + spell(t) + " to " + spell(sim_.sim_time()));
+      findings_.push_back(what + ": simulated time went from " + spell(t) + " to " +
+                          spell(sim_.sim_time()));
       broken = true;
     }
     const std::uint64_t bad_states = sim_.statistics().bad_states;
     if (bad_states != bad_states_) {
-      findings_.push_back(what + ": MuJoCo found a bad state (" + std::to_string(bad_states) + " so far)");
+      findings_.push_back(what + ": MuJoCo found a bad state (" + std::to_string(bad_states) +
+                          " so far)");
       bad_states_ = bad_states;
     }
     // the simulation leaves a warning's counter at 1 once it happened
     for (int k : {mjWARN_BADCTRL, mjWARN_BADQPOS, mjWARN_BADQVEL, mjWARN_BADQACC})
       if (d->warning[k].number != 0 && !warned_.count(k)) {
-        findings_.push_back(what + ": MuJoCo warning " + std::to_string(k) + " (a bad ctrl, qpos, qvel or qacc)");
+        findings_.push_back(what + ": MuJoCo warning " + std::to_string(k) +
+                            " (a bad ctrl, qpos, qvel or qacc)");
         warned_.insert(k);
       }
     // one finding is enough: the next checks start from a sound state
@@ -307,7 +326,8 @@ class ValidValues {
     const auto deadline = std::chrono::steady_clock::now() + timeout;
     while (std::chrono::steady_clock::now() < deadline) {
       sim_.process_requests();
-      if (auto o = rm_.outcome(id)) return o->status == Status::success ? o->value.value_or(json()) : json();
+      if (auto o = rm_.outcome(id))
+        return o->status == Status::success ? o->value.value_or(json()) : json();
       std::this_thread::sleep_for(std::chrono::milliseconds(1));  // the render thread works
     }
     return json();
@@ -338,7 +358,8 @@ class ValidValues {
     const mjModel* m = sim_.m();
     const int j = sim_.model().joint_id(joint);
     if (!m->jnt_limited[j]) return 0.0;
-    const double low = m->jnt_range[2 * j], high = m->jnt_range[2 * j + 1], margin = 0.1 * (high - low);
+    const double low = m->jnt_range[2 * j], high = m->jnt_range[2 * j + 1],
+                 margin = 0.1 * (high - low);
     return std::clamp(0.0, low + margin, high - margin);
   }
   json positions(const std::vector<std::string>& joints) const {
@@ -418,7 +439,9 @@ inline ValidCallTable builtin_valid_calls(ValidValues& values) {
     v->await(c, "get_snapshot", {"", 32, 24});
     return ValidCalls{{"", 32, 24}};
   };
-  t["simulation.restore_state"] = [v](const std::string& c) { return ValidCalls{{v->value(c, "save_state")}}; };
+  t["simulation.restore_state"] = [v](const std::string& c) {
+    return ValidCalls{{v->value(c, "save_state")}};
+  };
   t["simulation.drop_state"] = t["simulation.restore_state"];
   t["armature.set_rotation"] = per_joint(mjJNT_HINGE, false);
   t["armature.set_translation"] = per_joint(mjJNT_SLIDE, false);
@@ -450,11 +473,12 @@ inline ValidCallTable builtin_valid_calls(ValidValues& values) {
     }
     // now on `time now`'s clock: every field a number the sweep can spoil
     const double now = v->value("time", "now").get<double>();
-    json trajectory = {{"starttime", now},
-                       {"joint_names", names},
-                       {"points",
-                        {{{"positions", start}, {"velocities", rest}, {"time_from_start", 0.02}},
-                         {{"positions", middle}, {"velocities", rest}, {"time_from_start", 0.04}}}}};
+    json trajectory = {
+        {"starttime", now},
+        {"joint_names", names},
+        {"points",
+         {{{"positions", start}, {"velocities", rest}, {"time_from_start", 0.02}},
+          {{"positions", middle}, {"velocities", rest}, {"time_from_start", 0.04}}}}};
     return ValidCalls{json::array({trajectory})};
   };
   t["actuators.set_control"] = [v](const std::string& c) {
@@ -485,7 +509,8 @@ inline ValidCallTable builtin_valid_calls(ValidValues& values) {
   t["simulation.spawn_entity"] = [](const std::string&) {
     static int spawned = 0;
     return ValidCalls{{"swept_ball_" + std::to_string(spawned++),
-                       "<body><freejoint/><geom type='sphere' size='0.1' mass='1'/></body>", {1.0, 1.0, 0.5}}};
+                       "<body><freejoint/><geom type='sphere' size='0.1' mass='1'/></body>",
+                       {1.0, 1.0, 0.5}}};
   };
   return t;
 }

@@ -28,15 +28,15 @@
 namespace simgate::sim {
 namespace {
 
+using ::testing::Contains;
+using ::testing::HasSubstr;
+using ::testing::IsEmpty;
 using testing::NanSweep;
+using ::testing::Not;
 using testing::RecordingManager;
 using testing::ValidCalls;
 using testing::ValidCallTable;
 using testing::ValidValues;
-using ::testing::Contains;
-using ::testing::HasSubstr;
-using ::testing::IsEmpty;
-using ::testing::Not;
 
 // ---- scenes ----------------------------------------------------------------------------------
 
@@ -133,7 +133,8 @@ class SimNanSweepTest : public ::testing::Test {
   }
   // Created through the registry, as the gateway creates them.
   Robot& add_robot(const std::string& name, const std::string& type, const std::string& body) {
-    auto robot = registry_.create(Kind::robot, {name, type, body, "robots[" + std::to_string(robots_++) + "]"},
+    auto robot = registry_.create(Kind::robot,
+                                  {name, type, body, "robots[" + std::to_string(robots_++) + "]"},
                                   json::object(), *sim_, nullptr);
     Robot& r = static_cast<Robot&>(*robot);
     sim_->add_component(std::move(robot), type, "", true);
@@ -142,11 +143,11 @@ class SimNanSweepTest : public ::testing::Test {
   void add_component(Robot& robot, const std::string& short_name, const std::string& type,
                      json options = json::object()) {
     const std::string path = "robots[0].components[" + std::to_string(components_++) + "]";
-    sim_->add_component(
-        registry_.create(Kind::component,
-                         {robot.name() + "." + short_name, type, sim_->model().body_name(robot.body()), path}, options,
-                         *sim_, &robot),
-        type, robot.name());
+    sim_->add_component(registry_.create(Kind::component,
+                                         {robot.name() + "." + short_name, type,
+                                          sim_->model().body_name(robot.body()), path},
+                                         options, *sim_, &robot),
+                        type, robot.name());
   }
   void serve() {
     add_world_components(*sim_);
@@ -165,11 +166,14 @@ class SimNanSweepTest : public ::testing::Test {
       add_component(robot, type, type);
     add_component(robot, "imu", "imu", {{"site", "robot_top"}});
     add_component(robot, "laser", "laser_scanner", {{"site", "robot_top"}, {"resolution", 5}});
-    add_component(robot, "camera", "video_camera", {{"site", "robot_top"}, {"cam_width", 16}, {"cam_height", 16}});
-    add_component(robot, "depth", "depth_camera", {{"site", "robot_top"}, {"cam_width", 16}, {"cam_height", 16}});
+    add_component(robot, "camera", "video_camera",
+                  {{"site", "robot_top"}, {"cam_width", 16}, {"cam_height", 16}});
+    add_component(robot, "depth", "depth_camera",
+                  {{"site", "robot_top"}, {"cam_width", 16}, {"cam_height", 16}});
     add_robot("human", "human", "human");
     Robot& arm = add_robot("arm", "robot", "arm");
-    for (auto type : {"armature", "armature_pose", "actuators", "sensors"}) add_component(arm, type, type);
+    for (auto type : {"armature", "armature_pose", "actuators", "sensors"})
+      add_component(arm, type, type);
     // a robot of type mjcf on a plain body (the gateway gives it generic components; here it
     // offers its object services, which the sweep covers)
     add_robot("crate", "mjcf", "crate");
@@ -181,10 +185,12 @@ class SimNanSweepTest : public ::testing::Test {
     NanSweep sweep(*sim_, *rm_, std::move(table));
     // two finite magnitudes that mean something and reach nothing
     sweep.tolerate("time.sleep", "/0", 1e300,
-                   "a duration on the simulated clock: such a sleep never ends, and its client cancels it (MORSE's "
+                   "a duration on the simulated clock: such a sleep never ends, and its client "
+                   "cancels it (MORSE's "
                    "sleep has no bound; bench/attacks holds connections with time sleep [1e9])");
     sweep.tolerate("armature.trajectory", "/0/starttime", -1e300,
-                   "a start in the past is now, as in MORSE (ROS clients send 0 for now); only a start too far "
+                   "a start in the past is now, as in MORSE (ROS clients send 0 for now); only a "
+                   "start too far "
                    "ahead is refused");
     std::vector<std::string> findings = sweep.run();
     swept_ = sweep.swept();
@@ -216,22 +222,42 @@ TEST_F(SimNanSweepTest, EveryNumberOfEveryServiceAndPropertyRefusesNaNAndInfinit
   // every registered component type is on the scene
   std::set<std::string> types;
   for (const auto& e : sim_->components()) types.insert(e->type);
-  for (const auto& name : registry_.names(Kind::component)) EXPECT_TRUE(types.count(name)) << name << " not swept";
-  for (const auto& name : registry_.names(Kind::robot)) EXPECT_TRUE(types.count(name)) << name << " not swept";
+  for (const auto& name : registry_.names(Kind::component))
+    EXPECT_TRUE(types.count(name)) << name << " not swept";
+  for (const auto& name : registry_.names(Kind::robot))
+    EXPECT_TRUE(types.count(name)) << name << " not swept";
 
   const std::vector<std::string> findings = sweep();
   EXPECT_THAT(findings, IsEmpty()) << lines(findings);
   // what introspection found: the numbers of these services at least (a sweep of nothing
   // would pass too)
-  for (auto service : {"robot.motion_vw.set_speed", "robot.waypoint.goto", "robot.waypoint.setdest",
-                       "robot.teleport.translate", "robot.teleport.rotate", "robot.proximity.set_range", "human.move",
-                       "arm.armature.set_rotation", "arm.armature.set_rotations", "arm.armature.set_translation",
-                       "arm.armature.set_translations", "arm.armature.rotate", "arm.armature.rotate_joints",
-                       "arm.armature.translate", "arm.armature.translate_joints", "arm.armature.trajectory",
-                       "arm.actuators.set_control", "arm.actuators.set_controls", "time.sleep",
-                       "robot.laser.set_property(laser_range)", "arm.armature.set_property(settle_timeout)",
-                       "robot.set_property(wheel_radius)", "simulation.step", "simulation.restore_state",
-                       "simulation.drop_state", "time.set_time_scale", "simulation.set_object_position",
+  for (auto service : {"robot.motion_vw.set_speed",
+                       "robot.waypoint.goto",
+                       "robot.waypoint.setdest",
+                       "robot.teleport.translate",
+                       "robot.teleport.rotate",
+                       "robot.proximity.set_range",
+                       "human.move",
+                       "arm.armature.set_rotation",
+                       "arm.armature.set_rotations",
+                       "arm.armature.set_translation",
+                       "arm.armature.set_translations",
+                       "arm.armature.rotate",
+                       "arm.armature.rotate_joints",
+                       "arm.armature.translate",
+                       "arm.armature.translate_joints",
+                       "arm.armature.trajectory",
+                       "arm.actuators.set_control",
+                       "arm.actuators.set_controls",
+                       "time.sleep",
+                       "robot.laser.set_property(laser_range)",
+                       "arm.armature.set_property(settle_timeout)",
+                       "robot.set_property(wheel_radius)",
+                       "simulation.step",
+                       "simulation.restore_state",
+                       "simulation.drop_state",
+                       "time.set_time_scale",
+                       "simulation.set_object_position",
                        "simulation.set_entity_state"})
     EXPECT_TRUE(swept_.count(service)) << service << " was not swept";
   EXPECT_GT(bad_calls_, 400u);
@@ -266,12 +292,14 @@ class Careless : public SimComponent {
     add_service("checks_too_late", &Careless::checks_too_late, {"value"});
     add_async_service("drive_for", &Careless::drive_for, {"seconds"});
     add_service("vague", &Careless::vague, {"speed"});
-    add_property("gain", [this] { return json(sim().d()->ctrl[1]); },
-                 [this](const json& v) { sim().d()->ctrl[1] = v.get<double>(); });
+    add_property(
+        "gain", [this] { return json(sim().d()->ctrl[1]); },
+        [this](const json& v) { sim().d()->ctrl[1] = v.get<double>(); });
   }
   void set_ctrl(double value) { data()->ctrl[0] = value; }
   void set_velocities(const std::map<std::string, double>& velocities) {
-    for (const auto& [joint, v] : velocities) data()->qvel[model()->jnt_dofadr[sim().model().joint_id(joint)]] = v;
+    for (const auto& [joint, v] : velocities)
+      data()->qvel[model()->jnt_dofadr[sim().model().joint_id(joint)]] = v;
   }
   void set_height(const json& pose) { data()->qpos[2] = pose.at("z").get<double>(); }
   void checks_too_late(double value) {
@@ -293,14 +321,18 @@ class Careless : public SimComponent {
 
 TEST_F(SimNanSweepTest, ItCatchesAServiceThatWritesItsInputUnchecked) {
   count_warnings();
-  registry_.add<Careless>("careless", Kind::component, "writes client numbers into MuJoCo unchecked");
+  registry_.add<Careless>("careless", Kind::component,
+                          "writes client numbers into MuJoCo unchecked");
   build_every_type();
   Robot& robot = static_cast<Robot&>(*sim_->find("robot")->component);
   add_component(robot, "careless", "careless");
   serve();
   const std::vector<std::string> findings = sweep(
       {{"careless.set_velocities",
-        [](const std::string&) { return ValidCalls{{json{{"robot_left_wheel_joint", 0.0}, {"robot_right_wheel_joint", 0.0}}}}; }},
+        [](const std::string&) {
+          return ValidCalls{
+              {json{{"robot_left_wheel_joint", 0.0}, {"robot_right_wheel_joint", 0.0}}}};
+        }},
        {"careless.set_height", [](const std::string&) { return ValidCalls{{json{{"z", 0.1}}}}; }}});
   // each careless way is caught; every other component still has nothing to report
   auto found = [&findings](const std::string& text) {
@@ -309,34 +341,43 @@ TEST_F(SimNanSweepTest, ItCatchesAServiceThatWritesItsInputUnchecked) {
       if (f.find(text) != std::string::npos) out.push_back(f);
     return out;
   };
-  EXPECT_THAT(found("robot.careless.set_ctrl(/0 = NaN): ended SUCCESS"), Not(IsEmpty())) << lines(findings);
-  EXPECT_THAT(found("robot.careless.set_ctrl(/0 = NaN): right after it ctrl[0] = NaN"), Not(IsEmpty()));
-  EXPECT_THAT(found("robot.careless.set_velocities(/0/robot_right_wheel_joint = inf): right after it qvel"),
+  EXPECT_THAT(found("robot.careless.set_ctrl(/0 = NaN): ended SUCCESS"), Not(IsEmpty()))
+      << lines(findings);
+  EXPECT_THAT(found("robot.careless.set_ctrl(/0 = NaN): right after it ctrl[0] = NaN"),
               Not(IsEmpty()));
-  EXPECT_THAT(found("robot.careless.set_height(/0/z = -inf): right after it qpos[2] = -inf"), Not(IsEmpty()));
+  EXPECT_THAT(
+      found("robot.careless.set_velocities(/0/robot_right_wheel_joint = inf): right after it qvel"),
+      Not(IsEmpty()));
+  EXPECT_THAT(found("robot.careless.set_height(/0/z = -inf): right after it qpos[2] = -inf"),
+              Not(IsEmpty()));
   // 1e300 is finite: the state check alone would miss it; the SUCCESS does not
   EXPECT_THAT(found("robot.careless.set_height(/0/z = 1e+300): ended SUCCESS"), Not(IsEmpty()));
   // refused, but after the damage
-  EXPECT_THAT(found("robot.careless.checks_too_late(/0 = NaN): right after it qpos[0] = NaN"), Not(IsEmpty()));
+  EXPECT_THAT(found("robot.careless.checks_too_late(/0 = NaN): right after it qpos[0] = NaN"),
+              Not(IsEmpty()));
   EXPECT_THAT(found("robot.careless.drive_for(/0 = -inf): ended SUCCESS"), Not(IsEmpty()));
   EXPECT_THAT(found("robot.careless.set_property(gain) = NaN: ended SUCCESS"), Not(IsEmpty()));
-  EXPECT_THAT(found("robot.careless.vague(/0 = inf): FAILED without naming the parameter: invalid input"),
-              Not(IsEmpty()));
+  EXPECT_THAT(
+      found("robot.careless.vague(/0 = inf): FAILED without naming the parameter: invalid input"),
+      Not(IsEmpty()));
   EXPECT_THAT(found("MuJoCo found a bad state"), Not(IsEmpty()));
-  for (const auto& f : findings) EXPECT_THAT(f, HasSubstr("careless")) << "only Careless is careless";
+  for (const auto& f : findings)
+    EXPECT_THAT(f, HasSubstr("careless")) << "only Careless is careless";
   EXPECT_GT(warnings_.load(), 0);  // and the simulation said so
 }
 
 TEST_F(SimNanSweepTest, AServiceTakingNumbersWithNoKnownValidCallFailsTheSweep) {
   count_warnings();
-  registry_.add<Careless>("careless", Kind::component, "writes client numbers into MuJoCo unchecked");
+  registry_.add<Careless>("careless", Kind::component,
+                          "writes client numbers into MuJoCo unchecked");
   load(Model::load_string(k_every_type_xml, "nan_sweep.xml"));
   Robot& robot = add_robot("robot", "robot", "robot");
   add_component(robot, "careless", "careless");
   serve();
   // set_velocities and set_height take a map and an object: no valid call can be guessed
-  EXPECT_THAT(sweep(), Contains(HasSubstr("robot.careless.set_height: takes numbers, but the sweep knows no valid "
-                                          "call (add 'careless.set_height' to the table of valid calls)")));
+  EXPECT_THAT(sweep(), Contains(HasSubstr(
+                           "robot.careless.set_height: takes numbers, but the sweep knows no valid "
+                           "call (add 'careless.set_height' to the table of valid calls)")));
 }
 
 }  // namespace

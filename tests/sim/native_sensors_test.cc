@@ -13,8 +13,8 @@
 namespace simgate::sim {
 namespace {
 
-using testing::RecordingManager;
 using ::testing::HasSubstr;
+using testing::RecordingManager;
 
 // Inner faces of the walls: x = 3 (east, y from -5 to 5), y = 2 (north, x from -5 to 5).
 // The robot's laser site sits at the world's z axis, 0.2 m up, inside the chassis; the mast
@@ -54,8 +54,8 @@ constexpr const char* k_native_sensors_scene = R"(
 </mujoco>
 )";
 
-using testing::k_nan;
 using testing::k_inf;
+using testing::k_nan;
 constexpr double k_g = 9.81;
 
 // What the robot's laser must read along `degrees` (from the x axis of a sensor turned by
@@ -77,8 +77,9 @@ double wall_distance(double degrees, double x0 = 0, double y0 = 0, double yaw = 
 class NativeSensorsTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    sim_ = std::make_unique<Simulation>(Model::load_string(k_native_sensors_scene, "native-sensors-test.xml"),
-                                        SimulationOptions{std::nullopt, 0.0});
+    sim_ = std::make_unique<Simulation>(
+        Model::load_string(k_native_sensors_scene, "native-sensors-test.xml"),
+        SimulationOptions{std::nullopt, 0.0});
     robot_ = add_robot("robot");
     turntable_ = add_robot("turntable");
     add_robot("ball");
@@ -109,8 +110,8 @@ class NativeSensorsTest : public ::testing::Test {
   }
 
   Robot* add_robot(const std::string& name) {
-    auto robot = registry_.create(Kind::robot, {name, "robot", name, "robots[" + name + "]"}, json::object(), *sim_,
-                                  nullptr);
+    auto robot = registry_.create(Kind::robot, {name, "robot", name, "robots[" + name + "]"},
+                                  json::object(), *sim_, nullptr);
     auto* r = static_cast<Robot*>(robot.get());
     sim_->add_component(std::move(robot), "robot", "", true);
     return r;
@@ -119,15 +120,18 @@ class NativeSensorsTest : public ::testing::Test {
            json options = json::object()) {
     sim_->add_component(create(robot, name, type, std::move(options)), type, robot);
   }
-  std::unique_ptr<SimComponent> create(const std::string& robot, const std::string& name, const std::string& type,
-                                       json options, const std::string& body = "") {
+  std::unique_ptr<SimComponent> create(const std::string& robot, const std::string& name,
+                                       const std::string& type, json options,
+                                       const std::string& body = "") {
     auto* r = static_cast<Robot*>(sim_->find(robot)->component.get());
-    return registry_.create(Kind::component,
-                            {robot + "." + name, type, body.empty() ? robot : body, "robots[0].components[0]"},
-                            options, *sim_, r);
+    return registry_.create(
+        Kind::component,
+        {robot + "." + name, type, body.empty() ? robot : body, "robots[0].components[0]"}, options,
+        *sim_, r);
   }
 
-  Outcome call(const std::string& component, const std::string& service, json params = json::array()) {
+  Outcome call(const std::string& component, const std::string& service,
+               json params = json::array()) {
     RequestId id = rm_->call(component, service, std::move(params));
     sim_->process_requests();
     auto o = rm_->outcome(id);
@@ -165,7 +169,8 @@ class NativeSensorsTest : public ::testing::Test {
     EXPECT_NEAR(v[2].get<double>(), z, tolerance) << v;
   }
   static std::string message(const Outcome& o) {
-    return o.value && o.value->is_string() ? o.value->get<std::string>() : o.value.value_or(json()).dump();
+    return o.value && o.value->is_string() ? o.value->get<std::string>()
+                                           : o.value.value_or(json()).dump();
   }
 
   ComponentRegistry registry_ = builtin_registry();
@@ -203,8 +208,8 @@ TEST_F(NativeSensorsTest, LaserRangesAreTheWallDistancesAndMaxRangeWhereThereIsN
       ++hits;
     }
   }
-  EXPECT_GT(hits, 100);  // both walls, and
-  EXPECT_GT(misses, 20); // the open side
+  EXPECT_GT(hits, 100);                               // both walls, and
+  EXPECT_GT(misses, 20);                              // the open side
   EXPECT_NEAR(ranges[90].get<double>(), 3.0, 1e-4);   // straight ahead: the east wall
   EXPECT_NEAR(ranges[180].get<double>(), 2.0, 1e-4);  // to the left: the north wall
   // the poses it cast from: those the last step started from (timestamps_test.cc)
@@ -219,7 +224,8 @@ TEST_F(NativeSensorsTest, LaserDoesNotSeeAnyPartOfItsRobot) {
   const mjtNum direction[3] = {std::cos(a), std::sin(a), 0};
   const mjtNum* origin = sim_->d()->site_xpos + 3 * mj_name2id(m, mjOBJ_SITE, "laser");
   int geom = -1;
-  mj_ray(m, sim_->d(), origin, direction, nullptr, 1, sim_->model().body_id("robot"), &geom, nullptr);
+  mj_ray(m, sim_->d(), origin, direction, nullptr, 1, sim_->model().body_id("robot"), &geom,
+         nullptr);
   ASSERT_EQ(geom, mj_name2id(m, mjOBJ_GEOM, "mast"));
   // the scanner sees through it, and through the chassis it starts in
   json ranges = data("robot.laser")["range_list"];
@@ -241,8 +247,10 @@ TEST_F(NativeSensorsTest, LaserMovesWithItsRobot) {
 }
 
 TEST_F(NativeSensorsTest, SetPropertyChangesTheRays) {
-  EXPECT_EQ(properties("robot.laser"),
-            json({{"laser_range", 30.0}, {"scan_window", 180.0}, {"resolution", 1.0}, {"ray_count", 181}}));
+  EXPECT_EQ(properties("robot.laser"), json({{"laser_range", 30.0},
+                                             {"scan_window", 180.0},
+                                             {"resolution", 1.0},
+                                             {"ray_count", 181}}));
   ASSERT_EQ(call("robot.laser", "set_property", {"resolution", 5}).status, Status::success);
   json scan = data("robot.laser");
   ASSERT_EQ(scan["range_list"].size(), 37u);
@@ -268,7 +276,8 @@ TEST_F(NativeSensorsTest, SetPropertyChangesTheRays) {
 
 TEST_F(NativeSensorsTest, LaserSeesOnlyTheGeomGroupsItIsGiven) {
   // walls and robot are in group 0: a laser looking at group 1 only sees nothing
-  auto laser = create("robot", "laser_g1", "laser_scanner", {{"site", "laser"}, {"geom_groups", {1}}});
+  auto laser =
+      create("robot", "laser_g1", "laser_scanner", {{"site", "laser"}, {"geom_groups", {1}}});
   auto& scanner = static_cast<LaserScanner&>(*laser);
   scanner.scan();
   for (double r : scanner.ranges()) EXPECT_DOUBLE_EQ(r, 30.0);
@@ -323,7 +332,8 @@ TEST(NativeSensorsImu, AgreesWithMujocosOwnAccelerometerAndGyro) {
     </mujoco>)"),
                  SimulationOptions{std::nullopt, 0.0});
   auto registry = builtin_registry();
-  auto robot = registry.create(Kind::robot, {"box", "robot", "box", "robots[0]"}, json::object(), sim, nullptr);
+  auto robot = registry.create(Kind::robot, {"box", "robot", "box", "robots[0]"}, json::object(),
+                               sim, nullptr);
   auto imu = registry.create(Kind::component, {"box.imu", "imu", "box", "robots[0].components[0]"},
                              json{{"site", "s"}}, sim, static_cast<Robot*>(robot.get()));
   sim.d()->qvel[3] = 3;  // tumbling as it falls onto the floor
@@ -333,8 +343,10 @@ TEST(NativeSensorsImu, AgreesWithMujocosOwnAccelerometerAndGyro) {
     if (i % 50 != 49) continue;
     json reading = static_cast<Imu&>(*imu).get_local_data();
     for (int k = 0; k < 3; ++k) {
-      EXPECT_NEAR(reading["linear_acceleration"][k].get<double>(), sim.d()->sensordata[k], 1e-9) << i;
-      EXPECT_NEAR(reading["angular_velocity"][k].get<double>(), sim.d()->sensordata[3 + k], 1e-9) << i;
+      EXPECT_NEAR(reading["linear_acceleration"][k].get<double>(), sim.d()->sensordata[k], 1e-9)
+          << i;
+      EXPECT_NEAR(reading["angular_velocity"][k].get<double>(), sim.d()->sensordata[3 + k], 1e-9)
+          << i;
     }
   }
 }
@@ -361,7 +373,8 @@ TEST_F(NativeSensorsTest, OdometryFollowsATeleportedDisplacement) {
 
   // turned, then moved forward: in the start frame, along the new heading
   ASSERT_EQ(call("robot.teleport", "rotate", {0.0, 0.0, 0.5}).status, Status::success);
-  ASSERT_EQ(call("robot.teleport", "translate", {std::cos(0.5), std::sin(0.5), 0.0}).status, Status::success);
+  ASSERT_EQ(call("robot.teleport", "translate", {std::cos(0.5), std::sin(0.5), 0.0}).status,
+            Status::success);
   o = data("robot.odometry");
   EXPECT_NEAR(o["yaw"].get<double>(), 0.5, 1e-9);
   EXPECT_NEAR(o["x"].get<double>(), 1.0 + std::cos(0.5), 1e-9);
@@ -421,8 +434,9 @@ TEST_F(NativeSensorsTest, OdometryLevelsExportMorsesFields) {
   EXPECT_THAT(keys(data("robot.odometry_raw")), UnorderedElementsAre("dS", "timestamp"));
   EXPECT_THAT(keys(data("robot.odometry_diff")),
               UnorderedElementsAre("dx", "dy", "dz", "dyaw", "dpitch", "droll", "timestamp"));
-  EXPECT_THAT(keys(data("robot.odometry")), UnorderedElementsAre("x", "y", "z", "yaw", "pitch", "roll", "vx", "vy",
-                                                                  "vz", "wz", "wy", "wx", "timestamp"));
+  EXPECT_THAT(keys(data("robot.odometry")),
+              UnorderedElementsAre("x", "y", "z", "yaw", "pitch", "roll", "vx", "vy", "vz", "wz",
+                                   "wy", "wx", "timestamp"));
 }
 
 // ---- proximity --------------------------------------------------------------------------------
@@ -451,7 +465,8 @@ TEST_F(NativeSensorsTest, ProximityTracksBodiesByTheStartOfTheirName) {
   EXPECT_EQ(near.size(), 2u);
   EXPECT_NEAR(near["crate_b"].get<double>(), std::sqrt(16 + 9 + 0.01), 1e-9);
   // back to robots through the property
-  ASSERT_EQ(call("robot.proximity", "set_property", {"Track", "Robot_Tag"}).status, Status::success);
+  ASSERT_EQ(call("robot.proximity", "set_property", {"Track", "Robot_Tag"}).status,
+            Status::success);
   EXPECT_TRUE(data("robot.proximity")["near_objects"].contains("turntable"));
 }
 
@@ -459,7 +474,8 @@ TEST_F(NativeSensorsTest, ProximityRefusesATagThatTracksNothing) {
   Outcome o = call("robot.proximity", "set_tracked_tag", {"barrel"});
   EXPECT_EQ(o.status, Status::failed);
   EXPECT_THAT(message(o), HasSubstr("no object to track with tag 'barrel'"));
-  EXPECT_THAT(message(o), HasSubstr("(turntable, ball, crate_a, crate_b)"));  // never the robot itself
+  EXPECT_THAT(message(o),
+              HasSubstr("(turntable, ball, crate_a, crate_b)"));  // never the robot itself
   EXPECT_EQ(properties("robot.proximity")["Track"], "Robot_Tag");
   EXPECT_EQ(call("robot.proximity", "set_property", {"Track", 3}).status, Status::failed);
 }
@@ -469,7 +485,8 @@ TEST_F(NativeSensorsTest, ProximityRefusesATagThatTracksNothing) {
 TEST_F(NativeSensorsTest, EveryNumberThatIsNotFiniteOrInBoundsIsRefused) {
   const json before_laser = properties("robot.laser");
   const json before_proximity = properties("robot.proximity");
-  for (json bad : {json(k_nan), json(k_inf), json(-k_inf), json(1e300), json(-1.0), json("far"), json(nullptr)}) {
+  for (json bad : {json(k_nan), json(k_inf), json(-k_inf), json(1e300), json(-1.0), json("far"),
+                   json(nullptr)}) {
     for (auto property : {"laser_range", "scan_window", "resolution"}) {
       Outcome o = call("robot.laser", "set_property", {property, bad});
       EXPECT_EQ(o.status, Status::failed) << property << " = " << bad.dump();
@@ -482,7 +499,9 @@ TEST_F(NativeSensorsTest, EveryNumberThatIsNotFiniteOrInBoundsIsRefused) {
   Outcome o = call("robot.proximity", "set_range", {k_nan});
   EXPECT_THAT(message(o), HasSubstr("range = nan is out of bounds"));
   o = call("robot.laser", "set_property", {"resolution", 0.0});
-  EXPECT_THAT(message(o), HasSubstr("resolution = 0 is out of bounds: expected a finite number from 0.01 to 360"));
+  EXPECT_THAT(
+      message(o),
+      HasSubstr("resolution = 0 is out of bounds: expected a finite number from 0.01 to 360"));
   // nothing changed, nothing reached MuJoCo, and the simulation goes on
   EXPECT_EQ(properties("robot.laser"), before_laser);
   EXPECT_EQ(properties("robot.proximity"), before_proximity);
@@ -501,21 +520,27 @@ TEST_F(NativeSensorsTest, ConfigurationErrorsNameTheOptionAndWhatIsValid) {
     }
     return std::string("no error");
   };
-  EXPECT_THAT(config_error("robot", "imu", {{"site", "lidar"}}),
-              HasSubstr("options.site: expected the name of a site on robot 'robot' (laser, imu_tilted), found "
-                        "'lidar' (no such site)"));
+  EXPECT_THAT(
+      config_error("robot", "imu", {{"site", "lidar"}}),
+      HasSubstr(
+          "options.site: expected the name of a site on robot 'robot' (laser, imu_tilted), found "
+          "'lidar' (no such site)"));
   EXPECT_THAT(config_error("robot", "laser_scanner", {{"site", "rim"}}),
               HasSubstr("found 'rim', which is on body 'turntable', not on the robot"));
-  EXPECT_THAT(config_error("robot", "odometry", {{"level", "integral"}}), HasSubstr("options.level"));
-  EXPECT_THAT(config_error("robot", "laser_scanner", {{"geom_groups", {0, 7}}}), HasSubstr("options.geom_groups"));
-  EXPECT_THAT(config_error("robot", "laser_scanner", {{"resolution", 0}}), HasSubstr("options.resolution"));
+  EXPECT_THAT(config_error("robot", "odometry", {{"level", "integral"}}),
+              HasSubstr("options.level"));
+  EXPECT_THAT(config_error("robot", "laser_scanner", {{"geom_groups", {0, 7}}}),
+              HasSubstr("options.geom_groups"));
+  EXPECT_THAT(config_error("robot", "laser_scanner", {{"resolution", 0}}),
+              HasSubstr("options.resolution"));
   EXPECT_THAT(config_error("robot", "proximity", {{"track", "barrel"}}),
               HasSubstr("options.track: no object to track with tag 'barrel'"));
   EXPECT_THAT(config_error("robot", "proximity", {{"rnage", 3}}), HasSubstr("rnage"));
 }
 
 TEST_F(NativeSensorsTest, EverySensorAnswersMorsesObjectServices) {
-  for (auto name : {"robot.laser", "robot.imu", "robot.odometry", "robot.proximity", "turntable.rim_imu"}) {
+  for (auto name :
+       {"robot.laser", "robot.imu", "robot.odometry", "robot.proximity", "turntable.rim_imu"}) {
     EXPECT_EQ(call(name, "get_properties").status, Status::success) << name;
     Outcome c = call(name, "get_configurations");
     ASSERT_EQ(c.status, Status::success) << name;

@@ -29,10 +29,12 @@ class SimExampleTest : public testing::DemoSim {
   void SetUp() override {
     DemoSim::SetUp();
     registry_ = builtin_registry();
-    EXPECT_EQ(load_component_library(registry_, "odometer", {k_example_dir}), std::vector<std::string>{"odometer"});
+    EXPECT_EQ(load_component_library(registry_, "odometer", {k_example_dir}),
+              std::vector<std::string>{"odometer"});
     auto* robot = static_cast<Robot*>(sim_->find("robot")->component.get());
-    auto odometer = registry_.create(Kind::component, {"robot.odometer", "odometer", "robot", "test"},
-                                     json{{"min_step", 0.001}}, *sim_, robot);
+    auto odometer =
+        registry_.create(Kind::component, {"robot.odometer", "odometer", "robot", "test"},
+                         json{{"min_step", 0.001}}, *sim_, robot);
     rm_->register_component(*odometer);
     sim_->add_component(std::move(odometer), "odometer", "robot");
   }
@@ -71,18 +73,23 @@ TEST_F(SimExampleTest, AsyncServiceIsInterruptible) {
 
 TEST_F(SimExampleTest, BadArgumentFails) {
   for (json bad : {json(-1.0), json(std::nan("")), json(1e300)})
-    EXPECT_EQ(call("robot.odometer", "wait_distance", {bad}).value, json("distance must be positive and at most 1e6 m"));
+    EXPECT_EQ(call("robot.odometer", "wait_distance", {bad}).value,
+              json("distance must be positive and at most 1e6 m"));
 }
 
 TEST_F(SimExampleTest, ItsPropertyIsSettable) {
-  EXPECT_EQ(call("robot.odometer", "get_properties").value, json({{"properties", {{"min_step", 0.001}}}}));
+  EXPECT_EQ(call("robot.odometer", "get_properties").value,
+            json({{"properties", {{"min_step", 0.001}}}}));
   EXPECT_EQ(call("robot.odometer", "set_property", {"min_step", 0.01}).status, Status::success);
-  EXPECT_EQ(call("robot.odometer", "get_configurations").value->at("configurations")["type"], "odometer");
+  EXPECT_EQ(call("robot.odometer", "get_configurations").value->at("configurations")["type"],
+            "odometer");
 }
 
 TEST(ComponentLibraryTest, TheDocShowsTheLibraryVerbatim) {
-  const std::string code = read_file(std::string(SIMGATE_SOURCE_DIR) + "/docs/examples/odometer_library.cc");
-  const std::string page = read_file(std::string(SIMGATE_SOURCE_DIR) + "/docs/writing-a-component.md");
+  const std::string code =
+      read_file(std::string(SIMGATE_SOURCE_DIR) + "/docs/examples/odometer_library.cc");
+  const std::string page =
+      read_file(std::string(SIMGATE_SOURCE_DIR) + "/docs/writing-a-component.md");
   ASSERT_FALSE(code.empty());
   EXPECT_NE(page.find("```cpp\n" + code + "```"), std::string::npos)
       << "docs/writing-a-component.md must show docs/examples/odometer_library.cc verbatim";
@@ -94,7 +101,8 @@ TEST(ComponentLibraryTest, TheBuiltInsComeThroughTheSameDescriptor) {
   EXPECT_EQ(registry.find("pose")->origin, "built in");
   // a second registration of the built-ins is refused: no library replaces a type
   try {
-    add_component_library(registry, builtin_component_library(), "the built-in component types", "built in");
+    add_component_library(registry, builtin_component_library(), "the built-in component types",
+                          "built in");
     FAIL() << "registered twice";
   } catch (const PluginError& e) {
     EXPECT_THAT(e.what(), ::testing::HasSubstr("which built in already provides"));
@@ -120,9 +128,11 @@ TEST(ComponentLibraryTest, AMissingLibraryListsThePathsTried) {
     load_component_library(registry, "no_such_library", {"/nonexistent/dir"});
     FAIL() << "loaded";
   } catch (const PluginError& e) {
-    EXPECT_THAT(e.what(), ::testing::HasSubstr("component library 'no_such_library': no "
-                                               "libsimgate_components_no_such_library.so found; paths tried:"));
-    EXPECT_THAT(e.what(), ::testing::HasSubstr("/nonexistent/dir/libsimgate_components_no_such_library.so"));
+    EXPECT_THAT(e.what(), ::testing::HasSubstr(
+                              "component library 'no_such_library': no "
+                              "libsimgate_components_no_such_library.so found; paths tried:"));
+    EXPECT_THAT(e.what(),
+                ::testing::HasSubstr("/nonexistent/dir/libsimgate_components_no_such_library.so"));
   }
 }
 
@@ -130,10 +140,13 @@ TEST(ComponentLibraryTest, ATransportPluginIsNotAComponentLibrary) {
   // the socket transport, given by path: no simgate_components_..._entry in it
   ComponentRegistry registry;
   try {
-    load_component_library(registry, std::string(SIMGATE_TEST_PLUGIN_DIR) + "/libsimgate_transport_socket.so");
+    load_component_library(
+        registry, std::string(SIMGATE_TEST_PLUGIN_DIR) + "/libsimgate_transport_socket.so");
     FAIL() << "loaded";
   } catch (const PluginError& e) {
-    EXPECT_THAT(e.what(), ::testing::HasSubstr("entry function simgate_components_libsimgate_transport_socket_entry"));
+    EXPECT_THAT(e.what(),
+                ::testing::HasSubstr(
+                    "entry function simgate_components_libsimgate_transport_socket_entry"));
   }
 }
 

@@ -21,7 +21,9 @@ std::string read_file(const std::string& path) {
   std::ifstream in(path);
   return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
 }
-std::string source(const std::string& relative) { return std::string(SIMGATE_SOURCE_DIR) + "/" + relative; }
+std::string source(const std::string& relative) {
+  return std::string(SIMGATE_SOURCE_DIR) + "/" + relative;
+}
 
 TEST(SimRegistryOptions, EveryBuiltInTypeDeclaresItsOptionsAndItsPage) {
   const ComponentRegistry registry = builtin_registry();
@@ -36,9 +38,10 @@ TEST(SimRegistryOptions, EveryBuiltInTypeDeclaresItsOptionsAndItsPage) {
       EXPECT_TRUE(o.schema.is_object() && !o.schema.empty()) << name << "." << o.name;
     }
   }
-  for (const char* expected : {"ground_robot", "human", "robot", "mjcf", "motion_vw", "waypoint", "teleport", "pose",
-                               "actuators", "sensors", "armature", "armature_pose", "imu", "odometry",
-                               "laser_scanner", "proximity", "video_camera", "depth_camera"})
+  for (const char* expected :
+       {"ground_robot", "human", "robot", "mjcf", "motion_vw", "waypoint", "teleport", "pose",
+        "actuators", "sensors", "armature", "armature_pose", "imu", "odometry", "laser_scanner",
+        "proximity", "video_camera", "depth_camera"})
     EXPECT_TRUE(names.count(expected)) << expected << " is not registered";
 }
 
@@ -49,20 +52,23 @@ TEST(SimRegistryOptions, TheDeploymentSchemaIsTheDeclarationsOfTheBuiltIns) {
   json schema = json::parse(read_file(path));
   const json robots = registry.options_schema(Kind::robot);
   const json components = registry.options_schema(Kind::component);
-  const bool same = schema["$defs"]["robot"]["allOf"] == robots && schema["$defs"]["component"]["allOf"] == components;
+  const bool same = schema["$defs"]["robot"]["allOf"] == robots &&
+                    schema["$defs"]["component"]["allOf"] == components;
   if (!same) {
     // what the file should hold, for the developer to copy over it
     schema["$defs"]["robot"]["allOf"] = robots;
     schema["$defs"]["component"]["allOf"] = components;
     const std::string generated = std::string(SIMGATE_BINARY_DIR) + "/deployment.schema.json";
     std::ofstream(generated) << schema.dump(2) << "\n";
-    ADD_FAILURE() << path << ": its robot and component option rules differ from the types' declarations "
+    ADD_FAILURE() << path
+                  << ": its robot and component option rules differ from the types' declarations "
                   << "(SIMGATE_BUILTIN_TYPE); the file with the declared rules is " << generated;
   }
   // the type lists the schema describes name every built-in type
   for (const auto& [name, type] : registry.types()) {
     const char* def = type.kind == Kind::robot ? "robot" : "component";
-    EXPECT_THAT(schema["$defs"][def]["properties"]["type"]["description"].get<std::string>(), HasSubstr(name))
+    EXPECT_THAT(schema["$defs"][def]["properties"]["type"]["description"].get<std::string>(),
+                HasSubstr(name))
         << def << ".type's description does not name " << name;
   }
 }
@@ -91,8 +97,8 @@ TEST(SimRegistryOptions, TheDocsNameEveryDeclaredOption) {
     const std::string page = read_file(source(type.doc_page));
     for (const OptionSpec& o : type.options) {
       EXPECT_THAT(row, HasSubstr("`" + o.name + "`")) << "docs/configuration.md, row " << name;
-      EXPECT_THAT(page, HasSubstr("`" + o.name + "`")) << type.doc_page << " does not document " << name << "."
-                                                       << o.name;
+      EXPECT_THAT(page, HasSubstr("`" + o.name + "`"))
+          << type.doc_page << " does not document " << name << "." << o.name;
     }
     if (type.options.empty()) EXPECT_THAT(row, HasSubstr("| — |")) << name << " takes no options";
   }
@@ -100,18 +106,21 @@ TEST(SimRegistryOptions, TheDocsNameEveryDeclaredOption) {
 
 class SimRegistryOptionsTest : public ::testing::Test {
  protected:
-  SimRegistryOptionsTest() : sim_(Model::load_file(testing::demo_scene()), SimulationOptions{std::nullopt, 0.0}) {}
+  SimRegistryOptionsTest()
+      : sim_(Model::load_file(testing::demo_scene()), SimulationOptions{std::nullopt, 0.0}) {}
   Simulation sim_;
 };
 
 TEST_F(SimRegistryOptionsTest, AnUndeclaredOptionIsRefusedNamingTheDeclaredOnes) {
   ComponentRegistry registry = builtin_registry();
   try {
-    registry.create(Kind::robot, {"robot", "ground_robot", "robot", "robots[0]"}, json{{"wheel_radus", 0.1}}, sim_,
-                    nullptr);
+    registry.create(Kind::robot, {"robot", "ground_robot", "robot", "robots[0]"},
+                    json{{"wheel_radus", 0.1}}, sim_, nullptr);
     FAIL() << "an undeclared option was accepted";
   } catch (const ConfigError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("robots[0].options.wheel_radus: unknown key (did you mean 'wheel_radius'?"));
+    EXPECT_THAT(
+        e.what(),
+        HasSubstr("robots[0].options.wheel_radus: unknown key (did you mean 'wheel_radius'?"));
     EXPECT_THAT(e.what(), HasSubstr("max_wheel_speed"));  // declared, though not given
   }
 }
@@ -119,10 +128,14 @@ TEST_F(SimRegistryOptionsTest, AnUndeclaredOptionIsRefusedNamingTheDeclaredOnes)
 TEST_F(SimRegistryOptionsTest, ATypeThatReadsAnOptionItDoesNotDeclareIsCaught) {
   ComponentRegistry registry = builtin_registry();
   struct Sneaky : SimComponent {
-    explicit Sneaky(ComponentContext& c) : SimComponent(c.name(), c.sim()) { (void)c.options().get_number("gain", 1, 0, 2); }
+    explicit Sneaky(ComponentContext& c) : SimComponent(c.name(), c.sim()) {
+      (void)c.options().get_number("gain", 1, 0, 2);
+    }
   };
-  registry.add(builtin_type<Sneaky>("sneaky", Kind::robot, "reads an undeclared option", "docs/configuration.md", {}));
-  EXPECT_THROW(registry.create(Kind::robot, {"robot", "sneaky", "robot", "robots[0]"}, json::object(), sim_, nullptr),
+  registry.add(builtin_type<Sneaky>("sneaky", Kind::robot, "reads an undeclared option",
+                                    "docs/configuration.md", {}));
+  EXPECT_THROW(registry.create(Kind::robot, {"robot", "sneaky", "robot", "robots[0]"},
+                               json::object(), sim_, nullptr),
                std::logic_error);
 }
 

@@ -11,9 +11,11 @@ using ::testing::HasSubstr;
 
 class SimRegistryTest : public ::testing::Test {
  protected:
-  SimRegistryTest() : sim_(Model::load_file(testing::demo_scene()), SimulationOptions{std::nullopt, 0.0}) {}
+  SimRegistryTest()
+      : sim_(Model::load_file(testing::demo_scene()), SimulationOptions{std::nullopt, 0.0}) {}
 
-  std::string error_of(Kind kind, ComponentSpec spec, json options = json::object(), Robot* robot = nullptr) {
+  std::string error_of(Kind kind, ComponentSpec spec, json options = json::object(),
+                       Robot* robot = nullptr) {
     try {
       registry_.create(kind, spec, options, sim_, robot);
     } catch (const ConfigError& e) {
@@ -22,7 +24,8 @@ class SimRegistryTest : public ::testing::Test {
     return "";
   }
   Robot* add_robot(const std::string& type, const std::string& name, const std::string& body) {
-    auto r = registry_.create(Kind::robot, {name, type, body, "robots[0]"}, json::object(), sim_, nullptr);
+    auto r = registry_.create(Kind::robot, {name, type, body, "robots[0]"}, json::object(), sim_,
+                              nullptr);
     auto* p = static_cast<Robot*>(r.get());
     sim_.add_component(std::move(r), type, "", true);
     return p;
@@ -33,14 +36,16 @@ class SimRegistryTest : public ::testing::Test {
 };
 
 TEST_F(SimRegistryTest, UnknownTypeNamesPathAndKnownTypes) {
-  std::string e = error_of(Kind::component, {"robot.x", "motion_wv", "robot", "robots[0].components[2]"});
+  std::string e =
+      error_of(Kind::component, {"robot.x", "motion_wv", "robot", "robots[0].components[2]"});
   EXPECT_THAT(e, HasSubstr("robots[0].components[2].type"));
   EXPECT_THAT(e, HasSubstr("motion_wv"));
   EXPECT_THAT(e, HasSubstr("motion_vw"));  // lists what exists
 }
 
 TEST_F(SimRegistryTest, RobotTypeUsedAsComponentIsRejected) {
-  std::string e = error_of(Kind::component, {"robot.x", "human", "robot", "robots[0].components[0]"});
+  std::string e =
+      error_of(Kind::component, {"robot.x", "human", "robot", "robots[0].components[0]"});
   EXPECT_THAT(e, HasSubstr("which is a robot type"));
 }
 
@@ -75,7 +80,8 @@ std::string wheeled_scene(const std::string& left, const std::string& right) {
       </body>
     </body>
   </worldbody>
-  <actuator>)" + left + right + R"(</actuator>
+  <actuator>)" +
+         left + right + R"(</actuator>
 </mujoco>)";
 }
 
@@ -83,7 +89,8 @@ std::string wheeled_scene(const std::string& left, const std::string& right) {
 std::string ground_robot_error(const std::string& scene) {
   Simulation sim(Model::load_string(scene), SimulationOptions{std::nullopt, 0.0});
   try {
-    builtin_registry().create(Kind::robot, {"bot", "ground_robot", "bot", "robots[0]"}, json::object(), sim, nullptr);
+    builtin_registry().create(Kind::robot, {"bot", "ground_robot", "bot", "robots[0]"},
+                              json::object(), sim, nullptr);
   } catch (const ConfigError& e) {
     return e.what();
   }
@@ -91,34 +98,43 @@ std::string ground_robot_error(const std::string& scene) {
 }
 
 TEST(SimGroundRobotActuators, AMotorIsRefusedNamingItsTypeAndWhatIsExpected) {
-  std::string e = ground_robot_error(wheeled_scene(R"(<motor name="bot_left_motor" joint="left"/>)",
-                                                   R"(<velocity name="bot_right_motor" joint="right" kv="5"/>)"));
-  EXPECT_EQ(e,
-            "robots[0].options.left_actuator: actuator 'bot_left_motor' is a motor (torque: fixed gain, no bias); "
-            "ground_robot drives its wheels by velocity: expected a <velocity kv=\"...\"> actuator (or a <general> "
-            "one with gaintype=\"fixed\" gainprm=\"kv\", biastype=\"affine\" and biasprm=\"0 0 -kv\")");
+  std::string e = ground_robot_error(
+      wheeled_scene(R"(<motor name="bot_left_motor" joint="left"/>)",
+                    R"(<velocity name="bot_right_motor" joint="right" kv="5"/>)"));
+  EXPECT_EQ(
+      e,
+      "robots[0].options.left_actuator: actuator 'bot_left_motor' is a motor (torque: fixed gain, "
+      "no bias); "
+      "ground_robot drives its wheels by velocity: expected a <velocity kv=\"...\"> actuator (or a "
+      "<general> "
+      "one with gaintype=\"fixed\" gainprm=\"kv\", biastype=\"affine\" and biasprm=\"0 0 -kv\")");
 }
 
 TEST(SimGroundRobotActuators, APositionServoIsRefused) {
-  std::string e = ground_robot_error(wheeled_scene(R"(<velocity name="bot_left_motor" joint="left" kv="5"/>)",
-                                                   R"(<position name="bot_right_motor" joint="right" kp="20"/>)"));
-  EXPECT_THAT(e, HasSubstr("robots[0].options.right_actuator: actuator 'bot_right_motor' is a position servo (kp=20"));
+  std::string e = ground_robot_error(
+      wheeled_scene(R"(<velocity name="bot_left_motor" joint="left" kv="5"/>)",
+                    R"(<position name="bot_right_motor" joint="right" kp="20"/>)"));
+  EXPECT_THAT(e, HasSubstr("robots[0].options.right_actuator: actuator 'bot_right_motor' is a "
+                           "position servo (kp=20"));
   EXPECT_THAT(e, HasSubstr("expected a <velocity kv="));
 }
 
 TEST(SimGroundRobotActuators, AnOtherGeneralActuatorIsDescribedByItsParameters) {
-  std::string e = ground_robot_error(
-      wheeled_scene(R"(<general name="bot_left_motor" joint="left" gainprm="3" biastype="affine" biasprm="0 -1 -2"/>)",
-                    R"(<velocity name="bot_right_motor" joint="right" kv="5"/>)"));
-  EXPECT_THAT(e, HasSubstr("actuator 'bot_left_motor' is a general actuator (gaintype fixed, gainprm 3 0 0; "
-                           "biastype affine, biasprm 0 -1 -2)"));
+  std::string e = ground_robot_error(wheeled_scene(
+      R"(<general name="bot_left_motor" joint="left" gainprm="3" biastype="affine" biasprm="0 -1 -2"/>)",
+      R"(<velocity name="bot_right_motor" joint="right" kv="5"/>)"));
+  EXPECT_THAT(
+      e,
+      HasSubstr("actuator 'bot_left_motor' is a general actuator (gaintype fixed, gainprm 3 0 0; "
+                "biastype affine, biasprm 0 -1 -2)"));
 }
 
 TEST(SimGroundRobotActuators, VelocityAndGeneralVelocityShapedActuatorsAreAccepted) {
-  EXPECT_EQ(ground_robot_error(wheeled_scene(
-                R"(<velocity name="bot_left_motor" joint="left" kv="5"/>)",
-                R"(<general name="bot_right_motor" joint="right" gainprm="5" biastype="affine" biasprm="0 0 -5"/>)")),
-            "");
+  EXPECT_EQ(
+      ground_robot_error(wheeled_scene(
+          R"(<velocity name="bot_left_motor" joint="left" kv="5"/>)",
+          R"(<general name="bot_right_motor" joint="right" gainprm="5" biastype="affine" biasprm="0 0 -5"/>)")),
+      "");
 }
 
 TEST_F(SimRegistryTest, TheDemoSceneWheelsAreVelocityActuators) {
@@ -126,28 +142,32 @@ TEST_F(SimRegistryTest, TheDemoSceneWheelsAreVelocityActuators) {
 }
 
 TEST_F(SimRegistryTest, UnknownOptionKeyIsAnError) {
-  std::string e = error_of(Kind::robot, {"robot", "ground_robot", "robot", "robots[0]"}, {{"wheel_radus", 0.1}});
+  std::string e = error_of(Kind::robot, {"robot", "ground_robot", "robot", "robots[0]"},
+                           {{"wheel_radus", 0.1}});
   EXPECT_THAT(e, HasSubstr("robots[0].options.wheel_radus"));
   EXPECT_THAT(e, HasSubstr("unknown key"));
 }
 
 TEST_F(SimRegistryTest, OptionOfTheWrongTypeIsAnError) {
-  std::string e = error_of(Kind::robot, {"robot", "ground_robot", "robot", "robots[0]"}, {{"wheel_radius", "big"}});
+  std::string e = error_of(Kind::robot, {"robot", "ground_robot", "robot", "robots[0]"},
+                           {{"wheel_radius", "big"}});
   EXPECT_THAT(e, HasSubstr("robots[0].options.wheel_radius"));
   EXPECT_THAT(e, HasSubstr("expected"));
 }
 
 TEST_F(SimRegistryTest, MotionNeedsARobotThatDrives) {
   Robot* human = add_robot("human", "human", "human");
-  std::string e = error_of(Kind::component, {"human.motion", "motion_vw", "human", "robots[0].components[0]"},
-                           json::object(), human);
+  std::string e =
+      error_of(Kind::component, {"human.motion", "motion_vw", "human", "robots[0].components[0]"},
+               json::object(), human);
   EXPECT_THAT(e, HasSubstr("ground_robot"));
   EXPECT_THAT(e, HasSubstr("'human'"));
 }
 
 TEST_F(SimRegistryTest, TeleportNeedsAFreeJoint) {
   Robot* robot = add_robot("ground_robot", "robot", "robot");
-  std::string e = error_of(Kind::component, {"robot.tp", "teleport", "robot_left_wheel", "robots[0].components[0]"},
+  std::string e = error_of(Kind::component,
+                           {"robot.tp", "teleport", "robot_left_wheel", "robots[0].components[0]"},
                            json::object(), robot);
   EXPECT_THAT(e, HasSubstr("free joint"));
 }
@@ -170,7 +190,8 @@ class Counter : public SimComponent {
 TEST_F(SimRegistryTest, NewTypeJoinsTheRegistry) {
   registry_.add<Counter>("counter", Kind::component, "counts steps");
   Robot* robot = add_robot("robot", "robot", "robot");
-  auto c = registry_.create(Kind::component, {"robot.counter", "counter", "robot", "x"}, {{"step", 2}}, sim_, robot);
+  auto c = registry_.create(Kind::component, {"robot.counter", "counter", "robot", "x"},
+                            {{"step", 2}}, sim_, robot);
   ASSERT_NE(c, nullptr);
   auto* counter = static_cast<Counter*>(c.get());
   sim_.add_component(std::move(c), "counter", "robot");
@@ -192,10 +213,12 @@ TEST_F(SimRegistryTest, FaultyDefaultActionDeactivatesOnlyThatComponent) {
   registry_.add<Faulty>("faulty", Kind::component, "always fails");
   registry_.add<Counter>("counter", Kind::component, "counts steps");
   Robot* robot = add_robot("robot", "robot", "robot");
-  auto& faulty = sim_.add_component(
-      registry_.create(Kind::component, {"robot.faulty", "faulty", "robot", "x"}, json::object(), sim_, robot),
-      "faulty", "robot");
-  auto c = registry_.create(Kind::component, {"robot.counter", "counter", "robot", "y"}, json::object(), sim_, robot);
+  auto& faulty =
+      sim_.add_component(registry_.create(Kind::component, {"robot.faulty", "faulty", "robot", "x"},
+                                          json::object(), sim_, robot),
+                         "faulty", "robot");
+  auto c = registry_.create(Kind::component, {"robot.counter", "counter", "robot", "y"},
+                            json::object(), sim_, robot);
   auto* counter = static_cast<Counter*>(c.get());
   sim_.add_component(std::move(c), "counter", "robot");
   auto rm = std::make_shared<testing::RecordingManager>();

@@ -56,18 +56,22 @@ class SimSceneGeometryTest : public testing::MjcfSim {
     load_string(xml);
     serve();
   }
-  json geometry(json params = json::array()) { return value("simulation", "get_scene_geometry", std::move(params)); }
+  json geometry(json params = json::array()) {
+    return value("simulation", "get_scene_geometry", std::move(params));
+  }
   // The geom of `geometry` named `name` (null when none is).
   static json geom(const json& geometry, const std::string& name) {
     for (const auto& g : geometry["geoms"])
       if (g["name"] == name) return g;
     return nullptr;
   }
-  static void expect_numbers(const json& actual, std::vector<double> expected, double tolerance = 1e-6) {
+  static void expect_numbers(const json& actual, std::vector<double> expected,
+                             double tolerance = 1e-6) {
     ASSERT_TRUE(actual.is_array()) << actual.dump();
     ASSERT_EQ(actual.size(), expected.size()) << actual.dump();
     for (std::size_t i = 0; i < expected.size(); ++i)
-      EXPECT_NEAR(actual[i].get<double>(), expected[i], tolerance) << actual.dump() << " [" << i << "]";
+      EXPECT_NEAR(actual[i].get<double>(), expected[i], tolerance)
+          << actual.dump() << " [" << i << "]";
   }
 };
 
@@ -85,13 +89,14 @@ TEST_F(SimSceneGeometryTest, DescribesEveryBodyAndGeomOfTheModel) {
   EXPECT_EQ(g["bodies"][arm]["name"], "arm");
   EXPECT_EQ(g["bodies"][arm]["parent"], table);
   EXPECT_EQ(g["bodies"][table]["parent"], 0);
-  expect_numbers(g["bodies"][arm]["pos"], {0.1, 0, 0.6});  // world frame: the table's 0.5 plus its own 0.1
+  expect_numbers(g["bodies"][arm]["pos"],
+                 {0.1, 0, 0.6});  // world frame: the table's 0.5 plus its own 0.1
   expect_numbers(g["bodies"][arm]["quat"], {1, 0, 0, 0});
 
   // geoms: type, size (MuJoCo's geom_size), colour, body, place on the body, group
   ASSERT_EQ(g["geoms"].size(), static_cast<std::size_t>(sim_->m()->ngeom));
-  const json floor = geom(g, "floor"), top = geom(g, "top"), rod = geom(g, "rod"), ball = geom(g, "ball"),
-             tetra = geom(g, "tetra");
+  const json floor = geom(g, "floor"), top = geom(g, "top"), rod = geom(g, "rod"),
+             ball = geom(g, "ball"), tetra = geom(g, "tetra");
   EXPECT_EQ(floor["type"], "plane");
   expect_numbers(floor["size"], {5, 5, 0.1});
   expect_numbers(floor["rgba"], {0.2, 0.3, 0.4, 1});
@@ -116,7 +121,8 @@ TEST_F(SimSceneGeometryTest, DescribesEveryBodyAndGeomOfTheModel) {
   EXPECT_EQ(tetra["mesh"], 0);
   EXPECT_FALSE(ball.contains("mesh"));  // only meshes say which
   // colours are written as the floats MuJoCo holds, shortest: 0.2, not 0.20000000298023224
-  EXPECT_NE(floor["rgba"].dump().find("[0.2,0.3,0.4,1.0]"), std::string::npos) << floor["rgba"].dump();
+  EXPECT_NE(floor["rgba"].dump().find("[0.2,0.3,0.4,1.0]"), std::string::npos)
+      << floor["rgba"].dump();
 }
 
 // The mesh's vertices are in the geom's frame: placed by the geom's pos and quat on its body
@@ -131,8 +137,10 @@ TEST_F(SimSceneGeometryTest, MeshVerticesPlacedByTheGeomAreThePointsTheMjcfWrote
   const json& vertices = mesh["vertices"];
   ASSERT_EQ(vertices.size(), 12u) << vertices.dump();
   const json tetra = geom(g, "tetra");
-  const double w = tetra["quat"][0], x = tetra["quat"][1], y = tetra["quat"][2], z = tetra["quat"][3];
-  const std::array<std::array<double, 3>, 4> written = {{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}}};
+  const double w = tetra["quat"][0], x = tetra["quat"][1], y = tetra["quat"][2],
+               z = tetra["quat"][3];
+  const std::array<std::array<double, 3>, 4> written = {
+      {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}}};
   std::set<int> found;
   for (std::size_t v = 0; v < 4; ++v) {
     const double px = vertices[3 * v], py = vertices[3 * v + 1], pz = vertices[3 * v + 2];
@@ -144,7 +152,8 @@ TEST_F(SimSceneGeometryTest, MeshVerticesPlacedByTheGeomAreThePointsTheMjcfWrote
     // which written point it is
     for (std::size_t k = 0; k < written.size(); ++k) {
       double distance = 0;
-      for (int i = 0; i < 3; ++i) distance += std::abs(r[i] + tetra["pos"][i].get<double>() - written[k][i]);
+      for (int i = 0; i < 3; ++i)
+        distance += std::abs(r[i] + tetra["pos"][i].get<double>() - written[k][i]);
       if (distance < 3e-4) found.insert(static_cast<int>(k));
     }
   }
@@ -189,7 +198,8 @@ TEST_F(SimSceneGeometryTest, BodiesPosesAreTheCurrentOnes) {
 // Debian's sample models (libmujoco-dev's examples): the counts are the model's.
 TEST_F(SimSceneGeometryTest, SampleModelsAreDescribedWhole) {
   int models = 0;
-  for (const char* file : {"/usr/share/mujoco/model/humanoid/humanoid.xml", "/usr/share/mujoco/model/mug/mug.xml"}) {
+  for (const char* file :
+       {"/usr/share/mujoco/model/humanoid/humanoid.xml", "/usr/share/mujoco/model/mug/mug.xml"}) {
     if (!std::filesystem::exists(file)) continue;
     SCOPED_TRACE(file);
     rm_.reset();
@@ -202,12 +212,13 @@ TEST_F(SimSceneGeometryTest, SampleModelsAreDescribedWhole) {
     EXPECT_EQ(g["geoms"].size(), static_cast<std::size_t>(m->ngeom));
     ASSERT_EQ(g["meshes"].size(), static_cast<std::size_t>(m->nmesh));
     for (int i = 0; i < m->nmesh; ++i) {
-      EXPECT_EQ(g["meshes"][i]["vertices"].size(), 3u * static_cast<std::size_t>(m->mesh_vertnum[i]));
+      EXPECT_EQ(g["meshes"][i]["vertices"].size(),
+                3u * static_cast<std::size_t>(m->mesh_vertnum[i]));
       EXPECT_EQ(g["meshes"][i]["faces"].size(), 3u * static_cast<std::size_t>(m->mesh_facenum[i]));
       const auto& faces = g["meshes"][i]["faces"];
-      const auto largest = std::max_element(faces.begin(), faces.end(), [](const json& a, const json& b) {
-        return a.get<int>() < b.get<int>();
-      });
+      const auto largest = std::max_element(
+          faces.begin(), faces.end(),
+          [](const json& a, const json& b) { return a.get<int>() < b.get<int>(); });
       if (largest != faces.end()) {
         EXPECT_LT(largest->get<int>(), m->mesh_vertnum[i]);
       }
@@ -219,7 +230,8 @@ TEST_F(SimSceneGeometryTest, SampleModelsAreDescribedWhole) {
     for (int b = 0; b < m->nbody; ++b) EXPECT_EQ(g["bodies"][b]["parent"], m->body_parentid[b]);
     ++models;
   }
-  if (models == 0) GTEST_SKIP() << "no sample model under /usr/share/mujoco/model (Debian's libmujoco-dev)";
+  if (models == 0)
+    GTEST_SKIP() << "no sample model under /usr/share/mujoco/model (Debian's libmujoco-dev)";
 }
 
 TEST_F(SimSceneGeometryTest, BodyPosesSamplesAreEveryBodysWorldPose) {
@@ -228,7 +240,8 @@ TEST_F(SimSceneGeometryTest, BodyPosesSamplesAreEveryBodysWorldPose) {
   ASSERT_NE(simulation, nullptr);
   ASSERT_NE(simulation->component->stream(), nullptr);
   EXPECT_EQ(simulation->component->stream()->kind, "body_poses");
-  sim_->streams().add(*simulation->component, "simulation", {"test"}, SupervisionServices::k_body_poses_frequency);
+  sim_->streams().add(*simulation->component, "simulation", {"test"},
+                      SupervisionServices::k_body_poses_frequency);
   auto subscription = sim_->streams().subscribe("simulation", "test", {64, "test", {}});
   ASSERT_TRUE(subscription);
   run_for(1.0);  // 500 steps of 2 ms at 30 Hz (simulated): one every 1/30 s, plus the first at once
@@ -290,8 +303,8 @@ TEST_F(SimSceneGeometryTest, RepeatedCallsGiveEqualMeshesWrittenOnce) {
 // in MuJoCo's binary format: int32 nrow, int32 ncol, then the float elevations row by row;
 // MuJoCo 2.2 has no inline `elevation`).
 TEST_F(SimSceneGeometryTest, HeightfieldsAreDescribedWithTheirElevations) {
-  const std::filesystem::path file =
-      std::filesystem::temp_directory_path() / ("simgate-hfield-" + std::to_string(::getpid()) + ".bin");
+  const std::filesystem::path file = std::filesystem::temp_directory_path() /
+                                     ("simgate-hfield-" + std::to_string(::getpid()) + ".bin");
   {
     std::ofstream out(file, std::ios::binary);
     const std::int32_t nrow = 3, ncol = 4;
@@ -306,7 +319,8 @@ TEST_F(SimSceneGeometryTest, HeightfieldsAreDescribedWithTheirElevations) {
   } remove{file};
   start(R"(<mujoco model="terrain">
   <asset>
-    <hfield name="bumps" size="2 1.5 0.4 0.1" file=")" + file.string() + R"("/>
+    <hfield name="bumps" size="2 1.5 0.4 0.1" file=")" +
+        file.string() + R"("/>
   </asset>
   <worldbody>
     <geom name="ground" type="hfield" hfield="bumps" pos="1 2 0" rgba="0.3 0.6 0.3 1"/>
@@ -328,7 +342,8 @@ TEST_F(SimSceneGeometryTest, HeightfieldsAreDescribedWithTheirElevations) {
   std::vector<double> expected;
   for (double e : {0, 1, 2, 3, 1, 2, 3, 4, 0, 0, 4, 2}) expected.push_back(e / 4);
   expect_numbers(hfield["data"], expected);
-  for (int i = 0; i < 12; ++i) EXPECT_EQ(hfield["data"][i].get<double>(), sim_->m()->hfield_data[i]);
+  for (int i = 0; i < 12; ++i)
+    EXPECT_EQ(hfield["data"][i].get<double>(), sim_->m()->hfield_data[i]);
   // without the meshes, no heightfield data either
   EXPECT_EQ(geometry({{"include_meshes", false}})["hfields"], json::array());
 }
@@ -339,13 +354,15 @@ using SimSceneGeometrySpawnTest = testing::DemoSim;
 
 TEST_F(SimSceneGeometrySpawnTest, ASpawnChangesTheGenerationAndAddsItsGeoms) {
   ComponentEntry* simulation = sim_->find("simulation");
-  sim_->streams().add(*simulation->component, "simulation", {"test"}, SupervisionServices::k_body_poses_frequency);
+  sim_->streams().add(*simulation->component, "simulation", {"test"},
+                      SupervisionServices::k_body_poses_frequency);
   auto subscription = sim_->streams().subscribe("simulation", "test", {64, "test", {}});
   const json before = call("simulation", "get_scene_geometry", {false}).value.value();
   const std::uint64_t generation = before["generation"];
   const Outcome spawned = finish(rm_->call(
       "simulation", "spawn_entity",
-      {"crate", R"(<body><freejoint/><geom name="crate_box" type="box" size="0.1 0.2 0.3" rgba="0.9 0.5 0.1 1"/></body>)",
+      {"crate",
+       R"(<body><freejoint/><geom name="crate_box" type="box" size="0.1 0.2 0.3" rgba="0.9 0.5 0.1 1"/></body>)",
        {1.0, 1.0, 0.5}}));
   ASSERT_EQ(spawned.status, Status::success) << spawned.message;
   const json after = call("simulation", "get_scene_geometry", {false}).value.value();
@@ -368,7 +385,9 @@ TEST_F(SimSceneGeometrySpawnTest, ASpawnChangesTheGenerationAndAddsItsGeoms) {
   // the stream's samples carry the new generation and the new body (the next one due: at
   // 30 Hz, within 17 steps of 2 ms)
   std::vector<SamplePtr> samples;
-  for (int step = 0; step < 40 && (samples.empty() || samples.back()->data()["generation"] == generation); ++step) {
+  for (int step = 0;
+       step < 40 && (samples.empty() || samples.back()->data()["generation"] == generation);
+       ++step) {
     sim_->step();
     subscription->take(samples);
   }
@@ -382,7 +401,8 @@ TEST_F(SimSceneGeometrySpawnTest, ASpawnChangesTheGenerationAndAddsItsGeoms) {
 // The meshes written once per model: a spawned entity's mesh is in the next answer.
 TEST_F(SimSceneGeometrySpawnTest, TheAnswerAfterASpawnHasTheSpawnedMesh) {
   const json before = call("simulation", "get_scene_geometry", {true}).value.value();
-  EXPECT_EQ(call("simulation", "get_scene_geometry", {true}).value.value()["meshes"], before["meshes"]);
+  EXPECT_EQ(call("simulation", "get_scene_geometry", {true}).value.value()["meshes"],
+            before["meshes"]);
   SceneGeometryCache cache;
   EXPECT_EQ(scene_geometry(*sim_, true, &cache)["meshes"], before["meshes"]);
   const Outcome spawned = finish(rm_->call(

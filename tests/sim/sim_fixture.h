@@ -39,21 +39,24 @@ class RecordingManager : public RequestManager {
   // Like a real transport: what is still pending ends with Failure::shutdown.
   void stop() override { abandon_pending(); }
 
-  RequestId call(const std::string& component, const std::string& service, json params = json::array()) {
+  RequestId call(const std::string& component, const std::string& service,
+                 json params = json::array()) {
     RequestId id = new_request_id();
     submit(id, Call{component, service, std::move(params)});
     return id;
   }
   // As a TCP transport calls: runs the request on this thread when the simulation lock is
   // free (run_or_submit), otherwise queues it.
-  RequestId call_here(const std::string& component, const std::string& service, json params = json::array()) {
+  RequestId call_here(const std::string& component, const std::string& service,
+                      json params = json::array()) {
     RequestId id = new_request_id();
     run_or_submit(id, Call{component, service, std::move(params)});
     return id;
   }
   // A call whose transport sends it the attachments raw (Call::raw_attachments: DDS to a
   // client reading its replies' images).
-  RequestId call_raw(const std::string& component, const std::string& service, json params = json::array()) {
+  RequestId call_raw(const std::string& component, const std::string& service,
+                     json params = json::array()) {
     RequestId id = new_request_id();
     Call c{component, service, std::move(params)};
     c.raw_attachments = true;
@@ -61,7 +64,8 @@ class RecordingManager : public RequestManager {
     return id;
   }
   // A call whose client asked for progress reports (Call::progress).
-  RequestId call_with_progress(const std::string& component, const std::string& service, json params = json::array()) {
+  RequestId call_with_progress(const std::string& component, const std::string& service,
+                               json params = json::array()) {
     RequestId id = new_request_id();
     Call c{component, service, std::move(params)};
     c.progress = true;
@@ -101,9 +105,9 @@ class RecordingManager : public RequestManager {
   }
 
  private:
-  std::mutex mutex_;                     // guards outcomes_
-  std::condition_variable cv_;           // outcome arrived
-  std::map<RequestId, Outcome> outcomes_;  // delivered outcomes
+  std::mutex mutex_;                                 // guards outcomes_
+  std::condition_variable cv_;                       // outcome arrived
+  std::map<RequestId, Outcome> outcomes_;            // delivered outcomes
   std::map<RequestId, std::vector<json>> progress_;  // delivered progress reports
 };
 
@@ -120,31 +124,36 @@ inline bool state_is_finite(const Simulation& sim) {
   return true;
 }
 
-inline std::string demo_scene() { return std::string(SIMGATE_SOURCE_DIR) + "/config/scenes/demo.xml"; }
+inline std::string demo_scene() {
+  return std::string(SIMGATE_SOURCE_DIR) + "/config/scenes/demo.xml";
+}
 // The project's own test models (tests/models): among them, what Debian's samples showed that
 // the current MuJoCo refuses in them (arm26's muscles, adhesion's <composite>)
-inline std::string test_model(const std::string& name) { return std::string(SIMGATE_SOURCE_DIR) + "/tests/models/" + name; }
+inline std::string test_model(const std::string& name) {
+  return std::string(SIMGATE_SOURCE_DIR) + "/tests/models/" + name;
+}
 
 class DemoSim : public ::testing::Test {
  protected:
   void SetUp() override {
     sim_ = std::make_unique<Simulation>(Model::load_file(demo_scene()), options_);
     auto registry = builtin_registry();
-    auto robot = registry.create(Kind::robot, {"robot", "ground_robot", "robot", "robots[0]"}, json::object(), *sim_,
-                                 nullptr);
+    auto robot = registry.create(Kind::robot, {"robot", "ground_robot", "robot", "robots[0]"},
+                                 json::object(), *sim_, nullptr);
     auto* r = static_cast<Robot*>(robot.get());
     sim_->add_component(std::move(robot), "ground_robot", "", true);
     int i = 0;
     for (auto type : {"motion_vw", "waypoint", "teleport", "pose"}) {
       std::string short_name = type == std::string("motion_vw") ? "motion" : type;
       auto c = registry.create(Kind::component,
-                               {"robot." + short_name, type, "robot", "robots[0].components[" + std::to_string(i++) + "]"},
+                               {"robot." + short_name, type, "robot",
+                                "robots[0].components[" + std::to_string(i++) + "]"},
                                json::object(), *sim_, r);
       sim_->add_component(std::move(c), type, "robot");
     }
-    sim_->add_component(
-        registry.create(Kind::robot, {"human", "human", "human", "robots[1]"}, json::object(), *sim_, nullptr),
-        "human", "", true);
+    sim_->add_component(registry.create(Kind::robot, {"human", "human", "human", "robots[1]"},
+                                        json::object(), *sim_, nullptr),
+                        "human", "", true);
     add_world_components(*sim_);
     rm_ = std::make_shared<RecordingManager>();
     for (auto& e : sim_->components()) {
@@ -159,7 +168,8 @@ class DemoSim : public ::testing::Test {
   }
 
   // A sync call: submitted, processed, answered.
-  Outcome call(const std::string& component, const std::string& service, json params = json::array()) {
+  Outcome call(const std::string& component, const std::string& service,
+               json params = json::array()) {
     RequestId id = rm_->call(component, service, std::move(params));
     sim_->process_requests();
     auto o = rm_->outcome(id);

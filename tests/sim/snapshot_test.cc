@@ -16,13 +16,14 @@
 namespace simgate::sim {
 namespace {
 
-using ::testing::HasSubstr;
-using testing::DecodedPng;
 using testing::decode_base64;
 using testing::decode_png;
+using testing::DecodedPng;
+using ::testing::HasSubstr;
 
 // A red box 1.7 m in front of MJCF camera "front", on a grey floor.
-const std::string k_snapshot_scene = simgate::testing::red_box_scene("snapshot-test", "0.01", "3", /*eye_site=*/false);
+const std::string k_snapshot_scene =
+    simgate::testing::red_box_scene("snapshot-test", "0.01", "3", /*eye_site=*/false);
 using simgate::testing::is_red;
 using simgate::testing::k_render_deadline;
 
@@ -36,7 +37,8 @@ class SnapshotTest : public testing::MjcfSim {
 
   // Calls get_snapshot and serves (stepping) until it is answered, at most k_render_deadline.
   Outcome snapshot(json params) {
-    return step_until_outcome(rm_->call("simulation", "get_snapshot", std::move(params)), k_render_deadline);
+    return step_until_outcome(rm_->call("simulation", "get_snapshot", std::move(params)),
+                              k_render_deadline);
   }
   DecodedPng png_of(const Outcome& o) {
     EXPECT_EQ(o.status, Status::success) << o.message;
@@ -58,7 +60,8 @@ std::array<int, 3> rgb_at(const DecodedPng& png, int x, int y) {
 TEST_F(SnapshotTest, FreeViewHasTheAskedSizeAndShowsTheScene) {
   const auto started = std::chrono::steady_clock::now();
   const Outcome o = snapshot(json::object());
-  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count();
+  const double ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count();
   const DecodedPng png = png_of(o);
   ASSERT_TRUE(png.error.empty()) << png.error;
   EXPECT_EQ(png.width, 640);
@@ -82,13 +85,16 @@ TEST_F(SnapshotTest, FreeViewHasTheAskedSizeAndShowsTheScene) {
     }
   EXPECT_GT(colours.size(), 10u);
   EXPECT_TRUE(red) << "the free view frames the whole scene: the red box is in it";
-  std::printf("[ measure ] get_snapshot 640x480 free view, first (renderer start included): %.1f ms, PNG %zu bytes\n",
-              ms, decode_base64(record["image"].get<std::string>()).size());
+  std::printf(
+      "[ measure ] get_snapshot 640x480 free view, first (renderer start included): %.1f ms, PNG "
+      "%zu bytes\n",
+      ms, decode_base64(record["image"].get<std::string>()).size());
   // a second one: the renderer is warm
   const auto again = std::chrono::steady_clock::now();
   const Outcome second = snapshot({{"width", 640}, {"height", 480}});
-  std::printf("[ measure ] get_snapshot 640x480 free view, warm: %.1f ms\n",
-              std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - again).count());
+  std::printf(
+      "[ measure ] get_snapshot 640x480 free view, warm: %.1f ms\n",
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - again).count());
   EXPECT_EQ(second.status, Status::success) << second.message;
 }
 
@@ -96,7 +102,8 @@ TEST_F(SnapshotTest, SnapshotsWhoseRequestsEndedAreNotRenderedAndAtMostEightWait
   // issue #35 item 7: a client's batch of large snapshots kept the renderer (and every
   // camera) busy for minutes after it left; now a render whose request ended is skipped,
   // and a ninth snapshot under way is refused
-  ASSERT_EQ(snapshot({{"width", 64}, {"height", 64}}).status, Status::success);  // the renderer is up
+  ASSERT_EQ(snapshot({{"width", 64}, {"height", 64}}).status,
+            Status::success);  // the renderer is up
   const std::shared_ptr<Renderer> renderer = Renderer::shared();
   const std::uint64_t rendered = renderer->renders(), abandoned = renderer->abandoned();
   std::vector<RequestId> ids;
@@ -111,7 +118,8 @@ TEST_F(SnapshotTest, SnapshotsWhoseRequestsEndedAreNotRenderedAndAtMostEightWait
   // the client leaves: its calls are cancelled (the transports do so for a client gone)
   for (RequestId id : ids) rm_->cancel(id);
   sim_->process_requests();
-  for (RequestId id : ids) EXPECT_EQ(rm_->outcome(id).value_or(Outcome{}).status, Status::preempted);
+  for (RequestId id : ids)
+    EXPECT_EQ(rm_->outcome(id).value_or(Outcome{}).status, Status::preempted);
   // those left behind no longer count: another client's snapshot is taken at once
   const RequestId next = rm_->call("simulation", "get_snapshot", {{"width", 64}, {"height", 64}});
   sim_->process_requests();
@@ -122,7 +130,8 @@ TEST_F(SnapshotTest, SnapshotsWhoseRequestsEndedAreNotRenderedAndAtMostEightWait
          std::chrono::steady_clock::now() < deadline)
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   EXPECT_GE(renderer->abandoned() - abandoned, ids.size() - 2);
-  EXPECT_LE(renderer->renders() - rendered, 3u);  // the one rendering when they left, the other client's
+  EXPECT_LE(renderer->renders() - rendered,
+            3u);  // the one rendering when they left, the other client's
   EXPECT_EQ(step_until_outcome(next, k_render_deadline).status, Status::success);
 }
 

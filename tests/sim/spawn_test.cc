@@ -16,7 +16,8 @@
 namespace simgate::sim {
 namespace {
 
-constexpr const char* k_spawn_ball = R"(<body><freejoint/><geom type="sphere" size="0.1" mass="1"/></body>)";
+constexpr const char* k_spawn_ball =
+    R"(<body><freejoint/><geom type="sphere" size="0.1" mass="1"/></body>)";
 
 class SimSpawnTest : public testing::DemoSim {
  protected:
@@ -32,10 +33,13 @@ class SimSpawnTest : public testing::DemoSim {
     }
     return o;
   }
-  Outcome spawn(const std::string& name, json pose = {1.0, 1.0, 0.5}, const std::string& mjcf = k_spawn_ball) {
+  Outcome spawn(const std::string& name, json pose = {1.0, 1.0, 0.5},
+                const std::string& mjcf = k_spawn_ball) {
     return finish(rm_->call("simulation", "spawn_entity", {name, mjcf, std::move(pose)}));
   }
-  Outcome remove(const std::string& name) { return finish(rm_->call("simulation", "delete_entity", {name})); }
+  Outcome remove(const std::string& name) {
+    return finish(rm_->call("simulation", "delete_entity", {name}));
+  }
 
   // A refused request: FAILED, bad arguments, naming `parameter`, and the world unchanged.
   void expect_refused(const Outcome& o, const std::string& parameter, const std::string& why) {
@@ -81,7 +85,8 @@ TEST_F(SimSpawnTest, ASpawnWhilePausedCompletesWithoutAStep) {
   ASSERT_EQ(call("simulation", "pause").status, Status::success);
   const std::uint64_t steps = sim_->steps();
   const double time = sim_->sim_time();
-  auto o = answer_without_stepping(rm_->call("simulation", "spawn_entity", {"ball", k_spawn_ball, {1.0, 1.0, 0.5}}));
+  auto o = answer_without_stepping(
+      rm_->call("simulation", "spawn_entity", {"ball", k_spawn_ball, {1.0, 1.0, 0.5}}));
   ASSERT_TRUE(o.has_value()) << "spawn_entity not answered while paused";
   EXPECT_EQ(o->status, Status::success) << o->message;
   EXPECT_EQ(sim_->steps(), steps);
@@ -197,24 +202,27 @@ TEST_F(SimSpawnTest, BadNamesArePoseAndMjcfAreRefused) {
   expect_refused(spawn("ball", {1.0, 2.0, "up"}), "pose", "");
   expect_refused(spawn("ball", {1.0, 2.0, 0.5}, "just text"), "mjcf", "expected MJCF text");
   expect_refused(spawn("ball", {1.0, 2.0, 0.5}, "<body><geom"), "mjcf", "not well-formed");
-  expect_refused(spawn("ball", {1.0, 2.0, 0.5}, "<mujoco><option/><worldbody><body/></worldbody></mujoco>"), "mjcf",
-                 "<option> cannot be spawned");
+  expect_refused(
+      spawn("ball", {1.0, 2.0, 0.5}, "<mujoco><option/><worldbody><body/></worldbody></mujoco>"),
+      "mjcf", "<option> cannot be spawned");
 }
 
 TEST_F(SimSpawnTest, NonFiniteNumbersAreRefused) {
   remember_world();
   for (double bad : {std::nan(""), HUGE_VAL, -HUGE_VAL})
     expect_refused(spawn("ball", {1.0, bad, 0.5}), "pose[1] (y)", "out of bounds");
-  expect_refused(spawn("ball", {1.0, 1.0, 0.5, std::nan(""), 0.0, 0.0, 1.0}), "pose[3]", "out of bounds");
+  expect_refused(spawn("ball", {1.0, 1.0, 0.5, std::nan(""), 0.0, 0.0, 1.0}), "pose[3]",
+                 "out of bounds");
 }
 
 TEST_F(SimSpawnTest, FragmentThatDoesNotCompileGivesMujocosMessage) {
   remember_world();
   // a joint name the scene already uses: MuJoCo's "repeated name"
-  expect_refused(spawn("ball", {1.0, 2.0, 0.5}, "<body><joint name='robot_root' type='free'/><geom size='.1'/></body>"),
+  expect_refused(spawn("ball", {1.0, 2.0, 0.5},
+                       "<body><joint name='robot_root' type='free'/><geom size='.1'/></body>"),
                  "mjcf", "repeated name");
-  expect_refused(spawn("ball", {1.0, 2.0, 0.5}, "<body><geom type='mesh' mesh='nope'/></body>"), "mjcf",
-                 "does not compile");
+  expect_refused(spawn("ball", {1.0, 2.0, 0.5}, "<body><geom type='mesh' mesh='nope'/></body>"),
+                 "mjcf", "does not compile");
   // and the simulation runs on
   run_for(0.1);
   EXPECT_TRUE(testing::state_is_finite(*sim_));
@@ -225,25 +233,31 @@ TEST_F(SimSpawnTest, FragmentThatDoesNotCompileGivesMujocosMessage) {
 TEST_F(SimSpawnTest, AFragmentThatWouldPoisonTheWorldIsRefusedAndNothingChanges) {
   remember_world();
   // refers to the scene's own joint
-  expect_refused(spawn("thief", {0.0, -2.0, 0.5}, R"(<mujoco><worldbody><body><geom size=".1"/></body></worldbody>
+  expect_refused(spawn("thief", {0.0, -2.0, 0.5},
+                       R"(<mujoco><worldbody><body><geom size=".1"/></body></worldbody>
       <actuator><motor name="thief_motor" joint="robot_left_wheel_joint" gear="1"/></actuator></mujoco>)"),
                  "mjcf", "refers to joint 'robot_left_wheel_joint', which is not the entity's");
-  expect_refused(spawn("spy", {0.0, -2.0, 0.5}, R"(<mujoco><worldbody><body><geom size=".1"/></body></worldbody>
+  expect_refused(spawn("spy", {0.0, -2.0, 0.5},
+                       R"(<mujoco><worldbody><body><geom size=".1"/></body></worldbody>
       <sensor><jointpos name="spy_pos" joint="robot_left_wheel_joint"/></sensor></mujoco>)"),
                  "mjcf", "which is not the entity's");
   // numbers no step survives
-  expect_refused(spawn("biased", {0.0, -2.0, 0.5}, R"(<mujoco><worldbody><body><joint name="b_hinge" axis="0 0 1"/>
+  expect_refused(spawn("biased", {0.0, -2.0, 0.5},
+                       R"(<mujoco><worldbody><body><joint name="b_hinge" axis="0 0 1"/>
       <geom size=".1" mass="1"/></body></worldbody>
       <actuator><general name="b_motor" joint="b_hinge" biastype="affine" biasprm="0 1e300 0"/></actuator></mujoco>)"),
                  "mjcf", "actuator 'b_motor' has a bias parameter 1e+300");
-  expect_refused(spawn("stiff", {0.0, -2.0, 0.5}, R"(<body><joint name="s_hinge" axis="0 0 1" stiffness="1e300"/>
+  expect_refused(spawn("stiff", {0.0, -2.0, 0.5},
+                       R"(<body><joint name="s_hinge" axis="0 0 1" stiffness="1e300"/>
       <geom size=".1" mass="1"/></body>)"),
                  "mjcf", "joint 's_hinge' has a stiffness 1e+300");
-  expect_refused(spawn("sprung", {0.0, -2.0, 0.5}, R"(<body><joint name="r_slide" type="slide" stiffness="10"
+  expect_refused(
+      spawn("sprung", {0.0, -2.0, 0.5}, R"(<body><joint name="r_slide" type="slide" stiffness="10"
       springref="1e11"/><geom size=".1" mass="1"/></body>)"),
-                 "mjcf", "joint 'r_slide' has a spring reference 1e+11");
+      "mjcf", "joint 'r_slide' has a spring reference 1e+11");
   // sound numbers, yet it diverges from its first steps: the trial catches it
-  expect_refused(spawn("wild", {0.0, -2.0, 0.5}, R"(<mujoco><worldbody><body><joint name="w_hinge" axis="0 0 1"/>
+  expect_refused(spawn("wild", {0.0, -2.0, 0.5},
+                       R"(<mujoco><worldbody><body><joint name="w_hinge" axis="0 0 1"/>
       <geom size=".1" mass="1e-9"/></body></worldbody>
       <actuator><general name="w_motor" joint="w_hinge" biastype="affine" biasprm="1e9 0 0"/></actuator></mujoco>)"),
                  "mjcf", "makes the model diverge");
@@ -276,7 +290,8 @@ TEST_F(SimSpawnTest, ASelfContainedRobotWithActuatorSensorTendonAndEqualityCanBe
 
 TEST_F(SimSpawnTest, DeleteOfUnknownOrUsedBodyIsRefused) {
   remember_world();
-  expect_refused(remove("ghost"), "name", "no body or entity named 'ghost' (no entity has been spawned)");
+  expect_refused(remove("ghost"), "name",
+                 "no body or entity named 'ghost' (no entity has been spawned)");
   expect_refused(remove("robot_left_wheel"), "name", "is part of robot 'robot''s body 'robot'");
   ASSERT_EQ(spawn("ball").status, Status::success);
   remember_world();
@@ -296,7 +311,8 @@ TEST_F(SimSpawnTest, MujocoFragmentWithAnActuatorCanBeDriven) {
   EXPECT_EQ(motor, sim_->m()->nu - 1);
   sim_->d()->ctrl[motor] = 2.0;
   run_for(0.5);
-  EXPECT_NEAR(sim_->d()->qvel[sim_->m()->jnt_dofadr[sim_->model().joint_id("spinner_hinge")]], 2.0, 0.1);
+  EXPECT_NEAR(sim_->d()->qvel[sim_->m()->jnt_dofadr[sim_->model().joint_id("spinner_hinge")]], 2.0,
+              0.1);
 }
 
 // A state saved before a spawn and a delete is restored after them, and stepping on from it
@@ -332,7 +348,8 @@ TEST_F(SimSpawnTest, RestoringAcrossAnEditReportsWhatIsMissingAndWhatIsKept) {
   ASSERT_EQ(spawn("ball", {1.0, 1.0, 3.0}).status, Status::success);
   ASSERT_EQ(remove("crate1").status, Status::success);
   run_for(0.2);
-  const int ball_z = sim_->m()->jnt_qposadr[sim_->m()->body_jntadr[sim_->model().body_id("ball")]] + 2;
+  const int ball_z =
+      sim_->m()->jnt_qposadr[sim_->m()->body_jntadr[sim_->model().body_id("ball")]] + 2;
   const double z = sim_->d()->qpos[ball_z];
   ASSERT_LT(z, 3.0);  // it fell
   Outcome o = call("simulation", "restore_state", {handle});
@@ -348,12 +365,16 @@ TEST_F(SimSpawnTest, RestoringAcrossAnEditReportsWhatIsMissingAndWhatIsKept) {
 // simulation without one says so, and a section that is not an object is refused.
 TEST_F(SimSpawnTest, ARobotSectionWithoutAFactoryOrNotAnObjectIsRefused) {
   remember_world();
-  expect_refused(finish(rm_->call("simulation", "spawn_entity", {"arm", k_spawn_ball, {1.0, 1.0, 0.5}, {{"type", "robot"}}})),
+  expect_refused(finish(rm_->call("simulation", "spawn_entity",
+                                  {"arm", k_spawn_ball, {1.0, 1.0, 0.5}, {{"type", "robot"}}})),
                  "robot", "builds no robots at run time");
-  expect_refused(finish(rm_->call("simulation", "spawn_entity", {"arm", k_spawn_ball, {1.0, 1.0, 0.5}, "robot"})),
+  expect_refused(finish(rm_->call("simulation", "spawn_entity",
+                                  {"arm", k_spawn_ball, {1.0, 1.0, 0.5}, "robot"})),
                  "robot", "expected an object");
   // {} is a plain body, as without the parameter
-  EXPECT_EQ(finish(rm_->call("simulation", "spawn_entity", {"arm", k_spawn_ball, {1.0, 1.0, 0.5}, json::object()})).status,
+  EXPECT_EQ(finish(rm_->call("simulation", "spawn_entity",
+                             {"arm", k_spawn_ball, {1.0, 1.0, 0.5}, json::object()}))
+                .status,
             Status::success);
 }
 
@@ -385,20 +406,23 @@ TEST_F(SimSpawnTest, ServicesAreListed) {
   json services = call("simulation", "list_services").value.value();
   int found = 0;
   for (const auto& s : services)
-    if (s["component"] == "simulation" && (s["name"] == "spawn_entity" || s["name"] == "delete_entity")) ++found;
+    if (s["component"] == "simulation" &&
+        (s["name"] == "spawn_entity" || s["name"] == "delete_entity"))
+      ++found;
   EXPECT_EQ(found, 2);
 }
-
 
 // Fragment files: only under the directories SimulationOptions::spawn_allowed_dirs names
 // (the config's spawn.allowed_dirs).
 class SimSpawnFileTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    root_ = std::filesystem::temp_directory_path() / ("simgate_spawn_files_" + std::to_string(::getpid()));
+    root_ = std::filesystem::temp_directory_path() /
+            ("simgate_spawn_files_" + std::to_string(::getpid()));
     std::filesystem::create_directories(root_ / "allowed");
     std::ofstream(root_ / "allowed" / "ball.xml") << k_spawn_ball;
-    std::ofstream(root_ / "allowed" / "broken.xml") << "<body><geom type='sphere' size='0.1'></body";
+    std::ofstream(root_ / "allowed" / "broken.xml")
+        << "<body><geom type='sphere' size='0.1'></body";
     std::ofstream(root_ / "outside.xml") << k_spawn_ball;
     std::filesystem::create_symlink(root_ / "outside.xml", root_ / "allowed" / "link.xml");
     SimulationOptions options{std::nullopt, 0.0};
@@ -451,12 +475,14 @@ TEST_F(SimSpawnFileTest, AFileThatHoldsNoEntityIsRefusedNamingMjcf) {
 }
 
 TEST_F(SimSpawnFileTest, AnythingElseIsRefusedAsIfMissing) {
-  for (const std::string& path : {std::string("../outside.xml"), (root_ / "outside.xml").string(),
-                                  std::string("link.xml"), std::string("missing.xml"), std::string("/etc/hostname")}) {
+  for (const std::string& path :
+       {std::string("../outside.xml"), (root_ / "outside.xml").string(), std::string("link.xml"),
+        std::string("missing.xml"), std::string("/etc/hostname")}) {
     Outcome o = spawn("a", path);
     EXPECT_EQ(o.status, Status::failed) << path;
     EXPECT_EQ(o.failure, Failure::bad_arguments) << path;
-    EXPECT_NE(o.message.find("is neither MJCF or URDF text nor a fragment file under the directories the config allows"),
+    EXPECT_NE(o.message.find("is neither MJCF or URDF text nor a fragment file under the "
+                             "directories the config allows"),
               std::string::npos)
         << o.message;
   }

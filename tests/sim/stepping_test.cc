@@ -30,11 +30,13 @@ class SimSteppingTest : public testing::DemoSim {
     if (thread_.joinable()) thread_.join();
   }
   // A call queued for the loop; waits (bounded) for its answer.
-  Outcome ask(const std::string& component, const std::string& service, json params = json::array()) {
+  Outcome ask(const std::string& component, const std::string& service,
+              json params = json::array()) {
     return wait(rm_->call(component, service, std::move(params)));
   }
   // A call run on this thread when the lock is free, as a TCP transport runs it.
-  Outcome ask_here(const std::string& component, const std::string& service, json params = json::array()) {
+  Outcome ask_here(const std::string& component, const std::string& service,
+                   json params = json::array()) {
     return wait(rm_->call_here(component, service, std::move(params)));
   }
   Outcome wait(RequestId id) {
@@ -91,7 +93,8 @@ TEST_F(SimPausedTest, StepRunsOnTheCallersThreadWhenTheLockIsFree) {
   run_loop();
   // as the socket and JSON-RPC transports call: the steps are taken on this thread and the
   // answer is here when run_or_submit returns (or queued to the loop if it held the lock)
-  for (int i = 0; i < 100; ++i) ASSERT_EQ(ask_here("simulation", "step", {1}).status, Status::success);
+  for (int i = 0; i < 100; ++i)
+    ASSERT_EQ(ask_here("simulation", "step", {1}).status, Status::success);
   EXPECT_EQ(state()["steps"], 100u);
   // a long run is left to the loop after the caller's short budget, and still completes
   Outcome o = ask_here("simulation", "step", {5000});
@@ -101,12 +104,14 @@ TEST_F(SimPausedTest, StepRunsOnTheCallersThreadWhenTheLockIsFree) {
 
 TEST_F(SimPausedTest, StepRefusesBadCountsNamingN) {
   run_loop();
-  for (const json& n : {json(0), json(-1), json(1.5), json(1e9), json(std::numeric_limits<double>::quiet_NaN()),
-                        json(std::numeric_limits<double>::infinity()), json("ten"), json(2'000'000)}) {
+  for (const json& n :
+       {json(0), json(-1), json(1.5), json(1e9), json(std::numeric_limits<double>::quiet_NaN()),
+        json(std::numeric_limits<double>::infinity()), json("ten"), json(2'000'000)}) {
     Outcome o = ask("simulation", "step", {n});
     EXPECT_EQ(o.status, Status::failed) << n.dump();
     EXPECT_EQ(o.failure, Failure::bad_arguments) << n.dump();
-    EXPECT_THAT(o.message + o.data.dump(), HasSubstr("\"n\"")) << n.dump() << ": " << o.message << " " << o.data.dump();
+    EXPECT_THAT(o.message + o.data.dump(), HasSubstr("\"n\""))
+        << n.dump() << ": " << o.message << " " << o.data.dump();
   }
   EXPECT_EQ(state()["steps"], 0u);
 }
@@ -115,8 +120,7 @@ TEST_F(SimPausedTest, CancelEndsAStepPreemptedWithTheStepsDone) {
   run_loop();
   RequestId id = rm_->call("simulation", "step", {1'000'000});
   // it runs (the loop takes the steps one by one); then its client cancels it
-  for (int i = 0; i < 100000 && state()["steps"].get<std::uint64_t>() == 0; ++i) {
-  }
+  for (int i = 0; i < 100000 && state()["steps"].get<std::uint64_t>() == 0; ++i) {}
   rm_->cancel(id);
   Outcome o = wait(id);
   ASSERT_EQ(o.status, Status::preempted);
@@ -207,8 +211,8 @@ TEST_F(SimSteppingTest, SetTimeScaleChangesTheFactorModeAndStatistics) {
   EXPECT_EQ(*call("time", "mode").value, "FixedSimulationStep (as fast as possible)");
   // 1e-300 and 1e-7: a step period no clock holds (1e-300 ran at full speed: issue #35, item 10)
   for (const json& bad : {json(-1), json(std::numeric_limits<double>::quiet_NaN()),
-                          json(std::numeric_limits<double>::infinity()), json(1e300), json("fast"), json(1e-300),
-                          json(1e-7)}) {
+                          json(std::numeric_limits<double>::infinity()), json(1e300), json("fast"),
+                          json(1e-300), json(1e-7)}) {
     Outcome refused = call("time", "set_time_scale", {bad});
     EXPECT_EQ(refused.status, Status::failed) << bad.dump();
     EXPECT_EQ(refused.failure, Failure::bad_arguments) << bad.dump();
@@ -223,7 +227,8 @@ TEST_F(SimSteppingTest, ANewTimeScaleTakesEffectAtOnceInTheRunningLoop) {
   run_loop();
   ASSERT_EQ(ask("time", "set_time_scale", {0}).status, Status::success);
   bool stepping = false;
-  for (int i = 0; i < 100000 && !stepping; ++i) stepping = state()["steps"].get<std::uint64_t>() > 100;
+  for (int i = 0; i < 100000 && !stepping; ++i)
+    stepping = state()["steps"].get<std::uint64_t>() > 100;
   EXPECT_TRUE(stepping);
 }
 
@@ -232,7 +237,9 @@ TEST_F(SimSteppingTest, ANewTimeScaleTakesEffectAtOnceInTheRunningLoop) {
 class SimLockstepBarrierTest : public SimPausedTest {
  protected:
   // A participant's lockstep_join call: it runs as long as the participant takes part.
-  RequestId join(const std::string& name) { return rm_->call("simulation", "lockstep_join", {name}); }
+  RequestId join(const std::string& name) {
+    return rm_->call("simulation", "lockstep_join", {name});
+  }
   RequestId ask_steps(const std::string& name, std::int64_t n) {
     return rm_->call("simulation", "lockstep_step", {name, n});
   }
@@ -291,7 +298,8 @@ TEST_F(SimLockstepBarrierTest, AParticipantWhoLeavesReleasesTheBarrierTheOthersW
   Outcome unknown = ask("simulation", "lockstep_step", {"b", 1});
   EXPECT_EQ(unknown.status, Status::failed);
   EXPECT_EQ(unknown.failure, Failure::bad_arguments);
-  EXPECT_THAT(unknown.message, HasSubstr("participant = \"b\" is not in the lockstep (participants: a)"));
+  EXPECT_THAT(unknown.message,
+              HasSubstr("participant = \"b\" is not in the lockstep (participants: a)"));
 }
 
 TEST_F(SimLockstepBarrierTest, ALeavingParticipantsOwnAskEndsPreempted) {
@@ -312,7 +320,9 @@ TEST_F(SimLockstepBarrierTest, APlainStepIsRefusedWhileParticipantsTakePart) {
   const RequestId a = join("a");
   Outcome o = ask("simulation", "step", {1});
   EXPECT_EQ(o.status, Status::failed);
-  EXPECT_THAT(o.message, HasSubstr("simulation step: the simulation is stepped in lockstep (participants: a)"));
+  EXPECT_THAT(
+      o.message,
+      HasSubstr("simulation step: the simulation is stepped in lockstep (participants: a)"));
   EXPECT_EQ(steps(), 0u);
   // once the last participant has left, anyone steps again
   rm_->cancel(a);
@@ -345,11 +355,13 @@ TEST_F(SimLockstepBarrierTest, BadAsksAreRefusedClearly) {
     EXPECT_THAT(o.message + o.data.dump(), HasSubstr("\"n\"")) << n.dump() << ": " << o.message;
   }
   EXPECT_THAT(ask("simulation", "lockstep_step", {"a", 0}).message,
-              HasSubstr("simulation lockstep_step: n = 0 is out of range: expected an integer from 1 to 1000000"));
+              HasSubstr("simulation lockstep_step: n = 0 is out of range: expected an integer from "
+                        "1 to 1000000"));
   // nobody of that name
   Outcome unknown = ask("simulation", "lockstep_step", {"c", 1});
   EXPECT_EQ(unknown.failure, Failure::bad_arguments);
-  EXPECT_THAT(unknown.message, HasSubstr("participant = \"c\" is not in the lockstep (participants: a, b)"));
+  EXPECT_THAT(unknown.message,
+              HasSubstr("participant = \"c\" is not in the lockstep (participants: a, b)"));
   // a name taken
   Outcome taken = ask("simulation", "lockstep_join", {"a"});
   EXPECT_EQ(taken.status, Status::failed);
@@ -398,7 +410,8 @@ TEST_F(SimLockstepBarrierTest, PlayEndsTheWaitingAsksAndLockstepStepIsRefusedWhi
   EXPECT_EQ((*o.value)["steps_done"], 0u);
   Outcome playing = ask("simulation", "lockstep_step", {"a", 1});
   EXPECT_EQ(playing.status, Status::failed);
-  EXPECT_THAT(playing.message, HasSubstr("simulation lockstep_step: the simulation is playing; pause it first"));
+  EXPECT_THAT(playing.message,
+              HasSubstr("simulation lockstep_step: the simulation is playing; pause it first"));
   // the participants stay: paused again, they step together as before
   ASSERT_EQ(ask("simulation", "pause").status, Status::success);
   EXPECT_EQ(lockstep()["participants"], json({"a", "b"}));
@@ -451,7 +464,8 @@ class LockstepRun : public SimPausedTest {
     EXPECT_EQ(ask("human", "move", {0.5, -0.2}).status, Status::success);
     RequestId go = rm_->call("robot.waypoint", "goto", {1.0, -2.0, 0.0, 0.1, 0.6});
     EXPECT_EQ(ask("simulation", "step", {300}).status, Status::success);
-    for (int i = 0; i < 50; ++i) EXPECT_EQ(ask_here("simulation", "step", {1}).status, Status::success);
+    for (int i = 0; i < 50; ++i)
+      EXPECT_EQ(ask_here("simulation", "step", {1}).status, Status::success);
     EXPECT_EQ(ask("robot.waypoint", "stop").status, Status::success);
     EXPECT_EQ(ask("simulation", "step", {400}).status, Status::success);
     rm_->cancel(go);

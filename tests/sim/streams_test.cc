@@ -36,7 +36,8 @@ TEST_F(DemoStreams, PoseSamplesAreItsLocalDataAtTheFrequencyAfterSteps) {
   for (std::size_t i = 1; i < samples.size(); ++i)
     EXPECT_NEAR(samples[i]->time() - samples[i - 1]->time(), 0.01, 1e-9);
   json p = pose();
-  for (auto it = p.begin(); it != p.end(); ++it) EXPECT_TRUE(samples.back()->data().contains(it.key())) << it.key();
+  for (auto it = p.begin(); it != p.end(); ++it)
+    EXPECT_TRUE(samples.back()->data().contains(it.key())) << it.key();
   EXPECT_EQ(samples.back()->data()["timestamp"], samples.back()->time());
   EXPECT_EQ(sim_->streams().total_samples(), 10u);
 }
@@ -68,7 +69,8 @@ TEST_F(DemoStreams, MotionCommandsDriveTheRobotAsSetSpeedDoes) {
   EXPECT_EQ(r.error, "the command has no 'w'");
   r = publish("robot.motion", {{"v", "fast"}, {"w", 0.0}});
   EXPECT_EQ(r.error, "v: expected a number, found string \"fast\"");
-  EXPECT_TRUE(publish("robot.motion", {{"v", 0.0}, {"w", 0.0}, {"timestamp", 3.0}}).ok);  // a sample's timestamp
+  EXPECT_TRUE(publish("robot.motion", {{"v", 0.0}, {"w", 0.0}, {"timestamp", 3.0}})
+                  .ok);  // a sample's timestamp
 }
 
 TEST_F(DemoStreams, TeleportCommandsPlaceTheRobotAbsolutely) {
@@ -83,13 +85,16 @@ TEST_F(DemoStreams, TeleportCommandsPlaceTheRobotAbsolutely) {
   EXPECT_NEAR(pose()["yaw"].get<double>(), 0, 1e-9);
   EXPECT_FALSE(publish("robot.teleport", {{"x", 1e12}}).ok);
   PublishResult r = publish("robot.teleport", {{"X", 1.0}});
-  EXPECT_EQ(r.error, "the command has an unknown key 'X' (expected x, y, z, roll, pitch, yaw) (did you mean 'x'?)");
+  EXPECT_EQ(r.error,
+            "the command has an unknown key 'X' (expected x, y, z, roll, pitch, yaw) (did you mean "
+            "'x'?)");
 }
 
 TEST_F(DemoStreams, WaypointCommandsSetTheDestination) {
   ASSERT_TRUE(publish("robot.waypoint", {{"x", 2.0}, {"y", 0.0}, {"speed", 0.5}}).ok);
   EXPECT_EQ(call("robot.waypoint", "get_status").value, json("Transit"));
-  EXPECT_EQ(call("robot.waypoint", "get_properties").value.value()["properties"]["target"], json({2.0, 0.0, 0.0}));
+  EXPECT_EQ(call("robot.waypoint", "get_properties").value.value()["properties"]["target"],
+            json({2.0, 0.0, 0.0}));
 }
 
 TEST_F(DemoStreams, ACommandThatWaitsForTheLockIsAppliedOnTheNextTurn) {
@@ -135,8 +140,10 @@ TEST_F(DemoStreams, StatisticsCountWhatHappened) {
 TEST_F(DemoStreams, DetailsListsEachStreamInterface) {
   json details = call("simulation", "details").value.value();
   json components = details["robots"][0]["components"];
-  EXPECT_EQ(components["robot.pose"]["stream_interfaces"], json::array({json::array({"simgate.test.publisher", "OUT"})}));
-  EXPECT_EQ(components["robot.motion"]["stream_interfaces"], json::array({json::array({"simgate.test.reader", "IN"})}));
+  EXPECT_EQ(components["robot.pose"]["stream_interfaces"],
+            json::array({json::array({"simgate.test.publisher", "OUT"})}));
+  EXPECT_EQ(components["robot.motion"]["stream_interfaces"],
+            json::array({json::array({"simgate.test.reader", "IN"})}));
 }
 
 class ArmatureStreams : public ArmatureSim {};
@@ -145,7 +152,8 @@ TEST_F(ArmatureStreams, JointCommandsSetEachJointInItsUnitAndJointStateSamplesFo
   build_arm();
   sim_->streams().add(*sim_->find("arm.arm")->component, "armature", {"test"});
   sim_->streams().add(*sim_->find("arm.pose")->component, "armature_pose", {"test"});
-  PublishResult r = sim_->streams().publish("arm.arm", "test", {{"shoulder", 0.5}, {"slider", 0.05}});
+  PublishResult r =
+      sim_->streams().publish("arm.arm", "test", {{"shoulder", 0.5}, {"slider", 0.05}});
   ASSERT_TRUE(r.ok) << r.error;
   auto sub = sim_->streams().subscribe("arm.pose", "test", {});
   sim_->process_requests();

@@ -31,7 +31,8 @@ TEST_F(SimSupervisionTest, DetailsHasTheShapePymorseReads) {
             waypoint["services"].end());
   EXPECT_FALSE(waypoint.contains("stream_interfaces"));  // pymorse would ask for stream ports
   json human = d["robots"][1];
-  EXPECT_EQ(human["services"], json({"move", "get_properties", "set_property", "get_configurations"}));
+  EXPECT_EQ(human["services"],
+            json({"move", "get_properties", "set_property", "get_configurations"}));
   EXPECT_EQ(human["services_interfaces"], json({"test"}));  // MORSE's robot-level spelling
 }
 
@@ -59,7 +60,8 @@ TEST_F(SimSupervisionTest, ListServicesGivesEveryServiceWithItsParameters) {
 TEST_F(SimSupervisionTest, ResetObjectsRestoresInitialPoses) {
   call("robot.teleport", "translate", {3.0, 0.0, 0.0});
   call("robot.motion", "set_speed", {1.0, 0.0});
-  EXPECT_EQ(call("simulation", "reset_objects").value, json("Objects restored to initial position"));
+  EXPECT_EQ(call("simulation", "reset_objects").value,
+            json("Objects restored to initial position"));
   EXPECT_NEAR(pose()["x"].get<double>(), 0.0, 1e-9);
   run_for(0.5);
   EXPECT_NEAR(pose()["x"].get<double>(), 0.0, 0.01);  // the command was dropped too
@@ -190,7 +192,8 @@ TEST_F(SimSupervisionTest, ListServicesSaysSleepIsConcurrentAndDetailsIsUnchange
   json details = call("simulation", "details").value.value_or(json());
   EXPECT_EQ(details.dump().find("concurrent"), std::string::npos);
   EXPECT_EQ(details["robots"][0]["components"]["robot.waypoint"]["services"],
-            json({"goto", "setdest", "stop", "resume", "get_status", "get_properties", "set_property", "get_configurations"}));
+            json({"goto", "setdest", "stop", "resume", "get_status", "get_properties",
+                  "set_property", "get_configurations"}));
 }
 
 TEST_F(SimSupervisionTest, ResetObjectsNeverTakesTimeBack) {
@@ -237,7 +240,6 @@ TEST_F(SimSupervisionTest, StatisticsCountSteps) {
   EXPECT_EQ(s["timestep"], 0.002);
 }
 
-
 // ---- the mapping is a boundary (issue #17, item 6) ----
 
 // A second transport, "partial", that serves `simulation` and `robot.pose` only, beside the
@@ -258,7 +260,8 @@ class SimSupervisionBoundaryTest : public DemoSim {
     partial_.reset();
     DemoSim::TearDown();
   }
-  Outcome call_partial(const std::string& component, const std::string& service, json params = json::array()) {
+  Outcome call_partial(const std::string& component, const std::string& service,
+                       json params = json::array()) {
     RequestId id = partial_->call(component, service, std::move(params));
     sim_->process_requests();
     auto o = partial_->outcome(id);
@@ -286,7 +289,8 @@ TEST_F(SimSupervisionBoundaryTest, AResetOfARobotWithComponentsTheCallerDoesNotS
   EXPECT_EQ(call("simulation", "reset", {"robot", "robot"}).status, Status::success);
 }
 
-TEST_F(SimSupervisionBoundaryTest, DeactivateRefusesAComponentTheCallerDoesNotServeAsIfItDidNotExist) {
+TEST_F(SimSupervisionBoundaryTest,
+       DeactivateRefusesAComponentTheCallerDoesNotServeAsIfItDidNotExist) {
   Outcome unserved = call_partial("simulation", "deactivate", {"robot.waypoint"});
   Outcome missing = call_partial("simulation", "deactivate", {"robot.nowhere"});
   EXPECT_EQ(unserved.status, Status::failed);
@@ -294,7 +298,8 @@ TEST_F(SimSupervisionBoundaryTest, DeactivateRefusesAComponentTheCallerDoesNotSe
   EXPECT_EQ(unserved.failure, missing.failure);
   EXPECT_EQ(unserved.data, missing.data);
   EXPECT_TRUE(sim_->find("robot.waypoint")->active);
-  EXPECT_EQ(call_partial("simulation", "activate", {"human"}).message, "Component 'human' not found. Can't activate");
+  EXPECT_EQ(call_partial("simulation", "activate", {"human"}).message,
+            "Component 'human' not found. Can't activate");
   // what it serves it may still suspend, and the transport that serves the other may too
   EXPECT_EQ(call_partial("simulation", "deactivate", {"robot.pose"}).status, Status::success);
   EXPECT_FALSE(sim_->find("robot.pose")->active);
@@ -308,7 +313,8 @@ TEST_F(SimSupervisionBoundaryTest, DetailsShowsOnlyWhatTheCallerServes) {
   json robot = d["robots"][0];
   EXPECT_EQ(robot["name"], "robot");  // it holds robot.pose
   EXPECT_EQ(robot["components"].size(), 1u);
-  EXPECT_EQ(robot["components"]["robot.pose"]["services"], json({"get_local_data", "get_properties", "set_property", "get_configurations"}));
+  EXPECT_EQ(robot["components"]["robot.pose"]["services"],
+            json({"get_local_data", "get_properties", "set_property", "get_configurations"}));
   EXPECT_EQ(robot["components"]["robot.pose"]["service_interfaces"], json({"test", "partial"}));
   // the transport that serves everything still sees everything
   json all = call("simulation", "details").value.value_or(json());
@@ -327,7 +333,8 @@ TEST_F(SimSupervisionBoundaryTest, ListRobotsAndListServicesShowOnlyWhatTheCalle
 
 TEST_F(SimSupervisionBoundaryTest, GetSceneObjectsIsTheWholeSceneForEveryCaller) {
   // bodies, not components: the world every client sees
-  EXPECT_EQ(call_partial("simulation", "get_scene_objects").value, call("simulation", "get_scene_objects").value);
+  EXPECT_EQ(call_partial("simulation", "get_scene_objects").value,
+            call("simulation", "get_scene_objects").value);
 }
 
 TEST_F(SimSupervisionBoundaryTest, CalledDirectlyTheServicesSeeEverything) {
@@ -352,7 +359,8 @@ class SimSupervisionAccessTest : public SimSupervisionBoundaryTest {
 // "component.service" -> the transports list_services gives it.
 std::map<std::string, json> by_name(const json& list) {
   std::map<std::string, json> out;
-  for (const auto& s : list) out[s["component"].get<std::string>() + "." + s["name"].get<std::string>()] = s["transports"];
+  for (const auto& s : list)
+    out[s["component"].get<std::string>() + "." + s["name"].get<std::string>()] = s["transports"];
   return out;
 }
 
@@ -369,7 +377,8 @@ TEST_F(SimSupervisionAccessTest, ListServicesShowsOnlyWhatTheCallersListsLetItCa
   EXPECT_EQ(all["simulation.details"], json({"test", "partial"}));
   // partial: the simulation services but quit, nothing else
   std::size_t simulation_services = 0;
-  for (const auto& [name, transports] : all) simulation_services += name.rfind("simulation.", 0) == 0;
+  for (const auto& [name, transports] : all)
+    simulation_services += name.rfind("simulation.", 0) == 0;
   EXPECT_EQ(partial.size(), simulation_services - 1);
 }
 

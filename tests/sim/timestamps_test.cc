@@ -46,8 +46,8 @@ const char* k_scene = R"(
 </mujoco>)";
 
 // The components whose get_local_data describes the evaluated state.
-const char* const k_sensors[] = {"rover.pose",     "rover.sensors", "rover.imu",      "rover.odometry",
-                                 "rover.laser",    "rover.proximity"};
+const char* const k_sensors[] = {"rover.pose",     "rover.sensors", "rover.imu",
+                                 "rover.odometry", "rover.laser",   "rover.proximity"};
 
 class SimTimestampsTest : public MjcfSim {
  protected:
@@ -69,9 +69,11 @@ class SimTimestampsTest : public MjcfSim {
   // A component of the rover, on its root body (as the gateway binds it by default).
   void add(const std::string& short_name, const std::string& type, json options = json::object()) {
     Robot& rover = static_cast<Robot&>(*sim_->find("rover")->component);
-    sim_->add_component(registry_.create(Kind::component, {"rover." + short_name, type, "rover", "robots[0].components[0]"},
-                                         options, *sim_, &rover),
-                        type, "rover");
+    sim_->add_component(
+        registry_.create(Kind::component,
+                         {"rover." + short_name, type, "rover", "robots[0].components[0]"}, options,
+                         *sim_, &rover),
+        type, "rover");
   }
 
   // component -> its get_local_data's timestamp
@@ -82,7 +84,8 @@ class SimTimestampsTest : public MjcfSim {
   }
   // Every sensor's timestamp, and the <clock> sensor, read exactly `expected`.
   void expect_all_stamped(double expected, const std::string& when) {
-    for (const auto& [component, t] : timestamps()) EXPECT_EQ(t, expected) << component << " " << when;
+    for (const auto& [component, t] : timestamps())
+      EXPECT_EQ(t, expected) << component << " " << when;
     EXPECT_EQ(value("rover.sensors", "get_local_data")["clock"].get<double>(), expected) << when;
     EXPECT_EQ(sim_->state_time(), expected) << when;
   }
@@ -108,7 +111,8 @@ TEST_F(SimTimestampsTest, AfterAStepEverySensorStampsTheStateTheStepStartedFrom)
     const int z = sim_->m()->jnt_qposadr[sim_->model().joint_id("rover_free")] + 2;
     EXPECT_LT(sim_->d()->qpos[z], pose["z"].get<double>());
     // armature_pose reads qpos: the current time
-    EXPECT_EQ(value("rover.arm_pose", "get_local_data")["timestamp"].get<double>(), sim_->sim_time());
+    EXPECT_EQ(value("rover.arm_pose", "get_local_data")["timestamp"].get<double>(),
+              sim_->sim_time());
   }
 }
 
@@ -171,8 +175,8 @@ TEST_F(MjcfSim, WithTheRk4IntegratorEachStepIsEvaluatedWhereItEnded) {
     <sensor><framepos name="z" objtype="xbody" objname="ball"/><clock name="clock"/></sensor></mujoco>)");
   Robot& ball = add_robot("ball", "ball");
   sim_->add_component(
-      registry_.create(Kind::component, {"ball.pose", "pose", "ball", "robots[0].components[0]"}, json::object(), *sim_,
-                       &ball),
+      registry_.create(Kind::component, {"ball.pose", "pose", "ball", "robots[0].components[0]"},
+                       json::object(), *sim_, &ball),
       "pose", "ball");
   add_component(ball, "sensors", "sensors", {{"sensors", {"z", "clock"}}});
   serve();
@@ -184,7 +188,7 @@ TEST_F(MjcfSim, WithTheRk4IntegratorEachStepIsEvaluatedWhereItEnded) {
   EXPECT_EQ(sensors["clock"].get<double>(), sim_->sim_time());
   EXPECT_EQ(pose["z"].get<double>(), sensors["z"][2].get<double>());
   EXPECT_EQ(pose["z"].get<double>(), sim_->d()->qpos[2]);  // the free joint's z: where it is now
-  EXPECT_LT(pose["z"].get<double>(), 0.9);  // it fell
+  EXPECT_LT(pose["z"].get<double>(), 0.9);                 // it fell
 }
 
 }  // namespace

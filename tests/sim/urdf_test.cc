@@ -14,9 +14,9 @@
 namespace simgate::sim {
 namespace {
 
+using ::testing::HasSubstr;
 using testing::MjcfSim;
 using testing::test_model;
-using ::testing::HasSubstr;
 
 TEST_F(MjcfSim, AUrdfRobotGetsAnActuatorPerTransmissionJointAndMovesThroughThem) {
   load_file(test_model("urdf_arm.urdf"));
@@ -35,22 +35,26 @@ TEST_F(MjcfSim, AUrdfRobotGetsAnActuatorPerTransmissionJointAndMovesThroughThem)
   EXPECT_EQ(list["elbow_actuator"]["type"], "velocity");
   EXPECT_EQ(list["elbow_actuator"]["ctrlrange"], json({-2.0, 2.0}));
   // the servo takes the shoulder to 0.6 rad; the elbow turns at 1 rad/s
-  EXPECT_EQ(call("arm.actuators", "set_controls", {{{"shoulder_servo", 0.6}, {"elbow_actuator", 1.0}}}).status,
-            Status::success);
+  EXPECT_EQ(
+      call("arm.actuators", "set_controls", {{{"shoulder_servo", 0.6}, {"elbow_actuator", 1.0}}})
+          .status,
+      Status::success);
   const double elbow0 = qpos("elbow");
   run_for(1.0);
   EXPECT_NEAR(qpos("shoulder"), 0.6, 0.05);
   EXPECT_GT(qpos("elbow"), elbow0 + 0.5);
   // outside the joint's range: refused, as for an MJCF robot
-  EXPECT_EQ(call("arm.actuators", "set_controls", {{{"shoulder_servo", 2.0}}}).status, Status::failed);
+  EXPECT_EQ(call("arm.actuators", "set_controls", {{{"shoulder_servo", 2.0}}}).status,
+            Status::failed);
 }
 
 // A URDF scene keeps its spec (with the transmissions' actuators), which a spawn edits.
 TEST(UrdfTest, AnEntitySpawnsIntoAUrdfScene) {
   Model m = Model::load_file(test_model("urdf_arm.urdf"));
   ASSERT_TRUE(m.spec());
-  Model with_ball = with_entity(EditBase::of(m), "ball",
-                                entity_document("<body pos='1 0 1'><freejoint/><geom size='.1'/></body>", "ball", {}));
+  Model with_ball = with_entity(
+      EditBase::of(m), "ball",
+      entity_document("<body pos='1 0 1'><freejoint/><geom size='.1'/></body>", "ball", {}));
   EXPECT_EQ(with_ball.model()->nu, m.model()->nu);
   EXPECT_GE(with_ball.actuator_id("shoulder_servo"), 0);
   EXPECT_EQ(with_ball.body_id("ball"), m.model()->nbody);
@@ -69,7 +73,8 @@ TEST(UrdfTest, AUrdfRobotSpawnsWithItsTransmissionsActuators) {
   Model scene = Model::load_file(testing::demo_scene());
   EntityPose pose;
   pose.position = {3, -1, 0.5};
-  const EntityDocument document = entity_document(text_of(test_model("urdf_arm.urdf")), "arm2", pose);
+  const EntityDocument document =
+      entity_document(text_of(test_model("urdf_arm.urdf")), "arm2", pose);
   ASSERT_TRUE(document.urdf);
   Model with_arm = with_entity(EditBase::of(scene), "arm2", document);
   const int body = with_arm.body_id("arm2");
@@ -93,12 +98,16 @@ TEST(UrdfTest, ASpawnedUrdfWithSeveralRootLinksOrABadTransmissionIsRefused) {
     }
     return std::string();
   };
-  EXPECT_THAT(error_of(R"(<robot name="two"><link name="a"><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  EXPECT_THAT(
+      error_of(
+          R"(<robot name="two"><link name="a"><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link>
       <link name="b"><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link></robot>)"),
-              HasSubstr("entity 'r': a spawned URDF robot has one root link"));
-  EXPECT_THAT(error_of(R"(<robot name="t"><link name="a"><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link>
+      HasSubstr("entity 'r': a spawned URDF robot has one root link"));
+  EXPECT_THAT(
+      error_of(
+          R"(<robot name="t"><link name="a"><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link>
       <transmission name="t"><joint name="nope"><hardwareInterface>hardware_interface/EffortJointInterface</hardwareInterface></joint></transmission></robot>)"),
-              HasSubstr("entity 'r': a transmission drives joint 'nope', which the robot does not have"));
+      HasSubstr("entity 'r': a transmission drives joint 'nope', which the robot does not have"));
 }
 
 class UrdfErrors : public ::testing::Test {
@@ -132,21 +141,29 @@ constexpr const char* k_link = R"(<link name="base"><inertial><mass value="1"/>
   <limit lower="-1" upper="1" effort="5" velocity="1"/></joint>)";
 
 TEST_F(UrdfErrors, ATransmissionOfAJointTheRobotDoesNotHaveIsRefusedNamingIt) {
-  const std::string path = write("bad.urdf", std::string("<robot name='r'>") + k_link +
-      "<transmission name='t'><joint name='nope'><hardwareInterface>EffortJointInterface</hardwareInterface>"
-      "</joint></transmission></robot>");
-  EXPECT_THAT(error_of(path), HasSubstr("scene '" + path + "': a transmission drives joint 'nope', which the robot does not have"));
+  const std::string path = write(
+      "bad.urdf", std::string("<robot name='r'>") + k_link +
+                      "<transmission name='t'><joint "
+                      "name='nope'><hardwareInterface>EffortJointInterface</hardwareInterface>"
+                      "</joint></transmission></robot>");
+  EXPECT_THAT(error_of(path),
+              HasSubstr("scene '" + path +
+                        "': a transmission drives joint 'nope', which the robot does not have"));
 }
 
 TEST_F(UrdfErrors, AnInterfaceSimgateDoesNotKnowIsRefusedNamingIt) {
-  const std::string path = write("bad.urdf", std::string("<robot name='r'>") + k_link +
-      "<transmission name='t'><joint name='j'><hardwareInterface>ImpedanceJointInterface</hardwareInterface>"
-      "</joint></transmission></robot>");
-  EXPECT_THAT(error_of(path), HasSubstr("transmission 't' drives joint 'j' through 'ImpedanceJointInterface'"));
+  const std::string path = write(
+      "bad.urdf", std::string("<robot name='r'>") + k_link +
+                      "<transmission name='t'><joint "
+                      "name='j'><hardwareInterface>ImpedanceJointInterface</hardwareInterface>"
+                      "</joint></transmission></robot>");
+  EXPECT_THAT(error_of(path),
+              HasSubstr("transmission 't' drives joint 'j' through 'ImpedanceJointInterface'"));
 }
 
 TEST_F(UrdfErrors, AMissingMeshIsNamed) {
-  const std::string path = write("mesh.urdf", R"(<robot name='r'><link name="base"><inertial><mass value="1"/>
+  const std::string path =
+      write("mesh.urdf", R"(<robot name='r'><link name="base"><inertial><mass value="1"/>
     <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
     <collision><geometry><mesh filename="no_such_part.stl"/></geometry></collision></link></robot>)");
   EXPECT_THAT(error_of(path), HasSubstr("no_such_part.stl"));

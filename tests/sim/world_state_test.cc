@@ -225,7 +225,8 @@ TEST_F(SimWorldStateTest, ResetRefusesUnknownScopesAndNames) {
     Outcome o = call("simulation", "reset", bad.params);
     EXPECT_EQ(o.status, Status::failed) << bad.params.dump();
     EXPECT_EQ(o.failure, Failure::bad_arguments) << bad.params.dump();
-    EXPECT_THAT(o.message + o.data.dump(), HasSubstr(bad.parameter)) << bad.params.dump() << ": " << o.message;
+    EXPECT_THAT(o.message + o.data.dump(), HasSubstr(bad.parameter))
+        << bad.params.dump() << ": " << o.message;
   }
 }
 

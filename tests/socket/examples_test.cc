@@ -80,7 +80,8 @@ class ExampleProcess {
         buffer_.erase(0, nl + 1);
         return line;
       }
-      auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count();
+      auto left =
+          std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count();
       if (left <= 0) throw std::runtime_error("the example printed nothing in time");
       pollfd p{out_, POLLIN, 0};
       if (::poll(&p, 1, int(left)) <= 0) continue;
@@ -126,7 +127,8 @@ TEST(Examples, ComputeFinishesAboutFiveSecondsLater) {
   c.send_line("req2 test_component compute (5,)");
   // nothing until the computation is over; other requests are still served meanwhile
   c.send_line("req3 test_component nope");
-  EXPECT_THAT(c.read_line(15s).value_or("<nothing>"), ::testing::HasSubstr("has not been registered"));
+  EXPECT_THAT(c.read_line(15s).value_or("<nothing>"),
+              ::testing::HasSubstr("has not been registered"));
   EXPECT_EQ(c.read_line(15s).value_or("<nothing>"), "req2 SUCCESS \"done!\"");
   // it counted down once per second on the way
   EXPECT_EQ(compute.read_line(), "Value is now 4");
@@ -140,7 +142,9 @@ TEST(Examples, PymorseCallsTheAddExample) {
   std::uint16_t port = add.port();
   std::string script =
       "import pymorse\n"
-      "m = pymorse.Morse('127.0.0.1', " + std::to_string(port) + ")\n"
+      "m = pymorse.Morse('127.0.0.1', " +
+      std::to_string(port) +
+      ")\n"
       "assert m.rpc('test_component', 'add', 1, 2) == 3\n"
       "try:\n"
       "    m.rpc('test_component', 'add', 1)\n"

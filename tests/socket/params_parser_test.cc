@@ -49,7 +49,9 @@ TEST(SocketParamsParser, PythonAndJsonConstants) {
 }
 
 TEST(SocketParamsParser, Numbers) {
-  json n = ok("(0, -7, +3, 1.5, .5, 2., 1e3, -2.5E-2, 9223372036854775807, 18446744073709551615, -9223372036854775808)");
+  json n =
+      ok("(0, -7, +3, 1.5, .5, 2., 1e3, -2.5E-2, 9223372036854775807, 18446744073709551615, "
+         "-9223372036854775808)");
   EXPECT_TRUE(n[0].is_number_integer());
   EXPECT_EQ(n[1].get<int>(), -7);
   EXPECT_EQ(n[2].get<int>(), 3);
@@ -76,7 +78,8 @@ TEST(SocketParamsParser, Numbers) {
   EXPECT_THAT(bad("(0x10,)").error, HasSubstr("malformed number"));
   EXPECT_THAT(bad("(-,)").error, HasSubstr("malformed number"));
   // around the length where plain integers leave the fast path (18 digits)
-  json m = ok("[12345678901234567, 123456789012345678, -123456789012345678, 1234567890123456789, -0, 7]");
+  json m = ok(
+      "[12345678901234567, 123456789012345678, -123456789012345678, 1234567890123456789, -0, 7]");
   EXPECT_EQ(m[0].get<std::int64_t>(), 12345678901234567);
   EXPECT_EQ(m[1].get<std::int64_t>(), 123456789012345678);
   EXPECT_EQ(m[2].get<std::int64_t>(), -123456789012345678);
@@ -93,7 +96,8 @@ TEST(SocketParamsParser, Numbers) {
 TEST(SocketParamsParser, StringsWithBothQuotesAndEscapes) {
   EXPECT_EQ(ok("('a', \"b\")"), json::parse(R"(["a","b"])"));
   EXPECT_EQ(ok(R"(['it\'s', "say \"hi\""])"), json::parse(R"(["it's","say \"hi\""])"));
-  EXPECT_EQ(ok(R"(['\n\t\r\\\/\x41\u00e9\U0001F600'])"), json::array({"\n\t\r\\/A\xc3\xa9\xf0\x9f\x98\x80"}));
+  EXPECT_EQ(ok(R"(['\n\t\r\\\/\x41\u00e9\U0001F600'])"),
+            json::array({"\n\t\r\\/A\xc3\xa9\xf0\x9f\x98\x80"}));
   EXPECT_EQ(ok(R"(["\ud83d\ude00"])"), json::array({"\xf0\x9f\x98\x80"}));
   EXPECT_EQ(ok("['caf\xc3\xa9']"), json::array({"caf\xc3\xa9"}));
 }
@@ -126,7 +130,8 @@ TEST(SocketParamsParser, DictsAreNamedArgumentsWithStringKeys) {
 }
 
 TEST(SocketParamsParser, NothingIsEvaluated) {
-  EXPECT_THAT(bad("(__import__('os').system('true'),)").error, HasSubstr("unknown name '__import__'"));
+  EXPECT_THAT(bad("(__import__('os').system('true'),)").error,
+              HasSubstr("unknown name '__import__'"));
   EXPECT_THAT(bad("(1+1,)").error, HasSubstr("expected ',' or ')'"));
   EXPECT_THAT(bad("(x,)").error, HasSubstr("unknown name 'x'"));
   EXPECT_THAT(bad("(lambda: 0,)").error, HasSubstr("unknown name 'lambda'"));

@@ -49,9 +49,9 @@ class Rover : public Component {
   }
 
  private:
-  std::mutex mutex_;                       // guards interrupts_
-  std::condition_variable interrupted_;    // interrupt() ran
-  int interrupts_ = 0;                     // interrupt() calls
+  std::mutex mutex_;                     // guards interrupts_
+  std::condition_variable interrupted_;  // interrupt() ran
+  int interrupts_ = 0;                   // interrupt() calls
 };
 
 class SocketDisconnect : public SocketFixture {
@@ -65,7 +65,7 @@ TEST_F(SocketDisconnect, AClientThatLeavesHasItsAsyncRequestInterrupted) {
   auto gone = connect();
   gone->send_line("g rover go");
   EXPECT_EQ(roundtrip(*gone, "p test ping"), "p SUCCESS \"pong\"");  // g has started
-  gone.reset();  // closed with g running
+  gone.reset();                                                      // closed with g running
   EXPECT_TRUE(rover_.wait_interrupted(10s));
   auto other = connect();
   EXPECT_EQ(roundtrip(*other, "r rover running"), "r SUCCESS false");
@@ -114,12 +114,14 @@ TEST_F(SocketTransportLimits, OversizedLineGetsFailedAndConnectionKeepsWorking) 
   auto c = connect();
   std::string huge = "big1 test echo ('" + std::string(5000, 'a') + "',)";
   EXPECT_EQ(roundtrip(*c, huge),
-            "big1 FAILED \"Request too long: the line exceeds 1024 bytes (max_line_bytes); it was ignored\"");
+            "big1 FAILED \"Request too long: the line exceeds 1024 bytes (max_line_bytes); it was "
+            "ignored\"");
   // a long line arriving in pieces, with its end much later
   c->send_raw("big2 test echo ('" + std::string(3000, 'b'));
   c->send_raw(std::string(3000, 'b') + "',)\nok1 test ping\n");
   EXPECT_EQ(next_line(*c),
-            "big2 FAILED \"Request too long: the line exceeds 1024 bytes (max_line_bytes); it was ignored\"");
+            "big2 FAILED \"Request too long: the line exceeds 1024 bytes (max_line_bytes); it was "
+            "ignored\"");
   EXPECT_EQ(next_line(*c), "ok1 SUCCESS \"pong\"");
   // exactly at the limit is fine
   std::string prefix = "ok2 test echo ('";
@@ -143,7 +145,8 @@ TEST_F(SocketTransportLimits, ClientThatStopsReadingIsDisconnectedOthersAreServe
   constexpr int k_requests = 300;  // 300 x 64 KiB of replies: far beyond every buffer
   std::string flood;
   for (int i = 0; i < k_requests; ++i) flood += "h" + std::to_string(i) + " test big (65536,)\n";
-  ASSERT_EQ(::send(fd, flood.data(), flood.size(), MSG_NOSIGNAL), static_cast<ssize_t>(flood.size()));
+  ASSERT_EQ(::send(fd, flood.data(), flood.size(), MSG_NOSIGNAL),
+            static_cast<ssize_t>(flood.size()));
 
   // meanwhile a well-behaved client is answered
   auto good = connect();
@@ -185,13 +188,15 @@ TEST_F(SocketTransportLimits, NoLineIsTakenFromAReadAfterItsFirstHalfClosedTheCo
   // a first large read makes the connection the one sending (kit::ReadSplit notes it), then
   // it stays alone for longer than kit::ReadSplit::k_alone_after
   c->send_raw(burst("p", "test ping", 40));
-  for (int i = 0; i < 40; ++i) ASSERT_EQ(next_line(*c), "p" + std::to_string(i) + " SUCCESS \"pong\"");
+  for (int i = 0; i < 40; ++i)
+    ASSERT_EQ(next_line(*c), "p" + std::to_string(i) + " SUCCESS \"pong\"");
   std::this_thread::sleep_for(10ms);
   // first half: replies of 2 KB (the first one is over the limit); the second half
   // begins with a held request that must never start
   const std::string first_half = burst("b", "test big (2048,)", 20);
   const std::string hold = "h worker hold (1,)\n";
-  const std::string padding = "z test echo ('" + std::string(first_half.size() - hold.size() - 18, 'x') + "',)\n";
+  const std::string padding =
+      "z test echo ('" + std::string(first_half.size() - hold.size() - 18, 'x') + "',)\n";
   ASSERT_EQ(hold.size() + padding.size(), first_half.size());  // the half falls just before `hold`
   c->send_raw(first_half + hold + padding);
   bool ended = false;  // the server closes the connection
@@ -244,9 +249,11 @@ TEST_F(SocketTransportLimits, MaxMessageBytesLimitsALine) {
   start_server({{"max_message_bytes", 1024}});
   auto c = connect();
   EXPECT_EQ(roundtrip(*c, "big test echo ('" + std::string(2000, 'a') + "',)"),
-            "big FAILED \"Request too long: the line exceeds 1024 bytes (max_message_bytes); it was ignored\"");
+            "big FAILED \"Request too long: the line exceeds 1024 bytes (max_message_bytes); it "
+            "was ignored\"");
   std::string prefix = "ok test echo ('";
-  EXPECT_THAT(roundtrip(*c, prefix + std::string(1024 - prefix.size() - 3, 'c') + "',)"), StartsWith("ok SUCCESS"));
+  EXPECT_THAT(roundtrip(*c, prefix + std::string(1024 - prefix.size() - 3, 'c') + "',)"),
+              StartsWith("ok SUCCESS"));
 }
 
 TEST_F(SocketTransportLimits, EndpointIsLoopbackWithTheBoundPort) {
@@ -258,7 +265,8 @@ TEST_F(SocketTransportLimits, EndpointIsLoopbackWithTheBoundPort) {
 
 TEST_F(SocketTransportLimits, PortInUseIsAClearStartupError) {
   start_server();
-  auto plugin = load_transport_plugin(std::string(SIMGATE_TEST_PLUGIN_DIR) + "/libsimgate_transport_socket.so");
+  auto plugin = load_transport_plugin(std::string(SIMGATE_TEST_PLUGIN_DIR) +
+                                      "/libsimgate_transport_socket.so");
   try {
     plugin->create({{"port", port_}}, "transports.socket");
     FAIL() << "a second server started on a port in use";
@@ -269,7 +277,8 @@ TEST_F(SocketTransportLimits, PortInUseIsAClearStartupError) {
 }
 
 TEST_F(SocketTransportLimits, UnknownOrInvalidOptionsAreRefused) {
-  auto plugin = load_transport_plugin(std::string(SIMGATE_TEST_PLUGIN_DIR) + "/libsimgate_transport_socket.so");
+  auto plugin = load_transport_plugin(std::string(SIMGATE_TEST_PLUGIN_DIR) +
+                                      "/libsimgate_transport_socket.so");
   EXPECT_THROW(plugin->create({{"port", 0}, {"prot", 1}}, "transports.socket"), std::exception);
   try {
     plugin->create({{"port", 0}, {"success_word", "YES"}}, "transports.socket");
@@ -278,7 +287,8 @@ TEST_F(SocketTransportLimits, UnknownOrInvalidOptionsAreRefused) {
     EXPECT_THAT(e.what(), HasSubstr("success_word"));
   }
   EXPECT_THROW(plugin->create({{"port", 70000}}, "transports.socket"), std::exception);
-  EXPECT_THROW(plugin->create({{"port", 0}, {"max_message_bytes", 1}}, "transports.socket"), std::exception);
+  EXPECT_THROW(plugin->create({{"port", 0}, {"max_message_bytes", 1}}, "transports.socket"),
+               std::exception);
   try {
     plugin->create({{"port", 0}, {"on_disconnect", "forget"}}, "transports.socket");
     FAIL() << "on_disconnect forget accepted";
@@ -293,7 +303,10 @@ class SocketTransportOptions : public SocketFixture {};
 
 TEST_F(SocketTransportOptions, TheJsonRpcTransportsNamesAreAcceptedWithoutWarning) {
   WarningLog warnings;
-  start_server({{"max_connections", 8}, {"max_message_bytes", 4096}, {"max_unsent_bytes", 65536}, {"max_in_flight", 4}});
+  start_server({{"max_connections", 8},
+                {"max_message_bytes", 4096},
+                {"max_unsent_bytes", 65536},
+                {"max_in_flight", 4}});
   auto c = connect();
   EXPECT_EQ(roundtrip(*c, "a test ping"), "a SUCCESS \"pong\"");
   EXPECT_EQ(warnings.count("deprecated"), 0u) << ::testing::PrintToString(warnings.lines());
@@ -302,9 +315,11 @@ TEST_F(SocketTransportOptions, TheJsonRpcTransportsNamesAreAcceptedWithoutWarnin
 TEST_F(SocketTransportOptions, AnOldNameWorksAsBeforeAndWarnsOnceWithTheNewName) {
   WarningLog warnings;
   start_server({{"max_clients", 1}});
-  EXPECT_EQ(warnings.count("socket: option 'max_clients' is deprecated, use 'max_connections' (the old name goes in "
-                           "the next release)"),
-            1u)
+  EXPECT_EQ(
+      warnings.count(
+          "socket: option 'max_clients' is deprecated, use 'max_connections' (the old name goes in "
+          "the next release)"),
+      1u)
       << ::testing::PrintToString(warnings.lines());
   auto first = connect();
   EXPECT_EQ(roundtrip(*first, "a test ping"), "a SUCCESS \"pong\"");
@@ -313,17 +328,20 @@ TEST_F(SocketTransportOptions, AnOldNameWorksAsBeforeAndWarnsOnceWithTheNewName)
 }
 
 TEST_F(SocketTransportOptions, AnOptionUnderItsOldAndNewNameIsAConfigError) {
-  auto plugin = load_transport_plugin(std::string(SIMGATE_TEST_PLUGIN_DIR) + "/libsimgate_transport_socket.so");
-  const std::vector<std::pair<std::string, std::string>> renamed = {{"max_clients", "max_connections"},
-                                                                    {"max_line_bytes", "max_message_bytes"},
-                                                                    {"max_pending_replies_bytes", "max_unsent_bytes"},
-                                                                    {"max_pending_requests", "max_in_flight"}};
+  auto plugin = load_transport_plugin(std::string(SIMGATE_TEST_PLUGIN_DIR) +
+                                      "/libsimgate_transport_socket.so");
+  const std::vector<std::pair<std::string, std::string>> renamed = {
+      {"max_clients", "max_connections"},
+      {"max_line_bytes", "max_message_bytes"},
+      {"max_pending_replies_bytes", "max_unsent_bytes"},
+      {"max_pending_requests", "max_in_flight"}};
   for (const auto& [old_key, new_key] : renamed) {
     try {
       plugin->create({{"port", 0}, {old_key, 1024}, {new_key, 1024}}, "transports.socket");
       ADD_FAILURE() << old_key << " and " << new_key << " accepted together";
     } catch (const ConfigError& e) {
-      EXPECT_THAT(e.what(), HasSubstr("transports.socket." + old_key + ": the deprecated name of '" + new_key + "'"));
+      EXPECT_THAT(e.what(), HasSubstr("transports.socket." + old_key +
+                                      ": the deprecated name of '" + new_key + "'"));
       EXPECT_THAT(e.what(), HasSubstr("keep only '" + new_key + "'"));
     }
   }

@@ -15,10 +15,12 @@ TEST_F(SocketDeadline, APerServiceDeadlineEndsTheCallFailedAndFreesTheComponent)
   start_server({{"timeouts", {{"services", {{"strict.hold", 50}}}}}});
   auto c = connect();
   // strict.hold is non-interruptible: a second hold is refused while one runs
-  EXPECT_EQ(roundtrip(*c, "a strict hold [1]"), "a FAILED \"strict.hold: no reply within 50 ms (deadline); interrupted\"");
+  EXPECT_EQ(roundtrip(*c, "a strict hold [1]"),
+            "a FAILED \"strict.hold: no reply within 50 ms (deadline); interrupted\"");
   // the next one is accepted (a refusal would say "A non-interruptible service (strict.hold)
   // is already running"): it runs, and times out in its turn
-  EXPECT_EQ(roundtrip(*c, "b strict hold [2]"), "b FAILED \"strict.hold: no reply within 50 ms (deadline); interrupted\"");
+  EXPECT_EQ(roundtrip(*c, "b strict hold [2]"),
+            "b FAILED \"strict.hold: no reply within 50 ms (deadline); interrupted\"");
   // the timed-out calls are over: their completions finish nothing
   EXPECT_EQ(roundtrip(*c, "c strict release [7]"), "c SUCCESS false");
 }
@@ -26,7 +28,8 @@ TEST_F(SocketDeadline, APerServiceDeadlineEndsTheCallFailedAndFreesTheComponent)
 TEST_F(SocketDeadline, TheDefaultAppliesToEveryCallAndSyncCallsRunToTheirResult) {
   start_server({{"timeouts", {{"default_ms", 50}}}});
   auto c = connect();
-  EXPECT_EQ(roundtrip(*c, "a plain hold [1]"), "a FAILED \"plain.hold: no reply within 50 ms (deadline); interrupted\"");
+  EXPECT_EQ(roundtrip(*c, "a plain hold [1]"),
+            "a FAILED \"plain.hold: no reply within 50 ms (deadline); interrupted\"");
   EXPECT_EQ(roundtrip(*c, "b test ping"), "b SUCCESS \"pong\"");
   EXPECT_EQ(roundtrip(*c, "c test_component add (1, 2)"), "c SUCCESS 3");
 }
@@ -35,7 +38,8 @@ TEST_F(SocketDeadline, AServicesZeroOverridesTheDefault) {
   start_server({{"timeouts", {{"default_ms", 50}, {"services", {{"worker.hold", 0}}}}}});
   auto c = connect();
   c->send_line("a worker hold [1]");  // no deadline: runs until released
-  EXPECT_EQ(roundtrip(*c, "b plain hold [1]"), "b FAILED \"plain.hold: no reply within 50 ms (deadline); interrupted\"");
+  EXPECT_EQ(roundtrip(*c, "b plain hold [1]"),
+            "b FAILED \"plain.hold: no reply within 50 ms (deadline); interrupted\"");
   c->send_line("c worker release [5]");
   EXPECT_EQ(next_lines(*c, 2), (std::multiset<std::string>{"a SUCCESS 5", "c SUCCESS true"}));
 }
@@ -51,7 +55,8 @@ TEST_F(SocketDeadline, WithoutTimeoutsNothingTimesOut) {
 }
 
 TEST_F(SocketDeadline, BadTimeoutsAreConfigErrorsNamingTheKey) {
-  auto plugin = load_transport_plugin(std::string(SIMGATE_TEST_PLUGIN_DIR) + "/libsimgate_transport_socket.so");
+  auto plugin = load_transport_plugin(std::string(SIMGATE_TEST_PLUGIN_DIR) +
+                                      "/libsimgate_transport_socket.so");
   const std::vector<std::pair<json, std::string>> bad = {
       {5, "timeouts"},
       {{{"default_ms", -1}}, "timeouts.default_ms"},

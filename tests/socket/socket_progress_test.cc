@@ -26,26 +26,30 @@ class SocketProgress : public SocketFixture {
   // size)` n reports of a string of `size` bytes (how many reached a client)
   void register_more(RequestManager& rm) override {
     auto held = std::make_shared<Completion>();
-    rm.register_async_service("job", [held](Completion c, json /*token*/) { *held = c; return true; }, "hold",
-                              {"token"});
-    rm.register_service("job", [held](json value) { return held->progress(std::move(value)); }, "report",
-                        {"value"});
-    rm.register_service(
-        "job",
-        [held](int n, int size) {
-          int passed = 0;
-          for (int i = 0; i < n; ++i) passed += held->progress(json(std::string(std::size_t(size), 'p'))) ? 1 : 0;
-          return passed;
-        },
-        "flood", {"n", "size"});
-    rm.register_service(
-        "job",
-        [held](json value) {
-          bool done = (*held)(Status::success, value);
-          *held = Completion();
-          return done;
-        },
-        "release", {"value"});
+    rm.register_async_service("job",
+                              [held](Completion c, json /*token*/) {
+                                *held = c;
+                                return true;
+                              },
+                              "hold", {"token"});
+    rm.register_service("job", [held](json value) { return held->progress(std::move(value)); },
+                        "report", {"value"});
+    rm.register_service("job",
+                        [held](int n, int size) {
+                          int passed = 0;
+                          for (int i = 0; i < n; ++i)
+                            passed +=
+                                held->progress(json(std::string(std::size_t(size), 'p'))) ? 1 : 0;
+                          return passed;
+                        },
+                        "flood", {"n", "size"});
+    rm.register_service("job",
+                        [held](json value) {
+                          bool done = (*held)(Status::success, value);
+                          *held = Completion();
+                          return done;
+                        },
+                        "release", {"value"});
   }
 };
 
@@ -55,7 +59,8 @@ TEST_F(SocketProgress, AConnectionThatOptedInGetsProgressLinesThenTheReply) {
   start(*client, "a1 job hold [\"t\"]");
   auto control = connect();
   EXPECT_EQ(roundtrip(*control, "c1 job report [1]"), "c1 SUCCESS true");
-  EXPECT_EQ(roundtrip(*control, "c2 job report [{\"left\": 2.5, \"name\": \"caf\\u00e9\"}]"), "c2 SUCCESS true");
+  EXPECT_EQ(roundtrip(*control, "c2 job report [{\"left\": 2.5, \"name\": \"caf\\u00e9\"}]"),
+            "c2 SUCCESS true");
   EXPECT_EQ(roundtrip(*control, "c3 job release [\"done\"]"), "c3 SUCCESS true");
   // MORSE's JSON: ", " and ": " separators, non-ASCII escaped
   EXPECT_EQ(next_line(*client), "a1 PROGRESS 1");
@@ -92,14 +97,18 @@ TEST_F(SocketProgress, OptingOutStopsTheLinesAndRequestsBeforeTheOptInGetNone) {
 TEST_F(SocketProgress, BadOptInParamsAreFailedInMorsesPhrases) {
   auto client = connect();
   EXPECT_EQ(roundtrip(*client, "p1 simgate progress [1]"),
-            "p1 FAILED \"wrong parameter type for service simgate.progress: parameter 'on' expects boolean, got "
+            "p1 FAILED \"wrong parameter type for service simgate.progress: parameter 'on' expects "
+            "boolean, got "
             "number 1\"");
   EXPECT_EQ(roundtrip(*client, "p2 simgate progress [true, false]"),
-            "p2 FAILED \"wrong # of parameters for service simgate.progress: expected at most 1 (on), got 2\"");
-  EXPECT_THAT(roundtrip(*client, "p3 simgate progress [tru"), ::testing::StartsWith("p3 FAILED \"Invalid request syntax"));
+            "p2 FAILED \"wrong # of parameters for service simgate.progress: expected at most 1 "
+            "(on), got 2\"");
+  EXPECT_THAT(roundtrip(*client, "p3 simgate progress [tru"),
+              ::testing::StartsWith("p3 FAILED \"Invalid request syntax"));
   // a bare value is the one parameter (before: "expected at most 1 (on), got 1")
   EXPECT_EQ(roundtrip(*client, "p4 simgate progress 7"),
-            "p4 FAILED \"wrong parameter type for service simgate.progress: parameter 'on' expects boolean, got "
+            "p4 FAILED \"wrong parameter type for service simgate.progress: parameter 'on' expects "
+            "boolean, got "
             "number 7\"");
   EXPECT_EQ(roundtrip(*client, "p5 simgate progress false"), "p5 SUCCESS");
   // the connection did not opt in
@@ -118,7 +127,8 @@ TEST_F(SocketProgress, AClientThatDoesNotReadLosesProgressLinesNeverTheReply) {
   // while the client reads nothing: 4 MiB of reports (512 of 8 KiB), far more than the
   // socket buffers and the 64 KiB the server queues before it drops them
   constexpr int k_reports = 512;
-  EXPECT_EQ(roundtrip(*control, "c1 job flood [512, 8192]"), "c1 SUCCESS " + std::to_string(k_reports));
+  EXPECT_EQ(roundtrip(*control, "c1 job flood [512, 8192]"),
+            "c1 SUCCESS " + std::to_string(k_reports));
   EXPECT_EQ(roundtrip(*control, "c2 job release [\"done\"]"), "c2 SUCCESS true");
   // now it reads: some progress lines, then the reply, and then nothing more
   int progress_lines = 0;

@@ -42,7 +42,8 @@ using client::SocketClient;
 
 // Python's a + b for the JSON values MORSE's `add` example would see.
 inline json python_add(const json& a, const json& b) {
-  if (a.is_number_integer() && b.is_number_integer()) return a.get<std::int64_t>() + b.get<std::int64_t>();
+  if (a.is_number_integer() && b.is_number_integer())
+    return a.get<std::int64_t>() + b.get<std::int64_t>();
   if (a.is_number() && b.is_number()) return a.get<double>() + b.get<double>();
   if (a.is_string() && b.is_string()) return a.get<std::string>() + b.get<std::string>();
   if (a.is_array() && b.is_array()) {
@@ -50,7 +51,8 @@ inline json python_add(const json& a, const json& b) {
     for (const auto& e : b) out.push_back(e);
     return out;
   }
-  throw ServiceError("unsupported operand types for +: " + describe_json(a) + " and " + describe_json(b));
+  throw ServiceError("unsupported operand types for +: " + describe_json(a) + " and " +
+                     describe_json(b));
 }
 
 class SocketFixture : public ::testing::Test {
@@ -59,7 +61,8 @@ class SocketFixture : public ::testing::Test {
 
   // Loads the plugin and starts the transport with `options` (port 0 unless given).
   void start_server(json options = json::object()) {
-    plugin_ = load_transport_plugin(std::string(SIMGATE_TEST_PLUGIN_DIR) + "/libsimgate_transport_socket.so");
+    plugin_ = load_transport_plugin(std::string(SIMGATE_TEST_PLUGIN_DIR) +
+                                    "/libsimgate_transport_socket.so");
     if (!options.contains("port")) options["port"] = 0;
     manager_ = plugin_->create(options, "transports.socket");
     register_services(*manager_);
@@ -82,7 +85,9 @@ class SocketFixture : public ::testing::Test {
     manager_.reset();
   }
 
-  std::unique_ptr<SocketClient> connect() { return std::make_unique<SocketClient>("127.0.0.1", port_); }
+  std::unique_ptr<SocketClient> connect() {
+    return std::make_unique<SocketClient>("127.0.0.1", port_);
+  }
 
   // The next line, failing the test after a deadline.
   static std::string next_line(SocketClient& c, std::chrono::milliseconds timeout = 10s) {
@@ -106,39 +111,45 @@ class SocketFixture : public ::testing::Test {
   virtual void register_more(RequestManager& /*rm*/) {}
 
   static void register_services(RequestManager& rm) {
-    rm.register_service("test_component", [](json a, json b) { return python_add(a, b); }, "add", {"a", "b"});
+    rm.register_service("test_component", [](json a, json b) { return python_add(a, b); }, "add",
+                        {"a", "b"});
     rm.register_service("test", [](json x) { return x; }, "echo", {"x"});
     rm.register_service("test", [] {}, "nothing");
     rm.register_service("test", [] { return json(nullptr); }, "none");
     rm.register_service("test", [](double x) { return 2 * x; }, "scale", {"x"});
-    rm.register_service("test", [](std::string m) -> json { throw ServiceError(m); }, "fail", {"message"});
+    rm.register_service("test", [](std::string m) -> json { throw ServiceError(m); }, "fail",
+                        {"message"});
     rm.register_service("test", []() -> json { throw std::runtime_error("boom"); }, "crash");
-    rm.register_service("test", [](int n) { return std::string(std::size_t(n), 'x'); }, "big", {"n"});
+    rm.register_service("test", [](int n) { return std::string(std::size_t(n), 'x'); }, "big",
+                        {"n"});
     rm.register_service("test", [] { return std::string("pong"); }, "ping");
 
     // async components: the held completion is touched only on the process() thread
     for (const char* component : {"worker", "strict", "plain"}) {
       auto held = std::make_shared<Completion>();
-      auto builder = rm.register_async_service(
-          component, [held](Completion c, json /*token*/) { *held = c; return true; }, "hold", {"token"});
+      auto builder = rm.register_async_service(component,
+                                               [held](Completion c, json /*token*/) {
+                                                 *held = c;
+                                                 return true;
+                                               },
+                                               "hold", {"token"});
       if (std::string(component) == "worker") builder.interruptible();
       if (std::string(component) == "strict") builder.noninterruptible();
-      rm.register_service(
-          component,
-          [held](json value) {
-            bool done = (*held)(Status::success, value);
-            *held = Completion();
-            return done;
-          },
-          "release", {"value"});
+      rm.register_service(component,
+                          [held](json value) {
+                            bool done = (*held)(Status::success, value);
+                            *held = Completion();
+                            return done;
+                          },
+                          "release", {"value"});
     }
   }
 
-  std::shared_ptr<TransportPlugin> plugin_;    // keeps the library loaded
-  std::shared_ptr<RequestManager> manager_;    // the transport under test
-  std::uint16_t port_ = 0;                     // its ephemeral port
-  std::thread loop_;                           // runs process()
-  std::atomic<bool> stop_{false};              // ends loop_
+  std::shared_ptr<TransportPlugin> plugin_;  // keeps the library loaded
+  std::shared_ptr<RequestManager> manager_;  // the transport under test
+  std::uint16_t port_ = 0;                   // its ephemeral port
+  std::thread loop_;                         // runs process()
+  std::atomic<bool> stop_{false};            // ends loop_
 };
 
 }  // namespace simgate::socket::test

@@ -28,8 +28,9 @@ class WarningLog {
   // How many warnings contain `text`.
   std::size_t count(const std::string& text) const {
     std::lock_guard lock(mutex_);
-    return std::size_t(std::count_if(lines_.begin(), lines_.end(),
-                                     [&](const std::string& l) { return l.find(text) != std::string::npos; }));
+    return std::size_t(std::count_if(lines_.begin(), lines_.end(), [&](const std::string& l) {
+      return l.find(text) != std::string::npos;
+    }));
   }
   std::vector<std::string> lines() const {
     std::lock_guard lock(mutex_);

@@ -8,9 +8,9 @@
 namespace simgate::socket::test {
 namespace {
 
+using ::testing::AllOf;
 using ::testing::HasSubstr;
 using ::testing::StartsWith;
-using ::testing::AllOf;
 
 class SocketTransport : public SocketFixture {
  protected:
@@ -19,8 +19,8 @@ class SocketTransport : public SocketFixture {
   // Sync round trips on `c` for `duration` (at most `max_calls`): long enough for the
   // client to be alone (kit::ReadSplit::k_alone_after) and its socket read directly by the
   // polling I/O thread. Returns how many were answered right; stops at the first wrong one.
-  static int call_back_to_back(SocketClient& c, const std::string& prefix, std::chrono::milliseconds duration,
-                               int max_calls = 50'000) {
+  static int call_back_to_back(SocketClient& c, const std::string& prefix,
+                               std::chrono::milliseconds duration, int max_calls = 50'000) {
     const auto end = std::chrono::steady_clock::now() + duration;
     int ok = 0;
     for (int i = 0; i < max_calls && std::chrono::steady_clock::now() < end; ++i, ++ok) {
@@ -52,7 +52,8 @@ TEST_F(SocketTransport, PythonLiteralParams) {
   EXPECT_EQ(roundtrip(*c, "r1 test_component add ('a', \"b\")"), "r1 SUCCESS \"ab\"");
   EXPECT_EQ(roundtrip(*c, "r2 test_component add ([1, 2], [3],)"), "r2 SUCCESS [1, 2, 3]");
   EXPECT_EQ(roundtrip(*c, "r3 test echo (True,)"), "r3 SUCCESS true");
-  EXPECT_EQ(roundtrip(*c, "r4 test echo ({'k': (None, False)},)"), "r4 SUCCESS {\"k\": [null, false]}");
+  EXPECT_EQ(roundtrip(*c, "r4 test echo ({'k': (None, False)},)"),
+            "r4 SUCCESS {\"k\": [null, false]}");
   EXPECT_EQ(roundtrip(*c, "r5 test echo (5,)"), "r5 SUCCESS 5");
   EXPECT_EQ(roundtrip(*c, "r6 test echo (5)"), "r6 SUCCESS 5");
 }
@@ -106,7 +107,8 @@ TEST_F(SocketTransport, NothingOrNullGivesBareSuccess) {
 
 TEST_F(SocketTransport, JsonIsWrittenLikePythonJsonDumps) {
   auto c = connect();
-  EXPECT_EQ(roundtrip(*c, "j1 test echo ([1, 'x', {'a': 1.5}],)"), "j1 SUCCESS [1, \"x\", {\"a\": 1.5}]");
+  EXPECT_EQ(roundtrip(*c, "j1 test echo ([1, 'x', {'a': 1.5}],)"),
+            "j1 SUCCESS [1, \"x\", {\"a\": 1.5}]");
   EXPECT_EQ(roundtrip(*c, "j2 test echo ('caf\xc3\xa9 \xf0\x9f\x98\x80',)"),
             "j2 SUCCESS \"caf\\u00e9 \\ud83d\\ude00\"");
   EXPECT_EQ(roundtrip(*c, "j3 test echo ('a\\tb\\n\"',)"), "j3 SUCCESS \"a\\tb\\n\\\"\"");
@@ -126,27 +128,33 @@ TEST_F(SocketTransport, IdIsEchoedVerbatim) {
 TEST_F(SocketTransport, UnknownServiceOrComponentHasNotBeenRegistered) {
   auto c = connect();
   std::string unknown_service = roundtrip(*c, "u1 test_component nope (1,2)");
-  EXPECT_THAT(unknown_service,
-              StartsWith("u1 FAILED \"The request nope has not been registered in Socket service manager"));
+  EXPECT_THAT(
+      unknown_service,
+      StartsWith("u1 FAILED \"The request nope has not been registered in Socket service manager"));
   std::string unknown_component = roundtrip(*c, "u2 ghost add (1,2)");
-  EXPECT_THAT(unknown_component,
-              StartsWith("u2 FAILED \"The request add has not been registered in Socket service manager"));
+  EXPECT_THAT(
+      unknown_component,
+      StartsWith("u2 FAILED \"The request add has not been registered in Socket service manager"));
   EXPECT_THAT(unknown_component, HasSubstr("ghost"));
   EXPECT_EQ(roundtrip(*c, "u3 test_component add (1,2)"), "u3 SUCCESS 3");
 }
 
 TEST_F(SocketTransport, ArityErrorsSayWrongNumberOfParameters) {
   auto c = connect();
-  EXPECT_THAT(roundtrip(*c, "a1 test_component add (1,)"), AllOf(StartsWith("a1 FAILED \""), HasSubstr("wrong # of parameters")));
-  EXPECT_THAT(roundtrip(*c, "a2 test_component add (1,2,3)"), AllOf(StartsWith("a2 FAILED \""), HasSubstr("wrong # of parameters")));
-  EXPECT_THAT(roundtrip(*c, "a3 test_component add"), AllOf(StartsWith("a3 FAILED \""), HasSubstr("parameters expected")));
+  EXPECT_THAT(roundtrip(*c, "a1 test_component add (1,)"),
+              AllOf(StartsWith("a1 FAILED \""), HasSubstr("wrong # of parameters")));
+  EXPECT_THAT(roundtrip(*c, "a2 test_component add (1,2,3)"),
+              AllOf(StartsWith("a2 FAILED \""), HasSubstr("wrong # of parameters")));
+  EXPECT_THAT(roundtrip(*c, "a3 test_component add"),
+              AllOf(StartsWith("a3 FAILED \""), HasSubstr("parameters expected")));
 }
 
 TEST_F(SocketTransport, TypeErrorsSayWrongParameterType) {
   auto c = connect();
   EXPECT_EQ(roundtrip(*c, "t1 test scale (2,)"), "t1 SUCCESS 4.0");
-  EXPECT_THAT(roundtrip(*c, "t2 test scale ('two',)"),
-              AllOf(StartsWith("t2 FAILED \""), HasSubstr("wrong parameter type"), HasSubstr("'x'")));
+  EXPECT_THAT(
+      roundtrip(*c, "t2 test scale ('two',)"),
+      AllOf(StartsWith("t2 FAILED \""), HasSubstr("wrong parameter type"), HasSubstr("'x'")));
 }
 
 TEST_F(SocketTransport, BadParamsSyntaxSaysWhatAndWhere) {
@@ -173,13 +181,15 @@ TEST_F(SocketTransport, BareValuesAreRefusedWithTheListMeant) {
   EXPECT_EQ(roundtrip(*c, "b1 test_component add 0.5 0.2"),
             "b1 FAILED \"Invalid request syntax: parameters must be a list, e.g. `[0.5, 0.2]`\"");
   EXPECT_EQ(roundtrip(*c, "b2 test_component add 'a', \"b\""),
-            "b2 FAILED \"Invalid request syntax: parameters must be a list, e.g. `[\\\"a\\\", \\\"b\\\"]`\"");
+            "b2 FAILED \"Invalid request syntax: parameters must be a list, e.g. `[\\\"a\\\", "
+            "\\\"b\\\"]`\"");
   EXPECT_EQ(roundtrip(*c, "b3 test_component add [0.5, 0.2]"), "b3 SUCCESS 0.7");
 }
 
 TEST_F(SocketTransport, ScalarParamsAreRefusedByTheCore) {
   auto c = connect();
-  EXPECT_THAT(roundtrip(*c, "s1 test echo 5"), AllOf(StartsWith("s1 FAILED \""), HasSubstr("must be a list")));
+  EXPECT_THAT(roundtrip(*c, "s1 test echo 5"),
+              AllOf(StartsWith("s1 FAILED \""), HasSubstr("must be a list")));
 }
 
 TEST_F(SocketTransport, ServiceErrorMessageIsTheFailedPayload) {
@@ -197,16 +207,19 @@ TEST_F(SocketTransport, OtherExceptionsFailTheRequestNotTheServer) {
 TEST_F(SocketTransport, MalformedLinesGetFailedAndTheConnectionLives) {
   auto c = connect();
   EXPECT_THAT(roundtrip(*c, "m1"), StartsWith("m1 FAILED \"Malformed request! "));
-  EXPECT_THAT(roundtrip(*c, "m2 test_component"), StartsWith("m2 FAILED \"Malformed request! missing the service"));
+  EXPECT_THAT(roundtrip(*c, "m2 test_component"),
+              StartsWith("m2 FAILED \"Malformed request! missing the service"));
   // binary garbage: unknown component (printable replacement in the message)
   static const char garbage[] = "m3 \x01\x02\x7f\x00zz yy";
   EXPECT_THAT(roundtrip(*c, std::string(garbage, sizeof garbage - 1)),
               StartsWith("m3 FAILED \"The request yy has not been registered"));
   // invalid UTF-8 in a name
-  EXPECT_EQ(roundtrip(*c, "m4 te\xff\xfest ping"),
-            "m4 FAILED \"Invalid request syntax: the component name is not valid UTF-8 (column 6)\"");
+  EXPECT_EQ(
+      roundtrip(*c, "m4 te\xff\xfest ping"),
+      "m4 FAILED \"Invalid request syntax: the component name is not valid UTF-8 (column 6)\"");
   // invalid UTF-8 inside a string parameter
-  EXPECT_THAT(roundtrip(*c, "m5 test echo ('\xc3\x28',)"), StartsWith("m5 FAILED \"Invalid request syntax"));
+  EXPECT_THAT(roundtrip(*c, "m5 test echo ('\xc3\x28',)"),
+              StartsWith("m5 FAILED \"Invalid request syntax"));
   EXPECT_EQ(roundtrip(*c, "m6 test_component add (1,2)"), "m6 SUCCESS 3");
 }
 
@@ -305,10 +318,12 @@ TEST_F(SocketTransport, CallObjectsReusedFromReadToReadCarryNothingOver) {
   // the transport refills the call objects (and parameter arrays) of earlier reads: a
   // later, shorter or differently shaped request must not see any of the earlier one
   auto c = connect();
-  c->send_raw("r1 test echo [[[1, 2, 3], 'long string argument that needs the heap', {'k': [4]}]]\n"
-              "r2 test_component add (1, 2)\n"
-              "r3 test echo [5]\n");
-  EXPECT_EQ(next_line(*c), "r1 SUCCESS [[1, 2, 3], \"long string argument that needs the heap\", {\"k\": [4]}]");
+  c->send_raw(
+      "r1 test echo [[[1, 2, 3], 'long string argument that needs the heap', {'k': [4]}]]\n"
+      "r2 test_component add (1, 2)\n"
+      "r3 test echo [5]\n");
+  EXPECT_EQ(next_line(*c),
+            "r1 SUCCESS [[1, 2, 3], \"long string argument that needs the heap\", {\"k\": [4]}]");
   EXPECT_EQ(next_line(*c), "r2 SUCCESS 3");
   EXPECT_EQ(next_line(*c), "r3 SUCCESS 5");
   EXPECT_EQ(roundtrip(*c, "r4 test echo [[]]"), "r4 SUCCESS []");
@@ -320,13 +335,15 @@ TEST_F(SocketTransport, CallObjectsReusedFromReadToReadCarryNothingOver) {
   EXPECT_EQ(roundtrip(*c, "r9 test_component add [1, 2]"), "r9 SUCCESS 3");
   EXPECT_EQ(roundtrip(*c, "r10 test echo [7]"), "r10 SUCCESS 7");
   EXPECT_EQ(roundtrip(*c, "r11 test_component add [3, 4]"), "r11 SUCCESS 7");
-  EXPECT_THAT(roundtrip(*c, "r12 test_component add [5, x]"), StartsWith("r12 FAILED \"Invalid request syntax"));
+  EXPECT_THAT(roundtrip(*c, "r12 test_component add [5, x]"),
+              StartsWith("r12 FAILED \"Invalid request syntax"));
   EXPECT_EQ(roundtrip(*c, "r13 test echo [[9]]"), "r13 SUCCESS [9]");
   EXPECT_EQ(roundtrip(*c, "r14 test echo [{'a': 1}]"), "r14 SUCCESS {\"a\": 1}");
   EXPECT_EQ(roundtrip(*c, "r15 test_component add {'a': 1, 'b': 2}"), "r15 SUCCESS 3");
   EXPECT_EQ(roundtrip(*c, "r16 test_component add [1, 1]"), "r16 SUCCESS 2");
   // an integer overwritten in place only when the kept element is a signed integer
-  EXPECT_EQ(roundtrip(*c, "r17 test echo [18446744073709551615]"), "r17 SUCCESS 18446744073709551615");
+  EXPECT_EQ(roundtrip(*c, "r17 test echo [18446744073709551615]"),
+            "r17 SUCCESS 18446744073709551615");
   EXPECT_EQ(roundtrip(*c, "r18 test echo [-5]"), "r18 SUCCESS -5");
   EXPECT_EQ(roundtrip(*c, "r19 test echo [2.5]"), "r19 SUCCESS 2.5");
   EXPECT_EQ(roundtrip(*c, "r20 test echo [7]"), "r20 SUCCESS 7");
@@ -419,8 +436,7 @@ TEST_F(SocketTransport, AClientFloodingBlankLinesDoesNotHoldUpTheOthers) {
       const std::string blanks(64 * 1024, '\n');
       const auto until = std::chrono::steady_clock::now() + 5s;
       while (!answered.load() && std::chrono::steady_clock::now() < until) c.send_raw(blanks);
-    } catch (const std::exception&) {
-    }
+    } catch (const std::exception&) {}
     flood_over = true;
   });
   std::this_thread::sleep_for(50ms);  // the flooder is read directly by now
@@ -454,7 +470,8 @@ TEST_F(SocketTransport, AsyncResultIsPushedWhenItCompletes) {
   EXPECT_EQ(roundtrip(*c, "q1 test_component add (1,2)"), "q1 SUCCESS 3");
   EXPECT_EQ(roundtrip(*c, "q2 test ping"), "q2 SUCCESS \"pong\"");
   c->send_line("q3 worker release ('done!',)");
-  EXPECT_EQ(next_lines(*c, 2), (std::multiset<std::string>{"q3 SUCCESS true", "req2 SUCCESS \"done!\""}));
+  EXPECT_EQ(next_lines(*c, 2),
+            (std::multiset<std::string>{"q3 SUCCESS true", "req2 SUCCESS \"done!\""}));
 }
 
 TEST_F(SocketTransport, AsyncResultGoesToTheConnectionThatAsked) {
@@ -533,9 +550,10 @@ TEST_F(SocketTransport, SameIdOnTwoConnectionsIsFine) {
 TEST_F(SocketTransport, SecondPendingRequestWithSameIdIsRefused) {
   auto c = connect();
   c->send_line("d1 worker hold (1,)");
-  EXPECT_EQ(roundtrip(*c, "d1 test_component add (1,2)"),
-            "d1 FAILED \"Request id 'd1' is already pending on this connection: wait for its reply or "
-            "use another id\"");
+  EXPECT_EQ(
+      roundtrip(*c, "d1 test_component add (1,2)"),
+      "d1 FAILED \"Request id 'd1' is already pending on this connection: wait for its reply or "
+      "use another id\"");
   c->send_line("d2 worker release (1,)");
   EXPECT_EQ(next_lines(*c, 2), (std::multiset<std::string>{"d2 SUCCESS true", "d1 SUCCESS 1"}));
   EXPECT_EQ(roundtrip(*c, "d1 test_component add (1,2)"), "d1 SUCCESS 3");  // free again
@@ -547,7 +565,8 @@ TEST_F(SocketTransport, InterruptibleServiceIsPreemptedByTheNextRequest) {
   c->send_line("c4 worker hold (2,)");
   EXPECT_EQ(next_line(*c), "c3 PREEMPTED");
   c->send_line("r worker release ('done!',)");
-  EXPECT_EQ(next_lines(*c, 2), (std::multiset<std::string>{"r SUCCESS true", "c4 SUCCESS \"done!\""}));
+  EXPECT_EQ(next_lines(*c, 2),
+            (std::multiset<std::string>{"r SUCCESS true", "c4 SUCCESS \"done!\""}));
 }
 
 TEST_F(SocketTransport, NonInterruptibleServiceRefusesTheNextRequest) {
@@ -556,7 +575,8 @@ TEST_F(SocketTransport, NonInterruptibleServiceRefusesTheNextRequest) {
   EXPECT_EQ(roundtrip(*c, "c6 strict hold (2,)"),
             "c6 FAILED \"A non-interruptible service (strict.hold) is already running\"");
   c->send_line("r strict release ('done!',)");
-  EXPECT_EQ(next_lines(*c, 2), (std::multiset<std::string>{"r SUCCESS true", "c5 SUCCESS \"done!\""}));
+  EXPECT_EQ(next_lines(*c, 2),
+            (std::multiset<std::string>{"r SUCCESS true", "c5 SUCCESS \"done!\""}));
 }
 
 TEST_F(SocketTransport, NoLocalPolicyFollowsTheGlobalRejectPolicy) {
@@ -580,12 +600,12 @@ TEST_F(SocketTransport, ManyClientsAtOnce) {
         SocketClient c("127.0.0.1", port_);
         for (int i = 0; i < k_requests; ++i) {
           std::string id = "c" + std::to_string(t) + "-" + std::to_string(i);
-          c.send_line(id + " test_component add (" + std::to_string(t) + "," + std::to_string(i) + ")");
+          c.send_line(id + " test_component add (" + std::to_string(t) + "," + std::to_string(i) +
+                      ")");
           auto line = c.read_line(10s);
           if (line && *line == id + " SUCCESS " + std::to_string(t + i)) ++ok;
         }
-      } catch (const std::exception&) {
-      }
+      } catch (const std::exception&) {}
     });
   }
   for (auto& th : threads) th.join();
@@ -596,7 +616,8 @@ TEST_F(SocketTransport, PipelinedRequestsAreAllAnswered) {
   auto c = connect();
   std::string batch;
   constexpr int k_count = 500;
-  for (int i = 0; i < k_count; ++i) batch += std::to_string(i) + " test_component add (" + std::to_string(i) + ",1)\n";
+  for (int i = 0; i < k_count; ++i)
+    batch += std::to_string(i) + " test_component add (" + std::to_string(i) + ",1)\n";
   c->send_raw(batch);
   for (int i = 0; i < k_count; ++i)
     ASSERT_EQ(next_line(*c), std::to_string(i) + " SUCCESS " + std::to_string(i + 1));

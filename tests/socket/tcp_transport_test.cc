@@ -38,7 +38,8 @@ std::pair<std::string, bool> read_to_end(int fd, std::chrono::seconds timeout) {
 // `receive_buffer` (bytes, 0: the system's), set before connecting: the window it offers.
 int connect_raw(std::uint16_t port, int receive_buffer = 0) {
   int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  if (fd >= 0 && receive_buffer > 0) ::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &receive_buffer, sizeof receive_buffer);
+  if (fd >= 0 && receive_buffer > 0)
+    ::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &receive_buffer, sizeof receive_buffer);
   sockaddr_in addr{};
   addr.sin_family = AF_INET;
   addr.sin_port = htons(port);
@@ -53,12 +54,18 @@ int connect_raw(std::uint16_t port, int receive_buffer = 0) {
 class TcpTransportFixture : public ::testing::TestWithParam<std::string> {
  protected:
   void start(json options) {
-    plugin_ = load_transport_plugin(std::string(SIMGATE_TEST_PLUGIN_DIR) + "/libsimgate_transport_" + GetParam() + ".so");
+    plugin_ = load_transport_plugin(std::string(SIMGATE_TEST_PLUGIN_DIR) +
+                                    "/libsimgate_transport_" + GetParam() + ".so");
     options["port"] = 0;
     manager_ = plugin_->create(options, "transports." + GetParam());
     manager_->register_service("test", [] { return std::string("pong"); }, "ping");
     manager_->register_async_service(
-        "test", [this](Completion done) { held_ = done; return true; }, "hold");
+        "test",
+        [this](Completion done) {
+          held_ = done;
+          return true;
+        },
+        "hold");
     manager_->register_service(
         "test",
         [this] {
@@ -85,13 +92,15 @@ class TcpTransportFixture : public ::testing::TestWithParam<std::string> {
   }
   // `service` of `test` in the transport's protocol, with its newline.
   std::string request(const std::string& service) const {
-    return GetParam() == "socket" ? "p test " + service + "\n"
-                                  : "{\"jsonrpc\":\"2.0\",\"method\":\"test." + service + "\",\"id\":1}\n";
+    return GetParam() == "socket"
+               ? "p test " + service + "\n"
+               : "{\"jsonrpc\":\"2.0\",\"method\":\"test." + service + "\",\"id\":1}\n";
   }
   // One call in the transport's protocol on `fd`, and the first line of its answer.
   std::string ping(int fd, const std::string& service = "ping") {
     const std::string request = this->request(service);
-    if (::send(fd, request.data(), request.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(request.size()))
+    if (::send(fd, request.data(), request.size(), MSG_NOSIGNAL) !=
+        static_cast<ssize_t>(request.size()))
       throw std::runtime_error("send failed");
     timeval tv{10, 0};
     ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
@@ -102,7 +111,8 @@ class TcpTransportFixture : public ::testing::TestWithParam<std::string> {
   }
   // Keeps `busy` calling, running `meanwhile` before each call, until a newcomer is let in
   // (30 attempts, 100 ms apart); the newcomer's answer ("" when it never was).
-  std::string newcomer_answer_once_room_is_made(int busy, const std::function<void()>& meanwhile = {}) {
+  std::string newcomer_answer_once_room_is_made(int busy,
+                                                const std::function<void()>& meanwhile = {}) {
     std::string answer;
     for (int i = 0; i < 30 && answer.find("pong") == std::string::npos; ++i) {
       std::this_thread::sleep_for(std::chrono::milliseconds(100));
@@ -143,13 +153,15 @@ TEST_P(TcpTransportOverTheLimit, IsToldWhyInOneLineThenClosedAndLoggedOnce) {
     EXPECT_THAT(received, HasSubstr("too many connections (max_connections 1)"));
   }
   // one warning for the two refusals, naming the option
-  EXPECT_EQ(warnings.count("refused a connection"), 1u) << ::testing::PrintToString(warnings.lines());
+  EXPECT_EQ(warnings.count("refused a connection"), 1u)
+      << ::testing::PrintToString(warnings.lines());
   EXPECT_EQ(warnings.count("(max_connections 1)"), 1u);
   EXPECT_THAT(ping(first), HasSubstr("pong"));  // the connection within the limit is served on
   ::close(first);
 }
 
-INSTANTIATE_TEST_SUITE_P(SocketAndJsonRpc, TcpTransportOverTheLimit, ::testing::Values("socket", "jsonrpc"));
+INSTANTIATE_TEST_SUITE_P(SocketAndJsonRpc, TcpTransportOverTheLimit,
+                         ::testing::Values("socket", "jsonrpc"));
 
 // ---- resources held without use (issue #17, item 7): both TCP transports, through the kit
 
@@ -160,7 +172,8 @@ TEST_P(TcpTransportResources, ALineNotFinishedInTimeClosesItsConnection) {
   int slow = connect_raw(port_);
   int good = connect_raw(port_);
   const std::string begun = request("ping").substr(0, 8);  // no newline: a line begun
-  ASSERT_EQ(::send(slow, begun.data(), begun.size(), MSG_NOSIGNAL), static_cast<ssize_t>(begun.size()));
+  ASSERT_EQ(::send(slow, begun.data(), begun.size(), MSG_NOSIGNAL),
+            static_cast<ssize_t>(begun.size()));
   auto [received, ended] = read_to_end(slow, 10s);
   ::close(slow);
   EXPECT_TRUE(ended) << "a connection sat on an unfinished line past line_timeout_s";
@@ -174,7 +187,8 @@ TEST_P(TcpTransportResources, AnIdleConnectionIsClosedButNotOneWaitingForAnAnswe
   EXPECT_THAT(ping(idle), HasSubstr("pong"));
   int waiting = connect_raw(port_);
   const std::string hold = request("hold");
-  ASSERT_EQ(::send(waiting, hold.data(), hold.size(), MSG_NOSIGNAL), static_cast<ssize_t>(hold.size()));
+  ASSERT_EQ(::send(waiting, hold.data(), hold.size(), MSG_NOSIGNAL),
+            static_cast<ssize_t>(hold.size()));
   auto [received, ended] = read_to_end(idle, 10s);
   ::close(idle);
   EXPECT_TRUE(ended) << "an idle connection was kept past idle_timeout_s";
@@ -221,7 +235,8 @@ TEST_P(TcpTransportResources, AtTheLimitAConnectionSendingOnlyBlankLinesIsIdleAn
   int busy = connect_raw(port_);
   EXPECT_THAT(ping(busy), HasSubstr("pong"));
   // (the send fails once it is closed: the newcomer is in then)
-  const std::string answer = newcomer_answer_once_room_is_made(busy, [&] { ::send(blank, "\n", 1, MSG_NOSIGNAL); });
+  const std::string answer =
+      newcomer_answer_once_room_is_made(busy, [&] { ::send(blank, "\n", 1, MSG_NOSIGNAL); });
   EXPECT_THAT(answer, HasSubstr("pong")) << "the newcomer was never let in";
   EXPECT_EQ(warnings.count("to make room"), 1u) << ::testing::PrintToString(warnings.lines());
   auto [received, ended] = read_to_end(blank, 10s);
@@ -238,7 +253,8 @@ TEST_P(TcpTransportResources, AtTheLimitAConnectionSilentWhileItWaitsMakesRoomTo
   start({{"max_connections", 2}, {"idle_evict_s", 0.5}});
   int waiting = connect_raw(port_);
   const std::string hold = request("hold");
-  ASSERT_EQ(::send(waiting, hold.data(), hold.size(), MSG_NOSIGNAL), static_cast<ssize_t>(hold.size()));
+  ASSERT_EQ(::send(waiting, hold.data(), hold.size(), MSG_NOSIGNAL),
+            static_cast<ssize_t>(hold.size()));
   int busy = connect_raw(port_);
   EXPECT_THAT(ping(busy), HasSubstr("pong"));
   const std::string answer = newcomer_answer_once_room_is_made(busy);
@@ -257,11 +273,13 @@ TEST_P(TcpTransportResources, UnfinishedLinesOfAllConnectionsStayUnderMaxBuffere
   // three clients each begin a 30 000-byte line (under max_message_bytes): the third would
   // take the transport past 64 KiB held and is closed; the first two finish and are served
   std::vector<int> fds;
-  const std::string begun = GetParam() == "socket" ? "p test ping [\"" : "{\"jsonrpc\":\"2.0\",\"id\":1,\"x\":\"";
+  const std::string begun =
+      GetParam() == "socket" ? "p test ping [\"" : "{\"jsonrpc\":\"2.0\",\"id\":1,\"x\":\"";
   for (int i = 0; i < 3; ++i) {
     fds.push_back(connect_raw(port_));
     const std::string part = begun + std::string(30000, 'x');
-    ASSERT_EQ(::send(fds.back(), part.data(), part.size(), MSG_NOSIGNAL), static_cast<ssize_t>(part.size()));
+    ASSERT_EQ(::send(fds.back(), part.data(), part.size(), MSG_NOSIGNAL),
+              static_cast<ssize_t>(part.size()));
     std::this_thread::sleep_for(100ms);  // read in this order
   }
   auto [received, ended] = read_to_end(fds[2], 10s);
@@ -269,7 +287,8 @@ TEST_P(TcpTransportResources, UnfinishedLinesOfAllConnectionsStayUnderMaxBuffere
   EXPECT_EQ(warnings.count("max_buffered_bytes"), 1u) << ::testing::PrintToString(warnings.lines());
   for (int i = 0; i < 2; ++i) {
     const std::string end = GetParam() == "socket" ? "\"]\n" : "\",\"method\":\"test.ping\"}\n";
-    ASSERT_EQ(::send(fds[i], end.data(), end.size(), MSG_NOSIGNAL), static_cast<ssize_t>(end.size()));
+    ASSERT_EQ(::send(fds[i], end.data(), end.size(), MSG_NOSIGNAL),
+              static_cast<ssize_t>(end.size()));
     timeval tv{10, 0};
     ::setsockopt(fds[i], SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
     std::string line;
@@ -289,15 +308,18 @@ TEST_P(TcpTransportResources, FirstRepliesOfClientsThatDoNotReadStayUnderMaxBuff
   // a client's unfinished line holds 700 kB of the 1 MiB; then four clients offering a small
   // window each ask a 6 MB reply (more than the kernel takes at once) and read nothing
   int occupier = connect_raw(port_);
-  const std::string begun = GetParam() == "socket" ? "p test ping [\"" : "{\"jsonrpc\":\"2.0\",\"id\":1,\"x\":\"";
+  const std::string begun =
+      GetParam() == "socket" ? "p test ping [\"" : "{\"jsonrpc\":\"2.0\",\"id\":1,\"x\":\"";
   const std::string part = begun + std::string(700000, 'x');
-  ASSERT_EQ(::send(occupier, part.data(), part.size(), MSG_NOSIGNAL), static_cast<ssize_t>(part.size()));
+  ASSERT_EQ(::send(occupier, part.data(), part.size(), MSG_NOSIGNAL),
+            static_cast<ssize_t>(part.size()));
   std::this_thread::sleep_for(100ms);
   std::vector<int> fds;
   const std::string big = request("big");
   for (int i = 0; i < 4; ++i) {
     fds.push_back(connect_raw(port_, 4096));
-    ASSERT_EQ(::send(fds.back(), big.data(), big.size(), MSG_NOSIGNAL), static_cast<ssize_t>(big.size()));
+    ASSERT_EQ(::send(fds.back(), big.data(), big.size(), MSG_NOSIGNAL),
+              static_cast<ssize_t>(big.size()));
   }
   int reader = connect_raw(port_);
   EXPECT_THAT(ping(reader), HasSubstr("pong")) << "a client that reads is served";
@@ -311,7 +333,8 @@ TEST_P(TcpTransportResources, FirstRepliesOfClientsThatDoNotReadStayUnderMaxBuff
   EXPECT_GE(warnings.count("max_buffered_bytes"), 4u) << ::testing::PrintToString(warnings.lines());
   // the client within the budget finishes its line and is answered
   const std::string end = GetParam() == "socket" ? "\"]\n" : "\",\"method\":\"test.ping\"}\n";
-  ASSERT_EQ(::send(occupier, end.data(), end.size(), MSG_NOSIGNAL), static_cast<ssize_t>(end.size()));
+  ASSERT_EQ(::send(occupier, end.data(), end.size(), MSG_NOSIGNAL),
+            static_cast<ssize_t>(end.size()));
   auto [answer, ended] = read_to_end(occupier, 2s);
   EXPECT_FALSE(ended);
   EXPECT_NE(answer.find('\n'), std::string::npos) << "the client within the budget got no answer";
@@ -321,8 +344,8 @@ TEST_P(TcpTransportResources, FirstRepliesOfClientsThatDoNotReadStayUnderMaxBuff
   ::close(reader);
 }
 
-INSTANTIATE_TEST_SUITE_P(SocketAndJsonRpc, TcpTransportResources, ::testing::Values("socket", "jsonrpc"));
-
+INSTANTIATE_TEST_SUITE_P(SocketAndJsonRpc, TcpTransportResources,
+                         ::testing::Values("socket", "jsonrpc"));
 
 // ---- cross-site requests (issue #35, item 4): both TCP transports, through the kit
 
@@ -333,7 +356,9 @@ using TcpTransportCrossSite = TcpTransportFixture;
 std::string browser_post(std::uint16_t port, const std::string& body) {
   return "POST / HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(port) +
          "\r\nConnection: keep-alive\r\nContent-Length: " + std::to_string(body.size()) +
-         "\r\nContent-Type: text/plain;charset=UTF-8\r\nOrigin: http://attacker.example\r\nAccept: */*\r\n\r\n" + body;
+         "\r\nContent-Type: text/plain;charset=UTF-8\r\nOrigin: http://attacker.example\r\nAccept: "
+         "*/*\r\n\r\n" +
+         body;
 }
 
 TEST_P(TcpTransportCrossSite, ABrowsersPostIsClosedAtItsRequestLineAndItsBodyNeverRuns) {
@@ -341,7 +366,8 @@ TEST_P(TcpTransportCrossSite, ABrowsersPostIsClosedAtItsRequestLineAndItsBodyNev
   WarningLog warnings;
   int page = connect_raw(port_);
   const std::string post = browser_post(port_, request("touch") + request("touch"));
-  ASSERT_EQ(::send(page, post.data(), post.size(), MSG_NOSIGNAL), static_cast<ssize_t>(post.size()));
+  ASSERT_EQ(::send(page, post.data(), post.size(), MSG_NOSIGNAL),
+            static_cast<ssize_t>(post.size()));
   auto [received, ended] = read_to_end(page, 10s);
   ::close(page);
   EXPECT_TRUE(ended) << "the connection of an HTTP request was kept";
@@ -359,12 +385,14 @@ TEST_P(TcpTransportCrossSite, TheBodyInALaterSegmentNeverRunsEither) {
   start({});
   int page = connect_raw(port_);
   const std::string head = "GET /x HTTP/1.0\r\n";
-  ASSERT_EQ(::send(page, head.data(), head.size(), MSG_NOSIGNAL), static_cast<ssize_t>(head.size()));
+  ASSERT_EQ(::send(page, head.data(), head.size(), MSG_NOSIGNAL),
+            static_cast<ssize_t>(head.size()));
   auto [received, ended] = read_to_end(page, 10s);
   EXPECT_TRUE(ended);
   EXPECT_EQ(received, "");
   const std::string body = request("touch");
-  ::send(page, body.data(), body.size(), MSG_NOSIGNAL);  // to a closed connection: fails or is dropped
+  ::send(page, body.data(), body.size(),
+         MSG_NOSIGNAL);  // to a closed connection: fails or is dropped
   ::close(page);
   int good = connect_raw(port_);
   EXPECT_THAT(ping(good), HasSubstr("pong"));
@@ -372,7 +400,8 @@ TEST_P(TcpTransportCrossSite, TheBodyInALaterSegmentNeverRunsEither) {
   EXPECT_EQ(touched_.load(), 0);
 }
 
-INSTANTIATE_TEST_SUITE_P(SocketAndJsonRpc, TcpTransportCrossSite, ::testing::Values("socket", "jsonrpc"));
+INSTANTIATE_TEST_SUITE_P(SocketAndJsonRpc, TcpTransportCrossSite,
+                         ::testing::Values("socket", "jsonrpc"));
 
 }  // namespace
 }  // namespace simgate::socket::test

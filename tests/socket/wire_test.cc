@@ -75,10 +75,12 @@ TEST(SocketWire, AnIdWithAControlCharacterIsMalformedAndNotEchoed) {
   RequestLine esc = parse_request_line(" a\x1b[2J robot.pose get_local_data");
   EXPECT_EQ(esc.kind, Kind::malformed);
   EXPECT_EQ(esc.id, "-");
-  EXPECT_EQ(esc.error, "Malformed request! the id contains a control character (byte 27 at column 3); ids are "
-                       "echoed in replies, use printable ones");
+  EXPECT_EQ(esc.error,
+            "Malformed request! the id contains a control character (byte 27 at column 3); ids are "
+            "echoed in replies, use printable ones");
   EXPECT_EQ(parse_request_line(std::string("x\x7f comp sv")).id, "-");
-  EXPECT_EQ(parse_request_line("\xc3\xa9t\xc3\xa9 comp sv").kind, Kind::call);  // UTF-8 ids are fine
+  EXPECT_EQ(parse_request_line("\xc3\xa9t\xc3\xa9 comp sv").kind,
+            Kind::call);  // UTF-8 ids are fine
   EXPECT_TRUE(echoable_id("req-42"));
   EXPECT_FALSE(echoable_id(std::string("a\0b", 3)));
 }
@@ -100,10 +102,32 @@ TEST(SocketWire, JsonLikePythonDumps) {
 // /usr/bin/python3 itself on random bit patterns, on values around the switches between
 // fixed and scientific notation (1e-4, 1e16), and on the edges of the double range.
 TEST(SocketWire, FloatsAreWrittenExactlyAsPythonReprWritesThem) {
-  std::vector<double> values = {0.0, -0.0, 1.0, -1.0, 0.1, 0.2 + 0.1, 1.0 / 3, 2.5, 100.0, 123456.789,
-                                1e-4, 9.999999999999999e-5, 1e-5, 0.00012, 1.5e-4, 1e15, 1e16,
-                                9999999999999998.0, 1.2345678901234567e16, 1e22, 1e23, 5e-324,
-                                2.2250738585072014e-308, 1.7976931348623157e308, 4.35, 0.3};
+  std::vector<double> values = {0.0,
+                                -0.0,
+                                1.0,
+                                -1.0,
+                                0.1,
+                                0.2 + 0.1,
+                                1.0 / 3,
+                                2.5,
+                                100.0,
+                                123456.789,
+                                1e-4,
+                                9.999999999999999e-5,
+                                1e-5,
+                                0.00012,
+                                1.5e-4,
+                                1e15,
+                                1e16,
+                                9999999999999998.0,
+                                1.2345678901234567e16,
+                                1e22,
+                                1e23,
+                                5e-324,
+                                2.2250738585072014e-308,
+                                1.7976931348623157e308,
+                                4.35,
+                                0.3};
   std::mt19937_64 random(18);
   for (int i = 0; i < 4000; ++i) {  // any finite bit pattern
     std::uint64_t bits = random();
@@ -114,7 +138,8 @@ TEST(SocketWire, FloatsAreWrittenExactlyAsPythonReprWritesThem) {
   std::uniform_real_distribution<double> unit(-1, 1);
   for (int exponent = -8; exponent <= 20; ++exponent)  // sensor-like values at every scale
     for (int i = 0; i < 100; ++i) values.push_back(unit(random) * std::pow(10.0, exponent));
-  for (int i = 0; i < 200; ++i) values.push_back(std::round(unit(random) * 1e6) / 64);  // few digits
+  for (int i = 0; i < 200; ++i)
+    values.push_back(std::round(unit(random) * 1e6) / 64);  // few digits
 
   const auto dir = std::filesystem::temp_directory_path();
   const auto in_path = dir / ("simgate_repr_in_" + std::to_string(::getpid()));
@@ -126,13 +151,15 @@ TEST(SocketWire, FloatsAreWrittenExactlyAsPythonReprWritesThem) {
       in << hex;
     }
   }
-  const std::string command = "/usr/bin/python3 -c 'import sys\nfor l in sys.stdin: print(repr(float.fromhex(l)))' < " +
-                              in_path.string();
+  const std::string command =
+      "/usr/bin/python3 -c 'import sys\nfor l in sys.stdin: print(repr(float.fromhex(l)))' < " +
+      in_path.string();
   FILE* python = ::popen(command.c_str(), "r");
   ASSERT_NE(python, nullptr);
   std::vector<std::string> expected;
   char line[128];
-  while (std::fgets(line, sizeof line, python)) expected.emplace_back(line, std::strcspn(line, "\n"));
+  while (std::fgets(line, sizeof line, python))
+    expected.emplace_back(line, std::strcspn(line, "\n"));
   const int status = ::pclose(python);
   std::filesystem::remove(in_path);
   ASSERT_EQ(status, 0) << command;
@@ -151,7 +178,9 @@ TEST(SocketWire, StringsAreAsciiEscapedLikePython) {
   EXPECT_EQ(dumps("a\"b\\c\n\t\r\b\f"), R"("a\"b\\c\n\t\r\b\f")");
   EXPECT_EQ(dumps(std::string("\x01\x7f/", 3)), R"("\u0001\u007f/")");
   // invalid UTF-8 never breaks a reply
-  EXPECT_EQ(dumps("a\xff" "b\xc3"), R"("a\ufffdb\ufffd")");
+  EXPECT_EQ(dumps("a\xff"
+                  "b\xc3"),
+            R"("a\ufffdb\ufffd")");
 }
 
 TEST(SocketWire, ReplyLines) {
@@ -165,8 +194,12 @@ TEST(SocketWire, ReplyLines) {
 
   // integers are written in one piece: the extremes of both JSON integer kinds
   out.clear();
-  json values[] = {json(std::int64_t{-9223372036854775807 - 1}), json(std::uint64_t{18446744073709551615u}),
-                   json(0), json(-7), json(2.5), json::array({1, 2})};
+  json values[] = {json(std::int64_t{-9223372036854775807 - 1}),
+                   json(std::uint64_t{18446744073709551615u}),
+                   json(0),
+                   json(-7),
+                   json(2.5),
+                   json::array({1, 2})};
   for (const auto& v : values) append_reply(out, "i", "SUCCESS", &v);
   EXPECT_EQ(out,
             "i SUCCESS -9223372036854775808\ni SUCCESS 18446744073709551615\ni SUCCESS 0\n"

@@ -41,7 +41,8 @@ std::string http_exchange(std::uint16_t port, const std::string& request) {
   std::string response;
   boost::system::error_code ec;
   char buffer[65536];
-  for (int reads = 0; reads < 100000 && !ec; ++reads) {  // bounded; the server closes after its answer
+  for (int reads = 0; reads < 100000 && !ec;
+       ++reads) {  // bounded; the server closes after its answer
     const std::size_t n = socket.read_some(boost::asio::buffer(buffer), ec);
     response.append(buffer, n);
   }
@@ -101,13 +102,15 @@ class WebRoot {
   static constexpr const char* script = "export const REVISION = 'test';\n";
   static constexpr const char* secret = "the secret beside the web root\n";
 
- static void write(const fs::path& file, const std::string& text) { std::ofstream(file) << text; }
+  static void write(const fs::path& file, const std::string& text) { std::ofstream(file) << text; }
   fs::path dir_;
 };
 
 class WebSocketWebTest : public ::testing::Test {
  protected:
-  void SetUp() override { host_ = std::make_unique<TestHost>(json{{"web_root", web_.root().string()}}, plugin_path()); }
+  void SetUp() override {
+    host_ = std::make_unique<TestHost>(json{{"web_root", web_.root().string()}}, plugin_path());
+  }
   std::uint16_t port() const { return host_->port(); }
   WebRoot web_;
   std::unique_ptr<TestHost> host_;
@@ -118,7 +121,8 @@ TEST_F(WebSocketWebTest, GetSlashServesIndexHtml) {
   EXPECT_EQ(status_of(r), 200) << r;
   EXPECT_EQ(header(r, "Content-Type"), "text/html; charset=utf-8") << r;
   EXPECT_EQ(header(r, "Cache-Control"), "no-cache") << r;
-  EXPECT_EQ(header(r, "Content-Length"), std::to_string(std::string(WebRoot::index_html).size())) << r;
+  EXPECT_EQ(header(r, "Content-Length"), std::to_string(std::string(WebRoot::index_html).size()))
+      << r;
   EXPECT_EQ(body_of(r), WebRoot::index_html);
 }
 
@@ -133,20 +137,23 @@ TEST_F(WebSocketWebTest, GetServesAScriptAsJavaScriptAndIgnoresTheQuery) {
 TEST_F(WebSocketWebTest, HeadAnswersTheHeadersWithoutTheBody) {
   const std::string r = get(port(), "/index.html", "HEAD");
   EXPECT_EQ(status_of(r), 200) << r;
-  EXPECT_EQ(header(r, "Content-Length"), std::to_string(std::string(WebRoot::index_html).size())) << r;
+  EXPECT_EQ(header(r, "Content-Length"), std::to_string(std::string(WebRoot::index_html).size()))
+      << r;
   EXPECT_EQ(body_of(r), "");
 }
 
 TEST_F(WebSocketWebTest, TraversalOutOfTheRootIsRefused) {
-  for (const char* target : {"/../secret.txt", "/%2e%2e/secret.txt", "/%2E%2E%2Fsecret.txt", "/vendor/../../secret.txt",
-                             "/vendor/..%2f..%2fsecret.txt", "/..%5csecret.txt", "/.%2e/secret.txt", "//etc/passwd",
-                             "/index.html%00.png", "/./index.html", "/../etc/passwd"}) {
+  for (const char* target :
+       {"/../secret.txt", "/%2e%2e/secret.txt", "/%2E%2E%2Fsecret.txt", "/vendor/../../secret.txt",
+        "/vendor/..%2f..%2fsecret.txt", "/..%5csecret.txt", "/.%2e/secret.txt", "//etc/passwd",
+        "/index.html%00.png", "/./index.html", "/../etc/passwd"}) {
     const std::string r = get(port(), target);
     EXPECT_EQ(status_of(r), 404) << target << ": " << r;
     EXPECT_EQ(r.find("secret beside"), std::string::npos) << target << ": " << r;
   }
   // malformed escapes and a target that is no path
-  for (const char* target : {"/%zz", "/%2", "*"}) EXPECT_EQ(status_of(get(port(), target)), 400) << target;
+  for (const char* target : {"/%zz", "/%2", "*"})
+    EXPECT_EQ(status_of(get(port(), target)), 400) << target;
 }
 
 TEST_F(WebSocketWebTest, ASymbolicLinkOutOfTheRootIsNotFollowed) {
@@ -162,8 +169,8 @@ TEST_F(WebSocketWebTest, OnlyRegularFilesAreServed) {
 }
 
 TEST_F(WebSocketWebTest, MethodsOtherThanGetAndHeadAreNotAllowed) {
-  const std::string r =
-      http_exchange(port(), "POST /index.html HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 2\r\n\r\n{}");
+  const std::string r = http_exchange(
+      port(), "POST /index.html HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 2\r\n\r\n{}");
   EXPECT_EQ(status_of(r), 405) << r;
   EXPECT_EQ(header(r, "Allow"), "GET, HEAD") << r;
   EXPECT_EQ(status_of(get(port(), "/", "DELETE")), 405);
@@ -176,14 +183,16 @@ TEST_F(WebSocketWebTest, ATooLongTargetIsRefused) {
 
 TEST_F(WebSocketWebTest, TheWebSocketUpgradeStillWorksBesideTheFiles) {
   WsClient client(port());
-  const json r = client.call(json{{"jsonrpc", "2.0"}, {"id", 1}, {"method", "spec.subtract"}, {"params", {42, 23}}});
+  const json r = client.call(
+      json{{"jsonrpc", "2.0"}, {"id", 1}, {"method", "spec.subtract"}, {"params", {42, 23}}});
   EXPECT_EQ(r["result"], 19) << r.dump();
 }
 
 // ---- the cache and the validators (static_files.h: Validators, Cache)
 
 std::string get_with(std::uint16_t port, const std::string& target, const std::string& headers) {
-  return http_exchange(port, "GET " + target + " HTTP/1.1\r\nHost: 127.0.0.1\r\n" + headers + "\r\n");
+  return http_exchange(port,
+                       "GET " + target + " HTTP/1.1\r\nHost: 127.0.0.1\r\n" + headers + "\r\n");
 }
 
 TEST_F(WebSocketWebTest, ACachedAnswerIsTheFirstOneByteForByte) {
@@ -208,7 +217,8 @@ TEST_F(WebSocketWebTest, AChangedFileIsServedFresh) {
   EXPECT_NE(header(second, "ETag"), header(first, "ETag"));
   // another size, the same mtime as before the edit
   WebRoot::rewrite(file, "export const REVISION = 'longer than before';\n", -2);
-  EXPECT_EQ(body_of(get(port(), "/vendor/three.module.js")), "export const REVISION = 'longer than before';\n");
+  EXPECT_EQ(body_of(get(port(), "/vendor/three.module.js")),
+            "export const REVISION = 'longer than before';\n");
   // gone
   fs::remove(file);
   EXPECT_EQ(status_of(get(port(), "/vendor/three.module.js")), 404);
@@ -223,10 +233,13 @@ TEST_F(WebSocketWebTest, IfNoneMatchWithTheETagGets304WithoutABody) {
   EXPECT_EQ(body_of(r), "") << r;
   EXPECT_EQ(header(r, "ETag"), etag) << r;
   EXPECT_EQ(header(r, "Content-Length"), "") << r;
-  EXPECT_EQ(status_of(get_with(port(), "/index.html", "If-None-Match: \"other\", W/" + etag + "\r\n")), 304);
+  EXPECT_EQ(
+      status_of(get_with(port(), "/index.html", "If-None-Match: \"other\", W/" + etag + "\r\n")),
+      304);
   EXPECT_EQ(status_of(get_with(port(), "/index.html", "If-None-Match: *\r\n")), 304);
-  EXPECT_EQ(status_of(http_exchange(port(), "HEAD /index.html HTTP/1.1\r\nHost: 127.0.0.1\r\nIf-None-Match: " + etag +
-                                                "\r\n\r\n")),
+  EXPECT_EQ(status_of(http_exchange(
+                port(), "HEAD /index.html HTTP/1.1\r\nHost: 127.0.0.1\r\nIf-None-Match: " + etag +
+                            "\r\n\r\n")),
             304);
   // another ETag, or the file changed since: the whole file
   EXPECT_EQ(status_of(get_with(port(), "/index.html", "If-None-Match: \"other\"\r\n")), 200);
@@ -240,21 +253,28 @@ TEST_F(WebSocketWebTest, IfModifiedSinceTheLastModificationGets304) {
   const std::string first = get(port(), "/style.css");
   const std::string last_modified = header(first, "Last-Modified");
   ASSERT_FALSE(last_modified.empty()) << first;
-  const std::string r = get_with(port(), "/style.css", "If-Modified-Since: " + last_modified + "\r\n");
+  const std::string r =
+      get_with(port(), "/style.css", "If-Modified-Since: " + last_modified + "\r\n");
   EXPECT_EQ(status_of(r), 304) << r;
   EXPECT_EQ(body_of(r), "");
   // older, malformed, or overridden by a non-matching If-None-Match: the whole file
-  EXPECT_EQ(status_of(get_with(port(), "/style.css", "If-Modified-Since: Thu, 01 Jan 1970 00:00:00 GMT\r\n")), 200);
-  EXPECT_EQ(status_of(get_with(port(), "/style.css", "If-Modified-Since: yesterday\r\n")), 200);
   EXPECT_EQ(status_of(get_with(port(), "/style.css",
-                               "If-None-Match: \"other\"\r\nIf-Modified-Since: " + last_modified + "\r\n")),
+                               "If-Modified-Since: Thu, 01 Jan 1970 00:00:00 GMT\r\n")),
+            200);
+  EXPECT_EQ(status_of(get_with(port(), "/style.css", "If-Modified-Since: yesterday\r\n")), 200);
+  EXPECT_EQ(status_of(get_with(
+                port(), "/style.css",
+                "If-None-Match: \"other\"\r\nIf-Modified-Since: " + last_modified + "\r\n")),
             200);
   WebRoot::rewrite(web_.root() / "style.css", "body { margin: 1px; }\n");
-  EXPECT_EQ(status_of(get_with(port(), "/style.css", "If-Modified-Since: " + last_modified + "\r\n")), 200);
+  EXPECT_EQ(
+      status_of(get_with(port(), "/style.css", "If-Modified-Since: " + last_modified + "\r\n")),
+      200);
 }
 
 // StaticFiles alone (compiled into this test): what its cache holds
-boost::beast::http::request<boost::beast::http::string_body> request_for(const std::string& target) {
+boost::beast::http::request<boost::beast::http::string_body> request_for(
+    const std::string& target) {
   return {boost::beast::http::verb::get, target, 11};
 }
 
@@ -312,7 +332,8 @@ TEST(StaticFilesCache, ResponsesShareTheCachedContentsInsteadOfCopyingThem) {
 TEST(StaticFilesCache, HttpDatesRoundTrip) {
   EXPECT_EQ(websocket::StaticFiles::http_date(784111777), "Sun, 06 Nov 1994 08:49:37 GMT");
   EXPECT_EQ(websocket::StaticFiles::parse_http_date("Sun, 06 Nov 1994 08:49:37 GMT"), 784111777);
-  EXPECT_EQ(websocket::StaticFiles::parse_http_date("Sunday, 06-Nov-94 08:49:37 GMT"), std::nullopt);
+  EXPECT_EQ(websocket::StaticFiles::parse_http_date("Sunday, 06-Nov-94 08:49:37 GMT"),
+            std::nullopt);
   EXPECT_EQ(websocket::StaticFiles::parse_http_date("Sun, 06 Nov 1994 08:49:37 UTC"), std::nullopt);
   EXPECT_EQ(websocket::StaticFiles::parse_http_date("Sun, 06 Foo 1994 08:49:37 GMT"), std::nullopt);
 }
@@ -343,7 +364,8 @@ TEST(WebSocketWebOptions, BadOptionsAreRefusedNamingTheKey) {
 
 TEST(WebSocketWebOptions, TheDefaultWebRootIsTheBuildTreesWebApp) {
   if (!fs::exists(SIMGATE_BINARY_DIR "/web/index.html"))
-    GTEST_SKIP() << "the web app is not built (" SIMGATE_BINARY_DIR "/web, -DSIMGATE_WITH_WEB=OFF?)";
+    GTEST_SKIP() << "the web app is not built (" SIMGATE_BINARY_DIR
+                    "/web, -DSIMGATE_WITH_WEB=OFF?)";
   TestHost host(json::object(), plugin_path());
   const std::string page = get(host.port(), "/");
   EXPECT_EQ(status_of(page), 200) << page.substr(0, 300);

@@ -24,8 +24,8 @@
 namespace simgate::websocket_test {
 namespace {
 
-using jsonrpc_test::TestHost;
 using boost::asio::ip::tcp;
+using jsonrpc_test::TestHost;
 
 // A WebSocket client on a raw socket: the upgrade, then frames read and written one by one.
 class RawWsClient {
@@ -39,14 +39,16 @@ class RawWsClient {
     socket_.connect({boost::asio::ip::make_address("127.0.0.1"), port});
     timeval tv{10, 0};  // every read below ends within 10 s
     ::setsockopt(socket_.native_handle(), SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
-    const std::string upgrade = "GET / HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(port) +
-                                "\r\nConnection: Upgrade\r\nUpgrade: websocket\r\nSec-WebSocket-Version: 13\r\n"
-                                "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\r\n";
+    const std::string upgrade =
+        "GET / HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(port) +
+        "\r\nConnection: Upgrade\r\nUpgrade: websocket\r\nSec-WebSocket-Version: 13\r\n"
+        "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\r\n";
     boost::asio::write(socket_, boost::asio::buffer(upgrade));
     // the 101 response, up to its blank line; what follows it is frames
     while (buffer_.find("\r\n\r\n") == std::string::npos)
       if (!fill()) throw std::runtime_error("no upgrade response: " + buffer_);
-    if (!buffer_.starts_with("HTTP/1.1 101")) throw std::runtime_error("upgrade refused: " + buffer_);
+    if (!buffer_.starts_with("HTTP/1.1 101"))
+      throw std::runtime_error("upgrade refused: " + buffer_);
     buffer_.erase(0, buffer_.find("\r\n\r\n") + 4);
   }
 
@@ -70,7 +72,8 @@ class RawWsClient {
     const std::array<std::uint8_t, 4> mask{0x12, 0x34, 0x56, 0x78};
     std::string frame{static_cast<char>(0x80 | opcode), static_cast<char>(0x80 | payload.size())};
     frame.append(mask.begin(), mask.end());
-    for (std::size_t i = 0; i < payload.size(); ++i) frame += static_cast<char>(payload[i] ^ mask[i % 4]);
+    for (std::size_t i = 0; i < payload.size(); ++i)
+      frame += static_cast<char>(payload[i] ^ mask[i % 4]);
     boost::asio::write(socket_, boost::asio::buffer(frame));
   }
 
@@ -89,7 +92,6 @@ class RawWsClient {
   std::string buffer_;  // read, not yet taken
 };
 
-
 TEST(WebSocketKeepAlive, ASilentClientIsPingedThenDropped) {
   TestHost host(json{{"keepalive_s", 0.5}}, plugin_path());
   RawWsClient client(host.port());
@@ -106,7 +108,8 @@ TEST(WebSocketKeepAlive, AClientThatAnswersThePingsStays) {
   // three pings answered: silent from messages for longer than twice keepalive_s, yet kept
   for (int pings = 0; pings < 3; ++pings) {
     auto frame = client.read_frame();
-    ASSERT_TRUE(frame.has_value()) << "dropped (or no ping within 10 s) after " << pings << " ping(s)";
+    ASSERT_TRUE(frame.has_value())
+        << "dropped (or no ping within 10 s) after " << pings << " ping(s)";
     ASSERT_EQ(frame->opcode, k_ping);
     client.write_frame(k_pong, frame->payload);
   }

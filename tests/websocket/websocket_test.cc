@@ -114,10 +114,11 @@ TEST_F(WebSocketTest, RpcCancelEndsThePendingCall) {
 }
 
 TEST_F(WebSocketTest, BatchIsOneMessageAnsweredByOneArray) {
-  json batch = json::array({request(1, "spec.sum", json::array({1, 2, 4})),
-                            json{{"jsonrpc", "2.0"}, {"method", "spec.notify_hello"}, {"params", json::array({7})}},
-                            request(2, "spec.subtract", json::array({42, 23})), json{{"foo", "boo"}},
-                            request(5, "foo.get"), request(9, "spec.get_data")});
+  json batch = json::array(
+      {request(1, "spec.sum", json::array({1, 2, 4})),
+       json{{"jsonrpc", "2.0"}, {"method", "spec.notify_hello"}, {"params", json::array({7})}},
+       request(2, "spec.subtract", json::array({42, 23})), json{{"foo", "boo"}},
+       request(5, "foo.get"), request(9, "spec.get_data")});
   json r = client_->call(batch);
   ASSERT_TRUE(r.is_array()) << r.dump();
   ASSERT_EQ(r.size(), 5u) << r.dump();  // the notification gets nothing
@@ -240,7 +241,8 @@ TEST_F(WebSocketTest, ProgressReportsArriveBeforeTheResult) {
 }
 
 TEST_F(WebSocketTest, DeadlineInMetaEndsTheCallWithTimeout) {
-  json r = client_->call(request(1, "robot.arm.hold", {{"key", "t"}, {"_meta", {{"timeout_ms", 50}}}}));
+  json r =
+      client_->call(request(1, "robot.arm.hold", {{"key", "t"}, {"_meta", {{"timeout_ms", 50}}}}));
   EXPECT_EQ(r["id"], 1) << r.dump();
   EXPECT_EQ(error_code(r), -32003) << r.dump();
 }
@@ -274,7 +276,8 @@ class WebSocketSlowReaderTest : public WebSocketTest {
   json options() override { return json{{"max_unsent_bytes", 65536}}; }
 };
 
-TEST_F(WebSocketSlowReaderTest, AClientThatNeverReadsIsDroppedPastMaxUnsentBytesAndOthersAreServed) {
+TEST_F(WebSocketSlowReaderTest,
+       AClientThatNeverReadsIsDroppedPastMaxUnsentBytesAndOthersAreServed) {
   // three async calls (three components: they run side by side) of a client that then reads
   // nothing (a 16 KiB receive window); another client releases them with 3 MB results each,
   // more than the kernel's buffers and max_unsent_bytes together
@@ -285,14 +288,18 @@ TEST_F(WebSocketSlowReaderTest, AClientThatNeverReadsIsDroppedPastMaxUnsentBytes
   for (std::size_t k = 0; k < methods.size(); ++k) {
     bool started = false;
     for (int attempt = 0; attempt < 500 && !started; ++attempt)
-      started = client_->call(request(1000 + attempt, "ctl.pending", json::array({"slow" + std::to_string(k)})))
+      started = client_
+                    ->call(request(1000 + attempt, "ctl.pending",
+                                   json::array({"slow" + std::to_string(k)})))
                     .value("result", false);
     ASSERT_TRUE(started) << methods[k];
   }
   const std::string big(3 << 20, 'x');
   for (std::size_t k = 0; k < methods.size(); ++k) {
-    json r = client_->call(request(k, "ctl.release", json::array({"slow" + std::to_string(k), big})));
-    EXPECT_EQ(r["result"], true) << r.dump().substr(0, 300);  // the releasing client is served throughout
+    json r =
+        client_->call(request(k, "ctl.release", json::array({"slow" + std::to_string(k), big})));
+    EXPECT_EQ(r["result"], true) << r.dump().substr(
+        0, 300);  // the releasing client is served throughout
   }
   // the slow client finds fewer than its three replies, then the end of the connection
   std::size_t replies = 0;
@@ -339,17 +346,19 @@ class RawWs {
     socket_.connect({boost::asio::ip::make_address("127.0.0.1"), port});
     timeval tv{10, 0};
     ::setsockopt(socket_.native_handle(), SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
-    const std::string upgrade = "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: Upgrade\r\nUpgrade: websocket\r\n"
-                                "Sec-WebSocket-Version: 13\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\r\n";
+    const std::string upgrade =
+        "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: Upgrade\r\nUpgrade: websocket\r\n"
+        "Sec-WebSocket-Version: 13\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\r\n";
     send_raw(upgrade + first);
-    while (in_.find("\r\n\r\n") == std::string::npos && fill()) {
-    }
+    while (in_.find("\r\n\r\n") == std::string::npos && fill()) {}
     const auto end = in_.find("\r\n\r\n");
-    if (end == std::string::npos || !in_.starts_with("HTTP/1.1 101")) throw std::runtime_error("no upgrade: " + in_);
+    if (end == std::string::npos || !in_.starts_with("HTTP/1.1 101"))
+      throw std::runtime_error("no upgrade: " + in_);
     in_.erase(0, end + 4);
   }
   // One frame as a client writes it (masked unless told otherwise).
-  static std::string frame(std::uint8_t opcode, const std::string& payload, bool fin = true, bool masked = true) {
+  static std::string frame(std::uint8_t opcode, const std::string& payload, bool fin = true,
+                           bool masked = true) {
     std::string f;
     f.push_back(static_cast<char>((fin ? 0x80 : 0) | opcode));
     const std::uint8_t mask_bit = masked ? 0x80 : 0;
@@ -361,14 +370,19 @@ class RawWs {
       f.push_back(static_cast<char>(payload.size() & 0xFF));
     } else {
       f.push_back(static_cast<char>(mask_bit | 127));
-      for (int i = 7; i >= 0; --i) f.push_back(static_cast<char>((static_cast<std::uint64_t>(payload.size()) >> (8 * i)) & 0xFF));
+      for (int i = 7; i >= 0; --i)
+        f.push_back(
+            static_cast<char>((static_cast<std::uint64_t>(payload.size()) >> (8 * i)) & 0xFF));
     }
     const char key[4] = {0x12, 0x34, 0x56, 0x78};
     if (masked) f.append(key, 4);
-    for (std::size_t i = 0; i < payload.size(); ++i) f.push_back(masked ? static_cast<char>(payload[i] ^ key[i & 3]) : payload[i]);
+    for (std::size_t i = 0; i < payload.size(); ++i)
+      f.push_back(masked ? static_cast<char>(payload[i] ^ key[i & 3]) : payload[i]);
     return f;
   }
-  void send_raw(const std::string& bytes) { boost::asio::write(socket_, boost::asio::buffer(bytes)); }
+  void send_raw(const std::string& bytes) {
+    boost::asio::write(socket_, boost::asio::buffer(bytes));
+  }
   struct Frame {
     int opcode = -1;  // -1: the connection ended (or the read timed out)
     bool fin = false;
@@ -384,7 +398,8 @@ class RawWs {
       while (in_.size() < header)
         if (!fill()) return f;
       length = 0;
-      for (std::size_t i = 2; i < header; ++i) length = (length << 8) | static_cast<unsigned char>(in_[i]);
+      for (std::size_t i = 2; i < header; ++i)
+        length = (length << 8) | static_cast<unsigned char>(in_[i]);
     }
     while (in_.size() < header + length)
       if (!fill()) return f;
@@ -397,7 +412,8 @@ class RawWs {
   // Whether the server closed the TCP connection (end of input) within the timeout.
   bool ended() {
     for (int reads = 0; reads < 1000; ++reads)
-      if (!fill()) return ec_ == boost::asio::error::eof || ec_ == boost::asio::error::connection_reset;
+      if (!fill())
+        return ec_ == boost::asio::error::eof || ec_ == boost::asio::error::connection_reset;
     return false;
   }
 
@@ -414,9 +430,9 @@ class RawWs {
   boost::system::error_code ec_;
 };
 
-
 int close_code_of(const RawWs::Frame& f) {
-  return f.payload.size() >= 2 ? (static_cast<unsigned char>(f.payload[0]) << 8) | static_cast<unsigned char>(f.payload[1])
+  return f.payload.size() >= 2 ? (static_cast<unsigned char>(f.payload[0]) << 8) |
+                                     static_cast<unsigned char>(f.payload[1])
                                : 0;
 }
 
@@ -432,17 +448,19 @@ TEST_F(WebSocketMemoryTest, RepliesUnreadByClientsStayUnderMaxBufferedBytes) {
   // a message still arriving holds 700 kB of the 1 MiB; then four clients offering a small
   // window each ask a 6 MB reply (more than the kernel takes at once) and read nothing
   constexpr int k_reply_bytes = 6000000;
-  const std::string frame =
-      RawWs::frame(k_text, request(1, "robot.arm.echo", json::array({std::string(900000, 'y')})).dump());
+  const std::string frame = RawWs::frame(
+      k_text, request(1, "robot.arm.echo", json::array({std::string(900000, 'y')})).dump());
   RawWs occupier(host_->port());
   occupier.send_raw(frame.substr(0, 700000));
   std::this_thread::sleep_for(std::chrono::milliseconds(100));
   std::vector<std::unique_ptr<WsClient>> slow;
   for (int i = 0; i < 4; ++i) {
-    slow.push_back(std::make_unique<WsClient>(host_->port(), std::chrono::milliseconds(2000), 4096));
+    slow.push_back(
+        std::make_unique<WsClient>(host_->port(), std::chrono::milliseconds(2000), 4096));
     slow.back()->send(request(i, "robot.arm.blob", json::array({k_reply_bytes})));
   }
-  EXPECT_EQ(client_->call(request(99, "spec.subtract", json::array({3, 1})))["result"], 2) << "a reader is served";
+  EXPECT_EQ(client_->call(request(99, "spec.subtract", json::array({3, 1})))["result"], 2)
+      << "a reader is served";
   // each reply took the transport past its budget and was not taken at once: closed
   int closed = 0;
   for (auto& c : slow)
@@ -459,7 +477,8 @@ TEST_F(WebSocketMemoryTest, RepliesUnreadByClientsStayUnderMaxBufferedBytes) {
 TEST_F(WebSocketMemoryTest, MessagesStillArrivingStayUnderMaxBufferedBytes) {
   // two clients each send 700 kB of a 900 kB message (under max_message_bytes): the second
   // takes the transport past 1 MiB and is closed with 1013; the first finishes and is answered
-  const std::string message = request(1, "robot.arm.echo", json::array({std::string(900000, 'y')})).dump();
+  const std::string message =
+      request(1, "robot.arm.echo", json::array({std::string(900000, 'y')})).dump();
   const std::string frame = RawWs::frame(k_text, message);
   const std::size_t part = 700000;
   RawWs first(host_->port()), second(host_->port());
@@ -472,7 +491,8 @@ TEST_F(WebSocketMemoryTest, MessagesStillArrivingStayUnderMaxBufferedBytes) {
   first.send_raw(frame.substr(part));
   const RawWs::Frame answer = first.read_frame();
   EXPECT_EQ(answer.opcode, k_text);
-  EXPECT_NE(answer.payload.find(std::string(900000, 'y')), std::string::npos) << answer.payload.substr(0, 200);
+  EXPECT_NE(answer.payload.find(std::string(900000, 'y')), std::string::npos)
+      << answer.payload.substr(0, 200);
 }
 
 // ---- an unfinished message (issue #37): line_timeout_s bounds it as it bounds a line
@@ -485,8 +505,8 @@ class WebSocketTrickleTest : public WebSocketTest {
 // before: the websocket transport refused line_timeout_s, and a client that announced a
 // large message and trickled it kept its connection (and what it sent) forever
 TEST_F(WebSocketTrickleTest, AMessageTrickledPastLineTimeoutIsClosedAndOthersAreServed) {
-  const std::string frame =
-      RawWs::frame(k_text, request(1, "robot.arm.echo", json::array({std::string(100000, 't')})).dump());
+  const std::string frame = RawWs::frame(
+      k_text, request(1, "robot.arm.echo", json::array({std::string(100000, 't')})).dump());
   RawWs trickler(host_->port()), half_header(host_->port());
   trickler.send_raw(frame.substr(0, 1000));
   half_header.send_raw(frame.substr(0, 1));  // not even a whole frame head
@@ -496,7 +516,8 @@ TEST_F(WebSocketTrickleTest, AMessageTrickledPastLineTimeoutIsClosedAndOthersAre
   for (int i = 0; i < 8; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
     trickler.send_raw(frame.substr(sent++, 1));
-    EXPECT_EQ(client_->call(request(i, "spec.subtract", json::array({3, 1})))["result"], 2) << "others are served";
+    EXPECT_EQ(client_->call(request(i, "spec.subtract", json::array({3, 1})))["result"], 2)
+        << "others are served";
   }
   for (RawWs* raw : {&trickler, &half_header}) {
     const RawWs::Frame close = raw->read_frame();
@@ -522,8 +543,9 @@ TEST_F(WebSocketTest, AFragmentedMessageWithAPingBetweenItsFragmentsIsAnsweredAf
   RawWs raw(host_->port());
   const std::string text = request(1, "spec.subtract", json::array({42, 23})).dump();
   // three fragments (text, continuation, continuation), a ping between the first two
-  raw.send_raw(RawWs::frame(k_text, text.substr(0, 10), false) + RawWs::frame(k_ping, "are you there") +
-               RawWs::frame(0x0, text.substr(10, 10), false) + RawWs::frame(0x0, text.substr(20), true));
+  raw.send_raw(
+      RawWs::frame(k_text, text.substr(0, 10), false) + RawWs::frame(k_ping, "are you there") +
+      RawWs::frame(0x0, text.substr(10, 10), false) + RawWs::frame(0x0, text.substr(20), true));
   RawWs::Frame pong = raw.read_frame();
   EXPECT_EQ(pong.opcode, k_pong);
   EXPECT_EQ(pong.payload, "are you there");
@@ -535,9 +557,11 @@ TEST_F(WebSocketTest, AFragmentedMessageWithAPingBetweenItsFragmentsIsAnsweredAf
 
 TEST_F(WebSocketTest, MessagesInOneWriteAndFramesSentWithTheUpgradeAreAllAnsweredInOrder) {
   // the first message travels with the HTTP request itself
-  RawWs raw(host_->port(), RawWs::frame(k_text, request(0, "spec.subtract", json::array({0, 1})).dump()));
+  RawWs raw(host_->port(),
+            RawWs::frame(k_text, request(0, "spec.subtract", json::array({0, 1})).dump()));
   std::string burst;
-  for (int i = 1; i <= 20; ++i) burst += RawWs::frame(k_text, request(i, "spec.subtract", json::array({i, 1})).dump());
+  for (int i = 1; i <= 20; ++i)
+    burst += RawWs::frame(k_text, request(i, "spec.subtract", json::array({i, 1})).dump());
   raw.send_raw(burst);
   for (int i = 0; i <= 20; ++i) {
     RawWs::Frame reply = raw.read_frame();
@@ -551,7 +575,8 @@ TEST_F(WebSocketTest, MessagesInOneWriteAndFramesSentWithTheUpgradeAreAllAnswere
 TEST_F(WebSocketTest, LongMessagesUseTheExtendedLengthsBothWays) {
   RawWs raw(host_->port());
   for (std::size_t size : {std::size_t{200}, std::size_t{70000}}) {
-    raw.send_raw(RawWs::frame(k_text, request(1, "robot.arm.echo", json::array({std::string(size, 'z')})).dump()));
+    raw.send_raw(RawWs::frame(
+        k_text, request(1, "robot.arm.echo", json::array({std::string(size, 'z')})).dump()));
     RawWs::Frame reply = raw.read_frame();
     ASSERT_EQ(reply.opcode, k_text) << size;
     EXPECT_EQ(json::parse(reply.payload)["result"], std::string(size, 'z'));
@@ -572,14 +597,16 @@ TEST_F(WebSocketTest, ACloseFrameWithACodeNoPeerMaySendIsAnsweredWith1002NotEcho
   // issue #35 item 10: before, 1005, 1006, 999 or 2999 came back as they were sent
   for (int code : {999, 1004, 1005, 1006, 1015, 1016, 2999, 5000}) {
     RawWs raw(host_->port());
-    raw.send_raw(RawWs::frame(k_close, std::string{static_cast<char>(code >> 8), static_cast<char>(code & 0xFF)}));
+    raw.send_raw(RawWs::frame(
+        k_close, std::string{static_cast<char>(code >> 8), static_cast<char>(code & 0xFF)}));
     RawWs::Frame close = raw.read_frame();
     EXPECT_EQ(close.opcode, k_close) << code;
     EXPECT_EQ(close_code_of(close), 1002) << code;
   }
   for (int code : {1000, 1001, 1011, 3000, 4999}) {
     RawWs raw(host_->port());
-    raw.send_raw(RawWs::frame(k_close, std::string{static_cast<char>(code >> 8), static_cast<char>(code & 0xFF)}));
+    raw.send_raw(RawWs::frame(
+        k_close, std::string{static_cast<char>(code >> 8), static_cast<char>(code & 0xFF)}));
     EXPECT_EQ(close_code_of(raw.read_frame()), code);
   }
 }
@@ -587,13 +614,14 @@ TEST_F(WebSocketTest, ACloseFrameWithACodeNoPeerMaySendIsAnsweredWith1002NotEcho
 TEST_F(WebSocketTest, ProtocolErrorsAreClosedWith1002AndOthersServed) {
   const std::string text = request(1, "spec.subtract", json::array({3, 1})).dump();
   for (const std::string& bad :
-       {RawWs::frame(k_text, text, true, /*masked=*/false),   // a client frame must be masked
-        RawWs::frame(0x0, text),                               // a continuation of nothing
-        RawWs::frame(0x3, text),                               // a reserved opcode
-        RawWs::frame(k_ping, std::string(126, 'p')),           // a control frame over 125 bytes
-        RawWs::frame(k_ping, "p", /*fin=*/false),              // a fragmented control frame
+       {RawWs::frame(k_text, text, true, /*masked=*/false),  // a client frame must be masked
+        RawWs::frame(0x0, text),                             // a continuation of nothing
+        RawWs::frame(0x3, text),                             // a reserved opcode
+        RawWs::frame(k_ping, std::string(126, 'p')),         // a control frame over 125 bytes
+        RawWs::frame(k_ping, "p", /*fin=*/false),            // a fragmented control frame
         RawWs::frame(k_text, "{", false) + RawWs::frame(k_text, "}"),  // a message inside another
-        std::string(1, '\xC1') + RawWs::frame(k_text, text).substr(1)}) {  // RSV1 without an extension
+        std::string(1, '\xC1') +
+            RawWs::frame(k_text, text).substr(1)}) {  // RSV1 without an extension
     RawWs raw(host_->port());
     raw.send_raw(bad);
     RawWs::Frame close = raw.read_frame();
@@ -628,12 +656,16 @@ TEST_F(WebSocketTest, ABinaryMessageInFragmentsIsRefusedWhole) {
 // ---- connections held without use (the TCP transports' options, kit/connection_rules.h)
 
 TEST(WebSocketPlugin, TakesTheTcpTransportsConnectionLimits) {
-  auto rm = load_transport(plugin_path(), json{{"port", 0}, {"max_connections_per_peer", 4}, {"idle_timeout_s", 30},
-                                               {"idle_evict_s", 0}, {"line_timeout_s", 10}, {"max_buffered_bytes", 1 << 20}});
+  auto rm = load_transport(plugin_path(), json{{"port", 0},
+                                               {"max_connections_per_peer", 4},
+                                               {"idle_timeout_s", 30},
+                                               {"idle_evict_s", 0},
+                                               {"line_timeout_s", 10},
+                                               {"max_buffered_bytes", 1 << 20}});
   rm->start();
   rm->stop();
-  for (const char* key :
-       {"max_connections_per_peer", "idle_timeout_s", "idle_evict_s", "line_timeout_s", "max_buffered_bytes"}) {
+  for (const char* key : {"max_connections_per_peer", "idle_timeout_s", "idle_evict_s",
+                          "line_timeout_s", "max_buffered_bytes"}) {
     try {
       load_transport(plugin_path(), json{{"port", 0}, {key, -1}});
       ADD_FAILURE() << key << " -1 accepted";
@@ -666,7 +698,10 @@ TEST_F(WebSocketIdleTest, AnIdleConnectionIsClosedButNotOneWaitingForAnAnswer) {
   EXPECT_FALSE(client_->receive_text().has_value());
   EXPECT_EQ(client_->error, ws::error::closed) << client_->error.message();
   EXPECT_EQ(client_->close_reason().code, ws::close_code::going_away);
-  EXPECT_NE(std::string(client_->close_reason().reason.data(), client_->close_reason().reason.size()).find("idle_timeout_s"), std::string::npos);
+  EXPECT_NE(
+      std::string(client_->close_reason().reason.data(), client_->close_reason().reason.size())
+          .find("idle_timeout_s"),
+      std::string::npos);
   // the one owed an answer was kept: it gets it once another client releases the call
   WsClient other(host_->port());
   EXPECT_EQ(other.call(request(1, "ctl.release", json::array({"w", "released"})))["result"], true);
@@ -681,7 +716,8 @@ class WebSocketEvictTest : public WebSocketTest {
 
   // Keeps `busy` calling, running `meanwhile` before each call, until a newcomer is let in
   // (30 attempts, 100 ms apart); null when no room was made.
-  std::unique_ptr<WsClient> newcomer_once_room_is_made(WsClient& busy, const std::function<void()>& meanwhile = {}) {
+  std::unique_ptr<WsClient> newcomer_once_room_is_made(
+      WsClient& busy, const std::function<void()>& meanwhile = {}) {
     for (int attempt = 0; attempt < 30; ++attempt) {
       std::this_thread::sleep_for(std::chrono::milliseconds(100));
       if (meanwhile) meanwhile();
@@ -706,7 +742,8 @@ TEST_F(WebSocketEvictTest, AtTheLimitTheConnectionIdleLongestMakesRoom) {
   EXPECT_FALSE(client_->receive_text().has_value());
   EXPECT_EQ(client_->error, ws::error::closed) << client_->error.message();
   EXPECT_EQ(client_->close_reason().reason, "idle while the server was full");
-  EXPECT_EQ(busy.call(request(99, "spec.subtract", json::array({3, 1})))["result"], 2);  // never chosen
+  EXPECT_EQ(busy.call(request(99, "spec.subtract", json::array({3, 1})))["result"],
+            2);  // never chosen
 }
 
 TEST_F(WebSocketEvictTest, AtTheLimitAConnectionSendingOnlyPingsIsIdleAndMakesRoom) {
@@ -735,9 +772,10 @@ std::string upgrade_response(std::uint16_t port, const std::string& origin) {
   socket.connect({boost::asio::ip::make_address("127.0.0.1"), port});
   timeval tv{10, 0};
   ::setsockopt(socket.native_handle(), SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
-  std::string upgrade = "GET / HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(port) +
-                        "\r\nConnection: Upgrade\r\nUpgrade: websocket\r\nSec-WebSocket-Version: 13\r\n"
-                        "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n";
+  std::string upgrade =
+      "GET / HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(port) +
+      "\r\nConnection: Upgrade\r\nUpgrade: websocket\r\nSec-WebSocket-Version: 13\r\n"
+      "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n";
   if (!origin.empty()) upgrade += "Origin: " + origin + "\r\n";
   upgrade += "\r\n";
   boost::asio::write(socket, boost::asio::buffer(upgrade));
@@ -747,7 +785,9 @@ std::string upgrade_response(std::uint16_t port, const std::string& origin) {
   for (int reads = 0; reads < 100; ++reads) {
     const std::size_t n = socket.read_some(boost::asio::buffer(buffer), ec);
     response.append(buffer, n);
-    if (ec || (response.starts_with("HTTP/1.1 101") && response.find("\r\n\r\n") != std::string::npos)) break;
+    if (ec ||
+        (response.starts_with("HTTP/1.1 101") && response.find("\r\n\r\n") != std::string::npos))
+      break;
   }
   return response;
 }
@@ -755,10 +795,12 @@ std::string upgrade_response(std::uint16_t port, const std::string& origin) {
 TEST_F(WebSocketTest, AnUpgradeFromAPageOfAnotherSiteIsRefusedWith403) {
   const std::string response = upgrade_response(host_->port(), "https://evil.example");
   EXPECT_TRUE(response.starts_with("HTTP/1.1 403")) << response;
-  EXPECT_NE(response.find("origin 'https://evil.example' are not allowed"), std::string::npos) << response;
+  EXPECT_NE(response.find("origin 'https://evil.example' are not allowed"), std::string::npos)
+      << response;
   EXPECT_NE(response.find("allowed_origins"), std::string::npos) << response;
-  EXPECT_THROW(WsClient(host_->port(), std::chrono::milliseconds(10000), 0, "http://evil.example:8090"),
-               boost::system::system_error);
+  EXPECT_THROW(
+      WsClient(host_->port(), std::chrono::milliseconds(10000), 0, "http://evil.example:8090"),
+      boost::system::system_error);
   // the same host on another port is another origin; "null" (a sandboxed page) is none of ours
   EXPECT_TRUE(upgrade_response(host_->port(), "http://127.0.0.1:1").starts_with("HTTP/1.1 403"));
   EXPECT_TRUE(upgrade_response(host_->port(), "null").starts_with("HTTP/1.1 403"));
@@ -769,8 +811,8 @@ TEST_F(WebSocketTest, AnUpgradeFromAPageOfAnotherSiteIsRefusedWith403) {
 TEST_F(WebSocketTest, ItsOwnOriginsAndClientsWithoutOriginAreAccepted) {
   const std::string port = std::to_string(host_->port());
   EXPECT_TRUE(upgrade_response(host_->port(), "").starts_with("HTTP/1.1 101"));
-  for (const std::string& origin : {"http://127.0.0.1:" + port, "http://localhost:" + port, "HTTP://LocalHost:" + port,
-                                    "http://[::1]:" + port}) {
+  for (const std::string& origin : {"http://127.0.0.1:" + port, "http://localhost:" + port,
+                                    "HTTP://LocalHost:" + port, "http://[::1]:" + port}) {
     EXPECT_TRUE(upgrade_response(host_->port(), origin).starts_with("HTTP/1.1 101")) << origin;
     WsClient page(host_->port(), std::chrono::milliseconds(10000), 0, origin);
     EXPECT_EQ(page.call(request(1, "spec.subtract", json::array({3, 1})))["result"], 2) << origin;
@@ -779,15 +821,19 @@ TEST_F(WebSocketTest, ItsOwnOriginsAndClientsWithoutOriginAreAccepted) {
 
 class WebSocketOriginsTest : public WebSocketTest {
  protected:
-  json options() override { return json{{"allowed_origins", {"https://app.example", "http://lab.example:8000"}}}; }
+  json options() override {
+    return json{{"allowed_origins", {"https://app.example", "http://lab.example:8000"}}};
+  }
 };
 
 TEST_F(WebSocketOriginsTest, AllowedOriginsReplacesTheDefaultList) {
   WsClient app(host_->port(), std::chrono::milliseconds(10000), 0, "https://app.example");
   EXPECT_EQ(app.call(request(1, "spec.subtract", json::array({3, 1})))["result"], 2);
   // the scheme's default port is implied
-  EXPECT_TRUE(upgrade_response(host_->port(), "https://app.example:443").starts_with("HTTP/1.1 101"));
-  EXPECT_TRUE(upgrade_response(host_->port(), "http://lab.example:8000").starts_with("HTTP/1.1 101"));
+  EXPECT_TRUE(
+      upgrade_response(host_->port(), "https://app.example:443").starts_with("HTTP/1.1 101"));
+  EXPECT_TRUE(
+      upgrade_response(host_->port(), "http://lab.example:8000").starts_with("HTTP/1.1 101"));
   EXPECT_TRUE(upgrade_response(host_->port(), "http://lab.example").starts_with("HTTP/1.1 403"));
   EXPECT_TRUE(upgrade_response(host_->port(), "http://app.example").starts_with("HTTP/1.1 403"));
   const std::string own = "http://127.0.0.1:" + std::to_string(host_->port());
@@ -802,8 +848,9 @@ TEST(WebSocketPlugin, AllowedOriginsStarAcceptsAnyPage) {
 }
 
 TEST(WebSocketPlugin, RefusesMalformedAllowedOrigins) {
-  for (const json& bad : {json("http://a.example"), json::array({"http://a.example/path"}), json::array({"a.example"}),
-                          json::array({42}), json::array({"http://a.example:99999"})}) {
+  for (const json& bad :
+       {json("http://a.example"), json::array({"http://a.example/path"}),
+        json::array({"a.example"}), json::array({42}), json::array({"http://a.example:99999"})}) {
     try {
       load_transport(plugin_path(), json{{"port", 0}, {"allowed_origins", bad}});
       ADD_FAILURE() << "accepted " << bad.dump();

@@ -13,13 +13,12 @@
 int main(int argc, char** argv) {
   try {
     simgate::json options = argc > 1 ? simgate::json::parse(argv[1]) : simgate::json::object();
-    simgate::jsonrpc_test::TestHost host(options,
-                                         std::string(SIMGATE_TEST_PLUGIN_DIR) + "/libsimgate_transport_websocket.so");
+    simgate::jsonrpc_test::TestHost host(
+        options, std::string(SIMGATE_TEST_PLUGIN_DIR) + "/libsimgate_transport_websocket.so");
     std::cout << "listening on " << host.manager().endpoints().at(0) << std::endl;
     // serve until stdin closes
     std::string ignored;
-    while (std::getline(std::cin, ignored)) {
-    }
+    while (std::getline(std::cin, ignored)) {}
     host.stop();
     return 0;
   } catch (const std::exception& e) {

@@ -16,8 +16,8 @@ namespace {
 using P = FrameParser;
 
 // One client frame, masked with `key` (or unmasked), `rsv` in the first byte's bits 4-6.
-std::string frame(std::uint8_t opcode, std::string_view payload, bool fin = true, bool masked = true,
-                  std::uint8_t rsv = 0, std::uint32_t key = 0x37FA213D) {
+std::string frame(std::uint8_t opcode, std::string_view payload, bool fin = true,
+                  bool masked = true, std::uint8_t rsv = 0, std::uint32_t key = 0x37FA213D) {
   std::string f;
   f.push_back(static_cast<char>((fin ? 0x80 : 0) | (rsv << 4) | opcode));
   const std::uint8_t m = masked ? 0x80 : 0;
@@ -32,8 +32,9 @@ std::string frame(std::uint8_t opcode, std::string_view payload, bool fin = true
     f.push_back(static_cast<char>(m | 127));
     for (int i = 0; i < 8; ++i) f.push_back(static_cast<char>(n >> (56 - 8 * i)));
   }
-  const unsigned char k[4] = {static_cast<unsigned char>(key >> 24), static_cast<unsigned char>(key >> 16),
-                              static_cast<unsigned char>(key >> 8), static_cast<unsigned char>(key)};
+  const unsigned char k[4] = {
+      static_cast<unsigned char>(key >> 24), static_cast<unsigned char>(key >> 16),
+      static_cast<unsigned char>(key >> 8), static_cast<unsigned char>(key)};
   if (masked) f.append(reinterpret_cast<const char*>(k), 4);
   for (std::size_t i = 0; i < payload.size(); ++i)
     f.push_back(masked ? static_cast<char>(payload[i] ^ k[i & 3]) : payload[i]);
@@ -62,7 +63,9 @@ struct Recorder : FrameSink {
     const char* name = opcode == P::k_ping ? "ping:" : opcode == P::k_pong ? "pong:" : "close:";
     events.push_back(name + std::string(payload));
   }
-  void on_protocol_error(std::string_view reason) override { events.push_back("error:" + std::string(reason)); }
+  void on_protocol_error(std::string_view reason) override {
+    events.push_back("error:" + std::string(reason));
+  }
 };
 
 std::vector<std::string> parse(std::string_view bytes, std::size_t max = 1 << 20) {
@@ -73,7 +76,8 @@ std::vector<std::string> parse(std::string_view bytes, std::size_t max = 1 << 20
 }
 
 // `bytes` fed in two parts split at `at`, then in parts of one byte
-std::vector<std::string> parse_split(std::string_view bytes, std::size_t at, std::size_t max = 1 << 20) {
+std::vector<std::string> parse_split(std::string_view bytes, std::size_t at,
+                                     std::size_t max = 1 << 20) {
   P parser(max);
   Recorder r;
   if (parser.feed(bytes.substr(0, at), r)) parser.feed(bytes.substr(at), r);
@@ -103,7 +107,10 @@ TEST(WebSocketFrames, ASplitAtEveryByteGivesTheSameEvents) {
   const std::string stream = frame(P::k_text, "hello", false) + frame(P::k_ping, "p1") +
                              frame(P::k_continuation, std::string(300, 'x'), true) +
                              frame(P::k_binary, "bin") + frame(P::k_pong, "") +
-                             frame(P::k_text, std::string(70000, 'y')) + frame(P::k_close, "\x03\xe8" "bye");
+                             frame(P::k_text, std::string(70000, 'y')) +
+                             frame(P::k_close,
+                                   "\x03\xe8"
+                                   "bye");
   const Events whole = parse(stream);
   ASSERT_EQ(whole.size(), 6u);
   EXPECT_EQ(whole[0], "ping:p1");
@@ -111,9 +118,12 @@ TEST(WebSocketFrames, ASplitAtEveryByteGivesTheSameEvents) {
   EXPECT_EQ(whole[2], "binary:3");
   EXPECT_EQ(whole[3], "pong:");
   EXPECT_EQ(whole[4], "text:" + std::string(70000, 'y'));
-  EXPECT_EQ(whole[5], "close:\x03\xe8" "bye");
+  EXPECT_EQ(whole[5],
+            "close:\x03\xe8"
+            "bye");
   // every split point of the frames' heads and payloads (the long message's middle, sampled)
-  for (std::size_t at = 0; at <= stream.size(); at += (at < 400 || at + 400 > stream.size()) ? 1 : 997)
+  for (std::size_t at = 0; at <= stream.size();
+       at += (at < 400 || at + 400 > stream.size()) ? 1 : 997)
     ASSERT_EQ(parse_split(stream, at), whole) << "split at " << at;
   EXPECT_EQ(parse_bytewise(stream), whole);
 }
@@ -125,9 +135,11 @@ TEST(WebSocketFrames, FragmentsWithControlFramesBetweenThem) {
   EXPECT_EQ(parse(stream), (Events{"ping:a", "pong:b", "close:", "text:[1,2,3]"}));
   EXPECT_EQ(parse_bytewise(stream), parse(stream));
   // empty fragments, a fragmented binary message
-  EXPECT_EQ(parse(frame(P::k_text, "", false) + frame(P::k_continuation, "", false) + frame(P::k_continuation, "z")),
+  EXPECT_EQ(parse(frame(P::k_text, "", false) + frame(P::k_continuation, "", false) +
+                  frame(P::k_continuation, "z")),
             (Events{"text:z"}));
-  EXPECT_EQ(parse(frame(P::k_binary, "ab", false) + frame(P::k_continuation, "cde")), (Events{"binary:5"}));
+  EXPECT_EQ(parse(frame(P::k_binary, "ab", false) + frame(P::k_continuation, "cde")),
+            (Events{"binary:5"}));
 }
 
 TEST(WebSocketFrames, LengthsAtEachEncodingsEdges) {
@@ -148,12 +160,14 @@ TEST(WebSocketFrames, LengthsAtEachEncodingsEdges) {
 TEST(WebSocketFrames, AnUnmaskedFrameIsAProtocolError) {
   EXPECT_EQ(parse(frame(P::k_text, "x", true, false)),
             (Events{"error:an unmasked frame (a client masks every frame)"}));
-  EXPECT_EQ(parse(frame(P::k_ping, "", true, false)), (Events{"error:an unmasked frame (a client masks every frame)"}));
+  EXPECT_EQ(parse(frame(P::k_ping, "", true, false)),
+            (Events{"error:an unmasked frame (a client masks every frame)"}));
 }
 
 TEST(WebSocketFrames, ReservedBitsAreAProtocolError) {
   for (std::uint8_t rsv : {1, 2, 4, 7})
-    EXPECT_EQ(parse(frame(P::k_text, "x", true, true, rsv)), (Events{"error:reserved bits set (no extension was agreed)"}))
+    EXPECT_EQ(parse(frame(P::k_text, "x", true, true, rsv)),
+              (Events{"error:reserved bits set (no extension was agreed)"}))
         << int(rsv);
 }
 
@@ -163,15 +177,19 @@ TEST(WebSocketFrames, ReservedOpcodesAreAProtocolError) {
 }
 
 TEST(WebSocketFrames, LongOrFragmentedControlFramesAreAProtocolError) {
-  EXPECT_EQ(parse(frame(P::k_ping, std::string(125, 'p'))), (Events{"ping:" + std::string(125, 'p')}));
-  EXPECT_EQ(parse(frame(P::k_ping, std::string(126, 'p'))), (Events{"error:a fragmented or long control frame"}));
-  EXPECT_EQ(parse(frame(P::k_close, "", false)), (Events{"error:a fragmented or long control frame"}));
+  EXPECT_EQ(parse(frame(P::k_ping, std::string(125, 'p'))),
+            (Events{"ping:" + std::string(125, 'p')}));
+  EXPECT_EQ(parse(frame(P::k_ping, std::string(126, 'p'))),
+            (Events{"error:a fragmented or long control frame"}));
+  EXPECT_EQ(parse(frame(P::k_close, "", false)),
+            (Events{"error:a fragmented or long control frame"}));
   EXPECT_EQ(parse(frame(P::k_text, "a", false) + frame(P::k_pong, "", false)),
             (Events{"error:a fragmented or long control frame"}));
 }
 
 TEST(WebSocketFrames, AContinuationWithoutAMessageIsAProtocolError) {
-  EXPECT_EQ(parse(frame(P::k_continuation, "x")), (Events{"error:a continuation frame with no message"}));
+  EXPECT_EQ(parse(frame(P::k_continuation, "x")),
+            (Events{"error:a continuation frame with no message"}));
   EXPECT_EQ(parse(frame(P::k_text, "a") + frame(P::k_continuation, "b")),
             (Events{"text:a", "error:a continuation frame with no message"}));
 }
@@ -184,7 +202,8 @@ TEST(WebSocketFrames, ANewMessageInsideAFragmentedOneIsAProtocolError) {
 }
 
 TEST(WebSocketFrames, ALengthOver2Pow63IsAProtocolError) {
-  EXPECT_EQ(parse(header64(P::k_text, std::uint64_t{1} << 63)), (Events{"error:a frame length over 2^63"}));
+  EXPECT_EQ(parse(header64(P::k_text, std::uint64_t{1} << 63)),
+            (Events{"error:a frame length over 2^63"}));
 }
 
 TEST(WebSocketFrames, NothingIsParsedAfterAProtocolError) {
@@ -199,10 +218,12 @@ TEST(WebSocketFrames, NothingIsParsedAfterAProtocolError) {
 
 TEST(WebSocketFrames, AnOversizedMessageIsSkippedAndTheNextOneRead) {
   const std::size_t max = 100;
-  EXPECT_EQ(parse(frame(P::k_text, std::string(100, 'a')), max), (Events{"text:" + std::string(100, 'a')}));
+  EXPECT_EQ(parse(frame(P::k_text, std::string(100, 'a')), max),
+            (Events{"text:" + std::string(100, 'a')}));
   const std::string stream = frame(P::k_text, std::string(60, 'a'), false) + frame(P::k_ping, "!") +
-                             frame(P::k_continuation, std::string(60, 'b')) + frame(P::k_text, "next") +
-                             frame(P::k_text, std::string(101, 'c')) + frame(P::k_text, "last");
+                             frame(P::k_continuation, std::string(60, 'b')) +
+                             frame(P::k_text, "next") + frame(P::k_text, std::string(101, 'c')) +
+                             frame(P::k_text, "last");
   const Events expected{"ping:!", "refused:120", "text:next", "refused:101", "text:last"};
   EXPECT_EQ(parse(stream, max), expected);
   EXPECT_EQ(parse_bytewise(stream, max), expected);
@@ -225,7 +246,8 @@ TEST(WebSocketFrames, AnOversizedMessageIsSkippedAndTheNextOneRead) {
 // always answered a binary message over the limit as too large (kept, unchanged).
 TEST(WebSocketFrames, ABinaryMessageOverTheLimitIsRefusedAsTooLong) {
   EXPECT_EQ(parse(frame(P::k_binary, "ab"), 1), (Events{"refused:2"}));
-  EXPECT_EQ(parse(frame(P::k_binary, "a", false) + frame(P::k_continuation, "b"), 1), (Events{"refused:2"}));
+  EXPECT_EQ(parse(frame(P::k_binary, "a", false) + frame(P::k_continuation, "b"), 1),
+            (Events{"refused:2"}));
   EXPECT_EQ(parse(frame(P::k_binary, "a"), 1), (Events{"binary:1"}));
 }
 
@@ -255,7 +277,8 @@ TEST(WebSocketFrames, DiscardedMessagesAreParsedButNotReported) {
   Closer c;
   c.parser = &parser;
   EXPECT_TRUE(parser.feed(frame(P::k_text, "a", false) + frame(P::k_close, "\x03\xe8") +
-                              frame(P::k_continuation, "b") + frame(P::k_text, "c") + frame(P::k_ping, "p"),
+                              frame(P::k_continuation, "b") + frame(P::k_text, "c") +
+                              frame(P::k_ping, "p"),
                           c));
   EXPECT_EQ(c.events, (Events{"close:\x03\xe8", "ping:p"}));
   EXPECT_FALSE(parser.feed(frame(P::k_text, "x", true, false), c));  // errors still count
@@ -266,7 +289,8 @@ TEST(WebSocketFrames, StopEndsParsingAtOnce) {
   Closer c;
   c.parser = &parser;
   c.stop = true;
-  EXPECT_FALSE(parser.feed(frame(P::k_ping, "1") + frame(P::k_text, "a") + frame(P::k_ping, "2"), c));
+  EXPECT_FALSE(
+      parser.feed(frame(P::k_ping, "1") + frame(P::k_text, "a") + frame(P::k_ping, "2"), c));
   EXPECT_EQ(c.events, (Events{"ping:1"}));
   EXPECT_FALSE(parser.failed());
 }

@@ -27,7 +27,9 @@
 namespace simgate::websocket_test {
 
 // The websocket transport plugin of this build.
-inline std::string plugin_path() { return std::string(SIMGATE_TEST_PLUGIN_DIR) + "/libsimgate_transport_websocket.so"; }
+inline std::string plugin_path() {
+  return std::string(SIMGATE_TEST_PLUGIN_DIR) + "/libsimgate_transport_websocket.so";
+}
 
 // RFC 6455 opcodes, for the tests that write frames by hand
 constexpr std::uint8_t k_text = 0x1, k_binary = 0x2, k_close = 0x8, k_ping = 0x9, k_pong = 0xA;
@@ -37,7 +39,8 @@ class WsClient {
   // Connects to 127.0.0.1:`port` and upgrades; throws boost::system::system_error.
   // `receive_buffer` (bytes, 0: the system's) is set before connecting: the window it offers.
   // `origin` (non-empty): the Origin header a browser would send with the upgrade.
-  explicit WsClient(std::uint16_t port, std::chrono::milliseconds timeout = std::chrono::milliseconds(10000),
+  explicit WsClient(std::uint16_t port,
+                    std::chrono::milliseconds timeout = std::chrono::milliseconds(10000),
                     int receive_buffer = 0, const std::string& origin = "")
       : ws_(io_) {
     boost::asio::ip::tcp::endpoint endpoint(boost::asio::ip::make_address("127.0.0.1"), port);
@@ -54,7 +57,9 @@ class WsClient {
     ws_.read_message_max(0);
     if (!origin.empty())
       ws_.set_option(boost::beast::websocket::stream_base::decorator(
-          [origin](boost::beast::websocket::request_type& request) { request.set("Origin", origin); }));
+          [origin](boost::beast::websocket::request_type& request) {
+            request.set("Origin", origin);
+          }));
     ws_.handshake("127.0.0.1:" + std::to_string(port), "/");
   }
 

@@ -96,9 +96,10 @@ void JsonRpcEngine::handle_message(const std::shared_ptr<Session>& session, std:
   // nlohmann's parser ends the text at a NUL byte: `<request>\0<anything>` would run the
   // request and ignore the rest (issue #17, item 9). JSON has no raw NUL, not even in strings.
   if (const std::size_t nul = line.find('\0'); nul != std::string_view::npos) {
-    reply(single, error_response(nullptr, code::parse_error, "Parse error",
-                                 json{{"reason", "a NUL byte at column " + std::to_string(nul + 1) +
-                                                     " (JSON text has none; write \\u0000 in a string)"}}));
+    reply(single,
+          error_response(nullptr, code::parse_error, "Parse error",
+                         json{{"reason", "a NUL byte at column " + std::to_string(nul + 1) +
+                                             " (JSON text has none; write \\u0000 in a string)"}}));
     return;
   }
   json message;
@@ -106,7 +107,8 @@ void JsonRpcEngine::handle_message(const std::shared_ptr<Session>& session, std:
     message = json::parse(line.begin(), line.end());
   } catch (const json::exception& e) {
     // parse_error, and out_of_range for numbers beyond a double ("1e400")
-    reply(single, error_response(nullptr, code::parse_error, "Parse error", json{{"reason", e.what()}}));
+    reply(single,
+          error_response(nullptr, code::parse_error, "Parse error", json{{"reason", e.what()}}));
     return;
   }
 
@@ -117,7 +119,8 @@ void JsonRpcEngine::handle_message(const std::shared_ptr<Session>& session, std:
     return it != m.end() && it->is_number_float();
   };
   std::vector<std::pair<std::size_t, std::string>> id_texts;
-  if (message.is_array() ? std::any_of(message.begin(), message.end(), float_id) : float_id(message))
+  if (message.is_array() ? std::any_of(message.begin(), message.end(), float_id)
+                         : float_id(message))
     id_texts = float_id_texts(line);
   auto id_text = [&id_texts](std::size_t index) {
     for (auto& [i, text] : id_texts)
@@ -134,13 +137,17 @@ void JsonRpcEngine::handle_message(const std::shared_ptr<Session>& session, std:
     // every entry counts against max_in_flight, whatever it is (rpc.*, invalid entries):
     // a batch larger than the room left is refused whole, with one error (issue #17: a
     // 2 MB batch of `1`s built a million error objects on the I/O thread)
-    const std::size_t room = options_.tcp.max_in_flight - std::min(session->in_flight(), options_.tcp.max_in_flight);
+    const std::size_t room =
+        options_.tcp.max_in_flight - std::min(session->in_flight(), options_.tcp.max_in_flight);
     if (message.size() > room) {
-      reply(single, error_response(nullptr, code::overloaded,
-                                   "Overloaded: a batch of " + std::to_string(message.size()) + " entries, " +
-                                       std::to_string(room) + " more calls allowed in flight on this connection (max_in_flight " +
-                                       std::to_string(options_.tcp.max_in_flight) + ")",
-                                   json{{"batch_entries", message.size()}, {"max_in_flight", options_.tcp.max_in_flight}}));
+      reply(single,
+            error_response(nullptr, code::overloaded,
+                           "Overloaded: a batch of " + std::to_string(message.size()) +
+                               " entries, " + std::to_string(room) +
+                               " more calls allowed in flight on this connection (max_in_flight " +
+                               std::to_string(options_.tcp.max_in_flight) + ")",
+                           json{{"batch_entries", message.size()},
+                                {"max_in_flight", options_.tcp.max_in_flight}}));
       return;
     }
     // every entry answers into the batch; the array goes out when the last one is in
@@ -162,11 +169,12 @@ void JsonRpcEngine::flush_submissions() {
   // request_'s params: no allocation per request), at most k_kept_calls of them
   run_or_submit(std::span(to_submit_.data(), to_submit_count_), /*refilled=*/true);
   to_submit_count_ = 0;
-  if (to_submit_.size() > k_kept_calls) to_submit_.erase(to_submit_.begin() + k_kept_calls, to_submit_.end());
+  if (to_submit_.size() > k_kept_calls)
+    to_submit_.erase(to_submit_.begin() + k_kept_calls, to_submit_.end());
 }
 
 void JsonRpcEngine::handle_request(const std::shared_ptr<Session>& session, json& message,
-                                           ReplyTo to) {
+                                   ReplyTo to) {
   // validate; invalid requests are answered even without an id
   Request request;
   if (auto error = parse_request(message, request)) {
@@ -178,7 +186,8 @@ void JsonRpcEngine::handle_request(const std::shared_ptr<Session>& session, json
   dispatch(session, request, std::move(to));
 }
 
-void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& request, ReplyTo to) {
+void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& request,
+                             ReplyTo to) {
   to.id = request.id;
   to.notification = !request.has_id;
 
@@ -191,10 +200,12 @@ void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& r
     return;
   }
   if (!session->authenticated()) [[unlikely]] {
-    reply(to, error_response(to.id, code::unauthorized,
-                             "Unauthorized: call rpc.login with the token first (the transport's \"auth\" option; "
-                             "docs/transports/jsonrpc.md#authentication)",
-                             json{{"method", method}}));
+    reply(to,
+          error_response(
+              to.id, code::unauthorized,
+              "Unauthorized: call rpc.login with the token first (the transport's \"auth\" option; "
+              "docs/transports/jsonrpc.md#authentication)",
+              json{{"method", method}}));
     return;
   }
   if (reserved && (method == "rpc.cancel" || method == "$/cancelRequest")) {
@@ -206,19 +217,23 @@ void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& r
       reply(to, std::nullopt);  // answered -32006 by reply(): the document is not even built
       return;
     }
-    json document = openrpc_document(descriptors(), engine_detail::k_version,
-                                     global_policy() == GlobalPolicy::preempt ? "preempt" : "reject");
+    json document =
+        openrpc_document(descriptors(), engine_detail::k_version,
+                         global_policy() == GlobalPolicy::preempt ? "preempt" : "reject");
     // the data streams of this transport (rpc.subscribe, rpc.publish): an OpenRPC extension
     document["x-simgate-streams"] = stream_list();
     reply(to, result_response(to.id, std::move(document)));
     return;
   }
-  if (reserved && method.starts_with("rpc.") && handle_stream_method(session, method, request.params, to)) return;
+  if (reserved && method.starts_with("rpc.") &&
+      handle_stream_method(session, method, request.params, to))
+    return;
   std::string component, service;
   if ((reserved && method.starts_with("rpc.")) || !split_method(method, component, service)) {
-    const std::string reason = method.rfind("rpc.", 0) == 0
-                                   ? "'" + method + "' is not a method of this server (rpc.* is reserved)"
-                                   : "'" + method + "' is not of the form 'component.service'";
+    const std::string reason =
+        method.rfind("rpc.", 0) == 0
+            ? "'" + method + "' is not a method of this server (rpc.* is reserved)"
+            : "'" + method + "' is not of the form 'component.service'";
     reply(to, error_response(to.id, code::method_not_found, "Method not found: " + reason,
                              json{{"method", method}, {"reason", reason}}));
     return;
@@ -226,12 +241,14 @@ void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& r
 
   // limits: calls in flight on this connection, ids unique among them
   if (session->in_flight() >= options_.tcp.max_in_flight) {
-    if (to.notification) log::debug(name(), ": ", session->label(), ": notification ", method, " dropped: overloaded");
-    reply(to, error_response(to.id, code::overloaded,
-                             "Overloaded: " + std::to_string(session->in_flight()) +
-                                 " calls in flight on this connection (max_in_flight " +
-                                 std::to_string(options_.tcp.max_in_flight) + ")",
-                             json{{"method", method}, {"max_in_flight", options_.tcp.max_in_flight}}));
+    if (to.notification)
+      log::debug(name(), ": ", session->label(), ": notification ", method, " dropped: overloaded");
+    reply(to,
+          error_response(to.id, code::overloaded,
+                         "Overloaded: " + std::to_string(session->in_flight()) +
+                             " calls in flight on this connection (max_in_flight " +
+                             std::to_string(options_.tcp.max_in_flight) + ")",
+                         json{{"method", method}, {"max_in_flight", options_.tcp.max_in_flight}}));
     return;
   }
   std::string key;
@@ -239,7 +256,8 @@ void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& r
     key = request.id_text.empty() ? dump(request.id) : std::move(request.id_text);
     if (session->has_id(key)) {
       reply(to, error_response(to.id, code::invalid_request,
-                               "Invalid Request: id " + key + " is already used by a pending call on this connection",
+                               "Invalid Request: id " + key +
+                                   " is already used by a pending call on this connection",
                                json{{"method", method}, {"reason", "duplicate id"}}));
       return;
     }
@@ -283,19 +301,23 @@ void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& r
   pending.cancel = false;
 }
 
-void JsonRpcEngine::handle_login(const std::shared_ptr<Session>& session, const json& params, ReplyTo to) {
+void JsonRpcEngine::handle_login(const std::shared_ptr<Session>& session, const json& params,
+                                 ReplyTo to) {
   // {"token": "..."} or ["..."]
   const json* token = nullptr;
-  if (params.is_object() && params.size() == 1 && params.contains("token")) token = &params["token"];
+  if (params.is_object() && params.size() == 1 && params.contains("token"))
+    token = &params["token"];
   if (params.is_array() && params.size() == 1) token = &params[0];
   if (!token || !token->is_string()) {
-    reply(to, error_response(to.id, code::invalid_params,
-                             "Invalid params: rpc.login takes the token, as {\"token\": \"...\"} or [\"...\"]",
-                             json{{"method", "rpc.login"}}));
+    reply(to, error_response(
+                  to.id, code::invalid_params,
+                  "Invalid params: rpc.login takes the token, as {\"token\": \"...\"} or [\"...\"]",
+                  json{{"method", "rpc.login"}}));
     return;
   }
   // no authentication configured: any login succeeds (a client may always log in)
-  if (!options_.tcp.auth.enabled || options_.tcp.auth.accepts(token->get_ref<const std::string&>())) {
+  if (!options_.tcp.auth.enabled ||
+      options_.tcp.auth.accepts(token->get_ref<const std::string&>())) {
     if (options_.tcp.auth.enabled) log::info(name(), ": ", session->label(), " authenticated");
     session->set_authenticated();
     reply(to, result_response(to.id, true));
@@ -303,23 +325,25 @@ void JsonRpcEngine::handle_login(const std::shared_ptr<Session>& session, const 
   }
   // one guess per connection: the error goes out with this read's replies, then it closes
   log::warning(name(), ": ", session->label(), " presented a wrong token; connection closed");
-  reply(to, error_response(to.id, code::unauthorized, "Unauthorized: wrong token; connection closed",
-                           json{{"method", "rpc.login"}}));
+  reply(to,
+        error_response(to.id, code::unauthorized, "Unauthorized: wrong token; connection closed",
+                       json{{"method", "rpc.login"}}));
   boost::asio::post(io_, [session] {
     session->flush_writes();
     session->end("wrong token", kit::Ending::refused);
   });
 }
 
-void JsonRpcEngine::handle_cancel(const std::shared_ptr<Session>& session, const std::string& method,
-                                          const json& params, ReplyTo to) {
+void JsonRpcEngine::handle_cancel(const std::shared_ptr<Session>& session,
+                                  const std::string& method, const json& params, ReplyTo to) {
   // {"id": X} or [X]
   const json* target = nullptr;
   if (params.is_object() && params.contains("id")) target = &params["id"];
   if (params.is_array() && params.size() == 1) target = &params[0];
   if (!target || !(target->is_string() || target->is_number())) {
     reply(to, error_response(to.id, code::invalid_params,
-                             "Invalid params: " + method + " takes {\"id\": <id of one of your pending calls>}",
+                             "Invalid params: " + method +
+                                 " takes {\"id\": <id of one of your pending calls>}",
                              json{{"method", method}, {"parameter", "id"}}));
     return;
   }
@@ -340,7 +364,9 @@ void JsonRpcEngine::handle_cancel(const std::shared_ptr<Session>& session, const
   pending.method.assign(method);
   pending.id_key.clear();
   pending.cancel = true;
-  cancel(*id, [this, cancel_id](bool found) { complete_request(cancel_id, Outcome::success(json(found))); });
+  cancel(*id, [this, cancel_id](bool found) {
+    complete_request(cancel_id, Outcome::success(json(found)));
+  });
 }
 
 void JsonRpcEngine::on_service_completion(RequestId id, Outcome&& outcome) {
@@ -386,18 +412,22 @@ void JsonRpcEngine::finish_call(RequestId id, Outcome&& outcome) {
   try {
     if (pending.cancel) {
       // rpc.cancel's own answer: true if the call was still running
-      reply(pending.to, result_response(pending.to.id, outcome.value ? std::move(*outcome.value) : json(false)));
+      reply(pending.to, result_response(pending.to.id,
+                                        outcome.value ? std::move(*outcome.value) : json(false)));
     } else if (outcome.status == Status::success) {
       static const json k_no_result;  // null
       if (pending.to.batch)
-        reply(pending.to, result_response(pending.to.id, outcome.value ? std::move(*outcome.value) : json(nullptr)));
+        reply(pending.to, result_response(pending.to.id, outcome.value ? std::move(*outcome.value)
+                                                                       : json(nullptr)));
       else if (!pending.to.notification) {
         // the envelope by hand around the result; id_key is dump(id) ("" for a null id)
         line_.clear();
-        append_result_line(line_, pending.id_key.empty() ? std::string_view("null") : pending.id_key,
+        append_result_line(line_,
+                           pending.id_key.empty() ? std::string_view("null") : pending.id_key,
                            outcome.value ? *outcome.value : k_no_result);
         session->queue_message(line_);
-        if (line_.capacity() > engine_detail::k_kept_line_bytes) std::string().swap(line_);  // keep no large buffer
+        if (line_.capacity() > engine_detail::k_kept_line_bytes)
+          std::string().swap(line_);  // keep no large buffer
       }
     } else {
       reply(pending.to, outcome_response(pending.to.id, outcome, pending.method));
@@ -413,14 +443,16 @@ void JsonRpcEngine::reply(ReplyTo& to, std::optional<json> response) {
     auto& batch = *to.batch;
     if (!to.notification) {
       std::string text;
-      if (response && !batch.full()) text = to.id_text.empty() ? dump(*response) : response_with_id_text(*response, to.id_text);
+      if (response && !batch.full())
+        text = to.id_text.empty() ? dump(*response) : response_with_id_text(*response, to.id_text);
       if (!response || batch.bytes + text.size() > batch.max_bytes) {
         // past the batch's byte budget: a short error instead (counted, so the reply stays
         // within max_unsent_bytes plus one such line per entry)
         batch.bytes = std::max(batch.bytes, batch.max_bytes);
         text = dump(error_response(to.id, code::overloaded,
                                    "Overloaded: the batch's reply exceeds max_unsent_bytes (" +
-                                       std::to_string(batch.max_bytes) + "); this entry's response was dropped",
+                                       std::to_string(batch.max_bytes) +
+                                       "); this entry's response was dropped",
                                    json{{"max_unsent_bytes", batch.max_bytes}}));
       }
       batch.bytes += text.size();
@@ -440,8 +472,8 @@ void JsonRpcEngine::reply(ReplyTo& to, std::optional<json> response) {
   }
   if (to.notification || !response) return;
   if (auto session = to.session.lock())
-    session->queue_message(to.id_text.empty() ? dump(*response) : response_with_id_text(*response, to.id_text));
+    session->queue_message(to.id_text.empty() ? dump(*response)
+                                              : response_with_id_text(*response, to.id_text));
 }
 
 }  // namespace simgate::jsonrpc
-

@@ -47,12 +47,14 @@ const json* single_param(const json& params, const char* name) {
 json JsonRpcEngine::stream_list() const {
   json out = json::array();
   if (stream_hub())
-    for (const auto& info : stream_hub()->streams(transport_name())) out.push_back(streams_detail::stream_json(info));
+    for (const auto& info : stream_hub()->streams(transport_name()))
+      out.push_back(streams_detail::stream_json(info));
   return out;
 }
 
-bool JsonRpcEngine::handle_stream_method(const std::shared_ptr<Session>& session, const std::string& method,
-                                                 const json& params, ReplyTo& to) {
+bool JsonRpcEngine::handle_stream_method(const std::shared_ptr<Session>& session,
+                                         const std::string& method, const json& params,
+                                         ReplyTo& to) {
   if (method == "rpc.streams") {
     reply(to, result_response(to.id, stream_list()));
   } else if (method == "rpc.subscribe") {
@@ -60,10 +62,13 @@ bool JsonRpcEngine::handle_stream_method(const std::shared_ptr<Session>& session
   } else if (method == "rpc.unsubscribe") {
     const json* id = streams_detail::single_param(params, "subscription");
     if (!id || !id->is_number_unsigned()) {
-      reply(to, error_response(to.id, code::invalid_params,
-                               "Invalid params: rpc.unsubscribe takes {\"subscription\": <the number rpc.subscribe "
-                               "answered>}",
-                               json{{"method", method}, {"parameter", "subscription"}}));
+      reply(
+          to,
+          error_response(
+              to.id, code::invalid_params,
+              "Invalid params: rpc.unsubscribe takes {\"subscription\": <the number rpc.subscribe "
+              "answered>}",
+              json{{"method", method}, {"parameter", "subscription"}}));
       return true;
     }
     reply(to, result_response(to.id, unsubscribe(*session, id->get<std::uint64_t>())));
@@ -75,13 +80,16 @@ bool JsonRpcEngine::handle_stream_method(const std::shared_ptr<Session>& session
   return true;
 }
 
-void JsonRpcEngine::subscribe(const std::shared_ptr<Session>& session, const json& params, ReplyTo& to) {
+void JsonRpcEngine::subscribe(const std::shared_ptr<Session>& session, const json& params,
+                              ReplyTo& to) {
   const json* component = streams_detail::single_param(params, "component");
   if (!component || !component->is_string()) {
-    reply(to, error_response(to.id, code::invalid_params,
-                             "Invalid params: rpc.subscribe takes {\"component\": \"<a component with an output "
-                             "stream>\"} (rpc.streams lists them)",
-                             json{{"method", "rpc.subscribe"}, {"parameter", "component"}}));
+    reply(to,
+          error_response(
+              to.id, code::invalid_params,
+              "Invalid params: rpc.subscribe takes {\"component\": \"<a component with an output "
+              "stream>\"} (rpc.streams lists them)",
+              json{{"method", "rpc.subscribe"}, {"parameter", "component"}}));
     return;
   }
   const std::string& name = component->get_ref<const std::string&>();
@@ -93,16 +101,19 @@ void JsonRpcEngine::subscribe(const std::shared_ptr<Session>& session, const jso
         if (s.direction == StreamDirection::out) outputs.push_back(s.component);
     std::string list;
     for (const auto& o : outputs) list += (list.empty() ? "" : ", ") + o;
-    reply(to, error_response(to.id, code::invalid_params,
-                             "Invalid params: no output stream '" + name + "' on this transport (" +
-                                 (list.empty() ? std::string("it carries none") : "output streams: " + list) + ")",
-                             json{{"method", "rpc.subscribe"}, {"parameter", "component"}, {"streams", outputs}}));
+    reply(to,
+          error_response(
+              to.id, code::invalid_params,
+              "Invalid params: no output stream '" + name + "' on this transport (" +
+                  (list.empty() ? std::string("it carries none") : "output streams: " + list) + ")",
+              json{{"method", "rpc.subscribe"}, {"parameter", "component"}, {"streams", outputs}}));
     return;
   }
   // a second subscribe of the same stream on a connection is the first one
   for (const auto& s : stream_subs_)
     if (s.session.lock() == session && s.subscription->component() == name) {
-      reply(to, result_response(to.id, json{{"subscription", s.id}, {"stream", streams_detail::stream_json(*info)}}));
+      reply(to, result_response(to.id, json{{"subscription", s.id},
+                                            {"stream", streams_detail::stream_json(*info)}}));
       return;
     }
   StreamSub sub;
@@ -110,14 +121,17 @@ void JsonRpcEngine::subscribe(const std::shared_ptr<Session>& session, const jso
   sub.session = session;
   sub.subscription = stream_hub()->subscribe(
       name, transport_name(),
-      SubscriberOptions{options_.stream_queue, tag_ + " " + session->label(), [this] { wake_streams(); }});
+      SubscriberOptions{options_.stream_queue, tag_ + " " + session->label(),
+                        [this] { wake_streams(); }});
   if (!sub.subscription) {  // deleted meanwhile
-    reply(to, error_response(to.id, code::invalid_params, "Invalid params: no output stream '" + name + "'",
+    reply(to, error_response(to.id, code::invalid_params,
+                             "Invalid params: no output stream '" + name + "'",
                              json{{"method", "rpc.subscribe"}, {"parameter", "component"}}));
     return;
   }
   // the answer goes before the first sample (which the next simulation turn brings)
-  reply(to, result_response(to.id, json{{"subscription", sub.id}, {"stream", streams_detail::stream_json(*info)}}));
+  reply(to, result_response(to.id, json{{"subscription", sub.id},
+                                        {"stream", streams_detail::stream_json(*info)}}));
   stream_subs_.push_back(std::move(sub));
 }
 
@@ -135,7 +149,8 @@ void JsonRpcEngine::publish(const json& params, ReplyTo& to) {
   // {"component": "robot.motion", "data": {...}} or ["robot.motion", {...}]
   const json* component = nullptr;
   const json* data = nullptr;
-  if (params.is_object() && params.size() == 2 && params.contains("component") && params.contains("data")) {
+  if (params.is_object() && params.size() == 2 && params.contains("component") &&
+      params.contains("data")) {
     component = &params["component"];
     data = &params["data"];
   } else if (params.is_array() && params.size() == 2) {
@@ -143,15 +158,17 @@ void JsonRpcEngine::publish(const json& params, ReplyTo& to) {
     data = &params[1];
   }
   if (!component || !component->is_string() || !data) {
-    reply(to, error_response(to.id, code::invalid_params,
-                             "Invalid params: rpc.publish takes {\"component\": \"<a component with an input "
-                             "stream>\", \"data\": {<the command>}}",
-                             json{{"method", "rpc.publish"}}));
+    reply(to, error_response(
+                  to.id, code::invalid_params,
+                  "Invalid params: rpc.publish takes {\"component\": \"<a component with an input "
+                  "stream>\", \"data\": {<the command>}}",
+                  json{{"method", "rpc.publish"}}));
     return;
   }
   PublishResult result;
   if (stream_hub())
-    result = stream_hub()->publish(component->get_ref<const std::string&>(), transport_name(), *data);
+    result =
+        stream_hub()->publish(component->get_ref<const std::string&>(), transport_name(), *data);
   else
     result.error = "no input stream '" + component->get_ref<const std::string&>() + "' here";
   if (!result.ok) {
@@ -200,11 +217,13 @@ void JsonRpcEngine::drain_streams() {
     s.subscription->note_dropped(lost);
     if (s.subscription->closed()) {
       // its component was deleted: the client learns why its samples stop
-      session->queue_message(dump(json{{"jsonrpc", "2.0"},
-                                    {"method", "rpc.unsubscribed"},
-                                    {"params", {{"subscription", s.id},
-                                                {"component", s.subscription->component()},
-                                                {"reason", "the component was removed from the simulation"}}}}));
+      session->queue_message(
+          dump(json{{"jsonrpc", "2.0"},
+                    {"method", "rpc.unsubscribed"},
+                    {"params",
+                     {{"subscription", s.id},
+                      {"component", s.subscription->component()},
+                      {"reason", "the component was removed from the simulation"}}}}));
       it = stream_subs_.erase(it);
       continue;
     }
@@ -227,4 +246,3 @@ void JsonRpcEngine::end_subscriptions(const Session* session) {
 }
 
 }  // namespace simgate::jsonrpc
-

@@ -14,7 +14,8 @@ Options Options::parse(const json& options, std::string_view transport, std::uin
   defaults.max_in_flight = 1024;
   Options o;
   o.tcp = kit::TcpOptions::read(config, defaults, transport);
-  o.max_depth = static_cast<std::size_t>(config.get_int("max_depth", static_cast<long long>(o.max_depth), 2, 10000));
+  o.max_depth = static_cast<std::size_t>(
+      config.get_int("max_depth", static_cast<long long>(o.max_depth), 2, 10000));
   o.stream_queue = static_cast<std::size_t>(
       config.get_int("stream_queue", static_cast<long long>(o.stream_queue), 1, 100000));
   o.tcp.finish(config);

@@ -57,12 +57,14 @@ void append_json(std::string& out, const json& value) {
   char digits[24];
   switch (value.type()) {
     case json::value_t::number_unsigned: {
-      auto r = std::to_chars(digits, digits + sizeof digits, value.get_ref<const json::number_unsigned_t&>());
+      auto r = std::to_chars(digits, digits + sizeof digits,
+                             value.get_ref<const json::number_unsigned_t&>());
       out.append(digits, r.ptr);
       return;
     }
     case json::value_t::number_integer: {
-      auto r = std::to_chars(digits, digits + sizeof digits, value.get_ref<const json::number_integer_t&>());
+      auto r = std::to_chars(digits, digits + sizeof digits,
+                             value.get_ref<const json::number_integer_t&>());
       out.append(digits, r.ptr);
       return;
     }
@@ -85,7 +87,9 @@ void append_result_line(std::string& out, std::string_view id_text, const json& 
 CallOptions read_meta(const json& meta, std::string& why) {
   CallOptions options;
   if (!meta.is_object()) {
-    why = "expected an object of call options ({\"progress\": true, \"timeout_ms\": 5000}), found " + dump(meta);
+    why =
+        "expected an object of call options ({\"progress\": true, \"timeout_ms\": 5000}), found " +
+        dump(meta);
     return options;
   }
   for (const auto& [key, value] : meta.items()) {
@@ -101,15 +105,17 @@ CallOptions read_meta(const json& meta, std::string& why) {
                             (value.is_number_float() && std::isfinite(value.get<double>()) &&
                              std::trunc(value.get<double>()) == value.get<double>());
       if (!integral) {
-        why = "timeout_ms: expected an integer number of milliseconds (0 = no timeout), found " + dump(value);
+        why = "timeout_ms: expected an integer number of milliseconds (0 = no timeout), found " +
+              dump(value);
         return options;
       }
       const double ms = value.is_number_float() ? value.get<double>()
-                        : value.is_number_unsigned() ? static_cast<double>(value.get<std::uint64_t>())
-                                                     : static_cast<double>(value.get<std::int64_t>());
+                        : value.is_number_unsigned()
+                            ? static_cast<double>(value.get<std::uint64_t>())
+                            : static_cast<double>(value.get<std::int64_t>());
       if (ms < 0 || ms > static_cast<double>(k_max_timeout_ms)) {
-        why = "timeout_ms: expected 0 (no timeout) to " + std::to_string(k_max_timeout_ms) + " ms, found " +
-              dump(value);
+        why = "timeout_ms: expected 0 (no timeout) to " + std::to_string(k_max_timeout_ms) +
+              " ms, found " + dump(value);
         return options;
       }
       options.timeout = std::chrono::milliseconds(static_cast<long long>(ms));
@@ -142,13 +148,15 @@ json outcome_response(const json& id, const Outcome& outcome, const std::string&
   if (outcome.value && !(outcome.value->is_string() && *outcome.value == outcome.message))
     data["value"] = *outcome.value;
   const int error_code = code_for(outcome);
-  std::string message = outcome.message.empty() ? std::string(code_message(error_code)) : outcome.message;
+  std::string message =
+      outcome.message.empty() ? std::string(code_message(error_code)) : outcome.message;
   return error_response(id, error_code, std::move(message), std::move(data));
 }
 
 std::optional<json> parse_request(json& message, Request& out) {
   auto invalid = [](const json& id, const std::string& why) {
-    return error_response(id, code::invalid_request, "Invalid Request: " + why, json{{"reason", why}});
+    return error_response(id, code::invalid_request, "Invalid Request: " + why,
+                          json{{"reason", why}});
   };
   if (!message.is_object())
     return invalid(nullptr, "a request must be a JSON object, not " + describe_json(message));
@@ -169,12 +177,14 @@ std::optional<json> parse_request(json& message, Request& out) {
                                : "'jsonrpc' must be \"2.0\", not " + describe_json(*version));
   auto method = message.find("method");
   if (method == message.end()) return invalid(out.id, "member 'method' is missing");
-  if (!method->is_string()) return invalid(out.id, "'method' must be a string, not " + describe_json(*method));
+  if (!method->is_string())
+    return invalid(out.id, "'method' must be a string, not " + describe_json(*method));
   out.method = method->get<std::string>();
   out.params = nullptr;
   if (auto params = message.find("params"); params != message.end()) {
     if (!params->is_array() && !params->is_object())
-      return invalid(out.id, "'params' must be an array or an object, not " + describe_json(*params));
+      return invalid(out.id,
+                     "'params' must be an array or an object, not " + describe_json(*params));
     out.params = std::move(*params);
   }
   return std::nullopt;
@@ -239,7 +249,8 @@ class FastReader {
     // int part: 0 | [1-9][0-9]*
     const char* digits = p_;
     if (p_ >= end_ || !is_digit(*p_)) return false;
-    if (*p_ == '0') ++p_;
+    if (*p_ == '0')
+      ++p_;
     else
       while (p_ < end_ && is_digit(*p_)) ++p_;
     const std::size_t int_digits = static_cast<std::size_t>(p_ - digits);
@@ -260,9 +271,12 @@ class FastReader {
     if (integer) {
       if (int_digits > 18) return false;
       std::uint64_t magnitude = 0;
-      for (const char* d = digits; d < p_; ++d) magnitude = magnitude * 10 + static_cast<std::uint64_t>(*d - '0');
-      if (negative) value = -static_cast<std::int64_t>(magnitude);
-      else value = magnitude;
+      for (const char* d = digits; d < p_; ++d)
+        magnitude = magnitude * 10 + static_cast<std::uint64_t>(*d - '0');
+      if (negative)
+        value = -static_cast<std::int64_t>(magnitude);
+      else
+        value = magnitude;
       return true;
     }
     double d = 0;
@@ -308,7 +322,9 @@ class FastReader {
   static bool is_digit(char c) { return c >= '0' && c <= '9'; }
 
   bool literal(std::string_view word, json& value, json v) {
-    if (static_cast<std::size_t>(end_ - p_) < word.size() || std::string_view(p_, word.size()) != word) return false;
+    if (static_cast<std::size_t>(end_ - p_) < word.size() ||
+        std::string_view(p_, word.size()) != word)
+      return false;
     p_ += word.size();
     value = std::move(v);
     return true;
@@ -337,7 +353,8 @@ class FastReader {
         std::string_view key;
         json element;
         if (!plain_string(key) || !eat(':') || !scalar(element)) return false;
-        value[std::string(key)] = std::move(element);  // a repeated key: the last wins, as in json::parse
+        value[std::string(key)] =
+            std::move(element);  // a repeated key: the last wins, as in json::parse
       } while (eat(','));
       return eat('}');
     }
@@ -354,9 +371,12 @@ class FastReader {
     for (const char* q = p_; q < end_; ++q) {
       const char c = *q;
       if (in_string) {
-        if (escaped) escaped = false;
-        else if (c == '\\') escaped = true;
-        else if (c == '"') in_string = false;
+        if (escaped)
+          escaped = false;
+        else if (c == '\\')
+          escaped = true;
+        else if (c == '"')
+          in_string = false;
         continue;
       }
       if (c == '"') {
@@ -465,7 +485,8 @@ class FloatIdScanner final : public nlohmann::json_sax<json> {
     // a request's own member: depth 1 (a lone request) or 2 (an entry of the batch)
     const bool request_level = (open_.size() == 1 && !open_[0].array) ||
                                (open_.size() == 2 && open_[0].array && !open_[1].array);
-    if (request_level && open_.back().key == "id") found.emplace_back(open_.size() == 1 ? 0 : open_[0].index, text);
+    if (request_level && open_.back().key == "id")
+      found.emplace_back(open_.size() == 1 ? 0 : open_[0].index, text);
     return value();
   }
   bool string(string_t&) override { return value(); }
@@ -484,7 +505,9 @@ class FloatIdScanner final : public nlohmann::json_sax<json> {
     return true;
   }
   bool end_array() override { return close(); }
-  bool parse_error(std::size_t, const std::string&, const nlohmann::detail::exception&) override { return false; }
+  bool parse_error(std::size_t, const std::string&, const nlohmann::detail::exception&) override {
+    return false;
+  }
 
  private:
   struct Open {
@@ -529,7 +552,9 @@ json openrpc_document(const std::vector<ServiceDescriptor>& services, std::strin
     for (const auto& p : d.params) {
       json schema = p.schema.is_object() ? p.schema : json::object();
       if (p.default_value) schema["default"] = *p.default_value;
-      json param = {{"name", p.name}, {"required", !p.default_value.has_value()}, {"schema", std::move(schema)}};
+      json param = {{"name", p.name},
+                    {"required", !p.default_value.has_value()},
+                    {"schema", std::move(schema)}};
       if (!p.type.empty()) param["description"] = p.type;
       params.push_back(std::move(param));
     }
@@ -537,7 +562,9 @@ json openrpc_document(const std::vector<ServiceDescriptor>& services, std::strin
         {"name", d.qualified_name()},
         {"params", std::move(params)},
         {"paramStructure", "either"},
-        {"result", {{"name", "result"}, {"schema", d.result_schema.is_object() ? d.result_schema : json::object()}}},
+        {"result",
+         {{"name", "result"},
+          {"schema", d.result_schema.is_object() ? d.result_schema : json::object()}}},
         {"x-component", d.component},
         {"x-service", d.name},
         {"x-async", d.is_async},
@@ -552,18 +579,20 @@ json openrpc_document(const std::vector<ServiceDescriptor>& services, std::strin
       method["x-policy"] = std::string(to_string(d.policy));
       // concurrent: every call runs on its own, none preempts another
       method["x-concurrent"] = d.concurrent;
-      method["x-interruptible"] = !d.concurrent && (d.policy == Policy::interruptible ||
-                                                    (d.policy == Policy::unspecified && global_policy == "preempt"));
+      method["x-interruptible"] =
+          !d.concurrent && (d.policy == Policy::interruptible ||
+                            (d.policy == Policy::unspecified && global_policy == "preempt"));
     }
     methods.push_back(std::move(method));
   }
-  std::sort(methods.begin(), methods.end(),
-            [](const json& a, const json& b) { return a["name"].get_ref<const std::string&>() < b["name"].get_ref<const std::string&>(); });
+  std::sort(methods.begin(), methods.end(), [](const json& a, const json& b) {
+    return a["name"].get_ref<const std::string&>() < b["name"].get_ref<const std::string&>();
+  });
 
   // the server error codes, so generated clients can name them
   json errors = json::object();
-  for (int c : {code::service_failed, code::preempted, code::cancelled, code::busy, code::overloaded,
-                code::shutting_down}) {
+  for (int c : {code::service_failed, code::preempted, code::cancelled, code::busy,
+                code::overloaded, code::shutting_down}) {
     std::string name(code_message(c));
     std::replace(name.begin(), name.end(), ' ', '_');
     errors[name] = {{"code", c}, {"message", code_message(c)}};
@@ -576,7 +605,8 @@ json openrpc_document(const std::vector<ServiceDescriptor>& services, std::strin
         {"description",
          "Services of the simgate components this transport serves. Method names are "
          "'component.service'; params are positional (array) or named (object). Also "
-         "callable: rpc.discover (this document) and rpc.cancel {\"id\": <id of your pending call>}."}}},
+         "callable: rpc.discover (this document) and rpc.cancel {\"id\": <id of your pending "
+         "call>}."}}},
       {"methods", std::move(methods)},
       {"components", {{"errors", std::move(errors)}}},
   };

@@ -57,7 +57,6 @@ void append_utf8(std::string& out, std::uint32_t cp) {
   }
 }
 
-
 class Parser {
  public:
   explicit Parser(std::string_view text) : text_(text) {}
@@ -153,7 +152,8 @@ class Parser {
     auto finish = [&] {
       ++pos_;
       auto& elements = out.get_ref<json::array_t&>();
-      if (elements.size() > count) elements.erase(elements.begin() + std::ptrdiff_t(count), elements.end());
+      if (elements.size() > count)
+        elements.erase(elements.begin() + std::ptrdiff_t(count), elements.end());
     };
     for (;;) {
       skip_blanks();
@@ -167,7 +167,8 @@ class Parser {
         continue;
       }
       if (pos_ < text_.size() && text_[pos_] == close) return finish();
-      fail(std::string("expected ',' or '") + close + "' in " + kind + " but found " + describe_here());
+      fail(std::string("expected ',' or '") + close + "' in " + kind + " but found " +
+           describe_here());
     }
   }
 
@@ -236,18 +237,54 @@ class Parser {
         if (pos_ >= text_.size()) fail_at(start, "unterminated string");
         char e = text_[pos_];
         switch (e) {
-          case 'n': out += '\n'; ++pos_; break;
-          case 't': out += '\t'; ++pos_; break;
-          case 'r': out += '\r'; ++pos_; break;
-          case 'b': out += '\b'; ++pos_; break;
-          case 'f': out += '\f'; ++pos_; break;
-          case 'v': out += '\v'; ++pos_; break;
-          case 'a': out += '\a'; ++pos_; break;
-          case '0': out += '\0'; ++pos_; break;
-          case '\\': out += '\\'; ++pos_; break;
-          case '\'': out += '\''; ++pos_; break;
-          case '"': out += '"'; ++pos_; break;
-          case '/': out += '/'; ++pos_; break;
+          case 'n':
+            out += '\n';
+            ++pos_;
+            break;
+          case 't':
+            out += '\t';
+            ++pos_;
+            break;
+          case 'r':
+            out += '\r';
+            ++pos_;
+            break;
+          case 'b':
+            out += '\b';
+            ++pos_;
+            break;
+          case 'f':
+            out += '\f';
+            ++pos_;
+            break;
+          case 'v':
+            out += '\v';
+            ++pos_;
+            break;
+          case 'a':
+            out += '\a';
+            ++pos_;
+            break;
+          case '0':
+            out += '\0';
+            ++pos_;
+            break;
+          case '\\':
+            out += '\\';
+            ++pos_;
+            break;
+          case '\'':
+            out += '\'';
+            ++pos_;
+            break;
+          case '"':
+            out += '"';
+            ++pos_;
+            break;
+          case '/':
+            out += '/';
+            ++pos_;
+            break;
           case 'x': append_utf8(out, parse_hex_escape(2, escape_start)); break;
           case 'U': {
             std::uint32_t cp = parse_hex_escape(8, escape_start);
@@ -359,7 +396,8 @@ class Parser {
         fail("malformed number: missing exponent digits");
       }
     }
-    if (pos_ < text_.size() && is_ident(text_[pos_])) fail("malformed number: unexpected " + describe_here());
+    if (pos_ < text_.size() && is_ident(text_[pos_]))
+      fail("malformed number: unexpected " + describe_here());
     std::string_view body = text_.substr(digits_start, pos_ - digits_start);
 
     if (!is_float) {
@@ -409,7 +447,8 @@ class Parser {
 
 }  // namespace
 
-bool parse_params_into(std::string_view text, std::size_t first_column, json& value, ParamsParse& error) {
+bool parse_params_into(std::string_view text, std::size_t first_column, json& value,
+                       ParamsParse& error) {
   Parser parser(text);
   try {
     parser.parse_all(value);

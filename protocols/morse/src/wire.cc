@@ -27,12 +27,15 @@ std::size_t skip_blanks(std::string_view line, std::size_t pos) {
 
 // The end of the token starting at `pos`; ORs its bytes into `bytes` (bit 7 set: not ASCII).
 std::size_t token_end(std::string_view line, std::size_t pos, unsigned& bytes) {
-  while (pos < line.size() && !is_blank_in_line(line[pos])) bytes |= static_cast<unsigned char>(line[pos++]);
+  while (pos < line.size() && !is_blank_in_line(line[pos]))
+    bytes |= static_cast<unsigned char>(line[pos++]);
   return pos;
 }
 
 void append_u_escape(std::string& out, std::uint32_t unit) {
-  char buf[6] = {'\\', 'u', hex_digit(unit >> 12), hex_digit(unit >> 8), hex_digit(unit >> 4), hex_digit(unit)};
+  char buf[6] = {
+      '\\',           'u', hex_digit(unit >> 12), hex_digit(unit >> 8), hex_digit(unit >> 4),
+      hex_digit(unit)};
   out.append(buf, 6);
 }
 
@@ -53,13 +56,34 @@ void append_string(std::string& out, std::string_view s) {
     if (i >= s.size()) break;
     unsigned char c = static_cast<unsigned char>(s[i]);
     switch (c) {
-      case '"': out += "\\\""; ++i; continue;
-      case '\\': out += "\\\\"; ++i; continue;
-      case '\n': out += "\\n"; ++i; continue;
-      case '\r': out += "\\r"; ++i; continue;
-      case '\t': out += "\\t"; ++i; continue;
-      case '\b': out += "\\b"; ++i; continue;
-      case '\f': out += "\\f"; ++i; continue;
+      case '"':
+        out += "\\\"";
+        ++i;
+        continue;
+      case '\\':
+        out += "\\\\";
+        ++i;
+        continue;
+      case '\n':
+        out += "\\n";
+        ++i;
+        continue;
+      case '\r':
+        out += "\\r";
+        ++i;
+        continue;
+      case '\t':
+        out += "\\t";
+        ++i;
+        continue;
+      case '\b':
+        out += "\\b";
+        ++i;
+        continue;
+      case '\f':
+        out += "\\f";
+        ++i;
+        continue;
       default: break;
     }
     if (c < 0x20 || c == 0x7F) {
@@ -99,7 +123,8 @@ char* write_integer(char* p, char* end, const json& value) {
 // ("1e-05", "1.5e+16"), with at least two exponent digits. `p` has room for 32 characters.
 char* write_repr_double(char* p, double d) {
   char sci[32];  // [-]D[.DDD]e±XX[X]: shortest, the exponent with two digits at least
-  const char* const sci_end = std::to_chars(sci, sci + sizeof sci, d, std::chars_format::scientific).ptr;
+  const char* const sci_end =
+      std::to_chars(sci, sci + sizeof sci, d, std::chars_format::scientific).ptr;
   const char* s = sci;
   if (*s == '-') *p++ = *s++;
   const char* e = sci_end - 4;  // the exponent has two or three digits
@@ -145,8 +170,10 @@ void append_number(std::string& out, const json& value) {
     out.append(buf, write_integer(buf, buf + sizeof buf, value));
   } else {
     double d = value.get<double>();
-    if (std::isnan(d)) out += "NaN";
-    else if (std::isinf(d)) out += d > 0 ? "Infinity" : "-Infinity";
+    if (std::isnan(d))
+      out += "NaN";
+    else if (std::isinf(d))
+      out += d > 0 ? "Infinity" : "-Infinity";
     else {
       char buf[32];
       out.append(buf, write_repr_double(buf, d));
@@ -164,10 +191,17 @@ std::size_t decode_utf8(std::string_view s, std::size_t i, std::uint32_t& cp) {
     cp = c;
     return 1;
   }
-  if (c >= 0xC2 && c <= 0xDF) { n = 2; cp = c & 0x1F; }
-  else if (c >= 0xE0 && c <= 0xEF) { n = 3; cp = c & 0x0F; }
-  else if (c >= 0xF0 && c <= 0xF4) { n = 4; cp = c & 0x07; }
-  else return 0;
+  if (c >= 0xC2 && c <= 0xDF) {
+    n = 2;
+    cp = c & 0x1F;
+  } else if (c >= 0xE0 && c <= 0xEF) {
+    n = 3;
+    cp = c & 0x0F;
+  } else if (c >= 0xF0 && c <= 0xF4) {
+    n = 4;
+    cp = c & 0x07;
+  } else
+    return 0;
   if (i + n > s.size()) return 0;
   for (std::size_t k = 1; k < n; ++k) {
     if ((b(i + k) & 0xC0) != 0x80) return 0;
@@ -206,7 +240,8 @@ std::optional<std::string_view> parse_auth_line(std::string_view line) {
   constexpr std::string_view k_auth = "auth";
   const std::size_t start = skip_blanks(line, 0);
   std::string_view rest = line.substr(start);
-  if (rest.substr(0, k_auth.size()) != k_auth || rest.size() <= k_auth.size() || !is_blank_in_line(rest[k_auth.size()]))
+  if (rest.substr(0, k_auth.size()) != k_auth || rest.size() <= k_auth.size() ||
+      !is_blank_in_line(rest[k_auth.size()]))
     return std::nullopt;
   std::string_view token = rest.substr(skip_blanks(rest, k_auth.size()));
   while (!token.empty() && is_blank_in_line(token.back())) token.remove_suffix(1);
@@ -226,7 +261,8 @@ RequestLine parse_request_line(std::string_view line) {
     while (echoable_id(r.id.substr(at, 1))) ++at;
     r.kind = RequestLine::Kind::malformed;
     r.error = "Malformed request! the id contains a control character (byte " +
-              std::to_string(static_cast<unsigned char>(r.id[at])) + " at column " + std::to_string(id_begin + at + 1) +
+              std::to_string(static_cast<unsigned char>(r.id[at])) + " at column " +
+              std::to_string(id_begin + at + 1) +
               "); ids are echoed in replies, use printable ones";
     r.id = "-";
     return r;
@@ -236,8 +272,9 @@ RequestLine parse_request_line(std::string_view line) {
   const std::size_t c_end = token_end(line, c_begin, name_bytes);
   if (c_begin == c_end) {
     r.kind = RequestLine::Kind::malformed;
-    r.error = "Malformed request! expected '<id> <component> <service> [params]' or '<id> cancel', "
-              "got only an id";
+    r.error =
+        "Malformed request! expected '<id> <component> <service> [params]' or '<id> cancel', "
+        "got only an id";
     return r;
   }
   r.component = line.substr(c_begin, c_end - c_begin);

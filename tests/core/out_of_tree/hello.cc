@@ -19,8 +19,10 @@ class HelloTransport : public simgate::RequestManager {
 
  protected:
   void on_service_completion(simgate::RequestId, simgate::Outcome&& outcome) override {
-    std::ofstream(output_) << simgate::json{{"status", to_string(outcome.status)},
-                                            {"value", outcome.value.value_or(nullptr)}}.dump();
+    std::ofstream(output_) << simgate::json{
+        {"status", to_string(outcome.status)},
+        {"value", outcome.value.value_or(
+                      nullptr)}}.dump();
   }
 
  private:

@@ -16,7 +16,9 @@ class Throwing : public simgate::RequestManager {
 
 const char* const no_keys[] = {nullptr};
 
-[[maybe_unused]] simgate::RequestManager* create_none(const char*, char*, size_t) { return nullptr; }
+[[maybe_unused]] simgate::RequestManager* create_none(const char*, char*, size_t) {
+  return nullptr;
+}
 [[maybe_unused]] void destroy_none(simgate::RequestManager*) {}
 [[maybe_unused]] int validate_none(const char*, char*, size_t, char*, size_t) { return 1; }
 
@@ -28,22 +30,41 @@ const char* const no_keys[] = {nullptr};
 SIMGATE_TRANSPORT_PLUGIN(throws, Throwing, "0.0.1")
 #elif defined(BROKEN_ABI)
 EXPORT const simgate_transport_descriptor* simgate_transport_badabi_entry(void) {
-  static const simgate_transport_descriptor d = {999, sizeof(simgate_transport_descriptor), "badabi", "0",
-                                                 SIMGATE_BUILD_TAG, no_keys, create_none, destroy_none, validate_none};
+  static const simgate_transport_descriptor d = {999,
+                                                 sizeof(simgate_transport_descriptor),
+                                                 "badabi",
+                                                 "0",
+                                                 SIMGATE_BUILD_TAG,
+                                                 no_keys,
+                                                 create_none,
+                                                 destroy_none,
+                                                 validate_none};
   return &d;
 }
 #elif defined(BROKEN_TAG)
 EXPORT const simgate_transport_descriptor* simgate_transport_badtag_entry(void) {
-  static const simgate_transport_descriptor d = {SIMGATE_PLUGIN_ABI_VERSION, sizeof(simgate_transport_descriptor),
-                                                 "badtag", "0", "abi1;cxx11abi=0;json=2.0", no_keys,
-                                                 create_none, destroy_none, validate_none};
+  static const simgate_transport_descriptor d = {SIMGATE_PLUGIN_ABI_VERSION,
+                                                 sizeof(simgate_transport_descriptor),
+                                                 "badtag",
+                                                 "0",
+                                                 "abi1;cxx11abi=0;json=2.0",
+                                                 no_keys,
+                                                 create_none,
+                                                 destroy_none,
+                                                 validate_none};
   return &d;
 }
 #elif defined(BROKEN_NOCREATE)
 EXPORT const simgate_transport_descriptor* simgate_transport_nocreate_entry(void) {
-  static const simgate_transport_descriptor d = {SIMGATE_PLUGIN_ABI_VERSION, sizeof(simgate_transport_descriptor),
-                                                 "nocreate", "0", SIMGATE_BUILD_TAG, no_keys, nullptr,
-                                                 destroy_none, validate_none};
+  static const simgate_transport_descriptor d = {SIMGATE_PLUGIN_ABI_VERSION,
+                                                 sizeof(simgate_transport_descriptor),
+                                                 "nocreate",
+                                                 "0",
+                                                 SIMGATE_BUILD_TAG,
+                                                 no_keys,
+                                                 nullptr,
+                                                 destroy_none,
+                                                 validate_none};
   return &d;
 }
 #elif defined(BROKEN_NOSYMBOL)
@@ -51,9 +72,15 @@ EXPORT const simgate_transport_descriptor* simgate_transport_nocreate_entry(void
 EXPORT int simgate_transport_something_else(void) { return 42; }
 #elif defined(BROKEN_MISNAMED)
 EXPORT const simgate_transport_descriptor* simgate_transport_misnamed_entry(void) {
-  static const simgate_transport_descriptor d = {SIMGATE_PLUGIN_ABI_VERSION, sizeof(simgate_transport_descriptor),
-                                                 "other", "0", SIMGATE_BUILD_TAG, no_keys, create_none,
-                                                 destroy_none, validate_none};
+  static const simgate_transport_descriptor d = {SIMGATE_PLUGIN_ABI_VERSION,
+                                                 sizeof(simgate_transport_descriptor),
+                                                 "other",
+                                                 "0",
+                                                 SIMGATE_BUILD_TAG,
+                                                 no_keys,
+                                                 create_none,
+                                                 destroy_none,
+                                                 validate_none};
   return &d;
 }
 #elif defined(BROKEN_UNDEFINED)

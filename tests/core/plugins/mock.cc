@@ -11,12 +11,14 @@ namespace simgate::testing {
 
 class MockPlugin : public MockTransport {
  public:
-  explicit MockPlugin(const json& options) : MockTransport("Mock service manager"), options_(options) {
+  explicit MockPlugin(const json& options)
+      : MockTransport("Mock service manager"), options_(options) {
     ConfigObject config(options, "mock");
     greeting_ = config.get_string("greeting", "hello");
     config.finish();
   }
-  RequestId client_call(const std::string& component, const std::string& service, const json& params) override {
+  RequestId client_call(const std::string& component, const std::string& service,
+                        const json& params) override {
     RequestId id = new_request_id();
     submit(id, Call{component, service, params});
     return id;
@@ -39,10 +41,10 @@ class MockPlugin : public MockTransport {
   }
 
  private:
-  json options_;                          // as given
-  std::string greeting_;                  // an option, to test option checking
-  bool started_ = false;                  // start() was called
-  std::mutex mutex_;                      // guards outcomes_
+  json options_;                           // as given
+  std::string greeting_;                   // an option, to test option checking
+  bool started_ = false;                   // start() was called
+  std::mutex mutex_;                       // guards outcomes_
   std::map<RequestId, Outcome> outcomes_;  // delivered outcomes
 };
 

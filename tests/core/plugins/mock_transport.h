@@ -14,7 +14,8 @@ class MockTransport : public RequestManager {
  public:
   using RequestManager::RequestManager;
   // What a client would send; returns the request id.
-  virtual RequestId client_call(const std::string& component, const std::string& service, const json& params) = 0;
+  virtual RequestId client_call(const std::string& component, const std::string& service,
+                                const json& params) = 0;
   // The outcome delivered for `id`, if any.
   virtual std::optional<Outcome> client_outcome(RequestId id) = 0;
   // The options the plugin was created with.

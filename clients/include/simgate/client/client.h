@@ -34,7 +34,8 @@ class AuthError : public ClientError {
 // Why a token cannot be presented to the DDS transport (DdsClient::login's error, and the
 // command line's).
 inline constexpr std::string_view k_dds_has_no_token =
-    "the dds transport has no token authentication: who may reach it is set with Cyclone's network settings "
+    "the dds transport has no token authentication: who may reach it is set with Cyclone's network "
+    "settings "
     "or DDS Security (docs/transports/dds.md, \"Network exposure\")";
 
 class Client {
@@ -42,8 +43,8 @@ class Client {
   virtual ~Client() = default;
   // Calls component.service with params (array, object or null) and waits for the final
   // outcome. Throws ClientError on connection loss or when `timeout` passes.
-  virtual Outcome call(const std::string& component, const std::string& service,
-                       const json& params, std::chrono::milliseconds timeout) = 0;
+  virtual Outcome call(const std::string& component, const std::string& service, const json& params,
+                       std::chrono::milliseconds timeout) = 0;
   // Everything the server offers through this transport: a JSON array of
   // ServiceDescriptor::to_json() objects.
   virtual json list_services(std::chrono::milliseconds timeout) = 0;
@@ -54,10 +55,10 @@ class Client {
   virtual void login(const std::string& token, std::chrono::milliseconds timeout) = 0;
 };
 
-// transport: "socket", "jsonrpc", "websocket" or "dds". options: {"host", "port"} for TCP transports,
-// {"domain", "partition", "config"} for DDS; and for any of them "token", presented at once
-// (login()) within "timeout_ms" (default 5000). Throws ClientError for unknown transports,
-// and what login() throws.
+// transport: "socket", "jsonrpc", "websocket" or "dds". options: {"host", "port"} for TCP
+// transports, {"domain", "partition", "config"} for DDS; and for any of them "token",
+// presented at once (login()) within "timeout_ms" (default 5000). Throws ClientError for
+// unknown transports, and what login() throws.
 std::unique_ptr<Client> make_client(const std::string& transport, const json& options);
 
 // Implemented in clients/<name>/ (present when SIMGATE_CLIENT_<NAME> is defined).

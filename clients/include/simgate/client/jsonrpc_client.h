@@ -106,10 +106,10 @@ class JsonRpcClient : public Client {
   static void throw_if_unauthorized(const json& response, const std::string& who);
 
  private:
-  LineConnection connection_;   // the TCP connection and its line buffer
-  std::string peer_;            // "host:port", for messages
-  std::deque<json> early_;      // messages that arrived before they were asked for
-  std::int64_t next_id_ = 0;    // last id used
+  LineConnection connection_;  // the TCP connection and its line buffer
+  std::string peer_;           // "host:port", for messages
+  std::deque<json> early_;     // messages that arrived before they were asked for
+  std::int64_t next_id_ = 0;   // last id used
 };
 
 }  // namespace simgate::client

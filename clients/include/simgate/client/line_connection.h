@@ -51,12 +51,12 @@ class LineConnection {
   // "socket client: 127.0.0.1:4000: <what>"
   [[noreturn]] void fail(const std::string& what);
 
-  std::string owner_;    // "socket client", "jsonrpc client"
-  std::string peer_;     // "host:port"
-  int fd_ = -1;          // the connected socket (non-blocking)
-  std::string buffer_;   // bytes received, not yet returned as lines
+  std::string owner_;        // "socket client", "jsonrpc client"
+  std::string peer_;         // "host:port"
+  int fd_ = -1;              // the connected socket (non-blocking)
+  std::string buffer_;       // bytes received, not yet returned as lines
   std::size_t scanned_ = 0;  // buffer_ holds no '\n' before this offset
-  bool closed_ = false;  // the peer closed the connection, or it failed
+  bool closed_ = false;      // the peer closed the connection, or it failed
 };
 
 }  // namespace simgate::client

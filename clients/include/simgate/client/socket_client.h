@@ -84,11 +84,11 @@ class SocketClient : public Client {
   static Outcome to_outcome(const SocketReply& reply);
 
  private:
-  LineConnection connection_;                // the TCP connection and its line buffer
-  std::string host_;                         // the server's address, its stream ports' too
+  LineConnection connection_;                 // the TCP connection and its line buffer
+  std::string host_;                          // the server's address, its stream ports' too
   std::map<std::string, SocketReply> early_;  // replies that arrived before they were awaited
-  std::uint64_t next_id_ = 0;                // ids are decimal counters, as pymorse's
-  std::string token_;                        // the token the server accepted ("" before, or if none was needed)
+  std::uint64_t next_id_ = 0;                 // ids are decimal counters, as pymorse's
+  std::string token_;  // the token the server accepted ("" before, or if none was needed)
 };
 
 }  // namespace simgate::client

@@ -79,9 +79,11 @@ struct ArgTraits<T, std::enable_if_t<std::is_integral_v<T> && !std::is_same_v<T,
       // in range: min <= d < 2^digits. Both bounds are exact doubles; max itself is not for
       // 64-bit types (double(UINT64_MAX) rounds up to 2^64, which does not fit: converting
       // it is undefined behaviour)
-      constexpr double upper = double(std::uint64_t{1} << (std::numeric_limits<T>::digits - 1)) * 2.0;
+      constexpr double upper =
+          double(std::uint64_t{1} << (std::numeric_limits<T>::digits - 1)) * 2.0;
       double d = j.get<double>();
-      if (std::isfinite(d) && std::trunc(d) == d && d >= double(std::numeric_limits<T>::min()) && d < upper)
+      if (std::isfinite(d) && std::trunc(d) == d && d >= double(std::numeric_limits<T>::min()) &&
+          d < upper)
         return static_cast<T>(d);
     }
     throw TypeMismatch{expected(), "", describe_json(j)};
@@ -92,7 +94,9 @@ struct ArgTraits<T, std::enable_if_t<std::is_integral_v<T> && !std::is_same_v<T,
     if constexpr (std::is_unsigned_v<T>) s["minimum"] = 0;
     return s;
   }
-  static std::string expected() { return std::is_unsigned_v<T> ? "non-negative integer" : "integer"; }
+  static std::string expected() {
+    return std::is_unsigned_v<T> ? "non-negative integer" : "integer";
+  }
 };
 
 template <class T>
@@ -210,7 +214,9 @@ struct ArgTraits<std::map<std::string, T>> {
     for (const auto& [k, e] : v) out[k] = ArgTraits<T>::to_json(e);
     return out;
   }
-  static json schema() { return {{"type", "object"}, {"additionalProperties", ArgTraits<T>::schema()}}; }
+  static json schema() {
+    return {{"type", "object"}, {"additionalProperties", ArgTraits<T>::schema()}};
+  }
   static std::string expected() { return "object of " + ArgTraits<T>::expected() + "s"; }
 };
 

@@ -74,7 +74,9 @@ class CallContext {
   // Without a current context (a host calling the function directly) they are dropped.
   static void attach(std::shared_ptr<const StreamPayload> payload);
   // What attach() gave, moved out (the core, after the service returned).
-  std::vector<std::shared_ptr<const StreamPayload>> take_attachments() noexcept { return std::move(attachments_); }
+  std::vector<std::shared_ptr<const StreamPayload>> take_attachments() noexcept {
+    return std::move(attachments_);
+  }
 
  private:
   const RequestManager& manager_;  // the caller's transport (outlives the call)

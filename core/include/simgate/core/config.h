@@ -86,9 +86,9 @@ class ConfigObject {
  private:
   const json* find(const std::string& key);
 
-  json value_;                   // the object itself (copied: configs are small)
-  std::string path_;             // JSON path of this object, "" at the root
-  std::set<std::string> used_;   // keys a getter asked for
+  json value_;                  // the object itself (copied: configs are small)
+  std::string path_;            // JSON path of this object, "" at the root
+  std::set<std::string> used_;  // keys a getter asked for
 };
 
 }  // namespace simgate

@@ -63,9 +63,12 @@ class ServiceAlreadyRunning : public ServiceError {
 // "config 'demo.json': <message>", or "config 'demo.json': 3 errors:" and one per line.
 class ConfigError : public std::runtime_error {
  public:
-  explicit ConfigError(const std::string& message) : ConfigError(std::vector<std::string>{message}) {}
+  explicit ConfigError(const std::string& message)
+      : ConfigError(std::vector<std::string>{message}) {}
   explicit ConfigError(std::vector<std::string> errors, std::string file = "")
-      : std::runtime_error(describe(errors, file)), errors_(std::move(errors)), file_(std::move(file)) {}
+      : std::runtime_error(describe(errors, file)),
+        errors_(std::move(errors)),
+        file_(std::move(file)) {}
   // Every error, in the order found, without the file.
   const std::vector<std::string>& errors() const noexcept { return errors_; }
   // The file they were found in ("" when unknown).
@@ -90,8 +93,11 @@ class ConfigError : public std::runtime_error {
 class ConfigTextError : public ConfigError {
  public:
   ConfigTextError(std::string message, std::size_t line, std::size_t column)
-      : ConfigError(message + " (line " + std::to_string(line) + ", column " + std::to_string(column) + ")"),
-        message_(std::move(message)), line_(line), column_(column) {}
+      : ConfigError(message + " (line " + std::to_string(line) + ", column " +
+                    std::to_string(column) + ")"),
+        message_(std::move(message)),
+        line_(line),
+        column_(column) {}
   // The message without its position: "scene: invalid JSON: expected ..., found ...".
   const std::string& message() const noexcept { return message_; }
   std::size_t line() const noexcept { return line_; }

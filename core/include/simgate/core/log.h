@@ -48,11 +48,26 @@ void at(Level l, const Args&... args) {
   (out << ... << args);
   write(l, out.str());
 }
-template <class... Args> void trace(const Args&... a) { at(Level::trace, a...); }
-template <class... Args> void debug(const Args&... a) { at(Level::debug, a...); }
-template <class... Args> void info(const Args&... a) { at(Level::info, a...); }
-template <class... Args> void warning(const Args&... a) { at(Level::warning, a...); }
-template <class... Args> void error(const Args&... a) { at(Level::error, a...); }
+template <class... Args>
+void trace(const Args&... a) {
+  at(Level::trace, a...);
+}
+template <class... Args>
+void debug(const Args&... a) {
+  at(Level::debug, a...);
+}
+template <class... Args>
+void info(const Args&... a) {
+  at(Level::info, a...);
+}
+template <class... Args>
+void warning(const Args&... a) {
+  at(Level::warning, a...);
+}
+template <class... Args>
+void error(const Args&... a) {
+  at(Level::error, a...);
+}
 
 }  // namespace simgate::log
 

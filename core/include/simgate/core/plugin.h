@@ -46,7 +46,7 @@
 
 // What must match between host and plugin for C++ objects to cross: the standard
 // library's ABI and nlohmann::json's layout.
-#define SIMGATE_BUILD_TAG                                                            \
+#define SIMGATE_BUILD_TAG \
   "abi" SIMGATE_STRINGIFY(SIMGATE_PLUGIN_ABI_VERSION) ";cxx11abi=" SIMGATE_STRINGIFY( \
       _GLIBCXX_USE_CXX11_ABI) ";json=" SIMGATE_STRINGIFY(NLOHMANN_JSON_VERSION_MAJOR) "." \
       SIMGATE_STRINGIFY(NLOHMANN_JSON_VERSION_MINOR)
@@ -54,10 +54,10 @@
 extern "C" {
 
 typedef simgate::RequestManager* (*simgate_create_fn)(const char* options_json, char* error,
-                                                       size_t error_size);
+                                                      size_t error_size);
 typedef void (*simgate_destroy_fn)(simgate::RequestManager* manager);
-typedef int (*simgate_validate_fn)(const char* options_json, char* error, size_t error_size, char* warnings,
-                                   size_t warnings_size);
+typedef int (*simgate_validate_fn)(const char* options_json, char* error, size_t error_size,
+                                   char* warnings, size_t warnings_size);
 
 struct simgate_transport_descriptor {
   uint32_t abi_version;            // SIMGATE_PLUGIN_ABI_VERSION of the plugin's build
@@ -126,27 +126,26 @@ inline void destroy_manager(RequestManager* manager) noexcept {
   try {
     if (manager) manager->stop();
     delete manager;
-  } catch (...) {
-  }
+  } catch (...) {}
 }
 
 }  // namespace simgate::detail
 
-#define SIMGATE_TRANSPORT_PLUGIN(NAME, CLASS, VERSION, ...)                                  \
-  extern "C" __attribute__((visibility("default"))) const simgate_transport_descriptor*      \
-      simgate_transport_##NAME##_entry(void) {                                               \
-    static const char* const keys[] = {__VA_ARGS__ __VA_OPT__(, ) nullptr};                  \
-    static const simgate_transport_descriptor descriptor = {                                 \
-        SIMGATE_PLUGIN_ABI_VERSION,                                                          \
-        sizeof(simgate_transport_descriptor),                                                \
-        #NAME,                                                                               \
-        VERSION,                                                                             \
-        SIMGATE_BUILD_TAG,                                                                   \
-        keys,                                                                                \
-        &simgate::detail::create_manager<CLASS>,                                             \
-        &simgate::detail::destroy_manager,                                                   \
-        &simgate::detail::validate_options<CLASS>};                                          \
-    return &descriptor;                                                                      \
+#define SIMGATE_TRANSPORT_PLUGIN(NAME, CLASS, VERSION, ...)                    \
+  extern "C" __attribute__((visibility("default")))                            \
+  const simgate_transport_descriptor* simgate_transport_##NAME##_entry(void) { \
+    static const char* const keys[] = {__VA_ARGS__ __VA_OPT__(, ) nullptr};    \
+    static const simgate_transport_descriptor descriptor = {                   \
+        SIMGATE_PLUGIN_ABI_VERSION,                                            \
+        sizeof(simgate_transport_descriptor),                                  \
+        #NAME,                                                                 \
+        VERSION,                                                               \
+        SIMGATE_BUILD_TAG,                                                     \
+        keys,                                                                  \
+        &simgate::detail::create_manager<CLASS>,                               \
+        &simgate::detail::destroy_manager,                                     \
+        &simgate::detail::validate_options<CLASS>};                            \
+    return &descriptor;                                                        \
   }
 
 #endif  // SIMGATE_CORE_PLUGIN_H_

@@ -57,7 +57,8 @@ class TransportPlugin {
   // The plugin's create() on options validate() accepted (the host reported its warnings),
   // whose failure is a TransportError prefixed with `config_path`. The returned manager
   // keeps the library loaded.
-  std::shared_ptr<RequestManager> create_validated(const json& options, const std::string& config_path) const;
+  std::shared_ptr<RequestManager> create_validated(const json& options,
+                                                   const std::string& config_path) const;
   // Every check create() makes of `options`, opening nothing (no socket bound, no DDS
   // participant). Throws ConfigError prefixed with `config_path`; returns the warnings the
   // options deserve (a deprecated key, a token file others may read), as `run` gives them.
@@ -66,10 +67,10 @@ class TransportPlugin {
  private:
   friend std::shared_ptr<TransportPlugin> load_transport_plugin(const std::string&,
                                                                 const std::vector<std::string>&);
-  std::shared_ptr<void> library_;                     // dlclose on last reference
+  std::shared_ptr<void> library_;                             // dlclose on last reference
   const simgate_transport_descriptor* descriptor_ = nullptr;  // inside library_
-  std::string path_;                                  // where it was found
-  std::string name_;                                  // requested name
+  std::string path_;                                          // where it was found
+  std::string name_;                                          // requested name
 };
 
 // A plugin library found, opened and its entry function resolved, not yet checked: what
@@ -87,15 +88,16 @@ struct PluginLibrary {
 // Searches (as above) for libsimgate_<kind>_<name>.so, opens it and resolves
 // simgate_<kind>_<name>_entry. `what_kind` names the kind in messages ("transport
 // plugin"). Throws PluginError naming the paths tried.
-PluginLibrary open_plugin_library(std::string_view kind, std::string_view what_kind, const std::string& name_or_path,
+PluginLibrary open_plugin_library(std::string_view kind, std::string_view what_kind,
+                                  const std::string& name_or_path,
                                   const std::vector<std::string>& extra_dirs = {});
 
 // The directories searched for `name` (after an explicit path), in order.
 std::vector<std::string> plugin_search_path(const std::vector<std::string>& extra_dirs = {});
 
 // Finds, opens and checks a plugin. Throws PluginError.
-std::shared_ptr<TransportPlugin> load_transport_plugin(const std::string& name_or_path,
-                                                       const std::vector<std::string>& extra_dirs = {});
+std::shared_ptr<TransportPlugin> load_transport_plugin(
+    const std::string& name_or_path, const std::vector<std::string>& extra_dirs = {});
 
 // load_transport_plugin + create, for standalone programs:
 //   auto rm = simgate::load_transport("socket", {{"port", 4000}});

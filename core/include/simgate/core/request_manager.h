@@ -108,7 +108,7 @@ struct Call {
 namespace detail {
 class Inbox;
 class Handoff;
-}
+}  // namespace detail
 
 class RequestManager {
  public:
@@ -127,16 +127,16 @@ class RequestManager {
   template <class F>
   ServiceBuilder register_service(const std::string& component, F fn, std::string service_name,
                                   std::vector<Param> params = {}) {
-    return add_service(make_service(component, std::move(service_name), std::move(fn),
-                                    std::move(params), false));
+    return add_service(
+        make_service(component, std::move(service_name), std::move(fn), std::move(params), false));
   }
   // An async free function; it may take a Completion first (MORSE's result_setter):
   //   rm.register_async_service("test_component", start_computation, "compute", {"start"});
   template <class F>
   ServiceBuilder register_async_service(const std::string& component, F fn,
                                         std::string service_name, std::vector<Param> params = {}) {
-    return add_service(make_service(component, std::move(service_name), std::move(fn),
-                                    std::move(params), true));
+    return add_service(
+        make_service(component, std::move(service_name), std::move(fn), std::move(params), true));
   }
   // Serves every service of `component` (shared, not copied: the component must outlive
   // this manager's use of it); then on_services_changed(). Before start(), or under the
@@ -273,7 +273,9 @@ class RequestManager {
   std::size_t pending_count() const { return running_.size(); }
   // Requests executed so far, whatever their outcome (unknown services and bad arguments
   // included). Any thread.
-  std::uint64_t requests_handled() const { return requests_handled_.load(std::memory_order_relaxed); }
+  std::uint64_t requests_handled() const {
+    return requests_handled_.load(std::memory_order_relaxed);
+  }
   // Clients connected now (TCP connections, DDS writers), for status lines. Transports
   // override it; the default knows of none. Any thread; must not block.
   virtual std::size_t client_count() const { return 0; }
@@ -298,8 +300,8 @@ class RequestManager {
   // After the table of services changed (register_component, unregister_component): a
   // transport that publishes it (the DDS catalog) publishes it anew. Runs under the
   // simulation lock (or before start()), on whichever thread added or removed the component:
-  // it must only post to the transport's own thread, not block. Must not throw. The default does nothing (introspection that reads
-  // descriptors() at each call is always current).
+  // it must only post to the transport's own thread, not block. Must not throw. The default does
+  // nothing (introspection that reads descriptors() at each call is always current).
   virtual void on_services_changed() {}
   // Delivers a progress report of request `id`, a call submitted with Call::progress, on
   // the thread and in the order on_service_completion would run (so never after the
@@ -342,29 +344,32 @@ class RequestManager {
   // Runs one request (on_incoming_request without the copies): true when `out` holds its
   // outcome (sync services and every error), false when an async service started.
   // `started`: when it started, if debug logging is on (the epoch otherwise).
-  bool execute(RequestId id, const Call& call, Outcome& out, std::chrono::steady_clock::time_point started);
+  bool execute(RequestId id, const Call& call, Outcome& out,
+               std::chrono::steady_clock::time_point started);
   // execute(), then delivers the outcome if there is one and releases what `call`'s params
   // hold (`refilled`: the transport refills the call object for its next request).
   // `deadline`: when its wait ends (the epoch: never); past it, the call is answered with
   // the timeout without running; an async one started is watched (watch_deadline).
-  void execute_and_deliver(RequestId id, Call& call, bool refilled, std::chrono::steady_clock::time_point deadline);
+  void execute_and_deliver(RequestId id, Call& call, bool refilled,
+                           std::chrono::steady_clock::time_point deadline);
   // ---- deadlines (request_deadlines.cc)
   // Remembers the deadline of async request `id`, just started.
-  void watch_deadline(RequestId id, const Call& call, std::chrono::steady_clock::time_point deadline);
+  void watch_deadline(RequestId id, const Call& call,
+                      std::chrono::steady_clock::time_point deadline);
   // Ends the async requests whose deadline has passed (under the simulation lock), then
   // asks the gate to wake process() at the next one.
   void expire_deadlines();
   // The timeout outcome of a call of `qualified` ("robot.waypoint.goto") limited to `limit`
   // (`from_call`: its own timeout, else the max wait); `what` ends the message.
-  static Outcome timeout_outcome(std::string_view qualified, std::chrono::milliseconds limit, bool from_call,
-                                 std::string_view what);
+  static Outcome timeout_outcome(std::string_view qualified, std::chrono::milliseconds limit,
+                                 bool from_call, std::string_view what);
   // Starts an async service; throws what its start method throws.
   // `wants_progress`: the client asked for progress reports (Call::progress).
-  void start_async(RequestId id, const Service& service, std::span<const json* const> args, bool wants_progress,
-                   std::chrono::steady_clock::time_point started);
+  void start_async(RequestId id, const Service& service, std::span<const json* const> args,
+                   bool wants_progress, std::chrono::steady_clock::time_point started);
   // Starts one call of a concurrent service, outside its component's slot.
-  void start_concurrent(RequestId id, const Service& service, std::span<const json* const> args, bool wants_progress,
-                        std::chrono::steady_clock::time_point started);
+  void start_concurrent(RequestId id, const Service& service, std::span<const json* const> args,
+                        bool wants_progress, std::chrono::steady_clock::time_point started);
   // The debug log line of an outcome: "Socket service manager: robot.motion set_speed ->
   // SUCCESS in 12 us" (`took`: "in" for sync requests, "after" for async ones).
   void log_outcome(std::string_view component, std::string_view service, const Outcome& outcome,
@@ -389,8 +394,8 @@ class RequestManager {
   std::shared_ptr<Service> find_service(const Call& call);
   Outcome unknown_service(const Call& call) const;
 
-  std::string name_;                       // for error messages
-  std::shared_ptr<detail::Inbox> inbox_;   // requests, cancels, tasks and completions
+  std::string name_;                          // for error messages
+  std::shared_ptr<detail::Inbox> inbox_;      // requests, cancels, tasks and completions
   std::unique_ptr<detail::Handoff> handoff_;  // outcomes on their way to the delivery thread
   // the transport's delivery thread (deliver_on_this_thread), or none: written by that
   // thread before it serves anything, read wherever outcomes are produced
@@ -400,11 +405,12 @@ class RequestManager {
   std::string transport_name_;             // the configuration's name of this transport
   mutable std::mutex connected_mutex_;     // guards connected_
   std::unordered_set<std::uint64_t> connected_;  // client_arrived and not client_left
-  mutable std::mutex table_mutex_;         // guards services_, slots_ and access_
+  mutable std::mutex table_mutex_;               // guards services_, slots_ and access_
   // component -> service name -> service
-  std::unordered_map<std::string, std::unordered_map<std::string, std::shared_ptr<Service>>> services_;
+  std::unordered_map<std::string, std::unordered_map<std::string, std::shared_ptr<Service>>>
+      services_;
   std::unordered_map<std::string, std::shared_ptr<AsyncSlot>> slots_;  // free-function slots
-  ServiceAccess access_;                   // which of services_ clients may call (set_access)
+  ServiceAccess access_;                         // which of services_ clients may call (set_access)
   std::atomic<std::uint64_t> table_version_{0};  // bumped by every registration and set_access
   // the previous successful lookup (find_service), valid while table_version_ is unchanged
   // (under the simulation lock)
@@ -415,24 +421,29 @@ class RequestManager {
     std::uint64_t version = 0;         // table_version_ when it was found
   } last_lookup_;
   // async requests this manager started and has not delivered (under the simulation lock)
-  std::unordered_map<RequestId, std::pair<std::shared_ptr<detail::CallState>, std::shared_ptr<AsyncSlot>>> running_;
-  Outcome outcome_;  // the outcome of the request being executed, reused (under the simulation lock)
-  std::atomic<std::uint64_t> requests_handled_{0};  // written under the simulation lock, read anywhere
+  std::unordered_map<RequestId,
+                     std::pair<std::shared_ptr<detail::CallState>, std::shared_ptr<AsyncSlot>>>
+      running_;
+  Outcome
+      outcome_;  // the outcome of the request being executed, reused (under the simulation lock)
+  std::atomic<std::uint64_t> requests_handled_{
+      0};  // written under the simulation lock, read anywhere
   GlobalPolicy global_policy_ = GlobalPolicy::reject;  // when the running service has no policy
-  std::chrono::nanoseconds progress_interval_ = k_default_progress_interval;  // set_progress_interval
+  std::chrono::nanoseconds progress_interval_ =
+      k_default_progress_interval;         // set_progress_interval
   std::chrono::milliseconds max_wait_{0};  // set_max_wait (zero: none)
   // an async request with a deadline, watched until it passes (under the simulation lock)
   struct Deadline {
-    std::chrono::steady_clock::time_point at;   // when it passes
-    RequestId id;                               // the request
-    std::weak_ptr<detail::CallState> state;     // which request of that id (ids are reused)
-    std::chrono::milliseconds limit;            // the limit, for the message
-    bool from_call;                             // the call's own timeout, or the max wait
+    std::chrono::steady_clock::time_point at;  // when it passes
+    RequestId id;                              // the request
+    std::weak_ptr<detail::CallState> state;    // which request of that id (ids are reused)
+    std::chrono::milliseconds limit;           // the limit, for the message
+    bool from_call;                            // the call's own timeout, or the max wait
   };
   // a min-heap on `at` (std::push_heap with a greater-than); entries of requests that ended
   // stay until their time, or until a purge when there are many more than running requests
   std::vector<Deadline> deadlines_;
-  bool started_ = false;                   // start() called (by process() if nobody did; under the lock)
+  bool started_ = false;  // start() called (by process() if nobody did; under the lock)
 };
 
 }  // namespace simgate

@@ -70,13 +70,13 @@ struct ParamDescriptor {
 };
 
 struct ServiceDescriptor {
-  std::string component;               // "robot.waypoint", "simulation"
-  std::string name;                    // "goto"
+  std::string component;                // "robot.waypoint", "simulation"
+  std::string name;                     // "goto"
   std::vector<ParamDescriptor> params;  // in positional order
-  bool is_async = false;               // completes later through a Completion
-  bool concurrent = false;             // async only: each call runs on its own, outside the slot
+  bool is_async = false;                // completes later through a Completion
+  bool concurrent = false;              // async only: each call runs on its own, outside the slot
   Policy policy = Policy::unspecified;  // async only (never for concurrent services)
-  std::string doc;                     // one line
+  std::string doc;                      // one line
   json result_schema = json::object();  // JSON schema of the result ({} = unknown)
   // Acts on the whole process rather than the world (ends it, changes its log level):
   // served only through console transports (ServiceAccess::console, service_access.h).
@@ -107,19 +107,20 @@ class CompletionSink {
 };
 
 struct CallState {
-  RequestId id = 0;                          // the manager's request id
-  std::string service;                       // "component.service", for messages
-  std::weak_ptr<CompletionSink> sink;        // the manager that started it
-  std::atomic<bool> finished{false};         // exactly-once guard
-  bool concurrent = false;                   // a call of a concurrent service (not in the slot)
-  Failure interrupt_reason = Failure::preempted;  // set before interrupt(): preempted, cancelled or timeout
-  std::string interrupt_message;             // who or what interrupted it
+  RequestId id = 0;                    // the manager's request id
+  std::string service;                 // "component.service", for messages
+  std::weak_ptr<CompletionSink> sink;  // the manager that started it
+  std::atomic<bool> finished{false};   // exactly-once guard
+  bool concurrent = false;             // a call of a concurrent service (not in the slot)
+  Failure interrupt_reason =
+      Failure::preempted;         // set before interrupt(): preempted, cancelled or timeout
+  std::string interrupt_message;  // who or what interrupted it
   // Its deadline passed (set under the simulation lock, after interrupt_message and
   // timeout_data, before interrupt()): whatever finishes it from then on, the outcome is
   // FAILED, Failure::timeout, interrupt_message (Completion::finish), so the client's one
   // reply is the timeout and the component's own completion afterwards is dropped.
   std::atomic<bool> timed_out{false};
-  json timeout_data;                         // the timeout outcome's data (null until then)
+  json timeout_data;  // the timeout outcome's data (null until then)
   // when it started, for the debug log line of its outcome; left at the epoch (and never
   // read) unless debug logging was on when it started
   std::chrono::steady_clock::time_point started{};
@@ -177,10 +178,10 @@ class Completion {
 // One component's async slot, shared by all its async services (and all the request
 // managers that serve it). Touched only under the simulation lock.
 struct AsyncSlot {
-  std::string component;                       // owner's name
-  std::shared_ptr<detail::CallState> running;  // the running request, if any (may be finished)
+  std::string component;                        // owner's name
+  std::shared_ptr<detail::CallState> running;   // the running request, if any (may be finished)
   Policy running_policy = Policy::unspecified;  // local policy of the running service
-  Completion running_completion;               // handle to finish `running`
+  Completion running_completion;                // handle to finish `running`
   // Ends the running request: Component::interrupt(), or finishing it PREEMPTED.
   std::function<void()> interrupt;
   // Calls of the component's concurrent services, outside the one-at-a-time rule: those
@@ -276,37 +277,70 @@ BoundArguments bind_arguments(const ServiceDescriptor& service, const json& para
 
 namespace detail {
 
-template <class F> struct fn_traits : fn_traits<decltype(&std::remove_cvref_t<F>::operator())> {};
-template <class R, class... A> struct fn_traits<R(A...)> {
+template <class F>
+struct fn_traits : fn_traits<decltype(&std::remove_cvref_t<F>::operator())> {};
+template <class R, class... A>
+struct fn_traits<R(A...)> {
   using result = R;
   using args = std::tuple<A...>;
 };
-template <class R, class... A> struct fn_traits<R (*)(A...)> : fn_traits<R(A...)> {};
-template <class R, class... A> struct fn_traits<R (*)(A...) noexcept> : fn_traits<R(A...)> {};
-template <class R, class... A> struct fn_traits<R(A...) noexcept> : fn_traits<R(A...)> {};
-template <class C, class R, class... A> struct fn_traits<R (C::*)(A...)> : fn_traits<R(A...)> { using cls = C; };
-template <class C, class R, class... A> struct fn_traits<R (C::*)(A...) const> : fn_traits<R(A...)> { using cls = C; };
-template <class C, class R, class... A> struct fn_traits<R (C::*)(A...) noexcept> : fn_traits<R(A...)> { using cls = C; };
-template <class C, class R, class... A> struct fn_traits<R (C::*)(A...) const noexcept> : fn_traits<R(A...)> { using cls = C; };
+template <class R, class... A>
+struct fn_traits<R (*)(A...)> : fn_traits<R(A...)> {};
+template <class R, class... A>
+struct fn_traits<R (*)(A...) noexcept> : fn_traits<R(A...)> {};
+template <class R, class... A>
+struct fn_traits<R(A...) noexcept> : fn_traits<R(A...)> {};
+template <class C, class R, class... A>
+struct fn_traits<R (C::*)(A...)> : fn_traits<R(A...)> {
+  using cls = C;
+};
+template <class C, class R, class... A>
+struct fn_traits<R (C::*)(A...) const> : fn_traits<R(A...)> {
+  using cls = C;
+};
+template <class C, class R, class... A>
+struct fn_traits<R (C::*)(A...) noexcept> : fn_traits<R(A...)> {
+  using cls = C;
+};
+template <class C, class R, class... A>
+struct fn_traits<R (C::*)(A...) const noexcept> : fn_traits<R(A...)> {
+  using cls = C;
+};
 
 // Binds a member function to an object, keeping its exact parameter list.
 template <class C, class R, class... A>
-auto bind_member(C* obj, R (C::*fn)(A...)) { return [obj, fn](A... a) -> R { return (obj->*fn)(std::forward<A>(a)...); }; }
+auto bind_member(C* obj, R (C::*fn)(A...)) {
+  return [obj, fn](A... a) -> R { return (obj->*fn)(std::forward<A>(a)...); };
+}
 template <class C, class R, class... A>
-auto bind_member(C* obj, R (C::*fn)(A...) const) { return [obj, fn](A... a) -> R { return (obj->*fn)(std::forward<A>(a)...); }; }
+auto bind_member(C* obj, R (C::*fn)(A...) const) {
+  return [obj, fn](A... a) -> R { return (obj->*fn)(std::forward<A>(a)...); };
+}
 template <class C, class R, class... A>
-auto bind_member(C* obj, R (C::*fn)(A...) noexcept) { return [obj, fn](A... a) -> R { return (obj->*fn)(std::forward<A>(a)...); }; }
+auto bind_member(C* obj, R (C::*fn)(A...) noexcept) {
+  return [obj, fn](A... a) -> R { return (obj->*fn)(std::forward<A>(a)...); };
+}
 template <class C, class R, class... A>
-auto bind_member(C* obj, R (C::*fn)(A...) const noexcept) { return [obj, fn](A... a) -> R { return (obj->*fn)(std::forward<A>(a)...); }; }
+auto bind_member(C* obj, R (C::*fn)(A...) const noexcept) {
+  return [obj, fn](A... a) -> R { return (obj->*fn)(std::forward<A>(a)...); };
+}
 
-template <class Tuple> struct first_is_completion : std::false_type {};
+template <class Tuple>
+struct first_is_completion : std::false_type {};
 template <class First, class... Rest>
 struct first_is_completion<std::tuple<First, Rest...>>
     : std::is_same<std::remove_cvref_t<First>, Completion> {};
 
-template <class Tuple> struct drop_first;
-template <class First, class... Rest> struct drop_first<std::tuple<First, Rest...>> { using type = std::tuple<Rest...>; };
-template <> struct drop_first<std::tuple<>> { using type = std::tuple<>; };
+template <class Tuple>
+struct drop_first;
+template <class First, class... Rest>
+struct drop_first<std::tuple<First, Rest...>> {
+  using type = std::tuple<Rest...>;
+};
+template <>
+struct drop_first<std::tuple<>> {
+  using type = std::tuple<>;
+};
 
 // Throws WrongArguments naming the parameter, the expected type and what was received.
 [[noreturn]] void throw_type_mismatch(const ServiceDescriptor& d, std::size_t index,
@@ -337,7 +371,8 @@ std::optional<json> result_to_json(R&& r) {
 template <bool WithCompletion, class F, class... A, std::size_t... I>
 std::optional<json> invoke_typed(F& fn, [[maybe_unused]] const ServiceDescriptor& d,
                                  [[maybe_unused]] std::span<const json* const> args,
-                                 [[maybe_unused]] const Completion& completion, std::index_sequence<I...>) {
+                                 [[maybe_unused]] const Completion& completion,
+                                 std::index_sequence<I...>) {
   // braced initialisation converts left to right: the first bad parameter is reported
   std::tuple<std::decay_t<A>...> values{convert_argument<A>(d, I, *args[I])...};
   auto call = [&]() -> decltype(auto) {
@@ -355,13 +390,15 @@ std::optional<json> invoke_typed(F& fn, [[maybe_unused]] const ServiceDescriptor
   }
 }
 
-template <class F, class Tuple> struct typed_invoker;
+template <class F, class Tuple>
+struct typed_invoker;
 template <class F, class... A>
 struct typed_invoker<F, std::tuple<A...>> {
   template <bool WithCompletion>
-  static std::optional<json> run(F& fn, const ServiceDescriptor& d, std::span<const json* const> args,
-                                 const Completion& completion) {
-    return invoke_typed<WithCompletion, F, A...>(fn, d, args, completion, std::index_sequence_for<A...>{});
+  static std::optional<json> run(F& fn, const ServiceDescriptor& d,
+                                 std::span<const json* const> args, const Completion& completion) {
+    return invoke_typed<WithCompletion, F, A...>(fn, d, args, completion,
+                                                 std::index_sequence_for<A...>{});
   }
   static std::vector<ParamDescriptor> describe() {
     return {ParamDescriptor{"", ArgTraits<std::decay_t<A>>::schema(),
@@ -385,7 +422,8 @@ struct typed_invoker<F, std::tuple<A...>> {
 };
 
 // Fills descriptor params from the signature types and the Param list; validates.
-void name_parameters(ServiceDescriptor& d, std::vector<ParamDescriptor> typed, std::vector<Param> names);
+void name_parameters(ServiceDescriptor& d, std::vector<ParamDescriptor> typed,
+                     std::vector<Param> names);
 
 }  // namespace detail
 
@@ -398,7 +436,8 @@ std::shared_ptr<Service> make_service(std::string component, std::string name, F
   using Traits = detail::fn_traits<std::decay_t<F>>;
   using AllArgs = typename Traits::args;
   constexpr bool takes_completion = detail::first_is_completion<AllArgs>::value;
-  using Args = std::conditional_t<takes_completion, typename detail::drop_first<AllArgs>::type, AllArgs>;
+  using Args =
+      std::conditional_t<takes_completion, typename detail::drop_first<AllArgs>::type, AllArgs>;
   using Invoker = detail::typed_invoker<std::decay_t<F>, Args>;
 
   ServiceDescriptor d;
@@ -417,10 +456,11 @@ std::shared_ptr<Service> make_service(std::string component, std::string name, F
   service->set_takes_completion(takes_completion);
   // the invoker reports errors with the final descriptor (docs and policy are set later)
   const Service* self = service.get();
-  service->set_invoker([fn = std::move(fn), self](std::span<const json* const> args,
-                                                  const Completion& c) mutable -> std::optional<json> {
-    return Invoker::template run<takes_completion>(fn, self->descriptor(), args, c);
-  });
+  service->set_invoker(
+      [fn = std::move(fn), self](std::span<const json* const> args,
+                                 const Completion& c) mutable -> std::optional<json> {
+        return Invoker::template run<takes_completion>(fn, self->descriptor(), args, c);
+      });
   return service;
 }
 

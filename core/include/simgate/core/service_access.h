@@ -52,13 +52,15 @@ class ServiceAccess {
   // must match one of (an empty list allows nothing). Throws std::invalid_argument naming
   // the first malformed pattern and why (pattern_error).
   // `console`: whether the transport serves process-wide services.
-  ServiceAccess(std::optional<std::vector<std::string>> allow, std::vector<std::string> deny, bool console = true);
+  ServiceAccess(std::optional<std::vector<std::string>> allow, std::vector<std::string> deny,
+                bool console = true);
 
   // Why `pattern` is not a valid service pattern ("has no '.' between a component and a
   // service"), or "" when it is.
   static std::string pattern_error(std::string_view pattern);
   // Whether `pattern` matches the service `component`.`service` ('*': any characters).
-  static bool matches(std::string_view pattern, std::string_view component, std::string_view service) noexcept;
+  static bool matches(std::string_view pattern, std::string_view component,
+                      std::string_view service) noexcept;
 
   // Whether the lists let a client call `component`.`service` (served or not: the mapping
   // is the RequestManager's part).

@@ -57,9 +57,9 @@ class SimulationGate {
   std::atomic<bool> sleeping_{false};  // the waiter is (about to be) blocked on cv_
   // wake_at()'s earliest time (Clock ticks since its epoch); the maximum when there is none
   std::atomic<Clock::rep> wake_at_{std::numeric_limits<Clock::rep>::max()};
-  std::mutex wait_mutex_;              // guards the cv_ hand-off
-  std::condition_variable cv_;         // where the waiter blocks
-  std::mutex state_mutex_;             // the simulation lock
+  std::mutex wait_mutex_;       // guards the cv_ hand-off
+  std::condition_variable cv_;  // where the waiter blocks
+  std::mutex state_mutex_;      // the simulation lock
 };
 
 }  // namespace simgate

@@ -46,7 +46,7 @@ enum class Failure : std::uint8_t {
   preempted,        // ended by a newer request on the same component
   cancelled,        // ended by its client's cancel
   shutdown,         // the request manager stopped before the request finished
-  timeout,          // no reply within its deadline (Call::timeout or the manager's max wait): FAILED
+  timeout,  // no reply within its deadline (Call::timeout or the manager's max wait): FAILED
 };
 
 std::string_view to_string(Failure failure) noexcept;

@@ -98,18 +98,18 @@ class StreamOutlet {
   friend class StreamHub;
   const std::string component_;
   std::atomic<bool> wanted_{false};  // written by the hub under its mutex
-  StreamHub* hub_ = nullptr;         // written by add(), remove(), ~StreamHub: under the simulation lock
+  StreamHub* hub_ = nullptr;  // written by add(), remove(), ~StreamHub: under the simulation lock
 };
 
 // What a transport knows of a stream.
 struct StreamInfo {
-  std::string component;                // "robot.pose"
+  std::string component;  // "robot.pose"
   StreamDirection direction = StreamDirection::out;
-  std::string kind;                     // StreamDeclaration::kind: "pose", "velocity"...
-  std::string type;                     // the component's type name ("pose", "motion_vw")
-  double frequency = 0;                 // out: samples per simulated second (an event stream: 0); in: 0
-  bool pushed = false;                  // out: its component pushes its samples (see above)
-  std::vector<std::string> fields;      // in: the keys a command takes
+  std::string kind;                 // StreamDeclaration::kind: "pose", "velocity"...
+  std::string type;                 // the component's type name ("pose", "motion_vw")
+  double frequency = 0;             // out: samples per simulated second (an event stream: 0); in: 0
+  bool pushed = false;              // out: its component pushes its samples (see above)
+  std::vector<std::string> fields;  // in: the keys a command takes
   std::vector<std::string> transports;  // the transports that carry it
 };
 
@@ -121,17 +121,19 @@ struct StreamInfo {
 // simulation thread) for its stream's next one: no allocation per sample there.
 class StreamSample {
  public:
-  StreamSample(std::uint64_t seq, double time, json data) : seq_(seq), time_(time), data_(std::move(data)) {}
+  StreamSample(std::uint64_t seq, double time, json data)
+      : seq_(seq), time_(time), data_(std::move(data)) {}
   // A record: `fields` names the numbers (their values are written by the hub, before the
   // sample is shared).
-  StreamSample(std::uint64_t seq, double time, std::shared_ptr<const std::vector<std::string>> fields)
+  StreamSample(std::uint64_t seq, double time,
+               std::shared_ptr<const std::vector<std::string>> fields)
       : seq_(seq), time_(time), fields_(std::move(fields)) {}
   // A payload (not null).
   StreamSample(std::uint64_t seq, double time, std::shared_ptr<const StreamPayload> payload)
       : seq_(seq), time_(time), payload_(std::move(payload)) {}
 
-  std::uint64_t seq() const { return seq_; }   // 1, 2, ... per stream
-  double time() const { return time_; }         // simulated seconds the data is of
+  std::uint64_t seq() const { return seq_; }  // 1, 2, ... per stream
+  double time() const { return time_; }       // simulated seconds the data is of
   // The component's sample as JSON (a record's made once, by whichever thread asks first).
   const json& data() const;
   // data() as compact JSON text, written once (by whichever thread asks first).
@@ -161,9 +163,9 @@ class StreamSample {
   std::array<double, k_max_record_fields> values_{};        // a record's, fields_->size() of them
   // the JSON and text, made once by whichever thread asks first (not std::once_flag: a
   // reused sample makes them again)
-  mutable std::mutex made_mutex_;                           // guards making them
-  mutable std::atomic<bool> data_made_{false};              // a record's or payload's data_ is made
-  mutable std::atomic<bool> text_made_{false};              // text_ is made
+  mutable std::mutex made_mutex_;               // guards making them
+  mutable std::atomic<bool> data_made_{false};  // a record's or payload's data_ is made
+  mutable std::atomic<bool> text_made_{false};  // text_ is made
   mutable json data_;
   mutable std::string text_;
 };
@@ -171,7 +173,7 @@ using SamplePtr = std::shared_ptr<const StreamSample>;
 
 // How a transport subscribes.
 struct SubscriberOptions {
-  std::size_t capacity = 16;     // samples kept; older ones are dropped (at least 1)
+  std::size_t capacity = 16;  // samples kept; older ones are dropped (at least 1)
   // (every member has a default initializer, so that {capacity, label, wake} leaves the
   // rest default without -Wmissing-field-initializers)
   std::string label{};           // who it is, for the log: "socket client #3 (127.0.0.1:5123)"
@@ -240,22 +242,24 @@ class StreamSubscription {
 // Counters of one stream (simulation get_stream_statistics).
 struct StreamStatistics {
   StreamInfo info;
-  std::uint64_t samples = 0;       // out: samples produced
-  std::size_t subscribers = 0;     // out: subscriptions now
-  std::uint64_t dropped = 0;       // out: samples subscribers lost, now and before (skipped ones included)
-  std::uint64_t skipped = 0;       // out, pushed: samples due that the component never made
-                                   // (a camera's render thread behind); every subscriber lost them
-  std::uint64_t commands = 0;      // in: commands applied
-  std::uint64_t replaced = 0;      // in: commands replaced by a newer one before being applied
-  std::uint64_t refused = 0;       // in: commands the component refused
-  std::string last_refusal;        // in: why the last refused one was
+  std::uint64_t samples = 0;    // out: samples produced
+  std::size_t subscribers = 0;  // out: subscriptions now
+  std::uint64_t dropped =
+      0;  // out: samples subscribers lost, now and before (skipped ones included)
+  std::uint64_t skipped = 0;   // out, pushed: samples due that the component never made
+                               // (a camera's render thread behind); every subscriber lost them
+  std::uint64_t commands = 0;  // in: commands applied
+  std::uint64_t replaced = 0;  // in: commands replaced by a newer one before being applied
+  std::uint64_t refused = 0;   // in: commands the component refused
+  std::string last_refusal;    // in: why the last refused one was
 };
 
 // What publish() did with a command.
 struct PublishResult {
-  bool ok = false;     // applied, or queued for the simulation's next turn
+  bool ok = false;       // applied, or queued for the simulation's next turn
   bool applied = false;  // applied at once (the simulation lock was free)
-  std::string error;   // why not (no such input stream here, not an object, the component refused it)
+  std::string
+      error;  // why not (no such input stream here, not an object, the component refused it)
 };
 
 class StreamHub {
@@ -296,7 +300,8 @@ class StreamHub {
 
   // A sample of the pushed stream of `component` (StreamOutlet::push, under the simulation
   // lock): to every subscriber. False when it has none.
-  bool push(const std::string& component, double time, json data, std::shared_ptr<const StreamPayload> payload);
+  bool push(const std::string& component, double time, json data,
+            std::shared_ptr<const StreamPayload> payload);
   // A sample of the pushed stream of `component` that was due and never comes
   // (StreamOutlet::note_skipped, under the simulation lock): counted, logged once per stream.
   void note_skipped(const std::string& component);
@@ -309,7 +314,8 @@ class StreamHub {
   std::optional<StreamInfo> find(std::string_view component, std::string_view transport) const;
   // Subscribes to the output stream of `component` carried by `transport`; null when there
   // is none. The first sample comes at the simulation's next turn.
-  std::shared_ptr<StreamSubscription> subscribe(std::string_view component, std::string_view transport,
+  std::shared_ptr<StreamSubscription> subscribe(std::string_view component,
+                                                std::string_view transport,
                                                 SubscriberOptions options);
   // Ends a subscription (idempotent; null is ignored).
   void unsubscribe(const std::shared_ptr<StreamSubscription>& subscription);
@@ -363,8 +369,9 @@ class StreamHub {
   mutable std::mutex mutex_;
   std::vector<std::unique_ptr<Stream>> streams_;  // in the order added
   std::uint64_t dropped_by_removed_ = 0;          // drops of subscriptions that ended
-  std::atomic<std::size_t> subscribers_{0};       // subscriptions now, all streams (publish_due's fast path)
-  std::atomic<bool> turn_wanted_{false};          // see turn_wanted()
+  std::atomic<std::size_t> subscribers_{
+      0};  // subscriptions now, all streams (publish_due's fast path)
+  std::atomic<bool> turn_wanted_{false};  // see turn_wanted()
   // publish_due's buffers, kept between calls (it runs under the simulation lock only)
   std::vector<Due> due_;
   std::vector<std::shared_ptr<StreamSubscription>> to_wake_;

@@ -20,7 +20,8 @@ std::size_t edit_distance(std::string_view a, std::string_view b);
 
 // The candidate nearest to `word` when it is a likely misspelling of it; ties go to the
 // first candidate. An exact match is not a suggestion (nullopt).
-std::optional<std::string> closest_match(std::string_view word, const std::vector<std::string>& candidates);
+std::optional<std::string> closest_match(std::string_view word,
+                                         const std::vector<std::string>& candidates);
 
 // " (did you mean 'x'?)" or "".
 std::string did_you_mean(std::string_view word, const std::vector<std::string>& candidates);

@@ -13,7 +13,8 @@
 namespace simgate {
 
 // The items with `separator` between them: join({"a", "b", "c"}) is "a, b, c".
-inline std::string join(const std::vector<std::string>& items, const std::string& separator = ", ") {
+inline std::string join(const std::vector<std::string>& items,
+                        const std::string& separator = ", ") {
   std::string out;
   for (const auto& item : items) {
     if (!out.empty()) out += separator;

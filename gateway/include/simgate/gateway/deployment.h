@@ -53,24 +53,25 @@
 namespace simgate::gateway {
 
 struct TransportConfig {
-  std::string name;    // key in "transports"
-  std::string plugin;  // plugin name or path (default: the name)
-  json options;        // passed to the plugin's create()
+  std::string name;      // key in "transports"
+  std::string plugin;    // plugin name or path (default: the name)
+  json options;          // passed to the plugin's create()
   ServiceAccess access;  // "allow", "deny" and "console": which served services clients may call
-  std::string path;    // "transports.socket"
+  std::string path;      // "transports.socket"
 };
 
 struct ComponentConfig {
-  std::string name;       // full name: "robot" or "robot.motion"
-  std::string type;       // registry type
-  std::string body;       // MuJoCo body
-  json options;           // type-specific options (object)
-  std::string path;       // "robots[0].components[1]"
-  std::optional<double> frequency;  // its output stream's samples per simulated second (MORSE's frequency)
+  std::string name;  // full name: "robot" or "robot.motion"
+  std::string type;  // registry type
+  std::string body;  // MuJoCo body
+  json options;      // type-specific options (object)
+  std::string path;  // "robots[0].components[1]"
+  std::optional<double>
+      frequency;  // its output stream's samples per simulated second (MORSE's frequency)
 };
 
 struct RobotConfig {
-  ComponentConfig robot;                  // the robot itself
+  ComponentConfig robot;                    // the robot itself
   std::vector<ComponentConfig> components;  // its actuators and sensors
 };
 
@@ -78,7 +79,8 @@ struct ServiceRule {
   std::string pattern;                  // exact name or glob
   std::vector<std::string> transports;  // transport names
   std::string path;                     // "services.robot.*"
-  std::optional<double> frequency;      // "streams" rules only: {"frequency": Hz}, overrides the component's
+  std::optional<double>
+      frequency;  // "streams" rules only: {"frequency": Hz}, overrides the component's
 };
 
 // The components every simulation has besides the robots' (its supervision services), in
@@ -91,28 +93,30 @@ extern const std::vector<std::string> k_pseudo_components;
 extern const std::vector<std::string> k_stream_only_components;
 
 struct Deployment {
-  std::string file;                      // the config file ("" for in-memory documents)
-  std::string base_dir;                  // relative paths resolve here
-  std::string mjcf;                      // absolute or base_dir-relative, resolved
-  std::optional<double> timestep;        // overrides the MJCF's
-  double realtime_factor = 1.0;          // 0 = as fast as possible
-  bool start_paused = false;             // lockstep: clients drive it with `simulation step`
-  std::string on_divergence = "pause";   // sim::DivergencePolicy's word, checked
-  std::vector<std::string> spawn_allowed_dirs;  // "spawn.allowed_dirs", canonical: fragment files of spawn_entity
-  std::vector<TransportConfig> transports;  // sorted by name
-  std::vector<std::string> component_libraries;  // names or paths, in file order
-  std::vector<RobotConfig> robots;       // in file order
-  bool has_services = false;             // a "services" section exists
-  std::vector<ServiceRule> rules;        // exact names and globs
+  std::string file;                     // the config file ("" for in-memory documents)
+  std::string base_dir;                 // relative paths resolve here
+  std::string mjcf;                     // absolute or base_dir-relative, resolved
+  std::optional<double> timestep;       // overrides the MJCF's
+  double realtime_factor = 1.0;         // 0 = as fast as possible
+  bool start_paused = false;            // lockstep: clients drive it with `simulation step`
+  std::string on_divergence = "pause";  // sim::DivergencePolicy's word, checked
+  std::vector<std::string>
+      spawn_allowed_dirs;  // "spawn.allowed_dirs", canonical: fragment files of spawn_entity
+  std::vector<TransportConfig> transports;                     // sorted by name
+  std::vector<std::string> component_libraries;                // names or paths, in file order
+  std::vector<RobotConfig> robots;                             // in file order
+  bool has_services = false;                                   // a "services" section exists
+  std::vector<ServiceRule> rules;                              // exact names and globs
   std::optional<std::vector<std::string>> default_transports;  // "default"
-  std::vector<ServiceRule> stream_rules;  // "streams": exact names and globs
+  std::vector<ServiceRule> stream_rules;                       // "streams": exact names and globs
   std::optional<std::vector<std::string>> default_stream_transports;  // "streams"."default"
   std::optional<double> default_stream_frequency;  // "streams"."default"."frequency"
-  std::optional<std::string> log_level;  // validated level name
+  std::optional<std::string> log_level;            // validated level name
   // "requests": {"max_wait_ms": N}: the longest any request of any transport waits for its
   // reply (RequestManager::set_max_wait); zero = no limit
   std::chrono::milliseconds max_wait{0};
-  std::vector<std::string> warnings;     // likely mistakes that are not errors (printed by check, logged by run)
+  std::vector<std::string>
+      warnings;  // likely mistakes that are not errors (printed by check, logged by run)
 
   // Every component name: robots, their components, then "simulation", "time" and
   // "communication". This is
@@ -132,16 +136,18 @@ struct Deployment {
 
 // Validates and converts a parsed document. `base_dir` resolves relative paths. Throws one
 // ConfigError carrying every error of the document's structure.
-Deployment parse_deployment(const json& document, const std::string& base_dir, const std::string& file = "");
+Deployment parse_deployment(const json& document, const std::string& base_dir,
+                            const std::string& file = "");
 // The same, recording the errors in `errors` rather than throwing them: the deployment
 // holds what is valid (a robot, transport or mapping rule with an error is left out; a
 // scene whose file is unusable leaves `mjcf` empty), for Gateway to check the rest.
-Deployment parse_deployment(const json& document, const std::string& base_dir, const std::string& file,
-                            ConfigErrors& errors);
+Deployment parse_deployment(const json& document, const std::string& base_dir,
+                            const std::string& file, ConfigErrors& errors);
 // One robot section (a config's robots[i]; a robot spawned at run time, simulation
 // spawn_entity's `robot`) at `path`, its names checked against `taken` (the components that
 // exist) and the pseudo-components'. Throws one ConfigError carrying every error of it.
-RobotConfig parse_robot_section(const json& section, const std::string& path, std::set<std::string> taken);
+RobotConfig parse_robot_section(const json& section, const std::string& path,
+                                std::set<std::string> taken);
 // Reads and parses a file: parse_deployment, or first parse_config_text, whose error (a
 // syntax error, a number beyond a double, nesting deeper than k_max_config_depth) is thrown
 // as "FILE:LINE:COLUMN: <path>: ...".

@@ -4,12 +4,12 @@
 // (see deployment.h), the MJCF scene, every component (type, bodies, actuators, options)
 // and every transport plugin (found, ABI-compatible, options valid: the plugin's own
 // validate()), then the TCP transports together (no two on one port, addresses of this
-// machine: src/listeners.h); all errors at once. In check mode it stops there; otherwise it creates each transport, gives it its allow and deny lists
-// (RequestManager::set_access), shares the simulation's gate with it and registers the
-// components mapped to it. start() opens the transports; run() is the
-// simulation loop on the calling thread, until stop() or `simulation quit`; the destructor
-// (or shutdown()) answers pending clients, stops the transports, destroys them and then
-// the components.
+// machine: src/listeners.h); all errors at once. In check mode it stops there; otherwise it creates
+// each transport, gives it its allow and deny lists (RequestManager::set_access), shares the
+// simulation's gate with it and registers the components mapped to it. start() opens the
+// transports; run() is the simulation loop on the calling thread, until stop() or `simulation
+// quit`; the destructor (or shutdown()) answers pending clients, stops the transports, destroys
+// them and then the components.
 //
 // Threads: construct, start(), run() and shutdown() from one thread at a time (run() makes
 // it the simulation thread); stop() from any thread (signal handlers use a thread).
@@ -30,9 +30,9 @@
 namespace simgate::gateway {
 
 struct GatewayOptions {
-  bool check_only = false;                 // validate, create nothing that listens
-  std::optional<double> realtime_factor;   // overrides the deployment's
-  std::vector<std::string> plugin_dirs;    // searched before the defaults (after SIMGATE_PLUGIN_PATH)
+  bool check_only = false;                // validate, create nothing that listens
+  std::optional<double> realtime_factor;  // overrides the deployment's
+  std::vector<std::string> plugin_dirs;  // searched before the defaults (after SIMGATE_PLUGIN_PATH)
 };
 
 class Gateway {
@@ -44,8 +44,8 @@ class Gateway {
   // structure (parse_deployment's recording form), reported first with the gateway's own;
   // with any, nothing is created. Without a scene (`mjcf` empty or not loadable) only the
   // components' types are checked: their bodies and options need it.
-  Gateway(const Deployment& deployment, const sim::ComponentRegistry& registry, GatewayOptions options = {},
-          ConfigErrors earlier = {});
+  Gateway(const Deployment& deployment, const sim::ComponentRegistry& registry,
+          GatewayOptions options = {}, ConfigErrors earlier = {});
   ~Gateway();
   Gateway(const Gateway&) = delete;
   Gateway& operator=(const Gateway&) = delete;
@@ -72,10 +72,10 @@ class Gateway {
 
  private:
   struct Transport {
-    std::string name;                          // key in "transports"
-    const TransportConfig* config = nullptr;   // its entry in deployment_
-    std::shared_ptr<TransportPlugin> plugin;   // keeps the library loaded
-    std::shared_ptr<RequestManager> manager;   // null in check mode
+    std::string name;                         // key in "transports"
+    const TransportConfig* config = nullptr;  // its entry in deployment_
+    std::shared_ptr<TransportPlugin> plugin;  // keeps the library loaded
+    std::shared_ptr<RequestManager> manager;  // null in check mode
   };
 
   // Loads the deployment's component libraries into registry_ (recording errors).
@@ -104,12 +104,13 @@ class Gateway {
   void add_streams(ConfigErrors& errors);
   // The stream of `component`, if the "streams" section maps it; `frequency`: the rate the
   // configuration gives (the rule's, else the component's own), `fallback` without one.
-  void add_stream(const Component& component, const std::string& type, std::optional<double> frequency,
-                  double fallback, ConfigErrors& errors);
+  void add_stream(const Component& component, const std::string& type,
+                  std::optional<double> frequency, double fallback, ConfigErrors& errors);
   // Of `transports`, those that may carry `component`'s stream: their allow/deny lists let
   // through every service of the component (an input stream) or its get_local_data (an
   // output stream); each other one is a warning.
-  std::vector<std::string> carriers(const Component& component, const std::vector<std::string>& transports);
+  std::vector<std::string> carriers(const Component& component,
+                                    const std::vector<std::string>& transports);
   // The stream rate the configuration gives component `c`: its "streams" rule's frequency,
   // else its own "frequency"; none when neither says.
   std::optional<double> stream_frequency(const ComponentConfig& c) const;
@@ -125,15 +126,15 @@ class Gateway {
   // Serves `entry`'s component on `transport` (its interfaces name it).
   void serve_on(Transport& transport, sim::ComponentEntry& entry);
 
-  Deployment deployment_;                             // validated configuration
-  GatewayOptions options_;                            // how it was built
+  Deployment deployment_;   // validated configuration
+  GatewayOptions options_;  // how it was built
   // the types components are created from, and the libraries whose code they run: it must
   // outlive simulation_ (declared first, destroyed last)
   sim::ComponentRegistry registry_;
-  std::unique_ptr<sim::Simulation> simulation_;       // model, components, loop
-  std::vector<Transport> transports_;                 // in name order
+  std::unique_ptr<sim::Simulation> simulation_;             // model, components, loop
+  std::vector<Transport> transports_;                       // in name order
   std::map<std::string, std::vector<std::string>> served_;  // transport -> components
-  std::vector<std::string> warnings_;                 // see warnings()
+  std::vector<std::string> warnings_;                       // see warnings()
 };
 
 }  // namespace simgate::gateway

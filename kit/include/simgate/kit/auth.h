@@ -39,7 +39,9 @@ struct TokenAuth {
   static TokenAuth read(ConfigObject& config, std::vector<std::string>& warnings);
 
   // Whether a client connecting from `peer` must present the token.
-  bool required_for(const boost::asio::ip::address& peer) const { return enabled && (loopback || !is_loopback(peer)); }
+  bool required_for(const boost::asio::ip::address& peer) const {
+    return enabled && (loopback || !is_loopback(peer));
+  }
   // Whether `presented` is the token; takes the same time whatever bytes differ.
   bool accepts(std::string_view presented) const;
 

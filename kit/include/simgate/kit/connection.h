@@ -74,11 +74,11 @@ namespace simgate::kit {
 class ConnectionServer;
 
 struct ConnectionLimits {
-  std::size_t max_message_bytes = 1 << 20;    // longest message accepted
-  std::size_t max_unsent_bytes = 8 << 20;     // unsent bytes a message may find before disconnecting
-  std::size_t pause_at_unanswered = 0;        // replies owed that pause reading (0: never)
-  std::size_t pause_at_unsent_bytes = 0;      // unsent bytes that pause reading (0: never)
-  std::size_t read_bytes = 16384;             // the most one read takes
+  std::size_t max_message_bytes = 1 << 20;  // longest message accepted
+  std::size_t max_unsent_bytes = 8 << 20;   // unsent bytes a message may find before disconnecting
+  std::size_t pause_at_unanswered = 0;      // replies owed that pause reading (0: never)
+  std::size_t pause_at_unsent_bytes = 0;    // unsent bytes that pause reading (0: never)
+  std::size_t read_bytes = 16384;           // the most one read takes
   const char* message_bytes_key = "max_message_bytes";  // the options' spelling, for messages
   const char* unsent_bytes_key = "max_unsent_bytes";    // the options' spelling, for messages
 
@@ -119,7 +119,8 @@ class Connection : public std::enable_shared_from_this<Connection> {
   void queue_with(Format&& format) {
     const std::size_t waiting = unsent();
     // the usual case inline: open, within both budgets (room_for_message() says the rest)
-    if (closed_ || waiting > limits_.max_unsent_bytes || (waiting > 0 && held().over())) [[unlikely]] {
+    if (closed_ || waiting > limits_.max_unsent_bytes || (waiting > 0 && held().over()))
+        [[unlikely]] {
       if (!room_for_message()) return;
     }
     message_queued_ = true;
@@ -301,12 +302,12 @@ class Connection : public std::enable_shared_from_this<Connection> {
   std::string outbox_;                   // bytes waiting for the next write
   std::string in_flight_;                // bytes being written
   bool writing_ = false;                 // a write is in flight
-  bool message_queued_ = false;          // a message (not only control bytes) queued since the last write
-  std::size_t unanswered_ = 0;           // replies the protocol owes
-  std::size_t framing_bytes_ = 0;        // what the framing keeps of an unfinished message
-  bool touched_ = false;                 // in its server's touched list
-  std::uint32_t active_tick_ = 0;        // the sweep of its last message read or written, or reply owed
-  std::uint32_t message_tick_ = 0;       // the sweep its unfinished message began in
+  bool message_queued_ = false;    // a message (not only control bytes) queued since the last write
+  std::size_t unanswered_ = 0;     // replies the protocol owes
+  std::size_t framing_bytes_ = 0;  // what the framing keeps of an unfinished message
+  bool touched_ = false;           // in its server's touched list
+  std::uint32_t active_tick_ = 0;  // the sweep of its last message read or written, or reply owed
+  std::uint32_t message_tick_ = 0;  // the sweep its unfinished message began in
 };
 
 // The connections of one transport and what it does with all of them, on its I/O thread:
@@ -377,25 +378,25 @@ class ConnectionServer {
 
   // What every connection of the server shares (the I/O thread).
   struct Shared {
-    std::uint32_t tick = 0;                  // sweeps so far: the connections' clock
-    HeldBytes held;                          // unfinished messages and unsent bytes, all connections
-    std::size_t freed = 0;                   // large buffers given back since the last sweep
+    std::uint32_t tick = 0;  // sweeps so far: the connections' clock
+    HeldBytes held;          // unfinished messages and unsent bytes, all connections
+    std::size_t freed = 0;   // large buffers given back since the last sweep
   };
   Shared shared_;
-  std::string who_;                                             // for logs
-  std::chrono::microseconds spin_;                              // io_spin_us
-  std::size_t max_connections_;                                 // max_connections
-  std::string connections_key_;                                 // its key as the options spell it
-  PeerCounts per_peer_;                                         // max_connections_per_peer (connection_rules.h)
-  TokenAuth auth_;                                              // who must present a token
+  std::string who_;                 // for logs
+  std::chrono::microseconds spin_;  // io_spin_us
+  std::size_t max_connections_;     // max_connections
+  std::string connections_key_;     // its key as the options spell it
+  PeerCounts per_peer_;             // max_connections_per_peer (connection_rules.h)
+  TokenAuth auth_;                  // who must present a token
   std::chrono::milliseconds idle_timeout_, idle_evict_, line_timeout_;  // 0: never
-  std::unordered_set<std::shared_ptr<Connection>> connections_;  // open connections
-  std::atomic<std::size_t> count_{0};                           // connections_.size(), for any thread
-  std::vector<std::shared_ptr<Connection>> touched_;            // bytes queued, not yet written
-  ReadSplit read_split_;                                        // the lone client's large reads
-  DirectReads<Connection> direct_;                              // the lone client read without the event loop
-  std::optional<boost::asio::steady_timer> sweep_timer_;        // while connections are open
-  bool sweeping_ = false;                                       // a sweep is scheduled
+  std::unordered_set<std::shared_ptr<Connection>> connections_;         // open connections
+  std::atomic<std::size_t> count_{0};                 // connections_.size(), for any thread
+  std::vector<std::shared_ptr<Connection>> touched_;  // bytes queued, not yet written
+  ReadSplit read_split_;                              // the lone client's large reads
+  DirectReads<Connection> direct_;                    // the lone client read without the event loop
+  std::optional<boost::asio::steady_timer> sweep_timer_;  // while connections are open
+  bool sweeping_ = false;                                 // a sweep is scheduled
 };
 
 inline HeldBytes& Connection::held() { return server_.shared_.held; }

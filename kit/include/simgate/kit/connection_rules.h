@@ -68,7 +68,8 @@ class PeerCounts {
     if (max_ == 0 || TokenAuth::is_loopback(peer)) return "";
     auto it = counts_.find(peer);
     if (it == counts_.end() || it->second < max_) return "";
-    return "too many connections from " + peer.to_string() + " (max_connections_per_peer " + std::to_string(max_) + ")";
+    return "too many connections from " + peer.to_string() + " (max_connections_per_peer " +
+           std::to_string(max_) + ")";
   }
   std::size_t count(const boost::asio::ip::address& peer) const {
     auto it = counts_.find(peer);
@@ -76,8 +77,8 @@ class PeerCounts {
   }
 
  private:
-  std::size_t max_;                                           // 0: no limit
-  std::map<boost::asio::ip::address, std::size_t> counts_;    // open connections by address
+  std::size_t max_;                                         // 0: no limit
+  std::map<boost::asio::ip::address, std::size_t> counts_;  // open connections by address
 };
 
 // At max_connections (the caller checked), makes room by closing one connection of
@@ -98,14 +99,16 @@ bool make_room(const Connections& connections, std::uint32_t limit, const std::s
   const double sweep_s = k_connection_sweep.count() / 1000.0;
   if (idlest && idlest->idle_ticks() >= limit) {
     log::warning(who, ": ", idlest->label(), " closed to make room for a new connection: idle for ",
-                 idlest->idle_ticks() * sweep_s, " s while ", max_connections, " connections were open (idle_evict_s)");
+                 idlest->idle_ticks() * sweep_s, " s while ", max_connections,
+                 " connections were open (idle_evict_s)");
     idlest->end("idle while the server was full", Ending::refused);
     return true;
   }
   if (silentest && silentest->silent_ticks() >= limit) {
-    log::warning(who, ": ", silentest->label(), " closed to make room for a new connection: silent for ",
-                 silentest->silent_ticks() * sweep_s, " s with ", silentest->unanswered(), " replies owed while ",
-                 max_connections, " connections were open (idle_evict_s)");
+    log::warning(who, ": ", silentest->label(),
+                 " closed to make room for a new connection: silent for ",
+                 silentest->silent_ticks() * sweep_s, " s with ", silentest->unanswered(),
+                 " replies owed while ", max_connections, " connections were open (idle_evict_s)");
     silentest->end("silent while the server was full", Ending::refused);
     return true;
   }

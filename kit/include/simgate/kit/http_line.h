@@ -21,8 +21,9 @@ inline bool is_http_request_line(std::string_view line) {
   const std::size_t version = line.rfind(' ');
   if (version <= method + 1) return false;  // no request target between the two spaces
   const std::string_view v = line.substr(version + 1);
-  return v.size() == 8 && v.substr(0, 5) == "HTTP/" && v[5] >= '0' && v[5] <= '9' && v[6] == '.' && v[7] >= '0' &&
-         v[7] <= '9' && line.substr(method + 1, version - method - 1).find(' ') == std::string_view::npos;
+  return v.size() == 8 && v.substr(0, 5) == "HTTP/" && v[5] >= '0' && v[5] <= '9' && v[6] == '.' &&
+         v[7] >= '0' && v[7] <= '9' &&
+         line.substr(method + 1, version - method - 1).find(' ') == std::string_view::npos;
 }
 
 }  // namespace simgate::kit

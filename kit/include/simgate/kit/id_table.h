@@ -34,10 +34,10 @@ class IdTable {
  public:
   // One pending request. `used` is false in a free slot.
   struct Entry {
-    std::string key;        // the client's id (a free slot keeps its buffer)
-    std::size_t hash = 0;   // of key
-    RequestId id = 0;       // the request
-    bool used = false;      // the slot holds an entry
+    std::string key;       // the client's id (a free slot keeps its buffer)
+    std::size_t hash = 0;  // of key
+    RequestId id = 0;      // the request
+    bool used = false;     // the slot holds an entry
   };
 
   // Adds `key` unless it is present: the new entry, whose id (0) the caller sets at once,

@@ -137,9 +137,10 @@ void run_with_idle_spin(EventLoop& loop, std::chrono::microseconds spin, Direct&
       // socket that never runs dry (a flooding client) must not keep the others unserved
       std::size_t handled = direct.poll();
       const bool loop_due = !direct.watching() ? handled == 0
-                            : handled == 0     ? ++direct_polls % k_direct_polls_per_poll == 0
-                                               : ++direct_reads % k_direct_reads_per_poll == 0 ||
-                                                 Clock::now() - loop_polled_at >= k_direct_reading_per_poll;
+                            : handled == 0
+                                ? ++direct_polls % k_direct_polls_per_poll == 0
+                                : ++direct_reads % k_direct_reads_per_poll == 0 ||
+                                      Clock::now() - loop_polled_at >= k_direct_reading_per_poll;
       if (loop_due) {
         handled += loop.poll();
         loop_polled_at = Clock::now();

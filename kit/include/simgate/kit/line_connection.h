@@ -50,7 +50,8 @@ class LineHost {
   virtual void on_line(LineConnection& connection, std::string_view line) = 0;
   // A line exceeded max_message_bytes: `prefix` is its first KiB (to find the client's id),
   // `bytes` how much of it had arrived. Its rest is skipped.
-  virtual void on_oversized_line(LineConnection& connection, std::string_view prefix, std::size_t bytes) = 0;
+  virtual void on_oversized_line(LineConnection& connection, std::string_view prefix,
+                                 std::size_t bytes) = 0;
   // The client shut down its sending side (or closed): it will send nothing more.
   virtual void on_input_ended(LineConnection& connection) = 0;
 };
@@ -97,9 +98,9 @@ class LineConnection : public Connection {
   // The unfinished line with `end` appended, taken out of the connection.
   std::string take_line(std::string_view end = {});
 
-  LineHost& lines_;            // the transport's protocol
-  std::string partial_;        // the start of an unfinished line
-  bool discarding_ = false;    // skipping the rest of an oversized line
+  LineHost& lines_;          // the transport's protocol
+  std::string partial_;      // the start of an unfinished line
+  bool discarding_ = false;  // skipping the rest of an oversized line
 };
 
 }  // namespace simgate::kit

@@ -15,7 +15,11 @@
 // string's capacity) while dropping references; try_emplace(key) without value arguments
 // then hands that value back for the caller to fill:
 //
-//   struct Pending { std::weak_ptr<Session> to; std::string method; void recycle() { to.reset(); } };
+//   struct Pending {
+//     std::weak_ptr<Session> to;
+//     std::string method;
+//     void recycle() { to.reset(); }
+//   };
 //   Pending& p = table.try_emplace(id).first->second;  p.to = ...;  p.method.assign(...);
 //
 // An entry that must outlive changes to the table while it is used (a reply may close its
@@ -71,7 +75,8 @@ struct TransparentStringHash {
     }
     __extension__ using U128 = unsigned __int128;  // GCC and Clang on 64-bit targets
     const U128 m = static_cast<U128>(a ^ 0x9E3779B97F4A7C15ull) * (b ^ 0xC2B2AE3D27D4EB4Full ^ n);
-    return static_cast<std::size_t>(static_cast<std::uint64_t>(m) ^ static_cast<std::uint64_t>(m >> 64));
+    return static_cast<std::size_t>(static_cast<std::uint64_t>(m) ^
+                                    static_cast<std::uint64_t>(m >> 64));
   }
 };
 
@@ -92,7 +97,8 @@ class RecyclingMap {
   // arguments a kept node's value is left as its reset made it.
   template <class K, class... Args>
   std::pair<iterator, bool> try_emplace(K&& key, Args&&... args) {
-    if (free_.empty()) return map_.try_emplace(Key(std::forward<K>(key)), std::forward<Args>(args)...);
+    if (free_.empty())
+      return map_.try_emplace(Key(std::forward<K>(key)), std::forward<Args>(args)...);
     auto node = std::move(free_.back());
     free_.pop_back();
     node.key() = std::forward<K>(key);
@@ -103,9 +109,13 @@ class RecyclingMap {
   }
 
   template <class K>
-  iterator find(const K& key) { return map_.find(key); }
+  iterator find(const K& key) {
+    return map_.find(key);
+  }
   template <class K>
-  const_iterator find(const K& key) const { return map_.find(key); }
+  const_iterator find(const K& key) const {
+    return map_.find(key);
+  }
 
   void erase(iterator it) {
     if (free_.size() < max_free_)
@@ -143,9 +153,9 @@ class RecyclingMap {
     free_.push_back(std::move(node));
   }
 
-  Map map_;                                     // the live entries
-  std::vector<node_type> free_;                 // erased nodes, reused by the next inserts
-  std::size_t max_free_;                        // bound on free_
+  Map map_;                      // the live entries
+  std::vector<node_type> free_;  // erased nodes, reused by the next inserts
+  std::size_t max_free_;         // bound on free_
 };
 
 }  // namespace simgate::kit

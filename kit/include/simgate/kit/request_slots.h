@@ -109,8 +109,8 @@ class RequestSlots {
     free_.push_back(index);
   }
 
-  std::vector<Slot> slots_;           // indexed by the low bits of an id
-  std::vector<std::uint32_t> free_;   // indexes of free slots, reused last-freed-first
+  std::vector<Slot> slots_;          // indexed by the low bits of an id
+  std::vector<std::uint32_t> free_;  // indexes of free slots, reused last-freed-first
 };
 
 }  // namespace simgate::kit

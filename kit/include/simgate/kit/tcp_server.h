@@ -49,22 +49,26 @@ namespace simgate::kit {
 // The options every TCP transport shares, parsed. Each transport gives its defaults and reads
 // its own keys besides (TcpOptions::read leaves `config` open for them).
 struct TcpOptions {
-  std::string host = "127.0.0.1";                   // ("host") address or name to listen on
-  std::uint16_t port = 0;                            // ("port") 0: any free port
-  std::size_t max_connections = 1024;                // ("max_connections") more are refused
-  std::size_t max_message_bytes = 1 << 20;           // ("max_message_bytes") one request line
-  std::size_t max_unsent_bytes = 8 << 20;            // ("max_unsent_bytes") per connection
-  std::size_t max_in_flight = 1024;                  // ("max_in_flight") per connection
-  std::chrono::microseconds io_spin{50};             // ("io_spin_us") idle_spin.h
-  bool cancel_on_disconnect = true;                  // ("on_disconnect": "cancel" | "let_run")
+  std::string host = "127.0.0.1";                     // ("host") address or name to listen on
+  std::uint16_t port = 0;                             // ("port") 0: any free port
+  std::size_t max_connections = 1024;                 // ("max_connections") more are refused
+  std::size_t max_message_bytes = 1 << 20;            // ("max_message_bytes") one request line
+  std::size_t max_unsent_bytes = 8 << 20;             // ("max_unsent_bytes") per connection
+  std::size_t max_in_flight = 1024;                   // ("max_in_flight") per connection
+  std::chrono::microseconds io_spin{50};              // ("io_spin_us") idle_spin.h
+  bool cancel_on_disconnect = true;                   // ("on_disconnect": "cancel" | "let_run")
   GlobalPolicy global_policy = GlobalPolicy::reject;  // ("global_policy": "reject" | "preempt")
   // Connections that hold resources without using them (connection.h, ConnectionServer):
-  std::chrono::milliseconds idle_timeout{0};       // ("idle_timeout_s") close a connection idle this long; 0: never
-  std::chrono::milliseconds idle_evict{60000};     // ("idle_evict_s") at max_connections, the connection idle
-                                                   //   longest makes room if idle this long; 0: never
-  std::chrono::milliseconds line_timeout{60000};   // ("line_timeout_s") a line begun must end within this; 0: never
-  std::size_t max_buffered_bytes = std::size_t{256} << 20;  // ("max_buffered_bytes") unfinished lines and unsent
-                                                             //   replies of all connections together
+  std::chrono::milliseconds idle_timeout{
+      0};  // ("idle_timeout_s") close a connection idle this long; 0: never
+  std::chrono::milliseconds idle_evict{
+      60000};  // ("idle_evict_s") at max_connections, the connection idle
+               //   longest makes room if idle this long; 0: never
+  std::chrono::milliseconds line_timeout{
+      60000};  // ("line_timeout_s") a line begun must end within this; 0: never
+  std::size_t max_buffered_bytes = std::size_t{256}
+                                   << 20;  // ("max_buffered_bytes") unfinished lines and unsent
+                                           //   replies of all connections together
   // ("max_connections_per_peer") open connections from one non-loopback address; 0: no
   // limit. Loopback peers are the machine's own programs (all one address): not counted.
   std::size_t max_connections_per_peer = 64;
@@ -92,8 +96,8 @@ struct TcpOptions {
   // Reads the shared keys of `config` over `defaults`; `transport` names the transport in
   // warnings. Throws ConfigError (a key set under both its names is one). The caller reads
   // its own keys, then calls finish().
-  static TcpOptions read(ConfigObject& config, const TcpOptions& defaults, std::string_view transport,
-                         std::span<const Alias> aliases = {});
+  static TcpOptions read(ConfigObject& config, const TcpOptions& defaults,
+                         std::string_view transport, std::span<const Alias> aliases = {});
   // config.finish() (unknown keys), then: the host must be an address or a name that
   // resolves. Throws ConfigError.
   void finish(const ConfigObject& config) const;
@@ -112,7 +116,8 @@ class TcpListener {
   // Binds host:port now. `who` starts every message ("Socket service manager"). Throws
   // std::runtime_error when it cannot listen: "<who>: cannot listen on 127.0.0.1:4000:
   // bind failed: Address already in use (another program listens there: ...)".
-  TcpListener(boost::asio::io_context& io, std::string who, const std::string& host, std::uint16_t port);
+  TcpListener(boost::asio::io_context& io, std::string who, const std::string& host,
+              std::uint16_t port);
 
   std::uint16_t port() const { return port_; }
   // "tcp://127.0.0.1:4000", with the bound port
@@ -135,7 +140,8 @@ class TcpListener {
 
  private:
   void accept_next();
-  void refuse(boost::asio::ip::tcp::socket socket, const boost::asio::ip::tcp::endpoint& peer, const std::string& why);
+  void refuse(boost::asio::ip::tcp::socket socket, const boost::asio::ip::tcp::endpoint& peer,
+              const std::string& why);
 
   std::string who_;                          // the transport, for messages
   boost::asio::ip::tcp::acceptor acceptor_;  // bound in the constructor
@@ -175,8 +181,9 @@ class IoThread {
   void log_handler_error(const char* what) const;
 
   boost::asio::io_context& io_;  // the transport's
-  boost::asio::executor_work_guard<boost::asio::io_context::executor_type> work_;  // keeps run() going
-  std::string who_;              // for logs
+  boost::asio::executor_work_guard<boost::asio::io_context::executor_type>
+      work_;         // keeps run() going
+  std::string who_;  // for logs
   std::chrono::microseconds spin_;
   std::thread thread_;
   std::mutex life_mutex_;  // serialises start() and stop()

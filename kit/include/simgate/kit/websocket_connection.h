@@ -7,8 +7,8 @@
 // silent and unfinished-message timers, auth, close) with what is WebSocket's own:
 //   - Handshake: Boost.Beast reads one HTTP request (header and body within
 //     k_max_request_bytes, within k_handshake_timeout); an upgrade the host accepts
-//     (WebSocketHost::refuse_upgrade: the Origin, origin_policy.h) is answered 101 by Beast; anything else is
-//     answered by the host (WebSocketHost::on_http_request: a file, or 404) and
+//     (WebSocketHost::refuse_upgrade: the Origin, origin_policy.h) is answered 101 by Beast;
+//     anything else is answered by the host (WebSocketHost::on_http_request: a file, or 404) and
 //     closed. The response's own bytes count against max_buffered_bytes while written.
 //   - Frames: each read's bytes go to a FrameParser (ws_frames.h: the frames, without a
 //     socket; fuzzed), whose events the session handles. Client frames must be masked
@@ -95,12 +95,15 @@ class WebSocketHost {
   virtual void on_message(WebSocketConnection& connection, std::string_view text) = 0;
   // A message exceeded max_message_bytes (`bytes` arrived before it was skipped), or was
   // binary: the protocol answers it.
-  virtual void on_refused_message(WebSocketConnection& connection, std::size_t bytes, bool binary) = 0;
+  virtual void on_refused_message(WebSocketConnection& connection, std::size_t bytes,
+                                  bool binary) = 0;
   // A plain HTTP request (not an upgrade): the response to send before closing.
-  virtual HttpResponse on_http_request(const boost::beast::http::request<boost::beast::http::string_body>& request) = 0;
+  virtual HttpResponse on_http_request(
+      const boost::beast::http::request<boost::beast::http::string_body>& request) = 0;
   // An upgrade request: "" to accept it, else the HTTP response refusing it (403: a page of
   // another origin, origin_policy.h), sent before closing.
-  virtual std::string refuse_upgrade(const boost::beast::http::request<boost::beast::http::string_body>& request) = 0;
+  virtual std::string refuse_upgrade(
+      const boost::beast::http::request<boost::beast::http::string_body>& request) = 0;
 };
 
 // The server of a WebSocket transport: the kit's connection server with the host.
@@ -113,8 +116,9 @@ class WebSocketConnection : public Connection, private FrameSink {
  public:
   // `who` names the transport in logs; `number` the connection ("client #3 (127.0.0.1:5123)");
   // `keepalive`: the silence after which the client is pinged (0: never).
-  WebSocketConnection(boost::asio::ip::tcp::socket socket, WebSocketServer& server, ConnectionLimits limits,
-                      std::chrono::milliseconds keepalive, std::string_view who, std::uint64_t number);
+  WebSocketConnection(boost::asio::ip::tcp::socket socket, WebSocketServer& server,
+                      ConnectionLimits limits, std::chrono::milliseconds keepalive,
+                      std::string_view who, std::uint64_t number);
 
   // Reads the HTTP request, then messages.
   void start() override;
@@ -176,22 +180,24 @@ class WebSocketConnection : public Connection, private FrameSink {
     queue_control([&](std::string& out) { append_frame(out, opcode, payload); });
   }
 
-  WebSocketHost& host_;                         // the transport (outlives every connection)
-  std::chrono::milliseconds keepalive_;         // keepalive_s (0: no pings)
-  boost::beast::flat_buffer http_buffer_;       // the HTTP request
-  std::optional<boost::beast::http::request_parser<boost::beast::http::string_body>> parser_;  // until the upgrade
-  std::optional<boost::beast::websocket::stream<boost::asio::ip::tcp::socket&>> upgrade_;  // Beast, for the upgrade only
-  HttpResponse http_response_;                  // a plain HTTP request's answer, being written
-  bool upgraded_ = false;                       // the WebSocket handshake is done
+  WebSocketHost& host_;                    // the transport (outlives every connection)
+  std::chrono::milliseconds keepalive_;    // keepalive_s (0: no pings)
+  boost::beast::flat_buffer http_buffer_;  // the HTTP request
+  std::optional<boost::beast::http::request_parser<boost::beast::http::string_body>>
+      parser_;  // until the upgrade
+  std::optional<boost::beast::websocket::stream<boost::asio::ip::tcp::socket&>>
+      upgrade_;                 // Beast, for the upgrade only
+  HttpResponse http_response_;  // a plain HTTP request's answer, being written
+  bool upgraded_ = false;       // the WebSocket handshake is done
 
-  FrameParser frames_;                          // the frames (ws_frames.h): the message being read
-  bool delivered_ = false;                      // a message ended during this read
-  std::uint32_t heard_tick_ = 0;                // the sweep of the client's last frame
-  bool pinged_ = false;                         // a keep-alive ping is unanswered
-  bool close_queued_ = false;                   // our close frame is in the outbox
-  bool close_sent_ = false;                     // ...and written
-  bool client_closed_ = false;                  // the client's close frame arrived
-  boost::asio::steady_timer timer_;             // the handshake's deadline, then the close's
+  FrameParser frames_;               // the frames (ws_frames.h): the message being read
+  bool delivered_ = false;           // a message ended during this read
+  std::uint32_t heard_tick_ = 0;     // the sweep of the client's last frame
+  bool pinged_ = false;              // a keep-alive ping is unanswered
+  bool close_queued_ = false;        // our close frame is in the outbox
+  bool close_sent_ = false;          // ...and written
+  bool client_closed_ = false;       // the client's close frame arrived
+  boost::asio::steady_timer timer_;  // the handshake's deadline, then the close's
 };
 
 }  // namespace simgate::kit

@@ -59,8 +59,8 @@ class FrameSink {
 class FrameParser {
  public:
   // RFC 6455 opcodes
-  static constexpr std::uint8_t k_continuation = 0x0, k_text = 0x1, k_binary = 0x2, k_close = 0x8, k_ping = 0x9,
-                                k_pong = 0xA;
+  static constexpr std::uint8_t k_continuation = 0x0, k_text = 0x1, k_binary = 0x2, k_close = 0x8,
+                                k_ping = 0x9, k_pong = 0xA;
   // The longest frame head kept between two feeds: a header (2 + 8 + 4) and a control
   // frame's payload (125).
   static constexpr std::size_t k_max_head_bytes = 14 + 125;
@@ -104,22 +104,22 @@ class FrameParser {
   void end_message(FrameSink& sink);
   Head fail(std::string_view reason, FrameSink& sink);
 
-  std::size_t max_message_bytes_;                // the longest text message delivered
-  unsigned char head_[k_max_head_bytes] = {};    // a frame head begun in an earlier feed...
-  std::size_t head_size_ = 0;                    // ...of this many bytes (0: none)
-  bool in_frame_ = false;                        // a data frame's header was parsed, its payload comes
-  bool frame_fin_ = false;                       // that frame ends its message
-  std::uint64_t frame_left_ = 0;                 // payload bytes of that frame still to come
-  unsigned char mask_[4] = {};                   // that frame's masking key
-  std::size_t mask_at_ = 0;                      // payload bytes of that frame unmasked so far
-  bool in_message_ = false;                      // a message began (its first frame was read)
-  bool message_binary_ = false;                  // that message is binary
-  std::string message_;                          // that message so far (text within max_message_bytes)
-  std::size_t message_bytes_ = 0;                // its length so far, skipped or binary included
-  bool skipping_ = false;                        // it is over max_message_bytes: skipped to its end
-  bool discard_ = false;                         // discard_messages() was called
-  bool stopped_ = false;                         // stop() or a protocol error
-  std::string error_;                            // the protocol error's reason
+  std::size_t max_message_bytes_;              // the longest text message delivered
+  unsigned char head_[k_max_head_bytes] = {};  // a frame head begun in an earlier feed...
+  std::size_t head_size_ = 0;                  // ...of this many bytes (0: none)
+  bool in_frame_ = false;          // a data frame's header was parsed, its payload comes
+  bool frame_fin_ = false;         // that frame ends its message
+  std::uint64_t frame_left_ = 0;   // payload bytes of that frame still to come
+  unsigned char mask_[4] = {};     // that frame's masking key
+  std::size_t mask_at_ = 0;        // payload bytes of that frame unmasked so far
+  bool in_message_ = false;        // a message began (its first frame was read)
+  bool message_binary_ = false;    // that message is binary
+  std::string message_;            // that message so far (text within max_message_bytes)
+  std::size_t message_bytes_ = 0;  // its length so far, skipped or binary included
+  bool skipping_ = false;          // it is over max_message_bytes: skipped to its end
+  bool discard_ = false;           // discard_messages() was called
+  bool stopped_ = false;           // stop() or a protocol error
+  std::string error_;              // the protocol error's reason
 };
 
 }  // namespace simgate::kit

@@ -76,10 +76,10 @@ class ActuatorSet : public SimComponent {
   // Throws unless `value` suits `a` (`parameter` names it in the refusal).
   void check(const Actuator& a, double value, const std::string& parameter) const;
 
-  std::vector<Actuator> actuators_;            // in MuJoCo's order
-  std::map<std::string, std::size_t> by_name_; // name -> index in actuators_
-  std::vector<std::string> names_;             // the names, in MuJoCo's order
-  json description_;                           // list_actuators' answer
+  std::vector<Actuator> actuators_;             // in MuJoCo's order
+  std::map<std::string, std::size_t> by_name_;  // name -> index in actuators_
+  std::vector<std::string> names_;              // the names, in MuJoCo's order
+  json description_;                            // list_actuators' answer
 };
 
 class MjcfSensors : public SimComponent {
@@ -108,13 +108,13 @@ class MjcfSensors : public SimComponent {
 namespace detail {
 // Which of the model's actuators or sensors a component takes (actuator_set.cc).
 struct Selection {
-  std::string option;                      // the option listing names: "actuators"
-  std::string what;                        // "actuator", "sensor"
-  std::string acting;                      // "acting on", "attached to" (for "has none")
-  std::vector<std::string> names;          // every object of the model, by MuJoCo id
-  std::vector<bool> owned;                 // by id: attached to the robot's subtree
-  std::vector<bool> unattached;            // by id: attached to no object (may be listed)
-  std::function<std::string(int)> where;   // by id: "drives joint 'j'", for refusals
+  std::string option;                     // the option listing names: "actuators"
+  std::string what;                       // "actuator", "sensor"
+  std::string acting;                     // "acting on", "attached to" (for "has none")
+  std::vector<std::string> names;         // every object of the model, by MuJoCo id
+  std::vector<bool> owned;                // by id: attached to the robot's subtree
+  std::vector<bool> unattached;           // by id: attached to no object (may be listed)
+  std::function<std::string(int)> where;  // by id: "drives joint 'j'", for refusals
 };
 // The ids the component takes: the owned ones, or those option `option` lists (each known,
 // owned or unattached, listed once). Throws ConfigError naming the JSON path, the valid

@@ -55,8 +55,8 @@ struct Knot {
 
 // The path of one joint of a motion.
 struct JointPath {
-  std::size_t joint = 0;     // index in the armature's JointSet
-  std::vector<Knot> knots;   // non-decreasing times; at least one
+  std::size_t joint = 0;    // index in the armature's JointSet
+  std::vector<Knot> knots;  // non-decreasing times; at least one
 };
 
 // Where a path puts its joint at a time.
@@ -87,8 +87,8 @@ struct Motion {
 // `from`: each joint's position now (the paths start there, at starttime). Throws
 // ServiceError (Failure::bad_arguments) naming the field ("points[2].time_from_start")
 // and what was expected; nothing is kept from a refused trajectory.
-Motion parse_trajectory(const json& trajectory, const JointSet& joints, double now, double clock_offset,
-                        const std::vector<double>& from);
+Motion parse_trajectory(const json& trajectory, const JointSet& joints, double now,
+                        double clock_offset, const std::vector<double>& from);
 
 // Refuses a target of joint j unless it is finite, within the sane bound of its kind
 // (bounds.h), inside the joint's range when it is limited, and inside its servo's
@@ -122,8 +122,10 @@ class Armature : public SimComponent {
   // ---- async services (completed from default_action) ----
   void rotate(const std::string& joint, double rotation, std::optional<double> speed);
   void translate(const std::string& joint, double translation, std::optional<double> speed);
-  void rotate_joints(const std::map<std::string, double>& joint_rotations, std::optional<double> speed);
-  void translate_joints(const std::map<std::string, double>& joint_translations, std::optional<double> speed);
+  void rotate_joints(const std::map<std::string, double>& joint_rotations,
+                     std::optional<double> speed);
+  void translate_joints(const std::map<std::string, double>& joint_translations,
+                        std::optional<double> speed);
   void trajectory(const json& trajectory);
 
   void default_action() override;
@@ -144,9 +146,11 @@ class Armature : public SimComponent {
     std::string parameter;
   };
   // Looks a joint up and checks its kind for `service` (FAILED naming it and its kind).
-  std::size_t joint_of_kind(const std::string& name, JointKind kind, const std::string& parameter) const;
+  std::size_t joint_of_kind(const std::string& name, JointKind kind,
+                            const std::string& parameter) const;
   // Targets of set_rotations / set_translations (list or object), checked.
-  std::vector<Target> targets_from(const json& values, JointKind kind, const std::string& parameter) const;
+  std::vector<Target> targets_from(const json& values, JointKind kind,
+                                   const std::string& parameter) const;
   // Refuses to teleport a joint the running motion drives.
   void require_not_moving(const Target& target) const;
   // Sets the targets at once and holds them (set_rotation & co).
@@ -164,16 +168,16 @@ class Armature : public SimComponent {
   std::vector<std::size_t> not_arrived() const;
   double tolerance_of(std::size_t i) const;
 
-  JointSet joints_;                         // what it moves, in order
-  double radial_speed_ = 0.8;               // rad/s, default speed of rotations (MORSE)
-  double linear_speed_ = 0.05;              // m/s, default speed of translations (MORSE)
-  double angle_tolerance_ = 0.01;           // rad, arrival of a revolute servo joint (MORSE)
-  double distance_tolerance_ = 0.005;       // m, arrival of a prismatic servo joint (MORSE)
-  double settle_timeout_ = 2.0;             // s after the last knot before FAILED
-  std::optional<Motion> motion_;            // what the running request asked for
-  std::vector<int> path_of_;                // joint -> index in motion_->paths, or -1
-  std::vector<std::optional<double>> hold_; // joint -> position held when not in motion
-  KinematicDrive kinematic_;                // this step's kinematic joints
+  JointSet joints_;                          // what it moves, in order
+  double radial_speed_ = 0.8;                // rad/s, default speed of rotations (MORSE)
+  double linear_speed_ = 0.05;               // m/s, default speed of translations (MORSE)
+  double angle_tolerance_ = 0.01;            // rad, arrival of a revolute servo joint (MORSE)
+  double distance_tolerance_ = 0.005;        // m, arrival of a prismatic servo joint (MORSE)
+  double settle_timeout_ = 2.0;              // s after the last knot before FAILED
+  std::optional<Motion> motion_;             // what the running request asked for
+  std::vector<int> path_of_;                 // joint -> index in motion_->paths, or -1
+  std::vector<std::optional<double>> hold_;  // joint -> position held when not in motion
+  KinematicDrive kinematic_;                 // this step's kinematic joints
 };
 
 // MORSE's armature pose sensor.

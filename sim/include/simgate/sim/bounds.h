@@ -48,8 +48,8 @@ void require_between(std::string_view parameter, double value, double low, doubl
 // Refuses a move, asked for with `parameter` = `value`, that would take `object` ("body
 // 'robot'") to a `coordinate` on `axis` ("x") beyond ±position:
 // "x = 900000 would take body 'robot' to x = 1.9e+06, beyond the world bound ±1e+06 m".
-void require_inside_world(std::string_view parameter, double value, std::string_view object, std::string_view axis,
-                          double coordinate);
+void require_inside_world(std::string_view parameter, double value, std::string_view object,
+                          std::string_view axis, double coordinate);
 
 }  // namespace simgate::sim::bounds
 

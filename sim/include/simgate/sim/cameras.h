@@ -102,24 +102,25 @@ class Camera : public SimComponent {
   json pose() const;
 
   Type type_;
-  int camera_ = -1;                   // MJCF camera id, or -1: frame_
-  std::string camera_name_;           // its name
-  std::optional<SensorFrame> frame_;  // the frame it sees from when camera_ < 0
-  int width_, height_;                // pixels
-  double fovy_;                       // vertical field of view, degrees
-  double near_, far_;                 // clipping planes, m
-  double frequency_;                  // images per simulated second while capturing
-  std::shared_ptr<Renderer> renderer_;          // null until the first image
-  RenderModelCopy model_copy_;                  // the renderer's copy of the current model
-  std::shared_ptr<Mailbox> mailbox_;            // images coming back
+  int camera_ = -1;                     // MJCF camera id, or -1: frame_
+  std::string camera_name_;             // its name
+  std::optional<SensorFrame> frame_;    // the frame it sees from when camera_ < 0
+  int width_, height_;                  // pixels
+  double fovy_;                         // vertical field of view, degrees
+  double near_, far_;                   // clipping planes, m
+  double frequency_;                    // images per simulated second while capturing
+  std::shared_ptr<Renderer> renderer_;  // null until the first image
+  RenderModelCopy model_copy_;          // the renderer's copy of the current model
+  std::shared_ptr<Mailbox> mailbox_;    // images coming back
   // the running capture
-  std::uint64_t capture_id_ = 0;      // bumped by each capture (and each end)
-  long long to_render_ = 0;           // images still to ask for
-  long long expected_ = 0;            // images it returns
-  bool capture_png_ = true;           // its records hold PNGs (its caller does not take them raw)
-  double next_frame_time_ = 0;        // simulated time of the next image
-  json images_ = json::array();       // its images so far
-  std::vector<std::shared_ptr<const StreamPayload>> image_pixels_;  // their pixels raw (attachments)
+  std::uint64_t capture_id_ = 0;  // bumped by each capture (and each end)
+  long long to_render_ = 0;       // images still to ask for
+  long long expected_ = 0;        // images it returns
+  bool capture_png_ = true;       // its records hold PNGs (its caller does not take them raw)
+  double next_frame_time_ = 0;    // simulated time of the next image
+  json images_ = json::array();   // its images so far
+  std::vector<std::shared_ptr<const StreamPayload>>
+      image_pixels_;  // their pixels raw (attachments)
   // the stream
   double next_stream_time_ = 0;       // simulated time of its next image
   double stream_clock_ = 0;           // simulated time at its last look (a reset goes back)

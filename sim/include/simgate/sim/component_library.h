@@ -55,7 +55,7 @@
 
 // What must match for components to cross: the transports' tag (C++ ABI, JSON), plus the
 // component ABI, MuJoCo's header version and Eigen's.
-#define SIMGATE_COMPONENT_BUILD_TAG                                                           \
+#define SIMGATE_COMPONENT_BUILD_TAG \
   SIMGATE_BUILD_TAG ";components=" SIMGATE_STRINGIFY(SIMGATE_COMPONENT_ABI_VERSION) ";mujoco=" \
       SIMGATE_STRINGIFY(mjVERSION_HEADER) ";eigen=" SIMGATE_STRINGIFY(EIGEN_WORLD_VERSION) "."   \
       SIMGATE_STRINGIFY(EIGEN_MAJOR_VERSION)
@@ -67,15 +67,16 @@ extern "C" {
 typedef int (*simgate_register_components_fn)(void* registry, char* error, size_t error_size);
 
 struct simgate_component_library_descriptor {
-  uint32_t abi_version;                           // SIMGATE_COMPONENT_ABI_VERSION of its build
-  uint32_t descriptor_size;                       // sizeof(simgate_component_library_descriptor) of its build
-  const char* name;                               // "odometer": must match the file and entry names
-  const char* version;                            // the library's own version
-  const char* build_tag;                          // SIMGATE_COMPONENT_BUILD_TAG of its build
+  uint32_t abi_version;      // SIMGATE_COMPONENT_ABI_VERSION of its build
+  uint32_t descriptor_size;  // sizeof(simgate_component_library_descriptor) of its build
+  const char* name;          // "odometer": must match the file and entry names
+  const char* version;       // the library's own version
+  const char* build_tag;     // SIMGATE_COMPONENT_BUILD_TAG of its build
   simgate_register_components_fn register_types;  // required
 };
 
-typedef const struct simgate_component_library_descriptor* (*simgate_component_library_entry_fn)(void);
+typedef const struct simgate_component_library_descriptor* (*simgate_component_library_entry_fn)(
+    void);
 }
 
 namespace simgate::sim {
@@ -90,7 +91,8 @@ int register_components(void* registry, char* error, size_t error_size, Add add)
   } catch (const std::exception& e) {
     simgate::detail::copy_error(error, error_size, e.what());
   } catch (...) {
-    simgate::detail::copy_error(error, error_size, "unknown exception while registering component types");
+    simgate::detail::copy_error(error, error_size,
+                                "unknown exception while registering component types");
   }
   return 0;
 }
@@ -108,7 +110,8 @@ std::vector<std::string> add_component_library(ComponentRegistry& registry,
 // Finds, opens and checks a component library and adds its types to `registry`: the
 // library stays loaded while one of them is in a registry. Returns the names of the types
 // added. Throws PluginError.
-std::vector<std::string> load_component_library(ComponentRegistry& registry, const std::string& name_or_path,
+std::vector<std::string> load_component_library(ComponentRegistry& registry,
+                                                const std::string& name_or_path,
                                                 const std::vector<std::string>& extra_dirs = {});
 
 // The built-in types' descriptor (named "builtin").
@@ -116,16 +119,21 @@ const simgate_component_library_descriptor* builtin_component_library();
 
 }  // namespace simgate::sim
 
-#define SIMGATE_COMPONENT_LIBRARY(NAME, VERSION, REGISTER)                                        \
-  extern "C" __attribute__((visibility("default"))) const simgate_component_library_descriptor*  \
-      simgate_components_##NAME##_entry(void) {                                                  \
-    static const simgate_component_library_descriptor descriptor = {                             \
-        SIMGATE_COMPONENT_ABI_VERSION, sizeof(simgate_component_library_descriptor), #NAME, VERSION, \
-        SIMGATE_COMPONENT_BUILD_TAG, [](void* registry, char* error, size_t error_size) -> int {  \
-          return ::simgate::sim::detail::register_components(registry, error, error_size,        \
-                                                             [](::simgate::sim::ComponentRegistry& r) { REGISTER(r); }); \
-        }};                                                                                      \
-    return &descriptor;                                                                          \
+#define SIMGATE_COMPONENT_LIBRARY(NAME, VERSION, REGISTER)                              \
+  extern "C" __attribute__((visibility("default")))                                     \
+  const simgate_component_library_descriptor* simgate_components_##NAME##_entry(void) { \
+    static const simgate_component_library_descriptor descriptor = {                    \
+        SIMGATE_COMPONENT_ABI_VERSION,                                                  \
+        sizeof(simgate_component_library_descriptor),                                   \
+        #NAME,                                                                          \
+        VERSION,                                                                        \
+        SIMGATE_COMPONENT_BUILD_TAG,                                                    \
+        [](void* registry, char* error, size_t error_size) -> int {                     \
+          return ::simgate::sim::detail::register_components(                           \
+              registry, error, error_size,                                              \
+              [](::simgate::sim::ComponentRegistry& r) { REGISTER(r); });               \
+        }};                                                                             \
+    return &descriptor;                                                                 \
   }
 
 #endif  // SIMGATE_SIM_COMPONENT_LIBRARY_H_

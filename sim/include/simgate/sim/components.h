@@ -3,9 +3,9 @@
 // Robots:
 //  - ground_robot: a differential-drive robot; its two wheels are driven through MuJoCo
 //    velocity actuators (<velocity kv>, or a <general> of that shape: fixed gain kv, affine
-//    bias 0 0 -kv; anything else is a ConfigError naming the actuator). Options: left_actuator, right_actuator (default
-//    "<body>_left_motor" / "<body>_right_motor"), wheel_radius (0.1 m),
-//    wheel_separation (0.42 m), max_wheel_speed (30 rad/s).
+//    bias 0 0 -kv; anything else is a ConfigError naming the actuator). Options: left_actuator,
+//    right_actuator (default "<body>_left_motor" / "<body>_right_motor"), wheel_radius
+//    (0.1 m), wheel_separation (0.42 m), max_wheel_speed (30 rad/s).
 //  - human: `move speed rotation` (MORSE's HumanClass example): steps `speed` metres
 //    forward and turns `rotation` radians; refuses negative speeds. Needs a free joint.
 //  - robot: a body with no services of its own.
@@ -102,14 +102,14 @@ class Waypoint : public SimComponent {
   void set_target(double x, double y, double z, double tolerance, double speed);
   double distance() const;
 
-  Robot& robot_;                 // whose pose is controlled
-  DifferentialDrive& drive_;     // how
-  double max_angular_speed_;     // rad/s
-  double heading_gain_;          // rad/s per rad of heading error
+  Robot& robot_;                     // whose pose is controlled
+  DifferentialDrive& drive_;         // how
+  double max_angular_speed_;         // rad/s
+  double heading_gain_;              // rad/s per rad of heading error
   Eigen::Vector3d target_{0, 0, 0};  // destination (world frame)
-  double tolerance_ = 0.5;       // metres (distance in the ground plane)
-  double speed_ = 1.0;           // m/s
-  State state_ = State::arrived; // MORSE's status
+  double tolerance_ = 0.5;           // metres (distance in the ground plane)
+  double speed_ = 1.0;               // m/s
+  State state_ = State::arrived;     // MORSE's status
 };
 
 class Teleport : public SimComponent {

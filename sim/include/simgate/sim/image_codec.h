@@ -3,8 +3,8 @@
 // encode_png writes a PNG file (W3C PNG, 2nd edition) of one image: 8-bit RGB (colour
 // type 2) or 16-bit grayscale (colour type 0), no interlace, deflate-compressed by zlib
 // with filter type None on every row. Rows are given top row first, as PNG stores them.
-// base64_encode (and base64_decode, for clients) is RFC 4648's base64 (standard alphabet, '=' padding, no line breaks),
-// how MORSE's cameras put their images into JSON.
+// base64_encode (and base64_decode, for clients) is RFC 4648's base64 (standard alphabet, '='
+// padding, no line breaks), how MORSE's cameras put their images into JSON.
 //
 // Pure functions, no MuJoCo: callable from any thread (the render thread encodes).
 #ifndef SIMGATE_SIM_IMAGE_CODEC_H_
@@ -23,7 +23,8 @@ namespace simgate::sim {
 std::vector<std::uint8_t> encode_png_rgb8(std::span<const std::uint8_t> rgb, int width, int height);
 // A PNG of `width` x `height` 16-bit grayscale samples (rows top first, host order; the
 // file stores them big-endian as PNG requires).
-std::vector<std::uint8_t> encode_png_gray16(std::span<const std::uint16_t> gray, int width, int height);
+std::vector<std::uint8_t> encode_png_gray16(std::span<const std::uint16_t> gray, int width,
+                                            int height);
 
 // RFC 4648 base64 of `bytes`.
 std::string base64_encode(std::span<const std::uint8_t> bytes);

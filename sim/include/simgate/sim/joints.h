@@ -55,18 +55,18 @@ std::string_view unit_of(JointKind kind);
 
 // One armature joint: what the model says about it, looked up once.
 struct ArmatureJoint {
-  std::string name;        // MJCF name, or "joint<id>"
-  int id = -1;             // MuJoCo joint id
+  std::string name;  // MJCF name, or "joint<id>"
+  int id = -1;       // MuJoCo joint id
   JointKind kind = JointKind::revolute;
-  int qpos = -1;           // address in mjData::qpos
-  int dof = -1;            // address in mjData::qvel (and qfrc_*)
-  bool limited = false;    // jnt_limited: position confined to [low, high]
-  double low = 0;          // jnt_range, radians or metres (meaningful when limited)
+  int qpos = -1;         // address in mjData::qpos
+  int dof = -1;          // address in mjData::qvel (and qfrc_*)
+  bool limited = false;  // jnt_limited: position confined to [low, high]
+  double low = 0;        // jnt_range, radians or metres (meaningful when limited)
   double high = 0;
-  int servo = -1;          // the position servo driving it, or -1 (kinematic)
-  double gear = 1;         // the servo's gear: its ctrl is gear * position
+  int servo = -1;             // the position servo driving it, or -1 (kinematic)
+  double gear = 1;            // the servo's gear: its ctrl is gear * position
   bool ctrl_limited = false;  // the servo's ctrlrange applies
-  double ctrl_low = 0;     // the servo's ctrlrange (meaningful when ctrl_limited)
+  double ctrl_low = 0;        // the servo's ctrlrange (meaningful when ctrl_limited)
   double ctrl_high = 0;
 };
 
@@ -101,12 +101,12 @@ class KinematicDrive {
     int qpos, dof;
     double position, velocity;
   };
-  std::vector<Wanted> wanted_;  // since the last apply
-  std::vector<mjtNum> units_;   // n unit vectors of size nv, then M^-1 times them
-  std::vector<mjtNum> columns_; // M^-1 e_k, n × nv
-  std::vector<mjtNum> gram_;    // (M^-1)_SS, n × n, then its Cholesky factor
-  std::vector<mjtNum> missing_; // wanted velocity minus qvel, per joint
-  std::vector<mjtNum> impulse_; // lambda, per joint
+  std::vector<Wanted> wanted_;   // since the last apply
+  std::vector<mjtNum> units_;    // n unit vectors of size nv, then M^-1 times them
+  std::vector<mjtNum> columns_;  // M^-1 e_k, n × nv
+  std::vector<mjtNum> gram_;     // (M^-1)_SS, n × n, then its Cholesky factor
+  std::vector<mjtNum> missing_;  // wanted velocity minus qvel, per joint
+  std::vector<mjtNum> impulse_;  // lambda, per joint
 };
 
 class JointSet {

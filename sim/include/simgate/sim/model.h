@@ -70,7 +70,8 @@ using SharedSpec = std::shared_ptr<const mjSpec>;
 // MuJoCo's parser on the file `path`, or on `*text` when given; mj_compile of a spec. Each
 // throws MujocoError "<source>: <MuJoCo's message>" (the message alone when `source` is
 // empty: "scene 'arm.xml'"); compile_spec logs MuJoCo's compile warning. Any thread.
-std::shared_ptr<mjSpec> parse_spec(const std::string& path, const std::string* text, const std::string& source);
+std::shared_ptr<mjSpec> parse_spec(const std::string& path, const std::string* text,
+                                   const std::string& source);
 mjModel* compile_spec(mjSpec* spec, const std::string& source);
 
 class Model {
@@ -91,14 +92,17 @@ class Model {
 
   // A model compiled from `spec` (an edited copy, model_edit.cc), which it keeps: takes `m`,
   // makes its data.
-  static Model adopt(mjModel* m, std::string source, SharedSpec spec, std::vector<SpawnedEntity> entities);
+  static Model adopt(mjModel* m, std::string source, SharedSpec spec,
+                     std::vector<SpawnedEntity> entities);
   // Wraps a spec MuJoCo made (mj_parseXML, mj_copySpec...): mj_deleteSpec when the last owner goes.
   static std::shared_ptr<mjSpec> own(mjSpec* spec);
 
   // Name -> id lookups; -1 when missing. body_id also finds an unnamed body by the name
   // body_name() gives it ("body3"), so that a config can bind to it.
   int body_id(const std::string& name) const;
-  int joint_id(const std::string& name) const { return mj_name2id(model(), mjOBJ_JOINT, name.c_str()); }
+  int joint_id(const std::string& name) const {
+    return mj_name2id(model(), mjOBJ_JOINT, name.c_str());
+  }
   int actuator_id(const std::string& name) const {
     return mj_name2id(model(), mjOBJ_ACTUATOR, name.c_str());
   }
@@ -108,8 +112,12 @@ class Model {
   int free_joint_of(int body) const;
 
  private:
-  struct ModelDeleter { void operator()(mjModel* m) const { mj_deleteModel(m); } };
-  struct DataDeleter { void operator()(mjData* d) const { mj_deleteData(d); } };
+  struct ModelDeleter {
+    void operator()(mjModel* m) const { mj_deleteModel(m); }
+  };
+  struct DataDeleter {
+    void operator()(mjData* d) const { mj_deleteData(d); }
+  };
   Model(mjModel* m, std::string source);
 
   std::unique_ptr<mjModel, ModelDeleter> model_;  // immutable description

@@ -44,9 +44,9 @@ namespace simgate::sim {
 
 // Where a spawned entity's top body goes, in its parent's (the world's) frame.
 struct EntityPose {
-  std::array<double, 3> position{0, 0, 0};              // metres
-  std::optional<std::array<double, 4>> orientation;     // unit quaternion, MuJoCo order w x y z;
-                                                        // none: the fragment's own orientation
+  std::array<double, 3> position{0, 0, 0};           // metres
+  std::optional<std::array<double, 4>> orientation;  // unit quaternion, MuJoCo order w x y z;
+                                                     // none: the fragment's own orientation
 };
 
 // The MJCF document that spawns `fragment` as an entity called `name` at `pose`: a <mujoco>
@@ -56,7 +56,8 @@ struct EntityPose {
 // equality, contact. Throws ServiceError (Failure::bad_arguments, {"parameter": "mjcf"})
 // naming what is wrong: XML that does not parse, another root, another section, no or
 // several bodies, an <include>, a file name that is absolute or climbs out with "..".
-std::string entity_mjcf(const std::string& fragment, const std::string& name, const EntityPose& pose);
+std::string entity_mjcf(const std::string& fragment, const std::string& name,
+                        const EntityPose& pose);
 
 // What spawns an entity: MJCF named and placed (entity_mjcf), or a URDF robot as written,
 // whose root link becomes the entity's body (named and placed in the spec by with_entity).
@@ -69,7 +70,8 @@ struct EntityDocument {
 // The document that spawns `fragment` as entity `name` at `pose`: URDF when its root element
 // is <robot> (checked as XML that parses), else entity_mjcf's. Throws ServiceError as
 // entity_mjcf does.
-EntityDocument entity_document(const std::string& fragment, const std::string& name, const EntityPose& pose);
+EntityDocument entity_document(const std::string& fragment, const std::string& name,
+                               const EntityPose& pose);
 
 // What an edit starts from: the running model's spec, name and entities, copied under the
 // simulation lock so that a worker edits without touching the running model.

@@ -38,7 +38,8 @@ struct ModelRemap {
   // The remap from `from` to `to`, `to` being `from` recompiled without the subtree of
   // `removed_body` (-1: nothing removed) and with objects appended after the survivors
   // when `appended` (a spawn). Throws MujocoError when the models do not match so.
-  static ModelRemap between(const mjModel* from, const mjModel* to, int removed_body, bool appended);
+  static ModelRemap between(const mjModel* from, const mjModel* to, int removed_body,
+                            bool appended);
   // Nothing moves: every id of `m` maps to itself.
   static ModelRemap identity(const mjModel* m);
 

@@ -62,7 +62,9 @@ class SensorFrame {
   Eigen::Vector3d world_position(const mjData* d) const;
   Eigen::Matrix3d world_rotation(const mjData* d) const;
   // After the model changed (SimComponent::on_model_changed).
-  void remap(const ModelRemap& remap) { body_ = remap.body_of(body_), site_ = remap.site_of(site_); }
+  void remap(const ModelRemap& remap) {
+    body_ = remap.body_of(body_), site_ = remap.site_of(site_);
+  }
 
  private:
   SensorFrame(int body, int site) : body_(body), site_(site) {}
@@ -103,14 +105,14 @@ class Odometry : public SimComponent {
 
   SensorFrame frame_;
   Level level_;
-  std::string level_name_;            // as configured, for get_properties
-  Eigen::Vector3d origin_position_;   // world, at start or last reset
-  Eigen::Matrix3d origin_rotation_;   // world from origin frame
-  Eigen::Vector3d last_position_;     // relative pose at the last update
-  Eigen::Vector3d last_rpy_;          // roll, pitch, yaw at the last update
-  double ds_ = 0;                     // curvilinear distance since the last read, m
+  std::string level_name_;              // as configured, for get_properties
+  Eigen::Vector3d origin_position_;     // world, at start or last reset
+  Eigen::Matrix3d origin_rotation_;     // world from origin frame
+  Eigen::Vector3d last_position_;       // relative pose at the last update
+  Eigen::Vector3d last_rpy_;            // roll, pitch, yaw at the last update
+  double ds_ = 0;                       // curvilinear distance since the last read, m
   Eigen::Vector3d dposition_{0, 0, 0};  // displacement since the last read, origin frame, m
-  Eigen::Vector3d drpy_{0, 0, 0};     // droll, dpitch, dyaw since the last read, rad
+  Eigen::Vector3d drpy_{0, 0, 0};       // droll, dpitch, dyaw since the last read, rad
 };
 
 class LaserScanner : public SimComponent {
@@ -141,15 +143,15 @@ class LaserScanner : public SimComponent {
   double cast(const mjtNum* origin, const mjtNum* direction) const;
 
   SensorFrame frame_;
-  double laser_range_;                        // m
-  double scan_window_;                        // degrees
-  double resolution_;                         // degrees between rays
-  std::array<mjtByte, mjNGROUP> geom_groups_; // the geom groups the laser sees
-  std::vector<char> own_geom_;                // per geom: belongs to the robot (not seen)
-  int own_geom_count_ = 0;                    // bounds the re-casts through the robot
-  std::vector<double> directions_;            // sensor frame, 3 per ray
-  std::vector<double> ranges_;                // m, one per ray
-  std::vector<double> points_;                // sensor frame, 3 per ray
+  double laser_range_;                         // m
+  double scan_window_;                         // degrees
+  double resolution_;                          // degrees between rays
+  std::array<mjtByte, mjNGROUP> geom_groups_;  // the geom groups the laser sees
+  std::vector<char> own_geom_;                 // per geom: belongs to the robot (not seen)
+  int own_geom_count_ = 0;                     // bounds the re-casts through the robot
+  std::vector<double> directions_;             // sensor frame, 3 per ray
+  std::vector<double> ranges_;                 // m, one per ray
+  std::vector<double> points_;                 // sensor frame, 3 per ray
 };
 
 class Proximity : public SimComponent {

@@ -62,8 +62,8 @@ class ObjectState {
 
  private:
   struct Joint {
-    std::string name;                    // its key (see above)
-    int type = 0;                        // mjtJoint
+    std::string name;  // its key (see above)
+    int type = 0;      // mjtJoint
     std::vector<mjtNum> qpos, qvel, warmstart, qfrc_applied;
   };
   struct Actuator {

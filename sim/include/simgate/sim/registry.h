@@ -71,10 +71,10 @@ class ComponentContext {
   [[noreturn]] void fail(const std::string& where, const std::string& message) const;
 
  private:
-  Simulation& sim_;         // the simulation being built
+  Simulation& sim_;            // the simulation being built
   const ComponentSpec& spec_;  // name, type, body, path
-  ConfigObject& options_;   // the component's options
-  Robot* robot_;            // parent robot (null for robots)
+  ConfigObject& options_;      // the component's options
+  Robot* robot_;               // parent robot (null for robots)
 };
 
 using ComponentFactory = std::function<std::unique_ptr<SimComponent>(ComponentContext&)>;
@@ -82,8 +82,9 @@ using ComponentFactory = std::function<std::unique_ptr<SimComponent>(ComponentCo
 // One option of a component type, as the config spells it and the schema and docs show it.
 struct OptionSpec {
   std::string name;  // "laser_range"
-  json schema;       // its JSON Schema: {"type": "number", "minimum": 0.001, "maximum": 10000, "default": 30}
-  std::string doc;   // what it does, one line: "maximum range, m"
+  // its JSON Schema: {"type": "number", "minimum": 0.001, "maximum": 10000, "default": 30}
+  json schema;
+  std::string doc;  // what it does, one line: "maximum range, m"
 };
 
 struct ComponentType {
@@ -98,7 +99,7 @@ struct ComponentType {
   // what its "options" object may hold; unchecked unless declared (a library's type may not)
   std::vector<OptionSpec> options = {};
   bool options_declared = false;  // options is the whole list (every built-in)
-  std::string doc_page = {};      // the docs/ page that documents it ("docs/components/armature.md")
+  std::string doc_page = {};  // the docs/ page that documents it ("docs/components/armature.md")
 };
 
 class ComponentRegistry {
@@ -110,7 +111,9 @@ class ComponentRegistry {
   template <class T>
   void add(std::string name, Kind kind, std::string doc) {
     add(std::move(name), kind, std::move(doc),
-        [](ComponentContext& c) -> std::unique_ptr<SimComponent> { return std::make_unique<T>(c); });
+        [](ComponentContext& c) -> std::unique_ptr<SimComponent> {
+          return std::make_unique<T>(c);
+        });
   }
 
   const ComponentType* find(const std::string& name) const;
@@ -134,19 +137,22 @@ class ComponentRegistry {
 };
 
 // A built-in type, declared in the file that defines it:
-//   SIMGATE_BUILTIN_TYPE(laser_scanner, builtin_type<LaserScanner>("laser_scanner", Kind::component,
+//   SIMGATE_BUILTIN_TYPE(laser_scanner, builtin_type<LaserScanner>(
+//       "laser_scanner", Kind::component,
 //       "fan of mj_ray rays: ...", "docs/components/native-sensors.md", {{"laser_range", ...}}));
-inline ComponentType builtin_type(std::string name, Kind kind, std::string doc, std::string doc_page,
-                                  std::vector<OptionSpec> options, ComponentFactory factory) {
-  return ComponentType{nullptr, std::move(name), kind, std::move(doc), std::move(factory), "built in",
-                       std::move(options), true, std::move(doc_page)};
+inline ComponentType builtin_type(std::string name, Kind kind, std::string doc,
+                                  std::string doc_page, std::vector<OptionSpec> options,
+                                  ComponentFactory factory) {
+  return ComponentType{nullptr,    std::move(name),    kind, std::move(doc),     std::move(factory),
+                       "built in", std::move(options), true, std::move(doc_page)};
 }
 // The same for a class constructible from (ComponentContext&).
 template <class T>
 ComponentType builtin_type(std::string name, Kind kind, std::string doc, std::string doc_page,
                            std::vector<OptionSpec> options) {
-  return builtin_type(std::move(name), kind, std::move(doc), std::move(doc_page), std::move(options),
-                      [](ComponentContext& c) -> std::unique_ptr<SimComponent> { return std::make_unique<T>(c); });
+  return builtin_type(
+      std::move(name), kind, std::move(doc), std::move(doc_page), std::move(options),
+      [](ComponentContext& c) -> std::unique_ptr<SimComponent> { return std::make_unique<T>(c); });
 }
 namespace detail {
 // Adds a type to the built-ins (at load time: a static object of the file that defines it).
@@ -154,8 +160,10 @@ struct BuiltinTypeRegistrar {
   explicit BuiltinTypeRegistrar(ComponentType type);
 };
 }  // namespace detail
-#define SIMGATE_BUILTIN_TYPE(id, ...) \
-  static const ::simgate::sim::detail::BuiltinTypeRegistrar simgate_builtin_type_##id { __VA_ARGS__ }
+#define SIMGATE_BUILTIN_TYPE(id, ...)                                                   \
+  static const ::simgate::sim::detail::BuiltinTypeRegistrar simgate_builtin_type_##id { \
+    __VA_ARGS__                                                                         \
+  }
 
 // The built-in types (every SIMGATE_BUILTIN_TYPE of libsimgate_sim): robots ground_robot,
 // human, robot, mjcf; components motion_vw, waypoint, teleport, pose, actuators, sensors,

@@ -42,10 +42,10 @@ json rgb_image_record(const RenderResult& r, bool png = true);
 json depth_image_record(const RenderResult& r, bool png = true);
 // The same from the pieces (an image kept raw and encoded later: a stream's payload).
 // `rgb`: 3 bytes a pixel; `depth`: metres, 0 where nothing is hit; rows top first.
-json rgb_image_record(int width, int height, std::span<const std::uint8_t> rgb, json intrinsic, double timestamp,
-                      bool png = true);
-json depth_image_record(int width, int height, std::span<const float> depth, json intrinsic, double timestamp,
-                        bool png = true);
+json rgb_image_record(int width, int height, std::span<const std::uint8_t> rgb, json intrinsic,
+                      double timestamp, bool png = true);
+json depth_image_record(int width, int height, std::span<const float> depth, json intrinsic,
+                        double timestamp, bool png = true);
 
 class RenderModelCopy {
  public:

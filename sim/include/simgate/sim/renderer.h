@@ -82,13 +82,13 @@ class SceneCopy {
 
 // What one render produced.
 struct RenderResult {
-  std::string error;           // non-empty: the render failed, and why
-  int width = 0, height = 0;   // pixels
-  std::vector<std::uint8_t> rgb;  // 3 bytes per pixel, top row first (empty unless asked)
-  std::vector<float> depth;    // m along the optical axis, top row first, 0 where nothing
-                               // is hit within far_clip (empty unless asked)
-  CameraView view;             // as rendered
-  double timestamp = 0;        // simulated time of the state rendered
+  std::string error;                 // non-empty: the render failed, and why
+  int width = 0, height = 0;         // pixels
+  std::vector<std::uint8_t> rgb;     // 3 bytes per pixel, top row first (empty unless asked)
+  std::vector<float> depth;          // m along the optical axis, top row first, 0 where nothing
+                                     // is hit within far_clip (empty unless asked)
+  CameraView view;                   // as rendered
+  double timestamp = 0;              // simulated time of the state rendered
   std::unique_ptr<SceneCopy> scene;  // given back, for the next update()
 };
 
@@ -137,24 +137,24 @@ class Renderer {
   struct Gl;  // the GlContext and the mjrContext: render thread only
 
   Renderer();
-  void run();                          // the render thread
+  void run();  // the render thread
   void render_job(Job& job, RenderResult& result);
   void ensure_context(const std::shared_ptr<const mjModel>& model, int width, int height);
 
-  mutable std::mutex mutex_;           // guards what follows up to thread_
-  std::condition_variable wake_;       // a job, or stop
-  std::condition_variable started_cv_; // the thread tried to make a context
-  bool started_ = false;               // it did
-  bool stop_ = false;                  // the destructor asks the thread to end
-  std::string unavailable_;            // why there is no context ("" when there is one)
-  std::deque<Job> queue_;              // renders waiting
-  std::uint64_t renders_ = 0;          // renders completed
-  std::uint64_t abandoned_ = 0;        // renders skipped: nobody wanted them any more
-  bool busy_ = false;                  // the render thread holds a job (see idle())
-  std::mutex copy_mutex_;              // guards last_copy_
+  mutable std::mutex mutex_;                  // guards what follows up to thread_
+  std::condition_variable wake_;              // a job, or stop
+  std::condition_variable started_cv_;        // the thread tried to make a context
+  bool started_ = false;                      // it did
+  bool stop_ = false;                         // the destructor asks the thread to end
+  std::string unavailable_;                   // why there is no context ("" when there is one)
+  std::deque<Job> queue_;                     // renders waiting
+  std::uint64_t renders_ = 0;                 // renders completed
+  std::uint64_t abandoned_ = 0;               // renders skipped: nobody wanted them any more
+  bool busy_ = false;                         // the render thread holds a job (see idle())
+  std::mutex copy_mutex_;                     // guards last_copy_
   std::shared_ptr<const mjModel> last_copy_;  // the latest model_copy(), shared when equal
-  std::unique_ptr<Gl> gl_;             // render thread only
-  std::thread thread_;                 // last: started after everything above
+  std::unique_ptr<Gl> gl_;                    // render thread only
+  std::thread thread_;                        // last: started after everything above
 };
 
 // Intrinsic matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] of a view (pixels; square pixels;

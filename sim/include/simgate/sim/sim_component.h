@@ -91,17 +91,19 @@ class SimComponent : public Component {
   void add_property(std::string name, std::function<json()> get);
   // A settable property; `set` receives the client's value and throws ServiceError
   // (Failure::bad_arguments) to refuse it.
-  void add_property(std::string name, std::function<json()> get, std::function<void(const json&)> set);
+  void add_property(std::string name, std::function<json()> get,
+                    std::function<void(const json&)> set);
   // A number kept in `value`, settable to a finite number within [low, high] (`unit` for
   // the refusal's text). `value` must outlive the component (a member).
-  void add_number_property(std::string name, double& value, double low, double high, std::string unit);
+  void add_number_property(std::string name, double& value, double low, double high,
+                           std::string unit);
 
  private:
-  Simulation& sim_;                  // owns this component
-  std::vector<Property> properties_; // in declaration order
-  json configuration_;               // as created (type, body, options)
-  int body_ = -1;                    // for object_to_robot (-1: none)
-  int robot_body_ = -1;              // the robot's root body (-1: none)
+  Simulation& sim_;                   // owns this component
+  std::vector<Property> properties_;  // in declaration order
+  json configuration_;                // as created (type, body, options)
+  int body_ = -1;                     // for object_to_robot (-1: none)
+  int robot_body_ = -1;               // the robot's root body (-1: none)
 };
 
 // A body's pose in the world frame, at Simulation::state_time().
@@ -123,7 +125,8 @@ void set_free_body_pose(Simulation& sim, int free_joint, const Eigen::Vector3d& 
 // Reading a command of an input stream (Component::declare_input_stream): the number under
 // `key`, or `fallback` when it is absent; absent without a fallback, or not a number, is a
 // ServiceError (bad_arguments) naming the key.
-double command_number(const json& command, const std::string& key, std::optional<double> fallback = std::nullopt);
+double command_number(const json& command, const std::string& key,
+                      std::optional<double> fallback = std::nullopt);
 
 // Linear (m/s) and angular (rad/s, counter-clockwise) velocity commands for a ground robot.
 class DifferentialDrive {
@@ -136,7 +139,8 @@ class DifferentialDrive {
 
 class Robot : public SimComponent {
  public:
-  Robot(std::string name, Simulation& sim, int body) : SimComponent(std::move(name), sim), body_(body) {}
+  Robot(std::string name, Simulation& sim, int body)
+      : SimComponent(std::move(name), sim), body_(body) {}
 
   // The root body.
   int body() const { return body_; }

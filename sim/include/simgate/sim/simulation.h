@@ -87,7 +87,7 @@ struct Divergence {
   std::string quantity;    // the bad number: "qacc[12]"
   std::string where;       // what it belongs to: "joint 'knee' of body 'shin'"
   DivergencePolicy action = DivergencePolicy::pause;  // what was done
-  double resumed_at = 0;   // the simulated time the world was put back to
+  double resumed_at = 0;  // the simulated time the world was put back to
 };
 // As clients read it: get_simulation_state's last_divergence, the "diverged" event's fields.
 // {"sim_time", "step", "quantity", "where", "action", "resumed_at"}
@@ -97,7 +97,8 @@ struct SimulationOptions {
   std::optional<double> timestep;  // seconds; overrides the MJCF's <option timestep>
   double realtime_factor = 1.0;    // sim seconds per wall second; 0 = as fast as possible
   bool start_paused = false;       // lockstep: clients drive the simulation with `simulation step`
-  // Directories `simulation spawn_entity` may read fragment files from (absolute; none: inline MJCF only).
+  // Directories `simulation spawn_entity` may read fragment files from (absolute; none: inline MJCF
+  // only).
   std::vector<std::string> spawn_allowed_dirs = {};
   DivergencePolicy on_divergence = DivergencePolicy::pause;  // scene.on_divergence
 };
@@ -114,7 +115,7 @@ const char* to_string(RunState state);
 
 // What the simulation knows about one component.
 struct ComponentEntry {
-  std::unique_ptr<Component> component;  // owned
+  std::unique_ptr<Component> component;   // owned
   SimComponent* sim_component = nullptr;  // the same object when it is a SimComponent
   std::string type;                       // registry type name, "simulation", "time"
   std::string robot;                      // owning robot ("" for robots and pseudo-components)
@@ -125,15 +126,16 @@ struct ComponentEntry {
 
 // Counters for `time statistics` and benchmarks.
 struct SimulationStatistics {
-  std::uint64_t steps = 0;        // physics steps since start
-  double sim_time = 0;            // simulated seconds (mjData::time)
-  double wall_time = 0;           // wall seconds since run() started
-  double realtime_factor = 0;     // measured sim_time / wall_time over the run
-  double target_factor = 0;       // configured factor (0 = as fast as possible)
-  double timestep = 0;            // physics step, seconds
-  std::uint64_t overruns = 0;     // times the loop fell behind real time and resynchronised
-  std::uint64_t bad_states = 0;   // steps in which MuJoCo found a bad state (divergences: on_divergence)
-  double recent_factor = 0;       // measured over the last second of playing (0 while paused)
+  std::uint64_t steps = 0;     // physics steps since start
+  double sim_time = 0;         // simulated seconds (mjData::time)
+  double wall_time = 0;        // wall seconds since run() started
+  double realtime_factor = 0;  // measured sim_time / wall_time over the run
+  double target_factor = 0;    // configured factor (0 = as fast as possible)
+  double timestep = 0;         // physics step, seconds
+  std::uint64_t overruns = 0;  // times the loop fell behind real time and resynchronised
+  std::uint64_t bad_states =
+      0;                     // steps in which MuJoCo found a bad state (divergences: on_divergence)
+  double recent_factor = 0;  // measured over the last second of playing (0 while paused)
 };
 
 class Simulation {
@@ -289,9 +291,9 @@ class Simulation {
   // ...fields}. The simulation announces "diverged" (fields: to_json(Divergence),
   // "divergences", "message"; its timestamp the diverging step's start), then what
   // its policy did: "paused" (set_paused) or "reset" (reset()); and "paused", "resumed",
-  // "reset" whoever causes them, and "restored" (fields: "handle") for restore_state. Every event has "by": the transport of the client request
-  // that caused it, or "simulation" (its own policy, the host). Costs one atomic read when
-  // nobody subscribes.
+  // "reset" whoever causes them, and "restored" (fields: "handle") for restore_state. Every event
+  // has "by": the transport of the client request that caused it, or "simulation" (its own policy,
+  // the host). Costs one atomic read when nobody subscribes.
   void announce(const char* event, json fields = json::object());
 
   // ---- playing, pausing and stepping (under the simulation lock) ----
@@ -351,7 +353,9 @@ class Simulation {
     // (ServiceError, parameter "robot") having added nothing when a component cannot be made.
     virtual void build(const std::string& name, const json& section) = 0;
   };
-  void set_robot_factory(std::shared_ptr<RobotFactory> factory) { robot_factory_ = std::move(factory); }
+  void set_robot_factory(std::shared_ptr<RobotFactory> factory) {
+    robot_factory_ = std::move(factory);
+  }
   RobotFactory* robot_factory() const { return robot_factory_.get(); }
 
  private:
@@ -368,52 +372,54 @@ class Simulation {
   bool check_mujoco_warnings(double time_before);
   // Applies the divergence policy to the step from `time_before` that MuJoCo found `what`
   // in (`quantity` of `where`); true when the step was undone.
-  bool diverged(double time_before, const std::string& what, std::string quantity, std::string where);
+  bool diverged(double time_before, const std::string& what, std::string quantity,
+                std::string where);
   // Ends every async request in flight (each component's running one, and its concurrent
   // calls) FAILED with `reason`, then interrupts what they were doing.
   void fail_requests(const std::string& reason);
   // Sets every bad control to 0 and names their actuators.
   std::string drop_bad_controls();
 
-  Model model_;                                              // mjModel + mjData
-  double realtime_factor_;                                   // 0 = as fast as possible
-  bool paused_ = false;                                      // no step of the loop's own
-  std::uint64_t owed_steps_ = 0;                             // `simulation step` steps left
-  std::function<void()> owed_done_;                          // runs after the last owed step
-  std::uint64_t model_generation_ = 0;                       // see model_generation()
-  bool reschedule_ = false;                                  // the loop restarts its pace from now
-  std::chrono::steady_clock::time_point next_step_{};        // when the paced loop steps next
-  std::chrono::steady_clock::time_point window_start_{};     // wall start of the rate window
-  std::uint64_t window_steps_ = 0;                           // steps_ at the window's start
-  std::atomic<double> recent_factor_{0};                     // measured over the last window
-  std::shared_ptr<SimulationGate> gate_;                     // shared with every manager
-  std::shared_ptr<StreamHub> streams_;                       // the data streams, shared with every manager
-  std::mutex soon_mutex_;                                    // guards soon_
-  std::vector<std::function<void()>> soon_;                  // run_soon tasks, in order
-  std::vector<std::unique_ptr<ComponentEntry>> entries_;     // every component, in order
-  std::vector<std::shared_ptr<RequestManager>> managers_;    // every transport
-  std::vector<std::string> manager_names_;                   // transport name of each manager
-  std::atomic<bool> stop_{false};                            // run() returns when set
-  std::atomic<std::uint64_t> steps_{0};                      // physics steps taken
-  bool dynamics_suspended_ = false;                          // step() skips mj_step
-  double state_time_ = 0;                                    // see state_time()
-  std::chrono::steady_clock::time_point run_started_{};      // wall start of run()
-  bool running_ = false;                                     // run() has started
-  std::uint64_t overruns_ = 0;                               // pacing resynchronisations
-  bool shut_down_ = false;                                   // shutdown() done
+  Model model_;                                           // mjModel + mjData
+  double realtime_factor_;                                // 0 = as fast as possible
+  bool paused_ = false;                                   // no step of the loop's own
+  std::uint64_t owed_steps_ = 0;                          // `simulation step` steps left
+  std::function<void()> owed_done_;                       // runs after the last owed step
+  std::uint64_t model_generation_ = 0;                    // see model_generation()
+  bool reschedule_ = false;                               // the loop restarts its pace from now
+  std::chrono::steady_clock::time_point next_step_{};     // when the paced loop steps next
+  std::chrono::steady_clock::time_point window_start_{};  // wall start of the rate window
+  std::uint64_t window_steps_ = 0;                        // steps_ at the window's start
+  std::atomic<double> recent_factor_{0};                  // measured over the last window
+  std::shared_ptr<SimulationGate> gate_;                  // shared with every manager
+  std::shared_ptr<StreamHub> streams_;       // the data streams, shared with every manager
+  std::mutex soon_mutex_;                    // guards soon_
+  std::vector<std::function<void()>> soon_;  // run_soon tasks, in order
+  std::vector<std::unique_ptr<ComponentEntry>> entries_;   // every component, in order
+  std::vector<std::shared_ptr<RequestManager>> managers_;  // every transport
+  std::vector<std::string> manager_names_;                 // transport name of each manager
+  std::atomic<bool> stop_{false};                          // run() returns when set
+  std::atomic<std::uint64_t> steps_{0};                    // physics steps taken
+  bool dynamics_suspended_ = false;                        // step() skips mj_step
+  double state_time_ = 0;                                  // see state_time()
+  std::chrono::steady_clock::time_point run_started_{};    // wall start of run()
+  bool running_ = false;                                   // run() has started
+  std::uint64_t overruns_ = 0;                             // pacing resynchronisations
+  bool shut_down_ = false;                                 // shutdown() done
   // mjData::warning[k].number after the last look (0 or 1: rebased each time, so MuJoCo's
   // int never overflows and its own message, printed when the counter is 0, comes once)
   std::array<int, mjNWARNING> warnings_seen_{};
-  std::array<std::uint64_t, mjNWARNING> warning_totals_{};  // occurrences of each warning since start
-  std::uint64_t bad_states_ = 0;                             // divergences since start
-  DivergencePolicy on_divergence_;                           // see SimulationOptions
-  std::optional<Divergence> last_divergence_;                // see last_divergence()
-  PhysicsState before_step_;                                 // pause: the state the step started from
-  PhysicsState checkpoint_;                                  // restore: the last checkpoint
-  PhysicsState next_checkpoint_;                             // restore: the one being taken (kept if its step goes well)
-  std::vector<std::string> spawn_allowed_dirs_;              // see SimulationOptions
-  std::shared_ptr<RobotFactory> robot_factory_;              // see set_robot_factory
-  SimulationEvents* events_ = nullptr;                       // simulation.events (owned by entries_), once added
+  std::array<std::uint64_t, mjNWARNING>
+      warning_totals_{};                       // occurrences of each warning since start
+  std::uint64_t bad_states_ = 0;               // divergences since start
+  DivergencePolicy on_divergence_;             // see SimulationOptions
+  std::optional<Divergence> last_divergence_;  // see last_divergence()
+  PhysicsState before_step_;                   // pause: the state the step started from
+  PhysicsState checkpoint_;                    // restore: the last checkpoint
+  PhysicsState next_checkpoint_;  // restore: the one being taken (kept if its step goes well)
+  std::vector<std::string> spawn_allowed_dirs_;  // see SimulationOptions
+  std::shared_ptr<RobotFactory> robot_factory_;  // see set_robot_factory
+  SimulationEvents* events_ = nullptr;  // simulation.events (owned by entries_), once added
 };
 
 }  // namespace simgate::sim

@@ -99,7 +99,6 @@ class SupervisionServices : public Component {
   std::map<std::string, std::function<void()>> interrupt_hooks_;  // on_interrupt, by service
 };
 
-
 class TimeServices : public Component {
  public:
   explicit TimeServices(Simulation& sim);
@@ -120,9 +119,9 @@ class TimeServices : public Component {
     double wake_at;   // simulated time at which it completes
   };
 
-  Simulation& sim_;             // whose clock
-  double epoch_;                // wall-clock seconds since the epoch when the simulation started
-  std::vector<Sleep> sleeps_;   // the sleeps running, in the order they started
+  Simulation& sim_;            // whose clock
+  double epoch_;               // wall-clock seconds since the epoch when the simulation started
+  std::vector<Sleep> sleeps_;  // the sleeps running, in the order they started
 };
 
 // Adds the world's pseudo-components to `sim`: `simulation`, `simulation.events` (the

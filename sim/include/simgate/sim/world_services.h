@@ -56,16 +56,17 @@ class SceneGeometryCache {
   std::uint64_t builds() const { return builds_; }
 
  private:
-  std::uint64_t generation_ = 0;     // the model_generation() it was built for
-  const mjModel* model_ = nullptr;   // and the model (nullptr: nothing built yet)
-  json data_;                        // {meshes, hfields}
-  std::uint64_t builds_ = 0;         // see builds()
+  std::uint64_t generation_ = 0;    // the model_generation() it was built for
+  const mjModel* model_ = nullptr;  // and the model (nullptr: nothing built yet)
+  json data_;                       // {meshes, hfields}
+  std::uint64_t builds_ = 0;        // see builds()
 };
 
 // get_scene_geometry's answer: {timestamp, generation, bodies, geoms, meshes, hfields}
 // (meshes and hfields [] unless `include_meshes`). Poses are of state_time(), the time every
 // sensor stamps. With a `cache`, the meshes and hfields come from it (the same answer).
-json scene_geometry(const Simulation& sim, bool include_meshes, SceneGeometryCache* cache = nullptr);
+json scene_geometry(const Simulation& sim, bool include_meshes,
+                    SceneGeometryCache* cache = nullptr);
 // One sample of the `simulation` component's body_poses stream: {timestamp, generation,
 // poses: [[x, y, z, qw, qx, qy, qz] per body, in id order]} (world frame).
 json body_poses(const Simulation& sim);

@@ -62,12 +62,13 @@ struct Options {
   // message, batch included), max_unsent_bytes 16 MiB, max_connections 512, max_in_flight
   // 1024; the port is the transport's (jsonrpc 4001, websocket 8090)
   kit::TcpOptions tcp;
-  std::size_t max_depth = 128;  // ("max_depth") bracket nesting of one message
+  std::size_t max_depth = 128;    // ("max_depth") bracket nesting of one message
   std::size_t stream_queue = 16;  // ("stream_queue") samples a subscription keeps for a slow client
 
   // Reads and checks `options` of the transport `transport` (its name, for warnings)
   // whose default port is `port`; unknown keys are errors (ConfigError naming the key).
-  static Options parse(const json& options, std::string_view transport = "jsonrpc", std::uint16_t port = 4001);
+  static Options parse(const json& options, std::string_view transport = "jsonrpc",
+                       std::uint16_t port = 4001);
 };
 
 // What a session keeps of its pending calls: the client's id (its dumped JSON) -> the
@@ -120,11 +121,14 @@ class Session : public SessionCalls {
     droppable_.clear();
     format(droppable_);
     queue_message(droppable_);
-    if (droppable_.capacity() > kit::Connection::k_kept_buffer_bytes) std::string().swap(droppable_);
+    if (droppable_.capacity() > kit::Connection::k_kept_buffer_bytes)
+      std::string().swap(droppable_);
     return true;
   }
   // This session, sharing its connection's ownership.
-  std::shared_ptr<Session> shared() { return std::shared_ptr<Session>(connection_.shared_from_this(), this); }
+  std::shared_ptr<Session> shared() {
+    return std::shared_ptr<Session>(connection_.shared_from_this(), this);
+  }
 
   // Calls, notifications and cancels in flight (max_in_flight), each until done().
   std::size_t in_flight() const { return connection_.unanswered(); }
@@ -180,10 +184,10 @@ class JsonRpcEngine : public RequestManager {
   // After the I/O thread ended: finish what the core still holds with Failure::shutdown.
   void finish_stop();
 
-  Options options_;              // as parsed
-  boost::asio::io_context io_;   // all sockets; a base's member: destroyed after the transport's
-  std::string tag_;              // "jsonrpc", "websocket"
-  bool stopping_ = false;        // stop_io() ran (I/O thread)
+  Options options_;             // as parsed
+  boost::asio::io_context io_;  // all sockets; a base's member: destroyed after the transport's
+  std::string tag_;             // "jsonrpc", "websocket"
+  bool stopping_ = false;       // stop_io() ran (I/O thread)
 
  private:
   struct Batch;
@@ -195,13 +199,13 @@ class JsonRpcEngine : public RequestManager {
     bool notification = false;       // no response at all
     std::shared_ptr<Batch> batch;    // set for batch entries
     std::size_t index = 0;           // entry index inside the batch
-    std::string id_text;             // the id's exact text when dump() would round it (float_id_texts)
+    std::string id_text;  // the id's exact text when dump() would round it (float_id_texts)
   };
   // A call submitted to the core and not yet finished (or an rpc.cancel waiting for its answer).
   struct Pending {
-    ReplyTo to;          // where the response goes
-    std::string method;  // "component.service", for error data
-    std::string id_key;  // the session's key for the id, dump(id) ("" when untracked)
+    ReplyTo to;           // where the response goes
+    std::string method;   // "component.service", for error data
+    std::string id_key;   // the session's key for the id, dump(id) ("" when untracked)
     bool cancel = false;  // an rpc.cancel waiting for the core's answer (outcome value: found)
     // when its table node is kept for reuse: drop the references, keep the strings' capacity
     void recycle() { to = ReplyTo{}; }
@@ -227,15 +231,15 @@ class JsonRpcEngine : public RequestManager {
   // ---- data streams (engine_streams.cc)
   // One subscription of a connection to an output stream.
   struct StreamSub {
-    std::uint64_t id = 0;                               // what rpc.subscribe answered
-    std::weak_ptr<Session> session;                     // its connection
+    std::uint64_t id = 0;                              // what rpc.subscribe answered
+    std::weak_ptr<Session> session;                    // its connection
     std::shared_ptr<StreamSubscription> subscription;  // the core's queue
   };
   // The streams this transport carries, as rpc.streams lists them.
   json stream_list() const;
   // rpc.streams, rpc.subscribe, rpc.unsubscribe, rpc.publish; false for any other method.
-  bool handle_stream_method(const std::shared_ptr<Session>& session, const std::string& method, const json& params,
-                            ReplyTo& to);
+  bool handle_stream_method(const std::shared_ptr<Session>& session, const std::string& method,
+                            const json& params, ReplyTo& to);
   void subscribe(const std::shared_ptr<Session>& session, const json& params, ReplyTo& to);
   bool unsubscribe(Session& session, std::uint64_t id);
   void publish(const json& params, ReplyTo& to);
@@ -247,19 +251,19 @@ class JsonRpcEngine : public RequestManager {
   // Ends the subscriptions of `session` (and those of connections gone); null: all.
   void end_subscriptions(const Session* session);
 
-  static constexpr std::size_t k_spare_nodes = 256;  // table nodes kept for reuse
+  static constexpr std::size_t k_spare_nodes = 256;               // table nodes kept for reuse
   kit::RecyclingMap<RequestId, Pending> pending_{k_spare_nodes};  // submitted calls (I/O thread)
-  Request request_;                                  // the message being read by the fast path (I/O thread)
+  Request request_;  // the message being read by the fast path (I/O thread)
   // calls of the current read, handed over together: the first to_submit_count_ of
   // to_submit_; the objects are refilled from read to read (I/O thread)
   static constexpr std::size_t k_kept_calls = 1024;
   std::vector<std::pair<RequestId, Call>> to_submit_;
   std::size_t to_submit_count_ = 0;
-  std::string line_;                                 // a response being built (I/O thread; capacity reused)
-  std::vector<StreamSub> stream_subs_;               // every connection's subscriptions (I/O thread)
-  std::uint64_t next_subscription_ = 1;              // rpc.subscribe's numbers (I/O thread)
-  std::vector<SamplePtr> samples_;                   // drain_streams' scratch (I/O thread)
-  std::atomic<bool> streams_woken_{false};           // a drain_streams is posted
+  std::string line_;                        // a response being built (I/O thread; capacity reused)
+  std::vector<StreamSub> stream_subs_;      // every connection's subscriptions (I/O thread)
+  std::uint64_t next_subscription_ = 1;     // rpc.subscribe's numbers (I/O thread)
+  std::vector<SamplePtr> samples_;          // drain_streams' scratch (I/O thread)
+  std::atomic<bool> streams_woken_{false};  // a drain_streams is posted
 };
 
 }  // namespace simgate::jsonrpc

@@ -1,4 +1,5 @@
-// simgate/morse/params_parser.h — the socket transport's parser for the parameters of a request line.
+// simgate/morse/params_parser.h — the socket transport's parser for the parameters of a request
+// line.
 //
 // MORSE's text protocol carries the parameters as the rest of the line after the service
 // name. Today's MORSE sends JSON (`[1, 2]`); its documentation and older clients send
@@ -33,9 +34,9 @@ inline constexpr std::size_t k_max_depth = 64;
 
 // The result of parse_params(): either `value`, or `error` with the column it refers to.
 struct ParamsParse {
-  bool ok = false;     // true when `value` holds the parsed parameters
-  json value;          // the parameters (null when the text is empty)
-  std::string error;   // what was wrong, e.g. "expected ',' or ')' but found 'x'"
+  bool ok = false;         // true when `value` holds the parsed parameters
+  json value;              // the parameters (null when the text is empty)
+  std::string error;       // what was wrong, e.g. "expected ',' or ')' but found 'x'"
   std::size_t column = 0;  // 1-based column of the error, counted from `first_column`
   // when the text is a sequence of bare values (`0.5 0.2`, `0.5, 0.2`), the list the user
   // meant, written as MORSE writes JSON ("[0.5, 0.2]"); empty otherwise
@@ -52,7 +53,8 @@ ParamsParse parse_params(std::string_view text, std::size_t first_column = 1);
 // that are a list or a tuple refill the array `value` holds (its capacity is kept: no
 // allocation). On a syntax error returns false and fills `error`'s error and column
 // (`value` is then unspecified).
-bool parse_params_into(std::string_view text, std::size_t first_column, json& value, ParamsParse& error);
+bool parse_params_into(std::string_view text, std::size_t first_column, json& value,
+                       ParamsParse& error);
 
 }  // namespace simgate::socket
 

@@ -1,4 +1,5 @@
-// simgate/morse/wire.h — the socket transport's line grammar and reply formatting (MORSE's text protocol).
+// simgate/morse/wire.h — the socket transport's line grammar and reply formatting (MORSE's text
+// protocol).
 //
 // Requests, one per line (LF or CRLF; blanks between tokens are any run of spaces/tabs):
 //
