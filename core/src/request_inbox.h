@@ -188,11 +188,11 @@ class Inbox : public CompletionSink {
   std::vector<Event> events_;                            // requests, cancels, tasks in order
   std::vector<std::pair<RequestId, Outcome>> finished_;  // async completions, any thread
   std::vector<std::pair<RequestId, json>> progress_;     // progress reports, any thread
-  std::shared_ptr<SimulationGate> gate_ =
-      std::make_shared<SimulationGate>();  // signalled on every push
-  std::atomic<bool> closed_{false};        // abandon_pending() was called (written under mutex_)
-  std::atomic<bool> queued_{
-      false};  // events_, finished_ or progress_ holds something (written under mutex_)
+  // signalled on every push
+  std::shared_ptr<SimulationGate> gate_ = std::make_shared<SimulationGate>();
+  std::atomic<bool> closed_{false};  // abandon_pending() was called (written under mutex_)
+  // events_, finished_ or progress_ holds something (written under mutex_)
+  std::atomic<bool> queued_{false};
 };
 
 // Outcomes (and progress reports) produced off a transport's delivery thread, on their way

@@ -333,8 +333,8 @@ class DdsRequestManager : public RequestManager {
   // outcomes delivered (on_service_completion), not yet written (DDS thread; at stop(),
   // under the simulation lock)
   std::vector<std::pair<RequestId, Outcome>> finished_;
-  std::vector<std::pair<RequestId, Outcome>>
-      draining_;  // being written (DDS thread; stop() after the join)
+  // being written (DDS thread; stop() after the join)
+  std::vector<std::pair<RequestId, Outcome>> draining_;
   // progress reports delivered (on_service_progress), not yet written (DDS thread; ignored
   // once stopping)
   std::vector<std::pair<RequestId, json>> progress_;

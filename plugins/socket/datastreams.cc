@@ -50,8 +50,8 @@ Datastreams::Datastreams(asio::io_context& io, std::string who, const kit::TcpOp
     : LineServer(who + " datastreams",
                  [&] {
                    kit::TcpOptions o = tcp;
-                   o.idle_timeout = o.idle_evict =
-                       std::chrono::milliseconds(0);  // readers may wait for long
+                   // readers may wait for long
+                   o.idle_timeout = o.idle_evict = std::chrono::milliseconds(0);
                    o.io_spin = std::chrono::microseconds(
                        0);  // the I/O thread reads the service port directly only
                    return o;

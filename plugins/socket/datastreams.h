@@ -115,8 +115,8 @@ class Datastreams : private kit::LineServer {
     std::vector<std::shared_ptr<Connection>> connections;  // open ones
     std::size_t writers = 0;                               // input stream: connections writing now
     bool warned_writers = false;                           // a second writer was warned about
-    std::atomic<bool> closed{
-        false};  // its component was removed, or close_all() (read by the services)
+    // its component was removed, or close_all() (read by the services)
+    std::atomic<bool> closed{false};
   };
 
   // Binds a port for `info`, from next_port_ (0: any) up while in use, and moves next_port_
@@ -167,8 +167,8 @@ class Datastreams : private kit::LineServer {
   // A stream whose port could not be bound, and why (get_stream_port says it).
   struct Unbound {
     std::string component;
-    std::string
-        reason;  // "cannot listen on 127.0.0.1:60000: bind failed: Address already in use ..."
+    // "cannot listen on 127.0.0.1:60000: bind failed: Address already in use ..."
+    std::string reason;
   };
   std::vector<Unbound> unbound_;
   std::uint64_t next_connection_ = 1;  // numbers connections in logs (I/O thread)

@@ -217,8 +217,8 @@ void SocketRequestManager::reply_in_order(Session& session, std::string_view id,
   // earlier requests are still with the core: the answer follows their outcomes, so that a
   // client reading replies in order (telnet, scripts) sees them in order
   session.defer_reply();
-  const RequestId reply_id =
-      new_request_id();  // never one of requests_'s ids (kit::RequestSlots::k_mark)
+  // never one of requests_'s ids (kit::RequestSlots::k_mark)
+  const RequestId reply_id = new_request_id();
   deferred_replies_.emplace(reply_id, DeferredReply{session.shared(), scratch_});
   answer_in_order(reply_id, Outcome{});
 }

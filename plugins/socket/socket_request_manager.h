@@ -88,10 +88,10 @@ struct SocketOptions {
   // "timeouts": every call's deadline (zero: none), and per service ("component.service")
   std::chrono::milliseconds default_timeout{0};
   std::map<std::string, std::chrono::milliseconds, std::less<>> service_timeouts;
-  std::uint16_t stream_port =
-      60000;  // ("stream_port") the first datastream's port; 0: any free port each
-  std::size_t stream_queue =
-      16;  // ("stream_queue") samples a datastream reader keeps (core/streams.h)
+  // ("stream_port") the first datastream's port; 0: any free port each
+  std::uint16_t stream_port = 60000;
+  // ("stream_queue") samples a datastream reader keeps (core/streams.h)
+  std::size_t stream_queue = 16;
 
   // Every check of the options, resolving the host but binding nothing. Throws ConfigError.
   static SocketOptions parse(const json& options);

@@ -442,8 +442,8 @@ class EntityServices {
       std::array<double, 3> up, down;
       bool finite = true;
       for (int k = 0; k < 3 && finite; ++k) {
-        const Eigen::Vector3d u =
-            rotation.row(k).transpose();  // the box's axis k, in the geom's frame
+        // the box's axis k, in the geom's frame
+        const Eigen::Vector3d u = rotation.row(k).transpose();
         const auto plus = geom_support(m, g, u), minus = geom_support(m, g, -u);
         finite = plus && minus;
         if (finite) up[k] = *plus, down[k] = *minus;

@@ -192,8 +192,8 @@ TEST(GatewayCliTest, CheckRefusesWhatRunRefusesWithTheSameMessage) {
   struct Case {
     std::string name;  // what is wrong
     std::string text;  // the file
-    std::string
-        expected;  // in the error, after "config '<file>': " (located: "<file>:1:<column>: ")
+    // in the error, after "config '<file>': " (located: "<file>:1:<column>: ")
+    std::string expected;
     bool located = false;  // an error of the JSON text, at its line and column
   };
   auto with = [](const std::function<void(json&)>& change) {

@@ -42,8 +42,8 @@ class ExampleTransportTest : public ::testing::Test {
     manager_->register_service("test", [](std::string m) -> json { throw ServiceError(m); }, "fail",
                                {"message"});
     manager_->start();
-    const std::string endpoint =
-        manager_->endpoints().at(0);  // "tcp://127.0.0.1:PORT", "ws://127.0.0.1:PORT/"
+    // "tcp://127.0.0.1:PORT", "ws://127.0.0.1:PORT/"
+    const std::string endpoint = manager_->endpoints().at(0);
     const std::string address = endpoint.substr(0, endpoint.find_last_not_of('/') + 1);
     port_ = static_cast<std::uint16_t>(std::stoi(address.substr(address.rfind(':') + 1)));
     // the simulation thread: runs what the I/O thread could not run at once

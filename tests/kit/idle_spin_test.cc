@@ -210,8 +210,8 @@ struct ScriptedReadConnection {
   std::size_t reads = 0;      // read_now() calls
   int async_reads = 0;        // read_async() calls
   bool is_closed = false;
-  DirectReads<ScriptedReadConnection>* rewatch =
-      nullptr;  // watched again after a read, as a session is
+  // watched again after a read, as a session is
+  DirectReads<ScriptedReadConnection>* rewatch = nullptr;
   std::shared_ptr<ScriptedReadConnection> self;
 
   bool read_now() {

@@ -52,8 +52,8 @@ TEST_F(MjcfSensorsTest, OneValueIsANumberSeveralAreAnArray) {
 
 TEST_F(MjcfSensorsTest, AnAccelerometerAtRestReadsGravityUpwards) {
   settle();
-  const json data =
-      arm_data();  // held: a range-for over a member of a temporary reads freed memory
+  // held: a range-for over a member of a temporary reads freed memory
+  const json data = arm_data();
   const json& acc = data["imu_acc"];
   EXPECT_NEAR(acc[0].get<double>(), 0.0, 0.05);
   EXPECT_NEAR(acc[1].get<double>(), 0.0, 0.05);

@@ -353,8 +353,8 @@ class FastReader {
         std::string_view key;
         json element;
         if (!plain_string(key) || !eat(':') || !scalar(element)) return false;
-        value[std::string(key)] =
-            std::move(element);  // a repeated key: the last wins, as in json::parse
+        // a repeated key: the last wins, as in json::parse
+        value[std::string(key)] = std::move(element);
       } while (eat(','));
       return eat('}');
     }

@@ -424,13 +424,13 @@ class RequestManager {
   std::unordered_map<RequestId,
                      std::pair<std::shared_ptr<detail::CallState>, std::shared_ptr<AsyncSlot>>>
       running_;
-  Outcome
-      outcome_;  // the outcome of the request being executed, reused (under the simulation lock)
-  std::atomic<std::uint64_t> requests_handled_{
-      0};  // written under the simulation lock, read anywhere
+  // the outcome of the request being executed, reused (under the simulation lock)
+  Outcome outcome_;
+  // written under the simulation lock, read anywhere
+  std::atomic<std::uint64_t> requests_handled_{0};
   GlobalPolicy global_policy_ = GlobalPolicy::reject;  // when the running service has no policy
-  std::chrono::nanoseconds progress_interval_ =
-      k_default_progress_interval;         // set_progress_interval
+  // set_progress_interval
+  std::chrono::nanoseconds progress_interval_ = k_default_progress_interval;
   std::chrono::milliseconds max_wait_{0};  // set_max_wait (zero: none)
   // an async request with a deadline, watched until it passes (under the simulation lock)
   struct Deadline {

@@ -66,8 +66,8 @@ struct ComponentConfig {
   std::string body;  // MuJoCo body
   json options;      // type-specific options (object)
   std::string path;  // "robots[0].components[1]"
-  std::optional<double>
-      frequency;  // its output stream's samples per simulated second (MORSE's frequency)
+  // its output stream's samples per simulated second (MORSE's frequency)
+  std::optional<double> frequency;
 };
 
 struct RobotConfig {
@@ -79,8 +79,8 @@ struct ServiceRule {
   std::string pattern;                  // exact name or glob
   std::vector<std::string> transports;  // transport names
   std::string path;                     // "services.robot.*"
-  std::optional<double>
-      frequency;  // "streams" rules only: {"frequency": Hz}, overrides the component's
+  // "streams" rules only: {"frequency": Hz}, overrides the component's
+  std::optional<double> frequency;
 };
 
 // The components every simulation has besides the robots' (its supervision services), in
@@ -100,8 +100,8 @@ struct Deployment {
   double realtime_factor = 1.0;         // 0 = as fast as possible
   bool start_paused = false;            // lockstep: clients drive it with `simulation step`
   std::string on_divergence = "pause";  // sim::DivergencePolicy's word, checked
-  std::vector<std::string>
-      spawn_allowed_dirs;  // "spawn.allowed_dirs", canonical: fragment files of spawn_entity
+  // "spawn.allowed_dirs", canonical: fragment files of spawn_entity
+  std::vector<std::string> spawn_allowed_dirs;
   std::vector<TransportConfig> transports;                     // sorted by name
   std::vector<std::string> component_libraries;                // names or paths, in file order
   std::vector<RobotConfig> robots;                             // in file order
@@ -115,8 +115,8 @@ struct Deployment {
   // "requests": {"max_wait_ms": N}: the longest any request of any transport waits for its
   // reply (RequestManager::set_max_wait); zero = no limit
   std::chrono::milliseconds max_wait{0};
-  std::vector<std::string>
-      warnings;  // likely mistakes that are not errors (printed by check, logged by run)
+  // likely mistakes that are not errors (printed by check, logged by run)
+  std::vector<std::string> warnings;
 
   // Every component name: robots, their components, then "simulation", "time" and
   // "communication". This is

@@ -59,16 +59,15 @@ struct TcpOptions {
   bool cancel_on_disconnect = true;                   // ("on_disconnect": "cancel" | "let_run")
   GlobalPolicy global_policy = GlobalPolicy::reject;  // ("global_policy": "reject" | "preempt")
   // Connections that hold resources without using them (connection.h, ConnectionServer):
-  std::chrono::milliseconds idle_timeout{
-      0};  // ("idle_timeout_s") close a connection idle this long; 0: never
-  std::chrono::milliseconds idle_evict{
-      60000};  // ("idle_evict_s") at max_connections, the connection idle
-               //   longest makes room if idle this long; 0: never
-  std::chrono::milliseconds line_timeout{
-      60000};  // ("line_timeout_s") a line begun must end within this; 0: never
-  std::size_t max_buffered_bytes = std::size_t{256}
-                                   << 20;  // ("max_buffered_bytes") unfinished lines and unsent
-                                           //   replies of all connections together
+  // ("idle_timeout_s") close a connection idle this long; 0: never
+  std::chrono::milliseconds idle_timeout{0};
+  // ("idle_evict_s") at max_connections, the connection idle longest makes room if idle
+  // this long; 0: never
+  std::chrono::milliseconds idle_evict{60000};
+  // ("line_timeout_s") a line begun must end within this; 0: never
+  std::chrono::milliseconds line_timeout{60000};
+  // ("max_buffered_bytes") unfinished lines and unsent replies of all connections together
+  std::size_t max_buffered_bytes = std::size_t{256} << 20;
   // ("max_connections_per_peer") open connections from one non-loopback address; 0: no
   // limit. Loopback peers are the machine's own programs (all one address): not counted.
   std::size_t max_connections_per_peer = 64;

@@ -119,8 +119,8 @@ class Camera : public SimComponent {
   bool capture_png_ = true;       // its records hold PNGs (its caller does not take them raw)
   double next_frame_time_ = 0;    // simulated time of the next image
   json images_ = json::array();   // its images so far
-  std::vector<std::shared_ptr<const StreamPayload>>
-      image_pixels_;  // their pixels raw (attachments)
+  // their pixels raw (attachments)
+  std::vector<std::shared_ptr<const StreamPayload>> image_pixels_;
   // the stream
   double next_stream_time_ = 0;       // simulated time of its next image
   double stream_clock_ = 0;           // simulated time at its last look (a reset goes back)

@@ -39,8 +39,8 @@ struct SnapshotOptions {
   // pixels in all: an image is rendered (4x multisampled) and read back whole; 4096 x 4096
   // takes about 1 GB while it is made (llvmpipe), and the renderer keeps its largest buffer
   static constexpr long long k_max_pixels = 4096LL * 4096;
-  std::string
-      camera;  // an MJCF camera's name; "" (or "free" when no camera has that name): the free view
+  // an MJCF camera's name; "" (or "free" when no camera has that name): the free view
+  std::string camera;
   long long width = k_default_width;
   long long height = k_default_height;
 };

@@ -57,9 +57,8 @@ struct DdsClientOptions {
   std::uint32_t domain = 0;           // DDS domain id of the simulation
   std::string partition = "simgate";  // its partition
   std::string config;                 // Cyclone XML or file:// URI; "" = loopback; "env"
-  std::chrono::milliseconds discovery_timeout{
-      10000};  // how long start() waits for a server (call(),
-               // cancel() and list_services() wait their timeout)
+  // how long start() waits for a server (call(), cancel() and list_services() wait their timeout)
+  std::chrono::milliseconds discovery_timeout{10000};
   // Read camera replies' images raw (Outcome::attachments, records "format": "raw") instead
   // of as PNGs in the records. Off by default: the reply is then the same JSON as on every
   // other transport (what `simgate call` prints).
