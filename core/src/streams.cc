@@ -270,6 +270,23 @@ StreamHub::Stream* StreamHub::find_input_locked(std::string_view component,
   return s && s->info.direction == StreamDirection::in && carries(s->info, transport) ? s : nullptr;
 }
 
+std::optional<json> StreamHub::sample_now(std::string_view component) const {
+  const Stream* s = find_locked(component);
+  if (!s || s->info.direction != StreamDirection::out || !s->produce) return std::nullopt;
+  try {
+    if (s->produce_record) {
+      double values[k_max_record_fields];
+      const std::size_t n = s->record_fields->size();
+      s->produce_record(std::span<double>(values, n));
+      return record_json(*s->record_fields, std::span<const double>(values, n));
+    }
+    return s->produce();
+  } catch (const std::exception& e) {
+    log::warning("stream ", component, ": reading a sample failed: ", e.what());
+    return std::nullopt;
+  }
+}
+
 void StreamHub::add(const Component& component, std::string type,
                     std::vector<std::string> transports, double frequency) {
   const StreamDeclaration* declaration = component.stream();
@@ -337,6 +354,7 @@ bool StreamHub::remove(const std::string& component) {
 }
 
 void StreamHub::publish_due(double time) {
+  time_.store(time, std::memory_order_relaxed);
   if (subscribers_.load(std::memory_order_acquire) == 0) return;
   // which streams give a sample now, without the hub mutex: streams_ and the schedules
   // change only under the simulation lock, which the caller holds; what the transports

@@ -15,13 +15,15 @@ namespace simgate::gateway {
 namespace {
 
 // The built-in TCP transports and their defaults (plugins/socket/README.md,
-// plugins/jsonrpc/README.md, plugins/websocket/README.md): all listen on 127.0.0.1 unless
+// plugins/jsonrpc/README.md, plugins/websocket/README.md, docs/transports/foxglove.md): all
+// listen on 127.0.0.1 unless
 // "host" says otherwise.
 struct TcpPlugin {
   const char* name;  // the plugin's own name
   int default_port;  // without "port"
 };
-constexpr TcpPlugin k_tcp_plugins[] = {{"socket", 4000}, {"jsonrpc", 4001}, {"websocket", 8090}};
+constexpr TcpPlugin k_tcp_plugins[] = {
+    {"socket", 4000}, {"jsonrpc", 4001}, {"websocket", 8090}, {"foxglove", 8765}};
 constexpr const char* k_default_host = "127.0.0.1";
 
 // IPv4-mapped IPv6 addresses (::ffff:a.b.c.d) are the IPv4 address they map.

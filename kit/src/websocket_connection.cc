@@ -1,6 +1,8 @@
 #include "simgate/kit/websocket_connection.h"
 
 #include <algorithm>
+#include <cmath>
+#include <sstream>
 #include <utility>
 #include <vector>
 
@@ -27,6 +29,52 @@ namespace ws = beast::websocket;
 using asio::ip::tcp;
 using boost::system::error_code;
 
+std::string plain_http_response(const HttpRequest& request, http::status status,
+                                std::string_view body, std::string_view server) {
+  http::response<http::string_body> response{status, request.version()};
+  response.set(http::field::server, boost::beast::string_view(server.data(), server.size()));
+  response.set(http::field::content_type, "text/plain; charset=utf-8");
+  response.keep_alive(false);
+  response.body() = body;
+  response.prepare_payload();
+  std::ostringstream out;
+  out << response;
+  return out.str();
+}
+
+WebSocketOptions WebSocketOptions::take(json& options) {
+  WebSocketOptions s;
+  s.origins = OriginPolicy::take(options);
+  if (!options.is_object()) return s;
+  if (auto it = options.find("keepalive_s"); it != options.end()) {
+    json mine = {{"keepalive_s", *it}};
+    options.erase(it);
+    ConfigObject config(mine, "");
+    // up to a day: a longer silence is a client gone, not one thinking
+    s.keepalive = std::chrono::milliseconds(
+        std::llround(config.get_number("keepalive_s", 150, 0, 86'400) * 1000));
+    config.finish();
+  }
+  return s;
+}
+
+std::string WebSocketOptions::refuse_upgrade(const HttpRequest& request, std::string_view who,
+                                             std::string_view server) const {
+  std::optional<std::string_view> origin;
+  if (auto it = request.find(http::field::origin); it != request.end())
+    origin = std::string_view(it->value().data(), it->value().size());
+  if (origins.allows(origin)) return {};
+  const std::string shown = std::string(origin->substr(0, 200));
+  log::warning(who, ": WebSocket upgrade from a page of origin '", shown,
+               "' refused (allowed_origins: ", origins.describe(), ")");
+  return plain_http_response(request, http::status::forbidden,
+                             std::string(server) +
+                                 ": WebSocket connections from pages of origin '" + shown +
+                                 "' are not allowed (allowed: " + origins.describe() +
+                                 "; the transport's option allowed_origins, docs/security.md)\n",
+                             server);
+}
+
 WebSocketConnection::WebSocketConnection(tcp::socket socket, WebSocketServer& server,
                                          ConnectionLimits limits,
                                          std::chrono::milliseconds keepalive, std::string_view who,
@@ -34,7 +82,7 @@ WebSocketConnection::WebSocketConnection(tcp::socket socket, WebSocketServer& se
     : Connection(std::move(socket), server, limits, who, number),
       host_(server),
       keepalive_(keepalive),
-      frames_(limits.max_message_bytes),
+      frames_(limits.max_message_bytes, server.binary_messages()),
       timer_(executor()) {}
 
 // ---- the HTTP request and the upgrade (Beast)
@@ -75,9 +123,12 @@ void WebSocketConnection::on_request(const error_code& ec) {
   }
   // Beast checks the upgrade and answers it (101, or 400 with the reason); the frames are ours
   upgrade_.emplace(socket());
-  upgrade_->set_option(ws::stream_base::decorator([](ws::response_type& response) {
-    response.set(http::field::server, "simgate websocket transport");
-  }));
+  subprotocol_ = host_.subprotocol(parser_->get());
+  upgrade_->set_option(
+      ws::stream_base::decorator([subprotocol = subprotocol_](ws::response_type& response) {
+        response.set(http::field::server, "simgate websocket transport");
+        if (!subprotocol.empty()) response.set(http::field::sec_websocket_protocol, subprotocol);
+      }));
   auto request = parser_->release();
   parser_.reset();
   upgrade_->async_accept(request,
@@ -94,6 +145,7 @@ void WebSocketConnection::on_upgraded(const error_code& ec) {
   upgraded_ = true;
   timer_.cancel();
   heard_tick_ = tick();
+  host_.on_open(*this);
   // bytes the client sent after its request (its first frames) are the first to parse
   const auto early = http_buffer_.cdata();
   const std::string first(static_cast<const char*>(early.data()), early.size());
@@ -134,6 +186,12 @@ void WebSocketConnection::on_text(std::string_view text) {
   delivered_ = true;
   active();  // a message, not a ping: pings keep no place at max_connections (issue #35, item 9)
   host_.on_message(*this, text);
+}
+
+void WebSocketConnection::on_binary(std::string_view data) {
+  delivered_ = true;
+  active();
+  host_.on_binary_message(*this, data);
 }
 
 void WebSocketConnection::on_refused(std::size_t bytes, bool binary) {
@@ -201,10 +259,15 @@ void WebSocketConnection::on_sweep(std::uint32_t tick) {
 
 void WebSocketConnection::append_frame(std::string& out, std::uint8_t opcode,
                                        std::string_view payload) {
+  append_frame_head(out, opcode, payload.size());
+  out.append(payload);
+}
+
+void WebSocketConnection::append_frame_head(std::string& out, std::uint8_t opcode,
+                                            std::uint64_t n) {
   char header[10];
   std::size_t size = 2;
   header[0] = static_cast<char>(0x80 | opcode);
-  const std::uint64_t n = payload.size();
   if (n < 126) {
     header[1] = static_cast<char>(n);
   } else if (n <= 0xFFFF) {
@@ -218,7 +281,6 @@ void WebSocketConnection::append_frame(std::string& out, std::uint8_t opcode,
     size = 10;
   }
   out.append(header, size);
-  out.append(payload);
 }
 
 void WebSocketConnection::on_written() {

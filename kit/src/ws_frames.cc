@@ -54,7 +54,7 @@ bool FrameParser::feed(std::string_view bytes, FrameSink& sink) {
       message_.clear();
       if (message_.capacity() > k_keep_bytes) std::string().swap(message_);
     }
-    if (!skipping_ && !message_binary_ && !discard_) {
+    if (!skipping_ && (!message_binary_ || binary_messages_) && !discard_) {
       const std::size_t at = message_.size();
       message_.resize(at + n);
       char* out = message_.data() + at;
@@ -140,10 +140,12 @@ void FrameParser::end_message(FrameSink& sink) {
   if (!discard_) {
     if (skipping_)
       sink.on_refused(message_bytes_, false);
-    else if (message_binary_)
-      sink.on_refused(message_bytes_, true);
-    else
+    else if (!message_binary_)
       sink.on_text(message_);
+    else if (binary_messages_)
+      sink.on_binary(message_);
+    else
+      sink.on_refused(message_bytes_, true);
   }
   skipping_ = false;
   message_.clear();

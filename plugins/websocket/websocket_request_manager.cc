@@ -25,18 +25,7 @@ WebSocketRequestManager::Settings WebSocketRequestManager::Settings::parse(const
   json rest = options.is_null() ? json::object() : options;
   Settings s;
   s.web = WebOptions::take(rest);
-  s.origins = kit::OriginPolicy::take(rest);
-  if (rest.is_object()) {
-    if (auto it = rest.find("keepalive_s"); it != rest.end()) {
-      json mine = {{"keepalive_s", *it}};
-      rest.erase(it);
-      ConfigObject config(mine, "");
-      // up to a day: a longer silence is a client gone, not one thinking
-      s.keepalive = std::chrono::milliseconds(
-          std::llround(config.get_number("keepalive_s", 150, 0, 86'400) * 1000));
-      config.finish();
-    }
-  }
+  s.websocket = kit::WebSocketOptions::take(rest);
   s.rpc = jsonrpc::Options::parse(rest, "websocket", k_default_port);
   return s;
 }
@@ -50,9 +39,8 @@ WebSocketRequestManager::WebSocketRequestManager(Settings s)
       // bound now, so that a port in use fails the creation of the transport
       listener_(io_, name(), options_.tcp.host, options_.tcp.port),
       io_thread_(io_, name(), options_.tcp.io_spin),
-      origins_(std::move(s.origins)),
-      keepalive_(s.keepalive) {
-  origins_.bind(options_.tcp.host, listener_.port());
+      websocket_(std::move(s.websocket)) {
+  websocket_.origins.bind(options_.tcp.host, listener_.port());
   if (s.web.enabled) web_.emplace(s.web.root, "simgate websocket transport", port_text());
 }
 
@@ -117,7 +105,8 @@ void WebSocketRequestManager::accept(tcp::socket socket) {
   kit::WebSocketServer& server = *this;
   const std::uint64_t number = next_session_++;
   client_arrived(number);
-  add(std::make_shared<WsSession>(std::move(socket), server, limits, keepalive_, name(), number));
+  add(std::make_shared<WsSession>(std::move(socket), server, limits, websocket_.keepalive, name(),
+                                  number));
 }
 
 // ---- kit::WebSocketServer: the framing (I/O thread)
@@ -153,52 +142,28 @@ std::string WebSocketRequestManager::port_text() const {
          endpoints().front() + " (docs/transports/websocket.md)\n";
 }
 
-std::string WebSocketRequestManager::plain_response(const http::request<http::string_body>& request,
-                                                    http::status status,
-                                                    const std::string& body) const {
-  http::response<http::string_body> response{status, request.version()};
-  response.set(http::field::server, "simgate websocket transport");
-  response.set(http::field::content_type, "text/plain; charset=utf-8");
-  response.keep_alive(false);
-  response.body() = body;
-  response.prepare_payload();
-  std::ostringstream out;
-  out << response;
-  return out.str();
-}
-
 kit::HttpResponse WebSocketRequestManager::on_http_request(
     const http::request<http::string_body>& request) {
   // past the memory cap (clients that do not read): nothing more is held for a new one
   if (held().over()) {
     log::warning(name(), ": HTTP request answered 503: the transport holds more than ",
                  held().max(), " bytes for its clients (max_buffered_bytes)");
-    return kit::HttpResponse{
-        plain_response(request, http::status::service_unavailable,
-                       "503 the server holds too much for its clients now (max_buffered_bytes); "
-                       "try again later\n")};
+    return kit::HttpResponse{kit::plain_http_response(
+        request, http::status::service_unavailable,
+        "503 the server holds too much for its clients now (max_buffered_bytes); try again later\n",
+        k_server)};
   }
   // the web app's files
   if (web_) return web_->answer(request);
   // no web app (`web` false): a short text says what this port is
-  return kit::HttpResponse{plain_response(request, http::status::not_found, port_text())};
+  return kit::HttpResponse{
+      kit::plain_http_response(request, http::status::not_found, port_text(), k_server)};
 }
 
 std::string WebSocketRequestManager::refuse_upgrade(
     const http::request<http::string_body>& request) {
-  std::optional<std::string_view> origin;
-  if (auto it = request.find(http::field::origin); it != request.end())
-    origin = std::string_view(it->value().data(), it->value().size());
-  if (origins_.allows(origin)) return {};
   // a page of another site must not drive the simulation (cross-site WebSocket hijacking)
-  const std::string shown = std::string(origin->substr(0, 200));
-  log::warning(name(), ": WebSocket upgrade from a page of origin '", shown,
-               "' refused (allowed_origins: ", origins_.describe(), ")");
-  return plain_response(
-      request, http::status::forbidden,
-      "simgate websocket transport: WebSocket connections from pages of origin '" + shown +
-          "' are not allowed (allowed: " + origins_.describe() +
-          "; the transport's option allowed_origins, docs/security.md)\n");
+  return websocket_.refuse_upgrade(request, name(), k_server);
 }
 
 void WebSocketRequestManager::on_closed(kit::Connection& session) {

@@ -68,24 +68,19 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine, private kit::WebS
   std::uint16_t port() const { return listener_.port(); }
 
  private:
-  // The options: JSON-RPC's (jsonrpc::Options), the web app's (WebOptions), the pages
-  // allowed to connect (OriginPolicy) and the keep-alive (`keepalive_s`: the silence after
-  // which a client is pinged, and after twice which it is dropped; 0: never; 150 s, Beast's
-  // suggested server timeout).
+  // The options: JSON-RPC's (jsonrpc::Options), the web app's (WebOptions), and every
+  // WebSocket transport's (kit::WebSocketOptions: the pages allowed to connect, keepalive_s).
   struct Settings {
     jsonrpc::Options rpc;
     WebOptions web;
-    kit::OriginPolicy origins;
-    std::chrono::milliseconds keepalive{150'000};
+    kit::WebSocketOptions websocket;
     static Settings parse(const json& options);
   };
+  // The Server header of its HTTP answers.
+  static constexpr std::string_view k_server = "simgate websocket transport";
   explicit WebSocketRequestManager(Settings settings);
   // The 404 body that says what this port is.
   std::string port_text() const;
-  // A plain-text HTTP response (the 404 without a web app, a refused upgrade's 403, 503).
-  std::string plain_response(
-      const boost::beast::http::request<boost::beast::http::string_body>& request,
-      boost::beast::http::status status, const std::string& body) const;
 
   // JsonRpcEngine: the end of a burst
   void flush_replies() override { flush_touched(); }
@@ -106,12 +101,11 @@ class WebSocketRequestManager : public jsonrpc::JsonRpcEngine, private kit::WebS
   void accept(boost::asio::ip::tcp::socket socket);
   void shutdown_io();
 
-  kit::TcpListener listener_;            // the listening socket, bound in the constructor
-  kit::IoThread io_thread_;              // runs io_
-  std::uint64_t next_session_ = 1;       // numbers connections in logs (I/O thread)
-  std::optional<StaticFiles> web_;       // the web app's files (none: `web` false)
-  kit::OriginPolicy origins_;            // allowed_origins, bound to the port
-  std::chrono::milliseconds keepalive_;  // keepalive_s
+  kit::TcpListener listener_;        // the listening socket, bound in the constructor
+  kit::IoThread io_thread_;          // runs io_
+  std::uint64_t next_session_ = 1;   // numbers connections in logs (I/O thread)
+  std::optional<StaticFiles> web_;   // the web app's files (none: `web` false)
+  kit::WebSocketOptions websocket_;  // allowed_origins (bound to the port), keepalive_s
 };
 
 }  // namespace simgate::websocket

@@ -46,6 +46,7 @@ class Gateway:
         config["transports"]["socket"]["options"]["port"] = 0
         config["transports"]["socket"]["options"]["stream_port"] = 0  # its datastreams too
         config["transports"]["websocket"]["options"]["port"] = 0  # the web app's
+        config["transports"]["foxglove"]["options"]["port"] = 0
         config["log_level"] = "warning"
         if adapt:
             adapt(config)

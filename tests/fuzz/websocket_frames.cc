@@ -32,7 +32,7 @@ using kit::FrameParser;
 using kit::FrameSink;
 
 struct Event {
-  char kind;  // 't' text, 'r' too long, 'b' binary, 'c' control, 'e' protocol error
+  char kind;  // 't' text, 'B' binary, 'r' too long, 'b' binary refused, 'c' control, 'e' error
   std::uint8_t opcode = 0;
   std::size_t bytes = 0;
   std::string payload;
@@ -42,6 +42,7 @@ struct Event {
 struct Recorder : FrameSink {
   FrameParser* parser = nullptr;
   std::size_t max_message_bytes = 0;
+  bool binary_messages = false;   // the parser delivers binary messages
   std::size_t discard_after = 0;  // 0: never
   std::vector<Event> events;
   bool failed = false;
@@ -63,8 +64,16 @@ struct Recorder : FrameSink {
     payload_bytes += text.size();
     event({'t', 0, text.size(), std::string(text)});
   }
+  void on_binary(std::string_view data) override {
+    FUZZ_CHECK(!discarding, "no message after discard_messages()");
+    FUZZ_CHECK(binary_messages, "binary messages are delivered only when asked for");
+    FUZZ_CHECK(data.size() <= max_message_bytes, "a binary message is at most max_message_bytes");
+    payload_bytes += data.size();
+    event({'B', 0, data.size(), std::string(data)});
+  }
   void on_refused(std::size_t bytes, bool binary) override {
     FUZZ_CHECK(!discarding, "no message after discard_messages()");
+    FUZZ_CHECK(!binary || !binary_messages, "binary messages are refused only when not asked for");
     FUZZ_CHECK(binary || bytes > max_message_bytes,
                "a message refused as too long is longer than the limit");
     event({binary ? 'b' : 'r', 0, bytes, {}});
@@ -118,7 +127,8 @@ struct Splits {
 // The reference: RFC 6455 read straight from the whole stream, frame by frame, as simply as
 // it can be written (no state across feeds). The events FrameParser must report for the
 // stream; what an incomplete last frame would need is simply not reached.
-std::vector<Event> reference(std::string_view stream, std::size_t max, std::size_t discard_after) {
+std::vector<Event> reference(std::string_view stream, std::size_t max, std::size_t discard_after,
+                             bool binary_messages) {
   std::vector<Event> events;
   bool discard = false;
   const auto emit = [&](Event e) {
@@ -206,6 +216,8 @@ std::vector<Event> reference(std::string_view stream, std::size_t max, std::size
     if (total >
         max)  // too long first, binary or not (the session's answer since before the parser)
       emit({'r', 0, total, {}});
+    else if (binary && binary_messages)
+      emit({'B', 0, total, text});
     else if (binary)
       emit({'b', 0, total, {}});
     else
@@ -217,11 +229,12 @@ std::vector<Event> reference(std::string_view stream, std::size_t max, std::size
 // Feeds `stream` to a fresh parser, in one feed or in splits; checks what does not depend on
 // the split and returns the events.
 std::vector<Event> run(std::string_view stream, std::size_t max, std::size_t discard_after,
-                       Splits* splits) {
-  FrameParser parser(max);
+                       bool binary_messages, Splits* splits) {
+  FrameParser parser(max, binary_messages);
   Recorder r;
   r.parser = &parser;
   r.max_message_bytes = max;
+  r.binary_messages = binary_messages;
   r.discard_after = discard_after;
   bool going = true;
   std::size_t at = 0;
@@ -266,21 +279,23 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const std::size_t max = data[2] == 255 ? std::size_t{8} << 20 : data[2];
   const std::size_t discard_after = data[3];
   const std::string_view stream(reinterpret_cast<const char*>(data + 4), size - 4);
+  const bool binary_messages = data[0] & 1;  // a parser that delivers binary messages too
 
-  const std::vector<Event> whole = run(stream, max, discard_after, nullptr);
-  expect_events(whole, reference(stream, max, discard_after),
+  const std::vector<Event> whole = run(stream, max, discard_after, binary_messages, nullptr);
+  expect_events(whole, reference(stream, max, discard_after, binary_messages),
                 "the events are the reference reader's");
   if (data[1] != 255) {
     Splits splits{(std::uint32_t{data[0]} << 8 | data[1]) * 2654435761u | 1u, 1u + data[1] % 64u};
-    const std::vector<Event> split = run(stream, max, discard_after, &splits);
+    const std::vector<Event> split = run(stream, max, discard_after, binary_messages, &splits);
     expect_events(split, whole, "the events do not depend on how the stream is split");
   }
   // one byte at a time, the finest split
   if (stream.size() <= 4096) {
-    FrameParser parser(max);
+    FrameParser parser(max, binary_messages);
     Recorder r;
     r.parser = &parser;
     r.max_message_bytes = max;
+    r.binary_messages = binary_messages;
     r.discard_after = discard_after;
     for (char c : stream)
       if (!parser.feed(std::string_view(&c, 1), r)) break;

@@ -9,6 +9,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <functional>
 
 #include "simgate/core/errors.h"
@@ -336,8 +337,9 @@ TEST(GatewayConfigTest, InvalidJsonSyntaxIsReportedAtFileLineAndColumn) {
   struct Case {
     std::string name;  // the mistake
     std::string text;  // the file
-    std::string
-        at;  // where the error points, the byte that made it fail: the first occurrence of this ("": the end)
+    // where the error points, the byte that made it fail: the first occurrence of this ("": the
+    // end)
+    std::string at;
     std::string expected;  // the message after "FILE:LINE:COLUMN: "
   };
   const std::vector<Case> cases = {
@@ -683,10 +685,12 @@ TEST(GatewayAccessListsTest, TheListsBecomeTheTransportsAccess) {
   EXPECT_FALSE(other.allow().has_value());
   EXPECT_TRUE(other.allows("human", "move"));
   EXPECT_FALSE(other.allows("simulation", "quit"));
-  // without lists: everything
-  EXPECT_TRUE(parse_deployment(demo_config(), SIMGATE_SOURCE_DIR "/config")
-                  .transports[0]
-                  .access.allows_everything());
+  // without lists: everything (the socket transport is the demo's console)
+  const Deployment demo = parse_deployment(demo_config(), SIMGATE_SOURCE_DIR "/config");
+  const auto socket_transport = std::find_if(demo.transports.begin(), demo.transports.end(),
+                                             [](const auto& t) { return t.name == "socket"; });
+  ASSERT_NE(socket_transport, demo.transports.end());
+  EXPECT_TRUE(socket_transport->access.allows_everything());
 }
 
 TEST(GatewayAccessListsTest, EveryMalformedPatternOfBothListsIsReportedAtOnce) {

@@ -104,7 +104,8 @@ for name, mistake in mistakes.items():
 for plugin, source_file in [("socket", "plugins/socket/socket_request_manager.cc"),
                             ("jsonrpc", "plugins/jsonrpc/jsonrpc_request_manager.cc"),
                             ("dds", "plugins/dds/dds_request_manager.cc"),
-                            ("websocket", "plugins/websocket/websocket_request_manager.cc")]:
+                            ("websocket", "plugins/websocket/websocket_request_manager.cc"),
+                            ("foxglove", "plugins/foxglove/foxglove_server.cc")]:
     with open(os.path.join(source, source_file)) as f:
         text = f.read()
     match = re.search(r"SIMGATE_TRANSPORT_PLUGIN\(" + plugin + r",\s*[\w:]+,\s*\"[^\"]*\",(.*?)\)\s*$", text, re.S | re.M)
@@ -119,4 +120,4 @@ for plugin, source_file in [("socket", "plugins/socket/socket_request_manager.cc
 if failures:
     print("\n".join(failures))
     sys.exit(1)
-print(f"{checked} deployments valid, {len(mistakes)} mistakes refused, option keys of 4 transports agree")
+print(f"{checked} deployments valid, {len(mistakes)} mistakes refused, option keys of 5 transports agree")

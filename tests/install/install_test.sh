@@ -76,9 +76,9 @@ done
 # --- what runs hidden from the trees -----------------------------------------------------
 config_dir=$prefix/$datadir/simgate/config
 # the demo on a port the kernel picks, beside the installed demo so its scene resolves the same
-sed -E 's/"port": (4000|8090)/"port": 0/' "$config_dir/demo.json" >"$config_dir/install-test-demo.json"
+sed -E 's/"port": (4000|8090|8765)/"port": 0/' "$config_dir/demo.json" >"$config_dir/install-test-demo.json"
 grep -q '"port": 0' "$config_dir/install-test-demo.json" || fail "demo.json has no \"port\": 4000 to replace"
-! grep -qE '"port": (4000|8090)' "$config_dir/install-test-demo.json" || fail "demo.json's ports were not all replaced"
+! grep -qE '"port": (4000|8090|8765)' "$config_dir/install-test-demo.json" || fail "demo.json's ports were not all replaced"
 
 # sanitizer suppression files live in the source tree, which is about to disappear
 for var in ASAN_OPTIONS LSAN_OPTIONS TSAN_OPTIONS UBSAN_OPTIONS; do
@@ -155,10 +155,11 @@ exercise() {
   echo "$prefix: a model using MuJoCo's PID actuator plugin: $out"
 }
 # The web app answers GET / from the installed share/simgate/web (the build tree's is hidden):
-# the ws:// endpoint of the running `simgate run` ($run) in $WORK/endpoints.json.
+# the websocket transport's ws:// endpoint of the running `simgate run` ($run) in
+# $WORK/endpoints.json (the foxglove transport's is a ws:// one too).
 check_web_app() {
   local web_port page
-  web_port=$(grep -o 'ws://127\.0\.0\.1:[0-9]*' "$WORK/endpoints.json" | head -n 1 | sed 's/.*://')
+  web_port=$(grep -o '"websocket":\["ws://127\.0\.0\.1:[0-9]*' "$WORK/endpoints.json" | head -n 1 | sed 's/.*://')
   [ -n "$web_port" ] || { kill "$run"; cat "$WORK/endpoints.json"; fail "no ws endpoint"; }
   page=$(timeout 30 bash -c 'exec 3<>/dev/tcp/127.0.0.1/$0; printf "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n" >&3; cat <&3' "$web_port") ||
     { kill "$run"; fail "GET / on the websocket transport"; }

@@ -51,11 +51,13 @@ std::string header64(std::uint8_t opcode, std::uint64_t length, bool fin = true)
   return f;
 }
 
-// The events as text, one per entry: "text:<message>", "refused:<bytes>", "binary:<bytes>",
+// The events as text, one per entry: "text:<message>", "bin:<message>" (a parser that
+// delivers binary messages), "refused:<bytes>", "binary:<bytes>" (refused unread),
 // "ping:<payload>", "pong:...", "close:...", "error:<reason>".
 struct Recorder : FrameSink {
   std::vector<std::string> events;
   void on_text(std::string_view text) override { events.push_back("text:" + std::string(text)); }
+  void on_binary(std::string_view data) override { events.push_back("bin:" + std::string(data)); }
   void on_refused(std::size_t bytes, bool binary) override {
     events.push_back((binary ? "binary:" : "refused:") + std::to_string(bytes));
   }
@@ -293,6 +295,28 @@ TEST(WebSocketFrames, StopEndsParsingAtOnce) {
       parser.feed(frame(P::k_ping, "1") + frame(P::k_text, "a") + frame(P::k_ping, "2"), c));
   EXPECT_EQ(c.events, (Events{"ping:1"}));
   EXPECT_FALSE(parser.failed());
+}
+
+TEST(WebSocketFrames, BinaryMessagesAreDeliveredWhenAskedFor) {
+  // a protocol with binary messages (Foxglove's): fragmented or not, within the limit, as
+  // text ones are; over it, skipped and reported as too long
+  P parser(16, /*binary_messages=*/true);
+  Recorder r;
+  const std::string stream = frame(P::k_binary,
+                                   std::string("\x02\x00"
+                                               "ab",
+                                               4),
+                                   false) +
+                             frame(P::k_ping, "p") + frame(P::k_continuation, "cd", true) +
+                             frame(P::k_binary, std::string(17, 'z')) + frame(P::k_text, "t");
+  EXPECT_TRUE(parser.feed(stream, r));
+  EXPECT_EQ(r.events, (Events{"ping:p",
+                              "bin:" + std::string("\x02\x00"
+                                                   "abcd",
+                                                   6),
+                              "refused:17", "text:t"}));
+  // without asking, the same bytes are refused unread
+  EXPECT_EQ(parse(frame(P::k_binary, "abc")), (Events{"binary:3"}));
 }
 
 }  // namespace

@@ -244,8 +244,8 @@ struct StreamStatistics {
   StreamInfo info;
   std::uint64_t samples = 0;    // out: samples produced
   std::size_t subscribers = 0;  // out: subscriptions now
-  std::uint64_t dropped =
-      0;  // out: samples subscribers lost, now and before (skipped ones included)
+  // out: samples subscribers lost, now and before (skipped ones included)
+  std::uint64_t dropped = 0;
   std::uint64_t skipped = 0;   // out, pushed: samples due that the component never made
                                // (a camera's render thread behind); every subscriber lost them
   std::uint64_t commands = 0;  // in: commands applied
@@ -258,8 +258,8 @@ struct StreamStatistics {
 struct PublishResult {
   bool ok = false;       // applied, or queued for the simulation's next turn
   bool applied = false;  // applied at once (the simulation lock was free)
-  std::string
-      error;  // why not (no such input stream here, not an object, the component refused it)
+  // why not (no such input stream here, not an object, the component refused it)
+  std::string error;
 };
 
 class StreamHub {
@@ -298,6 +298,12 @@ class StreamHub {
   // its first sample (a cheap look, for the loop's every turn).
   bool turn_wanted() const { return turn_wanted_.load(std::memory_order_acquire); }
 
+  // One sample of the output stream of `component` read now, as the JSON its subscribers
+  // see (what it produces, a record as its object), for a transport that describes the
+  // stream by an example (Foxglove's channel schemas). Under the simulation lock. Nothing
+  // for a pushed stream (its samples come when the component has them), an input stream,
+  // no such stream, or a component that failed to produce one.
+  std::optional<json> sample_now(std::string_view component) const;
   // A sample of the pushed stream of `component` (StreamOutlet::push, under the simulation
   // lock): to every subscriber. False when it has none.
   bool push(const std::string& component, double time, json data,
@@ -335,6 +341,11 @@ class StreamHub {
   // connection, per reader). False when there is no such input stream.
   bool note_refused(std::string_view component, std::string_view transport, std::string reason);
 
+  // The simulated time of the simulation's last turn (publish_due's `time`), for a
+  // transport that tells its clients the time between samples (Foxglove's time messages).
+  // 0 before the first turn. Any thread.
+  double time() const { return time_.load(std::memory_order_relaxed); }
+
   // Every stream's counters (those `transport` carries; empty: all).
   std::vector<StreamStatistics> statistics(std::string_view transport = {}) const;
   // Totals over every stream: samples produced, samples dropped.
@@ -369,9 +380,10 @@ class StreamHub {
   mutable std::mutex mutex_;
   std::vector<std::unique_ptr<Stream>> streams_;  // in the order added
   std::uint64_t dropped_by_removed_ = 0;          // drops of subscriptions that ended
-  std::atomic<std::size_t> subscribers_{
-      0};  // subscriptions now, all streams (publish_due's fast path)
+  // subscriptions now, all streams (publish_due's fast path)
+  std::atomic<std::size_t> subscribers_{0};
   std::atomic<bool> turn_wanted_{false};  // see turn_wanted()
+  std::atomic<double> time_{0};           // see time()
   // publish_due's buffers, kept between calls (it runs under the simulation lock only)
   std::vector<Due> due_;
   std::vector<std::shared_ptr<StreamSubscription>> to_wake_;

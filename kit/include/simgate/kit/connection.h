@@ -347,6 +347,14 @@ class ConnectionServer {
   // io_context among them).
   void close_all();
   std::size_t connection_count() const { return count_.load(std::memory_order_relaxed); }
+  // Calls `fn(Connection&)` for every open connection (I/O thread): a server that tells all
+  // its clients something (a catalog change, a time). `fn` may close the one it is given.
+  template <class Fn>
+  void for_each_connection(Fn&& fn) {
+    std::vector<std::shared_ptr<Connection>> all(connections_.begin(), connections_.end());
+    for (const auto& c : all)
+      if (!c->closed()) fn(*c);
+  }
   // For the listener (TcpListener::Handlers::refuse): why a connection from `peer` is
   // refused, or "": max_connections are open and none of them has been idle for idle_evict_s
   // (the one idle longest is closed to make room when one has; failing one, the one silent

@@ -9,21 +9,24 @@
 //     k_max_request_bytes, within k_handshake_timeout); an upgrade the host accepts
 //     (WebSocketHost::refuse_upgrade: the Origin, origin_policy.h) is answered 101 by Beast;
 //     anything else is answered by the host (WebSocketHost::on_http_request: a file, or 404) and
-//     closed. The response's own bytes count against max_buffered_bytes while written.
+//     closed. The response's own bytes count against max_buffered_bytes while written. The
+//     host may pick a subprotocol among those the request offers (WebSocketHost::subprotocol:
+//     Sec-WebSocket-Protocol in the 101).
 //   - Frames: each read's bytes go to a FrameParser (ws_frames.h: the frames, without a
 //     socket; fuzzed), whose events the session handles. Client frames must be masked
 //     (else close 1002); text and binary messages, fragmented or not, with pings, pongs
 //     and close frames between fragments. A message longer than max_message_bytes (binary
 //     or not) is skipped to its end as it arrives (never buffered; the host answers it) and
-//     the connection keeps working; other binary messages are handed to the host as such
-//     (never buffered either). Reserved bits, opcodes, a continuation out of place, a
+//     the connection keeps working; other binary messages are refused unread, or for a
+//     host whose binary_messages() is true read and handed over as text ones are. Reserved bits, opcodes, a continuation out of place, a
 //     control frame fragmented or over 125 bytes (the parser's protocol errors), a close
 //     frame of one byte (the session's): close 1002. Text is not checked for UTF-8 here:
 //     the JSON parser refuses what is not (-32700). What the parser keeps of a message
 //     counts against max_buffered_bytes (past it: close 1013), and a message begun (a frame
 //     head too) must end within line_timeout_s, as a line must on the line transports.
-//   - Messages out: queue_text() frames a text message (the kit's budgets apply); a ping
-//     is answered by a pong with its payload (no budget, no activity).
+//   - Messages out: queue_text() and queue_binary() frame a message (the kit's budgets
+//     apply; append_frame_head() frames one written in parts, inside the kit's queue_with());
+//     a ping is answered by a pong with its payload (no budget, no activity).
 //   - Keep-alive (on the server's sweep): a client silent for `keepalive` (the
 //     `keepalive_s` option, 150 s by default) is sent a ping; silent for twice that (it
 //     answered no ping either), it is dropped. 0: neither.
@@ -61,6 +64,7 @@
 #include <boost/beast/websocket/stream.hpp>
 
 #include "simgate/kit/connection.h"
+#include "simgate/kit/origin_policy.h"
 #include "simgate/kit/ws_frames.h"
 
 namespace simgate::kit {
@@ -87,6 +91,28 @@ struct HttpResponse {
 
 class WebSocketConnection;
 
+using HttpRequest = boost::beast::http::request<boost::beast::http::string_body>;
+
+// A short plain-text HTTP response that closes the connection (a refusal, a 404 naming what
+// the port is), as server `server` ("simgate websocket transport").
+std::string plain_http_response(const HttpRequest& request, boost::beast::http::status status,
+                                std::string_view body, std::string_view server);
+
+// The options every WebSocket transport reads besides the kit's TcpOptions.
+struct WebSocketOptions {
+  OriginPolicy origins;  // "allowed_origins" (origin_policy.h)
+  // "keepalive_s": the silence after which a client is pinged, and after twice which it is
+  // dropped (0: never; up to a day; 150 s, Beast's suggested server timeout)
+  std::chrono::milliseconds keepalive{150'000};
+  // Takes both keys out of `options` (ConfigError on bad values), so that the transport's
+  // own parser (TcpOptions, JSON-RPC's) sees only the rest.
+  static WebSocketOptions take(json& options);
+  // An upgrade from a page of an origin `origins` refuses (cross-site WebSocket hijacking):
+  // its 403 response, logged as `who`'s; "" when it is allowed.
+  std::string refuse_upgrade(const HttpRequest& request, std::string_view who,
+                             std::string_view server) const;
+};
+
 // What a WebSocket connection hands to its transport besides the kit's calls (I/O thread).
 class WebSocketHost {
  public:
@@ -97,6 +123,23 @@ class WebSocketHost {
   // binary: the protocol answers it.
   virtual void on_refused_message(WebSocketConnection& connection, std::size_t bytes,
                                   bool binary) = 0;
+  // The upgrade is done: the connection is a WebSocket (a protocol whose server speaks
+  // first sends its greeting here).
+  virtual void on_open(WebSocketConnection& /*connection*/) {}
+  // Whether binary messages are read (within max_message_bytes, as text ones) and handed to
+  // on_binary_message, rather than refused unread. Asked once per connection.
+  virtual bool binary_messages() const { return false; }
+  // One complete binary message (a host whose binary_messages() is true).
+  virtual void on_binary_message(WebSocketConnection& connection, std::string_view data) {
+    on_refused_message(connection, data.size(), true);
+  }
+  // An upgrade the host accepts (refuse_upgrade said ""): the subprotocol to answer with
+  // (one the request's Sec-WebSocket-Protocol offers), or "" for none. Refusing a request
+  // that offers none the host speaks is refuse_upgrade's.
+  virtual std::string subprotocol(
+      const boost::beast::http::request<boost::beast::http::string_body>& /*request*/) const {
+    return {};
+  }
   // A plain HTTP request (not an upgrade): the response to send before closing.
   virtual HttpResponse on_http_request(
       const boost::beast::http::request<boost::beast::http::string_body>& request) = 0;
@@ -127,6 +170,14 @@ class WebSocketConnection : public Connection, private FrameSink {
   void queue_text(std::string_view text) {
     queue_with([text](std::string& out) { append_frame(out, FrameParser::k_text, text); });
   }
+  // Queues one binary message (the same budgets).
+  void queue_binary(std::string_view data) {
+    queue_with([data](std::string& out) { append_frame(out, FrameParser::k_binary, data); });
+  }
+  // Upgraded, and not closed: messages may be queued.
+  bool open() const { return upgraded_ && !closed(); }
+  // The subprotocol the upgrade agreed (WebSocketHost::subprotocol), "" for none.
+  const std::string& subprotocol() const { return subprotocol_; }
 
   // A close frame with `code` and (at most 123 bytes of) `reason`, after the messages
   // already queued; the socket closes once the client answers it; idempotent.
@@ -145,6 +196,9 @@ class WebSocketConnection : public Connection, private FrameSink {
 
   // Appends one unfragmented frame (unmasked: the server's) to `out`.
   static void append_frame(std::string& out, std::uint8_t opcode, std::string_view payload);
+  // Appends the head of one unfragmented frame of `length` payload bytes, which the caller
+  // appends next (a message written in parts, without a copy of them).
+  static void append_frame_head(std::string& out, std::uint8_t opcode, std::uint64_t length);
 
  protected:
   // ---- Connection: the framing
@@ -163,6 +217,7 @@ class WebSocketConnection : public Connection, private FrameSink {
   void on_upgraded(const boost::system::error_code& ec);
   // ---- the parser's events (FrameSink)
   void on_text(std::string_view text) override;
+  void on_binary(std::string_view data) override;
   void on_refused(std::size_t bytes, bool binary) override;
   void on_control(std::uint8_t opcode, std::string_view payload) override;
   void on_protocol_error(std::string_view reason) override { protocol_error(reason); }
@@ -183,12 +238,13 @@ class WebSocketConnection : public Connection, private FrameSink {
   WebSocketHost& host_;                    // the transport (outlives every connection)
   std::chrono::milliseconds keepalive_;    // keepalive_s (0: no pings)
   boost::beast::flat_buffer http_buffer_;  // the HTTP request
-  std::optional<boost::beast::http::request_parser<boost::beast::http::string_body>>
-      parser_;  // until the upgrade
+  // until the upgrade
+  std::optional<boost::beast::http::request_parser<boost::beast::http::string_body>> parser_;
   std::optional<boost::beast::websocket::stream<boost::asio::ip::tcp::socket&>>
       upgrade_;                 // Beast, for the upgrade only
   HttpResponse http_response_;  // a plain HTTP request's answer, being written
   bool upgraded_ = false;       // the WebSocket handshake is done
+  std::string subprotocol_;     // the subprotocol the upgrade agreed ("" none)
 
   FrameParser frames_;               // the frames (ws_frames.h): the message being read
   bool delivered_ = false;           // a message ended during this read

@@ -13,10 +13,12 @@
 //   - Events, on the FrameSink, in stream order, during feed():
 //       on_text       a whole text message (a view of the parser's buffer: valid during the
 //                     call); at most max_message_bytes long. UTF-8 is not checked here.
+//       on_binary     a whole binary message, for a parser made with binary_messages
+//                     (as on_text: a view valid during the call, at most max_message_bytes).
 //       on_refused    a message that is not delivered: longer than max_message_bytes
 //                     (skipped to its end as it arrives, never buffered; `bytes` arrived in
-//                     all; a binary one too, reported as too long) or else binary
-//                     (`binary`, never buffered either).
+//                     all; a binary one too, reported as too long) or else binary, for a
+//                     parser made without binary_messages (`binary`, never buffered either).
 //       on_control    a close, ping or pong frame, unmasked, at most 125 bytes, as soon as
 //                     it is whole. What a close payload means (a one-byte one is an error) is
 //                     the caller's.
@@ -47,6 +49,9 @@ class FrameSink {
   virtual ~FrameSink() = default;
   // One whole text message (`text` lives until the call returns).
   virtual void on_text(std::string_view text) = 0;
+  // One whole binary message (a parser made with binary_messages only; `data` lives until
+  // the call returns).
+  virtual void on_binary(std::string_view data) = 0;
   // A message longer than max_message_bytes (`bytes` in all; `binary` false even for a
   // binary one), or else a binary one (`binary`).
   virtual void on_refused(std::size_t bytes, bool binary) = 0;
@@ -67,7 +72,10 @@ class FrameParser {
   // A message buffer larger than this is freed after its message (no large buffer is kept).
   static constexpr std::size_t k_keep_bytes = 256 * 1024;
 
-  explicit FrameParser(std::size_t max_message_bytes) : max_message_bytes_(max_message_bytes) {}
+  // `binary_messages`: binary messages are delivered (on_binary) as text ones are, rather
+  // than refused unread.
+  explicit FrameParser(std::size_t max_message_bytes, bool binary_messages = false)
+      : max_message_bytes_(max_message_bytes), binary_messages_(binary_messages) {}
 
   // Parses `bytes`, the stream's next part, reporting to `sink`. False once the parser has
   // stopped (a protocol error, or stop()): the rest of the bytes were not parsed, and no
@@ -104,7 +112,8 @@ class FrameParser {
   void end_message(FrameSink& sink);
   Head fail(std::string_view reason, FrameSink& sink);
 
-  std::size_t max_message_bytes_;              // the longest text message delivered
+  std::size_t max_message_bytes_;              // the longest message delivered
+  bool binary_messages_;                       // binary messages are delivered too
   unsigned char head_[k_max_head_bytes] = {};  // a frame head begun in an earlier feed...
   std::size_t head_size_ = 0;                  // ...of this many bytes (0: none)
   bool in_frame_ = false;          // a data frame's header was parsed, its payload comes
@@ -114,7 +123,7 @@ class FrameParser {
   std::size_t mask_at_ = 0;        // payload bytes of that frame unmasked so far
   bool in_message_ = false;        // a message began (its first frame was read)
   bool message_binary_ = false;    // that message is binary
-  std::string message_;            // that message so far (text within max_message_bytes)
+  std::string message_;            // that message so far (delivered ones, within max_message_bytes)
   std::size_t message_bytes_ = 0;  // its length so far, skipped or binary included
   bool skipping_ = false;          // it is over max_message_bytes: skipped to its end
   bool discard_ = false;           // discard_messages() was called

@@ -1,0 +1,544 @@
+#include "foxglove_server.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include <boost/asio/post.hpp>
+
+#include "simgate/core/log.h"
+#include "simgate/core/plugin.h"
+#include "simgate/core/streams.h"
+#include "simgate/core/text.h"
+
+namespace simgate::foxglove {
+
+namespace asio = boost::asio;
+namespace http = boost::beast::http;
+using asio::ip::tcp;
+
+// A client: the kit's WebSocket connection and what the protocol keeps of it.
+class FoxgloveServer::Client : public kit::WebSocketConnection {
+ public:
+  using WebSocketConnection::WebSocketConnection;
+  struct Subscription {
+    std::uint32_t channel_id = 0;
+    std::shared_ptr<StreamSubscription> stream;
+  };
+  std::map<std::uint32_t, Subscription> subscriptions;  // by the client's subscription id
+  std::uint64_t time_told = 0;                          // the last Time message's time (ns)
+  bool told_time = false;                               // a Time message was sent
+  std::uint64_t lost = 0;                               // samples it did not read in time
+};
+
+// ---- options and life cycle
+
+FoxgloveServer::Settings FoxgloveServer::Settings::parse(const json& options) {
+  json rest = options.is_null() ? json::object() : options;
+  Settings s;
+  s.websocket = kit::WebSocketOptions::take(rest);
+  ConfigObject config(rest, "");
+  kit::TcpOptions defaults;
+  defaults.port = k_default_port;
+  s.tcp = kit::TcpOptions::read(config, defaults, "foxglove");
+  s.stream_queue = static_cast<std::size_t>(config.get_int("stream_queue", 4, 1, 1024));
+  s.time_hz = config.get_number("time_hz", 30, 0, 1000);
+  s.tcp.finish(config);
+  if (s.tcp.auth.enabled)
+    throw ConfigError(
+        "auth: the foxglove transport takes no token yet (Foxglove's protocol has no login): keep "
+        "it on 127.0.0.1 (the default), or reach it through an SSH tunnel "
+        "(docs/transports/foxglove.md)");
+  return s;
+}
+
+std::vector<std::string> FoxgloveServer::validate_options(const json& options) {
+  return Settings::parse(options).tcp.warnings;
+}
+
+FoxgloveServer::FoxgloveServer(const json& options) : FoxgloveServer(Settings::parse(options)) {}
+
+FoxgloveServer::FoxgloveServer(Settings settings)
+    : RequestManager("Foxglove service manager"),
+      WebSocketServer(name(), settings.tcp),
+      settings_(std::move(settings)),
+      // bound now, so that a port in use fails the creation of the transport
+      listener_(io_, name(), settings_.tcp.host, settings_.tcp.port),
+      io_thread_(io_, name(), settings_.tcp.io_spin),
+      time_timer_(io_),
+      session_id_(std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(
+                                     std::chrono::system_clock::now().time_since_epoch())
+                                     .count())) {
+  set_global_policy(settings_.tcp.global_policy);
+  settings_.websocket.origins.bind(settings_.tcp.host, listener_.port());
+  for (const auto& w : settings_.tcp.warnings) log::warning(name(), ": ", w);
+}
+
+FoxgloveServer::~FoxgloveServer() { stop(); }
+
+std::vector<std::string> FoxgloveServer::endpoints() const {
+  std::string endpoint = listener_.endpoint();  // "tcp://host:port" -> "ws://host:port/"
+  if (endpoint.starts_with("tcp://")) endpoint.replace(0, 3, "ws");
+  return {endpoint + "/"};
+}
+
+void FoxgloveServer::start() {
+  kit::TcpListener::Handlers handlers{
+      [this](tcp::socket socket) { accept(std::move(socket)); },
+      [this](const tcp::endpoint& peer) { return refusal_reason(peer); },
+      [](const std::string& why) {
+        return "HTTP/1.1 503 Service Unavailable\r\nContent-Type: text/plain\r\nContent-Length: " +
+               std::to_string(why.size() + 1) + "\r\nConnection: close\r\n\r\n" + why + "\n";
+      }};
+  if (!io_thread_.start(
+          [this, handlers = std::move(handlers)]() mutable {
+            // outcomes produced on other threads are handed to this one
+            deliver_on_this_thread([this] { asio::post(io_, [this] { flush_replies(); }); });
+            listener_.start(std::move(handlers));
+            refresh_catalog();
+            tick_time();
+          },
+          direct_reads()))
+    return;
+  log::info("foxglove: listening on ", endpoints().front(),
+            " (open it in Foxglove: Open connection, Foxglove WebSocket)");
+}
+
+void FoxgloveServer::stop() {
+  if (!io_thread_.stop([this] { shutdown_io(); })) return;
+  deliver_on_any_thread();  // the connections are gone: outcomes from now on go nowhere
+  abandon_pending("the foxglove transport has stopped");
+}
+
+void FoxgloveServer::shutdown_io() {
+  time_timer_.cancel();
+  listener_.close();
+  close_all();
+  pending_.clear();
+}
+
+void FoxgloveServer::accept(tcp::socket socket) {
+  kit::ConnectionLimits limits = kit::ConnectionLimits::from(settings_.tcp);
+  // a client that lets its replies pile up stops being read at half the unsent budget
+  limits.pause_at_unsent_bytes = settings_.tcp.max_unsent_bytes / 2;
+  limits.read_bytes = kit::WebSocketConnection::k_read_bytes;
+  kit::WebSocketServer& server = *this;
+  const std::uint64_t number = next_client_++;
+  client_arrived(number);
+  add(std::make_shared<Client>(std::move(socket), server, limits, settings_.websocket.keepalive,
+                               name(), number));
+}
+
+void FoxgloveServer::flush_replies() {
+  deliver_handed_over();
+  flush_touched();
+}
+
+// ---- the handshake
+
+std::string FoxgloveServer::subprotocol(const kit::HttpRequest& request) const {
+  const auto it = request.find(http::field::sec_websocket_protocol);
+  if (it == request.end()) return {};
+  return pick_subprotocol(std::string_view(it->value().data(), it->value().size()));
+}
+
+std::string FoxgloveServer::refuse_upgrade(const kit::HttpRequest& request) {
+  if (std::string refused = settings_.websocket.refuse_upgrade(request, name(), k_server);
+      !refused.empty())
+    return refused;
+  if (!subprotocol(request).empty()) return {};
+  // as Foxglove's own servers do: no common subprotocol, no connection
+  return kit::plain_http_response(
+      request, http::status::bad_request,
+      std::string(k_server) + ": offer the WebSocket subprotocol " + std::string(k_subprotocol) +
+          " (or " + std::string(k_sdk_subprotocol) +
+          ") in Sec-WebSocket-Protocol; this port speaks Foxglove's WebSocket protocol "
+          "(docs/transports/foxglove.md)\n",
+      k_server);
+}
+
+kit::HttpResponse FoxgloveServer::on_http_request(const kit::HttpRequest& request) {
+  return kit::HttpResponse{kit::plain_http_response(
+      request, http::status::not_found,
+      std::string(k_server) + ": Foxglove's WebSocket protocol; open " + endpoints().front() +
+          " in Foxglove or Lichtblick (Open connection, Foxglove WebSocket; "
+          "docs/transports/foxglove.md)\n",
+      k_server)};
+}
+
+void FoxgloveServer::on_open(kit::WebSocketConnection& connection) {
+  // the greeting: who we are, then every channel and service there is now
+  std::vector<std::string> capabilities{"services", "time"};
+  connection.queue_text(server_info(
+      k_server, capabilities, {"json"},
+      json{{"simgate", "Foxglove WebSocket transport"}, {"subprotocol", connection.subprotocol()}},
+      session_id_));
+  std::vector<Channel> channels;
+  for (const auto& c : channels_) channels.push_back(c.channel);
+  connection.queue_text(advertise(channels));
+  if (!services_.empty()) connection.queue_text(advertise_services(services_));
+}
+
+// ---- messages (I/O thread)
+
+void FoxgloveServer::on_message(kit::WebSocketConnection& connection, std::string_view text) {
+  Client& client = static_cast<Client&>(connection);
+  const ClientText message = read_text(text);
+  if (const auto* s = std::get_if<Subscribe>(&message)) {
+    subscribe(client, *s);
+  } else if (const auto* u = std::get_if<Unsubscribe>(&message)) {
+    unsubscribe(client, *u);
+  } else if (const auto* other = std::get_if<OtherOp>(&message)) {
+    complain(client, Level::error,
+             "op '" + other->op +
+                 "' is not served here (this server's capabilities: services, time; ops: "
+                 "subscribe, unsubscribe, and binary service call requests)");
+  } else {
+    complain(client, Level::error, std::get<Malformed>(message).reason);
+  }
+}
+
+void FoxgloveServer::on_binary_message(kit::WebSocketConnection& connection,
+                                       std::string_view data) {
+  Client& client = static_cast<Client&>(connection);
+  const ClientBinary message = read_binary(data);
+  if (const auto* call = std::get_if<ServiceCallRequest>(&message)) {
+    call_service(client, *call);
+  } else if (std::holds_alternative<ClientMessageData>(message)) {
+    complain(client, Level::error,
+             "client publishing is not offered here (no clientPublish capability): use a "
+             "service, or another transport's publish (docs/transports/foxglove.md)");
+  } else {
+    complain(client, Level::error, std::get<Malformed>(message).reason);
+  }
+}
+
+void FoxgloveServer::on_refused_message(kit::WebSocketConnection& connection, std::size_t bytes,
+                                        bool /*binary*/) {
+  complain(static_cast<Client&>(connection), Level::error,
+           "a message of " + std::to_string(bytes) + " bytes is over max_message_bytes (" +
+               std::to_string(settings_.tcp.max_message_bytes) + "); it was skipped");
+}
+
+void FoxgloveServer::on_messages_done(kit::Connection& /*connection*/, bool /*read_finished*/) {
+  // the calls read so far go to the core together: run here when the simulation lock is
+  // free (their answers are queued at once), else on the simulation thread
+  if (!calls_.empty()) run_or_submit(std::exchange(calls_, {}));
+}
+
+void FoxgloveServer::on_closed(kit::Connection& connection) {
+  Client& client = static_cast<Client&>(connection);
+  for (auto& [id, sub] : client.subscriptions) stream_hub()->unsubscribe(sub.stream);
+  client.subscriptions.clear();
+  if (settings_.tcp.cancel_on_disconnect) {
+    // its calls still running end: nobody waits for them
+    for (const auto& [id, pending] : pending_)
+      if (pending.client.expired() || pending.client.lock().get() == &client) cancel(id);
+  }
+  client_left(client.number());
+}
+
+void FoxgloveServer::complain(Client& client, Level level, std::string_view message) {
+  log::debug(name(), ": ", client.label(), ": ", message);
+  client.queue_text(status(level, message));
+}
+
+// ---- subscriptions
+
+void FoxgloveServer::subscribe(Client& client, const Subscribe& request) {
+  for (const auto& [id, channel_id] : request.subscriptions) {
+    if (client.subscriptions.count(id)) {
+      complain(client, Level::error,
+               "subscription id " + std::to_string(id) +
+                   " is in use on this connection (unsubscribe it first, or pick another)");
+      continue;
+    }
+    const auto entry = std::find_if(channels_.begin(), channels_.end(), [&](const ChannelEntry& c) {
+      return c.channel.id == channel_id;
+    });
+    std::shared_ptr<StreamSubscription> stream;
+    if (entry != channels_.end() && stream_hub())
+      stream = stream_hub()->subscribe(
+          entry->component, transport_name(),
+          SubscriberOptions{settings_.stream_queue, "foxglove " + client.label(),
+                            [this] { wake_streams(); }});
+    if (!stream) {
+      std::vector<std::string> ids;
+      for (const auto& c : channels_)
+        ids.push_back(std::to_string(c.channel.id) + " " + c.channel.topic);
+      complain(client, Level::error,
+               "subscribe: no channel " + std::to_string(channel_id) +
+                   " (channels: " + (ids.empty() ? std::string("none") : join(ids)) + ")");
+      continue;
+    }
+    client.subscriptions[id] = Client::Subscription{channel_id, std::move(stream)};
+  }
+}
+
+void FoxgloveServer::unsubscribe(Client& client, const Unsubscribe& request) {
+  for (std::uint32_t id : request.subscription_ids) {
+    auto it = client.subscriptions.find(id);
+    if (it == client.subscriptions.end()) {
+      complain(client, Level::warning,
+               "unsubscribe: no subscription " + std::to_string(id) + " on this connection");
+      continue;
+    }
+    stream_hub()->unsubscribe(it->second.stream);
+    client.subscriptions.erase(it);
+  }
+}
+
+void FoxgloveServer::wake_streams() {
+  if (streams_woken_.exchange(true, std::memory_order_acq_rel)) return;
+  asio::post(io_, [this] { drain_streams(); });
+}
+
+void FoxgloveServer::drain_streams() {
+  streams_woken_.store(false, std::memory_order_release);
+  for_each_connection([this](kit::Connection& connection) {
+    Client& client = static_cast<Client&>(connection);
+    std::uint64_t latest = 0;
+    for (auto it = client.subscriptions.begin(); it != client.subscriptions.end();) {
+      auto& [id, sub] = *it;
+      samples_.clear();
+      sub.stream->take(samples_);
+      std::uint64_t lost = 0;
+      for (const SamplePtr& sample : samples_) {
+        const std::uint64_t ns = to_nanoseconds(sample->time());
+        latest = std::max(latest, ns);
+        const std::string& text = sample->text();
+        const bool queued = client.queue_droppable_with([&, id = id](std::string& out) {
+          kit::WebSocketConnection::append_frame_head(out, kit::FrameParser::k_binary,
+                                                      k_message_data_head_bytes + text.size());
+          append_message_data_head(out, id, ns);
+          out += text;
+        });
+        if (!queued) ++lost;
+      }
+      sub.stream->note_dropped(lost);
+      client.lost += lost;
+      if (sub.stream->closed()) {
+        // its component is gone: the channel is unadvertised with the catalog's refresh
+        it = client.subscriptions.erase(it);
+        continue;
+      }
+      ++it;
+    }
+    if (latest > 0) send_time(client, latest);
+  });
+  samples_.clear();
+  flush_touched();
+}
+
+void FoxgloveServer::send_time(Client& client, std::uint64_t time_ns) {
+  if (client.told_time && client.time_told == time_ns) return;
+  client.told_time = true;
+  client.time_told = time_ns;
+  client.queue_binary(time_message(time_ns));
+}
+
+void FoxgloveServer::tick_time() {
+  if (settings_.time_hz <= 0 || !stream_hub()) return;
+  // simulated time between samples: paused, it stays; stepped, it jumps
+  const std::uint64_t now = to_nanoseconds(stream_hub()->time());
+  if (now > 0) {
+    for_each_connection([&](kit::Connection& connection) {
+      auto& client = static_cast<Client&>(connection);
+      if (client.open()) send_time(client, now);
+    });
+    flush_touched();
+  }
+  time_timer_.expires_after(std::chrono::microseconds(std::llround(1e6 / settings_.time_hz)));
+  time_timer_.async_wait([this](const boost::system::error_code& ec) {
+    if (!ec) tick_time();
+  });
+}
+
+// ---- services
+
+void FoxgloveServer::call_service(Client& client, const ServiceCallRequest& request) {
+  const auto service = std::find_if(services_.begin(), services_.end(), [&](const ServiceDef& s) {
+    return s.id == request.service_id;
+  });
+  const auto fail = [&](const std::string& why) {
+    client.queue_text(service_call_failure(request.service_id, request.call_id, why));
+  };
+  if (service == services_.end())
+    return fail("no service " + std::to_string(request.service_id) +
+                " (advertiseServices lists those there are)");
+  if (request.encoding != "json")
+    return fail("the request's encoding is '" + std::string(request.encoding.substr(0, 40)) +
+                "': this server takes json (serverInfo's supportedEncodings)");
+  json params = json::object();
+  if (!request.payload.empty()) {
+    params = json::parse(request.payload, nullptr, /*allow_exceptions=*/false);
+    if (params.is_discarded())
+      return fail("the request is not JSON: " + quoted_prefix(request.payload, 60));
+    if (!params.is_object() && !params.is_array() && !params.is_null())
+      return fail(service->name + " takes a JSON object of its parameters (" +
+                  service->request_schema.value("description", std::string()) + "), not " +
+                  quoted_prefix(request.payload, 60));
+  }
+  const RequestId id = new_request_id();
+  pending_[id] = PendingCall{std::static_pointer_cast<Client>(client.shared_from_this()),
+                             request.service_id, request.call_id};
+  client.expect_reply();
+  Call call{service->component, service->service, std::move(params)};
+  call.client = client.number();
+  calls_.emplace_back(id, std::move(call));
+}
+
+void FoxgloveServer::on_service_completion(RequestId id, Outcome&& outcome) {
+  // the I/O thread (deliver_on_this_thread): inside run_or_submit, or flush_replies()
+  auto it = pending_.find(id);
+  if (it == pending_.end()) return;
+  const PendingCall pending = it->second;
+  pending_.erase(it);
+  auto client = pending.client.lock();
+  if (!client || client->closed()) return;
+  client->replied();
+  if (outcome.status == Status::success) {
+    const json& value = outcome.value ? *outcome.value : json();
+    const std::string payload = value.dump(-1, ' ', false, json::error_handler_t::replace);
+    client->queue_with([&](std::string& out) {
+      kit::WebSocketConnection::append_frame_head(out, kit::FrameParser::k_binary,
+                                                  13 + 4 + payload.size());
+      append_service_call_response(out, pending.service_id, pending.call_id, "json", payload);
+    });
+    return;
+  }
+  std::string why(to_string(outcome.status));
+  if (!outcome.message.empty()) why += ": " + outcome.message;
+  client->queue_text(service_call_failure(pending.service_id, pending.call_id, why));
+}
+
+// ---- the catalog: channels and services
+
+void FoxgloveServer::on_services_changed() {
+  // under the simulation lock, any thread: only post
+  if (catalog_wanted_.exchange(true, std::memory_order_acq_rel)) return;
+  asio::post(io_, [this] { refresh_catalog(); });
+}
+
+void FoxgloveServer::refresh_catalog() {
+  catalog_wanted_.store(false, std::memory_order_release);
+  refresh_services();
+  // the channels' schemas are made from a sample each, read under the simulation lock
+  post([this] {
+    std::vector<ChannelEntry> channels = read_channels();
+    asio::post(io_, [this, channels = std::move(channels)]() mutable {
+      apply_channels(std::move(channels));
+    });
+  });
+}
+
+std::vector<FoxgloveServer::ChannelEntry> FoxgloveServer::read_channels() const {
+  std::vector<ChannelEntry> out;
+  if (!stream_hub()) return out;
+  for (const StreamInfo& info : stream_hub()->streams(transport_name())) {
+    if (info.direction != StreamDirection::out) continue;
+    ChannelEntry entry;
+    entry.component = info.component;
+    entry.channel.topic = topic_of(info.component);
+    entry.channel.schema_name = "simgate." + info.kind;
+    json schema = json::object();
+    if (auto sample = stream_hub()->sample_now(info.component)) schema = schema_of(*sample);
+    schema["title"] = entry.channel.schema_name;
+    schema["description"] = info.component + ": " + info.type + " (" + info.kind + ")";
+    entry.channel.schema = schema.dump(-1, ' ', false, json::error_handler_t::replace);
+    out.push_back(std::move(entry));
+  }
+  return out;
+}
+
+void FoxgloveServer::apply_channels(std::vector<ChannelEntry> channels) {
+  // ids: the same channel keeps its id (also across a removal and a return), another gets a
+  // new one
+  for (auto& entry : channels) {
+    auto known = channel_history_.find(entry.channel.topic);
+    if (known != channel_history_.end() && known->second.same_as(entry.channel)) {
+      entry.channel.id = known->second.id;
+    } else {
+      entry.channel.id = next_channel_id_++;
+      channel_history_[entry.channel.topic] = entry.channel;
+    }
+  }
+  std::vector<std::uint32_t> gone;
+  for (const auto& old : channels_)
+    if (std::none_of(channels.begin(), channels.end(),
+                     [&](const ChannelEntry& c) { return c.channel.id == old.channel.id; }))
+      gone.push_back(old.channel.id);
+  std::vector<Channel> added;
+  for (const auto& entry : channels)
+    if (std::none_of(channels_.begin(), channels_.end(),
+                     [&](const ChannelEntry& c) { return c.channel.id == entry.channel.id; }))
+      added.push_back(entry.channel);
+  channels_ = std::move(channels);
+  // subscriptions to a channel that is gone end with it
+  if (!gone.empty()) {
+    for_each_connection([&](kit::Connection& connection) {
+      Client& client = static_cast<Client&>(connection);
+      for (auto it = client.subscriptions.begin(); it != client.subscriptions.end();) {
+        if (std::find(gone.begin(), gone.end(), it->second.channel_id) == gone.end()) {
+          ++it;
+          continue;
+        }
+        stream_hub()->unsubscribe(it->second.stream);
+        it = client.subscriptions.erase(it);
+      }
+    });
+    broadcast(unadvertise(gone));
+  }
+  if (!added.empty()) broadcast(advertise(added));
+  flush_touched();
+}
+
+void FoxgloveServer::refresh_services() {
+  std::vector<ServiceDef> now;
+  for (const ServiceDescriptor& d : descriptors()) {
+    ServiceDef def;
+    def.name = service_name_of(d.component, d.name);
+    def.type = "simgate/" + d.qualified_name();
+    def.request_schema = request_schema(d);
+    def.response_schema = d.result_schema.is_object() ? d.result_schema : json::object();
+    def.component = d.component;
+    def.service = d.name;
+    auto known = service_history_.find(def.name);
+    if (known != service_history_.end() && known->second.same_as(def)) {
+      def.id = known->second.id;
+    } else {
+      def.id = next_service_id_++;
+      service_history_[def.name] = def;
+    }
+    now.push_back(std::move(def));
+  }
+  std::vector<std::uint32_t> gone;
+  for (const auto& old : services_)
+    if (std::none_of(now.begin(), now.end(), [&](const ServiceDef& s) { return s.id == old.id; }))
+      gone.push_back(old.id);
+  std::vector<ServiceDef> added;
+  for (const auto& def : now)
+    if (std::none_of(services_.begin(), services_.end(),
+                     [&](const ServiceDef& s) { return s.id == def.id; }))
+      added.push_back(def);
+  services_ = std::move(now);
+  if (!gone.empty()) broadcast(unadvertise_services(gone));
+  if (!added.empty()) broadcast(advertise_services(added));
+  flush_touched();
+}
+
+void FoxgloveServer::broadcast(const std::string& text) {
+  for_each_connection([&](kit::Connection& connection) {
+    auto& client = static_cast<Client&>(connection);
+    if (client.open()) client.queue_text(text);
+  });
+}
+
+}  // namespace simgate::foxglove
+
+SIMGATE_TRANSPORT_PLUGIN(foxglove, simgate::foxglove::FoxgloveServer, "0.1.0", "host", "port",
+                         "max_connections", "max_connections_per_peer", "max_message_bytes",
+                         "max_unsent_bytes", "max_buffered_bytes", "max_in_flight", "io_spin_us",
+                         "on_disconnect", "global_policy", "idle_timeout_s", "idle_evict_s",
+                         "line_timeout_s", "progress_interval_ms", "allowed_origins", "keepalive_s",
+                         "stream_queue", "time_hz")

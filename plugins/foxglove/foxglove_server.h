@@ -1,0 +1,168 @@
+// plugins/foxglove/foxglove_server.h — the foxglove transport: Foxglove's WebSocket protocol
+// (simgate/foxglove/protocol.h) on the kit's WebSocket connections, so that Foxglove and
+// Lichtblick open a running simulation at ws://127.0.0.1:8765 (Foxglove's default port).
+//
+// What a client gets (docs/transports/foxglove.md):
+//   - serverInfo (capabilities `services` and `time`, encoding `json`), then one channel per
+//     output stream the transport carries (topic "/robot/pose" for robot.pose, JSON messages,
+//     a JSON Schema made from one sample read when the channel appears), then one service per
+//     simgate service it serves ("/robot/motion/set_speed": a JSON object of the parameters
+//     in, the result out). Channels and services appear and disappear as components do
+//     (advertise / unadvertise, advertiseServices / unadvertiseServices).
+//   - subscribe / unsubscribe: each sample as a binary Message Data, its log time the
+//     simulated time of the sample; a Time message whenever the simulated time moved (with
+//     the samples, and `time_hz` times per second of wall time between them), so that
+//     panels follow simulated time through pauses and time scales.
+//   - a service call (binary request, JSON encoding): answered by a Service Call Response
+//     with the result, or a serviceCallFailure naming the status and the reason; a long call
+//     when it finishes. A client that leaves has its calls cancelled (`on_disconnect`).
+//   - bad input (text that is not JSON, an unknown op, a subscription to no channel, a
+//     reused subscription id, a bad binary opcode): a status message saying what was wrong;
+//     the connection and every other client go on.
+//
+// Options: the kit's (kit::TcpOptions: host, port 8765, limits, timeouts, auth), every
+// WebSocket transport's (kit::WebSocketOptions: allowed_origins, keepalive_s), and
+// `stream_queue` (samples kept per subscription, 4: a slow client gets the newest, never a
+// backlog), `time_hz` (Time messages per wall second between samples, 30; 0: only with
+// samples). A client must offer the subprotocol foxglove.websocket.v1 or foxglove.sdk.v1
+// (else 400).
+//
+// Threads: one I/O thread (connections, subscriptions, pending calls, channels, services);
+// the schemas' samples are read under the simulation lock (a task posted to the core).
+#ifndef SIMGATE_PLUGINS_FOXGLOVE_FOXGLOVE_SERVER_H_
+#define SIMGATE_PLUGINS_FOXGLOVE_FOXGLOVE_SERVER_H_
+
+#include <atomic>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/steady_timer.hpp>
+
+#include "simgate/core/request_manager.h"
+#include "simgate/foxglove/protocol.h"
+#include "simgate/kit/tcp_server.h"
+#include "simgate/kit/websocket_connection.h"
+
+namespace simgate::foxglove {
+
+// Foxglove's default port.
+inline constexpr std::uint16_t k_default_port = 8765;
+
+class FoxgloveServer : public RequestManager, private kit::WebSocketServer {
+ public:
+  // Parses the options and binds; throws ConfigError or std::runtime_error.
+  explicit FoxgloveServer(const json& options);
+  ~FoxgloveServer() override;
+  // What the constructor checks of `options`, without binding (the plugin's validate).
+  static std::vector<std::string> validate_options(const json& options);
+
+  void start() override;
+  void stop() override;
+  // {"ws://127.0.0.1:<port>/"} with the bound port.
+  std::vector<std::string> endpoints() const override;
+  std::size_t client_count() const override { return connection_count(); }
+
+ protected:
+  void on_service_completion(RequestId id, Outcome&& outcome) override;
+  void on_services_changed() override;
+
+ private:
+  struct Settings {
+    kit::TcpOptions tcp;
+    kit::WebSocketOptions websocket;
+    std::size_t stream_queue = 4;
+    double time_hz = 30;
+    static Settings parse(const json& options);
+  };
+  class Client;
+  // A channel as advertised: the stream's component and what clients were told.
+  struct ChannelEntry {
+    std::string component;
+    Channel channel;
+  };
+  // Where a service call's answer goes.
+  struct PendingCall {
+    std::weak_ptr<Client> client;
+    std::uint32_t service_id = 0;
+    std::uint32_t call_id = 0;
+  };
+  // The Server header of its HTTP answers, and serverInfo's name.
+  static constexpr std::string_view k_server = "simgate foxglove transport";
+
+  explicit FoxgloveServer(Settings settings);
+
+  // ---- kit::WebSocketServer (I/O thread)
+  void on_open(kit::WebSocketConnection& connection) override;
+  void on_message(kit::WebSocketConnection& connection, std::string_view text) override;
+  bool binary_messages() const override { return true; }
+  void on_binary_message(kit::WebSocketConnection& connection, std::string_view data) override;
+  void on_refused_message(kit::WebSocketConnection& connection, std::size_t bytes,
+                          bool binary) override;
+  void on_messages_done(kit::Connection& connection, bool read_finished) override;
+  void on_closed(kit::Connection& connection) override;
+  kit::HttpResponse on_http_request(const kit::HttpRequest& request) override;
+  std::string refuse_upgrade(const kit::HttpRequest& request) override;
+  std::string subprotocol(const kit::HttpRequest& request) const override;
+
+  void accept(boost::asio::ip::tcp::socket socket);
+  void shutdown_io();
+  // The outcomes the simulation thread produced, and the replies of the burst (I/O thread).
+  void flush_replies();
+
+  // ---- the protocol (I/O thread)
+  void subscribe(Client& client, const Subscribe& request);
+  void unsubscribe(Client& client, const Unsubscribe& request);
+  void call_service(Client& client, const ServiceCallRequest& request);
+  // Tells `client` (status level error/warning) what was wrong with its message.
+  void complain(Client& client, Level level, std::string_view message);
+
+  // ---- channels and services
+  // The catalog changed (or the transport starts): services now, channels once their
+  // samples were read under the simulation lock.
+  void refresh_catalog();
+  void refresh_services();
+  // Under the simulation lock: the channels of the streams now, with their schemas.
+  std::vector<ChannelEntry> read_channels() const;
+  // I/O thread: advertises what is new, unadvertises what is gone, to every client.
+  void apply_channels(std::vector<ChannelEntry> channels);
+  // Sends `text` to every client.
+  void broadcast(const std::string& text);
+
+  // ---- samples and time (I/O thread, woken by the core)
+  void wake_streams();
+  void drain_streams();
+  // A Time message to `client` if the simulated time moved since it was told.
+  void send_time(Client& client, std::uint64_t time_ns);
+  void tick_time();
+
+  Settings settings_;
+  boost::asio::io_context io_;
+  kit::TcpListener listener_;  // bound in the constructor
+  kit::IoThread io_thread_;
+  boost::asio::steady_timer time_timer_;
+  std::string session_id_;                   // serverInfo's sessionId: this process's start
+  std::uint64_t next_client_ = 1;            // numbers connections (I/O thread)
+  std::atomic<bool> catalog_wanted_{false};  // a refresh is posted
+  std::atomic<bool> streams_woken_{false};   // a drain is posted
+  std::vector<ChannelEntry> channels_;       // advertised, by channel id order
+  std::uint32_t next_channel_id_ = 1;
+  // every channel ever advertised by topic: an id is reused only for the same channel
+  std::map<std::string, Channel> channel_history_;
+  std::vector<ServiceDef> services_;  // advertised
+  std::map<std::string, ServiceDef> service_history_;
+  std::uint32_t next_service_id_ = 1;
+  std::unordered_map<RequestId, PendingCall> pending_;  // calls not answered yet
+  std::vector<std::pair<RequestId, Call>> calls_;       // read, not yet run
+  std::vector<SamplePtr> samples_;                      // drain's buffer
+};
+
+}  // namespace simgate::foxglove
+
+#endif  // SIMGATE_PLUGINS_FOXGLOVE_FOXGLOVE_SERVER_H_

@@ -1,0 +1,303 @@
+#include "simgate/foxglove/protocol.h"
+
+#include <cmath>
+#include <limits>
+
+#include "simgate/core/text.h"
+
+namespace simgate::foxglove {
+
+namespace {
+
+std::string dump(const json& value) {
+  // invalid UTF-8 in a name or a message is replaced, never thrown
+  return value.dump(-1, ' ', false, json::error_handler_t::replace);
+}
+
+void put_u32(std::string& out, std::uint32_t v) {
+  for (int i = 0; i < 4; ++i) out.push_back(static_cast<char>(v >> (8 * i)));
+}
+
+void put_u64(std::string& out, std::uint64_t v) {
+  for (int i = 0; i < 8; ++i) out.push_back(static_cast<char>(v >> (8 * i)));
+}
+
+std::uint32_t get_u32(std::string_view bytes, std::size_t at) {
+  std::uint32_t v = 0;
+  for (int i = 3; i >= 0; --i) v = (v << 8) | static_cast<unsigned char>(bytes[at + i]);
+  return v;
+}
+
+// The unsigned 32-bit integer `value[key]`, or why not.
+std::optional<std::uint32_t> u32_field(const json& object, const char* key, std::string& why,
+                                       std::string_view where) {
+  const auto it = object.find(key);
+  if (it == object.end()) {
+    why = std::string(where) + " has no \"" + key + "\"";
+    return std::nullopt;
+  }
+  if (!it->is_number_integer() || it->get<std::int64_t>() < 0 ||
+      it->get<std::uint64_t>() > std::numeric_limits<std::uint32_t>::max()) {
+    why = std::string(where) + "'s \"" + key +
+          "\" is not an unsigned 32-bit integer: " + quoted_prefix(dump(*it), 40);
+    return std::nullopt;
+  }
+  return it->get<std::uint32_t>();
+}
+
+ClientText read_subscribe(const json& message) {
+  const auto list = message.find("subscriptions");
+  if (list == message.end() || !list->is_array())
+    return Malformed{
+        "subscribe takes \"subscriptions\": [{\"id\": <number>, \"channelId\": "
+        "<an advertised channel>}]"};
+  Subscribe s;
+  std::string why;
+  for (const json& entry : *list) {
+    if (!entry.is_object())
+      return Malformed{"subscribe: each subscription is an object {id, channelId}"};
+    const auto id = u32_field(entry, "id", why, "a subscription");
+    const auto channel = id ? u32_field(entry, "channelId", why, "a subscription") : std::nullopt;
+    if (!channel) return Malformed{"subscribe: " + why};
+    s.subscriptions.emplace_back(*id, *channel);
+  }
+  return s;
+}
+
+ClientText read_unsubscribe(const json& message) {
+  const auto list = message.find("subscriptionIds");
+  if (list == message.end() || !list->is_array())
+    return Malformed{"unsubscribe takes \"subscriptionIds\": [<numbers subscribe gave>]"};
+  Unsubscribe u;
+  for (const json& id : *list) {
+    if (!id.is_number_integer() || id.get<std::int64_t>() < 0 ||
+        id.get<std::uint64_t>() > std::numeric_limits<std::uint32_t>::max())
+      return Malformed{"unsubscribe: a subscription id is not an unsigned 32-bit integer: " +
+                       quoted_prefix(dump(id), 40)};
+    u.subscription_ids.push_back(id.get<std::uint32_t>());
+  }
+  return u;
+}
+
+json channel_json(const Channel& c) {
+  return json{{"id", c.id},
+              {"topic", c.topic},
+              {"encoding", c.encoding},
+              {"schemaName", c.schema_name},
+              {"schema", c.schema},
+              {"schemaEncoding", c.schema_encoding}};
+}
+
+}  // namespace
+
+std::string pick_subprotocol(std::string_view offered) {
+  bool sdk = false;
+  while (!offered.empty()) {
+    const std::size_t comma = offered.find(',');
+    std::string_view item = offered.substr(0, comma);
+    offered = comma == std::string_view::npos ? std::string_view() : offered.substr(comma + 1);
+    while (!item.empty() && (item.front() == ' ' || item.front() == '\t')) item.remove_prefix(1);
+    while (!item.empty() && (item.back() == ' ' || item.back() == '\t')) item.remove_suffix(1);
+    if (item == k_subprotocol) return std::string(k_subprotocol);
+    if (item == k_sdk_subprotocol) sdk = true;
+  }
+  return sdk ? std::string(k_sdk_subprotocol) : std::string();
+}
+
+// ---- server messages
+
+std::string server_info(std::string_view name, const std::vector<std::string>& capabilities,
+                        const std::vector<std::string>& supported_encodings, const json& metadata,
+                        std::string_view session_id) {
+  json m{{"op", "serverInfo"},
+         {"name", name},
+         {"capabilities", capabilities},
+         {"metadata", metadata.is_object() ? metadata : json::object()},
+         {"sessionId", session_id}};
+  if (!supported_encodings.empty()) m["supportedEncodings"] = supported_encodings;
+  return dump(m);
+}
+
+std::string advertise(const std::vector<Channel>& channels) {
+  json list = json::array();
+  for (const Channel& c : channels) list.push_back(channel_json(c));
+  return dump(json{{"op", "advertise"}, {"channels", std::move(list)}});
+}
+
+std::string unadvertise(const std::vector<std::uint32_t>& channel_ids) {
+  return dump(json{{"op", "unadvertise"}, {"channelIds", channel_ids}});
+}
+
+std::string advertise_services(const std::vector<ServiceDef>& services) {
+  json list = json::array();
+  for (const ServiceDef& s : services) {
+    const std::string request = dump(s.request_schema), response = dump(s.response_schema);
+    list.push_back(json{{"id", s.id},
+                        {"name", s.name},
+                        {"type", s.type},
+                        {"request",
+                         {{"encoding", "json"},
+                          {"schemaName", s.type + "_Request"},
+                          {"schemaEncoding", "jsonschema"},
+                          {"schema", request}}},
+                        {"response",
+                         {{"encoding", "json"},
+                          {"schemaName", s.type + "_Response"},
+                          {"schemaEncoding", "jsonschema"},
+                          {"schema", response}}},
+                        {"requestSchema", request},
+                        {"responseSchema", response}});
+  }
+  return dump(json{{"op", "advertiseServices"}, {"services", std::move(list)}});
+}
+
+std::string unadvertise_services(const std::vector<std::uint32_t>& service_ids) {
+  return dump(json{{"op", "unadvertiseServices"}, {"serviceIds", service_ids}});
+}
+
+std::string status(Level level, std::string_view message) {
+  return dump(json{{"op", "status"}, {"level", static_cast<int>(level)}, {"message", message}});
+}
+
+std::string service_call_failure(std::uint32_t service_id, std::uint32_t call_id,
+                                 std::string_view message) {
+  return dump(json{{"op", "serviceCallFailure"},
+                   {"serviceId", service_id},
+                   {"callId", call_id},
+                   {"message", message}});
+}
+
+void append_message_data_head(std::string& out, std::uint32_t subscription_id,
+                              std::uint64_t time_ns) {
+  out.push_back(static_cast<char>(k_message_data));
+  put_u32(out, subscription_id);
+  put_u64(out, time_ns);
+}
+
+std::string time_message(std::uint64_t time_ns) {
+  std::string out;
+  out.push_back(static_cast<char>(k_time));
+  put_u64(out, time_ns);
+  return out;
+}
+
+void append_service_call_response(std::string& out, std::uint32_t service_id, std::uint32_t call_id,
+                                  std::string_view encoding, std::string_view payload) {
+  out.push_back(static_cast<char>(k_service_call_response));
+  put_u32(out, service_id);
+  put_u32(out, call_id);
+  put_u32(out, static_cast<std::uint32_t>(encoding.size()));
+  out.append(encoding);
+  out.append(payload);
+}
+
+std::uint64_t to_nanoseconds(double seconds) {
+  if (!(seconds > 0)) return 0;
+  const double ns = std::round(seconds * 1e9);
+  if (ns >= 18446744073709549568.0) return std::numeric_limits<std::uint64_t>::max();
+  return static_cast<std::uint64_t>(ns);
+}
+
+// ---- client messages
+
+ClientText read_text(std::string_view text) {
+  // nlohmann's parser would stop at a NUL byte and take what comes before it for the message
+  if (text.find('\0') != std::string_view::npos)
+    return Malformed{"a text message is not JSON: it holds a NUL byte at " +
+                     std::to_string(text.find('\0'))};
+  const json message = json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (message.is_discarded())
+    return Malformed{"a text message is not JSON: " + quoted_prefix(text, 60)};
+  if (!message.is_object())
+    return Malformed{"a text message is a JSON object with an \"op\", not " +
+                     quoted_prefix(text, 60)};
+  const auto op = message.find("op");
+  if (op == message.end() || !op->is_string())
+    return Malformed{"a text message names its operation in \"op\" (a string): " +
+                     quoted_prefix(text, 60)};
+  const std::string& name = op->get_ref<const std::string&>();
+  if (name == "subscribe") return read_subscribe(message);
+  if (name == "unsubscribe") return read_unsubscribe(message);
+  return OtherOp{name};
+}
+
+ClientBinary read_binary(std::string_view message) {
+  if (message.empty()) return Malformed{"an empty binary message (the first byte is the opcode)"};
+  const auto opcode = static_cast<std::uint8_t>(message[0]);
+  if (opcode == k_service_call_request) {
+    if (message.size() < 13)
+      return Malformed{"a service call request of " + std::to_string(message.size()) +
+                       " bytes (its head alone is 13: opcode, service id, call id, encoding "
+                       "length)"};
+    ServiceCallRequest r;
+    r.service_id = get_u32(message, 1);
+    r.call_id = get_u32(message, 5);
+    const std::uint32_t length = get_u32(message, 9);
+    if (length > message.size() - 13)
+      return Malformed{"a service call request whose encoding (" + std::to_string(length) +
+                       " bytes) runs past its end"};
+    r.encoding = message.substr(13, length);
+    r.payload = message.substr(13 + length);
+    return r;
+  }
+  if (opcode == k_client_message_data) {
+    if (message.size() < 5)
+      return Malformed{"a client message of " + std::to_string(message.size()) +
+                       " bytes (its head alone is 5: opcode, channel id)"};
+    return ClientMessageData{get_u32(message, 1), message.substr(5)};
+  }
+  return Malformed{"unknown binary opcode " + std::to_string(opcode) +
+                   " (a client sends 1, message data, or 2, a service call request)"};
+}
+
+// ---- schemas
+
+json schema_of(const json& value) {
+  switch (value.type()) {
+    case json::value_t::boolean: return json{{"type", "boolean"}};
+    case json::value_t::number_integer:
+    case json::value_t::number_unsigned: return json{{"type", "integer"}};
+    case json::value_t::number_float: return json{{"type", "number"}};
+    case json::value_t::string: return json{{"type", "string"}};
+    case json::value_t::array: {
+      json schema{{"type", "array"}};
+      if (!value.empty()) schema["items"] = schema_of(value.front());
+      return schema;
+    }
+    case json::value_t::object: {
+      json properties = json::object();
+      for (const auto& [key, member] : value.items()) properties[key] = schema_of(member);
+      return json{{"type", "object"}, {"properties", std::move(properties)}};
+    }
+    default: return json::object();
+  }
+}
+
+json request_schema(const ServiceDescriptor& service) {
+  json properties = json::object();
+  json required = json::array();
+  for (const ParamDescriptor& p : service.params) {
+    json schema = p.schema.is_object() ? p.schema : json::object();
+    if (p.default_value)
+      schema["default"] = *p.default_value;
+    else
+      required.push_back(p.name);
+    properties[p.name] = std::move(schema);
+  }
+  json out{{"type", "object"}, {"properties", std::move(properties)}};
+  if (!required.empty()) out["required"] = std::move(required);
+  if (!service.doc.empty()) out["description"] = service.doc;
+  return out;
+}
+
+std::string topic_of(std::string_view component) {
+  std::string out = "/";
+  for (char c : component) out += c == '.' ? '/' : c;
+  return out;
+}
+
+std::string service_name_of(std::string_view component, std::string_view service) {
+  return topic_of(component) + "/" + std::string(service);
+}
+
+}  // namespace simgate::foxglove

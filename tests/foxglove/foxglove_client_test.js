@@ -1,0 +1,231 @@
+#!/usr/bin/env node
+// End-to-end test of the foxglove transport with Foxglove's own client, which nobody on the
+// team wrote: @foxglove/ws-protocol's FoxgloveClient over npm's ws (tests/foxglove/package.json),
+// against the real gateway (`simgate run gateway_foxglove.json`: the demo scene).
+//
+//   node foxglove_client_test.js <simgate> run <config> [--plugin-path DIR]
+// The gateway prints "foxglove: ws://127.0.0.1:<port>/" and stops on SIGTERM.
+// Exit code: 0 passed, 1 failed, 77 the npm packages are not installed.
+'use strict';
+
+const path = require('path');
+const { spawn } = require('child_process');
+
+let FoxgloveClient, WebSocket, Ajv;
+try {
+  ({ FoxgloveClient } = require(path.join(__dirname, 'node_modules', '@foxglove', 'ws-protocol')));
+  WebSocket = require(path.join(__dirname, 'node_modules', 'ws'));
+  Ajv = require(path.join(__dirname, 'node_modules', 'ajv'));
+} catch (e) {
+  console.log('SKIP: the npm packages are not installed (npm install in tests/foxglove): ' + e.message);
+  process.exit(77);
+}
+
+const STEP_TIMEOUT_MS = 10000;
+const TOTAL_TIMEOUT_MS = 100000;
+const SUBPROTOCOLS = ['foxglove.websocket.v1', 'foxglove.sdk.v1'];
+
+function withTimeout(promise, what, ms = STEP_TIMEOUT_MS) {
+  let timer;
+  const timeout = new Promise((_, reject) => {
+    timer = setTimeout(() => reject(new Error(`${what}: nothing within ${ms} ms`)), ms);
+  });
+  return Promise.race([promise, timeout]).finally(() => clearTimeout(timer));
+}
+
+function check(condition, what) {
+  if (!condition) throw new Error('check failed: ' + what);
+}
+
+function startGateway(argv) {
+  const child = spawn(argv[0], argv.slice(1), { stdio: ['ignore', 'pipe', 'inherit'] });
+  const url = new Promise((resolve, reject) => {
+    let out = '';
+    child.stdout.on('data', (chunk) => {
+      out += chunk.toString();
+      const m = out.match(/foxglove: (ws:\/\/127\.0\.0\.1:\d+\/)/);
+      if (m) resolve(m[1]);
+    });
+    child.on('exit', (code) => reject(new Error(`simgate exited early with code ${code}`)));
+    child.on('error', reject);
+  });
+  return { child, url: withTimeout(url, 'simgate start', 60000) };
+}
+
+// A connected FoxgloveClient that records what the server tells it.
+class Session {
+  constructor(url, subprotocol) {
+    this.ws = new WebSocket(url, [subprotocol]);
+    this.client = new FoxgloveClient({ ws: this.ws });
+    this.channels = new Map(); // id -> channel
+    this.services = new Map(); // id -> service
+    this.statuses = [];
+    this.times = [];
+    this.messages = new Map(); // subscription id -> [{timestamp, data}]
+    this.responses = new Map(); // call id -> {ok, data|message}
+    this.waiters = [];
+    const c = this.client;
+    c.on('serverInfo', (info) => { this.info = info; this.poke(); });
+    c.on('advertise', (list) => { for (const ch of list) this.channels.set(ch.id, ch); this.poke(); });
+    c.on('unadvertise', (ids) => { for (const id of ids) this.channels.delete(id); this.poke(); });
+    c.on('advertiseServices', (list) => { for (const s of list) this.services.set(s.id, s); this.poke(); });
+    c.on('unadvertiseServices', (ids) => { for (const id of ids) this.services.delete(id); this.poke(); });
+    c.on('status', (s) => { this.statuses.push(s); this.poke(); });
+    c.on('time', (t) => { this.times.push(t.timestamp); this.poke(); });
+    c.on('message', (m) => {
+      if (!this.messages.has(m.subscriptionId)) this.messages.set(m.subscriptionId, []);
+      this.messages.get(m.subscriptionId).push({ timestamp: m.timestamp, data: Buffer.from(m.data.buffer, m.data.byteOffset, m.data.byteLength).toString() });
+      this.poke();
+    });
+    c.on('serviceCallResponse', (r) => {
+      this.responses.set(r.callId, { ok: true, encoding: r.encoding, data: Buffer.from(r.data.buffer, r.data.byteOffset, r.data.byteLength).toString() });
+      this.poke();
+    });
+    c.on('serviceCallFailure', (f) => { this.responses.set(f.callId, { ok: false, message: f.message }); this.poke(); });
+    c.on('error', (e) => { this.error = e; this.poke(); });
+    c.on('close', () => { this.closed = true; this.poke(); });
+    this.nextCall = 1;
+  }
+  poke() {
+    const waiting = this.waiters;
+    this.waiters = [];
+    for (const w of waiting) if (!w()) this.waiters.push(w);
+  }
+  until(predicate, what, ms) {
+    return withTimeout(new Promise((resolve) => {
+      const w = () => { if (predicate()) { resolve(); return true; } return false; };
+      if (!w()) this.waiters.push(w);
+    }), what, ms);
+  }
+  channel(topic) { return [...this.channels.values()].find((c) => c.topic === topic); }
+  service(name) { return [...this.services.values()].find((s) => s.name === name); }
+  async call(name, request, encoding = 'json') {
+    const service = this.service(name);
+    check(service, `service ${name} is advertised (have: ${[...this.services.values()].map((s) => s.name).join(', ')})`);
+    return this.callId(service.id, request, encoding, name);
+  }
+  async callId(serviceId, request, encoding = 'json', what = `service ${serviceId}`) {
+    const callId = this.nextCall++;
+    const data = typeof request === 'string' ? request : JSON.stringify(request);
+    this.client.sendServiceCallRequest({ serviceId, callId, encoding, data: new TextEncoder().encode(data) });
+    await this.until(() => this.responses.has(callId), `the answer of ${what}`);
+    return this.responses.get(callId);
+  }
+  async statusAfter(send, what) {
+    const before = this.statuses.length;
+    send();
+    await this.until(() => this.statuses.length > before, `a status message for ${what}`);
+    return this.statuses[before];
+  }
+  close() { this.client.close(); }
+}
+
+async function refusedWithout(url) {
+  // a client that offers no Foxglove subprotocol is refused before the upgrade, as
+  // Foxglove's own servers do
+  const ws = new WebSocket(url);
+  const status = await withTimeout(new Promise((resolve) => {
+    ws.on('unexpected-response', (req, res) => { resolve(res.statusCode); ws.terminate(); });
+    ws.on('open', () => { resolve('open'); ws.terminate(); });
+    ws.on('error', () => {});
+  }), 'a refusal without a subprotocol');
+  check(status === 400, `no subprotocol: HTTP 400 (got ${status})`);
+}
+
+async function session(url, subprotocol, ajv) {
+  const s = new Session(url, subprotocol);
+  await s.until(() => s.info && s.channel('/robot/pose') && s.service('/simulation/list_robots'), `${subprotocol}: serverInfo, channels and services`);
+  check(s.ws.protocol === subprotocol, `the server agreed ${subprotocol} (got '${s.ws.protocol}')`);
+  check(s.info.capabilities.includes('services') && s.info.capabilities.includes('time'), 'capabilities services and time');
+  check(JSON.stringify(s.info.supportedEncodings) === '["json"]', 'supportedEncodings json');
+
+  // a channel: JSON, with a JSON Schema every sample satisfies, log times in simulated ns
+  const pose = s.channel('/robot/pose');
+  check(pose.encoding === 'json' && pose.schemaEncoding === 'jsonschema', 'pose: json with a jsonschema');
+  const validate = ajv.compile(JSON.parse(pose.schema));
+  const events = s.channel('/simulation');
+  check(events, 'the simulation\'s events are a channel');
+  const sub = s.client.subscribe(pose.id);
+  await s.until(() => (s.messages.get(sub) || []).length >= 3, 'three pose samples');
+  for (const m of s.messages.get(sub)) {
+    const sample = JSON.parse(m.data);
+    check(validate(sample), 'a pose sample fits its schema: ' + ajv.errorsText(validate.errors));
+    for (const key of ['x', 'y', 'z', 'yaw', 'timestamp']) check(typeof sample[key] === 'number', `pose.${key} is a number`);
+    const ns = BigInt(Math.round(sample.timestamp * 1e9));
+    const diff = m.timestamp > ns ? m.timestamp - ns : ns - m.timestamp;
+    check(diff <= 1000n, `the log time is the sample's simulated time (${m.timestamp} vs ${ns})`);
+  }
+  await s.until(() => s.times.length >= 2, 'time messages');
+  check(s.times[s.times.length - 1] >= s.times[0], 'the time moves forward');
+
+  // services: JSON in, JSON out; failures name the status and the reason
+  const robots = await s.call('/simulation/list_robots', {});
+  check(robots.ok && robots.encoding === 'json', 'list_robots answers: ' + JSON.stringify(robots));
+  check(JSON.parse(robots.data).includes('robot'), 'list_robots names the robot: ' + robots.data);
+  const set = s.service('/time/set_time_scale');
+  const request = JSON.parse(set.request.schema);
+  check(request.required && request.required.includes('value'), 'the request schema requires value');
+  const bad = await s.call('/time/set_time_scale', { value: 'fast' });
+  check(!bad.ok && /FAILED/.test(bad.message), 'a wrong argument fails with the reason: ' + JSON.stringify(bad));
+  const unknown = await s.callId(999999, {});
+  check(!unknown.ok && /no service 999999/.test(unknown.message), 'an unknown service id fails: ' + JSON.stringify(unknown));
+  const notJson = await s.call('/simulation/list_robots', '{"a":');
+  check(!notJson.ok && /not JSON/.test(notJson.message), 'a request that is not JSON fails: ' + JSON.stringify(notJson));
+  const cbor = await s.call('/simulation/list_robots', '{}', 'cbor');
+  check(!cbor.ok && /encoding/.test(cbor.message), 'another encoding fails: ' + JSON.stringify(cbor));
+  // a long call is answered when it ends
+  const started = Date.now();
+  const slept = await s.call('/time/sleep', { time: 0.3 });
+  check(slept.ok && Date.now() - started >= 250, 'time.sleep answers after its simulated time: ' + JSON.stringify(slept));
+
+  // bad input: a status each, and the connection goes on
+  let st = await s.statusAfter(() => s.ws.send('{"op": "subscribe", "subscriptions": [{"id": 1'), 'text that is not JSON');
+  check(st.level === 2 && /not JSON/.test(st.message), 'not JSON: ' + st.message);
+  st = await s.statusAfter(() => s.ws.send('{"op": "fetchAsset", "uri": "package://x", "requestId": 1}'), 'an op not served');
+  check(st.level === 2 && /fetchAsset/.test(st.message), 'an op not served: ' + st.message);
+  st = await s.statusAfter(() => s.client.subscribe(987654), 'a subscription to no channel');
+  check(st.level === 2 && /no channel 987654/.test(st.message) && /\/robot\/pose/.test(st.message), 'no such channel: ' + st.message);
+  st = await s.statusAfter(() => s.ws.send(`{"op": "subscribe", "subscriptions": [{"id": ${sub}, "channelId": ${pose.id}}]}`), 'a reused subscription id');
+  check(st.level === 2 && /in use/.test(st.message), 'a reused subscription id: ' + st.message);
+  st = await s.statusAfter(() => s.ws.send(Buffer.from([9, 1, 2, 3])), 'a bad binary opcode');
+  check(st.level === 2 && /opcode 9/.test(st.message), 'a bad binary opcode: ' + st.message);
+  st = await s.statusAfter(() => s.ws.send(Buffer.from([2, 1, 0])), 'a short service call');
+  check(st.level === 2 && /service call request of 3 bytes/.test(st.message), 'a short service call: ' + st.message);
+  const again = await s.call('/simulation/list_robots', {});
+  check(again.ok, 'the connection still serves after bad input');
+
+  // unsubscribe: no more samples on it
+  s.client.unsubscribe(sub);
+  await new Promise((r) => setTimeout(r, 300));
+  const count = s.messages.get(sub).length;
+  await new Promise((r) => setTimeout(r, 400));
+  check(s.messages.get(sub).length === count, 'no samples after unsubscribe');
+  check(!s.error, 'the client saw no protocol error: ' + (s.error && s.error.message));
+  return s;
+}
+
+async function main(argv) {
+  const { child, url: urlPromise } = startGateway(argv);
+  const overall = setTimeout(() => {
+    console.error('FAIL: the test took longer than ' + TOTAL_TIMEOUT_MS + ' ms');
+    child.kill('SIGKILL');
+    process.exit(1);
+  }, TOTAL_TIMEOUT_MS);
+  try {
+    const url = await urlPromise;
+    await refusedWithout(url);
+    const ajv = new Ajv({ strict: false });
+    // both subprotocols, two clients at once: one client's mistakes never reach the other
+    const sessions = await Promise.all(SUBPROTOCOLS.map((p) => session(url, p, ajv)));
+    for (const s of sessions) s.close();
+    console.log(`PASS: foxglove transport with @foxglove/ws-protocol (${SUBPROTOCOLS.join(', ')})`);
+  } finally {
+    clearTimeout(overall);
+    child.kill('SIGTERM');
+  }
+}
+
+main(process.argv.slice(2)).catch((e) => {
+  console.error('FAIL: ' + (e && e.stack ? e.stack : e));
+  process.exit(1);
+});
