@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <tuple>
 
 #include <boost/asio/post.hpp>
 
@@ -23,7 +24,9 @@ class FoxgloveServer::Client : public kit::WebSocketConnection {
   using WebSocketConnection::WebSocketConnection;
   struct Subscription {
     std::uint32_t channel_id = 0;
+    Shape shape = Shape::sample;
     std::shared_ptr<StreamSubscription> stream;
+    std::uint64_t scene_sent = ~std::uint64_t{0};  // the generation its last scene was of
   };
   std::map<std::uint32_t, Subscription> subscriptions;  // by the client's subscription id
   std::uint64_t time_told = 0;                          // the last Time message's time (ns)
@@ -271,7 +274,7 @@ void FoxgloveServer::subscribe(Client& client, const Subscribe& request) {
                    " (channels: " + (ids.empty() ? std::string("none") : join(ids)) + ")");
       continue;
     }
-    client.subscriptions[id] = Client::Subscription{channel_id, std::move(stream)};
+    client.subscriptions[id] = Client::Subscription{channel_id, entry->shape, std::move(stream)};
   }
 }
 
@@ -306,7 +309,12 @@ void FoxgloveServer::drain_streams() {
       for (const SamplePtr& sample : samples_) {
         const std::uint64_t ns = to_nanoseconds(sample->time());
         latest = std::max(latest, ns);
-        const std::string& text = sample->text();
+        std::string converted;
+        if (sub.shape != Shape::sample) {
+          converted = convert(sub.shape, *sample, sub.scene_sent);
+          if (converted.empty()) continue;
+        }
+        const std::string& text = sub.shape == Shape::sample ? sample->text() : converted;
         const bool queued = client.queue_droppable_with([&, id = id](std::string& out) {
           kit::WebSocketConnection::append_frame_head(out, kit::FrameParser::k_binary,
                                                       k_message_data_head_bytes + text.size());
@@ -327,7 +335,38 @@ void FoxgloveServer::drain_streams() {
     if (latest > 0) send_time(client, latest);
   });
   samples_.clear();
+  if (geometry_wanted_) {
+    geometry_wanted_ = false;
+    for (const auto& c : channels_)
+      if (c.shape != Shape::sample) {
+        request_geometry(c.component);
+        break;
+      }
+  }
   flush_touched();
+}
+
+std::string FoxgloveServer::convert(Shape shape, const StreamSample& sample,
+                                    std::uint64_t& scene_sent) {
+  const json& poses = sample.data();
+  const std::uint64_t generation =
+      poses.is_object() ? poses.value("generation", std::uint64_t{0}) : 0;
+  if (!frames_.known() || frames_.generation != generation) {
+    // the model changed (or its scene is not known yet): its scene first
+    geometry_wanted_ = !geometry_refused_;
+    return {};
+  }
+  if (shape == Shape::frame_transforms) return frame_transforms(poses, frames_);
+  if (scene_sent == generation) return {};  // the entities stay until the model changes
+  scene_sent = generation;
+  return scene_update(geometry_, frames_);
+}
+
+void FoxgloveServer::request_geometry(const std::string& component) {
+  if (geometry_call_ != 0) return;
+  geometry_call_ = new_request_id();
+  run_or_submit(geometry_call_,
+                Call{component, "get_scene_geometry", json{{"include_meshes", true}}});
 }
 
 void FoxgloveServer::send_time(Client& client, std::uint64_t time_ns) {
@@ -390,6 +429,19 @@ void FoxgloveServer::call_service(Client& client, const ServiceCallRequest& requ
 
 void FoxgloveServer::on_service_completion(RequestId id, Outcome&& outcome) {
   // the I/O thread (deliver_on_this_thread): inside run_or_submit, or flush_replies()
+  if (id == geometry_call_) {
+    geometry_call_ = 0;
+    if (outcome.status == Status::success && outcome.value) {
+      geometry_ = std::move(*outcome.value);
+      frames_ = SceneFrames::from_geometry(geometry_);
+    } else if (!geometry_refused_) {
+      geometry_refused_ = true;
+      log::warning(name(), ": /tf and /scene stay empty: simulation get_scene_geometry answered ",
+                   to_string(outcome.status), " (", outcome.message,
+                   "); serve the simulation component through this transport");
+    }
+    return;
+  }
   auto it = pending_.find(id);
   if (it == pending_.end()) return;
   const PendingCall pending = it->second;
@@ -399,7 +451,7 @@ void FoxgloveServer::on_service_completion(RequestId id, Outcome&& outcome) {
   client->replied();
   if (outcome.status == Status::success) {
     const json& value = outcome.value ? *outcome.value : json();
-    const std::string payload = value.dump(-1, ' ', false, json::error_handler_t::replace);
+    const std::string payload = dump(value);
     client->queue_with([&](std::string& out) {
       kit::WebSocketConnection::append_frame_head(out, kit::FrameParser::k_binary,
                                                   13 + 4 + payload.size());
@@ -445,8 +497,23 @@ std::vector<FoxgloveServer::ChannelEntry> FoxgloveServer::read_channels() const 
     if (auto sample = stream_hub()->sample_now(info.component)) schema = schema_of(*sample);
     schema["title"] = entry.channel.schema_name;
     schema["description"] = info.component + ": " + info.type + " (" + info.kind + ")";
-    entry.channel.schema = schema.dump(-1, ' ', false, json::error_handler_t::replace);
-    out.push_back(std::move(entry));
+    entry.channel.schema = dump(schema);
+    out.push_back(entry);
+    if (info.kind == "body_poses") {
+      // the simulation's bodies and geoms for the 3D panel, in Foxglove's schemas
+      for (const auto& [shape, topic, name, made] :
+           {std::tuple{Shape::frame_transforms, "/tf", k_frame_transforms,
+                       frame_transforms_schema()},
+            std::tuple{Shape::scene_update, "/scene", k_scene_update, scene_update_schema()}}) {
+        ChannelEntry derived;
+        derived.component = info.component;
+        derived.shape = shape;
+        derived.channel.topic = topic;
+        derived.channel.schema_name = name;
+        derived.channel.schema = dump(made);
+        out.push_back(std::move(derived));
+      }
+    }
   }
   return out;
 }

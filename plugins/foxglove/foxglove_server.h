@@ -47,6 +47,7 @@
 
 #include "simgate/core/request_manager.h"
 #include "simgate/foxglove/protocol.h"
+#include "simgate/foxglove/scene.h"
 #include "simgate/kit/tcp_server.h"
 #include "simgate/kit/websocket_connection.h"
 
@@ -82,9 +83,13 @@ class FoxgloveServer : public RequestManager, private kit::WebSocketServer {
     static Settings parse(const json& options);
   };
   class Client;
-  // A channel as advertised: the stream's component and what clients were told.
+  // What a channel's messages are made of: the stream's samples as they are, or the
+  // simulation's body_poses samples in Foxglove's schemas (scene.h).
+  enum class Shape : std::uint8_t { sample, frame_transforms, scene_update };
+  // A channel as advertised: the stream's component, its shape and what clients were told.
   struct ChannelEntry {
     std::string component;
+    Shape shape = Shape::sample;
     Channel channel;
   };
   // Where a service call's answer goes.
@@ -138,6 +143,11 @@ class FoxgloveServer : public RequestManager, private kit::WebSocketServer {
   // ---- samples and time (I/O thread, woken by the core)
   void wake_streams();
   void drain_streams();
+  // The message a `shape` channel sends for `sample` ("": none now); `scene_sent`: the model
+  // generation the subscription's client last got a scene of.
+  std::string convert(Shape shape, const StreamSample& sample, std::uint64_t& scene_sent);
+  // Asks the simulation for its scene (get_scene_geometry) unless a request is under way.
+  void request_geometry(const std::string& component);
   // A Time message to `client` if the simulated time moved since it was told.
   void send_time(Client& client, std::uint64_t time_ns);
   void tick_time();
@@ -161,6 +171,12 @@ class FoxgloveServer : public RequestManager, private kit::WebSocketServer {
   std::unordered_map<RequestId, PendingCall> pending_;  // calls not answered yet
   std::vector<std::pair<RequestId, Call>> calls_;       // read, not yet run
   std::vector<SamplePtr> samples_;                      // drain's buffer
+  // the scene the /tf and /scene channels are made from (get_scene_geometry's answer)
+  json geometry_;
+  SceneFrames frames_;
+  RequestId geometry_call_ = 0;    // the request under way (0: none)
+  bool geometry_wanted_ = false;   // a sample of another model came: ask again
+  bool geometry_refused_ = false;  // the simulation's answer was a refusal (logged once)
 };
 
 }  // namespace simgate::foxglove

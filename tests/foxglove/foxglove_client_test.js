@@ -11,9 +11,10 @@
 const path = require('path');
 const { spawn } = require('child_process');
 
-let FoxgloveClient, WebSocket, Ajv;
+let FoxgloveClient, WebSocket, Ajv, foxgloveSchemas;
 try {
   ({ FoxgloveClient } = require(path.join(__dirname, 'node_modules', '@foxglove', 'ws-protocol')));
+  foxgloveSchemas = require(path.join(__dirname, 'node_modules', '@foxglove', 'schemas', 'jsonschema'));
   WebSocket = require(path.join(__dirname, 'node_modules', 'ws'));
   Ajv = require(path.join(__dirname, 'node_modules', 'ajv'));
 } catch (e) {
@@ -156,6 +157,33 @@ async function session(url, subprotocol, ajv) {
     check(diff <= 1000n, `the log time is the sample's simulated time (${m.timestamp} vs ${ns})`);
   }
   await s.until(() => s.times.length >= 2, 'time messages');
+
+  // the 3D panel's messages: every body's pose and every geom, in Foxglove's own schemas
+  // (@foxglove/schemas, which nobody on the team wrote)
+  for (const [topic, name] of [['/tf', 'FrameTransforms'], ['/scene', 'SceneUpdate']]) {
+    const channel = s.channel(topic);
+    check(channel && channel.schemaName === 'foxglove.' + name, `${topic} is a foxglove.${name} channel`);
+    ajv.compile(JSON.parse(channel.schema));  // ours compiles too
+    const official = ajv.compile(foxgloveSchemas[name]);
+    const id = s.client.subscribe(channel.id);
+    await s.until(() => (s.messages.get(id) || []).length >= 1, `a ${topic} message`);
+    const message = JSON.parse(s.messages.get(id)[0].data);
+    check(official(message), `${topic} fits foxglove.${name}: ` + ajv.errorsText(official.errors));
+    if (topic === '/tf') {
+      const robot = message.transforms.find((t) => t.child_frame_id === 'robot');
+      check(robot && robot.parent_frame_id === 'world', '/tf: world -> robot: ' + JSON.stringify(message.transforms.map((t) => t.child_frame_id)));
+      check(Math.abs(robot.translation.z - 0.0998) < 0.01, '/tf: the robot stands on its wheels: ' + JSON.stringify(robot.translation));
+    } else {
+      const robot = message.entities.find((e) => e.frame_id === 'robot');
+      check(robot && robot.frame_locked && robot.cubes.length + robot.cylinders.length + robot.spheres.length > 0,
+            '/scene: the robot\'s geoms are drawn on its frame: ' + JSON.stringify(message.entities.map((e) => e.id)));
+      check(message.deletions.length === 1 && message.deletions[0].type === 1, '/scene: what an earlier model drew is deleted first');
+      // the scene is sent once per model, not with every sample
+      await new Promise((r) => setTimeout(r, 300));
+      check(s.messages.get(id).length === 1, `/scene: one message per model (got ${s.messages.get(id).length})`);
+    }
+    s.client.unsubscribe(id);
+  }
   check(s.times[s.times.length - 1] >= s.times[0], 'the time moves forward');
 
   // services: JSON in, JSON out; failures name the status and the reason
@@ -204,6 +232,26 @@ async function session(url, subprotocol, ajv) {
   return s;
 }
 
+// A body spawned at run time: the scene is sent again (the earlier one deleted first), the
+// transforms name the new body.
+async function sceneFollowsTheModel(s) {
+  const scene = s.client.subscribe(s.channel('/scene').id);
+  const tf = s.client.subscribe(s.channel('/tf').id);
+  await s.until(() => (s.messages.get(scene) || []).length >= 1, 'the scene');
+  const spawned = await s.call('/simulation/spawn_entity', {
+    name: 'crate', mjcf: "<mujoco><worldbody><body><freejoint/><geom type='box' size='.2 .2 .2'/></body></worldbody></mujoco>",
+    pose: [1.5, -1, 0.5] });
+  check(spawned.ok, 'spawn_entity: ' + JSON.stringify(spawned));
+  await s.until(() => s.messages.get(scene).length >= 2, 'the scene of the new model');
+  const update = JSON.parse(s.messages.get(scene)[1].data);
+  check(update.deletions[0].type === 1 && update.entities.some((e) => e.id === 'body/crate'),
+        'the new scene draws the crate: ' + JSON.stringify(update.entities.map((e) => e.id)));
+  await s.until(() => s.messages.get(tf).some((m) => JSON.parse(m.data).transforms.some((t) => t.child_frame_id === 'crate')),
+                'a transform of the crate');
+  s.client.unsubscribe(scene);
+  s.client.unsubscribe(tf);
+}
+
 async function main(argv) {
   const { child, url: urlPromise } = startGateway(argv);
   const overall = setTimeout(() => {
@@ -217,6 +265,7 @@ async function main(argv) {
     const ajv = new Ajv({ strict: false });
     // both subprotocols, two clients at once: one client's mistakes never reach the other
     const sessions = await Promise.all(SUBPROTOCOLS.map((p) => session(url, p, ajv)));
+    await sceneFollowsTheModel(sessions[0]);
     for (const s of sessions) s.close();
     console.log(`PASS: foxglove transport with @foxglove/ws-protocol (${SUBPROTOCOLS.join(', ')})`);
   } finally {

@@ -7,12 +7,11 @@
 
 namespace simgate::foxglove {
 
-namespace {
-
 std::string dump(const json& value) {
-  // invalid UTF-8 in a name or a message is replaced, never thrown
   return value.dump(-1, ' ', false, json::error_handler_t::replace);
 }
+
+namespace {
 
 void put_u32(std::string& out, std::uint32_t v) {
   for (int i = 0; i < 4; ++i) out.push_back(static_cast<char>(v >> (8 * i)));

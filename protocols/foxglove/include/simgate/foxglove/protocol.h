@@ -23,6 +23,10 @@
 
 namespace simgate::foxglove {
 
+// A message's JSON text: compact, invalid UTF-8 (in a name, a client's text) replaced rather
+// than thrown.
+std::string dump(const json& value);
+
 // ---- the handshake
 
 // The subprotocols a server speaks, in the order it prefers them.

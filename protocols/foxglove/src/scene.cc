@@ -1,0 +1,294 @@
+#include "simgate/foxglove/scene.h"
+
+#include <cmath>
+#include <cstdint>
+#include <optional>
+
+#include "simgate/foxglove/protocol.h"
+
+namespace simgate::foxglove {
+
+namespace {
+
+// Simulated seconds as Foxglove's {sec, nsec}.
+json timestamp(double seconds) {
+  if (!(seconds > 0)) return json{{"sec", 0}, {"nsec", 0}};
+  const double whole = std::floor(seconds);
+  auto nsec = static_cast<std::int64_t>(std::llround((seconds - whole) * 1e9));
+  auto sec = static_cast<std::int64_t>(whole);
+  if (nsec >= 1'000'000'000) {
+    ++sec;
+    nsec -= 1'000'000'000;
+  }
+  return json{{"sec", sec}, {"nsec", nsec}};
+}
+
+// A model generation: a non-negative integer, whichever way JSON holds it.
+std::optional<std::uint64_t> generation_of(const json& object) {
+  const auto g = object.find("generation");
+  if (g == object.end() || !g->is_number_integer() || g->get<std::int64_t>() < 0)
+    return std::nullopt;
+  return g->get<std::uint64_t>();
+}
+
+// The number `v[i]`, or `fallback` when it is not one.
+double at(const json& v, std::size_t i, double fallback = 0) {
+  return v.is_array() && i < v.size() && v[i].is_number() ? v[i].get<double>() : fallback;
+}
+
+json vector3(double x, double y, double z) { return json{{"x", x}, {"y", y}, {"z", z}}; }
+
+// A MuJoCo pos [x, y, z] and quat [w, x, y, z] as Foxglove's pose.
+json pose(const json& pos, const json& quat) {
+  return json{
+      {"position", vector3(at(pos, 0), at(pos, 1), at(pos, 2))},
+      {"orientation",
+       {{"x", at(quat, 1)}, {"y", at(quat, 2)}, {"z", at(quat, 3)}, {"w", at(quat, 0, 1)}}}};
+}
+
+json colour(const json& rgba) {
+  return json{{"r", at(rgba, 0, 0.5)},
+              {"g", at(rgba, 1, 0.5)},
+              {"b", at(rgba, 2, 0.5)},
+              {"a", at(rgba, 3, 1)}};
+}
+
+// `pose` moved by `offset` along its own z axis (a capsule's end caps).
+json along_z(const json& pos, const json& quat, double offset) {
+  const double w = at(quat, 0, 1), x = at(quat, 1), y = at(quat, 2), z = at(quat, 3);
+  // the body-frame z axis of the rotation
+  const double zx = 2 * (x * z + w * y), zy = 2 * (y * z - w * x), zz = 1 - 2 * (x * x + y * y);
+  return json::array(
+      {at(pos, 0) + offset * zx, at(pos, 1) + offset * zy, at(pos, 2) + offset * zz});
+}
+
+json entity(const std::string& frame, double time) {
+  return json{{"timestamp", timestamp(time)}, {"frame_id", frame},
+              {"id", "body/" + frame},        {"lifetime", {{"sec", 0}, {"nsec", 0}}},
+              {"frame_locked", true},         {"metadata", json::array()},
+              {"arrows", json::array()},      {"cubes", json::array()},
+              {"spheres", json::array()},     {"cylinders", json::array()},
+              {"lines", json::array()},       {"triangles", json::array()},
+              {"texts", json::array()},       {"models", json::array()}};
+}
+
+// Adds geom `g` (a get_scene_geometry geom) to `e`; false when it has no primitive here.
+bool add_geom(json& e, const json& g, const json& meshes) {
+  const std::string type = g.value("type", "");
+  const json& size = g.contains("size") ? g["size"] : json::array();
+  const json& pos = g.contains("pos") ? g["pos"] : json::array();
+  const json& quat = g.contains("quat") ? g["quat"] : json::array();
+  const json color = colour(g.contains("rgba") ? g["rgba"] : json::array());
+  const auto shape = [&](double x, double y, double z) {
+    return json{{"pose", pose(pos, quat)}, {"size", vector3(x, y, z)}, {"color", color}};
+  };
+  if (type == "box") {
+    e["cubes"].push_back(shape(2 * at(size, 0), 2 * at(size, 1), 2 * at(size, 2)));
+  } else if (type == "sphere") {
+    const double d = 2 * at(size, 0);
+    e["spheres"].push_back(shape(d, d, d));
+  } else if (type == "ellipsoid") {
+    e["spheres"].push_back(shape(2 * at(size, 0), 2 * at(size, 1), 2 * at(size, 2)));
+  } else if (type == "cylinder" || type == "capsule") {
+    const double d = 2 * at(size, 0), length = 2 * at(size, 1);
+    json cylinder = shape(d, d, length);
+    cylinder["bottom_scale"] = 1;
+    cylinder["top_scale"] = 1;
+    e["cylinders"].push_back(std::move(cylinder));
+    if (type == "capsule")
+      for (double end : {-at(size, 1), at(size, 1)})
+        e["spheres"].push_back(json{{"pose", pose(along_z(pos, quat, end), quat)},
+                                    {"size", vector3(d, d, d)},
+                                    {"color", color}});
+  } else if (type == "plane") {
+    // 0: infinite in MuJoCo; drawn 20 m wide
+    const double x = at(size, 0) > 0 ? 2 * at(size, 0) : 20,
+                 y = at(size, 1) > 0 ? 2 * at(size, 1) : 20;
+    e["cubes"].push_back(shape(x, y, 0.001));
+  } else if (type == "mesh" && g.contains("mesh") && g["mesh"].is_number_integer()) {
+    const auto id = g["mesh"].get<std::int64_t>();
+    if (id < 0 || static_cast<std::size_t>(id) >= meshes.size()) return false;
+    const json& mesh = meshes[static_cast<std::size_t>(id)];
+    const json& vertices = mesh.contains("vertices") ? mesh["vertices"] : json::array();
+    const json& faces = mesh.contains("faces") ? mesh["faces"] : json::array();
+    json points = json::array();
+    for (std::size_t i = 0; i + 2 < vertices.size(); i += 3)
+      points.push_back(vector3(at(vertices, i), at(vertices, i + 1), at(vertices, i + 2)));
+    json indices = json::array();
+    for (const json& f : faces)
+      if (f.is_number_integer() && f.get<std::int64_t>() >= 0 &&
+          static_cast<std::size_t>(f.get<std::int64_t>()) < points.size())
+        indices.push_back(f);
+    if (points.empty() || indices.size() < 3) return false;
+    indices.get_ref<json::array_t&>().resize(indices.size() / 3 * 3);
+    e["triangles"].push_back(json{{"pose", pose(pos, quat)},
+                                  {"points", std::move(points)},
+                                  {"color", color},
+                                  {"colors", json::array()},
+                                  {"indices", std::move(indices)}});
+  } else {
+    return false;  // a heightfield, an SDF: not drawn yet
+  }
+  return true;
+}
+
+json time_schema() {
+  return json{{"type", "object"},
+              {"properties",
+               {{"sec", {{"type", "integer"}, {"minimum", 0}}},
+                {"nsec", {{"type", "integer"}, {"minimum", 0}, {"maximum", 999999999}}}}},
+              {"required", {"sec", "nsec"}}};
+}
+
+json xyz_schema(std::initializer_list<const char*> keys) {
+  json properties = json::object();
+  json required = json::array();
+  for (const char* k : keys) {
+    properties[k] = json{{"type", "number"}};
+    required.push_back(k);
+  }
+  return json{{"type", "object"}, {"properties", properties}, {"required", required}};
+}
+
+json pose_schema() {
+  return json{{"type", "object"},
+              {"properties",
+               {{"position", xyz_schema({"x", "y", "z"})},
+                {"orientation", xyz_schema({"x", "y", "z", "w"})}}},
+              {"required", {"position", "orientation"}}};
+}
+
+json array_of(json items) { return json{{"type", "array"}, {"items", std::move(items)}}; }
+
+}  // namespace
+
+SceneFrames SceneFrames::from_geometry(const json& geometry) {
+  SceneFrames f;
+  if (!geometry.is_object()) return f;
+  f.generation = generation_of(geometry).value_or(0);
+  const auto bodies = geometry.find("bodies");
+  if (bodies == geometry.end() || !bodies->is_array()) return f;
+  for (const json& b : *bodies) {
+    const std::size_t id = f.names.size();
+    std::string name = b.is_object() ? b.value("name", "") : "";
+    if (name.empty()) name = id == 0 ? "world" : "body" + std::to_string(id);
+    f.names.push_back(std::move(name));
+  }
+  return f;
+}
+
+json frame_transforms_schema() {
+  const json transform{
+      {"type", "object"},
+      {"properties",
+       {{"timestamp", time_schema()},
+        {"parent_frame_id", {{"type", "string"}}},
+        {"child_frame_id", {{"type", "string"}}},
+        {"translation", xyz_schema({"x", "y", "z"})},
+        {"rotation", xyz_schema({"x", "y", "z", "w"})}}},
+      {"required", {"timestamp", "parent_frame_id", "child_frame_id", "translation", "rotation"}}};
+  return json{{"title", k_frame_transforms},
+              {"description", "Every body's world pose (simgate: the simulation's body_poses)"},
+              {"type", "object"},
+              {"properties", {{"transforms", array_of(transform)}}},
+              {"required", {"transforms"}}};
+}
+
+json scene_update_schema() {
+  const json colour_schema = xyz_schema({"r", "g", "b", "a"});
+  const json shape{
+      {"type", "object"},
+      {"properties",
+       {{"pose", pose_schema()}, {"size", xyz_schema({"x", "y", "z"})}, {"color", colour_schema}}},
+      {"required", {"pose", "size", "color"}}};
+  json cylinder = shape;
+  cylinder["properties"]["bottom_scale"] = json{{"type", "number"}};
+  cylinder["properties"]["top_scale"] = json{{"type", "number"}};
+  cylinder["required"] = {"pose", "size", "bottom_scale", "top_scale", "color"};
+  const json triangles{{"type", "object"},
+                       {"properties",
+                        {{"pose", pose_schema()},
+                         {"points", array_of(xyz_schema({"x", "y", "z"}))},
+                         {"color", colour_schema},
+                         {"colors", array_of(colour_schema)},
+                         {"indices", array_of(json{{"type", "integer"}, {"minimum", 0}})}}},
+                       {"required", {"pose", "points", "color", "colors", "indices"}}};
+  const json any_list = array_of(json{{"type", "object"}});
+  const json entity_schema{
+      {"type", "object"},
+      {"properties",
+       {{"timestamp", time_schema()},
+        {"frame_id", {{"type", "string"}}},
+        {"id", {{"type", "string"}}},
+        {"lifetime", time_schema()},
+        {"frame_locked", {{"type", "boolean"}}},
+        {"metadata", any_list},
+        {"arrows", any_list},
+        {"cubes", array_of(shape)},
+        {"spheres", array_of(shape)},
+        {"cylinders", array_of(cylinder)},
+        {"lines", any_list},
+        {"triangles", array_of(triangles)},
+        {"texts", any_list},
+        {"models", any_list}}},
+      {"required",
+       {"timestamp", "frame_id", "id", "lifetime", "frame_locked", "metadata", "arrows", "cubes",
+        "spheres", "cylinders", "lines", "triangles", "texts", "models"}}};
+  const json deletion{{"type", "object"},
+                      {"properties",
+                       {{"timestamp", time_schema()},
+                        {"type", {{"type", "integer"}, {"enum", {0, 1}}}},
+                        {"id", {{"type", "string"}}}}},
+                      {"required", {"timestamp", "type", "id"}}};
+  return json{
+      {"title", k_scene_update},
+      {"description", "Every geom, on its body's frame (simgate: get_scene_geometry)"},
+      {"type", "object"},
+      {"properties", {{"deletions", array_of(deletion)}, {"entities", array_of(entity_schema)}}},
+      {"required", {"deletions", "entities"}}};
+}
+
+std::string frame_transforms(const json& body_poses, const SceneFrames& frames) {
+  if (!body_poses.is_object() || !frames.known()) return {};
+  if (generation_of(body_poses) != frames.generation) return {};
+  const auto poses = body_poses.find("poses");
+  if (poses == body_poses.end() || !poses->is_array() || poses->size() != frames.names.size())
+    return {};
+  const json stamp = timestamp(body_poses.value("timestamp", 0.0));
+  json transforms = json::array();
+  for (std::size_t b = 1; b < poses->size(); ++b) {
+    const json& p = (*poses)[b];
+    transforms.push_back(json{
+        {"timestamp", stamp},
+        {"parent_frame_id", frames.names[0]},
+        {"child_frame_id", frames.names[b]},
+        {"translation", vector3(at(p, 0), at(p, 1), at(p, 2))},
+        {"rotation", {{"x", at(p, 4)}, {"y", at(p, 5)}, {"z", at(p, 6)}, {"w", at(p, 3, 1)}}}});
+  }
+  return dump(json{{"transforms", std::move(transforms)}});
+}
+
+std::string scene_update(const json& geometry, const SceneFrames& frames) {
+  const double time = geometry.is_object() ? geometry.value("timestamp", 0.0) : 0.0;
+  json entities = json::array();
+  const json& geoms =
+      geometry.is_object() && geometry.contains("geoms") ? geometry["geoms"] : json::array();
+  const json& meshes =
+      geometry.is_object() && geometry.contains("meshes") ? geometry["meshes"] : json::array();
+  std::vector<json> by_body(frames.names.size());
+  for (const json& g : geoms) {
+    if (!g.is_object() || !g.contains("body") || !g["body"].is_number_integer()) continue;
+    const auto body = g["body"].get<std::int64_t>();
+    if (body < 0 || static_cast<std::size_t>(body) >= by_body.size()) continue;
+    json& e = by_body[static_cast<std::size_t>(body)];
+    if (e.is_null()) e = entity(frames.names[static_cast<std::size_t>(body)], time);
+    add_geom(e, g, meshes);
+  }
+  for (json& e : by_body)
+    if (!e.is_null()) entities.push_back(std::move(e));
+  // what an earlier model drew goes first
+  json deletions = json::array({json{{"timestamp", timestamp(time)}, {"type", 1}, {"id", ""}}});
+  return dump(json{{"deletions", std::move(deletions)}, {"entities", std::move(entities)}});
+}
+
+}  // namespace simgate::foxglove

@@ -1,0 +1,123 @@
+// The simulation's scene in Foxglove's schemas (simgate/foxglove/scene.h): frames named from
+// get_scene_geometry, body poses as transforms from the world, geoms as primitives sized as
+// Foxglove draws them (full extents, where MuJoCo gives half ones).
+#include "simgate/foxglove/scene.h"
+
+#include <gtest/gtest.h>
+
+namespace simgate::foxglove {
+namespace {
+
+// A get_scene_geometry answer: the world, a body "arm" and an unnamed one.
+json geometry() {
+  return json{
+      {"timestamp", 2.5},
+      {"generation", 3},
+      {"bodies",
+       {{{"id", 0}, {"name", "world"}, {"parent", 0}},
+        {{"id", 1}, {"name", "arm"}, {"parent", 0}},
+        {{"id", 2}, {"name", ""}, {"parent", 1}}}},
+      {"geoms",
+       {{{"body", 0},
+         {"type", "plane"},
+         {"size", {0, 0, 0.1}},
+         {"rgba", {1, 1, 1, 1}},
+         {"pos", {0, 0, 0}},
+         {"quat", {1, 0, 0, 0}}},
+        {{"body", 1},
+         {"type", "box"},
+         {"size", {0.1, 0.2, 0.3}},
+         {"rgba", {1, 0, 0, 1}},
+         {"pos", {1, 2, 3}},
+         {"quat", {1, 0, 0, 0}}},
+        {{"body", 1},
+         {"type", "capsule"},
+         {"size", {0.05, 0.5, 0}},
+         {"rgba", {0, 1, 0, 0.5}},
+         {"pos", {0, 0, 1}},
+         {"quat", {1, 0, 0, 0}}},
+        {{"body", 2},
+         {"type", "mesh"},
+         {"mesh", 0},
+         {"size", {1, 1, 1}},
+         {"rgba", {0, 0, 1, 1}},
+         {"pos", {0, 0, 0}},
+         {"quat", {1, 0, 0, 0}}},
+        {{"body", 2}, {"type", "hfield"}, {"hfield", 0}, {"size", {1, 1, 1}}}}},
+      {"meshes",
+       {{{"name", "tri"}, {"vertices", {0, 0, 0, 1, 0, 0, 0, 1, 0}}, {"faces", {0, 1, 2, 7}}}}}};
+}
+
+TEST(FoxgloveScene, FramesAreTheBodiesNames) {
+  const SceneFrames frames = SceneFrames::from_geometry(geometry());
+  EXPECT_EQ(frames.generation, 3u);
+  EXPECT_EQ(frames.names, (std::vector<std::string>{"world", "arm", "body2"}));
+  EXPECT_FALSE(SceneFrames::from_geometry(json::object()).known());
+}
+
+TEST(FoxgloveScene, BodyPosesBecomeTransformsFromTheWorld) {
+  const SceneFrames frames = SceneFrames::from_geometry(geometry());
+  const json poses{
+      {"timestamp", 1.25},
+      {"generation", 3},
+      {"poses", {{0, 0, 0, 1, 0, 0, 0}, {1, 2, 3, 0.5, 0.5, 0.5, 0.5}, {4, 5, 6, 1, 0, 0, 0}}}};
+  const json message = json::parse(frame_transforms(poses, frames));
+  ASSERT_EQ(message["transforms"].size(), 2u);  // not the world itself
+  const json& arm = message["transforms"][0];
+  EXPECT_EQ(arm["parent_frame_id"], "world");
+  EXPECT_EQ(arm["child_frame_id"], "arm");
+  EXPECT_EQ(arm["timestamp"], (json{{"sec", 1}, {"nsec", 250000000}}));
+  EXPECT_EQ(arm["translation"], (json{{"x", 1}, {"y", 2}, {"z", 3}}));
+  // MuJoCo's [w, x, y, z] as Foxglove's {x, y, z, w}
+  EXPECT_EQ(arm["rotation"], (json{{"x", 0.5}, {"y", 0.5}, {"z", 0.5}, {"w", 0.5}}));
+  EXPECT_EQ(message["transforms"][1]["child_frame_id"], "body2");
+  // a sample of another model, or of another body count, makes nothing
+  json other = poses;
+  other["generation"] = 4;
+  EXPECT_EQ(frame_transforms(other, frames), "");
+  other = poses;
+  other["poses"].erase(2);
+  EXPECT_EQ(frame_transforms(other, frames), "");
+  EXPECT_EQ(frame_transforms(json::array(), frames), "");
+}
+
+TEST(FoxgloveScene, GeomsBecomePrimitivesOnTheirBodysFrame) {
+  const SceneFrames frames = SceneFrames::from_geometry(geometry());
+  const json message = json::parse(scene_update(geometry(), frames));
+  EXPECT_EQ(message["deletions"],
+            (json{{{"timestamp", {{"sec", 2}, {"nsec", 500000000}}}, {"type", 1}, {"id", ""}}}));
+  ASSERT_EQ(message["entities"].size(), 3u);
+  const json& world = message["entities"][0];
+  EXPECT_EQ(world["id"], "body/world");
+  // an infinite plane is drawn 20 m wide, one millimetre thin
+  EXPECT_EQ(world["cubes"][0]["size"], (json{{"x", 20}, {"y", 20}, {"z", 0.001}}));
+  const json& arm = message["entities"][1];
+  EXPECT_EQ(arm["frame_id"], "arm");
+  EXPECT_TRUE(arm["frame_locked"].get<bool>());
+  EXPECT_EQ(arm["lifetime"], (json{{"sec", 0}, {"nsec", 0}}));  // until the model changes
+  // the box: MuJoCo's half sizes doubled, at its pose, in its colour
+  EXPECT_EQ(arm["cubes"][0]["size"], (json{{"x", 0.2}, {"y", 0.4}, {"z", 0.6}}));
+  EXPECT_EQ(arm["cubes"][0]["pose"]["position"], (json{{"x", 1}, {"y", 2}, {"z", 3}}));
+  EXPECT_EQ(arm["cubes"][0]["color"], (json{{"r", 1}, {"g", 0}, {"b", 0}, {"a", 1}}));
+  // the capsule: a cylinder of its length and two spheres at its ends
+  ASSERT_EQ(arm["cylinders"].size(), 1u);
+  EXPECT_EQ(arm["cylinders"][0]["size"], (json{{"x", 0.1}, {"y", 0.1}, {"z", 1.0}}));
+  ASSERT_EQ(arm["spheres"].size(), 2u);
+  EXPECT_DOUBLE_EQ(arm["spheres"][0]["pose"]["position"]["z"].get<double>(), 0.5);
+  EXPECT_DOUBLE_EQ(arm["spheres"][1]["pose"]["position"]["z"].get<double>(), 1.5);
+  // the mesh: its triangles (an index past the vertices dropped); the heightfield: nothing
+  const json& body2 = message["entities"][2];
+  EXPECT_EQ(body2["frame_id"], "body2");
+  ASSERT_EQ(body2["triangles"].size(), 1u);
+  EXPECT_EQ(body2["triangles"][0]["points"].size(), 3u);
+  EXPECT_EQ(body2["triangles"][0]["indices"], (json{0, 1, 2}));
+}
+
+TEST(FoxgloveScene, TheSchemasNameFoxglovesMessages) {
+  EXPECT_EQ(frame_transforms_schema()["title"], "foxglove.FrameTransforms");
+  EXPECT_EQ(scene_update_schema()["title"], "foxglove.SceneUpdate");
+  EXPECT_EQ(scene_update_schema()["required"], (json{"deletions", "entities"}));
+}
+
+}  // namespace
+}  // namespace simgate::foxglove
