@@ -32,6 +32,12 @@ class FoxgloveServer::Client : public kit::WebSocketConnection {
   std::uint64_t time_told = 0;                          // the last Time message's time (ns)
   bool told_time = false;                               // a Time message was sent
   std::uint64_t lost = 0;                               // samples it did not read in time
+  // its channels (clientPublish), by its id: the input stream each one's messages go to
+  struct Publication {
+    std::string component;
+    std::vector<std::string> fields;
+  };
+  std::map<std::uint32_t, Publication> publications;
 };
 
 // ---- options and life cycle
@@ -114,6 +120,9 @@ void FoxgloveServer::stop() {
 }
 
 void FoxgloveServer::shutdown_io() {
+  // a tick already due when the timer is cancelled still runs: it must not arm it again,
+  // or the I/O thread never ends (FoxgloveGatewayTest.ItStopsWhileItsTimeTicks)
+  stopping_ = true;
   time_timer_.cancel();
   listener_.close();
   close_all();
@@ -171,7 +180,7 @@ kit::HttpResponse FoxgloveServer::on_http_request(const kit::HttpRequest& reques
 
 void FoxgloveServer::on_open(kit::WebSocketConnection& connection) {
   // the greeting: who we are, then every channel and service there is now
-  std::vector<std::string> capabilities{"services", "time"};
+  std::vector<std::string> capabilities{"clientPublish", "services", "time"};
   connection.queue_text(server_info(
       k_server, capabilities, {"json"},
       json{{"simgate", "Foxglove WebSocket transport"}, {"subprotocol", connection.subprotocol()}},
@@ -191,11 +200,19 @@ void FoxgloveServer::on_message(kit::WebSocketConnection& connection, std::strin
     subscribe(client, *s);
   } else if (const auto* u = std::get_if<Unsubscribe>(&message)) {
     unsubscribe(client, *u);
+  } else if (const auto* a = std::get_if<ClientAdvertise>(&message)) {
+    advertise_publications(client, *a);
+  } else if (const auto* ua = std::get_if<ClientUnadvertise>(&message)) {
+    for (std::uint32_t id : ua->channel_ids)
+      if (!client.publications.erase(id))
+        complain(client, Level::warning,
+                 "unadvertise: no client channel " + std::to_string(id) + " on this connection");
   } else if (const auto* other = std::get_if<OtherOp>(&message)) {
     complain(client, Level::error,
              "op '" + other->op +
-                 "' is not served here (this server's capabilities: services, time; ops: "
-                 "subscribe, unsubscribe, and binary service call requests)");
+                 "' is not served here (this server's capabilities: clientPublish, services, "
+                 "time; ops: subscribe, unsubscribe, advertise, unadvertise, and binary service "
+                 "call requests and client messages)");
   } else {
     complain(client, Level::error, std::get<Malformed>(message).reason);
   }
@@ -207,10 +224,8 @@ void FoxgloveServer::on_binary_message(kit::WebSocketConnection& connection,
   const ClientBinary message = read_binary(data);
   if (const auto* call = std::get_if<ServiceCallRequest>(&message)) {
     call_service(client, *call);
-  } else if (std::holds_alternative<ClientMessageData>(message)) {
-    complain(client, Level::error,
-             "client publishing is not offered here (no clientPublish capability): use a "
-             "service, or another transport's publish (docs/transports/foxglove.md)");
+  } else if (const auto* published = std::get_if<ClientMessageData>(&message)) {
+    publish(client, *published);
   } else {
     complain(client, Level::error, std::get<Malformed>(message).reason);
   }
@@ -289,6 +304,54 @@ void FoxgloveServer::unsubscribe(Client& client, const Unsubscribe& request) {
     stream_hub()->unsubscribe(it->second.stream);
     client.subscriptions.erase(it);
   }
+}
+
+// ---- client publishing: commands for input streams
+
+void FoxgloveServer::advertise_publications(Client& client, const ClientAdvertise& request) {
+  for (const ClientChannel& channel : request.channels) {
+    const std::string component = component_of(channel.topic);
+    const auto info = stream_hub() ? stream_hub()->find(component, transport_name()) : std::nullopt;
+    if (channel.encoding != "json") {
+      complain(client, Level::error,
+               "advertise: channel " + std::to_string(channel.id) + " (" + channel.topic +
+                   ") is encoded '" + channel.encoding +
+                   "': this server takes json (serverInfo's supportedEncodings)");
+    } else if (!info || info->direction != StreamDirection::in) {
+      std::vector<std::string> inputs;
+      if (stream_hub())
+        for (const auto& s : stream_hub()->streams(transport_name()))
+          if (s.direction == StreamDirection::in)
+            inputs.push_back(topic_of(s.component) + " {" + join(s.fields) + "}");
+      complain(client, Level::error,
+               "advertise: no input stream at " + channel.topic + " on this transport (" +
+                   (inputs.empty() ? std::string("it takes none") : "it takes " + join(inputs)) +
+                   ")");
+    } else {
+      client.publications[channel.id] = Client::Publication{component, info->fields};
+    }
+  }
+}
+
+void FoxgloveServer::publish(Client& client, const ClientMessageData& message) {
+  const auto it = client.publications.find(message.channel_id);
+  if (it == client.publications.end()) {
+    complain(client, Level::error,
+             "a message on client channel " + std::to_string(message.channel_id) +
+                 ", which this connection has not advertised (or the server refused)");
+    return;
+  }
+  const auto command = read_command(message.payload, it->second.fields);
+  if (!command) {
+    complain(client, Level::error,
+             "a message for " + topic_of(it->second.component) +
+                 " is not a JSON object: " + quoted_prefix(message.payload, 60));
+    return;
+  }
+  const PublishResult result =
+      stream_hub()->publish(it->second.component, transport_name(), *command);
+  if (!result.ok)
+    complain(client, Level::error, topic_of(it->second.component) + ": " + result.error);
 }
 
 void FoxgloveServer::wake_streams() {
@@ -377,7 +440,7 @@ void FoxgloveServer::send_time(Client& client, std::uint64_t time_ns) {
 }
 
 void FoxgloveServer::tick_time() {
-  if (settings_.time_hz <= 0 || !stream_hub()) return;
+  if (stopping_ || settings_.time_hz <= 0 || !stream_hub()) return;
   // simulated time between samples: paused, it stays; stepped, it jumps
   const std::uint64_t now = to_nanoseconds(stream_hub()->time());
   if (now > 0) {

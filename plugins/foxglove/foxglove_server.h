@@ -125,6 +125,9 @@ class FoxgloveServer : public RequestManager, private kit::WebSocketServer {
   void subscribe(Client& client, const Subscribe& request);
   void unsubscribe(Client& client, const Unsubscribe& request);
   void call_service(Client& client, const ServiceCallRequest& request);
+  // Client channels on input streams' topics (clientPublish), and their messages.
+  void advertise_publications(Client& client, const ClientAdvertise& request);
+  void publish(Client& client, const ClientMessageData& message);
   // Tells `client` (status level error/warning) what was wrong with its message.
   void complain(Client& client, Level level, std::string_view message);
 
@@ -158,6 +161,7 @@ class FoxgloveServer : public RequestManager, private kit::WebSocketServer {
   kit::IoThread io_thread_;
   boost::asio::steady_timer time_timer_;
   std::string session_id_;                   // serverInfo's sessionId: this process's start
+  bool stopping_ = false;                    // shutdown_io() ran: nothing is started any more
   std::uint64_t next_client_ = 1;            // numbers connections (I/O thread)
   std::atomic<bool> catalog_wanted_{false};  // a refresh is posted
   std::atomic<bool> streams_woken_{false};   // a drain is posted

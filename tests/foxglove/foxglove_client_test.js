@@ -252,6 +252,37 @@ async function sceneFollowsTheModel(s) {
   s.client.unsubscribe(tf);
 }
 
+// Client publishing: a channel on an input stream's topic takes its commands (the robot drives
+// off), Foxglove Teleop's geometry_msgs/Twist too; a topic with no input stream, another
+// encoding, a message that is not an object: a status each.
+async function publishingDrives(s) {
+  check(s.info.capabilities.includes('clientPublish'), 'capability clientPublish');
+  const pose = s.client.subscribe(s.channel('/robot/pose').id);
+  await s.until(() => (s.messages.get(pose) || []).length >= 1, 'a pose before driving');
+  const x0 = JSON.parse(s.messages.get(pose).at(-1).data).x;
+  const motion = s.client.advertise({ topic: '/robot/motion', encoding: 'json', schemaName: 'simgate.velocity' });
+  const twist = s.client.advertise({ topic: '/robot/motion', encoding: 'json', schemaName: 'geometry_msgs/Twist' });
+  const send = (channel, object) => s.client.sendMessage(channel, new TextEncoder().encode(JSON.stringify(object)));
+  for (let i = 0; i < 5; i++) { send(motion, { v: 1.0, w: 0 }); await new Promise((r) => setTimeout(r, 100)); }
+  await s.until(() => JSON.parse(s.messages.get(pose).at(-1).data).x > x0 + 0.1, 'the robot driving forward', 15000);
+  const x1 = JSON.parse(s.messages.get(pose).at(-1).data).x;
+  for (let i = 0; i < 5; i++) { send(twist, { linear: { x: -1.0, y: 0, z: 0 }, angular: { x: 0, y: 0, z: 0 } }); await new Promise((r) => setTimeout(r, 100)); }
+  await s.until(() => JSON.parse(s.messages.get(pose).at(-1).data).x < x1 - 0.05, 'the robot backing up on a Twist', 15000);
+  send(motion, { v: 0, w: 0 });
+
+  let st = await s.statusAfter(() => s.client.advertise({ topic: '/robot/nothing', encoding: 'json', schemaName: 'x' }), 'a topic with no input stream');
+  check(st.level === 2 && /no input stream at \/robot\/nothing/.test(st.message) && /\/robot\/motion \{v, w\}/.test(st.message), 'no input stream: ' + st.message);
+  st = await s.statusAfter(() => s.client.advertise({ topic: '/robot/motion', encoding: 'cbor', schemaName: 'x' }), 'another encoding');
+  check(st.level === 2 && /takes json/.test(st.message), 'another encoding: ' + st.message);
+  st = await s.statusAfter(() => s.client.sendMessage(motion, new TextEncoder().encode('[1, 2]')), 'a command that is not an object');
+  check(st.level === 2 && /not a JSON object/.test(st.message), 'not an object: ' + st.message);
+  st = await s.statusAfter(() => s.client.sendMessage(4242, new TextEncoder().encode('{}')), 'a channel not advertised');
+  check(st.level === 2 && /not advertised/.test(st.message), 'a channel not advertised: ' + st.message);
+  s.client.unadvertise(motion);
+  s.client.unadvertise(twist);
+  s.client.unsubscribe(pose);
+}
+
 async function main(argv) {
   const { child, url: urlPromise } = startGateway(argv);
   const overall = setTimeout(() => {
@@ -266,6 +297,7 @@ async function main(argv) {
     // both subprotocols, two clients at once: one client's mistakes never reach the other
     const sessions = await Promise.all(SUBPROTOCOLS.map((p) => session(url, p, ajv)));
     await sceneFollowsTheModel(sessions[0]);
+    await publishingDrives(sessions[1]);
     for (const s of sessions) s.close();
     console.log(`PASS: foxglove transport with @foxglove/ws-protocol (${SUBPROTOCOLS.join(', ')})`);
   } finally {

@@ -3,6 +3,8 @@
 // server's answers built from what was read (status, serviceCallFailure). The first byte
 // says which kind the rest is (even: text, odd: binary), as the WebSocket frame would.
 //
+// Also read_command on a client message's payload (a command for a velocity stream).
+//
 // Properties: nothing throws; a refusal has a reason, and the status message carrying it is
 // JSON without a control character of the client's; a subscribe read has as many entries as
 // the message's "subscriptions" array, with the ids and channels nlohmann reads there; a
@@ -46,10 +48,20 @@ void text(std::string_view message) {
   } else if (const auto* u = std::get_if<foxglove::Unsubscribe>(&read)) {
     FUZZ_CHECK(parsed["subscriptionIds"].size() == u->subscription_ids.size(),
                "every subscription id is read");
+  } else if (const auto* a = std::get_if<foxglove::ClientAdvertise>(&read)) {
+    const json& list = parsed["channels"];
+    FUZZ_CHECK(list.size() == a->channels.size(), "every client channel is read");
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      FUZZ_CHECK(list[i]["id"].get<std::uint64_t>() == a->channels[i].id, "its id");
+      FUZZ_CHECK(list[i]["topic"].get<std::string>() == a->channels[i].topic, "its topic");
+    }
+  } else if (const auto* ua = std::get_if<foxglove::ClientUnadvertise>(&read)) {
+    FUZZ_CHECK(parsed["channelIds"].size() == ua->channel_ids.size(), "every channel id is read");
   } else {
     const auto& other = std::get<foxglove::OtherOp>(read);
     FUZZ_CHECK(other.op == parsed["op"].get<std::string>(), "the op is the message's");
-    FUZZ_CHECK(other.op != "subscribe" && other.op != "unsubscribe", "the ops served are read");
+    for (const char* served : {"subscribe", "unsubscribe", "advertise", "unadvertise"})
+      FUZZ_CHECK(other.op != served, "the ops served are read");
   }
 }
 
@@ -73,6 +85,9 @@ void binary(std::string_view message) {
     FUZZ_CHECK(
         data.payload.size() + 5 == message.size() && data.payload.data() == message.data() + 5,
         "the payload is what follows the 5-byte head");
+    // as a velocity command: an object, or nothing
+    const auto command = foxglove::read_command(data.payload, {"v", "w"});
+    FUZZ_CHECK(!command || command->is_object(), "a command read is an object");
   }
 }
 

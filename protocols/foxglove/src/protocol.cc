@@ -63,19 +63,52 @@ ClientText read_subscribe(const json& message) {
   return s;
 }
 
-ClientText read_unsubscribe(const json& message) {
-  const auto list = message.find("subscriptionIds");
-  if (list == message.end() || !list->is_array())
-    return Malformed{"unsubscribe takes \"subscriptionIds\": [<numbers subscribe gave>]"};
-  Unsubscribe u;
+// An array of unsigned 32-bit ids at `key`, or why not.
+std::optional<std::vector<std::uint32_t>> id_list(const json& message, const char* key,
+                                                  std::string_view op, std::string& why) {
+  const auto list = message.find(key);
+  if (list == message.end() || !list->is_array()) {
+    why = std::string(op) + " takes \"" + key + "\": [<ids>]";
+    return std::nullopt;
+  }
+  std::vector<std::uint32_t> ids;
   for (const json& id : *list) {
     if (!id.is_number_integer() || id.get<std::int64_t>() < 0 ||
-        id.get<std::uint64_t>() > std::numeric_limits<std::uint32_t>::max())
-      return Malformed{"unsubscribe: a subscription id is not an unsigned 32-bit integer: " +
-                       quoted_prefix(dump(id), 40)};
-    u.subscription_ids.push_back(id.get<std::uint32_t>());
+        id.get<std::uint64_t>() > std::numeric_limits<std::uint32_t>::max()) {
+      why = std::string(op) +
+            ": an id is not an unsigned 32-bit integer: " + quoted_prefix(dump(id), 40);
+      return std::nullopt;
+    }
+    ids.push_back(id.get<std::uint32_t>());
   }
-  return u;
+  return ids;
+}
+
+ClientText read_client_advertise(const json& message) {
+  const auto list = message.find("channels");
+  if (list == message.end() || !list->is_array())
+    return Malformed{
+        "advertise takes \"channels\": [{\"id\", \"topic\", \"encoding\", "
+        "\"schemaName\"}]"};
+  ClientAdvertise a;
+  std::string why;
+  for (const json& entry : *list) {
+    if (!entry.is_object()) return Malformed{"advertise: each channel is an object"};
+    const auto id = u32_field(entry, "id", why, "a client channel");
+    if (!id) return Malformed{"advertise: " + why};
+    ClientChannel c;
+    c.id = *id;
+    for (auto [key, field] : {std::pair{"topic", &c.topic}, std::pair{"encoding", &c.encoding},
+                              std::pair{"schemaName", &c.schema_name}}) {
+      const auto it = entry.find(key);
+      if (it == entry.end() || !it->is_string())
+        return Malformed{std::string("advertise: a client channel's \"") + key +
+                         "\" is missing or not a string"};
+      *field = it->get<std::string>();
+    }
+    a.channels.push_back(std::move(c));
+  }
+  return a;
 }
 
 json channel_json(const Channel& c) {
@@ -216,7 +249,18 @@ ClientText read_text(std::string_view text) {
                      quoted_prefix(text, 60)};
   const std::string& name = op->get_ref<const std::string&>();
   if (name == "subscribe") return read_subscribe(message);
-  if (name == "unsubscribe") return read_unsubscribe(message);
+  std::string why;
+  if (name == "unsubscribe") {
+    auto ids = id_list(message, "subscriptionIds", "unsubscribe", why);
+    if (!ids) return Malformed{why};
+    return Unsubscribe{std::move(*ids)};
+  }
+  if (name == "advertise") return read_client_advertise(message);
+  if (name == "unadvertise") {
+    auto ids = id_list(message, "channelIds", "unadvertise", why);
+    if (!ids) return Malformed{why};
+    return ClientUnadvertise{std::move(*ids)};
+  }
   return OtherOp{name};
 }
 
@@ -293,6 +337,26 @@ std::string topic_of(std::string_view component) {
   std::string out = "/";
   for (char c : component) out += c == '.' ? '/' : c;
   return out;
+}
+
+std::string component_of(std::string_view topic) {
+  if (topic.starts_with('/')) topic.remove_prefix(1);
+  std::string out;
+  for (char c : topic) out += c == '/' ? '.' : c;
+  return out;
+}
+
+std::optional<json> read_command(std::string_view payload, const std::vector<std::string>& fields) {
+  json command = json::parse(payload, nullptr, /*allow_exceptions=*/false);
+  if (!command.is_object()) return std::nullopt;
+  const bool velocity =
+      fields.size() == 2 && fields[0] == "v" && fields[1] == "w";  // motion_vw's order
+  const auto linear = command.find("linear");
+  const auto angular = command.find("angular");
+  if (velocity && linear != command.end() && angular != command.end() && linear->is_object() &&
+      angular->is_object())
+    return json{{"v", linear->value("x", 0.0)}, {"w", angular->value("z", 0.0)}};
+  return command;
 }
 
 std::string service_name_of(std::string_view component, std::string_view service) {

@@ -121,13 +121,27 @@ struct Subscribe {
 struct Unsubscribe {
   std::vector<std::uint32_t> subscription_ids;
 };
+// A client's channel (capability clientPublish): what it will publish on `topic`.
+struct ClientChannel {
+  std::uint32_t id = 0;
+  std::string topic;
+  std::string encoding;
+  std::string schema_name;
+};
+struct ClientAdvertise {
+  std::vector<ClientChannel> channels;
+};
+struct ClientUnadvertise {
+  std::vector<std::uint32_t> channel_ids;
+};
 struct OtherOp {
   std::string op;  // "getParameters", "fetchAsset", ...
 };
 struct Malformed {
   std::string reason;  // for the status message: what was wrong, and what was expected
 };
-using ClientText = std::variant<Subscribe, Unsubscribe, OtherOp, Malformed>;
+using ClientText =
+    std::variant<Subscribe, Unsubscribe, ClientAdvertise, ClientUnadvertise, OtherOp, Malformed>;
 ClientText read_text(std::string_view message);
 
 // A client's binary message, read.
@@ -153,8 +167,15 @@ json schema_of(const json& value);
 // their defaults), the ones without a default required.
 json request_schema(const ServiceDescriptor& service);
 // The topic of a component's stream ("robot.pose" -> "/robot/pose") and the name of one of
-// its services ("robot.motion", "set_speed" -> "/robot/motion/set_speed").
+// its services ("robot.motion", "set_speed" -> "/robot/motion/set_speed"); the component a
+// topic names ("/robot/motion" -> "robot.motion").
 std::string topic_of(std::string_view component);
+std::string component_of(std::string_view topic);
+// A command published on a client channel, as the input stream with `fields` takes it: the
+// object as it is, or a geometry_msgs/Twist ({"linear": {"x"}, "angular": {"z"}}, what
+// Foxglove's Teleop panel publishes) as {"v": linear.x, "w": angular.z} for a velocity
+// stream (fields v and w). Nullopt when `payload` is not a JSON object.
+std::optional<json> read_command(std::string_view payload, const std::vector<std::string>& fields);
 std::string service_name_of(std::string_view component, std::string_view service);
 
 }  // namespace simgate::foxglove
