@@ -78,26 +78,35 @@ SIMGATE_MUJOCO_VERSION=$(<"$SIMGATE_ROOT/cmake/mujoco-version.txt")
 SIMGATE_MUJOCO_CACHE=${XDG_CACHE_HOME:-$HOME/.cache}/simgate
 SIMGATE_MUJOCO_DIR=$SIMGATE_MUJOCO_CACHE/mujoco-$SIMGATE_MUJOCO_VERSION/mujoco
 
-# ensure_mujoco: installs the pinned wheel unless it is there; prints nothing when it is
-ensure_mujoco() {
-  local target=$SIMGATE_MUJOCO_CACHE/mujoco-$SIMGATE_MUJOCO_VERSION venv=$SIMGATE_MUJOCO_CACHE/pip-venv tmp
-  [ -f "$SIMGATE_MUJOCO_DIR/libmujoco.so.$SIMGATE_MUJOCO_VERSION" ] && return 0
+# pip_install_into TARGET SPEC FILE...: installs the wheel SPEC ("name==version") into the
+# directory TARGET with the private virtualenv's pip (made on first use), unless it is there
+# already; it is there when TARGET holds every FILE (paths below TARGET). Into a fresh
+# directory renamed into place: a run interrupted half way leaves no directory that looks
+# installed, and two runs at once do not mix their files. Prints nothing when it is there.
+pip_install_into() {
+  local target=$1 spec=$2 venv=$SIMGATE_MUJOCO_CACHE/pip-venv tmp file; shift 2
+  for file in "$@"; do [ -e "$target/$file" ] || break; done
+  [ -e "$target/$file" ] && return 0
   mkdir -p "$SIMGATE_MUJOCO_CACHE"
   if [ ! -x "$venv/bin/pip" ]; then
     python3 -m venv "$venv" || { log "python3 -m venv failed (Debian: apt-get install python3-venv)"; return 1; }
   fi
-  log "installing MuJoCo $SIMGATE_MUJOCO_VERSION (PyPI mujoco-core) into ${target/#$HOME/\~}"
-  # into a fresh directory renamed into place: a run interrupted half way leaves no
-  # directory that looks installed, and two runs at once do not mix their files
+  log "installing $spec (PyPI) into ${target/#$HOME/\~}"
   tmp=$(mktemp -d "$target.XXXXXX")
   if ! "$venv/bin/pip" install --quiet --disable-pip-version-check --no-compile --no-deps --only-binary=:all: \
-       --target "$tmp" "mujoco-core==$SIMGATE_MUJOCO_VERSION"; then
-    rm -rf "$tmp"; log "pip could not install mujoco-core==$SIMGATE_MUJOCO_VERSION"; return 1
+       --target "$tmp" "$spec"; then
+    rm -rf "$tmp"; log "pip could not install $spec"; return 1
   fi
-  if [ ! -f "$tmp/mujoco/libmujoco.so.$SIMGATE_MUJOCO_VERSION" ] || [ ! -f "$tmp/mujoco/include/mujoco/mujoco.h" ]; then
-    rm -rf "$tmp"; log "mujoco-core==$SIMGATE_MUJOCO_VERSION: no libmujoco.so.$SIMGATE_MUJOCO_VERSION or include/mujoco/mujoco.h in the wheel"; return 1
-  fi
+  for file in "$@"; do
+    [ -e "$tmp/$file" ] || { rm -rf "$tmp"; log "$spec: no $file in the wheel"; return 1; }
+  done
   mv -T "$tmp" "$target" 2>/dev/null || rm -rf "$tmp"   # lost a race: the other run's copy stays
+}
+
+# ensure_mujoco: installs the pinned wheel unless it is there; prints nothing when it is
+ensure_mujoco() {
+  pip_install_into "$SIMGATE_MUJOCO_CACHE/mujoco-$SIMGATE_MUJOCO_VERSION" "mujoco-core==$SIMGATE_MUJOCO_VERSION" \
+    "mujoco/libmujoco.so.$SIMGATE_MUJOCO_VERSION" mujoco/include/mujoco/mujoco.h
 }
 
 # ---- clang-format (scripts/format, the FormatCheck test): the version pinned here, from PyPI's
@@ -108,19 +117,8 @@ SIMGATE_CLANG_FORMAT=$SIMGATE_MUJOCO_CACHE/clang-format-$SIMGATE_CLANG_FORMAT_VE
 
 # ensure_clang_format: installs the pinned clang-format unless it is there
 ensure_clang_format() {
-  local target=$SIMGATE_MUJOCO_CACHE/clang-format-$SIMGATE_CLANG_FORMAT_VERSION venv=$SIMGATE_MUJOCO_CACHE/pip-venv tmp
-  [ -x "$SIMGATE_CLANG_FORMAT" ] && return 0
-  mkdir -p "$SIMGATE_MUJOCO_CACHE"
-  if [ ! -x "$venv/bin/pip" ]; then
-    python3 -m venv "$venv" || { log "python3 -m venv failed (Debian: apt-get install python3-venv)"; return 1; }
-  fi
-  log "installing clang-format $SIMGATE_CLANG_FORMAT_VERSION (PyPI) into ${target/#$HOME/\~}"
-  tmp=$(mktemp -d "$target.XXXXXX")
-  if ! "$venv/bin/pip" install --quiet --disable-pip-version-check --no-compile --no-deps --only-binary=:all: \
-       --target "$tmp" "clang-format==$SIMGATE_CLANG_FORMAT_VERSION" || [ ! -x "$tmp/clang_format/data/bin/clang-format" ]; then
-    rm -rf "$tmp"; log "pip could not install clang-format==$SIMGATE_CLANG_FORMAT_VERSION"; return 1
-  fi
-  mv -T "$tmp" "$target" 2>/dev/null || rm -rf "$tmp"
+  pip_install_into "$SIMGATE_MUJOCO_CACHE/clang-format-$SIMGATE_CLANG_FORMAT_VERSION" \
+    "clang-format==$SIMGATE_CLANG_FORMAT_VERSION" clang_format/data/bin/clang-format
 }
 
 # npm test clients (JSON-RPC libraries nobody on the team wrote): every package.json under tests/ and bench/

@@ -27,6 +27,12 @@ std::uint32_t get_u32(std::string_view bytes, std::size_t at) {
   return v;
 }
 
+// Whether `v` is an integer an unsigned 32-bit id holds (the protocol's ids).
+bool is_u32(const json& v) {
+  return v.is_number_integer() && v.get<std::int64_t>() >= 0 &&
+         v.get<std::uint64_t>() <= std::numeric_limits<std::uint32_t>::max();
+}
+
 // The unsigned 32-bit integer `value[key]`, or why not.
 std::optional<std::uint32_t> u32_field(const json& object, const char* key, std::string& why,
                                        std::string_view where) {
@@ -35,8 +41,7 @@ std::optional<std::uint32_t> u32_field(const json& object, const char* key, std:
     why = std::string(where) + " has no \"" + key + "\"";
     return std::nullopt;
   }
-  if (!it->is_number_integer() || it->get<std::int64_t>() < 0 ||
-      it->get<std::uint64_t>() > std::numeric_limits<std::uint32_t>::max()) {
+  if (!is_u32(*it)) {
     why = std::string(where) + "'s \"" + key +
           "\" is not an unsigned 32-bit integer: " + quoted_prefix(dump(*it), 40);
     return std::nullopt;
@@ -73,8 +78,7 @@ std::optional<std::vector<std::uint32_t>> id_list(const json& message, const cha
   }
   std::vector<std::uint32_t> ids;
   for (const json& id : *list) {
-    if (!id.is_number_integer() || id.get<std::int64_t>() < 0 ||
-        id.get<std::uint64_t>() > std::numeric_limits<std::uint32_t>::max()) {
+    if (!is_u32(id)) {
       why = std::string(op) +
             ": an id is not an unsigned 32-bit integer: " + quoted_prefix(dump(id), 40);
       return std::nullopt;
