@@ -314,19 +314,20 @@ void FoxgloveServer::advertise_publications(Client& client, const ClientAdvertis
     const auto info = stream_hub() ? stream_hub()->find(component, transport_name()) : std::nullopt;
     if (channel.encoding != "json") {
       complain(client, Level::error,
-               "advertise: channel " + std::to_string(channel.id) + " (" + channel.topic +
-                   ") is encoded '" + channel.encoding +
-                   "': this server takes json (serverInfo's supportedEncodings)");
+               "advertise: channel " + std::to_string(channel.id) + " (" +
+                   quoted_prefix(channel.topic) + ") is encoded " +
+                   quoted_prefix(channel.encoding, 40) +
+                   ": this server takes json (serverInfo's supportedEncodings)");
     } else if (!info || info->direction != StreamDirection::in) {
       std::vector<std::string> inputs;
       if (stream_hub())
         for (const auto& s : stream_hub()->streams(transport_name()))
           if (s.direction == StreamDirection::in)
             inputs.push_back(topic_of(s.component) + " {" + join(s.fields) + "}");
-      complain(client, Level::error,
-               "advertise: no input stream at " + channel.topic + " on this transport (" +
-                   (inputs.empty() ? std::string("it takes none") : "it takes " + join(inputs)) +
-                   ")");
+      complain(
+          client, Level::error,
+          "advertise: no input stream at " + quoted_prefix(channel.topic) + " on this transport (" +
+              (inputs.empty() ? std::string("it takes none") : "it takes " + join(inputs)) + ")");
     } else {
       client.publications[channel.id] = Client::Publication{component, info->fields};
     }

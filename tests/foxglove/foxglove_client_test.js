@@ -271,7 +271,7 @@ async function publishingDrives(s) {
   send(motion, { v: 0, w: 0 });
 
   let st = await s.statusAfter(() => s.client.advertise({ topic: '/robot/nothing', encoding: 'json', schemaName: 'x' }), 'a topic with no input stream');
-  check(st.level === 2 && /no input stream at \/robot\/nothing/.test(st.message) && /\/robot\/motion \{v, w\}/.test(st.message), 'no input stream: ' + st.message);
+  check(st.level === 2 && /no input stream at '\/robot\/nothing'/.test(st.message) && /\/robot\/motion \{v, w\}/.test(st.message), 'no input stream: ' + st.message);
   st = await s.statusAfter(() => s.client.advertise({ topic: '/robot/motion', encoding: 'cbor', schemaName: 'x' }), 'another encoding');
   check(st.level === 2 && /takes json/.test(st.message), 'another encoding: ' + st.message);
   st = await s.statusAfter(() => s.client.sendMessage(motion, new TextEncoder().encode('[1, 2]')), 'a command that is not an object');

@@ -18,9 +18,10 @@
 //     and close frames between fragments. A message longer than max_message_bytes (binary
 //     or not) is skipped to its end as it arrives (never buffered; the host answers it) and
 //     the connection keeps working; other binary messages are refused unread, or for a
-//     host whose binary_messages() is true read and handed over as text ones are. Reserved bits, opcodes, a continuation out of place, a
-//     control frame fragmented or over 125 bytes (the parser's protocol errors), a close
-//     frame of one byte (the session's): close 1002. Text is not checked for UTF-8 here:
+//     host whose binary_messages() is true read and handed over as text ones are. Reserved
+//     bits, opcodes, a continuation out of place, a control frame fragmented or over 125
+//     bytes (the parser's protocol errors), a close frame of one byte (the session's):
+//     close 1002. Text is not checked for UTF-8 here:
 //     the JSON parser refuses what is not (-32700). What the parser keeps of a message
 //     counts against max_buffered_bytes (past it: close 1013), and a message begun (a frame
 //     head too) must end within line_timeout_s, as a line must on the line transports.
