@@ -15,7 +15,8 @@ Sections (each ends "ok", "error" with the reason, or "skipped" when a part was 
   jsonrpc  the JSON-RPC transport vs the same two echoes (JSON-RPC-sized lines)
   websocket  issue #23: the websocket transport's sync round trip (JSON-RPC over WebSocket,
            a Beast client) vs the JSON-RPC transport's (TCP lines), the same request, both
-           servers up at once, alternating runs in each repeat
+           servers up at once, alternating runs in each repeat; issue #38: the same call as
+           a Foxglove service call (the foxglove transport) vs JSON-RPC over WebSocket
   dds      simgate's DDS round trip vs a raw Cyclone ping-pong (same types, QoS, payload)
   peers    MORSE's Python SocketRequestManager vs the socket transport; jayson@5's TCP
            server vs the JSON-RPC transport; all with the same client
@@ -427,19 +428,29 @@ class Harness:
     def section_websocket(self):
         if not self.plugin_built("websocket") or not self.plugin_built("jsonrpc"):
             return {"status": "skipped", "reason": "libsimgate_transport_websocket.so or _jsonrpc.so is not built"}
-        tcp = ws = None
+        tcp = ws = fox = None
         rows = []
         try:
             tcp = self.host("jsonrpc", {"host": "127.0.0.1", "port": 0})
             ws = self.host("websocket", {"host": "127.0.0.1", "port": 0})
             tcp_port, ws_port = port_of(tcp.announcement["endpoints"]), port_of(ws.announcement["endpoints"])
+            # issue #38: a Foxglove service call against the same call over JSON-RPC on WebSocket
+            if self.plugin_built("foxglove"):
+                fox = self.host("foxglove", {"host": "127.0.0.1", "port": 0})
+                fox_port = port_of(fox.announcement["endpoints"])
             for rep in range(self.repeats):
-                t, w = in_rotation(rep, lambda: self.latency(tcp_port, ["--proto", "jsonrpc"]),
-                                   lambda: self.latency(ws_port, ["--proto", "ws-jsonrpc"]))
-                rows.append({"jsonrpc": t, "websocket": w, "ratio_p50": ratio(w["p50_us"], t["p50_us"]),
-                             "ratio_p99": ratio(w["p99_us"], t["p99_us"])})
+                measured = [lambda: self.latency(tcp_port, ["--proto", "jsonrpc"]),
+                            lambda: self.latency(ws_port, ["--proto", "ws-jsonrpc"])]
+                if fox:
+                    measured.append(lambda: self.latency(fox_port, ["--proto", "foxglove"]))
+                t, w, *f = in_rotation(rep, *measured)
+                row = {"jsonrpc": t, "websocket": w, "ratio_p50": ratio(w["p50_us"], t["p50_us"]),
+                       "ratio_p99": ratio(w["p99_us"], t["p99_us"])}
+                if f:
+                    row.update(foxglove=f[0], foxglove_ratio_p50=ratio(f[0]["p50_us"], w["p50_us"]))
+                rows.append(row)
         finally:
-            for h in (tcp, ws):
+            for h in (tcp, ws, fox):
                 if h:
                     h.check_stopped()
         s = {"websocket_p50_us": spread([r["websocket"]["p50_us"] for r in rows]),
@@ -452,6 +463,14 @@ class Harness:
               f"JSON-RPC over TCP {s['jsonrpc_p50_us']['median']:.1f} us, ratio {s['ratio_p50']['median']:.2f}",
               file=sys.stderr, flush=True)
         self.target("WebSocket sync round trip p50 / JSON-RPC (TCP) p50", s["ratio_p50"], "<=", 1.3, "x")
+        if fox:
+            s["foxglove_p50_us"] = spread([r["foxglove"]["p50_us"] for r in rows])
+            s["foxglove_ratio_p50"] = spread([r["foxglove_ratio_p50"] for r in rows])
+            print(f"[bench] foxglove: service round trip p50 {s['foxglove_p50_us']['median']:.1f} us, "
+                  f"ratio to JSON-RPC over WebSocket {s['foxglove_ratio_p50']['median']:.2f}",
+                  file=sys.stderr, flush=True)
+            self.target("Foxglove service round trip p50 / WebSocket JSON-RPC p50", s["foxglove_ratio_p50"],
+                        "<=", 1.3, "x")
         return {"status": "ok", "summary": s, "runs": rows}
 
     def section_dds(self):

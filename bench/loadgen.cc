@@ -19,7 +19,11 @@
 //
 // Request lines (--proto): `ws-jsonrpc` is `jsonrpc` over a WebSocket (one request per
 // text message, no '\n'; Boost.Beast's client; --mode latency only), for the websocket
-// transport measured against the TCP one in the same run. `socket` sends "<id> <--request>"
+// transport measured against the TCP one in the same run. `foxglove` is a Foxglove
+// WebSocket client (subprotocol foxglove.websocket.v1; --mode latency only): it finds the
+// service --method names ("test_component.add" is "/test_component/add") in the server's
+// advertiseServices, then sends binary service call requests with --params as the JSON
+// request and waits for each binary response (Time messages and statuses skipped). `socket` sends "<id> <--request>"
 // (default "test_component add [1, 2]") and expects "<id> SUCCESS|OK ..."; `jsonrpc` sends
 // {"jsonrpc":"2.0","id":<id>,"method":<--method>,"params":<--params>} and expects a
 // "result". --echo expects the request back unchanged (the echo server). A reply that does
@@ -45,6 +49,7 @@
 #include <vector>
 
 #include <boost/asio/ip/tcp.hpp>
+#include <boost/beast/core/buffers_to_string.hpp>
 #include <boost/beast/core/flat_buffer.hpp>
 #include <boost/beast/websocket.hpp>
 
@@ -57,7 +62,7 @@ using simgate::bench::json;
 
 // How requests are written and replies recognised.
 struct Protocol {
-  std::string proto = "socket";                       // "socket", "jsonrpc" or "ws-jsonrpc"
+  std::string proto = "socket";  // "socket", "jsonrpc", "ws-jsonrpc" or "foxglove"
   std::string request = "test_component add [1, 2]";  // socket: everything after the id
   std::string method = "test_component.add";          // jsonrpc method
   std::string params = "[1,2]";                       // jsonrpc params (JSON text)
@@ -282,6 +287,85 @@ json run_ws_latency(const std::string& host, int port, const Protocol& p, std::s
   return out;
 }
 
+// run_latency as a Foxglove client (--proto foxglove): a blocking Beast client; the service
+// is found in advertiseServices, each call is a binary service call request answered by a
+// binary response (0x03) carrying the result; what else comes meanwhile (Time messages,
+// statuses) is read past. The run's deadline bounds every read (SO_RCVTIMEO).
+json run_foxglove_latency(const std::string& host, int port, const Protocol& p, std::size_t count,
+                          std::size_t warmup, double timeout_s) {
+  namespace ws = boost::beast::websocket;
+  namespace http = boost::beast::http;
+  boost::asio::io_context io;
+  ws::stream<boost::asio::ip::tcp::socket> stream(io);
+  stream.next_layer().connect(
+      {boost::asio::ip::make_address(host), static_cast<std::uint16_t>(port)});
+  stream.next_layer().set_option(boost::asio::ip::tcp::no_delay(true));
+  timeval tv{};
+  tv.tv_sec = static_cast<time_t>(timeout_s);
+  ::setsockopt(stream.next_layer().native_handle(), SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  stream.set_option(ws::stream_base::decorator([](ws::request_type& request) {
+    request.set(http::field::sec_websocket_protocol, "foxglove.websocket.v1");
+  }));
+  stream.handshake(host + ":" + std::to_string(port), "/");
+  const auto deadline = Clock::now() + seconds(timeout_s);
+  boost::beast::flat_buffer buffer;
+  // the service's id, from advertiseServices
+  std::string name = "/" + p.method;
+  for (char& c : name)
+    if (c == '.') c = '/';
+  std::optional<std::uint32_t> service;
+  while (!service) {
+    if (Clock::now() > deadline) throw std::runtime_error("no service " + name + " advertised");
+    buffer.clear();
+    stream.read(buffer);
+    if (!stream.got_text()) continue;
+    const json m = json::parse(boost::beast::buffers_to_string(buffer.cdata()), nullptr, false);
+    if (!m.is_object() || m.value("op", "") != "advertiseServices") continue;
+    for (const auto& s : m["services"])
+      if (s.value("name", "") == name) service = s["id"].get<std::uint32_t>();
+  }
+  const auto put_u32 = [](std::string& out, std::uint32_t v) {
+    for (int i = 0; i < 4; ++i) out.push_back(static_cast<char>(v >> (8 * i)));
+  };
+  stream.binary(true);
+  std::vector<std::int64_t> samples;
+  samples.reserve(count);
+  std::size_t errors = 0;
+  std::string first_reply, request;
+  for (std::size_t i = 0; i < warmup + count; ++i) {
+    if (Clock::now() > deadline) throw std::runtime_error("timed out waiting for the server");
+    const auto call = static_cast<std::uint32_t>(i + 1);
+    request.assign(1, '\x02');
+    put_u32(request, *service);
+    put_u32(request, call);
+    put_u32(request, 4);
+    request += "json";
+    request += p.params;
+    auto t0 = Clock::now();
+    stream.write(boost::asio::buffer(request));
+    std::string reply;
+    for (;;) {  // the response to this call; Time messages and statuses are read past
+      buffer.clear();
+      stream.read(buffer);
+      reply = boost::beast::buffers_to_string(buffer.cdata());
+      if (!stream.got_text() && reply.size() >= 9 && reply[0] == '\x03') break;
+      if (stream.got_text() && reply.find("serviceCallFailure") != std::string::npos) break;
+    }
+    auto t1 = Clock::now();
+    if (i == 0) first_reply = reply;
+    // 0x03, service, call, encoding length 4, "json", the result
+    if (reply.size() < 17 || reply[0] != '\x03' || reply.compare(13, 4, "json") != 0) ++errors;
+    if (i >= warmup) samples.push_back(simgate::bench::ns_between(t0, t1));
+  }
+  boost::system::error_code ignored;
+  stream.close(ws::close_code::normal, ignored);
+  json out = simgate::bench::summarize_us(std::move(samples));
+  out["mode"] = "latency";
+  out["errors"] = errors;
+  out["first_reply"] = first_reply.size() > 17 ? first_reply.substr(17) : first_reply;
+  return out;
+}
+
 // --connections C, --window W in flight each, for --duration seconds after a warm-up (longer,
 // up to 10 s more, until at least W x C replies are counted).
 json run_throughput(const std::string& host, int port, const Protocol& p, int connections,
@@ -456,8 +540,9 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--host", host, "the server's address")->capture_default_str();
   app.add_option("--port", port, "the server's port")->required()->check(CLI::Range(1, 65535));
-  app.add_option("--proto", p.proto, "socket, jsonrpc or ws-jsonrpc (latency only)")
-      ->check(CLI::IsMember({"socket", "jsonrpc", "ws-jsonrpc"}))
+  app.add_option("--proto", p.proto,
+                 "socket, jsonrpc, ws-jsonrpc or foxglove (the last two: latency only)")
+      ->check(CLI::IsMember({"socket", "jsonrpc", "ws-jsonrpc", "foxglove"}))
       ->capture_default_str();
   app.add_option("--request", p.request, "socket: the request after the id")->capture_default_str();
   app.add_option("--method", p.method, "jsonrpc: the method")->capture_default_str();
@@ -482,10 +567,12 @@ int main(int argc, char** argv) {
   if (auto code = simgate::bench::parse_command_line(app, argc, argv)) return *code;
   try {
     json out;
-    if (p.proto == "ws-jsonrpc" && mode != "latency")
-      throw std::runtime_error("--proto ws-jsonrpc: --mode latency only");
+    if ((p.proto == "ws-jsonrpc" || p.proto == "foxglove") && mode != "latency")
+      throw std::runtime_error("--proto " + p.proto + ": --mode latency only");
     if (mode == "latency" && p.proto == "ws-jsonrpc")
       out = run_ws_latency(host, port, p, count, warmup.value_or(count / 10), timeout);
+    else if (mode == "latency" && p.proto == "foxglove")
+      out = run_foxglove_latency(host, port, p, count, warmup.value_or(count / 10), timeout);
     else if (mode == "latency")
       out = run_latency(host, port, p, count, warmup.value_or(count / 10), timeout);
     else if (mode == "throughput")

@@ -1,7 +1,7 @@
 // transport_host.cc — a standalone simgate server for benchmarks: one transport plugin
 // and one trivial service, with no simulation.
 //
-// Loads the transport plugin named by --transport (socket, jsonrpc, dds) with
+// Loads the transport plugin named by --transport (socket, jsonrpc, websocket, foxglove, dds) with
 // load_transport_plugin(name)->create(options), registers the seed's example service
 // `test_component add(a, b)` with register_service, and calls process(wait) in a loop on
 // the main thread, exactly as the seed's `while True: req_manager.process()`. Whatever it
