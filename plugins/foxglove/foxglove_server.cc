@@ -32,6 +32,9 @@ class FoxgloveServer::Client : public kit::WebSocketConnection {
   std::uint64_t time_told = 0;                          // the last Time message's time (ns)
   bool told_time = false;                               // a Time message was sent
   std::uint64_t lost = 0;                               // samples it did not read in time
+  // the parameters it subscribed to (parametersSubscribe); all of them: `all_parameters`
+  std::set<std::string> parameters;
+  bool all_parameters = false;
   // its channels (clientPublish), by its id: the input stream each one's messages go to
   struct Publication {
     std::string component;
@@ -180,7 +183,8 @@ kit::HttpResponse FoxgloveServer::on_http_request(const kit::HttpRequest& reques
 
 void FoxgloveServer::on_open(kit::WebSocketConnection& connection) {
   // the greeting: who we are, then every channel and service there is now
-  std::vector<std::string> capabilities{"clientPublish", "services", "time"};
+  std::vector<std::string> capabilities{"clientPublish", "parameters", "parametersSubscribe",
+                                        "services", "time"};
   connection.queue_text(server_info(
       k_server, capabilities, {"json"},
       json{{"simgate", "Foxglove WebSocket transport"}, {"subprotocol", connection.subprotocol()}},
@@ -207,12 +211,26 @@ void FoxgloveServer::on_message(kit::WebSocketConnection& connection, std::strin
       if (!client.publications.erase(id))
         complain(client, Level::warning,
                  "unadvertise: no client channel " + std::to_string(id) + " on this connection");
+  } else if (const auto* get = std::get_if<GetParameters>(&message)) {
+    get_parameters(client, *get);
+  } else if (const auto* set = std::get_if<SetParameters>(&message)) {
+    set_parameters(client, *set);
+  } else if (const auto* s = std::get_if<SubscribeParameterUpdates>(&message)) {
+    if (s->names.empty()) client.all_parameters = true;
+    client.parameters.insert(s->names.begin(), s->names.end());
+    get_parameters(client, GetParameters{s->names, ""});  // their values now; then changes
+    poll_parameters();
+  } else if (const auto* us = std::get_if<UnsubscribeParameterUpdates>(&message)) {
+    if (us->names.empty()) {
+      client.all_parameters = false;
+      client.parameters.clear();
+    }
+    for (const auto& n : us->names) client.parameters.erase(n);
   } else if (const auto* other = std::get_if<OtherOp>(&message)) {
     complain(client, Level::error,
              "op '" + other->op +
-                 "' is not served here (this server's capabilities: clientPublish, services, "
-                 "time; ops: subscribe, unsubscribe, advertise, unadvertise, and binary service "
-                 "call requests and client messages)");
+                 "' is not served here (this server's capabilities: clientPublish, parameters, "
+                 "parametersSubscribe, services, time)");
   } else {
     complain(client, Level::error, std::get<Malformed>(message).reason);
   }
@@ -355,6 +373,149 @@ void FoxgloveServer::publish(Client& client, const ClientMessageData& message) {
     complain(client, Level::error, topic_of(it->second.component) + ": " + result.error);
 }
 
+// ---- parameters: the components' properties
+
+struct FoxgloveServer::ParameterQuery {
+  std::weak_ptr<Client> client;  // who asked (none: the subscriptions' poll)
+  std::string id;                // its request's id
+  std::set<std::string> wanted;  // the names asked (empty: all)
+  bool poll = false;             // the poll: subscribers get what changed
+  std::size_t waiting = 0;       // get_properties calls not answered yet
+  std::vector<std::pair<std::string, json>> values;
+};
+
+std::optional<std::pair<std::string, std::string>> FoxgloveServer::parameter_of(
+    const std::string& name) const {
+  std::optional<std::pair<std::string, std::string>> best;
+  for (const ServiceDef& s : services_) {
+    if (s.service != "set_property") continue;
+    const std::string prefix = topic_of(s.component) + "/";
+    if (name.size() > prefix.size() && name.starts_with(prefix) &&
+        (!best || prefix.size() > topic_of(best->first).size() + 1))
+      best = std::pair{s.component, name.substr(prefix.size())};
+  }
+  return best;
+}
+
+void FoxgloveServer::query_parameters(const std::shared_ptr<ParameterQuery>& query) {
+  std::vector<std::pair<RequestId, Call>> calls;
+  for (const ServiceDef& s : services_) {
+    if (s.service != "get_properties") continue;
+    const RequestId id = new_request_id();
+    parameter_calls_[id] = ParameterCall{query, s.component, {}, {}};
+    calls.emplace_back(id, Call{s.component, "get_properties", json::object()});
+  }
+  query->waiting = calls.size();
+  if (calls.empty()) {
+    finish_query(*query);
+    return;
+  }
+  run_or_submit(std::move(calls));
+}
+
+void FoxgloveServer::get_parameters(Client& client, const GetParameters& request) {
+  auto query = std::make_shared<ParameterQuery>();
+  query->client = std::static_pointer_cast<Client>(client.shared_from_this());
+  query->id = request.id;
+  query->wanted.insert(request.names.begin(), request.names.end());
+  query_parameters(query);
+}
+
+void FoxgloveServer::set_parameters(Client& client, const SetParameters& request) {
+  std::vector<std::pair<RequestId, Call>> calls;
+  auto self = std::static_pointer_cast<Client>(client.shared_from_this());
+  std::vector<std::string> names;
+  for (const auto& [name, value] : request.parameters) {
+    const auto target = parameter_of(name);
+    if (!target) {
+      std::vector<std::string> components;
+      for (const ServiceDef& s : services_)
+        if (s.service == "set_property") components.push_back(topic_of(s.component));
+      complain(client, Level::error,
+               "setParameters: no parameter " + quoted_prefix(name) +
+                   " (a parameter is /<component>/<property>; components with properties here: " +
+                   (components.empty() ? std::string("none") : join(components)) + ")");
+      continue;
+    }
+    const RequestId id = new_request_id();
+    parameter_calls_[id] = ParameterCall{nullptr, target->first, self, name};
+    calls.emplace_back(id, Call{target->first, "set_property",
+                                json{{"prop_name", target->second}, {"prop_val", value}}});
+    names.push_back(name);
+  }
+  if (!calls.empty()) run_or_submit(std::move(calls));
+  // the answer: the values as they are now (set ones included: the calls ran first, or wait
+  // for the same simulation turn ahead of the query's)
+  if (!request.id.empty()) get_parameters(client, GetParameters{names, request.id});
+  poll_parameters();  // subscribers learn of the change
+}
+
+bool FoxgloveServer::parameter_completion(RequestId id, Outcome& outcome) {
+  const auto it = parameter_calls_.find(id);
+  if (it == parameter_calls_.end()) return false;
+  ParameterCall call = std::move(it->second);
+  parameter_calls_.erase(it);
+  if (!call.query) {  // set_property
+    if (outcome.status != Status::success)
+      if (auto client = call.setter.lock(); client && !client->closed())
+        complain(*client, Level::error,
+                 "setParameters: " + call.name + ": " + std::string(to_string(outcome.status)) +
+                     (outcome.message.empty() ? "" : ": " + outcome.message));
+    return true;
+  }
+  ParameterQuery& query = *call.query;
+  if (outcome.status == Status::success && outcome.value && outcome.value->is_object()) {
+    const auto properties = outcome.value->find("properties");
+    if (properties != outcome.value->end() && properties->is_object())
+      for (const auto& [property, value] : properties->items()) {
+        std::string name = topic_of(call.component) + "/" + property;
+        if (query.wanted.empty() || query.wanted.count(name))
+          query.values.emplace_back(std::move(name), value);
+      }
+  }
+  if (--query.waiting == 0) finish_query(query);
+  return true;
+}
+
+void FoxgloveServer::finish_query(ParameterQuery& query) {
+  if (!query.poll) {
+    if (auto client = query.client.lock(); client && !client->closed())
+      client->queue_text(parameter_values(query.values, query.id));
+    return;
+  }
+  parameters_polling_ = false;
+  std::vector<std::pair<std::string, json>> changed;
+  for (auto& [name, value] : query.values) {
+    auto known = parameters_known_.find(name);
+    if (known != parameters_known_.end() && known->second == value) continue;
+    parameters_known_[name] = value;
+    changed.emplace_back(name, value);
+  }
+  if (changed.empty()) return;
+  for_each_connection([&](kit::Connection& connection) {
+    auto& client = static_cast<Client&>(connection);
+    std::vector<std::pair<std::string, json>> theirs;
+    for (const auto& [name, value] : changed)
+      if (client.all_parameters || client.parameters.count(name)) theirs.emplace_back(name, value);
+    if (!theirs.empty() && client.open()) client.queue_text(parameter_values(theirs, ""));
+  });
+  flush_touched();
+}
+
+void FoxgloveServer::poll_parameters() {
+  if (parameters_polling_ || stopping_) return;
+  bool wanted = false;
+  for_each_connection([&](kit::Connection& connection) {
+    const auto& client = static_cast<Client&>(connection);
+    wanted = wanted || client.all_parameters || !client.parameters.empty();
+  });
+  if (!wanted) return;
+  parameters_polling_ = true;
+  auto query = std::make_shared<ParameterQuery>();
+  query->poll = true;
+  query_parameters(query);
+}
+
 void FoxgloveServer::wake_streams() {
   if (streams_woken_.exchange(true, std::memory_order_acq_rel)) return;
   asio::post(io_, [this] { drain_streams(); });
@@ -451,6 +612,9 @@ void FoxgloveServer::tick_time() {
     });
     flush_touched();
   }
+  // the subscribed parameters are read again about once a second
+  if (++ticks_ % static_cast<std::uint32_t>(std::max(1.0, settings_.time_hz)) == 0)
+    poll_parameters();
   time_timer_.expires_after(std::chrono::microseconds(std::llround(1e6 / settings_.time_hz)));
   time_timer_.async_wait([this](const boost::system::error_code& ec) {
     if (!ec) tick_time();
@@ -493,6 +657,7 @@ void FoxgloveServer::call_service(Client& client, const ServiceCallRequest& requ
 
 void FoxgloveServer::on_service_completion(RequestId id, Outcome&& outcome) {
   // the I/O thread (deliver_on_this_thread): inside run_or_submit, or flush_replies()
+  if (parameter_completion(id, outcome)) return;
   if (id == geometry_call_) {
     geometry_call_ = 0;
     if (outcome.status == Status::success && outcome.value) {

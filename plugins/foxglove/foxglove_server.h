@@ -36,6 +36,8 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <optional>
+#include <set>
 #include <string>
 #include <string_view>
 #include <unordered_map>
@@ -128,6 +130,21 @@ class FoxgloveServer : public RequestManager, private kit::WebSocketServer {
   // Client channels on input streams' topics (clientPublish), and their messages.
   void advertise_publications(Client& client, const ClientAdvertise& request);
   void publish(Client& client, const ClientMessageData& message);
+  // Parameters: the components' properties (get_properties, set_property), named
+  // "/<component>/<property>".
+  struct ParameterQuery;
+  void get_parameters(Client& client, const GetParameters& request);
+  void set_parameters(Client& client, const SetParameters& request);
+  // Asks every component with properties (those whose get_properties this transport serves)
+  // for them; `query` is answered once all have.
+  void query_parameters(const std::shared_ptr<ParameterQuery>& query);
+  void finish_query(ParameterQuery& query);
+  // The component and property a parameter names, or nullopt.
+  std::optional<std::pair<std::string, std::string>> parameter_of(const std::string& name) const;
+  // Reads the subscribed parameters again and tells their subscribers what changed.
+  void poll_parameters();
+  // A completion of one of the parameters' calls; false when `id` is none of theirs.
+  bool parameter_completion(RequestId id, Outcome& outcome);
   // Tells `client` (status level error/warning) what was wrong with its message.
   void complain(Client& client, Level level, std::string_view message);
 
@@ -181,6 +198,17 @@ class FoxgloveServer : public RequestManager, private kit::WebSocketServer {
   RequestId geometry_call_ = 0;    // the request under way (0: none)
   bool geometry_wanted_ = false;   // a sample of another model came: ask again
   bool geometry_refused_ = false;  // the simulation's answer was a refusal (logged once)
+  // the parameters' calls under way: get_properties (a query's) and set_property
+  struct ParameterCall {
+    std::shared_ptr<ParameterQuery> query;  // get_properties: the query it answers
+    std::string component;
+    std::weak_ptr<Client> setter;  // set_property: who set it (told of a refusal)
+    std::string name;              // set_property: the parameter
+  };
+  std::unordered_map<RequestId, ParameterCall> parameter_calls_;
+  std::map<std::string, json> parameters_known_;  // the values last read (the poll's diff)
+  bool parameters_polling_ = false;               // a poll is under way
+  std::uint32_t ticks_ = 0;                       // tick_time()s so far (the poll's clock)
 };
 
 }  // namespace simgate::foxglove

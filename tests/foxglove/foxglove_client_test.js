@@ -72,6 +72,8 @@ class Session {
     c.on('advertiseServices', (list) => { for (const s of list) this.services.set(s.id, s); this.poke(); });
     c.on('unadvertiseServices', (ids) => { for (const id of ids) this.services.delete(id); this.poke(); });
     c.on('status', (s) => { this.statuses.push(s); this.poke(); });
+    this.parameterValues = [];
+    c.on('parameterValues', (m) => { this.parameterValues.push(m); this.poke(); });
     c.on('time', (t) => { this.times.push(t.timestamp); this.poke(); });
     c.on('message', (m) => {
       if (!this.messages.has(m.subscriptionId)) this.messages.set(m.subscriptionId, []);
@@ -283,6 +285,36 @@ async function publishingDrives(s) {
   s.client.unsubscribe(pose);
 }
 
+// Parameters: the components' properties, read, set (the setter's answer carries its id),
+// and a subscriber told of the change; a parameter that does not exist: a status.
+async function parameters(setter, watcher) {
+  for (const cap of ['parameters', 'parametersSubscribe'])
+    check(setter.info.capabilities.includes(cap), 'capability ' + cap);
+  const name = '/robot/waypoint/max_angular_speed';
+  setter.client.getParameters([], 'all');
+  await setter.until(() => setter.parameterValues.some((m) => m.id === 'all'), 'getParameters');
+  const all = setter.parameterValues.find((m) => m.id === 'all').parameters;
+  const speed = all.find((p) => p.name === name);
+  check(speed && speed.value === 1.5, `${name} is 1.5: ` + JSON.stringify(all.map((p) => p.name)));
+  check(all.some((p) => p.name === '/robot/wheel_radius'), 'the robot\'s own properties too');
+
+  watcher.client.subscribeParameterUpdates([name]);
+  await watcher.until(() => watcher.parameterValues.some((m) => m.parameters.some((p) => p.name === name && p.value === 1.5)),
+                      'the subscriber gets the value');
+  setter.client.setParameters([{ name, value: 0.75 }], 'set1');
+  await setter.until(() => setter.parameterValues.some((m) => m.id === 'set1'), 'setParameters answered');
+  const answer = setter.parameterValues.find((m) => m.id === 'set1').parameters;
+  check(answer.length === 1 && answer[0].name === name && answer[0].value === 0.75, 'the set value: ' + JSON.stringify(answer));
+  await watcher.until(() => watcher.parameterValues.some((m) => m.parameters.some((p) => p.name === name && p.value === 0.75)),
+                      'the subscriber told of the change', 15000);
+  let st = await setter.statusAfter(() => setter.client.setParameters([{ name: '/robot/waypoint/nope', value: 1 }]), 'an unknown property');
+  check(st.level === 2 && /nope/.test(st.message), 'an unknown property: ' + st.message);
+  st = await setter.statusAfter(() => setter.client.setParameters([{ name: '/nowhere/x', value: 1 }]), 'an unknown component');
+  check(st.level === 2 && /no parameter '\/nowhere\/x'/.test(st.message), 'an unknown component: ' + st.message);
+  setter.client.setParameters([{ name, value: 1.5 }]);
+  watcher.client.unsubscribeParameterUpdates([]);
+}
+
 async function main(argv) {
   const { child, url: urlPromise } = startGateway(argv);
   const overall = setTimeout(() => {
@@ -298,6 +330,7 @@ async function main(argv) {
     const sessions = await Promise.all(SUBPROTOCOLS.map((p) => session(url, p, ajv)));
     await sceneFollowsTheModel(sessions[0]);
     await publishingDrives(sessions[1]);
+    await parameters(sessions[0], sessions[1]);
     for (const s of sessions) s.close();
     console.log(`PASS: foxglove transport with @foxglove/ws-protocol (${SUBPROTOCOLS.join(', ')})`);
   } finally {

@@ -54,9 +54,24 @@ TEST(FoxgloveProtocol, TextMessagesAreReadOrRefusedWithTheReason) {
   auto u = read_text(R"({"op": "unsubscribe", "subscriptionIds": [0, 1]})");
   ASSERT_TRUE(std::holds_alternative<Unsubscribe>(u));
   EXPECT_EQ(std::get<Unsubscribe>(u).subscription_ids, (std::vector<std::uint32_t>{0, 1}));
-  auto other = read_text(R"({"op": "getParameters", "parameterNames": []})");
+  auto other = read_text(R"({"op": "fetchAsset", "uri": "package://a", "requestId": 1})");
   ASSERT_TRUE(std::holds_alternative<OtherOp>(other));
-  EXPECT_EQ(std::get<OtherOp>(other).op, "getParameters");
+  EXPECT_EQ(std::get<OtherOp>(other).op, "fetchAsset");
+  auto advertised = read_text(
+      R"({"op": "advertise", "channels": [{"id": 2, "topic": "/robot/motion", "encoding": "json",
+                                            "schemaName": "geometry_msgs/Twist"}]})");
+  ASSERT_TRUE(std::holds_alternative<ClientAdvertise>(advertised));
+  EXPECT_EQ(std::get<ClientAdvertise>(advertised).channels[0].topic, "/robot/motion");
+  auto get = read_text(R"({"op": "getParameters", "parameterNames": ["/a/b"], "id": "r1"})");
+  ASSERT_TRUE(std::holds_alternative<GetParameters>(get));
+  EXPECT_EQ(std::get<GetParameters>(get).names, std::vector<std::string>{"/a/b"});
+  EXPECT_EQ(std::get<GetParameters>(get).id, "r1");
+  auto set = read_text(R"({"op": "setParameters", "parameters": [{"name": "/a/b", "value": 2}]})");
+  ASSERT_TRUE(std::holds_alternative<SetParameters>(set));
+  EXPECT_EQ(std::get<SetParameters>(set).parameters[0].second, 2);
+  EXPECT_EQ(std::get<SetParameters>(set).id, "");
+  EXPECT_TRUE(std::holds_alternative<SubscribeParameterUpdates>(
+      read_text(R"({"op": "subscribeParameterUpdates", "parameterNames": []})")));
 
   const auto reason = [](std::string_view text) {
     auto r = read_text(text);
@@ -78,6 +93,14 @@ TEST(FoxgloveProtocol, TextMessagesAreReadOrRefusedWithTheReason) {
                 .find("unsigned 32-bit"),
             std::string::npos);
   EXPECT_NE(reason(R"({"op": "unsubscribe", "subscriptionIds": ["a"]})").find("unsigned 32-bit"),
+            std::string::npos);
+  EXPECT_NE(reason(R"({"op": "getParameters", "parameterNames": [1]})").find("not a string"),
+            std::string::npos);
+  EXPECT_NE(reason(R"({"op": "setParameters", "parameters": [{"value": 1}]})").find("name"),
+            std::string::npos);
+  EXPECT_NE(reason(R"({"op": "getParameters", "id": 7})").find("\"id\" is a string"),
+            std::string::npos);
+  EXPECT_NE(reason(R"({"op": "advertise", "channels": [{"id": 1, "topic": 5}]})").find("topic"),
             std::string::npos);
   // control characters of a client's text are not echoed into the status as they are
   EXPECT_EQ(reason("\x1b[2J").find('\x1b'), std::string::npos);
@@ -141,6 +164,11 @@ TEST(FoxgloveProtocol, ServerTextMessagesCarryTheSpecsFields) {
   EXPECT_EQ(json::parse(services["services"][0]["request"]["schema"].get<std::string>()),
             s.request_schema);
   EXPECT_EQ(services["services"][0]["requestSchema"], services["services"][0]["request"]["schema"]);
+  EXPECT_EQ(json::parse(parameter_values({{"/a/b", 2}}, "r1")),
+            (json{{"op", "parameterValues"},
+                  {"parameters", {{{"name", "/a/b"}, {"value", 2}}}},
+                  {"id", "r1"}}));
+  EXPECT_FALSE(json::parse(parameter_values({}, "")).contains("id"));
   EXPECT_EQ(json::parse(status(Level::warning, "careful")),
             (json{{"op", "status"}, {"level", 1}, {"message", "careful"}}));
   EXPECT_EQ(json::parse(service_call_failure(2, 5, "FAILED: no")),
@@ -179,6 +207,14 @@ TEST(FoxgloveProtocol, SchemasDescribeSamplesAndServiceParameters) {
             {"required", {"x"}},
             {"description", "Go there"}}));
   EXPECT_EQ(topic_of("robot.pose"), "/robot/pose");
+  EXPECT_EQ(component_of("/robot/motion"), "robot.motion");
+  // a command: the object; a Twist for a velocity stream
+  EXPECT_EQ(read_command(R"({"v": 1, "w": 0})", {"v", "w"}), (json{{"v", 1}, {"w", 0}}));
+  EXPECT_EQ(read_command(R"({"linear": {"x": 0.5}, "angular": {"z": -0.2}})", {"v", "w"}),
+            (json{{"v", 0.5}, {"w", -0.2}}));
+  EXPECT_EQ(read_command(R"({"linear": {"x": 0.5}, "angular": {"z": 1}})", {"x", "y"}),
+            (json{{"linear", {{"x", 0.5}}}, {"angular", {{"z", 1}}}}));
+  EXPECT_FALSE(read_command("[1]", {"v", "w"}).has_value());
   EXPECT_EQ(service_name_of("robot.motion", "set_speed"), "/robot/motion/set_speed");
 }
 

@@ -57,10 +57,21 @@ void text(std::string_view message) {
     }
   } else if (const auto* ua = std::get_if<foxglove::ClientUnadvertise>(&read)) {
     FUZZ_CHECK(parsed["channelIds"].size() == ua->channel_ids.size(), "every channel id is read");
+  } else if (const auto* set = std::get_if<foxglove::SetParameters>(&read)) {
+    FUZZ_CHECK(parsed["parameters"].size() == set->parameters.size(), "every parameter is read");
+    const json values = json::parse(foxglove::parameter_values(set->parameters, set->id));
+    FUZZ_CHECK(values["parameters"].size() == set->parameters.size(), "and written back");
+  } else if (std::holds_alternative<foxglove::GetParameters>(read) ||
+             std::holds_alternative<foxglove::SubscribeParameterUpdates>(read) ||
+             std::holds_alternative<foxglove::UnsubscribeParameterUpdates>(read)) {
+    FUZZ_CHECK(parsed["op"].get<std::string>().find("arameter") != std::string::npos,
+               "a parameters op");
   } else {
     const auto& other = std::get<foxglove::OtherOp>(read);
     FUZZ_CHECK(other.op == parsed["op"].get<std::string>(), "the op is the message's");
-    for (const char* served : {"subscribe", "unsubscribe", "advertise", "unadvertise"})
+    for (const char* served :
+         {"subscribe", "unsubscribe", "advertise", "unadvertise", "getParameters", "setParameters",
+          "subscribeParameterUpdates", "unsubscribeParameterUpdates"})
       FUZZ_CHECK(other.op != served, "the ops served are read");
   }
 }

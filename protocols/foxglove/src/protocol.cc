@@ -115,6 +115,65 @@ ClientText read_client_advertise(const json& message) {
   return a;
 }
 
+// The strings at `key` (absent: none), or why not.
+std::optional<std::vector<std::string>> name_list(const json& message, const char* key,
+                                                  std::string_view op, std::string& why) {
+  std::vector<std::string> names;
+  const auto list = message.find(key);
+  if (list == message.end()) return names;
+  if (!list->is_array()) {
+    why = std::string(op) + " takes \"" + key + "\": [<parameter names>]";
+    return std::nullopt;
+  }
+  for (const json& n : *list) {
+    if (!n.is_string()) {
+      why = std::string(op) + ": a parameter name is not a string: " + quoted_prefix(dump(n), 40);
+      return std::nullopt;
+    }
+    names.push_back(n.get<std::string>());
+  }
+  return names;
+}
+
+// The request's "id" (a string, optional), or why not.
+std::optional<std::string> request_id(const json& message, std::string_view op, std::string& why) {
+  const auto id = message.find("id");
+  if (id == message.end() || id->is_null()) return std::string();
+  if (!id->is_string()) {
+    why = std::string(op) + ": \"id\" is a string";
+    return std::nullopt;
+  }
+  return id->get<std::string>();
+}
+
+ClientText read_parameters_op(const json& message, const std::string& op) {
+  std::string why;
+  if (op == "setParameters") {
+    const auto list = message.find("parameters");
+    if (list == message.end() || !list->is_array())
+      return Malformed{"setParameters takes \"parameters\": [{\"name\", \"value\"}]"};
+    SetParameters s;
+    for (const json& p : *list) {
+      if (!p.is_object() || !p.contains("name") || !p["name"].is_string())
+        return Malformed{"setParameters: each parameter is {\"name\": <string>, \"value\"}"};
+      s.parameters.emplace_back(p["name"].get<std::string>(), p.value("value", json()));
+    }
+    auto id = request_id(message, op, why);
+    if (!id) return Malformed{why};
+    s.id = std::move(*id);
+    return s;
+  }
+  auto names = name_list(message, "parameterNames", op, why);
+  if (!names) return Malformed{why};
+  if (op == "getParameters") {
+    auto id = request_id(message, op, why);
+    if (!id) return Malformed{why};
+    return GetParameters{std::move(*names), std::move(*id)};
+  }
+  if (op == "subscribeParameterUpdates") return SubscribeParameterUpdates{std::move(*names)};
+  return UnsubscribeParameterUpdates{std::move(*names)};
+}
+
 json channel_json(const Channel& c) {
   return json{{"id", c.id},
               {"topic", c.topic},
@@ -191,6 +250,16 @@ std::string unadvertise_services(const std::vector<std::uint32_t>& service_ids) 
   return dump(json{{"op", "unadvertiseServices"}, {"serviceIds", service_ids}});
 }
 
+std::string parameter_values(const std::vector<std::pair<std::string, json>>& parameters,
+                             std::string_view id) {
+  json list = json::array();
+  for (const auto& [name, value] : parameters)
+    list.push_back(json{{"name", name}, {"value", value}});
+  json m{{"op", "parameterValues"}, {"parameters", std::move(list)}};
+  if (!id.empty()) m["id"] = id;
+  return dump(m);
+}
+
 std::string status(Level level, std::string_view message) {
   return dump(json{{"op", "status"}, {"level", static_cast<int>(level)}, {"message", message}});
 }
@@ -260,6 +329,9 @@ ClientText read_text(std::string_view text) {
     return Unsubscribe{std::move(*ids)};
   }
   if (name == "advertise") return read_client_advertise(message);
+  if (name == "getParameters" || name == "setParameters" || name == "subscribeParameterUpdates" ||
+      name == "unsubscribeParameterUpdates")
+    return read_parameters_op(message, name);
   if (name == "unadvertise") {
     auto ids = id_list(message, "channelIds", "unadvertise", why);
     if (!ids) return Malformed{why};

@@ -91,6 +91,9 @@ std::string unadvertise(const std::vector<std::uint32_t>& channel_ids);
 std::string advertise_services(const std::vector<ServiceDef>& services);
 // {"op": "unadvertiseServices", "serviceIds": [...]}
 std::string unadvertise_services(const std::vector<std::uint32_t>& service_ids);
+// {"op": "parameterValues", "parameters": [{"name", "value"}...], "id"} (no id when "")
+std::string parameter_values(const std::vector<std::pair<std::string, json>>& parameters,
+                             std::string_view id);
 // {"op": "status", "level": 0|1|2, "message": "..."}
 std::string status(Level level, std::string_view message);
 // {"op": "serviceCallFailure", "serviceId", "callId", "message"}
@@ -134,14 +137,32 @@ struct ClientAdvertise {
 struct ClientUnadvertise {
   std::vector<std::uint32_t> channel_ids;
 };
+// Parameters (capabilities parameters, parametersSubscribe): names are "/<component>/<name>"
+// ("/robot/waypoint/max_angular_speed"); `id` is the request's, echoed in parameterValues
+// (absent: "").
+struct GetParameters {
+  std::vector<std::string> names;  // empty: all
+  std::string id;
+};
+struct SetParameters {
+  std::vector<std::pair<std::string, json>> parameters;  // (name, value)
+  std::string id;
+};
+struct SubscribeParameterUpdates {
+  std::vector<std::string> names;  // empty: all
+};
+struct UnsubscribeParameterUpdates {
+  std::vector<std::string> names;  // empty: all
+};
 struct OtherOp {
   std::string op;  // "getParameters", "fetchAsset", ...
 };
 struct Malformed {
   std::string reason;  // for the status message: what was wrong, and what was expected
 };
-using ClientText =
-    std::variant<Subscribe, Unsubscribe, ClientAdvertise, ClientUnadvertise, OtherOp, Malformed>;
+using ClientText = std::variant<Subscribe, Unsubscribe, ClientAdvertise, ClientUnadvertise,
+                                GetParameters, SetParameters, SubscribeParameterUpdates,
+                                UnsubscribeParameterUpdates, OtherOp, Malformed>;
 ClientText read_text(std::string_view message);
 
 // A client's binary message, read.
