@@ -1,9 +1,10 @@
 #include "foxglove_server.h"
 
+#include "foxglove_client.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <tuple>
 
 #include <boost/asio/post.hpp>
 
@@ -17,31 +18,6 @@ namespace simgate::foxglove {
 namespace asio = boost::asio;
 namespace http = boost::beast::http;
 using asio::ip::tcp;
-
-// A client: the kit's WebSocket connection and what the protocol keeps of it.
-class FoxgloveServer::Client : public kit::WebSocketConnection {
- public:
-  using WebSocketConnection::WebSocketConnection;
-  struct Subscription {
-    std::uint32_t channel_id = 0;
-    Shape shape = Shape::sample;
-    std::shared_ptr<StreamSubscription> stream;
-    std::uint64_t scene_sent = ~std::uint64_t{0};  // the generation its last scene was of
-  };
-  std::map<std::uint32_t, Subscription> subscriptions;  // by the client's subscription id
-  std::uint64_t time_told = 0;                          // the last Time message's time (ns)
-  bool told_time = false;                               // a Time message was sent
-  std::uint64_t lost = 0;                               // samples it did not read in time
-  // the parameters it subscribed to (parametersSubscribe); all of them: `all_parameters`
-  std::set<std::string> parameters;
-  bool all_parameters = false;
-  // its channels (clientPublish), by its id: the input stream each one's messages go to
-  struct Publication {
-    std::string component;
-    std::vector<std::string> fields;
-  };
-  std::map<std::uint32_t, Publication> publications;
-};
 
 // ---- options and life cycle
 
@@ -373,149 +349,6 @@ void FoxgloveServer::publish(Client& client, const ClientMessageData& message) {
     complain(client, Level::error, topic_of(it->second.component) + ": " + result.error);
 }
 
-// ---- parameters: the components' properties
-
-struct FoxgloveServer::ParameterQuery {
-  std::weak_ptr<Client> client;  // who asked (none: the subscriptions' poll)
-  std::string id;                // its request's id
-  std::set<std::string> wanted;  // the names asked (empty: all)
-  bool poll = false;             // the poll: subscribers get what changed
-  std::size_t waiting = 0;       // get_properties calls not answered yet
-  std::vector<std::pair<std::string, json>> values;
-};
-
-std::optional<std::pair<std::string, std::string>> FoxgloveServer::parameter_of(
-    const std::string& name) const {
-  std::optional<std::pair<std::string, std::string>> best;
-  for (const ServiceDef& s : services_) {
-    if (s.service != "set_property") continue;
-    const std::string prefix = topic_of(s.component) + "/";
-    if (name.size() > prefix.size() && name.starts_with(prefix) &&
-        (!best || prefix.size() > topic_of(best->first).size() + 1))
-      best = std::pair{s.component, name.substr(prefix.size())};
-  }
-  return best;
-}
-
-void FoxgloveServer::query_parameters(const std::shared_ptr<ParameterQuery>& query) {
-  std::vector<std::pair<RequestId, Call>> calls;
-  for (const ServiceDef& s : services_) {
-    if (s.service != "get_properties") continue;
-    const RequestId id = new_request_id();
-    parameter_calls_[id] = ParameterCall{query, s.component, {}, {}};
-    calls.emplace_back(id, Call{s.component, "get_properties", json::object()});
-  }
-  query->waiting = calls.size();
-  if (calls.empty()) {
-    finish_query(*query);
-    return;
-  }
-  run_or_submit(std::move(calls));
-}
-
-void FoxgloveServer::get_parameters(Client& client, const GetParameters& request) {
-  auto query = std::make_shared<ParameterQuery>();
-  query->client = std::static_pointer_cast<Client>(client.shared_from_this());
-  query->id = request.id;
-  query->wanted.insert(request.names.begin(), request.names.end());
-  query_parameters(query);
-}
-
-void FoxgloveServer::set_parameters(Client& client, const SetParameters& request) {
-  std::vector<std::pair<RequestId, Call>> calls;
-  auto self = std::static_pointer_cast<Client>(client.shared_from_this());
-  std::vector<std::string> names;
-  for (const auto& [name, value] : request.parameters) {
-    const auto target = parameter_of(name);
-    if (!target) {
-      std::vector<std::string> components;
-      for (const ServiceDef& s : services_)
-        if (s.service == "set_property") components.push_back(topic_of(s.component));
-      complain(client, Level::error,
-               "setParameters: no parameter " + quoted_prefix(name) +
-                   " (a parameter is /<component>/<property>; components with properties here: " +
-                   (components.empty() ? std::string("none") : join(components)) + ")");
-      continue;
-    }
-    const RequestId id = new_request_id();
-    parameter_calls_[id] = ParameterCall{nullptr, target->first, self, name};
-    calls.emplace_back(id, Call{target->first, "set_property",
-                                json{{"prop_name", target->second}, {"prop_val", value}}});
-    names.push_back(name);
-  }
-  if (!calls.empty()) run_or_submit(std::move(calls));
-  // the answer: the values as they are now (set ones included: the calls ran first, or wait
-  // for the same simulation turn ahead of the query's)
-  if (!request.id.empty()) get_parameters(client, GetParameters{names, request.id});
-  poll_parameters();  // subscribers learn of the change
-}
-
-bool FoxgloveServer::parameter_completion(RequestId id, Outcome& outcome) {
-  const auto it = parameter_calls_.find(id);
-  if (it == parameter_calls_.end()) return false;
-  ParameterCall call = std::move(it->second);
-  parameter_calls_.erase(it);
-  if (!call.query) {  // set_property
-    if (outcome.status != Status::success)
-      if (auto client = call.setter.lock(); client && !client->closed())
-        complain(*client, Level::error,
-                 "setParameters: " + call.name + ": " + std::string(to_string(outcome.status)) +
-                     (outcome.message.empty() ? "" : ": " + outcome.message));
-    return true;
-  }
-  ParameterQuery& query = *call.query;
-  if (outcome.status == Status::success && outcome.value && outcome.value->is_object()) {
-    const auto properties = outcome.value->find("properties");
-    if (properties != outcome.value->end() && properties->is_object())
-      for (const auto& [property, value] : properties->items()) {
-        std::string name = topic_of(call.component) + "/" + property;
-        if (query.wanted.empty() || query.wanted.count(name))
-          query.values.emplace_back(std::move(name), value);
-      }
-  }
-  if (--query.waiting == 0) finish_query(query);
-  return true;
-}
-
-void FoxgloveServer::finish_query(ParameterQuery& query) {
-  if (!query.poll) {
-    if (auto client = query.client.lock(); client && !client->closed())
-      client->queue_text(parameter_values(query.values, query.id));
-    return;
-  }
-  parameters_polling_ = false;
-  std::vector<std::pair<std::string, json>> changed;
-  for (auto& [name, value] : query.values) {
-    auto known = parameters_known_.find(name);
-    if (known != parameters_known_.end() && known->second == value) continue;
-    parameters_known_[name] = value;
-    changed.emplace_back(name, value);
-  }
-  if (changed.empty()) return;
-  for_each_connection([&](kit::Connection& connection) {
-    auto& client = static_cast<Client&>(connection);
-    std::vector<std::pair<std::string, json>> theirs;
-    for (const auto& [name, value] : changed)
-      if (client.all_parameters || client.parameters.count(name)) theirs.emplace_back(name, value);
-    if (!theirs.empty() && client.open()) client.queue_text(parameter_values(theirs, ""));
-  });
-  flush_touched();
-}
-
-void FoxgloveServer::poll_parameters() {
-  if (parameters_polling_ || stopping_) return;
-  bool wanted = false;
-  for_each_connection([&](kit::Connection& connection) {
-    const auto& client = static_cast<Client&>(connection);
-    wanted = wanted || client.all_parameters || !client.parameters.empty();
-  });
-  if (!wanted) return;
-  parameters_polling_ = true;
-  auto query = std::make_shared<ParameterQuery>();
-  query->poll = true;
-  query_parameters(query);
-}
-
 void FoxgloveServer::wake_streams() {
   if (streams_woken_.exchange(true, std::memory_order_acq_rel)) return;
   asio::post(io_, [this] { drain_streams(); });
@@ -549,7 +382,6 @@ void FoxgloveServer::drain_streams() {
         if (!queued) ++lost;
       }
       sub.stream->note_dropped(lost);
-      client.lost += lost;
       if (sub.stream->closed()) {
         // its component is gone: the channel is unadvertised with the catalog's refresh
         it = client.subscriptions.erase(it);
@@ -691,143 +523,6 @@ void FoxgloveServer::on_service_completion(RequestId id, Outcome&& outcome) {
   std::string why(to_string(outcome.status));
   if (!outcome.message.empty()) why += ": " + outcome.message;
   client->queue_text(service_call_failure(pending.service_id, pending.call_id, why));
-}
-
-// ---- the catalog: channels and services
-
-void FoxgloveServer::on_services_changed() {
-  // under the simulation lock, any thread: only post
-  if (catalog_wanted_.exchange(true, std::memory_order_acq_rel)) return;
-  asio::post(io_, [this] { refresh_catalog(); });
-}
-
-void FoxgloveServer::refresh_catalog() {
-  catalog_wanted_.store(false, std::memory_order_release);
-  refresh_services();
-  // the channels' schemas are made from a sample each, read under the simulation lock
-  post([this] {
-    std::vector<ChannelEntry> channels = read_channels();
-    asio::post(io_, [this, channels = std::move(channels)]() mutable {
-      apply_channels(std::move(channels));
-    });
-  });
-}
-
-std::vector<FoxgloveServer::ChannelEntry> FoxgloveServer::read_channels() const {
-  std::vector<ChannelEntry> out;
-  if (!stream_hub()) return out;
-  for (const StreamInfo& info : stream_hub()->streams(transport_name())) {
-    if (info.direction != StreamDirection::out) continue;
-    ChannelEntry entry;
-    entry.component = info.component;
-    entry.channel.topic = topic_of(info.component);
-    entry.channel.schema_name = "simgate." + info.kind;
-    json schema = json::object();
-    if (auto sample = stream_hub()->sample_now(info.component)) schema = schema_of(*sample);
-    schema["title"] = entry.channel.schema_name;
-    schema["description"] = info.component + ": " + info.type + " (" + info.kind + ")";
-    entry.channel.schema = dump(schema);
-    out.push_back(entry);
-    if (info.kind == "body_poses") {
-      // the simulation's bodies and geoms for the 3D panel, in Foxglove's schemas
-      for (const auto& [shape, topic, name, made] :
-           {std::tuple{Shape::frame_transforms, "/tf", k_frame_transforms,
-                       frame_transforms_schema()},
-            std::tuple{Shape::scene_update, "/scene", k_scene_update, scene_update_schema()}}) {
-        ChannelEntry derived;
-        derived.component = info.component;
-        derived.shape = shape;
-        derived.channel.topic = topic;
-        derived.channel.schema_name = name;
-        derived.channel.schema = dump(made);
-        out.push_back(std::move(derived));
-      }
-    }
-  }
-  return out;
-}
-
-void FoxgloveServer::apply_channels(std::vector<ChannelEntry> channels) {
-  // ids: the same channel keeps its id (also across a removal and a return), another gets a
-  // new one
-  for (auto& entry : channels) {
-    auto known = channel_history_.find(entry.channel.topic);
-    if (known != channel_history_.end() && known->second.same_as(entry.channel)) {
-      entry.channel.id = known->second.id;
-    } else {
-      entry.channel.id = next_channel_id_++;
-      channel_history_[entry.channel.topic] = entry.channel;
-    }
-  }
-  std::vector<std::uint32_t> gone;
-  for (const auto& old : channels_)
-    if (std::none_of(channels.begin(), channels.end(),
-                     [&](const ChannelEntry& c) { return c.channel.id == old.channel.id; }))
-      gone.push_back(old.channel.id);
-  std::vector<Channel> added;
-  for (const auto& entry : channels)
-    if (std::none_of(channels_.begin(), channels_.end(),
-                     [&](const ChannelEntry& c) { return c.channel.id == entry.channel.id; }))
-      added.push_back(entry.channel);
-  channels_ = std::move(channels);
-  // subscriptions to a channel that is gone end with it
-  if (!gone.empty()) {
-    for_each_connection([&](kit::Connection& connection) {
-      Client& client = static_cast<Client&>(connection);
-      for (auto it = client.subscriptions.begin(); it != client.subscriptions.end();) {
-        if (std::find(gone.begin(), gone.end(), it->second.channel_id) == gone.end()) {
-          ++it;
-          continue;
-        }
-        stream_hub()->unsubscribe(it->second.stream);
-        it = client.subscriptions.erase(it);
-      }
-    });
-    broadcast(unadvertise(gone));
-  }
-  if (!added.empty()) broadcast(advertise(added));
-  flush_touched();
-}
-
-void FoxgloveServer::refresh_services() {
-  std::vector<ServiceDef> now;
-  for (const ServiceDescriptor& d : descriptors()) {
-    ServiceDef def;
-    def.name = service_name_of(d.component, d.name);
-    def.type = "simgate/" + d.qualified_name();
-    def.request_schema = request_schema(d);
-    def.response_schema = d.result_schema.is_object() ? d.result_schema : json::object();
-    def.component = d.component;
-    def.service = d.name;
-    auto known = service_history_.find(def.name);
-    if (known != service_history_.end() && known->second.same_as(def)) {
-      def.id = known->second.id;
-    } else {
-      def.id = next_service_id_++;
-      service_history_[def.name] = def;
-    }
-    now.push_back(std::move(def));
-  }
-  std::vector<std::uint32_t> gone;
-  for (const auto& old : services_)
-    if (std::none_of(now.begin(), now.end(), [&](const ServiceDef& s) { return s.id == old.id; }))
-      gone.push_back(old.id);
-  std::vector<ServiceDef> added;
-  for (const auto& def : now)
-    if (std::none_of(services_.begin(), services_.end(),
-                     [&](const ServiceDef& s) { return s.id == def.id; }))
-      added.push_back(def);
-  services_ = std::move(now);
-  if (!gone.empty()) broadcast(unadvertise_services(gone));
-  if (!added.empty()) broadcast(advertise_services(added));
-  flush_touched();
-}
-
-void FoxgloveServer::broadcast(const std::string& text) {
-  for_each_connection([&](kit::Connection& connection) {
-    auto& client = static_cast<Client&>(connection);
-    if (client.open()) client.queue_text(text);
-  });
 }
 
 }  // namespace simgate::foxglove

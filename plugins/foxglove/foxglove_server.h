@@ -3,12 +3,15 @@
 // Lichtblick open a running simulation at ws://127.0.0.1:8765 (Foxglove's default port).
 //
 // What a client gets (docs/transports/foxglove.md):
-//   - serverInfo (capabilities `services` and `time`, encoding `json`), then one channel per
+//   - serverInfo (capabilities clientPublish, parameters, parametersSubscribe, services and
+//     time; encoding `json`), then one channel per
 //     output stream the transport carries (topic "/robot/pose" for robot.pose, JSON messages,
 //     a JSON Schema made from one sample read when the channel appears), then one service per
 //     simgate service it serves ("/robot/motion/set_speed": a JSON object of the parameters
 //     in, the result out). Channels and services appear and disappear as components do
-//     (advertise / unadvertise, advertiseServices / unadvertiseServices).
+//     (advertise / unadvertise, advertiseServices / unadvertiseServices). The simulation's
+//     body_poses stream also makes /tf and /scene (foxglove.FrameTransforms and
+//     foxglove.SceneUpdate, simgate/foxglove/scene.h) for the 3D panel. (catalog.cc)
 //   - subscribe / unsubscribe: each sample as a binary Message Data, its log time the
 //     simulated time of the sample; a Time message whenever the simulated time moved (with
 //     the samples, and `time_hz` times per second of wall time between them), so that
@@ -16,11 +19,15 @@
 //   - a service call (binary request, JSON encoding): answered by a Service Call Response
 //     with the result, or a serviceCallFailure naming the status and the reason; a long call
 //     when it finishes. A client that leaves has its calls cancelled (`on_disconnect`).
+//   - client channels on input streams' topics (clientPublish): each message a command
+//     (a geometry_msgs/Twist read as {v, w} for a velocity stream).
+//   - parameters: the components' properties as /<component>/<property>, got, set and
+//     subscribed to (parameters.cc).
 //   - bad input (text that is not JSON, an unknown op, a subscription to no channel, a
 //     reused subscription id, a bad binary opcode): a status message saying what was wrong;
 //     the connection and every other client go on.
 //
-// Options: the kit's (kit::TcpOptions: host, port 8765, limits, timeouts, auth), every
+// Options: the kit's (kit::TcpOptions: host, port 8765, limits, timeouts; not auth yet), every
 // WebSocket transport's (kit::WebSocketOptions: allowed_origins, keepalive_s), and
 // `stream_queue` (samples kept per subscription, 4: a slow client gets the newest, never a
 // backlog), `time_hz` (Time messages per wall second between samples, 30; 0: only with
