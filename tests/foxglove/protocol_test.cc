@@ -115,7 +115,9 @@ TEST(FoxgloveProtocol, BinaryMessagesAreReadOrRefusedWithTheReason) {
   EXPECT_EQ(request.call_id, 9u);
   EXPECT_EQ(request.encoding, "json");
   EXPECT_EQ(request.payload, "{\"a\":1}");
-  auto data = read_binary(bytes({0x01, 3, 0, 0, 0}) + "xyz");
+  // (what is read are views into the message: it outlives them)
+  const std::string published = bytes({0x01, 3, 0, 0, 0}) + "xyz";
+  auto data = read_binary(published);
   ASSERT_TRUE(std::holds_alternative<ClientMessageData>(data));
   EXPECT_EQ(std::get<ClientMessageData>(data).channel_id, 3u);
   EXPECT_EQ(std::get<ClientMessageData>(data).payload, "xyz");
