@@ -243,20 +243,34 @@ json run_latency(const std::string& host, int port, const Protocol& p, std::size
   return out;
 }
 
-// run_latency over a WebSocket (--proto ws-jsonrpc): a blocking Beast client, one text
-// message per request; the run's deadline bounds every read (SO_RCVTIMEO).
-json run_ws_latency(const std::string& host, int port, const Protocol& p, std::size_t count,
-                    std::size_t warmup, double timeout_s) {
+using WsStream = boost::beast::websocket::stream<boost::asio::ip::tcp::socket>;
+
+// A blocking Beast client's connection (TCP_NODELAY; every read bounded by `timeout_s`,
+// SO_RCVTIMEO), upgraded offering `subprotocol` (none when empty).
+void connect_websocket(WsStream& stream, const std::string& host, int port, double timeout_s,
+                       const std::string& subprotocol = "") {
   namespace ws = boost::beast::websocket;
-  boost::asio::io_context io;
-  ws::stream<boost::asio::ip::tcp::socket> stream(io);
   stream.next_layer().connect(
       {boost::asio::ip::make_address(host), static_cast<std::uint16_t>(port)});
   stream.next_layer().set_option(boost::asio::ip::tcp::no_delay(true));
   timeval tv{};
   tv.tv_sec = static_cast<time_t>(timeout_s);
   ::setsockopt(stream.next_layer().native_handle(), SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  if (!subprotocol.empty())
+    stream.set_option(ws::stream_base::decorator([subprotocol](ws::request_type& request) {
+      request.set(boost::beast::http::field::sec_websocket_protocol, subprotocol);
+    }));
   stream.handshake(host + ":" + std::to_string(port), "/");
+}
+
+// run_latency over a WebSocket (--proto ws-jsonrpc): a blocking Beast client, one text
+// message per request; the run's deadline bounds every read (SO_RCVTIMEO).
+json run_ws_latency(const std::string& host, int port, const Protocol& p, std::size_t count,
+                    std::size_t warmup, double timeout_s) {
+  namespace ws = boost::beast::websocket;
+  boost::asio::io_context io;
+  WsStream stream(io);
+  connect_websocket(stream, host, port, timeout_s);
   stream.text(true);
   std::vector<std::int64_t> samples;
   samples.reserve(count);
@@ -294,19 +308,9 @@ json run_ws_latency(const std::string& host, int port, const Protocol& p, std::s
 json run_foxglove_latency(const std::string& host, int port, const Protocol& p, std::size_t count,
                           std::size_t warmup, double timeout_s) {
   namespace ws = boost::beast::websocket;
-  namespace http = boost::beast::http;
   boost::asio::io_context io;
-  ws::stream<boost::asio::ip::tcp::socket> stream(io);
-  stream.next_layer().connect(
-      {boost::asio::ip::make_address(host), static_cast<std::uint16_t>(port)});
-  stream.next_layer().set_option(boost::asio::ip::tcp::no_delay(true));
-  timeval tv{};
-  tv.tv_sec = static_cast<time_t>(timeout_s);
-  ::setsockopt(stream.next_layer().native_handle(), SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
-  stream.set_option(ws::stream_base::decorator([](ws::request_type& request) {
-    request.set(http::field::sec_websocket_protocol, "foxglove.websocket.v1");
-  }));
-  stream.handshake(host + ":" + std::to_string(port), "/");
+  WsStream stream(io);
+  connect_websocket(stream, host, port, timeout_s, "foxglove.websocket.v1");
   const auto deadline = Clock::now() + seconds(timeout_s);
   boost::beast::flat_buffer buffer;
   // the service's id, from advertiseServices
