@@ -212,6 +212,17 @@ Clock::duration seconds(double s) {
   return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s));
 }
 
+// What a latency run reports: the round trips' percentiles (µs), the wrong replies, the
+// first reply (what the harness shows when there are errors).
+json latency_result(std::vector<std::int64_t> samples, std::size_t errors,
+                    const std::string& first_reply) {
+  json out = simgate::bench::summarize_us(std::move(samples));
+  out["mode"] = "latency";
+  out["errors"] = errors;
+  out["first_reply"] = first_reply;
+  return out;
+}
+
 // One request outstanding: round-trip percentiles.
 json run_latency(const std::string& host, int port, const Protocol& p, std::size_t count,
                  std::size_t warmup, double timeout_s) {
@@ -236,11 +247,7 @@ json run_latency(const std::string& host, int port, const Protocol& p, std::size
     if (!p.reply_ok(line) || (p.echo && line + "\n" != request)) ++errors;
     if (i >= warmup) samples.push_back(simgate::bench::ns_between(t0, t1));
   }
-  json out = simgate::bench::summarize_us(std::move(samples));
-  out["mode"] = "latency";
-  out["errors"] = errors;
-  out["first_reply"] = first_reply;
-  return out;
+  return latency_result(std::move(samples), errors, first_reply);
 }
 
 using WsStream = boost::beast::websocket::stream<boost::asio::ip::tcp::socket>;
@@ -294,11 +301,7 @@ json run_ws_latency(const std::string& host, int port, const Protocol& p, std::s
   }
   boost::system::error_code ignored;
   stream.close(ws::close_code::normal, ignored);
-  json out = simgate::bench::summarize_us(std::move(samples));
-  out["mode"] = "latency";
-  out["errors"] = errors;
-  out["first_reply"] = first_reply;
-  return out;
+  return latency_result(std::move(samples), errors, first_reply);
 }
 
 // run_latency as a Foxglove client (--proto foxglove): a blocking Beast client; the service
@@ -363,11 +366,8 @@ json run_foxglove_latency(const std::string& host, int port, const Protocol& p, 
   }
   boost::system::error_code ignored;
   stream.close(ws::close_code::normal, ignored);
-  json out = simgate::bench::summarize_us(std::move(samples));
-  out["mode"] = "latency";
-  out["errors"] = errors;
-  out["first_reply"] = first_reply.size() > 17 ? first_reply.substr(17) : first_reply;
-  return out;
+  return latency_result(std::move(samples), errors,
+                        first_reply.size() > 17 ? first_reply.substr(17) : first_reply);
 }
 
 // --connections C, --window W in flight each, for --duration seconds after a warm-up (longer,
