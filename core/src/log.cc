@@ -7,6 +7,8 @@
 #include <ctime>
 #include <mutex>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace simgate::log {
 namespace {
@@ -14,6 +16,9 @@ namespace {
 std::atomic<Level> g_level{Level::info};
 std::mutex g_mutex;                                   // guards what follows, and stderr lines
 std::function<void(Level, std::string_view)> g_sink;  // empty: stderr
+// add_observer's, by handle
+std::vector<std::pair<std::uint64_t, std::function<void(Level, std::string_view)>>> g_observers;
+std::uint64_t g_next_observer = 1;
 
 // The token bucket of set_rate_limit (under g_mutex).
 struct RateLimit {
@@ -38,7 +43,7 @@ struct RateLimit {
 };
 RateLimit g_rate;
 
-void emit(Level level, std::string_view message) {
+void emit_to_sink(Level level, std::string_view message) {
   if (g_sink) {
     g_sink(level, message);
     return;
@@ -53,6 +58,11 @@ void emit(Level level, std::string_view message) {
   std::fprintf(stderr, "%02d:%02d:%02d.%03d %-7s %.*s\n", tm.tm_hour, tm.tm_min, tm.tm_sec,
                static_cast<int>(ms), to_string(level).data(), static_cast<int>(message.size()),
                message.data());
+}
+
+void emit(Level level, std::string_view message) {
+  emit_to_sink(level, message);
+  for (const auto& [handle, observer] : g_observers) observer(level, message);
 }
 
 }  // namespace
@@ -88,6 +98,17 @@ Level level() { return g_level; }
 void set_sink(std::function<void(Level, std::string_view)> sink) {
   std::lock_guard lock(g_mutex);
   g_sink = std::move(sink);
+}
+
+std::uint64_t add_observer(std::function<void(Level, std::string_view)> observer) {
+  std::lock_guard lock(g_mutex);
+  g_observers.emplace_back(g_next_observer, std::move(observer));
+  return g_next_observer++;
+}
+
+void remove_observer(std::uint64_t handle) {
+  std::lock_guard lock(g_mutex);
+  std::erase_if(g_observers, [handle](const auto& o) { return o.first == handle; });
 }
 
 void set_rate_limit(std::size_t burst, double per_second) {

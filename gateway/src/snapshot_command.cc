@@ -12,6 +12,7 @@
 #include <iostream>
 
 #include "commands.h"
+#include "simgate/core/base64.h"
 #include "simgate/core/errors.h"
 #include "simgate/gateway/gateway.h"
 #include "simgate/sim/image_codec.h"
@@ -84,7 +85,7 @@ int save(const SnapshotArgs& args, const json& record) {
                              record.dump().substr(0, 200));
   std::vector<std::uint8_t> png;
   try {
-    png = sim::base64_decode(record["image"].get<std::string>());
+    png = base64_decode(record["image"].get<std::string>());
   } catch (const std::invalid_argument& e) {
     throw std::runtime_error(std::string("the image received is not valid base64: ") + e.what());
   }

@@ -32,10 +32,29 @@ void FoxgloveServer::refresh_catalog() {
 }
 
 std::vector<FoxgloveServer::ChannelEntry> FoxgloveServer::read_channels() const {
-  std::vector<ChannelEntry> out;
+  // the log, always there
+  std::vector<ChannelEntry> out(1);
+  out[0].shape = Shape::log;
+  out[0].channel.topic = k_log_topic;
+  out[0].channel.schema_name = schema_name(SensorMessage::log);
+  out[0].channel.schema = dump(sensor_schema(SensorMessage::log));
   if (!stream_hub()) return out;
   for (const StreamInfo& info : stream_hub()->streams(transport_name())) {
     if (info.direction != StreamDirection::out) continue;
+    // a camera, a laser, an odometry, joints: in Foxglove's schemas, for its panels
+    const std::vector<SensorChannel> sensor = sensor_channels(info.kind);
+    for (const SensorChannel& c : sensor) {
+      ChannelEntry entry;
+      entry.component = info.component;
+      entry.shape = Shape::sensor;
+      entry.message = c.message;
+      entry.channel.topic = topic_of(info.component) + std::string(c.suffix);
+      entry.channel.schema_name = schema_name(c.message);
+      entry.channel.schema = dump(sensor_schema(c.message));
+      out.push_back(std::move(entry));
+    }
+    if (!sensor.empty()) continue;
+    // any other: the component's samples as they are, described by a schema of one
     ChannelEntry entry;
     entry.component = info.component;
     entry.channel.topic = topic_of(info.component);
@@ -88,6 +107,7 @@ void FoxgloveServer::apply_channels(std::vector<ChannelEntry> channels) {
                      [&](const ChannelEntry& c) { return c.channel.id == entry.channel.id; }))
       added.push_back(entry.channel);
   channels_ = std::move(channels);
+  for (std::uint32_t id : gone) sensor_cache_.erase(id);
   // subscriptions to a channel that is gone end with it
   if (!gone.empty()) {
     for_each_connection([&](kit::Connection& connection) {
@@ -97,7 +117,7 @@ void FoxgloveServer::apply_channels(std::vector<ChannelEntry> channels) {
           ++it;
           continue;
         }
-        stream_hub()->unsubscribe(it->second.stream);
+        if (it->second.stream) stream_hub()->unsubscribe(it->second.stream);
         it = client.subscriptions.erase(it);
       }
     });

@@ -83,6 +83,8 @@ void FoxgloveServer::start() {
             // outcomes produced on other threads are handed to this one
             deliver_on_this_thread([this] { asio::post(io_, [this] { flush_replies(); }); });
             listener_.start(std::move(handlers));
+            log_observer_ = log::add_observer(
+                [this](log::Level level, std::string_view text) { log_line(level, text); });
             refresh_catalog();
             tick_time();
           },
@@ -102,6 +104,7 @@ void FoxgloveServer::shutdown_io() {
   // a tick already due when the timer is cancelled still runs: it must not arm it again,
   // or the I/O thread never ends (FoxgloveGatewayTest.ItStopsWhileItsTimeTicks)
   stopping_ = true;
+  if (log_observer_ != 0) log::remove_observer(std::exchange(log_observer_, 0));
   time_timer_.cancel();
   listener_.close();
   close_all();
@@ -240,7 +243,8 @@ void FoxgloveServer::on_messages_done(kit::Connection& /*connection*/, bool /*re
 
 void FoxgloveServer::on_closed(kit::Connection& connection) {
   Client& client = static_cast<Client&>(connection);
-  for (auto& [id, sub] : client.subscriptions) stream_hub()->unsubscribe(sub.stream);
+  for (auto& [id, sub] : client.subscriptions)
+    if (sub.stream) stream_hub()->unsubscribe(sub.stream);
   client.subscriptions.clear();
   if (settings_.tcp.cancel_on_disconnect) {
     // its calls still running end: nobody waits for them
@@ -268,12 +272,24 @@ void FoxgloveServer::subscribe(Client& client, const Subscribe& request) {
     const auto entry = std::find_if(channels_.begin(), channels_.end(), [&](const ChannelEntry& c) {
       return c.channel.id == channel_id;
     });
+    if (entry != channels_.end() && entry->shape == Shape::log) {
+      client.subscriptions[id] = Client::Subscription{channel_id, Shape::log};
+      // the last lines first, then each as it comes
+      for (const auto& [time, text] : log_backlog_) queue_message(client, id, time, text);
+      continue;
+    }
     std::shared_ptr<StreamSubscription> stream;
-    if (entry != channels_.end() && stream_hub())
+    if (entry != channels_.end() && stream_hub()) {
+      // images: the newest only, a slow client never gets a backlog of them
+      const bool image = entry->shape == Shape::sensor &&
+                         entry->message != SensorMessage::laser_scan &&
+                         entry->message != SensorMessage::odometry &&
+                         entry->message != SensorMessage::joint_states;
       stream = stream_hub()->subscribe(
           entry->component, transport_name(),
-          SubscriberOptions{settings_.stream_queue, "foxglove " + client.label(),
+          SubscriberOptions{image ? 1 : settings_.stream_queue, "foxglove " + client.label(),
                             [this] { wake_streams(); }});
+    }
     if (!stream) {
       std::vector<std::string> ids;
       for (const auto& c : channels_)
@@ -283,7 +299,8 @@ void FoxgloveServer::subscribe(Client& client, const Subscribe& request) {
                    " (channels: " + (ids.empty() ? std::string("none") : join(ids)) + ")");
       continue;
     }
-    client.subscriptions[id] = Client::Subscription{channel_id, entry->shape, std::move(stream)};
+    client.subscriptions[id] =
+        Client::Subscription{channel_id, entry->shape, std::move(stream), entry->message};
   }
 }
 
@@ -295,7 +312,7 @@ void FoxgloveServer::unsubscribe(Client& client, const Unsubscribe& request) {
                "unsubscribe: no subscription " + std::to_string(id) + " on this connection");
       continue;
     }
-    stream_hub()->unsubscribe(it->second.stream);
+    if (it->second.stream) stream_hub()->unsubscribe(it->second.stream);
     client.subscriptions.erase(it);
   }
 }
@@ -361,25 +378,33 @@ void FoxgloveServer::drain_streams() {
     std::uint64_t latest = 0;
     for (auto it = client.subscriptions.begin(); it != client.subscriptions.end();) {
       auto& [id, sub] = *it;
+      if (!sub.stream) {  // the log's: drain_log sends its lines
+        ++it;
+        continue;
+      }
       samples_.clear();
       sub.stream->take(samples_);
       std::uint64_t lost = 0;
-      for (const SamplePtr& sample : samples_) {
-        const std::uint64_t ns = to_nanoseconds(sample->time());
-        latest = std::max(latest, ns);
-        std::string converted;
-        if (sub.shape != Shape::sample) {
-          converted = convert(sub.shape, *sample, sub.scene_sent);
-          if (converted.empty()) continue;
-        }
-        const std::string& text = sub.shape == Shape::sample ? sample->text() : converted;
-        const bool queued = client.queue_droppable_with([&, id = id](std::string& out) {
-          kit::WebSocketConnection::append_frame_head(out, kit::FrameParser::k_binary,
-                                                      k_message_data_head_bytes + text.size());
-          append_message_data_head(out, id, ns);
-          out += text;
+      const ChannelEntry* sensor = nullptr;
+      if (sub.shape == Shape::sensor) {
+        const auto entry = std::find_if(channels_.begin(), channels_.end(), [&](const auto& c) {
+          return c.channel.id == sub.channel_id;
         });
-        if (!queued) ++lost;
+        if (entry != channels_.end()) sensor = &*entry;
+      }
+      for (const SamplePtr& sample : samples_) {
+        latest = std::max(latest, to_nanoseconds(sample->time()));
+        std::string converted;
+        const std::string* text = &converted;
+        if (sub.shape == Shape::sample) {
+          text = &sample->text();
+        } else if (sub.shape == Shape::sensor) {
+          if (sensor) text = &convert_sensor(*sensor, *sample);
+        } else {
+          converted = convert(sub.shape, *sample, sub.scene_sent);
+        }
+        if (text->empty()) continue;
+        if (!queue_message(client, id, sample->time(), *text)) ++lost;
       }
       sub.stream->note_dropped(lost);
       if (sub.stream->closed()) {
@@ -395,7 +420,7 @@ void FoxgloveServer::drain_streams() {
   if (geometry_wanted_) {
     geometry_wanted_ = false;
     for (const auto& c : channels_)
-      if (c.shape != Shape::sample) {
+      if (c.shape == Shape::frame_transforms || c.shape == Shape::scene_update) {
         request_geometry(c.component);
         break;
       }
@@ -417,6 +442,61 @@ std::string FoxgloveServer::convert(Shape shape, const StreamSample& sample,
   if (scene_sent == generation) return {};  // the entities stay until the model changes
   scene_sent = generation;
   return scene_update(geometry_, frames_);
+}
+
+const std::string& FoxgloveServer::convert_sensor(const ChannelEntry& entry,
+                                                  const StreamSample& sample) {
+  SensorCache& cache = sensor_cache_[entry.channel.id];
+  if (cache.seq == sample.seq()) return cache.text;
+  cache.seq = sample.seq();
+  cache.text = sensor_message(entry.message, sample, entry.component, cache.arc);
+  if (cache.text.empty())
+    log::debug(name(), ": ", entry.channel.topic, ": sample ", sample.seq(), " is not of ",
+               entry.channel.schema_name, "'s shape; skipped");
+  return cache.text;
+}
+
+bool FoxgloveServer::queue_message(Client& client, std::uint32_t subscription, double time,
+                                   const std::string& text) {
+  const std::uint64_t ns = to_nanoseconds(time);
+  return client.queue_droppable_with([&](std::string& out) {
+    kit::WebSocketConnection::append_frame_head(out, kit::FrameParser::k_binary,
+                                                k_message_data_head_bytes + text.size());
+    append_message_data_head(out, subscription, ns);
+    out += text;
+  });
+}
+
+void FoxgloveServer::log_line(log::Level level, std::string_view text) {
+  // any thread, under the logger's lock: keep it, wake the I/O thread
+  const double time = stream_hub() ? stream_hub()->time() : 0;
+  {
+    std::lock_guard lock(log_mutex_);
+    if (log_incoming_.size() >= k_log_backlog) log_incoming_.erase(log_incoming_.begin());
+    log_incoming_.emplace_back(time, log_message(time, level, text));
+  }
+  if (log_woken_.exchange(true, std::memory_order_acq_rel)) return;
+  asio::post(io_, [this] { drain_log(); });
+}
+
+void FoxgloveServer::drain_log() {
+  log_woken_.store(false, std::memory_order_release);
+  std::vector<std::pair<double, std::string>> lines;
+  {
+    std::lock_guard lock(log_mutex_);
+    lines.swap(log_incoming_);
+  }
+  for_each_connection([&](kit::Connection& connection) {
+    Client& client = static_cast<Client&>(connection);
+    for (const auto& [id, sub] : client.subscriptions)
+      if (sub.shape == Shape::log)
+        for (const auto& [time, text] : lines) queue_message(client, id, time, text);
+  });
+  for (auto& line : lines) {
+    if (log_backlog_.size() >= k_log_backlog) log_backlog_.pop_front();
+    log_backlog_.push_back(std::move(line));
+  }
+  flush_touched();
 }
 
 void FoxgloveServer::request_geometry(const std::string& component) {

@@ -41,7 +41,9 @@
 
 #include <atomic>
 #include <cstdint>
+#include <deque>
 #include <map>
+#include <mutex>
 #include <memory>
 #include <optional>
 #include <set>
@@ -54,9 +56,11 @@
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/steady_timer.hpp>
 
+#include "simgate/core/log.h"
 #include "simgate/core/request_manager.h"
 #include "simgate/foxglove/protocol.h"
 #include "simgate/foxglove/scene.h"
+#include "simgate/foxglove/sensors.h"
 #include "simgate/kit/tcp_server.h"
 #include "simgate/kit/websocket_connection.h"
 
@@ -64,6 +68,8 @@ namespace simgate::foxglove {
 
 // Foxglove's default port.
 inline constexpr std::uint16_t k_default_port = 8765;
+// The log's channel (foxglove.Log).
+inline constexpr const char* k_log_topic = "/log";
 
 class FoxgloveServer : public RequestManager, private kit::WebSocketServer {
  public:
@@ -92,14 +98,22 @@ class FoxgloveServer : public RequestManager, private kit::WebSocketServer {
     static Settings parse(const json& options);
   };
   class Client;
-  // What a channel's messages are made of: the stream's samples as they are, or the
-  // simulation's body_poses samples in Foxglove's schemas (scene.h).
-  enum class Shape : std::uint8_t { sample, frame_transforms, scene_update };
+  // What a channel's messages are made of: the stream's samples as they are, the
+  // simulation's body_poses samples in Foxglove's schemas (scene.h), a sensor's samples in
+  // one of Foxglove's schemas (sensors.h), or the log's lines (no stream).
+  enum class Shape : std::uint8_t { sample, frame_transforms, scene_update, sensor, log };
   // A channel as advertised: the stream's component, its shape and what clients were told.
   struct ChannelEntry {
     std::string component;
     Shape shape = Shape::sample;
+    SensorMessage message = SensorMessage::log;  // Shape::sensor: which message
     Channel channel;
+  };
+  // A sensor channel's last message, made once for every subscriber, and its laser's arc.
+  struct SensorCache {
+    std::uint64_t seq = 0;  // the sample it was made of (0: none)
+    std::string text;       // "": the sample had not the message's shape
+    LaserArc arc;
   };
   // Where a service call's answer goes.
   struct PendingCall {
@@ -170,11 +184,22 @@ class FoxgloveServer : public RequestManager, private kit::WebSocketServer {
   // ---- samples and time (I/O thread, woken by the core)
   void wake_streams();
   void drain_streams();
-  // The message a `shape` channel sends for `sample` ("": none now); `scene_sent`: the model
-  // generation the subscription's client last got a scene of.
+  // The message a /tf or /scene channel sends for `sample` ("": none now); `scene_sent`: the
+  // model generation the subscription's client last got a scene of.
   std::string convert(Shape shape, const StreamSample& sample, std::uint64_t& scene_sent);
+  // The message sensor channel `entry` sends for `sample` (made once for every subscriber;
+  // "": none).
+  const std::string& convert_sensor(const ChannelEntry& entry, const StreamSample& sample);
+  // The log: lines come on any thread (log_line, a log observer), the I/O thread sends them to
+  // /log's subscribers (drain_log) and keeps the last k_log_backlog for new ones.
+  void log_line(log::Level level, std::string_view text);
+  void drain_log();
   // Asks the simulation for its scene (get_scene_geometry) unless a request is under way.
   void request_geometry(const std::string& component);
+  // Queues a Message Data of subscription `subscription`, its log time `time` (simulated s);
+  // false when the client's budget dropped it.
+  bool queue_message(Client& client, std::uint32_t subscription, double time,
+                     const std::string& text);
   // A Time message to `client` if the simulated time moved since it was told.
   void send_time(Client& client, std::uint64_t time_ns);
   void tick_time();
@@ -199,6 +224,15 @@ class FoxgloveServer : public RequestManager, private kit::WebSocketServer {
   std::unordered_map<RequestId, PendingCall> pending_;  // calls not answered yet
   std::vector<std::pair<RequestId, Call>> calls_;       // read, not yet run
   std::vector<SamplePtr> samples_;                      // drain's buffer
+  std::map<std::uint32_t, SensorCache> sensor_cache_;   // by channel id
+  // the log channel's lines: those not yet sent (any thread, under log_mutex_), and the last
+  // ones sent (I/O thread), each {simulated time, foxglove.Log text}
+  static constexpr std::size_t k_log_backlog = 100;
+  std::mutex log_mutex_;
+  std::vector<std::pair<double, std::string>> log_incoming_;
+  std::deque<std::pair<double, std::string>> log_backlog_;
+  std::atomic<bool> log_woken_{false};  // a drain_log is posted
+  std::uint64_t log_observer_ = 0;      // log::add_observer's handle (0: none)
   // the scene the /tf and /scene channels are made from (get_scene_geometry's answer)
   json geometry_;
   SceneFrames frames_;

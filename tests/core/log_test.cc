@@ -52,5 +52,26 @@ TEST_F(LogRateLimitTest, ABurstOfZeroMeansNoLimit) {
   EXPECT_EQ(lines_.size(), 5000u);
 }
 
+TEST_F(LogRateLimitTest, ObserversSeeWhatTheSinkGetsUntilTheyAreRemoved) {
+  std::vector<std::string> seen;
+  const std::uint64_t handle = log::add_observer([&](log::Level level, std::string_view message) {
+    seen.push_back(std::string(log::to_string(level)) + " " + std::string(message));
+  });
+  log::debug("not asked for");  // below the level: neither the sink nor the observer
+  log::warning("a wheel slips");
+  log::set_rate_limit(1, 1e-6);
+  log::info("passes");
+  log::info("suppressed");  // cut by the rate limit: neither
+  log::set_rate_limit(0, 0);
+  log::error("and the note of what was cut before it");
+  log::remove_observer(handle);
+  log::error("after the removal");
+  EXPECT_EQ(seen,
+            (std::vector<std::string>{"warning a wheel slips", "info passes",
+                                      "warning log: 1 lines suppressed (more than 0 a second)",
+                                      "error and the note of what was cut before it"}));
+  EXPECT_EQ(lines_.size(), 5u);  // the sink: the same four, and the line after the removal
+}
+
 }  // namespace
 }  // namespace simgate

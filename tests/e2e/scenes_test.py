@@ -35,6 +35,7 @@ import sys
 import tempfile
 import time
 import unittest
+import urllib.parse
 import zlib
 import warnings
 
@@ -96,7 +97,8 @@ class Gateway:
             time.sleep(0.01)  # polling for a file the child writes; bounded by the deadline
         with open(self.endpoints_path) as f:
             endpoints = json.load(f)  # {"socket": ["tcp://127.0.0.1:PORT"], ...}
-        self.ports = {name: int(e[0].rsplit(":", 1)[1]) for name, e in endpoints.items()}
+        # "tcp://127.0.0.1:4000", "ws://127.0.0.1:8765/"
+        self.ports = {name: urllib.parse.urlsplit(e[0]).port for name, e in endpoints.items()}
 
     def output(self):
         self.log.flush()

@@ -6,22 +6,19 @@
 
 #include "simgate/foxglove/protocol.h"
 
+#include "parts.h"
+
 namespace simgate::foxglove {
 
 namespace {
 
-// Simulated seconds as Foxglove's {sec, nsec}.
-json timestamp(double seconds) {
-  if (!(seconds > 0)) return json{{"sec", 0}, {"nsec", 0}};
-  const double whole = std::floor(seconds);
-  auto nsec = static_cast<std::int64_t>(std::llround((seconds - whole) * 1e9));
-  auto sec = static_cast<std::int64_t>(whole);
-  if (nsec >= 1'000'000'000) {
-    ++sec;
-    nsec -= 1'000'000'000;
-  }
-  return json{{"sec", sec}, {"nsec", nsec}};
-}
+using parts::array_of;
+using parts::at;
+using parts::numbers_schema;
+using parts::pose_schema;
+using parts::time_schema;
+using parts::timestamp;
+using parts::vector3;
 
 // A model generation: a non-negative integer, whichever way JSON holds it.
 std::optional<std::uint64_t> generation_of(const json& object) {
@@ -30,13 +27,6 @@ std::optional<std::uint64_t> generation_of(const json& object) {
     return std::nullopt;
   return g->get<std::uint64_t>();
 }
-
-// The number `v[i]`, or `fallback` when it is not one.
-double at(const json& v, std::size_t i, double fallback = 0) {
-  return v.is_array() && i < v.size() && v[i].is_number() ? v[i].get<double>() : fallback;
-}
-
-json vector3(double x, double y, double z) { return json{{"x", x}, {"y", y}, {"z", z}}; }
 
 // A MuJoCo pos [x, y, z] and quat [w, x, y, z] as Foxglove's pose.
 json pose(const json& pos, const json& quat) {
@@ -132,34 +122,6 @@ bool add_geom(json& e, const json& g, const json& meshes) {
   return true;
 }
 
-json time_schema() {
-  return json{{"type", "object"},
-              {"properties",
-               {{"sec", {{"type", "integer"}, {"minimum", 0}}},
-                {"nsec", {{"type", "integer"}, {"minimum", 0}, {"maximum", 999999999}}}}},
-              {"required", {"sec", "nsec"}}};
-}
-
-json xyz_schema(std::initializer_list<const char*> keys) {
-  json properties = json::object();
-  json required = json::array();
-  for (const char* k : keys) {
-    properties[k] = json{{"type", "number"}};
-    required.push_back(k);
-  }
-  return json{{"type", "object"}, {"properties", properties}, {"required", required}};
-}
-
-json pose_schema() {
-  return json{{"type", "object"},
-              {"properties",
-               {{"position", xyz_schema({"x", "y", "z"})},
-                {"orientation", xyz_schema({"x", "y", "z", "w"})}}},
-              {"required", {"position", "orientation"}}};
-}
-
-json array_of(json items) { return json{{"type", "array"}, {"items", std::move(items)}}; }
-
 }  // namespace
 
 SceneFrames SceneFrames::from_geometry(const json& geometry) {
@@ -184,8 +146,8 @@ json frame_transforms_schema() {
        {{"timestamp", time_schema()},
         {"parent_frame_id", {{"type", "string"}}},
         {"child_frame_id", {{"type", "string"}}},
-        {"translation", xyz_schema({"x", "y", "z"})},
-        {"rotation", xyz_schema({"x", "y", "z", "w"})}}},
+        {"translation", numbers_schema({"x", "y", "z"})},
+        {"rotation", numbers_schema({"x", "y", "z", "w"})}}},
       {"required", {"timestamp", "parent_frame_id", "child_frame_id", "translation", "rotation"}}};
   return json{{"title", k_frame_transforms},
               {"description", "Every body's world pose (simgate: the simulation's body_poses)"},
@@ -195,12 +157,13 @@ json frame_transforms_schema() {
 }
 
 json scene_update_schema() {
-  const json colour_schema = xyz_schema({"r", "g", "b", "a"});
-  const json shape{
-      {"type", "object"},
-      {"properties",
-       {{"pose", pose_schema()}, {"size", xyz_schema({"x", "y", "z"})}, {"color", colour_schema}}},
-      {"required", {"pose", "size", "color"}}};
+  const json colour_schema = numbers_schema({"r", "g", "b", "a"});
+  const json shape{{"type", "object"},
+                   {"properties",
+                    {{"pose", pose_schema()},
+                     {"size", numbers_schema({"x", "y", "z"})},
+                     {"color", colour_schema}}},
+                   {"required", {"pose", "size", "color"}}};
   json cylinder = shape;
   cylinder["properties"]["bottom_scale"] = json{{"type", "number"}};
   cylinder["properties"]["top_scale"] = json{{"type", "number"}};
@@ -208,7 +171,7 @@ json scene_update_schema() {
   const json triangles{{"type", "object"},
                        {"properties",
                         {{"pose", pose_schema()},
-                         {"points", array_of(xyz_schema({"x", "y", "z"}))},
+                         {"points", array_of(numbers_schema({"x", "y", "z"}))},
                          {"color", colour_schema},
                          {"colors", array_of(colour_schema)},
                          {"indices", array_of(json{{"type", "integer"}, {"minimum", 0}})}}},

@@ -6,6 +6,7 @@
 #define SIMGATE_CORE_LOG_H_
 
 #include <cstddef>
+#include <cstdint>
 #include <functional>
 #include <sstream>
 #include <string>
@@ -30,6 +31,13 @@ using simgate::quoted_prefix;
 
 // Replaces the sink (default: one line per message on stderr). Empty restores the default.
 void set_sink(std::function<void(Level, std::string_view)> sink);
+
+// Observers see every line the sink gets, after it (a transport's log channel: Foxglove's
+// /log). Each is called on the thread that logs, under the logger's lock: it must be quick,
+// must not block and must not log. add_observer returns the handle remove_observer takes;
+// once remove_observer returns, that observer is never called again.
+std::uint64_t add_observer(std::function<void(Level, std::string_view)> observer);
+void remove_observer(std::uint64_t handle);
 
 // Lines at info level and above pass at most `burst` at once and `per_second` on average
 // (a token bucket; defaults 200 and 50): a flood (20 000 refused connections, a client

@@ -3,8 +3,7 @@
 // encode_png writes a PNG file (W3C PNG, 2nd edition) of one image: 8-bit RGB (colour
 // type 2) or 16-bit grayscale (colour type 0), no interlace, deflate-compressed by zlib
 // with filter type None on every row. Rows are given top row first, as PNG stores them.
-// base64_encode (and base64_decode, for clients) is RFC 4648's base64 (standard alphabet, '='
-// padding, no line breaks), how MORSE's cameras put their images into JSON.
+// The PNG goes into JSON as base64 (simgate/core/base64.h), as MORSE's cameras put theirs.
 //
 // Pure functions, no MuJoCo: callable from any thread (the render thread encodes).
 #ifndef SIMGATE_SIM_IMAGE_CODEC_H_
@@ -16,6 +15,8 @@
 #include <string_view>
 #include <vector>
 
+#include "simgate/core/base64.h"
+
 namespace simgate::sim {
 
 // A PNG of `width` x `height` 8-bit RGB pixels (3 bytes per pixel, rows top first).
@@ -25,13 +26,6 @@ std::vector<std::uint8_t> encode_png_rgb8(std::span<const std::uint8_t> rgb, int
 // file stores them big-endian as PNG requires).
 std::vector<std::uint8_t> encode_png_gray16(std::span<const std::uint16_t> gray, int width,
                                             int height);
-
-// RFC 4648 base64 of `bytes`.
-std::string base64_encode(std::span<const std::uint8_t> bytes);
-// The bytes of RFC 4648 base64 text (standard alphabet, '=' padding, no line breaks).
-// Throws std::invalid_argument on a character outside the alphabet or a length that is
-// not a multiple of 4.
-std::vector<std::uint8_t> base64_decode(std::string_view text);
 
 }  // namespace simgate::sim
 

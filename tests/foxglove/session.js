@@ -1,0 +1,122 @@
+// What the foxglove transport's end-to-end tests share (foxglove_client_test.js,
+// foxglove_sensors_test.js): npm's packages (or exit 77 without them), the gateway started
+// as a child, and a Session: @foxglove/ws-protocol's FoxgloveClient recording what the
+// server tells it.
+'use strict';
+
+const path = require('path');
+const { spawn } = require('child_process');
+
+let FoxgloveClient, WebSocket, Ajv, foxgloveSchemas;
+try {
+  ({ FoxgloveClient } = require(path.join(__dirname, 'node_modules', '@foxglove', 'ws-protocol')));
+  foxgloveSchemas = require(path.join(__dirname, 'node_modules', '@foxglove', 'schemas', 'jsonschema'));
+  WebSocket = require(path.join(__dirname, 'node_modules', 'ws'));
+  Ajv = require(path.join(__dirname, 'node_modules', 'ajv'));
+} catch (e) {
+  console.log('SKIP: the npm packages are not installed (npm install in tests/foxglove): ' + e.message);
+  process.exit(77);
+}
+
+const STEP_TIMEOUT_MS = 10000;
+
+const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+
+function withTimeout(promise, what, ms = STEP_TIMEOUT_MS) {
+  let timer;
+  const timeout = new Promise((_, reject) => {
+    timer = setTimeout(() => reject(new Error(`${what}: nothing within ${ms} ms`)), ms);
+  });
+  return Promise.race([promise, timeout]).finally(() => clearTimeout(timer));
+}
+
+function check(condition, what) {
+  if (!condition) throw new Error('check failed: ' + what);
+}
+
+function startGateway(argv) {
+  const child = spawn(argv[0], argv.slice(1), { stdio: ['ignore', 'pipe', 'inherit'] });
+  const url = new Promise((resolve, reject) => {
+    let out = '';
+    child.stdout.on('data', (chunk) => {
+      out += chunk.toString();
+      const m = out.match(/foxglove: (ws:\/\/127\.0\.0\.1:\d+\/)/);
+      if (m) resolve(m[1]);
+    });
+    child.on('exit', (code) => reject(new Error(`simgate exited early with code ${code}`)));
+    child.on('error', reject);
+  });
+  return { child, url: withTimeout(url, 'simgate start', 60000) };
+}
+
+// A connected FoxgloveClient that records what the server tells it.
+class Session {
+  constructor(url, subprotocol) {
+    this.ws = new WebSocket(url, [subprotocol]);
+    this.client = new FoxgloveClient({ ws: this.ws });
+    this.channels = new Map(); // id -> channel
+    this.services = new Map(); // id -> service
+    this.statuses = [];
+    this.times = [];
+    this.messages = new Map(); // subscription id -> [{timestamp, data}]
+    this.responses = new Map(); // call id -> {ok, data|message}
+    this.waiters = [];
+    const c = this.client;
+    c.on('serverInfo', (info) => { this.info = info; this.poke(); });
+    c.on('advertise', (list) => { for (const ch of list) this.channels.set(ch.id, ch); this.poke(); });
+    c.on('unadvertise', (ids) => { for (const id of ids) this.channels.delete(id); this.poke(); });
+    c.on('advertiseServices', (list) => { for (const s of list) this.services.set(s.id, s); this.poke(); });
+    c.on('unadvertiseServices', (ids) => { for (const id of ids) this.services.delete(id); this.poke(); });
+    c.on('status', (s) => { this.statuses.push(s); this.poke(); });
+    this.parameterValues = [];
+    c.on('parameterValues', (m) => { this.parameterValues.push(m); this.poke(); });
+    c.on('time', (t) => { this.times.push(t.timestamp); this.poke(); });
+    c.on('message', (m) => {
+      if (!this.messages.has(m.subscriptionId)) this.messages.set(m.subscriptionId, []);
+      this.messages.get(m.subscriptionId).push({ timestamp: m.timestamp, data: Buffer.from(m.data.buffer, m.data.byteOffset, m.data.byteLength).toString() });
+      this.poke();
+    });
+    c.on('serviceCallResponse', (r) => {
+      this.responses.set(r.callId, { ok: true, encoding: r.encoding, data: Buffer.from(r.data.buffer, r.data.byteOffset, r.data.byteLength).toString() });
+      this.poke();
+    });
+    c.on('serviceCallFailure', (f) => { this.responses.set(f.callId, { ok: false, message: f.message }); this.poke(); });
+    c.on('error', (e) => { this.error = e; this.poke(); });
+    c.on('close', () => { this.closed = true; this.poke(); });
+    this.nextCall = 1;
+  }
+  poke() {
+    const waiting = this.waiters;
+    this.waiters = [];
+    for (const w of waiting) if (!w()) this.waiters.push(w);
+  }
+  until(predicate, what, ms) {
+    return withTimeout(new Promise((resolve) => {
+      const w = () => { if (predicate()) { resolve(); return true; } return false; };
+      if (!w()) this.waiters.push(w);
+    }), what, ms);
+  }
+  channel(topic) { return [...this.channels.values()].find((c) => c.topic === topic); }
+  service(name) { return [...this.services.values()].find((s) => s.name === name); }
+  async call(name, request, encoding = 'json') {
+    const service = this.service(name);
+    check(service, `service ${name} is advertised (have: ${[...this.services.values()].map((s) => s.name).join(', ')})`);
+    return this.callId(service.id, request, encoding, name);
+  }
+  async callId(serviceId, request, encoding = 'json', what = `service ${serviceId}`) {
+    const callId = this.nextCall++;
+    const data = typeof request === 'string' ? request : JSON.stringify(request);
+    this.client.sendServiceCallRequest({ serviceId, callId, encoding, data: new TextEncoder().encode(data) });
+    await this.until(() => this.responses.has(callId), `the answer of ${what}`);
+    return this.responses.get(callId);
+  }
+  async statusAfter(send, what) {
+    const before = this.statuses.length;
+    send();
+    await this.until(() => this.statuses.length > before, `a status message for ${what}`);
+    return this.statuses[before];
+  }
+  close() { this.client.close(); }
+}
+
+module.exports = { FoxgloveClient, WebSocket, Ajv, foxgloveSchemas, withTimeout, check, startGateway, Session, sleep };
