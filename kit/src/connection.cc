@@ -273,6 +273,12 @@ void Connection::finish(std::string_view reason) {
   server_.closed(*this);
 }
 
+bool Connection::present_token(std::string_view token) {
+  if (server_.auth_.enabled && !server_.auth_.accepts(token)) return false;
+  authenticated_ = true;
+  return true;
+}
+
 void Connection::close(std::string_view reason) {
   if (shut_) return;
   finish(reason);

@@ -42,6 +42,45 @@ std::string plain_http_response(const HttpRequest& request, http::status status,
   return out.str();
 }
 
+std::optional<std::string> upgrade_token(const HttpRequest& request) {
+  if (auto it = request.find(http::field::authorization); it != request.end()) {
+    const std::string_view value(it->value().data(), it->value().size());
+    constexpr std::string_view k_bearer = "Bearer ";
+    if (value.size() > k_bearer.size() && value.substr(0, k_bearer.size()) == k_bearer)
+      return std::string(value.substr(k_bearer.size()));
+  }
+  const std::string_view target(request.target().data(), request.target().size());
+  const std::size_t query = target.find('?');
+  if (query == std::string_view::npos) return std::nullopt;
+  std::string_view rest = target.substr(query + 1);
+  while (!rest.empty()) {
+    const std::size_t end = rest.find('&');
+    const std::string_view parameter = rest.substr(0, end);
+    rest = end == std::string_view::npos ? std::string_view() : rest.substr(end + 1);
+    if (!parameter.starts_with("token=")) continue;
+    // percent-decoded; '+' is a plus (tokens have no spaces)
+    const std::string_view value = parameter.substr(6);
+    std::string token;
+    for (std::size_t i = 0; i < value.size(); ++i) {
+      const auto hex = [](char c) {
+        return c >= '0' && c <= '9'   ? c - '0'
+               : c >= 'a' && c <= 'f' ? c - 'a' + 10
+               : c >= 'A' && c <= 'F' ? c - 'A' + 10
+                                      : -1;
+      };
+      if (value[i] == '%' && i + 2 < value.size() && hex(value[i + 1]) >= 0 &&
+          hex(value[i + 2]) >= 0) {
+        token.push_back(static_cast<char>(hex(value[i + 1]) * 16 + hex(value[i + 2])));
+        i += 2;
+      } else {
+        token.push_back(value[i]);
+      }
+    }
+    return token;
+  }
+  return std::nullopt;
+}
+
 WebSocketOptions WebSocketOptions::take(json& options) {
   WebSocketOptions s;
   s.origins = OriginPolicy::take(options);
@@ -108,7 +147,11 @@ void WebSocketConnection::on_request(const error_code& ec) {
     return;
   }
   const bool upgrade = ws::is_upgrade(parser_->get());
-  if (upgrade) http_response_ = HttpResponse{host_.refuse_upgrade(parser_->get())};
+  if (upgrade) {
+    http_response_ = HttpResponse{authenticate_upgrade(parser_->get())};
+    if (http_response_.head.empty())
+      http_response_ = HttpResponse{host_.refuse_upgrade(parser_->get())};
+  }
   if (!upgrade || !http_response_.head.empty()) {
     // plain HTTP, or a refused upgrade: the host's answer, then the connection closes
     if (!upgrade) http_response_ = host_.on_http_request(parser_->get());
@@ -133,6 +176,19 @@ void WebSocketConnection::on_request(const error_code& ec) {
   parser_.reset();
   upgrade_->async_accept(request,
                          [self = shared_self()](const error_code& ec) { self->on_upgraded(ec); });
+}
+
+std::string WebSocketConnection::authenticate_upgrade(const HttpRequest& request) {
+  const std::optional<std::string> token = upgrade_token(request);
+  if (token ? present_token(*token) : (authenticated() || host_.login_after_upgrade())) return {};
+  log::warning(label(), ": WebSocket upgrade refused: ",
+               token ? "a wrong token" : "no token (the transport's \"auth\" requires one)");
+  return plain_http_response(
+      request, http::status::unauthorized,
+      token ? "simgate: wrong token\n"
+            : "simgate: this transport requires a token: ws://HOST:PORT/?token=TOKEN, or the "
+              "header Authorization: Bearer TOKEN (docs/security.md)\n",
+      "simgate");
 }
 
 void WebSocketConnection::on_upgraded(const error_code& ec) {

@@ -32,11 +32,6 @@ FoxgloveServer::Settings FoxgloveServer::Settings::parse(const json& options) {
   s.stream_queue = static_cast<std::size_t>(config.get_int("stream_queue", 4, 1, 1024));
   s.time_hz = config.get_number("time_hz", 30, 0, 1000);
   s.tcp.finish(config);
-  if (s.tcp.auth.enabled)
-    throw ConfigError(
-        "auth: the foxglove transport takes no token yet (Foxglove's protocol has no login): keep "
-        "it on 127.0.0.1 (the default), or reach it through an SSH tunnel "
-        "(docs/transports/foxglove.md)");
   return s;
 }
 
@@ -612,4 +607,4 @@ SIMGATE_TRANSPORT_PLUGIN(foxglove, simgate::foxglove::FoxgloveServer, "0.1.0", "
                          "max_unsent_bytes", "max_buffered_bytes", "max_in_flight", "io_spin_us",
                          "on_disconnect", "global_policy", "idle_timeout_s", "idle_evict_s",
                          "line_timeout_s", "progress_interval_ms", "allowed_origins", "keepalive_s",
-                         "stream_queue", "time_hz")
+                         "auth", "stream_queue", "time_hz")

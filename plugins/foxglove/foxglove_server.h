@@ -27,7 +27,8 @@
 //     reused subscription id, a bad binary opcode): a status message saying what was wrong;
 //     the connection and every other client go on.
 //
-// Options: the kit's (kit::TcpOptions: host, port 8765, limits, timeouts; not auth yet), every
+// Options: the kit's (kit::TcpOptions: host, port 8765, limits, timeouts, auth: the token
+// in the upgrade, see login_after_upgrade), every
 // WebSocket transport's (kit::WebSocketOptions: allowed_origins, keepalive_s), and
 // `stream_queue` (samples kept per subscription, 4: a slow client gets the newest, never a
 // backlog), `time_hz` (Time messages per wall second between samples, 30; 0: only with
@@ -138,6 +139,9 @@ class FoxgloveServer : public RequestManager, private kit::WebSocketServer {
   kit::HttpResponse on_http_request(const kit::HttpRequest& request) override;
   std::string refuse_upgrade(const kit::HttpRequest& request) override;
   std::string subprotocol(const kit::HttpRequest& request) const override;
+  // Foxglove's protocol has no login: a client the "auth" option asks a token of presents
+  // it in the upgrade (ws://host:8765/?token=..., or Authorization: Bearer), else 401.
+  bool login_after_upgrade() const override { return false; }
 
   void accept(boost::asio::ip::tcp::socket socket);
   void shutdown_io();

@@ -326,6 +326,15 @@ TEST_F(WebSocketAuthTest, CallsNeedRpcLoginFirst) {
   EXPECT_EQ(client_->call(request(3, "spec.subtract", json::array({3, 1})))["result"], 2);
 }
 
+TEST_F(WebSocketAuthTest, ATokenInTheUpgradeLogsInAndAWrongOneIsRefused) {
+  // what a browser's WebSocket can send: the token in the URL, no rpc.login needed
+  WsClient in(host_->port(), std::chrono::milliseconds(10000), 0, "",
+              std::string("/?token=") + k_token);
+  EXPECT_EQ(in.call(request(1, "spec.subtract", json::array({3, 1})))["result"], 2);
+  EXPECT_THROW(WsClient(host_->port(), std::chrono::milliseconds(10000), 0, "", "/?token=wrong"),
+               boost::system::system_error);
+}
+
 TEST_F(WebSocketAuthTest, AWrongTokenIsAnsweredThenClosedWithAReason) {
   json r = client_->call(request(1, "rpc.login", {{"token", "wrong"}}));
   EXPECT_EQ(error_code(r), -32005) << r.dump();

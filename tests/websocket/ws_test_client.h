@@ -38,10 +38,12 @@ class WsClient {
  public:
   // Connects to 127.0.0.1:`port` and upgrades; throws boost::system::system_error.
   // `receive_buffer` (bytes, 0: the system's) is set before connecting: the window it offers.
-  // `origin` (non-empty): the Origin header a browser would send with the upgrade.
+  // `origin` (non-empty): the Origin header a browser would send with the upgrade; `target`:
+  // the request's ("/?token=...").
   explicit WsClient(std::uint16_t port,
                     std::chrono::milliseconds timeout = std::chrono::milliseconds(10000),
-                    int receive_buffer = 0, const std::string& origin = "")
+                    int receive_buffer = 0, const std::string& origin = "",
+                    const std::string& target = "/")
       : ws_(io_) {
     boost::asio::ip::tcp::endpoint endpoint(boost::asio::ip::make_address("127.0.0.1"), port);
     if (receive_buffer > 0) {
@@ -60,7 +62,7 @@ class WsClient {
           [origin](boost::beast::websocket::request_type& request) {
             request.set("Origin", origin);
           }));
-    ws_.handshake("127.0.0.1:" + std::to_string(port), "/");
+    ws_.handshake("127.0.0.1:" + std::to_string(port), target);
   }
 
   // One text message.

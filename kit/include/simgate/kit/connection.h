@@ -185,6 +185,9 @@ class Connection : public std::enable_shared_from_this<Connection> {
   // sets it when the client presents the right one.
   bool authenticated() const { return authenticated_; }
   void set_authenticated() { authenticated_ = true; }
+  // The client presents `token` (how is the protocol's affair): true, and authenticated from
+  // now on, when it is the transport's token or the transport takes none; false when wrong.
+  bool present_token(std::string_view token);
 
   // Reads in a row of a client sending alone before going back to the event loop.
   static constexpr int k_reads_in_a_row = 4;

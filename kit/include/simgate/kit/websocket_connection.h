@@ -99,6 +99,11 @@ using HttpRequest = boost::beast::http::request<boost::beast::http::string_body>
 std::string plain_http_response(const HttpRequest& request, boost::beast::http::status status,
                                 std::string_view body, std::string_view server);
 
+// The token an upgrade request presents (auth.h): its `Authorization: Bearer <token>`
+// header, else the `token` parameter of its target's query ("/?token=...", percent-decoded:
+// what a browser's WebSocket or Foxglove's connection dialog can send); nullopt: none.
+std::optional<std::string> upgrade_token(const HttpRequest& request);
+
 // The options every WebSocket transport reads besides the kit's TcpOptions.
 struct WebSocketOptions {
   OriginPolicy origins;  // "allowed_origins" (origin_policy.h)
@@ -144,6 +149,11 @@ class WebSocketHost {
   // A plain HTTP request (not an upgrade): the response to send before closing.
   virtual HttpResponse on_http_request(
       const boost::beast::http::request<boost::beast::http::string_body>& request) = 0;
+  // Whether a client that must present the transport's token (auth.h) may do so after the
+  // upgrade, in the protocol (JSON-RPC's rpc.login). Either way a token in the upgrade
+  // request (upgrade_token) is checked first, a wrong one refused with 401; false: the
+  // protocol has no login (Foxglove's), so an upgrade without the token is refused too.
+  virtual bool login_after_upgrade() const { return true; }
   // An upgrade request: "" to accept it, else the HTTP response refusing it (403: a page of
   // another origin, origin_policy.h), sent before closing.
   virtual std::string refuse_upgrade(
@@ -215,6 +225,9 @@ class WebSocketConnection : public Connection, private FrameSink {
     return std::static_pointer_cast<WebSocketConnection>(shared_from_this());
   }
   void on_request(const boost::system::error_code& ec);
+  // The upgrade's token checked (WebSocketHost::login_after_upgrade): "" when it may go on,
+  // else the 401 response refusing it.
+  std::string authenticate_upgrade(const HttpRequest& request);
   void on_upgraded(const boost::system::error_code& ec);
   // ---- the parser's events (FrameSink)
   void on_text(std::string_view text) override;
