@@ -23,6 +23,8 @@ Sections (each ends "ok", "error" with the reason, or "skipped" when a part was 
   sim      gateway steps/s (as fast as possible) vs a bare mj_step loop on the same MJCF;
            real-time factor and step jitter at real-time pacing, idle and under
            10 000 requests/s
+  foxglove issue #38: the real-time factor with /tf at 60 Hz (50 bodies) and a 640x480 camera
+           at 10 Hz to 4 Foxglove clients vs no client
   memory   resident memory of an idle gateway (demo config) and with 1 000 idle connections
   byor     issue #18, bring your own robot: the gateway stepping Debian's humanoid with its
            generic components vs bare mj_step (same model, same steps); the sync round trip
@@ -1021,6 +1023,35 @@ class Harness:
                     s["rtf_with"], ">=", 0.99)
         return {"status": "ok", "summary": s, "runs": runs}
 
+    def section_foxglove(self):
+        """Issue #38: the real-time factor while 4 Foxglove clients each receive /tf at 60 Hz
+        (50 moving bodies) and a 640x480 camera at 10 Hz, against no client (simgate_bench_sim
+        --mode foxglove_rtf on bench/pendulums50.xml)."""
+        sim = os.path.join(self.bin, "simgate_bench_sim")
+        if not os.access(sim, os.X_OK) or not self.plugin_built("foxglove"):
+            return {"status": "skipped", "reason": "simgate_bench_sim or the foxglove transport is not built"}
+        mjcf = os.path.join(ROOT, "bench", "pendulums50.xml")
+        seconds = 2.0 if self.smoke else 10.0
+        runs = []
+        for _ in range(self.repeats):
+            r = run_json([sim, "--mode", "foxglove_rtf", "--mjcf", mjcf, "--calls", "4", "--frequency", "60",
+                          "--duration", str(seconds)], self.timeout, self.env)
+            runs.append(r)
+        s = {"rtf_without": spread([r["without"]["realtime_factor"] for r in runs]),
+             "rtf_with": spread([r["with"]["realtime_factor"] for r in runs]),
+             "rtf_ratio": spread([r["ratio"] for r in runs]),
+             "transforms_per_s_fewest": spread([r["transforms_per_s_per_client"]["min"] for r in runs]),
+             "images_per_s_fewest": spread([r["images_per_s_per_client"]["min"] for r in runs]),
+             "mib_per_s": spread([r["mib_per_s"] for r in runs]),
+             "image_kib": runs[0]["image_message_bytes"] / 1024,
+             "cpu_per_s_without": spread([r["without"]["gateway_cpu_per_s"] for r in runs]),
+             "cpu_per_s_with": spread([r["with"]["gateway_cpu_per_s"] for r in runs]),
+             "clients": runs[0]["clients"], "frequency_hz": runs[0]["frequency_hz"], "bodies": runs[0]["bodies"],
+             "seconds": seconds}
+        self.target(f"real-time factor, /tf at {s['frequency_hz']:g} Hz ({s['bodies']} bodies) and a 640x480 camera "
+                    f"at 10 Hz to {s['clients']} Foxglove clients", s["rtf_with"], ">=", 0.99)
+        return {"status": "ok", "summary": s, "runs": runs}
+
     # ---- driver
 
     def machine(self):
@@ -1064,7 +1095,7 @@ class Harness:
         self.results["machine"] = self.machine()
         only = set(self.args.only.split(",")) if self.args.only else None
         for name in ("socket", "jsonrpc", "websocket", "dds", "peers", "sim", "memory", "byor", "world", "progress", "streams",
-                     "cameras", "web"):
+                     "cameras", "web", "foxglove"):
             if only and name not in only:
                 continue
             t0 = time.monotonic()
@@ -1392,6 +1423,26 @@ def markdown(r):
                   f"| samples per second per client (mean; fewest) | {fmt(g['samples_per_s_per_client'])}; "
                   f"{fmt(g['fewest_per_s'])} |",
                   f"| mean sample (bytes) | {fmt(g['sample_bytes'], 0)} |",
+                  f"| gateway CPU (s per s), without / with | {fmt(g['cpu_per_s_without'], 3)} / "
+                  f"{fmt(g['cpu_per_s_with'], 3)} |", ""]
+
+    lines += ["## Foxglove (issue #38)", ""]
+    st = status_line("foxglove")
+    if st:
+        lines += [st, ""]
+    else:
+        g = s["foxglove"]["summary"]
+        lines += [f"bench/pendulums50.xml at real time, {g['seconds']:g} s with no client, then {g['seconds']:g} s with "
+                  f"{g['clients']} Foxglove clients each subscribed to /tf ({g['bodies']} transforms) at "
+                  f"{g['frequency_hz']:g} Hz and to a 640x480 camera at 10 Hz (foxglove.CompressedImage, "
+                  f"{g['image_kib']:.0f} KiB a message).", "",
+                  "| measure | value |", "|---|---|",
+                  f"| real-time factor, no client | {fmt(g['rtf_without'], 4)} |",
+                  f"| real-time factor, {g['clients']} clients | {fmt(g['rtf_with'], 4)} |",
+                  f"| with / without | {fmt(g['rtf_ratio'], 4)} |",
+                  f"| /tf messages per second, the slowest client | {fmt(g['transforms_per_s_fewest'])} |",
+                  f"| images per second, the slowest client | {fmt(g['images_per_s_fewest'], 2)} |",
+                  f"| sent to all clients (MiB/s) | {fmt(g['mib_per_s'])} |",
                   f"| gateway CPU (s per s), without / with | {fmt(g['cpu_per_s_without'], 3)} / "
                   f"{fmt(g['cpu_per_s_with'], 3)} |", ""]
 

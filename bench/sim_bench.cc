@@ -65,6 +65,10 @@
 //   web_poses  issue #23's browser target: --config (config/demo.json, the web app's) at
 //            real time, --duration seconds without and then with --calls WebSocket clients
 //            (20 browser pages) receiving the body poses at --frequency (60 Hz) (web_bench.cc).
+//   foxglove_rtf  issue #38's Foxglove target: --mjcf (bench/pendulums50.xml) on the foxglove
+//            transport at real time, --duration seconds without and then with --calls Foxglove
+//            clients (4) receiving /tf at --frequency (60 Hz) and a 640x480 camera at 10 Hz
+//            (foxglove_bench.cc).
 //
 // The probe costs one clock read per step; both modes run on the main thread, unpinned.
 #include <poll.h>
@@ -88,6 +92,7 @@
 
 #include "bench_util.h"
 #include "camera_bench.h"
+#include "foxglove_bench.h"
 #include "web_bench.h"
 #include "progress_bench.h"
 #include "stream_bench.h"
@@ -675,12 +680,12 @@ int main(int argc, char** argv) {
   double frequency = 60;
   app.add_option("--mode", mode,
                  "bare, sleep, gateway, laser, humanoid, snapshot, spawn, progress, streams, "
-                 "camera_fps, camera_rtf or "
-                 "web_poses "
+                 "camera_fps, camera_rtf, web_poses or foxglove_rtf "
                  "(see the source's header)")
       ->required()
       ->check(CLI::IsMember({"bare", "sleep", "gateway", "laser", "humanoid", "snapshot", "spawn",
-                             "progress", "streams", "camera_fps", "camera_rtf", "web_poses"}));
+                             "progress", "streams", "camera_fps", "camera_rtf", "web_poses",
+                             "foxglove_rtf"}));
   app.add_option("--site", camera_fps.site, "camera_fps: the site the view is from")
       ->capture_default_str();
   app.add_option("--frames", camera_fps.frames,
@@ -691,19 +696,21 @@ int main(int argc, char** argv) {
   app.add_option("--camera", camera, "camera_rtf: the camera component whose stream is subscribed")
       ->capture_default_str();
   app.add_option("--frequency", frequency,
-                 "web_poses: the body poses' samples per simulated second")
+                 "web_poses, foxglove_rtf: the body poses' samples per simulated second")
       ->capture_default_str();
   app.add_flag("--dds", dds, "streams: the DDS transport streams too");
   app.add_option("--round", round_s, "progress: simulated seconds each call runs")
       ->capture_default_str();
   app.add_option("--calls", calls,
                  "progress: concurrent calls, one connection each; streams: components; web_poses: "
-                 "WebSocket clients")
+                 "WebSocket clients; foxglove_rtf: Foxglove clients")
       ->capture_default_str();
-  app.add_option("--mjcf", mjcf,
-                 "bare, sleep, snapshot, spawn, progress, streams, camera_fps: the MJCF scene; "
-                 "humanoid: another "
-                 "humanoid.xml");
+  app.add_option(
+      "--mjcf", mjcf,
+      "bare, sleep, snapshot, spawn, progress, streams, camera_fps, foxglove_rtf: the MJCF "
+      "scene; "
+      "humanoid: another "
+      "humanoid.xml");
   app.add_option("--config", config, "gateway, camera_rtf, web_poses: the deployment file");
   app.add_option("--realtime-factor", factor, "gateway: pacing (0 = as fast as possible)")
       ->capture_default_str();
@@ -714,7 +721,7 @@ int main(int argc, char** argv) {
                "gateway: run until standard input closes instead");
   if (auto code = simgate::bench::parse_command_line(app, argc, argv)) return *code;
   if ((mode == "bare" || mode == "sleep" || mode == "snapshot" || mode == "spawn" ||
-       mode == "progress" || mode == "streams" || mode == "camera_fps") &&
+       mode == "progress" || mode == "streams" || mode == "camera_fps" || mode == "foxglove_rtf") &&
       mjcf.empty()) {
     std::cerr << "simgate_bench_sim: --mode " << mode << " needs --mjcf PATH\n";
     return 2;
@@ -749,6 +756,8 @@ int main(int argc, char** argv) {
       out = simgate::bench::run_camera_rtf(config, camera, duration);
     } else if (mode == "web_poses") {
       out = simgate::bench::run_web_poses(config, calls, frequency, duration);
+    } else if (mode == "foxglove_rtf") {
+      out = simgate::bench::run_foxglove_rtf(mjcf, calls, frequency, duration);
     } else {
       out = run_gateway(config, factor, duration, until_stdin);
     }
