@@ -4,13 +4,15 @@
 // the real gateway (`simgate run gateway_foxglove_rover.json`: the rover room, its cameras
 // rendered headless): each camera, the depth camera, the laser, the odometry and the log in
 // Foxglove's schemas, with what their panels need (a PNG, metres, the scan's arc, a
-// quaternion); the IMU, which no Foxglove schema fits, as plottable JSON.
+// quaternion); the IMU, which no Foxglove schema fits, as plottable JSON; a client that reads
+// nothing costs the server bounded memory and delays no other.
 //
 //   node foxglove_sensors_test.js <simgate> run <config> [--plugin-path DIR]
 // Exit code: 0 passed, 1 failed, 77 the npm packages are not installed.
 'use strict';
 
-const { Ajv, foxgloveSchemas, check, startGateway, Session } = require('./session');
+const fs = require('fs');
+const { Ajv, WebSocket, foxgloveSchemas, check, startGateway, Session, sleep } = require('./session');
 
 const TOTAL_TIMEOUT_MS = 100000;
 
@@ -96,6 +98,46 @@ async function sensors(s, ajv) {
   check(!s.error, 'the client saw no protocol error: ' + (s.error && s.error.message));
 }
 
+// The gateway's resident memory (kB), from /proc.
+function rssKib(pid) {
+  const m = fs.readFileSync(`/proc/${pid}/status`, 'utf8').match(/VmRSS:\s+(\d+)/);
+  return m ? Number(m[1]) : 0;
+}
+
+// A client that subscribes to the images and /tf, then reads nothing: the server's memory
+// stays bounded (it keeps the newest image, drops what cannot be sent) and another client
+// stays on schedule (its /tf no further behind the simulated time than a reading client's).
+async function aClientThatReadsNothing(s, url, pid) {
+  const slow = new WebSocket(url, ['foxglove.websocket.v1']);
+  const channels = new Map();
+  await new Promise((resolve, reject) => {
+    slow.on('message', (data, binary) => {
+      if (binary) return;
+      const m = JSON.parse(data.toString());
+      if (m.op === 'advertise') for (const c of m.channels) channels.set(c.topic, c.id);
+      if (channels.has('/tf') && channels.has('/rover/camera') && channels.has('/rover/depth')) resolve();
+    });
+    slow.on('error', reject);
+  });
+  slow.send(JSON.stringify({ op: 'subscribe', subscriptions: ['/tf', '/rover/camera', '/rover/depth', '/rover/laser']
+    .map((topic, i) => ({ id: i + 1, channelId: channels.get(topic) })) }));
+  await sleep(500);
+  slow._socket.pause();  // from now on it reads nothing
+  const before = rssKib(pid);
+  const tf = s.client.subscribe(s.channel('/tf').id);
+  await sleep(4000);
+  const grown = rssKib(pid) - before;
+  console.log(`a client that reads nothing: the server grew ${grown} kB`);
+  check(grown < 64 * 1024, `the server's memory stays bounded with a client that reads nothing (grew ${grown} kB in 4 s)`);
+  const received = s.messages.get(tf) || [];
+  check(received.length > 0, 'the reading client got /tf messages');
+  const lag = Number(s.times[s.times.length - 1] - received[received.length - 1].timestamp) / 1e9;
+  console.log(`the reading client's /tf: ${lag.toFixed(3)} s behind the simulated time`);
+  check(lag < 1.0, `the reading client's /tf keeps up with the simulated time (${lag.toFixed(3)} s behind)`);
+  s.client.unsubscribe(tf);
+  slow.terminate();
+}
+
 async function main(argv) {
   const { child, url: urlPromise } = startGateway(argv);
   const overall = setTimeout(() => {
@@ -108,6 +150,7 @@ async function main(argv) {
     const s = new Session(url, 'foxglove.websocket.v1');
     await s.until(() => s.info && s.channel('/rover/laser') && s.service('/simulation/spawn_entity'), 'serverInfo, channels and services');
     await sensors(s, new Ajv({ strict: false }));
+    await aClientThatReadsNothing(s, url, child.pid);
     s.close();
     console.log('PASS: the foxglove transport\'s sensor channels fit @foxglove/schemas');
   } finally {
