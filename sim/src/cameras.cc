@@ -199,7 +199,7 @@ CameraView Camera::view() const {
   return v;
 }
 
-json Camera::pose() const {
+std::optional<SimComponent::SensingFrame> Camera::sensing_frame() const {
   // the optical frame (x right, y down, z forward: the intrinsic matrix's) in the world
   const CameraView v = view();
   const Eigen::Vector3d forward(v.forward), up(v.up);
@@ -207,8 +207,15 @@ json Camera::pose() const {
   r.col(0) = forward.cross(up);
   r.col(1) = -up;
   r.col(2) = forward;
-  const Eigen::Quaterniond q(r);
-  return {{"position", {v.position[0], v.position[1], v.position[2]}},
+  return SensingFrame{camera_ >= 0 ? model()->cam_bodyid[camera_] : frame_->body(),
+                      Eigen::Vector3d(v.position[0], v.position[1], v.position[2]),
+                      Eigen::Quaterniond(r)};
+}
+
+json Camera::pose() const {
+  const SensingFrame f = *sensing_frame();
+  const Eigen::Quaterniond& q = f.orientation;
+  return {{"position", {f.position.x(), f.position.y(), f.position.z()}},
           {"orientation", {q.w(), q.x(), q.y(), q.z()}},
           {"frame", "optical: x right, y down, z forward (world frame)"}};
 }

@@ -7,6 +7,9 @@
 #include <cstdlib>
 #include <memory>
 
+#include <Eigen/Geometry>
+
+#include "simgate/sim/sim_component.h"
 #include "simgate/sim/world_services.h"
 
 namespace simgate::sim {
@@ -137,9 +140,27 @@ json scene_geometry(const Simulation& sim, bool include_meshes, SceneGeometryCac
     if (m->geom_type[g] == mjGEOM_HFIELD) geom["hfield"] = m->geom_dataid[g];
     geoms.push_back(std::move(geom));
   }
+  // the components' frames, each on its body: where their data is in the scene
+  json frames = json::array();
+  for (const auto& entry : sim.components()) {
+    if (!entry->sim_component) continue;
+    const auto f = entry->sim_component->sensing_frame();
+    if (!f || f->body < 0 || f->body >= m->nbody) continue;
+    const Eigen::Quaterniond body_rotation(d->xquat[4 * f->body], d->xquat[4 * f->body + 1],
+                                           d->xquat[4 * f->body + 2], d->xquat[4 * f->body + 3]);
+    const Eigen::Vector3d body_position(d->xpos[3 * f->body], d->xpos[3 * f->body + 1],
+                                        d->xpos[3 * f->body + 2]);
+    const Eigen::Vector3d pos = body_rotation.conjugate() * (f->position - body_position);
+    const Eigen::Quaterniond quat = (body_rotation.conjugate() * f->orientation).normalized();
+    frames.push_back({{"name", entry->component->name()},
+                      {"body", f->body},
+                      {"pos", {pos.x(), pos.y(), pos.z()}},
+                      {"quat", {quat.w(), quat.x(), quat.y(), quat.z()}}});
+  }
   json answer{{"timestamp", sim.state_time()}, {"generation", sim.model_generation()},
               {"bodies", std::move(bodies)},   {"geoms", std::move(geoms)},
-              {"meshes", json::array()},       {"hfields", json::array()}};
+              {"frames", std::move(frames)},   {"meshes", json::array()},
+              {"hfields", json::array()}};
   if (include_meshes) {
     if (cache) {
       const json& data = cache->model_data(sim);

@@ -62,6 +62,13 @@ async function sensors(s, ajv) {
         `the arc: -135° to 135° (got ${degrees(scan.start_angle)} to ${degrees(scan.end_angle)})`);
   check(scan.ranges.every((r) => r > 0 && r <= 10) && scan.ranges.some((r) => r < 10), 'ranges within laser_range, some walls seen');
 
+  // the sensors' frames hang from their bodies in /tf: the 3D panel places the scan
+  const tf = await first(s, ajv, '/tf', 'FrameTransforms');
+  for (const name of ['rover.laser', 'rover.camera', 'rover.depth', 'rover.imu']) {
+    const t = tf.transforms.find((x) => x.child_frame_id === name);
+    check(t && t.parent_frame_id === 'rover', `/tf: rover -> ${name}: ` + JSON.stringify(tf.transforms.map((x) => x.child_frame_id)));
+  }
+
   // the odometry: driving forward moves its pose along x
   const odometry = await first(s, ajv, '/rover/odometry', 'Odometry');
   check(odometry.frame_id === 'rover.odometry/origin' && odometry.body_frame_id === 'rover.odometry', 'odometry frames');

@@ -55,6 +55,28 @@ TEST(FoxgloveScene, FramesAreTheBodiesNames) {
   EXPECT_FALSE(SceneFrames::from_geometry(json::object()).known());
 }
 
+TEST(FoxgloveScene, ComponentsFramesHangFromTheirBodies) {
+  json g = geometry();
+  g["frames"] = {
+      {{"name", "arm.laser"}, {"body", 1}, {"pos", {0.1, 0, 0.2}}, {"quat", {0, 1, 0, 0}}},
+      {{"name", "nowhere"}, {"body", 9}},  // no such body: left out
+      {{"body", 1}}};                      // no name: left out
+  const SceneFrames frames = SceneFrames::from_geometry(g);
+  ASSERT_EQ(frames.fixed.size(), 1u);
+  const json poses{
+      {"timestamp", 1.25},
+      {"generation", 3},
+      {"poses", {{0, 0, 0, 1, 0, 0, 0}, {1, 2, 3, 1, 0, 0, 0}, {4, 5, 6, 1, 0, 0, 0}}}};
+  const json message = json::parse(frame_transforms(poses, frames));
+  ASSERT_EQ(message["transforms"].size(), 3u);  // two bodies, then the laser's frame
+  const json& laser = message["transforms"][2];
+  EXPECT_EQ(laser["parent_frame_id"], "arm");
+  EXPECT_EQ(laser["child_frame_id"], "arm.laser");
+  EXPECT_EQ(laser["translation"], (json{{"x", 0.1}, {"y", 0}, {"z", 0.2}}));
+  EXPECT_EQ(laser["rotation"], (json{{"x", 1}, {"y", 0}, {"z", 0}, {"w", 0}}));
+  EXPECT_EQ(laser["timestamp"], (json{{"sec", 1}, {"nsec", 250000000}}));
+}
+
 TEST(FoxgloveScene, BodyPosesBecomeTransformsFromTheWorld) {
   const SceneFrames frames = SceneFrames::from_geometry(geometry());
   const json poses{

@@ -13,6 +13,9 @@
 #include <filesystem>
 #include <fstream>
 #include <set>
+#include <utility>
+
+#include <Eigen/Geometry>
 
 #include <unistd.h>
 
@@ -74,6 +77,50 @@ class SimSceneGeometryTest : public testing::MjcfSim {
           << actual.dump() << " [" << i << "]";
   }
 };
+
+TEST_F(SimSceneGeometryTest, ComponentsFramesAreOnTheirBodies) {
+  // a laser on a turned site of a turned body; a camera on an MJCF camera; an actuator has none
+  load_string(R"(<mujoco>
+  <worldbody>
+    <geom type="plane" size="5 5 0.1"/>
+    <body name="rover" pos="1 2 0.1" euler="0 0 90">
+      <freejoint/>
+      <geom type="box" size="0.3 0.2 0.1"/>
+      <site name="laser" pos="0.2 0 0.15" euler="0 0 45"/>
+      <camera name="eye" pos="0 0 0.3" xyaxes="0 -1 0 0 0 1"/>
+    </body>
+  </worldbody>
+</mujoco>)");
+  Robot& robot = add_robot("rover", "rover");
+  add_component(robot, "laser", "laser_scanner", {{"site", "laser"}}, "rover");
+  add_component(robot, "camera", "video_camera", {{"camera", "eye"}}, "rover");
+  add_component(robot, "teleport", "teleport", json::object(), "rover");
+  serve();
+  const json frames = geometry()["frames"];
+  ASSERT_EQ(frames.size(), 2u) << frames.dump();
+  const int rover = sim_->model().body_id("rover");
+  EXPECT_EQ(frames[0]["name"], "rover.laser");
+  EXPECT_EQ(frames[0]["body"], rover);
+  // the site's own place on the body, whatever the body's pose in the world
+  expect_numbers(frames[0]["pos"], {0.2, 0, 0.15});
+  const double c = std::cos(M_PI / 8), s = std::sin(M_PI / 8);
+  expect_numbers(frames[0]["quat"], {c, 0, 0, s});
+  // the camera: its optical frame (x right, y down, z forward): the MJCF camera looks along
+  // its -z (here the body's +x, y up = the body's +z), so the optical z is the body's +x, the
+  // optical y the body's -z, the optical x the body's -y
+  EXPECT_EQ(frames[1]["name"], "rover.camera");
+  EXPECT_EQ(frames[1]["body"], rover);
+  expect_numbers(frames[1]["pos"], {0, 0, 0.3});
+  const json& q = frames[1]["quat"];
+  const Eigen::Quaterniond optical(q[0].get<double>(), q[1].get<double>(), q[2].get<double>(),
+                                   q[3].get<double>());
+  const Eigen::Matrix3d r = optical.toRotationMatrix();
+  for (const auto& [column, expected] :
+       {std::pair{0, Eigen::Vector3d(0, -1, 0)}, std::pair{1, Eigen::Vector3d(0, 0, -1)},
+        std::pair{2, Eigen::Vector3d(1, 0, 0)}})
+    EXPECT_TRUE(r.col(column).isApprox(expected, 1e-9))
+        << column << ": " << r.col(column).transpose();
+}
 
 TEST_F(SimSceneGeometryTest, DescribesEveryBodyAndGeomOfTheModel) {
   start(k_geometry_scene);

@@ -136,6 +136,23 @@ SceneFrames SceneFrames::from_geometry(const json& geometry) {
     if (name.empty()) name = id == 0 ? "world" : "body" + std::to_string(id);
     f.names.push_back(std::move(name));
   }
+  const auto fixed = geometry.find("frames");
+  if (fixed == geometry.end() || !fixed->is_array()) return f;
+  for (const json& c : *fixed) {
+    if (!c.is_object() || !c.contains("name") || !c["name"].is_string() || !c.contains("body") ||
+        !c["body"].is_number_integer())
+      continue;
+    const auto body = c["body"].get<std::int64_t>();
+    if (body < 0 || static_cast<std::size_t>(body) >= f.names.size()) continue;
+    SceneFrames::Fixed frame;
+    frame.name = c["name"].get<std::string>();
+    frame.body = static_cast<std::size_t>(body);
+    const json& pos = c.contains("pos") ? c["pos"] : json::array();
+    const json& quat = c.contains("quat") ? c["quat"] : json::array();
+    for (std::size_t i = 0; i < 3; ++i) frame.pos[i] = at(pos, i);
+    for (std::size_t i = 0; i < 4; ++i) frame.quat[i] = at(quat, i, i == 0 ? 1 : 0);
+    f.fixed.push_back(std::move(frame));
+  }
   return f;
 }
 
@@ -228,6 +245,13 @@ std::string frame_transforms(const json& body_poses, const SceneFrames& frames) 
         {"translation", vector3(at(p, 0), at(p, 1), at(p, 2))},
         {"rotation", {{"x", at(p, 4)}, {"y", at(p, 5)}, {"z", at(p, 6)}, {"w", at(p, 3, 1)}}}});
   }
+  for (const SceneFrames::Fixed& f : frames.fixed)
+    transforms.push_back(
+        json{{"timestamp", stamp},
+             {"parent_frame_id", frames.names[f.body]},
+             {"child_frame_id", f.name},
+             {"translation", vector3(f.pos[0], f.pos[1], f.pos[2])},
+             {"rotation", parts::quaternion(f.quat[0], f.quat[1], f.quat[2], f.quat[3])}});
   return dump(json{{"transforms", std::move(transforms)}});
 }
 

@@ -100,6 +100,8 @@ class Camera : public SimComponent {
   // Ends the running capture (its images still coming are dropped).
   void end_capture();
   json pose() const;
+  // Its optical frame (pose()'s), on the body the MJCF camera or the frame is fixed to.
+  std::optional<SensingFrame> sensing_frame() const override;
 
   Type type_;
   int camera_ = -1;                     // MJCF camera id, or -1: frame_

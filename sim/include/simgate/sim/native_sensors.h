@@ -61,6 +61,10 @@ class SensorFrame {
   const mjtNum* rotation(const mjData* d) const;
   Eigen::Vector3d world_position(const mjData* d) const;
   Eigen::Matrix3d world_rotation(const mjData* d) const;
+  // The frame as SimComponent::sensing_frame gives it.
+  SimComponent::SensingFrame sensing(const mjData* d) const {
+    return {body_, world_position(d), Eigen::Quaterniond(world_rotation(d))};
+  }
   // After the model changed (SimComponent::on_model_changed).
   void remap(const ModelRemap& remap) {
     body_ = remap.body_of(body_), site_ = remap.site_of(site_);
@@ -77,6 +81,7 @@ class Imu : public SimComponent {
   explicit Imu(ComponentContext& context);
   json get_local_data() const;
   void on_model_changed(const ModelRemap& remap) override;
+  std::optional<SensingFrame> sensing_frame() const override { return frame_.sensing(data()); }
 
  private:
   SensorFrame frame_;
@@ -93,6 +98,7 @@ class Odometry : public SimComponent {
   void default_action() override { update(); }
   void on_reset() override { restart(); }
   void on_model_changed(const ModelRemap& remap) override { frame_.remap(remap); }
+  std::optional<SensingFrame> sensing_frame() const override { return frame_.sensing(data()); }
 
  private:
   enum class Level { raw, differential, integrated };
@@ -124,6 +130,7 @@ class LaserScanner : public SimComponent {
   void scan();
   json get_local_data();
   void on_model_changed(const ModelRemap& remap) override;
+  std::optional<SensingFrame> sensing_frame() const override { return frame_.sensing(data()); }
 
   const std::vector<double>& ranges() const { return ranges_; }
   // x, y, z of each ray's hit point in the sensor frame, flattened.
@@ -162,6 +169,7 @@ class Proximity : public SimComponent {
   void set_tracked_tag(const std::string& tag);
   json get_local_data() const;
   void on_model_changed(const ModelRemap& remap) override;
+  std::optional<SensingFrame> sensing_frame() const override { return frame_.sensing(data()); }
 
  private:
   // Top-level bodies outside the robot whose name starts with `tag`.

@@ -57,6 +57,17 @@ class SimComponent : public Component {
   // frame rate), rather than only as its output stream's rate.
   virtual bool uses_frequency() const { return false; }
 
+  // The frame the component senses from, for transports that place its data in the scene
+  // (Foxglove's /tf, docs/world/scene_geometry.md): the body it is fixed to and the frame's
+  // world pose now (a camera's: its optical frame, x right, y down, z forward).
+  struct SensingFrame {
+    int body = 0;
+    Eigen::Vector3d position = Eigen::Vector3d::Zero();
+    Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();
+  };
+  // Under the simulation lock. nullopt: no frame of its own (an actuator, a world service).
+  virtual std::optional<SensingFrame> sensing_frame() const { return std::nullopt; }
+
   // After the model was replaced (Simulation::replace_model: an entity spawned, a body
   // deleted): model() is the new one, and `remap` says where each object of the old one
   // went (model_remap.h). A component that keeps MuJoCo ids (bodies, joints, geoms,

@@ -24,6 +24,15 @@ namespace simgate::foxglove {
 struct SceneFrames {
   std::uint64_t generation = 0;    // the answer's generation (changes with the model)
   std::vector<std::string> names;  // by body id
+  // The components' frames (the answer's "frames": a sensor's, a camera's optical one), each
+  // fixed to a body: named after the component, at `pos` and `quat` (w first) in the body's.
+  struct Fixed {
+    std::string name;
+    std::size_t body = 0;
+    double pos[3] = {0, 0, 0};
+    double quat[4] = {1, 0, 0, 0};
+  };
+  std::vector<Fixed> fixed;
   bool known() const { return !names.empty(); }
   static SceneFrames from_geometry(const json& geometry);
 };
@@ -36,7 +45,8 @@ json frame_transforms_schema();
 json scene_update_schema();
 
 // A body_poses sample ({timestamp, generation, poses: [[x, y, z, qw, qx, qy, qz] per body]})
-// as a foxglove.FrameTransforms message (JSON text): world -> every body but the world.
+// as a foxglove.FrameTransforms message (JSON text): world -> every body but the world, then
+// each body -> the components' frames fixed to it (`frames.fixed`).
 // "" when the sample is not of `frames`' model (another generation) or malformed.
 std::string frame_transforms(const json& body_poses, const SceneFrames& frames);
 // A get_scene_geometry answer as a foxglove.SceneUpdate message (JSON text): one entity per
