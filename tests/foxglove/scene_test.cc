@@ -127,12 +127,37 @@ TEST(FoxgloveScene, GeomsBecomePrimitivesOnTheirBodysFrame) {
   ASSERT_EQ(arm["spheres"].size(), 2u);
   EXPECT_DOUBLE_EQ(arm["spheres"][0]["pose"]["position"]["z"].get<double>(), 0.5);
   EXPECT_DOUBLE_EQ(arm["spheres"][1]["pose"]["position"]["z"].get<double>(), 1.5);
-  // the mesh: its triangles (an index past the vertices dropped); the heightfield: nothing
+  // the mesh: its triangles (an index past the vertices dropped); the heightfield, whose data
+  // the answer lacks: nothing
   const json& body2 = message["entities"][2];
   EXPECT_EQ(body2["frame_id"], "body2");
   ASSERT_EQ(body2["triangles"].size(), 1u);
   EXPECT_EQ(body2["triangles"][0]["points"].size(), 3u);
   EXPECT_EQ(body2["triangles"][0]["indices"], (json{0, 1, 2}));
+}
+
+TEST(FoxgloveScene, AHeightfieldIsTheTrianglesOfItsGrid) {
+  json g = geometry();
+  // 2 rows (y = -1, 1) of 3 columns (x = -2, 0, 2), elevations times the top's 0.5
+  g["hfields"] = {{{"name", "ground"},
+                   {"size", {2, 1, 0.5, 0.1}},
+                   {"nrow", 2},
+                   {"ncol", 3},
+                   {"data", {0, 0.5, 1, 1, 0.5, 0}}}};
+  const json message = json::parse(scene_update(g, SceneFrames::from_geometry(g)));
+  const json& body2 = message["entities"][2];
+  ASSERT_EQ(body2["triangles"].size(), 2u);  // the mesh, then the heightfield
+  const json& field = body2["triangles"][1];
+  ASSERT_EQ(field["points"].size(), 6u);
+  EXPECT_EQ(field["points"][0], (json{{"x", -2}, {"y", -1}, {"z", 0}}));
+  EXPECT_EQ(field["points"][2], (json{{"x", 2}, {"y", -1}, {"z", 0.5}}));
+  EXPECT_EQ(field["points"][3], (json{{"x", -2}, {"y", 1}, {"z", 0.5}}));
+  // two cells, two triangles each, counterclockwise seen from above
+  EXPECT_EQ(field["indices"], (json{0, 1, 4, 0, 4, 3, 1, 2, 5, 1, 5, 4}));
+  // a grid whose data does not fill it is not drawn
+  g["hfields"][0]["data"].erase(5);
+  const json short_field = json::parse(scene_update(g, SceneFrames::from_geometry(g)));
+  EXPECT_EQ(short_field["entities"][2]["triangles"].size(), 1u);
 }
 
 TEST(FoxgloveScene, TheSchemasNameFoxglovesMessages) {

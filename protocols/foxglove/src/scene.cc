@@ -1,8 +1,10 @@
 #include "simgate/foxglove/scene.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <optional>
+#include <vector>
 
 #include "simgate/foxglove/protocol.h"
 
@@ -62,8 +64,50 @@ json entity(const std::string& frame, double time) {
               {"texts", json::array()},       {"models", json::array()}};
 }
 
+// The most grid points along each side of a heightfield drawn: a larger one is sampled.
+constexpr std::size_t k_max_hfield_side = 256;
+
+// Heightfield `hfield` (a get_scene_geometry hfields entry: size [x, y, top, base], nrow x
+// ncol elevations from 0 to 1, row by row along y from -y) as a triangle list at `pose`;
+// null when it is malformed.
+json hfield_triangles(const json& hfield, json pose, json color) {
+  if (!hfield.is_object()) return nullptr;
+  const json& size = hfield.contains("size") ? hfield["size"] : json::array();
+  const json& data = hfield.contains("data") ? hfield["data"] : json::array();
+  const std::size_t nrow = hfield.value("nrow", std::size_t{0}),
+                    ncol = hfield.value("ncol", std::size_t{0});
+  if (nrow < 2 || ncol < 2 || !data.is_array() || data.size() != nrow * ncol) return nullptr;
+  // every `stride`-th row and column, the last ones always
+  const std::size_t stride = (std::max(nrow, ncol) + k_max_hfield_side - 1) / k_max_hfield_side;
+  std::vector<std::size_t> rows, columns;
+  for (std::size_t r = 0; r < nrow; r += stride) rows.push_back(r);
+  if (rows.back() != nrow - 1) rows.push_back(nrow - 1);
+  for (std::size_t c = 0; c < ncol; c += stride) columns.push_back(c);
+  if (columns.back() != ncol - 1) columns.push_back(ncol - 1);
+  const double x = at(size, 0), y = at(size, 1), top = at(size, 2);
+  json points = json::array();
+  for (std::size_t r : rows)
+    for (std::size_t c : columns)
+      points.push_back(
+          vector3(x * (2.0 * static_cast<double>(c) / static_cast<double>(ncol - 1) - 1),
+                  y * (2.0 * static_cast<double>(r) / static_cast<double>(nrow - 1) - 1),
+                  top * at(data, r * ncol + c)));
+  json indices = json::array();
+  const std::size_t width = columns.size();
+  for (std::size_t r = 0; r + 1 < rows.size(); ++r)
+    for (std::size_t c = 0; c + 1 < width; ++c) {
+      const std::size_t a = r * width + c, b = a + 1, d = a + width, e = d + 1;
+      for (std::size_t i : {a, b, e, a, e, d}) indices.push_back(i);  // counterclockwise from +z
+    }
+  return json{{"pose", std::move(pose)},
+              {"points", std::move(points)},
+              {"color", std::move(color)},
+              {"colors", json::array()},
+              {"indices", std::move(indices)}};
+}
+
 // Adds geom `g` (a get_scene_geometry geom) to `e`; false when it has no primitive here.
-bool add_geom(json& e, const json& g, const json& meshes) {
+bool add_geom(json& e, const json& g, const json& meshes, const json& hfields) {
   const std::string type = g.value("type", "");
   const json& size = g.contains("size") ? g["size"] : json::array();
   const json& pos = g.contains("pos") ? g["pos"] : json::array();
@@ -116,8 +160,15 @@ bool add_geom(json& e, const json& g, const json& meshes) {
                                   {"color", color},
                                   {"colors", json::array()},
                                   {"indices", std::move(indices)}});
+  } else if (type == "hfield" && g.contains("hfield") && g["hfield"].is_number_integer()) {
+    const auto id = g["hfield"].get<std::int64_t>();
+    if (id < 0 || static_cast<std::size_t>(id) >= hfields.size()) return false;
+    json triangles =
+        hfield_triangles(hfields[static_cast<std::size_t>(id)], pose(pos, quat), color);
+    if (triangles.is_null()) return false;
+    e["triangles"].push_back(std::move(triangles));
   } else {
-    return false;  // a heightfield, an SDF: not drawn yet
+    return false;  // an SDF: not drawn
   }
   return true;
 }
@@ -262,6 +313,8 @@ std::string scene_update(const json& geometry, const SceneFrames& frames) {
       geometry.is_object() && geometry.contains("geoms") ? geometry["geoms"] : json::array();
   const json& meshes =
       geometry.is_object() && geometry.contains("meshes") ? geometry["meshes"] : json::array();
+  const json& hfields =
+      geometry.is_object() && geometry.contains("hfields") ? geometry["hfields"] : json::array();
   std::vector<json> by_body(frames.names.size());
   for (const json& g : geoms) {
     if (!g.is_object() || !g.contains("body") || !g["body"].is_number_integer()) continue;
@@ -269,7 +322,7 @@ std::string scene_update(const json& geometry, const SceneFrames& frames) {
     if (body < 0 || static_cast<std::size_t>(body) >= by_body.size()) continue;
     json& e = by_body[static_cast<std::size_t>(body)];
     if (e.is_null()) e = entity(frames.names[static_cast<std::size_t>(body)], time);
-    add_geom(e, g, meshes);
+    add_geom(e, g, meshes, hfields);
   }
   for (json& e : by_body)
     if (!e.is_null()) entities.push_back(std::move(e));

@@ -54,7 +54,7 @@ std::string frame_transforms(const json& body_poses, const SceneFrames& frames);
 // primitive at its pose in the body's frame, in its colour: box -> cube, sphere and
 // ellipsoid -> sphere, cylinder -> cylinder, capsule -> cylinder and two spheres, plane ->
 // a thin cube (an infinite plane as 20 m), mesh -> triangles (when the answer holds its
-// vertices). Entities of the previous model's bodies are deleted first (`deletions`: all).
+// vertices), heightfield -> triangles of its grid (sampled down to 256 points a side). Entities of the previous model's bodies are deleted first (`deletions`: all).
 std::string scene_update(const json& geometry, const SceneFrames& frames);
 
 }  // namespace simgate::foxglove
