@@ -39,6 +39,8 @@ class FoxgloveServer::Client : public kit::WebSocketConnection {
     std::vector<std::string> fields;
   };
   std::map<std::uint32_t, Publication> publications;
+  // it sent a playback control request: it is told the playback's state from then on
+  bool controls_playback = false;
 };
 
 }  // namespace simgate::foxglove

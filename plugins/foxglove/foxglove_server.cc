@@ -31,6 +31,8 @@ FoxgloveServer::Settings FoxgloveServer::Settings::parse(const json& options) {
   s.tcp = kit::TcpOptions::read(config, defaults, "foxglove");
   s.stream_queue = static_cast<std::size_t>(config.get_int("stream_queue", 4, 1, 1024));
   s.time_hz = config.get_number("time_hz", 30, 0, 1000);
+  s.rewind_interval_s = config.get_number("rewind_interval_s", 1, 0, 86'400);
+  s.rewind_states = static_cast<std::size_t>(config.get_int("rewind_states", 60, 1, 100'000));
   s.tcp.finish(config);
   return s;
 }
@@ -155,14 +157,21 @@ kit::HttpResponse FoxgloveServer::on_http_request(const kit::HttpRequest& reques
       k_server)};
 }
 
+std::vector<std::string> FoxgloveServer::capabilities() const {
+  std::vector<std::string> all{"clientPublish", "parameters", "parametersSubscribe", "services",
+                               "time"};
+  if (playback_offered()) all.push_back("playbackControl");
+  return all;
+}
+
 void FoxgloveServer::on_open(kit::WebSocketConnection& connection) {
   // the greeting: who we are, then every channel and service there is now
-  std::vector<std::string> capabilities{"clientPublish", "parameters", "parametersSubscribe",
-                                        "services", "time"};
+  std::optional<std::pair<std::uint64_t, std::uint64_t>> range;
+  if (playback_offered()) range = playback_range();
   connection.queue_text(server_info(
-      k_server, capabilities, {"json"},
+      k_server, capabilities(), {"json"},
       json{{"simgate", "Foxglove WebSocket transport"}, {"subprotocol", connection.subprotocol()}},
-      session_id_));
+      session_id_, range));
   std::vector<Channel> channels;
   for (const auto& c : channels_) channels.push_back(c.channel);
   connection.queue_text(advertise(channels));
@@ -203,8 +212,7 @@ void FoxgloveServer::on_message(kit::WebSocketConnection& connection, std::strin
   } else if (const auto* other = std::get_if<OtherOp>(&message)) {
     complain(client, Level::error,
              "op '" + other->op +
-                 "' is not served here (this server's capabilities: clientPublish, parameters, "
-                 "parametersSubscribe, services, time)");
+                 "' is not served here (this server's capabilities: " + join(capabilities()) + ")");
   } else {
     complain(client, Level::error, std::get<Malformed>(message).reason);
   }
@@ -218,6 +226,8 @@ void FoxgloveServer::on_binary_message(kit::WebSocketConnection& connection,
     call_service(client, *call);
   } else if (const auto* published = std::get_if<ClientMessageData>(&message)) {
     publish(client, *published);
+  } else if (const auto* playback = std::get_if<PlaybackControlRequest>(&message)) {
+    control_playback(client, *playback);
   } else {
     complain(client, Level::error, std::get<Malformed>(message).reason);
   }
@@ -511,7 +521,8 @@ void FoxgloveServer::send_time(Client& client, std::uint64_t time_ns) {
 void FoxgloveServer::tick_time() {
   if (stopping_ || settings_.time_hz <= 0 || !stream_hub()) return;
   // simulated time between samples: paused, it stays; stepped, it jumps
-  const std::uint64_t now = to_nanoseconds(stream_hub()->time());
+  const std::uint64_t now = to_nanoseconds(simulated_time());
+  take_rewind_snapshot();
   if (now > 0) {
     for_each_connection([&](kit::Connection& connection) {
       auto& client = static_cast<Client&>(connection);
@@ -564,7 +575,7 @@ void FoxgloveServer::call_service(Client& client, const ServiceCallRequest& requ
 
 void FoxgloveServer::on_service_completion(RequestId id, Outcome&& outcome) {
   // the I/O thread (deliver_on_this_thread): inside run_or_submit, or flush_replies()
-  if (parameter_completion(id, outcome)) return;
+  if (parameter_completion(id, outcome) || playback_completion(id, outcome)) return;
   if (id == geometry_call_) {
     geometry_call_ = 0;
     if (outcome.status == Status::success && outcome.value) {
@@ -607,4 +618,4 @@ SIMGATE_TRANSPORT_PLUGIN(foxglove, simgate::foxglove::FoxgloveServer, "0.1.0", "
                          "max_unsent_bytes", "max_buffered_bytes", "max_in_flight", "io_spin_us",
                          "on_disconnect", "global_policy", "idle_timeout_s", "idle_evict_s",
                          "line_timeout_s", "progress_interval_ms", "allowed_origins", "keepalive_s",
-                         "auth", "stream_queue", "time_hz")
+                         "auth", "stream_queue", "time_hz", "rewind_interval_s", "rewind_states")

@@ -23,6 +23,10 @@
 //     (a geometry_msgs/Twist read as {v, w} for a velocity stream).
 //   - parameters: the components' properties as /<component>/<property>, got, set and
 //     subscribed to (parameters.cc).
+//   - playback control (capability playbackControl, when it serves simulation play, pause
+//     and time set_time_scale): the app's playback bar pauses, plays, sets the time scale and
+//     seeks back to automatic snapshots (playback.cc; options rewind_interval_s, 1, and
+//     rewind_states, 60).
 //   - bad input (text that is not JSON, an unknown op, a subscription to no channel, a
 //     reused subscription id, a bad binary opcode): a status message saying what was wrong;
 //     the connection and every other client go on.
@@ -96,6 +100,8 @@ class FoxgloveServer : public RequestManager, private kit::WebSocketServer {
     kit::WebSocketOptions websocket;
     std::size_t stream_queue = 4;
     double time_hz = 30;
+    double rewind_interval_s = 1;    // simulated s between automatic snapshots (0: none)
+    std::size_t rewind_states = 60;  // snapshots kept for seeking back
     static Settings parse(const json& options);
   };
   class Client;
@@ -149,6 +155,8 @@ class FoxgloveServer : public RequestManager, private kit::WebSocketServer {
   void flush_replies();
 
   // ---- the protocol (I/O thread)
+  // serverInfo's capabilities: those of every connection, playbackControl when offered.
+  std::vector<std::string> capabilities() const;
   void subscribe(Client& client, const Subscribe& request);
   void unsubscribe(Client& client, const Unsubscribe& request);
   void call_service(Client& client, const ServiceCallRequest& request);
@@ -170,6 +178,27 @@ class FoxgloveServer : public RequestManager, private kit::WebSocketServer {
   void poll_parameters();
   // A completion of one of the parameters' calls; false when `id` is none of theirs.
   bool parameter_completion(RequestId id, Outcome& outcome);
+  // ---- playback control (playback.cc): the app's playback bar drives the simulation
+  struct PlaybackRequest;
+  // An automatic snapshot (simulation save_state) to seek back to.
+  struct Rewind {
+    std::uint64_t handle = 0;
+    double time = 0;  // simulated s
+  };
+  // The span serverInfo gives the playback bar: the oldest snapshot to an hour past now.
+  static constexpr double k_playback_horizon_s = 3600;
+  // Whether this transport serves what play/pause/speed need, and seeking back too.
+  bool playback_offered() const;
+  bool rewind_offered() const;
+  std::pair<std::uint64_t, std::uint64_t> playback_range();
+  // The simulated time now (after a seek while paused: the time restored).
+  double simulated_time();
+  void control_playback(Client& client, const PlaybackControlRequest& request);
+  // A time tick: a snapshot when rewind_interval_s has passed since the last.
+  void take_rewind_snapshot();
+  void drop_rewind(std::uint64_t handle);
+  // A completion of one of playback's calls; false when `id` is none of theirs.
+  bool playback_completion(RequestId id, Outcome& outcome);
   // Tells `client` (status level error/warning) what was wrong with its message.
   void complain(Client& client, Level level, std::string_view message);
 
@@ -253,7 +282,16 @@ class FoxgloveServer : public RequestManager, private kit::WebSocketServer {
   std::unordered_map<RequestId, ParameterCall> parameter_calls_;
   std::map<std::string, json> parameters_known_;  // the values last read (the poll's diff)
   bool parameters_polling_ = false;               // a poll is under way
-  std::uint32_t ticks_ = 0;                       // tick_time()s so far (the poll's clock)
+  // playback: the automatic snapshots (oldest first), the save_state under way, the calls of
+  // playback requests under way, what the bar was last told
+  std::deque<Rewind> rewinds_;
+  RequestId rewind_call_ = 0;
+  std::unordered_map<RequestId, std::shared_ptr<PlaybackRequest>> playback_calls_;
+  bool playing_ = true;
+  float speed_ = 1;
+  // after a seek: (the streams' time then, the time restored) until the simulation steps
+  std::optional<std::pair<double, double>> seek_hold_;
+  std::uint32_t ticks_ = 0;  // tick_time()s so far (the poll's clock)
 };
 
 }  // namespace simgate::foxglove

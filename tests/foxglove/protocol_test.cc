@@ -134,6 +134,45 @@ TEST(FoxgloveProtocol, BinaryMessagesAreReadOrRefusedWithTheReason) {
   EXPECT_NE(reason(bytes({0x09})).find("opcode 9"), std::string::npos);
 }
 
+TEST(FoxgloveProtocol, PlaybackMessagesAreLaidOutAsTheSdkLaysThemOut) {
+  // a request: pause (1), speed 2.0f (0x40000000), a seek to 1.5 s, request id "r1"
+  const std::string request =
+      bytes({0x03, 1, 0, 0, 0, 0x40, 1, 0x00, 0x2f, 0x68, 0x59, 0, 0, 0, 0, 2, 0, 0, 0}) + "r1";
+  auto r = read_binary(request);
+  ASSERT_TRUE(std::holds_alternative<PlaybackControlRequest>(r));
+  const auto& playback = std::get<PlaybackControlRequest>(r);
+  EXPECT_FALSE(playback.play);
+  EXPECT_EQ(playback.speed, 2.0f);
+  ASSERT_TRUE(playback.seek_ns.has_value());
+  EXPECT_EQ(*playback.seek_ns, 1'500'000'000u);
+  EXPECT_EQ(playback.request_id, "r1");
+  // no seek: the seek time's bytes are there, and ignored
+  std::string no_seek = request;
+  no_seek[6] = 0;
+  EXPECT_FALSE(std::get<PlaybackControlRequest>(read_binary(no_seek)).seek_ns.has_value());
+  const auto reason = [](const std::string& message) {
+    auto m = read_binary(message);
+    return std::holds_alternative<Malformed>(m) ? std::get<Malformed>(m).reason : "(read)";
+  };
+  EXPECT_NE(reason(request.substr(0, 10)).find("10 bytes"), std::string::npos);
+  std::string bad_command = request;
+  bad_command[1] = 7;
+  EXPECT_NE(reason(bad_command).find("command 7"), std::string::npos);
+  EXPECT_NE(reason(request.substr(0, 20)).find("runs past"), std::string::npos);
+  // the state: paused, at 1.5 s, speed 1.0f, after a seek, answering "r1"
+  EXPECT_EQ(
+      playback_state(PlaybackStatus::paused, 1'500'000'000, 1.0f, true, "r1"),
+      bytes({0x05, 1, 0x00, 0x2f, 0x68, 0x59, 0, 0, 0, 0, 0, 0, 0x80, 0x3f, 1, 2, 0, 0, 0}) + "r1");
+  // serverInfo carries the range the playback bar shows
+  const json info =
+      json::parse(server_info("s", {"playbackControl"}, {}, json::object(), "1",
+                              std::pair{std::uint64_t{5}, std::uint64_t{3'000'000'009}}));
+  EXPECT_EQ(info["dataStartTime"], (json{{"sec", 0}, {"nsec", 5}}));
+  EXPECT_EQ(info["dataEndTime"], (json{{"sec", 3}, {"nsec", 9}}));
+  EXPECT_FALSE(
+      json::parse(server_info("s", {}, {}, json::object(), "1")).contains("dataStartTime"));
+}
+
 TEST(FoxgloveProtocol, ServerTextMessagesCarryTheSpecsFields) {
   const json info =
       json::parse(server_info("simgate", {"services", "time"}, {"json"}, json{{"k", "v"}}, "123"));

@@ -9,7 +9,9 @@
 // JSON without a control character of the client's; a subscribe read has as many entries as
 // the message's "subscriptions" array, with the ids and channels nlohmann reads there; a
 // service call request's encoding and payload are the message's bytes after its 13-byte
-// head, in order, all of them; a client message's payload is the bytes after its 5-byte head.
+// head, in order, all of them; a client message's payload is the bytes after its 5-byte head;
+// a playback control request's id is a view of its bytes after the 19-byte head, echoed by
+// the playback state that answers it.
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -90,6 +92,18 @@ void binary(std::string_view message) {
         json::parse(foxglove::service_call_failure(call->service_id, call->call_id, call->encoding),
                     nullptr, false);
     FUZZ_CHECK(!failure.is_discarded(), "a failure naming the encoding is JSON");
+  } else if (const auto* playback = std::get_if<foxglove::PlaybackControlRequest>(&read)) {
+    FUZZ_CHECK(message[0] == 3, "a playback control request has opcode 3");
+    FUZZ_CHECK(playback->request_id.data() == message.data() + 19,
+               "the request id follows the 19-byte head");
+    FUZZ_CHECK(19 + playback->request_id.size() <= message.size(), "within the message");
+    FUZZ_CHECK(playback->seek_ns.has_value() == (message[6] != 0), "a seek when it says so");
+    // the state answering it echoes its id after a 19-byte head
+    const std::string state = foxglove::playback_state(
+        foxglove::PlaybackStatus::paused, 0, playback->speed, false, playback->request_id);
+    FUZZ_CHECK(state.size() == 19 + playback->request_id.size() &&
+                   state.substr(19) == playback->request_id,
+               "the playback state carries the request's id");
   } else {
     const auto& data = std::get<foxglove::ClientMessageData>(read);
     FUZZ_CHECK(message[0] == 1, "client message data has opcode 1");

@@ -1,6 +1,7 @@
 #include "simgate/foxglove/protocol.h"
 
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include "simgate/core/text.h"
@@ -25,6 +26,11 @@ std::uint32_t get_u32(std::string_view bytes, std::size_t at) {
   std::uint32_t v = 0;
   for (int i = 3; i >= 0; --i) v = (v << 8) | static_cast<unsigned char>(bytes[at + i]);
   return v;
+}
+
+std::uint64_t get_u64(std::string_view bytes, std::size_t at) {
+  return static_cast<std::uint64_t>(get_u32(bytes, at)) |
+         static_cast<std::uint64_t>(get_u32(bytes, at + 4)) << 32;
 }
 
 // Whether `v` is an integer an unsigned 32-bit id holds (the protocol's ids).
@@ -203,13 +209,21 @@ std::string pick_subprotocol(std::string_view offered) {
 
 std::string server_info(std::string_view name, const std::vector<std::string>& capabilities,
                         const std::vector<std::string>& supported_encodings, const json& metadata,
-                        std::string_view session_id) {
+                        std::string_view session_id,
+                        std::optional<std::pair<std::uint64_t, std::uint64_t>> data_range) {
   json m{{"op", "serverInfo"},
          {"name", name},
          {"capabilities", capabilities},
          {"metadata", metadata.is_object() ? metadata : json::object()},
          {"sessionId", session_id}};
   if (!supported_encodings.empty()) m["supportedEncodings"] = supported_encodings;
+  if (data_range) {
+    const auto time = [](std::uint64_t ns) {
+      return json{{"sec", ns / 1'000'000'000}, {"nsec", ns % 1'000'000'000}};
+    };
+    m["dataStartTime"] = time(data_range->first);
+    m["dataEndTime"] = time(data_range->second);
+  }
   return dump(m);
 }
 
@@ -283,6 +297,22 @@ std::string time_message(std::uint64_t time_ns) {
   std::string out;
   out.push_back(static_cast<char>(k_time));
   put_u64(out, time_ns);
+  return out;
+}
+
+std::string playback_state(PlaybackStatus status, std::uint64_t time_ns, float speed, bool did_seek,
+                           std::string_view request_id) {
+  std::string out;
+  out.push_back(static_cast<char>(k_playback_state));
+  out.push_back(static_cast<char>(status));
+  put_u64(out, time_ns);
+  std::uint32_t bits;
+  static_assert(sizeof bits == sizeof speed);
+  std::memcpy(&bits, &speed, sizeof bits);
+  put_u32(out, bits);
+  out.push_back(did_seek ? 1 : 0);
+  put_u32(out, static_cast<std::uint32_t>(request_id.size()));
+  out += request_id;
   return out;
 }
 
@@ -365,8 +395,32 @@ ClientBinary read_binary(std::string_view message) {
                        " bytes (its head alone is 5: opcode, channel id)"};
     return ClientMessageData{get_u32(message, 1), message.substr(5)};
   }
+  if (opcode == k_playback_control_request) {
+    // opcode, command, speed (f32), had seek, seek time (u64), request id length, request id
+    constexpr std::size_t k_head = 1 + 1 + 4 + 1 + 8 + 4;
+    if (message.size() < k_head)
+      return Malformed{"a playback control request of " + std::to_string(message.size()) +
+                       " bytes (its head alone is 19: opcode, command, speed, had seek, seek "
+                       "time, request id length)"};
+    const auto command = static_cast<std::uint8_t>(message[1]);
+    if (command > 1)
+      return Malformed{"a playback control request with command " + std::to_string(command) +
+                       " (0: play, 1: pause)"};
+    PlaybackControlRequest r;
+    r.play = command == 0;
+    const std::uint32_t bits = get_u32(message, 2);
+    std::memcpy(&r.speed, &bits, sizeof bits);
+    if (message[6] != 0) r.seek_ns = get_u64(message, 7);
+    const std::uint32_t length = get_u32(message, 15);
+    if (length > message.size() - k_head)
+      return Malformed{"a playback control request whose request id (" + std::to_string(length) +
+                       " bytes) runs past its end"};
+    r.request_id = message.substr(k_head, length);
+    return r;
+  }
   return Malformed{"unknown binary opcode " + std::to_string(opcode) +
-                   " (a client sends 1, message data, or 2, a service call request)"};
+                   " (a client sends 1, message data, 2, a service call request, or 3, a playback "
+                   "control request)"};
 }
 
 // ---- schemas

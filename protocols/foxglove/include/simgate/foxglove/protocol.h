@@ -39,11 +39,13 @@ std::string pick_subprotocol(std::string_view offered);
 // ---- server messages
 
 // Binary opcodes of the server's messages, and of the client's.
-inline constexpr std::uint8_t k_message_data = 0x01;           // server: a sample
-inline constexpr std::uint8_t k_time = 0x02;                   // server: the server's time
-inline constexpr std::uint8_t k_service_call_response = 0x03;  // server: a service's answer
-inline constexpr std::uint8_t k_client_message_data = 0x01;    // client: a published message
-inline constexpr std::uint8_t k_service_call_request = 0x02;   // client: a service call
+inline constexpr std::uint8_t k_message_data = 0x01;              // server: a sample
+inline constexpr std::uint8_t k_time = 0x02;                      // server: the server's time
+inline constexpr std::uint8_t k_service_call_response = 0x03;     // server: a service's answer
+inline constexpr std::uint8_t k_playback_state = 0x05;            // server: playback's state
+inline constexpr std::uint8_t k_client_message_data = 0x01;       // client: a published message
+inline constexpr std::uint8_t k_service_call_request = 0x02;      // client: a service call
+inline constexpr std::uint8_t k_playback_control_request = 0x03;  // client: the playback bar
 
 // A status message's level.
 enum class Level : int { info = 0, warning = 1, error = 2 };
@@ -78,10 +80,13 @@ struct ServiceDef {
   }
 };
 
-// {"op": "serverInfo", ...}: the first message of every connection.
+// {"op": "serverInfo", ...}: the first message of every connection. `data_range` (ns), with
+// the capability playbackControl: dataStartTime and dataEndTime ({sec, nsec}), the span the
+// app's playback bar shows.
 std::string server_info(std::string_view name, const std::vector<std::string>& capabilities,
                         const std::vector<std::string>& supported_encodings, const json& metadata,
-                        std::string_view session_id);
+                        std::string_view session_id,
+                        std::optional<std::pair<std::uint64_t, std::uint64_t>> data_range = {});
 // {"op": "advertise", "channels": [...]}
 std::string advertise(const std::vector<Channel>& channels);
 // {"op": "unadvertise", "channelIds": [...]}
@@ -111,6 +116,12 @@ std::string time_message(std::uint64_t time_ns);
 // `payload`.
 void append_service_call_response(std::string& out, std::uint32_t service_id, std::uint32_t call_id,
                                   std::string_view encoding, std::string_view payload);
+// A binary Playback State (capability playbackControl; the Foxglove SDK's layout): the
+// status, the current time (ns), the speed, whether a seek made it, and the id of the
+// request it answers ("": none, a change from elsewhere).
+enum class PlaybackStatus : std::uint8_t { playing = 0, paused = 1, buffering = 2, ended = 3 };
+std::string playback_state(PlaybackStatus status, std::uint64_t time_ns, float speed, bool did_seek,
+                           std::string_view request_id);
 // Simulated seconds as the protocol's nanoseconds (negative and NaN: 0; rounded).
 std::uint64_t to_nanoseconds(double seconds);
 
@@ -176,7 +187,16 @@ struct ClientMessageData {
   std::uint32_t channel_id = 0;
   std::string_view payload;
 };
-using ClientBinary = std::variant<ServiceCallRequest, ClientMessageData, Malformed>;
+// The app's playback bar (capability playbackControl): play or pause, at `speed` (a factor of
+// real time), after seeking to `seek_ns` when it has one.
+struct PlaybackControlRequest {
+  bool play = true;
+  float speed = 1;
+  std::optional<std::uint64_t> seek_ns;
+  std::string_view request_id;  // a view into the message
+};
+using ClientBinary =
+    std::variant<ServiceCallRequest, ClientMessageData, PlaybackControlRequest, Malformed>;
 ClientBinary read_binary(std::string_view message);
 
 // ---- schemas
