@@ -11,6 +11,7 @@ SIMGATE_RUNTIME_PACKAGES=(
   python3 python3-venv
   cyclonedds-dev cyclonedds-tools
   libegl-dev libegl1 libgl1-mesa-dri zlib1g-dev
+  libzstd-dev liblz4-dev
   telnet
 )
 SIMGATE_TEST_PACKAGES=(
@@ -29,6 +30,8 @@ SIMGATE_TEST_PACKAGES=(
 # display, no GPU needed),
 # zlib1g-dev for the PNG images' deflate. Without them at run time the cameras answer
 # FAILED and the rest runs.
+# libzstd-dev and liblz4-dev: the MCAP recordings' chunk compression (protocols/mcap; zlib's
+# crc32 for their CRCs)
 # python3 and python3-venv: ensure_mujoco's private virtualenv, whose pip installs the pinned
 # official MuJoCo (below; Debian's libmujoco-dev, 2.2.2, is no longer used)
 # libmujoco-samples: Debian's sample models (/usr/share/mujoco/model) the sim tests run on
