@@ -8,7 +8,7 @@
 // Exit code: 0 passed, 1 failed, 77 the npm packages are not installed.
 'use strict';
 
-const { WebSocket, Ajv, foxgloveSchemas, withTimeout, check, startGateway, Session, sleep } = require('./session');
+const { WebSocket, Ajv, foxgloveSchemas, withTimeout, check, Session, sleep, runTest } = require('./session');
 
 const TOTAL_TIMEOUT_MS = 100000;
 const SUBPROTOCOLS = ['foxglove.websocket.v1', 'foxglove.sdk.v1'];
@@ -285,32 +285,15 @@ async function playback(url, s) {
   ws.close();
 }
 
-async function main(argv) {
-  const { child, url: urlPromise } = startGateway(argv);
-  const overall = setTimeout(() => {
-    console.error('FAIL: the test took longer than ' + TOTAL_TIMEOUT_MS + ' ms');
-    child.kill('SIGKILL');
-    process.exit(1);
-  }, TOTAL_TIMEOUT_MS);
-  try {
-    const url = await urlPromise;
-    await refusedWithout(url);
-    const ajv = new Ajv({ strict: false });
-    // both subprotocols, two clients at once: one client's mistakes never reach the other
-    const sessions = await Promise.all(SUBPROTOCOLS.map((p) => session(url, p, ajv)));
-    await sceneFollowsTheModel(sessions[0]);
-    await publishingDrives(sessions[1]);
-    await parameters(sessions[0], sessions[1]);
-    await playback(url, sessions[0]);
-    for (const s of sessions) s.close();
-    console.log(`PASS: foxglove transport with @foxglove/ws-protocol (${SUBPROTOCOLS.join(', ')})`);
-  } finally {
-    clearTimeout(overall);
-    child.kill('SIGTERM');
-  }
-}
-
-main(process.argv.slice(2)).catch((e) => {
-  console.error('FAIL: ' + (e && e.stack ? e.stack : e));
-  process.exit(1);
-});
+runTest(process.argv.slice(2), TOTAL_TIMEOUT_MS, `foxglove transport with @foxglove/ws-protocol (${SUBPROTOCOLS.join(', ')})`,
+        async (url) => {
+          await refusedWithout(url);
+          const ajv = new Ajv({ strict: false });
+          // both subprotocols, two clients at once: one client's mistakes never reach the other
+          const sessions = await Promise.all(SUBPROTOCOLS.map((p) => session(url, p, ajv)));
+          await sceneFollowsTheModel(sessions[0]);
+          await publishingDrives(sessions[1]);
+          await parameters(sessions[0], sessions[1]);
+          await playback(url, sessions[0]);
+          for (const s of sessions) s.close();
+        });

@@ -12,7 +12,7 @@
 'use strict';
 
 const fs = require('fs');
-const { Ajv, WebSocket, foxgloveSchemas, check, startGateway, Session, sleep } = require('./session');
+const { Ajv, WebSocket, foxgloveSchemas, check, Session, sleep, runTest } = require('./session');
 
 const TOTAL_TIMEOUT_MS = 100000;
 
@@ -145,28 +145,11 @@ async function aClientThatReadsNothing(s, url, pid) {
   slow.terminate();
 }
 
-async function main(argv) {
-  const { child, url: urlPromise } = startGateway(argv);
-  const overall = setTimeout(() => {
-    console.error('FAIL: the test took longer than ' + TOTAL_TIMEOUT_MS + ' ms');
-    child.kill('SIGKILL');
-    process.exit(1);
-  }, TOTAL_TIMEOUT_MS);
-  try {
-    const url = await urlPromise;
-    const s = new Session(url, 'foxglove.websocket.v1');
-    await s.until(() => s.info && s.channel('/rover/laser') && s.service('/simulation/spawn_entity'), 'serverInfo, channels and services');
-    await sensors(s, new Ajv({ strict: false }));
-    await aClientThatReadsNothing(s, url, child.pid);
-    s.close();
-    console.log('PASS: the foxglove transport\'s sensor channels fit @foxglove/schemas');
-  } finally {
-    clearTimeout(overall);
-    child.kill('SIGTERM');
-  }
-}
-
-main(process.argv.slice(2)).catch((e) => {
-  console.error('FAIL: ' + (e && e.stack ? e.stack : e));
-  process.exit(1);
-});
+runTest(process.argv.slice(2), TOTAL_TIMEOUT_MS, 'the foxglove transport\'s sensor channels fit @foxglove/schemas',
+        async (url, child) => {
+          const s = new Session(url, 'foxglove.websocket.v1');
+          await s.until(() => s.info && s.channel('/rover/laser') && s.service('/simulation/spawn_entity'), 'serverInfo, channels and services');
+          await sensors(s, new Ajv({ strict: false }));
+          await aClientThatReadsNothing(s, url, child.pid);
+          s.close();
+        });

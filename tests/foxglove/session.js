@@ -119,4 +119,27 @@ class Session {
   close() { this.client.close(); }
 }
 
-module.exports = { FoxgloveClient, WebSocket, Ajv, foxgloveSchemas, withTimeout, check, startGateway, Session, sleep };
+// The test's frame: starts the gateway (`argv`), runs `body(url, child)` within `ms`, says
+// PASS with `passed` or FAIL with the reason (exit code 1), and stops the gateway either way.
+function runTest(argv, ms, passed, body) {
+  const { child, url } = startGateway(argv);
+  const overall = setTimeout(() => {
+    console.error('FAIL: the test took longer than ' + ms + ' ms');
+    child.kill('SIGKILL');
+    process.exit(1);
+  }, ms);
+  (async () => {
+    try {
+      await body(await url, child);
+      console.log('PASS: ' + passed);
+    } finally {
+      clearTimeout(overall);
+      child.kill('SIGTERM');
+    }
+  })().catch((e) => {
+    console.error('FAIL: ' + (e && e.stack ? e.stack : e));
+    process.exit(1);
+  });
+}
+
+module.exports = { FoxgloveClient, WebSocket, Ajv, foxgloveSchemas, withTimeout, check, startGateway, Session, sleep, runTest };
