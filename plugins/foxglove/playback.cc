@@ -6,10 +6,14 @@
 #include <algorithm>
 #include <cmath>
 
+#include <boost/asio/post.hpp>
+
 #include "foxglove_client.h"
 #include "simgate/core/log.h"
 
 namespace simgate::foxglove {
+
+namespace asio = boost::asio;
 
 // A playback request's calls under way: its answer (a Playback State to every client) goes
 // once they have all answered.
@@ -65,8 +69,13 @@ void FoxgloveServer::take_rewind_snapshot() {
 }
 
 void FoxgloveServer::drop_rewind(std::uint64_t handle) {
-  // its answer is nobody's: on_service_completion ignores an id it does not know
-  run_or_submit(new_request_id(), Call{"simulation", "drop_state", json{{"handle", handle}}});
+  // called from a completion, which may run inside run_or_submit with the simulation lock held
+  // by this thread: the call waits for the I/O thread's next turn. Its answer is nobody's
+  // (on_service_completion ignores an id it does not know).
+  asio::post(io_, [this, handle] {
+    if (!stopping_)
+      run_or_submit(new_request_id(), Call{"simulation", "drop_state", json{{"handle", handle}}});
+  });
 }
 
 void FoxgloveServer::control_playback(Client& client, const PlaybackControlRequest& request) {
@@ -111,7 +120,8 @@ void FoxgloveServer::control_playback(Client& client, const PlaybackControlReque
                          Call{"simulation", "restore_state", json{{"handle", target.handle}}});
     }
   }
-  if (request.speed > 0 && std::isfinite(request.speed) && request.speed != speed_)
+  // the speed every time: another client (or the config) may have set another time scale
+  if (request.speed > 0 && std::isfinite(request.speed))
     calls.emplace_back(new_request_id(),
                        Call{"time", "set_time_scale", json{{"value", request.speed}}});
   calls.emplace_back(new_request_id(),

@@ -88,17 +88,21 @@ class Gateway:
         self.process = subprocess.Popen(
             [ARGS.simgate, "run", self.config_path, "--endpoints-file", self.endpoints_path],
             stdout=self.log, stderr=subprocess.STDOUT)
-        deadline = time.monotonic() + TIMEOUT
-        while not os.path.exists(self.endpoints_path):
-            if self.process.poll() is not None or time.monotonic() > deadline:
-                output = self.output()
-                self.stop()
-                raise RuntimeError("gateway did not start:\n" + output)
-            time.sleep(0.01)  # polling for a file the child writes; bounded by the deadline
-        with open(self.endpoints_path) as f:
-            endpoints = json.load(f)  # {"socket": ["tcp://127.0.0.1:PORT"], ...}
-        # "tcp://127.0.0.1:4000", "ws://127.0.0.1:8765/"
-        self.ports = {name: urllib.parse.urlsplit(e[0]).port for name, e in endpoints.items()}
+        try:
+            deadline = time.monotonic() + TIMEOUT
+            while not os.path.exists(self.endpoints_path):
+                if self.process.poll() is not None or time.monotonic() > deadline:
+                    raise RuntimeError("gateway did not start:\n" + self.output())
+                time.sleep(0.01)  # polling for a file the child writes; bounded by the deadline
+            with open(self.endpoints_path) as f:
+                endpoints = json.load(f)  # {"socket": ["tcp://127.0.0.1:PORT"], ...}
+            # "tcp://127.0.0.1:4000", "ws://127.0.0.1:8765/"
+            self.ports = {name: urllib.parse.urlsplit(e[0]).port for name, e in endpoints.items()}
+        except BaseException:
+            # a start that fails half way must not leave the child running (it did: an
+            # endpoint this code could not read left two gateways stepping for an hour)
+            self.stop()
+            raise
 
     def output(self):
         self.log.flush()
