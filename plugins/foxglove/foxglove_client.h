@@ -23,7 +23,7 @@ class FoxgloveServer::Client : public kit::WebSocketConnection {
   struct Subscription {
     std::uint32_t channel_id = 0;
     Shape shape = Shape::sample;
-    std::shared_ptr<StreamSubscription> stream;    // null for the log channel
+    std::shared_ptr<StreamSubscription> stream{};  // null for the log channel
     SensorMessage message = SensorMessage::log;    // Shape::sensor: which message
     std::uint64_t scene_sent = ~std::uint64_t{0};  // the generation its last scene was of
   };

@@ -83,8 +83,11 @@ TEST_F(McapWriterTest, TheFileIsFramedAsTheSpecificationSays) {
   ASSERT_FALSE(data.empty());
   EXPECT_EQ(data.front(), 0x01);
   EXPECT_EQ(data.back(), 0x0F);
-  for (std::size_t i = 0; i < data.size(); ++i)
-    if (data[i] == 0x06) EXPECT_EQ(data[i + 1], 0x07) << "a chunk's message index follows it";
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    if (data[i] == 0x06) {
+      EXPECT_EQ(data[i + 1], 0x07) << "a chunk's message index follows it";
+    }
+  }
   EXPECT_EQ(std::count(data.begin(), data.end(), 0x09), 1);
   EXPECT_EQ(std::count(data.begin(), data.end(), 0x0C), 1);
   // the summary: schemas, channels, chunk indexes, attachment and metadata indexes,
