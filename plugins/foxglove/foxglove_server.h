@@ -15,7 +15,9 @@
 //   - subscribe / unsubscribe: each sample as a binary Message Data, its log time the
 //     simulated time of the sample; a Time message whenever the simulated time moved (with
 //     the samples, and `time_hz` times per second of wall time between them), so that
-//     panels follow simulated time through pauses and time scales.
+//     panels follow simulated time through pauses and time scales. Sensors' streams go in
+//     Foxglove's schemas (sensors.h: cameras, laser, odometry, joints), and /log carries the
+//     log's lines. (streams.cc, with the client channels below)
 //   - a service call (binary request, JSON encoding): answered by a Service Call Response
 //     with the result, or a serviceCallFailure naming the status and the reason; a long call
 //     when it finishes. A client that leaves has its calls cancelled (`on_disconnect`).
