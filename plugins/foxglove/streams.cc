@@ -38,10 +38,10 @@ void FoxgloveServer::subscribe(Client& client, const Subscribe& request) {
     std::shared_ptr<StreamSubscription> stream;
     if (entry != channels_.end() && stream_hub()) {
       // images: the newest only, a slow client never gets a backlog of them
-      const bool image = entry->shape == Shape::sensor &&
-                         entry->message != SensorMessage::laser_scan &&
-                         entry->message != SensorMessage::odometry &&
-                         entry->message != SensorMessage::joint_states;
+      const bool image =
+          entry->shape == Shape::sensor && (entry->message == SensorMessage::compressed_image ||
+                                            entry->message == SensorMessage::raw_image ||
+                                            entry->message == SensorMessage::camera_calibration);
       stream = stream_hub()->subscribe(
           entry->component, transport_name(),
           SubscriberOptions{image ? 1 : settings_.stream_queue, "foxglove " + client.label(),
