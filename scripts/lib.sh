@@ -81,13 +81,23 @@ SIMGATE_MUJOCO_VERSION=$(<"$SIMGATE_ROOT/cmake/mujoco-version.txt")
 SIMGATE_MUJOCO_CACHE=${XDG_CACHE_HOME:-$HOME/.cache}/simgate
 SIMGATE_MUJOCO_DIR=$SIMGATE_MUJOCO_CACHE/mujoco-$SIMGATE_MUJOCO_VERSION/mujoco
 
-# pip_install_into TARGET SPEC FILE...: installs the wheel SPEC ("name==version") into the
-# directory TARGET with the private virtualenv's pip (made on first use), unless it is there
-# already; it is there when TARGET holds every FILE (paths below TARGET). Into a fresh
-# directory renamed into place: a run interrupted half way leaves no directory that looks
-# installed, and two runs at once do not mix their files. Prints nothing when it is there.
+# pip_install_into [--for PYTHON] TARGET SPEC FILE...: installs the wheel SPEC ("name==version";
+# several, separated by spaces, go into the same TARGET) into the directory TARGET with the
+# private virtualenv's pip (made on first use), unless it is there already; it is there when
+# TARGET holds every FILE (paths below TARGET). --for PYTHON: wheels for that interpreter's
+# version (the one that will import them), not the virtualenv's. Into a fresh directory renamed
+# into place: a run interrupted half way leaves no directory that looks installed, and two runs
+# at once do not mix their files. Prints nothing when it is there.
 pip_install_into() {
-  local target=$1 spec=$2 venv=$SIMGATE_MUJOCO_CACHE/pip-venv tmp file; shift 2
+  local for_python=() version
+  if [ "$1" = --for ]; then
+    version=$("$2" -c 'import sys; print("%d.%d" % sys.version_info[:2])') ||
+      { log "pip_install_into: cannot run $2"; return 1; }
+    for_python=(--python-version "$version")
+    shift 2
+  fi
+  local target=$1 spec=$2 venv=$SIMGATE_MUJOCO_CACHE/pip-venv tmp file specs; shift 2
+  read -ra specs <<<"$spec"
   for file in "$@"; do [ -e "$target/$file" ] || break; done
   [ -e "$target/$file" ] && return 0
   mkdir -p "$SIMGATE_MUJOCO_CACHE"
@@ -97,7 +107,7 @@ pip_install_into() {
   log "installing $spec (PyPI) into ${target/#$HOME/\~}"
   tmp=$(mktemp -d "$target.XXXXXX")
   if ! "$venv/bin/pip" install --quiet --disable-pip-version-check --no-compile --no-deps --only-binary=:all: \
-       --target "$tmp" "$spec"; then
+       ${for_python[@]+"${for_python[@]}"} --target "$tmp" "${specs[@]}"; then
     rm -rf "$tmp"; log "pip could not install $spec"; return 1
   fi
   for file in "$@"; do
@@ -122,6 +132,29 @@ SIMGATE_CLANG_FORMAT=$SIMGATE_MUJOCO_CACHE/clang-format-$SIMGATE_CLANG_FORMAT_VE
 ensure_clang_format() {
   pip_install_into "$SIMGATE_MUJOCO_CACHE/clang-format-$SIMGATE_CLANG_FORMAT_VERSION" \
     "clang-format==$SIMGATE_CLANG_FORMAT_VERSION" clang_format/data/bin/clang-format
+}
+
+# ---- Python test clients (libraries nobody on the team wrote, run by the tests with Debian's
+# /usr/bin/python3): each pypi-requirements.txt under tests/ pins its packages ("name==version"
+# a line, # comments), installed together (binary wheels for /usr/bin/python3, no dependencies
+# but those pinned) once per set of pins under the user's cache, in a directory named after them:
+#   ${XDG_CACHE_HOME:-~/.cache}/simgate/python-<name>-<version>_<name>-<version>...
+# which the test's CMakeLists.txt names the same way (tests/mcap: PyPI's mcap, with zstandard
+# and lz4 for its chunks). Skipped (77) by the tests without it.
+ensure_python_test_clients() {
+  local requirements specs spec name files joined
+  while IFS= read -r requirements; do
+    mapfile -t specs < <(grep -v '^#' "$requirements" | grep .)
+    [ ${#specs[@]} -gt 0 ] || continue
+    files=()
+    for spec in "${specs[@]}"; do
+      name=${spec%%==*}
+      files+=("${name//-/_}-${spec#*==}.dist-info")
+    done
+    joined=$(IFS=_; echo "${specs[*]}")
+    pip_install_into --for /usr/bin/python3 "$SIMGATE_MUJOCO_CACHE/python-${joined//==/-}" \
+      "${specs[*]}" "${files[@]}" || return 1
+  done < <(find "$SIMGATE_ROOT/tests" -name pypi-requirements.txt -not -path '*/node_modules/*' 2>/dev/null)
 }
 
 # npm test clients (JSON-RPC libraries nobody on the team wrote): every package.json under tests/ and bench/

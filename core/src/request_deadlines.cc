@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <string>
 
+#include "simgate/core/input_tap.h"
 #include "simgate/core/log.h"
 #include "simgate/core/request_manager.h"
 #include "request_inbox.h"
@@ -65,6 +66,8 @@ void RequestManager::expire_deadlines() {
     auto it = running_.find(expired.id);
     if (it == running_.end() || it->second.first != state) continue;
     const std::shared_ptr<AsyncSlot> slot = it->second.second;
+    if (InputTap* tap = gate_->input_tap()) [[unlikely]]
+      tap->request_interrupted(*this, expired.id, Failure::timeout);
     Outcome timeout =
         timeout_outcome(state->service, expired.limit, expired.from_call, "interrupted");
     log::debug(name_, ": ", timeout.message);

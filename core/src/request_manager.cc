@@ -15,6 +15,7 @@
 
 #include "simgate/core/call_context.h"
 #include "simgate/core/errors.h"
+#include "simgate/core/input_tap.h"
 #include "simgate/core/log.h"
 #include "request_inbox.h"
 
@@ -310,6 +311,9 @@ bool RequestManager::execute(RequestId id, const Call& call, Outcome& out,
   // only the lock holder writes it: a plain store, no read-modify-write
   requests_handled_.store(requests_handled_.load(std::memory_order_relaxed) + 1,
                           std::memory_order_relaxed);
+  // a recorder writes the request down before it acts (its end: deliver())
+  if (InputTap* tap = gate_->input_tap()) [[unlikely]]
+    tap->request_started(*this, id, call);
   std::shared_ptr<Service> service = find_service(call);
   if (!service) {
     out = unknown_service(call);
@@ -482,6 +486,9 @@ void RequestManager::execute_cancel(RequestId id, const std::function<void(bool)
   auto it = running_.find(id);
   if (it != running_.end()) {
     auto& [state, slot] = it->second;
+    if (InputTap* tap = gate_->input_tap();
+        tap && !state->finished && (state->concurrent || slot->running == state)) [[unlikely]]
+      tap->request_interrupted(*this, id, Failure::cancelled);
     if (state->concurrent) {
       // that one call ends, through its completion; the component sees it done()
       Outcome cancelled;
@@ -538,6 +545,8 @@ void RequestManager::call_progress(RequestId id, json&& value) {
 }
 
 void RequestManager::deliver(RequestId id, Outcome&& outcome) {
+  if (InputTap* tap = gate_->input_tap()) [[unlikely]]
+    tap->request_ended(*this, id, outcome);
   // sync requests never were there
   if (!running_.empty()) {
     auto it = running_.find(id);

@@ -147,6 +147,12 @@ ServiceBuilder& ServiceBuilder::noninterruptible() {
 
 ServiceBuilder& ServiceBuilder::process_wide() {
   service_->descriptor().process_wide = true;
+  service_->descriptor().replayed = false;  // the world does not see it
+  return *this;
+}
+
+ServiceBuilder& ServiceBuilder::not_replayed() {
+  service_->descriptor().replayed = false;
   return *this;
 }
 

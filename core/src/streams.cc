@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include "simgate/core/errors.h"
+#include "simgate/core/input_tap.h"
 #include "simgate/core/log.h"
 #include "simgate/core/suggest.h"
 
@@ -259,8 +260,9 @@ const StreamHub::Stream* StreamHub::find_locked(std::string_view component) cons
 
 namespace {
 bool carries(const StreamInfo& info, std::string_view transport) {
-  return std::find(info.transports.begin(), info.transports.end(), transport) !=
-         info.transports.end();
+  return transport == StreamHub::k_every_transport ||
+         std::find(info.transports.begin(), info.transports.end(), transport) !=
+             info.transports.end();
 }
 }  // namespace
 
@@ -496,6 +498,8 @@ std::string StreamHub::apply(Stream& stream, const json& command) {
   } catch (const std::exception& e) {
     refusal = e.what();
   }
+  if (InputTap* tap = gate_->input_tap()) [[unlikely]]
+    tap->command_applied(stream.info.component, command, refusal);
   std::lock_guard lock(mutex_);
   if (refusal.empty())
     ++stream.commands;

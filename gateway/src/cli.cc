@@ -26,7 +26,8 @@ constexpr const char* k_description =
 constexpr const char* k_footer = R"(Synopsis:
   simgate run CONFIG [--status [SECONDS]] [--log-level L] [--realtime-factor F|max]
                      [--endpoints-file PATH] [--plugin-path DIR]...
-  simgate run --model FILE.xml [CONFIG] [options as above]
+  simgate run --model FILE.xml [CONFIG] [options as above] [--record FILE] [--record-dir DIR]
+  simgate replay FILE [--verify] [--json] [--config CONFIG] [--plugin-path DIR]...
   simgate check CONFIG | --model FILE.xml [CONFIG] [--log-level L] [--plugin-path DIR]...
   simgate call [CLIENT OPTIONS] COMPONENT SERVICE [ARGS...]
   simgate list [CLIENT OPTIONS] [--json]
@@ -73,6 +74,15 @@ times at --rate (default 10 per second). `simgate publish robot.motion '{"v": 0.
 jsonrpc, websocket: rpc.publish, a refused command is an error (exit 1); socket: lines on
 the stream port, MORSE's way: nothing is answered, a refusal is only counted by the server
 (`simgate call simulation get_stream_statistics`: refused, last_refusal).)";
+
+constexpr const char* k_replay_footer =
+    R"(Builds the recorded deployment here (nothing listens), puts back the state the recording
+began from, then takes the recorded requests, cancels and commands at their steps, as fast as
+possible, comparing every step's state with the recording's. Prints the steps and inputs
+replayed; at the first step that differs, its number, the quantities that differ (qpos,
+qvel, ctrl...) and the inputs taken just before it. Exit 0: the same run (with --verify: bit
+for bit); 1: a step differs (--verify); 2: not a recording, cut before its initial state, or
+not replayable here (another MuJoCo, another model: both named).)";
 
 constexpr const char* k_snapshot_footer =
     R"(Without --config or --model it asks the running simulation the client options reach
@@ -174,7 +184,34 @@ class CommandLine {
             ->expected(0, 1)
             ->multi_option_policy(CLI::MultiOptionPolicy::TakeLast)
             ->option_text("[SECONDS]");
+    run_->add_option("--record", run_args_.record,
+                     "record the run from its first step to FILE (MCAP; docs/recording.md)")
+        ->type_name("FILE");
+    run_->add_option("--record-dir", run_args_.record_dir,
+                     "let clients record (simulation start_recording NAME) into DIR")
+        ->type_name("DIR");
     run_->footer(std::string(k_run_footer) + "\n" + k_exit_codes);
+
+    replay_ = add_command(
+        "replay", "re-run a recording (simgate run --record) and compare every step's state");
+    replay_->add_option("FILE", replay_args_.file, "the recording (.mcap)")->required();
+    replay_->add_flag("--verify", replay_args_.verify,
+                      "exit 1 at the first step whose state differs from the recording's");
+    replay_->add_flag("--json", replay_args_.json, "print the report as one JSON document");
+    replay_
+        ->add_option("--config", replay_args_.config,
+                     "build this deployment instead of the one the recording carries")
+        ->type_name("CONFIG");
+    replay_
+        ->add_option("--plugin-path", replay_args_.plugin_dirs,
+                     "search component libraries in DIR too (repeatable)")
+        ->allow_extra_args(false)
+        ->option_text("DIR");
+    replay_
+        ->add_option("--log-level", replay_args_.log_level,
+                     "trace, debug, info, warning, error, off")
+        ->type_name("L");
+    replay_->footer(std::string(k_replay_footer) + "\n" + k_exit_codes);
 
     check_ = add_command(
         "check", "validate CONFIG (scene, components, transport plugins and options) and exit");
@@ -276,6 +313,7 @@ class CommandLine {
     if (watch_->parsed()) return cmd_watch(watch_args_);
     if (publish_->parsed()) return cmd_publish(publish_args_);
     if (snapshot_->parsed()) return cmd_snapshot(snapshot_args_);
+    if (replay_->parsed()) return cmd_replay(replay_args_);
     // `simgate` alone
     std::cerr << app_.help();
     return 2;
@@ -405,15 +443,16 @@ class CommandLine {
 
   CLI::App app_;                    // `simgate`
   std::vector<std::string> names_;  // the commands, in order
-  CLI::App *run_, *check_, *call_, *list_, *watch_, *publish_, *snapshot_;  // its commands
-  CLI::Option* status_;                                                     // run --status
-  std::vector<std::string> status_text_;                                    // its value, if any
-  RunArgs run_args_, check_args_;  // parsed values of each command
+  CLI::App *run_, *check_, *call_, *list_, *watch_, *publish_, *snapshot_, *replay_;  // commands
+  CLI::Option* status_;                   // run --status
+  std::vector<std::string> status_text_;  // its value, if any
+  RunArgs run_args_, check_args_;         // parsed values of each command
   CallArgs call_args_;
   ListArgs list_args_;
   WatchArgs watch_args_;
   PublishArgs publish_args_;
   SnapshotArgs snapshot_args_;
+  ReplayArgs replay_args_;
 };
 
 }  // namespace

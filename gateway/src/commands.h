@@ -32,6 +32,8 @@ struct RunArgs {
   std::optional<std::string> endpoints_file;   // --endpoints-file
   std::vector<std::string> plugin_dirs;        // --plugin-path, in order
   std::optional<double> status_interval;       // --status [SECONDS], in seconds
+  std::optional<std::string> record;           // --record FILE (run)
+  std::optional<std::string> record_dir;       // --record-dir DIR (run)
 };
 
 // The client options of `call`, `list`, `watch`, `publish` and `snapshot`, as written.
@@ -86,6 +88,16 @@ struct SnapshotArgs {
   std::string out;                    // OUT.png
 };
 
+// What `replay` was given.
+struct ReplayArgs {
+  std::string file;                      // FILE, a recording
+  bool verify = false;                   // --verify: exit 1 at the first step that differs
+  bool json = false;                     // --json: the report as one JSON document
+  std::optional<std::string> config;     // --config CONFIG instead of the recorded deployment
+  std::vector<std::string> plugin_dirs;  // --plugin-path, in order
+  std::optional<std::string> log_level;  // --log-level
+};
+
 // `run CONFIG` (check_only false) or `check CONFIG`.
 int cmd_run(const RunArgs& args, bool check_only);
 // `call COMPONENT SERVICE ARGS...`: prints the result, SUCCESS, or the failure on stderr.
@@ -98,6 +110,9 @@ int cmd_watch(const WatchArgs& args);
 int cmd_publish(const PublishArgs& args);
 // `snapshot OUT.png`: a picture of the scene (simulation get_snapshot), written as a PNG.
 int cmd_snapshot(const SnapshotArgs& args);
+// `replay FILE`: re-runs a recording (replay_command.cc); with --verify, exit 1 at a
+// difference, 2 for a file that is not a recording or cannot be replayed here.
+int cmd_replay(const ReplayArgs& args);
 
 // Where the client options point: the transport, make_client()'s options ({host, port} or
 // {domain, partition, config}; and the token of --token or SIMGATE_TOKEN, which

@@ -403,6 +403,7 @@ Deployment parse_deployment(const json& document, const std::string& base_dir,
   Deployment d;
   d.file = file;
   d.base_dir = base_dir;
+  d.document = document;
   // every independent part is checked even when another failed: all of a file's errors
   // are reported at once
   const std::size_t errors_before = errors.errors().size();

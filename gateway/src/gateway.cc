@@ -100,6 +100,7 @@ Gateway::Gateway(const Deployment& deployment, const sim::ComponentRegistry& reg
     build_components(errors);
     add_world_components(*simulation_);
     add_streams(errors);
+    add_recording_services();
     simulation_->set_robot_factory(std::make_shared<SpawnedRobots>(*this));
   } else {
     check_component_types(errors);
@@ -482,8 +483,30 @@ void Gateway::stop() {
   if (simulation_) simulation_->request_stop();
 }
 
+void Gateway::add_recording_services() {
+  recorder::RecordingSetup setup;
+  setup.dir = options_.record_dir;
+  setup.deployment = {{"document", deployment_.document},
+                      {"base_dir", deployment_.base_dir},
+                      {"file", deployment_.file}};
+  if (!deployment_.mjcf.empty())
+    setup.attachments.push_back(std::filesystem::absolute(deployment_.mjcf).string());
+  recording_ = std::make_shared<recorder::RecordingServices>(*simulation_, std::move(setup));
+  auto* supervision =
+      dynamic_cast<sim::SupervisionServices*>(simulation_->find("simulation")->component.get());
+  recording_->add_to(*supervision);
+}
+
+void Gateway::start_recording(const std::string& path) {
+  std::lock_guard lock(*simulation_->gate());
+  recording_->start(path);
+}
+
 void Gateway::shutdown() {
   if (!simulation_) return;
+  // the recording takes the run to its end, then closes its file
+  if (recording_) recording_->stop();
+  recording_.reset();
   // the simulation holds the last references to the managers: it destroys them before
   // the components they refer to
   for (auto& t : transports_) t.manager.reset();

@@ -304,6 +304,11 @@ int cmd_run(const RunArgs& args, bool check_only) {
   options.realtime_factor = parse_factor(args.realtime_factor);
   options.plugin_dirs = args.plugin_dirs;
   apply_log_level(args.log_level);
+  if (args.record_dir) {
+    if (!std::filesystem::is_directory(*args.record_dir))
+      throw UsageError("--record-dir: '" + *args.record_dir + "' is not a directory");
+    options.record_dir = std::filesystem::canonical(*args.record_dir).string();
+  }
 
   // SIGINT/SIGTERM are handled by a thread (blocked everywhere else, inherited by the
   // transports' threads); SIGPIPE is ignored: a closed client must not kill the server
@@ -337,6 +342,8 @@ int cmd_run(const RunArgs& args, bool check_only) {
   }
   for (const auto& w : gateway.warnings()) log::warning("config '", source, "': ", w);
 
+  // from the first step: before the transports open
+  if (args.record) gateway.start_recording(std::filesystem::absolute(*args.record).string());
   gateway.start();
   if (args.endpoints_file) write_endpoints_file(*args.endpoints_file, gateway.endpoints());
   print_banner(gateway);

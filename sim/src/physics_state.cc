@@ -1,5 +1,7 @@
 #include "simgate/sim/physics_state.h"
 
+#include <utility>
+
 namespace simgate::sim {
 
 namespace {
@@ -27,6 +29,15 @@ void PhysicsState::capture(const mjModel* m, const mjData* d, std::uint64_t gene
   time_ = d->time;
   generation_ = generation;
   captured_ = true;
+}
+
+PhysicsState PhysicsState::from_values(std::vector<mjtNum> values, std::uint64_t generation) {
+  PhysicsState state;
+  state.time_ = values.empty() ? 0 : values[0];  // mjSTATE_TIME comes first
+  state.values_ = std::move(values);
+  state.generation_ = generation;
+  state.captured_ = true;
+  return state;
 }
 
 bool PhysicsState::fits(const mjModel* m, std::uint64_t generation) const {

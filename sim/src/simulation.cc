@@ -189,6 +189,8 @@ std::size_t Simulation::process_requests() {
   }
   if (!tasks.empty()) {
     std::lock_guard lock(*gate_);
+    if (observer_) [[unlikely]]
+      observer_->tasks_ran(tasks.size());
     for (auto& task : tasks) task();
   }
   std::size_t handled = tasks.size();
@@ -201,6 +203,11 @@ std::size_t Simulation::process_requests() {
   }
   for (auto& manager : managers_) handled += manager->process();
   return handled;
+}
+
+std::size_t Simulation::soon_count() {
+  std::lock_guard lock(soon_mutex_);
+  return soon_.size();
 }
 
 void Simulation::step() {
@@ -249,6 +256,8 @@ void Simulation::step() {
     if (m()->opt.integrator == mjINT_RK4 && state_time_ != d()->time) forward();
   }
   steps_.fetch_add(1, std::memory_order_relaxed);
+  if (observer_) [[unlikely]]
+    observer_->stepped();
   // the streams due: samples of the state this step leaves
   streams_->publish_due(state_time_);
 }

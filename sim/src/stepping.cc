@@ -158,8 +158,10 @@ void add_stepping_services(SupervisionServices& simulation, Simulation& sim) {
           "divergences, "
           "last_divergence, lockstep}");
   simulation.offer_service("pause", [stepping] { return stepping->pause(); })
+      .not_replayed()
       .doc("Stop time and physics (requests are still served); ends a running step PREEMPTED");
   simulation.offer_service("play", [stepping] { return stepping->play(); })
+      .not_replayed()
       .doc("Resume time and physics at the real-time factor; ends a running step PREEMPTED");
   simulation
       .offer_async_service(
@@ -167,6 +169,7 @@ void add_stepping_services(SupervisionServices& simulation, Simulation& sim) {
           [stepping](Completion done, std::int64_t n) { stepping->step(std::move(done), n); },
           {{"n", 1}})
       .interruptible()
+      .not_replayed()
       .doc(
           "Paused only: take n steps as fast as possible; SUCCESS {sim_time, steps_done}, or "
           "PREEMPTED with the "
@@ -179,6 +182,7 @@ void add_stepping_services(SupervisionServices& simulation, Simulation& sim) {
                            },
                            {{"participant", ""}})
       .concurrent()
+      .not_replayed()
       .doc(
           "Take part in the lockstep until this call ends (cancel it, or leave): the simulation "
           "steps when "
@@ -192,6 +196,7 @@ void add_stepping_services(SupervisionServices& simulation, Simulation& sim) {
           },
           {"participant", {"n", 1}})
       .concurrent()
+      .not_replayed()
       .doc(
           "Paused only: wait at the lockstep barrier until every participant has asked for the "
           "same n, then "

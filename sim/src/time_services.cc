@@ -29,6 +29,7 @@ TimeServices::TimeServices(Simulation& sim) : Component("time"), sim_(sim) {
           "recovered");
   add_service("mode", &TimeServices::mode).doc("The time strategy");
   add_service("set_time_scale", &TimeServices::set_time_scale, {"value"})
+      .not_replayed()
       .doc("Simulated seconds per wall second from now on (0 = as fast as possible); returns true");
 }
 

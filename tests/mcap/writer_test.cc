@@ -2,7 +2,8 @@
 // lays it out (magic, Header first, Data End, the footer pointing at the summary and its
 // offsets, the magic last), a file with no message still whole, and mistakes refused with
 // the reason. (That readers nobody on the team wrote read the files, seek in them and check
-// their CRCs is mcap_reader_test.js's, with @mcap/core.)
+// their CRCs is mcap_reader_test.js's, with @mcap/core, and mcap_pypi_reader_test.py's, with
+// PyPI's mcap; that the team's reader reads them back, also when cut short, reader_test.cc's.)
 #include "simgate/mcap/writer.h"
 
 #include <gtest/gtest.h>

@@ -6,33 +6,15 @@
 #include <stdexcept>
 
 #include <lz4frame.h>
-#include <zlib.h>
 #include <zstd.h>
+
+#include "format.h"
 
 namespace simgate::mcap {
 
 namespace {
 
-constexpr char k_magic[] = {'\x89', 'M', 'C', 'A', 'P', '0', '\r', '\n'};
-
-// Opcodes (the specification's records).
-enum Op : std::uint8_t {
-  header = 0x01,
-  footer = 0x02,
-  schema = 0x03,
-  channel = 0x04,
-  message = 0x05,
-  chunk = 0x06,
-  message_index = 0x07,
-  chunk_index = 0x08,
-  attachment = 0x09,
-  attachment_index = 0x0A,
-  statistics = 0x0B,
-  metadata = 0x0C,
-  metadata_index = 0x0D,
-  summary_offset = 0x0E,
-  data_end = 0x0F,
-};
+using namespace format;  // the magic, the opcodes, crc32_of
 
 void u16(std::string& out, std::uint16_t v) {
   for (int i = 0; i < 2; ++i) out.push_back(static_cast<char>(v >> (8 * i)));
@@ -65,10 +47,6 @@ std::string record(Op op, std::string_view content) {
   u64(out, content.size());
   out += content;
   return out;
-}
-std::uint32_t crc32_of(std::string_view bytes, std::uint32_t crc = 0) {
-  return static_cast<std::uint32_t>(
-      ::crc32(crc, reinterpret_cast<const Bytef*>(bytes.data()), static_cast<uInt>(bytes.size())));
 }
 
 std::string compress(Compression c, const std::string& data) {
@@ -110,17 +88,22 @@ Writer::Writer(const std::string& path, WriterOptions options)
   file_ = std::fopen(path.c_str(), "wb");
   if (!file_)
     throw std::runtime_error("MCAP: cannot create '" + path + "': " + std::strerror(errno));
-  emit(std::string_view(k_magic, sizeof k_magic));
+  emit(k_magic);
   std::string h;
   str(h, options_.profile);
   str(h, options_.library);
   emit(record(header, h));
+  flush_file();
 }
 
 Writer::~Writer() {
   try {
     close();
   } catch (...) {}
+}
+
+void Writer::flush_file() {
+  if (std::fflush(file_) != 0 && error_.empty()) error_ = std::strerror(errno);
 }
 
 void Writer::emit(std::string_view bytes) {
@@ -214,6 +197,7 @@ void Writer::flush_chunk() {
     u64(offsets, offset_);
     emit(record(message_index, m));
   }
+  flush_file();  // the chunk and its indexes reach the OS: a kill -9 from now on keeps them
   std::string index;
   u64(index, chunk_has_messages_ ? chunk_start_ : 0);
   u64(index, chunk_has_messages_ ? chunk_end_ : 0);
@@ -255,6 +239,7 @@ void Writer::attach(std::uint64_t log_time, std::uint64_t create_time, std::stri
   attachment_indexes_ += record(attachment_index, index);
   ++attachment_count_;
   emit(r);
+  flush_file();
 }
 
 void Writer::add_metadata(std::string_view name, const Metadata& metadata) {
@@ -270,6 +255,7 @@ void Writer::add_metadata(std::string_view name, const Metadata& metadata) {
   metadata_indexes_ += record(metadata_index, index);
   ++metadata_count_;
   emit(r);
+  flush_file();
 }
 
 void Writer::close() {
@@ -329,9 +315,8 @@ void Writer::close() {
   u32(f, crc32_of(f, crc32_of(summary)));
   emit(summary);
   emit(f);
-  emit(std::string_view(k_magic, sizeof k_magic));
-  const bool flushed = std::fflush(file_) == 0;
-  if (!flushed && error_.empty()) error_ = std::strerror(errno);
+  emit(k_magic);
+  flush_file();
   if (std::fclose(file_) != 0 && error_.empty()) error_ = std::strerror(errno);
   file_ = nullptr;
   if (!error_.empty()) throw std::runtime_error("MCAP: writing '" + path_ + "' failed: " + error_);

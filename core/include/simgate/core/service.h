@@ -81,6 +81,11 @@ struct ServiceDescriptor {
   // Acts on the whole process rather than the world (ends it, changes its log level):
   // served only through console transports (ServiceAccess::console, service_access.h).
   bool process_wide = false;
+  // Whether a replay of a recording calls it again (the flight recorder, input_tap.h). False
+  // for a service that acts on the loop or the process rather than the world (pause, play,
+  // step, the lockstep, the time scale, recording itself, quit): a recording keeps the steps
+  // and the inputs themselves, so its replay takes the steps without asking for them.
+  bool replayed = true;
 
   std::string qualified_name() const { return component + "." + name; }
   std::size_t required_count() const;
@@ -209,6 +214,8 @@ class ServiceBuilder {
   ServiceBuilder& result_schema(json schema);
   // Acts on the whole process (ServiceDescriptor::process_wide): console transports only.
   ServiceBuilder& process_wide();
+  // Not called again by a replay (ServiceDescriptor::replayed).
+  ServiceBuilder& not_replayed();
   const ServiceDescriptor& descriptor() const;
 
  private:

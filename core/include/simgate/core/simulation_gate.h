@@ -14,6 +14,9 @@
 //    (RequestManager::run_or_submit). While the loop steps, or when another thread holds
 //    the lock, requests are queued and the holder's next process() runs them.
 //
+// It also holds the input tap (input_tap.h), if any: what records every input that reaches
+// the simulation; managers and the stream hub of the gate call it.
+//
 // The lock is a plain mutex (BasicLockable: std::lock_guard<SimulationGate> works). Holders
 // must not block on anything else that a lock waiter may hold.
 #ifndef SIMGATE_CORE_SIMULATION_GATE_H_
@@ -26,6 +29,8 @@
 #include <mutex>
 
 namespace simgate {
+
+class InputTap;
 
 class SimulationGate {
  public:
@@ -52,14 +57,21 @@ class SimulationGate {
   bool try_lock() { return state_mutex_.try_lock(); }
   void unlock() { state_mutex_.unlock(); }
 
+  // ---- the input tap (under the simulation lock) ----
+
+  // `tap` (not owned; null: none) is told of every input from now on, until it is replaced.
+  void set_input_tap(InputTap* tap) { input_tap_ = tap; }
+  InputTap* input_tap() const { return input_tap_; }
+
  private:
   std::atomic<bool> pending_{false};   // a signal not yet consumed
   std::atomic<bool> sleeping_{false};  // the waiter is (about to be) blocked on cv_
   // wake_at()'s earliest time (Clock ticks since its epoch); the maximum when there is none
   std::atomic<Clock::rep> wake_at_{std::numeric_limits<Clock::rep>::max()};
-  std::mutex wait_mutex_;       // guards the cv_ hand-off
-  std::condition_variable cv_;  // where the waiter blocks
-  std::mutex state_mutex_;      // the simulation lock
+  std::mutex wait_mutex_;          // guards the cv_ hand-off
+  std::condition_variable cv_;     // where the waiter blocks
+  std::mutex state_mutex_;         // the simulation lock
+  InputTap* input_tap_ = nullptr;  // under the simulation lock
 };
 
 }  // namespace simgate

@@ -314,6 +314,10 @@ class StreamHub {
 
   // ---- transports (any thread) ----
 
+  // What a subscriber that is no transport (a recorder) names as its transport: every
+  // stream, whichever transports carry it.
+  static constexpr std::string_view k_every_transport = "*";
+
   // The streams `transport` carries, in the order they were added.
   std::vector<StreamInfo> streams(std::string_view transport) const;
   // One stream, if `transport` carries it.

@@ -95,6 +95,7 @@ extern const std::vector<std::string> k_stream_only_components;
 struct Deployment {
   std::string file;                     // the config file ("" for in-memory documents)
   std::string base_dir;                 // relative paths resolve here
+  json document;                        // the document as given (what a recording keeps)
   std::string mjcf;                     // absolute or base_dir-relative, resolved
   std::optional<double> timestep;       // overrides the MJCF's
   double realtime_factor = 1.0;         // 0 = as fast as possible

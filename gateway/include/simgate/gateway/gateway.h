@@ -24,6 +24,7 @@
 
 #include "simgate/core/plugin_loader.h"
 #include "simgate/gateway/deployment.h"
+#include "simgate/recorder/recording_services.h"
 #include "simgate/sim/registry.h"
 #include "simgate/sim/simulation.h"
 
@@ -33,6 +34,9 @@ struct GatewayOptions {
   bool check_only = false;                // validate, create nothing that listens
   std::optional<double> realtime_factor;  // overrides the deployment's
   std::vector<std::string> plugin_dirs;  // searched before the defaults (after SIMGATE_PLUGIN_PATH)
+  // Where clients' recordings go (simulation start_recording; recording_services.h); "":
+  // clients may not record.
+  std::string record_dir{};
 };
 
 class Gateway {
@@ -66,6 +70,11 @@ class Gateway {
   void stop();
   // Answers pending requests, stops and destroys the transports, then the components.
   void shutdown();
+
+  // Records the run to `path` (an MCAP file, recorder.h) from now on: before run(), from its
+  // first step (`simgate run --record`). Throws std::runtime_error when the file cannot be
+  // created. Not in check mode.
+  void start_recording(const std::string& path);
 
   sim::Simulation& simulation() { return *simulation_; }
   const Deployment& deployment() const { return deployment_; }
@@ -115,6 +124,8 @@ class Gateway {
   // else its own "frequency"; none when neither says.
   std::optional<double> stream_frequency(const ComponentConfig& c) const;
   void load_plugins(ConfigErrors& errors);
+  // simulation start_recording, stop_recording, get_recording_status (recording_services.h)
+  void add_recording_services();
   // Adds warnings for components clients need that no transport serves, and those of
   // warn_about_access_lists().
   void warn_about_mapping();
@@ -131,7 +142,9 @@ class Gateway {
   // the types components are created from, and the libraries whose code they run: it must
   // outlive simulation_ (declared first, destroyed last)
   sim::ComponentRegistry registry_;
-  std::unique_ptr<sim::Simulation> simulation_;             // model, components, loop
+  std::unique_ptr<sim::Simulation> simulation_;  // model, components, loop
+  // simulation start_recording and its kin; a recording ends before the simulation does
+  std::shared_ptr<recorder::RecordingServices> recording_;
   std::vector<Transport> transports_;                       // in name order
   std::map<std::string, std::vector<std::string>> served_;  // transport -> components
   std::vector<std::string> warnings_;                       // see warnings()

@@ -41,6 +41,13 @@ class PhysicsState {
   double time() const { return time_; }
   std::uint64_t generation() const { return generation_; }
 
+  // The captured arrays, as mj_getState(mjSTATE_INTEGRATION) writes them (empty before a
+  // capture): what a recording stores of its initial state.
+  const std::vector<mjtNum>& values() const { return values_; }
+  // A state read back from such values (a recording's): it fits `m` of `generation` when
+  // there are as many as `m`'s state has (fits() says).
+  static PhysicsState from_values(std::vector<mjtNum> values, std::uint64_t generation);
+
  private:
   bool captured_ = false;
   std::uint64_t generation_ = 0;  // Simulation::model_generation() when captured

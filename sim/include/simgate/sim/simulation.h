@@ -274,6 +274,25 @@ class Simulation {
   ObjectState::Unmatched restore_objects(const ObjectState& state, double time);
   SimulationStatistics statistics() const;
 
+  // ---- observing the run (under the simulation lock) ----
+
+  // What a recorder (issue #39) is told of besides the inputs (input_tap.h): each step taken
+  // (after it, the state it left in mjData; a step undone by the divergence policy `pause`
+  // is not one) and each batch of run_soon tasks run (work finished off the lock, a spawned
+  // entity's model, takes effect there). Called on the thread that holds the lock; must not
+  // block.
+  class Observer {
+   public:
+    virtual ~Observer() = default;
+    virtual void stepped() = 0;
+    virtual void tasks_ran(std::size_t count) = 0;
+  };
+  // `observer` (not owned; null: none) from now on.
+  void set_observer(Observer* observer) { observer_ = observer; }
+  // run_soon tasks waiting for the simulation's next turn (a replay waits for those the
+  // recording says ran before the next step). Any thread.
+  std::size_t soon_count();
+
   // ---- divergence (simulation thread) ----
 
   // Under the restore policy, a checkpoint is taken after each this much simulated time
@@ -420,6 +439,7 @@ class Simulation {
   std::vector<std::string> spawn_allowed_dirs_;  // see SimulationOptions
   std::shared_ptr<RobotFactory> robot_factory_;  // see set_robot_factory
   SimulationEvents* events_ = nullptr;  // simulation.events (owned by entries_), once added
+  Observer* observer_ = nullptr;        // see set_observer
 };
 
 }  // namespace simgate::sim

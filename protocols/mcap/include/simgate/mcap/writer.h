@@ -9,6 +9,12 @@
 // is written. So a reader can seek by time (the chunk indexes) and list what the file holds
 // (the statistics) without reading it all.
 //
+// Crash safety: the Header, each chunk (with its message indexes), each attachment and each
+// metadata record reach the OS as soon as they are written, so a recording killed half way
+// (kill -9, a crash) leaves a file whose every record but the last, cut one is whole: Reader
+// (reader.h) reads it up to there. Without Data End and the summary, readers that start from
+// the footer (an indexed reader) refuse such a file.
+//
 // Memory: one chunk's records (chunk_bytes, 1 MiB by default, then compressed) and the
 // summary's indexes (a few dozen bytes per chunk, attachment and metadata record).
 //
@@ -67,6 +73,9 @@ class Writer {
   // Throws std::runtime_error when a write failed. Idempotent.
   void close();
 
+  // The first write error (a full disk: strerror's words), "" while every write succeeded;
+  // once there is one, nothing more is written and close() throws it.
+  const std::string& error() const { return error_; }
   std::uint64_t message_count() const { return message_count_; }
   std::uint64_t bytes_written() const { return offset_; }
 
@@ -74,6 +83,11 @@ class Writer {
   void flush_chunk();
   // Writes `bytes` to the file (and into the data section's CRC while it runs).
   void emit(std::string_view bytes);
+  // Hands what emit() buffered to the OS (fflush): after the Header, each chunk with its
+  // message indexes, each attachment and metadata record. A process killed (kill -9) later
+  // leaves them in the file, which Reader reads up to there; a power cut may still lose them
+  // (no fsync).
+  void flush_file();
 
   std::string path_;
   WriterOptions options_;

@@ -1,0 +1,167 @@
+// simgate/recorder/recorder.h — the flight recorder (issue #39): a run written to an MCAP file
+// as it happens, so that `simgate replay` can re-run it bit for bit and say where two runs
+// part (replay.h; docs/recording.md).
+//
+// What a recording holds (format.h names the channels):
+//  - the inputs, in the order they took effect, each with the step count at that moment: every
+//    request a service ran, from every transport (client, arguments), every interruption of a
+//    running request from outside (a cancel, a deadline), every command applied to an input
+//    stream, every batch of finished off-lock work (a spawned entity's model) taken in;
+//  - the outcome of each request (status, message, a small value);
+//  - a fingerprint of the state after every step (state_hash.h), in blocks;
+//  - the physics state it started from, and what the run was made of: the deployment document,
+//    the MJCF scene as an attachment, MuJoCo's and simgate's versions as metadata;
+//  - every output stream's samples (Foxglove's schemas where one fits: sensors.h, the same
+//    encoders as the foxglove transport), so that Foxglove or Lichtblick play the run back.
+//
+// Threads: the recorder is both the gate's input tap and the simulation's observer: those calls
+// come under the simulation lock and only copy what they need into a queue. Its own writer
+// thread encodes and writes (the stream samples it takes from its subscriptions there too), so
+// the simulation never waits for the disk. Memory is bounded: stream subscriptions keep a few
+// samples (a slow disk drops samples, counted, as for any subscriber), and the inputs' queue
+// at most RecordingOptions::max_queue_bytes; past that, or on a write error (a full disk), the
+// recording stops with a logged error and the simulation goes on.
+#ifndef SIMGATE_RECORDER_RECORDER_H_
+#define SIMGATE_RECORDER_RECORDER_H_
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <unordered_map>
+#include <unordered_set>
+#include <vector>
+
+#include "simgate/core/input_tap.h"
+#include "simgate/core/streams.h"
+#include "simgate/foxglove/sensors.h"
+#include "simgate/mcap/writer.h"
+#include "simgate/sim/simulation.h"
+#include "simgate/sim/state_hash.h"
+
+namespace simgate::recorder {
+
+struct RecordingOptions {
+  std::string path;  // the MCAP file (created or truncated)
+  mcap::Compression compression = mcap::Compression::zstd;
+  // What the run was made of (format.h: the deployment attachment): {"document", "base_dir",
+  // "file"}; null: not said (a replay then needs a config).
+  json deployment = nullptr;
+  // Files the recording carries as attachments (the MJCF scene), by absolute path.
+  std::vector<std::string> attachments;
+  // The most the inputs waiting for the writer may take; past it the recording stops.
+  std::size_t max_queue_bytes = std::size_t{256} << 20;
+  // Steps per block of state fingerprints.
+  std::uint32_t hash_block = 100;
+  // Samples each stream subscription keeps for the writer (older ones are dropped, counted).
+  std::size_t stream_capacity = 64;
+};
+
+class Recorder final : public InputTap, public sim::Simulation::Observer {
+ public:
+  // Starts recording `simulation` from now: writes the file's head (metadata, attachments,
+  // the initial state), subscribes to every output stream, and sets itself as the gate's
+  // input tap and the simulation's observer. Under the simulation lock. Throws
+  // std::runtime_error naming the file when it cannot be created.
+  Recorder(sim::Simulation& simulation, RecordingOptions options);
+  // finish() if not done (the caller must not hold the simulation lock).
+  ~Recorder() override;
+  Recorder(const Recorder&) = delete;
+  Recorder& operator=(const Recorder&) = delete;
+
+  // Stops taking inputs and samples (the tap, the observer and the subscriptions are removed).
+  // Under the simulation lock. Idempotent.
+  void detach();
+  // After detach(): the writer writes what is left and closes the file (the summary, the
+  // footer). Without the simulation lock (it waits for the writer). Returns the status.
+  json finish();
+
+  // {"path", "recording": bool, "error": why it stopped early (or null), "steps", "inputs",
+  //  "samples", "samples_dropped", "bytes"}. Any thread.
+  json status() const;
+  const std::string& path() const { return options_.path; }
+  // The error that stopped the recording early, or "" (any thread).
+  std::string error() const;
+
+  // ---- InputTap and Simulation::Observer (under the simulation lock) ----
+  void request_started(const RequestManager& manager, RequestId id, const Call& call) override;
+  void request_ended(const RequestManager& manager, RequestId id, const Outcome& outcome) override;
+  void request_interrupted(const RequestManager& manager, RequestId id, Failure reason) override;
+  void command_applied(std::string_view component, const json& command,
+                       const std::string& refusal) override;
+  void stepped() override;
+  void tasks_ran(std::size_t count) override;
+
+ private:
+  // One message for the writer, made under the lock: the channel, the time, and either the
+  // text itself or a JSON value the writer dumps.
+  struct Pending {
+    std::uint16_t channel = 0;
+    std::uint32_t sequence = 0;  // the message's (the inputs': their seq)
+    std::uint64_t time_ns = 0;
+    json value;        // dumped by the writer (when text is empty)
+    std::string text;  // as it is
+    std::size_t bytes = 0;
+  };
+  // A stream the recorder subscribed to, and the channels its samples go to.
+  struct Stream {
+    std::string component;
+    std::string kind;
+    std::shared_ptr<StreamSubscription> subscription;
+    std::uint16_t json_channel = 0;  // the component's JSON samples (when no sensor schema fits)
+    bool as_json = false;
+    std::vector<std::pair<std::uint16_t, foxglove::SensorMessage>> sensor_channels;
+    foxglove::LaserArc arc;  // a laser's (sensors.h)
+    std::uint32_t sequence = 0;
+  };
+
+  void write_head(const sim::Simulation& simulation);
+  void subscribe_streams(sim::Simulation& simulation);
+  // An input on the inputs channel: `event` gets "seq", "step" and "sim_time".
+  void input(json event);
+  // Queues `p` for the writer; stops the recording when the queue is too full.
+  void enqueue(Pending p);
+  void flush_hashes();
+  void writer_loop();
+  void write_samples(Stream& stream, std::vector<SamplePtr>& samples);
+  std::uint64_t now_ns() const;
+  std::uint64_t step() const;
+
+  sim::Simulation& simulation_;
+  RecordingOptions options_;
+  std::unique_ptr<mcap::Writer> writer_;  // the writer thread's, once started
+  std::uint16_t inputs_channel_ = 0, outcomes_channel_ = 0, hashes_channel_ = 0, state_channel_ = 0;
+  bool attached_ = false;  // under the simulation lock
+
+  // under the simulation lock: the requests recorded as started and not yet ended, by manager
+  std::unordered_map<const RequestManager*, std::unordered_set<RequestId>> open_;
+  std::uint64_t input_seq_ = 0;
+  std::uint64_t first_step_ = 0;
+  std::uint64_t generation_ = 0;
+  std::unique_ptr<sim::StateHasher> hasher_;
+  std::vector<std::uint32_t> hash_block_;  // quantities × steps, the block being filled
+  std::uint64_t block_first_step_ = 0;
+  std::uint32_t block_steps_ = 0;
+
+  std::vector<Stream> streams_;  // the writer thread's (subscriptions: any thread)
+
+  mutable std::mutex mutex_;  // guards what follows
+  std::condition_variable cv_;
+  std::deque<Pending> queue_;
+  std::size_t queue_bytes_ = 0;
+  bool samples_waiting_ = false;
+  bool finishing_ = false;
+  std::string error_;
+  std::uint64_t inputs_ = 0, steps_recorded_ = 0, samples_ = 0;
+  std::uint64_t bytes_written_ = 0;
+  bool finished_ = false;
+  std::thread thread_;
+};
+
+}  // namespace simgate::recorder
+
+#endif  // SIMGATE_RECORDER_RECORDER_H_

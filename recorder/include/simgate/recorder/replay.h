@@ -1,0 +1,105 @@
+// simgate/recorder/replay.h — re-running a recording (recorder.h, format.h): `simgate replay
+// FILE [--verify]` (docs/recording.md).
+//
+// A replay builds the recorded run's simulation (the gateway, from the deployment the
+// recording carries, with no transport), puts back the state it started from, then takes the
+// recorded inputs at their steps, in their order, and steps in between, as fast as possible:
+// requests through a request manager of its own that serves every component (the services
+// that act on the loop rather than the world, ServiceDescriptor::replayed false, are not
+// called: their steps are in the recording as steps), interruptions as cancels, commands
+// applied to their input streams, off-lock work (a spawned entity's model) taken in where it
+// was. After every step it compares the state's fingerprint with the recorded one; the first
+// step where they differ is named with the quantities that differ and the inputs taken just
+// before it (every step is fingerprinted: no bisection is needed to find it).
+//
+// What cannot be replayed is refused before anything runs: a recording made with another
+// MuJoCo (both versions named), a model whose state differs in size from the recording's, a
+// recording that began after the model changed (a spawn or a delete before start_recording).
+// A recording begun mid-run (start_recording) replays from its physics state; components'
+// own state (an odometry's integral, a goto under way) starts afresh, which --verify reports
+// as a divergence if it matters.
+//
+// Threads: Replayer::run() on one thread, which drives the simulation (it is the simulation
+// thread while it runs; the simulation's loop must not run).
+#ifndef SIMGATE_RECORDER_REPLAY_H_
+#define SIMGATE_RECORDER_REPLAY_H_
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <mujoco/mujoco.h>
+
+#include "simgate/core/status.h"
+#include "simgate/mcap/writer.h"
+#include "simgate/sim/simulation.h"
+
+namespace simgate::recorder {
+
+// What a recording holds, read whole (its stream samples aside).
+struct Recording {
+  std::string path;
+  mcap::Metadata metadata;    // the "simgate" metadata record
+  json deployment = nullptr;  // the deployment attachment, if any
+  std::uint64_t first_step = 0;
+  std::uint64_t generation = 0;  // the model generation it began at
+  double initial_time = 0;
+  std::vector<mjtNum> initial_state;  // mjSTATE_INTEGRATION
+  std::vector<json> inputs;           // in order
+  std::vector<json> outcomes;         // in order
+  struct HashBlock {
+    std::uint64_t first_step = 0;
+    std::uint64_t steps = 0;
+    std::vector<std::string> quantities;
+    std::vector<std::uint32_t> hashes;  // quantities.size() per step
+  };
+  std::vector<HashBlock> hashes;
+  std::uint64_t last_step = 0;  // the last step fingerprinted (first_step if none)
+  bool complete = false;        // the file was whole (else: cut, truncation says where)
+  std::string truncation;
+
+  // Reads `path`. Throws mcap::ReadError (not MCAP, corrupt: the offset named) or
+  // std::runtime_error (MCAP, but no simgate recording: what is missing).
+  static Recording read(const std::string& path);
+};
+
+// The first step where the replay's state differs from the recording's.
+struct StepMismatch {
+  std::uint64_t step = 0;               // the recorded run's step count after it
+  double sim_time = 0;                  // the replay's simulated time after it
+  std::vector<std::string> quantities;  // those whose fingerprints differ
+  std::vector<json> inputs;             // the inputs taken between the step before and it
+};
+
+struct ReplayReport {
+  std::uint64_t steps = 0;               // steps taken
+  std::uint64_t inputs_applied = 0;      // requests, interruptions, commands, task batches
+  std::uint64_t inputs_skipped = 0;      // requests of services a replay does not call
+  std::uint64_t steps_compared = 0;      // steps whose fingerprints were compared
+  std::uint64_t outcomes_differing = 0;  // requests whose status differs from the recorded
+  std::optional<StepMismatch> mismatch;
+  double wall_seconds = 0;
+  // {"steps", "inputs_applied", "inputs_skipped", "steps_compared", "outcomes_differing",
+  //  "mismatch": null or {"step", "sim_time", "quantities", "inputs"}, "wall_seconds"}
+  json to_json() const;
+};
+
+class Replayer {
+ public:
+  // Checks that `recording` can be replayed on `simulation` (built from its deployment, not
+  // running); throws std::runtime_error saying why not (versions, model).
+  Replayer(sim::Simulation& simulation, const Recording& recording);
+
+  // Replays the whole recording; with `stop_at_mismatch`, stops at the first step whose
+  // fingerprint differs.
+  ReplayReport run(bool stop_at_mismatch = true);
+
+ private:
+  sim::Simulation& simulation_;
+  const Recording& recording_;
+};
+
+}  // namespace simgate::recorder
+
+#endif  // SIMGATE_RECORDER_REPLAY_H_

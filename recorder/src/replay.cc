@@ -1,0 +1,302 @@
+#include "simgate/recorder/replay.h"
+
+#include <chrono>
+#include <cstring>
+#include <map>
+#include <set>
+#include <stdexcept>
+#include <thread>
+#include <utility>
+
+#include "simgate/core/base64.h"
+#include "simgate/core/request_manager.h"
+#include "simgate/mcap/reader.h"
+#include "simgate/recorder/format.h"
+#include "simgate/sim/physics_state.h"
+#include "simgate/sim/state_hash.h"
+
+namespace simgate::recorder {
+
+namespace {
+
+// The longest a replay waits for off-lock work the recording says was taken in (a spawned
+// entity's model compiling on a worker thread).
+constexpr std::chrono::seconds k_task_wait{60};
+
+json parse_message(const mcap::Message& m, const std::string& path, const char* topic) {
+  try {
+    return json::parse(m.data);
+  } catch (const std::exception& e) {
+    throw std::runtime_error(path + ": a " + topic + " message is not JSON: " + e.what());
+  }
+}
+
+// Serves every component for the replay and keeps each request's outcome.
+class ReplayManager final : public RequestManager {
+ public:
+  ReplayManager() : RequestManager("Replay service manager") {}
+  void arrive(std::uint64_t client) { client_arrived(client); }
+  std::map<RequestId, Status> statuses;  // outcomes not yet compared
+
+ protected:
+  void on_service_completion(RequestId id, Outcome&& outcome) override {
+    statuses[id] = outcome.status;
+  }
+};
+
+}  // namespace
+
+Recording Recording::read(const std::string& path) {
+  Recording r;
+  r.path = path;
+  mcap::Reader reader(path);
+  mcap::Item item;
+  bool has_state = false, has_metadata = false;
+  while (reader.next(item)) {
+    if (auto* meta = std::get_if<mcap::MetadataRecord>(&item)) {
+      if (meta->name == k_metadata_name) {
+        r.metadata = meta->metadata;
+        has_metadata = true;
+      }
+    } else if (auto* a = std::get_if<mcap::Attachment>(&item)) {
+      if (a->name == k_deployment_attachment) {
+        try {
+          r.deployment = json::parse(a->data);
+        } catch (const std::exception& e) {
+          throw std::runtime_error(path + ": its deployment attachment is not JSON: " + e.what());
+        }
+      }
+    } else if (auto* m = std::get_if<mcap::Message>(&item)) {
+      const mcap::Channel* channel = reader.channel(m->channel_id);
+      if (!channel) continue;
+      const std::string& topic = channel->topic;
+      if (topic == k_inputs_topic) {
+        r.inputs.push_back(parse_message(*m, path, k_inputs_topic));
+      } else if (topic == k_outcomes_topic) {
+        r.outcomes.push_back(parse_message(*m, path, k_outcomes_topic));
+      } else if (topic == k_hashes_topic) {
+        const json block = parse_message(*m, path, k_hashes_topic);
+        HashBlock b;
+        b.first_step = block.at("first_step").get<std::uint64_t>();
+        b.steps = block.at("steps").get<std::uint64_t>();
+        b.quantities = block.at("quantities").get<std::vector<std::string>>();
+        b.hashes = block.at("hashes").get<std::vector<std::uint32_t>>();
+        if (b.hashes.size() != b.steps * b.quantities.size())
+          throw std::runtime_error(path + ": a state_hashes block holds " +
+                                   std::to_string(b.hashes.size()) + " hashes for " +
+                                   std::to_string(b.steps) + " steps of " +
+                                   std::to_string(b.quantities.size()) + " quantities");
+        r.last_step = std::max(r.last_step, b.first_step + b.steps - 1);
+        r.hashes.push_back(std::move(b));
+      } else if (topic == k_initial_state_topic) {
+        const json state = parse_message(*m, path, k_initial_state_topic);
+        r.first_step = state.at("step").get<std::uint64_t>();
+        r.generation = state.at("generation").get<std::uint64_t>();
+        r.initial_time = state.at("sim_time").get<double>();
+        const std::vector<std::uint8_t> bytes =
+            base64_decode(state.at("values").get<std::string>());
+        if (bytes.size() % sizeof(mjtNum) != 0)
+          throw std::runtime_error(path + ": its initial state is not a whole number of values");
+        r.initial_state.resize(bytes.size() / sizeof(mjtNum));
+        std::memcpy(r.initial_state.data(), bytes.data(), bytes.size());
+        has_state = true;
+      }
+    }
+  }
+  r.complete = reader.complete();
+  r.truncation = reader.truncation();
+  if (!has_metadata || !has_state)
+    throw std::runtime_error(path + ": an MCAP file, but not a simgate recording (no '" +
+                             std::string(k_metadata_name) + "' metadata or no " +
+                             k_initial_state_topic + " message)");
+  if (r.last_step < r.first_step) r.last_step = r.first_step;
+  return r;
+}
+
+json ReplayReport::to_json() const {
+  json m = nullptr;
+  if (mismatch)
+    m = {{"step", mismatch->step},
+         {"sim_time", mismatch->sim_time},
+         {"quantities", mismatch->quantities},
+         {"inputs", mismatch->inputs}};
+  return {{"steps", steps},
+          {"inputs_applied", inputs_applied},
+          {"inputs_skipped", inputs_skipped},
+          {"steps_compared", steps_compared},
+          {"outcomes_differing", outcomes_differing},
+          {"mismatch", m},
+          {"wall_seconds", wall_seconds}};
+}
+
+Replayer::Replayer(sim::Simulation& simulation, const Recording& recording)
+    : simulation_(simulation), recording_(recording) {
+  const auto said = [&](const char* key) {
+    auto it = recording.metadata.find(key);
+    return it == recording.metadata.end() ? std::string("unknown") : it->second;
+  };
+  const std::string mujoco = mj_versionString();
+  if (said("mujoco_version") != mujoco)
+    throw std::runtime_error(recording.path + ": recorded with MuJoCo " + said("mujoco_version") +
+                             ", this simgate runs MuJoCo " + mujoco +
+                             ": a replay would not be the same run");
+  if (recording.generation != 0)
+    throw std::runtime_error(recording.path +
+                             ": the recording began after the model changed (a spawn or a delete: "
+                             "model generation " +
+                             std::to_string(recording.generation) +
+                             "); a replay builds the model the configuration describes");
+  const mjModel* m = simulation.m();
+  const auto size = static_cast<std::size_t>(mj_stateSize(m, mjSTATE_INTEGRATION));
+  if (size != recording.initial_state.size())
+    throw std::runtime_error(recording.path + ": the model is not the recording's: its state has " +
+                             std::to_string(size) + " numbers, the recording's " +
+                             std::to_string(recording.initial_state.size()) +
+                             " (the scene's files changed since?)");
+  if (const auto it = recording.metadata.find("model_hash");
+      it != recording.metadata.end() && it->second != std::to_string(sim::model_hash(m)))
+    throw std::runtime_error(recording.path +
+                             ": the model is not the recording's: it compiles to another model "
+                             "(the scene's files changed since the recording)");
+}
+
+ReplayReport Replayer::run(bool stop_at_mismatch) {
+  const auto wall_start = std::chrono::steady_clock::now();
+  ReplayReport report;
+  sim::Simulation& sim = simulation_;
+  const Recording& rec = recording_;
+
+  auto manager = std::make_shared<ReplayManager>();
+  for (const auto& entry : sim.components()) manager->register_component(*entry->component);
+  sim.add_request_manager(manager, "replay");
+  {
+    std::lock_guard lock(*sim.gate());
+    sim.restore_physics(sim::PhysicsState::from_values(rec.initial_state, sim.model_generation()));
+  }
+
+  // the recorded fingerprints, by step
+  sim::StateHasher hasher(sim.m());
+  std::vector<std::uint32_t> now;
+  std::size_t block = 0;
+  std::vector<json> inputs_since_step;
+  const auto compare = [&](std::uint64_t step) -> bool {
+    while (block < rec.hashes.size() &&
+           rec.hashes[block].first_step + rec.hashes[block].steps <= step)
+      ++block;
+    if (block >= rec.hashes.size() || rec.hashes[block].first_step > step) return true;
+    const auto& b = rec.hashes[block];
+    if (!hasher.fits(sim.m())) hasher = sim::StateHasher(sim.m());
+    if (hasher.quantities() != b.quantities) return true;  // another model: nothing to compare
+    now.resize(b.quantities.size());
+    hasher.hash(sim.m(), sim.d(), now);
+    ++report.steps_compared;
+    const std::size_t at = (step - b.first_step) * b.quantities.size();
+    StepMismatch mismatch;
+    for (std::size_t q = 0; q < b.quantities.size(); ++q)
+      if (now[q] != b.hashes[at + q]) mismatch.quantities.push_back(b.quantities[q]);
+    if (mismatch.quantities.empty()) return true;
+    if (!report.mismatch) {
+      mismatch.step = step;
+      mismatch.sim_time = sim.sim_time();
+      mismatch.inputs = inputs_since_step;
+      report.mismatch = std::move(mismatch);
+    }
+    return false;
+  };
+  // steps until the recorded run's step count is `target`; false at a mismatch (when asked to
+  // stop there)
+  const auto step_to = [&](std::uint64_t target) -> bool {
+    while (rec.first_step + sim.steps() < target) {
+      {
+        std::lock_guard lock(*sim.gate());
+        sim.step();
+      }
+      ++report.steps;
+      const bool same = compare(rec.first_step + sim.steps());
+      inputs_since_step.clear();
+      if (!same && stop_at_mismatch) return false;
+    }
+    return true;
+  };
+
+  // the services a replay does not call (unknown ones are: their refusal is the same)
+  std::set<std::pair<std::string, std::string>> not_replayed;
+  for (const ServiceDescriptor& d : manager->descriptors())
+    if (!d.replayed) not_replayed.emplace(d.component, d.name);
+  // (transport, id) of the recording -> the replay's request id; (transport, client) -> client
+  std::map<std::pair<std::string, RequestId>, RequestId> ids;
+  std::map<std::pair<std::string, std::uint64_t>, std::uint64_t> clients;
+  std::map<RequestId, std::string> recorded_status;  // by the replay's id
+  std::map<std::pair<std::string, RequestId>, std::string> outcome_of;
+  for (const json& o : rec.outcomes)
+    outcome_of[{o.value("transport", ""), o.value("id", RequestId{0})}] = o.value("status", "");
+
+  bool stopped = false;
+  for (const json& in : rec.inputs) {
+    if (!step_to(in.at("step").get<std::uint64_t>())) {
+      stopped = true;
+      break;
+    }
+    const std::string type = in.value("type", "");
+    if (type == "request") {
+      Call call;
+      call.component = in.value("component", "");
+      call.service = in.value("service", "");
+      call.params = in.contains("params") ? in["params"] : json(nullptr);
+      const std::string transport = in.value("transport", "");
+      if (const std::uint64_t client = in.value("client", std::uint64_t{0}); client != 0) {
+        auto [it, added] = clients.try_emplace({transport, client}, clients.size() + 1);
+        if (added) manager->arrive(it->second);
+        call.client = it->second;
+      }
+      if (not_replayed.contains({call.component, call.service})) {
+        ++report.inputs_skipped;  // acts on the loop: its steps are in the recording as steps
+        continue;
+      }
+      const RequestId id = manager->new_request_id();
+      const RequestId recorded = in.value("id", RequestId{0});
+      ids[{transport, recorded}] = id;
+      if (auto o = outcome_of.find({transport, recorded}); o != outcome_of.end())
+        recorded_status[id] = o->second;
+      inputs_since_step.push_back(in);
+      manager->run_or_submit(id, std::move(call));
+      ++report.inputs_applied;
+    } else if (type == "interrupt") {
+      auto it = ids.find({in.value("transport", ""), in.value("id", RequestId{0})});
+      if (it == ids.end()) continue;  // a request the recording did not start
+      inputs_since_step.push_back(in);
+      manager->cancel(it->second);
+      manager->process();
+      ++report.inputs_applied;
+    } else if (type == "command") {
+      inputs_since_step.push_back(in);
+      sim.streams().publish(in.value("component", ""), StreamHub::k_every_transport,
+                            in.contains("command") ? in["command"] : json::object());
+      ++report.inputs_applied;
+    } else if (type == "tasks") {
+      const std::size_t count = in.value("count", std::size_t{0});
+      const auto until = std::chrono::steady_clock::now() + k_task_wait;
+      while (sim.soon_count() < count && std::chrono::steady_clock::now() < until)
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      if (sim.soon_count() < count)
+        throw std::runtime_error(rec.path + ": the off-lock work the recording took in at step " +
+                                 std::to_string(in.value("step", 0)) + " did not come within " +
+                                 std::to_string(k_task_wait.count()) + " s");
+      inputs_since_step.push_back(in);
+      sim.process_requests();
+      ++report.inputs_applied;
+    }
+  }
+  if (!stopped) step_to(rec.last_step);
+  manager->process();  // outcomes finished by the last steps
+  for (const auto& [id, status] : manager->statuses) {
+    auto it = recorded_status.find(id);
+    if (it != recorded_status.end() && it->second != to_string(status)) ++report.outcomes_differing;
+  }
+  manager->abandon_pending("the replay ended");
+  report.wall_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  return report;
+}
+
+}  // namespace simgate::recorder
