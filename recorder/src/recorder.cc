@@ -1,5 +1,6 @@
 #include "simgate/recorder/recorder.h"
 
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -46,6 +47,9 @@ bool small_value(const json& value, std::size_t& budget) {
 }
 
 constexpr std::size_t k_max_recorded_value = 4096;
+
+// The longest the writer keeps records in an open chunk: what a crash (kill -9) can lose.
+constexpr std::chrono::seconds k_chunk_interval{1};
 
 std::string read_file(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
@@ -122,6 +126,7 @@ void Recorder::write_head(const sim::Simulation& simulation) {
       {"values", base64_encode(std::span(reinterpret_cast<const std::uint8_t*>(values.data()),
                                          values.size() * sizeof(mjtNum)))}};
   w.write(state_channel_, 1, start, start, initial.dump());
+  w.flush_chunk();  // what a replay needs first is in the file at once
 }
 
 void Recorder::subscribe_streams(sim::Simulation& simulation) {
@@ -312,6 +317,10 @@ json Recorder::finish() {
       if (error_.empty()) error_ = e.what();
       log::error("recording ", options_.path, ": ", e.what());
     }
+    {
+      std::lock_guard lock(mutex_);
+      bytes_written_ = writer_->bytes_written();
+    }
     const json s = status();
     log::info("recording ", options_.path, " closed: ", s["steps"].get<std::uint64_t>(), " steps, ",
               s["inputs"].get<std::uint64_t>(), " inputs, ", s["samples"].get<std::uint64_t>(),
@@ -363,9 +372,11 @@ void Recorder::write_samples(Stream& stream, std::vector<SamplePtr>& samples) {
 void Recorder::writer_loop() {
   std::deque<Pending> batch;
   std::vector<SamplePtr> samples;
+  auto chunk_due = std::chrono::steady_clock::now() + k_chunk_interval;
   std::unique_lock lock(mutex_);
   for (;;) {
-    cv_.wait(lock, [this] { return !queue_.empty() || samples_waiting_ || finishing_; });
+    cv_.wait_until(lock, chunk_due,
+                   [this] { return !queue_.empty() || samples_waiting_ || finishing_; });
     batch.swap(queue_);
     queue_bytes_ = 0;
     samples_waiting_ = false;
@@ -382,6 +393,12 @@ void Recorder::writer_loop() {
         for (Stream& s : streams_) {
           samples.clear();
           if (s.subscription && s.subscription->take(samples) > 0) write_samples(s, samples);
+        }
+        // at least every k_chunk_interval what was written reaches the file: a crash loses
+        // no more than that
+        if (const auto now = std::chrono::steady_clock::now(); now >= chunk_due) {
+          writer_->flush_chunk();
+          chunk_due = now + k_chunk_interval;
         }
         if (!writer_->error().empty()) failure = "cannot write: " + writer_->error();
       } catch (const std::exception& e) {

@@ -69,6 +69,10 @@ class Writer {
   void attach(std::uint64_t log_time, std::uint64_t create_time, std::string_view name,
               std::string_view media_type, std::string_view data);
   void add_metadata(std::string_view name, const Metadata& metadata);
+  // Writes the open chunk now (a smaller one: nothing when it holds nothing) with its message
+  // indexes, and hands it to the OS: a writer killed afterwards leaves its messages readable.
+  // A recorder calls it every second or so, which bounds what a crash can lose.
+  void flush_chunk();
   // Writes the open chunk, Data End, the summary and the footer, and closes the file.
   // Throws std::runtime_error when a write failed. Idempotent.
   void close();
@@ -80,7 +84,6 @@ class Writer {
   std::uint64_t bytes_written() const { return offset_; }
 
  private:
-  void flush_chunk();
   // Writes `bytes` to the file (and into the data section's CRC while it runs).
   void emit(std::string_view bytes);
   // Hands what emit() buffered to the OS (fflush): after the Header, each chunk with its

@@ -1,0 +1,245 @@
+#!/usr/bin/python3
+"""E2E: the flight recorder (issue #39) through the real transports and the real command line.
+
+`simgate run --record FILE` serves the demo (paused) on the socket, JSON-RPC and WebSocket
+transports; a scripted 10 000-step session drives it: `simulation step 250` through the MORSE
+socket protocol, set_speed and stream commands (rpc.publish) through JSON-RPC, teleport
+rotations through WebSocket (`simgate call --transport websocket`). `simgate replay FILE
+--verify` then re-runs it with every step's state equal to the recorded one (exit 0). A
+recording killed with SIGKILL in the middle is still read and replayed up to its last whole
+chunk. With --record-dir, a client records over the wire (start_recording /
+stop_recording); without it, or with a name that is a path, it is refused. A file that is no
+recording is exit 2 naming what is wrong. Every wait is bounded.
+"""
+import argparse
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+import unittest
+
+ARGS = None
+TIMEOUT = 60
+
+
+class Gateway:
+    """`simgate run CONFIG [extra]` on ephemeral ports, its endpoints read from --endpoints-file."""
+
+    def __init__(self, workdir, name, extra):
+        with open(os.path.join(ARGS.source_dir, "config/all-transports.json")) as f:
+            config = json.load(f)
+        config["scene"]["mjcf"] = os.path.join(ARGS.source_dir, "config/scenes/demo.xml")
+        config["scene"]["start_paused"] = True
+        del config["transports"]["dds"]
+        config["transports"]["socket"]["options"]["port"] = 0
+        config["transports"]["jsonrpc"]["options"]["port"] = 0
+        config["transports"]["websocket"] = {"plugin": "websocket",
+                                             "options": {"host": "127.0.0.1", "port": 0}}
+        config["streams"] = {"robot.pose": ["socket", "jsonrpc"], "robot.motion": ["jsonrpc"]}
+        del config["services"]  # every transport serves every component
+        config["log_level"] = "warning"
+        path = os.path.join(workdir, name + ".json")
+        with open(path, "w") as f:
+            json.dump(config, f)
+        endpoints = os.path.join(workdir, name + "-endpoints.json")
+        self.log = open(os.path.join(workdir, name + ".log"), "w+")
+        self.process = subprocess.Popen([ARGS.simgate, "run", path, "--endpoints-file", endpoints] + extra,
+                                        stdout=self.log, stderr=subprocess.STDOUT)
+        deadline = time.monotonic() + TIMEOUT
+        while not os.path.exists(endpoints):
+            if self.process.poll() is not None or time.monotonic() > deadline:
+                raise RuntimeError("simgate run did not start:\n" + self.output())
+            time.sleep(0.01)  # polling for a file the child writes; bounded by the deadline
+        with open(endpoints) as f:
+            ports = json.load(f)
+        # "tcp://127.0.0.1:4000", "ws://127.0.0.1:8090/"
+        self.ports = {name: int(urls[0].rstrip("/").rsplit(":", 1)[1]) for name, urls in ports.items()}
+
+    def output(self):
+        self.log.flush()
+        self.log.seek(0)
+        return self.log.read()
+
+    def stop(self, sig=signal.SIGTERM):
+        self.process.send_signal(sig)
+        try:
+            code = self.process.wait(timeout=TIMEOUT)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            code = self.process.wait()
+        self.final_output = self.output()
+        self.log.close()
+        return code
+
+
+class Lines:
+    """One TCP connection speaking lines, every read with a deadline."""
+
+    def __init__(self, port):
+        self.sock = socket.create_connection(("127.0.0.1", port), timeout=TIMEOUT)
+        self.reader = self.sock.makefile("rb")
+        self.next_id = 0
+
+    def ask(self, line):
+        self.sock.sendall((line + "\n").encode())
+        return self.reader.readline().decode().rstrip("\n")
+
+    def morse(self, component, service, params=None):
+        """A MORSE socket request; returns (status, value)."""
+        self.next_id += 1
+        rid = "r%d" % self.next_id
+        line = "%s %s %s" % (rid, component, service)
+        if params is not None:
+            line += " " + json.dumps(params)
+        reply = self.ask(line)
+        got_id, status, *rest = reply.split(" ", 2)
+        assert got_id == rid, reply
+        return status, json.loads(rest[0]) if rest else None
+
+    def rpc(self, method, params=None):
+        """A JSON-RPC request; returns the response object."""
+        self.next_id += 1
+        request = {"jsonrpc": "2.0", "method": method, "id": self.next_id}
+        if params is not None:
+            request["params"] = params
+        return json.loads(self.ask(json.dumps(request)))
+
+    def close(self):
+        self.reader.close()
+        self.sock.close()
+
+
+def websocket_call(port, component, service, *args):
+    """`simgate call --transport websocket`: the WebSocket transport's JSON-RPC."""
+    done = subprocess.run([ARGS.simgate, "call", "--transport", "websocket", "--port", str(port),
+                           "--timeout", "30", component, service] + [str(a) for a in args],
+                          capture_output=True, text=True, timeout=TIMEOUT)
+    assert done.returncode == 0, done.stderr
+    return done.stdout
+
+
+def replay(path, *extra):
+    done = subprocess.run([ARGS.simgate, "replay", path, "--json"] + list(extra),
+                          capture_output=True, text=True, timeout=300)
+    report = json.loads(done.stdout) if done.returncode in (0, 1) and done.stdout.strip() else None
+    return done.returncode, report, done.stderr
+
+
+class RecordingTest(unittest.TestCase):
+    def setUp(self):
+        self.workdir = tempfile.TemporaryDirectory()
+
+    def tearDown(self):
+        self.workdir.cleanup()
+
+    def test_a_session_from_three_transports_replays_bit_for_bit(self):
+        path = os.path.join(self.workdir.name, "session.mcap")
+        gateway = Gateway(self.workdir.name, "session", ["--record", path])
+        sock, rpc = Lines(gateway.ports["socket"]), Lines(gateway.ports["jsonrpc"])
+        try:
+            steps, round_ = 0, 0
+            while steps < 10000:
+                status, value = sock.morse("simulation", "step", [250])
+                self.assertEqual(status, "SUCCESS", value)
+                steps += 250
+                reply = rpc.rpc("robot.motion.set_speed", {"v": 0.2 + 0.01 * round_, "w": 0.3 - 0.02 * round_})
+                self.assertIn("result", reply, reply)
+                if round_ % 3 == 1:
+                    reply = rpc.rpc("rpc.publish", {"component": "robot.motion",
+                                                    "data": {"v": -0.2, "w": 0.05 * round_}})
+                    self.assertIn("result", reply, reply)
+                if round_ % 5 == 2:
+                    websocket_call(gateway.ports["websocket"], "robot.teleport", "rotate", 0, 0, 0.1 * round_)
+                round_ += 1
+            # a client without --record-dir is not let record
+            status, value = sock.morse("simulation", "start_recording", ["elsewhere"])
+            self.assertEqual(status, "FAILED")
+            self.assertIn("--record-dir", value)
+        finally:
+            sock.close()
+            rpc.close()
+            self.assertEqual(gateway.stop(), 0, gateway.final_output)
+        code, report, err = replay(path, "--verify")
+        self.assertEqual(code, 0, (report, err))
+        self.assertIsNone(report["mismatch"])
+        self.assertTrue(report["complete"])
+        self.assertEqual(report["steps"], 10000)
+        self.assertEqual(report["steps_compared"], 10000)
+        self.assertEqual(report["outcomes_differing"], 0)
+        # the 40 `simulation step`s and the refused start_recording: they act on the loop
+        self.assertEqual(report["inputs_skipped"], 41)
+        self.assertGreaterEqual(report["inputs_applied"], 40 + 13 + 8)
+
+    def test_a_recording_killed_with_sigkill_is_read_up_to_its_last_whole_chunk(self):
+        path = os.path.join(self.workdir.name, "killed.mcap")
+        gateway = Gateway(self.workdir.name, "killed", ["--record", path])
+        sock = Lines(gateway.ports["socket"])
+        try:
+            for i in range(8):
+                self.assertEqual(sock.morse("robot.motion", "set_speed", [0.3, 0.1 * i])[0], "SUCCESS")
+                self.assertEqual(sock.morse("simulation", "step", [100])[0], "SUCCESS")
+            time.sleep(1.5)  # the writer hands what it has to the file every second
+        finally:
+            sock.close()
+            gateway.stop(signal.SIGKILL)
+        code, report, err = replay(path, "--verify")
+        self.assertEqual(code, 0, (report, err))
+        self.assertFalse(report["complete"])
+        self.assertIsNone(report["mismatch"])
+        self.assertEqual(report["steps"], 800)
+
+    def test_a_client_records_over_the_wire_into_the_record_dir(self):
+        record_dir = os.path.join(self.workdir.name, "recordings")
+        os.mkdir(record_dir)
+        gateway = Gateway(self.workdir.name, "wire", ["--record-dir", record_dir])
+        rpc = Lines(gateway.ports["jsonrpc"])
+        try:
+            bad = rpc.rpc("simulation.start_recording", {"name": "../outside"})
+            self.assertIn("error", bad)
+            self.assertIn("not a file name", bad["error"]["message"])
+            started = rpc.rpc("simulation.start_recording", {"name": "wire"})
+            self.assertTrue(started["result"]["recording"], started)
+            again = rpc.rpc("simulation.start_recording", {"name": "again"})
+            self.assertIn("already recording", again["error"]["message"])
+            self.assertIn("result", rpc.rpc("robot.motion.set_speed", [0.4, 0.2]))
+            self.assertIn("result", rpc.rpc("simulation.step", [300]))
+            stopped = rpc.rpc("simulation.stop_recording")
+            self.assertEqual(stopped["result"]["steps"], 300, stopped)
+            self.assertIsNone(stopped["result"]["error"])
+            self.assertFalse(rpc.rpc("simulation.get_recording_status")["result"]["recording"])
+        finally:
+            rpc.close()
+            self.assertEqual(gateway.stop(), 0, gateway.final_output)
+        self.assertEqual(os.listdir(record_dir), ["wire.mcap"])
+        code, report, err = replay(os.path.join(record_dir, "wire.mcap"), "--verify")
+        self.assertEqual(code, 0, (report, err))
+        self.assertEqual(report["steps"], 300)
+
+    def test_a_file_that_is_no_recording_is_exit_2_naming_what_is_wrong(self):
+        text = os.path.join(self.workdir.name, "notes.mcap")
+        with open(text, "w") as f:
+            f.write("these are not the droids\n")
+        done = subprocess.run([ARGS.simgate, "replay", text], capture_output=True, text=True, timeout=TIMEOUT)
+        self.assertEqual(done.returncode, 2)
+        self.assertIn("not an MCAP file", done.stderr)
+        done = subprocess.run([ARGS.simgate, "replay", os.path.join(self.workdir.name, "missing.mcap")],
+                              capture_output=True, text=True, timeout=TIMEOUT)
+        self.assertEqual(done.returncode, 2)
+        self.assertIn("missing.mcap", done.stderr)
+
+
+def main():
+    global ARGS
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--simgate", required=True)
+    parser.add_argument("--source-dir", required=True)
+    ARGS, rest = parser.parse_known_args()
+    unittest.main(argv=[sys.argv[0]] + rest, verbosity=2)
+
+
+if __name__ == "__main__":
+    main()
