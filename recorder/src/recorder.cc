@@ -69,6 +69,7 @@ Recorder::Recorder(sim::Simulation& simulation, RecordingOptions options)
   first_step_ = simulation_.steps();
   generation_ = simulation_.model_generation();
   write_head(simulation_);
+  bytes_written_ = writer_->bytes_written();
   subscribe_streams(simulation_);
   hasher_ = std::make_unique<sim::StateHasher>(simulation_.m());
   block_first_step_ = first_step_ + 1;
@@ -265,6 +266,8 @@ void Recorder::stepped() {
   const std::size_t n = hasher_->quantities().size();
   hash_block_.resize(hash_block_.size() + n);
   hasher_->hash(m, simulation_.d(), std::span(hash_block_).subspan(hash_block_.size() - n, n));
+  steps_recorded_.store(steps_recorded_.load(std::memory_order_relaxed) + 1,
+                        std::memory_order_relaxed);
   if (++block_steps_ >= options_.hash_block) flush_hashes();
 }
 
@@ -279,10 +282,6 @@ void Recorder::flush_hashes() {
                  {"generation", generation_},
                  {"quantities", hasher_->quantities()},
                  {"hashes", hash_block_}};
-  {
-    std::lock_guard lock(mutex_);
-    steps_recorded_ += block_steps_;
-  }
   hash_block_.clear();
   block_steps_ = 0;
   enqueue(std::move(p));
@@ -342,7 +341,7 @@ json Recorder::status() const {
   return {{"path", options_.path},
           {"recording", !finishing_ && error_.empty()},
           {"error", error_.empty() ? json(nullptr) : json(error_)},
-          {"steps", steps_recorded_},
+          {"steps", steps_recorded_.load(std::memory_order_relaxed)},
           {"inputs", inputs_},
           {"samples", samples_},
           {"samples_dropped", dropped},

@@ -122,6 +122,31 @@ def websocket_call(port, component, service, *args):
     return done.stdout
 
 
+def read_with_npm(path):
+    """@mcap/core's indexed reader (read_recording.js); None when npm's packages are missing."""
+    done = subprocess.run(["node", os.path.join(os.path.dirname(__file__), "read_recording.js"), path],
+                          capture_output=True, text=True, timeout=TIMEOUT)
+    if done.returncode == 77:
+        return None
+    assert done.returncode == 0, done.stderr + done.stdout
+    return json.loads(done.stdout)
+
+
+def read_with_pypi(path):
+    """PyPI's mcap reader, CRCs checked: {topic: messages}; None when it is not installed."""
+    if not ARGS.mcap_pythonpath or not os.path.isdir(ARGS.mcap_pythonpath):
+        return None
+    if ARGS.mcap_pythonpath not in sys.path:
+        sys.path.insert(0, ARGS.mcap_pythonpath)
+    from mcap.reader import make_reader  # noqa: E402 (where the test's scripts installed it)
+    topics = {}
+    with open(path, "rb") as f:
+        reader = make_reader(f, validate_crcs=True, decoder_factories=[])
+        for _schema, channel, _message in reader.iter_messages():
+            topics[channel.topic] = topics.get(channel.topic, 0) + 1
+    return topics
+
+
 def replay(path, *extra):
     done = subprocess.run([ARGS.simgate, "replay", path, "--json"] + list(extra),
                           capture_output=True, text=True, timeout=300)
@@ -173,6 +198,16 @@ class RecordingTest(unittest.TestCase):
         # the 40 `simulation step`s and the refused start_recording: they act on the loop
         self.assertEqual(report["inputs_skipped"], 41)
         self.assertGreaterEqual(report["inputs_applied"], 40 + 13 + 8)
+        # two readers nobody on the team wrote read it, CRCs checked
+        for name, topics in (("npm @mcap/core", (read_with_npm(path) or {}).get("topics")),
+                             ("PyPI mcap", read_with_pypi(path))):
+            if topics is None:
+                print("SKIP: %s is not installed" % name)
+                continue
+            self.assertEqual(topics["/simgate/initial_state"], 1, name)
+            self.assertEqual(topics["/simgate/state_hashes"], 100, name)  # 10 000 steps, 100 a block
+            self.assertGreaterEqual(topics["/simgate/inputs"], 40 + 40 + 13 + 8 + 1, name)
+            self.assertGreater(topics["/robot/pose"], 100, name)
 
     def test_a_recording_killed_with_sigkill_is_read_up_to_its_last_whole_chunk(self):
         path = os.path.join(self.workdir.name, "killed.mcap")
@@ -237,6 +272,7 @@ def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--simgate", required=True)
     parser.add_argument("--source-dir", required=True)
+    parser.add_argument("--mcap-pythonpath", default="", help="where PyPI's mcap is installed")
     ARGS, rest = parser.parse_known_args()
     unittest.main(argv=[sys.argv[0]] + rest, verbosity=2)
 

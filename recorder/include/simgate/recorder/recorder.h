@@ -146,6 +146,7 @@ class Recorder final : public InputTap, public sim::Simulation::Observer {
   std::vector<std::uint32_t> hash_block_;  // quantities × steps, the block being filled
   std::uint64_t block_first_step_ = 0;
   std::uint32_t block_steps_ = 0;
+  std::atomic<std::uint64_t> steps_recorded_{0};  // written under the simulation lock
 
   std::vector<Stream> streams_;  // the writer thread's (subscriptions: any thread)
 
@@ -156,7 +157,7 @@ class Recorder final : public InputTap, public sim::Simulation::Observer {
   bool samples_waiting_ = false;
   bool finishing_ = false;
   std::string error_;
-  std::uint64_t inputs_ = 0, steps_recorded_ = 0, samples_ = 0;
+  std::uint64_t inputs_ = 0, samples_ = 0;
   std::uint64_t bytes_written_ = 0;
   bool finished_ = false;
   std::thread thread_;
