@@ -47,6 +47,10 @@ Sections (each ends "ok", "error" with the reason, or "skipped" when a part was 
   web      issue #23: the real-time factor of config/demo.json (the web app's deployment)
            while 20 WebSocket clients (browser pages) receive the body poses at 60 Hz vs none
            (simgate_bench_sim --mode web_poses)
+  recording  issue #39: config/demo.json as fast as possible recorded to MCAP (simgate_bench_sim
+           --mode gateway --record) vs not, alternating: steps/s with no client, `time now`
+           round trip (socket) meanwhile; the replay of that recording (simgate replay --verify
+           --json) vs a bare mj_step loop on the same MJCF
 
 Usage: bench/harness.py --build-dir DIR [--out DIR] [--smoke] [--repeats N]
 Normally run through bench/run, which builds first. Writes DIR/results.json and
@@ -191,6 +195,24 @@ def run_json(argv, timeout, env=None):
     raise BenchError(f"{os.path.basename(argv[0])}: no JSON result on stdout")
 
 
+def socket_call(port, request):
+    """One request on a new connection to the socket transport at 127.0.0.1:`port`: its
+    SUCCESS value (JSON). Anything else is an error."""
+    import socket
+    with socket.create_connection(("127.0.0.1", port), timeout=10) as c:
+        c.sendall(b"1 " + request.encode() + b"\n")
+        reply = b""
+        while not reply.endswith(b"\n"):
+            chunk = c.recv(65536)
+            if not chunk:
+                break
+            reply += chunk
+    head, _, body = reply.decode().strip().partition(" SUCCESS ")
+    if head != "1" or not body:
+        raise BenchError(f"{request}: unexpected reply {reply[:200]!r}")
+    return json.loads(body)
+
+
 def port_of(endpoints):
     """The port of the first tcp:// (or ws://host:port/) endpoint."""
     for e in endpoints:
@@ -277,8 +299,8 @@ class Harness:
         return run_json([self.exe("simgate_bench_loadgen"), "--port", str(port)] + proto_args + mode_args,
                         self.timeout, self.env)
 
-    def latency(self, port, proto_args):
-        r = self.loadgen(port, proto_args, ["--mode", "latency", "--count", str(self.count)])
+    def latency(self, port, proto_args, count=None):
+        r = self.loadgen(port, proto_args, ["--mode", "latency", "--count", str(count or self.count)])
         if r["errors"]:
             raise BenchError(f"{r['errors']} wrong replies (first: {r.get('first_reply')!r})")
         return r
@@ -739,19 +761,7 @@ class Harness:
     @staticmethod
     def sensor_values(port):
         """The number of values `arm.sensors get_local_data` answers (timestamp aside)."""
-        import socket
-        with socket.create_connection(("127.0.0.1", port), timeout=10) as c:
-            c.sendall(b"1 arm.sensors get_local_data\n")
-            reply = b""
-            while not reply.endswith(b"\n"):
-                chunk = c.recv(65536)
-                if not chunk:
-                    break
-                reply += chunk
-        head, _, body = reply.decode().strip().partition(" SUCCESS ")
-        if head != "1" or not body:
-            raise BenchError(f"arm.sensors get_local_data: unexpected reply {reply[:200]!r}")
-        data = json.loads(body)
+        data = socket_call(port, "arm.sensors get_local_data")
         return sum(len(v) if isinstance(v, list) else 1 for k, v in data.items() if k != "timestamp")
 
     def section_byor(self):
@@ -1052,6 +1062,130 @@ class Harness:
                     f"at 10 Hz to {s['clients']} Foxglove clients", s["rtf_with"], ">=", 0.99)
         return {"status": "ok", "summary": s, "runs": runs}
 
+    def recording_run(self, config, record, idle_s, count):
+        """A gateway of the demo config (simgate_bench_sim --mode gateway, recording to
+        `record` from its first step when given): its steps/s as fast as possible over `idle_s`
+        with no client (`time statistics` before and after), then at real time (`time
+        set_time_scale [1]`), `count` sync `time now` round trips on the socket transport, one
+        outstanding (loadgen); the recorder's status just before it stops.
+
+        The round trips are timed at real time, as the demo runs: as fast as possible, the
+        `time now` p50 of one gateway jumps between ~20-40 µs and ~4 ms (a scheduler tick here)
+        from one run to the next, recording or not (docs/performance.md, issue #39)."""
+        argv = [self.exe("simgate_bench_sim"), "--mode", "gateway", "--config", config, "--realtime-factor", "0",
+                "--duration", "3600", "--until-stdin-closes"] + (["--record", record] if record else [])
+        p = Process("recording-" + ("on" if record else "off"), argv, self.logs, self.env, stdin=subprocess.PIPE)
+        try:
+            port = port_of(p.read_json("endpoints", 60)["endpoints"]["socket"])
+            # as fast as possible, no client
+            a = socket_call(port, "time statistics")
+            time.sleep(idle_s)
+            b = socket_call(port, "time statistics")
+            # at real time, the round trips
+            socket_call(port, "time set_time_scale [1]")
+            c = socket_call(port, "time statistics")
+            lat = self.latency(port, ["--proto", "socket", "--request", "time now"], count)
+            d = socket_call(port, "time statistics")
+            status = socket_call(port, "simulation get_recording_status") if record else None
+            p.proc.stdin.close()
+            run = p.read_json("steps_per_s", 120)
+        finally:
+            p.check_stopped()
+        out = {"steps_per_s": (b["steps"] - a["steps"]) / (b["wall_time"] - a["wall_time"]),
+               "realtime_factor": (d["sim_time"] - c["sim_time"]) / (d["wall_time"] - c["wall_time"]),
+               "time_now_p50_us": lat["p50_us"], "time_now_p99_us": lat["p99_us"], "latency": lat, "run": run}
+        if record:
+            if not status.get("recording") or status.get("error") is not None:
+                raise BenchError(f"the recording stopped early: {status}")
+            out["status"] = status
+            out["bytes"] = os.path.getsize(record)
+        return out
+
+    def replay(self, path):
+        """`simgate replay --verify --json` of a recording: its report; an error unless every
+        step's state was the recording's."""
+        argv = [self.exe("simgate"), "replay", path, "--verify", "--json"]
+        try:
+            done = subprocess.run(argv, capture_output=True, text=True, timeout=self.timeout, env=self.env, cwd=ROOT)
+        except subprocess.TimeoutExpired:
+            raise BenchError(f"simgate replay {path}: still running after {self.timeout} s")
+        lines = [line for line in done.stdout.splitlines() if line.startswith("{")]
+        report = json.loads(lines[-1]) if lines else None
+        if done.returncode != 0 or report is None or report.get("mismatch") is not None:
+            detail = report.get("mismatch") if report else done.stderr.strip()[-400:]
+            raise BenchError(f"simgate replay --verify {path}: exit code {done.returncode}: {detail}")
+        return report
+
+    def section_recording(self):
+        """Issue #39: the flight recorder's cost on config/demo.json run as fast as possible
+        (every output stream the config declares recorded with the inputs and the state
+        fingerprints): steps/s with no client, and the `time now` round trip (socket) with the
+        simulation stepping meanwhile, of a gateway recording against the same gateway not
+        recording, in alternating order per repeat; then the replay of that recording
+        (`simgate replay --verify --json`: steps / wall_seconds) against a bare mj_step loop
+        on the same MJCF (simgate_bench_sim --mode bare), alternating too."""
+        sim = os.path.join(self.bin, "simgate_bench_sim")
+        gateway = os.path.join(self.bin, "simgate")
+        if not (os.access(sim, os.X_OK) and os.access(gateway, os.X_OK)) or \
+                not all(self.plugin_built(t) for t in ("socket", "websocket", "foxglove")):
+            return {"status": "skipped", "reason": "simgate, simgate_bench_sim or the demo's transports are not built"}
+        config, mjcf = self.demo_config()
+        idle_s, count = (0.5, 200) if self.smoke else (3.0, 20000)
+        runs = []
+        for rep in range(self.repeats):
+            path = os.path.join(self.out, f"recording-{rep}.mcap")
+            plain, rec = in_order(rep, lambda: self.recording_run(config, None, idle_s, count),
+                                  lambda: self.recording_run(config, path, idle_s, count))
+            replay, bare = in_order(rep, lambda: self.replay(path),
+                                    lambda: run_json([sim, "--mode", "bare", "--mjcf", mjcf, "--duration", str(idle_s)],
+                                                     self.timeout, self.env))
+            os.remove(path)  # tens of MiB each
+            replay_steps_per_s = replay["steps"] / replay["wall_seconds"]
+            timestep = rec["run"]["timestep"]
+            bytes_per_sim_s = rec["bytes"] / (rec["run"]["steps"] * timestep)  # also per second at real time
+            runs.append({"plain": plain, "recorded": rec, "replay": replay, "bare": bare,
+                         "speed_ratio": ratio(rec["steps_per_s"], plain["steps_per_s"]),
+                         "latency_ratio_p50": ratio(rec["time_now_p50_us"], plain["time_now_p50_us"]),
+                         "latency_ratio_p99": ratio(rec["time_now_p99_us"], plain["time_now_p99_us"]),
+                         "replay_steps_per_s": replay_steps_per_s,
+                         "replay_ratio": ratio(replay_steps_per_s, bare["steps_per_s"]),
+                         # as fast as possible: that many simulated seconds a second
+                         "bytes_per_s": bytes_per_sim_s * rec["steps_per_s"] * timestep,
+                         "bytes_per_sim_s": bytes_per_sim_s})
+        s = {"plain_steps_per_s": spread([r["plain"]["steps_per_s"] for r in runs]),
+             "recorded_steps_per_s": spread([r["recorded"]["steps_per_s"] for r in runs]),
+             "speed_ratio": spread([r["speed_ratio"] for r in runs]),
+             "plain_realtime_factor": spread([r["plain"]["realtime_factor"] for r in runs]),
+             "recorded_realtime_factor": spread([r["recorded"]["realtime_factor"] for r in runs]),
+             "plain_p50_us": spread([r["plain"]["time_now_p50_us"] for r in runs]),
+             "recorded_p50_us": spread([r["recorded"]["time_now_p50_us"] for r in runs]),
+             "latency_ratio_p50": spread([r["latency_ratio_p50"] for r in runs]),
+             "plain_p99_us": spread([r["plain"]["time_now_p99_us"] for r in runs]),
+             "recorded_p99_us": spread([r["recorded"]["time_now_p99_us"] for r in runs]),
+             "latency_ratio_p99": spread([r["latency_ratio_p99"] for r in runs]),
+             "file_mib": spread([r["recorded"]["bytes"] / 2 ** 20 for r in runs]),
+             "mib_per_s": spread([r["bytes_per_s"] / 2 ** 20 for r in runs]),
+             "kib_per_sim_s": spread([r["bytes_per_sim_s"] / 1024 for r in runs]),
+             "samples_dropped": spread([r["recorded"]["status"]["samples_dropped"] for r in runs]),
+             "samples": spread([r["recorded"]["status"]["samples"] for r in runs]),
+             "inputs": spread([r["recorded"]["status"]["inputs"] for r in runs]),
+             "replay_steps": spread([r["replay"]["steps"] for r in runs]),
+             "replay_inputs": spread([r["replay"]["inputs_applied"] for r in runs]),
+             "replay_steps_per_s": spread([r["replay_steps_per_s"] for r in runs]),
+             "bare_steps_per_s": spread([r["bare"]["steps_per_s"] for r in runs]),
+             "replay_ratio": spread([r["replay_ratio"] for r in runs]),
+             "idle_s": idle_s, "round_trips": count}
+        print(f"[bench] recording: steps/s recorded / not {s['speed_ratio']['median']:.3f}, time now p50 "
+              f"{s['recorded_p50_us']['median']:.1f} / {s['plain_p50_us']['median']:.1f} us, replay / bare mj_step "
+              f"{s['replay_ratio']['median']:.3f}", file=sys.stderr, flush=True)
+        self.target("recording the demo: steps/s (as fast as possible) / not recording", s["speed_ratio"], ">=",
+                    0.97, "x")
+        self.target("recording the demo: time now round trip p50 / not recording", s["latency_ratio_p50"], "<=",
+                    1.1, "x")
+        self.target("simgate replay --verify of the demo's recording: steps/s / bare mj_step", s["replay_ratio"],
+                    ">=", 0.9, "x")
+        return {"status": "ok", "summary": s, "runs": runs}
+
     # ---- driver
 
     def machine(self):
@@ -1095,7 +1229,7 @@ class Harness:
         self.results["machine"] = self.machine()
         only = set(self.args.only.split(",")) if self.args.only else None
         for name in ("socket", "jsonrpc", "websocket", "dds", "peers", "sim", "memory", "byor", "world", "progress", "streams",
-                     "cameras", "web", "foxglove"):
+                     "cameras", "web", "foxglove", "recording"):
             if only and name not in only:
                 continue
             t0 = time.monotonic()
@@ -1445,6 +1579,35 @@ def markdown(r):
                   f"| sent to all clients (MiB/s) | {fmt(g['mib_per_s'])} |",
                   f"| gateway CPU (s per s), without / with | {fmt(g['cpu_per_s_without'], 3)} / "
                   f"{fmt(g['cpu_per_s_with'], 3)} |", ""]
+
+    lines += ["## Flight recorder (issue #39)", ""]
+    st = status_line("recording")
+    if st:
+        lines += [st, ""]
+    else:
+        g = s["recording"]["summary"]
+        lines += [f"config/demo.json as fast as possible, one gateway recording every output stream, the inputs "
+                  f"and each step's state fingerprints to MCAP (`--record`), one not, in alternating order: "
+                  f"steps/s over {g['idle_s']:g} s with no client, then at real time {g['round_trips']} `time now` "
+                  "round trips (socket, one outstanding). Then `simgate replay --verify --json` "
+                  "of that recording against a bare mj_step loop on the same MJCF.", "",
+                  "| measure | not recording | recording | recording / not |", "|---|---|---|---|",
+                  f"| steps/s, no client | {fmt(g['plain_steps_per_s'])} | {fmt(g['recorded_steps_per_s'])} | "
+                  f"{fmt(g['speed_ratio'], 3)} |",
+                  f"| `time now` round trip p50 (µs) | {fmt(g['plain_p50_us'])} | {fmt(g['recorded_p50_us'])} | "
+                  f"{fmt(g['latency_ratio_p50'], 2)} |",
+                  f"| `time now` round trip p99 (µs) | {fmt(g['plain_p99_us'])} | {fmt(g['recorded_p99_us'])} | "
+                  f"{fmt(g['latency_ratio_p99'], 2)} |",
+                  f"| real-time factor during the round trips | {fmt(g['plain_realtime_factor'], 4)} | "
+                  f"{fmt(g['recorded_realtime_factor'], 4)} | |", "",
+                  "| measure | value |", "|---|---|",
+                  f"| file (MiB) / KiB per simulated second (per second at real time) / MiB per second "
+                  f"as fast as possible | {fmt(g['file_mib'])} / {fmt(g['kib_per_sim_s'])} / {fmt(g['mib_per_s'], 2)} |",
+                  f"| inputs / stream samples recorded / samples dropped | {fmt(g['inputs'], 0)} / "
+                  f"{fmt(g['samples'], 0)} / {fmt(g['samples_dropped'], 0)} |",
+                  f"| replay: steps / inputs applied | {fmt(g['replay_steps'], 0)} / {fmt(g['replay_inputs'], 0)} |",
+                  f"| replay steps/s / bare mj_step steps/s | {fmt(g['replay_steps_per_s'])} / "
+                  f"{fmt(g['bare_steps_per_s'])} = {fmt(g['replay_ratio'], 3)} |", ""]
 
     lines += ["## Sections", "", "| section | status | seconds |", "|---|---|---|"]
     for name, sec in s.items():

@@ -15,6 +15,7 @@
 #include "simgate/recorder/format.h"
 #include "simgate/sim/physics_state.h"
 #include "simgate/sim/state_hash.h"
+#include "simgate/sim/world_services.h"
 
 #ifndef SIMGATE_VERSION
 #define SIMGATE_VERSION "unknown"
@@ -73,6 +74,7 @@ Recorder::Recorder(sim::Simulation& simulation, RecordingOptions options)
   subscribe_streams(simulation_);
   hasher_ = std::make_unique<sim::StateHasher>(simulation_.m());
   block_first_step_ = first_step_ + 1;
+  if (scene_channel_ != 0) queue_geometry();
   simulation_.gate()->set_input_tap(this);
   simulation_.set_observer(this);
   attached_ = true;
@@ -153,6 +155,16 @@ void Recorder::subscribe_streams(sim::Simulation& simulation) {
       stream.json_channel = w.add_channel(
           w.add_schema("simgate." + info.kind, "jsonschema", schema.dump()), topic, "json");
       stream.as_json = true;
+    }
+    if (info.kind == "body_poses" && tf_channel_ == 0) {
+      // the bodies and geoms for Foxglove's 3D panel, as the foxglove transport shows them
+      stream.body_poses = true;
+      tf_channel_ = w.add_channel(w.add_schema(foxglove::k_frame_transforms, "jsonschema",
+                                               foxglove::frame_transforms_schema().dump()),
+                                  "/tf", "json");
+      scene_channel_ = w.add_channel(w.add_schema(foxglove::k_scene_update, "jsonschema",
+                                                  foxglove::scene_update_schema().dump()),
+                                     "/scene", "json");
     }
     SubscriberOptions subscriber;
     subscriber.capacity = options_.stream_capacity;
@@ -261,6 +273,7 @@ void Recorder::stepped() {
     flush_hashes();
     generation_ = simulation_.model_generation();
     hasher_ = std::make_unique<sim::StateHasher>(m);
+    if (scene_channel_ != 0) queue_geometry();
   }
   if (block_steps_ == 0) block_first_step_ = step();
   const std::size_t n = hasher_->quantities().size();
@@ -269,6 +282,23 @@ void Recorder::stepped() {
   steps_recorded_.store(steps_recorded_.load(std::memory_order_relaxed) + 1,
                         std::memory_order_relaxed);
   if (++block_steps_ >= options_.hash_block) flush_hashes();
+}
+
+void Recorder::queue_geometry() {
+  Pending p;
+  p.channel = scene_channel_;
+  p.time_ns = now_ns();
+  p.value = sim::scene_geometry(simulation_, /*include_meshes=*/true);
+  p.bytes = 4096;
+  p.geometry = true;
+  enqueue(std::move(p));
+}
+
+void Recorder::write_geometry(const Pending& p) {
+  geometry_ = p.value;
+  frames_ = foxglove::SceneFrames::from_geometry(geometry_);
+  const std::string update = foxglove::scene_update(geometry_, frames_);
+  if (!update.empty()) writer_->write(scene_channel_, 0, p.time_ns, p.time_ns, update);
 }
 
 void Recorder::flush_hashes() {
@@ -313,8 +343,10 @@ json Recorder::finish() {
       writer_->close();
     } catch (const std::exception& e) {
       std::lock_guard lock(mutex_);
-      if (error_.empty()) error_ = e.what();
-      log::error("recording ", options_.path, ": ", e.what());
+      if (error_.empty()) {  // else logged when it stopped
+        error_ = e.what();
+        log::error("recording ", options_.path, ": ", e.what());
+      }
     }
     {
       std::lock_guard lock(mutex_);
@@ -356,6 +388,10 @@ void Recorder::write_samples(Stream& stream, std::vector<SamplePtr>& samples) {
     ++stream.sequence;
     if (stream.as_json) {
       w.write(stream.json_channel, stream.sequence, ns, ns, sample->text());
+      if (stream.body_poses && frames_.known()) {
+        const std::string tf = foxglove::frame_transforms(sample->data(), frames_);
+        if (!tf.empty()) w.write(tf_channel_, stream.sequence, ns, ns, tf);
+      }
     } else {
       for (const auto& [channel, message] : stream.sensor_channels) {
         const std::string text =
@@ -386,6 +422,10 @@ void Recorder::writer_loop() {
     if (!failed) {
       try {
         for (Pending& p : batch) {
+          if (p.geometry) {
+            write_geometry(p);
+            continue;
+          }
           if (p.text.empty()) p.text = p.value.dump();
           writer_->write(p.channel, p.sequence, p.time_ns, p.time_ns, p.text);
         }

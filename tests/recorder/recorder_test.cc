@@ -166,6 +166,10 @@ TEST(Recorder, TheRecordingHoldsWhatItsFormatSays) {
   EXPECT_EQ(messages[k_inputs_topic], 2);    // set_speed, goto
   EXPECT_EQ(messages[k_outcomes_topic], 1);  // set_speed's (the goto still runs)
   EXPECT_GT(messages["/robot/pose"], 0) << "the pose stream";
+  // the bodies for Foxglove's 3D panel, from the simulation's body_poses stream
+  EXPECT_EQ(messages["/scene"], 1);
+  EXPECT_EQ(messages["/tf"], messages["/simulation"]);
+  EXPECT_GT(messages["/tf"], 0);
   EXPECT_EQ(attachments.front(), k_deployment_attachment);
 }
 
@@ -244,6 +248,29 @@ TEST(Recorder, AnotherModelIsRefusedNamingWhy) {
     EXPECT_NE(std::string(e.what()).find("the model is not the recording's"), std::string::npos)
         << e.what();
   }
+}
+
+TEST(Recorder, AFullDiskStopsTheRecordingWithAnErrorAndTheSimulationGoesOn) {
+  // /dev/full: every write fails with ENOSPC
+  auto gateway = build(deployment_document());
+  sim::Simulation& sim = gateway->simulation();
+  RecordingOptions options;
+  options.path = "/dev/full";
+  std::optional<Recorder> recorder;
+  {
+    std::lock_guard lock(*sim.gate());
+    recorder.emplace(sim, options);
+  }
+  for (int i = 0; i < 300; ++i) {
+    std::lock_guard lock(*sim.gate());
+    sim.step();
+  }
+  const json status = recorder->finish();
+  ASSERT_TRUE(status["error"].is_string()) << status.dump();
+  EXPECT_NE(status["error"].get<std::string>().find("No space left on device"), std::string::npos)
+      << status.dump();
+  EXPECT_FALSE(status["recording"].get<bool>());
+  EXPECT_EQ(sim.steps(), 300u);  // every step taken
 }
 
 TEST(Recorder, AFileThatIsNoRecordingIsAClearError) {

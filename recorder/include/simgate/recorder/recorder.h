@@ -38,6 +38,7 @@
 
 #include "simgate/core/input_tap.h"
 #include "simgate/core/streams.h"
+#include "simgate/foxglove/scene.h"
 #include "simgate/foxglove/sensors.h"
 #include "simgate/mcap/writer.h"
 #include "simgate/sim/simulation.h"
@@ -106,6 +107,7 @@ class Recorder final : public InputTap, public sim::Simulation::Observer {
     json value;        // dumped by the writer (when text is empty)
     std::string text;  // as it is
     std::size_t bytes = 0;
+    bool geometry = false;  // `value` is the scene's geometry (a new model): /scene, /tf
   };
   // A stream the recorder subscribed to, and the channels its samples go to.
   struct Stream {
@@ -117,6 +119,7 @@ class Recorder final : public InputTap, public sim::Simulation::Observer {
     std::vector<std::pair<std::uint16_t, foxglove::SensorMessage>> sensor_channels;
     foxglove::LaserArc arc;  // a laser's (sensors.h)
     std::uint32_t sequence = 0;
+    bool body_poses = false;  // the simulation's: also /tf (and /scene per model)
   };
 
   void write_head(const sim::Simulation& simulation);
@@ -128,6 +131,11 @@ class Recorder final : public InputTap, public sim::Simulation::Observer {
   void flush_hashes();
   void writer_loop();
   void write_samples(Stream& stream, std::vector<SamplePtr>& samples);
+  // The scene's geometry for /scene and /tf (at the start, and after each model change): a
+  // Pending for the writer. Under the simulation lock.
+  void queue_geometry();
+  // The writer's side: the frames /tf names, /scene's entities (writer thread).
+  void write_geometry(const Pending& p);
   std::uint64_t now_ns() const;
   std::uint64_t step() const;
 
@@ -149,6 +157,9 @@ class Recorder final : public InputTap, public sim::Simulation::Observer {
   std::atomic<std::uint64_t> steps_recorded_{0};  // written under the simulation lock
 
   std::vector<Stream> streams_;  // the writer thread's (subscriptions: any thread)
+  std::uint16_t tf_channel_ = 0, scene_channel_ = 0;  // when the body_poses stream is there
+  json geometry_;                 // the writer thread's: the last geometry queued
+  foxglove::SceneFrames frames_;  // the writer thread's: its frames
 
   mutable std::mutex mutex_;  // guards what follows
   std::condition_variable cv_;
