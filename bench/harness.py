@@ -62,6 +62,7 @@ import json
 import os
 import platform
 import select
+import shutil
 import signal
 import statistics
 import subprocess
@@ -1062,44 +1063,58 @@ class Harness:
                     f"at 10 Hz to {s['clients']} Foxglove clients", s["rtf_with"], ">=", 0.99)
         return {"status": "ok", "summary": s, "runs": runs}
 
-    def recording_run(self, config, record, idle_s, count):
-        """A gateway of the demo config (simgate_bench_sim --mode gateway, recording to
-        `record` from its first step when given): its steps/s as fast as possible over `idle_s`
-        with no client (`time statistics` before and after), then at real time (`time
-        set_time_scale [1]`), `count` sync `time now` round trips on the socket transport, one
-        outstanding (loadgen); the recorder's status just before it stops.
+    def recording_rounds(self, config, rep, rounds, round_s, count, directory):
+        """One gateway of the demo config (simgate_bench_sim --mode gateway --record-dir),
+        recording in every other round (`simulation start_recording` before the round,
+        `stop_recording` after it: it answers once the file is closed). As fast as possible:
+        steps/s over `round_s` with no client (`time statistics` before and after); then at
+        real time (`time set_time_scale [1]`), `count` sync `time now` round trips on the
+        socket transport, one outstanding (loadgen). Each pair of rounds runs in alternating
+        order. Returns the pairs and the as-fast-as-possible rounds' recordings.
 
         The round trips are timed at real time, as the demo runs: as fast as possible, the
-        `time now` p50 of one gateway jumps between ~20-40 µs and ~4 ms (a scheduler tick here)
+        `time now` p50 of a gateway jumps between ~20-40 µs and ~4 ms (a scheduler tick here)
         from one run to the next, recording or not (docs/performance.md, issue #39)."""
-        argv = [self.exe("simgate_bench_sim"), "--mode", "gateway", "--config", config, "--realtime-factor", "0",
-                "--duration", "3600", "--until-stdin-closes"] + (["--record", record] if record else [])
-        p = Process("recording-" + ("on" if record else "off"), argv, self.logs, self.env, stdin=subprocess.PIPE)
+        p = Process(f"recording-{rep}", [self.exe("simgate_bench_sim"), "--mode", "gateway", "--config", config,
+                                         "--realtime-factor", "0", "--duration", "3600", "--until-stdin-closes",
+                                         "--record-dir", directory], self.logs, self.env, stdin=subprocess.PIPE)
+        speed, latency = [], []
         try:
             port = port_of(p.read_json("endpoints", 60)["endpoints"]["socket"])
-            # as fast as possible, no client
-            a = socket_call(port, "time statistics")
-            time.sleep(idle_s)
-            b = socket_call(port, "time statistics")
-            # at real time, the round trips
+
+            def steps_per_s():
+                a = socket_call(port, "time statistics")
+                time.sleep(round_s)
+                b = socket_call(port, "time statistics")
+                return (b["steps"] - a["steps"]) / (b["wall_time"] - a["wall_time"])
+
+            def round_trips():
+                return self.latency(port, ["--proto", "socket", "--request", "time now"], count)
+
+            def recorded(measure, name):
+                socket_call(port, f"simulation start_recording {json.dumps([name])}")
+                value = measure()
+                status = socket_call(port, "simulation stop_recording")
+                if status.get("error") is not None:
+                    raise BenchError(f"the recording {name} stopped early: {status['error']}")
+                status["file"] = os.path.join(directory, name + ".mcap")
+                return value, status
+
+            for k in range(rounds):
+                plain, (rec, status) = in_order(rep + k, steps_per_s, lambda: recorded(steps_per_s, f"speed-{k}"))
+                speed.append({"plain_steps_per_s": plain, "recorded_steps_per_s": rec, "status": status,
+                              "ratio": ratio(rec, plain)})
             socket_call(port, "time set_time_scale [1]")
-            c = socket_call(port, "time statistics")
-            lat = self.latency(port, ["--proto", "socket", "--request", "time now"], count)
-            d = socket_call(port, "time statistics")
-            status = socket_call(port, "simulation get_recording_status") if record else None
+            for k in range(rounds):
+                plain, (rec, status) = in_order(rep + k, round_trips, lambda: recorded(round_trips, f"latency-{k}"))
+                latency.append({"plain": plain, "recorded": rec, "status": status,
+                                "ratio_p50": ratio(rec["p50_us"], plain["p50_us"]),
+                                "ratio_p99": ratio(rec["p99_us"], plain["p99_us"])})
             p.proc.stdin.close()
-            run = p.read_json("steps_per_s", 120)
+            p.read_json("steps_per_s", 120)
         finally:
             p.check_stopped()
-        out = {"steps_per_s": (b["steps"] - a["steps"]) / (b["wall_time"] - a["wall_time"]),
-               "realtime_factor": (d["sim_time"] - c["sim_time"]) / (d["wall_time"] - c["wall_time"]),
-               "time_now_p50_us": lat["p50_us"], "time_now_p99_us": lat["p99_us"], "latency": lat, "run": run}
-        if record:
-            if not status.get("recording") or status.get("error") is not None:
-                raise BenchError(f"the recording stopped early: {status}")
-            out["status"] = status
-            out["bytes"] = os.path.getsize(record)
-        return out
+        return speed, latency
 
     def replay(self, path):
         """`simgate replay --verify --json` of a recording: its report; an error unless every
@@ -1117,64 +1132,59 @@ class Harness:
         return report
 
     def section_recording(self):
-        """Issue #39: the flight recorder's cost on config/demo.json run as fast as possible
-        (every output stream the config declares recorded with the inputs and the state
-        fingerprints): steps/s with no client, and the `time now` round trip (socket) with the
-        simulation stepping meanwhile, of a gateway recording against the same gateway not
-        recording, in alternating order per repeat; then the replay of that recording
-        (`simgate replay --verify --json`: steps / wall_seconds) against a bare mj_step loop
-        on the same MJCF (simgate_bench_sim --mode bare), alternating too."""
+        """Issue #39: the flight recorder's cost on config/demo.json (every output stream the
+        config declares recorded with the inputs and each step's state fingerprints), in
+        rounds of one gateway, recording and not in turn: steps/s as fast as possible, and the
+        `time now` round trip (socket) at real time; then each as-fast-as-possible round's
+        recording replayed (`simgate replay --verify --json`: steps / wall_seconds) against a
+        bare mj_step loop on the same MJCF (simgate_bench_sim --mode bare), in turn too."""
         sim = os.path.join(self.bin, "simgate_bench_sim")
-        gateway = os.path.join(self.bin, "simgate")
-        if not (os.access(sim, os.X_OK) and os.access(gateway, os.X_OK)) or \
+        if not (os.access(sim, os.X_OK) and os.access(os.path.join(self.bin, "simgate"), os.X_OK)) or \
                 not all(self.plugin_built(t) for t in ("socket", "websocket", "foxglove")):
             return {"status": "skipped", "reason": "simgate, simgate_bench_sim or the demo's transports are not built"}
         config, mjcf = self.demo_config()
-        idle_s, count = (0.5, 200) if self.smoke else (3.0, 20000)
-        runs = []
+        rounds, round_s, count = (1, 0.3, 200) if self.smoke else (5, 1.0, 5000)
+        speed, latency, replays = [], [], []
         for rep in range(self.repeats):
-            path = os.path.join(self.out, f"recording-{rep}.mcap")
-            plain, rec = in_order(rep, lambda: self.recording_run(config, None, idle_s, count),
-                                  lambda: self.recording_run(config, path, idle_s, count))
-            replay, bare = in_order(rep, lambda: self.replay(path),
-                                    lambda: run_json([sim, "--mode", "bare", "--mjcf", mjcf, "--duration", str(idle_s)],
-                                                     self.timeout, self.env))
-            os.remove(path)  # tens of MiB each
-            replay_steps_per_s = replay["steps"] / replay["wall_seconds"]
-            timestep = rec["run"]["timestep"]
-            bytes_per_sim_s = rec["bytes"] / (rec["run"]["steps"] * timestep)  # also per second at real time
-            runs.append({"plain": plain, "recorded": rec, "replay": replay, "bare": bare,
-                         "speed_ratio": ratio(rec["steps_per_s"], plain["steps_per_s"]),
-                         "latency_ratio_p50": ratio(rec["time_now_p50_us"], plain["time_now_p50_us"]),
-                         "latency_ratio_p99": ratio(rec["time_now_p99_us"], plain["time_now_p99_us"]),
-                         "replay_steps_per_s": replay_steps_per_s,
-                         "replay_ratio": ratio(replay_steps_per_s, bare["steps_per_s"]),
-                         # as fast as possible: that many simulated seconds a second
-                         "bytes_per_s": bytes_per_sim_s * rec["steps_per_s"] * timestep,
-                         "bytes_per_sim_s": bytes_per_sim_s})
-        s = {"plain_steps_per_s": spread([r["plain"]["steps_per_s"] for r in runs]),
-             "recorded_steps_per_s": spread([r["recorded"]["steps_per_s"] for r in runs]),
-             "speed_ratio": spread([r["speed_ratio"] for r in runs]),
-             "plain_realtime_factor": spread([r["plain"]["realtime_factor"] for r in runs]),
-             "recorded_realtime_factor": spread([r["recorded"]["realtime_factor"] for r in runs]),
-             "plain_p50_us": spread([r["plain"]["time_now_p50_us"] for r in runs]),
-             "recorded_p50_us": spread([r["recorded"]["time_now_p50_us"] for r in runs]),
-             "latency_ratio_p50": spread([r["latency_ratio_p50"] for r in runs]),
-             "plain_p99_us": spread([r["plain"]["time_now_p99_us"] for r in runs]),
-             "recorded_p99_us": spread([r["recorded"]["time_now_p99_us"] for r in runs]),
-             "latency_ratio_p99": spread([r["latency_ratio_p99"] for r in runs]),
-             "file_mib": spread([r["recorded"]["bytes"] / 2 ** 20 for r in runs]),
-             "mib_per_s": spread([r["bytes_per_s"] / 2 ** 20 for r in runs]),
-             "kib_per_sim_s": spread([r["bytes_per_sim_s"] / 1024 for r in runs]),
-             "samples_dropped": spread([r["recorded"]["status"]["samples_dropped"] for r in runs]),
-             "samples": spread([r["recorded"]["status"]["samples"] for r in runs]),
-             "inputs": spread([r["recorded"]["status"]["inputs"] for r in runs]),
-             "replay_steps": spread([r["replay"]["steps"] for r in runs]),
-             "replay_inputs": spread([r["replay"]["inputs_applied"] for r in runs]),
-             "replay_steps_per_s": spread([r["replay_steps_per_s"] for r in runs]),
-             "bare_steps_per_s": spread([r["bare"]["steps_per_s"] for r in runs]),
-             "replay_ratio": spread([r["replay_ratio"] for r in runs]),
-             "idle_s": idle_s, "round_trips": count}
+            directory = tempfile.mkdtemp(prefix="recordings-", dir=self.out)
+            try:
+                sp, la = self.recording_rounds(config, rep, rounds, round_s, count, directory)
+                for k, row in enumerate(sp):
+                    replay, bare = in_order(rep + k, lambda: self.replay(row["status"]["file"]),
+                                            lambda: run_json([sim, "--mode", "bare", "--mjcf", mjcf, "--duration",
+                                                              str(round_s)], self.timeout, self.env))
+                    steps_per_s = replay["steps"] / replay["wall_seconds"]
+                    replays.append({"replay": replay, "bare": bare, "replay_steps_per_s": steps_per_s,
+                                    "ratio": ratio(steps_per_s, bare["steps_per_s"])})
+            finally:
+                shutil.rmtree(directory, ignore_errors=True)  # a few MiB a round
+            speed += sp
+            latency += la
+        timestep = 0.002  # config/demo.json's
+        for row in speed:  # the file's size over what it covers (simulated time)
+            st = row["status"]
+            row["kib_per_sim_s"] = st["bytes"] / 1024 / (st["steps"] * timestep)
+            row["mib_per_s"] = row["kib_per_sim_s"] / 1024 * row["recorded_steps_per_s"] * timestep
+        s = {"plain_steps_per_s": spread([r["plain_steps_per_s"] for r in speed]),
+             "recorded_steps_per_s": spread([r["recorded_steps_per_s"] for r in speed]),
+             "speed_ratio": spread([r["ratio"] for r in speed]),
+             "plain_p50_us": spread([r["plain"]["p50_us"] for r in latency]),
+             "recorded_p50_us": spread([r["recorded"]["p50_us"] for r in latency]),
+             "latency_ratio_p50": spread([r["ratio_p50"] for r in latency]),
+             "plain_p99_us": spread([r["plain"]["p99_us"] for r in latency]),
+             "recorded_p99_us": spread([r["recorded"]["p99_us"] for r in latency]),
+             "latency_ratio_p99": spread([r["ratio_p99"] for r in latency]),
+             "file_mib": spread([r["status"]["bytes"] / 2 ** 20 for r in speed]),
+             "kib_per_sim_s": spread([r["kib_per_sim_s"] for r in speed]),
+             "mib_per_s": spread([r["mib_per_s"] for r in speed]),
+             "samples_per_round": spread([r["status"]["samples"] for r in speed]),
+             "samples_dropped": sum(r["status"]["samples_dropped"] for r in speed + latency),
+             "inputs_per_latency_round": spread([r["status"]["inputs"] for r in latency]),
+             "replay_steps": spread([r["replay"]["steps"] for r in replays]),
+             "replay_steps_per_s": spread([r["replay_steps_per_s"] for r in replays]),
+             "bare_steps_per_s": spread([r["bare"]["steps_per_s"] for r in replays]),
+             "replay_ratio": spread([r["ratio"] for r in replays]),
+             "rounds": len(speed), "round_s": round_s, "round_trips": count}
         print(f"[bench] recording: steps/s recorded / not {s['speed_ratio']['median']:.3f}, time now p50 "
               f"{s['recorded_p50_us']['median']:.1f} / {s['plain_p50_us']['median']:.1f} us, replay / bare mj_step "
               f"{s['replay_ratio']['median']:.3f}", file=sys.stderr, flush=True)
@@ -1184,7 +1194,7 @@ class Harness:
                     1.1, "x")
         self.target("simgate replay --verify of the demo's recording: steps/s / bare mj_step", s["replay_ratio"],
                     ">=", 0.9, "x")
-        return {"status": "ok", "summary": s, "runs": runs}
+        return {"status": "ok", "summary": s, "speed": speed, "latency": latency, "replays": replays}
 
     # ---- driver
 
@@ -1586,28 +1596,30 @@ def markdown(r):
         lines += [st, ""]
     else:
         g = s["recording"]["summary"]
-        lines += [f"config/demo.json as fast as possible, one gateway recording every output stream, the inputs "
-                  f"and each step's state fingerprints to MCAP (`--record`), one not, in alternating order: "
-                  f"steps/s over {g['idle_s']:g} s with no client, then at real time {g['round_trips']} `time now` "
-                  "round trips (socket, one outstanding). Then `simgate replay --verify --json` "
-                  "of that recording against a bare mj_step loop on the same MJCF.", "",
+        lines += [f"config/demo.json, one gateway a repeat, recording every output stream, the inputs and each "
+                  f"step's state fingerprints to MCAP in every other round (`simulation start_recording` / "
+                  f"`stop_recording`), pairs of rounds in alternating order ({g['rounds']} pairs of each kind): "
+                  f"steps/s as fast as possible over {g['round_s']:g} s with no client; at real time, "
+                  f"{g['round_trips']} `time now` round trips (socket, one outstanding). Ratios are the medians of "
+                  "the pairs'. Then each as-fast-as-possible round's recording replayed (`simgate replay --verify "
+                  "--json`) against a bare mj_step loop on the same MJCF.", "",
                   "| measure | not recording | recording | recording / not |", "|---|---|---|---|",
-                  f"| steps/s, no client | {fmt(g['plain_steps_per_s'])} | {fmt(g['recorded_steps_per_s'])} | "
+                  f"| steps/s, as fast as possible | {fmt(g['plain_steps_per_s'])} | {fmt(g['recorded_steps_per_s'])} | "
                   f"{fmt(g['speed_ratio'], 3)} |",
-                  f"| `time now` round trip p50 (µs) | {fmt(g['plain_p50_us'])} | {fmt(g['recorded_p50_us'])} | "
-                  f"{fmt(g['latency_ratio_p50'], 2)} |",
-                  f"| `time now` round trip p99 (µs) | {fmt(g['plain_p99_us'])} | {fmt(g['recorded_p99_us'])} | "
-                  f"{fmt(g['latency_ratio_p99'], 2)} |",
-                  f"| real-time factor during the round trips | {fmt(g['plain_realtime_factor'], 4)} | "
-                  f"{fmt(g['recorded_realtime_factor'], 4)} | |", "",
+                  f"| `time now` round trip p50 (µs), real time | {fmt(g['plain_p50_us'])} | "
+                  f"{fmt(g['recorded_p50_us'])} | {fmt(g['latency_ratio_p50'], 2)} |",
+                  f"| `time now` round trip p99 (µs), real time | {fmt(g['plain_p99_us'])} | "
+                  f"{fmt(g['recorded_p99_us'])} | {fmt(g['latency_ratio_p99'], 2)} |", "",
                   "| measure | value |", "|---|---|",
-                  f"| file (MiB) / KiB per simulated second (per second at real time) / MiB per second "
-                  f"as fast as possible | {fmt(g['file_mib'])} / {fmt(g['kib_per_sim_s'])} / {fmt(g['mib_per_s'], 2)} |",
-                  f"| inputs / stream samples recorded / samples dropped | {fmt(g['inputs'], 0)} / "
-                  f"{fmt(g['samples'], 0)} / {fmt(g['samples_dropped'], 0)} |",
-                  f"| replay: steps / inputs applied | {fmt(g['replay_steps'], 0)} / {fmt(g['replay_inputs'], 0)} |",
-                  f"| replay steps/s / bare mj_step steps/s | {fmt(g['replay_steps_per_s'])} / "
-                  f"{fmt(g['bare_steps_per_s'])} = {fmt(g['replay_ratio'], 3)} |", ""]
+                  f"| file of a {g['round_s']:g} s round as fast as possible (MiB) | {fmt(g['file_mib'], 2)} |",
+                  f"| KiB per simulated second (per second at real time) / MiB per second as fast as possible | "
+                  f"{fmt(g['kib_per_sim_s'])} / {fmt(g['mib_per_s'], 2)} |",
+                  f"| stream samples recorded a round / dropped in all rounds | {fmt(g['samples_per_round'], 0)} / "
+                  f"{g['samples_dropped']} |",
+                  f"| inputs recorded in a round of round trips | {fmt(g['inputs_per_latency_round'], 0)} |",
+                  f"| replay: steps of a recording / steps/s / bare mj_step steps/s | {fmt(g['replay_steps'], 0)} / "
+                  f"{fmt(g['replay_steps_per_s'])} / {fmt(g['bare_steps_per_s'])} |",
+                  f"| replay / bare | {fmt(g['replay_ratio'], 3)} |", ""]
 
     lines += ["## Sections", "", "| section | status | seconds |", "|---|---|---|"]
     for name, sec in s.items():

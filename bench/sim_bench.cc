@@ -12,10 +12,9 @@
 //            its standard input closes with --until-stdin-closes (the harness drives
 //            clients meanwhile). Prints {"endpoints": ...} when serving, then the results:
 //            steps per second, real-time factor, overruns, and the jitter of the step
-//            period (|interval - timestep/factor|, µs percentiles). With --record FILE the
-//            run is recorded from its first step (Gateway::start_recording, as `simgate run
-//            --record` does; the file is closed at shutdown): issue #39's recording section
-//            runs it with and without, under the same `time now` load.
+//            period (|interval - timestep/factor|, µs percentiles). With --record-dir DIR,
+//            clients may record into DIR (`simulation start_recording NAME`, as `simgate run
+//            --record-dir` allows): issue #39's section alternates rounds with and without.
 //   sleep    the machine's timer baseline for that jitter: a loop with no work that sleeps
 //            until the next period (the MJCF's timestep, real time) for --duration seconds,
 //            scheduling as the gateway's loop does; the same figures as `gateway`.
@@ -270,18 +269,17 @@ json run_sleep(const std::string& mjcf, double duration_s) {
 }
 
 json run_gateway(const std::string& config, double factor, double duration_s, bool until_stdin,
-                 const std::string& record) {
+                 const std::string& record_dir) {
   namespace gw = simgate::gateway;
   gw::Deployment deployment = gw::load_deployment(config);
   auto registry = simgate::sim::builtin_registry();
   gw::GatewayOptions options;
   options.realtime_factor = factor;
+  if (!record_dir.empty()) options.record_dir = std::filesystem::absolute(record_dir).string();
   gw::Gateway gateway(deployment, registry, options);
   auto probe_owned = std::make_unique<StepProbe>();
   StepProbe* probe = probe_owned.get();
   gateway.simulation().add_component(std::move(probe_owned), "bench_probe");
-  // from the first step: before the transports open (as `simgate run --record`)
-  if (!record.empty()) gateway.start_recording(std::filesystem::absolute(record).string());
   gateway.start();
   std::cout << json{{"endpoints", gateway.endpoints()}}.dump() << std::endl;
 
@@ -318,8 +316,7 @@ json run_gateway(const std::string& config, double factor, double duration_s, bo
            {"realtime_factor", stats.realtime_factor},
            {"overruns", stats.overruns},
            {"jitter", std::move(jitter)}};
-  gateway.shutdown();  // closes the recording's file
-  if (!record.empty()) out["record"] = std::filesystem::absolute(record).string();
+  gateway.shutdown();
   return out;
 }
 
@@ -676,7 +673,7 @@ json run_spawn(const std::string& mjcf, double duration) {
 int main(int argc, char** argv) {
   CLI::App app{"Simulation speed: the gateway's step loop against a bare mj_step loop.",
                "simgate_bench_sim"};
-  std::string mode, mjcf, config, record;
+  std::string mode, mjcf, config, record_dir;
   double factor = 0, duration = 2;
   bool until_stdin = false;
   double round_s = 1;
@@ -726,7 +723,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_flag("--until-stdin-closes", until_stdin,
                "gateway: run until standard input closes instead");
-  app.add_option("--record", record, "gateway: record the run to FILE (MCAP, docs/recording.md)");
+  app.add_option("--record-dir", record_dir,
+                 "gateway: let clients record into DIR (simulation start_recording NAME)");
   if (auto code = simgate::bench::parse_command_line(app, argc, argv)) return *code;
   if ((mode == "bare" || mode == "sleep" || mode == "snapshot" || mode == "spawn" ||
        mode == "progress" || mode == "streams" || mode == "camera_fps" || mode == "foxglove_rtf") &&
@@ -767,7 +765,7 @@ int main(int argc, char** argv) {
     } else if (mode == "foxglove_rtf") {
       out = simgate::bench::run_foxglove_rtf(mjcf, calls, frequency, duration);
     } else {
-      out = run_gateway(config, factor, duration, until_stdin, record);
+      out = run_gateway(config, factor, duration, until_stdin, record_dir);
     }
     std::cout << out.dump() << std::endl;
     return 0;

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <memory>
 #include <optional>
+#include <thread>
 
 #include "../gateway/test_support.h"
 #include "simgate/core/request_manager.h"
@@ -248,6 +249,61 @@ TEST(Recorder, AnotherModelIsRefusedNamingWhy) {
     EXPECT_NE(std::string(e.what()).find("the model is not the recording's"), std::string::npos)
         << e.what();
   }
+}
+
+// A spawn compiles its model on a worker thread and takes it in on the simulation's turn
+// after it is done (wall-clock dependent): the replay takes it in at the recorded step.
+TEST(Recorder, ASpawnDuringTheRecordingIsTakenInAtItsStep) {
+  TempDir dir;
+  const std::string path = dir.file("spawn.mcap");
+  const json document = deployment_document();
+  {
+    auto gateway = build(document);
+    sim::Simulation& sim = gateway->simulation();
+    auto manager = std::make_shared<ScriptManager>("script");
+    for (const auto& e : sim.components()) manager->register_component(*e->component);
+    sim.add_request_manager(manager, "script");
+    RecordingOptions options;
+    options.path = path;
+    options.deployment = {{"document", document},
+                          {"base_dir", gateway::testing::source_path("config")},
+                          {"file", ""}};
+    std::optional<Recorder> recorder;
+    {
+      std::lock_guard lock(*sim.gate());
+      recorder.emplace(sim, options);
+    }
+    for (int i = 0; i < 400; ++i) {
+      if (i == 50) {
+        Call c{"simulation",
+               "spawn_entity",
+               {"ball",
+                "<body><freejoint/><geom type='sphere' size='0.1' mass='1'/></body>",
+                {1.0, 1.0, 0.6}}};
+        manager->run_or_submit(manager->new_request_id(), std::move(c));
+      }
+      if (i == 100) {  // the compile's end (wall clock) is awaited here: the model lands now
+        const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+        while (sim.soon_count() == 0 && std::chrono::steady_clock::now() < until)
+          std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      }
+      sim.process_requests();  // the loop's turn: a finished compile is taken in here
+      std::lock_guard lock(*sim.gate());
+      sim.step();
+      if (i == 100) ASSERT_EQ(sim.model_generation(), 1u) << "the spawn landed";
+    }
+    recorder->finish();
+    ASSERT_EQ(manager->outcomes.size(), 1u);
+    EXPECT_EQ(manager->outcomes.begin()->second.status, Status::success);
+  }
+  const Recording recording = Recording::read(path);
+  std::size_t tasks = 0;
+  for (const json& in : recording.inputs) tasks += in["type"] == "tasks";
+  EXPECT_EQ(tasks, 1u);
+  const ReplayReport report = replay(path);
+  EXPECT_FALSE(report.mismatch) << report.to_json().dump();
+  EXPECT_EQ(report.steps, 400u);
+  EXPECT_EQ(report.steps_compared, 400u);
 }
 
 TEST(Recorder, AFullDiskStopsTheRecordingWithAnErrorAndTheSimulationGoesOn) {
