@@ -27,7 +27,8 @@ constexpr const char* k_footer = R"(Synopsis:
   simgate run CONFIG [--status [SECONDS]] [--log-level L] [--realtime-factor F|max]
                      [--endpoints-file PATH] [--plugin-path DIR]...
   simgate run --model FILE.xml [CONFIG] [options as above] [--record FILE] [--record-dir DIR]
-  simgate replay FILE [--verify] [--json] [--config CONFIG] [--plugin-path DIR]...
+  simgate replay FILE [--verify | --serve [--realtime-factor F|max] [--endpoints-file PATH]]
+                [--json] [--config CONFIG] [--plugin-path DIR]...
   simgate check CONFIG | --model FILE.xml [CONFIG] [--log-level L] [--plugin-path DIR]...
   simgate call [CLIENT OPTIONS] COMPONENT SERVICE [ARGS...]
   simgate list [CLIENT OPTIONS] [--json]
@@ -82,7 +83,9 @@ possible, comparing every step's state with the recording's. Prints the steps an
 replayed; at the first step that differs, its number, the quantities that differ (qpos,
 qvel, ctrl...) and the inputs taken just before it. Exit 0: the same run (with --verify: bit
 for bit); 1: a step differs (--verify); 2: not a recording, cut before its initial state, or
-not replayable here (another MuJoCo, another model: both named).)";
+not replayable here (another MuJoCo, another model: both named).
+--serve plays it through the deployment's transports instead, paced (a live run's clients
+watch it: Foxglove, the web app, pymorse), then serves its last state until Ctrl-C.)";
 
 constexpr const char* k_snapshot_footer =
     R"(Without --config or --model it asks the running simulation the client options reach
@@ -207,6 +210,17 @@ class CommandLine {
                      "search component libraries in DIR too (repeatable)")
         ->allow_extra_args(false)
         ->option_text("DIR");
+    replay_->add_flag("--serve", replay_args_.serve,
+                      "play it through the deployment's transports, paced, until Ctrl-C");
+    replay_
+        ->add_option("--realtime-factor", replay_args_.realtime_factor,
+                     "with --serve: 1 = real time (the deployment's by default), max = no pacing")
+        ->type_name("F|max");
+    replay_
+        ->add_option(
+            "--endpoints-file", replay_args_.endpoints_file,
+            "with --serve: write {\"transport\": [\"tcp://host:port\", ...]} there once listening")
+        ->type_name("PATH");
     replay_
         ->add_option("--log-level", replay_args_.log_level,
                      "trace, debug, info, warning, error, off")

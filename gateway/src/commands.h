@@ -9,10 +9,16 @@
 #ifndef SIMGATE_GATEWAY_SRC_COMMANDS_H_
 #define SIMGATE_GATEWAY_SRC_COMMANDS_H_
 
+#include <signal.h>
+
+#include <atomic>
 #include <chrono>
+#include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "simgate/client/client.h"
@@ -90,12 +96,15 @@ struct SnapshotArgs {
 
 // What `replay` was given.
 struct ReplayArgs {
-  std::string file;                      // FILE, a recording
-  bool verify = false;                   // --verify: exit 1 at the first step that differs
-  bool json = false;                     // --json: the report as one JSON document
-  std::optional<std::string> config;     // --config CONFIG instead of the recorded deployment
-  std::vector<std::string> plugin_dirs;  // --plugin-path, in order
-  std::optional<std::string> log_level;  // --log-level
+  std::string file;                            // FILE, a recording
+  bool verify = false;                         // --verify: exit 1 at the first step that differs
+  bool json = false;                           // --json: the report as one JSON document
+  std::optional<std::string> config;           // --config CONFIG instead of the recorded deployment
+  std::vector<std::string> plugin_dirs;        // --plugin-path, in order
+  std::optional<std::string> log_level;        // --log-level
+  bool serve = false;                          // --serve: through the deployment's transports
+  std::optional<std::string> realtime_factor;  // --realtime-factor (with --serve)
+  std::optional<std::string> endpoints_file;   // --endpoints-file (with --serve)
 };
 
 // `run CONFIG` (check_only false) or `check CONFIG`.
@@ -136,6 +145,33 @@ Deployment load_deployment_args(const RunArgs& args, ConfigErrors& errors);
 std::unique_ptr<Gateway> build_gateway(const RunArgs& args, const Deployment& deployment,
                                        const sim::ComponentRegistry& registry,
                                        GatewayOptions options, ConfigErrors errors);
+
+// --endpoints-file: `endpoints` as {"transport": ["tcp://host:port", ...]} at `path`, written
+// whole, then renamed (a reader never sees half a file).
+void write_endpoints_file(const std::string& path,
+                          const std::map<std::string, std::vector<std::string>>& endpoints);
+
+// What a serving command (run, replay --serve) prints once its transports listen: the scene,
+// the robots, each transport's endpoints and how to try it.
+void print_banner(Gateway& gateway);
+
+// SIGINT and SIGTERM for a command that serves until stopped (run, replay --serve): blocked
+// from construction on (construct it before any thread starts: they inherit the mask), SIGPIPE
+// ignored (a closed client must not kill the server); after start(stop), a thread of its own
+// runs `stop` on the first signal, and a second one exits at once. Destruction ends the thread.
+class StopOnSignals {
+ public:
+  StopOnSignals();
+  ~StopOnSignals();
+  StopOnSignals(const StopOnSignals&) = delete;
+  StopOnSignals& operator=(const StopOnSignals&) = delete;
+  void start(std::function<void()> stop);
+
+ private:
+  sigset_t signals_;
+  std::atomic<bool> finished_{false};
+  std::thread thread_;
+};
 
 // ---- parsing helpers shared by the commands (cli.cc); each throws UsageError
 

@@ -1,4 +1,6 @@
 // `simgate replay FILE` (see commands.h, recorder/replay.h).
+#include <atomic>
+#include <filesystem>
 #include <iostream>
 
 #include "commands.h"
@@ -56,6 +58,17 @@ void print_report(const recorder::ReplayReport& report, const recorder::Recordin
 
 int cmd_replay(const ReplayArgs& args) {
   apply_log_level(args.log_level);
+  if (args.serve && args.verify)
+    throw UsageError(
+        "--serve and --verify: one or the other (a served run may be changed by its "
+        "clients)");
+  if (args.realtime_factor && !args.serve)
+    throw UsageError("--realtime-factor: only with --serve (a replay is as fast as possible)");
+  if (args.endpoints_file && !args.serve)
+    throw UsageError("--endpoints-file: only with --serve (nothing listens otherwise)");
+  // before any thread starts (served: the transports' threads inherit the blocked signals)
+  std::optional<StopOnSignals> signals;
+  if (args.serve) signals.emplace();
   recorder::Recording recording;
   try {
     recording = recorder::Recording::read(args.file);
@@ -69,9 +82,9 @@ int cmd_replay(const ReplayArgs& args) {
   ConfigErrors errors;
   const Deployment deployment = replay_deployment(args, recording, errors);
   GatewayOptions options;
-  options.check_only = true;  // nothing listens
+  options.check_only = !args.serve;  // nothing listens, unless served
   options.plugin_dirs = args.plugin_dirs;
-  options.realtime_factor = 0;
+  options.realtime_factor = args.serve ? parse_factor(args.realtime_factor) : 0;
   const sim::ComponentRegistry registry = sim::builtin_registry();
   std::unique_ptr<Gateway> gateway;
   try {
@@ -86,7 +99,27 @@ int cmd_replay(const ReplayArgs& args) {
     std::cerr << "simgate: cannot replay: " << e.what() << "\n";
     return 2;
   }
-  const recorder::ReplayReport report = replayer->run(/*stop_at_mismatch=*/args.verify);
+  recorder::ReplayOptions replay_options;
+  replay_options.stop_at_mismatch = args.verify;
+  std::atomic<bool> stop{false};
+  if (args.serve) {
+    gateway->start();
+    if (args.endpoints_file) write_endpoints_file(*args.endpoints_file, gateway->endpoints());
+    print_banner(*gateway);
+    replay_options.serve = true;
+    replay_options.realtime_factor = gateway->simulation().realtime_factor();
+    replay_options.stop = &stop;
+    signals->start([&stop, &gateway] {
+      stop = true;
+      gateway->simulation().gate()->signal();
+    });
+  }
+  const recorder::ReplayReport report = replayer->run(replay_options);
+  if (args.serve) {
+    signals.reset();
+    gateway->shutdown();
+    if (args.endpoints_file) std::filesystem::remove(*args.endpoints_file);
+  }
   if (args.json) {
     json out = report.to_json();
     out["file"] = recording.path;

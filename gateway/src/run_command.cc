@@ -70,18 +70,6 @@ Deployment model_deployment(const RunArgs& args, ConfigErrors& errors) {
   return parse_deployment(document, base, args.config, errors);
 }
 
-void write_endpoints_file(const std::string& path,
-                          const std::map<std::string, std::vector<std::string>>& endpoints) {
-  // written whole, then renamed: a reader never sees half a file
-  std::string tmp = path + ".tmp" + std::to_string(getpid());
-  {
-    std::ofstream out(tmp);
-    out << json(endpoints).dump() << "\n";
-    if (!out) throw std::runtime_error("--endpoints-file: cannot write '" + tmp + "'");
-  }
-  std::filesystem::rename(tmp, path);
-}
-
 // "tcp://127.0.0.1:4000" -> ("127.0.0.1", "4000")
 std::optional<std::pair<std::string, std::string>> tcp_host_port(const std::string& endpoint) {
   const std::string prefix = "tcp://";
@@ -99,6 +87,20 @@ std::optional<std::pair<std::string, std::string>> tcp_host_port(const std::stri
 std::string counts(const Deployment& d) {
   return std::to_string(d.robots.size()) + " robot(s), " +
          std::to_string(d.component_names().size()) + " component(s)";
+}
+
+}  // namespace
+
+void write_endpoints_file(const std::string& path,
+                          const std::map<std::string, std::vector<std::string>>& endpoints) {
+  // written whole, then renamed: a reader never sees half a file
+  std::string tmp = path + ".tmp" + std::to_string(getpid());
+  {
+    std::ofstream out(tmp);
+    out << json(endpoints).dump() << "\n";
+    if (!out) throw std::runtime_error("--endpoints-file: cannot write '" + tmp + "'");
+  }
+  std::filesystem::rename(tmp, path);
 }
 
 void print_banner(Gateway& g) {
@@ -169,6 +171,8 @@ void print_banner(Gateway& g) {
   }
   std::cout << "Ctrl-C (or `simulation quit`) stops the simulation.\n" << std::flush;
 }
+
+namespace {
 
 // One reading of the counters a status line is made of.
 struct StatusSample {
@@ -275,6 +279,39 @@ class StatusReporter {
 
 }  // namespace
 
+StopOnSignals::StopOnSignals() {
+  sigemptyset(&signals_);
+  sigaddset(&signals_, SIGINT);
+  sigaddset(&signals_, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals_, nullptr);
+  signal(SIGPIPE, SIG_IGN);
+}
+
+StopOnSignals::~StopOnSignals() {
+  finished_ = true;
+  if (thread_.joinable()) thread_.join();
+}
+
+void StopOnSignals::start(std::function<void()> stop) {
+  thread_ = std::thread([this, stop = std::move(stop)] {
+    int received = 0;
+    timespec poll{0, 100'000'000};
+    while (!finished_.load()) {
+      siginfo_t info;
+      const int sig = sigtimedwait(&signals_, &info, &poll);
+      if (sig <= 0) continue;
+      if (++received == 1) {
+        log::info("simgate: ", sig == SIGINT ? "SIGINT" : "SIGTERM", ", shutting down");
+        stop();
+      } else {
+        static const char msg[] = "simgate: second signal, exiting now\n";
+        (void)!write(2, msg, sizeof msg - 1);
+        _exit(128 + sig);
+      }
+    }
+  });
+}
+
 Deployment load_deployment_args(const RunArgs& args, ConfigErrors& errors) {
   if (args.port && !args.model)
     throw UsageError("--port: only with --model (a config names its transports' ports)");
@@ -310,16 +347,9 @@ int cmd_run(const RunArgs& args, bool check_only) {
     options.record_dir = std::filesystem::canonical(*args.record_dir).string();
   }
 
-  // SIGINT/SIGTERM are handled by a thread (blocked everywhere else, inherited by the
-  // transports' threads); SIGPIPE is ignored: a closed client must not kill the server
-  sigset_t signals;
-  sigemptyset(&signals);
-  sigaddset(&signals, SIGINT);
-  sigaddset(&signals, SIGTERM);
-  if (!check_only) {
-    pthread_sigmask(SIG_BLOCK, &signals, nullptr);
-    signal(SIGPIPE, SIG_IGN);
-  }
+  // before any thread starts: the transports' threads inherit the blocked signals
+  std::optional<StopOnSignals> signals;
+  if (!check_only) signals.emplace();
 
   // the errors of the file's structure are reported with those the gateway finds
   ConfigErrors errors;
@@ -353,24 +383,7 @@ int cmd_run(const RunArgs& args, bool check_only) {
     status->start();
   }
 
-  std::atomic<bool> finished{false};
-  std::thread signal_thread([&] {
-    int received = 0;
-    timespec poll{0, 100'000'000};
-    while (!finished.load()) {
-      siginfo_t info;
-      int sig = sigtimedwait(&signals, &info, &poll);
-      if (sig <= 0) continue;
-      if (++received == 1) {
-        log::info("simgate: ", sig == SIGINT ? "SIGINT" : "SIGTERM", ", shutting down");
-        gateway.stop();
-      } else {
-        static const char msg[] = "simgate: second signal, exiting now\n";
-        (void)!write(2, msg, sizeof msg - 1);
-        _exit(128 + sig);
-      }
-    }
-  });
+  signals->start([&gateway] { gateway.stop(); });
   int code = 0;
   try {
     gateway.run();
@@ -380,8 +393,7 @@ int cmd_run(const RunArgs& args, bool check_only) {
   }
   // the status and signal threads go first: they must not touch a gateway being torn down
   if (status) status->stop();
-  finished = true;
-  signal_thread.join();
+  signals.reset();
   gateway.shutdown();
   if (args.endpoints_file) std::filesystem::remove(*args.endpoints_file);
   log::info("simgate: stopped");

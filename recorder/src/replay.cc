@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "simgate/core/base64.h"
+#include "simgate/core/log.h"
 #include "simgate/core/request_manager.h"
 #include "simgate/mcap/reader.h"
 #include "simgate/recorder/format.h"
@@ -160,7 +161,51 @@ Replayer::Replayer(sim::Simulation& simulation, const Recording& recording)
                              "(the scene's files changed since the recording)");
 }
 
-ReplayReport Replayer::run(bool stop_at_mismatch) {
+void Replayer::serve_until_due(const ReplayOptions& options) {
+  sim::Simulation& sim = simulation_;
+  for (;;) {
+    sim.process_requests();
+    if (stopping(options)) return;
+    if (sim.paused()) {
+      // a client paused it: its requests are served; a `simulation step` of its own steps
+      if (sim.owed_steps() > 0) {
+        std::lock_guard lock(*sim.gate());
+        sim.take_owed_steps(std::chrono::steady_clock::now() + std::chrono::milliseconds(2));
+        continue;
+      }
+      sim.gate()->wait_for(std::chrono::milliseconds(100));
+      pace_wall_ = {};  // playing again: the pace starts anew
+      continue;
+    }
+    if (options.realtime_factor <= 0) return;
+    const auto now = std::chrono::steady_clock::now();
+    if (pace_wall_ == std::chrono::steady_clock::time_point{}) {
+      pace_wall_ = now;
+      pace_sim_ = sim.sim_time();
+    }
+    const auto due =
+        pace_wall_ +
+        std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+            std::chrono::duration<double>((sim.sim_time() + sim.timestep() - pace_sim_) /
+                                          options.realtime_factor));
+    if (now >= due) return;
+    sim.gate()->wait_until(due);
+  }
+}
+
+void Replayer::serve_to_the_end(const ReplayOptions& options) {
+  sim::Simulation& sim = simulation_;
+  {
+    std::lock_guard lock(*sim.gate());
+    sim.set_paused(true);
+  }
+  log::info("replay: the recording ends at sim time ", sim.sim_time(),
+            " s; its last state is served, paused, until Ctrl-C");
+  while (!stopping(options)) serve_until_due(options);
+}
+
+ReplayReport Replayer::run(const ReplayOptions& options) {
+  const bool stop_at_mismatch = options.stop_at_mismatch && !options.serve;
   const auto wall_start = std::chrono::steady_clock::now();
   ReplayReport report;
   sim::Simulation& sim = simulation_;
@@ -172,6 +217,9 @@ ReplayReport Replayer::run(bool stop_at_mismatch) {
   {
     std::lock_guard lock(*sim.gate());
     sim.restore_physics(sim::PhysicsState::from_values(rec.initial_state, sim.model_generation()));
+    // served, the recording sets the pace (a deployment that starts paused for its clients to
+    // step it was stepped so in the recording); a client's pause holds it from here on
+    if (options.serve) sim.set_paused(false);
   }
 
   // the recorded fingerprints, by step
@@ -207,14 +255,23 @@ ReplayReport Replayer::run(bool stop_at_mismatch) {
   // stop there)
   const auto step_to = [&](std::uint64_t target) -> bool {
     while (rec.first_step + sim.steps() < target) {
+      if (options.serve) {
+        serve_until_due(options);
+        if (stopping(options)) return false;
+      }
       {
         std::lock_guard lock(*sim.gate());
         sim.step();
       }
       ++report.steps;
+      const bool had_mismatch = report.mismatch.has_value();
       const bool same = compare(rec.first_step + sim.steps());
       inputs_since_step.clear();
       if (!same && stop_at_mismatch) return false;
+      if (!same && options.serve && !had_mismatch)
+        log::warning("replay: from step ", report.mismatch->step,
+                     " the served run departs from the recording (a client's request changed "
+                     "the world?)");
     }
     return true;
   };
@@ -275,6 +332,7 @@ ReplayReport Replayer::run(bool stop_at_mismatch) {
       ++report.inputs_applied;
     } else if (type == "tasks") {
       const std::size_t count = in.value("count", std::size_t{0});
+      if (options.serve) continue;  // served: process_requests takes them in when they come
       const auto until = std::chrono::steady_clock::now() + k_task_wait;
       while (sim.soon_count() < count && std::chrono::steady_clock::now() < until)
         std::this_thread::sleep_for(std::chrono::milliseconds(1));
@@ -289,6 +347,7 @@ ReplayReport Replayer::run(bool stop_at_mismatch) {
   }
   if (!stopped) step_to(rec.last_step);
   manager->process();  // outcomes finished by the last steps
+  if (options.serve && !stopping(options)) serve_to_the_end(options);
   for (const auto& [id, status] : manager->statuses) {
     auto it = recorded_status.find(id);
     if (it != recorded_status.end() && it->second != to_string(status)) ++report.outcomes_differing;

@@ -253,6 +253,49 @@ class RecordingTest(unittest.TestCase):
         code, report, err = replay(os.path.join(record_dir, "wire.mcap"), "--verify")
         self.assertEqual(code, 0, (report, err))
         self.assertEqual(report["steps"], 300)
+        self.served(os.path.join(record_dir, "wire.mcap"))
+
+    def served(self, path):
+        """`simgate replay --serve`: the recording through its deployment's transports, a client
+        watching; at its end the last state is served, paused, until SIGTERM."""
+        endpoints = os.path.join(self.workdir.name, "served-endpoints.json")
+        log = open(os.path.join(self.workdir.name, "served.log"), "w+")
+        process = subprocess.Popen([ARGS.simgate, "replay", path, "--serve", "--realtime-factor", "max",
+                                    "--endpoints-file", endpoints], stdout=log, stderr=subprocess.STDOUT)
+        try:
+            deadline = time.monotonic() + TIMEOUT
+            while not os.path.exists(endpoints):
+                self.assertIsNone(process.poll(), "simgate replay --serve ended early")
+                self.assertLess(time.monotonic(), deadline, "simgate replay --serve did not start")
+                time.sleep(0.01)  # polling for a file the child writes; bounded by the deadline
+            with open(endpoints) as f:
+                url = json.load(f)["jsonrpc"][0]
+            rpc = Lines(int(url.rsplit(":", 1)[1]))
+            try:
+                while True:  # the end of the recording: paused, its 300 steps taken
+                    state = rpc.rpc("simulation.get_simulation_state")["result"]
+                    if state["state"] == "paused" and state["steps"] >= 300:
+                        break
+                    self.assertLess(time.monotonic(), deadline, state)
+                    time.sleep(0.01)  # polling the served run; bounded by the deadline
+                self.assertEqual(state["steps"], 300)
+                pose = rpc.rpc("robot.pose.get_local_data")["result"]
+                self.assertGreater(pose["x"], 0.1)  # the recorded set_speed drove it
+                stepped = rpc.rpc("simulation.step", [5])["result"]  # a client may go on
+                self.assertEqual(stepped["steps_done"], 5)
+            finally:
+                rpc.close()
+            process.send_signal(signal.SIGTERM)
+            self.assertEqual(process.wait(timeout=TIMEOUT), 0)
+        finally:
+            if process.poll() is None:
+                process.kill()
+                process.wait()
+            log.seek(0)
+            output = log.read()
+            log.close()
+        self.assertIn("replayed 300 steps", output)
+        self.assertFalse(os.path.exists(endpoints))
 
     def test_a_file_that_is_no_recording_is_exit_2_naming_what_is_wrong(self):
         text = os.path.join(self.workdir.name, "notes.mcap")

@@ -19,11 +19,17 @@
 // own state (an odometry's integral, a goto under way) starts afresh, which --verify reports
 // as a divergence if it matters.
 //
+// Served (`simgate replay --serve`), the replayed run goes out through the deployment's
+// transports as a live one would, paced at its real-time factor: Foxglove, the web app or
+// pymorse watch it and may query it; what a client changes departs from the recording (logged).
+//
 // Threads: Replayer::run() on one thread, which drives the simulation (it is the simulation
 // thread while it runs; the simulation's loop must not run).
 #ifndef SIMGATE_RECORDER_REPLAY_H_
 #define SIMGATE_RECORDER_REPLAY_H_
 
+#include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -85,19 +91,44 @@ struct ReplayReport {
   json to_json() const;
 };
 
+struct ReplayOptions {
+  // Stop at the first step whose fingerprint differs (`simgate replay --verify`).
+  bool stop_at_mismatch = true;
+  // Serving (`simgate replay --serve`): the simulation's transports are up and nobody else runs
+  // its loop. After every step the replay serves their requests (Simulation::process_requests),
+  // keeps the pace below and honours a pause (simulation pause: it waits, a client's `simulation
+  // step` steps); a difference is logged once, not a stop (a client's request changed the
+  // world); at the end it keeps serving the last state, paused, until `stop` is set.
+  bool serve = false;
+  double realtime_factor = 1;               // serve: simulated s per wall s (0: no pacing)
+  const std::atomic<bool>* stop = nullptr;  // serve: set (with a gate signal) to end it
+};
+
 class Replayer {
  public:
   // Checks that `recording` can be replayed on `simulation` (built from its deployment, not
   // running); throws std::runtime_error saying why not (versions, model).
   Replayer(sim::Simulation& simulation, const Recording& recording);
 
-  // Replays the whole recording; with `stop_at_mismatch`, stops at the first step whose
-  // fingerprint differs.
-  ReplayReport run(bool stop_at_mismatch = true);
+  // Replays the whole recording (see ReplayOptions).
+  ReplayReport run(const ReplayOptions& options = {});
 
  private:
+  // serve: requests served and the pace kept until the next step is due (or a stop)
+  void serve_until_due(const ReplayOptions& options);
+  // serve, after the last step: the last state served, paused, until a stop
+  void serve_to_the_end(const ReplayOptions& options);
+  // serve: Ctrl-C (options.stop) or `simulation quit`
+  bool stopping(const ReplayOptions& options) const {
+    return (options.stop && options.stop->load(std::memory_order_acquire)) ||
+           simulation_.stop_requested();
+  }
+
   sim::Simulation& simulation_;
   const Recording& recording_;
+  // serve: the pace's origin (wall, simulated), restarted after a pause
+  std::chrono::steady_clock::time_point pace_wall_{};
+  double pace_sim_ = 0;
 };
 
 }  // namespace simgate::recorder
