@@ -107,7 +107,6 @@ int cmd_replay(const ReplayArgs& args) {
     if (args.endpoints_file) write_endpoints_file(*args.endpoints_file, gateway->endpoints());
     print_banner(*gateway);
     replay_options.serve = true;
-    replay_options.realtime_factor = gateway->simulation().realtime_factor();
     replay_options.stop = &stop;
     signals->start([&stop, &gateway] {
       stop = true;

@@ -166,28 +166,35 @@ void Replayer::serve_until_due(const ReplayOptions& options) {
   for (;;) {
     sim.process_requests();
     if (stopping(options)) return;
-    if (sim.paused()) {
+    // what the clients may change is read under the lock (their requests run on their threads)
+    bool paused = false, stepped = false;
+    double time = 0, timestep = 0, factor = 0;
+    {
+      std::lock_guard lock(*sim.gate());
+      paused = sim.paused();
       // a client paused it: its requests are served; a `simulation step` of its own steps
-      if (sim.owed_steps() > 0) {
-        std::lock_guard lock(*sim.gate());
-        sim.take_owed_steps(std::chrono::steady_clock::now() + std::chrono::milliseconds(2));
-        continue;
-      }
-      sim.gate()->wait_for(std::chrono::milliseconds(100));
+      if (paused && sim.owed_steps() > 0)
+        stepped = sim.take_owed_steps(std::chrono::steady_clock::now() +
+                                      std::chrono::milliseconds(2)) > 0;
+      time = sim.sim_time();
+      timestep = sim.timestep();
+      factor = sim.realtime_factor();  // the deployment's, or a client's time set_time_scale
+    }
+    if (paused) {
+      if (!stepped) sim.gate()->wait_for(std::chrono::milliseconds(100));
       pace_wall_ = {};  // playing again: the pace starts anew
       continue;
     }
-    if (options.realtime_factor <= 0) return;
+    if (factor <= 0) return;  // as fast as possible
     const auto now = std::chrono::steady_clock::now();
-    if (pace_wall_ == std::chrono::steady_clock::time_point{}) {
+    if (pace_wall_ == std::chrono::steady_clock::time_point{} || factor != pace_factor_) {
       pace_wall_ = now;
-      pace_sim_ = sim.sim_time();
+      pace_sim_ = time;
+      pace_factor_ = factor;
     }
     const auto due =
-        pace_wall_ +
-        std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-            std::chrono::duration<double>((sim.sim_time() + sim.timestep() - pace_sim_) /
-                                          options.realtime_factor));
+        pace_wall_ + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                         std::chrono::duration<double>((time + timestep - pace_sim_) / factor));
     if (now >= due) return;
     sim.gate()->wait_until(due);
   }
@@ -195,11 +202,13 @@ void Replayer::serve_until_due(const ReplayOptions& options) {
 
 void Replayer::serve_to_the_end(const ReplayOptions& options) {
   sim::Simulation& sim = simulation_;
+  double time = 0;
   {
     std::lock_guard lock(*sim.gate());
     sim.set_paused(true);
+    time = sim.sim_time();
   }
-  log::info("replay: the recording ends at sim time ", sim.sim_time(),
+  log::info("replay: the recording ends at sim time ", time,
             " s; its last state is served, paused, until Ctrl-C");
   while (!stopping(options)) serve_until_due(options);
 }
@@ -259,13 +268,15 @@ ReplayReport Replayer::run(const ReplayOptions& options) {
         serve_until_due(options);
         if (stopping(options)) return false;
       }
+      const bool had_mismatch = report.mismatch.has_value();
+      bool same = true;
       {
+        // served, the clients' requests run on their threads between two steps
         std::lock_guard lock(*sim.gate());
         sim.step();
+        same = compare(rec.first_step + sim.steps());
       }
       ++report.steps;
-      const bool had_mismatch = report.mismatch.has_value();
-      const bool same = compare(rec.first_step + sim.steps());
       inputs_since_step.clear();
       if (!same && stop_at_mismatch) return false;
       if (!same && options.serve && !had_mismatch)

@@ -290,7 +290,9 @@ TEST(Recorder, ASpawnDuringTheRecordingIsTakenInAtItsStep) {
       sim.process_requests();  // the loop's turn: a finished compile is taken in here
       std::lock_guard lock(*sim.gate());
       sim.step();
-      if (i == 100) ASSERT_EQ(sim.model_generation(), 1u) << "the spawn landed";
+      if (i == 100) {
+        ASSERT_EQ(sim.model_generation(), 1u) << "the spawn landed";
+      }
     }
     recorder->finish();
     ASSERT_EQ(manager->outcomes.size(), 1u);

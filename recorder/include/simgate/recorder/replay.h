@@ -96,11 +96,12 @@ struct ReplayOptions {
   bool stop_at_mismatch = true;
   // Serving (`simgate replay --serve`): the simulation's transports are up and nobody else runs
   // its loop. After every step the replay serves their requests (Simulation::process_requests),
-  // keeps the pace below and honours a pause (simulation pause: it waits, a client's `simulation
-  // step` steps); a difference is logged once, not a stop (a client's request changed the
-  // world); at the end it keeps serving the last state, paused, until `stop` is set.
+  // keeps the simulation's pace (its real-time factor: the deployment's, or a client's `time
+  // set_time_scale`; 0: none) and honours a pause (simulation pause: it waits, a client's
+  // `simulation step` steps); a difference is logged once, not a stop (a client's request
+  // changed the world); at the end it keeps serving the last state, paused, until `stop` is
+  // set or `simulation quit`.
   bool serve = false;
-  double realtime_factor = 1;               // serve: simulated s per wall s (0: no pacing)
   const std::atomic<bool>* stop = nullptr;  // serve: set (with a gate signal) to end it
 };
 
@@ -129,6 +130,7 @@ class Replayer {
   // serve: the pace's origin (wall, simulated), restarted after a pause
   std::chrono::steady_clock::time_point pace_wall_{};
   double pace_sim_ = 0;
+  double pace_factor_ = 0;
 };
 
 }  // namespace simgate::recorder
