@@ -51,6 +51,11 @@ constexpr std::size_t k_max_recorded_value = 4096;
 
 // The longest the writer keeps records in an open chunk: what a crash (kill -9) can lose.
 constexpr std::chrono::seconds k_chunk_interval{1};
+// How often the writer takes what waits for it (inputs, stream samples): nobody wakes it per
+// message (a wake-up per sample cost the simulation thread a twentieth of its time)...
+constexpr std::chrono::milliseconds k_writer_period{20};
+// ... unless this much input waits.
+constexpr std::size_t k_wake_bytes = std::size_t{1} << 20;
 
 std::string read_file(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
@@ -100,7 +105,7 @@ void Recorder::write_head(const sim::Simulation& simulation) {
                                    {"model_generation", std::to_string(generation_)},
                                    {"hash_block", std::to_string(options_.hash_block)},
                                    {"model_hash", std::to_string(sim::model_hash(m))}});
-  const std::uint64_t start = now_ns();
+  const std::uint64_t start = time_ns(simulation.sim_time());
   if (!options_.deployment.is_null())
     w.attach(start, start, k_deployment_attachment, "application/json",
              options_.deployment.dump(2));
@@ -147,7 +152,17 @@ void Recorder::subscribe_streams(sim::Simulation& simulation) {
       stream.sensor_channels.emplace_back(
           w.add_channel(schema, topic + std::string(c.suffix), "json"), c.message);
     }
-    if (stream.sensor_channels.empty()) {
+    if (info.kind == "body_poses" && tf_channel_ == 0) {
+      // the bodies' poses as Foxglove's 3D panel reads them, as the foxglove transport shows
+      // them: /tf for every sample (the poses: nothing else in it), /scene once per model
+      stream.body_poses = true;
+      tf_channel_ = w.add_channel(w.add_schema(foxglove::k_frame_transforms, "jsonschema",
+                                               foxglove::frame_transforms_schema().dump()),
+                                  "/tf", "json");
+      scene_channel_ = w.add_channel(w.add_schema(foxglove::k_scene_update, "jsonschema",
+                                                  foxglove::scene_update_schema().dump()),
+                                     "/scene", "json");
+    } else if (stream.sensor_channels.empty()) {
       json schema = json::object();
       if (auto sample = hub.sample_now(info.component)) schema = foxglove::schema_of(*sample);
       schema["title"] = "simgate." + info.kind;
@@ -156,53 +171,31 @@ void Recorder::subscribe_streams(sim::Simulation& simulation) {
           w.add_schema("simgate." + info.kind, "jsonschema", schema.dump()), topic, "json");
       stream.as_json = true;
     }
-    if (info.kind == "body_poses" && tf_channel_ == 0) {
-      // the bodies and geoms for Foxglove's 3D panel, as the foxglove transport shows them
-      stream.body_poses = true;
-      tf_channel_ = w.add_channel(w.add_schema(foxglove::k_frame_transforms, "jsonschema",
-                                               foxglove::frame_transforms_schema().dump()),
-                                  "/tf", "json");
-      scene_channel_ = w.add_channel(w.add_schema(foxglove::k_scene_update, "jsonschema",
-                                                  foxglove::scene_update_schema().dump()),
-                                     "/scene", "json");
-    }
     SubscriberOptions subscriber;
-    subscriber.capacity = options_.stream_capacity;
-    subscriber.label = "recorder (" + options_.path + ")";
-    subscriber.wake = [this] {
-      {
-        std::lock_guard lock(mutex_);
-        samples_waiting_ = true;
-      }
-      cv_.notify_one();
-    };
+    subscriber.capacity = info.pushed ? options_.pushed_stream_capacity : options_.stream_capacity;
+    subscriber.label = "recorder (" + options_.path + ")";  // no wake: the writer looks in time
     stream.subscription =
         hub.subscribe(info.component, StreamHub::k_every_transport, std::move(subscriber));
     if (stream.subscription) streams_.push_back(std::move(stream));
   }
 }
 
-std::uint64_t Recorder::now_ns() const {
-  const double t = simulation_.sim_time();
-  return t > 0 ? static_cast<std::uint64_t>(std::llround(t * 1e9)) : 0;
+std::uint64_t Recorder::time_ns(double sim_time) {
+  return sim_time > 0 ? static_cast<std::uint64_t>(std::llround(sim_time * 1e9)) : 0;
 }
 
 std::uint64_t Recorder::step() const { return simulation_.steps(); }
 
-void Recorder::input(json event) {
-  event["seq"] = ++input_seq_;
-  event["step"] = step();
-  event["sim_time"] = simulation_.sim_time();
-  Pending p;
-  p.channel = inputs_channel_;
-  p.sequence = static_cast<std::uint32_t>(input_seq_);
-  p.time_ns = now_ns();
-  p.bytes = 256;
-  p.value = std::move(event);
+void Recorder::input(Pending p) {
+  p.seq = ++input_seq_;
+  p.step = step();
+  p.sim_time = simulation_.sim_time();
+  p.bytes += 128;
   enqueue(std::move(p));
 }
 
 void Recorder::enqueue(Pending p) {
+  bool wake = false;
   {
     std::lock_guard lock(mutex_);
     if (!error_.empty() || finishing_) return;
@@ -210,61 +203,139 @@ void Recorder::enqueue(Pending p) {
       error_ = "the writer fell " + std::to_string(queue_bytes_ >> 20) +
                " MiB behind (the disk is too slow)";
       log::error("recording ", options_.path, " stopped: ", error_);
-    } else {
-      if (p.channel == inputs_channel_) ++inputs_;
-      queue_bytes_ += p.bytes;
-      queue_.push_back(std::move(p));
+      return;
     }
+    if (p.kind <= Pending::Kind::tasks) ++inputs_;
+    wake = queue_bytes_ < k_wake_bytes && queue_bytes_ + p.bytes >= k_wake_bytes;
+    queue_bytes_ += p.bytes;
+    queue_.push_back(std::move(p));
   }
-  cv_.notify_one();
+  if (wake) cv_.notify_one();
 }
 
 void Recorder::request_started(const RequestManager& manager, RequestId id, const Call& call) {
   open_[&manager].insert(id);
-  // a call's params: copied here, written by the writer thread
-  input({{"type", "request"},
-         {"transport", manager.transport_name()},
-         {"client", call.client},
-         {"id", id},
-         {"component", call.component},
-         {"service", call.service},
-         {"params", call.params}});
+  Pending p;
+  p.kind = Pending::Kind::request;
+  p.transport = manager.transport_name();
+  p.client = call.client;
+  p.id = id;
+  p.component = call.component;
+  p.service = call.service;
+  p.value = call.params;  // copied here, written by the writer thread
+  input(std::move(p));
 }
 
 void Recorder::request_ended(const RequestManager& manager, RequestId id, const Outcome& outcome) {
   auto it = open_.find(&manager);
   if (it == open_.end() || it->second.erase(id) == 0) return;  // not one recorded as started
-  json event{{"step", step()},
-             {"sim_time", simulation_.sim_time()},
-             {"transport", manager.transport_name()},
-             {"id", id},
-             {"status", to_string(outcome.status)},
-             {"failure", to_string(outcome.failure)},
-             {"message", outcome.message}};
-  std::size_t budget = k_max_recorded_value;
-  if (outcome.value && small_value(*outcome.value, budget)) event["value"] = *outcome.value;
   Pending p;
-  p.channel = outcomes_channel_;
-  p.time_ns = now_ns();
-  p.bytes = 256 + k_max_recorded_value - budget;
-  p.value = std::move(event);
+  p.kind = Pending::Kind::outcome;
+  p.step = step();
+  p.sim_time = simulation_.sim_time();
+  p.transport = manager.transport_name();
+  p.id = id;
+  p.status = outcome.status;
+  p.failure = outcome.failure;
+  p.text = outcome.message;
+  std::size_t budget = k_max_recorded_value;
+  if (outcome.value && small_value(*outcome.value, budget)) p.value = *outcome.value;
+  p.bytes = 128 + k_max_recorded_value - budget + p.text.size();
   enqueue(std::move(p));
 }
 
 void Recorder::request_interrupted(const RequestManager& manager, RequestId id, Failure reason) {
-  input({{"type", "interrupt"},
-         {"transport", manager.transport_name()},
-         {"id", id},
-         {"reason", reason == Failure::timeout ? "timeout" : "cancelled"}});
+  Pending p;
+  p.kind = Pending::Kind::interrupt;
+  p.transport = manager.transport_name();
+  p.id = id;
+  p.failure = reason;
+  input(std::move(p));
 }
 
 void Recorder::command_applied(std::string_view component, const json& command,
                                const std::string& refusal) {
-  input(
-      {{"type", "command"}, {"component", component}, {"command", command}, {"refusal", refusal}});
+  Pending p;
+  p.kind = Pending::Kind::command;
+  p.component = component;
+  p.value = command;
+  p.text = refusal;
+  input(std::move(p));
 }
 
-void Recorder::tasks_ran(std::size_t count) { input({{"type", "tasks"}, {"count", count}}); }
+void Recorder::tasks_ran(std::size_t count) {
+  Pending p;
+  p.kind = Pending::Kind::tasks;
+  p.count = count;
+  input(std::move(p));
+}
+
+std::uint16_t Recorder::channel_of(const Pending& p) const {
+  switch (p.kind) {
+    case Pending::Kind::outcome: return outcomes_channel_;
+    case Pending::Kind::hashes: return hashes_channel_;
+    case Pending::Kind::geometry: return scene_channel_;
+    default: return inputs_channel_;
+  }
+}
+
+json Recorder::to_json(Pending& p) {
+  using Kind = Pending::Kind;
+  switch (p.kind) {
+    case Kind::request:
+      return {{"seq", p.seq},
+              {"step", p.step},
+              {"sim_time", p.sim_time},
+              {"type", "request"},
+              {"transport", std::move(p.transport)},
+              {"client", p.client},
+              {"id", p.id},
+              {"component", std::move(p.component)},
+              {"service", std::move(p.service)},
+              {"params", std::move(p.value)}};
+    case Kind::interrupt:
+      return {{"seq", p.seq},
+              {"step", p.step},
+              {"sim_time", p.sim_time},
+              {"type", "interrupt"},
+              {"transport", std::move(p.transport)},
+              {"id", p.id},
+              {"reason", p.failure == Failure::timeout ? "timeout" : "cancelled"}};
+    case Kind::command:
+      return {{"seq", p.seq},
+              {"step", p.step},
+              {"sim_time", p.sim_time},
+              {"type", "command"},
+              {"component", std::move(p.component)},
+              {"command", std::move(p.value)},
+              {"refusal", std::move(p.text)}};
+    case Kind::tasks:
+      return {{"seq", p.seq},
+              {"step", p.step},
+              {"sim_time", p.sim_time},
+              {"type", "tasks"},
+              {"count", p.count}};
+    case Kind::outcome: {
+      json o{{"step", p.step},
+             {"sim_time", p.sim_time},
+             {"transport", std::move(p.transport)},
+             {"id", p.id},
+             {"status", to_string(p.status)},
+             {"failure", to_string(p.failure)},
+             {"message", std::move(p.text)}};
+      if (!p.value.is_null()) o["value"] = std::move(p.value);
+      return o;
+    }
+    case Kind::hashes:
+      return {{"first_step", p.step},
+              {"steps", p.count},
+              {"generation", p.generation},
+              {"quantities", std::move(p.quantities)},
+              {"hashes", std::move(p.hashes)}};
+    case Kind::geometry: break;
+  }
+  return nullptr;
+}
 
 void Recorder::stepped() {
   const mjModel* m = simulation_.m();
@@ -286,33 +357,33 @@ void Recorder::stepped() {
 
 void Recorder::queue_geometry() {
   Pending p;
-  p.channel = scene_channel_;
-  p.time_ns = now_ns();
+  p.kind = Pending::Kind::geometry;
+  p.sim_time = simulation_.sim_time();
   p.value = sim::scene_geometry(simulation_, /*include_meshes=*/true);
   p.bytes = 4096;
-  p.geometry = true;
   enqueue(std::move(p));
 }
 
-void Recorder::write_geometry(const Pending& p) {
-  geometry_ = p.value;
+void Recorder::write_geometry(Pending& p) {
+  geometry_ = std::move(p.value);
   frames_ = foxglove::SceneFrames::from_geometry(geometry_);
   const std::string update = foxglove::scene_update(geometry_, frames_);
-  if (!update.empty()) writer_->write(scene_channel_, 0, p.time_ns, p.time_ns, update);
+  if (!update.empty())
+    writer_->write(scene_channel_, 0, time_ns(p.sim_time), time_ns(p.sim_time), update);
 }
 
 void Recorder::flush_hashes() {
   if (block_steps_ == 0) return;
   Pending p;
-  p.channel = hashes_channel_;
-  p.time_ns = now_ns();
+  p.kind = Pending::Kind::hashes;
+  p.step = block_first_step_;
+  p.count = block_steps_;
+  p.sim_time = simulation_.sim_time();
+  p.generation = generation_;
+  p.quantities = hasher_->quantities();
   p.bytes = hash_block_.size() * 12;
-  p.value = json{{"first_step", block_first_step_},
-                 {"steps", block_steps_},
-                 {"generation", generation_},
-                 {"quantities", hasher_->quantities()},
-                 {"hashes", hash_block_}};
-  hash_block_.clear();
+  p.hashes.swap(hash_block_);
+  hash_block_.reserve(p.hashes.size());
   block_steps_ = 0;
   enqueue(std::move(p));
 }
@@ -383,15 +454,15 @@ json Recorder::status() const {
 void Recorder::write_samples(Stream& stream, std::vector<SamplePtr>& samples) {
   mcap::Writer& w = *writer_;
   for (const SamplePtr& sample : samples) {
-    const double t = sample->time();
-    const std::uint64_t ns = t > 0 ? static_cast<std::uint64_t>(std::llround(t * 1e9)) : 0;
+    const std::uint64_t ns = time_ns(sample->time());
     ++stream.sequence;
-    if (stream.as_json) {
-      w.write(stream.json_channel, stream.sequence, ns, ns, sample->text());
-      if (stream.body_poses && frames_.known()) {
+    if (stream.body_poses) {
+      if (frames_.known()) {
         const std::string tf = foxglove::frame_transforms(sample->data(), frames_);
         if (!tf.empty()) w.write(tf_channel_, stream.sequence, ns, ns, tf);
       }
+    } else if (stream.as_json) {
+      w.write(stream.json_channel, stream.sequence, ns, ns, sample->text());
     } else {
       for (const auto& [channel, message] : stream.sensor_channels) {
         const std::string text =
@@ -410,11 +481,12 @@ void Recorder::writer_loop() {
   auto chunk_due = std::chrono::steady_clock::now() + k_chunk_interval;
   std::unique_lock lock(mutex_);
   for (;;) {
-    cv_.wait_until(lock, chunk_due,
-                   [this] { return !queue_.empty() || samples_waiting_ || finishing_; });
+    // no wake-up per sample or input: the writer looks every k_writer_period (sooner when
+    // the inputs pile up, or at the end)
+    cv_.wait_until(lock, std::min(chunk_due, std::chrono::steady_clock::now() + k_writer_period),
+                   [this] { return queue_bytes_ >= k_wake_bytes || finishing_; });
     batch.swap(queue_);
     queue_bytes_ = 0;
-    samples_waiting_ = false;
     const bool last = finishing_;
     const bool failed = !error_.empty();
     lock.unlock();
@@ -422,12 +494,13 @@ void Recorder::writer_loop() {
     if (!failed) {
       try {
         for (Pending& p : batch) {
-          if (p.geometry) {
+          if (p.kind == Pending::Kind::geometry) {
             write_geometry(p);
             continue;
           }
-          if (p.text.empty()) p.text = p.value.dump();
-          writer_->write(p.channel, p.sequence, p.time_ns, p.time_ns, p.text);
+          const std::uint64_t ns = time_ns(p.sim_time);
+          writer_->write(channel_of(p), static_cast<std::uint32_t>(p.seq), ns, ns,
+                         to_json(p).dump());
         }
         for (Stream& s : streams_) {
           samples.clear();

@@ -1,6 +1,7 @@
 #include "simgate/sim/state_hash.h"
 
 #include <array>
+#include <bit>
 #include <cstring>
 #include <utility>
 #include <vector>
@@ -46,13 +47,17 @@ std::uint64_t mix(std::uint64_t x) {
 }  // namespace
 
 std::uint32_t hash_values(std::span<const mjtNum> values) {
+  // each word: an xor, a rotation and a multiplication by an odd number, three bijections of
+  // h, so that two arrays differing in any one word never meet again; one mix at the end
+  // spreads every bit over the 32 kept (a step's quantities hash in well under a microsecond)
   std::uint64_t h = 0x9e3779b97f4a7c15ULL ^ values.size();
   for (mjtNum v : values) {
     std::uint64_t bits = 0;
     static_assert(sizeof(bits) == sizeof(v));
     std::memcpy(&bits, &v, sizeof bits);
-    h = mix(h ^ bits);
+    h = std::rotl(h ^ bits, 29) * 0xbf58476d1ce4e5b9ULL;
   }
+  h = mix(h);
   return static_cast<std::uint32_t>(h ^ (h >> 32));
 }
 

@@ -49,15 +49,28 @@ class Gateway:
         self.log = open(os.path.join(workdir, name + ".log"), "w+")
         self.process = subprocess.Popen([ARGS.simgate, "run", path, "--endpoints-file", endpoints] + extra,
                                         stdout=self.log, stderr=subprocess.STDOUT)
-        deadline = time.monotonic() + TIMEOUT
-        while not os.path.exists(endpoints):
-            if self.process.poll() is not None or time.monotonic() > deadline:
-                raise RuntimeError("simgate run did not start:\n" + self.output())
-            time.sleep(0.01)  # polling for a file the child writes; bounded by the deadline
-        with open(endpoints) as f:
-            ports = json.load(f)
-        # "tcp://127.0.0.1:4000", "ws://127.0.0.1:8090/"
-        self.ports = {name: int(urls[0].rstrip("/").rsplit(":", 1)[1]) for name, urls in ports.items()}
+        try:
+            deadline = time.monotonic() + TIMEOUT
+            while not os.path.exists(endpoints):
+                if self.process.poll() is not None or time.monotonic() > deadline:
+                    raise RuntimeError("simgate run did not start:\n" + self.output())
+                time.sleep(0.01)  # polling for a file the child writes; bounded by the deadline
+            with open(endpoints) as f:
+                ports = json.load(f)
+            # "tcp://127.0.0.1:4000", "ws://127.0.0.1:8090/"
+            self.ports = {name: int(urls[0].rstrip("/").rsplit(":", 1)[1]) for name, urls in ports.items()}
+        except BaseException:
+            # a gateway that started half way is not left running
+            self.process.kill()
+            self.process.wait()
+            self.log.close()
+            raise
+
+    def kill_if_running(self):
+        """A test that failed before it stopped the gateway does not leave it running."""
+        if self.process.poll() is None:
+            self.process.kill()
+            self.process.wait()
 
     def output(self):
         self.log.flush()
@@ -164,6 +177,7 @@ class RecordingTest(unittest.TestCase):
     def test_a_session_from_three_transports_replays_bit_for_bit(self):
         path = os.path.join(self.workdir.name, "session.mcap")
         gateway = Gateway(self.workdir.name, "session", ["--record", path])
+        self.addCleanup(gateway.kill_if_running)
         sock, rpc = Lines(gateway.ports["socket"]), Lines(gateway.ports["jsonrpc"])
         try:
             steps, round_ = 0, 0
@@ -212,6 +226,7 @@ class RecordingTest(unittest.TestCase):
     def test_a_recording_killed_with_sigkill_is_read_up_to_its_last_whole_chunk(self):
         path = os.path.join(self.workdir.name, "killed.mcap")
         gateway = Gateway(self.workdir.name, "killed", ["--record", path])
+        self.addCleanup(gateway.kill_if_running)
         sock = Lines(gateway.ports["socket"])
         try:
             for i in range(8):
@@ -231,6 +246,7 @@ class RecordingTest(unittest.TestCase):
         record_dir = os.path.join(self.workdir.name, "recordings")
         os.mkdir(record_dir)
         gateway = Gateway(self.workdir.name, "wire", ["--record-dir", record_dir])
+        self.addCleanup(gateway.kill_if_running)
         rpc = Lines(gateway.ports["jsonrpc"])
         try:
             bad = rpc.rpc("simulation.start_recording", {"name": "../outside"})

@@ -58,8 +58,12 @@ struct RecordingOptions {
   std::size_t max_queue_bytes = std::size_t{256} << 20;
   // Steps per block of state fingerprints.
   std::uint32_t hash_block = 100;
-  // Samples each stream subscription keeps for the writer (older ones are dropped, counted).
-  std::size_t stream_capacity = 64;
+  // Samples each stream subscription keeps for the writer, which takes them every
+  // k_writer_period (older ones are dropped, counted): enough for a 60 Hz stream of a
+  // simulation a hundred times faster than real time; a pushed stream (a camera's images,
+  // large) keeps fewer.
+  std::size_t stream_capacity = 1024;
+  std::size_t pushed_stream_capacity = 16;
 };
 
 class Recorder final : public InputTap, public sim::Simulation::Observer {
@@ -98,17 +102,43 @@ class Recorder final : public InputTap, public sim::Simulation::Observer {
   void tasks_ran(std::size_t count) override;
 
  private:
-  // One message for the writer, made under the lock: the channel, the time, and either the
-  // text itself or a JSON value the writer dumps.
+  // One message for the writer, made under the lock: plain fields (copies of strings that fit
+  // in place, mostly), which the writer thread turns into JSON: what a request costs the
+  // simulation thread is a few copies, no JSON object built.
   struct Pending {
-    std::uint16_t channel = 0;
-    std::uint32_t sequence = 0;  // the message's (the inputs': their seq)
-    std::uint64_t time_ns = 0;
-    json value;        // dumped by the writer (when text is empty)
-    std::string text;  // as it is
-    std::size_t bytes = 0;
-    bool geometry = false;  // `value` is the scene's geometry (a new model): /scene, /tf
+    enum class Kind : std::uint8_t {
+      request,
+      interrupt,
+      command,
+      tasks,
+      outcome,
+      hashes,
+      geometry
+    };
+    Kind kind = Kind::request;
+    std::uint64_t seq = 0;   // inputs: 1, 2, ...
+    std::uint64_t step = 0;  // the step count when it took effect
+    double sim_time = 0;
+    std::string transport;              // request, interrupt, outcome
+    std::uint64_t client = 0;           // request
+    RequestId id = 0;                   // request, interrupt, outcome
+    std::string component;              // request, command
+    std::string service;                // request
+    std::string text;                   // command: the refusal; outcome: the message
+    json value;                         // request: params; command: the command; outcome: the value
+                                        // (if small); geometry: the scene's
+    Status status = Status::success;    // outcome
+    Failure failure = Failure::none;    // outcome; interrupt: the reason
+    std::size_t count = 0;              // tasks
+    std::vector<std::uint32_t> hashes;  // hashes: quantities × steps
+    std::vector<std::string> quantities;  // hashes
+    std::uint64_t generation = 0;         // hashes
+    std::size_t bytes = 0;                // what it takes in the queue, roughly
   };
+  // The message's channel and JSON (writer thread).
+  std::uint16_t channel_of(const Pending& p) const;
+  static json to_json(Pending& p);
+
   // A stream the recorder subscribed to, and the channels its samples go to.
   struct Stream {
     std::string component;
@@ -124,9 +154,10 @@ class Recorder final : public InputTap, public sim::Simulation::Observer {
 
   void write_head(const sim::Simulation& simulation);
   void subscribe_streams(sim::Simulation& simulation);
-  // An input on the inputs channel: `event` gets "seq", "step" and "sim_time".
-  void input(json event);
-  // Queues `p` for the writer; stops the recording when the queue is too full.
+  // An input on the inputs channel: `p` gets its seq, step and sim_time.
+  void input(Pending p);
+  // Queues `p` for the writer (which looks every k_writer_period, or at once past
+  // k_wake_bytes: no wake-up per message); stops the recording when the queue is too full.
   void enqueue(Pending p);
   void flush_hashes();
   void writer_loop();
@@ -135,8 +166,8 @@ class Recorder final : public InputTap, public sim::Simulation::Observer {
   // Pending for the writer. Under the simulation lock.
   void queue_geometry();
   // The writer's side: the frames /tf names, /scene's entities (writer thread).
-  void write_geometry(const Pending& p);
-  std::uint64_t now_ns() const;
+  void write_geometry(Pending& p);
+  static std::uint64_t time_ns(double sim_time);  // a message's log time
   std::uint64_t step() const;
 
   sim::Simulation& simulation_;
@@ -165,7 +196,6 @@ class Recorder final : public InputTap, public sim::Simulation::Observer {
   std::condition_variable cv_;
   std::deque<Pending> queue_;
   std::size_t queue_bytes_ = 0;
-  bool samples_waiting_ = false;
   bool finishing_ = false;
   std::string error_;
   std::uint64_t inputs_ = 0, samples_ = 0;
