@@ -41,7 +41,25 @@ RecordingServices::~RecordingServices() {
     log::error("recording: ", e.what());
   }
   std::lock_guard lock(closing_mutex_);
-  for (auto& t : closing_) t.join();
+  for (auto& c : closing_) c.thread.join();
+}
+
+void RecordingServices::close_in_background(std::shared_ptr<Recorder> recorder,
+                                            std::function<void(json)> then) {
+  std::lock_guard lock(closing_mutex_);
+  // the threads of files closed before: joined now (they have ended), not kept till the end
+  std::erase_if(closing_, [](Closing& c) {
+    if (!c.done->load(std::memory_order_acquire)) return false;
+    c.thread.join();
+    return true;
+  });
+  auto done = std::make_shared<std::atomic<bool>>(false);
+  closing_.push_back({std::thread([recorder = std::move(recorder), then = std::move(then), done] {
+                        json status = recorder->finish();
+                        if (then) then(std::move(status));
+                        done->store(true, std::memory_order_release);
+                      }),
+                      done});
 }
 
 void RecordingServices::start(const std::string& path) {
@@ -52,9 +70,7 @@ void RecordingServices::start(const std::string& path) {
   if (recorder_) {
     // one that stopped on its own (an error): its file is closed before the next starts
     recorder_->detach();
-    std::lock_guard lock(closing_mutex_);
-    closing_.emplace_back(
-        [old = std::shared_ptr<Recorder>(std::move(recorder_))] { old->finish(); });
+    close_in_background(std::move(recorder_), nullptr);
   }
   RecordingOptions options;
   options.path = path;
@@ -118,12 +134,9 @@ void RecordingServices::add_to(sim::SupervisionServices& simulation) {
                                                   Failure::service_error);
                              // the inputs stop here; the file is closed off the simulation lock, then the answer
                              self->recorder_->detach();
-                             std::shared_ptr<Recorder> recorder(std::move(self->recorder_));
-                             std::lock_guard lock(self->closing_mutex_);
-                             self->closing_.emplace_back([recorder, done] {
-                               json status = recorder->finish();
-                               done(Status::success, std::move(status));
-                             });
+                             self->close_in_background(
+                                 std::move(self->recorder_),
+                                 [done](json status) { done(Status::success, std::move(status)); });
                            })
       .concurrent()
       .not_replayed()

@@ -262,10 +262,14 @@ class RecordingTest(unittest.TestCase):
             self.assertEqual(stopped["result"]["steps"], 300, stopped)
             self.assertIsNone(stopped["result"]["error"])
             self.assertFalse(rpc.rpc("simulation.get_recording_status")["result"]["recording"])
+            for name in ("again1", "again2", "again3"):  # one after another, each closed whole
+                self.assertTrue(rpc.rpc("simulation.start_recording", {"name": name})["result"]["recording"])
+                self.assertIn("result", rpc.rpc("simulation.step", [10]))
+                self.assertEqual(rpc.rpc("simulation.stop_recording")["result"]["steps"], 10)
         finally:
             rpc.close()
             self.assertEqual(gateway.stop(), 0, gateway.final_output)
-        self.assertEqual(os.listdir(record_dir), ["wire.mcap"])
+        self.assertEqual(sorted(os.listdir(record_dir)), ["again1.mcap", "again2.mcap", "again3.mcap", "wire.mcap"])
         code, report, err = replay(os.path.join(record_dir, "wire.mcap"), "--verify")
         self.assertEqual(code, 0, (report, err))
         self.assertEqual(report["steps"], 300)

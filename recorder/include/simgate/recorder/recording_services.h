@@ -12,6 +12,8 @@
 #ifndef SIMGATE_RECORDER_RECORDING_SERVICES_H_
 #define SIMGATE_RECORDER_RECORDING_SERVICES_H_
 
+#include <atomic>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -55,8 +57,16 @@ class RecordingServices : public std::enable_shared_from_this<RecordingServices>
   sim::Simulation& simulation_;
   RecordingSetup setup_;
   std::unique_ptr<Recorder> recorder_;  // under the simulation lock
-  std::mutex closing_mutex_;            // guards closing_
-  std::vector<std::thread> closing_;    // stop_recording's threads (joined at the end)
+  // Closes `recorder`'s file (detached) on a thread of its own, then calls `then` with its
+  // status (stop_recording's answer); joins the threads of files closed before.
+  void close_in_background(std::shared_ptr<Recorder> recorder, std::function<void(json)> then);
+
+  struct Closing {
+    std::thread thread;
+    std::shared_ptr<std::atomic<bool>> done;  // the thread has finished its work
+  };
+  std::mutex closing_mutex_;      // guards closing_
+  std::vector<Closing> closing_;  // files being closed (finished ones joined on the next)
 };
 
 }  // namespace simgate::recorder
