@@ -15,10 +15,11 @@
 //    encoders as the foxglove transport), so that Foxglove or Lichtblick play the run back.
 //
 // Threads: the recorder is both the gate's input tap and the simulation's observer: those calls
-// come under the simulation lock and only copy what they need into a queue. Its own writer
-// thread encodes and writes (the stream samples it takes from its subscriptions there too), so
-// the simulation never waits for the disk. Memory is bounded: stream subscriptions keep a few
-// samples (a slow disk drops samples, counted, as for any subscriber), and the inputs' queue
+// come under the simulation lock and only copy what they need into a queue (plain fields, no
+// JSON). Its own writer thread takes the queue and the stream samples every 20 ms (nothing wakes
+// it per message), encodes and writes, so the simulation never waits for the disk. Memory is
+// bounded: stream subscriptions keep up to 1024 samples (a camera's 16; a slow disk drops
+// samples, counted, as for any subscriber), and the inputs' queue
 // at most RecordingOptions::max_queue_bytes; past that, or on a write error (a full disk), the
 // recording stops with a logged error and the simulation goes on.
 #ifndef SIMGATE_RECORDER_RECORDER_H_
