@@ -76,10 +76,10 @@ Recorder::Recorder(sim::Simulation& simulation, RecordingOptions options)
   generation_ = simulation_.model_generation();
   write_head(simulation_);
   bytes_written_ = writer_->bytes_written();
-  subscribe_streams(simulation_);
+  find_streams();
   hasher_ = std::make_unique<sim::StateHasher>(simulation_.m());
   block_first_step_ = first_step_ + 1;
-  if (scene_channel_ != 0) queue_geometry();
+  if (body_poses_found_) queue_geometry();
   simulation_.gate()->set_input_tap(this);
   simulation_.set_observer(this);
   attached_ = true;
@@ -137,47 +137,70 @@ void Recorder::write_head(const sim::Simulation& simulation) {
   w.flush_chunk();  // what a replay needs first is in the file at once
 }
 
-void Recorder::subscribe_streams(sim::Simulation& simulation) {
-  StreamHub& hub = simulation.streams();
-  mcap::Writer& w = *writer_;
+void Recorder::find_streams() {
+  StreamHub& hub = simulation_.streams();
   for (const StreamInfo& info : hub.streams(StreamHub::k_every_transport)) {
-    if (info.direction != StreamDirection::out) continue;
+    if (info.direction != StreamDirection::out || subscribed_.contains(info.component)) continue;
     Stream stream;
     stream.component = info.component;
     stream.kind = info.kind;
-    const std::string topic = foxglove::topic_of(info.component);
-    for (const foxglove::SensorChannel& c : foxglove::sensor_channels(info.kind)) {
-      const std::uint16_t schema = w.add_schema(foxglove::schema_name(c.message), "jsonschema",
-                                                foxglove::sensor_schema(c.message).dump());
-      stream.sensor_channels.emplace_back(
-          w.add_channel(schema, topic + std::string(c.suffix), "json"), c.message);
-    }
-    if (info.kind == "body_poses" && tf_channel_ == 0) {
-      // the bodies' poses as Foxglove's 3D panel reads them, as the foxglove transport shows
-      // them: /tf for every sample (the poses: nothing else in it), /scene once per model
-      stream.body_poses = true;
-      tf_channel_ = w.add_channel(w.add_schema(foxglove::k_frame_transforms, "jsonschema",
-                                               foxglove::frame_transforms_schema().dump()),
-                                  "/tf", "json");
-      scene_channel_ = w.add_channel(w.add_schema(foxglove::k_scene_update, "jsonschema",
-                                                  foxglove::scene_update_schema().dump()),
-                                     "/scene", "json");
-    } else if (stream.sensor_channels.empty()) {
-      json schema = json::object();
-      if (auto sample = hub.sample_now(info.component)) schema = foxglove::schema_of(*sample);
-      schema["title"] = "simgate." + info.kind;
-      schema["description"] = info.component + ": " + info.type + " (" + info.kind + ")";
-      stream.json_channel = w.add_channel(
-          w.add_schema("simgate." + info.kind, "jsonschema", schema.dump()), topic, "json");
+    stream.type = info.type;
+    stream.body_poses = info.kind == "body_poses" && !body_poses_found_;
+    if (!stream.body_poses && foxglove::sensor_channels(info.kind).empty()) {
       stream.as_json = true;
+      stream.sample_schema = json::object();
+      if (auto sample = hub.sample_now(info.component))
+        stream.sample_schema = foxglove::schema_of(*sample);
     }
     SubscriberOptions subscriber;
     subscriber.capacity = info.pushed ? options_.pushed_stream_capacity : options_.stream_capacity;
     subscriber.label = "recorder (" + options_.path + ")";  // no wake: the writer looks in time
     stream.subscription =
         hub.subscribe(info.component, StreamHub::k_every_transport, std::move(subscriber));
-    if (stream.subscription) streams_.push_back(std::move(stream));
+    if (!stream.subscription) continue;
+    subscribed_.insert(info.component);
+    body_poses_found_ = body_poses_found_ || stream.body_poses;
+    if (!thread_.joinable()) {
+      add_stream(std::move(stream));
+      continue;
+    }
+    Pending p;
+    p.kind = Pending::Kind::stream;
+    p.sim_time = simulation_.sim_time();
+    p.stream = std::make_unique<Stream>(std::move(stream));
+    p.bytes = 1024;
+    enqueue(std::move(p));
   }
+}
+
+void Recorder::add_stream(Stream stream) {
+  mcap::Writer& w = *writer_;
+  const std::string topic = foxglove::topic_of(stream.component);
+  if (stream.body_poses) {
+    // the bodies' poses as Foxglove's 3D panel reads them, as the foxglove transport shows
+    // them: /tf for every sample (the poses: nothing else in it), /scene once per model
+    tf_channel_ = w.add_channel(w.add_schema(foxglove::k_frame_transforms, "jsonschema",
+                                             foxglove::frame_transforms_schema().dump()),
+                                "/tf", "json");
+    scene_channel_ = w.add_channel(w.add_schema(foxglove::k_scene_update, "jsonschema",
+                                                foxglove::scene_update_schema().dump()),
+                                   "/scene", "json");
+  } else if (stream.as_json) {
+    json& schema = stream.sample_schema;
+    schema["title"] = "simgate." + stream.kind;
+    schema["description"] = stream.component + ": " + stream.type + " (" + stream.kind + ")";
+    stream.json_channel = w.add_channel(
+        w.add_schema("simgate." + stream.kind, "jsonschema", schema.dump()), topic, "json");
+  } else {
+    for (const foxglove::SensorChannel& c : foxglove::sensor_channels(stream.kind)) {
+      const std::uint16_t schema = w.add_schema(foxglove::schema_name(c.message), "jsonschema",
+                                                foxglove::sensor_schema(c.message).dump());
+      stream.sensor_channels.emplace_back(
+          w.add_channel(schema, topic + std::string(c.suffix), "json"), c.message);
+    }
+  }
+  std::lock_guard lock(mutex_);
+  streams_.push_back(std::move(stream));
 }
 
 std::uint64_t Recorder::time_ns(double sim_time) {
@@ -332,7 +355,8 @@ json Recorder::to_json(Pending& p) {
               {"generation", p.generation},
               {"quantities", std::move(p.quantities)},
               {"hashes", std::move(p.hashes)}};
-    case Kind::geometry: break;
+    case Kind::geometry:
+    case Kind::stream: break;  // not messages of their own (write_geometry, add_stream)
   }
   return nullptr;
 }
@@ -344,7 +368,8 @@ void Recorder::stepped() {
     flush_hashes();
     generation_ = simulation_.model_generation();
     hasher_ = std::make_unique<sim::StateHasher>(m);
-    if (scene_channel_ != 0) queue_geometry();
+    find_streams();  // a spawned robot's
+    if (body_poses_found_) queue_geometry();
   }
   if (block_steps_ == 0) block_first_step_ = step();
   const std::size_t n = hasher_->quantities().size();
@@ -496,6 +521,10 @@ void Recorder::writer_loop() {
         for (Pending& p : batch) {
           if (p.kind == Pending::Kind::geometry) {
             write_geometry(p);
+            continue;
+          }
+          if (p.kind == Pending::Kind::stream) {
+            add_stream(std::move(*p.stream));
             continue;
           }
           const std::uint64_t ns = time_ns(p.sim_time);

@@ -256,7 +256,8 @@ TEST(Recorder, AnotherModelIsRefusedNamingWhy) {
 TEST(Recorder, ASpawnDuringTheRecordingIsTakenInAtItsStep) {
   TempDir dir;
   const std::string path = dir.file("spawn.mcap");
-  const json document = deployment_document();
+  json document = deployment_document();
+  document["streams"]["ball*"] = {"socket"};  // the spawned robot's pose streams
   {
     auto gateway = build(document);
     sim::Simulation& sim = gateway->simulation();
@@ -277,9 +278,12 @@ TEST(Recorder, ASpawnDuringTheRecordingIsTakenInAtItsStep) {
       if (i == 50) {
         Call c{"simulation",
                "spawn_entity",
-               {"ball",
-                "<body><freejoint/><geom type='sphere' size='0.1' mass='1'/></body>",
-                {1.0, 1.0, 0.6}}};
+               {{"name", "ball"},
+                {"mjcf", "<body><freejoint/><geom type='sphere' size='0.1' mass='1'/></body>"},
+                {"pose", {1.0, 1.0, 0.6}},
+                {"robot",
+                 {{"type", "robot"},
+                  {"components", json::array({{{"name", "pose"}, {"type", "pose"}}})}}}}};
         manager->run_or_submit(manager->new_request_id(), std::move(c));
       }
       if (i == 100) {  // the compile's end (wall clock) is awaited here: the model lands now
@@ -302,6 +306,14 @@ TEST(Recorder, ASpawnDuringTheRecordingIsTakenInAtItsStep) {
   std::size_t tasks = 0;
   for (const json& in : recording.inputs) tasks += in["type"] == "tasks";
   EXPECT_EQ(tasks, 1u);
+  // the spawned robot's stream is recorded from the step its model came in
+  mcap::Reader reader(path);
+  mcap::Item item;
+  int ball_poses = 0;
+  while (reader.next(item))
+    if (auto* m = std::get_if<mcap::Message>(&item))
+      ball_poses += reader.channel(m->channel_id)->topic == "/ball/pose";
+  EXPECT_GT(ball_poses, 30) << "300 steps of 2 ms at 60 Hz";
   const ReplayReport report = replay(path);
   EXPECT_FALSE(report.mismatch) << report.to_json().dump();
   EXPECT_EQ(report.steps, 400u);

@@ -103,6 +103,21 @@ class Recorder final : public InputTap, public sim::Simulation::Observer {
   void tasks_ran(std::size_t count) override;
 
  private:
+  // A stream the recorder subscribed to, and the channels its samples go to.
+  struct Stream {
+    std::string component;
+    std::string kind;
+    std::shared_ptr<StreamSubscription> subscription;
+    std::uint16_t json_channel = 0;  // the component's JSON samples (when no sensor schema fits)
+    bool as_json = false;
+    std::vector<std::pair<std::uint16_t, foxglove::SensorMessage>> sensor_channels;
+    foxglove::LaserArc arc;  // a laser's (sensors.h)
+    std::uint32_t sequence = 0;
+    bool body_poses = false;  // the simulation's: also /tf (and /scene per model)
+    std::string type;         // the component's type (its JSON schema's description)
+    json sample_schema;       // the JSON channel's schema, from a sample read when subscribed
+  };
+
   // One message for the writer, made under the lock: plain fields (copies of strings that fit
   // in place, mostly), which the writer thread turns into JSON: what a request costs the
   // simulation thread is a few copies, no JSON object built.
@@ -114,7 +129,8 @@ class Recorder final : public InputTap, public sim::Simulation::Observer {
       tasks,
       outcome,
       hashes,
-      geometry
+      geometry,
+      stream,  // a stream to record from now on (a spawned robot's)
     };
     Kind kind = Kind::request;
     std::uint64_t seq = 0;   // inputs: 1, 2, ...
@@ -134,27 +150,20 @@ class Recorder final : public InputTap, public sim::Simulation::Observer {
     std::vector<std::uint32_t> hashes;  // hashes: quantities × steps
     std::vector<std::string> quantities;  // hashes
     std::uint64_t generation = 0;         // hashes
+    std::unique_ptr<Stream> stream;       // stream
     std::size_t bytes = 0;                // what it takes in the queue, roughly
   };
   // The message's channel and JSON (writer thread).
   std::uint16_t channel_of(const Pending& p) const;
   static json to_json(Pending& p);
 
-  // A stream the recorder subscribed to, and the channels its samples go to.
-  struct Stream {
-    std::string component;
-    std::string kind;
-    std::shared_ptr<StreamSubscription> subscription;
-    std::uint16_t json_channel = 0;  // the component's JSON samples (when no sensor schema fits)
-    bool as_json = false;
-    std::vector<std::pair<std::uint16_t, foxglove::SensorMessage>> sensor_channels;
-    foxglove::LaserArc arc;  // a laser's (sensors.h)
-    std::uint32_t sequence = 0;
-    bool body_poses = false;  // the simulation's: also /tf (and /scene per model)
-  };
-
   void write_head(const sim::Simulation& simulation);
-  void subscribe_streams(sim::Simulation& simulation);
+  // Under the simulation lock: every output stream not subscribed to yet (all at the start, a
+  // spawned robot's later) subscribed and handed to the writer (add_stream): at once before the
+  // writer runs, queued after.
+  void find_streams();
+  // The writer's side (or before it runs): the stream's channels; it is taken from then on.
+  void add_stream(Stream stream);
   // An input on the inputs channel: `p` gets its seq, step and sim_time.
   void input(Pending p);
   // Queues `p` for the writer (which looks every k_writer_period, or at once past
@@ -188,7 +197,10 @@ class Recorder final : public InputTap, public sim::Simulation::Observer {
   std::uint32_t block_steps_ = 0;
   std::atomic<std::uint64_t> steps_recorded_{0};  // written under the simulation lock
 
-  std::vector<Stream> streams_;  // the writer thread's (subscriptions: any thread)
+  std::unordered_set<std::string> subscribed_;  // under the simulation lock: their components
+  bool body_poses_found_ = false;               // under the lock: the body_poses stream is taken
+  // the writer thread's; added to under mutex_ (status() reads the subscriptions' counters)
+  std::vector<Stream> streams_;
   std::uint16_t tf_channel_ = 0, scene_channel_ = 0;  // when the body_poses stream is there
   json geometry_;                 // the writer thread's: the last geometry queued
   foxglove::SceneFrames frames_;  // the writer thread's: its frames
