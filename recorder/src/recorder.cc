@@ -304,40 +304,31 @@ std::uint16_t Recorder::channel_of(const Pending& p) const {
 
 json Recorder::to_json(Pending& p) {
   using Kind = Pending::Kind;
+  // an input: what every one has, then its type's own fields
+  const auto input = [&p](const char* type,
+                          std::initializer_list<std::pair<const char*, json>> fields) {
+    json event{{"seq", p.seq}, {"step", p.step}, {"sim_time", p.sim_time}, {"type", type}};
+    for (const auto& [key, value] : fields) event[key] = value;
+    return event;
+  };
   switch (p.kind) {
     case Kind::request:
-      return {{"seq", p.seq},
-              {"step", p.step},
-              {"sim_time", p.sim_time},
-              {"type", "request"},
-              {"transport", std::move(p.transport)},
-              {"client", p.client},
-              {"id", p.id},
-              {"component", std::move(p.component)},
-              {"service", std::move(p.service)},
-              {"params", std::move(p.value)}};
+      return input("request", {{"transport", std::move(p.transport)},
+                               {"client", p.client},
+                               {"id", p.id},
+                               {"component", std::move(p.component)},
+                               {"service", std::move(p.service)},
+                               {"params", std::move(p.value)}});
     case Kind::interrupt:
-      return {{"seq", p.seq},
-              {"step", p.step},
-              {"sim_time", p.sim_time},
-              {"type", "interrupt"},
-              {"transport", std::move(p.transport)},
-              {"id", p.id},
-              {"reason", p.failure == Failure::timeout ? "timeout" : "cancelled"}};
+      return input("interrupt",
+                   {{"transport", std::move(p.transport)},
+                    {"id", p.id},
+                    {"reason", p.failure == Failure::timeout ? "timeout" : "cancelled"}});
     case Kind::command:
-      return {{"seq", p.seq},
-              {"step", p.step},
-              {"sim_time", p.sim_time},
-              {"type", "command"},
-              {"component", std::move(p.component)},
-              {"command", std::move(p.value)},
-              {"refusal", std::move(p.text)}};
-    case Kind::tasks:
-      return {{"seq", p.seq},
-              {"step", p.step},
-              {"sim_time", p.sim_time},
-              {"type", "tasks"},
-              {"count", p.count}};
+      return input("command", {{"component", std::move(p.component)},
+                               {"command", std::move(p.value)},
+                               {"refusal", std::move(p.text)}});
+    case Kind::tasks: return input("tasks", {{"count", p.count}});
     case Kind::outcome: {
       json o{{"step", p.step},
              {"sim_time", p.sim_time},
