@@ -5,6 +5,8 @@
 // step; a recording of another model is refused, naming why.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -20,6 +22,7 @@
 #include "simgate/recorder/recorder.h"
 #include "simgate/recorder/replay.h"
 #include "simgate/sim/registry.h"
+#include "simgate/sim/state_hash.h"
 
 namespace simgate::recorder {
 namespace {
@@ -341,6 +344,41 @@ TEST(Recorder, AFullDiskStopsTheRecordingWithAnErrorAndTheSimulationGoesOn) {
       << status.dump();
   EXPECT_FALSE(status["recording"].get<bool>());
   EXPECT_EQ(sim.steps(), 300u);  // every step taken
+}
+
+// The fingerprints: a change of one bit of one value shows in that quantity's hash alone.
+TEST(StateHasher, TheLeastChangeOfAQuantityShowsInItsOwnHashAlone) {
+  auto gateway = build(deployment_document());
+  sim::Simulation& sim = gateway->simulation();
+  const mjModel* m = sim.m();
+  mjData* d = sim.d();
+  sim::StateHasher hasher(m);
+  const auto& names = hasher.quantities();
+  for (const char* q : {"time", "qpos", "qvel", "warmstart", "ctrl", "qfrc_applied"})
+    EXPECT_NE(std::find(names.begin(), names.end(), q), names.end()) << q;
+  std::vector<std::uint32_t> before(names.size()), after(names.size());
+  hasher.hash(m, d, before);
+  const auto changed = [&]() {
+    hasher.hash(m, d, after);
+    std::vector<std::string> out;
+    for (std::size_t i = 0; i < names.size(); ++i)
+      if (after[i] != before[i]) out.push_back(names[i]);
+    return out;
+  };
+  // the last value of a long array, one ulp
+  mjtNum& last = d->qpos[m->nq - 1];
+  const mjtNum saved = last;
+  last = std::nextafter(last, 1e9);
+  EXPECT_EQ(changed(), std::vector<std::string>{"qpos"});
+  last = saved;
+  EXPECT_TRUE(changed().empty());
+  // -0.0 is not 0.0 (bytes, not values)
+  const mjtNum ctrl = d->ctrl[0];
+  d->ctrl[0] = ctrl == 0 ? -0.0 : -ctrl;
+  EXPECT_EQ(changed(), std::vector<std::string>{"ctrl"});
+  d->ctrl[0] = ctrl;
+  d->xfrc_applied[6 * m->nbody - 1] += 1e-300;
+  EXPECT_EQ(changed(), std::vector<std::string>{"xfrc_applied"});
 }
 
 TEST(Recorder, AFileThatIsNoRecordingIsAClearError) {
