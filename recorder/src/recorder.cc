@@ -74,7 +74,7 @@ Recorder::Recorder(sim::Simulation& simulation, RecordingOptions options)
   writer_ = std::make_unique<mcap::Writer>(options_.path, writer_options);
   first_step_ = simulation_.steps();
   generation_ = simulation_.model_generation();
-  write_head(simulation_);
+  prepare_head(simulation_);
   bytes_written_ = writer_->bytes_written();
   find_streams();
   hasher_ = std::make_unique<sim::StateHasher>(simulation_.m());
@@ -95,29 +95,17 @@ Recorder::~Recorder() {
   }
 }
 
-void Recorder::write_head(const sim::Simulation& simulation) {
+void Recorder::prepare_head(const sim::Simulation& simulation) {
   mcap::Writer& w = *writer_;
   const mjModel* m = simulation.m();
-  w.add_metadata(k_metadata_name, {{"simgate_version", SIMGATE_VERSION},
-                                   {"mujoco_version", mj_versionString()},
-                                   {"timestep", json(m->opt.timestep).dump()},
-                                   {"first_step", std::to_string(first_step_)},
-                                   {"model_generation", std::to_string(generation_)},
-                                   {"hash_block", std::to_string(options_.hash_block)},
-                                   {"model_hash", std::to_string(sim::model_hash(m))}});
-  const std::uint64_t start = time_ns(simulation.sim_time());
-  if (!options_.deployment.is_null())
-    w.attach(start, start, k_deployment_attachment, "application/json",
-             options_.deployment.dump(2));
-  for (const auto& file : options_.attachments) {
-    try {
-      w.attach(start, start, std::filesystem::path(file).filename().string(),
-               file.ends_with(".xml") ? "application/xml" : "application/octet-stream",
-               read_file(file));
-    } catch (const std::exception& e) {
-      log::warning("recording ", options_.path, ": ", file, " not attached: ", e.what());
-    }
-  }
+  head_metadata_ = {{"simgate_version", SIMGATE_VERSION},
+                    {"mujoco_version", mj_versionString()},
+                    {"timestep", json(m->opt.timestep).dump()},
+                    {"first_step", std::to_string(first_step_)},
+                    {"model_generation", std::to_string(generation_)},
+                    {"hash_block", std::to_string(options_.hash_block)},
+                    {"model_hash", std::to_string(sim::model_hash(m))}};
+  head_time_ = time_ns(simulation.sim_time());
   inputs_channel_ = w.add_channel(0, k_inputs_topic, "json");
   outcomes_channel_ = w.add_channel(0, k_outcomes_topic, "json");
   hashes_channel_ = w.add_channel(0, k_hashes_topic, "json");
@@ -126,15 +114,34 @@ void Recorder::write_head(const sim::Simulation& simulation) {
   sim::PhysicsState state;
   state.capture(m, simulation.d(), generation_);
   const auto& values = state.values();
-  const json initial{
-      {"step", first_step_},
-      {"sim_time", simulation.sim_time()},
-      {"generation", generation_},
-      {"signature", "mjSTATE_INTEGRATION"},
-      {"values", base64_encode(std::span(reinterpret_cast<const std::uint8_t*>(values.data()),
-                                         values.size() * sizeof(mjtNum)))}};
-  w.write(state_channel_, 1, start, start, initial.dump());
+  initial_state_ =
+      json{{"step", first_step_},
+           {"sim_time", simulation.sim_time()},
+           {"generation", generation_},
+           {"signature", "mjSTATE_INTEGRATION"},
+           {"values", base64_encode(std::span(reinterpret_cast<const std::uint8_t*>(values.data()),
+                                              values.size() * sizeof(mjtNum)))}}
+          .dump();
+}
+
+void Recorder::write_head() {
+  mcap::Writer& w = *writer_;
+  w.add_metadata(k_metadata_name, head_metadata_);
+  if (!options_.deployment.is_null())
+    w.attach(head_time_, head_time_, k_deployment_attachment, "application/json",
+             options_.deployment.dump(2));
+  for (const auto& file : options_.attachments) {
+    try {
+      w.attach(head_time_, head_time_, std::filesystem::path(file).filename().string(),
+               file.ends_with(".xml") ? "application/xml" : "application/octet-stream",
+               read_file(file));
+    } catch (const std::exception& e) {
+      log::warning("recording ", options_.path, ": ", file, " not attached: ", e.what());
+    }
+  }
+  w.write(state_channel_, 1, head_time_, head_time_, initial_state_);
   w.flush_chunk();  // what a replay needs first is in the file at once
+  initial_state_.clear();
 }
 
 void Recorder::find_streams() {
@@ -495,7 +502,17 @@ void Recorder::writer_loop() {
   std::deque<Pending> batch;
   std::vector<SamplePtr> samples;
   auto chunk_due = std::chrono::steady_clock::now() + k_chunk_interval;
+  std::string failure;
+  try {
+    write_head();  // the files read and written here, not under the simulation lock
+  } catch (const std::exception& e) {
+    failure = e.what();
+  }
   std::unique_lock lock(mutex_);
+  if (!failure.empty()) {
+    error_ = failure;
+    log::error("recording ", options_.path, " stopped: ", failure, " (the simulation goes on)");
+  }
   for (;;) {
     // no wake-up per sample or input: the writer looks every k_writer_period (sooner when
     // the inputs pile up, or at the end)
@@ -506,7 +523,7 @@ void Recorder::writer_loop() {
     const bool last = finishing_;
     const bool failed = !error_.empty();
     lock.unlock();
-    std::string failure;
+    failure.clear();
     if (!failed) {
       try {
         for (Pending& p : batch) {

@@ -37,7 +37,7 @@ class ReplayManager final : public RequestManager {
  public:
   ReplayManager() : RequestManager("Replay service manager") {}
   void arrive(std::uint64_t client) { client_arrived(client); }
-  std::map<RequestId, Status> statuses;  // outcomes not yet compared
+  std::map<RequestId, Status> statuses;  // each request's outcome, by its id here
 
  protected:
   void on_service_completion(RequestId id, Outcome&& outcome) override {
@@ -294,10 +294,6 @@ ReplayReport Replayer::run(const ReplayOptions& options) {
   // (transport, id) of the recording -> the replay's request id; (transport, client) -> client
   std::map<std::pair<std::string, RequestId>, RequestId> ids;
   std::map<std::pair<std::string, std::uint64_t>, std::uint64_t> clients;
-  std::map<RequestId, std::string> recorded_status;  // by the replay's id
-  std::map<std::pair<std::string, RequestId>, std::string> outcome_of;
-  for (const json& o : rec.outcomes)
-    outcome_of[{o.value("transport", ""), o.value("id", RequestId{0})}] = o.value("status", "");
 
   bool stopped = false;
   for (const json& in : rec.inputs) {
@@ -324,8 +320,6 @@ ReplayReport Replayer::run(const ReplayOptions& options) {
       const RequestId id = manager->new_request_id();
       const RequestId recorded = in.value("id", RequestId{0});
       ids[{transport, recorded}] = id;
-      if (auto o = outcome_of.find({transport, recorded}); o != outcome_of.end())
-        recorded_status[id] = o->second;
       inputs_since_step.push_back(in);
       manager->run_or_submit(id, std::move(call));
       ++report.inputs_applied;
@@ -359,9 +353,13 @@ ReplayReport Replayer::run(const ReplayOptions& options) {
   if (!stopped) step_to(rec.last_step);
   manager->process();  // outcomes finished by the last steps
   if (options.serve && !stopping(options)) serve_to_the_end(options);
-  for (const auto& [id, status] : manager->statuses) {
-    auto it = recorded_status.find(id);
-    if (it != recorded_status.end() && it->second != to_string(status)) ++report.outcomes_differing;
+  // each recorded outcome against the replay's of the same request
+  for (const json& o : rec.outcomes) {
+    const auto id = ids.find({o.value("transport", ""), o.value("id", RequestId{0})});
+    if (id == ids.end()) continue;
+    const auto status = manager->statuses.find(id->second);
+    if (status != manager->statuses.end() && o.value("status", "") != to_string(status->second))
+      ++report.outcomes_differing;
   }
   manager->abandon_pending("the replay ended");
   report.wall_seconds =

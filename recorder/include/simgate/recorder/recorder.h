@@ -157,7 +157,12 @@ class Recorder final : public InputTap, public sim::Simulation::Observer {
   std::uint16_t channel_of(const Pending& p) const;
   static json to_json(Pending& p);
 
-  void write_head(const sim::Simulation& simulation);
+  // Under the simulation lock: the channels, and what the file's head says (the metadata, the
+  // initial state), kept for write_head().
+  void prepare_head(const sim::Simulation& simulation);
+  // The writer thread, first: the metadata, the attachments (files read here, off the lock) and
+  // the initial state, handed to the file at once.
+  void write_head();
   // Under the simulation lock: every output stream not subscribed to yet (all at the start, a
   // spawned robot's later) subscribed and handed to the writer (add_stream): at once before the
   // writer runs, queued after.
@@ -184,7 +189,10 @@ class Recorder final : public InputTap, public sim::Simulation::Observer {
   RecordingOptions options_;
   std::unique_ptr<mcap::Writer> writer_;  // the writer thread's, once started
   std::uint16_t inputs_channel_ = 0, outcomes_channel_ = 0, hashes_channel_ = 0, state_channel_ = 0;
-  bool attached_ = false;  // under the simulation lock
+  bool attached_ = false;         // under the simulation lock
+  mcap::Metadata head_metadata_;  // prepare_head() -> write_head()
+  std::string initial_state_;     // prepare_head() -> write_head()
+  std::uint64_t head_time_ = 0;   // prepare_head() -> write_head()
 
   // under the simulation lock: the requests recorded as started and not yet ended, by manager
   std::unordered_map<const RequestManager*, std::unordered_set<RequestId>> open_;
