@@ -102,6 +102,7 @@ Gateway::Gateway(const Deployment& deployment, const sim::ComponentRegistry& reg
     add_streams(errors);
     add_recording_services();
     simulation_->set_robot_factory(std::make_shared<SpawnedRobots>(*this));
+    if (options_.on_simulation_built) options_.on_simulation_built(*simulation_, supervision());
   } else {
     check_component_types(errors);
   }
@@ -492,9 +493,11 @@ void Gateway::add_recording_services() {
   if (!deployment_.mjcf.empty())
     setup.attachments.push_back(std::filesystem::absolute(deployment_.mjcf).string());
   recording_ = std::make_shared<recorder::RecordingServices>(*simulation_, std::move(setup));
-  auto* supervision =
-      dynamic_cast<sim::SupervisionServices*>(simulation_->find("simulation")->component.get());
-  recording_->add_to(*supervision);
+  recording_->add_to(supervision());
+}
+
+sim::SupervisionServices& Gateway::supervision() {
+  return dynamic_cast<sim::SupervisionServices&>(*simulation_->find("simulation")->component);
 }
 
 void Gateway::start_recording(const std::string& path) {

@@ -85,6 +85,19 @@ int cmd_replay(const ReplayArgs& args) {
   options.check_only = !args.serve;  // nothing listens, unless served
   options.plugin_dirs = args.plugin_dirs;
   options.realtime_factor = args.serve ? parse_factor(args.realtime_factor) : 0;
+  // the replayer, built on the simulation before the transports take its services
+  std::optional<recorder::Replayer> replayer;
+  std::string refusal;
+  options.on_simulation_built = [&](sim::Simulation& simulation,
+                                    sim::SupervisionServices& supervision) {
+    try {
+      replayer.emplace(simulation, recording);
+    } catch (const std::exception& e) {
+      refusal = e.what();
+      return;
+    }
+    if (args.serve) replayer->add_services(supervision);
+  };
   const sim::ComponentRegistry registry = sim::builtin_registry();
   std::unique_ptr<Gateway> gateway;
   try {
@@ -92,11 +105,8 @@ int cmd_replay(const ReplayArgs& args) {
   } catch (const ConfigError& e) {
     throw ConfigError(e.errors(), args.config.value_or(args.file + " (its deployment)"));
   }
-  std::optional<recorder::Replayer> replayer;
-  try {
-    replayer.emplace(gateway->simulation(), recording);
-  } catch (const std::exception& e) {
-    std::cerr << "simgate: cannot replay: " << e.what() << "\n";
+  if (!replayer) {
+    std::cerr << "simgate: cannot replay: " << refusal << "\n";
     return 2;
   }
   recorder::ReplayOptions replay_options;

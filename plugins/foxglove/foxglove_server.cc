@@ -83,6 +83,7 @@ void FoxgloveServer::start() {
             log_observer_ = log::add_observer(
                 [this](log::Level level, std::string_view text) { log_line(level, text); });
             refresh_catalog();
+            ask_replay_range();
             tick_time();
           },
           direct_reads()))

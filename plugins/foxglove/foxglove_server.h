@@ -28,7 +28,7 @@
 //   - playback control (capability playbackControl, when it serves simulation play, pause
 //     and time set_time_scale): the app's playback bar pauses, plays, sets the time scale and
 //     seeks back to automatic snapshots (playback.cc; options rewind_interval_s, 1, and
-//     rewind_states, 60).
+//     rewind_states, 60), or, in a served replay, anywhere in the recording.
 //   - bad input (text that is not JSON, an unknown op, a subscription to no channel, a
 //     reused subscription id, a bad binary opcode): a status message saying what was wrong;
 //     the connection and every other client go on.
@@ -189,9 +189,13 @@ class FoxgloveServer : public RequestManager, private kit::WebSocketServer {
   };
   // The span serverInfo gives the playback bar: the oldest snapshot to an hour past now.
   static constexpr double k_playback_horizon_s = 3600;
-  // Whether this transport serves what play/pause/speed need, and seeking back too.
+  // Whether this transport serves what play/pause/speed need, seeking back to snapshots too,
+  // and seeking in a served replay's recording (which rules out the snapshots).
   bool playback_offered() const;
   bool rewind_offered() const;
+  bool seek_offered() const;
+  // A served replay: asks the recording's span (replay_range_) once, at start.
+  void ask_replay_range();
   std::pair<std::uint64_t, std::uint64_t> playback_range();
   // The simulated time now (after a seek while paused: the time restored).
   double simulated_time();
@@ -293,6 +297,9 @@ class FoxgloveServer : public RequestManager, private kit::WebSocketServer {
   float speed_ = 1;
   // after a seek: (the streams' time then, the time restored) until the simulation steps
   std::optional<std::pair<double, double>> seek_hold_;
+  // a served replay: the recording's span (simulated s, from get_replay_status), its call
+  std::optional<std::pair<double, double>> replay_range_;
+  RequestId replay_status_call_ = 0;
   std::uint32_t ticks_ = 0;  // tick_time()s so far (the poll's clock)
 };
 

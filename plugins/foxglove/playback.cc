@@ -2,7 +2,10 @@
 // app's playback bar drives the simulation. Play and pause are `simulation play` / `pause`, the
 // speed is `time set_time_scale`, and a seek backwards restores the newest of a ring of
 // automatic snapshots (`simulation save_state` every rewind_interval_s simulated seconds, the
-// last rewind_states kept) taken at or before the time sought.
+// last rewind_states kept) taken at or before the time sought. A served replay (`simgate replay
+// --serve`, which serves `simulation seek` and `get_replay_status`) seeks in the recording
+// instead: the bar spans the recording, and a seek goes to the recorded run's state at the time
+// sought, forward or back.
 #include <algorithm>
 #include <cmath>
 
@@ -36,8 +39,23 @@ bool FoxgloveServer::playback_offered() const {
   return play && pause && scale;
 }
 
+bool FoxgloveServer::seek_offered() const {
+  bool seek = false, status = false;
+  for (const ServiceDef& s : services_) {
+    seek = seek || (s.component == "simulation" && s.service == "seek");
+    status = status || (s.component == "simulation" && s.service == "get_replay_status");
+  }
+  return seek && status;
+}
+
+void FoxgloveServer::ask_replay_range() {
+  if (!seek_offered()) return;
+  replay_status_call_ = new_request_id();
+  run_or_submit(replay_status_call_, Call{"simulation", "get_replay_status", json::object()});
+}
+
 bool FoxgloveServer::rewind_offered() const {
-  if (settings_.rewind_interval_s <= 0 || settings_.time_hz <= 0) return false;
+  if (settings_.rewind_interval_s <= 0 || settings_.time_hz <= 0 || seek_offered()) return false;
   bool save = false, restore = false;
   for (const ServiceDef& s : services_) {
     save = save || (s.component == "simulation" && s.service == "save_state");
@@ -54,6 +72,8 @@ double FoxgloveServer::simulated_time() {
 }
 
 std::pair<std::uint64_t, std::uint64_t> FoxgloveServer::playback_range() {
+  if (replay_range_)
+    return {to_nanoseconds(replay_range_->first), to_nanoseconds(replay_range_->second)};
   const double now = simulated_time();
   const double start = rewinds_.empty() ? now : rewinds_.front().time;
   return {to_nanoseconds(start), to_nanoseconds(now + k_playback_horizon_s)};
@@ -93,7 +113,13 @@ void FoxgloveServer::control_playback(Client& client, const PlaybackControlReque
   const double now = simulated_time();
   if (request.seek_ns) {
     const double sought = static_cast<double>(*request.seek_ns) / 1e9;
-    if (!rewind_offered()) {
+    if (seek_offered()) {
+      // a served replay: anywhere in the recording (the answer says where it went)
+      pending->did_seek = true;
+      pending->seek_time = sought;
+      calls.emplace_back(new_request_id(),
+                         Call{"simulation", "seek", json{{"sim_time", std::max(0.0, sought)}}});
+    } else if (!rewind_offered()) {
       complain(client, Level::warning,
                "seek: this transport keeps no snapshots to rewind to (rewind_interval_s is 0, "
                "or simulation save_state and restore_state are not served here)");
@@ -137,6 +163,13 @@ void FoxgloveServer::control_playback(Client& client, const PlaybackControlReque
 }
 
 bool FoxgloveServer::playback_completion(RequestId id, Outcome& outcome) {
+  if (id == replay_status_call_) {
+    replay_status_call_ = 0;
+    if (outcome.status == Status::success && outcome.value && outcome.value->is_object())
+      replay_range_ =
+          std::pair{outcome.value->value("start_time", 0.0), outcome.value->value("end_time", 0.0)};
+    return true;
+  }
   if (id == rewind_call_) {
     rewind_call_ = 0;
     if (outcome.status == Status::success && outcome.value && outcome.value->is_number_integer()) {
@@ -174,9 +207,12 @@ bool FoxgloveServer::playback_completion(RequestId id, Outcome& outcome) {
   const std::uint64_t now = to_nanoseconds(simulated_time());
   // to every client that controls playback (one that never sent a request may not know the
   // message: @foxglove/ws-protocol 0.8 throws on an opcode it does not know)
-  const std::string state =
-      playback_state(playing_ ? PlaybackStatus::playing : PlaybackStatus::paused, now, speed_,
-                     pending->did_seek, pending->request_id);
+  // a served replay at the end of its recording has ended (it serves the last state, paused)
+  const bool ended = replay_range_ && simulated_time() >= replay_range_->second - 1e-9;
+  const std::string state = playback_state(ended      ? PlaybackStatus::ended
+                                           : playing_ ? PlaybackStatus::playing
+                                                      : PlaybackStatus::paused,
+                                           now, speed_, pending->did_seek, pending->request_id);
   for_each_connection([&](kit::Connection& connection) {
     auto& client = static_cast<Client&>(connection);
     if (client.open() && client.controls_playback) client.queue_binary(state);

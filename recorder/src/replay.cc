@@ -1,6 +1,8 @@
 #include "simgate/recorder/replay.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <map>
 #include <set>
@@ -9,12 +11,14 @@
 #include <utility>
 
 #include "simgate/core/base64.h"
+#include "simgate/core/errors.h"
 #include "simgate/core/log.h"
 #include "simgate/core/request_manager.h"
 #include "simgate/mcap/reader.h"
 #include "simgate/recorder/format.h"
 #include "simgate/sim/physics_state.h"
 #include "simgate/sim/state_hash.h"
+#include "simgate/sim/world_services.h"
 
 namespace simgate::recorder {
 
@@ -23,6 +27,17 @@ namespace {
 // The longest a replay waits for off-lock work the recording says was taken in (a spawned
 // entity's model compiling on a worker thread).
 constexpr std::chrono::seconds k_task_wait{60};
+// A seek served: the clients' requests between every this many steps taken to get there, a
+// progress report every this many steps.
+constexpr std::uint64_t k_seek_serve_steps = 256;
+constexpr std::uint64_t k_seek_progress_steps = 2000;
+
+// A seek's answer when it is not reached: `status` (PREEMPTED, FAILED) for `failure`.
+Outcome seek_ended(Status status, Failure failure, std::string message) {
+  Outcome o = Outcome::failed(failure, "simulation seek: " + std::move(message));
+  o.status = status;
+  return o;
+}
 
 json parse_message(const mcap::Message& m, const std::string& path, const char* topic) {
   try {
@@ -39,10 +54,51 @@ class ReplayManager final : public RequestManager {
   void arrive(std::uint64_t client) { client_arrived(client); }
   std::map<RequestId, Status> statuses;  // each request's outcome, by its id here
 
+  // Saved states' handles: a served replay that went back saves the recording's states
+  // again under other handles (the simulation's count goes on), so the recording's handles
+  // are told apart from the replay's. `id` is a simulation save_state of `client` whose
+  // recorded answer was `recorded`.
+  void expect_handle(RequestId id, std::int64_t recorded, std::uint64_t client) {
+    saves_[id] = {recorded, client};
+  }
+  // simulation restore_state's and drop_state's `params` ({"handle": h} or [h]) with the
+  // replay's handle for the recording's.
+  void map_handle(json& params) const {
+    json* h = params.is_object()  ? (params.contains("handle") ? &params["handle"] : nullptr)
+              : params.is_array() ? (params.empty() ? nullptr : &params[0])
+                                  : nullptr;
+    if (!h || !h->is_number_integer()) return;
+    if (auto it = handles_.find(h->get<std::int64_t>()); it != handles_.end())
+      *h = it->second.first;
+  }
+  // Drops every state the replay saved (going back to the recording's start, where none was).
+  void drop_saved() {
+    std::vector<std::pair<RequestId, Call>> drops;
+    for (const auto& [recorded, saved] : handles_) {
+      Call call{"simulation", "drop_state", json{{"handle", saved.first}}};
+      call.client = saved.second;
+      drops.emplace_back(new_request_id(), std::move(call));
+    }
+    handles_.clear();
+    run_or_submit(std::move(drops));
+    process();
+  }
+
  protected:
   void on_service_completion(RequestId id, Outcome&& outcome) override {
     statuses[id] = outcome.status;
+    if (auto it = saves_.find(id); it != saves_.end()) {
+      if (outcome.status == Status::success && outcome.value && outcome.value->is_number_integer())
+        handles_[it->second.first] = {outcome.value->get<std::int64_t>(), it->second.second};
+      saves_.erase(it);
+    }
   }
+
+ private:
+  // save_state calls under way: (the recording's handle, the client)
+  std::map<RequestId, std::pair<std::int64_t, std::uint64_t>> saves_;
+  // the recording's handle -> (the replay's, the client that saved it)
+  std::map<std::int64_t, std::pair<std::int64_t, std::uint64_t>> handles_;
 };
 
 }  // namespace
@@ -161,6 +217,88 @@ Replayer::Replayer(sim::Simulation& simulation, const Recording& recording)
                              "(the scene's files changed since the recording)");
 }
 
+void Replayer::add_services(sim::SupervisionServices& simulation) {
+  simulation
+      .offer_async_service("seek",
+                           [this](Completion done, double sim_time, std::int64_t step) {
+                             seek(sim_time, step, std::move(done));
+                           },
+                           {{"sim_time", -1.0}, {"step", -1}})
+      .concurrent()
+      .not_replayed()
+      .doc(
+          "A served replay only: go to the recorded run's state at simulated time sim_time (or "
+          "at its step count `step`), replaying from its start if it is behind; answers {step, "
+          "sim_time} once there, progress {step, target} on the way");
+  simulation.offer_service("get_replay_status", [this] { return status(); })
+      .not_replayed()
+      .doc(
+          "A served replay: {file, step, first_step, last_step, sim_time, start_time, end_time, "
+          "seeking, departed_at}");
+}
+
+void Replayer::seek(double sim_time, std::int64_t step, Completion done) {
+  const Recording& rec = recording_;
+  if ((sim_time < 0) == (step < 0))
+    throw ServiceError(
+        "simulation seek: give sim_time (seconds) or step (the recorded run's step "
+        "count), one of them",
+        Failure::bad_arguments);
+  std::uint64_t target = 0;
+  if (step >= 0) {
+    target = static_cast<std::uint64_t>(step);
+  } else {
+    // the recorded run's time goes with its steps (a reset of time within it makes the times
+    // after it ambiguous: seek by step there)
+    const double steps = std::round((sim_time - rec.initial_time) / simulation_.timestep());
+    target = steps <= 0 ? rec.first_step : rec.first_step + static_cast<std::uint64_t>(steps);
+  }
+  target = std::clamp(target, rec.first_step, rec.last_step);
+  if (target < step_now() && simulation_.model_generation() != 0)
+    throw ServiceError(
+        "simulation seek: the model changed since the recording's start (a spawn or a delete): "
+        "a served replay seeks forward only from here",
+        Failure::service_error, {{"step", step_now()}});
+  if (seek_)
+    seek_->done.finish(seek_ended(Status::preempted, Failure::preempted,
+                                  "another seek came before it was reached"));
+  seek_ = Seek{target, std::move(done)};
+  reached(step_now());
+  simulation_.gate()->signal();  // the replay may be waiting for its next step's time
+}
+
+void Replayer::reached(std::uint64_t step) {
+  if (!seek_) return;
+  if (seek_->step != step) {
+    if (step % k_seek_progress_steps == 0)
+      seek_->done.progress(json{{"step", step}, {"target", seek_->step}});
+    return;
+  }
+  seek_->done(Status::success, json{{"step", step}, {"sim_time", simulation_.sim_time()}});
+  seek_.reset();
+  pace_wall_ = {};  // the pace starts anew from here
+}
+
+Replayer::SeekAction Replayer::seek_action() {
+  std::lock_guard lock(*simulation_.gate());
+  if (!seek_) return SeekAction::none;
+  return seek_->step < step_now() ? SeekAction::back : SeekAction::forward;
+}
+
+json Replayer::status() const {
+  const Recording& rec = recording_;
+  return {{"file", rec.path},
+          {"step", step_now()},
+          {"first_step", rec.first_step},
+          {"last_step", rec.last_step},
+          {"sim_time", simulation_.sim_time()},
+          {"start_time", rec.initial_time},
+          {"end_time", rec.initial_time + static_cast<double>(rec.last_step - rec.first_step) *
+                                              simulation_.timestep()},
+          {"seeking", seek_ ? json(seek_->step) : json(nullptr)},
+          {"departed_at", departed_ ? json(*departed_) : json(nullptr)}};
+}
+
 void Replayer::serve_until_due(const ReplayOptions& options) {
   sim::Simulation& sim = simulation_;
   for (;;) {
@@ -171,6 +309,7 @@ void Replayer::serve_until_due(const ReplayOptions& options) {
     double time = 0, timestep = 0, factor = 0;
     {
       std::lock_guard lock(*sim.gate());
+      if (seek_) return;  // a seek takes the next steps as fast as it can
       paused = sim.paused();
       // a client paused it: its requests are served; a `simulation step` of its own steps
       if (paused && sim.owed_steps() > 0)
@@ -200,7 +339,7 @@ void Replayer::serve_until_due(const ReplayOptions& options) {
   }
 }
 
-void Replayer::serve_to_the_end(const ReplayOptions& options) {
+bool Replayer::serve_to_the_end(const ReplayOptions& options) {
   sim::Simulation& sim = simulation_;
   double time = 0;
   {
@@ -209,8 +348,12 @@ void Replayer::serve_to_the_end(const ReplayOptions& options) {
     time = sim.sim_time();
   }
   log::info("replay: the recording ends at sim time ", time,
-            " s; its last state is served, paused, until Ctrl-C");
-  while (!stopping(options)) serve_until_due(options);
+            " s; its last state is served, paused, until Ctrl-C (or a seek back)");
+  while (!stopping(options)) {
+    serve_until_due(options);
+    if (seek_action() == SeekAction::back) return true;
+  }
+  return false;
 }
 
 ReplayReport Replayer::run(const ReplayOptions& options) {
@@ -226,11 +369,11 @@ ReplayReport Replayer::run(const ReplayOptions& options) {
   {
     std::lock_guard lock(*sim.gate());
     sim.restore_physics(sim::PhysicsState::from_values(rec.initial_state, sim.model_generation()));
+    steps_base_ = sim.steps();
     // served, the recording sets the pace (a deployment that starts paused for its clients to
     // step it was stepped so in the recording); a client's pause holds it from here on
     if (options.serve) sim.set_paused(false);
   }
-
   // the recorded fingerprints, by step
   sim::StateHasher hasher(sim.m());
   std::vector<std::uint32_t> now;
@@ -260,13 +403,20 @@ ReplayReport Replayer::run(const ReplayOptions& options) {
     }
     return false;
   };
-  // steps until the recorded run's step count is `target`; false at a mismatch (when asked to
-  // stop there)
-  const auto step_to = [&](std::uint64_t target) -> bool {
-    while (rec.first_step + sim.steps() < target) {
+  // steps until the recorded run's step count is `target`
+  const auto step_to = [&](std::uint64_t target) -> Progress {
+    std::uint64_t forward = 0;  // steps taken as fast as possible for a seek
+    while (step_now() < target) {
       if (options.serve) {
-        serve_until_due(options);
-        if (stopping(options)) return false;
+        SeekAction seeking = seek_action();
+        if (seeking == SeekAction::none) {
+          serve_until_due(options);
+          seeking = seek_action();
+        } else if (++forward % k_seek_serve_steps == 0) {
+          sim.process_requests();  // seeking: no pace, no pause, but the clients are served
+        }
+        if (stopping(options)) return Progress::stopped;
+        if (seeking == SeekAction::back) return Progress::rewind;
       }
       const bool had_mismatch = report.mismatch.has_value();
       bool same = true;
@@ -274,33 +424,37 @@ ReplayReport Replayer::run(const ReplayOptions& options) {
         // served, the clients' requests run on their threads between two steps
         std::lock_guard lock(*sim.gate());
         sim.step();
-        same = compare(rec.first_step + sim.steps());
+        const std::uint64_t step = step_now();
+        same = compare(step);
+        if (options.serve) {
+          if (!same && !had_mismatch) departed_ = step;
+          reached(step);
+        }
       }
       ++report.steps;
       inputs_since_step.clear();
-      if (!same && stop_at_mismatch) return false;
+      if (!same && stop_at_mismatch) return Progress::stopped;
       if (!same && options.serve && !had_mismatch)
         log::warning("replay: from step ", report.mismatch->step,
                      " the served run departs from the recording (a client's request changed "
                      "the world?)");
     }
-    return true;
+    return Progress::reached;
   };
 
   // the services a replay does not call (unknown ones are: their refusal is the same)
   std::set<std::pair<std::string, std::string>> not_replayed;
   for (const ServiceDescriptor& d : manager->descriptors())
     if (!d.replayed) not_replayed.emplace(d.component, d.name);
-  // (transport, id) of the recording -> the replay's request id; (transport, client) -> client
+  // (transport, id) of the recording -> the replay's request id, and its recorded outcome;
+  // (transport, client) -> client
   std::map<std::pair<std::string, RequestId>, RequestId> ids;
+  std::map<std::pair<std::string, RequestId>, const json*> recorded_outcomes;
+  for (const json& o : rec.outcomes)
+    recorded_outcomes[{o.value("transport", ""), o.value("id", RequestId{0})}] = &o;
   std::map<std::pair<std::string, std::uint64_t>, std::uint64_t> clients;
 
-  bool stopped = false;
-  for (const json& in : rec.inputs) {
-    if (!step_to(in.at("step").get<std::uint64_t>())) {
-      stopped = true;
-      break;
-    }
+  const auto apply = [&](const json& in) {
     const std::string type = in.value("type", "");
     if (type == "request") {
       Call call;
@@ -315,17 +469,27 @@ ReplayReport Replayer::run(const ReplayOptions& options) {
       }
       if (not_replayed.contains({call.component, call.service})) {
         ++report.inputs_skipped;  // acts on the loop: its steps are in the recording as steps
-        continue;
+        return;
       }
       const RequestId id = manager->new_request_id();
       const RequestId recorded = in.value("id", RequestId{0});
       ids[{transport, recorded}] = id;
+      if (call.component == "simulation") {
+        if (call.service == "save_state") {
+          const auto o = recorded_outcomes.find({transport, recorded});
+          if (o != recorded_outcomes.end() && o->second->contains("value") &&
+              (*o->second)["value"].is_number_integer())
+            manager->expect_handle(id, (*o->second)["value"].get<std::int64_t>(), call.client);
+        } else if (call.service == "restore_state" || call.service == "drop_state") {
+          manager->map_handle(call.params);
+        }
+      }
       inputs_since_step.push_back(in);
       manager->run_or_submit(id, std::move(call));
       ++report.inputs_applied;
     } else if (type == "interrupt") {
       auto it = ids.find({in.value("transport", ""), in.value("id", RequestId{0})});
-      if (it == ids.end()) continue;  // a request the recording did not start
+      if (it == ids.end()) return;  // a request the recording did not start
       inputs_since_step.push_back(in);
       manager->cancel(it->second);
       manager->process();
@@ -337,7 +501,7 @@ ReplayReport Replayer::run(const ReplayOptions& options) {
       ++report.inputs_applied;
     } else if (type == "tasks") {
       const std::size_t count = in.value("count", std::size_t{0});
-      if (options.serve) continue;  // served: process_requests takes them in when they come
+      if (options.serve) return;  // served: process_requests takes them in when they come
       const auto until = std::chrono::steady_clock::now() + k_task_wait;
       while (sim.soon_count() < count && std::chrono::steady_clock::now() < until)
         std::this_thread::sleep_for(std::chrono::milliseconds(1));
@@ -349,10 +513,50 @@ ReplayReport Replayer::run(const ReplayOptions& options) {
       sim.process_requests();
       ++report.inputs_applied;
     }
+  };
+  // served, a seek back: the first state put back the way `simulation restore_state` puts a
+  // state back (robots' requests ended, components reset, clients told), the replay taken
+  // again from the recording's start
+  const auto rewind = [&] {
+    manager->drop_saved();
+    std::lock_guard lock(*sim.gate());
+    jump_back(sim, "simulation seek: the replay went back to the recording's start",
+              [&] {
+                sim.restore_physics(
+                    sim::PhysicsState::from_values(rec.initial_state, sim.model_generation()));
+                return sim.sim_time();
+              },
+              {{"seek", seek_ ? json(seek_->step) : json(nullptr)}});
+    steps_base_ = sim.steps();
+    ids.clear();
+    manager->statuses.clear();
+    block = 0;
+    inputs_since_step.clear();
+    report.mismatch.reset();
+    departed_.reset();
+    reached(step_now());
+  };
+
+  std::size_t next = 0;  // the next recorded input
+  for (;;) {
+    const bool more = next < rec.inputs.size();
+    const Progress progress =
+        step_to(more ? rec.inputs[next].at("step").get<std::uint64_t>() : rec.last_step);
+    if (progress == Progress::stopped) break;
+    if (progress == Progress::rewind) {
+      rewind();
+      next = 0;
+      continue;
+    }
+    if (more) {
+      apply(rec.inputs[next++]);
+      continue;
+    }
+    manager->process();  // outcomes finished by the last steps
+    if (!options.serve || stopping(options) || !serve_to_the_end(options)) break;
+    rewind();
+    next = 0;
   }
-  if (!stopped) step_to(rec.last_step);
-  manager->process();  // outcomes finished by the last steps
-  if (options.serve && !stopping(options)) serve_to_the_end(options);
   // each recorded outcome against the replay's of the same request
   for (const json& o : rec.outcomes) {
     const auto id = ids.find({o.value("transport", ""), o.value("id", RequestId{0})});
@@ -360,6 +564,12 @@ ReplayReport Replayer::run(const ReplayOptions& options) {
     const auto status = manager->statuses.find(id->second);
     if (status != manager->statuses.end() && o.value("status", "") != to_string(status->second))
       ++report.outcomes_differing;
+  }
+  if (options.serve) {
+    std::lock_guard lock(*sim.gate());
+    if (seek_)
+      seek_->done.finish(seek_ended(Status::failed, Failure::shutdown, "the replay ended"));
+    seek_.reset();
   }
   manager->abandon_pending("the replay ended");
   report.wall_seconds =

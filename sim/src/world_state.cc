@@ -103,6 +103,17 @@ void end_requests(ComponentEntry& e, const std::string& reason) {
   }
 }
 
+// Ends every robot's running requests (what moves stops first, in the world it was started in).
+void end_robots_requests(Simulation& sim, const std::string& reason) {
+  for (auto& e : sim.components())
+    if (e->is_robot || !e->robot.empty()) end_requests(*e, reason);
+}
+
+// Ends the time component's sleeps (simulated time jumped).
+void end_sleeps(Simulation& sim, const std::string& reason) {
+  if (ComponentEntry* time = sim.find("time")) end_requests(*time, reason);
+}
+
 class WorldState {
  public:
   explicit WorldState(Simulation& sim) : sim_(sim) {}
@@ -110,14 +121,16 @@ class WorldState {
   std::string reset(const std::string& scope, const std::string& robot) {
     if (scope == "all") {
       if (!robot.empty()) refuse_robot_with(scope);
-      end_robots_requests("simulation reset (all): every object went back to its initial state");
+      end_robots_requests(sim_,
+                          "simulation reset (all): every object went back to its initial state");
       sim_.reset_all();
-      end_sleeps("simulation reset (all): simulated time went back to 0");
+      end_sleeps(sim_, "simulation reset (all): simulated time went back to 0");
       return "Simulation reset: objects and time restored to their initial state";
     }
     if (scope == "state") {
       if (!robot.empty()) refuse_robot_with(scope);
-      end_robots_requests("simulation reset (state): every object went back to its initial state");
+      end_robots_requests(sim_,
+                          "simulation reset (state): every object went back to its initial state");
       sim_.reset();
       return "Objects restored to initial position";
     }
@@ -163,33 +176,28 @@ class WorldState {
 
   json restore_state(std::int64_t handle) {
     const Snapshot& s = find(handle, "restore_state");
-    // what moves stops first, in the world it was started in
-    end_robots_requests("simulation restore_state: the simulation went back to state " +
-                        std::to_string(handle));
-    const bool clock_moves = s.time() != sim_.sim_time();
     const bool exact = s.fits(sim_.m(), sim_.model_generation());
     ObjectState::Unmatched unmatched;
-    if (exact) {
-      sim_.restore_physics(s);
-    } else {
-      // the model changed since: object by object, by name
-      unmatched = sim_.restore_objects(s.objects, s.time());
-      if (!unmatched.empty())
-        log::info("simulation restore_state: state ", handle, " of model generation ",
-                  s.generation(), " restored by name into generation ", sim_.model_generation(),
-                  ": ", to_json(unmatched).dump());
-    }
+    jump_back(
+        sim_,
+        "simulation restore_state: the simulation went back to state " + std::to_string(handle),
+        [&] {
+          if (exact) {
+            sim_.restore_physics(s);
+          } else {
+            // the model changed since: object by object, by name
+            unmatched = sim_.restore_objects(s.objects, s.time());
+            if (!unmatched.empty())
+              log::info("simulation restore_state: state ", handle, " of model generation ",
+                        s.generation(), " restored by name into generation ",
+                        sim_.model_generation(), ": ", to_json(unmatched).dump());
+          }
+          return s.time();
+        },
+        {{"handle", handle}});
     json out = to_json(unmatched);
     out["sim_time"] = s.time();
     out["exact"] = exact;
-    // what components held of the state they were in (a held joint, a motion's start) is gone
-    for (auto& e : sim_.components())
-      if (e->sim_component) e->sim_component->on_reset();
-    if (clock_moves)
-      end_sleeps("simulation restore_state: simulated time went to that of state " +
-                 std::to_string(handle));
-    // every client that watches the world learns that it went back
-    sim_.announce("restored", {{"handle", handle}});
     return out;
   }
 
@@ -258,15 +266,6 @@ class WorldState {
                        Failure::bad_arguments, {{"parameter", "robot"}});
   }
 
-  void end_robots_requests(const std::string& reason) {
-    for (auto& e : sim_.components())
-      if (e->is_robot || !e->robot.empty()) end_requests(*e, reason);
-  }
-
-  void end_sleeps(const std::string& reason) {
-    if (ComponentEntry* time = sim_.find("time")) end_requests(*time, reason);
-  }
-
   void reset_robot(const std::string& name) {
     // a robot the caller's transport does not serve is answered as one that does not exist
     ComponentEntry* entry = sim_.find(name);
@@ -328,6 +327,19 @@ class WorldState {
 };
 
 }  // namespace
+
+void jump_back(Simulation& sim, const std::string& why, const std::function<double()>& put_back,
+               json fields) {
+  end_robots_requests(sim, why);
+  const double before = sim.sim_time();
+  const double time = put_back();
+  // what components held of the state they were in (a held joint, a motion's start) is gone
+  for (auto& e : sim.components())
+    if (e->sim_component) e->sim_component->on_reset();
+  if (time != before) end_sleeps(sim, why);
+  // every client that watches the world learns that it went back
+  sim.announce("restored", std::move(fields));
+}
 
 void add_state_services(SupervisionServices& simulation, Simulation& sim) {
   auto state = std::make_shared<WorldState>(sim);

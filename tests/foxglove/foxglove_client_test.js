@@ -8,7 +8,7 @@
 // Exit code: 0 passed, 1 failed, 77 the npm packages are not installed.
 'use strict';
 
-const { WebSocket, Ajv, foxgloveSchemas, withTimeout, check, Session, sleep, runTest } = require('./session');
+const { WebSocket, Ajv, foxgloveSchemas, withTimeout, check, Session, PlaybackConnection, sleep, runTest } = require('./session');
 
 const TOTAL_TIMEOUT_MS = 100000;
 const SUBPROTOCOLS = ['foxglove.websocket.v1', 'foxglove.sdk.v1'];
@@ -205,64 +205,28 @@ async function parameters(setter, watcher) {
   watcher.client.unsubscribeParameterUpdates([]);
 }
 
-// Playback control (capability playbackControl), with the Foxglove SDK's binary layout on a
-// raw connection (@foxglove/ws-protocol 0.8 has no playback messages): pause, a seek back to
+// Playback control (capability playbackControl) on a raw connection: pause, a seek back to
 // an automatic snapshot (the simulated time restored), a faster speed, play; a seek forward
 // refused with a status. `s` (a FoxgloveClient session) checks the simulation's own state.
 async function playback(url, s) {
-  const ws = new WebSocket(url, ['foxglove.websocket.v1']);
-  const states = [];
-  const statuses = [];
-  let info;
-  let poke = () => {};
-  ws.on('message', (data, binary) => {
-    if (binary) {
-      if (data[0] === 0x05) {
-        const length = data.readUInt32LE(15);
-        states.push({ status: data[1], ns: data.readBigUInt64LE(2), speed: data.readFloatLE(10),
-                      didSeek: data[14] === 1, requestId: data.subarray(19, 19 + length).toString() });
-      }
-    } else {
-      const m = JSON.parse(data.toString());
-      if (m.op === 'serverInfo') info = m;
-      if (m.op === 'status') statuses.push(m);
-    }
-    poke();
-  });
-  const until = (predicate, what, ms = 10000) => withTimeout(new Promise((resolve) => {
-    poke = () => { if (predicate()) resolve(); };
-    poke();
-  }), what, ms);
-  await until(() => info, 'serverInfo on a raw connection');
+  const p = new PlaybackConnection(url);
+  await p.until(() => p.info, 'serverInfo on a raw connection');
+  const { info, statuses } = p;
   check(info.capabilities.includes('playbackControl'), 'capability playbackControl: ' + info.capabilities);
   check(typeof info.dataStartTime.sec === 'number' && typeof info.dataEndTime.nsec === 'number',
         'serverInfo gives the playback range: ' + JSON.stringify([info.dataStartTime, info.dataEndTime]));
-  const request = (play, speed, seekNs, id) => {
-    const head = Buffer.alloc(19);
-    head[0] = 0x03;
-    head[1] = play ? 0 : 1;
-    head.writeFloatLE(speed, 2);
-    head[6] = seekNs === undefined ? 0 : 1;
-    head.writeBigUInt64LE(seekNs === undefined ? 0n : seekNs, 7);
-    head.writeUInt32LE(Buffer.byteLength(id), 15);
-    ws.send(Buffer.concat([head, Buffer.from(id)]));
-  };
-  const answer = async (id) => {
-    await until(() => states.some((x) => x.requestId === id), `the playback state answering ${id}`);
-    return states.find((x) => x.requestId === id);
-  };
   const simulation = async () => JSON.parse((await s.call('/simulation/get_simulation_state', {})).data);
   await sleep(1200);  // a few automatic snapshots (rewind_interval_s 0.2)
 
-  request(false, 1, undefined, 'pause');
-  const paused = await answer('pause');
+  p.request(false, 1, undefined, 'pause');
+  const paused = await p.answer('pause');
   check(paused.status === 1 && !paused.didSeek && paused.speed === 1, 'paused: ' + JSON.stringify(paused, (k, v) => typeof v === 'bigint' ? String(v) : v));
   let state = await simulation();
   check(state.state === 'paused', 'the simulation is paused: ' + state.state);
 
   const sought = paused.ns - 500000000n;  // half a second back
-  request(false, 1, sought, 'seek');
-  const seek = await answer('seek');
+  p.request(false, 1, sought, 'seek');
+  const seek = await p.answer('seek');
   check(seek.didSeek && seek.status === 1, 'the seek is answered as one');
   check(seek.ns <= sought && seek.ns >= sought - 400000000n,
         `restored at the snapshot at or before the time sought (${seek.ns} for ${sought})`);
@@ -270,19 +234,19 @@ async function playback(url, s) {
   check(Math.abs(state.sim_time - Number(seek.ns) / 1e9) < 1e-6, `the simulated time is the one restored (${state.sim_time})`);
   check(state.state === 'paused', 'still paused after the seek');
 
-  request(true, 2, undefined, 'fast');
-  const fast = await answer('fast');
+  p.request(true, 2, undefined, 'fast');
+  const fast = await p.answer('fast');
   check(fast.status === 0 && fast.speed === 2, 'playing at 2x');
   state = await simulation();
   check(state.state !== 'paused' && state.target_realtime_factor === 2, 'the time scale is 2: ' + JSON.stringify([state.state, state.target_realtime_factor]));
 
   const before = statuses.length;
-  request(true, 1, seek.ns + 3600000000000n, 'forward');
-  await answer('forward');
+  p.request(true, 1, seek.ns + 3600000000000n, 'forward');
+  await p.answer('forward');
   check(statuses.slice(before).some((x) => /not reached/.test(x.message)), 'a seek forward is refused: ' + JSON.stringify(statuses.slice(before)));
   state = await simulation();
   check(state.target_realtime_factor === 1 && state.state !== 'paused', 'back to real time, playing');
-  ws.close();
+  p.close();
 }
 
 runTest(process.argv.slice(2), TOTAL_TIMEOUT_MS, `foxglove transport with @foxglove/ws-protocol (${SUBPROTOCOLS.join(', ')})`,

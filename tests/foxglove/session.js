@@ -1,7 +1,7 @@
 // What the foxglove transport's end-to-end tests share (foxglove_client_test.js,
-// foxglove_sensors_test.js): npm's packages (or exit 77 without them), the gateway started
-// as a child, and a Session: @foxglove/ws-protocol's FoxgloveClient recording what the
-// server tells it.
+// foxglove_sensors_test.js, foxglove_replay_test.js): npm's packages (or exit 77 without
+// them), the gateway started as a child, a Session: @foxglove/ws-protocol's FoxgloveClient
+// recording what the server tells it, and a PlaybackConnection (playback control).
 'use strict';
 
 const path = require('path');
@@ -119,6 +119,55 @@ class Session {
   close() { this.client.close(); }
 }
 
+// A raw connection speaking playback control with the Foxglove SDK's binary layout
+// (@foxglove/ws-protocol 0.8 has no playback messages): serverInfo, status messages and the
+// Playback States it is sent.
+class PlaybackConnection {
+  constructor(url) {
+    this.ws = new WebSocket(url, ['foxglove.websocket.v1']);
+    this.states = [];
+    this.statuses = [];
+    this.poke = () => {};
+    this.ws.on('message', (data, binary) => {
+      if (binary) {
+        if (data[0] === 0x05) {
+          const length = data.readUInt32LE(15);
+          this.states.push({ status: data[1], ns: data.readBigUInt64LE(2), speed: data.readFloatLE(10),
+                             didSeek: data[14] === 1, requestId: data.subarray(19, 19 + length).toString() });
+        }
+      } else {
+        const m = JSON.parse(data.toString());
+        if (m.op === 'serverInfo') this.info = m;
+        if (m.op === 'status') this.statuses.push(m);
+      }
+      this.poke();
+    });
+  }
+  until(predicate, what, ms = STEP_TIMEOUT_MS) {
+    return withTimeout(new Promise((resolve) => {
+      this.poke = () => { if (predicate()) resolve(); };
+      this.poke();
+    }), what, ms);
+  }
+  // A Playback Control Request: play or pause, at `speed`, seeking to `seekNs` (a BigInt) if given.
+  request(play, speed, seekNs, id) {
+    const head = Buffer.alloc(19);
+    head[0] = 0x03;
+    head[1] = play ? 0 : 1;
+    head.writeFloatLE(speed, 2);
+    head[6] = seekNs === undefined ? 0 : 1;
+    head.writeBigUInt64LE(seekNs === undefined ? 0n : seekNs, 7);
+    head.writeUInt32LE(Buffer.byteLength(id), 15);
+    this.ws.send(Buffer.concat([head, Buffer.from(id)]));
+  }
+  // The Playback State answering request `id`.
+  async answer(id, ms) {
+    await this.until(() => this.states.some((x) => x.requestId === id), `the playback state answering ${id}`, ms);
+    return this.states.find((x) => x.requestId === id);
+  }
+  close() { this.ws.close(); }
+}
+
 // The test's frame: starts the gateway (`argv`), runs `body(url, child)` within `ms`, says
 // PASS with `passed` or FAIL with the reason (exit code 1), and stops the gateway either way.
 function runTest(argv, ms, passed, body) {
@@ -142,4 +191,4 @@ function runTest(argv, ms, passed, body) {
   });
 }
 
-module.exports = { FoxgloveClient, WebSocket, Ajv, foxgloveSchemas, withTimeout, check, startGateway, Session, sleep, runTest };
+module.exports = { FoxgloveClient, WebSocket, Ajv, foxgloveSchemas, withTimeout, check, startGateway, Session, PlaybackConnection, sleep, runTest };

@@ -275,13 +275,29 @@ class RecordingTest(unittest.TestCase):
         self.assertEqual(report["steps"], 300)
         self.served(os.path.join(record_dir, "wire.mcap"))
 
-    def served(self, path):
-        """`simgate replay --serve`: the recording through its deployment's transports, a client
-        watching; at its end the last state is served, paused, until SIGTERM."""
+    def serve(self, path):
+        """`simgate replay --serve` (as fast as it can) on ephemeral ports: (process, JSON-RPC
+        Lines, log); stop() ends it."""
         endpoints = os.path.join(self.workdir.name, "served-endpoints.json")
         log = open(os.path.join(self.workdir.name, "served.log"), "w+")
         process = subprocess.Popen([ARGS.simgate, "replay", path, "--serve", "--realtime-factor", "max",
                                     "--endpoints-file", endpoints], stdout=log, stderr=subprocess.STDOUT)
+
+        def stop():
+            """SIGTERM: exit 0, the endpoints file removed; returns the log."""
+            try:
+                process.send_signal(signal.SIGTERM)
+                self.assertEqual(process.wait(timeout=TIMEOUT), 0)
+            finally:
+                if process.poll() is None:
+                    process.kill()
+                    process.wait()
+                log.seek(0)
+                output = log.read()
+                log.close()
+            self.assertFalse(os.path.exists(endpoints))
+            return output
+
         try:
             deadline = time.monotonic() + TIMEOUT
             while not os.path.exists(endpoints):
@@ -290,32 +306,84 @@ class RecordingTest(unittest.TestCase):
                 time.sleep(0.01)  # polling for a file the child writes; bounded by the deadline
             with open(endpoints) as f:
                 url = json.load(f)["jsonrpc"][0]
-            rpc = Lines(int(url.rsplit(":", 1)[1]))
-            try:
-                while True:  # the end of the recording: paused, its 300 steps taken
-                    state = rpc.rpc("simulation.get_simulation_state")["result"]
-                    if state["state"] == "paused" and state["steps"] >= 300:
-                        break
-                    self.assertLess(time.monotonic(), deadline, state)
-                    time.sleep(0.01)  # polling the served run; bounded by the deadline
-                self.assertEqual(state["steps"], 300)
-                pose = rpc.rpc("robot.pose.get_local_data")["result"]
-                self.assertGreater(pose["x"], 0.1)  # the recorded set_speed drove it
-                stepped = rpc.rpc("simulation.step", [5])["result"]  # a client may go on
-                self.assertEqual(stepped["steps_done"], 5)
-            finally:
-                rpc.close()
-            process.send_signal(signal.SIGTERM)
-            self.assertEqual(process.wait(timeout=TIMEOUT), 0)
+            return Lines(int(url.rsplit(":", 1)[1])), stop
+        except BaseException:
+            stop()
+            raise
+
+    def at_the_end(self, rpc, steps):
+        """Waits (bounded) for the served replay to reach the end of its `steps` steps, paused."""
+        deadline = time.monotonic() + TIMEOUT
+        while True:
+            state = rpc.rpc("simulation.get_simulation_state")["result"]
+            if state["state"] == "paused" and rpc.rpc("simulation.get_replay_status")["result"]["step"] >= steps:
+                return state
+            self.assertLess(time.monotonic(), deadline, state)
+            time.sleep(0.01)  # polling the served run; bounded by the deadline
+
+    def served(self, path):
+        """`simgate replay --serve`: the recording through its deployment's transports, a client
+        watching; at its end the last state is served, paused, until SIGTERM."""
+        rpc, stop = self.serve(path)
+        try:
+            self.assertEqual(self.at_the_end(rpc, 300)["steps"], 300)
+            pose = rpc.rpc("robot.pose.get_local_data")["result"]
+            self.assertGreater(pose["x"], 0.1)  # the recorded set_speed drove it
+            stepped = rpc.rpc("simulation.step", [5])["result"]  # a client may go on
+            self.assertEqual(stepped["steps_done"], 5)
         finally:
-            if process.poll() is None:
-                process.kill()
-                process.wait()
-            log.seek(0)
-            output = log.read()
-            log.close()
+            rpc.close()
+            output = stop()
         self.assertIn("replayed 300 steps", output)
-        self.assertFalse(os.path.exists(endpoints))
+
+    def test_a_served_replay_seeks_back_and_forth_with_the_states_it_saved(self):
+        """`simulation seek` in a served replay: back to the recording's start and forward again,
+        the recorded run's own states each time, the states the recording saved and restored
+        told apart from those saved before the seek back."""
+        path = os.path.join(self.workdir.name, "seek.mcap")
+        gateway = Gateway(self.workdir.name, "seek", ["--record", path])
+        self.addCleanup(gateway.kill_if_running)
+        rpc = Lines(gateway.ports["jsonrpc"])
+        try:
+            def ok(method, params=None):
+                reply = rpc.rpc(method, params)
+                self.assertIn("result", reply, (method, reply))
+                return reply["result"]
+            ok("robot.motion.set_speed", [0.5, 0.3])
+            ok("simulation.step", [100])
+            saved = ok("simulation.save_state")
+            ok("simulation.step", [100])
+            ok("robot.motion.set_speed", [0.2, -0.4])
+            ok("simulation.step", [100])
+            ok("simulation.restore_state", [saved])  # the robot back at step 100's pose
+            ok("robot.motion.set_speed", [0.4, 0.6])
+            ok("simulation.step", [100])
+            ok("simulation.drop_state", [saved])
+            ok("simulation.save_state")
+            ok("simulation.step", [100])
+        finally:
+            rpc.close()
+            self.assertEqual(gateway.stop(), 0, gateway.final_output)
+
+        rpc, stop = self.serve(path)
+        try:
+            self.at_the_end(rpc, 500)
+            end_pose = rpc.rpc("robot.pose.get_local_data")["result"]
+            for step in (150, 350, 50):
+                reply = rpc.rpc("simulation.seek", {"step": step})
+                self.assertEqual(reply["result"]["step"], step, reply)
+                status = rpc.rpc("simulation.get_replay_status")["result"]
+                self.assertEqual(status["step"], step, status)
+            self.assertEqual(rpc.rpc("simulation.seek", {"step": 10 ** 9})["result"]["step"], 500)
+            status = rpc.rpc("simulation.get_replay_status")["result"]
+            self.assertIsNone(status["departed_at"], status)  # every step the recorded one
+            self.assertEqual(rpc.rpc("robot.pose.get_local_data")["result"], end_pose)
+            self.assertEqual(len(rpc.rpc("simulation.list_states")["result"]), 1)  # the last save only
+            bad = rpc.rpc("simulation.seek", {"step": 3, "sim_time": 1.0})
+            self.assertIn("one of them", bad["error"]["message"])
+        finally:
+            rpc.close()
+            stop()
 
     def test_a_file_that_is_no_recording_is_exit_2_naming_what_is_wrong(self):
         text = os.path.join(self.workdir.name, "notes.mcap")

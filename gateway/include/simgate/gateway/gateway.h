@@ -16,6 +16,7 @@
 #ifndef SIMGATE_GATEWAY_GATEWAY_H_
 #define SIMGATE_GATEWAY_GATEWAY_H_
 
+#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
@@ -27,6 +28,7 @@
 #include "simgate/recorder/recording_services.h"
 #include "simgate/sim/registry.h"
 #include "simgate/sim/simulation.h"
+#include "simgate/sim/supervision.h"
 
 namespace simgate::gateway {
 
@@ -37,6 +39,10 @@ struct GatewayOptions {
   // Where clients' recordings go (simulation start_recording; recording_services.h); "":
   // clients may not record.
   std::string record_dir{};
+  // Called once the simulation and its components exist, before any transport registers their
+  // services (not called without a scene): `simgate replay` builds its replayer there, which
+  // offers the `simulation` services of a served replay.
+  std::function<void(sim::Simulation&, sim::SupervisionServices&)> on_simulation_built{};
 };
 
 class Gateway {
@@ -126,6 +132,7 @@ class Gateway {
   void load_plugins(ConfigErrors& errors);
   // simulation start_recording, stop_recording, get_recording_status (recording_services.h)
   void add_recording_services();
+  sim::SupervisionServices& supervision();  // the `simulation` component
   // Adds warnings for components clients need that no transport serves, and those of
   // warn_about_access_lists().
   void warn_about_mapping();

@@ -22,6 +22,12 @@
 // Served (`simgate replay --serve`), the replayed run goes out through the deployment's
 // transports as a live one would, paced at its real-time factor: Foxglove, the web app or
 // pymorse watch it and may query it; what a client changes departs from the recording (logged).
+// A served replay seeks (`simulation seek`, add_services(); the foxglove transport's playback
+// bar uses it): forward, it replays as fast as possible up to the step sought; back, it goes
+// to the recording's first state the way `simulation restore_state` does (components reset,
+// robots' requests ended, clients told "restored"), then forward. Every step sought is the
+// recorded run's own, components' state included, since it is reached by replaying the
+// inputs from the start; the cost is the replay of the span (about 40 000 demo steps a second).
 //
 // Threads: Replayer::run() on one thread, which drives the simulation (it is the simulation
 // thread while it runs; the simulation's loop must not run).
@@ -37,9 +43,11 @@
 
 #include <mujoco/mujoco.h>
 
+#include "simgate/core/service.h"
 #include "simgate/core/status.h"
 #include "simgate/mcap/writer.h"
 #include "simgate/sim/simulation.h"
+#include "simgate/sim/supervision.h"
 
 namespace simgate::recorder {
 
@@ -111,14 +119,39 @@ class Replayer {
   // running); throws std::runtime_error saying why not (versions, model).
   Replayer(sim::Simulation& simulation, const Recording& recording);
 
+  // Offers `seek` and `get_replay_status` on `simulation` (the replay served: before the
+  // transports register it; served replays only).
+  void add_services(sim::SupervisionServices& simulation);
+
   // Replays the whole recording (see ReplayOptions).
   ReplayReport run(const ReplayOptions& options = {});
 
  private:
+  // How stepping to an input's step ended: it got there, a stop, a seek back.
+  enum class Progress { reached, stopped, rewind };
+  // A seek asked for and not reached yet (under the simulation lock).
+  struct Seek {
+    std::uint64_t step = 0;  // the recorded run's step count to reach
+    Completion done;         // simulation seek's answer
+  };
+  // The recorded step the simulation is at (under the lock, or on the replay's thread).
+  std::uint64_t step_now() const {
+    return recording_.first_step + simulation_.steps() - steps_base_;
+  }
+  // simulation seek (under the lock)
+  void seek(double sim_time, std::int64_t step, Completion done);
+  json status() const;  // get_replay_status (under the lock)
+  // Under the lock, after a step: answers the seek it reached.
+  void reached(std::uint64_t step);
   // serve: requests served and the pace kept until the next step is due (or a stop)
   void serve_until_due(const ReplayOptions& options);
-  // serve, after the last step: the last state served, paused, until a stop
-  void serve_to_the_end(const ReplayOptions& options);
+  // serve, after the last step: the last state served, paused, until a stop (false) or a seek
+  // back (true)
+  bool serve_to_the_end(const ReplayOptions& options);
+  // serve: what a seek under way asks of the next step: none, forward (as fast as possible,
+  // no pause), back (to the first state first). Takes the lock.
+  enum class SeekAction { none, forward, back };
+  SeekAction seek_action();
   // serve: Ctrl-C (options.stop) or `simulation quit`
   bool stopping(const ReplayOptions& options) const {
     return (options.stop && options.stop->load(std::memory_order_acquire)) ||
@@ -131,6 +164,10 @@ class Replayer {
   std::chrono::steady_clock::time_point pace_wall_{};
   double pace_sim_ = 0;
   double pace_factor_ = 0;
+  // sim.steps() when the recording's first state was last put back (a seek back)
+  std::uint64_t steps_base_ = 0;
+  std::optional<Seek> seek_;               // under the lock
+  std::optional<std::uint64_t> departed_;  // the step the served run departed at (under the lock)
 };
 
 }  // namespace simgate::recorder

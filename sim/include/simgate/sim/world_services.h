@@ -25,6 +25,9 @@
 #ifndef SIMGATE_SIM_WORLD_SERVICES_H_
 #define SIMGATE_SIM_WORLD_SERVICES_H_
 
+#include <functional>
+#include <string>
+
 #include "simgate/sim/simulation.h"
 #include "simgate/sim/supervision.h"
 
@@ -41,6 +44,15 @@ void add_process_services(SupervisionServices& simulation, Simulation& sim);
 void add_spawn_services(SupervisionServices& simulation, Simulation& sim);
 void add_snapshot_services(SupervisionServices& simulation, Simulation& sim);
 void add_scene_geometry_services(SupervisionServices& simulation, Simulation& sim);
+
+// Puts the world back to an earlier state the way `simulation restore_state` does
+// (world_state.cc), around `put_back` (which restores physics and returns the simulated time
+// it went to): robots' running requests end PREEMPTED with `why` first; then every component
+// gets on_reset(), the time component's sleeps end when the clock moved, and the clients that
+// watch the world are told "restored" (`fields`). A served replay's seek back uses it too.
+// Under the simulation lock.
+void jump_back(Simulation& sim, const std::string& why, const std::function<double()>& put_back,
+               json fields);
 
 // The part of get_scene_geometry's answer that only changes with the model: the meshes'
 // vertices and faces and the heightfields' elevations, which are most of it and slow to
