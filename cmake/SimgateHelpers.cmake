@@ -93,3 +93,21 @@ function(simgate_add_test name)
   endif()
   gtest_discover_tests(${name} PROPERTIES ${properties} DISCOVERY_TIMEOUT 60)
 endfunction()
+
+# simgate_pypi_pythonpath(VAR REQUIREMENTS): sets VAR (unless already set, e.g. with -DVAR=DIR) to
+# where scripts/test installs the packages pinned by REQUIREMENTS (a pypi-requirements.txt;
+# scripts/lib.sh ensure_python_test_clients): the user's cache, in a directory named after
+# the pins, named here the same way.
+function(simgate_pypi_pythonpath var requirements)
+  if(${var})
+    return()
+  endif()
+  file(STRINGS ${requirements} pins REGEX "^[^#]")
+  list(JOIN pins "_" pins)
+  string(REPLACE "==" "-" pins "${pins}")
+  if(DEFINED ENV{XDG_CACHE_HOME} AND NOT "$ENV{XDG_CACHE_HOME}" STREQUAL "")
+    set(${var} "$ENV{XDG_CACHE_HOME}/simgate/python-${pins}" PARENT_SCOPE)
+  else()
+    set(${var} "$ENV{HOME}/.cache/simgate/python-${pins}" PARENT_SCOPE)
+  endif()
+endfunction()

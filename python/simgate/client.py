@@ -1,0 +1,544 @@
+"""The connection to a simgate, and the blocking API on it.
+
+One `Client` is one TCP connection, served by one reader thread: every call is a `Call` (a
+`concurrent.futures.Future`) registered under its id before its request is written; the
+reader thread reads each message the server sends and completes the call it answers, hands
+progress reports to their call and samples to their subscription. Everything else (the
+attributes built from discovery, the world-control helpers, the asyncio API in `simgate.aio`)
+submits calls and waits on these futures: there is one protocol implementation.
+
+What differs between JSON-RPC (``jsonrpc://``, ``ws://``) and MORSE's protocol (``socket://``)
+is in the wires (`simgate._wires`); how bytes travel, in the transports (`simgate._transport`).
+
+Callbacks (progress, `Future.add_done_callback`) run on the reader thread: they must not
+block, and must not wait for another call's result.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import logging
+import math
+import threading
+import urllib.parse
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence
+
+from . import errors
+from ._services import Adapter, Namespace, ServiceInfo, ServiceMethod, did_you_mean
+from ._transport import LineTransport, WebSocketTransport
+from ._wires import JsonRpcWire, MorseWire
+from .call import Call
+from .errors import ConnectionClosed
+from .images import decode_image
+from .streams import Sample, Subscription
+
+log = logging.getLogger("simgate")
+
+DEFAULT_TIMEOUT = 30.0
+_DISCOVERY_ERRORS = (errors.SimgateError, OSError, TimeoutError)
+
+
+class _Blocking:
+    """The blocking API's adapter: a sync service's result, an async service's `Call`."""
+
+    def __init__(self, client: "Client") -> None:
+        self._client = client
+
+    def result(self, call: Call) -> Any:
+        return call if call.is_async else self._client._wait(call)
+
+    def callback(self, fn: Callable[[Any], None]) -> Callable[[Any], None]:
+        return fn
+
+
+class _WorldControl:
+    """World-control and camera helpers (docs/world/): each submits one call of the
+    ``simulation`` component (or the camera's) and hands it to `_finish`, which waits for it
+    (`Client`), awaits it (`AsyncClient`) or returns the `Call` (`Batch`)."""
+
+    def _submit(self, component: str, service: str, args: Sequence[Any] = (),
+                kwargs: Optional[Dict[str, Any]] = None, **options: Any) -> Call:
+        raise NotImplementedError
+
+    def _finish(self, call: Call, post: Optional[Callable[[Any], Any]] = None) -> Any:
+        raise NotImplementedError
+
+    def _sim(self, service: str, post: Optional[Callable[[Any], Any]] = None, **kwargs: Any) -> Any:
+        return self._finish(self._submit("simulation", service, (), kwargs), post)
+
+    def pause(self) -> Any:
+        """Stop time and physics (``simulation.pause``); requests are still served."""
+        return self._sim("pause")
+
+    def play(self) -> Any:
+        """Resume time and physics at the real-time factor (``simulation.play``)."""
+        return self._sim("play")
+
+    def step(self, n: int = 1) -> Any:
+        """Take `n` physics steps of a paused simulation (``simulation.step``); returns
+        ``{"sim_time", "steps_done"}`` once they are taken."""
+        return self._sim("step", n=n)
+
+    def reset(self, scope: str = "all", robot: str = "") -> Any:
+        """``simulation.reset``: scope ``"all"`` (objects and time), ``"state"`` (objects),
+        ``"robot"`` (the robot named `robot`)."""
+        return self._sim("reset", scope=scope, robot=robot)
+
+    def save_state(self) -> Any:
+        """Keep the whole simulation state in memory (``simulation.save_state``); returns its
+        handle for `restore_state`."""
+        return self._sim("save_state")
+
+    def restore_state(self, handle: int) -> Any:
+        """Go back to a saved state (``simulation.restore_state``); returns ``{"sim_time",
+        "exact", "missing", "kept"}``."""
+        return self._sim("restore_state", handle=handle)
+
+    def drop_state(self, handle: int) -> Any:
+        """Forget a saved state (``simulation.drop_state``)."""
+        return self._sim("drop_state", handle=handle)
+
+    def state(self) -> Any:
+        """``simulation.get_simulation_state``: state, sim_time, steps, timestep, ..."""
+        return self._sim("get_simulation_state")
+
+    def spawn(self, name: str, mjcf: str, pose: Sequence[float],
+              robot: Optional[Mapping[str, Any]] = None) -> Any:
+        """Add an MJCF (or URDF) body to the world as `name` at `pose` ([x, y, z] or with
+        [qx, qy, qz, qw]); `robot` makes it a robot with components
+        (``simulation.spawn_entity``, docs/world/spawn.md)."""
+        kwargs: Dict[str, Any] = {"name": name, "mjcf": mjcf, "pose": list(pose)}
+        if robot is not None:
+            kwargs["robot"] = dict(robot)
+        return self._sim("spawn_entity", **kwargs)
+
+    def delete(self, name: str) -> Any:
+        """Remove an entity, a body of the scene or a robot (``simulation.delete_entity``)."""
+        return self._sim("delete_entity", name=name)
+
+    def get_image(self, camera: str, numpy_arrays: Optional[bool] = None) -> Any:
+        """An image of the current state from camera component `camera` (``get_image``),
+        decoded: RGB ``uint8 HxWx3`` or depth ``float32 HxW`` metres (`simgate.images`)."""
+        return self._finish(self._submit(camera, "get_image"),
+                            lambda record: decode_image(record, numpy_arrays))
+
+    def capture(self, camera: str, n: int = 1, numpy_arrays: Optional[bool] = None) -> Any:
+        """The next `n` images of camera `camera` (``capture``), decoded, in a list."""
+        return self._finish(self._submit(camera, "capture", (), {"n": n}),
+                            lambda records: [decode_image(r, numpy_arrays) for r in records])
+
+    def snapshot(self, camera: str = "", width: int = 640, height: int = 480,
+                 numpy_arrays: Optional[bool] = None) -> Any:
+        """A picture of the scene (``simulation.get_snapshot``), decoded as an RGB image."""
+        return self._finish(self._submit("simulation", "get_snapshot", (),
+                                         {"camera": camera, "width": width, "height": height}),
+                            lambda record: decode_image(record, numpy_arrays))
+
+
+class Client(_WorldControl):
+    """A connection to a simgate (made by `simgate.connect`): services as attributes,
+    world control, streams. Thread-safe. A context manager: leaving it closes the connection.
+
+    Attribute access (``sim.robot.motion.set_speed``) uses the services the server lists
+    (``rpc.discover``, or ``simulation list_services`` on ``socket://``), fetched on first use;
+    `refresh()` fetches them again (after a spawn). A name that is neither a service nor a
+    component raises `AttributeError` with the nearest names. Methods of this class win over
+    a component of the same name: reach that one with `component(name)`.
+    """
+
+    def __init__(self, url: str, token: Optional[str] = None, timeout: float = DEFAULT_TIMEOUT) -> None:
+        parts = urllib.parse.urlsplit(url)
+        if parts.scheme not in ("jsonrpc", "ws", "socket") or not parts.hostname or not parts.port:
+            raise ValueError(f"simgate.connect: {url!r}: expected jsonrpc://HOST:PORT, "
+                             "ws://HOST:PORT[/PATH] or socket://HOST:PORT")
+        self.url = url
+        self.scheme = parts.scheme
+        self.host: str = parts.hostname
+        self.port: int = parts.port
+        self.timeout = timeout
+        self._token = token
+        self._lock = threading.Lock()
+        self._pending: Dict[Any, Call] = {}
+        self._subscriptions: Dict[Any, Subscription] = {}
+        self._morse_streams: List[Subscription] = []
+        self._closed_reason: Optional[str] = None
+        self._services: Optional[Dict[str, ServiceInfo]] = None
+        self._streams: List[Dict[str, Any]] = []
+        self._discover_lock = threading.Lock()
+        self._root = Namespace(self, "", _Blocking(self))
+        if parts.scheme == "ws":
+            path = (parts.path or "/") + (f"?{parts.query}" if parts.query else "")
+            self._transport: Any = WebSocketTransport(self.host, self.port, path, timeout, token)
+            self._wire: Any = JsonRpcWire()
+        else:
+            self._transport = LineTransport(self.host, self.port, timeout)
+            self._wire = JsonRpcWire() if parts.scheme == "jsonrpc" else MorseWire()
+            if token is not None and parts.scheme == "socket":
+                self._morse_login(token)
+        self._reader = threading.Thread(target=self._read, name=f"simgate-reader {url}", daemon=True)
+        self._reader.start()
+        if token is not None and parts.scheme == "jsonrpc":
+            try:
+                self._wire.login(self, token)
+            except BaseException:
+                self.close()
+                raise
+
+    def _morse_login(self, token: str) -> None:
+        self._transport.send(f"auth {token}".encode())
+        reply = self._transport.receive()
+        if reply is None or not reply.decode("utf-8", "replace").startswith("auth ") or \
+                reply.split(b" ", 2)[1] not in (b"SUCCESS", b"OK"):
+            self._transport.close()
+            raise errors.NotAuthorized(f"{self.url}: the token was refused: {reply!r}")
+
+    # ---- the reader thread
+    def _read(self) -> None:
+        reason = "the server closed the connection"
+        try:
+            while True:
+                message = self._transport.receive()
+                if message is None:
+                    break
+                if not message.strip():
+                    continue
+                try:
+                    self._wire.handle(self, message)
+                except Exception:  # a message we cannot read must not end the connection
+                    log.exception("simgate: could not handle a message from %s: %r", self.url, message[:200])
+        except Exception as e:  # noqa: BLE001 - the connection ends, saying why
+            reason = f"the connection was lost: {e}"
+        self._shut(reason)
+
+    def _shut(self, reason: str) -> None:
+        with self._lock:
+            if self._closed_reason is None:
+                self._closed_reason = reason
+            pending, self._pending = self._pending, {}
+            subscriptions, self._subscriptions = list(self._subscriptions.values()), {}
+        message = f"{self.url}: {self._closed_reason}"
+        for call in pending.values():
+            if not call.done():
+                call.set_exception(ConnectionClosed(f"{call.method}: {message}"))
+        for sub in subscriptions + self._morse_streams:
+            sub._end(ConnectionClosed(message))
+
+    def _complete(self, ident: Any, result: Any, error: Any) -> None:
+        with self._lock:
+            call = self._pending.pop(ident, None)
+        if call is None:
+            log.debug("simgate: a reply to no pending call (id %r)", ident)
+            return
+        if error is not None:
+            call.set_exception(self._wire.error(call, error))
+            return
+        try:
+            call.set_result(call._hook(result) if call._hook else result)
+        except Exception as e:  # noqa: BLE001 - a result the hook could not read
+            call.set_exception(e)
+
+    def _progress(self, ident: Any, data: Any) -> None:
+        with self._lock:
+            call = self._pending.get(ident)
+        if call is not None:
+            call._report(data)
+
+    def _sample(self, number: Any, sample: Sample) -> None:
+        sub = self._subscriptions.get(number)
+        if sub is not None:
+            sub._push(sample)
+
+    def _stream_ended(self, number: Any, reason: str) -> None:
+        sub = self._subscriptions.pop(number, None)
+        if sub is not None:
+            sub._end(StopIteration(reason))
+
+    # ---- submitting
+    def _register(self, call: Call) -> Call:
+        with self._lock:
+            if self._closed_reason is not None:
+                raise ConnectionClosed(f"{call.method}: {self.url}: {self._closed_reason}")
+            call.id = self._wire.new_id()
+            self._pending[call.id] = call
+        return call
+
+    def _submit(self, component: str, service: str, args: Sequence[Any] = (),
+                kwargs: Optional[Dict[str, Any]] = None, *, deadline: Optional[float] = None,
+                progress: Optional[Callable[[Any], None]] = None, info: Optional[ServiceInfo] = None,
+                hook: Optional[Callable[[Any], Any]] = None,
+                batch: Optional[List[bytes]] = None) -> Call:
+        """Send one call and return its `Call`; errors before sending (a closed connection,
+        arguments that cannot be sent) come back as a failed `Call`, never raised."""
+        method = f"{component}.{service}"
+        if info is None and self._services is not None:
+            info = self._services.get(method)
+        call = Call(self, method, info.is_async if info else None)
+        call._hook = hook
+        try:
+            meta: Dict[str, Any] = {}
+            if deadline is not None:
+                if not deadline > 0 or math.isinf(deadline):
+                    raise ValueError(f"{method}: deadline must be a positive number of seconds, found {deadline!r}")
+                meta["timeout_ms"] = max(1, math.ceil(deadline * 1000))
+            if progress is not None:
+                meta["progress"] = True
+                call.on_progress(progress)
+            params = self._wire.params(args, dict(kwargs or {}), meta, info, method)
+            messages = []
+            if progress is not None and isinstance(self._wire, MorseWire):
+                opt_in = self._wire.progress_request(self)
+                if opt_in:
+                    messages.append(opt_in)
+            self._register(call)
+            try:
+                messages.append(self._wire.encode(call, component, service, params))
+            except BaseException:
+                with self._lock:
+                    self._pending.pop(call.id, None)
+                raise
+            if batch is not None:
+                batch.extend(messages)
+            else:
+                self._send(messages)
+        except BaseException as e:
+            if not call.done():
+                call.set_exception(e)
+        return call
+
+    def _send(self, messages: List[bytes]) -> None:
+        try:
+            self._transport.send_many(messages)
+        except OSError as e:
+            self._transport.close()
+            self._shut(f"the connection was lost: {e}")
+
+    def _cancel(self, call: Call) -> bool:
+        with self._lock:
+            if call.id not in self._pending:
+                return False
+            call._cancel_sent = True
+        self._send([self._wire.encode_cancel(call)])
+        return True
+
+    def _wait(self, call: Call, timeout: Optional[float] = ...) -> Any:  # type: ignore[assignment]
+        """The call's result: a sync service's within `timeout` (the connection's by default),
+        an async service's (or one discovery does not know) whenever it comes."""
+        if timeout is ...:
+            timeout = self.timeout if call.is_async is False else None
+        try:
+            return call.result(timeout)
+        except concurrent.futures.TimeoutError:
+            raise TimeoutError(f"{call.method}: no reply within {timeout} s") from None
+
+    def _finish(self, call: Call, post: Optional[Callable[[Any], Any]] = None) -> Any:
+        result = self._wait(call)
+        return post(result) if post else result
+
+    # ---- public API
+    def call(self, component: str, service: str, *args: Any, **kwargs: Any) -> Any:
+        """Call `component`'s `service` with positional or named arguments and wait for its
+        result (MORSE's way, and the one ``socket://`` needs no discovery for):
+        ``sim.call("robot.motion", "set_speed", 0.5, 0.2)``."""
+        return self._wait(self._submit(component, service, args, kwargs))
+
+    def submit(self, component: str, service: str, args: Sequence[Any] = (),
+               kwargs: Optional[Mapping[str, Any]] = None, *, deadline: Optional[float] = None,
+               progress: Optional[Callable[[Any], None]] = None) -> Call:
+        """Send a call without waiting: its `Call`. `deadline` in seconds (not on
+        ``socket://``), `progress` a callback for its reports."""
+        return self._submit(component, service, args, dict(kwargs or {}),
+                            deadline=deadline, progress=progress)
+
+    def batch(self) -> "Batch":
+        """Calls sent together when the ``with`` block ends: one JSON-RPC batch (run between
+        the same two physics steps, in order) or one write of socket lines. See `Batch`."""
+        return Batch(self)
+
+    def subscribe(self, component: str, buffer: int = 64) -> Subscription:
+        """Subscribe to `component`'s output stream (docs/streams.md): a `Subscription`
+        keeping the latest `buffer` samples not read yet."""
+        return self._wait(self._wire.subscribe(self, component, buffer), self.timeout)
+
+    def publish(self, component: str, data: Mapping[str, Any]) -> Optional[bool]:
+        """Write a command to `component`'s input stream: ``rpc.publish`` (returns whether it
+        was applied at once; a refused one raises `InvalidArguments`), or on ``socket://`` a
+        line on its stream port (returns None: MORSE's ports answer nothing)."""
+        return self._wait(self._wire.publish(self, component, data), self.timeout)
+
+    def _forget_subscription(self, number: Any) -> None:
+        if self._closed_reason is None:
+            self._wire.unsubscribe(self, number)
+
+    @property
+    def services(self) -> Dict[str, ServiceInfo]:
+        """Every service this connection may call, by ``component.service`` (discovered once)."""
+        if self._services is None:
+            with self._discover_lock:
+                if self._services is None:
+                    services, self._streams = self._wire.discover(self)
+                    self._services = {s.method: s for s in services}
+        return self._services
+
+    @property
+    def streams(self) -> List[Dict[str, Any]]:
+        """The data streams this transport carries (``x-simgate-streams`` / ``list_streams``)."""
+        self.services
+        return self._streams
+
+    def refresh(self) -> None:
+        """Fetch the service list again (after a spawn or a delete of a robot)."""
+        with self._discover_lock:
+            self._services = None
+        self._root = Namespace(self, "", _Blocking(self))
+        self.services
+
+    def component(self, name: str) -> Namespace:
+        """The component `name` (``"robot.motion"``) as a namespace of its services."""
+        return self._namespace_for(name, self._root._adapter)
+
+    def _namespace_for(self, name: str, adapter: Adapter) -> Namespace:
+        prefix, _, last = name.rpartition(".")
+        found = self._resolve(prefix, last, adapter)
+        if not isinstance(found, Namespace):
+            raise AttributeError(f"{name!r} is a service, not a component")
+        return found
+
+    def _children(self, prefix: str) -> List[str]:
+        start = prefix + "." if prefix else ""
+        names = set()
+        for method in self.services:
+            if method.startswith(start):
+                names.add(method[len(start):].split(".", 1)[0])
+        return sorted(names)
+
+    def _resolve(self, prefix: str, name: str, adapter: Adapter) -> Any:
+        full = f"{prefix}.{name}" if prefix else name
+        info = self.services.get(full)
+        if info is not None:
+            return ServiceMethod(self, info, adapter)
+        if any(m.startswith(full + ".") for m in self.services):
+            return Namespace(self, full, adapter)
+        where = f"component {prefix!r}" if prefix else self.url
+        raise AttributeError(f"simgate: {where} has no service or component {name!r}"
+                             + did_you_mean(name, self._children(prefix)))
+
+    def __getattr__(self, name: str) -> Any:
+        if name.startswith("_"):
+            raise AttributeError(name)
+        return getattr(self._root, name)
+
+    def __dir__(self) -> List[str]:
+        own = list(super().__dir__())
+        try:
+            return sorted(set(own) | set(self._children("")))
+        except _DISCOVERY_ERRORS:
+            return own
+
+    @property
+    def closed(self) -> bool:
+        return self._closed_reason is not None
+
+    def close(self) -> None:
+        """Close the connection: calls still pending fail with `ConnectionClosed`,
+        subscriptions end. Idempotent."""
+        with self._lock:
+            if self._closed_reason is None:
+                self._closed_reason = "closed by the client"
+        self._transport.close()
+        if isinstance(self._wire, MorseWire):
+            self._wire.close()
+        for sub in list(self._morse_streams):
+            sub.close()
+        if threading.current_thread() is not self._reader:
+            self._reader.join(self.timeout)
+        self._shut("closed by the client")
+
+    def __enter__(self) -> "Client":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"<simgate.Client {self.url}{' closed' if self.closed else ''}>"
+
+
+
+class _Deferred:
+    """The batch's adapter: every call hands back its `Call`."""
+
+    def result(self, call: Call) -> Any:
+        return call
+
+    def callback(self, fn: Callable[[Any], None]) -> Callable[[Any], None]:
+        return fn
+
+
+class Batch(_WorldControl):
+    """Calls gathered and sent in one message when the ``with`` block ends (or at `send()`).
+
+    Inside, every call returns its `Call` at once: ``b.robot.motion.set_speed(v=1, w=0)``,
+    ``b.step(1)``, ``b.submit(...)``. On ``jsonrpc://`` and ``ws://`` it is one JSON-RPC batch:
+    the server runs its calls between the same two physics steps, in order, and answers when
+    the last is done: one round trip for an action, a step and an observation. On
+    ``socket://`` the lines go out in one write.
+    """
+
+    def __init__(self, client: Client) -> None:
+        self._client = client
+        self._messages: List[bytes] = []
+        self._calls: List[Call] = []
+        self._root = Namespace(client, "", _Deferred())
+        self._sent = False
+
+    def _submit(self, component: str, service: str, args: Sequence[Any] = (),
+                kwargs: Optional[Dict[str, Any]] = None, **options: Any) -> Call:
+        if self._sent:
+            raise RuntimeError("simgate batch: already sent")
+        call = self._client._submit(component, service, args, kwargs, batch=self._messages, **options)
+        self._calls.append(call)
+        return call
+
+    def _finish(self, call: Call, post: Optional[Callable[[Any], Any]] = None) -> Any:
+        if post is None:
+            return call
+        mapped: concurrent.futures.Future = concurrent.futures.Future()
+
+        def done(f: concurrent.futures.Future) -> None:
+            try:
+                mapped.set_result(post(f.result()))
+            except BaseException as e:  # noqa: BLE001 - handed to the waiter
+                mapped.set_exception(e)
+        call.add_done_callback(done)
+        return mapped
+
+    def submit(self, component: str, service: str, args: Sequence[Any] = (),
+               kwargs: Optional[Mapping[str, Any]] = None, **options: Any) -> Call:
+        return self._submit(component, service, args, dict(kwargs or {}), **options)
+
+    def __getattr__(self, name: str) -> Any:
+        if name.startswith("_"):
+            raise AttributeError(name)
+        return getattr(self._root, name)
+
+    def send(self) -> None:
+        """Send the gathered calls (once); the `Call`s complete as the answers come."""
+        if self._sent:
+            return
+        self._sent = True
+        if self._messages:
+            self._client._send(self._client._wire.encode_batch(self._messages))
+
+    def __enter__(self) -> "Batch":
+        return self
+
+    def __exit__(self, exc_type: Any, *exc: Any) -> None:
+        if exc_type is None:
+            self.send()
+            return
+        self._sent = True  # nothing was sent: the gathered calls fail
+        for call in self._calls:
+            with self._client._lock:
+                self._client._pending.pop(call.id, None)
+            if not call.done():
+                call.set_exception(RuntimeError(f"{call.method}: not sent (the batch's with block raised)"))
