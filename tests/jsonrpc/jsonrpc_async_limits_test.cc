@@ -326,16 +326,25 @@ TEST_F(JsonRpcLimits, DeepNestingIsRefused) {
 }
 
 TEST_F(JsonRpcLimits, ABatchLargerThanMaxInFlightIsRefusedWhole) {
-  // issue #17: every entry counts, rpc.* and invalid ones included; one error, not one per entry
+  // issue #17: every entry counts, rpc.* and invalid ones included; entries with no id: one error
   auto r = round_trip(*client_, "[1,1,1]");
   ASSERT_TRUE(r.is_object()) << r.dump();
   EXPECT_EQ(error_code(r), -32006) << r.dump();
   EXPECT_EQ(r["error"]["data"]["batch_entries"], 3);
+  // requests are each answered with their own id (their client knows which calls failed;
+  // a null id would leave them pending), the notification not at all
   r = round_trip(
       *client_,
-      R"([{"jsonrpc":"2.0","method":"rpc.discover","id":1},{"jsonrpc":"2.0","method":"rpc.discover","id":2},)"
-      R"({"jsonrpc":"2.0","method":"rpc.discover","id":3}])");
-  EXPECT_EQ(error_code(r), -32006) << r.dump().substr(0, 200);
+      R"([{"jsonrpc":"2.0","method":"rpc.discover","id":1},{"jsonrpc":"2.0","method":"rpc.discover","id":"b"},)"
+      R"({"jsonrpc":"2.0","method":"rpc.discover"}])");
+  ASSERT_TRUE(r.is_array()) << r.dump().substr(0, 300);
+  ASSERT_EQ(r.size(), 2u) << r.dump();
+  EXPECT_EQ(r[0]["id"], 1);
+  EXPECT_EQ(r[1]["id"], "b");
+  for (const json& e : r) {
+    EXPECT_EQ(error_code(e), -32006) << e.dump();
+    EXPECT_EQ(e["error"]["data"]["batch_entries"], 3);
+  }
   // within the limit, a batch is served as before
   r = round_trip(*client_, "[1,1]");
   ASSERT_TRUE(r.is_array()) << r.dump();
@@ -346,6 +355,18 @@ TEST_F(JsonRpcLimits, ABatchLargerThanMaxInFlightIsRefusedWhole) {
 class JsonRpcBatchBytes : public JsonRpcFixture {
   json options() override { return {{"max_unsent_bytes", 4096}, {"max_in_flight", 64}}; }
 };
+
+TEST_F(JsonRpcBatchBytes, ABatchTooLargeToAnswerEntryByEntryIsOneError) {
+  // past max_in_flight (64) and past the entries answered one by one (1024): one error
+  std::string huge = "[";
+  for (int i = 0; i < 1100; ++i)
+    huge += std::string(i ? "," : "") + R"({"method":"x","id":)" + std::to_string(i) + "}";
+  auto r = round_trip(*client_, huge + "]");
+  ASSERT_TRUE(r.is_object()) << r.dump().substr(0, 200);
+  EXPECT_EQ(error_code(r), -32006);
+  EXPECT_TRUE(r["id"].is_null());
+  EXPECT_EQ(r["error"]["data"]["batch_entries"], 1100);
+}
 
 TEST_F(JsonRpcBatchBytes, ABatchReplyStaysWithinMaxUnsentBytes) {
   // issue #17: a batch of rpc.discover built a 222 MB reply; now each entry past the budget

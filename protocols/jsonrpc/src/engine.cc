@@ -140,14 +140,33 @@ void JsonRpcEngine::handle_message(const std::shared_ptr<Session>& session, std:
     const std::size_t room =
         options_.tcp.max_in_flight - std::min(session->in_flight(), options_.tcp.max_in_flight);
     if (message.size() > room) {
-      reply(single,
-            error_response(nullptr, code::overloaded,
-                           "Overloaded: a batch of " + std::to_string(message.size()) +
-                               " entries, " + std::to_string(room) +
-                               " more calls allowed in flight on this connection (max_in_flight " +
-                               std::to_string(options_.tcp.max_in_flight) + ")",
-                           json{{"batch_entries", message.size()},
-                                {"max_in_flight", options_.tcp.max_in_flight}}));
+      const json refusal = error_response(
+          nullptr, code::overloaded,
+          "Overloaded: a batch of " + std::to_string(message.size()) + " entries, " +
+              std::to_string(room) +
+              " more calls allowed in flight on this connection (max_in_flight " +
+              std::to_string(options_.tcp.max_in_flight) + ")",
+          json{{"batch_entries", message.size()}, {"max_in_flight", options_.tcp.max_in_flight}});
+      // a batch of a size clients send: each request answered with its own id, so that its
+      // client knows which calls failed; a huge one (or one of no requests): the one error
+      const auto has_id = [](const json& entry) {
+        auto it = entry.is_object() ? entry.find("id") : entry.end();
+        return it != entry.end() && (it->is_string() || it->is_number());
+      };
+      if (message.size() > k_refused_batch_answered_by_entry ||
+          std::none_of(message.begin(), message.end(), has_id)) {
+        reply(single, json(refusal));
+        return;
+      }
+      auto batch = std::make_shared<Batch>(message.size(), options_.tcp.max_unsent_bytes);
+      for (std::size_t i = 0; i < message.size(); ++i) {
+        const bool answered = has_id(message[i]);
+        ReplyTo to{session,   answered ? message[i]["id"] : json(nullptr), !answered, batch, i,
+                   id_text(i)};
+        json response = refusal;
+        response["id"] = to.id;
+        reply(to, std::move(response));
+      }
       return;
     }
     // every entry answers into the batch; the array goes out when the last one is in

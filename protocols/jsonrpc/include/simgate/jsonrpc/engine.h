@@ -257,6 +257,10 @@ class JsonRpcEngine : public RequestManager {
   // calls of the current read, handed over together: the first to_submit_count_ of
   // to_submit_; the objects are refilled from read to read (I/O thread)
   static constexpr std::size_t k_kept_calls = 1024;
+  // A batch refused for max_in_flight answers each of its requests with its own id when it
+  // has at most this many entries (one error with a null id when larger: issue #17's batch of
+  // a million `1`s must not build a million error objects).
+  static constexpr std::size_t k_refused_batch_answered_by_entry = 1024;
   std::vector<std::pair<RequestId, Call>> to_submit_;
   std::size_t to_submit_count_ = 0;
   std::string line_;                        // a response being built (I/O thread; capacity reused)
