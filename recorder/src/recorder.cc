@@ -77,7 +77,7 @@ Recorder::Recorder(sim::Simulation& simulation, RecordingOptions options)
   prepare_head(simulation_);
   bytes_written_ = writer_->bytes_written();
   find_streams();
-  hasher_ = std::make_unique<sim::StateHasher>(simulation_.m());
+  hasher_ = std::make_shared<const sim::StateHasher>(simulation_.m());
   block_first_step_ = first_step_ + 1;
   if (body_poses_found_) queue_geometry();
   simulation_.gate()->set_input_tap(this);
@@ -347,12 +347,18 @@ json Recorder::to_json(Pending& p) {
       if (!p.value.is_null()) o["value"] = std::move(p.value);
       return o;
     }
-    case Kind::hashes:
+    case Kind::hashes: {
+      const std::size_t size = p.hasher->state_size(), n = p.hasher->quantities().size();
+      std::vector<std::uint32_t> hashes(p.count * n);
+      for (std::size_t i = 0; i < p.count; ++i)
+        p.hasher->hash_state(std::span<const mjtNum>(p.states).subspan(i * size, size),
+                             std::span(hashes).subspan(i * n, n));
       return {{"first_step", p.step},
               {"steps", p.count},
               {"generation", p.generation},
-              {"quantities", std::move(p.quantities)},
-              {"hashes", std::move(p.hashes)}};
+              {"quantities", p.hasher->quantities()},
+              {"hashes", std::move(hashes)}};
+    }
     case Kind::geometry:
     case Kind::stream: break;  // not messages of their own (write_geometry, add_stream)
   }
@@ -365,14 +371,15 @@ void Recorder::stepped() {
     // a spawn or a delete: the state has other quantities from here on
     flush_hashes();
     generation_ = simulation_.model_generation();
-    hasher_ = std::make_unique<sim::StateHasher>(m);
+    hasher_ = std::make_shared<const sim::StateHasher>(m);
     find_streams();  // a spawned robot's
     if (body_poses_found_) queue_geometry();
   }
   if (block_steps_ == 0) block_first_step_ = step();
-  const std::size_t n = hasher_->quantities().size();
-  hash_block_.resize(hash_block_.size() + n);
-  hasher_->hash(m, simulation_.d(), std::span(hash_block_).subspan(hash_block_.size() - n, n));
+  const std::size_t n = hasher_->state_size();
+  state_block_.resize(state_block_.size() + n);
+  mj_getState(m, simulation_.d(), state_block_.data() + state_block_.size() - n,
+              mjSTATE_INTEGRATION);
   steps_recorded_.store(steps_recorded_.load(std::memory_order_relaxed) + 1,
                         std::memory_order_relaxed);
   if (++block_steps_ >= options_.hash_block) flush_hashes();
@@ -403,10 +410,10 @@ void Recorder::flush_hashes() {
   p.count = block_steps_;
   p.sim_time = simulation_.sim_time();
   p.generation = generation_;
-  p.quantities = hasher_->quantities();
-  p.bytes = hash_block_.size() * 12;
-  p.hashes.swap(hash_block_);
-  hash_block_.reserve(p.hashes.size());
+  p.hasher = hasher_;
+  p.bytes = state_block_.size() * sizeof(mjtNum);
+  p.states.swap(state_block_);
+  state_block_.reserve(p.states.size());
   block_steps_ = 0;
   enqueue(std::move(p));
 }

@@ -101,9 +101,12 @@ bool StateHasher::fits(const mjModel* m) const {
 
 void StateHasher::hash(const mjModel* m, const mjData* d, std::span<std::uint32_t> out) {
   mj_getState(m, d, values_.data(), mjSTATE_INTEGRATION);
+  hash_state(values_, out);
+}
+
+void StateHasher::hash_state(std::span<const mjtNum> state, std::span<std::uint32_t> out) const {
   for (std::size_t i = 0; i < parts_.size() && i < out.size(); ++i)
-    out[i] = hash_values(
-        std::span<const mjtNum>(values_).subspan(parts_[i].begin, parts_[i].end - parts_[i].begin));
+    out[i] = hash_values(state.subspan(parts_[i].begin, parts_[i].end - parts_[i].begin));
 }
 
 }  // namespace simgate::sim

@@ -136,22 +136,22 @@ class Recorder final : public InputTap, public sim::Simulation::Observer {
     std::uint64_t seq = 0;   // inputs: 1, 2, ...
     std::uint64_t step = 0;  // the step count when it took effect
     double sim_time = 0;
-    std::string transport;              // request, interrupt, outcome
-    std::uint64_t client = 0;           // request
-    RequestId id = 0;                   // request, interrupt, outcome
-    std::string component;              // request, command
-    std::string service;                // request
-    std::string text;                   // command: the refusal; outcome: the message
-    json value;                         // request: params; command: the command; outcome: the value
-                                        // (if small); geometry: the scene's
-    Status status = Status::success;    // outcome
-    Failure failure = Failure::none;    // outcome; interrupt: the reason
-    std::size_t count = 0;              // tasks
-    std::vector<std::uint32_t> hashes;  // hashes: quantities × steps
-    std::vector<std::string> quantities;  // hashes
-    std::uint64_t generation = 0;         // hashes
-    std::unique_ptr<Stream> stream;       // stream
-    std::size_t bytes = 0;                // what it takes in the queue, roughly
+    std::string transport;            // request, interrupt, outcome
+    std::uint64_t client = 0;         // request
+    RequestId id = 0;                 // request, interrupt, outcome
+    std::string component;            // request, command
+    std::string service;              // request
+    std::string text;                 // command: the refusal; outcome: the message
+    json value;                       // request: params; command: the command; outcome: the value
+                                      // (if small); geometry: the scene's
+    Status status = Status::success;  // outcome
+    Failure failure = Failure::none;  // outcome; interrupt: the reason
+    std::size_t count = 0;            // tasks
+    std::vector<mjtNum> states;       // hashes: each step's state, in turn
+    std::shared_ptr<const sim::StateHasher> hasher;  // hashes: what hashes them (writer thread)
+    std::uint64_t generation = 0;                    // hashes
+    std::unique_ptr<Stream> stream;                  // stream
+    std::size_t bytes = 0;                           // what it takes in the queue, roughly
   };
   // The message's channel and JSON (writer thread).
   std::uint16_t channel_of(const Pending& p) const;
@@ -199,8 +199,10 @@ class Recorder final : public InputTap, public sim::Simulation::Observer {
   std::uint64_t input_seq_ = 0;
   std::uint64_t first_step_ = 0;
   std::uint64_t generation_ = 0;
-  std::unique_ptr<sim::StateHasher> hasher_;
-  std::vector<std::uint32_t> hash_block_;  // quantities × steps, the block being filled
+  std::shared_ptr<const sim::StateHasher> hasher_;
+  // the block being filled: each step's state (mjSTATE_INTEGRATION), hashed by the writer
+  // thread (a copy costs the simulation thread less than its hash)
+  std::vector<mjtNum> state_block_;
   std::uint64_t block_first_step_ = 0;
   std::uint32_t block_steps_ = 0;
   std::atomic<std::uint64_t> steps_recorded_{0};  // written under the simulation lock

@@ -36,6 +36,10 @@ class StateHasher {
   bool fits(const mjModel* m) const;
   // Hashes `d`'s state: one value per quantity, into `out` (quantities().size() of them).
   void hash(const mjModel* m, const mjData* d, std::span<std::uint32_t> out);
+  // The same of a state captured before (mj_getState, mjSTATE_INTEGRATION: state_size()
+  // values), on any thread (a recorder copies the state under the lock, hashes it off it).
+  void hash_state(std::span<const mjtNum> state, std::span<std::uint32_t> out) const;
+  std::size_t state_size() const { return size_; }
 
  private:
   struct Part {
