@@ -355,6 +355,7 @@ json Recorder::to_json(Pending& p) {
                              std::span(hashes).subspan(i * n, n));
       return {{"first_step", p.step},
               {"steps", p.count},
+              {"sim_time", p.sim_time},
               {"generation", p.generation},
               {"quantities", p.hasher->quantities()},
               {"hashes", std::move(hashes)}};

@@ -138,6 +138,7 @@ Recording Recording::read(const std::string& path) {
         b.steps = block.at("steps").get<std::uint64_t>();
         b.quantities = block.at("quantities").get<std::vector<std::string>>();
         b.hashes = block.at("hashes").get<std::vector<std::uint32_t>>();
+        if (block.contains("sim_time")) b.sim_time = block["sim_time"].get<double>();
         if (b.hashes.size() != b.steps * b.quantities.size())
           throw std::runtime_error(path + ": a state_hashes block holds " +
                                    std::to_string(b.hashes.size()) + " hashes for " +
@@ -168,6 +169,32 @@ Recording Recording::read(const std::string& path) {
                              k_initial_state_topic + " message)");
   if (r.last_step < r.first_step) r.last_step = r.first_step;
   return r;
+}
+
+std::uint64_t Recording::step_at(double t, double timestep) const {
+  // each block's steps are timestep apart up to its end time (a jump within a block is
+  // off by less than the block)
+  for (const HashBlock& b : hashes) {
+    if (!b.sim_time) break;
+    const double first = *b.sim_time - static_cast<double>(b.steps - 1) * timestep;
+    if (t > *b.sim_time + timestep / 2) continue;
+    // (before the block's first step: the step before it, at most back to the recording's start)
+    const auto k = static_cast<std::int64_t>(std::round((t - first) / timestep));
+    const std::int64_t step =
+        static_cast<std::int64_t>(b.first_step) + std::max<std::int64_t>(k, -1);
+    return std::clamp(static_cast<std::uint64_t>(std::max<std::int64_t>(step, 0)), first_step,
+                      b.first_step + b.steps - 1);
+  }
+  if (!hashes.empty() && hashes.back().sim_time) return last_step;  // past the end
+  const double steps = std::round((t - initial_time) / timestep);
+  const std::uint64_t step =
+      steps <= 0 ? first_step : first_step + static_cast<std::uint64_t>(steps);
+  return std::clamp(step, first_step, last_step);
+}
+
+double Recording::end_time(double timestep) const {
+  if (!hashes.empty() && hashes.back().sim_time) return *hashes.back().sim_time;
+  return initial_time + static_cast<double>(last_step - first_step) * timestep;
 }
 
 json ReplayReport::to_json() const {
@@ -244,16 +271,9 @@ void Replayer::seek(double sim_time, std::int64_t step, Completion done) {
         "simulation seek: give sim_time (seconds) or step (the recorded run's step "
         "count), one of them",
         Failure::bad_arguments);
-  std::uint64_t target = 0;
-  if (step >= 0) {
-    target = static_cast<std::uint64_t>(step);
-  } else {
-    // the recorded run's time goes with its steps (a reset of time within it makes the times
-    // after it ambiguous: seek by step there)
-    const double steps = std::round((sim_time - rec.initial_time) / simulation_.timestep());
-    target = steps <= 0 ? rec.first_step : rec.first_step + static_cast<std::uint64_t>(steps);
-  }
-  target = std::clamp(target, rec.first_step, rec.last_step);
+  const std::uint64_t target =
+      step >= 0 ? std::clamp(static_cast<std::uint64_t>(step), rec.first_step, rec.last_step)
+                : rec.step_at(sim_time, simulation_.timestep());
   if (target < step_now() && simulation_.model_generation() != 0)
     throw ServiceError(
         "simulation seek: the model changed since the recording's start (a spawn or a delete): "
@@ -293,8 +313,7 @@ json Replayer::status() const {
           {"last_step", rec.last_step},
           {"sim_time", simulation_.sim_time()},
           {"start_time", rec.initial_time},
-          {"end_time", rec.initial_time + static_cast<double>(rec.last_step - rec.first_step) *
-                                              simulation_.timestep()},
+          {"end_time", rec.end_time(simulation_.timestep())},
           {"seeking", seek_ ? json(seek_->step) : json(nullptr)},
           {"departed_at", departed_ ? json(*departed_) : json(nullptr)}};
 }

@@ -374,6 +374,12 @@ class RecordingTest(unittest.TestCase):
                 self.assertEqual(reply["result"]["step"], step, reply)
                 status = rpc.rpc("simulation.get_replay_status")["result"]
                 self.assertEqual(status["step"], step, status)
+            # by time: the recording's time went back at step 300 (the restore): its end is
+            # 0.6 s, and 0.3 s is first reached at step 150
+            status = rpc.rpc("simulation.get_replay_status")["result"]
+            self.assertAlmostEqual(status["end_time"], 0.6, places=9)
+            self.assertEqual(rpc.rpc("simulation.seek", {"sim_time": 0.3})["result"]["step"], 150)
+            self.assertEqual(rpc.rpc("simulation.seek", {"sim_time": 0.0})["result"]["step"], 0)
             self.assertEqual(rpc.rpc("simulation.seek", {"step": 10 ** 9})["result"]["step"], 500)
             status = rpc.rpc("simulation.get_replay_status")["result"]
             self.assertIsNone(status["departed_at"], status)  # every step the recorded one

@@ -65,6 +65,7 @@ struct Recording {
   struct HashBlock {
     std::uint64_t first_step = 0;
     std::uint64_t steps = 0;
+    std::optional<double> sim_time;  // after its last step (recordings since 2026-11-30)
     std::vector<std::string> quantities;
     std::vector<std::uint32_t> hashes;  // quantities.size() per step
   };
@@ -76,6 +77,14 @@ struct Recording {
   // Reads `path`. Throws mcap::ReadError (not MCAP, corrupt: the offset named) or
   // std::runtime_error (MCAP, but no simgate recording: what is missing).
   static Recording read(const std::string& path);
+
+  // The recorded run's step count at simulated time `t`: the first step whose time (after it)
+  // reaches `t` within half a timestep, from the blocks' times (a reset or a restore in the
+  // run makes a time occur more than once: the first is taken); `timestep` fills in for a
+  // recording whose blocks carry no time. Clamped to [first_step, last_step].
+  std::uint64_t step_at(double t, double timestep) const;
+  // The simulated time after its last step.
+  double end_time(double timestep) const;
 };
 
 // The first step where the replay's state differs from the recording's.
