@@ -296,7 +296,7 @@ void Replayer::reached(std::uint64_t step) {
   }
   seek_->done(Status::success, json{{"step", step}, {"sim_time", simulation_.sim_time()}});
   seek_.reset();
-  pace_wall_ = {};  // the pace starts anew from here
+  restart_pace_ = true;  // the pace starts anew from here (serve_until_due)
 }
 
 Replayer::SeekAction Replayer::seek_action() {
@@ -329,6 +329,7 @@ void Replayer::serve_until_due(const ReplayOptions& options) {
     {
       std::lock_guard lock(*sim.gate());
       if (seek_) return;  // a seek takes the next steps as fast as it can
+      if (std::exchange(restart_pace_, false)) pace_wall_ = {};
       paused = sim.paused();
       // a client paused it: its requests are served; a `simulation step` of its own steps
       if (paused && sim.owed_steps() > 0)

@@ -176,6 +176,7 @@ class Replayer {
   // sim.steps() when the recording's first state was last put back (a seek back)
   std::uint64_t steps_base_ = 0;
   std::optional<Seek> seek_;               // under the lock
+  bool restart_pace_ = false;              // a seek was reached (under the lock)
   std::optional<std::uint64_t> departed_;  // the step the served run departed at (under the lock)
 };
 
