@@ -51,6 +51,11 @@ Sections (each ends "ok", "error" with the reason, or "skipped" when a part was 
            --mode gateway --record) vs not, alternating: steps/s with no client, `time now`
            round trip (socket) meanwhile; the replay of that recording (simgate replay --verify
            --json) vs a bare mj_step loop on the same MJCF
+  gym      issue #40: simgate.gym's env.step() steps/s over loopback (bench/gym_bench.py: the
+           cartpole of tests/python and Debian's humanoid) vs the raw JSON-RPC round trip of
+           the same batch from a bare socket loop, alternating rounds on one simgate, and vs a
+           bare mj_step loop on the same MJCF. "skipped" without gymnasium and numpy (scripts/
+           lib.sh ensure_python_test_clients) or simgate_bench_sim
 
 Usage: bench/harness.py --build-dir DIR [--out DIR] [--smoke] [--repeats N]
 Normally run through bench/run, which builds first. Writes DIR/results.json and
@@ -1200,6 +1205,63 @@ class Harness:
         return {"status": "ok", "summary": s, "samples_dropped": dropped, "speed": speed, "latency": latency,
                 "replays": replays}
 
+    def gym_pythonpath(self):
+        """Where ensure_python_test_clients installed tests/python's pins (the directory named
+        after them, as scripts/lib.sh and cmake/SimgateHelpers.cmake name it), or None."""
+        with open(os.path.join(ROOT, "tests", "python", "pypi-requirements.txt")) as f:
+            pins = [line.strip() for line in f if line.strip() and not line.startswith("#")]
+        cache = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+        path = os.path.join(cache, "simgate", "python-" + "_".join(pins).replace("==", "-"))
+        return path if os.path.isdir(path) else None
+
+    def section_gym(self):
+        """Issue #40: env.step() of simgate.gym against the raw JSON-RPC round trip of the same
+        batch (a bare socket loop on a second connection to the same simgate, alternating
+        rounds: bench/gym_bench.py) and against bare mj_step on the same MJCF."""
+        sim = os.path.join(self.bin, "simgate_bench_sim")
+        pythonpath = self.gym_pythonpath()
+        if pythonpath is None:
+            return {"status": "skipped", "reason": "gymnasium and numpy are not installed "
+                    "((source scripts/lib.sh; ensure_python_test_clients))"}
+        if not (os.access(sim, os.X_OK) and os.access(os.path.join(self.bin, "simgate"), os.X_OK)) or \
+                not all(self.plugin_built(t) for t in ("socket", "jsonrpc")):
+            return {"status": "skipped", "reason": "simgate, simgate_bench_sim or the jsonrpc transport is not built"}
+        models = {"cartpole": os.path.join(ROOT, "tests", "python", "cartpole.xml")}
+        humanoid = "/usr/share/mujoco/model/humanoid/humanoid.xml"
+        if os.path.exists(humanoid):
+            models["humanoid"] = humanoid
+        steps, rounds, bare_s = (200, 2, 0.2) if self.smoke else (3000, 4, 1.0)
+        env = dict(self.env, SIMGATE_BIN=os.path.join(self.bin, "simgate"), PYTHONNOUSERSITE="1",
+                   PYTHONPATH=pythonpath + os.pathsep + os.path.join(ROOT, "python"))
+        out = {}
+        for name, mjcf in models.items():
+            runs = []
+            for rep in range(self.repeats):
+                g, bare = in_order(rep, lambda: run_json(
+                    ["/usr/bin/python3", os.path.join(ROOT, "bench", "gym_bench.py"), "--model", mjcf,
+                     "--steps", str(steps), "--rounds", str(rounds)], self.timeout, env),
+                    lambda: run_json([sim, "--mode", "bare", "--mjcf", mjcf, "--duration", str(bare_s)],
+                                     self.timeout, self.env))
+                runs.append((g, bare))
+            rows = [r for g, _ in runs for r in g["rounds"]]
+            bares = [b["steps_per_s"] for _, b in runs]
+            out[name] = {"env_steps_per_s": spread([r["env_steps_per_s"] for r in rows]),
+                         "raw_steps_per_s": spread([r["raw_steps_per_s"] for r in rows]),
+                         "env_us": spread([r["env_us"] for r in rows]),
+                         "raw_us": spread([r["raw_us"] for r in rows]),
+                         "env_over_raw": spread([r["ratio"] for r in rows]),
+                         "bare_steps_per_s": spread(bares),
+                         "env_over_bare": spread([ratio(r["env_steps_per_s"], b) for (g, _), b in zip(runs, bares)
+                                                  for r in g["rounds"]]),
+                         "actuators": runs[0][0]["actuators"], "observation_size": runs[0][0]["observation_size"],
+                         "requests_per_step": runs[0][0]["requests_per_step"], "rounds": len(rows), "steps": steps}
+            print(f"[bench] gym {name}: env.step {out[name]['env_us']['median']:.1f} us, raw batch "
+                  f"{out[name]['raw_us']['median']:.1f} us, env/raw {out[name]['env_over_raw']['median']:.3f}",
+                  file=sys.stderr, flush=True)
+            self.target(f"simgate.gym env.step() time / the raw JSON-RPC round trip of its batch ({name})",
+                        out[name]["env_over_raw"], "<=", 1.3, "x")
+        return {"status": "ok", "summary": out}
+
     # ---- driver
 
     def machine(self):
@@ -1243,7 +1305,7 @@ class Harness:
         self.results["machine"] = self.machine()
         only = set(self.args.only.split(",")) if self.args.only else None
         for name in ("socket", "jsonrpc", "websocket", "dds", "peers", "sim", "memory", "byor", "world", "progress", "streams",
-                     "cameras", "web", "foxglove", "recording"):
+                     "cameras", "web", "foxglove", "recording", "gym"):
             if only and name not in only:
                 continue
             t0 = time.monotonic()
@@ -1625,6 +1687,24 @@ def markdown(r):
                   f"| replay: steps of a recording / steps/s / bare mj_step steps/s | {fmt(g['replay_steps'], 0)} / "
                   f"{fmt(g['replay_steps_per_s'])} / {fmt(g['bare_steps_per_s'])} |",
                   f"| replay / bare | {fmt(g['replay_ratio'], 3)} |", ""]
+
+    lines += ["## Gymnasium environment (issue #40)", ""]
+    st = status_line("gym")
+    if st:
+        lines += [st, ""]
+    else:
+        lines += ["simgate.gym's `env.step()` (one JSON-RPC batch: set_controls, lockstep_step, the observation's "
+                  "reads) against a bare socket loop sending the same batch on a second connection to the same "
+                  "simgate (json.dumps / json.loads each step), alternating rounds; and against a bare mj_step loop "
+                  "on the same MJCF (simgate_bench_sim --mode bare). Over loopback, one process each side.", "",
+                  "| model | requests / step | env.step (µs) | raw batch (µs) | env / raw | env.step steps/s | "
+                  "bare mj_step steps/s | env / bare |", "|---|---|---|---|---|---|---|---|"]
+        for name, g in s["gym"]["summary"].items():
+            lines.append(f"| {name} ({g['actuators']} actuators, {g['observation_size']} observed) | "
+                         f"{g['requests_per_step']} | {fmt(g['env_us'])} | {fmt(g['raw_us'])} | "
+                         f"{fmt(g['env_over_raw'], 3)} | {fmt(g['env_steps_per_s'], 0)} | "
+                         f"{fmt(g['bare_steps_per_s'], 0)} | {fmt(g['env_over_bare'], 4)} |")
+        lines.append("")
 
     lines += ["## Sections", "", "| section | status | seconds |", "|---|---|---|"]
     for name, sec in s.items():

@@ -97,11 +97,12 @@ endfunction()
 # simgate_pypi_pythonpath(VAR REQUIREMENTS): sets VAR (unless already set, e.g. with -DVAR=DIR) to
 # where scripts/test installs the packages pinned by REQUIREMENTS (a pypi-requirements.txt;
 # scripts/lib.sh ensure_python_test_clients): the user's cache, in a directory named after
-# the pins, named here the same way.
+# the pins, named here the same way (a change of the file configures again).
 function(simgate_pypi_pythonpath var requirements)
   if(${var})
     return()
   endif()
+  set_property(DIRECTORY APPEND PROPERTY CMAKE_CONFIGURE_DEPENDS ${requirements})
   file(STRINGS ${requirements} pins REGEX "^[^#]")
   list(JOIN pins "_" pins)
   string(REPLACE "==" "-" pins "${pins}")

@@ -78,6 +78,16 @@ class JsonRpcWire:
     def encode_batch(self, messages: List[bytes]) -> List[bytes]:
         return [b"[" + b",".join(messages) + b"]"]
 
+    def encode_many(self, ids: Sequence[Any], requests: Sequence[Tuple[str, str, Any]]) -> bytes:
+        """One batch of requests ``(component, service, params)`` under `ids`, encoded at once."""
+        batch = []
+        for ident, (component, service, params) in zip(ids, requests):
+            request: Dict[str, Any] = {"jsonrpc": "2.0", "id": ident, "method": f"{component}.{service}"}
+            if params is not None:
+                request["params"] = params
+            batch.append(request)
+        return _json(batch, allow_nan=False).encode()
+
     def encode_cancel(self, call: Call) -> bytes:
         return _json({"jsonrpc": "2.0", "method": "rpc.cancel", "params": {"id": call.id}}, False).encode()
 

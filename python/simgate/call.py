@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import logging
+import time
 from typing import TYPE_CHECKING, Any, Callable, List, Optional
 
 if TYPE_CHECKING:
@@ -31,6 +32,20 @@ class Call(concurrent.futures.Future):
         self._progress_callbacks: List[Callable[[Any], None]] = []
         self._cancel_sent = False
         self._hook: Optional[Callable[[Any], Any]] = None  # maps the result, on the reader thread
+
+    def result(self, timeout: Optional[float] = None) -> Any:
+        """The service's result, waiting up to `timeout` seconds (None: as long as it takes);
+        raises its `ServiceError`, or `concurrent.futures.TimeoutError`.
+
+        While no other thread reads the connection, the calling thread reads it itself until
+        the reply comes (handling whatever else arrives meanwhile: other calls' replies,
+        progress, samples), which spares a hand-off from the reader thread."""
+        if not self.done() and self.id is not None:
+            deadline = None if timeout is None else time.monotonic() + timeout
+            self._client._read_for(self, deadline)
+            if deadline is not None:
+                timeout = max(0.0, deadline - time.monotonic())
+        return super().result(timeout)
 
     def on_progress(self, fn: Callable[[Any], None]) -> None:
         """Call `fn(data)` for every progress report from now on (on the reader thread)."""

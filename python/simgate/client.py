@@ -20,12 +20,13 @@ import concurrent.futures
 import logging
 import math
 import threading
+import time
 import urllib.parse
-from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 from . import errors
 from ._services import Adapter, Namespace, ServiceInfo, ServiceMethod, did_you_mean
-from ._transport import LineTransport, WebSocketTransport
+from ._transport import LineTransport, WebSocketTransport, wait_readable
 from ._wires import JsonRpcWire, MorseWire
 from .call import Call
 from .errors import ConnectionClosed
@@ -158,6 +159,11 @@ class Client(_WorldControl):
         self.timeout = timeout
         self._token = token
         self._lock = threading.Lock()
+        self._read_lock = threading.RLock()  # the read role (see _read); reentrant for callbacks
+        self._role_cond = threading.Condition()  # guards the counters below; signals releases
+        self._role_releases = 0  # how many times the read role was given up
+        self._role_waiters = 0  # callers waiting for the role or their call
+        self._last_caller_read = 0.0  # time.monotonic() when a caller last held the role
         self._pending: Dict[Any, Call] = {}
         self._subscriptions: Dict[Any, Subscription] = {}
         self._morse_streams: List[Subscription] = []
@@ -192,23 +198,132 @@ class Client(_WorldControl):
             self._transport.close()
             raise errors.NotAuthorized(f"{self.url}: the token was refused: {reply!r}")
 
-    # ---- the reader thread
+    # ---- reading: the read role
+    # One thread at a time reads the connection: the one holding `_read_lock`. A thread
+    # blocked on a call's result (`Call.result`, `_read_for`) takes the role when it is free
+    # and reads until its call is done: its reply costs no hand-off between threads. The
+    # reader thread reads whenever no caller has read for `_STANDBY` seconds (so it does not
+    # wake at each reply of a caller stepping in a loop): what arrives for nobody's waiting
+    # call (progress, samples, a reply awaited through asyncio) is handled by the next
+    # caller to read, or by the reader thread within `_STANDBY`. Whoever reads handles every
+    # message it reads, and leaves the buffer with no whole message in it when it gives the
+    # role up, so that what is left to read keeps the socket readable for the reader thread.
+    _STANDBY = 0.005
+
     def _read(self) -> None:
-        reason = "the server closed the connection"
+        transport = self._transport
+        reason = None
         try:
-            while True:
-                message = self._transport.receive()
-                if message is None:
-                    break
-                if not message.strip():
-                    continue
+            while reason is None:
+                self._stand_aside()
+                wait_readable(transport._sock, None)
+                self._read_lock.acquire()
                 try:
-                    self._wire.handle(self, message)
-                except Exception:  # a message we cannot read must not end the connection
-                    log.exception("simgate: could not handle a message from %s: %r", self.url, message[:200])
+                    if not transport.fill(0):
+                        reason = self._end_reason()
+                    self._drain()
+                finally:
+                    self._give_role(False)
         except Exception as e:  # noqa: BLE001 - the connection ends, saying why
             reason = f"the connection was lost: {e}"
         self._shut(reason)
+
+    def _stand_aside(self) -> None:
+        """Wait until no caller has read for `_STANDBY` seconds (or the client closes)."""
+        with self._role_cond:
+            while self._closed_reason is None:
+                idle = time.monotonic() - self._last_caller_read
+                if idle >= self._STANDBY:
+                    return
+                self._role_cond.wait(self._STANDBY - idle)
+
+    def _give_role(self, by_caller: bool) -> None:
+        if by_caller:
+            self._last_caller_read = time.monotonic()
+        self._read_lock.release()
+        with self._role_cond:
+            self._role_releases += 1
+            if self._role_waiters:
+                self._role_cond.notify_all()
+
+    def _wake_role_waiters(self, _call: Any = None) -> None:
+        with self._role_cond:
+            self._role_cond.notify_all()
+
+    def _read_for(self, call: Call, deadline: Optional[float]) -> None:
+        """Read on this thread until `call` is done or `deadline` (time.monotonic()) passes.
+        While another thread reads, wait until it completes the call or gives the role up."""
+        if self._read_lock.acquire(blocking=False):
+            self._read_holding(call, deadline)
+            return
+        call.add_done_callback(self._wake_role_waiters)
+        with self._role_cond:
+            self._role_waiters += 1
+        try:
+            while not call.done():
+                with self._role_cond:
+                    releases = self._role_releases
+                if self._read_lock.acquire(blocking=False):
+                    self._read_holding(call, deadline)
+                    return
+                with self._role_cond:
+                    while releases == self._role_releases and not call.done() \
+                            and self._closed_reason is None:
+                        timeout = None if deadline is None else deadline - time.monotonic()
+                        if timeout is not None and timeout <= 0:
+                            return
+                        self._role_cond.wait(timeout)
+                    if self._closed_reason is not None:
+                        return
+        finally:
+            with self._role_cond:
+                self._role_waiters -= 1
+
+    def _read_holding(self, call: Call, deadline: Optional[float]) -> None:
+        """`_read_for` with the read role taken: read until `call` is done or `deadline`."""
+        self._last_caller_read = time.monotonic()
+        transport = self._transport
+        reason = None
+        try:
+            while not call.done():
+                message = transport.take()
+                if message is not None:
+                    self._handle(message)
+                    continue
+                timeout = None if deadline is None else deadline - time.monotonic()
+                if timeout is not None and timeout <= 0:
+                    break
+                if not transport.fill(timeout):
+                    reason = self._end_reason()
+                    break
+            self._drain()
+        except Exception as e:  # noqa: BLE001 - the connection ends, saying why
+            reason = f"the connection was lost: {e}"
+        finally:
+            self._give_role(True)
+        if reason is not None:
+            self._transport.close()
+            self._shut(reason)
+
+    def _drain(self) -> None:
+        """Handle every whole message the buffer holds (the read lock held)."""
+        while True:
+            message = self._transport.take()
+            if message is None:
+                return
+            self._handle(message)
+
+    def _handle(self, message: bytes) -> None:
+        if not message.strip():
+            return
+        try:
+            self._wire.handle(self, message)
+        except Exception:  # a message we cannot read must not end the connection
+            log.exception("simgate: could not handle a message from %s: %r", self.url, message[:200])
+
+    def _end_reason(self) -> str:
+        error = self._transport.error
+        return "the server closed the connection" if error is None else f"the connection was lost: {error}"
 
     def _shut(self, reason: str) -> None:
         with self._lock:
@@ -216,6 +331,7 @@ class Client(_WorldControl):
                 self._closed_reason = reason
             pending, self._pending = self._pending, {}
             subscriptions, self._subscriptions = list(self._subscriptions.values()), {}
+        self._wake_role_waiters()
         message = f"{self.url}: {self._closed_reason}"
         for call in pending.values():
             if not call.done():
@@ -228,6 +344,9 @@ class Client(_WorldControl):
             call = self._pending.pop(ident, None)
         if call is None:
             log.debug("simgate: a reply to no pending call (id %r)", ident)
+            return
+        if isinstance(call, _Many):
+            call._reply(ident, result, error)
             return
         if error is not None:
             call.set_exception(self._wire.error(call, error))
@@ -354,6 +473,61 @@ class Client(_WorldControl):
         the same two physics steps, in order) or one write of socket lines. See `Batch`."""
         return Batch(self)
 
+    def call_many(self, requests: Sequence[Tuple[str, str, Any]],
+                  timeout: Optional[float] = ...) -> List[Any]:  # type: ignore[assignment]
+        """Call several services in one message and return their results, in order, once all
+        have come: ``[(component, service, params), ...]``, `params` a dict (named), a list
+        (positional) or None.
+
+        On ``jsonrpc://`` and ``ws://`` it is one JSON-RPC batch (run between the same two
+        physics steps, in order) followed by one future for all of its replies: the cheapest
+        round trip for an action, a step and an observation (what `simgate.gym` does at each
+        step). On ``socket://``, one write of lines. When a call failed, its error is raised
+        (the first by position) once every reply has come. `timeout` (seconds) bounds the
+        wait: the connection's when every service is known to be synchronous, else none."""
+        if timeout is ...:
+            known = [self.services.get(f"{c}.{s}") if self._services is not None else None
+                     for c, s, _ in requests]
+            timeout = self.timeout if known and all(i is not None and not i.is_async for i in known) else None
+        if not isinstance(self._wire, JsonRpcWire):
+            batch: List[bytes] = []
+            calls = [self._submit(c, s, p if isinstance(p, (list, tuple)) else (),
+                                  p if isinstance(p, dict) else None, batch=batch)
+                     for c, s, p in requests]
+            self._send(self._wire.encode_batch(batch))
+            done = [self._outcome(call, timeout) for call in calls]
+        else:
+            many = _Many(self, [f"{c}.{s}" for c, s, _ in requests])
+            with self._lock:
+                if self._closed_reason is not None:
+                    raise ConnectionClosed(f"{many.method}: {self.url}: {self._closed_reason}")
+                many.ids = [self._wire.new_id() for _ in requests]
+                many.id = many.ids[0]
+                for ident in many.ids:
+                    self._pending[ident] = many
+            try:
+                message = self._wire.encode_many(many.ids, requests)
+            except BaseException:
+                with self._lock:
+                    for ident in many.ids:
+                        self._pending.pop(ident, None)
+                raise
+            self._send([message])
+            try:
+                done = many.result(timeout)
+            except concurrent.futures.TimeoutError:
+                raise TimeoutError(f"{many.method}: no reply within {timeout} s") from None
+        for _, error in done:
+            if error is not None:
+                raise error
+        return [result for result, _ in done]
+
+    def _outcome(self, call: Call, timeout: Optional[float]) -> Tuple[Any, Optional[BaseException]]:
+        try:
+            return self._wait(call, timeout), None
+        except errors.ServiceError as e:
+            return None, e
+
     def subscribe(self, component: str, buffer: int = 64) -> Subscription:
         """Subscribe to `component`'s output stream (docs/streams.md): a `Subscription`
         keeping the latest `buffer` samples not read yet."""
@@ -445,6 +619,7 @@ class Client(_WorldControl):
             if self._closed_reason is None:
                 self._closed_reason = "closed by the client"
         self._transport.close()
+        self._wake_role_waiters()  # the reader thread standing aside sees the end
         if isinstance(self._wire, MorseWire):
             self._wire.close()
         for sub in list(self._morse_streams):
@@ -462,6 +637,33 @@ class Client(_WorldControl):
     def __repr__(self) -> str:
         return f"<simgate.Client {self.url}{' closed' if self.closed else ''}>"
 
+
+
+class _Many(Call):
+    """The future of `Client.call_many`'s JSON-RPC batch: registered under each of its
+    requests' ids, done when every reply has come; its result is ``[(result, error), ...]``
+    in the requests' order."""
+
+    def __init__(self, client: Client, methods: List[str]) -> None:
+        super().__init__(client, "batch of " + ", ".join(methods), False)
+        self.methods = methods
+        self.ids: List[Any] = []
+        self._outcomes: List[Any] = [None] * len(methods)
+        self._left = len(methods)
+
+    def _reply(self, ident: Any, result: Any, error: Any) -> None:
+        """One reply (on the thread that reads; the replies of one batch come in one message,
+        read by one thread)."""
+        i = self.ids.index(ident)
+        self._outcomes[i] = (result, None if error is None else errors.from_jsonrpc(
+            error if isinstance(error, dict) else {"message": str(error)}, self.methods[i]))
+        self._left -= 1
+        if self._left == 0 and not self.done():
+            self.set_result(self._outcomes)
+
+    def cancel(self) -> bool:
+        """A batch's calls are not cancelled one by one: always False."""
+        return False
 
 
 class _Deferred:

@@ -31,7 +31,7 @@ import time
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
 SECTIONS = ("socket", "jsonrpc", "dds", "peers", "sim", "memory", "byor", "world", "progress", "streams", "cameras", "web",
-            "recording")
+            "recording", "gym")
 
 passed, failed = 0, 0
 
