@@ -194,6 +194,8 @@ class FoxgloveServer : public RequestManager, private kit::WebSocketServer {
   bool playback_offered() const;
   bool rewind_offered() const;
   bool seek_offered() const;
+  // Whether this transport serves `component`'s `service`.
+  bool serves(std::string_view component, std::string_view service) const;
   // A served replay: asks the recording's span (replay_range_) once, at start.
   void ask_replay_range();
   std::pair<std::uint64_t, std::uint64_t> playback_range();

@@ -29,23 +29,19 @@ struct FoxgloveServer::PlaybackRequest {
   std::vector<std::string> failures;
 };
 
+bool FoxgloveServer::serves(std::string_view component, std::string_view service) const {
+  return std::any_of(services_.begin(), services_.end(), [&](const ServiceDef& s) {
+    return s.component == component && s.service == service;
+  });
+}
+
 bool FoxgloveServer::playback_offered() const {
-  bool play = false, pause = false, scale = false;
-  for (const ServiceDef& s : services_) {
-    play = play || (s.component == "simulation" && s.service == "play");
-    pause = pause || (s.component == "simulation" && s.service == "pause");
-    scale = scale || (s.component == "time" && s.service == "set_time_scale");
-  }
-  return play && pause && scale;
+  return serves("simulation", "play") && serves("simulation", "pause") &&
+         serves("time", "set_time_scale");
 }
 
 bool FoxgloveServer::seek_offered() const {
-  bool seek = false, status = false;
-  for (const ServiceDef& s : services_) {
-    seek = seek || (s.component == "simulation" && s.service == "seek");
-    status = status || (s.component == "simulation" && s.service == "get_replay_status");
-  }
-  return seek && status;
+  return serves("simulation", "seek") && serves("simulation", "get_replay_status");
 }
 
 void FoxgloveServer::ask_replay_range() {
@@ -55,13 +51,8 @@ void FoxgloveServer::ask_replay_range() {
 }
 
 bool FoxgloveServer::rewind_offered() const {
-  if (settings_.rewind_interval_s <= 0 || settings_.time_hz <= 0 || seek_offered()) return false;
-  bool save = false, restore = false;
-  for (const ServiceDef& s : services_) {
-    save = save || (s.component == "simulation" && s.service == "save_state");
-    restore = restore || (s.component == "simulation" && s.service == "restore_state");
-  }
-  return save && restore;
+  return settings_.rewind_interval_s > 0 && settings_.time_hz > 0 && !seek_offered() &&
+         serves("simulation", "save_state") && serves("simulation", "restore_state");
 }
 
 double FoxgloveServer::simulated_time() {
