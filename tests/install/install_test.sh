@@ -141,7 +141,7 @@ exercise() {
   for config in "$config_dir"/*.json; do
     # a config naming a transport this build did not install (dds without Cyclone) is not checked
     local missing=""
-    for plugin in $(grep -o '"plugin": *"[a-z]*"' "$config" | sed 's/.*"\([a-z]*\)"$/\1/'); do
+    for plugin in $(grep -o '"plugin": *"[a-z0-9]*"' "$config" | sed 's/.*"\([a-z0-9]*\)"$/\1/'); do
       [ -f "$prefix/$LIBDIR/simgate/plugins/libsimgate_transport_$plugin.so" ] || missing=$plugin
     done
     if [ -n "$missing" ]; then

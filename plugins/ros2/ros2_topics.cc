@@ -1,0 +1,459 @@
+// The data streams as ROS 2 topics: which stream becomes which topic, the messages filled from
+// the samples, the cmd_vel commands. Design: ros2_topics.h, docs/transports/ros2.md.
+#include "ros2_topics.h"
+
+#include <algorithm>
+#include <stdexcept>
+#include <string_view>
+
+#include "dds_support.h"
+#include "ros2_msgs.h"
+#include "ros2_types.h"
+#include "simgate/core/log.h"
+
+namespace simgate::ros2 {
+
+namespace {
+
+// Samples a subscription keeps: the DDS thread writes them as soon as it wakes, so a few
+// cover its scheduling hiccups; older ones are dropped (counted by the hub).
+constexpr std::size_t k_subscription_capacity = 8;
+// Twists one dds_take returns at most.
+constexpr int k_command_take_batch = 16;
+// History depths: ROS 2's default profile (keep-last 10); tf2's broadcaster's for /tf.
+constexpr int32_t k_default_depth = 10;
+constexpr int32_t k_tf_depth = 100;
+
+using dds::check_created;
+using dds::make_qos;
+using dds::QosPtr;
+
+char* c_str(const std::string& s) { return const_cast<char*>(s.c_str()); }
+
+// The message structs are filled member by member, by name: never by position, so that the
+// code does not depend on the order of the IDL's fields (which is the wire's).
+builtin_interfaces_msg_dds__Time_ stamp(double seconds) {
+  const RosTime t = to_ros_time(seconds);
+  builtin_interfaces_msg_dds__Time_ out{};
+  out.sec = t.sec;
+  out.nanosec = t.nanosec;
+  return out;
+}
+
+geometry_msgs_msg_dds__Vector3_ vector3(const std::array<double, 3>& v) {
+  geometry_msgs_msg_dds__Vector3_ out{};
+  out.x = v[0];
+  out.y = v[1];
+  out.z = v[2];
+  return out;
+}
+
+geometry_msgs_msg_dds__Point_ point(const std::array<double, 3>& v) {
+  geometry_msgs_msg_dds__Point_ out{};
+  out.x = v[0];
+  out.y = v[1];
+  out.z = v[2];
+  return out;
+}
+
+// (w, x, y, z) as ROS's Quaternion
+geometry_msgs_msg_dds__Quaternion_ quaternion(const std::array<double, 4>& q) {
+  geometry_msgs_msg_dds__Quaternion_ out{};
+  out.w = q[0];
+  out.x = q[1];
+  out.y = q[2];
+  out.z = q[3];
+  return out;
+}
+
+void fill(geometry_msgs_msg_dds__TransformStamped_& out, const FrameTransform& in, double time) {
+  out.header.stamp = stamp(time);
+  out.header.frame_id = c_str(*in.parent);
+  out.child_frame_id = c_str(*in.child);
+  out.transform.translation = vector3(in.pose.position);
+  out.transform.rotation = quaternion(in.pose.rotation);
+}
+
+dds_return_t write_transforms(dds_entity_t writer, const std::vector<FrameTransform>& transforms,
+                              double time) {
+  std::vector<geometry_msgs_msg_dds__TransformStamped_> items(transforms.size());
+  for (std::size_t i = 0; i < transforms.size(); ++i) fill(items[i], transforms[i], time);
+  tf2_msgs_msg_dds__TFMessage_ message{};
+  message.transforms._maximum = message.transforms._length = static_cast<uint32_t>(items.size());
+  message.transforms._buffer = items.data();
+  message.transforms._release = false;
+  return dds_write(writer, &message);
+}
+
+const char* role_name(int role) {
+  static const char* const k_names[] = {"/tf", "odom", "odom", "joint_states"};
+  return k_names[role];
+}
+
+}  // namespace
+
+struct Ros2Topics::Output {
+  StreamInfo info;
+  Role role = Role::tf;
+  std::string topic;           // the ROS topic name: "/robot/odom"
+  std::string frame_id;        // odometry: the header's frame
+  std::string child_frame_id;  // odometry: the child frame
+  dds_entity_t writer = 0;
+  std::shared_ptr<StreamSubscription> subscription;  // to the hub
+  bool shape_logged = false;  // a sample not of the message's shape was logged
+};
+
+struct Ros2Topics::Input {
+  StreamInfo info;
+  std::string topic;  // "/robot/cmd_vel"
+  dds_entity_t reader = 0;
+  dds_entity_t condition = 0;  // its read condition, in the waitset
+};
+
+Ros2Topics::Ros2Topics(std::shared_ptr<StreamHub> hub, Settings settings, dds_entity_t participant,
+                       dds_entity_t waitset, dds_entity_t guard)
+    : hub_(std::move(hub)),
+      settings_(std::move(settings)),
+      participant_(participant),
+      waitset_(waitset),
+      guard_(guard) {}
+
+Ros2Topics::~Ros2Topics() {
+  for (auto& [component, output] : outputs_) hub_->unsubscribe(output->subscription);
+}
+
+dds_entity_t Ros2Topics::topic(const std::string& name, const dds_topic_descriptor_t* descriptor) {
+  auto it = topics_.find(name);
+  if (it != topics_.end()) return it->second;
+  // announced by name only, as ROS 2's types are (ros2_types.h)
+  dds_entity_t created = check_created(
+      dds_create_topic(participant_, name_only(*descriptor), name.c_str(), nullptr, nullptr),
+      "topic " + name);
+  topics_.emplace(name, created);
+  return created;
+}
+
+std::string Ros2Topics::robot_namespace(const std::string& robot) {
+  const std::string token = to_ros_token(robot);
+  auto [it, added] = namespaces_.emplace(token, robot);
+  if (!added && it->second != robot) return {};
+  return "/" + token;
+}
+
+void Ros2Topics::plan(const std::vector<StreamInfo>& listed, std::map<std::string, Role>& outputs,
+                      std::set<std::string>& inputs) {
+  // per robot: the odometry source (an integrated odometry before a pose), the first joint
+  // stream, the first velocity input
+  std::map<std::string, std::string> odometry, pose, joints, velocity;
+  for (const StreamInfo& info : listed) {
+    if (info.component == "simulation" && info.kind == "body_poses") {
+      if (settings_.tf) outputs.emplace(info.component, Role::tf);
+      continue;
+    }
+    const std::string robot = robot_of(info.component);
+    if (robot.empty() || (!settings_.all_robots && !settings_.robots.count(robot))) continue;
+    std::map<std::string, std::string>* slot = info.direction == StreamDirection::in
+                                                   ? (info.kind == "velocity" ? &velocity : nullptr)
+                                                   : (info.kind == "odometry"      ? &odometry
+                                                      : info.kind == "pose"        ? &pose
+                                                      : info.kind == "joint_state" ? &joints
+                                                                                   : nullptr);
+    if (slot && slot->emplace(robot, info.component).second) continue;
+    if (skipped_logged_.insert(info.component).second)
+      log::info("ros2 transport: the ", info.kind, " stream of ", info.component,
+                " has no ROS 2 topic ",
+                slot ? "(its robot has another stream of that kind already)"
+                     : "in this version (docs/transports/ros2.md, Topics)");
+  }
+  for (const auto& [robot, component] : odometry) outputs.emplace(component, Role::odometry);
+  for (const auto& [robot, component] : pose)
+    if (!odometry.count(robot)) outputs.emplace(component, Role::pose_odometry);
+  for (const auto& [robot, component] : joints) outputs.emplace(component, Role::joint_states);
+  for (const auto& [robot, component] : velocity) inputs.insert(component);
+}
+
+bool Ros2Topics::sync() {
+  const std::vector<StreamInfo> listed = hub_->streams(settings_.transport);
+  std::map<std::string, Role> wanted_outputs;
+  std::set<std::string> wanted_inputs;
+  plan(listed, wanted_outputs, wanted_inputs);
+  if (!robots_checked_) {
+    // a robot named in the "robots" option with no stream here is most likely a typo
+    robots_checked_ = true;
+    std::set<std::string> streaming;
+    for (const StreamInfo& info : listed) streaming.insert(robot_of(info.component));
+    streaming.erase("");
+    for (const std::string& robot : settings_.robots)
+      if (!streaming.count(robot)) {
+        std::string known;
+        for (const std::string& name : streaming) known += (known.empty() ? "" : ", ") + name;
+        log::warning("ros2 transport: robot '", robot,
+                     "' (option \"robots\") has no stream carried by this transport (robots "
+                     "with streams here: ",
+                     known.empty() ? "none" : known, "; map their streams to it in \"streams\")");
+      }
+  }
+  bool changed = false;
+  // those that went (or now have another role), or whose stream closed
+  for (auto it = outputs_.begin(); it != outputs_.end();) {
+    auto wanted = wanted_outputs.find(it->first);
+    const bool closed = it->second->subscription && it->second->subscription->closed();
+    if (wanted != wanted_outputs.end() && wanted->second == it->second->role && !closed) {
+      ++it;
+      continue;
+    }
+    remove_output(*it->second);
+    it = outputs_.erase(it);
+    changed = true;
+  }
+  for (auto it = inputs_.begin(); it != inputs_.end();) {
+    if (wanted_inputs.count(it->first)) {
+      ++it;
+      continue;
+    }
+    remove_input(*it->second);
+    it = inputs_.erase(it);
+    changed = true;
+  }
+  // those that came
+  for (const StreamInfo& info : listed) {
+    try {
+      if (auto role = wanted_outputs.find(info.component);
+          role != wanted_outputs.end() && !outputs_.count(info.component)) {
+        add_output(info, role->second);
+        changed = true;
+      } else if (wanted_inputs.count(info.component) && !inputs_.count(info.component)) {
+        add_input(info);
+        changed = true;
+      }
+    } catch (const std::exception& e) {
+      log::error("ros2 transport: the stream of '", info.component, "' is not carried: ", e.what());
+    }
+  }
+  return changed;
+}
+
+void Ros2Topics::add_output(const StreamInfo& info, Role role) {
+  auto output = std::make_unique<Output>();
+  output->info = info;
+  output->role = role;
+  const dds_topic_descriptor_t* descriptor = nullptr;
+  int32_t depth = k_default_depth;
+  if (role == Role::tf) {
+    output->topic = "/tf";
+    descriptor = &tf2_msgs_msg_dds__TFMessage__desc;
+    depth = k_tf_depth;
+    // the sensing frames: every one in one message, kept for late joiners
+    if (tf_static_writer_ == 0) {
+      QosPtr qos = make_qos(true, 1, 0);
+      tf_static_writer_ = check_created(
+          dds_create_writer(participant_, topic(dds_topic_name("/tf_static"), descriptor),
+                            qos.get(), nullptr),
+          "writer /tf_static");
+    }
+  } else {
+    const std::string robot = robot_of(info.component);
+    const std::string ns = robot_namespace(robot);
+    if (ns.empty())
+      throw std::runtime_error("robot '" + robot + "' would have namespace /" +
+                               to_ros_token(robot) + ", which another robot has");
+    const std::string frame_root = ns.substr(1);
+    if (role == Role::joint_states) {
+      output->topic = ns + "/joint_states";
+      descriptor = &sensor_msgs_msg_dds__JointState__desc;
+    } else {
+      output->topic = ns + "/odom";
+      descriptor = &nav_msgs_msg_dds__Odometry__desc;
+      // integrated odometry: from where its sensor started, of its sensing frame; a pose: in
+      // the world, of the robot (its frame named as the robot)
+      output->frame_id = role == Role::odometry ? frame_root + "/odom" : settings_.world_frame;
+      output->child_frame_id =
+          role == Role::odometry ? component_frame(info.component) : frame_root;
+    }
+  }
+  QosPtr qos = make_qos(false, depth, 0);
+  output->writer = check_created(
+      dds_create_writer(participant_, topic(dds_topic_name(output->topic), descriptor), qos.get(),
+                        nullptr),
+      "writer " + output->topic);
+  SubscriberOptions options{k_subscription_capacity, "ros2 topic " + output->topic, {}, {}};
+  const dds_entity_t guard = guard_;
+  options.wake = [guard] { dds_set_guardcondition(guard, true); };
+  output->subscription = hub_->subscribe(info.component, settings_.transport, std::move(options));
+  if (!output->subscription) {
+    dds_delete(output->writer);
+    return;  // gone meanwhile
+  }
+  log::info("ros2 transport: ", info.component, " on ", output->topic, " (", descriptor->m_typename,
+            ")");
+  outputs_.emplace(info.component, std::move(output));
+}
+
+void Ros2Topics::add_input(const StreamInfo& info) {
+  const std::string robot = robot_of(info.component);
+  const std::string ns = robot_namespace(robot);
+  if (ns.empty())
+    throw std::runtime_error("robot '" + robot + "' would have namespace /" + to_ros_token(robot) +
+                             ", which another robot has");
+  auto input = std::make_unique<Input>();
+  input->info = info;
+  input->topic = ns + "/cmd_vel";
+  QosPtr qos = make_qos(false, k_default_depth, 0);
+  input->reader = check_created(
+      dds_create_reader(participant_,
+                        topic(dds_topic_name(input->topic), &geometry_msgs_msg_dds__Twist__desc),
+                        qos.get(), nullptr),
+      "reader " + input->topic);
+  input->condition = check_created(dds_create_readcondition(input->reader, DDS_ANY_STATE),
+                                   "read condition " + input->topic);
+  check_created(dds_waitset_attach(waitset_, input->condition, k_token_commands),
+                "waitset attachment " + input->topic);
+  log::info("ros2 transport: ", input->topic, " (geometry_msgs/msg/Twist) into ", info.component);
+  inputs_.emplace(info.component, std::move(input));
+}
+
+void Ros2Topics::remove_output(Output& output) {
+  hub_->unsubscribe(output.subscription);
+  dds_delete(output.writer);
+  log::info("ros2 transport: ", output.topic, " ended (", output.info.component, " is gone)");
+}
+
+void Ros2Topics::remove_input(Input& input) {
+  dds_waitset_detach(waitset_, input.condition);
+  dds_delete(input.reader);  // its read condition goes with it
+  log::info("ros2 transport: ", input.topic, " ended (", input.info.component, " is gone)");
+}
+
+void Ros2Topics::endpoints(std::vector<dds_entity_t>& writers,
+                           std::vector<dds_entity_t>& readers) const {
+  if (tf_static_writer_ > 0) writers.push_back(tf_static_writer_);
+  for (const auto& [component, output] : outputs_) writers.push_back(output->writer);
+  for (const auto& [component, input] : inputs_) readers.push_back(input->reader);
+}
+
+bool Ros2Topics::take_geometry_wanted() {
+  const bool wanted = geometry_wanted_ && outputs_.count("simulation") > 0;
+  geometry_wanted_ = false;
+  return wanted;
+}
+
+void Ros2Topics::set_geometry(const json& geometry) {
+  frames_ = FrameTree::from_geometry(geometry, settings_.world_frame);
+  write_static();
+}
+
+void Ros2Topics::write_static() {
+  if (tf_static_writer_ == 0 || !frames_.known() || static_written_ == frames_.generation) return;
+  const std::vector<FrameTransform> fixed = fixed_transforms(frames_);
+  const dds_return_t rc = write_transforms(tf_static_writer_, fixed, hub_->time());
+  if (rc < 0) {
+    log::error("ros2 transport: /tf_static not written: ", dds::retcode_text(rc));
+    return;
+  }
+  static_written_ = frames_.generation;
+}
+
+void Ros2Topics::write_samples() {
+  for (auto& [component, output] : outputs_) {
+    taken_.clear();
+    output->subscription->take(taken_);
+    for (const SamplePtr& sample : taken_) {
+      dds_return_t rc = 0;
+      try {
+        switch (output->role) {
+          case Role::tf: rc = write_tf(*output, *sample); break;
+          case Role::odometry:
+          case Role::pose_odometry: rc = write_odometry(*output, *sample); break;
+          case Role::joint_states: rc = write_joint_states(*output, *sample); break;
+        }
+      } catch (const std::exception& e) {
+        // a component whose samples do not have its kind's shape (a component library's)
+        if (!output->shape_logged)
+          log::warning("ros2 transport: a sample of ", component, " does not fit ",
+                       role_name(static_cast<int>(output->role)), " (", e.what(),
+                       "); such samples are dropped (logged once)");
+        output->shape_logged = true;
+        output->subscription->note_dropped(1);
+        continue;
+      }
+      if (rc < 0) output->subscription->note_dropped(1);
+    }
+  }
+  taken_.clear();
+}
+
+dds_return_t Ros2Topics::write_tf(Output& output, const StreamSample& sample) {
+  if (!body_transforms(sample.data(), frames_, transforms_)) {
+    // another model (a spawn, a delete), or none known yet: its frames first (the sample is
+    // skipped: no reader was slow)
+    geometry_wanted_ = true;
+    return 0;
+  }
+  return write_transforms(output.writer, transforms_, sample.time());
+}
+
+dds_return_t Ros2Topics::write_odometry(Output& output, const StreamSample& sample) {
+  OdometryValues values;
+  if (output.role == Role::odometry) {
+    static constexpr std::string_view k_keys[] = {"x",  "y",  "z",  "roll", "pitch", "yaw",
+                                                  "vx", "vy", "vz", "wx",   "wy",    "wz"};
+    std::array<double, 12> numbers;
+    sample.numbers(k_keys, numbers);
+    values = odometry_from_integrated(numbers);
+  } else {
+    static constexpr std::string_view k_keys[] = {"x", "y", "z", "roll", "pitch", "yaw"};
+    std::array<double, 6> numbers;
+    sample.numbers(k_keys, numbers);
+    values = odometry_from_pose(numbers);
+  }
+  nav_msgs_msg_dds__Odometry_ message{};
+  message.header.stamp = stamp(sample.time());
+  message.header.frame_id = c_str(output.frame_id);
+  message.child_frame_id = c_str(output.child_frame_id);
+  const Pose& pose = values.pose;
+  message.pose.pose.position = point(pose.position);
+  message.pose.pose.orientation = quaternion(pose.rotation);
+  message.twist.twist.linear = vector3(values.linear);
+  message.twist.twist.angular = vector3(values.angular);
+  // a pose sample has no velocity: its twist is unknown (-1 first, as sensor_msgs marks an
+  // unknown estimate)
+  if (!values.twist_known) message.twist.covariance[0] = -1;
+  return dds_write(output.writer, &message);
+}
+
+dds_return_t Ros2Topics::write_joint_states(Output& output, const StreamSample& sample) {
+  const JointPositions joints = joint_positions(sample.data());
+  std::vector<char*> names;
+  names.reserve(joints.names.size());
+  for (const std::string& name : joints.names) names.push_back(c_str(name));
+  sensor_msgs_msg_dds__JointState_ message{};
+  message.header.stamp = stamp(sample.time());
+  message.header.frame_id = const_cast<char*>("");
+  const auto count = static_cast<uint32_t>(names.size());
+  message.name._maximum = message.name._length = count;
+  message.name._buffer = names.data();
+  message.position._maximum = message.position._length = count;
+  message.position._buffer = const_cast<double*>(joints.positions.data());
+  // velocity and effort: empty (the stream has positions; JointState allows empty arrays)
+  return dds_write(output.writer, &message);
+}
+
+void Ros2Topics::take_commands() {
+  for (auto& [component, input] : inputs_) {
+    void* samples[k_command_take_batch] = {};
+    dds_sample_info_t infos[k_command_take_batch];
+    const dds_return_t n =
+        dds_take(input->reader, samples, infos, k_command_take_batch, k_command_take_batch);
+    // the latest Twist of the batch is what counts (the hub keeps only the latest anyway)
+    const geometry_msgs_msg_dds__Twist_* latest = nullptr;
+    for (dds_return_t i = 0; i < n; ++i)
+      if (infos[i].valid_data)
+        latest = static_cast<const geometry_msgs_msg_dds__Twist_*>(samples[i]);
+    if (latest)
+      hub_->publish(component, settings_.transport,
+                    velocity_command(latest->linear.x, latest->angular.z));
+    if (n > 0) dds_return_loan(input->reader, samples, n);
+  }
+}
+
+}  // namespace simgate::ros2

@@ -1,0 +1,124 @@
+// simgate/ros2 topics — the simulation's data streams as ROS 2 topics (issue #41): the
+// `simulation` component's body_poses as /tf (and the components' sensing frames as
+// /tf_static), each robot's odometry (or pose) as /<robot>/odom, its armature_pose as
+// /<robot>/joint_states, and /<robot>/cmd_vel read into its motion_vw stream.
+//
+// Terms:
+//  - robot: the part of a component's name before its first '.'; its ROS namespace is
+//    "/<robot as a ROS token>" (ros2_mapping.h). A robot with an "odometry" stream (level
+//    integrated) has its /odom from it; one with only a "pose" stream, from that.
+//  - frame tree: the model's bodies, read once per model generation from
+//    `simulation get_scene_geometry` (the transport asks: want_geometry()), then
+//    set_geometry(); until it comes (and after a spawn or a delete, until the new one comes)
+//    body_poses samples are not written.
+//  - output: one StreamSubscription (a few samples deep, latest kept) and one writer per
+//    topic, reliable, volatile, keep-last (ROS 2's defaults: 10; /tf 100, as tf2's
+//    broadcaster). /tf_static: reliable, transient-local, keep-last 1, one message holding
+//    every fixed frame (what tf2's static broadcaster does).
+//  - input: /<robot>/cmd_vel, geometry_msgs/Twist, reliable, volatile, keep-last 10: each
+//    Twist goes to StreamHub::publish as {v: linear.x, w: angular.z} (applied at once when the
+//    simulation lock is free, else the latest waits for the next turn; refusals counted by
+//    the hub).
+//
+// Life cycle: made by the transport in start() (host thread); sync() on the DDS thread makes
+// the endpoints of the streams the hub lists (and later of those that come, and deletes those
+// of streams that went); destroyed after the DDS thread is joined (unsubscribes; its entities
+// go with the participant).
+//
+// Threads: everything on the DDS thread, except the subscriptions' wake (the simulation
+// thread, under its lock), which only raises the transport's guard condition.
+#ifndef SIMGATE_PLUGINS_ROS2_ROS2_TOPICS_H_
+#define SIMGATE_PLUGINS_ROS2_ROS2_TOPICS_H_
+
+#include <map>
+#include <memory>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <dds/dds.h>
+
+#include "ros2_mapping.h"
+#include "simgate/core/streams.h"
+
+namespace simgate::ros2 {
+
+class Ros2Topics {
+ public:
+  // Waitset token of the cmd_vel readers' read conditions.
+  static constexpr dds_attach_t k_token_commands = -3;
+
+  struct Settings {
+    std::string transport;    // our name in the configuration
+    std::string world_frame;  // the world body's frame, parent of the root bodies
+    bool tf = true;           // body_poses as /tf
+    bool all_robots = true;   // every robot, or only `robots`
+    std::set<std::string> robots;
+  };
+
+  // `guard`: raised by the subscriptions' wake (samples are waiting); `waitset`: the DDS
+  // thread's (the cmd_vel readers are attached to it).
+  Ros2Topics(std::shared_ptr<StreamHub> hub, Settings settings, dds_entity_t participant,
+             dds_entity_t waitset, dds_entity_t guard);
+  ~Ros2Topics();
+  Ros2Topics(const Ros2Topics&) = delete;
+  Ros2Topics& operator=(const Ros2Topics&) = delete;
+
+  // ---- DDS thread ----
+  // Endpoints for the streams the hub lists now; those of streams it no longer lists go.
+  // True when the endpoints changed (the graph must be published anew).
+  bool sync();
+  // Writes the samples every subscription queued.
+  void write_samples();
+  // Takes the Twists of every cmd_vel reader and publishes them to the hub.
+  void take_commands();
+  // Whether a frame tree is wanted (a body_poses sample of a model not known yet came, or
+  // none is known); cleared by the call.
+  bool take_geometry_wanted();
+  // The answer of `simulation get_scene_geometry`: the frames of the model; /tf_static.
+  void set_geometry(const json& geometry);
+  // The GIDs (DDS GUIDs) of our writers and readers, for the ROS graph.
+  void endpoints(std::vector<dds_entity_t>& writers, std::vector<dds_entity_t>& readers) const;
+
+ private:
+  enum class Role { tf, odometry, pose_odometry, joint_states };
+  struct Output;
+  struct Input;
+
+  dds_entity_t topic(const std::string& name, const dds_topic_descriptor_t* descriptor);
+  // What each listed stream of a carried robot becomes (component -> role); inputs apart.
+  void plan(const std::vector<StreamInfo>& listed, std::map<std::string, Role>& outputs,
+            std::set<std::string>& inputs);
+  void add_output(const StreamInfo& info, Role role);
+  void add_input(const StreamInfo& info);
+  void remove_output(Output& output);
+  void remove_input(Input& input);
+  void write_static();
+  dds_return_t write_tf(Output& output, const StreamSample& sample);
+  dds_return_t write_odometry(Output& output, const StreamSample& sample);
+  dds_return_t write_joint_states(Output& output, const StreamSample& sample);
+  // The namespace of `robot` ("/robot"), or "" when another robot took its token already.
+  std::string robot_namespace(const std::string& robot);
+
+  std::shared_ptr<StreamHub> hub_;
+  const Settings settings_;
+  const dds_entity_t participant_;
+  const dds_entity_t waitset_;
+  const dds_entity_t guard_;
+  std::map<std::string, dds_entity_t> topics_;              // by DDS topic name: made once
+  std::map<std::string, std::unique_ptr<Output>> outputs_;  // by component
+  std::map<std::string, std::unique_ptr<Input>> inputs_;    // by component
+  std::map<std::string, std::string> namespaces_;           // ROS token -> the robot it names
+  std::set<std::string> skipped_logged_;                    // streams logged as not carried
+  FrameTree frames_;             // the model's frames (not known(): none yet)
+  bool geometry_wanted_ = true;  // a frame tree is to be asked for
+  bool robots_checked_ = false;  // the "robots" option was checked against the streams
+  dds_entity_t tf_static_writer_ = 0;
+  std::uint64_t static_written_ = ~std::uint64_t{0};  // the generation /tf_static holds
+  std::vector<SamplePtr> taken_;                      // write_samples' buffer
+  std::vector<FrameTransform> transforms_;            // write_tf's buffer
+};
+
+}  // namespace simgate::ros2
+
+#endif  // SIMGATE_PLUGINS_ROS2_ROS2_TOPICS_H_
