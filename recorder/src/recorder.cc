@@ -414,6 +414,14 @@ void Recorder::flush_hashes() {
   p.hasher = hasher_;
   p.bytes = state_block_.size() * sizeof(mjtNum);
   p.states.swap(state_block_);
+  {
+    // a block the writer has hashed, its capacity kept: no allocation per block here
+    std::lock_guard lock(mutex_);
+    if (!spare_states_.empty()) {
+      state_block_ = std::move(spare_states_.back());
+      spare_states_.pop_back();
+    }
+  }
   state_block_.reserve(p.states.size());
   block_steps_ = 0;
   enqueue(std::move(p));
@@ -508,6 +516,7 @@ void Recorder::write_samples(Stream& stream, std::vector<SamplePtr>& samples) {
 
 void Recorder::writer_loop() {
   std::deque<Pending> batch;
+  std::vector<std::vector<mjtNum>> spare;  // hashed blocks, for spare_states_
   std::vector<SamplePtr> samples;
   auto chunk_due = std::chrono::steady_clock::now() + k_chunk_interval;
   std::string failure;
@@ -562,8 +571,19 @@ void Recorder::writer_loop() {
         failure = e.what();
       }
     }
+    // the hashed blocks go back to the simulation thread for its next ones
+    for (Pending& p : batch)
+      if (p.kind == Pending::Kind::hashes && p.states.capacity() > 0) {
+        p.states.clear();
+        spare.push_back(std::move(p.states));
+      }
     batch.clear();
     lock.lock();
+    while (!spare.empty() && spare_states_.size() < k_spare_state_blocks) {
+      spare_states_.push_back(std::move(spare.back()));
+      spare.pop_back();
+    }
+    spare.clear();
     bytes_written_ = writer_->bytes_written();
     if (!failure.empty() && error_.empty()) {
       error_ = failure;

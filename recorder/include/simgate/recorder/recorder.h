@@ -218,6 +218,9 @@ class Recorder final : public InputTap, public sim::Simulation::Observer {
   mutable std::mutex mutex_;  // guards what follows
   std::condition_variable cv_;
   std::deque<Pending> queue_;
+  // state blocks the writer has hashed, emptied, for the simulation thread to fill again
+  static constexpr std::size_t k_spare_state_blocks = 4;
+  std::vector<std::vector<mjtNum>> spare_states_;
   std::size_t queue_bytes_ = 0;
   bool finishing_ = false;
   std::string error_;
