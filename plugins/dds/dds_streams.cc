@@ -235,12 +235,7 @@ DdsStreams::~DdsStreams() {
 }
 
 dds_entity_t DdsStreams::topic(const std::string& name, const dds_topic_descriptor_t* descriptor) {
-  auto it = topics_.find(name);
-  if (it != topics_.end()) return it->second;
-  dds_entity_t created = check_created(
-      dds_create_topic(participant_, descriptor, name.c_str(), nullptr, nullptr), "topic " + name);
-  topics_.emplace(name, created);
-  return created;
+  return dds::cached_topic(topics_, participant_, name, descriptor);
 }
 
 void DdsStreams::sync() {

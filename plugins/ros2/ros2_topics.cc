@@ -123,14 +123,8 @@ Ros2Topics::~Ros2Topics() {
 }
 
 dds_entity_t Ros2Topics::topic(const std::string& name, const dds_topic_descriptor_t* descriptor) {
-  auto it = topics_.find(name);
-  if (it != topics_.end()) return it->second;
   // announced by name only, as ROS 2's types are (ros2_types.h)
-  dds_entity_t created = check_created(
-      dds_create_topic(participant_, name_only(*descriptor), name.c_str(), nullptr, nullptr),
-      "topic " + name);
-  topics_.emplace(name, created);
-  return created;
+  return dds::cached_topic(topics_, participant_, name, name_only(*descriptor));
 }
 
 std::string Ros2Topics::robot_namespace(const std::string& robot) {

@@ -70,6 +70,15 @@ dds_entity_t check_created(dds_entity_t rc, const std::string& what) {
   return rc;
 }
 
+dds_entity_t cached_topic(std::map<std::string, dds_entity_t>& topics, dds_entity_t participant,
+                          const std::string& name, const dds_topic_descriptor_t* descriptor) {
+  if (auto it = topics.find(name); it != topics.end()) return it->second;
+  const dds_entity_t created = check_created(
+      dds_create_topic(participant, descriptor, name.c_str(), nullptr, nullptr), "topic " + name);
+  topics.emplace(name, created);
+  return created;
+}
+
 const char* resolve_config(const std::string& config) {
   if (config.empty()) return k_loopback_xml;
   if (config == "env") {

@@ -18,6 +18,7 @@
 
 #include <array>
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -59,6 +60,11 @@ std::string retcode_text(dds_return_t rc);
 // `rc`, an entity Cyclone created; throws std::runtime_error ("DDS transport: cannot create
 // <what>: <retcode>") when it is an error instead.
 dds_entity_t check_created(dds_entity_t rc, const std::string& what);
+
+// The topic `name` of type `descriptor` on `participant`, created the first time it is asked
+// for and kept in `topics` (by name) for the next (check_created's error otherwise).
+dds_entity_t cached_topic(std::map<std::string, dds_entity_t>& topics, dds_entity_t participant,
+                          const std::string& name, const dds_topic_descriptor_t* descriptor);
 
 // Resolves the "config" option: "" -> the loopback XML; "env" -> the value of CYCLONEDDS_URI,
 // or "" (Cyclone's defaults) when it is not set; anything else (XML text or file:// URI) is
