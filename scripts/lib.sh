@@ -157,6 +157,55 @@ ensure_python_test_clients() {
   done < <(find "$SIMGATE_ROOT/tests" -name pypi-requirements.txt -not -path '*/node_modules/*' 2>/dev/null)
 }
 
+# ---- the Rust test client (tests/ros2/rust: simgate_ros2_rust_probe, a ROS 2 node written with
+# crates.io's ros2-client on RustDDS; tests/ros2/test_ros2_rust_client.py runs it), built with
+# rustup's cargo, every crate pinned by its Cargo.lock (--locked), once per version of its
+# sources, into the user's cache:
+#   ${XDG_CACHE_HOME:-~/.cache}/simgate/rust-ros2-probe-<hash>/simgate_ros2_rust_probe
+# <hash>: the first 16 hex digits of the SHA-256 of the hex SHA-256s of the files below, one
+# after the other, which tests/ros2/CMakeLists.txt computes the same way (SIMGATE_ROS2_RUST_PROBE).
+# Cargo's build directory (rust-ros2-probe-target beside it) keeps the compiled crates, so a
+# change to the probe's own code rebuilds only that. Without cargo, or when cargo fails, nothing
+# is installed and the test E2E.ros2_clients fails saying so.
+SIMGATE_RUST_PROBE_FILES=(Cargo.toml Cargo.lock src/main.rs)
+
+# rust_test_client_path: where ensure_rust_test_client puts the probe (printed)
+rust_test_client_path() {
+  local file sums="" sum
+  for file in "${SIMGATE_RUST_PROBE_FILES[@]}"; do
+    sum=$(sha256sum <"$SIMGATE_ROOT/tests/ros2/rust/$file") || return 1
+    sums+=${sum%% *}
+  done
+  sum=$(printf '%s' "$sums" | sha256sum)
+  echo "$SIMGATE_MUJOCO_CACHE/rust-ros2-probe-${sum:0:16}/simgate_ros2_rust_probe"
+}
+
+# ensure_rust_test_client: builds the probe unless it is there; prints nothing when it is
+ensure_rust_test_client() {
+  local path dir tmp cargo target=$SIMGATE_MUJOCO_CACHE/rust-ros2-probe-target
+  path=$(rust_test_client_path) || return 1
+  [ -x "$path" ] && return 0
+  dir=$(dirname "$path")
+  cargo=$(command -v cargo || echo "${CARGO_HOME:-$HOME/.cargo}/bin/cargo")
+  if [ ! -x "$cargo" ]; then
+    log "no cargo (rustup's): the Rust ROS 2 test client (tests/ros2/rust) is not built"
+    return 1
+  fi
+  log "building the Rust ROS 2 test client (tests/ros2/rust, crates.io) into ${dir/#$HOME/\~}"
+  mkdir -p "$SIMGATE_MUJOCO_CACHE"
+  if ! CARGO_TARGET_DIR=$target "$cargo" build --release --locked --quiet \
+       --manifest-path "$SIMGATE_ROOT/tests/ros2/rust/Cargo.toml"; then
+    log "cargo could not build tests/ros2/rust"
+    return 1
+  fi
+  # into a fresh directory renamed into place, as pip_install_into does
+  tmp=$(mktemp -d "$dir.XXXXXX")
+  if ! cp "$target/release/simgate_ros2_rust_probe" "$tmp/"; then
+    rm -rf "$tmp"; return 1
+  fi
+  mv -T "$tmp" "$dir" 2>/dev/null || rm -rf "$tmp"   # lost a race: the other run's copy stays
+}
+
 # npm test clients (JSON-RPC libraries nobody on the team wrote): every package.json under tests/ and bench/
 ensure_node_modules() {
   local manifest dir

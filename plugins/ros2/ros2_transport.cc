@@ -24,6 +24,9 @@ namespace {
 // Waitset tokens (Ros2Topics::k_token_commands is -3).
 constexpr dds_attach_t k_token_guard = -1;
 
+// While service replies are parked, the DDS thread retries them at least this often.
+constexpr dds_duration_t k_park_retry = DDS_MSECS(10);
+
 // The longest the DDS thread sleeps: /clock of a paused simulation is written once a second.
 constexpr auto k_clock_idle = std::chrono::seconds(1);
 
@@ -107,6 +110,24 @@ Ros2Options Ros2Options::parse(const json& options) {
         throw ConfigError(path + ": robot " + name.dump() + " is named twice");
     }
   }
+  out.services = config.get_bool("services", out.services);
+  out.service_namespace = config.get_string("service_namespace", "");
+  if (!out.service_namespace.empty()) {
+    // "/a/b": ROS name tokens after each '/'
+    bool valid = out.service_namespace.front() == '/' && out.service_namespace.back() != '/';
+    for (std::size_t start = 1; valid && start <= out.service_namespace.size();) {
+      const std::size_t end =
+          std::min(out.service_namespace.find('/', start), out.service_namespace.size());
+      valid = is_ros_token(out.service_namespace.substr(start, end - start));
+      start = end + 1;
+    }
+    if (!valid)
+      config.fail("service_namespace",
+                  "a ROS namespace: \"/name\" or \"/a/b\" (letters, digits and '_' in each "
+                  "part), or \"\" for none");
+  }
+  out.park_timeout =
+      std::chrono::milliseconds(config.get_int("park_timeout_ms", 10000, 10, 600000));
   config.finish();
   return out;
 }
@@ -160,6 +181,19 @@ Ros2Transport::Ros2Transport(const json& options)
   waitset_ = dds::check_created(dds_create_waitset(pp), "waitset");
   guard_ = dds::check_created(dds_create_guardcondition(pp), "guard condition");
   dds::check_created(dds_waitset_attach(waitset_, guard_, k_token_guard), "waitset attachment");
+  if (options_.services) {
+    Ros2Services::Settings settings{options_.service_namespace, options_.world_frame,
+                                    options_.park_timeout};
+    settings.may_call = [this](const std::string& service) {
+      return may_call("simulation", service);
+    };
+    services_ = std::make_unique<Ros2Services>(
+        std::move(settings), pp, waitset_,
+        [this](Call call, std::function<void(Outcome&&)> done) {
+          this->call(std::move(call), std::move(done));
+        },
+        [this] { return stream_hub() ? stream_hub()->time() : 0.0; });
+  }
 }
 
 Ros2Transport::~Ros2Transport() { stop(); }
@@ -194,11 +228,44 @@ void Ros2Transport::stop() {
     }
   }
   topics_.reset();  // unsubscribes; its entities go with the participant
+  services_.reset();
+  continuations_.clear();
+  completed_.clear();
   participant_.reset();
 }
 
+void Ros2Transport::call(Call call, std::function<void(Outcome&&)> done) {
+  const RequestId id = new_request_id();
+  continuations_.emplace(id, std::move(done));
+  run_or_submit(id, std::move(call));
+  run_continuations();
+}
+
+void Ros2Transport::run_continuations() {
+  if (running_continuations_) return;  // the outermost call runs them all
+  running_continuations_ = true;
+  while (!completed_.empty()) {
+    auto [id, outcome] = std::move(completed_.front());
+    completed_.pop_front();
+    auto it = continuations_.find(id);
+    if (it == continuations_.end()) continue;
+    auto done = std::move(it->second);
+    continuations_.erase(it);
+    try {
+      done(std::move(outcome));
+    } catch (const std::exception& e) {
+      log::error("ros2 transport: ", e.what());
+    }
+  }
+  running_continuations_ = false;
+}
+
 void Ros2Transport::on_service_completion(RequestId id, Outcome&& outcome) {
-  if (id != geometry_call_) return;
+  if (id != geometry_call_) {
+    // a service's call: its continuation runs once the lock is released (run_continuations)
+    if (!stopping_ && continuations_.count(id)) completed_.emplace_back(id, std::move(outcome));
+    return;
+  }
   geometry_call_ = 0;
   if (stopping_ || !topics_) return;
   if (outcome.status == Status::success && outcome.value) {
@@ -256,6 +323,7 @@ void Ros2Transport::write_graph() {
   std::vector<dds_entity_t> writers, readers;
   if (clock_writer_ > 0) writers.push_back(clock_writer_);
   if (topics_) topics_->endpoints(writers, readers);
+  if (services_) services_->endpoints(writers, readers);
   const dds_entity_t pp = participant_->handle();
   const dds_return_t rc =
       options_.humble_graph
@@ -290,24 +358,33 @@ void Ros2Transport::run() {
   while (!stopping_) {
     const auto left = next_clock - std::chrono::steady_clock::now();
     const dds_duration_t timeout = std::clamp<dds_duration_t>(
-        std::chrono::duration_cast<std::chrono::nanoseconds>(left).count(), 0, DDS_SECS(1));
+        std::chrono::duration_cast<std::chrono::nanoseconds>(left).count(), 0,
+        services_ && services_->has_parked() ? k_park_retry : DDS_SECS(1));
     const dds_return_t n = dds_waitset_wait(waitset_, triggered, k_slots, timeout);
     if (n < 0) {
       log::error("ros2 transport: waitset failed: ", dds::retcode_text(n));
       break;
     }
-    bool guard = n > k_slots, commands = n > k_slots;
+    bool guard = n > k_slots, commands = n > k_slots, requests = n > k_slots;
     for (dds_return_t i = 0; i < std::min(n, k_slots); ++i) {
       guard |= triggered[i] == k_token_guard;
       commands |= triggered[i] == Ros2Topics::k_token_commands;
+      requests |= triggered[i] == Ros2Services::k_token_requests;
     }
     try {
       if (guard) {
         bool ignored;
         dds_take_guardcondition(guard_, &ignored);
         deliver_handed_over();
+        run_continuations();
         if (streams_changed_) sync_topics();
         if (topics_) topics_->write_samples();
+      }
+      if (services_) {
+        if (requests) services_->take_requests();
+        // a reply waits for its client's reader: retried on every wake (a reader matching
+        // wakes the thread, k_token_matched), and at least every k_park_retry
+        if (services_->has_parked()) services_->flush_parked();
       }
       if (topics_ && topics_->take_geometry_wanted()) ask_geometry();
       if (topics_ && commands) topics_->take_commands();
@@ -330,4 +407,5 @@ void Ros2Transport::run() {
 }  // namespace simgate::ros2
 
 SIMGATE_TRANSPORT_PLUGIN(ros2, simgate::ros2::Ros2Transport, "0.1.0", "domain", "config",
-                         "node_name", "world_frame", "clock_hz", "tf", "robots", "ros_distro")
+                         "node_name", "world_frame", "clock_hz", "tf", "robots", "ros_distro",
+                         "services", "service_namespace", "park_timeout_ms")

@@ -16,18 +16,25 @@
 //    thread `clock_hz` times a wall-clock second while it advances, once a second while it
 //    stands still (a paused simulation: nodes with use_sim_time that join learn the time).
 //  - topics: Ros2Topics (ros2_topics.h).
+//  - services: Ros2Services (ros2_services.h): simulation_interfaces' services and
+//    simgate/call, each request one or more calls through this transport (call()), their
+//    outcomes turned into replies on the DDS thread.
 //
 // Threads: one DDS thread waits on a waitset (guard condition: samples queued, outcomes
 // handed over, the services changed; the cmd_vel readers) with the clock period as its
-// timeout, and does all DDS I/O. The only request it makes is `simulation
-// get_scene_geometry` (the model's frames for /tf), with run_or_submit: run at once on this
-// thread when the simulation lock is free, else by the simulation thread, its outcome handed
-// back (deliver_on_this_thread). It never touches simulation state.
+// timeout, and does all DDS I/O. Its requests (`simulation get_scene_geometry` for /tf's
+// frames, and the services' calls) go through run_or_submit: run at once on this thread when
+// the simulation lock is free, else by the simulation thread, their outcomes handed back
+// (deliver_on_this_thread). A service's continuation runs after run_or_submit returns, outside
+// the lock (it may make the next call). It never touches simulation state.
 #ifndef SIMGATE_PLUGINS_ROS2_ROS2_TRANSPORT_H_
 #define SIMGATE_PLUGINS_ROS2_ROS2_TRANSPORT_H_
 
 #include <atomic>
 #include <chrono>
+#include <deque>
+#include <functional>
+#include <map>
 #include <memory>
 #include <set>
 #include <string>
@@ -37,6 +44,7 @@
 #include <dds/dds.h>
 
 #include "dds_support.h"
+#include "ros2_services.h"
 #include "ros2_topics.h"
 #include "simgate/core/request_manager.h"
 
@@ -53,6 +61,9 @@ struct Ros2Options {
   bool humble_graph = false;          // ros_distro "humble": the graph's Gid is 24 bytes
   bool all_robots = true;             // no "robots" option: every robot
   std::set<std::string> robots;       // the robots whose topics are carried
+  bool services = true;               // the simulation_interfaces services and simgate/call
+  std::string service_namespace;      // "" or "/ns": the services' names under it
+  std::chrono::milliseconds park_timeout{10000};  // a reply waits for its client's reader
   // Throws ConfigError naming the key and what was expected.
   static Ros2Options parse(const json& options);
 };
@@ -86,6 +97,10 @@ class Ros2Transport : public RequestManager {
   void ask_geometry();
   void write_clock(bool force);
   void write_graph();
+  // The services' Caller: `call` as a request of this transport, `done` with its outcome.
+  void call(Call call, std::function<void(Outcome&&)> done);
+  // Runs the continuations of the outcomes that came (not nested: the outermost runs them).
+  void run_continuations();
 
   const Ros2Options options_;
   std::unique_ptr<dds::Participant> participant_;
@@ -94,7 +109,12 @@ class Ros2Transport : public RequestManager {
   dds_entity_t waitset_ = 0;            // the DDS thread's
   dds_entity_t guard_ = 0;              // wakes it (samples, outcomes, services changed, stop)
   std::unique_ptr<Ros2Topics> topics_;  // made in start()
-  std::thread thread_;                  // the DDS thread
+  std::unique_ptr<Ros2Services> services_;
+  // the services' calls in flight, and the outcomes come that wait for their continuation
+  std::map<RequestId, std::function<void(Outcome&&)>> continuations_;
+  std::deque<std::pair<RequestId, Outcome>> completed_;
+  bool running_continuations_ = false;
+  std::thread thread_;  // the DDS thread
   std::atomic<bool> started_{false};
   std::atomic<bool> stopping_{false};
   std::atomic<bool> streams_changed_{true};  // on_services_changed, or not synced yet

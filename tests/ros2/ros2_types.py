@@ -149,3 +149,305 @@ class HumbleParticipantEntitiesInfo(
 ):
     gid: HumbleGid = field(default_factory=HumbleGid)
     node_entities_info_seq: t.sequence[HumbleNodeEntitiesInfo] = field(default_factory=list)
+
+
+# ---- services: ros-simulation/simulation_interfaces 2.1 and simgate_interfaces/srv/Call ----
+# A service's request and reply types as rmw_cyclonedds puts them on DDS: the type names of the
+# request and response messages (<pkg>::srv::dds_::<Srv>_Request_ / _Response_), each sample
+# beginning with rmw_cyclonedds' header (the client's id, the request's sequence number).
+
+@dataclass
+class Accel(IdlStruct, typename="geometry_msgs::msg::dds_::Accel_"):
+    linear: Vector3 = field(default_factory=Vector3)
+    angular: Vector3 = field(default_factory=Vector3)
+
+
+@dataclass
+class PoseStamped(IdlStruct, typename="geometry_msgs::msg::dds_::PoseStamped_"):
+    header: Header = field(default_factory=Header)
+    pose: Pose = field(default_factory=Pose)
+
+
+@dataclass
+class Result(IdlStruct, typename="simulation_interfaces::msg::dds_::Result_"):
+    result: t.uint8 = 0
+    error_message: str = ""
+
+
+@dataclass
+class SimulationState(IdlStruct, typename="simulation_interfaces::msg::dds_::SimulationState_"):
+    state: t.uint8 = 0
+
+
+@dataclass
+class SimulatorFeatures(IdlStruct, typename="simulation_interfaces::msg::dds_::SimulatorFeatures_"):
+    features: t.sequence[t.uint16] = field(default_factory=list)
+    spawn_formats: t.sequence[str] = field(default_factory=list)
+    custom_info: str = ""
+
+
+@dataclass
+class EntityState(IdlStruct, typename="simulation_interfaces::msg::dds_::EntityState_"):
+    header: Header = field(default_factory=Header)
+    pose: Pose = field(default_factory=Pose)
+    twist: Twist = field(default_factory=Twist)
+    acceleration: Accel = field(default_factory=Accel)
+
+
+@dataclass
+class EntityCategory(IdlStruct, typename="simulation_interfaces::msg::dds_::EntityCategory_"):
+    category: t.uint8 = 0
+
+
+@dataclass
+class EntityInfo(IdlStruct, typename="simulation_interfaces::msg::dds_::EntityInfo_"):
+    category: EntityCategory = field(default_factory=EntityCategory)
+    description: str = ""
+    tags: t.sequence[str] = field(default_factory=list)
+
+
+@dataclass
+class TagsFilter(IdlStruct, typename="simulation_interfaces::msg::dds_::TagsFilter_"):
+    tags: t.sequence[str] = field(default_factory=list)
+    filter_mode: t.uint8 = 0
+
+
+@dataclass
+class Bounds(IdlStruct, typename="simulation_interfaces::msg::dds_::Bounds_"):
+    type: t.uint8 = 0
+    points: t.sequence[Vector3] = field(default_factory=list)
+
+
+@dataclass
+class EntityFilters(IdlStruct, typename="simulation_interfaces::msg::dds_::EntityFilters_"):
+    filter: str = ""
+    categories: t.sequence[EntityCategory] = field(default_factory=list)
+    tags: TagsFilter = field(default_factory=TagsFilter)
+    bounds: Bounds = field(default_factory=Bounds)
+
+
+@dataclass
+class Resource(IdlStruct, typename="simulation_interfaces::msg::dds_::Resource_"):
+    uri: str = ""
+    resource_string: str = ""
+
+
+def _srv(name):
+    return f"simulation_interfaces::srv::dds_::{name}"
+
+
+@dataclass
+class GetSimulatorFeaturesRequest(IdlStruct, typename=_srv("GetSimulatorFeatures_Request_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    structure_needs_at_least_one_member: t.uint8 = 0  # ROS 2's member of an empty message
+
+
+@dataclass
+class GetSimulatorFeaturesResponse(IdlStruct, typename=_srv("GetSimulatorFeatures_Response_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    features: SimulatorFeatures = field(default_factory=SimulatorFeatures)
+
+
+@dataclass
+class GetSimulationStateRequest(IdlStruct, typename=_srv("GetSimulationState_Request_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    structure_needs_at_least_one_member: t.uint8 = 0
+
+
+@dataclass
+class GetSimulationStateResponse(IdlStruct, typename=_srv("GetSimulationState_Response_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    state: SimulationState = field(default_factory=SimulationState)
+    result: Result = field(default_factory=Result)
+
+
+@dataclass
+class SetSimulationStateRequest(IdlStruct, typename=_srv("SetSimulationState_Request_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    state: SimulationState = field(default_factory=SimulationState)
+
+
+@dataclass
+class SetSimulationStateResponse(IdlStruct, typename=_srv("SetSimulationState_Response_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    result: Result = field(default_factory=Result)
+
+
+@dataclass
+class StepSimulationRequest(IdlStruct, typename=_srv("StepSimulation_Request_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    steps: t.uint64 = 1
+
+
+@dataclass
+class StepSimulationResponse(IdlStruct, typename=_srv("StepSimulation_Response_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    result: Result = field(default_factory=Result)
+
+
+@dataclass
+class ResetSimulationRequest(IdlStruct, typename=_srv("ResetSimulation_Request_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    scope: t.uint8 = 0
+
+
+@dataclass
+class ResetSimulationResponse(IdlStruct, typename=_srv("ResetSimulation_Response_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    result: Result = field(default_factory=Result)
+
+
+@dataclass
+class GetEntitiesRequest(IdlStruct, typename=_srv("GetEntities_Request_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    filters: EntityFilters = field(default_factory=EntityFilters)
+
+
+@dataclass
+class GetEntitiesResponse(IdlStruct, typename=_srv("GetEntities_Response_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    result: Result = field(default_factory=Result)
+    entities: t.sequence[str] = field(default_factory=list)
+
+
+@dataclass
+class GetEntitiesStatesRequest(IdlStruct, typename=_srv("GetEntitiesStates_Request_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    filters: EntityFilters = field(default_factory=EntityFilters)
+
+
+@dataclass
+class GetEntitiesStatesResponse(IdlStruct, typename=_srv("GetEntitiesStates_Response_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    result: Result = field(default_factory=Result)
+    entities: t.sequence[str] = field(default_factory=list)
+    states: t.sequence[EntityState] = field(default_factory=list)
+
+
+@dataclass
+class GetEntityStateRequest(IdlStruct, typename=_srv("GetEntityState_Request_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    entity: str = ""
+
+
+@dataclass
+class GetEntityStateResponse(IdlStruct, typename=_srv("GetEntityState_Response_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    result: Result = field(default_factory=Result)
+    state: EntityState = field(default_factory=EntityState)
+
+
+@dataclass
+class SetEntityStateRequest(IdlStruct, typename=_srv("SetEntityState_Request_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    entity: str = ""
+    state: EntityState = field(default_factory=EntityState)
+    set_pose: bool = False
+    set_twist: bool = False
+    set_acceleration: bool = False
+
+
+@dataclass
+class SetEntityStateResponse(IdlStruct, typename=_srv("SetEntityState_Response_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    result: Result = field(default_factory=Result)
+
+
+@dataclass
+class GetEntityInfoRequest(IdlStruct, typename=_srv("GetEntityInfo_Request_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    entity: str = ""
+
+
+@dataclass
+class GetEntityInfoResponse(IdlStruct, typename=_srv("GetEntityInfo_Response_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    result: Result = field(default_factory=Result)
+    info: EntityInfo = field(default_factory=EntityInfo)
+
+
+@dataclass
+class GetEntityBoundsRequest(IdlStruct, typename=_srv("GetEntityBounds_Request_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    entity: str = ""
+
+
+@dataclass
+class GetEntityBoundsResponse(IdlStruct, typename=_srv("GetEntityBounds_Response_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    result: Result = field(default_factory=Result)
+    bounds: Bounds = field(default_factory=Bounds)
+
+
+@dataclass
+class SpawnEntityRequest(IdlStruct, typename=_srv("SpawnEntity_Request_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    name: str = ""
+    allow_renaming: bool = False
+    entity_resource: Resource = field(default_factory=Resource)
+    entity_namespace: str = ""
+    initial_pose: PoseStamped = field(default_factory=PoseStamped)
+
+
+@dataclass
+class SpawnEntityResponse(IdlStruct, typename=_srv("SpawnEntity_Response_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    result: Result = field(default_factory=Result)
+    entity_name: str = ""
+
+
+@dataclass
+class DeleteEntityRequest(IdlStruct, typename=_srv("DeleteEntity_Request_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    entity: str = ""
+
+
+@dataclass
+class DeleteEntityResponse(IdlStruct, typename=_srv("DeleteEntity_Response_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    result: Result = field(default_factory=Result)
+
+
+@dataclass
+class CallRequest(IdlStruct, typename="simgate_interfaces::srv::dds_::Call_Request_"):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    component: str = ""
+    service: str = ""
+    arguments: str = ""
+    timeout_ms: t.uint32 = 0
+
+
+@dataclass
+class CallResponse(IdlStruct, typename="simgate_interfaces::srv::dds_::Call_Response_"):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    status: str = ""
+    message: str = ""
+    result: str = ""
