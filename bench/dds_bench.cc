@@ -6,6 +6,14 @@
 //   ping     the raw client: writes a Request, waits for its Reply, --count times.
 //   client   simgate's DdsClient calling `test_component add [1, 2]` on a transport host
 //            (simgate_bench_host --transport dds) --count times.
+//   step     simgate's DdsClient calling `simulation step {"n": 1}` on a gateway started paused
+//            (simgate run), --count times: one physics step per round trip.
+//   ros2-step   a ROS 2 client as rmw_cyclonedds makes one (raw Cyclone, the types of
+//            protocols/ros2/ros2_srvs.idl: the request header, USER_DATA clientid) calling the
+//            ros2 transport's /step_simulation {steps: 1} on the same gateway, --count times:
+//            issue #41's StepSimulation round trip against `step` (simgate's own DDS request).
+//   ros2-tf  a ROS 2 reader of /tf (tf2_msgs/TFMessage) for --duration seconds: messages and
+//            transforms per second.
 //   camera   simgate's DdsClient calling `<--camera> get_image` on a gateway (simgate run,
 //            its camera served by DDS) --count times, one after the other, with raw_images
 //            (--raw) or not: frames/s, and the bytes of the reply's text. The render thread's
@@ -26,6 +34,7 @@
 #include <csignal>
 #include <cstring>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -34,6 +43,12 @@
 #include "bench_util.h"
 #include "dds_support.h"
 #include "simgate/client/dds_client.h"
+#ifdef SIMGATE_BENCH_ROS2
+#include "ros2_msgs.h"
+#include "ros2_sim_interfaces.h"
+#include "ros2_srvs.h"
+#include "ros2_types.h"
+#endif
 
 namespace {
 
@@ -226,6 +241,141 @@ json run_client(std::uint32_t domain, const std::string& partition, std::size_t 
   return out;
 }
 
+json run_step(std::uint32_t domain, const std::string& partition, std::size_t count,
+              std::size_t warmup, double timeout_s) {
+  auto connection = connect(domain, partition, timeout_s);
+  simgate::client::DdsClient& client = *connection;
+  std::vector<std::int64_t> samples;
+  std::size_t errors = 0;
+  const simgate::json params{{"n", 1}};
+  for (std::size_t i = 0; i < warmup + count; ++i) {
+    auto t0 = Clock::now();
+    auto outcome = client.call("simulation", "step", params, std::chrono::seconds(10));
+    auto t1 = Clock::now();
+    if (outcome.status != simgate::Status::success) ++errors;
+    if (i >= warmup) samples.push_back(simgate::bench::ns_between(t0, t1));
+  }
+  json out = simgate::bench::summarize_us(std::move(samples));
+  out["errors"] = errors;
+  return out;
+}
+
+#ifdef SIMGATE_BENCH_ROS2
+// A ROS 2 participant on `domain` (Cyclone on loopback), its topics announced by name only as
+// rmw_cyclonedds announces them.
+struct Ros2Endpoints {
+  simgate::dds::Participant participant;
+  std::map<std::string, dds_entity_t> topics;
+  explicit Ros2Endpoints(std::uint32_t domain)
+      : participant(domain, simgate::dds::k_loopback_xml, "ROS 2 bench client") {}
+  dds_entity_t topic(const std::string& name, const dds_topic_descriptor_t& type) {
+    return simgate::dds::cached_topic(topics, participant.handle(), name,
+                                      simgate::ros2::name_only(type));
+  }
+};
+
+json run_ros2_step(std::uint32_t domain, std::size_t count, std::size_t warmup, double timeout_s) {
+  Ros2Endpoints ep(domain);
+  const dds_entity_t pp = ep.participant.handle();
+  // rmw_cyclonedds' client: both endpoints with its clientid, ROS 2's services profile
+  const std::string user_data = "clientid=bench.1;";
+  simgate::dds::QosPtr qos = simgate::dds::make_qos(false, 10, DDS_SECS(1));
+  dds_qset_userdata(qos.get(), user_data.data(), user_data.size());
+  dds_entity_t writer =
+      check(dds_create_writer(pp,
+                              ep.topic(simgate::ros2::service_request_topic("/step_simulation"),
+                                       simulation_interfaces_srv_dds__StepSimulation_Request__desc),
+                              qos.get(), nullptr),
+            "writer");
+  dds_entity_t reader = check(
+      dds_create_reader(pp,
+                        ep.topic(simgate::ros2::service_reply_topic("/step_simulation"),
+                                 simulation_interfaces_srv_dds__StepSimulation_Response__desc),
+                        qos.get(), nullptr),
+      "reader");
+  dds_entity_t waitset = check(dds_create_waitset(pp), "waitset");
+  dds_entity_t cond = check(dds_create_readcondition(reader, DDS_ANY_STATE), "read condition");
+  check(dds_waitset_attach(waitset, cond, 0), "waitset attach");
+  auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                     std::chrono::duration<double>(timeout_s));
+  wait_matched(writer, true, deadline);
+  wait_matched(reader, false, deadline);
+  simulation_interfaces_srv_dds__StepSimulation_Request_ request{};
+  request.rmw_client_guid = 0x0123456789abcdefULL;
+  request.steps = 1;
+  std::vector<std::int64_t> samples;
+  std::size_t errors = 0;
+  void* got[1] = {};
+  dds_sample_info_t info;
+  for (std::size_t i = 0; i < warmup + count; ++i) {
+    request.rmw_sequence = static_cast<std::int64_t>(i + 1);
+    auto t0 = Clock::now();
+    if (dds_write(writer, &request) < 0) ++errors;
+    bool answered = false;
+    while (!answered) {
+      if (Clock::now() > deadline) throw std::runtime_error("ROS 2 StepSimulation: timed out");
+      dds_waitset_wait(waitset, nullptr, 0, DDS_MSECS(100));
+      dds_return_t n = dds_take(reader, got, &info, 1, 1);
+      if (n <= 0) continue;
+      if (info.valid_data) {
+        const auto* reply =
+            static_cast<const simulation_interfaces_srv_dds__StepSimulation_Response_*>(got[0]);
+        answered = reply->rmw_client_guid == request.rmw_client_guid &&
+                   reply->rmw_sequence == request.rmw_sequence;
+        if (answered && reply->result.result != 1) ++errors;
+      }
+      dds_return_loan(reader, got, n);
+    }
+    if (i >= warmup) samples.push_back(simgate::bench::ns_between(t0, Clock::now()));
+  }
+  json out = simgate::bench::summarize_us(std::move(samples));
+  out["errors"] = errors;
+  return out;
+}
+
+json run_ros2_tf(std::uint32_t domain, double duration_s, double timeout_s) {
+  Ros2Endpoints ep(domain);
+  const dds_entity_t pp = ep.participant.handle();
+  // tf2's listener: reliable, volatile, keep-last 100
+  simgate::dds::QosPtr qos = simgate::dds::make_qos(false, 100, DDS_SECS(1));
+  dds_entity_t reader =
+      check(dds_create_reader(pp, ep.topic("rt/tf", tf2_msgs_msg_dds__TFMessage__desc), qos.get(),
+                              nullptr),
+            "reader");
+  dds_entity_t waitset = check(dds_create_waitset(pp), "waitset");
+  dds_entity_t cond = check(dds_create_readcondition(reader, DDS_ANY_STATE), "read condition");
+  check(dds_waitset_attach(waitset, cond, 0), "waitset attach");
+  wait_matched(reader, false,
+               Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                  std::chrono::duration<double>(timeout_s)));
+  void* got[16] = {};
+  dds_sample_info_t infos[16];
+  std::size_t messages = 0, transforms = 0;
+  const auto started = Clock::now();
+  const auto end = started + std::chrono::duration_cast<Clock::duration>(
+                                 std::chrono::duration<double>(duration_s));
+  while (Clock::now() < end) {
+    dds_waitset_wait(waitset, nullptr, 0, DDS_MSECS(50));
+    for (;;) {
+      std::fill(std::begin(got), std::end(got), nullptr);
+      dds_return_t n = dds_take(reader, got, infos, 16, 16);
+      if (n <= 0) break;
+      for (dds_return_t i = 0; i < n; ++i) {
+        if (!infos[i].valid_data) continue;
+        ++messages;
+        transforms += static_cast<const tf2_msgs_msg_dds__TFMessage_*>(got[i])->transforms._length;
+      }
+      dds_return_loan(reader, got, n);
+    }
+  }
+  const double seconds = simgate::bench::ns_between(started, Clock::now()) / 1e9;
+  return {{"messages_per_s", static_cast<double>(messages) / seconds},
+          {"transforms_per_message",
+           messages ? static_cast<double>(transforms) / static_cast<double>(messages) : 0.0},
+          {"seconds", seconds}};
+}
+#endif
+
 json run_camera(std::uint32_t domain, const std::string& partition, const std::string& camera,
                 bool raw, std::size_t count, std::size_t warmup, double timeout_s) {
   auto connection = connect(domain, partition, timeout_s, raw);
@@ -268,11 +418,13 @@ int main(int argc, char** argv) {
   double timeout = 120;
   std::string camera = "rig.camera";
   bool raw = false;
+  double duration = 5;
   app.add_option("--mode", mode,
                  "pong (raw server), ping (raw client), client (simgate's DdsClient) or camera "
                  "(its get_image)")
       ->required()
-      ->check(CLI::IsMember({"pong", "ping", "client", "camera"}));
+      ->check(CLI::IsMember({"pong", "ping", "client", "camera", "step", "ros2-step", "ros2-tf"}));
+  app.add_option("--duration", duration, "ros2-tf: seconds of reading /tf")->capture_default_str();
   app.add_option("--camera", camera, "camera: the camera component")->capture_default_str();
   app.add_flag("--raw", raw,
                "camera: the client reads its images raw (DdsClientOptions::raw_images)");
@@ -291,11 +443,25 @@ int main(int argc, char** argv) {
     std::signal(SIGINT, on_signal);
     std::signal(SIGTERM, on_signal);
     if (mode == "pong") return run_pong(domain, partition, timeout);
+#ifdef SIMGATE_BENCH_ROS2
+    if (mode == "ros2-step" || mode == "ros2-tf") {
+      json out = mode == "ros2-tf"
+                     ? run_ros2_tf(domain, duration, timeout)
+                     : run_ros2_step(domain, count, warmup.value_or(count / 10), timeout);
+      out["mode"] = mode;
+      std::cout << out.dump() << std::endl;
+      return 0;
+    }
+#else
+    if (mode == "ros2-step" || mode == "ros2-tf")
+      throw std::runtime_error("built without the ros2 transport's protocol (protocols/ros2)");
+#endif
     json out = mode == "ping"
                    ? run_ping(domain, partition, count, warmup.value_or(count / 10), timeout)
-               : mode == "camera"
-                   ? run_camera(domain, partition, camera, raw, count, warmup.value_or(count / 10),
-                                timeout)
+               : mode == "camera" ? run_camera(domain, partition, camera, raw, count,
+                                               warmup.value_or(count / 10), timeout)
+               : mode == "step"
+                   ? run_step(domain, partition, count, warmup.value_or(count / 10), timeout)
                    : run_client(domain, partition, count, warmup.value_or(count / 10), timeout);
     out["mode"] = mode;
     std::cout << out.dump() << std::endl;

@@ -1068,6 +1068,98 @@ class Harness:
                     f"at 10 Hz to {s['clients']} Foxglove clients", s["rtf_with"], ">=", 0.99)
         return {"status": "ok", "summary": s, "runs": runs}
 
+    def section_ros2(self):
+        """Issue #41: the ros2 transport's StepSimulation round trip (a raw ROS 2 client as
+        rmw_cyclonedds makes one: simgate_bench_dds --mode ros2-step) against simgate's own DDS
+        request for the same step (`simulation step {"n": 1}` by DdsClient: --mode step), on one
+        gateway of the demo scene started paused, interleaved per repeat; then /tf of 50 moving
+        bodies (bench/pendulums50.xml) at 100 Hz to a ROS 2 reader at real time: the real-time
+        factor over the window (`time statistics`) and /tf's rate."""
+        dds = os.path.join(self.bin, "simgate_bench_dds")
+        if not os.access(dds, os.X_OK) or not all(self.plugin_built(t) for t in ("ros2", "dds", "socket")):
+            return {"status": "skipped", "reason": "simgate_bench_dds or the ros2, dds or socket transport is not built"}
+        domain = 19  # away from the tests' and demos' domains
+        tag = f"simgate-bench-{os.getpid()}"
+        with open(os.path.join(ROOT, "config", "demo.json")) as f:
+            cfg = json.load(f)
+        cfg["scene"]["mjcf"] = os.path.join(ROOT, "config", cfg["scene"]["mjcf"])
+        cfg["scene"]["start_paused"] = True
+        cfg["transports"] = {"socket": {"plugin": "socket", "options": {"host": "127.0.0.1", "port": 0}},
+                             "dds": {"plugin": "dds", "options": {"domain": domain, "partition": tag}},
+                             "ros2": {"plugin": "ros2", "options": {"domain": domain, "clock_hz": 0, "tf": False}}}
+        cfg["services"] = {"default": ["socket"], "simulation": ["socket", "dds", "ros2"]}
+        cfg.pop("streams", None)
+        cfg["log_level"] = "warning"
+        config = os.path.join(self.out, "ros2-step-bench.json")
+        with open(config, "w") as f:
+            json.dump(cfg, f, indent=1)
+        common = ["--domain", str(domain), "--count", str(self.count), "--timeout", "120"]
+        p = Process("ros2-step", [self.exe("simgate_bench_sim"), "--mode", "gateway", "--config", config,
+                                  "--realtime-factor", "1", "--duration", "3600", "--until-stdin-closes"],
+                    self.logs, self.env, stdin=subprocess.PIPE)
+        runs = []
+        try:
+            p.read_json("endpoints", 60)
+            for rep in range(self.repeats):
+                own, ros2 = in_order(
+                    rep,
+                    lambda: run_json([dds, "--mode", "step", "--partition", tag] + common, self.timeout, self.env),
+                    lambda: run_json([dds, "--mode", "ros2-step"] + common, self.timeout, self.env))
+                if own["errors"] or ros2["errors"]:
+                    raise BenchError(f"steps failed: DDS {own['errors']}, ROS 2 {ros2['errors']}")
+                runs.append({"dds": own, "ros2": ros2, "ratio_p50": ratio(ros2["p50_us"], own["p50_us"])})
+            p.proc.stdin.close()
+            p.read_json("steps_per_s", 120)
+        finally:
+            p.check_stopped()
+        s = {"ros2_p50_us": spread([r["ros2"]["p50_us"] for r in runs]),
+             "ros2_p99_us": spread([r["ros2"]["p99_us"] for r in runs]),
+             "dds_p50_us": spread([r["dds"]["p50_us"] for r in runs]),
+             "dds_p99_us": spread([r["dds"]["p99_us"] for r in runs]),
+             "ratio_p50": spread([r["ratio_p50"] for r in runs])}
+        self.target("ROS 2 StepSimulation round trip p50 / simgate's DDS `simulation step` p50", s["ratio_p50"],
+                    "<=", 1.3, "x")
+
+        # /tf of 50 bodies at 100 Hz, at real time
+        seconds = 2.0 if self.smoke else 10.0
+        tf_cfg = {"scene": {"mjcf": os.path.join(ROOT, "bench", "pendulums50.xml"), "realtime_factor": 1.0},
+                  "transports": {"socket": {"plugin": "socket", "options": {"host": "127.0.0.1", "port": 0}},
+                                 "ros2": {"plugin": "ros2", "options": {"domain": domain}}},
+                  "services": {"simulation": ["socket", "ros2"], "time": ["socket"]},
+                  "streams": {"simulation": {"transports": ["ros2"], "frequency": 100}},
+                  "log_level": "warning"}
+        tf_config = os.path.join(self.out, "ros2-tf-bench.json")
+        with open(tf_config, "w") as f:
+            json.dump(tf_cfg, f, indent=1)
+        tf_runs = []
+        for rep in range(self.repeats):
+            g = Process(f"ros2-tf-{rep}", [self.exe("simgate_bench_sim"), "--mode", "gateway", "--config", tf_config,
+                                           "--realtime-factor", "1", "--duration", "3600", "--until-stdin-closes"],
+                        self.logs, self.env, stdin=subprocess.PIPE)
+            try:
+                port = port_of(g.read_json("endpoints", 60)["endpoints"]["socket"])
+                reader = Process(f"ros2-tf-reader-{rep}", [dds, "--mode", "ros2-tf", "--domain", str(domain),
+                                                           "--duration", str(seconds), "--timeout", "60"],
+                                 self.logs, self.env)
+                time.sleep(1.0)  # the reader matched and reading (its own wait is bounded)
+                a = socket_call(port, "time statistics")
+                tf = reader.read_json("messages_per_s", seconds + 90)
+                b = socket_call(port, "time statistics")
+                reader.check_stopped()
+                rtf = (b["sim_time"] - a["sim_time"]) / (b["wall_time"] - a["wall_time"])
+                tf_runs.append({"rtf": rtf, "tf": tf})
+                g.proc.stdin.close()
+                g.read_json("steps_per_s", 120)
+            finally:
+                g.check_stopped()
+        s["tf_rtf"] = spread([r["rtf"] for r in tf_runs])
+        s["tf_messages_per_s"] = spread([r["tf"]["messages_per_s"] for r in tf_runs])
+        s["tf_transforms_per_message"] = tf_runs[0]["tf"]["transforms_per_message"]
+        s["tf_seconds"] = seconds
+        self.target(f"real-time factor, /tf of {s['tf_transforms_per_message']:g} bodies at 100 Hz to a ROS 2 reader",
+                    s["tf_rtf"], ">=", 0.99)
+        return {"status": "ok", "summary": s, "runs": runs, "tf_runs": tf_runs}
+
     def recording_rounds(self, config, rep, rounds, round_s, count, directory):
         """One gateway of the demo config (simgate_bench_sim --mode gateway --record-dir),
         recording in every other round (`simulation start_recording` before the round,
@@ -1305,7 +1397,7 @@ class Harness:
         self.results["machine"] = self.machine()
         only = set(self.args.only.split(",")) if self.args.only else None
         for name in ("socket", "jsonrpc", "websocket", "dds", "peers", "sim", "memory", "byor", "world", "progress", "streams",
-                     "cameras", "web", "foxglove", "recording", "gym"):
+                     "cameras", "web", "foxglove", "recording", "gym", "ros2"):
             if only and name not in only:
                 continue
             t0 = time.monotonic()
@@ -1705,6 +1797,24 @@ def markdown(r):
                          f"{fmt(g['env_over_raw'], 3)} | {fmt(g['env_steps_per_s'], 0)} | "
                          f"{fmt(g['bare_steps_per_s'], 0)} | {fmt(g['env_over_bare'], 4)} |")
         lines.append("")
+
+    lines += ["## ROS 2 (issue #41)", ""]
+    st = status_line("ros2")
+    if st:
+        lines += [st, ""]
+    else:
+        g = s["ros2"]["summary"]
+        lines += ["A raw ROS 2 client (rmw_cyclonedds' conventions) calling `/step_simulation {steps: 1}` against "
+                  "simgate's DdsClient calling `simulation step {\"n\": 1}` on the same gateway (the demo scene, "
+                  "paused), interleaved; then /tf of bench/pendulums50.xml's bodies at 100 Hz to a ROS 2 reader at "
+                  "real time.", "",
+                  "| measure | value |", "|---|---|",
+                  f"| StepSimulation round trip p50 / p99 (µs) | {fmt(g['ros2_p50_us'])} / {fmt(g['ros2_p99_us'])} |",
+                  f"| DDS `simulation step` round trip p50 / p99 (µs) | {fmt(g['dds_p50_us'])} / {fmt(g['dds_p99_us'])} |",
+                  f"| ratio p50 | {fmt(g['ratio_p50'], 2)} |",
+                  f"| /tf: messages/s, transforms per message | {fmt(g['tf_messages_per_s'])}, "
+                  f"{g['tf_transforms_per_message']:g} |",
+                  f"| real-time factor over {g['tf_seconds']:g} s | {fmt(g['tf_rtf'], 4)} |", ""]
 
     lines += ["## Sections", "", "| section | status | seconds |", "|---|---|---|"]
     for name, sec in s.items():
