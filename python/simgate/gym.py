@@ -54,7 +54,7 @@ import numpy as np
 from gymnasium import spaces
 
 from .client import Client
-from .errors import ConnectionClosed, ServiceError, SimgateError
+from .errors import ConnectionClosed, MethodNotFound, ServiceError, SimgateError
 
 __all__ = ["SimgateEnv", "SimgateStartError", "make_vec", "ENV_ID", "UNLIMITED_CONTROL"]
 
@@ -236,8 +236,14 @@ class _Layout:
                 props = sim.call(component, "get_properties")["properties"]["sensors"]
                 self.sensors.append((component, [(n, int(props[n]["dim"])) for n in sorted(props)]))
             if by_type.get("pose"):
-                configuration = sim.call(robot["name"], "get_configurations")
-                self.bases.append(configuration["configurations"]["body"])
+                # the robot's body: its robot-level get_configurations, or, when the robot's
+                # own services are not served to this transport, its name (simgate names a
+                # robot's body after it unless its config says otherwise)
+                try:
+                    configuration = sim.call(robot["name"], "get_configurations")
+                    self.bases.append(configuration["configurations"]["body"])
+                except MethodNotFound:
+                    self.bases.append(robot["name"])
         if not self.actuators:
             robots = ", ".join(r.get("name", "?") for r in details.get("robots", [])) or "none"
             raise ValueError("simgate.gym: the simulation has no actuators component (robots: "

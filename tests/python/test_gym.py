@@ -321,26 +321,37 @@ def test_gymnasium_make_registers_and_wraps():
 
 def test_attach_to_a_running_simgate(tmp_path):
     config = {"scene": {"mjcf": CARTPOLE},
-              "transports": {"jsonrpc": {"plugin": "jsonrpc", "options": {"host": "127.0.0.1", "port": 0}}},
+              "transports": {"jsonrpc": {"plugin": "jsonrpc", "options": {"host": "127.0.0.1", "port": 0}},
+                             "websocket": {"plugin": "websocket", "options": {"host": "127.0.0.1", "port": 0}}},
               "robots": [{"name": "cart", "type": "mjcf", "body": "cart"}], "log_level": "warning"}
     gw = Gateway(tmp_path, config)  # playing, not paused
     try:
-        url = gw.url("jsonrpc")
-        env = SimgateEnv(address=url)
-        try:
-            assert env.client.state()["state"] == "paused"
-            start, _ = env.reset()
-            env.step(np.array([1.0]))
-            with simgate.connect(url) as other:  # the env's lockstep: no one else steps
-                with pytest.raises(simgate.ServiceFailed, match="stepped in lockstep"):
-                    other.step(1)
-            again, _ = env.reset()
-            assert same_bits([start], [again])
-        finally:
-            env.close()
-        assert gw.process.poll() is None  # not ours to stop
-        with simgate.connect(url) as other:
-            assert other.step(1)["steps_done"] == 1  # the env left the lockstep
+        keeper = simgate.connect(gw.url("jsonrpc"))
+        keeper.pause()
+        handle = keeper.save_state()  # both environments attach to this same world
+        trajectories = {}
+        for scheme in ("jsonrpc", "ws"):  # JSON-RPC on TCP and on WebSocket alike
+            keeper.restore_state(handle)
+            url = gw.url(scheme)
+            env = SimgateEnv(address=url)
+            try:
+                assert env.client.state()["state"] == "paused"
+                start, _ = env.reset()
+                trajectories[scheme] = [start] + [env.step(np.array([a]))[0] for a in (1.0, -0.5, 0.25)]
+                with simgate.connect(url) as other:  # the env's lockstep: no one else steps
+                    with pytest.raises(simgate.ServiceFailed, match="stepped in lockstep"):
+                        other.step(1)
+                again, _ = env.reset()
+                assert same_bits([start], [again])
+            finally:
+                env.close()
+            assert gw.process.poll() is None  # not ours to stop
+            with simgate.connect(url) as other:
+                assert other.step(1)["steps_done"] == 1  # the env left the lockstep
+        # the same world, the same actions: the same observations, bit for bit, either way
+        assert len(trajectories["ws"]) == len(trajectories["jsonrpc"]) == 4
+        assert same_bits(trajectories["jsonrpc"], trajectories["ws"])
+        keeper.close()
     finally:
         gw.kill()
 
@@ -397,3 +408,29 @@ def test_pymorse_keeps_working_beside_the_environment(cartpole):
     assert [state["slider"]["position"], state["hinge_1"]["position"]] == obs["joint_pos"].tolist()
     obs, *_ = cartpole.step(np.array([1.0]))  # and the environment goes on
     assert obs["joint_pos"][0] > state["slider"]["position"]
+
+
+def test_a_robot_whose_own_services_are_not_served_has_its_name_as_base(tmp_path):
+    """Only the robot's components and `simulation` mapped to the transport (not the robot's
+    own services, such as get_configurations): the floating base is the body named after the
+    robot."""
+    config = {"scene": {"mjcf": CARTPOLE},
+              "transports": {"jsonrpc": {"plugin": "jsonrpc", "options": {"host": "127.0.0.1", "port": 0}}},
+              "robots": [{"name": "cart", "type": "mjcf", "body": "cart",
+                          "components": [{"name": "pose", "type": "pose"}]}],
+              "services": {"cart.*": ["jsonrpc"], "simulation": ["jsonrpc"]}, "log_level": "warning"}
+    gw = Gateway(tmp_path, config)
+    try:
+        with simgate.connect(gw.url("jsonrpc")) as probe:
+            with pytest.raises(simgate.MethodNotFound):
+                probe.call("cart", "get_configurations")
+        env = SimgateEnv(address=gw.url("jsonrpc"))
+        try:
+            obs, _ = env.reset()
+            assert env.observation_names.count("base:cart/x") == 1
+            assert obs["base"].shape == (13,)
+            env.step(np.array([0.5]))
+        finally:
+            env.close()
+    finally:
+        gw.kill()
