@@ -107,6 +107,36 @@ void wait_matched(dds_entity_t entity, bool writer, Clock::time_point deadline) 
   }
 }
 
+// Raw round trips on `writer` / `reader` (a read condition of `reader` attached to `waitset`):
+// `warmup + count` times, send(i) writes request i, then replies are taken until answers(reply,
+// i) says one is request i's (it counts a wrong one in `errors` itself). The last `count`
+// round trips' durations, in ns.
+template <class Reply, class Send, class Answers>
+std::vector<std::int64_t> raw_round_trips(dds_entity_t reader, dds_entity_t waitset,
+                                          std::size_t count, std::size_t warmup,
+                                          Clock::time_point deadline, const char* what, Send send,
+                                          Answers answers) {
+  std::vector<std::int64_t> samples;
+  void* got[1] = {};
+  dds_sample_info_t info;
+  for (std::size_t i = 0; i < warmup + count; ++i) {
+    auto t0 = Clock::now();
+    send(i);
+    bool answered = false;
+    while (!answered) {
+      if (Clock::now() > deadline) throw std::runtime_error(std::string(what) + ": timed out");
+      dds_waitset_wait(waitset, nullptr, 0, DDS_MSECS(100));
+      got[0] = nullptr;
+      dds_return_t n = dds_take(reader, got, &info, 1, 1);
+      if (n <= 0) continue;
+      if (info.valid_data) answered = answers(*static_cast<const Reply*>(got[0]), i);
+      dds_return_loan(reader, got, n);
+    }
+    if (i >= warmup) samples.push_back(simgate::bench::ns_between(t0, Clock::now()));
+  }
+  return samples;
+}
+
 int run_pong(std::uint32_t domain, const std::string& partition, double timeout_s) {
   RawEndpoints ep(domain, partition);
   auto qos = RawEndpoints::qos();
@@ -173,29 +203,18 @@ json run_ping(std::uint32_t domain, const std::string& partition, std::size_t co
   req.component = k_component;
   req.service = k_service;
   req.params = k_params;
-  std::vector<std::int64_t> samples;
   std::size_t errors = 0;
-  void* got[1] = {};
-  dds_sample_info_t info;
-  for (std::size_t i = 0; i < warmup + count; ++i) {
-    req.id.seq = i + 1;
-    auto t0 = Clock::now();
-    if (dds_write(writer, &req) < 0) ++errors;
-    bool answered = false;
-    while (!answered) {
-      if (Clock::now() > deadline) throw std::runtime_error("raw DDS ping: timed out");
-      dds_waitset_wait(waitset, nullptr, 0, DDS_MSECS(100));
-      dds_return_t n = dds_take(reader, got, &info, 1, 1);
-      if (n <= 0) continue;
-      if (info.valid_data) {
-        auto* reply = static_cast<simgate_Reply*>(got[0]);
-        answered = reply->seq == req.id.seq;
-        if (answered && std::strcmp(reply->result, "3") != 0) ++errors;
-      }
-      dds_return_loan(reader, got, n);
-    }
-    if (i >= warmup) samples.push_back(simgate::bench::ns_between(t0, Clock::now()));
-  }
+  std::vector<std::int64_t> samples = raw_round_trips<simgate_Reply>(
+      reader, waitset, count, warmup, deadline, "raw DDS ping",
+      [&](std::size_t i) {
+        req.id.seq = i + 1;
+        if (dds_write(writer, &req) < 0) ++errors;
+      },
+      [&](const simgate_Reply& reply, std::size_t) {
+        if (reply.seq != req.id.seq) return false;
+        if (std::strcmp(reply.result, "3") != 0) ++errors;
+        return true;
+      });
   json out = simgate::bench::summarize_us(std::move(samples));
   out["errors"] = errors;
   return out;
@@ -303,31 +322,21 @@ json run_ros2_step(std::uint32_t domain, std::size_t count, std::size_t warmup, 
   simulation_interfaces_srv_dds__StepSimulation_Request_ request{};
   request.rmw_client_guid = 0x0123456789abcdefULL;
   request.steps = 1;
-  std::vector<std::int64_t> samples;
+  using Reply = simulation_interfaces_srv_dds__StepSimulation_Response_;
   std::size_t errors = 0;
-  void* got[1] = {};
-  dds_sample_info_t info;
-  for (std::size_t i = 0; i < warmup + count; ++i) {
-    request.rmw_sequence = static_cast<std::int64_t>(i + 1);
-    auto t0 = Clock::now();
-    if (dds_write(writer, &request) < 0) ++errors;
-    bool answered = false;
-    while (!answered) {
-      if (Clock::now() > deadline) throw std::runtime_error("ROS 2 StepSimulation: timed out");
-      dds_waitset_wait(waitset, nullptr, 0, DDS_MSECS(100));
-      dds_return_t n = dds_take(reader, got, &info, 1, 1);
-      if (n <= 0) continue;
-      if (info.valid_data) {
-        const auto* reply =
-            static_cast<const simulation_interfaces_srv_dds__StepSimulation_Response_*>(got[0]);
-        answered = reply->rmw_client_guid == request.rmw_client_guid &&
-                   reply->rmw_sequence == request.rmw_sequence;
-        if (answered && reply->result.result != 1) ++errors;
-      }
-      dds_return_loan(reader, got, n);
-    }
-    if (i >= warmup) samples.push_back(simgate::bench::ns_between(t0, Clock::now()));
-  }
+  std::vector<std::int64_t> samples = raw_round_trips<Reply>(
+      reader, waitset, count, warmup, deadline, "ROS 2 StepSimulation",
+      [&](std::size_t i) {
+        request.rmw_sequence = static_cast<std::int64_t>(i + 1);
+        if (dds_write(writer, &request) < 0) ++errors;
+      },
+      [&](const Reply& reply, std::size_t) {
+        if (reply.rmw_client_guid != request.rmw_client_guid ||
+            reply.rmw_sequence != request.rmw_sequence)
+          return false;
+        if (reply.result.result != 1) ++errors;
+        return true;
+      });
   json out = simgate::bench::summarize_us(std::move(samples));
   out["errors"] = errors;
   return out;
