@@ -64,20 +64,6 @@ constexpr auto k_drop_log_interval = std::chrono::seconds(10);
 char* dup(const std::string& text) { return dds_string_dup(text.c_str()); }
 std::string text(const char* s) { return s ? std::string(s) : std::string(); }
 
-// A sequence of `n` zeroed elements, owned by the sample (freed with it).
-template <class Seq>
-auto* alloc_sequence(Seq& seq, std::size_t n) {
-  using Element = std::remove_pointer_t<decltype(seq._buffer)>;
-  seq._buffer = nullptr;
-  if (n > 0) {
-    seq._buffer = static_cast<Element*>(dds_alloc(n * sizeof(Element)));
-    std::memset(static_cast<void*>(seq._buffer), 0, n * sizeof(Element));
-  }
-  seq._length = seq._maximum = static_cast<std::uint32_t>(n);
-  seq._release = true;
-  return seq._buffer;
-}
-
 void set_strings(dds_sequence_string& seq, const std::vector<std::string>& values) {
   char** out = alloc_sequence(seq, values.size());
   for (std::size_t i = 0; i < values.size(); ++i) out[i] = dup(values[i]);
@@ -137,18 +123,10 @@ struct Ros2Services::Endpoint {
   std::string name;  // the ROS service name
   const dds_topic_descriptor_t* request_type = nullptr;
   const dds_topic_descriptor_t* reply_type = nullptr;
-  Handler handler = nullptr;
+  Handler handler;
   dds_entity_t reader = 0;
   dds_entity_t writer = 0;
   dds_entity_t read_condition = 0;
-};
-
-struct Ros2Services::ReplyTo {
-  std::size_t endpoint = 0;
-  std::uint64_t client_guid = 0;
-  std::int64_t sequence = 0;
-  dds_instance_handle_t client_writer = 0;
-  std::string client_id;  // the client's USER_DATA clientid, "" when it has none
 };
 
 void Ros2Services::SampleDeleter::operator()(void* sample) const {
@@ -203,12 +181,18 @@ Ros2Services::Ros2Services(Settings settings, dds_entity_t participant, dds_enti
 Ros2Services::~Ros2Services() = default;  // the entities go with the participant
 
 void Ros2Services::add(const char* name, const dds_topic_descriptor_t& request,
+                       const dds_topic_descriptor_t& reply, Member handler) {
+  add(name, request, reply,
+      [this, handler](const void* sample, const ReplyTo& to) { (this->*handler)(sample, to); });
+}
+
+void Ros2Services::add(const std::string& name, const dds_topic_descriptor_t& request,
                        const dds_topic_descriptor_t& reply, Handler handler) {
   auto endpoint = std::make_unique<Endpoint>();
-  endpoint->name = settings_.service_namespace + "/" + name;
+  endpoint->name = full_name(name);
   endpoint->request_type = &request;
   endpoint->reply_type = &reply;
-  endpoint->handler = handler;
+  endpoint->handler = std::move(handler);
   // the same serviceid on both halves: a ROS client pairs them by it
   dds_guid_t guid{};
   dds_get_guid(participant_, &guid);
@@ -292,7 +276,7 @@ void Ros2Services::take_requests() {
           dds_builtintopic_free_endpoint(writer);
         }
         try {
-          (this->*endpoint.handler)(samples[i], to);
+          endpoint.handler(samples[i], to);
         } catch (const std::exception& e) {
           log::error("ros2 transport: ", endpoint.name, ": ", e.what());
         }
@@ -303,14 +287,9 @@ void Ros2Services::take_requests() {
   }
 }
 
-template <class Response>
-std::unique_ptr<void, Ros2Services::SampleDeleter> Ros2Services::new_reply(const ReplyTo& to,
-                                                                           Response*& out) {
-  void* sample = dds_alloc(sizeof(Response));
-  std::memset(sample, 0, sizeof(Response));
-  out = static_cast<Response*>(sample);
-  out->rmw_client_guid = to.client_guid;
-  out->rmw_sequence = to.sequence;
+Ros2Services::Sample Ros2Services::new_sample(const ReplyTo& to, std::size_t size) const {
+  void* sample = dds_alloc(size);
+  std::memset(sample, 0, size);
   return Sample(sample, SampleDeleter{endpoints_[to.endpoint]->reply_type});
 }
 

@@ -18,6 +18,8 @@
 //  - handling: each request becomes one or more calls of `simulation` services (Caller, run
 //    like any request of this transport: access rules, deadlines, the simulation lock); their
 //    outcomes become the reply's Result (ros2_sim_interfaces.h: result_of).
+//  - other servers: an action's services (ros2_simulate_steps.h) are served by this same
+//    machinery: add() makes a service with its own handler, new_reply() and send() answer it.
 //
 // Threads: everything on the transport's DDS thread; the Caller's continuations run there
 // too.
@@ -26,12 +28,14 @@
 
 #include <chrono>
 #include <cstdint>
+#include <cstring>
 #include <deque>
 #include <functional>
 #include <map>
 #include <memory>
 #include <optional>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include <dds/dds.h>
@@ -51,6 +55,25 @@ class Ros2Services {
   // thread, never from inside the call itself).
   using Caller = std::function<void(Call call, std::function<void(Outcome&&)> done)>;
 
+  // Whom a request's reply goes to: its service, the request header to copy into the reply,
+  // the client's request writer (still there?) and its USER_DATA clientid.
+  struct ReplyTo {
+    std::size_t endpoint = 0;  // the service (add()'s order)
+    std::uint64_t client_guid = 0;
+    std::int64_t sequence = 0;
+    dds_instance_handle_t client_writer = 0;
+    std::string client_id;  // the client's USER_DATA clientid, "" when it has none
+  };
+  // Handles one request (the sample, of the service's request type) on the DDS thread: sends
+  // its reply to `to` now or later (send()), or never (the client then waits in vain).
+  using Handler = std::function<void(const void* request, const ReplyTo& to)>;
+
+  struct SampleDeleter {
+    const dds_topic_descriptor_t* type = nullptr;
+    void operator()(void* sample) const;
+  };
+  using Sample = std::unique_ptr<void, SampleDeleter>;
+
   struct Settings {
     std::string service_namespace;      // "" or "/ns": the services' names under it
     std::string world_frame = "world";  // frame_id of entity states
@@ -69,7 +92,31 @@ class Ros2Services {
   Ros2Services(const Ros2Services&) = delete;
   Ros2Services& operator=(const Ros2Services&) = delete;
 
+  // The ROS name of `name` ("simulate_steps") under the services' namespace.
+  std::string full_name(const std::string& name) const {
+    return settings_.service_namespace + "/" + name;
+  }
+
+  // One more service, `name` under service_namespace ("simulate_steps/_action/send_goal"),
+  // its reader and writer made and attached as every service's; `request` and `reply` are
+  // idlc's descriptors (announced by name only). Before the DDS thread starts (the ROS graph
+  // is written then). Throws std::runtime_error when DDS refuses.
+  void add(const std::string& name, const dds_topic_descriptor_t& request,
+           const dds_topic_descriptor_t& reply, Handler handler);
+
   // ---- DDS thread ----
+  // A new reply to `to` (a Response of its service's reply type), zeroed but for the request
+  // header; `out` points into it. Every string in it must be set before send().
+  template <class Response>
+  Sample new_reply(const ReplyTo& to, Response*& out) {
+    Sample sample = new_sample(to, sizeof(Response));
+    out = static_cast<Response*>(sample.get());
+    out->rmw_client_guid = to.client_guid;
+    out->rmw_sequence = to.sequence;
+    return sample;
+  }
+  // Writes `reply` now if the client's reader has matched, parks it otherwise.
+  void send(const ReplyTo& to, Sample reply);
   // Takes every service's requests and handles them.
   void take_requests();
   // Writes the parked replies whose client's reader has matched; drops those of gone clients
@@ -88,12 +135,6 @@ class Ros2Services {
 
  private:
   struct Endpoint;
-  struct ReplyTo;
-  struct SampleDeleter {
-    const dds_topic_descriptor_t* type = nullptr;
-    void operator()(void* sample) const;
-  };
-  using Sample = std::unique_ptr<void, SampleDeleter>;
   struct Parked {
     std::size_t endpoint;
     dds_instance_handle_t client_writer;
@@ -101,15 +142,13 @@ class Ros2Services {
     Sample reply;
     std::chrono::steady_clock::time_point deadline;
   };
-  using Handler = void (Ros2Services::*)(const void* request, const ReplyTo& to);
+  using Member = void (Ros2Services::*)(const void* request, const ReplyTo& to);
 
+  // One of the services below.
   void add(const char* name, const dds_topic_descriptor_t& request,
-           const dds_topic_descriptor_t& reply, Handler handler);
-  // A new reply of `to`'s service, zeroed but for its header.
-  template <class Response>
-  std::unique_ptr<void, SampleDeleter> new_reply(const ReplyTo& to, Response*& out);
-  // Writes `reply` now if the client's reader matched, parks it otherwise.
-  void send(const ReplyTo& to, Sample reply);
+           const dds_topic_descriptor_t& reply, Member handler);
+  // A zeroed sample of `size` bytes, of `to`'s reply type.
+  Sample new_sample(const ReplyTo& to, std::size_t size) const;
   // Whether the reply writer of `endpoint` has matched a reader with USER_DATA clientid.
   bool reader_matched(const Endpoint& endpoint, const std::string& client_id) const;
   void write(const Endpoint& endpoint, const Sample& reply);
@@ -148,6 +187,21 @@ class Ros2Services {
   std::uint64_t written_ = 0, dropped_ = 0;
   std::chrono::steady_clock::time_point drop_logged_at_{};
 };
+
+// A sequence of `n` zeroed elements in a sample the transport made (new_reply), owned by it
+// (freed with it); returns its buffer.
+template <class Seq>
+auto* alloc_sequence(Seq& seq, std::size_t n) {
+  using Element = std::remove_pointer_t<decltype(seq._buffer)>;
+  seq._buffer = nullptr;
+  if (n > 0) {
+    seq._buffer = static_cast<Element*>(dds_alloc(n * sizeof(Element)));
+    std::memset(static_cast<void*>(seq._buffer), 0, n * sizeof(Element));
+  }
+  seq._length = seq._maximum = static_cast<std::uint32_t>(n);
+  seq._release = true;
+  return seq._buffer;
+}
 
 }  // namespace simgate::ros2
 
