@@ -6,26 +6,21 @@ the service available once both have matched endpoints with the same serviceid, 
 prefixed by its id and sequence number, the reply of that request picked by them. simgate's own
 view (the socket transport) is the reference."""
 
-import itertools
 import json
-import math
-import os
 import time
-import uuid
 
 import pytest
 from cyclonedds.core import Policy, Qos
 from cyclonedds.domain import DomainParticipant
-from cyclonedds.pub import DataWriter
 from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 from cyclonedds.util import duration
 from rosbags.typesys import Stores, get_typestore, get_types_from_msg
 
 import ros2_types as ros
-from conftest import DOMAIN_BASE, SOURCE_DIR, Gateway, ros2_config
+from conftest import DOMAIN_BASE, Gateway, ros2_config
+from ros2_clients import WAIT, ServiceClient, user_data_value
 
-WAIT = 20  # seconds: the longest any test waits for what it expects
 OK, NOT_FOUND, INCORRECT_STATE, OPERATION_FAILED, FEATURE_UNSUPPORTED = 1, 2, 3, 4, 0
 STOPPED, PLAYING, PAUSED = 0, 1, 2
 
@@ -46,86 +41,6 @@ SERVICES = {
     "delete_entity": (ros.DeleteEntityRequest, ros.DeleteEntityResponse),
     "simgate/call": (ros.CallRequest, ros.CallResponse),
 }
-
-_client_ids = itertools.count(1)
-
-
-def service_qos(user_data):
-    # ROS 2's services profile: reliable, volatile, keep-last 10
-    return Qos(Policy.Reliability.Reliable(duration(seconds=1)), Policy.History.KeepLast(10),
-               Policy.Userdata(data=user_data))
-
-
-def user_data_value(data, key):
-    for entry in bytes(data or b"").decode(errors="replace").split(";"):
-        if entry.startswith(key + "="):
-            return entry[len(key) + 1:]
-    return None
-
-
-class ServiceClient:
-    """A ROS 2 service client as rmw_cyclonedds makes one. `reader_later`: the reply reader is
-    made only at the first call, after the request is written (a client whose reader simgate
-    has not matched yet when the reply is ready)."""
-
-    def __init__(self, participant, name, reader_later=False):
-        self.participant = participant
-        self.name = name
-        self.request_cls, self.reply_cls = SERVICES[name]
-        self.client_id = f"{uuid.uuid4().hex[:8]}.{next(_client_ids)}"
-        self.qos = service_qos(f"clientid={self.client_id};".encode())
-        self.request_topic = Topic(participant, f"rq/{name}Request", self.request_cls)
-        self.reply_topic = Topic(participant, f"rr/{name}Reply", self.reply_cls)
-        self.writer = DataWriter(participant, self.request_topic, qos=self.qos)
-        self.reader = None if reader_later else self._make_reader()
-        self.guid = int.from_bytes(self.writer.get_guid().bytes[:8], "little")
-        self.sequence = 0
-
-    def _make_reader(self):
-        return DataReader(self.participant, self.reply_topic, qos=self.qos)
-
-    def wait_for_service(self, timeout=WAIT):
-        """As rmw_cyclonedds' service_server_is_available: a matched request reader and a
-        matched reply writer with the same serviceid."""
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            readers = {user_data_value(d.qos[Policy.Userdata].data if Policy.Userdata in d.qos
-                                       else b"", "serviceid")
-                       for d in (self.writer.get_matched_subscription_data(h)
-                                 for h in self.writer.get_matched_subscriptions()) if d}
-            if self.reader is None:
-                if readers - {None}:
-                    return readers
-            else:
-                writers = {user_data_value(d.qos[Policy.Userdata].data if Policy.Userdata in d.qos
-                                           else b"", "serviceid")
-                           for d in (self.reader.get_matched_publication_data(h)
-                                     for h in self.reader.get_matched_publications()) if d}
-                if (readers & writers) - {None}:
-                    return readers & writers
-            time.sleep(0.01)  # polling discovery, bounded by the deadline
-        pytest.fail(f"service /{self.name} not available in {timeout} s")
-
-    def send(self, **fields):
-        self.sequence += 1
-        self.writer.write(self.request_cls(client_guid=self.guid, sequence=self.sequence,
-                                           **fields))
-        return self.sequence
-
-    def receive(self, sequence, timeout=WAIT):
-        if self.reader is None:
-            self.reader = self._make_reader()
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            for reply in self.reader.take(N=16):
-                if reply.client_guid == self.guid and reply.sequence == sequence:
-                    return reply
-            time.sleep(0.005)  # polling the reader, bounded by the deadline
-        pytest.fail(f"no reply to /{self.name} request {sequence} in {timeout} s")
-
-    def call(self, timeout=WAIT, **fields):
-        self.wait_for_service()
-        return self.receive(self.send(**fields), timeout)
 
 
 @pytest.fixture(scope="module")
@@ -154,7 +69,7 @@ def clients(participant):
 
     def client(name):
         if name not in made:
-            made[name] = ServiceClient(participant, name)
+            made[name] = ServiceClient(participant, name, *SERVICES[name])
         return made[name]
     return client
 
@@ -346,7 +261,8 @@ def test_simgate_call_reaches_any_served_service(sim, clients):
 
 
 def test_a_reply_waits_for_the_clients_reader(sim, participant):
-    late = ServiceClient(participant, "get_simulation_state", reader_later=True)
+    late = ServiceClient(participant, "get_simulation_state", *SERVICES["get_simulation_state"],
+                         reader_later=True)
     late.wait_for_service()
     sequence = late.send()
     time.sleep(0.5)  # the reply is ready long before the client's reader exists
@@ -428,7 +344,7 @@ def test_reply_bytes_are_ros2_cdr(sim, participant):
 
     cls.deserialize = classmethod(record)
     try:
-        client = ServiceClient(participant, "get_entity_state")
+        client = ServiceClient(participant, "get_entity_state", *SERVICES["get_entity_state"])
         reply = client.call(entity="robot")
     finally:
         del cls.deserialize
