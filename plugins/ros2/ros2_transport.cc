@@ -128,6 +128,8 @@ Ros2Options Ros2Options::parse(const json& options) {
   }
   out.park_timeout =
       std::chrono::milliseconds(config.get_int("park_timeout_ms", 10000, 10, 600000));
+  out.feedback_interval = std::chrono::milliseconds(
+      config.get_int("feedback_interval_ms", out.feedback_interval.count(), 0, 60000));
   config.finish();
   return out;
 }
@@ -182,17 +184,29 @@ Ros2Transport::Ros2Transport(const json& options)
   guard_ = dds::check_created(dds_create_guardcondition(pp), "guard condition");
   dds::check_created(dds_waitset_attach(waitset_, guard_, k_token_guard), "waitset attachment");
   if (options_.services) {
-    Ros2Services::Settings settings{options_.service_namespace, options_.world_frame,
-                                    options_.park_timeout};
+    Ros2Services::Settings settings;
+    settings.service_namespace = options_.service_namespace;
+    settings.world_frame = options_.world_frame;
+    settings.park_timeout = options_.park_timeout;
     settings.may_call = [this](const std::string& service) {
       return may_call("simulation", service);
     };
+    auto sim_time = [this] { return stream_hub() ? stream_hub()->time() : 0.0; };
     services_ = std::make_unique<Ros2Services>(
         std::move(settings), pp, waitset_,
         [this](Call call, std::function<void(Outcome&&)> done) {
           this->call(std::move(call), std::move(done));
         },
-        [this] { return stream_hub() ? stream_hub()->time() : 0.0; });
+        sim_time);
+    // the goals' feedback: the step call's progress reports, as often as this lets them
+    set_progress_interval(options_.feedback_interval);
+    simulate_steps_ = std::make_unique<Ros2SimulateSteps>(
+        Ros2SimulateSteps::Settings{}, *services_, pp,
+        [this](Call call, std::function<void(json&&)> progress,
+               std::function<void(Outcome&&)> done) {
+          return this->call(std::move(call), std::move(done), std::move(progress));
+        },
+        [this](RequestId id) { cancel(id); }, sim_time);
   }
 }
 
@@ -228,31 +242,39 @@ void Ros2Transport::stop() {
     }
   }
   topics_.reset();  // unsubscribes; its entities go with the participant
+  simulate_steps_.reset();
   services_.reset();
   continuations_.clear();
   completed_.clear();
   participant_.reset();
 }
 
-void Ros2Transport::call(Call call, std::function<void(Outcome&&)> done) {
+RequestId Ros2Transport::call(Call call, std::function<void(Outcome&&)> done,
+                              std::function<void(json&&)> progress) {
   const RequestId id = new_request_id();
-  continuations_.emplace(id, std::move(done));
+  continuations_.emplace(id, Continuation{std::move(done), std::move(progress)});
   run_or_submit(id, std::move(call));
   run_continuations();
+  return id;
 }
 
 void Ros2Transport::run_continuations() {
   if (running_continuations_) return;  // the outermost call runs them all
   running_continuations_ = true;
   while (!completed_.empty()) {
-    auto [id, outcome] = std::move(completed_.front());
+    auto [id, event] = std::move(completed_.front());
     completed_.pop_front();
     auto it = continuations_.find(id);
     if (it == continuations_.end()) continue;
-    auto done = std::move(it->second);
-    continuations_.erase(it);
     try {
-      done(std::move(outcome));
+      if (json* progress = std::get_if<json>(&event)) {
+        // the call goes on: its continuations stay
+        if (it->second.progress) it->second.progress(std::move(*progress));
+        continue;
+      }
+      auto done = std::move(it->second.done);
+      continuations_.erase(it);
+      done(std::get<Outcome>(std::move(event)));
     } catch (const std::exception& e) {
       log::error("ros2 transport: ", e.what());
     }
@@ -263,7 +285,8 @@ void Ros2Transport::run_continuations() {
 void Ros2Transport::on_service_completion(RequestId id, Outcome&& outcome) {
   if (id != geometry_call_) {
     // a service's call: its continuation runs once the lock is released (run_continuations)
-    if (!stopping_ && continuations_.count(id)) completed_.emplace_back(id, std::move(outcome));
+    if (!stopping_ && continuations_.count(id))
+      completed_.emplace_back(id, Event(std::in_place_type<Outcome>, std::move(outcome)));
     return;
   }
   geometry_call_ = 0;
@@ -283,6 +306,12 @@ void Ros2Transport::on_service_completion(RequestId id, Outcome&& outcome) {
         "{\"simulation\": [..., \"",
         transport_name(), "\"]}): ", outcome.message, " (logged once)");
   geometry_failure_logged_ = true;
+}
+
+void Ros2Transport::on_service_progress(RequestId id, json&& value) {
+  // run by run_continuations, after the outcomes and reports that came before it
+  if (!stopping_ && continuations_.count(id))
+    completed_.emplace_back(id, Event(std::in_place_type<json>, std::move(value)));
 }
 
 void Ros2Transport::on_services_changed() {
@@ -324,6 +353,7 @@ void Ros2Transport::write_graph() {
   if (clock_writer_ > 0) writers.push_back(clock_writer_);
   if (topics_) topics_->endpoints(writers, readers);
   if (services_) services_->endpoints(writers, readers);
+  if (simulate_steps_) simulate_steps_->endpoints(writers, readers);
   const dds_entity_t pp = participant_->handle();
   const dds_return_t rc =
       options_.humble_graph
@@ -386,6 +416,7 @@ void Ros2Transport::run() {
         // wakes the thread, k_token_matched), and at least every k_park_retry
         if (services_->has_parked()) services_->flush_parked();
       }
+      if (simulate_steps_) simulate_steps_->expire();
       if (topics_ && topics_->take_geometry_wanted()) ask_geometry();
       if (topics_ && commands) topics_->take_commands();
       if (options_.clock_hz > 0 && std::chrono::steady_clock::now() >= next_clock) {
@@ -408,4 +439,4 @@ void Ros2Transport::run() {
 
 SIMGATE_TRANSPORT_PLUGIN(ros2, simgate::ros2::Ros2Transport, "0.1.0", "domain", "config",
                          "node_name", "world_frame", "clock_hz", "tf", "robots", "ros_distro",
-                         "services", "service_namespace", "park_timeout_ms")
+                         "services", "service_namespace", "park_timeout_ms", "feedback_interval_ms")

@@ -19,6 +19,9 @@
 //  - services: Ros2Services (ros2_services.h): simulation_interfaces' services and
 //    simgate/call, each request one or more calls through this transport (call()), their
 //    outcomes turned into replies on the DDS thread.
+//  - the SimulateSteps action: Ros2SimulateSteps (ros2_simulate_steps.h), its services served
+//    by Ros2Services, each goal a `simulation step` call with progress reports (its
+//    feedback) that a cancel ends early.
 //
 // Threads: one DDS thread waits on a waitset (guard condition: samples queued, outcomes
 // handed over, the services changed; the cmd_vel readers) with the clock period as its
@@ -39,12 +42,14 @@
 #include <set>
 #include <string>
 #include <thread>
+#include <variant>
 #include <vector>
 
 #include <dds/dds.h>
 
 #include "dds_support.h"
 #include "ros2_services.h"
+#include "ros2_simulate_steps.h"
 #include "ros2_topics.h"
 #include "simgate/core/request_manager.h"
 
@@ -64,6 +69,8 @@ struct Ros2Options {
   bool services = true;               // the simulation_interfaces services and simgate/call
   std::string service_namespace;      // "" or "/ns": the services' names under it
   std::chrono::milliseconds park_timeout{10000};  // a reply waits for its client's reader
+  // the shortest time between two SimulateSteps feedback messages of a goal (0: every step)
+  std::chrono::milliseconds feedback_interval = RequestManager::k_default_progress_interval;
   // Throws ConfigError naming the key and what was expected.
   static Ros2Options parse(const json& options);
 };
@@ -84,8 +91,11 @@ class Ros2Transport : public RequestManager {
   std::vector<std::string> endpoints() const override;
 
  protected:
-  // The DDS thread (deliver_on_this_thread): the answer of get_scene_geometry.
+  // The DDS thread (deliver_on_this_thread): the answer of get_scene_geometry, the
+  // services' calls' outcomes.
   void on_service_completion(RequestId id, Outcome&& outcome) override;
+  // The DDS thread: a progress report of a call made with progress (SimulateSteps' goals).
+  void on_service_progress(RequestId id, json&& value) override;
   // Under the simulation lock, any thread: the streams may have changed (a robot spawned or
   // deleted); the DDS thread syncs its topics.
   void on_services_changed() override;
@@ -97,9 +107,12 @@ class Ros2Transport : public RequestManager {
   void ask_geometry();
   void write_clock(bool force);
   void write_graph();
-  // The services' Caller: `call` as a request of this transport, `done` with its outcome.
-  void call(Call call, std::function<void(Outcome&&)> done);
-  // Runs the continuations of the outcomes that came (not nested: the outermost runs them).
+  // The services' Caller: `call` as a request of this transport, `done` with its outcome
+  // (and `progress` with its progress reports, for a call with Call::progress); its id.
+  RequestId call(Call call, std::function<void(Outcome&&)> done,
+                 std::function<void(json&&)> progress = {});
+  // Runs the continuations of the outcomes and progress reports that came (not nested: the
+  // outermost runs them).
   void run_continuations();
 
   const Ros2Options options_;
@@ -110,9 +123,16 @@ class Ros2Transport : public RequestManager {
   dds_entity_t guard_ = 0;              // wakes it (samples, outcomes, services changed, stop)
   std::unique_ptr<Ros2Topics> topics_;  // made in start()
   std::unique_ptr<Ros2Services> services_;
-  // the services' calls in flight, and the outcomes come that wait for their continuation
-  std::map<RequestId, std::function<void(Outcome&&)>> continuations_;
-  std::deque<std::pair<RequestId, Outcome>> completed_;
+  std::unique_ptr<Ros2SimulateSteps> simulate_steps_;  // with the services
+  // the services' calls in flight, and what came of them (progress reports, then the
+  // outcome) that waits for their continuations
+  struct Continuation {
+    std::function<void(Outcome&&)> done;
+    std::function<void(json&&)> progress;  // empty: no progress asked
+  };
+  std::map<RequestId, Continuation> continuations_;
+  using Event = std::variant<Outcome, json>;  // an outcome, or a progress report
+  std::deque<std::pair<RequestId, Event>> completed_;
   bool running_continuations_ = false;
   std::thread thread_;  // the DDS thread
   std::atomic<bool> started_{false};

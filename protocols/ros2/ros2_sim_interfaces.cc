@@ -57,6 +57,7 @@ std::vector<std::uint16_t> offered_features(
       {26, {"get_simulation_state", "pause"}},
       {31, {"step"}},
       {32, {"step"}},
+      {33, {"step"}},
   };
   std::vector<std::uint16_t> out;
   for (const Feature& feature : implemented) {

@@ -80,7 +80,7 @@ std::optional<std::string> reset_scope_of(std::uint8_t scope, std::string& why);
 // ENTITY_INFO_GETTING (12: get_entity_state, list_robots), SIMULATION_RESET and its TIME and
 // STATE scopes (20-22: reset), SIMULATION_STATE_GETTING (24), _SETTING (25:
 // get_simulation_state, pause, play), SIMULATION_STATE_PAUSE (26), STEP_SIMULATION_SINGLE and
-// _MULTIPLE (31, 32: step).
+// _MULTIPLE (31, 32: step), STEP_SIMULATION_ACTION (33: step, the SimulateSteps action).
 std::vector<std::uint16_t> offered_features(
     const std::function<bool(const std::string& service)>& may_call);
 

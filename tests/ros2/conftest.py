@@ -21,8 +21,11 @@ import pytest
 SOURCE_DIR = os.environ.get("SIMGATE_SOURCE_DIR") or os.path.abspath(
     os.path.join(os.path.dirname(__file__), "..", ".."))
 START_TIMEOUT = 60
-# two domains of this session's own (1 .. 230), so that parallel runs do not see each other
-DOMAIN_BASE = 1 + (os.getpid() % 114) * 2
+# DOMAINS domains of this session's own (DOMAIN_BASE + 0 .. 4 within 1 .. 230: the rover, the
+# arm, the pose rover, the services' and the action's simulations), so that parallel runs do
+# not see each other (two sessions share theirs only when their pids agree modulo 46)
+DOMAINS = 5
+DOMAIN_BASE = 1 + (os.getpid() % (230 // DOMAINS)) * DOMAINS
 
 
 def simgate_binary():
@@ -152,7 +155,7 @@ def arm(tmp_path_factory, arm_domain):
 
 @pytest.fixture(scope="session")
 def pose_domain():
-    return DOMAIN_BASE + 2 if DOMAIN_BASE + 2 <= 230 else 3
+    return DOMAIN_BASE + 2
 
 
 @pytest.fixture(scope="session")

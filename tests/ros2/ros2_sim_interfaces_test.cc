@@ -40,8 +40,8 @@ TEST(Ros2SimInterfacesTest, ResetScopesAreSimgatesOrSayWhyNot) {
 
 TEST(Ros2SimInterfacesTest, FeaturesNeedEveryServiceTheirRosServicesCall) {
   const auto all = offered_features([](const std::string&) { return true; });
-  EXPECT_EQ(all,
-            (std::vector<std::uint16_t>{0, 1, 5, 9, 10, 11, 12, 20, 21, 22, 24, 25, 26, 31, 32}));
+  EXPECT_EQ(all, (std::vector<std::uint16_t>{0, 1, 5, 9, 10, 11, 12, 20, 21, 22, 24, 25, 26, 31, 32,
+                                             33}));
   EXPECT_TRUE(offered_features([](const std::string&) { return false; }).empty());
   // play denied: SIMULATION_STATE_SETTING goes, pausing (26) stays
   const auto no_play = offered_features([](const std::string& s) { return s != "play"; });

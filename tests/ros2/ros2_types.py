@@ -451,3 +451,108 @@ class CallResponse(IdlStruct, typename="simgate_interfaces::srv::dds_::Call_Resp
     status: str = ""
     message: str = ""
     result: str = ""
+
+
+# ---- the SimulateSteps action (simulation_interfaces 2.1) as rcl_action puts an action on DDS:
+# ros2/unique_identifier_msgs' UUID, ros2/rcl_interfaces' action_msgs, and the types ROS 2's IDL
+# generator derives from action/SimulateSteps.action (<A>_Goal, _Result, _Feedback, the services
+# <A>_SendGoal and <A>_GetResult, the message <A>_FeedbackMessage, in <pkg>::action::dds_) ----
+
+@dataclass
+class UUID(IdlStruct, typename="unique_identifier_msgs::msg::dds_::UUID_"):
+    uuid: t.array[t.uint8, 16] = field(default_factory=lambda: [0] * 16)
+
+
+@dataclass
+class GoalInfo(IdlStruct, typename="action_msgs::msg::dds_::GoalInfo_"):
+    goal_id: UUID = field(default_factory=UUID)
+    stamp: Time = field(default_factory=Time)
+
+
+@dataclass
+class GoalStatus(IdlStruct, typename="action_msgs::msg::dds_::GoalStatus_"):
+    goal_info: GoalInfo = field(default_factory=GoalInfo)
+    status: t.int8 = 0
+
+
+@dataclass
+class GoalStatusArray(IdlStruct, typename="action_msgs::msg::dds_::GoalStatusArray_"):
+    status_list: t.sequence[GoalStatus] = field(default_factory=list)
+
+
+@dataclass
+class CancelGoalRequest(IdlStruct, typename="action_msgs::srv::dds_::CancelGoal_Request_"):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    goal_info: GoalInfo = field(default_factory=GoalInfo)
+
+
+@dataclass
+class CancelGoalResponse(IdlStruct, typename="action_msgs::srv::dds_::CancelGoal_Response_"):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    return_code: t.int8 = 0
+    goals_canceling: t.sequence[GoalInfo] = field(default_factory=list)
+
+
+def _action(name):
+    return f"simulation_interfaces::action::dds_::{name}"
+
+
+@dataclass
+class SimulateStepsGoal(IdlStruct, typename=_action("SimulateSteps_Goal_")):
+    steps: t.uint64 = 0
+
+
+@dataclass
+class SimulateStepsResult(IdlStruct, typename=_action("SimulateSteps_Result_")):
+    result: Result = field(default_factory=Result)
+
+
+@dataclass
+class SimulateStepsFeedback(IdlStruct, typename=_action("SimulateSteps_Feedback_")):
+    completed_steps: t.uint64 = 0
+    remaining_steps: t.uint64 = 0
+
+
+@dataclass
+class SimulateStepsSendGoalRequest(IdlStruct, typename=_action("SimulateSteps_SendGoal_Request_")):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    goal_id: UUID = field(default_factory=UUID)
+    goal: SimulateStepsGoal = field(default_factory=SimulateStepsGoal)
+
+
+@dataclass
+class SimulateStepsSendGoalResponse(
+    IdlStruct, typename=_action("SimulateSteps_SendGoal_Response_")
+):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    accepted: bool = False
+    stamp: Time = field(default_factory=Time)
+
+
+@dataclass
+class SimulateStepsGetResultRequest(
+    IdlStruct, typename=_action("SimulateSteps_GetResult_Request_")
+):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    goal_id: UUID = field(default_factory=UUID)
+
+
+@dataclass
+class SimulateStepsGetResultResponse(
+    IdlStruct, typename=_action("SimulateSteps_GetResult_Response_")
+):
+    client_guid: t.uint64 = 0
+    sequence: t.int64 = 0
+    status: t.int8 = 0
+    result: SimulateStepsResult = field(default_factory=SimulateStepsResult)
+
+
+@dataclass
+class SimulateStepsFeedbackMessage(IdlStruct, typename=_action("SimulateSteps_FeedbackMessage_")):
+    goal_id: UUID = field(default_factory=UUID)
+    feedback: SimulateStepsFeedback = field(default_factory=SimulateStepsFeedback)

@@ -45,7 +45,7 @@ SERVICES = {
 
 @pytest.fixture(scope="module")
 def services_domain():
-    return DOMAIN_BASE + 3 if DOMAIN_BASE + 3 <= 230 else 4
+    return DOMAIN_BASE + 3
 
 
 @pytest.fixture(scope="module")
@@ -97,8 +97,8 @@ def test_features_are_the_ones_implemented(sim, clients, own):
     reply = clients("get_simulator_features").call()
     features = set(reply.features.features)
     # spawning, deleting, bounds, inline resources, entity state get/set, info, reset (and its
-    # scopes), simulation state get/set/pause, stepping one and many
-    assert features == {0, 1, 5, 9, 10, 11, 12, 20, 21, 22, 24, 25, 26, 31, 32}
+    # scopes), simulation state get/set/pause, stepping one and many, the SimulateSteps action
+    assert features == {0, 1, 5, 9, 10, 11, 12, 20, 21, 22, 24, 25, 26, 31, 32, 33}
     assert set(reply.features.spawn_formats) == set(own.call("simulation", "get_capabilities")
                                                     ["spawn_formats"])
     assert "ros2" in reply.features.custom_info

@@ -244,13 +244,16 @@ def test_ros_graph_names_the_node_and_its_endpoints(rover, node):
         assert probe.stdout.strip() == "enclave=/;"
 
     # the node owns them all: its GIDs are their GUIDs (the graph's own writer apart), beside
-    # its services' readers and writers (test_ros2_services.py: one each per service)
+    # its services' readers and writers (test_ros2_services.py: one each per service; the
+    # SimulateSteps action's three among them) and the action's feedback and status writers
+    # (test_ros2_actions.py)
     node_info = info.node_entities_info_seq[0]
-    services = 14
+    services = 14 + 3
+    action_topics = 2
     writers = {gid_hex(g) for g in node_info.writer_gid_seq}
     readers = {gid_hex(g) for g in node_info.reader_gid_seq}
     assert {p.key.bytes.hex() for p in publications.values()} <= writers
-    assert len(writers) == len(publications) + services
+    assert len(writers) == len(publications) + services + action_topics
     assert cmd_vel.key.bytes.hex() in readers and len(readers) == 1 + services
     # ROS 2's type names and QoS
     assert {k: v.type_name for k, v in publications.items()} == {
@@ -378,6 +381,7 @@ def test_pose_sensor_gives_odom_in_the_world_frame(pose_rover, pose_domain):
     ({"tf": "yes"}, "tf"),
     ({"clock": 100}, "clock"),
     ({"ros_distro": "foxy"}, "ros_distro"),
+    ({"feedback_interval_ms": 60001}, "feedback_interval_ms"),
     ({"config": "<CycloneDDS><Domain><Bogus/></Domain></CycloneDDS>"}, "config"),
 ])
 def test_bad_options_are_refused_with_their_key(tmp_path, options, expected):
