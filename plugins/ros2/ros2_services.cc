@@ -127,7 +127,27 @@ struct Ros2Services::Endpoint {
   dds_entity_t reader = 0;
   dds_entity_t writer = 0;
   dds_entity_t read_condition = 0;
+  // what discovery said of the clients (reading it costs a copy of each endpoint's QoS),
+  // read again when the matches change
+  std::map<dds_instance_handle_t, std::string> request_writers;  // -> their clientid
+  std::set<std::string> reply_readers;                           // the clientids matched
+  bool readers_known = false;
 };
+
+namespace {
+// The clientid of a matched endpoint's USER_DATA ("" when none).
+std::string client_id_of(const dds_builtintopic_endpoint_t& endpoint) {
+  void* value = nullptr;
+  std::size_t size = 0;
+  std::string id;
+  if (dds_qget_userdata(endpoint.qos, &value, &size) && value) {
+    id = user_data_value(std::string_view(static_cast<const char*>(value), size), "clientid")
+             .value_or("");
+    dds_free(value);
+  }
+  return id;
+}
+}  // namespace
 
 void Ros2Services::SampleDeleter::operator()(void* sample) const {
   if (sample) dds_sample_free(sample, type, DDS_FREE_ALL);
@@ -263,18 +283,7 @@ void Ros2Services::take_requests() {
         to.client_guid = header->client_guid;
         to.sequence = header->sequence;
         to.client_writer = infos[i].publication_handle;
-        if (dds_builtintopic_endpoint_t* writer =
-                dds_get_matched_publication_data(endpoint.reader, to.client_writer)) {
-          void* value = nullptr;
-          std::size_t size = 0;
-          if (dds_qget_userdata(writer->qos, &value, &size) && value) {
-            to.client_id =
-                user_data_value(std::string_view(static_cast<const char*>(value), size), "clientid")
-                    .value_or("");
-            dds_free(value);
-          }
-          dds_builtintopic_free_endpoint(writer);
-        }
+        to.client_id = client_of(endpoint, to.client_writer);
         try {
           endpoint.handler(samples[i], to);
         } catch (const std::exception& e) {
@@ -293,28 +302,42 @@ Ros2Services::Sample Ros2Services::new_sample(const ReplyTo& to, std::size_t siz
   return Sample(sample, SampleDeleter{endpoints_[to.endpoint]->reply_type});
 }
 
-bool Ros2Services::reader_matched(const Endpoint& endpoint, const std::string& client_id) const {
-  std::vector<dds_instance_handle_t> handles(16);
-  dds_return_t n;
-  while ((n = dds_get_matched_subscriptions(endpoint.writer, handles.data(), handles.size())) >
-         static_cast<dds_return_t>(handles.size()))
-    handles.resize(static_cast<std::size_t>(n));
-  for (dds_return_t i = 0; i < n; ++i) {
-    dds_builtintopic_endpoint_t* reader =
-        dds_get_matched_subscription_data(endpoint.writer, handles[i]);
-    if (!reader) continue;
-    void* value = nullptr;
-    std::size_t size = 0;
-    bool same = false;
-    if (dds_qget_userdata(reader->qos, &value, &size) && value) {
-      same = user_data_value(std::string_view(static_cast<const char*>(value), size), "clientid") ==
-             client_id;
-      dds_free(value);
+const std::string& Ros2Services::client_of(Endpoint& endpoint, dds_instance_handle_t writer) {
+  dds_subscription_matched_status_t status;
+  if (dds_get_subscription_matched_status(endpoint.reader, &status) == DDS_RETCODE_OK &&
+      (status.total_count_change != 0 || status.current_count_change != 0))
+    endpoint.request_writers.clear();  // writers came or went: asked again
+  auto it = endpoint.request_writers.find(writer);
+  if (it == endpoint.request_writers.end()) {
+    std::string id;
+    if (dds_builtintopic_endpoint_t* data =
+            dds_get_matched_publication_data(endpoint.reader, writer)) {
+      id = client_id_of(*data);
+      dds_builtintopic_free_endpoint(data);
     }
-    dds_builtintopic_free_endpoint(reader);
-    if (same) return true;
+    it = endpoint.request_writers.emplace(writer, std::move(id)).first;
   }
-  return false;
+  return it->second;
+}
+
+bool Ros2Services::reader_matched(Endpoint& endpoint, const std::string& client_id) {
+  if (!endpoint.readers_known) {
+    endpoint.reply_readers.clear();
+    std::vector<dds_instance_handle_t> handles(16);
+    dds_return_t n;
+    while ((n = dds_get_matched_subscriptions(endpoint.writer, handles.data(), handles.size())) >
+           static_cast<dds_return_t>(handles.size()))
+      handles.resize(static_cast<std::size_t>(n));
+    for (dds_return_t i = 0; i < n; ++i) {
+      if (dds_builtintopic_endpoint_t* reader =
+              dds_get_matched_subscription_data(endpoint.writer, handles[i])) {
+        endpoint.reply_readers.insert(client_id_of(*reader));
+        dds_builtintopic_free_endpoint(reader);
+      }
+    }
+    endpoint.readers_known = true;
+  }
+  return endpoint.reply_readers.count(client_id) > 0;
 }
 
 void Ros2Services::write(const Endpoint& endpoint, const Sample& reply) {
@@ -327,7 +350,7 @@ void Ros2Services::write(const Endpoint& endpoint, const Sample& reply) {
 }
 
 void Ros2Services::send(const ReplyTo& to, Sample reply) {
-  const Endpoint& endpoint = *endpoints_[to.endpoint];
+  Endpoint& endpoint = *endpoints_[to.endpoint];
   if (to.client_id.empty() || reader_matched(endpoint, to.client_id)) {
     write(endpoint, reply);
     return;
@@ -336,15 +359,22 @@ void Ros2Services::send(const ReplyTo& to, Sample reply) {
                      std::chrono::steady_clock::now() + settings_.park_timeout});
 }
 
-void Ros2Services::flush_parked() {
+void Ros2Services::matches_changed() {
   for (const auto& endpoint : endpoints_) {
     dds_publication_matched_status_t status;
-    dds_get_publication_matched_status(endpoint->writer, &status);  // resets the trigger
+    // resets the status (the waitset's trigger); its counts say whether anything changed
+    if (dds_get_publication_matched_status(endpoint->writer, &status) == DDS_RETCODE_OK &&
+        (status.total_count_change != 0 || status.current_count_change != 0))
+      endpoint->readers_known = false;
   }
+  if (has_parked()) flush_parked();
+}
+
+void Ros2Services::flush_parked() {
   const auto now = std::chrono::steady_clock::now();
   std::size_t expired = 0;
   for (auto it = parked_.begin(); it != parked_.end();) {
-    const Endpoint& endpoint = *endpoints_[it->endpoint];
+    Endpoint& endpoint = *endpoints_[it->endpoint];
     if (reader_matched(endpoint, it->client_id)) {
       write(endpoint, it->reply);
     } else if (dds_builtintopic_endpoint_t* writer =

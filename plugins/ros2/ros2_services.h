@@ -119,6 +119,10 @@ class Ros2Services {
   void send(const ReplyTo& to, Sample reply);
   // Takes every service's requests and handles them.
   void take_requests();
+  // A reply writer's matches changed (k_token_matched): what is known of the clients' readers
+  // is read again (which also resets the waitset's trigger: the DDS thread must call this on
+  // every such wake, or the waitset wakes it at once, forever), then flush_parked().
+  void matches_changed();
   // Writes the parked replies whose client's reader has matched; drops those of gone clients
   // and those past park_timeout.
   void flush_parked();
@@ -149,8 +153,12 @@ class Ros2Services {
            const dds_topic_descriptor_t& reply, Member handler);
   // A zeroed sample of `size` bytes, of `to`'s reply type.
   Sample new_sample(const ReplyTo& to, std::size_t size) const;
-  // Whether the reply writer of `endpoint` has matched a reader with USER_DATA clientid.
-  bool reader_matched(const Endpoint& endpoint, const std::string& client_id) const;
+  // Whether the reply writer of `endpoint` has matched a reader with USER_DATA clientid (from
+  // what discovery said, read again when the writer's matches changed).
+  bool reader_matched(Endpoint& endpoint, const std::string& client_id);
+  // The clientid in the USER_DATA of `endpoint`'s matched request writer `writer` ("" when it
+  // has none; remembered while the reader's matches do not change).
+  const std::string& client_of(Endpoint& endpoint, dds_instance_handle_t writer);
   void write(const Endpoint& endpoint, const Sample& reply);
 
   void get_simulator_features(const void* request, const ReplyTo& to);

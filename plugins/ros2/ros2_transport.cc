@@ -395,11 +395,12 @@ void Ros2Transport::run() {
       log::error("ros2 transport: waitset failed: ", dds::retcode_text(n));
       break;
     }
-    bool guard = n > k_slots, commands = n > k_slots, requests = n > k_slots;
+    bool guard = n > k_slots, commands = n > k_slots, requests = n > k_slots, matched = n > k_slots;
     for (dds_return_t i = 0; i < std::min(n, k_slots); ++i) {
       guard |= triggered[i] == k_token_guard;
       commands |= triggered[i] == Ros2Topics::k_token_commands;
       requests |= triggered[i] == Ros2Services::k_token_requests;
+      matched |= triggered[i] == Ros2Services::k_token_matched;
     }
     try {
       if (guard) {
@@ -411,9 +412,12 @@ void Ros2Transport::run() {
         if (topics_) topics_->write_samples();
       }
       if (services_) {
+        // a reader matching or leaving wakes the thread (and must be taken, or the waitset
+        // wakes it again at once): parked replies may go
+        if (matched) services_->matches_changed();
         if (requests) services_->take_requests();
-        // a reply waits for its client's reader: retried on every wake (a reader matching
-        // wakes the thread, k_token_matched), and at least every k_park_retry
+        // a reply waits for its client's reader: retried on every wake, and at least every
+        // k_park_retry
         if (services_->has_parked()) services_->flush_parked();
       }
       if (simulate_steps_) simulate_steps_->expire();

@@ -7,6 +7,7 @@ prefixed by its id and sequence number, the reply of that request picked by them
 view (the socket transport) is the reference."""
 
 import json
+import os
 import time
 
 import pytest
@@ -361,3 +362,25 @@ def test_reply_bytes_are_ros2_cdr(sim, participant):
     assert message.state.pose.position.x == reply.state.pose.position.x
     assert store.serialize_cdr(message, "simulation_interfaces/msg/GetEntityState_Response") == \
         header + body[16:]
+
+
+def cpu_seconds(pid):
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime + stime
+
+
+def test_the_dds_thread_sleeps_once_clients_have_matched(sim, participant, clients):
+    """A reply writer's match wakes the DDS thread through the waitset; a wake not taken
+    (the status not read) woke it again at once, forever: a whole CPU spent after the first
+    client (fixed: Ros2Services::matches_changed on every such wake)."""
+    for name in ("get_simulation_state", "get_entities", "step_simulation"):
+        clients(name).wait_for_service()
+    assert clients("get_simulation_state").call().result.result == OK
+    pid = sim.process.pid
+    before, started = cpu_seconds(pid), time.monotonic()
+    time.sleep(2.0)
+    used = (cpu_seconds(pid) - before) / (time.monotonic() - started)
+    # the simulation at real time, /clock at 100 Hz and /tf at 30 Hz take a few percent; the
+    # spinning thread took all of one CPU
+    assert used < 0.5, f"simgate used {used:.2f} CPU seconds per second while nobody called"
