@@ -161,6 +161,9 @@ class Ros2Services {
   const std::string& client_of(Endpoint& endpoint, dds_instance_handle_t writer);
   void write(const Endpoint& endpoint, const Sample& reply);
 
+  // Makes the simulation_interfaces services and simgate/call (ros2_sim_services.cc, with
+  // their handlers below).
+  void add_simulation_services();
   void get_simulator_features(const void* request, const ReplyTo& to);
   void get_simulation_state(const void* request, const ReplyTo& to);
   void set_simulation_state(const void* request, const ReplyTo& to);
