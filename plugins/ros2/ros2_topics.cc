@@ -86,7 +86,7 @@ dds_return_t write_transforms(dds_entity_t writer, const std::vector<FrameTransf
 }
 
 const char* role_name(int role) {
-  static const char* const k_names[] = {"/tf", "odom", "odom", "joint_states"};
+  static const char* const k_names[] = {"/tf", "odom", "odom", "joint_states", "imu"};
   return k_names[role];
 }
 
@@ -138,7 +138,7 @@ void Ros2Topics::plan(const std::vector<StreamInfo>& listed, std::map<std::strin
                       std::set<std::string>& inputs) {
   // per robot: the odometry source (an integrated odometry before a pose), the first joint
   // stream, the first velocity input
-  std::map<std::string, std::string> odometry, pose, joints, velocity;
+  std::map<std::string, std::string> odometry, pose, joints, imu, velocity;
   for (const StreamInfo& info : listed) {
     if (info.component == "simulation" && info.kind == "body_poses") {
       if (settings_.tf) outputs.emplace(info.component, Role::tf);
@@ -151,6 +151,7 @@ void Ros2Topics::plan(const std::vector<StreamInfo>& listed, std::map<std::strin
                                                    : (info.kind == "odometry"      ? &odometry
                                                       : info.kind == "pose"        ? &pose
                                                       : info.kind == "joint_state" ? &joints
+                                                      : info.kind == "imu"         ? &imu
                                                                                    : nullptr);
     if (slot && slot->emplace(robot, info.component).second) continue;
     if (skipped_logged_.insert(info.component).second)
@@ -163,6 +164,7 @@ void Ros2Topics::plan(const std::vector<StreamInfo>& listed, std::map<std::strin
   for (const auto& [robot, component] : pose)
     if (!odometry.count(robot)) outputs.emplace(component, Role::pose_odometry);
   for (const auto& [robot, component] : joints) outputs.emplace(component, Role::joint_states);
+  for (const auto& [robot, component] : imu) outputs.emplace(component, Role::imu);
   for (const auto& [robot, component] : velocity) inputs.insert(component);
 }
 
@@ -255,6 +257,11 @@ void Ros2Topics::add_output(const StreamInfo& info, Role role) {
     if (role == Role::joint_states) {
       output->topic = ns + "/joint_states";
       descriptor = &sensor_msgs_msg_dds__JointState__desc;
+    } else if (role == Role::imu) {
+      output->topic = ns + "/imu";
+      descriptor = &sensor_msgs_msg_dds__Imu__desc;
+      // its values are in the sensor's frame, on /tf_static under its body
+      output->frame_id = component_frame(info.component);
     } else {
       output->topic = ns + "/odom";
       descriptor = &nav_msgs_msg_dds__Odometry__desc;
@@ -359,6 +366,7 @@ void Ros2Topics::write_samples() {
           case Role::odometry:
           case Role::pose_odometry: rc = write_odometry(*output, *sample); break;
           case Role::joint_states: rc = write_joint_states(*output, *sample); break;
+          case Role::imu: rc = write_imu(*output, *sample); break;
         }
       } catch (const std::exception& e) {
         // a component whose samples do not have its kind's shape (a component library's)
@@ -429,6 +437,27 @@ dds_return_t Ros2Topics::write_joint_states(Output& output, const StreamSample& 
   message.position._maximum = message.position._length = count;
   message.position._buffer = const_cast<double*>(joints.positions.data());
   // velocity and effort: empty (the stream has positions; JointState allows empty arrays)
+  return dds_write(output.writer, &message);
+}
+
+dds_return_t Ros2Topics::write_imu(Output& output, const StreamSample& sample) {
+  const json& data = sample.data();
+  auto vector = [&data](const char* key) {
+    const json& v = data.at(key);
+    if (!v.is_array() || v.size() != 3)
+      throw std::invalid_argument(std::string(key) + ": not [x, y, z]");
+    return geometry_msgs_msg_dds__Vector3_{v[0].get<double>(), v[1].get<double>(),
+                                           v[2].get<double>()};
+  };
+  sensor_msgs_msg_dds__Imu_ message{};
+  message.header.stamp = stamp(sample.time());
+  message.header.frame_id = c_str(output.frame_id);
+  message.angular_velocity = vector("angular_velocity");
+  message.linear_acceleration = vector("linear_acceleration");
+  // no orientation estimate (-1 first, as sensor_msgs/Imu says); the other covariances all
+  // zero: unknown
+  message.orientation.w = 1;
+  message.orientation_covariance[0] = -1;
   return dds_write(output.writer, &message);
 }
 

@@ -1,7 +1,8 @@
 // simgate/ros2 topics — the simulation's data streams as ROS 2 topics (issue #41): the
 // `simulation` component's body_poses as /tf (and the components' sensing frames as
 // /tf_static), each robot's odometry (or pose) as /<robot>/odom, its armature_pose as
-// /<robot>/joint_states, and /<robot>/cmd_vel read into its motion_vw stream.
+// /<robot>/joint_states, its imu as /<robot>/imu, and /<robot>/cmd_vel read into its
+// motion_vw stream.
 //
 // Terms:
 //  - robot: the part of a component's name before its first '.'; its ROS namespace is
@@ -81,7 +82,7 @@ class Ros2Topics {
   void endpoints(std::vector<dds_entity_t>& writers, std::vector<dds_entity_t>& readers) const;
 
  private:
-  enum class Role { tf, odometry, pose_odometry, joint_states };
+  enum class Role { tf, odometry, pose_odometry, joint_states, imu };
   struct Output;
   struct Input;
 
@@ -97,6 +98,7 @@ class Ros2Topics {
   dds_return_t write_tf(Output& output, const StreamSample& sample);
   dds_return_t write_odometry(Output& output, const StreamSample& sample);
   dds_return_t write_joint_states(Output& output, const StreamSample& sample);
+  dds_return_t write_imu(Output& output, const StreamSample& sample);
   // The namespace of `robot` ("/robot"), or "" when another robot took its token already.
   std::string robot_namespace(const std::string& robot);
 

@@ -99,6 +99,17 @@ class Odometry(IdlStruct, typename="nav_msgs::msg::dds_::Odometry_"):
 
 
 @dataclass
+class Imu(IdlStruct, typename="sensor_msgs::msg::dds_::Imu_"):
+    header: Header = field(default_factory=Header)
+    orientation: Quaternion = field(default_factory=Quaternion)
+    orientation_covariance: t.array[t.float64, 9] = field(default_factory=lambda: [0.0] * 9)
+    angular_velocity: Vector3 = field(default_factory=Vector3)
+    angular_velocity_covariance: t.array[t.float64, 9] = field(default_factory=lambda: [0.0] * 9)
+    linear_acceleration: Vector3 = field(default_factory=Vector3)
+    linear_acceleration_covariance: t.array[t.float64, 9] = field(default_factory=lambda: [0.0] * 9)
+
+
+@dataclass
 class JointState(IdlStruct, typename="sensor_msgs::msg::dds_::JointState_"):
     header: Header = field(default_factory=Header)
     name: t.sequence[str] = field(default_factory=list)

@@ -182,6 +182,32 @@ def test_cmd_vel_drives_the_robot_and_odom_follows(rover, node):
         cmd_vel.write(ros.Twist())
 
 
+def test_imu_reads_as_simgate_reads_it_in_the_sensors_frame(rover, node, scene):
+    """/robot/imu from robot.imu: its rates and specific force in the sensor's frame (on
+    /tf_static under its body), no orientation estimate (orientation_covariance[0] = -1)."""
+    client = rover.socket()
+    client.call("robot.motion", "set_speed", 0, 0)  # at rest (another test drives it)
+    deadline = time.monotonic() + WAIT
+    while True:  # until simgate's own imu reads gravity alone
+        ours = client.call("robot.imu", "get_local_data")
+        if ours["linear_acceleration"] == pytest.approx([0, 0, 9.81], abs=0.05):
+            break
+        assert time.monotonic() < deadline, ours
+        time.sleep(0.05)  # polling simgate, bounded by the deadline
+    client.close()
+    reader = node.reader("rt/robot/imu", ros.Imu)
+    [message] = take_until(reader, lambda m: [m.linear_acceleration.x, m.linear_acceleration.y,
+                                              m.linear_acceleration.z]
+                           == pytest.approx([0, 0, 9.81], abs=0.05))[-1:]
+    assert message.header.frame_id == "robot/imu"
+    assert message.orientation_covariance[0] == -1
+    assert list(message.angular_velocity_covariance) == [0.0] * 9  # unknown
+    w = message.angular_velocity
+    assert [w.x, w.y, w.z] == pytest.approx(ours["angular_velocity"], abs=0.05)
+    static = first(node.reader("rt/tf_static", ros.TFMessage, LATCHED_QOS))
+    assert "robot/imu" in {t.child_frame_id for t in static.transforms}
+
+
 def test_a_twist_the_robot_refuses_is_counted_and_changes_nothing(rover, node):
     client = rover.socket()
 
@@ -231,7 +257,8 @@ def test_ros_graph_names_the_node_and_its_endpoints(rover, node):
     for name, cls, qos in [("rt/clock", ros.Clock, DEFAULT_QOS),
                            ("rt/tf", ros.TFMessage, DEFAULT_QOS),
                            ("rt/tf_static", ros.TFMessage, LATCHED_QOS),
-                           ("rt/robot/odom", ros.Odometry, DEFAULT_QOS)]:
+                           ("rt/robot/odom", ros.Odometry, DEFAULT_QOS),
+                           ("rt/robot/imu", ros.Imu, DEFAULT_QOS)]:
         [publications[name]] = matched(node.reader(name, cls, qos), participant, True)
     [cmd_vel] = matched(node.writer("rt/robot/cmd_vel", ros.Twist), participant, False)
     [graph_writer] = matched(graph, participant, True)
@@ -260,10 +287,11 @@ def test_ros_graph_names_the_node_and_its_endpoints(rover, node):
         "rt/clock": "rosgraph_msgs::msg::dds_::Clock_",
         "rt/tf": "tf2_msgs::msg::dds_::TFMessage_",
         "rt/tf_static": "tf2_msgs::msg::dds_::TFMessage_",
-        "rt/robot/odom": "nav_msgs::msg::dds_::Odometry_"}
+        "rt/robot/odom": "nav_msgs::msg::dds_::Odometry_",
+        "rt/robot/imu": "sensor_msgs::msg::dds_::Imu_"}
     assert cmd_vel.type_name == "geometry_msgs::msg::dds_::Twist_"
     assert graph_writer.type_name == "rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_"
-    depths = {"rt/clock": 10, "rt/tf": 100, "rt/tf_static": 1, "rt/robot/odom": 10}
+    depths = {"rt/clock": 10, "rt/tf": 100, "rt/tf_static": 1, "rt/robot/odom": 10, "rt/robot/imu": 10}
     for name, endpoint in [*publications.items(), ("rt/robot/cmd_vel", cmd_vel),
                            ("ros_discovery_info", graph_writer)]:
         assert isinstance(endpoint.qos[Policy.Reliability], Policy.Reliability.Reliable), name
@@ -324,6 +352,7 @@ def check_bytes(raw, cls, ros_type, store=ROSBAGS):
     ("rt/tf", ros.TFMessage, "tf2_msgs/msg/TFMessage", DEFAULT_QOS),
     ("rt/tf_static", ros.TFMessage, "tf2_msgs/msg/TFMessage", LATCHED_QOS),
     ("rt/robot/odom", ros.Odometry, "nav_msgs/msg/Odometry", DEFAULT_QOS),
+    ("rt/robot/imu", ros.Imu, "sensor_msgs/msg/Imu", DEFAULT_QOS),
     ("ros_discovery_info", ros.ParticipantEntitiesInfo,
      "rmw_dds_common/msg/ParticipantEntitiesInfo", LATCHED_QOS),
 ])
