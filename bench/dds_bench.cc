@@ -235,20 +235,22 @@ std::unique_ptr<simgate::client::DdsClient> connect(std::uint32_t domain,
   return client;
 }
 
-json run_client(std::uint32_t domain, const std::string& partition, std::size_t count,
-                std::size_t warmup, double timeout_s) {
+// DdsClient round trips of `component`.`service`(`params`), one after the other; `ok` says
+// whether an outcome is the expected one (a wrong one is counted in "errors").
+template <class Ok>
+json run_calls(std::uint32_t domain, const std::string& partition, std::size_t count,
+               std::size_t warmup, double timeout_s, const char* component, const char* service,
+               const simgate::json& params, Ok ok) {
   auto connection = connect(domain, partition, timeout_s);
   simgate::client::DdsClient& client = *connection;
   std::vector<std::int64_t> samples;
   std::size_t errors = 0;
-  const simgate::json params = simgate::json::array({1, 2});
   std::string first;
   for (std::size_t i = 0; i < warmup + count; ++i) {
     auto t0 = Clock::now();
-    auto outcome = client.call("test_component", "add", params, std::chrono::seconds(10));
+    auto outcome = client.call(component, service, params, std::chrono::seconds(10));
     auto t1 = Clock::now();
-    bool ok = outcome.status == simgate::Status::success && outcome.value && *outcome.value == 3;
-    if (!ok) ++errors;
+    if (!ok(outcome)) ++errors;
     if (i == 0)
       first =
           outcome.value ? outcome.value->dump() : std::string(simgate::to_string(outcome.status));
@@ -260,23 +262,22 @@ json run_client(std::uint32_t domain, const std::string& partition, std::size_t 
   return out;
 }
 
+// `test_component add [1, 2]` on a transport host: 3 each time.
+json run_client(std::uint32_t domain, const std::string& partition, std::size_t count,
+                std::size_t warmup, double timeout_s) {
+  return run_calls(domain, partition, count, warmup, timeout_s, "test_component", "add",
+                   simgate::json::array({1, 2}), [](const simgate::Outcome& outcome) {
+                     return outcome.status == simgate::Status::success && outcome.value &&
+                            *outcome.value == 3;
+                   });
+}
+
+// `simulation step {"n": 1}` on a gateway started paused: one physics step per round trip.
 json run_step(std::uint32_t domain, const std::string& partition, std::size_t count,
               std::size_t warmup, double timeout_s) {
-  auto connection = connect(domain, partition, timeout_s);
-  simgate::client::DdsClient& client = *connection;
-  std::vector<std::int64_t> samples;
-  std::size_t errors = 0;
-  const simgate::json params{{"n", 1}};
-  for (std::size_t i = 0; i < warmup + count; ++i) {
-    auto t0 = Clock::now();
-    auto outcome = client.call("simulation", "step", params, std::chrono::seconds(10));
-    auto t1 = Clock::now();
-    if (outcome.status != simgate::Status::success) ++errors;
-    if (i >= warmup) samples.push_back(simgate::bench::ns_between(t0, t1));
-  }
-  json out = simgate::bench::summarize_us(std::move(samples));
-  out["errors"] = errors;
-  return out;
+  return run_calls(
+      domain, partition, count, warmup, timeout_s, "simulation", "step", simgate::json{{"n", 1}},
+      [](const simgate::Outcome& outcome) { return outcome.status == simgate::Status::success; });
 }
 
 #ifdef SIMGATE_BENCH_ROS2
