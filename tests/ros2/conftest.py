@@ -185,3 +185,12 @@ def check_config(tmp_path, ros2_options):
         command += ["--plugin-path", os.environ["SIMGATE_PLUGIN_DIR"]]
     done = subprocess.run(command, capture_output=True, text=True, timeout=START_TIMEOUT)
     return done.returncode, done.stdout + done.stderr
+
+
+@pytest.fixture(scope="module")
+def own(sim):
+    """A socket protocol client of the module's own simulation (its fixture `sim`): simgate's
+    own view, the reference the ROS 2 side is checked against."""
+    client = sim.socket()
+    yield client
+    client.close()

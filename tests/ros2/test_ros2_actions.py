@@ -156,13 +156,6 @@ def participant(sim, actions_domain):
     return DomainParticipant(actions_domain)
 
 
-@pytest.fixture(scope="module")
-def own(sim):
-    client = sim.socket()
-    yield client
-    client.close()
-
-
 @pytest.fixture
 def client(participant, own):
     """An action client of a paused simulation, the server available."""

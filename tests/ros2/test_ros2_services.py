@@ -75,13 +75,6 @@ def clients(participant):
     return client
 
 
-@pytest.fixture(scope="module")
-def own(sim):
-    client = sim.socket()
-    yield client
-    client.close()
-
-
 def ensure(clients, state):
     reply = clients("set_simulation_state").call(state=ros.SimulationState(state))
     assert reply.result.result in (OK, 101), reply.result
