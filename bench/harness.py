@@ -70,6 +70,7 @@ import select
 import shutil
 import signal
 import statistics
+import re
 import subprocess
 import sys
 import tempfile
@@ -220,11 +221,12 @@ def socket_call(port, request):
 
 
 def port_of(endpoints):
-    """The port of the first tcp:// (or ws://host:port/) endpoint."""
+    """The port of the first tcp:// (or ws://host:port/, http://host:port/path) endpoint."""
     for e in endpoints:
-        if e.startswith("tcp://") or e.startswith("ws://"):
-            return int(e.rstrip("/").rsplit(":", 1)[1])
-    raise BenchError(f"no tcp:// or ws:// endpoint in {endpoints}")
+        m = re.match(r"(?:tcp|ws|http)://[^/]*:(\d+)(?:/.*)?$", e)
+        if m:
+            return int(m.group(1))
+    raise BenchError(f"no tcp://, ws:// or http:// endpoint in {endpoints}")
 
 
 # ---------------------------------------------------------------------------------------
@@ -501,6 +503,39 @@ class Harness:
                   file=sys.stderr, flush=True)
             self.target("Foxglove service round trip p50 / WebSocket JSON-RPC p50", s["foxglove_ratio_p50"],
                         "<=", 1.3, "x")
+        return {"status": "ok", "summary": s, "runs": rows}
+
+    def section_mcp(self):
+        """Issue #42: an MCP tool call (streamable HTTP, one kept-alive connection) against the
+        same service called over JSON-RPC on TCP, in the same run, in rotating order."""
+        if not self.plugin_built("mcp") or not self.plugin_built("jsonrpc"):
+            return {"status": "skipped", "reason": "libsimgate_transport_mcp.so or _jsonrpc.so is not built"}
+        tcp = mcp = None
+        rows = []
+        named = ["--method", "test_component.add", "--params", '{"a":1,"b":2}']
+        try:
+            tcp = self.host("jsonrpc", {"host": "127.0.0.1", "port": 0})
+            mcp = self.host("mcp", {"host": "127.0.0.1", "port": 0, "max_calls_per_s": 1e6})
+            tcp_port, mcp_port = port_of(tcp.announcement["endpoints"]), port_of(mcp.announcement["endpoints"])
+            for rep in range(self.repeats):
+                t, m = in_rotation(rep, lambda: self.latency(tcp_port, ["--proto", "jsonrpc"] + named),
+                                   lambda: self.latency(mcp_port, ["--proto", "mcp"] + named))
+                rows.append({"jsonrpc": t, "mcp": m, "ratio_p50": ratio(m["p50_us"], t["p50_us"]),
+                             "ratio_p99": ratio(m["p99_us"], t["p99_us"])})
+        finally:
+            for h in (tcp, mcp):
+                if h:
+                    h.check_stopped()
+        s = {"mcp_p50_us": spread([r["mcp"]["p50_us"] for r in rows]),
+             "jsonrpc_p50_us": spread([r["jsonrpc"]["p50_us"] for r in rows]),
+             "mcp_p99_us": spread([r["mcp"]["p99_us"] for r in rows]),
+             "jsonrpc_p99_us": spread([r["jsonrpc"]["p99_us"] for r in rows]),
+             "ratio_p50": spread([r["ratio_p50"] for r in rows]),
+             "ratio_p99": spread([r["ratio_p99"] for r in rows])}
+        print(f"[bench] mcp: tool call round trip p50 {s['mcp_p50_us']['median']:.1f} us, "
+              f"JSON-RPC over TCP {s['jsonrpc_p50_us']['median']:.1f} us, ratio {s['ratio_p50']['median']:.2f}",
+              file=sys.stderr, flush=True)
+        self.target("MCP tool call round trip p50 / JSON-RPC (TCP) p50", s["ratio_p50"], "<=", 1.5, "x")
         return {"status": "ok", "summary": s, "runs": rows}
 
     def section_dds(self):
@@ -1397,7 +1432,7 @@ class Harness:
         self.results["machine"] = self.machine()
         only = set(self.args.only.split(",")) if self.args.only else None
         for name in ("socket", "jsonrpc", "websocket", "dds", "peers", "sim", "memory", "byor", "world", "progress", "streams",
-                     "cameras", "web", "foxglove", "recording", "gym", "ros2"):
+                     "cameras", "web", "foxglove", "recording", "gym", "ros2", "mcp"):
             if only and name not in only:
                 continue
             t0 = time.monotonic()
@@ -1815,6 +1850,20 @@ def markdown(r):
                   f"| /tf: messages/s, transforms per message | {fmt(g['tf_messages_per_s'])}, "
                   f"{g['tf_transforms_per_message']:g} |",
                   f"| real-time factor over {g['tf_seconds']:g} s | {fmt(g['tf_rtf'], 4)} |", ""]
+
+    lines += ["## MCP (issue #42)", ""]
+    st = status_line("mcp")
+    if st:
+        lines += [st, ""]
+    else:
+        g = s["mcp"]["summary"]
+        lines += ["An MCP client (streamable HTTP, one kept-alive connection, a session) calling the tool "
+                  "`test_component_add {a: 1, b: 2}` against a JSON-RPC client calling `test_component.add` with the "
+                  "same arguments over TCP, on the same host's services, interleaved.", "",
+                  "| measure | value |", "|---|---|",
+                  f"| MCP tool call round trip p50 / p99 (µs) | {fmt(g['mcp_p50_us'])} / {fmt(g['mcp_p99_us'])} |",
+                  f"| JSON-RPC (TCP) round trip p50 / p99 (µs) | {fmt(g['jsonrpc_p50_us'])} / {fmt(g['jsonrpc_p99_us'])} |",
+                  f"| ratio p50 | {fmt(g['ratio_p50'], 2)} |", ""]
 
     lines += ["## Sections", "", "| section | status | seconds |", "|---|---|---|"]
     for name, sec in s.items():

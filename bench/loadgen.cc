@@ -23,7 +23,11 @@
 // WebSocket client (subprotocol foxglove.websocket.v1; --mode latency only): it finds the
 // service --method names ("test_component.add" is "/test_component/add") in the server's
 // advertiseServices, then sends binary service call requests with --params as the JSON
-// request and waits for each binary response (Time messages and statuses skipped). `socket` sends "<id> <--request>"
+// request and waits for each binary response (Time messages and statuses skipped). `mcp` is
+// an MCP client over streamable HTTP (Beast's HTTP client, one kept-alive connection;
+// --mode latency only): it initializes a session at /mcp, then POSTs tools/call of the tool
+// --method names ("test_component.add" is "test_component_add") with --params (an object) as
+// its arguments, and expects each answer as JSON without isError. `socket` sends "<id> <--request>"
 // (default "test_component add [1, 2]") and expects "<id> SUCCESS|OK ..."; `jsonrpc` sends
 // {"jsonrpc":"2.0","id":<id>,"method":<--method>,"params":<--params>} and expects a
 // "result". --echo expects the request back unchanged (the echo server). A reply that does
@@ -51,6 +55,7 @@
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/beast/core/buffers_to_string.hpp>
 #include <boost/beast/core/flat_buffer.hpp>
+#include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
 
 #include "bench_util.h"
@@ -62,7 +67,7 @@ using simgate::bench::json;
 
 // How requests are written and replies recognised.
 struct Protocol {
-  std::string proto = "socket";  // "socket", "jsonrpc", "ws-jsonrpc" or "foxglove"
+  std::string proto = "socket";  // "socket", "jsonrpc", "ws-jsonrpc", "foxglove" or "mcp"
   std::string request = "test_component add [1, 2]";  // socket: everything after the id
   std::string method = "test_component.add";          // jsonrpc method
   std::string params = "[1,2]";                       // jsonrpc params (JSON text)
@@ -370,6 +375,66 @@ json run_foxglove_latency(const std::string& host, int port, const Protocol& p, 
                         first_reply.size() > 17 ? first_reply.substr(17) : first_reply);
 }
 
+// run_latency as an MCP client (--proto mcp): a blocking Beast HTTP client on one kept-alive
+// connection; initialize, then one tools/call POST per round trip, its JSON answer read whole.
+// The run's deadline bounds every read (SO_RCVTIMEO).
+json run_mcp_latency(const std::string& host, int port, const Protocol& p, std::size_t count,
+                     std::size_t warmup, double timeout_s) {
+  namespace http = boost::beast::http;
+  boost::asio::io_context io;
+  boost::asio::ip::tcp::socket socket(io);
+  socket.connect({boost::asio::ip::make_address(host), static_cast<std::uint16_t>(port)});
+  socket.set_option(boost::asio::ip::tcp::no_delay(true));
+  timeval tv{};
+  tv.tv_sec = static_cast<time_t>(timeout_s);
+  ::setsockopt(socket.native_handle(), SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  const auto deadline = Clock::now() + seconds(timeout_s);
+  boost::beast::flat_buffer buffer;
+  std::string session;
+  const auto post = [&](std::string body) {
+    http::request<http::string_body> request{http::verb::post, "/mcp", 11};
+    request.set(http::field::host, host + ":" + std::to_string(port));
+    request.set(http::field::content_type, "application/json");
+    request.set(http::field::accept, "application/json, text/event-stream");
+    if (!session.empty()) request.set("Mcp-Session-Id", session);
+    request.body() = std::move(body);
+    request.prepare_payload();
+    http::write(socket, request);
+    http::response<http::string_body> response;
+    http::read(socket, buffer, response);
+    return response;
+  };
+  const auto initialized = post(
+      R"({"jsonrpc":"2.0","id":0,"method":"initialize","params":{"protocolVersion":"2025-11-25",)"
+      R"("capabilities":{},"clientInfo":{"name":"simgate_bench_loadgen","version":"1"}}})");
+  session = std::string(initialized["Mcp-Session-Id"]);
+  if (initialized.result_int() != 200 || session.empty())
+    throw std::runtime_error("initialize answered " + std::to_string(initialized.result_int()) +
+                             ": " + initialized.body().substr(0, 200));
+  std::string tool = p.method;
+  for (char& c : tool)
+    if (c == '.') c = '_';
+  std::vector<std::int64_t> samples;
+  samples.reserve(count);
+  std::size_t errors = 0;
+  std::string first_reply;
+  for (std::size_t i = 0; i < warmup + count; ++i) {
+    if (Clock::now() > deadline) throw std::runtime_error("timed out waiting for the server");
+    std::string body = R"({"jsonrpc":"2.0","id":)" + std::to_string(i + 1) +
+                       R"(,"method":"tools/call","params":{"name":")" + tool + R"(","arguments":)" +
+                       p.params + "}}";
+    auto t0 = Clock::now();
+    const auto response = post(std::move(body));
+    auto t1 = Clock::now();
+    if (i == 0) first_reply = response.body();
+    if (response.result_int() != 200 ||
+        response.body().find(R"("isError":false)") == std::string::npos)
+      ++errors;
+    if (i >= warmup) samples.push_back(simgate::bench::ns_between(t0, t1));
+  }
+  return latency_result(std::move(samples), errors, first_reply);
+}
+
 // --connections C, --window W in flight each, for --duration seconds after a warm-up (longer,
 // up to 10 s more, until at least W x C replies are counted).
 json run_throughput(const std::string& host, int port, const Protocol& p, int connections,
@@ -545,8 +610,8 @@ int main(int argc, char** argv) {
   app.add_option("--host", host, "the server's address")->capture_default_str();
   app.add_option("--port", port, "the server's port")->required()->check(CLI::Range(1, 65535));
   app.add_option("--proto", p.proto,
-                 "socket, jsonrpc, ws-jsonrpc or foxglove (the last two: latency only)")
-      ->check(CLI::IsMember({"socket", "jsonrpc", "ws-jsonrpc", "foxglove"}))
+                 "socket, jsonrpc, ws-jsonrpc, foxglove or mcp (the last three: latency only)")
+      ->check(CLI::IsMember({"socket", "jsonrpc", "ws-jsonrpc", "foxglove", "mcp"}))
       ->capture_default_str();
   app.add_option("--request", p.request, "socket: the request after the id")->capture_default_str();
   app.add_option("--method", p.method, "jsonrpc: the method")->capture_default_str();
@@ -571,12 +636,14 @@ int main(int argc, char** argv) {
   if (auto code = simgate::bench::parse_command_line(app, argc, argv)) return *code;
   try {
     json out;
-    if ((p.proto == "ws-jsonrpc" || p.proto == "foxglove") && mode != "latency")
+    if ((p.proto == "ws-jsonrpc" || p.proto == "foxglove" || p.proto == "mcp") && mode != "latency")
       throw std::runtime_error("--proto " + p.proto + ": --mode latency only");
     if (mode == "latency" && p.proto == "ws-jsonrpc")
       out = run_ws_latency(host, port, p, count, warmup.value_or(count / 10), timeout);
     else if (mode == "latency" && p.proto == "foxglove")
       out = run_foxglove_latency(host, port, p, count, warmup.value_or(count / 10), timeout);
+    else if (mode == "latency" && p.proto == "mcp")
+      out = run_mcp_latency(host, port, p, count, warmup.value_or(count / 10), timeout);
     else if (mode == "latency")
       out = run_latency(host, port, p, count, warmup.value_or(count / 10), timeout);
     else if (mode == "throughput")

@@ -31,6 +31,23 @@ std::string ServiceDescriptor::signature() const {
   return out;
 }
 
+json ServiceDescriptor::params_schema() const {
+  json properties = json::object();
+  json required = json::array();
+  for (const ParamDescriptor& p : params) {
+    json schema = p.schema.is_object() ? p.schema : json::object();
+    if (p.default_value)
+      schema["default"] = *p.default_value;
+    else
+      required.push_back(p.name);
+    properties[p.name] = std::move(schema);
+  }
+  json out{{"type", "object"}, {"properties", std::move(properties)}};
+  if (!required.empty()) out["required"] = std::move(required);
+  if (!doc.empty()) out["description"] = doc;
+  return out;
+}
+
 json ServiceDescriptor::to_json() const {
   json ps = json::array();
   for (const auto& p : params) {

@@ -29,26 +29,8 @@ namespace ws = beast::websocket;
 using asio::ip::tcp;
 using boost::system::error_code;
 
-std::string plain_http_response(const HttpRequest& request, http::status status,
-                                std::string_view body, std::string_view server) {
-  http::response<http::string_body> response{status, request.version()};
-  response.set(http::field::server, boost::beast::string_view(server.data(), server.size()));
-  response.set(http::field::content_type, "text/plain; charset=utf-8");
-  response.keep_alive(false);
-  response.body() = body;
-  response.prepare_payload();
-  std::ostringstream out;
-  out << response;
-  return out.str();
-}
-
 std::optional<std::string> upgrade_token(const HttpRequest& request) {
-  if (auto it = request.find(http::field::authorization); it != request.end()) {
-    const std::string_view value(it->value().data(), it->value().size());
-    constexpr std::string_view k_bearer = "Bearer ";
-    if (value.size() > k_bearer.size() && value.substr(0, k_bearer.size()) == k_bearer)
-      return std::string(value.substr(k_bearer.size()));
-  }
+  if (std::optional<std::string> token = bearer_token(request)) return token;
   const std::string_view target(request.target().data(), request.target().size());
   const std::size_t query = target.find('?');
   if (query == std::string_view::npos) return std::nullopt;

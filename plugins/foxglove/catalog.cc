@@ -133,7 +133,7 @@ void FoxgloveServer::refresh_services() {
     ServiceDef def;
     def.name = service_name_of(d.component, d.name);
     def.type = "simgate/" + d.qualified_name();
-    def.request_schema = request_schema(d);
+    def.request_schema = d.params_schema();
     def.response_schema = d.result_schema.is_object() ? d.result_schema : json::object();
     def.component = d.component;
     def.service = d.name;

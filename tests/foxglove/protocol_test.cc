@@ -241,7 +241,7 @@ TEST(FoxgloveProtocol, SchemasDescribeSamplesAndServiceParameters) {
   d.params = {{"x", json{{"type", "number"}}, "number", std::nullopt},
               {"tolerance", json{{"type", "number"}}, "number", json(0.5)}};
   EXPECT_EQ(
-      request_schema(d),
+      d.params_schema(),
       (json{{"type", "object"},
             {"properties",
              {{"x", {{"type", "number"}}}, {"tolerance", {{"type", "number"}, {"default", 0.5}}}}},

@@ -446,23 +446,6 @@ json schema_of(const json& value) {
   }
 }
 
-json request_schema(const ServiceDescriptor& service) {
-  json properties = json::object();
-  json required = json::array();
-  for (const ParamDescriptor& p : service.params) {
-    json schema = p.schema.is_object() ? p.schema : json::object();
-    if (p.default_value)
-      schema["default"] = *p.default_value;
-    else
-      required.push_back(p.name);
-    properties[p.name] = std::move(schema);
-  }
-  json out{{"type", "object"}, {"properties", std::move(properties)}};
-  if (!required.empty()) out["required"] = std::move(required);
-  if (!service.doc.empty()) out["description"] = service.doc;
-  return out;
-}
-
 std::string topic_of(std::string_view component) {
   std::string out = "/";
   for (char c : component) out += c == '.' ? '/' : c;

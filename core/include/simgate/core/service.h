@@ -94,6 +94,10 @@ struct ServiceDescriptor {
   // {"component", "name", "async", "policy", "concurrent" (async only), "doc",
   //  "params": [{"name","schema","default"}], "process_wide": true (only when it is)}
   json to_json() const;
+  // The JSON Schema of its arguments given by name: {"type": "object", "properties": each
+  // parameter's schema (its default inside), "required": those without a default,
+  // "description": the doc}. What Foxglove's service definitions and MCP's tools take.
+  json params_schema() const;
 };
 
 namespace detail {

@@ -65,6 +65,7 @@
 #include <boost/beast/websocket/stream.hpp>
 
 #include "simgate/kit/connection.h"
+#include "simgate/kit/http.h"
 #include "simgate/kit/origin_policy.h"
 #include "simgate/kit/ws_frames.h"
 
@@ -74,30 +75,7 @@ namespace simgate::kit {
 // are answered with 1002, not echoed.
 bool is_valid_close_code(std::uint16_t code);
 
-// An HTTP response (to a plain request, or refusing an upgrade) as the connection writes it.
-struct HttpResponse {
-  HttpResponse() = default;
-  explicit HttpResponse(std::string head) : head(std::move(head)) {}
-
-  std::string head;                         // status line, headers, blank line (and a short body)
-  std::shared_ptr<const std::string> body;  // a file's contents (nullptr: none, or in head)
-  bool body_cached = false;                 // body is a cache's copy, not this response's own
-
-  // The memory this response holds of its own while it is written (a cached body is held
-  // by the cache whatever happens: not counted per response).
-  std::size_t own_bytes() const { return head.size() + (body && !body_cached ? body->size() : 0); }
-  // The whole response as one text (for tests and logs).
-  std::string text() const { return body ? head + *body : head; }
-};
-
 class WebSocketConnection;
-
-using HttpRequest = boost::beast::http::request<boost::beast::http::string_body>;
-
-// A short plain-text HTTP response that closes the connection (a refusal, a 404 naming what
-// the port is), as server `server` ("simgate websocket transport").
-std::string plain_http_response(const HttpRequest& request, boost::beast::http::status status,
-                                std::string_view body, std::string_view server);
 
 // The token an upgrade request presents (auth.h): its `Authorization: Bearer <token>`
 // header, else the `token` parameter of its target's query ("/?token=...", percent-decoded:

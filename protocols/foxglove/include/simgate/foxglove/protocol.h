@@ -204,9 +204,6 @@ ClientBinary read_binary(std::string_view message);
 // The JSON Schema of a value of this shape (a stream's sample): numbers, integers, booleans,
 // strings, arrays (of their first element's schema), objects (each key); {} for null.
 json schema_of(const json& value);
-// A service's request: an object whose properties are its parameters (their schemas, with
-// their defaults), the ones without a default required.
-json request_schema(const ServiceDescriptor& service);
 // The topic of a component's stream ("robot.pose" -> "/robot/pose") and the name of one of
 // its services ("robot.motion", "set_speed" -> "/robot/motion/set_speed"); the component a
 // topic names ("/robot/motion" -> "robot.motion").
