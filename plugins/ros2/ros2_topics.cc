@@ -86,8 +86,17 @@ dds_return_t write_transforms(dds_entity_t writer, const std::vector<FrameTransf
 }
 
 const char* role_name(int role) {
-  static const char* const k_names[] = {"/tf", "odom", "odom", "joint_states", "imu"};
+  static const char* const k_names[] = {"/tf", "odom",      "odom", "joint_states",
+                                        "imu", "image_raw", "scan"};
   return k_names[role];
+}
+
+// A ROS sequence over `data`'s elements (not copied, not released by the writer).
+template <typename Sequence, typename T>
+void borrow(Sequence& sequence, T* data, std::size_t count) {
+  sequence._maximum = sequence._length = static_cast<uint32_t>(count);
+  sequence._buffer = data;
+  sequence._release = false;
 }
 
 }  // namespace
@@ -96,11 +105,13 @@ struct Ros2Topics::Output {
   StreamInfo info;
   Role role = Role::tf;
   std::string topic;           // the ROS topic name: "/robot/odom"
-  std::string frame_id;        // odometry: the header's frame
+  std::string frame_id;        // the header's frame (odometry, imu, image, scan)
   std::string child_frame_id;  // odometry: the child frame
   dds_entity_t writer = 0;
-  std::shared_ptr<StreamSubscription> subscription;  // to the hub
+  dds_entity_t info_writer = 0;                      // a camera's: its camera_info
+  std::shared_ptr<StreamSubscription> subscription;  // to the hub (a pushed stream: while read)
   bool shape_logged = false;  // a sample not of the message's shape was logged
+  LaserReading laser;         // a laser's arc and reach, read from its scans
 };
 
 struct Ros2Topics::Input {
@@ -119,7 +130,8 @@ Ros2Topics::Ros2Topics(std::shared_ptr<StreamHub> hub, Settings settings, dds_en
       guard_(guard) {}
 
 Ros2Topics::~Ros2Topics() {
-  for (auto& [component, output] : outputs_) hub_->unsubscribe(output->subscription);
+  for (auto& [component, output] : outputs_)
+    if (output->subscription) hub_->unsubscribe(output->subscription);
 }
 
 dds_entity_t Ros2Topics::topic(const std::string& name, const dds_topic_descriptor_t* descriptor) {
@@ -137,7 +149,7 @@ std::string Ros2Topics::robot_namespace(const std::string& robot) {
 void Ros2Topics::plan(const std::vector<StreamInfo>& listed, std::map<std::string, Role>& outputs,
                       std::set<std::string>& inputs) {
   // per robot: the odometry source (an integrated odometry before a pose), the first joint
-  // stream, the first velocity input
+  // stream, the first velocity input; every camera and laser (each has topics of its own)
   std::map<std::string, std::string> odometry, pose, joints, imu, velocity;
   for (const StreamInfo& info : listed) {
     if (info.component == "simulation" && info.kind == "body_poses") {
@@ -146,6 +158,11 @@ void Ros2Topics::plan(const std::vector<StreamInfo>& listed, std::map<std::strin
     }
     const std::string robot = robot_of(info.component);
     if (robot.empty() || (!settings_.all_robots && !settings_.robots.count(robot))) continue;
+    if (info.direction == StreamDirection::out &&
+        (info.kind == "image" || info.kind == "depth_image" || info.kind == "laser_scan")) {
+      outputs.emplace(info.component, info.kind == "laser_scan" ? Role::laser_scan : Role::image);
+      continue;
+    }
     std::map<std::string, std::string>* slot = info.direction == StreamDirection::in
                                                    ? (info.kind == "velocity" ? &velocity : nullptr)
                                                    : (info.kind == "odometry"      ? &odometry
@@ -254,7 +271,19 @@ void Ros2Topics::add_output(const StreamInfo& info, Role role) {
       throw std::runtime_error("robot '" + robot + "' would have namespace /" +
                                to_ros_token(robot) + ", which another robot has");
     const std::string frame_root = ns.substr(1);
-    if (role == Role::joint_states) {
+    // a sensor's own topics under its robot's namespace: "/robot/camera/..."
+    const std::string frame = component_frame(info.component);
+    const std::string sensor = ns + frame.substr(std::min(frame.find('/'), frame.size()));
+    if (role == Role::image) {
+      output->topic = sensor + "/image_raw";
+      descriptor = &sensor_msgs_msg_dds__Image__desc;
+      // the camera's optical frame (x right, y down, z forward), on /tf_static under its body
+      output->frame_id = frame;
+    } else if (role == Role::laser_scan) {
+      output->topic = sensor + "/scan";
+      descriptor = &sensor_msgs_msg_dds__LaserScan__desc;
+      output->frame_id = frame;
+    } else if (role == Role::joint_states) {
       output->topic = ns + "/joint_states";
       descriptor = &sensor_msgs_msg_dds__JointState__desc;
     } else if (role == Role::imu) {
@@ -277,17 +306,66 @@ void Ros2Topics::add_output(const StreamInfo& info, Role role) {
       dds_create_writer(participant_, topic(dds_topic_name(output->topic), descriptor), qos.get(),
                         nullptr),
       "writer " + output->topic);
-  SubscriberOptions options{k_subscription_capacity, "ros2 topic " + output->topic, {}, {}};
-  const dds_entity_t guard = guard_;
-  options.wake = [guard] { dds_set_guardcondition(guard, true); };
-  output->subscription = hub_->subscribe(info.component, settings_.transport, std::move(options));
-  if (!output->subscription) {
-    dds_delete(output->writer);
-    return;  // gone meanwhile
+  std::string info_topic;
+  if (role == Role::image) {
+    info_topic = output->topic.substr(0, output->topic.rfind('/')) + "/camera_info";
+    output->info_writer = check_created(
+        dds_create_writer(participant_,
+                          topic(dds_topic_name(info_topic), &sensor_msgs_msg_dds__CameraInfo__desc),
+                          qos.get(), nullptr),
+        "writer " + info_topic);
+  }
+  if (info.pushed) {
+    // its component works for it while subscribed (a camera renders): subscribed to only
+    // while a writer has a reader (matches_changed)
+    for (dds_entity_t writer : {output->writer, output->info_writer}) {
+      if (writer == 0) continue;
+      check_created(dds_set_status_mask(writer, DDS_PUBLICATION_MATCHED_STATUS),
+                    "status mask " + output->topic);
+      check_created(dds_waitset_attach(waitset_, writer, k_token_matched),
+                    "waitset attachment " + output->topic);
+    }
+  } else {
+    subscribe(*output);
+    if (!output->subscription) {
+      dds_delete(output->writer);
+      if (output->info_writer) dds_delete(output->info_writer);
+      return;  // gone meanwhile
+    }
   }
   log::info("ros2 transport: ", info.component, " on ", output->topic, " (", descriptor->m_typename,
-            ")");
+            ")", info_topic.empty() ? "" : " and " + info_topic,
+            info.pushed ? " (made while read)" : "");
+  const bool pushed = info.pushed;
   outputs_.emplace(info.component, std::move(output));
+  if (pushed) matches_changed();  // a reader that matched already
+}
+
+void Ros2Topics::subscribe(Output& output) {
+  SubscriberOptions options{k_subscription_capacity, "ros2 topic " + output.topic, {}, {}};
+  const dds_entity_t guard = guard_;
+  options.wake = [guard] { dds_set_guardcondition(guard, true); };
+  output.subscription =
+      hub_->subscribe(output.info.component, settings_.transport, std::move(options));
+}
+
+void Ros2Topics::matches_changed() {
+  for (auto& [component, output] : outputs_) {
+    if (!output->info.pushed) continue;
+    // read every writer's status (each read resets its trigger)
+    bool read = false;
+    for (dds_entity_t writer : {output->writer, output->info_writer}) {
+      dds_publication_matched_status_t status;
+      if (writer != 0 && dds_get_publication_matched_status(writer, &status) == 0)
+        read = read || status.current_count > 0;
+    }
+    if (read && !output->subscription) {
+      subscribe(*output);
+    } else if (!read && output->subscription) {
+      hub_->unsubscribe(output->subscription);
+      output->subscription.reset();
+    }
+  }
 }
 
 void Ros2Topics::add_input(const StreamInfo& info) {
@@ -314,8 +392,9 @@ void Ros2Topics::add_input(const StreamInfo& info) {
 }
 
 void Ros2Topics::remove_output(Output& output) {
-  hub_->unsubscribe(output.subscription);
-  dds_delete(output.writer);
+  if (output.subscription) hub_->unsubscribe(output.subscription);
+  dds_delete(output.writer);  // (detached from the waitset with it)
+  if (output.info_writer) dds_delete(output.info_writer);
   log::info("ros2 transport: ", output.topic, " ended (", output.info.component, " is gone)");
 }
 
@@ -328,7 +407,10 @@ void Ros2Topics::remove_input(Input& input) {
 void Ros2Topics::endpoints(std::vector<dds_entity_t>& writers,
                            std::vector<dds_entity_t>& readers) const {
   if (tf_static_writer_ > 0) writers.push_back(tf_static_writer_);
-  for (const auto& [component, output] : outputs_) writers.push_back(output->writer);
+  for (const auto& [component, output] : outputs_) {
+    writers.push_back(output->writer);
+    if (output->info_writer) writers.push_back(output->info_writer);
+  }
   for (const auto& [component, input] : inputs_) readers.push_back(input->reader);
 }
 
@@ -356,6 +438,7 @@ void Ros2Topics::write_static() {
 
 void Ros2Topics::write_samples() {
   for (auto& [component, output] : outputs_) {
+    if (!output->subscription) continue;  // a pushed stream nobody reads
     taken_.clear();
     output->subscription->take(taken_);
     for (const SamplePtr& sample : taken_) {
@@ -367,6 +450,8 @@ void Ros2Topics::write_samples() {
           case Role::pose_odometry: rc = write_odometry(*output, *sample); break;
           case Role::joint_states: rc = write_joint_states(*output, *sample); break;
           case Role::imu: rc = write_imu(*output, *sample); break;
+          case Role::image: rc = write_image(*output, *sample); break;
+          case Role::laser_scan: rc = write_scan(*output, *sample); break;
         }
       } catch (const std::exception& e) {
         // a component whose samples do not have its kind's shape (a component library's)
@@ -458,6 +543,55 @@ dds_return_t Ros2Topics::write_imu(Output& output, const StreamSample& sample) {
   // zero: unknown
   message.orientation.w = 1;
   message.orientation_covariance[0] = -1;
+  return dds_write(output.writer, &message);
+}
+
+dds_return_t Ros2Topics::write_image(Output& output, const StreamSample& sample) {
+  // the pixels as the camera gave them (rgb8, or 32FC1 metres): no decoding, no copy
+  const StreamPayload* payload = sample.payload();
+  if (!payload) throw std::invalid_argument("the sample carries no pixels");
+  const ImageShape shape = image_shape(*payload);
+  const CameraInfoValues values = camera_info_values(payload->description);
+  const builtin_interfaces_msg_dds__Time_ time = stamp(sample.time());
+  sensor_msgs_msg_dds__Image_ image{};
+  image.header.stamp = time;
+  image.header.frame_id = c_str(output.frame_id);
+  image.height = shape.height;
+  image.width = shape.width;
+  image.encoding = c_str(shape.encoding);
+  image.is_bigendian = shape.is_bigendian ? 1 : 0;
+  image.step = shape.step;
+  borrow(image.data, const_cast<std::uint8_t*>(payload->bytes.data()), payload->bytes.size());
+  const dds_return_t rc = dds_write(output.writer, &image);
+  // its camera_info: the same stamp and frame
+  sensor_msgs_msg_dds__CameraInfo_ info{};
+  info.header = image.header;
+  info.height = values.height;
+  info.width = values.width;
+  info.distortion_model = const_cast<char*>(k_distortion_model);
+  std::array<double, 5> d = values.d;
+  borrow(info.d, d.data(), d.size());
+  std::copy(values.k.begin(), values.k.end(), info.k);
+  std::copy(values.r.begin(), values.r.end(), info.r);
+  std::copy(values.p.begin(), values.p.end(), info.p);
+  const dds_return_t info_rc = dds_write(output.info_writer, &info);
+  return rc < 0 ? rc : info_rc;
+}
+
+dds_return_t Ros2Topics::write_scan(Output& output, const StreamSample& sample) {
+  LaserScanValues values = laser_scan_values(sample.data(), output.info.frequency, output.laser);
+  sensor_msgs_msg_dds__LaserScan_ message{};
+  message.header.stamp = stamp(sample.time());
+  message.header.frame_id = c_str(output.frame_id);
+  message.angle_min = values.angle_min;
+  message.angle_max = values.angle_max;
+  message.angle_increment = values.angle_increment;
+  message.time_increment = 0;
+  message.scan_time = values.scan_time;
+  message.range_min = values.range_min;
+  message.range_max = values.range_max;
+  borrow(message.ranges, values.ranges.data(), values.ranges.size());
+  // intensities: empty (the scanner measures none)
   return dds_write(output.writer, &message);
 }
 
