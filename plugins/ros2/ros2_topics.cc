@@ -10,6 +10,7 @@
 #include "ros2_msgs.h"
 #include "ros2_types.h"
 #include "simgate/core/log.h"
+#include "simgate/core/text.h"
 
 namespace simgate::ros2 {
 
@@ -18,7 +19,7 @@ namespace {
 // Samples a subscription keeps: the DDS thread writes them as soon as it wakes, so a few
 // cover its scheduling hiccups; older ones are dropped (counted by the hub).
 constexpr std::size_t k_subscription_capacity = 8;
-// Twists one dds_take returns at most.
+// Commands (Twists, JointStates) one dds_take returns at most.
 constexpr int k_command_take_batch = 16;
 // History depths: ROS 2's default profile (keep-last 10); tf2's broadcaster's for /tf.
 constexpr int32_t k_default_depth = 10;
@@ -116,9 +117,12 @@ struct Ros2Topics::Output {
 
 struct Ros2Topics::Input {
   StreamInfo info;
-  std::string topic;  // "/robot/cmd_vel"
+  Command command = Command::velocity;
+  std::string topic;  // "/robot/cmd_vel", "/robot/joint_command"
   dds_entity_t reader = 0;
-  dds_entity_t condition = 0;  // its read condition, in the waitset
+  dds_entity_t condition = 0;            // its read condition, in the waitset
+  std::set<std::string> unknown_logged;  // joint names logged as not the armature's
+  bool bad_logged = false;               // a malformed JointState was logged
 };
 
 Ros2Topics::Ros2Topics(std::shared_ptr<StreamHub> hub, Settings settings, dds_entity_t participant,
@@ -147,10 +151,11 @@ std::string Ros2Topics::robot_namespace(const std::string& robot) {
 }
 
 void Ros2Topics::plan(const std::vector<StreamInfo>& listed, std::map<std::string, Role>& outputs,
-                      std::set<std::string>& inputs) {
+                      std::map<std::string, Command>& inputs) {
   // per robot: the odometry source (an integrated odometry before a pose), the first joint
-  // stream, the first velocity input; every camera and laser (each has topics of its own)
-  std::map<std::string, std::string> odometry, pose, joints, imu, velocity;
+  // stream, the first velocity input, the first joint input; every camera and laser (each
+  // has topics of its own)
+  std::map<std::string, std::string> odometry, pose, joints, imu, velocity, joint_commands;
   for (const StreamInfo& info : listed) {
     if (info.component == "simulation" && info.kind == "body_poses") {
       if (settings_.tf) outputs.emplace(info.component, Role::tf);
@@ -163,13 +168,15 @@ void Ros2Topics::plan(const std::vector<StreamInfo>& listed, std::map<std::strin
       outputs.emplace(info.component, info.kind == "laser_scan" ? Role::laser_scan : Role::image);
       continue;
     }
-    std::map<std::string, std::string>* slot = info.direction == StreamDirection::in
-                                                   ? (info.kind == "velocity" ? &velocity : nullptr)
-                                                   : (info.kind == "odometry"      ? &odometry
-                                                      : info.kind == "pose"        ? &pose
-                                                      : info.kind == "joint_state" ? &joints
-                                                      : info.kind == "imu"         ? &imu
-                                                                                   : nullptr);
+    std::map<std::string, std::string>* slot =
+        info.direction == StreamDirection::in ? (info.kind == "velocity"          ? &velocity
+                                                 : info.kind == "joint_positions" ? &joint_commands
+                                                                                  : nullptr)
+                                              : (info.kind == "odometry"      ? &odometry
+                                                 : info.kind == "pose"        ? &pose
+                                                 : info.kind == "joint_state" ? &joints
+                                                 : info.kind == "imu"         ? &imu
+                                                                              : nullptr);
     if (slot && slot->emplace(robot, info.component).second) continue;
     if (skipped_logged_.insert(info.component).second)
       log::info("ros2 transport: the ", info.kind, " stream of ", info.component,
@@ -182,13 +189,14 @@ void Ros2Topics::plan(const std::vector<StreamInfo>& listed, std::map<std::strin
     if (!odometry.count(robot)) outputs.emplace(component, Role::pose_odometry);
   for (const auto& [robot, component] : joints) outputs.emplace(component, Role::joint_states);
   for (const auto& [robot, component] : imu) outputs.emplace(component, Role::imu);
-  for (const auto& [robot, component] : velocity) inputs.insert(component);
+  for (const auto& [robot, component] : velocity) inputs.emplace(component, Command::velocity);
+  for (const auto& [robot, component] : joint_commands) inputs.emplace(component, Command::joints);
 }
 
 bool Ros2Topics::sync() {
   const std::vector<StreamInfo> listed = hub_->streams(settings_.transport);
   std::map<std::string, Role> wanted_outputs;
-  std::set<std::string> wanted_inputs;
+  std::map<std::string, Command> wanted_inputs;
   plan(listed, wanted_outputs, wanted_inputs);
   if (!robots_checked_) {
     // a robot named in the "robots" option with no stream here is most likely a typo
@@ -220,7 +228,8 @@ bool Ros2Topics::sync() {
     changed = true;
   }
   for (auto it = inputs_.begin(); it != inputs_.end();) {
-    if (wanted_inputs.count(it->first)) {
+    auto wanted = wanted_inputs.find(it->first);
+    if (wanted != wanted_inputs.end() && wanted->second == it->second->command) {
       ++it;
       continue;
     }
@@ -235,8 +244,9 @@ bool Ros2Topics::sync() {
           role != wanted_outputs.end() && !outputs_.count(info.component)) {
         add_output(info, role->second);
         changed = true;
-      } else if (wanted_inputs.count(info.component) && !inputs_.count(info.component)) {
-        add_input(info);
+      } else if (auto command = wanted_inputs.find(info.component);
+                 command != wanted_inputs.end() && !inputs_.count(info.component)) {
+        add_input(info, command->second);
         changed = true;
       }
     } catch (const std::exception& e) {
@@ -368,7 +378,7 @@ void Ros2Topics::matches_changed() {
   }
 }
 
-void Ros2Topics::add_input(const StreamInfo& info) {
+void Ros2Topics::add_input(const StreamInfo& info, Command command) {
   const std::string robot = robot_of(info.component);
   const std::string ns = robot_namespace(robot);
   if (ns.empty())
@@ -376,18 +386,23 @@ void Ros2Topics::add_input(const StreamInfo& info) {
                              ", which another robot has");
   auto input = std::make_unique<Input>();
   input->info = info;
-  input->topic = ns + "/cmd_vel";
+  input->command = command;
+  const bool joints = command == Command::joints;
+  input->topic = ns + (joints ? "/joint_command" : "/cmd_vel");
+  const dds_topic_descriptor_t* descriptor =
+      joints ? &sensor_msgs_msg_dds__JointState__desc : &geometry_msgs_msg_dds__Twist__desc;
   QosPtr qos = make_qos(false, k_default_depth, 0);
-  input->reader = check_created(
-      dds_create_reader(participant_,
-                        topic(dds_topic_name(input->topic), &geometry_msgs_msg_dds__Twist__desc),
-                        qos.get(), nullptr),
-      "reader " + input->topic);
+  input->reader =
+      check_created(dds_create_reader(participant_, topic(dds_topic_name(input->topic), descriptor),
+                                      qos.get(), nullptr),
+                    "reader " + input->topic);
   input->condition = check_created(dds_create_readcondition(input->reader, DDS_ANY_STATE),
                                    "read condition " + input->topic);
   check_created(dds_waitset_attach(waitset_, input->condition, k_token_commands),
                 "waitset attachment " + input->topic);
-  log::info("ros2 transport: ", input->topic, " (geometry_msgs/msg/Twist) into ", info.component);
+  log::info("ros2 transport: ", input->topic, " (",
+            joints ? "sensor_msgs/msg/JointState" : "geometry_msgs/msg/Twist", ") into ",
+            info.component);
   inputs_.emplace(info.component, std::move(input));
 }
 
@@ -597,20 +612,61 @@ dds_return_t Ros2Topics::write_scan(Output& output, const StreamSample& sample) 
 
 void Ros2Topics::take_commands() {
   for (auto& [component, input] : inputs_) {
-    void* samples[k_command_take_batch] = {};
-    dds_sample_info_t infos[k_command_take_batch];
-    const dds_return_t n =
-        dds_take(input->reader, samples, infos, k_command_take_batch, k_command_take_batch);
-    // the latest Twist of the batch is what counts (the hub keeps only the latest anyway)
-    const geometry_msgs_msg_dds__Twist_* latest = nullptr;
-    for (dds_return_t i = 0; i < n; ++i)
-      if (infos[i].valid_data)
-        latest = static_cast<const geometry_msgs_msg_dds__Twist_*>(samples[i]);
-    if (latest)
-      hub_->publish(component, settings_.transport,
-                    velocity_command(latest->linear.x, latest->angular.z));
-    if (n > 0) dds_return_loan(input->reader, samples, n);
+    if (input->command == Command::joints)
+      take_joint_states(*input);
+    else
+      take_twists(*input);
   }
+}
+
+void Ros2Topics::take_twists(Input& input) {
+  void* samples[k_command_take_batch] = {};
+  dds_sample_info_t infos[k_command_take_batch];
+  const dds_return_t n =
+      dds_take(input.reader, samples, infos, k_command_take_batch, k_command_take_batch);
+  // the latest Twist of the batch is what counts (the hub keeps only the latest anyway)
+  const geometry_msgs_msg_dds__Twist_* latest = nullptr;
+  for (dds_return_t i = 0; i < n; ++i)
+    if (infos[i].valid_data) latest = static_cast<const geometry_msgs_msg_dds__Twist_*>(samples[i]);
+  if (latest)
+    hub_->publish(input.info.component, settings_.transport,
+                  velocity_command(latest->linear.x, latest->angular.z));
+  if (n > 0) dds_return_loan(input.reader, samples, n);
+}
+
+void Ros2Topics::take_joint_states(Input& input) {
+  void* samples[k_command_take_batch] = {};
+  dds_sample_info_t infos[k_command_take_batch];
+  const dds_return_t n =
+      dds_take(input.reader, samples, infos, k_command_take_batch, k_command_take_batch);
+  // the batch's JointStates merged, in order: a later position of a joint replaces an
+  // earlier one, and joints named only earlier keep theirs
+  json merged = json::object();
+  std::vector<std::string> names;
+  std::vector<double> positions;
+  for (dds_return_t i = 0; i < n; ++i) {
+    if (!infos[i].valid_data) continue;
+    const auto* message = static_cast<const sensor_msgs_msg_dds__JointState_*>(samples[i]);
+    names.assign(message->name._buffer, message->name._buffer + message->name._length);
+    positions.assign(message->position._buffer,
+                     message->position._buffer + message->position._length);
+    try {
+      JointCommand command = joint_command(names, positions, input.info.fields);
+      for (const std::string& name : command.unknown)
+        if (input.unknown_logged.insert(name).second)
+          log::warning("ros2 transport: ", input.topic, ": joint '", name, "' is not one of ",
+                       input.info.component, "'s (", join(input.info.fields),
+                       "); its position is ignored (logged once)");
+      merged.update(command.positions);
+    } catch (const std::invalid_argument& e) {
+      if (!input.bad_logged)
+        log::warning("ros2 transport: ", input.topic, ": a JointState is ignored: ", e.what(),
+                     " (logged once)");
+      input.bad_logged = true;
+    }
+  }
+  if (n > 0) dds_return_loan(input.reader, samples, n);
+  if (!merged.empty()) hub_->publish(input.info.component, settings_.transport, merged);
 }
 
 }  // namespace simgate::ros2

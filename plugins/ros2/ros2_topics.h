@@ -3,7 +3,8 @@
 // /tf_static), each robot's odometry (or pose) as /<robot>/odom, its armature_pose as
 // /<robot>/joint_states, its imu as /<robot>/imu, each camera's images as
 // /<robot>/<camera>/image_raw with /<robot>/<camera>/camera_info, each laser_scanner's scans as
-// /<robot>/<laser>/scan; /<robot>/cmd_vel read into its motion_vw stream.
+// /<robot>/<laser>/scan; /<robot>/cmd_vel read into its motion_vw stream and
+// /<robot>/joint_command into its armature's joint_positions.
 //
 // Terms:
 //  - robot: the part of a component's name before its first '.'; its ROS namespace is
@@ -19,10 +20,12 @@
 //    keep-last 1, one message holding every fixed frame (what tf2's static broadcaster does).
 //    A pushed stream (a camera's: rendering costs the simulation) is subscribed to only while
 //    one of its writers has a matched reader (matches_changed()).
-//  - input: /<robot>/cmd_vel, geometry_msgs/Twist, reliable, volatile, keep-last 10: each
-//    Twist goes to StreamHub::publish as {v: linear.x, w: angular.z} (applied at once when the
-//    simulation lock is free, else the latest waits for the next turn; refusals counted by
-//    the hub).
+//  - input: /<robot>/cmd_vel, geometry_msgs/Twist, and /<robot>/joint_command,
+//    sensor_msgs/JointState, reliable, volatile, keep-last 10: each Twist goes to
+//    StreamHub::publish as {v: linear.x, w: angular.z}, each JointState as {name: position}
+//    for the armature's joints (other names logged once, left out), the JointStates of one
+//    take merged (applied at once when the simulation lock is free, else the latest waits for
+//    the next turn; refusals counted by the hub).
 //
 // Life cycle: made by the transport in start() (host thread); sync() on the DDS thread makes
 // the endpoints of the streams the hub lists (and later of those that come, and deletes those
@@ -49,7 +52,7 @@ namespace simgate::ros2 {
 
 class Ros2Topics {
  public:
-  // Waitset token of the cmd_vel readers' read conditions.
+  // Waitset token of the input readers' read conditions.
   static constexpr dds_attach_t k_token_commands = -3;
   // Waitset token of the pushed streams' writers (their publication-matched status).
   static constexpr dds_attach_t k_token_matched = -6;
@@ -63,7 +66,7 @@ class Ros2Topics {
   };
 
   // `guard`: raised by the subscriptions' wake (samples are waiting); `waitset`: the DDS
-  // thread's (the cmd_vel readers and the pushed streams' writers are attached to it).
+  // thread's (the input readers and the pushed streams' writers are attached to it).
   Ros2Topics(std::shared_ptr<StreamHub> hub, Settings settings, dds_entity_t participant,
              dds_entity_t waitset, dds_entity_t guard);
   ~Ros2Topics();
@@ -76,7 +79,8 @@ class Ros2Topics {
   bool sync();
   // Writes the samples every subscription queued.
   void write_samples();
-  // Takes the Twists of every cmd_vel reader and publishes them to the hub.
+  // Takes the commands of every input reader (Twists, JointStates) and publishes them to the
+  // hub.
   void take_commands();
   // A pushed stream's writer matched or lost a reader (k_token_matched): each such stream
   // subscribed to while one of its writers has a reader, else not. Reads (and so resets)
@@ -92,15 +96,16 @@ class Ros2Topics {
 
  private:
   enum class Role { tf, odometry, pose_odometry, joint_states, imu, image, laser_scan };
+  enum class Command { velocity, joints };
   struct Output;
   struct Input;
 
   dds_entity_t topic(const std::string& name, const dds_topic_descriptor_t* descriptor);
   // What each listed stream of a carried robot becomes (component -> role); inputs apart.
   void plan(const std::vector<StreamInfo>& listed, std::map<std::string, Role>& outputs,
-            std::set<std::string>& inputs);
+            std::map<std::string, Command>& inputs);
   void add_output(const StreamInfo& info, Role role);
-  void add_input(const StreamInfo& info);
+  void add_input(const StreamInfo& info, Command command);
   void subscribe(Output& output);
   void remove_output(Output& output);
   void remove_input(Input& input);
@@ -111,6 +116,8 @@ class Ros2Topics {
   dds_return_t write_imu(Output& output, const StreamSample& sample);
   dds_return_t write_image(Output& output, const StreamSample& sample);
   dds_return_t write_scan(Output& output, const StreamSample& sample);
+  void take_twists(Input& input);
+  void take_joint_states(Input& input);
   // The namespace of `robot` ("/robot"), or "" when another robot took its token already.
   std::string robot_namespace(const std::string& robot);
 

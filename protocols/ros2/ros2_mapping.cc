@@ -222,6 +222,25 @@ json velocity_command(double linear_x, double angular_z) {
   return {{"v", linear_x}, {"w", angular_z}};
 }
 
+JointCommand joint_command(const std::vector<std::string>& names,
+                           const std::vector<double>& positions,
+                           const std::vector<std::string>& joints) {
+  JointCommand out;
+  if (positions.empty()) return out;  // velocities or efforts only: nothing here
+  if (positions.size() != names.size())
+    throw std::invalid_argument(std::to_string(names.size()) + " names and " +
+                                std::to_string(positions.size()) +
+                                " positions (JointState: one position per name)");
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    if (std::find(joints.begin(), joints.end(), names[i]) == joints.end()) {
+      out.unknown.push_back(names[i]);
+      continue;
+    }
+    out.positions[names[i]] = positions[i];
+  }
+  return out;
+}
+
 // ---- cameras ----
 
 ImageShape image_shape(const StreamPayload& payload) {

@@ -126,6 +126,18 @@ OdometryValues odometry_from_pose(const std::array<double, 6>& values);
 // The motion_vw command of a geometry_msgs/Twist: v = linear.x, w = angular.z.
 json velocity_command(double linear_x, double angular_z);
 
+// The joint_positions command (an armature's input) of a sensor_msgs/JointState: {name[i]:
+// position[i]} for each name among `joints` (the stream's fields); the other names in
+// `unknown`, left out. Velocities and efforts are not commands here. Throws
+// std::invalid_argument when the message has positions but not one per name.
+struct JointCommand {
+  json positions = json::object();  // empty: nothing to command
+  std::vector<std::string> unknown;
+};
+JointCommand joint_command(const std::vector<std::string>& names,
+                           const std::vector<double>& positions,
+                           const std::vector<std::string>& joints);
+
 // ---- cameras ----
 
 // sensor_msgs/Image's fields of a camera's sample (its payload: content "image", description

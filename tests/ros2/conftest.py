@@ -144,10 +144,12 @@ def arm_domain():
 
 @pytest.fixture(scope="session")
 def arm(tmp_path_factory, arm_domain):
-    """config/arm.json's arm on the table, its joints on /arm/joint_states on `arm_domain`."""
+    """config/arm.json's arm on the table, its joints on /arm/joint_states, its armature's
+    joint_positions from /arm/joint_command, on `arm_domain`."""
     config = ros2_config("arm.json", arm_domain)
     config["services"] = {"default": ["socket"], "simulation": ["socket", "ros2"]}
     config["streams"] = {"arm.armature_pose": {"transports": ["ros2"], "frequency": 50},
+                         "arm.armature": ["ros2"],
                          "simulation": {"transports": ["ros2"], "frequency": 20}}
     gw = Gateway(tmp_path_factory.mktemp("arm"), config, "arm")
     yield gw

@@ -198,6 +198,19 @@ TEST(Ros2MappingTest, TwistBecomesAVelocityCommand) {
   EXPECT_EQ(velocity_command(0.5, -0.25), (json{{"v", 0.5}, {"w", -0.25}}));
 }
 
+TEST(Ros2MappingTest, JointCommandKeepsTheArmaturesJointsAndNamesTheOthers) {
+  const JointCommand c =
+      joint_command({"elbow", "wrist", "shoulder"}, {0.5, 1.0, -0.25}, {"shoulder", "elbow"});
+  EXPECT_EQ(c.positions, (json{{"elbow", 0.5}, {"shoulder", -0.25}}));
+  EXPECT_EQ(c.unknown, (std::vector<std::string>{"wrist"}));
+}
+
+TEST(Ros2MappingTest, JointCommandWithoutPositionsIsEmptyAndOtherCountsAreRefused) {
+  EXPECT_TRUE(joint_command({"elbow"}, {}, {"elbow"}).positions.empty());
+  EXPECT_THROW(joint_command({"elbow", "shoulder"}, {0.5}, {"elbow"}), std::invalid_argument);
+  EXPECT_THROW(joint_command({}, {0.5}, {"elbow"}), std::invalid_argument);
+}
+
 // A camera's payload as cameras.cc makes it: 2x1 pixels.
 StreamPayload camera_payload(const std::string& encoding, std::size_t pixel) {
   StreamPayload p;

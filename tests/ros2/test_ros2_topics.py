@@ -320,6 +320,37 @@ def test_joint_states_are_the_arms_joints(arm, arm_domain):
     client.close()
 
 
+def test_joint_command_moves_the_arms_joints_and_unknown_names_are_ignored(arm, arm_domain):
+    """A sensor_msgs/JointState on /arm/joint_command sets arm.armature's joints (its
+    joint_positions input): /arm/joint_states and simgate's own reading follow; a name that is
+    no joint of the armature is logged once and left out."""
+    node = Node(arm_domain)
+    states = node.reader("rt/arm/joint_states", ros.JointState)
+    command = node.writer("rt/arm/joint_command", ros.JointState)
+    target = {"elbow": 0.6, "wrist_pitch": -0.4}
+    message = ros.JointState(name=["elbow", "no_such_joint", "wrist_pitch"],
+                             position=[0.6, 1.0, -0.4])
+
+    def there(m):
+        by_name = dict(zip(m.name, m.position))
+        return all(abs(by_name[j] - v) < 0.03 for j, v in target.items())
+
+    deadline = time.monotonic() + WAIT
+    reached = None
+    while time.monotonic() < deadline and reached is None:
+        command.write(message)
+        reached = next((m for m in states.take(N=64) if there(m)), None)
+        time.sleep(0.1)  # a command stream's 10 Hz, bounded by the deadline
+    assert reached is not None, "the arm did not move on /arm/joint_command"
+    client = arm.socket()
+    now = client.call("arm.armature_pose", "get_local_data")
+    client.close()
+    for joint, value in target.items():
+        assert now[joint] == pytest.approx(value, abs=0.03), joint
+    # written several times, logged once
+    assert arm.output().count("'no_such_joint'") == 1, arm.output()
+
+
 # ---- the bytes on the wire, read and written again by rosbags ----
 
 def as_plain(value):
