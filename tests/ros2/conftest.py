@@ -186,7 +186,8 @@ def sensors_domain():
 def sensor_rover(tmp_path_factory, sensors_domain):
     """config/rover.json's rover in its room, its laser, camera and depth camera carried by the
     ros2 transport (small images, few a second: rendered only while a ROS reader reads them),
-    with /tf_static for their frames, on `sensors_domain`."""
+    with /tf_static for their frames, on `sensors_domain`; the depth camera's stream on the
+    socket transport too, for its statistics (no socket client subscribes to it)."""
     config = ros2_config("rover.json", sensors_domain)
     robot = config["robots"][0]
     for component in robot["components"]:
@@ -197,7 +198,7 @@ def sensor_rover(tmp_path_factory, sensors_domain):
     # (simulation: its get_scene_geometry gives /tf_static its frames)
     config["services"] = {"default": ["socket"], "simulation": ["socket", "ros2"]}
     config["streams"] = {"rover.laser": {"transports": ["ros2"], "frequency": 10},
-                         "rover.camera": ["ros2"], "rover.depth": ["ros2"],
+                         "rover.camera": ["ros2"], "rover.depth": ["ros2", "socket"],
                          "simulation": {"transports": ["ros2"], "frequency": 10}}
     gw = Gateway(tmp_path_factory.mktemp("sensors"), config, "sensors")
     yield gw

@@ -6,6 +6,7 @@ and writes them again. simgate's own view (the socket transport) is the referenc
 messages must say."""
 
 import base64
+import gc
 import math
 import os
 import struct
@@ -622,6 +623,32 @@ def test_depth_image_is_in_metres_as_the_depth_camera_sees(sensor_rover, sensors
     assert any(m > 0 for m in metres)
     info = first(node.reader("rt/rover/depth/camera_info", ros.CameraInfo))
     assert info.header.frame_id == "rover/depth" and (info.width, info.height) == (160, 120)
+
+
+def test_a_camera_renders_only_while_a_ros_reader_reads_it(sensor_rover, sensors_domain,
+                                                          sensors):
+    """rover.depth is subscribed to (rendered) only while a reader of its image_raw or
+    camera_info is matched: none, then one reader of its camera_info, then none again."""
+    def subscribers():
+        [stats] = [s for s in sensors.call("simulation", "get_stream_statistics")
+                   if s["component"] == "rover.depth"]
+        return stats["subscribers"]
+
+    def wait_for(count):
+        deadline = time.monotonic() + WAIT
+        while subscribers() != count:
+            assert time.monotonic() < deadline, f"rover.depth: {subscribers()} subscribers"
+            time.sleep(0.05)  # polling simgate, bounded by the deadline
+
+    gc.collect()  # other tests' readers gone
+    wait_for(0)
+    node = Node(sensors_domain)
+    reader = node.reader("rt/rover/depth/camera_info", ros.CameraInfo)
+    wait_for(1)
+    first(reader)
+    del reader, node
+    gc.collect()
+    wait_for(0)
 
 
 def test_sensor_topics_are_the_nodes_with_ros_types(sensor_rover, sensors_domain):
