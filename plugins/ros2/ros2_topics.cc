@@ -10,6 +10,7 @@
 #include "ros2_msgs.h"
 #include "ros2_types.h"
 #include "simgate/core/log.h"
+#include "simgate/core/text.h"
 
 namespace simgate::ros2 {
 
@@ -18,7 +19,7 @@ namespace {
 // Samples a subscription keeps: the DDS thread writes them as soon as it wakes, so a few
 // cover its scheduling hiccups; older ones are dropped (counted by the hub).
 constexpr std::size_t k_subscription_capacity = 8;
-// Twists one dds_take returns at most.
+// Commands (Twists, JointStates) one dds_take returns at most.
 constexpr int k_command_take_batch = 16;
 // History depths: ROS 2's default profile (keep-last 10); tf2's broadcaster's for /tf.
 constexpr int32_t k_default_depth = 10;
@@ -86,8 +87,17 @@ dds_return_t write_transforms(dds_entity_t writer, const std::vector<FrameTransf
 }
 
 const char* role_name(int role) {
-  static const char* const k_names[] = {"/tf", "odom", "odom", "joint_states", "imu"};
+  static const char* const k_names[] = {"/tf", "odom",      "odom", "joint_states",
+                                        "imu", "image_raw", "scan"};
   return k_names[role];
+}
+
+// A ROS sequence over `data`'s elements (not copied, not released by the writer).
+template <typename Sequence, typename T>
+void borrow(Sequence& sequence, T* data, std::size_t count) {
+  sequence._maximum = sequence._length = static_cast<uint32_t>(count);
+  sequence._buffer = data;
+  sequence._release = false;
 }
 
 }  // namespace
@@ -96,18 +106,23 @@ struct Ros2Topics::Output {
   StreamInfo info;
   Role role = Role::tf;
   std::string topic;           // the ROS topic name: "/robot/odom"
-  std::string frame_id;        // odometry: the header's frame
+  std::string frame_id;        // the header's frame (odometry, imu, image, scan)
   std::string child_frame_id;  // odometry: the child frame
   dds_entity_t writer = 0;
-  std::shared_ptr<StreamSubscription> subscription;  // to the hub
+  dds_entity_t info_writer = 0;                      // a camera's: its camera_info
+  std::shared_ptr<StreamSubscription> subscription;  // to the hub (a pushed stream: while read)
   bool shape_logged = false;  // a sample not of the message's shape was logged
+  LaserReading laser;         // a laser's arc and reach, read from its scans
 };
 
 struct Ros2Topics::Input {
   StreamInfo info;
-  std::string topic;  // "/robot/cmd_vel"
+  Command command = Command::velocity;
+  std::string topic;  // "/robot/cmd_vel", "/robot/joint_command"
   dds_entity_t reader = 0;
-  dds_entity_t condition = 0;  // its read condition, in the waitset
+  dds_entity_t condition = 0;            // its read condition, in the waitset
+  std::set<std::string> unknown_logged;  // joint names logged as not the armature's
+  bool bad_logged = false;               // a malformed JointState was logged
 };
 
 Ros2Topics::Ros2Topics(std::shared_ptr<StreamHub> hub, Settings settings, dds_entity_t participant,
@@ -119,7 +134,8 @@ Ros2Topics::Ros2Topics(std::shared_ptr<StreamHub> hub, Settings settings, dds_en
       guard_(guard) {}
 
 Ros2Topics::~Ros2Topics() {
-  for (auto& [component, output] : outputs_) hub_->unsubscribe(output->subscription);
+  for (auto& [component, output] : outputs_)
+    if (output->subscription) hub_->unsubscribe(output->subscription);
 }
 
 dds_entity_t Ros2Topics::topic(const std::string& name, const dds_topic_descriptor_t* descriptor) {
@@ -135,10 +151,11 @@ std::string Ros2Topics::robot_namespace(const std::string& robot) {
 }
 
 void Ros2Topics::plan(const std::vector<StreamInfo>& listed, std::map<std::string, Role>& outputs,
-                      std::set<std::string>& inputs) {
+                      std::map<std::string, Command>& inputs) {
   // per robot: the odometry source (an integrated odometry before a pose), the first joint
-  // stream, the first velocity input
-  std::map<std::string, std::string> odometry, pose, joints, imu, velocity;
+  // stream, the first velocity input, the first joint input; every camera and laser (each
+  // has topics of its own)
+  std::map<std::string, std::string> odometry, pose, joints, imu, velocity, joint_commands;
   for (const StreamInfo& info : listed) {
     if (info.component == "simulation" && info.kind == "body_poses") {
       if (settings_.tf) outputs.emplace(info.component, Role::tf);
@@ -146,13 +163,20 @@ void Ros2Topics::plan(const std::vector<StreamInfo>& listed, std::map<std::strin
     }
     const std::string robot = robot_of(info.component);
     if (robot.empty() || (!settings_.all_robots && !settings_.robots.count(robot))) continue;
-    std::map<std::string, std::string>* slot = info.direction == StreamDirection::in
-                                                   ? (info.kind == "velocity" ? &velocity : nullptr)
-                                                   : (info.kind == "odometry"      ? &odometry
-                                                      : info.kind == "pose"        ? &pose
-                                                      : info.kind == "joint_state" ? &joints
-                                                      : info.kind == "imu"         ? &imu
-                                                                                   : nullptr);
+    if (info.direction == StreamDirection::out &&
+        (info.kind == "image" || info.kind == "depth_image" || info.kind == "laser_scan")) {
+      outputs.emplace(info.component, info.kind == "laser_scan" ? Role::laser_scan : Role::image);
+      continue;
+    }
+    std::map<std::string, std::string>* slot =
+        info.direction == StreamDirection::in ? (info.kind == "velocity"          ? &velocity
+                                                 : info.kind == "joint_positions" ? &joint_commands
+                                                                                  : nullptr)
+                                              : (info.kind == "odometry"      ? &odometry
+                                                 : info.kind == "pose"        ? &pose
+                                                 : info.kind == "joint_state" ? &joints
+                                                 : info.kind == "imu"         ? &imu
+                                                                              : nullptr);
     if (slot && slot->emplace(robot, info.component).second) continue;
     if (skipped_logged_.insert(info.component).second)
       log::info("ros2 transport: the ", info.kind, " stream of ", info.component,
@@ -165,13 +189,14 @@ void Ros2Topics::plan(const std::vector<StreamInfo>& listed, std::map<std::strin
     if (!odometry.count(robot)) outputs.emplace(component, Role::pose_odometry);
   for (const auto& [robot, component] : joints) outputs.emplace(component, Role::joint_states);
   for (const auto& [robot, component] : imu) outputs.emplace(component, Role::imu);
-  for (const auto& [robot, component] : velocity) inputs.insert(component);
+  for (const auto& [robot, component] : velocity) inputs.emplace(component, Command::velocity);
+  for (const auto& [robot, component] : joint_commands) inputs.emplace(component, Command::joints);
 }
 
 bool Ros2Topics::sync() {
   const std::vector<StreamInfo> listed = hub_->streams(settings_.transport);
   std::map<std::string, Role> wanted_outputs;
-  std::set<std::string> wanted_inputs;
+  std::map<std::string, Command> wanted_inputs;
   plan(listed, wanted_outputs, wanted_inputs);
   if (!robots_checked_) {
     // a robot named in the "robots" option with no stream here is most likely a typo
@@ -203,7 +228,8 @@ bool Ros2Topics::sync() {
     changed = true;
   }
   for (auto it = inputs_.begin(); it != inputs_.end();) {
-    if (wanted_inputs.count(it->first)) {
+    auto wanted = wanted_inputs.find(it->first);
+    if (wanted != wanted_inputs.end() && wanted->second == it->second->command) {
       ++it;
       continue;
     }
@@ -218,8 +244,9 @@ bool Ros2Topics::sync() {
           role != wanted_outputs.end() && !outputs_.count(info.component)) {
         add_output(info, role->second);
         changed = true;
-      } else if (wanted_inputs.count(info.component) && !inputs_.count(info.component)) {
-        add_input(info);
+      } else if (auto command = wanted_inputs.find(info.component);
+                 command != wanted_inputs.end() && !inputs_.count(info.component)) {
+        add_input(info, command->second);
         changed = true;
       }
     } catch (const std::exception& e) {
@@ -254,7 +281,19 @@ void Ros2Topics::add_output(const StreamInfo& info, Role role) {
       throw std::runtime_error("robot '" + robot + "' would have namespace /" +
                                to_ros_token(robot) + ", which another robot has");
     const std::string frame_root = ns.substr(1);
-    if (role == Role::joint_states) {
+    // a sensor's own topics under its robot's namespace: "/robot/camera/..."
+    const std::string frame = component_frame(info.component);
+    const std::string sensor = ns + frame.substr(std::min(frame.find('/'), frame.size()));
+    if (role == Role::image) {
+      output->topic = sensor + "/image_raw";
+      descriptor = &sensor_msgs_msg_dds__Image__desc;
+      // the camera's optical frame (x right, y down, z forward), on /tf_static under its body
+      output->frame_id = frame;
+    } else if (role == Role::laser_scan) {
+      output->topic = sensor + "/scan";
+      descriptor = &sensor_msgs_msg_dds__LaserScan__desc;
+      output->frame_id = frame;
+    } else if (role == Role::joint_states) {
       output->topic = ns + "/joint_states";
       descriptor = &sensor_msgs_msg_dds__JointState__desc;
     } else if (role == Role::imu) {
@@ -277,20 +316,69 @@ void Ros2Topics::add_output(const StreamInfo& info, Role role) {
       dds_create_writer(participant_, topic(dds_topic_name(output->topic), descriptor), qos.get(),
                         nullptr),
       "writer " + output->topic);
-  SubscriberOptions options{k_subscription_capacity, "ros2 topic " + output->topic, {}, {}};
-  const dds_entity_t guard = guard_;
-  options.wake = [guard] { dds_set_guardcondition(guard, true); };
-  output->subscription = hub_->subscribe(info.component, settings_.transport, std::move(options));
-  if (!output->subscription) {
-    dds_delete(output->writer);
-    return;  // gone meanwhile
+  std::string info_topic;
+  if (role == Role::image) {
+    info_topic = output->topic.substr(0, output->topic.rfind('/')) + "/camera_info";
+    output->info_writer = check_created(
+        dds_create_writer(participant_,
+                          topic(dds_topic_name(info_topic), &sensor_msgs_msg_dds__CameraInfo__desc),
+                          qos.get(), nullptr),
+        "writer " + info_topic);
+  }
+  if (info.pushed) {
+    // its component works for it while subscribed (a camera renders): subscribed to only
+    // while a writer has a reader (matches_changed)
+    for (dds_entity_t writer : {output->writer, output->info_writer}) {
+      if (writer == 0) continue;
+      check_created(dds_set_status_mask(writer, DDS_PUBLICATION_MATCHED_STATUS),
+                    "status mask " + output->topic);
+      check_created(dds_waitset_attach(waitset_, writer, k_token_matched),
+                    "waitset attachment " + output->topic);
+    }
+  } else {
+    subscribe(*output);
+    if (!output->subscription) {
+      dds_delete(output->writer);
+      if (output->info_writer) dds_delete(output->info_writer);
+      return;  // gone meanwhile
+    }
   }
   log::info("ros2 transport: ", info.component, " on ", output->topic, " (", descriptor->m_typename,
-            ")");
+            ")", info_topic.empty() ? "" : " and " + info_topic,
+            info.pushed ? " (made while read)" : "");
+  const bool pushed = info.pushed;
   outputs_.emplace(info.component, std::move(output));
+  if (pushed) matches_changed();  // a reader that matched already
 }
 
-void Ros2Topics::add_input(const StreamInfo& info) {
+void Ros2Topics::subscribe(Output& output) {
+  SubscriberOptions options{k_subscription_capacity, "ros2 topic " + output.topic, {}, {}};
+  const dds_entity_t guard = guard_;
+  options.wake = [guard] { dds_set_guardcondition(guard, true); };
+  output.subscription =
+      hub_->subscribe(output.info.component, settings_.transport, std::move(options));
+}
+
+void Ros2Topics::matches_changed() {
+  for (auto& [component, output] : outputs_) {
+    if (!output->info.pushed) continue;
+    // read every writer's status (each read resets its trigger)
+    bool read = false;
+    for (dds_entity_t writer : {output->writer, output->info_writer}) {
+      dds_publication_matched_status_t status;
+      if (writer != 0 && dds_get_publication_matched_status(writer, &status) == 0)
+        read = read || status.current_count > 0;
+    }
+    if (read && !output->subscription) {
+      subscribe(*output);
+    } else if (!read && output->subscription) {
+      hub_->unsubscribe(output->subscription);
+      output->subscription.reset();
+    }
+  }
+}
+
+void Ros2Topics::add_input(const StreamInfo& info, Command command) {
   const std::string robot = robot_of(info.component);
   const std::string ns = robot_namespace(robot);
   if (ns.empty())
@@ -298,24 +386,30 @@ void Ros2Topics::add_input(const StreamInfo& info) {
                              ", which another robot has");
   auto input = std::make_unique<Input>();
   input->info = info;
-  input->topic = ns + "/cmd_vel";
+  input->command = command;
+  const bool joints = command == Command::joints;
+  input->topic = ns + (joints ? "/joint_command" : "/cmd_vel");
+  const dds_topic_descriptor_t* descriptor =
+      joints ? &sensor_msgs_msg_dds__JointState__desc : &geometry_msgs_msg_dds__Twist__desc;
   QosPtr qos = make_qos(false, k_default_depth, 0);
-  input->reader = check_created(
-      dds_create_reader(participant_,
-                        topic(dds_topic_name(input->topic), &geometry_msgs_msg_dds__Twist__desc),
-                        qos.get(), nullptr),
-      "reader " + input->topic);
+  input->reader =
+      check_created(dds_create_reader(participant_, topic(dds_topic_name(input->topic), descriptor),
+                                      qos.get(), nullptr),
+                    "reader " + input->topic);
   input->condition = check_created(dds_create_readcondition(input->reader, DDS_ANY_STATE),
                                    "read condition " + input->topic);
   check_created(dds_waitset_attach(waitset_, input->condition, k_token_commands),
                 "waitset attachment " + input->topic);
-  log::info("ros2 transport: ", input->topic, " (geometry_msgs/msg/Twist) into ", info.component);
+  log::info("ros2 transport: ", input->topic, " (",
+            joints ? "sensor_msgs/msg/JointState" : "geometry_msgs/msg/Twist", ") into ",
+            info.component);
   inputs_.emplace(info.component, std::move(input));
 }
 
 void Ros2Topics::remove_output(Output& output) {
-  hub_->unsubscribe(output.subscription);
-  dds_delete(output.writer);
+  if (output.subscription) hub_->unsubscribe(output.subscription);
+  dds_delete(output.writer);  // (detached from the waitset with it)
+  if (output.info_writer) dds_delete(output.info_writer);
   log::info("ros2 transport: ", output.topic, " ended (", output.info.component, " is gone)");
 }
 
@@ -328,7 +422,10 @@ void Ros2Topics::remove_input(Input& input) {
 void Ros2Topics::endpoints(std::vector<dds_entity_t>& writers,
                            std::vector<dds_entity_t>& readers) const {
   if (tf_static_writer_ > 0) writers.push_back(tf_static_writer_);
-  for (const auto& [component, output] : outputs_) writers.push_back(output->writer);
+  for (const auto& [component, output] : outputs_) {
+    writers.push_back(output->writer);
+    if (output->info_writer) writers.push_back(output->info_writer);
+  }
   for (const auto& [component, input] : inputs_) readers.push_back(input->reader);
 }
 
@@ -356,6 +453,7 @@ void Ros2Topics::write_static() {
 
 void Ros2Topics::write_samples() {
   for (auto& [component, output] : outputs_) {
+    if (!output->subscription) continue;  // a pushed stream nobody reads
     taken_.clear();
     output->subscription->take(taken_);
     for (const SamplePtr& sample : taken_) {
@@ -367,6 +465,8 @@ void Ros2Topics::write_samples() {
           case Role::pose_odometry: rc = write_odometry(*output, *sample); break;
           case Role::joint_states: rc = write_joint_states(*output, *sample); break;
           case Role::imu: rc = write_imu(*output, *sample); break;
+          case Role::image: rc = write_image(*output, *sample); break;
+          case Role::laser_scan: rc = write_scan(*output, *sample); break;
         }
       } catch (const std::exception& e) {
         // a component whose samples do not have its kind's shape (a component library's)
@@ -461,22 +561,112 @@ dds_return_t Ros2Topics::write_imu(Output& output, const StreamSample& sample) {
   return dds_write(output.writer, &message);
 }
 
+dds_return_t Ros2Topics::write_image(Output& output, const StreamSample& sample) {
+  // the pixels as the camera gave them (rgb8, or 32FC1 metres): no decoding, no copy
+  const StreamPayload* payload = sample.payload();
+  if (!payload) throw std::invalid_argument("the sample carries no pixels");
+  const ImageShape shape = image_shape(*payload);
+  const CameraInfoValues values = camera_info_values(payload->description);
+  const builtin_interfaces_msg_dds__Time_ time = stamp(sample.time());
+  sensor_msgs_msg_dds__Image_ image{};
+  image.header.stamp = time;
+  image.header.frame_id = c_str(output.frame_id);
+  image.height = shape.height;
+  image.width = shape.width;
+  image.encoding = c_str(shape.encoding);
+  image.is_bigendian = shape.is_bigendian ? 1 : 0;
+  image.step = shape.step;
+  borrow(image.data, const_cast<std::uint8_t*>(payload->bytes.data()), payload->bytes.size());
+  const dds_return_t rc = dds_write(output.writer, &image);
+  // its camera_info: the same stamp and frame
+  sensor_msgs_msg_dds__CameraInfo_ info{};
+  info.header = image.header;
+  info.height = values.height;
+  info.width = values.width;
+  info.distortion_model = const_cast<char*>(k_distortion_model);
+  std::array<double, 5> d = values.d;
+  borrow(info.d, d.data(), d.size());
+  std::copy(values.k.begin(), values.k.end(), info.k);
+  std::copy(values.r.begin(), values.r.end(), info.r);
+  std::copy(values.p.begin(), values.p.end(), info.p);
+  const dds_return_t info_rc = dds_write(output.info_writer, &info);
+  return rc < 0 ? rc : info_rc;
+}
+
+dds_return_t Ros2Topics::write_scan(Output& output, const StreamSample& sample) {
+  LaserScanValues values = laser_scan_values(sample.data(), output.info.frequency, output.laser);
+  sensor_msgs_msg_dds__LaserScan_ message{};
+  message.header.stamp = stamp(sample.time());
+  message.header.frame_id = c_str(output.frame_id);
+  message.angle_min = values.angle_min;
+  message.angle_max = values.angle_max;
+  message.angle_increment = values.angle_increment;
+  message.time_increment = 0;
+  message.scan_time = values.scan_time;
+  message.range_min = values.range_min;
+  message.range_max = values.range_max;
+  borrow(message.ranges, values.ranges.data(), values.ranges.size());
+  // intensities: empty (the scanner measures none)
+  return dds_write(output.writer, &message);
+}
+
 void Ros2Topics::take_commands() {
   for (auto& [component, input] : inputs_) {
-    void* samples[k_command_take_batch] = {};
-    dds_sample_info_t infos[k_command_take_batch];
-    const dds_return_t n =
-        dds_take(input->reader, samples, infos, k_command_take_batch, k_command_take_batch);
-    // the latest Twist of the batch is what counts (the hub keeps only the latest anyway)
-    const geometry_msgs_msg_dds__Twist_* latest = nullptr;
-    for (dds_return_t i = 0; i < n; ++i)
-      if (infos[i].valid_data)
-        latest = static_cast<const geometry_msgs_msg_dds__Twist_*>(samples[i]);
-    if (latest)
-      hub_->publish(component, settings_.transport,
-                    velocity_command(latest->linear.x, latest->angular.z));
-    if (n > 0) dds_return_loan(input->reader, samples, n);
+    if (input->command == Command::joints)
+      take_joint_states(*input);
+    else
+      take_twists(*input);
   }
+}
+
+void Ros2Topics::take_twists(Input& input) {
+  void* samples[k_command_take_batch] = {};
+  dds_sample_info_t infos[k_command_take_batch];
+  const dds_return_t n =
+      dds_take(input.reader, samples, infos, k_command_take_batch, k_command_take_batch);
+  // the latest Twist of the batch is what counts (the hub keeps only the latest anyway)
+  const geometry_msgs_msg_dds__Twist_* latest = nullptr;
+  for (dds_return_t i = 0; i < n; ++i)
+    if (infos[i].valid_data) latest = static_cast<const geometry_msgs_msg_dds__Twist_*>(samples[i]);
+  if (latest)
+    hub_->publish(input.info.component, settings_.transport,
+                  velocity_command(latest->linear.x, latest->angular.z));
+  if (n > 0) dds_return_loan(input.reader, samples, n);
+}
+
+void Ros2Topics::take_joint_states(Input& input) {
+  void* samples[k_command_take_batch] = {};
+  dds_sample_info_t infos[k_command_take_batch];
+  const dds_return_t n =
+      dds_take(input.reader, samples, infos, k_command_take_batch, k_command_take_batch);
+  // the batch's JointStates merged, in order: a later position of a joint replaces an
+  // earlier one, and joints named only earlier keep theirs
+  json merged = json::object();
+  std::vector<std::string> names;
+  std::vector<double> positions;
+  for (dds_return_t i = 0; i < n; ++i) {
+    if (!infos[i].valid_data) continue;
+    const auto* message = static_cast<const sensor_msgs_msg_dds__JointState_*>(samples[i]);
+    names.assign(message->name._buffer, message->name._buffer + message->name._length);
+    positions.assign(message->position._buffer,
+                     message->position._buffer + message->position._length);
+    try {
+      JointCommand command = joint_command(names, positions, input.info.fields);
+      for (const std::string& name : command.unknown)
+        if (input.unknown_logged.insert(name).second)
+          log::warning("ros2 transport: ", input.topic, ": joint '", name, "' is not one of ",
+                       input.info.component, "'s (", join(input.info.fields),
+                       "); its position is ignored (logged once)");
+      merged.update(command.positions);
+    } catch (const std::invalid_argument& e) {
+      if (!input.bad_logged)
+        log::warning("ros2 transport: ", input.topic, ": a JointState is ignored: ", e.what(),
+                     " (logged once)");
+      input.bad_logged = true;
+    }
+  }
+  if (n > 0) dds_return_loan(input.reader, samples, n);
+  if (!merged.empty()) hub_->publish(input.info.component, settings_.transport, merged);
 }
 
 }  // namespace simgate::ros2

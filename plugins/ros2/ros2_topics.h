@@ -1,8 +1,10 @@
 // simgate/ros2 topics — the simulation's data streams as ROS 2 topics (issue #41): the
 // `simulation` component's body_poses as /tf (and the components' sensing frames as
 // /tf_static), each robot's odometry (or pose) as /<robot>/odom, its armature_pose as
-// /<robot>/joint_states, its imu as /<robot>/imu, and /<robot>/cmd_vel read into its
-// motion_vw stream.
+// /<robot>/joint_states, its imu as /<robot>/imu, each camera's images as
+// /<robot>/<camera>/image_raw with /<robot>/<camera>/camera_info, each laser_scanner's scans as
+// /<robot>/<laser>/scan; /<robot>/cmd_vel read into its motion_vw stream and
+// /<robot>/joint_command into its armature's joint_positions.
 //
 // Terms:
 //  - robot: the part of a component's name before its first '.'; its ROS namespace is
@@ -13,13 +15,17 @@
 //    set_geometry(); until it comes (and after a spawn or a delete, until the new one comes)
 //    body_poses samples are not written.
 //  - output: one StreamSubscription (a few samples deep, latest kept) and one writer per
-//    topic, reliable, volatile, keep-last (ROS 2's defaults: 10; /tf 100, as tf2's
-//    broadcaster). /tf_static: reliable, transient-local, keep-last 1, one message holding
-//    every fixed frame (what tf2's static broadcaster does).
-//  - input: /<robot>/cmd_vel, geometry_msgs/Twist, reliable, volatile, keep-last 10: each
-//    Twist goes to StreamHub::publish as {v: linear.x, w: angular.z} (applied at once when the
-//    simulation lock is free, else the latest waits for the next turn; refusals counted by
-//    the hub).
+//    topic (a camera: two, its image and its camera_info), reliable, volatile, keep-last (ROS
+//    2's defaults: 10; /tf 100, as tf2's broadcaster). /tf_static: reliable, transient-local,
+//    keep-last 1, one message holding every fixed frame (what tf2's static broadcaster does).
+//    A pushed stream (a camera's: rendering costs the simulation) is subscribed to only while
+//    one of its writers has a matched reader (matches_changed()).
+//  - input: /<robot>/cmd_vel, geometry_msgs/Twist, and /<robot>/joint_command,
+//    sensor_msgs/JointState, reliable, volatile, keep-last 10: each Twist goes to
+//    StreamHub::publish as {v: linear.x, w: angular.z}, each JointState as {name: position}
+//    for the armature's joints (other names logged once, left out), the JointStates of one
+//    take merged (applied at once when the simulation lock is free, else the latest waits for
+//    the next turn; refusals counted by the hub).
 //
 // Life cycle: made by the transport in start() (host thread); sync() on the DDS thread makes
 // the endpoints of the streams the hub lists (and later of those that come, and deletes those
@@ -46,8 +52,10 @@ namespace simgate::ros2 {
 
 class Ros2Topics {
  public:
-  // Waitset token of the cmd_vel readers' read conditions.
+  // Waitset token of the input readers' read conditions.
   static constexpr dds_attach_t k_token_commands = -3;
+  // Waitset token of the pushed streams' writers (their publication-matched status).
+  static constexpr dds_attach_t k_token_matched = -6;
 
   struct Settings {
     std::string transport;    // our name in the configuration
@@ -58,7 +66,7 @@ class Ros2Topics {
   };
 
   // `guard`: raised by the subscriptions' wake (samples are waiting); `waitset`: the DDS
-  // thread's (the cmd_vel readers are attached to it).
+  // thread's (the input readers and the pushed streams' writers are attached to it).
   Ros2Topics(std::shared_ptr<StreamHub> hub, Settings settings, dds_entity_t participant,
              dds_entity_t waitset, dds_entity_t guard);
   ~Ros2Topics();
@@ -71,8 +79,13 @@ class Ros2Topics {
   bool sync();
   // Writes the samples every subscription queued.
   void write_samples();
-  // Takes the Twists of every cmd_vel reader and publishes them to the hub.
+  // Takes the commands of every input reader (Twists, JointStates) and publishes them to the
+  // hub.
   void take_commands();
+  // A pushed stream's writer matched or lost a reader (k_token_matched): each such stream
+  // subscribed to while one of its writers has a reader, else not. Reads (and so resets)
+  // every such writer's status.
+  void matches_changed();
   // Whether a frame tree is wanted (a body_poses sample of a model not known yet came, or
   // none is known); cleared by the call.
   bool take_geometry_wanted();
@@ -82,16 +95,18 @@ class Ros2Topics {
   void endpoints(std::vector<dds_entity_t>& writers, std::vector<dds_entity_t>& readers) const;
 
  private:
-  enum class Role { tf, odometry, pose_odometry, joint_states, imu };
+  enum class Role { tf, odometry, pose_odometry, joint_states, imu, image, laser_scan };
+  enum class Command { velocity, joints };
   struct Output;
   struct Input;
 
   dds_entity_t topic(const std::string& name, const dds_topic_descriptor_t* descriptor);
   // What each listed stream of a carried robot becomes (component -> role); inputs apart.
   void plan(const std::vector<StreamInfo>& listed, std::map<std::string, Role>& outputs,
-            std::set<std::string>& inputs);
+            std::map<std::string, Command>& inputs);
   void add_output(const StreamInfo& info, Role role);
-  void add_input(const StreamInfo& info);
+  void add_input(const StreamInfo& info, Command command);
+  void subscribe(Output& output);
   void remove_output(Output& output);
   void remove_input(Input& input);
   void write_static();
@@ -99,6 +114,10 @@ class Ros2Topics {
   dds_return_t write_odometry(Output& output, const StreamSample& sample);
   dds_return_t write_joint_states(Output& output, const StreamSample& sample);
   dds_return_t write_imu(Output& output, const StreamSample& sample);
+  dds_return_t write_image(Output& output, const StreamSample& sample);
+  dds_return_t write_scan(Output& output, const StreamSample& sample);
+  void take_twists(Input& input);
+  void take_joint_states(Input& input);
   // The namespace of `robot` ("/robot"), or "" when another robot took its token already.
   std::string robot_namespace(const std::string& robot);
 

@@ -21,7 +21,7 @@ namespace simgate::ros2 {
 
 namespace {
 
-// Waitset tokens (Ros2Topics::k_token_commands is -3).
+// Waitset tokens (Ros2Topics::k_token_commands is -3, Ros2Topics::k_token_matched -6).
 constexpr dds_attach_t k_token_guard = -1;
 
 // While service replies are parked, the DDS thread retries them at least this often.
@@ -395,12 +395,14 @@ void Ros2Transport::run() {
       log::error("ros2 transport: waitset failed: ", dds::retcode_text(n));
       break;
     }
-    bool guard = n > k_slots, commands = n > k_slots, requests = n > k_slots, matched = n > k_slots;
+    bool guard = n > k_slots, commands = n > k_slots, requests = n > k_slots, matched = n > k_slots,
+         readers = n > k_slots;
     for (dds_return_t i = 0; i < std::min(n, k_slots); ++i) {
       guard |= triggered[i] == k_token_guard;
       commands |= triggered[i] == Ros2Topics::k_token_commands;
       requests |= triggered[i] == Ros2Services::k_token_requests;
       matched |= triggered[i] == Ros2Services::k_token_matched;
+      readers |= triggered[i] == Ros2Topics::k_token_matched;
     }
     try {
       if (guard) {
@@ -423,6 +425,8 @@ void Ros2Transport::run() {
       if (simulate_steps_) simulate_steps_->expire();
       if (topics_ && topics_->take_geometry_wanted()) ask_geometry();
       if (topics_ && commands) topics_->take_commands();
+      // a camera's reader came or went: rendered for us only while read
+      if (topics_ && readers) topics_->matches_changed();
       if (options_.clock_hz > 0 && std::chrono::steady_clock::now() >= next_clock) {
         write_clock(false);
         next_clock += period;

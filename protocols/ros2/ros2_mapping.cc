@@ -1,6 +1,7 @@
 // simgate's data in ROS 2's terms: names, time, frames, transforms, samples. See ros2_mapping.h.
 #include "ros2_mapping.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -219,6 +220,109 @@ OdometryValues odometry_from_pose(const std::array<double, 6>& v) {
 
 json velocity_command(double linear_x, double angular_z) {
   return {{"v", linear_x}, {"w", angular_z}};
+}
+
+JointCommand joint_command(const std::vector<std::string>& names,
+                           const std::vector<double>& positions,
+                           const std::vector<std::string>& joints) {
+  JointCommand out;
+  if (positions.empty()) return out;  // velocities or efforts only: nothing here
+  if (positions.size() != names.size())
+    throw std::invalid_argument(std::to_string(names.size()) + " names and " +
+                                std::to_string(positions.size()) +
+                                " positions (JointState: one position per name)");
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    if (std::find(joints.begin(), joints.end(), names[i]) == joints.end()) {
+      out.unknown.push_back(names[i]);
+      continue;
+    }
+    out.positions[names[i]] = positions[i];
+  }
+  return out;
+}
+
+// ---- cameras ----
+
+ImageShape image_shape(const StreamPayload& payload) {
+  if (payload.content != "image" || !payload.description.is_object())
+    throw std::invalid_argument("the sample carries no image");
+  const json& d = payload.description;
+  ImageShape out;
+  try {
+    out.width = d.at("width").get<std::uint32_t>();
+    out.height = d.at("height").get<std::uint32_t>();
+    out.step = d.at("step").get<std::uint32_t>();
+    out.encoding = d.at("encoding").get<std::string>();
+    out.is_bigendian = d.value("is_bigendian", false);
+  } catch (const json::exception& e) {
+    throw std::invalid_argument(std::string("the image's description: ") + e.what());
+  }
+  if (static_cast<std::uint64_t>(out.step) * out.height != payload.bytes.size())
+    throw std::invalid_argument("the image has " + std::to_string(payload.bytes.size()) +
+                                " bytes, not height " + std::to_string(out.height) + " x step " +
+                                std::to_string(out.step));
+  return out;
+}
+
+CameraInfoValues camera_info_values(const json& description) {
+  if (!description.is_object()) throw std::invalid_argument("the image has no description");
+  CameraInfoValues out;
+  const json& k = description.value("intrinsic_matrix", json());
+  if (!k.is_array() || k.size() != 3)
+    throw std::invalid_argument("intrinsic_matrix: not a 3x3 matrix");
+  for (std::size_t row = 0; row < 3; ++row) {
+    if (!k[row].is_array() || k[row].size() != 3)
+      throw std::invalid_argument("intrinsic_matrix: not a 3x3 matrix");
+    for (std::size_t column = 0; column < 3; ++column) {
+      const json& v = k[row][column];
+      if (!v.is_number()) throw std::invalid_argument("intrinsic_matrix: not numbers");
+      out.k[3 * row + column] = v.get<double>();
+      out.p[4 * row + column] = v.get<double>();  // P = [K | 0]: no baseline
+    }
+  }
+  out.r = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+  out.width = description.value("width", 0u);
+  out.height = description.value("height", 0u);
+  return out;
+}
+
+// ---- laser scans ----
+
+LaserScanValues laser_scan_values(const json& sample, double frequency, LaserReading& reading) {
+  if (!sample.is_object()) throw std::invalid_argument("the scan is not an object");
+  const auto ranges = sample.find("range_list");
+  if (ranges == sample.end() || !ranges->is_array() || ranges->empty())
+    throw std::invalid_argument("the scan has no range_list");
+  const std::size_t n = ranges->size();
+  const auto points = sample.find("point_list");
+  const bool has_points = points != sample.end() && points->is_array() && points->size() == n;
+  if (has_points) reading.arc.read(*points, n);
+  LaserScanValues out;
+  out.ranges.reserve(n);
+  double farthest = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const json& r = (*ranges)[i];
+    if (!r.is_number()) throw std::invalid_argument("range_list: not numbers");
+    const double range = r.get<double>();
+    const json& p = has_points ? (*points)[i] : json();
+    const bool miss = has_points && p.is_array() && p.size() >= 2 && p[0] == 0 && p[1] == 0 &&
+                      (p.size() < 3 || p[2] == 0);
+    if (miss) {
+      reading.reach = range;  // MORSE: a miss reads the laser's range
+      out.ranges.push_back(std::numeric_limits<float>::infinity());
+    } else {
+      farthest = std::max(farthest, range);
+      out.ranges.push_back(static_cast<float>(range));
+    }
+  }
+  const LaserArc::Angles angles = reading.arc.angles(n);
+  out.angle_min = static_cast<float>(angles.start);
+  out.angle_increment = static_cast<float>(angles.step);
+  out.angle_max = static_cast<float>(angles.start + static_cast<double>(n - 1) * angles.step);
+  out.scan_time = frequency > 0 ? static_cast<float>(1 / frequency) : 0.0f;
+  out.range_min = 0;
+  out.range_max = static_cast<float>(reading.reach > 0 ? reading.reach : farthest);
+  return out;
 }
 
 }  // namespace simgate::ros2

@@ -24,7 +24,9 @@
 #include <string_view>
 #include <vector>
 
+#include "simgate/core/laser_arc.h"
 #include "simgate/core/status.h"
+#include "simgate/core/streams.h"
 
 namespace simgate::ros2 {
 
@@ -123,6 +125,74 @@ OdometryValues odometry_from_pose(const std::array<double, 6>& values);
 
 // The motion_vw command of a geometry_msgs/Twist: v = linear.x, w = angular.z.
 json velocity_command(double linear_x, double angular_z);
+
+// The joint_positions command (an armature's input) of a sensor_msgs/JointState: {name[i]:
+// position[i]} for each name among `joints` (the stream's fields); the other names in
+// `unknown`, left out. Velocities and efforts are not commands here. Throws
+// std::invalid_argument when the message has positions but not one per name.
+struct JointCommand {
+  json positions = json::object();  // empty: nothing to command
+  std::vector<std::string> unknown;
+};
+JointCommand joint_command(const std::vector<std::string>& names,
+                           const std::vector<double>& positions,
+                           const std::vector<std::string>& joints);
+
+// ---- cameras ----
+
+// sensor_msgs/Image's fields of a camera's sample (its payload: content "image", description
+// {width, height, encoding, step, is_bigendian}, the pixels rows top first, as Image has
+// them). Throws std::invalid_argument when the payload is no image or its size is not
+// height * step.
+struct ImageShape {
+  std::uint32_t width = 0;
+  std::uint32_t height = 0;
+  std::uint32_t step = 0;  // bytes per row
+  std::string encoding;    // sensor_msgs/image_encodings: "rgb8", "32FC1"
+  bool is_bigendian = false;
+};
+ImageShape image_shape(const StreamPayload& payload);
+
+// sensor_msgs/CameraInfo's values of a camera's payload description (width, height,
+// intrinsic_matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]): an ideal pinhole, "plumb_bob" with
+// no distortion, R identity (a monocular camera), P = [K | 0]. Throws std::invalid_argument
+// when the intrinsics are not a 3x3 matrix of numbers.
+struct CameraInfoValues {
+  std::uint32_t width = 0;
+  std::uint32_t height = 0;
+  std::array<double, 5> d{};  // k1, k2, t1, t2, k3: all 0
+  std::array<double, 9> k{};
+  std::array<double, 9> r{};
+  std::array<double, 12> p{};
+};
+inline constexpr const char* k_distortion_model = "plumb_bob";
+CameraInfoValues camera_info_values(const json& description);
+
+// ---- laser scans ----
+
+// What the transport keeps of one laser_scanner's stream between scans: where its rays
+// point (simgate/core/laser_arc.h) and how far it sees (laser_range: the range a miss reads;
+// 0 until a miss came).
+struct LaserReading {
+  LaserArc arc;
+  double reach = 0;
+};
+// sensor_msgs/LaserScan's values of a laser_scan sample ({range_list, point_list}): the
+// angles of `reading`'s arc (read from this scan's hits first), each hit's range, +inf for a
+// miss (a ray whose point is [0, 0, 0]: no return, REP 117), range_min 0, range_max the
+// laser's reach (before a miss showed it: the farthest hit), scan_time 1 / `frequency` (0 for
+// 0), time_increment 0 (every ray is cast at the same instant). Throws std::invalid_argument
+// when the sample has no range_list of numbers.
+struct LaserScanValues {
+  float angle_min = 0;
+  float angle_max = 0;
+  float angle_increment = 0;
+  float scan_time = 0;
+  float range_min = 0;
+  float range_max = 0;
+  std::vector<float> ranges;
+};
+LaserScanValues laser_scan_values(const json& sample, double frequency, LaserReading& reading);
 
 // ---- the ROS graph ----
 

@@ -21,10 +21,11 @@ import pytest
 SOURCE_DIR = os.environ.get("SIMGATE_SOURCE_DIR") or os.path.abspath(
     os.path.join(os.path.dirname(__file__), "..", ".."))
 START_TIMEOUT = 60
-# DOMAINS domains of this session's own (DOMAIN_BASE + 0 .. 4 within 1 .. 230: the rover, the
-# arm, the pose rover, the services' and the action's simulations), so that parallel runs do
-# not see each other (two sessions share theirs only when their pids agree modulo 46)
-DOMAINS = 5
+# DOMAINS domains of this session's own (DOMAIN_BASE + 0 .. 5 within 1 .. 230: the rover, the
+# arm, the pose rover, the services' and the action's simulations, the sensors' rover), so that
+# parallel runs do not see each other (two sessions share theirs only when their pids agree
+# modulo 38)
+DOMAINS = 6
 DOMAIN_BASE = 1 + (os.getpid() % (230 // DOMAINS)) * DOMAINS
 
 
@@ -143,10 +144,12 @@ def arm_domain():
 
 @pytest.fixture(scope="session")
 def arm(tmp_path_factory, arm_domain):
-    """config/arm.json's arm on the table, its joints on /arm/joint_states on `arm_domain`."""
+    """config/arm.json's arm on the table, its joints on /arm/joint_states, its armature's
+    joint_positions from /arm/joint_command, on `arm_domain`."""
     config = ros2_config("arm.json", arm_domain)
     config["services"] = {"default": ["socket"], "simulation": ["socket", "ros2"]}
     config["streams"] = {"arm.armature_pose": {"transports": ["ros2"], "frequency": 50},
+                         "arm.armature": ["ros2"],
                          "simulation": {"transports": ["ros2"], "frequency": 20}}
     gw = Gateway(tmp_path_factory.mktemp("arm"), config, "arm")
     yield gw
@@ -170,6 +173,34 @@ def pose_rover(tmp_path_factory, pose_domain):
     robot["components"] = [c for c in robot["components"] if c["type"] != "odometry"]
     config["streams"] = {"robot.pose": ["ros2"], "robot.motion": ["ros2"]}
     gw = Gateway(tmp_path_factory.mktemp("pose"), config, "pose")
+    yield gw
+    gw.kill()
+
+
+@pytest.fixture(scope="session")
+def sensors_domain():
+    return DOMAIN_BASE + 5
+
+
+@pytest.fixture(scope="session")
+def sensor_rover(tmp_path_factory, sensors_domain):
+    """config/rover.json's rover in its room, its laser, camera and depth camera carried by the
+    ros2 transport (small images, few a second: rendered only while a ROS reader reads them),
+    with /tf_static for their frames, on `sensors_domain`; the depth camera's stream on the
+    socket transport too, for its statistics (no socket client subscribes to it)."""
+    config = ros2_config("rover.json", sensors_domain)
+    robot = config["robots"][0]
+    for component in robot["components"]:
+        if component["name"] in ("camera", "depth"):
+            component["frequency"] = 5
+            component["options"].update({"cam_width": 160, "cam_height": 120})
+    robot["components"] = [c for c in robot["components"] if c["name"] != "overhead"]
+    # (simulation: its get_scene_geometry gives /tf_static its frames)
+    config["services"] = {"default": ["socket"], "simulation": ["socket", "ros2"]}
+    config["streams"] = {"rover.laser": {"transports": ["ros2"], "frequency": 10},
+                         "rover.camera": ["ros2"], "rover.depth": ["ros2", "socket"],
+                         "simulation": {"transports": ["ros2"], "frequency": 10}}
+    gw = Gateway(tmp_path_factory.mktemp("sensors"), config, "sensors")
     yield gw
     gw.kill()
 

@@ -198,6 +198,108 @@ TEST(Ros2MappingTest, TwistBecomesAVelocityCommand) {
   EXPECT_EQ(velocity_command(0.5, -0.25), (json{{"v", 0.5}, {"w", -0.25}}));
 }
 
+TEST(Ros2MappingTest, JointCommandKeepsTheArmaturesJointsAndNamesTheOthers) {
+  const JointCommand c =
+      joint_command({"elbow", "wrist", "shoulder"}, {0.5, 1.0, -0.25}, {"shoulder", "elbow"});
+  EXPECT_EQ(c.positions, (json{{"elbow", 0.5}, {"shoulder", -0.25}}));
+  EXPECT_EQ(c.unknown, (std::vector<std::string>{"wrist"}));
+}
+
+TEST(Ros2MappingTest, JointCommandWithoutPositionsIsEmptyAndOtherCountsAreRefused) {
+  EXPECT_TRUE(joint_command({"elbow"}, {}, {"elbow"}).positions.empty());
+  EXPECT_THROW(joint_command({"elbow", "shoulder"}, {0.5}, {"elbow"}), std::invalid_argument);
+  EXPECT_THROW(joint_command({}, {0.5}, {"elbow"}), std::invalid_argument);
+}
+
+// A camera's payload as cameras.cc makes it: 2x1 pixels.
+StreamPayload camera_payload(const std::string& encoding, std::size_t pixel) {
+  StreamPayload p;
+  p.content = "image";
+  p.description = {{"width", 2},
+                   {"height", 1},
+                   {"encoding", encoding},
+                   {"step", 2 * pixel},
+                   {"is_bigendian", false},
+                   {"intrinsic_matrix", {{100, 0, 1}, {0, 110, 0.5}, {0, 0, 1}}}};
+  p.bytes.assign(2 * pixel, 7);
+  return p;
+}
+
+TEST(Ros2MappingTest, ImageShapeIsThePayloadsAndItsSizeIsChecked) {
+  const ImageShape rgb = image_shape(camera_payload("rgb8", 3));
+  EXPECT_EQ(rgb.width, 2u);
+  EXPECT_EQ(rgb.height, 1u);
+  EXPECT_EQ(rgb.step, 6u);
+  EXPECT_EQ(rgb.encoding, "rgb8");
+  EXPECT_FALSE(rgb.is_bigendian);
+  EXPECT_EQ(image_shape(camera_payload("32FC1", 4)).step, 8u);
+  StreamPayload short_one = camera_payload("rgb8", 3);
+  short_one.bytes.pop_back();
+  EXPECT_THROW(image_shape(short_one), std::invalid_argument);
+  StreamPayload other = camera_payload("rgb8", 3);
+  other.content = "audio";
+  EXPECT_THROW(image_shape(other), std::invalid_argument);
+}
+
+TEST(Ros2MappingTest, CameraInfoIsAPinholeWithNoDistortion) {
+  const CameraInfoValues v = camera_info_values(camera_payload("rgb8", 3).description);
+  EXPECT_EQ(v.width, 2u);
+  EXPECT_EQ(v.height, 1u);
+  EXPECT_EQ(v.k, (std::array<double, 9>{100, 0, 1, 0, 110, 0.5, 0, 0, 1}));
+  EXPECT_EQ(v.p, (std::array<double, 12>{100, 0, 1, 0, 0, 110, 0.5, 0, 0, 0, 1, 0}));
+  EXPECT_EQ(v.r, (std::array<double, 9>{1, 0, 0, 0, 1, 0, 0, 0, 1}));
+  EXPECT_EQ(v.d, (std::array<double, 5>{}));
+  EXPECT_STREQ(k_distortion_model, "plumb_bob");
+  EXPECT_THROW(camera_info_values({{"intrinsic_matrix", {{1, 0}, {0, 1}}}}), std::invalid_argument);
+}
+
+// 5 rays from -60° every 30°, those in `hits` hitting at 2 m, the others missing (range 10).
+json scan(std::initializer_list<int> hits) {
+  json points = json::array(), ranges = json::array();
+  for (int i = 0; i < 5; ++i) {
+    const double angle = (-60 + 30 * i) * M_PI / 180;
+    bool hit = false;
+    for (int h : hits) hit = hit || h == i;
+    points.push_back(hit ? json{2 * std::cos(angle), 2 * std::sin(angle), 0} : json{0, 0, 0});
+    ranges.push_back(hit ? 2.0 : 10.0);
+  }
+  return {{"range_list", ranges}, {"point_list", points}, {"timestamp", 1.0}};
+}
+
+TEST(Ros2MappingTest, LaserScanMissesAreInfinityAndTheReachIsTheirRange) {
+  LaserReading reading;
+  const LaserScanValues v = laser_scan_values(scan({1, 3}), 10, reading);
+  EXPECT_NEAR(v.angle_min, -M_PI / 3, 1e-6);
+  EXPECT_NEAR(v.angle_max, M_PI / 3, 1e-6);
+  EXPECT_NEAR(v.angle_increment, M_PI / 6, 1e-6);
+  EXPECT_FLOAT_EQ(v.scan_time, 0.1f);
+  EXPECT_EQ(v.range_min, 0.0f);
+  EXPECT_EQ(v.range_max, 10.0f);
+  const float inf = std::numeric_limits<float>::infinity();
+  EXPECT_EQ(v.ranges, (std::vector<float>{inf, 2, inf, 2, inf}));
+  // a scan that hits everything keeps the reach and the arc read before
+  const LaserScanValues all = laser_scan_values(scan({0, 1, 2, 3, 4}), 0, reading);
+  EXPECT_EQ(all.range_max, 10.0f);
+  EXPECT_EQ(all.scan_time, 0.0f);
+  EXPECT_NEAR(all.angle_min, -M_PI / 3, 1e-6);
+}
+
+TEST(Ros2MappingTest, LaserScanBeforeAnyMissReachesItsFarthestHit) {
+  LaserReading reading;
+  json sample = scan({0, 1, 2, 3, 4});
+  sample["range_list"][2] = 3.5;
+  EXPECT_EQ(laser_scan_values(sample, 10, reading).range_max, 3.5f);
+  // no arc read yet (no two hits): MORSE's default, 1° apart, centred
+  LaserReading fresh;
+  const LaserScanValues blind = laser_scan_values(scan({}), 10, fresh);
+  EXPECT_NEAR(blind.angle_min, -2 * M_PI / 180, 1e-6);
+  EXPECT_NEAR(blind.angle_increment, M_PI / 180, 1e-6);
+  EXPECT_THROW(laser_scan_values(json{{"range_list", {1, "far"}}}, 10, fresh),
+               std::invalid_argument);
+  EXPECT_THROW(laser_scan_values(json{{"point_list", json::array()}}, 10, fresh),
+               std::invalid_argument);
+}
+
 TEST(Ros2TypesTest, TypesAreNamedAsRos2NamesThem) {
   EXPECT_STREQ(tf2_msgs_msg_dds__TFMessage__desc.m_typename, "tf2_msgs::msg::dds_::TFMessage_");
   EXPECT_STREQ(rosgraph_msgs_msg_dds__Clock__desc.m_typename, "rosgraph_msgs::msg::dds_::Clock_");
@@ -205,6 +307,11 @@ TEST(Ros2TypesTest, TypesAreNamedAsRos2NamesThem) {
                "rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_");
   // keyless, as ROS 2's messages are
   EXPECT_EQ(nav_msgs_msg_dds__Odometry__desc.m_nkeys, 0u);
+  EXPECT_STREQ(sensor_msgs_msg_dds__Image__desc.m_typename, "sensor_msgs::msg::dds_::Image_");
+  EXPECT_STREQ(sensor_msgs_msg_dds__CameraInfo__desc.m_typename,
+               "sensor_msgs::msg::dds_::CameraInfo_");
+  EXPECT_STREQ(sensor_msgs_msg_dds__LaserScan__desc.m_typename,
+               "sensor_msgs::msg::dds_::LaserScan_");
   EXPECT_EQ(sizeof(rmw_dds_common_msg_dds__Gid_{}.data), 16u);
 }
 

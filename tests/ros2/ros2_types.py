@@ -119,6 +119,55 @@ class JointState(IdlStruct, typename="sensor_msgs::msg::dds_::JointState_"):
 
 
 @dataclass
+class Image(IdlStruct, typename="sensor_msgs::msg::dds_::Image_"):
+    header: Header = field(default_factory=Header)
+    height: t.uint32 = 0
+    width: t.uint32 = 0
+    encoding: str = ""
+    is_bigendian: t.uint8 = 0
+    step: t.uint32 = 0
+    data: t.sequence[t.uint8] = field(default_factory=list)
+
+
+@dataclass
+class RegionOfInterest(IdlStruct, typename="sensor_msgs::msg::dds_::RegionOfInterest_"):
+    x_offset: t.uint32 = 0
+    y_offset: t.uint32 = 0
+    height: t.uint32 = 0
+    width: t.uint32 = 0
+    do_rectify: bool = False
+
+
+@dataclass
+class CameraInfo(IdlStruct, typename="sensor_msgs::msg::dds_::CameraInfo_"):
+    header: Header = field(default_factory=Header)
+    height: t.uint32 = 0
+    width: t.uint32 = 0
+    distortion_model: str = ""
+    d: t.sequence[t.float64] = field(default_factory=list)
+    k: t.array[t.float64, 9] = field(default_factory=lambda: [0.0] * 9)
+    r: t.array[t.float64, 9] = field(default_factory=lambda: [0.0] * 9)
+    p: t.array[t.float64, 12] = field(default_factory=lambda: [0.0] * 12)
+    binning_x: t.uint32 = 0
+    binning_y: t.uint32 = 0
+    roi: RegionOfInterest = field(default_factory=RegionOfInterest)
+
+
+@dataclass
+class LaserScan(IdlStruct, typename="sensor_msgs::msg::dds_::LaserScan_"):
+    header: Header = field(default_factory=Header)
+    angle_min: t.float32 = 0.0
+    angle_max: t.float32 = 0.0
+    angle_increment: t.float32 = 0.0
+    time_increment: t.float32 = 0.0
+    scan_time: t.float32 = 0.0
+    range_min: t.float32 = 0.0
+    range_max: t.float32 = 0.0
+    ranges: t.sequence[t.float32] = field(default_factory=list)
+    intensities: t.sequence[t.float32] = field(default_factory=list)
+
+
+@dataclass
 class Gid(IdlStruct, typename="rmw_dds_common::msg::dds_::Gid_"):
     data: t.array[t.uint8, 16] = field(default_factory=lambda: [0] * 16)
 

@@ -5,10 +5,14 @@ ROS 2 names them; rosbags' ROS 2 CDR (de)serialiser reads the very bytes that ca
 and writes them again. simgate's own view (the socket transport) is the reference for what the
 messages must say."""
 
+import base64
+import gc
 import math
 import os
+import struct
 import subprocess
 import time
+import zlib
 
 import pytest
 from cyclonedds.core import Policy, Qos
@@ -317,6 +321,37 @@ def test_joint_states_are_the_arms_joints(arm, arm_domain):
     client.close()
 
 
+def test_joint_command_moves_the_arms_joints_and_unknown_names_are_ignored(arm, arm_domain):
+    """A sensor_msgs/JointState on /arm/joint_command sets arm.armature's joints (its
+    joint_positions input): /arm/joint_states and simgate's own reading follow; a name that is
+    no joint of the armature is logged once and left out."""
+    node = Node(arm_domain)
+    states = node.reader("rt/arm/joint_states", ros.JointState)
+    command = node.writer("rt/arm/joint_command", ros.JointState)
+    target = {"elbow": 0.6, "wrist_pitch": -0.4}
+    message = ros.JointState(name=["elbow", "no_such_joint", "wrist_pitch"],
+                             position=[0.6, 1.0, -0.4])
+
+    def there(m):
+        by_name = dict(zip(m.name, m.position))
+        return all(abs(by_name[j] - v) < 0.03 for j, v in target.items())
+
+    deadline = time.monotonic() + WAIT
+    reached = None
+    while time.monotonic() < deadline and reached is None:
+        command.write(message)
+        reached = next((m for m in states.take(N=64) if there(m)), None)
+        time.sleep(0.1)  # a command stream's 10 Hz, bounded by the deadline
+    assert reached is not None, "the arm did not move on /arm/joint_command"
+    client = arm.socket()
+    now = client.call("arm.armature_pose", "get_local_data")
+    client.close()
+    for joint, value in target.items():
+        assert now[joint] == pytest.approx(value, abs=0.03), joint
+    # written several times, logged once
+    assert arm.output().count("'no_such_joint'") == 1, arm.output()
+
+
 # ---- the bytes on the wire, read and written again by rosbags ----
 
 def as_plain(value):
@@ -451,3 +486,206 @@ def test_the_shipped_config_passes_the_check():
         command += ["--plugin-path", os.environ["SIMGATE_PLUGIN_DIR"]]
     done = subprocess.run(command, capture_output=True, text=True, timeout=START_TIMEOUT)
     assert done.returncode == 0, done.stdout + done.stderr
+
+
+# ---- a laser and cameras (config/rover.json's rover) ----
+
+def png_pixels(data):
+    """(width, height, bytes of the rows) of a PNG simgate wrote (sim/image_codec.h: no
+    interlace, filter None on every row): its IDAT inflated, each row's filter byte checked and
+    dropped."""
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    position, idat = 8, b""
+    while position < len(data):
+        length, kind = struct.unpack(">I4s", data[position:position + 8])
+        body = data[position + 8:position + 8 + length]
+        if kind == b"IHDR":
+            width, height, depth, colour = struct.unpack(">IIBB", body[:10])
+        elif kind == b"IDAT":
+            idat += body
+        position += 12 + length
+    pixel = (3 if colour == 2 else 1) * depth // 8
+    raw = zlib.decompress(idat)
+    stride = width * pixel + 1
+    rows = [raw[y * stride:(y + 1) * stride] for y in range(height)]
+    assert all(row[0] == 0 for row in rows)
+    return width, height, b"".join(row[1:] for row in rows)
+
+
+def own_image(client, camera):
+    """simgate's own image of `camera` now (get_image: PNG in base64), or the test skipped when
+    nothing can render here."""
+    try:
+        return client.call(camera, "get_image")
+    except RuntimeError as e:
+        if "cannot render" in str(e):
+            pytest.skip(str(e))
+        raise
+
+
+def settled(client, timeout=WAIT):
+    """Waits until the rover stands still (it settles on its wheels at the start): two poses
+    0.2 s apart agree."""
+    deadline = time.monotonic() + timeout
+    before = client.call("simulation", "get_object_pose", "rover")
+    while time.monotonic() < deadline:
+        time.sleep(0.2)  # polling simgate, bounded by the deadline
+        now = client.call("simulation", "get_object_pose", "rover")
+        if now[0] + now[1] == pytest.approx(before[0] + before[1], abs=1e-6):
+            return
+        before = now
+    pytest.fail("the rover did not settle")
+
+
+@pytest.fixture(scope="module")
+def sensors(sensor_rover, sensors_domain):
+    client = sensor_rover.socket()
+    settled(client)
+    yield client
+    client.close()
+
+
+def test_scan_has_the_lasers_ranges_arc_and_frame(sensor_rover, sensors_domain, sensors):
+    """/rover/laser/scan from rover.laser (270° every 1°, 10 m): each hit's range as simgate
+    reads it, +inf for a miss (REP 117), the arc of the scanner's options, in its frame."""
+    ours = sensors.call("rover.laser", "get_local_data")
+    properties = sensors.call("rover.laser", "get_properties")["properties"]
+    node = Node(sensors_domain)
+    scan = first(node.reader("rt/rover/laser/scan", ros.LaserScan))
+    assert scan.header.frame_id == "rover/laser"
+    assert len(scan.ranges) == properties["ray_count"] == 271
+    assert scan.angle_min == pytest.approx(math.radians(-135), abs=1e-6)
+    assert scan.angle_max == pytest.approx(math.radians(135), abs=1e-6)
+    assert scan.angle_increment == pytest.approx(math.radians(1), abs=1e-6)
+    assert scan.scan_time == pytest.approx(0.1)  # 10 scans a second
+    assert scan.time_increment == 0 and scan.range_min == 0 and scan.intensities == []
+    misses = [p == [0, 0, 0] for p in ours["point_list"]]
+    assert any(misses) and not all(misses)  # the door's gap: rays leave the room
+    assert scan.range_max == pytest.approx(properties["laser_range"])
+    for i, (got, expected) in enumerate(zip(scan.ranges, ours["range_list"])):
+        if misses[i]:
+            assert got == math.inf, i
+        else:
+            assert got == pytest.approx(expected, abs=1e-4), i
+    static = first(node.reader("rt/tf_static", ros.TFMessage, LATCHED_QOS))
+    frames = {t.child_frame_id for t in static.transforms}
+    assert {"rover/laser", "rover/camera", "rover/depth"} <= frames
+
+
+def matching_info(reader, stamp):
+    """The camera_info of the image stamped `stamp`."""
+    return take_until(reader, lambda m: (m.header.stamp.sec, m.header.stamp.nanosec) ==
+                      (stamp.sec, stamp.nanosec))[-1]
+
+
+def test_camera_image_is_what_the_camera_sees_with_its_camera_info(sensor_rover, sensors_domain,
+                                                                  sensors):
+    """/rover/camera/image_raw: rgb8, the pixels get_image shows of the same still scene, in the
+    camera's optical frame; /rover/camera/camera_info: the same stamp and frame, K the camera's
+    intrinsic matrix, P = [K | 0], R identity, plumb_bob with no distortion."""
+    record = own_image(sensors, "rover.camera")
+    width, height, pixels = png_pixels(base64.b64decode(record["image"]))
+    node = Node(sensors_domain)
+    infos = node.reader("rt/rover/camera/camera_info", ros.CameraInfo)
+    image = first(node.reader("rt/rover/camera/image_raw", ros.Image))
+    assert (image.width, image.height) == (width, height) == (160, 120)
+    assert image.encoding == "rgb8" and image.step == 3 * 160 and image.is_bigendian == 0
+    assert image.header.frame_id == "rover/camera"
+    data = bytes(image.data)
+    assert len(data) == image.step * image.height
+    assert len(set(data)) > 16  # a scene, not a blank
+    # the same still scene: the same pixels (a few may differ by a level or two)
+    differing = sum(1 for a, b in zip(data, pixels) if abs(a - b) > 2)
+    assert differing <= len(data) // 100, differing
+    info = matching_info(infos, image.header.stamp)
+    assert info.header.frame_id == "rover/camera"
+    assert (info.width, info.height) == (160, 120)
+    k = [v for row in record["intrinsic_matrix"] for v in row]
+    assert list(info.k) == pytest.approx(k)
+    assert list(info.p) == pytest.approx(k[0:3] + [0] + k[3:6] + [0] + k[6:9] + [0])
+    assert list(info.r) == [1, 0, 0, 0, 1, 0, 0, 0, 1]
+    assert info.distortion_model == "plumb_bob" and list(info.d) == [0.0] * 5
+
+
+def test_depth_image_is_in_metres_as_the_depth_camera_sees(sensor_rover, sensors_domain, sensors):
+    """/rover/depth/image_raw: 32FC1, metres, what get_image's 16-bit PNG says in millimetres."""
+    record = own_image(sensors, "rover.depth")
+    width, height, millimetres = png_pixels(base64.b64decode(record["image"]))
+    expected = struct.unpack(f">{width * height}H", millimetres)
+    node = Node(sensors_domain)
+    image = first(node.reader("rt/rover/depth/image_raw", ros.Image))
+    assert image.encoding == "32FC1" and (image.width, image.height) == (160, 120)
+    assert image.step == 4 * image.width and image.header.frame_id == "rover/depth"
+    metres = struct.unpack(f"{'>' if image.is_bigendian else '<'}{width * height}f",
+                           bytes(image.data))
+    close = sum(1 for m, mm in zip(metres, expected) if abs(m * 1000 - mm) <= 1.5)
+    assert close >= len(expected) * 99 // 100, close
+    assert any(m > 0 for m in metres)
+    info = first(node.reader("rt/rover/depth/camera_info", ros.CameraInfo))
+    assert info.header.frame_id == "rover/depth" and (info.width, info.height) == (160, 120)
+
+
+def test_a_camera_renders_only_while_a_ros_reader_reads_it(sensor_rover, sensors_domain,
+                                                          sensors):
+    """rover.depth is subscribed to (rendered) only while a reader of its image_raw or
+    camera_info is matched: none, then one reader of its camera_info, then none again."""
+    def subscribers():
+        [stats] = [s for s in sensors.call("simulation", "get_stream_statistics")
+                   if s["component"] == "rover.depth"]
+        return stats["subscribers"]
+
+    def wait_for(count):
+        deadline = time.monotonic() + WAIT
+        while subscribers() != count:
+            assert time.monotonic() < deadline, f"rover.depth: {subscribers()} subscribers"
+            time.sleep(0.05)  # polling simgate, bounded by the deadline
+
+    gc.collect()  # other tests' readers gone
+    wait_for(0)
+    node = Node(sensors_domain)
+    reader = node.reader("rt/rover/depth/camera_info", ros.CameraInfo)
+    wait_for(1)
+    first(reader)
+    del reader, node
+    gc.collect()
+    wait_for(0)
+
+
+def test_sensor_topics_are_the_nodes_with_ros_types(sensor_rover, sensors_domain):
+    """The graph names the cameras' and the laser's writers as /simgate's, with ROS 2's type
+    names and its default QoS."""
+    node = Node(sensors_domain)
+    graph = node.reader("ros_discovery_info", ros.ParticipantEntitiesInfo, LATCHED_QOS)
+    info = first(graph)
+    participant = bytes(info.gid.data)
+    writers = {gid_hex(g) for g in info.node_entities_info_seq[0].writer_gid_seq}
+    for name, cls, type_name in [
+            ("rt/rover/laser/scan", ros.LaserScan, "sensor_msgs::msg::dds_::LaserScan_"),
+            ("rt/rover/camera/image_raw", ros.Image, "sensor_msgs::msg::dds_::Image_"),
+            ("rt/rover/camera/camera_info", ros.CameraInfo,
+             "sensor_msgs::msg::dds_::CameraInfo_"),
+            ("rt/rover/depth/image_raw", ros.Image, "sensor_msgs::msg::dds_::Image_"),
+            ("rt/rover/depth/camera_info", ros.CameraInfo, "sensor_msgs::msg::dds_::CameraInfo_")]:
+        [writer] = matched(node.reader(name, cls), participant, True)
+        assert writer.key.bytes.hex() in writers, name
+        assert writer.type_name == type_name, name
+        assert isinstance(writer.qos[Policy.Reliability], Policy.Reliability.Reliable), name
+        assert writer.qos[Policy.Durability] == Policy.Durability.Volatile, name
+        assert writer.qos[Policy.History] == Policy.History.KeepLast(10), name
+
+
+@pytest.mark.parametrize("topic, cls, ros_type", [
+    ("rt/rover/laser/scan", ros.LaserScan, "sensor_msgs/msg/LaserScan"),
+    ("rt/rover/camera/image_raw", ros.Image, "sensor_msgs/msg/Image"),
+    ("rt/rover/camera/camera_info", ros.CameraInfo, "sensor_msgs/msg/CameraInfo"),
+])
+def test_sensor_bytes_are_ros2_cdr(sensor_rover, sensors_domain, sensors, topic, cls, ros_type):
+    if "camera" in topic:
+        own_image(sensors, "rover.camera")  # skipped when nothing renders here
+    recorder = RawRecorder(cls)
+    try:
+        node = Node(sensors_domain)
+        first(node.reader(topic, cls))
+        check_bytes(recorder.raw[-1], cls, ros_type)
+    finally:
+        recorder.close()

@@ -123,8 +123,7 @@ std::string laser_scan(const StreamSample& sample, const std::string& frame, Las
   const auto points = d.find("point_list");
   if (points != d.end()) arc.read(*points, ranges->size());
   const double n = static_cast<double>(ranges->size());
-  const double step = arc.step > 0 ? arc.step : M_PI / 180;
-  const double start = arc.step > 0 ? arc.start : -(n - 1) / 2 * step;
+  const auto [start, step] = arc.angles(ranges->size());
   return dump(json{{"timestamp", timestamp(sample.time())},
                    {"frame_id", frame},
                    {"pose", parts::identity_pose()},
@@ -260,34 +259,6 @@ json sensor_schema(SensorMessage message) {
                              {"line", integer_schema()}});
   }
   return json::object();
-}
-
-bool LaserArc::read(const json& point_list, std::size_t rays) {
-  if (!point_list.is_array() || point_list.size() != rays) return false;
-  // the first and the last hit: the widest baseline
-  std::size_t first = rays, last = rays;
-  double first_angle = 0, last_angle = 0;
-  for (std::size_t i = 0; i < rays; ++i) {
-    const json& p = point_list[i];
-    const double x = parts::at(p, 0), y = parts::at(p, 1);
-    if (x == 0 && y == 0) continue;  // a miss
-    const double angle = std::atan2(y, x);
-    if (first == rays) {
-      first = i;
-      first_angle = angle;
-    }
-    last = i;
-    last_angle = angle;
-  }
-  if (first == rays || last == first) return false;
-  // the rays turn counterclockwise: the bearing grows from the first hit to the last
-  double turn = last_angle - first_angle;
-  if (turn <= 0) turn += 2 * M_PI;
-  const double spacing = turn / static_cast<double>(last - first);
-  if (!std::isfinite(spacing) || spacing <= 0) return false;
-  step = spacing;
-  start = std::remainder(first_angle - static_cast<double>(first) * spacing, 2 * M_PI);
-  return true;
 }
 
 std::string sensor_message(SensorMessage message, const StreamSample& sample,

@@ -111,7 +111,7 @@ class Recorder final : public InputTap, public sim::Simulation::Observer {
     std::uint16_t json_channel = 0;  // the component's JSON samples (when no sensor schema fits)
     bool as_json = false;
     std::vector<std::pair<std::uint16_t, foxglove::SensorMessage>> sensor_channels;
-    foxglove::LaserArc arc;  // a laser's (sensors.h)
+    LaserArc arc;  // a laser's (simgate/core/laser_arc.h)
     std::uint32_t sequence = 0;
     bool body_poses = false;  // the simulation's: also /tf (and /scene per model)
     std::string type;         // the component's type (its JSON schema's description)

@@ -11,7 +11,8 @@
 // Frames: a sensor's frame is named after its component ("rover.laser"); an odometry's
 // pose is in "<component>/origin", the sensor's frame where the odometry started.
 //
-// Threads: pure functions, any thread; a LaserArc belongs to whoever converts one stream.
+// Threads: pure functions, any thread; a LaserArc (simgate/core/laser_arc.h) belongs to
+// whoever converts one stream.
 #ifndef SIMGATE_FOXGLOVE_SENSORS_H_
 #define SIMGATE_FOXGLOVE_SENSORS_H_
 
@@ -20,6 +21,7 @@
 #include <string_view>
 #include <vector>
 
+#include "simgate/core/laser_arc.h"
 #include "simgate/core/log.h"
 #include "simgate/core/status.h"
 #include "simgate/core/streams.h"
@@ -50,21 +52,9 @@ std::vector<SensorChannel> sensor_channels(std::string_view kind);
 const char* schema_name(SensorMessage message);
 json sensor_schema(SensorMessage message);
 
-// Where a laser's rays point, which its samples do not say: MORSE's scanner casts
-// evenly spaced rays across its window, centred on the sensor's x axis, and its
-// point_list holds each hit in the sensor frame ([0, 0, 0] for a miss). Two hits give the
-// spacing and the first ray's bearing; a scan with fewer keeps the last arc read (before
-// any: 1° apart, centred, MORSE's default resolution).
-struct LaserArc {
-  double start = 0;  // radians
-  double step = 0;   // radians between rays (0: none read yet)
-  // Reads the arc of a scan of `rays` rays from its points; false when it could not.
-  bool read(const json& point_list, std::size_t rays);
-};
-
 // `sample` (a stream of the message's kind) as that message (JSON text), its frame named
 // `frame` ("rover.camera"); "" when the sample is not of that shape (logged by the caller).
-// A laser scan reads and updates `arc`.
+// A laser scan reads and updates `arc` (simgate/core/laser_arc.h: where its rays point).
 std::string sensor_message(SensorMessage message, const StreamSample& sample,
                            const std::string& frame, LaserArc& arc);
 
