@@ -36,6 +36,8 @@ constexpr const char* k_footer = R"(Synopsis:
   simgate publish [CLIENT OPTIONS] COMPONENT JSON_OBJECT [--count N] [--rate HZ]
   simgate snapshot [CLIENT OPTIONS] [--camera NAME] [--size WxH] OUT.png
   simgate snapshot --config CONFIG | --model FILE.xml [--camera NAME] [--size WxH] OUT.png
+  simgate mcp --url http://HOST:PORT/mcp [--token TOKEN]
+  simgate mcp CONFIG | --model FILE.xml [CONFIG] [--log-level L] [--plugin-path DIR]...
   simgate help [COMMAND]
   CLIENT OPTIONS: --transport socket|jsonrpc|websocket|dds, --timeout S, then --host H --port P
                   [--token TOKEN] (socket, jsonrpc, websocket) or --domain N --partition P
@@ -86,6 +88,13 @@ for bit); 1: a step differs (--verify); 2: not a recording, cut before its initi
 not replayable here (another MuJoCo, another model: both named).
 --serve plays it through the deployment's transports instead, paced (a live run's clients
 watch it: Foxglove, the web app, pymorse), then serves its last state until Ctrl-C.)";
+
+constexpr const char* k_mcp_footer =
+    R"(Each line of standard input is one JSON-RPC message (MCP's stdio transport), posted to the
+mcp transport; each answer, and each progress notification of a long call, is one line of
+standard output. The log goes to standard error. With CONFIG (it needs an mcp transport) or
+--model (served by an mcp transport on a port the kernel picks) the simulation runs in this
+process and stops when standard input ends. docs/transports/mcp.md has an agent's config.)";
 
 constexpr const char* k_snapshot_footer =
     R"(Without --config or --model it asks the running simulation the client options reach
@@ -305,6 +314,18 @@ class CommandLine {
         ->option_text("DIR");
     snapshot_->add_option("OUT", snapshot_args_.out, "the PNG file to write")->required();
     snapshot_->footer(std::string(k_snapshot_footer) + "\n" + k_exit_codes);
+
+    mcp_ = add_command("mcp",
+                       "an MCP server on standard input and output, for AI agents that launch "
+                       "one (bridged to an mcp transport)");
+    mcp_->add_option("--url", mcp_args_.url,
+                     "a running simulation's mcp endpoint (http://127.0.0.1:8808/mcp)")
+        ->type_name("URL");
+    mcp_->add_option("--token", mcp_args_.token,
+                     "the token its auth wants (else the SIMGATE_TOKEN environment variable)")
+        ->type_name("TOKEN");
+    add_config_options(mcp_, mcp_args_.run);
+    mcp_->footer(std::string(k_mcp_footer) + "\n" + k_exit_codes);
   }
 
   // The top-level help, or one command's.
@@ -328,6 +349,7 @@ class CommandLine {
     if (publish_->parsed()) return cmd_publish(publish_args_);
     if (snapshot_->parsed()) return cmd_snapshot(snapshot_args_);
     if (replay_->parsed()) return cmd_replay(replay_args_);
+    if (mcp_->parsed()) return cmd_mcp(mcp_args_);
     // `simgate` alone
     std::cerr << app_.help();
     return 2;
@@ -457,7 +479,8 @@ class CommandLine {
 
   CLI::App app_;                    // `simgate`
   std::vector<std::string> names_;  // the commands, in order
-  CLI::App *run_, *check_, *call_, *list_, *watch_, *publish_, *snapshot_, *replay_;  // commands
+  CLI::App *run_, *check_, *call_, *list_, *watch_, *publish_, *snapshot_, *replay_,
+      *mcp_;                              // commands
   CLI::Option* status_;                   // run --status
   std::vector<std::string> status_text_;  // its value, if any
   RunArgs run_args_, check_args_;         // parsed values of each command
@@ -466,6 +489,7 @@ class CommandLine {
   WatchArgs watch_args_;
   PublishArgs publish_args_;
   SnapshotArgs snapshot_args_;
+  McpArgs mcp_args_;
   ReplayArgs replay_args_;
 };
 

@@ -40,6 +40,7 @@ struct RunArgs {
   std::optional<double> status_interval;       // --status [SECONDS], in seconds
   std::optional<std::string> record;           // --record FILE (run)
   std::optional<std::string> record_dir;       // --record-dir DIR (run)
+  bool mcp_only = false;  // `mcp --model` without CONFIG: an mcp transport, not socket and jsonrpc
 };
 
 // The client options of `call`, `list`, `watch`, `publish` and `snapshot`, as written.
@@ -94,6 +95,13 @@ struct SnapshotArgs {
   std::string out;                    // OUT.png
 };
 
+// What `mcp` was given.
+struct McpArgs {
+  RunArgs run;                       // CONFIG / --model: run the simulation here
+  std::optional<std::string> url;    // --url: a running simulation's mcp endpoint
+  std::optional<std::string> token;  // --token (else SIMGATE_TOKEN)
+};
+
 // What `replay` was given.
 struct ReplayArgs {
   std::string file;                            // FILE, a recording
@@ -119,6 +127,9 @@ int cmd_watch(const WatchArgs& args);
 int cmd_publish(const PublishArgs& args);
 // `snapshot OUT.png`: a picture of the scene (simulation get_snapshot), written as a PNG.
 int cmd_snapshot(const SnapshotArgs& args);
+// `mcp`: an MCP server on standard input and output, bridged to an mcp transport's HTTP
+// endpoint (a running simulation's, or this process's: mcp_command.cc).
+int cmd_mcp(const McpArgs& args);
 // `replay FILE`: re-runs a recording (replay_command.cc); with --verify, exit 1 at a
 // difference, 2 for a file that is not a recording or cannot be replayed here.
 int cmd_replay(const ReplayArgs& args);

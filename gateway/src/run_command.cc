@@ -25,8 +25,12 @@ namespace {
 
 // The transports of `--model` without CONFIG: MORSE's socket protocol and JSON-RPC on
 // loopback, at `base` and base + 1 (their usual ports 4000 and 4001 by default; 0: both
-// ports the kernel picks).
-json default_model_document(int base) {
+// ports the kernel picks); for `simgate mcp` (`mcp_only`), the mcp transport on a port the
+// kernel picks.
+json default_model_document(int base, bool mcp_only) {
+  if (mcp_only)
+    return {{"transports",
+             {{"mcp", {{"plugin", "mcp"}, {"options", {{"host", "127.0.0.1"}, {"port", 0}}}}}}}};
   return {
       {"transports",
        {{"socket", {{"plugin", "socket"}, {"options", {{"host", "127.0.0.1"}, {"port", base}}}}},
@@ -52,8 +56,8 @@ Deployment model_deployment(const RunArgs& args, ConfigErrors& errors) {
     throw UsageError(
         "--port: only for --model without CONFIG (CONFIG's transports name their own ports)");
   const int port_base = args.port ? parse_int("--port", *args.port, 0, 65534) : 4000;
-  json document =
-      args.config.empty() ? default_model_document(port_base) : load_config_document(args.config);
+  json document = args.config.empty() ? default_model_document(port_base, args.mcp_only)
+                                      : load_config_document(args.config);
   if (!document.is_object())
     return parse_deployment(document, ".", args.config, errors);  // its own error
   json scene = document.contains("scene") && document["scene"].is_object() ? document["scene"]
