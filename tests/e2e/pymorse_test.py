@@ -18,6 +18,7 @@ import json
 import logging
 import math
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -47,6 +48,7 @@ class Gateway:
         config["transports"]["socket"]["options"]["stream_port"] = 0  # its datastreams too
         config["transports"]["websocket"]["options"]["port"] = 0  # the web app's
         config["transports"]["foxglove"]["options"]["port"] = 0
+        config["transports"]["mcp"]["options"]["port"] = 0
         config["log_level"] = "warning"
         if adapt:
             adapt(config)
@@ -67,7 +69,8 @@ class Gateway:
             time.sleep(0.01)  # polling for a file the child writes; bounded by the deadline
         with open(self.endpoints_path) as f:
             endpoints = json.load(f)  # {"socket": ["tcp://127.0.0.1:PORT"], ...}
-        self.ports = {name: int(e[0].rstrip("/").rsplit(":", 1)[1]) for name, e in endpoints.items()}  # ws://...:PORT/ too
+        # tcp://HOST:PORT, ws://HOST:PORT/, http://HOST:PORT/mcp
+        self.ports = {name: int(re.match(r"\w+://[^/]*:(\d+)", e[0]).group(1)) for name, e in endpoints.items()}
         self.port = self.ports["socket"]
 
     def output(self):

@@ -73,20 +73,22 @@ inline json demo_config(double factor = 1.0) {
   c["transports"]["socket"]["options"]["stream_port"] = 0;  // its datastreams too
   c["transports"]["websocket"]["options"]["port"] = 0;      // the web app's
   c["transports"]["foxglove"]["options"]["port"] = 0;
+  c["transports"]["mcp"]["options"]["port"] = 0;
   c["log_level"] = "warning";
   return c;
 }
 
-// The demo with its socket transport only (no websocket, no web app, no foxglove): for tests
+// The demo with its socket transport only (no websocket, no web app, no foxglove, no mcp): for tests
 // that count transports or read which transports serve a component.
 inline json socket_demo_config(double factor = 1.0) {
   json c = demo_config(factor);
   c["transports"].erase("websocket");
   c["transports"].erase("foxglove");
+  c["transports"].erase("mcp");
   const auto without_websocket = [](const json& transports) {
     json kept = json::array();
     for (const auto& t : transports)
-      if (t != "websocket" && t != "foxglove") kept.push_back(t);
+      if (t != "websocket" && t != "foxglove" && t != "mcp") kept.push_back(t);
     return kept;
   };
   for (auto& [pattern, transports] : c["services"].items())

@@ -76,9 +76,9 @@ done
 # --- what runs hidden from the trees -----------------------------------------------------
 config_dir=$prefix/$datadir/simgate/config
 # the demo on a port the kernel picks, beside the installed demo so its scene resolves the same
-sed -E 's/"port": (4000|8090|8765)/"port": 0/' "$config_dir/demo.json" >"$config_dir/install-test-demo.json"
+sed -E 's/"port": (4000|8090|8765|8808)/"port": 0/' "$config_dir/demo.json" >"$config_dir/install-test-demo.json"
 grep -q '"port": 0' "$config_dir/install-test-demo.json" || fail "demo.json has no \"port\": 4000 to replace"
-! grep -qE '"port": (4000|8090|8765)' "$config_dir/install-test-demo.json" || fail "demo.json's ports were not all replaced"
+! grep -qE '"port": (4000|8090|8765|8808)' "$config_dir/install-test-demo.json" || fail "demo.json's ports were not all replaced"
 
 # sanitizer suppression files live in the source tree, which is about to disappear
 for var in ASAN_OPTIONS LSAN_OPTIONS TSAN_OPTIONS UBSAN_OPTIONS; do
