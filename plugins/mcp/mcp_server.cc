@@ -8,6 +8,7 @@
 #include <boost/asio/post.hpp>
 #include <boost/beast/http/verb.hpp>
 
+#include "simgate/core/config.h"
 #include "simgate/core/log.h"
 #include "simgate/core/plugin.h"
 #include "simgate/core/text.h"
@@ -24,6 +25,8 @@ namespace {
 
 constexpr const char* k_server = "simgate mcp transport";
 constexpr const char* k_version = "0.1.0";
+// The deepest nesting of brackets a message may have (the JSON-RPC transports' max_depth).
+constexpr std::size_t k_max_depth = 128;
 
 // A session id: 128 random bits from the kernel, as hex (the spec: globally unique and
 // cryptographically secure).
@@ -230,6 +233,11 @@ void McpServer::on_post(kit::HttpConnection& connection, const kit::HttpRequest&
     return respond_error(connection, 406, nullptr, code::invalid_request,
                          "the Accept header must list application/json and text/event-stream");
 
+  // the parser recurses: a message nesting deeper than any MCP message does is refused unread
+  if (json_nests_deeper_than(request.body(), k_max_depth))
+    return respond_error(connection, 400, nullptr, code::invalid_request,
+                         "the message nests deeper than " + std::to_string(k_max_depth) +
+                             " levels");
   json message = json::parse(request.body(), nullptr, /*allow_exceptions=*/false);
   if (message.is_discarded())
     return respond_error(connection, 400, nullptr, code::parse_error,
@@ -435,7 +443,9 @@ void McpServer::call_tool(kit::HttpConnection& connection, Session& session, boo
   pending.connection = std::static_pointer_cast<kit::HttpConnection>(connection.shared_from_this());
   pending.session = session.id;
   pending.id = id;
-  pending.events = events;
+  // a long call (an async service's) may stream its progress; a quick one that only waits
+  // for the simulation lock answers as JSON
+  pending.events = events && tool->second.service.is_async;
   if (auto meta = params.find("_meta"); meta != params.end() && meta->is_object())
     if (auto token = meta->find("progressToken"); token != meta->end())
       pending.progress_token = *token;

@@ -109,6 +109,15 @@ def read_response(conn, deadline_s=20):
         rest += chunk
 
 
+def message_of(headers, body):
+    """The JSON-RPC message answering a request: the body, or a stream's last event (a client
+    must take both, the spec says)."""
+    if headers.get("content-type") == "text/event-stream":
+        data = [line[6:] for line in body.decode().split("\n") if line.startswith("data: ")]
+        return json.loads(data[-1])
+    return json.loads(body)
+
+
 def request_bytes(method, body=b"", headers=None, target="/mcp"):
     lines = [f"{method} {target} HTTP/1.1", "Host: 127.0.0.1"]
     for name, value in (headers or {}).items():
@@ -252,6 +261,8 @@ def test_sessions_and_bad_messages(port):
     check(status == 404, f"an unknown session: 404 ({status})")
     status, _, body = http.post(b"{not json", session)
     check(status == 400 and json.loads(body)["error"]["code"] == -32700, f"not JSON: -32700 ({body[:200]})")
+    status, _, body = http.post(b"[" * 50000, session)
+    check(status == 400 and b"nests deeper" in body, f"deep nesting is refused unparsed: 400 ({body[:200]})")
     status, _, body = http.post([{"jsonrpc": "2.0", "id": 1, "method": "ping"}], session)
     check(status == 400 and b"batch" in body, f"a batch: 400 ({body[:200]})")
     status, _, body = http.post({"jsonrpc": "2.0", "id": 1, "method": "resources/read"}, session)
@@ -296,22 +307,24 @@ def test_a_client_that_leaves_mid_call_has_it_cancelled(port):
     status, headers, _ = read_head_only(http.sock)
     check(status == 200 and headers.get("content-type") == "text/event-stream", f"a goto streams ({status} {headers})")
     other, other_session = initialize(port)
-    status, _, body = other.post(call(11, "rover_waypoint_get_status"), other_session)
-    check(json.loads(body)["result"]["structuredContent"]["result"] == "Transit", f"the rover goes ({body[:200]})")
+    status, headers, body = other.post(call(11, "rover_waypoint_get_status"), other_session)
+    check(status == 200 and message_of(headers, body)["result"]["structuredContent"]["result"] == "Transit",
+          f"the rover goes ({status} {headers} {body[:200]})")
     http.sock.close()  # gone, mid-call
     state = None
     for _ in range(50):
         time.sleep(0.6)  # within the rate limit
-        status, _, body = other.post(call(12, "rover_waypoint_get_status"), other_session)
+        status, headers, body = other.post(call(12, "rover_waypoint_get_status"), other_session)
         if status == 200:
-            state = json.loads(body)["result"]["structuredContent"]["result"]
+            state = message_of(headers, body)["result"]["structuredContent"]["result"]
             if state != "Transit":
                 break
     # a cancelled goto stops the rover where it is (MORSE: its destination becomes its place)
     check(state == "Arrived", f"its goto was cancelled: the waypoint says {state}")
     time.sleep(0.6)
-    status, _, body = other.post(call(13, "rover_pose_get_local_data"), other_session)
-    x = json.loads(body)["result"]["structuredContent"]["x"]
+    status, headers, body = other.post(call(13, "rover_pose_get_local_data"), other_session)
+    check(status == 200, f"the pose: {status} {headers} {body[:300]}")
+    x = message_of(headers, body)["result"]["structuredContent"]["x"]
     check(x < 2.0, f"far from its destination, x = 3 (x = {x:.2f})")
     other.close()
 
