@@ -43,10 +43,7 @@ class WsTransport : public simgate::RequestManager, private kit::WebSocketServer
     kit::TcpListener::Handlers handlers{
         [this](asio::ip::tcp::socket socket) { accept(std::move(socket)); },
         [this](const asio::ip::tcp::endpoint& peer) { return refusal_reason(peer); },
-        [](const std::string& why) {
-          return "HTTP/1.1 503 Service Unavailable\r\nContent-Length: " +
-                 std::to_string(why.size()) + "\r\n\r\n" + why;
-        }};
+        [](const std::string& why) { return kit::unavailable_response(why + "\n"); }};
     io_thread_.start(
         [this, handlers = std::move(handlers)]() mutable {
           // outcomes produced on other threads are handed to this one, the I/O thread

@@ -137,18 +137,26 @@ class StdioBridge {
     return session_;
   }
 
+  // A request to the endpoint, connected: its Host, the session's id once there is one, the
+  // token when there is one.
+  template <class Body>
+  http::request<Body> connected_request(http::verb verb, asio::ip::tcp::socket& socket) {
+    asio::ip::tcp::resolver resolver(socket.get_executor());
+    asio::connect(socket, resolver.resolve(endpoint_.host, endpoint_.port));
+    http::request<Body> request{verb, endpoint_.path, 11};
+    request.set(http::field::host, endpoint_.host + ":" + endpoint_.port);
+    if (const std::string id = session(); !id.empty()) request.set("Mcp-Session-Id", id);
+    if (!token_.empty()) request.set(http::field::authorization, "Bearer " + token_);
+    return request;
+  }
+
   void post(const std::string& message) {
     try {
       asio::io_context io;
       asio::ip::tcp::socket socket(io);
-      asio::ip::tcp::resolver resolver(io);
-      asio::connect(socket, resolver.resolve(endpoint_.host, endpoint_.port));
-      http::request<http::string_body> request{http::verb::post, endpoint_.path, 11};
-      request.set(http::field::host, endpoint_.host + ":" + endpoint_.port);
+      auto request = connected_request<http::string_body>(http::verb::post, socket);
       request.set(http::field::content_type, "application/json");
       request.set(http::field::accept, "application/json, text/event-stream");
-      if (const std::string id = session(); !id.empty()) request.set("Mcp-Session-Id", id);
-      if (!token_.empty()) request.set(http::field::authorization, "Bearer " + token_);
       request.body() = message;
       request.prepare_payload();
       http::write(socket, request);
@@ -196,18 +204,11 @@ class StdioBridge {
 
   // Standard input ended: the session ends too (its calls cancelled).
   void end_session() {
-    const std::string id = session();
-    if (id.empty()) return;
+    if (session().empty()) return;
     try {
       asio::io_context io;
       asio::ip::tcp::socket socket(io);
-      asio::ip::tcp::resolver resolver(io);
-      asio::connect(socket, resolver.resolve(endpoint_.host, endpoint_.port));
-      http::request<http::empty_body> request{http::verb::delete_, endpoint_.path, 11};
-      request.set(http::field::host, endpoint_.host + ":" + endpoint_.port);
-      request.set("Mcp-Session-Id", id);
-      if (!token_.empty()) request.set(http::field::authorization, "Bearer " + token_);
-      http::write(socket, request);
+      http::write(socket, connected_request<http::empty_body>(http::verb::delete_, socket));
       boost::beast::flat_buffer buffer;
       http::response<http::string_body> response;
       http::read(socket, buffer, response);

@@ -21,6 +21,16 @@ std::string plain_http_response(const HttpRequest& request, http::status status,
   return out.str();
 }
 
+std::string unavailable_response(std::string_view body, std::string_view content_type) {
+  std::string out = "HTTP/1.1 503 Service Unavailable\r\nContent-Type: ";
+  out += content_type;
+  out += "\r\nContent-Length: ";
+  out += std::to_string(body.size());
+  out += "\r\nConnection: close\r\n\r\n";
+  out += body;
+  return out;
+}
+
 std::optional<std::string_view> header_value(const HttpRequest& request, std::string_view name) {
   auto it = request.find(boost::beast::string_view(name.data(), name.size()));
   if (it == request.end()) return std::nullopt;

@@ -71,10 +71,7 @@ void FoxgloveServer::start() {
   kit::TcpListener::Handlers handlers{
       [this](tcp::socket socket) { accept(std::move(socket)); },
       [this](const tcp::endpoint& peer) { return refusal_reason(peer); },
-      [](const std::string& why) {
-        return "HTTP/1.1 503 Service Unavailable\r\nContent-Type: text/plain\r\nContent-Length: " +
-               std::to_string(why.size() + 1) + "\r\nConnection: close\r\n\r\n" + why + "\n";
-      }};
+      [](const std::string& why) { return kit::unavailable_response(why + "\n"); }};
   if (!io_thread_.start(
           [this, handlers = std::move(handlers)]() mutable {
             // outcomes produced on other threads are handed to this one

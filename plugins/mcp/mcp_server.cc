@@ -106,10 +106,7 @@ void McpServer::start() {
   kit::TcpListener::Handlers handlers{
       [this](tcp::socket socket) { accept(std::move(socket)); },
       [this](const tcp::endpoint& peer) { return refusal_reason(peer); },
-      [](const std::string& why) {
-        return "HTTP/1.1 503 Service Unavailable\r\nContent-Type: text/plain\r\nContent-Length: " +
-               std::to_string(why.size() + 1) + "\r\nConnection: close\r\n\r\n" + why + "\n";
-      }};
+      [](const std::string& why) { return kit::unavailable_response(why + "\n"); }};
   if (!io_thread_.start(
           [this, handlers = std::move(handlers)]() mutable {
             deliver_on_this_thread([this] { asio::post(io_, [this] { flush_replies(); }); });
@@ -235,9 +232,9 @@ void McpServer::on_post(kit::HttpConnection& connection, const kit::HttpRequest&
 
   // the parser recurses: a message nesting deeper than any MCP message does is refused unread
   if (json_nests_deeper_than(request.body(), k_max_depth))
-    return respond_error(connection, 400, nullptr, code::invalid_request,
-                         "the message nests deeper than " + std::to_string(k_max_depth) +
-                             " levels");
+    return respond_error(
+        connection, 400, nullptr, code::invalid_request,
+        "the message nests deeper than " + std::to_string(k_max_depth) + " levels");
   json message = json::parse(request.body(), nullptr, /*allow_exceptions=*/false);
   if (message.is_discarded())
     return respond_error(connection, 400, nullptr, code::parse_error,

@@ -62,9 +62,7 @@ void WebSocketRequestManager::start() {
         // as its body
         const std::string body =
             dump(error_response(nullptr, overloaded, "Overloaded: " + why)) + "\n";
-        return "HTTP/1.1 503 Service Unavailable\r\nContent-Type: "
-               "application/json\r\nContent-Length: " +
-               std::to_string(body.size()) + "\r\nConnection: close\r\n\r\n" + body;
+        return kit::unavailable_response(body, "application/json");
       }};
   if (io_thread_.start(
           [this, handlers = std::move(handlers)]() mutable {

@@ -40,6 +40,13 @@ struct HttpResponse {
 std::string plain_http_response(const HttpRequest& request, boost::beast::http::status status,
                                 std::string_view body, std::string_view server);
 
+// The whole response a connection refused at accept (TcpListener::Handlers::refusal: too many
+// connections) is sent before it closes, the client still sending its request: 503 with
+// `body` ("text/plain": `why` and a newline; or a JSON-RPC error's text, `content_type`
+// "application/json").
+std::string unavailable_response(std::string_view body,
+                                 std::string_view content_type = "text/plain; charset=utf-8");
+
 // The value of `request`'s header `name` (case-insensitive), nullopt when absent.
 std::optional<std::string_view> header_value(const HttpRequest& request, std::string_view name);
 
