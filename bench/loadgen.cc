@@ -24,7 +24,7 @@
 // service --method names ("test_component.add" is "/test_component/add") in the server's
 // advertiseServices, then sends binary service call requests with --params as the JSON
 // request and waits for each binary response (Time messages and statuses skipped). `mcp` is
-// an MCP client over streamable HTTP (Beast's HTTP client, one kept-alive connection;
+// an MCP client over streamable HTTP (raw HTTP/1.1 on this program's connection, kept alive;
 // --mode latency only): it initializes a session at /mcp, then POSTs tools/call of the tool
 // --method names ("test_component.add" is "test_component_add") with --params (an object) as
 // its arguments, and expects each answer as JSON without isError. `socket` sends "<id> <--request>"
@@ -43,6 +43,7 @@
 #include <sys/time.h>
 #include <unistd.h>
 
+#include <cctype>
 #include <cerrno>
 #include <cstring>
 #include <deque>
@@ -55,7 +56,6 @@
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/beast/core/buffers_to_string.hpp>
 #include <boost/beast/core/flat_buffer.hpp>
-#include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
 
 #include "bench_util.h"
@@ -195,6 +195,17 @@ class Connection {
       if (read_some()) continue;
       wait(POLLIN, deadline);
     }
+  }
+
+  // Waits for the next `n` bytes until `deadline`; throws on timeout.
+  std::string wait_bytes(std::size_t n, Clock::time_point deadline) {
+    while (in_.size() < n) {
+      if (read_some()) continue;
+      wait(POLLIN, deadline);
+    }
+    std::string bytes = in_.substr(0, n);
+    in_.erase(0, n);
+    return bytes;
   }
 
   // Blocks until `events` or `deadline` (throws on timeout).
@@ -375,60 +386,60 @@ json run_foxglove_latency(const std::string& host, int port, const Protocol& p, 
                         first_reply.size() > 17 ? first_reply.substr(17) : first_reply);
 }
 
-// run_latency as an MCP client (--proto mcp): a blocking Beast HTTP client on one kept-alive
-// connection; initialize, then one tools/call POST per round trip, its JSON answer read whole.
-// The run's deadline bounds every read (SO_RCVTIMEO).
+// run_latency as an MCP client (--proto mcp): this program's own connection (the one the
+// line protocols are measured with, not an HTTP library), one kept-alive HTTP/1.1 connection;
+// initialize, then one tools/call POST per round trip, its JSON answer read by Content-Length.
 json run_mcp_latency(const std::string& host, int port, const Protocol& p, std::size_t count,
                      std::size_t warmup, double timeout_s) {
-  namespace http = boost::beast::http;
-  boost::asio::io_context io;
-  boost::asio::ip::tcp::socket socket(io);
-  socket.connect({boost::asio::ip::make_address(host), static_cast<std::uint16_t>(port)});
-  socket.set_option(boost::asio::ip::tcp::no_delay(true));
-  timeval tv{};
-  tv.tv_sec = static_cast<time_t>(timeout_s);
-  ::setsockopt(socket.native_handle(), SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  Connection c(host, port);
   const auto deadline = Clock::now() + seconds(timeout_s);
-  boost::beast::flat_buffer buffer;
   std::string session;
-  const auto post = [&](std::string body) {
-    http::request<http::string_body> request{http::verb::post, "/mcp", 11};
-    request.set(http::field::host, host + ":" + std::to_string(port));
-    request.set(http::field::content_type, "application/json");
-    request.set(http::field::accept, "application/json, text/event-stream");
-    if (!session.empty()) request.set("Mcp-Session-Id", session);
-    request.body() = std::move(body);
-    request.prepare_payload();
-    http::write(socket, request);
-    http::response<http::string_body> response;
-    http::read(socket, buffer, response);
-    return response;
+  // POSTs `body`; returns the answer's status line and body (the session's id kept)
+  const auto post = [&](const std::string& body) {
+    std::string request = "POST /mcp HTTP/1.1\r\nHost: " + host +
+                          "\r\nContent-Type: application/json\r\n"
+                          "Accept: application/json, text/event-stream\r\n";
+    if (!session.empty()) request += "Mcp-Session-Id: " + session + "\r\n";
+    request += "Content-Length: " + std::to_string(body.size()) + "\r\n\r\n";
+    request += body;
+    c.send(request);
+    const std::string status = c.wait_line(deadline);
+    std::size_t length = 0;
+    for (std::string line; !(line = c.wait_line(deadline)).empty();) {
+      const std::size_t colon = line.find(':');
+      if (colon == std::string::npos) continue;
+      std::string name = line.substr(0, colon);
+      for (char& ch : name) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+      const std::string value = line.substr(line.find_first_not_of(' ', colon + 1));
+      if (name == "content-length") length = std::stoul(value);
+      if (name == "mcp-session-id") session = value;
+    }
+    return std::make_pair(status, c.wait_bytes(length, deadline));
   };
   const auto initialized = post(
       R"({"jsonrpc":"2.0","id":0,"method":"initialize","params":{"protocolVersion":"2025-11-25",)"
       R"("capabilities":{},"clientInfo":{"name":"simgate_bench_loadgen","version":"1"}}})");
-  session = std::string(initialized["Mcp-Session-Id"]);
-  if (initialized.result_int() != 200 || session.empty())
-    throw std::runtime_error("initialize answered " + std::to_string(initialized.result_int()) +
-                             ": " + initialized.body().substr(0, 200));
+  if (initialized.first.find(" 200 ") == std::string::npos || session.empty())
+    throw std::runtime_error("initialize answered " + initialized.first + ": " +
+                             initialized.second.substr(0, 200));
   std::string tool = p.method;
-  for (char& c : tool)
-    if (c == '.') c = '_';
+  for (char& ch : tool)
+    if (ch == '.') ch = '_';
   std::vector<std::int64_t> samples;
   samples.reserve(count);
   std::size_t errors = 0;
   std::string first_reply;
   for (std::size_t i = 0; i < warmup + count; ++i) {
     if (Clock::now() > deadline) throw std::runtime_error("timed out waiting for the server");
-    std::string body = R"({"jsonrpc":"2.0","id":)" + std::to_string(i + 1) +
-                       R"(,"method":"tools/call","params":{"name":")" + tool + R"(","arguments":)" +
-                       p.params + "}}";
+    const std::string body = R"({"jsonrpc":"2.0","id":)" + std::to_string(i + 1) +
+                             R"(,"method":"tools/call","params":{"name":")" + tool +
+                             R"(","arguments":)" + p.params + "}}";
     auto t0 = Clock::now();
-    const auto response = post(std::move(body));
+    const auto [status, reply] = post(body);
     auto t1 = Clock::now();
-    if (i == 0) first_reply = response.body();
-    if (response.result_int() != 200 ||
-        response.body().find(R"("isError":false)") == std::string::npos)
+    if (i == 0) first_reply = reply;
+    if (status.find(" 200 ") == std::string::npos ||
+        reply.find(R"("isError":false)") == std::string::npos)
       ++errors;
     if (i >= warmup) samples.push_back(simgate::bench::ns_between(t0, t1));
   }

@@ -42,6 +42,16 @@ std::string new_session_id() {
   return id;
 }
 
+// {"jsonrpc":"2.0","id":<id>,"result":<result_text>}
+std::string result_line(const json& id, std::string_view result_text) {
+  std::string out = R"({"jsonrpc":"2.0","id":)";
+  out += jsonrpc::dump(id);
+  out += R"(,"result":)";
+  out += result_text;
+  out += '}';
+  return out;
+}
+
 // Whether the Accept header `accept` takes `type` (or anything).
 bool accepts(std::optional<std::string_view> accept, std::string_view type) {
   if (!accept) return false;
@@ -230,26 +240,30 @@ void McpServer::on_post(kit::HttpConnection& connection, const kit::HttpRequest&
     return respond_error(connection, 406, nullptr, code::invalid_request,
                          "the Accept header must list application/json and text/event-stream");
 
-  // the parser recurses: a message nesting deeper than any MCP message does is refused unread
-  if (json_nests_deeper_than(request.body(), k_max_depth))
-    return respond_error(
-        connection, 400, nullptr, code::invalid_request,
-        "the message nests deeper than " + std::to_string(k_max_depth) + " levels");
-  json message = json::parse(request.body(), nullptr, /*allow_exceptions=*/false);
-  if (message.is_discarded())
-    return respond_error(connection, 400, nullptr, code::parse_error,
-                         "the body is not JSON: " + quoted_prefix(request.body(), 60));
-  if (message.is_array())
-    return respond_error(
-        connection, 400, nullptr, code::invalid_request,
-        "a batch: MCP takes one message per request since its revision 2025-06-18");
-  // a response to a request of ours (we send none): taken note of
-  if (message.is_object() && !message.contains("method") &&
-      (message.contains("result") || message.contains("error")))
-    return connection.respond(202, "text/plain; charset=utf-8", "");
+  // the common shape read in one pass (jsonrpc's fast path); anything else, errors included,
+  // through the parser
   jsonrpc::Request rpc;
-  if (std::optional<json> refusal = jsonrpc::parse_request(message, rpc))
-    return respond_json(connection, 400, *refusal);
+  if (!jsonrpc::parse_request_fast(request.body(), k_max_depth, rpc)) {
+    // the parser recurses: a message nesting deeper than any MCP message does is refused unread
+    if (json_nests_deeper_than(request.body(), k_max_depth))
+      return respond_error(
+          connection, 400, nullptr, code::invalid_request,
+          "the message nests deeper than " + std::to_string(k_max_depth) + " levels");
+    json message = json::parse(request.body(), nullptr, /*allow_exceptions=*/false);
+    if (message.is_discarded())
+      return respond_error(connection, 400, nullptr, code::parse_error,
+                           "the body is not JSON: " + quoted_prefix(request.body(), 60));
+    if (message.is_array())
+      return respond_error(
+          connection, 400, nullptr, code::invalid_request,
+          "a batch: MCP takes one message per request since its revision 2025-06-18");
+    // a response to a request of ours (we send none): taken note of
+    if (message.is_object() && !message.contains("method") &&
+        (message.contains("result") || message.contains("error")))
+      return connection.respond(202, "text/plain; charset=utf-8", "");
+    if (std::optional<json> refusal = jsonrpc::parse_request(message, rpc))
+      return respond_json(connection, 400, *refusal);
+  }
   if (rpc.has_id && !rpc.id.is_string() && !rpc.id.is_number_integer())
     return respond_error(connection, 400, nullptr, code::invalid_request,
                          "an MCP request's id is a string or an integer, not " + rpc.id.dump());
@@ -500,12 +514,12 @@ void McpServer::on_service_completion(RequestId id, Outcome&& outcome) {
     // a cancelled call's stream ends without a result (the spec: no response to a request
     // the client cancelled)
     if (!pending.cancelled || outcome.status == Status::success)
-      connection->queue_event(
-          jsonrpc::dump(jsonrpc::result_response(pending.id, tool_result(outcome))));
+      connection->queue_event(result_line(pending.id, tool_result_text(std::move(outcome))));
     connection->end_events();
     return;
   }
-  respond_json(*connection, 200, jsonrpc::result_response(pending.id, tool_result(outcome)));
+  connection->respond(200, "application/json",
+                      result_line(pending.id, tool_result_text(std::move(outcome))));
 }
 
 void McpServer::on_service_progress(RequestId id, json&& value) {

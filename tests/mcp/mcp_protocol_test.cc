@@ -107,6 +107,20 @@ TEST(McpProtocol, ASuccessIsTextAndStructuredContent) {
   EXPECT_EQ(none["content"][0]["text"], "null");
 }
 
+TEST(McpProtocol, TheResultsTextIsTheResultsJson) {
+  const std::vector<Outcome> outcomes = {
+      Outcome::success(json{{"x", 1.5}, {"name", "r\"q"}}),
+      Outcome::success(json::array({"robot"})),
+      Outcome::success(std::nullopt),
+      Outcome::success(json(3)),
+      Outcome::success(json{{"image", "iVBORw0K"}, {"format", "png"}}),
+      Outcome::failed(Failure::service_error, "no")};
+  for (const Outcome& outcome : outcomes) {
+    Outcome a = outcome, b = outcome;
+    EXPECT_EQ(json::parse(tool_result_text(std::move(a))), tool_result(std::move(b)));
+  }
+}
+
 TEST(McpProtocol, PngImageRecordsBecomeImageContent) {
   const json record = {{"width", 2}, {"height", 1}, {"format", "png"}, {"image", "iVBORw0K"}};
   const json raw = {{"width", 2}, {"height", 1}, {"format", "raw"}};
@@ -128,7 +142,7 @@ TEST(McpProtocol, FailuresArePreemptionsAreToolErrorsWithTheReason) {
   Outcome preempted;
   preempted.status = Status::preempted;
   preempted.message = "a newer goto";
-  EXPECT_EQ(tool_result(preempted)["content"][0]["text"], "preempted: a newer goto");
+  EXPECT_EQ(tool_result(std::move(preempted))["content"][0]["text"], "preempted: a newer goto");
 }
 
 TEST(McpProtocol, ProgressCountsReportsOrTheStepsDone) {

@@ -120,25 +120,60 @@ void take_images(json& value, json& images) {
 
 }  // namespace
 
-json tool_result(const Outcome& outcome) {
-  if (outcome.status != Status::success) {
-    std::string text = outcome.message;
-    if (text.empty() && outcome.value && outcome.value->is_string())
-      text = outcome.value->get<std::string>();
-    if (text.empty()) text = outcome.status == Status::preempted ? "preempted" : "failed";
-    if (outcome.status == Status::preempted) text = "preempted: " + text;
-    return {{"content", json::array({{{"type", "text"}, {"text", std::move(text)}}})},
-            {"isError", true}};
-  }
-  json value = outcome.value ? *outcome.value : json(nullptr);
-  json images = json::array();
-  take_images(value, images);
+namespace {
+
+// A failure, a preemption, a timeout as a tool execution error.
+json error_result(const Outcome& outcome) {
+  std::string text = outcome.message;
+  if (text.empty() && outcome.value && outcome.value->is_string())
+    text = outcome.value->get<std::string>();
+  if (text.empty()) text = outcome.status == Status::preempted ? "preempted" : "failed";
+  if (outcome.status == Status::preempted) text = "preempted: " + text;
+  return {{"content", json::array({{{"type", "text"}, {"text", std::move(text)}}})},
+          {"isError", true}};
+}
+
+// A success's result: `value` (its images taken out) as text and structured content, then
+// the `images`.
+json success_result(json value, json images) {
   json content = json::array({{{"type", "text"}, {"text", jsonrpc::dump(value)}}});
   for (json& image : images) content.push_back(std::move(image));
   json structured = value.is_object() ? std::move(value) : json{{"result", std::move(value)}};
   return {{"content", std::move(content)},
           {"structuredContent", std::move(structured)},
           {"isError", false}};
+}
+
+}  // namespace
+
+json tool_result(Outcome&& outcome) {
+  if (outcome.status != Status::success) return error_result(outcome);
+  json value = outcome.value ? std::move(*outcome.value) : json(nullptr);
+  json images = json::array();
+  take_images(value, images);
+  return success_result(std::move(value), std::move(images));
+}
+
+std::string tool_result_text(Outcome&& outcome) {
+  if (outcome.status != Status::success) return jsonrpc::dump(error_result(outcome));
+  json value = outcome.value ? std::move(*outcome.value) : json(nullptr);
+  json images = json::array();
+  take_images(value, images);
+  if (!images.empty()) return jsonrpc::dump(success_result(std::move(value), std::move(images)));
+  // the common case written straight: the value dumped once, as text and as itself
+  const std::string text = jsonrpc::dump(value);
+  std::string out = R"({"content":[{"type":"text","text":)";
+  out += jsonrpc::dump(json(text));
+  out += R"(}],"structuredContent":)";
+  if (value.is_object()) {
+    out += text;
+  } else {
+    out += R"({"result":)";
+    out += text;
+    out += '}';
+  }
+  out += R"(,"isError":false})";
+  return out;
 }
 
 json progress_notification(const json& token, std::uint64_t count, const json& value) {

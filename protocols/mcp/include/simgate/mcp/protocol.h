@@ -67,8 +67,11 @@ std::chrono::milliseconds take_deadline(json& arguments, const Tool& tool, std::
 // (a camera's, a snapshot's: "format": "png" with the base64 "image") as image content
 // (image/png) and, in the structured copy and the text, without its "image" field; a failure,
 // a preemption, a timeout as isError with the reason as text (the spec's tool execution
-// errors, which a model reads and may correct).
-json tool_result(const Outcome& outcome);
+// errors, which a model reads and may correct). The outcome's value is moved from.
+json tool_result(Outcome&& outcome);
+// The same as JSON text, written without building the result's DOM when it has no image (a
+// tool call's answer, the transport's hot path).
+std::string tool_result_text(Outcome&& outcome);
 
 // A notifications/progress message for the call that asked with `token`: its `count`-th
 // report `value`. The progress is the steps done (of the steps requested: the total) when the
