@@ -11,7 +11,8 @@
 //
 // Each message is posted on a connection of its own, on a thread of its own (at most
 // k_max_in_flight at once), so that a notifications/cancelled reaches the server while the call
-// it cancels still streams. Lines are written whole, one writer at a time.
+// it cancels still streams; once initialize answered, one more thread holds the session's GET
+// stream and forwards its notifications. Lines are written whole, one writer at a time.
 #include <algorithm>
 #include <atomic>
 #include <condition_variable>
@@ -89,7 +90,8 @@ class StdioBridge {
       });
     }
     for (auto& w : workers_) w.join();
-    end_session();
+    end_session();  // the server ends the session's GET stream too
+    if (events_.joinable()) events_.join();
   }
 
   static constexpr int k_max_in_flight = 64;
@@ -150,13 +152,20 @@ class StdioBridge {
     return request;
   }
 
+  // POSTs `message` (or, with an empty one, GETs the session's stream of notifications) and
+  // writes what answers it.
   void post(const std::string& message) {
     try {
       asio::io_context io;
       asio::ip::tcp::socket socket(io);
-      auto request = connected_request<http::string_body>(http::verb::post, socket);
-      request.set(http::field::content_type, "application/json");
-      request.set(http::field::accept, "application/json, text/event-stream");
+      auto request = connected_request<http::string_body>(
+          message.empty() ? http::verb::get : http::verb::post, socket);
+      if (message.empty()) {
+        request.set(http::field::accept, "text/event-stream");
+      } else {
+        request.set(http::field::content_type, "application/json");
+        request.set(http::field::accept, "application/json, text/event-stream");
+      }
       request.body() = message;
       request.prepare_payload();
       http::write(socket, request);
@@ -177,7 +186,10 @@ class StdioBridge {
       const auto& head = parser.get();
       if (auto id = head.find("Mcp-Session-Id"); id != head.end()) {
         std::lock_guard lock(mutex_);
+        const bool first = session_.empty();
         session_.assign(id->value().data(), id->value().size());
+        // the session's own notifications (resources updated, tools changed) come on a GET
+        if (first) events_ = std::thread([this] { post({}); });
       }
       const auto type = head[http::field::content_type];
       const bool events = std::string_view(type.data(), type.size()).find("text/event-stream") !=
@@ -224,6 +236,7 @@ class StdioBridge {
   std::string session_;
   int in_flight_ = 0;
   std::vector<std::thread> workers_;
+  std::thread events_;    // the session's GET stream, forwarded
   std::mutex out_mutex_;  // one line at a time on standard output
 };
 

@@ -28,9 +28,10 @@ namespace {
 // ports the kernel picks); for `simgate mcp` (`mcp_only`), the mcp transport on a port the
 // kernel picks.
 json default_model_document(int base, bool mcp_only) {
-  if (mcp_only)
+  if (mcp_only)  // its streams too: they are its resources
     return {{"transports",
-             {{"mcp", {{"plugin", "mcp"}, {"options", {{"host", "127.0.0.1"}, {"port", 0}}}}}}}};
+             {{"mcp", {{"plugin", "mcp"}, {"options", {{"host", "127.0.0.1"}, {"port", 0}}}}}}},
+            {"streams", {{"default", {"mcp"}}}}};
   return {
       {"transports",
        {{"socket", {{"plugin", "socket"}, {"options", {{"host", "127.0.0.1"}, {"port", base}}}}},

@@ -141,6 +141,8 @@ void McpServer::shutdown_io() {
   listener_.close();
   close_all();
   pending_.clear();
+  for (auto& [component, w] : watches_) stream_hub()->unsubscribe(w.subscription);
+  watches_.clear();
   for (const auto& [id, session] : sessions_) client_left(session.number);
   sessions_.clear();
   session_count_.store(0, std::memory_order_relaxed);
@@ -220,12 +222,13 @@ void McpServer::on_request(kit::HttpConnection& connection, kit::HttpRequest&& r
       end_session(key, "the client ended it (DELETE)");
       return connection.respond(200, "text/plain; charset=utf-8", "");
     }
+    case http::verb::get: return open_events(connection, request);
     default:
-      // no stream of the server's own (GET): the spec's 405
-      return connection.respond(
-          405, "text/plain; charset=utf-8",
-          std::string(k_server) + ": POST a JSON-RPC message, or DELETE the session\n",
-          "Allow: POST, DELETE\r\n");
+      return connection.respond(405, "text/plain; charset=utf-8",
+                                std::string(k_server) +
+                                    ": POST a JSON-RPC message, GET the session's notifications, "
+                                    "or DELETE the session\n",
+                                "Allow: GET, POST, DELETE\r\n");
   }
 }
 
@@ -338,6 +341,8 @@ void McpServer::end_session(const std::string& id, const char* why) {
   auto it = sessions_.find(id);
   if (it == sessions_.end()) return;
   for (const auto& [key, request] : it->second.calls) cancel(request);
+  unwatch_all(it->second);
+  if (auto events = it->second.events.lock(); events && events->streaming()) events->end_events();
   log::info("mcp: session ", it->second.number, " ended: ", why);
   client_left(it->second.number);
   sessions_.erase(it);
@@ -383,25 +388,34 @@ const std::map<std::string, Tool>& McpServer::tools() {
   return tools_;
 }
 
-void McpServer::on_method(kit::HttpConnection& connection, Session& /*session*/,
+void McpServer::on_method(kit::HttpConnection& connection, Session& session,
                           const kit::HttpRequest& /*http*/, const json& id,
-                          const std::string& method, json& /*params*/) {
+                          const std::string& method, json& params) {
   if (method == "ping")
     return respond_json(connection, 200, jsonrpc::result_response(id, json::object()));
+  if (method == "resources/list")
+    return respond_json(connection, 200,
+                        jsonrpc::result_response(id, {{"resources", resource_list()}}));
+  if (method == "resources/templates/list")
+    return respond_json(connection, 200,
+                        jsonrpc::result_response(id, {{"resourceTemplates", json::array()}}));
+  if (method == "resources/read") return read_resource(connection, id, params);
+  if (method == "resources/subscribe" || method == "resources/unsubscribe")
+    return watch_resource(connection, session, id, params, method == "resources/subscribe");
   if (method == "tools/list") {
     json list = json::array();
     for (const auto& [tool_name, tool] : tools()) list.push_back(tool_definition(tool));
     return respond_json(connection, 200,
                         jsonrpc::result_response(id, {{"tools", std::move(list)}}));
   }
-  // what a client may ask of any server: nothing to list here
-  if (method == "resources/list" || method == "prompts/list" ||
-      method == "resources/templates/list")
+  if (method == "prompts/list")
     return respond_error(connection, 200, id, code::method_not_found,
-                         method + ": this server offers tools only (its capabilities say so)");
+                         "prompts/list: this server offers tools and resources, no prompts (its "
+                         "capabilities say so)");
   respond_error(connection, 200, id, code::method_not_found,
                 "no method '" + method.substr(0, 80) +
-                    "' (this server: initialize, ping, tools/list, tools/call)");
+                    "' (this server: initialize, ping, tools/list, tools/call, resources/list, "
+                    "resources/read, resources/subscribe, resources/unsubscribe)");
 }
 
 void McpServer::on_notification(Session& session, const std::string& method, const json& params) {
@@ -510,6 +524,8 @@ void McpServer::on_service_completion(RequestId id, Outcome&& outcome) {
     s->second.calls.erase(jsonrpc::dump(pending.id));
   auto connection = pending.connection.lock();
   if (!connection || connection->closed() || !connection->answering()) return;
+  if (!pending.resource.empty())
+    return finish_resource_read(*connection, pending, std::move(outcome));
   if (connection->streaming()) {
     // a cancelled call's stream ends without a result (the spec: no response to a request
     // the client cancelled)

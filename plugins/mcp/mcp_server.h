@@ -16,9 +16,13 @@
 //     (the stream then ends without a result, as the spec asks); the argument deadline_ms
 //     bounds it. A client whose connection closes while its call runs has it cancelled (a
 //     stream cannot be resumed here, so nobody could read its result; `on_disconnect`).
-//   - DELETE <path> ends the session (its calls cancelled); GET is 405 (no server-initiated
-//     stream: the tools do not change while a session lasts... yet: components spawned at run
-//     time show in the next tools/list).
+//   - Resources (resources.cc): the scene (simgate://scene: simulation get_scene_objects) and
+//     each output stream the transport carries (simgate://streams/<component>: its latest
+//     sample; a camera's as image/png), read, and subscribed to (notifications/resources/
+//     updated, at most every k_update_interval per resource).
+//   - GET <path> opens the session's stream of notifications: tools/list_changed and
+//     resources/list_changed when components come or go, resources/updated. DELETE ends the
+//     session (its calls cancelled, its subscriptions ended).
 //   - Safety: the transport's allow and deny lists decide which tools exist (a denied
 //     service is no tool and is called as an unknown one); the kit's `auth` token in
 //     `Authorization: Bearer` on every request (401 without it, 403 for a wrong one, then the
@@ -44,6 +48,7 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <set>
 #include <string>
 #include <unordered_map>
 #include <utility>  // before Asio: Boost 1.74 needs std::exchange in C++20 mode
@@ -53,6 +58,7 @@
 #include <boost/asio/steady_timer.hpp>
 
 #include "simgate/core/request_manager.h"
+#include "simgate/core/streams.h"
 #include "simgate/kit/http_connection.h"
 #include "simgate/kit/origin_policy.h"
 #include "simgate/kit/tcp_server.h"
@@ -99,6 +105,8 @@ class McpServer : public RequestManager, private kit::HttpServer {
     double tokens = 0;                               // the rate limit's bucket
     std::chrono::steady_clock::time_point refilled;  // when tokens was last topped up
     std::map<std::string, RequestId> calls;          // its calls running: dumped id -> request
+    std::weak_ptr<kit::HttpConnection> events;       // its GET stream: notifications
+    std::set<std::string> watched;                   // the streams it subscribed to (components)
   };
   // A tools/call submitted and not yet answered.
   struct Pending {
@@ -109,6 +117,23 @@ class McpServer : public RequestManager, private kit::HttpServer {
     bool events = false;        // the client accepts a stream (text/event-stream)
     std::uint64_t reports = 0;  // progress notifications sent
     bool cancelled = false;     // the client sent notifications/cancelled for it
+    std::string resource;       // a resources/read of this URI (not a tool call)
+  };
+  // A resources/read of a stream waiting for its next sample.
+  struct PendingRead {
+    std::weak_ptr<kit::HttpConnection> connection;
+    json id;
+  };
+  // The transport's subscription to one stream a resource is made of (resources.cc): shared
+  // by the sessions subscribed to it and by the reads waiting for a sample; ended when none is
+  // left.
+  struct StreamWatch {
+    std::shared_ptr<StreamSubscription> subscription;
+    SamplePtr latest;                                // the newest sample taken
+    std::set<std::string> sessions;                  // subscribed (resources/subscribe), by id
+    std::vector<PendingRead> reads;                  // resources/read waiting for a sample
+    std::chrono::steady_clock::time_point notified;  // the last notifications/resources/updated
+    bool updated = false;                            // a sample came since that notification
   };
 
   explicit McpServer(Settings settings);
@@ -116,7 +141,7 @@ class McpServer : public RequestManager, private kit::HttpServer {
   // ---- RequestManager (the I/O thread)
   void on_service_completion(RequestId id, Outcome&& outcome) override;
   void on_service_progress(RequestId id, json&& value) override;
-  void on_services_changed() override { tools_stale_.store(true, std::memory_order_relaxed); }
+  void on_services_changed() override;
 
   // ---- kit (the I/O thread)
   void on_request(kit::HttpConnection& connection, kit::HttpRequest&& request) override;
@@ -147,6 +172,39 @@ class McpServer : public RequestManager, private kit::HttpServer {
   // Whether the session may make one more call now (the rate limit), taking a token.
   bool take_call_token(Session& session);
 
+  // ---- resources (resources.cc): the scene, and each output stream the transport carries
+  // resources/list's resources.
+  json resource_list() const;
+  // resources/read: the scene (a call of simulation get_scene_objects) or a stream's latest
+  // sample (the next one when no session watches it).
+  void read_resource(kit::HttpConnection& connection, const json& id, const json& params);
+  // resources/subscribe and resources/unsubscribe of a stream's resource.
+  void watch_resource(kit::HttpConnection& connection, Session& session, const json& id,
+                      const json& params, bool subscribe);
+  // The watch of `component`'s stream, made when there is none; null when the transport
+  // carries no such output stream.
+  StreamWatch* watch(const std::string& component);
+  // Ends `component`'s watch when no session and no read needs it any more.
+  void release_watch(const std::string& component);
+  // The session's subscriptions end (it ended).
+  void unwatch_all(Session& session);
+  // GET: the session's stream of notifications (tools and resources changed, updated).
+  void open_events(kit::HttpConnection& connection, const kit::HttpRequest& request);
+  // A notification on the session's GET stream (none when it has none open).
+  void notify(Session& session, const json& message);
+  // The services or streams changed (on_services_changed, posted): every session is told.
+  void announce_changes();
+  // A watched stream has samples (the thread that holds the simulation lock): one post.
+  void wake_streams();
+  // Takes the samples, answers the reads, notifies the subscribed sessions (at most every
+  // k_update_interval per resource).
+  void drain_streams();
+  // A resources/read's answer: the scene's call outcome.
+  void finish_resource_read(kit::HttpConnection& connection, const Pending& pending,
+                            Outcome&& outcome);
+
+  static constexpr std::chrono::milliseconds k_update_interval{100};
+
   // Answers with a JSON body.
   void respond_json(kit::HttpConnection& connection, unsigned status, const json& body,
                     const std::string& headers = {});
@@ -169,6 +227,9 @@ class McpServer : public RequestManager, private kit::HttpServer {
   std::map<std::string, Tool> tools_;               // by name (I/O thread)
   std::vector<std::string> skipped_tools_;          // services without a tool (name clash)
   std::atomic<bool> tools_stale_{true};             // the services changed since tools_
+  std::map<std::string, StreamWatch> watches_;      // by component (I/O thread)
+  std::atomic<bool> streams_woken_{false};          // a drain_streams is posted
+  std::vector<SamplePtr> samples_;                  // drain_streams' scratch
   std::uint64_t next_connection_ = 1;
   std::uint64_t next_session_ = 1;
   bool stopping_ = false;

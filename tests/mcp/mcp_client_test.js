@@ -8,10 +8,11 @@
 const path = require('path');
 const { spawn } = require('child_process');
 
-let Client, StreamableHTTPClientTransport;
+let Client, StreamableHTTPClientTransport, ResourceUpdatedNotificationSchema;
 try {
   ({ Client } = require(path.join(__dirname, 'node_modules/@modelcontextprotocol/sdk/dist/cjs/client/index.js')));
   ({ StreamableHTTPClientTransport } = require(path.join(__dirname, 'node_modules/@modelcontextprotocol/sdk/dist/cjs/client/streamableHttp.js')));
+  ({ ResourceUpdatedNotificationSchema } = require(path.join(__dirname, 'node_modules/@modelcontextprotocol/sdk/dist/cjs/types.js')));
 } catch (e) {
   console.log('SKIP: @modelcontextprotocol/sdk is not installed (scripts/test installs it): ' + e.message);
   process.exit(77);
@@ -143,6 +144,39 @@ async function images(client) {
   check(s.width === 64 && s.height === 48, 'the snapshot is 64x48: ' + JSON.stringify(s));
 }
 
+// The scene and the streams as resources: listed, read (the camera's as a PNG blob), and a
+// subscription's notifications/resources/updated on the session's GET stream.
+async function resources(client) {
+  const { resources } = await client.listResources();
+  const uris = resources.map((r) => r.uri);
+  console.log('resources/list: ' + uris.join(', '));
+  check(uris.includes('simgate://scene') && uris.includes('simgate://streams/rover.pose') &&
+        uris.includes('simgate://streams/rover.camera'), 'the scene and the two streams are resources');
+  const scene = await client.readResource({ uri: 'simgate://scene' });
+  check(scene.contents[0].mimeType === 'application/json' && JSON.parse(scene.contents[0].text),
+        'the scene reads as JSON: ' + JSON.stringify(scene).slice(0, 200));
+  const pose = await client.readResource({ uri: 'simgate://streams/rover.pose' });
+  const sample = JSON.parse(pose.contents[0].text);
+  check(typeof sample.time === 'number' && typeof sample.data.x === 'number', 'a pose sample: ' + pose.contents[0].text);
+  const camera = await client.readResource({ uri: 'simgate://streams/rover.camera' });
+  const blob = camera.contents.find((c) => c.mimeType === 'image/png');
+  check(blob, 'the camera\'s sample has its PNG as a blob: ' + JSON.stringify(camera).slice(0, 300));
+  const size = pngSize(blob.blob);
+  check(size.width === 160 && size.height === 120, 'the camera resource is 160x120: ' + JSON.stringify(size));
+  const updates = [];
+  client.setNotificationHandler(ResourceUpdatedNotificationSchema, (n) => updates.push(n.params.uri));
+  await client.subscribeResource({ uri: 'simgate://streams/rover.pose' });
+  const until = Date.now() + 15000;
+  while (updates.length < 2 && Date.now() < until) await sleep(20);
+  check(updates.length >= 2 && updates.every((u) => u === 'simgate://streams/rover.pose'),
+        `notifications/resources/updated for the subscribed pose (${updates.length})`);
+  await client.unsubscribeResource({ uri: 'simgate://streams/rover.pose' });
+  let missing;
+  try { await client.readResource({ uri: 'simgate://streams/nothing' }); } catch (e) { missing = e; }
+  check(missing && /Resource not found/.test(missing.message), 'an unknown resource: ' + (missing && missing.message));
+  console.log(`resources: read the scene, a pose, a 160x120 camera image; ${updates.length} updates`);
+}
+
 async function refused(url) {
   for (const [token, what] of [['wrong-token-0123456789', 'a wrong token'], [undefined, 'no token']]) {
     let error;
@@ -167,6 +201,7 @@ async function main(argv) {
     await longCallCancelled(client);
     await deadline(client);
     await images(client);
+    await resources(client);
     await refused(url);
     await client.close();
     console.log('PASS: an MCP client lists and calls simgate\'s tools');

@@ -265,7 +265,7 @@ def test_sessions_and_bad_messages(port):
     check(status == 400 and b"nests deeper" in body, f"deep nesting is refused unparsed: 400 ({body[:200]})")
     status, _, body = http.post([{"jsonrpc": "2.0", "id": 1, "method": "ping"}], session)
     check(status == 400 and b"batch" in body, f"a batch: 400 ({body[:200]})")
-    status, _, body = http.post({"jsonrpc": "2.0", "id": 1, "method": "resources/read"}, session)
+    status, _, body = http.post({"jsonrpc": "2.0", "id": 1, "method": "prompts/get"}, session)
     check(status == 200 and json.loads(body)["error"]["code"] == -32601, f"an unknown method: -32601 ({body[:200]})")
     status, _, body = http.post({"jsonrpc": "2.0", "id": 1, "method": "tools/call",
                                  "params": {"name": "no_such_tool", "arguments": {}}}, session)
@@ -275,12 +275,31 @@ def test_sessions_and_bad_messages(port):
     check(status == 400 and b"not served" in body, f"an unserved revision: 400 ({body[:200]})")
     status, _, _ = http.post({"jsonrpc": "2.0", "method": "notifications/initialized"}, session)
     check(status == 202, f"a notification: 202 ({status})")
-    http.send(request_bytes("GET", b"", base_headers(session)))
+    http.send(request_bytes("PUT", b"", base_headers(session)))
     status, headers, _ = http.read()
-    check(status == 405 and "POST" in headers.get("allow", ""), f"GET: 405 with Allow ({status})")
+    check(status == 405 and "GET" in headers.get("allow", ""), f"PUT: 405 with Allow ({status} {headers})")
+    json_only = base_headers(session)
+    json_only["Accept"] = "application/json"
+    http.send(request_bytes("GET", b"", json_only))
+    status, _, _ = http.read()
+    check(status == 406, f"GET without Accept: text/event-stream: 406 ({status})")
+    # GET opens the session's stream of notifications, which its end ends
+    events = Http(port)
+    events.send(request_bytes("GET", b"", base_headers(session)))
+    status, headers, rest = read_head_only(events.sock)
+    check(status == 200 and headers.get("content-type") == "text/event-stream",
+          f"GET opens the session's event stream ({status} {headers})")
     http.send(request_bytes("DELETE", b"", base_headers(session)))
     status, _, _ = http.read()
     check(status == 200, f"DELETE ends the session ({status})")
+    events.sock.settimeout(10)
+    while b"0\r\n\r\n" not in rest:
+        chunk = events.sock.recv(4096)
+        if not chunk:
+            break
+        rest += chunk
+    check(b"0\r\n\r\n" in rest, f"the session's end ends its event stream ({rest[-40:]})")
+    events.close()
     status, _, _ = http.post({"jsonrpc": "2.0", "id": 1, "method": "ping"}, session)
     check(status == 404, f"an ended session: 404 ({status})")
     http.close()
@@ -330,15 +349,17 @@ def test_a_client_that_leaves_mid_call_has_it_cancelled(port):
 
 
 def read_head_only(sock):
+    """A response's status and headers, and what came after them."""
     data = b""
     while b"\r\n\r\n" not in data:
         data += sock.recv(4096)
-    head = data.partition(b"\r\n\r\n")[0].decode()
+    head, _, rest = data.partition(b"\r\n\r\n")
+    head = head.decode()
     headers = {}
     for line in head.split("\r\n")[1:]:
         name, _, value = line.partition(":")
         headers[name.strip().lower()] = value.strip()
-    return int(head.split(" ", 2)[1]), headers, b""
+    return int(head.split(" ", 2)[1]), headers, rest
 
 
 def main(argv):

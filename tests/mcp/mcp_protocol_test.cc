@@ -162,7 +162,8 @@ TEST(McpProtocol, ProgressCountsReportsOrTheStepsDone) {
 TEST(McpProtocol, InitializeSaysTheRevisionAndTools) {
   const json r = initialize_result("2025-06-18", "1.2.3");
   EXPECT_EQ(r["protocolVersion"], "2025-06-18");
-  EXPECT_TRUE(r["capabilities"].contains("tools"));
+  EXPECT_EQ(r["capabilities"]["tools"]["listChanged"], true);
+  EXPECT_EQ(r["capabilities"]["resources"]["subscribe"], true);
   EXPECT_EQ(r["serverInfo"]["name"], "simgate");
   EXPECT_EQ(r["serverInfo"]["version"], "1.2.3");
 }

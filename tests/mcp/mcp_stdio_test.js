@@ -1,16 +1,18 @@
 // `simgate mcp` against the Model Context Protocol's own client (@modelcontextprotocol/sdk,
 // nobody on the team wrote it) over stdio, as a desktop agent launches it: the SDK spawns
 // `simgate mcp --model MODEL --plugin-path DIR` (the simulation runs in that process, served by
-// an mcp transport its standard input and output are bridged to), lists the tools, pauses the
+// an mcp transport its standard input and output are bridged to), lists the tools, subscribes
+// to a stream's resource (its updates forwarded from the session's GET stream), pauses the
 // simulation and steps it with progress, and closes (standard input ends: the process exits).
 // Exit 77 (skipped) without the SDK (scripts/test installs it).
 'use strict';
 const path = require('path');
 
-let Client, StdioClientTransport;
+let Client, StdioClientTransport, ResourceUpdatedNotificationSchema;
 try {
   ({ Client } = require(path.join(__dirname, 'node_modules/@modelcontextprotocol/sdk/dist/cjs/client/index.js')));
   ({ StdioClientTransport } = require(path.join(__dirname, 'node_modules/@modelcontextprotocol/sdk/dist/cjs/client/stdio.js')));
+  ({ ResourceUpdatedNotificationSchema } = require(path.join(__dirname, 'node_modules/@modelcontextprotocol/sdk/dist/cjs/types.js')));
 } catch (e) {
   console.log('SKIP: @modelcontextprotocol/sdk is not installed (scripts/test installs it): ' + e.message);
   process.exit(77);
@@ -32,6 +34,20 @@ async function main([simgate, model, pluginDir]) {
   check(names.includes('simulation_step') && names.includes('simulation_list_robots'), 'the simulation tools are listed');
   const robots = await client.callTool({ name: 'simulation_list_robots', arguments: {} });
   check(!robots.isError && robots.structuredContent.result.length >= 1, 'the model\'s robots: ' + JSON.stringify(robots.structuredContent));
+  // a stream's resource, subscribed: its updates come through the bridge (the session's GET
+  // stream, forwarded to standard output)
+  const { resources } = await client.listResources();
+  const stream = resources.find((r) => r.uri.startsWith('simgate://streams/'));
+  check(stream, 'the model\'s streams are resources: ' + resources.map((r) => r.uri));
+  const updates = [];
+  client.setNotificationHandler(ResourceUpdatedNotificationSchema, (n) => updates.push(n.params.uri));
+  await client.subscribeResource({ uri: stream.uri });
+  const until = Date.now() + 15000;
+  while (updates.length < 1 && Date.now() < until) await new Promise((r) => setTimeout(r, 20));
+  check(updates.length >= 1 && updates[0] === stream.uri, `${stream.uri} updated over stdio (${updates.length})`);
+  const read = await client.readResource({ uri: stream.uri });
+  check(JSON.parse(read.contents[0].text).seq >= 1, 'its sample reads over stdio: ' + read.contents[0].text.slice(0, 120));
+  await client.unsubscribeResource({ uri: stream.uri });
   const paused = await client.callTool({ name: 'simulation_pause', arguments: {} });
   check(!paused.isError, 'pause: ' + JSON.stringify(paused));
   const reports = [];

@@ -192,7 +192,9 @@ json progress_notification(const json& token, std::uint64_t count, const json& v
 
 json initialize_result(std::string_view version, std::string_view simgate_version) {
   return {{"protocolVersion", version},
-          {"capabilities", {{"tools", {{"listChanged", false}}}}},
+          {"capabilities",
+           {{"tools", {{"listChanged", true}}},
+            {"resources", {{"subscribe", true}, {"listChanged", true}}}}},
           {"serverInfo",
            {{"name", "simgate"},
             {"title", "simgate robotics simulation"},
@@ -202,7 +204,9 @@ json initialize_result(std::string_view version, std::string_view simgate_versio
            "simulation_* tools control the world (list_robots, get_simulation_state, step, pause, "
            "play, reset, spawn_entity, get_snapshot for a picture), <robot>_<component>_* tools "
            "drive a robot's actuators and read its sensors. Long calls (a goto, a step of many "
-           "steps) report progress and can be cancelled; deadline_ms bounds them."}};
+           "steps) report progress and can be cancelled; deadline_ms bounds them. Resources: "
+           "simgate://scene (the scene's objects) and simgate://streams/<component> (a sensor's "
+           "latest sample; a camera's image), which can be subscribed to."}};
 }
 
 }  // namespace simgate::mcp
