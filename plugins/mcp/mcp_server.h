@@ -228,8 +228,10 @@ class McpServer : public RequestManager, private kit::HttpServer {
   std::vector<std::string> skipped_tools_;          // services without a tool (name clash)
   std::atomic<bool> tools_stale_{true};             // the services changed since tools_
   std::map<std::string, StreamWatch> watches_;      // by component (I/O thread)
-  std::atomic<bool> streams_woken_{false};          // a drain_streams is posted
-  std::vector<SamplePtr> samples_;                  // drain_streams' scratch
+  std::atomic<bool> streams_woken_{false};
+  std::atomic<bool> changes_posted_{
+      false};  // an announce_changes is posted          // a drain_streams is posted
+  std::vector<SamplePtr> samples_;  // drain_streams' scratch
   std::uint64_t next_connection_ = 1;
   std::uint64_t next_session_ = 1;
   bool stopping_ = false;

@@ -201,10 +201,13 @@ void McpServer::notify(Session& session, const json& message) {
 
 void McpServer::on_services_changed() {
   tools_stale_.store(true, std::memory_order_relaxed);
+  // a robot's components come together: one announcement for the burst
+  if (changes_posted_.exchange(true, std::memory_order_acq_rel)) return;
   asio::post(io_, [this] { announce_changes(); });
 }
 
 void McpServer::announce_changes() {
+  changes_posted_.store(false, std::memory_order_release);
   if (stopping_) return;
   const json tools = notification("notifications/tools/list_changed");
   const json resources = notification("notifications/resources/list_changed");

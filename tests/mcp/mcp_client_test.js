@@ -8,11 +8,12 @@
 const path = require('path');
 const { spawn } = require('child_process');
 
-let Client, StreamableHTTPClientTransport, ResourceUpdatedNotificationSchema;
+let Client, StreamableHTTPClientTransport, ResourceUpdatedNotificationSchema, ToolListChangedNotificationSchema;
 try {
   ({ Client } = require(path.join(__dirname, 'node_modules/@modelcontextprotocol/sdk/dist/cjs/client/index.js')));
   ({ StreamableHTTPClientTransport } = require(path.join(__dirname, 'node_modules/@modelcontextprotocol/sdk/dist/cjs/client/streamableHttp.js')));
-  ({ ResourceUpdatedNotificationSchema } = require(path.join(__dirname, 'node_modules/@modelcontextprotocol/sdk/dist/cjs/types.js')));
+  ({ ResourceUpdatedNotificationSchema, ToolListChangedNotificationSchema } =
+    require(path.join(__dirname, 'node_modules/@modelcontextprotocol/sdk/dist/cjs/types.js')));
 } catch (e) {
   console.log('SKIP: @modelcontextprotocol/sdk is not installed (scripts/test installs it): ' + e.message);
   process.exit(77);
@@ -177,6 +178,32 @@ async function resources(client) {
   console.log(`resources: read the scene, a pose, a 160x120 camera image; ${updates.length} updates`);
 }
 
+// A robot spawned at run time: the session's GET stream says the tools changed, and its
+// services are tools; deleted, they are gone.
+async function toolsChange(client) {
+  let changes = 0;
+  client.setNotificationHandler(ToolListChangedNotificationSchema, () => { ++changes; });
+  const spawned = await client.callTool({
+    name: 'simulation_spawn_entity',
+    arguments: {
+      name: 'bot', pose: [0, 1.5, 0.3],
+      mjcf: "<mujoco><worldbody><body><freejoint/><geom type='box' size='.1 .1 .1' mass='1'/></body></worldbody></mujoco>",
+      robot: { type: 'robot', components: [{ name: 'pose', type: 'pose' }] },
+    },
+  });
+  check(!spawned.isError, 'spawn_entity: ' + JSON.stringify(spawned).slice(0, 300));
+  const until = Date.now() + 15000;
+  while (changes < 1 && Date.now() < until) await sleep(20);
+  check(changes >= 1, 'notifications/tools/list_changed after a robot was spawned');
+  const names = (await client.listTools()).tools.map((t) => t.name);
+  check(names.includes('bot_pose_get_local_data'), 'the spawned robot\'s services are tools');
+  const deleted = await client.callTool({ name: 'simulation_delete_entity', arguments: { name: 'bot' } });
+  check(!deleted.isError, 'delete_entity: ' + JSON.stringify(deleted).slice(0, 300));
+  const after = (await client.listTools()).tools.map((t) => t.name);
+  check(!after.includes('bot_pose_get_local_data'), 'deleted, its tools are gone');
+  console.log(`tools/list_changed: ${changes} notification(s) for a robot spawned and deleted`);
+}
+
 async function refused(url) {
   for (const [token, what] of [['wrong-token-0123456789', 'a wrong token'], [undefined, 'no token']]) {
     let error;
@@ -202,6 +229,7 @@ async function main(argv) {
     await deadline(client);
     await images(client);
     await resources(client);
+    await toolsChange(client);
     await refused(url);
     await client.close();
     console.log('PASS: an MCP client lists and calls simgate\'s tools');
