@@ -303,7 +303,7 @@ void McpServer::on_post(kit::HttpConnection& connection, const kit::HttpRequest&
     return connection.respond(202, "text/plain; charset=utf-8", "");
   }
   if (rpc.method == "tools/call") return call_tool(connection, session, events, rpc.id, rpc.params);
-  on_method(connection, session, request, rpc.id, rpc.method, rpc.params);
+  on_method(connection, session, rpc.id, rpc.method, rpc.params);
 }
 
 // ---- sessions
@@ -388,8 +388,7 @@ const std::map<std::string, Tool>& McpServer::tools() {
   return tools_;
 }
 
-void McpServer::on_method(kit::HttpConnection& connection, Session& session,
-                          const kit::HttpRequest& /*http*/, const json& id,
+void McpServer::on_method(kit::HttpConnection& connection, Session& session, const json& id,
                           const std::string& method, json& params) {
   if (method == "ping")
     return respond_json(connection, 200, jsonrpc::result_response(id, json::object()));

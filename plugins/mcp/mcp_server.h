@@ -157,8 +157,8 @@ class McpServer : public RequestManager, private kit::HttpServer {
   // `initialize`: a new session.
   void initialize(kit::HttpConnection& connection, const json& id, const json& params);
   // A request of session `session` (tools/list, tools/call, ping).
-  void on_method(kit::HttpConnection& connection, Session& session, const kit::HttpRequest& http,
-                 const json& id, const std::string& method, json& params);
+  void on_method(kit::HttpConnection& connection, Session& session, const json& id,
+                 const std::string& method, json& params);
   void call_tool(kit::HttpConnection& connection, Session& session, bool events, const json& id,
                  json& params);
   // A notification of `session` (notifications/cancelled; the others are taken note of).

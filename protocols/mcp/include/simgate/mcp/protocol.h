@@ -26,8 +26,6 @@ namespace simgate::mcp {
 // The revisions served, newest first.
 inline constexpr std::array<std::string_view, 3> k_protocol_versions = {"2025-11-25", "2025-06-18",
                                                                         "2025-03-26"};
-// What a request without an MCP-Protocol-Version header is taken to speak (the spec's rule).
-inline constexpr std::string_view k_assumed_version = "2025-03-26";
 bool is_served_version(std::string_view version);
 // The revision an initialize asking for `requested` gets: it when served, else the newest.
 std::string_view negotiate_version(std::string_view requested);
