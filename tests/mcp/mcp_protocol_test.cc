@@ -82,7 +82,7 @@ TEST(McpProtocol, TheDeadlineIsTakenOutOfTheArgumentsAndChecked) {
   EXPECT_EQ(arguments, (json{{"x", 1}}));
   json none = {{"x", 1}};
   EXPECT_EQ(take_deadline(none, slow, why), std::chrono::milliseconds(0));
-  for (const json bad : {json(0), json(-5), json(1.5), json("soon")}) {
+  for (const json& bad : {json(0), json(-5), json(1.5), json("soon")}) {
     json a = {{"deadline_ms", bad}};
     take_deadline(a, slow, why);
     EXPECT_NE(why.find("deadline_ms must be an integer"), std::string::npos) << bad;
