@@ -79,6 +79,8 @@ McpServer::Settings McpServer::Settings::parse(const json& options) {
   s.session_timeout =
       std::chrono::seconds(config.get_int("session_timeout_s", 1800, 10, 7 * 86'400));
   s.max_calls_per_s = config.get_number("max_calls_per_s", 50, 0.1, 1e6);
+  s.resume_window = std::chrono::milliseconds(
+      std::llround(config.get_number("resume_window_s", 30, 0, 3600) * 1000));
   s.tcp.finish(config);
   return s;
 }
@@ -98,6 +100,9 @@ McpServer::McpServer(Settings settings)
       session_timer_(io_) {
   set_global_policy(settings_.tcp.global_policy);
   set_progress_interval(settings_.tcp.progress_interval);
+  // detached streams are expired within half their window (at least every 10 s)
+  sweep_interval_ = std::clamp<std::chrono::milliseconds>(
+      settings_.resume_window / 2, std::chrono::milliseconds(100), k_session_sweep);
   settings_.origins.bind(settings_.tcp.host, listener_.port());
   for (const auto& w : settings_.tcp.warnings) log::warning(name(), ": ", w);
 }
@@ -356,7 +361,8 @@ void McpServer::sweep_sessions() {
   for (const auto& [id, session] : sessions_)
     if (session.calls.empty() && now - session.used > settings_.session_timeout) idle.push_back(id);
   for (const auto& id : idle) end_session(id, "unused for session_timeout_s");
-  session_timer_.expires_after(k_session_sweep);
+  expire_streams(now);
+  session_timer_.expires_after(sweep_interval_);
   session_timer_.async_wait([this](const boost::system::error_code& ec) {
     if (!ec) sweep_sessions();
   });
@@ -494,16 +500,21 @@ void McpServer::on_messages_done(kit::Connection& /*connection*/, bool /*read_fi
     if (it == pending_.end() || !it->second.events) continue;
     auto connection = it->second.connection.lock();
     if (!connection || connection->closed() || connection->streaming()) continue;
-    connection->begin_events();
+    begin_call_stream(request, it->second, *connection);
     connection->flush_writes();
   }
 }
 
 void McpServer::on_closed(kit::Connection& connection) {
-  // a call whose answer was to go on this connection cannot be answered any more: nobody
-  // could resume its stream, so it is cancelled (on_disconnect "let_run": it runs on)
-  if (stopping_ || !settings_.tcp.cancel_on_disconnect) return;
+  if (stopping_) return;
+  // a stream it carried waits for its client to resume it (resume_window_s); a call that was
+  // to answer here as JSON cannot be answered any more: cancelled (on_disconnect "let_run":
+  // it runs on)
+  detach_streams(connection);
+  expire_streams(std::chrono::steady_clock::now());
+  if (!settings_.tcp.cancel_on_disconnect) return;
   for (auto& [request, pending] : pending_) {
+    if (pending.stream != 0) continue;
     auto owner = pending.connection.lock();
     if (!owner || owner.get() == &connection) {
       pending.cancelled = true;
@@ -521,18 +532,17 @@ void McpServer::on_service_completion(RequestId id, Outcome&& outcome) {
   pending_.erase(it);
   if (auto s = sessions_.find(pending.session); s != sessions_.end())
     s->second.calls.erase(jsonrpc::dump(pending.id));
+  if (pending.stream != 0) {
+    // a cancelled call's stream ends without a result (the spec: no response to a request
+    // the client cancelled); a detached one keeps it for its client's resume
+    if (!pending.cancelled || outcome.status == Status::success)
+      stream_event(pending, result_line(pending.id, tool_result_text(std::move(outcome))), false);
+    return end_call_stream(pending);
+  }
   auto connection = pending.connection.lock();
   if (!connection || connection->closed() || !connection->answering()) return;
   if (!pending.resource.empty())
     return finish_resource_read(*connection, pending, std::move(outcome));
-  if (connection->streaming()) {
-    // a cancelled call's stream ends without a result (the spec: no response to a request
-    // the client cancelled)
-    if (!pending.cancelled || outcome.status == Status::success)
-      connection->queue_event(result_line(pending.id, tool_result_text(std::move(outcome))));
-    connection->end_events();
-    return;
-  }
   connection->respond(200, "application/json",
                       result_line(pending.id, tool_result_text(std::move(outcome))));
 }
@@ -540,11 +550,11 @@ void McpServer::on_service_completion(RequestId id, Outcome&& outcome) {
 void McpServer::on_service_progress(RequestId id, json&& value) {
   auto it = pending_.find(id);
   if (it == pending_.end() || it->second.progress_token.is_null()) return;
-  auto connection = it->second.connection.lock();
-  if (!connection || !connection->streaming()) return;
   Pending& pending = it->second;
-  connection->queue_droppable_event(
-      jsonrpc::dump(progress_notification(pending.progress_token, ++pending.reports, value)));
+  if (pending.stream == 0) return;
+  stream_event(
+      pending,
+      jsonrpc::dump(progress_notification(pending.progress_token, ++pending.reports, value)), true);
 }
 
 }  // namespace simgate::mcp
@@ -554,4 +564,4 @@ SIMGATE_TRANSPORT_PLUGIN(mcp, simgate::mcp::McpServer, "0.1.0", "host", "port", 
                          "max_buffered_bytes", "max_in_flight", "io_spin_us", "on_disconnect",
                          "global_policy", "idle_timeout_s", "idle_evict_s", "line_timeout_s",
                          "progress_interval_ms", "allowed_origins", "auth", "path", "max_sessions",
-                         "session_timeout_s", "max_calls_per_s")
+                         "session_timeout_s", "max_calls_per_s", "resume_window_s")

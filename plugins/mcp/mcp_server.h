@@ -14,8 +14,9 @@
 //     text/event-stream is answered as a stream: notifications/progress while it runs (when
 //     the call has a progressToken), then the result. notifications/cancelled cancels it
 //     (the stream then ends without a result, as the spec asks); the argument deadline_ms
-//     bounds it. A client whose connection closes while its call runs has it cancelled (a
-//     stream cannot be resumed here, so nobody could read its result; `on_disconnect`).
+//     bounds it. A stream whose connection drops can be resumed (GET with Last-Event-ID,
+//     call_streams.cc) within resume_window_s; not resumed, its call is cancelled
+//     (`on_disconnect`).
 //   - Resources (resources.cc): the scene (simgate://scene: simulation get_scene_objects) and
 //     each output stream the transport carries (simgate://streams/<component>: its latest
 //     sample; a camera's as image/png), read, and subscribed to (notifications/resources/
@@ -36,7 +37,7 @@
 //
 // Options: the kit's (kit::TcpOptions: host, port 8808, limits, timeouts, auth),
 // allowed_origins (kit::OriginPolicy), path, max_sessions, session_timeout_s,
-// max_calls_per_s.
+// max_calls_per_s, resume_window_s.
 //
 // Threads: one I/O thread (connections, sessions, pending calls, the tools); the core's
 // outcomes and progress reports are handed to it (deliver_on_this_thread).
@@ -46,6 +47,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <deque>
 #include <map>
 #include <memory>
 #include <set>
@@ -90,11 +92,24 @@ class McpServer : public RequestManager, private kit::HttpServer {
   struct Settings {
     kit::TcpOptions tcp;
     kit::OriginPolicy origins;
-    std::string path = "/mcp";                   // the endpoint's path
-    std::size_t max_sessions = 64;               // sessions open at once
-    std::chrono::seconds session_timeout{1800};  // a session unused this long ends
-    double max_calls_per_s = 50;                 // tools/call per second per session
+    std::string path = "/mcp";                       // the endpoint's path
+    std::size_t max_sessions = 64;                   // sessions open at once
+    std::chrono::seconds session_timeout{1800};      // a session unused this long ends
+    double max_calls_per_s = 50;                     // tools/call per second per session
+    std::chrono::milliseconds resume_window{30000};  // a dropped stream may be resumed this long
     static Settings parse(const json& options);
+  };
+  // A tools/call answered as a stream of events (call_streams.cc). Its events are kept (the
+  // last k_kept_events, the result always) so that a client whose connection dropped resumes
+  // it with a GET carrying Last-Event-ID ("<stream>-<event>") within resume_window_s; not
+  // resumed by then, the call is cancelled.
+  struct CallStream {
+    RequestId request = 0;                                     // the call
+    std::weak_ptr<kit::HttpConnection> connection;             // where its events go
+    std::deque<std::pair<std::uint64_t, std::string>> events;  // (number, message) sent
+    std::uint64_t next_event = 1;                              // the next event's number
+    bool done = false;                                         // the call ended: the last event
+    std::chrono::steady_clock::time_point detached{};  // its connection dropped (epoch: did not)
   };
   // One agent's session (Mcp-Session-Id), over any number of its connections.
   struct Session {
@@ -107,6 +122,8 @@ class McpServer : public RequestManager, private kit::HttpServer {
     std::map<std::string, RequestId> calls;          // its calls running: dumped id -> request
     std::weak_ptr<kit::HttpConnection> events;       // its GET stream: notifications
     std::set<std::string> watched;                   // the streams it subscribed to (components)
+    std::map<std::uint64_t, CallStream> streams;     // its calls answered as streams, by number
+    std::uint64_t next_stream = 1;                   // the next one's number
   };
   // A tools/call submitted and not yet answered.
   struct Pending {
@@ -118,6 +135,7 @@ class McpServer : public RequestManager, private kit::HttpServer {
     std::uint64_t reports = 0;  // progress notifications sent
     bool cancelled = false;     // the client sent notifications/cancelled for it
     std::string resource;       // a resources/read of this URI (not a tool call)
+    std::uint64_t stream = 0;   // its CallStream in the session (0: answered as JSON)
   };
   // A resources/read of a stream waiting for its next sample.
   struct PendingRead {
@@ -212,7 +230,25 @@ class McpServer : public RequestManager, private kit::HttpServer {
   void respond_error(kit::HttpConnection& connection, unsigned status, const json& id, int code,
                      std::string message);
 
+  // ---- streams of calls (call_streams.cc)
+  // The call of `pending` answers as a stream on `connection` (begun): its CallStream.
+  void begin_call_stream(RequestId request, Pending& pending, kit::HttpConnection& connection);
+  // Sends `message` as the next event of `pending`'s stream (kept for a resume); a droppable
+  // one (progress) is dropped for a client that does not read.
+  void stream_event(const Pending& pending, std::string message, bool droppable);
+  // The call ended (its result sent, or not for a cancelled one): the stream ends, or waits
+  // for its client to resume it when it is detached.
+  void end_call_stream(const Pending& pending);
+  // `connection` closed: the streams it carried are detached (resumable for resume_window).
+  void detach_streams(const kit::Connection& connection);
+  // GET with Last-Event-ID: the events after it replayed, the stream continued there.
+  void resume_stream(kit::HttpConnection& connection, Session& session, std::string_view last);
+  // Detached streams older than resume_window: their calls cancelled, forgotten.
+  void expire_streams(std::chrono::steady_clock::time_point now);
+  static constexpr std::size_t k_kept_events = 256;
+
   static constexpr std::chrono::seconds k_session_sweep{10};
+  std::chrono::milliseconds sweep_interval_{k_session_sweep};  // min(10 s, resume_window)
 
   Settings settings_;
   boost::asio::io_context io_;

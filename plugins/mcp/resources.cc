@@ -186,6 +186,10 @@ void McpServer::open_events(kit::HttpConnection& connection, const kit::HttpRequ
     return respond_error(connection, 404, nullptr, code::invalid_request,
                          "no session " + quoted_prefix(*id, 40) + " (ended, or never made)");
   Session& session = found->second;
+  session.used = std::chrono::steady_clock::now();
+  // a call's stream resumed (its client's connection dropped)
+  if (const auto last = kit::header_value(request, "Last-Event-ID"))
+    return resume_stream(connection, session, *last);
   // one stream per session: a new one (a client reconnecting) replaces the old
   if (auto old = session.events.lock(); old && old->streaming()) old->end_events();
   session.events = std::static_pointer_cast<kit::HttpConnection>(connection.shared_from_this());

@@ -323,8 +323,29 @@ def test_a_client_that_leaves_mid_call_has_it_cancelled(port):
     goto = call(10, "rover_waypoint_goto", {"x": 3, "y": 0, "z": 0})
     goto["params"]["_meta"] = {"progressToken": "go"}
     http.send(request_bytes("POST", json.dumps(goto).encode(), base_headers(session)))
-    status, headers, _ = read_head_only(http.sock)
+    status, headers, rest = read_head_only(http.sock)
     check(status == 200 and headers.get("content-type") == "text/event-stream", f"a goto streams ({status} {headers})")
+    # its events carry ids; the connection drops after two, and a GET with Last-Event-ID
+    # resumes the stream after the last one seen (within resume_window_s, 1 s here)
+    seen = read_event_ids(http.sock, rest, 2)
+    http.sock.close()
+    resumed = Http(port)
+    headers = base_headers(session)
+    headers["Last-Event-ID"] = f"{seen[-1][0]}-{seen[-1][1]}"
+    resumed.send(request_bytes("GET", b"", headers))
+    status, headers, rest = read_head_only(resumed.sock)
+    check(status == 200 and headers.get("content-type") == "text/event-stream", f"the stream resumes ({status} {headers})")
+    more = read_event_ids(resumed.sock, rest, 1)
+    check(more[0][0] == seen[-1][0] and more[0][1] > seen[-1][1],
+          f"the resumed stream goes on after the last event seen ({seen} then {more})")
+    bad = Http(port)
+    headers = base_headers(session)
+    headers["Last-Event-ID"] = "999-1"
+    bad.send(request_bytes("GET", b"", headers))
+    status, _, _ = bad.read()
+    check(status == 404, f"a stream that is not there cannot be resumed: 404 ({status})")
+    bad.close()
+    http = resumed  # and now it is gone for good: not resumed within 1 s, the goto is cancelled
     other, other_session = initialize(port)
     status, headers, body = other.post(call(11, "rover_waypoint_get_status"), other_session)
     check(status == 200 and message_of(headers, body)["result"]["structuredContent"]["result"] == "Transit",
@@ -346,6 +367,18 @@ def test_a_client_that_leaves_mid_call_has_it_cancelled(port):
     x = message_of(headers, body)["result"]["structuredContent"]["x"]
     check(x < 2.0, f"far from its destination, x = 3 (x = {x:.2f})")
     other.close()
+
+
+def read_event_ids(sock, data, count):
+    """The (stream, event) ids of the next `count` events of a stream (after `data`, read
+    already)."""
+    sock.settimeout(20)
+    while len(re.findall(rb"id: (\d+)-(\d+)\n", data)) < count:
+        chunk = sock.recv(65536)
+        if not chunk:
+            break
+        data += chunk
+    return [(int(a), int(b)) for a, b in re.findall(rb"id: (\d+)-(\d+)\n", data)][:count]
 
 
 def read_head_only(sock):
