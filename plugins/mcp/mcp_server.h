@@ -131,7 +131,7 @@ class McpServer : public RequestManager, private kit::HttpServer {
     std::string session;                            // its session's id
     json id;                                        // the JSON-RPC id
     json progress_token;                            // null: no progress wanted
-    bool events = false;        // the client accepts a stream (text/event-stream)
+    bool events = false;        // answered as a stream: an async call, a client that takes one
     std::uint64_t reports = 0;  // progress notifications sent
     bool cancelled = false;     // the client sent notifications/cancelled for it
     std::string resource;       // a resources/read of this URI (not a tool call)
