@@ -133,11 +133,11 @@ void dispatch(jsonrpc::Request& request, ServiceHost& host, const json& discover
                      request.id);
     return;
   }
-  std::string component, service;
+  std::string_view component, service;
   const bool split = jsonrpc::split_method(method, component, service);
   if (split) {
     FUZZ_CHECK(!component.empty() && !service.empty() && service.find('.') == std::string::npos &&
-                   component + "." + service == method,
+                   std::string(component) + "." + std::string(service) == method,
                "split_method splits at the last dot");
   } else {
     FUZZ_CHECK(
@@ -151,7 +151,8 @@ void dispatch(jsonrpc::Request& request, ServiceHost& host, const json& discover
     if (request.has_id) check_response(jsonrpc::dump(error), request.id);
     return;
   }
-  const std::optional<Outcome> outcome = host.call(component, service, request.params);
+  const std::optional<Outcome> outcome =
+      host.call(std::string(component), std::string(service), request.params);
   if (!outcome || !request.has_id) return;  // async: ends later; a notification: no response
   if (outcome->status == Status::success) {
     const json result = outcome->value ? *outcome->value : json(nullptr);

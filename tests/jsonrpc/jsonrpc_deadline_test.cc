@@ -96,6 +96,10 @@ TEST_F(JsonRpcDeadline, BadTimeoutsAreInvalidParamsNamingMeta) {
       R"({"jsonrpc":"2.0","method":"robot.arm.add","params":{"a":1,"b":2,"_meta":{"timeout":5}},"id":"x"})");
   EXPECT_EQ(error_code(r), -32602);
   EXPECT_TRUE(contains(r["error"]["message"], "known: progress, timeout_ms")) << r.dump();
+  // a refused call leaves its id free: the same id works at once
+  r = round_trip(*client_,
+                 R"({"jsonrpc":"2.0","method":"robot.arm.add","params":{"a":1,"b":2},"id":"x"})");
+  EXPECT_EQ(r["result"], 3) << r.dump();
 }
 
 TEST_F(JsonRpcDeadline, EachCallOfABatchHasItsOwnDeadline) {

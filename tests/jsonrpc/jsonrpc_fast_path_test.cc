@@ -179,9 +179,45 @@ TEST(JsonRpcFastPath, AReusedRequestCarriesNothingOver) {
       R"({"jsonrpc":"2.0","id":6,"method":"a.b","params":[1,2]})",
       R"([{"jsonrpc":"2.0","id":7,"method":"a.b","params":[9]}])",  // declined: a batch
       R"({"jsonrpc":"2.0","id":8,"method":"a.b","params":[6,7]})",
-      R"({"jsonrpc":"2.0","method":"a.b"})"};
+      R"({"jsonrpc":"2.0","method":"a.b"})",
+      // elements and ids are overwritten in place: every change of type in every slot
+      R"({"jsonrpc":"2.0","id":"s1","method":"a.b","params":[1,-2,0.5,"x",true,null]})",
+      R"({"jsonrpc":"2.0","id":-3,"method":"a.b","params":["y",0.25,-7,false,null,8]})",
+      R"({"jsonrpc":"2.0","id":null,"method":"a.b","params":[null,"z",true,1e3,-0,"w"]})",
+      R"({"jsonrpc":"2.0","id":"","method":"a.b","params":[false,null,"",2,-1.5,true]})",
+      R"({"jsonrpc":"2.0","id":9,"method":"a.b","params":[1,2,"three",[4]]})",    // declined
+      R"({"jsonrpc":"2.0","id":10,"method":"a.b","params":[1,2,"thr\u0065e"]})",  // declined
+      R"({"jsonrpc":"2.0","id":11,"method":"a.b","params":[3]})",
+      R"({"jsonrpc":"2.0","id":-0,"method":"a.b","params":[3]})",  // id text "0", as dump()
+      R"({"jsonrpc":"2.0","id":-12,"method":"a.b","params":[3]})",
+      R"({"jsonrpc":"2.0","id":14,"method":"a.b","params":[-3,1.0]})",  // unsigned to signed
+      R"({"jsonrpc":"2.0","id":15,"method":"a.b","params":[3,-1]})",    // and back; float to signed
+      R"({"jsonrpc":"2.0","method":"a.b","params":[3,4]})"};
   for (const auto& line : sequence) check(line, fast);
   for (const auto& line : k_common) check(line, fast);
+}
+
+TEST(JsonRpcFastPath, EveryByteOfALongStringIsCheckedWordByWord) {
+  // plain strings are scanned eight bytes at a time: a quote, backslash, control or
+  // non-ASCII byte at any position of a word (and of the tail) must stop the scan there
+  const std::string plain = "robot.arm.abcdefghijklmnopqrstu";  // 31 bytes: words and a tail
+  const std::string envelope_head = R"({"jsonrpc":"2.0","id":1,"method":")";
+  Request fast;
+  ASSERT_TRUE(check(envelope_head + plain + R"(","params":[")" + plain + R"("]})", fast));
+  for (const char special : {'"', '\\', '\x01', '\t', '\x1f', '\x7f', '\x80', '\xc3', '\xff'}) {
+    for (std::size_t i = 0; i < plain.size(); ++i) {
+      std::string bent = plain;
+      bent[i] = special;
+      const std::string in_method = envelope_head + bent + R"(","params":[1]})";
+      const std::string in_param = envelope_head + plain + R"(","params":[")" + bent + R"("]})";
+      for (const auto& line : {in_method, in_param}) {
+        check(line, fast);  // declined, or read exactly as the full parser reads it
+        if (special != '"' && special != '\\' && static_cast<unsigned char>(special) < 0x20)
+          EXPECT_FALSE(parse_request_fast(line, k_max_depth, fast))
+              << "control byte " << static_cast<int>(special) << " at " << i;
+      }
+    }
+  }
 }
 
 TEST(JsonRpcFastPath, LeavesUnusualValidMessagesAndBatchesToTheFullParser) {

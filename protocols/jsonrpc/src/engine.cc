@@ -206,7 +206,7 @@ void JsonRpcEngine::handle_request(const std::shared_ptr<Session>& session, json
 }
 
 void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& request,
-                             ReplyTo to) {
+                             ReplyTo&& to) {
   to.id = request.id;
   to.notification = !request.has_id;
 
@@ -247,7 +247,7 @@ void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& r
   if (reserved && method.starts_with("rpc.") &&
       handle_stream_method(session, method, request.params, to))
     return;
-  std::string component, service;
+  std::string_view component, service;  // views of method
   if ((reserved && method.starts_with("rpc.")) || !split_method(method, component, service)) {
     const std::string reason =
         method.rfind("rpc.", 0) == 0
@@ -270,12 +270,16 @@ void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& r
                          json{{"method", method}, {"max_in_flight", options_.tcp.max_in_flight}}));
     return;
   }
-  std::string key;
+  // the session's key for the id: its text as echoed ("" for a null id or none: untracked);
+  // taken at once (one probe of the table), given back if the call is refused below
+  std::string_view key;
+  const RequestId id = new_request_id();
   if (request.has_id && !request.id.is_null()) {
-    key = request.id_text.empty() ? dump(request.id) : std::move(request.id_text);
-    if (session->has_id(key)) {
+    if (request.id_text.empty()) request.id_text = dump(request.id);
+    key = request.id_text;
+    if (!session->track(key, id)) {
       reply(to, error_response(to.id, code::invalid_request,
-                               "Invalid Request: id " + key +
+                               "Invalid Request: id " + request.id_text +
                                    " is already used by a pending call on this connection",
                                json{{"method", method}, {"reason", "duplicate id"}}));
       return;
@@ -290,6 +294,7 @@ void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& r
       std::string why;
       call_options = read_meta(*meta, why);
       if (!why.empty()) {
+        session->forget_id(key);
         reply(to, error_response(to.id, code::invalid_params, "Invalid params: _meta: " + why,
                                  json{{"method", method}, {"parameter", "_meta"}}));
         return;
@@ -301,14 +306,13 @@ void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& r
   const bool wants_progress = call_options.progress && !key.empty() && !to.notification;
 
   // gathered; flush_submissions() hands the calls of this read to the core together
-  const RequestId id = new_request_id();
-  if (!key.empty()) session->track(key, id);
   session->add_in_flight();
   if (to_submit_count_ == to_submit_.size()) to_submit_.emplace_back();
   auto& [call_id, call] = to_submit_[to_submit_count_++];
   call_id = id;
-  if (call.component != component) call.component.swap(component);
-  if (call.service != service) call.service.swap(service);
+  // a kept call object names the same service more often than not: no copy then
+  if (call.component != component) call.component.assign(component);
+  if (call.service != service) call.service.assign(service);
   call.params.swap(request.params);  // request_ takes the call's old array, for the next parse
   call.progress = wants_progress;
   call.client = session->number();

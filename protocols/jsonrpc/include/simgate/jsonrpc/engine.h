@@ -76,9 +76,12 @@ struct Options {
 class SessionCalls {
  public:
   bool has_id(const std::string& key) const { return calls_.find(key) != nullptr; }
-  // Remembers the call `id` under the client's id.
-  void track(const std::string& key, RequestId id) {
-    if (kit::IdTable::Entry* entry = calls_.insert(key)) entry->id = id;
+  // Remembers the call `id` under the client's id; false (nothing changed) when a pending
+  // call has that id already.
+  bool track(std::string_view key, RequestId id) {
+    kit::IdTable::Entry* entry = calls_.insert(key);
+    if (entry) entry->id = id;
+    return entry != nullptr;
   }
   std::optional<RequestId> find(const std::string& key) const {
     const kit::IdTable::Entry* entry = calls_.find(key);
@@ -86,7 +89,7 @@ class SessionCalls {
     return entry->id;
   }
   // The call under `key` finished ("" : untracked).
-  void forget_id(const std::string& key) {
+  void forget_id(std::string_view key) {
     if (!key.empty()) calls_.erase(key);
   }
   // The calls to cancel when the client leaves.
@@ -208,13 +211,18 @@ class JsonRpcEngine : public RequestManager {
     std::string id_key;   // the session's key for the id, dump(id) ("" when untracked)
     bool cancel = false;  // an rpc.cancel waiting for the core's answer (outcome value: found)
     // when its table node is kept for reuse: drop the references, keep the strings' capacity
-    void recycle() { to = ReplyTo{}; }
+    // (a string id goes: it may be large; a number or null stays until overwritten)
+    void recycle() {
+      to.session.reset();
+      to.batch.reset();
+      if (to.id.is_string()) to.id = nullptr;
+    }
   };
 
   // Handles one request object: answers at once (into `to`), or queues a call in to_submit_.
   void handle_request(const std::shared_ptr<Session>& session, json& message, ReplyTo to);
   // Handles one valid request (its params and id_text are moved from).
-  void dispatch(const std::shared_ptr<Session>& session, Request& request, ReplyTo to);
+  void dispatch(const std::shared_ptr<Session>& session, Request& request, ReplyTo&& to);
   // rpc.login {"token"}: the connection may call services (kit/auth.h); a wrong token is
   // answered -32005 and closes the connection.
   void handle_login(const std::shared_ptr<Session>& session, const json& params, ReplyTo to);

@@ -99,8 +99,8 @@ std::string response_with_id_text(const json& response, std::string_view id_text
 std::vector<std::pair<std::size_t, std::string>> float_id_texts(std::string_view line);
 
 // Splits "robot.arm.move" into {"robot.arm", "move"} at the last dot. False when there is
-// no dot or either side is empty.
-bool split_method(const std::string& method, std::string& component, std::string& service);
+// no dot or either side is empty. The parts are views of `method`.
+bool split_method(std::string_view method, std::string_view& component, std::string_view& service);
 
 // The call options of "_meta" in named params: {"progress": true|false} (rpc.progress
 // notifications for this call), {"timeout_ms": N} (the call's deadline: an integer from 1 to
