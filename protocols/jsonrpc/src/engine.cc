@@ -273,17 +273,20 @@ void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& r
   // the session's key for the id: its text as echoed ("" for a null id or none: untracked);
   // taken at once (one probe of the table), given back if the call is refused below
   std::string_view key;
+  std::size_t key_hash = 0;
   const RequestId id = new_request_id();
   if (request.has_id && !request.id.is_null()) {
     if (request.id_text.empty()) request.id_text = dump(request.id);
     key = request.id_text;
-    if (!session->track(key, id)) {
+    const auto hash = session->track(key, id);
+    if (!hash) {
       reply(to, error_response(to.id, code::invalid_request,
                                "Invalid Request: id " + request.id_text +
                                    " is already used by a pending call on this connection",
                                json{{"method", method}, {"reason", "duplicate id"}}));
       return;
     }
+    key_hash = *hash;
   }
 
   // call options: "_meta" in named params (MCP's convention), never an argument
@@ -294,7 +297,7 @@ void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& r
       std::string why;
       call_options = read_meta(*meta, why);
       if (!why.empty()) {
-        session->forget_id(key);
+        if (!key.empty()) session->forget_call(key_hash, id);
         reply(to, error_response(to.id, code::invalid_params, "Invalid params: _meta: " + why,
                                  json{{"method", method}, {"parameter", "_meta"}}));
         return;
@@ -321,6 +324,7 @@ void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& r
   pending.to = std::move(to);
   pending.method.assign(method);
   pending.id_key.assign(key);
+  pending.id_hash = key_hash;
   pending.cancel = false;
 }
 
@@ -458,7 +462,8 @@ void JsonRpcEngine::finish_call(RequestId id, Outcome&& outcome) {
   } catch (const std::exception& e) {
     log::error(tag_, ": reply to ", pending.method, ": ", e.what());
   }
-  session->done(pending.id_key);
+  if (!pending.id_key.empty()) session->forget_call(pending.id_hash, id);
+  session->done();
 }
 
 void JsonRpcEngine::reply(ReplyTo& to, std::optional<json> response) {

@@ -79,9 +79,10 @@ void append_json(std::string& out, const json& value) {
 }  // namespace
 
 void append_result_line(std::string& out, std::string_view id_text, const json& result) {
-  out += R"({"jsonrpc":"2.0","id":)";
+  using namespace std::string_view_literals;  // sizes known: no strlen
+  out += R"({"jsonrpc":"2.0","id":)"sv;
   out += id_text;
-  out += R"(,"result":)";
+  out += R"(,"result":)"sv;
   append_json(out, result);
   out += '}';
 }

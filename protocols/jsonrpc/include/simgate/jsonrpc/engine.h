@@ -76,21 +76,23 @@ struct Options {
 class SessionCalls {
  public:
   bool has_id(const std::string& key) const { return calls_.find(key) != nullptr; }
-  // Remembers the call `id` under the client's id; false (nothing changed) when a pending
-  // call has that id already.
-  bool track(std::string_view key, RequestId id) {
+  // Remembers the call `id` under the client's id: the key's hash (for forget_call), or
+  // nullopt (nothing changed) when a pending call has that id already.
+  std::optional<std::size_t> track(std::string_view key, RequestId id) {
     kit::IdTable::Entry* entry = calls_.insert(key);
-    if (entry) entry->id = id;
-    return entry != nullptr;
+    if (!entry) return std::nullopt;
+    entry->id = id;
+    return entry->hash;
   }
   std::optional<RequestId> find(const std::string& key) const {
     const kit::IdTable::Entry* entry = calls_.find(key);
     if (!entry) return std::nullopt;
     return entry->id;
   }
-  // The call under `key` finished ("" : untracked).
-  void forget_id(std::string_view key) {
-    if (!key.empty()) calls_.erase(key);
+  // The call `id`, tracked under a key of hash `key_hash`, finished: found without hashing
+  // or comparing the key again.
+  void forget_call(std::size_t key_hash, RequestId id) {
+    if (const kit::IdTable::Entry* entry = calls_.find(key_hash, id)) calls_.erase(entry);
   }
   // The calls to cancel when the client leaves.
   std::vector<RequestId> pending_calls() const {
@@ -136,11 +138,9 @@ class Session : public SessionCalls {
   // Calls, notifications and cancels in flight (max_in_flight), each until done().
   std::size_t in_flight() const { return connection_.unanswered(); }
   void add_in_flight() { connection_.expect_reply(); }
-  // A call (or cancel) in flight produced its reply; `key` is its id's ("" when untracked).
-  void done(const std::string& key) {
-    forget_id(key);
-    connection_.replied();
-  }
+  // A call (or cancel) in flight produced its reply (its id, if tracked, is forgotten by
+  // forget_call).
+  void done() { connection_.replied(); }
   bool authenticated() const { return connection_.authenticated(); }
   void set_authenticated() { connection_.set_authenticated(); }
   const std::string& label() const { return connection_.label(); }
@@ -206,10 +206,11 @@ class JsonRpcEngine : public RequestManager {
   };
   // A call submitted to the core and not yet finished (or an rpc.cancel waiting for its answer).
   struct Pending {
-    ReplyTo to;           // where the response goes
-    std::string method;   // "component.service", for error data
-    std::string id_key;   // the session's key for the id, dump(id) ("" when untracked)
-    bool cancel = false;  // an rpc.cancel waiting for the core's answer (outcome value: found)
+    ReplyTo to;               // where the response goes
+    std::string method;       // "component.service", for error data
+    std::string id_key;       // the session's key for the id, dump(id) ("" when untracked)
+    std::size_t id_hash = 0;  // the key's hash in the session's table (SessionCalls::track)
+    bool cancel = false;      // an rpc.cancel waiting for the core's answer (outcome value: found)
     // when its table node is kept for reuse: drop the references, keep the strings' capacity
     // (a string id goes: it may be large; a number or null stays until overwritten)
     void recycle() {
