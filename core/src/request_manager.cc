@@ -18,6 +18,7 @@
 #include "simgate/core/input_tap.h"
 #include "simgate/core/log.h"
 #include "request_inbox.h"
+#include "request_worlds.h"
 
 namespace simgate {
 namespace detail {
@@ -89,11 +90,29 @@ RequestId RequestManager::new_request_id() {
 }
 
 void RequestManager::submit(RequestId id, Call call) {
+  if (has_worlds()) [[unlikely]] {
+    RequestManager* target = route(id, call);
+    if (target && target != this) return target->submit(id, std::move(call));
+  }
   const auto deadline = detail::deadline_for(call, max_wait_);
   inbox_->push(detail::Inbox::Request{id, std::move(call), deadline});
 }
 
 void RequestManager::submit_batch(std::vector<std::pair<RequestId, Call>> calls) {
+  if (has_worlds()) [[unlikely]] {
+    // each call to its world's manager (a batch's calls of one world stay together there)
+    std::map<RequestManager*, std::vector<std::pair<RequestId, Call>>> by_target;
+    for (auto& [id, call] : calls) {
+      RequestManager* target = route(id, call);
+      by_target[target ? target : this].emplace_back(id, std::move(call));
+    }
+    for (auto& [target, mine] : by_target)
+      if (target == this)
+        inbox_->push_requests(mine, max_wait_, /*wake=*/true);
+      else
+        target->submit_batch(std::move(mine));
+    return;
+  }
   inbox_->push_requests(calls, max_wait_, /*wake=*/true);
 }
 
@@ -102,6 +121,15 @@ bool RequestManager::run_or_submit(std::vector<std::pair<RequestId, Call>> calls
 }
 
 bool RequestManager::run_or_submit(std::span<std::pair<RequestId, Call>> calls, bool refilled) {
+  if (has_worlds()) [[unlikely]] {
+    for (const auto& [id, call] : calls)
+      if (world_address(call.component)) return run_or_submit_across_worlds(calls, refilled);
+  }
+  return run_or_submit_here(calls, refilled);
+}
+
+bool RequestManager::run_or_submit_here(std::span<std::pair<RequestId, Call>> calls,
+                                        bool refilled) {
   std::unique_lock lock(*gate_, std::try_to_lock);
   if (!lock) {
     // the holder (stepping, or another transport) may be past our queue: queue them and
@@ -138,6 +166,14 @@ bool RequestManager::run_or_submit(RequestId id, Call call) {
 }
 
 void RequestManager::cancel(RequestId id, std::function<void(bool)> done) {
+  if (has_worlds()) [[unlikely]] {
+    std::shared_ptr<RequestManager> world;
+    {
+      std::lock_guard lock(worlds_->mutex);
+      if (auto it = worlds_->sent.find(id); it != worlds_->sent.end()) world = it->second;
+    }
+    if (world) return world->cancel(id, std::move(done));
+  }
   inbox_->push(detail::Inbox::Cancel{id, std::move(done)});
 }
 
@@ -456,6 +492,7 @@ void RequestManager::interrupt_running(AsyncSlot& slot, Failure reason, std::str
 }
 
 bool RequestManager::client_connected(std::uint64_t client) const {
+  if (parent_) return parent_->client_connected(client);  // a world's: the transport knows
   if (client == 0) return false;
   std::lock_guard lock(connected_mutex_);
   return connected_.contains(client);
@@ -512,8 +549,13 @@ void RequestManager::execute_cancel(RequestId id, const std::function<void(bool)
 }
 
 void RequestManager::deliver_progress(RequestId id, json&& value) {
-  // a call still running here (a report that raced its call's end has no one to go to)
-  if (!running_.contains(id)) return;
+  // a call still running here, or in a world (a report that raced its call's end has no one
+  // to go to)
+  if (!running_.contains(id) && !sent_to_world(id)) return;
+  hand_progress_to_transport(id, std::move(value));
+}
+
+void RequestManager::hand_progress_to_transport(RequestId id, json&& value) {
   const std::thread::id delivery_thread = delivery_thread_.load(std::memory_order_acquire);
   if (delivery_thread != std::thread::id{} && delivery_thread != std::this_thread::get_id()) {
     Outcome carrier;
@@ -562,6 +604,10 @@ void RequestManager::deliver(RequestId id, Outcome&& outcome) {
       running_.erase(it);
     }
   }
+  hand_to_transport(id, std::move(outcome));
+}
+
+void RequestManager::hand_to_transport(RequestId id, Outcome&& outcome) {
   const std::thread::id delivery_thread = delivery_thread_.load(std::memory_order_acquire);
   if (delivery_thread != std::thread::id{}) {
     if (delivery_thread != std::this_thread::get_id()) {

@@ -9,7 +9,10 @@
 
 #include "simgate/core/log.h"
 #include "simgate/core/request_manager.h"
+
+#include "request_worlds.h"
 #include "simgate/core/suggest.h"
+#include "request_worlds.h"
 
 namespace simgate {
 namespace {
@@ -102,6 +105,9 @@ std::shared_ptr<AsyncSlot> RequestManager::slot_for(const std::string& component
 }
 
 void RequestManager::set_access(ServiceAccess access) {
+  // the worlds' managers keep to the same lists (of their own components' names)
+  for (const unsigned world : worlds())
+    if (auto manager = worlds_->find(world)) manager->set_access(access);
   std::lock_guard lock(table_mutex_);
   access_ = std::move(access);
   // the previous lookup (find_service) may be a service the new lists deny
@@ -114,11 +120,20 @@ ServiceAccess RequestManager::access() const {
 }
 
 std::vector<ServiceDescriptor> RequestManager::descriptors() const {
-  std::lock_guard lock(table_mutex_);
   std::vector<ServiceDescriptor> out;
-  for (const auto& [component, table] : services_)
-    for (const auto& [name, service] : table)
-      if (access_.allows(service->descriptor())) out.push_back(service->descriptor());
+  {
+    std::lock_guard lock(table_mutex_);
+    for (const auto& [component, table] : services_)
+      for (const auto& [name, service] : table)
+        if (access_.allows(service->descriptor())) out.push_back(service->descriptor());
+  }
+  // the worlds' services, under their prefix
+  for (const unsigned world : worlds())
+    if (auto manager = worlds_->find(world))
+      for (ServiceDescriptor d : manager->descriptors()) {
+        d.component = "w" + std::to_string(world) + "/" + d.component;
+        out.push_back(std::move(d));
+      }
   std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) {
     return std::tie(a.component, a.name) < std::tie(b.component, b.name);
   });
@@ -132,11 +147,25 @@ std::map<std::string, std::vector<std::string>> RequestManager::services() const
 }
 
 bool RequestManager::serves_component(const std::string& component) const {
+  if (const auto address = world_address(component); address && has_worlds()) {
+    const auto [world, name_at] = *address;
+    const std::string name = component.substr(name_at);
+    if (world == 0) return serves_component(name);
+    auto manager = worlds_->find(world);
+    return manager && manager->serves_component(name);
+  }
   std::lock_guard lock(table_mutex_);
   return services_.count(component) > 0;
 }
 
 bool RequestManager::may_call(const std::string& component, const std::string& service) const {
+  if (const auto address = world_address(component); address && has_worlds()) {
+    const auto [world, name_at] = *address;
+    const std::string name = component.substr(name_at);
+    if (world == 0) return may_call(name, service);
+    auto manager = worlds_->find(world);
+    return manager && manager->may_call(name, service);
+  }
   std::lock_guard lock(table_mutex_);
   auto c = services_.find(component);
   if (c == services_.end()) return false;
@@ -150,6 +179,10 @@ std::vector<std::string> RequestManager::components() const {
     std::lock_guard lock(table_mutex_);
     for (const auto& [component, table] : services_) out.push_back(component);
   }
+  for (const unsigned world : worlds())
+    if (auto manager = worlds_->find(world))
+      for (const std::string& component : manager->components())
+        out.push_back("w" + std::to_string(world) + "/" + component);
   std::sort(out.begin(), out.end());
   return out;
 }
@@ -158,6 +191,20 @@ std::vector<std::string> RequestManager::components() const {
 
 Outcome RequestManager::unknown_service(const Call& call) const {
   std::string why;
+  if (const auto address = world_address(call.component); address && address->first != 0) {
+    // a world this transport does not serve (route() sends the others there)
+    json there = json::array({"w0"});
+    std::string list = "w0";
+    for (const unsigned world : worlds()) {
+      there.push_back("w" + std::to_string(world));
+      list += ", " + there.back().get<std::string>();
+    }
+    why = "no world 'w" + std::to_string(address->first) + "' (the worlds here: " + list + ")";
+    return Outcome::failed(
+        Failure::unknown_service,
+        "The request " + call.service + " has not been registered in " + name_ + ": " + why,
+        json{{"component", call.component}, {"service", call.service}, {"worlds", there}});
+  }
   {
     std::lock_guard lock(table_mutex_);
     // only what clients may call is named: a service the access lists deny is not one of

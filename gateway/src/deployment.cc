@@ -427,8 +427,13 @@ Deployment parse_deployment(const json& document, const std::string& base_dir,
     requests->finish();
   });
 
-  // ---- scene ----
+  // ---- scene, and how many worlds run it ----
   errors.check([&] { parse_scene(root, base_dir, d); });
+  errors.check([&] {
+    if (root.has("worlds"))
+      d.worlds = static_cast<unsigned>(
+          root.get_int("worlds", 1, 1, static_cast<std::int64_t>(Deployment::k_max_worlds)));
+  });
 
   // ---- run-time entities ----
   errors.check([&] { parse_spawn(root, base_dir, d); });

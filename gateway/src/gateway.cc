@@ -17,13 +17,13 @@ namespace simgate::gateway {
 // the config's robots are, and served as the config's mapping says of their names.
 class Gateway::SpawnedRobots : public sim::Simulation::RobotFactory {
  public:
-  explicit SpawnedRobots(Gateway& gateway) : gateway_(gateway) {}
+  SpawnedRobots(Gateway& gateway, unsigned world) : gateway_(gateway), world_(world) {}
 
   void check(const std::string& name, const json& section) const override {
     config_of(name, section);
   }
   void build(const std::string& name, const json& section) override {
-    gateway_.add_spawned_robot(config_of(name, section));
+    gateway_.add_spawned_robot(world_, config_of(name, section));
   }
 
  private:
@@ -43,7 +43,7 @@ class Gateway::SpawnedRobots : public sim::Simulation::RobotFactory {
     document["name"] = name;
     document["body"] = name;
     std::set<std::string> taken;
-    for (const auto& entry : gateway_.simulation_->components())
+    for (const auto& entry : gateway_.world(world_).components())
       taken.insert(entry->component->name());
     try {
       RobotConfig r = parse_robot_section(document, "robot", std::move(taken));
@@ -64,6 +64,7 @@ class Gateway::SpawnedRobots : public sim::Simulation::RobotFactory {
   }
 
   Gateway& gateway_;
+  unsigned world_;  // the world it spawns into
 };
 
 Gateway::Gateway(const Deployment& deployment, const sim::ComponentRegistry& registry,
@@ -101,8 +102,9 @@ Gateway::Gateway(const Deployment& deployment, const sim::ComponentRegistry& reg
     add_world_components(*simulation_);
     add_streams(errors);
     add_recording_services();
-    simulation_->set_robot_factory(std::make_shared<SpawnedRobots>(*this));
+    simulation_->set_robot_factory(std::make_shared<SpawnedRobots>(*this, 0));
     if (options_.on_simulation_built) options_.on_simulation_built(*simulation_, supervision());
+    build_worlds(sim_options, errors);
   } else {
     check_component_types(errors);
   }
@@ -144,10 +146,10 @@ void Gateway::load_component_libraries(ConfigErrors& errors) {
   }
 }
 
-void Gateway::add_generic_components(RobotConfig& r) {
-  const int body = simulation_->model().body_id(r.robot.body);
+void Gateway::add_generic_components(sim::Simulation& sim, RobotConfig& r) {
+  const int body = sim.model().body_id(r.robot.body);
   if (body <= 0) return;  // the robot's own creation reports it
-  for (const std::string& type : sim::generic_components(simulation_->m(), body)) {
+  for (const std::string& type : sim::generic_components(sim.m(), body)) {
     const std::string name = r.robot.name + "." + type;
     // a component of that name in the config wins (other options, or another type)
     if (std::any_of(r.components.begin(), r.components.end(),
@@ -164,12 +166,35 @@ void Gateway::add_generic_components(RobotConfig& r) {
 
 void Gateway::build_components(ConfigErrors& errors) {
   for (auto& r : deployment_.robots)
-    if (r.robot.type == "mjcf") add_generic_components(r);
-  for (const auto& r : deployment_.robots) build_robot(r, errors);
+    if (r.robot.type == "mjcf") add_generic_components(*simulation_, r);
+  for (const auto& r : deployment_.robots) build_robot(*simulation_, r, errors);
 }
 
-std::vector<std::string> Gateway::build_robot(const RobotConfig& r, ConfigErrors& errors) {
-  sim::Simulation& sim = *simulation_;
+void Gateway::build_worlds(const sim::SimulationOptions& options, ConfigErrors& errors) {
+  for (unsigned k = 1; k < deployment_.worlds; ++k) {
+    const std::string what = "worlds: world w" + std::to_string(k);
+    std::unique_ptr<sim::Simulation> world;
+    try {
+      world = std::make_unique<sim::Simulation>(sim::Model::load_file(deployment_.mjcf), options);
+    } catch (const std::exception& e) {
+      errors.add(what + ": the scene did not load again: " + e.what());
+      return;
+    }
+    // the robots as world 0 has them (their generic components found there already)
+    ConfigErrors world_errors;
+    for (const auto& r : deployment_.robots) build_robot(*world, r, world_errors);
+    for (const std::string& e : world_errors.errors()) errors.add(what + ": " + e);
+    add_world_components(*world);
+    world->set_robot_factory(std::make_shared<SpawnedRobots>(*this, k));
+    worlds_.push_back(std::move(world));
+  }
+  if (!worlds_.empty())
+    log::info("worlds: ", worlds_.size() + 1, " (w0 and w1..w", worlds_.size(),
+              ", each a simulation under its own lock; docs/worlds.md)");
+}
+
+std::vector<std::string> Gateway::build_robot(sim::Simulation& sim, const RobotConfig& r,
+                                              ConfigErrors& errors) {
   std::vector<std::string> added;
   sim::Robot* robot_ptr = nullptr;
   errors.check([&] {
@@ -190,13 +215,14 @@ std::vector<std::string> Gateway::build_robot(const RobotConfig& r, ConfigErrors
   return added;
 }
 
-void Gateway::add_spawned_robot(RobotConfig r) {
-  if (r.robot.type == "mjcf") add_generic_components(r);
+void Gateway::add_spawned_robot(unsigned world_index, RobotConfig r) {
+  sim::Simulation& sim = world(world_index);
+  if (r.robot.type == "mjcf") add_generic_components(sim, r);
   ConfigErrors errors;
-  const std::vector<std::string> added = build_robot(r, errors);
+  const std::vector<std::string> added = build_robot(sim, r, errors);
   if (!errors.errors().empty()) {
     for (auto it = added.rbegin(); it != added.rend(); ++it)
-      simulation_->remove_component(*it, "robot '" + r.robot.name + "' could not be built");
+      sim.remove_component(*it, "robot '" + r.robot.name + "' could not be built");
     try {
       errors.throw_if_any();
     } catch (const ConfigError& e) {
@@ -207,18 +233,20 @@ void Gateway::add_spawned_robot(RobotConfig r) {
   std::vector<const ComponentConfig*> configs{&r.robot};
   for (const auto& c : r.components) configs.push_back(&c);
   for (const ComponentConfig* c : configs) {
-    sim::ComponentEntry* entry = simulation_->find(c->name);
-    ConfigErrors stream_errors;
-    add_stream(*entry->component, c->type, stream_frequency(*c), StreamHub::k_default_frequency,
-               stream_errors);
-    for (const std::string& e : stream_errors.errors())
-      log::warning("spawned robot '", r.robot.name, "': ", e);
+    sim::ComponentEntry* entry = sim.find(c->name);
+    if (world_index == 0) {  // the worlds after it carry no streams yet (docs/worlds.md)
+      ConfigErrors stream_errors;
+      add_stream(*entry->component, c->type, stream_frequency(*c), StreamHub::k_default_frequency,
+                 stream_errors);
+      for (const std::string& e : stream_errors.errors())
+        log::warning("spawned robot '", r.robot.name, "': ", e);
+    }
     const std::vector<std::string> transports = deployment_.transports_for(c->name);
     for (Transport& t : transports_)
       if (t.manager &&
           std::find(transports.begin(), transports.end(), t.name) != transports.end()) {
-        serve_on(t, *entry);
-        served_[t.name].push_back(c->name);
+        serve_on(t, *entry, world_index);
+        if (world_index == 0) served_[t.name].push_back(c->name);
       }
   }
   log::info("simulation: robot '", r.robot.name, "' spawned with ", added.size() - 1,
@@ -455,11 +483,19 @@ void Gateway::create_transports() {
     transport.manager->set_max_wait(deployment_.max_wait);  // requests.max_wait_ms
     for (const auto& name : served_[t.name]) serve_on(transport, *simulation_->find(name));
     simulation_->add_request_manager(transport.manager, t.name);
+    // the other worlds, through the same transport under their prefix
+    for (unsigned k = 1; k <= worlds_.size(); ++k) {
+      transport.world_managers.push_back(transport.manager->attach_world(k));
+      for (const auto& name : served_[t.name])
+        if (sim::ComponentEntry* entry = world(k).find(name)) serve_on(transport, *entry, k);
+      world(k).add_request_manager(transport.world_managers.back(), t.name);
+    }
   }
 }
 
-void Gateway::serve_on(Transport& transport, sim::ComponentEntry& entry) {
-  transport.manager->register_component(*entry.component);
+void Gateway::serve_on(Transport& transport, sim::ComponentEntry& entry, unsigned world) {
+  (world == 0 ? transport.manager : transport.world_managers.at(world - 1))
+      ->register_component(*entry.component);
   entry.interfaces.push_back(transport.name);
 }
 
@@ -477,11 +513,34 @@ std::map<std::string, std::vector<std::string>> Gateway::endpoints() const {
 
 void Gateway::run() {
   if (options_.check_only) return;
-  simulation_->run();
+  // each world's loop on a thread of its own; any of them ending (quit, an error) ends all
+  for (unsigned k = 1; k <= worlds_.size(); ++k)
+    world_threads_.emplace_back([this, k] {
+      try {
+        world(k).run();
+      } catch (const std::exception& e) {
+        log::error("world w", k, ": ", e.what());
+      }
+      stop();
+    });
+  try {
+    simulation_->run();
+  } catch (...) {
+    stop_worlds();
+    throw;
+  }
+  stop_worlds();
 }
 
 void Gateway::stop() {
   if (simulation_) simulation_->request_stop();
+  for (auto& w : worlds_) w->request_stop();
+}
+
+void Gateway::stop_worlds() {
+  for (auto& w : worlds_) w->request_stop();
+  for (auto& t : world_threads_) t.join();
+  world_threads_.clear();
 }
 
 void Gateway::add_recording_services() {
@@ -510,6 +569,16 @@ void Gateway::shutdown() {
   // the recording takes the run to its end, then closes its file
   if (recording_) recording_->stop();
   recording_.reset();
+  // the other worlds first: no call is routed to them any more, then each answers what it
+  // has left (through the transports, still there) and destroys its components
+  stop_worlds();
+  for (auto& t : transports_) {
+    if (t.manager)
+      for (unsigned k = 1; k <= t.world_managers.size(); ++k) t.manager->detach_world(k);
+    t.world_managers.clear();
+  }
+  for (auto& w : worlds_) w->shutdown();
+  worlds_.clear();
   // the simulation holds the last references to the managers: it destroys them before
   // the components they refer to
   for (auto& t : transports_) t.manager.reset();

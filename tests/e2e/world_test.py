@@ -32,9 +32,10 @@ NEW_SERVICES = ["get_simulation_state", "pause", "play", "step", "reset", "save_
 
 
 class Gateway:
-    """`simgate run CONFIG` on ephemeral ports, with its endpoints read from --endpoints-file."""
+    """`simgate run CONFIG` on ephemeral ports, with its endpoints read from --endpoints-file;
+    `edit(config)` may change the configuration first (tests/e2e/worlds_test.py)."""
 
-    def __init__(self, workdir):
+    def __init__(self, workdir, edit=None):
         with open(os.path.join(ARGS.source_dir, "config/all-transports.json")) as f:
             config = json.load(f)
         config["scene"]["mjcf"] = os.path.join(ARGS.source_dir, "config/scenes/demo.xml")
@@ -45,6 +46,8 @@ class Gateway:
         self.partition = "simgate-world-test-%d" % os.getpid()
         config["transports"]["dds"]["options"]["partition"] = self.partition
         config["log_level"] = "warning"
+        if edit:
+            edit(config)
         path = os.path.join(workdir, "world.json")
         with open(path, "w") as f:
             json.dump(config, f)

@@ -28,6 +28,7 @@ TEST(McpProtocol, TheRevisionIsTheClientsWhenServedElseTheNewest) {
 TEST(McpProtocol, ToolNamesAreTheServicesWithUnderscoresForDots) {
   EXPECT_EQ(tool_name("simulation.list_robots"), "simulation_list_robots");
   EXPECT_EQ(tool_name("rover.camera.get_image"), "rover_camera_get_image");
+  EXPECT_EQ(tool_name("w3/rover.camera.get_image"), "w3_rover_camera_get_image");
   std::vector<std::string> skipped;
   const auto tools =
       make_tools({service("rover.camera", "get_image"), service("simulation", "step")}, skipped);

@@ -20,7 +20,8 @@ namespace {
 
 std::string with_dots_as(std::string_view qualified, char c) {
   std::string name(qualified);
-  std::replace(name.begin(), name.end(), '.', c);
+  // the dots, and the slash of a world's prefix ("w3/rover.camera": docs/worlds.md)
+  std::replace_if(name.begin(), name.end(), [](char x) { return x == '.' || x == '/'; }, c);
   return name;
 }
 

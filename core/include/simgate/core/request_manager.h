@@ -57,6 +57,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -289,6 +290,26 @@ class RequestManager {
   // before stop(): this is how clients get a reply at shutdown. Takes the simulation lock.
   void abandon_pending(const std::string& reason = "the simulation is shutting down");
 
+  // ---- worlds (issue #43, docs/worlds.md; request_manager_worlds.cc)
+  // A world is another simulation of the process, under a lock of its own; its components
+  // are served by a manager of their own, which this one (the transport's) routes to: a
+  // call of component "w<k>/<name>" runs as <name> in world k, on world k's lock, and its
+  // outcome (progress too) comes back here, to on_service_completion, like any other.
+  // "w0/<name>" is <name>: this manager's own, world 0. descriptors(), services(),
+  // components(), serves_component() and may_call() include the worlds' services under
+  // their prefix; a call to a world there is not is answered FAILED naming those there are.
+  // The manager world `world` (1, 2, ...) serves through this transport, made at the first
+  // call: its simulation then adds it (Simulation::add_request_manager) and registers its
+  // components on it. Any thread.
+  std::shared_ptr<RequestManager> attach_world(unsigned world);
+  // Stops routing to `world`: once its simulation has shut its manager down (calls still
+  // sent to it are answered by it, FAILED). Any thread.
+  void detach_world(unsigned world);
+  // The worlds attached, in order.
+  std::vector<unsigned> worlds() const;
+  // "w<k>/<name>": k and where <name> starts, or nullopt (not a world's address).
+  static std::optional<std::pair<unsigned, std::size_t>> world_address(std::string_view component);
+
  protected:
   // Delivers the final outcome of request `id`, exactly once per submitted request.
   // Without a delivery thread: runs under the simulation lock, on whichever thread runs
@@ -337,6 +358,28 @@ class RequestManager {
   void client_left(std::uint64_t client);
 
  private:
+  class WorldManager;  // a world's manager (request_manager_worlds.cc)
+  struct Worlds;       // the worlds attached and the calls sent to them
+  // The manager the call's world has, its component's prefix removed ("w0/" too), or null
+  // for a world not attached (answered here, as an unknown service); this one for its own.
+  // A call sent to a world is remembered (cancel) until its outcome comes back.
+  RequestManager* route(RequestId id, Call& call);
+  // run_or_submit of calls some of which name worlds: each run of calls of one world goes
+  // to its manager, in order.
+  bool run_or_submit_across_worlds(std::span<std::pair<RequestId, Call>> calls, bool refilled);
+  // run_or_submit of this manager's own calls (no world looked for).
+  bool run_or_submit_here(std::span<std::pair<RequestId, Call>> calls, bool refilled);
+  // A world's outcome or progress, on its way to this manager's transport.
+  void from_world(RequestId id, Outcome&& outcome);
+  void progress_from_world(RequestId id, json&& value);
+  // The last parts of deliver() and deliver_progress(): to the transport, on its delivery
+  // thread.
+  void hand_to_transport(RequestId id, Outcome&& outcome);
+  void hand_progress_to_transport(RequestId id, json&& value);
+  // Whether call `id` went to a world and is not answered yet.
+  bool sent_to_world(RequestId id) const;
+  bool has_worlds() const { return has_worlds_.load(std::memory_order_acquire); }
+
   void notify_services_changed();  // on_services_changed(), an exception logged
   // execute(), and with debug logging on (looked at once per request) the time it takes and
   // a log line for its outcome: of a sync request here, of an async one when it ends.
@@ -443,7 +486,10 @@ class RequestManager {
   // a min-heap on `at` (std::push_heap with a greater-than); entries of requests that ended
   // stay until their time, or until a purge when there are many more than running requests
   std::vector<Deadline> deadlines_;
-  bool started_ = false;  // start() called (by process() if nobody did; under the lock)
+  bool started_ = false;            // start() called (by process() if nobody did; under the lock)
+  std::unique_ptr<Worlds> worlds_;  // the worlds this manager routes to (attach_world)
+  std::atomic<bool> has_worlds_{false};  // worlds_ holds one: calls are looked at for prefixes
+  RequestManager* parent_ = nullptr;     // a world's manager: the transport's it answers to
 };
 
 }  // namespace simgate

@@ -116,6 +116,10 @@ struct Deployment {
   // "requests": {"max_wait_ms": N}: the longest any request of any transport waits for its
   // reply (RequestManager::set_max_wait); zero = no limit
   std::chrono::milliseconds max_wait{0};
+  // "worlds": how many copies of the scene with its robots run, each a simulation of its own
+  // (world 0, the one every client knows, and w1, w2, ...: docs/worlds.md)
+  unsigned worlds = 1;
+  static constexpr unsigned k_max_worlds = 256;
   // likely mistakes that are not errors (printed by check, logged by run)
   std::vector<std::string> warnings;
 

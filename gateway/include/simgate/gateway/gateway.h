@@ -21,6 +21,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "simgate/core/plugin_loader.h"
@@ -91,6 +92,9 @@ class Gateway {
     const TransportConfig* config = nullptr;  // its entry in deployment_
     std::shared_ptr<TransportPlugin> plugin;  // keeps the library loaded
     std::shared_ptr<RequestManager> manager;  // null in check mode
+    // the manager of world k at [k - 1] (RequestManager::attach_world), serving it under
+    // "w<k>/" through this transport
+    std::vector<std::shared_ptr<RequestManager>> world_managers;
   };
 
   // Loads the deployment's component libraries into registry_ (recording errors).
@@ -100,18 +104,25 @@ class Gateway {
   std::vector<std::string> plugin_dirs() const;
   // A robot of type "mjcf" gets the generic components its subtree has (model_robots.h),
   // unless the config names a component so already.
-  void add_generic_components(RobotConfig& r);
+  void add_generic_components(sim::Simulation& world, RobotConfig& r);
   // Each records its errors and goes on with the next robot, component or transport.
   void build_components(ConfigErrors& errors);
   // Creates robot `r` and its components in the simulation (recording errors; a robot that
   // cannot be made skips its components); returns the names of those made.
-  std::vector<std::string> build_robot(const RobotConfig& r, ConfigErrors& errors);
-  // The simulation's RobotFactory (gateway.cc): robots spawned at run time.
+  std::vector<std::string> build_robot(sim::Simulation& world, const RobotConfig& r,
+                                       ConfigErrors& errors);
+  // The worlds after world 0 (deployment_.worlds): the scene, its robots and the
+  // pseudo-components again, each in a simulation of its own.
+  void build_worlds(const sim::SimulationOptions& options, ConfigErrors& errors);
+  // World k: 0 is simulation_, the others worlds_[k - 1].
+  sim::Simulation& world(unsigned k) { return k == 0 ? *simulation_ : *worlds_[k - 1]; }
+  // A world's RobotFactory (gateway.cc): robots spawned at run time.
   class SpawnedRobots;
-  // A robot spawned at run time (checked by SpawnedRobots): built, its streams added and its
-  // components served as the config's mapping says of their names; under the simulation
-  // lock. Throws ServiceError (parameter "robot") having added nothing when it cannot be built.
-  void add_spawned_robot(RobotConfig r);
+  // A robot spawned at run time in world `world` (checked by SpawnedRobots): built, its
+  // streams added (world 0) and its components served as the config's mapping says of their
+  // names; under that world's lock. Throws ServiceError (parameter "robot") having added
+  // nothing when it cannot be built.
+  void add_spawned_robot(unsigned world, RobotConfig r);
   // Without a scene: that each robot's and component's type is one of the registry's.
   void check_component_types(ConfigErrors& errors) const;
   // The components' data streams the "streams" section asks for (a component named there
@@ -141,15 +152,19 @@ class Gateway {
   void warn_about_access_lists();
   // Creates every transport (binding its sockets) and registers its components.
   void create_transports();
-  // Serves `entry`'s component on `transport` (its interfaces name it).
-  void serve_on(Transport& transport, sim::ComponentEntry& entry);
+  // Stops the loops of the worlds after world 0 and waits for their threads.
+  void stop_worlds();
+  // Serves `entry`'s component of world `world` on `transport` (its interfaces name it).
+  void serve_on(Transport& transport, sim::ComponentEntry& entry, unsigned world = 0);
 
   Deployment deployment_;   // validated configuration
   GatewayOptions options_;  // how it was built
   // the types components are created from, and the libraries whose code they run: it must
   // outlive simulation_ (declared first, destroyed last)
   sim::ComponentRegistry registry_;
-  std::unique_ptr<sim::Simulation> simulation_;  // model, components, loop
+  std::unique_ptr<sim::Simulation> simulation_;           // model, components, loop (world 0)
+  std::vector<std::unique_ptr<sim::Simulation>> worlds_;  // worlds 1, 2, ... (docs/worlds.md)
+  std::vector<std::thread> world_threads_;                // their loops, while run() runs
   // simulation start_recording and its kin; a recording ends before the simulation does
   std::shared_ptr<recorder::RecordingServices> recording_;
   std::vector<Transport> transports_;                       // in name order

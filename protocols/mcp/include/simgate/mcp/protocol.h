@@ -41,7 +41,8 @@ struct Tool {
 };
 
 // The tool name of the service `qualified` ("rover.camera.get_image"): its dots as '_'
-// ("rover_camera_get_image"), the characters every model API takes in a function's name.
+// ("rover_camera_get_image"), the characters every model API takes in a function's name;
+// a world's prefix too ("w3/rover.camera.get_image": "w3_rover_camera_get_image").
 std::string tool_name(std::string_view qualified);
 // The tools of `services` (RequestManager::descriptors(): what the transport's lists let
 // through), by name. Two services whose names differ only by a '.' against a '_' would get one

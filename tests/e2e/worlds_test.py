@@ -1,0 +1,167 @@
+#!/usr/bin/python3
+"""E2E: many worlds in one simgate (issue #43, docs/worlds.md).
+
+`simgate run` serves the demo with "worlds": 3 on the socket, JSON-RPC and DDS transports
+(ports 0, a DDS partition of its own), paused (lockstep). Each world is a simulation of its
+own, addressed as "w<k>/<component>" on every transport; world 0 keeps its names. Checked:
+- addressing: w1/..., w2/... reach their world; w0/ is world 0; a world there is not is
+  FAILED naming the worlds there are (socket, JSON-RPC);
+- isolation: steps, a teleport and a reset in one world leave the others as they were, to
+  the last digit (their poses compared as text);
+- listings: JSON-RPC's rpc.discover and `simgate list` show every world's services;
+- DDS: `simgate call --transport dds w2/simulation step 3` steps world 2 only;
+- pymorse (Debian's, unchanged) drives world 0 as ever and reaches world 1 by rpc().
+Every wait is bounded.
+"""
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import unittest
+import warnings
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import world_test  # noqa: E402  (its Gateway and Lines)
+
+warnings.simplefilter("ignore", DeprecationWarning)  # asyncore/asynchat on Python 3.11
+import pymorse  # noqa: E402
+
+ARGS = None
+TIMEOUT = world_test.TIMEOUT
+WORLDS = 3
+
+
+class WorldsTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        world_test.ARGS = ARGS
+        cls.workdir = tempfile.TemporaryDirectory()
+        cls.gateway = None
+        try:
+            cls.gateway = world_test.Gateway(cls.workdir.name, edit=lambda c: c.update(worlds=WORLDS))
+            cls.socket = world_test.Lines(cls.gateway.socket_port)
+            cls.jsonrpc = world_test.Lines(cls.gateway.jsonrpc_port)
+        except BaseException:
+            if cls.gateway:
+                cls.gateway.stop()  # tearDownClass does not run when this fails
+            cls.workdir.cleanup()
+            raise
+        cls.rpc_id = 0
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.socket.close()
+        cls.jsonrpc.close()
+        code = cls.gateway.stop()
+        cls.workdir.cleanup()
+        assert code == 0, "simgate run exited with %s" % code
+
+    def morse(self, request):
+        """A socket request; returns (status, value)."""
+        reply = self.socket.ask("r " + request)
+        got_id, status, *rest = reply.split(" ", 2)
+        self.assertEqual(got_id, "r", reply)
+        return status, json.loads(rest[0]) if rest else None
+
+    def rpc(self, method, params=None):
+        WorldsTest.rpc_id += 1
+        request = {"jsonrpc": "2.0", "id": WorldsTest.rpc_id, "method": method}
+        if params is not None:
+            request["params"] = params
+        response = json.loads(self.jsonrpc.ask(json.dumps(request)))
+        self.assertEqual(response["id"], WorldsTest.rpc_id, response)
+        return response
+
+    def ok(self, request):
+        status, value = self.morse(request)
+        self.assertEqual(status, "SUCCESS", "%s: %s" % (request, value))
+        return value
+
+    def world_prefix(self, k):
+        return "" if k == 0 else "w%d/" % k
+
+    def snapshot(self, k):
+        """World k's time, steps and robot pose, as the server wrote them."""
+        state = self.ok(self.world_prefix(k) + "simulation get_simulation_state")
+        pose = self.socket.ask("p %srobot.pose get_local_data" % self.world_prefix(k))
+        return state["sim_time"], state["steps"], pose.split(" ", 2)[2]
+
+    def test_1_each_world_is_addressed_by_its_prefix_and_world_0_keeps_its_names(self):
+        for k in range(WORLDS):
+            self.assertEqual(self.ok(self.world_prefix(k) + "simulation list_robots"), ["robot", "human"])
+        self.assertEqual(self.ok("w0/simulation list_robots"), ["robot", "human"])
+        status, value = self.morse("w7/robot.pose get_local_data")
+        self.assertEqual(status, "FAILED")
+        self.assertIn("no world 'w7' (the worlds here: w0, w1, w2)", value)
+        error = self.rpc("w7/robot.pose.get_local_data")["error"]
+        self.assertIn("no world 'w7'", error["message"])
+        self.assertEqual(error["data"]["worlds"], ["w0", "w1", "w2"])
+
+    def test_2_steps_teleports_and_resets_stay_in_their_world(self):
+        before = [self.snapshot(k) for k in range(WORLDS)]
+        self.ok("w1/simulation step [25]")
+        after = [self.snapshot(k) for k in range(WORLDS)]
+        self.assertEqual(after[1][1], before[1][1] + 25)
+        self.assertGreater(after[1][0], before[1][0])
+        self.assertEqual(after[0], before[0])
+        self.assertEqual(after[2], before[2])
+
+        self.ok("w2/robot.teleport translate [1.0, 0.5, 0.0]")
+        moved = [self.snapshot(k) for k in range(WORLDS)]
+        self.assertNotEqual(moved[2][2], after[2][2])
+        self.assertEqual(moved[0], after[0])
+        self.assertEqual(moved[1], after[1])
+
+        self.ok("w2/simulation reset")
+        reset = [self.snapshot(k) for k in range(WORLDS)]
+        self.assertEqual(reset[2][1], 0)
+        self.assertEqual(reset[0], after[0])
+        self.assertEqual(reset[1], after[1])  # world 1 keeps its 25 steps
+
+    def test_3_listings_show_every_world(self):
+        methods = [m["name"] for m in self.rpc("rpc.discover")["result"]["methods"]]
+        for k in range(WORLDS):
+            self.assertIn(self.world_prefix(k) + "robot.motion.set_speed", methods)
+            self.assertIn(self.world_prefix(k) + "simulation.step", methods)
+        listed = subprocess.run([ARGS.simgate, "list", "--transport", "jsonrpc", "--port",
+                                 str(self.gateway.jsonrpc_port)],
+                                capture_output=True, text=True, timeout=TIMEOUT)
+        self.assertEqual(listed.returncode, 0, listed.stdout + listed.stderr)
+        self.assertIn("w2/robot.motion", listed.stdout)
+
+    def test_4_dds_steps_one_world(self):
+        before = [self.snapshot(k) for k in range(WORLDS)]
+        done = subprocess.run([ARGS.simgate, "call", "--transport", "dds", "--partition",
+                               self.gateway.partition, "--timeout", "20", "w2/simulation", "step", "3"],
+                              capture_output=True, text=True, timeout=TIMEOUT)
+        self.assertEqual(done.returncode, 0, done.stdout + done.stderr)
+        after = [self.snapshot(k) for k in range(WORLDS)]
+        self.assertEqual(after[2][1], before[2][1] + 3)
+        self.assertEqual(after[0], before[0])
+        self.assertEqual(after[1], before[1])
+
+    def test_5_pymorse_drives_world_0_and_reaches_the_others_by_rpc(self):
+        # not `with pymorse.Morse()`: its close() with wait_publishers=True raises a TypeError in
+        # Debian's pymorse (its proxies' __getattribute__), whatever the server
+        simu = pymorse.Morse(host="127.0.0.1", port=self.gateway.socket_port)
+        try:
+            self.assertEqual(sorted(simu.robots), ["human", "robot"])
+            before = [self.snapshot(k) for k in range(WORLDS)]
+            simu.rpc("simulation", "step", 2)
+            self.assertEqual(simu.rpc("w1/simulation", "list_robots"), ["robot", "human"])
+            after = [self.snapshot(k) for k in range(WORLDS)]
+            self.assertEqual(after[0][1], before[0][1] + 2)
+            self.assertEqual(after[1:], before[1:])
+        finally:
+            simu.close(wait_publishers=False)
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--simgate", required=True)
+    parser.add_argument("--source-dir", required=True)
+    ARGS, rest = parser.parse_known_args()
+    ARGS.source_dir = os.path.abspath(ARGS.source_dir)
+    unittest.main(argv=[sys.argv[0]] + rest, verbosity=2)
