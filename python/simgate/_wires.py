@@ -15,6 +15,7 @@ import itertools
 import json
 import logging
 import threading
+from json.encoder import encode_basestring_ascii  # type: ignore[attr-defined]
 from typing import TYPE_CHECKING, Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
 from . import errors
@@ -30,12 +31,32 @@ if TYPE_CHECKING:
 log = logging.getLogger("simgate")
 
 
+def _default(o: Any) -> Any:
+    if hasattr(o, "tolist"):  # numpy arrays and scalars
+        return o.tolist()
+    raise TypeError(f"{type(o).__name__} is not JSON serialisable")
+
+
+# what json.dumps(value, separators=(",", ":"), allow_nan=..., default=_default) makes, by
+# encoders made once (json.dumps makes one at each call when given options)
+_ENCODERS = {allow_nan: json.JSONEncoder(separators=(",", ":"), allow_nan=allow_nan, default=_default).encode
+             for allow_nan in (False, True)}
+
+
 def _json(value: Any, allow_nan: bool) -> str:
-    def default(o: Any) -> Any:
-        if hasattr(o, "tolist"):  # numpy arrays and scalars
-            return o.tolist()
-        raise TypeError(f"{type(o).__name__} is not JSON serialisable")
-    return json.dumps(value, separators=(",", ":"), allow_nan=allow_nan, default=default)
+    return _ENCODERS[allow_nan](value)
+
+
+json_string = encode_basestring_ascii  # a str as JSON text, as _json encodes it
+
+
+class JsonText(str):
+    """Parameters already encoded as JSON text (compact, ASCII, finite numbers: what `_json`
+    makes). `Client.call_many` puts them in its JSON-RPC batch as they are (on ``socket://``
+    they are decoded back): `simgate.gym` encodes the parts of its step's batch that never
+    change once, and the controls with ``repr`` (the text json gives a float)."""
+
+    __slots__ = ()
 
 
 class JsonRpcWire:
@@ -78,29 +99,38 @@ class JsonRpcWire:
     def encode_batch(self, messages: List[bytes]) -> List[bytes]:
         return [b"[" + b",".join(messages) + b"]"]
 
-    def encode_many(self, ids: Sequence[Any], requests: Sequence[Tuple[str, str, Any]]) -> bytes:
-        """One batch of requests ``(component, service, params)`` under `ids`, encoded at once."""
-        batch = []
+    def encode_many(self, ids: Sequence[int], requests: Sequence[Tuple[str, str, Any]]) -> bytes:
+        """One batch of requests ``(component, service, params)`` under `ids`: the text
+        ``_json`` gives the list of their request objects, assembled a request at a time, with
+        `JsonText` params as they are."""
+        parts = []
         for ident, (component, service, params) in zip(ids, requests):
-            request: Dict[str, Any] = {"jsonrpc": "2.0", "id": ident, "method": f"{component}.{service}"}
-            if params is not None:
-                request["params"] = params
-            batch.append(request)
-        return _json(batch, allow_nan=False).encode()
+            head = '{"jsonrpc":"2.0","id":%d,"method":%s' % (ident, json_string(f"{component}.{service}"))
+            if params is None:
+                parts.append(head + "}")
+            else:
+                text = params if isinstance(params, JsonText) else _json(params, allow_nan=False)
+                parts.append(f'{head},"params":{text}}}')
+        return ("[" + ",".join(parts) + "]").encode()
 
     def encode_cancel(self, call: Call) -> bytes:
         return _json({"jsonrpc": "2.0", "method": "rpc.cancel", "params": {"id": call.id}}, False).encode()
 
     def handle(self, client: "Client", message: bytes) -> None:
         decoded = json.loads(message)
+        replies: List[Tuple[Any, Any, Any]] = []  # completed together (a batch's, one lock)
         for m in decoded if isinstance(decoded, list) else (decoded,):
             if "result" in m or "error" in m:
-                if m.get("id") is None:
+                ident = m.get("id")
+                if ident is None:
                     log.warning("simgate: the server answered a request it could not read: %s",
                                 m.get("error"))
                 else:
-                    client._complete(m["id"], m.get("result"), m.get("error"))
+                    replies.append((ident, m.get("result"), m.get("error")))
                 continue
+            if replies:  # what came before this notification is handled before it
+                client._complete_all(replies)
+                replies = []
             method, params = m.get("method"), m.get("params") or {}
             if method == "rpc.progress":
                 client._progress(params.get("id"), params.get("data"))
@@ -110,6 +140,8 @@ class JsonRpcWire:
                                       params.get("time"), params.get("data")))
             elif method == "rpc.unsubscribed":
                 client._stream_ended(params.get("subscription"), params.get("reason", ""))
+        if replies:
+            client._complete_all(replies)
 
     def error(self, call: Call, error: Any) -> ServiceError:
         return errors.from_jsonrpc(error if isinstance(error, dict) else {"message": str(error)},

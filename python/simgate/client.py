@@ -17,6 +17,7 @@ block, and must not wait for another call's result.
 from __future__ import annotations
 
 import concurrent.futures
+import json
 import logging
 import math
 import threading
@@ -27,7 +28,7 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 from . import errors
 from ._services import Adapter, Namespace, ServiceInfo, ServiceMethod, did_you_mean
 from ._transport import LineTransport, WebSocketTransport, wait_readable
-from ._wires import JsonRpcWire, MorseWire
+from ._wires import JsonRpcWire, JsonText, MorseWire
 from .call import Call
 from .errors import ConnectionClosed
 from .images import decode_image
@@ -314,7 +315,7 @@ class Client(_WorldControl):
             self._handle(message)
 
     def _handle(self, message: bytes) -> None:
-        if not message.strip():
+        if not message or message.isspace():
             return
         try:
             self._wire.handle(self, message)
@@ -340,21 +341,27 @@ class Client(_WorldControl):
             sub._end(ConnectionClosed(message))
 
     def _complete(self, ident: Any, result: Any, error: Any) -> None:
+        """Complete the call a reply answers (``error`` None: it succeeded)."""
+        self._complete_all(((ident, result, error),))
+
+    def _complete_all(self, replies: Sequence[Tuple[Any, Any, Any]]) -> None:
+        """Complete the calls replies ``(id, result, error)`` answer, taken from the pending
+        calls under one lock (a batch's replies come in one message)."""
+        pending = self._pending
         with self._lock:
-            call = self._pending.pop(ident, None)
-        if call is None:
-            log.debug("simgate: a reply to no pending call (id %r)", ident)
-            return
-        if isinstance(call, _Many):
-            call._reply(ident, result, error)
-            return
-        if error is not None:
-            call.set_exception(self._wire.error(call, error))
-            return
-        try:
-            call.set_result(call._hook(result) if call._hook else result)
-        except Exception as e:  # noqa: BLE001 - a result the hook could not read
-            call.set_exception(e)
+            calls = [pending.pop(reply[0], None) for reply in replies]
+        for call, (ident, result, error) in zip(calls, replies):
+            if call is None:
+                log.debug("simgate: a reply to no pending call (id %r)", ident)
+            elif isinstance(call, _Many):
+                call._reply(ident, result, error)
+            elif error is not None:
+                call.set_exception(self._wire.error(call, error))
+            else:
+                try:
+                    call.set_result(call._hook(result) if call._hook else result)
+                except Exception as e:  # noqa: BLE001 - a result the hook could not read
+                    call.set_exception(e)
 
     def _progress(self, ident: Any, data: Any) -> None:
         with self._lock:
@@ -477,7 +484,7 @@ class Client(_WorldControl):
                   timeout: Optional[float] = ...) -> List[Any]:  # type: ignore[assignment]
         """Call several services in one message and return their results, in order, once all
         have come: ``[(component, service, params), ...]``, `params` a dict (named), a list
-        (positional) or None.
+        (positional), None, or JSON text already encoded (`simgate._wires.JsonText`).
 
         On ``jsonrpc://`` and ``ws://`` it is one JSON-RPC batch (run between the same two
         physics steps, in order) followed by one future for all of its replies: the cheapest
@@ -491,6 +498,7 @@ class Client(_WorldControl):
             timeout = self.timeout if known and all(i is not None and not i.is_async for i in known) else None
         if not isinstance(self._wire, JsonRpcWire):
             batch: List[bytes] = []
+            requests = [(c, s, json.loads(p) if isinstance(p, JsonText) else p) for c, s, p in requests]
             calls = [self._submit(c, s, p if isinstance(p, (list, tuple)) else (),
                                   p if isinstance(p, dict) else None, batch=batch)
                      for c, s, p in requests]

@@ -53,6 +53,7 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
+from ._wires import JsonText, _json, json_string
 from .client import Client
 from .errors import ConnectionClosed, MethodNotFound, ServiceError, SimgateError
 
@@ -268,17 +269,17 @@ class _Layout:
                 + [("simulation", "get_entity_state", {"name": b}) for b in self.bases]
                 + [(c, "get_local_data", None) for c, _ in self.sensors])
 
-    def observe(self, results: Sequence[Any]) -> Dict[str, np.ndarray]:
-        """The observation from the results of the `reads`."""
+    def observe(self, results: Sequence[Any], flat: bool) -> Any:
+        """The observation from the results of the `reads`: a ``Dict`` of the keys that have
+        elements, or (`flat`) their concatenation, one array."""
         it = iter(results)
         pos: List[float] = []
         vel: List[float] = []
         for _, joints in self.joints:
             state = next(it)
-            for j in joints:
-                s = state[j]
-                pos.append(s["position"])
-                vel.append(s["velocity"])
+            states = [state[j] for j in joints]
+            pos += [s["position"] for s in states]
+            vel += [s["velocity"] for s in states]
         base: List[float] = []
         for _ in self.bases:
             e = next(it)
@@ -293,9 +294,11 @@ class _Layout:
                     values.append(v[0] if isinstance(v, list) else v)
                 else:
                     values += v
-        obs = {"joint_pos": np.array(pos, dtype=np.float64), "joint_vel": np.array(vel, dtype=np.float64),
-               "base": np.array(base, dtype=np.float64), "sensors": np.array(values, dtype=np.float64)}
-        return {k: v for k, v in obs.items() if self.names[k]}
+        if flat:
+            return np.array(pos + vel + base + values, dtype=np.float64)
+        return {k: np.array(v, dtype=np.float64) for k, v in
+                (("joint_pos", pos), ("joint_vel", vel), ("base", base), ("sensors", values))
+                if self.names[k]}
 
 
 # ---- the environment
@@ -405,6 +408,12 @@ class SimgateEnv(gymnasium.Env):
         step = (("simulation", "lockstep_step", {"participant": self._participant, "n": frame_skip})
                 if lockstep else ("simulation", "step", {"n": frame_skip}))
         self._step_and_reads = [step] + self._reads
+        # what step() sends, encoded once but for the controls' values: each actuators
+        # component's names as JSON keys, and the step's and the reads' params
+        self._control_keys = [(c, [json_string(n) + ":" for n in names], where.start, where.stop)
+                              for c, names, where in self._controls]
+        self._step_and_reads_text = [(c, s, None if p is None else JsonText(_json(p, allow_nan=False)))
+                                     for c, s, p in self._step_and_reads]
 
     # ---- connection-level helpers
     @property
@@ -442,7 +451,7 @@ class SimgateEnv(gymnasium.Env):
             self._join_lockstep()  # a divergence ended the join: join again
         restored, *values = sim.call_many([("simulation", "restore_state", {"handle": self._initial})]
                                           + self._reads, timeout=sim.timeout)
-        self._obs = self._format(self._layout.observe(values))
+        self._obs = self._layout.observe(values, self.flat)
         self._elapsed = 0
         return self._obs, {"sim_time": restored["sim_time"]}
 
@@ -452,15 +461,18 @@ class SimgateEnv(gymnasium.Env):
         if self._obs is None:
             raise RuntimeError("simgate.gym: call reset() before step()")
         act = self._check(action)
-        controls = [(component, "set_controls", {"controls": dict(zip(names, act[where].tolist()))})
-                    for component, names, where in self._controls]
+        values = act.tolist()
+        requests = [(component, "set_controls", _controls_text(keys, values[start:stop]))
+                    for component, keys, start, stop in self._control_keys]
+        n = len(requests)
+        requests += self._step_and_reads_text
         try:
-            replies = self.client.call_many(controls + self._step_and_reads, timeout=None)
+            replies = self.client.call_many(requests, timeout=None)
         except ServiceError as e:
             raise type(e)(f"simgate.gym: step failed: {e.message} (reset() puts the world "
                           "back)", status=e.status, code=e.code, data=e.data, method=e.method) from e
-        result, values = replies[len(controls)], replies[len(controls) + 1:]
-        obs = self._format(self._layout.observe(values))
+        result = replies[n]
+        obs = self._layout.observe(replies[n + 1:], self.flat)
         previous, self._obs = self._obs, obs
         self._elapsed += 1
         reward = float(self.reward_fn(previous, act, obs)) if self.reward_fn else 0.0
@@ -502,7 +514,8 @@ class SimgateEnv(gymnasium.Env):
             raise ValueError(f"simgate.gym: the action has shape {act.shape}, expected "
                              f"{self.action_space.shape} ({', '.join(self.action_names)})")
         low, high = self._layout.low, self._layout.high
-        if not math.isfinite(act.sum()) and not np.all(np.isfinite(act)) or \
+        # act @ act is finite when every control is (or overflowed: then they are checked)
+        if not math.isfinite(act @ act) and not np.all(np.isfinite(act)) or \
                 self.out_of_range == "refuse" and ((act < low) | (act > high)).any():
             self._refuse(act)
         return np.minimum(np.maximum(act, low), high)
@@ -520,10 +533,13 @@ class SimgateEnv(gymnasium.Env):
                                  f"out of range: expected a number from {lo!r} to {hi!r} "
                                  "(out_of_range='refuse')")
 
-    def _format(self, obs: Dict[str, np.ndarray]) -> Any:
-        if self.flat:
-            return np.concatenate(list(obs.values())) if obs else np.zeros(0)
-        return obs
+
+
+def _controls_text(keys: List[str], values: List[float]) -> JsonText:
+    """``set_controls``' params ``{"controls": {name: value, ...}}`` as JSON text: `keys` the
+    names encoded as JSON keys (``"name":``), `values` finite floats, written with ``repr``
+    as json writes them (so the text is json.dumps', the values exact)."""
+    return JsonText('{"controls":{' + ",".join(map(str.__add__, keys, map(float.__repr__, values))) + "}}")
 
 
 def _offsets(groups: Sequence[Tuple[str, List[str]]]) -> List[Tuple[str, List[str], int]]:
