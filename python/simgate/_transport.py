@@ -114,7 +114,7 @@ class LineTransport(_Reading):
 
     def send_many(self, messages: Iterable[bytes]) -> None:
         """Several messages in one write (they reach the server in one read when they fit)."""
-        data = b"".join(m + b"\n" for m in messages)
+        data = b"".join([m + b"\n" for m in messages])
         with self._send_lock:
             self._sock.sendall(data)
 

@@ -48,6 +48,22 @@ def _json(value: Any, allow_nan: bool) -> str:
 
 
 json_string = encode_basestring_ascii  # a str as JSON text, as _json encodes it
+_DECODER = json.JSONDecoder()
+
+
+def _loads(message: bytes) -> Any:
+    """``json.loads(message)``: the same value or the same error, without its encoding
+    detection and whitespace scans when the message is what servers send, one UTF-8 JSON
+    object or array with nothing around it."""
+    if message[:1] in (b"{", b"[") and message[1:2] != b"\0":  # UTF-8, as json.detect_encoding says
+        try:
+            text = message.decode("utf-8", "surrogatepass")
+            value, end = _DECODER.raw_decode(text)
+            if end == len(text):
+                return value
+        except ValueError:
+            pass
+    return json.loads(message)
 
 
 class JsonText(str):
@@ -105,19 +121,24 @@ class JsonRpcWire:
         `JsonText` params as they are."""
         parts = []
         for ident, (component, service, params) in zip(ids, requests):
-            head = '{"jsonrpc":"2.0","id":%d,"method":%s' % (ident, json_string(f"{component}.{service}"))
+            method = json_string(f"{component}.{service}")
             if params is None:
-                parts.append(head + "}")
+                parts.append('{"jsonrpc":"2.0","id":%d,"method":%s}' % (ident, method))
             else:
                 text = params if isinstance(params, JsonText) else _json(params, allow_nan=False)
-                parts.append(f'{head},"params":{text}}}')
+                parts.append('{"jsonrpc":"2.0","id":%d,"method":%s,"params":%s}' % (ident, method, text))
         return ("[" + ",".join(parts) + "]").encode()
 
     def encode_cancel(self, call: Call) -> bytes:
         return _json({"jsonrpc": "2.0", "method": "rpc.cancel", "params": {"id": call.id}}, False).encode()
 
     def handle(self, client: "Client", message: bytes) -> None:
-        decoded = json.loads(message)
+        decoded = _loads(message)
+        if isinstance(decoded, list) and decoded and all(isinstance(m, dict) for m in decoded):
+            many = client._take_batch([m.get("id") for m in decoded])
+            if many is not None:  # the answer to a call_many batch, in its order
+                many._answered(decoded)
+                return
         replies: List[Tuple[Any, Any, Any]] = []  # completed together (a batch's, one lock)
         for m in decoded if isinstance(decoded, list) else (decoded,):
             if "result" in m or "error" in m:

@@ -363,6 +363,17 @@ class Client(_WorldControl):
                 except Exception as e:  # noqa: BLE001 - a result the hook could not read
                     call.set_exception(e)
 
+    def _take_batch(self, ids: List[Any]) -> Optional["_Many"]:
+        """The pending `call_many` batch whose ids are `ids`, in order, taken from the pending
+        calls; None when they are not one batch's."""
+        with self._lock:
+            many = self._pending.get(ids[0])
+            if not isinstance(many, _Many) or many.ids != ids:
+                return None
+            for ident in ids:
+                del self._pending[ident]
+        return many
+
     def _progress(self, ident: Any, data: Any) -> None:
         with self._lock:
             call = self._pending.get(ident)
@@ -496,7 +507,7 @@ class Client(_WorldControl):
             known = [self.services.get(f"{c}.{s}") if self._services is not None else None
                      for c, s, _ in requests]
             timeout = self.timeout if known and all(i is not None and not i.is_async for i in known) else None
-        if not isinstance(self._wire, JsonRpcWire):
+        if not isinstance(self._wire, JsonRpcWire):  # socket://: a call per line
             batch: List[bytes] = []
             requests = [(c, s, json.loads(p) if isinstance(p, JsonText) else p) for c, s, p in requests]
             calls = [self._submit(c, s, p if isinstance(p, (list, tuple)) else (),
@@ -504,31 +515,32 @@ class Client(_WorldControl):
                      for c, s, p in requests]
             self._send(self._wire.encode_batch(batch))
             done = [self._outcome(call, timeout) for call in calls]
-        else:
-            many = _Many(self, [f"{c}.{s}" for c, s, _ in requests])
+            for _, error in done:
+                if error is not None:
+                    raise error
+            return [result for result, _ in done]
+        many = _Many(self, [f"{c}.{s}" for c, s, _ in requests])
+        with self._lock:
+            if self._closed_reason is not None:
+                raise ConnectionClosed(f"{many.method}: {self.url}: {self._closed_reason}")
+            many.ids = [self._wire.new_id() for _ in requests]
+            many.id = many.ids[0]
+            self._pending.update(dict.fromkeys(many.ids, many))
+        try:
+            message = self._wire.encode_many(many.ids, requests)
+        except BaseException:
             with self._lock:
-                if self._closed_reason is not None:
-                    raise ConnectionClosed(f"{many.method}: {self.url}: {self._closed_reason}")
-                many.ids = [self._wire.new_id() for _ in requests]
-                many.id = many.ids[0]
                 for ident in many.ids:
-                    self._pending[ident] = many
-            try:
-                message = self._wire.encode_many(many.ids, requests)
-            except BaseException:
-                with self._lock:
-                    for ident in many.ids:
-                        self._pending.pop(ident, None)
-                raise
-            self._send([message])
-            try:
-                done = many.result(timeout)
-            except concurrent.futures.TimeoutError:
-                raise TimeoutError(f"{many.method}: no reply within {timeout} s") from None
-        for _, error in done:
-            if error is not None:
-                raise error
-        return [result for result, _ in done]
+                    self._pending.pop(ident, None)
+            raise
+        self._send([message])
+        try:
+            results = many.result(timeout)
+        except concurrent.futures.TimeoutError:
+            raise TimeoutError(f"{many.method}: no reply within {timeout} s") from None
+        if many.errors:
+            raise many.errors[min(many.errors)]
+        return results
 
     def _outcome(self, call: Call, timeout: Optional[float]) -> Tuple[Any, Optional[BaseException]]:
         try:
@@ -649,25 +661,43 @@ class Client(_WorldControl):
 
 class _Many(Call):
     """The future of `Client.call_many`'s JSON-RPC batch: registered under each of its
-    requests' ids, done when every reply has come; its result is ``[(result, error), ...]``
-    in the requests' order."""
+    requests' ids, done when every reply has come; its result is the list of the results in
+    the requests' order (None for a call that failed), `errors` the failed calls' errors by
+    position."""
 
     def __init__(self, client: Client, methods: List[str]) -> None:
         super().__init__(client, "batch of " + ", ".join(methods), False)
         self.methods = methods
         self.ids: List[Any] = []
-        self._outcomes: List[Any] = [None] * len(methods)
+        self.results: List[Any] = [None] * len(methods)
+        self.errors: Dict[int, errors.ServiceError] = {}
         self._left = len(methods)
 
     def _reply(self, ident: Any, result: Any, error: Any) -> None:
         """One reply (on the thread that reads; the replies of one batch come in one message,
         read by one thread)."""
         i = self.ids.index(ident)
-        self._outcomes[i] = (result, None if error is None else errors.from_jsonrpc(
-            error if isinstance(error, dict) else {"message": str(error)}, self.methods[i]))
+        self.results[i] = result
+        if error is not None:
+            self._failed(i, error)
         self._left -= 1
         if self._left == 0 and not self.done():
-            self.set_result(self._outcomes)
+            self.set_result(self.results)
+
+    def _answered(self, replies: List[Dict[str, Any]]) -> None:
+        """Every reply at once: the JSON-RPC response objects, in the requests' order (what
+        `Client._take_batch` checked)."""
+        self.results = [m.get("result") for m in replies]
+        for i, m in enumerate(replies):
+            if m.get("error") is not None:
+                self._failed(i, m["error"])
+        self._left = 0
+        if not self.done():
+            self.set_result(self.results)
+
+    def _failed(self, i: int, error: Any) -> None:
+        self.errors[i] = errors.from_jsonrpc(error if isinstance(error, dict) else {"message": str(error)},
+                                             self.methods[i])
 
     def cancel(self) -> bool:
         """A batch's calls are not cancelled one by one: always False."""

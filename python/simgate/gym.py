@@ -409,9 +409,10 @@ class SimgateEnv(gymnasium.Env):
                 if lockstep else ("simulation", "step", {"n": frame_skip}))
         self._step_and_reads = [step] + self._reads
         # what step() sends, encoded once but for the controls' values: each actuators
-        # component's names as JSON keys, and the step's and the reads' params
-        self._control_keys = [(c, [json_string(n) + ":" for n in names], where.start, where.stop)
-                              for c, names, where in self._controls]
+        # component's set_controls params as a %-format of its values, and the step's and
+        # the reads' params
+        self._control_formats = [(c, _controls_format(names), where.start, where.stop)
+                                 for c, names, where in self._controls]
         self._step_and_reads_text = [(c, s, None if p is None else JsonText(_json(p, allow_nan=False)))
                                      for c, s, p in self._step_and_reads]
 
@@ -462,8 +463,8 @@ class SimgateEnv(gymnasium.Env):
             raise RuntimeError("simgate.gym: call reset() before step()")
         act = self._check(action)
         values = act.tolist()
-        requests = [(component, "set_controls", _controls_text(keys, values[start:stop]))
-                    for component, keys, start, stop in self._control_keys]
+        requests = [(component, "set_controls", JsonText(form % tuple(values[start:stop])))
+                    for component, form, start, stop in self._control_formats]
         n = len(requests)
         requests += self._step_and_reads_text
         try:
@@ -535,11 +536,12 @@ class SimgateEnv(gymnasium.Env):
 
 
 
-def _controls_text(keys: List[str], values: List[float]) -> JsonText:
-    """``set_controls``' params ``{"controls": {name: value, ...}}`` as JSON text: `keys` the
-    names encoded as JSON keys (``"name":``), `values` finite floats, written with ``repr``
-    as json writes them (so the text is json.dumps', the values exact)."""
-    return JsonText('{"controls":{' + ",".join(map(str.__add__, keys, map(float.__repr__, values))) + "}}")
+def _controls_format(names: Sequence[str]) -> str:
+    """``set_controls``' params ``{"controls": {name: value, ...}}`` as a ``%`` format of the
+    values (a tuple of finite floats): ``%r`` writes a float as json does, so ``format %
+    values`` is the JSON text `_json` gives the params, the values exact."""
+    keys = (json_string(n).replace("%", "%%") for n in names)
+    return '{"controls":{' + ",".join(k + ":%r" for k in keys) + "}}"
 
 
 def _offsets(groups: Sequence[Tuple[str, List[str]]]) -> List[Tuple[str, List[str], int]]:
