@@ -86,6 +86,10 @@ class JsonRpcWire:
     def new_id(self) -> int:
         return next(self._ids)
 
+    def new_ids(self, n: int) -> List[int]:
+        """`n` new ids, consecutive (the client's lock held)."""
+        return list(itertools.islice(self._ids, n))
+
     def encode(self, call: Call, component: str, service: str, params: Any) -> bytes:
         request: Dict[str, Any] = {"jsonrpc": "2.0", "id": call.id, "method": f"{component}.{service}"}
         if params is not None:
@@ -134,10 +138,14 @@ class JsonRpcWire:
 
     def handle(self, client: "Client", message: bytes) -> None:
         decoded = _loads(message)
-        if isinstance(decoded, list) and decoded and all(isinstance(m, dict) for m in decoded):
-            many = client._take_batch([m.get("id") for m in decoded])
+        if isinstance(decoded, list) and decoded:
+            try:
+                ids = [m.get("id") for m in decoded]
+                many = client._take_batch(ids)
+            except AttributeError:  # not a list of objects: see below
+                many = None
             if many is not None:  # the answer to a call_many batch, in its order
-                many._answered(decoded)
+                many._answered(decoded, [m.get("result") for m in decoded])
                 return
         replies: List[Tuple[Any, Any, Any]] = []  # completed together (a batch's, one lock)
         for m in decoded if isinstance(decoded, list) else (decoded,):

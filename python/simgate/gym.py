@@ -262,6 +262,8 @@ class _Layout:
             "sensors": [f"sensors:{c}/{n}" + (f"[{i}]" if d > 1 else "")
                         for c, s in self.sensors for n, d in s for i in range(d)],
         }
+        # the observation's keys that have elements, and their place in `observe`'s parts
+        self.keys = [(k, i) for i, k in enumerate(self.names) if self.names[k]]
 
     def reads(self) -> List[Tuple[str, str, Any]]:
         """The observation's reads, as `Client.call_many` requests, in `observe`'s order."""
@@ -296,9 +298,8 @@ class _Layout:
                     values += v
         if flat:
             return np.array(pos + vel + base + values, dtype=np.float64)
-        return {k: np.array(v, dtype=np.float64) for k, v in
-                (("joint_pos", pos), ("joint_vel", vel), ("base", base), ("sensors", values))
-                if self.names[k]}
+        parts = (pos, vel, base, values)
+        return {k: np.array(parts[i], dtype=np.float64) for k, i in self.keys}
 
 
 # ---- the environment
@@ -515,11 +516,12 @@ class SimgateEnv(gymnasium.Env):
             raise ValueError(f"simgate.gym: the action has shape {act.shape}, expected "
                              f"{self.action_space.shape} ({', '.join(self.action_names)})")
         low, high = self._layout.low, self._layout.high
-        # act @ act is finite when every control is (or overflowed: then they are checked)
-        if not math.isfinite(act @ act) and not np.all(np.isfinite(act)) or \
+        # the sum is finite when every control is (or overflowed: then they are checked)
+        if not math.isfinite(sum(act.tolist())) and not np.all(np.isfinite(act)) or \
                 self.out_of_range == "refuse" and ((act < low) | (act > high)).any():
             self._refuse(act)
-        return np.minimum(np.maximum(act, low), high)
+        clipped = np.maximum(act, low)
+        return np.minimum(clipped, high, out=clipped)
 
     def _refuse(self, act: np.ndarray) -> None:
         """Raise the error of the first control that is not finite or (refusing) out of range."""
