@@ -370,12 +370,13 @@ class Client(_WorldControl):
     def _take_batch(self, ids: List[Any]) -> Optional["_Many"]:
         """The pending `call_many` batch whose ids are `ids`, in order, taken from the pending
         calls; None when they are not one batch's."""
+        pending = self._pending
         with self._lock:
-            many = self._pending.get(ids[0])
+            many = pending.get(ids[0])
             if not isinstance(many, _Many) or many.ids != ids:
                 return None
             for ident in ids:
-                del self._pending[ident]
+                del pending[ident]
         return many
 
     def _progress(self, ident: Any, data: Any) -> None:
@@ -528,7 +529,6 @@ class Client(_WorldControl):
             if self._closed_reason is not None:
                 raise ConnectionClosed(f"{many.method}: {self.url}: {self._closed_reason}")
             many.ids = self._wire.new_ids(len(requests))
-            many.id = many.ids[0]
             self._pending.update(dict.fromkeys(many.ids, many))
         try:
             message = self._wire.encode_many(many.ids, requests)
@@ -538,8 +538,7 @@ class Client(_WorldControl):
                     self._pending.pop(ident, None)
             raise
         self._send([message])
-        if not many.done():
-            self._read_for(many, None if timeout is None else time.monotonic() + timeout)
+        self._read_for(many, None if timeout is None else time.monotonic() + timeout)
         if not many.done():
             if self._closed_reason is not None:  # what _shut is about to say
                 raise ConnectionClosed(f"{many.method}: {self.url}: {self._closed_reason}")
@@ -678,12 +677,12 @@ class _Many:
     that reads need (`done`, `add_done_callback`, `set_exception`). A Future's condition,
     states and notifications cost a tenth of `simgate.gym`'s step."""
 
+    __slots__ = ("_requests", "ids", "results", "errors", "exception", "_left", "_done", "_callbacks", "_lock")
     is_async = False
 
     def __init__(self, requests: Sequence[Tuple[str, str, Any]]) -> None:
         self._requests = requests
         self.ids: List[Any] = []
-        self.id: Any = None
         self.results: List[Any] = [None] * len(requests)
         self.errors: Dict[int, errors.ServiceError] = {}
         self.exception: Optional[BaseException] = None
