@@ -279,9 +279,8 @@ class _Layout:
         vel: List[float] = []
         for _, joints in self.joints:
             state = next(it)
-            states = [state[j] for j in joints]
-            pos += [s["position"] for s in states]
-            vel += [s["velocity"] for s in states]
+            pos += [state[j]["position"] for j in joints]
+            vel += [state[j]["velocity"] for j in joints]
         base: List[float] = []
         for _ in self.bases:
             e = next(it)
@@ -394,6 +393,8 @@ class SimgateEnv(gymnasium.Env):
             raise
         layout = self._layout
         self.action_space = spaces.Box(layout.low, layout.high, dtype=np.float64)
+        self._low: List[float] = layout.low.tolist()  # for _check
+        self._high: List[float] = layout.high.tolist()
         self.action_names: List[str] = list(layout.action_names)
         boxes = {k: spaces.Box(-np.inf, np.inf, (len(v),), np.float64)
                  for k, v in layout.names.items() if v}
@@ -462,8 +463,7 @@ class SimgateEnv(gymnasium.Env):
         physics steps, observe: one round trip (a JSON-RPC batch)."""
         if self._obs is None:
             raise RuntimeError("simgate.gym: call reset() before step()")
-        act = self._check(action)
-        values = act.tolist()
+        values = self._check(action)
         requests = [(component, "set_controls", JsonText(form % tuple(values[start:stop])))
                     for component, form, start, stop in self._control_formats]
         n = len(requests)
@@ -477,6 +477,7 @@ class SimgateEnv(gymnasium.Env):
         obs = self._layout.observe(replies[n + 1:], self.flat)
         previous, self._obs = self._obs, obs
         self._elapsed += 1
+        act = np.array(values, dtype=np.float64) if self.reward_fn or self.terminated_fn else None
         reward = float(self.reward_fn(previous, act, obs)) if self.reward_fn else 0.0
         terminated = bool(self.terminated_fn(previous, act, obs)) if self.terminated_fn else False
         truncated = self.max_episode_steps is not None and self._elapsed >= self.max_episode_steps
@@ -510,18 +511,20 @@ class SimgateEnv(gymnasium.Env):
         super().close()
 
     # ---- helpers
-    def _check(self, action: Any) -> np.ndarray:
+    def _check(self, action: Any) -> List[float]:
+        """The controls of `action`: checked (its shape; each finite; in range when refusing,
+        else `_refuse` raises) and clipped into their ranges, as floats (the values of
+        ``np.minimum(np.maximum(act, low), high)``: low <= high, Box says so)."""
         act = np.asarray(action, dtype=np.float64)
         if act.shape != self.action_space.shape:
             raise ValueError(f"simgate.gym: the action has shape {act.shape}, expected "
                              f"{self.action_space.shape} ({', '.join(self.action_names)})")
-        low, high = self._layout.low, self._layout.high
+        values = act.tolist()
         # the sum is finite when every control is (or overflowed: then they are checked)
-        if not math.isfinite(sum(act.tolist())) and not np.all(np.isfinite(act)) or \
-                self.out_of_range == "refuse" and ((act < low) | (act > high)).any():
+        if not math.isfinite(sum(values)) and not np.all(np.isfinite(act)) or \
+                self.out_of_range == "refuse" and ((act < self._layout.low) | (act > self._layout.high)).any():
             self._refuse(act)
-        clipped = np.maximum(act, low)
-        return np.minimum(clipped, high, out=clipped)
+        return [lo if v < lo else hi if v > hi else v for v, lo, hi in zip(values, self._low, self._high)]
 
     def _refuse(self, act: np.ndarray) -> None:
         """Raise the error of the first control that is not finite or (refusing) out of range."""
