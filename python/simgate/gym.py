@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import json
 import math
+import operator
 import os
 import shutil
 import signal
@@ -47,7 +48,7 @@ import subprocess
 import tempfile
 import time
 import weakref
-from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import gymnasium
 import numpy as np
@@ -264,6 +265,8 @@ class _Layout:
         }
         # the observation's keys that have elements, and their place in `observe`'s parts
         self.keys = [(k, i) for i, k in enumerate(self.names) if self.names[k]]
+        # each armature_pose's get_state -> its joints' states, in order
+        self._joint_states = [_items(joints) for _, joints in self.joints]
 
     def reads(self) -> List[Tuple[str, str, Any]]:
         """The observation's reads, as `Client.call_many` requests, in `observe`'s order."""
@@ -277,10 +280,10 @@ class _Layout:
         it = iter(results)
         pos: List[float] = []
         vel: List[float] = []
-        for _, joints in self.joints:
-            state = next(it)
-            pos += [state[j]["position"] for j in joints]
-            vel += [state[j]["velocity"] for j in joints]
+        for joint_states in self._joint_states:
+            states = joint_states(next(it))
+            pos += map(_POSITION, states)
+            vel += map(_VELOCITY, states)
         base: List[float] = []
         for _ in self.bases:
             e = next(it)
@@ -539,6 +542,16 @@ class SimgateEnv(gymnasium.Env):
                                  f"out of range: expected a number from {lo!r} to {hi!r} "
                                  "(out_of_range='refuse')")
 
+
+
+_POSITION, _VELOCITY = operator.itemgetter("position"), operator.itemgetter("velocity")
+
+
+def _items(keys: Sequence[str]) -> Callable[[Mapping[str, Any]], Sequence[Any]]:
+    """``lambda d: tuple(d[k] for k in keys)``, in C when there are several keys."""
+    if len(keys) > 1:
+        return operator.itemgetter(*keys)
+    return lambda d: tuple(d[k] for k in keys)
 
 
 def _controls_format(names: Sequence[str]) -> str:
