@@ -1,11 +1,12 @@
 """The connection to a simgate, and the blocking API on it.
 
 One `Client` is one TCP connection, served by one reader thread: every call is a `Call` (a
-`concurrent.futures.Future`) registered under its id before its request is written; the
-reader thread reads each message the server sends and completes the call it answers, hands
-progress reports to their call and samples to their subscription. Everything else (the
-attributes built from discovery, the world-control helpers, the asyncio API in `simgate.aio`)
-submits calls and waits on these futures: there is one protocol implementation.
+`concurrent.futures.Future`) registered under its id before its request is written (a
+`call_many` batch, a `_Many` under each of its ids); the reader thread reads each message the
+server sends and completes the call it answers, hands progress reports to their call and
+samples to their subscription. Everything else (the attributes built from discovery, the
+world-control helpers, the asyncio API in `simgate.aio`) submits calls and waits on these
+futures: there is one protocol implementation.
 
 What differs between JSON-RPC (``jsonrpc://``, ``ws://``) and MORSE's protocol (``socket://``)
 is in the wires (`simgate._wires`); how bytes travel, in the transports (`simgate._transport`).
@@ -37,7 +38,7 @@ from .streams import Sample, Subscription
 log = logging.getLogger("simgate")
 
 DEFAULT_TIMEOUT = 30.0
-Pending = Union[Call, "_Many"]  # what waits for replies, by id
+_Pending = Union[Call, "_Many"]  # what waits for replies, by id
 _DISCOVERY_ERRORS = (errors.SimgateError, OSError, TimeoutError)
 
 
@@ -166,7 +167,7 @@ class Client(_WorldControl):
         self._role_releases = 0  # how many times the read role was given up
         self._role_waiters = 0  # callers waiting for the role or their call
         self._last_caller_read = 0.0  # time.monotonic() when a caller last held the role
-        self._pending: Dict[Any, Pending] = {}
+        self._pending: Dict[Any, _Pending] = {}
         self._subscriptions: Dict[Any, Subscription] = {}
         self._morse_streams: List[Subscription] = []
         self._closed_reason: Optional[str] = None
@@ -252,7 +253,7 @@ class Client(_WorldControl):
         with self._role_cond:
             self._role_cond.notify_all()
 
-    def _read_for(self, call: Pending, deadline: Optional[float]) -> None:
+    def _read_for(self, call: _Pending, deadline: Optional[float]) -> None:
         """Read on this thread until `call` is done or `deadline` (time.monotonic()) passes.
         While another thread reads, wait until it completes the call or gives the role up."""
         if self._read_lock.acquire(blocking=False):
@@ -281,7 +282,7 @@ class Client(_WorldControl):
             with self._role_cond:
                 self._role_waiters -= 1
 
-    def _read_holding(self, call: Pending, deadline: Optional[float]) -> None:
+    def _read_holding(self, call: _Pending, deadline: Optional[float]) -> None:
         """`_read_for` with the read role taken: read until `call` is done or `deadline`."""
         self._last_caller_read = time.monotonic()
         transport = self._transport
@@ -351,8 +352,8 @@ class Client(_WorldControl):
     def _complete_all(self, replies: Sequence[Tuple[Any, Any, Any]]) -> None:
         """Complete the calls replies ``(id, result, error)`` answer, taken from the pending
         calls under one lock (a batch's replies come in one message)."""
-        pending = self._pending
-        with self._lock:
+        with self._lock:  # (the pending calls read under it: _shut swaps them)
+            pending = self._pending
             calls = [pending.pop(reply[0], None) for reply in replies]
         for call, (ident, result, error) in zip(calls, replies):
             if call is None:
@@ -370,8 +371,8 @@ class Client(_WorldControl):
     def _take_batch(self, ids: List[Any]) -> Optional["_Many"]:
         """The pending `call_many` batch whose ids are `ids`, in order, taken from the pending
         calls; None when they are not one batch's."""
-        pending = self._pending
         with self._lock:
+            pending = self._pending
             many = pending.get(ids[0])
             if not isinstance(many, _Many) or many.ids != ids:
                 return None
@@ -503,7 +504,7 @@ class Client(_WorldControl):
         (positional), None, or JSON text already encoded (`simgate._wires.JsonText`).
 
         On ``jsonrpc://`` and ``ws://`` it is one JSON-RPC batch (run between the same two
-        physics steps, in order) followed by one future for all of its replies: the cheapest
+        physics steps, in order) waited for as one (`_Many`), its replies read at once: the cheapest
         round trip for an action, a step and an observation (what `simgate.gym` does at each
         step). On ``socket://``, one write of lines. When a call failed, its error is raised
         (the first by position) once every reply has come. `timeout` (seconds) bounds the
@@ -674,8 +675,8 @@ class _Many:
 
     Not a `Call`: it is never handed out, and only `call_many` waits for it, reading the
     connection itself (`Client._read_for`), so it has just what that wait and the thread
-    that reads need (`done`, `add_done_callback`, `set_exception`). A Future's condition,
-    states and notifications cost a tenth of `simgate.gym`'s step."""
+    that reads need (`done`, `add_done_callback`, `set_exception`): a Future's condition,
+    states and notifications were an eighth of the instructions of `simgate.gym`'s step."""
 
     __slots__ = ("_requests", "ids", "results", "errors", "exception", "_left", "_done", "_callbacks", "_lock")
     is_async = False

@@ -543,7 +543,6 @@ class SimgateEnv(gymnasium.Env):
                                  "(out_of_range='refuse')")
 
 
-
 _POSITION, _VELOCITY = operator.itemgetter("position"), operator.itemgetter("velocity")
 
 
