@@ -11,6 +11,7 @@ streams work on it.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import json
 import logging
@@ -48,6 +49,13 @@ def _json(value: Any, allow_nan: bool) -> str:
 
 
 json_string = encode_basestring_ascii  # a str as JSON text, as _json encodes it
+
+
+@functools.lru_cache(maxsize=1024)
+def _method_json(component: str, service: str) -> str:
+    """``"component.service"`` as JSON text (kept: a client calls the same few, over and over)."""
+    return json_string(f"{component}.{service}")
+
 _DECODER = json.JSONDecoder()
 
 
@@ -125,7 +133,7 @@ class JsonRpcWire:
         `JsonText` params as they are."""
         parts = []
         for ident, (component, service, params) in zip(ids, requests):
-            method = json_string(f"{component}.{service}")
+            method = _method_json(component, service)
             if params is None:
                 parts.append('{"jsonrpc":"2.0","id":%d,"method":%s}' % (ident, method))
             else:
