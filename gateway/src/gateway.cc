@@ -188,9 +188,13 @@ void Gateway::build_worlds(const sim::SimulationOptions& options, ConfigErrors& 
     world->set_robot_factory(std::make_shared<SpawnedRobots>(*this, k));
     worlds_.push_back(std::move(world));
   }
-  if (!worlds_.empty())
-    log::info("worlds: ", worlds_.size() + 1, " (w0 and w1..w", worlds_.size(),
-              ", each a simulation under its own lock; docs/worlds.md)");
+  if (worlds_.empty()) return;
+  all_worlds_ = std::make_unique<sim::Worlds>();
+  all_worlds_->add(*simulation_);
+  for (auto& w : worlds_) all_worlds_->add(*w);
+  all_worlds_->add_to(supervision());
+  log::info("worlds: ", worlds_.size() + 1, " (w0 and w1..w", worlds_.size(),
+            ", each a simulation under its own lock; docs/worlds.md)");
 }
 
 std::vector<std::string> Gateway::build_robot(sim::Simulation& sim, const RobotConfig& r,

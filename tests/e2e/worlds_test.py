@@ -10,7 +10,10 @@ own, addressed as "w<k>/<component>" on every transport; world 0 keeps its names
   the last digit (their poses compared as text);
 - listings: JSON-RPC's rpc.discover and `simgate list` show every world's services;
 - DDS: `simgate call --transport dds w2/simulation step 3` steps world 2 only;
-- pymorse (Debian's, unchanged) drives world 0 as ever and reaches world 1 by rpc().
+- pymorse (Debian's, unchanged) drives world 0 as ever and reaches world 1 by rpc();
+- `simulation step_many`: worlds stepped together end exactly as stepped one by one; what
+  does not fit (a world there is not, a wrong action size, an out-of-range control) is
+  refused whole, before any world steps.
 Every wait is bounded.
 """
 import argparse
@@ -141,6 +144,49 @@ class WorldsTest(unittest.TestCase):
         self.assertEqual(after[2][1], before[2][1] + 3)
         self.assertEqual(after[0], before[0])
         self.assertEqual(after[1], before[1])
+
+    def test_6_step_many_steps_worlds_together_as_one_by_one(self):
+        observe = ["qpos", "qvel", "ctrl", "sensordata"]
+        actions = [[0.3, -0.2], [0.3, -0.2]]
+
+        def fresh(*worlds):
+            for k in worlds:
+                self.ok(self.world_prefix(k) + "simulation reset")
+
+        fresh(1, 2)
+        together = self.rpc("simulation.step_many", {"worlds": [1, 2], "n": 40, "actions": actions,
+                                                     "observe": observe})["result"]["worlds"]
+        fresh(1, 2)
+        alone = [self.rpc("simulation.step_many", {"worlds": [k], "n": 40, "actions": [actions[0]],
+                                                   "observe": observe})["result"]["worlds"][0]
+                 for k in (2, 1)]
+        self.assertEqual([w["world"] for w in together], [1, 2])
+        self.assertEqual(together[0]["steps_done"], 40)
+        self.assertEqual(together[0]["ctrl"], actions[0])
+        # bit for bit: the same start and actions give the same numbers, batched or not
+        for batched, single in zip(together, reversed(alone)):
+            self.assertEqual(batched, single)
+        self.assertEqual({k: v for k, v in together[0].items() if k != "world"},
+                         {k: v for k, v in together[1].items() if k != "world"})
+
+    def test_7_step_many_refuses_what_does_not_fit_before_anything_steps(self):
+        before = [self.snapshot(k) for k in range(WORLDS)]
+        for params, parameter, words in [
+                ({"worlds": [0, 5]}, "worlds[1]", "no world number 5 (the worlds here: 0 to 2)"),
+                ({"worlds": [1, 1]}, "worlds[1]", "world 1 twice"),
+                ({"worlds": [1, 2], "actions": [[0.1, 0.1], [0.1]]}, "actions[1]",
+                 "world 2 has 2 actuators: expected 2 numbers"),
+                ({"actions": [None]}, "actions", "one entry per world named (3"),
+                ({"n": 0}, "n", "expected 1 to 1000000 steps"),
+                ({"observe": ["qpos", "xpos"]}, "observe[1]", "expected one of qpos, qvel"),
+                ({"worlds": [1], "actions": [[float("1e300"), 0]]}, "actions[0][0]", "out of bounds")]:
+            error = self.rpc("simulation.step_many", params)["error"]
+            self.assertEqual(error["code"], -32602, error)
+            self.assertEqual(error["data"]["parameter"], parameter, error)
+            self.assertIn(words, error["message"])
+        self.assertEqual([self.snapshot(k) for k in range(WORLDS)], before)
+        # only world 0 offers it
+        self.assertEqual(self.rpc("w1/simulation.step_many", {})["error"]["code"], -32601)
 
     def test_5_pymorse_drives_world_0_and_reaches_the_others_by_rpc(self):
         # not `with pymorse.Morse()`: its close() with wait_publishers=True raises a TypeError in

@@ -30,6 +30,7 @@
 #include "simgate/sim/registry.h"
 #include "simgate/sim/simulation.h"
 #include "simgate/sim/supervision.h"
+#include "simgate/sim/worlds.h"
 
 namespace simgate::gateway {
 
@@ -162,6 +163,8 @@ class Gateway {
   // the types components are created from, and the libraries whose code they run: it must
   // outlive simulation_ (declared first, destroyed last)
   sim::ComponentRegistry registry_;
+  // every world, for the services acting on several (simulation step_many); with 2 or more
+  std::unique_ptr<sim::Worlds> all_worlds_;
   std::unique_ptr<sim::Simulation> simulation_;           // model, components, loop (world 0)
   std::vector<std::unique_ptr<sim::Simulation>> worlds_;  // worlds 1, 2, ... (docs/worlds.md)
   std::vector<std::thread> world_threads_;                // their loops, while run() runs

@@ -1,0 +1,255 @@
+#include "simgate/sim/worlds.h"
+
+#include <mujoco/mujoco.h>
+
+#include <algorithm>
+#include <cmath>
+#include <exception>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+
+#include "simgate/core/call_context.h"
+#include "simgate/core/errors.h"
+#include "simgate/core/simulation_gate.h"
+#include "simgate/sim/bounds.h"
+#include "simgate/sim/simulation.h"
+#include "simgate/sim/supervision.h"
+
+namespace simgate::sim {
+
+// ---- TaskPool
+
+TaskPool::TaskPool(std::size_t threads) {
+  for (std::size_t i = 0; i < threads; ++i) helpers_.emplace_back([this] { help(); });
+}
+
+TaskPool::~TaskPool() {
+  {
+    std::lock_guard lock(mutex_);
+    stop_ = true;
+  }
+  work_.notify_all();
+  for (auto& t : helpers_) t.join();
+}
+
+void TaskPool::drain(std::unique_lock<std::mutex>& lock) {
+  while (task_ && next_ < count_) {
+    const std::size_t i = next_++;
+    ++running_;
+    const auto* task = task_;
+    lock.unlock();
+    (*task)(i);
+    lock.lock();
+    if (--running_ == 0 && next_ == count_) done_.notify_all();
+  }
+}
+
+void TaskPool::help() {
+  std::unique_lock lock(mutex_);
+  std::uint64_t seen = 0;
+  for (;;) {
+    work_.wait(lock, [&] { return stop_ || batch_ != seen; });
+    if (stop_) return;
+    seen = batch_;
+    drain(lock);
+  }
+}
+
+void TaskPool::run(std::size_t count, const std::function<void(std::size_t)>& task) {
+  if (count == 0) return;
+  std::unique_lock lock(mutex_);
+  task_ = &task;
+  next_ = 0;
+  count_ = count;
+  running_ = 0;
+  ++batch_;
+  if (count > 1) work_.notify_all();
+  drain(lock);  // the caller works too
+  done_.wait(lock, [&] { return next_ == count_ && running_ == 0; });
+  task_ = nullptr;
+}
+
+// ---- Worlds
+
+namespace {
+
+std::size_t pool_threads(std::size_t threads) {
+  if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
+  return threads - 1;  // the caller is one
+}
+
+[[noreturn]] void refuse(const std::string& parameter, const std::string& message) {
+  throw ServiceError("simulation step_many: " + parameter + ": " + message, Failure::bad_arguments,
+                     json{{"parameter", parameter}});
+}
+
+// The arrays step_many can read of a world, by name.
+const std::vector<std::string> k_observable = {"qpos", "qvel", "act", "ctrl", "sensordata"};
+
+json array_of(const mjtNum* values, int count) {
+  json out = json::array();
+  out.get_ref<json::array_t&>().reserve(static_cast<std::size_t>(std::max(count, 0)));
+  for (int i = 0; i < count; ++i) out.push_back(values[i]);
+  return out;
+}
+
+json read(const Simulation& world, const std::string& what) {
+  const mjModel* m = world.m();
+  const mjData* d = world.d();
+  if (what == "qpos") return array_of(d->qpos, m->nq);
+  if (what == "qvel") return array_of(d->qvel, m->nv);
+  if (what == "act") return array_of(d->act, m->na);
+  if (what == "ctrl") return array_of(d->ctrl, m->nu);
+  return array_of(d->sensordata, m->nsensordata);
+}
+
+// One world's part of a call, checked.
+struct Slot {
+  unsigned world = 0;
+  Simulation* sim = nullptr;
+  std::optional<std::vector<double>> action;  // its controls, or keep them
+  json result;                                // what the reply says of it
+};
+
+}  // namespace
+
+Worlds::Worlds(std::size_t threads) : pool_(pool_threads(threads)) {}
+
+void Worlds::add(Simulation& world) { worlds_.push_back(&world); }
+
+const std::vector<std::string>& Worlds::default_observation() {
+  static const std::vector<std::string> names = {"qpos", "qvel", "sensordata"};
+  return names;
+}
+
+void Worlds::add_to(SupervisionServices& world0) {
+  world0
+      .offer_service("step_many",
+                     [this](json worlds, std::int64_t n, json actions, json observe) {
+                       return step_many(worlds, n, actions, observe);
+                     },
+                     {Param("worlds", nullptr), Param("n", 1), Param("actions", nullptr),
+                      Param("observe", default_observation())})
+      .doc(
+          "steps many worlds in one call: for each of `worlds` (all when null) sets its "
+          "actuators' controls to its entry of `actions` (one number per actuator; null keeps "
+          "them), takes `n` steps, and reads `observe` (qpos, qvel, act, ctrl, sensordata); "
+          "the worlds step in parallel (docs/worlds.md)");
+}
+
+json Worlds::step_many(const json& worlds, std::int64_t n, const json& actions,
+                       const json& observe) {
+  const std::size_t count = worlds_.size();
+  // ---- the arguments that need no world
+  std::vector<unsigned> named;
+  if (worlds.is_null()) {
+    for (unsigned k = 0; k < count; ++k) named.push_back(k);
+  } else {
+    if (!worlds.is_array() || worlds.empty())
+      refuse("worlds", "expected an array of world numbers (0 to " + std::to_string(count - 1) +
+                           ") or null for all, found " + describe_json(worlds));
+    for (std::size_t i = 0; i < worlds.size(); ++i) {
+      const json& w = worlds[i];
+      if (!w.is_number_integer() || w.get<std::int64_t>() < 0 ||
+          w.get<std::int64_t>() >= static_cast<std::int64_t>(count))
+        refuse("worlds[" + std::to_string(i) + "]", "no world " + describe_json(w) +
+                                                        " (the worlds here: 0 to " +
+                                                        std::to_string(count - 1) + ")");
+      const auto k = w.get<unsigned>();
+      if (std::find(named.begin(), named.end(), k) != named.end())
+        refuse("worlds[" + std::to_string(i) + "]", "world " + std::to_string(k) + " twice");
+      named.push_back(k);
+    }
+  }
+  constexpr std::int64_t k_max_steps = 1'000'000;
+  if (n < 1 || n > k_max_steps)
+    refuse("n",
+           "expected 1 to " + std::to_string(k_max_steps) + " steps, found " + std::to_string(n));
+  if (!actions.is_null() && (!actions.is_array() || actions.size() != named.size()))
+    refuse("actions", "expected one entry per world named (" + std::to_string(named.size()) +
+                          ": an array of controls, or null) or null, found " +
+                          describe_json(actions));
+  std::vector<std::string> observed;
+  if (!observe.is_array())
+    refuse("observe", "expected an array of names (qpos, qvel, act, ctrl, sensordata)");
+  for (std::size_t i = 0; i < observe.size(); ++i) {
+    if (!observe[i].is_string() || std::find(k_observable.begin(), k_observable.end(),
+                                             observe[i].get<std::string>()) == k_observable.end())
+      refuse(
+          "observe[" + std::to_string(i) + "]",
+          "expected one of qpos, qvel, act, ctrl, sensordata, found " + describe_json(observe[i]));
+    observed.push_back(observe[i].get<std::string>());
+  }
+
+  // ---- every world named, locked in order (world 0's lock is this service's)
+  std::vector<std::unique_lock<SimulationGate>> locks;
+  std::vector<unsigned> in_order = named;
+  std::sort(in_order.begin(), in_order.end());
+  for (const unsigned k : in_order)
+    if (k != 0) locks.emplace_back(*worlds_[k]->gate());
+
+  // ---- the actions, checked against each world's actuators before anything changes
+  std::vector<Slot> slots(named.size());
+  for (std::size_t i = 0; i < named.size(); ++i) {
+    Slot& slot = slots[i];
+    slot.world = named[i];
+    slot.sim = worlds_[named[i]];
+    if (actions.is_null() || actions[i].is_null()) continue;
+    const std::string where = "actions[" + std::to_string(i) + "]";
+    const mjModel* m = slot.sim->m();
+    const json& action = actions[i];
+    if (!action.is_array() || action.size() != static_cast<std::size_t>(m->nu))
+      refuse(where, "world " + std::to_string(slot.world) + " has " + std::to_string(m->nu) +
+                        " actuators: expected " + std::to_string(m->nu) +
+                        " numbers (or null), found " + describe_json(action));
+    std::vector<double> controls;
+    for (int j = 0; j < m->nu; ++j) {
+      const json& v = action[static_cast<std::size_t>(j)];
+      const std::string parameter = where + "[" + std::to_string(j) + "]";
+      if (!v.is_number()) refuse(parameter, "expected a number, found " + describe_json(v));
+      const double value = v.get<double>();
+      // refused with the parameter and the range named (bounds.h)
+      if (m->actuator_ctrllimited[j])
+        bounds::require_between(parameter, value, m->actuator_ctrlrange[2 * j],
+                                m->actuator_ctrlrange[2 * j + 1], "");
+      else
+        bounds::require_within(parameter, value, bounds::control, "");
+      controls.push_back(value);
+    }
+    slot.action = std::move(controls);
+  }
+
+  // ---- each world by one thread: its controls, its n steps, what it observes
+  pool_.run(slots.size(), [&](std::size_t i) {
+    Slot& slot = slots[i];
+    Simulation& sim = *slot.sim;
+    const OutsideRequest outside;  // default actions see no caller (as `simulation step`)
+    json& out = slot.result;
+    out = json{{"world", slot.world}};
+    try {
+      if (slot.action) std::copy(slot.action->begin(), slot.action->end(), sim.d()->ctrl);
+      const SimulationStatistics before = sim.statistics();
+      for (std::int64_t taken = 0; taken < n; ++taken) {
+        sim.step();
+        if (sim.statistics().bad_states != before.bad_states) {
+          // its policy did what it does (paused it, reset it...): it stops here
+          out["diverged"] = sim.last_divergence() ? to_json(*sim.last_divergence()) : json();
+          break;
+        }
+      }
+      out["steps_done"] = sim.statistics().steps - before.steps;
+      out["sim_time"] = sim.sim_time();
+      for (const std::string& what : observed) out[what] = read(sim, what);
+    } catch (const std::exception& e) {
+      out["error"] = e.what();
+    }
+  });
+
+  json reply = json::array();
+  for (Slot& slot : slots) reply.push_back(std::move(slot.result));
+  return json{{"worlds", std::move(reply)}};
+}
+
+}  // namespace simgate::sim
