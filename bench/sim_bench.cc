@@ -4,7 +4,9 @@
 //
 // Modes (--mode):
 //   bare     mj_loadXML(--mjcf) and mj_step in a tight loop for --duration seconds: the
-//            physics alone, the ceiling of any loop on this scene.
+//            physics alone, the ceiling of any loop on this scene. With --copies N
+//            --threads T: N worlds of it (mjData each) stepped by T threads, world i by thread
+//            i % T, one step each in turn (the `farm` section's baseline for step_many).
 //   gateway  a Gateway built from --config (deployment file) exactly as `simgate run`
 //            builds it (builtin components, transports, mapping), plus one probe component
 //            whose default_action() stamps the time of every step. Runs at
@@ -199,27 +201,48 @@ json run_snapshot(const std::string& mjcf, double duration_s) {
           {"nv", sim.m()->nv}};
 }
 
-json run_bare(const std::string& mjcf, double duration_s) {
+json run_bare(const std::string& mjcf, double duration_s, int copies, int threads) {
   char error[1000] = "";
   mjModel* m = mj_loadXML(mjcf.c_str(), nullptr, error, sizeof error);
   if (!m) throw std::runtime_error("MJCF '" + mjcf + "': " + error);
-  mjData* d = mj_makeData(m);
-  std::uint64_t steps = 0;
-  auto start = Clock::now(), end = start + seconds(duration_s);
-  Clock::time_point now = start;
-  while (now < end) {
-    for (int i = 0; i < 64; ++i) mj_step(m, d);
-    steps += 64;
-    now = Clock::now();
-  }
-  double wall = std::chrono::duration<double>(now - start).count();
+  // `copies` worlds of the model, world i stepped by thread i % threads, each thread stepping
+  // its worlds in turn until the time is up: the ceiling of any loop stepping them
+  std::vector<mjData*> data;
+  for (int i = 0; i < copies; ++i) data.push_back(mj_makeData(m));
+  std::vector<std::uint64_t> steps(static_cast<std::size_t>(threads), 0);
+  const auto start = Clock::now(), end = start + seconds(duration_s);
+  std::vector<Clock::time_point> ended(static_cast<std::size_t>(threads), start);
+  const int steps_per_visit = copies == 1 ? 64 : 1;  // between two looks at the clock: 64+
+  auto work = [&](int t) {
+    Clock::time_point now = start;
+    std::uint64_t taken = 0;
+    while (now < end) {
+      for (int i = t; i < copies; i += threads)
+        for (int k = 0; k < steps_per_visit; ++k) mj_step(m, data[static_cast<std::size_t>(i)]);
+      taken += static_cast<std::uint64_t>(steps_per_visit) *
+               static_cast<std::uint64_t>((copies - t + threads - 1) / threads);
+      now = Clock::now();
+    }
+    steps[static_cast<std::size_t>(t)] = taken;
+    ended[static_cast<std::size_t>(t)] = now;
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads; ++t) pool.emplace_back(work, t);
+  work(0);
+  for (auto& th : pool) th.join();
+  std::uint64_t total = 0;
+  for (auto n : steps) total += n;
+  const double wall =
+      std::chrono::duration<double>(*std::max_element(ended.begin(), ended.end()) - start).count();
   json out{{"mode", "bare"},
-           {"steps", steps},
+           {"copies", copies},
+           {"threads", threads},
+           {"steps", total},
            {"wall_s", wall},
-           {"steps_per_s", static_cast<double>(steps) / wall},
+           {"steps_per_s", static_cast<double>(total) / wall},
            {"timestep", m->opt.timestep},
-           {"realtime_factor", static_cast<double>(steps) * m->opt.timestep / wall}};
-  mj_deleteData(d);
+           {"realtime_factor", static_cast<double>(total) * m->opt.timestep / wall}};
+  for (mjData* d : data) mj_deleteData(d);
   mj_deleteModel(m);
   return out;
 }
@@ -682,6 +705,13 @@ int main(int argc, char** argv) {
   simgate::bench::CameraFpsOptions camera_fps;
   std::string camera = "rover.camera";
   double frequency = 60;
+  int copies = 1, threads = 1;
+  app.add_option("--copies", copies, "bare: worlds of the model stepped")
+      ->check(CLI::Range(1, 4096))
+      ->capture_default_str();
+  app.add_option("--threads", threads, "bare: threads stepping them")
+      ->check(CLI::Range(1, 256))
+      ->capture_default_str();
   app.add_option("--mode", mode,
                  "bare, sleep, gateway, laser, humanoid, snapshot, spawn, progress, streams, "
                  "camera_fps, camera_rtf, web_poses or foxglove_rtf "
@@ -739,7 +769,7 @@ int main(int argc, char** argv) {
   try {
     json out;
     if (mode == "bare") {
-      out = run_bare(mjcf, duration);
+      out = run_bare(mjcf, duration, copies, threads);
     } else if (mode == "sleep") {
       out = run_sleep(mjcf, duration);
     } else if (mode == "laser") {
