@@ -44,8 +44,8 @@ class Rpc:
         return reply["result"]
 
 
-def start(simgate, model, worlds, workdir):
-    config = {"scene": {"mjcf": os.path.abspath(model), "start_paused": True},
+def start(simgate, model, worlds, workdir, on_divergence="pause"):
+    config = {"scene": {"mjcf": os.path.abspath(model), "start_paused": True, "on_divergence": on_divergence},
               "worlds": worlds,
               "transports": {"jsonrpc": {"plugin": "jsonrpc", "options": {"host": "127.0.0.1", "port": 0}}},
               "services": {"default": ["jsonrpc"]},
@@ -76,10 +76,13 @@ def main():
     parser.add_argument("--n", type=int, action="append", help="steps per step_many call (repeatable; default 1 and 10)")
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--seconds", type=float, default=1.0)
+    parser.add_argument("--on-divergence", default="reset",
+                        help="the scene's policy (default reset, what a learner's episodes want: "
+                             "pause keeps the state before every step to undo a diverging one)")
     args = parser.parse_args()
     ns = args.n or [1, 10]
     with tempfile.TemporaryDirectory() as workdir:
-        process, port = start(args.simgate, args.model, args.worlds, workdir)
+        process, port = start(args.simgate, args.model, args.worlds, workdir, args.on_divergence)
         try:
             rpc = Rpc(port)
             # the controls: the middle of each actuator's range (0 without one), from the
@@ -88,6 +91,7 @@ def main():
             nu = len(probe["worlds"][0]["ctrl"])
             actions = [[0.0] * nu for _ in range(args.worlds)]
             out = {"worlds": args.worlds, "actuators": nu, "model": os.path.basename(args.model),
+                   "on_divergence": args.on_divergence,
                    "step_many": {str(n): [] for n in ns}, "round_trips": []}
             for _ in range(args.rounds):
                 for n in ns:

@@ -1395,6 +1395,53 @@ class Harness:
                         out[name]["env_over_raw"], "<=", 1.3, "x")
         return {"status": "ok", "summary": out}
 
+    def section_farm(self):
+        """Issue #43: many worlds of one model stepped remotely by `simulation step_many` (one
+        JSON-RPC connection, bench/farm_bench.py), against bare mj_step of as many worlds on as
+        many threads (the pool's: one per core) and against one round trip per world and step."""
+        sim = os.path.join(self.bin, "simgate_bench_sim")
+        if not (os.access(sim, os.X_OK) and os.access(os.path.join(self.bin, "simgate"), os.X_OK)) or \
+                not self.plugin_built("jsonrpc"):
+            return {"status": "skipped", "reason": "simgate, simgate_bench_sim or the jsonrpc transport is not built"}
+        models = {"cartpole": os.path.join(ROOT, "tests", "python", "cartpole.xml")}
+        humanoid = "/usr/share/mujoco/model/humanoid/humanoid.xml"
+        if os.path.exists(humanoid):
+            models["humanoid"] = humanoid
+        worlds, seconds, rounds = (8, 0.2, 1) if self.smoke else (64, 1.0, 2)
+        threads = os.cpu_count() or 1
+        out = {}
+        for name, mjcf in models.items():
+            runs = []
+            for rep in range(self.repeats):
+                farm, bare = in_order(rep, lambda: run_json(
+                    ["/usr/bin/python3", os.path.join(ROOT, "bench", "farm_bench.py"), "--simgate",
+                     os.path.join(self.bin, "simgate"), "--model", mjcf, "--worlds", str(worlds), "--rounds",
+                     str(rounds), "--seconds", str(seconds)], self.timeout, self.env),
+                    lambda: run_json([sim, "--mode", "bare", "--mjcf", mjcf, "--duration", str(seconds), "--copies",
+                                      str(worlds), "--threads", str(threads)], self.timeout, self.env))
+                runs.append((farm, bare))
+            bares = [b["steps_per_s"] for _, b in runs]
+            summary = {"worlds": worlds, "threads": threads, "bare_steps_per_s": spread(bares),
+                       "round_trips_steps_per_s": spread([x for f, _ in runs for x in f["round_trips"]]),
+                       "on_divergence": runs[0][0]["on_divergence"], "step_many": {}}
+            for n in runs[0][0]["step_many"]:
+                rates = [x for f, _ in runs for x in f["step_many"][n]]
+                summary["step_many"][n] = {
+                    "steps_per_s": spread(rates),
+                    "over_bare": spread([x / b for (f, _), b in zip(runs, bares) for x in f["step_many"][n]]),
+                    "over_round_trips": spread([x / rt for f, _ in runs for x, rt in zip(f["step_many"][n],
+                                                                                        f["round_trips"])])}
+            out[name] = summary
+            print(f"[bench] farm {name}: " + ", ".join(
+                f"step_many n={n} {fmt(v['steps_per_s']['median'], 0)} steps/s = "
+                f"{fmt(v['over_bare']['median'], 3)}x bare" for n, v in summary["step_many"].items()),
+                file=sys.stderr, flush=True)
+            if not self.smoke:
+                self.target(f"{worlds} {name} worlds stepped by step_many (n=10 steps a call, one JSON-RPC "
+                            f"connection): steps/s / bare mj_step on {threads} threads",
+                            summary["step_many"]["10"]["over_bare"], ">=", 0.8, "x")
+        return {"status": "ok", "summary": out}
+
     # ---- driver
 
     def machine(self):
@@ -1438,7 +1485,7 @@ class Harness:
         self.results["machine"] = self.machine()
         only = set(self.args.only.split(",")) if self.args.only else None
         for name in ("socket", "jsonrpc", "websocket", "dds", "peers", "sim", "memory", "byor", "world", "progress", "streams",
-                     "cameras", "web", "foxglove", "recording", "gym", "ros2", "mcp"):
+                     "cameras", "web", "foxglove", "recording", "gym", "ros2", "mcp", "farm"):
             if only and name not in only:
                 continue
             t0 = time.monotonic()
@@ -1837,6 +1884,25 @@ def markdown(r):
                          f"{g['requests_per_step']} | {fmt(g['env_us'])} | {fmt(g['raw_us'])} | "
                          f"{fmt(g['env_over_raw'], 3)} | {fmt(g['env_steps_per_s'], 0)} | "
                          f"{fmt(g['bare_steps_per_s'], 0)} | {fmt(g['env_over_bare'], 4)} |")
+        lines.append("")
+
+    lines += ["## Many worlds: step_many (issue #43)", ""]
+    st = status_line("farm")
+    if st:
+        lines += [st, ""]
+    else:
+        lines += ["World steps per second of many worlds of one model: stepped remotely by `simulation "
+                  "step_many` (one JSON-RPC connection, the controls of every world set and qpos, qvel and "
+                  "sensordata returned at each call, bench/farm_bench.py), by one `w<k>/simulation step` round "
+                  "trip per world and step, and by bare mj_step on as many threads as simgate's pool "
+                  "(simgate_bench_sim --mode bare --copies --threads), alternating.", "",
+                  "| model | worlds / threads | steps a call | step_many steps/s | / bare | / round trips | "
+                  "bare steps/s | round trips steps/s |", "|---|---|---|---|---|---|---|---|"]
+        for name, g in s["farm"]["summary"].items():
+            for n, v in g["step_many"].items():
+                lines.append(f"| {name} | {g['worlds']} / {g['threads']} | {n} | {fmt(v['steps_per_s'], 0)} | "
+                             f"{fmt(v['over_bare'], 3)} | {fmt(v['over_round_trips'], 1)} | "
+                             f"{fmt(g['bare_steps_per_s'], 0)} | {fmt(g['round_trips_steps_per_s'], 0)} |")
         lines.append("")
 
     lines += ["## ROS 2 (issue #41)", ""]

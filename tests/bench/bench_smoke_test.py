@@ -31,7 +31,7 @@ import time
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
 SECTIONS = ("socket", "jsonrpc", "dds", "peers", "sim", "memory", "byor", "world", "progress", "streams", "cameras", "web",
-            "recording", "gym", "ros2", "mcp")
+            "recording", "gym", "ros2", "mcp", "farm")
 
 passed, failed = 0, 0
 
@@ -198,7 +198,7 @@ def main():
         for heading in ("## Targets", "## Socket transport", "## JSON-RPC transport", "## DDS transport",
                         "## Peers", "## Simulation", "## Memory", "## Bring your own robot",
                         "## Controlling the world", "## Progress reports", "## Data streams", "## Cameras",
-                        "## Browsers", "## ROS 2", "## MCP"):
+                        "## Browsers", "## ROS 2", "## MCP", "## Many worlds"):
             check(heading in md, f"results.md has '{heading}'")
         if any((results["sections"].get(n) or {}).get("status") == "ok" for n in ("socket", "jsonrpc")):
             for text in ("/ echo limit (polling)", "/ plain Asio server (sleeping)", "simgate / plain"):
