@@ -63,7 +63,8 @@ RequestManager::RequestManager(std::string name)
     : name_(std::move(name)),
       inbox_(std::make_shared<detail::Inbox>()),
       handoff_(std::make_unique<detail::Handoff>()),
-      gate_(inbox_->gate()) {}
+      gate_(inbox_->gate()),
+      worlds_(std::make_unique<Worlds>()) {}
 
 RequestManager::~RequestManager() = default;
 

@@ -52,7 +52,6 @@ std::optional<std::pair<unsigned, std::size_t>> RequestManager::world_address(
 std::shared_ptr<RequestManager> RequestManager::attach_world(unsigned world) {
   if (world == 0) throw std::invalid_argument("world 0 is the transport's own manager");
   if (parent_) throw std::logic_error(name_ + ": a world's manager serves no worlds");
-  if (!worlds_) worlds_ = std::make_unique<Worlds>();
   std::shared_ptr<RequestManager> manager;
   {
     std::lock_guard lock(worlds_->mutex);
@@ -72,7 +71,6 @@ std::shared_ptr<RequestManager> RequestManager::attach_world(unsigned world) {
 }
 
 void RequestManager::detach_world(unsigned world) {
-  if (!worlds_) return;
   {
     std::lock_guard lock(worlds_->mutex);
     if (worlds_->managers.erase(world) == 0) return;
@@ -82,7 +80,6 @@ void RequestManager::detach_world(unsigned world) {
 
 std::vector<unsigned> RequestManager::worlds() const {
   std::vector<unsigned> out;
-  if (!worlds_) return out;
   std::lock_guard lock(worlds_->mutex);
   for (const auto& [world, manager] : worlds_->managers) out.push_back(world);
   return out;

@@ -424,14 +424,14 @@ void JsonRpcEngine::drain_completions() {
 }
 
 void JsonRpcEngine::finish_call(RequestId id, Outcome&& outcome) {
-  auto it = pending_.find(id);
-  if (it == pending_.end()) return;
-  // taken out of the table while it is answered; its node is given back for a later call
+  // taken out of the table while it is answered (one lookup); its node is given back for a
+  // later call
   struct GiveBack {
     decltype(pending_)& table;
     decltype(pending_)::node_type node;
-    ~GiveBack() { table.recycle(std::move(node)); }
-  } entry{pending_, pending_.extract(it)};
+    ~GiveBack() { table.recycle(std::move(node)); }  // (an empty one: nothing)
+  } entry{pending_, pending_.extract(id)};
+  if (entry.node.empty()) return;
   Pending& pending = entry.node.mapped();
   auto session = pending.to.session.lock();
   // nobody to answer: skip serialising (results can be large)

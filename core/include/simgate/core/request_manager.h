@@ -487,7 +487,7 @@ class RequestManager {
   // stay until their time, or until a purge when there are many more than running requests
   std::vector<Deadline> deadlines_;
   bool started_ = false;            // start() called (by process() if nobody did; under the lock)
-  std::unique_ptr<Worlds> worlds_;  // the worlds this manager routes to (attach_world)
+  std::unique_ptr<Worlds> worlds_;  // the worlds it routes to (attach_world); never null
   std::atomic<bool> has_worlds_{false};  // worlds_ holds one: calls are looked at for prefixes
   RequestManager* parent_ = nullptr;     // a world's manager: the transport's it answers to
 };
