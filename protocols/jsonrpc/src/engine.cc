@@ -274,12 +274,13 @@ void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& r
   // taken at once (one probe of the table), given back if the call is refused below
   std::string_view key;
   std::size_t key_hash = 0;
-  const RequestId id = new_request_id();
+  const RequestId id = add_pending();  // filled below once the call is accepted
   if (request.has_id && !request.id.is_null()) {
     if (request.id_text.empty()) request.id_text = dump(request.id);
     key = request.id_text;
     const auto hash = session->track(key, id);
     if (!hash) {
+      drop_pending(id);
       reply(to, error_response(to.id, code::invalid_request,
                                "Invalid Request: id " + request.id_text +
                                    " is already used by a pending call on this connection",
@@ -298,6 +299,7 @@ void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& r
       call_options = read_meta(*meta, why);
       if (!why.empty()) {
         if (!key.empty()) session->forget_call(key_hash, id);
+        drop_pending(id);
         reply(to, error_response(to.id, code::invalid_params, "Invalid params: _meta: " + why,
                                  json{{"method", method}, {"parameter", "_meta"}}));
         return;
@@ -320,12 +322,33 @@ void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& r
   call.progress = wants_progress;
   call.client = session->number();
   call.timeout = call_options.timeout;  // a notification's too: its service stops in time
-  Pending& pending = pending_.try_emplace(id).first->second;  // a recycled node when there is one
+  Pending& pending = **pending_.find(id);
   pending.to = std::move(to);
   pending.method.assign(method);
   pending.id_key.assign(key);
   pending.id_hash = key_hash;
   pending.cancel = false;
+}
+
+RequestId JsonRpcEngine::add_pending() {
+  std::unique_ptr<Pending> entry;
+  if (spare_pending_.empty()) {
+    entry = std::make_unique<Pending>();
+  } else {
+    entry = std::move(spare_pending_.back());
+    spare_pending_.pop_back();
+  }
+  return pending_.insert(std::move(entry));
+}
+
+void JsonRpcEngine::drop_pending(RequestId id) {
+  if (auto* slot = pending_.find(id)) {
+    if (spare_pending_.size() < k_spare_pending) {
+      (*slot)->recycle();
+      spare_pending_.push_back(std::move(*slot));
+    }
+    pending_.erase(id);
+  }
 }
 
 void JsonRpcEngine::handle_login(const std::shared_ptr<Session>& session, const json& params,
@@ -384,9 +407,9 @@ void JsonRpcEngine::handle_cancel(const std::shared_ptr<Session>& session,
   }
   // the answer comes once the cancel ran, through the same list as outcomes, so it keeps
   // its place among the replies (before the cancelled call's -32002)
-  const RequestId cancel_id = new_request_id();
+  const RequestId cancel_id = add_pending();
   session->add_in_flight();
-  Pending& pending = pending_.try_emplace(cancel_id).first->second;
+  Pending& pending = **pending_.find(cancel_id);
   pending.to = std::move(to);
   pending.method.assign(method);
   pending.id_key.clear();
@@ -403,11 +426,12 @@ void JsonRpcEngine::on_service_completion(RequestId id, Outcome&& outcome) {
 
 void JsonRpcEngine::on_service_progress(RequestId id, json&& value) {
   // the I/O thread, before the call's response
-  auto it = pending_.find(id);
-  if (it == pending_.end()) return;
-  auto session = it->second.to.session.lock();
+  auto* slot = pending_.find(id);
+  if (!slot) return;
+  Pending* pending = slot->get();
+  auto session = pending->to.session.lock();
   if (!session || session->closed()) return;
-  const std::string& id_key = it->second.id_key;
+  const std::string& id_key = pending->id_key;
   session->queue_droppable_message([&](std::string& out) {
     out += R"({"jsonrpc":"2.0","method":"rpc.progress","params":{"id":)";
     out += id_key;
@@ -424,15 +448,21 @@ void JsonRpcEngine::drain_completions() {
 }
 
 void JsonRpcEngine::finish_call(RequestId id, Outcome&& outcome) {
-  // taken out of the table while it is answered (one lookup); its node is given back for a
-  // later call
+  auto* slot = pending_.find(id);
+  if (!slot) return;
+  // taken out of the table while it is answered (the reply may close its connection); kept
+  // for a later call afterwards
   struct GiveBack {
-    decltype(pending_)& table;
-    decltype(pending_)::node_type node;
-    ~GiveBack() { table.recycle(std::move(node)); }  // (an empty one: nothing)
-  } entry{pending_, pending_.extract(id)};
-  if (entry.node.empty()) return;
-  Pending& pending = entry.node.mapped();
+    std::vector<std::unique_ptr<Pending>>& spare;
+    std::unique_ptr<Pending> entry;
+    ~GiveBack() {
+      if (spare.size() >= k_spare_pending) return;
+      entry->recycle();
+      spare.push_back(std::move(entry));
+    }
+  } taken{spare_pending_, std::move(*slot)};
+  pending_.erase(id);
+  Pending& pending = *taken.entry;
   auto session = pending.to.session.lock();
   // nobody to answer: skip serialising (results can be large)
   if (!session || session->closed()) return;

@@ -132,8 +132,6 @@ class RecyclingMap {
   }
   // Takes an entry out of the table; give its node back with recycle() when done with it.
   node_type extract(iterator it) { return map_.extract(it); }
-  // The same by key, in one lookup (an empty node when there is none).
-  node_type extract(const Key& key) { return map_.extract(key); }
   void recycle(node_type node) { keep(std::move(node)); }
   void clear() { map_.clear(); }
 

@@ -51,7 +51,7 @@
 #include "simgate/jsonrpc/protocol.h"
 #include "simgate/kit/connection.h"
 #include "simgate/kit/id_table.h"
-#include "simgate/kit/recycling_map.h"
+#include "simgate/kit/request_slots.h"
 #include "simgate/kit/tcp_server.h"
 
 namespace simgate::jsonrpc {
@@ -260,8 +260,15 @@ class JsonRpcEngine : public RequestManager {
   // Ends the subscriptions of `session` (and those of connections gone); null: all.
   void end_subscriptions(const Session* session);
 
-  static constexpr std::size_t k_spare_nodes = 256;               // table nodes kept for reuse
-  kit::RecyclingMap<RequestId, Pending> pending_{k_spare_nodes};  // submitted calls (I/O thread)
+  // A pending call's slot (its id names it: no hashing), recycled when a spare one is kept.
+  RequestId add_pending();
+  // Gives back the slot of a call refused after add_pending().
+  void drop_pending(RequestId id);
+  static constexpr std::size_t k_spare_pending = 256;  // Pending objects kept for reuse
+  // submitted calls and cancels, by the ids their slots give them (I/O thread); each Pending
+  // in its own object, so that one being answered stays valid while the table changes
+  kit::RequestSlots<std::unique_ptr<Pending>> pending_;
+  std::vector<std::unique_ptr<Pending>> spare_pending_;  // answered, reset, for the next calls
   Request request_;  // the message being read by the fast path (I/O thread)
   // calls of the current read, handed over together: the first to_submit_count_ of
   // to_submit_; the objects are refilled from read to read (I/O thread)
