@@ -98,13 +98,24 @@ class Lines:
         self.sock.close()
 
 
-class WorldTest(unittest.TestCase):
+class GatewayTestCase(unittest.TestCase):
+    """A test class with one gateway (its config changed by `edit`, a function of the config
+    or None) and a socket and a JSON-RPC connection to it, for all of its tests."""
+    edit = None
+
     @classmethod
     def setUpClass(cls):
         cls.workdir = tempfile.TemporaryDirectory()
-        cls.gateway = Gateway(cls.workdir.name)
-        cls.socket = Lines(cls.gateway.socket_port)
-        cls.jsonrpc = Lines(cls.gateway.jsonrpc_port)
+        cls.gateway = None
+        try:
+            cls.gateway = Gateway(cls.workdir.name, edit=cls.edit)
+            cls.socket = Lines(cls.gateway.socket_port)
+            cls.jsonrpc = Lines(cls.gateway.jsonrpc_port)
+        except BaseException:
+            if cls.gateway:
+                cls.gateway.stop()  # tearDownClass does not run when this fails
+            cls.workdir.cleanup()
+            raise
         cls.rpc_id = 0
 
     @classmethod
@@ -123,14 +134,17 @@ class WorldTest(unittest.TestCase):
         return status, json.loads(rest[0]) if rest else None
 
     def rpc(self, method, params=None):
-        WorldTest.rpc_id += 1
-        request = {"jsonrpc": "2.0", "id": WorldTest.rpc_id, "method": method}
+        cls = type(self)
+        cls.rpc_id += 1
+        request = {"jsonrpc": "2.0", "id": cls.rpc_id, "method": method}
         if params is not None:
             request["params"] = params
         response = json.loads(self.jsonrpc.ask(json.dumps(request)))
-        self.assertEqual(response["id"], WorldTest.rpc_id, response)
+        self.assertEqual(response["id"], cls.rpc_id, response)
         return response
 
+
+class WorldTest(GatewayTestCase):
     def state(self):
         status, value = self.morse("s", "simulation get_simulation_state")
         self.assertEqual(status, "SUCCESS")

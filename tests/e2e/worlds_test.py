@@ -21,12 +21,11 @@ import json
 import os
 import subprocess
 import sys
-import tempfile
 import unittest
 import warnings
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import world_test  # noqa: E402  (its Gateway and Lines)
+import world_test  # noqa: E402  (its GatewayTestCase: a gateway and a socket and JSON-RPC client)
 
 warnings.simplefilter("ignore", DeprecationWarning)  # asyncore/asynchat on Python 3.11
 import pymorse  # noqa: E402
@@ -36,46 +35,17 @@ TIMEOUT = world_test.TIMEOUT
 WORLDS = 3
 
 
-class WorldsTest(unittest.TestCase):
+class WorldsTest(world_test.GatewayTestCase):
+    edit = staticmethod(lambda config: config.update(worlds=WORLDS))
+
     @classmethod
     def setUpClass(cls):
         world_test.ARGS = ARGS
-        cls.workdir = tempfile.TemporaryDirectory()
-        cls.gateway = None
-        try:
-            cls.gateway = world_test.Gateway(cls.workdir.name, edit=lambda c: c.update(worlds=WORLDS))
-            cls.socket = world_test.Lines(cls.gateway.socket_port)
-            cls.jsonrpc = world_test.Lines(cls.gateway.jsonrpc_port)
-        except BaseException:
-            if cls.gateway:
-                cls.gateway.stop()  # tearDownClass does not run when this fails
-            cls.workdir.cleanup()
-            raise
-        cls.rpc_id = 0
-
-    @classmethod
-    def tearDownClass(cls):
-        cls.socket.close()
-        cls.jsonrpc.close()
-        code = cls.gateway.stop()
-        cls.workdir.cleanup()
-        assert code == 0, "simgate run exited with %s" % code
+        super().setUpClass()
 
     def morse(self, request):
-        """A socket request; returns (status, value)."""
-        reply = self.socket.ask("r " + request)
-        got_id, status, *rest = reply.split(" ", 2)
-        self.assertEqual(got_id, "r", reply)
-        return status, json.loads(rest[0]) if rest else None
-
-    def rpc(self, method, params=None):
-        WorldsTest.rpc_id += 1
-        request = {"jsonrpc": "2.0", "id": WorldsTest.rpc_id, "method": method}
-        if params is not None:
-            request["params"] = params
-        response = json.loads(self.jsonrpc.ask(json.dumps(request)))
-        self.assertEqual(response["id"], WorldsTest.rpc_id, response)
-        return response
+        """A socket request under id "r"; returns (status, value)."""
+        return super().morse("r", request)
 
     def ok(self, request):
         status, value = self.morse(request)
