@@ -76,7 +76,6 @@ class Worlds {
   explicit Worlds(std::size_t threads = 0);
   // World k is the k-th added (world 0 first). Before the worlds run.
   void add(Simulation& world);
-  std::size_t size() const { return worlds_.size(); }
   // Offers step_many on world 0's `simulation` component.
   void add_to(SupervisionServices& world0);
 

@@ -75,7 +75,6 @@ struct Options {
 // core's request id, so that ids and rpc.cancel are scoped to the connection.
 class SessionCalls {
  public:
-  bool has_id(const std::string& key) const { return calls_.find(key) != nullptr; }
   // Remembers the call `id` under the client's id: the key's hash (for forget_call), or
   // nullopt (nothing changed) when a pending call has that id already.
   std::optional<std::size_t> track(std::string_view key, RequestId id) {
