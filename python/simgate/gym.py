@@ -13,7 +13,8 @@ Importing this module registers ``simgate/Model-v0`` (``gymnasium.make("simgate.
 one (``address="jsonrpc://HOST:PORT"``). Either way the simulation is paused and the
 environment joins its lockstep (docs/world/stepping.md): nothing steps the world but
 `step()`. A simgate it started is stopped (SIGTERM, then SIGKILL) and reaped by `close()`, or
-at interpreter exit.
+at interpreter exit. Many worlds of one simgate stepped by one call: `simgate.vector`
+(``make_vec(n, vectorization_mode="worlds", ...)``).
 
 Life cycle: the constructor connects, reads what the robots have (``simulation details``:
 their ``actuators``, ``armature_pose``, ``sensors`` and ``pose`` components), builds the spaces
@@ -48,7 +49,7 @@ import subprocess
 import tempfile
 import time
 import weakref
-from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple
 
 import gymnasium
 import numpy as np
@@ -125,15 +126,18 @@ def _config_for(config: str) -> Dict[str, Any]:
 
 class _Server:
     """One ``simgate run`` of an environment: started on ports the kernel picks, reported by
-    ``--endpoints-file``; `stop()` ends and reaps it (also at interpreter exit)."""
+    ``--endpoints-file``, running `worlds` copies of the scene when given (docs/worlds.md);
+    `stop()` ends and reaps it (also at interpreter exit)."""
 
     def __init__(self, binary: str, model: Optional[str], config: Optional[str],
-                 plugin_path: Sequence[str], log_level: str) -> None:
+                 plugin_path: Sequence[str], log_level: str, worlds: Optional[int] = None) -> None:
         self.dir = tempfile.mkdtemp(prefix="simgate-gym-")
         try:
             cfg = _config_for(config) if config else {"scene": {"start_paused": True},
                                                        "transports": _transports()}
             cfg["log_level"] = log_level
+            if worlds is not None:
+                cfg["worlds"] = worlds
             cfg_path = os.path.join(self.dir, "config.json")
             with open(cfg_path, "w") as f:
                 json.dump(cfg, f)
@@ -253,8 +257,7 @@ class _Layout:
                              "gets one for its MJCF actuators; docs/components/actuators-and-sensors.md")
         self.low = np.array(low, dtype=np.float64)
         self.high = np.array(high, dtype=np.float64)
-        self.n_joints = sum(len(j) for _, j in self.joints)
-        self.n_sensors = sum(d for _, s in self.sensors for _, d in s)
+        self._low, self._high = low, high  # for clip
         self.names: Dict[str, List[str]] = {  # the elements' names: "<key>:<component>/<name>"
             "joint_pos": [f"joint_pos:{c}/{j}" for c, js in self.joints for j in js],
             "joint_vel": [f"joint_vel:{c}/{j}" for c, js in self.joints for j in js],
@@ -268,44 +271,171 @@ class _Layout:
         # each armature_pose's get_state -> its joints' states, in order
         self._joint_states = [_items(joints) for _, joints in self.joints]
 
-    def reads(self) -> List[Tuple[str, str, Any]]:
-        """The observation's reads, as `Client.call_many` requests, in `observe`'s order."""
-        return ([(c, "get_state", None) for c, _ in self.joints]
-                + [("simulation", "get_entity_state", {"name": b}) for b in self.bases]
-                + [(c, "get_local_data", None) for c, _ in self.sensors])
+    def reads(self, world: int = 0) -> List[Tuple[str, str, Any]]:
+        """The observation's reads of `world`, as `Client.call_many` requests, in `parts`'
+        order."""
+        return ([(_in_world(c, world), "get_state", None) for c, _ in self.joints]
+                + [(_in_world("simulation", world), "get_entity_state", {"name": b}) for b in self.bases]
+                + [(_in_world(c, world), "get_local_data", None) for c, _ in self.sensors])
 
-    def observe(self, results: Sequence[Any], flat: bool) -> Any:
-        """The observation from the results of the `reads`: a ``Dict`` of the keys that have
-        elements, or (`flat`) their concatenation, one array."""
-        it = iter(results)
+    def control_formats(self, world: int = 0) -> List[Tuple[str, str, int, int]]:
+        """Each actuators component of `world` with its ``set_controls`` params as a
+        %-format of its values (`_controls_format`) and its slice of the action."""
+        return [(_in_world(c, world), _controls_format(names), start, start + len(names))
+                for c, names, start in _offsets(self.actuators)]
+
+    def spaces(self, flat: bool) -> Tuple[spaces.Box, spaces.Space, List[str]]:
+        """The action space, the observation space (`flat`: one ``Box``) and the names of
+        the flat observation's elements."""
+        action = spaces.Box(self.low, self.high, dtype=np.float64)
+        boxes = {k: spaces.Box(-np.inf, np.inf, (len(v),), np.float64) for k, v in self.names.items() if v}
+        names = [n for k in boxes for n in self.names[k]]
+        if flat:
+            return action, spaces.Box(-np.inf, np.inf, (len(names),), np.float64), names
+        return action, spaces.Dict(boxes), names
+
+    def parts(self, results: Iterator[Any]) -> Tuple[List[float], List[float], List[float], List[float]]:
+        """joint_pos, joint_vel, base and sensors from the results of one world's `reads`,
+        taken from `results`."""
         pos: List[float] = []
         vel: List[float] = []
         for joint_states in self._joint_states:
-            states = joint_states(next(it))
+            states = joint_states(next(results))
             pos += map(_POSITION, states)
             vel += map(_VELOCITY, states)
         base: List[float] = []
         for _ in self.bases:
-            e = next(it)
+            e = next(results)
             p, t = e["pose"], e["twist"]
             base += p["position"] + p["orientation"] + t["linear"] + t["angular"]
         values: List[float] = []
         for _, sensors in self.sensors:
-            data = next(it)
+            data = next(results)
             for n, d in sensors:
                 v = data[n]
                 if d == 1:
                     values.append(v[0] if isinstance(v, list) else v)
                 else:
                     values += v
+        return pos, vel, base, values
+
+    def observe(self, results: Sequence[Any], flat: bool) -> Any:
+        """The observation from the results of the `reads`: a ``Dict`` of the keys that have
+        elements, or (`flat`) their concatenation, one array."""
+        pos, vel, base, values = self.parts(iter(results))
         if flat:
             return np.array(pos + vel + base + values, dtype=np.float64)
         parts = (pos, vel, base, values)
         return {k: np.array(parts[i], dtype=np.float64) for k, i in self.keys}
 
+    def observe_many(self, results: Iterator[Any], count: int, flat: bool) -> Any:
+        """The observations of `count` worlds, one row each (the values `observe` gives each),
+        from their `reads`' results in turn."""
+        rows = [self.parts(results) for _ in range(count)]
+        if flat:
+            return np.array([pos + vel + base + values for pos, vel, base, values in rows], dtype=np.float64)
+        return {k: np.array([row[i] for row in rows], dtype=np.float64) for k, i in self.keys}
+
+    def refuse(self, act: np.ndarray, label: str, out_of_range: str) -> None:
+        """Raise the error of the first control of `act` (one action, named `label`) that is
+        not finite or (`out_of_range` ``"refuse"``) out of range; return when none is."""
+        for i, value in enumerate(act.tolist()):
+            if not math.isfinite(value):
+                raise ValueError(f"simgate.gym: {label}[{i}] ({self.action_names[i]}) = {value}: "
+                                 "expected a finite number")
+        if out_of_range != "refuse":
+            return
+        for i, (value, lo, hi) in enumerate(zip(act.tolist(), self.low.tolist(), self.high.tolist())):
+            if not lo <= value <= hi:
+                raise ValueError(f"simgate.gym: {label}[{i}] ({self.action_names[i]}) = {value!r} is "
+                                 f"out of range: expected a number from {lo!r} to {hi!r} "
+                                 "(out_of_range='refuse')")
+
+    def clip(self, values: Sequence[float]) -> List[float]:
+        """`values` (one action) clipped into the actuators' ranges: the values of
+        ``np.minimum(np.maximum(act, low), high)`` (low <= high, Box says so)."""
+        return [lo if v < lo else hi if v > hi else v for v, lo, hi in zip(values, self._low, self._high)]
+
+
+def _in_world(component: str, world: int) -> str:
+    """The name of `component` in world `world`: world 0's keeps its name, world k's is
+    ``w<k>/<component>`` (docs/worlds.md)."""
+    return f"w{world}/{component}" if world else component
+
+
+def _check_arguments(model: Optional[str], config: Optional[str], address: Optional[str],
+                     frame_skip: int, out_of_range: str, max_episode_steps: Optional[int]) -> None:
+    """Raise ValueError (FileNotFoundError for a missing file) for arguments an environment
+    cannot start from."""
+    if sum(x is not None for x in (model, config, address)) != 1:
+        raise ValueError("simgate.gym: give exactly one of model=FILE.xml, config=FILE.json "
+                         "or address=jsonrpc://HOST:PORT")
+    if isinstance(frame_skip, bool) or not isinstance(frame_skip, int) or not 1 <= frame_skip <= 1_000_000:
+        raise ValueError(f"simgate.gym: frame_skip = {frame_skip!r}: expected an integer from 1 to 1000000")
+    if out_of_range not in ("clip", "refuse"):
+        raise ValueError(f"simgate.gym: out_of_range = {out_of_range!r}: expected 'clip' or 'refuse'")
+    if max_episode_steps is not None and (not isinstance(max_episode_steps, int) or max_episode_steps < 1):
+        raise ValueError(f"simgate.gym: max_episode_steps = {max_episode_steps!r}: expected a positive integer")
+    for name, path in (("model", model), ("config", config)):
+        if path is not None and not os.path.isfile(path):
+            raise FileNotFoundError(f"simgate.gym: {name}={path!r}: no such file")
+
+
+def _attach(address: str, token: Optional[str], timeout: float) -> Client:
+    """A connection to the simgate at `address` (a URL, or ``HOST:PORT`` for JSON-RPC);
+    `ConnectionClosed` naming it when none answers."""
+    url = address if "://" in address else f"jsonrpc://{address}"
+    try:
+        return Client(url, token=token, timeout=timeout)
+    except ConnectionClosed as e:
+        raise ConnectionClosed(f"simgate.gym: cannot attach to {url}: {e}") from e
+
+
+# ---- what every environment has: its connection, and the simgate it started if any
+class _Attached:
+    """The connection of an environment (`client`) and the simgate it started, if any
+    (`server_output`, `url_of`); `_detach` ends both."""
+
+    _server: Optional[_Server] = None
+    _sim: Optional[Client] = None
+
+    @property
+    def client(self) -> Client:
+        """The connection to the simulation (`simgate.Client`), for anything else."""
+        if self._sim is None:
+            raise RuntimeError("simgate.gym: the environment is closed")
+        return self._sim
+
+    @property
+    def server_output(self) -> str:
+        """What the simgate this environment started printed so far ("" when attached)."""
+        return self._server.output() if self._server else ""
+
+    def url_of(self, transport: str) -> str:
+        """The URL of the started simgate's ``jsonrpc`` or ``socket`` transport (for pymorse
+        or another client beside the environment)."""
+        if self._server is None:
+            raise RuntimeError("simgate.gym: attached to a running simgate: its transports are its own")
+        return self._server.url(transport)
+
+    def _detach(self, tidy: Callable[[Client], None]) -> None:
+        """`tidy(client)` while the connection is open (a simulation gone away is ignored),
+        then close the connection, stop and reap the simgate this environment started."""
+        sim, self._sim = self._sim, None
+        if sim is not None:
+            try:
+                if not sim.closed:
+                    tidy(sim)
+            except (SimgateError, OSError, TimeoutError):
+                pass  # the simulation went away: nothing to tidy there
+            sim.close()
+        server, self._server = self._server, None
+        if server is not None:
+            server.stop()
+
 
 # ---- the environment
-class SimgateEnv(gymnasium.Env):
+class SimgateEnv(_Attached, gymnasium.Env):
     """A simgate simulation as a Gymnasium environment (module docstring: the spaces, the
     life cycle). One instance owns one connection, and the simgate it started if any.
 
@@ -344,24 +474,11 @@ class SimgateEnv(gymnasium.Env):
                  lockstep: bool = True, plugin_path: Sequence[str] = (), log_level: str = "warning",
                  token: Optional[str] = None, timeout: float = 30.0) -> None:
         super().__init__()
-        self._server: Optional[_Server] = None
-        self._sim: Optional[Client] = None
         self._join: Any = None
         self._initial: Optional[int] = None
-        if sum(x is not None for x in (model, config, address)) != 1:
-            raise ValueError("simgate.gym: give exactly one of model=FILE.xml, config=FILE.json "
-                             "or address=jsonrpc://HOST:PORT")
-        if isinstance(frame_skip, bool) or not isinstance(frame_skip, int) or not 1 <= frame_skip <= 1_000_000:
-            raise ValueError(f"simgate.gym: frame_skip = {frame_skip!r}: expected an integer from 1 to 1000000")
-        if out_of_range not in ("clip", "refuse"):
-            raise ValueError(f"simgate.gym: out_of_range = {out_of_range!r}: expected 'clip' or 'refuse'")
+        _check_arguments(model, config, address, frame_skip, out_of_range, max_episode_steps)
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"simgate.gym: render_mode = {render_mode!r}: expected 'rgb_array' or None")
-        if max_episode_steps is not None and (not isinstance(max_episode_steps, int) or max_episode_steps < 1):
-            raise ValueError(f"simgate.gym: max_episode_steps = {max_episode_steps!r}: expected a positive integer")
-        for name, path in (("model", model), ("config", config)):
-            if path is not None and not os.path.isfile(path):
-                raise FileNotFoundError(f"simgate.gym: {name}={path!r}: no such file")
         self.frame_skip = frame_skip
         self.flat = flat
         self.out_of_range = out_of_range
@@ -379,15 +496,10 @@ class SimgateEnv(gymnasium.Env):
         try:
             if address is None:
                 self._server = _Server(find_binary(binary), model, config, plugin_path, log_level)
-                url = self._server.url("jsonrpc")
-            else:
-                url = address if "://" in address else f"jsonrpc://{address}"
-            self.url = url
-            try:
-                self._sim = Client(url, token=token, timeout=timeout)
-                self._sim.pause()
-            except ConnectionClosed as e:
-                raise ConnectionClosed(f"simgate.gym: cannot attach to {url}: {e}") from e
+                address = self._server.url("jsonrpc")
+            self._sim = _attach(address, token, timeout)
+            self.url = self._sim.url
+            self._sim.pause()
             self._layout = _Layout(self._sim)
             self._join_lockstep()
             self._initial = self._sim.save_state()
@@ -395,20 +507,8 @@ class SimgateEnv(gymnasium.Env):
             self.close()
             raise
         layout = self._layout
-        self.action_space = spaces.Box(layout.low, layout.high, dtype=np.float64)
-        self._low: List[float] = layout.low.tolist()  # for _check
-        self._high: List[float] = layout.high.tolist()
+        self.action_space, self.observation_space, self.observation_names = layout.spaces(flat)
         self.action_names: List[str] = list(layout.action_names)
-        boxes = {k: spaces.Box(-np.inf, np.inf, (len(v),), np.float64)
-                 for k, v in layout.names.items() if v}
-        self.observation_names: List[str] = [n for k in boxes for n in layout.names[k]]
-        if flat:
-            self.observation_space: spaces.Space = spaces.Box(
-                -np.inf, np.inf, (len(self.observation_names),), np.float64)
-        else:
-            self.observation_space = spaces.Dict(boxes)
-        self._controls = [(c, names, slice(i, i + len(names)))
-                          for c, names, i in _offsets(layout.actuators)]
         self._reads = layout.reads()
         step = (("simulation", "lockstep_step", {"participant": self._participant, "n": frame_skip})
                 if lockstep else ("simulation", "step", {"n": frame_skip}))
@@ -416,30 +516,8 @@ class SimgateEnv(gymnasium.Env):
         # what step() sends, encoded once but for the controls' values: each actuators
         # component's set_controls params as a %-format of its values, and the step's and
         # the reads' params
-        self._control_formats = [(c, _controls_format(names), where.start, where.stop)
-                                 for c, names, where in self._controls]
-        self._step_and_reads_text = [(c, s, None if p is None else JsonText(_json(p, allow_nan=False)))
-                                     for c, s, p in self._step_and_reads]
-
-    # ---- connection-level helpers
-    @property
-    def client(self) -> Client:
-        """The connection to the simulation (`simgate.Client`), for anything else."""
-        if self._sim is None:
-            raise RuntimeError("simgate.gym: the environment is closed")
-        return self._sim
-
-    @property
-    def server_output(self) -> str:
-        """What the simgate this environment started printed so far ("" when attached)."""
-        return self._server.output() if self._server else ""
-
-    def url_of(self, transport: str) -> str:
-        """The URL of the started simgate's ``jsonrpc`` or ``socket`` transport (for pymorse
-        or another client beside the environment)."""
-        if self._server is None:
-            raise RuntimeError("simgate.gym: attached to a running simgate: its transports are its own")
-        return self._server.url(transport)
+        self._control_formats = layout.control_formats()
+        self._step_and_reads_text = _encoded(self._step_and_reads)
 
     def _join_lockstep(self) -> None:
         if self._lockstep and (self._join is None or self._join.done()):
@@ -467,8 +545,7 @@ class SimgateEnv(gymnasium.Env):
         if self._obs is None:
             raise RuntimeError("simgate.gym: call reset() before step()")
         values = self._check(action)
-        requests = [(component, "set_controls", JsonText(form % tuple(values[start:stop])))
-                    for component, form, start, stop in self._control_formats]
+        requests = _set_controls(self._control_formats, values)
         n = len(requests)
         requests += self._step_and_reads_text
         try:
@@ -497,27 +574,19 @@ class SimgateEnv(gymnasium.Env):
     def close(self) -> None:
         """Leave the lockstep, drop the saved state, close the connection, stop and reap the
         simgate this environment started. Idempotent."""
-        sim, self._sim = self._sim, None
-        if sim is not None:
-            try:
-                if not sim.closed:
-                    if self._join is not None and not self._join.done():
-                        self._join.cancel()
-                    if self._initial is not None:
-                        sim.drop_state(self._initial)
-            except (SimgateError, OSError, TimeoutError):
-                pass  # the simulation went away: nothing to tidy there
-            sim.close()
-        server, self._server = self._server, None
-        if server is not None:
-            server.stop()
+        self._detach(self._leave)
         super().close()
+
+    def _leave(self, sim: Client) -> None:
+        if self._join is not None and not self._join.done():
+            self._join.cancel()
+        if self._initial is not None:
+            sim.drop_state(self._initial)
 
     # ---- helpers
     def _check(self, action: Any) -> List[float]:
         """The controls of `action`: checked (its shape; each finite; in range when refusing,
-        else `_refuse` raises) and clipped into their ranges, as floats (the values of
-        ``np.minimum(np.maximum(act, low), high)``: low <= high, Box says so)."""
+        else `_Layout.refuse` raises) and clipped into their ranges, as floats."""
         act = np.asarray(action, dtype=np.float64)
         if act.shape != self.action_space.shape:
             raise ValueError(f"simgate.gym: the action has shape {act.shape}, expected "
@@ -526,21 +595,8 @@ class SimgateEnv(gymnasium.Env):
         # the sum is finite when every control is (or overflowed: then they are checked)
         if not math.isfinite(sum(values)) and not np.all(np.isfinite(act)) or \
                 self.out_of_range == "refuse" and ((act < self._layout.low) | (act > self._layout.high)).any():
-            self._refuse(act)
-        return [lo if v < lo else hi if v > hi else v for v, lo, hi in zip(values, self._low, self._high)]
-
-    def _refuse(self, act: np.ndarray) -> None:
-        """Raise the error of the first control that is not finite or (refusing) out of range."""
-        low, high = self._layout.low, self._layout.high
-        for i, value in enumerate(act.tolist()):
-            if not math.isfinite(value):
-                raise ValueError(f"simgate.gym: action[{i}] ({self.action_names[i]}) = {value}: "
-                                 "expected a finite number")
-        for i, (value, lo, hi) in enumerate(zip(act.tolist(), low.tolist(), high.tolist())):
-            if not lo <= value <= hi:
-                raise ValueError(f"simgate.gym: action[{i}] ({self.action_names[i]}) = {value!r} is "
-                                 f"out of range: expected a number from {lo!r} to {hi!r} "
-                                 "(out_of_range='refuse')")
+            self._layout.refuse(act, "action", self.out_of_range)
+        return self._layout.clip(values)
 
 
 _POSITION, _VELOCITY = operator.itemgetter("position"), operator.itemgetter("velocity")
@@ -561,6 +617,17 @@ def _controls_format(names: Sequence[str]) -> str:
     return '{"controls":{' + ",".join(k + ":%r" for k in keys) + "}}"
 
 
+def _set_controls(formats: Sequence[Tuple[str, str, int, int]], values: Sequence[float]) -> List[Tuple[str, str, Any]]:
+    """The ``set_controls`` requests of one action's `values` (`_Layout.control_formats`)."""
+    return [(component, "set_controls", JsonText(form % tuple(values[start:stop])))
+            for component, form, start, stop in formats]
+
+
+def _encoded(requests: Sequence[Tuple[str, str, Any]]) -> List[Tuple[str, str, Any]]:
+    """`requests` with their params encoded once (`JsonText`), for requests sent again and again."""
+    return [(c, s, None if p is None else JsonText(_json(p, allow_nan=False))) for c, s, p in requests]
+
+
 def _offsets(groups: Sequence[Tuple[str, List[str]]]) -> List[Tuple[str, List[str], int]]:
     out, i = [], 0
     for component, names in groups:
@@ -571,17 +638,21 @@ def _offsets(groups: Sequence[Tuple[str, List[str]]]) -> List[Tuple[str, List[st
 
 def make_vec(num_envs: int, vectorization_mode: str = "async", **kwargs: Any) -> gymnasium.vector.VectorEnv:
     """`num_envs` environments stepped together: ``gymnasium.make_vec("simgate/Model-v0",
-    num_envs, vectorization_mode, **kwargs)``. Each is its own simgate process (``"async"``:
-    each environment in a worker process of its own; ``"sync"``: all in this one). A
-    simulation of several worlds (the many-worlds issue) will step them in one call."""
+    num_envs, vectorization_mode, **kwargs)``. ``"worlds"`` (Gymnasium's
+    ``"vector_entry_point"``): one simgate running `num_envs` worlds, stepped by one call
+    (`simgate.vector.SimgateVectorEnv`, which `kwargs` go to); ``"async"``, ``"sync"``: a
+    simgate process per environment (each environment in a worker process of its own, or
+    all in this one)."""
     if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
         raise ValueError(f"simgate.gym.make_vec: num_envs = {num_envs!r}: expected a positive integer")
-    return gymnasium.make_vec(ENV_ID, num_envs=num_envs, vectorization_mode=vectorization_mode, **kwargs)
+    mode = "vector_entry_point" if vectorization_mode == "worlds" else vectorization_mode
+    return gymnasium.make_vec(ENV_ID, num_envs=num_envs, vectorization_mode=mode, **kwargs)
 
 
 def _register() -> None:
     if ENV_ID not in gymnasium.registry:
-        gymnasium.register(id=ENV_ID, entry_point="simgate.gym:SimgateEnv")
+        gymnasium.register(id=ENV_ID, entry_point="simgate.gym:SimgateEnv",
+                           vector_entry_point="simgate.vector:SimgateVectorEnv")
 
 
 _register()
