@@ -7,7 +7,7 @@
     envs.close()
 
 `SimgateVectorEnv` starts one ``simgate run`` of ``"worlds": num_envs`` (or attaches to a
-running simgate with that many worlds or more): sub-environment k is world k, exactly a
+running simgate of that many worlds or more): sub-environment k is world k, exactly a
 `simgate.gym.SimgateEnv` of that world (the same spaces, the same observations bit for bit).
 Each `step()` is one JSON-RPC batch, one round trip whatever the number of worlds: each
 world's ``set_controls`` (``w<k>/<robot>.actuators``), world 0's ``simulation step_many``
@@ -28,7 +28,7 @@ like any other.
 
 from __future__ import annotations
 
-from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple
+from typing import Any, Dict, Iterator, List, Optional, Sequence, Set, Tuple
 
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
@@ -54,8 +54,8 @@ class SimgateVectorEnv(_Attached, VectorEnv):
     (an ``AutoresetMode`` or its value, default ``NEXT_STEP``); the others are
     `simgate.gym.SimgateEnv`'s: exactly one of `model`, `config` (the simgate started runs
     ``"worlds": num_envs``, at least 2: a simgate of one world has no ``step_many``, so one
-    environment runs two worlds and steps the first) or `address` (a running simgate with at
-    least `num_envs` worlds, each paused by the environment and left paused by `close()`);
+    environment runs two worlds and steps the first) or `address` (a running simgate of worlds
+    0 to num_envs - 1 at least, each paused by the environment and left paused by `close()`);
     `binary`, `plugin_path`, `log_level`, `frame_skip`, `flat`, `out_of_range`, `reward_fn`,
     `terminated_fn` (called for each world with that world's observations and action),
     `max_episode_steps`, `token`, `timeout`. Not there: rendering, and the lockstep (nothing
@@ -100,10 +100,11 @@ class SimgateVectorEnv(_Attached, VectorEnv):
             self._sim = sim = _attach(address, token, timeout)
             self.url = sim.url
             there = _worlds_of(sim)
-            if there < max(num_envs, 2):
-                raise ValueError(f"simgate.gym: {self.url} runs {there} world(s): num_envs = {num_envs} "
-                                 f"needs {max(num_envs, 2)} or more (\"worlds\": N in its config; "
-                                 "one world has no simulation step_many; docs/worlds.md)")
+            if not set(range(max(num_envs, 2))) <= there:
+                raise ValueError(f"simgate.gym: {self.url} runs worlds {', '.join(map(str, sorted(there)))}: "
+                                 f"num_envs = {num_envs} needs worlds 0 to {max(num_envs, 2) - 1} "
+                                 "(\"worlds\": N in its config; one world has no simulation step_many; "
+                                 "docs/worlds.md)")
             sim.call_many([(_in_world("simulation", k), "pause", None) for k in self._worlds])
             self._layout = _Layout(sim)
             self._initial = sim.call_many([(_in_world("simulation", k), "save_state", None)
@@ -272,9 +273,11 @@ class SimgateVectorEnv(_Attached, VectorEnv):
                            for k, handle in zip(self._worlds, self._initial)])
 
 
-def _worlds_of(sim: Client) -> int:
-    """How many worlds the simgate of `sim` runs: world 0 and each ``w<k>/`` discovery lists."""
-    return 1 + sum(1 for method in sim.services if method.startswith("w") and method.endswith("/simulation.save_state"))
+def _worlds_of(sim: Client) -> Set[int]:
+    """The worlds the simgate of `sim` runs: world 0 and each ``w<k>/`` discovery lists."""
+    suffix = "/simulation.save_state"
+    return {0} | {int(method[1:-len(suffix)]) for method in sim.services
+                  if method.startswith("w") and method.endswith(suffix) and method[1:-len(suffix)].isdigit()}
 
 
 def _row(obs: Any, k: int) -> Any:

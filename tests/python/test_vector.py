@@ -19,7 +19,7 @@ from gymnasium.vector.utils import batch_space  # noqa: E402
 
 import simgate  # noqa: E402
 import simgate.gym  # noqa: E402
-from simgate.gym import SimgateEnv  # noqa: E402
+import simgate.vector  # noqa: E402
 from simgate.vector import SimgateVectorEnv  # noqa: E402
 
 from conftest import Gateway, simgate_binary  # noqa: E402
@@ -196,6 +196,29 @@ def test_reset_mask_resets_only_the_worlds_it_names():
         envs.close()
 
 
+def test_a_step_past_the_batch_limit_is_sent_as_batches_in_turn(monkeypatch):
+    def trajectory(envs):
+        out = [envs.reset()[0]]
+        for action in (1.0, -0.5, 0.25):
+            out.append(envs.step(np.array([[action], [-action], [0.0]]))[0])
+        return [bits(obs) for obs in out]
+
+    whole = make_vector(3, model=CARTPOLE)
+    split = make_vector(3, model=CARTPOLE)
+    try:
+        expected = trajectory(whole)
+        batches = []
+        call_many = split.client.call_many
+        monkeypatch.setattr(split.client, "call_many", lambda requests, **kw: batches.append(len(requests))
+                            or call_many(requests, **kw))
+        monkeypatch.setattr(simgate.vector, "MAX_BATCH", 4)
+        assert trajectory(split) == expected
+        assert batches[-3:] == [4, 4, 2]  # 3 set_controls, step_many, 6 reads
+    finally:
+        whole.close()
+        split.close()
+
+
 # ---- bad input, a diverging world
 def test_bad_actions_are_refused_before_anything_is_sent():
     envs = make_vector(2, model=CARTPOLE, out_of_range="refuse")
@@ -251,7 +274,7 @@ def test_attach_to_a_simgate_started_with_worlds(tmp_path):
               "robots": [{"name": "cart", "type": "mjcf", "body": "cart"}], "log_level": "warning"}
     gw = Gateway(tmp_path, config)  # playing, not paused
     try:
-        with pytest.raises(ValueError, match=r"runs 3 world\(s\): num_envs = 4 needs 4 or more"):
+        with pytest.raises(ValueError, match="runs worlds 0, 1, 2: num_envs = 4 needs worlds 0 to 3"):
             SimgateVectorEnv(4, address=gw.url("jsonrpc"))
         envs = SimgateVectorEnv(2, address=gw.url("jsonrpc"))
         try:
