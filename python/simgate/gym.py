@@ -617,7 +617,8 @@ def _controls_format(names: Sequence[str]) -> str:
     return '{"controls":{' + ",".join(k + ":%r" for k in keys) + "}}"
 
 
-def _set_controls(formats: Sequence[Tuple[str, str, int, int]], values: Sequence[float]) -> List[Tuple[str, str, Any]]:
+def _set_controls(formats: Sequence[Tuple[str, str, int, int]],
+                  values: Sequence[float]) -> List[Tuple[str, str, Any]]:
     """The ``set_controls`` requests of one action's `values` (`_Layout.control_formats`)."""
     return [(component, "set_controls", JsonText(form % tuple(values[start:stop])))
             for component, form, start, stop in formats]

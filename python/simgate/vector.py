@@ -120,7 +120,8 @@ class SimgateVectorEnv(_Attached, VectorEnv):
         # what the batches hold, encoded once but for the controls' values and step_many's worlds
         self._control_formats = [layout.control_formats(k) for k in self._worlds]
         self._reads = [_encoded(layout.reads(k)) for k in self._worlds]
-        self._restores = [(_in_world("simulation", k), "restore_state", JsonText(_json({"handle": handle}, allow_nan=False)))
+        self._restores = [(_in_world("simulation", k), "restore_state",
+                           JsonText(_json({"handle": handle}, allow_nan=False)))
                           for k, handle in zip(self._worlds, self._initial)]
 
     # ---- Gymnasium's API
@@ -220,8 +221,8 @@ class SimgateVectorEnv(_Attached, VectorEnv):
             requests += _set_controls(self._control_formats[k], values[k])
         stepped = len(requests)
         if step:
-            requests.append(("simulation", "step_many",
-                             JsonText(_json({"worlds": list(step), "n": self.frame_skip, "observe": []}, allow_nan=False))))
+            params = {"worlds": list(step), "n": self.frame_skip, "observe": []}
+            requests.append(("simulation", "step_many", JsonText(_json(params, allow_nan=False))))
         observed = sorted([*restore, *step])
         for k in observed:
             requests += self._reads[k]
