@@ -258,6 +258,9 @@ class _Layout:
         self.low = np.array(low, dtype=np.float64)
         self.high = np.array(high, dtype=np.float64)
         self._low, self._high = low, high  # for clip
+        # each actuators component, its actuators and its slice of the action
+        self.controls = [(c, names, slice(start, start + len(names)))
+                         for c, names, start in _offsets(self.actuators)]
         self.names: Dict[str, List[str]] = {  # the elements' names: "<key>:<component>/<name>"
             "joint_pos": [f"joint_pos:{c}/{j}" for c, js in self.joints for j in js],
             "joint_vel": [f"joint_vel:{c}/{j}" for c, js in self.joints for j in js],
@@ -281,8 +284,8 @@ class _Layout:
     def control_formats(self, world: int = 0) -> List[Tuple[str, str, int, int]]:
         """Each actuators component of `world` with its ``set_controls`` params as a
         %-format of its values (`_controls_format`) and its slice of the action."""
-        return [(_in_world(c, world), _controls_format(names), start, start + len(names))
-                for c, names, start in _offsets(self.actuators)]
+        return [(_in_world(c, world), _controls_format(names), where.start, where.stop)
+                for c, names, where in self.controls]
 
     def spaces(self, flat: bool) -> Tuple[spaces.Box, spaces.Space, List[str]]:
         """The action space, the observation space (`flat`: one ``Box``) and the names of
@@ -509,6 +512,7 @@ class SimgateEnv(_Attached, gymnasium.Env):
         layout = self._layout
         self.action_space, self.observation_space, self.observation_names = layout.spaces(flat)
         self.action_names: List[str] = list(layout.action_names)
+        self._controls = layout.controls  # bench/gym_bench.py sends step()'s batch from it
         self._reads = layout.reads()
         step = (("simulation", "lockstep_step", {"participant": self._participant, "n": frame_skip})
                 if lockstep else ("simulation", "step", {"n": frame_skip}))
