@@ -179,6 +179,24 @@ void parse_scene(ConfigObject& root, const std::string& base_dir, Deployment& d)
 
 // "spawn": {"allowed_dirs": [...]}: the directories `simulation spawn_entity` may read
 // fragment files from, each an existing directory (relative to the config file).
+// "worlds": N, or {"count": N, "max": M, "threads": T} (docs/configuration.md#worlds).
+void parse_worlds(ConfigObject& root, Deployment& d) {
+  if (!root.has("worlds")) return;
+  constexpr auto k_max = static_cast<long long>(Deployment::k_max_worlds);
+  const json& value = root.raw().at("worlds");
+  if (!value.is_object()) {
+    d.worlds = static_cast<unsigned>(root.get_int("worlds", 1, 1, k_max));
+    d.max_worlds = std::max(d.worlds, Deployment::k_default_max_worlds);
+    return;
+  }
+  auto worlds = *root.get_object("worlds");
+  d.worlds = static_cast<unsigned>(worlds.get_int("count", 1, 1, k_max));
+  d.max_worlds = static_cast<unsigned>(
+      worlds.get_int("max", std::max(d.worlds, Deployment::k_default_max_worlds), d.worlds, k_max));
+  d.world_threads = static_cast<unsigned>(worlds.get_int("threads", 0, 0, 256));
+  worlds.finish();
+}
+
 void parse_spawn(ConfigObject& root, const std::string& base_dir, Deployment& d) {
   auto spawn_object = root.get_object("spawn");
   if (!spawn_object) return;
@@ -429,11 +447,7 @@ Deployment parse_deployment(const json& document, const std::string& base_dir,
 
   // ---- scene, and how many worlds run it ----
   errors.check([&] { parse_scene(root, base_dir, d); });
-  errors.check([&] {
-    if (root.has("worlds"))
-      d.worlds = static_cast<unsigned>(
-          root.get_int("worlds", 1, 1, static_cast<std::int64_t>(Deployment::k_max_worlds)));
-  });
+  errors.check([&] { parse_worlds(root, d); });
 
   // ---- run-time entities ----
   errors.check([&] { parse_spawn(root, base_dir, d); });

@@ -17,13 +17,14 @@ namespace simgate::gateway {
 // the config's robots are, and served as the config's mapping says of their names.
 class Gateway::SpawnedRobots : public sim::Simulation::RobotFactory {
  public:
-  SpawnedRobots(Gateway& gateway, unsigned world) : gateway_(gateway), world_(world) {}
+  SpawnedRobots(Gateway& gateway, sim::Simulation& sim, World* world)
+      : gateway_(gateway), sim_(sim), world_(world) {}
 
   void check(const std::string& name, const json& section) const override {
     config_of(name, section);
   }
   void build(const std::string& name, const json& section) override {
-    gateway_.add_spawned_robot(world_, config_of(name, section));
+    gateway_.add_spawned_robot(sim_, world_, config_of(name, section));
   }
 
  private:
@@ -43,8 +44,7 @@ class Gateway::SpawnedRobots : public sim::Simulation::RobotFactory {
     document["name"] = name;
     document["body"] = name;
     std::set<std::string> taken;
-    for (const auto& entry : gateway_.world(world_).components())
-      taken.insert(entry->component->name());
+    for (const auto& entry : sim_.components()) taken.insert(entry->component->name());
     try {
       RobotConfig r = parse_robot_section(document, "robot", std::move(taken));
       ConfigErrors errors;
@@ -64,8 +64,14 @@ class Gateway::SpawnedRobots : public sim::Simulation::RobotFactory {
   }
 
   Gateway& gateway_;
-  unsigned world_;  // the world it spawns into
+  sim::Simulation& sim_;  // the world it spawns into
+  World* world_;          // its record; null for world 0
 };
+
+std::shared_ptr<sim::Simulation::RobotFactory> Gateway::robot_factory(sim::Simulation& sim,
+                                                                      World* world) {
+  return std::make_shared<SpawnedRobots>(*this, sim, world);
+}
 
 Gateway::Gateway(const Deployment& deployment, const sim::ComponentRegistry& registry,
                  GatewayOptions options, ConfigErrors earlier)
@@ -102,9 +108,10 @@ Gateway::Gateway(const Deployment& deployment, const sim::ComponentRegistry& reg
     add_world_components(*simulation_);
     add_streams(errors);
     add_recording_services();
-    simulation_->set_robot_factory(std::make_shared<SpawnedRobots>(*this, 0));
+    simulation_->set_robot_factory(robot_factory(*simulation_, nullptr));
     if (options_.on_simulation_built) options_.on_simulation_built(*simulation_, supervision());
-    build_worlds(sim_options, errors);
+    sim_options_ = sim_options;
+    build_worlds(errors);
   } else {
     check_component_types(errors);
   }
@@ -170,33 +177,6 @@ void Gateway::build_components(ConfigErrors& errors) {
   for (const auto& r : deployment_.robots) build_robot(*simulation_, r, errors);
 }
 
-void Gateway::build_worlds(const sim::SimulationOptions& options, ConfigErrors& errors) {
-  for (unsigned k = 1; k < deployment_.worlds; ++k) {
-    const std::string what = "worlds: world w" + std::to_string(k);
-    std::unique_ptr<sim::Simulation> world;
-    try {
-      world = std::make_unique<sim::Simulation>(sim::Model::load_file(deployment_.mjcf), options);
-    } catch (const std::exception& e) {
-      errors.add(what + ": the scene did not load again: " + e.what());
-      return;
-    }
-    // the robots as world 0 has them (their generic components found there already)
-    ConfigErrors world_errors;
-    for (const auto& r : deployment_.robots) build_robot(*world, r, world_errors);
-    for (const std::string& e : world_errors.errors()) errors.add(what + ": " + e);
-    add_world_components(*world);
-    world->set_robot_factory(std::make_shared<SpawnedRobots>(*this, k));
-    worlds_.push_back(std::move(world));
-  }
-  if (worlds_.empty()) return;
-  all_worlds_ = std::make_unique<sim::Worlds>();
-  all_worlds_->add(*simulation_);
-  for (auto& w : worlds_) all_worlds_->add(*w);
-  all_worlds_->add_to(supervision());
-  log::info("worlds: ", worlds_.size() + 1, " (w0 and w1..w", worlds_.size(),
-            ", each a simulation under its own lock; docs/worlds.md)");
-}
-
 std::vector<std::string> Gateway::build_robot(sim::Simulation& sim, const RobotConfig& r,
                                               ConfigErrors& errors) {
   std::vector<std::string> added;
@@ -219,8 +199,7 @@ std::vector<std::string> Gateway::build_robot(sim::Simulation& sim, const RobotC
   return added;
 }
 
-void Gateway::add_spawned_robot(unsigned world_index, RobotConfig r) {
-  sim::Simulation& sim = world(world_index);
+void Gateway::add_spawned_robot(sim::Simulation& sim, World* world, RobotConfig r) {
   if (r.robot.type == "mjcf") add_generic_components(sim, r);
   ConfigErrors errors;
   const std::vector<std::string> added = build_robot(sim, r, errors);
@@ -238,7 +217,7 @@ void Gateway::add_spawned_robot(unsigned world_index, RobotConfig r) {
   for (const auto& c : r.components) configs.push_back(&c);
   for (const ComponentConfig* c : configs) {
     sim::ComponentEntry* entry = sim.find(c->name);
-    if (world_index == 0) {  // the worlds after it carry no streams yet (docs/worlds.md)
+    if (!world) {  // the worlds after world 0 carry no streams yet (docs/worlds.md)
       ConfigErrors stream_errors;
       add_stream(*entry->component, c->type, stream_frequency(*c), StreamHub::k_default_frequency,
                  stream_errors);
@@ -246,12 +225,13 @@ void Gateway::add_spawned_robot(unsigned world_index, RobotConfig r) {
         log::warning("spawned robot '", r.robot.name, "': ", e);
     }
     const std::vector<std::string> transports = deployment_.transports_for(c->name);
-    for (Transport& t : transports_)
-      if (t.manager &&
-          std::find(transports.begin(), transports.end(), t.name) != transports.end()) {
-        serve_on(t, *entry, world_index);
-        if (world_index == 0) served_[t.name].push_back(c->name);
-      }
+    for (std::size_t i = 0; i < transports_.size(); ++i) {
+      Transport& t = transports_[i];
+      if (!t.manager || std::find(transports.begin(), transports.end(), t.name) == transports.end())
+        continue;
+      serve_on(t, *entry, world ? *world->managers[i] : *t.manager);
+      if (!world) served_[t.name].push_back(c->name);
+    }
   }
   log::info("simulation: robot '", r.robot.name, "' spawned with ", added.size() - 1,
             " component(s)");
@@ -485,21 +465,16 @@ void Gateway::create_transports() {
     // the allow and deny lists first: no service is ever callable that they deny
     transport.manager->set_access(t.access);
     transport.manager->set_max_wait(deployment_.max_wait);  // requests.max_wait_ms
-    for (const auto& name : served_[t.name]) serve_on(transport, *simulation_->find(name));
+    for (const auto& name : served_[t.name])
+      serve_on(transport, *simulation_->find(name), *transport.manager);
     simulation_->add_request_manager(transport.manager, t.name);
-    // the other worlds, through the same transport under their prefix
-    for (unsigned k = 1; k <= worlds_.size(); ++k) {
-      transport.world_managers.push_back(transport.manager->attach_world(k));
-      for (const auto& name : served_[t.name])
-        if (sim::ComponentEntry* entry = world(k).find(name)) serve_on(transport, *entry, k);
-      world(k).add_request_manager(transport.world_managers.back(), t.name);
-    }
   }
+  // the other worlds, through the same transports under their prefix
+  for (auto& [index, world] : worlds_) serve_world(*world);
 }
 
-void Gateway::serve_on(Transport& transport, sim::ComponentEntry& entry, unsigned world) {
-  (world == 0 ? transport.manager : transport.world_managers.at(world - 1))
-      ->register_component(*entry.component);
+void Gateway::serve_on(Transport& transport, sim::ComponentEntry& entry, RequestManager& manager) {
+  manager.register_component(*entry.component);
   entry.interfaces.push_back(transport.name);
 }
 
@@ -517,16 +492,7 @@ std::map<std::string, std::vector<std::string>> Gateway::endpoints() const {
 
 void Gateway::run() {
   if (options_.check_only) return;
-  // each world's loop on a thread of its own; any of them ending (quit, an error) ends all
-  for (unsigned k = 1; k <= worlds_.size(); ++k)
-    world_threads_.emplace_back([this, k] {
-      try {
-        world(k).run();
-      } catch (const std::exception& e) {
-        log::error("world w", k, ": ", e.what());
-      }
-      stop();
-    });
+  start_world_loops();
   try {
     simulation_->run();
   } catch (...) {
@@ -534,17 +500,6 @@ void Gateway::run() {
     throw;
   }
   stop_worlds();
-}
-
-void Gateway::stop() {
-  if (simulation_) simulation_->request_stop();
-  for (auto& w : worlds_) w->request_stop();
-}
-
-void Gateway::stop_worlds() {
-  for (auto& w : worlds_) w->request_stop();
-  for (auto& t : world_threads_) t.join();
-  world_threads_.clear();
 }
 
 void Gateway::add_recording_services() {
@@ -576,12 +531,7 @@ void Gateway::shutdown() {
   // the other worlds first: no call is routed to them any more, then each answers what it
   // has left (through the transports, still there) and destroys its components
   stop_worlds();
-  for (auto& t : transports_) {
-    if (t.manager)
-      for (unsigned k = 1; k <= t.world_managers.size(); ++k) t.manager->detach_world(k);
-    t.world_managers.clear();
-  }
-  for (auto& w : worlds_) w->shutdown();
+  for (auto& [index, world] : worlds_) leave(*world);
   worlds_.clear();
   // the simulation holds the last references to the managers: it destroys them before
   // the components they refer to

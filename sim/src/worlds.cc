@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <exception>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -117,7 +118,31 @@ struct Slot {
 
 Worlds::Worlds(std::size_t threads) : pool_(pool_threads(threads)) {}
 
-void Worlds::add(Simulation& world) { worlds_.push_back(&world); }
+void Worlds::add(unsigned index, Simulation& world) { worlds_[index] = &world; }
+
+void Worlds::remove(unsigned index) { worlds_.erase(index); }
+
+std::string Worlds::index_list() const {
+  std::string out;
+  for (const auto& [index, world] : worlds_)
+    out += (out.empty() ? "" : ", ") + std::to_string(index);
+  return out;
+}
+
+json Worlds::describe() const {
+  json out = json::array();
+  for (const auto& [index, world] : worlds_) {
+    std::unique_lock<SimulationGate> lock;
+    if (index != 0) lock = std::unique_lock(*world->gate());  // world 0's is the caller's
+    out.push_back({{"world", index},
+                   {"name", "w" + std::to_string(index)},
+                   {"state", to_string(world->run_state())},
+                   {"sim_time", world->sim_time()},
+                   {"steps", world->steps()},
+                   {"memory_bytes", world->memory_bytes()}});
+  }
+  return out;
+}
 
 const std::vector<std::string>& Worlds::default_observation() {
   static const std::vector<std::string> names = {"qpos", "qvel", "sensordata"};
@@ -141,22 +166,21 @@ void Worlds::add_to(SupervisionServices& world0) {
 
 json Worlds::step_many(const json& worlds, std::int64_t n, const json& actions,
                        const json& observe) {
-  const std::size_t count = worlds_.size();
   // ---- the arguments that need no world
   std::vector<unsigned> named;
   if (worlds.is_null()) {
-    for (unsigned k = 0; k < count; ++k) named.push_back(k);
+    for (const auto& [index, world] : worlds_) named.push_back(index);
   } else {
     if (!worlds.is_array() || worlds.empty())
-      refuse("worlds", "expected an array of world numbers (0 to " + std::to_string(count - 1) +
+      refuse("worlds", "expected an array of world numbers (" + index_list() +
                            ") or null for all, found " + describe_json(worlds));
     for (std::size_t i = 0; i < worlds.size(); ++i) {
       const json& w = worlds[i];
       if (!w.is_number_integer() || w.get<std::int64_t>() < 0 ||
-          w.get<std::int64_t>() >= static_cast<std::int64_t>(count))
-        refuse("worlds[" + std::to_string(i) + "]", "no world " + describe_json(w) +
-                                                        " (the worlds here: 0 to " +
-                                                        std::to_string(count - 1) + ")");
+          w.get<std::int64_t>() > std::numeric_limits<unsigned>::max() ||
+          !worlds_.contains(w.get<unsigned>()))
+        refuse("worlds[" + std::to_string(i) + "]",
+               "no world " + describe_json(w) + " (the worlds here: " + index_list() + ")");
       const auto k = w.get<unsigned>();
       if (std::find(named.begin(), named.end(), k) != named.end())
         refuse("worlds[" + std::to_string(i) + "]", "world " + std::to_string(k) + " twice");
@@ -188,14 +212,14 @@ json Worlds::step_many(const json& worlds, std::int64_t n, const json& actions,
   std::vector<unsigned> in_order = named;
   std::sort(in_order.begin(), in_order.end());
   for (const unsigned k : in_order)
-    if (k != 0) locks.emplace_back(*worlds_[k]->gate());
+    if (k != 0) locks.emplace_back(*worlds_.at(k)->gate());
 
   // ---- the actions, checked against each world's actuators before anything changes
   std::vector<Slot> slots(named.size());
   for (std::size_t i = 0; i < named.size(); ++i) {
     Slot& slot = slots[i];
     slot.world = named[i];
-    slot.sim = worlds_[named[i]];
+    slot.sim = worlds_.at(named[i]);
     if (actions.is_null() || actions[i].is_null()) continue;
     const std::string where = "actions[" + std::to_string(i) + "]";
     const mjModel* m = slot.sim->m();

@@ -13,7 +13,12 @@ own, addressed as "w<k>/<component>" on every transport; world 0 keeps its names
 - pymorse (Debian's, unchanged) drives world 0 as ever and reaches world 1 by rpc();
 - `simulation step_many`: worlds stepped together end exactly as stepped one by one; what
   does not fit (a world there is not, a wrong action size, an out-of-range control) is
-  refused whole, before any world steps.
+  refused whole, before any world steps;
+- `simulation create_world` / `delete_world` / `list_worlds`: a world made at run time is
+  served through socket, JSON-RPC and DDS and listed; deleting it answers its pending call
+  FAILED, takes it out of every listing and leaves the others as they were; its index is
+  not given again; world 0 and worlds there are not are refused; at the config's
+  `"worlds": {"max": N}` create_world is refused saying so (QuotaTest).
 Every wait is bounded.
 """
 import argparse
@@ -142,7 +147,7 @@ class WorldsTest(world_test.GatewayTestCase):
     def test_7_step_many_refuses_what_does_not_fit_before_anything_steps(self):
         before = [self.snapshot(k) for k in range(WORLDS)]
         for params, parameter, words in [
-                ({"worlds": [0, 5]}, "worlds[1]", "no world number 5 (the worlds here: 0 to 2)"),
+                ({"worlds": [0, 5]}, "worlds[1]", "no world number 5 (the worlds here: 0, 1, 2)"),
                 ({"worlds": [1, 1]}, "worlds[1]", "world 1 twice"),
                 ({"worlds": [1, 2], "actions": [[0.1, 0.1], [0.1]]}, "actions[1]",
                  "world 2 has 2 actuators: expected 2 numbers"),
@@ -172,6 +177,77 @@ class WorldsTest(world_test.GatewayTestCase):
             self.assertEqual(after[1:], before[1:])
         finally:
             simu.close(wait_publishers=False)
+
+    def test_8_a_world_made_at_run_time_is_served_listed_and_deleted(self):
+        listed = self.rpc("simulation.list_worlds")["result"]
+        self.assertEqual([w["name"] for w in listed["worlds"]], ["w0", "w1", "w2"])
+        self.assertEqual((listed["count"], listed["max"]), (3, 16))  # max: 16 by default
+        for w in listed["worlds"]:
+            self.assertGreater(w["memory_bytes"], 100000, w)  # the demo's model and data
+            self.assertEqual(w["state"], "paused")
+        before = [self.snapshot(k) for k in range(WORLDS)]
+
+        made = self.rpc("simulation.create_world")["result"]
+        self.assertEqual(made, {"world": 3, "name": "w3", "count": 4, "max": 16})
+        self.assertEqual(self.ok("w3/simulation list_robots"), ["robot", "human"])
+        self.ok("w3/simulation step [7]")
+        self.assertEqual(self.snapshot(3)[1], 7)
+        methods = [m["name"] for m in self.rpc("rpc.discover")["result"]["methods"]]
+        self.assertIn("w3/robot.motion.set_speed", methods)
+        done = subprocess.run([ARGS.simgate, "call", "--transport", "dds", "--partition",
+                               self.gateway.partition, "--timeout", "20", "w3/simulation", "step", "2"],
+                              capture_output=True, text=True, timeout=TIMEOUT)
+        self.assertEqual(done.returncode, 0, done.stdout + done.stderr)
+        stepped = self.rpc("simulation.step_many", {"worlds": [3], "n": 1, "observe": []})["result"]
+        self.assertEqual(stepped["worlds"][0]["steps_done"], 1)
+        self.assertEqual(self.snapshot(3)[1], 10)
+        self.assertEqual([self.snapshot(k) for k in range(WORLDS)], before)
+
+        # a call pending in w3 (a sleep in a paused world: simulated time stands still)
+        self.socket.sock.sendall(b"z w3/time sleep [60]\n")
+        gone = self.rpc("simulation.delete_world", {"world": 3})["result"]
+        self.assertEqual(gone, {"world": 3, "name": "w3", "count": 3})
+        got_id, status, value = self.socket.reader.readline().decode().rstrip("\n").split(" ", 2)
+        self.assertEqual((got_id, status), ("z", "FAILED"), value)
+        status, value = self.morse("w3/simulation list_robots")
+        self.assertEqual(status, "FAILED")
+        self.assertIn("no world 'w3' (the worlds here: w0, w1, w2)", value)
+        methods = [m["name"] for m in self.rpc("rpc.discover")["result"]["methods"]]
+        self.assertFalse([m for m in methods if m.startswith("w3/")])
+        self.assertEqual([self.snapshot(k) for k in range(WORLDS)], before)
+
+        for params, words in [({"world": 3}, "no world 3 (the worlds here: w0, w1, w2)"),
+                              ({"world": 0}, "world 0 is the simulation itself"),
+                              ({"world": -1}, "no world -1")]:
+            error = self.rpc("simulation.delete_world", params)["error"]
+            self.assertEqual(error["code"], -32602, error)
+            self.assertEqual(error["data"]["parameter"], "world", error)
+            self.assertIn(words, error["message"])
+        # an index is never given twice: a client holding "w3" cannot reach another world
+        again = self.rpc("simulation.create_world")["result"]
+        self.assertEqual(again["name"], "w4")
+        self.assertEqual(self.snapshot(4)[1], 0)
+        self.assertEqual(self.rpc("simulation.delete_world", [4])["result"]["count"], 3)
+
+
+class QuotaTest(world_test.GatewayTestCase):
+    edit = staticmethod(lambda config: config.update(worlds={"count": 2, "max": 3}))
+
+    @classmethod
+    def setUpClass(cls):
+        world_test.ARGS = ARGS
+        super().setUpClass()
+
+    def test_create_world_is_refused_at_the_configured_most_saying_so(self):
+        self.assertEqual(self.rpc("simulation.create_world")["result"]["name"], "w2")
+        error = self.rpc("simulation.create_world")["error"]
+        self.assertIn("3 worlds run, the most this simgate allows", error["message"])
+        self.assertIn('"max": 3', error["message"])
+        self.assertEqual((error["data"]["count"], error["data"]["max"]), (3, 3), error)
+        self.assertEqual(self.rpc("simulation.list_worlds")["result"]["count"], 3)
+        # deleting one makes room
+        self.rpc("simulation.delete_world", {"world": 1})
+        self.assertEqual(self.rpc("simulation.create_world")["result"]["name"], "w3")
 
 
 if __name__ == "__main__":

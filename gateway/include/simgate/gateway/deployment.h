@@ -117,9 +117,15 @@ struct Deployment {
   // reply (RequestManager::set_max_wait); zero = no limit
   std::chrono::milliseconds max_wait{0};
   // "worlds": how many copies of the scene with its robots run, each a simulation of its own
-  // (world 0, the one every client knows, and w1, w2, ...: docs/worlds.md)
+  // (world 0, the one every client knows, and w1, w2, ...: docs/worlds.md), at start
+  // ("count"); how many there may be at once with those `simulation create_world` makes
+  // ("max": at least the count; default the count or 16, whichever is more); the threads
+  // `simulation step_many` steps worlds on, the caller's included ("threads"; 0: one per core)
   unsigned worlds = 1;
+  unsigned max_worlds = k_default_max_worlds;
+  unsigned world_threads = 0;
   static constexpr unsigned k_max_worlds = 256;
+  static constexpr unsigned k_default_max_worlds = 16;
   // likely mistakes that are not errors (printed by check, logged by run)
   std::vector<std::string> warnings;
 

@@ -16,9 +16,11 @@
 #ifndef SIMGATE_GATEWAY_GATEWAY_H_
 #define SIMGATE_GATEWAY_GATEWAY_H_
 
+#include <atomic>
 #include <functional>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <thread>
@@ -93,9 +95,17 @@ class Gateway {
     const TransportConfig* config = nullptr;  // its entry in deployment_
     std::shared_ptr<TransportPlugin> plugin;  // keeps the library loaded
     std::shared_ptr<RequestManager> manager;  // null in check mode
-    // the manager of world k at [k - 1] (RequestManager::attach_world), serving it under
-    // "w<k>/" through this transport
-    std::vector<std::shared_ptr<RequestManager>> world_managers;
+  };
+  // A world after world 0 (docs/worlds.md). Its fields are set before it is in worlds_ and
+  // stay until it is destroyed.
+  struct World {
+    unsigned index = 0;                    // k of "w<k>/"
+    std::unique_ptr<sim::Simulation> sim;  // its model, components, loop
+    // the manager serving it through each transport (RequestManager::attach_world), in
+    // transports_'s order (null for a transport without a manager)
+    std::vector<std::shared_ptr<RequestManager>> managers;
+    std::thread loop;                  // its loop, once the worlds run
+    std::atomic<bool> leaving{false};  // deleted: its loop's end stops nothing else
   };
 
   // Loads the deployment's component libraries into registry_ (recording errors).
@@ -112,18 +122,37 @@ class Gateway {
   // cannot be made skips its components); returns the names of those made.
   std::vector<std::string> build_robot(sim::Simulation& world, const RobotConfig& r,
                                        ConfigErrors& errors);
-  // The worlds after world 0 (deployment_.worlds): the scene, its robots and the
-  // pseudo-components again, each in a simulation of its own.
-  void build_worlds(const sim::SimulationOptions& options, ConfigErrors& errors);
-  // World k: 0 is simulation_, the others worlds_[k - 1].
-  sim::Simulation& world(unsigned k) { return k == 0 ? *simulation_ : *worlds_[k - 1]; }
-  // A world's RobotFactory (gateway.cc): robots spawned at run time.
+  // ---- worlds (gateway_worlds.cc)
+  // The worlds after world 0 (deployment_.worlds), and what acts on several (step_many,
+  // create_world, delete_world, list_worlds on world 0's `simulation`).
+  void build_worlds(ConfigErrors& errors);
+  // World `index`: the scene, the config's robots and the pseudo-components again, in a
+  // simulation of its own. Throws std::runtime_error saying what did not build.
+  std::unique_ptr<World> make_world(unsigned index);
+  // Serves `world` through every transport under "w<index>/" (its components as the
+  // config's mapping says of their names).
+  void serve_world(World& world);
+  // Starts `world`'s loop on a thread of its own; its end (quit, an error) stops every world
+  // unless the world is leaving.
+  void start_loop(World& world);
+  // run(): every world's loop from now on (worlds_mutex_ taken).
+  void start_world_loops();
+  // No call reaches `world` any more (every transport detaches it), its loop has ended, it
+  // answers what it holds (Failure::shutdown) and destroys its components.
+  void leave(World& world);
+  // The services (under world 0's lock).
+  json create_world();
+  json delete_world(std::int64_t index);
+  json list_worlds();
+  // A world's RobotFactory (gateway.cc): robots spawned at run time into `sim`, the
+  // simulation of `world` (null: world 0).
   class SpawnedRobots;
-  // A robot spawned at run time in world `world` (checked by SpawnedRobots): built, its
-  // streams added (world 0) and its components served as the config's mapping says of their
-  // names; under that world's lock. Throws ServiceError (parameter "robot") having added
-  // nothing when it cannot be built.
-  void add_spawned_robot(unsigned world, RobotConfig r);
+  std::shared_ptr<sim::Simulation::RobotFactory> robot_factory(sim::Simulation& sim, World* world);
+  // A robot spawned at run time in `sim`, world `world`'s simulation (null: world 0;
+  // checked by SpawnedRobots): built, its streams added (world 0) and its components served
+  // as the config's mapping says of their names; under that world's lock. Throws
+  // ServiceError (parameter "robot") having added nothing when it cannot be built.
+  void add_spawned_robot(sim::Simulation& sim, World* world, RobotConfig r);
   // Without a scene: that each robot's and component's type is one of the registry's.
   void check_component_types(ConfigErrors& errors) const;
   // The components' data streams the "streams" section asks for (a component named there
@@ -153,21 +182,30 @@ class Gateway {
   void warn_about_access_lists();
   // Creates every transport (binding its sockets) and registers its components.
   void create_transports();
-  // Stops the loops of the worlds after world 0 and waits for their threads.
+  // Stops the loops of the worlds after world 0 and waits for their threads; no world is
+  // made or deleted after it.
   void stop_worlds();
-  // Serves `entry`'s component of world `world` on `transport` (its interfaces name it).
-  void serve_on(Transport& transport, sim::ComponentEntry& entry, unsigned world = 0);
+  // Serves `entry`'s component on `transport` through `manager` (the transport's own for
+  // world 0, the world's for another); its interfaces name the transport.
+  void serve_on(Transport& transport, sim::ComponentEntry& entry, RequestManager& manager);
 
   Deployment deployment_;   // validated configuration
   GatewayOptions options_;  // how it was built
   // the types components are created from, and the libraries whose code they run: it must
   // outlive simulation_ (declared first, destroyed last)
   sim::ComponentRegistry registry_;
-  // every world, for the services acting on several (simulation step_many); with 2 or more
+  // every world, for the services acting on several (simulation step_many); with a scene
   std::unique_ptr<sim::Worlds> all_worlds_;
-  std::unique_ptr<sim::Simulation> simulation_;           // model, components, loop (world 0)
-  std::vector<std::unique_ptr<sim::Simulation>> worlds_;  // worlds 1, 2, ... (docs/worlds.md)
-  std::vector<std::thread> world_threads_;                // their loops, while run() runs
+  std::unique_ptr<sim::Simulation> simulation_;  // model, components, loop (world 0)
+  sim::SimulationOptions sim_options_;           // every world's
+  // the worlds after world 0 by index (docs/worlds.md); made and deleted under world 0's
+  // lock. worlds_mutex_ guards the map and the two flags (others read it under world 0's
+  // lock, or after stop_worlds()).
+  std::map<unsigned, std::unique_ptr<World>> worlds_;
+  std::mutex worlds_mutex_;
+  unsigned next_world_ = 1;     // the index the next world gets (an index is never reused)
+  bool world_loops_ = false;    // run() started the worlds' loops
+  bool worlds_closed_ = false;  // stop_worlds() ran: no world is made or deleted any more
   // simulation start_recording and its kin; a recording ends before the simulation does
   std::shared_ptr<recorder::RecordingServices> recording_;
   std::vector<Transport> transports_;                       // in name order

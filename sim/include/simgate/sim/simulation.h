@@ -236,6 +236,12 @@ class Simulation {
   // ---- supervision (simulation thread) ----
 
   double sim_time() const { return d()->time; }
+  // What MuJoCo holds for this world: its model and its data with their buffers and arena
+  // (bytes; the components' own few are not counted). Under the simulation lock.
+  std::size_t memory_bytes() const {
+    return sizeof(mjModel) + static_cast<std::size_t>(m()->nbuffer) + sizeof(mjData) +
+           static_cast<std::size_t>(d()->nbuffer) + static_cast<std::size_t>(d()->narena);
+  }
   // The simulated time of the state that mjData's computed quantities describe: body and
   // site poses (xpos, xquat, site_xpos...), velocities (cvel), accelerations (cacc),
   // actuator forces and the MJCF sensors' values (sensordata): what every sensor reads, so

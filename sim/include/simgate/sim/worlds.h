@@ -27,6 +27,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -74,8 +75,10 @@ class Worlds {
  public:
   // `threads`: the pool's size, the caller included (0: one per core).
   explicit Worlds(std::size_t threads = 0);
-  // World k is the k-th added (world 0 first). Before the worlds run.
-  void add(Simulation& world);
+  // World `index` joins (world 0 first) / leaves. Before the worlds run, or under world 0's
+  // lock (step_many and describe() run under it).
+  void add(unsigned index, Simulation& world);
+  void remove(unsigned index);
   // Offers step_many on world 0's `simulation` component.
   void add_to(SupervisionServices& world0);
 
@@ -84,9 +87,14 @@ class Worlds {
   json step_many(const json& worlds, std::int64_t n, const json& actions, const json& observe);
   // What step_many reads when `observe` is not given.
   static const std::vector<std::string>& default_observation();
+  // Each world in order: {world, name ("w3"), state, sim_time, steps, memory_bytes}, each
+  // read under its own lock. Under world 0's lock.
+  json describe() const;
+  // The worlds' indices, in order, as "0, 1, 3" (for messages).
+  std::string index_list() const;
 
  private:
-  std::vector<Simulation*> worlds_;
+  std::map<unsigned, Simulation*> worlds_;  // by index
   TaskPool pool_;
 };
 
