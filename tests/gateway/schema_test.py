@@ -70,6 +70,9 @@ with open(os.path.join(source, "config/demo.json")) as f:
     demo = json.load(f)
 mistakes = {
     "unknown top-level key": lambda c: c.update(robtos=[]),
+    "worlds zero": lambda c: c.update(worlds=0),
+    "worlds object key typo": lambda c: c.update(worlds={"count": 2, "maximum": 4}),
+    "worlds threads negative": lambda c: c.update(worlds={"count": 2, "threads": -1}),
     "scene missing": lambda c: c.pop("scene"),
     "timestep negative": lambda c: c["scene"].update(timestep=-1),
     "realtime factor word": lambda c: c["scene"].update(realtime_factor="fast"),
