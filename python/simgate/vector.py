@@ -53,8 +53,7 @@ class SimgateVectorEnv(_Attached, VectorEnv):
     Parameters: `num_envs`, the worlds stepped (worlds 0 to num_envs - 1); `autoreset_mode`
     (an ``AutoresetMode`` or its value, default ``NEXT_STEP``); the others are
     `simgate.gym.SimgateEnv`'s: exactly one of `model`, `config` (the simgate started runs
-    ``"worlds": num_envs``, at least 2: a simgate of one world has no ``step_many``, so one
-    environment runs two worlds and steps the first) or `address` (a running simgate of worlds
+    ``"worlds": num_envs``) or `address` (a running simgate of worlds
     0 to num_envs - 1 at least, each paused by the environment and left paused by `close()`);
     `binary`, `plugin_path`, `log_level`, `frame_skip`, `flat`, `out_of_range`, `reward_fn`,
     `terminated_fn` (called for each world with that world's observations and action),
@@ -95,15 +94,15 @@ class SimgateVectorEnv(_Attached, VectorEnv):
         try:
             if address is None:
                 self._server = _Server(find_binary(binary), model, config, plugin_path, log_level,
-                                       worlds=max(num_envs, 2))
+                                       worlds=num_envs)
                 address = self._server.url("jsonrpc")
             self._sim = sim = _attach(address, token, timeout)
             self.url = sim.url
             there = _worlds_of(sim)
-            if not set(range(max(num_envs, 2))) <= there:
+            if not set(range(num_envs)) <= there:
                 raise ValueError(f"simgate.gym: {self.url} runs worlds {', '.join(map(str, sorted(there)))}: "
-                                 f"num_envs = {num_envs} needs worlds 0 to {max(num_envs, 2) - 1} "
-                                 "(\"worlds\": N in its config; one world has no simulation step_many; "
+                                 f"num_envs = {num_envs} needs worlds 0 to {num_envs - 1} "
+                                 "(\"worlds\": N in its config, or simulation create_world; "
                                  "docs/worlds.md)")
             sim.call_many([(_in_world("simulation", k), "pause", None) for k in self._worlds])
             self._layout = _Layout(sim)
@@ -275,10 +274,8 @@ class SimgateVectorEnv(_Attached, VectorEnv):
 
 
 def _worlds_of(sim: Client) -> Set[int]:
-    """The worlds the simgate of `sim` runs: world 0 and each ``w<k>/`` discovery lists."""
-    suffix = "/simulation.save_state"
-    return {0} | {int(method[1:-len(suffix)]) for method in sim.services
-                  if method.startswith("w") and method.endswith(suffix) and method[1:-len(suffix)].isdigit()}
+    """The worlds the simgate of `sim` runs (``simulation list_worlds``)."""
+    return {w["world"] for w in sim.call("simulation", "list_worlds")["worlds"]}
 
 
 def _row(obs: Any, k: int) -> Any:

@@ -298,7 +298,7 @@ def test_attach_to_a_simgate_started_with_worlds(tmp_path):
 
 
 def test_close_stops_and_reaps_simgate():
-    envs = make_vector(1, model=CARTPOLE)  # one environment: two worlds, the first stepped
+    envs = make_vector(1, model=CARTPOLE)  # one environment, one world
     pid = envs._server.process.pid
     assert alive(pid)
     envs.reset()
