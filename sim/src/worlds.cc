@@ -13,6 +13,7 @@
 
 #include "simgate/core/call_context.h"
 #include "simgate/core/errors.h"
+#include "simgate/core/service.h"
 #include "simgate/core/simulation_gate.h"
 #include "simgate/sim/bounds.h"
 #include "simgate/sim/simulation.h"
@@ -106,12 +107,53 @@ json read(const Simulation& world, const std::string& what) {
   return array_of(d->sensordata, m->nsensordata);
 }
 
+// One of `reads` in one world: its service, and its arguments bound (into the call's params).
+struct Read {
+  const Service* service = nullptr;
+  BoundArguments args{0};
+};
+
+// `reads[i]` ({"component", "service", "params"}) bound in `world`: a synchronous service
+// of one of its components the caller may call. Throws ServiceError (bad_arguments) when not.
+Read bind_read(Simulation& world, unsigned index, const json& read, std::size_t i) {
+  const std::string where = "reads[" + std::to_string(i) + "]";
+  if (!read.is_object() || !read.contains("component") || !read["component"].is_string() ||
+      !read.contains("service") || !read["service"].is_string())
+    refuse(where, "expected {\"component\": NAME, \"service\": NAME, \"params\": ...}, found " +
+                      describe_json(read));
+  for (const auto& [key, value] : read.items())
+    if (key != "component" && key != "service" && key != "params")
+      refuse(where + "." + key, "unknown key (component, service, params)");
+  const std::string& component = read["component"].get_ref<const std::string&>();
+  const std::string& name = read["service"].get_ref<const std::string&>();
+  const ComponentEntry* entry = world.find(component);
+  const Service* service = nullptr;
+  if (entry)
+    for (const auto& s : entry->component->services())
+      if (s->descriptor().name == name) service = s.get();
+  if (!service || !caller_may_call(component, name))
+    refuse(where, "world " + std::to_string(index) + " has no service " + component + "." + name +
+                      " this caller may call");
+  if (service->descriptor().is_async)
+    refuse(where, component + "." + name + " is asynchronous: only services that answer at once " +
+                      "are read");
+  static const json k_no_params;  // null
+  try {
+    return Read{service, bind_arguments(service->descriptor(),
+                                        read.contains("params") ? read["params"] : k_no_params)};
+  } catch (const ServiceError& e) {
+    refuse(where + ".params", e.message());
+  }
+}
+
 // One world's part of a call, checked.
 struct Slot {
   unsigned world = 0;
   Simulation* sim = nullptr;
-  std::optional<std::vector<double>> action;  // its controls, or keep them
-  json result;                                // what the reply says of it
+  // its controls (a control left out: NaN, kept), or keep them all
+  std::optional<std::vector<double>> action;
+  std::vector<Read> reads;  // the services read after its steps, bound to its components
+  json result;              // what the reply says of it
 };
 
 }  // namespace
@@ -152,20 +194,21 @@ const std::vector<std::string>& Worlds::default_observation() {
 void Worlds::add_to(SupervisionServices& world0) {
   world0
       .offer_service("step_many",
-                     [this](json worlds, std::int64_t n, json actions, json observe) {
-                       return step_many(worlds, n, actions, observe);
+                     [this](json worlds, std::int64_t n, json actions, json observe, json reads) {
+                       return step_many(worlds, n, actions, observe, reads);
                      },
                      {Param("worlds", nullptr), Param("n", 1), Param("actions", nullptr),
-                      Param("observe", default_observation())})
+                      Param("observe", default_observation()), Param("reads", json::array())})
       .doc(
           "steps many worlds in one call: for each of `worlds` (all when null) sets its "
           "actuators' controls to its entry of `actions` (one number per actuator; null keeps "
-          "them), takes `n` steps, and reads `observe` (qpos, qvel, act, ctrl, sensordata); "
-          "the worlds step in parallel (docs/worlds.md)");
+          "them, a null control keeps that one), takes `n` steps, and reads `observe` (qpos, "
+          "qvel, act, ctrl, sensordata) and `reads` (services of each world, "
+          "[{component, service, params}]); the worlds step in parallel (docs/worlds.md)");
 }
 
-json Worlds::step_many(const json& worlds, std::int64_t n, const json& actions,
-                       const json& observe) {
+json Worlds::step_many(const json& worlds, std::int64_t n, const json& actions, const json& observe,
+                       const json& reads) {
   // ---- the arguments that need no world
   std::vector<unsigned> named;
   if (worlds.is_null()) {
@@ -206,6 +249,9 @@ json Worlds::step_many(const json& worlds, std::int64_t n, const json& actions,
           "expected one of qpos, qvel, act, ctrl, sensordata, found " + describe_json(observe[i]));
     observed.push_back(observe[i].get<std::string>());
   }
+  if (!reads.is_array())
+    refuse("reads", "expected an array of {\"component\", \"service\", \"params\"}, found " +
+                        describe_json(reads));
 
   // ---- every world named, locked in order (world 0's lock is this service's)
   std::vector<std::unique_lock<SimulationGate>> locks;
@@ -220,6 +266,8 @@ json Worlds::step_many(const json& worlds, std::int64_t n, const json& actions,
     Slot& slot = slots[i];
     slot.world = named[i];
     slot.sim = worlds_.at(named[i]);
+    for (std::size_t r = 0; r < reads.size(); ++r)
+      slot.reads.push_back(bind_read(*slot.sim, slot.world, reads[r], r));
     if (actions.is_null() || actions[i].is_null()) continue;
     const std::string where = "actions[" + std::to_string(i) + "]";
     const mjModel* m = slot.sim->m();
@@ -232,7 +280,11 @@ json Worlds::step_many(const json& worlds, std::int64_t n, const json& actions,
     for (int j = 0; j < m->nu; ++j) {
       const json& v = action[static_cast<std::size_t>(j)];
       const std::string parameter = where + "[" + std::to_string(j) + "]";
-      if (!v.is_number()) refuse(parameter, "expected a number, found " + describe_json(v));
+      if (v.is_null()) {  // this control kept
+        controls.push_back(std::numeric_limits<double>::quiet_NaN());
+        continue;
+      }
+      if (!v.is_number()) refuse(parameter, "expected a number or null, found " + describe_json(v));
       const double value = v.get<double>();
       // refused with the parameter and the range named (bounds.h)
       if (m->actuator_ctrllimited[j])
@@ -253,7 +305,9 @@ json Worlds::step_many(const json& worlds, std::int64_t n, const json& actions,
     json& out = slot.result;
     out = json{{"world", slot.world}};
     try {
-      if (slot.action) std::copy(slot.action->begin(), slot.action->end(), sim.d()->ctrl);
+      if (slot.action)
+        for (std::size_t j = 0; j < slot.action->size(); ++j)
+          if (!std::isnan((*slot.action)[j])) sim.d()->ctrl[j] = (*slot.action)[j];
       const SimulationStatistics before = sim.statistics();
       for (std::int64_t taken = 0; taken < n; ++taken) {
         sim.step();
@@ -266,6 +320,20 @@ json Worlds::step_many(const json& worlds, std::int64_t n, const json& actions,
       out["steps_done"] = sim.statistics().steps - before.steps;
       out["sim_time"] = sim.sim_time();
       for (const std::string& what : observed) out[what] = read(sim, what);
+      if (!slot.reads.empty()) {
+        json& results = out["reads"] = json::array();
+        for (std::size_t r = 0; r < slot.reads.size(); ++r) {
+          try {
+            std::optional<json> value =
+                slot.reads[r].service->invoke(slot.reads[r].args.span(), Completion());
+            results.push_back(value ? std::move(*value) : json());
+          } catch (const std::exception& e) {
+            out["error"] = "reads[" + std::to_string(r) + "] (" +
+                           slot.reads[r].service->descriptor().qualified_name() + "): " + e.what();
+            break;
+          }
+        }
+      }
     } catch (const std::exception& e) {
       out["error"] = e.what();
     }

@@ -229,6 +229,39 @@ class WorldsTest(world_test.GatewayTestCase):
         self.assertEqual(self.snapshot(4)[1], 0)
         self.assertEqual(self.rpc("simulation.delete_world", [4])["result"]["count"], 3)
 
+    def test_9_step_many_reads_services_of_each_world_and_keeps_null_controls(self):
+        for k in (1, 2):
+            self.ok("w%d/simulation step [3]" % k)
+        reads = [{"component": "robot.pose", "service": "get_local_data"},
+                 {"component": "simulation", "service": "get_entity_state", "params": {"name": "robot"}}]
+        ctrl = self.rpc("simulation.step_many", {"worlds": [1], "n": 1, "observe": ["ctrl"]})["result"]
+        kept = ctrl["worlds"][0]["ctrl"]
+        stepped = self.rpc("simulation.step_many", {"worlds": [1, 2], "n": 2, "observe": ["ctrl"],
+                                                    "actions": [[None, 0.25], None], "reads": reads})["result"]
+        one, two = stepped["worlds"]
+        self.assertEqual(one["ctrl"], [kept[0], 0.25])  # the null control kept
+        # each world's reads, as the same services called alone give them
+        for k, slot in ((1, one), (2, two)):
+            self.assertEqual(len(slot["reads"]), 2, slot)
+            self.assertEqual(slot["reads"][0], self.rpc("w%d/robot.pose.get_local_data" % k)["result"])
+            self.assertEqual(slot["reads"][1],
+                             self.rpc("w%d/simulation.get_entity_state" % k, {"name": "robot"})["result"])
+        for params, parameter, words in [
+                ({"reads": [{"component": "robot.pose"}]}, "reads[0]", "expected {"),
+                ({"reads": [{"component": "robot.pose", "service": "nope"}]}, "reads[0]",
+                 "has no service robot.pose.nope"),
+                ({"reads": [{"component": "simulation", "service": "step"}]}, "reads[0]", "is asynchronous"),
+                ({"reads": [{"component": "robot.pose", "service": "get_local_data", "param": 1}]},
+                 "reads[0].param", "unknown key"),
+                ({"reads": [{"component": "simulation", "service": "get_entity_state", "params": [1, 2, 3]}]},
+                 "reads[0].params", "wrong # of parameters")]:
+            before = [self.snapshot(k) for k in range(WORLDS)]
+            error = self.rpc("simulation.step_many", params)["error"]
+            self.assertEqual(error["code"], -32602, error)
+            self.assertEqual(error["data"]["parameter"], parameter, error)
+            self.assertIn(words, error["message"])
+            self.assertEqual([self.snapshot(k) for k in range(WORLDS)], before)
+
 
 class QuotaTest(world_test.GatewayTestCase):
     edit = staticmethod(lambda config: config.update(worlds={"count": 2, "max": 3}))

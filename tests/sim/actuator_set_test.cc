@@ -32,8 +32,11 @@ TEST_F(ActuatorSetTest, ListActuatorsSaysTypeTargetAndRanges) {
                                           {"joint", "shoulder"},
                                           {"ctrlrange", {-1.5, 1.5}},
                                           {"forcerange", nullptr},
-                                          {"gear", 1.0}}));
+                                          {"gear", 1.0},
+                                          {"index", 0}}));
   EXPECT_EQ(list["elbow_motor"]["type"], "motor");
+  EXPECT_EQ(list["elbow_motor"]["index"], 1);  // its place in MuJoCo's ctrl
+  EXPECT_EQ(list["motor_1"]["index"], 2);
   EXPECT_EQ(list["elbow_motor"]["forcerange"], json({-5.0, 5.0}));
   // unnamed: its type and its rank among the model's motors (elbow_motor is motor 0)
   EXPECT_EQ(list["motor_1"]["joint"], "finger_slide");

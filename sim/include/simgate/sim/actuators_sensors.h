@@ -6,7 +6,8 @@
 //    says which belong to it), their controls read and written by name:
 //    `set_controls {name: value}`, `set_control name value`, `get_controls` -> {name: value},
 //    `list_actuators` -> {name: {"type", "joint" | "tendon" | "site" | "body", "ctrlrange",
-//    "forcerange", "gear"}}. A control is refused (never clamped) when it is not a finite
+//    "forcerange", "gear", "index" (its place in MuJoCo's ctrl, as simulation step_many's
+//    actions order the controls)}}. A control is refused (never clamped) when it is not a finite
 //    number, lies outside the ctrlrange of a ctrllimited actuator, or beyond ±bounds::control
 //    for an unlimited one; set_controls checks every name and value first and changes
 //    nothing unless all pass. MuJoCo keeps a control until it is set again; reset_objects
@@ -55,7 +56,12 @@ class ActuatorSet : public SimComponent {
   void set_controls(const std::map<std::string, double>& controls);
   void set_control(const std::string& name, double value);
   json get_controls() const;
-  const json& list_actuators() const { return description_; }
+  // description_ with each actuator's "index" (in MuJoCo's ctrl: step_many's actions)
+  json list_actuators() const {
+    json out = description_;
+    for (const Actuator& a : actuators_) out[a.name]["index"] = a.id;
+    return out;
+  }
   void on_model_changed(const ModelRemap& remap) override {
     for (auto& a : actuators_) a.id = remap.actuator_of(a.id);
   }

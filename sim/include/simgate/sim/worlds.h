@@ -5,9 +5,11 @@
 // (its own model, components and simulation lock). Worlds knows them, in order, and offers
 // on world 0's `simulation` component:
 //
-//   step_many(worlds, n, actions, observe): for each world named (all by default), sets its
-//   actuators' controls to its action (one number per actuator, in the model's order; null
-//   keeps them), takes n steps, and reads what `observe` names; one reply for all. Every
+//   step_many(worlds, n, actions, observe, reads): for each world named (all by default),
+//   sets its actuators' controls to its action (one number per actuator, in the model's
+//   order; null keeps them, or one), takes n steps, and reads what `observe` names and the
+//   services `reads` names (synchronous ones of its components, as the caller may call
+//   them); one reply for all. Every
 //   world named is locked first (in order: no two callers can deadlock), the arguments are
 //   checked against every world before anything changes (a wrong action size or an
 //   out-of-range control refuses the call whole), then the worlds step in parallel on a pool
@@ -84,7 +86,8 @@ class Worlds {
 
   // The service (see above). Under world 0's lock; throws ServiceError (bad_arguments,
   // naming the parameter) having changed nothing when the arguments do not fit.
-  json step_many(const json& worlds, std::int64_t n, const json& actions, const json& observe);
+  json step_many(const json& worlds, std::int64_t n, const json& actions, const json& observe,
+                 const json& reads);
   // What step_many reads when `observe` is not given.
   static const std::vector<std::string>& default_observation();
   // Each world in order: {world, name ("w3"), state, sim_time, steps, memory_bytes}, each
