@@ -220,6 +220,7 @@ class _Layout:
         self.sensors: List[Tuple[str, List[Tuple[str, int]]]] = []  # (component, (name, dim))
         self.bases: List[str] = []  # bodies of the floating bases
         self.action_names: List[str] = []
+        self.indices: List[Optional[int]] = []  # each action element's place in MuJoCo's ctrl
         low: List[float] = []
         high: List[float] = []
         for robot in details.get("robots", []):
@@ -235,6 +236,7 @@ class _Layout:
                     r = ranges[name]["ctrlrange"]
                     low.append(r[0] if r else -UNLIMITED_CONTROL)
                     high.append(r[1] if r else UNLIMITED_CONTROL)
+                    self.indices.append(ranges[name].get("index"))  # None: a simgate that does not say
                     self.action_names.append(f"{component}/{name}")
             for component in by_type.get("armature_pose", []):
                 self.joints.append((component, list(sim.call(component, "get_joints"))))
@@ -281,11 +283,10 @@ class _Layout:
                 + [(_in_world("simulation", world), "get_entity_state", {"name": b}) for b in self.bases]
                 + [(_in_world(c, world), "get_local_data", None) for c, _ in self.sensors])
 
-    def control_formats(self, world: int = 0) -> List[Tuple[str, str, int, int]]:
-        """Each actuators component of `world` with its ``set_controls`` params as a
-        %-format of its values (`_controls_format`) and its slice of the action."""
-        return [(_in_world(c, world), _controls_format(names), where.start, where.stop)
-                for c, names, where in self.controls]
+    def control_formats(self) -> List[Tuple[str, str, int, int]]:
+        """Each actuators component with its ``set_controls`` params as a %-format of its
+        values (`_controls_format`) and its slice of the action."""
+        return [(c, _controls_format(names), where.start, where.stop) for c, names, where in self.controls]
 
     def spaces(self, flat: bool) -> Tuple[spaces.Box, spaces.Space, List[str]]:
         """The action space, the observation space (`flat`: one ``Box``) and the names of

@@ -28,7 +28,8 @@ like any other.
 
 from __future__ import annotations
 
-from typing import Any, Dict, Iterator, List, Optional, Sequence, Set, Tuple
+from itertools import chain
+from typing import Any, Dict, List, Optional, Sequence, Set, Tuple
 
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
@@ -38,7 +39,7 @@ from ._wires import JsonText, _json
 from .client import Client
 from .errors import ServiceError, ServiceFailed
 from .gym import (RewardFn, TerminatedFn, _Attached, _attach, _check_arguments, _encoded, _in_world,
-                  _Layout, _Server, _set_controls, find_binary)
+                  _Layout, _Server, find_binary)
 
 __all__ = ["SimgateVectorEnv", "MAX_BATCH"]
 
@@ -106,6 +107,9 @@ class SimgateVectorEnv(_Attached, VectorEnv):
                                  "docs/worlds.md)")
             sim.call_many([(_in_world("simulation", k), "pause", None) for k in self._worlds])
             self._layout = _Layout(sim)
+            if None in self._layout.indices:
+                raise ValueError(f"simgate.gym: {self.url}: list_actuators gives no actuator's index "
+                                 "in MuJoCo's ctrl: a simgate older than this client")
             self._initial = sim.call_many([(_in_world("simulation", k), "save_state", None)
                                            for k in self._worlds])
         except BaseException:
@@ -116,8 +120,11 @@ class SimgateVectorEnv(_Attached, VectorEnv):
         self.action_space = batch_space(self.single_action_space, num_envs)
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_names: List[str] = list(layout.action_names)
-        # what the batches hold, encoded once but for the controls' values and step_many's worlds
-        self._control_formats = [layout.control_formats(k) for k in self._worlds]
+        # step_many's params but its worlds and actions: the reads of a SimgateEnv, in every world
+        self._step_params = {"n": frame_skip, "observe": [],
+                             "reads": [{"component": c, "service": s, "params": p} for c, s, p in layout.reads()]}
+        self._ctrl_size = max(layout.indices) + 1  # MuJoCo's ctrl up to the last actuator driven
+        # the resets' batches, encoded once: each world's restore_state and reads
         self._reads = [_encoded(layout.reads(k)) for k in self._worlds]
         self._restores = [(_in_world("simulation", k), "restore_state",
                            JsonText(_json({"handle": handle}, allow_nan=False)))
@@ -159,11 +166,7 @@ class SimgateVectorEnv(_Attached, VectorEnv):
         n = self.num_envs
         resetting = np.flatnonzero(self._autoreset).tolist()
         stepping = [k for k in self._worlds if not self._autoreset[k]] if resetting else self._worlds
-        try:
-            restored, slots, obs = self._exchange(resetting, stepping, values)
-        except ServiceError as e:
-            raise type(e)(f"simgate.gym: step failed: {e.message} (reset() puts the worlds back)",
-                          status=e.status, code=e.code, data=e.data, method=e.method) from e
+        restored, slots, obs = self._exchange(resetting, stepping, values)
         previous, self._obs = self._obs, obs
         rewards = np.zeros(n)
         terminated = np.zeros(n, dtype=np.bool_)
@@ -176,9 +179,6 @@ class SimgateVectorEnv(_Attached, VectorEnv):
         self._elapsed[stepping] += 1
         for slot in slots:
             k = slot["world"]
-            if "error" in slot:
-                raise ServiceFailed(f"simgate.gym: step failed in world {k}: {slot['error']} "
-                                    "(reset() puts the worlds back)", method="simulation.step_many")
             sim_time[k] = slot["sim_time"]
             if "diverged" in slot:
                 truncated[k] = True
@@ -211,27 +211,55 @@ class SimgateVectorEnv(_Attached, VectorEnv):
     # ---- helpers
     def _exchange(self, restore: Sequence[int], step: Sequence[int],
                   values: Sequence[List[float]]) -> Tuple[List[Any], List[Dict[str, Any]], Any]:
-        """One round trip (a batch, or several in turn past `MAX_BATCH` entries): the worlds
-        `restore` put back, the worlds `step` given their controls (`values`, by world) and
-        stepped, then the observations of both. Returns the replies of the restores,
-        step_many's slots, and the observations (rows in world order)."""
+        """One round trip: the worlds `step` given their controls (`values`, by world) and
+        stepped by one ``simulation step_many``, which reads them; the worlds `restore` put
+        back and read in a batch before it (several batches in turn past `MAX_BATCH`
+        entries). Returns the replies of the restores, step_many's slots, and the
+        observations of both (rows in world order). A failed step raises, saying so."""
         requests: List[Tuple[str, str, Any]] = [self._restores[k] for k in restore]
-        for k in step:
-            requests += _set_controls(self._control_formats[k], values[k])
-        stepped = len(requests)
-        if step:
-            params = {"worlds": list(step), "n": self.frame_skip, "observe": []}
-            requests.append(("simulation", "step_many", JsonText(_json(params, allow_nan=False))))
-        observed = sorted([*restore, *step])
-        for k in observed:
+        for k in restore:
             requests += self._reads[k]
         sim = self.client
         replies: List[Any] = []
-        for start in range(0, len(requests), MAX_BATCH):
-            replies += sim.call_many(requests[start:start + MAX_BATCH], timeout=None if step else sim.timeout)
-        slots = replies[stepped]["worlds"] if step else []
-        reads: Iterator[Any] = iter(replies[stepped + bool(step):])
-        return replies[:len(restore)], slots, self._layout.observe_many(reads, len(observed), self.flat)
+        slots: List[Dict[str, Any]] = []
+        try:
+            if step:
+                params = {**self._step_params, "worlds": list(step),
+                          "actions": [self._ctrl(values[k]) for k in step]}
+                requests.append(("simulation", "step_many", params))
+            if not restore:  # one request, not a batch
+                slots = sim.submit("simulation", "step_many", (), params).result()["worlds"]
+            else:
+                for start in range(0, len(requests), MAX_BATCH):
+                    replies += sim.call_many(requests[start:start + MAX_BATCH],
+                                             timeout=None if step else sim.timeout)
+                if step:
+                    slots = replies.pop()["worlds"]
+        except ServiceError as e:
+            if not step:
+                raise
+            raise type(e)(f"simgate.gym: step failed: {e.message} (reset() puts the worlds back)",
+                          status=e.status, code=e.code, data=e.data, method=e.method) from e
+        results: Dict[int, Sequence[Any]] = {}  # each world's reads' results
+        count = len(self._step_params["reads"])
+        for i, k in enumerate(restore):
+            results[k] = replies[len(restore) + i * count:len(restore) + (i + 1) * count]
+        for slot in slots:
+            if "error" in slot:
+                raise ServiceFailed(f"simgate.gym: step failed in world {slot['world']}: {slot['error']} "
+                                    "(reset() puts the worlds back)", method="simulation.step_many")
+            results[slot["world"]] = slot.get("reads", ())  # none when there is nothing to read
+        observed = sorted(results)
+        obs = self._layout.observe_many(chain.from_iterable(results[k] for k in observed), len(observed), self.flat)
+        return replies[:len(restore)], slots, obs
+
+    def _ctrl(self, values: List[float]) -> List[Optional[float]]:
+        """One action's `values` where MuJoCo's ctrl has them (list_actuators' indices), null
+        (kept) for the actuators the environment does not drive."""
+        ctrl: List[Optional[float]] = [None] * self._ctrl_size
+        for i, value in zip(self._layout.indices, values):
+            ctrl[i] = value
+        return ctrl
 
     def _reset_ended(self, ended: List[int], diverged: Dict[int, Any], infos: Dict[str, Any]) -> Dict[str, Any]:
         """``SAME_STEP``: the worlds that `ended` reset in a second round trip; their last

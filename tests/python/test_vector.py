@@ -2,12 +2,14 @@
 
 Its spaces against the single environment's, batched; its observations, rewards and ends
 against one `SimgateEnv` per world given the same actions, bit for bit, across autoresets
-(next step and same step) that reset only the worlds that ended; masked resets; bad actions
+(next step and same step) that reset only the worlds that ended; a step sent as one
+step_many request, its actions where MuJoCo's ctrl has them; masked resets; bad actions
 refused before anything is sent; a diverging world reset and reported; attaching to a
 simgate started with worlds; the simgate it started stopped and reaped by close(). Every
 simgate listens on 127.0.0.1, ports the kernel picks; every wait is bounded.
 """
 
+import json
 import os
 
 import numpy as np
@@ -196,27 +198,91 @@ def test_reset_mask_resets_only_the_worlds_it_names():
         envs.close()
 
 
-def test_a_step_past_the_batch_limit_is_sent_as_batches_in_turn(monkeypatch):
+def test_a_step_is_one_request_and_resets_are_batches_in_turn_past_the_limit(monkeypatch):
+    """A step is one simulation.step_many request, not a batch; a step that resets worlds
+    (NEXT_STEP) sends their restore_state and reads in a batch that ends with it; a reset
+    past MAX_BATCH entries is sent as batches in turn. The same observations either way."""
+    def ends_pushed(obs, action, next_obs):
+        return bool(action[0] > 0.9)
+
     def trajectory(envs):
         out = [envs.reset()[0]]
         for action in (1.0, -0.5, 0.25):
             out.append(envs.step(np.array([[action], [-action], [0.0]]))[0])
         return [bits(obs) for obs in out]
 
-    whole = make_vector(3, model=CARTPOLE)
-    split = make_vector(3, model=CARTPOLE)
+    whole = make_vector(3, model=CARTPOLE, terminated_fn=ends_pushed)
+    split = make_vector(3, model=CARTPOLE, terminated_fn=ends_pushed)
     try:
         expected = trajectory(whole)
-        batches = []
-        call_many = split.client.call_many
-        monkeypatch.setattr(split.client, "call_many", lambda requests, **kw: batches.append(len(requests))
-                            or call_many(requests, **kw))
+        sent = []
+        call_many, submit = split.client.call_many, split.client.submit
+        monkeypatch.setattr(split.client, "call_many", lambda requests, **kw: sent.append(
+            [f"{c}.{s}" for c, s, _ in requests]) or call_many(requests, **kw))
+        monkeypatch.setattr(split.client, "submit", lambda c, s, *args: sent.append(f"{c}.{s}")
+                            or submit(c, s, *args))
         monkeypatch.setattr(simgate.vector, "MAX_BATCH", 4)
         assert trajectory(split) == expected
-        assert batches[-3:] == [4, 4, 2]  # 3 set_controls, step_many, 6 reads
+        reads = ["cart.armature_pose.get_state", "cart.sensors.get_local_data"]
+        assert sent == [
+            ["simulation.restore_state", "w1/simulation.restore_state", "w2/simulation.restore_state",
+             "cart.armature_pose.get_state"],  # reset(): 3 restores, 6 reads
+            ["cart.sensors.get_local_data", "w1/cart.armature_pose.get_state",
+             "w1/cart.sensors.get_local_data", "w2/cart.armature_pose.get_state"],
+            ["w2/cart.sensors.get_local_data"],
+            "simulation.step_many",  # world 0 ends its episode
+            ["simulation.restore_state", *reads, "simulation.step_many"],  # world 0 reset, 1 and 2 step
+            "simulation.step_many"]
     finally:
         whole.close()
         split.close()
+
+
+# a cart driven by the second actuator of MuJoCo's ctrl: the first acts on a body no robot has
+TWO_CARTS = """<mujoco model="two_carts">
+  <option timestep="0.01"/>
+  <worldbody>
+    <body name="other" pos="0 2 0">
+      <joint name="other_slide" type="slide" axis="1 0 0"/>
+      <geom type="box" size="0.1 0.1 0.1" mass="1" contype="0" conaffinity="0"/>
+    </body>
+    <body name="cart">
+      <joint name="slide" type="slide" axis="1 0 0"/>
+      <geom type="box" size="0.1 0.1 0.1" mass="1" contype="0" conaffinity="0"/>
+    </body>
+  </worldbody>
+  <actuator>
+    <motor name="push_other" joint="other_slide"/>
+    <motor name="push" joint="slide" ctrllimited="true" ctrlrange="-1 1"/>
+  </actuator>
+</mujoco>
+"""
+
+
+def test_actions_go_where_mujocos_ctrl_has_them(tmp_path, monkeypatch):
+    (tmp_path / "two_carts.xml").write_text(TWO_CARTS)
+    config = tmp_path / "config.json"
+    config.write_text(json.dumps({"scene": {"mjcf": "two_carts.xml"},
+                                  "robots": [{"name": "cart", "type": "mjcf", "body": "cart"}]}))
+    envs = make_vector(2, config=str(config))
+    single = make(config=str(config))
+    try:
+        assert envs.action_names == ["cart.actuators/push"]
+        sent = []
+        submit = envs.client.submit
+        monkeypatch.setattr(envs.client, "submit", lambda c, s, args, params: sent.append(params["actions"])
+                            or submit(c, s, args, params))
+        obs, _ = envs.reset()
+        single_obs, _ = single.reset()
+        for action in (0.5, -2.0):
+            obs, *_ = envs.step(np.array([[action], [0.0]]))
+            single_obs, *_ = single.step(np.array([action]))
+            assert bits(world(obs, 0)) == bits(single_obs)
+        assert sent == [[[None, 0.5], [None, 0.0]], [[None, -1.0], [None, 0.0]]]  # clipped, the other kept
+        assert obs["joint_pos"][:, 0].tolist() == [single_obs["joint_pos"][0], 0.0]
+    finally:
+        envs.close()
+        single.close()
 
 
 # ---- bad input, a diverging world
