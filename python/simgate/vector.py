@@ -9,21 +9,23 @@
 `SimgateVectorEnv` starts one ``simgate run`` of ``"worlds": num_envs`` (or attaches to a
 running simgate of that many worlds or more): sub-environment k is world k, exactly a
 `simgate.gym.SimgateEnv` of that world (the same spaces, the same observations bit for bit).
-Each `step()` is one JSON-RPC batch, one round trip whatever the number of worlds: each
-world's ``set_controls`` (``w<k>/<robot>.actuators``), world 0's ``simulation step_many``
-(the worlds step in parallel on the server's threads), then each world's reads, those a
-`SimgateEnv` makes (``w<k>/<robot>.armature_pose get_state``, ...). The observations come
-from those reads, not from step_many's own arrays (``qpos``, ``sensordata``, ...): nothing
-the server offers says where a robot's joints and sensors are in those arrays, and the
-floating bases' pose and velocity are not among them.
+Each `step()` is one request, one round trip whatever the number of worlds: world 0's
+``simulation step_many`` (the worlds step in parallel on the server's threads) of
+`frame_skip` steps, each world's action in the order of MuJoCo's ``ctrl`` (each actuator
+where its ``list_actuators`` ``index`` says; null, kept, for the actuators the environment
+does not drive), and as its ``reads`` the services a `SimgateEnv` reads
+(``<robot>.armature_pose get_state``, ...), which each world runs after its steps. The
+observations come from those reads' results, not from step_many's own arrays (``qpos``,
+``sensordata``, ...): nothing the server offers says where a robot's joints and sensors are
+in those arrays, and the floating bases' pose and velocity are not among them.
 
 Episodes end as a `SimgateEnv`'s do (`terminated_fn`, `max_episode_steps`) and are reset
 world by world (``w<k>/simulation restore_state`` of the state saved when the environment
-was made), in the batch of the next step (`autoreset_mode` ``NEXT_STEP``, Gymnasium's
-default), in a second batch of the same step (``SAME_STEP``), or when `reset()` is given a
-``reset_mask`` (``DISABLED``). A world that diverges (docs/world/divergence.md) ends its
-episode truncated, with reward 0 and its divergence in ``infos["diverged"]``, and is reset
-like any other.
+was made, then its reads), in a batch ending with the next step's step_many
+(`autoreset_mode` ``NEXT_STEP``, Gymnasium's default), in a second batch of the same step
+(``SAME_STEP``), or when `reset()` is given a ``reset_mask`` (``DISABLED``). A world that
+diverges (docs/world/divergence.md) ends its episode truncated, with reward 0 and its
+divergence in ``infos["diverged"]``, and is reset like any other.
 """
 
 from __future__ import annotations
