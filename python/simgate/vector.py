@@ -229,7 +229,7 @@ class SimgateVectorEnv(_Attached, VectorEnv):
                 params = {**self._step_params, "worlds": list(step),
                           "actions": [self._ctrl(values[k]) for k in step]}
                 requests.append(("simulation", "step_many", params))
-            if not restore:  # one request, not a batch
+            if not restore:  # a step alone: one request, not a batch
                 slots = sim.submit("simulation", "step_many", (), params).result()["worlds"]
             else:
                 for start in range(0, len(requests), MAX_BATCH):
