@@ -49,21 +49,23 @@ std::optional<std::pair<unsigned, std::size_t>> RequestManager::world_address(
   return std::pair{world, slash + 1};
 }
 
-std::shared_ptr<RequestManager> RequestManager::attach_world(unsigned world) {
+std::shared_ptr<RequestManager> RequestManager::attach_world(
+    unsigned world, const std::function<void(const std::shared_ptr<RequestManager>&)>& prepare) {
   if (world == 0) throw std::invalid_argument("world 0 is the transport's own manager");
   if (parent_) throw std::logic_error(name_ + ": a world's manager serves no worlds");
-  std::shared_ptr<RequestManager> manager;
+  if (auto attached = worlds_->find(world)) return attached;
+  // made and prepared before routing can reach it (a call to it needs its gate)
+  std::shared_ptr<RequestManager> manager = std::make_shared<WorldManager>(*this, world);
+  manager->set_access(access());
+  manager->set_max_wait(max_wait_);
+  manager->set_global_policy(global_policy_);
+  manager->set_progress_interval(progress_interval_);
+  if (prepare) prepare(manager);
   {
     std::lock_guard lock(worlds_->mutex);
     auto& slot = worlds_->managers[world];
-    if (!slot) {
-      slot = std::make_shared<WorldManager>(*this, world);
-      slot->set_access(access());
-      slot->set_max_wait(max_wait_);
-      slot->set_global_policy(global_policy_);
-      slot->set_progress_interval(progress_interval_);
-    }
-    manager = slot;
+    if (slot) return slot;  // another thread attached it first
+    slot = manager;
   }
   has_worlds_.store(true, std::memory_order_release);
   notify_services_changed();

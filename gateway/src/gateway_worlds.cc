@@ -89,11 +89,13 @@ void Gateway::serve_world(World& world) {
   for (std::size_t i = 0; i < transports_.size(); ++i) {
     Transport& t = transports_[i];
     if (!t.manager) continue;
-    world.managers[i] = t.manager->attach_world(world.index);
-    for (const auto& name : served_[t.name])
-      if (sim::ComponentEntry* entry = world.sim->find(name))
-        serve_on(t, *entry, *world.managers[i]);
-    world.sim->add_request_manager(world.managers[i], t.name);
+    // its gate and components before any call can reach it
+    world.managers[i] =
+        t.manager->attach_world(world.index, [&](const std::shared_ptr<RequestManager>& manager) {
+          for (const auto& name : served_[t.name])
+            if (sim::ComponentEntry* entry = world.sim->find(name)) serve_on(t, *entry, *manager);
+          world.sim->add_request_manager(manager, t.name);
+        });
   }
 }
 

@@ -56,6 +56,27 @@ TEST(WorldAddress, ReadsWorldAndNameStart) {
     EXPECT_FALSE(RequestManager::world_address(not_one)) << not_one;
 }
 
+TEST_F(Worlds, AWorldAttachedAtRunTimeIsPreparedBeforeACallCanReachIt) {
+  // its gate and components are given in `prepare`: a call routed meanwhile would find a
+  // manager with no gate (create_world attaches worlds while the transports serve)
+  auto gate2 = std::make_shared<SimulationGate>();
+  bool reachable_while_prepared = true;
+  auto world2 = transport_.attach_world(2, [&](const std::shared_ptr<RequestManager>& manager) {
+    const auto worlds = transport_.worlds();
+    reachable_while_prepared = std::find(worlds.begin(), worlds.end(), 2u) != worlds.end();
+    manager->set_gate(gate2);
+    manager->register_service(
+        "arm", [] { return CallContext::current()->manager().name(); }, "who");
+  });
+  EXPECT_FALSE(reachable_while_prepared);
+  EXPECT_EQ(transport_.attach_world(2), world2);  // attached once
+  const RequestId id = transport_.call("w2/arm", "who");
+  world2->process();
+  transport_.process();
+  ASSERT_TRUE(transport_.outcome(id));
+  EXPECT_EQ(*transport_.outcome(id)->value, world2->name());
+}
+
 TEST_F(Worlds, ACallToAWorldRunsInItsManagerAndItsOutcomeComesToTheTransport) {
   const RequestId id = transport_.call("w1/arm", "who");
   settle();

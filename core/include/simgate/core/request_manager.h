@@ -299,9 +299,12 @@ class RequestManager {
   // components(), serves_component() and may_call() include the worlds' services under
   // their prefix; a call to a world there is not is answered FAILED naming those there are.
   // The manager world `world` (1, 2, ...) serves through this transport, made at the first
-  // call: its simulation then adds it (Simulation::add_request_manager) and registers its
-  // components on it. Any thread.
-  std::shared_ptr<RequestManager> attach_world(unsigned world);
+  // call and given to `prepare` before any call can reach it: there its simulation adds it
+  // (Simulation::add_request_manager: its gate) and registers its components on it. Any
+  // thread.
+  std::shared_ptr<RequestManager> attach_world(
+      unsigned world,
+      const std::function<void(const std::shared_ptr<RequestManager>&)>& prepare = {});
   // Stops routing to `world`: once its simulation has shut its manager down (calls still
   // sent to it are answered by it, FAILED). Any thread.
   void detach_world(unsigned world);
