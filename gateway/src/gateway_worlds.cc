@@ -55,8 +55,8 @@ void Gateway::build_worlds(ConfigErrors& errors) {
   supervision()
       .offer_service("list_worlds", [this] { return list_worlds(); })
       .doc(
-          "every world: {worlds: [{world, name, state, sim_time, steps, memory_bytes}], count, "
-          "max}");
+          "every world: {worlds: [{world, name, state, sim_time, steps, actuators, "
+          "memory_bytes}], count, max}");
   if (!worlds_.empty())
     log::info("worlds: ", worlds_.size() + 1, " (w0 and w1..w", worlds_.size(),
               ", each a simulation under its own lock; docs/worlds.md)");

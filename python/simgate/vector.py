@@ -31,7 +31,7 @@ divergence in ``infos["diverged"]``, and is reset like any other.
 from __future__ import annotations
 
 from itertools import chain
-from typing import Any, Dict, List, Optional, Sequence, Set, Tuple
+from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
@@ -102,7 +102,7 @@ class SimgateVectorEnv(_Attached, VectorEnv):
             self._sim = sim = _attach(address, token, timeout)
             self.url = sim.url
             there = _worlds_of(sim)
-            if not set(range(num_envs)) <= there:
+            if not set(range(num_envs)) <= set(there):
                 raise ValueError(f"simgate.gym: {self.url} runs worlds {', '.join(map(str, sorted(there)))}: "
                                  f"num_envs = {num_envs} needs worlds 0 to {num_envs - 1} "
                                  "(\"worlds\": N in its config, or simulation create_world; "
@@ -125,7 +125,8 @@ class SimgateVectorEnv(_Attached, VectorEnv):
         # step_many's params but its worlds and actions: the reads of a SimgateEnv, in every world
         self._step_params = {"n": frame_skip, "observe": [],
                              "reads": [{"component": c, "service": s, "params": p} for c, s, p in layout.reads()]}
-        self._ctrl_size = max(layout.indices) + 1  # MuJoCo's ctrl up to the last actuator driven
+        # each world's MuJoCo ctrl: its actuators, those the environment does not drive kept
+        self._ctrl_sizes = [there[k] for k in self._worlds]
         # the resets' batches, encoded once: each world's restore_state and reads
         self._reads = [_encoded(layout.reads(k)) for k in self._worlds]
         self._restores = [(_in_world("simulation", k), "restore_state",
@@ -227,7 +228,7 @@ class SimgateVectorEnv(_Attached, VectorEnv):
         try:
             if step:
                 params = {**self._step_params, "worlds": list(step),
-                          "actions": [self._ctrl(values[k]) for k in step]}
+                          "actions": [self._ctrl(k, values[k]) for k in step]}
                 requests.append(("simulation", "step_many", params))
             if not restore:  # a step alone: one request, not a batch
                 slots = sim.submit("simulation", "step_many", (), params).result()["worlds"]
@@ -255,10 +256,10 @@ class SimgateVectorEnv(_Attached, VectorEnv):
         obs = self._layout.observe_many(chain.from_iterable(results[k] for k in observed), len(observed), self.flat)
         return replies[:len(restore)], slots, obs
 
-    def _ctrl(self, values: List[float]) -> List[Optional[float]]:
-        """One action's `values` where MuJoCo's ctrl has them (list_actuators' indices), null
-        (kept) for the actuators the environment does not drive."""
-        ctrl: List[Optional[float]] = [None] * self._ctrl_size
+    def _ctrl(self, world: int, values: List[float]) -> List[Optional[float]]:
+        """One action's `values` where `world`'s MuJoCo ctrl has them (list_actuators'
+        indices), null (kept) for the actuators the environment does not drive."""
+        ctrl: List[Optional[float]] = [None] * self._ctrl_sizes[world]
         for i, value in zip(self._layout.indices, values):
             ctrl[i] = value
         return ctrl
@@ -303,9 +304,10 @@ class SimgateVectorEnv(_Attached, VectorEnv):
                            for k, handle in zip(self._worlds, self._initial)])
 
 
-def _worlds_of(sim: Client) -> Set[int]:
-    """The worlds the simgate of `sim` runs (``simulation list_worlds``)."""
-    return {w["world"] for w in sim.call("simulation", "list_worlds")["worlds"]}
+def _worlds_of(sim: Client) -> Dict[int, int]:
+    """The worlds the simgate of `sim` runs (``simulation list_worlds``), each with its number
+    of MuJoCo actuators (the length of its controls in ``step_many``)."""
+    return {w["world"]: w["actuators"] for w in sim.call("simulation", "list_worlds")["worlds"]}
 
 
 def _row(obs: Any, k: int) -> Any:

@@ -181,6 +181,7 @@ json Worlds::describe() const {
                    {"state", to_string(world->run_state())},
                    {"sim_time", world->sim_time()},
                    {"steps", world->steps()},
+                   {"actuators", world->m()->nu},
                    {"memory_bytes", world->memory_bytes()}});
   }
   return out;

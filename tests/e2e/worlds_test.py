@@ -185,6 +185,7 @@ class WorldsTest(world_test.GatewayTestCase):
         for w in listed["worlds"]:
             self.assertGreater(w["memory_bytes"], 100000, w)  # the demo's model and data
             self.assertEqual(w["state"], "paused")
+            self.assertEqual(w["actuators"], 2)  # the demo robot's wheels: step_many's action size
         before = [self.snapshot(k) for k in range(WORLDS)]
 
         made = self.rpc("simulation.create_world")["result"]

@@ -90,7 +90,8 @@ class Worlds {
                  const json& reads);
   // What step_many reads when `observe` is not given.
   static const std::vector<std::string>& default_observation();
-  // Each world in order: {world, name ("w3"), state, sim_time, steps, memory_bytes}, each
+  // Each world in order: {world, name ("w3"), state, sim_time, steps, actuators (MuJoCo's
+  // nu: the length of step_many's action), memory_bytes}, each
   // read under its own lock. Under world 0's lock.
   json describe() const;
   // The worlds' indices, in order, as "0, 1, 3" (for messages).
