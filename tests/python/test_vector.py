@@ -238,7 +238,8 @@ def test_a_step_is_one_request_and_resets_are_batches_in_turn_past_the_limit(mon
         split.close()
 
 
-# a cart driven by the second actuator of MuJoCo's ctrl: the first acts on a body no robot has
+# a cart driven by the second actuator of MuJoCo's ctrl: the first and the third act on a body
+# no robot has
 TWO_CARTS = """<mujoco model="two_carts">
   <option timestep="0.01"/>
   <worldbody>
@@ -254,6 +255,7 @@ TWO_CARTS = """<mujoco model="two_carts">
   <actuator>
     <motor name="push_other" joint="other_slide"/>
     <motor name="push" joint="slide" ctrllimited="true" ctrlrange="-1 1"/>
+    <motor name="pull_other" joint="other_slide"/>
   </actuator>
 </mujoco>
 """
@@ -278,7 +280,8 @@ def test_actions_go_where_mujocos_ctrl_has_them(tmp_path, monkeypatch):
             obs, *_ = envs.step(np.array([[action], [0.0]]))
             single_obs, *_ = single.step(np.array([action]))
             assert bits(world(obs, 0)) == bits(single_obs)
-        assert sent == [[[None, 0.5], [None, 0.0]], [[None, -1.0], [None, 0.0]]]  # clipped, the other kept
+        # clipped, the others kept (the whole ctrl: simulation list_worlds' actuators)
+        assert sent == [[[None, 0.5, None], [None, 0.0, None]], [[None, -1.0, None], [None, 0.0, None]]]
         assert obs["joint_pos"][:, 0].tolist() == [single_obs["joint_pos"][0], 0.0]
     finally:
         envs.close()
