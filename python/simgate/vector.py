@@ -40,8 +40,8 @@ from gymnasium.vector.utils import batch_space
 from ._wires import JsonText, _json
 from .client import Client
 from .errors import ServiceError, ServiceFailed
-from .gym import (RewardFn, TerminatedFn, _Attached, _attach, _check_arguments, _encoded, _in_world,
-                  _Layout, _Server, find_binary)
+from ._environment import (RewardFn, TerminatedFn, _Attached, _attach, _check_arguments, _encoded,
+                           _in_world, _Layout, _Server, find_binary)
 
 __all__ = ["SimgateVectorEnv", "MAX_BATCH"]
 
@@ -84,12 +84,7 @@ class SimgateVectorEnv(_Attached, VectorEnv):
         self.autoreset_mode = AutoresetMode(autoreset_mode)
         self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
         self.num_envs = num_envs
-        self.frame_skip = frame_skip
-        self.flat = flat
-        self.out_of_range = out_of_range
-        self.reward_fn = reward_fn
-        self.terminated_fn = terminated_fn
-        self.max_episode_steps = max_episode_steps
+        self._keep_episode_options(frame_skip, flat, out_of_range, reward_fn, terminated_fn, max_episode_steps)
         self._worlds = list(range(num_envs))
         self._obs: Any = None
         self._elapsed = np.zeros(num_envs, dtype=np.int64)
