@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <iostream>
 #include <map>
+#include <vector>
 
 #include "commands.h"
 #include "simgate/client/client.h"
@@ -187,16 +188,16 @@ void print_services(const json& services, const std::string& indent) {
 int list_dds_simgates(const ListArgs& args, const ClientTarget& target) {
   const auto simgates =
       client::list_simgates(client::DdsClientOptions::from_json(target.options), target.timeout);
-  std::map<std::string, std::string> servers;  // by partition, when it has several
-  for (const auto& simgate : simgates) {
-    std::string& listed = servers[simgate.partition];
-    listed += (listed.empty() ? "" : ", ") + simgate.server;
+  std::map<std::string, std::vector<std::string>> servers;  // by partition
+  for (const auto& simgate : simgates) servers[simgate.partition].push_back(simgate.server);
+  for (const auto& [partition, ids] : servers) {
+    if (ids.size() < 2) continue;
+    std::string listed;
+    for (const auto& id : ids) listed += (listed.empty() ? "" : ", ") + id;
+    std::cerr << "simgate: note: partition '" << partition << "' has several simgates (" << listed
+              << "): a call there reaches each of them; give each simgate a partition of its own "
+              << "(docs/worlds.md, \"Across hosts\")\n";
   }
-  for (const auto& [partition, listed] : servers)
-    if (listed.find(',') != std::string::npos)
-      std::cerr << "simgate: note: partition '" << partition << "' has several simgates (" << listed
-                << "): a call there reaches each of them; give each simgate a "
-                << "partition of its own (docs/worlds.md, \"Across hosts\")\n";
   if (args.json) {
     json out = json::array();
     for (const auto& simgate : simgates) out.push_back(simgate.to_json());
@@ -229,10 +230,10 @@ int list_dds_simgates(const ListArgs& args, const ClientTarget& target) {
 }  // namespace
 
 int cmd_list(const ListArgs& args) {
-  const ClientTarget target = client_target(args.client, true);
+  const ClientTarget target = client_target(args.client, /*allow_partition_pattern=*/true);
 #if SIMGATE_CLIENT_DDS
   if (target.transport == "dds" &&
-      client::is_partition_pattern(target.options["partition"].get<std::string>()))
+      client::is_partition_pattern(target.options.at("partition").get<std::string>()))
     return list_dds_simgates(args, target);
 #endif
   auto client = client::make_client(target.transport, target.options);

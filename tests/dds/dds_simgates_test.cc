@@ -91,6 +91,21 @@ TEST_F(DdsTransportTest, ListSimgatesSeesACatalogChangeOfOneSimgateOnly) {
   EXPECT_EQ(names(simgates[1].services), k_services);  // host B's "robot" is still there
 }
 
+// Against the convention (`simgate list` notes it): both are listed, apart by server.
+TEST_F(DdsTransportTest, ListSimgatesListsTwoSimgatesOfOnePartitionBoth) {
+  auto first = make_server(test_partition("host"), "first");
+  auto second = make_server(test_partition("host"), "second");
+  SimThread sim_first(first);
+  SimThread sim_second(second);
+  const auto simgates = list_simgates(options_for(test_partition("h*")), 10s, 200ms);
+  ASSERT_EQ(simgates.size(), 2u);
+  EXPECT_EQ(simgates[0].partition, test_partition("host"));
+  EXPECT_EQ(simgates[1].partition, test_partition("host"));
+  EXPECT_NE(simgates[0].server, simgates[1].server);
+  EXPECT_EQ(names(simgates[0].services), k_services);
+  EXPECT_EQ(names(simgates[1].services), k_services);
+}
+
 TEST_F(DdsTransportTest, ListSimgatesMatchingNothingNamesTheDomainThePatternAndTheWait) {
   try {
     list_simgates(options_for(test_partition("nohost*")), 300ms);
