@@ -8,12 +8,15 @@
 #include <map>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <thread>
 #include <unordered_map>
 #include <vector>
 
+#include "dds_catalog.h"
 #include "dds_support.h"
 #include "simgate/core/config.h"
+#include "simgate/core/request_manager.h"
 #include "simgate/core/streams.h"
 #include "simgate_streams.h"
 
@@ -21,6 +24,7 @@ namespace simgate::client {
 
 using dds::ClientId;
 using dds::retcode_text;
+using dds_catalog::check;
 
 namespace {
 
@@ -72,11 +76,6 @@ std::shared_ptr<const StreamPayload> to_payload(const simgate_stream_Image& imag
   return payload;
 }
 
-dds_entity_t check(dds_entity_t rc, const std::string& what) {
-  if (rc < 0) throw ClientError("DDS client: cannot create " + what + ": " + retcode_text(rc));
-  return rc;
-}
-
 // Replies for another client's id (only a writer that is not the server's would put one in
 // our partition) never reach our reader.
 bool is_ours(const void* sample, void* arg) {
@@ -109,6 +108,18 @@ std::string network_hint(const std::string& config) {
          "; a simulation's dds transport uses loopback only unless its \"config\" "
          "option says otherwise (simgate call --dds-config: XML, a file:// URI, or env for "
          "CYCLONEDDS_URI).";
+}
+
+// A participant of the options' domain, with their network settings (ClientError when Cyclone
+// refuses them).
+std::unique_ptr<dds::Participant> join_domain(const DdsClientOptions& options) {
+  try {
+    return std::make_unique<dds::Participant>(
+        options.domain, dds::resolve_config(options.config),
+        "DDS client (domain " + std::to_string(options.domain) + ")");
+  } catch (const std::runtime_error& e) {
+    throw ClientError(e.what());
+  }
 }
 
 }  // namespace
@@ -170,7 +181,7 @@ class DdsClient::Impl {
   std::unique_ptr<dds::Participant> participant_;  // owns every entity
   ClientId client_id_{};                           // our request writer's GUID
   std::string id_hex_;                             // the same, hex
-  dds_entity_t publisher_ = 0, subscriber_ = 0;    // in the partition
+  dds_entity_t publisher_ = 0;                     // in the partition
   dds_entity_t reply_subscriber_ = 0;              // in "<partition>/<id_hex_>"
   dds_entity_t request_writer_ = 0;                // simgate_Request
   dds_entity_t reply_reader_ = 0;                  // simgate_Reply, filtered on client_id_
@@ -191,7 +202,8 @@ class DdsClient::Impl {
   int server_writers_ = 0;                  // matched reply writers
   bool reading_ = false;                    // a caller is the reader (see await)
   bool stopping_ = false;                   // the status thread must leave
-  dds_entity_t catalog_reader_ = 0;         // created by the first list_services
+  std::mutex catalog_mutex_;                // one list_services at a time
+  std::unique_ptr<dds_catalog::CatalogReader> catalog_;  // created by the first list_services
 
   std::thread thread_;  // the status thread
 
@@ -203,18 +215,16 @@ class DdsClient::Impl {
 };
 
 DdsClient::Impl::Impl(DdsClientOptions options) : options_(std::move(options)) {
-  try {
-    participant_ = std::make_unique<dds::Participant>(
-        options_.domain, dds::resolve_config(options_.config),
-        "DDS client (domain " + std::to_string(options_.domain) + ")");
-  } catch (const std::runtime_error& e) {
-    throw ClientError(e.what());
-  }
+  if (is_partition_pattern(options_.partition))
+    throw ClientError("DDS client: partition '" + options_.partition +
+                      "' is a pattern: a client calls one simgate, in the partition it names "
+                      "(list_simgates, `simgate list --partition PATTERN`, lists those a "
+                      "pattern matches)");
+  participant_ = join_domain(options_);
   dds_entity_t pp = participant_->handle();
   dds::QosPtr partition_qos(dds_create_qos());
   dds_qset_partition1(partition_qos.get(), options_.partition.c_str());
   publisher_ = check(dds_create_publisher(pp, partition_qos.get(), nullptr), "publisher");
-  subscriber_ = check(dds_create_subscriber(pp, partition_qos.get(), nullptr), "subscriber");
 
   // the request writer; its GUID is our id
   dds_entity_t request_topic =
@@ -290,6 +300,7 @@ DdsClient::Impl::~Impl() {
   }
   if (guard_ > 0) dds_set_guardcondition(guard_, true);
   if (thread_.joinable()) thread_.join();
+  catalog_.reset();
   participant_.reset();
 }
 
@@ -542,80 +553,25 @@ Outcome DdsClient::Impl::wait(CallId id, std::chrono::milliseconds timeout,
 }
 
 json DdsClient::Impl::list_services(std::chrono::milliseconds timeout) {
-  auto deadline = std::chrono::steady_clock::now() + timeout;
-  dds_entity_t pp = participant_->handle();
-  {
-    // the catalog reader, created once: transient-local, so it receives what was published
-    std::lock_guard lock(mutex_);
-    if (catalog_reader_ == 0) {
-      dds_entity_t topic = check(
-          dds_create_topic(pp, &simgate_CatalogEntry_desc, dds::k_catalog_topic, nullptr, nullptr),
-          "topic simgate_Catalog");
-      dds::QosPtr qos = dds::make_qos(true, 1, DDS_SECS(1));
-      catalog_reader_ =
-          check(dds_create_reader(subscriber_, topic, qos.get(), nullptr), "catalog reader");
-    }
-  }
-  dds_entity_t waitset = check(dds_create_waitset(pp), "catalog waitset");
-  dds_entity_t fresh = check(dds_create_readcondition(catalog_reader_, DDS_NOT_READ_SAMPLE_STATE),
-                             "catalog condition");
-  dds_waitset_attach(waitset, fresh, 0);
-  struct Entry {
-    std::string server;      // who publishes it
-    std::uint32_t count;     // how many entries that server publishes
-    std::uint32_t revision;  // of that server's catalog
-    json services;           // its descriptors
-  };
-  std::map<std::string, Entry> entries;
-  for (;;) {
-    // everything alive in the catalog (read, not taken: later calls see it too)
-    void* samples[64];
-    dds_sample_info_t infos[64];
-    samples[0] = nullptr;
-    dds_return_t n =
-        dds_read_mask(catalog_reader_, samples, infos, 64, 64,
-                      DDS_ANY_SAMPLE_STATE | DDS_ANY_VIEW_STATE | DDS_ALIVE_INSTANCE_STATE);
-    entries.clear();
-    std::map<std::string, std::uint32_t> latest;  // each server's highest revision
-    for (dds_return_t i = 0; i < n; ++i) {
-      if (!infos[i].valid_data) continue;
-      const auto& e = *static_cast<const simgate_CatalogEntry*>(samples[i]);
-      json services = json::parse(e.services ? e.services : "", nullptr, false);
-      if (!services.is_array()) continue;
-      Entry entry{e.server ? e.server : "", e.count, e.revision, std::move(services)};
-      latest[entry.server] = std::max(latest[entry.server], entry.revision);
-      entries[e.component ? e.component : ""] = std::move(entry);
-    }
-    if (n > 0) dds_return_loan(catalog_reader_, samples, n);
-    // an entry of an older revision is a component its server serves no more, whose dispose
-    // has not arrived yet
-    std::erase_if(entries,
-                  [&](const auto& e) { return e.second.revision < latest[e.second.server]; });
-    // complete when every server's entries are all there
-    std::map<std::string, std::uint32_t> present, expected;
-    for (const auto& [component, entry] : entries) {
-      ++present[entry.server];
-      expected[entry.server] = entry.count;
-    }
-    bool complete =
-        !entries.empty() && std::all_of(expected.begin(), expected.end(), [&](const auto& server) {
-          return present[server.first] >= server.second;
-        });
-    auto now = std::chrono::steady_clock::now();
-    if (complete || now >= deadline) break;
-    dds_waitset_wait(waitset, nullptr, 0,
-                     std::chrono::duration_cast<std::chrono::nanoseconds>(deadline - now).count());
-  }
-  dds_delete(fresh);
-  dds_delete(waitset);
-  if (entries.empty())
+  std::lock_guard lock(catalog_mutex_);
+  // created once: transient-local, so it receives what was published before
+  if (!catalog_)
+    catalog_ =
+        std::make_unique<dds_catalog::CatalogReader>(participant_->handle(), options_.partition);
+  const auto catalogs =
+      catalog_->read(std::chrono::steady_clock::now() + timeout, std::chrono::milliseconds(0));
+  if (catalogs.empty())
     throw ClientError(
         "DDS client: no simgate simulation in domain " + std::to_string(options_.domain) +
         ", partition '" + options_.partition + "' within " + std::to_string(timeout.count()) +
         " ms: waited for a simulation's catalog of services. " + network_hint(options_.config));
+  // one server per partition is the rule; were there more, a component listed once
+  std::map<std::string, json> by_component;
+  for (const auto& catalog : catalogs)
+    for (const auto& [component, services] : catalog.services) by_component[component] = services;
   json out = json::array();
-  for (auto& [component, entry] : entries)
-    for (auto& service : entry.services) out.push_back(std::move(service));
+  for (auto& [component, services] : by_component)
+    for (auto& service : services) out.push_back(std::move(service));
   return out;
 }
 
@@ -680,6 +636,48 @@ void DdsClient::login(const std::string&, std::chrono::milliseconds) {
 }
 
 const std::string& DdsClient::id() const { return impl_->id_hex_; }
+
+bool is_partition_pattern(std::string_view partition) {
+  return partition.find_first_of("*?") != std::string_view::npos;
+}
+
+json DdsSimgate::to_json() const {
+  json out = {
+      {"partition", partition}, {"server", server}, {"worlds", worlds}, {"services", services}};
+  if (!whole) out["whole"] = false;
+  return out;
+}
+
+std::vector<DdsSimgate> list_simgates(const DdsClientOptions& options,
+                                      std::chrono::milliseconds timeout,
+                                      std::chrono::milliseconds settle) {
+  const std::unique_ptr<dds::Participant> participant = join_domain(options);
+  std::vector<dds_catalog::ServerCatalog> catalogs;
+  {
+    dds_catalog::CatalogReader reader(participant->handle(), options.partition);
+    catalogs = reader.read(std::chrono::steady_clock::now() + timeout, settle);
+  }
+  if (catalogs.empty())
+    throw ClientError("DDS client: no simgate in domain " + std::to_string(options.domain) +
+                      " whose partition matches '" + options.partition + "' within " +
+                      std::to_string(timeout.count()) +
+                      " ms: waited for catalogs (simgate_Catalog) in the partitions it "
+                      "matches. " +
+                      network_hint(options.config));
+  std::vector<DdsSimgate> out;
+  for (auto& catalog : catalogs) {
+    DdsSimgate simgate{catalog.partition, catalog.server, {}, json::array(), catalog.whole};
+    std::set<unsigned> worlds;
+    for (auto& [component, services] : catalog.services) {
+      auto address = RequestManager::world_address(component);
+      worlds.insert(address ? address->first : 0);
+      for (auto& service : services) simgate.services.push_back(std::move(service));
+    }
+    for (unsigned world : worlds) simgate.worlds.push_back("w" + std::to_string(world));
+    out.push_back(std::move(simgate));
+  }
+  return out;
+}
 
 std::unique_ptr<Client> make_dds_client(const json& options) {
   return std::make_unique<DdsClient>(DdsClientOptions::from_json(options));

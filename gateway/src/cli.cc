@@ -31,7 +31,7 @@ constexpr const char* k_footer = R"(Synopsis:
                 [--json] [--config CONFIG] [--plugin-path DIR]...
   simgate check CONFIG | --model FILE.xml [CONFIG] [--log-level L] [--plugin-path DIR]...
   simgate call [CLIENT OPTIONS] COMPONENT SERVICE [ARGS...]
-  simgate list [CLIENT OPTIONS] [--json]
+  simgate list [CLIENT OPTIONS] [--json]    (dds: --partition 'PATTERN' lists several simgates)
   simgate watch [CLIENT OPTIONS] COMPONENT [--count N] [--duration SECONDS]
   simgate publish [CLIENT OPTIONS] COMPONENT JSON_OBJECT [--count N] [--rate HZ]
   simgate snapshot [CLIENT OPTIONS] [--camera NAME] [--size WxH] OUT.png
@@ -62,6 +62,14 @@ Named and positional ARGS cannot be mixed; a string containing '=' is written JS
 (a "--" right after SERVICE is skipped).
 Prints the result as JSON, or SUCCESS for a service that returns nothing (exit 0); a
 FAILED or PREEMPTED call prints its reason on stderr (exit 1).)";
+
+constexpr const char* k_list_footer =
+    R"(dds: a --partition pattern (* any characters, ? one: '*', 'lab-*') lists every simgate of
+the domain it matches (by convention one per host, each in a partition of its own):
+  partition hostA: worlds w0, w1; server 0110d23c9f2e4c8a5b3e7d1f000001c1
+    robot.motion set_speed(v, w) — ...
+then its components' services and streams, indented; --json: [{"partition", "server",
+"worlds", "services"}, ...]. It reads the DDS catalog, then waits 1 s for more simgates.)";
 
 constexpr const char* k_watch_footer =
     R"(Prints each sample of COMPONENT's output stream (a sensor: robot.pose) as one JSON line,
@@ -259,7 +267,7 @@ class CommandLine {
         add_command("list", "list the services a running simulation offers, with their parameters");
     add_client_options(list_, list_args_.client);
     list_->add_flag("--json", list_args_.json, "print the service descriptors as one JSON array");
-    list_->footer(k_exit_codes);
+    list_->footer(std::string(k_list_footer) + "\n" + k_exit_codes);
 
     watch_ =
         add_command("watch", "print a component's stream samples (a sensor), one JSON line each");
@@ -434,7 +442,9 @@ class CommandLine {
         ->type_name("P");
     command->add_option("--domain", args.domain, "dds: the simulation's DDS domain (default 0)")
         ->type_name("N");
-    command->add_option("--partition", args.partition, "dds: its partition (default simgate)")
+    command
+        ->add_option("--partition", args.partition,
+                     "dds: its partition (default simgate); list: or a pattern (* ?) of several")
         ->type_name("P");
     command
         ->add_option(

@@ -4,10 +4,15 @@
 #include <chrono>
 #include <cstdlib>
 #include <iostream>
+#include <map>
+#include <vector>
 
 #include "commands.h"
 #include "simgate/client/client.h"
 #include "simgate/core/suggest.h"
+#if SIMGATE_CLIENT_DDS
+#include "simgate/client/dds_client.h"
+#endif
 
 namespace simgate::gateway {
 
@@ -20,7 +25,7 @@ constexpr const char* k_token_variable = "SIMGATE_TOKEN";
 
 }  // namespace
 
-ClientTarget client_target(const ClientArgs& args) {
+ClientTarget client_target(const ClientArgs& args, bool allow_partition_pattern) {
   const std::string& transport = args.transport;
   if (std::find(k_transports.begin(), k_transports.end(), transport) == k_transports.end())
     throw UsageError("--transport: expected socket, jsonrpc, websocket or dds, found '" +
@@ -41,6 +46,12 @@ ClientTarget client_target(const ClientArgs& args) {
       throw UsageError(std::string(args.host ? "--host" : "--port") +
                        " is for --transport socket, jsonrpc or websocket; dds finds the simulation "
                        "by --domain and --partition");
+#if SIMGATE_CLIENT_DDS
+    if (args.partition && client::is_partition_pattern(*args.partition) && !allow_partition_pattern)
+      throw UsageError("--partition: '" + *args.partition +
+                       "' is a pattern (* or ?): `simgate list` lists the simgates it matches; "
+                       "this command talks to one simgate: name its partition");
+#endif
     target.options = {{"domain", args.domain ? parse_int("--domain", *args.domain, 0, 230) : 0},
                       {"partition", args.partition.value_or("simgate")}};
     if (args.dds_config) target.options["config"] = *args.dds_config;
@@ -125,8 +136,9 @@ namespace {
 
 // The data streams this transport carries (`simulation get_stream_statistics`, where the
 // client may call it), one line each, with its port where the transport has one per stream
-// (the socket transport's `simulation get_all_stream_ports`).
-void print_streams(client::Client& client, std::chrono::milliseconds timeout) {
+// (the socket transport's `simulation get_all_stream_ports`), each line after `indent`.
+void print_streams(client::Client& client, std::chrono::milliseconds timeout,
+                   const std::string& indent) {
   Outcome streams = client.call("simulation", "get_stream_statistics", json::array(), timeout);
   if (streams.status != Status::success || !streams.value || !streams.value->is_array() ||
       streams.value->empty())
@@ -134,7 +146,7 @@ void print_streams(client::Client& client, std::chrono::milliseconds timeout) {
   Outcome ports = client.call("simulation", "get_all_stream_ports", json::array(), timeout);
   for (const auto& s : *streams.value) {
     const std::string component = s.value("component", std::string("?"));
-    std::cout << component << " stream " << s.value("direction", std::string("?")) << " "
+    std::cout << indent << component << " stream " << s.value("direction", std::string("?")) << " "
               << s.value("kind", std::string("?"));
     // an event stream (simulation.events) has no rate: frequency 0
     if (s.contains("frequency") && s["frequency"] != 0)
@@ -153,29 +165,85 @@ void print_streams(client::Client& client, std::chrono::milliseconds timeout) {
   }
 }
 
-}  // namespace
-
-int cmd_list(const ListArgs& args) {
-  std::chrono::milliseconds timeout{};
-  auto client = connect_client(args.client, timeout);
-  json services = client->list_services(timeout);
-  if (args.json) {
-    std::cout << services.dump(2) << "\n";
-    return 0;
-  }
+// Service descriptors, one line each after `indent`: component name(params) async — doc.
+void print_services(const json& services, const std::string& indent) {
   for (const auto& s : services) {
     std::string params;
     for (const auto& p : s.value("params", json::array())) {
       params += (params.empty() ? "" : ", ") + p.value("name", std::string("?"));
       if (p.contains("default")) params += "=" + p["default"].dump();
     }
-    std::cout << s.value("component", std::string("?")) << " " << s.value("name", std::string("?"))
-              << "(" << params << ")" << (s.value("async", false) ? " async" : "");
+    std::cout << indent << s.value("component", std::string("?")) << " "
+              << s.value("name", std::string("?")) << "(" << params << ")"
+              << (s.value("async", false) ? " async" : "");
     std::string doc = s.value("doc", std::string());
     if (!doc.empty()) std::cout << " — " << doc;
     std::cout << "\n";
   }
-  print_streams(*client, timeout);
+}
+
+#if SIMGATE_CLIENT_DDS
+// `list --transport dds --partition PATTERN`: every simgate the pattern matches, by
+// partition (its host), with its worlds, services and streams.
+int list_dds_simgates(const ListArgs& args, const ClientTarget& target) {
+  const auto simgates =
+      client::list_simgates(client::DdsClientOptions::from_json(target.options), target.timeout);
+  std::map<std::string, std::vector<std::string>> servers;  // by partition
+  for (const auto& simgate : simgates) servers[simgate.partition].push_back(simgate.server);
+  for (const auto& [partition, ids] : servers) {
+    if (ids.size() < 2) continue;
+    std::string listed;
+    for (const auto& id : ids) listed += (listed.empty() ? "" : ", ") + id;
+    std::cerr << "simgate: note: partition '" << partition << "' has several simgates (" << listed
+              << "): a call there reaches each of them; give each simgate a partition of its own "
+              << "(docs/worlds.md, \"Across hosts\")\n";
+  }
+  if (args.json) {
+    json out = json::array();
+    for (const auto& simgate : simgates) out.push_back(simgate.to_json());
+    std::cout << out.dump(2) << "\n";
+    return 0;
+  }
+  for (std::size_t i = 0; i < simgates.size(); ++i) {
+    const client::DdsSimgate& simgate = simgates[i];
+    std::string worlds;
+    for (const auto& world : simgate.worlds) worlds += (worlds.empty() ? "" : ", ") + world;
+    std::cout << (i ? "\n" : "") << "partition " << simgate.partition << ": worlds " << worlds
+              << "; server " << simgate.server
+              << (simgate.whole ? "" : " (its catalog was still arriving)") << "\n";
+    print_services(simgate.services, "  ");
+    // its streams: a call to that simgate alone
+    json options = target.options;
+    options["partition"] = simgate.partition;
+    try {
+      auto client = client::make_client("dds", options);
+      print_streams(*client, target.timeout, "  ");
+    } catch (const client::ClientError& e) {
+      std::cerr << "simgate: note: the streams of partition '" << simgate.partition
+                << "' were not read: " << e.what() << "\n";
+    }
+  }
+  return 0;
+}
+#endif
+
+}  // namespace
+
+int cmd_list(const ListArgs& args) {
+  const ClientTarget target = client_target(args.client, /*allow_partition_pattern=*/true);
+#if SIMGATE_CLIENT_DDS
+  if (target.transport == "dds" &&
+      client::is_partition_pattern(target.options.at("partition").get<std::string>()))
+    return list_dds_simgates(args, target);
+#endif
+  auto client = client::make_client(target.transport, target.options);
+  json services = client->list_services(target.timeout);
+  if (args.json) {
+    std::cout << services.dump(2) << "\n";
+    return 0;
+  }
+  print_services(services, "");
+  print_streams(*client, target.timeout, "");
   return 0;
 }
 

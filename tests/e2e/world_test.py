@@ -33,9 +33,10 @@ NEW_SERVICES = ["get_simulation_state", "pause", "play", "step", "reset", "save_
 
 class Gateway:
     """`simgate run CONFIG` on ephemeral ports, with its endpoints read from --endpoints-file;
-    `edit(config)` may change the configuration first (tests/e2e/worlds_test.py)."""
+    `edit(config)` may change the configuration first (tests/e2e/worlds_test.py); `prefix`, a
+    command that runs it (tests/e2e/hosts_test.py: nsenter, into a network namespace)."""
 
-    def __init__(self, workdir, edit=None):
+    def __init__(self, workdir, edit=None, prefix=()):
         with open(os.path.join(ARGS.source_dir, "config/all-transports.json")) as f:
             config = json.load(f)
         config["scene"]["mjcf"] = os.path.join(ARGS.source_dir, "config/scenes/demo.xml")
@@ -53,7 +54,8 @@ class Gateway:
             json.dump(config, f)
         endpoints = os.path.join(workdir, "endpoints.json")
         self.log = open(os.path.join(workdir, "run.log"), "w+")
-        self.process = subprocess.Popen([ARGS.simgate, "run", path, "--endpoints-file", endpoints],
+        command = list(prefix) + [ARGS.simgate, "run", path, "--endpoints-file", endpoints]
+        self.process = subprocess.Popen(command,
                                         stdout=self.log, stderr=subprocess.STDOUT)
         deadline = time.monotonic() + TIMEOUT
         while not os.path.exists(endpoints):

@@ -540,6 +540,14 @@ TEST(GatewayCliTest, ClientOptionsAreChecked) {
       {"call", "--transport", "dds", "--host", "127.0.0.1", "simulation", "list_robots"}, dir);
   EXPECT_EQ(hcode, 2);
   EXPECT_THAT(hout, HasSubstr("--host"));
+#ifdef SIMGATE_TEST_WITH_DDS
+  // a partition pattern lists simgates (`list`); a call goes to one
+  auto [wcode, wout] = run_simgate(
+      {"call", "--transport", "dds", "--partition", "lab-*", "simulation", "list_robots"}, dir);
+  EXPECT_EQ(wcode, 2);
+  EXPECT_THAT(wout, HasSubstr("--partition: 'lab-*' is a pattern (* or ?): `simgate list` lists "
+                              "the simgates it matches"));
+#endif
 }
 
 // ---- a gateway whose transports require a token (the "auth" option, issue #35 item 11)

@@ -11,6 +11,9 @@
 //    final Outcome; async services are acknowledged first (wait_accepted()); cancel()
 //    cancels the client's own pending call.
 //  - list_services() reads the transient-local catalog: every component's descriptors.
+//  - A client talks to one simgate: its partition is a name, never a pattern. Several
+//    simgates (one per partition: by convention, one per host) are listed together by
+//    list_simgates() with a partition pattern, and called through one client each.
 //  - Raw images (opt-in, DdsClientOptions::raw_images): the client also reads
 //    simgate_ReplyImage in its reply partition, with a reader created before its reply
 //    reader and announcing the same id, so the server sends the images of its camera replies
@@ -48,14 +51,19 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <string_view>
+#include <vector>
 
 #include "simgate/client/client.h"
 
 namespace simgate::client {
 
+// How long list_simgates() waits, once the simgates it found are complete, for others.
+inline constexpr std::chrono::milliseconds k_simgates_settle{1000};
+
 struct DdsClientOptions {
   std::uint32_t domain = 0;           // DDS domain id of the simulation
-  std::string partition = "simgate";  // its partition
+  std::string partition = "simgate";  // its partition (list_simgates: a name or a pattern)
   std::string config;                 // Cyclone XML or file:// URI; "" = loopback; "env"
   // how long start() waits for a server (call(), cancel() and list_services() wait their timeout)
   std::chrono::milliseconds discovery_timeout{10000};
@@ -73,7 +81,8 @@ class DdsClient final : public Client {
  public:
   using CallId = std::uint64_t;
 
-  // Throws ClientError when DDS cannot be set up (bad XML, domain id...).
+  // Throws ClientError when DDS cannot be set up (bad XML, domain id...) and for a
+  // partition pattern (a client calls one simgate: list_simgates lists those it matches).
   explicit DdsClient(DdsClientOptions options = {});
   ~DdsClient() override;
   DdsClient(const DdsClient&) = delete;
@@ -116,6 +125,33 @@ class DdsClient final : public Client {
   class Impl;
   std::unique_ptr<Impl> impl_;  // DDS entities, the status thread and the call table
 };
+
+// Whether `partition` is a pattern of partitions: it holds Cyclone's wildcards, `*` (any
+// characters, "/" included) or `?` (one character).
+bool is_partition_pattern(std::string_view partition);
+
+// A simgate found in the DDS catalog: its DDS transport.
+struct DdsSimgate {
+  std::string partition;            // its partition: by convention, its host
+  std::string server;               // its DDS participant's GUID (32 hex digits)
+  std::vector<std::string> worlds;  // the worlds its catalog names: "w0", "w1", ... in order
+  json services;                    // its catalog: ServiceDescriptor::to_json() objects, by
+                                    // component (a world's as "w<k>/<component>")
+  bool whole = true;                // false: its catalog was still arriving at the timeout
+
+  json to_json() const;  // {"partition", "server", "worlds", "services"} (+ "whole": false)
+};
+
+// Every simgate of options.domain whose partition matches options.partition (a name, or a
+// pattern: "*" for all, "lab-*"), by partition. Reads the catalog only (a participant of its
+// own, which sends no request), with options.config's network settings.
+// Returns once it found one and each one's catalog is whole, and no other appeared for
+// `settle` (discovery is not a census: a simgate that answers later than that is missed);
+// at `timeout`, with what it found. Throws ClientError naming the domain, the partition
+// pattern and the time waited when it found none.
+std::vector<DdsSimgate> list_simgates(const DdsClientOptions& options,
+                                      std::chrono::milliseconds timeout,
+                                      std::chrono::milliseconds settle = k_simgates_settle);
 
 }  // namespace simgate::client
 
