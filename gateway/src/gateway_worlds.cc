@@ -176,7 +176,7 @@ json Gateway::create_world() {
     if (world_loops_) start_loop(added);
     count = worlds_.size() + 1;
   }
-  log::info("worlds: ", world_name(index), " made (", count, " worlds)");
+  log::info("worlds: ", world_name(index), " made (", count, " worlds now)");
   return json{{"world", index},
               {"name", world_name(index)},
               {"count", count},
@@ -214,7 +214,8 @@ json Gateway::delete_world(std::int64_t index) {
   }
   all_worlds_->remove(world->index);
   leave(*world);
-  log::info("worlds: ", world_name(world->index), " deleted (", count, " worlds)");
+  log::info("worlds: ", world_name(world->index), " deleted (", count,
+            count == 1 ? " world left)" : " worlds left)");
   return json{{"world", world->index}, {"name", world_name(world->index)}, {"count", count}};
 }
 

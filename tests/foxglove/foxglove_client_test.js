@@ -249,6 +249,24 @@ async function playback(url, s) {
   p.close();
 }
 
+// A world made at run time (simulation create_world, docs/worlds.md): its services are
+// advertised under /w<k>/, called there, and unadvertised when it is deleted.
+async function worlds(s) {
+  const made = await s.call('/simulation/create_world', {});
+  check(made.ok, 'create_world answers: ' + JSON.stringify(made));
+  const world = JSON.parse(made.data);
+  const prefix = `/${world.name}`;
+  await s.until(() => s.service(`${prefix}/robot/motion/set_speed`) && s.service(`${prefix}/simulation/list_robots`),
+                `the services of ${world.name} advertised`);
+  const robots = await s.call(`${prefix}/simulation/list_robots`, {});
+  check(robots.ok && JSON.parse(robots.data).includes('robot'), `${prefix}/simulation/list_robots: ` + JSON.stringify(robots));
+  const gone = await s.call('/simulation/delete_world', { world: world.world });
+  check(gone.ok, 'delete_world answers: ' + JSON.stringify(gone));
+  await s.until(() => ![...s.services.values()].some((x) => x.name.startsWith(prefix + '/')),
+                `the services of ${world.name} unadvertised`);
+  check(s.service('/simulation/list_robots'), 'world 0\'s services stay');
+}
+
 runTest(process.argv.slice(2), TOTAL_TIMEOUT_MS, `foxglove transport with @foxglove/ws-protocol (${SUBPROTOCOLS.join(', ')})`,
         async (url) => {
           await refusedWithout(url);
@@ -258,6 +276,7 @@ runTest(process.argv.slice(2), TOTAL_TIMEOUT_MS, `foxglove transport with @foxgl
           await sceneFollowsTheModel(sessions[0]);
           await publishingDrives(sessions[1]);
           await parameters(sessions[0], sessions[1]);
+          await worlds(sessions[1]);
           await playback(url, sessions[0]);
           for (const s of sessions) s.close();
         });

@@ -2,7 +2,8 @@
 // nobody on the team wrote it) over streamable HTTP: the gateway (argv: simgate run
 // gateway_mcp.json ...) serves the rover room; the client lists the tools (a denied service
 // absent), calls simulation_list_robots, a long goto with progress then cancels it, takes a
-// camera's image and a snapshot (PNG), and is refused with a wrong token and with none.
+// camera's image and a snapshot (PNG), makes a world and deletes it (its tools come and go),
+// and is refused with a wrong token and with none.
 // Exit 77 (skipped) without the SDK (scripts/test installs it).
 'use strict';
 const path = require('path');
@@ -204,6 +205,29 @@ async function toolsChange(client) {
   console.log(`tools/list_changed: ${changes} notification(s) for a robot spawned and deleted`);
 }
 
+// A world made at run time (simulation create_world, docs/worlds.md): its tools come under the
+// w<k>_ prefix, the transport's deny list applying in it too, and go when it is deleted.
+async function worldsChange(client) {
+  let changes = 0;
+  client.setNotificationHandler(ToolListChangedNotificationSchema, () => { ++changes; });
+  const made = await client.callTool({ name: 'simulation_create_world', arguments: {} });
+  check(!made.isError && made.structuredContent.name === 'w1', 'create_world: ' + JSON.stringify(made).slice(0, 300));
+  const until = Date.now() + 15000;
+  while (changes < 1 && Date.now() < until) await sleep(20);
+  check(changes >= 1, 'notifications/tools/list_changed after a world was made');
+  const names = (await client.listTools()).tools.map((t) => t.name);
+  check(names.includes('w1_rover_waypoint_goto'), 'the new world\'s services are tools');
+  check(!names.some((n) => n.startsWith('w1_rover_teleport_')), 'the deny list applies in the new world');
+  const robots = await client.callTool({ name: 'w1_simulation_list_robots', arguments: {} });
+  check(JSON.stringify(robots.structuredContent) === JSON.stringify({ result: ['rover'] }),
+        'w1_simulation_list_robots: ' + JSON.stringify(robots.structuredContent));
+  const gone = await client.callTool({ name: 'simulation_delete_world', arguments: { world: 1 } });
+  check(!gone.isError, 'delete_world: ' + JSON.stringify(gone).slice(0, 300));
+  const after = (await client.listTools()).tools.map((t) => t.name);
+  check(!after.some((n) => n.startsWith('w1_')), 'deleted, its tools are gone');
+  console.log('worlds: w1 made, listed as w1_ tools, called, deleted');
+}
+
 async function refused(url) {
   for (const [token, what] of [['wrong-token-0123456789', 'a wrong token'], [undefined, 'no token']]) {
     let error;
@@ -230,6 +254,7 @@ async function main(argv) {
     await images(client);
     await resources(client);
     await toolsChange(client);
+    await worldsChange(client);
     await refused(url);
     await client.close();
     console.log('PASS: an MCP client lists and calls simgate\'s tools');
