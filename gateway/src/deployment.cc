@@ -179,7 +179,8 @@ void parse_scene(ConfigObject& root, const std::string& base_dir, Deployment& d)
 
 // "spawn": {"allowed_dirs": [...]}: the directories `simulation spawn_entity` may read
 // fragment files from, each an existing directory (relative to the config file).
-// "worlds": N, or {"count": N, "max": M, "threads": T} (docs/configuration.md#worlds).
+// "worlds": N, or {"count": N, "max": M, "max_memory_mb": B, "threads": T}
+// (docs/configuration.md#worlds).
 void parse_worlds(ConfigObject& root, Deployment& d) {
   if (!root.has("worlds")) return;
   constexpr auto k_max = static_cast<long long>(Deployment::k_max_worlds);
@@ -194,6 +195,8 @@ void parse_worlds(ConfigObject& root, Deployment& d) {
   d.max_worlds = static_cast<unsigned>(
       worlds.get_int("max", std::max(d.worlds, Deployment::k_default_max_worlds), d.worlds, k_max));
   d.world_threads = static_cast<unsigned>(worlds.get_int("threads", 0, 0, 256));
+  d.max_world_memory_bytes =
+      static_cast<std::uint64_t>(worlds.get_int("max_memory_mb", 0, 0, 1'000'000)) * 1'000'000;
   worlds.finish();
 }
 

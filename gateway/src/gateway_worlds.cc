@@ -7,13 +7,16 @@
 // lock, one at a time, never beside step_many (which locks the worlds it steps after world
 // 0's). worlds_mutex_ guards the map for stop() and the loops' threads; it is never held
 // while waiting for a world's lock or thread.
+#include <cstdint>
 #include <limits>
 #include <string>
 
+#include "simgate/core/config.h"
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
 #include "simgate/core/simulation_gate.h"
 #include "simgate/gateway/gateway.h"
+#include "simgate/sim/allowed_files.h"
 #include "simgate/sim/supervision.h"
 
 namespace simgate::gateway {
@@ -21,6 +24,12 @@ namespace simgate::gateway {
 namespace {
 
 std::string world_name(unsigned index) { return "w" + std::to_string(index); }
+
+// "14.9 MB"
+std::string megabytes(std::uint64_t bytes) {
+  const std::uint64_t tenths = (bytes + 50'000) / 100'000;
+  return std::to_string(tenths / 10) + "." + std::to_string(tenths % 10) + " MB";
+}
 
 }  // namespace
 
@@ -34,17 +43,27 @@ void Gateway::build_worlds(ConfigErrors& errors) {
     }
   }
   next_world_ = deployment_.worlds;
+  if (const std::uint64_t max = deployment_.max_world_memory_bytes) {
+    std::uint64_t total = simulation_->memory_bytes();
+    for (const auto& [index, world] : worlds_) total += world->sim->memory_bytes();
+    if (total > max)
+      errors.add("worlds.max_memory_mb: the " + std::to_string(deployment_.worlds) +
+                 " worlds at start hold " + megabytes(total) + " (MuJoCo's model and data), more " +
+                 "than the " + megabytes(max) + " allowed");
+  }
   all_worlds_ = std::make_unique<sim::Worlds>(deployment_.world_threads);
   all_worlds_->add(0, *simulation_);
   for (auto& [index, world] : worlds_) all_worlds_->add(index, *world->sim);
   all_worlds_->add_to(supervision());
   supervision()
-      .offer_service("create_world", [this] { return create_world(); })
+      .offer_service("create_world", [this](json scene) { return create_world(scene); },
+                     {Param("scene", nullptr)})
       .not_replayed()
       .doc(
-          "makes a world: the scene and the config's robots again, in a simulation of its own "
-          "(paused or playing as the config starts worlds), served as w<k>/... through every "
-          "transport; {world, name, count, max}; refused at the config's worlds.max");
+          "makes a world: the scene (or `scene`, an MJCF file under the config's "
+          "spawn.allowed_dirs) and the config's robots, in a simulation of its own (paused or "
+          "playing as the config starts worlds), served as w<k>/... through every transport; "
+          "{world, name, count, max}; refused at the config's worlds.max or max_memory_mb");
   supervision()
       .offer_service("delete_world", [this](std::int64_t world) { return delete_world(world); },
                      {"world"})
@@ -56,20 +75,22 @@ void Gateway::build_worlds(ConfigErrors& errors) {
       .offer_service("list_worlds", [this] { return list_worlds(); })
       .doc(
           "every world: {worlds: [{world, name, state, sim_time, steps, actuators, "
-          "memory_bytes}], count, max}");
+          "memory_bytes}], count, max, memory_bytes, max_memory_bytes}");
   if (!worlds_.empty())
     log::info("worlds: ", worlds_.size() + 1, " (w0 and w1..w", worlds_.size(),
               ", each a simulation under its own lock; docs/worlds.md)");
 }
 
-std::unique_ptr<Gateway::World> Gateway::make_world(unsigned index) {
+std::unique_ptr<Gateway::World> Gateway::make_world(unsigned index, const std::string& scene) {
   auto world = std::make_unique<World>();
   world->index = index;
   try {
-    world->sim =
-        std::make_unique<sim::Simulation>(sim::Model::load_file(deployment_.mjcf), sim_options_);
+    world->sim = std::make_unique<sim::Simulation>(
+        sim::Model::load_file(scene.empty() ? deployment_.mjcf : scene), sim_options_);
   } catch (const std::exception& e) {
-    throw std::runtime_error("the scene did not load again: " + std::string(e.what()));
+    throw std::runtime_error(
+        (scene.empty() ? "the scene did not load again: " : "the scene did not load: ") +
+        std::string(e.what()));
   }
   // the robots as world 0 has them (their generic components found there already)
   ConfigErrors errors;
@@ -145,7 +166,33 @@ void Gateway::leave(World& world) {
   world.sim->shutdown();
 }
 
-json Gateway::create_world() {
+std::string Gateway::scene_file(const json& scene) const {
+  if (scene.is_null()) return "";
+  const auto refuse = [](const std::string& message) {
+    throw ServiceError("simulation create_world: scene: " + message, Failure::bad_arguments,
+                       {{"parameter", "scene"}});
+  };
+  const std::vector<std::string>& allowed = deployment_.spawn_allowed_dirs;
+  if (!scene.is_string())
+    refuse("expected an MJCF file name (or null: the config's scene), found " +
+           describe_json(scene));
+  if (allowed.empty())
+    refuse(
+        "scene files need directories allowed in the config (spawn.allowed_dirs), and it "
+        "allows none");
+  const std::string& name = scene.get_ref<const std::string&>();
+  const auto file = sim::find_allowed_file(allowed, name);
+  if (!file) {
+    std::string dirs;
+    for (const auto& dir : allowed) dirs += (dirs.empty() ? "" : ", ") + dir;
+    refuse("'" + name + "' is no file under the directories the config allows " +
+           "(spawn.allowed_dirs: " + dirs + ")");
+  }
+  return file->string();
+}
+
+json Gateway::create_world(const json& scene) {
+  const std::string mjcf = scene_file(scene);
   unsigned index = 0;
   {
     std::lock_guard lock(worlds_mutex_);
@@ -159,13 +206,30 @@ json Gateway::create_world() {
                              "}): delete one first (simulation delete_world)",
                          Failure::service_error,
                          {{"count", count}, {"max", deployment_.max_worlds}});
-    index = next_world_++;
+    index = next_world_;  // taken once the world is made (create_world runs one at a time)
   }
   std::unique_ptr<World> world;
   try {
-    world = make_world(index);
+    world = make_world(index, mjcf);
+    world->scene = mjcf.empty() ? "" : scene.get<std::string>();  // as the client named it
   } catch (const std::exception& e) {
-    throw ServiceError("simulation create_world: world " + world_name(index) + ": " + e.what());
+    // the client's scene, or the config's that loaded at start
+    throw ServiceError("simulation create_world: world " + world_name(index) + ": " + e.what(),
+                       mjcf.empty() ? Failure::service_error : Failure::bad_arguments,
+                       mjcf.empty() ? json::object() : json{{"parameter", "scene"}});
+  }
+  // the memory bound, before any client can reach it (never served, it goes quietly)
+  if (const std::uint64_t max = deployment_.max_world_memory_bytes) {
+    const std::uint64_t used = all_worlds_->memory_bytes();
+    const std::uint64_t needed = world->sim->memory_bytes();
+    if (used + needed > max)
+      throw ServiceError(
+          "simulation create_world: a world of this scene holds " + megabytes(needed) +
+              " and the worlds hold " + megabytes(used) + " of the " + megabytes(max) +
+              " the config allows (\"worlds\": {\"max_memory_mb\"}): delete one "
+              "first (simulation delete_world)",
+          Failure::service_error,
+          {{"memory_bytes", used}, {"world_memory_bytes", needed}, {"max_memory_bytes", max}});
   }
   serve_world(*world);
   all_worlds_->add(index, *world->sim);
@@ -173,6 +237,7 @@ json Gateway::create_world() {
   {
     std::lock_guard lock(worlds_mutex_);
     World& added = *worlds_.emplace(index, std::move(world)).first->second;
+    next_world_ = index + 1;
     if (world_loops_) start_loop(added);
     count = worlds_.size() + 1;
   }
@@ -222,7 +287,21 @@ json Gateway::delete_world(std::int64_t index) {
 json Gateway::list_worlds() {
   json worlds = all_worlds_->describe();
   const std::size_t count = worlds.size();
-  return json{{"worlds", std::move(worlds)}, {"count", count}, {"max", deployment_.max_worlds}};
+  std::uint64_t memory = 0;
+  for (json& w : worlds) {
+    memory += w["memory_bytes"].get<std::uint64_t>();
+    // the scene create_world was given (null: the config's); the map changes under world
+    // 0's lock only, which this service holds
+    const auto it = worlds_.find(w["world"].get<unsigned>());
+    w["scene"] =
+        it == worlds_.end() || it->second->scene.empty() ? json() : json(it->second->scene);
+  }
+  const std::uint64_t max_memory = deployment_.max_world_memory_bytes;
+  return json{{"worlds", std::move(worlds)},
+              {"count", count},
+              {"max", deployment_.max_worlds},
+              {"memory_bytes", memory},
+              {"max_memory_bytes", max_memory ? json(max_memory) : json()}};
 }
 
 }  // namespace simgate::gateway

@@ -27,6 +27,7 @@
 #include "simgate/core/call_context.h"
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
+#include "simgate/sim/allowed_files.h"
 #include "simgate/sim/bounds.h"
 #include "simgate/sim/model_edit.h"
 #include "simgate/sim/model_remap.h"
@@ -438,9 +439,8 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
                          Failure::busy, {{"running", "simulation." + change_->service}});
   }
 
-  // The fragment file `path` names: absolute, or relative to one of the directories the
-  // config allows (the first that has it), and inside one of them once links are resolved.
-  // A file elsewhere gets the answer of a missing one. Only looks (no read).
+  // The fragment file `path` names (allowed_files.h): a file elsewhere gets the answer of a
+  // missing one. Only looks (no read).
   fs::path fragment_file(const std::string& path) const {
     const std::vector<std::string>& allowed = sim_.spawn_allowed_dirs();
     if (allowed.empty())
@@ -454,28 +454,13 @@ class Spawner : public std::enable_shared_from_this<Spawner> {
     const std::string refusal = "mjcf: '" + path +
                                 "' is neither MJCF or URDF text nor a fragment file under the " +
                                 "directories the config allows (spawn.allowed_dirs: " + dirs + ")";
-    if (path.empty() || path.size() > 4096 || path.find('\0') != std::string::npos)
-      refuse("mjcf", refusal);
-    std::vector<fs::path> candidates;
-    if (fs::path(path).is_absolute())
-      candidates.push_back(path);
-    else
-      for (const auto& dir : allowed) candidates.push_back(fs::path(dir) / path);
-    for (const fs::path& candidate : candidates) {
-      std::error_code ec;
-      const fs::path file = fs::canonical(candidate, ec);
-      if (ec || !fs::is_regular_file(file, ec)) continue;
-      const bool inside = std::any_of(allowed.begin(), allowed.end(), [&](const std::string& dir) {
-        const std::string f = file.string();
-        return f.size() > dir.size() && f.compare(0, dir.size(), dir) == 0 && f[dir.size()] == '/';
-      });
-      if (!inside) continue;
-      if (fs::file_size(file, ec) > k_max_fragment_bytes)
-        refuse("mjcf", "mjcf: '" + path + "' is larger than " +
-                           std::to_string(k_max_fragment_bytes) + " bytes");
-      return file;
-    }
-    refuse("mjcf", refusal);
+    const std::optional<fs::path> file = find_allowed_file(allowed, path);
+    if (!file) refuse("mjcf", refusal);
+    std::error_code ec;
+    if (fs::file_size(*file, ec) > k_max_fragment_bytes)
+      refuse("mjcf", "mjcf: '" + path + "' is larger than " + std::to_string(k_max_fragment_bytes) +
+                         " bytes");
+    return *file;
   }
 
   std::string spawned_list() const {

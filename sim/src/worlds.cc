@@ -171,6 +171,16 @@ std::string Worlds::index_list() const {
   return out;
 }
 
+std::size_t Worlds::memory_bytes() const {
+  std::size_t total = 0;
+  for (const auto& [index, world] : worlds_) {
+    std::unique_lock<SimulationGate> lock;
+    if (index != 0) lock = std::unique_lock(*world->gate());  // world 0's is the caller's
+    total += world->memory_bytes();
+  }
+  return total;
+}
+
 json Worlds::describe() const {
   json out = json::array();
   for (const auto& [index, world] : worlds_) {

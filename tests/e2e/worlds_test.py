@@ -18,7 +18,9 @@ own, addressed as "w<k>/<component>" on every transport; world 0 keeps its names
   served through socket, JSON-RPC and DDS and listed; deleting it answers its pending call
   FAILED, takes it out of every listing and leaves the others as they were; its index is
   not given again; world 0 and worlds there are not are refused; at the config's
-  `"worlds": {"max": N}` create_world is refused saying so (QuotaTest).
+  `"worlds": {"max": N}` create_world is refused saying so (QuotaTest), and past its
+  `"max_memory_mb"` (MemoryQuotaTest); a world of another scene (a file under
+  spawn.allowed_dirs), its refusals.
 Every wait is bounded.
 """
 import argparse
@@ -26,6 +28,7 @@ import json
 import os
 import subprocess
 import sys
+import tempfile
 import unittest
 import warnings
 
@@ -38,10 +41,31 @@ import pymorse  # noqa: E402
 ARGS = None
 TIMEOUT = world_test.TIMEOUT
 WORLDS = 3
+# the scene files clients may name (spawn.allowed_dirs): the demo with a rock on the Moon, and
+# a scene without the robots' bodies
+SCENES = tempfile.TemporaryDirectory()
+
+
+def write_scenes(source_dir):
+    with open(os.path.join(source_dir, "config/scenes/demo.xml")) as f:
+        demo = f.read()
+    moon = demo.replace('<option timestep="0.002" integrator="implicit"/>',
+                        '<option timestep="0.002" integrator="implicit" gravity="0 0 -1.62"/>')
+    moon = moon.replace("<worldbody>", '<worldbody>\n    <body name="moon_rock" pos="3 3 0.2">'
+                        '<geom type="sphere" size="0.2"/></body>', 1)
+    assert moon != demo and "moon_rock" in moon
+    with open(os.path.join(SCENES.name, "moon.xml"), "w") as f:
+        f.write(moon)
+    with open(os.path.join(SCENES.name, "bare.xml"), "w") as f:
+        f.write('<mujoco><worldbody><geom type="plane" size="5 5 0.1"/></worldbody></mujoco>')
+
+
+def with_worlds(config):
+    config.update(worlds=WORLDS, spawn={"allowed_dirs": [SCENES.name]})
 
 
 class WorldsTest(world_test.GatewayTestCase):
-    edit = staticmethod(lambda config: config.update(worlds=WORLDS))
+    edit = staticmethod(with_worlds)
 
     @classmethod
     def setUpClass(cls):
@@ -263,6 +287,29 @@ class WorldsTest(world_test.GatewayTestCase):
             self.assertIn(words, error["message"])
             self.assertEqual([self.snapshot(k) for k in range(WORLDS)], before)
 
+    def test_9x_a_world_of_another_scene(self):  # after test_8 (which counts indices)
+        made = self.rpc("simulation.create_world", {"scene": "moon.xml"})["result"]
+        prefix = made["name"] + "/"
+        rock = self.rpc(prefix + "simulation.get_object_pose", ["moon_rock"])
+        self.assertIn("result", rock, rock)
+        self.assertIn("error", self.rpc("simulation.get_object_pose", ["moon_rock"]))  # not in world 0
+        self.assertEqual(self.ok(prefix + "simulation list_robots"), ["robot", "human"])
+        scenes = {w["name"]: w["scene"] for w in self.rpc("simulation.list_worlds")["result"]["worlds"]}
+        self.assertEqual(scenes, {"w0": None, "w1": None, "w2": None, made["name"]: "moon.xml"})
+        count = self.rpc("simulation.list_worlds")["result"]["count"]
+        for scene, words in [("../../etc/passwd", "is no file under the directories the config allows"),
+                             (5, "expected an MJCF file name"),
+                             ("bare.xml", "robot"),  # the robots' bodies are not in it
+                             ("nope.xml", "is no file under")]:
+            error = self.rpc("simulation.create_world", {"scene": scene})["error"]
+            self.assertEqual(error["code"], -32602, error)
+            self.assertEqual(error["data"]["parameter"], "scene", error)
+            self.assertIn(words, error["message"])
+            self.assertEqual(self.rpc("simulation.list_worlds")["result"]["count"], count)  # nothing made
+        self.rpc("simulation.delete_world", {"world": made["world"]})
+        # a world refused takes no index
+        self.assertEqual(self.rpc("simulation.create_world")["result"]["world"], made["world"] + 1)
+
 
 class QuotaTest(world_test.GatewayTestCase):
     edit = staticmethod(lambda config: config.update(worlds={"count": 2, "max": 3}))
@@ -284,10 +331,36 @@ class QuotaTest(world_test.GatewayTestCase):
         self.assertEqual(self.rpc("simulation.create_world")["result"]["name"], "w3")
 
 
+class MemoryQuotaTest(world_test.GatewayTestCase):
+    # a demo world holds 14.9 MB (MuJoCo's model and data): two fit in 40 MB, three do not
+    edit = staticmethod(lambda config: config.update(worlds={"count": 2, "max_memory_mb": 40}))
+
+    @classmethod
+    def setUpClass(cls):
+        world_test.ARGS = ARGS
+        super().setUpClass()
+
+    def test_create_world_is_refused_past_the_memory_allowed_saying_so(self):
+        listed = self.rpc("simulation.list_worlds")["result"]
+        self.assertEqual(listed["max_memory_bytes"], 40000000)
+        self.assertEqual(listed["memory_bytes"], sum(w["memory_bytes"] for w in listed["worlds"]))
+        error = self.rpc("simulation.create_world")["error"]
+        self.assertIn("a world of this scene holds", error["message"])
+        self.assertIn("of the 40.0 MB the config allows", error["message"])
+        data = error["data"]
+        self.assertEqual(data["memory_bytes"], listed["memory_bytes"])
+        self.assertGreater(data["memory_bytes"] + data["world_memory_bytes"], data["max_memory_bytes"])
+        # nothing was made: no world w2 anywhere, the count as it was
+        self.assertEqual(self.rpc("simulation.list_worlds")["result"]["count"], 2)
+        methods = [m["name"] for m in self.rpc("rpc.discover")["result"]["methods"]]
+        self.assertFalse([m for m in methods if m.startswith("w2/")])
+
+
 if __name__ == "__main__":
     parser = argparse.ArgumentParser()
     parser.add_argument("--simgate", required=True)
     parser.add_argument("--source-dir", required=True)
     ARGS, rest = parser.parse_known_args()
     ARGS.source_dir = os.path.abspath(ARGS.source_dir)
+    write_scenes(ARGS.source_dir)
     unittest.main(argv=[sys.argv[0]] + rest, verbosity=2)

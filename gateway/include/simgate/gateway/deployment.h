@@ -120,10 +120,12 @@ struct Deployment {
   // (world 0, the one every client knows, and w1, w2, ...: docs/worlds.md), at start
   // ("count"); how many there may be at once with those `simulation create_world` makes
   // ("max": at least the count; default the count or 16, whichever is more); the threads
-  // `simulation step_many` steps worlds on, the caller's included ("threads"; 0: one per core)
+  // `simulation step_many` steps worlds on, the caller's included ("threads"; 0: one per core);
+  // the most memory MuJoCo may hold for all worlds together ("max_memory_mb"; 0: no bound)
   unsigned worlds = 1;
   unsigned max_worlds = k_default_max_worlds;
   unsigned world_threads = 0;
+  std::uint64_t max_world_memory_bytes = 0;
   static constexpr unsigned k_max_worlds = 256;
   static constexpr unsigned k_default_max_worlds = 16;
   // likely mistakes that are not errors (printed by check, logged by run)

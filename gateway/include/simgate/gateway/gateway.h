@@ -99,7 +99,8 @@ class Gateway {
   // A world after world 0 (docs/worlds.md). Its fields are set before it is in worlds_ and
   // stay until it is destroyed.
   struct World {
-    unsigned index = 0;                    // k of "w<k>/"
+    unsigned index = 0;  // k of "w<k>/"
+    std::string scene;   // its MJCF file as create_world was given it ("": the config's)
     std::unique_ptr<sim::Simulation> sim;  // its model, components, loop
     // the manager serving it through each transport (RequestManager::attach_world), in
     // transports_'s order (null for a transport without a manager)
@@ -126,9 +127,10 @@ class Gateway {
   // The worlds after world 0 (deployment_.worlds), and what acts on several (step_many,
   // create_world, delete_world, list_worlds on world 0's `simulation`).
   void build_worlds(ConfigErrors& errors);
-  // World `index`: the scene, the config's robots and the pseudo-components again, in a
-  // simulation of its own. Throws std::runtime_error saying what did not build.
-  std::unique_ptr<World> make_world(unsigned index);
+  // World `index`: the scene (the config's, or the MJCF file `scene`), the config's robots
+  // and the pseudo-components, in a simulation of its own. Throws std::runtime_error saying
+  // what did not build.
+  std::unique_ptr<World> make_world(unsigned index, const std::string& scene = "");
   // Serves `world` through every transport under "w<index>/" (its components as the
   // config's mapping says of their names).
   void serve_world(World& world);
@@ -141,7 +143,11 @@ class Gateway {
   // answers what it holds (Failure::shutdown) and destroys its components.
   void leave(World& world);
   // The services (under world 0's lock).
-  json create_world();
+  json create_world(const json& scene);
+  // create_world's `scene`: the MJCF file it names under the config's spawn.allowed_dirs
+  // (allowed_files.h), or "" for null (the config's scene). Throws ServiceError
+  // (bad_arguments, parameter "scene") otherwise.
+  std::string scene_file(const json& scene) const;
   json delete_world(std::int64_t index);
   json list_worlds();
   // A world's RobotFactory (gateway.cc): robots spawned at run time into `sim`, the

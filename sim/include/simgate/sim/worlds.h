@@ -94,6 +94,9 @@ class Worlds {
   // nu: the length of step_many's action), memory_bytes}, each
   // read under its own lock. Under world 0's lock.
   json describe() const;
+  // What MuJoCo holds for all worlds (Simulation::memory_bytes), each read under its own
+  // lock. Under world 0's lock.
+  std::size_t memory_bytes() const;
   // The worlds' indices, in order, as "0, 1, 3" (for messages).
   std::string index_list() const;
 
