@@ -276,10 +276,11 @@ void Simulation::fail_component(ComponentEntry& entry, const std::string& what,
 }
 
 void Simulation::run() {
-  running_ = true;
-  run_started_ = Clock::now();
   {
+    // under the lock: statistics() reads them for a service a transport runs meanwhile
     std::lock_guard lock(*gate_);
+    running_ = true;
+    run_started_ = Clock::now();
     restart_pace(run_started_);
     reschedule_ = false;
   }

@@ -1,5 +1,6 @@
 // SimLoop: the real step loop — requests are served as they arrive (not once per frame),
 // pacing never steps early, stop ends run().
+#include <atomic>
 #include <limits>
 #include <thread>
 
@@ -59,6 +60,27 @@ class SimLoopTest : public ::testing::Test {
   std::shared_ptr<testing::RecordingManager> rm_;
   std::thread thread_;
 };
+
+// A transport serves before the loop runs (they start first): get_simulation_state's
+// statistics, read under the lock while run() begins, see the loop's start written under it
+// too (ThreadSanitizer saw a race here when run() wrote it unlocked: E2E.worlds, whose
+// worlds' loops start while clients call).
+TEST_F(SimLoopTest, StatisticsReadWhileTheLoopStartsAreUnderTheLock) {
+  sim_ = std::make_unique<Simulation>(Model::load_string(k_loop_scene), options_);
+  std::atomic<bool> reading{true};
+  std::thread reader([&] {
+    for (int i = 0; i < 200000 && reading.load(); ++i) {
+      std::lock_guard lock(*sim_->gate());
+      (void)sim_->statistics();
+    }
+  });
+  thread_ = std::thread([this] { sim_->run(); });
+  wait_for_steps(3);
+  reading = false;
+  reader.join();
+  std::lock_guard lock(*sim_->gate());
+  EXPECT_GT(sim_->statistics().wall_time, 0.0);
+}
 
 TEST_F(SimLoopTest, RequestsAreServedBetweenStepsNotOncePerFrame) {
   // one step every 30 s of wall time: every answer below arrives long before the next step

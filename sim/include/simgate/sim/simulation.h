@@ -427,10 +427,11 @@ class Simulation {
   std::atomic<std::uint64_t> steps_{0};                    // physics steps taken
   bool dynamics_suspended_ = false;                        // step() skips mj_step
   double state_time_ = 0;                                  // see state_time()
-  std::chrono::steady_clock::time_point run_started_{};    // wall start of run()
-  bool running_ = false;                                   // run() has started
-  std::uint64_t overruns_ = 0;                             // pacing resynchronisations
-  bool shut_down_ = false;                                 // shutdown() done
+  // wall start of run(), and whether it started: written and read under the lock
+  std::chrono::steady_clock::time_point run_started_{};
+  bool running_ = false;
+  std::uint64_t overruns_ = 0;  // pacing resynchronisations
+  bool shut_down_ = false;      // shutdown() done
   // mjData::warning[k].number after the last look (0 or 1: rebased each time, so MuJoCo's
   // int never overflows and its own message, printed when the counter is 0, comes once)
   std::array<int, mjNWARNING> warnings_seen_{};
