@@ -64,13 +64,17 @@ def with_worlds(config):
     config.update(worlds=WORLDS, spawn={"allowed_dirs": [SCENES.name]})
 
 
-class WorldsTest(world_test.GatewayTestCase):
-    edit = staticmethod(with_worlds)
+class WorldsGateway(world_test.GatewayTestCase):
+    """A gateway of this script's (its ARGS given to world_test) for the test classes below."""
 
     @classmethod
     def setUpClass(cls):
         world_test.ARGS = ARGS
         super().setUpClass()
+
+
+class WorldsTest(WorldsGateway):
+    edit = staticmethod(with_worlds)
 
     def morse(self, request):
         """A socket request under id "r"; returns (status, value)."""
@@ -311,13 +315,8 @@ class WorldsTest(world_test.GatewayTestCase):
         self.assertEqual(self.rpc("simulation.create_world")["result"]["world"], made["world"] + 1)
 
 
-class QuotaTest(world_test.GatewayTestCase):
+class QuotaTest(WorldsGateway):
     edit = staticmethod(lambda config: config.update(worlds={"count": 2, "max": 3}))
-
-    @classmethod
-    def setUpClass(cls):
-        world_test.ARGS = ARGS
-        super().setUpClass()
 
     def test_create_world_is_refused_at_the_configured_most_saying_so(self):
         self.assertEqual(self.rpc("simulation.create_world")["result"]["name"], "w2")
@@ -331,14 +330,9 @@ class QuotaTest(world_test.GatewayTestCase):
         self.assertEqual(self.rpc("simulation.create_world")["result"]["name"], "w3")
 
 
-class MemoryQuotaTest(world_test.GatewayTestCase):
+class MemoryQuotaTest(WorldsGateway):
     # a demo world holds 14.9 MB (MuJoCo's model and data): two fit in 40 MB, three do not
     edit = staticmethod(lambda config: config.update(worlds={"count": 2, "max_memory_mb": 40}))
-
-    @classmethod
-    def setUpClass(cls):
-        world_test.ARGS = ARGS
-        super().setUpClass()
 
     def test_create_world_is_refused_past_the_memory_allowed_saying_so(self):
         listed = self.rpc("simulation.list_worlds")["result"]
