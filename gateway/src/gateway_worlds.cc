@@ -43,17 +43,16 @@ void Gateway::build_worlds(ConfigErrors& errors) {
     }
   }
   next_world_ = deployment_.worlds;
+  all_worlds_ = std::make_unique<sim::Worlds>(deployment_.world_threads);
+  all_worlds_->add(0, *simulation_);
+  for (auto& [index, world] : worlds_) all_worlds_->add(index, *world->sim);
   if (const std::uint64_t max = deployment_.max_world_memory_bytes) {
-    std::uint64_t total = simulation_->memory_bytes();
-    for (const auto& [index, world] : worlds_) total += world->sim->memory_bytes();
+    const std::uint64_t total = all_worlds_->memory_bytes();  // nothing runs yet
     if (total > max)
       errors.add("worlds.max_memory_mb: the " + std::to_string(deployment_.worlds) +
                  " worlds at start hold " + megabytes(total) + " (MuJoCo's model and data), more " +
                  "than the " + megabytes(max) + " allowed");
   }
-  all_worlds_ = std::make_unique<sim::Worlds>(deployment_.world_threads);
-  all_worlds_->add(0, *simulation_);
-  for (auto& [index, world] : worlds_) all_worlds_->add(index, *world->sim);
   all_worlds_->add_to(supervision());
   supervision()
       .offer_service("create_world", [this](json scene) { return create_world(scene); },

@@ -171,29 +171,31 @@ std::string Worlds::index_list() const {
   return out;
 }
 
-std::size_t Worlds::memory_bytes() const {
-  std::size_t total = 0;
+void Worlds::each_locked(const std::function<void(unsigned, const Simulation&)>& read) const {
   for (const auto& [index, world] : worlds_) {
     std::unique_lock<SimulationGate> lock;
     if (index != 0) lock = std::unique_lock(*world->gate());  // world 0's is the caller's
-    total += world->memory_bytes();
+    read(index, *world);
   }
+}
+
+std::size_t Worlds::memory_bytes() const {
+  std::size_t total = 0;
+  each_locked([&](unsigned, const Simulation& world) { total += world.memory_bytes(); });
   return total;
 }
 
 json Worlds::describe() const {
   json out = json::array();
-  for (const auto& [index, world] : worlds_) {
-    std::unique_lock<SimulationGate> lock;
-    if (index != 0) lock = std::unique_lock(*world->gate());  // world 0's is the caller's
+  each_locked([&](unsigned index, const Simulation& world) {
     out.push_back({{"world", index},
                    {"name", "w" + std::to_string(index)},
-                   {"state", to_string(world->run_state())},
-                   {"sim_time", world->sim_time()},
-                   {"steps", world->steps()},
-                   {"actuators", world->m()->nu},
-                   {"memory_bytes", world->memory_bytes()}});
-  }
+                   {"state", to_string(world.run_state())},
+                   {"sim_time", world.sim_time()},
+                   {"steps", world.steps()},
+                   {"actuators", world.m()->nu},
+                   {"memory_bytes", world.memory_bytes()}});
+  });
   return out;
 }
 

@@ -17,7 +17,6 @@ world of that host stepped. A pattern matching no simgate, and a pattern given t
 are refused saying so. Every wait is bounded. Exit 77 (skipped) when this machine cannot
 make user and network namespaces.
 """
-import argparse
 import json
 import os
 import subprocess
@@ -27,6 +26,7 @@ import time
 import unittest
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import own_network  # noqa: E402  (arguments, the namespace of its own)
 import world_test  # noqa: E402  (its Gateway: `simgate run` of a changed config, stopped cleanly)
 
 ARGS = None
@@ -188,13 +188,7 @@ class HostsTest(unittest.TestCase):
 
 def main():
     global ARGS
-    parser = argparse.ArgumentParser()
-    parser.add_argument("--simgate", required=True)
-    parser.add_argument("--source-dir", required=True)
-    parser.add_argument("--in-namespace", action="store_true")
-    ARGS, rest = parser.parse_known_args()
-    ARGS.source_dir = os.path.abspath(ARGS.source_dir)
-    ARGS.simgate = os.path.abspath(ARGS.simgate)
+    ARGS, rest = own_network.arguments()
     if not ARGS.in_namespace:
         # a user and network namespace of our own, the client's host: nothing reaches a real
         # network, and the hosts' namespaces and links go with it
@@ -204,8 +198,7 @@ def main():
             print("skipped: cannot make a user and network namespace with a bridge here "
                   "(unshare -rn ip link add ... type bridge: %s)" % probe.stderr.strip())
             return SKIPPED
-        return subprocess.run(["unshare", "-rn", sys.executable, __file__, "--in-namespace"] + sys.argv[1:],
-                              timeout=600).returncode
+        return own_network.run_inside(__file__, 600)
     return 0 if unittest.main(argv=[sys.argv[0]] + rest, exit=False, verbosity=2).result.wasSuccessful() else 1
 
 

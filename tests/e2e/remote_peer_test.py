@@ -8,7 +8,6 @@ simgate listens on 0.0.0.0 of that private namespace; a client connecting to 10.
 seen as the non-loopback peer 10.77.0.1, one connecting to 127.0.0.1 as loopback. Nothing
 leaves the namespace. The token comes from the environment (token_env). Every wait bounded.
 """
-import argparse
 import json
 import os
 import signal
@@ -18,6 +17,9 @@ import sys
 import tempfile
 import time
 import unittest
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import own_network  # noqa: E402  (arguments, the namespace of its own)
 
 ARGS = None
 TIMEOUT = 30  # seconds, any single wait
@@ -232,17 +234,10 @@ def in_private_network():
 
 def main():
     global ARGS
-    parser = argparse.ArgumentParser()
-    parser.add_argument("--simgate", required=True)
-    parser.add_argument("--source-dir", required=True)
-    parser.add_argument("--in-namespace", action="store_true")
-    ARGS, rest = parser.parse_known_args()
-    ARGS.source_dir = os.path.abspath(ARGS.source_dir)
-    ARGS.simgate = os.path.abspath(ARGS.simgate)
+    ARGS, rest = own_network.arguments()
     if not ARGS.in_namespace:
         # a user and network namespace of our own: nothing reaches a real network
-        return subprocess.run(["unshare", "-rn", sys.executable, __file__, "--in-namespace"] + sys.argv[1:],
-                              timeout=300).returncode
+        return own_network.run_inside(__file__, 300)
     in_private_network()
     return 0 if unittest.main(argv=[sys.argv[0]] + rest, exit=False).result.wasSuccessful() else 1
 

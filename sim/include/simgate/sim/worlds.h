@@ -101,6 +101,9 @@ class Worlds {
   std::string index_list() const;
 
  private:
+  // `read(index, world)` for each world in order, under its lock (world 0's: the caller's)
+  void each_locked(const std::function<void(unsigned, const Simulation&)>& read) const;
+
   std::map<unsigned, Simulation*> worlds_;  // by index
   TaskPool pool_;
 };
