@@ -81,6 +81,7 @@ std::string RequestManager::datastream_class(StreamDirection direction) const {
 void RequestManager::set_streams(std::shared_ptr<StreamHub> hub, std::string transport) {
   stream_hub_ = std::move(hub);
   transport_name_ = std::move(transport);
+  streams_ = make_streams();
 }
 
 // ---- transport side

@@ -34,6 +34,116 @@ class RequestManager::WorldManager final : public RequestManager {
   std::size_t client_count() const override { return parent_->client_count(); }
 };
 
+// streams() of a transport's manager: world 0's hub under its names, each attached world's
+// under "w<k>/". A world's stream is looked for in the hub its manager has now: a world
+// detached is no longer reached (its subscriptions were closed when its streams left).
+class RequestManager::WorldStreams final : public StreamDirectory {
+ public:
+  explicit WorldStreams(RequestManager& transport) : transport_(transport) {}
+
+  std::vector<StreamInfo> streams(std::string_view transport) const override {
+    std::vector<StreamInfo> out = hub().streams(transport);
+    if (!transport_.has_worlds()) return out;
+    for (const auto& [world, manager] : world_managers()) {
+      if (!manager->stream_hub_) continue;
+      for (StreamInfo& info : manager->stream_hub_->streams(transport)) {
+        info.component = prefix(world) + info.component;
+        out.push_back(std::move(info));
+      }
+    }
+    return out;
+  }
+
+  std::optional<StreamInfo> find(std::string_view component,
+                                 std::string_view transport) const override {
+    const Target t = target(component);
+    if (!t.hub) return std::nullopt;
+    auto info = t.hub->find(t.name, transport);
+    if (info) info->component = std::string(component);
+    return info;
+  }
+
+  std::shared_ptr<StreamSubscription> subscribe(std::string_view component,
+                                                std::string_view transport,
+                                                SubscriberOptions options) override {
+    const Target t = target(component);
+    if (!t.hub) return nullptr;
+    if (t.name.size() != component.size()) options.address = std::string(component);
+    return t.hub->subscribe(t.name, transport, std::move(options));
+  }
+
+  void unsubscribe(const std::shared_ptr<StreamSubscription>& subscription) override {
+    if (!subscription) return;
+    // a world gone took its subscriptions with it (closed)
+    if (const Target t = target(subscription->component()); t.hub) t.hub->unsubscribe(subscription);
+  }
+
+  PublishResult publish(std::string_view component, std::string_view transport,
+                        json command) override {
+    const Target t = target(component);
+    if (!t.hub) return {.error = no_world(component)};
+    return t.hub->publish(t.name, transport, std::move(command));
+  }
+
+  bool note_refused(std::string_view component, std::string_view transport,
+                    std::string reason) override {
+    const Target t = target(component);
+    return t.hub && t.hub->note_refused(t.name, transport, std::move(reason));
+  }
+
+  std::optional<json> sample_now(std::string_view component) const override {
+    const Target t = target(component);
+    if (!t.hub) return std::nullopt;
+    if (!t.gate) return t.hub->sample_now(t.name);  // world 0's: the caller holds its lock
+    std::lock_guard lock(*t.gate);
+    return t.hub->sample_now(t.name);
+  }
+
+  double time() const override { return hub().time(); }
+
+ private:
+  // Where a stream's address leads: a hub (null: no world of that number), its name there,
+  // and the world's gate to lock for sample_now (null: world 0's, the caller's own).
+  struct Target {
+    std::shared_ptr<StreamHub> hub;
+    std::string_view name;
+    std::shared_ptr<SimulationGate> gate;
+  };
+
+  StreamHub& hub() const { return *transport_.stream_hub_; }
+  static std::string prefix(unsigned world) { return "w" + std::to_string(world) + "/"; }
+  std::string no_world(std::string_view component) const {
+    std::string worlds = "w0";
+    for (unsigned world : transport_.worlds())
+      worlds += ", " + prefix(world).substr(0, prefix(world).size() - 1);
+    return "no world serves " + std::string(component) + ": the worlds are " + worlds;
+  }
+
+  std::vector<std::pair<unsigned, std::shared_ptr<RequestManager>>> world_managers() const {
+    std::lock_guard lock(transport_.worlds_->mutex);
+    return {transport_.worlds_->managers.begin(), transport_.worlds_->managers.end()};
+  }
+
+  Target target(std::string_view component) const {
+    const auto address = world_address(component);
+    if (!address) return {transport_.stream_hub_, component, nullptr};
+    const auto [world, name_at] = *address;
+    const std::string_view name = component.substr(name_at);
+    if (world == 0) return {transport_.stream_hub_, name, nullptr};
+    const auto manager = transport_.worlds_->find(world);
+    if (!manager) return {};
+    return {manager->stream_hub_, name, manager->gate()};
+  }
+
+  RequestManager& transport_;
+};
+
+std::shared_ptr<StreamDirectory> RequestManager::make_streams() {
+  if (!stream_hub_) return nullptr;
+  if (parent_) return stream_hub_;
+  return std::make_shared<WorldStreams>(*this);
+}
+
 std::optional<std::pair<unsigned, std::size_t>> RequestManager::world_address(
     std::string_view component) {
   // w, digits (no leading zero but "0"), '/', and a name

@@ -355,6 +355,15 @@ bool StreamHub::remove(const std::string& component) {
   return true;
 }
 
+void StreamHub::remove_all() {
+  std::vector<std::string> components;
+  {
+    std::lock_guard lock(mutex_);
+    for (const auto& s : streams_) components.push_back(s->info.component);
+  }
+  for (const std::string& component : components) remove(component);
+}
+
 void StreamHub::publish_due(double time) {
   time_.store(time, std::memory_order_relaxed);
   if (subscribers_.load(std::memory_order_acquire) == 0) return;
@@ -583,7 +592,7 @@ void StreamHub::unsubscribe(const std::shared_ptr<StreamSubscription>& subscript
   if (!subscription) return;
   {
     std::lock_guard lock(mutex_);
-    if (Stream* s = find_locked(subscription->component())) {
+    if (Stream* s = find_locked(subscription->stream_)) {
       auto it = std::find(s->subscribers.begin(), s->subscribers.end(), subscription);
       if (it != s->subscribers.end()) {
         s->dropped_before += subscription->dropped();

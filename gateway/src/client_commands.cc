@@ -134,34 +134,41 @@ int cmd_call(const CallArgs& args) {
 
 namespace {
 
-// The data streams this transport carries (`simulation get_stream_statistics`, where the
-// client may call it), one line each, with its port where the transport has one per stream
-// (the socket transport's `simulation get_all_stream_ports`), each line after `indent`.
+// The data streams this transport carries (`simulation get_stream_statistics` of each world
+// `simulation list_worlds` lists, where the client may call them: a world's under "w<k>/"),
+// one line each, with its port where the transport has one per stream (the socket
+// transport's `simulation get_all_stream_ports`), each line after `indent`.
 void print_streams(client::Client& client, std::chrono::milliseconds timeout,
                    const std::string& indent) {
-  Outcome streams = client.call("simulation", "get_stream_statistics", json::array(), timeout);
-  if (streams.status != Status::success || !streams.value || !streams.value->is_array() ||
-      streams.value->empty())
-    return;
+  std::vector<std::string> prefixes{""};
+  Outcome worlds = client.call("simulation", "list_worlds", json::array(), timeout);
+  if (worlds.status == Status::success && worlds.value && worlds.value->contains("worlds"))
+    for (const auto& w : (*worlds.value)["worlds"])
+      if (w.value("world", 0) > 0) prefixes.push_back("w" + w["world"].dump() + "/");
   Outcome ports = client.call("simulation", "get_all_stream_ports", json::array(), timeout);
-  for (const auto& s : *streams.value) {
-    const std::string component = s.value("component", std::string("?"));
-    std::cout << indent << component << " stream " << s.value("direction", std::string("?")) << " "
-              << s.value("kind", std::string("?"));
-    // an event stream (simulation.events) has no rate: frequency 0
-    if (s.contains("frequency") && s["frequency"] != 0)
-      std::cout << ", " << s["frequency"].dump() << " Hz";
-    else if (s.contains("frequency"))
-      std::cout << ", as events happen";
-    if (s.contains("fields")) {
-      std::string fields;
-      for (const auto& f : s["fields"])
-        fields += (fields.empty() ? "" : ", ") + f.get<std::string>();
-      std::cout << " {" << fields << "}";
+  for (const std::string& prefix : prefixes) {
+    Outcome streams =
+        client.call(prefix + "simulation", "get_stream_statistics", json::array(), timeout);
+    if (streams.status != Status::success || !streams.value || !streams.value->is_array()) continue;
+    for (const auto& s : *streams.value) {
+      const std::string component = prefix + s.value("component", std::string("?"));
+      std::cout << indent << component << " stream " << s.value("direction", std::string("?"))
+                << " " << s.value("kind", std::string("?"));
+      // an event stream (simulation.events) has no rate: frequency 0
+      if (s.contains("frequency") && s["frequency"] != 0)
+        std::cout << ", " << s["frequency"].dump() << " Hz";
+      else if (s.contains("frequency"))
+        std::cout << ", as events happen";
+      if (s.contains("fields")) {
+        std::string fields;
+        for (const auto& f : s["fields"])
+          fields += (fields.empty() ? "" : ", ") + f.get<std::string>();
+        std::cout << " {" << fields << "}";
+      }
+      if (ports.status == Status::success && ports.value && ports.value->contains(component))
+        std::cout << ", port " << (*ports.value)[component].dump();
+      std::cout << "\n";
     }
-    if (ports.status == Status::success && ports.value && ports.value->contains(component))
-      std::cout << ", port " << (*ports.value)[component].dump();
-    std::cout << "\n";
   }
 }
 

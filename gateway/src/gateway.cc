@@ -106,7 +106,7 @@ Gateway::Gateway(const Deployment& deployment, const sim::ComponentRegistry& reg
   if (simulation_) {
     build_components(errors);
     add_world_components(*simulation_);
-    add_streams(errors);
+    add_streams(*simulation_, errors);
     add_recording_services();
     simulation_->set_robot_factory(robot_factory(*simulation_, nullptr));
     if (options_.on_simulation_built) options_.on_simulation_built(*simulation_, supervision());
@@ -217,13 +217,11 @@ void Gateway::add_spawned_robot(sim::Simulation& sim, World* world, RobotConfig 
   for (const auto& c : r.components) configs.push_back(&c);
   for (const ComponentConfig* c : configs) {
     sim::ComponentEntry* entry = sim.find(c->name);
-    if (!world) {  // the worlds after world 0 carry no streams yet (docs/worlds.md)
-      ConfigErrors stream_errors;
-      add_stream(*entry->component, c->type, stream_frequency(*c), StreamHub::k_default_frequency,
-                 stream_errors);
-      for (const std::string& e : stream_errors.errors())
-        log::warning("spawned robot '", r.robot.name, "': ", e);
-    }
+    ConfigErrors stream_errors;
+    add_stream(sim, *entry->component, c->type, stream_frequency(*c),
+               StreamHub::k_default_frequency, stream_errors);
+    for (const std::string& e : stream_errors.errors())
+      log::warning("spawned robot '", r.robot.name, "': ", e);
     const std::vector<std::string> transports = deployment_.transports_for(c->name);
     for (std::size_t i = 0; i < transports_.size(); ++i) {
       Transport& t = transports_[i];
@@ -253,7 +251,11 @@ std::optional<double> Gateway::stream_frequency(const ComponentConfig& c) const 
   return c.frequency;
 }
 
-std::vector<std::string> Gateway::carriers(const Component& component,
+void Gateway::config_warning(const sim::Simulation& sim, std::string warning) {
+  if (&sim == simulation_.get()) warnings_.push_back(std::move(warning));
+}
+
+std::vector<std::string> Gateway::carriers(const sim::Simulation& sim, const Component& component,
                                            const std::vector<std::string>& transports) {
   // a stream is a path to what its component's services do: a transport whose lists refuse
   // one of them does not carry it (issue #35, item 8: a teleport stream on a transport
@@ -278,28 +280,28 @@ std::vector<std::string> Gateway::carriers(const Component& component,
       out.push_back(name);
       continue;
     }
-    warnings_.push_back(t->path + ": transport '" + name + "' does not carry the " +
-                        (stream->direction == StreamDirection::in ? "input" : "output") +
-                        " stream of '" + component.name() + "': its allow/deny lists refuse " +
-                        refused +
-                        ", and a stream does what its component's services do "
-                        "(docs/configuration.md, access lists)");
+    config_warning(sim, t->path + ": transport '" + name + "' does not carry the " +
+                            (stream->direction == StreamDirection::in ? "input" : "output") +
+                            " stream of '" + component.name() + "': its allow/deny lists refuse " +
+                            refused +
+                            ", and a stream does what its component's services do "
+                            "(docs/configuration.md, access lists)");
   }
   return out;
 }
 
-void Gateway::add_stream(const Component& component, const std::string& type,
+void Gateway::add_stream(sim::Simulation& sim, const Component& component, const std::string& type,
                          std::optional<double> frequency, double fallback, ConfigErrors& errors) {
   const StreamDeclaration* stream = component.stream();
   const std::vector<std::string> transports = deployment_.streams_for(component.name());
   const ServiceRule* named = deployment_.stream_rule_named(component.name());
   if (named && named->frequency && (!stream || stream->direction != StreamDirection::out))
-    warnings_.push_back(named->path + ".frequency: component '" + component.name() + "' (type " +
-                        type + ") has no output stream: the frequency is not used");
+    config_warning(sim, named->path + ".frequency: component '" + component.name() + "' (type " +
+                            type + ") has no output stream: the frequency is not used");
   else if (named && named->frequency && stream->outlet && stream->pushed_frequency == 0)
-    warnings_.push_back(
-        named->path + ".frequency: component '" + component.name() +
-        "' streams events as they happen, at no frequency: the frequency is not used");
+    config_warning(
+        sim, named->path + ".frequency: component '" + component.name() +
+                 "' streams events as they happen, at no frequency: the frequency is not used");
   if (transports.empty()) return;
   if (!stream) {
     // an exact name must mean a stream; a glob may match components without one
@@ -312,23 +314,24 @@ void Gateway::add_stream(const Component& component, const std::string& type,
           "body_poses)");
     return;
   }
-  simulation_->streams().add(component, type, carriers(component, transports),
-                             frequency.value_or(fallback));
+  sim.streams().add(component, type, carriers(sim, component, transports),
+                    frequency.value_or(fallback));
 }
 
-void Gateway::add_streams(ConfigErrors& errors) {
+void Gateway::add_streams(sim::Simulation& sim, ConfigErrors& errors) {
   auto add = [&](const Component& component, const std::string& type,
-                 std::optional<double> frequency,
-                 double fallback) { add_stream(component, type, frequency, fallback, errors); };
+                 std::optional<double> frequency, double fallback) {
+    add_stream(sim, component, type, frequency, fallback, errors);
+  };
   auto check_component = [&](const ComponentConfig& c) {
-    const sim::ComponentEntry* entry = simulation_->find(c.name);
+    const sim::ComponentEntry* entry = sim.find(c.name);
     if (!entry) return;  // not created: its own error is reported
     const StreamDeclaration* stream = entry->component->stream();
     const auto* sim_component = dynamic_cast<const sim::SimComponent*>(entry->component.get());
     if (c.frequency && (!stream || stream->direction != StreamDirection::out) &&
         !(sim_component && sim_component->uses_frequency()))
-      warnings_.push_back(c.path + ".frequency: component '" + c.name + "' (type " + c.type +
-                          ") has no output stream: the frequency is not used");
+      config_warning(sim, c.path + ".frequency: component '" + c.name + "' (type " + c.type +
+                              ") has no output stream: the frequency is not used");
     add(*entry->component, c.type, stream_frequency(c), StreamHub::k_default_frequency);
   };
   for (const auto& r : deployment_.robots) {
@@ -340,7 +343,7 @@ void Gateway::add_streams(ConfigErrors& errors) {
   // (an event stream: no frequency applies)
   for (const auto* names : {&k_pseudo_components, &k_stream_only_components})
     for (const std::string& pseudo : *names)
-      if (const sim::ComponentEntry* entry = simulation_->find(pseudo))
+      if (const sim::ComponentEntry* entry = sim.find(pseudo))
         add(*entry->component, entry->type, deployment_.stream_frequency_for(pseudo),
             sim::SupervisionServices::k_body_poses_frequency);
 }

@@ -94,12 +94,15 @@ std::unique_ptr<Gateway::World> Gateway::make_world(unsigned index, const std::s
   // the robots as world 0 has them (their generic components found there already)
   ConfigErrors errors;
   for (const auto& r : deployment_.robots) build_robot(*world->sim, r, errors);
+  if (errors.errors().empty()) {
+    add_world_components(*world->sim);
+    add_streams(*world->sim, errors);  // the config's "streams", as world 0 has them
+  }
   if (!errors.errors().empty()) {
     std::string all;
     for (const std::string& e : errors.errors()) all += (all.empty() ? "" : "; ") + e;
     throw std::runtime_error(all);
   }
-  add_world_components(*world->sim);
   world->sim->set_robot_factory(robot_factory(*world->sim, world.get()));
   return world;
 }
@@ -162,6 +165,11 @@ void Gateway::leave(World& world) {
   world.leaving.store(true, std::memory_order_release);
   world.sim->request_stop();
   if (world.loop.joinable()) world.loop.join();
+  {
+    // its subscribers hear their streams end (a transport closes them as a component's)
+    std::lock_guard lock(*world.sim->gate());
+    world.sim->streams().remove_all();
+  }
   world.sim->shutdown();
 }
 

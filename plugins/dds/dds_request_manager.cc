@@ -187,9 +187,9 @@ std::vector<std::string> DdsRequestManager::endpoints() const {
 void DdsRequestManager::start() {
   if (stopped_ || started_.exchange(true)) return;
   // the data streams (issue #21): also with none yet, for those of robots spawned later
-  if (stream_hub())
+  if (streams())
     streams_ = std::make_unique<DdsStreams>(
-        stream_hub(), transport_name(), participant_->handle(), publisher_, subscriber_, waitset_,
+        streams(), transport_name(), participant_->handle(), publisher_, subscriber_, waitset_,
         server_id_, options_.direct_stream_writes, options_.max_params, options_.max_depth);
   thread_ = std::thread([this] { run(); });
 }

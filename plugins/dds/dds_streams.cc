@@ -205,7 +205,7 @@ struct DdsStreams::Input {
   bool limit_logged = false;  // a command beyond max_params or max_depth was logged
 };
 
-DdsStreams::DdsStreams(std::shared_ptr<StreamHub> hub, std::string transport,
+DdsStreams::DdsStreams(std::shared_ptr<StreamDirectory> hub, std::string transport,
                        dds_entity_t participant, dds_entity_t publisher, dds_entity_t subscriber,
                        dds_entity_t waitset, std::string server_id, bool direct_writes,
                        std::size_t max_command_bytes, std::size_t max_command_depth)

@@ -73,7 +73,7 @@ class DdsStreams {
   // condition, attached to `waitset`. Throws std::runtime_error when DDS fails.
   // `max_command_bytes`, `max_command_depth`: the longest JsonCommand text, in bytes, and its
   // deepest [/{ nesting, accepted (the transport's max_params and max_depth).
-  DdsStreams(std::shared_ptr<StreamHub> hub, std::string transport, dds_entity_t participant,
+  DdsStreams(std::shared_ptr<StreamDirectory> hub, std::string transport, dds_entity_t participant,
              dds_entity_t publisher, dds_entity_t subscriber, dds_entity_t waitset,
              std::string server_id, bool direct_writes, std::size_t max_command_bytes,
              std::size_t max_command_depth);
@@ -108,7 +108,7 @@ class DdsStreams {
   // Takes what `reader` holds and publishes the commands of `input` (JSON or Velocity).
   void take(Input& input, dds_entity_t reader, bool typed);
 
-  std::shared_ptr<StreamHub> hub_;
+  std::shared_ptr<StreamDirectory> hub_;
   const std::string transport_;  // our name in the configuration
   const dds_entity_t participant_;
   const dds_entity_t publisher_;         // in our partition

@@ -38,8 +38,8 @@ std::vector<FoxgloveServer::ChannelEntry> FoxgloveServer::read_channels() const 
   out[0].channel.topic = k_log_topic;
   out[0].channel.schema_name = schema_name(SensorMessage::log);
   out[0].channel.schema = dump(sensor_schema(SensorMessage::log));
-  if (!stream_hub()) return out;
-  for (const StreamInfo& info : stream_hub()->streams(transport_name())) {
+  if (!streams()) return out;
+  for (const StreamInfo& info : streams()->streams(transport_name())) {
     if (info.direction != StreamDirection::out) continue;
     // a camera, a laser, an odometry, joints: in Foxglove's schemas, for its panels
     const std::vector<SensorChannel> sensor = sensor_channels(info.kind);
@@ -60,13 +60,16 @@ std::vector<FoxgloveServer::ChannelEntry> FoxgloveServer::read_channels() const 
     entry.channel.topic = topic_of(info.component);
     entry.channel.schema_name = "simgate." + info.kind;
     json schema = json::object();
-    if (auto sample = stream_hub()->sample_now(info.component)) schema = schema_of(*sample);
+    if (auto sample = streams()->sample_now(info.component)) schema = schema_of(*sample);
     schema["title"] = entry.channel.schema_name;
     schema["description"] = info.component + ": " + info.type + " (" + info.kind + ")";
     entry.channel.schema = dump(schema);
     out.push_back(entry);
     if (info.kind == "body_poses") {
-      // the simulation's bodies and geoms for the 3D panel, in Foxglove's schemas
+      // the simulation's bodies and geoms for the 3D panel, in Foxglove's schemas; another
+      // world's as /w<k>/tf and /w<k>/scene
+      const auto world = RequestManager::world_address(info.component);
+      const std::string prefix = world ? "/" + info.component.substr(0, world->second - 1) : "";
       for (const auto& [shape, topic, name, made] :
            {std::tuple{Shape::frame_transforms, "/tf", k_frame_transforms,
                        frame_transforms_schema()},
@@ -74,7 +77,7 @@ std::vector<FoxgloveServer::ChannelEntry> FoxgloveServer::read_channels() const 
         ChannelEntry derived;
         derived.component = info.component;
         derived.shape = shape;
-        derived.channel.topic = topic;
+        derived.channel.topic = prefix + topic;
         derived.channel.schema_name = name;
         derived.channel.schema = dump(made);
         out.push_back(std::move(derived));
@@ -117,7 +120,7 @@ void FoxgloveServer::apply_channels(std::vector<ChannelEntry> channels) {
           ++it;
           continue;
         }
-        if (it->second.stream) stream_hub()->unsubscribe(it->second.stream);
+        if (it->second.stream) streams()->unsubscribe(it->second.stream);
         it = client.subscriptions.erase(it);
       }
     });

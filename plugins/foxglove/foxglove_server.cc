@@ -247,7 +247,7 @@ void FoxgloveServer::on_messages_done(kit::Connection& /*connection*/, bool /*re
 void FoxgloveServer::on_closed(kit::Connection& connection) {
   Client& client = static_cast<Client&>(connection);
   for (auto& [id, sub] : client.subscriptions)
-    if (sub.stream) stream_hub()->unsubscribe(sub.stream);
+    if (sub.stream) streams()->unsubscribe(sub.stream);
   client.subscriptions.clear();
   if (settings_.tcp.cancel_on_disconnect) {
     // its calls still running end: nobody waits for them

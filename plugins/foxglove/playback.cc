@@ -56,7 +56,7 @@ bool FoxgloveServer::rewind_offered() const {
 }
 
 double FoxgloveServer::simulated_time() {
-  const double now = stream_hub() ? stream_hub()->time() : 0;
+  const double now = streams() ? streams()->time() : 0;
   if (seek_hold_ && seek_hold_->first == now) return seek_hold_->second;
   seek_hold_.reset();
   return now;
@@ -72,7 +72,7 @@ std::pair<std::uint64_t, std::uint64_t> FoxgloveServer::playback_range() {
 
 void FoxgloveServer::take_rewind_snapshot() {
   // the I/O thread, on a time tick: one snapshot per rewind_interval_s of simulated time
-  if (rewind_call_ != 0 || !stream_hub() || !rewind_offered()) return;
+  if (rewind_call_ != 0 || !streams() || !rewind_offered()) return;
   const double now = simulated_time();
   if (!rewinds_.empty() && now < rewinds_.back().time + settings_.rewind_interval_s) return;
   rewind_call_ = new_request_id();
@@ -190,7 +190,7 @@ bool FoxgloveServer::playback_completion(RequestId id, Outcome& outcome) {
     }
     // a paused simulation takes no step that would tell the streams its time: until it does,
     // the time told is the one restored
-    if (stream_hub()) seek_hold_ = std::pair{stream_hub()->time(), pending->seek_time};
+    if (streams()) seek_hold_ = std::pair{streams()->time(), pending->seek_time};
   }
   if (!pending->failures.empty())
     if (auto client = pending->client.lock(); client && !client->closed())

@@ -36,13 +36,13 @@ void FoxgloveServer::subscribe(Client& client, const Subscribe& request) {
       continue;
     }
     std::shared_ptr<StreamSubscription> stream;
-    if (entry != channels_.end() && stream_hub()) {
+    if (entry != channels_.end() && streams()) {
       // images: the newest only, a slow client never gets a backlog of them
       const bool image =
           entry->shape == Shape::sensor && (entry->message == SensorMessage::compressed_image ||
                                             entry->message == SensorMessage::raw_image ||
                                             entry->message == SensorMessage::camera_calibration);
-      stream = stream_hub()->subscribe(
+      stream = streams()->subscribe(
           entry->component, transport_name(),
           SubscriberOptions{image ? 1 : settings_.stream_queue, "foxglove " + client.label(),
                             [this] { wake_streams(); }});
@@ -69,7 +69,7 @@ void FoxgloveServer::unsubscribe(Client& client, const Unsubscribe& request) {
                "unsubscribe: no subscription " + std::to_string(id) + " on this connection");
       continue;
     }
-    if (it->second.stream) stream_hub()->unsubscribe(it->second.stream);
+    if (it->second.stream) streams()->unsubscribe(it->second.stream);
     client.subscriptions.erase(it);
   }
 }
@@ -79,7 +79,7 @@ void FoxgloveServer::unsubscribe(Client& client, const Unsubscribe& request) {
 void FoxgloveServer::advertise_publications(Client& client, const ClientAdvertise& request) {
   for (const ClientChannel& channel : request.channels) {
     const std::string component = component_of(channel.topic);
-    const auto info = stream_hub() ? stream_hub()->find(component, transport_name()) : std::nullopt;
+    const auto info = streams() ? streams()->find(component, transport_name()) : std::nullopt;
     if (channel.encoding != "json") {
       complain(client, Level::error,
                "advertise: channel " + std::to_string(channel.id) + " (" +
@@ -88,8 +88,8 @@ void FoxgloveServer::advertise_publications(Client& client, const ClientAdvertis
                    ": this server takes json (serverInfo's supportedEncodings)");
     } else if (!info || info->direction != StreamDirection::in) {
       std::vector<std::string> inputs;
-      if (stream_hub())
-        for (const auto& s : stream_hub()->streams(transport_name()))
+      if (streams())
+        for (const auto& s : streams()->streams(transport_name()))
           if (s.direction == StreamDirection::in)
             inputs.push_back(topic_of(s.component) + " {" + join(s.fields) + "}");
       complain(
@@ -117,8 +117,7 @@ void FoxgloveServer::publish(Client& client, const ClientMessageData& message) {
                  " is not a JSON object: " + quoted_prefix(message.payload, 60));
     return;
   }
-  const PublishResult result =
-      stream_hub()->publish(it->second.component, transport_name(), *command);
+  const PublishResult result = streams()->publish(it->second.component, transport_name(), *command);
   if (!result.ok)
     complain(client, Level::error, topic_of(it->second.component) + ": " + result.error);
 }
@@ -226,7 +225,7 @@ bool FoxgloveServer::queue_message(Client& client, std::uint32_t subscription, d
 
 void FoxgloveServer::log_line(log::Level level, std::string_view text) {
   // any thread, under the logger's lock: keep it, wake the I/O thread
-  const double time = stream_hub() ? stream_hub()->time() : 0;
+  const double time = streams() ? streams()->time() : 0;
   {
     std::lock_guard lock(log_mutex_);
     if (log_incoming_.size() >= k_log_backlog) log_incoming_.erase(log_incoming_.begin());
@@ -271,7 +270,7 @@ void FoxgloveServer::send_time(Client& client, std::uint64_t time_ns) {
 }
 
 void FoxgloveServer::tick_time() {
-  if (stopping_ || settings_.time_hz <= 0 || !stream_hub()) return;
+  if (stopping_ || settings_.time_hz <= 0 || !streams()) return;
   // simulated time between samples: paused, it stays; stepped, it jumps
   const std::uint64_t now = to_nanoseconds(simulated_time());
   take_rewind_snapshot();

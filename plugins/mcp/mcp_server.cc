@@ -146,7 +146,7 @@ void McpServer::shutdown_io() {
   listener_.close();
   close_all();
   pending_.clear();
-  for (auto& [component, w] : watches_) stream_hub()->unsubscribe(w.subscription);
+  for (auto& [component, w] : watches_) streams()->unsubscribe(w.subscription);
   watches_.clear();
   for (const auto& [id, session] : sessions_) client_left(session.number);
   sessions_.clear();

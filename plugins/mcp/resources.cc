@@ -60,8 +60,8 @@ json McpServer::resource_list() const {
                     {"description",
                      "The scene's objects: robots, their components, the other bodies and where "
                      "they are (simulation get_scene_objects)"}});
-  if (!stream_hub()) return list;
-  for (const StreamInfo& info : stream_hub()->streams(transport_name())) {
+  if (!streams()) return list;
+  for (const StreamInfo& info : streams()->streams(transport_name())) {
     if (info.direction != StreamDirection::out) continue;
     std::string description =
         "The latest sample of " + info.component + "'s " + info.kind + " stream";
@@ -80,12 +80,12 @@ json McpServer::resource_list() const {
 
 McpServer::StreamWatch* McpServer::watch(const std::string& component) {
   if (auto it = watches_.find(component); it != watches_.end()) return &it->second;
-  if (!stream_hub()) return nullptr;
-  const std::optional<StreamInfo> info = stream_hub()->find(component, transport_name());
+  if (!streams()) return nullptr;
+  const std::optional<StreamInfo> info = streams()->find(component, transport_name());
   if (!info || info->direction != StreamDirection::out) return nullptr;
   // the newest sample is all a resource is: one kept
   SubscriberOptions options{1, "mcp resource " + stream_uri(component), [this] { wake_streams(); }};
-  auto subscription = stream_hub()->subscribe(component, transport_name(), std::move(options));
+  auto subscription = streams()->subscribe(component, transport_name(), std::move(options));
   if (!subscription) return nullptr;
   StreamWatch& w = watches_[component];
   w.subscription = std::move(subscription);
@@ -95,7 +95,7 @@ McpServer::StreamWatch* McpServer::watch(const std::string& component) {
 void McpServer::release_watch(const std::string& component) {
   auto it = watches_.find(component);
   if (it == watches_.end() || !it->second.sessions.empty() || !it->second.reads.empty()) return;
-  stream_hub()->unsubscribe(it->second.subscription);
+  streams()->unsubscribe(it->second.subscription);
   watches_.erase(it);
 }
 

@@ -125,8 +125,8 @@ struct Ros2Topics::Input {
   bool bad_logged = false;               // a malformed JointState was logged
 };
 
-Ros2Topics::Ros2Topics(std::shared_ptr<StreamHub> hub, Settings settings, dds_entity_t participant,
-                       dds_entity_t waitset, dds_entity_t guard)
+Ros2Topics::Ros2Topics(std::shared_ptr<StreamDirectory> hub, Settings settings,
+                       dds_entity_t participant, dds_entity_t waitset, dds_entity_t guard)
     : hub_(std::move(hub)),
       settings_(std::move(settings)),
       participant_(participant),

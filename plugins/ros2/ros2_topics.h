@@ -67,7 +67,7 @@ class Ros2Topics {
 
   // `guard`: raised by the subscriptions' wake (samples are waiting); `waitset`: the DDS
   // thread's (the input readers and the pushed streams' writers are attached to it).
-  Ros2Topics(std::shared_ptr<StreamHub> hub, Settings settings, dds_entity_t participant,
+  Ros2Topics(std::shared_ptr<StreamDirectory> hub, Settings settings, dds_entity_t participant,
              dds_entity_t waitset, dds_entity_t guard);
   ~Ros2Topics();
   Ros2Topics(const Ros2Topics&) = delete;
@@ -121,7 +121,7 @@ class Ros2Topics {
   // The namespace of `robot` ("/robot"), or "" when another robot took its token already.
   std::string robot_namespace(const std::string& robot);
 
-  std::shared_ptr<StreamHub> hub_;
+  std::shared_ptr<StreamDirectory> hub_;
   const Settings settings_;
   const dds_entity_t participant_;
   const dds_entity_t waitset_;

@@ -191,7 +191,7 @@ Ros2Transport::Ros2Transport(const json& options)
     settings.may_call = [this](const std::string& service) {
       return may_call("simulation", service);
     };
-    auto sim_time = [this] { return stream_hub() ? stream_hub()->time() : 0.0; };
+    auto sim_time = [this] { return streams() ? streams()->time() : 0.0; };
     services_ = std::make_unique<Ros2Services>(
         std::move(settings), pp, waitset_,
         [this](Call call, std::function<void(Outcome&&)> done) {
@@ -218,11 +218,11 @@ std::vector<std::string> Ros2Transport::endpoints() const {
 
 void Ros2Transport::start() {
   if (stopping_ || started_.exchange(true)) return;
-  if (stream_hub()) {
+  if (streams()) {
     Ros2Topics::Settings settings{transport_name(), options_.world_frame, options_.tf,
                                   options_.all_robots, options_.robots};
-    topics_ = std::make_unique<Ros2Topics>(stream_hub(), std::move(settings),
-                                           participant_->handle(), waitset_, guard_);
+    topics_ = std::make_unique<Ros2Topics>(streams(), std::move(settings), participant_->handle(),
+                                           waitset_, guard_);
   }
   thread_ = std::thread([this] { run(); });
 }
@@ -332,8 +332,8 @@ void Ros2Transport::sync_topics() {
 }
 
 void Ros2Transport::write_clock(bool force) {
-  if (clock_writer_ == 0 || !stream_hub()) return;
-  const double now = stream_hub()->time();
+  if (clock_writer_ == 0 || !streams()) return;
+  const double now = streams()->time();
   const auto wall = std::chrono::steady_clock::now();
   if (!force && now == clock_written_ && wall - clock_written_at_ < k_clock_idle) return;
   rosgraph_msgs_msg_dds__Clock_ message{};

@@ -67,7 +67,7 @@ Datastreams::~Datastreams() = default;
 
 // ---- ports (host thread, before the I/O thread runs)
 
-void Datastreams::open(std::shared_ptr<StreamHub> hub, std::string transport,
+void Datastreams::open(std::shared_ptr<StreamDirectory> hub, std::string transport,
                        RequestManager& manager) {
   if (opened_) return;  // the transport's start() may be called again
   opened_ = true;

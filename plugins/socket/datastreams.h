@@ -86,7 +86,7 @@ class Datastreams : private kit::LineServer {
   // has a port, registers `simulation list_streams`, `get_stream_port` and
   // `get_all_stream_ports` in `manager`'s table (MORSE registers them only then). A second
   // call does nothing.
-  void open(std::shared_ptr<StreamHub> hub, std::string transport, RequestManager& manager);
+  void open(std::shared_ptr<StreamDirectory> hub, std::string transport, RequestManager& manager);
   // Accepts on every port (the I/O thread).
   void start();
   // Opens and accepts on a port for each stream the hub lists now that has none (added since:
@@ -149,18 +149,18 @@ class Datastreams : private kit::LineServer {
   void on_input_ended(kit::LineConnection& connection) override;
   void on_closed(kit::Connection& connection) override;
 
-  boost::asio::io_context& io_;        // the transport's
-  std::string who_;                    // for logs
-  kit::TcpOptions tcp_;                // the transport's options (host, auth)
-  kit::ConnectionLimits limits_;       // per connection
-  std::uint16_t base_port_;            // "stream_port"
-  std::size_t queue_;                  // "stream_queue"
-  std::shared_ptr<StreamHub> hub_;     // from open()
-  std::string transport_;              // the configuration's name of this transport
-  bool opened_ = false;                // open() ran
-  RequestManager* manager_ = nullptr;  // whose table gets the services (from open())
-  bool services_registered_ = false;   // they are in it
-  std::uint16_t next_port_ = 0;        // the next stream's port (0: the system's choice)
+  boost::asio::io_context& io_;           // the transport's
+  std::string who_;                       // for logs
+  kit::TcpOptions tcp_;                   // the transport's options (host, auth)
+  kit::ConnectionLimits limits_;          // per connection
+  std::uint16_t base_port_;               // "stream_port"
+  std::size_t queue_;                     // "stream_queue"
+  std::shared_ptr<StreamDirectory> hub_;  // from open()
+  std::string transport_;                 // the configuration's name of this transport
+  bool opened_ = false;                   // open() ran
+  RequestManager* manager_ = nullptr;     // whose table gets the services (from open())
+  bool services_registered_ = false;      // they are in it
+  std::uint16_t next_port_ = 0;           // the next stream's port (0: the system's choice)
   // ports_ and unbound_: added to by the I/O thread (and open()), read by the services
   mutable std::mutex ports_mutex_;
   std::vector<std::unique_ptr<Port>> ports_;  // in the order their streams were added

@@ -111,7 +111,7 @@ void SocketRequestManager::start() {
   }
   // MORSE's socket datastreams: a port for each stream this transport carries, and the
   // services that say which (registered only when there is one, as MORSE does)
-  datastreams_.open(stream_hub(), transport_name(), *this);
+  datastreams_.open(streams(), transport_name(), *this);
   // the id "-" of the refusal matches no request: pymorse ignores the line, telnet shows it
   kit::TcpListener::Handlers handlers{
       [this](tcp::socket socket) { accept(std::move(socket)); },

@@ -12,6 +12,7 @@
 
 #include "simgate/core/call_context.h"
 #include "simgate/core/request_manager.h"
+#include "simgate/core/streams.h"
 #include "test_manager.h"
 
 namespace simgate {
@@ -224,6 +225,102 @@ TEST_F(Worlds, AWorldsManagerAnswersWhatIsLeftAtItsShutdown) {
   EXPECT_EQ(transport_.outcome(running)->failure, Failure::shutdown);
   EXPECT_NE(transport_.outcome(running)->message.find("world w1 is deleted"), std::string::npos);
   EXPECT_EQ(transport_.outcome(later)->failure, Failure::unknown_service);
+}
+
+// A sensor whose sample is its world's number, and an actuator that keeps its last command.
+class Sensor : public Component {
+ public:
+  explicit Sensor(int world) : Component("robot.sensor") {
+    declare_output_stream("count", [world] { return json{{"world", world}}; });
+  }
+};
+class Motion : public Component {
+ public:
+  Motion() : Component("robot.motion") {
+    declare_input_stream("velocity", {"v"}, [this](const json& c) { last = c; });
+  }
+  json last;
+};
+
+// The streams a transport reaches (RequestManager::streams()): world 0's under their names,
+// each attached world's under "w<k>/", as its calls are.
+class WorldStreams : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    hub0_->add(sensor0_, "sensor", {"t"});
+    hub0_->add(motion0_, "motion", {"t"});
+    hub1_->add(sensor1_, "sensor", {"t"});
+    hub1_->add(motion1_, "motion", {"t"});
+    transport_.set_streams(hub0_, "t");
+    transport_.attach_world(1, [&](const std::shared_ptr<RequestManager>& manager) {
+      manager->set_gate(gate1_);
+      manager->set_streams(hub1_, "t");
+    });
+  }
+  static std::vector<std::string> names(const std::vector<StreamInfo>& infos) {
+    std::vector<std::string> out;
+    for (const auto& info : infos) out.push_back(info.component);
+    return out;
+  }
+
+  TestManager transport_;
+  std::shared_ptr<SimulationGate> gate1_ = std::make_shared<SimulationGate>();
+  std::shared_ptr<StreamHub> hub0_ = std::make_shared<StreamHub>(transport_.gate());
+  std::shared_ptr<StreamHub> hub1_ = std::make_shared<StreamHub>(gate1_);
+  Sensor sensor0_{0}, sensor1_{1};
+  Motion motion0_, motion1_;
+};
+
+TEST_F(WorldStreams, AreListedFoundAndSubscribedUnderTheirWorldsPrefix) {
+  StreamDirectory& streams = *transport_.streams();
+  EXPECT_EQ(names(streams.streams("t")),
+            (std::vector<std::string>{"robot.sensor", "robot.motion", "w1/robot.sensor",
+                                      "w1/robot.motion"}));
+  EXPECT_EQ(streams.find("w1/robot.sensor", "t")->component, "w1/robot.sensor");
+  EXPECT_EQ(streams.find("w0/robot.sensor", "t")->component, "w0/robot.sensor");
+  EXPECT_FALSE(streams.find("w2/robot.sensor", "t"));
+
+  auto sub1 = streams.subscribe("w1/robot.sensor", "t", {});
+  auto sub0 = streams.subscribe("robot.sensor", "t", {});
+  ASSERT_TRUE(sub1 && sub0);
+  EXPECT_EQ(sub1->component(), "w1/robot.sensor");  // what the subscriber asked for
+  hub1_->publish_due(0);
+  hub0_->publish_due(0);
+  std::vector<SamplePtr> samples;
+  ASSERT_EQ(sub1->take(samples), 1u);
+  EXPECT_EQ(samples[0]->data(), (json{{"world", 1}}));
+  samples.clear();
+  ASSERT_EQ(sub0->take(samples), 1u);
+  EXPECT_EQ(samples[0]->data(), (json{{"world", 0}}));
+  EXPECT_EQ(*streams.sample_now("w1/robot.sensor"), (json{{"world", 1}}));
+
+  streams.unsubscribe(sub1);
+  EXPECT_TRUE(sub1->closed());
+  EXPECT_EQ(hub1_->statistics()[0].subscribers, 0u);
+}
+
+TEST_F(WorldStreams, CommandsGoToTheirWorldAndAWorldThereIsNotIsNamed) {
+  StreamDirectory& streams = *transport_.streams();
+  EXPECT_TRUE(streams.publish("w1/robot.motion", "t", {{"v", 1}}).applied);
+  EXPECT_EQ(motion1_.last, (json{{"v", 1}}));
+  EXPECT_TRUE(motion0_.last.is_null());
+  const PublishResult refused = streams.publish("w4/robot.motion", "t", {{"v", 1}});
+  EXPECT_FALSE(refused.ok);
+  EXPECT_NE(refused.error.find("the worlds are w0, w1"), std::string::npos) << refused.error;
+  EXPECT_TRUE(streams.note_refused("w1/robot.motion", "t", "not JSON"));
+  EXPECT_EQ(hub1_->statistics()[1].refused, 1u);
+}
+
+TEST_F(WorldStreams, AWorldDetachedLeavesTheListingAndItsSubscriptionsEndWithItsStreams) {
+  StreamDirectory& streams = *transport_.streams();
+  auto sub = streams.subscribe("w1/robot.sensor", "t", {});
+  hub1_->remove_all();  // what deleting the world does (Gateway::leave)
+  transport_.detach_world(1);
+  EXPECT_TRUE(sub->closed());
+  EXPECT_EQ(names(streams.streams("t")),
+            (std::vector<std::string>{"robot.sensor", "robot.motion"}));
+  EXPECT_FALSE(streams.subscribe("w1/robot.sensor", "t", {}));
+  streams.unsubscribe(sub);  // nothing left to end: no harm
 }
 
 }  // namespace

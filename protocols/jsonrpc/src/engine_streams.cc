@@ -46,8 +46,8 @@ const json* single_param(const json& params, const char* name) {
 
 json JsonRpcEngine::stream_list() const {
   json out = json::array();
-  if (stream_hub())
-    for (const auto& info : stream_hub()->streams(transport_name()))
+  if (streams())
+    for (const auto& info : streams()->streams(transport_name()))
       out.push_back(streams_detail::stream_json(info));
   return out;
 }
@@ -93,11 +93,11 @@ void JsonRpcEngine::subscribe(const std::shared_ptr<Session>& session, const jso
     return;
   }
   const std::string& name = component->get_ref<const std::string&>();
-  auto info = stream_hub() ? stream_hub()->find(name, transport_name()) : std::nullopt;
+  auto info = streams() ? streams()->find(name, transport_name()) : std::nullopt;
   if (!info || info->direction != StreamDirection::out) {
     std::vector<std::string> outputs;
-    if (stream_hub())
-      for (const auto& s : stream_hub()->streams(transport_name()))
+    if (streams())
+      for (const auto& s : streams()->streams(transport_name()))
         if (s.direction == StreamDirection::out) outputs.push_back(s.component);
     std::string list;
     for (const auto& o : outputs) list += (list.empty() ? "" : ", ") + o;
@@ -119,10 +119,10 @@ void JsonRpcEngine::subscribe(const std::shared_ptr<Session>& session, const jso
   StreamSub sub;
   sub.id = next_subscription_++;
   sub.session = session;
-  sub.subscription = stream_hub()->subscribe(
-      name, transport_name(),
-      SubscriberOptions{options_.stream_queue, tag_ + " " + session->label(),
-                        [this] { wake_streams(); }});
+  sub.subscription =
+      streams()->subscribe(name, transport_name(),
+                           SubscriberOptions{options_.stream_queue, tag_ + " " + session->label(),
+                                             [this] { wake_streams(); }});
   if (!sub.subscription) {  // deleted meanwhile
     reply(to, error_response(to.id, code::invalid_params,
                              "Invalid params: no output stream '" + name + "'",
@@ -140,7 +140,7 @@ bool JsonRpcEngine::unsubscribe(Session& session, std::uint64_t id) {
     return s.id == id && s.session.lock().get() == &session;
   });
   if (it == stream_subs_.end()) return false;
-  stream_hub()->unsubscribe(it->subscription);
+  streams()->unsubscribe(it->subscription);
   stream_subs_.erase(it);
   return true;
 }
@@ -166,9 +166,8 @@ void JsonRpcEngine::publish(const json& params, ReplyTo& to) {
     return;
   }
   PublishResult result;
-  if (stream_hub())
-    result =
-        stream_hub()->publish(component->get_ref<const std::string&>(), transport_name(), *data);
+  if (streams())
+    result = streams()->publish(component->get_ref<const std::string&>(), transport_name(), *data);
   else
     result.error = "no input stream '" + component->get_ref<const std::string&>() + "' here";
   if (!result.ok) {
@@ -191,7 +190,7 @@ void JsonRpcEngine::drain_streams() {
     StreamSub& s = *it;
     auto session = s.session.lock();
     if (!session || session->closed()) {
-      stream_hub()->unsubscribe(s.subscription);
+      streams()->unsubscribe(s.subscription);
       it = stream_subs_.erase(it);
       continue;
     }
@@ -217,13 +216,13 @@ void JsonRpcEngine::drain_streams() {
     s.subscription->note_dropped(lost);
     if (s.subscription->closed()) {
       // its component was deleted: the client learns why its samples stop
-      session->queue_message(
-          dump(json{{"jsonrpc", "2.0"},
-                    {"method", "rpc.unsubscribed"},
-                    {"params",
-                     {{"subscription", s.id},
-                      {"component", s.subscription->component()},
-                      {"reason", "the component was removed from the simulation"}}}}));
+      session->queue_message(dump(json{
+          {"jsonrpc", "2.0"},
+          {"method", "rpc.unsubscribed"},
+          {"params",
+           {{"subscription", s.id},
+            {"component", s.subscription->component()},
+            {"reason", "the component left the simulation (removed, or its world deleted)"}}}}));
       it = stream_subs_.erase(it);
       continue;
     }
@@ -240,7 +239,7 @@ void JsonRpcEngine::end_subscriptions(const Session* session) {
       ++it;
       continue;
     }
-    stream_hub()->unsubscribe(it->subscription);
+    streams()->unsubscribe(it->subscription);
     it = stream_subs_.erase(it);
   }
 }

@@ -203,7 +203,9 @@ class RequestManager {
   // configuration (what StreamHub::streams(transport) and subscribe() take). Before start();
   // without it the transport carries no stream.
   void set_streams(std::shared_ptr<StreamHub> hub, std::string transport);
-  const std::shared_ptr<StreamHub>& stream_hub() const { return stream_hub_; }
+  // What the transport reaches streams through (null: none): its simulation's, and those of
+  // the worlds it serves as "w<k>/<component>" (attach_world; docs/worlds.md).
+  const std::shared_ptr<StreamDirectory>& streams() const { return streams_; }
   const std::string& transport_name() const { return transport_name_; }
   // What `simulation details` names this transport's datastreams by (MORSE's
   // stream_interfaces: the datastream class). Default: "simgate.<transport>.publisher" for
@@ -362,7 +364,10 @@ class RequestManager {
 
  private:
   class WorldManager;  // a world's manager (request_manager_worlds.cc)
-  struct Worlds;       // the worlds attached and the calls sent to them
+  class WorldStreams;  // streams() of a transport's manager (request_manager_worlds.cc)
+  // streams() after set_streams: the hub itself for a world's manager, else a WorldStreams.
+  std::shared_ptr<StreamDirectory> make_streams();
+  struct Worlds;  // the worlds attached and the calls sent to them
   // The manager the call's world has, its component's prefix removed ("w0/" too), or null
   // for a world not attached (answered here, as an unknown service); this one for its own.
   // A call sent to a world is remembered (cancel) until its outcome comes back.
@@ -448,8 +453,11 @@ class RequestManager {
   std::atomic<std::thread::id> delivery_thread_{};
   std::shared_ptr<SimulationGate> gate_;   // wake-up and simulation lock, shared with the loop
   std::shared_ptr<StreamHub> stream_hub_;  // the simulation's streams (null: none)
-  std::string transport_name_;             // the configuration's name of this transport
-  mutable std::mutex connected_mutex_;     // guards connected_
+  // what streams() gives: stream_hub_, or for a transport's manager a WorldStreams over it
+  // and its worlds' hubs
+  std::shared_ptr<StreamDirectory> streams_;
+  std::string transport_name_;                   // the configuration's name of this transport
+  mutable std::mutex connected_mutex_;           // guards connected_
   std::unordered_set<std::uint64_t> connected_;  // client_arrived and not client_left
   mutable std::mutex table_mutex_;               // guards services_, slots_ and access_
   // component -> service name -> service

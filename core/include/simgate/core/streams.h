@@ -186,14 +186,20 @@ struct SubscriberOptions {
   // as dropped, like a queue's drop). Never called again once unsubscribe() (or the
   // stream's removal) has returned. `capacity` and `wake` are unused.
   std::function<bool(const StreamSample&)> deliver{};
+  // What the subscriber calls the stream when that is not its component's name in the hub:
+  // a world's stream reached through StreamDirectory ("w3/robot.pose"). component() gives it.
+  std::string address{};
 };
 
 // One subscriber's queue.
 class StreamSubscription {
  public:
   StreamSubscription(std::string component, SubscriberOptions options)
-      : component_(std::move(component)), options_(std::move(options)) {}
+      : component_(options.address.empty() ? component : options.address),
+        stream_(std::move(component)),
+        options_(std::move(options)) {}
 
+  // The stream's name as the subscriber gave it (a world's: "w3/robot.pose").
   const std::string& component() const { return component_; }
   const std::string& label() const { return options_.label; }
   // Appends every queued sample to `out`, oldest first; returns how many. The next sample
@@ -225,7 +231,8 @@ class StreamSubscription {
   // Logs the first drop (once per subscriber).
   void log_first_drop();
 
-  const std::string component_;
+  const std::string component_;  // as the subscriber names it
+  const std::string stream_;     // its component's name in the hub
   const SubscriberOptions options_;
   mutable std::mutex mutex_;     // guards what follows, up to the counters
   std::deque<SamplePtr> queue_;  // oldest first
@@ -262,7 +269,40 @@ struct PublishResult {
   std::string error;
 };
 
-class StreamHub {
+// What a transport reaches streams through: the streams of one simulation (a StreamHub), or
+// of every world a transport serves (RequestManager::streams(): world 0's under their names,
+// world k's as "w<k>/<component>", docs/worlds.md). Thread-safe; see StreamHub for each call.
+class StreamDirectory {
+ public:
+  virtual ~StreamDirectory() = default;
+
+  // The streams `transport` carries, in the order they were added (world by world).
+  virtual std::vector<StreamInfo> streams(std::string_view transport) const = 0;
+  // One stream, if `transport` carries it.
+  virtual std::optional<StreamInfo> find(std::string_view component,
+                                         std::string_view transport) const = 0;
+  // Subscribes to the output stream of `component` carried by `transport`; null when there
+  // is none. The first sample comes at the simulation's next turn.
+  virtual std::shared_ptr<StreamSubscription> subscribe(std::string_view component,
+                                                        std::string_view transport,
+                                                        SubscriberOptions options) = 0;
+  // Ends a subscription (idempotent; null is ignored).
+  virtual void unsubscribe(const std::shared_ptr<StreamSubscription>& subscription) = 0;
+  // A command for the input stream of `component` carried by `transport` (StreamHub::publish).
+  virtual PublishResult publish(std::string_view component, std::string_view transport,
+                                json command) = 0;
+  // A command the transport could not read, counted as refused (StreamHub::note_refused).
+  virtual bool note_refused(std::string_view component, std::string_view transport,
+                            std::string reason) = 0;
+  // One sample of the output stream of `component` read now (StreamHub::sample_now). Under
+  // the simulation lock of the transport's manager (world 0's); a world's stream is read
+  // under that world's lock too, taken here (world 0's, then a world's: step_many's order).
+  virtual std::optional<json> sample_now(std::string_view component) const = 0;
+  // The simulated time of the last turn (world 0's). Any thread.
+  virtual double time() const = 0;
+};
+
+class StreamHub final : public StreamDirectory {
  public:
   // `gate`: the simulation's (signalled when a command or a subscriber waits for its turn).
   explicit StreamHub(std::shared_ptr<SimulationGate> gate);
@@ -283,6 +323,8 @@ class StreamHub {
   // The component leaves (deleted at run time): its subscriptions close (their subscribers
   // are woken to see it) and its pending command is dropped. False when it had no stream.
   bool remove(const std::string& component);
+  // Every stream leaves (its simulation goes: a world deleted), as remove() each.
+  void remove_all();
 
   // ---- the simulation (under the lock) ----
 
@@ -303,7 +345,7 @@ class StreamHub {
   // stream by an example (Foxglove's channel schemas). Under the simulation lock. Nothing
   // for a pushed stream (its samples come when the component has them), an input stream,
   // no such stream, or a component that failed to produce one.
-  std::optional<json> sample_now(std::string_view component) const;
+  std::optional<json> sample_now(std::string_view component) const override;
   // A sample of the pushed stream of `component` (StreamOutlet::push, under the simulation
   // lock): to every subscriber. False when it has none.
   bool push(const std::string& component, double time, json data,
@@ -319,21 +361,23 @@ class StreamHub {
   static constexpr std::string_view k_every_transport = "*";
 
   // The streams `transport` carries, in the order they were added.
-  std::vector<StreamInfo> streams(std::string_view transport) const;
+  std::vector<StreamInfo> streams(std::string_view transport) const override;
   // One stream, if `transport` carries it.
-  std::optional<StreamInfo> find(std::string_view component, std::string_view transport) const;
+  std::optional<StreamInfo> find(std::string_view component,
+                                 std::string_view transport) const override;
   // Subscribes to the output stream of `component` carried by `transport`; null when there
   // is none. The first sample comes at the simulation's next turn.
   std::shared_ptr<StreamSubscription> subscribe(std::string_view component,
                                                 std::string_view transport,
-                                                SubscriberOptions options);
+                                                SubscriberOptions options) override;
   // Ends a subscription (idempotent; null is ignored).
-  void unsubscribe(const std::shared_ptr<StreamSubscription>& subscription);
+  void unsubscribe(const std::shared_ptr<StreamSubscription>& subscription) override;
   // A command for the input stream of `component` carried by `transport`: applied at once
   // when the simulation lock is free (so that `error` says whether the component took it),
   // else kept for the simulation's next turn (replacing one not yet applied).
   // A command that is not a JSON object is refused and counted too, when the stream is there.
-  PublishResult publish(std::string_view component, std::string_view transport, json command);
+  PublishResult publish(std::string_view component, std::string_view transport,
+                        json command) override;
   // Why `command` (an object) does not fit the input stream `info` (a key that is none of
   // its fields, nor "timestamp"), or "": what publish() refuses at once. Public for the
   // fuzz target line_decoders.
@@ -343,12 +387,13 @@ class StreamHub {
   // a JSON object): counted as refused, `reason` kept as its last_refusal, as if the
   // component had refused it. Not logged: the transport logs it in its own terms (once per
   // connection, per reader). False when there is no such input stream.
-  bool note_refused(std::string_view component, std::string_view transport, std::string reason);
+  bool note_refused(std::string_view component, std::string_view transport,
+                    std::string reason) override;
 
   // The simulated time of the simulation's last turn (publish_due's `time`), for a
   // transport that tells its clients the time between samples (Foxglove's time messages).
   // 0 before the first turn. Any thread.
-  double time() const { return time_.load(std::memory_order_relaxed); }
+  double time() const override { return time_.load(std::memory_order_relaxed); }
 
   // Every stream's counters (those `transport` carries; empty: all).
   std::vector<StreamStatistics> statistics(std::string_view transport = {}) const;

@@ -161,18 +161,23 @@ class Gateway {
   void add_spawned_robot(sim::Simulation& sim, World* world, RobotConfig r);
   // Without a scene: that each robot's and component's type is one of the registry's.
   void check_component_types(ConfigErrors& errors) const;
-  // The components' data streams the "streams" section asks for (a component named there
-  // that has none is an error; a frequency on one without an output stream a warning).
-  void add_streams(ConfigErrors& errors);
-  // The stream of `component`, if the "streams" section maps it; `frequency`: the rate the
-  // configuration gives (the rule's, else the component's own), `fallback` without one.
-  void add_stream(const Component& component, const std::string& type,
+  // The data streams the "streams" section asks for of the components of `sim` (world 0's
+  // or another world's): a component named there that has none is an error; a frequency on
+  // one without an output stream a warning.
+  void add_streams(sim::Simulation& sim, ConfigErrors& errors);
+  // The stream of `component` of `sim`, if the "streams" section maps it; `frequency`: the
+  // rate the configuration gives (the rule's, else the component's own), `fallback` without
+  // one.
+  void add_stream(sim::Simulation& sim, const Component& component, const std::string& type,
                   std::optional<double> frequency, double fallback, ConfigErrors& errors);
   // Of `transports`, those that may carry `component`'s stream: their allow/deny lists let
   // through every service of the component (an input stream) or its get_local_data (an
   // output stream); each other one is a warning.
-  std::vector<std::string> carriers(const Component& component,
+  std::vector<std::string> carriers(const sim::Simulation& sim, const Component& component,
                                     const std::vector<std::string>& transports);
+  // A warning of the config, kept (warnings()) when building world 0: the other worlds
+  // build the same config again.
+  void config_warning(const sim::Simulation& sim, std::string warning);
   // The stream rate the configuration gives component `c`: its "streams" rule's frequency,
   // else its own "frequency"; none when neither says.
   std::optional<double> stream_frequency(const ComponentConfig& c) const;
