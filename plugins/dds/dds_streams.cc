@@ -181,7 +181,7 @@ std::string topic_path(std::string_view component) {
   for (char c : component) {
     const bool plain =
         (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_';
-    path += c == '.' ? '/' : plain ? c : '_';
+    path += c == '.' || c == '/' ? '/' : plain ? c : '_';
   }
   return path;
 }

@@ -51,7 +51,8 @@ namespace simgate::dds {
 
 inline constexpr const char* k_streams_topic = "simgate_Streams";
 
-// "rover.pose" -> "simgate/rover/pose" (DDS topic names take letters, digits, '_' and '/').
+// "rover.pose" -> "simgate/rover/pose", a world's "w1/rover.pose" -> "simgate/w1/rover/pose"
+// (DDS topic names take letters, digits, '_' and '/').
 std::string topic_path(std::string_view component);
 
 // Writes an image payload (StreamPayload content "image": its pixels raw and their

@@ -221,11 +221,20 @@ async function worldsChange(client) {
   const robots = await client.callTool({ name: 'w1_simulation_list_robots', arguments: {} });
   check(JSON.stringify(robots.structuredContent) === JSON.stringify({ result: ['rover'] }),
         'w1_simulation_list_robots: ' + JSON.stringify(robots.structuredContent));
+  // its streams are resources under its prefix: its own samples
+  const uris = (await client.listResources()).resources.map((r) => r.uri);
+  check(uris.includes('simgate://streams/w1/rover.pose'), 'the new world\'s pose stream is a resource: ' + uris);
+  const pose = JSON.parse((await client.readResource({ uri: 'simgate://streams/w1/rover.pose' })).contents[0].text);
+  const poseOf0 = JSON.parse((await client.readResource({ uri: 'simgate://streams/rover.pose' })).contents[0].text);
+  check(typeof pose.data.x === 'number' && pose.time <= poseOf0.time,
+        'w1\'s pose is its own (made now, its time not past world 0\'s): ' + JSON.stringify(pose));
   const gone = await client.callTool({ name: 'simulation_delete_world', arguments: { world: 1 } });
   check(!gone.isError, 'delete_world: ' + JSON.stringify(gone).slice(0, 300));
   const after = (await client.listTools()).tools.map((t) => t.name);
   check(!after.some((n) => n.startsWith('w1_')), 'deleted, its tools are gone');
-  console.log('worlds: w1 made, listed as w1_ tools, called, deleted');
+  const urisAfter = (await client.listResources()).resources.map((r) => r.uri);
+  check(!urisAfter.some((u) => u.startsWith('simgate://streams/w1/')), 'deleted, its resources are gone');
+  console.log('worlds: w1 made, listed as w1_ tools and resources, called, read, deleted');
 }
 
 async function refused(url) {
