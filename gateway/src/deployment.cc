@@ -129,20 +129,25 @@ ComponentConfig parse_component(ConfigObject& o, const std::string& full_prefix,
   return c;
 }
 
+// A scene file the config names at `path` (scene.mjcf): `name`, relative to
+// `base_dir` unless absolute, an existing file; its path, normalised.
+std::string mjcf_file(const std::string& name, const std::string& base_dir,
+                      const std::string& path) {
+  const fs::path file = fs::path(name).is_absolute() ? fs::path(name) : fs::path(base_dir) / name;
+  std::error_code ec;
+  if (!fs::is_regular_file(file, ec))
+    throw ConfigError(path + ": expected an MJCF file, found '" + file.string() +
+                      "' (no such file)");
+  return file.lexically_normal().string();
+}
+
 void parse_scene(ConfigObject& root, const std::string& base_dir, Deployment& d) {
   auto scene_object = root.get_object("scene");
   if (!scene_object) root.fail("scene", "an object {\"mjcf\": \"path/to/scene.xml\", ...}");
   ConfigObject& scene = *scene_object;
   ConfigErrors errors;
-  errors.check([&] {
-    std::string mjcf = scene.required_string("mjcf");
-    fs::path mjcf_path = fs::path(mjcf).is_absolute() ? fs::path(mjcf) : fs::path(base_dir) / mjcf;
-    std::error_code ec;
-    if (!fs::is_regular_file(mjcf_path, ec))
-      throw ConfigError(scene.path_of("mjcf") + ": expected an MJCF file, found '" +
-                        mjcf_path.string() + "' (no such file)");
-    d.mjcf = mjcf_path.lexically_normal().string();
-  });
+  errors.check(
+      [&] { d.mjcf = mjcf_file(scene.required_string("mjcf"), base_dir, scene.path_of("mjcf")); });
   errors.check([&] {
     if (scene.has("timestep")) d.timestep = scene.get_number("timestep", 0.002, 1e-6, 1.0);
   });
