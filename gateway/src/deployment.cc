@@ -129,20 +129,25 @@ ComponentConfig parse_component(ConfigObject& o, const std::string& full_prefix,
   return c;
 }
 
+// A scene file the config names at `path` (scene.mjcf, worlds.scenes.<k>): `name`, relative to
+// `base_dir` unless absolute, an existing file; its path, normalised.
+std::string mjcf_file(const std::string& name, const std::string& base_dir,
+                      const std::string& path) {
+  const fs::path file = fs::path(name).is_absolute() ? fs::path(name) : fs::path(base_dir) / name;
+  std::error_code ec;
+  if (!fs::is_regular_file(file, ec))
+    throw ConfigError(path + ": expected an MJCF file, found '" + file.string() +
+                      "' (no such file)");
+  return file.lexically_normal().string();
+}
+
 void parse_scene(ConfigObject& root, const std::string& base_dir, Deployment& d) {
   auto scene_object = root.get_object("scene");
   if (!scene_object) root.fail("scene", "an object {\"mjcf\": \"path/to/scene.xml\", ...}");
   ConfigObject& scene = *scene_object;
   ConfigErrors errors;
-  errors.check([&] {
-    std::string mjcf = scene.required_string("mjcf");
-    fs::path mjcf_path = fs::path(mjcf).is_absolute() ? fs::path(mjcf) : fs::path(base_dir) / mjcf;
-    std::error_code ec;
-    if (!fs::is_regular_file(mjcf_path, ec))
-      throw ConfigError(scene.path_of("mjcf") + ": expected an MJCF file, found '" +
-                        mjcf_path.string() + "' (no such file)");
-    d.mjcf = mjcf_path.lexically_normal().string();
-  });
+  errors.check(
+      [&] { d.mjcf = mjcf_file(scene.required_string("mjcf"), base_dir, scene.path_of("mjcf")); });
   errors.check([&] {
     if (scene.has("timestep")) d.timestep = scene.get_number("timestep", 0.002, 1e-6, 1.0);
   });
@@ -177,11 +182,41 @@ void parse_scene(ConfigObject& root, const std::string& base_dir, Deployment& d)
   errors.throw_if_any();
 }
 
-// "spawn": {"allowed_dirs": [...]}: the directories `simulation spawn_entity` may read
-// fragment files from, each an existing directory (relative to the config file).
-// "worlds": N, or {"count": N, "max": M, "max_memory_mb": B, "threads": T}
+// "worlds"."scenes": {"<k>": "file.xml"}: world k's scene instead of the config's, k from 1 to
+// the count - 1, the file found as scene.mjcf is. Every wrong entry is reported.
+void parse_world_scenes(ConfigObject& worlds, const std::string& base_dir, Deployment& d) {
+  auto scenes = worlds.get_object("scenes");
+  if (!scenes) return;
+  const std::string indices = d.worlds > 1
+                                  ? "1 to " + std::to_string(d.worlds - 1) +
+                                        ", as \"count\": " + std::to_string(d.worlds) + " gives"
+                                  : "none: \"count\" is 1";
+  ConfigErrors errors;
+  for (auto it = scenes->raw().begin(); it != scenes->raw().end(); ++it) {
+    errors.check([&] {
+      const std::string& key = it.key();
+      const std::string at = scenes->path_of(key);
+      // the key: a world's index in decimal, as "w<k>" names it
+      const bool digits =
+          !key.empty() && key.size() <= 3 && (key == "0" || key[0] != '0') &&
+          std::all_of(key.begin(), key.end(), [](char c) { return c >= '0' && c <= '9'; });
+      const unsigned index = digits ? static_cast<unsigned>(std::stoul(key)) : 0;
+      if (index == 0 || index >= d.worlds)
+        throw ConfigError(
+            at + ": expected the index of a world after world 0 as the key (" + indices +
+            "), found " + describe_json(json(key)) +
+            (digits && index == 0 ? " (world 0 runs the config's scene, scene.mjcf)" : ""));
+      if (!it.value().is_string())
+        throw ConfigError(at + ": expected an MJCF file, found " + describe_json(it.value()));
+      d.world_scenes[index] = mjcf_file(it.value().get<std::string>(), base_dir, at);
+    });
+  }
+  errors.throw_if_any();
+}
+
+// "worlds": N, or {"count": N, "max": M, "max_memory_mb": B, "threads": T, "scenes": {...}}
 // (docs/configuration.md#worlds).
-void parse_worlds(ConfigObject& root, Deployment& d) {
+void parse_worlds(ConfigObject& root, const std::string& base_dir, Deployment& d) {
   if (!root.has("worlds")) return;
   constexpr auto k_max = static_cast<long long>(Deployment::k_max_worlds);
   const json& value = root.raw().at("worlds");
@@ -197,9 +232,14 @@ void parse_worlds(ConfigObject& root, Deployment& d) {
   d.world_threads = static_cast<unsigned>(worlds.get_int("threads", 0, 0, 256));
   d.max_world_memory_bytes =
       static_cast<std::uint64_t>(worlds.get_int("max_memory_mb", 0, 0, 1'000'000)) * 1'000'000;
-  worlds.finish();
+  ConfigErrors errors;
+  errors.check([&] { parse_world_scenes(worlds, base_dir, d); });
+  errors.check([&] { worlds.finish(); });
+  errors.throw_if_any();
 }
 
+// "spawn": {"allowed_dirs": [...]}: the directories `simulation spawn_entity` may read
+// fragment files from, each an existing directory (relative to the config file).
 void parse_spawn(ConfigObject& root, const std::string& base_dir, Deployment& d) {
   auto spawn_object = root.get_object("spawn");
   if (!spawn_object) return;
@@ -450,7 +490,7 @@ Deployment parse_deployment(const json& document, const std::string& base_dir,
 
   // ---- scene, and how many worlds run it ----
   errors.check([&] { parse_scene(root, base_dir, d); });
-  errors.check([&] { parse_worlds(root, d); });
+  errors.check([&] { parse_worlds(root, base_dir, d); });
 
   // ---- run-time entities ----
   errors.check([&] { parse_spawn(root, base_dir, d); });

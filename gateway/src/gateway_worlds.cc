@@ -34,14 +34,25 @@ std::string megabytes(std::uint64_t bytes) {
 }  // namespace
 
 void Gateway::build_worlds(ConfigErrors& errors) {
+  const std::size_t errors_before = errors.errors().size();
   for (unsigned k = 1; k < deployment_.worlds; ++k) {
+    const auto given = deployment_.world_scenes.find(k);
+    const std::string scene = given == deployment_.world_scenes.end() ? "" : given->second;
     try {
-      worlds_.emplace(k, make_world(k));
+      auto world = make_world(k, scene);
+      world->scene = scene;
+      worlds_.emplace(k, std::move(world));
     } catch (const std::exception& e) {
-      errors.add("worlds: world " + world_name(k) + ": " + e.what());
-      return;
+      if (scene.empty()) {
+        errors.add("worlds: world " + world_name(k) + ": " + e.what());
+        return;  // the config's scene: every world after would say the same
+      }
+      errors.add("worlds.scenes." + std::to_string(k) + ": expected a scene world " +
+                 world_name(k) + " can be built from with the config's robots, found '" + scene +
+                 "': " + e.what());
     }
   }
+  if (errors.errors().size() > errors_before) return;
   next_world_ = deployment_.worlds;
   all_worlds_ = std::make_unique<sim::Worlds>(deployment_.world_threads);
   all_worlds_->add(0, *simulation_);
@@ -73,11 +84,13 @@ void Gateway::build_worlds(ConfigErrors& errors) {
   supervision()
       .offer_service("list_worlds", [this] { return list_worlds(); })
       .doc(
-          "every world: {worlds: [{world, name, state, sim_time, steps, actuators, "
+          "every world: {worlds: [{world, name, scene, state, sim_time, steps, actuators, "
           "memory_bytes}], count, max, memory_bytes, max_memory_bytes}");
   if (!worlds_.empty())
     log::info("worlds: ", worlds_.size() + 1, " (w0 and w1..w", worlds_.size(),
               ", each a simulation under its own lock; docs/worlds.md)");
+  for (const auto& [index, scene] : deployment_.world_scenes)
+    log::info("worlds: ", world_name(index), " runs scene ", scene);
 }
 
 std::unique_ptr<Gateway::World> Gateway::make_world(unsigned index, const std::string& scene) {
@@ -297,8 +310,8 @@ json Gateway::list_worlds() {
   std::uint64_t memory = 0;
   for (json& w : worlds) {
     memory += w["memory_bytes"].get<std::uint64_t>();
-    // the scene create_world was given (null: the config's); the map changes under world
-    // 0's lock only, which this service holds
+    // the scene the config's worlds.scenes or create_world gave (null: the config's); the map
+    // changes under world 0's lock only, which this service holds
     const auto it = worlds_.find(w["world"].get<unsigned>());
     w["scene"] =
         it == worlds_.end() || it->second->scene.empty() ? json() : json(it->second->scene);

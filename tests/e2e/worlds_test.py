@@ -20,7 +20,11 @@ own, addressed as "w<k>/<component>" on every transport; world 0 keeps its names
   not given again; world 0 and worlds there are not are refused; at the config's
   `"worlds": {"max": N}` create_world is refused saying so (QuotaTest), and past its
   `"max_memory_mb"` (MemoryQuotaTest); a world of another scene (a file under
-  spawn.allowed_dirs), its refusals.
+  spawn.allowed_dirs), its refusals;
+- a world at start of another scene, the config's `"worlds": {"scenes"}` (SceneWorldsTest):
+  list_worlds names its file and its number of actuators, it has that scene's bodies and
+  the config's robots, step_many steps it beside world 0 with an action of its size, and
+  the worlds of the config's scene do not have its bodies.
 Every wait is bounded.
 """
 import argparse
@@ -44,6 +48,7 @@ WORLDS = 3
 # the scene files clients may name (spawn.allowed_dirs): the demo with a rock on the Moon, and
 # a scene without the robots' bodies
 SCENES = tempfile.TemporaryDirectory()
+LIFT = os.path.join(SCENES.name, "lift.xml")  # world 1's scene in SceneWorldsTest's config
 
 
 def write_scenes(source_dir):
@@ -58,6 +63,14 @@ def write_scenes(source_dir):
         f.write(moon)
     with open(os.path.join(SCENES.name, "bare.xml"), "w") as f:
         f.write('<mujoco><worldbody><geom type="plane" size="5 5 0.1"/></worldbody></mujoco>')
+    # a scene with one more actuator (a lift on a slide joint), for a world of the config
+    lift = demo.replace("<worldbody>", '<worldbody>\n    <body name="lift" pos="0 3 0.5"><joint name="lift_slide" '
+                        'type="slide" axis="0 0 1"/><geom type="box" size="0.2 0.2 0.2"/></body>', 1)
+    lift = lift.replace("</actuator>", '  <motor name="lift_motor" joint="lift_slide" ctrlrange="-50 50" '
+                        'ctrllimited="true"/>\n  </actuator>', 1)
+    assert "lift_motor" in lift and "lift_slide" in lift
+    with open(LIFT, "w") as f:
+        f.write(lift)
 
 
 def with_worlds(config):
@@ -348,6 +361,30 @@ class MemoryQuotaTest(WorldsGateway):
         self.assertEqual(self.rpc("simulation.list_worlds")["result"]["count"], 2)
         methods = [m["name"] for m in self.rpc("rpc.discover")["result"]["methods"]]
         self.assertFalse([m for m in methods if m.startswith("w2/")])
+
+
+
+class SceneWorldsTest(WorldsGateway):
+    # world 1 of another scene, given by the config (worlds.scenes), not by a client
+    edit = staticmethod(lambda config: config.update(worlds={"count": 3, "scenes": {"1": LIFT}}))
+
+    def test_a_world_runs_the_scene_the_config_gives_it_with_the_robots(self):
+        listed = {w["name"]: w for w in self.rpc("simulation.list_worlds")["result"]["worlds"]}
+        self.assertEqual({name: w["scene"] for name, w in listed.items()}, {"w0": None, "w1": LIFT, "w2": None})
+        self.assertEqual({name: w["actuators"] for name, w in listed.items()}, {"w0": 2, "w1": 3, "w2": 2})
+        self.assertIn("result", self.rpc("w1/simulation.get_object_pose", ["lift"]))
+        for prefix in ("", "w2/"):  # the config's scene
+            self.assertIn("error", self.rpc(prefix + "simulation.get_object_pose", ["lift"]))
+        for prefix in ("", "w1/", "w2/"):
+            self.assertEqual(self.rpc(prefix + "simulation.list_robots")["result"], ["robot", "human"])
+        # stepped together, each world with an action of its own size
+        stepped = self.rpc("simulation.step_many", {"worlds": [0, 1], "n": 5, "observe": ["ctrl"],
+                                                    "actions": [[0.3, -0.2], [0.3, -0.2, 20.0]]})["result"]
+        self.assertEqual([(w["world"], w["steps_done"], w["ctrl"]) for w in stepped["worlds"]],
+                         [(0, 5, [0.3, -0.2]), (1, 5, [0.3, -0.2, 20.0])])
+        error = self.rpc("simulation.step_many", {"worlds": [1], "actions": [[0.3, -0.2]]})["error"]
+        self.assertEqual(error["data"]["parameter"], "actions[0]", error)
+        self.assertIn("world 1 has 3 actuators", error["message"])
 
 
 if __name__ == "__main__":

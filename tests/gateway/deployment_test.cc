@@ -10,7 +10,9 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <filesystem>
 #include <functional>
+#include <map>
 
 #include "simgate/core/errors.h"
 #include "simgate/core/plugin_loader.h"
@@ -122,6 +124,37 @@ const BrokenCase k_cases[] = {
     {"worlds count past 256",
      [](json& c) { c["worlds"] = {{"count", 300}}; },
      {"worlds.count", "256", "300"}},
+    {"worlds scenes not an object",
+     [](json& c) { c["worlds"] = {{"count", 3}, {"scenes", "scenes/demo.xml"}}; },
+     {"worlds.scenes: expected an object, found string \"scenes/demo.xml\""}},
+    {"worlds scene key not an index",
+     [](json& c) { c["worlds"] = {{"count", 3}, {"scenes", {{"one", "scenes/demo.xml"}}}}; },
+     {"worlds.scenes.one: expected the index of a world after world 0 as the key (1 to 2, as "
+      "\"count\": 3 gives), found string \"one\""}},
+    {"worlds scene for world 0",
+     [](json& c) { c["worlds"] = {{"count", 3}, {"scenes", {{"0", "scenes/demo.xml"}}}}; },
+     {"worlds.scenes.0: expected the index of a world after world 0",
+      "found string \"0\" (world 0 runs the config's scene, scene.mjcf)"}},
+    {"worlds scene past the count",
+     [](json& c) { c["worlds"] = {{"count", 3}, {"scenes", {{"3", "scenes/demo.xml"}}}}; },
+     {"worlds.scenes.3: expected the index of a world after world 0", "found string \"3\""}},
+    {"worlds scene not a file name",
+     [](json& c) { c["worlds"] = {{"count", 3}, {"scenes", {{"2", 5}}}}; },
+     {"worlds.scenes.2: expected an MJCF file, found number 5"}},
+    {"worlds scene file missing",
+     [](json& c) { c["worlds"] = {{"count", 3}, {"scenes", {{"2", "nope.xml"}}}}; },
+     {"worlds.scenes.2: expected an MJCF file, found '" SIMGATE_SOURCE_DIR
+      "/config/nope.xml' (no such file)"}},
+    {"worlds scene that does not load",
+     [](json& c) {
+       c["worlds"] = {{"count", 3}, {"scenes", {{"1", SIMGATE_SOURCE_DIR "/config/demo.json"}}}};
+     },
+     {"worlds.scenes.1: expected a scene world w1 can be built from with the config's robots, "
+      "found '" SIMGATE_SOURCE_DIR "/config/demo.json': the scene did not load"}},
+    {"worlds scene without the robots' bodies",
+     [](json& c) { c["worlds"] = {{"count", 3}, {"scenes", {{"2", "scenes/arm_table.xml"}}}}; },
+     {"worlds.scenes.2: expected a scene world w2 can be built from",
+      "/config/scenes/arm_table.xml': robots[0].body", "no such body"}},
     {"transports missing", [](json& c) { c.erase("transports"); }, {"transports", "expected"}},
     {"transport key typo",
      [](json& c) { c["transports"]["socket"]["option"] = json::object(); },
@@ -624,6 +657,32 @@ TEST(GatewayConfigTest, APortInUseIsARuntimeErrorNotAConfigError) {
     EXPECT_THAT(e.what(), HasSubstr("ss -ltnp 'sport = :" + std::to_string(port) + "'"));
   }
   ::close(fd);
+}
+
+TEST(GatewayConfigTest, AWorldsSceneIsFoundAsTheConfigsSceneIs) {
+  json c = demo_config();
+  const std::string absolute = SIMGATE_SOURCE_DIR "/config/scenes/demo.xml";
+  c["worlds"] = {{"count", 4}, {"scenes", {{"3", absolute}, {"1", "scenes/../scenes/demo.xml"}}}};
+  EXPECT_EQ(error_of(c), "");  // each world builds
+  const Deployment d = parse_deployment(c, SIMGATE_SOURCE_DIR "/config");
+  const std::string normal = std::filesystem::path(absolute).lexically_normal().string();
+  EXPECT_EQ(d.world_scenes, (std::map<unsigned, std::string>{{1, normal}, {3, normal}}));
+}
+
+TEST(GatewayConfigTest, EveryWrongWorldsSceneIsReportedAtOnce) {
+  json c = demo_config();
+  c["worlds"] = {{"count", 4},
+                 {"scenes", {{"1", "nope.xml"}, {"2", "scenes/arm_table.xml"}, {"9", "x.xml"}}}};
+  auto errors = errors_of(c);
+  ASSERT_EQ(errors.size(), 2u) << error_of(c);  // the structure's: the scenes not built
+  EXPECT_THAT(errors[0], ::testing::StartsWith("worlds.scenes.1: "));
+  EXPECT_THAT(errors[1], ::testing::StartsWith("worlds.scenes.9: "));
+  c["worlds"]["scenes"] = {{"1", "scenes/arm_table.xml"},
+                           {"3", SIMGATE_SOURCE_DIR "/config/demo.json"}};
+  errors = errors_of(c);
+  ASSERT_EQ(errors.size(), 2u) << error_of(c);  // each world of another scene tried
+  EXPECT_THAT(errors[0], ::testing::StartsWith("worlds.scenes.1: "));
+  EXPECT_THAT(errors[1], ::testing::StartsWith("worlds.scenes.3: "));
 }
 
 TEST(GatewayConfigTest, AComponentIsEveryNamedObjectTransportsServe) {

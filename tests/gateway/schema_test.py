@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """GatewaySchema: config/schema/deployment.schema.json is a valid JSON Schema (draft
 2020-12), every shipped deployment (config/, tests/, and the JSON examples in README.md and
-docs/) validates against it, typical mistakes are refused, and the schema's option keys for
-the built-in transports are exactly the keys each plugin declares. The validator is Debian's
+docs/) validates against it, typical mistakes are refused (and what is near them accepted),
+and the schema's option keys for the built-in transports are exactly the keys each plugin
+declares. The validator is Debian's
 python3-jsonschema (nobody on the team wrote it).
 
 usage: schema_test.py SOURCE_DIR"""
@@ -73,6 +74,9 @@ mistakes = {
     "worlds zero": lambda c: c.update(worlds=0),
     "worlds object key typo": lambda c: c.update(worlds={"count": 2, "maximum": 4}),
     "worlds threads negative": lambda c: c.update(worlds={"count": 2, "threads": -1}),
+    "worlds scene of world 0": lambda c: c.update(worlds={"count": 2, "scenes": {"0": "moon.xml"}}),
+    "worlds scene key not an index": lambda c: c.update(worlds={"count": 2, "scenes": {"w1": "moon.xml"}}),
+    "worlds scene not a file name": lambda c: c.update(worlds={"count": 2, "scenes": {"1": 5}}),
     "scene missing": lambda c: c.pop("scene"),
     "timestep negative": lambda c: c["scene"].update(timestep=-1),
     "realtime factor word": lambda c: c["scene"].update(realtime_factor="fast"),
@@ -103,6 +107,16 @@ for name, mistake in mistakes.items():
     if not errors_of(document):
         failures.append(f"the schema accepts a config with: {name}")
 
+# what a mistake could be mistaken for is accepted
+accepted = {
+    "worlds with scenes": lambda c: c.update(worlds={"count": 12, "scenes": {"2": "moon.xml", "11": "/abs/other.xml"}}),
+}
+for name, change in accepted.items():
+    document = json.loads(json.dumps(demo))
+    change(document)
+    for e in errors_of(document):
+        failures.append(f"the schema refuses a config with {name}: {e}")
+
 # the built-in transports' option keys: the schema's and the plugin's declared ones agree
 for plugin, source_file in [("socket", "plugins/socket/socket_request_manager.cc"),
                             ("jsonrpc", "plugins/jsonrpc/jsonrpc_request_manager.cc"),
@@ -123,4 +137,4 @@ for plugin, source_file in [("socket", "plugins/socket/socket_request_manager.cc
 if failures:
     print("\n".join(failures))
     sys.exit(1)
-print(f"{checked} deployments valid, {len(mistakes)} mistakes refused, option keys of 5 transports agree")
+print(f"{checked} deployments valid, {len(mistakes)} mistakes refused, {len(accepted)} near them accepted, option keys of 5 transports agree")

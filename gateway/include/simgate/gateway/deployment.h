@@ -41,6 +41,7 @@
 #define SIMGATE_GATEWAY_DEPLOYMENT_H_
 
 #include <chrono>
+#include <map>
 #include <optional>
 #include <set>
 #include <string>
@@ -121,11 +122,14 @@ struct Deployment {
   // ("count"); how many there may be at once with those `simulation create_world` makes
   // ("max": at least the count; default the count or 16, whichever is more); the threads
   // `simulation step_many` steps worlds on, the caller's included ("threads"; 0: one per core);
-  // the most memory MuJoCo may hold for all worlds together ("max_memory_mb"; 0: no bound)
+  // the most memory MuJoCo may hold for all worlds together ("max_memory_mb"; 0: no bound);
+  // the scene of each world at start that does not run the config's ("scenes": index, from 1
+  // to worlds - 1 -> its MJCF file, resolved as `mjcf` is)
   unsigned worlds = 1;
   unsigned max_worlds = k_default_max_worlds;
   unsigned world_threads = 0;
   std::uint64_t max_world_memory_bytes = 0;
+  std::map<unsigned, std::string> world_scenes;
   static constexpr unsigned k_max_worlds = 256;
   static constexpr unsigned k_default_max_worlds = 16;
   // likely mistakes that are not errors (printed by check, logged by run)

@@ -100,7 +100,9 @@ class Gateway {
   // stay until it is destroyed.
   struct World {
     unsigned index = 0;  // k of "w<k>/"
-    std::string scene;   // its MJCF file as create_world was given it ("": the config's)
+    // its MJCF file as create_world was given it, or as the config's worlds.scenes resolves
+    // it ("": the config's scene)
+    std::string scene;
     std::unique_ptr<sim::Simulation> sim;  // its model, components, loop
     // the manager serving it through each transport (RequestManager::attach_world), in
     // transports_'s order (null for a transport without a manager)
