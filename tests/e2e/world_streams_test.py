@@ -77,6 +77,11 @@ class WorldStreamsTest(world_test.GatewayTestCase):
         return [os.path.join(os.path.dirname(ARGS.simgate), "dds_stream_client"), "0",
                 self.gateway.partition, xml] + list(args)
 
+    # the C client in a ThreadSanitizer build: Cyclone DDS (uninstrumented) shows TSan false
+    # races inside its own threads there, now and then one its suppression misses (a mutex in
+    # a heap block it reuses); the client is a test tool, and simgate's own reports still halt
+    CLIENT_ENV = dict(os.environ, TSAN_OPTIONS=os.environ.get("TSAN_OPTIONS", "") + ":report_bugs=0")
+
     def test_1_every_transport_lists_each_worlds_streams(self):
         names = ["robot.motion", "robot.pose", "w1/robot.motion", "w1/robot.pose"]
         self.assertEqual(self.ok("simulation list_streams"), names)
@@ -86,7 +91,7 @@ class WorldStreamsTest(world_test.GatewayTestCase):
                                 capture_output=True, text=True, timeout=TIMEOUT)
         self.assertEqual(listed.returncode, 0, listed.stdout + listed.stderr)
         self.assertRegex(listed.stdout, r"\nw1/robot\.pose stream OUT pose, 60\.0 Hz, port \d+\n")
-        catalog = subprocess.run(self.dds_stream_client("catalog", "6", "20"),
+        catalog = subprocess.run(self.dds_stream_client("catalog", "6", "20"), env=self.CLIENT_ENV,
                                  capture_output=True, text=True, timeout=TIMEOUT)
         self.assertIn("simgate/w1/robot/pose", catalog.stdout, catalog.stdout + catalog.stderr)
         self.assertIn("simgate/w1/robot/motion", catalog.stdout)
@@ -157,7 +162,8 @@ class WorldStreamsTest(world_test.GatewayTestCase):
 
     def test_4_dds_topics_carry_the_worlds_samples_and_commands(self):
         reader = subprocess.Popen(self.dds_stream_client("pose", "simgate/w1/robot/pose", "2"),
-                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                                  env=self.CLIENT_ENV, stdout=subprocess.PIPE,
+                                  stderr=subprocess.STDOUT, text=True)
         try:
             # a paused world writes when it steps: step it until the reader has its samples
             deadline = time.monotonic() + TIMEOUT
@@ -179,10 +185,14 @@ class WorldStreamsTest(world_test.GatewayTestCase):
         x0, x1 = self.pose("")["x"], self.pose("w1/")["x"]
         sent = subprocess.run(self.dds_stream_client("velocity", "simgate/w1/robot/motion/cmd",
                                                      "-1.0", "0"),
-                              capture_output=True, text=True, timeout=TIMEOUT)
+                              env=self.CLIENT_ENV, capture_output=True, text=True, timeout=TIMEOUT)
         self.assertEqual(sent.returncode, 0, sent.stdout + sent.stderr)
-        self.ok("w1/simulation step [100]")
-        self.assertLess(self.pose("w1/")["x"], x1 - 0.05)
+        # the command is applied at world 1's next turn once it came (the writer's process
+        # may end before simgate's reader has it): step until the robot goes back
+        deadline = time.monotonic() + TIMEOUT
+        while self.pose("w1/")["x"] > x1 - 0.05:
+            self.assertLess(time.monotonic(), deadline, "world 1's robot never went back")
+            self.ok("w1/simulation step [20]")
         self.assertEqual(self.pose("")["x"], x0)
 
     def test_5_a_world_made_at_run_time_streams_and_its_end_reaches_its_subscribers(self):
