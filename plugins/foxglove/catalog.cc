@@ -68,12 +68,11 @@ std::vector<FoxgloveServer::ChannelEntry> FoxgloveServer::read_channels() const 
     if (info.kind == "body_poses") {
       // the simulation's bodies and geoms for the 3D panel, in Foxglove's schemas; another
       // world's as /w<k>/tf and /w<k>/scene
-      const auto world = RequestManager::world_address(info.component);
-      const std::string prefix = world ? "/" + info.component.substr(0, world->second - 1) : "";
+      const std::string prefix = "/" + world_prefix(info.component);
       for (const auto& [shape, topic, name, made] :
-           {std::tuple{Shape::frame_transforms, "/tf", k_frame_transforms,
+           {std::tuple{Shape::frame_transforms, "tf", k_frame_transforms,
                        frame_transforms_schema()},
-            std::tuple{Shape::scene_update, "/scene", k_scene_update, scene_update_schema()}}) {
+            std::tuple{Shape::scene_update, "scene", k_scene_update, scene_update_schema()}}) {
         ChannelEntry derived;
         derived.component = info.component;
         derived.shape = shape;
@@ -111,6 +110,13 @@ void FoxgloveServer::apply_channels(std::vector<ChannelEntry> channels) {
       added.push_back(entry.channel);
   channels_ = std::move(channels);
   for (std::uint32_t id : gone) sensor_cache_.erase(id);
+  // a scene goes with its /tf and /scene channels (its world deleted)
+  std::erase_if(scenes_, [&](const auto& scene) {
+    return std::none_of(channels_.begin(), channels_.end(), [&](const ChannelEntry& c) {
+      return c.component == scene.first &&
+             (c.shape == Shape::frame_transforms || c.shape == Shape::scene_update);
+    });
+  });
   // subscriptions to a channel that is gone end with it
   if (!gone.empty()) {
     for_each_connection([&](kit::Connection& connection) {

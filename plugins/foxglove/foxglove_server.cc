@@ -299,16 +299,19 @@ void FoxgloveServer::call_service(Client& client, const ServiceCallRequest& requ
 void FoxgloveServer::on_service_completion(RequestId id, Outcome&& outcome) {
   // the I/O thread (deliver_on_this_thread): inside run_or_submit, or flush_replies()
   if (parameter_completion(id, outcome) || playback_completion(id, outcome)) return;
-  if (id == geometry_call_) {
-    geometry_call_ = 0;
+  for (auto& [component, scene] : scenes_) {
+    if (scene.call != id) continue;
+    scene.call = 0;
+    const std::string prefix = world_prefix(component);
     if (outcome.status == Status::success && outcome.value) {
-      geometry_ = std::move(*outcome.value);
-      frames_ = SceneFrames::from_geometry(geometry_);
-    } else if (!geometry_refused_) {
-      geometry_refused_ = true;
-      log::warning(name(), ": /tf and /scene stay empty: simulation get_scene_geometry answered ",
-                   to_string(outcome.status), " (", outcome.message,
-                   "); serve the simulation component through this transport");
+      scene.geometry = std::move(*outcome.value);
+      scene.frames = SceneFrames::from_geometry(scene.geometry, prefix);
+    } else if (!scene.refused) {
+      scene.refused = true;
+      log::warning(name(), ": /", prefix, "tf and /", prefix, "scene stay empty: ", component,
+                   " get_scene_geometry answered ", to_string(outcome.status), " (",
+                   outcome.message, "); serve the ", component,
+                   " component through this transport");
     }
     return;
   }

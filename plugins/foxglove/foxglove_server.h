@@ -11,7 +11,9 @@
 //     in, the result out). Channels and services appear and disappear as components do
 //     (advertise / unadvertise, advertiseServices / unadvertiseServices). The simulation's
 //     body_poses stream also makes /tf and /scene (foxglove.FrameTransforms and
-//     foxglove.SceneUpdate, simgate/foxglove/scene.h) for the 3D panel. (catalog.cc)
+//     foxglove.SceneUpdate, simgate/foxglove/scene.h) for the 3D panel. World k's streams
+//     and services are world 0's under "/w<k>/" (/w1/robot/pose, /w1/tf), its frame ids
+//     "w<k>/..." (a tree of its own), its scene asked of it. (catalog.cc)
 //   - subscribe / unsubscribe: each sample as a binary Message Data, its log time the
 //     simulated time of the sample; a Time message whenever the simulated time moved (with
 //     the samples, and `time_hz` times per second of wall time between them), so that
@@ -124,6 +126,15 @@ class FoxgloveServer : public RequestManager, private kit::WebSocketServer {
     std::string text;       // "": the sample had not the message's shape
     LaserArc arc;
   };
+  // The scene a body_poses stream's /tf and /scene channels are made from: its world's
+  // get_scene_geometry answer, its frames named with the world's prefix (world_prefix).
+  struct Scene {
+    json geometry;
+    SceneFrames frames;
+    RequestId call = 0;    // the request under way (0: none)
+    bool wanted = false;   // a sample of another model came: ask again
+    bool refused = false;  // the world's answer was a refusal (logged once)
+  };
   // Where a service call's answer goes.
   struct PendingCall {
     std::weak_ptr<Client> client;
@@ -225,9 +236,10 @@ class FoxgloveServer : public RequestManager, private kit::WebSocketServer {
   // ---- samples and time (I/O thread, woken by the core)
   void wake_streams();
   void drain_streams();
-  // The message a /tf or /scene channel sends for `sample` ("": none now); `scene_sent`: the
-  // model generation the subscription's client last got a scene of.
-  std::string convert(Shape shape, const StreamSample& sample, std::uint64_t& scene_sent);
+  // The message /tf or /scene channel `entry` sends for `sample` ("": none now); `scene_sent`:
+  // the model generation the subscription's client last got a scene of.
+  std::string convert(const ChannelEntry& entry, const StreamSample& sample,
+                      std::uint64_t& scene_sent);
   // The message sensor channel `entry` sends for `sample` (made once for every subscriber;
   // "": none).
   const std::string& convert_sensor(const ChannelEntry& entry, const StreamSample& sample);
@@ -235,8 +247,12 @@ class FoxgloveServer : public RequestManager, private kit::WebSocketServer {
   // /log's subscribers (drain_log) and keeps the last k_log_backlog for new ones.
   void log_line(log::Level level, std::string_view text);
   void drain_log();
-  // Asks the simulation for its scene (get_scene_geometry) unless a request is under way.
-  void request_geometry(const std::string& component);
+  // Asks `component`'s world for its scene (<world>simulation get_scene_geometry: `component`
+  // is the body_poses stream's) unless a request is under way.
+  void request_geometry(const std::string& component, Scene& scene);
+  // "w<k>/" when `component` is world k's (its channels' topics begin "/w<k>/", its frame ids
+  // "w<k>/"); "" for world 0's.
+  static std::string world_prefix(std::string_view component);
   // Queues a Message Data of subscription `subscription`, its log time `time` (simulated s);
   // false when the client's budget dropped it.
   bool queue_message(Client& client, std::uint32_t subscription, double time,
@@ -274,12 +290,9 @@ class FoxgloveServer : public RequestManager, private kit::WebSocketServer {
   std::deque<std::pair<double, std::string>> log_backlog_;
   std::atomic<bool> log_woken_{false};  // a drain_log is posted
   std::uint64_t log_observer_ = 0;      // log::add_observer's handle (0: none)
-  // the scene the /tf and /scene channels are made from (get_scene_geometry's answer)
-  json geometry_;
-  SceneFrames frames_;
-  RequestId geometry_call_ = 0;    // the request under way (0: none)
-  bool geometry_wanted_ = false;   // a sample of another model came: ask again
-  bool geometry_refused_ = false;  // the simulation's answer was a refusal (logged once)
+  // the scenes the /tf and /scene channels are made from, by body_poses component
+  // ("simulation", "w1/simulation"); one goes with its channels (its world deleted)
+  std::map<std::string, Scene> scenes_;
   // the parameters' calls under way: get_properties (a query's) and set_property
   struct ParameterCall {
     std::shared_ptr<ParameterQuery> query;  // get_properties: the query it answers

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <utility>
 
 #include <boost/asio/post.hpp>
 
@@ -141,12 +142,12 @@ void FoxgloveServer::drain_streams() {
       samples_.clear();
       sub.stream->take(samples_);
       std::uint64_t lost = 0;
-      const ChannelEntry* sensor = nullptr;
-      if (sub.shape == Shape::sensor) {
-        const auto entry = std::find_if(channels_.begin(), channels_.end(), [&](const auto& c) {
+      const ChannelEntry* entry = nullptr;  // a converted channel's (sensor, /tf, /scene)
+      if (sub.shape != Shape::sample) {
+        const auto found = std::find_if(channels_.begin(), channels_.end(), [&](const auto& c) {
           return c.channel.id == sub.channel_id;
         });
-        if (entry != channels_.end()) sensor = &*entry;
+        if (found != channels_.end()) entry = &*found;
       }
       for (const SamplePtr& sample : samples_) {
         latest = std::max(latest, to_nanoseconds(sample->time()));
@@ -154,10 +155,10 @@ void FoxgloveServer::drain_streams() {
         const std::string* text = &converted;
         if (sub.shape == Shape::sample) {
           text = &sample->text();
-        } else if (sub.shape == Shape::sensor) {
-          if (sensor) text = &convert_sensor(*sensor, *sample);
-        } else {
-          converted = convert(sub.shape, *sample, sub.scene_sent);
+        } else if (entry && sub.shape == Shape::sensor) {
+          text = &convert_sensor(*entry, *sample);
+        } else if (entry) {
+          converted = convert(*entry, *sample, sub.scene_sent);
         }
         if (text->empty()) continue;
         if (!queue_message(client, id, sample->time(), *text)) ++lost;
@@ -173,31 +174,26 @@ void FoxgloveServer::drain_streams() {
     if (latest > 0) send_time(client, latest);
   });
   samples_.clear();
-  if (geometry_wanted_) {
-    geometry_wanted_ = false;
-    for (const auto& c : channels_)
-      if (c.shape == Shape::frame_transforms || c.shape == Shape::scene_update) {
-        request_geometry(c.component);
-        break;
-      }
-  }
+  for (auto& [component, scene] : scenes_)
+    if (std::exchange(scene.wanted, false)) request_geometry(component, scene);
   flush_touched();
 }
 
-std::string FoxgloveServer::convert(Shape shape, const StreamSample& sample,
+std::string FoxgloveServer::convert(const ChannelEntry& entry, const StreamSample& sample,
                                     std::uint64_t& scene_sent) {
+  Scene& scene = scenes_[entry.component];  // its world's
   const json& poses = sample.data();
   const std::uint64_t generation =
       poses.is_object() ? poses.value("generation", std::uint64_t{0}) : 0;
-  if (!frames_.known() || frames_.generation != generation) {
+  if (!scene.frames.known() || scene.frames.generation != generation) {
     // the model changed (or its scene is not known yet): its scene first
-    geometry_wanted_ = !geometry_refused_;
+    scene.wanted = !scene.refused;
     return {};
   }
-  if (shape == Shape::frame_transforms) return frame_transforms(poses, frames_);
+  if (entry.shape == Shape::frame_transforms) return frame_transforms(poses, scene.frames);
   if (scene_sent == generation) return {};  // the entities stay until the model changes
   scene_sent = generation;
-  return scene_update(geometry_, frames_);
+  return scene_update(scene.geometry, scene.frames);
 }
 
 const std::string& FoxgloveServer::convert_sensor(const ChannelEntry& entry,
@@ -255,11 +251,15 @@ void FoxgloveServer::drain_log() {
   flush_touched();
 }
 
-void FoxgloveServer::request_geometry(const std::string& component) {
-  if (geometry_call_ != 0) return;
-  geometry_call_ = new_request_id();
-  run_or_submit(geometry_call_,
-                Call{component, "get_scene_geometry", json{{"include_meshes", true}}});
+void FoxgloveServer::request_geometry(const std::string& component, Scene& scene) {
+  if (scene.call != 0) return;
+  scene.call = new_request_id();
+  run_or_submit(scene.call, Call{component, "get_scene_geometry", json{{"include_meshes", true}}});
+}
+
+std::string FoxgloveServer::world_prefix(std::string_view component) {
+  const auto world = RequestManager::world_address(component);
+  return world ? std::string(component.substr(0, world->second)) : std::string();
 }
 
 void FoxgloveServer::send_time(Client& client, std::uint64_t time_ns) {

@@ -5,11 +5,13 @@
 #include <algorithm>
 #include <stdexcept>
 #include <string_view>
+#include <utility>
 
 #include "dds_support.h"
 #include "ros2_msgs.h"
 #include "ros2_types.h"
 #include "simgate/core/log.h"
+#include "simgate/core/request_manager.h"
 #include "simgate/core/text.h"
 
 namespace simgate::ros2 {
@@ -92,6 +94,20 @@ const char* role_name(int role) {
   return k_names[role];
 }
 
+// A component's world: its ROS namespace ("/w1"; "" for world 0) and the component's name
+// there ("w1/robot.pose": "/w1", "robot.pose").
+struct WorldName {
+  std::string ns;
+  std::string_view name;
+};
+WorldName world_name(std::string_view component) {
+  const auto address = RequestManager::world_address(component);
+  if (!address) return {"", component};
+  const std::string_view name = component.substr(address->second);
+  if (address->first == 0) return {"", name};
+  return {"/" + std::string(component.substr(0, address->second - 1)), name};
+}
+
 // A ROS sequence over `data`'s elements (not copied, not released by the writer).
 template <typename Sequence, typename T>
 void borrow(Sequence& sequence, T* data, std::size_t count) {
@@ -113,6 +129,13 @@ struct Ros2Topics::Output {
   std::shared_ptr<StreamSubscription> subscription;  // to the hub (a pushed stream: while read)
   bool shape_logged = false;  // a sample not of the message's shape was logged
   LaserReading laser;         // a laser's arc and reach, read from its scans
+  // Role::tf: its world's frame tree (not known(): none yet), asked for with
+  // `<world>simulation get_scene_geometry`, and its world's /tf_static
+  FrameTree frames;
+  bool geometry_wanted = true;    // a frame tree is to be asked for
+  bool geometry_refused = false;  // its world refused it: not asked again
+  dds_entity_t static_writer = 0;
+  std::uint64_t static_written = ~std::uint64_t{0};  // the generation /tf_static holds
 };
 
 struct Ros2Topics::Input {
@@ -143,25 +166,28 @@ dds_entity_t Ros2Topics::topic(const std::string& name, const dds_topic_descript
   return dds::cached_topic(topics_, participant_, name, name_only(*descriptor));
 }
 
-std::string Ros2Topics::robot_namespace(const std::string& robot) {
-  const std::string token = to_ros_token(robot);
-  auto [it, added] = namespaces_.emplace(token, robot);
-  if (!added && it->second != robot) return {};
-  return "/" + token;
+std::string Ros2Topics::robot_namespace(const std::string& world, const std::string& robot) {
+  const std::string ns = world + "/" + to_ros_token(robot);
+  auto [it, added] = namespaces_.emplace(ns, robot);
+  if (!added && it->second != robot)
+    throw std::runtime_error("robot '" + robot + "' would have namespace " + ns +
+                             ", which robot '" + it->second + "' has");
+  return ns;
 }
 
 void Ros2Topics::plan(const std::vector<StreamInfo>& listed, std::map<std::string, Role>& outputs,
                       std::map<std::string, Command>& inputs) {
-  // per robot: the odometry source (an integrated odometry before a pose), the first joint
-  // stream, the first velocity input, the first joint input; every camera and laser (each
-  // has topics of its own)
+  // per robot (of each world: by "w1/robot"): the odometry source (an integrated odometry
+  // before a pose), the first joint stream, the first velocity input, the first joint input;
+  // every camera and laser (each has topics of its own); each world's /tf
   std::map<std::string, std::string> odometry, pose, joints, imu, velocity, joint_commands;
   for (const StreamInfo& info : listed) {
-    if (info.component == "simulation" && info.kind == "body_poses") {
+    const std::string_view name = world_name(info.component).name;
+    if (name == "simulation" && info.kind == "body_poses") {
       if (settings_.tf) outputs.emplace(info.component, Role::tf);
       continue;
     }
-    const std::string robot = robot_of(info.component);
+    const std::string robot = robot_of(name);
     if (robot.empty() || (!settings_.all_robots && !settings_.robots.count(robot))) continue;
     if (info.direction == StreamDirection::out &&
         (info.kind == "image" || info.kind == "depth_image" || info.kind == "laser_scan")) {
@@ -177,7 +203,7 @@ void Ros2Topics::plan(const std::vector<StreamInfo>& listed, std::map<std::strin
                                                  : info.kind == "joint_state" ? &joints
                                                  : info.kind == "imu"         ? &imu
                                                                               : nullptr);
-    if (slot && slot->emplace(robot, info.component).second) continue;
+    if (slot && slot->emplace(robot_of(info.component), info.component).second) continue;
     if (skipped_logged_.insert(info.component).second)
       log::info("ros2 transport: the ", info.kind, " stream of ", info.component,
                 " has no ROS 2 topic ",
@@ -202,7 +228,8 @@ bool Ros2Topics::sync() {
     // a robot named in the "robots" option with no stream here is most likely a typo
     robots_checked_ = true;
     std::set<std::string> streaming;
-    for (const StreamInfo& info : listed) streaming.insert(robot_of(info.component));
+    for (const StreamInfo& info : listed)
+      streaming.insert(robot_of(world_name(info.component).name));
     streaming.erase("");
     for (const std::string& robot : settings_.robots)
       if (!streaming.count(robot)) {
@@ -262,27 +289,26 @@ void Ros2Topics::add_output(const StreamInfo& info, Role role) {
   output->role = role;
   const dds_topic_descriptor_t* descriptor = nullptr;
   int32_t depth = k_default_depth;
+  // a world's topics in its namespace ("/w1/tf", "/w1/robot/odom"), its frames named as
+  // world 0's (each world's /tf a tree of its own)
+  const WorldName world = world_name(info.component);
   if (role == Role::tf) {
-    output->topic = "/tf";
+    output->topic = world.ns + "/tf";
     descriptor = &tf2_msgs_msg_dds__TFMessage__desc;
     depth = k_tf_depth;
     // the sensing frames: every one in one message, kept for late joiners
-    if (tf_static_writer_ == 0) {
-      QosPtr qos = make_qos(true, 1, 0);
-      tf_static_writer_ = check_created(
-          dds_create_writer(participant_, topic(dds_topic_name("/tf_static"), descriptor),
-                            qos.get(), nullptr),
-          "writer /tf_static");
-    }
+    const std::string static_topic = world.ns + "/tf_static";
+    QosPtr qos = make_qos(true, 1, 0);
+    output->static_writer = check_created(
+        dds_create_writer(participant_, topic(dds_topic_name(static_topic), descriptor), qos.get(),
+                          nullptr),
+        "writer " + static_topic);
   } else {
-    const std::string robot = robot_of(info.component);
-    const std::string ns = robot_namespace(robot);
-    if (ns.empty())
-      throw std::runtime_error("robot '" + robot + "' would have namespace /" +
-                               to_ros_token(robot) + ", which another robot has");
-    const std::string frame_root = ns.substr(1);
+    const std::string robot = robot_of(world.name);
+    const std::string ns = robot_namespace(world.ns, robot);
+    const std::string frame_root = to_ros_token(robot);
     // a sensor's own topics under its robot's namespace: "/robot/camera/..."
-    const std::string frame = component_frame(info.component);
+    const std::string frame = component_frame(world.name);
     const std::string sensor = ns + frame.substr(std::min(frame.find('/'), frame.size()));
     if (role == Role::image) {
       output->topic = sensor + "/image_raw";
@@ -300,15 +326,14 @@ void Ros2Topics::add_output(const StreamInfo& info, Role role) {
       output->topic = ns + "/imu";
       descriptor = &sensor_msgs_msg_dds__Imu__desc;
       // its values are in the sensor's frame, on /tf_static under its body
-      output->frame_id = component_frame(info.component);
+      output->frame_id = frame;
     } else {
       output->topic = ns + "/odom";
       descriptor = &nav_msgs_msg_dds__Odometry__desc;
       // integrated odometry: from where its sensor started, of its sensing frame; a pose: in
       // the world, of the robot (its frame named as the robot)
       output->frame_id = role == Role::odometry ? frame_root + "/odom" : settings_.world_frame;
-      output->child_frame_id =
-          role == Role::odometry ? component_frame(info.component) : frame_root;
+      output->child_frame_id = role == Role::odometry ? frame : frame_root;
     }
   }
   QosPtr qos = make_qos(false, depth, 0);
@@ -338,8 +363,8 @@ void Ros2Topics::add_output(const StreamInfo& info, Role role) {
   } else {
     subscribe(*output);
     if (!output->subscription) {
-      dds_delete(output->writer);
-      if (output->info_writer) dds_delete(output->info_writer);
+      for (dds_entity_t writer : {output->writer, output->info_writer, output->static_writer})
+        if (writer) dds_delete(writer);
       return;  // gone meanwhile
     }
   }
@@ -379,11 +404,8 @@ void Ros2Topics::matches_changed() {
 }
 
 void Ros2Topics::add_input(const StreamInfo& info, Command command) {
-  const std::string robot = robot_of(info.component);
-  const std::string ns = robot_namespace(robot);
-  if (ns.empty())
-    throw std::runtime_error("robot '" + robot + "' would have namespace /" + to_ros_token(robot) +
-                             ", which another robot has");
+  const WorldName world = world_name(info.component);
+  const std::string ns = robot_namespace(world.ns, robot_of(world.name));
   auto input = std::make_unique<Input>();
   input->info = info;
   input->command = command;
@@ -410,6 +432,7 @@ void Ros2Topics::remove_output(Output& output) {
   if (output.subscription) hub_->unsubscribe(output.subscription);
   dds_delete(output.writer);  // (detached from the waitset with it)
   if (output.info_writer) dds_delete(output.info_writer);
+  if (output.static_writer) dds_delete(output.static_writer);
   log::info("ros2 transport: ", output.topic, " ended (", output.info.component, " is gone)");
 }
 
@@ -421,34 +444,44 @@ void Ros2Topics::remove_input(Input& input) {
 
 void Ros2Topics::endpoints(std::vector<dds_entity_t>& writers,
                            std::vector<dds_entity_t>& readers) const {
-  if (tf_static_writer_ > 0) writers.push_back(tf_static_writer_);
   for (const auto& [component, output] : outputs_) {
     writers.push_back(output->writer);
     if (output->info_writer) writers.push_back(output->info_writer);
+    if (output->static_writer) writers.push_back(output->static_writer);
   }
   for (const auto& [component, input] : inputs_) readers.push_back(input->reader);
 }
 
-bool Ros2Topics::take_geometry_wanted() {
-  const bool wanted = geometry_wanted_ && outputs_.count("simulation") > 0;
-  geometry_wanted_ = false;
+std::vector<std::string> Ros2Topics::take_geometry_wanted() {
+  std::vector<std::string> wanted;
+  for (auto& [component, output] : outputs_)
+    if (output->role == Role::tf && std::exchange(output->geometry_wanted, false) &&
+        !output->geometry_refused)
+      wanted.push_back(component);
   return wanted;
 }
 
-void Ros2Topics::set_geometry(const json& geometry) {
-  frames_ = FrameTree::from_geometry(geometry, settings_.world_frame);
-  write_static();
+void Ros2Topics::set_geometry(const std::string& component, const json& geometry) {
+  const auto it = outputs_.find(component);
+  if (it == outputs_.end() || it->second->role != Role::tf) return;  // gone meanwhile
+  it->second->frames = FrameTree::from_geometry(geometry, settings_.world_frame);
+  write_static(*it->second);
 }
 
-void Ros2Topics::write_static() {
-  if (tf_static_writer_ == 0 || !frames_.known() || static_written_ == frames_.generation) return;
-  const std::vector<FrameTransform> fixed = fixed_transforms(frames_);
-  const dds_return_t rc = write_transforms(tf_static_writer_, fixed, hub_->time());
+void Ros2Topics::refuse_geometry(const std::string& component) {
+  if (const auto it = outputs_.find(component); it != outputs_.end())
+    it->second->geometry_refused = true;
+}
+
+void Ros2Topics::write_static(Output& output) {
+  if (!output.frames.known() || output.static_written == output.frames.generation) return;
+  const std::vector<FrameTransform> fixed = fixed_transforms(output.frames);
+  const dds_return_t rc = write_transforms(output.static_writer, fixed, hub_->time());
   if (rc < 0) {
-    log::error("ros2 transport: /tf_static not written: ", dds::retcode_text(rc));
+    log::error("ros2 transport: ", output.topic, "_static not written: ", dds::retcode_text(rc));
     return;
   }
-  static_written_ = frames_.generation;
+  output.static_written = output.frames.generation;
 }
 
 void Ros2Topics::write_samples() {
@@ -485,10 +518,10 @@ void Ros2Topics::write_samples() {
 }
 
 dds_return_t Ros2Topics::write_tf(Output& output, const StreamSample& sample) {
-  if (!body_transforms(sample.data(), frames_, transforms_)) {
+  if (!body_transforms(sample.data(), output.frames, transforms_)) {
     // another model (a spawn, a delete), or none known yet: its frames first (the sample is
     // skipped: no reader was slow)
-    geometry_wanted_ = true;
+    output.geometry_wanted = true;
     return 0;
   }
   return write_transforms(output.writer, transforms_, sample.time());

@@ -4,16 +4,22 @@
 // /<robot>/joint_states, its imu as /<robot>/imu, each camera's images as
 // /<robot>/<camera>/image_raw with /<robot>/<camera>/camera_info, each laser_scanner's scans as
 // /<robot>/<laser>/scan; /<robot>/cmd_vel read into its motion_vw stream and
-// /<robot>/joint_command into its armature's joint_positions.
+// /<robot>/joint_command into its armature's joint_positions. Another world's streams
+// ("w1/robot.pose", "w1/simulation": docs/worlds.md) the same in the world's namespace:
+// /w1/tf, /w1/tf_static, /w1/robot/odom, /w1/robot/cmd_vel, ...
 //
 // Terms:
-//  - robot: the part of a component's name before its first '.'; its ROS namespace is
-//    "/<robot as a ROS token>" (ros2_mapping.h). A robot with an "odometry" stream (level
-//    integrated) has its /odom from it; one with only a "pose" stream, from that.
-//  - frame tree: the model's bodies, read once per model generation from
-//    `simulation get_scene_geometry` (the transport asks: want_geometry()), then
-//    set_geometry(); until it comes (and after a spawn or a delete, until the new one comes)
-//    body_poses samples are not written.
+//  - world namespace: "" for world 0's streams, "/w<k>" for world k's (the stream's name
+//    "w<k>/<component>", RequestManager::world_address).
+//  - robot: the part of a component's name (in its world) before its first '.'; its ROS
+//    namespace is "<world namespace>/<robot as a ROS token>" (ros2_mapping.h). A robot with an
+//    "odometry" stream (level integrated) has its /odom from it; one with only a "pose"
+//    stream, from that. Frame ids are the same in every world (each world's /tf is a tree of
+//    its own, as ROS runs simulations side by side: a namespace each).
+//  - frame tree: a world's bodies, read once per model generation from its
+//    `<world>simulation get_scene_geometry` (the transport asks: take_geometry_wanted()),
+//    then set_geometry(); until it comes (and after a spawn or a delete, until the new one
+//    comes) its body_poses samples are not written.
 //  - output: one StreamSubscription (a few samples deep, latest kept) and one writer per
 //    topic (a camera: two, its image and its camera_info), reliable, volatile, keep-last (ROS
 //    2's defaults: 10; /tf 100, as tf2's broadcaster). /tf_static: reliable, transient-local,
@@ -86,11 +92,15 @@ class Ros2Topics {
   // subscribed to while one of its writers has a reader, else not. Reads (and so resets)
   // every such writer's status.
   void matches_changed();
-  // Whether a frame tree is wanted (a body_poses sample of a model not known yet came, or
-  // none is known); cleared by the call.
-  bool take_geometry_wanted();
-  // The answer of `simulation get_scene_geometry`: the frames of the model; /tf_static.
-  void set_geometry(const json& geometry);
+  // The body_poses streams ("simulation", "w1/simulation") whose world's frame tree is wanted
+  // (a sample of a model not known yet came, or none is known); cleared by the call.
+  std::vector<std::string> take_geometry_wanted();
+  // The answer of `<world>simulation get_scene_geometry` for body_poses stream `component`:
+  // the frames of its world's model; its /tf_static. Throws std::invalid_argument when the
+  // answer is malformed; nothing when the stream is gone.
+  void set_geometry(const std::string& component, const json& geometry);
+  // `component`'s world refused get_scene_geometry: it is not asked again.
+  void refuse_geometry(const std::string& component);
   // The GIDs (DDS GUIDs) of our writers and readers, for the ROS graph.
   void endpoints(std::vector<dds_entity_t>& writers, std::vector<dds_entity_t>& readers) const;
 
@@ -109,7 +119,7 @@ class Ros2Topics {
   void subscribe(Output& output);
   void remove_output(Output& output);
   void remove_input(Input& input);
-  void write_static();
+  void write_static(Output& output);
   dds_return_t write_tf(Output& output, const StreamSample& sample);
   dds_return_t write_odometry(Output& output, const StreamSample& sample);
   dds_return_t write_joint_states(Output& output, const StreamSample& sample);
@@ -118,8 +128,9 @@ class Ros2Topics {
   dds_return_t write_scan(Output& output, const StreamSample& sample);
   void take_twists(Input& input);
   void take_joint_states(Input& input);
-  // The namespace of `robot` ("/robot"), or "" when another robot took its token already.
-  std::string robot_namespace(const std::string& robot);
+  // The namespace of `robot` of the world whose namespace is `world` ("/robot", "/w1/robot");
+  // throws std::runtime_error when another robot took its token already.
+  std::string robot_namespace(const std::string& world, const std::string& robot);
 
   std::shared_ptr<StreamDirectory> hub_;
   const Settings settings_;
@@ -129,15 +140,11 @@ class Ros2Topics {
   std::map<std::string, dds_entity_t> topics_;              // by DDS topic name: made once
   std::map<std::string, std::unique_ptr<Output>> outputs_;  // by component
   std::map<std::string, std::unique_ptr<Input>> inputs_;    // by component
-  std::map<std::string, std::string> namespaces_;           // ROS token -> the robot it names
+  std::map<std::string, std::string> namespaces_;           // ROS namespace -> its robot
   std::set<std::string> skipped_logged_;                    // streams logged as not carried
-  FrameTree frames_;             // the model's frames (not known(): none yet)
-  bool geometry_wanted_ = true;  // a frame tree is to be asked for
-  bool robots_checked_ = false;  // the "robots" option was checked against the streams
-  dds_entity_t tf_static_writer_ = 0;
-  std::uint64_t static_written_ = ~std::uint64_t{0};  // the generation /tf_static holds
-  std::vector<SamplePtr> taken_;                      // write_samples' buffer
-  std::vector<FrameTransform> transforms_;            // write_tf's buffer
+  bool robots_checked_ = false;             // the "robots" option was checked against the streams
+  std::vector<SamplePtr> taken_;            // write_samples' buffer
+  std::vector<FrameTransform> transforms_;  // write_tf's buffer
 };
 
 }  // namespace simgate::ros2

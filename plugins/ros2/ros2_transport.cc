@@ -283,28 +283,30 @@ void Ros2Transport::run_continuations() {
 }
 
 void Ros2Transport::on_service_completion(RequestId id, Outcome&& outcome) {
-  if (id != geometry_call_) {
+  const auto geometry = geometry_calls_.find(id);
+  if (geometry == geometry_calls_.end()) {
     // a service's call: its continuation runs once the lock is released (run_continuations)
     if (!stopping_ && continuations_.count(id))
       completed_.emplace_back(id, Event(std::in_place_type<Outcome>, std::move(outcome)));
     return;
   }
-  geometry_call_ = 0;
+  const std::string component = std::move(geometry->second);
+  geometry_calls_.erase(geometry);
   if (stopping_ || !topics_) return;
   if (outcome.status == Status::success && outcome.value) {
     try {
-      topics_->set_geometry(*outcome.value);
+      topics_->set_geometry(component, *outcome.value);
       return;
     } catch (const std::exception& e) {
       outcome.message = std::string("its answer is malformed: ") + e.what();
     }
   }
+  topics_->refuse_geometry(component);
   if (!geometry_failure_logged_)
-    log::error(
-        "ros2 transport: /tf needs the model's frames from `simulation get_scene_geometry`"
-        " through this transport (map simulation's services to it: \"services\": "
-        "{\"simulation\": [..., \"",
-        transport_name(), "\"]}): ", outcome.message, " (logged once)");
+    log::error("ros2 transport: /tf needs the model's frames from `", component,
+               " get_scene_geometry` through this transport (map simulation's services to it: "
+               "\"services\": {\"simulation\": [..., \"",
+               transport_name(), "\"]}): ", outcome.message, " (logged once)");
   geometry_failure_logged_ = true;
 }
 
@@ -319,11 +321,13 @@ void Ros2Transport::on_services_changed() {
   if (started_ && !stopping_ && guard_ > 0) dds_set_guardcondition(guard_, true);
 }
 
-void Ros2Transport::ask_geometry() {
-  if (geometry_call_ != 0 || geometry_failure_logged_) return;
-  geometry_call_ = new_request_id();
-  run_or_submit(geometry_call_,
-                Call{"simulation", "get_scene_geometry", json{{"include_meshes", false}}});
+void Ros2Transport::ask_geometry(const std::string& component) {
+  for (const auto& [id, asked] : geometry_calls_)
+    if (asked == component) return;  // under way
+  const RequestId id = new_request_id();
+  geometry_calls_.emplace(id, component);
+  // "w1/simulation" is world 1's simulation component
+  run_or_submit(id, Call{component, "get_scene_geometry", json{{"include_meshes", false}}});
 }
 
 void Ros2Transport::sync_topics() {
@@ -423,7 +427,9 @@ void Ros2Transport::run() {
         if (services_->has_parked()) services_->flush_parked();
       }
       if (simulate_steps_) simulate_steps_->expire();
-      if (topics_ && topics_->take_geometry_wanted()) ask_geometry();
+      if (topics_)
+        for (const std::string& component : topics_->take_geometry_wanted())
+          ask_geometry(component);
       if (topics_ && commands) topics_->take_commands();
       // a camera's reader came or went: rendered for us only while read
       if (topics_ && readers) topics_->matches_changed();

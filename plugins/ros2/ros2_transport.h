@@ -25,7 +25,7 @@
 //
 // Threads: one DDS thread waits on a waitset (guard condition: samples queued, outcomes
 // handed over, the services changed; the cmd_vel readers) with the clock period as its
-// timeout, and does all DDS I/O. Its requests (`simulation get_scene_geometry` for /tf's
+// timeout, and does all DDS I/O. Its requests (each world's `simulation get_scene_geometry` for its /tf's
 // frames, and the services' calls) go through run_or_submit: run at once on this thread when
 // the simulation lock is free, else by the simulation thread, their outcomes handed back
 // (deliver_on_this_thread). A service's continuation runs after run_or_submit returns, outside
@@ -104,7 +104,9 @@ class Ros2Transport : public RequestManager {
   void run();
   // Syncs the topics with the hub's streams; the graph written anew when they changed.
   void sync_topics();
-  void ask_geometry();
+  // Asks the world of body_poses stream `component` for its frame tree (`component`
+  // get_scene_geometry) unless a request is under way.
+  void ask_geometry(const std::string& component);
   void write_clock(bool force);
   void write_graph();
   // The services' Caller: `call` as a request of this transport, `done` with its outcome
@@ -138,7 +140,8 @@ class Ros2Transport : public RequestManager {
   std::atomic<bool> started_{false};
   std::atomic<bool> stopping_{false};
   std::atomic<bool> streams_changed_{true};  // on_services_changed, or not synced yet
-  RequestId geometry_call_ = 0;              // the pending get_scene_geometry, 0: none
+  // the pending get_scene_geometry calls: the body_poses stream each asks for
+  std::map<RequestId, std::string> geometry_calls_;
   bool geometry_failure_logged_ = false;
   double clock_written_ = -1;                                 // the simulated time /clock said last
   std::chrono::steady_clock::time_point clock_written_at_{};  // when

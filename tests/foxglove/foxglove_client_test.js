@@ -250,7 +250,9 @@ async function playback(url, s) {
 }
 
 // A world made at run time (simulation create_world, docs/worlds.md): its services are
-// advertised under /w<k>/, called there, and unadvertised when it is deleted.
+// advertised under /w<k>/, called there, and unadvertised when it is deleted; its channels
+// too, its /w<k>/tf and /w<k>/scene made of its own scene (not world 0's, where a crate was
+// spawned), their frames "w<k>/..."; a robot teleported in it moves there only.
 async function worlds(s) {
   const made = await s.call('/simulation/create_world', {});
   check(made.ok, 'create_world answers: ' + JSON.stringify(made));
@@ -260,11 +262,44 @@ async function worlds(s) {
                 `the services of ${world.name} advertised`);
   const robots = await s.call(`${prefix}/simulation/list_robots`, {});
   check(robots.ok && JSON.parse(robots.data).includes('robot'), `${prefix}/simulation/list_robots: ` + JSON.stringify(robots));
+
+  const topics = ['/robot/pose', '/tf', '/scene'];
+  await s.until(() => topics.every((t) => s.channel(prefix + t)), `the channels of ${world.name} advertised`);
+  const moved = await s.call(`${prefix}/robot/teleport/translate`, { x: 0, y: 3 });
+  check(moved.ok, `${prefix}/robot/teleport/translate: ` + JSON.stringify(moved));
+  const sub = {};  // world 1's channels and world 0's
+  for (const t of [...topics.map((t) => prefix + t), '/robot/pose', '/tf'])
+    sub[t] = s.client.subscribe(s.channel(t).id);
+  const last = (topic) => JSON.parse(s.messages.get(sub[topic]).at(-1).data);
+  const has = (topic) => (s.messages.get(sub[topic]) || []).length > 0;
+  const robotIn = (tf, frame) => tf.transforms.find((t) => t.child_frame_id === frame);
+  await s.until(() => has(`${prefix}/robot/pose`) && last(`${prefix}/robot/pose`).y > 2.5,
+                `${prefix}/robot/pose where the robot was teleported`);
+  await s.until(() => has(`${prefix}/tf`) && robotIn(last(`${prefix}/tf`), `${world.name}/robot`) &&
+                      robotIn(last(`${prefix}/tf`), `${world.name}/robot`).translation.y > 2.5,
+                `${prefix}/tf: ${world.name}/world -> ${world.name}/robot where it was teleported`);
+  const tf = last(`${prefix}/tf`);
+  check(tf.transforms.every((t) => t.parent_frame_id.startsWith(world.name + '/') && t.child_frame_id.startsWith(world.name + '/')),
+        `${prefix}/tf: every frame is ${world.name}'s: ` + JSON.stringify(tf.transforms.map((t) => [t.parent_frame_id, t.child_frame_id])));
+  check(robotIn(tf, `${world.name}/robot`).parent_frame_id === `${world.name}/world`, `${prefix}/tf: the robot hangs from ${world.name}/world`);
+  // world 0 did not move
+  await s.until(() => has('/robot/pose') && has('/tf'), 'world 0\'s pose and /tf');
+  check(Math.abs(last('/robot/pose').y) < 1, 'world 0\'s robot stayed: ' + JSON.stringify(last('/robot/pose')));
+  check(Math.abs(robotIn(last('/tf'), 'robot').translation.y) < 1, '/tf: world 0\'s robot stayed');
+  // its scene: its bodies on its frames, not the crate spawned in world 0
+  await s.until(() => has(`${prefix}/scene`), `${prefix}/scene`);
+  const scene = last(`${prefix}/scene`);
+  check(scene.entities.some((e) => e.frame_id === `${world.name}/robot`) &&
+        scene.entities.every((e) => e.frame_id.startsWith(world.name + '/') && e.frame_id !== `${world.name}/crate`),
+        `${prefix}/scene: ${world.name}'s bodies: ` + JSON.stringify(scene.entities.map((e) => [e.id, e.frame_id])));
+  for (const id of Object.values(sub)) s.client.unsubscribe(id);
+
   const gone = await s.call('/simulation/delete_world', { world: world.world });
   check(gone.ok, 'delete_world answers: ' + JSON.stringify(gone));
-  await s.until(() => ![...s.services.values()].some((x) => x.name.startsWith(prefix + '/')),
-                `the services of ${world.name} unadvertised`);
-  check(s.service('/simulation/list_robots'), 'world 0\'s services stay');
+  await s.until(() => ![...s.services.values()].some((x) => x.name.startsWith(prefix + '/')) &&
+                      ![...s.channels.values()].some((c) => c.topic.startsWith(prefix + '/')),
+                `the services and channels of ${world.name} unadvertised`);
+  check(s.service('/simulation/list_robots') && s.channel('/tf'), 'world 0\'s services and channels stay');
 }
 
 runTest(process.argv.slice(2), TOTAL_TIMEOUT_MS, `foxglove transport with @foxglove/ws-protocol (${SUBPROTOCOLS.join(', ')})`,

@@ -77,6 +77,28 @@ TEST(FoxgloveScene, ComponentsFramesHangFromTheirBodies) {
   EXPECT_EQ(laser["timestamp"], (json{{"sec", 1}, {"nsec", 250000000}}));
 }
 
+TEST(FoxgloveScene, AWorldsFramesBeginWithItsPrefix) {
+  // world 1's frames apart from world 0's in a client that shows both: every frame id,
+  // the root's and the components' too, begins "w1/"; the scene's entities hang from them
+  json g = geometry();
+  g["frames"] = {{{"name", "arm.laser"}, {"body", 1}}};
+  const SceneFrames frames = SceneFrames::from_geometry(g, "w1/");
+  EXPECT_EQ(frames.names, (std::vector<std::string>{"w1/world", "w1/arm", "w1/body2"}));
+  const json poses{
+      {"generation", 3},
+      {"poses", {{0, 0, 0, 1, 0, 0, 0}, {1, 2, 3, 1, 0, 0, 0}, {4, 5, 6, 1, 0, 0, 0}}}};
+  const json message = json::parse(frame_transforms(poses, frames));
+  ASSERT_EQ(message["transforms"].size(), 3u);
+  EXPECT_EQ(message["transforms"][0]["parent_frame_id"], "w1/world");
+  EXPECT_EQ(message["transforms"][0]["child_frame_id"], "w1/arm");
+  EXPECT_EQ(message["transforms"][2]["parent_frame_id"], "w1/arm");
+  EXPECT_EQ(message["transforms"][2]["child_frame_id"], "w1/arm.laser");
+  const json scene = json::parse(scene_update(g, frames));
+  ASSERT_FALSE(scene["entities"].empty());
+  for (const json& entity : scene["entities"])
+    EXPECT_TRUE(entity["frame_id"].get<std::string>().starts_with("w1/")) << entity["frame_id"];
+}
+
 TEST(FoxgloveScene, BodyPosesBecomeTransformsFromTheWorld) {
   const SceneFrames frames = SceneFrames::from_geometry(geometry());
   const json poses{

@@ -21,11 +21,11 @@ import pytest
 SOURCE_DIR = os.environ.get("SIMGATE_SOURCE_DIR") or os.path.abspath(
     os.path.join(os.path.dirname(__file__), "..", ".."))
 START_TIMEOUT = 60
-# DOMAINS domains of this session's own (DOMAIN_BASE + 0 .. 5 within 1 .. 230: the rover, the
-# arm, the pose rover, the services' and the action's simulations, the sensors' rover), so that
-# parallel runs do not see each other (two sessions share theirs only when their pids agree
-# modulo 38)
-DOMAINS = 6
+# DOMAINS domains of this session's own (DOMAIN_BASE + 0 .. 6 within 1 .. 230: the rover, the
+# arm, the pose rover, the services' and the action's simulations, the sensors' rover, the
+# rover of two worlds), so that parallel runs do not see each other (two sessions share theirs
+# only when their pids agree modulo 32)
+DOMAINS = 7
 DOMAIN_BASE = 1 + (os.getpid() % (230 // DOMAINS)) * DOMAINS
 
 
@@ -201,6 +201,22 @@ def sensor_rover(tmp_path_factory, sensors_domain):
                          "rover.camera": ["ros2"], "rover.depth": ["ros2", "socket"],
                          "simulation": {"transports": ["ros2"], "frequency": 10}}
     gw = Gateway(tmp_path_factory.mktemp("sensors"), config, "sensors")
+    yield gw
+    gw.kill()
+
+
+@pytest.fixture(scope="session")
+def worlds_domain():
+    return DOMAIN_BASE + 6
+
+
+@pytest.fixture(scope="session")
+def worlds_rover(tmp_path_factory, worlds_domain):
+    """config/ros2.json in two worlds (docs/worlds.md): world 0's topics as ever, world 1's in
+    the namespace /w1, on `worlds_domain`."""
+    config = ros2_config("ros2.json", worlds_domain)
+    config["worlds"] = 2
+    gw = Gateway(tmp_path_factory.mktemp("worlds"), config, "worlds")
     yield gw
     gw.kill()
 

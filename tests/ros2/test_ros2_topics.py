@@ -412,6 +412,58 @@ def test_joint_state_bytes_are_ros2_cdr(arm, arm_domain):
         recorder.close()
 
 
+# ---- two worlds: world 1's topics in its namespace ----
+
+def test_a_worlds_topics_are_in_its_namespace_and_its_own(worlds_rover, worlds_domain):
+    """World 1's streams on /w1/...: its /w1/tf and /w1/tf_static (frames named as world 0's:
+    each world's tree is its own), its robot's /w1/robot/odom and /w1/robot/cmd_vel; a robot
+    teleported in world 1 shows on /w1/tf only, a Twist on /w1/robot/cmd_vel drives world 1's
+    robot only."""
+    node = Node(worlds_domain)
+    client = worlds_rover.socket()
+    tf0 = node.reader("rt/tf", ros.TFMessage)
+    tf1 = node.reader("rt/w1/tf", ros.TFMessage)
+    odom1 = node.reader("rt/w1/robot/odom", ros.Odometry)
+    static1 = first(node.reader("rt/w1/tf_static", ros.TFMessage, LATCHED_QOS))
+    scene = client.call("w1/simulation", "get_scene_geometry", False)
+    expected = {f["name"].replace(".", "/"): scene["bodies"][f["body"]]["name"]
+                for f in scene["frames"]}
+    assert {t.child_frame_id: t.header.frame_id for t in static1.transforms} == expected
+    message = first(tf1)
+    assert sorted(t.child_frame_id for t in message.transforms) == sorted(
+        b["name"] for b in scene["bodies"][1:])
+    before = first(odom1)
+    assert (before.header.frame_id, before.child_frame_id) == ("robot/odom", "robot/odometry")
+
+    # teleported in world 1: there on /w1/tf, not on /tf
+    client.call("w1/robot.teleport", "translate", 0, 3)
+
+    def robot_y(sample):
+        return next(t.transform.translation.y for t in sample.transforms
+                    if t.child_frame_id == "robot")
+    take_until(tf1, lambda s: robot_y(s) > 2.5)
+    assert abs(robot_y(take_until(tf0, lambda s: True)[-1])) < 1
+
+    # driven on /w1/robot/cmd_vel: world 1's robot moves, world 0's stays
+    x0 = client.call("simulation", "get_object_pose", "robot")[0][0]
+    cmd_vel = node.writer("rt/w1/robot/cmd_vel", ros.Twist)
+    try:
+        start = first(odom1).pose.pose.position.x
+        deadline = time.monotonic() + WAIT
+        moved = False
+        while time.monotonic() < deadline and not moved:
+            cmd_vel.write(ros.Twist(linear=ros.Vector3(x=0.5), angular=ros.Vector3(z=0.0)))
+            moved = any(s.pose.pose.position.x > start + 0.2 for s in odom1.take(N=64))
+            time.sleep(0.05)  # a teleop's 20 Hz, bounded by the deadline
+        assert moved, "world 1's robot did not move on /w1/robot/cmd_vel"
+    finally:
+        cmd_vel.write(ros.Twist())
+    assert client.call("w1/simulation", "get_object_pose", "robot")[0][0] > 0.2
+    assert client.call("simulation", "get_object_pose", "robot")[0][0] == pytest.approx(
+        x0, abs=0.02)
+    client.close()
+
+
 # ---- a robot with a pose sensor only; the options ----
 
 def test_pose_sensor_gives_odom_in_the_world_frame(pose_rover, pose_domain):

@@ -175,7 +175,7 @@ bool add_geom(json& e, const json& g, const json& meshes, const json& hfields) {
 
 }  // namespace
 
-SceneFrames SceneFrames::from_geometry(const json& geometry) {
+SceneFrames SceneFrames::from_geometry(const json& geometry, std::string_view prefix) {
   SceneFrames f;
   if (!geometry.is_object()) return f;
   f.generation = generation_of(geometry).value_or(0);
@@ -185,7 +185,7 @@ SceneFrames SceneFrames::from_geometry(const json& geometry) {
     const std::size_t id = f.names.size();
     std::string name = b.is_object() ? b.value("name", "") : "";
     if (name.empty()) name = id == 0 ? "world" : "body" + std::to_string(id);
-    f.names.push_back(std::move(name));
+    f.names.push_back(std::string(prefix) + name);
   }
   const auto fixed = geometry.find("frames");
   if (fixed == geometry.end() || !fixed->is_array()) return f;
@@ -196,7 +196,7 @@ SceneFrames SceneFrames::from_geometry(const json& geometry) {
     const auto body = c["body"].get<std::int64_t>();
     if (body < 0 || static_cast<std::size_t>(body) >= f.names.size()) continue;
     SceneFrames::Fixed frame;
-    frame.name = c["name"].get<std::string>();
+    frame.name = std::string(prefix) + c["name"].get<std::string>();
     frame.body = static_cast<std::size_t>(body);
     const json& pos = c.contains("pos") ? c["pos"] : json::array();
     const json& quat = c.contains("quat") ? c["quat"] : json::array();

@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "simgate/core/status.h"
@@ -20,7 +21,9 @@
 namespace simgate::foxglove {
 
 // The frames of a model: each body's frame id (its name; "world" for body 0, "body<id>"
-// for an unnamed one), from a get_scene_geometry answer.
+// for an unnamed one), from a get_scene_geometry answer. Every frame id (the bodies', the
+// components') begins with the `prefix` given (a world's "w1/": its frames apart from world
+// 0's, which have none, in a client that shows both).
 struct SceneFrames {
   std::uint64_t generation = 0;    // the answer's generation (changes with the model)
   std::vector<std::string> names;  // by body id
@@ -34,7 +37,7 @@ struct SceneFrames {
   };
   std::vector<Fixed> fixed;
   bool known() const { return !names.empty(); }
-  static SceneFrames from_geometry(const json& geometry);
+  static SceneFrames from_geometry(const json& geometry, std::string_view prefix = {});
 };
 
 inline constexpr const char* k_frame_transforms = "foxglove.FrameTransforms";
