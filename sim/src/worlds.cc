@@ -3,6 +3,7 @@
 #include <mujoco/mujoco.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <exception>
 #include <limits>
@@ -11,6 +12,7 @@
 #include <optional>
 #include <string>
 
+#include "simgate/core/base64.h"
 #include "simgate/core/call_context.h"
 #include "simgate/core/errors.h"
 #include "simgate/core/service.h"
@@ -90,21 +92,30 @@ std::size_t pool_threads(std::size_t threads) {
 // The arrays step_many can read of a world, by name.
 const std::vector<std::string> k_observable = {"qpos", "qvel", "act", "ctrl", "sensordata"};
 
-json array_of(const mjtNum* values, int count) {
+// An observed array as step_many's `encoding` says: JSON numbers, or (`base64`) the
+// doubles' bytes, IEEE 754 binary64 little-endian, in base64 (exact, and no number to
+// format or parse).
+json array_of(const mjtNum* values, int count, bool base64) {
+  const auto n = static_cast<std::size_t>(std::max(count, 0));
+  if (base64) {
+    static_assert(std::endian::native == std::endian::little && sizeof(mjtNum) == 8,
+                  "encoding base64 sends the doubles' bytes as they are in memory");
+    return base64_encode({reinterpret_cast<const std::uint8_t*>(values), n * sizeof(mjtNum)});
+  }
   json out = json::array();
-  out.get_ref<json::array_t&>().reserve(static_cast<std::size_t>(std::max(count, 0)));
-  for (int i = 0; i < count; ++i) out.push_back(values[i]);
+  out.get_ref<json::array_t&>().reserve(n);
+  for (std::size_t i = 0; i < n; ++i) out.push_back(values[i]);
   return out;
 }
 
-json read(const Simulation& world, const std::string& what) {
+json read(const Simulation& world, const std::string& what, bool base64) {
   const mjModel* m = world.m();
   const mjData* d = world.d();
-  if (what == "qpos") return array_of(d->qpos, m->nq);
-  if (what == "qvel") return array_of(d->qvel, m->nv);
-  if (what == "act") return array_of(d->act, m->na);
-  if (what == "ctrl") return array_of(d->ctrl, m->nu);
-  return array_of(d->sensordata, m->nsensordata);
+  if (what == "qpos") return array_of(d->qpos, m->nq, base64);
+  if (what == "qvel") return array_of(d->qvel, m->nv, base64);
+  if (what == "act") return array_of(d->act, m->na, base64);
+  if (what == "ctrl") return array_of(d->ctrl, m->nu, base64);
+  return array_of(d->sensordata, m->nsensordata, base64);
 }
 
 // One of `reads` in one world: its service, and its arguments bound (into the call's params).
@@ -207,21 +218,24 @@ const std::vector<std::string>& Worlds::default_observation() {
 void Worlds::add_to(SupervisionServices& world0) {
   world0
       .offer_service("step_many",
-                     [this](json worlds, std::int64_t n, json actions, json observe, json reads) {
-                       return step_many(worlds, n, actions, observe, reads);
+                     [this](json worlds, std::int64_t n, json actions, json observe, json reads,
+                            std::string encoding) {
+                       return step_many(worlds, n, actions, observe, reads, encoding);
                      },
                      {Param("worlds", nullptr), Param("n", 1), Param("actions", nullptr),
-                      Param("observe", default_observation()), Param("reads", json::array())})
+                      Param("observe", default_observation()), Param("reads", json::array()),
+                      Param("encoding", "json")})
       .doc(
           "steps many worlds in one call: for each of `worlds` (all when null) sets its "
           "actuators' controls to its entry of `actions` (one number per actuator; null keeps "
           "them, a null control keeps that one), takes `n` steps, and reads `observe` (qpos, "
-          "qvel, act, ctrl, sensordata) and `reads` (services of each world, "
+          "qvel, act, ctrl, sensordata; as numbers, or with `encoding` base64 each array's "
+          "float64 little-endian bytes in base64) and `reads` (services of each world, "
           "[{component, service, params}]); the worlds step in parallel (docs/worlds.md)");
 }
 
 json Worlds::step_many(const json& worlds, std::int64_t n, const json& actions, const json& observe,
-                       const json& reads) {
+                       const json& reads, const std::string& encoding) {
   // ---- the arguments that need no world
   std::vector<unsigned> named;
   if (worlds.is_null()) {
@@ -262,6 +276,12 @@ json Worlds::step_many(const json& worlds, std::int64_t n, const json& actions, 
           "expected one of qpos, qvel, act, ctrl, sensordata, found " + describe_json(observe[i]));
     observed.push_back(observe[i].get<std::string>());
   }
+  if (encoding != "json" && encoding != "base64")
+    refuse("encoding",
+           "expected json (numbers) or base64 (each array's float64 little-endian "
+           "bytes), found '" +
+               encoding + "'");
+  const bool base64 = encoding == "base64";
   if (!reads.is_array())
     refuse("reads", "expected an array of {\"component\", \"service\", \"params\"}, found " +
                         describe_json(reads));
@@ -332,7 +352,7 @@ json Worlds::step_many(const json& worlds, std::int64_t n, const json& actions, 
       }
       out["steps_done"] = sim.statistics().steps - before.steps;
       out["sim_time"] = sim.sim_time();
-      for (const std::string& what : observed) out[what] = read(sim, what);
+      for (const std::string& what : observed) out[what] = read(sim, what, base64);
       if (!slot.reads.empty()) {
         json& results = out["reads"] = json::array();
         for (std::size_t r = 0; r < slot.reads.size(); ++r) {

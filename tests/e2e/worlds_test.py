@@ -28,8 +28,10 @@ own, addressed as "w<k>/<component>" on every transport; world 0 keeps its names
 Every wait is bounded.
 """
 import argparse
+import base64
 import json
 import os
+import struct
 import subprocess
 import sys
 import tempfile
@@ -185,6 +187,20 @@ class WorldsTest(WorldsGateway):
         self.assertEqual({k: v for k, v in together[0].items() if k != "world"},
                          {k: v for k, v in together[1].items() if k != "world"})
 
+    def test_6b_step_many_in_base64_gives_the_same_doubles(self):
+        observe = ["qpos", "qvel", "ctrl", "sensordata"]
+        params = {"worlds": [1], "n": 7, "actions": [[0.25, -0.5]], "observe": observe}
+        self.ok("w1/simulation reset")
+        numbers = self.rpc("simulation.step_many", params)["result"]["worlds"][0]
+        self.ok("w1/simulation reset")
+        encoded = self.rpc("simulation.step_many", dict(params, encoding="base64"))["result"]["worlds"][0]
+        self.assertEqual(encoded["steps_done"], 7)
+        for what in observe:
+            raw = base64.b64decode(encoded[what])
+            self.assertEqual(len(raw), 8 * len(numbers[what]), what)
+            # IEEE 754 binary64, little-endian: bit for bit the numbers JSON gives
+            self.assertEqual(list(struct.unpack("<%dd" % len(numbers[what]), raw)), numbers[what], what)
+
     def test_7_step_many_refuses_what_does_not_fit_before_anything_steps(self):
         before = [self.snapshot(k) for k in range(WORLDS)]
         for params, parameter, words in [
@@ -195,6 +211,7 @@ class WorldsTest(WorldsGateway):
                 ({"actions": [None]}, "actions", "one entry per world named (3"),
                 ({"n": 0}, "n", "expected 1 to 1000000 steps"),
                 ({"observe": ["qpos", "xpos"]}, "observe[1]", "expected one of qpos, qvel"),
+                ({"encoding": "hex"}, "encoding", "expected json (numbers) or base64"),
                 ({"worlds": [1], "actions": [[float("1e300"), 0]]}, "actions[0][0]", "out of bounds")]:
             error = self.rpc("simulation.step_many", params)["error"]
             self.assertEqual(error["code"], -32602, error)

@@ -5,9 +5,10 @@
 // (its own model, components and simulation lock). Worlds knows them, in order, and offers
 // on world 0's `simulation` component:
 //
-//   step_many(worlds, n, actions, observe, reads): for each world named (all by default),
-//   sets its actuators' controls to its action (one number per actuator, in the model's
-//   order; null keeps them, or one), takes n steps, and reads what `observe` names and the
+//   step_many(worlds, n, actions, observe, reads, encoding): for each world named (all by
+//   default), sets its actuators' controls to its action (one number per actuator, in the
+//   model's order; null keeps them, or one), takes n steps, and reads what `observe` names
+//   (as JSON numbers, or with encoding "base64" each array's float64 bytes) and the
 //   services `reads` names (synchronous ones of its components, as the caller may call
 //   them); one reply for all. Every
 //   world named is locked first (in order: no two callers can deadlock), the arguments are
@@ -87,7 +88,7 @@ class Worlds {
   // The service (see above). Under world 0's lock; throws ServiceError (bad_arguments,
   // naming the parameter) having changed nothing when the arguments do not fit.
   json step_many(const json& worlds, std::int64_t n, const json& actions, const json& observe,
-                 const json& reads);
+                 const json& reads, const std::string& encoding = "json");
   // What step_many reads when `observe` is not given.
   static const std::vector<std::string>& default_observation();
   // Each world in order: {world, name ("w3"), state, sim_time, steps, actuators (MuJoCo's
