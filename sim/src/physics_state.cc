@@ -1,5 +1,6 @@
 #include "simgate/sim/physics_state.h"
 
+#include <cstring>
 #include <utility>
 
 namespace simgate::sim {
@@ -50,6 +51,20 @@ void PhysicsState::apply(const mjModel* m, mjData* d) const {
 
 void PhysicsState::apply_warmstart(const mjModel* m, mjData* d) const {
   mj_setState(m, d, values_.data() + warmstart_offset(m), mjSTATE_WARMSTART);
+}
+
+void EvaluatedState::capture(const mjModel* m, const mjData* d, std::uint64_t generation) {
+  values_.resize(static_cast<std::size_t>(mj_stateSize(m, k_signature)));
+  mj_getState(m, d, values_.data(), k_signature);
+  model_ = m;
+  generation_ = generation;
+}
+
+bool EvaluatedState::is_current(const mjModel* m, const mjData* d, std::uint64_t generation) {
+  if (m != model_ || generation != generation_) return false;
+  now_.resize(values_.size());
+  mj_getState(m, d, now_.data(), k_signature);
+  return std::memcmp(now_.data(), values_.data(), values_.size() * sizeof(mjtNum)) == 0;
 }
 
 }  // namespace simgate::sim

@@ -246,7 +246,7 @@ void Simulation::step() {
     // mj_step evaluates the state it starts from, then integrates (a bad state's recovery
     // below evaluates the restored state anew)
     state_time_ = time_before;
-    mj_step(m(), d());
+    take_mj_step();
     // undone (pause): no step was taken, nothing new to publish
     if (check_mujoco_warnings(time_before)) return;
     if (checkpoint_due && bad_states_ == divergences)
@@ -467,6 +467,30 @@ void Simulation::reset_all() {
 void Simulation::forward() {
   mj_forward(m(), d());
   state_time_ = d()->time;
+  if (m()->opt.integrator == mjINT_RK4) evaluated_.capture(m(), d(), model_generation_);
+}
+
+void Simulation::take_mj_step() {
+  mjModel* model = m();
+  mjData* data = d();
+  // RK4 ends each step with forward() (Simulation::step): when the state is still the one
+  // it evaluated, mj_step's own evaluation of it would compute the position and velocity
+  // stages again to the same bits, so only the acceleration stage (controls and applied
+  // forces, which may have changed) is evaluated: mj_step's parts, in its order. Not with
+  // sleeping islands (which change what a stage computes between steps).
+  if (model->opt.integrator != mjINT_RK4 || (model->opt.enableflags & mjENBL_SLEEP) != 0) {
+    mj_step(model, data);
+    return;
+  }
+  mj_checkPos(model, data);
+  mj_checkVel(model, data);
+  if (evaluated_.is_current(model, data, model_generation_))
+    mj_forwardSkip(model, data, mjSTAGE_VEL, 0);
+  else
+    mj_forward(model, data);
+  mj_checkAcc(model, data);
+  if ((model->opt.enableflags & mjENBL_FWDINV) != 0) mj_compareFwdInv(model, data);
+  mj_RungeKutta(model, data, 4);
 }
 
 bool Simulation::check_mujoco_warnings(double time_before) {

@@ -6,8 +6,10 @@
 // suspended dynamics evaluate the current state: then every timestamp is the current time.
 // armature_pose reads qpos, the integrated state: its timestamp is always the current time.
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <map>
+#include <memory>
 
 #include "mjcf_fixture.h"
 
@@ -189,6 +191,58 @@ TEST_F(MjcfSim, WithTheRk4IntegratorEachStepIsEvaluatedWhereItEnded) {
   EXPECT_EQ(pose["z"].get<double>(), sensors["z"][2].get<double>());
   EXPECT_EQ(pose["z"].get<double>(), sim_->d()->qpos[2]);  // the free joint's z: where it is now
   EXPECT_LT(pose["z"].get<double>(), 0.9);                 // it fell
+}
+
+TEST_F(MjcfSim, AnRk4StepGivesBitForBitWhatMjStepAndAnEvaluationGive) {
+  // Simulation::take_mj_step leaves out the position and velocity stages of mj_step's own
+  // evaluation when the state is the one the previous step's evaluation left: the same
+  // numbers, to the bit, as mj_step then mj_forward (the reference, a copy stepped alongside)
+  // with controls changing between steps, contacts, an accelerometer (acceleration stage),
+  // a mocap body and a joint moved between two steps (which need the whole evaluation)
+  load_string(R"(<mujoco><option integrator="RK4" timestep="0.005"/><worldbody>
+    <geom type="plane" size="5 5 0.1"/>
+    <body name="target" mocap="true" pos="0 1 0.5"><geom type="box" size="0.05 0.05 0.05" contype="0" conaffinity="0"/></body>
+    <body name="arm" pos="0 0 0.3"><joint name="hinge" type="hinge" axis="0 1 0"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.04"/><site name="tip" pos="0.3 0 0"/>
+      <body pos="0.3 0 0"><joint name="slide" type="slide" axis="1 0 0" range="-0.1 0.1"/>
+        <geom type="sphere" size="0.06"/></body></body>
+    <body name="ball" pos="0.5 0.5 0.2"><freejoint/><geom type="sphere" size="0.08"/></body>
+  </worldbody>
+  <equality><weld body1="target" body2="ball" active="false"/></equality>
+  <actuator><motor joint="hinge" gear="2"/><position joint="slide" kp="50"/></actuator>
+  <sensor><accelerometer site="tip"/><framepos objtype="xbody" objname="ball"/></sensor></mujoco>)");
+  mjModel* m = sim_->m();
+  mjData* d = sim_->d();
+  std::unique_ptr<mjData, void (*)(mjData*)> ref(mj_makeData(m), mj_deleteData);
+  mj_copyData(ref.get(), m, d);
+  const auto same = [&](const char* what, const mjtNum* a, const mjtNum* b, int n, int step) {
+    ASSERT_EQ(std::memcmp(a, b, sizeof(mjtNum) * static_cast<std::size_t>(n)), 0)
+        << what << " differs after step " << step;
+  };
+  for (int step = 1; step <= 400; ++step) {
+    const double ctrl[2] = {std::sin(step * 0.05), 0.1 * std::cos(step * 0.03)};
+    for (mjData* data : {d, ref.get()}) {
+      data->ctrl[0] = ctrl[0];
+      data->ctrl[1] = ctrl[1];
+      if (step == 150) data->mocap_pos[0] = 0.2;  // moved between two steps
+      if (step == 250) data->eq_active[0] = 1;    // the weld switched on
+    }
+    if (step == 300) {  // a joint set at once, as a teleport does, then evaluated
+      d->qpos[0] = ref->qpos[0] = 0.4;
+      sim_->forward();
+      mj_forward(m, ref.get());
+    }
+    sim_->step();
+    mj_step(m, ref.get());
+    mj_forward(m, ref.get());
+    same("qpos", d->qpos, ref->qpos, m->nq, step);
+    same("qvel", d->qvel, ref->qvel, m->nv, step);
+    same("qacc", d->qacc, ref->qacc, m->nv, step);
+    same("qacc_warmstart", d->qacc_warmstart, ref->qacc_warmstart, m->nv, step);
+    same("sensordata", d->sensordata, ref->sensordata, m->nsensordata, step);
+    same("xpos", d->xpos, ref->xpos, 3 * m->nbody, step);
+  }
+  EXPECT_GT(sim_->d()->ncon, 0);  // the ball lies on the plane
 }
 
 }  // namespace

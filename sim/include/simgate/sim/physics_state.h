@@ -55,6 +55,28 @@ class PhysicsState {
   std::vector<mjtNum> values_;    // the arrays, one after the other (physics_state.cc)
 };
 
+// The state an evaluation's position and velocity stages depend on (time, qpos, qvel, act,
+// history, plastic and plugin state, mocap poses, eq_active), as one evaluation
+// (Simulation::forward) saw it: while the state is still that one, those stages' results in
+// mjData are still the state's, and an RK4 step from it need only evaluate the acceleration
+// stage again (Simulation::take_mj_step). Controls and applied forces are not in it: only
+// the acceleration stage reads them.
+class EvaluatedState {
+ public:
+  // The state of `d` now (`generation`: Simulation::model_generation() of `m`).
+  void capture(const mjModel* m, const mjData* d, std::uint64_t generation);
+  // Whether `d`'s state is the one captured, bit for bit, of the same model.
+  bool is_current(const mjModel* m, const mjData* d, std::uint64_t generation);
+
+ private:
+  static constexpr int k_signature =
+      mjSTATE_FULLPHYSICS | mjSTATE_MOCAP_POS | mjSTATE_MOCAP_QUAT | mjSTATE_EQ_ACTIVE;
+  const mjModel* model_ = nullptr;  // null: none captured
+  std::uint64_t generation_ = 0;
+  std::vector<mjtNum> values_;  // mj_getState(k_signature)
+  std::vector<mjtNum> now_;     // is_current's, kept between calls (no allocation)
+};
+
 }  // namespace simgate::sim
 
 #endif  // SIMGATE_SIM_PHYSICS_STATE_H_

@@ -395,6 +395,10 @@ class Simulation {
   // a bad state (MuJoCo's reset) by the divergence policy (diverged()). `time_before`: the
   // simulated time the step started from. True when the step was undone (pause).
   bool check_mujoco_warnings(double time_before);
+  // mj_step; for an RK4 model from the state forward() last evaluated (evaluated_, which
+  // nothing moved since), mj_step's own parts with its evaluation's position and velocity
+  // stages left out: they would compute what is in mjData already, to the same bits.
+  void take_mj_step();
   // Applies the divergence policy to the step from `time_before` that MuJoCo found `what`
   // in (`quantity` of `where`); true when the step was undone.
   bool diverged(double time_before, const std::string& what, std::string quantity,
@@ -441,6 +445,7 @@ class Simulation {
   DivergencePolicy on_divergence_;             // see SimulationOptions
   std::optional<Divergence> last_divergence_;  // see last_divergence()
   PhysicsState before_step_;                   // pause: the state the step started from
+  EvaluatedState evaluated_;                   // RK4: the state forward() last evaluated
   PhysicsState checkpoint_;                    // restore: the last checkpoint
   PhysicsState next_checkpoint_;  // restore: the one being taken (kept if its step goes well)
   std::vector<std::string> spawn_allowed_dirs_;  // see SimulationOptions
