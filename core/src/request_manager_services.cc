@@ -193,17 +193,11 @@ Outcome RequestManager::unknown_service(const Call& call) const {
   std::string why;
   if (const auto address = world_address(call.component); address && address->first != 0) {
     // a world this transport does not serve (route() sends the others there)
-    json there = json::array({"w0"});
-    std::string list = "w0";
-    for (const unsigned world : worlds()) {
-      there.push_back("w" + std::to_string(world));
-      list += ", " + there.back().get<std::string>();
-    }
-    why = "no world 'w" + std::to_string(address->first) + "' (the worlds here: " + list + ")";
     return Outcome::failed(
         Failure::unknown_service,
-        "The request " + call.service + " has not been registered in " + name_ + ": " + why,
-        json{{"component", call.component}, {"service", call.service}, {"worlds", there}});
+        "The request " + call.service + " has not been registered in " + name_ + ": " +
+            no_world(address->first),
+        json{{"component", call.component}, {"service", call.service}, {"worlds", world_names()}});
   }
   {
     std::lock_guard lock(table_mutex_);

@@ -7,6 +7,7 @@
 #include "request_inbox.h"
 #include "request_worlds.h"
 #include "simgate/core/request_manager.h"
+#include "simgate/core/text.h"
 
 namespace simgate {
 
@@ -81,7 +82,7 @@ class RequestManager::WorldStreams final : public StreamDirectory {
   PublishResult publish(std::string_view component, std::string_view transport,
                         json command) override {
     const Target t = target(component);
-    if (!t.hub) return {.error = no_world(component)};
+    if (!t.hub) return {.error = std::string(component) + ": " + transport_.no_world(t.world)};
     return t.hub->publish(t.name, transport, std::move(command));
   }
 
@@ -103,21 +104,16 @@ class RequestManager::WorldStreams final : public StreamDirectory {
 
  private:
   // Where a stream's address leads: a hub (null: no world of that number), its name there,
-  // and the world's gate to lock for sample_now (null: world 0's, the caller's own).
+  // the world's gate to lock for sample_now (null: world 0's, the caller's own), the world.
   struct Target {
     std::shared_ptr<StreamHub> hub;
     std::string_view name;
     std::shared_ptr<SimulationGate> gate;
+    unsigned world = 0;
   };
 
   StreamHub& hub() const { return *transport_.stream_hub_; }
   static std::string prefix(unsigned world) { return "w" + std::to_string(world) + "/"; }
-  std::string no_world(std::string_view component) const {
-    std::string worlds = "w0";
-    for (unsigned world : transport_.worlds())
-      worlds += ", " + prefix(world).substr(0, prefix(world).size() - 1);
-    return "no world serves " + std::string(component) + ": the worlds are " + worlds;
-  }
 
   std::vector<std::pair<unsigned, std::shared_ptr<RequestManager>>> world_managers() const {
     std::lock_guard lock(transport_.worlds_->mutex);
@@ -131,8 +127,8 @@ class RequestManager::WorldStreams final : public StreamDirectory {
     const std::string_view name = component.substr(name_at);
     if (world == 0) return {transport_.stream_hub_, name, nullptr};
     const auto manager = transport_.worlds_->find(world);
-    if (!manager) return {};
-    return {manager->stream_hub_, name, manager->gate()};
+    if (!manager) return {.world = world};
+    return {manager->stream_hub_, name, manager->gate(), world};
   }
 
   RequestManager& transport_;
@@ -188,6 +184,16 @@ void RequestManager::detach_world(unsigned world) {
     if (worlds_->managers.erase(world) == 0) return;
   }
   notify_services_changed();
+}
+
+std::string RequestManager::no_world(unsigned world) const {
+  return "no world 'w" + std::to_string(world) + "' (the worlds here: " + join(world_names()) + ")";
+}
+
+std::vector<std::string> RequestManager::world_names() const {
+  std::vector<std::string> out{"w0"};
+  for (const unsigned world : worlds()) out.push_back("w" + std::to_string(world));
+  return out;
 }
 
 std::vector<unsigned> RequestManager::worlds() const {

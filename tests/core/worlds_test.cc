@@ -306,7 +306,7 @@ TEST_F(WorldStreams, CommandsGoToTheirWorldAndAWorldThereIsNotIsNamed) {
   EXPECT_TRUE(motion0_.last.is_null());
   const PublishResult refused = streams.publish("w4/robot.motion", "t", {{"v", 1}});
   EXPECT_FALSE(refused.ok);
-  EXPECT_NE(refused.error.find("the worlds are w0, w1"), std::string::npos) << refused.error;
+  EXPECT_NE(refused.error.find("the worlds here: w0, w1"), std::string::npos) << refused.error;
   EXPECT_TRUE(streams.note_refused("w1/robot.motion", "t", "not JSON"));
   EXPECT_EQ(hub1_->statistics()[1].refused, 1u);
 }

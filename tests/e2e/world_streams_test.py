@@ -155,7 +155,7 @@ class WorldStreamsTest(world_test.GatewayTestCase):
             self.assertEqual(self.pose("")["yaw"], 0)  # world 0's robot did not turn
             refused, _ = self.call("rpc.publish", {"component": "w5/robot.motion",
                                                    "data": {"v": 1}})
-            self.assertIn("the worlds are w0, w1", refused["error"]["message"])
+            self.assertIn("the worlds here: w0, w1", refused["error"]["message"])
         finally:
             self.call("rpc.unsubscribe", {"subscription": sub})
             self.call("rpc.streams")  # what was queued before the unsubscribe, read past

@@ -312,6 +312,11 @@ class RequestManager {
   void detach_world(unsigned world);
   // The worlds attached, in order.
   std::vector<unsigned> worlds() const;
+  // "no world 'w7' (the worlds here: w0, w1, w2)": what a call or a stream of world `world`,
+  // which is not attached, is told. With the names (world_names()).
+  std::string no_world(unsigned world) const;
+  // "w0" and the attached worlds' names, in order.
+  std::vector<std::string> world_names() const;
   // "w<k>/<name>": k and where <name> starts, or nullopt (not a world's address).
   static std::optional<std::pair<unsigned, std::size_t>> world_address(std::string_view component);
 
