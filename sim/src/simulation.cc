@@ -252,7 +252,8 @@ void Simulation::step() {
     if (checkpoint_due && bad_states_ == divergences)
       std::swap(checkpoint_, next_checkpoint_);  // no allocation
     // RK4 leaves poses from its last intermediate stage and sensors from the start: one
-    // evaluation of where the step ended makes them agree (and costs a fifth more)
+    // evaluation of where the step ended makes them agree (the next step then evaluates
+    // only the acceleration stage of it again: take_mj_step)
     if (m()->opt.integrator == mjINT_RK4 && state_time_ != d()->time) forward();
   }
   steps_.fetch_add(1, std::memory_order_relaxed);
