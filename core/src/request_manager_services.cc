@@ -131,7 +131,7 @@ std::vector<ServiceDescriptor> RequestManager::descriptors() const {
   for (const unsigned world : worlds())
     if (auto manager = worlds_->find(world))
       for (ServiceDescriptor d : manager->descriptors()) {
-        d.component = "w" + std::to_string(world) + "/" + d.component;
+        d.component = world_name(world) + "/" + d.component;
         out.push_back(std::move(d));
       }
   std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) {
@@ -182,7 +182,7 @@ std::vector<std::string> RequestManager::components() const {
   for (const unsigned world : worlds())
     if (auto manager = worlds_->find(world))
       for (const std::string& component : manager->components())
-        out.push_back("w" + std::to_string(world) + "/" + component);
+        out.push_back(world_name(world) + "/" + component);
   std::sort(out.begin(), out.end());
   return out;
 }

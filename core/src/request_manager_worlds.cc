@@ -48,7 +48,7 @@ class RequestManager::WorldStreams final : public StreamDirectory {
     for (const auto& [world, manager] : world_managers()) {
       if (!manager->stream_hub_) continue;
       for (StreamInfo& info : manager->stream_hub_->streams(transport)) {
-        info.component = prefix(world) + info.component;
+        info.component = world_name(world) + "/" + info.component;
         out.push_back(std::move(info));
       }
     }
@@ -113,7 +113,6 @@ class RequestManager::WorldStreams final : public StreamDirectory {
   };
 
   StreamHub& hub() const { return *transport_.stream_hub_; }
-  static std::string prefix(unsigned world) { return "w" + std::to_string(world) + "/"; }
 
   std::vector<std::pair<unsigned, std::shared_ptr<RequestManager>>> world_managers() const {
     std::lock_guard lock(transport_.worlds_->mutex);
@@ -187,12 +186,12 @@ void RequestManager::detach_world(unsigned world) {
 }
 
 std::string RequestManager::no_world(unsigned world) const {
-  return "no world 'w" + std::to_string(world) + "' (the worlds here: " + join(world_names()) + ")";
+  return "no world '" + world_name(world) + "' (the worlds here: " + join(world_names()) + ")";
 }
 
 std::vector<std::string> RequestManager::world_names() const {
   std::vector<std::string> out{"w0"};
-  for (const unsigned world : worlds()) out.push_back("w" + std::to_string(world));
+  for (const unsigned world : worlds()) out.push_back(world_name(world));
   return out;
 }
 

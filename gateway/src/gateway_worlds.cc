@@ -15,6 +15,7 @@
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
 #include "simgate/core/simulation_gate.h"
+#include "simgate/core/text.h"
 #include "simgate/gateway/gateway.h"
 #include "simgate/sim/allowed_files.h"
 #include "simgate/sim/supervision.h"
@@ -22,8 +23,6 @@
 namespace simgate::gateway {
 
 namespace {
-
-std::string world_name(unsigned index) { return "w" + std::to_string(index); }
 
 // "14.9 MB"
 std::string megabytes(std::uint64_t bytes) {
@@ -44,12 +43,12 @@ void Gateway::build_worlds(ConfigErrors& errors) {
       worlds_.emplace(k, std::move(world));
     } catch (const std::exception& e) {
       if (scene.empty()) {
-        errors.add("worlds: world " + world_name(k) + ": " + e.what());
+        errors.add("worlds: world " + RequestManager::world_name(k) + ": " + e.what());
         return;  // the config's scene: every world after would say the same
       }
       errors.add("worlds.scenes." + std::to_string(k) + ": expected a scene world " +
-                 world_name(k) + " can be built from with the config's robots, found '" + scene +
-                 "': " + e.what());
+                 RequestManager::world_name(k) +
+                 " can be built from with the config's robots, found '" + scene + "': " + e.what());
     }
   }
   if (errors.errors().size() > errors_before) return;
@@ -90,7 +89,7 @@ void Gateway::build_worlds(ConfigErrors& errors) {
     log::info("worlds: ", worlds_.size() + 1, " (w0 and w1..w", worlds_.size(),
               ", each a simulation under its own lock; docs/worlds.md)");
   for (const auto& [index, scene] : deployment_.world_scenes)
-    log::info("worlds: ", world_name(index), " runs scene ", scene);
+    log::info("worlds: ", RequestManager::world_name(index), " runs scene ", scene);
 }
 
 std::unique_ptr<Gateway::World> Gateway::make_world(unsigned index, const std::string& scene) {
@@ -140,7 +139,7 @@ void Gateway::start_loop(World& world) {
     try {
       world.sim->run();
     } catch (const std::exception& e) {
-      log::error("world ", world_name(world.index), ": ", e.what());
+      log::error("world ", RequestManager::world_name(world.index), ": ", e.what());
     }
     if (!world.leaving.load(std::memory_order_acquire)) stop();
   });
@@ -234,9 +233,10 @@ json Gateway::create_world(const json& scene) {
     world->scene = mjcf.empty() ? "" : scene.get<std::string>();  // as the client named it
   } catch (const std::exception& e) {
     // the client's scene, or the config's that loaded at start
-    throw ServiceError("simulation create_world: world " + world_name(index) + ": " + e.what(),
-                       mjcf.empty() ? Failure::service_error : Failure::bad_arguments,
-                       mjcf.empty() ? json::object() : json{{"parameter", "scene"}});
+    throw ServiceError(
+        "simulation create_world: world " + RequestManager::world_name(index) + ": " + e.what(),
+        mjcf.empty() ? Failure::service_error : Failure::bad_arguments,
+        mjcf.empty() ? json::object() : json{{"parameter", "scene"}});
   }
   // the memory bound, before any client can reach it (never served, it goes quietly)
   if (const std::uint64_t max = deployment_.max_world_memory_bytes) {
@@ -261,9 +261,9 @@ json Gateway::create_world(const json& scene) {
     if (world_loops_) start_loop(added);
     count = worlds_.size() + 1;
   }
-  log::info("worlds: ", world_name(index), " made (", count, " worlds now)");
+  log::info("worlds: ", RequestManager::world_name(index), " made (", count, " worlds now)");
   return json{{"world", index},
-              {"name", world_name(index)},
+              {"name", RequestManager::world_name(index)},
               {"count", count},
               {"max", deployment_.max_worlds}};
 }
@@ -283,14 +283,10 @@ json Gateway::delete_world(std::int64_t index) {
                         ? worlds_.find(static_cast<unsigned>(index))
                         : worlds_.end();
     if (it == worlds_.end()) {
-      std::string here = "w0";
-      json names = json::array({"w0"});
-      for (const auto& [k, w] : worlds_) {
-        here += ", " + world_name(k);
-        names.push_back(world_name(k));
-      }
+      std::vector<std::string> names{"w0"};
+      for (const auto& [k, w] : worlds_) names.push_back(RequestManager::world_name(k));
       throw ServiceError("simulation delete_world: no world " + std::to_string(index) +
-                             " (the worlds here: " + here + ")",
+                             " (the worlds here: " + join(names) + ")",
                          Failure::bad_arguments, {{"parameter", "world"}, {"worlds", names}});
     }
     world = std::move(it->second);
@@ -299,9 +295,11 @@ json Gateway::delete_world(std::int64_t index) {
   }
   all_worlds_->remove(world->index);
   leave(*world);
-  log::info("worlds: ", world_name(world->index), " deleted (", count,
+  log::info("worlds: ", RequestManager::world_name(world->index), " deleted (", count,
             count == 1 ? " world left)" : " worlds left)");
-  return json{{"world", world->index}, {"name", world_name(world->index)}, {"count", count}};
+  return json{{"world", world->index},
+              {"name", RequestManager::world_name(world->index)},
+              {"count", count}};
 }
 
 json Gateway::list_worlds() {

@@ -15,6 +15,7 @@
 #include "simgate/core/base64.h"
 #include "simgate/core/call_context.h"
 #include "simgate/core/errors.h"
+#include "simgate/core/request_manager.h"
 #include "simgate/core/service.h"
 #include "simgate/core/simulation_gate.h"
 #include "simgate/sim/bounds.h"
@@ -200,7 +201,7 @@ json Worlds::describe() const {
   json out = json::array();
   each_locked([&](unsigned index, const Simulation& world) {
     out.push_back({{"world", index},
-                   {"name", "w" + std::to_string(index)},
+                   {"name", RequestManager::world_name(index)},
                    {"state", to_string(world.run_state())},
                    {"sim_time", world.sim_time()},
                    {"steps", world.steps()},

@@ -319,6 +319,8 @@ class RequestManager {
   std::vector<std::string> world_names() const;
   // "w<k>/<name>": k and where <name> starts, or nullopt (not a world's address).
   static std::optional<std::pair<unsigned, std::size_t>> world_address(std::string_view component);
+  // World k's name, "w<k>" (its components' prefix is that and "/").
+  static std::string world_name(unsigned world) { return "w" + std::to_string(world); }
 
  protected:
   // Delivers the final outcome of request `id`, exactly once per submitted request.
