@@ -54,17 +54,26 @@ void PhysicsState::apply_warmstart(const mjModel* m, mjData* d) const {
 }
 
 void EvaluatedState::capture(const mjModel* m, const mjData* d, std::uint64_t generation) {
-  values_.resize(static_cast<std::size_t>(mj_stateSize(m, k_signature)));
-  mj_getState(m, d, values_.data(), k_signature);
+  positions_.resize(static_cast<std::size_t>(mj_stateSize(m, k_positions)));
+  mj_getState(m, d, positions_.data(), k_positions);
+  inputs_.resize(static_cast<std::size_t>(mj_stateSize(m, k_inputs)));
+  mj_getState(m, d, inputs_.data(), k_inputs);
   model_ = m;
   generation_ = generation;
 }
 
-bool EvaluatedState::is_current(const mjModel* m, const mjData* d, std::uint64_t generation) {
-  if (m != model_ || generation != generation_) return false;
-  now_.resize(values_.size());
-  mj_getState(m, d, now_.data(), k_signature);
-  return std::memcmp(now_.data(), values_.data(), values_.size() * sizeof(mjtNum)) == 0;
+bool EvaluatedState::unchanged(const mjModel* m, const mjData* d, int signature,
+                               const std::vector<mjtNum>& captured, std::vector<mjtNum>& now) {
+  now.resize(captured.size());
+  mj_getState(m, d, now.data(), signature);
+  return std::memcmp(now.data(), captured.data(), captured.size() * sizeof(mjtNum)) == 0;
+}
+
+EvaluatedState::Current EvaluatedState::current(const mjModel* m, const mjData* d,
+                                                std::uint64_t generation) {
+  if (m != model_ || generation != generation_ || !unchanged(m, d, k_positions, positions_, now_))
+    return Current::nothing;
+  return unchanged(m, d, k_inputs, inputs_, now_) ? Current::all : Current::positions;
 }
 
 }  // namespace simgate::sim

@@ -429,20 +429,22 @@ void Simulation::take_mj_step() {
   mjModel* model = m();
   mjData* data = d();
   // RK4 ends each step with forward() (Simulation::step): when the state is still the one
-  // it evaluated, mj_step's own evaluation of it would compute the position and velocity
-  // stages again to the same bits, so only the acceleration stage (controls and applied
-  // forces, which may have changed) is evaluated: mj_step's parts, in its order. Not with
-  // sleeping islands (which change what a stage computes between steps).
+  // it evaluated, mj_step's own evaluation of it would compute the same numbers to the bit.
+  // With the inputs unchanged too (a batch of steps with the same controls: step_many), none
+  // of it is done again; with new controls or applied forces, only the acceleration stage
+  // (which reads them): mj_step's parts, in its order. Not with sleeping islands (which
+  // change what a stage computes between steps).
   if (model->opt.integrator != mjINT_RK4 || (model->opt.enableflags & mjENBL_SLEEP) != 0) {
     mj_step(model, data);
     return;
   }
   mj_checkPos(model, data);
   mj_checkVel(model, data);
-  if (evaluated_.is_current(model, data, model_generation_))
-    mj_forwardSkip(model, data, mjSTAGE_VEL, 0);
-  else
-    mj_forward(model, data);
+  switch (evaluated_.current(model, data, model_generation_)) {
+    case EvaluatedState::Current::all: break;
+    case EvaluatedState::Current::positions: mj_forwardSkip(model, data, mjSTAGE_VEL, 0); break;
+    case EvaluatedState::Current::nothing: mj_forward(model, data); break;
+  }
   mj_checkAcc(model, data);
   if ((model->opt.enableflags & mjENBL_FWDINV) != 0) mj_compareFwdInv(model, data);
   mj_RungeKutta(model, data, 4);

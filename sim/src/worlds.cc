@@ -313,19 +313,25 @@ json Worlds::step_many(const json& worlds, std::int64_t n, const json& actions, 
     std::vector<double> controls;
     for (int j = 0; j < m->nu; ++j) {
       const json& v = action[static_cast<std::size_t>(j)];
-      const std::string parameter = where + "[" + std::to_string(j) + "]";
       if (v.is_null()) {  // this control kept
         controls.push_back(std::numeric_limits<double>::quiet_NaN());
         continue;
       }
-      if (!v.is_number()) refuse(parameter, "expected a number or null, found " + describe_json(v));
-      const double value = v.get<double>();
-      // refused with the parameter and the range named (bounds.h)
-      if (m->actuator_ctrllimited[j])
-        bounds::require_between(parameter, value, m->actuator_ctrlrange[2 * j],
-                                m->actuator_ctrlrange[2 * j + 1], "");
-      else
-        bounds::require_within(parameter, value, bounds::control, "");
+      const double value = v.is_number() ? v.get<double>() : 0.0;
+      const bool limited = m->actuator_ctrllimited[j];
+      const double low = limited ? m->actuator_ctrlrange[2 * j] : -bounds::control;
+      const double high = limited ? m->actuator_ctrlrange[2 * j + 1] : bounds::control;
+      if (!v.is_number() || !(value >= low && value <= high)) {
+        // refused with the parameter and the range named (bounds.h); the name is made only
+        // for a refusal (hundreds of controls a call)
+        const std::string parameter = where + "[" + std::to_string(j) + "]";
+        if (!v.is_number())
+          refuse(parameter, "expected a number or null, found " + describe_json(v));
+        if (limited)
+          bounds::require_between(parameter, value, low, high, "");
+        else
+          bounds::require_within(parameter, value, bounds::control, "");
+      }
       controls.push_back(value);
     }
     slot.action = std::move(controls);
@@ -342,16 +348,16 @@ json Worlds::step_many(const json& worlds, std::int64_t n, const json& actions, 
       if (slot.action)
         for (std::size_t j = 0; j < slot.action->size(); ++j)
           if (!std::isnan((*slot.action)[j])) sim.d()->ctrl[j] = (*slot.action)[j];
-      const SimulationStatistics before = sim.statistics();
+      const std::uint64_t steps_before = sim.steps(), divergences_before = sim.divergences();
       for (std::int64_t taken = 0; taken < n; ++taken) {
         sim.step();
-        if (sim.statistics().bad_states != before.bad_states) {
+        if (sim.divergences() != divergences_before) {
           // its policy did what it does (paused it, reset it...): it stops here
           out["diverged"] = sim.last_divergence() ? to_json(*sim.last_divergence()) : json();
           break;
         }
       }
-      out["steps_done"] = sim.statistics().steps - before.steps;
+      out["steps_done"] = sim.steps() - steps_before;
       out["sim_time"] = sim.sim_time();
       for (const std::string& what : observed) out[what] = read(sim, what, base64);
       if (!slot.reads.empty()) {

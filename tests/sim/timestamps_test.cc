@@ -194,11 +194,13 @@ TEST_F(MjcfSim, WithTheRk4IntegratorEachStepIsEvaluatedWhereItEnded) {
 }
 
 TEST_F(MjcfSim, AnRk4StepGivesBitForBitWhatMjStepAndAnEvaluationGive) {
-  // Simulation::take_mj_step leaves out the position and velocity stages of mj_step's own
-  // evaluation when the state is the one the previous step's evaluation left: the same
-  // numbers, to the bit, as mj_step then mj_forward (the reference, a copy stepped alongside)
-  // with controls changing between steps, contacts, an accelerometer (acceleration stage),
-  // a mocap body and a joint moved between two steps (which need the whole evaluation)
+  // Simulation::take_mj_step leaves out mj_step's own evaluation when the state and its
+  // inputs are the ones the previous step's evaluation saw, and its position and velocity
+  // stages when only the inputs changed: the same numbers, to the bit, as mj_step then
+  // mj_forward (the reference, a copy stepped alongside) with controls kept for a few steps
+  // then changed, applied forces and the solver's warm start changed between two steps,
+  // contacts, an accelerometer (acceleration stage), a mocap body and a joint moved between
+  // two steps (which need the whole evaluation)
   load_string(R"(<mujoco><option integrator="RK4" timestep="0.005"/><worldbody>
     <geom type="plane" size="5 5 0.1"/>
     <body name="target" mocap="true" pos="0 1 0.5"><geom type="box" size="0.05 0.05 0.05" contype="0" conaffinity="0"/></body>
@@ -220,10 +222,15 @@ TEST_F(MjcfSim, AnRk4StepGivesBitForBitWhatMjStepAndAnEvaluationGive) {
         << what << " differs after step " << step;
   };
   for (int step = 1; step <= 400; ++step) {
-    const double ctrl[2] = {std::sin(step * 0.05), 0.1 * std::cos(step * 0.03)};
+    const int held = step / 3 * 3;  // controls kept for three steps
+    const double ctrl[2] = {std::sin(held * 0.05), 0.1 * std::cos(held * 0.03)};
     for (mjData* data : {d, ref.get()}) {
       data->ctrl[0] = ctrl[0];
       data->ctrl[1] = ctrl[1];
+      if (step == 100) data->qfrc_applied[0] = 0.3;        // an applied force...
+      if (step == 110) data->xfrc_applied[6 * 4 + 2] = 5;  // ...and one on the ball
+      if (step == 121)                                     // as restoring a state does
+        for (int k = 0; k < m->nv; ++k) data->qacc_warmstart[k] += 1e-3;
       if (step == 150) data->mocap_pos[0] = 0.2;  // moved between two steps
       if (step == 250) data->eq_active[0] = 1;    // the weld switched on
     }

@@ -55,26 +55,38 @@ class PhysicsState {
   std::vector<mjtNum> values_;    // the arrays, one after the other (physics_state.cc)
 };
 
-// The state an evaluation's position and velocity stages depend on (time, qpos, qvel, act,
-// history, plastic and plugin state, mocap poses, eq_active), as one evaluation
-// (Simulation::forward) saw it: while the state is still that one, those stages' results in
-// mjData are still the state's, and an RK4 step from it need only evaluate the acceleration
-// stage again (Simulation::take_mj_step). Controls and applied forces are not in it: only
-// the acceleration stage reads them.
+// What one evaluation (Simulation::forward) saw of a state, to tell how much of it is still
+// current: the state its position and velocity stages depend on (time, qpos, qvel, act,
+// history, plastic and plugin state, mocap poses, eq_active) and the inputs only its
+// acceleration stage reads (controls, applied forces, user data, and the constraint solver's
+// warm start). While both are the ones it saw, everything it computed in mjData is still the
+// state's and an RK4 step from it need evaluate nothing again; while only the first is, the
+// acceleration stage alone (Simulation::take_mj_step).
 class EvaluatedState {
  public:
+  enum class Current {
+    nothing,    // the state changed (or another model): a whole evaluation
+    positions,  // the position and velocity stages' results: the acceleration stage again
+    all,        // the whole evaluation
+  };
   // The state of `d` now (`generation`: Simulation::model_generation() of `m`).
   void capture(const mjModel* m, const mjData* d, std::uint64_t generation);
-  // Whether `d`'s state is the one captured, bit for bit, of the same model.
-  bool is_current(const mjModel* m, const mjData* d, std::uint64_t generation);
+  // How much of the evaluation captured is still `d`'s, bit for bit, of the same model.
+  Current current(const mjModel* m, const mjData* d, std::uint64_t generation);
 
  private:
-  static constexpr int k_signature =
+  static constexpr int k_positions =
       mjSTATE_FULLPHYSICS | mjSTATE_MOCAP_POS | mjSTATE_MOCAP_QUAT | mjSTATE_EQ_ACTIVE;
+  static constexpr int k_inputs = mjSTATE_CTRL | mjSTATE_QFRC_APPLIED | mjSTATE_XFRC_APPLIED |
+                                  mjSTATE_USERDATA | mjSTATE_WARMSTART;
+  // mj_getState(`signature`) of `d` into `into`; whether it is what `into` held
+  static bool unchanged(const mjModel* m, const mjData* d, int signature,
+                        const std::vector<mjtNum>& captured, std::vector<mjtNum>& now);
   const mjModel* model_ = nullptr;  // null: none captured
   std::uint64_t generation_ = 0;
-  std::vector<mjtNum> values_;  // mj_getState(k_signature)
-  std::vector<mjtNum> now_;     // is_current's, kept between calls (no allocation)
+  std::vector<mjtNum> positions_;  // mj_getState(k_positions)
+  std::vector<mjtNum> inputs_;     // mj_getState(k_inputs)
+  std::vector<mjtNum> now_;        // current()'s, kept between calls (no allocation)
 };
 
 }  // namespace simgate::sim

@@ -306,8 +306,9 @@ class Simulation {
   static constexpr double k_checkpoint_interval = 1.0;
   DivergencePolicy on_divergence() const { return on_divergence_; }
   void set_on_divergence(DivergencePolicy policy);
-  // The latest divergence, if any (their count: statistics().bad_states).
+  // The latest divergence, if any, and how many there were (statistics().bad_states).
   const std::optional<Divergence>& last_divergence() const { return last_divergence_; }
+  std::uint64_t divergences() const { return bad_states_; }
 
   // ---- events (under the simulation lock) ----
 
