@@ -1,7 +1,8 @@
 // request_inbox.h (private to libsimgate_core) — the hand-over points of a RequestManager:
 // the Inbox (requests, cancels, tasks, completions and progress reports from any thread, taken
 // by process() under the simulation lock) and the Handoff (outcomes on their way to a
-// transport's delivery thread). Used by request_manager.cc only.
+// transport's delivery thread). Used by RequestManager's sources: request_manager.cc,
+// request_execution.cc, request_delivery.cc, request_deadlines.cc, request_manager_worlds.cc.
 #ifndef SIMGATE_CORE_SRC_REQUEST_INBOX_H_
 #define SIMGATE_CORE_SRC_REQUEST_INBOX_H_
 

@@ -9,8 +9,8 @@
 // replies delivered with them. A client with a reader on simgate_ReplyImage gets the images of
 // its replies there, raw, beside them (send_images); its calls are made raw (Call::
 // raw_attachments: the camera makes no PNG), and an image that cannot go raw after all gets
-// its PNG from its pixels (with_png). Options, entities, the DDS thread and requests:
-// dds_request_manager.cc.
+// its PNG from its pixels (with_png). Options, entities, the DDS thread: dds_request_manager.cc;
+// requests: dds_requests.cc.
 #include <algorithm>
 #include <cstring>
 #include <set>

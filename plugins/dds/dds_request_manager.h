@@ -89,6 +89,12 @@ inline constexpr std::size_t k_max_name_bytes = 256;
 // FL_BAD_ARGUMENTS), as on the other transports.
 inline constexpr std::uint32_t k_max_timeout_ms = 2'147'483'647;
 
+// `value` as JSON text, invalid UTF-8 replaced rather than thrown (a catalog's services, a
+// reply's result and data).
+inline std::string dump(const json& value) {
+  return value.dump(-1, ' ', false, json::error_handler_t::replace);
+}
+
 // The transport's options ("transports.<name>" in a deployment file).
 struct DdsOptions {
   uint32_t domain = 0;                // DDS domain id (0..230)

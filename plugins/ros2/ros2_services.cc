@@ -1,6 +1,6 @@
 // The ros2 transport's services as rmw_cyclonedds offers a service: the endpoints, the requests
-// taken, the replies written or parked. The services themselves: ros2_sim_services.cc.
-// Design: ros2_services.h, docs/transports/ros2.md.
+// taken, the replies written or parked. The services themselves: ros2_sim_services.cc and
+// ros2_entity_services.cc. Design: ros2_services.h, docs/transports/ros2.md.
 #include "ros2_services.h"
 
 #include <algorithm>

@@ -162,7 +162,7 @@ class Ros2Services {
   void write(const Endpoint& endpoint, const Sample& reply);
 
   // Makes the simulation_interfaces services and simgate/call (ros2_sim_services.cc, with
-  // their handlers below).
+  // their handlers below; the entities' in ros2_entity_services.cc).
   void add_simulation_services();
   void get_simulator_features(const void* request, const ReplyTo& to);
   void get_simulation_state(const void* request, const ReplyTo& to);

@@ -1,6 +1,7 @@
 // The ros2 transport: its options, its participant, the DDS thread (waitset loop), /clock,
 // the ROS graph (ros_discovery_info) and the scene's frames asked of `simulation`. The
-// topics: ros2_topics.cc. Design: ros2_transport.h, docs/transports/ros2.md.
+// topics: ros2_topics.cc (with ros2_topic_messages.cc, ros2_topic_commands.cc). Design:
+// ros2_transport.h, docs/transports/ros2.md.
 #include "ros2_transport.h"
 
 #include <algorithm>

@@ -1,5 +1,5 @@
 // Fuzz target dds_params: what the DDS transport does with a decoded simgate_Request's
-// strings (plugins/dds/dds_request_manager.cc, handle_request, OP_CALL), without a DDS
+// strings (plugins/dds/dds_requests.cc, handle_request, OP_CALL), without a DDS
 // participant: handle_request itself starts by asking Cyclone about the sample's writer
 // (dds_get_matched_publication_data), so it cannot run without a live reader; this target
 // follows its steps on the same core functions instead (docs/fuzzing.md says what a full
