@@ -126,7 +126,7 @@ class RequestManager::WorldStreams final : public StreamDirectory {
     const std::string_view name = component.substr(name_at);
     if (world == 0) return {transport_.stream_hub_, name, nullptr};
     const auto manager = transport_.worlds_->find(world);
-    if (!manager) return {.world = world};
+    if (!manager) return {nullptr, name, nullptr, world};
     return {manager->stream_hub_, name, manager->gate(), world};
   }
 

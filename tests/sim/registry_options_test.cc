@@ -100,7 +100,9 @@ TEST(SimRegistryOptions, TheDocsNameEveryDeclaredOption) {
       EXPECT_THAT(page, HasSubstr("`" + o.name + "`"))
           << type.doc_page << " does not document " << name << "." << o.name;
     }
-    if (type.options.empty()) EXPECT_THAT(row, HasSubstr("| — |")) << name << " takes no options";
+    if (type.options.empty()) {
+      EXPECT_THAT(row, HasSubstr("| — |")) << name << " takes no options";
+    }
   }
 }
 

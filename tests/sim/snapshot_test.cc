@@ -107,7 +107,7 @@ TEST_F(SnapshotTest, SnapshotsWhoseRequestsEndedAreNotRenderedAndAtMostEightWait
   const std::shared_ptr<Renderer> renderer = Renderer::shared();
   const std::uint64_t rendered = renderer->renders(), abandoned = renderer->abandoned();
   std::vector<RequestId> ids;
-  for (int i = 0; i < Snapshotter::k_max_in_flight + 1; ++i)
+  for (std::size_t i = 0; i < Snapshotter::k_max_in_flight + 1; ++i)
     ids.push_back(rm_->call("simulation", "get_snapshot", {{"width", 2048}, {"height", 2048}}));
   sim_->process_requests();
   const auto refused = rm_->outcome(ids.back());

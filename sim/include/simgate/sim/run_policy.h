@@ -1,7 +1,7 @@
 // simgate/sim/run_policy.h — what a deployment says of how the simulation runs, as words:
 // the divergence policy (scene.on_divergence) and the slowest pace (scene.realtime_factor).
 //
-// Header-only and free of MuJoCo: the configuration parser (gateway/src/deployment.cc, and
+// Header-only and free of MuJoCo: the configuration parser (gateway/src/deployment_sections.cc, and
 // the fuzz target that feeds it) checks these words without the simulation library. What
 // each policy does is Simulation's (simulation.h, docs/world/divergence.md).
 #ifndef SIMGATE_SIM_RUN_POLICY_H_
