@@ -54,26 +54,37 @@ void PhysicsState::apply_warmstart(const mjModel* m, mjData* d) const {
 }
 
 void EvaluatedState::capture(const mjModel* m, const mjData* d, std::uint64_t generation) {
-  positions_.resize(static_cast<std::size_t>(mj_stateSize(m, k_positions)));
-  mj_getState(m, d, positions_.data(), k_positions);
-  inputs_.resize(static_cast<std::size_t>(mj_stateSize(m, k_inputs)));
-  mj_getState(m, d, inputs_.data(), k_inputs);
-  model_ = m;
-  generation_ = generation;
-}
-
-bool EvaluatedState::unchanged(const mjModel* m, const mjData* d, int signature,
-                               const std::vector<mjtNum>& captured, std::vector<mjtNum>& now) {
-  now.resize(captured.size());
-  mj_getState(m, d, now.data(), signature);
-  return std::memcmp(now.data(), captured.data(), captured.size() * sizeof(mjtNum)) == 0;
+  if (m != model_ || generation != generation_ || elements_.empty()) {
+    elements_.clear();
+    std::size_t offset = 0;
+    for (int bit = 0; bit < mjNSTATE; ++bit) {
+      const int element = 1 << bit;
+      if (((k_positions | k_inputs) & element) == 0) continue;
+      const auto size = static_cast<std::size_t>(mj_stateSize(m, element));
+      if (size > 0) elements_.push_back({offset, size, (k_inputs & element) != 0});
+      offset += size;
+    }
+    values_.resize(offset);
+    model_ = m;
+    generation_ = generation;
+  }
+  mj_getState(m, d, values_.data(), k_positions | k_inputs);
 }
 
 EvaluatedState::Current EvaluatedState::current(const mjModel* m, const mjData* d,
                                                 std::uint64_t generation) {
-  if (m != model_ || generation != generation_ || !unchanged(m, d, k_positions, positions_, now_))
-    return Current::nothing;
-  return unchanged(m, d, k_inputs, inputs_, now_) ? Current::all : Current::positions;
+  if (m != model_ || generation != generation_) return Current::nothing;
+  now_.resize(values_.size());
+  mj_getState(m, d, now_.data(), k_positions | k_inputs);
+  bool inputs_same = true;
+  for (const Element& e : elements_) {
+    if (std::memcmp(now_.data() + e.offset, values_.data() + e.offset, e.size * sizeof(mjtNum)) ==
+        0)
+      continue;
+    if (!e.input) return Current::nothing;
+    inputs_same = false;
+  }
+  return inputs_same ? Current::all : Current::positions;
 }
 
 }  // namespace simgate::sim

@@ -79,13 +79,16 @@ class EvaluatedState {
       mjSTATE_FULLPHYSICS | mjSTATE_MOCAP_POS | mjSTATE_MOCAP_QUAT | mjSTATE_EQ_ACTIVE;
   static constexpr int k_inputs = mjSTATE_CTRL | mjSTATE_QFRC_APPLIED | mjSTATE_XFRC_APPLIED |
                                   mjSTATE_USERDATA | mjSTATE_WARMSTART;
-  // mj_getState(`signature`) of `d` into `into`; whether it is what `into` held
-  static bool unchanged(const mjModel* m, const mjData* d, int signature,
-                        const std::vector<mjtNum>& captured, std::vector<mjtNum>& now);
+  // One element of mj_getState(k_positions | k_inputs)'s values (they are in the order of
+  // the elements' bits): where it is, and whether it is an input.
+  struct Element {
+    std::size_t offset = 0, size = 0;
+    bool input = false;
+  };
   const mjModel* model_ = nullptr;  // null: none captured
   std::uint64_t generation_ = 0;
-  std::vector<mjtNum> positions_;  // mj_getState(k_positions)
-  std::vector<mjtNum> inputs_;     // mj_getState(k_inputs)
+  std::vector<Element> elements_;  // of model_ (non-empty ones)
+  std::vector<mjtNum> values_;     // mj_getState(k_positions | k_inputs) at the capture
   std::vector<mjtNum> now_;        // current()'s, kept between calls (no allocation)
 };
 
