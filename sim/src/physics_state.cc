@@ -1,5 +1,6 @@
 #include "simgate/sim/physics_state.h"
 
+#include <algorithm>
 #include <cstring>
 #include <utility>
 
@@ -53,34 +54,57 @@ void PhysicsState::apply_warmstart(const mjModel* m, mjData* d) const {
   mj_setState(m, d, values_.data() + warmstart_offset(m), mjSTATE_WARMSTART);
 }
 
+void EvaluatedState::lay_out(const mjModel* m) {
+  elements_.clear();
+  std::size_t offset = 1;  // values_[0]: the time
+  const auto add = [&](mjtNum* mjData::* array, int count, bool input) {
+    if (count > 0) elements_.push_back({array, offset, static_cast<std::size_t>(count), input});
+    offset += static_cast<std::size_t>(std::max(count, 0));
+  };
+  add(&mjData::qpos, m->nq, false);
+  add(&mjData::qvel, m->nv, false);
+  add(&mjData::act, m->na, false);
+  add(&mjData::mocap_pos, 3 * m->nmocap, false);
+  add(&mjData::mocap_quat, 4 * m->nmocap, false);
+  add(&mjData::ctrl, m->nu, true);
+  add(&mjData::qfrc_applied, m->nv, true);
+  add(&mjData::xfrc_applied, 6 * m->nbody, true);
+  add(&mjData::qacc_warmstart, m->nv, true);
+  through_get_state_ = offset;
+  for (int bit = 0; bit < mjNSTATE; ++bit) {  // mj_getState's order: the elements' bits
+    const int element = 1 << bit;
+    if ((k_through_get_state & element) == 0) continue;
+    add(nullptr, mj_stateSize(m, element), (k_inputs & element) != 0);
+  }
+  values_.resize(offset);
+}
+
 void EvaluatedState::capture(const mjModel* m, const mjData* d, std::uint64_t generation) {
-  if (m != model_ || generation != generation_ || elements_.empty()) {
-    elements_.clear();
-    std::size_t offset = 0;
-    for (int bit = 0; bit < mjNSTATE; ++bit) {
-      const int element = 1 << bit;
-      if (((k_positions | k_inputs) & element) == 0) continue;
-      const auto size = static_cast<std::size_t>(mj_stateSize(m, element));
-      if (size > 0) elements_.push_back({offset, size, (k_inputs & element) != 0});
-      offset += size;
-    }
-    values_.resize(offset);
+  if (m != model_ || generation != generation_ || values_.empty()) {
+    lay_out(m);
     model_ = m;
     generation_ = generation;
   }
-  mj_getState(m, d, values_.data(), k_positions | k_inputs);
+  values_[0] = d->time;
+  for (const Element& e : elements_)
+    if (e.array) std::memcpy(&values_[e.offset], d->*e.array, e.size * sizeof(mjtNum));
+  if (through_get_state_ < values_.size())
+    mj_getState(m, d, &values_[through_get_state_], k_through_get_state);
 }
 
 EvaluatedState::Current EvaluatedState::current(const mjModel* m, const mjData* d,
                                                 std::uint64_t generation) {
-  if (m != model_ || generation != generation_) return Current::nothing;
-  now_.resize(values_.size());
-  mj_getState(m, d, now_.data(), k_positions | k_inputs);
+  if (m != model_ || generation != generation_ ||
+      std::memcmp(&values_[0], &d->time, sizeof(mjtNum)) != 0)
+    return Current::nothing;
+  if (through_get_state_ < values_.size()) {  // mj_getState's elements as they are now
+    now_.resize(values_.size() - through_get_state_);
+    mj_getState(m, d, now_.data(), k_through_get_state);
+  }
   bool inputs_same = true;
   for (const Element& e : elements_) {
-    if (std::memcmp(now_.data() + e.offset, values_.data() + e.offset, e.size * sizeof(mjtNum)) ==
-        0)
-      continue;
+    const mjtNum* now = e.array ? d->*e.array : now_.data() + (e.offset - through_get_state_);
+    if (std::memcmp(now, &values_[e.offset], e.size * sizeof(mjtNum)) == 0) continue;
     if (!e.input) return Current::nothing;
     inputs_same = false;
   }
