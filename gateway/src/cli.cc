@@ -61,7 +61,11 @@ Named and positional ARGS cannot be mixed; a string containing '=' is written JS
 '"a=b"'. Options come before COMPONENT: everything after it is an ARG, even -1 or --x
 (a "--" right after SERVICE is skipped).
 Prints the result as JSON, or SUCCESS for a service that returns nothing (exit 0); a
-FAILED or PREEMPTED call prints its reason on stderr (exit 1).)";
+FAILED or PREEMPTED call prints its reason on stderr (exit 1).
+dds: a --partition pattern ('*', 'host*') makes the call on every simgate it matches (by
+convention one per host), all at once, and prints a JSON line each: {"partition", "server",
+"status": "SUCCESS", "result"} or {..., "status", "message"}; exit 0 when all succeeded:
+  simgate call --transport dds --partition 'host*' simulation step_many n=10)";
 
 constexpr const char* k_list_footer =
     R"(dds: a --partition pattern (* any characters, ? one: '*', 'lab-*') lists every simgate of
@@ -443,8 +447,9 @@ class CommandLine {
     command->add_option("--domain", args.domain, "dds: the simulation's DDS domain (default 0)")
         ->type_name("N");
     command
-        ->add_option("--partition", args.partition,
-                     "dds: its partition (default simgate); list: or a pattern (* ?) of several")
+        ->add_option(
+            "--partition", args.partition,
+            "dds: its partition (default simgate); list, call: or a pattern (* ?) of several")
         ->type_name("P");
     command
         ->add_option(

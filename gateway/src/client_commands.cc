@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <iostream>
 #include <map>
+#include <thread>
 #include <vector>
 
 #include "commands.h"
@@ -49,8 +50,9 @@ ClientTarget client_target(const ClientArgs& args, bool allow_partition_pattern)
 #if SIMGATE_CLIENT_DDS
     if (args.partition && client::is_partition_pattern(*args.partition) && !allow_partition_pattern)
       throw UsageError("--partition: '" + *args.partition +
-                       "' is a pattern (* or ?): `simgate list` lists the simgates it matches; "
-                       "this command talks to one simgate: name its partition");
+                       "' is a pattern (* or ?): `simgate list` lists the simgates it matches and "
+                       "`simgate call` calls each; this command talks to one simgate: name its "
+                       "partition");
 #endif
     target.options = {{"domain", args.domain ? parse_int("--domain", *args.domain, 0, 230) : 0},
                       {"partition", args.partition.value_or("simgate")}};
@@ -108,11 +110,91 @@ json json_or_word(const std::string& text) {
 
 }  // namespace
 
+#if SIMGATE_CLIENT_DDS
+namespace {
+
+// `call --transport dds --partition PATTERN`: the call made on every simgate the pattern
+// matches (by convention one per host), all at once, through a client each (a thread each:
+// a host's reply never waits for another's). One JSON line per simgate, in the partitions'
+// order: {"partition", "server", "status": "SUCCESS", "result"} or {..., "status": "FAILED",
+// "message"}; exit 0 when every call succeeded.
+int call_dds_simgates(const CallArgs& args, const ClientTarget& target, const json& params) {
+  const auto simgates =
+      client::list_simgates(client::DdsClientOptions::from_json(target.options), target.timeout);
+  std::vector<const client::DdsSimgate*> called;  // one a partition: a call reaches them all
+  for (const auto& simgate : simgates) {
+    if (!called.empty() && called.back()->partition == simgate.partition) {
+      std::cerr << "simgate: note: partition '" << simgate.partition
+                << "' has several simgates: the call there reaches each of them and the first "
+                   "reply is printed; give each simgate a partition of its own (docs/worlds.md, "
+                   "\"Across hosts\")\n";
+      continue;
+    }
+    called.push_back(&simgate);
+  }
+  struct Reply {
+    Status status = Status::failed;
+    json said;  // the result (success), else the message
+  };
+  std::vector<Reply> replies(called.size());
+  // the clients made one after the other (each joins the domain), then called at once
+  std::vector<std::unique_ptr<client::Client>> clients(called.size());
+  for (std::size_t i = 0; i < called.size(); ++i) {
+    try {
+      json options = target.options;
+      options["partition"] = called[i]->partition;
+      clients[i] = client::make_client("dds", options);
+    } catch (const std::exception& e) {
+      replies[i].said = e.what();
+    }
+  }
+  std::vector<std::thread> calls;
+  for (std::size_t i = 0; i < called.size(); ++i) {
+    if (!clients[i]) continue;
+    calls.emplace_back([&, i] {
+      Reply& reply = replies[i];
+      try {
+        const Outcome outcome =
+            clients[i]->call(args.component, args.service, params, target.timeout);
+        reply.status = outcome.status;
+        reply.said = outcome.status != Status::success ? json(outcome.message)
+                     : outcome.value                   ? *outcome.value
+                                                       : json();
+      } catch (const std::exception& e) {
+        reply.said = e.what();
+      }
+    });
+  }
+  for (auto& call : calls) call.join();
+  std::size_t failed = 0;
+  for (std::size_t i = 0; i < called.size(); ++i) {
+    const Reply& reply = replies[i];
+    const bool success = reply.status == Status::success;
+    // its members in this order (a json object would sort them)
+    std::cout << "{\"partition\":" << json(called[i]->partition).dump()
+              << ",\"server\":" << json(called[i]->server).dump()
+              << ",\"status\":" << json(to_string(reply.status)).dump()
+              << (success ? ",\"result\":" : ",\"message\":") << reply.said.dump() << "}\n";
+    if (!success) ++failed;
+  }
+  if (failed > 0)
+    std::cerr << "simgate: " << failed << " of " << called.size() << " simgates did not succeed\n";
+  return failed > 0 ? 1 : 0;
+}
+
+}  // namespace
+#endif
+
 int cmd_call(const CallArgs& args) {
   json params = call_params(args.args);
-  std::chrono::milliseconds timeout{};
-  auto client = connect_client(args.client, timeout);
-  Outcome outcome = client->call(args.component, args.service, params, timeout);
+  const ClientTarget target = client_target(args.client, /*allow_partition_pattern=*/true);
+#if SIMGATE_CLIENT_DDS
+  if (target.transport == "dds" &&
+      client::is_partition_pattern(target.options.at("partition").get<std::string>()))
+    return call_dds_simgates(args, target, params);
+#endif
+  auto client = client::make_client(target.transport, target.options);
+  Outcome outcome = client->call(args.component, args.service, params, target.timeout);
   if (outcome.status == Status::success) {
     // a service that returns nothing answers a bare SUCCESS (JSON-RPC: a null result)
     if (outcome.value && !outcome.value->is_null()) {

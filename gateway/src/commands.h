@@ -137,7 +137,8 @@ int cmd_replay(const ReplayArgs& args);
 // Where the client options point: the transport, make_client()'s options ({host, port} or
 // {domain, partition, config}; and the token of --token or SIMGATE_TOKEN, which
 // make_client() presents) and --timeout. UsageError when they are wrong, and for a dds
-// --partition pattern unless `allow_partition_pattern` (`list`: every simgate it matches).
+// --partition pattern unless `allow_partition_pattern` (`list`, `call`: every simgate it
+// matches).
 struct ClientTarget {
   std::string transport;              // socket, jsonrpc, websocket or dds
   json options;                       // for client::make_client()

@@ -180,8 +180,32 @@ class HostsTest(unittest.TestCase):
         self.assertEqual(code, 1, out + err)
         self.assertIn("no simgate in domain 0 whose partition matches 'nohost*' within 2000 ms", err)
 
-    def test_4_a_call_names_one_partition(self):
-        code, out, err = self.simgate("call", "--partition", "host*", "simulation", "list_worlds")
+    def test_4_a_pattern_calls_every_host_at_once(self):
+        # `call` with a pattern: the call on each simgate it matches, a JSON line each
+        before = {host: self.steps(host) for host in HOSTS}
+        code, out, err = self.simgate("call", "--partition", "host*", "simulation", "step_many", "n=4",
+                                      "observe=[]")
+        self.assertEqual(code, 0, out + err)
+        lines = [json.loads(line) for line in out.splitlines()]
+        self.assertEqual([line["partition"] for line in lines], sorted(HOSTS))
+        for line in lines:
+            self.assertEqual(line["status"], "SUCCESS", line)
+            self.assertRegex(line["server"], "^[0-9a-f]{32}$")
+            self.assertEqual([w["steps_done"] for w in line["result"]["worlds"]], [4, 4, 4], line)
+        self.assertEqual({h: self.steps(h) for h in HOSTS},
+                         {h: {w: n + 4 for w, n in worlds.items()} for h, worlds in before.items()})
+
+        # one host refusing: its line says why, the other's call is made all the same; exit 1
+        code, out, err = self.simgate("call", "--partition", "host?", "w2/simulation", "step", "n=-1")
+        self.assertEqual(code, 1, out + err)
+        lines = [json.loads(line) for line in out.splitlines()]
+        self.assertEqual([(line["partition"], line["status"]) for line in lines],
+                         [("hostA", "FAILED"), ("hostB", "FAILED")])
+        self.assertIn("n", lines[0]["message"])
+        self.assertIn("2 of 2 simgates did not succeed", err)
+
+    def test_5_a_command_for_one_simgate_names_its_partition(self):
+        code, out, err = self.simgate("watch", "--partition", "host*", "robot.pose", "--count", "1")
         self.assertEqual(code, 2, out + err)
         self.assertIn("--partition: 'host*' is a pattern (* or ?)", err)
 

@@ -541,12 +541,12 @@ TEST(GatewayCliTest, ClientOptionsAreChecked) {
   EXPECT_EQ(hcode, 2);
   EXPECT_THAT(hout, HasSubstr("--host"));
 #ifdef SIMGATE_TEST_WITH_DDS
-  // a partition pattern lists simgates (`list`); a call goes to one
-  auto [wcode, wout] = run_simgate(
-      {"call", "--transport", "dds", "--partition", "lab-*", "simulation", "list_robots"}, dir);
+  // a partition pattern lists simgates (`list`) and calls each (`call`); `watch` talks to one
+  auto [wcode, wout] =
+      run_simgate({"watch", "--transport", "dds", "--partition", "lab-*", "robot.pose"}, dir);
   EXPECT_EQ(wcode, 2);
   EXPECT_THAT(wout, HasSubstr("--partition: 'lab-*' is a pattern (* or ?): `simgate list` lists "
-                              "the simgates it matches"));
+                              "the simgates it matches and `simgate call` calls each"));
 #endif
 }
 
