@@ -313,6 +313,7 @@ void ConnectionServer::add(const std::shared_ptr<Connection>& connection) {
   connection->authenticated_ = !auth_.required_for(connection->peer());
   per_peer_.add(connection->peer());
   connections_.insert(connection);
+  connection->open_id_ = open_.insert(connection.get());
   count_.store(connections_.size(), std::memory_order_relaxed);
   log::debug(who_, ": ", connection->label(), " connected");
   schedule_sweep(connection);
@@ -321,6 +322,7 @@ void ConnectionServer::add(const std::shared_ptr<Connection>& connection) {
 
 void ConnectionServer::closed(Connection& connection) {
   direct_.forget(connection);
+  open_.erase(connection.open_id_);  // its ConnectionRefs find nothing from now on
   if (connections_.erase(connection.shared_from_this()) > 0) per_peer_.remove(connection.peer());
   count_.store(connections_.size(), std::memory_order_relaxed);
   on_closed(connection);
@@ -332,6 +334,7 @@ void ConnectionServer::close_all() {
   per_peer_.clear();
   count_.store(0, std::memory_order_relaxed);
   for (const auto& c : connections) c->close("server stopping");
+  open_.clear();
   // nothing of a connection outlives this: the transport's io_context goes next
   touched_.clear();
   direct_ = DirectReads<Connection>{};

@@ -70,7 +70,7 @@ void JsonRpcRequestManager::accept(tcp::socket socket) {
 // ---- kit::LineServer: the framing (I/O thread)
 
 void JsonRpcRequestManager::on_line(kit::LineConnection& connection, std::string_view line) {
-  handle_message(static_cast<LineSession&>(connection).shared(), line);
+  handle_message(static_cast<LineSession&>(connection), line);
 }
 
 void JsonRpcRequestManager::on_oversized_line(kit::LineConnection& connection,

@@ -219,7 +219,7 @@ void SocketRequestManager::reply_in_order(Session& session, std::string_view id,
   session.defer_reply();
   // never one of requests_'s ids (kit::RequestSlots::k_mark)
   const RequestId reply_id = new_request_id();
-  deferred_replies_.emplace(reply_id, DeferredReply{session.shared(), scratch_});
+  deferred_replies_.emplace(reply_id, DeferredReply{{session, session}, scratch_});
   answer_in_order(reply_id, Outcome{});
 }
 
@@ -427,7 +427,7 @@ void SocketRequestManager::on_service_completion(RequestId id, Outcome&& outcome
   DeferredReply reply = std::move(it->second);
   deferred_replies_.erase(it);
   try {
-    if (auto s = reply.session.lock(); s && !s->closed()) s->queue_deferred_reply(reply.line);
+    if (Session* s = reply.session.get()) s->queue_deferred_reply(reply.line);
   } catch (const std::exception& e) {
     log::error(name(), ": cannot queue an error reply: ", e.what());
   }

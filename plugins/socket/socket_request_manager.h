@@ -138,8 +138,8 @@ class SocketRequestManager : public RequestManager, private kit::LineServer {
 
   // An error reply waiting for the outcomes of the connection's earlier requests.
   struct DeferredReply {
-    std::weak_ptr<Session> session;  // the connection
-    std::string line;                // the formatted reply
+    kit::ConnectionRef<Session> session;  // the connection (null once it closed)
+    std::string line;                     // the formatted reply
   };
   // Hands the calls gathered from the current read to the core (run_or_submit); their
   // replies are queued on their connections.

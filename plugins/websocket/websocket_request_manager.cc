@@ -110,7 +110,7 @@ void WebSocketRequestManager::accept(tcp::socket socket) {
 // ---- kit::WebSocketServer: the framing (I/O thread)
 
 void WebSocketRequestManager::on_message(kit::WebSocketConnection& session, std::string_view text) {
-  handle_message(static_cast<WsSession&>(session).shared(), text);
+  handle_message(static_cast<WsSession&>(session), text);
 }
 
 void WebSocketRequestManager::on_refused_message(kit::WebSocketConnection& session,

@@ -3,8 +3,13 @@
 // connection gets its replies in the order the outcomes were produced, whichever thread
 // produced them. Real sockets on 127.0.0.1 against the jsonrpc plugin; the test thread plays
 // the simulation thread (there is no loop of its own).
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <condition_variable>
 #include <mutex>
+#include <thread>
 
 #include <gtest/gtest.h>
 
@@ -118,6 +123,72 @@ TEST(JsonRpcInline, ReplyRunInlineFollowsOutcomesTheSimulationThreadProducedBefo
   // k1 is still served normally
   EXPECT_EQ(c.request("ctl.release", json::array({"k1", "k1 done"}), k_timeout)["result"], true);
   EXPECT_EQ(c.wait_for(101, k_timeout)["result"], "k1 done");
+  rm->stop();
+}
+
+// A client that sends `bytes`, reads one line (what the server answered at once), then
+// vanishes: its socket closed with a reset (SO_LINGER 0), the way a killed process's goes.
+std::string send_read_line_and_vanish(std::uint16_t port, const std::string& bytes) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_port = htons(port);
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  std::string line;
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address) == 0 &&
+      ::send(fd, bytes.data(), bytes.size(), MSG_NOSIGNAL) == static_cast<ssize_t>(bytes.size())) {
+    timeval timeout{10, 0};
+    ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
+    char c;
+    while (::recv(fd, &c, 1, 0) == 1 && c != '\n') line += c;
+  }
+  linger reset{1, 0};
+  ::setsockopt(fd, SOL_SOCKET, SO_LINGER, &reset, sizeof reset);
+  ::close(fd);
+  return line;
+}
+
+TEST(JsonRpcInline, RepliesInFlightToAClientThatVanishedGoNowhereNotToTheNextOne) {
+  // replies remember their connection without owning it (kit::ConnectionRef): a client that
+  // leaves with pipelined calls queued for the simulation thread, a batch among them, has
+  // their outcomes dropped when they come back, and the next client (in its slot of the
+  // server's table) gets none of them
+  auto state = std::make_shared<ServiceState>();
+  auto rm = load_transport(TestHost::default_plugin_path(),
+                           json{{"port", 0}, {"on_disconnect", "let_run"}});
+  register_test_services(*rm, state);
+  rm->start();
+  const auto endpoint = rm->endpoints().at(0);
+  const auto port = static_cast<std::uint16_t>(std::stoi(endpoint.substr(endpoint.rfind(':') + 1)));
+  std::unique_lock simulating(*rm->gate());  // this thread is the loop, stepping: calls queue
+  std::string burst;
+  for (int i = 1; i <= 64; ++i)
+    burst += R"({"jsonrpc":"2.0","method":"ctl.mark","params":["v)" + std::to_string(i) +
+             R"("],"id":)" + std::to_string(i) + "}\n";
+  burst += R"([{"jsonrpc":"2.0","method":"ctl.mark","params":["b1"],"id":65},)"
+           R"({"jsonrpc":"2.0","method":"robot.arm.add","params":[1,2],"id":66}])"
+           "\n";
+  // answered at once, after the calls before it in the same read went to the core
+  burst += "not json\n";
+  const std::string answered = send_read_line_and_vanish(port, burst);
+  ASSERT_NE(answered.find("Parse error"), std::string::npos) << answered;
+  const auto deadline = std::chrono::steady_clock::now() + k_timeout;
+  while (rm->client_count() > 0 && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(1ms);
+  ASSERT_EQ(rm->client_count(), 0u) << "the server never saw the client leave";
+
+  // the next client takes the freed slot; then the calls run and their outcomes come back
+  JsonRpcClient next_client("127.0.0.1", port);
+  while (rm->client_count() < 1 && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(1ms);
+  simulating.unlock();
+  EXPECT_GE(rm->process(), 1u);
+  EXPECT_EQ(next_client.request("ctl.marked", json::array({"v64"}), k_timeout)["result"], true);
+  EXPECT_EQ(next_client.request("ctl.marked", json::array({"b1"}), k_timeout)["result"], true);
+  // nothing of the vanished client's: the replies above were the only messages
+  EXPECT_FALSE(next_client.receive(300ms).has_value());
+  EXPECT_EQ(next_client.request("robot.arm.add", json::array({2, 2}), k_timeout)["result"], 4.0);
+  EXPECT_FALSE(next_client.receive(100ms).has_value());
   rm->stop();
 }
 

@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <condition_variable>
 #include <mutex>
+#include <thread>
 
 #include "socket_test_fixture.h"
 #include "socket_test_support.h"
@@ -105,6 +106,85 @@ TEST_F(SocketDisconnect, LetRunDropsTheResultOfAClientThatLeftWithoutDisturbingO
   auto c = connect();
   EXPECT_EQ(roundtrip(*c, "r worker release (1,)"), "r SUCCESS true");
   EXPECT_EQ(roundtrip(*c, "p test ping"), "p SUCCESS \"pong\"");  // v1's result went nowhere
+}
+
+// Replies remember their connection without owning it: the pending requests by a raw
+// pointer erased when the connection closes, an error reply deferred behind them by a
+// kit::ConnectionRef. A client that vanishes with pipelined requests queued for the
+// simulation thread gets nothing, and the next client (in its slot of the server's table)
+// gets none of its replies.
+class SocketVanishing : public SocketFixture {
+ protected:
+  void register_more(RequestManager& rm) override {
+    rm.register_service("count", [this] { return ++hits_; }, "hit");
+  }
+  std::atomic<int> hits_{0};
+};
+
+// A client that sends bytes, then vanishes: its socket closed with a reset (SO_LINGER 0),
+// the way a killed process's goes (what the server had not read yet is lost).
+class VanishingClient {
+ public:
+  explicit VanishingClient(std::uint16_t port) : fd_(::socket(AF_INET, SOCK_STREAM, 0)) {
+    sockaddr_in address{};
+    address.sin_family = AF_INET;
+    address.sin_port = htons(port);
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (::connect(fd_, reinterpret_cast<sockaddr*>(&address), sizeof address) != 0)
+      ADD_FAILURE() << "cannot connect";
+  }
+  ~VanishingClient() { vanish(); }
+  void send(const std::string& bytes) {
+    EXPECT_EQ(::send(fd_, bytes.data(), bytes.size(), MSG_NOSIGNAL),
+              static_cast<ssize_t>(bytes.size()));
+  }
+  void vanish() {
+    if (fd_ < 0) return;
+    linger reset{1, 0};
+    ::setsockopt(fd_, SOL_SOCKET, SO_LINGER, &reset, sizeof reset);
+    ::close(fd_);
+    fd_ = -1;
+  }
+
+ private:
+  int fd_;
+};
+
+TEST_F(SocketVanishing, RepliesInFlightToAClientThatVanishedGoNowhereNotToTheNextOne) {
+  start_server({{"max_message_bytes", 1024}});
+  WarningLog warnings;
+  std::unique_lock simulating(*manager_->gate());  // the loop is stepping: requests queue
+  std::string burst;
+  for (int i = 1; i <= 64; ++i) burst += std::to_string(i) + " count hit\n";
+  // an error answered in order: deferred behind the 64 requests (answer_in_order)
+  burst += "65 count\n";
+  // logged once the lines before it went to the core: the client may vanish then
+  burst += "66 count hit [" + std::string(2000, ' ') + "]\n";
+  const auto deadline = std::chrono::steady_clock::now() + 10s;
+  VanishingClient gone(port_);
+  gone.send(burst);
+  while (warnings.count("request line longer than") == 0 &&
+         std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(1ms);
+  ASSERT_EQ(warnings.count("request line longer than"), 1u);
+  gone.vanish();
+  while (manager_->client_count() > 0 && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(1ms);
+  ASSERT_EQ(manager_->client_count(), 0u) << "the server never saw the client leave";
+
+  // the next client takes the freed slot; then the requests run and their outcomes come back
+  auto next = connect();
+  while (manager_->client_count() < 1 && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(1ms);
+  simulating.unlock();
+  while (hits_.load() < 64 && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(1ms);
+  EXPECT_EQ(hits_.load(), 64);
+  EXPECT_EQ(roundtrip(*next, "p test ping"), "p SUCCESS \"pong\"");
+  // nothing of the vanished client's: the reply above was the only line
+  EXPECT_EQ(next->read_line(300ms), std::nullopt);
+  EXPECT_EQ(roundtrip(*next, "1 test ping"), "1 SUCCESS \"pong\"");
+  EXPECT_EQ(next->read_line(100ms), std::nullopt);
 }
 
 class SocketTransportLimits : public SocketFixture {};

@@ -73,13 +73,13 @@ struct JsonRpcEngine::Batch {
   bool full() const { return bytes >= max_bytes; }
 };
 
-void JsonRpcEngine::handle_message(const std::shared_ptr<Session>& session, std::string_view line) {
+void JsonRpcEngine::handle_message(Session& session, std::string_view line) {
   // framing: optional "\r" before the "\n"; blank lines are keep-alives
   if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
   if (line.find_first_not_of(" \t\r") == std::string_view::npos) return;
 
   // (a line over max_message_bytes never comes here: on_oversized_line)
-  ReplyTo single{session, nullptr, false, nullptr, 0, {}};
+  ReplyTo single{session.ref(), nullptr, false, nullptr, 0, {}};
   // the common shape (one plain request object) without a DOM; anything else, errors
   // included, takes the full path below
   if (parse_request_fast(line, options_.max_depth, request_)) {
@@ -138,7 +138,7 @@ void JsonRpcEngine::handle_message(const std::shared_ptr<Session>& session, std:
     // a batch larger than the room left is refused whole, with one error (issue #17: a
     // 2 MB batch of `1`s built a million error objects on the I/O thread)
     const std::size_t room =
-        options_.tcp.max_in_flight - std::min(session->in_flight(), options_.tcp.max_in_flight);
+        options_.tcp.max_in_flight - std::min(session.in_flight(), options_.tcp.max_in_flight);
     if (message.size() > room) {
       const json refusal = error_response(
           nullptr, code::overloaded,
@@ -161,7 +161,7 @@ void JsonRpcEngine::handle_message(const std::shared_ptr<Session>& session, std:
       auto batch = std::make_shared<Batch>(message.size(), options_.tcp.max_unsent_bytes);
       for (std::size_t i = 0; i < message.size(); ++i) {
         const bool answered = has_id(message[i]);
-        ReplyTo to{session,   answered ? message[i]["id"] : json(nullptr), !answered, batch, i,
+        ReplyTo to{session.ref(), answered ? message[i]["id"] : json(nullptr), !answered, batch, i,
                    id_text(i)};
         json response = refusal;
         response["id"] = to.id;
@@ -172,7 +172,8 @@ void JsonRpcEngine::handle_message(const std::shared_ptr<Session>& session, std:
     // every entry answers into the batch; the array goes out when the last one is in
     auto batch = std::make_shared<Batch>(message.size(), options_.tcp.max_unsent_bytes);
     for (std::size_t i = 0; i < message.size(); ++i)
-      handle_request(session, message[i], ReplyTo{session, nullptr, false, batch, i, id_text(i)});
+      handle_request(session, message[i],
+                     ReplyTo{session.ref(), nullptr, false, batch, i, id_text(i)});
     return;
   }
   single.id_text = id_text(0);
@@ -192,8 +193,7 @@ void JsonRpcEngine::flush_submissions() {
     to_submit_.erase(to_submit_.begin() + k_kept_calls, to_submit_.end());
 }
 
-void JsonRpcEngine::handle_request(const std::shared_ptr<Session>& session, json& message,
-                                   ReplyTo to) {
+void JsonRpcEngine::handle_request(Session& session, json& message, ReplyTo to) {
   // validate; invalid requests are answered even without an id
   Request request;
   if (auto error = parse_request(message, request)) {
@@ -205,8 +205,7 @@ void JsonRpcEngine::handle_request(const std::shared_ptr<Session>& session, json
   dispatch(session, request, std::move(to));
 }
 
-void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& request,
-                             ReplyTo&& to) {
+void JsonRpcEngine::dispatch(Session& session, Request& request, ReplyTo&& to) {
   to.id = request.id;
   to.notification = !request.has_id;
 
@@ -218,7 +217,7 @@ void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& r
     handle_login(session, request.params, std::move(to));
     return;
   }
-  if (!session->authenticated()) [[unlikely]] {
+  if (!session.authenticated()) [[unlikely]] {
     reply(to,
           error_response(
               to.id, code::unauthorized,
@@ -259,12 +258,12 @@ void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& r
   }
 
   // limits: calls in flight on this connection, ids unique among them
-  if (session->in_flight() >= options_.tcp.max_in_flight) {
+  if (session.in_flight() >= options_.tcp.max_in_flight) {
     if (to.notification)
-      log::debug(name(), ": ", session->label(), ": notification ", method, " dropped: overloaded");
+      log::debug(name(), ": ", session.label(), ": notification ", method, " dropped: overloaded");
     reply(to,
           error_response(to.id, code::overloaded,
-                         "Overloaded: " + std::to_string(session->in_flight()) +
+                         "Overloaded: " + std::to_string(session.in_flight()) +
                              " calls in flight on this connection (max_in_flight " +
                              std::to_string(options_.tcp.max_in_flight) + ")",
                          json{{"method", method}, {"max_in_flight", options_.tcp.max_in_flight}}));
@@ -278,7 +277,7 @@ void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& r
   if (request.has_id && !request.id.is_null()) {
     if (request.id_text.empty()) request.id_text = dump(request.id);
     key = request.id_text;
-    const auto hash = session->track(key, id);
+    const auto hash = session.track(key, id);
     if (!hash) {
       drop_pending(id);
       reply(to, error_response(to.id, code::invalid_request,
@@ -298,7 +297,7 @@ void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& r
       std::string why;
       call_options = read_meta(*meta, why);
       if (!why.empty()) {
-        if (!key.empty()) session->forget_call(key_hash, id);
+        if (!key.empty()) session.forget_call(key_hash, id);
         drop_pending(id);
         reply(to, error_response(to.id, code::invalid_params, "Invalid params: _meta: " + why,
                                  json{{"method", method}, {"parameter", "_meta"}}));
@@ -311,7 +310,7 @@ void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& r
   const bool wants_progress = call_options.progress && !key.empty() && !to.notification;
 
   // gathered; flush_submissions() hands the calls of this read to the core together
-  session->add_in_flight();
+  session.add_in_flight();
   if (to_submit_count_ == to_submit_.size()) to_submit_.emplace_back();
   auto& [call_id, call] = to_submit_[to_submit_count_++];
   call_id = id;
@@ -320,7 +319,7 @@ void JsonRpcEngine::dispatch(const std::shared_ptr<Session>& session, Request& r
   if (call.service != service) call.service.assign(service);
   call.params.swap(request.params);  // request_ takes the call's old array, for the next parse
   call.progress = wants_progress;
-  call.client = session->number();
+  call.client = session.number();
   call.timeout = call_options.timeout;  // a notification's too: its service stops in time
   Pending& pending = **pending_.find(id);
   pending.to = std::move(to);
@@ -351,8 +350,7 @@ void JsonRpcEngine::drop_pending(RequestId id) {
   }
 }
 
-void JsonRpcEngine::handle_login(const std::shared_ptr<Session>& session, const json& params,
-                                 ReplyTo to) {
+void JsonRpcEngine::handle_login(Session& session, const json& params, ReplyTo to) {
   // {"token": "..."} or ["..."]
   const json* token = nullptr;
   if (params.is_object() && params.size() == 1 && params.contains("token"))
@@ -368,24 +366,24 @@ void JsonRpcEngine::handle_login(const std::shared_ptr<Session>& session, const 
   // no authentication configured: any login succeeds (a client may always log in)
   if (!options_.tcp.auth.enabled ||
       options_.tcp.auth.accepts(token->get_ref<const std::string&>())) {
-    if (options_.tcp.auth.enabled) log::info(name(), ": ", session->label(), " authenticated");
-    session->set_authenticated();
+    if (options_.tcp.auth.enabled) log::info(name(), ": ", session.label(), " authenticated");
+    session.set_authenticated();
     reply(to, result_response(to.id, true));
     return;
   }
   // one guess per connection: the error goes out with this read's replies, then it closes
-  log::warning(name(), ": ", session->label(), " presented a wrong token; connection closed");
+  log::warning(name(), ": ", session.label(), " presented a wrong token; connection closed");
   reply(to,
         error_response(to.id, code::unauthorized, "Unauthorized: wrong token; connection closed",
                        json{{"method", "rpc.login"}}));
-  boost::asio::post(io_, [session] {
+  boost::asio::post(io_, [session = session.shared()] {
     session->flush_writes();
     session->end("wrong token", kit::Ending::refused);
   });
 }
 
-void JsonRpcEngine::handle_cancel(const std::shared_ptr<Session>& session,
-                                  const std::string& method, const json& params, ReplyTo to) {
+void JsonRpcEngine::handle_cancel(Session& session, const std::string& method, const json& params,
+                                  ReplyTo to) {
   // {"id": X} or [X]
   const json* target = nullptr;
   if (params.is_object() && params.contains("id")) target = &params["id"];
@@ -400,7 +398,7 @@ void JsonRpcEngine::handle_cancel(const std::shared_ptr<Session>& session,
   // calls read before this cancel reach the simulation thread first (inside a batch the
   // batch's calls stay together: a cancel there sees the calls of earlier messages only)
   if (!to.batch) flush_submissions();
-  const auto id = session->find(dump(*target));
+  const auto id = session.find(dump(*target));
   if (!id) {
     reply(to, result_response(to.id, false));
     return;
@@ -408,7 +406,7 @@ void JsonRpcEngine::handle_cancel(const std::shared_ptr<Session>& session,
   // the answer comes once the cancel ran, through the same list as outcomes, so it keeps
   // its place among the replies (before the cancelled call's -32002)
   const RequestId cancel_id = add_pending();
-  session->add_in_flight();
+  session.add_in_flight();
   Pending& pending = **pending_.find(cancel_id);
   pending.to = std::move(to);
   pending.method.assign(method);
@@ -429,8 +427,8 @@ void JsonRpcEngine::on_service_progress(RequestId id, json&& value) {
   auto* slot = pending_.find(id);
   if (!slot) return;
   Pending* pending = slot->get();
-  auto session = pending->to.session.lock();
-  if (!session || session->closed()) return;
+  Session* session = pending->to.session.get();
+  if (!session) return;  // its client left
   const std::string& id_key = pending->id_key;
   session->queue_droppable_message([&](std::string& out) {
     out += R"({"jsonrpc":"2.0","method":"rpc.progress","params":{"id":)";
@@ -463,9 +461,10 @@ void JsonRpcEngine::finish_call(RequestId id, Outcome&& outcome) {
   } taken{spare_pending_, std::move(*slot)};
   pending_.erase(id);
   Pending& pending = *taken.entry;
-  auto session = pending.to.session.lock();
+  // no atomic operation here (kit::ConnectionRef): null when the client left, and then
   // nobody to answer: skip serialising (results can be large)
-  if (!session || session->closed()) return;
+  Session* session = pending.to.session.get();
+  if (!session) return;
   try {
     if (pending.cancel) {
       // rpc.cancel's own answer: true if the call was still running
@@ -524,12 +523,12 @@ void JsonRpcEngine::reply(ReplyTo& to, std::optional<json> response) {
       array += array.empty() ? '[' : ',';
       array += r;
     }
-    auto session = to.session.lock();
+    Session* session = to.session.get();
     if (session && !array.empty()) session->queue_message(array + "]");
     return;
   }
   if (to.notification || !response) return;
-  if (auto session = to.session.lock())
+  if (Session* session = to.session.get())
     session->queue_message(to.id_text.empty() ? dump(*response)
                                               : response_with_id_text(*response, to.id_text));
 }

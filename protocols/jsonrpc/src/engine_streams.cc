@@ -52,9 +52,8 @@ json JsonRpcEngine::stream_list() const {
   return out;
 }
 
-bool JsonRpcEngine::handle_stream_method(const std::shared_ptr<Session>& session,
-                                         const std::string& method, const json& params,
-                                         ReplyTo& to) {
+bool JsonRpcEngine::handle_stream_method(Session& session, const std::string& method,
+                                         const json& params, ReplyTo& to) {
   if (method == "rpc.streams") {
     reply(to, result_response(to.id, stream_list()));
   } else if (method == "rpc.subscribe") {
@@ -71,7 +70,7 @@ bool JsonRpcEngine::handle_stream_method(const std::shared_ptr<Session>& session
               json{{"method", method}, {"parameter", "subscription"}}));
       return true;
     }
-    reply(to, result_response(to.id, unsubscribe(*session, id->get<std::uint64_t>())));
+    reply(to, result_response(to.id, unsubscribe(session, id->get<std::uint64_t>())));
   } else if (method == "rpc.publish") {
     publish(params, to);
   } else {
@@ -80,8 +79,7 @@ bool JsonRpcEngine::handle_stream_method(const std::shared_ptr<Session>& session
   return true;
 }
 
-void JsonRpcEngine::subscribe(const std::shared_ptr<Session>& session, const json& params,
-                              ReplyTo& to) {
+void JsonRpcEngine::subscribe(Session& session, const json& params, ReplyTo& to) {
   const json* component = streams_detail::single_param(params, "component");
   if (!component || !component->is_string()) {
     reply(to,
@@ -111,17 +109,17 @@ void JsonRpcEngine::subscribe(const std::shared_ptr<Session>& session, const jso
   }
   // a second subscribe of the same stream on a connection is the first one
   for (const auto& s : stream_subs_)
-    if (s.session.lock() == session && s.subscription->component() == name) {
+    if (s.session.lock().get() == &session && s.subscription->component() == name) {
       reply(to, result_response(to.id, json{{"subscription", s.id},
                                             {"stream", streams_detail::stream_json(*info)}}));
       return;
     }
   StreamSub sub;
   sub.id = next_subscription_++;
-  sub.session = session;
+  sub.session = session.shared();
   sub.subscription =
       streams()->subscribe(name, transport_name(),
-                           SubscriberOptions{options_.stream_queue, tag_ + " " + session->label(),
+                           SubscriberOptions{options_.stream_queue, tag_ + " " + session.label(),
                                              [this] { wake_streams(); }});
   if (!sub.subscription) {  // deleted meanwhile
     reply(to, error_response(to.id, code::invalid_params,

@@ -45,6 +45,16 @@
 // Life cycle: created on accept, ConnectionServer::add()ed (which start()s it), kept alive by
 // its pending handlers (shared_from_this) and by the server's set; close() ends it
 // (idempotent). Threads: every member function runs on the transport's single I/O thread.
+//
+// Where a reply goes: a ConnectionRef names a connection without sharing its ownership. A
+// protocol keeps one per request (the JSON-RPC engine's replies, the socket transport's
+// deferred error replies) instead of a weak_ptr: making, copying and dropping it are plain
+// copies, and get() looks the connection up in its server's table of open ones (an index
+// and a compare), where a weak_ptr costs four atomic operations per reply (its weak count
+// taken and given back, the lock and its release). A connection is open from add() until
+// its server is told it closed: a reply that comes after its client left (an outcome from
+// the simulation thread, an async service's completion, handed over to the I/O thread by
+// the core) finds nothing and is dropped.
 #ifndef SIMGATE_KIT_CONNECTION_H_
 #define SIMGATE_KIT_CONNECTION_H_
 
@@ -67,11 +77,35 @@
 #include "simgate/kit/held_bytes.h"
 #include "simgate/kit/idle_spin.h"
 #include "simgate/kit/read_split.h"
+#include "simgate/kit/request_slots.h"
 #include "simgate/kit/tcp_server.h"
 
 namespace simgate::kit {
 
+class Connection;
 class ConnectionServer;
+
+// A connection named without owning it (see the file's comment): `T` is the connection's
+// class or another base of it (the JSON-RPC engine's Session), whose object lives as long
+// as the connection. get() is the object while the connection is open, null once its
+// server was told it closed (Connection::closed()) and for a ref made by default or before
+// ConnectionServer::add(). get() reads the server's table: call it on the server's I/O
+// thread, or once that thread has ended (a transport finishing what the core still holds
+// at stop), never on another thread meanwhile. The server must outlive every get().
+template <class T>
+class ConnectionRef {
+ public:
+  ConnectionRef() = default;
+  // `object` is `connection` or part of the same object (another base of its class).
+  ConnectionRef(const Connection& connection, T& object);
+
+  T* get() const { return open_ && open_->contains(id_) ? object_ : nullptr; }
+
+ private:
+  T* object_ = nullptr;                              // valid while id_ is open
+  const RequestSlots<Connection*>* open_ = nullptr;  // its server's open connections
+  RequestId id_ = 0;                                 // its slot there (0: none)
+};
 
 struct ConnectionLimits {
   std::size_t max_message_bytes = 1 << 20;  // longest message accepted
@@ -172,6 +206,9 @@ class Connection : public std::enable_shared_from_this<Connection> {
 
   // This connection as the kit's (for a class that derives from it and from another base).
   Connection& connection() { return *this; }
+  // A reference to it (or to `object`, another base of its class) that does not own it:
+  // where a reply goes (ConnectionRef).
+  ConnectionRef<Connection> ref() { return {*this, *this}; }
 
   // "client #3 (127.0.0.1:51234)", for log messages.
   const std::string& label() const { return label_; }
@@ -258,6 +295,8 @@ class Connection : public std::enable_shared_from_this<Connection> {
 
  private:
   friend class ConnectionServer;
+  template <class T>
+  friend class ConnectionRef;
   template <class Format>
   void append_with(Format&& format) {
     const std::size_t before = outbox_.size();
@@ -294,6 +333,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
   boost::asio::ip::tcp::socket socket_;  // the connection
   ConnectionServer& server_;             // the transport (outlives every connection)
   std::uint64_t number_;                 // the connection's number within its transport
+  RequestId open_id_ = 0;                // its slot among the server's open connections (add)
   boost::asio::ip::address peer_;        // the client's address
   bool authenticated_ = true;            // may call services (ConnectionServer::add decides)
   std::vector<char> read_buffer_;        // one read's bytes (ConnectionLimits::read_bytes)
@@ -377,6 +417,8 @@ class ConnectionServer {
 
  private:
   friend class Connection;
+  template <class T>
+  friend class ConnectionRef;
   // The connection is about to wait for its next bytes: true when the polling thread will
   // read its socket itself (read_now) until it parks it (read_async).
   bool watch(Connection& connection);
@@ -402,7 +444,8 @@ class ConnectionServer {
   TokenAuth auth_;                  // who must present a token
   std::chrono::milliseconds idle_timeout_, idle_evict_, line_timeout_;  // 0: never
   std::unordered_set<std::shared_ptr<Connection>> connections_;         // open connections
-  std::atomic<std::size_t> count_{0};                 // connections_.size(), for any thread
+  RequestSlots<Connection*> open_;     // the same, for ConnectionRef: a slot from add to closed
+  std::atomic<std::size_t> count_{0};  // connections_.size(), for any thread
   std::vector<std::shared_ptr<Connection>> touched_;  // bytes queued, not yet written
   ReadSplit read_split_;                              // the lone client's large reads
   DirectReads<Connection> direct_;                    // the lone client read without the event loop
@@ -414,6 +457,10 @@ inline HeldBytes& Connection::held() { return server_.shared_.held; }
 inline std::uint32_t Connection::tick() const { return server_.shared_.tick; }
 inline void Connection::freed(std::size_t bytes) { server_.shared_.freed += bytes; }
 inline void Connection::touch() { server_.touch(*this); }
+
+template <class T>
+ConnectionRef<T>::ConnectionRef(const Connection& connection, T& object)
+    : object_(&object), open_(&connection.server_.open_), id_(connection.open_id_) {}
 
 }  // namespace simgate::kit
 

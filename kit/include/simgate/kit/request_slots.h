@@ -73,6 +73,13 @@ class RequestSlots {
     return &slot.value;
   }
 
+  // Whether `id` names a live entry (find() without the entry).
+  bool contains(RequestId id) const {
+    const std::size_t index = id & (k_max_live - 1);
+    return index < slots_.size() && slots_[index].live &&
+           id == id_of(slots_[index].generation, index);
+  }
+
   // Frees the slot of `id`; false if there was no such entry.
   bool erase(RequestId id) {
     if (!find(id)) return false;

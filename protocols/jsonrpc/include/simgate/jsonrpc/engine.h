@@ -129,10 +129,14 @@ class Session : public SessionCalls {
       std::string().swap(droppable_);
     return true;
   }
-  // This session, sharing its connection's ownership.
+  // This session, sharing its connection's ownership (what outlives the I/O thread's
+  // handler: a posted task).
   std::shared_ptr<Session> shared() {
     return std::shared_ptr<Session>(connection_.shared_from_this(), this);
   }
+  // This session as a reply remembers it: null once its connection closed, no atomic
+  // operation (kit::ConnectionRef; the I/O thread's).
+  kit::ConnectionRef<Session> ref() { return {connection_, *this}; }
 
   // Calls, notifications and cancels in flight (max_in_flight), each until done().
   std::size_t in_flight() const { return connection_.unanswered(); }
@@ -174,7 +178,7 @@ class JsonRpcEngine : public RequestManager {
   // Names the I/O thread as the one outcomes are delivered on (call it first on that thread).
   void deliver_here();
   // One message received from `session` (a line without its '\n', a text message).
-  void handle_message(const std::shared_ptr<Session>& session, std::string_view text);
+  void handle_message(Session& session, std::string_view text);
   // Hands the calls gathered from the current read to the core (run_or_submit).
   void flush_submissions();
   // The client will send nothing more: under "on_disconnect": "cancel" its calls end.
@@ -196,11 +200,11 @@ class JsonRpcEngine : public RequestManager {
 
   // Where the response of one call goes.
   struct ReplyTo {
-    std::weak_ptr<Session> session;  // gone when the client left
-    json id;                         // JSON-RPC id (null for notifications)
-    bool notification = false;       // no response at all
-    std::shared_ptr<Batch> batch;    // set for batch entries
-    std::size_t index = 0;           // entry index inside the batch
+    kit::ConnectionRef<Session> session;  // null once its connection closed (I/O thread)
+    json id;                              // JSON-RPC id (null for notifications)
+    bool notification = false;            // no response at all
+    std::shared_ptr<Batch> batch;         // set for batch entries
+    std::size_t index = 0;                // entry index inside the batch
     std::string id_text;  // the id's exact text when dump() would round it (float_id_texts)
   };
   // A call submitted to the core and not yet finished (or an rpc.cancel waiting for its answer).
@@ -213,21 +217,20 @@ class JsonRpcEngine : public RequestManager {
     // when its table node is kept for reuse: drop the references, keep the strings' capacity
     // (a string id goes: it may be large; a number or null stays until overwritten)
     void recycle() {
-      to.session.reset();
+      to.session = {};
       to.batch.reset();
       if (to.id.is_string()) to.id = nullptr;
     }
   };
 
   // Handles one request object: answers at once (into `to`), or queues a call in to_submit_.
-  void handle_request(const std::shared_ptr<Session>& session, json& message, ReplyTo to);
+  void handle_request(Session& session, json& message, ReplyTo to);
   // Handles one valid request (its params and id_text are moved from).
-  void dispatch(const std::shared_ptr<Session>& session, Request& request, ReplyTo&& to);
+  void dispatch(Session& session, Request& request, ReplyTo&& to);
   // rpc.login {"token"}: the connection may call services (kit/auth.h); a wrong token is
   // answered -32005 and closes the connection.
-  void handle_login(const std::shared_ptr<Session>& session, const json& params, ReplyTo to);
-  void handle_cancel(const std::shared_ptr<Session>& session, const std::string& method,
-                     const json& params, ReplyTo to);
+  void handle_login(Session& session, const json& params, ReplyTo to);
+  void handle_cancel(Session& session, const std::string& method, const json& params, ReplyTo to);
   // I/O thread, woken by the core: finishes the outcomes the simulation thread produced,
   // then one write per connection.
   void drain_completions();
@@ -246,9 +249,9 @@ class JsonRpcEngine : public RequestManager {
   // The streams this transport carries, as rpc.streams lists them.
   json stream_list() const;
   // rpc.streams, rpc.subscribe, rpc.unsubscribe, rpc.publish; false for any other method.
-  bool handle_stream_method(const std::shared_ptr<Session>& session, const std::string& method,
-                            const json& params, ReplyTo& to);
-  void subscribe(const std::shared_ptr<Session>& session, const json& params, ReplyTo& to);
+  bool handle_stream_method(Session& session, const std::string& method, const json& params,
+                            ReplyTo& to);
+  void subscribe(Session& session, const json& params, ReplyTo& to);
   bool unsubscribe(Session& session, std::uint64_t id);
   void publish(const json& params, ReplyTo& to);
   // A subscription has samples (the thread that holds the simulation lock): one post per burst.
