@@ -40,6 +40,11 @@ inline std::int64_t ns_between(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(b - a).count();
 }
 
+// `s` seconds as a Clock duration (deadlines: Clock::now() + seconds(duration_s)).
+inline Clock::duration seconds(double s) {
+  return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s));
+}
+
 // The q-quantile (0..1) of sorted samples, nearest rank.
 inline double quantile(const std::vector<std::int64_t>& sorted, double q) {
   if (sorted.empty()) return 0;
