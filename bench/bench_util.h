@@ -52,7 +52,6 @@ inline double quantile(const std::vector<std::int64_t>& sorted, double q) {
   return static_cast<double>(sorted[std::min(rank, sorted.size() - 1)]);
 }
 
-// Count, mean and percentiles of nanosecond samples, reported in microseconds.
 // The median of v (the mean of the middle two for an even count), 0 when v is empty.
 inline double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
@@ -61,6 +60,7 @@ inline double median(std::vector<double> v) {
                         : (v[v.size() / 2 - 1] + v[v.size() / 2]) / 2;
 }
 
+// Count, mean and percentiles of nanosecond samples, reported in microseconds.
 inline json summarize_us(std::vector<std::int64_t> samples) {
   std::sort(samples.begin(), samples.end());
   double sum = 0;

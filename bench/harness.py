@@ -817,7 +817,7 @@ class Harness:
             return {"status": "skipped", "reason": "simgate_bench_sim or the socket transport is not built"}
         out = {"status": "ok"}
 
-        # a. the humanoid: every round pairs N gateway steps with N bare steps (sim_bench.cc)
+        # a. the humanoid: every round pairs N gateway steps with N bare steps (stepping_bench.cc)
         duration = 1.0 if self.smoke else 12.0
         h = run_json([sim, "--mode", "humanoid", "--duration", str(duration)], self.timeout, self.env)
         out["humanoid"] = h
