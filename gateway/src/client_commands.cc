@@ -121,13 +121,14 @@ namespace {
 int call_dds_simgates(const CallArgs& args, const ClientTarget& target, const json& params) {
   const auto simgates =
       client::list_simgates(client::DdsClientOptions::from_json(target.options), target.timeout);
-  std::vector<const client::DdsSimgate*> called;  // one a partition: a call reaches them all
+  // one a partition (list_simgates sorts them by partition): a call there reaches them all
+  std::vector<const client::DdsSimgate*> called;
   for (const auto& simgate : simgates) {
     if (!called.empty() && called.back()->partition == simgate.partition) {
       std::cerr << "simgate: note: partition '" << simgate.partition
-                << "' has several simgates: the call there reaches each of them and the first "
-                   "reply is printed; give each simgate a partition of its own (docs/worlds.md, "
-                   "\"Across hosts\")\n";
+                << "' has several simgates: the call there reaches each of them and one line "
+                   "is printed for the partition; give each simgate a partition of its own "
+                   "(docs/worlds.md, \"Across hosts\")\n";
       continue;
     }
     called.push_back(&simgate);
