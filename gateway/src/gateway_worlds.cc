@@ -153,12 +153,17 @@ void Gateway::start_world_loops() {
 
 void Gateway::stop() {
   if (simulation_) simulation_->request_stop();
+  // a step_many under way stops at its next step: it may hold a world's lock for long
+  if (all_worlds_) all_worlds_->request_stop();
   std::lock_guard lock(worlds_mutex_);
   for (auto& [index, world] : worlds_) world->sim->request_stop();
 }
 
 void Gateway::stop_worlds() {
   if (!simulation_) return;
+  // no step_many steps a world any more (those under way stop at their next step): a world's
+  // loop may wait for its lock
+  all_worlds_->stop();
   {
     // under world 0's lock: no create_world or delete_world is half done
     std::lock_guard gate(*simulation_->gate());

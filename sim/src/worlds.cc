@@ -24,66 +24,9 @@
 
 namespace simgate::sim {
 
-// ---- TaskPool
-
-TaskPool::TaskPool(std::size_t threads) {
-  for (std::size_t i = 0; i < threads; ++i) helpers_.emplace_back([this] { help(); });
-}
-
-TaskPool::~TaskPool() {
-  {
-    std::lock_guard lock(mutex_);
-    stop_ = true;
-  }
-  work_.notify_all();
-  for (auto& t : helpers_) t.join();
-}
-
-void TaskPool::drain(std::unique_lock<std::mutex>& lock) {
-  while (task_ && next_ < count_) {
-    const std::size_t i = next_++;
-    ++running_;
-    const auto* task = task_;
-    lock.unlock();
-    (*task)(i);
-    lock.lock();
-    if (--running_ == 0 && next_ == count_) done_.notify_all();
-  }
-}
-
-void TaskPool::help() {
-  std::unique_lock lock(mutex_);
-  std::uint64_t seen = 0;
-  for (;;) {
-    work_.wait(lock, [&] { return stop_ || batch_ != seen; });
-    if (stop_) return;
-    seen = batch_;
-    drain(lock);
-  }
-}
-
-void TaskPool::run(std::size_t count, const std::function<void(std::size_t)>& task) {
-  if (count == 0) return;
-  std::unique_lock lock(mutex_);
-  task_ = &task;
-  next_ = 0;
-  count_ = count;
-  running_ = 0;
-  ++batch_;
-  if (count > 1) work_.notify_all();
-  drain(lock);  // the caller works too
-  done_.wait(lock, [&] { return next_ == count_ && running_ == 0; });
-  task_ = nullptr;
-}
-
 // ---- Worlds
 
 namespace {
-
-std::size_t pool_threads(std::size_t threads) {
-  if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
-  return threads - 1;  // the caller is one
-}
 
 [[noreturn]] void refuse(const std::string& parameter, const std::string& message) {
   throw ServiceError("simulation step_many: " + parameter + ": " + message, Failure::bad_arguments,
@@ -119,15 +62,40 @@ json read(const Simulation& world, const std::string& what, bool base64) {
   return array_of(d->sensordata, m->nsensordata, base64);
 }
 
+}  // namespace
+
+// What a call knows of each world it steps (not in an anonymous namespace: Worlds::Call holds
+// them).
+namespace worlds_call {
+
 // One of `reads` in one world: its service, and its arguments bound (into the call's params).
 struct Read {
   const Service* service = nullptr;
   BoundArguments args{0};
 };
 
-// `reads[i]` ({"component", "service", "params"}) bound in `world`: a synchronous service
-// of one of its components the caller may call. Throws ServiceError (bad_arguments) when not.
-Read bind_read(Simulation& world, unsigned index, const json& read, std::size_t i) {
+// One world's part of a call.
+struct Slot {
+  unsigned world = 0;
+  std::uint64_t turn = 0;  // the world's turn this call steps it in
+  // checked: its controls (a control left out: NaN, kept), or keep them all
+  std::optional<std::vector<double>> action;
+  std::vector<Read> reads;       // the services read after its steps, bound to its components
+  std::uint64_t generation = 0;  // its model's when the call was checked
+  bool checked = false;          // the world was there to check (else: deleted, or stopping)
+  json result;                   // what the reply says of it
+};
+
+}  // namespace worlds_call
+
+using worlds_call::Read;
+using worlds_call::Slot;
+
+namespace {
+
+// `reads[i]` ({"component", "service", "params"}) as the caller may ask it, in any world.
+// Throws ServiceError (bad_arguments) when not. Where the call arrives (its caller known).
+void check_read(const json& read, std::size_t i) {
   const std::string where = "reads[" + std::to_string(i) + "]";
   if (!read.is_object() || !read.contains("component") || !read["component"].is_string() ||
       !read.contains("service") || !read["service"].is_string())
@@ -138,12 +106,22 @@ Read bind_read(Simulation& world, unsigned index, const json& read, std::size_t 
       refuse(where + "." + key, "unknown key (component, service, params)");
   const std::string& component = read["component"].get_ref<const std::string&>();
   const std::string& name = read["service"].get_ref<const std::string&>();
+  if (!caller_may_call(component, name))
+    refuse(where, "simgate has no service " + component + "." + name + " this caller may call");
+}
+
+// `reads[i]`, checked by check_read(), bound in `world`: a synchronous service of one of its
+// components. Throws ServiceError (bad_arguments) when not.
+Read bind_read(Simulation& world, unsigned index, const json& read, std::size_t i) {
+  const std::string where = "reads[" + std::to_string(i) + "]";
+  const std::string& component = read["component"].get_ref<const std::string&>();
+  const std::string& name = read["service"].get_ref<const std::string&>();
   const ComponentEntry* entry = world.find(component);
   const Service* service = nullptr;
   if (entry)
     for (const auto& s : entry->component->services())
       if (s->descriptor().name == name) service = s.get();
-  if (!service || !caller_may_call(component, name))
+  if (!service)
     refuse(where, "world " + std::to_string(index) + " has no service " + component + "." + name +
                       " this caller may call");
   if (service->descriptor().is_async)
@@ -158,23 +136,157 @@ Read bind_read(Simulation& world, unsigned index, const json& read, std::size_t 
   }
 }
 
-// One world's part of a call, checked.
-struct Slot {
-  unsigned world = 0;
-  Simulation* sim = nullptr;
-  // its controls (a control left out: NaN, kept), or keep them all
-  std::optional<std::vector<double>> action;
-  std::vector<Read> reads;  // the services read after its steps, bound to its components
-  json result;              // what the reply says of it
-};
+// Slot `i` of a call checked in its world (`world`, locked): its action against the world's
+// actuators (`actions`: the call's), its reads bound (`reads`: the call's). Throws
+// ServiceError (bad_arguments, naming the parameter) when they do not fit.
+void check_slot(Slot& slot, Simulation& world, std::size_t i, const json& actions,
+                const json& reads) {
+  slot.generation = world.model_generation();
+  for (std::size_t r = 0; r < reads.size(); ++r)
+    slot.reads.push_back(bind_read(world, slot.world, reads[r], r));
+  if (actions.is_null() || actions[i].is_null()) return;
+  const std::string where = "actions[" + std::to_string(i) + "]";
+  const mjModel* m = world.m();
+  const json& action = actions[i];
+  if (!action.is_array() || action.size() != static_cast<std::size_t>(m->nu))
+    refuse(where, "world " + std::to_string(slot.world) + " has " + std::to_string(m->nu) +
+                      " actuators: expected " + std::to_string(m->nu) +
+                      " numbers (or null), found " + describe_json(action));
+  std::vector<double> controls;
+  for (int j = 0; j < m->nu; ++j) {
+    const json& v = action[static_cast<std::size_t>(j)];
+    if (v.is_null()) {  // this control kept
+      controls.push_back(std::numeric_limits<double>::quiet_NaN());
+      continue;
+    }
+    const double value = v.is_number() ? v.get<double>() : 0.0;
+    const bool limited = m->actuator_ctrllimited[j];
+    const double low = limited ? m->actuator_ctrlrange[2 * j] : -bounds::control;
+    const double high = limited ? m->actuator_ctrlrange[2 * j + 1] : bounds::control;
+    if (!v.is_number() || !(value >= low && value <= high)) {
+      // refused with the parameter and the range named (bounds.h); the name is made only
+      // for a refusal (hundreds of controls a call)
+      const std::string parameter = where + "[" + std::to_string(j) + "]";
+      if (!v.is_number()) refuse(parameter, "expected a number or null, found " + describe_json(v));
+      if (limited)
+        bounds::require_between(parameter, value, low, high, "");
+      else
+        bounds::require_within(parameter, value, bounds::control, "");
+    }
+    controls.push_back(value);
+  }
+  slot.action = std::move(controls);
+}
+
+// `slot`'s world (`sim`, locked) given its controls, `n` steps (fewer when it diverges, or
+// when `stop` gives a reason between two steps), then read; what happened in slot.result.
+void take_steps(Simulation& sim, Slot& slot, std::int64_t n,
+                const std::vector<std::string>& observed, bool base64,
+                const std::function<const char*()>& stop) {
+  json& out = slot.result;
+  if (slot.action)
+    for (std::size_t j = 0; j < slot.action->size(); ++j)
+      if (!std::isnan((*slot.action)[j])) sim.d()->ctrl[j] = (*slot.action)[j];
+  const std::uint64_t steps_before = sim.steps(), divergences_before = sim.divergences();
+  for (std::int64_t taken = 0; taken < n; ++taken) {
+    if (const char* reason = stop()) {
+      out["steps_done"] = sim.steps() - steps_before;
+      out["error"] = "world " + std::to_string(slot.world) + " " + reason + " after " +
+                     std::to_string(sim.steps() - steps_before) + " of its " + std::to_string(n) +
+                     " steps";
+      return;
+    }
+    sim.step();
+    if (sim.divergences() != divergences_before) {
+      // its policy did what it does (paused it, reset it...): it stops here
+      out["diverged"] = sim.last_divergence() ? to_json(*sim.last_divergence()) : json();
+      break;
+    }
+  }
+  out["steps_done"] = sim.steps() - steps_before;
+  out["sim_time"] = sim.sim_time();
+  for (const std::string& what : observed) out[what] = read(sim, what, base64);
+  if (slot.reads.empty()) return;
+  json& results = out["reads"] = json::array();
+  for (std::size_t r = 0; r < slot.reads.size(); ++r) {
+    try {
+      std::optional<json> value =
+          slot.reads[r].service->invoke(slot.reads[r].args.span(), Completion());
+      results.push_back(value ? std::move(*value) : json());
+    } catch (const std::exception& e) {
+      out["error"] = "reads[" + std::to_string(r) + "] (" +
+                     slot.reads[r].service->descriptor().qualified_name() + "): " + e.what();
+      return;
+    }
+  }
+}
 
 }  // namespace
 
-Worlds::Worlds(std::size_t threads) : pool_(pool_threads(threads)) {}
+// A world, and the order calls step it in.
+struct Worlds::World {
+  Simulation* sim = nullptr;
+  std::uint64_t next_turn = 0;       // the next call's (under world 0's lock and mutex_)
+  std::uint64_t turn = 0;            // the turn of the call that has the world now (mutex_)
+  int using_it = 0;                  // pool threads checking or stepping it now (mutex_)
+  std::atomic<bool> leaving{false};  // remove(): a call stepping it stops at its next step
+};
 
-void Worlds::add(unsigned index, Simulation& world) { worlds_[index] = &world; }
+// One step_many call, from its arrival to its reply. The pool runs it as one batch: task 0
+// waits for the call's turn on each of its worlds and checks it there; tasks 1..N step a world
+// each once the check is done. The call has its worlds from that check until their steps end.
+struct Worlds::Call {
+  Completion done;
+  std::int64_t n = 0;
+  std::vector<std::string> observed;
+  bool base64 = false;
+  json actions;  // the call's, checked in each world
+  json reads;    // the call's: each slot's bound reads point into it
+  std::vector<Slot> slots;
+  bool checked = false;            // task 0 ended (mutex_)
+  std::optional<Outcome> refusal;  // what task 0 refused the call with
+};
 
-void Worlds::remove(unsigned index) { worlds_.erase(index); }
+Worlds::Worlds(std::size_t threads)
+    : pool_(threads == 0 ? std::max(1u, std::thread::hardware_concurrency()) : threads) {}
+
+Worlds::~Worlds() { stop(); }
+
+void Worlds::add(unsigned index, Simulation& world) {
+  auto entry = std::make_unique<World>();
+  entry->sim = &world;
+  std::lock_guard lock(mutex_);
+  worlds_[index] = std::move(entry);
+}
+
+void Worlds::remove(unsigned index) {
+  std::unique_lock lock(mutex_);
+  const auto it = worlds_.find(index);
+  if (it == worlds_.end()) return;
+  it->second->leaving = true;
+  changed_.notify_all();  // calls waiting for their turn on it give up
+  changed_.wait(lock, [&] { return it->second->using_it == 0; });
+  worlds_.erase(it);
+}
+
+void Worlds::request_stop() {
+  {
+    std::lock_guard lock(mutex_);
+    stopping_ = true;
+  }
+  changed_.notify_all();  // calls waiting for their turn give up
+}
+
+void Worlds::stop() {
+  request_stop();
+  {
+    // world 0's lock, which step_many holds: a call that saw no stop has been submitted
+    std::unique_lock<SimulationGate> gate;
+    if (const auto it = worlds_.find(0); it != worlds_.end())
+      gate = std::unique_lock(*it->second->sim->gate());
+  }
+  pool_.wait_idle();
+}
 
 std::string Worlds::index_list() const {
   std::string out;
@@ -186,8 +298,8 @@ std::string Worlds::index_list() const {
 void Worlds::each_locked(const std::function<void(unsigned, const Simulation&)>& read) const {
   for (const auto& [index, world] : worlds_) {
     std::unique_lock<SimulationGate> lock;
-    if (index != 0) lock = std::unique_lock(*world->gate());  // world 0's is the caller's
-    read(index, *world);
+    if (index != 0) lock = std::unique_lock(*world->sim->gate());  // world 0's is the caller's
+    read(index, *world->sim);
   }
 }
 
@@ -218,25 +330,30 @@ const std::vector<std::string>& Worlds::default_observation() {
 
 void Worlds::add_to(SupervisionServices& world0) {
   world0
-      .offer_service("step_many",
-                     [this](json worlds, std::int64_t n, json actions, json observe, json reads,
-                            std::string encoding) {
-                       return step_many(worlds, n, actions, observe, reads, encoding);
-                     },
-                     {Param("worlds", nullptr), Param("n", 1), Param("actions", nullptr),
-                      Param("observe", default_observation()), Param("reads", json::array()),
-                      Param("encoding", "json")})
+      .offer_async_service("step_many",
+                           [this](Completion done, json worlds, std::int64_t n, json actions,
+                                  json observe, json reads, std::string encoding) {
+                             step_many(done, worlds, n, std::move(actions), observe,
+                                       std::move(reads), encoding);
+                           },
+                           {Param("worlds", nullptr), Param("n", 1), Param("actions", nullptr),
+                            Param("observe", default_observation()), Param("reads", json::array()),
+                            Param("encoding", "json")})
+      .concurrent()
       .doc(
           "steps many worlds in one call: for each of `worlds` (all when null) sets its "
           "actuators' controls to its entry of `actions` (one number per actuator; null keeps "
           "them, a null control keeps that one), takes `n` steps, and reads `observe` (qpos, "
           "qvel, act, ctrl, sensordata; as numbers, or with `encoding` base64 each array's "
           "float64 little-endian bytes in base64) and `reads` (services of each world, "
-          "[{component, service, params}]); the worlds step in parallel (docs/worlds.md)");
+          "[{component, service, params}]); the worlds step in parallel, off the caller's thread "
+          "(docs/worlds.md)");
 }
 
-json Worlds::step_many(const json& worlds, std::int64_t n, const json& actions, const json& observe,
-                       const json& reads, const std::string& encoding) {
+void Worlds::step_many(const Completion& done, const json& worlds, std::int64_t n, json actions,
+                       const json& observe, json reads, const std::string& encoding) {
+  if (stopping_.load())
+    throw ServiceError("simulation step_many: simgate is stopping", Failure::shutdown);
   // ---- the arguments that need no world
   std::vector<unsigned> named;
   if (worlds.is_null()) {
@@ -286,102 +403,146 @@ json Worlds::step_many(const json& worlds, std::int64_t n, const json& actions, 
   if (!reads.is_array())
     refuse("reads", "expected an array of {\"component\", \"service\", \"params\"}, found " +
                         describe_json(reads));
+  for (std::size_t r = 0; r < reads.size(); ++r) check_read(reads[r], r);
 
-  // ---- every world named, locked in order (world 0's lock is this service's)
-  std::vector<std::unique_lock<SimulationGate>> locks;
-  std::vector<unsigned> in_order = named;
-  std::sort(in_order.begin(), in_order.end());
-  for (const unsigned k : in_order)
-    if (k != 0) locks.emplace_back(*worlds_.at(k)->gate());
-
-  // ---- the actions, checked against each world's actuators before anything changes
-  std::vector<Slot> slots(named.size());
-  for (std::size_t i = 0; i < named.size(); ++i) {
-    Slot& slot = slots[i];
-    slot.world = named[i];
-    slot.sim = worlds_.at(named[i]);
-    for (std::size_t r = 0; r < reads.size(); ++r)
-      slot.reads.push_back(bind_read(*slot.sim, slot.world, reads[r], r));
-    if (actions.is_null() || actions[i].is_null()) continue;
-    const std::string where = "actions[" + std::to_string(i) + "]";
-    const mjModel* m = slot.sim->m();
-    const json& action = actions[i];
-    if (!action.is_array() || action.size() != static_cast<std::size_t>(m->nu))
-      refuse(where, "world " + std::to_string(slot.world) + " has " + std::to_string(m->nu) +
-                        " actuators: expected " + std::to_string(m->nu) +
-                        " numbers (or null), found " + describe_json(action));
-    std::vector<double> controls;
-    for (int j = 0; j < m->nu; ++j) {
-      const json& v = action[static_cast<std::size_t>(j)];
-      if (v.is_null()) {  // this control kept
-        controls.push_back(std::numeric_limits<double>::quiet_NaN());
-        continue;
-      }
-      const double value = v.is_number() ? v.get<double>() : 0.0;
-      const bool limited = m->actuator_ctrllimited[j];
-      const double low = limited ? m->actuator_ctrlrange[2 * j] : -bounds::control;
-      const double high = limited ? m->actuator_ctrlrange[2 * j + 1] : bounds::control;
-      if (!v.is_number() || !(value >= low && value <= high)) {
-        // refused with the parameter and the range named (bounds.h); the name is made only
-        // for a refusal (hundreds of controls a call)
-        const std::string parameter = where + "[" + std::to_string(j) + "]";
-        if (!v.is_number())
-          refuse(parameter, "expected a number or null, found " + describe_json(v));
-        if (limited)
-          bounds::require_between(parameter, value, low, high, "");
-        else
-          bounds::require_within(parameter, value, bounds::control, "");
-      }
-      controls.push_back(value);
+  auto call = std::make_shared<Call>();
+  call->done = done;
+  call->n = n;
+  call->observed = std::move(observed);
+  call->base64 = base64;
+  call->actions = std::move(actions);
+  call->reads = std::move(reads);
+  call->slots.resize(named.size());
+  {
+    // the call's turn on each world: calls that name a world step it in the order they came
+    std::lock_guard lock(mutex_);
+    for (std::size_t i = 0; i < named.size(); ++i) {
+      call->slots[i].world = named[i];
+      call->slots[i].turn = worlds_.at(named[i])->next_turn++;
     }
-    slot.action = std::move(controls);
   }
+  pool_.submit(
+      1 + call->slots.size(),
+      [this, call](std::size_t task) {
+        if (task == 0)
+          check_call(*call);
+        else
+          step_slot(*call, task - 1);
+      },
+      [call] {
+        if (call->refusal) {
+          call->done.finish(std::move(*call->refusal));
+          return;
+        }
+        json reply = json::array();
+        for (Slot& slot : call->slots) reply.push_back(std::move(slot.result));
+        call->done(Status::success, json{{"worlds", std::move(reply)}});
+      });
+}
 
-  // ---- each world by one thread: its controls, its n steps, what it observes
-  pool_.run(slots.size(), [&](std::size_t i) {
-    Slot& slot = slots[i];
-    Simulation& sim = *slot.sim;
-    const OutsideRequest outside;  // default actions see no caller (as `simulation step`)
-    json& out = slot.result;
-    out = json{{"world", slot.world}};
+Worlds::World* Worlds::take(unsigned index) {
+  const auto it = worlds_.find(index);
+  if (it == worlds_.end() || it->second->leaving) return nullptr;
+  ++it->second->using_it;
+  return it->second.get();
+}
+
+void Worlds::release(World& world, bool pass_turn) {
+  {
+    std::lock_guard lock(mutex_);
+    --world.using_it;
+    if (pass_turn) ++world.turn;
+  }
+  changed_.notify_all();
+}
+
+void Worlds::check_call(Call& call) {
+  // the call's turn on every world (earlier calls naming it are done with it), then each
+  // world checked under its lock; a world deleted meanwhile is not checked (its slot says so)
+  {
+    std::unique_lock lock(mutex_);
+    for (const Slot& slot : call.slots)
+      changed_.wait(lock, [&] {
+        const auto it = worlds_.find(slot.world);
+        return stopping_ || it == worlds_.end() || it->second->leaving ||
+               it->second->turn == slot.turn;
+      });
+  }
+  for (std::size_t i = 0; i < call.slots.size() && !call.refusal; ++i) {
+    Slot& slot = call.slots[i];
+    World* world = nullptr;
+    {
+      std::lock_guard lock(mutex_);
+      if (!stopping_) world = take(slot.world);
+    }
+    if (!world) continue;
     try {
-      if (slot.action)
-        for (std::size_t j = 0; j < slot.action->size(); ++j)
-          if (!std::isnan((*slot.action)[j])) sim.d()->ctrl[j] = (*slot.action)[j];
-      const std::uint64_t steps_before = sim.steps(), divergences_before = sim.divergences();
-      for (std::int64_t taken = 0; taken < n; ++taken) {
-        sim.step();
-        if (sim.divergences() != divergences_before) {
-          // its policy did what it does (paused it, reset it...): it stops here
-          out["diverged"] = sim.last_divergence() ? to_json(*sim.last_divergence()) : json();
-          break;
-        }
-      }
-      out["steps_done"] = sim.steps() - steps_before;
-      out["sim_time"] = sim.sim_time();
-      for (const std::string& what : observed) out[what] = read(sim, what, base64);
-      if (!slot.reads.empty()) {
-        json& results = out["reads"] = json::array();
-        for (std::size_t r = 0; r < slot.reads.size(); ++r) {
-          try {
-            std::optional<json> value =
-                slot.reads[r].service->invoke(slot.reads[r].args.span(), Completion());
-            results.push_back(value ? std::move(*value) : json());
-          } catch (const std::exception& e) {
-            out["error"] = "reads[" + std::to_string(r) + "] (" +
-                           slot.reads[r].service->descriptor().qualified_name() + "): " + e.what();
-            break;
-          }
-        }
+      std::lock_guard gate(*world->sim->gate());
+      check_slot(slot, *world->sim, i, call.actions, call.reads);
+      slot.checked = true;
+    } catch (const ServiceError& e) {
+      json data = e.data();
+      data["component"] = "simulation";
+      data["service"] = "step_many";
+      call.refusal = Outcome::failed(e.failure(), e.message(), std::move(data));
+    }
+    release(*world, false);
+  }
+  {
+    std::lock_guard lock(mutex_);
+    call.checked = true;
+  }
+  changed_.notify_all();
+}
+
+void Worlds::step_slot(Call& call, std::size_t i) {
+  Slot& slot = call.slots[i];
+  json& out = slot.result;
+  out = json{{"world", slot.world}};
+  const std::string name = "world " + std::to_string(slot.world);
+  World* world = nullptr;
+  {
+    std::unique_lock lock(mutex_);
+    changed_.wait(lock, [&] { return call.checked; });
+    world = take(slot.world);
+  }
+  // the call has the world's turn since its check: pass it on whatever happens here
+  if (!world || call.refusal || !slot.checked || stopping_) {
+    if (!call.refusal) {
+      out["steps_done"] = 0;
+      out["error"] = world && stopping_ ? "simgate is stopping: " + name + " was not stepped"
+                                        : name +
+                                              " was deleted (simulation delete_world) before "
+                                              "its turn: not stepped";
+    }
+    if (world) release(*world, true);
+    return;
+  }
+  {
+    Simulation& sim = *world->sim;
+    std::lock_guard gate(*sim.gate());
+    const OutsideRequest outside;  // default actions see no caller (as `simulation step`)
+    try {
+      if (sim.model_generation() != slot.generation) {
+        out["steps_done"] = 0;
+        out["error"] = name +
+                       "'s model was replaced (a spawn or a delete) after this call "
+                       "was checked: not stepped";
+      } else {
+        take_steps(sim, slot, call.n, call.observed, call.base64, [&]() -> const char* {
+          if (world->leaving.load(std::memory_order_relaxed))
+            return "was deleted (simulation delete_world) during this call";
+          if (stopping_.load(std::memory_order_relaxed)) return "stopped: simgate is stopping";
+          if (call.done.done())
+            return "stopped: the call ended (cancelled, timed out or its client left)";
+          return nullptr;
+        });
       }
     } catch (const std::exception& e) {
       out["error"] = e.what();
     }
-  });
-
-  json reply = json::array();
-  for (Slot& slot : slots) reply.push_back(std::move(slot.result));
-  return json{{"worlds", std::move(reply)}};
+  }
+  release(*world, true);
 }
 
 }  // namespace simgate::sim

@@ -35,6 +35,7 @@ import struct
 import subprocess
 import sys
 import tempfile
+import time
 import unittest
 import warnings
 
@@ -343,6 +344,117 @@ class WorldsTest(WorldsGateway):
         self.rpc("simulation.delete_world", {"world": made["world"]})
         # a world refused takes no index
         self.assertEqual(self.rpc("simulation.create_world")["result"]["world"], made["world"] + 1)
+
+
+class AsyncStepManyTest(WorldsGateway):
+    """step_many steps off the thread that received it: the connection goes on serving."""
+    edit = staticmethod(with_worlds)
+
+    def send(self, method, params):
+        """A JSON-RPC request sent without waiting for its reply; its id."""
+        cls = type(self)
+        cls.rpc_id += 1
+        self.jsonrpc.sock.sendall((json.dumps({"jsonrpc": "2.0", "id": cls.rpc_id, "method": method,
+                                               "params": params}) + "\n").encode())
+        return cls.rpc_id
+
+    def replies(self, count):
+        """The next `count` JSON-RPC replies, by id (in any order)."""
+        got = {}
+        for _ in range(count):
+            reply = json.loads(self.jsonrpc.reader.readline())
+            got[reply["id"]] = reply
+        return got
+
+    def steps(self, k):
+        status, value = self.morse("s", "%ssimulation get_simulation_state" % ("w%d/" % k if k else ""))
+        self.assertEqual(status, "SUCCESS", value)
+        return value["steps"]
+
+    def test_1_other_calls_are_answered_while_it_steps_and_a_cancel_stops_it(self):
+        before = self.steps(1)
+        long_call = self.send("simulation.step_many", {"worlds": [1], "n": 1000000, "observe": []})
+        # on the same connection: answered while world 1 steps (it used to wait for all its steps)
+        other = self.send("w2/simulation.get_simulation_state", {})
+        self.assertIn("steps", self.replies(1)[other]["result"])
+        cancel = self.send("rpc.cancel", {"id": long_call})
+        got = self.replies(2)
+        self.assertEqual(got[cancel]["result"], True, got)
+        self.assertEqual(got[long_call]["error"]["data"]["status"], "PREEMPTED", got)
+        # world 1 stopped at its next step: served again, far short of a million steps
+        self.assertLess(self.steps(1), before + 1000000)
+
+    def test_2_calls_naming_the_same_world_step_it_in_the_order_they_came(self):
+        first = {"n": 20, "actions": [[0.3, -0.2]], "observe": ["qpos", "qvel", "ctrl"]}
+        second = dict(first, actions=[[-0.1, 0.4]])
+        for k in (1, 2):
+            self.ok_reset(k)
+        # world 1: both calls in flight at once; world 2: one after the other
+        ids = [self.send("simulation.step_many", dict(params, worlds=[1])) for params in (first, second)]
+        got = self.replies(2)
+        one_by_one = [self.rpc("simulation.step_many", dict(params, worlds=[2]))["result"]["worlds"][0]
+                      for params in (first, second)]
+        for i, alone in zip(ids, one_by_one):
+            slot = got[i]["result"]["worlds"][0]
+            self.assertEqual(slot["world"], 1)
+            self.assertEqual({k: v for k, v in slot.items() if k != "world"},
+                             {k: v for k, v in alone.items() if k != "world"})
+
+    def ok_reset(self, k):
+        status, value = self.morse("r", "w%d/simulation reset" % k)
+        self.assertEqual(status, "SUCCESS", value)
+
+    def test_3_deleting_a_world_stops_the_call_stepping_it(self):
+        made = self.rpc("simulation.create_world")["result"]["world"]
+        long_call = self.send("simulation.step_many", {"worlds": [1, made], "n": 1000000, "observe": []})
+        self.assertIn("result", self.rpc("w2/simulation.get_simulation_state"))  # the call was checked
+        # delete_world waits for the world's stepping to stop, not for the million steps
+        status, value = self.morse("d", "simulation delete_world [%d]" % made)
+        self.assertEqual(status, "SUCCESS", value)
+        cancel = self.send("rpc.cancel", {"id": long_call})  # world 1 would step on
+        got = self.replies(2)
+        self.assertEqual(got[cancel]["result"], True, got)
+        self.assertEqual(got[long_call]["error"]["data"]["status"], "PREEMPTED", got)
+        self.assertNotIn("w%d" % made, [w["name"] for w in self.rpc("simulation.list_worlds")["result"]["worlds"]])
+
+    def test_4_a_world_deleted_before_its_turn_says_so_in_its_slot(self):
+        made = self.rpc("simulation.create_world")["result"]["world"]
+        # the first call holds the world; the second waits for its turn on it, then finds it gone
+        first = self.send("simulation.step_many", {"worlds": [made], "n": 1000000, "observe": []})
+        second = self.send("simulation.step_many", {"worlds": [made, 2], "n": 3, "observe": []})
+        self.assertIn("result", self.rpc("w2/simulation.get_simulation_state"))  # both were checked
+        status, value = self.morse("d", "simulation delete_world [%d]" % made)
+        self.assertEqual(status, "SUCCESS", value)
+        got = self.replies(2)
+        self.assertIn("result", got[first], got)
+        slot = got[first]["result"]["worlds"][0]
+        # during its steps, or before they began (its thread had not yet taken it)
+        self.assertIn("was deleted (simulation delete_world)", slot["error"])
+        self.assertLess(slot["steps_done"], 1000000)
+        gone, stepped = got[second]["result"]["worlds"]
+        self.assertEqual((gone["steps_done"], stepped["steps_done"]), (0, 3), got[second])
+        self.assertIn("was deleted (simulation delete_world) before its turn", gone["error"])
+
+
+class StopTest(unittest.TestCase):
+    """simgate stops at once with a step_many under way (its worlds stop at their next step)."""
+
+    def test_simgate_stops_while_a_call_steps_its_worlds(self):
+        world_test.ARGS = ARGS
+        with tempfile.TemporaryDirectory() as workdir:
+            gateway = world_test.Gateway(workdir, edit=with_worlds)
+            rpc = world_test.Lines(gateway.jsonrpc_port)
+            try:
+                rpc.sock.sendall((json.dumps({"jsonrpc": "2.0", "id": 1, "method": "simulation.step_many",
+                                              "params": {"n": 1000000, "observe": []}}) + "\n").encode())
+                status = rpc.ask(json.dumps({"jsonrpc": "2.0", "id": 2, "method": "simulation.list_worlds"}))
+                self.assertEqual(json.loads(status)["id"], 2)  # answered: the call is under way
+                started = time.monotonic()
+                self.assertEqual(gateway.stop(), 0)
+                # a million steps of three worlds take tens of seconds: stopped long before that
+                self.assertLess(time.monotonic() - started, 5.0)
+            finally:
+                rpc.close()
 
 
 class QuotaTest(WorldsGateway):

@@ -10,85 +10,78 @@
 //   model's order; null keeps them, or one), takes n steps, and reads what `observe` names
 //   (as JSON numbers, or with encoding "base64" each array's float64 bytes) and the
 //   services `reads` names (synchronous ones of its components, as the caller may call
-//   them); one reply for all. Every
-//   world named is locked first (in order: no two callers can deadlock), the arguments are
-//   checked against every world before anything changes (a wrong action size or an
-//   out-of-range control refuses the call whole), then the worlds step in parallel on a pool
-//   of threads (one per core, the caller's among them) while the locks are held, each world
-//   by one thread from start to end: stepping worlds in one call gives exactly the states
-//   stepping them one by one gives. A world whose step diverges stops there and says so in
-//   its slot (its policy did what it does); the others take their n steps.
+//   them); one reply for all.
+//
+// It is an asynchronous (concurrent) service: the call is checked where it arrives, under
+// world 0's lock, each other world named locked in turn (in order: no two callers can
+// deadlock) so that a wrong action size or an out-of-range control refuses the call whole
+// before anything changes; then its worlds are queued on a pool of threads (one per core by
+// default) and the caller's thread is free at once (a transport goes on reading and
+// answering while they step). Each world is stepped by one pool thread, from start to end
+// under that world's lock: stepping worlds in one call gives exactly the states stepping
+// them one by one gives. Calls that name the same world step it in the order they came. A
+// world whose step diverges stops there and says so in its slot (its policy did what it
+// does); the others take their n steps. A world whose model was replaced between the check
+// and its turn (a spawn), or that was deleted, is not stepped and says so in its slot. A
+// call that ends before its worlds are done (its client cancelled it or left, its deadline
+// passed, simgate stops) stops each world at its next step.
 //
 // Only world 0 offers it (a world's own services hold that world's lock; locking world 0
 // from there could deadlock with a caller of world 0).
 //
-// Threads: step_many runs under world 0's lock (a service); the pool's threads touch a
-// world only while the caller holds that world's lock for them.
+// Threads and locks: the pool's threads touch a world only under its lock, one lock at a
+// time; a thread that holds world 0's lock may wait for another world's (never the
+// reverse). mutex_ guards the worlds' turns (the order calls step a world in) and who is
+// stepping one; it is never held while waiting for a world's lock.
 #ifndef SIMGATE_SIM_WORLDS_H_
 #define SIMGATE_SIM_WORLDS_H_
 
+#include <atomic>
 #include <condition_variable>
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <memory>
 #include <mutex>
-#include <thread>
 #include <vector>
 
 #include "simgate/core/config.h"
+#include "simgate/sim/task_pool.h"
+
+namespace simgate {
+class Completion;
+}
 
 namespace simgate::sim {
 
 class Simulation;
 class SupervisionServices;
 
-// A fixed set of threads that runs a batch of tasks with the calling thread's help and
-// returns when all are done.
-class TaskPool {
- public:
-  // `threads` helpers besides the caller (0: none, everything on the caller).
-  explicit TaskPool(std::size_t threads);
-  ~TaskPool();
-  TaskPool(const TaskPool&) = delete;
-  TaskPool& operator=(const TaskPool&) = delete;
-
-  // Runs task(0) ... task(count - 1), each once, spread over the helpers and the caller;
-  // returns when every one has returned. Tasks must not throw. One batch at a time.
-  void run(std::size_t count, const std::function<void(std::size_t)>& task);
-  std::size_t threads() const { return helpers_.size(); }
-
- private:
-  void help();
-  // takes and runs tasks of the current batch until none is left
-  void drain(std::unique_lock<std::mutex>& lock);
-
-  std::mutex mutex_;
-  std::condition_variable work_;  // a batch came, or stop
-  std::condition_variable done_;  // a batch's last task ended
-  const std::function<void(std::size_t)>* task_ = nullptr;
-  std::size_t next_ = 0;     // the next task index to take
-  std::size_t count_ = 0;    // tasks in the batch
-  std::size_t running_ = 0;  // tasks taken and not yet ended
-  std::uint64_t batch_ = 0;  // counts batches (helpers wake for a new one)
-  bool stop_ = false;
-  std::vector<std::thread> helpers_;
-};
-
 class Worlds {
  public:
-  // `threads`: the pool's size, the caller included (0: one per core).
+  // `threads`: the pool's threads, those that step worlds (0: one per core).
   explicit Worlds(std::size_t threads = 0);
+  // Stops (see stop()).
+  ~Worlds();
   // World `index` joins (world 0 first) / leaves. Before the worlds run, or under world 0's
-  // lock (step_many and describe() run under it).
+  // lock (step_many and describe() run under it). remove() stops a call stepping the world
+  // at its next step, and returns once none steps it (its slot says it was deleted).
   void add(unsigned index, Simulation& world);
   void remove(unsigned index);
   // Offers step_many on world 0's `simulation` component.
   void add_to(SupervisionServices& world0);
+  // Calls under way stop at their next step, those queued step nothing, step_many refuses
+  // every call from now on; returns at once. Any thread.
+  void request_stop();
+  // request_stop(), and returns when the pool is idle: before the worlds shut down. Not under
+  // world 0's lock (it takes it).
+  void stop();
 
   // The service (see above). Under world 0's lock; throws ServiceError (bad_arguments,
-  // naming the parameter) having changed nothing when the arguments do not fit.
-  json step_many(const json& worlds, std::int64_t n, const json& actions, const json& observe,
-                 const json& reads, const std::string& encoding = "json");
+  // naming the parameter) having changed nothing when the arguments do not fit; `done`
+  // finishes the call with the reply.
+  void step_many(const Completion& done, const json& worlds, std::int64_t n, json actions,
+                 const json& observe, json reads, const std::string& encoding = "json");
   // What step_many reads when `observe` is not given.
   static const std::vector<std::string>& default_observation();
   // Each world in order: {world, name ("w3"), state, sim_time, steps, actuators (MuJoCo's
@@ -105,8 +98,25 @@ class Worlds {
   // `read(index, world)` for each world in order, under its lock (world 0's: the caller's)
   void each_locked(const std::function<void(unsigned, const Simulation&)>& read) const;
 
-  std::map<unsigned, Simulation*> worlds_;  // by index
-  TaskPool pool_;
+  struct World;
+  struct Call;
+  // A call's first task (a pool thread): waits for the call's turn on each of its worlds,
+  // then checks its arguments in each, under the world's lock.
+  void check_call(Call& call);
+  // A call's task for its slot `i` (a pool thread), once check_call() is done: the world's
+  // steps, under its lock; then the world's turn passes to the next call.
+  void step_slot(Call& call, std::size_t i);
+  // The world `index` if it is there and not leaving, counted as used (under mutex_), or
+  // null. release() ends the use, and passes the world's turn on if `pass_turn`.
+  World* take(unsigned index);
+  void release(World& world, bool pass_turn);
+
+  // by index; changed under world 0's lock and mutex_, read under either
+  std::map<unsigned, std::unique_ptr<World>> worlds_;
+  std::mutex mutex_;                 // the worlds' turns and uses, the calls' checked flags
+  std::condition_variable changed_;  // a turn passed, a use ended, a check ended, stop()
+  std::atomic<bool> stopping_{false};
+  TaskPool pool_;  // last: its threads end before the rest goes
 };
 
 }  // namespace simgate::sim
