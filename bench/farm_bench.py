@@ -15,6 +15,7 @@ Then, for --seconds each, in alternating rounds (--rounds):
   decoded with array.array: no number formatted or parsed), 10 steps a call;
 - round trips: for each step, `w<k>/simulation.step` {n: 1} for every world k, one after the
   other (what a client without step_many pays: a round trip per world per step).
+With --pipelined-only, only the pipelined calls (the section's run on fewer threads).
 Prints one JSON object: per n the aggregate steps/s (world steps per second) of each round,
 those of the pipelined calls and of the round trips. Every loop is bounded by --seconds; the
 simgate is stopped.
@@ -122,11 +123,13 @@ def main():
     parser.add_argument("--threads", type=int, default=0,
                         help="step_many's threads (the config's worlds.threads; 0: one per core)")
     parser.add_argument("--seconds", type=float, default=1.0)
+    parser.add_argument("--pipelined-only", action="store_true",
+                        help="only the pipelined calls (no one-by-one calls, no round trips)")
     parser.add_argument("--on-divergence", default="reset",
                         help="the scene's policy (default reset, what a learner's episodes want: "
                              "pause keeps the state before every step to undo a diverging one)")
     args = parser.parse_args()
-    ns = args.n or [1, 10]
+    ns = [] if args.pipelined_only else args.n or [1, 10]
     with tempfile.TemporaryDirectory() as workdir:
         process, port = start(args.simgate, args.model, args.worlds, workdir, args.on_divergence,
                               args.threads)
@@ -155,6 +158,8 @@ def main():
                     assert all(w["steps_done"] == n for w in result["worlds"]), result
                     out["step_many"][str(n)].append(calls * n * args.worlds / (now - start_t))
                 out["pipelined"].append(pipelined(rpc, args.worlds, nu, 10, args.seconds))
+                if args.pipelined_only:
+                    continue
                 steps = 0
                 start_t = time.perf_counter()
                 end_t = start_t + args.seconds

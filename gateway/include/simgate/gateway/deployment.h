@@ -121,7 +121,7 @@ struct Deployment {
   // (world 0, the one every client knows, and w1, w2, ...: docs/worlds.md), at start
   // ("count"); how many there may be at once with those `simulation create_world` makes
   // ("max": at least the count; default the count or 16, whichever is more); the threads
-  // `simulation step_many` steps worlds on, the caller's included ("threads"; 0: one per core);
+  // `simulation step_many` steps worlds on, its pool's ("threads"; 0: one per core);
   // the most memory MuJoCo may hold for all worlds together ("max_memory_mb"; 0: no bound);
   // the scene of each world at start that does not run the config's ("scenes": index, from 1
   // to worlds - 1 -> its MJCF file, resolved as `mjcf` is)

@@ -56,8 +56,8 @@ class TaskPool {
   void work();
 
   std::mutex mutex_;
-  std::condition_variable work_;  // a batch came, or stop
-  std::condition_variable idle_;  // the last batch under way ended
+  std::condition_variable work_;              // a batch came, or stop
+  std::condition_variable idle_;              // the last batch under way ended
   std::deque<std::shared_ptr<Batch>> queue_;  // batches with tasks left to take, in order
   std::size_t batches_ = 0;                   // batches submitted and not yet ended
   bool stop_ = false;

@@ -12,27 +12,28 @@
 //   services `reads` names (synchronous ones of its components, as the caller may call
 //   them); one reply for all.
 //
-// It is an asynchronous (concurrent) service: the call is checked where it arrives, under
-// world 0's lock, each other world named locked in turn (in order: no two callers can
-// deadlock) so that a wrong action size or an out-of-range control refuses the call whole
-// before anything changes; then its worlds are queued on a pool of threads (one per core by
-// default) and the caller's thread is free at once (a transport goes on reading and
-// answering while they step). Each world is stepped by one pool thread, from start to end
-// under that world's lock: stepping worlds in one call gives exactly the states stepping
-// them one by one gives. Calls that name the same world step it in the order they came. A
+// It is an asynchronous (concurrent) service. Where the call arrives (under world 0's lock)
+// only what needs no world is checked (the worlds named exist, n, observe, encoding, the
+// reads' shape and the caller's right to call them), the call takes its turn on each world
+// (calls that name a world step it in the order they came), and the pool takes it: the
+// caller's thread is free at once (a transport goes on reading and answering). On the pool,
+// the call's first task waits for its turn on each world, then checks it under that world's
+// lock (a wrong action size or an out-of-range control refuses the call whole before
+// anything changes); then one task per world steps it, from start to end under its lock:
+// stepping worlds in one call gives exactly the states stepping them one by one gives. A
 // world whose step diverges stops there and says so in its slot (its policy did what it
 // does); the others take their n steps. A world whose model was replaced between the check
-// and its turn (a spawn), or that was deleted, is not stepped and says so in its slot. A
+// and its steps (a spawn), or that was deleted, is not stepped and says so in its slot. A
 // call that ends before its worlds are done (its client cancelled it or left, its deadline
-// passed, simgate stops) stops each world at its next step.
+// passed, simgate stops) stops each world at its next step; so does delete_world.
 //
-// Only world 0 offers it (a world's own services hold that world's lock; locking world 0
-// from there could deadlock with a caller of world 0).
+// Only world 0 offers it: its lock orders the calls (their turns are taken under it).
 //
 // Threads and locks: the pool's threads touch a world only under its lock, one lock at a
-// time; a thread that holds world 0's lock may wait for another world's (never the
-// reverse). mutex_ guards the worlds' turns (the order calls step a world in) and who is
-// stepping one; it is never held while waiting for a world's lock.
+// time, and wait for nothing while they hold it. A thread that holds world 0's lock may wait
+// for another world's (describe()) or for the pool thread using a world (remove(): it stops
+// at its next step), never the reverse. mutex_ guards the worlds' turns and uses; it is
+// never held while waiting for a world's lock.
 #ifndef SIMGATE_SIM_WORLDS_H_
 #define SIMGATE_SIM_WORLDS_H_
 
