@@ -250,7 +250,11 @@ struct Worlds::Call {
 Worlds::Worlds(std::size_t threads)
     : pool_(threads == 0 ? std::max(1u, std::thread::hardware_concurrency()) : threads) {}
 
-Worlds::~Worlds() { stop(); }
+Worlds::~Worlds() {
+  // the worlds may be gone (the gateway's shutdown stopped this first): none is touched here
+  request_stop();
+  pool_.wait_idle();
+}
 
 void Worlds::add(unsigned index, Simulation& world) {
   auto entry = std::make_unique<World>();
@@ -448,12 +452,14 @@ Worlds::World* Worlds::take(unsigned index) {
 }
 
 void Worlds::release(World& world, bool pass_turn) {
+  bool wake = pass_turn;  // a call may wait for its turn
   {
     std::lock_guard lock(mutex_);
     --world.using_it;
     if (pass_turn) ++world.turn;
+    wake = wake || world.leaving;  // remove() waits for the uses to end
   }
-  changed_.notify_all();
+  if (wake) changed_.notify_all();
 }
 
 void Worlds::check_call(Call& call) {

@@ -62,7 +62,7 @@ class Worlds {
  public:
   // `threads`: the pool's threads, those that step worlds (0: one per core).
   explicit Worlds(std::size_t threads = 0);
-  // Stops (see stop()).
+  // request_stop(), and waits for the pool to be idle (stop() first while the worlds exist).
   ~Worlds();
   // World `index` joins (world 0 first) / leaves. Before the worlds run, or under world 0's
   // lock (step_many and describe() run under it). remove() stops a call stepping the world
