@@ -243,6 +243,8 @@ struct Worlds::Call {
   json actions;  // the call's, checked in each world
   json reads;    // the call's: each slot's bound reads point into it
   std::vector<Slot> slots;
+  // each slot's world (kept: a deleted one says so by `leaving`)
+  std::vector<std::shared_ptr<World>> worlds;
   bool checked = false;            // task 0 ended (mutex_)
   std::optional<Outcome> refusal;  // what task 0 refused the call with
 };
@@ -257,7 +259,7 @@ Worlds::~Worlds() {
 }
 
 void Worlds::add(unsigned index, Simulation& world) {
-  auto entry = std::make_unique<World>();
+  auto entry = std::make_shared<World>();
   entry->sim = &world;
   std::lock_guard lock(mutex_);
   worlds_[index] = std::move(entry);
@@ -417,12 +419,14 @@ void Worlds::step_many(const Completion& done, const json& worlds, std::int64_t 
   call->actions = std::move(actions);
   call->reads = std::move(reads);
   call->slots.resize(named.size());
+  call->worlds.resize(named.size());
   {
     // the call's turn on each world: calls that name a world step it in the order they came
     std::lock_guard lock(mutex_);
     for (std::size_t i = 0; i < named.size(); ++i) {
       call->slots[i].world = named[i];
-      call->slots[i].turn = worlds_.at(named[i])->next_turn++;
+      call->worlds[i] = worlds_.at(named[i]);
+      call->slots[i].turn = call->worlds[i]->next_turn++;
     }
   }
   pool_.submit(
@@ -444,11 +448,10 @@ void Worlds::step_many(const Completion& done, const json& worlds, std::int64_t 
       });
 }
 
-Worlds::World* Worlds::take(unsigned index) {
-  const auto it = worlds_.find(index);
-  if (it == worlds_.end() || it->second->leaving) return nullptr;
-  ++it->second->using_it;
-  return it->second.get();
+Worlds::World* Worlds::take(World& world) {
+  if (world.leaving) return nullptr;
+  ++world.using_it;
+  return &world;
 }
 
 void Worlds::release(World& world, bool pass_turn) {
@@ -467,19 +470,18 @@ void Worlds::check_call(Call& call) {
   // world checked under its lock; a world deleted meanwhile is not checked (its slot says so)
   {
     std::unique_lock lock(mutex_);
-    for (const Slot& slot : call.slots)
-      changed_.wait(lock, [&] {
-        const auto it = worlds_.find(slot.world);
-        return stopping_ || it == worlds_.end() || it->second->leaving ||
-               it->second->turn == slot.turn;
-      });
+    for (std::size_t i = 0; i < call.slots.size(); ++i) {
+      const World& world = *call.worlds[i];
+      changed_.wait(lock,
+                    [&] { return stopping_ || world.leaving || world.turn == call.slots[i].turn; });
+    }
   }
   for (std::size_t i = 0; i < call.slots.size() && !call.refusal; ++i) {
     Slot& slot = call.slots[i];
     World* world = nullptr;
     {
       std::lock_guard lock(mutex_);
-      if (!stopping_) world = take(slot.world);
+      if (!stopping_) world = take(*call.worlds[i]);
     }
     if (!world) continue;
     try {
@@ -510,7 +512,7 @@ void Worlds::step_slot(Call& call, std::size_t i) {
   {
     std::unique_lock lock(mutex_);
     changed_.wait(lock, [&] { return call.checked; });
-    world = take(slot.world);
+    world = take(*call.worlds[i]);
   }
   // the call has the world's turn since its check: pass it on whatever happens here
   if (!world || call.refusal || !slot.checked || stopping_) {

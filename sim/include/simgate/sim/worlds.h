@@ -107,13 +107,13 @@ class Worlds {
   // A call's task for its slot `i` (a pool thread), once check_call() is done: the world's
   // steps, under its lock; then the world's turn passes to the next call.
   void step_slot(Call& call, std::size_t i);
-  // The world `index` if it is there and not leaving, counted as used (under mutex_), or
-  // null. release() ends the use, and passes the world's turn on if `pass_turn`.
-  World* take(unsigned index);
+  // `world` unless it is leaving, counted as used (under mutex_), or null. release() ends
+  // the use, and passes the world's turn on if `pass_turn`.
+  World* take(World& world);
   void release(World& world, bool pass_turn);
 
   // by index; changed under world 0's lock and mutex_, read under either
-  std::map<unsigned, std::unique_ptr<World>> worlds_;
+  std::map<unsigned, std::shared_ptr<World>> worlds_;
   std::mutex mutex_;                 // the worlds' turns and uses, the calls' checked flags
   std::condition_variable changed_;  // a turn passed, a use ended, a check ended, stop()
   std::atomic<bool> stopping_{false};
