@@ -436,6 +436,16 @@ class AsyncStepManyTest(WorldsGateway):
         self.assertIn("was deleted (simulation delete_world) before its turn", gone["error"])
 
 
+    def test_5_a_deadline_stops_its_worlds(self):
+        before = self.steps(1)
+        call = self.send("simulation.step_many", {"worlds": [1], "n": 1000000, "observe": [],
+                                                  "_meta": {"timeout_ms": 200}})
+        error = self.replies(1)[call]["error"]
+        self.assertEqual(error["data"]["failure"], "timeout", error)
+        # world 1 stopped at its next step: served again, far short of a million steps
+        self.assertLess(self.steps(1), before + 1000000)
+
+
 class StopTest(unittest.TestCase):
     """simgate stops at once with a step_many under way (its worlds stop at their next step)."""
 
