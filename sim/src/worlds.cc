@@ -448,10 +448,10 @@ void Worlds::step_many(const Completion& done, const json& worlds, std::int64_t 
       });
 }
 
-Worlds::World* Worlds::take(World& world) {
-  if (world.leaving) return nullptr;
+bool Worlds::take(World& world) {
+  if (world.leaving) return false;
   ++world.using_it;
-  return &world;
+  return true;
 }
 
 void Worlds::release(World& world, bool pass_turn) {
@@ -481,7 +481,7 @@ void Worlds::check_call(Call& call) {
     World* world = nullptr;
     {
       std::lock_guard lock(mutex_);
-      if (!stopping_) world = take(*call.worlds[i]);
+      if (!stopping_ && take(*call.worlds[i])) world = call.worlds[i].get();
     }
     if (!world) continue;
     try {
@@ -512,7 +512,7 @@ void Worlds::step_slot(Call& call, std::size_t i) {
   {
     std::unique_lock lock(mutex_);
     changed_.wait(lock, [&] { return call.checked; });
-    world = take(*call.worlds[i]);
+    if (take(*call.worlds[i])) world = call.worlds[i].get();
   }
   // the call has the world's turn since its check: pass it on whatever happens here
   if (!world || call.refusal || !slot.checked || stopping_) {

@@ -107,9 +107,9 @@ class Worlds {
   // A call's task for its slot `i` (a pool thread), once check_call() is done: the world's
   // steps, under its lock; then the world's turn passes to the next call.
   void step_slot(Call& call, std::size_t i);
-  // `world` unless it is leaving, counted as used (under mutex_), or null. release() ends
+  // Counts `world` as used unless it is leaving (then false). Under mutex_. release() ends
   // the use, and passes the world's turn on if `pass_turn`.
-  World* take(World& world);
+  bool take(World& world);
   void release(World& world, bool pass_turn);
 
   // by index; changed under world 0's lock and mutex_, read under either
