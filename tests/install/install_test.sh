@@ -44,6 +44,12 @@ for f in "$bindir/simgate" \
          "$datadir/simgate/web/vendor/three.module.js" "$datadir/simgate/web/vendor/OrbitControls.js"; do
   [ -e "$prefix/$f" ] || fail "not installed: $f"
 done
+# every file of the web app's source (app.js, the ES modules it imports, style.css): one left
+# out of web/CMakeLists.txt's app_files would fail the page's imports in the browser
+for f in "$source_dir"/web/*.js "$source_dir"/web/*.css; do
+  f=$datadir/simgate/web/$(basename "$f")
+  [ -e "$prefix/$f" ] || fail "not installed: $f (missing from web/CMakeLists.txt's app_files?)"
+done
 echo "installed into $prefix"
 # every page a message of the code cites ("docs/configuration.md") is in share/doc/simgate
 cited=$(grep -rhoE 'docs/[A-Za-z0-9_/.-]+[.]md' "$source_dir"/{core,kit,sim,plugins,clients,gateway} \

@@ -2,9 +2,10 @@
 // plain HTTP requests from a raw socket against libsimgate_transport_websocket.so serving a
 // web root the test writes (index.html, a vendor script, a secret beside the root, a
 // symbolic link out of it), the refusals (traversal, methods, long targets), the options,
-// and the build tree's own web app as the default web_root; the in-memory cache (an edited
-// file served fresh, a cached answer identical) and the validators (ETag, Last-Modified,
-// 304); StaticFiles itself, compiled in: what its cache holds within its bound.
+// and the build tree's own web app as the default web_root (each of its ES modules as in the
+// source tree); the in-memory cache (an edited file served fresh, a cached answer identical)
+// and the validators (ETag, Last-Modified, 304); StaticFiles itself, compiled in: what its
+// cache holds within its bound.
 #include <gtest/gtest.h>
 
 #include <unistd.h>
@@ -13,6 +14,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <memory>
 #include <string>
 
@@ -373,6 +375,21 @@ TEST(WebSocketWebOptions, TheDefaultWebRootIsTheBuildTreesWebApp) {
   const std::string three = get(host.port(), "/vendor/three.module.js", "HEAD");
   EXPECT_EQ(status_of(three), 200) << three;
   EXPECT_EQ(header(three, "Content-Type"), "text/javascript; charset=utf-8") << three;
+  // every ES module of the page's source (app.js and those it imports), served as it is there
+  // (a module missing from web/CMakeLists.txt's app_files would fail the page's imports)
+  int modules = 0;
+  for (const auto& entry : fs::directory_iterator(SIMGATE_SOURCE_DIR "/web")) {
+    if (entry.path().extension() != ".js") continue;
+    ++modules;
+    const std::string name = entry.path().filename().string();
+    std::ifstream in(entry.path(), std::ios::binary);
+    const std::string source{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+    const std::string answer = get(host.port(), "/" + name);
+    EXPECT_EQ(status_of(answer), 200) << name << ": " << answer.substr(0, 300);
+    EXPECT_EQ(header(answer, "Content-Type"), "text/javascript; charset=utf-8") << name;
+    EXPECT_EQ(body_of(answer), source) << name << " differs from the source tree's";
+  }
+  EXPECT_GE(modules, 2) << "app.js and the modules it imports, in " SIMGATE_SOURCE_DIR "/web";
 }
 
 }  // namespace
