@@ -16,7 +16,8 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Optional
 
 from .call import Call
-from .client import DEFAULT_TIMEOUT, Batch, Client
+from .batch import Batch
+from .client import DEFAULT_TIMEOUT, Client
 from .errors import (Busy, Cancelled, ConnectionClosed, DeadlineExceeded, InvalidArguments,
                      MethodNotFound, NotAuthorized, Overloaded, Preempted, ProtocolError,
                      ServiceError, ServiceFailed, SimgateError)

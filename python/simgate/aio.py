@@ -20,8 +20,9 @@ import asyncio
 from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence
 
 from ._services import Namespace, ServiceInfo
+from ._world_control import _WorldControl
 from .call import Call
-from .client import DEFAULT_TIMEOUT, Client, _WorldControl
+from .client import DEFAULT_TIMEOUT, Client
 from .streams import Subscription
 
 
