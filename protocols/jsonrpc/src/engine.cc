@@ -13,6 +13,7 @@
 #include "simgate/jsonrpc/protocol.h"
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
+#include "simgate/core/text.h"
 
 namespace simgate::jsonrpc {
 
@@ -323,8 +324,8 @@ void JsonRpcEngine::dispatch(Session& session, Request& request, ReplyTo&& to) {
   call.timeout = call_options.timeout;  // a notification's too: its service stops in time
   Pending& pending = **pending_.find(id);
   pending.to = std::move(to);
-  pending.method.assign(method);
-  pending.id_key.assign(key);
+  assign_text(pending.method, method);
+  assign_text(pending.id_key, key);
   pending.id_hash = key_hash;
   pending.cancel = false;
 }

@@ -31,6 +31,7 @@
 
 #include "simgate/kit/recycling_map.h"  // TransparentStringHash
 #include "simgate/core/status.h"
+#include "simgate/core/text.h"  // assign_text
 
 namespace simgate::kit {
 
@@ -54,7 +55,7 @@ class IdTable {
       if (tags_[i] == t && slots_[i].hash == hash && slots_[i].key == key) return nullptr;
     tags_[i] = t;
     Entry& e = slots_[i];
-    e.key.assign(key);
+    assign_text(e.key, key);  // (`key` is never a slot's own)
     e.hash = hash;
     e.id = 0;
     ++size_;
