@@ -9,6 +9,7 @@
 
 #include "simgate/core/log.h"
 #include "simgate/core/request_manager.h"
+#include "simgate/core/text.h"
 
 #include "request_worlds.h"
 #include "simgate/core/suggest.h"
@@ -258,7 +259,7 @@ std::shared_ptr<Service> RequestManager::find_service(const Call& call) {
   // hashed lookups)
   const std::uint64_t version = table_version_.load(std::memory_order_acquire);
   if (last_lookup_.service && last_lookup_.version == version &&
-      last_lookup_.component == call.component && last_lookup_.name == call.service)
+      same_text(last_lookup_.component, call.component) && same_text(last_lookup_.name, call.service))
     return last_lookup_.service;
   std::shared_ptr<Service> service;
   {

@@ -1,4 +1,5 @@
-// simgate/core/text.h: assign_text, the hot path's copy into a kept string.
+// simgate/core/text.h: same_text and assign_text, the hot path's compare and copy of short
+// names and ids.
 #include <gtest/gtest.h>
 
 #include <string>
@@ -7,6 +8,23 @@
 
 namespace simgate {
 namespace {
+
+TEST(SameText, AgreesWithEqualityForEveryLengthAndEveryDifferingByte) {
+  const std::string source = "abcdefghijklmnopqrstuvwxyz0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZ";
+  for (std::size_t n = 0; n <= 40; ++n) {
+    const std::string a = source.substr(5, n);
+    std::string b = a;
+    EXPECT_TRUE(same_text(a, b)) << n;
+    for (std::size_t i = 0; i < n; ++i) {  // one byte differs, wherever it is
+      b[i] ^= 0x20;
+      EXPECT_FALSE(same_text(a, b)) << n << " at " << i;
+      b[i] ^= 0x20;
+    }
+    EXPECT_FALSE(same_text(a, a + "x")) << n;
+    if (n > 0) EXPECT_FALSE(same_text(a, std::string_view(a).substr(1))) << n;
+  }
+  EXPECT_TRUE(same_text(std::string_view(), ""));
+}
 
 TEST(AssignText, CopiesEveryLengthIntoShorterLongerAndLargerStrings) {
   // every length up to past the inline copies, into strings that held shorter and longer

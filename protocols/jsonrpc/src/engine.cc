@@ -316,8 +316,8 @@ void JsonRpcEngine::dispatch(Session& session, Request& request, ReplyTo&& to) {
   auto& [call_id, call] = to_submit_[to_submit_count_++];
   call_id = id;
   // a kept call object names the same service more often than not: no copy then
-  if (call.component != component) call.component.assign(component);
-  if (call.service != service) call.service.assign(service);
+  if (!same_text(call.component, component)) call.component.assign(component);
+  if (!same_text(call.service, service)) call.service.assign(service);
   call.params.swap(request.params);  // request_ takes the call's old array, for the next parse
   call.progress = wants_progress;
   call.client = session.number();
