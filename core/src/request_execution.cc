@@ -117,11 +117,19 @@ bool RequestManager::execute(RequestId id, const Call& call, Outcome& out,
   // a recorder writes the request down before it acts (its end: deliver())
   if (InputTap* tap = gate_->input_tap()) [[unlikely]]
     tap->request_started(*this, id, call);
-  std::shared_ptr<Service> service = find_service(call);
-  if (!service) {
+  // lent by find_service, given back when this returns (RAII: also when a service throws)
+  struct Lent {
+    RequestManager& manager;
+    std::uint64_t version = 0;
+    std::shared_ptr<Service> service;
+    ~Lent() { manager.return_service(std::move(service), version); }
+  } lent{*this};
+  lent.service = find_service(call, lent.version);
+  if (!lent.service) {
     out = unknown_service(call);
     return true;
   }
+  const Service* service = lent.service.get();
   const ServiceDescriptor& d = service->descriptor();
 
   try {

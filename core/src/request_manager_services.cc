@@ -9,6 +9,7 @@
 
 #include "simgate/core/log.h"
 #include "simgate/core/request_manager.h"
+#include "simgate/core/text.h"
 
 #include "request_worlds.h"
 #include "simgate/core/suggest.h"
@@ -252,14 +253,15 @@ Outcome RequestManager::unknown_service(const Call& call) const {
       json{{"component", call.component}, {"service", call.service}});
 }
 
-std::shared_ptr<Service> RequestManager::find_service(const Call& call) {
+std::shared_ptr<Service> RequestManager::find_service(const Call& call, std::uint64_t& version) {
   // a pipelining client calls the same service over and over: the previous lookup answers
   // while nothing was registered since (two string compares instead of a lock and two
-  // hashed lookups)
-  const std::uint64_t version = table_version_.load(std::memory_order_acquire);
+  // hashed lookups), its service lent (moved out, no reference count touched)
+  version = table_version_.load(std::memory_order_acquire);
   if (last_lookup_.service && last_lookup_.version == version &&
-      last_lookup_.component == call.component && last_lookup_.name == call.service)
-    return last_lookup_.service;
+      same_text(last_lookup_.component, call.component) &&
+      same_text(last_lookup_.name, call.service))
+    return std::move(last_lookup_.service);
   std::shared_ptr<Service> service;
   {
     std::lock_guard lock(table_mutex_);
@@ -279,13 +281,22 @@ std::shared_ptr<Service> RequestManager::find_service(const Call& call) {
       }
     }
   }
-  if (service) {
+  if (service) {  // remembered, its service once it is given back
     last_lookup_.component = call.component;
     last_lookup_.name = call.service;
-    last_lookup_.service = service;
+    last_lookup_.service.reset();
     last_lookup_.version = version;
   }
   return service;
+}
+
+void RequestManager::return_service(std::shared_ptr<Service>&& service,
+                                    std::uint64_t version) noexcept {
+  // back into last_lookup_ unless the call changed it: a nested call remembered its own
+  // service, or unregistering a component cleared it (version 0; a found service's version
+  // is at least 1, its registration's). Else dropped here.
+  if (service && !last_lookup_.service && last_lookup_.version == version)
+    last_lookup_.service = std::move(service);
 }
 
 }  // namespace simgate

@@ -7,6 +7,7 @@
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
 #include "simgate/core/plugin.h"
+#include "simgate/core/text.h"
 #include "simgate/morse/wire.h"
 
 namespace simgate::socket {
@@ -348,8 +349,8 @@ void SocketRequestManager::on_line(kit::LineConnection& connection, std::string_
   id = requests_.insert({&session, pending->hash});
   pending->id = id;
   // a pipelining client names the same service line after line
-  if (call.component != request.component) call.component.assign(request.component);
-  if (call.service != request.service) call.service.assign(request.service);
+  if (!same_text(call.component, request.component)) call.component.assign(request.component);
+  if (!same_text(call.service, request.service)) call.service.assign(request.service);
   call.progress = session.wants_progress();
   call.client = session.number();
   call.timeout = timeout_for(call.component, call.service);

@@ -52,5 +52,27 @@ TEST(RequestManagerUnregister, RunningRequestsEndWithTheReasonAndTheServicesGo) 
   EXPECT_EQ(rm.pending_count(), 0u);
 }
 
+// The last lookup's service is lent to the request that runs it (no reference count touched
+// per request): one that removes its own component while it runs still lives until it
+// returns (its captures read after the removal; ASan would see a freed one), and after it
+// the component's services are gone and the others are found again.
+TEST(RequestManagerUnregister, AServiceThatRemovesItsOwnComponentLivesUntilItReturns) {
+  TestManager rm;
+  const std::string kept(64, 'k');  // a capture on the heap, in the service's invoker
+  rm.register_service("robot",
+                      [&rm, kept](bool remove) {
+                        if (remove) rm.unregister_component("robot", "removed itself");
+                        return kept.size();
+                      },
+                      "work", {"remove"});
+  rm.register_service("other", [] { return 2; }, "ping");
+  // the second call of a pipelining client runs the remembered (lent) service
+  EXPECT_EQ(rm.run("robot", "work", json::array({false}))->value, json(64));
+  EXPECT_EQ(rm.run("robot", "work", json::array({true}))->value, json(64));
+  EXPECT_EQ(rm.run("robot", "work", json::array({false}))->failure, Failure::unknown_service);
+  EXPECT_EQ(rm.run("other", "ping")->value, json(2));
+  EXPECT_EQ(rm.run("other", "ping")->value, json(2));
+}
+
 }  // namespace
 }  // namespace simgate

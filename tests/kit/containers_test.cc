@@ -2,6 +2,7 @@
 // IdTable (a connection's pending requests by client id),
 // TransparentStringHash (their string keys), RequestSlots (ids that name their slot) and
 // BoundArguments (arguments held inline, or on the heap beyond 8 parameters).
+#include <algorithm>
 #include <map>
 #include <memory>
 #include <random>
@@ -193,6 +194,104 @@ TEST(IdTableTest, AgreesWithAMapThroughRandomInsertsAndErases) {
     });
     ASSERT_EQ(seen, model.size());
   }
+}
+
+// Keys whose hashes pick the same slot of a 16-slot table (the first capacity) and share
+// the top byte the tags are made of: probing must compare the entries behind equal tags.
+std::vector<std::string> keys_with_one_slot_and_tag(std::size_t count) {
+  const TransparentStringHash hash;
+  std::map<std::size_t, std::vector<std::string>> groups;  // by (home slot, tag byte)
+  for (int i = 0;; ++i) {
+    std::string key = "id" + std::to_string(i);
+    const std::size_t h = hash(key);
+    auto& group = groups[(h & 15) | ((h >> 56) | 1) << 8];
+    group.push_back(std::move(key));
+    if (group.size() == count) return group;
+  }
+}
+
+TEST(IdTableTest, KeysWithTheSameSlotAndTagAreToldApart) {
+  const std::vector<std::string> keys = keys_with_one_slot_and_tag(4);
+  IdTable ids;
+  std::size_t hash = 0;
+  for (std::size_t k = 0; k < keys.size(); ++k) {
+    IdTable::Entry* e = ids.insert(keys[k]);
+    ASSERT_NE(e, nullptr) << keys[k];
+    e->id = k + 1;
+    hash = e->hash;
+  }
+  for (std::size_t k = 0; k < keys.size(); ++k) {
+    EXPECT_EQ(ids.insert(keys[k]), nullptr);
+    ASSERT_NE(ids.find(keys[k]), nullptr);
+    EXPECT_EQ(ids.find(keys[k])->id, k + 1);
+    // by hash and request id: the entry of that request, not the first of the same tag
+    const IdTable::Entry* e = ids.find(ids.find(keys[k])->hash, k + 1);
+    ASSERT_NE(e, nullptr);
+    EXPECT_EQ(e->key, keys[k]);
+  }
+  EXPECT_EQ(ids.find(hash, 99), nullptr);
+  EXPECT_EQ(ids.find("not there"), nullptr);
+}
+
+TEST(IdTableTest, EraseShiftsTheRunBackAndFreeSlotsKeepTheirBuffers) {
+  // a run of four entries with one home slot: erasing its first moves the others up
+  const std::vector<std::string> keys = keys_with_one_slot_and_tag(4);
+  IdTable ids;
+  const std::string long_key(100, 'L');  // beyond the small-string buffer
+  IdTable::Entry* long_entry = ids.insert(long_key);
+  long_entry->id = 50;
+  for (std::size_t k = 0; k < keys.size(); ++k) ids.insert(keys[k])->id = k + 1;
+  EXPECT_TRUE(ids.erase(keys[0]));
+  EXPECT_EQ(ids.find(keys[0]), nullptr);
+  for (std::size_t k = 1; k < keys.size(); ++k) {
+    ASSERT_NE(ids.find(keys[k]), nullptr) << k;
+    EXPECT_EQ(ids.find(keys[k])->id, k + 1);
+  }
+  EXPECT_EQ(ids.find(long_key)->id, RequestId{50});
+  // from the middle of the run, by position as a reply does
+  ids.erase(ids.find(ids.find(keys[2])->hash, 3));
+  EXPECT_EQ(ids.find(keys[2]), nullptr);
+  EXPECT_EQ(ids.find(keys[1])->id, RequestId{2});
+  EXPECT_EQ(ids.find(keys[3])->id, RequestId{4});
+  EXPECT_EQ(ids.size(), 3u);
+  // the long key's slot, freed, keeps its buffer: a key inserted there reuses it
+  const std::size_t long_hash = ids.find(long_key)->hash;
+  ids.erase(ids.find(long_hash, 50));
+  ids.erase(keys[1]);
+  ids.erase(keys[3]);
+  ASSERT_TRUE(ids.empty());
+  std::string key;  // a short key whose home is that slot (the table still has 16)
+  for (int i = 0; key.empty(); ++i)
+    if ((TransparentStringHash{}("k" + std::to_string(i)) & 15) == (long_hash & 15))
+      key = "k" + std::to_string(i);
+  const std::size_t capacity = ids.insert(key)->key.capacity();
+  EXPECT_GE(capacity, long_key.size());
+}
+
+TEST(IdTableTest, GrowthKeepsEveryEntry) {
+  IdTable ids;
+  std::vector<std::size_t> hashes;
+  for (int i = 0; i < 1000; ++i) {
+    IdTable::Entry* e = ids.insert("request-" + std::to_string(i));
+    ASSERT_NE(e, nullptr);
+    e->id = i + 1;
+    hashes.push_back(e->hash);
+  }
+  EXPECT_EQ(ids.size(), 1000u);
+  for (int i = 0; i < 1000; ++i) {
+    const IdTable::Entry* e = ids.find(hashes[i], i + 1);
+    ASSERT_NE(e, nullptr) << i;
+    EXPECT_EQ(e->key, "request-" + std::to_string(i));
+    EXPECT_EQ(ids.insert(e->key), nullptr);
+  }
+  for (int i = 0; i < 1000; i += 2) ids.erase(ids.find(hashes[i], i + 1));
+  EXPECT_EQ(ids.size(), 500u);
+  std::size_t seen = 0;
+  ids.for_each([&](const IdTable::Entry& e) {
+    ++seen;
+    EXPECT_EQ(e.id % 2, 0u);
+  });
+  EXPECT_EQ(seen, 500u);
 }
 
 TEST(RequestSlotsTest, IdsFindTheirEntryUntilErasedAndNeverTheSlotsNextEntry) {

@@ -85,6 +85,94 @@ TEST(SocketWire, AnIdWithAControlCharacterIsMalformedAndNotEchoed) {
   EXPECT_FALSE(echoable_id(std::string("a\0b", 3)));
 }
 
+// parse_request_line reads tokens eight bytes at a time: checked against a byte-by-byte
+// reading of the grammar on random lines of blanks, controls, 0x7f, non-ASCII bytes and
+// letters, with tokens of every length across the word boundaries.
+struct ByteByByte {
+  Kind kind = Kind::blank;
+  std::string id, component, service, params;
+  std::size_t params_column = 0;
+  bool error = false;
+};
+
+ByteByByte read_byte_by_byte(std::string_view line) {
+  const auto blank = [](char c) {
+    return c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v';
+  };
+  std::size_t pos = 0;
+  const auto token = [&] {
+    while (pos < line.size() && blank(line[pos])) ++pos;
+    const std::size_t begin = pos;
+    while (pos < line.size() && !blank(line[pos])) ++pos;
+    return std::pair{begin, std::string(line.substr(begin, pos - begin))};
+  };
+  ByteByByte r;
+  const auto [id_begin, id] = token();
+  if (id.empty()) return r;
+  r.kind = Kind::malformed;
+  r.error = true;
+  for (char c : id)
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) {
+      r.id = "-";
+      return r;
+    }
+  r.id = id;
+  const auto [c_begin, component] = token();
+  if (component.empty()) return r;
+  r.component = component;
+  const auto [s_begin, service] = token();
+  if (service.empty()) {
+    if (component == "cancel") {
+      r.kind = Kind::cancel;
+      r.error = false;
+    }
+    r.component.clear();
+    return r;
+  }
+  r.service = service;
+  while (pos < line.size() && blank(line[pos])) ++pos;
+  std::size_t end = line.size();
+  while (end > pos && blank(line[end - 1])) --end;
+  r.params = line.substr(pos, end - pos);
+  r.params_column = pos + 1;
+  std::size_t bad = 0;
+  if (!valid_utf8(component, bad) || !valid_utf8(service, bad)) {
+    r.component = r.service = r.params = "";
+    r.params_column = 0;
+    return r;
+  }
+  r.kind = Kind::call;
+  r.error = false;
+  return r;
+}
+
+TEST(SocketWire, TokensReadByWordsAgreeWithAByteByByteReading) {
+  const std::string alphabet[] = {" ",    "\t",   "\r",   "\f",   "\v",       "a",   "b",
+                                  "Z",    "0",    "7",    "_",    ".",        "[",   "\x01",
+                                  "\x1b", "\x1f", "\x7f", "\x80", "\xc3\xa9", "\xff"};
+  std::mt19937 random(2024);
+  for (int i = 0; i < 200000; ++i) {
+    std::string line;
+    const std::size_t parts = random() % 40;
+    for (std::size_t k = 0; k < parts; ++k) {
+      // mostly letters, so that tokens grow past eight bytes
+      const std::size_t pick =
+          random() % 4 == 0 ? random() % std::size(alphabet) : 5 + random() % 3;
+      line += alphabet[pick];
+    }
+    const RequestLine r = parse_request_line(line);
+    const ByteByByte expected = read_byte_by_byte(line);
+    ASSERT_EQ(r.kind, expected.kind) << testing::PrintToString(line);
+    ASSERT_EQ(!r.error.empty(), expected.error) << testing::PrintToString(line);
+    ASSERT_EQ(r.id, expected.id) << testing::PrintToString(line);
+    if (r.kind != Kind::call) continue;
+    ASSERT_EQ(r.component, expected.component) << testing::PrintToString(line);
+    ASSERT_EQ(r.service, expected.service) << testing::PrintToString(line);
+    ASSERT_EQ(r.params, expected.params) << testing::PrintToString(line);
+    ASSERT_EQ(r.params_column, expected.params_column) << testing::PrintToString(line);
+  }
+}
+
 TEST(SocketWire, JsonLikePythonDumps) {
   EXPECT_EQ(dumps(json::parse(R"([1, "a", {"k": [true, false, null]}, 2.5, -3])")),
             R"([1, "a", {"k": [true, false, null]}, 2.5, -3])");

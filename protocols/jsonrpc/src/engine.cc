@@ -13,6 +13,7 @@
 #include "simgate/jsonrpc/protocol.h"
 #include "simgate/core/errors.h"
 #include "simgate/core/log.h"
+#include "simgate/core/text.h"
 
 namespace simgate::jsonrpc {
 
@@ -315,16 +316,16 @@ void JsonRpcEngine::dispatch(Session& session, Request& request, ReplyTo&& to) {
   auto& [call_id, call] = to_submit_[to_submit_count_++];
   call_id = id;
   // a kept call object names the same service more often than not: no copy then
-  if (call.component != component) call.component.assign(component);
-  if (call.service != service) call.service.assign(service);
+  if (!same_text(call.component, component)) call.component.assign(component);
+  if (!same_text(call.service, service)) call.service.assign(service);
   call.params.swap(request.params);  // request_ takes the call's old array, for the next parse
   call.progress = wants_progress;
   call.client = session.number();
   call.timeout = call_options.timeout;  // a notification's too: its service stops in time
   Pending& pending = **pending_.find(id);
   pending.to = std::move(to);
-  pending.method.assign(method);
-  pending.id_key.assign(key);
+  assign_text(pending.method, method);
+  assign_text(pending.id_key, key);
   pending.id_hash = key_hash;
   pending.cancel = false;
 }

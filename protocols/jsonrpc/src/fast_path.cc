@@ -7,6 +7,7 @@
 #include <cstring>
 #include <type_traits>
 
+#include "simgate/core/text.h"
 #include "simgate/jsonrpc/protocol.h"
 
 namespace simgate::jsonrpc {
@@ -301,7 +302,7 @@ bool parse_request_fast(std::string_view line, std::size_t max_depth, Request& o
     } else if (key == Member::method) {
       std::string_view method;
       if (has_method || !in.plain_string(method)) return false;
-      out.method.assign(method);
+      assign_text(out.method, method);
       has_method = true;
     } else if (key == Member::id) {
       if (out.has_id) return false;
@@ -317,7 +318,7 @@ bool parse_request_fast(std::string_view line, std::size_t max_depth, Request& o
       // its text as sent is dump(id): a plain string, an integer without leading zeros, null
       // (but for "-0", which dump() writes "0")
       const std::string_view text(begin, static_cast<std::size_t>(in.position() - begin));
-      out.id_text.assign(text == "-0" ? std::string_view("0") : text);
+      assign_text(out.id_text, text == "-0" ? std::string_view("0") : text);
       out.has_id = true;
     } else {
       const char c = in.peek();

@@ -1,6 +1,7 @@
 #include "simgate/morse/wire.h"
 
 #include <array>
+#include <bit>
 #include <charconv>
 #include <cmath>
 #include <cstdint>
@@ -25,10 +26,68 @@ std::size_t skip_blanks(std::string_view line, std::size_t pos) {
   return pos;
 }
 
+constexpr std::uint64_t k_ones = 0x0101010101010101ull, k_highs = 0x8080808080808080ull;
+
+// The high bit of each byte of `w` below 0x21 (a blank, a control character or a space),
+// exact up to the first such byte in memory order (little-endian), which is all we use.
+inline std::uint64_t low_bytes(std::uint64_t w) { return (w - k_ones * 0x21) & ~w & k_highs; }
+
 // The end of the token starting at `pos`; ORs its bytes into `bytes` (bit 7 set: not ASCII).
-std::size_t token_end(std::string_view line, std::size_t pos, unsigned& bytes) {
+// Eight bytes at a time while a whole word fits: a word whose bytes are all above ' ' holds
+// no blank; else the bytes before its first one at or below ' ' (found from the word, with
+// no loop) are the token's, and the rest goes byte by byte (that byte is a blank, mostly).
+inline std::size_t token_end(std::string_view line, std::size_t pos, unsigned& bytes) {
+  if constexpr (std::endian::native == std::endian::little) {
+    std::uint64_t seen = 0;  // the token's words, ORed
+    while (line.size() - pos >= 8) {
+      std::uint64_t w;
+      std::memcpy(&w, line.data() + pos, 8);
+      const std::uint64_t low = low_bytes(w);
+      if (low == 0) {
+        seen |= w;
+        pos += 8;
+        continue;
+      }
+      const int before = std::countr_zero(low) / 8;  // the token's bytes in this word
+      seen |= w & ((std::uint64_t{1} << (8 * before)) - 1);
+      pos += static_cast<std::size_t>(before);
+      break;
+    }
+    bytes |= (seen & k_highs) != 0 ? 0x80u : 0u;
+  }
   while (pos < line.size() && !is_blank_in_line(line[pos]))
     bytes |= static_cast<unsigned char>(line[pos++]);
+  return pos;
+}
+
+// token_end for a request's id: `controls` set if the id holds a control character (below
+// 0x20, or 0x7f: echoable_id's test, in the same pass). A word's bytes above ' ' can only
+// hold 0x7f; the bytes below 0x21 that are no blank are left to the byte loop.
+inline std::size_t id_end(std::string_view line, std::size_t pos, bool& controls) {
+  const auto has_zero_byte = [](std::uint64_t v) { return (v - k_ones) & ~v & k_highs; };
+  if constexpr (std::endian::native == std::endian::little) {
+    std::uint64_t dels = 0;  // nonzero once a 0x7f byte was seen
+    while (line.size() - pos >= 8) {
+      std::uint64_t w;
+      std::memcpy(&w, line.data() + pos, 8);
+      const std::uint64_t low = low_bytes(w);
+      if (low == 0) {
+        dels |= has_zero_byte(w ^ (k_ones * 0x7f));
+        pos += 8;
+        continue;
+      }
+      const int before = std::countr_zero(low) / 8;
+      // the bytes past the token made 0xff, never 0x7f
+      dels |= has_zero_byte((w | (~std::uint64_t{0} << (8 * before))) ^ (k_ones * 0x7f));
+      pos += static_cast<std::size_t>(before);
+      break;
+    }
+    controls = controls || dels != 0;
+  }
+  for (; pos < line.size() && !is_blank_in_line(line[pos]); ++pos) {
+    const auto c = static_cast<unsigned char>(line[pos]);
+    if (c < 0x20 || c == 0x7f) controls = true;
+  }
   return pos;
 }
 
@@ -250,13 +309,13 @@ std::optional<std::string_view> parse_auth_line(std::string_view line) {
 
 RequestLine parse_request_line(std::string_view line) {
   RequestLine r;
-  unsigned id_bytes = 0;    // (ids are echoed verbatim: only control characters are refused)
-  unsigned name_bytes = 0;  // the names' bytes ORed: non-ASCII names need a UTF-8 check
+  bool id_controls = false;  // ids are echoed verbatim: only control characters are refused
+  unsigned name_bytes = 0;   // the names' bytes ORed: non-ASCII names need a UTF-8 check
   const std::size_t id_begin = skip_blanks(line, 0);
-  const std::size_t id_end = token_end(line, id_begin, id_bytes);
-  if (id_begin == id_end) return r;  // blank
-  r.id = line.substr(id_begin, id_end - id_begin);
-  if (!echoable_id(r.id)) [[unlikely]] {
+  const std::size_t id_stop = id_end(line, id_begin, id_controls);
+  if (id_begin == id_stop) return r;  // blank
+  r.id = line.substr(id_begin, id_stop - id_begin);
+  if (id_controls) [[unlikely]] {
     std::size_t at = 0;  // the first control character
     while (echoable_id(r.id.substr(at, 1))) ++at;
     r.kind = RequestLine::Kind::malformed;
@@ -268,7 +327,7 @@ RequestLine parse_request_line(std::string_view line) {
     return r;
   }
 
-  const std::size_t c_begin = skip_blanks(line, id_end);
+  const std::size_t c_begin = skip_blanks(line, id_stop);
   const std::size_t c_end = token_end(line, c_begin, name_bytes);
   if (c_begin == c_end) {
     r.kind = RequestLine::Kind::malformed;

@@ -448,8 +448,14 @@ class RequestManager {
   // process() once the lock is held
   std::size_t process_locked();
   std::shared_ptr<AsyncSlot> slot_for(const std::string& component);
-  // The service a call names, or null (under the simulation lock).
-  std::shared_ptr<Service> find_service(const Call& call);
+  // The service a call names, or null (under the simulation lock). A service found is lent:
+  // the caller gives it back with return_service() once the call is over, with `version`
+  // (what find_service set). The previous lookup's service is moved out of last_lookup_ and
+  // back, so a pipelining client's requests touch no reference count (two atomic operations
+  // a request), and a service that unregisters its own component while it runs still lives
+  // until it returns.
+  std::shared_ptr<Service> find_service(const Call& call, std::uint64_t& version);
+  void return_service(std::shared_ptr<Service>&& service, std::uint64_t version) noexcept;
   Outcome unknown_service(const Call& call) const;
 
   std::string name_;                          // for error messages
@@ -478,7 +484,7 @@ class RequestManager {
   struct LastLookup {
     std::string component;             // as the call named it
     std::string name;                  // the service, as the call named it
-    std::shared_ptr<Service> service;  // what it found
+    std::shared_ptr<Service> service;  // what it found (null while lent: return_service)
     std::uint64_t version = 0;         // table_version_ when it was found
   } last_lookup_;
   // async requests this manager started and has not delivered (under the simulation lock)
