@@ -123,7 +123,7 @@ bool RequestManager::execute(RequestId id, const Call& call, Outcome& out,
     std::uint64_t version = 0;
     std::shared_ptr<Service> service;
     ~Lent() { manager.return_service(std::move(service), version); }
-  } lent{*this};
+  } lent{*this, 0, nullptr};
   lent.service = find_service(call, lent.version);
   if (!lent.service) {
     out = unknown_service(call);

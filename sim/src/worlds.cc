@@ -6,11 +6,13 @@
 #include <bit>
 #include <cmath>
 #include <exception>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
+#include <thread>
 
 #include "simgate/core/base64.h"
 #include "simgate/core/call_context.h"

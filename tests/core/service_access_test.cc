@@ -226,8 +226,13 @@ TEST_F(RequestManagerAccessTest, ARunningServiceSeesItsCallersLists) {
 // ---- consoles: process-wide services (issue #35, item 5)
 
 TEST(ServiceAccessTest, OnlyAConsoleAllowsProcessWideServices) {
-  ServiceDescriptor terminate{.component = "simulation", .name = "terminate", .process_wide = true};
-  ServiceDescriptor details{.component = "simulation", .name = "details"};
+  ServiceDescriptor terminate;  // members set one by one: a designated list leaves some out
+  terminate.component = "simulation";
+  terminate.name = "terminate";
+  terminate.process_wide = true;
+  ServiceDescriptor details;
+  details.component = "simulation";
+  details.name = "details";
   EXPECT_TRUE(ServiceAccess().allows(terminate));  // the default (a host, tests) is a console
   const ServiceAccess no_console(std::nullopt, {}, /*console=*/false);
   EXPECT_FALSE(no_console.allows(terminate));
@@ -267,7 +272,9 @@ TEST_F(RequestManagerAccessTest, ATransportThatIsNoConsoleRefusesProcessWideServ
 }
 
 TEST(ServiceDescriptorTest, AProcessWideServiceSaysSoInItsDescription) {
-  ServiceDescriptor d{.component = "simulation", .name = "terminate"};
+  ServiceDescriptor d;
+  d.component = "simulation";
+  d.name = "terminate";
   EXPECT_FALSE(d.to_json().contains("process_wide"));
   d.process_wide = true;
   EXPECT_EQ(d.to_json()["process_wide"], true);

@@ -21,7 +21,9 @@ TEST(SameText, AgreesWithEqualityForEveryLengthAndEveryDifferingByte) {
       b[i] ^= 0x20;
     }
     EXPECT_FALSE(same_text(a, a + "x")) << n;
-    if (n > 0) EXPECT_FALSE(same_text(a, std::string_view(a).substr(1))) << n;
+    if (n > 0) {
+      EXPECT_FALSE(same_text(a, std::string_view(a).substr(1))) << n;
+    }
   }
   EXPECT_TRUE(same_text(std::string_view(), ""));
 }

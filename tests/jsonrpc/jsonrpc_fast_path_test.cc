@@ -212,9 +212,10 @@ TEST(JsonRpcFastPath, EveryByteOfALongStringIsCheckedWordByWord) {
       const std::string in_param = envelope_head + plain + R"(","params":[")" + bent + R"("]})";
       for (const auto& line : {in_method, in_param}) {
         check(line, fast);  // declined, or read exactly as the full parser reads it
-        if (special != '"' && special != '\\' && static_cast<unsigned char>(special) < 0x20)
+        if (special != '"' && special != '\\' && static_cast<unsigned char>(special) < 0x20) {
           EXPECT_FALSE(parse_request_fast(line, k_max_depth, fast))
               << "control byte " << static_cast<int>(special) << " at " << i;
+        }
       }
     }
   }
